@@ -1,0 +1,209 @@
+"""How a system or robot declares itself to scenes, and how scenes find it.
+
+A *builder* names its parameters and the effects it can switch on (each with its own
+parameters), and builds a ``Model`` (a ``HybridSystem`` plus what the tools around it need:
+default initial state, energy, geometry for pictures) from only the effects a scene asks for.
+
+Builders are found through the ``legsim.builders`` entry-point group, so the core never imports
+``robots/`` (nor any third-party package): a package that wants its robot runnable from scenes
+declares ``[project.entry-points."legsim.builders"] myrobot = "mypkg.myrobot:BUILDER"``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from importlib import metadata
+from typing import Any, Callable, Mapping
+
+import numpy as np
+
+from .errors import ModelError, SceneError
+from .hybrid import HybridSystem
+
+ENTRY_POINT_GROUP = "legsim.builders"
+
+
+@dataclass(frozen=True)
+class Param:
+    """A scene parameter: its default, meaning and allowed values.
+
+    ``low``/``high`` bound numbers (inclusive unless ``low_open``/``high_open``);
+    ``choices`` restricts strings. The type is the default's type (int is accepted where a
+    float is expected, bool never is).
+    """
+
+    default: Any
+    doc: str = ""
+    unit: str = ""
+    low: float | None = None
+    high: float | None = None
+    low_open: bool = False
+    high_open: bool = False
+    choices: tuple[Any, ...] | None = None
+
+    def allowed(self) -> str:
+        """Human description of the allowed values (for error messages and docs)."""
+        kind = type(self.default).__name__
+        parts = [kind]
+        if self.choices is not None:
+            parts.append(f"one of {list(self.choices)}")
+        if self.low is not None or self.high is not None:
+            lo = "-inf" if self.low is None else f"{self.low:g}"
+            hi = "inf" if self.high is None else f"{self.high:g}"
+            lb = "(" if (self.low is None or self.low_open) else "["
+            rb = ")" if (self.high is None or self.high_open) else "]"
+            parts.append(f"in {lb}{lo}, {hi}{rb}")
+        return " ".join(parts)
+
+    def check(self, value: Any, where: str) -> Any:
+        """Return ``value`` converted to this parameter's type, or raise SceneError naming ``where``."""
+        expected = type(self.default)
+        if expected is bool:
+            if not isinstance(value, bool):
+                raise SceneError(f"{where}: expected a boolean (true/false), got {value!r}")
+            return value
+        if expected in (int, float):
+            if isinstance(value, bool) or not isinstance(value, (int, float)):
+                raise SceneError(f"{where}: expected a number ({self.allowed()}), got {value!r}")
+            if expected is int and not isinstance(value, int):
+                raise SceneError(f"{where}: expected an integer ({self.allowed()}), got {value!r}")
+            value = expected(value)
+            if not math.isfinite(value):
+                raise SceneError(f"{where}: must be finite, got {value!r}")
+            if self.low is not None and (value < self.low or (self.low_open and value == self.low)):
+                raise SceneError(f"{where}: {value!r} is out of range, allowed: {self.allowed()}")
+            if self.high is not None and (value > self.high or (self.high_open and value == self.high)):
+                raise SceneError(f"{where}: {value!r} is out of range, allowed: {self.allowed()}")
+            return value
+        if expected is str:
+            if not isinstance(value, str):
+                raise SceneError(f"{where}: expected a string, got {value!r}")
+            if self.choices is not None and value not in self.choices:
+                raise SceneError(f"{where}: {value!r} is not allowed, choose one of {list(self.choices)}")
+            return value
+        if expected in (list, tuple):
+            if not isinstance(value, (list, tuple)):
+                raise SceneError(f"{where}: expected a list, got {value!r}")
+            return list(value)
+        return value
+
+
+@dataclass(frozen=True)
+class Effect:
+    """An effect a scene may switch on (gravity, a stop, a leg, damping, a controller...).
+
+    In a scene, ``name = true`` switches it on with default parameters, ``name = false`` off,
+    and ``name = { key = value, ... }`` on with those parameters.
+    """
+
+    doc: str
+    default_on: bool = False
+    parameters: Mapping[str, Param] = field(default_factory=dict)
+
+
+@dataclass
+class Model:
+    """What a builder returns: the hybrid system and what tools around it need.
+
+    Attributes
+    ----------
+    system: the hybrid system, with only the modes, guards and terms of the effects named.
+    initial_mode: default initial mode.
+    initial_state: default initial state by coordinate name (of ``initial_mode``).
+    control: optional control(t, x) -> u, passed to ``simulate``.
+    geometry: optional ``geometry(mode, x) -> {part: array (k, 2)}``: polylines in the
+        sagittal (x, z) plane in metres, for recordings and animations.
+    scenery: static polylines (ground, stops) in the same form.
+    reference: optional analytic or high-accuracy reference of the scene's execution.
+    counters: optional ``() -> dict`` of model-side counts (e.g. damping-term evaluations).
+    info: free-form facts about the model (parameters used, units of each guard).
+    """
+
+    system: HybridSystem
+    initial_mode: str
+    initial_state: dict[str, float]
+    control: Callable[[float, np.ndarray], Any] | None = None
+    geometry: Callable[[str, np.ndarray], dict[str, np.ndarray]] | None = None
+    scenery: dict[str, np.ndarray] = field(default_factory=dict)
+    reference: Any = None
+    counters: Callable[[], dict[str, int]] | None = None
+    info: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class Builder:
+    """A named system or robot that scenes can ask for.
+
+    ``build(parameters, effects)`` receives every parameter (defaults filled in, validated)
+    and only the effects that are switched on, each with its validated parameters.
+    """
+
+    name: str
+    description: str
+    parameters: Mapping[str, Param]
+    effects: Mapping[str, Effect]
+    build: Callable[[dict[str, Any], dict[str, dict[str, Any]]], Model]
+
+    def make(self, parameters: Mapping[str, Any] | None = None,
+             effects: Mapping[str, Any] | None = None, where: str = "") -> Model:
+        """Validate ``parameters`` and ``effects`` (as a scene would give them) and build."""
+        prefix = f"{where}: " if where else ""
+        params = resolve_parameters(self.parameters, parameters or {}, f"{prefix}robot.parameters")
+        chosen = resolve_effects(self.effects, effects or {}, f"{prefix}effects")
+        model = self.build(params, chosen)
+        if not isinstance(model, Model):
+            raise ModelError(f"builder '{self.name}' returned {type(model).__name__}, expected legsim.builders.Model")
+        return model
+
+
+def resolve_parameters(schema: Mapping[str, Param], given: Mapping[str, Any], where: str) -> dict[str, Any]:
+    """Defaults overridden by ``given``, each checked; unknown names are rejected."""
+    if not isinstance(given, Mapping):
+        raise SceneError(f"{where}: expected a table of parameters, got {given!r}")
+    unknown = sorted(set(given) - set(schema))
+    if unknown:
+        raise SceneError(f"{where}: unknown parameter(s) {unknown}; allowed: {sorted(schema)}")
+    out = {name: p.default for name, p in schema.items()}
+    for name, value in given.items():
+        out[name] = schema[name].check(value, f"{where}.{name}")
+    return out
+
+
+def resolve_effects(schema: Mapping[str, Effect], given: Mapping[str, Any], where: str) -> dict[str, dict[str, Any]]:
+    """The effects switched on, each with its parameters resolved."""
+    if not isinstance(given, Mapping):
+        raise SceneError(f"{where}: expected a table of effects, got {given!r}")
+    unknown = sorted(set(given) - set(schema))
+    if unknown:
+        raise SceneError(f"{where}: unknown effect(s) {unknown}; allowed: {sorted(schema)}")
+    chosen: dict[str, dict[str, Any]] = {}
+    for name, effect in schema.items():
+        value = given.get(name, effect.default_on)
+        if isinstance(value, bool):
+            if value:
+                chosen[name] = resolve_parameters(effect.parameters, {}, f"{where}.{name}")
+        elif isinstance(value, Mapping):
+            chosen[name] = resolve_parameters(effect.parameters, value, f"{where}.{name}")
+        else:
+            raise SceneError(f"{where}.{name}: expected true, false or a table of parameters, got {value!r}")
+    return chosen
+
+
+def available() -> dict[str, metadata.EntryPoint]:
+    """The registered builders by name (not yet imported)."""
+    return {ep.name: ep for ep in metadata.entry_points(group=ENTRY_POINT_GROUP)}
+
+
+def get_builder(name: str) -> Builder:
+    """Load the builder called ``name``; SceneError lists the known names when it is unknown."""
+    eps = available()
+    if name not in eps:
+        raise SceneError(f"unknown robot '{name}'; available: {sorted(eps)}")
+    try:
+        builder = eps[name].load()
+    except Exception as exc:
+        raise SceneError(f"robot '{name}' could not be loaded from {eps[name].value}: {type(exc).__name__}: {exc}") from exc
+    if not isinstance(builder, Builder):
+        raise SceneError(f"entry point '{name}' ({eps[name].value}) is not a legsim.builders.Builder")
+    return builder

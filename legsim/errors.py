@@ -1,0 +1,25 @@
+"""Exception classes of legsim.
+
+Every error a user can provoke is one of these, with a message that names what is wrong
+(the mode, transition, time, file or field), so that nobody has to read a numpy traceback.
+Ordinary ends of a simulation (t_final reached, transition budget used up, halving exhausted)
+are not exceptions: they are the ``status`` of the returned ``Execution``.
+"""
+
+from __future__ import annotations
+
+
+class LegsimError(Exception):
+    """Base class of all legsim errors."""
+
+
+class ModelError(LegsimError, ValueError):
+    """A hybrid system is malformed: unknown mode, wrong dimension, non-callable, bad output."""
+
+
+class SimulationError(LegsimError, ValueError):
+    """The arguments of a simulation are invalid (h, eps, t_final, x0, method, mode)."""
+
+
+class SceneError(LegsimError, ValueError):
+    """A scene file is malformed; the message names the file and the field."""

@@ -1,0 +1,466 @@
+"""The result of a simulation: segments of flow, strips, transitions and counters.
+
+An execution alternates *segments* (the computed flow in one mode between two transitions)
+and *strips* (the relaxation interval of a transition, during which the state is held at the
+guard point ``q`` until the reset is applied). Segment arrays are preallocated and grown by
+doubling, never appended to one row at a time.
+
+Dense output: each stored point keeps its derivative f(t, x), so ``sample`` interpolates with
+cubic Hermite polynomials (error O(h^4) between steps, matching RK4) rather than the linear
+interpolation of paper 000 Fig. 12 step 9, which would limit any off-grid comparison to O(h^2).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Iterable, Sequence
+
+import numpy as np
+
+from .errors import SimulationError
+
+#: Ordinary ends of a run (diffrax-style result codes rather than exceptions).
+STATUSES = (
+    "finished",  # reached t_final
+    "max_transitions",  # the transition budget was used up
+    "halving_exhausted",  # no halved step lands in the relaxed domain (outward tangent flow)
+    "non_finite",  # a field, guard or reset produced inf/nan
+    "reset_outside_domain",  # a reset image lies past a guard of its target by more than eps
+)
+
+
+@dataclass(frozen=True)
+class Segment:
+    """The computed flow in one mode visit.
+
+    Attributes
+    ----------
+    mode: mode name.
+    t: times, shape (N,), strictly increasing (N >= 1).
+    x: states, shape (N, n).
+    dx: derivatives f(t, x) at the stored points, shape (N, n) (for dense output).
+    """
+
+    mode: str
+    t: np.ndarray
+    x: np.ndarray
+    dx: np.ndarray
+
+    @property
+    def t_start(self) -> float:
+        return float(self.t[0])
+
+    @property
+    def t_end(self) -> float:
+        return float(self.t[-1])
+
+    def interpolate(self, times: np.ndarray) -> np.ndarray:
+        """Cubic Hermite interpolation at ``times`` (inside [t_start, t_end]); shape (len, n)."""
+        times = np.asarray(times, dtype=float)
+        if len(self.t) == 1:
+            return np.repeat(self.x[:1], len(times), axis=0)
+        idx = np.clip(np.searchsorted(self.t, times, side="right") - 1, 0, len(self.t) - 2)
+        t0 = self.t[idx]
+        dt = self.t[idx + 1] - t0
+        s = ((times - t0) / dt)[:, None]
+        x0, x1 = self.x[idx], self.x[idx + 1]
+        d0, d1 = self.dx[idx] * dt[:, None], self.dx[idx + 1] * dt[:, None]
+        h00 = 2 * s**3 - 3 * s**2 + 1
+        h10 = s**3 - 2 * s**2 + s
+        h01 = -2 * s**3 + 3 * s**2
+        h11 = s**3 - s**2
+        return h00 * x0 + h10 * d0 + h01 * x1 + h11 * d1
+
+
+@dataclass(frozen=True)
+class Strip:
+    """A relaxation interval: the state is held at ``state`` (the guard point q) in ``mode``
+    from ``time`` to ``exit_time`` (the end time of the run if the strip was cut short)."""
+
+    mode: str
+    name: str
+    time: float
+    exit_time: float
+    state: np.ndarray
+
+
+@dataclass(frozen=True)
+class TransitionRecord:
+    """One completed transition.
+
+    Attributes
+    ----------
+    name: transition name; ``source``/``target``: mode names; ``index``: position of the
+        transition among the source mode's outgoing transitions.
+    time: strip entry, the time at which the step's interpolant meets the guard (s).
+    landing_time: end of the step that landed in the strip (s).
+    exit_time: strip exit, ``landing_time + eps - depth``, when the reset was applied (s).
+    state_before: the guard point q the reset was applied to (source dimension).
+    state_after: the reset image R(q) (target dimension).
+    depth: tau = -guard at the landing point, in guard units (0 <= tau <= eps).
+    """
+
+    name: str
+    source: str
+    target: str
+    index: int
+    time: float
+    landing_time: float
+    exit_time: float
+    state_before: np.ndarray
+    state_after: np.ndarray
+    depth: float
+
+    @property
+    def edge(self) -> tuple[str, str]:
+        return (self.source, self.target)
+
+
+@dataclass
+class Samples:
+    """The execution sampled at given times.
+
+    ``modes[i]`` and ``states[i]`` are the mode and state at ``times[i]``; ``in_strip[i]`` is
+    True when that time falls in a relaxation strip (the state is then the held guard point).
+    """
+
+    times: np.ndarray
+    modes: list[str]
+    states: list[np.ndarray]
+    in_strip: np.ndarray
+
+    def stack(self) -> np.ndarray:
+        """States as one array (len(times), n); raises when the dimension changes between modes."""
+        dims = {len(s) for s in self.states}
+        if len(dims) > 1:
+            raise SimulationError(f"cannot stack samples of different dimensions {sorted(dims)}; use .states")
+        return np.array(self.states).reshape(len(self.states), -1)
+
+
+class SegmentBuffer:
+    """Growable preallocated storage for one segment (internal to the integrator)."""
+
+    __slots__ = ("mode", "t", "x", "dx", "size")
+
+    def __init__(self, mode: str, dim: int, capacity: int = 256) -> None:
+        self.mode = mode
+        self.t = np.empty(capacity)
+        self.x = np.empty((capacity, dim))
+        self.dx = np.empty((capacity, dim))
+        self.size = 0
+
+    def append(self, t: float, x: np.ndarray, dx: np.ndarray) -> None:
+        if self.size == len(self.t):
+            new = 2 * len(self.t)
+            self.t = np.resize(self.t, new)
+            self.x = np.resize(self.x, (new, self.x.shape[1]))
+            self.dx = np.resize(self.dx, (new, self.dx.shape[1]))
+        i = self.size
+        self.t[i] = t
+        self.x[i] = x
+        self.dx[i] = dx
+        self.size = i + 1
+
+    def last_time(self) -> float:
+        return float(self.t[self.size - 1])
+
+    def freeze(self) -> Segment:
+        n = self.size
+        return Segment(self.mode, self.t[:n].copy(), self.x[:n].copy(), self.dx[:n].copy())
+
+
+@dataclass
+class Execution:
+    """A computed (relaxed, discrete) execution of a hybrid system.
+
+    Attributes
+    ----------
+    status: one of ``STATUSES``; ``message``: a human explanation when status != finished.
+    segments, strips, transitions: the pieces of the execution in time order.
+    t0: start time; t_end: time reached (s); t_final: time requested (s).
+    counters: steps, halvings, field_evals, guard_evals, reset_evals, strip_time, ...
+    settings: h, eps, method and the other arguments of the run.
+    state_names: coordinate names per mode visited.
+    system_name: name of the simulated system.
+    """
+
+    status: str
+    message: str
+    segments: list[Segment]
+    strips: list[Strip]
+    transitions: list[TransitionRecord]
+    t0: float
+    t_end: float
+    t_final: float
+    counters: dict[str, float]
+    settings: dict[str, Any]
+    state_names: dict[str, tuple[str, ...]]
+    system_name: str = ""
+    final_in_strip: bool = False
+    _final: tuple[str, np.ndarray] | None = field(default=None, repr=False)
+
+    # -- the summary a user asks for --------------------------------------------------------
+    @property
+    def final_mode(self) -> str:
+        """Mode at t_end (the source mode if the run ended inside a strip)."""
+        return self._final_pair()[0]
+
+    @property
+    def final_state(self) -> np.ndarray:
+        """State at t_end (the held guard point if the run ended inside a strip)."""
+        return self._final_pair()[1].copy()
+
+    def _final_pair(self) -> tuple[str, np.ndarray]:
+        if self._final is not None:
+            return self._final
+        if self.final_in_strip and self.strips:
+            last = self.strips[-1]
+            return last.mode, last.state
+        seg = self.segments[-1]
+        return seg.mode, seg.x[-1]
+
+    @property
+    def mode_sequence(self) -> list[str]:
+        """Modes visited, in order (one entry per segment)."""
+        return [s.mode for s in self.segments]
+
+    @property
+    def succeeded(self) -> bool:
+        """True when the run reached t_final."""
+        return self.status == "finished"
+
+    @property
+    def steps(self) -> int:
+        return int(self.counters.get("steps", 0))
+
+    @property
+    def halvings(self) -> int:
+        return int(self.counters.get("halvings", 0))
+
+    def strip_intervals(self) -> list[tuple[float, float]]:
+        """(entry, exit) times of every strip, the last one possibly cut by t_end."""
+        return [(s.time, s.exit_time) for s in self.strips]
+
+    def raise_for_status(self) -> "Execution":
+        """Raise ``SimulationError`` with the message unless the run finished."""
+        if self.status != "finished":
+            raise SimulationError(f"simulation stopped with status '{self.status}': {self.message}")
+        return self
+
+    def summary(self) -> dict[str, Any]:
+        """JSON-ready summary (the keys of ``legsim run --json``)."""
+        mode, x = self._final_pair()
+        return {
+            "system": self.system_name,
+            "status": self.status,
+            "message": self.message,
+            "t_final": float(self.t_end),
+            "final_mode": mode,
+            "final_state": [float(v) for v in x],
+            "state_names": list(self.state_names.get(mode, ())),
+            "final_in_strip": bool(self.final_in_strip),
+            "mode_sequence": self.mode_sequence,
+            "transitions": len(self.transitions),
+            "steps": int(self.counters.get("steps", 0)),
+            "halvings": int(self.counters.get("halvings", 0)),
+            "field_evals": int(self.counters.get("field_evals", 0)),
+            "guard_evals": int(self.counters.get("guard_evals", 0)),
+            "reset_evals": int(self.counters.get("reset_evals", 0)),
+            "strip_time": float(self.counters.get("strip_time", 0.0)),
+            "wall_time_s": float(self.counters.get("wall_time_s", 0.0)),
+            "h": self.settings.get("h"),
+            "eps": self.settings.get("eps"),
+            "method": self.settings.get("method"),
+        }
+
+    # -- sampling --------------------------------------------------------------------------
+    def _pieces(self) -> tuple[np.ndarray, list[tuple[str, int]]]:
+        starts: list[float] = []
+        kinds: list[tuple[str, int]] = []
+        # Segments and strips alternate; merge them by start time, a segment before a strip
+        # that starts at the same instant (a zero-length segment of an immediate transition).
+        i = j = 0
+        while i < len(self.segments) or j < len(self.strips):
+            take_seg = j >= len(self.strips) or (
+                i < len(self.segments) and self.segments[i].t_start <= self.strips[j].time
+            )
+            if take_seg:
+                starts.append(self.segments[i].t_start)
+                kinds.append(("seg", i))
+                i += 1
+            else:
+                starts.append(self.strips[j].time)
+                kinds.append(("strip", j))
+                j += 1
+        return np.array(starts), kinds
+
+    def sample(self, times: Iterable[float] | float) -> Samples:
+        """Mode and state at each of ``times`` (s), which must lie in [t0, t_end].
+
+        Between steps the state is the cubic Hermite interpolant of the step ends; inside a
+        strip it is the held guard point. At a strip exit the state is the reset image.
+        """
+        arr = np.atleast_1d(np.asarray(times, dtype=float))
+        if arr.ndim != 1:
+            raise SimulationError(f"sample times must be a 1-d sequence, got shape {arr.shape}")
+        if not np.all(np.isfinite(arr)):
+            raise SimulationError("sample times must be finite")
+        tol = 1e-12 * max(1.0, abs(self.t_end))
+        if arr.size and (arr.min() < self.t0 - tol or arr.max() > self.t_end + tol):
+            raise SimulationError(
+                f"sample times must lie in [{self.t0}, {self.t_end}] (the executed interval), "
+                f"got [{arr.min()}, {arr.max()}]"
+            )
+        starts, kinds = self._pieces()
+        which = np.clip(np.searchsorted(starts, arr, side="right") - 1, 0, len(kinds) - 1)
+        modes: list[str] = [""] * len(arr)
+        states: list[np.ndarray] = [np.empty(0)] * len(arr)
+        in_strip = np.zeros(len(arr), dtype=bool)
+        for piece in np.unique(which):
+            sel = np.nonzero(which == piece)[0]
+            kind, k = kinds[piece]
+            if kind == "seg":
+                seg = self.segments[k]
+                values = seg.interpolate(np.clip(arr[sel], seg.t_start, seg.t_end))
+                for row, i in enumerate(sel):
+                    modes[i] = seg.mode
+                    states[i] = values[row]
+            else:
+                strip = self.strips[k]
+                for i in sel:
+                    modes[i] = strip.mode
+                    states[i] = strip.state.copy()
+                    in_strip[i] = True
+        return Samples(arr, modes, states, in_strip)
+
+    def state_at(self, t: float) -> tuple[str, np.ndarray]:
+        """(mode, state) at time t."""
+        s = self.sample([t])
+        return s.modes[0], s.states[0]
+
+    def step_times(self) -> np.ndarray:
+        """All computed time points (segment points), in order."""
+        return np.concatenate([s.t for s in self.segments])
+
+    # -- persistence -----------------------------------------------------------------------
+    def save(self, path: str | os.PathLike) -> Path:
+        """Write the execution to a ``.npz`` file, completely or not at all."""
+        path = Path(path)
+        modes = sorted({s.mode for s in self.segments} | {s.mode for s in self.strips}
+                       | {tr.target for tr in self.transitions})
+        index = {m: i for i, m in enumerate(modes)}
+        payload: dict[str, np.ndarray] = {}
+        payload["seg_mode"] = np.array([index[s.mode] for s in self.segments], dtype=np.int64)
+        payload["seg_len"] = np.array([len(s.t) for s in self.segments], dtype=np.int64)
+        payload["seg_dim"] = np.array([s.x.shape[1] for s in self.segments], dtype=np.int64)
+        payload["seg_t"] = np.concatenate([s.t for s in self.segments])
+        payload["seg_x"] = np.concatenate([s.x.ravel() for s in self.segments])
+        payload["seg_dx"] = np.concatenate([s.dx.ravel() for s in self.segments])
+        payload["strip_mode"] = np.array([index[s.mode] for s in self.strips], dtype=np.int64)
+        payload["strip_times"] = np.array([[s.time, s.exit_time] for s in self.strips]).reshape(-1, 2)
+        payload["strip_state"] = _flat([s.state for s in self.strips])
+        payload["strip_dim"] = np.array([len(s.state) for s in self.strips], dtype=np.int64)
+        trs = self.transitions
+        payload["tr_edge"] = np.array([[index[t.source], index[t.target], t.index] for t in trs],
+                                      dtype=np.int64).reshape(-1, 3)
+        payload["tr_times"] = np.array([[t.time, t.landing_time, t.exit_time, t.depth] for t in trs]).reshape(-1, 4)
+        payload["tr_before"] = _flat([t.state_before for t in trs])
+        payload["tr_after"] = _flat([t.state_after for t in trs])
+        payload["tr_dims"] = np.array([[len(t.state_before), len(t.state_after)] for t in trs],
+                                      dtype=np.int64).reshape(-1, 2)
+        meta = {
+            "format": "legsim-execution-1",
+            "modes": modes,
+            "strip_names": [s.name for s in self.strips],
+            "tr_names": [t.name for t in trs],
+            "status": self.status,
+            "message": self.message,
+            "t0": self.t0,
+            "t_end": self.t_end,
+            "t_final": self.t_final,
+            "counters": self.counters,
+            "settings": _jsonable(self.settings),
+            "state_names": {k: list(v) for k, v in self.state_names.items()},
+            "system_name": self.system_name,
+            "final_in_strip": self.final_in_strip,
+        }
+        payload["meta"] = np.array(json.dumps(meta))
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=path.name + ".", suffix=".tmp.npz", dir=path.parent)
+        os.close(fd)
+        try:
+            np.savez_compressed(tmp, **payload)
+            os.replace(tmp, path)
+        except BaseException:
+            Path(tmp).unlink(missing_ok=True)
+            raise
+        return path
+
+    @classmethod
+    def load(cls, path: str | os.PathLike) -> "Execution":
+        """Read an execution written by ``save``."""
+        path = Path(path)
+        if not path.exists():
+            raise SimulationError(f"{path}: no such execution file")
+        try:
+            data = np.load(path, allow_pickle=False)
+            meta = json.loads(str(data["meta"]))
+        except Exception as exc:
+            raise SimulationError(f"{path}: not a legsim execution file ({exc})") from exc
+        if meta.get("format") != "legsim-execution-1":
+            raise SimulationError(f"{path}: unknown execution format {meta.get('format')!r}")
+        modes = meta["modes"]
+        segments = []
+        t_off = x_off = 0
+        for m, n, d in zip(data["seg_mode"], data["seg_len"], data["seg_dim"]):
+            t = data["seg_t"][t_off:t_off + n]
+            x = data["seg_x"][x_off:x_off + n * d].reshape(n, d)
+            dx = data["seg_dx"][x_off:x_off + n * d].reshape(n, d)
+            segments.append(Segment(modes[m], t.copy(), x.copy(), dx.copy()))
+            t_off += n
+            x_off += n * d
+        strips = []
+        off = 0
+        for k, (m, d) in enumerate(zip(data["strip_mode"], data["strip_dim"])):
+            state = data["strip_state"][off:off + d].copy()
+            off += d
+            t0, t1 = data["strip_times"][k]
+            strips.append(Strip(modes[m], meta["strip_names"][k], float(t0), float(t1), state))
+        transitions = []
+        ob = oa = 0
+        for k, ((s, tg, idx), (tm, tl, te, depth), (db, da)) in enumerate(
+            zip(data["tr_edge"], data["tr_times"], data["tr_dims"])
+        ):
+            before = data["tr_before"][ob:ob + db].copy()
+            after = data["tr_after"][oa:oa + da].copy()
+            ob += db
+            oa += da
+            transitions.append(TransitionRecord(meta["tr_names"][k], modes[s], modes[tg], int(idx), float(tm),
+                                                float(tl), float(te), before, after, float(depth)))
+        return cls(
+            status=meta["status"], message=meta["message"], segments=segments, strips=strips,
+            transitions=transitions, t0=meta["t0"], t_end=meta["t_end"], t_final=meta["t_final"],
+            counters=meta["counters"], settings=meta["settings"],
+            state_names={k: tuple(v) for k, v in meta["state_names"].items()},
+            system_name=meta["system_name"], final_in_strip=meta["final_in_strip"],
+        )
+
+
+def _flat(arrays: Sequence[np.ndarray]) -> np.ndarray:
+    return np.concatenate([np.asarray(a, dtype=float).ravel() for a in arrays]) if arrays else np.empty(0)
+
+
+def _jsonable(obj: Any) -> Any:
+    if isinstance(obj, dict):
+        return {str(k): _jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_jsonable(v) for v in obj]
+    if isinstance(obj, (np.floating, np.integer)):
+        return obj.item()
+    if isinstance(obj, (str, int, float, bool)) or obj is None:
+        return obj
+    return repr(obj)

@@ -1,0 +1,404 @@
+"""The hybrid-system model: modes, transitions and the system that ties them together.
+
+A controlled hybrid system (paper 000, Def. 7) is a set of modes ``j``, each with a domain
+``D_j`` in R^{n_j} and a vector field ``f_j(t, x, u)``, and a set of transitions ``e = (j, j')``,
+each with a guard ``G_e`` on the boundary of ``D_j`` and a reset map ``R_e: G_e -> D_j'``.
+
+Conventions (they are the whole contract between models and the integrator):
+
+* ``guard(x) >= 0`` inside the source domain and ``< 0`` past the guard. A domain is the set
+  where every guard of its outgoing transitions is >= 0. Write "and" conditions with ``max``:
+  a stop at ``x_max`` reached while moving towards it is ``max(x_max - x, -v)``.
+* The guard's value is the *transverse coordinate* of the relaxation strip: the strip of a
+  transition is ``-eps <= guard(x) < 0``, so ``eps`` is measured in the guard's own units
+  (metres for a height, radians for an angle). Each model documents its guard units.
+* ``field(t, x, u) -> dx/dt`` and ``reset(x) -> x'`` take and return float64 arrays of shape
+  ``(n,)``; ``u`` is whatever the control returns (``None`` without control).
+
+The system is immutable once built. Modes can also be produced lazily by an ``expand``
+callback, for models whose contact subsets are too many to enumerate up front.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from types import MappingProxyType
+from typing import Any, Callable, Iterable, Mapping, Sequence
+
+import numpy as np
+
+from .errors import ModelError
+
+FieldFn = Callable[[float, np.ndarray, Any], np.ndarray]
+GuardFn = Callable[[np.ndarray], float]
+ResetFn = Callable[[np.ndarray], np.ndarray]
+
+
+@dataclass(frozen=True)
+class Mode:
+    """One discrete mode: a state dimension, a vector field and optional coordinate names.
+
+    Parameters
+    ----------
+    dim:
+        State dimension n_j (>= 1).
+    field:
+        ``field(t, x, u) -> dx/dt``, x of shape (n_j,), returns shape (n_j,).
+    names:
+        Names of the state coordinates (length n_j); default ``x0, x1, ...``.
+    jacobian:
+        Optional ``jacobian(t, x, u) -> df/dx`` of shape (n_j, n_j); finite differences
+        are used where it is missing (error bounds, periodic orbits).
+    """
+
+    dim: int
+    field: FieldFn
+    names: tuple[str, ...] | None = None
+    jacobian: Callable[[float, np.ndarray, Any], np.ndarray] | None = None
+
+    def __post_init__(self) -> None:
+        if isinstance(self.dim, bool) or not isinstance(self.dim, (int, np.integer)) or self.dim < 1:
+            raise ModelError(f"Mode dim must be a positive integer, got {self.dim!r}")
+        object.__setattr__(self, "dim", int(self.dim))
+        if not callable(self.field):
+            raise ModelError(f"Mode field must be callable f(t, x, u), got {type(self.field).__name__}")
+        if self.jacobian is not None and not callable(self.jacobian):
+            raise ModelError("Mode jacobian must be callable jacobian(t, x, u) or None")
+        names = self.names
+        if names is None:
+            names = tuple(f"x{i}" for i in range(self.dim))
+        else:
+            names = tuple(str(n) for n in names)
+        if len(names) != self.dim:
+            raise ModelError(f"Mode has dim {self.dim} but {len(names)} coordinate names {names}")
+        if len(set(names)) != len(names):
+            raise ModelError(f"Mode coordinate names must be unique, got {names}")
+        object.__setattr__(self, "names", names)
+
+
+def _identity(x: np.ndarray) -> np.ndarray:
+    return x.copy()
+
+
+@dataclass(frozen=True)
+class Transition:
+    """A transition ``source -> target``: guard and reset map.
+
+    Parameters
+    ----------
+    source, target:
+        Mode names; ``source == target`` is a self-transition (e.g. an impact with bounce).
+    guard:
+        ``guard(x) -> float``: >= 0 inside the source domain, < 0 past the guard, in units of
+        the transverse coordinate (the strip width eps is measured in these units).
+    reset:
+        ``reset(x) -> x'`` from the source's state space to the target's; identity if None
+        (allowed only when the dimensions agree).
+    name:
+        A readable name for messages and recordings; default ``"source->target"``.
+    guard_gradient, reset_jacobian:
+        Optional derivatives (shape (n_source,) and (n_target, n_source)); finite
+        differences are used where they are missing.
+    """
+
+    source: str
+    target: str
+    guard: GuardFn
+    reset: ResetFn | None = None
+    name: str | None = None
+    guard_gradient: Callable[[np.ndarray], np.ndarray] | None = None
+    reset_jacobian: Callable[[np.ndarray], np.ndarray] | None = None
+
+    def __post_init__(self) -> None:
+        label = self.name or f"{self.source}->{self.target}"
+        object.__setattr__(self, "name", label)
+        if not isinstance(self.source, str) or not isinstance(self.target, str):
+            raise ModelError(f"transition {label}: source and target must be mode names (str)")
+        if not callable(self.guard):
+            raise ModelError(f"transition {label}: guard must be callable guard(x) -> float")
+        if self.reset is not None and not callable(self.reset):
+            raise ModelError(f"transition {label}: reset must be callable reset(x) -> x' or None")
+        for attr in ("guard_gradient", "reset_jacobian"):
+            if getattr(self, attr) is not None and not callable(getattr(self, attr)):
+                raise ModelError(f"transition {label}: {attr} must be callable or None")
+
+    @property
+    def edge(self) -> tuple[str, str]:
+        """The (source, target) pair."""
+        return (self.source, self.target)
+
+
+@dataclass(frozen=True)
+class ModeData:
+    """What the integrator needs about one mode, gathered once (internal)."""
+
+    name: str
+    mode: Mode
+    transitions: tuple[Transition, ...]
+    guards: tuple[GuardFn, ...]
+    resets: tuple[ResetFn, ...]
+    targets: tuple[str, ...]
+
+
+class HybridSystem:
+    """A hybrid system: named modes and the transitions between them.
+
+    Parameters
+    ----------
+    modes:
+        Mapping of mode name to ``Mode``.
+    transitions:
+        The transitions; their source and target must be modes of the system (or modes that
+        ``expand`` can produce).
+    name:
+        A readable name.
+    expand:
+        Optional ``expand(mode_name) -> (Mode, [Transition, ...])`` producing a mode and its
+        outgoing transitions on first use, for models with many reachable modes.
+    energy:
+        Optional ``energy(mode_name, x) -> float`` (J), reported in run summaries of
+        mechanical systems.
+    initial:
+        Optional ``(mode_name, x)`` on which fields, guards and resets are evaluated once
+        at construction to check their dimensions.
+
+    Raises
+    ------
+    ModelError
+        naming the mode or transition at fault.
+    """
+
+    def __init__(
+        self,
+        modes: Mapping[str, Mode],
+        transitions: Sequence[Transition] = (),
+        *,
+        name: str = "hybrid system",
+        expand: Callable[[str], tuple[Mode, Sequence[Transition]]] | None = None,
+        energy: Callable[[str, np.ndarray], float] | None = None,
+        initial: tuple[str, Any] | None = None,
+    ) -> None:
+        if not isinstance(modes, Mapping):
+            raise ModelError(f"{name}: modes must be a mapping name -> Mode, got {type(modes).__name__}")
+        if not modes and expand is None:
+            raise ModelError(f"{name}: a hybrid system needs at least one mode")
+        for key, mode in modes.items():
+            if not isinstance(key, str) or not key:
+                raise ModelError(f"{name}: mode names must be non-empty strings, got {key!r}")
+            if not isinstance(mode, Mode):
+                raise ModelError(f"{name}: mode '{key}' must be a legsim.Mode, got {type(mode).__name__}")
+        if expand is not None and not callable(expand):
+            raise ModelError(f"{name}: expand must be callable expand(mode_name) -> (Mode, transitions)")
+        if energy is not None and not callable(energy):
+            raise ModelError(f"{name}: energy must be callable energy(mode, x) -> float")
+        self._name = name
+        self._modes: dict[str, Mode] = dict(modes)
+        self._outgoing: dict[str, list[Transition]] = {key: [] for key in self._modes}
+        self._expand = expand
+        self._energy = energy
+        self._transitions: list[Transition] = []
+        for tr in transitions:
+            self._add_transition(tr)
+        if expand is None:
+            for tr in self._transitions:
+                if tr.target not in self._modes:
+                    raise ModelError(
+                        f"{name}: transition {tr.name} targets unknown mode '{tr.target}' "
+                        f"(modes: {sorted(self._modes)})"
+                    )
+        self._compiled: dict[str, ModeData] = {}
+        if initial is not None:
+            mode0, x0 = initial
+            self.check_state(mode0, x0, label="initial state")
+
+    # -- construction helpers -------------------------------------------------------------
+    def _add_transition(self, tr: Transition) -> None:
+        if not isinstance(tr, Transition):
+            raise ModelError(f"{self._name}: transitions must be legsim.Transition, got {type(tr).__name__}")
+        if tr.source not in self._modes:
+            raise ModelError(
+                f"{self._name}: transition {tr.name} leaves unknown mode '{tr.source}' "
+                f"(modes: {sorted(self._modes)})"
+            )
+        if tr.reset is None and self._expand is None and tr.target in self._modes:
+            if self._modes[tr.source].dim != self._modes[tr.target].dim:
+                raise ModelError(
+                    f"{self._name}: transition {tr.name} has no reset but changes dimension "
+                    f"{self._modes[tr.source].dim} -> {self._modes[tr.target].dim}"
+                )
+        self._transitions.append(tr)
+        self._outgoing[tr.source].append(tr)
+
+    def _ensure(self, mode: str) -> None:
+        if mode in self._modes:
+            return
+        if self._expand is None:
+            raise ModelError(f"{self._name}: unknown mode '{mode}' (modes: {sorted(self._modes)})")
+        try:
+            produced = self._expand(mode)
+        except ModelError:
+            raise
+        except Exception as exc:  # the user's callback failed: say which mode it was asked for
+            raise ModelError(f"{self._name}: expand('{mode}') failed: {exc}") from exc
+        if not (isinstance(produced, tuple) and len(produced) == 2 and isinstance(produced[0], Mode)):
+            raise ModelError(f"{self._name}: expand('{mode}') must return (Mode, [Transition, ...])")
+        new_mode, new_transitions = produced
+        self._modes[mode] = new_mode
+        self._outgoing[mode] = []
+        for tr in new_transitions:
+            if tr.source != mode:
+                raise ModelError(f"{self._name}: expand('{mode}') returned transition {tr.name} from '{tr.source}'")
+            self._add_transition(tr)
+
+    # -- public read-only view ------------------------------------------------------------
+    @property
+    def name(self) -> str:
+        """Readable name of the system."""
+        return self._name
+
+    @property
+    def modes(self) -> Mapping[str, Mode]:
+        """The modes built so far (all of them for an eagerly built system)."""
+        return MappingProxyType(self._modes)
+
+    @property
+    def transitions(self) -> tuple[Transition, ...]:
+        """The transitions built so far."""
+        return tuple(self._transitions)
+
+    @property
+    def energy(self) -> Callable[[str, np.ndarray], float] | None:
+        """``energy(mode, x)`` in J, or None when the model does not define one."""
+        return self._energy
+
+    def mode(self, name: str) -> Mode:
+        """The mode called ``name`` (expanded on first use for lazy systems)."""
+        self._ensure(name)
+        return self._modes[name]
+
+    def outgoing(self, name: str) -> tuple[Transition, ...]:
+        """The transitions leaving mode ``name``; its domain is where all their guards are >= 0."""
+        self._ensure(name)
+        return tuple(self._outgoing[name])
+
+    def state_names(self, name: str) -> tuple[str, ...]:
+        """Coordinate names of mode ``name``."""
+        return self.mode(name).names  # type: ignore[return-value]
+
+    def mode_data(self, name: str) -> ModeData:
+        """Everything the integrator needs about mode ``name``, gathered once and cached."""
+        data = self._compiled.get(name)
+        if data is None:
+            mode = self.mode(name)
+            trs = tuple(self._outgoing[name])
+            for tr in trs:
+                self._ensure(tr.target)
+                if tr.reset is None and self._modes[tr.target].dim != mode.dim:
+                    raise ModelError(
+                        f"{self._name}: transition {tr.name} has no reset but changes dimension "
+                        f"{mode.dim} -> {self._modes[tr.target].dim}"
+                    )
+            data = ModeData(
+                name=name,
+                mode=mode,
+                transitions=trs,
+                guards=tuple(tr.guard for tr in trs),
+                resets=tuple(tr.reset if tr.reset is not None else _identity for tr in trs),
+                targets=tuple(tr.target for tr in trs),
+            )
+            self._compiled[name] = data
+        return data
+
+    def guard_values(self, mode: str, x: np.ndarray) -> np.ndarray:
+        """All guard values of ``mode`` at ``x`` (shape (number of outgoing transitions,))."""
+        data = self.mode_data(mode)
+        return np.array([float(g(x)) for g in data.guards], dtype=float)
+
+    def in_domain(self, mode: str, x: np.ndarray, eps: float = 0.0) -> bool:
+        """True when every guard of ``mode`` is >= -eps at ``x`` (the relaxed domain for eps > 0)."""
+        values = self.guard_values(mode, x)
+        return bool(np.all(values >= -eps))
+
+    # -- validation -----------------------------------------------------------------------
+    def check_state(self, mode: str, x: Any, *, t: float = 0.0, u: Any = None, label: str = "state") -> np.ndarray:
+        """Check ``x`` as a state of ``mode`` and evaluate the mode's field, guards and resets
+        once on it, so that dimension and type errors surface here with the mode or
+        transition named, rather than deep inside a run. Returns x as a float64 array.
+        """
+        if not isinstance(mode, str):
+            raise ModelError(f"{self._name}: {label}: mode must be a mode name (str), got {mode!r}")
+        m = self.mode(mode)
+        try:
+            arr = np.asarray(x, dtype=float)
+        except (TypeError, ValueError) as exc:
+            raise ModelError(f"{self._name}: {label} in mode '{mode}' is not a numeric vector: {exc}") from exc
+        if arr.shape != (m.dim,):
+            raise ModelError(
+                f"{self._name}: {label} in mode '{mode}' has shape {arr.shape}, expected ({m.dim},) "
+                f"with coordinates {m.names}"
+            )
+        if not np.all(np.isfinite(arr)):
+            raise ModelError(f"{self._name}: {label} in mode '{mode}' is not finite: {arr}")
+        check_field_output(self._name, mode, m, t, arr, u)
+        for tr in self.outgoing(mode):
+            check_guard_output(self._name, tr, arr)
+            self._ensure(tr.target)
+            if tr.reset is not None:
+                check_reset_output(self._name, tr, self._modes[tr.target].dim, arr)
+        return arr
+
+
+def check_field_output(system: str, mode_name: str, mode: Mode, t: float, x: np.ndarray, u: Any) -> np.ndarray:
+    """Evaluate a field once and check its output's shape and finiteness."""
+    try:
+        out = np.asarray(mode.field(t, x, u), dtype=float)
+    except Exception as exc:
+        raise ModelError(f"{system}: field of mode '{mode_name}' failed at t={t}: {type(exc).__name__}: {exc}") from exc
+    if out.shape != (mode.dim,):
+        raise ModelError(
+            f"{system}: field of mode '{mode_name}' returned shape {out.shape}, expected ({mode.dim},)"
+        )
+    return out
+
+
+def check_guard_output(system: str, tr: Transition, x: np.ndarray) -> float:
+    """Evaluate a guard once and check that it returns a real scalar."""
+    try:
+        value = tr.guard(x)
+        arr = np.asarray(value, dtype=float)
+    except Exception as exc:
+        raise ModelError(f"{system}: guard of transition {tr.name} failed: {type(exc).__name__}: {exc}") from exc
+    if arr.shape not in ((), (1,)):
+        raise ModelError(f"{system}: guard of transition {tr.name} must return a scalar, got shape {arr.shape}")
+    out = float(arr.reshape(()))
+    if math.isnan(out):
+        raise ModelError(f"{system}: guard of transition {tr.name} returned nan at x={x}")
+    return out
+
+
+def check_reset_output(system: str, tr: Transition, target_dim: int, x: np.ndarray) -> np.ndarray:
+    """Evaluate a reset once and check the dimension of its image."""
+    try:
+        out = np.asarray(tr.reset(x), dtype=float)  # type: ignore[misc]
+    except Exception as exc:
+        raise ModelError(f"{system}: reset of transition {tr.name} failed: {type(exc).__name__}: {exc}") from exc
+    if out.shape != (target_dim,):
+        raise ModelError(
+            f"{system}: reset of transition {tr.name} returned shape {out.shape}, "
+            f"expected ({target_dim},) for mode '{tr.target}'"
+        )
+    return out
+
+
+def reachable_modes(system: HybridSystem, start: str | Iterable[str]) -> list[str]:
+    """Modes reachable from ``start`` through the transition graph (breadth first)."""
+    queue = [start] if isinstance(start, str) else list(start)
+    seen: list[str] = []
+    while queue:
+        mode = queue.pop(0)
+        if mode in seen:
+            continue
+        seen.append(mode)
+        queue.extend(tr.target for tr in system.outgoing(mode) if tr.target not in seen)
+    return seen

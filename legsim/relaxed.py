@@ -1,0 +1,465 @@
+"""The relaxed hybrid integrator (paper 000, Fig. 12; paper 003, Definition 14 for Euler).
+
+Each guard is thickened into a strip ``-eps <= guard < 0``. Inside a mode any Runge-Kutta
+method steps with the nominal size h; a trial step that would land past the strip (some
+guard < -eps) is halved until it lands in the relaxed domain; a step that lands in a strip
+crosses it:
+
+* the strip point is the pair (q, tau): tau = -guard at the landing point and q a point of the
+  guard. We take q where the step's own cubic Hermite interpolant (built from the step's ends
+  and the field there) meets the guard, found by a bracketed root search on the interpolant.
+  Bringing the state back *along the flow* keeps conserved quantities to the interpolant's
+  accuracy (O(tau^4) here, O(tau^2) for any consistent interpolant), whereas projecting the
+  landing point along the guard gradient changes a runner's energy by O(tau) at every
+  touchdown. The bracket (guard >= 0 at the step start, < 0 at the landing) always exists, so
+  the search needs no division by the guard's rate and stays safe where the flow is nearly
+  tangent to the guard; should the guard be discontinuous along the interpolant, the
+  domain-side end of the final bracket is used, which is never past the guard.
+* the state is held at q for the remaining strip time eps - tau (paper 000 Fig. 12, step 12),
+  then the reset is applied to q, not to the overshot landing point. Resetting the overshot
+  point would sink the state deeper at every transition and stall a Zeno run in a stream of
+  near-zero-time transitions.
+* when a step lands in several strips at once (simultaneous guards) the transition whose
+  crossing on the interpolant comes first is taken; the next mode then sees its own guard
+  already crossed and transitions again at once. Overlapping guards need no special case.
+
+Each step starts from the nominal h again (Fig. 12, step 3), so the nominal step is restored
+after every transition.
+"""
+
+from __future__ import annotations
+
+import math
+import time as _time
+from typing import Any, Callable
+
+import numpy as np
+
+from .errors import ModelError, SimulationError
+from .execution import Execution, SegmentBuffer, Strip, TransitionRecord
+from .hybrid import HybridSystem, check_field_output, check_reset_output
+from .methods import Tableau, get_method, rk_step
+
+ProgressFn = Callable[[float, float, float], None]
+
+
+def _check_positive(name: str, value: Any) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
+        raise SimulationError(f"{name} must be a number, got {type(value).__name__} {value!r}")
+    value = float(value)
+    if not math.isfinite(value) or value <= 0.0:
+        raise SimulationError(f"{name} must be finite and > 0, got {value}")
+    return value
+
+
+def hermite(x0: np.ndarray, d0: np.ndarray, x1: np.ndarray, d1: np.ndarray, dt: float, s: float) -> np.ndarray:
+    """Cubic Hermite interpolant on a step of length dt at fraction s in [0, 1]."""
+    s2 = s * s
+    s3 = s2 * s
+    return ((2 * s3 - 3 * s2 + 1) * x0 + (s3 - 2 * s2 + s) * dt * d0
+            + (-2 * s3 + 3 * s2) * x1 + (s3 - s2) * dt * d1)
+
+
+def hermite_derivative(x0, d0, x1, d1, dt: float, s: float) -> np.ndarray:
+    """d/dt of the cubic Hermite interpolant at fraction s."""
+    s2 = s * s
+    return ((6 * s2 - 6 * s) * x0 / dt + (3 * s2 - 4 * s + 1) * d0
+            + (-6 * s2 + 6 * s) * x1 / dt + (3 * s2 - 2 * s) * d1)
+
+
+def crossing_on_step(guard, x0, d0, x1, d1, dt, g0: float, g1: float, tol: float) -> tuple[float, int, bool]:
+    """Where the step's interpolant meets the guard: returns (s, guard evaluations, converged).
+
+    Illinois regula falsi on the bracket [0, 1] with g(p(0)) = g0 >= 0 > g1 = g(p(1)),
+    bisecting when regula falsi stalls. When the guard is discontinuous along the
+    interpolant (no root inside the bracket) the domain-side end of the final bracket is
+    returned with converged=False.
+    """
+    if g0 <= 0.0:
+        return 0.0, 0, True
+    lo, hi, glo, ghi = 0.0, 1.0, g0, g1
+    evals = 0
+    side = 0
+    for it in range(100):
+        if it % 3 == 2:  # every third iterate bisects, so a kink cannot stall the search
+            s = 0.5 * (lo + hi)
+        else:
+            s = lo + (hi - lo) * glo / (glo - ghi)
+            if not (lo < s < hi):
+                s = 0.5 * (lo + hi)
+        g = float(guard(hermite(x0, d0, x1, d1, dt, s)))
+        evals += 1
+        if not math.isfinite(g):
+            return lo, evals, False
+        if abs(g) <= tol:
+            return s, evals, True
+        if g > 0:
+            lo, glo = s, g
+            if side == 1:
+                ghi *= 0.5
+            side = 1
+        else:
+            hi, ghi = s, g
+            if side == -1:
+                glo *= 0.5
+            side = -1
+        if hi - lo <= 4e-16:
+            break
+    return lo, evals, abs(glo) <= tol or hi - lo <= 4e-16 and abs(glo) <= 1e3 * tol
+
+
+def simulate(
+    system: HybridSystem,
+    x0: Any,
+    mode: str,
+    t_final: float,
+    h: float,
+    eps: float,
+    method: str | Tableau = "rk4",
+    control: Callable[[float, np.ndarray], Any] | None = None,
+    *,
+    t0: float = 0.0,
+    max_transitions: int = 100_000,
+    max_halvings: int = 64,
+    progress: ProgressFn | None = None,
+) -> Execution:
+    """Simulate ``system`` from ``(mode, x0)`` at time ``t0`` to ``t_final`` with the relaxed
+    hybrid integrator.
+
+    Parameters
+    ----------
+    system: the hybrid system.
+    x0: initial state, shape (n_mode,); it must lie in the relaxed domain of ``mode``.
+    mode: initial mode name.
+    t_final: end time (s), > t0.
+    h: nominal step size (s), > 0; each step starts from h and is halved as needed.
+    eps: strip width (guard units), > 0.
+    method: a Runge-Kutta method name (``euler``, ``rk2``, ``heun``, ``rk4``, ``bs32``,
+        ``dopri5``) or a ``Tableau``.
+    control: optional ``control(t, x) -> u``, evaluated at every stage; u is passed to the
+        fields as their third argument (None without control).
+    t0: start time (s).
+    max_transitions: transition budget; reaching it ends the run with status
+        ``max_transitions``.
+    max_halvings: most halvings of one step before the run ends with ``halving_exhausted``.
+    progress: optional ``progress(t, t0, t_final)`` called about five times a second.
+
+    Returns
+    -------
+    Execution
+        with ``status`` one of ``finished``, ``max_transitions``, ``halving_exhausted``,
+        ``non_finite``, ``reset_outside_domain`` and a message naming mode, time and state.
+
+    Raises
+    ------
+    SimulationError
+        for invalid arguments (h, eps, t_final, x0, mode, method, control).
+    ModelError
+        when the model's field, guard or reset misbehaves on the initial state.
+    """
+    if not isinstance(system, HybridSystem):
+        raise SimulationError(f"system must be a legsim.HybridSystem, got {type(system).__name__}")
+    h = _check_positive("h", h)
+    eps = _check_positive("eps", eps)
+    if isinstance(t0, bool) or not isinstance(t0, (int, float, np.floating, np.integer)) or not math.isfinite(t0):
+        raise SimulationError(f"t0 must be a finite number, got {t0!r}")
+    t0 = float(t0)
+    if isinstance(t_final, bool) or not isinstance(t_final, (int, float, np.floating, np.integer)):
+        raise SimulationError(f"t_final must be a number, got {type(t_final).__name__} {t_final!r}")
+    t_final = float(t_final)
+    if not math.isfinite(t_final) or t_final <= t0:
+        raise SimulationError(f"t_final must be finite and > t0 = {t0}, got {t_final}")
+    tableau = get_method(method)
+    if control is not None and not callable(control):
+        raise SimulationError(f"control must be callable control(t, x) -> u or None, got {type(control).__name__}")
+    if isinstance(max_transitions, bool) or not isinstance(max_transitions, (int, np.integer)) or max_transitions < 0:
+        raise SimulationError(f"max_transitions must be an integer >= 0, got {max_transitions!r}")
+    if isinstance(max_halvings, bool) or not isinstance(max_halvings, (int, np.integer)) or max_halvings < 1:
+        raise SimulationError(f"max_halvings must be an integer >= 1, got {max_halvings!r}")
+    if not isinstance(mode, str) or mode not in _known_modes(system, mode):
+        raise SimulationError(f"unknown initial mode {mode!r}; modes: {sorted(system.modes)}")
+    dim = system.mode(mode).dim
+    try:
+        x = np.array(x0, dtype=float).reshape(-1) if np.ndim(x0) <= 1 else None
+    except (TypeError, ValueError) as exc:
+        raise SimulationError(f"x0 must be a numeric vector of length {dim} for mode '{mode}': {exc}") from exc
+    if x is None or x.shape != (dim,):
+        raise SimulationError(
+            f"x0 has shape {np.shape(x0)}, expected ({dim},) for mode '{mode}' "
+            f"with coordinates {system.state_names(mode)}"
+        )
+    if not np.all(np.isfinite(x)):
+        raise SimulationError(f"x0 must be finite, got {x} in mode '{mode}'")
+    u0 = None if control is None else control(t0, x)
+    system.check_state(mode, x, t=t0, u=u0, label="x0")
+    gvals = system.guard_values(mode, x)
+    if gvals.size and gvals.min() < -eps:
+        worst = int(np.argmin(gvals))
+        raise SimulationError(
+            f"x0 lies past the guard of transition {system.outgoing(mode)[worst].name} by "
+            f"{-gvals[worst]:.3g} > eps = {eps:g} (guard units); start inside the domain of '{mode}'"
+        )
+
+    return _Integrator(system, tableau, h, eps, control, max_transitions, max_halvings, progress).run(
+        mode, x, t0, t_final)
+
+
+def _known_modes(system: HybridSystem, mode: str):
+    try:
+        system.mode(mode)
+    except ModelError:
+        return ()
+    return system.modes
+
+
+class _Integrator:
+    """One run's workspace: stage buffers, counters and the segment under construction.
+    The HybridSystem is never modified (the Pinocchio model/data split)."""
+
+    def __init__(self, system, tableau, h, eps, control, max_transitions, max_halvings, progress):
+        self.system = system
+        self.tableau = tableau
+        self.h = h
+        self.eps = eps
+        self.control = control
+        self.max_transitions = max_transitions
+        self.max_halvings = max_halvings
+        self.progress = progress
+        self.steps = 0
+        self.halvings = 0
+        self.field_evals = 0
+        self.guard_evals = 0
+        self.reset_evals = 0
+        self.strip_time = 0.0
+        self.segments = []
+        self.strips = []
+        self.transitions = []
+        self.state_names = {}
+        self._stage_buffers: dict[int, np.ndarray] = {}
+        self._checked_modes: set[str] = set()
+
+    def _stages(self, dim: int) -> np.ndarray:
+        K = self._stage_buffers.get(dim)
+        if K is None:
+            K = np.empty((self.tableau.stages, dim))
+            self._stage_buffers[dim] = K
+        return K
+
+    def _f(self, field, t, x):
+        self.field_evals += 1
+        return field(t, x, None if self.control is None else self.control(t, x))
+
+    def run(self, mode: str, x: np.ndarray, t0: float, t_final: float) -> Execution:
+        wall0 = _time.perf_counter()
+        self._last_report = wall0
+        status, message = "finished", ""
+        t = t0
+        final_in_strip = False
+        final_pair = None
+        while True:
+            outcome = self._run_mode(mode, x, t, t_final)
+            kind = outcome[0]
+            if kind == "end":
+                _, status, message, t, final_in_strip, final_pair = outcome
+                break
+            _, mode, x, t = outcome
+        counters = {
+            "steps": self.steps,
+            "halvings": self.halvings,
+            "field_evals": self.field_evals,
+            "guard_evals": self.guard_evals,
+            "reset_evals": self.reset_evals,
+            "transitions": len(self.transitions),
+            "strip_time": self.strip_time,
+            "wall_time_s": _time.perf_counter() - wall0,
+        }
+        settings = {"h": self.h, "eps": self.eps, "method": self.tableau.name,
+                    "max_transitions": self.max_transitions, "control": self.control is not None}
+        return Execution(status=status, message=message, segments=self.segments, strips=self.strips,
+                         transitions=self.transitions, t0=t0, t_end=t, t_final=t_final, counters=counters,
+                         settings=settings, state_names=self.state_names, system_name=self.system.name,
+                         final_in_strip=final_in_strip, _final=final_pair)
+
+    # The step loop of one mode visit. Returns ("next", mode, x, t) after a transition or
+    # ("end", status, message, t, final_in_strip, final_pair).
+    def _run_mode(self, mode: str, x: np.ndarray, t: float, t_final: float):
+        system = self.system
+        data = system.mode_data(mode)
+        field = data.mode.field
+        guards = data.guards
+        eps = self.eps
+        h = self.h
+        tableau = self.tableau
+        control = self.control
+        fsal = tableau.fsal
+        n_stages = tableau.stages
+        n_guards = len(guards)
+        self.state_names.setdefault(mode, data.mode.names)
+        K = self._stages(data.mode.dim)
+        buf = SegmentBuffer(mode, data.mode.dim)
+
+        if mode not in self._checked_modes:
+            check_field_output(system.name, mode, data.mode, t, x, None if control is None else control(t, x))
+            self._checked_modes.add(mode)
+        k0 = np.asarray(self._f(field, t, x), dtype=float)
+        if not np.all(np.isfinite(k0)):
+            buf.append(t, x, np.zeros_like(x))
+            self.segments.append(buf.freeze())
+            return ("end", "non_finite", f"field of mode '{mode}' is not finite at t={t:.17g}, x={x.tolist()}: "
+                    f"f={k0.tolist()}", t, False, None)
+        buf.append(t, x, k0)
+
+        # A state that enters a mode already inside one of its strips (a reset image at a guard
+        # intersection, or an initial state in a strip) crosses that strip at once: q = x.
+        gvals = [float(g(x)) for g in guards]
+        self.guard_evals += n_guards
+        bad = _first_nonfinite(gvals)
+        if bad is not None:
+            return self._end_segment(buf, "non_finite",
+                                     f"guard of transition {data.transitions[bad].name} is {gvals[bad]} "
+                                     f"at t={t:.17g} in mode '{mode}', x={x.tolist()}", t)
+        if n_guards and min(gvals) < 0.0:
+            e = int(np.argmin(gvals))
+            if gvals[e] < -eps:
+                return self._end_segment(buf, "reset_outside_domain",
+                                         f"state entering mode '{mode}' at t={t:.17g} lies past the guard of "
+                                         f"transition {data.transitions[e].name} by {-gvals[e]:.3g} > eps={eps:g}: "
+                                         f"x={x.tolist()}", t)
+            return self._transition(buf, data, e, t, x, t, -gvals[e], t_final)
+
+        span = max(1.0, abs(t_final))
+        progress = self.progress
+        while True:
+            remaining = t_final - t
+            if remaining <= 1e-14 * span:
+                return self._end_segment(buf, "finished", "", t_final if remaining > 0 else t)
+            last = h >= remaining
+            hk = remaining if last else h
+            halved = 0
+            while True:
+                K[0] = k0
+                x_new = rk_step(field, t, x, hk, tableau, K, control)
+                self.field_evals += n_stages - 1
+                reason = None
+                if not np.all(np.isfinite(x_new)):
+                    reason = "non_finite"
+                else:
+                    gvals = [float(g(x_new)) for g in guards]
+                    self.guard_evals += n_guards
+                    gmin = min(gvals) if n_guards else 0.0
+                    if gmin < -eps:
+                        reason = "past"
+                    elif gmin != gmin:  # nan
+                        bad = _first_nonfinite(gvals)
+                        return self._end_segment(buf, "non_finite",
+                                                 f"guard of transition {data.transitions[bad].name} is nan at "
+                                                 f"t={t + hk:.17g} in mode '{mode}', x={x_new.tolist()}", t)
+                if reason is None:
+                    break
+                halved += 1
+                self.halvings += 1
+                hk *= 0.5
+                last = False
+                if halved > self.max_halvings or t + hk <= t:
+                    if reason == "non_finite":
+                        return self._end_segment(
+                            buf, "non_finite",
+                            f"the step from t={t:.17g} in mode '{mode}' gives a non-finite state even at "
+                            f"h={hk * 2:.3g}: x={x.tolist()}", t)
+                    e = int(np.argmin(gvals))
+                    return self._end_segment(
+                        buf, "halving_exhausted",
+                        f"no step from t={t:.17g} in mode '{mode}' lands in the relaxed domain after "
+                        f"{halved - 1} halvings: the flow leaves through the guard of transition "
+                        f"{data.transitions[e].name} without entering its strip (x={x.tolist()})", t)
+            t_new = t_final if last else t + hk
+            self.steps += 1
+            if n_guards and gmin < 0.0:
+                k1 = K[-1].copy() if fsal else np.asarray(self._f(field, t_new, x_new), dtype=float)
+                return self._step_transition(buf, data, gvals, t, x, k0, t_new, x_new, k1, t_final)
+            t = t_new
+            x = x_new
+            if fsal:
+                k0 = K[-1].copy()
+            else:
+                k0 = np.asarray(self._f(field, t, x), dtype=float)
+            buf.append(t, x, k0)
+            if progress is not None and (self.steps & 63) == 0:
+                now = _time.perf_counter()
+                if now - self._last_report > 0.2:
+                    self._last_report = now
+                    progress(t, self.segments[0].t[0] if self.segments else buf.t[0], t_final)
+
+    def _end_segment(self, buf: SegmentBuffer, status: str, message: str, t: float):
+        self.segments.append(buf.freeze())
+        return ("end", status, message, t, False, None)
+
+    def _step_transition(self, buf, data, gvals, t, x, k0, t1, x1, k1, t_final):
+        """A step from (t, x) landed at (t1, x1) inside one or more strips."""
+        dt = t1 - t
+        tol = 1e-9 * self.eps
+        best = None
+        for e, g1 in enumerate(gvals):
+            if g1 < 0.0:
+                guard = data.guards[e]
+                g0 = float(guard(x))
+                s, n_evals, converged = crossing_on_step(guard, x, k0, x1, k1, dt, g0, g1, tol)
+                self.guard_evals += 1 + n_evals
+                if best is None or s < best[1]:
+                    best = (e, s, converged)
+        e, s, converged = best
+        if s <= 0.0:
+            q, tc = x.copy(), t
+        else:
+            q = hermite(x, k0, x1, k1, dt, s)
+            tc = t + s * dt
+            if not np.all(np.isfinite(q)):
+                q, tc = x.copy(), t
+            else:
+                buf.append(tc, q, hermite_derivative(x, k0, x1, k1, dt, s))
+        tau = -gvals[e]
+        return self._transition(buf, data, e, tc, q, t1, tau, t_final)
+
+    def _transition(self, buf, data, e, tc, q, t_land, tau, t_final):
+        """Cross the strip of transition e: hold q from tc to t_land + eps - tau, then reset."""
+        tr = data.transitions[e]
+        mode = data.name
+        self.segments.append(buf.freeze())
+        if len(self.transitions) >= self.max_transitions:
+            self.strips.append(Strip(mode, tr.name, tc, tc, q.copy()))
+            return ("end", "max_transitions",
+                    f"transition budget max_transitions={self.max_transitions} used up at t={tc:.17g} "
+                    f"(next transition {tr.name} from mode '{mode}')", tc, True, None)
+        exit_time = t_land + (self.eps - tau)
+        if exit_time >= t_final:
+            self.strips.append(Strip(mode, tr.name, tc, t_final, q.copy()))
+            self.strip_time += t_final - tc
+            return ("end", "finished", "", t_final, True, None)
+        target = data.targets[e]
+        self.reset_evals += 1
+        try:
+            x_after = np.asarray(data.resets[e](q), dtype=float)
+        except Exception as exc:
+            raise ModelError(f"{self.system.name}: reset of transition {tr.name} failed at t={tc:.17g}, "
+                             f"q={q.tolist()}: {type(exc).__name__}: {exc}") from exc
+        target_dim = self.system.mode(target).dim
+        if x_after.shape != (target_dim,):
+            check_reset_output(self.system.name, tr, target_dim, q)  # raises with the shapes named
+        self.strips.append(Strip(mode, tr.name, tc, exit_time, q.copy()))
+        self.strip_time += exit_time - tc
+        self.transitions.append(TransitionRecord(tr.name, mode, target, e, tc, t_land, exit_time, q.copy(),
+                                                 x_after.copy(), tau))
+        if not np.all(np.isfinite(x_after)):
+            seg = SegmentBuffer(target, target_dim, capacity=1)
+            seg.append(exit_time, x_after, np.zeros(target_dim))
+            self.segments.append(seg.freeze())
+            return ("end", "non_finite", f"reset of transition {tr.name} at t={exit_time:.17g} gives a non-finite "
+                    f"state {x_after.tolist()} from q={q.tolist()}", exit_time, False, None)
+        return ("next", target, x_after, exit_time)
+
+
+def _first_nonfinite(values) -> int | None:
+    for i, v in enumerate(values):
+        if not math.isfinite(v):
+            return i
+    return None
