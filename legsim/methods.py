@@ -149,3 +149,57 @@ def rk_step(
         ti = t + c[i] * h
         K[i] = field(ti, xi, None if control is None else control(ti, xi))
     return x + h * (tableau.b @ K)
+
+
+def make_stepper(tableau: Tableau) -> Callable[..., tuple[np.ndarray, tuple[np.ndarray, ...]]]:
+    """A step function specialised to ``tableau``: ``step(field, t, x, h, k0, control) ->
+    (x_new, stages)``, with ``stages`` the tuple of the s stage derivatives (``stages[0] is k0``).
+
+    The stage combinations are generated as straight-line code with the tableau's non-zero
+    coefficients folded in, because in Python the per-step cost of a general ``A @ K`` loop
+    (slicing, small matrix products, stage copies) is several times that of the few array
+    operations the method really needs. ``rk_step`` is the readable reference it is tested
+    against.
+    """
+    s = tableau.stages
+    lines = ["def step(field, t, x, h, k0, control):"]
+    for i in range(1, s):
+        lines.append(f"    t{i} = t + {float(tableau.c[i])!r} * h")
+        lines.append(f"    x{i} = {_combination('x', tableau.A[i, :i])}")
+        lines.append(f"    k{i} = field(t{i}, x{i}, None if control is None else control(t{i}, x{i}))")
+    stage_tuple = ", ".join(f"k{j}" for j in range(s))
+    if tableau.fsal:
+        # The last stage is evaluated at the new point itself: reuse it instead of recombining.
+        lines.append(f"    return x{s - 1}, ({stage_tuple},)")
+    else:
+        lines.append(f"    return {_combination('x', tableau.b)}, ({stage_tuple},)")
+    namespace: dict[str, Any] = {}
+    exec("\n".join(lines), namespace)  # noqa: S102 - generated from the tableau's numbers only
+    return namespace["step"]
+
+
+def error_estimate(tableau: Tableau, h: float, stages: tuple[np.ndarray, ...]) -> np.ndarray:
+    """Local error estimate h * sum_j b_err_j k_j of an embedded pair (shape (n,))."""
+    if tableau.b_err is None:
+        raise SimulationError(f"method '{tableau.name}' has no embedded error estimate; use bs32 or dopri5")
+    acc = None
+    for be, k in zip(tableau.b_err, stages):
+        if be != 0.0:
+            acc = be * k if acc is None else acc + be * k
+    return h * acc
+
+
+def _combination(base: str, weights: np.ndarray) -> str:
+    """Source of ``base + h * sum_j w_j k_j`` with h folded into scalar factors and stages of
+    equal weight summed first (RK4's b becomes two products instead of four)."""
+    groups: dict[float, list[str]] = {}
+    for j, w in enumerate(weights):
+        if w != 0.0:
+            groups.setdefault(float(w), []).append(f"k{j}")
+    if not groups:
+        return base
+    terms = []
+    for w, ks in groups.items():
+        summed = ks[0] if len(ks) == 1 else "(" + " + ".join(ks) + ")"
+        terms.append(f"(h * {w!r}) * {summed}")
+    return base + " + " + " + ".join(terms)

@@ -38,7 +38,7 @@ import numpy as np
 from .errors import ModelError, SimulationError
 from .execution import Execution, SegmentBuffer, Strip, TransitionRecord
 from .hybrid import HybridSystem, check_field_output, check_reset_output
-from .methods import Tableau, get_method, rk_step
+from .methods import Tableau, error_estimate, get_method, make_stepper
 
 ProgressFn = Callable[[float, float, float], None]
 
@@ -122,6 +122,9 @@ def simulate(
     max_transitions: int = 100_000,
     max_halvings: int = 64,
     progress: ProgressFn | None = None,
+    rtol: float | None = None,
+    atol: float | None = None,
+    landing: str = "halve",
 ) -> Execution:
     """Simulate ``system`` from ``(mode, x0)`` at time ``t0`` to ``t_final`` with the relaxed
     hybrid integrator.
@@ -143,6 +146,15 @@ def simulate(
         ``max_transitions``.
     max_halvings: most halvings of one step before the run ends with ``halving_exhausted``.
     progress: optional ``progress(t, t0, t_final)`` called about five times a second.
+    rtol, atol: with either given, the step size inside modes is error-controlled by the
+        method's embedded pair (``bs32`` or ``dopri5``), h being the initial and largest step;
+        the guards keep their relaxed treatment (a step that would leave the relaxed domain
+        is shortened until it lands inside it). Without them every step starts from h.
+    landing: how a step that would leave the relaxed domain is shortened: ``"halve"``
+        (paper 000 Fig. 12, step 3) or ``"aim"``, which retries with the step length at which
+        the failed step's own interpolant reaches the middle of the strip (at most three aims,
+        then halving). Both accept only steps that land in the relaxed domain, so the
+        guarantee is the same; aiming needs fewer trial steps when eps << h.
 
     Returns
     -------
@@ -200,8 +212,22 @@ def simulate(
             f"{-gvals[worst]:.3g} > eps = {eps:g} (guard units); start inside the domain of '{mode}'"
         )
 
-    return _Integrator(system, tableau, h, eps, control, max_transitions, max_halvings, progress).run(
-        mode, x, t0, t_final)
+    if landing not in ("halve", "aim"):
+        raise SimulationError(f"landing must be 'halve' or 'aim', got {landing!r}")
+    if rtol is not None or atol is not None:
+        if not tableau.embedded:
+            raise SimulationError(
+                f"rtol/atol need a method with an embedded error estimate (bs32, dopri5), got '{tableau.name}'")
+        for label, tol in (("rtol", rtol), ("atol", atol)):
+            if tol is not None:
+                _check_positive(label, tol)
+        if rtol is None:
+            rtol = 1e-3 * float(atol)
+        if atol is None:
+            atol = 1e-3 * float(rtol)
+        rtol, atol = float(rtol), float(atol)
+    return _Integrator(system, tableau, h, eps, control, max_transitions, max_halvings, progress,
+                       rtol, atol, landing).run(mode, x, t0, t_final)
 
 
 def _known_modes(system: HybridSystem, mode: str):
@@ -216,17 +242,29 @@ class _Integrator:
     """One run's workspace: stage buffers, counters and the segment under construction.
     The HybridSystem is never modified (the Pinocchio model/data split)."""
 
-    def __init__(self, system, tableau, h, eps, control, max_transitions, max_halvings, progress):
+    def __init__(self, system, tableau, h, eps, control, max_transitions, max_halvings, progress,
+                 rtol=None, atol=None, landing="halve"):
         self.system = system
         self.tableau = tableau
+        self.stepper = make_stepper(tableau)
         self.h = h
+        self.h_prop = h
         self.eps = eps
         self.control = control
         self.max_transitions = max_transitions
         self.max_halvings = max_halvings
         self.progress = progress
+        self.adaptive = rtol is not None or atol is not None
+        self.rtol = 0.0 if rtol is None else rtol
+        self.atol = 0.0 if atol is None else atol
+        if self.adaptive:
+            self.err_exponent = -1.0 / (min(tableau.order, tableau.error_order) + 1)
+        self.aim = landing == "aim"
+        self.landing = landing
+        self.t_start = 0.0
         self.steps = 0
         self.halvings = 0
+        self.error_rejections = 0
         self.field_evals = 0
         self.guard_evals = 0
         self.reset_evals = 0
@@ -235,15 +273,7 @@ class _Integrator:
         self.strips = []
         self.transitions = []
         self.state_names = {}
-        self._stage_buffers: dict[int, np.ndarray] = {}
         self._checked_modes: set[str] = set()
-
-    def _stages(self, dim: int) -> np.ndarray:
-        K = self._stage_buffers.get(dim)
-        if K is None:
-            K = np.empty((self.tableau.stages, dim))
-            self._stage_buffers[dim] = K
-        return K
 
     def _f(self, field, t, x):
         self.field_evals += 1
@@ -252,6 +282,7 @@ class _Integrator:
     def run(self, mode: str, x: np.ndarray, t0: float, t_final: float) -> Execution:
         wall0 = _time.perf_counter()
         self._last_report = wall0
+        self.t_start = t0
         status, message = "finished", ""
         t = t0
         final_in_strip = False
@@ -266,6 +297,7 @@ class _Integrator:
         counters = {
             "steps": self.steps,
             "halvings": self.halvings,
+            "error_rejections": self.error_rejections,
             "field_evals": self.field_evals,
             "guard_evals": self.guard_evals,
             "reset_evals": self.reset_evals,
@@ -273,7 +305,8 @@ class _Integrator:
             "strip_time": self.strip_time,
             "wall_time_s": _time.perf_counter() - wall0,
         }
-        settings = {"h": self.h, "eps": self.eps, "method": self.tableau.name,
+        settings = {"h": self.h, "eps": self.eps, "method": self.tableau.name, "rtol": self.rtol if self.adaptive
+                    else None, "atol": self.atol if self.adaptive else None, "landing": self.landing,
                     "max_transitions": self.max_transitions, "control": self.control is not None}
         return Execution(status=status, message=message, segments=self.segments, strips=self.strips,
                          transitions=self.transitions, t0=t0, t_end=t, t_final=t_final, counters=counters,
@@ -281,22 +314,27 @@ class _Integrator:
                          final_in_strip=final_in_strip, _final=final_pair)
 
     # The step loop of one mode visit. Returns ("next", mode, x, t) after a transition or
-    # ("end", status, message, t, final_in_strip, final_pair).
+    # ("end", status, message, t, final_in_strip, final_pair). It is the hot path: locals
+    # instead of attributes, storage inlined, one guard evaluated without a list when possible.
     def _run_mode(self, mode: str, x: np.ndarray, t: float, t_final: float):
         system = self.system
         data = system.mode_data(mode)
         field = data.mode.field
         guards = data.guards
         eps = self.eps
-        h = self.h
+        h_max = self.h
         tableau = self.tableau
+        step = self.stepper
         control = self.control
         fsal = tableau.fsal
-        n_stages = tableau.stages
+        evals_per_step = tableau.stages - 1
         n_guards = len(guards)
+        single_guard = guards[0] if n_guards == 1 else None
+        adaptive = self.adaptive
+        aim = self.aim
+        dim = data.mode.dim
         self.state_names.setdefault(mode, data.mode.names)
-        K = self._stages(data.mode.dim)
-        buf = SegmentBuffer(mode, data.mode.dim)
+        buf = SegmentBuffer(mode, dim)
 
         if mode not in self._checked_modes:
             check_field_output(system.name, mode, data.mode, t, x, None if control is None else control(t, x))
@@ -329,66 +367,149 @@ class _Integrator:
 
         span = max(1.0, abs(t_final))
         progress = self.progress
+        T, X, DX, size = buf.t, buf.x, buf.dx, buf.size
+        steps = halvings = rejections = field_evals = guard_evals = 0
+        h_prop = self.h_prop
+        outcome = None
         while True:
             remaining = t_final - t
             if remaining <= 1e-14 * span:
-                return self._end_segment(buf, "finished", "", t_final if remaining > 0 else t)
-            last = h >= remaining
-            hk = remaining if last else h
-            halved = 0
+                outcome = ("finished", "", t_final if remaining > 0 else t)
+                break
+            hk = h_prop if h_prop < h_max else h_max
+            last = hk >= remaining
+            if last:
+                hk = remaining
+            shortened = aimed = 0
             while True:
-                K[0] = k0
-                x_new = rk_step(field, t, x, hk, tableau, K, control)
-                self.field_evals += n_stages - 1
-                reason = None
-                if not np.all(np.isfinite(x_new)):
+                x_new, stages = step(field, t, x, hk, k0, control)
+                field_evals += evals_per_step
+                sq = x_new.dot(x_new)
+                if sq - sq != 0.0:  # inf or nan somewhere in x_new
                     reason = "non_finite"
                 else:
-                    gvals = [float(g(x_new)) for g in guards]
-                    self.guard_evals += n_guards
-                    gmin = min(gvals) if n_guards else 0.0
-                    if gmin < -eps:
-                        reason = "past"
-                    elif gmin != gmin:  # nan
+                    if single_guard is not None:
+                        gmin = float(single_guard(x_new))
+                        guard_evals += 1
+                    elif n_guards:
+                        gvals = [float(g(x_new)) for g in guards]
+                        guard_evals += n_guards
+                        gmin = min(gvals)
+                    else:
+                        gmin = 0.0
+                    if gmin >= -eps:
+                        if adaptive:
+                            err = self._error_norm(hk, stages, x, x_new)
+                            if err > 1.0:
+                                rejections += 1
+                                hk *= max(0.2, 0.9 * err ** self.err_exponent)
+                                last = False
+                                continue
+                            h_prop = hk * min(5.0, max(0.2, 0.9 * err ** self.err_exponent)) if err > 0 else 5.0 * hk
+                        break
+                    if gmin != gmin:  # a guard returned nan
+                        gvals = [float(g(x_new)) for g in guards]
                         bad = _first_nonfinite(gvals)
-                        return self._end_segment(buf, "non_finite",
-                                                 f"guard of transition {data.transitions[bad].name} is nan at "
-                                                 f"t={t + hk:.17g} in mode '{mode}', x={x_new.tolist()}", t)
-                if reason is None:
-                    break
-                halved += 1
-                self.halvings += 1
-                hk *= 0.5
+                        outcome = ("non_finite", f"guard of transition {data.transitions[bad].name} is nan at "
+                                   f"t={t + hk:.17g} in mode '{mode}', x={x_new.tolist()}", t)
+                        break
+                    reason = "past"
+                shortened += 1
+                hk_old = hk
+                if aim and reason == "past" and aimed < 3:
+                    hk = self._aim(guards, gvals if single_guard is None else [gmin], field, t, x, k0, hk,
+                                   x_new, stages)
+                    aimed += 1
+                else:
+                    hk *= 0.5
                 last = False
-                if halved > self.max_halvings or t + hk <= t:
+                if shortened > self.max_halvings or t + hk <= t:
                     if reason == "non_finite":
-                        return self._end_segment(
-                            buf, "non_finite",
-                            f"the step from t={t:.17g} in mode '{mode}' gives a non-finite state even at "
-                            f"h={hk * 2:.3g}: x={x.tolist()}", t)
-                    e = int(np.argmin(gvals))
-                    return self._end_segment(
-                        buf, "halving_exhausted",
-                        f"no step from t={t:.17g} in mode '{mode}' lands in the relaxed domain after "
-                        f"{halved - 1} halvings: the flow leaves through the guard of transition "
-                        f"{data.transitions[e].name} without entering its strip (x={x.tolist()})", t)
+                        outcome = ("non_finite", f"the step from t={t:.17g} in mode '{mode}' gives a non-finite "
+                                   f"state even at h={hk_old:.3g}: x={x.tolist()}", t)
+                    else:
+                        if single_guard is None:
+                            e = int(np.argmin(gvals))
+                        else:
+                            e = 0
+                        outcome = ("halving_exhausted",
+                                   f"no step from t={t:.17g} in mode '{mode}' lands in the relaxed domain after "
+                                   f"{shortened - 1} halvings: the flow leaves through the guard of transition "
+                                   f"{data.transitions[e].name} without entering its strip (x={x.tolist()})", t)
+                    break
+            halvings += shortened
+            if outcome is not None:
+                break
             t_new = t_final if last else t + hk
-            self.steps += 1
+            steps += 1
             if n_guards and gmin < 0.0:
-                k1 = K[-1].copy() if fsal else np.asarray(self._f(field, t_new, x_new), dtype=float)
-                return self._step_transition(buf, data, gvals, t, x, k0, t_new, x_new, k1, t_final)
+                if single_guard is not None:
+                    gvals = [gmin]
+                k1 = stages[-1] if fsal else field(t_new, x_new, None if control is None else control(t_new, x_new))
+                if not fsal:
+                    field_evals += 1
+                buf.size = size
+                self._flush(steps, halvings, rejections, field_evals, guard_evals, h_prop)
+                return self._step_transition(buf, data, gvals, t, x, k0, t_new, x_new, np.asarray(k1, dtype=float),
+                                             t_final)
             t = t_new
             x = x_new
             if fsal:
-                k0 = K[-1].copy()
+                k0 = stages[-1]
             else:
-                k0 = np.asarray(self._f(field, t, x), dtype=float)
-            buf.append(t, x, k0)
-            if progress is not None and (self.steps & 63) == 0:
+                k0 = field(t, x, None if control is None else control(t, x))
+                field_evals += 1
+            if size == len(T):
+                buf.size = size
+                buf.append(t, x, k0)
+                T, X, DX, size = buf.t, buf.x, buf.dx, buf.size
+            else:
+                T[size] = t
+                X[size] = x
+                DX[size] = k0
+                size += 1
+            if progress is not None and (steps & 63) == 0:
                 now = _time.perf_counter()
                 if now - self._last_report > 0.2:
                     self._last_report = now
-                    progress(t, self.segments[0].t[0] if self.segments else buf.t[0], t_final)
+                    progress(t, self.t_start, t_final)
+        buf.size = size
+        self._flush(steps, halvings, rejections, field_evals, guard_evals, h_prop)
+        status, message, t_end = outcome
+        return self._end_segment(buf, status, message, t_end)
+
+    def _flush(self, steps, halvings, rejections, field_evals, guard_evals, h_prop) -> None:
+        self.steps += steps
+        self.halvings += halvings
+        self.error_rejections += rejections
+        self.field_evals += field_evals
+        self.guard_evals += guard_evals
+        self.h_prop = h_prop
+
+    def _error_norm(self, hk, stages, x, x_new) -> float:
+        est = error_estimate(self.tableau, hk, stages)
+        scale = self.atol + self.rtol * np.maximum(np.abs(x), np.abs(x_new))
+        return float(np.sqrt(np.mean((est / scale) ** 2)))
+
+    def _aim(self, guards, gvals, field, t, x, k0, hk, x_new, stages) -> float:
+        """A shorter step aimed at the middle of the deepest strip, found on the failed step's
+        own Hermite interpolant. The retried step is checked like any other, so the
+        guarantee of halving (never accept a state past the strip) is kept."""
+        e = int(np.argmin(gvals))
+        guard = guards[e]
+        if self.tableau.fsal:
+            k1 = stages[-1]
+        else:
+            k1 = np.asarray(self._f(field, t + hk, x_new), dtype=float)
+        half = 0.5 * self.eps
+        g0 = float(guard(x)) + half
+        self.guard_evals += 1
+        shifted = lambda z: float(guard(z)) + half  # noqa: E731 - root of g = -eps/2
+        s, n_evals, converged = crossing_on_step(shifted, x, k0, x_new, k1, hk, g0, gvals[e] + half, 1e-3 * half)
+        self.guard_evals += n_evals
+        if not converged or not (0.0 < s < 0.9):
+            return 0.5 * hk
+        return s * hk
 
     def _end_segment(self, buf: SegmentBuffer, status: str, message: str, t: float):
         self.segments.append(buf.freeze())
