@@ -279,23 +279,19 @@ class Execution:
 
     # -- sampling --------------------------------------------------------------------------
     def _pieces(self) -> tuple[np.ndarray, list[tuple[str, int]]]:
+        # An execution alternates segment, strip, segment, strip, ... by construction (a
+        # transition ends a segment and opens a strip; the next segment starts at its exit).
+        # Order the pieces that way rather than by start time, so that zero-length strips
+        # and segments (simultaneous transitions) keep their place; a time then belongs to the
+        # last piece starting at or before it, which makes the execution right-continuous.
         starts: list[float] = []
         kinds: list[tuple[str, int]] = []
-        # Segments and strips alternate; merge them by start time, a segment before a strip
-        # that starts at the same instant (a zero-length segment of an immediate transition).
-        i = j = 0
-        while i < len(self.segments) or j < len(self.strips):
-            take_seg = j >= len(self.strips) or (
-                i < len(self.segments) and self.segments[i].t_start <= self.strips[j].time
-            )
-            if take_seg:
-                starts.append(self.segments[i].t_start)
-                kinds.append(("seg", i))
-                i += 1
-            else:
-                starts.append(self.strips[j].time)
-                kinds.append(("strip", j))
-                j += 1
+        for i, seg in enumerate(self.segments):
+            starts.append(seg.t_start)
+            kinds.append(("seg", i))
+            if i < len(self.strips):
+                starts.append(self.strips[i].time)
+                kinds.append(("strip", i))
         return np.array(starts), kinds
 
     def sample(self, times: Iterable[float] | float) -> Samples:
