@@ -50,12 +50,18 @@ class Mode:
     jacobian:
         Optional ``jacobian(t, x, u) -> df/dx`` of shape (n_j, n_j); finite differences
         are used where it is missing (error bounds, periodic orbits).
+    compiled:
+        Optional compiled twin of the mode (see ``legsim.compiled``): numba-compiled field and
+        guards that let the step loop inside this mode run compiled. It must compute the same
+        field and the same guards (in the order of the mode's outgoing transitions) as the
+        Python callables, which remain the reference and serve everything else.
     """
 
     dim: int
     field: FieldFn
     names: tuple[str, ...] | None = None
     jacobian: Callable[[float, np.ndarray, Any], np.ndarray] | None = None
+    compiled: Any = None
 
     def __post_init__(self) -> None:
         if isinstance(self.dim, bool) or not isinstance(self.dim, (int, np.integer)) or self.dim < 1:

@@ -365,6 +365,11 @@ class _Integrator:
                                          f"x={x.tolist()}", t)
             return self._transition(buf, data, e, t, x, t, -gvals[e], t_final)
 
+        if data.mode.compiled is not None and control is None:
+            from .compiled import run_mode_compiled  # numba is imported only by systems that use it
+
+            return run_mode_compiled(self, data, buf, t, x, k0, t_final)
+
         span = max(1.0, abs(t_final))
         progress = self.progress
         T, X, DX, size = buf.t, buf.x, buf.dx, buf.size
