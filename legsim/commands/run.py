@@ -1,0 +1,206 @@
+"""``legsim run SCENE``: simulate a scene, print its summary, write its outputs.
+
+The output writers are looked up only when asked for: ``--rrd`` uses
+``legsim.record.write_rrd``, ``--html`` and ``--plot`` the ``html`` and ``plot`` writers of the
+``legsim.writers`` entry-point group; each is called as ``writer(execution, scene, path)``.
+Every file is written under a temporary name in its directory and renamed into place only
+when its writer returned, so an output is complete or absent. A run that stops before
+t_final (status other than ``finished``) still writes its outputs (they record the status and
+show where it stopped) and exits with code 3.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+from pathlib import Path
+from typing import Any, Callable
+
+from ..errors import LegsimError
+
+NAME = "run"
+HELP = "run a scene (a TOML file or a bundled scene name) and print its summary"
+
+OUTPUT_KINDS = ("rrd", "html", "plot")
+WRITER_GROUP = "legsim.writers"
+
+Writer = Callable[[Any, Any, Path], Any]
+
+
+def add_output_arguments(parser: argparse.ArgumentParser) -> None:
+    """The ``--rrd/--html/--plot FILE`` options (shared with commands that write executions)."""
+    parser.add_argument("--rrd", metavar="FILE", help="write a Rerun recording of the execution")
+    parser.add_argument("--html", metavar="FILE", help="write a self-contained meshcat animation")
+    parser.add_argument("--plot", metavar="FILE", help="write a plot of the state against time")
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("scene", metavar="SCENE", help="scene file (.toml) or bundled scene name (see `legsim scenes`)")
+    parser.add_argument("--set", dest="overrides", metavar="KEY=VALUE", action="append", default=[],
+                        help="override a scene field, e.g. --set integrator.h=1e-4 "
+                             "--set effects.floor.restitution=0.8 (value read as TOML, else as a string)")
+    parser.add_argument("--json", action="store_true", help="print one JSON object instead of the summary")
+    parser.add_argument("--quiet", "-q", action="store_true", help="print nothing but errors; no progress bar")
+    add_output_arguments(parser)
+
+
+def run(args: argparse.Namespace) -> int:
+    from ..progress import progress_for
+    from ..scene import load_scene
+
+    scene = load_scene(args.scene, overrides=args.overrides)
+    outputs = requested_outputs(args, scene.output)
+    # Writers are resolved before the run so that a missing one costs nothing.
+    writers = {kind: find_writer(kind, source) for kind, (_, source) in outputs.items()}
+
+    bar = progress_for(sys.stderr, enabled=not (args.quiet or args.json), label=scene.name)
+    try:
+        execution = scene.simulate(progress=bar)
+    finally:
+        if bar is not None:
+            bar.close()
+
+    written = write_outputs(execution, scene, {kind: path for kind, (path, _) in outputs.items()}, writers)
+
+    from ..scene import run_summary
+
+    summary = run_summary(execution, scene)
+    summary["scene_file"] = str(scene.path)
+    summary["outputs"] = {kind: str(path) for kind, path in written.items()}
+    if args.json:
+        print(json.dumps(summary, allow_nan=False))
+    elif not args.quiet:
+        print(format_summary(summary))
+        for kind, path in written.items():
+            print(f"wrote {path} ({kind})")
+    if summary["status"] != "finished":
+        print(f"legsim: run stopped early ({summary['status']}): {summary['message']}", file=sys.stderr)
+        return 3
+    return 0
+
+
+def requested_outputs(args: argparse.Namespace, scene_output: dict[str, str | None] | None = None
+                      ) -> dict[str, tuple[Path, str]]:
+    """kind -> (path, where it was asked for): a flag wins over the scene's ``[output]``."""
+    out: dict[str, tuple[Path, str]] = {}
+    for kind in OUTPUT_KINDS:
+        flag = getattr(args, kind, None)
+        if flag:
+            out[kind] = (Path(flag), f"--{kind}")
+        elif scene_output and scene_output.get(kind):
+            out[kind] = (Path(scene_output[kind]), f"output.{kind} of the scene")
+    return out
+
+
+def find_writer(kind: str, source: str = "") -> Writer:
+    """The writer for ``kind`` (rrd, html, plot); LegsimError naming ``source`` when it is missing."""
+    label = source or f"--{kind}"
+    if kind == "rrd":
+        import importlib
+
+        try:
+            module = importlib.import_module("legsim.record")
+        except ModuleNotFoundError as exc:
+            if exc.name != "legsim.record":
+                raise LegsimError(f"{label}: the Rerun recorder needs {exc.name!r}, which is not installed "
+                                  f"(pip install rerun-sdk)") from exc
+            raise LegsimError(f"{label}: Rerun recordings are not available: legsim.record is missing") from exc
+        writer = getattr(module, "write_rrd", None)
+        if not callable(writer):
+            raise LegsimError(f"{label}: legsim.record has no write_rrd(execution, scene, path)")
+        return writer
+    from importlib import metadata
+
+    eps = metadata.entry_points(group=WRITER_GROUP, name=kind)
+    if not eps:
+        raise LegsimError(f"{label}: no '{kind}' writer is registered in the {WRITER_GROUP} entry points")
+    ep = next(iter(eps))
+    try:
+        writer = ep.load()
+    except Exception as exc:
+        raise LegsimError(f"{label}: the '{kind}' writer {ep.value} could not be loaded: "
+                          f"{type(exc).__name__}: {exc}") from exc
+    if not callable(writer):
+        raise LegsimError(f"{label}: the '{kind}' writer {ep.value} is not callable")
+    return writer
+
+
+def write_outputs(execution: Any, scene: Any, paths: dict[str, Path],
+                  writers: dict[str, Writer] | None = None) -> dict[str, Path]:
+    """Call each writer on a temporary file next to its target and rename it into place.
+
+    Returns kind -> path of the files written. On a writer's failure its temporary file is
+    removed, the target is left as it was, and the error is raised (LegsimError as is, any
+    other exception wrapped in a LegsimError naming the file).
+    """
+    writers = dict(writers or {})
+    written: dict[str, Path] = {}
+    for kind, path in paths.items():
+        writer = writers.get(kind) or find_writer(kind)
+        path = Path(path)
+        if path.is_dir():
+            raise LegsimError(f"--{kind} {path}: is a directory")
+        path.parent.mkdir(parents=True, exist_ok=True)
+        # Same directory (so the rename is atomic) and same suffix (writers may read the format from it).
+        tmp = path.with_name(f".{path.stem}.partial-{os.getpid()}{path.suffix}")
+        try:
+            writer(execution, scene, tmp)
+            if not tmp.exists():
+                raise LegsimError(f"--{kind} {path}: the writer returned without writing a file")
+            os.replace(tmp, path)
+        except LegsimError:
+            tmp.unlink(missing_ok=True)
+            raise
+        except Exception as exc:
+            tmp.unlink(missing_ok=True)
+            raise LegsimError(f"--{kind} {path}: writing failed: {type(exc).__name__}: {exc}") from exc
+        written[kind] = path
+    return written
+
+
+def _compact_modes(sequence: list[str], limit: int = 6) -> str:
+    runs: list[list[Any]] = []
+    for mode in sequence:
+        if runs and runs[-1][0] == mode:
+            runs[-1][1] += 1
+        else:
+            runs.append([mode, 1])
+    parts = [m if n == 1 else f"{m} x{n}" for m, n in runs]
+    if len(parts) > limit:
+        parts = parts[:limit - 2] + ["..."] + parts[-2:]
+    return " -> ".join(parts) + f" ({len(sequence)} visits)"
+
+
+def _num(value: Any) -> str:
+    return "nan" if value is None else f"{value:.6g}"
+
+
+CORE_KEYS = {"system", "status", "message", "t_final", "final_mode", "final_state", "state_names",
+             "final_in_strip", "mode_sequence", "transitions", "steps", "halvings", "field_evals",
+             "guard_evals", "reset_evals", "strip_time", "wall_time_s", "h", "eps", "method", "scene",
+             "robot", "energy_initial", "energy_final", "scene_file", "outputs"}
+
+
+def format_summary(summary: dict[str, Any]) -> str:
+    """The human-readable run summary (a few lines) of a ``run_summary`` dict."""
+    name = summary.get("scene") or summary.get("system") or "run"
+    status = summary["status"]
+    lines = [f"{name}: {status} at t = {_num(summary['t_final'])} s "
+             f"({summary.get('method')}, h = {_num(summary.get('h'))} s, eps = {_num(summary.get('eps'))})"]
+    state = ", ".join(f"{n} = {_num(v)}" for n, v in zip(summary["state_names"], summary["final_state"]))
+    strip = " (held in a strip)" if summary.get("final_in_strip") else ""
+    lines.append(f"final mode {summary['final_mode']}{strip}: {state}")
+    lines.append(f"transitions {summary['transitions']}: {_compact_modes(summary['mode_sequence'])}")
+    lines.append(f"steps {summary['steps']}, halvings {summary['halvings']}; evaluations: field "
+                 f"{summary['field_evals']}, guard {summary['guard_evals']}, reset {summary['reset_evals']}")
+    extra = {k: v for k, v in summary.items() if k not in CORE_KEYS and isinstance(v, (int, float))}
+    if extra:
+        lines.append("other counters: " + ", ".join(f"{k} {v}" for k, v in extra.items()))
+    if "energy_initial" in summary:
+        lines.append(f"energy {_num(summary['energy_initial'])} J -> {_num(summary['energy_final'])} J")
+    lines.append(f"wall time {summary['wall_time_s']:.3g} s")
+    if status != "finished" and summary.get("message"):
+        lines.append(f"stopped: {summary['message']}")
+    return "\n".join(lines)

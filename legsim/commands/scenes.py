@@ -1,0 +1,43 @@
+"""``legsim scenes``: list the scenes a name can reach (bundled, and in ``LEGSIM_SCENE_PATH``)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+
+NAME = "scenes"
+HELP = "list the bundled scenes (name, robot, description)"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--json", action="store_true", help="print a JSON list of {name, robot, description, path}")
+    parser.add_argument("--check", action="store_true",
+                        help="also load and validate each scene (builds its model); exit 2 if any is invalid")
+
+
+def run(args: argparse.Namespace) -> int:
+    from ..errors import LegsimError
+    from ..scene import load_scene, scene_files, scene_info
+
+    rows = []
+    for name, path in scene_files().items():
+        info = scene_info(path)
+        if args.check and "error" not in info:
+            try:
+                load_scene(path)
+            except LegsimError as exc:
+                info["error"] = str(exc)
+        rows.append(info)
+    if args.json:
+        print(json.dumps(rows))
+    elif rows:
+        wn = max(len(r["name"]) for r in rows)
+        wr = max(len(r["robot"] or "?") for r in rows)
+        for r in rows:
+            text = r["description"] if "error" not in r else f"INVALID: {r['error']}"
+            print(f"{r['name']:<{wn}}  {r['robot'] or '?':<{wr}}  {text}".rstrip())
+    else:
+        from ..scene import search_dirs
+
+        print(f"no scenes found in {[str(d) for d in search_dirs()]}")
+    return 2 if any("error" in r for r in rows) else 0

@@ -1,0 +1,553 @@
+"""Scene files: a TOML description of one simulation, validated completely before anything runs.
+
+A scene names a robot (a builder registered in the ``legsim.builders`` entry-point group), its
+parameters, the effects it wants switched on, the initial mode and state by coordinate name,
+the integrator settings and the outputs::
+
+    [scene]
+    description = "one line shown by `legsim scenes`"
+
+    [robot]
+    name = "bouncing_ball"
+    [robot.parameters]
+    g = 9.81
+
+    [effects]
+    floor = { restitution = 0.5 }
+
+    [initial]
+    mode = "flight"
+    state = { z = 1.0, zd = 0.0 }
+
+    [integrator]
+    method = "rk4"
+    h = 1e-3
+    eps = 1e-3
+    t_final = 2.7
+
+    [output]
+    rrd = "out/ball.rrd"
+
+Tool sections (``[orbit]``, ``[certify]``, ...) must be tables; the tool that reads one
+validates its content. Every error is a ``SceneError`` whose message starts with the file and
+names the field (as a dotted path) and what is allowed.
+
+A scene is named either by a path or by a bare name, which is looked up as ``<name>.toml`` in
+the directories of ``LEGSIM_SCENE_PATH`` (``os.pathsep`` separated), then in the bundled
+``scenarios/`` directory of the repository.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable, Iterable, Mapping, Sequence
+
+import numpy as np
+
+from . import builders
+from .builders import Builder, Model, Param, resolve_parameters
+from .errors import LegsimError, ModelError, SceneError
+from .execution import Execution
+
+SCENE_PATH_ENV = "LEGSIM_SCENE_PATH"
+
+CORE_SECTIONS = ("scene", "robot", "effects", "initial", "integrator", "output")
+TOOL_SECTIONS = ("orbit", "certify", "stochastic", "zeno", "stress", "bench")
+ALLOWED_SECTIONS = CORE_SECTIONS + TOOL_SECTIONS
+
+SCENE_KEYS = {"description": "a one-line string"}
+ROBOT_KEYS = {"name": "a builder name (required)", "parameters": "a table of the builder's parameters"}
+INITIAL_KEYS = {"mode": "a mode name", "state": "a table of coordinate name = number"}
+OUTPUT_KEYS = ("rrd", "html", "plot")
+
+# Integrator settings as Params, so their messages say what is allowed exactly as the
+# builders' do. t_final, h and eps have no default: their right values depend on the model
+# (eps is in guard units), so a scene must state them.
+REQUIRED_INTEGRATOR = ("t_final", "h", "eps")
+
+
+def _integrator_schema() -> dict[str, Param]:
+    from .methods import ALIASES, METHODS
+
+    return {
+        "method": Param("rk4", "Runge-Kutta method", choices=tuple(sorted(METHODS) + sorted(ALIASES))),
+        "h": Param(1e-3, "nominal step size", "s", low=0.0, low_open=True),
+        "eps": Param(1e-3, "strip width", "guard units", low=0.0, low_open=True),
+        "t_final": Param(1.0, "end time", "s", low=0.0, low_open=True),
+        "t0": Param(0.0, "start time", "s"),
+        "max_transitions": Param(100_000, "transition budget", low=0),
+        "max_halvings": Param(64, "most halvings of one step", low=1),
+        "landing": Param("halve", "how a step past the strip is shortened", choices=("halve", "aim")),
+        # Optional error control (no default: absent means fixed nominal steps).
+        "rtol": Param(1e-6, "relative tolerance of error-controlled steps", low=0.0, low_open=True),
+        "atol": Param(1e-9, "absolute tolerance of error-controlled steps", low=0.0, low_open=True),
+    }
+
+
+OPTIONAL_INTEGRATOR = ("rtol", "atol")
+
+
+@dataclass
+class Scene:
+    """A validated scene, ready to simulate.
+
+    Attributes
+    ----------
+    path: the scene file.
+    name: the scene's name (the file's stem).
+    description: one line.
+    robot: the builder's name; ``builder`` the builder itself.
+    parameters, effects: the resolved robot parameters and the effects switched on (with their
+        parameters), as passed to the builder.
+    model: the built ``legsim.builders.Model``.
+    initial_mode: mode name; ``initial_state``: float64 array (n,) in that mode's coordinates.
+    integrator: method, h (s), eps (guard units), t_final (s), t0 (s), max_transitions,
+        max_halvings, landing ("halve" or "aim"), rtol and atol (None unless error-controlled).
+    output: rrd, html, plot paths (str) or None.
+    sections: the tool sections present (``orbit``, ``certify``, ...), as tables.
+    data: the scene's TOML content after overrides.
+    overrides: the ``key.path=value`` overrides applied.
+    """
+
+    path: Path
+    name: str
+    description: str
+    robot: str
+    builder: Builder
+    parameters: dict[str, Any]
+    effects: dict[str, dict[str, Any]]
+    model: Model
+    initial_mode: str
+    initial_state: np.ndarray
+    integrator: dict[str, Any]
+    output: dict[str, str | None]
+    sections: dict[str, dict[str, Any]]
+    data: dict[str, Any] = field(repr=False)
+    overrides: list[str] = field(default_factory=list)
+
+    @property
+    def state_names(self) -> tuple[str, ...]:
+        """Coordinate names of the initial mode."""
+        return tuple(self.model.system.state_names(self.initial_mode))
+
+    def simulate(self, progress: Callable[[float, float, float], None] | None = None) -> Execution:
+        """Run the relaxed integrator with the scene's settings.
+
+        ``progress(t, t0, t_final)`` is called a few times a second on long runs. The model's
+        own counters (``Model.counters()``, e.g. damping-term evaluations) counted during this
+        run are added to ``execution.counters`` under their own names (prefixed ``model_``
+        where a name collides with an integrator counter).
+        """
+        from .relaxed import simulate
+
+        s = self.integrator
+        before = _model_counters(self.model)
+        execution = simulate(self.model.system, self.initial_state.copy(), self.initial_mode, s["t_final"],
+                             s["h"], s["eps"], s["method"], self.model.control, t0=s["t0"],
+                             max_transitions=s["max_transitions"], max_halvings=s["max_halvings"],
+                             progress=progress, rtol=s["rtol"], atol=s["atol"], landing=s["landing"])
+        after = _model_counters(self.model)
+        for key, value in after.items():
+            # Report this run's count: the builder may have evaluated terms while being checked.
+            delta = value - before.get(key, 0) if isinstance(value, (int, float)) else value
+            name = key if key not in execution.counters else f"model_{key}"
+            execution.counters[name] = delta
+        return execution
+
+    def energy(self, mode: str, x: np.ndarray) -> float | None:
+        """The system's energy (J) at (mode, x), or None when it defines none."""
+        fn = self.model.system.energy
+        if fn is None:
+            return None
+        try:
+            value = float(fn(mode, np.asarray(x, dtype=float)))
+        except Exception as exc:
+            raise ModelError(f"{self.model.system.name}: energy in mode '{mode}' failed: "
+                             f"{type(exc).__name__}: {exc}") from exc
+        return value
+
+    def summary(self, execution: Execution) -> dict[str, Any]:
+        """The run summary of ``legsim run --json``: ``Execution.summary()`` plus ``scene``,
+        ``robot``, energies (J, when the system defines one) and any extra counters (the model's).
+        Non-finite numbers become None so the result is valid JSON."""
+        return run_summary(execution, self)
+
+
+def _model_counters(model: Model) -> dict[str, Any]:
+    if model.counters is None:
+        return {}
+    counts = model.counters()
+    if not isinstance(counts, Mapping):
+        raise ModelError(f"{model.system.name}: Model.counters() must return a dict, got {type(counts).__name__}")
+    return dict(counts)
+
+
+def run_summary(execution: Execution, scene: Scene | None = None) -> dict[str, Any]:
+    """JSON-ready summary of a run (the keys of ``legsim run --json`` and ``legsim replay --json``).
+
+    ``execution.summary()`` plus: ``scene`` and ``robot`` (when a scene is given),
+    ``energy_initial``/``energy_final`` in J (when the scene's system defines an energy), and
+    every counter of ``execution.counters`` that the summary does not already hold (the model's
+    counters added by ``Scene.simulate``). Non-finite floats are replaced by None.
+    """
+    out = execution.summary()
+    if scene is not None:
+        out["scene"] = scene.name
+        out["robot"] = scene.robot
+        if scene.model.system.energy is not None:
+            out["energy_initial"] = scene.energy(scene.initial_mode, scene.initial_state)
+            out["energy_final"] = scene.energy(execution.final_mode, execution.final_state)
+    for key, value in execution.counters.items():
+        if key not in out:
+            out[key] = value
+    return _finite_or_none(out)
+
+
+def _finite_or_none(obj: Any) -> Any:
+    if isinstance(obj, dict):
+        return {k: _finite_or_none(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_finite_or_none(v) for v in obj]
+    if isinstance(obj, (np.floating, np.integer)):
+        obj = obj.item()
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return None
+    return obj
+
+
+# -- finding scenes ----------------------------------------------------------------------------
+def bundled_dir() -> Path:
+    """The repository's ``scenarios/`` directory (next to the ``legsim`` package)."""
+    return Path(__file__).resolve().parents[1] / "scenarios"
+
+
+def search_dirs() -> list[Path]:
+    """Directories searched for scene names: ``LEGSIM_SCENE_PATH`` entries, then the bundled one."""
+    dirs = [Path(p).expanduser() for p in os.environ.get(SCENE_PATH_ENV, "").split(os.pathsep) if p.strip()]
+    dirs.append(bundled_dir())
+    return dirs
+
+
+def scene_files() -> dict[str, Path]:
+    """Every scene a name can reach: name -> file, the first directory of ``search_dirs`` winning."""
+    found: dict[str, Path] = {}
+    for directory in search_dirs():
+        if not directory.is_dir():
+            continue
+        for path in sorted(directory.glob("*.toml")):
+            found.setdefault(path.stem, path)
+    return found
+
+
+def resolve_scene_path(path_or_name: str | os.PathLike) -> Path:
+    """The file of a scene given by path or by name; SceneError when there is none."""
+    if isinstance(path_or_name, os.PathLike):
+        candidate = Path(path_or_name)
+    elif isinstance(path_or_name, str) and path_or_name:
+        candidate = Path(path_or_name)
+    else:
+        raise SceneError(f"a scene must be a path or a name, got {path_or_name!r}")
+    if candidate.is_file():
+        return candidate
+    if candidate.exists():
+        raise SceneError(f"{candidate}: not a scene file (is a directory)")
+    text = str(path_or_name)
+    looks_like_path = isinstance(path_or_name, os.PathLike) or os.sep in text or "/" in text or text.endswith(".toml")
+    if not looks_like_path:
+        for directory in search_dirs():
+            path = directory / f"{text}.toml"
+            if path.is_file():
+                return path
+        known = sorted(scene_files())
+        raise SceneError(f"unknown scene '{text}': no such file, and no scene of that name in "
+                         f"{[str(d) for d in search_dirs()]}; known scenes: {known}")
+    raise SceneError(f"{candidate}: no such scene file")
+
+
+# -- overrides ---------------------------------------------------------------------------------
+def parse_override(text: str) -> tuple[list[str], Any]:
+    """Split ``key.path=value`` into the key path and the value, read as a TOML literal
+    (``1e-4``, ``true``, ``"x"``, ``{ a = 1 }``, ``[1, 2]``) or else as a bare string."""
+    if not isinstance(text, str) or "=" not in text:
+        raise SceneError(f"--set {text!r}: expected key.path=value, e.g. integrator.h=1e-4")
+    key, raw = text.split("=", 1)
+    parts = [p.strip() for p in key.strip().split(".")]
+    if not key.strip() or any(not p for p in parts):
+        raise SceneError(f"--set {text!r}: the key must be a dotted path of names, e.g. integrator.h=1e-4")
+    raw = raw.strip()
+    try:
+        value = tomllib.loads(f"v = {raw}")["v"]
+    except tomllib.TOMLDecodeError:
+        value = raw
+    return parts, value
+
+
+def apply_overrides(data: dict[str, Any], overrides: Iterable[str]) -> list[str]:
+    """Apply ``key.path=value`` overrides to the scene's TOML tables in place (tables along the
+    path are created as needed; an effect set to ``true`` becomes a table of parameters)."""
+    applied = []
+    for text in overrides:
+        parts, value = parse_override(text)
+        node = data
+        for depth, part in enumerate(parts[:-1]):
+            child = node.get(part)
+            where = ".".join(parts[:depth + 1])
+            if child is None or child is True:
+                child = node[part] = {}
+            elif child is False:
+                raise SceneError(f"--set {text}: {where} is false (switched off); switch it on with "
+                                 f"--set {where}=true before setting its fields")
+            elif not isinstance(child, dict):
+                raise SceneError(f"--set {text}: {where} is {child!r}, not a table, so it has no field "
+                                 f"'{parts[depth + 1]}'")
+            node = child
+        node[parts[-1]] = value
+        applied.append(text)
+    return applied
+
+
+# -- loading -----------------------------------------------------------------------------------
+def read_toml(path: Path) -> dict[str, Any]:
+    """Parse a TOML file; SceneError names the file and the line of a syntax error."""
+    try:
+        raw = path.read_bytes()
+    except FileNotFoundError:
+        raise SceneError(f"{path}: no such scene file") from None
+    except OSError as exc:
+        raise SceneError(f"{path}: cannot read: {exc.strerror or exc}") from exc
+    try:
+        return tomllib.loads(raw.decode("utf-8"))
+    except UnicodeDecodeError as exc:
+        raise SceneError(f"{path}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
+    except tomllib.TOMLDecodeError as exc:
+        # tomllib says "... (at line L, column C)": keep it, it is what the user needs.
+        raise SceneError(f"{path}: TOML syntax error: {exc}") from None
+
+
+def load_scene(path_or_name: str | os.PathLike, overrides: Sequence[str] = ()) -> Scene:
+    """Read, override and validate a scene; build its model.
+
+    Parameters
+    ----------
+    path_or_name: a scene file, or the name of a scene in ``LEGSIM_SCENE_PATH`` or ``scenarios/``.
+    overrides: ``key.path=value`` strings applied to the file's content before validation.
+
+    Raises
+    ------
+    SceneError
+        naming the file, the field (dotted path) and what is allowed, for anything wrong:
+        missing file, TOML syntax (with its line), unknown sections, keys, robots, parameters,
+        effects, modes or coordinates, wrong types, out-of-range values.
+    """
+    if isinstance(overrides, str):
+        overrides = [overrides]
+    path = resolve_scene_path(path_or_name)
+    data = read_toml(path)
+    applied = apply_overrides(data, overrides)
+    return _validate(path, data, applied)
+
+
+def _fail(path: Path, where: str, message: str) -> SceneError:
+    return SceneError(f"{path}: {where}: {message}")
+
+
+def _table(path: Path, data: Mapping[str, Any], key: str, where: str | None = None) -> dict[str, Any]:
+    value = data.get(key, {})
+    if not isinstance(value, dict):
+        raise _fail(path, where or key, f"expected a table, got {_show(value)}")
+    return value
+
+
+def _show(value: Any) -> str:
+    kind = {bool: "boolean", int: "integer", float: "float", str: "string", list: "array",
+            dict: "table"}.get(type(value), type(value).__name__)
+    return f"{kind} {value!r}"
+
+
+def _check_keys(path: Path, table: Mapping[str, Any], allowed: Iterable[str], where: str) -> None:
+    allowed = list(allowed)
+    unknown = sorted(set(table) - set(allowed))
+    if unknown:
+        raise _fail(path, where, f"unknown key(s) {unknown}; allowed: {allowed}")
+
+
+def _validate(path: Path, data: dict[str, Any], overrides: list[str]) -> Scene:
+    unknown = sorted(set(data) - set(ALLOWED_SECTIONS))
+    if unknown:
+        raise SceneError(f"{path}: unknown section(s) {unknown}; allowed: {list(CORE_SECTIONS)} and tool "
+                         f"sections {list(TOOL_SECTIONS)}")
+    for key in ALLOWED_SECTIONS:
+        _table(path, data, key)
+
+    scene_t = data.get("scene", {})
+    _check_keys(path, scene_t, SCENE_KEYS, "scene")
+    description = scene_t.get("description", "")
+    if not isinstance(description, str):
+        raise _fail(path, "scene.description", f"expected a string, got {_show(description)}")
+    name = path.stem
+
+    robot_t = _table(path, data, "robot")
+    _check_keys(path, robot_t, ROBOT_KEYS, "robot")
+    if "name" not in robot_t:
+        raise _fail(path, "robot.name", f"missing; available robots: {sorted(builders.available())}")
+    robot = robot_t["name"]
+    if not isinstance(robot, str):
+        raise _fail(path, "robot.name", f"expected a string, got {_show(robot)}; "
+                                        f"available robots: {sorted(builders.available())}")
+    parameters = _table(path, robot_t, "parameters", "robot.parameters")
+    effects_t = _table(path, data, "effects")
+    # Integrator settings and outputs are checked before the model is built, so that a typo in
+    # them is reported without paying for (possibly slow) model construction.
+    integrator = _integrator(path, _table(path, data, "integrator"))
+    output = _output(path, _table(path, data, "output"))
+    sections = {key: data[key] for key in TOOL_SECTIONS if key in data}
+
+    try:
+        builder = builders.get_builder(robot)
+    except SceneError as exc:
+        raise _fail(path, "robot.name", str(exc)) from None
+    where = str(path)
+    # Builder.make would do these two steps too; they are done here so that the scene keeps the
+    # resolved values (for recordings and tools) and the builder runs once.
+    resolved_params = resolve_parameters(builder.parameters, parameters, f"{where}: robot.parameters")
+    chosen = builders.resolve_effects(builder.effects, effects_t, f"{where}: effects")
+    try:
+        model = builder.build(resolved_params, chosen)
+    except SceneError as exc:
+        if str(exc).startswith(where):
+            raise
+        raise SceneError(f"{where}: robot '{robot}': {exc}") from exc
+    except Exception as exc:  # a builder's own failure: name the file and robot, keep the cause chained
+        detail = str(exc) if isinstance(exc, LegsimError) else f"{type(exc).__name__}: {exc}"
+        raise ModelError(f"{where}: robot '{robot}' could not be built: {detail}") from exc
+    if not isinstance(model, Model):
+        raise ModelError(f"{where}: builder '{robot}' returned {type(model).__name__}, "
+                         f"expected legsim.builders.Model")
+
+    initial_mode, initial_state = _initial(path, model, _table(path, data, "initial"), integrator["eps"],
+                                         integrator["t0"])
+
+    return Scene(path=path, name=name, description=description, robot=robot, builder=builder,
+                 parameters=resolved_params, effects=chosen, model=model, initial_mode=initial_mode,
+                 initial_state=initial_state, integrator=integrator, output=output, sections=sections,
+                 data=data, overrides=overrides)
+
+
+def _integrator(path: Path, table: dict[str, Any]) -> dict[str, Any]:
+    schema = _integrator_schema()
+    missing = [key for key in REQUIRED_INTEGRATOR if key not in table]
+    if missing:
+        raise _fail(path, f"integrator.{missing[0]}",
+                    f"missing; a scene must give {list(REQUIRED_INTEGRATOR)} "
+                    f"({', '.join(f'{k}: {schema[k].allowed()} {schema[k].unit}'.strip() for k in missing)})")
+    out = resolve_parameters(schema, table, f"{path}: integrator")
+    for key in OPTIONAL_INTEGRATOR:
+        if key not in table:
+            out[key] = None
+    if out["rtol"] is not None or out["atol"] is not None:
+        from .methods import get_method
+
+        if not get_method(out["method"]).embedded:
+            key = "rtol" if out["rtol"] is not None else "atol"
+            raise _fail(path, f"integrator.{key}", f"error control needs a method with an embedded error "
+                                                   f"estimate (method = 'bs32' or 'dopri5'), got "
+                                                   f"method = '{out['method']}'")
+    if out["t_final"] <= out["t0"]:
+        raise _fail(path, "integrator.t_final", f"{out['t_final']!r} must be > integrator.t0 = {out['t0']!r}")
+    return out
+
+
+def _output(path: Path, table: dict[str, Any]) -> dict[str, str | None]:
+    _check_keys(path, table, OUTPUT_KEYS, "output")
+    out: dict[str, str | None] = {}
+    for key in OUTPUT_KEYS:
+        value = table.get(key)
+        if value is not None and (not isinstance(value, str) or not value.strip()):
+            raise _fail(path, f"output.{key}", f"expected a file path (string), got {_show(value)}")
+        out[key] = value
+    return out
+
+
+def _known_modes(model: Model) -> list[str]:
+    from .hybrid import reachable_modes
+
+    try:
+        return sorted(set(model.system.modes) | set(reachable_modes(model.system, model.initial_mode)))
+    except LegsimError:
+        return sorted(model.system.modes)
+
+
+def _initial(path: Path, model: Model, table: dict[str, Any], eps: float, t0: float) -> tuple[str, np.ndarray]:
+    _check_keys(path, table, INITIAL_KEYS, "initial")
+    system = model.system
+    mode = table.get("mode", model.initial_mode)
+    if not isinstance(mode, str):
+        raise _fail(path, "initial.mode", f"expected a mode name (string), got {_show(mode)}; "
+                                          f"modes: {_known_modes(model)}")
+    try:
+        names = system.state_names(mode)
+    except ModelError:
+        raise _fail(path, "initial.mode", f"unknown mode {mode!r}; modes: {_known_modes(model)}") from None
+    given = table.get("state", {})
+    if not isinstance(given, dict):
+        raise _fail(path, "initial.state", f"expected a table of coordinate = number, got {_show(given)}")
+    unknown = sorted(set(given) - set(names))
+    if unknown:
+        raise _fail(path, "initial.state", f"unknown coordinate(s) {unknown} of mode '{mode}'; "
+                                           f"coordinates: {list(names)}")
+    defaults = dict(model.initial_state)
+    values = []
+    for name in names:
+        if name in given:
+            value = given[name]
+            if isinstance(value, bool) or not isinstance(value, (int, float)):
+                raise _fail(path, f"initial.state.{name}", f"expected a number, got {_show(value)}")
+        elif name in defaults:
+            value = defaults[name]
+        else:
+            raise _fail(path, f"initial.state.{name}", f"missing, and the robot has no default for it in "
+                                                       f"mode '{mode}'; give {list(names)}")
+        value = float(value)
+        if not math.isfinite(value):
+            raise _fail(path, f"initial.state.{name}", f"must be finite, got {value!r}")
+        values.append(value)
+    x0 = np.array(values, dtype=float)
+    try:
+        u0 = None if model.control is None else model.control(t0, x0)
+    except Exception as exc:
+        raise ModelError(f"{path}: the control of robot model '{system.name}' failed on the initial state "
+                         f"{x0.tolist()}: {type(exc).__name__}: {exc}") from exc
+    try:
+        system.check_state(mode, x0, t=t0, u=u0, label="initial state")
+    except ModelError as exc:
+        raise _fail(path, "initial", str(exc)) from exc
+    gvals = system.guard_values(mode, x0)
+    if gvals.size and gvals.min() < -eps:
+        worst = int(np.argmin(gvals))
+        tr = system.outgoing(mode)[worst]
+        raise _fail(path, "initial.state", f"{dict(zip(names, values))} lies past the guard of transition "
+                                           f"{tr.name} by {-gvals[worst]:.3g} > eps = {eps:g} (guard units); "
+                                           f"start inside the domain of mode '{mode}'")
+    return mode, x0
+
+
+def scene_info(path: Path) -> dict[str, Any]:
+    """Name, robot and description of a scene file, read without building its model
+    (for listings); ``error`` holds the reason when the file cannot be read."""
+    info: dict[str, Any] = {"name": path.stem, "robot": None, "description": "", "path": str(path)}
+    try:
+        data = read_toml(path)
+    except SceneError as exc:
+        info["error"] = str(exc)
+        return info
+    scene_t = data.get("scene") if isinstance(data.get("scene"), dict) else {}
+    robot_t = data.get("robot") if isinstance(data.get("robot"), dict) else {}
+    if isinstance(scene_t.get("description"), str):
+        info["description"] = scene_t["description"]
+    if isinstance(robot_t.get("name"), str):
+        info["robot"] = robot_t["name"]
+    return info
