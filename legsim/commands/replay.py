@@ -1,0 +1,107 @@
+"""``legsim replay FILE.rrd``: print a recording's summary, open it, or animate it."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+NAME = "replay"
+HELP = "load a .rrd recording: print its summary (--json), open the Rerun viewer (--spawn), write --html/--plot"
+
+#: Transitions listed in the text summary before eliding the middle.
+SHOWN = 20
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("file", help="a recording written by `legsim run SCENE --rrd FILE.rrd`")
+    parser.add_argument("--json", action="store_true",
+                        help="print the summary as JSON (the keys of `legsim run --json`)")
+    parser.add_argument("--spawn", action="store_true",
+                        help="open the recording in the Rerun viewer (needs a display)")
+    parser.add_argument("--html", metavar="OUT.html",
+                        help="write a self-contained meshcat animation of the recorded robot")
+    parser.add_argument("--plot", metavar="OUT.png",
+                        help="write the recorded state against time, strips shaded (matplotlib)")
+
+
+def has_display() -> bool:
+    """True when a graphical viewer can open a window here."""
+    if sys.platform in ("darwin", "win32"):
+        return True
+    return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
+
+
+def _writer(kind: str):
+    from .run import find_writer
+
+    return find_writer(kind, f"--{kind}")
+
+
+def _fmt_vec(values) -> str:
+    return "[" + ", ".join(f"{float(v):.6g}" for v in values) + "]"
+
+
+def format_summary(path: Path, data: dict[str, Any]) -> str:
+    """The human-readable summary printed by ``legsim replay``: the lines of ``legsim run``
+    followed by the transitions (edge, times, states before and after the reset)."""
+    from .run import format_summary as run_lines
+
+    s = data["summary"]
+    lines = [f"recording {path}" + (f" of {s['scene_file']}" if s.get("scene_file") else "")]
+    lines += ["  " + line for line in run_lines(s).splitlines()]
+    trs = data["transitions"]
+    lines.append(f"  transitions ({len(trs)}):")
+    if len(trs) <= 2 * SHOWN:
+        keep = list(range(len(trs)))
+    else:
+        keep = list(range(SHOWN)) + list(range(len(trs) - SHOWN, len(trs)))
+    for j, k in enumerate(keep):
+        if j and k != keep[j - 1] + 1:
+            lines.append(f"    ... {k - keep[j - 1] - 1} more ...")
+        tr = trs[k]
+        lines.append(f"    t = {tr['time']:.9g} s  {tr['name']}: {tr['source']} -> {tr['target']}, "
+                     f"reset at {tr['exit_time']:.9g} s: {_fmt_vec(tr['state_before'])} -> "
+                     f"{_fmt_vec(tr['state_after'])}")
+    seq = data["mode_sequence"]
+    if len(seq) <= 2 * SHOWN:
+        shown = " -> ".join(seq)
+    else:
+        shown = " -> ".join(seq[:SHOWN]) + f" -> ... ({len(seq) - 2 * SHOWN} more) -> " + " -> ".join(seq[-SHOWN:])
+    lines.append(f"  mode sequence ({len(seq)} segments): {shown}")
+    return "\n".join(lines)
+
+
+def run(args: argparse.Namespace) -> int:
+    from ..errors import LegsimError
+    from ..record import read_rrd
+
+    path = Path(args.file)
+    data = read_rrd(path)
+    summary = dict(data["summary"])
+    outputs: dict[str, str] = {}
+    if args.html:
+        outputs["html"] = str(_writer("html")(None, None, args.html, recording=data))
+    if args.plot:
+        outputs["plot"] = str(_writer("plot")(None, None, args.plot, recording=data))
+    summary["outputs"] = outputs
+    if args.json:
+        print(json.dumps(summary, indent=2, allow_nan=False))
+    else:
+        print(format_summary(path, data))
+        for kind, out in outputs.items():
+            print(f"wrote {out} ({kind})")
+    if args.spawn:
+        if not has_display():
+            raise LegsimError(f"--spawn needs a display, and there is none here (DISPLAY and WAYLAND_DISPLAY are "
+                              f"unset); copy {path} to a machine with a display and run `rerun {path.name}` there")
+        # rerun-sdk runs its bundled viewer as `python -m rerun_cli FILE`; detach it so that
+        # the viewer outlives this command.
+        subprocess.Popen([sys.executable, "-m", "rerun_cli", str(path)], start_new_session=True,
+                         stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        print(f"opened {path} in the Rerun viewer", file=sys.stderr)
+    return 0

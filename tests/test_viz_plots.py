@@ -1,0 +1,128 @@
+"""State plots (paper 003 Fig. 2 style): the gray bars are the execution's strips, the mode
+band is its mode sequence, the lines are its samples; written atomically."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from test_record import ball_model, hopper_model
+
+from legsim.record import read_rrd, trace_series, execution_trace, write_rrd
+from legsim.relaxed import simulate
+from viz._common import OutputError
+from viz.plots import MODE_GID, STRIP_GID, plot_data, state_figure, write_plot
+
+
+@pytest.fixture(scope="module")
+def hopper():
+    model = hopper_model()
+    ex = simulate(model.system, np.array([0.5, 0.0]), "flight", 1.5, 1e-3, 2e-2)
+    assert len(ex.strips) >= 4
+    return model, ex
+
+
+def _spans(collection) -> list[tuple[float, float]]:
+    """(start, end) in data x of every bar of a broken_barh collection."""
+    out = []
+    for path in collection.get_paths():
+        x = path.vertices[:, 0]
+        out.append((float(x.min()), float(x.max())))
+    return sorted(out)
+
+
+def _collections(ax, gid):
+    return [c for c in ax.collections if c.get_gid() == gid]
+
+
+def test_strip_bars_match_the_strip_intervals_in_every_panel(hopper):
+    model, ex = hopper
+    fig = state_figure(plot_data(ex, model=model))
+    *panels, band = fig.axes[: len(ex.state_names["stance"]) + 1]
+    assert [ax.get_ylabel() for ax in panels] == ["z", "zd", "n"]
+    want = sorted(ex.strip_intervals())
+    for ax in panels + [band]:
+        (coll,) = _collections(ax, STRIP_GID)
+        got = _spans(coll)
+        assert len(got) == len(want)
+        np.testing.assert_allclose(np.array(got), np.array(want), rtol=0, atol=1e-12)
+        # The bars span the panel's full height (axes coordinates 0..1).
+        ys = np.concatenate([p.vertices[:, 1] for p in coll.get_paths()])
+        assert ys.min() == 0 and ys.max() == 1
+
+
+def test_mode_band_shows_the_mode_sequence(hopper):
+    model, ex = hopper
+    fig = state_figure(plot_data(ex, model=model))
+    band = fig.axes[3]
+    for mode in ("flight", "stance"):
+        (coll,) = _collections(band, f"{MODE_GID}:{mode}")
+        want = sorted((s.t_start, s.t_end) for s in ex.segments if s.mode == mode)
+        np.testing.assert_allclose(np.array(_spans(coll)), np.array(want), rtol=0, atol=1e-12)
+    assert band.get_xlim() == (ex.t0, ex.t_end)
+
+
+def test_lines_are_the_recorded_samples_with_breaks(hopper):
+    model, ex = hopper
+    fig = state_figure(plot_data(ex, model=model))
+    series = trace_series(ex)
+    times = execution_trace(ex).times
+    for ax, name in zip(fig.axes, ["z", "zd", "n"]):
+        (line,) = ax.get_lines()
+        x, y = line.get_xdata(), line.get_ydata()
+        rows, vals = series[name]
+        np.testing.assert_array_equal(x[~np.isnan(x)], times[rows])
+        np.testing.assert_array_equal(y[~np.isnan(y)], vals)
+    # n exists only in stance: its line breaks (NaN) once between consecutive stance phases.
+    (line,) = fig.axes[2].get_lines()
+    stances = sum(1 for s in ex.segments if s.mode == "stance")
+    assert int(np.isnan(line.get_ydata()).sum()) == stances - 1
+
+
+def test_plot_from_a_recording_equals_the_plot_from_the_execution(hopper, tmp_path):
+    model, ex = hopper
+    data = read_rrd(write_rrd(ex, None, tmp_path / "h.rrd", model=model))
+    a = state_figure(plot_data(ex, model=model))
+    b = state_figure(plot_data(recording=data))
+    for ax_a, ax_b in zip(a.axes[:3], b.axes[:3]):
+        assert _spans(_collections(ax_a, STRIP_GID)[0]) == _spans(_collections(ax_b, STRIP_GID)[0])
+        np.testing.assert_array_equal(ax_a.get_lines()[0].get_ydata(), ax_b.get_lines()[0].get_ydata())
+
+
+def test_write_plot_writes_a_png_of_the_figure_size(hopper, tmp_path):
+    from matplotlib.image import imread
+
+    model, ex = hopper
+    path = write_plot(ex, None, tmp_path / "sub" / "h.png", model=model)
+    img = imread(path)
+    fig = state_figure(plot_data(ex, model=model))
+    w, h = fig.get_size_inches() * 120
+    assert img.shape[:2] == (round(h), round(w))
+    # Gray strip bars are in the picture: pixels of the strip colour (0.78 gray) exist.
+    gray = np.all(np.abs(img[..., :3] - 0.78) < 0.01, axis=-1)
+    assert gray.sum() > 100
+    assert sorted(p.name for p in path.parent.iterdir()) == ["h.png"]
+
+
+def test_write_plot_without_geometry_works(tmp_path):
+    model = ball_model()
+    ex = simulate(model.system, np.array([1.0, 0.0]), "flight", 1.0, 1e-3, 1e-3)
+    assert write_plot(ex, None, tmp_path / "b.pdf", model=model).read_bytes().startswith(b"%PDF")
+
+
+def test_bad_suffix_is_rejected_and_writes_nothing(hopper, tmp_path):
+    model, ex = hopper
+    with pytest.raises(OutputError, match=r"h\.txt: unsupported figure format '\.txt'"):
+        write_plot(ex, None, tmp_path / "h.txt", model=model)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_unknown_coordinate_is_rejected(hopper, tmp_path):
+    model, ex = hopper
+    with pytest.raises(OutputError, match=r"unknown coordinate\(s\) \['q'\]; recorded: \['z', 'zd', 'n'\]"):
+        write_plot(ex, None, tmp_path / "h.png", model=model, coordinates=["q"])
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_plot_needs_an_execution(tmp_path):
+    with pytest.raises(OutputError, match="needs a legsim Execution"):
+        write_plot("nope", None, tmp_path / "x.png")

@@ -1,0 +1,351 @@
+"""Self-contained meshcat animations of a run (the ``--html`` output).
+
+The page embeds meshcat's viewer bundle (``main.min.js``, three.js) and the scene as meshcat
+commands, so it opens offline from the file system with no server. The commands are built
+with meshcat's own Python classes (``SetObject``, ``SetProperty``, ``SetTransform``,
+``SetAnimation`` with ``Animation``/``AnimationClip``) and packed with msgpack exactly as
+``Visualizer.static_html()`` does. ``static_html()`` itself asks a running meshcat server for
+the scene (``Visualizer()`` starts a ZMQ/tornado server process and binds ports), which a
+headless batch run should not need, so we assemble the same page ourselves; the commands are
+replayed in order by one script rather than by independent ``fetch`` promises, so that every
+object exists before the animation that moves it is loaded.
+
+meshcat animates transforms, not vertices, so each polyline segment of a part is a thin box
+of unit length whose position, orientation (about the y axis) and length (x scale) are
+keyframed; three.js interpolates between frames. The robot lives in the x-z plane of
+meshcat's z-up world and the camera looks along +y. Parts use flat (unlit) colours.
+"""
+
+from __future__ import annotations
+
+import base64
+import html as html_lib
+import json
+import math
+import os
+import warnings
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from legsim.builders import Model
+from legsim.execution import Execution
+from legsim.record import Frames, frame_times, geometry_frames
+
+from ._common import OutputError, resolve_model, run_title, write_atomic
+
+#: Frames per simulated second in an animation, and their most (longer runs get fewer).
+HTML_FPS = 30.0
+HTML_MAX_FRAMES = 900
+PART_COLOURS = [0x1F77B4, 0xD62728, 0x2CA02C, 0xFF7F0E, 0x9467BD, 0x8C564B, 0xE377C2, 0x17BECF, 0xBCBD22]
+SCENERY_COLOUR = 0x6E6E6E
+BACKGROUND_TOP = [1.0, 1.0, 1.0]
+BACKGROUND_BOTTOM = [0.90, 0.91, 0.93]
+TINY = 1e-9  # scale of an absent segment: invisible yet an invertible transform
+FOV_DEG = 75.0  # meshcat's default perspective camera
+ASSUMED_ASPECT = 1.3  # window width / height the framing is computed for
+
+
+def html_frames(execution: Execution | None, scene: Any = None, *, model: Model | None = None,
+                recording: dict[str, Any] | None = None, fps: float = HTML_FPS,
+                max_frames: int = HTML_MAX_FRAMES) -> Frames:
+    """The geometry frames to animate: from ``recording`` (``legsim.record.read_rrd``) when
+    given, else ``model.geometry`` evaluated on ``execution`` at ``fps`` frames per simulated
+    second. Raises OutputError when there is no geometry to draw."""
+    if recording is not None:
+        frames = recording.get("frames")
+        if frames is None or not len(frames):
+            name = recording.get("summary", {}).get("system", "this run")
+            raise OutputError(f"an html animation needs the robot's geometry, and the recording of {name} has "
+                              f"none (its model defines no Model.geometry)")
+        return frames
+    if not isinstance(execution, Execution):
+        raise OutputError(f"an html animation needs a legsim Execution (or recording=), got {type(execution).__name__}")
+    model = resolve_model(scene, model, "html")
+    if model is None:
+        raise OutputError("an html animation needs the robot's geometry: pass a scene or model=")
+    if model.geometry is None:
+        raise OutputError(f"an html animation needs the robot's geometry, and {model.system.name} defines none "
+                          f"(Model.geometry is None); use --plot or --rrd for this system")
+    return geometry_frames(execution, model, frame_times(execution, fps, max_frames))
+
+
+# -- geometry of the animation ------------------------------------------------------------------
+def _segments(line: np.ndarray | None, count: int) -> np.ndarray:
+    """(count, 6) rows (mx, mz, length, angle, present, _) for the segments of a polyline."""
+    out = np.zeros((count, 6))
+    if line is None or len(line) < 2:
+        return out
+    a, b = line[:-1], line[1:]
+    d = b - a
+    k = min(count, len(d))
+    out[:k, 0:2] = ((a + b) / 2)[:k]
+    out[:k, 2] = np.hypot(d[:k, 0], d[:k, 1])
+    # Rotating the box's x axis about +y by phi sends it to (cos phi, 0, -sin phi).
+    out[:k, 3] = -np.arctan2(d[:k, 1], d[:k, 0])
+    out[:k, 4] = 1.0
+    return out
+
+
+def _robot_points(frames: Frames) -> list[np.ndarray]:
+    """All robot points of each frame, (k, 2) per frame (empty where nothing is drawn)."""
+    per_frame = []
+    for i in range(len(frames)):
+        pts = [lines[i] for lines in frames.parts.values() if lines[i] is not None and len(lines[i])]
+        per_frame.append(np.concatenate(pts) if pts else np.zeros((0, 2)))
+    return per_frame
+
+
+def camera_track(frames: Frames) -> tuple[np.ndarray, float, float]:
+    """Camera x per frame (m), its height z (m) and its distance along -y (m).
+
+    The camera stays put when the robot stays within a few body sizes, and follows its
+    (smoothed) horizontal centre when it travels, so that a running robot stays in view at a
+    readable size.
+    """
+    per_frame = _robot_points(frames)
+    drawn = [p for p in per_frame if len(p)]
+    if drawn:
+        allp = np.concatenate(drawn)
+    elif frames.scenery:
+        allp = np.concatenate(list(frames.scenery.values()))
+    else:
+        allp = np.zeros((1, 2))
+    lo, hi = allp.min(axis=0), allp.max(axis=0)
+    widths = [float(np.ptp(p[:, 0])) for p in drawn] or [0.0]
+    body = max(float(np.median(widths)), 1e-3)
+    centres = np.array([(p[:, 0].min() + p[:, 0].max()) / 2 if len(p) else np.nan for p in per_frame])
+    if np.all(np.isnan(centres)):
+        centres = np.full(len(per_frame), (lo[0] + hi[0]) / 2)
+    centres = np.where(np.isnan(centres), np.nanmean(centres), centres)
+    travel = hi[0] - lo[0]
+    if travel > 3.0 * body and len(centres) > 1:
+        window = max(1, min(len(centres), int(round(len(centres) / max(frames.times[-1] - frames.times[0], 1e-9)
+                                                    * 0.5))))
+        pad = np.pad(centres, (window // 2, window - 1 - window // 2), mode="edge")
+        cam_x = np.convolve(pad, np.ones(window) / window, mode="valid")
+        half_w = max((float(np.max(np.abs(p[:, 0] - cx))) for p, cx in zip(per_frame, cam_x) if len(p)),
+                     default=body)
+    else:
+        cam_x = np.full(len(per_frame), (lo[0] + hi[0]) / 2)
+        half_w = (hi[0] - lo[0]) / 2
+    # Show the ground below the robot: scenery points within the robot's horizontal range.
+    z_lo, z_hi = lo[1], hi[1]
+    for line in frames.scenery.values():
+        near = line[(line[:, 0] >= lo[0] - body) & (line[:, 0] <= hi[0] + body)]
+        if len(near):
+            z_lo = min(z_lo, float(near[:, 1].min()))
+    cam_z = (z_lo + z_hi) / 2
+    half_h = max((z_hi - z_lo) / 2, 0.05)
+    half_w = max(half_w, 0.05)
+    tan = math.tan(math.radians(FOV_DEG / 2))
+    distance = 1.25 * max(half_h, half_w / ASSUMED_ASPECT) / tan
+    return cam_x, float(cam_z), float(distance)
+
+
+def _thickness(frames: Frames) -> float:
+    drawn = [p for p in _robot_points(frames) if len(p)]
+    if drawn:
+        sizes = [float(np.hypot(*np.ptp(p, axis=0))) for p in drawn]
+        size = float(np.median(sizes))
+    else:
+        size = 0.0
+    if size <= 0:
+        pts = np.concatenate(drawn) if drawn else np.zeros((1, 2))
+        size = max(float(np.hypot(*np.ptp(pts, axis=0))), 1.0)
+    return 0.025 * size
+
+
+# -- meshcat commands ---------------------------------------------------------------------------
+def _meshcat():
+    # Importing any part of meshcat imports its ZMQ server module, which warns that
+    # zmq.eventloop.ioloop is deprecated; nothing here uses the server.
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)
+        import meshcat
+        import meshcat.animation
+        import meshcat.commands
+        import meshcat.geometry
+        import meshcat.path
+    return meshcat
+
+
+def _commands(frames: Frames, speed: float) -> list[dict[str, Any]]:
+    mc = _meshcat()
+    g = mc.geometry
+    Animation, AnimationClip, AnimationTrack = (mc.animation.Animation, mc.animation.AnimationClip,
+                                                mc.animation.AnimationTrack)
+    SetAnimation, SetObject, SetProperty, SetTransform = (mc.commands.SetAnimation, mc.commands.SetObject,
+                                                          mc.commands.SetProperty, mc.commands.SetTransform)
+    MPath = mc.path.Path
+
+    root = MPath(("meshcat",))
+    cmds: list[dict[str, Any]] = []
+    w = _thickness(frames)
+    # Key times in seconds of playback (clip fps 1): three.js interpolates between them.
+    key_times = [float(t) for t in (np.asarray(frames.times) - frames.times[0]) / speed]
+
+    cmds.append(SetProperty("visible", False, MPath(("Grid",))).lower())
+    cmds.append(SetProperty("visible", False, MPath(("Axes",))).lower())
+    cmds.append(SetProperty("top_color", BACKGROUND_TOP, MPath(("Background",))).lower())
+    cmds.append(SetProperty("bottom_color", BACKGROUND_BOTTOM, MPath(("Background",))).lower())
+
+    for part, line in frames.scenery.items():
+        seg = _segments(line, max(len(line) - 1, 0))
+        for j, (mx, mz, length, phi, present, _) in enumerate(seg):
+            path = root.append(f"scenery/{part}/{j}")
+            cmds.append(SetObject(g.Box([1.0, w, w]), g.MeshBasicMaterial(color=SCENERY_COLOUR), path).lower())
+            cmds.append(SetTransform(_matrix(mx, mz, max(length, TINY), phi), path).lower())
+
+    animation = Animation(default_framerate=1)
+    for k, (part, lines) in enumerate(frames.parts.items()):
+        colour = PART_COLOURS[k % len(PART_COLOURS)]
+        material = g.MeshBasicMaterial(color=colour)
+        most = max((len(line) for line in lines if line is not None), default=0)
+        if most == 0:
+            continue
+        if most == 1:
+            # A part drawn as a single point: a ball that moves.
+            path = root.append(f"robot/{part}/0")
+            cmds.append(SetObject(g.Sphere(3 * w), material, path).lower())
+            pos, scale = [], []
+            for line in lines:
+                there = line is not None and len(line) == 1
+                p = line[0] if there else np.zeros(2)
+                pos.append([float(p[0]), 0.0, float(p[1])])
+                s = 1.0 if there else TINY
+                scale.append([s, s, s])
+            clip = AnimationClip(fps=1)
+            clip.tracks["position"] = AnimationTrack("position", "vector3", list(key_times), pos)
+            clip.tracks["scale"] = AnimationTrack("scale", "vector3", list(key_times), scale)
+            animation.clips[path] = clip
+            continue
+        count = most - 1
+        table = np.stack([_segments(line, count) for line in lines])  # (F, count, 6)
+        for j in range(count):
+            path = root.append(f"robot/{part}/{j}")
+            cmds.append(SetObject(g.Box([1.0, w, w]), material, path).lower())
+            rows = table[:, j, :]
+            pos = [[float(r[0]), 0.0, float(r[1])] for r in rows]
+            quat = [[0.0, math.sin(r[3] / 2), 0.0, math.cos(r[3] / 2)] for r in rows]
+            scale = [[max(float(r[2]), TINY), 1.0, 1.0] if r[4] else [TINY, TINY, TINY] for r in rows]
+            clip = AnimationClip(fps=1)
+            clip.tracks["position"] = AnimationTrack("position", "vector3", list(key_times), pos)
+            clip.tracks["quaternion"] = AnimationTrack("quaternion", "quaternion", list(key_times), quat)
+            clip.tracks["scale"] = AnimationTrack("scale", "vector3", list(key_times), scale)
+            animation.clips[path] = clip
+
+    # meshcat's orbit controls always look at the world origin, so rather than moving the
+    # camera we move the whole drawing (/meshcat) to put the point of interest there.
+    cam_x, cam_z, distance = camera_track(frames)
+    cmds.append(SetTransform(_matrix(-float(cam_x[0]), -cam_z, 1.0, 0.0), root).lower())
+    # The camera sits in meshcat's y-up "rotated" frame: local +z is world -y.
+    cam_obj = MPath(("Cameras", "default", "rotated", "<object>"))
+    cmds.append(SetProperty("position", [0.0, 0.0, distance], cam_obj).lower())
+    cmds.append(SetProperty("far", 20.0 * distance + 100.0, cam_obj).lower())
+    if np.ptp(cam_x) > 0:
+        clip = AnimationClip(fps=1)
+        clip.tracks["position"] = AnimationTrack("position", "vector3", list(key_times),
+                                                 [[-float(x), 0.0, -cam_z] for x in cam_x])
+        animation.clips[root] = clip
+    if animation.clips:
+        cmds.append(SetAnimation(animation, play=True, repetitions=1_000_000).lower())
+    return cmds
+
+
+def _matrix(x: float, z: float, length: float, phi: float) -> np.ndarray:
+    c, s = math.cos(phi), math.sin(phi)
+    m = np.eye(4)
+    m[:3, :3] = np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]]) @ np.diag([length, 1.0, 1.0])
+    m[0, 3], m[2, 3] = x, z
+    return m
+
+
+def animation_html(frames: Frames, *, title: str = "legsim", speed: float = 1.0) -> str:
+    """The complete page: meshcat's bundle, the scene commands and a clock showing the
+    simulated time and mode of the frame on screen."""
+    import umsgpack
+
+    meshcat = _meshcat()
+
+    if not len(frames):
+        raise OutputError("an html animation needs at least one frame")
+    if not (speed > 0 and math.isfinite(speed)):
+        raise OutputError(f"speed must be finite and > 0, got {speed!r}")
+    packed = [base64.b64encode(umsgpack.packb(c)).decode("ascii") for c in _commands(frames, speed)]
+    bundle = Path(meshcat.viewer_assets_path()) / "dist" / "main.min.js"
+    try:
+        js = bundle.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise OutputError(f"meshcat's viewer bundle is missing ({bundle}): {exc}") from exc
+    clock = {"t": [float(t) for t in frames.times], "mode": list(frames.modes), "t0": float(frames.times[0]),
+             "speed": float(speed)}
+    # "</" cannot appear inside a <script> element.
+    safe_js = js.replace("</script", "<\\/script")
+    return _PAGE.format(title=html_lib.escape(title), bundle=safe_js,
+                        commands=json.dumps(packed), clock=json.dumps(clock).replace("</", "<\\/"))
+
+
+_PAGE = """<!DOCTYPE html>
+<html>
+<head><meta charset="utf-8"><title>{title}</title>
+<style>
+body {{ margin: 0; }}
+#meshcat-pane {{ width: 100vw; height: 100vh; overflow: hidden; }}
+#legsim-clock {{ position: absolute; left: 12px; top: 10px; font: 14px sans-serif; color: #222;
+                 background: rgba(255,255,255,0.7); padding: 4px 8px; border-radius: 4px; }}
+</style></head>
+<body>
+<div id="meshcat-pane"></div>
+<div id="legsim-clock">{title}</div>
+<script>{bundle}</script>
+<script>
+var viewer = new MeshCat.Viewer(document.getElementById("meshcat-pane"));
+var legsimCommands = {commands};
+for (var i = 0; i < legsimCommands.length; i++) {{
+  var raw = atob(legsimCommands[i]);
+  var bytes = new Uint8Array(raw.length);
+  for (var j = 0; j < raw.length; j++) bytes[j] = raw.charCodeAt(j);
+  viewer.handle_command_bytearray(bytes);
+}}
+var legsimClock = {clock};
+var legsimTitle = document.getElementById("legsim-clock").textContent;
+function legsimTick() {{
+  var a = viewer.animator;
+  var played = (a && a.actions && a.actions.length) ? a.actions[0].time : 0;
+  var t = legsimClock.t0 + played * legsimClock.speed;
+  var k = 0, times = legsimClock.t;
+  while (k + 1 < times.length && times[k + 1] <= t) k++;
+  document.getElementById("legsim-clock").textContent =
+      legsimTitle + "   t = " + t.toFixed(3) + " s   mode " + legsimClock.mode[k];
+  requestAnimationFrame(legsimTick);
+}}
+requestAnimationFrame(legsimTick);
+</script>
+</body>
+</html>
+"""
+
+
+def write_html(execution: Execution | None, scene: Any = None, path: str | os.PathLike | None = None, *,
+               model: Model | None = None, recording: dict[str, Any] | None = None, fps: float = HTML_FPS,
+               max_frames: int = HTML_MAX_FRAMES, speed: float = 1.0) -> Path:
+    """Write a self-contained meshcat animation of the run to ``path`` (the ``--html`` output).
+
+    ``scene`` is a ``legsim.scene.Scene`` or None with ``model=`` a ``legsim.builders.Model``;
+    ``recording=`` takes ``legsim.record.read_rrd`` output instead of an execution. Plays in
+    real time (``speed`` > 1 faster) and loops. Raises OutputError when the model has no
+    geometry. Atomic write.
+    """
+    if path is None:
+        raise OutputError("write_html needs a path to write to")
+    path = Path(path)
+    frames = html_frames(execution, scene, model=model, recording=recording, fps=fps, max_frames=max_frames)
+    if recording is not None:
+        s = recording.get("summary", {})
+        title = s.get("scene") or s.get("system") or "legsim"
+    else:
+        title = run_title(execution, scene, resolve_model(scene, model, "html")).split("  ·  ")[0]
+    page = animation_html(frames, title=title, speed=speed)
+    return write_atomic(path, lambda tmp: tmp.write_text(page, encoding="utf-8"), suffix=".html")
