@@ -95,8 +95,11 @@ def make_bridge(params: dict[str, Any], effects: dict[str, dict[str, Any]]) -> C
     damping = None
     if "damping" in effects:
         damping = {"theta1": effects["damping"]["b1"], "theta2": effects["damping"]["b2"]}
+    names = {(): "unconstrained"}
+    if contacts:
+        names[("stop",)] = "constrained"
     return ContactBridge(model, contacts, coordinate_names=COORDINATES, velocity_names=VELOCITIES,
-                         mode_names={(): "unconstrained", ("stop",): "constrained"},
+                         mode_names=names,
                          joint_damping=damping, name="double_pendulum")
 
 

@@ -1,0 +1,222 @@
+"""Double pendulum with a mechanical stop (paper 003 Section V): Pinocchio's dynamics against the
+textbook closed form, the impact law eq. (30), the stop force eq. (31), the plastic and Zeno runs."""
+
+import math
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from legsim import simulate
+from legsim.hybrid import reachable_modes
+from robots import double_pendulum as dp
+
+# Deliberately not the defaults, so a parameter that is not wired through would show.
+P = dict(m1=1.3, m2=0.7, L1=0.9, L2=1.2, g=9.81)
+DEFAULTS = dict(m1=1.0, m2=1.0, L1=1.0, L2=1.0, g=9.81)
+
+
+def mass_matrix(q, m1, m2, L1, L2, g):
+    """Textbook mass matrix of the double pendulum with point masses at the link ends
+    (theta1 from the downward vertical, theta2 relative to link 1)."""
+    c2 = math.cos(q[1])
+    m11 = (m1 + m2) * L1**2 + m2 * L2**2 + 2 * m2 * L1 * L2 * c2
+    m12 = m2 * L2**2 + m2 * L1 * L2 * c2
+    return np.array([[m11, m12], [m12, m2 * L2**2]])
+
+
+def coriolis(q, qd, m1, m2, L1, L2, g):
+    """C(q, qd) qd."""
+    s2 = math.sin(q[1])
+    return np.array([-m2 * L1 * L2 * s2 * (2 * qd[0] * qd[1] + qd[1] ** 2), m2 * L1 * L2 * s2 * qd[0] ** 2])
+
+
+def gravity(q, m1, m2, L1, L2, g):
+    """dV/dq with V = -(m1 + m2) g L1 cos(theta1) - m2 g L2 cos(theta1 + theta2)."""
+    s1, s12 = math.sin(q[0]), math.sin(q[0] + q[1])
+    return np.array([(m1 + m2) * g * L1 * s1 + m2 * g * L2 * s12, m2 * g * L2 * s12])
+
+
+def energy(x, p=P):
+    q, qd = x[:2], x[2:]
+    m1, m2, L1, L2, g = p["m1"], p["m2"], p["L1"], p["L2"], p["g"]
+    V = -(m1 + m2) * g * L1 * math.cos(q[0]) - m2 * g * L2 * math.cos(q[0] + q[1])
+    return 0.5 * qd @ mass_matrix(q, **p) @ qd + V
+
+
+def eq30(x, c, p=P):
+    """Paper 003 eq. (30) with the closed-form M^-1."""
+    Minv = np.linalg.inv(mass_matrix(x[:2], **p))
+    return np.array([x[0], x[1], x[2] - (1 + c) * x[3] * Minv[0, 1] / Minv[1, 1], -c * x[3]])
+
+
+def eq31(x, p=P):
+    """Paper 003 eq. (31) as printed."""
+    q, qd = x[:2], x[2:]
+    Minv = np.linalg.inv(mass_matrix(q, **p))
+    return -Minv[1] @ (coriolis(q, qd, **p) + gravity(q, **p)) / Minv[1, 1]
+
+
+def random_states(n, seed=0, at_stop=False):
+    rng = np.random.default_rng(seed)
+    xs = np.column_stack([rng.uniform(-2, 2, n), rng.uniform(-2, 2, n), rng.normal(0, 2, n), rng.normal(0, 2, n)])
+    if at_stop:
+        xs[:, 1] = 0.0
+    return xs
+
+
+def test_pinocchio_mass_matrix_bias_and_gravity_equal_the_closed_form():
+    model = dp.pinocchio_model(**P)
+    data = model.createData()
+    for x in random_states(20):
+        q, qd = x[:2], x[2:]
+        np.testing.assert_allclose(pin.crba(model, data, q), mass_matrix(q, **P), rtol=0, atol=1e-12)
+        G = pin.computeGeneralizedGravity(model, data, q)
+        np.testing.assert_allclose(G, gravity(q, **P), rtol=0, atol=1e-12)
+        np.testing.assert_allclose(pin.nonLinearEffects(model, data, q, qd) - G, coriolis(q, qd, **P),
+                                   rtol=0, atol=1e-12)
+
+
+def test_unconstrained_field_energy_and_geometry_equal_the_closed_form():
+    model = dp.make(P, {"stop": False})
+    bridge = model.info["bridge"]
+    f = model.system.mode("unconstrained").field
+    for x in random_states(20, seed=1):
+        q, qd = x[:2], x[2:]
+        qdd = np.linalg.solve(mass_matrix(q, **P), -(coriolis(q, qd, **P) + gravity(q, **P)))
+        np.testing.assert_allclose(f(0.0, x, None), np.concatenate([qd, qdd]), rtol=0, atol=1e-11)
+        assert model.system.energy("unconstrained", x) == pytest.approx(energy(x), abs=1e-12)
+        tip = model.geometry("unconstrained", x)["link2"][1]
+        expected = [P["L1"] * math.sin(q[0]) + P["L2"] * math.sin(q[0] + q[1]),
+                    -P["L1"] * math.cos(q[0]) - P["L2"] * math.cos(q[0] + q[1])]
+        np.testing.assert_allclose(tip, expected, atol=1e-12)
+    assert bridge.counters()["kkt"] == 0
+
+
+@pytest.mark.parametrize("c", [0.0, 0.3, 0.5, 1.0])
+def test_impact_reset_is_paper_003_eq_30(c):
+    model = dp.make(P, {"stop": {"restitution": c}})
+    resets = [tr.reset for tr in model.system.outgoing("unconstrained")]
+    assert len(resets) == (2 if c == 0 else 1)  # c = 0: sticking and separating impacts share eq. (30)
+    for x in random_states(10, seed=2, at_stop=True):
+        x[3] = -abs(x[3])  # approaching the stop
+        for reset in resets:
+            np.testing.assert_allclose(reset(x), eq30(x, c), rtol=0, atol=1e-12)
+        if c == 1.0:  # an elastic impact keeps the kinetic energy
+            assert energy(resets[0](x)) == pytest.approx(energy(x), rel=1e-12)
+
+
+def test_constraint_force_is_paper_003_eq_31():
+    model = dp.make(P, {"stop": {"restitution": 0.0}})
+    bridge = model.info["bridge"]
+    f = model.system.mode("constrained").field
+    for x in random_states(20, seed=3, at_stop=True):
+        lam = bridge.constraint_forces("constrained", x)["stop"]
+        # Eq. (31) as printed is the free acceleration of theta2 times 1/(M^-1)_22, > 0 when link 2
+        # would leave the stop; the bridge reports the force the stop exerts (> 0 while it holds
+        # link 2 in theta2 >= 0), the same magnitude with the opposite sign. Both vanish together.
+        assert lam.shape == (1,)
+        assert lam[0] == pytest.approx(-eq31(x), abs=1e-11)
+        # and the constrained field keeps theta2 still: M qdd + b = J^T lambda, qdd2 = 0
+        qdd = f(0.0, x, None)[2:]
+        assert abs(qdd[1]) < 1e-12
+        rhs = -(coriolis(x[:2], x[2:], **P) + gravity(x[:2], **P)) + np.array([0.0, lam[0]])
+        np.testing.assert_allclose(mass_matrix(x[:2], **P) @ qdd, rhs, atol=1e-11)
+
+
+def test_constraint_force_agrees_with_pinocchio_forward_dynamics():
+    model = dp.make(P, {"stop": {"restitution": 0.0}})
+    bridge = model.info["bridge"]
+    pm, pd = bridge.model, bridge.model.createData()
+    J = np.array([[0.0, 1.0]])
+    for x in random_states(5, seed=4, at_stop=True):
+        a = pin.forwardDynamics(pm, pd, x[:2], x[2:], np.zeros(2), J, np.zeros(1))
+        np.testing.assert_allclose(model.system.mode("constrained").field(0.0, x, None)[2:], a, atol=1e-12)
+        assert bridge.constraint_forces("constrained", x)["stop"][0] == pytest.approx(pd.lambda_c[0], abs=1e-12)
+
+
+@pytest.mark.parametrize("method,h,eps", [("rk4", 1e-3, 1e-3), ("euler", 1e-3, 0.2)])
+def test_plastic_stop_enters_constrained_mode_and_leaves_where_eq_31_changes_sign(method, h, eps):
+    model = dp.make(effects={"stop": {"restitution": 0.0}})
+    x0 = [model.initial_state[n] for n in dp.STATE_NAMES]
+    ex = simulate(model.system, x0, "unconstrained", 3.0, h, eps, method=method)
+    assert ex.status == "finished"
+    names = [tr.name for tr in ex.transitions]
+    # The first impact finds link 2 pulling away (lambda+ < 0): it separates at once; the second sticks.
+    assert names[:3] == ["graze_stop", "impact_stop", "release_stop"]
+    for seg in ex.segments:
+        if seg.mode != "constrained":
+            continue
+        assert np.abs(seg.x[:, 1]).max() < 1e-9 and np.abs(seg.x[:, 3]).max() < 1e-9
+        # the stop holds while eq. (31) is negative (its force, -(31), positive) ...
+        assert all(eq31(x, DEFAULTS) < 0 for x in seg.x[:-1])
+    release = ex.transitions[2]
+    # ... and lets go where it changes sign. With theta2 = 0 eq. (31) is proportional to
+    # sin(theta1) (the Coriolis terms vanish), so the release is at theta1 = 0 exactly.
+    assert abs(eq31(release.state_before, DEFAULTS)) < 1e-8
+    assert abs(release.state_before[0]) < 1e-8
+
+
+def test_restitution_half_is_zeno_and_the_run_carries_on_past_the_accumulation():
+    c, eps, t_final = 0.5, 1e-3, 3.0
+    model = dp.make(effects={"stop": {"restitution": c}})
+    x0 = [model.initial_state[n] for n in dp.STATE_NAMES]
+    ex = simulate(model.system, x0, "unconstrained", t_final, 1e-3, eps)
+    assert ex.status == "finished" and ex.t_end == t_final
+    trs = ex.transitions
+    flights = np.array([trs[i + 1].time - trs[i].exit_time for i in range(len(trs) - 1)])
+    # Flights between impacts shrink geometrically with ratio c: for a nearly constant relative
+    # acceleration a bounce leaving at c w returns after 2 c w / a. The first ones are long enough
+    # for the acceleration to vary, hence the 2% tolerance and starting at the second ratio.
+    ratios = flights[2:14] / flights[1:13]
+    assert np.all(np.abs(ratios - c) < 0.02), ratios
+    # Accumulation: the physical time left after impact k is flights[k] * c / (1 - c); past
+    # the 20th impact it is below 1e-6 s, yet the run continues to t_final ...
+    t_acc = trs[20].time
+    assert t_acc < 1.5 < t_final
+    after = [tr for tr in trs if tr.time > t_acc]
+    # ... without stalling: each later transition still spends about eps in its strip, so their
+    # number stays near (t_final - t_acc) / eps rather than exploding.
+    holds = np.array([tr.exit_time - tr.time for tr in after])
+    assert holds.min() > 0.5 * eps
+    assert len(after) < 1.1 * (t_final - t_acc) / eps
+    for seg in ex.segments:  # and the link never passes the stop by more than the strip
+        assert seg.x[:, 1].min() >= -eps
+
+
+def test_effects_build_only_what_is_asked():
+    free = dp.make(effects={"stop": False}).system
+    assert reachable_modes(free, "unconstrained") == ["unconstrained"]
+    assert free.outgoing("unconstrained") == ()
+
+    plastic = dp.make(effects={"stop": {"restitution": 0.0}}).system
+    assert sorted(reachable_modes(plastic, "unconstrained")) == ["constrained", "unconstrained"]
+    assert {tr.name for tr in plastic.outgoing("unconstrained")} == {"impact_stop", "graze_stop"}
+    assert [tr.name for tr in plastic.outgoing("constrained")] == ["release_stop"]
+
+    bouncy = dp.make(effects={"stop": {"restitution": 0.5}}).system
+    assert reachable_modes(bouncy, "unconstrained") == ["unconstrained"]
+    assert [(tr.name, tr.target) for tr in bouncy.outgoing("unconstrained")] == [("bounce_stop", "unconstrained")]
+
+
+def test_damping_is_computed_only_when_asked_and_dissipates():
+    x0 = np.array([math.radians(30), math.radians(25), 0.0, 0.0])
+    plain = dp.make(effects={"stop": False})
+    simulate(plain.system, x0, "unconstrained", 0.5, 1e-3, 1e-3)
+    assert plain.counters()["damping_evals"] == 0 and plain.counters()["aba"] > 0
+
+    b1, b2 = 0.3, 0.2
+    damped = dp.make(effects={"stop": False, "damping": {"b1": b1, "b2": b2}})
+    f = damped.system.mode("unconstrained").field
+    for x in random_states(5, seed=5):
+        q, qd = x[:2], x[2:]
+        rhs = -(coriolis(q, qd, **DEFAULTS) + gravity(q, **DEFAULTS)) - np.array([b1, b2]) * qd
+        np.testing.assert_allclose(f(0.0, x, None)[2:], np.linalg.solve(mass_matrix(q, **DEFAULTS), rhs),
+                                   atol=1e-11)
+    damped.info["bridge"].reset_counters()
+    ex = simulate(damped.system, x0, "unconstrained", 2.0, 1e-3, 1e-3)
+    counts = damped.counters()
+    assert counts["damping_evals"] == counts["aba"] > 0
+    # dE/dt = -b . qd^2 <= 0: the energy never rises (beyond RK4's local error)
+    E = np.array([damped.system.energy("unconstrained", x) for x in ex.segments[0].x])
+    assert np.all(np.diff(E) < 1e-9) and E[-1] < E[0] - 0.1
