@@ -1,0 +1,627 @@
+"""Compiled step loops: a mode's flow between guards run by a numba kernel.
+
+A mode may carry a *compiled twin* (``Mode(..., compiled=CompiledMode(...))``): numba-jitted
+functions computing the same field and guards as its Python callables,
+
+* ``field(t, x, p) -> dx/dt``, shape (n,),
+* ``guards(x, p) -> values``, shape (n_guards,), in the order of the mode's outgoing
+  transitions (the same values as their Python guards),
+
+with ``p`` a float64 parameter array. Parameters travel as data rather than as closure
+constants so that one compilation of the kernel serves every parameter set of a model (numba
+treats closure variables as constants and would compile the kernel again for each).
+
+When the run has no control (compiled twins take none), ``relaxed._Integrator._run_mode``
+hands the step loop to ``run_mode_compiled``: the kernel takes the steps, shortens a step
+that would leave the relaxed domain (halving, or aiming with the step's interpolant), controls
+the local error of embedded pairs, stores the points in the segment buffer, and returns to
+Python only when the buffer is full, for a progress report, at the end of the run, on a
+failure, or when a step lands in a strip. The strip crossing, hold and reset then run in the
+shared Python code (``_step_transition``), so the two paths differ only in speed.
+
+The kernel does the same floating-point operations in the same order as the Python stepper
+(stage combinations grouped as ``methods.make_stepper`` groups them, the same Hermite
+interpolant and root search), so both paths give the same execution to rounding.
+Difference: a kernel evaluates all guards of a mode at once, and counts ``n_guards`` guard
+evaluations per call where the Python aiming counts one per guard it calls.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib
+import importlib.util
+import inspect
+import math
+import os
+import sys
+import tempfile
+import time as _time
+from dataclasses import dataclass, field as _dc_field
+from pathlib import Path
+from typing import Any
+
+import numba
+import numpy as np
+
+from .errors import ModelError
+from .methods import Tableau
+
+# Kernel return codes.
+FINISHED = 0
+TRANSITION = 1
+NONFINITE_STEP = 2
+GUARD_NAN = 3
+EXHAUSTED = 4
+BUFFER_FULL = 5
+CHUNK = 6
+
+#: Steps per kernel call when a progress callback wants reports (about 1 ms of work).
+PROGRESS_CHUNK = 8192
+_NO_LIMIT = 1 << 62
+
+
+@dataclass(frozen=True)
+class CompiledMode:
+    """The compiled twin of a mode.
+
+    Attributes
+    ----------
+    field: numba-jitted ``field(t, x, p) -> (n,)``, no control.
+    guards: numba-jitted ``guards(x, p) -> (n_guards,)``, ordered like the mode's outgoing
+        transitions, >= 0 inside the domain (same values as the Python guards).
+    n_guards: number of guards (the mode's outgoing transitions).
+    params: float64 parameter array ``p`` passed to both.
+    """
+
+    field: Any
+    guards: Any
+    n_guards: int
+    params: np.ndarray = _dc_field(default_factory=lambda: np.zeros(0))
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "params", np.ascontiguousarray(self.params, dtype=np.float64).reshape(-1))
+        if isinstance(self.n_guards, bool) or not isinstance(self.n_guards, (int, np.integer)) or self.n_guards < 0:
+            raise ModelError(f"CompiledMode n_guards must be an integer >= 0, got {self.n_guards!r}")
+        object.__setattr__(self, "n_guards", int(self.n_guards))
+
+
+# --------------------------------------------------------------------------------------------
+# The tableau as arrays, grouped like methods.make_stepper so the arithmetic is the same.
+# --------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class _Plan:
+    c: np.ndarray  # (s,)
+    n_groups: np.ndarray  # (s + 1,) row s is the output combination
+    weights: np.ndarray  # (s + 1, G)
+    n_members: np.ndarray  # (s + 1, G)
+    members: np.ndarray  # (s + 1, G, s)
+    b_err: np.ndarray  # (s,) zeros when the method has no embedded pair
+    fsal: bool
+    stages: int
+
+
+_PLANS: dict[int, _Plan] = {}
+
+
+def _groups(weights: np.ndarray) -> list[tuple[float, list[int]]]:
+    groups: dict[float, list[int]] = {}
+    for j, w in enumerate(weights):
+        if w != 0.0:
+            groups.setdefault(float(w), []).append(j)
+    return list(groups.items())
+
+
+def plan_for(tableau: Tableau) -> _Plan:
+    """The tableau as the kernel's arrays (cached per tableau object)."""
+    plan = _PLANS.get(id(tableau))
+    if plan is not None:
+        return plan
+    s = tableau.stages
+    rows = [_groups(tableau.A[i, :i]) if i > 0 else [] for i in range(s)] + [_groups(tableau.b)]
+    width = max(1, max(len(r) for r in rows))
+    n_groups = np.zeros(s + 1, dtype=np.int64)
+    weights = np.zeros((s + 1, width))
+    n_members = np.zeros((s + 1, width), dtype=np.int64)
+    members = np.zeros((s + 1, width, s), dtype=np.int64)
+    for i, row in enumerate(rows):
+        n_groups[i] = len(row)
+        for g, (w, js) in enumerate(row):
+            weights[i, g] = w
+            n_members[i, g] = len(js)
+            members[i, g, : len(js)] = js
+    b_err = np.zeros(s) if tableau.b_err is None else np.asarray(tableau.b_err, dtype=float)
+    plan = _Plan(np.asarray(tableau.c, dtype=float), n_groups, weights, n_members, members, b_err,
+                 bool(tableau.fsal), s)
+    _PLANS[id(tableau)] = plan
+    return plan
+
+
+# --------------------------------------------------------------------------------------------
+# The kernel, as plain Python. numba compiles a copy of these functions per compiled twin, in a
+# generated module whose globals ``_twin_field`` and ``_twin_guards`` are the twin's functions:
+# a module-level global is a compile-time constant numba can inline and cache on disk, whereas
+# passing the functions as arguments would recompile the whole loop in every process (5 s).
+# --------------------------------------------------------------------------------------------
+def _twin_field(t, x, p):  # placeholder, bound per twin in the generated module
+    raise NotImplementedError
+
+
+def _twin_guards(x, p):  # placeholder, bound per twin in the generated module
+    raise NotImplementedError
+
+
+def _k_combine(x, K, row, n_groups, weights, n_members, members, h, out):
+    # out = x + sum_g (h * w_g) * (k_{m0} + k_{m1} + ...), evaluated left to right like
+    # the generated Python stepper.
+    n = x.shape[0]
+    for d in range(n):
+        acc = x[d]
+        for g in range(n_groups[row]):
+            m = members[row, g]
+            ssum = K[m[0], d]
+            for q in range(1, n_members[row, g]):
+                ssum = ssum + K[m[q], d]
+            acc = acc + (h * weights[row, g]) * ssum
+        out[d] = acc
+
+def _k_hermite(x0, d0, x1, d1, dt, s, out):
+    s2 = s * s
+    s3 = s2 * s
+    c00 = 2 * s3 - 3 * s2 + 1
+    c10 = (s3 - 2 * s2 + s) * dt
+    c01 = -2 * s3 + 3 * s2
+    c11 = (s3 - s2) * dt
+    for d in range(x0.shape[0]):
+        out[d] = c00 * x0[d] + c10 * d0[d] + c01 * x1[d] + c11 * d1[d]
+
+def _k_crossing(p, e, shift, x0, d0, x1, d1, dt, g0, g1, tol, work):
+    # relaxed.crossing_on_step on the compiled guard e shifted by `shift`;
+    # returns (s, guard calls, converged).
+    if g0 <= 0.0:
+        return 0.0, 0, True
+    lo = 0.0
+    hi = 1.0
+    glo = g0
+    ghi = g1
+    evals = 0
+    side = 0
+    for it in range(100):
+        if it % 3 == 2:
+            s = 0.5 * (lo + hi)
+        else:
+            s = lo + (hi - lo) * glo / (glo - ghi)
+            if not (lo < s < hi):
+                s = 0.5 * (lo + hi)
+        _k_hermite(x0, d0, x1, d1, dt, s, work)
+        g = _twin_guards(work, p)[e] + shift
+        evals += 1
+        if not math.isfinite(g):
+            return lo, evals, False
+        if abs(g) <= tol:
+            return s, evals, True
+        if g > 0:
+            lo = s
+            glo = g
+            if side == 1:
+                ghi *= 0.5
+            side = 1
+        else:
+            hi = s
+            ghi = g
+            if side == -1:
+                glo *= 0.5
+            side = -1
+        if hi - lo <= 4e-16:
+            break
+    return lo, evals, abs(glo) <= tol or (hi - lo <= 4e-16 and abs(glo) <= 1e3 * tol)
+
+def _k_error_norm(b_err, hk, K, x, x_new, rtol, atol):
+    n = x.shape[0]
+    total = 0.0
+    first = 0.0
+    for d in range(n):
+        acc = 0.0
+        started = False
+        for j in range(b_err.shape[0]):
+            if b_err[j] != 0.0:
+                if started:
+                    acc = acc + b_err[j] * K[j, d]
+                else:
+                    acc = b_err[j] * K[j, d]
+                    started = True
+        est = hk * acc
+        scale = atol + rtol * max(abs(x[d]), abs(x_new[d]))
+        r = est / scale
+        if d == 0:
+            first = r * r
+        else:
+            total += r * r
+    # numpy's mean: the first element plus the (sequential, n < 9) sum of the rest.
+    return math.sqrt((first + total) / n)
+
+def _k_step_loop(p, n_guards, c, n_groups, weights, n_members, members, b_err, fsal,
+           x, K, XS, x_new, k1, gv, work, T, X, DX, fs, iv,
+           t_final, h_max, eps, rtol, atol, err_exp, adaptive, aim, max_halvings, max_steps):
+    """The step loop of relaxed._Integrator._run_mode. In/out: x, K[0] (= k0), fs[0] = t,
+    fs[1] = h_prop, iv[5] = buffer size. Out: counters iv[0:5] (steps, halvings,
+    error rejections, field and guard evaluations), and per return code the landing
+    (fs[2] = t_new, x_new, k1, gv), fs[3] = last step tried, fs[4] = end time,
+    fs[5] = time of a nan guard, iv[6] = guard index, iv[7] = halvings of a failed step."""
+    s_stages = c.shape[0]
+    n = x.shape[0]
+    span = max(1.0, abs(t_final))
+    t = fs[0]
+    h_prop = fs[1]
+    size = iv[5]
+    cap = T.shape[0]
+    steps = 0
+    halvings = 0
+    rejections = 0
+    field_evals = 0
+    guard_evals = 0
+    code = -1
+    gmin = 0.0
+    while True:
+        remaining = t_final - t
+        if remaining <= 1e-14 * span:
+            fs[4] = t_final if remaining > 0 else t
+            code = 0
+            break
+        if size == cap:
+            code = 5
+            break
+        if steps >= max_steps:
+            code = 6
+            break
+        hk = h_prop if h_prop < h_max else h_max
+        last = hk >= remaining
+        if last:
+            hk = remaining
+        shortened = 0
+        aimed = 0
+        outcome = -1
+        while True:
+            for i in range(1, s_stages):
+                _k_combine(x, K, i, n_groups, weights, n_members, members, hk, XS[i])
+                ki = _twin_field(t + c[i] * hk, XS[i], p)
+                for d in range(n):
+                    K[i, d] = ki[d]
+            if fsal:
+                for d in range(n):
+                    x_new[d] = XS[s_stages - 1, d]
+            else:
+                _k_combine(x, K, s_stages, n_groups, weights, n_members, members, hk, x_new)
+            field_evals += s_stages - 1
+            sq = 0.0
+            for d in range(n):
+                sq += x_new[d] * x_new[d]
+            past = False
+            if sq - sq != 0.0:
+                past = False  # non-finite
+            else:
+                if n_guards > 0:
+                    g = _twin_guards(x_new, p)
+                    guard_evals += n_guards
+                    gmin = g[0]
+                    gv[0] = g[0]
+                    for j in range(1, n_guards):
+                        gv[j] = g[j]
+                        if g[j] < gmin or g[j] != g[j]:
+                            gmin = g[j] if gmin == gmin else gmin
+                else:
+                    gmin = 0.0
+                if gmin >= -eps:
+                    if adaptive:
+                        err = _k_error_norm(b_err, hk, K, x, x_new, rtol, atol)
+                        if err > 1.0:
+                            rejections += 1
+                            hk *= max(0.2, 0.9 * err ** err_exp)
+                            last = False
+                            continue
+                        if err > 0:
+                            h_prop = hk * min(5.0, max(0.2, 0.9 * err ** err_exp))
+                        else:
+                            h_prop = 5.0 * hk
+                    break
+                if gmin != gmin:
+                    for j in range(n_guards):
+                        if gv[j] != gv[j]:
+                            iv[6] = j
+                            break
+                    fs[5] = t + hk
+                    outcome = 3
+                    break
+                past = True
+            shortened += 1
+            hk_old = hk
+            if aim and past and aimed < 3:
+                e = 0
+                for j in range(1, n_guards):
+                    if gv[j] < gv[e]:
+                        e = j
+                if fsal:
+                    for d in range(n):
+                        k1[d] = K[s_stages - 1, d]
+                else:
+                    kk = _twin_field(t + hk, x_new, p)
+                    field_evals += 1
+                    for d in range(n):
+                        k1[d] = kk[d]
+                half = 0.5 * eps
+                g0 = _twin_guards(x, p)[e] + half
+                guard_evals += n_guards
+                s, n_evals, converged = _k_crossing(p, e, half, x, K[0], x_new, k1, hk, g0,
+                                                 gv[e] + half, 1e-3 * half, work)
+                guard_evals += n_evals * n_guards
+                if not converged or not (0.0 < s < 0.9):
+                    hk = 0.5 * hk
+                else:
+                    hk = s * hk
+                aimed += 1
+            else:
+                hk *= 0.5
+            last = False
+            if shortened > max_halvings or t + hk <= t:
+                fs[3] = hk_old
+                if not past:
+                    outcome = 2
+                else:
+                    e = 0
+                    for j in range(1, n_guards):
+                        if gv[j] < gv[e]:
+                            e = j
+                    iv[6] = e
+                    iv[7] = shortened - 1
+                    outcome = 4
+                break
+        halvings += shortened
+        if outcome >= 0:
+            code = outcome
+            break
+        t_new = t_final if last else t + hk
+        steps += 1
+        if n_guards > 0 and gmin < 0.0:
+            if fsal:
+                for d in range(n):
+                    k1[d] = K[s_stages - 1, d]
+            else:
+                kk = _twin_field(t_new, x_new, p)
+                field_evals += 1
+                for d in range(n):
+                    k1[d] = kk[d]
+            fs[2] = t_new
+            code = 1
+            break
+        t = t_new
+        for d in range(n):
+            x[d] = x_new[d]
+        if fsal:
+            for d in range(n):
+                K[0, d] = K[s_stages - 1, d]
+        else:
+            kk = _twin_field(t, x, p)
+            field_evals += 1
+            for d in range(n):
+                K[0, d] = kk[d]
+        T[size] = t
+        for d in range(n):
+            X[size, d] = x[d]
+            DX[size, d] = K[0, d]
+        size += 1
+    fs[0] = t
+    fs[1] = h_prop
+    iv[0] = steps
+    iv[1] = halvings
+    iv[2] = rejections
+    iv[3] = field_evals
+    iv[4] = guard_evals
+    iv[5] = size
+    return code
+
+
+
+_KERNEL_FUNCTIONS = (_k_combine, _k_hermite, _k_crossing, _k_error_norm, _k_step_loop)
+_KERNELS: dict[tuple[int, int], Any] = {}
+
+
+def _importable(fn) -> str | None:
+    """``module:qualname`` of a module-level jitted function, or None (closures, __main__)."""
+    py = getattr(fn, "py_func", None)
+    module, qualname = getattr(py, "__module__", None), getattr(py, "__qualname__", "")
+    if py is None or module in (None, "__main__") or "<" in qualname or "." in qualname:
+        return None
+    try:
+        if getattr(importlib.import_module(module), qualname) is fn:
+            return f"{module}:{qualname}"
+    except Exception:
+        return None
+    return None
+
+
+def cache_dir() -> Path:
+    """Where generated kernel modules and numba's compiled code for them live:
+    ``$LEGSIM_CACHE_DIR``, else ``$XDG_CACHE_HOME/legsim/kernels`` (``~/.cache/legsim/kernels``)."""
+    env = os.environ.get("LEGSIM_CACHE_DIR")
+    if env:
+        return Path(env)
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    return Path(base) / "legsim" / "kernels"
+
+
+def _kernel_source(imports: list[str]) -> str:
+    lines = ["# Generated by legsim.compiled from the functions _k_* there; edit those, not this file.",
+             "import math", "", "import numba", "import numpy as np", ""]
+    lines += imports
+    lines += ["", "_njit = numba.njit(cache=CACHE, fastmath=False, nogil=True)", ""]
+    for fn in _KERNEL_FUNCTIONS:
+        lines += ["", "@_njit", inspect.getsource(fn).rstrip(), ""]
+    return "\n".join(lines) + "\n"
+
+
+def get_kernel(twin: CompiledMode):
+    """The jitted step loop bound to ``twin``'s field and guards.
+
+    For twins defined at module level the kernel is generated once into ``cache_dir()`` and
+    numba caches its machine code there, so later processes load it in milliseconds; other
+    twins (closures) get a kernel compiled in this process only.
+    """
+    key = (id(twin.field), id(twin.guards))
+    kernel = _KERNELS.get(key)
+    if kernel is not None:
+        return kernel
+    names = (_importable(twin.field), _importable(twin.guards))
+    kernel = None
+    if None not in names:
+        imports = []
+        for alias, name in zip(("_twin_field", "_twin_guards"), names):
+            module, qualname = name.split(":")
+            imports.append(f"from {module} import {qualname} as {alias}")
+        text = _kernel_source(imports).replace("cache=CACHE", "cache=True")
+        digest = hashlib.sha256((text + numba.__version__).encode()).hexdigest()[:20]
+        try:
+            directory = cache_dir()
+            directory.mkdir(parents=True, exist_ok=True)
+            path = directory / f"legsim_kernel_{digest}.py"
+            if not path.exists() or path.read_text() != text:
+                fd, tmp = tempfile.mkstemp(prefix=path.name, suffix=".tmp", dir=directory)
+                with os.fdopen(fd, "w") as fh:
+                    fh.write(text)
+                os.replace(tmp, path)
+            spec = importlib.util.spec_from_file_location(f"legsim_kernel_{digest}", path)
+            module = importlib.util.module_from_spec(spec)
+            # numba's cache finds a function's module by name when it loads compiled code.
+            sys.modules[spec.name] = module
+            spec.loader.exec_module(module)
+            kernel = module._k_step_loop
+        except OSError:
+            kernel = None  # no writable cache: compile in memory below
+    if kernel is None:
+        namespace: dict[str, Any] = {"_twin_field": twin.field, "_twin_guards": twin.guards}
+        text = _kernel_source([]).replace("cache=CACHE", "cache=False")
+        exec(compile(text, "<legsim kernel>", "exec"), namespace)  # noqa: S102 - our own functions' source
+        kernel = namespace["_k_step_loop"]
+    _KERNELS[key] = kernel
+    return kernel
+
+
+# --------------------------------------------------------------------------------------------
+# The Python side: called by relaxed._Integrator._run_mode.
+# --------------------------------------------------------------------------------------------
+def _check_twin(integrator, data, t: float, x: np.ndarray, k0: np.ndarray) -> None:
+    """Once per mode and run: the twin must return the Python callables' shapes and values."""
+    checked = integrator.__dict__.setdefault("_compiled_checked", set())
+    if data.name in checked:
+        return
+    cm = data.mode.compiled
+    name = integrator.system.name
+    if not isinstance(cm, CompiledMode):
+        raise ModelError(f"{name}: mode '{data.name}'.compiled must be a legsim.compiled.CompiledMode, "
+                         f"got {type(cm).__name__}")
+    if cm.n_guards != len(data.guards):
+        raise ModelError(f"{name}: compiled twin of mode '{data.name}' declares {cm.n_guards} guards, the mode "
+                         f"has {len(data.guards)} outgoing transitions")
+    try:
+        f = np.asarray(cm.field(float(t), np.ascontiguousarray(x, dtype=float), cm.params), dtype=float)
+        g = np.asarray(cm.guards(np.ascontiguousarray(x, dtype=float), cm.params), dtype=float)
+    except Exception as exc:
+        raise ModelError(f"{name}: compiled twin of mode '{data.name}' failed at t={t}: "
+                         f"{type(exc).__name__}: {exc}") from exc
+    if f.shape != (data.mode.dim,) or g.shape != (cm.n_guards,):
+        raise ModelError(f"{name}: compiled twin of mode '{data.name}' returned field shape {f.shape} and guards "
+                         f"shape {g.shape}, expected ({data.mode.dim},) and ({cm.n_guards},)")
+    g_py = np.array([float(gd(x)) for gd in data.guards])
+    scale = 1e-9 * (1.0 + np.abs(k0))
+    if not (np.all(np.abs(f - k0) <= scale) and np.allclose(g, g_py, rtol=1e-9, atol=1e-12)):
+        raise ModelError(f"{name}: compiled twin of mode '{data.name}' disagrees with the Python callables at "
+                         f"t={t}, x={x.tolist()}: field {f.tolist()} vs {k0.tolist()}, guards {g.tolist()} vs "
+                         f"{g_py.tolist()}")
+    checked.add(data.name)
+
+
+def _grow(buf) -> None:
+    new = 2 * len(buf.t)
+    buf.t = np.resize(buf.t, new)
+    buf.x = np.resize(buf.x, (new, buf.x.shape[1]))
+    buf.dx = np.resize(buf.dx, (new, buf.dx.shape[1]))
+
+
+def run_mode_compiled(integrator, data, buf, t: float, x: np.ndarray, k0: np.ndarray, t_final: float):
+    """The step loop of one mode visit, compiled; returns what ``_Integrator._run_mode`` returns:
+    ``("next", mode, x, t)`` after a transition or ``("end", status, message, t, in_strip, pair)``."""
+    _check_twin(integrator, data, t, x, k0)
+    cm = data.mode.compiled
+    kernel = get_kernel(cm)
+    plan = plan_for(integrator.tableau)
+    mode = data.name
+    n = data.mode.dim
+    s = plan.stages
+    x = np.array(x, dtype=float)
+    K = np.zeros((s, n))
+    K[0] = k0
+    XS = np.zeros((s, n))
+    x_new = np.zeros(n)
+    k1 = np.zeros(n)
+    gv = np.zeros(max(1, cm.n_guards))
+    work = np.zeros(n)
+    fs = np.zeros(8)
+    iv = np.zeros(8, dtype=np.int64)
+    fs[0] = t
+    fs[1] = integrator.h_prop
+    iv[5] = buf.size
+    progress = integrator.progress
+    max_steps = PROGRESS_CHUNK if progress is not None else _NO_LIMIT
+    adaptive = bool(integrator.adaptive)
+    err_exp = float(integrator.err_exponent) if adaptive else 0.0
+    while True:
+        code = kernel(cm.params, cm.n_guards, plan.c, plan.n_groups, plan.weights,
+                      plan.n_members, plan.members, plan.b_err, plan.fsal, x, K, XS, x_new, k1, gv, work,
+                      buf.t, buf.x, buf.dx, fs, iv, float(t_final), float(integrator.h), float(integrator.eps),
+                      float(integrator.rtol), float(integrator.atol), err_exp, adaptive, bool(integrator.aim),
+                      int(integrator.max_halvings), max_steps)
+        buf.size = int(iv[5])
+        integrator._flush(int(iv[0]), int(iv[1]), int(iv[2]), int(iv[3]), int(iv[4]), float(fs[1]))
+        t = float(fs[0])
+        if code == BUFFER_FULL:
+            _grow(buf)
+            continue
+        if code == CHUNK:
+            now = _time.perf_counter()
+            if now - integrator._last_report > 0.2:
+                integrator._last_report = now
+                progress(t, integrator.t_start, t_final)
+            continue
+        break
+    if code == TRANSITION:
+        gvals = [float(v) for v in gv[: cm.n_guards]]
+        return integrator._step_transition(buf, data, gvals, t, x.copy(), K[0].copy(), float(fs[2]), x_new.copy(),
+                                           k1.copy(), t_final)
+    if code == FINISHED:
+        return integrator._end_segment(buf, "finished", "", float(fs[4]))
+    if code == GUARD_NAN:
+        bad = int(iv[6])
+        message = (f"guard of transition {data.transitions[bad].name} is nan at t={float(fs[5]):.17g} in mode "
+                   f"'{mode}', x={x_new.tolist()}")
+        return integrator._end_segment(buf, "non_finite", message, t)
+    if code == NONFINITE_STEP:
+        message = (f"the step from t={t:.17g} in mode '{mode}' gives a non-finite state even at "
+                   f"h={float(fs[3]):.3g}: x={x.tolist()}")
+        return integrator._end_segment(buf, "non_finite", message, t)
+    if code == EXHAUSTED:
+        e = int(iv[6])
+        message = (f"no step from t={t:.17g} in mode '{mode}' lands in the relaxed domain after {int(iv[7])} "
+                   f"halvings: the flow leaves through the guard of transition {data.transitions[e].name} "
+                   f"without entering its strip (x={x.tolist()})")
+        return integrator._end_segment(buf, "halving_exhausted", message, t)
+    raise RuntimeError(f"compiled kernel returned unknown code {code}")  # pragma: no cover
+
+
+def without_compiled(system):
+    """The same system with its modes' compiled twins removed, so ``simulate`` runs the Python
+    step loop (for comparisons of the two paths). Eagerly built systems only."""
+    import dataclasses
+
+    from .hybrid import HybridSystem
+
+    modes = {name: dataclasses.replace(mode, compiled=None) for name, mode in system.modes.items()}
+    return HybridSystem(modes, system.transitions, name=system.name, energy=system.energy)

@@ -1,0 +1,246 @@
+"""The compiled step loop (legsim.compiled) against the Python loop it replaces.
+
+The kernel performs the same floating-point operations in the same order as the Python
+stepper, so the two paths must give the same execution: the same transitions at the same times
+and the same stored points, to 1e-12 (in practice bit for bit), with the same counters."""
+
+import math
+
+import numba
+import numpy as np
+import pytest
+
+import legsim.compiled as compiled
+from legsim import HybridSystem, Mode, ModelError, Transition, simulate
+from legsim.compiled import CompiledMode, plan_for, without_compiled
+from legsim.methods import METHODS
+from legsim.systems.fast import make_bouncing_ball, make_oscillator, make_oscillator_example
+from legsim.systems.oscillator import OscillatorReference
+
+COUNTERS = ("steps", "halvings", "error_rejections", "field_evals", "guard_evals", "reset_evals", "transitions")
+
+
+def assert_same_execution(a, b, tol=1e-12):
+    assert a.status == b.status
+    assert a.message == b.message
+    assert len(a.transitions) == len(b.transitions)
+    for ta, tb in zip(a.transitions, b.transitions):
+        assert ta.name == tb.name
+        assert abs(ta.time - tb.time) <= tol and abs(ta.exit_time - tb.exit_time) <= tol
+        assert np.allclose(ta.state_before, tb.state_before, rtol=0, atol=tol)
+    assert len(a.segments) == len(b.segments)
+    for sa, sb in zip(a.segments, b.segments):
+        assert sa.t.shape == sb.t.shape
+        assert np.allclose(sa.t, sb.t, rtol=0, atol=tol)
+        assert np.allclose(sa.x, sb.x, rtol=0, atol=tol * max(1.0, np.abs(sb.x).max()))
+        assert np.allclose(sa.dx, sb.dx, rtol=0, atol=tol * max(1.0, np.abs(sb.dx).max()))
+    for key in COUNTERS:
+        assert a.counters[key] == b.counters[key], key
+
+
+def both_paths(system, x0, mode, t_final, h, eps, method, **kw):
+    fast = simulate(system, x0, mode, t_final, h, eps, method, **kw)
+    slow = simulate(without_compiled(system), x0, mode, t_final, h, eps, method, **kw)
+    return fast, slow
+
+
+@pytest.mark.parametrize("landing", ["halve", "aim"])
+@pytest.mark.parametrize("method,tols", [("rk4", {}), ("euler", {}), ("bs32", {"rtol": 1e-7, "atol": 1e-9})])
+def test_oscillator_example1_same_on_both_paths(method, tols, landing):
+    system, x0, _ = make_oscillator_example("ex1")
+    fast, slow = both_paths(system, x0, "free", 12.0, 2e-2, 1e-5, method, landing=landing, **tols)
+    assert len(fast.transitions) >= 4  # the comparison covers impacts, not only free flight
+    assert_same_execution(fast, slow)
+
+
+@pytest.mark.parametrize("landing", ["halve", "aim"])
+@pytest.mark.parametrize("method,tols", [("rk2", {}), ("dopri5", {"rtol": 1e-8, "atol": 1e-10})])
+def test_bouncing_ball_zeno_same_on_both_paths(method, tols, landing):
+    # Past the Zeno time the strips chain: many transitions, each with shortened steps.
+    system = make_bouncing_ball(9.81, 0.5)
+    fast, slow = both_paths(system, [1.0, 0.0], "flight", 2.0, 1e-2, 1e-4, method, landing=landing,
+                            max_transitions=300, **tols)
+    zeno = math.sqrt(2 / 9.81) * 3  # t1 (1 + 2c / (1 - c)) with c = 0.5
+    assert len(fast.transitions) > 20 and fast.transitions[-1].time > zeno - 0.05
+    assert_same_execution(fast, slow)
+
+
+def test_oscillator_example2_sticking_same_on_both_paths():
+    system, x0, t_max = make_oscillator_example("ex2")
+    fast, slow = both_paths(system, x0, "free", 0.5, 1e-2, 1e-5, "rk4", landing="aim", max_transitions=400)
+    assert len(fast.transitions) > 20  # the mass sticks: a stream of strip crossings
+    assert_same_execution(fast, slow)
+
+
+def test_long_free_flight_grows_the_buffer_and_matches_the_closed_form():
+    # No stop: one segment of 4000 points (the buffer starts at 256) and no guards at all.
+    system = make_oscillator(2.5, 0.05, None, 0.9, 1.0, 20.0, 2.5)
+    fast, slow = both_paths(system, [1.0, 0.0], "free", 40.0, 1e-2, 1e-3, "rk4")
+    assert_same_execution(fast, slow)
+    assert len(fast.segments[0].t) == 4001
+    ref = OscillatorReference(2.5, 0.05, None, 0.9, 1.0, 20.0, 2.5, 1.0, 0.0)
+    # RK4 at h = 1e-2 on frequencies 2.5 rad/s: global error ~ (omega h)^4 t * amplitude.
+    assert abs(fast.final_state - ref.state(40.0)).max() < 1e-5
+
+
+def test_compiled_path_is_taken_only_without_control(monkeypatch):
+    calls = []
+    real = compiled.run_mode_compiled
+
+    def spy(*args):
+        calls.append(args[1].name)
+        return real(*args)
+
+    monkeypatch.setattr(compiled, "run_mode_compiled", spy)
+    system = make_bouncing_ball()
+    simulate(system, [1.0, 0.0], "flight", 0.3, 1e-2, 1e-4)  # before the first impact: one visit
+    assert calls == ["flight"]
+    simulate(system, [1.0, 0.0], "flight", 0.3, 1e-2, 1e-4, control=lambda t, x: None)
+    assert calls == ["flight"]
+
+
+def test_progress_is_reported_from_the_compiled_loop(monkeypatch):
+    clock = iter(np.arange(0.0, 1e6, 1.0))  # every reading one second later than the last
+    monkeypatch.setattr(compiled._time, "perf_counter", lambda: float(next(clock)))
+    monkeypatch.setattr(compiled, "PROGRESS_CHUNK", 100)
+    seen = []
+    system = make_oscillator(2.5, 0.05, None, 0.9, 1.0, 20.0, 2.5)
+    ex = simulate(system, [1.0, 0.0], "free", 10.0, 1e-2, 1e-3, "rk4",
+                  progress=lambda t, t0, t1: seen.append((t, t0, t1)))
+    assert ex.status == "finished"
+    # 1000 steps; the kernel returns after at most 100 steps or when the buffer fills, and each
+    # return after a full chunk is reported (the fake clock always says a second has passed).
+    times = [t for t, _, _ in seen]
+    assert len(times) >= 5 and np.diff(np.concatenate([[0.0], times, [10.0]])).max() <= 2.0 + 1e-9 and np.all(np.diff(times) > 0) and 0 < times[0] <= 1.0 + 1e-9 and times[-1] < 10.0
+    assert np.allclose(np.array(times) * 100, np.round(np.array(times) * 100), atol=1e-6)  # on the step grid
+    assert all(t0 == 0.0 and t1 == 10.0 for _, t0, t1 in seen)
+
+
+# A probe twin for the failure paths: field (p0 x0^2 + p1 x1, p2); guard selected by p3:
+# 0 smooth (p4 - x0), 1 a jump from +1 to -1 at x0 = p4, 2 nan beyond p4.
+@numba.njit(cache=True)
+def probe_field(t, x, p):
+    out = np.empty(2)
+    out[0] = p[0] * x[0] * x[0] + p[1] * x[1]
+    out[1] = p[2]
+    return out
+
+
+@numba.njit(cache=True)
+def probe_guards(x, p):
+    out = np.empty(1)
+    if p[3] == 0.0:
+        out[0] = p[4] - x[0]
+    elif p[3] == 1.0:
+        out[0] = 1.0 if x[0] < p[4] else -1.0
+    else:
+        out[0] = 1.0 if x[0] < p[4] else math.nan
+    return out
+
+
+def probe_system(p, n_guards=1, guard_py=None):
+    p = np.asarray(p, dtype=float)
+
+    def field(t, x, u):
+        return np.array([p[0] * x[0] * x[0] + p[1] * x[1], p[2]])
+
+    def guard(x):
+        if p[3] == 0.0:
+            return p[4] - x[0]
+        if p[3] == 1.0:
+            return 1.0 if x[0] < p[4] else -1.0
+        return 1.0 if x[0] < p[4] else math.nan
+
+    twin = CompiledMode(probe_field, probe_guards, n_guards, p)
+    return HybridSystem({"m": Mode(2, field, compiled=twin)},
+                        [Transition("m", "m", guard_py or guard, lambda x: np.array([0.0, x[1]]), name="wrap")])
+
+
+@pytest.mark.filterwarnings("ignore::RuntimeWarning")  # numpy warns on the Python path as x overflows
+def test_non_finite_state_ends_both_paths_alike():
+    # x' = x^2 from x = 1 blows up at t = 1; the guard is out of reach.
+    fast, slow = both_paths(probe_system([1.0, 0.0, 0.0, 0.0, 1e300]), [1.0, 0.0], "m", 2.0, 1e-2, 1e-3, "rk4")
+    assert fast.status == "non_finite" and "non-finite state" in fast.message
+    assert_same_execution(fast, slow)
+
+
+def test_discontinuous_guard_exhausts_halving_on_both_paths():
+    # x0 moves at unit speed; the guard jumps from +1 to -1 at x0 = 0.5: no step can land in the strip.
+    fast, slow = both_paths(probe_system([0.0, 1.0, 0.0, 1.0, 0.5]), [0.0, 1.0], "m", 2.0, 1e-2, 1e-3, "rk4",
+                            max_halvings=20)
+    assert fast.status == "halving_exhausted" and "transition wrap" in fast.message
+    assert_same_execution(fast, slow)
+
+
+def test_nan_guard_ends_both_paths_alike():
+    fast, slow = both_paths(probe_system([0.0, 1.0, 1.0, 2.0, 0.5]), [0.0, 0.0], "m", 2.0, 1e-2, 1e-3, "rk4")
+    assert fast.status == "non_finite" and "guard of transition wrap is nan" in fast.message
+    assert_same_execution(fast, slow)
+
+
+def test_twin_that_disagrees_with_the_python_model_is_refused():
+    # The Python guard is shifted by 0.1 from the twin's: the check at the first visit catches it.
+    system = probe_system([0.0, 1.0, 1.0, 0.0, 0.5], guard_py=lambda x: 0.6 - x[0])
+    with pytest.raises(ModelError, match="compiled twin of mode 'm' disagrees with the Python callables"):
+        simulate(system, [0.0, 0.0], "m", 1.0, 1e-2, 1e-3)
+
+
+def test_twin_with_the_wrong_guard_count_is_refused():
+    with pytest.raises(ModelError, match="declares 2 guards, the mode has 1 outgoing transitions"):
+        simulate(probe_system([0.0, 1.0, 1.0, 0.0, 0.5], n_guards=2), [0.0, 0.0], "m", 1.0, 1e-2, 1e-3)
+    with pytest.raises(ModelError, match="n_guards must be an integer >= 0"):
+        CompiledMode(probe_field, probe_guards, -1)
+
+
+def test_plan_reproduces_every_tableau():
+    # The grouped arrays must encode exactly A's rows and b: rebuild them from the plan.
+    for tableau in METHODS.values():
+        plan = plan_for(tableau)
+        s = tableau.stages
+        for row in range(1, s + 1):
+            weights = np.zeros(s)
+            for g in range(plan.n_groups[row]):
+                for m in plan.members[row, g, : plan.n_members[row, g]]:
+                    weights[m] += plan.weights[row, g]
+            expected = tableau.b if row == s else tableau.A[row]
+            assert np.array_equal(weights, expected), (tableau.name, row)
+
+
+def test_closures_are_not_importable_and_module_functions_are():
+    assert compiled._importable(probe_field) == f"{probe_field.py_func.__module__}:probe_field"
+
+    def make():
+        @numba.njit
+        def inner(t, x, p):
+            return x
+
+        return inner
+
+    assert compiled._importable(make()) is None
+
+
+@pytest.mark.slow
+def test_closure_twin_runs_compiled_in_memory():
+    # A twin defined in a function cannot be imported by a generated module: its kernel is
+    # compiled in this process only (several seconds), and must still match the Python path.
+    g = 9.81
+
+    @numba.njit
+    def field(t, x, p):
+        out = np.empty(2)
+        out[0] = x[1]
+        out[1] = -g
+        return out
+
+    @numba.njit
+    def guards(x, p):
+        out = np.empty(1)
+        out[0] = x[0] if x[0] > x[1] else x[1]
+        return out
+
+    twin = CompiledMode(field, guards, 1)
+    system = HybridSystem({"f": Mode(2, lambda t, x, u: np.array([x[1], -g]), compiled=twin)},
+                          [Transition("f", "f", lambda x: x[0] if x[0] > x[1] else x[1],
+                                      lambda x: np.array([x[0], -0.5 * x[1]]))])
+    fast, slow = both_paths(system, [1.0, 0.0], "f", 1.5, 1e-2, 1e-4, "rk4", max_transitions=100)
+    assert_same_execution(fast, slow)
