@@ -648,13 +648,15 @@ class ContactBridge:
         return units
 
     # -- resets ---------------------------------------------------------------------------
-    def _flight_foot(self, lg: _Leg, q: np.ndarray, event: str) -> float:
-        """x (m) of the flight foot at q; a foot below the ground means the model has broken
-        down (the leg swung through the ground), which no reset can repair."""
+    def _flight_foot(self, lg: _Leg, q: np.ndarray, event: str, on_guard: bool) -> float:
+        """x (m) of the flight foot at q. On the guard (a real touchdown or liftoff) a foot below
+        the ground means the model has broken down (the leg swung through the ground), which no
+        reset can repair; off the guard (``HybridSystem.check_state`` trying the resets on an
+        initial state) there is nothing to report."""
         pin.forwardKinematics(self.model, self.data, q)
         p = pin.updateFramePlacement(self.model, self.data, lg.foot_id).translation
         depth = lg.leg.ground - p[2]
-        if depth > FOOT_TOLERANCE:
+        if on_guard and depth > FOOT_TOLERANCE:
             raise ModelError(
                 f"{self.name}: at {event} of leg '{lg.leg.name}' its foot at flight angle "
                 f"{lg.leg.angle:.4g} rad would be {depth:.3g} m below the ground (body at {q.tolist()}): "
@@ -669,12 +671,18 @@ class ContactBridge:
         src_index = {lg.leg.name: i for i, lg in enumerate(src.springs)}
         for i, lg in enumerate(dst.springs):
             j = src_index.get(lg.leg.name)
-            out[2 * n + i] = x[2 * n + j] if j is not None else self._flight_foot(lg, x[:n], "touchdown")
+            if j is None:
+                out[2 * n + i] = self._flight_foot(lg, x[:n], "touchdown", self._on_guard(src, x, lg))
+            else:
+                out[2 * n + i] = x[2 * n + j]
         dst_legs = {lg.leg.name for lg in dst.springs}
         for lg in src.springs:
             if lg.leg.name not in dst_legs:
-                self._flight_foot(lg, x[:n], "liftoff")
+                self._flight_foot(lg, x[:n], "liftoff", self._on_guard(src, x, lg))
         return out
+
+    def _on_guard(self, spec: _ModeSpec, x: np.ndarray, lg: _Leg) -> bool:
+        return abs(self._kinematic_guards(spec, x)[lg.leg.name]) <= FOOT_TOLERANCE
 
     def impact_velocity(self, rows: Sequence[tuple[str, float]], q: np.ndarray, v: np.ndarray) -> np.ndarray:
         """Post-impact velocity (nv,) of the generalised Newton impact.

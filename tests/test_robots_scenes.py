@@ -1,0 +1,64 @@
+"""The robot scenes under scenarios/: they load, run with the papers' settings and report
+energies; what each run must show is checked against the paper's description."""
+
+import math
+
+import numpy as np
+import pytest
+
+from legsim.scene import load_scene, run_summary
+
+
+def test_pronk_scene_is_the_paper_setup_and_conserves_energy():
+    scene = load_scene("pronk")
+    assert scene.parameters == dict(m=1.0, I=1.0, k=30.0, l=1.0, d=1.0, g=9.81, psi=pytest.approx(math.pi / 5))
+    np.testing.assert_array_equal(scene.initial_state, [0, 1.1, 0, 3.4, 0, 0])
+    assert (scene.integrator["h"], scene.integrator["eps"]) == (1e-3, 1e-2)
+    ex = scene.simulate()
+    summary = run_summary(ex, scene)
+    assert summary["status"] == "finished"
+    assert summary["energy_initial"] == pytest.approx(0.5 * 3.4**2 + 9.81 * 1.1, abs=1e-12)
+    assert abs(summary["energy_final"] - summary["energy_initial"]) < 1e-8
+    assert summary["damping_evals"] == 0 and summary["kkt"] == 0  # model counters of the run
+    # pronking: the legs touch down and lift off together, pairwise within a few eps
+    times = [tr.time for tr in ex.transitions]
+    assert len(times) == 8 and all(b - a < 3 * 1e-2 for a, b in zip(times[::2], times[1::2]))
+
+
+def test_pitched_pronk_scene_lands_on_the_left_leg_first():
+    scene = load_scene("pronk_pitched")
+    assert scene.initial_state[2] == -0.4
+    ex = scene.simulate()
+    assert ex.status == "finished" and ex.mode_sequence == ["aerial", "left", "both"]
+    summary = run_summary(ex, scene)
+    assert abs(summary["energy_final"] - summary["energy_initial"]) < 1e-8
+
+
+def test_slip_scene_conserves_energy():
+    scene = load_scene("slip")
+    ex = scene.simulate()
+    summary = run_summary(ex, scene)
+    assert summary["status"] == "finished" and summary["transitions"] == 4
+    assert abs(summary["energy_final"] - summary["energy_initial"]) < 1e-8
+
+
+def test_double_pendulum_scenes_are_paper_003_fig_2():
+    plastic = load_scene("double_pendulum_plastic")
+    zeno = load_scene("double_pendulum_zeno")
+    for scene in (plastic, zeno):
+        np.testing.assert_allclose(scene.initial_state, np.radians([30, 25, 0, 0]), rtol=0, atol=1e-15)
+        assert (scene.integrator["method"], scene.integrator["h"], scene.integrator["eps"]) == ("euler", 1e-3, 0.2)
+    assert plastic.effects["stop"]["restitution"] == 0.0 and zeno.effects["stop"]["restitution"] == 0.5
+
+    ex = plastic.simulate()
+    assert ex.status == "finished" and "constrained" in ex.mode_sequence
+    assert {"impact_stop", "release_stop"} <= {tr.name for tr in ex.transitions}
+    summary = run_summary(ex, plastic)
+    # plastic impacts only remove energy; Euler's drift over 10 s is far smaller than their loss
+    assert summary["energy_final"] < summary["energy_initial"]
+
+    ex = zeno.simulate()
+    assert ex.status == "finished" and ex.t_end == zeno.integrator["t_final"]
+    assert set(ex.mode_sequence) == {"unconstrained"} and len(ex.transitions) > 20
+    speeds = [abs(tr.state_before[3]) for tr in ex.transitions]
+    assert speeds[8] < 0.05 * speeds[0]  # impacts accumulate: approach speeds fall by about c each
