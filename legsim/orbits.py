@@ -98,7 +98,7 @@ from .relaxed import simulate
 
 __all__ = [
     "OrbitError", "Section", "OrbitProblem", "Return", "ReturnMap", "OrbitResult", "Family", "FamilyPoint",
-    "StabilityChange", "find_orbit", "return_map", "jacobian_fd", "jacobian_saltation", "saltation_matrix",
+    "StabilityChange", "OrbitSettings", "problem_from_scene", "find_orbit", "return_map", "jacobian_fd", "jacobian_saltation", "saltation_matrix",
     "reset_on_guard_jacobian",
     "floquet_multipliers", "continue_family", "STATUSES",
 ]
@@ -401,11 +401,13 @@ class OrbitProblem:
             return hit
         try:
             built = self.system(params)
-        except LegsimError:
+        except OrbitError:
             raise
+        except LegsimError as exc:
+            raise OrbitError(f"orbit problem: no system for parameters {params}: {exc}", "simulation_failed") from exc
         except Exception as exc:
             raise OrbitError(f"orbit problem: building the system with parameters {params} failed: "
-                             f"{type(exc).__name__}: {exc}") from exc
+                             f"{type(exc).__name__}: {exc}", "simulation_failed") from exc
         control = self.control
         if isinstance(built, tuple):
             built, control = built
@@ -1226,7 +1228,8 @@ class Family:
 
 def continue_family(problem: OrbitProblem, parameter: str, start: float, stop: float, steps: int,
                     guess: Mapping[str, float] | Sequence[float] | np.ndarray, *, max_refinements: int = 4,
-                    progress: Callable[[FamilyPoint], None] | None = None, **solver: Any) -> Family:
+                    locate: int = 0, progress: Callable[[FamilyPoint], None] | None = None,
+                    **solver: Any) -> Family:
     """Follow a family of orbits as ``parameter`` goes from ``start`` to ``stop`` in ``steps``
     equal steps, with a secant predictor (linear extrapolation of the last two orbits' unknowns
     in the parameter; the previous orbit for the second point) and the Newton corrector
@@ -1234,7 +1237,9 @@ def continue_family(problem: OrbitProblem, parameter: str, start: float, stop: f
     ``max_refinements`` times, before the family is declared to end there.
 
     Stability changes are reported between consecutive orbits where the largest non-trivial
-    multiplier modulus crosses 1.
+    multiplier modulus crosses 1, at the parameter where it crosses 1 by linear interpolation;
+    ``locate`` > 0 first narrows each such interval by that many bisections (one orbit search
+    each, warm-started by interpolation), so the change is placed within 2**-locate of a step.
     """
     if not problem.is_factory:
         raise OrbitError("continuation needs a system factory system(parameters) -> HybridSystem")
@@ -1295,7 +1300,35 @@ def continue_family(problem: OrbitProblem, parameter: str, start: float, stop: f
                    f"{result.status}: {result.message}" if history else
                    f"no orbit at the start {parameter} = {value:g}: {result.status}: {result.message}")
         break
-    return Family(parameter, points, _stability_changes(points), complete, message)
+    changes = _stability_changes(points)
+    if locate > 0 and changes:
+        changes = [_locate_change(problem, parameter, points, c, locate, solver) for c in changes]
+    return Family(parameter, points, changes, complete, message)
+
+
+def _locate_change(problem: OrbitProblem, parameter: str, points: list[FamilyPoint], change: StabilityChange,
+                   bisections: int, solver: Mapping[str, Any]) -> StabilityChange:
+    """Narrow a stability change's interval by bisection on the parameter."""
+    by_value = {p.value: p for p in points}
+    lo, hi = by_value[change.between[0]], by_value[change.between[1]]
+    for _ in range(bisections):
+        mid_value = 0.5 * (lo.value + hi.value)
+        w = 0.5
+        params = dict(problem.parameters)
+        params[parameter] = mid_value
+        for name in problem.free:
+            params[name] = (1 - w) * lo.result.parameters[name] + w * hi.result.parameters[name]
+        x_mid = (1 - w) * lo.result.fixed_point + w * hi.result.fixed_point
+        result = find_orbit(replace(problem, parameters=params), x_mid, **solver)
+        if not result.converged or result.stable is None:
+            break
+        mid = FamilyPoint(mid_value, result)
+        if (mid.result.stable) == (lo.result.stable):
+            lo = mid
+        else:
+            hi = mid
+    located = _stability_changes([lo, hi])
+    return located[0] if located else change
 
 
 def _stability_changes(points: list[FamilyPoint]) -> list[StabilityChange]:
@@ -1316,3 +1349,186 @@ def _stability_changes(points: list[FamilyPoint]) -> list[StabilityChange]:
             kind = "fold or branch point (multiplier through +1)"
         changes.append(StabilityChange((a.value, b.value), at, "unstable" if rb >= 1.0 else "stable", kind, m))
     return changes
+
+
+# --------------------------------------------------------------------------------------------
+# Scenes: the [orbit] section
+# --------------------------------------------------------------------------------------------
+#: Keys of a scene's ``[orbit]`` section and what they hold.
+ORBIT_KEYS = {
+    "section": "{ after = TRANSITION } or { mode = MODE, coordinate = NAME, value = 0.0, direction = "
+               "'decreasing' | 'increasing' | 'either' }",
+    "fixed": "coordinates held at their initial values (list of names)",
+    "cyclic": "coordinates along a symmetry, left out of periodicity; their increment is the step length",
+    "free": "parameters solved for: robot parameter names or EFFECT.PARAM",
+    "energy": "energy level of the orbit (J), when the system defines an energy",
+    "guess": "initial guess by coordinate (default: the scene's [initial] state)",
+    "tol": "convergence tolerance on the orbit equations (state units), default 1e-9",
+    "max_iterations": "Newton iterations, default 30",
+    "jacobian": "'saltation' (default) or 'fd'",
+    "fd_step": "relative finite-difference step, default 1e-5",
+    "singular_tol": "relative singular value below which the Jacobian is singular, default 1e-9",
+    "t_max": "time limit of one return (s), default the scene's integrator.t_final",
+    "returns": "returns per period (2 for a period-two orbit), default 1",
+    "min_transitions": "transitions before a crossing section counts, default 1",
+    "min_time": "time (s) before a crossing section counts, default 0",
+    "max_transitions": "transition budget of one return, default 10000",
+    "trivial_multipliers": "multipliers equal to 1 by a conserved quantity, left out of the stability verdict",
+}
+
+
+@dataclass
+class OrbitSettings:
+    """An orbit problem read from a scene, with the solver settings and the initial guess."""
+
+    problem: OrbitProblem
+    guess: np.ndarray
+    solver: dict[str, Any]
+    scene: Any
+
+
+def _scene_fail(scene, key: str, message: str) -> LegsimError:
+    from .errors import SceneError
+
+    return SceneError(f"{scene.path}: orbit.{key}: {message}")
+
+
+def _parameter_setter(scene, name: str):
+    """(get, set) of a real-valued robot parameter ``name`` or effect parameter ``EFFECT.PARAM``."""
+    builder = scene.builder
+    if "." in name:
+        effect, param = name.split(".", 1)
+        if effect not in builder.effects:
+            raise _scene_fail(scene, "free", f"unknown effect '{effect}' in '{name}'; effects: {sorted(builder.effects)}")
+        if effect not in scene.effects:
+            raise _scene_fail(scene, "free", f"effect '{effect}' is switched off in this scene")
+        schema = builder.effects[effect].parameters
+        if param not in schema:
+            raise _scene_fail(scene, "free", f"effect '{effect}' has no parameter '{param}'; parameters: "
+                                             f"{sorted(schema)}")
+        spec = schema[param]
+        value = scene.effects[effect][param]
+    else:
+        if name not in builder.parameters:
+            raise _scene_fail(scene, "free", f"robot '{scene.robot}' has no parameter '{name}'; parameters: "
+                                             f"{sorted(builder.parameters)}")
+        spec = builder.parameters[name]
+        value = scene.parameters[name]
+    if type(spec.default) is not float:
+        raise _scene_fail(scene, "free", f"parameter '{name}' is {type(spec.default).__name__}-valued; only real "
+                                         f"parameters can be solved for or continued")
+    return spec, float(value)
+
+
+def problem_from_scene(scene: Any, *, extra_parameters: Sequence[str] = ()) -> OrbitSettings:
+    """Read a scene's ``[orbit]`` section (keys: ``ORBIT_KEYS``) into an ``OrbitProblem``.
+
+    The system is rebuilt by the scene's builder for each value of the free (and
+    ``extra_parameters``, e.g. a continuation parameter) parameters; h, eps and method come
+    from ``[integrator]``, the initial guess from ``[initial]`` (overridden by ``orbit.guess``),
+    whose mode must be the section's. Errors are ``SceneError`` naming the file and key.
+    """
+    from .builders import resolve_parameters
+
+    table = scene.sections.get("orbit")
+    if table is None:
+        raise _scene_fail(scene, "section", "the scene has no [orbit] section; add one, e.g. [orbit] "
+                                            "section = { after = \"touchdown\" }")
+    unknown = sorted(set(table) - set(ORBIT_KEYS))
+    if unknown:
+        raise _scene_fail(scene, unknown[0], f"unknown key(s) {unknown}; allowed: {sorted(ORBIT_KEYS)}")
+    sec = table.get("section")
+    if not isinstance(sec, dict):
+        raise _scene_fail(scene, "section", f"missing or not a table; expected {ORBIT_KEYS['section']}")
+    try:
+        if "after" in sec:
+            if set(sec) != {"after"}:
+                raise _scene_fail(scene, "section", f"'after' takes no other keys, got {sorted(sec)}")
+            section = Section.after(sec["after"])
+        else:
+            allowed = {"mode", "coordinate", "value", "direction"}
+            bad = sorted(set(sec) - allowed)
+            if bad or "coordinate" not in sec:
+                raise _scene_fail(scene, "section", f"expected {ORBIT_KEYS['section']}, got keys {sorted(sec)}")
+            value = sec.get("value", 0.0)
+            if isinstance(value, bool) or not isinstance(value, (int, float)):
+                raise _scene_fail(scene, "section.value", f"expected a number, got {value!r}")
+            section = Section.level(sec.get("mode", scene.initial_mode), sec["coordinate"], value,
+                                    sec.get("direction", "decreasing"))
+    except OrbitError as exc:
+        raise _scene_fail(scene, "section", str(exc)) from None
+
+    def names(key: str) -> tuple[str, ...]:
+        value = table.get(key, [])
+        if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
+            raise _scene_fail(scene, key, f"expected a list of names, got {value!r}")
+        return tuple(value)
+
+    def number(key: str, default, kind=float, low=None):
+        value = table.get(key, default)
+        if value is None:
+            return None
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or (kind is int and not isinstance(value, int)):
+            raise _scene_fail(scene, key, f"expected {'an integer' if kind is int else 'a number'}, got {value!r}")
+        if not math.isfinite(value) or (low is not None and value < low):
+            raise _scene_fail(scene, key, f"must be finite{'' if low is None else f' and >= {low}'}, got {value!r}")
+        return kind(value)
+
+    free = names("free")
+    params: dict[str, float] = {}
+    specs = {}
+    for name in tuple(free) + tuple(extra_parameters):
+        spec, value = _parameter_setter(scene, name)
+        specs[name] = spec
+        params[name] = value
+    base_params = dict(scene.parameters)
+    base_effects = {k: dict(v) for k, v in scene.effects.items()}
+    builder = scene.builder
+    where = f"{scene.path}: orbit"
+
+    def factory(values: Mapping[str, float]):
+        p = dict(base_params)
+        e = {k: dict(v) for k, v in base_effects.items()}
+        for name, value in values.items():
+            if "." in name:
+                effect, param = name.split(".", 1)
+                e[effect][param] = specs[name].check(float(value), f"{where}: effects.{name}")
+            else:
+                p[name] = specs[name].check(float(value), f"{where}: robot.parameters.{name}")
+        p = resolve_parameters(builder.parameters, p, f"{where}: robot.parameters")
+        return builder.build(p, e)
+
+    jacobian = table.get("jacobian", "saltation")
+    if jacobian not in ("saltation", "fd"):
+        raise _scene_fail(scene, "jacobian", f"expected 'saltation' or 'fd', got {jacobian!r}")
+    energy = number("energy", None)
+    integ = scene.integrator
+    try:
+        problem = OrbitProblem(
+            system=factory if params else scene.model, section=section, h=integ["h"], eps=integ["eps"],
+            method=integ["method"], t_max=number("t_max", integ["t_final"], low=0.0),
+            parameters=params, free=free, fixed=names("fixed"), cyclic=names("cyclic"), energy=energy,
+            returns=number("returns", 1, int, 1), min_transitions=number("min_transitions", 1, int, 0),
+            min_time=number("min_time", 0.0, low=0.0), max_transitions=number("max_transitions", 10_000, int, 1),
+            trivial_multipliers=number("trivial_multipliers", 0, int, 0))
+    except OrbitError as exc:
+        raise _scene_fail(scene, "section", str(exc)) from None
+    if problem.bound.mode != scene.initial_mode:
+        raise _scene_fail(scene, "section", f"the section lies in mode '{problem.bound.mode}' but the scene starts "
+                                            f"in '{scene.initial_mode}': set [initial] mode = \"{problem.bound.mode}\"")
+    x0 = np.asarray(scene.initial_state, dtype=float).copy()
+    guess = table.get("guess", {})
+    if not isinstance(guess, dict):
+        raise _scene_fail(scene, "guess", f"expected a table of coordinate = number, got {guess!r}")
+    for key, value in guess.items():
+        if key not in problem.names:
+            raise _scene_fail(scene, "guess", f"unknown coordinate '{key}'; coordinates: {list(problem.names)}")
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+            raise _scene_fail(scene, f"guess.{key}", f"expected a finite number, got {value!r}")
+        x0[problem.names.index(key)] = float(value)
+    solver = {"tol": number("tol", 1e-9, low=0.0), "max_iterations": number("max_iterations", 30, int, 0),
+              "jacobian": jacobian, "fd_step": number("fd_step", None, low=0.0),
+              "singular_tol": number("singular_tol", 1e-9, low=0.0)}
+    if solver["tol"] == 0:
+        raise _scene_fail(scene, "tol", "must be > 0")
+    return OrbitSettings(problem, problem.state_vector(x0), solver, scene)

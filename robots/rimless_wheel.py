@@ -1,0 +1,192 @@
+"""The rimless wheel rolling down a slope (McGeer 1990; Coleman, Chatterjee & Ruina 1997).
+
+A hub of mass m (and rotational inertia I about the hub; I = 0 is McGeer's point-mass wheel)
+carries ``spokes`` massless spokes of length l, 2 alpha = 2 pi / spokes apart. One spoke tip is
+pinned to the slope at a time; the wheel rotates about it as an inverted pendulum. We work in
+the slope's frame (x downhill along the slope, z normal to it; gravity tilted by ``slope``).
+
+Coordinates (mode ``stance``):
+
+* ``theta``: the stance spoke's angle from the slope normal (rad), > 0 once the hub is ahead of
+  (downhill of) the contact; a stance phase runs from -alpha to alpha;
+* ``thetad``: its rate (rad/s);
+* ``foot_x``: position of the contact along the slope (m), a cyclic coordinate.
+
+Transitions (Pinocchio through ``robots.bridge``: the stance phase is one RY joint at the
+contact integrated by ``pinocchio.aba``; an impact conserves the angular momentum about the
+striking spoke's tip, computed by ``pinocchio.computeCentroidalMomentum`` plus the moment of the
+linear momentum, and divides it by the rotational inertia about the new contact from
+``pinocchio.crba``; a floating-base impact would be singular for the point-mass wheel, I = 0):
+
+* ``impact``: the leading spoke strikes, ``theta`` reaching alpha while increasing; guard
+  ``max(alpha - theta, -thetad)`` [rad]. Plastic impact on the new spoke, the old one leaving
+  without impulse; then ``theta -> theta - 2 alpha``, ``foot_x`` += the step.
+* ``back_impact``: rolling back, the trailing spoke strikes at ``theta = -alpha``; guard
+  ``max(theta + alpha, thetad)`` [rad]; ``theta -> theta + 2 alpha``.
+
+Closed forms (used by the tests): angular momentum about the new contact is conserved, so
+``thetad+ = c thetad-``, ``c = (I + m l^2 cos 2 alpha) / (I + m l^2)``. Over a stance phase the
+energy gives ``thetad-^2 = thetad+^2 + K``, ``K = 4 m g l sin(alpha) sin(slope) / (I + m l^2)``,
+so the step map is ``w -> c sqrt(w^2 + K)``, its fixed point ``w*^2 = c^2 K / (1 - c^2)`` and its
+derivative there ``c^2`` (the step-to-step contraction). Step length ``2 l sin(alpha)``.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, Sequence
+
+import numpy as np
+import pinocchio as pin
+
+from legsim.builders import Builder, Model, Param
+from legsim.hybrid import HybridSystem, Mode, Transition
+
+from .bridge import ContactBridge, add_point_frame
+
+STATE_NAMES = ("theta", "thetad", "foot_x")
+
+PARAMETERS = {
+    "m": Param(1.0, "hub mass", "kg", low=0.0, low_open=True),
+    "I": Param(0.0, "rotational inertia about the hub (0: point mass, McGeer)", "kg m^2", low=0.0),
+    "l": Param(1.0, "spoke length", "m", low=0.0, low_open=True),
+    "spokes": Param(10, "number of spokes (2 alpha = 2 pi / spokes)", "", low=3, high=1000),
+    "g": Param(9.81, "gravitational acceleration", "m/s^2", low=0.0, low_open=True),
+    "slope": Param(5.0, "slope angle (downhill in +x)", "deg", low=-45.0, high=45.0),
+}
+
+#: Just after an impact on the steady rolling orbit of the default parameters (closed form).
+INITIAL_STATE = {"theta": -math.pi / 10, "thetad": 1.4153, "foot_x": 0.0}
+
+
+def _gravity(g: float, slope_deg: float) -> pin.Motion:
+    s = math.radians(slope_deg)
+    return pin.Motion(np.array([g * math.sin(s), 0.0, -g * math.cos(s), 0.0, 0.0, 0.0]))
+
+
+def _hub_inertia(m: float, I: float, com: np.ndarray) -> pin.Inertia:
+    return pin.Inertia(m, com, np.diag([I, I, I]))
+
+
+class RimlessWheel:
+    """The rimless wheel's pieces: field, guards, impact resets, energy and pictures."""
+
+    def __init__(self, m: float = 1.0, I: float = 0.0, l: float = 1.0, spokes: int = 10, g: float = 9.81,
+                 slope: float = 5.0) -> None:
+        self.m, self.I, self.l, self.spokes, self.g, self.slope = m, I, l, int(spokes), g, slope
+        self.alpha = math.pi / self.spokes
+        chain = pin.Model()
+        j = chain.addJoint(0, pin.JointModelRY(), pin.SE3.Identity(), "theta")
+        chain.appendBodyToJoint(j, _hub_inertia(m, I, np.array([0.0, 0.0, l])), pin.SE3.Identity())
+        add_point_frame(chain, "hub", j, (0.0, 0.0, l))
+        a2 = 2 * self.alpha
+        # The neighbouring spoke tips in the stance joint's frame (the hub at (0, 0, l)).
+        add_point_frame(chain, "front_tip", j, (l * math.sin(a2), 0.0, l - l * math.cos(a2)))
+        add_point_frame(chain, "back_tip", j, (-l * math.sin(a2), 0.0, l - l * math.cos(a2)))
+        self._tip_ids = {"front": chain.getFrameId("front_tip"), "back": chain.getFrameId("back_tip")}
+        chain.gravity = _gravity(g, slope)
+        self.stance_bridge = ContactBridge(chain, (), coordinate_names=("theta",), velocity_names=("thetad",),
+                                           mode_names={(): "stance"}, name="rimless_wheel")
+        self._mode2 = self.stance_bridge.mode("stance")
+        self._model = self.stance_bridge.model
+        self._data = self._model.createData()
+
+    def field(self, t: float, x: np.ndarray, u: Any = None) -> np.ndarray:
+        out = np.zeros(3)
+        out[:2] = self._mode2.field(t, x[:2], u)
+        return out
+
+    def impact_guard(self, x: np.ndarray) -> float:
+        """max(alpha - theta, -thetad) [rad]: past once theta > alpha while rolling forward."""
+        return max(self.alpha - x[0], -x[1])
+
+    def back_guard(self, x: np.ndarray) -> float:
+        """max(theta + alpha, thetad) [rad]: past once theta < -alpha while rolling back."""
+        return max(x[0] + self.alpha, x[1])
+
+    def _impact(self, x: np.ndarray, contact: str, shift: float) -> np.ndarray:
+        """Plastic impact of spoke ``contact``: the angular momentum about its tip P is conserved,
+        H_P = (spin about the centre of mass) + (c - P) x m v_c, and after the impact the wheel
+        turns about P with H_P = M(theta') thetad'."""
+        model, data = self._model, self._data
+        q, v = np.array([float(x[0])]), np.array([float(x[1])])
+        pin.computeCentroidalMomentum(model, data, q, v)
+        pin.centerOfMass(model, data, q, v)
+        pin.forwardKinematics(model, data, q)
+        tip = pin.updateFramePlacement(model, data, self._tip_ids[contact]).translation
+        r = data.com[0] - tip
+        p = data.mass[0] * data.vcom[0]
+        # y components: rotation about +y turns +z towards +x, the sense in which theta grows.
+        h_tip = float(data.hg.angular[1]) + (r[2] * p[0] - r[0] * p[2])
+        new = float(x[0]) + shift
+        inertia = float(pin.crba(model, data, np.array([new]))[0, 0])
+        return np.array([new, h_tip / inertia, x[2] + tip[0]])
+
+    def impact(self, x: np.ndarray) -> np.ndarray:
+        """The leading spoke strikes: theta -> theta - 2 alpha, plastic impact."""
+        return self._impact(x, "front", -2 * self.alpha)
+
+    def back_impact(self, x: np.ndarray) -> np.ndarray:
+        """The trailing spoke strikes: theta -> theta + 2 alpha, plastic impact."""
+        return self._impact(x, "back", 2 * self.alpha)
+
+    def energy(self, mode: str, x: np.ndarray) -> float:
+        """Kinetic plus gravitational energy (J), the contact at height 0 along the slope."""
+        return self.stance_bridge.energy("stance", np.asarray(x, dtype=float)[:2])
+
+    def system(self, x0: Sequence[float] | None = None) -> HybridSystem:
+        mode = Mode(3, self.field, names=STATE_NAMES)
+        transitions = [Transition("stance", "stance", guard=self.impact_guard, reset=self.impact, name="impact"),
+                       Transition("stance", "stance", guard=self.back_guard, reset=self.back_impact,
+                                  name="back_impact")]
+        return HybridSystem({"stance": mode}, transitions, name="rimless_wheel", energy=self.energy,
+                            initial=None if x0 is None else ("stance", np.asarray(x0, dtype=float)))
+
+    def geometry(self, mode: str, x: np.ndarray) -> dict[str, np.ndarray]:
+        """Spokes and hub in the world (x, z) plane (m), the slope descending to +x."""
+        th, foot = float(x[0]), float(x[2])
+        l = self.l
+        hub = np.array([foot + l * math.sin(th), l * math.cos(th)])
+        rot = _slope_rotation(self.slope)
+        spokes = []
+        for k in range(self.spokes):
+            ang = th + 2 * self.alpha * k
+            tip = hub - l * np.array([math.sin(ang), math.cos(ang)])
+            spokes.append(rot @ hub)
+            spokes.append(rot @ tip)
+        return {"spokes": np.array(spokes), "hub": (rot @ hub)[None, :]}
+
+
+def _slope_rotation(slope_deg: float) -> np.ndarray:
+    s = math.radians(slope_deg)
+    return np.array([[math.cos(s), math.sin(s)], [-math.sin(s), math.cos(s)]])
+
+
+def build(params: dict[str, Any], effects: dict[str, dict[str, Any]]) -> Model:
+    """Builder callback: the rimless wheel with the given parameters."""
+    rw = RimlessWheel(params["m"], params["I"], params["l"], params["spokes"], params["g"], params["slope"])
+    initial = dict(INITIAL_STATE)
+    initial["theta"] = -rw.alpha
+    x0 = np.array([initial[n] for n in STATE_NAMES])
+    system = rw.system(x0)
+    rot = _slope_rotation(params["slope"])
+    ground = np.array([rot @ np.array([-1.0, 0.0]), rot @ np.array([12.0, 0.0])])
+    info = {"guard_units": {"impact": "rad (spoke angle past alpha, rolling forward)",
+                            "back_impact": "rad (spoke angle past -alpha, rolling back)"},
+            "parameters": dict(params), "rimless_wheel": rw}
+    return Model(system=system, initial_mode="stance", initial_state=initial, geometry=rw.geometry,
+                 scenery={"ground": ground}, counters=rw.stance_bridge.counters, info=info)
+
+
+BUILDER = Builder(
+    name="rimless_wheel",
+    description="rimless wheel rolling down a slope (McGeer; Coleman et al.): plastic spoke impacts",
+    parameters=PARAMETERS,
+    effects={},
+    build=build,
+)
+
+
+def make(parameters: dict[str, Any] | None = None) -> Model:
+    """Build the model as a scene would (validated parameters)."""
+    return BUILDER.make(parameters, {})
