@@ -170,6 +170,7 @@ class _ModeSpec:
     names: tuple[str, ...]
     n_rows: int = 0
     need_fk: bool = False  # some guard needs frame positions and velocities
+    stop_dofs: tuple[np.ndarray, np.ndarray] | None = None  # (dofs, signs) when only joint stops are active
     # one-entry caches keyed by the state's bytes
     dyn_key: bytes = b""
     dyn_val: tuple[np.ndarray, np.ndarray] | None = None
@@ -420,8 +421,11 @@ class ContactBridge:
             names = self.coordinate_names + self.velocity_names + tuple(f"{lg.leg.name}_foot_x" for lg in springs)
             need_fk = bool(springs or flight or any(
                 r.kind == "point" and r.contact.name not in active for r in self._rigid.values()))
+            stop_dofs = None
+            if rigid and all(r.kind == "stop" for r in rigid):
+                stop_dofs = (np.array([r.dof for r in rigid]), np.array([r.sign for r in rigid]))
             spec = _ModeSpec(mode, active, rigid, springs, flight, 2 * self.n + len(springs), names,
-                             n_rows=sum(r.rows for r in rigid), need_fk=need_fk)
+                             n_rows=sum(r.rows for r in rigid), need_fk=need_fk, stop_dofs=stop_dofs)
             self._specs[mode] = spec
         return spec
 
@@ -435,19 +439,18 @@ class ContactBridge:
         tau = np.zeros(self.n)
         model, data, c = self.model, self.data, self._counts
         for i, lg in enumerate(spec.springs):
-            J = pin.computeFrameJacobian(model, data, q, lg.hip_id, _LWA)
+            J = pin.computeFrameJacobian(model, data, q, lg.hip_id, _LWA)[:3:2]  # rows x and z
             c["jacobians"] += 1
             c["spring_forces"] += 1
             p = data.oMf[lg.hip_id].translation
-            dx = p[0] - x[2 * self.n + i]
-            dz = p[2] - lg.leg.ground
-            r = math.hypot(dx, dz)
-            ux, uz = dx / r, dz / r
+            d = np.array((p[0] - x[2 * self.n + i], p[2] - lg.leg.ground))
+            r = math.hypot(d[0], d[1])
+            d /= r
             f = lg.leg.stiffness * (lg.leg.rest_length - r)
             if lg.leg.damping > 0.0:
                 c["damping_evals"] += 1
-                f -= lg.leg.damping * (ux * (J[0] @ v) + uz * (J[2] @ v))
-            tau += f * (ux * J[0] + uz * J[2])
+                f -= lg.leg.damping * (d @ (J @ v))
+            tau += (f * d) @ J
         if self._damping_idx.size:
             c["damping_evals"] += 1
             tau[self._damping_idx] -= self._damping_b * v[self._damping_idx]
@@ -513,10 +516,28 @@ class ContactBridge:
         self._counts["aba"] += 1
         if spec.rigid:
             self._counts["kkt"] += 1
-            J, gamma = self._constraint_rows(spec.rigid, q, v, drift=True)
             Minv = pin.computeMinverse(self.model, self.data, q)
-            MJt = Minv @ J.T
-            lam = np.linalg.solve(J @ MJt, -(J @ a + gamma))
+            if spec.stop_dofs is not None and len(spec.stop_dofs[0]) == 1:
+                # one joint stop: J = s e_k, the Delassus "matrix" is (M^-1)_kk
+                k, s = int(spec.stop_dofs[0][0]), float(spec.stop_dofs[1][0])
+                col = Minv[:, k]
+                lam = np.array((-s * a[k] / col[k],))
+                a -= col * (a[k] / col[k])
+                spec.dyn_key, spec.dyn_val = key, (a, lam)
+                self._last_u = u
+                return a, lam
+            if spec.stop_dofs is not None:
+                # joint stops only: J selects (signed) dofs, no Jacobian, no drift
+                idx, sign = spec.stop_dofs
+                MJt = Minv[:, idx] * sign
+                A = MJt[idx] * sign[:, None]
+                rhs = -a[idx] * sign
+            else:
+                J, gamma = self._constraint_rows(spec.rigid, q, v, drift=True)
+                MJt = Minv @ J.T
+                A = J @ MJt
+                rhs = -(J @ a + gamma)
+            lam = _solve_small(A, rhs)
             a += MJt @ lam
         else:
             lam = np.zeros(0)
@@ -698,7 +719,7 @@ class ContactBridge:
         Minv = pin.computeMinverse(self.model, self.data, q)
         MJt = Minv @ J.T
         Jv = J @ v
-        return v + MJt @ np.linalg.solve(J @ MJt, -(1.0 + coeff) * Jv)
+        return v + MJt @ _solve_small(J @ MJt, -(1.0 + coeff) * Jv)
 
     def _transitions(self, spec: _ModeSpec) -> list[Transition]:
         out: list[Transition] = []
@@ -852,6 +873,17 @@ class ContactBridge:
         """Set every counter to zero."""
         for k in self._counts:
             self._counts[k] = 0
+
+
+def _solve_small(A: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Solve A y = b for the small symmetric positive definite Delassus matrix A; one and two
+    rows (a stop, a foot) in closed form, where LAPACK's call overhead would dominate."""
+    if A.shape[0] == 1:
+        return b / A[0, 0]
+    if A.shape[0] == 2:
+        det = A[0, 0] * A[1, 1] - A[0, 1] * A[1, 0]
+        return np.array(((A[1, 1] * b[0] - A[0, 1] * b[1]) / det, (A[0, 0] * b[1] - A[1, 0] * b[0]) / det))
+    return np.linalg.solve(A, b)
 
 
 def _finite(value: Any, where: str, *, low: float | None = None, high: float | None = None,
