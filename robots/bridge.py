@@ -362,10 +362,13 @@ class ContactBridge:
         if isinstance(c, PointContact):
             _finite(c.ground, f"{self.name}: {where}: ground")
             fid = self._frame_id(c.frame, where)
+            if isinstance(c.releases, str) or not all(isinstance(o, str) for o in c.releases):
+                raise ModelError(f"{self.name}: {where}: releases must be a tuple of contact names, "
+                                 f"got {c.releases!r}")
             for other in c.releases:
                 if other not in self._contacts or other == c.name:
                     raise ModelError(f"{self.name}: {where}: releases unknown contact {other!r} "
-                                     f"(declare it before '{c.name}')")
+                                     f"(contacts: {self._order})")
             self._rigid[c.name] = _Rigid(c, "point", frame_id=fid, rows=2 if c.tangential else 1)
         elif isinstance(c, JointStop):
             _finite(c.position, f"{self.name}: {where}: position")
