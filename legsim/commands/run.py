@@ -180,7 +180,7 @@ def _num(value: Any) -> str:
 CORE_KEYS = {"system", "status", "message", "t_final", "final_mode", "final_state", "state_names",
              "final_in_strip", "mode_sequence", "transitions", "steps", "halvings", "field_evals",
              "guard_evals", "reset_evals", "strip_time", "wall_time_s", "h", "eps", "method", "scene",
-             "robot", "energy_initial", "energy_final", "scene_file", "outputs"}
+             "robot", "energy_initial", "energy_final", "scene_file", "outputs", "error_rejections"}
 
 
 def format_summary(summary: dict[str, Any]) -> str:
@@ -193,7 +193,9 @@ def format_summary(summary: dict[str, Any]) -> str:
     strip = " (held in a strip)" if summary.get("final_in_strip") else ""
     lines.append(f"final mode {summary['final_mode']}{strip}: {state}")
     lines.append(f"transitions {summary['transitions']}: {_compact_modes(summary['mode_sequence'])}")
-    lines.append(f"steps {summary['steps']}, halvings {summary['halvings']}; evaluations: field "
+    rejections = summary.get("error_rejections") or 0
+    rejected = f", error rejections {rejections}" if rejections else ""
+    lines.append(f"steps {summary['steps']}, halvings {summary['halvings']}{rejected}; evaluations: field "
                  f"{summary['field_evals']}, guard {summary['guard_evals']}, reset {summary['reset_evals']}")
     extra = {k: v for k, v in summary.items() if k not in CORE_KEYS and isinstance(v, (int, float))}
     if extra:
