@@ -309,7 +309,7 @@ class ContactBridge:
         self._specs: dict[str, _ModeSpec] = {}
         self._last_u: Any = None
         self._counts = {"aba": 0, "kkt": 0, "jacobians": 0, "kinematics": 0, "spring_forces": 0,
-                        "damping_evals": 0, "actuation": 0, "impacts": 0, "energy": 0, "cache_hits": 0}
+                        "damping_evals": 0, "actuation_evals": 0, "impacts": 0, "energy_evals": 0, "cache_hits": 0}
 
     # -- construction helpers -------------------------------------------------------------
     def _joint_dof_names(self) -> tuple[str, ...]:
@@ -459,7 +459,7 @@ class ContactBridge:
             tau[self._damping_idx] -= self._damping_b * v[self._damping_idx]
         if u is not None:
             tau[self._act_idx] += self._control(u)
-            c["actuation"] += 1
+            c["actuation_evals"] += 1
         return tau
 
     def _control(self, u: Any) -> np.ndarray:
@@ -810,7 +810,7 @@ class ContactBridge:
         spec = self._spec(mode)
         x = np.asarray(x, dtype=float)
         n = self.n
-        self._counts["energy"] += 1
+        self._counts["energy_evals"] += 1
         q, v = x[:n], x[n:2 * n]
         e = pin.computeKineticEnergy(self.model, self.data, q, v) + pin.computePotentialEnergy(self.model, self.data, q)
         for i, lg in enumerate(spec.springs):
@@ -869,7 +869,7 @@ class ContactBridge:
     def counters(self) -> dict[str, int]:
         """Model-side evaluation counts since construction (or the last ``reset_counters``):
         aba, kkt (constrained solves), jacobians, kinematics (guard passes), spring_forces,
-        damping_evals, actuation, impacts, energy, cache_hits."""
+        damping_evals, actuation_evals, impacts, energy_evals, cache_hits."""
         return dict(self._counts)
 
     def reset_counters(self) -> None:

@@ -80,7 +80,7 @@ def build(params: dict[str, Any], effects: dict[str, dict[str, Any]]) -> Model:
     info = {"guard_units": bridge.guard_units(), "parameters": dict(params), "effects": dict(effects),
             "bridge": bridge}
     return Model(system=system, initial_mode="flight", initial_state=dict(INITIAL_STATE), geometry=geometry,
-                 scenery={"ground": np.array([[-5.0, 0.0], [60.0, 0.0]])}, counters=bridge.counters, info=info)
+                 scenery={"ground": np.array([[-2.0, 0.0], [15.0, 0.0]])}, counters=bridge.counters, info=info)
 
 
 BUILDER = Builder(

@@ -144,7 +144,7 @@ def test_actuation_adds_the_control_to_the_actuated_joints():
     f = bridge.field("free")
     np.testing.assert_allclose(f(0.0, np.zeros(4), None), [0, 0, 0, -G])
     np.testing.assert_allclose(f(0.0, np.zeros(4), [5.0]), [0, 0, 0, 5.0 / 2.0 - G])
-    assert bridge.counters()["actuation"] == 1
+    assert bridge.counters()["actuation_evals"] == 1
     with pytest.raises(ModelError, match="control u has 2 entries, the robot has 1 actuated"):
         f(0.0, np.ones(4), [1.0, 2.0])
 

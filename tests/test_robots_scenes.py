@@ -62,3 +62,37 @@ def test_double_pendulum_scenes_are_paper_003_fig_2():
     assert set(ex.mode_sequence) == {"unconstrained"} and len(ex.transitions) > 20
     speeds = [abs(tr.state_before[3]) for tr in ex.transitions]
     assert speeds[8] < 0.05 * speeds[0]  # impacts accumulate: approach speeds fall by about c each
+
+
+@pytest.mark.parametrize("name", ["pronk", "pronk_pitched", "slip", "double_pendulum_plastic"])
+def test_geometry_is_polylines_of_the_robot(name):
+    scene = load_scene(name)
+    ex = scene.simulate()
+    model = scene.model
+    l = scene.parameters.get("l")
+    for seg in ex.segments:
+        for x in seg.x[:: max(1, len(seg.x) // 5)]:
+            parts = model.geometry(seg.mode, x)
+            for part, line in parts.items():
+                assert line.ndim == 2 and line.shape[1] == 2 and np.all(np.isfinite(line)), part
+            for part, line in parts.items():
+                if part.startswith("leg_"):
+                    hip, foot = line
+                    length = np.linalg.norm(hip - foot)
+                    stance = part[4:] + "_foot_x" in scene.model.system.state_names(seg.mode)
+                    if stance:  # the foot is pinned at its foothold on the ground
+                        names = scene.model.system.state_names(seg.mode)
+                        assert foot.tolist() == [x[names.index(part[4:] + "_foot_x")], 0.0]
+                        assert length <= l + 1e-9
+                    else:  # flight: rest length
+                        assert length == pytest.approx(l, abs=1e-12)
+            if name.startswith("double"):
+                link1, link2 = parts["link1"], parts["link2"]
+                assert np.linalg.norm(link1[1] - link1[0]) == pytest.approx(1.0, abs=1e-12)
+                assert np.linalg.norm(link2[1] - link2[0]) == pytest.approx(1.0, abs=1e-12)
+                # the stop lies along link 1's extension (theta2 = 0)
+                d1 = link1[1] - link1[0]
+                ds = parts["stop"][1] - parts["stop"][0]
+                assert abs(d1[0] * ds[1] - d1[1] * ds[0]) < 1e-12 and d1 @ ds > 0
+    for line in model.scenery.values():
+        assert line.ndim == 2 and line.shape[1] == 2
