@@ -265,7 +265,10 @@ def resolve_scene_path(path_or_name: str | os.PathLike) -> Path:
         known = sorted(scene_files())
         raise SceneError(f"unknown scene '{text}': no such file, and no scene of that name in "
                          f"{[str(d) for d in search_dirs()]}; known scenes: {known}")
-    raise SceneError(f"{candidate}: no such scene file")
+    hint = ""
+    if candidate.suffix == ".toml" and candidate.parent == Path(".") and candidate.stem in scene_files():
+        hint = f" (the scene named '{candidate.stem}' is {scene_files()[candidate.stem]}: run it by name)"
+    raise SceneError(f"{candidate}: no such scene file{hint}")
 
 
 # -- overrides ---------------------------------------------------------------------------------

@@ -291,3 +291,14 @@ def test_scene_path_env_is_searched_first(tmp_path, monkeypatch):
     assert load_scene("only_b").path == second / "only_b.toml"
     files = scene_files()
     assert files["ball_x"] == first / "ball_x.toml" and files["only_b"] == second / "only_b.toml"
+
+
+def test_missing_toml_file_named_like_a_known_scene_gets_a_hint(tmp_path, monkeypatch):
+    scenes, elsewhere = tmp_path / "scenes", tmp_path / "cwd"
+    scenes.mkdir(), elsewhere.mkdir()
+    write_scene(scenes, name="hinted")
+    monkeypatch.setenv("LEGSIM_SCENE_PATH", str(scenes))
+    monkeypatch.chdir(elsewhere)
+    with pytest.raises(SceneError, match=rf"^hinted.toml: no such scene file \(the scene named 'hinted' is "
+                                         rf"{scenes / 'hinted.toml'}: run it by name\)$"):
+        load_scene("hinted.toml")
