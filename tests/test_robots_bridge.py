@@ -214,3 +214,27 @@ def test_a_striking_contact_releases_the_ones_it_names():
     np.testing.assert_allclose(v_after, bridge.impact_velocity([("b", 0.0)], q, v), atol=1e-15)
     with pytest.raises(ModelError, match="releases must be a tuple of contact names"):
         ContactBridge(rod_model(), [PointContact("a", "tip", releases="b")])
+
+
+def test_a_rod_landing_on_a_frictionless_floor_ends_lying_with_its_weight_shared():
+    """Both ends land plastically (c = 0, z only): no horizontal impulse ever acts, so the
+    horizontal momentum is kept; at rest on both ends each carries m g / 2 and the energy left
+    is the sliding m xd^2 / 2."""
+    m, xd = 1.0, 0.5
+    model = rod_model(m=m, I=0.1)
+    model.gravity = pin.Motion(np.array([0, 0, -G, 0, 0, 0]))
+    body = model.getJointId("theta")
+    add_point_frame(model, "tail", body, (-0.5, 0, 0))
+    bridge = ContactBridge(model, [PointContact("a", "tip", tangential=False),
+                                   PointContact("b", "tail", tangential=False)], mode_names={(): "air"})
+    x0 = [0.0, 1.0, 0.3, xd, 0.0, 0.0]
+    system = bridge.system("air", x0)
+    ex = simulate(system, x0, "air", 1.5, 1e-3, 1e-3)
+    assert [tr.name for tr in ex.transitions] == ["touchdown_a", "touchdown_b"] and ex.final_mode == "a+b"
+    x = ex.final_state
+    np.testing.assert_allclose(x[3:], [xd, 0.0, 0.0], atol=1e-9)
+    forces = bridge.constraint_forces("a+b", x)
+    assert forces["a"][0] == pytest.approx(m * G / 2, abs=1e-9) and forces["b"][0] == pytest.approx(m * G / 2, abs=1e-9)
+    assert system.energy("a+b", x) == pytest.approx(0.5 * m * xd**2, abs=1e-9)
+    # the constraint is kept at the acceleration level; the ends stay on the floor to RK4 accuracy
+    assert abs(x[1]) < 1e-9 and abs(x[2]) < 1e-9
