@@ -21,9 +21,10 @@ change, solved with Brent's method); for a transition section it reads the reset
 execution's transition record. We prefer this to adding the section as a guard of a wrapped
 system: an extra guard would change the computation being analysed (steps would be halved to
 land in the section's strip and the state held there), and starting on the section would fire
-that guard at once. The horizon is adaptive: after the first return it is 1.5 times the last
-return time (plus 20 steps), and only when no return is found in it is the full time limit
-``t_max`` simulated, so Newton's evaluations do not pay for a long tail.
+that guard at once. The horizon grows: 1.5 times the last return time (plus 20 steps), or
+t_max / 8 at first, doubled until a return is found or t_max is reached. A return costs less
+than about twice its own time, and a model failure long after it (a runner that falls a few
+strides later) cannot hide it.
 
 A crossing of a function section counts only after at least ``min_transitions`` transitions
 (default 1) since the start, so that a start just off the section (as finite differences and
@@ -43,7 +44,7 @@ Two ways, compared in the tests:
 
 * ``jacobian="saltation"`` (default): along the relaxed execution, the derivative of each
   Runge-Kutta step (the variational equation integrated with the same tableau on the same
-  steps, with the field's Jacobian from ``Mode.jacobian`` or central differences) and, at each
+  steps, with the field's Jacobian from ``Mode.jacobian`` or forward differences) and, at each
   transition with guard point q, the saltation matrix
   ``Xi = DR + (f+ - DR f-) grad_g^T / (grad_g . f-)`` from the reset Jacobian DR(q), the guard
   gradient (``Transition.reset_jacobian``/``guard_gradient`` or central differences) and the
@@ -61,7 +62,9 @@ Two ways, compared in the tests:
   saltation Jacobian for steps 1e-3 .. 1e-8.
 
 Derivatives with respect to free parameters are always central differences of the return map
-(the system is rebuilt for each value).
+(the system is rebuilt for each value). Where the simulation on one side of a difference fails
+(a model that refuses states on one side, such as a runner whose flight foot would start below
+the ground just off a symmetric gait), the one-sided difference on the other side is used.
 
 Multipliers
 -----------
@@ -498,11 +501,16 @@ class ReturnMap:
         if parameters:
             params.update({k: float(v) for k, v in parameters.items()})
         system, control = p.instantiate(params)
-        horizons = [p.t_max]
-        if self._hint is not None:
-            short = 1.5 * self._hint + 20 * p.h
-            if short < p.t_max:
-                horizons.insert(0, short)
+        # Growing horizons: the last return time and a half, or t_max / 8, doubled up to t_max.
+        # A return is found at a cost below about twice its own time, and a model failure long
+        # after the return (a runner falling later) cannot hide it.
+        first = 1.5 * self._hint + 20 * p.h if self._hint is not None else p.t_max / 8
+        horizons = []
+        horizon = first
+        while horizon < p.t_max:
+            horizons.append(horizon)
+            horizon *= 2
+        horizons.append(p.t_max)
         last_error: OrbitError | None = None
         for horizon in horizons:
             self.evaluations += 1
@@ -510,8 +518,8 @@ class ReturnMap:
                 ex = simulate(system, x, p.bound.mode, horizon, p.h, p.eps, p.tableau, control,
                               max_transitions=p.max_transitions, rtol=p.rtol, atol=p.atol)
             except LegsimError as exc:
-                raise OrbitError(f"return map: the simulation from {self._show(x)} could not start: {exc}",
-                                 "simulation_failed") from exc
+                raise OrbitError(f"return map: the simulation from {self._show(x)} over {horizon:g} s failed before "
+                                 f"returning to the section {p.section.label}: {exc}", "simulation_failed") from exc
             found = self._locate(ex, x, params)
             if found is not None:
                 self._hint = found.time
@@ -647,14 +655,26 @@ def _jacobian_fd(fn: Callable[[np.ndarray], np.ndarray], x: np.ndarray) -> np.nd
     return np.column_stack(cols)
 
 
-def _field_jacobian(mode_obj, control, t: float, x: np.ndarray) -> np.ndarray:
-    """df/dx at (t, x). With a control the closed-loop field x -> f(t, x, u(t, x)) is
-    differentiated, since Mode.jacobian holds u fixed."""
+_SQRT_EPS = math.sqrt(np.finfo(float).eps)
+
+
+def _field_jacobian(mode_obj, control, t: float, x: np.ndarray, fx: np.ndarray) -> np.ndarray:
+    """df/dx at (t, x), given fx = f(t, x). ``Mode.jacobian`` when the mode has one (and there
+    is no control: with one, the closed-loop field x -> f(t, x, u(t, x)) is differentiated, since
+    Mode.jacobian holds u fixed); otherwise forward differences from fx with steps
+    sqrt(machine eps) * max(1, |x_j|), relative accuracy ~1e-8, n evaluations per Jacobian
+    (half the cost of central differences, which dominate the saltation Jacobian's cost)."""
     if mode_obj.jacobian is not None and control is None:
         return np.asarray(mode_obj.jacobian(t, x, None), dtype=float)
-    if control is None:
-        return _jacobian_fd(lambda y: mode_obj.field(t, y, None), x)
-    return _jacobian_fd(lambda y: mode_obj.field(t, y, control(t, y)), x)
+    n = len(x)
+    J = np.empty((n, n))
+    for j in range(n):
+        d = _SQRT_EPS * max(1.0, abs(x[j]))
+        y = x.copy()
+        y[j] += d
+        d = y[j] - x[j]  # the step actually taken, after rounding
+        J[:, j] = (_field(mode_obj, control, t, y) - fx) / d
+    return J
 
 
 def _field(mode_obj, control, t: float, x: np.ndarray) -> np.ndarray:
@@ -678,7 +698,7 @@ def _step_derivative(mode_obj, control, tableau: Tableau, t: float, x: np.ndarra
                 dXj = dXj + h * A[j, l] * dks[l]
         tj = t + c[j] * h
         ks.append(_field(mode_obj, control, tj, Xj))
-        dks.append(_field_jacobian(mode_obj, control, tj, Xj) @ dXj)
+        dks.append(_field_jacobian(mode_obj, control, tj, Xj, ks[-1]) @ dXj)
     S = eye.copy()
     for j in range(tableau.stages):
         if b[j] != 0.0:
@@ -791,26 +811,61 @@ def jacobian_saltation(problem: OrbitProblem, ret: Return) -> np.ndarray:
     return Phi
 
 
+def _difference(fn: Callable[[float], np.ndarray], d: float, base: Callable[[], np.ndarray], label: str) -> np.ndarray:
+    """Central difference (fn(d) - fn(-d)) / 2d; when the simulation on one side fails (a model
+    that refuses states on one side, e.g. a runner whose flight foot would start below the
+    ground), the one-sided difference on the other side, accurate to O(d) instead of O(d^2)."""
+    plus = minus = None
+    errors = []
+    try:
+        plus = fn(d)
+    except OrbitError as exc:
+        errors.append(exc)
+    try:
+        minus = fn(-d)
+    except OrbitError as exc:
+        errors.append(exc)
+    if plus is not None and minus is not None:
+        return (plus - minus) / (2 * d)
+    if plus is None and minus is None:
+        raise OrbitError(f"finite difference in {label}: the simulations on both sides failed: {errors[0]}",
+                         errors[0].status)
+    if plus is not None:
+        return (plus - base()) / d
+    return (base() - minus) / d
+
+
 def jacobian_fd(problem: OrbitProblem, x: np.ndarray, parameters: Mapping[str, float] | None = None,
                 step: float | None = None, columns: Sequence[int] | None = None,
                 rmap: ReturnMap | None = None) -> np.ndarray:
     """The n x n Jacobian of the return map at x by central differences (columns of cyclic
-    coordinates are e_c by symmetry). ``step``: relative step, default 1e-5 (module docstring);
-    ``columns``: only these columns (the others are left 0)."""
+    coordinates are e_c by symmetry; one-sided where one side's simulation fails). ``step``:
+    relative step, default 1e-5 (module docstring); ``columns``: only these columns (the others
+    are left 0)."""
     rmap = rmap or ReturnMap(problem)
     step = 1e-5 if step is None else float(step)
     n = problem.dim
     J = np.zeros((n, n))
     cols = range(n) if columns is None else columns
+    cache: list[np.ndarray] = []
+
+    def base() -> np.ndarray:
+        if not cache:
+            cache.append(rmap(x, parameters).x_end)
+        return cache[0]
+
     for j in cols:
         if j in problem.cyclic_idx:
             J[j, j] = 1.0
             continue
         d = step * max(1.0, abs(x[j]))
-        xp, xm = x.copy(), x.copy()
-        xp[j] += d
-        xm[j] -= d
-        J[:, j] = (rmap(xp, parameters).x_end - rmap(xm, parameters).x_end) / (2 * d)
+
+        def shifted(delta: float, j=j) -> np.ndarray:
+            y = x.copy()
+            y[j] += delta
+            return rmap(y, parameters).x_end
+
+        J[:, j] = _difference(shifted, d, base, f"coordinate {problem.names[j]}")
     return J
 
 
@@ -1011,11 +1066,13 @@ class _Equations:
         step = 1e-5 if fd_step is None else fd_step
         for name in p.free:
             d = step * max(1.0, abs(params[name]))
-            pp, pm = dict(params), dict(params)
-            pp[name] += d
-            pm[name] -= d
-            rp, rm = self.rmap(x, pp), self.rmap(x, pm)
-            cols.append((self.residual(rp) - self.residual(rm)) / (2 * d))
+
+            def shifted(delta: float, name=name) -> np.ndarray:
+                q = dict(params)
+                q[name] += delta
+                return self.residual(self.rmap(x, q))
+
+            cols.append(_difference(shifted, d, lambda: self.residual(ret), f"parameter {name}"))
         return np.column_stack(cols), DP
 
     def _extra_column(self, x: np.ndarray, params: Mapping[str, float], coord: int) -> np.ndarray:
