@@ -1,0 +1,300 @@
+"""The relaxed quotient metric on small systems with closed-form distances (paper 000, Sec. III).
+
+Systems (defined here, also imported by the other test_metric files):
+
+* ball: one mode (z, zd), self-transition ``bounce`` with guard max(z, zd) and reset
+  (z, zd) -> (z, -c zd). Guard set G = {z = 0, zd <= 0}, image R(G) = {z = 0, zd >= 0}. For
+  a = (0, -v1) in G and b = (0, c v2) in R(G), c < 1, the shortest path either goes straight
+  (v1 + c v2) or crosses once at (0, -v1), where the legs cost 0 and c |v1 - v2|:
+  d = min(v1 + c v2, c |v1 - v2| + eps).
+* two_mode: mode a = (x, y), domain x <= 1; mode b = (u, v, w), domain u >= -1 (different
+  dimensions). a->b at x = 1 resets (x, y) -> (0, y, 0); b->a at u = -1 resets
+  (u, v, w) -> (0, v + w) (a projection: not an isometry). Crossing a->b from (x, y) to
+  (u, v, w) costs, after unfolding the two legs into one plane,
+  sqrt((1 - x + sqrt(u^2 + w^2))^2 + (y - v)^2) + eps; crossing b->a backwards costs
+  min over s of sqrt((u + 1)^2 + (v + w - s)^2 / 2) + sqrt(x^2 + (y - s)^2) + eps (the guard
+  points with v' + w' = s are a line at distance |v + w - s| / sqrt 2).
+* disk: the unit disk with a guard of no coordinate form, 1 - x^2 - y^2 (found by SLSQP),
+  self-transition reset p -> -p / 2; checked against a brute-force search over the circle.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy.optimize import minimize_scalar
+
+from legsim import HybridSystem, Mode, Transition
+from legsim.metric import AffineReset, CoordinateGuard, _geometry, distance, shortest_path
+
+C = 0.5
+
+
+def _still(t, x, u):
+    return np.zeros_like(x)
+
+
+def ball(c: float = C, declared: bool = False) -> HybridSystem:
+    guard = CoordinateGuard((0, 1.0, 0.0), (1, 1.0, 0.0)) if declared else (lambda x: max(x[0], x[1]))
+    reset = AffineReset([[1.0, 0.0], [0.0, -c]]) if declared else (lambda x: np.array([x[0], -c * x[1]]))
+    return HybridSystem(
+        {"fall": Mode(2, lambda t, x, u: np.array([x[1], -9.81]), names=("z", "zd"))},
+        [Transition("fall", "fall", guard=guard, reset=reset, name="bounce")],
+        name="ball")
+
+
+def two_mode(declared: bool = False) -> HybridSystem:
+    g_ab = CoordinateGuard((0, -1.0, 1.0)) if declared else (lambda x: 1.0 - x[0])
+    return HybridSystem(
+        {"a": Mode(2, _still, names=("x", "y")), "b": Mode(3, _still, names=("u", "v", "w"))},
+        [Transition("a", "b", guard=g_ab, reset=lambda x: np.array([0.0, x[1], 0.0]), name="a->b"),
+         Transition("b", "a", guard=lambda x: x[0] + 1.0, reset=lambda x: np.array([0.0, x[1] + x[2]]),
+                    name="b->a")],
+        name="two-mode")
+
+
+def disk() -> HybridSystem:
+    return HybridSystem(
+        {"disk": Mode(2, _still)},
+        [Transition("disk", "disk", guard=lambda x: 1.0 - x[0] ** 2 - x[1] ** 2, reset=lambda x: -0.5 * x,
+                    name="rim")],
+        name="disk")
+
+
+def ball_closed_form(v1: float, v2: float, eps: float, c: float = C) -> float:
+    return min(v1 + c * v2, c * abs(v1 - v2) + eps)
+
+
+def two_mode_closed_form(p: np.ndarray, q: np.ndarray, eps: float) -> float:
+    (x, y), (u, v, w) = p, q
+    forward = math.hypot(1.0 - x + math.hypot(u, w), y - v) + eps
+    back = minimize_scalar(lambda s: math.sqrt((u + 1) ** 2 + (v + w - s) ** 2 / 2) + math.hypot(x, y - s),
+                           bounds=(-20.0, 20.0), method="bounded", options={"xatol": 1e-12}).fun + eps
+    return min(forward, back)
+
+
+def disk_brute_force(a: np.ndarray, b: np.ndarray, eps: float) -> float:
+    """Direct chord, or one crossing of the rim either way, minimised over the angle."""
+    def via(theta: float, forward: bool) -> float:
+        e = np.array([math.cos(theta), math.sin(theta)])
+        entry, exit_ = (e, -0.5 * e) if forward else (-0.5 * e, e)
+        return float(np.linalg.norm(a - entry) + np.linalg.norm(exit_ - b))
+
+    best = float(np.linalg.norm(a - b))
+    thetas = np.linspace(-math.pi, math.pi, 3601)
+    for forward in (True, False):
+        values = [via(t, forward) for t in thetas]
+        k = int(np.argmin(values))
+        res = minimize_scalar(lambda t: via(t, forward), bounds=(thetas[max(k - 1, 0)], thetas[min(k + 1, 3600)]),
+                              method="bounded", options={"xatol": 1e-12})
+        best = min(best, res.fun + eps)
+    return best
+
+
+# -- strategies ---------------------------------------------------------------------------------
+coord = st.floats(-3.0, 3.0, allow_nan=False)
+speed = st.floats(0.0, 4.0, allow_nan=False)
+epsilons = st.sampled_from([0.0, 1e-3, 0.05, 0.3])
+
+
+@st.composite
+def ball_points(draw):
+    kind = draw(st.sampled_from(["free", "guard", "image"]))
+    if kind == "guard":
+        return ("fall", np.array([0.0, -draw(speed)]))
+    if kind == "image":
+        return ("fall", np.array([0.0, draw(speed)]))
+    return ("fall", np.array([draw(st.floats(-0.5, 3.0)), draw(coord)]))
+
+
+@st.composite
+def two_mode_points(draw):
+    if draw(st.booleans()):
+        return ("a", np.array([draw(st.floats(-2.0, 1.0)), draw(coord)]))
+    return ("b", np.array([draw(st.floats(-1.0, 2.0)), draw(coord), draw(coord)]))
+
+
+@st.composite
+def disk_points(draw):
+    r = draw(st.floats(0.0, 1.0))
+    t = draw(st.floats(-math.pi, math.pi))
+    return ("disk", np.array([r * math.cos(t), r * math.sin(t)]))
+
+
+SYSTEMS = {"ball": (ball, ball_points), "two_mode": (two_mode, two_mode_points), "disk": (disk, disk_points)}
+
+
+def _scale(*points) -> float:
+    return 1.0 + sum(float(np.linalg.norm(p[1])) for p in points)
+
+
+# -- closed forms ---------------------------------------------------------------------------------
+@pytest.mark.parametrize("declared", [False, True])
+@given(v1=speed, v2=speed, eps=epsilons)
+@settings(max_examples=40, deadline=None)
+def test_ball_guard_to_image_distance_matches_closed_form(declared, v1, v2, eps):
+    system = ball(declared=declared)
+    d = distance(system, ("fall", [0.0, -v1]), ("fall", [0.0, C * v2]), eps)
+    assert d == pytest.approx(ball_closed_form(v1, v2, eps), abs=1e-9 * (1 + v1 + v2))
+
+
+def test_ball_guard_and_reset_are_recognised_in_a_plain_lambda():
+    # The probed shape must be exact (snapped), so that projections land exactly on the guard.
+    geo = _geometry(ball())
+    geo.ensure(["fall"])
+    (edge,) = geo.edges
+    assert edge.affine is not None
+    np.testing.assert_array_equal(edge.affine[0], [[1.0, 0.0], [0.0, -C]])
+    # The piece {zd = 0, z <= 0} maps to itself (a crossing there only costs eps): dropped.
+    assert len(edge.pieces) == 1
+    np.testing.assert_array_equal(edge.pieces[0].lb, [0.0, -np.inf])
+    np.testing.assert_array_equal(edge.pieces[0].ub, [0.0, 0.0])
+
+
+@pytest.mark.parametrize("declared", [False, True])
+@given(p=two_mode_points(), q=two_mode_points(), eps=epsilons)
+@settings(max_examples=40, deadline=None)
+def test_two_mode_distance_across_dimensions_matches_unfolding(declared, p, q, eps):
+    if p[0] == q[0]:
+        return
+    a, b = (p, q) if p[0] == "a" else (q, p)
+    d = distance(two_mode(declared), a, b, eps)
+    assert d == pytest.approx(two_mode_closed_form(a[1], b[1], eps), abs=1e-7 * _scale(a, b))
+
+
+@given(p=disk_points(), q=disk_points(), eps=epsilons)
+@settings(max_examples=25, deadline=None)
+def test_disk_with_a_non_coordinate_guard_matches_brute_force(p, q, eps):
+    d = distance(disk(), p, q, eps, max_hops=1)
+    assert d == pytest.approx(disk_brute_force(p[1], q[1], eps), abs=1e-6)
+
+
+# -- metric axioms ---------------------------------------------------------------------------------
+@pytest.mark.parametrize("name", sorted(SYSTEMS))
+@given(data=st.data(), eps=epsilons)
+@settings(max_examples=30, deadline=None)
+def test_symmetry(name, data, eps):
+    make, points = SYSTEMS[name]
+    system = make()
+    a, b = data.draw(points()), data.draw(points())
+    assert distance(system, a, b, eps) == pytest.approx(distance(system, b, a, eps), abs=1e-8 * _scale(a, b))
+
+
+@pytest.mark.parametrize("name", sorted(SYSTEMS))
+@given(data=st.data(), eps=epsilons)
+@settings(max_examples=30, deadline=None)
+def test_triangle_inequality(name, data, eps):
+    make, points = SYSTEMS[name]
+    system = make()
+    a, b, c = data.draw(points()), data.draw(points()), data.draw(points())
+    # The hop cap (2) could in principle break the inequality (the two legs together may cross
+    # 4 times); on these systems no shortest path needs more than 2 crossings.
+    tol = 1e-8 * _scale(a, b, c)  # the minimisations converge to ~1e-12 of the scale
+    assert distance(system, a, c, eps) <= distance(system, a, b, eps) + distance(system, b, c, eps) + tol
+
+
+@pytest.mark.parametrize("name", sorted(SYSTEMS))
+@given(data=st.data(), eps=epsilons)
+@settings(max_examples=30, deadline=None)
+def test_guard_point_and_its_reset_image_are_eps_apart(name, data, eps):
+    make, _ = SYSTEMS[name]
+    system = make()
+    tr = data.draw(st.sampled_from(system.transitions))
+    if name == "ball":
+        p = np.array([0.0, -data.draw(speed)])
+    elif name == "two_mode":
+        p = (np.array([1.0, data.draw(coord)]) if tr.source == "a"
+             else np.array([-1.0, data.draw(coord), data.draw(coord)]))
+    else:
+        t = data.draw(st.floats(-math.pi, math.pi))
+        p = np.array([math.cos(t), math.sin(t)])
+    image = np.asarray(tr.reset(p), dtype=float)
+    d = distance(system, (tr.source, p), (tr.target, image), eps)
+    # One crossing costs eps; in a self-transition the direct chord may be shorter still.
+    expected = eps if tr.source != tr.target else min(eps, float(np.linalg.norm(p - image)))
+    assert d == pytest.approx(expected, abs=1e-12 * _scale((tr.source, p)))
+
+
+@given(a=ball_points(), b=ball_points(), eps=epsilons)
+@settings(max_examples=40, deadline=None)
+def test_positivity_between_distinct_classes_of_the_ball(a, b, eps):
+    # Every crossing starts and ends on the line z = 0 (guard and image), so any path that
+    # crosses is at least |z_a| + |z_b| + eps long: a bound independent of the search.
+    d = distance(ball(), a, b, eps)
+    direct = float(np.linalg.norm(a[1] - b[1]))
+    bound = min(direct, abs(a[1][0]) + abs(b[1][0]) + eps)
+    assert d >= bound - 1e-12
+    assert d <= direct + 1e-12
+    if bound > 0.0:  # then a and b are distinct classes (a guard point and its image have z = 0)
+        assert d > 0.0
+
+
+# -- relaxation: d_eps -> d_0 (Theorem 21) -----------------------------------------------------------
+@pytest.mark.parametrize("name", sorted(SYSTEMS))
+@given(data=st.data())
+@settings(max_examples=20, deadline=None)
+def test_relaxed_distance_is_between_d0_and_d0_plus_k_eps(name, data):
+    make, points = SYSTEMS[name]
+    system = make()
+    a, b = data.draw(points()), data.draw(points())
+    path0 = shortest_path(system, a, b, 0.0)
+    tol = 1e-8 * _scale(a, b)
+    previous = path0.length
+    for eps in (1e-4, 1e-3, 1e-2, 1e-1):
+        d = distance(system, a, b, eps)
+        assert path0.length - tol <= d <= path0.length + path0.hops * eps + tol
+        assert d >= previous - tol  # adding strips only lengthens paths
+        previous = d
+
+
+def test_relaxed_distance_converges_linearly_with_slope_the_number_of_crossings():
+    # Ball: the shortest path from (0.3, -1) to (0.1, 0.7) crosses once (slope 1); two_mode
+    # from a to b crosses once; the ball from guard side to guard side crosses twice ("fr":
+    # bounce, slide along the image where distances shrink by c, bounce back).
+    cases = [(ball(), ("fall", [0.3, -1.0]), ("fall", [0.1, 0.7]), 1),
+             (two_mode(), ("a", [0.5, 0.2]), ("b", [0.3, -0.4, 0.1]), 1),
+             (ball(), ("fall", [0.0, -1.0]), ("fall", [0.0, -3.0]), 2)]
+    eps = np.logspace(-6, -2, 9)
+    for system, a, b, hops in cases:
+        d0 = distance(system, a, b, 0.0)
+        assert shortest_path(system, a, b, 0.0).hops == hops
+        excess = np.array([distance(system, a, b, e) for e in eps]) - d0
+        slope = np.polyfit(eps, excess, 1)[0]
+        assert slope == pytest.approx(hops, rel=1e-6)
+
+
+# -- strip points --------------------------------------------------------------------------------------
+@given(v=st.floats(0.1, 3.0), frac=st.floats(0.0, 1.0), eps=st.sampled_from([1e-3, 0.05]))
+@settings(max_examples=30, deadline=None)
+def test_strip_point_is_tau_from_its_guard_point_and_eps_minus_tau_from_the_reset(v, frac, eps):
+    system = ball()
+    q = np.array([0.0, -v])
+    tau = frac * eps
+    point = ("fall", q, "bounce", tau)
+    assert distance(system, point, ("fall", q), eps) == pytest.approx(tau, abs=1e-14)
+    assert distance(system, point, ("fall", [0.0, C * v]), eps) == pytest.approx(eps - tau, abs=1e-14)
+    other = ("fall", q + [0.0, -0.01], "bounce", eps - tau)
+    # Inside the strip (metric (12): chord along the guard plus |tau - tau'|), out through the
+    # guard ends, or out through the reset ends where the chord shrinks by c.
+    expected = min(0.01 + abs(eps - 2 * tau), tau + 0.01 + (eps - tau), (eps - tau) + C * 0.01 + tau)
+    assert distance(system, point, other, eps) == pytest.approx(expected, abs=1e-12)
+
+
+def test_different_modes_without_a_path_within_the_hop_cap_are_infinitely_far():
+    assert distance(two_mode(), ("a", [0.0, 0.0]), ("b", [0.0, 0.0, 0.0]), 0.1, max_hops=0) == math.inf
+    assert distance(two_mode(), ("a", [0.0, 0.0]), ("a", [0.0, 1.0]), 0.1, max_hops=0) == 1.0
+
+
+def test_shortest_path_reports_its_crossing_on_the_guard():
+    path = shortest_path(ball(), ("fall", [0.3, -1.0]), ("fall", [0.1, 0.7]), 0.01)
+    (crossing,) = path.crossings
+    assert crossing.name == "bounce" and crossing.forward
+    assert crossing.point[0] == 0.0 and crossing.point[1] <= 0.0
+    # The unfolded straight line: legs |(0.3, -1) - p| and |(0, -C p_zd) - (0.1, 0.7)|.
+    legs = (np.linalg.norm(np.array([0.3, -1.0]) - crossing.point)
+            + np.linalg.norm(np.array([0.0, -C * crossing.point[1]]) - [0.1, 0.7]))
+    assert path.length == pytest.approx(legs + 0.01, abs=1e-12)
