@@ -1,0 +1,249 @@
+"""``legsim orbit SCENE``: find a periodic orbit (a gait) of a scene, or follow a family of them.
+
+The problem is the scene's ``[orbit]`` section (``legsim.orbits.ORBIT_KEYS``): the Poincare
+section, fixed and cyclic coordinates, free parameters, tolerances; the initial guess is the
+scene's ``[initial]`` state. ``--continue PARAM FROM TO`` follows the family of orbits as the
+real parameter PARAM (a robot parameter, or EFFECT.PARAM) goes from FROM to TO, prints a table
+with the stability changes and, with ``--plot FILE``, draws it.
+
+Exit codes: 0 when the orbit (every orbit of the family) was found; 3 when the search stopped
+without an orbit (the message says why: no return, singular Jacobian, divergence, ...); 2 for
+errors in the scene or the arguments.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import sys
+from pathlib import Path
+from typing import Any
+
+from ..errors import LegsimError
+
+NAME = "orbit"
+HELP = "find a periodic orbit (gait) of a scene from its [orbit] section, or follow a family (--continue)"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("scene", metavar="SCENE", help="scene file (.toml) or bundled scene name with an [orbit] section")
+    parser.add_argument("--set", dest="overrides", metavar="KEY=VALUE", action="append", default=[],
+                        help="override a scene field, e.g. --set robot.parameters.slope=4 --set orbit.tol=1e-8")
+    parser.add_argument("--json", action="store_true", help="print one JSON object")
+    parser.add_argument("--continue", dest="continuation", nargs=3, metavar=("PARAM", "FROM", "TO"),
+                        help="follow the family of orbits as PARAM goes from FROM to TO")
+    parser.add_argument("--steps", type=int, default=10, metavar="N",
+                        help="number of equal parameter steps of --continue (default 10)")
+    parser.add_argument("--locate", type=int, default=8, metavar="K",
+                        help="with --continue: narrow each stability change by K bisections of the parameter "
+                             "(default 8; 0 interpolates between the family's orbits)")
+    parser.add_argument("--plot", metavar="FILE", help="with --continue: plot the family (png, pdf, svg)")
+    parser.add_argument("--quiet", "-q", action="store_true", help="print nothing but errors")
+
+
+def run(args: argparse.Namespace) -> int:
+    from ..orbits import continue_family, find_orbit, problem_from_scene
+    from ..scene import load_scene
+
+    if args.plot and not args.continuation:
+        raise LegsimError("--plot draws a family: use it with --continue PARAM FROM TO")
+    scene = load_scene(args.scene, overrides=args.overrides)
+    if not args.continuation:
+        settings = problem_from_scene(scene)
+        result = find_orbit(settings.problem, settings.guess, **settings.solver)
+        payload = result.to_json()
+        payload["scene"] = scene.name
+        if args.json:
+            print(json.dumps(payload, allow_nan=False))
+        elif not args.quiet:
+            print(format_orbit(payload, scene.name))
+        if not result.converged:
+            print(f"legsim: no orbit ({result.status}): {result.message}", file=sys.stderr)
+            return 3
+        return 0
+
+    param, start_text, stop_text = args.continuation
+    start, stop = _number("--continue FROM", start_text), _number("--continue TO", stop_text)
+    if args.steps < 1:
+        raise LegsimError(f"--steps must be >= 1, got {args.steps}")
+    if start == stop:
+        raise LegsimError("--continue needs FROM != TO")
+    settings = problem_from_scene(scene, extra_parameters=[param])
+    plot_path = _check_plot_path(args.plot) if args.plot else None
+
+    def progress(point) -> None:
+        if not (args.json or args.quiet):
+            print(format_row(param, point.value, point.result.to_json(), widths), flush=True)
+
+    widths = None
+    if not (args.json or args.quiet):
+        header, widths = format_header(param, settings.problem)
+        print(f"{scene.name}: family of orbits over {param} from {start:g} to {stop:g} ({args.steps} steps)")
+        print(header)
+    if args.locate < 0:
+        raise LegsimError(f"--locate must be >= 0, got {args.locate}")
+    family = continue_family(settings.problem, param, start, stop, args.steps, settings.guess, progress=progress,
+                             locate=args.locate, **settings.solver)
+    payload = family.to_json()
+    payload["scene"] = scene.name
+    if plot_path is not None and family.points:
+        write_family_plot(family, scene.name, plot_path)
+        payload["plot"] = str(plot_path)
+    if args.json:
+        print(json.dumps(payload, allow_nan=False))
+    elif not args.quiet:
+        for change in family.stability_changes:
+            print("stability change: " + change.describe(param))
+        if not family.stability_changes:
+            print("stability change: none in this range")
+        print(("complete: " if family.complete else "incomplete: ") + family.message)
+        if plot_path is not None and family.points:
+            print(f"wrote {plot_path} (plot)")
+    if not family.complete:
+        print(f"legsim: the family is incomplete: {family.message}", file=sys.stderr)
+        return 3
+    return 0
+
+
+def _number(label: str, text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise LegsimError(f"{label}: expected a number, got {text!r}") from None
+    if not math.isfinite(value):
+        raise LegsimError(f"{label}: must be finite, got {text!r}")
+    return value
+
+
+def _check_plot_path(path_text: str) -> Path:
+    path = Path(path_text)
+    if path.suffix.lower().lstrip(".") not in ("png", "pdf", "svg"):
+        raise LegsimError(f"--plot {path}: the file must end in .png, .pdf or .svg")
+    if path.is_dir():
+        raise LegsimError(f"--plot {path}: is a directory")
+    return path
+
+
+def _fmt(value: Any, width: int = 12) -> str:
+    if value is None:
+        return "-".rjust(width)
+    return f"{value:.{width - 6}g}".rjust(width)
+
+
+def format_orbit(payload: dict[str, Any], name: str) -> str:
+    """The human-readable report of one orbit search (a ``OrbitResult.to_json()`` dict)."""
+    lines = []
+    if payload["status"] == "converged":
+        lines.append(f"{name}: periodic orbit found in {payload['iterations']} iteration(s), residual "
+                     f"{payload['residual']:.3g} ({payload['jacobian']} Jacobian, {payload['evaluations']} simulations)")
+    else:
+        lines.append(f"{name}: no orbit ({payload['status']}): {payload['message']}")
+        lines.append("last iterate:")
+    lines.append(f"section: {payload['section']} (mode {payload['mode']})")
+    width = max(len(n) for n in payload["state_names"])
+    for n, v in zip(payload["state_names"], payload["fixed_point"]):
+        lines.append(f"  {n.ljust(width)} = {v: .10g}")
+    for n in payload["free"]:
+        lines.append(f"  {n.ljust(width)} = {payload['parameters'][n]: .10g}  (free parameter)")
+    if payload["status"] != "converged":
+        return "\n".join(lines)
+    period = f"period {payload['period']:.10g} s (relaxed return time {payload['return_time']:.10g} s)"
+    if payload["step_length"] is not None:
+        period += f", step length {payload['step_length']:.10g} m"
+    lines.append(period)
+    mus = []
+    for re, im in payload["multipliers"] or []:
+        text = f"{re:.6g}" if im == 0 else f"{re:.6g}{im:+.6g}j"
+        mus.append(f"{text} (|mu| {math.hypot(re, im):.6g})")
+    lines.append("Floquet multipliers: " + (", ".join(mus) if mus else "none"))
+    verdict = "stable" if payload["stable"] else "unstable"
+    trivial = f", {payload['trivial_multipliers']} trivial multiplier(s) 1 left out" if payload["trivial_multipliers"] else ""
+    lines.append(f"{verdict}: spectral radius {payload['spectral_radius']:.6g}{trivial}")
+    lines.append("transitions per period: " + ", ".join(payload["transitions"]))
+    return "\n".join(lines)
+
+
+def format_header(param: str, problem) -> tuple[str, tuple[list[str], list[int]]]:
+    """The table header of ``--continue`` and its columns: the parameter, the unknown
+    coordinates, the free parameters, period, step length, largest |multiplier|, verdict."""
+    cols = [param] + [problem.names[i] for i in problem.unknown_idx] + list(problem.free) + \
+        ["period", "step", "max|mu|", "stable"]
+    widths = [max(12, len(c) + 2) for c in cols]
+    return "".join(c.rjust(w) for c, w in zip(cols, widths)), (cols, widths)
+
+
+def format_row(param: str, value: float, payload: dict[str, Any], layout: tuple[list[str], list[int]] | None) -> str:
+    """One row of the ``--continue`` table."""
+    if layout is None:
+        return ""
+    cols, widths = layout
+    state = dict(zip(payload["state_names"], payload["fixed_point"]))
+    cells = []
+    for col, width in zip(cols, widths):
+        if col == param:
+            v: Any = value
+        elif col in state:
+            v = state[col]
+        elif col in payload["parameters"] and col not in ("period", "step", "max|mu|", "stable"):
+            v = payload["parameters"][col]
+        elif col == "period":
+            v = payload["period"]
+        elif col == "step":
+            v = payload["step_length"]
+        elif col == "max|mu|":
+            v = payload["spectral_radius"]
+        else:
+            cells.append(("yes" if payload["stable"] else "no").rjust(width))
+            continue
+        cells.append(_fmt(v, width))
+    return "".join(cells)
+
+
+def write_family_plot(family, title: str, path: Path) -> None:
+    """Fixed-point coordinates, period and multiplier moduli against the parameter; the file is
+    written under a temporary name and renamed into place."""
+    import numpy as np
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    values = np.array([p.value for p in family.points])
+    first = family.points[0].result
+    names = list(first.state_names)
+    states = np.array([p.result.fixed_point for p in family.points])
+    varying = [i for i in range(len(names)) if np.ptp(states[:, i]) > 0]
+    fig = Figure(figsize=(8.0, 8.0), layout="constrained")
+    FigureCanvasAgg(fig)
+    ax1, ax2, ax3 = fig.subplots(3, 1, sharex=True)
+    for i in varying:
+        ax1.plot(values, states[:, i], marker=".", label=names[i])
+    for name in first.free:
+        ax1.plot(values, [p.result.parameters[name] for p in family.points], marker=".", ls="--", label=name)
+    ax1.set_ylabel("fixed point")
+    ax1.legend(loc="best", fontsize="small")
+    ax1.set_title(f"{title}: orbits over {family.parameter}")
+    ax2.plot(values, [p.result.period for p in family.points], marker=".", label="period (s)")
+    steps = [p.result.step_length for p in family.points]
+    if all(s is not None for s in steps):
+        ax2.plot(values, steps, marker=".", label="step length (m)")
+    ax2.legend(loc="best", fontsize="small")
+    n_mu = max(len(p.result.multipliers) for p in family.points)
+    for k in range(n_mu):
+        ax3.plot(values, [abs(p.result.multipliers[k]) if k < len(p.result.multipliers) else np.nan
+                          for p in family.points], marker=".", label=f"|mu_{k + 1}|")
+    ax3.axhline(1.0, color="k", lw=0.8)
+    for change in family.stability_changes:
+        for ax in (ax1, ax2, ax3):
+            ax.axvline(change.at, color="r", ls=":", lw=1.0)
+    ax3.set_ylabel("|multiplier|")
+    ax3.set_xlabel(family.parameter)
+    ax3.legend(loc="best", fontsize="small")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.stem}.partial-{os.getpid()}{path.suffix}")
+    try:
+        fig.savefig(tmp, format=path.suffix.lower().lstrip("."))
+        os.replace(tmp, path)
+    except Exception as exc:
+        tmp.unlink(missing_ok=True)
+        raise LegsimError(f"--plot {path}: writing failed: {type(exc).__name__}: {exc}") from exc

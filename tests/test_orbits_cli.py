@@ -1,0 +1,124 @@
+"""`legsim orbit`: JSON and text reports against closed forms, continuation with located
+stability changes and plots, exit codes and error messages."""
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from legsim.cli import main
+
+# Closed forms of the bundled rimless wheel (see robots/rimless_wheel.py): m = 1, I = 0, l = 1,
+# 10 spokes, g = 9.81: c = cos(2 alpha), K = 4 g sin(alpha) sin(slope), w*^2 = c^2 K / (1 - c^2).
+ALPHA = math.pi / 10
+C = math.cos(2 * ALPHA)
+
+
+def omega_star(slope_deg):
+    K = 4 * 9.81 * math.sin(ALPHA) * math.sin(math.radians(slope_deg))
+    return math.sqrt(C * C * K / (1 - C * C))
+
+
+def run_cli(capsys, *argv):
+    code = main(list(argv))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_orbit_json_has_the_documented_keys_and_the_closed_form_orbit(capsys):
+    code, out, err = run_cli(capsys, "orbit", "rimless_wheel", "--json")
+    assert code == 0 and err == ""
+    data = json.loads(out)
+    assert {"fixed_point", "state_names", "period", "multipliers", "residual", "iterations",
+            "step_length"} <= set(data)
+    assert data["state_names"] == ["theta", "thetad", "foot_x"]
+    assert abs(data["fixed_point"][0] + ALPHA) < 1e-12
+    assert abs(data["fixed_point"][1] - omega_star(5.0)) < 1e-9
+    assert data["multipliers"] == [[pytest.approx(C * C, abs=1e-8), 0.0]]
+    assert abs(data["step_length"] - 2 * math.sin(ALPHA)) < 1e-12
+    assert data["residual"] <= 1e-10 and data["iterations"] >= 1 and data["status"] == "converged"
+
+
+def test_orbit_text_report(capsys):
+    code, out, err = run_cli(capsys, "orbit", "compass_gait")
+    assert code == 0 and err == ""
+    assert out.startswith("compass_gait: periodic orbit found in ")
+    assert "section: after heel_strike (mode stance)" in out
+    assert "stable: spectral radius 0.5799" in out  # |mu| of the complex pair, as in the walker tests
+    assert "step length 0.53544" in out
+
+
+def test_continuation_follows_the_closed_form_family_and_plots_it(capsys, tmp_path):
+    plot = tmp_path / "family.png"
+    code, out, err = run_cli(capsys, "orbit", "rimless_wheel", "--continue", "slope", "3", "7", "--steps", "4",
+                             "--plot", str(plot), "--json")
+    assert code == 0, err
+    data = json.loads(out)
+    assert data["complete"] and data["parameter"] == "slope"
+    values = [p["value"] for p in data["points"]]
+    assert values == pytest.approx([3.0, 4.0, 5.0, 6.0, 7.0], abs=1e-12)
+    for p in data["points"]:
+        assert abs(p["fixed_point"][1] - omega_star(p["value"])) < 1e-9
+        # The step-to-step contraction c^2 does not depend on the slope.
+        assert abs(p["multipliers"][0][0] - C * C) < 1e-8
+    assert data["stability_changes"] == []
+    assert plot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert [f.name for f in tmp_path.iterdir()] == ["family.png"]  # no partial file left
+
+
+def test_continuation_locates_the_compass_gait_period_doubling(capsys):
+    code, out, err = run_cli(capsys, "orbit", "compass_gait", "--continue", "slope", "4.25", "4.5", "--steps", "1",
+                             "--locate", "6", "--json")
+    assert code == 0, err
+    data = json.loads(out)
+    (change,) = data["stability_changes"]
+    assert change["becomes"] == "unstable" and change["kind"].startswith("period doubling")
+    lo, hi = change["between"]
+    assert hi - lo <= 0.25 / 2 ** 6 + 1e-12 and lo <= change["at"] <= hi
+    # At the located slope the leading multiplier is real and at -1 (to the bracket's width).
+    re, im = change["multiplier"]
+    assert im == 0.0 and abs(re + 1.0) < 0.02
+
+
+def test_continuation_text_table_and_change_report(capsys):
+    code, out, err = run_cli(capsys, "orbit", "rimless_wheel", "--continue", "slope", "4", "6", "--steps", "2")
+    assert code == 0, err
+    lines = out.splitlines()
+    assert lines[0] == "rimless_wheel: family of orbits over slope from 4 to 6 (2 steps)"
+    # The unknowns (theta and thetad; foot_x is cyclic), then the orbit's figures.
+    assert lines[1].split() == ["slope", "theta", "thetad", "period", "step", "max|mu|", "stable"]
+    rows = [line.split() for line in lines[2:5]]
+    assert [float(r[0]) for r in rows] == [4.0, 5.0, 6.0]
+    for r in rows:
+        assert abs(float(r[1]) + ALPHA) < 1e-5
+        assert abs(float(r[2]) - omega_star(float(r[0]))) < 1e-5 and r[-1] == "yes"
+    assert "stability change: none in this range" in out
+    assert "complete: 3 orbit(s) from slope = 4 to 6" in out
+
+
+def test_no_orbit_exits_3_with_the_reason(capsys):
+    code, out, err = run_cli(capsys, "orbit", "rimless_wheel", "--set", "orbit.t_max=0.1", "--json")
+    assert code == 3
+    data = json.loads(out)
+    assert data["status"] == "no_return" and data["multipliers"] is None
+    assert "legsim: no orbit (no_return): " in err and "within t_max = 0.1 s" in err
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["orbit", "slip"], "the scene has no [orbit] section"),
+    (["orbit", "rimless_wheel", "--plot", "x.png"], "--plot draws a family: use it with --continue"),
+    (["orbit", "rimless_wheel", "--set", "orbit.nonsense=1"], "orbit.nonsense: unknown key(s) ['nonsense']"),
+    (["orbit", "rimless_wheel", "--continue", "spokes", "8", "10"], "parameter 'spokes' is int-valued"),
+    (["orbit", "rimless_wheel", "--continue", "mass", "1", "2"], "robot 'rimless_wheel' has no parameter 'mass'"),
+    (["orbit", "rimless_wheel", "--continue", "slope", "a", "2"], "--continue FROM: expected a number, got 'a'"),
+    (["orbit", "rimless_wheel", "--set", "orbit.section={ after = \"landing\" }"],
+     "no transition of that name in rimless_wheel; transitions: ['back_impact', 'impact']"),
+    (["orbit", "rimless_wheel", "--set", "orbit.fixed=[\"phi\"]"], "fixed coordinate(s) ['phi'] are not coordinates"),
+    (["orbit", "rimless_wheel", "--continue", "slope", "3", "4", "--plot", "out.txt"],
+     "the file must end in .png, .pdf or .svg"),
+])
+def test_bad_requests_exit_2_with_a_message(capsys, argv, message):
+    code, out, err = run_cli(capsys, *argv)
+    assert code == 2, (out, err)
+    assert message in err and err.startswith("legsim: error: ")
