@@ -100,6 +100,11 @@ class PointContact:
     tangential: True pins the point (no slip, x and z constrained); False constrains z only
         (frictionless sliding).
     releases: names of contacts that become inactive when this one strikes.
+    armed: optional ``armed(q, v) -> float``: the touchdown only counts where it is > 0 (for a
+        compass gait's swing foot, how far it is ahead of the stance foot, m, so that the scuff
+        at mid-swing is not a heel strike); the touchdown guard becomes
+        ``max(height, vertical velocity, -armed)``. The point must be above the ground when it
+        becomes armed, or the guard jumps past its strip.
     """
 
     name: str
@@ -108,6 +113,7 @@ class PointContact:
     ground: float = 0.0
     tangential: bool = True
     releases: tuple[str, ...] = ()
+    armed: Callable[[np.ndarray, np.ndarray], float] | None = None
 
 
 @dataclass(frozen=True)
@@ -365,6 +371,8 @@ class ContactBridge:
             if isinstance(c.releases, str) or not all(isinstance(o, str) for o in c.releases):
                 raise ModelError(f"{self.name}: {where}: releases must be a tuple of contact names, "
                                  f"got {c.releases!r}")
+            if c.armed is not None and not callable(c.armed):
+                raise ModelError(f"{self.name}: {where}: armed must be callable armed(q, v) -> float or None")
             for other in c.releases:
                 if other not in self._contacts or other == c.name:
                     raise ModelError(f"{self.name}: {where}: releases unknown contact {other!r} "
@@ -621,7 +629,10 @@ class ContactBridge:
             else:
                 p = pin.updateFramePlacement(model, data, r.frame_id).translation
                 vz = pin.getFrameVelocity(model, data, r.frame_id, _LWA).linear[2]
-                out[name] = max(p[2] - r.contact.ground, vz)
+                g = max(p[2] - r.contact.ground, vz)
+                if r.contact.armed is not None:
+                    g = max(g, -float(r.contact.armed(q, v)))
+                out[name] = g
         for lg in spec.flight_legs:
             p = pin.updateFramePlacement(model, data, lg.foot_id).translation
             vz = pin.getFrameVelocity(model, data, lg.foot_id, _LWA).linear[2]

@@ -238,3 +238,19 @@ def test_a_rod_landing_on_a_frictionless_floor_ends_lying_with_its_weight_shared
     assert system.energy("a+b", x) == pytest.approx(0.5 * m * xd**2, abs=1e-9)
     # the constraint is kept at the acceleration level; the ends stay on the floor to RK4 accuracy
     assert abs(x[1]) < 1e-9 and abs(x[2]) < 1e-9
+
+
+def test_an_armed_contact_lands_only_where_it_is_armed():
+    """The floor only counts for x >= 1 m (armed = x - 1). A ball thrown from x = 0 comes back to
+    z = 0 at x = 1.22 m, armed: it lands at the ballistic time. Below the floor at x = 0.5, not
+    armed, the guard is 0.5 (inside the domain)."""
+    model, _ = ball_model()
+    model.gravity = pin.Motion(np.array([0, 0, -G, 0, 0, 0]))
+    floor = PointContact("floor", "ball", restitution=0.5, tangential=False, armed=lambda q, v: q[0] - 1.0)
+    bridge = ContactBridge(model, [floor])
+    x0 = [0.0, 0.0, 2.0, 3.0]  # flight time 2 * 3 / g = 0.61 s, landing at x = 1.22 m
+    ex = simulate(bridge.system("free", x0), x0, "free", 0.7, 1e-3, 1e-3)
+    assert ex.transitions[0].time == pytest.approx(2 * 3.0 / G, abs=1e-12)
+    np.testing.assert_allclose(bridge.system().guard_values("free", np.array([0.5, -0.1, 2.0, -1.0])), [0.5])
+    with pytest.raises(ModelError, match="armed must be callable"):
+        ContactBridge(model, [PointContact("floor", "ball", armed=1.0)])
