@@ -342,3 +342,39 @@ def test_bad_guess_is_rejected_with_a_message():
         find_orbit(prob, {"q": 1.0})
     with pytest.raises(OrbitError, match=r"shape \(3,\), expected \(2,\)"):
         find_orbit(prob, [0.0, 1.0, 2.0])
+
+
+# -- more section and problem features ---------------------------------------------------------
+def test_period_two_return_map_squares_the_multiplier():
+    # A period-one orbit is a fixed point of P^2 too, with the multiplier squared and twice the
+    # period (a period-two gait would be found the same way).
+    ref = oscillator_closed_form()
+    prob = OrbitProblem(impact_oscillator(), Section.after("impact"), h=1e-2, eps=1e-4, t_max=10.0, returns=2)
+    res = find_orbit(prob, {"x": 0.0, "v": 1.0})
+    assert res.converged, res.message
+    assert abs(res.fixed_point[1] - ref["v"]) < 5e-8
+    assert abs(res.multipliers[0] - ref["multiplier"] ** 2) < 1e-7
+    assert abs(res.period - 2 * ref["period"]) < 1e-7
+    assert res.transitions == ["impact", "impact"]
+
+
+def test_general_constraint_in_place_of_a_fixed_coordinate():
+    H, k = 0.6, 0.5
+    prob = OrbitProblem(hopping_ball, APEX, h=1e-2, eps=1e-4, t_max=4.0, parameters={"kick": 3.0, "k": k},
+                        free=["kick"], constraints=[("apex height", lambda x, p: x[0] - H)])
+    res = find_orbit(prob, {"z": 1.0})
+    assert res.converged, res.message
+    assert abs(res.fixed_point[0] - H) < 1e-12
+    assert abs(res.parameters["kick"] - (1 + k) * math.sqrt(2 * G * H)) < 1e-9
+
+
+def test_a_reset_jumping_across_the_section_is_not_a_crossing():
+    # v increases through 0 only at the wall, where the reset jumps from v < 0 to v > 0: with
+    # direction +1 the section is never crossed by the flow.
+    prob = OrbitProblem(impact_oscillator(), Section.level("free", "v", 0.0, +1), h=1e-2, eps=1e-4, t_max=4.0)
+    res = find_orbit(prob, {"x": 0.5, "v": 0.0})
+    assert res.status == "no_return", res.message
+    # Either direction: the decreasing crossing at the largest displacement counts.
+    prob = OrbitProblem(impact_oscillator(), Section.level("free", "v", 0.0, 0), h=1e-2, eps=1e-4, t_max=4.0)
+    res = find_orbit(prob, {"x": 0.5, "v": 0.0})
+    assert res.converged and abs(res.fixed_point[0] - oscillator_closed_form()["x_max"]) < 5e-8

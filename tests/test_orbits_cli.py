@@ -115,6 +115,7 @@ def test_no_orbit_exits_3_with_the_reason(capsys):
     (["orbit", "rimless_wheel", "--set", "orbit.section={ after = \"landing\" }"],
      "no transition of that name in rimless_wheel; transitions: ['back_impact', 'impact']"),
     (["orbit", "rimless_wheel", "--set", "orbit.fixed=[\"phi\"]"], "fixed coordinate(s) ['phi'] are not coordinates"),
+    (["orbit", "slip_orbit", "--continue", "damping.b", "0", "1"], "effect 'damping' is switched off in this scene"),
     (["orbit", "rimless_wheel", "--continue", "slope", "3", "4", "--plot", "out.txt"],
      "the file must end in .png, .pdf or .svg"),
 ])
