@@ -1,0 +1,104 @@
+"""A clockwise circular flow cut by the plane x1 = wall (paper 004, Section IV-D, Fig. 1: grazing).
+
+Both modes carry the same linear field, a clockwise rotation at ``omega`` rad/s about the
+origin: x1' = omega x2, x2' = -omega x1. The plane x1 = wall only relabels the state:
+
+* ``inside`` (x1 <= wall) leaves through ``cross`` when x1 reaches the wall
+  (guard ``wall - x1``, in the units of x1);
+* ``outside`` (x1 >= wall) leaves through ``return`` (guard ``x1 - wall``).
+
+Resets are the identity, so the true execution is the circle through the initial state and
+switches only when the circle's radius exceeds the wall. From the default state (0, wall) the
+circle has radius wall and touches the plane at t = pi / (2 omega) without crossing it: the
+grazing of paper 004 Fig. 1. The exact solution is a rotation (``CircularReference``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..builders import Builder, Model, Param
+from ..hybrid import HybridSystem, Mode, Transition
+
+NAMES = ("x1", "x2")
+
+
+@dataclass(frozen=True)
+class CircularReference:
+    """Exact solution of the clockwise rotation at ``omega`` rad/s."""
+
+    omega: float
+    wall: float
+
+    def state(self, x0: np.ndarray, t: float | np.ndarray, t0: float = 0.0) -> np.ndarray:
+        """x(t) from x(t0) = x0; shape (2,) for scalar t, (len(t), 2) otherwise."""
+        a = self.omega * (np.asarray(t, dtype=float) - t0)
+        c, s = np.cos(a), np.sin(a)
+        x1 = c * x0[0] + s * x0[1]
+        x2 = -s * x0[0] + c * x0[1]
+        return np.stack([x1, x2], axis=-1)
+
+    def crossing_time(self, x0: np.ndarray, t0: float = 0.0) -> float:
+        """First time (s) after t0 at which x1 reaches the wall from below; inf when the circle
+        through x0 does not cross it (radius <= wall: a grazing circle touches without crossing)."""
+        radius = float(np.hypot(x0[0], x0[1]))
+        if radius <= self.wall:
+            return float("inf")
+        # x1(t) = radius * cos(omega (t - t0) - phi) with phi the angle of (x1, x2) from the x1 axis.
+        phi = float(np.arctan2(x0[1], x0[0]))
+        target = float(np.arccos(self.wall / radius))  # x1 = wall where the phase is +-target
+        # Phase theta(t) = omega t - phi grows; first theta >= -target with cos(theta) = wall / radius.
+        theta0 = -phi
+        k = np.ceil((theta0 + target) / (2 * np.pi))
+        theta = -target + 2 * np.pi * k
+        if theta < theta0:
+            theta += 2 * np.pi
+        return t0 + (theta - theta0) / self.omega
+
+
+def make_system(omega: float = 1.0, wall: float = 1.0) -> HybridSystem:
+    """The circular flow with the switching plane x1 = wall (modes ``inside``, ``outside``)."""
+    A = np.array([[0.0, omega], [-omega, 0.0]])
+
+    def field(t, x, u):
+        return A @ x
+
+    def jacobian(t, x, u):
+        return A.copy()
+
+    modes = {
+        "inside": Mode(2, field, names=NAMES, jacobian=jacobian),
+        "outside": Mode(2, field, names=NAMES, jacobian=jacobian),
+    }
+    transitions = [
+        Transition("inside", "outside", guard=lambda x: wall - x[0], name="cross",
+                   guard_gradient=lambda x: np.array([-1.0, 0.0]), reset_jacobian=lambda x: np.eye(2)),
+        Transition("outside", "inside", guard=lambda x: x[0] - wall, name="return",
+                   guard_gradient=lambda x: np.array([1.0, 0.0]), reset_jacobian=lambda x: np.eye(2)),
+    ]
+    return HybridSystem(modes, transitions, name="circular flow")
+
+
+def _build(params: dict, effects: dict) -> Model:
+    omega, wall = params["omega"], params["wall"]
+    return Model(
+        system=make_system(omega, wall),
+        initial_mode="inside",
+        initial_state={"x1": 0.0, "x2": wall},
+        reference=CircularReference(omega, wall),
+        info={"guard_units": {"cross": "units of x1", "return": "units of x1"}},
+    )
+
+
+BUILDER = Builder(
+    name="circular_flow",
+    description="clockwise circular flow cut by the plane x1 = wall; grazes it from (0, wall) (paper 004 Fig. 1)",
+    parameters={
+        "omega": Param(1.0, "angular speed (clockwise)", "rad/s", low=0.0, low_open=True),
+        "wall": Param(1.0, "position of the switching plane x1 = wall", "units of x1", low=0.0, low_open=True),
+    },
+    effects={},
+    build=_build,
+)
