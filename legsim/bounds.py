@@ -1,0 +1,594 @@
+"""Global error bounds around computed trajectories (paper 004, Section III).
+
+For one mode visit (one initial value problem) computed at the points ``(t_n, x_n)``, the
+local error of step n is ``error_n = x^[n](t_{n+1}) - x_{n+1}``, where ``x^[n]`` is the exact
+solution through ``x_n``. Paper 004 turns local errors into a global bound,
+
+    B(t_n) = ||error_n|| + sum_{i<n} ||error_i|| exp(L (t_n - t_i)),
+
+with L a Lipschitz constant of the field, estimated as the largest singular value of the
+field's Jacobian at the computed points: ``L = max_n sigma_max(Df(x_n))``. Between points B
+is interpolated linearly, like the trajectory itself.
+
+Local errors come from an embedded Runge-Kutta pair (``bs32`` or ``dopri5``): a step of the
+pair from ``x_n`` over ``h_n`` gives its propagated solution ``x_hi`` and the estimate
+``est_n = h_n sum_j b_err_j k_j ~ x_hi - x_lo``. We take
+
+    ||error_n|| ~ ||x_{n+1} - x_hi|| + ||est_n|| (+ floor * h_n^(p+1)),
+
+the triangle inequality with ``||x_true - x_hi|| <= ||est_n||`` (the estimate measures the
+error of the pair's lower-order member, which exceeds that of x_hi). When the trajectory was
+computed by the pair itself the first term vanishes except at the interpolated strip point
+that ends a segment, whose interpolation error it then measures. The optional ``floor`` adds
+a declared local error ``floor * h^(p+1)`` (p the order of the computing method), standing for
+the local tolerance an adaptive solver would have used for step h (paper 004 uses Matlab's
+``Rtol ||x_n|| + Atol`` in its simulations); it matters for fields on which every
+Runge-Kutta method is exact (constant fields, such as the two tanks), where the estimates
+vanish and the bound would be zero.
+
+``ModeFlow`` steps one mode with a fixed step, ignoring the guards (the numerical solution
+flows on past them, as the stochastic approximation of Section IV and the error cone of
+Section V need), and carries the bound along with the signed distances to the mode's guards.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, Callable, Sequence
+
+import numpy as np
+from scipy.optimize import minimize_scalar
+from scipy.special import betainc
+
+from .errors import SimulationError
+from .execution import Execution
+from .hybrid import HybridSystem, Mode, Transition
+from .methods import Tableau, error_estimate, get_method, make_stepper
+from .relaxed import hermite
+
+ControlFn = Callable[[float, np.ndarray], Any]
+
+# Central differences balance truncation (O(d^2)) against rounding (O(eps / d)) at d ~ eps^(1/3).
+_FD_STEP = float(np.finfo(float).eps) ** (1.0 / 3.0)
+
+
+def _norm(v: np.ndarray) -> float:
+    """Euclidean norm of a vector (np.linalg.norm's generality costs more than the arithmetic
+    on the small vectors of a step)."""
+    return math.sqrt(float(np.dot(v, v)))
+
+
+def _finite(v: np.ndarray) -> bool:
+    # The sum of an array is finite only when every entry is (inf and nan propagate).
+    return math.isfinite(v.sum())
+
+
+# -- derivatives ------------------------------------------------------------------------------
+def field_jacobian(mode: Mode, t: float, x: np.ndarray, u: Any = None) -> np.ndarray:
+    """Df/dx at (t, x), shape (n, n): the mode's own ``jacobian`` when it has one, central
+    finite differences otherwise."""
+    if mode.jacobian is not None:
+        J = np.asarray(mode.jacobian(t, x, u), dtype=float)
+        if J.shape != (mode.dim, mode.dim):
+            raise SimulationError(f"jacobian of a mode with dim {mode.dim} returned shape {J.shape}")
+        return J
+    n = mode.dim
+    J = np.empty((n, n))
+    for j in range(n):
+        d = _FD_STEP * max(1.0, abs(x[j]))
+        xp = x.copy()
+        xm = x.copy()
+        xp[j] += d
+        xm[j] -= d
+        J[:, j] = (np.asarray(mode.field(t, xp, u), dtype=float) - np.asarray(mode.field(t, xm, u), dtype=float)) / (2 * d)
+    return J
+
+
+def lipschitz_estimate(mode: Mode, t: float, x: np.ndarray, u: Any = None) -> float:
+    """sigma_max(Df(t, x)): the largest singular value of the field's Jacobian (1/s)."""
+    J = field_jacobian(mode, t, x, u)
+    if not _finite(J):
+        return math.inf
+    if not J.any():
+        return 0.0
+    return float(np.linalg.svd(J, compute_uv=False)[0])
+
+
+def guard_gradient(transition: Transition, x: np.ndarray) -> np.ndarray:
+    """Gradient of the transition's guard at x, shape (n,): its ``guard_gradient`` when given,
+    central finite differences otherwise."""
+    if transition.guard_gradient is not None:
+        return np.asarray(transition.guard_gradient(x), dtype=float).reshape(-1)
+    n = len(x)
+    grad = np.empty(n)
+    for j in range(n):
+        d = _FD_STEP * max(1.0, abs(x[j]))
+        xp = x.copy()
+        xm = x.copy()
+        xp[j] += d
+        xm[j] -= d
+        grad[j] = (float(transition.guard(xp)) - float(transition.guard(xm))) / (2 * d)
+    return grad
+
+
+def reset_lipschitz(transition: Transition, x: np.ndarray, target_dim: int) -> float:
+    """sigma_max of the reset's Jacobian at x (how much the reset can stretch a ball):
+    ``reset_jacobian`` when given, central differences otherwise; 1 for the identity."""
+    if transition.reset_jacobian is not None:
+        J = np.asarray(transition.reset_jacobian(x), dtype=float)
+    elif transition.reset is None:
+        return 1.0
+    else:
+        n = len(x)
+        J = np.empty((target_dim, n))
+        for j in range(n):
+            d = _FD_STEP * max(1.0, abs(x[j]))
+            xp = x.copy()
+            xm = x.copy()
+            xp[j] += d
+            xm[j] -= d
+            J[:, j] = (np.asarray(transition.reset(xp), dtype=float) - np.asarray(transition.reset(xm), dtype=float)) / (2 * d)
+    if not _finite(J):
+        return math.inf
+    return float(np.linalg.svd(J, compute_uv=False)[0])
+
+
+def signed_distance(transition: Transition, x: np.ndarray) -> float:
+    """Distance from x to the guard ``g = 0`` through the guard linearised at x:
+    ``g(x) / |grad g(x)|``, positive inside the domain, negative past the guard (exact for
+    hyperplane guards). A zero gradient gives +-inf (no crossing can be predicted there)."""
+    g = float(transition.guard(x))
+    norm = _norm(guard_gradient(transition, x))
+    if norm == 0.0 or not math.isfinite(norm):
+        return math.inf if g >= 0 else -math.inf
+    return g / norm
+
+
+# -- the n-ball past a hyperplane -----------------------------------------------------------
+def ball_fraction_past(distance: float | np.ndarray, radius: float | np.ndarray, dim: int) -> np.ndarray:
+    """Fraction of the volume of a ``dim``-ball lying past a hyperplane.
+
+    ``distance`` is the signed distance from the ball's centre to the plane (positive on the
+    domain side), ``radius`` the ball's radius (same units). The cap beyond a plane at
+    distance d >= 0 from the centre is, as a fraction of the ball,
+    ``I_{1 - (d/r)^2}((dim + 1) / 2, 1 / 2) / 2`` (regularised incomplete beta function); by
+    symmetry a centre past the plane (d < 0) leaves ``1 -`` that. A zero radius gives 0 on
+    the domain side (d >= 0) and 1 past it. Returns an array of the broadcast shape.
+    """
+    if isinstance(dim, bool) or int(dim) != dim or dim < 1:
+        raise SimulationError(f"ball dimension must be a positive integer, got {dim!r}")
+    d = np.asarray(distance, dtype=float)
+    r = np.asarray(radius, dtype=float)
+    d, r = np.broadcast_arrays(d, r)
+    out = np.where(d >= 0.0, 0.0, 1.0)
+    inside = (r > 0.0) & (np.abs(d) < r)
+    if np.any(inside):
+        u = d[inside] / r[inside]
+        cap = 0.5 * betainc(0.5 * (dim + 1), 0.5, 1.0 - u * u)
+        out = out.copy()
+        out[inside] = np.where(u >= 0.0, cap, 1.0 - cap)
+    return out
+
+
+# -- accumulating local errors ----------------------------------------------------------------
+def accumulate_bound(times: np.ndarray, local_errors: np.ndarray, lipschitz: float, b0: float = 0.0) -> np.ndarray:
+    """Paper 004's global bound at the points: ``B_n = le_n + sum_{i<n} le_i e^{L (t_n - t_i)}``
+    plus ``b0 e^{L (t_n - t_0)}`` for an initial uncertainty b0. Shapes (k,) in, (k,) out."""
+    t = np.asarray(times, dtype=float)
+    le = np.asarray(local_errors, dtype=float)
+    out = np.empty_like(le)
+    s = float(b0)
+    for n in range(len(t)):
+        out[n] = s + le[n]
+        if n + 1 < len(t):
+            # The recursion S_{n+1} = (S_n + le_n) e^{L h_n} is the sum in closed form without
+            # the overflow of e^{L t_n} e^{-L t_i} for large L t.
+            s = (s + le[n]) * math.exp(lipschitz * (t[n + 1] - t[n]))
+    return out
+
+
+class LocalErrorEstimator:
+    """Local error of steps of a computing ``method``, estimated with an embedded ``pair``.
+
+    ``estimate(field, t, x, h, k0, control, x_next)`` returns ``(x_hi, le)``: the pair's
+    propagated solution from (t, x) over h and the estimate
+    ``||x_next - x_hi|| + ||est|| + floor * h^(p+1)`` of ``||x^[n](t + h) - x_next||``.
+    """
+
+    def __init__(self, method: str | Tableau, pair: str | Tableau | None = None, floor: float = 0.0) -> None:
+        self.method = get_method(method)
+        if pair is None:
+            pair = self.method if self.method.embedded else "dopri5"
+        self.pair = get_method(pair)
+        if not self.pair.embedded:
+            raise SimulationError(
+                f"error pair '{self.pair.name}' has no embedded error estimate; use 'bs32' or 'dopri5'")
+        floor = float(floor)
+        if not math.isfinite(floor) or floor < 0.0:
+            raise SimulationError(f"error floor must be finite and >= 0, got {floor}")
+        self.floor = floor
+        self.same = self.pair is self.method
+        self._pair_step = make_stepper(self.pair)
+        self._method_step = self._pair_step if self.same else make_stepper(self.method)
+        self._power = self.method.order + 1
+
+    def step(self, field: Callable, t: float, x: np.ndarray, h: float, k0: np.ndarray,
+             control: ControlFn | None) -> tuple[np.ndarray, float]:
+        """One step of the computing method from (t, x) and the estimate of its local error."""
+        x_hi, stages = self._pair_step(field, t, x, h, k0, control)
+        le = _norm(error_estimate(self.pair, h, stages))
+        if self.same:
+            x_new = x_hi
+        else:
+            x_new, _ = self._method_step(field, t, x, h, k0, control)
+            le += _norm(x_new - x_hi)
+        return x_new, le + self.floor * h ** self._power
+
+    def pair_solution(self, field: Callable, t: float, x: np.ndarray, h: float, k0: np.ndarray,
+                      control: ControlFn | None) -> np.ndarray:
+        """The pair's propagated solution from (t, x) over h (a reference for interpolants)."""
+        return self._pair_step(field, t, x, h, k0, control)[0]
+
+    def estimate(self, field: Callable, t: float, x: np.ndarray, h: float, k0: np.ndarray,
+                 control: ControlFn | None, x_next: np.ndarray) -> float:
+        """Local error estimate of a given step (t, x) -> (t + h, x_next)."""
+        x_hi, stages = self._pair_step(field, t, x, h, k0, control)
+        le = _norm(error_estimate(self.pair, h, stages))
+        le += _norm(x_next - x_hi)
+        return le + self.floor * h ** self._power
+
+
+# -- the bound along a computed execution -----------------------------------------------------
+@dataclass(frozen=True)
+class SegmentBound:
+    """The bound along one mode visit of an execution.
+
+    Attributes
+    ----------
+    mode: mode name.
+    t: times (k,), s; x: computed states (k, n).
+    local_error: estimated local error of the step leaving each point (k,); 0 at the last.
+    sigma: sigma_max(Df) at each point (k,), 1/s.
+    lipschitz: the constant L used (max of sigma, or the value given).
+    bound: B(t_n) (k,), in state units (Euclidean norm).
+    """
+
+    mode: str
+    t: np.ndarray
+    x: np.ndarray
+    local_error: np.ndarray
+    sigma: np.ndarray
+    lipschitz: float
+    bound: np.ndarray
+
+    def radius(self, times: float | np.ndarray) -> np.ndarray:
+        """B at ``times`` by linear interpolation between the points."""
+        return np.interp(np.asarray(times, dtype=float), self.t, self.bound)
+
+
+@dataclass(frozen=True)
+class ErrorBound:
+    """Global error bounds along an execution, one ``SegmentBound`` per mode visit (each
+    visit is its own initial value problem, so its bound starts from its own local errors)."""
+
+    segments: tuple[SegmentBound, ...]
+    method: str
+    pair: str
+    floor: float
+    settings: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def max_bound(self) -> float:
+        """Largest B over the execution."""
+        return max((float(s.bound.max()) for s in self.segments if len(s.bound)), default=0.0)
+
+    def radius_at(self, t: float) -> float:
+        """B at time t in the visit containing it (the later visit at a shared boundary)."""
+        for seg in reversed(self.segments):
+            if seg.t[0] <= t <= seg.t[-1]:
+                return float(seg.radius(t))
+        raise SimulationError(f"time {t} is outside the bounded execution "
+                              f"[{self.segments[0].t[0]}, {self.segments[-1].t[-1]}]")
+
+    def summary(self) -> dict[str, Any]:
+        """JSON-ready summary: per visit the mode, time span, L and the largest bound."""
+        return {
+            "method": self.method,
+            "pair": self.pair,
+            "floor": self.floor,
+            "max_bound": self.max_bound,
+            "visits": [
+                {"mode": s.mode, "t_start": float(s.t[0]), "t_end": float(s.t[-1]), "lipschitz": s.lipschitz,
+                 "max_bound": float(s.bound.max()), "final_bound": float(s.bound[-1])}
+                for s in self.segments
+            ],
+        }
+
+
+def error_bound(
+    execution: Execution,
+    system: HybridSystem,
+    *,
+    pair: str | Tableau | None = None,
+    control: ControlFn | None = None,
+    floor: float = 0.0,
+    lipschitz: float | str = "max",
+) -> ErrorBound:
+    """The global error bound of paper 004 Section III along every mode visit of ``execution``.
+
+    Parameters
+    ----------
+    execution: a computed execution of ``system`` (any method, fixed or adaptive steps).
+    system: the hybrid system it was computed for.
+    pair: embedded pair for the local error estimates (``bs32`` or ``dopri5``); default the
+        execution's own method when it is embedded, else ``dopri5``.
+    control: the control the execution was computed with (the scene's ``model.control``).
+    floor: declared local error floor coefficient (state units / s^(p+1)); see the module.
+    lipschitz: ``"max"`` (paper 004: the largest sigma_max(Df) over the visit's points) or a
+        number (1/s) to use instead.
+
+    Returns
+    -------
+    ErrorBound with one SegmentBound per segment of the execution.
+    """
+    if not isinstance(execution, Execution):
+        raise SimulationError(f"error_bound needs a legsim.Execution, got {type(execution).__name__}")
+    if not isinstance(system, HybridSystem):
+        raise SimulationError(f"error_bound needs a legsim.HybridSystem, got {type(system).__name__}")
+    fixed_l: float | None = None
+    if isinstance(lipschitz, str):
+        if lipschitz != "max":
+            raise SimulationError(f"lipschitz must be 'max' or a number >= 0, got {lipschitz!r}")
+    else:
+        fixed_l = float(lipschitz)
+        if not math.isfinite(fixed_l) or fixed_l < 0.0:
+            raise SimulationError(f"lipschitz must be 'max' or a finite number >= 0, got {lipschitz!r}")
+    method = execution.settings.get("method", "rk4")
+    estimator = LocalErrorEstimator(method, pair, floor)
+    out: list[SegmentBound] = []
+    for seg in execution.segments:
+        mode = system.mode(seg.mode)
+        fieldfn = mode.field
+        k = len(seg.t)
+        le = np.zeros(k)
+        sigma = np.empty(k)
+        for n in range(k):
+            t, x = float(seg.t[n]), seg.x[n]
+            u = None if control is None else control(t, x)
+            sigma[n] = lipschitz_estimate(mode, t, x, u)
+            if n + 1 < k:
+                hn = float(seg.t[n + 1] - t)
+                k0 = np.asarray(fieldfn(t, x, u), dtype=float)
+                le[n] = estimator.estimate(fieldfn, t, x, hn, k0, control, seg.x[n + 1])
+        L = fixed_l if fixed_l is not None else float(sigma.max())
+        out.append(SegmentBound(seg.mode, seg.t.copy(), seg.x.copy(), le, sigma, L,
+                                accumulate_bound(seg.t, le, L)))
+    return ErrorBound(tuple(out), estimator.method.name, estimator.pair.name, estimator.floor,
+                      {"lipschitz": lipschitz if fixed_l is None else fixed_l})
+
+
+# -- a mode's numerical flow, past its guards, with the bound ---------------------------------
+@dataclass(frozen=True)
+class FlowPoint:
+    """One point of a ``ModeFlow``: time (s), state (n,), field there (n,), bound B (state
+    units) and, per outgoing transition of the mode, the guard value and the signed distance
+    to the linearised guard (positive inside)."""
+
+    t: float
+    x: np.ndarray
+    f: np.ndarray
+    radius: float
+    guard: np.ndarray
+    distance: np.ndarray
+
+
+@dataclass(frozen=True)
+class StepSamples:
+    """A step of a ``ModeFlow`` seen at sample fractions ``s`` (K,) of its length, from 0 to 1:
+    times t (K,), states x (K, n) on the cubic Hermite interpolant, radius (K,) (linear),
+    guard values and signed distances (K, m). Between consecutive samples each guard's
+    distance-to-radius ratio is monotone (the samples include its interior extrema), so the
+    fraction of the ball past each guard is monotone there too."""
+
+    s: np.ndarray
+    t: np.ndarray
+    x: np.ndarray
+    radius: np.ndarray
+    guard: np.ndarray
+    distance: np.ndarray
+
+
+class ModeFlow:
+    """The fixed-step numerical solution of one mode from ``(t0, x0)`` with the bound of
+    Section III around it, computed lazily point by point.
+
+    The guards do not stop the flow: the state flows on past them (the domains of the
+    stochastic approximation are all of R^n, and the error cone of Section V is followed
+    until it has left the domain). Between points the trajectory is the cubic Hermite
+    interpolant of the points and the fields there (legsim's dense output) rather than the
+    paper's chord: a chord strays O(h^2) from the solution, far outside the O(h^p) bound of a
+    higher-order method, so near a tangency the ball around a chord would miss the true
+    solution. The interpolant's own error is estimated at each step's midpoint against a half
+    step of the embedded pair and added to the step's local error, so the ball covers the whole
+    interpolated trajectory, not only its points.
+
+    The bound uses the running maximum of sigma_max(Df) as the Lipschitz constant (the
+    paper's maximum over the points seen so far), so that points can be produced before the
+    end of the flow is known; ``b0`` is an initial uncertainty radius, carried as
+    ``b0 e^{L (t - t0)}``.
+    """
+
+    SAMPLES_PER_ACTIVE_STEP = 8
+
+    def __init__(self, system: HybridSystem, mode: str, x0: np.ndarray, t0: float, h: float,
+                 estimator: LocalErrorEstimator, *, control: ControlFn | None = None, b0: float = 0.0,
+                 t_end: float = math.inf, max_points: int = 10_000_000) -> None:
+        self.system = system
+        self.mode_name = mode
+        self.mode = system.mode(mode)
+        self.transitions: tuple[Transition, ...] = system.outgoing(mode)
+        self.h = float(h)
+        self.estimator = estimator
+        self.control = control
+        self.t_end = float(t_end)
+        self.max_points = int(max_points)
+        self.points: list[FlowPoint] = []
+        self.status = "running"
+        self.message = ""
+        self._t = float(t0)
+        self._x = np.array(x0, dtype=float)
+        self._f: np.ndarray | None = None
+        self._s = float(b0)
+        self._L = 0.0
+        self._done = False
+
+    @property
+    def dim(self) -> int:
+        return self.mode.dim
+
+    def _field(self, t: float, x: np.ndarray) -> np.ndarray:
+        u = None if self.control is None else self.control(t, x)
+        return np.asarray(self.mode.field(t, x, u), dtype=float)
+
+    def guards_at(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Guard values and linearised signed distances (m,) of the mode's transitions at x."""
+        g = np.array([float(tr.guard(x)) for tr in self.transitions])
+        d = np.array([signed_distance(tr, x) for tr in self.transitions])
+        return g, d
+
+    def _advance(self) -> bool:
+        """Compute the next point; False when the flow has ended."""
+        if self._done:
+            return False
+        t, x = self._t, self._x
+        f0 = self._field(t, x) if self._f is None else self._f
+        if not _finite(f0):
+            self._finish("non_finite", f"field of mode '{self.mode_name}' is not finite at t={t:.17g}, x={x.tolist()}")
+            return False
+        u = None if self.control is None else self.control(t, x)
+        self._L = max(self._L, lipschitz_estimate(self.mode, t, x, u))
+        g, d = self.guards_at(x)
+        remaining = self.t_end - t
+        at_end = math.isfinite(self.t_end) and remaining <= 1e-12 * max(1.0, abs(self.t_end))
+        last = at_end or len(self.points) + 1 >= self.max_points
+        le = 0.0
+        hn = 0.0
+        if not last:
+            hn = min(self.h, remaining)
+            if remaining - hn <= 1e-9 * self.h:
+                hn = remaining
+            x_new, le = self.estimator.step(self.mode.field, t, x, hn, f0, self.control)
+            f_new = self._field(t + hn, x_new) if _finite(x_new) else x_new
+            if _finite(f_new):
+                x_half = self.estimator.pair_solution(self.mode.field, t, x, 0.5 * hn, f0, self.control)
+                midpoint = 0.5 * (x + x_new) + (0.125 * hn) * (f0 - f_new)
+                le += _norm(midpoint - x_half)
+            if not (_finite(x_new) and _finite(f_new) and math.isfinite(le)):
+                self._finish("non_finite", f"step from t={t:.17g} in mode '{self.mode_name}' is not finite "
+                                           f"(x={x.tolist()})")
+                last = True
+                le = math.inf
+        if len(self.points) + 1 >= self.max_points and self.status == "running" and remaining > 0:
+            self._finish("max_points", f"flow of mode '{self.mode_name}' reached {self.max_points} points "
+                                       f"at t={t:.17g}")
+        radius = self._s + le
+        self.points.append(FlowPoint(t, x, f0, radius, g, d))
+        if last:
+            if self.status == "running":
+                self._finish("end", "")
+            return True
+        self._s = radius * math.exp(self._L * hn)
+        self._t = t + hn if hn != remaining else self.t_end
+        self._x = x_new
+        self._f = f_new
+        return True
+
+    def _finish(self, status: str, message: str) -> None:
+        self._done = True
+        self.status = status
+        self.message = message
+
+    def point(self, n: int) -> FlowPoint | None:
+        """Point n of the flow (computing up to it), or None past its end."""
+        while len(self.points) <= n:
+            if not self._advance():
+                return None
+        return self.points[n]
+
+    def state(self, n: int, s: float) -> np.ndarray:
+        """The interpolated state at fraction s of step n (points n and n + 1 must exist)."""
+        p0, p1 = self.points[n], self.points[n + 1]
+        return hermite(p0.x, p0.f, p1.x, p1.f, p1.t - p0.t, s)
+
+    def step_samples(self, n: int) -> StepSamples | None:
+        """Step n (point n to n + 1) at sample fractions resolving every guard the ball may
+        reach during the step; just the two ends when it reaches none. None past the end."""
+        p0 = self.point(n)
+        p1 = self.point(n + 1)
+        if p0 is None or p1 is None:
+            return None
+        dt = p1.t - p0.t
+        r0, r1 = p0.radius, p1.radius
+        chord = (p1.x - p0.x) / dt if dt > 0 else np.zeros_like(p0.x)
+        # |Hermite - chord| <= (4/27) dt (|f0 - chord| + |f1 - chord|); 0.3 leaves room for the
+        # curvature of a linearised guard over the step.
+        margin = 0.3 * dt * (_norm(p0.f - chord) + _norm(p1.f - chord))
+        rmax = max(r0, r1)
+        lo = np.minimum(p0.distance, p1.distance)
+        hi = np.maximum(p0.distance, p1.distance)
+        inside = lo - rmax > margin
+        past = hi + rmax < -margin
+        ends = StepSamples(np.array([0.0, 1.0]), np.array([p0.t, p1.t]), np.array([p0.x, p1.x]),
+                           np.array([r0, r1]), np.array([p0.guard, p1.guard]), np.array([p0.distance, p1.distance]))
+        if np.all(inside | past) or dt <= 0.0:
+            return ends
+        k = self.SAMPLES_PER_ACTIVE_STEP
+        fractions = list(np.linspace(0.0, 1.0, k + 1))
+        cache: dict[float, tuple[np.ndarray, np.ndarray, np.ndarray]] = {0.0: (p0.x, p0.guard, p0.distance),
+                                                                           1.0: (p1.x, p1.guard, p1.distance)}
+
+        def at(s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+            if s not in cache:
+                x = hermite(p0.x, p0.f, p1.x, p1.f, dt, s)
+                g, d = self.guards_at(x)
+                cache[s] = (x, g, d)
+            return cache[s]
+
+        def ratio(s: float, j: int) -> float:
+            r = (1.0 - s) * r0 + s * r1
+            d = at(s)[2][j]
+            return d / r if r > 0 else d
+
+        for s in fractions:
+            at(float(s))
+        extra = []
+        for j in np.flatnonzero(~(inside | past)):
+            u = [ratio(float(s), j) for s in fractions]
+            for i in range(1, k):
+                if (u[i] - u[i - 1]) * (u[i + 1] - u[i]) < 0.0:
+                    sign = 1.0 if u[i] <= u[i - 1] else -1.0  # a minimum of u, or a maximum
+                    res = minimize_scalar(lambda s: sign * ratio(float(s), j), bounds=(fractions[i - 1], fractions[i + 1]),
+                                          method="bounded", options={"xatol": 1e-12})
+                    extra.append(float(res.x))
+        s_all = np.unique(np.concatenate([np.array(fractions), np.array(extra)]))
+        xs, gs, ds = zip(*(at(float(s)) for s in s_all))
+        return StepSamples(s_all, p0.t + s_all * dt, np.array(xs), (1.0 - s_all) * r0 + s_all * r1,
+                           np.array(gs).reshape(len(s_all), -1), np.array(ds).reshape(len(s_all), -1))
+
+
+def check_step(name: str, value: Any) -> float:
+    """A positive finite number (s) for a step size, or SimulationError naming it."""
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise SimulationError(f"{name} must be a number, got {value!r}")
+    value = float(value)
+    if not math.isfinite(value) or value <= 0.0:
+        raise SimulationError(f"{name} must be finite and > 0, got {value}")
+    return value
+
+
+__all__: Sequence[str] = (
+    "ErrorBound", "FlowPoint", "LocalErrorEstimator", "ModeFlow", "SegmentBound", "StepSamples",
+    "accumulate_bound", "ball_fraction_past", "error_bound", "field_jacobian", "guard_gradient",
+    "lipschitz_estimate", "reset_lipschitz", "signed_distance",
+)
