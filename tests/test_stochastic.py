@@ -1,0 +1,133 @@
+"""Stochastic approximation of paper 004 Section IV (legsim.stochastic)."""
+
+import math
+
+import numpy as np
+import pytest
+
+from legsim import SimulationError
+from legsim.stochastic import sample_ensemble, sample_execution, transition_functions
+from legsim.systems.circular_flow import make_system as circular_flow
+from legsim.systems.two_tanks import TwoTankReference
+from legsim.systems.two_tanks import make_system as two_tanks
+
+H = 0.1  # rk4 on the unit circle: B ~ 1.5e-5 at the tangency time pi/2
+
+
+def grazing(radius, intensity="hazard", t_final=3.0):
+    return transition_functions(circular_flow(), "inside", [0.0, radius], t_final, H, "rk4", intensity=intensity)
+
+
+def segment_fraction(u):
+    """Independent closed form of the share of a disc beyond a chord at u radii from its centre."""
+    u = np.clip(u, -1.0, 1.0)
+    return (np.arccos(u) - u * np.sqrt(1 - u * u)) / np.pi
+
+
+def test_grazing_probability_rises_towards_one_half_as_the_trajectory_nears_tangency():
+    tangent = grazing(1.0)
+    k = int(np.argmax(tangent.pi[:, 0]))
+    b_star = tangent.radius[k]
+    assert tangent.t[k] == pytest.approx(math.pi / 2, abs=1e-3)
+    offsets = b_star * np.array([4.0, 0.8, 0.5, 0.2, 0.05, 0.0])
+    probs = [grazing(1.0 - d).switching_probability[-1] for d in offsets]
+    assert probs[0] == 0.0  # the ball never reaches the plane
+    assert all(a < b for a, b in zip(probs, probs[1:])), probs
+    # At tangency half the ball lies past the plane; the computed circle sits inside the true
+    # one by the method's own O(h^4) error, a few percent of B here.
+    assert 0.45 < probs[-1] <= 0.5
+    # Each value is the disc-segment share at the computed closest approach (hazard reading:
+    # probability of switching = largest share of the ball past the guard).
+    for d, p in zip(offsets, probs):
+        tf = grazing(1.0 - d)
+        j = int(np.argmin(tf.distance[:, 0] / tf.radius))
+        assert p == pytest.approx(float(segment_fraction(tf.distance[j, 0] / tf.radius[j])), abs=1e-6)
+
+
+def test_grazing_probability_vanishes_away_from_the_guard():
+    # Fig. 1: the transition function is zero except near the tangency time, and a circle well
+    # inside never switches.
+    tangent = grazing(1.0)
+    far_in_time = np.abs(tangent.t - math.pi / 2) > 0.05
+    assert np.all(tangent.pi[far_in_time, 0] == 0.0)
+    assert np.all(grazing(0.5).pi == 0.0)
+    # Intensities are non-negative and the survival never increases.
+    assert np.all(tangent.intensity >= 0.0)
+    assert np.all(np.diff(tangent.survival) <= 0.0)
+
+
+@pytest.mark.parametrize("intensity", ["hazard", "derivative"])
+def test_monte_carlo_switching_frequency_matches_the_survival_function(intensity):
+    tf = grazing(1.0, intensity)
+    ens = sample_ensemble(circular_flow(), "inside", [0.0, 1.0], 3.0, H, "rk4", samples=400, seed=7,
+                          intensity=intensity)
+    switched = np.mean([len(e.times) > 0 for e in ens.executions])
+    p = tf.switching_probability[-1]
+    # Closed forms in the largest share pi* of the ball past the guard: pi* (hazard) and
+    # 1 - exp(-pi*) (the literal derivative reading).
+    pi_star = tf.pi[:, 0].max()
+    assert p == pytest.approx(pi_star if intensity == "hazard" else 1 - math.exp(-pi_star), rel=1e-9)
+    assert abs(switched - p) < 4 * math.sqrt(p * (1 - p) / 400)
+    times = ens.switching_times(0)
+    assert np.all(np.abs(times - math.pi / 2) < 0.05)  # switches happen while the ball straddles the plane
+
+
+def test_two_tank_switching_times_approach_the_deterministic_ones_as_h_falls():
+    # Constant fields: every Runge-Kutta method is exact, so the ball comes from the declared
+    # floor alone (here Euler's h^2 per step, a bound of order h).
+    ref = TwoTankReference(0.75, 0.5, 0.5)
+    x0 = np.array([1.0, 1.0])
+    exact, _ = ref.switching_times("q1", x0, 2)
+    hs = [0.04, 0.02, 0.01]
+    rms = []
+    for h in hs:
+        # Up to 6.3 s: every sample has switched twice (at 2 and 5 s, +- 0.33 s at h = 0.04).
+        ens = sample_ensemble(two_tanks(), "q1", x0, 6.3, h, "euler", samples=20, seed=3, floor=1.0)
+        errs = [ens.switching_times(i) - exact[i] for i in range(2)]
+        assert all(len(e) == 20 for e in errs)
+        rms.append(math.sqrt(np.mean(np.concatenate(errs) ** 2)))
+    assert rms[0] > rms[1] > rms[2]
+    slope = np.polyfit(np.log(hs), np.log(rms), 1)[0]
+    assert 0.7 < slope < 1.4, (rms, slope)
+
+
+def test_two_tank_stochastic_executions_are_not_zeno():
+    # The deterministic execution switches infinitely often before t_zeno = 8 s; a stochastic
+    # one switches finitely often on [0, t_zeno + 1] and every visit lasts a positive time.
+    ref = TwoTankReference(0.75, 0.5, 0.5)
+    x0 = np.array([1.0, 1.0])
+    t_zeno = ref.zeno_time(x0)
+    ens = sample_ensemble(two_tanks(), "q1", x0, t_zeno + 1.0, 0.04, "euler", samples=8, seed=5, floor=1.0,
+                          max_transitions=100_000)
+    for e in ens.executions:
+        assert e.status == "finished"
+        assert e.t_end == pytest.approx(t_zeno + 1.0)
+        assert np.all(np.diff(np.concatenate([[0.0], e.times])) > 0.0)
+    counts = [len(e.times) for e in ens.executions]
+    assert max(counts) < 1000, counts
+    # ... and they go on past the Zeno time.
+    assert all(e.times[-1] > t_zeno for e in ens.executions)
+
+
+def test_restarting_the_bound_at_each_switch_lets_the_accumulation_back_in():
+    # Without the uncertainty inherited through the switch, each visit near the Zeno point
+    # starts with a ball of one step's floor: visits shrink towards zero length again.
+    x0 = np.array([1.0, 1.0])
+    carried = sample_execution(two_tanks(), "q1", x0, 9.0, 0.04, "euler", rng=1, floor=1.0, max_transitions=300)
+    restarted = sample_execution(two_tanks(), "q1", x0, 9.0, 0.04, "euler", rng=1, floor=1.0, max_transitions=300,
+                                 carry=False)
+    assert restarted.dwell_times.min() < 1e-3 * carried.dwell_times.min()
+
+
+def test_bad_input_is_reported_by_name():
+    system = circular_flow()
+    with pytest.raises(SimulationError, match="samples must be an integer >= 1"):
+        sample_ensemble(system, "inside", [0.0, 1.0], 1.0, 0.1, samples=0)
+    with pytest.raises(SimulationError, match="intensity must be one of"):
+        sample_execution(system, "inside", [0.0, 1.0], 1.0, 0.1, intensity="rate")
+    with pytest.raises(SimulationError, match="unknown mode 'nowhere'"):
+        transition_functions(system, "nowhere", [0.0, 1.0], 1.0, 0.1)
+    with pytest.raises(SimulationError, match="h must be finite and > 0"):
+        sample_execution(system, "inside", [0.0, 1.0], 1.0, -0.1)
+    with pytest.raises(SimulationError, match="t_final must be a finite number > t0"):
+        sample_execution(system, "inside", [0.0, 1.0], float("nan"), 0.1)
