@@ -1,0 +1,123 @@
+"""Certified transitions of paper 004 Section V (legsim.certify)."""
+
+import math
+
+import numpy as np
+import pytest
+
+from legsim import HybridSystem, Mode, SimulationError, Transition
+from legsim.certify import REASONS, certify
+from legsim.systems.circular_flow import CircularReference
+from legsim.systems.circular_flow import make_system as circular_flow
+from legsim.systems.two_tanks import TwoTankReference
+from legsim.systems.two_tanks import make_system as two_tanks
+
+
+def corner():
+    """A flow symmetric under x1 <-> x2 heading for the corner of two guards: from (0, 0) it
+    reaches x1 = 1 and x2 = 1 at the same instant."""
+    def f(t, x, u):
+        return np.array([1.0 + 0.2 * x[1], 1.0 + 0.2 * x[0]])
+
+    modes = {name: Mode(2, f) for name in ("box", "A", "B")}
+    return HybridSystem(modes, [Transition("box", "A", lambda x: 1.0 - x[0], name="wall_x1"),
+                                Transition("box", "B", lambda x: 1.0 - x[1], name="wall_x2")], name="corner")
+
+
+def test_transversal_crossings_are_certified_and_bracket_the_true_switching_times():
+    ref = CircularReference(1.0, 1.0)
+    cert = certify(circular_flow(), "inside", [0.0, 1.5], 3.0, 0.1, "rk4")
+    assert cert.certified
+    assert [tr.name for tr in cert.transitions] == ["cross", "return"]
+    assert all(tr.reason is None and tr.taken for tr in cert.transitions)
+    # Exact crossing times of the circle of radius 1.5 with x1 = 1: asin(2/3) and pi - asin(2/3).
+    exact = [ref.crossing_time(np.array([0.0, 1.5])), math.pi - math.asin(2 / 3)]
+    for tr, t in zip(cert.transitions, exact):
+        # rk4 at h = 0.1 over 2.4 s: about 2e-6 of global error in the second crossing.
+        assert tr.time == pytest.approx(t, abs=1e-5)
+        assert tr.window[0] <= t <= tr.window[1]
+    assert len(cert.levels) == 1  # no refinement needed
+
+
+def test_grazing_point_is_refused_as_grazing():
+    # The circle of radius 1 touches x1 = 1 at t = pi/2 without crossing: the computed
+    # trajectory does not take the transition, the cone reaches the guard.
+    cert = certify(circular_flow(), "inside", [0.0, 1.0], 3.0, 0.1, "rk4", max_refinements=3)
+    assert not cert.certified
+    (tr,) = cert.transitions
+    assert (tr.name, tr.taken, tr.certified, tr.reason) == ("cross", False, False, "grazing")
+    assert tr.time == pytest.approx(math.pi / 2, abs=1e-3)
+    # Refining never separates it: the gap left by the method shrinks with the bound.
+    gaps = [lv.separation / lv.bound for lv in cert.levels]
+    assert len(gaps) == 4 and max(gaps) < 0.05
+
+
+def test_a_near_miss_that_refinement_would_separate_is_a_refinement_limit():
+    # Radius 1 - 1e-9: a real gap of 1e-9 that the bound (2e-8 at the last level) has not
+    # yet resolved, but whose ratio to the bound grows with every refinement.
+    cert = certify(circular_flow(), "inside", [0.0, 1.0 - 1e-9], 3.0, 0.1, "rk4", max_refinements=3)
+    (tr,) = cert.transitions
+    assert tr.reason == "refinement_limit"
+    ratios = [lv.separation / lv.bound for lv in cert.levels]
+    assert ratios[-1] > 4 * ratios[-2]
+
+
+def test_guard_intersection_is_refused_and_a_nearby_crossing_certified_after_refinement():
+    exact = certify(corner(), "box", [0.0, 0.0], 2.0, 0.1, "rk4", max_refinements=3)
+    (tr,) = exact.transitions
+    assert tr.reason == "intersecting_guards"
+    assert sorted(tr.guards_met) == ["wall_x1", "wall_x2"]
+    assert len(exact.levels) == 4
+    # Offset by 1e-7 the flow reaches x2 = 1 first: the first levels see both guards in the
+    # cone, a refined one separates them (Algorithm 1: h := h / alpha until J_h is a singleton).
+    near = certify(corner(), "box", [0.0, 1e-7], 2.0, 0.1, "rk4", max_refinements=4)
+    (tr,) = near.transitions
+    assert tr.certified and tr.name == "wall_x2"
+    assert near.levels[0].failure == "intersecting_guards" and len(near.levels) > 1
+
+
+def test_symmetric_pronk_touchdown_is_a_guard_intersection():
+    pytest.importorskip("pinocchio")
+    from legsim.scene import load_scene
+
+    scene = load_scene("pronk")
+    cert = certify(scene.model.system, scene.initial_mode, scene.initial_state, 1.0, 1e-2, "rk4",
+                   control=scene.model.control, max_refinements=1)
+    (tr,) = cert.transitions
+    assert tr.reason == "intersecting_guards"
+    assert sorted(tr.guards_met) == ["touchdown_left", "touchdown_right"]
+    # Ballistic flight: the touchdown time is where z - l cos(psi) reaches 0 from z = 1.1.
+    l, psi, z0, g = 1.0, math.pi / 5, 1.1, 9.81
+    assert tr.time == pytest.approx(math.sqrt(2 * (z0 - l * math.cos(psi)) / g), abs=1e-9)
+
+
+def test_zeno_point_is_refused_as_zeno_after_certifying_more_transitions_at_each_refinement():
+    ref = TwoTankReference(0.75, 0.5, 0.5)
+    x0 = np.array([1.0, 1.0])
+    cert = certify(two_tanks(), "q1", x0, 10.0, 0.05, "rk4", floor=1.0, max_refinements=3)
+    *done, last = cert.transitions
+    assert last.reason == "zeno" and not last.certified
+    counts = [lv.certified for lv in cert.levels]
+    assert all(a < b for a, b in zip(counts, counts[1:])), counts
+    exact, modes = ref.switching_times("q1", x0, len(done))
+    for tr, t, target in zip(done, exact, modes):
+        assert tr.certified and tr.target == target
+        assert tr.time == pytest.approx(t, abs=1e-9)
+        assert tr.window[0] <= t <= tr.window[1]
+    assert last.time == pytest.approx(ref.zeno_time(x0), abs=0.01)
+
+
+def test_reasons_are_the_documented_ones():
+    assert REASONS == ("grazing", "intersecting_guards", "zeno", "refinement_limit")
+
+
+def test_bad_input_is_reported_by_name():
+    system = circular_flow()
+    with pytest.raises(SimulationError, match="alpha must be a number > 1"):
+        certify(system, "inside", [0.0, 1.5], 1.0, 0.1, alpha=1.0)
+    with pytest.raises(SimulationError, match="max_refinements must be an integer >= 0"):
+        certify(system, "inside", [0.0, 1.5], 1.0, 0.1, max_refinements=-1)
+    with pytest.raises(SimulationError, match="unknown mode 'nowhere'"):
+        certify(system, "nowhere", [0.0, 1.5], 1.0, 0.1)
+    with pytest.raises(SimulationError, match="h must be finite and > 0"):
+        certify(system, "inside", [0.0, 1.5], 1.0, 0.0)
