@@ -34,8 +34,11 @@ Vector fields
     model-side evaluation.
 
 Guards (``>= 0`` inside; the strip width eps is in the guard's unit, see :meth:`guard_units`)
-    * touchdown of a point contact or a spring-leg foot: ``max(z - ground, dz/dt)`` (m): the gap,
-      past only when it is closing;
+    * touchdown of a point contact: ``max(z - ground, dz/dt)`` (m): the gap, past only when it is
+      closing; of a spring-leg foot: ``z - ground`` while descending, ``max(z - ground, dz/dt)``
+      while rising (m): the height itself when it matters, and a foot that swung into the ground
+      at liftoff stays in flight while it rises but is past by its depth if it turns down
+      before coming out (the run then ends with ``halving_exhausted``);
     * impact on a joint stop: ``max(s (q_j - position), s dq_j/dt)`` (rad, or m for a prismatic
       joint), ``s = +1`` for a lower stop and ``-1`` for an upper one;
     * release of a point contact: the normal constraint force ``lambda_z`` (N); of a joint stop:
@@ -77,10 +80,6 @@ from legsim.hybrid import HybridSystem, Mode, Transition
 
 _LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 
-#: How far (m) a flight foot may lie below the ground at touchdown or liftoff before the bridge
-#: reports the model as broken down. The guard crossing puts a touching-down foot within
-#: 1e-9 eps of the ground, so anything beyond a micrometre is not rounding.
-FOOT_TOLERANCE = 1e-6
 
 
 # ---------------------------------------------------------------------------------------------
@@ -636,7 +635,13 @@ class ContactBridge:
         for lg in spec.flight_legs:
             p = pin.updateFramePlacement(model, data, lg.foot_id).translation
             vz = pin.getFrameVelocity(model, data, lg.foot_id, _LWA).linear[2]
-            out[lg.leg.name] = max(p[2] - lg.leg.ground, vz)
+            z = p[2] - lg.leg.ground
+            # "at the ground moving down". A foot below the ground while rising is in flight: near
+            # a periodic gait the leg swung forward at liftoff scuffs the ground. One that turns
+            # down while still below it is past by its depth, not by its velocity: the guard
+            # jumps there, no step can land in the strip, and the run ends (halving_exhausted)
+            # instead of pinning a foot that never came out of the ground.
+            out[lg.leg.name] = z if vz <= 0.0 else max(z, vz)
         for i, lg in enumerate(spec.springs):
             p = pin.updateFramePlacement(model, data, lg.hip_id).translation
             vel = pin.getFrameVelocity(model, data, lg.hip_id, _LWA).linear
@@ -683,20 +688,10 @@ class ContactBridge:
         return units
 
     # -- resets ---------------------------------------------------------------------------
-    def _flight_foot(self, lg: _Leg, q: np.ndarray, event: str, on_guard: bool) -> float:
-        """x (m) of the flight foot at q. On the guard (a real touchdown or liftoff) a foot below
-        the ground means the model has broken down (the leg swung through the ground), which no
-        reset can repair; off the guard (``HybridSystem.check_state`` trying the resets on an
-        initial state) there is nothing to report."""
+    def _flight_foot(self, lg: _Leg, q: np.ndarray) -> float:
+        """x (m) of the flight foot at q: where a touching-down foot is pinned."""
         pin.forwardKinematics(self.model, self.data, q)
-        p = pin.updateFramePlacement(self.model, self.data, lg.foot_id).translation
-        depth = lg.leg.ground - p[2]
-        if on_guard and depth > FOOT_TOLERANCE:
-            raise ModelError(
-                f"{self.name}: at {event} of leg '{lg.leg.name}' its foot at flight angle "
-                f"{lg.leg.angle:.4g} rad would be {depth:.3g} m below the ground (body at {q.tolist()}): "
-                f"the massless leg cannot swing through the ground; the runner has fallen")
-        return float(p[0])
+        return float(pin.updateFramePlacement(self.model, self.data, lg.foot_id).translation[0])
 
     def _map_state(self, src: _ModeSpec, dst: _ModeSpec, x: np.ndarray, v_new: np.ndarray | None) -> np.ndarray:
         n = self.n
@@ -706,18 +701,8 @@ class ContactBridge:
         src_index = {lg.leg.name: i for i, lg in enumerate(src.springs)}
         for i, lg in enumerate(dst.springs):
             j = src_index.get(lg.leg.name)
-            if j is None:
-                out[2 * n + i] = self._flight_foot(lg, x[:n], "touchdown", self._on_guard(src, x, lg))
-            else:
-                out[2 * n + i] = x[2 * n + j]
-        dst_legs = {lg.leg.name for lg in dst.springs}
-        for lg in src.springs:
-            if lg.leg.name not in dst_legs:
-                self._flight_foot(lg, x[:n], "liftoff", self._on_guard(src, x, lg))
+            out[2 * n + i] = self._flight_foot(lg, x[:n]) if j is None else x[2 * n + j]
         return out
-
-    def _on_guard(self, spec: _ModeSpec, x: np.ndarray, lg: _Leg) -> bool:
-        return abs(self._kinematic_guards(spec, x)[lg.leg.name]) <= FOOT_TOLERANCE
 
     def impact_velocity(self, rows: Sequence[tuple[str, float]], q: np.ndarray, v: np.ndarray) -> np.ndarray:
         """Post-impact velocity (nv,) of the generalised Newton impact.
