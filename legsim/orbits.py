@@ -54,12 +54,14 @@ Two ways, compared in the tests:
   returning transition contributes ``DR (I - f- grad_g^T / (grad_g . f-))`` (the derivative of
   the reset image R(q)) instead of its saltation matrix. One simulation in all.
 * ``jacobian="fd"``: central differences of the return map, 2 simulations per coordinate.
-  Step ``delta_j = fd_step * max(1, |x_j|)`` with ``fd_step = 1e-5`` by default: the central
-  difference error is about ``eta / delta + delta**2 |P'''| / 6`` where eta is the return
-  map's own accuracy as a function of x (rounding, about 1e-13, and the O(h^p) changes of the
-  step that lands in a strip as x moves); eta ~ 1e-13..1e-12 puts the optimum near
-  delta ~ 1e-5..1e-4 (eta^(1/3)). ``docs/orbits.md`` shows the measured error against the
-  saltation Jacobian for steps 1e-3 .. 1e-8.
+  Step ``delta_j = fd_step * max(1, |x_j|)``. The central difference error is about
+  ``eta / delta + delta**2 |P'''| / 6`` with eta the return map's own noise as a function of x
+  (rounding, and the O(h^p) jumps as the step that lands in a strip changes with x). For fixed
+  steps eta is tiny: the compass gait's FD error against the saltation Jacobian is 8.5e-8,
+  3.8e-9 and 3.4e-8 at steps 1e-5, 1e-6 and 1e-7, i.e. eta ~ 3e-15 and |P'''| ~ 5e3, an
+  optimum near (3 eta / |P'''|)^(1/3) ~ 1e-6, which is the default. With error-controlled
+  steps (rtol/atol) the step sequence itself changes with x, eta ~ the tolerance, and the
+  default becomes tolerance^(1/3). ``docs/orbits.md`` has the measurements.
 
 Derivatives with respect to free parameters are always central differences of the return map
 (the system is rebuilt for each value). Where the simulation on one side of a difference fails
@@ -101,7 +103,7 @@ from .relaxed import simulate
 
 __all__ = [
     "OrbitError", "Section", "OrbitProblem", "Return", "ReturnMap", "OrbitResult", "Family", "FamilyPoint",
-    "StabilityChange", "OrbitSettings", "problem_from_scene", "find_orbit", "return_map", "jacobian_fd", "jacobian_saltation", "saltation_matrix",
+    "StabilityChange", "OrbitSettings", "problem_from_scene", "default_fd_step", "find_orbit", "return_map", "jacobian_fd", "jacobian_saltation", "saltation_matrix",
     "reset_on_guard_jacobian",
     "floquet_multipliers", "continue_family", "STATUSES",
 ]
@@ -835,15 +837,22 @@ def _difference(fn: Callable[[float], np.ndarray], d: float, base: Callable[[], 
     return (base() - minus) / d
 
 
+def default_fd_step(problem: OrbitProblem) -> float:
+    """Relative finite-difference step of the return map: 1e-6 for fixed steps, the cube root
+    of the tolerance with error-controlled steps (module docstring)."""
+    tols = [t for t in (problem.rtol, problem.atol) if t is not None]
+    return max(1e-6, max(tols) ** (1.0 / 3.0)) if tols else 1e-6
+
+
 def jacobian_fd(problem: OrbitProblem, x: np.ndarray, parameters: Mapping[str, float] | None = None,
                 step: float | None = None, columns: Sequence[int] | None = None,
                 rmap: ReturnMap | None = None) -> np.ndarray:
     """The n x n Jacobian of the return map at x by central differences (columns of cyclic
     coordinates are e_c by symmetry; one-sided where one side's simulation fails). ``step``:
-    relative step, default 1e-5 (module docstring); ``columns``: only these columns (the others
+    relative step, default ``default_fd_step`` (module docstring); ``columns``: only these columns (the others
     are left 0)."""
     rmap = rmap or ReturnMap(problem)
-    step = 1e-5 if step is None else float(step)
+    step = default_fd_step(problem) if step is None else float(step)
     n = problem.dim
     J = np.zeros((n, n))
     cols = range(n) if columns is None else columns
@@ -1063,7 +1072,7 @@ class _Equations:
             col_periodic = DP[idx, j] - (np.array(idx) == j).astype(float)
             col_extra = self._extra_column(x, params, coord=j)
             cols.append(np.concatenate([col_periodic, col_extra]))
-        step = 1e-5 if fd_step is None else fd_step
+        step = default_fd_step(p) if fd_step is None else fd_step
         for name in p.free:
             d = step * max(1.0, abs(params[name]))
 
@@ -1106,7 +1115,7 @@ def find_orbit(problem: OrbitProblem, guess: Mapping[str, float] | Sequence[floa
         is <= tol.
     max_iterations: Newton iterations allowed.
     jacobian: ``"saltation"`` or ``"fd"`` (module docstring).
-    fd_step: relative finite-difference step (default 1e-5).
+    fd_step: relative finite-difference step (default ``default_fd_step(problem)``).
     singular_tol: the Jacobian counts as singular when its smallest singular value is below
         singular_tol times its largest.
     max_backtracks: step halvings tried when a full Newton step does not reduce the residual.
@@ -1423,7 +1432,7 @@ ORBIT_KEYS = {
     "tol": "convergence tolerance on the orbit equations (state units), default 1e-9",
     "max_iterations": "Newton iterations, default 30",
     "jacobian": "'saltation' (default) or 'fd'",
-    "fd_step": "relative finite-difference step, default 1e-5",
+    "fd_step": "relative finite-difference step, default 1e-6 (see legsim.orbits)",
     "singular_tol": "relative singular value below which the Jacobian is singular, default 1e-9",
     "t_max": "time limit of one return (s), default the scene's integrator.t_final",
     "returns": "returns per period (2 for a period-two orbit), default 1",

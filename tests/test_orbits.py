@@ -182,8 +182,9 @@ def test_saltation_and_finite_difference_jacobians_agree(section):
     assert len(ret.transitions) == 1
     J_salt = jacobian_saltation(prob, ret)
     J_fd = jacobian_fd(prob, x)
-    # FD at step 1e-5: truncation ~1e-10 * P''', rounding ~1e-16/1e-5: agreement to ~1e-8.
-    assert np.max(np.abs(J_salt - J_fd)) < 1e-7
+    # FD at the default step 1e-6 is good to ~1e-9 here; the saltation product with forward-
+    # difference field Jacobians to ~5e-9 (measured against analytic derivatives, next test).
+    assert np.max(np.abs(J_salt - J_fd)) < 3e-8
     # Both kill the flow direction (a start moved along the flow returns to the same point).
     f = hopf_reset().mode("arc").field(0.0, x, None)
     assert np.max(np.abs(J_salt @ f)) < 1e-8 * np.linalg.norm(f)
@@ -196,7 +197,9 @@ def test_analytic_derivatives_give_the_same_saltation_jacobian():
         prob = OrbitProblem(hopf_reset(analytic_derivatives=analytic), Section.after("jump"), h=2e-3, eps=1e-4,
                             t_max=2.0)
         J.append(jacobian_saltation(prob, return_map(prob, x)))
-    assert np.max(np.abs(J[0] - J[1])) < 1e-8
+    # Forward differences of the field (relative ~1e-8 per stage Jacobian) against the exact
+    # Jacobian, guard gradient and reset Jacobian: measured 5.4e-9 over the whole return.
+    assert np.max(np.abs(J[0] - J[1])) < 3e-8
 
 
 def test_saltation_matrix_of_the_wall_impact_in_closed_form():

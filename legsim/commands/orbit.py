@@ -142,7 +142,7 @@ def format_orbit(payload: dict[str, Any], name: str) -> str:
         lines.append(f"{name}: no orbit ({payload['status']}): {payload['message']}")
         lines.append("last iterate:")
     lines.append(f"section: {payload['section']} (mode {payload['mode']})")
-    width = max(len(n) for n in payload["state_names"])
+    width = max(len(n) for n in list(payload["state_names"]) + list(payload["free"]))
     for n, v in zip(payload["state_names"], payload["fixed_point"]):
         lines.append(f"  {n.ljust(width)} = {v: .10g}")
     for n in payload["free"]:
