@@ -50,13 +50,15 @@ Resets
     * impact of a rigid contact with restitution c (generalised Newton impact): with ``J`` the
       Jacobian rows of the contacts that stay active after the impact plus the striking one,
       ``v+ = v + M^-1 J^T (J M^-1 J^T)^-1 (w - J v)`` where ``w = -c J v`` on the striking
-      contact's rows and 0 on the others. ``c = 0`` enters the mode with the contact active;
-      ``c > 0`` bounces back into the same mode (possibly Zeno). A plastic impact after which the
-      contact would pull (normal force lambda+ < 0 at the post-impact state) separates at once:
-      it is a second transition ``graze_<name>`` into the mode without the contact, with guard
-      ``max(gap guard, lambda+)`` against ``max(gap guard, -lambda+)`` for the sticking one. For a joint stop alone this is
-      paper 003 eq. (30). A point contact may name contacts it ``releases`` when it strikes (a
-      walker's stance foot at heel strike): they are dropped before the impact is solved;
+      contact's rows and 0 on the others; for a joint stop alone this is paper 003 eq. (30).
+      ``c = 0`` enters the mode with the contact active; ``c > 0`` bounces back into the same
+      mode (possibly Zeno). A plastic impact after which the contact would pull (normal force
+      lambda+ < 0 at the post-impact state) separates at once: it is a second transition
+      ``graze_<name>`` into the mode without the contact, with guard ``max(gap guard, lambda+)``
+      against ``max(gap guard, -lambda+)`` for the sticking one. A point contact may name
+      contacts it ``releases`` when it strikes (a walker's stance foot at heel strike): they are
+      dropped before the impact is solved; and it may be ``armed`` only in part of the
+      configuration space (guard ``max(gap guard, -armed(q, v))``);
     * spring-leg touchdown appends the foothold (the foot's x at the guard point);
     * liftoff and release keep q and v and drop what leaves the state.
 
