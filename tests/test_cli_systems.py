@@ -1,0 +1,105 @@
+"""`legsim run` on the bundled analytic scenes: the JSON summary against a direct `simulate` call
+and the closed forms, and effects switched on and off seen in the evaluation counts (issue 4)."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from legsim import simulate
+from legsim.cli import main
+from legsim.scene import load_scene
+
+
+def run_json(capsys, *argv):
+    code = main(["run", *argv, "--json"])
+    out, err = capsys.readouterr()
+    return code, json.loads(out), err
+
+
+def test_bouncing_ball_json_equals_direct_simulate_and_closed_form(capsys):
+    from legsim.systems.bouncing_ball import BouncingBallReference, make_system
+
+    code, summary, err = run_json(capsys, "bouncing_ball")
+    assert code == 0 and err == "" and summary["status"] == "finished"
+    scene = load_scene("bouncing_ball")
+    s = scene.integrator
+    # The same system built by hand from the scene's numbers, simulated directly.
+    system = make_system(g=9.81, restitution=0.5)
+    direct = simulate(system, [1.0, 0.0], "flight", s["t_final"], s["h"], s["eps"], s["method"])
+    assert summary["final_state"] == direct.final_state.tolist()
+    assert summary["final_mode"] == direct.final_mode == "flight"
+    assert summary["state_names"] == ["z", "zd"] and summary["t_final"] == s["t_final"] == 2.7
+    assert summary["transitions"] == len(direct.transitions)
+    assert summary["mode_sequence"] == direct.mode_sequence
+    for key in ("steps", "halvings", "field_evals", "guard_evals", "reset_evals"):
+        assert summary[key] == direct.counters[key], key
+    # Energy m (g z + zd^2 / 2) with m = 1: 9.81 J at rest at z = 1.
+    assert summary["energy_initial"] == pytest.approx(9.81, rel=1e-15)
+    z, zd = summary["final_state"]
+    assert summary["energy_final"] == pytest.approx(9.81 * z + 0.5 * zd ** 2, rel=1e-12)
+    # Past the Zeno time the ball rests on the floor: within eps of z = 0, at rest.
+    ref = BouncingBallReference(g=9.81, restitution=0.5, z0=1.0)
+    assert s["t_final"] > ref.zeno_time
+    assert abs(z) <= s["eps"] and abs(zd) < 1e-6
+    # Free fall is cubic in t: the first impact is exact to rounding.
+    assert abs(direct.transitions[0].time - ref.first_impact) < 1e-12
+
+
+def test_oscillator_without_stop_evaluates_no_guard_and_converges_to_closed_form(capsys):
+    t_final = 10 * math.pi
+    errors = []
+    for h in (2e-2, 1e-2):
+        code, summary, _ = run_json(capsys, "oscillator_ex1", "--set", "effects.stop=false",
+                                    "--set", f"integrator.h={h}", "--set", f"integrator.t_final={t_final}")
+        assert code == 0
+        # No stop: one mode, no guard, no reset, ever.
+        assert summary["guard_evals"] == 0 and summary["reset_evals"] == 0 and summary["transitions"] == 0
+        assert summary["mode_sequence"] == ["free"] and summary["halvings"] == 0
+        # RK4: four field evaluations a step (the first of a step is the last one's end).
+        assert summary["field_evals"] == pytest.approx(4 * summary["steps"], abs=2)
+        reference = load_scene("oscillator_ex1", overrides=["effects.stop=false"]).model.reference
+        errors.append(np.linalg.norm(np.array(summary["final_state"]) - reference.state(t_final)))
+    # The error against the closed form falls like h^4 (RK4): halving h divides it by ~16.
+    assert 3.5 < math.log2(errors[0] / errors[1]) < 4.5
+
+
+def test_oscillator_with_stop_counts_the_reference_impacts(capsys):
+    t_final = 10.0
+    code, summary, _ = run_json(capsys, "oscillator_ex1", "--set", f"integrator.t_final={t_final}")
+    assert code == 0 and summary["guard_evals"] > 0
+    reference = load_scene("oscillator_ex1").model.reference
+    impacts = reference.impact_times(t_final)
+    assert summary["transitions"] == summary["reset_evals"] == len(impacts) > 0
+    assert summary["mode_sequence"] == ["free"] * (len(impacts) + 1)
+
+
+def test_double_pendulum_stop_and_damping_switch_guards_and_terms(capsys):
+    short = ["--set", "integrator.t_final=2"]
+    _, with_stop, _ = run_json(capsys, "double_pendulum_zeno", *short)
+    _, no_stop, _ = run_json(capsys, "double_pendulum_zeno", *short, "--set", "effects.stop=false")
+    _, damped, _ = run_json(capsys, "double_pendulum_zeno", *short, "--set", "effects.damping=true")
+    assert with_stop["guard_evals"] > 0 and with_stop["transitions"] > 0
+    assert no_stop["guard_evals"] == 0 and no_stop["transitions"] == 0 and no_stop["mode_sequence"] == ["unconstrained"]
+    # The damping term is computed only when the scene asks for it.
+    assert with_stop["damping_evals"] == 0 and no_stop["damping_evals"] == 0
+    assert damped["damping_evals"] >= damped["steps"] > 0
+    # Without damping or a stop the pendulum's energy is conserved up to Euler's drift; the
+    # damped one loses energy (b > 0) relative to the undamped run with the same impacts.
+    assert damped["energy_final"] < with_stop["energy_final"]
+
+
+def test_digital_control_json_takes_the_simultaneous_crossing(capsys):
+    code, summary, _ = run_json(capsys, "digital_control")
+    scene = load_scene("digital_control")
+    s = scene.integrator
+    direct = simulate(scene.model.system, scene.initial_state, scene.initial_mode, s["t_final"], s["h"], s["eps"],
+                      s["method"], scene.model.control, max_transitions=s["max_transitions"])
+    assert code == 0 and summary["mode_sequence"] == direct.mode_sequence
+    # Both thresholds are crossed at once (paper 000 Fig. 1): one transition, then the next at once.
+    assert summary["mode_sequence"] == ["0", "1", "3"]
+    assert direct.transitions[1].time == direct.transitions[0].exit_time
+    assert summary["final_state"] == direct.final_state.tolist()
