@@ -1197,8 +1197,9 @@ def find_orbit(problem: OrbitProblem, guess: Mapping[str, float] | Sequence[floa
             if step_norm <= 1e-12 * z_scale:
                 return fail("stalled",
                             f"the residual stalls at {res:.3g} > tol {tol:g} after {it} iteration(s): the Newton step "
-                            f"({step_norm:.2g}) is below rounding; the return map is not computed more accurately at "
-                            f"h = {problem.h:g}, eps = {problem.eps:g}: reduce h or raise tol", z, res, it, ret)
+                            f"({step_norm:.2g}) is below rounding, so the return map's own noise (rounding, and the "
+                            f"integrator's steps at h = {problem.h:g}, eps = {problem.eps:g}) limits the residual: raise "
+                            f"tol", z, res, it, ret)
             return fail("diverged",
                         f"iteration {it + 1}: no Newton step (lengths 1 .. 1/{2 ** max_backtracks}) reduces the "
                         f"residual {res:.3g}; there may be no periodic orbit near the last iterate {rmap._show(eq.unpack(z)[0])}"

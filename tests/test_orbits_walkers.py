@@ -169,6 +169,14 @@ def test_swing_foot_scuffs_mid_stance_without_a_heel_strike(gait):
     assert [tr.name for tr in strikes] == ["heel_strike"]
 
 
+def test_a_tolerance_below_the_return_maps_noise_stalls_with_a_message(gait):
+    prob, _, res = gait
+    stalled = find_orbit(prob, res.fixed_point, tol=1e-20, max_iterations=12)
+    assert stalled.status == "stalled" and not stalled.converged
+    assert "stalls at" in stalled.message and "raise tol" in stalled.message
+    assert stalled.residual < 1e-13  # the residual it did reach is at rounding level
+
+
 def test_compass_gait_saltation_and_finite_difference_jacobians_agree(gait):
     prob, _, res = gait
     ret = return_map(prob, res.fixed_point)
