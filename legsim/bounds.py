@@ -159,16 +159,16 @@ def ball_fraction_past(distance: float | np.ndarray, radius: float | np.ndarray,
     if isinstance(dim, bool) or int(dim) != dim or dim < 1:
         raise SimulationError(f"ball dimension must be a positive integer, got {dim!r}")
     d = np.asarray(distance, dtype=float)
-    r = np.asarray(radius, dtype=float)
-    d, r = np.broadcast_arrays(d, r)
-    out = np.where(d >= 0.0, 0.0, 1.0)
-    inside = (r > 0.0) & (np.abs(d) < r)
-    if np.any(inside):
-        u = d[inside] / r[inside]
-        cap = 0.5 * betainc(0.5 * (dim + 1), 0.5, 1.0 - u * u)
-        out = out.copy()
-        out[inside] = np.where(u >= 0.0, cap, 1.0 - cap)
-    return out
+    # u = d / r, +-inf for a point ball; |u| >= 1 clips the beta argument to 0 and the cap to 0.
+    if np.ndim(radius) == 0 and float(radius) > 0.0:
+        u = d / float(radius)
+    else:
+        r = np.asarray(radius, dtype=float)
+        if d.shape != r.shape:
+            d, r = np.broadcast_arrays(d, r)
+        u = np.divide(d, r, out=np.where(d >= 0.0, np.inf, -np.inf), where=r > 0.0)
+    cap = 0.5 * betainc(0.5 * (dim + 1), 0.5, np.clip(1.0 - u * u, 0.0, 1.0))
+    return np.where(u >= 0.0, cap, 1.0 - cap)
 
 
 # -- accumulating local errors ----------------------------------------------------------------

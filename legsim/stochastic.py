@@ -458,4 +458,56 @@ def sample_ensemble(
 
 
 __all__: Sequence[str] = ("Ensemble", "INTENSITIES", "StochasticExecution", "TransitionFunctions",
-                          "sample_ensemble", "sample_execution", "transition_functions")
+                          "ensemble_from_scene", "sample_ensemble", "sample_execution", "scene_settings",
+                          "transition_functions")
+
+
+# -- scenes ---------------------------------------------------------------------------------
+def section_schema(scene: Any) -> dict[str, Any]:
+    """The keys of a scene's ``[stochastic]`` section, with defaults from its ``[integrator]``."""
+    from .builders import Param
+    from .methods import ALIASES, METHODS
+
+    integ = scene.integrator
+    methods = tuple(sorted(METHODS) + sorted(ALIASES))
+    return {
+        "samples": Param(100, "number of sampled executions", low=1),
+        "seed": Param(0, "seed of the random generator", low=0),
+        "h": Param(float(integ["h"]), "fixed step of the numerical solution", "s", low=0.0, low_open=True),
+        "method": Param(str(integ["method"]), "Runge-Kutta method of the numerical solution", choices=methods),
+        "pair": Param("auto", "embedded pair of the local error estimates (auto: the method if embedded, "
+                              "else dopri5)", choices=("auto", "bs32", "dopri5", "rk23", "rk45", "dp54")),
+        "floor": Param(0.0, "declared local error floor coefficient (state units / s^(p+1))", low=0.0),
+        "intensity": Param("hazard", "reading of the intensity (see legsim.stochastic)", choices=INTENSITIES),
+        "t_final": Param(float(integ["t_final"]), "end time", "s"),
+        "max_transitions": Param(1000, "most switches of one sampled execution", low=0),
+        "carry": Param(True, "carry the error ball through switches"),
+    }
+
+
+def scene_settings(scene: Any, overrides: dict[str, Any] | None = None) -> dict[str, Any]:
+    """The validated ``[stochastic]`` settings of a scene (``overrides``, e.g. from the command
+    line, take precedence). Raises SceneError naming the file and key."""
+    from .builders import resolve_parameters
+
+    given = dict(scene.sections.get("stochastic", {}))
+    given.update({k: v for k, v in (overrides or {}).items() if v is not None})
+    settings = resolve_parameters(section_schema(scene), given, f"{scene.path}: stochastic")
+    t0 = float(scene.integrator.get("t0", 0.0))
+    if not settings["t_final"] > t0:
+        from .errors import SceneError
+        raise SceneError(f"{scene.path}: stochastic.t_final: must be > t0 = {t0}, got {settings['t_final']}")
+    return settings
+
+
+def ensemble_from_scene(scene: Any, overrides: dict[str, Any] | None = None) -> Ensemble:
+    """Monte Carlo ensemble of the scene's stochastic approximation (its ``[stochastic]``
+    section, with defaults from ``[integrator]``) from the scene's initial mode and state."""
+    s = scene_settings(scene, overrides)
+    ens = sample_ensemble(scene.model.system, scene.initial_mode, scene.initial_state, s["t_final"], s["h"],
+                          s["method"], samples=s["samples"], seed=s["seed"], t0=float(scene.integrator.get("t0", 0.0)),
+                          pair=None if s["pair"] == "auto" else s["pair"], control=scene.model.control,
+                          floor=s["floor"], intensity=s["intensity"], max_transitions=s["max_transitions"],
+                          carry=s["carry"])
+    ens.settings["scene"] = scene.name
+    return ens

@@ -1,0 +1,112 @@
+"""``legsim stochastic SCENE``: sample the stochastic approximation of a scene (paper 004 Sec. IV).
+
+Settings come from the scene's ``[stochastic]`` section (``legsim.stochastic.section_schema``:
+samples, seed, h, method, pair, floor, intensity, t_final, max_transitions, carry), with h,
+method and t_final defaulting to ``[integrator]``; ``--samples`` and ``--seed`` override it.
+Prints the distribution of mode sequences and of the first switching times, beside the
+deterministic (relaxed) execution's switching times.
+
+Exit codes: 0 when every sampled execution reached t_final; 3 when some stopped early
+(transition budget, non-finite state); 2 for errors in the scene or the arguments.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from typing import Any
+
+from ..errors import LegsimError
+
+NAME = "stochastic"
+HELP = "sample the stochastic approximation of a scene and summarise mode sequences and switching times"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("scene", metavar="SCENE", help="scene file (.toml) or bundled scene name")
+    parser.add_argument("--samples", type=int, metavar="N", help="number of sampled executions "
+                                                                  "(default: stochastic.samples, else 100)")
+    parser.add_argument("--seed", type=int, metavar="S", help="seed of the random generator (default: stochastic.seed, else 0)")
+    parser.add_argument("--set", dest="overrides", metavar="KEY=VALUE", action="append", default=[],
+                        help="override a scene field, e.g. --set stochastic.h=0.01 --set stochastic.floor=1")
+    parser.add_argument("--json", action="store_true", help="print one JSON object")
+    parser.add_argument("--switches", type=int, default=10, metavar="K",
+                        help="summarise the first K switching times (default 10)")
+
+
+def run(args: argparse.Namespace) -> int:
+    from ..scene import load_scene
+    from ..stochastic import ensemble_from_scene
+
+    if args.samples is not None and args.samples < 1:
+        raise LegsimError(f"--samples must be an integer >= 1, got {args.samples}")
+    if args.seed is not None and args.seed < 0:
+        raise LegsimError(f"--seed must be an integer >= 0, got {args.seed}")
+    if args.switches < 0:
+        raise LegsimError(f"--switches must be >= 0, got {args.switches}")
+    scene = load_scene(args.scene, overrides=args.overrides)
+    ensemble = ensemble_from_scene(scene, {"samples": args.samples, "seed": args.seed})
+    summary = ensemble.summary(max_switches=args.switches)
+    summary["deterministic"] = _deterministic(scene, args.switches)
+    if args.json:
+        print(json.dumps(_finite(summary), allow_nan=False))
+    else:
+        print(format_summary(summary))
+    stopped = {k: v for k, v in summary["statuses"].items() if k != "finished"}
+    if stopped:
+        print(f"legsim: {sum(stopped.values())} of {summary['samples']} sampled executions stopped early: "
+              f"{stopped}", file=sys.stderr)
+        return 3
+    return 0
+
+
+def _deterministic(scene: Any, count: int) -> dict[str, Any]:
+    """The relaxed execution's first switching times and mode sequence, for comparison."""
+    execution = scene.simulate()
+    return {"status": execution.status, "transitions": len(execution.transitions),
+            "switching_times": [float(tr.time) for tr in execution.transitions[:count]],
+            "mode_sequence": execution.mode_sequence[: count + 1]}
+
+
+def _finite(obj: Any) -> Any:
+    if isinstance(obj, float):
+        return obj if obj == obj and abs(obj) != float("inf") else None
+    if isinstance(obj, dict):
+        return {k: _finite(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_finite(v) for v in obj]
+    return obj
+
+
+def _sequence(modes: list[str]) -> str:
+    if len(modes) <= 8:
+        return " > ".join(modes)
+    return " > ".join(modes[:4]) + f" > ... > {modes[-1]}"
+
+
+def format_summary(s: dict[str, Any]) -> str:
+    """Human-readable summary of an ensemble (the text output of ``legsim stochastic``)."""
+    lines = [
+        f"{s.get('scene', s['system'])}: {s['samples']} stochastic executions to t = {s['t_final']:g} s "
+        f"(h = {s['h']:g}, {s['method']}, pair {s['pair']}, floor {s['floor']:g}, {s['intensity']} intensity, "
+        f"seed {s['seed']})",
+        f"transitions per execution: mean {s['transitions_per_sample']['mean']:.2f}, "
+        f"min {s['transitions_per_sample']['min']}, max {s['transitions_per_sample']['max']}; "
+        f"{s['distinct_sequences']} distinct mode sequences",
+    ]
+    for seq in s["sequences"]:
+        lines.append(f"  {seq['fraction']:6.1%}  ({seq['transitions']} transitions)  {_sequence(seq['modes'])}")
+    det = s["deterministic"]
+    if s["switching_times"]:
+        lines.append("switching times (s):      n      mean       std       min       max   deterministic")
+        for i, sw in enumerate(s["switching_times"]):
+            ref = det["switching_times"][i] if i < len(det["switching_times"]) else None
+            ref_text = f"{ref:13.6g}" if ref is not None else "            -"
+            lines.append(f"  #{sw['index']:<3d}              {sw['count']:6d} {sw['mean']:9.6g} {sw['std']:9.3g} "
+                         f"{sw['min']:9.6g} {sw['max']:9.6g}   {ref_text}")
+    if s["min_dwell_time"] is not None:
+        lines.append(f"shortest visit: {s['min_dwell_time']:.3g} s")
+    lines.append(f"deterministic (relaxed) execution: {det['transitions']} transitions, status {det['status']}")
+    lines.append("statuses: " + ", ".join(f"{k} {v}" for k, v in s["statuses"].items()))
+    return "\n".join(lines)

@@ -1,0 +1,98 @@
+"""`legsim certify` and `legsim stochastic` on the bundled paper-004 scenes: JSON keys and values
+against closed forms, exit codes and error messages."""
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from legsim.cli import main
+from legsim.systems.two_tanks import TwoTankReference
+
+
+def run_cli(capsys, *argv):
+    code = main(list(argv))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_certify_json_lists_verdicts_with_the_documented_keys(capsys):
+    code, out, err = run_cli(capsys, "certify", "two_tanks", "--json", "--set", "certify.max_refinements=1")
+    assert code == 3 and "not certified: zeno" in err
+    verdicts = json.loads(out)
+    assert isinstance(verdicts, list) and verdicts
+    for v in verdicts:
+        assert {"source", "target", "time", "certified", "reason"} <= set(v)
+        assert v["reason"] in (None, "grazing", "intersecting_guards", "zeno", "refinement_limit")
+    *done, last = verdicts
+    assert last["reason"] == "zeno" and last["certified"] is False
+    exact, modes = TwoTankReference(0.75, 0.5, 0.5).switching_times("q1", np.array([1.0, 1.0]), len(done))
+    for v, t, target in zip(done, exact, modes):
+        assert v["certified"] is True and v["reason"] is None and v["target"] == target
+        assert v["time"] == pytest.approx(t, abs=1e-9)
+
+
+def test_certify_grazing_scene_refuses_with_grazing(capsys):
+    code, out, err = run_cli(capsys, "certify", "grazing", "--json", "--max-refinements", "1")
+    assert code == 3
+    (v,) = json.loads(out)
+    assert (v["source"], v["target"], v["certified"], v["reason"], v["taken"]) == ("inside", "outside", False,
+                                                                                   "grazing", False)
+    assert v["time"] == pytest.approx(math.pi / 2, abs=1e-3)
+
+
+def test_certify_transversal_crossing_succeeds_with_exit_code_zero(capsys):
+    code, out, err = run_cli(capsys, "certify", "grazing", "--set", "initial.state.x2=1.5")
+    assert code == 0 and err == ""
+    assert "all transitions certified" in out
+    assert out.count("certified") >= 3  # two crossings of the circle of radius 1.5 before t = 3 s
+
+
+def test_stochastic_json_summarises_sequences_and_switching_times(capsys):
+    code, out, err = run_cli(capsys, "stochastic", "grazing", "--samples", "60", "--seed", "4", "--json")
+    assert code == 0
+    s = json.loads(out)
+    assert s["samples"] == 60 and s["seed"] == 4
+    assert sum(seq["count"] for seq in s["sequences"]) == 60
+    # Half the ball past the plane at tangency: about half the executions switch (4 sigma).
+    switched = 1 - sum(seq["fraction"] for seq in s["sequences"] if seq["transitions"] == 0)
+    assert abs(switched - 0.49) < 4 * math.sqrt(0.25 / 60)
+    assert abs(s["switching_times"][0]["mean"] - math.pi / 2) < 0.01
+    assert s["deterministic"]["transitions"] == 0
+
+
+def test_stochastic_two_tanks_text_output_and_seed_reproducibility(capsys):
+    argv = ("stochastic", "two_tanks", "--samples", "3", "--set", "stochastic.t_final=6.0", "--json")
+    code, first, _ = run_cli(capsys, *argv)
+    code2, second, _ = run_cli(capsys, *argv)
+    assert code == code2 == 0 and first == second
+    s = json.loads(first)
+    assert s["switching_times"][0]["mean"] == pytest.approx(2.0, abs=0.3)  # Euler, h = 0.02, floor 1
+    # The relaxed execution is exact in each mode but holds each strip crossing for up to eps
+    # (1e-3 here), which delays every later switch by as much.
+    first_switch, second_switch = s["deterministic"]["switching_times"][:2]
+    assert first_switch == pytest.approx(2.0, abs=1e-9)
+    assert 5.0 <= second_switch <= 5.0 + 1e-3 + 1e-9
+    code, out, _ = run_cli(capsys, "stochastic", "two_tanks", "--samples", "2", "--set", "stochastic.t_final=3.0")
+    assert code == 0 and "switching times (s)" in out and "deterministic" in out
+
+
+@pytest.mark.parametrize("argv, message", [
+    (("stochastic", "no_such_scene"), "no_such_scene"),
+    (("stochastic", "grazing", "--samples", "0"), "--samples must be an integer >= 1, got 0"),
+    (("stochastic", "grazing", "--set", "stochastic.intensity=rate"), "stochastic.intensity"),
+    (("stochastic", "grazing", "--set", "stochastic.bogus=1"), "unknown parameter(s) ['bogus']"),
+    (("certify", "no_such_scene"), "no_such_scene"),
+    (("certify", "grazing", "--set", "certify.alpha=1.0"), "certify.alpha"),
+    (("certify", "grazing", "--max-refinements", "-1"), "--max-refinements must be an integer >= 0"),
+])
+def test_bad_input_exits_2_with_a_message(capsys, argv, message):
+    code, out, err = run_cli(capsys, *argv)
+    assert code == 2
+    assert message in err and "Traceback" not in err
+
+
+def test_non_integer_samples_is_a_usage_error(capsys):
+    code, out, err = run_cli(capsys, "stochastic", "grazing", "--samples", "many")
+    assert code == 2 and "invalid int value: 'many'" in err
