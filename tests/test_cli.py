@@ -334,3 +334,16 @@ def test_scene_simulate_calls_progress_on_long_runs(tmp_path):
     assert seen, "no progress reported on a run of 200000 steps"
     times = [t for t, _, _ in seen]
     assert times == sorted(times) and all(0.0 <= t <= 1.0 and t1 == 1.0 for t, _, t1 in seen)
+
+
+def test_unwritable_output_fails_before_the_run(tmp_path, capsys, monkeypatch):
+    calls = []
+    _fake_writers(monkeypatch, calls)
+    path = write_scene(tmp_path)
+    blocker = tmp_path / "afile"
+    blocker.write_text("x")
+    code, out, err = run_cli(capsys, "run", str(path), "--plot", str(blocker / "sub" / "p.png"))
+    assert code == 2 and out == "" and calls == []
+    assert err == f"legsim: error: --plot {blocker / 'sub' / 'p.png'}: {blocker} is not a directory\n"
+    code, _, err = run_cli(capsys, "run", str(path), "--html", str(tmp_path))
+    assert code == 2 and err == f"legsim: error: --html {tmp_path}: is a directory\n" and calls == []

@@ -52,8 +52,11 @@ def run(args: argparse.Namespace) -> int:
 
     scene = load_scene(args.scene, overrides=args.overrides)
     outputs = requested_outputs(args, scene.output)
-    # Writers are resolved before the run so that a missing one costs nothing.
+    # Writers and target folders are checked before the run, so that a missing writer or an
+    # unwritable folder costs nothing.
     writers = {kind: find_writer(kind, source) for kind, (_, source) in outputs.items()}
+    for kind, (path, source) in outputs.items():
+        check_writable(path, source)
 
     bar = progress_for(sys.stderr, enabled=not (args.quiet or args.json), label=scene.name)
     try:
@@ -127,6 +130,21 @@ def find_writer(kind: str, source: str = "") -> Writer:
     return writer
 
 
+def check_writable(path: Path, label: str) -> None:
+    """LegsimError naming ``label`` unless ``path`` can be created (its folder exists and is
+    writable, or can be made inside a writable folder). Creates nothing."""
+    path = Path(path)
+    if path.is_dir():
+        raise LegsimError(f"{label} {path}: is a directory")
+    ancestor = path.parent
+    while not ancestor.exists() and ancestor != ancestor.parent:
+        ancestor = ancestor.parent
+    if not ancestor.is_dir():
+        raise LegsimError(f"{label} {path}: {ancestor} is not a directory")
+    if not os.access(ancestor, os.W_OK | os.X_OK):
+        raise LegsimError(f"{label} {path}: cannot write in {ancestor} (permission denied)")
+
+
 def write_outputs(execution: Any, scene: Any, paths: dict[str, Path],
                   writers: dict[str, Writer] | None = None) -> dict[str, Path]:
     """Call each writer on a temporary file next to its target and rename it into place.
@@ -150,9 +168,10 @@ def write_outputs(execution: Any, scene: Any, paths: dict[str, Path],
             if not tmp.exists():
                 raise LegsimError(f"--{kind} {path}: the writer returned without writing a file")
             os.replace(tmp, path)
-        except LegsimError:
+        except LegsimError as exc:
             tmp.unlink(missing_ok=True)
-            raise
+            # The writer only saw the temporary name: say which file was asked for.
+            raise LegsimError(f"--{kind} {path}: writing failed: {str(exc).replace(str(tmp), str(path))}") from exc
         except Exception as exc:
             tmp.unlink(missing_ok=True)
             raise LegsimError(f"--{kind} {path}: writing failed: {type(exc).__name__}: {exc}") from exc
