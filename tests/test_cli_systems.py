@@ -103,3 +103,18 @@ def test_digital_control_json_takes_the_simultaneous_crossing(capsys):
     assert summary["mode_sequence"] == ["0", "1", "3"]
     assert direct.transitions[1].time == direct.transitions[0].exit_time
     assert summary["final_state"] == direct.final_state.tolist()
+
+
+def test_pronk_with_one_leg_has_two_modes_and_a_fall_exits_3(capsys):
+    from legsim.hybrid import reachable_modes
+
+    scene = load_scene("pronk", overrides=["effects.left_leg=false"])
+    assert sorted(reachable_modes(scene.model.system, scene.initial_mode)) == ["aerial", "right"]
+    both = load_scene("pronk")
+    assert len(both.model.system.outgoing("aerial")) == 2 and len(scene.model.system.outgoing("aerial")) == 1
+    # On one leg the runner pitches over and falls: the run stops early, exit code 3, the
+    # summary still printed and the reason on stderr.
+    code, summary, err = run_json(capsys, "pronk", "--set", "effects.left_leg=false")
+    assert code == 3 and summary["status"] != "finished" and summary["t_final"] < 2.0
+    assert set(summary["mode_sequence"]) <= {"aerial", "right"}
+    assert err.startswith(f"legsim: run stopped early ({summary['status']}): ")
