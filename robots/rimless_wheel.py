@@ -56,7 +56,7 @@ PARAMETERS = {
 }
 
 #: Just after an impact on the steady rolling orbit of the default parameters (closed form).
-INITIAL_STATE = {"theta": -math.pi / 10, "thetad": 1.4153, "foot_x": 0.0}
+INITIAL_STATE = {"theta": -math.pi / 10, "thetad": 1.41496, "foot_x": 0.0}
 
 
 def _gravity(g: float, slope_deg: float) -> pin.Motion:

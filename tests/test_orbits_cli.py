@@ -4,7 +4,6 @@ stability changes and plots, exit codes and error messages."""
 import json
 import math
 
-import numpy as np
 import pytest
 
 from legsim.cli import main
