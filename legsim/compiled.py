@@ -293,11 +293,14 @@ def _k_step_loop(p, n_guards, c, n_groups, weights, n_members, members, b_err, f
             else:
                 _k_combine(x, K, s_stages, n_groups, weights, n_members, members, hk, x_new)
             field_evals += s_stages - 1
-            sq = 0.0
+            # Component-wise, like the Python loop's confirmed check: a sum of squares would
+            # overflow for finite states above ~1e154 and call them non-finite.
+            finite = True
             for d in range(n):
-                sq += x_new[d] * x_new[d]
+                if not math.isfinite(x_new[d]):
+                    finite = False
             past = False
-            if sq - sq != 0.0:
+            if not finite:
                 past = False  # non-finite
             else:
                 if n_guards > 0:

@@ -23,3 +23,10 @@ class SimulationError(LegsimError, ValueError):
 
 class SceneError(LegsimError, ValueError):
     """A scene file is malformed; the message names the file and the field."""
+
+
+class ModelBreakdown(LegsimError):
+    """Raised by a model's field, guard or reset when the model leaves its range of validity
+    (a runner's body hits the ground, a leg passes through the body). The integrator ends the
+    run with status ``model_breakdown`` and this message, keeping the execution computed so far,
+    instead of propagating the exception."""

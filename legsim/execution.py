@@ -30,6 +30,7 @@ STATUSES = (
     "halving_exhausted",  # no halved step lands in the relaxed domain (outward tangent flow)
     "non_finite",  # a field, guard or reset produced inf/nan
     "reset_outside_domain",  # a reset image lies past a guard of its target by more than eps
+    "model_breakdown",  # the model raised ModelBreakdown (left its range of validity)
 )
 
 

@@ -106,6 +106,11 @@ class Transition:
     guard_gradient, reset_jacobian:
         Optional derivatives (shape (n_source,) and (n_target, n_source)); finite
         differences are used where they are missing.
+    guard_args:
+        ``"x"`` (default): ``guard(x)``. ``"t,x,u"``: ``guard(t, x, u)``, for a guard that
+        depends on time or on the input, e.g. the release guard of a constraint force under a
+        time-varying torque; the integrator then evaluates it, and the control, at the trial
+        time of every step and along the step's interpolant when locating the crossing.
     """
 
     source: str
@@ -115,10 +120,13 @@ class Transition:
     name: str | None = None
     guard_gradient: Callable[[np.ndarray], np.ndarray] | None = None
     reset_jacobian: Callable[[np.ndarray], np.ndarray] | None = None
+    guard_args: str = "x"
 
     def __post_init__(self) -> None:
         label = self.name or f"{self.source}->{self.target}"
         object.__setattr__(self, "name", label)
+        if self.guard_args not in ("x", "t,x,u"):
+            raise ModelError(f"transition {label}: guard_args must be 'x' or 't,x,u', got {self.guard_args!r}")
         if not isinstance(self.source, str) or not isinstance(self.target, str):
             raise ModelError(f"transition {label}: source and target must be mode names (str)")
         if not callable(self.guard):
@@ -133,6 +141,12 @@ class Transition:
     def edge(self) -> tuple[str, str]:
         """The (source, target) pair."""
         return (self.source, self.target)
+
+    def guard_value(self, x: np.ndarray, t: float = 0.0, u: Any = None) -> float:
+        """The guard at x (and t, u for a ``guard_args="t,x,u"`` guard), as a float."""
+        if self.guard_args == "x":
+            return float(self.guard(x))
+        return float(self.guard(t, x, u))
 
 
 @dataclass(frozen=True)
@@ -316,14 +330,15 @@ class HybridSystem:
             self._compiled[name] = data
         return data
 
-    def guard_values(self, mode: str, x: np.ndarray) -> np.ndarray:
-        """All guard values of ``mode`` at ``x`` (shape (number of outgoing transitions,))."""
+    def guard_values(self, mode: str, x: np.ndarray, t: float = 0.0, u: Any = None) -> np.ndarray:
+        """All guard values of ``mode`` at ``x`` (shape (number of outgoing transitions,));
+        t and u matter only for guards declared with ``guard_args="t,x,u"``."""
         data = self.mode_data(mode)
-        return np.array([float(g(x)) for g in data.guards], dtype=float)
+        return np.array([tr.guard_value(x, t, u) for tr in data.transitions], dtype=float)
 
-    def in_domain(self, mode: str, x: np.ndarray, eps: float = 0.0) -> bool:
+    def in_domain(self, mode: str, x: np.ndarray, eps: float = 0.0, t: float = 0.0, u: Any = None) -> bool:
         """True when every guard of ``mode`` is >= -eps at ``x`` (the relaxed domain for eps > 0)."""
-        values = self.guard_values(mode, x)
+        values = self.guard_values(mode, x, t, u)
         return bool(np.all(values >= -eps))
 
     # -- validation -----------------------------------------------------------------------
@@ -348,7 +363,7 @@ class HybridSystem:
             raise ModelError(f"{self._name}: {label} in mode '{mode}' is not finite: {arr}")
         check_field_output(self._name, mode, m, t, arr, u)
         for tr in self.outgoing(mode):
-            check_guard_output(self._name, tr, arr)
+            check_guard_output(self._name, tr, arr, t, u)
             self._ensure(tr.target)
             if tr.reset is not None:
                 check_reset_output(self._name, tr, self._modes[tr.target].dim, arr)
@@ -368,10 +383,10 @@ def check_field_output(system: str, mode_name: str, mode: Mode, t: float, x: np.
     return out
 
 
-def check_guard_output(system: str, tr: Transition, x: np.ndarray) -> float:
+def check_guard_output(system: str, tr: Transition, x: np.ndarray, t: float = 0.0, u: Any = None) -> float:
     """Evaluate a guard once and check that it returns a real scalar."""
     try:
-        value = tr.guard(x)
+        value = tr.guard(x) if tr.guard_args == "x" else tr.guard(t, x, u)
         arr = np.asarray(value, dtype=float)
     except Exception as exc:
         raise ModelError(f"{system}: guard of transition {tr.name} failed: {type(exc).__name__}: {exc}") from exc

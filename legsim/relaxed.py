@@ -31,11 +31,12 @@ from __future__ import annotations
 
 import math
 import time as _time
+from math import isfinite
 from typing import Any, Callable
 
 import numpy as np
 
-from .errors import ModelError, SimulationError
+from .errors import LegsimError, ModelBreakdown, ModelError, SimulationError
 from .execution import Execution, SegmentBuffer, Strip, TransitionRecord
 from .hybrid import HybridSystem, check_field_output, check_reset_output
 from .methods import Tableau, error_estimate, get_method, make_stepper
@@ -67,10 +68,12 @@ def hermite_derivative(x0, d0, x1, d1, dt: float, s: float) -> np.ndarray:
             + (-6 * s2 + 6 * s) * x1 / dt + (3 * s2 - 2 * s) * d1)
 
 
-def crossing_on_step(guard, x0, d0, x1, d1, dt, g0: float, g1: float, tol: float) -> tuple[float, int, bool]:
-    """Where the step's interpolant meets the guard: returns (s, guard evaluations, converged).
+def crossing_on_step(guard_at: Callable[[float], float], g0: float, g1: float,
+                     tol: float) -> tuple[float, int, bool]:
+    """Where a step's interpolant meets a guard: returns (s, guard evaluations, converged).
 
-    Illinois regula falsi on the bracket [0, 1] with g(p(0)) = g0 >= 0 > g1 = g(p(1)),
+    ``guard_at(s)`` is the guard on the interpolant at the step fraction s in [0, 1].
+    Illinois regula falsi on the bracket [0, 1] with guard_at(0) = g0 >= 0 > g1 = guard_at(1),
     bisecting when regula falsi stalls. When the guard is discontinuous along the
     interpolant (no root inside the bracket) the domain-side end of the final bracket is
     returned with converged=False.
@@ -87,7 +90,7 @@ def crossing_on_step(guard, x0, d0, x1, d1, dt, g0: float, g1: float, tol: float
             s = lo + (hi - lo) * glo / (glo - ghi)
             if not (lo < s < hi):
                 s = 0.5 * (lo + hi)
-        g = float(guard(hermite(x0, d0, x1, d1, dt, s)))
+        g = float(guard_at(s))
         evals += 1
         if not math.isfinite(g):
             return lo, evals, False
@@ -202,9 +205,14 @@ def simulate(
         )
     if not np.all(np.isfinite(x)):
         raise SimulationError(f"x0 must be finite, got {x} in mode '{mode}'")
-    u0 = None if control is None else control(t0, x)
+    try:
+        u0 = None if control is None else control(t0, x)
+    except LegsimError:
+        raise
+    except Exception as exc:
+        raise SimulationError(f"control(t0, x0) failed at t0={t0}: {type(exc).__name__}: {exc}") from exc
     system.check_state(mode, x, t=t0, u=u0, label="x0")
-    gvals = system.guard_values(mode, x)
+    gvals = system.guard_values(mode, x, t0, u0)
     if gvals.size and gvals.min() < -eps:
         worst = int(np.argmin(gvals))
         raise SimulationError(
@@ -274,6 +282,29 @@ class _Integrator:
         self.transitions = []
         self.state_names = {}
         self._checked_modes: set[str] = set()
+        self._guard_cache: dict[str, tuple] = {}
+
+    def _guard_fns(self, data) -> tuple[Callable[[float, np.ndarray], Any], ...]:
+        """The mode's guards as g(t, x), with the control evaluated for ``t,x,u`` guards;
+        built once per mode and run."""
+        fns = self._guard_cache.get(data.name)
+        if fns is None:
+            control = self.control
+            built = []
+            for tr in data.transitions:
+                g = tr.guard
+                if tr.guard_args == "x":
+                    built.append(lambda t, x, g=g: g(x))
+                elif control is None:
+                    built.append(lambda t, x, g=g: g(t, x, None))
+                else:
+                    built.append(lambda t, x, g=g: g(t, x, control(t, x)))
+            fns = self._guard_cache[data.name] = tuple(built)
+        return fns
+
+    @staticmethod
+    def _timed(data) -> bool:
+        return any(tr.guard_args != "x" for tr in data.transitions)
 
     def _f(self, field, t, x):
         self.field_evals += 1
@@ -288,7 +319,10 @@ class _Integrator:
         final_in_strip = False
         final_pair = None
         while True:
-            outcome = self._run_mode(mode, x, t, t_final)
+            try:
+                outcome = self._run_mode(mode, x, t, t_final)
+            except ModelBreakdown as exc:  # raised while entering a mode or crossing a strip
+                outcome = ("end", "model_breakdown", f"{exc} (mode '{mode}', t={t:.17g})", t, False, None)
             kind = outcome[0]
             if kind == "end":
                 _, status, message, t, final_in_strip, final_pair = outcome
@@ -320,7 +354,7 @@ class _Integrator:
         system = self.system
         data = system.mode_data(mode)
         field = data.mode.field
-        guards = data.guards
+        guards = self._guard_fns(data)
         eps = self.eps
         h_max = self.h
         tableau = self.tableau
@@ -349,7 +383,7 @@ class _Integrator:
 
         # A state that enters a mode already inside one of its strips (a reset image at a guard
         # intersection, or an initial state in a strip) crosses that strip at once: q = x.
-        gvals = [float(g(x)) for g in guards]
+        gvals = [float(g(t, x)) for g in guards]
         self.guard_evals += n_guards
         bad = _first_nonfinite(gvals)
         if bad is not None:
@@ -365,7 +399,7 @@ class _Integrator:
                                          f"x={x.tolist()}", t)
             return self._transition(buf, data, e, t, x, t, -gvals[e], t_final)
 
-        if data.mode.compiled is not None and control is None:
+        if data.mode.compiled is not None and control is None and not self._timed(data):
             from .compiled import run_mode_compiled  # numba is imported only by systems that use it
 
             return run_mode_compiled(self, data, buf, t, x, k0, t_final)
@@ -376,108 +410,120 @@ class _Integrator:
         steps = halvings = rejections = field_evals = guard_evals = 0
         h_prop = self.h_prop
         outcome = None
-        while True:
-            remaining = t_final - t
-            if remaining <= 1e-14 * span:
-                outcome = ("finished", "", t_final if remaining > 0 else t)
-                break
-            hk = h_prop if h_prop < h_max else h_max
-            last = hk >= remaining
-            if last:
-                hk = remaining
-            shortened = aimed = 0
+        try:
             while True:
-                x_new, stages = step(field, t, x, hk, k0, control)
-                field_evals += evals_per_step
-                sq = x_new.dot(x_new)
-                if sq - sq != 0.0:  # inf or nan somewhere in x_new
-                    reason = "non_finite"
-                else:
-                    if single_guard is not None:
-                        gmin = float(single_guard(x_new))
-                        guard_evals += 1
-                    elif n_guards:
-                        gvals = [float(g(x_new)) for g in guards]
-                        guard_evals += n_guards
-                        gmin = min(gvals)
-                    else:
-                        gmin = 0.0
-                    if gmin >= -eps:
-                        if adaptive:
-                            err = self._error_norm(hk, stages, x, x_new)
-                            if err > 1.0:
-                                rejections += 1
-                                hk *= max(0.2, 0.9 * err ** self.err_exponent)
-                                last = False
-                                continue
-                            h_prop = hk * min(5.0, max(0.2, 0.9 * err ** self.err_exponent)) if err > 0 else 5.0 * hk
-                        break
-                    if gmin != gmin:  # a guard returned nan
-                        gvals = [float(g(x_new)) for g in guards]
-                        bad = _first_nonfinite(gvals)
-                        outcome = ("non_finite", f"guard of transition {data.transitions[bad].name} is nan at "
-                                   f"t={t + hk:.17g} in mode '{mode}', x={x_new.tolist()}", t)
-                        break
-                    reason = "past"
-                shortened += 1
-                hk_old = hk
-                if aim and reason == "past" and aimed < 3:
-                    hk = self._aim(guards, gvals if single_guard is None else [gmin], field, t, x, k0, hk,
-                                   x_new, stages)
-                    aimed += 1
-                else:
-                    hk *= 0.5
-                last = False
-                if shortened > self.max_halvings or t + hk <= t:
-                    if reason == "non_finite":
-                        outcome = ("non_finite", f"the step from t={t:.17g} in mode '{mode}' gives a non-finite "
-                                   f"state even at h={hk_old:.3g}: x={x.tolist()}", t)
-                    else:
-                        if single_guard is None:
-                            e = int(np.argmin(gvals))
-                        else:
-                            e = 0
-                        outcome = ("halving_exhausted",
-                                   f"no step from t={t:.17g} in mode '{mode}' lands in the relaxed domain after "
-                                   f"{shortened - 1} halvings: the flow leaves through the guard of transition "
-                                   f"{data.transitions[e].name} without entering its strip (x={x.tolist()})", t)
+                remaining = t_final - t
+                if remaining <= 1e-14 * span:
+                    outcome = ("finished", "", t_final if remaining > 0 else t)
                     break
-            halvings += shortened
-            if outcome is not None:
-                break
-            t_new = t_final if last else t + hk
-            steps += 1
-            if n_guards and gmin < 0.0:
-                if single_guard is not None:
-                    gvals = [gmin]
-                k1 = stages[-1] if fsal else field(t_new, x_new, None if control is None else control(t_new, x_new))
-                if not fsal:
+                hk = h_prop if h_prop < h_max else h_max
+                last = hk >= remaining
+                if last:
+                    hk = remaining
+                shortened = aimed = 0
+                while True:
+                    x_new, stages = step(field, t, x, hk, k0, control)
+                    field_evals += evals_per_step
+                    # Exact and warning-free (a sum of squares would overflow, and warn, for finite
+                    # states above ~1e154); for the small states of these models it is also the
+                    # cheapest test numpy or Python offers.
+                    if not all(map(isfinite, x_new.tolist())):
+                        reason = "non_finite"
+                    else:
+                        t_trial = t_final if last else t + hk
+                        if single_guard is not None:
+                            gmin = float(single_guard(t_trial, x_new))
+                            guard_evals += 1
+                        elif n_guards:
+                            gvals = [float(g(t_trial, x_new)) for g in guards]
+                            guard_evals += n_guards
+                            gmin = min(gvals)
+                        else:
+                            gmin = 0.0
+                        if gmin >= -eps:
+                            if adaptive:
+                                err = self._error_norm(hk, stages, x, x_new)
+                                if err > 1.0:
+                                    rejections += 1
+                                    hk *= max(0.2, 0.9 * err ** self.err_exponent)
+                                    last = False
+                                    continue
+                                h_prop = hk * min(5.0, max(0.2, 0.9 * err ** self.err_exponent)) if err > 0 else 5.0 * hk
+                            break
+                        if gmin != gmin:  # a guard returned nan
+                            gvals = [float(g(t_trial, x_new)) for g in guards]
+                            bad = _first_nonfinite(gvals)
+                            outcome = ("non_finite", f"guard of transition {data.transitions[bad].name} is nan at "
+                                       f"t={t + hk:.17g} in mode '{mode}', x={x_new.tolist()}", t)
+                            break
+                        reason = "past"
+                    shortened += 1
+                    hk_old = hk
+                    if aim and reason == "past" and aimed < 3:
+                        hk = self._aim(guards, gvals if single_guard is None else [gmin], field, t, x, k0, hk,
+                                       x_new, stages)
+                        aimed += 1
+                    else:
+                        hk *= 0.5
+                    last = False
+                    if shortened > self.max_halvings or t + hk <= t:
+                        if reason == "non_finite":
+                            outcome = ("non_finite", f"the step from t={t:.17g} in mode '{mode}' gives a non-finite "
+                                       f"state even at h={hk_old:.3g}: x={x.tolist()}", t)
+                        else:
+                            if single_guard is None:
+                                e = int(np.argmin(gvals))
+                            else:
+                                e = 0
+                            outcome = ("halving_exhausted",
+                                       f"no step from t={t:.17g} in mode '{mode}' lands in the relaxed domain after "
+                                       f"{shortened - 1} halvings: the flow leaves through the guard of transition "
+                                       f"{data.transitions[e].name} without entering its strip (x={x.tolist()})", t)
+                        break
+                halvings += shortened
+                if outcome is not None:
+                    break
+                t_new = t_final if last else t + hk
+                steps += 1
+                if n_guards and gmin < 0.0:
+                    if single_guard is not None:
+                        gvals = [gmin]
+                    k1 = stages[-1] if fsal else field(t_new, x_new, None if control is None else control(t_new, x_new))
+                    if not fsal:
+                        field_evals += 1
+                    buf.size = size
+                    self._flush(steps, halvings, rejections, field_evals, guard_evals, h_prop)
+                    return self._step_transition(buf, data, gvals, t, x, k0, t_new, x_new, np.asarray(k1, dtype=float),
+                                                 t_final)
+                t = t_new
+                x = x_new
+                if fsal:
+                    k0 = stages[-1]
+                else:
+                    k0 = field(t, x, None if control is None else control(t, x))
                     field_evals += 1
-                buf.size = size
-                self._flush(steps, halvings, rejections, field_evals, guard_evals, h_prop)
-                return self._step_transition(buf, data, gvals, t, x, k0, t_new, x_new, np.asarray(k1, dtype=float),
-                                             t_final)
-            t = t_new
-            x = x_new
-            if fsal:
-                k0 = stages[-1]
-            else:
-                k0 = field(t, x, None if control is None else control(t, x))
-                field_evals += 1
-            if size == len(T):
-                buf.size = size
-                buf.append(t, x, k0)
-                T, X, DX, size = buf.t, buf.x, buf.dx, buf.size
-            else:
-                T[size] = t
-                X[size] = x
-                DX[size] = k0
-                size += 1
-            if progress is not None and (steps & 63) == 0:
-                now = _time.perf_counter()
-                if now - self._last_report > 0.2:
-                    self._last_report = now
-                    progress(t, self.t_start, t_final)
+                if size == len(T):
+                    buf.size = size
+                    buf.append(t, x, k0)
+                    T, X, DX, size = buf.t, buf.x, buf.dx, buf.size
+                else:
+                    T[size] = t
+                    X[size] = x
+                    DX[size] = k0
+                    size += 1
+                if progress is not None and (steps & 63) == 0:
+                    now = _time.perf_counter()
+                    if now - self._last_report > 0.2:
+                        self._last_report = now
+                        progress(t, self.t_start, t_final)
+        except ModelBreakdown as exc:
+            outcome = ("model_breakdown", f"{exc} (mode '{mode}', after t={t:.17g})", t)
+        except LegsimError:
+            raise
+        except Exception as exc:
+            # A model's callable failed mid-run: name where, rather than leak a numpy traceback.
+            raise ModelError(f"{system.name}: evaluating mode '{mode}' failed in the step from t={t:.17g} "
+                             f"(x={x.tolist()}): {type(exc).__name__}: {exc}") from exc
         buf.size = size
         self._flush(steps, halvings, rejections, field_evals, guard_evals, h_prop)
         status, message, t_end = outcome
@@ -507,10 +553,13 @@ class _Integrator:
         else:
             k1 = np.asarray(self._f(field, t + hk, x_new), dtype=float)
         half = 0.5 * self.eps
-        g0 = float(guard(x)) + half
+        g0 = float(guard(t, x)) + half
         self.guard_evals += 1
-        shifted = lambda z: float(guard(z)) + half  # noqa: E731 - root of g = -eps/2
-        s, n_evals, converged = crossing_on_step(shifted, x, k0, x_new, k1, hk, g0, gvals[e] + half, 1e-3 * half)
+
+        def shifted(s):  # root of g = -eps/2 on the failed step's interpolant
+            return float(guard(t + s * hk, hermite(x, k0, x_new, k1, hk, s))) + half
+
+        s, n_evals, converged = crossing_on_step(shifted, g0, gvals[e] + half, 1e-3 * half)
         self.guard_evals += n_evals
         if not converged or not (0.0 < s < 0.9):
             return 0.5 * hk
@@ -525,11 +574,16 @@ class _Integrator:
         dt = t1 - t
         tol = 1e-9 * self.eps
         best = None
+        guard_fns = self._guard_fns(data)
         for e, g1 in enumerate(gvals):
             if g1 < 0.0:
-                guard = data.guards[e]
-                g0 = float(guard(x))
-                s, n_evals, converged = crossing_on_step(guard, x, k0, x1, k1, dt, g0, g1, tol)
+                guard = guard_fns[e]
+                g0 = float(guard(t, x))
+
+                def guard_at(s, guard=guard):
+                    return guard(t + s * dt, hermite(x, k0, x1, k1, dt, s))
+
+                s, n_evals, converged = crossing_on_step(guard_at, g0, g1, tol)
                 self.guard_evals += 1 + n_evals
                 if best is None or s < best[1]:
                     best = (e, s, converged)

@@ -1,0 +1,59 @@
+"""Guards that depend on time and input, and models that declare a breakdown."""
+
+import math
+
+import numpy as np
+import pytest
+
+from legsim import HybridSystem, Mode, ModelError, Transition, simulate
+from legsim.errors import ModelBreakdown
+
+
+def still(t, x, u):
+    return np.zeros(1)
+
+
+def clock_system(guard, guard_args="t,x,u"):
+    return HybridSystem(
+        {"before": Mode(1, still), "after": Mode(1, still)},
+        [Transition("before", "after", guard=guard, guard_args=guard_args, name="alarm")],
+    )
+
+
+@pytest.mark.parametrize("landing", ["halve", "aim"])
+def test_a_time_dependent_guard_is_crossed_at_its_exact_time(landing):
+    # Nothing moves: only the guard's own time dependence can trigger the transition, and the
+    # crossing search on the interpolant must evaluate the guard at the interpolated time.
+    ex = simulate(clock_system(lambda t, x, u: 1.0 - t), [0.0], "before", 2.0, 0.3, 1e-3, landing=landing)
+    assert ex.mode_sequence == ["before", "after"]
+    assert ex.transitions[0].time == pytest.approx(1.0, abs=1e-12)
+
+
+def test_a_guard_on_the_input_sees_the_control_at_the_trial_time():
+    # The guard is the input itself, u(t) = cos(t): it reaches zero at pi/2.
+    ex = simulate(clock_system(lambda t, x, u: u), [0.0], "before", 2.0, 0.1, 1e-4,
+                  control=lambda t, x: math.cos(t))
+    assert ex.transitions[0].time == pytest.approx(math.pi / 2, abs=1e-10)
+    # The strip lasts eps - depth; the depth is measured in the guard's units at the landing.
+    tr = ex.transitions[0]
+    assert tr.exit_time == pytest.approx(tr.landing_time + 1e-4 - tr.depth, abs=1e-15)
+
+
+def test_guard_args_is_validated():
+    with pytest.raises(ModelError, match="guard_args must be 'x' or 't,x,u'"):
+        Transition("a", "b", guard=lambda x: 1.0, guard_args="x,t")
+
+
+def test_a_model_breakdown_ends_the_run_with_its_message_and_keeps_the_execution():
+    def field(t, x, u):
+        if x[0] > 0.5:
+            raise ModelBreakdown("the body hit the ground")
+        return np.ones(1)
+
+    system = HybridSystem({"run": Mode(1, field)}, [])
+    ex = simulate(system, [0.0], "run", 2.0, 0.01, 1e-3)
+    assert ex.status == "model_breakdown"
+    assert "the body hit the ground" in ex.message and "mode 'run'" in ex.message
+    # Everything up to the last good step is kept: x = t there.
+    assert 0.49 <= ex.t_end <= 0.5 + 1e-12
+    assert ex.final_state[0] == pytest.approx(ex.t_end, abs=1e-12)
