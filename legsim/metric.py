@@ -643,6 +643,22 @@ def _project_onto_piece(piece: _Piece, x: np.ndarray, tol: float) -> tuple[float
     return None if p is None else (float(np.linalg.norm(p - x)), p)
 
 
+def _box_least_squares(A: np.ndarray, b: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """argmin |A z - b| over lo <= z <= hi (a convex QP): closed form for one variable; else the
+    unconstrained solution when it is feasible (then optimal), else bounded-variable LSQ."""
+    if A.shape[1] == 1:
+        a = A[:, 0]
+        aa = float(a @ a)
+        z = float(a @ b) / aa if aa > 0.0 else 0.0
+        return np.array([min(max(z, lo[0]), hi[0])])
+    z = np.linalg.lstsq(A, b, rcond=None)[0]
+    if np.all(z >= lo) and np.all(z <= hi):
+        return z
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return lsq_linear(A, b, bounds=(lo, hi), method="bvls", tol=1e-14).x
+
+
 def _project_onto_image(edge: _Edge, piece: _Piece, x: np.ndarray, tol: float) -> tuple[float, np.ndarray] | None:
     """Guard point p of the piece minimising |R(p) - x| (exact for affine R on a box)."""
     free = np.nonzero(piece.lb < piece.ub)[0]
@@ -653,12 +669,8 @@ def _project_onto_image(edge: _Edge, piece: _Piece, x: np.ndarray, tol: float) -
         if free.size == 0:
             p = base
         elif piece.boxed:
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore")
-                sol = lsq_linear(A[:, free], rhs, bounds=(piece.lb[free], piece.ub[free]), method="bvls",
-                                 tol=1e-14)
             p = base.copy()
-            p[free] = sol.x
+            p[free] = _box_least_squares(A[:, free], rhs, piece.lb[free], piece.ub[free])
             p = piece.clip(p)
             return float(np.linalg.norm(edge.reset(p) - x)), p
         else:

@@ -186,15 +186,18 @@ def test_symmetry(name, data, eps):
 
 @pytest.mark.parametrize("name", sorted(SYSTEMS))
 @given(data=st.data(), eps=epsilons)
-@settings(max_examples=30, deadline=None)
+@settings(max_examples=20, deadline=None)
 def test_triangle_inequality(name, data, eps):
     make, points = SYSTEMS[name]
     system = make()
     a, b, c = data.draw(points()), data.draw(points()), data.draw(points())
-    # The hop cap (2) could in principle break the inequality (the two legs together may cross
-    # 4 times); on these systems no shortest path needs more than 2 crossings.
+    # Paths of at most K crossings from a to b and from b to c join into one of at most 2 K:
+    # the inequality the hop-capped search satisfies is d_2K(a, c) <= d_K(a, b) + d_K(b, c).
+    # (With the same cap on the left it can fail: two_mode has pairs whose shortest path
+    # needs 3 crossings.)
     tol = 1e-8 * _scale(a, b, c)  # the minimisations converge to ~1e-12 of the scale
-    assert distance(system, a, c, eps) <= distance(system, a, b, eps) + distance(system, b, c, eps) + tol
+    left = distance(system, a, c, eps, max_hops=4)
+    assert left <= distance(system, a, b, eps, max_hops=2) + distance(system, b, c, eps, max_hops=2) + tol
 
 
 @pytest.mark.parametrize("name", sorted(SYSTEMS))
