@@ -447,7 +447,8 @@ class ModeFlow:
     def dim(self) -> int:
         return self.mode.dim
 
-    def _field(self, t: float, x: np.ndarray) -> np.ndarray:
+    def field_at(self, t: float, x: np.ndarray) -> np.ndarray:
+        """The mode's field at (t, x) with the control applied, shape (n,)."""
         u = None if self.control is None else self.control(t, x)
         return np.asarray(self.mode.field(t, x, u), dtype=float)
 
@@ -462,7 +463,7 @@ class ModeFlow:
         if self._done:
             return False
         t, x = self._t, self._x
-        f0 = self._field(t, x) if self._f is None else self._f
+        f0 = self.field_at(t, x) if self._f is None else self._f
         if not _finite(f0):
             self._finish("non_finite", f"field of mode '{self.mode_name}' is not finite at t={t:.17g}, x={x.tolist()}")
             return False
@@ -479,7 +480,7 @@ class ModeFlow:
             if remaining - hn <= 1e-9 * self.h:
                 hn = remaining
             x_new, le = self.estimator.step(self.mode.field, t, x, hn, f0, self.control)
-            f_new = self._field(t + hn, x_new) if _finite(x_new) else x_new
+            f_new = self.field_at(t + hn, x_new) if _finite(x_new) else x_new
             if _finite(f_new):
                 x_half = self.estimator.pair_solution(self.mode.field, t, x, 0.5 * hn, f0, self.control)
                 midpoint = 0.5 * (x + x_new) + (0.125 * hn) * (f0 - f_new)

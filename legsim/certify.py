@@ -410,7 +410,7 @@ class _Walk:
         # i.e. for |t - t_e| <= B / |d'|, spread it along the guard to B |f| / |d'| (d' the
         # rate of the distance to the guard); sampled contact points are added in case B varies.
         r_cone = max([re] + [rk for _, rk in self.contact])
-        fe = flow._field(te, xe)
+        fe = flow.field_at(te, xe)
         grad = guard_gradient(tr, xe)
         rate = abs(float(np.dot(grad, fe))) / max(float(np.linalg.norm(grad)), np.finfo(float).tiny)
         spread = r_cone * float(np.linalg.norm(fe)) / rate if rate > 0.0 else math.inf

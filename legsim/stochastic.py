@@ -201,6 +201,7 @@ class StochasticExecution:
     final_state: numerical state at t_end; t_end: end time (s).
     status: ``finished`` (t_final reached), ``max_transitions`` or ``non_finite``.
     message: why it stopped, when not finished.
+    t0: start time (s).
     """
 
     times: np.ndarray
@@ -211,16 +212,15 @@ class StochasticExecution:
     t_end: float
     status: str
     message: str = ""
+    t0: float = 0.0
 
     @property
     def dwell_times(self) -> np.ndarray:
         """Duration of each completed visit (k,), s."""
         if not len(self.times):
             return np.zeros(0)
-        starts = np.concatenate([[self._t0], self.times[:-1]])
+        starts = np.concatenate([[self.t0], self.times[:-1]])
         return self.times - starts
-
-    _t0: float = 0.0
 
 
 class _Visit:
@@ -356,12 +356,12 @@ def sample_execution(
             last = flow.points[-1]
             status = "finished" if flow.status == "end" else flow.status
             return StochasticExecution(np.array(times), modes, names, states, last.x.copy(), last.t, status,
-                                       flow.message, _t0=float(t0))
+                                       flow.message, t0=float(t0))
         if len(times) >= max_transitions:
             return StochasticExecution(np.array(times), modes, names, states, visit.flow.points[-1].x.copy(), t,
                                        "max_transitions",
                                        f"transition budget max_transitions={max_transitions} used up at t={t:.17g}",
-                                       _t0=float(t0))
+                                       t0=float(t0))
         tau, j, x_tau, radius = drawn
         tr = visit.flow.transitions[j]
         x_new = np.asarray(x_tau if tr.reset is None else tr.reset(x_tau), dtype=float)

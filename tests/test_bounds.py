@@ -152,3 +152,12 @@ def test_bad_input_is_reported_by_name():
         error_bound("run.npz", system)
     with pytest.raises(SimulationError, match="ball dimension must be a positive integer"):
         ball_fraction_past(0.1, 1.0, 0)
+
+
+def test_circular_reference_samples_match_a_relaxed_run_across_the_wall():
+    ref = CircularReference(1.0, 1.0).with_initial("inside", [0.0, 1.5])
+    times = np.linspace(0.0, 3.0, 31)
+    ex = simulate(circular_flow(), [0.0, 1.5], "inside", 3.0, 1e-2, 1e-9)
+    got, want = ex.sample(times), ref.sample(times)
+    assert got.modes == want.modes == ["outside" if 1.5 * np.sin(t) > 1 else "inside" for t in times]
+    assert np.allclose(np.array(got.states), np.array(want.states), atol=1e-7)

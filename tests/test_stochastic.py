@@ -131,3 +131,17 @@ def test_bad_input_is_reported_by_name():
         sample_execution(system, "inside", [0.0, 1.0], 1.0, -0.1)
     with pytest.raises(SimulationError, match="t_final must be a finite number > t0"):
         sample_execution(system, "inside", [0.0, 1.0], float("nan"), 0.1)
+
+
+def test_two_tank_reference_samples_match_a_relaxed_run_and_refuse_the_zeno_time():
+    from legsim import simulate
+
+    ref = TwoTankReference(0.75, 0.5, 0.5).with_initial("q1", [1.0, 1.0])
+    times = np.linspace(0.0, 7.9, 40)
+    # Constant fields: the relaxed run is exact in each mode and each strip delays by < eps.
+    ex = simulate(two_tanks(), [1.0, 1.0], "q1", 7.9, 0.01, 1e-10)
+    got, want = ex.sample(times), ref.sample(times)
+    assert got.modes == want.modes
+    assert np.allclose(np.array(got.states), np.array(want.states), atol=1e-8)
+    with pytest.raises(SimulationError, match="past the Zeno time 8.0"):
+        ref.sample([8.5])

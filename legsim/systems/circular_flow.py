@@ -15,22 +15,44 @@ grazing of paper 004 Fig. 1. The exact solution is a rotation (``CircularReferen
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from typing import Iterable
 
 import numpy as np
 
 from ..builders import Builder, Model, Param
+from ..errors import ModelError
+from ..execution import Samples
 from ..hybrid import HybridSystem, Mode, Transition
+from ._reference import as_times, box, make_samples, segment
 
 NAMES = ("x1", "x2")
 
 
 @dataclass(frozen=True)
 class CircularReference:
-    """Exact solution of the clockwise rotation at ``omega`` rad/s."""
+    """Exact solution of the clockwise rotation at ``omega`` rad/s, and the exact execution
+    from ``x0`` at ``t0`` (``sample``, ``with_initial``): the mode is ``inside`` where
+    x1 <= wall, ``outside`` beyond (the resets are the identity)."""
 
     omega: float
     wall: float
+    x0: tuple[float, float] = (0.0, 1.0)
+    t0: float = 0.0
+
+    def with_initial(self, mode: str, x: Iterable[float], t0: float = 0.0) -> "CircularReference":
+        """The same flow from ``x`` at t0 (the mode follows from x)."""
+        if mode not in ("inside", "outside"):
+            raise ModelError(f"circular_flow reference: unknown mode '{mode}' (modes: ['inside', 'outside'])")
+        x1, x2 = (float(v) for v in x)
+        return replace(self, x0=(x1, x2), t0=float(t0))
+
+    def sample(self, times: Iterable[float] | float) -> Samples:
+        """Mode and state at ``times`` (s) in ``Execution.sample``'s format."""
+        t = as_times(times, self.t0)
+        states = self.state(np.array(self.x0), t, self.t0).reshape(len(t), 2)
+        modes = ["inside" if x[0] <= self.wall else "outside" for x in states]
+        return make_samples(t, modes, states)
 
     def state(self, x0: np.ndarray, t: float | np.ndarray, t0: float = 0.0) -> np.ndarray:
         """x(t) from x(t0) = x0; shape (2,) for scalar t, (len(t), 2) otherwise."""
@@ -83,11 +105,22 @@ def make_system(omega: float = 1.0, wall: float = 1.0) -> HybridSystem:
 
 def _build(params: dict, effects: dict) -> Model:
     omega, wall = params["omega"], params["wall"]
+
+    def geometry(mode: str, x: np.ndarray) -> dict[str, np.ndarray]:
+        # The state drawn as a small square in the (x1, x2) plane, read as (x, z).
+        half = 0.03 * wall
+        return {"state": box(float(x[0]) - half, float(x[0]) + half, float(x[1]) - half, float(x[1]) + half)}
+
+    angles = np.linspace(0.0, 2.0 * np.pi, 97)
+    scenery = {"wall": segment([wall, -1.5 * wall], [wall, 1.5 * wall]),
+               "grazing_circle": np.column_stack([wall * np.cos(angles), wall * np.sin(angles)])}
     return Model(
         system=make_system(omega, wall),
         initial_mode="inside",
         initial_state={"x1": 0.0, "x2": wall},
-        reference=CircularReference(omega, wall),
+        geometry=geometry,
+        scenery=scenery,
+        reference=CircularReference(omega, wall, (0.0, wall)),
         info={"guard_units": {"cross": "units of x1", "return": "units of x1"}},
     )
 

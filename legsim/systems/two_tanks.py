@@ -21,26 +21,67 @@ visit then lasts half the previous one after the first two.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
+from typing import Iterable
 
 import numpy as np
 
 from ..builders import Builder, Model, Param
-from ..errors import ModelError
+from ..errors import ModelError, SimulationError
+from ..execution import Samples
 from ..hybrid import HybridSystem, Mode, Transition
+from ._reference import as_times, box, make_samples, segment
 
 NAMES = ("x1", "x2")
 
 
 @dataclass(frozen=True)
 class TwoTankReference:
-    """Closed-form switching of the two-tank system (flows are constant in each mode)."""
+    """Closed-form switching of the two-tank system (flows are constant in each mode), and the
+    exact execution from ``(mode, x0)`` at ``t0`` (``sample``, ``with_initial``)."""
 
     w: float
     v1: float
     v2: float
     r1: float = 0.0
     r2: float = 0.0
+    mode: str = "q1"
+    x0: tuple[float, float] = (1.0, 1.0)
+    t0: float = 0.0
+    _cache: dict = field(default_factory=dict, repr=False, compare=False)
+
+    def with_initial(self, mode: str, x: Iterable[float], t0: float = 0.0) -> "TwoTankReference":
+        """The same tanks from levels ``x`` in ``mode`` at t0."""
+        if mode not in ("q1", "q2"):
+            raise ModelError(f"two_tanks reference: unknown mode '{mode}' (modes: ['q1', 'q2'])")
+        x1, x2 = (float(v) for v in x)
+        return replace(self, mode=mode, x0=(x1, x2), t0=float(t0), _cache={})
+
+    def sample(self, times: Iterable[float] | float, max_switches: int = 2000) -> Samples:
+        """Mode and levels at ``times`` (s, before the Zeno time) in ``Execution.sample``'s format."""
+        t = as_times(times, self.t0)
+        x0 = np.array(self.x0)
+        limit = self.zeno_time(x0, self.t0)
+        if t.size and t.max() >= limit:
+            raise SimulationError(f"two_tanks reference: time {t.max()} is at or past the Zeno time {limit}, "
+                                  f"where the execution is not defined")
+        if "switches" not in self._cache:
+            self._cache["switches"] = self.switching_times(self.mode, x0, max_switches, self.t0)
+        switch_times, entered = self._cache["switches"]
+        flows = {"q1": np.array([self.w - self.v1, -self.v2]), "q2": np.array([-self.v1, self.w - self.v2])}
+        starts = np.concatenate([[self.t0], switch_times])
+        modes = [self.mode] + entered
+        states = [x0]
+        for k in range(len(switch_times)):
+            states.append(states[-1] + (switch_times[k] - starts[k]) * flows[modes[k]])
+        out_modes, out_states = [], []
+        for tk in t:
+            k = int(np.searchsorted(starts, tk, side="right")) - 1
+            if k >= len(starts) - 1 and len(switch_times) >= max_switches:
+                raise SimulationError(f"two_tanks reference: time {tk} lies beyond the first {max_switches} switches")
+            out_modes.append(modes[k])
+            out_states.append(states[k] + (tk - starts[k]) * flows[modes[k]])
+        return make_samples(t, out_modes, out_states)
 
     @property
     def zeno(self) -> bool:
@@ -113,10 +154,24 @@ def _build(params: dict, effects: dict) -> Model:
     ref = TwoTankReference(params["w"], params["v1"], params["v2"], params["r1"], params["r2"])
     system = make_system(params["w"], params["v1"], params["v2"], params["r1"], params["r2"])
     x0 = np.array([1.0, 1.0])
+    r1, r2 = params["r1"], params["r2"]
+
+    def geometry(mode: str, x: np.ndarray) -> dict[str, np.ndarray]:
+        # Tank 1 spans x in [-1.2, -0.2] m, tank 2 [0.2, 1.2] m; levels drawn as water lines,
+        # the inflow as a line from above into the tank that receives it.
+        inlet = -0.7 if mode == "q1" else 0.7
+        return {"water_1": segment([-1.2, float(x[0])], [-0.2, float(x[0])]),
+                "water_2": segment([0.2, float(x[1])], [1.2, float(x[1])]),
+                "inflow": segment([inlet, 2.5], [inlet, max(float(x[0] if mode == "q1" else x[1]), 0.0)])}
+
+    scenery = {"tank_1": box(-1.2, -0.2, min(0.0, r1), 2.0), "tank_2": box(0.2, 1.2, min(0.0, r2), 2.0),
+               "threshold_1": segment([-1.2, r1], [-0.2, r1]), "threshold_2": segment([0.2, r2], [1.2, r2])}
     return Model(
         system=system,
         initial_mode="q1",
         initial_state={"x1": 1.0, "x2": 1.0},
+        geometry=geometry,
+        scenery=scenery,
         reference=ref,
         info={
             "guard_units": {"q1->q2": "m (level of tank 2 above r2)", "q2->q1": "m (level of tank 1 above r1)"},
