@@ -161,3 +161,17 @@ def test_circular_reference_samples_match_a_relaxed_run_across_the_wall():
     got, want = ex.sample(times), ref.sample(times)
     assert got.modes == want.modes == ["outside" if 1.5 * np.sin(t) > 1 else "inside" for t in times]
     assert np.allclose(np.array(got.states), np.array(want.states), atol=1e-7)
+
+
+def test_linearised_distance_to_a_curved_guard_is_second_order_accurate():
+    # Guard g = rho^2 - |x|^2 (inside the disc of radius rho): the linearised distance
+    # g / |grad g| = (rho^2 - r^2) / (2 r) differs from the true rho - r by (rho - r)^2 / (2 r).
+    from legsim import Transition
+    from legsim.bounds import signed_distance
+
+    rho = 2.0
+    tr = Transition("a", "b", guard=lambda x: rho**2 - float(x @ x))  # gradient by finite differences
+    for r in (1.9, 1.99, 1.999, 2.01):
+        x = r * np.array([0.6, 0.8])
+        assert signed_distance(tr, x) == pytest.approx(rho - r, abs=(rho - r) ** 2 / (2 * r) * 1.01 + 1e-9)
+        assert abs(signed_distance(tr, x) - (rho - r)) >= (rho - r) ** 2 / (2 * r) * 0.99 - 1e-9
