@@ -1312,7 +1312,7 @@ def _points(system: HybridSystem, execution: Any, times: np.ndarray, eps: float,
     points = []
     for i, (mode, x) in enumerate(zip(samples.modes, samples.states)):
         st = taus[i]
-        where = f"{label} at t={times[i]:.17g}"
+        where = f"{label} at t={times[i]:.12g}"
         if st is None:
             points.append(_check_point(system, (mode, x), eps, where))
         else:
@@ -1392,15 +1392,17 @@ def position_error(simulated: Any, reference: Any, times: Any, *, coordinate: in
         ``state_names`` of whichever argument has them, per mode).
     """
     t = _check_times(times)
-    zs = _positions(simulated, t, coordinate, "simulated")
-    xs = _positions(reference, t, coordinate, "reference")
+    names = next((n for n in (getattr(simulated, "state_names", None), getattr(reference, "state_names", None))
+                  if isinstance(n, dict)), None)
+    zs = _positions(simulated, t, coordinate, "simulated", names)
+    xs = _positions(reference, t, coordinate, "reference", names)
     return float(np.max(np.abs(zs - xs)))
 
 
-def _positions(obj: Any, t: np.ndarray, coordinate: int | str, label: str) -> np.ndarray:
+def _positions(obj: Any, t: np.ndarray, coordinate: int | str, label: str,
+               names: dict[str, Sequence[str]] | None) -> np.ndarray:
     if hasattr(obj, "sample") and callable(obj.sample):
         samples = _sample(obj, t, label)
-        names = getattr(obj, "state_names", None)
         out = np.empty(len(t))
         for i, (mode, x) in enumerate(zip(samples.modes, samples.states)):
             x = np.asarray(x, dtype=float)
