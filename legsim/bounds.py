@@ -95,9 +95,9 @@ def lipschitz_estimate(mode: Mode, t: float, x: np.ndarray, u: Any = None) -> fl
     return float(np.linalg.svd(J, compute_uv=False)[0])
 
 
-def guard_gradient(transition: Transition, x: np.ndarray) -> np.ndarray:
-    """Gradient of the transition's guard at x, shape (n,): its ``guard_gradient`` when given,
-    central finite differences otherwise."""
+def guard_gradient(transition: Transition, x: np.ndarray, t: float = 0.0, u: Any = None) -> np.ndarray:
+    """Gradient in x of the transition's guard at x, shape (n,): its ``guard_gradient`` when
+    given, central finite differences otherwise (t and u matter for ``guard_args="t,x,u"``)."""
     if transition.guard_gradient is not None:
         return np.asarray(transition.guard_gradient(x), dtype=float).reshape(-1)
     n = len(x)
@@ -108,7 +108,7 @@ def guard_gradient(transition: Transition, x: np.ndarray) -> np.ndarray:
         xm = x.copy()
         xp[j] += d
         xm[j] -= d
-        grad[j] = (float(transition.guard(xp)) - float(transition.guard(xm))) / (2 * d)
+        grad[j] = (transition.guard_value(xp, t, u) - transition.guard_value(xm, t, u)) / (2 * d)
     return grad
 
 
@@ -134,12 +134,13 @@ def reset_lipschitz(transition: Transition, x: np.ndarray, target_dim: int) -> f
     return float(np.linalg.svd(J, compute_uv=False)[0])
 
 
-def signed_distance(transition: Transition, x: np.ndarray) -> float:
+def signed_distance(transition: Transition, x: np.ndarray, t: float = 0.0, u: Any = None) -> float:
     """Distance from x to the guard ``g = 0`` through the guard linearised at x:
     ``g(x) / |grad g(x)|``, positive inside the domain, negative past the guard (exact for
-    hyperplane guards). A zero gradient gives +-inf (no crossing can be predicted there)."""
-    g = float(transition.guard(x))
-    norm = _norm(guard_gradient(transition, x))
+    hyperplane guards). A zero gradient gives +-inf (no crossing can be predicted there).
+    t and u matter only for guards declared with ``guard_args="t,x,u"``."""
+    g = transition.guard_value(x, t, u)
+    norm = _norm(guard_gradient(transition, x, t, u))
     if norm == 0.0 or not math.isfinite(norm):
         return math.inf if g >= 0 else -math.inf
     return g / norm
@@ -428,6 +429,7 @@ class ModeFlow:
         self.mode_name = mode
         self.mode = system.mode(mode)
         self.transitions: tuple[Transition, ...] = system.outgoing(mode)
+        self._timed_guards = any(tr.guard_args != "x" for tr in self.transitions)
         self.h = float(h)
         self.estimator = estimator
         self.control = control
@@ -452,11 +454,23 @@ class ModeFlow:
         u = None if self.control is None else self.control(t, x)
         return np.asarray(self.mode.field(t, x, u), dtype=float)
 
-    def guards_at(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Guard values and linearised signed distances (m,) of the mode's transitions at x."""
-        g = np.array([float(tr.guard(x)) for tr in self.transitions])
-        d = np.array([signed_distance(tr, x) for tr in self.transitions])
+    def guards_at(self, x: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """Guard values and linearised signed distances (m,) of the mode's transitions at (t, x)."""
+        u = None
+        if self.control is not None and self._timed_guards:
+            u = self.control(t, x)
+        g = np.array([tr.guard_value(x, t, u) for tr in self.transitions])
+        d = np.array([signed_distance(tr, x, t, u) for tr in self.transitions])
         return g, d
+
+    def on_step(self, n: int, s: float) -> tuple[float, np.ndarray, float, np.ndarray, np.ndarray]:
+        """(t, x, B, guard values, signed distances) at fraction s of step n (points n and n + 1
+        must exist): the Hermite interpolant, the bound interpolated linearly."""
+        p0, p1 = self.points[n], self.points[n + 1]
+        t = p0.t + s * (p1.t - p0.t)
+        x = self.state(n, s)
+        g, d = self.guards_at(x, t)
+        return t, x, (1.0 - s) * p0.radius + s * p1.radius, g, d
 
     def _advance(self) -> bool:
         """Compute the next point; False when the flow has ended."""
@@ -469,7 +483,7 @@ class ModeFlow:
             return False
         u = None if self.control is None else self.control(t, x)
         self._L = max(self._L, lipschitz_estimate(self.mode, t, x, u))
-        g, d = self.guards_at(x)
+        g, d = self.guards_at(x, t)
         remaining = self.t_end - t
         at_end = math.isfinite(self.t_end) and remaining <= 1e-12 * max(1.0, abs(self.t_end))
         last = at_end or len(self.points) + 1 >= self.max_points
@@ -552,7 +566,7 @@ class ModeFlow:
         def at(s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
             if s not in cache:
                 x = hermite(p0.x, p0.f, p1.x, p1.f, dt, s)
-                g, d = self.guards_at(x)
+                g, d = self.guards_at(x, p0.t + s * dt)
                 cache[s] = (x, g, d)
             return cache[s]
 
@@ -566,6 +580,8 @@ class ModeFlow:
         extra = []
         for j in np.flatnonzero(~(inside | past)):
             u = [ratio(float(s), j) for s in fractions]
+            if not all(math.isfinite(v) for v in u):
+                continue  # a guard without a state gradient (a clock): no extremum to place
             for i in range(1, k):
                 if (u[i] - u[i - 1]) * (u[i + 1] - u[i]) < 0.0:
                     sign = 1.0 if u[i] <= u[i - 1] else -1.0  # a minimum of u, or a maximum

@@ -213,10 +213,9 @@ class _ConeRun:
         p0, p1 = flow.points[n], flow.points[n + 1]
         best = None
         for j in np.flatnonzero(crossed):
-            guard = flow.transitions[j].guard
 
-            def g(s: float, guard=guard) -> float:
-                return float(guard(flow.state(n, s)))
+            def g(s: float, j=j) -> float:
+                return float(flow.on_step(n, s)[3][j])
 
             lo_val = g(s_lo)
             s = s_lo if lo_val < 0.0 else brentq(g, s_lo, s_hi, xtol=1e-15, rtol=8.9e-16)
@@ -236,6 +235,10 @@ class _ConeRun:
 class _Walk:
     """The walk along one visit's cone: which guards it meets, the computed event, the exit."""
 
+    def _u(self, t: float, x: np.ndarray) -> Any:
+        control = self.flow.control
+        return None if control is None else control(t, x)
+
     def __init__(self, run: "_ConeRun", flow: ModeFlow, t0: float, b0: float) -> None:
         self.run_ = run
         self.flow = flow
@@ -250,7 +253,7 @@ class _Walk:
         self.zeno_guard: int | None = None
         for j, tr in enumerate(trs):
             if p0.distance[j] <= p0.radius:
-                if float(np.dot(guard_gradient(tr, p0.x), p0.f)) > 0.0:
+                if float(np.dot(guard_gradient(tr, p0.x, p0.t, self._u(p0.t, p0.x)), p0.f)) > 0.0:
                     self.departing[j] = True
                 elif self.zeno_guard is None:
                     self.zeno_guard = j
@@ -292,12 +295,12 @@ class _Walk:
                     if te > run.t_final:
                         self.beyond = True
                         return
-                    self.event_distance = flow.guards_at(xe)[1]
+                    g_e, self.event_distance = flow.guards_at(xe, te)
                     # The event point and, when the ball gets wholly past the event guard
                     # before this sample, that exit point are samples too: the guards met
                     # must be judged up to the exit, not up to the next (coarser) sample.
                     s_e = (te - flow.points[n].t) / (flow.points[n + 1].t - flow.points[n].t)
-                    if self._visit_sample(n, s_e, te, xe, re, flow.guards_at(xe)[0], self.event_distance):
+                    if self._visit_sample(n, s_e, te, xe, re, g_e, self.event_distance):
                         return
                     s_x = self._exit_fraction(n, s_e, s, je)
                     if s_x is not None and self._virtual(n, s_x):
@@ -309,20 +312,16 @@ class _Walk:
                 return
 
     def _virtual(self, n: int, s: float) -> bool:
-        flow = self.flow
-        p0, p1 = flow.points[n], flow.points[n + 1]
-        x = flow.state(n, s)
-        g, d = flow.guards_at(x)
-        return self._visit_sample(n, s, p0.t + s * (p1.t - p0.t), x, (1.0 - s) * p0.radius + s * p1.radius, g, d)
+        t, x, r, g, d = self.flow.on_step(n, s)
+        return self._visit_sample(n, s, t, x, r, g, d)
 
     def _exit_fraction(self, n: int, s_lo: float, s_hi: float, j: int) -> float | None:
         """Where on step n the ball gets wholly past guard j (d_j + B = 0), if before s_hi."""
         flow = self.flow
-        p0, p1 = flow.points[n], flow.points[n + 1]
 
         def excess(s: float) -> float:
-            _, d = flow.guards_at(flow.state(n, s))
-            return float(d[j]) + (1.0 - s) * p0.radius + s * p1.radius
+            _, _, r, _, d = flow.on_step(n, s)
+            return float(d[j]) + r
 
         if not (excess(s_lo) > 0.0 > excess(s_hi)):
             return None
@@ -411,7 +410,7 @@ class _Walk:
         # rate of the distance to the guard); sampled contact points are added in case B varies.
         r_cone = max([re] + [rk for _, rk in self.contact])
         fe = flow.field_at(te, xe)
-        grad = guard_gradient(tr, xe)
+        grad = guard_gradient(tr, xe, te, self._u(te, xe))
         rate = abs(float(np.dot(grad, fe))) / max(float(np.linalg.norm(grad)), np.finfo(float).tiny)
         spread = r_cone * float(np.linalg.norm(fe)) / rate if rate > 0.0 else math.inf
         r_init = max([r_cone, spread] + [float(np.linalg.norm(xk - xe)) + rk for xk, rk in self.contact])

@@ -275,9 +275,7 @@ def _switch_in_piece(visit: _Visit, n: int, samples: StepSamples, cum: np.ndarra
     c_lo = cum[i - 1]
 
     def pi_at(s: float) -> np.ndarray:
-        x = flow.state(n, s)
-        _, d = flow.guards_at(x)
-        r = (1.0 - s) * p0.radius + s * p1.radius
+        _, _, r, _, d = flow.on_step(n, s)
         return ball_fraction_past(d, r, visit.dim).reshape(-1)
 
     def gained(s: float) -> float:

@@ -121,3 +121,12 @@ def test_bad_input_is_reported_by_name():
         certify(system, "nowhere", [0.0, 1.5], 1.0, 0.1)
     with pytest.raises(SimulationError, match="h must be finite and > 0"):
         certify(system, "inside", [0.0, 1.5], 1.0, 0.0)
+
+
+def test_a_clock_guard_on_t_is_certified_at_its_exact_time():
+    # guard(t, x, u) = 1 - t does not depend on the state, so no error ball can blur it.
+    system = HybridSystem({"a": Mode(1, lambda t, x, u: np.array([-x[0]])), "b": Mode(1, lambda t, x, u: np.zeros(1))},
+                          [Transition("a", "b", lambda t, x, u: 1.0 - t, name="clock", guard_args="t,x,u")])
+    cert = certify(system, "a", [1.0], 2.0, 0.3, "rk4")
+    (tr,) = cert.transitions
+    assert tr.certified and tr.time == pytest.approx(1.0, abs=1e-12)
