@@ -68,18 +68,35 @@ class RecordingError(LegsimError, ValueError):
 class Trace:
     """An execution flattened to samples, in time order (what ``state/<name>`` holds).
 
-    times: (N,) s; modes: N mode names; states: N arrays (dimension of their mode);
-    in_strip: (N,) bool, True for the strip entry/exit samples (state held at q).
-    segment_starts: sample index where each segment starts (len = number of segments).
-    strip_samples: sample index of each strip's entry sample.
+    times: (N,) s; mode_names: the modes in order of first visit; mode_index: (N,) index of
+    each sample's mode in mode_names; in_strip: (N,) bool, True for the strip entry/exit
+    samples (state held at q); blocks: mode -> (rows (M,), states (M, n_mode)), the samples
+    of that mode; segment_starts: sample index where each segment starts; strip_samples:
+    sample index of each strip's entry sample.
     """
 
     times: np.ndarray
-    modes: list[str]
-    states: list[np.ndarray]
+    mode_names: list[str]
+    mode_index: np.ndarray
     in_strip: np.ndarray
-    segment_starts: list[int]
-    strip_samples: list[int]
+    blocks: dict[str, tuple[np.ndarray, np.ndarray]]
+    segment_starts: np.ndarray
+    strip_samples: np.ndarray
+
+    @property
+    def modes(self) -> list[str]:
+        """The mode of every sample (N names)."""
+        return [self.mode_names[i] for i in self.mode_index]
+
+
+def _ranges(starts: np.ndarray, lengths: np.ndarray) -> np.ndarray:
+    """concatenate(arange(s, s + n) for s, n in zip(starts, lengths)), without a Python loop."""
+    lengths = np.asarray(lengths, dtype=np.int64)
+    total = int(lengths.sum())
+    if total == 0:
+        return np.empty(0, dtype=np.int64)
+    offsets = np.cumsum(lengths) - lengths
+    return np.repeat(np.asarray(starts, dtype=np.int64) - offsets, lengths) + np.arange(total, dtype=np.int64)
 
 
 def execution_trace(execution: Execution) -> Trace:
@@ -87,40 +104,43 @@ def execution_trace(execution: Execution) -> Trace:
 
     Segment points are taken as computed (no interpolation); each strip adds two samples with
     the held guard point q, at its entry and at its exit, so that the recorded series show
-    the state standing still through the strip.
+    the state standing still through the strip. Pieces come in the execution's own order
+    (``Execution._pieces``: segment, strip, segment, ...), which keeps zero-length pieces in
+    place.
     """
-    times: list[np.ndarray] = []
-    modes: list[str] = []
-    states: list[np.ndarray] = []
-    flags: list[np.ndarray] = []
-    seg_starts: list[int] = []
-    strip_samples: list[int] = []
-    n = 0
     _, kinds = execution._pieces()
-    for kind, k in kinds:
-        if kind == "seg":
-            seg = execution.segments[k]
-            seg_starts.append(n)
-            times.append(seg.t)
-            modes.extend([seg.mode] * len(seg.t))
-            states.extend(list(seg.x))
-            flags.append(np.zeros(len(seg.t), dtype=bool))
-            n += len(seg.t)
-        else:
-            strip = execution.strips[k]
-            strip_samples.append(n)
-            times.append(np.array([strip.time, strip.exit_time]))
-            modes.extend([strip.mode, strip.mode])
-            states.extend([strip.state, strip.state])
-            flags.append(np.ones(2, dtype=bool))
-            n += 2
+    segs, strips = execution.segments, execution.strips
+    is_strip = np.array([kind == "strip" for kind, _ in kinds], dtype=bool)
+    which = np.array([k for _, k in kinds], dtype=np.int64)
+    seg_len = np.array([len(s.t) for s in segs], dtype=np.int64)
+    lengths = np.where(is_strip, 2, seg_len[np.where(is_strip, 0, which)] if len(segs) else 0)
+    starts = np.cumsum(lengths) - lengths
+    strip_times = np.array([(s.time, s.exit_time) for s in strips], dtype=float).reshape(-1, 2)
+    times = np.concatenate([strip_times[k] if kind == "strip" else segs[k].t for kind, k in kinds]) \
+        if kinds else np.empty(0)
+    piece_modes = [strips[k].mode if kind == "strip" else segs[k].mode for kind, k in kinds]
+    mode_names = list(dict.fromkeys(piece_modes))
+    code = {m: i for i, m in enumerate(mode_names)}
+    piece_code = np.array([code[m] for m in piece_modes], dtype=np.int64)
+    blocks: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+    for m, i in code.items():
+        mine = np.nonzero(piece_code == i)[0]
+        # A held strip state appears twice (entry and exit): stack the strips of this mode once.
+        held_ids = which[mine][is_strip[mine]]
+        held = {int(k): 2 * j for j, k in enumerate(held_ids)}
+        q2 = np.repeat(np.array([strips[k].state for k in held_ids], dtype=float), 2, axis=0) if len(held_ids) \
+            else None
+        parts = [q2[held[int(which[p])]:held[int(which[p])] + 2] if is_strip[p] else segs[which[p]].x
+                 for p in mine]
+        blocks[m] = (_ranges(starts[mine], lengths[mine]), np.concatenate(parts).astype(float, copy=False))
     return Trace(
-        times=np.concatenate(times) if times else np.empty(0),
-        modes=modes,
-        states=[np.asarray(s, dtype=float) for s in states],
-        in_strip=np.concatenate(flags) if flags else np.empty(0, dtype=bool),
-        segment_starts=seg_starts,
-        strip_samples=strip_samples,
+        times=times,
+        mode_names=mode_names,
+        mode_index=np.repeat(piece_code, lengths),
+        in_strip=np.repeat(is_strip, lengths),
+        blocks=blocks,
+        segment_starts=starts[~is_strip],
+        strip_samples=starts[is_strip],
     )
 
 
@@ -129,22 +149,14 @@ def trace_series(execution: Execution, trace: Trace | None = None) -> dict[str, 
     whose mode has that coordinate; a name present in several modes is one series."""
     if trace is None:
         trace = execution_trace(execution)
-    order: dict[str, None] = {}
-    for m in trace.modes:
-        order.setdefault(m, None)
-    mode_arr = np.array(trace.modes, dtype=object)
-    blocks: dict[str, tuple[np.ndarray, np.ndarray]] = {}
-    for m in order:
-        rows = np.nonzero(mode_arr == m)[0]
-        blocks[m] = (rows, np.array([trace.states[r] for r in rows], dtype=float).reshape(len(rows), -1))
     names: dict[str, None] = {}
-    for m in order:
+    for m in trace.mode_names:
         for nm in execution.state_names.get(m, ()):
             names.setdefault(nm, None)
     out: dict[str, tuple[np.ndarray, np.ndarray]] = {}
     for nm in names:
         rows_list, values = [], []
-        for m, (rows, block) in blocks.items():
+        for m, (rows, block) in trace.blocks.items():
             coords = tuple(execution.state_names.get(m, ()))
             if nm in coords:
                 rows_list.append(rows)
@@ -413,30 +425,49 @@ def _log_all(rr, rrb, rec, execution, trace: Trace, frames: Frames | None, scene
     rec.send_columns("samples/t", indexes=sample_indexes(every), columns=rr.Scalars.columns(scalars=trace.times))
     rec.send_columns("strip/active", indexes=sample_indexes(every),
                      columns=rr.Scalars.columns(scalars=trace.in_strip.astype(float)))
+    lookup = np.array([mode_index[m] for m in trace.mode_names], dtype=float)
     rec.send_columns("mode/index", indexes=sample_indexes(every),
-                     columns=rr.Scalars.columns(scalars=np.array([mode_index[m] for m in trace.modes], dtype=float)))
+                     columns=rr.Scalars.columns(scalars=lookup[trace.mode_index]))
 
     for nm, (rows, vals) in trace_series(execution, trace).items():
         rec.log(f"state/{nm}", rr.SeriesLines(names=[nm]), static=True)
         rec.send_columns(f"state/{nm}", indexes=sample_indexes(rows), columns=rr.Scalars.columns(scalars=vals))
 
-    seg_rows = np.array(trace.segment_starts, dtype=np.int64)
+    # Typed values go in as arrow arrays: AnyValues would otherwise convert every element
+    # through a Python list, which dominates the cost of runs with many transitions.
+    import pyarrow as pa
+
+    def values(**columns: Any) -> list:
+        arrays = {}
+        for key, value in columns.items():
+            if isinstance(value, list) and value and isinstance(value[0], np.ndarray):
+                sizes = np.array([len(v) for v in value], dtype=np.int32)
+                offsets = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int32)
+                arrays[key] = pa.ListArray.from_arrays(pa.array(offsets), pa.array(np.concatenate(value)))
+            elif isinstance(value, list):
+                arrays[key] = pa.array(value, type=pa.string())
+            else:
+                arrays[key] = pa.array(value)
+        return [*rr.AnyValues.columns(**arrays)]
+
+    seg_rows = np.asarray(trace.segment_starts, dtype=np.int64)
+    segs = execution.segments
     if len(seg_rows):
         rec.send_columns("mode", indexes=sample_indexes(seg_rows), columns=[
-            *rr.TextLog.columns(text=[s.mode for s in execution.segments]),
-            *rr.AnyValues.columns(t_start=np.array([s.t_start for s in execution.segments], dtype=float),
-                                  t_end=np.array([s.t_end for s in execution.segments], dtype=float)),
+            *rr.TextLog.columns(text=[s.mode for s in segs]),
+            *values(t_start=np.array([s.t_start for s in segs], dtype=float),
+                    t_end=np.array([s.t_end for s in segs], dtype=float)),
         ])
 
-    strip_rows = np.array(trace.strip_samples, dtype=np.int64)
+    strip_rows = np.asarray(trace.strip_samples, dtype=np.int64)
     if len(strip_rows):
         strips = execution.strips
         rec.send_columns("events/strips", indexes=sample_indexes(strip_rows), columns=[
             *rr.TextLog.columns(text=[f"strip of {s.name} in '{s.mode}': {s.time:.9g} s to {s.exit_time:.9g} s"
                                       for s in strips]),
-            *rr.AnyValues.columns(mode=[s.mode for s in strips], name=[s.name for s in strips],
-                                  entry=np.array([s.time for s in strips], dtype=float),
-                                  exit=np.array([s.exit_time for s in strips], dtype=float)),
+            *values(mode=[s.mode for s in strips], name=[s.name for s in strips],
+                    entry=np.array([s.time for s in strips], dtype=float),
+                    exit=np.array([s.exit_time for s in strips], dtype=float)),
         ])
 
     trs = execution.transitions
@@ -447,21 +478,14 @@ def _log_all(rr, rrb, rec, execution, trace: Trace, frames: Frames | None, scene
         rec.send_columns("events/transitions", indexes=sample_indexes(tr_rows), columns=[
             *rr.TextLog.columns(text=[f"{t.name}: {t.source} -> {t.target} at {t.time:.9g} s "
                                       f"(reset at {t.exit_time:.9g} s, depth {t.depth:.3g})" for t in trs]),
-            *rr.AnyValues.columns(name=[t.name for t in trs], source=[t.source for t in trs],
-                                  target=[t.target for t in trs],
-                                  index=np.array([t.index for t in trs], dtype=np.int64),
-                                  time=np.array([t.time for t in trs], dtype=float),
-                                  landing_time=np.array([t.landing_time for t in trs], dtype=float),
-                                  exit_time=np.array([t.exit_time for t in trs], dtype=float),
-                                  depth=np.array([t.depth for t in trs], dtype=float)),
-        ])
-        before = [np.asarray(t.state_before, dtype=float) for t in trs]
-        after = [np.asarray(t.state_after, dtype=float) for t in trs]
-        rec.send_columns("events/transitions", indexes=sample_indexes(tr_rows), columns=[
-            *rr.AnyValues.columns(state_before=np.concatenate(before)).partition([len(b) for b in before]),
-        ])
-        rec.send_columns("events/transitions", indexes=sample_indexes(tr_rows), columns=[
-            *rr.AnyValues.columns(state_after=np.concatenate(after)).partition([len(a) for a in after]),
+            *values(name=[t.name for t in trs], source=[t.source for t in trs], target=[t.target for t in trs],
+                    index=np.array([t.index for t in trs], dtype=np.int64),
+                    time=np.array([t.time for t in trs], dtype=float),
+                    landing_time=np.array([t.landing_time for t in trs], dtype=float),
+                    exit_time=np.array([t.exit_time for t in trs], dtype=float),
+                    depth=np.array([t.depth for t in trs], dtype=float),
+                    state_before=[np.asarray(t.state_before, dtype=float) for t in trs],
+                    state_after=[np.asarray(t.state_after, dtype=float) for t in trs]),
         ])
 
     # Geometry: the sagittal plane (x, z) drawn at y = 0 of a z-up 3D view.
@@ -541,12 +565,12 @@ def read_rrd(path: str | os.PathLike) -> dict[str, Any]:
     if not path.is_file():
         raise RecordingError(f"{path}: no such recording file")
     columns = _read_columns(path)
-    meta_rows = columns.get("/legsim/meta", {}).get("TextDocument:text")
+    meta_rows = columns.values("/legsim/meta", "TextDocument:text")
     if not meta_rows:
         raise RecordingError(f"{path}: a Rerun recording without legsim data (no legsim/meta entity); "
                              f"was it written by `legsim run --rrd`?")
     try:
-        meta = json.loads(meta_rows[0][1][0])
+        meta = json.loads(meta_rows[0][0])
     except (ValueError, IndexError, TypeError) as exc:
         raise RecordingError(f"{path}: legsim/meta is not valid JSON: {exc}") from exc
     if meta.get("format") != FORMAT:
@@ -557,8 +581,96 @@ def read_rrd(path: str | os.PathLike) -> dict[str, Any]:
         raise RecordingError(f"{path}: incomplete or damaged legsim recording ({type(exc).__name__}: {exc})") from exc
 
 
-def _read_columns(path: Path) -> dict[str, dict[str, list[tuple[int, list]]]]:
-    """entity path -> component -> [(row index on sample/frame timeline or -1 if static, values)]."""
+class _Columns:
+    """The recorded components, per entity, as arrow arrays with their row index (the
+    ``sample`` or ``frame`` timeline; -1 for static rows), converted only when asked for."""
+
+    SKIP = ("rerun.controls.RowId", TIMELINE, SAMPLE_TIMELINE, FRAME_TIMELINE, "log_time", "log_tick")
+
+    def __init__(self) -> None:
+        self.data: dict[str, dict[str, list[tuple[np.ndarray, Any]]]] = {}
+
+    def add(self, entity: str, index: np.ndarray, batch) -> None:
+        comps = self.data.setdefault(entity, {})
+        for name in batch.schema.names:
+            if name not in self.SKIP:
+                comps.setdefault(name, []).append((index, batch.column(name)))
+
+    def entities(self) -> list[str]:
+        return list(self.data)
+
+    def _pieces(self, entity: str, component: str):
+        for index, column in self.data.get(entity, {}).get(component, []):
+            valid = column.is_valid()
+            yield index[np.asarray(valid.to_numpy(zero_copy_only=False), dtype=bool)], column.filter(valid)
+
+    def numbers(self, entity: str, component: str = "Scalars:scalars") -> tuple[np.ndarray, np.ndarray]:
+        """(row indices, values) of a one-number-per-row component, sorted by row."""
+        idx_parts, val_parts = [], []
+        for index, column in self._pieces(entity, component):
+            if len(column) and not np.all(column.value_lengths().to_numpy(zero_copy_only=False) == 1):
+                raise ValueError(f"{entity}:{component} holds more than one value per row")
+            idx_parts.append(index)
+            val_parts.append(np.asarray(column.flatten().to_numpy(zero_copy_only=False), dtype=float))
+        if not idx_parts:
+            return np.empty(0, dtype=np.int64), np.empty(0)
+        idx = np.concatenate(idx_parts)
+        vals = np.concatenate(val_parts)
+        order = np.argsort(idx, kind="stable")
+        return idx[order], vals[order]
+
+    def _sorted_flat(self, entity: str, component: str):
+        """(row indices sorted, flat values in that order, row lengths in that order)."""
+        idx_parts, flat_parts, len_parts = [], [], []
+        for index, column in self._pieces(entity, component):
+            idx_parts.append(index)
+            len_parts.append(np.asarray(column.value_lengths().to_numpy(zero_copy_only=False), dtype=np.int64))
+            flat_parts.append(column.flatten())
+        if not idx_parts:
+            return np.empty(0, dtype=np.int64), [], np.empty(0, dtype=np.int64)
+        idx = np.concatenate(idx_parts)
+        lengths = np.concatenate(len_parts)
+        import pyarrow as pa
+
+        flat = pa.concat_arrays([f.cast(flat_parts[0].type) for f in flat_parts]) if len(flat_parts) > 1 \
+            else flat_parts[0]
+        order = np.argsort(idx, kind="stable")
+        if np.any(order != np.arange(len(order))):
+            offsets = np.cumsum(lengths) - lengths
+            take = _ranges(offsets[order], lengths[order])
+            flat = flat.take(pa.array(take))
+            lengths = lengths[order]
+        return idx[order], flat, lengths
+
+    def strings(self, entity: str, component: str) -> list[str]:
+        """Each row's single string, sorted by row."""
+        _, flat, lengths = self._sorted_flat(entity, component)
+        if len(lengths) and not np.all(lengths == 1):
+            raise ValueError(f"{entity}:{component} holds more than one value per row")
+        return [] if not len(lengths) else flat.to_pylist()
+
+    def arrays(self, entity: str, component: str) -> list[np.ndarray]:
+        """Each row's values as a float array (rows may differ in length), sorted by row."""
+        _, flat, lengths = self._sorted_flat(entity, component)
+        if not len(lengths):
+            return []
+        values = np.asarray(flat.to_numpy(zero_copy_only=False), dtype=float)
+        return np.split(values, np.cumsum(lengths)[:-1])
+
+    def rows(self, entity: str, component: str) -> list[tuple[int, list]]:
+        """(row index, Python list of the row's values), sorted by row (small entities only)."""
+        out: list[tuple[int, list]] = []
+        for index, column in self._pieces(entity, component):
+            out.extend(zip(index.tolist(), column.to_pylist()))
+        out.sort(key=lambda r: r[0])
+        return out
+
+    def values(self, entity: str, component: str) -> list:
+        """Each row's Python list of values, sorted by row (small entities only)."""
+        return [r[1] for r in self.rows(entity, component)]
+
+
+def _read_columns(path: Path) -> _Columns:
     try:
         from rerun.chunk import RrdReader
 
@@ -569,97 +681,79 @@ def _read_columns(path: Path) -> dict[str, dict[str, list[tuple[int, list]]]]:
             chunks = list(reader.stream())
     except Exception as exc:  # rerun raises its own error types for foreign or truncated files
         raise RecordingError(f"{path}: not a readable Rerun recording ({type(exc).__name__}: {exc})") from exc
-    out: dict[str, dict[str, list[tuple[int, list]]]] = {}
+    out = _Columns()
     for chunk in chunks:
         batch = chunk.to_record_batch()
         names = batch.schema.names
         if chunk.is_static:
-            index = [-1] * batch.num_rows
+            index = np.full(batch.num_rows, -1, dtype=np.int64)
         elif SAMPLE_TIMELINE in names:
-            index = batch.column(SAMPLE_TIMELINE).to_pylist()
+            index = np.asarray(batch.column(SAMPLE_TIMELINE).to_numpy(zero_copy_only=False), dtype=np.int64)
         elif FRAME_TIMELINE in names:
-            index = batch.column(FRAME_TIMELINE).to_pylist()
+            index = np.asarray(batch.column(FRAME_TIMELINE).to_numpy(zero_copy_only=False), dtype=np.int64)
         else:
             continue
-        entity = out.setdefault(chunk.entity_path, {})
-        for name in names:
-            if name == "rerun.controls.RowId" or name in (TIMELINE, SAMPLE_TIMELINE, FRAME_TIMELINE, "log_time",
-                                                          "log_tick"):
-                continue
-            values = batch.column(name).to_pylist()
-            entity.setdefault(name, []).extend(
-                (i, v) for i, v in zip(index, values) if v is not None)
-    for entity in out.values():
-        for rows in entity.values():
-            rows.sort(key=lambda r: r[0])
+        out.add(chunk.entity_path, index, batch)
     return out
 
 
-def _scalar_rows(columns, entity: str) -> tuple[np.ndarray, np.ndarray]:
-    rows = columns.get(entity, {}).get("Scalars:scalars", [])
-    idx = np.array([r[0] for r in rows], dtype=np.int64)
-    vals = np.array([r[1][0] for r in rows], dtype=float)
-    return idx, vals
-
-
-def _values(columns, entity: str, component: str) -> list:
-    return [r[1] for r in columns.get(entity, {}).get(component, [])]
-
-
-def _assemble(columns, meta: dict[str, Any]) -> dict[str, Any]:
-    idx, times = _scalar_rows(columns, "/samples/t")
-    if len(idx) and not np.array_equal(idx, np.arange(len(idx))):
+def _assemble(columns: _Columns, meta: dict[str, Any]) -> dict[str, Any]:
+    idx, times = columns.numbers("/samples/t")
+    if not np.array_equal(idx, np.arange(len(idx))):
         raise ValueError("sample rows are not contiguous")
-    _, in_strip = _scalar_rows(columns, "/strip/active")
-    _, mode_idx = _scalar_rows(columns, "/mode/index")
+    _, in_strip = columns.numbers("/strip/active")
+    _, mode_idx = columns.numbers("/mode/index")
+    if not (len(in_strip) == len(mode_idx) == len(times)):
+        raise ValueError("sample columns differ in length")
     modes_list = meta["modes"]
-    modes = [modes_list[int(i)] for i in mode_idx]
+    modes = [modes_list[i] for i in mode_idx.astype(np.int64)]
     series: dict[str, tuple[np.ndarray, np.ndarray]] = {}
     series_rows: dict[str, np.ndarray] = {}
-    for entity in columns:
+    for entity in columns.entities():
         if entity.startswith("/state/"):
-            rows, vals = _scalar_rows(columns, entity)
+            rows, vals = columns.numbers(entity)
             if len(rows):
                 series[entity[len("/state/"):]] = (times[rows], vals)
                 series_rows[entity[len("/state/"):]] = rows
-    mode_sequence = [v[0] for v in _values(columns, "/mode", "TextLog:text")]
-    segments = [(m, float(a[0]), float(b[0])) for m, a, b in zip(mode_sequence, _values(columns, "/mode", "t_start"),
-                                                                 _values(columns, "/mode", "t_end"))]
+    mode_sequence = columns.strings("/mode", "TextLog:text")
+    _, t_start = columns.numbers("/mode", "t_start")
+    _, t_end = columns.numbers("/mode", "t_end")
+    segments = [(m, float(a), float(b)) for m, a, b in zip(mode_sequence, t_start, t_end, strict=True)]
 
-    strips = []
-    for mode, name, entry, exit_ in zip(_values(columns, "/events/strips", "mode"),
-                                        _values(columns, "/events/strips", "name"),
-                                        _values(columns, "/events/strips", "entry"),
-                                        _values(columns, "/events/strips", "exit")):
-        strips.append({"mode": mode[0], "name": name[0], "time": float(entry[0]), "exit_time": float(exit_[0])})
+    _, entry = columns.numbers("/events/strips", "entry")
+    _, exit_ = columns.numbers("/events/strips", "exit")
+    strips = [{"mode": m, "name": n, "time": float(a), "exit_time": float(b)}
+              for m, n, a, b in zip(columns.strings("/events/strips", "mode"),
+                                    columns.strings("/events/strips", "name"), entry, exit_, strict=True)]
 
     ev = "/events/transitions"
-    fields = ["name", "source", "target", "index", "time", "landing_time", "exit_time", "depth"]
-    cols = {f: _values(columns, ev, f) for f in fields + ["state_before", "state_after"]}
+    text = {f: columns.strings(ev, f) for f in ("name", "source", "target")}
+    nums = {f: columns.numbers(ev, f)[1] for f in ("index", "time", "landing_time", "exit_time", "depth")}
+    before = columns.arrays(ev, "state_before")
+    after = columns.arrays(ev, "state_after")
     transitions = []
-    for k in range(len(cols["name"])):
-        tr: dict[str, Any] = {f: cols[f][k][0] for f in fields}
-        tr["index"] = int(tr["index"])
-        for f in ("time", "landing_time", "exit_time", "depth"):
-            tr[f] = float(tr[f])
-        tr["state_before"] = np.array(cols["state_before"][k], dtype=float)
-        tr["state_after"] = np.array(cols["state_after"][k], dtype=float)
-        transitions.append(tr)
+    for k in range(len(text["name"])):
+        transitions.append({
+            "name": text["name"][k], "source": text["source"][k], "target": text["target"][k],
+            "index": int(nums["index"][k]), "time": float(nums["time"][k]),
+            "landing_time": float(nums["landing_time"][k]), "exit_time": float(nums["exit_time"][k]),
+            "depth": float(nums["depth"][k]),
+            "state_before": before[k], "state_after": after[k],
+        })
 
     scenery = {}
     for part in meta.get("scenery", []):
-        rows = _values(columns, f"/scenery/{part}", "LineStrips3D:strips")
+        rows = columns.values(f"/scenery/{part}", "LineStrips3D:strips")
         if rows and rows[0]:
             scenery[part] = np.array(rows[0][0], dtype=float)[:, [0, 2]].reshape(-1, 2)
     frames = None
     if meta.get("has_geometry"):
-        f_idx, f_times = _scalar_rows(columns, "/frames/t")
-        f_modes = [v[0] for v in _values(columns, "/frames/mode", "TextLog:text")]
+        _, f_times = columns.numbers("/frames/t")
+        f_modes = columns.strings("/frames/mode", "TextLog:text")
         parts: dict[str, list[np.ndarray | None]] = {}
         for part in meta.get("parts", []):
-            rows = columns.get(f"/robot/{part}", {}).get("LineStrips3D:strips", [])
             lines: list[np.ndarray | None] = [None] * len(f_times)
-            for i, strips_row in rows:
+            for i, strips_row in columns.rows(f"/robot/{part}", "LineStrips3D:strips"):
                 if 0 <= i < len(lines) and strips_row and len(strips_row[0]):
                     lines[i] = np.array(strips_row[0], dtype=float)[:, [0, 2]].reshape(-1, 2)
             parts[part] = lines

@@ -26,9 +26,10 @@ def hopper_model(k: float = 400.0, c: float = 0.9, r: float = 0.1) -> Model:
     """A point mass on a massless spring foot: flight (z, zd) and stance (z, zd, n).
 
     Stance carries a third coordinate n (the touchdown count), so the modes have different
-    dimensions and a coordinate that exists in one mode only. Touchdown at z = 0 (guard z, m),
-    lift-off when the spring is back at rest length (guard -z, m); the lift-off reset scales
-    the velocity by c. Energy (J, unit mass): kinetic + gravity + spring.
+    dimensions and a coordinate that exists in one mode only. Touchdown at z = 0 while falling
+    (guard max(z, zd)), lift-off when the spring is back at rest length while rising (guard
+    max(-z, -zd)); guard units m (m/s off the guard); the lift-off reset scales the velocity
+    by c. Energy (J, unit mass): kinetic + gravity + spring.
     """
     count = {"n": 0}
 
@@ -36,8 +37,11 @@ def hopper_model(k: float = 400.0, c: float = 0.9, r: float = 0.1) -> Model:
         count["n"] += 1
         return np.array([x[0], x[1], float(count["n"])])
 
-    touchdown = Transition("flight", "stance", guard=lambda x: x[0], name="touchdown", reset=land)
-    liftoff = Transition("stance", "flight", guard=lambda x: -x[0], name="liftoff",
+    # "and" conditions with max: touchdown needs z < 0 while falling, lift-off z > 0 while
+    # rising, so that a guard point q a rounding error past the other mode's guard does not
+    # bounce straight back.
+    touchdown = Transition("flight", "stance", guard=lambda x: max(x[0], x[1]), name="touchdown", reset=land)
+    liftoff = Transition("stance", "flight", guard=lambda x: max(-x[0], -x[1]), name="liftoff",
                          reset=lambda x: np.array([x[0], c * x[1]]))
 
     def energy(mode, x):

@@ -10,7 +10,7 @@ from test_record import ball_model, hopper_model
 from legsim.record import read_rrd, trace_series, execution_trace, write_rrd
 from legsim.relaxed import simulate
 from viz._common import OutputError
-from viz.plots import MODE_GID, STRIP_GID, plot_data, state_figure, write_plot
+from viz.plots import MODE_GID, STRIP_GID, plot_data, span_bounds, state_figure, write_plot
 
 
 @pytest.fixture(scope="module")
@@ -21,17 +21,12 @@ def hopper():
     return model, ex
 
 
-def _spans(collection) -> list[tuple[float, float]]:
-    """(start, end) in data x of every bar of a broken_barh collection."""
-    out = []
-    for path in collection.get_paths():
-        x = path.vertices[:, 0]
-        out.append((float(x.min()), float(x.max())))
-    return sorted(out)
+def _spans(patch) -> list[tuple[float, float]]:
+    return sorted(map(tuple, span_bounds(patch).tolist()))
 
 
 def _collections(ax, gid):
-    return [c for c in ax.collections if c.get_gid() == gid]
+    return [a for a in ax.get_children() if a.get_gid() == gid]
 
 
 def test_strip_bars_match_the_strip_intervals_in_every_panel(hopper):
@@ -45,9 +40,9 @@ def test_strip_bars_match_the_strip_intervals_in_every_panel(hopper):
         got = _spans(coll)
         assert len(got) == len(want)
         np.testing.assert_allclose(np.array(got), np.array(want), rtol=0, atol=1e-12)
-        # The bars span the panel's full height (axes coordinates 0..1).
-        ys = np.concatenate([p.vertices[:, 1] for p in coll.get_paths()])
-        assert ys.min() == 0 and ys.max() == 1
+        # The bars span the panel's full height (axes coordinates 0..1), at the strip times.
+        ys = coll.get_path().vertices[:, 1]
+        assert ys.min() == 0 and ys.max() == 1 and coll.get_transform() == ax.get_xaxis_transform()
 
 
 def test_mode_band_shows_the_mode_sequence(hopper):
@@ -126,3 +121,26 @@ def test_unknown_coordinate_is_rejected(hopper, tmp_path):
 def test_plot_needs_an_execution(tmp_path):
     with pytest.raises(OutputError, match="needs a legsim Execution"):
         write_plot("nope", None, tmp_path / "x.png")
+
+
+def test_sub_pixel_gaps_between_strips_are_joined():
+    # A bouncing ball with c = 0.5 ends in a Zeno cascade: strips separated by ever shorter
+    # flights. Gaps narrower than the drawing tolerance are shaded through, wider ones not.
+    from viz.plots import SPAN_RESOLUTION
+
+    model = ball_model(c=0.5)
+    ex = simulate(model.system, np.array([1.0, 0.0]), "flight", 3.0, 1e-3, 1e-3, max_transitions=2000)
+    fig = state_figure(plot_data(ex, model=model))
+    (patch,) = _collections(fig.axes[0], STRIP_GID)
+    shaded = span_bounds(patch)
+    strips = np.array(ex.strip_intervals())
+    tol = (ex.t_end - ex.t0) / SPAN_RESOLUTION
+    gaps = strips[1:, 0] - strips[:-1, 1]
+    assert np.sum(gaps <= tol) > 10 and np.sum(gaps > tol) > 3  # both cases occur
+    assert len(shaded) == 1 + np.sum(gaps > tol)
+    # Every strip lies inside one shaded interval, and every shaded interval starts at a strip
+    # entry and ends at a strip exit.
+    for a, b in strips:
+        assert np.any((shaded[:, 0] <= a) & (b <= shaded[:, 1]))
+    assert set(shaded[:, 0]) <= set(strips[:, 0]) and set(shaded[:, 1]) <= set(strips[:, 1])
+    assert np.all(shaded[1:, 0] - shaded[:-1, 1] > tol)

@@ -29,6 +29,7 @@ STRIP_COLOUR = "0.78"
 MODE_COLOURS = ["#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f",
                 "#bcbd22", "#17becf"]
 FORMATS = ("png", "pdf", "svg", "jpg", "jpeg")
+SPAN_RESOLUTION = 20_000
 
 
 def plot_data(execution: Execution | None = None, scene: Any = None, *, model: Model | None = None,
@@ -61,27 +62,23 @@ def state_figure(data: PlotData, coordinates: Sequence[str] | None = None, *, wi
     ratios = [3] * n + [1]
     axes = fig.subplots(n + 1, 1, sharex=True, gridspec_kw={"height_ratios": ratios})
     axes = np.atleast_1d(axes)
-    spans = [(a, b - a) for a, b in data.strips]
+    spans = data.strips
+    # Intervals closer than 1/20 of a pixel (at 1000 px across) are drawn joined.
+    tol = (data.t_end - data.t0) / SPAN_RESOLUTION
     for ax, name in zip(axes[:-1], names):
         t, v = data.series[name]
         ax.plot(t, v, color="k", lw=1.0)
         if spans:
-            # One collection per panel (not one patch per strip): a Zeno run has thousands.
-            coll = ax.broken_barh(spans, (0, 1), transform=ax.get_xaxis_transform(), facecolors=STRIP_COLOUR,
-                                  edgecolors="none", zorder=0)
-            coll.set_gid(STRIP_GID)
+            span_patch(ax, spans, STRIP_COLOUR, STRIP_GID, tol)
         ax.set_ylabel(name)
         ax.grid(True, lw=0.3, alpha=0.5)
     band = axes[-1]
     modes = list(dict.fromkeys(m for m, _, _ in data.segments))
     colour = {m: MODE_COLOURS[i % len(MODE_COLOURS)] for i, m in enumerate(modes)}
     for m in modes:
-        ranges = [(a, b - a) for mm, a, b in data.segments if mm == m]
-        coll = band.broken_barh(ranges, (0, 1), facecolors=colour[m], edgecolors="none")
-        coll.set_gid(f"{MODE_GID}:{m}")
+        span_patch(band, [(a, b) for mm, a, b in data.segments if mm == m], colour[m], f"{MODE_GID}:{m}", tol)
     if spans:
-        coll = band.broken_barh(spans, (0, 1), facecolors=STRIP_COLOUR, edgecolors="none")
-        coll.set_gid(STRIP_GID)
+        span_patch(band, spans, STRIP_COLOUR, STRIP_GID, tol)
     band.set_ylim(0, 1)
     band.set_yticks([])
     band.set_ylabel("mode", rotation=0, ha="right", va="center")
@@ -95,6 +92,52 @@ def state_figure(data: PlotData, coordinates: Sequence[str] | None = None, *, wi
     seq = [m for m, _, _ in data.segments]
     axes[0].set_title(f"{data.title}\nmode sequence: {_short_sequence(seq)}", fontsize="medium")
     return fig
+
+
+def merge_spans(spans: Sequence[tuple[float, float]], tol: float = 0.0) -> np.ndarray:
+    """The intervals (S, 2) sorted, with those that overlap or lie within ``tol`` of each
+    other joined: their union, up to gaps no wider than ``tol``."""
+    a = np.asarray(spans, dtype=float).reshape(-1, 2)
+    if len(a) < 2:
+        return a
+    a = a[np.argsort(a[:, 0], kind="stable")]
+    reach = np.maximum.accumulate(a[:, 1])
+    new = np.concatenate([[True], a[1:, 0] - reach[:-1] > tol])
+    first = np.nonzero(new)[0]
+    return np.stack([a[first, 0], np.maximum.reduceat(a[:, 1], first)], axis=1)
+
+
+def span_patch(ax, spans: Sequence[tuple[float, float]], colour: str, gid: str, tol: float = 0.0):
+    """Shade the time intervals ``spans`` over the full height of ``ax`` with one patch.
+
+    One compound path of rectangles (5 vertices each) rather than a patch or collection item
+    per interval: a Zeno run has tens of thousands of strips. Intervals closer than ``tol``
+    are drawn as one (``merge_spans``): rasterising 10^5 sub-pixel rectangles costs seconds
+    and shows nothing more. Added as an artist, so it does not change the axes' data
+    limits. ``span_bounds`` reads the intervals back.
+    """
+    from matplotlib.patches import PathPatch
+    from matplotlib.path import Path as MPath
+
+    a = merge_spans(spans, tol)
+    verts = np.empty((len(a), 5, 2))
+    verts[:, [0, 3, 4], 0] = a[:, :1]
+    verts[:, [1, 2], 0] = a[:, 1:]
+    verts[:, [0, 1, 4], 1] = 0.0
+    verts[:, [2, 3], 1] = 1.0
+    codes = np.tile([MPath.MOVETO, MPath.LINETO, MPath.LINETO, MPath.LINETO, MPath.CLOSEPOLY], len(a))
+    patch = PathPatch(MPath(verts.reshape(-1, 2), codes), facecolor=colour, edgecolor="none", linewidth=0,
+                      transform=ax.get_xaxis_transform(), zorder=0,
+                      antialiased=False)  # adjacent intervals would show anti-aliasing seams
+    patch.set_gid(gid)
+    ax.add_artist(patch)
+    return patch
+
+
+def span_bounds(patch) -> np.ndarray:
+    """The (start, end) intervals (S, 2) drawn by ``span_patch``."""
+    v = patch.get_path().vertices.reshape(-1, 5, 2)
+    return np.stack([v[:, 0, 0], v[:, 1, 0]], axis=1)
 
 
 def _short_sequence(seq: list[str], keep: int = 4) -> str:
