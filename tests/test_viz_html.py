@@ -115,3 +115,16 @@ def test_commands_hide_grid_and_axes(hopper_frames):
     hidden = {c["path"] for c in cmds if c["type"] == "set_property" and c["property"] == "visible"
               and c["value"] is False}
     assert hidden == {"/Grid", "/Axes"}
+
+
+def test_camera_stays_put_for_a_wide_oscillation():
+    # A mass swinging over 20 m and ending where it started: a fixed camera frames it all.
+    t = np.linspace(0.0, 10.0, 301)
+    box = np.array([[-0.5, 0.0], [0.5, 0.0], [0.5, 1.0], [-0.5, 1.0]])
+    swing = Frames(t, ["m"] * len(t), {"mass": [box + [10.0 * np.sin(2.5 * ti), 0.0] for ti in t]})
+    cam_x, _, dist = camera_track(swing)
+    assert np.ptp(cam_x) == 0.0
+    # The whole swing (+-10.5 m) fits the view: half width <= distance * tan(fov/2) * aspect.
+    from viz.meshcat_anim import ASSUMED_ASPECT, FOV_DEG
+
+    assert 10.5 <= dist * np.tan(np.radians(FOV_DEG / 2)) * ASSUMED_ASPECT

@@ -100,9 +100,9 @@ def _robot_points(frames: Frames) -> list[np.ndarray]:
 def camera_track(frames: Frames) -> tuple[np.ndarray, float, float]:
     """Camera x per frame (m), its height z (m) and its distance along -y (m).
 
-    The camera stays put when the robot stays within a few body sizes, and follows its
-    (smoothed) horizontal centre when it travels, so that a running robot stays in view at a
-    readable size.
+    The camera follows the robot's (smoothed) horizontal centre when it travels more than a
+    few body sizes in one direction, so that a running robot stays in view at a readable
+    size; otherwise it stays put and frames the whole motion.
     """
     per_frame = _robot_points(frames)
     drawn = [p for p in per_frame if len(p)]
@@ -119,8 +119,11 @@ def camera_track(frames: Frames) -> tuple[np.ndarray, float, float]:
     if np.all(np.isnan(centres)):
         centres = np.full(len(per_frame), (lo[0] + hi[0]) / 2)
     centres = np.where(np.isnan(centres), np.nanmean(centres), centres)
-    travel = hi[0] - lo[0]
-    if travel > 3.0 * body and len(centres) > 1:
+    spread = float(np.ptp(centres)) if len(centres) else 0.0
+    progress = abs(float(centres[-1] - centres[0])) if len(centres) else 0.0
+    # Follow a robot that makes headway (a runner), not one that swings back and forth over
+    # a wide range (an oscillator), which reads better from a fixed camera.
+    if spread > 3.0 * body and progress > 0.5 * spread and len(centres) > 1:
         window = max(1, min(len(centres), int(round(len(centres) / max(frames.times[-1] - frames.times[0], 1e-9)
                                                     * 0.5))))
         pad = np.pad(centres, (window // 2, window - 1 - window // 2), mode="edge")
@@ -144,7 +147,10 @@ def camera_track(frames: Frames) -> tuple[np.ndarray, float, float]:
     return cam_x, float(cam_z), float(distance)
 
 
-def _thickness(frames: Frames) -> float:
+def _thickness(frames: Frames, distance: float) -> float:
+    """Width (m) of the drawn lines: 1.2 % of the robot's size, and at least about 2 px of a
+    900 px wide window, so a small robot moving over a wide range stays visible."""
+    view_half_width = distance * math.tan(math.radians(FOV_DEG / 2)) * ASSUMED_ASPECT
     drawn = [p for p in _robot_points(frames) if len(p)]
     if drawn:
         sizes = [float(np.hypot(*np.ptp(p, axis=0))) for p in drawn]
@@ -154,7 +160,7 @@ def _thickness(frames: Frames) -> float:
     if size <= 0:
         pts = np.concatenate(drawn) if drawn else np.zeros((1, 2))
         size = max(float(np.hypot(*np.ptp(pts, axis=0))), 1.0)
-    return 0.025 * size
+    return max(0.012 * size, 0.004 * view_half_width)
 
 
 # -- meshcat commands ---------------------------------------------------------------------------
@@ -182,7 +188,8 @@ def _commands(frames: Frames, speed: float) -> list[dict[str, Any]]:
 
     root = MPath(("meshcat",))
     cmds: list[dict[str, Any]] = []
-    w = _thickness(frames)
+    cam_x, cam_z, distance = camera_track(frames)
+    w = _thickness(frames, distance)
     # Key times in seconds of playback (clip fps 1): three.js interpolates between them.
     key_times = [float(t) for t in (np.asarray(frames.times) - frames.times[0]) / speed]
 
@@ -208,7 +215,7 @@ def _commands(frames: Frames, speed: float) -> list[dict[str, Any]]:
         if most == 1:
             # A part drawn as a single point: a ball that moves.
             path = root.append(f"robot/{part}/0")
-            cmds.append(SetObject(g.Sphere(3 * w), material, path).lower())
+            cmds.append(SetObject(g.Sphere(2.5 * w), material, path).lower())
             pos, scale = [], []
             for line in lines:
                 there = line is not None and len(line) == 1
@@ -238,7 +245,6 @@ def _commands(frames: Frames, speed: float) -> list[dict[str, Any]]:
 
     # meshcat's orbit controls always look at the world origin, so rather than moving the
     # camera we move the whole drawing (/meshcat) to put the point of interest there.
-    cam_x, cam_z, distance = camera_track(frames)
     cmds.append(SetTransform(_matrix(-float(cam_x[0]), -cam_z, 1.0, 0.0), root).lower())
     # The camera sits in meshcat's y-up "rotated" frame: local +z is world -y.
     cam_obj = MPath(("Cameras", "default", "rotated", "<object>"))
