@@ -234,8 +234,10 @@ def simulate(
         if atol is None:
             atol = 1e-3 * float(rtol)
         rtol, atol = float(rtol), float(atol)
-    return _Integrator(system, tableau, h, eps, control, max_transitions, max_halvings, progress,
-                       rtol, atol, landing).run(mode, x, t0, t_final)
+    integrator = _Integrator(system, tableau, h, eps, control, max_transitions, max_halvings, progress,
+                             rtol, atol, landing)
+    integrator._checked_modes.add(mode)  # check_state above already evaluated this mode's field
+    return integrator.run(mode, x, t0, t_final)
 
 
 def _known_modes(system: HybridSystem, mode: str):
