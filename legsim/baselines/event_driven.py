@@ -46,6 +46,7 @@ def simulate_events(
     max_transitions: int = 10_000,
     max_step: float = math.inf,
     event_tol: float = 1e-10,
+    dense_output: bool = False,
 ) -> Execution:
     """Event-driven simulation of ``system`` from ``(mode, x0)`` on [t0, t_final] with solve_ivp.
 
@@ -56,6 +57,10 @@ def simulate_events(
     max_transitions: transition cap; reaching it ends the run with status ``max_transitions``.
     event_tol: a guard within this of zero at a reset image, and decreasing along the flow,
         fires immediately (simultaneous events).
+    dense_output: keep solve_ivp's own interpolant of each segment, so that ``sample`` between
+        steps has the method's accuracy (the cubic Hermite interpolation of a plain
+        ``Execution`` is only O(step^4), poor for the long steps of DOP853 at tight
+        tolerances). Costs a little time inside solve_ivp: leave it off when timing.
 
     Returns
     -------
@@ -75,6 +80,7 @@ def simulate_events(
                            label="x0")
     counts = {"field_evals": 0, "guard_evals": 0, "reset_evals": 0, "steps": 0}
     pieces: list[tuple[str, np.ndarray, np.ndarray]] = []
+    dense: list[Any] = []
     transitions: list[TransitionRecord] = []
     status, message = "finished", ""
     t = float(t0)
@@ -96,10 +102,11 @@ def simulate_events(
             event.direction = -1
             events.append(event)
         sol = solve_ivp(fun, (t, t_final), x, method=method, rtol=rtol, atol=atol, events=events or None,
-                        max_step=max_step)
+                        max_step=max_step, dense_output=dense_output)
         counts["field_evals"] += sol.nfev
         counts["steps"] += max(len(sol.t) - 1, 0)
         pieces.append((mode, sol.t.copy(), sol.y.T.copy()))
+        dense.append(sol.sol)
         if sol.status == -1:
             status, message = "non_finite", f"solve_ivp failed in mode '{mode}' at t={sol.t[-1]:.17g}: {sol.message}"
             break
@@ -129,13 +136,15 @@ def simulate_events(
             e, q = nxt, x.copy()
             # A zero-length segment keeps the execution's segment/strip alternation.
             pieces.append((mode, np.array([t]), x.reshape(1, -1).copy()))
+            dense.append(None)
         if status != "finished" or not np.all(np.isfinite(x)):
             if status == "finished":
                 status, message = "non_finite", f"reset gave a non-finite state at t={t:.17g}: {x.tolist()}"
             break
     wall = _time.perf_counter() - wall0
     return _assemble(system, pieces, transitions, status, message, t0, t, t_final, counts, wall,
-                     {"method": f"solve_ivp-{method}", "rtol": rtol, "atol": atol}, control)
+                     {"method": f"solve_ivp-{method}", "rtol": rtol, "atol": atol}, control,
+                     dense if dense_output else None)
 
 
 def _firing_at_entry(system, mode, x, t, control, tol, counts) -> int | None:
@@ -158,7 +167,32 @@ def _firing_at_entry(system, mode, x, t, control, tol, counts) -> int | None:
     return None if best is None else best[1]
 
 
-def _assemble(system, pieces, transitions, status, message, t0, t_end, t_final, counts, wall, settings, control):
+class DenseExecution(Execution):
+    """An event-driven execution that samples each segment with solve_ivp's own interpolant."""
+
+    dense: list[Any] | None = None
+
+    def sample(self, times):
+        samples = super().sample(times)
+        if not self.dense:
+            return samples
+        starts, kinds = self._pieces()
+        which = np.clip(np.searchsorted(starts, samples.times, side="right") - 1, 0, len(kinds) - 1)
+        for piece in np.unique(which):
+            kind, k = kinds[piece]
+            interpolant = self.dense[k] if kind == "seg" else None
+            if interpolant is None:
+                continue
+            seg = self.segments[k]
+            sel = np.nonzero(which == piece)[0]
+            values = interpolant(np.clip(samples.times[sel], seg.t_start, seg.t_end))
+            for row, i in enumerate(sel):
+                samples.states[i] = np.array(values[:, row], dtype=float)
+        return samples
+
+
+def _assemble(system, pieces, transitions, status, message, t0, t_end, t_final, counts, wall, settings, control,
+              dense=None):
     segments = []
     for mode, ts, xs in pieces:
         field = system.mode(mode).field
@@ -168,6 +202,11 @@ def _assemble(system, pieces, transitions, status, message, t0, t_end, t_final, 
     strips = [Strip(tr.source, tr.name, tr.time, tr.exit_time, tr.state_before) for tr in transitions]
     counters = dict(counts, transitions=len(transitions), halvings=0, strip_time=0.0, wall_time_s=wall)
     names = {m: system.state_names(m) for m, _, _ in pieces}
-    return Execution(status=status, message=message, segments=segments, strips=strips, transitions=transitions,
-                     t0=float(t0), t_end=float(t_end), t_final=float(t_final), counters=counters, settings=settings,
-                     state_names=names, system_name=system.name)
+    fields = dict(status=status, message=message, segments=segments, strips=strips, transitions=transitions,
+                  t0=float(t0), t_end=float(t_end), t_final=float(t_final), counters=counters, settings=settings,
+                  state_names=names, system_name=system.name)
+    if dense is None:
+        return Execution(**fields)
+    execution = DenseExecution(**fields)
+    execution.dense = dense
+    return execution

@@ -48,7 +48,7 @@ def _get_compiled():
     if _compiled_recurrence is None:
         import numba  # a compiled baseline only when asked for
 
-        _compiled_recurrence = numba.njit(cache=False, fastmath=False)(_recurrence)
+        _compiled_recurrence = numba.njit(cache=True, fastmath=False)(_recurrence)
     return _compiled_recurrence
 
 
