@@ -1,0 +1,203 @@
+"""Bad input to ``simulate`` and every ordinary failure of a run: each gives a legsim error (or a
+run status) whose message names what is wrong, never a numpy traceback or a silent NaN."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from legsim import HybridSystem, Mode, ModelError, SimulationError, Transition, simulate
+from legsim.systems import bouncing_ball
+
+
+def constant(v: float):
+    return lambda t, x, u: np.array([v])
+
+
+def one_mode(field, guard=None, reset=None) -> HybridSystem:
+    transitions = [] if guard is None else [Transition("a", "a", guard, reset, name="edge")]
+    return HybridSystem({"a": Mode(1, field, names=("q",))}, transitions, name="toy")
+
+
+@pytest.fixture(scope="module")
+def ball() -> HybridSystem:
+    return bouncing_ball.make_system()
+
+
+# -- invalid arguments: SimulationError naming the argument ----------------------------------
+@pytest.mark.parametrize("h", [0.0, -1e-3, float("nan"), float("inf")])
+def test_step_size_must_be_positive_and_finite(ball, h):
+    with pytest.raises(SimulationError, match=r"^h must be finite and > 0, got"):
+        simulate(ball, [1.0, 0.0], "flight", 1.0, h, 1e-3)
+
+
+def test_step_size_must_be_a_number(ball):
+    with pytest.raises(SimulationError, match=r"^h must be a number, got str '0.1'"):
+        simulate(ball, [1.0, 0.0], "flight", 1.0, "0.1", 1e-3)
+
+
+@pytest.mark.parametrize("eps", [0.0, -1.0, float("nan")])
+def test_strip_width_must_be_positive(ball, eps):
+    with pytest.raises(SimulationError, match=r"^eps must be finite and > 0, got"):
+        simulate(ball, [1.0, 0.0], "flight", 1.0, 1e-3, eps)
+
+
+@pytest.mark.parametrize("t_final", [0.0, -1.0, float("inf")])
+def test_final_time_must_exceed_start(ball, t_final):
+    with pytest.raises(SimulationError, match=r"^t_final must be finite and > t0 = 0.0, got"):
+        simulate(ball, [1.0, 0.0], "flight", t_final, 1e-3, 1e-3)
+
+
+def test_final_time_must_exceed_a_given_start(ball):
+    with pytest.raises(SimulationError, match=r"^t_final must be finite and > t0 = 2.0, got 1.5"):
+        simulate(ball, [1.0, 0.0], "flight", 1.5, 1e-3, 1e-3, t0=2.0)
+
+
+def test_unknown_mode_lists_the_modes(ball):
+    with pytest.raises(SimulationError, match=r"^unknown initial mode 'stance'; modes: \['flight'\]"):
+        simulate(ball, [1.0, 0.0], "stance", 1.0, 1e-3, 1e-3)
+
+
+def test_mode_must_be_a_name(ball):
+    with pytest.raises(SimulationError, match=r"^unknown initial mode 0; modes: \['flight'\]"):
+        simulate(ball, [1.0, 0.0], 0, 1.0, 1e-3, 1e-3)
+
+
+@pytest.mark.parametrize("x0, shape", [([1.0, 0.0, 0.0], r"\(3,\)"), ([[1.0, 0.0]], r"\(1, 2\)"), (1.0, r"\(\)")])
+def test_initial_state_shape_is_checked(ball, x0, shape):
+    with pytest.raises(SimulationError, match=rf"^x0 has shape {shape}, expected \(2,\) for mode 'flight' "
+                                              r"with coordinates \('z', 'zd'\)"):
+        simulate(ball, x0, "flight", 1.0, 1e-3, 1e-3)
+
+
+def test_initial_state_must_be_numeric(ball):
+    with pytest.raises(SimulationError, match=r"^x0 must be a numeric vector of length 2 for mode 'flight'"):
+        simulate(ball, ["one", "two"], "flight", 1.0, 1e-3, 1e-3)
+
+
+@pytest.mark.parametrize("bad", [float("nan"), float("inf")])
+def test_initial_state_must_be_finite(ball, bad):
+    with pytest.raises(SimulationError, match=r"^x0 must be finite, got .* in mode 'flight'"):
+        simulate(ball, [1.0, bad], "flight", 1.0, 1e-3, 1e-3)
+
+
+def test_initial_state_past_a_guard_by_more_than_eps(ball):
+    # max(z, zd) = -0.01 < -eps: below the floor and falling.
+    with pytest.raises(SimulationError, match=r"^x0 lies past the guard of transition bounce by 0.01 > eps = 0.001 "
+                                              r"\(guard units\); start inside the domain of 'flight'"):
+        simulate(ball, [-0.01, -1.0], "flight", 1.0, 1e-3, 1e-3)
+
+
+def test_initial_state_inside_the_strip_is_accepted_and_crosses_at_once(ball):
+    ex = simulate(ball, [-5e-4, -1.0], "flight", 0.1, 1e-3, 1e-3)
+    assert ex.status == "finished"
+    first = ex.transitions[0]
+    assert first.time == 0.0 and first.depth == pytest.approx(5e-4)
+    np.testing.assert_allclose(first.state_after, [-5e-4, 0.5])  # the reset (z, -c zd), c = 0.5
+
+
+def test_unknown_method_lists_the_choices(ball):
+    with pytest.raises(SimulationError, match=r"^unknown method 'rk5'; choose one of \['bs32', 'dopri5', 'euler'"):
+        simulate(ball, [1.0, 0.0], "flight", 1.0, 1e-3, 1e-3, method="rk5")
+
+
+def test_control_must_be_callable(ball):
+    with pytest.raises(SimulationError, match=r"^control must be callable control\(t, x\) -> u or None, got float"):
+        simulate(ball, [1.0, 0.0], "flight", 1.0, 1e-3, 1e-3, control=1.0)
+
+
+@pytest.mark.parametrize("value", [-1, 2.5, True])
+def test_transition_budget_must_be_a_nonnegative_integer(ball, value):
+    with pytest.raises(SimulationError, match=r"^max_transitions must be an integer >= 0, got"):
+        simulate(ball, [1.0, 0.0], "flight", 1.0, 1e-3, 1e-3, max_transitions=value)
+
+
+def test_system_must_be_a_hybrid_system():
+    with pytest.raises(SimulationError, match=r"^system must be a legsim.HybridSystem, got dict"):
+        simulate({"a": 1}, [1.0], "a", 1.0, 1e-3, 1e-3)
+
+
+def test_field_of_wrong_shape_is_named_at_the_start():
+    system = one_mode(lambda t, x, u: np.zeros(3))
+    with pytest.raises(ModelError, match=r"^toy: field of mode 'a' returned shape \(3,\), expected \(1,\)"):
+        simulate(system, [0.0], "a", 1.0, 0.1, 1e-3)
+
+
+def test_failing_control_is_reported_as_a_legsim_error(ball):
+    with pytest.raises(SimulationError, match="control"):
+        simulate(ball, [1.0, 0.0], "flight", 1.0, 1e-3, 1e-3, control=lambda t, x: 1.0 / 0.0)
+
+
+def test_field_failing_mid_run_is_reported_with_mode_and_time():
+    system = one_mode(lambda t, x, u: np.array([1.0]) if x[0] < 0.5 else np.array(["oops"]))
+    with pytest.raises(ModelError, match=r"mode 'a'.*t="):
+        simulate(system, [0.0], "a", 1.0, 0.1, 1e-3)
+
+
+# -- ordinary ends of a run: status and message ----------------------------------------------
+def test_a_guard_that_jumps_past_the_strip_exhausts_the_halving():
+    # The guard drops from +1 to -1 at q = 1: no step can land in its strip.
+    system = one_mode(constant(1.0), guard=lambda x: 1.0 if x[0] < 1.0 else -1.0)
+    ex = simulate(system, [0.0], "a", 3.0, 0.1, 1e-3)
+    assert ex.status == "halving_exhausted"
+    assert ex.message.startswith("no step from t=0.99999")
+    assert "in mode 'a' lands in the relaxed domain after" in ex.message
+    assert "leaves through the guard of transition edge without entering its strip" in ex.message
+    # Nothing past the guard was kept, and the run stops where the flow leaves.
+    assert ex.t_end == pytest.approx(1.0, abs=1e-12)
+    assert ex.final_state[0] < 1.0
+
+
+def test_a_field_that_blows_up_ends_non_finite():
+    # q' = q^2 from q(0) = 1 leaves every bounded set at t = 1.
+    system = one_mode(lambda t, x, u: x * x)
+    # The model overflows on purpose: its own overflow warnings are silenced.
+    with np.errstate(over="ignore", invalid="ignore"):
+        ex = simulate(system, [1.0], "a", 2.0, 0.01, 1e-3)
+    assert ex.status == "non_finite"
+    assert "in mode 'a' gives a non-finite state" in ex.message
+    # States stay finite (if huge) to within a couple of steps of the blow-up time.
+    assert 1.0 <= ex.t_end < 1.03
+    assert np.all(np.isfinite(ex.final_state))
+
+
+def test_large_but_finite_states_are_not_called_non_finite():
+    system = one_mode(constant(1e200))
+    ex = simulate(system, [0.0], "a", 1.0, 0.25, 1e-3)
+    assert ex.status == "finished"
+    assert ex.final_state[0] == pytest.approx(1e200)
+
+
+def test_a_nan_field_ends_non_finite_with_the_mode_named():
+    system = one_mode(lambda t, x, u: np.array([1.0]) if x[0] < 0.5 else np.array([np.nan]))
+    ex = simulate(system, [0.0], "a", 1.0, 0.1, 1e-3)
+    assert ex.status == "non_finite"
+    assert "mode 'a'" in ex.message
+    assert ex.t_end <= 0.5 + 1e-12
+    assert all(np.all(np.isfinite(s.x)) for s in ex.segments)
+
+
+def test_a_reset_outside_the_target_domain_ends_the_run():
+    system = HybridSystem(
+        {"a": Mode(1, constant(1.0)), "b": Mode(1, constant(1.0))},
+        [Transition("a", "b", lambda x: 1.0 - x[0], lambda x: np.array([-1.0]), name="jump"),
+         Transition("b", "a", lambda x: x[0], name="back")],
+        name="toy")
+    ex = simulate(system, [0.0], "a", 3.0, 0.1, 1e-3)
+    assert ex.status == "reset_outside_domain"
+    assert ex.message.startswith("state entering mode 'b' at t=1.00")
+    assert "lies past the guard of transition back by 1 > eps=0.001: x=[-1.0]" in ex.message
+    assert [tr.name for tr in ex.transitions] == ["jump"]
+
+
+def test_the_transition_budget_ends_the_run(ball):
+    ex = simulate(ball, [1.0, 0.0], "flight", 3.0, 1e-3, 1e-3, max_transitions=5)
+    assert ex.status == "max_transitions"
+    assert len(ex.transitions) == 5
+    assert ex.message.startswith("transition budget max_transitions=5 used up at t=")
+    assert "(next transition bounce from mode 'flight')" in ex.message
+    # The sixth impact of the closed form is where the run stopped (to within 6 strip holds).
+    t6 = bouncing_ball.BouncingBallReference().impact_time(6)
+    assert ex.t_end == pytest.approx(float(t6), abs=6e-3)
+    with pytest.raises(SimulationError, match=r"^simulation stopped with status 'max_transitions': transition"):
+        ex.raise_for_status()
