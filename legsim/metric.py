@@ -549,7 +549,9 @@ def _slsqp(fun: Callable, z0: np.ndarray, lb: np.ndarray, ub: np.ndarray, constr
             try:
                 res = minimize(fun, z0, jac=True, method="SLSQP", bounds=bounds, constraints=constraints,
                                options={"ftol": ftol, "maxiter": maxiter})
-            except (ValueError, ArithmeticError, np.linalg.LinAlgError):
+            except Exception:  # noqa: BLE001 - a model function failed at a probed point (e.g.
+                # a robot whose guard refuses states where the body is below ground): this
+                # start yields no path, the others still may.
                 return None
     z = np.asarray(res.x, dtype=float)
     if converged is not None:
@@ -610,7 +612,7 @@ def _local_min(piece: _Piece, fun: Callable[[np.ndarray], tuple[float, np.ndarra
                 return p
 
             z = _slsqp(lambda z, full=full: _restrict(fun(full(z)), free), start[free], piece.lb[free],
-                       piece.ub[free], _piece_constraints(piece, free, full), ftol=1e-14 * scale)
+                       piece.ub[free], _piece_constraints(piece, free, full), ftol=1e-14 * scale, maxiter=60)
             if z is None:
                 continue
             p = piece.clip(full(z))
@@ -689,6 +691,42 @@ def _project_onto_image(edge: _Edge, piece: _Piece, x: np.ndarray, tol: float) -
 
     q = _local_min(piece, fun, p, tol, 1.0 + float(x @ x))
     return None if q is None else (float(np.linalg.norm(np.asarray(edge.reset(q), dtype=float) - x)), q)
+
+
+def _set_distance_bound(edge: _Edge, piece: _Piece, x: np.ndarray, guard_side: bool, tol: float) -> float:
+    """Lower bound of the distance from x to the guard piece (guard_side) or to its reset image,
+    used only to prune walks. Exact for coordinate pieces (with affine resets on the image side).
+    For guards of unknown shape a projection would be a local minimisation as costly as the walk
+    itself, so a first-order estimate is used instead: |g(x)| / |grad g(x)| on the guard side;
+    on the image side, for an affine reset, the distance from x to the reset's range combined
+    with sigma_min times the guard offset of the least-squares preimage; 0 otherwise (no pruning).
+    """
+    if piece.boxed and (guard_side or edge.affine is not None):
+        res = _project_onto_piece(piece, x, tol) if guard_side else _project_onto_image(edge, piece, x, tol)
+        return math.inf if res is None else res[0]
+    if guard_side:
+        if piece.eq is None:
+            return float(np.linalg.norm(piece.clip(x) - x))  # the box alone: a superset
+        return _first_order_offset(piece, x)
+    if edge.affine is None or piece.eq is None:
+        return 0.0
+    A, r = edge.affine
+    pre = np.linalg.lstsq(A, x - r, rcond=None)[0]
+    off_range = float(np.linalg.norm(A @ pre + r - x))
+    smallest = float(edge.sigma[0]) if edge.sigma is not None else 0.0
+    return math.hypot(off_range, smallest * _first_order_offset(piece, pre))
+
+
+def _first_order_offset(piece: _Piece, x: np.ndarray) -> float:
+    g, dg = piece.eq  # type: ignore[misc]
+    try:
+        value, grad = float(g(x)), np.asarray(dg(x), dtype=float)
+    except Exception:
+        return 0.0
+    norm = float(np.linalg.norm(grad))
+    if not (math.isfinite(value) and math.isfinite(norm)) or norm == 0.0:
+        return 0.0
+    return abs(value) / norm
 
 
 # ---------------------------------------------------------------------------------------------
@@ -792,7 +830,10 @@ def _optimise_walk(hops, x: np.ndarray, y: np.ndarray, tol: float) -> tuple[floa
             if value < best_len:
                 best_len, best_pts = value, pts
         return best_len, best_pts
-    for start_len, start in scored:
+    # Guards or resets of unknown shape: one local search from the better greedy chain (each
+    # evaluation may cost a contact solve; the result is a path that exists, maybe not the
+    # shortest, see the module docstring).
+    for start_len, start in scored[:1]:
         template = [p.copy() for p in start]
         cons = []
         for k, (_, piece) in enumerate(hops):
@@ -804,7 +845,7 @@ def _optimise_walk(hops, x: np.ndarray, y: np.ndarray, tol: float) -> tuple[floa
                 cons.append(c)
         z0 = np.concatenate([p[f] for p, f in zip(start, frees)])
         z = _slsqp(lambda z, template=template: objective(z, template), z0, lb, ub, cons,
-                   ftol=1e-12 * scale, maxiter=300)
+                   ftol=1e-12 * scale, maxiter=100)
         if z is None:
             continue
         pts = [piece.clip(p) for (_, piece), p in zip(hops, unpack(z, template))]
@@ -1107,17 +1148,13 @@ class _Search:
         def entry_lb(he: _HalfEdge, k: int, piece: _Piece) -> float:
             key = (id(he.edge), he.forward, k)
             if key not in entry_cache:
-                res = (_project_onto_piece(piece, x, tol) if he.forward
-                       else _project_onto_image(he.edge, piece, x, tol))
-                entry_cache[key] = math.inf if res is None else res[0]
+                entry_cache[key] = _set_distance_bound(he.edge, piece, x, he.forward, tol)
             return entry_cache[key]
 
         def exit_lb(he: _HalfEdge, k: int, piece: _Piece) -> float:
             key = (id(he.edge), he.forward, k)
             if key not in exit_cache:
-                res = (_project_onto_image(he.edge, piece, y, tol) if he.forward
-                       else _project_onto_piece(piece, y, tol))
-                exit_cache[key] = math.inf if res is None else res[0]
+                exit_cache[key] = _set_distance_bound(he.edge, piece, y, not he.forward, tol)
             return exit_cache[key]
 
         def first_lb(he: _HalfEdge) -> float:
@@ -1152,7 +1189,13 @@ class _Search:
             if lb >= best - slack:
                 break
             hops = [(he, he.edge.pieces[k]) for he, k in walk]
-            res = _optimise_walk(hops, x, y, tol)
+            try:
+                with np.errstate(all="ignore"):
+                    res = _optimise_walk(hops, x, y, tol)
+            except (MetricError, ModelError):
+                raise
+            except Exception:  # noqa: BLE001 - a guard or reset failed at a probed guard point:
+                continue  # this walk gives no path (the direct chord and other walks remain)
             if res is None:
                 continue
             length = res[0] + len(hops) * eps
