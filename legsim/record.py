@@ -325,6 +325,9 @@ def write_rrd(execution: Execution, scene: Any = None, path: str | os.PathLike |
         "t0": float(execution.t0),
         "t_end": float(execution.t_end),
         "parts": [] if frames is None else list(frames.parts),
+        # Parts that are a single point in every frame (a centre of mass, a foot) are points.
+        "point_parts": [] if frames is None else [p for p, lines in frames.parts.items()
+                                                  if all(line is None or len(line) <= 1 for line in lines)],
         "scenery": list(scenery),
         "has_geometry": frames is not None,
     }
@@ -498,8 +501,18 @@ def _log_all(rr, rrb, rec, execution, trace: Trace, frames: Frames | None, scene
                  rr.TimeColumn(TIMELINE, duration=frames.times)]
         rec.send_columns("frames/t", indexes=f_idx, columns=rr.Scalars.columns(scalars=frames.times))
         rec.send_columns("frames/mode", indexes=f_idx, columns=rr.TextLog.columns(text=frames.modes))
+        point_parts = set(meta["point_parts"])
         for k, (part, lines) in enumerate(frames.parts.items()):
             colour = PART_COLOURS[k % len(PART_COLOURS)]
+            if part in point_parts:
+                # A one-point "polyline" would not be drawn as a line strip: log it as a point.
+                rec.log(f"robot/{part}", rr.Points3D.from_fields(colors=[colour], radii=[-6.0]), static=True)
+                present = [line for line in lines if line is not None and len(line)]
+                positions = np.concatenate([_xz_to_3d(line) for line in present]) if present else np.zeros((0, 3))
+                counts = [0 if line is None else len(line) for line in lines]
+                rec.send_columns(f"robot/{part}", indexes=f_idx,
+                                 columns=rr.Points3D.columns(positions=positions).partition(counts))
+                continue
             rec.log(f"robot/{part}", rr.LineStrips3D.from_fields(colors=[colour], radii=[-2.5]), static=True)
             strips = [np.zeros((0, 3)) if line is None else _xz_to_3d(line) for line in lines]
             rec.send_columns(f"robot/{part}", indexes=f_idx, columns=rr.LineStrips3D.columns(strips=strips))
@@ -751,11 +764,17 @@ def _assemble(columns: _Columns, meta: dict[str, Any]) -> dict[str, Any]:
         _, f_times = columns.numbers("/frames/t")
         f_modes = columns.strings("/frames/mode", "TextLog:text")
         parts: dict[str, list[np.ndarray | None]] = {}
+        point_parts = set(meta.get("point_parts", []))
         for part in meta.get("parts", []):
             lines: list[np.ndarray | None] = [None] * len(f_times)
-            for i, strips_row in columns.rows(f"/robot/{part}", "LineStrips3D:strips"):
-                if 0 <= i < len(lines) and strips_row and len(strips_row[0]):
-                    lines[i] = np.array(strips_row[0], dtype=float)[:, [0, 2]].reshape(-1, 2)
+            if part in point_parts:
+                for i, points in columns.rows(f"/robot/{part}", "Points3D:positions"):
+                    if 0 <= i < len(lines) and points:
+                        lines[i] = np.array(points, dtype=float)[:, [0, 2]].reshape(-1, 2)
+            else:
+                for i, strips_row in columns.rows(f"/robot/{part}", "LineStrips3D:strips"):
+                    if 0 <= i < len(lines) and strips_row and len(strips_row[0]):
+                        lines[i] = np.array(strips_row[0], dtype=float)[:, [0, 2]].reshape(-1, 2)
             parts[part] = lines
         frames = Frames(f_times, f_modes, parts, scenery)
 

@@ -58,7 +58,8 @@ def hopper_model(k: float = 400.0, c: float = 0.9, r: float = 0.1) -> Model:
         z = x[0]
         body = np.c_[r * np.cos(th), z + 2 * r + r * np.sin(th)]
         foot = min(z, 0.0) if mode == "stance" else z
-        return {"body": body, "leg": np.array([[0.0, z + r], [0.0, foot]])}
+        # The foot is a single point: recorded as a Rerun point, not a line strip.
+        return {"body": body, "leg": np.array([[0.0, z + r], [0.0, foot]]), "foot": np.array([[0.0, foot]])}
 
     return Model(system, "flight", {"z": 0.5, "zd": 0.0}, geometry=geometry,
                  scenery={"ground": np.array([[-1.0, 0.0], [1.0, 0.0]])})
@@ -173,6 +174,8 @@ def test_geometry_frames_match_the_model(hopper_run):
             # Rerun stores line strips as float32: compare to that precision.
             np.testing.assert_allclose(frames.parts[part][i], line, rtol=0, atol=1e-6 * (1 + np.abs(line).max()))
     np.testing.assert_array_equal(data["scenery"]["ground"], model.scenery["ground"])
+    assert data["meta"]["point_parts"] == ["foot"]
+    assert all(line.shape == (1, 2) for line in frames.parts["foot"])
 
 
 def test_frame_times_are_capped():
