@@ -4,7 +4,6 @@ their figure and a recording of each scene they draw, and what they draw is that
 from __future__ import annotations
 
 import importlib.util
-import sys
 from pathlib import Path
 
 import numpy as np

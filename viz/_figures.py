@@ -13,7 +13,7 @@ import numpy as np
 from legsim.execution import Execution
 from legsim.record import write_rrd
 
-from ._common import OutputError, plot_data_from_execution, run_title
+from ._common import OutputError, plot_data_from_execution
 from .plots import MODE_COLOURS, STRIP_COLOUR, STRIP_GID, SPAN_RESOLUTION, save_figure, span_patch
 
 
@@ -137,4 +137,4 @@ def finish(fig, path: Path, rrds: Sequence[Path]) -> None:
 
 
 __all__ = ["parse_out", "run_scene", "new_figure", "draw_parts", "draw_scenery", "snapshot_times", "group_shots",
-           "state_panels", "finish", "run_title"]
+           "state_panels", "finish"]
