@@ -1,0 +1,341 @@
+"""The forced linear oscillator with a stop (paper 000, Sec. V-B, Table I).
+
+First the exact reference is checked on its own (the ODE by finite differences, the impact
+law, an independent event-driven DOP853 integration, the energy balance, the sticking
+condition of the paper, the Zeno sum); then the relaxed integrator is checked against it on
+Examples 1 and 2.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy.integrate import quad, solve_ivp
+
+from legsim import simulate
+from legsim.scene import load_scene
+from legsim.systems import oscillator as osc
+from legsim.systems.oscillator import EXAMPLES, OscillatorReference
+
+EX1, EX2 = EXAMPLES["ex1"], EXAMPLES["ex2"]
+
+
+def example_system(name: str):
+    E = EXAMPLES[name]
+    return osc.make_system(E["omega"], E["a"], E["x_max"], E["c"], E["mass"]), osc.forcing(E["amplitude"],
+                                                                                            E["frequency"])
+
+
+@pytest.fixture(scope="module")
+def ref1() -> OscillatorReference:
+    return OscillatorReference.example("ex1")
+
+
+@pytest.fixture(scope="module")
+def ref2() -> OscillatorReference:
+    return OscillatorReference.example("ex2")
+
+
+def flight_times(ref: OscillatorReference, t_end: float, n: int, margin: float) -> np.ndarray:
+    """n times in [0, t_end] at least ``margin`` away from impacts and outside sticking/chatter."""
+    ts = np.linspace(margin, t_end - margin, n)
+    impacts = ref.impact_times(t_end)
+    keep = np.ones(n, dtype=bool)
+    if impacts.size:
+        keep &= np.abs(ts[:, None] - impacts[None, :]).min(axis=1) > margin
+    for s, e in ref.sticking_intervals(t_end) + ref.chatter_intervals(t_end):
+        keep &= (ts < s - margin) | (ts > e + margin)
+    return ts[keep]
+
+
+# -- the reference on its own -----------------------------------------------------------------
+@pytest.mark.parametrize("name", ["ex1", "ex2"])
+def test_reference_satisfies_the_ode_between_impacts(name, ref1, ref2):
+    ref, E = (ref1, EX1) if name == "ex1" else (ref2, EX2)
+    d = 1e-2
+    ts = flight_times(ref, E["t_max"], 400, 3 * d)
+    assert len(ts) > 100
+    x = {k: ref.position(ts + k * d) for k in (-2, -1, 0, 1, 2)}
+    # Fourth-order central differences: truncation d^4 x^(6) / 90 ~ 1e-10 omega^6 |x| ~ 1e-6 here; the
+    # closed form's rounding (phases Omega t ~ 300 rad known to 3e-14) gives ~5 (1e-12) / d^2 ~ 5e-8.
+    acc = (-x[2] + 16 * x[1] - 30 * x[0] + 16 * x[-1] - x[-2]) / (12 * d * d)
+    vel = (-x[2] + 8 * x[1] - 8 * x[-1] + x[-2]) / (12 * d)
+    xd = ref.velocity(ts)
+    residual = acc + 2 * E["a"] * xd + E["omega"] ** 2 * x[0] - E["amplitude"] * np.cos(E["frequency"] * ts) / E["mass"]
+    scale = E["amplitude"] / E["mass"] + E["omega"] ** 2 * np.abs(x[0]).max()
+    assert np.abs(residual).max() < 1e-7 * scale
+    assert np.abs(vel - xd).max() < 1e-8 * (1 + np.abs(xd).max())
+    assert np.all(x[0] <= E["x_max"])
+
+
+@pytest.mark.parametrize("name", ["ex1", "ex2"])
+def test_reference_impact_law(name, ref1, ref2):
+    ref, E = (ref1, EX1) if name == "ex1" else (ref2, EX2)
+    times, speeds = ref.impact_times(E["t_max"]), ref.impact_speeds(E["t_max"])
+    assert len(times) == len(speeds) > 10
+    assert np.all(np.diff(times) > 0) and np.all(speeds >= 0)
+    after = ref.states(times)
+    np.testing.assert_allclose(after[:, 0], E["x_max"], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(after[:, 1][speeds * E["c"] >= ref.zeno_speed],
+                               -E["c"] * speeds[speeds * E["c"] >= ref.zeno_speed], rtol=1e-12, atol=1e-15)
+    # Just before each impact the mass arrives at the stop with the recorded speed.
+    big = speeds > 1e-3
+    dt = 1e-9  # short enough for the position's curvature term (< 1e-16 m) not to show
+    before = ref.states(times[big] - dt)
+    np.testing.assert_allclose(before[:, 1], speeds[big], rtol=1e-5)
+    np.testing.assert_allclose(before[:, 0], E["x_max"] - speeds[big] * dt, rtol=0, atol=1e-12)
+
+
+def event_driven(E: dict, t0: float, y0, t_end: float, stop_speed: float = 0.0):
+    """Independent reference: DOP853 from impact to impact with scipy's event location. Each
+    flight first runs 1e-5 s without events (shorter than any flight here), because the event
+    function is zero at the flight's start, on the stop."""
+    def f(t, y):
+        return [y[1], E["amplitude"] * math.cos(E["frequency"] * t) / E["mass"] - 2 * E["a"] * y[1]
+                - E["omega"] ** 2 * y[0]]
+
+    def hit(t, y):
+        return y[0] - E["x_max"]
+
+    hit.terminal, hit.direction = True, 1.0
+    opts = dict(method="DOP853", rtol=1e-13, atol=1e-14)
+    t, y, impacts = t0, list(y0), []
+    while True:
+        skip = solve_ivp(f, (t, t + 1e-5), y, **opts)
+        t, y = t + 1e-5, skip.y[:, -1]
+        sol = solve_ivp(f, (t, t_end), y, events=hit, **opts)
+        if sol.status != 1:
+            return impacts, sol.y[:, -1]
+        t, ye = float(sol.t_events[0][0]), sol.y_events[0][0]
+        impacts.append((t, ye[1]))
+        if ye[1] < stop_speed:
+            return impacts, None
+        y = [E["x_max"], -E["c"] * ye[1]]
+
+
+def test_reference_agrees_with_event_driven_integration_example1(ref1):
+    impacts, final = event_driven(EX1, 0.0, [EX1["x0"], EX1["xd0"]], EX1["t_max"])
+    times = np.array([t for t, _ in impacts])
+    np.testing.assert_allclose(ref1.impact_times(EX1["t_max"]), times, rtol=0, atol=1e-8)
+    np.testing.assert_allclose(ref1.impact_speeds(EX1["t_max"]), [v for _, v in impacts], rtol=1e-7)
+    np.testing.assert_allclose(ref1.state(EX1["t_max"]), final, rtol=1e-7)
+
+
+def test_reference_agrees_with_event_driven_integration_example2_chatter(ref2):
+    # Example 2 from its first release (at rest on the stop) through the chatter down to 1e-3 m/s.
+    release = ref2.sticking_intervals(5.0)[0][1]
+    impacts, _ = event_driven(EX2, release, [EX2["x_max"], 0.0], 10.0, stop_speed=1e-3)
+    n = len(impacts)
+    assert n == 9  # speeds halve from 0.2 m/s: 0.2 * 0.5^8 < 1e-3
+    np.testing.assert_allclose(ref2.impact_times(6.0)[:n], [t for t, _ in impacts], rtol=0, atol=1e-8)
+    np.testing.assert_allclose(ref2.impact_speeds(6.0)[:n], [v for _, v in impacts], rtol=1e-6)
+
+
+def test_reference_energy_balance_over_flights(ref1):
+    # dE/dt = u xd - 2 a m xd^2 between impacts; E drops by (1 - c^2) m v^2 / 2 at each impact.
+    E = EX1
+    times = ref1.impact_times(30.0)
+    energy = lambda s: 0.5 * E["mass"] * (s[1] ** 2 + E["omega"] ** 2 * s[0] ** 2)  # noqa: E731
+    power = lambda t: (E["amplitude"] * math.cos(E["frequency"] * t) * ref1.velocity(t)  # noqa: E731
+                       - 2 * E["a"] * E["mass"] * ref1.velocity(t) ** 2)
+    for t1, t2 in zip(times[:-1], times[1:]):
+        work, _ = quad(power, t1, t2, epsabs=1e-11, epsrel=1e-11, limit=200)
+        before = ref1.state(t2 - 1e-12 * (t2 - t1))
+        assert energy(before) - energy(ref1.state(t1)) == pytest.approx(work, rel=1e-7, abs=1e-7)
+    speeds = ref1.impact_speeds(30.0)
+    lost = [energy(ref1.state(t - 1e-10)) - energy(ref1.state(t)) for t in times]
+    np.testing.assert_allclose(lost, 0.5 * E["mass"] * (1 - E["c"] ** 2) * speeds ** 2, rtol=1e-6)
+
+
+def test_reference_without_forcing_or_damping_conserves_energy():
+    ref = OscillatorReference(omega=2.0, a=0.0, x_max=0.5, c=1.0, x0=-1.0, xd0=0.0)
+    ts = np.linspace(0, 20, 2001)
+    s = ref.states(ts)
+    energy = 0.5 * (s[:, 1] ** 2 + 4.0 * s[:, 0] ** 2)
+    np.testing.assert_allclose(energy, 2.0, rtol=1e-12)
+    # With c = 1 the motion is the free cosine x = -cos(2 t) folded at the stop: the arc
+    # cos(2 t) < -0.5 beyond it is skipped, so impacts come every 2 acos(-0.5) / omega.
+    period = 2.0 * math.acos(-0.5) / 2.0
+    np.testing.assert_allclose(np.diff(ref.impact_times(20.0)), period, rtol=1e-12)
+
+
+def test_example2_sticking_follows_the_stop_reaction(ref2):
+    T = EX2["t_max"]
+    sticks = ref2.sticking_intervals(T)
+    # Paper 000 below Table I: the mass stays at the stop while its reaction is compressive, i.e.
+    # while the free acceleration cos(t) - omega^2 x_max = cos(t) + 0.8 pushes into the stop; it
+    # leaves when that changes sign: at acos(-0.8) + 2 pi k.
+    assert len(sticks) == 3
+    assert sticks[0] == (0.0, pytest.approx(math.acos(-0.8), abs=1e-14))
+    assert sticks[1][1] == pytest.approx(2 * math.pi + math.acos(-0.8), abs=1e-13)
+    for s, e in sticks:
+        inside = np.linspace(s, min(e, T), 500)
+        assert np.all(ref2.free_acceleration(inside) >= -1e-12)
+        np.testing.assert_array_equal(ref2.states(inside[1:-1]), [[EX2["x_max"], 0.0]] * 498)
+    # The second and third sticking phases start where the chatter accumulates.
+    np.testing.assert_allclose([s for s, _ in sticks[1:]], ref2.zeno_times(T), rtol=0, atol=0)
+    # Between, the mass is off the stop.
+    assert ref2.position(4.0) < EX2["x_max"] - 0.05
+
+
+def test_example2_chatter_is_geometric_with_ratio_c(ref2):
+    speeds = ref2.impact_speeds(6.0)
+    ratios = speeds[1:] / speeds[:-1]
+    # Flights shrink like the speed, so damping and the forcing's drift matter less and less.
+    assert abs(ratios[-1] - EX2["c"]) < 1e-6
+    assert np.all(np.abs(np.diff(np.abs(ratios[5:] - EX2["c"]))) < 1e-3)
+
+
+@pytest.mark.parametrize("zeno_speed", [1e-4, 1e-5, 1e-6])
+def test_zeno_sum_error_is_of_order_speed_squared(zeno_speed):
+    fine = OscillatorReference.example("ex2", zeno_speed=1e-12).zeno_times(4 * math.pi)
+    coarse = OscillatorReference.example("ex2", zeno_speed=zeno_speed).zeno_times(4 * math.pi)
+    F = OscillatorReference.example("ex2").free_acceleration(fine)
+    # The summed flights 2 c^k w / F neglect terms of relative order w (damping, dF/dt): O(w^2).
+    assert np.all(np.abs(coarse - fine) <= 10 * (zeno_speed / F) ** 2)
+
+
+def test_reference_refuses_what_eq_28_does_not_cover():
+    with pytest.raises(Exception, match=r"sub-critical damping 0 <= a < omega"):
+        OscillatorReference(omega=1.0, a=1.5)
+    with pytest.raises(Exception, match=r"undamped resonance"):
+        OscillatorReference(omega=2.0, a=0.0, amplitude=1.0, frequency=2.0)
+    with pytest.raises(Exception, match=r"x0 = 2.0 lies beyond the stop x_max = 1.0"):
+        OscillatorReference(x_max=1.0, x0=2.0)
+
+
+# -- the relaxed integrator against the reference ----------------------------------------------
+def run(name: str, eps: float, h: float = 1e-2, method: str = "rk4", landing: str = "halve", t_final=None):
+    E = EXAMPLES[name]
+    system, control = example_system(name)
+    return simulate(system, [E["x0"], E["xd0"]], "free", E["t_max"] if t_final is None else t_final, h, eps, method,
+                    control, landing=landing)
+
+
+def test_example1_impact_times_and_state_at_40_pi(ref1):
+    T = EX1["t_max"]
+    impacts = ref1.impact_times(T)
+    assert len(impacts) == 49
+    ex = run("ex1", 1e-6)  # the settings of scenarios/oscillator_ex1.toml
+    assert ex.status == "finished"
+    sim = np.array([tr.time for tr in ex.transitions])
+    # One transition per impact, each near its own: well within the shortest time between impacts.
+    assert len(sim) == len(impacts)
+    assert np.abs(sim - impacts).max() < 1e-3 * np.diff(impacts).min()
+    # Convergence to the reference, linear in eps (landing aimed at the strip's middle makes the
+    # strip delay deterministic, eps/2 (1 + 1/v) per impact, so the ratio is clean).
+    errors = []
+    for eps in (1e-5, 1e-6):
+        ex = run("ex1", eps, landing="aim")
+        sim = np.array([tr.time for tr in ex.transitions])
+        errors.append((np.abs(sim - impacts).max(), np.abs(ex.final_state - ref1.state(T)).max()))
+    (dt5, dx5), (dt6, dx6) = errors
+    assert 7 < dt5 / dt6 < 13 and 7 < dx5 / dx6 < 13
+    # O(eps) with eps = 1e-6: the state at 40 pi to 1e-5 of its size.
+    assert dx6 < 1e-5 * np.abs(ref1.state(T)).max()
+
+
+def test_example2_sticks_chatters_and_leaves_with_the_reference(ref2):
+    T, x_max = EX2["t_max"], EX2["x_max"]
+    ts = np.linspace(0.0, T, 40001)
+    ref_states = ref2.states(ts)
+    F_max = EX2["amplitude"] / EX2["mass"] + EX2["omega"] ** 2 * abs(x_max)
+    position_errors = []
+    for eps in (1e-3, 1e-4):
+        ex = run("ex2", eps)
+        assert ex.status == "finished"
+        states = np.array(ex.sample(ts).states)
+        # While the reference sticks, the simulation sits in the strip with at most the speed a
+        # fall through it gives: sqrt(2 F eps).
+        for s, e in ref2.sticking_intervals(T):
+            inside = (ts > s + 0.05) & (ts < min(e, T) - 0.05)
+            assert np.abs(states[inside, 0] - x_max).max() <= eps
+            assert np.abs(states[inside, 1]).max() <= math.sqrt(2 * F_max * eps)
+        # It leaves the stop when the reference does: 1 mm below the stop at the same instant
+        # (to the sampling step; the release is resolved to a step h and the motion grows as t^3).
+        for s, e in ref2.sticking_intervals(T)[:2]:
+            after = ts > s
+            t_sim = ts[after][np.argmax(states[after, 0] < x_max - 1e-3)]
+            t_ref = ts[after][np.argmax(ref_states[after, 0] < x_max - 1e-3)]
+            assert abs(t_sim - t_ref) <= 2e-2  # two steps
+        # The chatter before sticking: the big impacts are resolved one by one.
+        big = ref2.impact_speeds(T) > 0.02
+        ref_big = ref2.impact_times(T)[big]
+        sim_big = np.array([tr.time for tr in ex.transitions if tr.state_before[1] > 0.02])
+        assert len(sim_big) == len(ref_big)
+        # Each strip delays the motion by eps - tau + tau / v <= eps max(1, 1/v) (v the impact
+        # speed, tau the landing depth), and the delays add up along the chatter.
+        speeds = ref2.impact_speeds(T)[big]
+        first_of_sequence = np.r_[True, np.diff(ref_big) > 1.0]
+        delays = np.where(first_of_sequence, 0.0, eps * np.maximum(1.0, 1.0 / np.r_[speeds[0], speeds[:-1]]))
+        bound = eps + np.concatenate([np.cumsum(d) for d in np.split(delays, np.nonzero(first_of_sequence)[0][1:])])
+        assert np.all(np.abs(sim_big - ref_big) <= bound)
+        position_errors.append(np.abs(states[:, 0] - ref_states[:, 0]).max())
+    # The position is O(eps) uniformly in time (the velocity jumps at impacts, so is not).
+    assert 5 < position_errors[0] / position_errors[1] < 20
+
+
+def rho_hat(ex, ref) -> float:
+    """Paper 000 eq. (30): max position error at the simulation's own time points."""
+    t = ex.step_times()
+    x = np.concatenate([s.x[:, 0] for s in ex.segments])
+    return float(np.abs(x - ref.position(t)).max())
+
+
+def test_example2_rho_hat_short(ref2):
+    # Paper 000: "In Example 2, using h = 1e-2 and eps = 2e-7, our numerical simulation achieves
+    # rho_hat of approximately 1e-4" (midpoint method). At eps = 1e-5 it is already below that.
+    ex = run("ex2", 1e-5, method="rk2")
+    assert rho_hat(ex, ref2) < 1e-4
+
+
+@pytest.mark.slow
+def test_example2_rho_hat_published_settings(ref2):
+    ex = run("ex2", 2e-7, method="rk2")
+    assert rho_hat(ex, ref2) <= 1e-4
+
+
+# -- the builder and the scenes ----------------------------------------------------------------
+@pytest.mark.parametrize("scene_name, key", [("oscillator_ex1", "ex1"), ("oscillator_ex2", "ex2")])
+def test_scenes_are_table_1(scene_name, key):
+    E = EXAMPLES[key]
+    scene = load_scene(scene_name)
+    assert scene.robot == "oscillator"
+    assert scene.parameters["omega"] == E["omega"] and scene.parameters["mass"] == E["mass"]
+    assert scene.effects["stop"] == {"position": E["x_max"], "restitution": E["c"]}
+    assert scene.effects["damping"] == {"a": E["a"]}
+    assert scene.effects["forcing"] == {"amplitude": E["amplitude"], "frequency": E["frequency"]}
+    np.testing.assert_array_equal(scene.initial_state, [E["x0"], E["xd0"]])
+    assert scene.integrator["t_final"] == pytest.approx(E["t_max"], rel=1e-15)
+    # The model's reference is the example's.
+    ref = scene.model.reference
+    np.testing.assert_array_equal(ref.impact_times(10.0), OscillatorReference.example(key).impact_times(10.0))
+    # The forcing reaches the field through the control.
+    assert scene.model.control(1.0, scene.initial_state) == pytest.approx(E["amplitude"] * math.cos(E["frequency"]))
+
+
+def test_builder_effects_switch_parts_off():
+    free = osc.BUILDER.make({"x0": 1.0, "xd0": 0.0}, {"stop": False, "damping": False, "forcing": False})
+    assert free.system.outgoing("free") == () and free.control is None
+    assert "stop" not in free.scenery
+    # Without stop, damping and forcing: a harmonic oscillator whose energy RK4 keeps to O(h^4).
+    h, T, omega = 1e-2, 10.0, osc.BUILDER.parameters["omega"].default
+    ex = simulate(free.system, [1.0, 0.0], "free", T, h, 1e-3)
+    # RK4's amplification factor differs from exp(i omega h) by (omega h)^5 / 120 per step.
+    drift = (T / h) * (omega * h) ** 5 / 120
+    energy = free.system.energy
+    e0 = energy("free", np.array([1.0, 0.0]))
+    assert abs(energy("free", ex.final_state) - e0) <= 2 * drift * e0
+    np.testing.assert_allclose(ex.final_state, free.reference.state(T), atol=2 * drift * omega)
+    # Over-damped: no closed form here, and the model says so instead of failing.
+    heavy = osc.BUILDER.make({}, {"damping": {"a": 5.0}})
+    assert heavy.reference is None and "sub-critical" in heavy.info["reference"]
+
+
+def test_geometry_puts_the_box_face_on_the_stop():
+    model = osc.BUILDER.make()
+    parts = model.geometry("free", np.array([14.0, 0.0]))
+    assert parts["mass"].shape == (5, 2) and parts["mass"][:, 0].max() == 14.0
+    np.testing.assert_array_equal(model.scenery["stop"][:, 0], [14.0, 14.0])
