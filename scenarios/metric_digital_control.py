@@ -10,7 +10,11 @@ and (0, -delta); they cross the two thresholds in opposite orders (modes 0 -> 2 
 
 prints a table, and writes a log-log figure to ``<out>/metric_digital_control.png``.
 
-Run: ``.venv/bin/python scenarios/metric_digital_control.py [--out out] [--deltas 7]``
+With ``--oscillator`` it also prints the convergence of rho^eps for the forced oscillator with a
+stop (paper 000 Table I) against its exact reference, in eps and in h (the numbers of
+docs/metric.md).
+
+Run: ``.venv/bin/python scenarios/metric_digital_control.py [--out out] [--deltas 7] [--oscillator]``
 """
 
 from __future__ import annotations
@@ -84,10 +88,48 @@ def plot(result: dict[str, np.ndarray], path: Path) -> Path:
     return path
 
 
+def oscillator_table() -> None:
+    """rho^eps and eq. (30) for Table I against the exact reference: in eps (RK4, mean over three
+    step sizes, i.e. three landing phases) and in h (the paper's midpoint method, rk2)."""
+    import math
+
+    from legsim.metric import position_error, rho
+    from legsim.systems import oscillator as osc
+
+    for name, t_end in (("ex1", 10.0), ("ex2", 4 * math.pi)):
+        ex = osc.EXAMPLES[name]
+        system = osc.make_system(omega=ex["omega"], a=ex["a"], x_max=ex["x_max"], c=ex["c"], mass=ex["mass"])
+        ref = osc.OscillatorReference.example(name)
+        control = osc.forcing(ex["amplitude"], ex["frequency"])
+        times = np.linspace(0.0, t_end, 2001)
+
+        def run(h: float, eps: float, method: str):
+            return simulate(system, [ex["x0"], ex["xd0"]], "free", t_end, h, eps, method=method, control=control,
+                            max_transitions=10**6)
+
+        print(f"{name} (t in [0, {t_end:.4g}] s, 2001 samples)")
+        epsilons, means = [1e-2, 1e-3, 1e-4, 1e-5], []
+        for eps in epsilons:
+            means.append(np.mean([rho(system, run(h, eps, "rk4"), ref, times, eps) for h in (1e-2, 7.7e-3, 6.1e-3)]))
+            print(f"  rk4 eps={eps:.0e}: mean rho^eps over h = 1e-2, 7.7e-3, 6.1e-3: {means[-1]:.3g} "
+                  f"(rho/eps {means[-1] / eps:.0f})")
+        print(f"  slope in eps: {np.polyfit(np.log(epsilons), np.log(means), 1)[0]:.3f}")
+        steps, values, positions = [1e-2, 5e-3, 2.5e-3], [], []
+        for h in steps:
+            sim = run(h, 1e-8, "rk2")
+            values.append(rho(system, sim, ref, times, 1e-8))
+            positions.append(position_error(sim, ref, times))
+            print(f"  rk2 h={h:g} eps=1e-8: rho^eps {values[-1]:.3g}, position error (30) {positions[-1]:.3g}")
+        print(f"  slope in h: rho {np.polyfit(np.log(steps), np.log(values), 1)[0]:.3f}, "
+              f"position error {np.polyfit(np.log(steps), np.log(positions), 1)[0]:.3f}")
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", default="out", help="output folder (default: out)")
     parser.add_argument("--deltas", type=int, default=7, help="number of offsets in [1e-4, 1e-1] (default: 7)")
+    parser.add_argument("--oscillator", action="store_true",
+                        help="also print rho^eps against eps and h for the oscillator of Table I")
     args = parser.parse_args(argv)
     if args.deltas < 2:
         parser.error("--deltas must be at least 2 (a slope needs two points)")
@@ -102,6 +144,8 @@ def main(argv: list[str] | None = None) -> int:
     print(f"min trajectory-space distance: {result['trajectory'].min():.6f}")
     path = plot(result, Path(args.out) / "metric_digital_control.png")
     print(f"wrote {path}")
+    if args.oscillator:
+        oscillator_table()
     return 0
 
 
