@@ -404,7 +404,9 @@ class Execution:
         if not path.exists():
             raise SimulationError(f"{path}: no such execution file")
         try:
-            data = np.load(path, allow_pickle=False)
+            with np.load(path, allow_pickle=False) as archive:
+                # Each access to an NpzFile member decompresses it again: read every array once.
+                data = {key: archive[key] for key in archive.files}
             meta = json.loads(str(data["meta"]))
         except Exception as exc:
             raise SimulationError(f"{path}: not a legsim execution file ({exc})") from exc
