@@ -45,6 +45,7 @@ import numba
 import numpy as np
 
 from .errors import ModelError
+from .execution import Segment, SegmentBuffer, Strip, TransitionRecord
 from .methods import Tableau
 
 # Kernel return codes.
@@ -55,6 +56,11 @@ GUARD_NAN = 3
 EXHAUSTED = 4
 BUFFER_FULL = 5
 CHUNK = 6
+NEXT = 7
+RECORDS_FULL = 8
+
+#: Transitions the kernel records per call before Python turns them into Execution pieces.
+RECORD_CHUNK = 4096
 
 #: Steps per kernel call when a progress callback wants reports (about 1 ms of work).
 PROGRESS_CHUNK = 8192
@@ -71,13 +77,19 @@ class CompiledMode:
     guards: numba-jitted ``guards(x, p) -> (n_guards,)``, ordered like the mode's outgoing
         transitions, >= 0 inside the domain (same values as the Python guards).
     n_guards: number of guards (the mode's outgoing transitions).
-    params: float64 parameter array ``p`` passed to both.
+    params: float64 parameter array ``p`` passed to all three.
+    resets: optional numba-jitted ``resets(x, p, e) -> x'`` (the reset of outgoing transition e,
+        same values as the Python reset). With it, and when every outgoing transition returns to
+        this same mode (impacts, bounces), the kernel also crosses the strips, so a run with
+        many transitions (chattering, Zeno) stays compiled; Python then only turns the
+        recorded transitions into Execution pieces.
     """
 
     field: Any
     guards: Any
     n_guards: int
     params: np.ndarray = _dc_field(default_factory=lambda: np.zeros(0))
+    resets: Any = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "params", np.ascontiguousarray(self.params, dtype=np.float64).reshape(-1))
@@ -148,6 +160,10 @@ def _twin_field(t, x, p):  # placeholder, bound per twin in the generated module
 
 
 def _twin_guards(x, p):  # placeholder, bound per twin in the generated module
+    raise NotImplementedError
+
+
+def _twin_resets(x, p, e):  # placeholder, bound per twin in the generated module
     raise NotImplementedError
 
 
@@ -240,14 +256,50 @@ def _k_error_norm(b_err, hk, K, x, x_new, rtol, atol):
     # numpy's mean: the first element plus the (sequential, n < 9) sum of the rest.
     return math.sqrt((first + total) / n)
 
+def _k_hermite_derivative(x0, d0, x1, d1, dt, s, out):
+    s2 = s * s
+    c0 = 6 * s2 - 6 * s
+    c1 = 3 * s2 - 4 * s + 1
+    c2 = -6 * s2 + 6 * s
+    c3 = 3 * s2 - 2 * s
+    for d in range(x0.shape[0]):
+        out[d] = c0 * x0[d] / dt + c1 * d0[d] + c2 * x1[d] / dt + c3 * d1[d]
+
+
+def _k_finite(v):
+    for d in range(v.shape[0]):
+        if not math.isfinite(v[d]):
+            return False
+    return True
+
+
 def _k_step_loop(p, n_guards, c, n_groups, weights, n_members, members, b_err, fsal,
-           x, K, XS, x_new, k1, gv, work, T, X, DX, fs, iv,
-           t_final, h_max, eps, rtol, atol, err_exp, adaptive, aim, max_halvings, max_steps):
-    """The step loop of relaxed._Integrator._run_mode. In/out: x, K[0] (= k0), fs[0] = t,
-    fs[1] = h_prop, iv[5] = buffer size. Out: counters iv[0:5] (steps, halvings,
-    error rejections, field and guard evaluations), and per return code the landing
-    (fs[2] = t_new, x_new, k1, gv), fs[3] = last step tried, fs[4] = end time,
-    fs[5] = time of a nan guard, iv[6] = guard index, iv[7] = halvings of a failed step."""
+                 x, K, XS, x_new, k1, gv, work, q, dq, T, X, DX, fs, iv, cf, ci,
+                 r_e, r_f, r_q, r_after, seg_end):
+    """The step loop of relaxed._Integrator._run_mode, and the strip crossings of its
+    self-transitions when the twin has compiled resets.
+
+    In/out: x, K[0] (= k0), fs[0] = t, fs[1] = h_prop, iv[5] = buffer size.
+    Settings: cf = (t_final, h_max, eps, rtol, atol, err_exp), ci = (adaptive, aim, max_halvings,
+    max_steps, in_kernel_transitions, transition budget).
+    Out: counters iv[0:5] (steps, halvings, error rejections, field and guard evaluations),
+    iv[8] resets, iv[9] transitions recorded in r_* (guard index, (time, landing time, exit
+    time, depth), q, reset image; the segment before record k ends at buffer index seg_end[k]);
+    for code 1 the crossing: guard iv[6], fs[6] = time, q, fs[2] = landing time, fs[7] = depth;
+    fs[3] = last step tried, fs[4] = end time, fs[5] = time of a nan guard, iv[7] = halvings
+    of a failed step."""
+    t_final = cf[0]
+    h_max = cf[1]
+    eps = cf[2]
+    rtol = cf[3]
+    atol = cf[4]
+    err_exp = cf[5]
+    adaptive = ci[0] != 0
+    aim = ci[1] != 0
+    max_halvings = ci[2]
+    max_steps = ci[3]
+    in_kernel = ci[4] != 0
+    budget = ci[5]
     s_stages = c.shape[0]
     n = x.shape[0]
     span = max(1.0, abs(t_final))
@@ -255,11 +307,14 @@ def _k_step_loop(p, n_guards, c, n_groups, weights, n_members, members, b_err, f
     h_prop = fs[1]
     size = iv[5]
     cap = T.shape[0]
+    rec_cap = r_e.shape[0]
     steps = 0
     halvings = 0
     rejections = 0
     field_evals = 0
     guard_evals = 0
+    resets = 0
+    n_rec = 0
     code = -1
     gmin = 0.0
     while True:
@@ -268,11 +323,14 @@ def _k_step_loop(p, n_guards, c, n_groups, weights, n_members, members, b_err, f
             fs[4] = t_final if remaining > 0 else t
             code = 0
             break
-        if size == cap:
+        if size + 2 > cap:  # room for a point, or a crossing point and the next segment's first
             code = 5
             break
         if steps >= max_steps:
             code = 6
+            break
+        if n_rec == rec_cap:
+            code = 8
             break
         hk = h_prop if h_prop < h_max else h_max
         last = hk >= remaining
@@ -295,23 +353,24 @@ def _k_step_loop(p, n_guards, c, n_groups, weights, n_members, members, b_err, f
             field_evals += s_stages - 1
             # Component-wise, like the Python loop's confirmed check: a sum of squares would
             # overflow for finite states above ~1e154 and call them non-finite.
-            finite = True
-            for d in range(n):
-                if not math.isfinite(x_new[d]):
-                    finite = False
             past = False
-            if not finite:
-                past = False  # non-finite
+            if not _k_finite(x_new):
+                past = False  # non-finite: halve
             else:
                 if n_guards > 0:
                     g = _twin_guards(x_new, p)
                     guard_evals += n_guards
                     gmin = g[0]
+                    has_nan = g[0] != g[0]
                     gv[0] = g[0]
                     for j in range(1, n_guards):
                         gv[j] = g[j]
-                        if g[j] < gmin or g[j] != g[j]:
-                            gmin = g[j] if gmin == gmin else gmin
+                        if g[j] != g[j]:
+                            has_nan = True
+                        elif g[j] < gmin:
+                            gmin = g[j]
+                    if has_nan:
+                        gmin = math.nan
                 else:
                     gmin = 0.0
                 if gmin >= -eps:
@@ -355,7 +414,7 @@ def _k_step_loop(p, n_guards, c, n_groups, weights, n_members, members, b_err, f
                 g0 = _twin_guards(x, p)[e] + half
                 guard_evals += n_guards
                 s, n_evals, converged = _k_crossing(p, e, half, x, K[0], x_new, k1, hk, g0,
-                                                 gv[e] + half, 1e-3 * half, work)
+                                                    gv[e] + half, 1e-3 * half, work)
                 guard_evals += n_evals * n_guards
                 if not converged or not (0.0 < s < 0.9):
                     hk = 0.5 * hk
@@ -385,6 +444,8 @@ def _k_step_loop(p, n_guards, c, n_groups, weights, n_members, members, b_err, f
         t_new = t_final if last else t + hk
         steps += 1
         if n_guards > 0 and gmin < 0.0:
+            # The step landed in one or more strips (relaxed._Integrator._step_transition):
+            # q is where the step's interpolant first meets a crossed guard.
             if fsal:
                 for d in range(n):
                     k1[d] = K[s_stages - 1, d]
@@ -393,9 +454,86 @@ def _k_step_loop(p, n_guards, c, n_groups, weights, n_members, members, b_err, f
                 field_evals += 1
                 for d in range(n):
                     k1[d] = kk[d]
+            dt = t_new - t
+            tol = 1e-9 * eps
+            best_e = -1
+            best_s = 0.0
+            for j in range(n_guards):
+                if gv[j] < 0.0:
+                    g0 = _twin_guards(x, p)[j]
+                    s, n_evals, converged = _k_crossing(p, j, 0.0, x, K[0], x_new, k1, dt, g0, gv[j], tol, work)
+                    guard_evals += n_guards * (1 + n_evals)
+                    if best_e < 0 or s < best_s:
+                        best_e = j
+                        best_s = s
+            e = best_e
+            s = best_s
+            tc = t
+            for d in range(n):
+                q[d] = x[d]
+            if s > 0.0:
+                _k_hermite(x, K[0], x_new, k1, dt, s, work)
+                if _k_finite(work):
+                    tc = t + s * dt
+                    for d in range(n):
+                        q[d] = work[d]
+                    _k_hermite_derivative(x, K[0], x_new, k1, dt, s, dq)
+                    T[size] = tc
+                    for d in range(n):
+                        X[size, d] = q[d]
+                        DX[size, d] = dq[d]
+                    size += 1
+            tau = -gv[e]
             fs[2] = t_new
-            code = 1
-            break
+            fs[6] = tc
+            fs[7] = tau
+            iv[6] = e
+            # The strip (relaxed._Integrator._transition) stays here only for the ordinary case:
+            # a reset to this same mode with a finite image, inside the budget and before t_final.
+            exit_time = t_new + (eps - tau)
+            if not in_kernel or n_rec >= budget or exit_time >= t_final:
+                code = 1
+                break
+            ra = _twin_resets(q, p, e)
+            if not _k_finite(ra):
+                code = 1
+                break
+            resets += 1
+            r_e[n_rec] = e
+            r_f[n_rec, 0] = tc
+            r_f[n_rec, 1] = t_new
+            r_f[n_rec, 2] = exit_time
+            r_f[n_rec, 3] = tau
+            for d in range(n):
+                r_q[n_rec, d] = q[d]
+                r_after[n_rec, d] = ra[d]
+            seg_end[n_rec] = size
+            n_rec += 1
+            # Entering the mode again at the strip's exit (relaxed._Integrator._run_mode); any
+            # state needing the entry's special cases goes back to Python.
+            t = exit_time
+            for d in range(n):
+                x[d] = ra[d]
+            kk = _twin_field(t, x, p)
+            entry_ok = _k_finite(kk)
+            if entry_ok and n_guards > 0:
+                g = _twin_guards(x, p)
+                for j in range(n_guards):
+                    if not (g[j] >= 0.0):
+                        entry_ok = False
+            if not entry_ok:
+                code = 7
+                break
+            field_evals += 1
+            guard_evals += n_guards
+            for d in range(n):
+                K[0, d] = kk[d]
+            T[size] = t
+            for d in range(n):
+                X[size, d] = x[d]
+                DX[size, d] = kk[d]
+            size += 1
+            continue
         t = t_new
         for d in range(n):
             x[d] = x_new[d]
@@ -420,12 +558,21 @@ def _k_step_loop(p, n_guards, c, n_groups, weights, n_members, members, b_err, f
     iv[3] = field_evals
     iv[4] = guard_evals
     iv[5] = size
+    iv[8] = resets
+    iv[9] = n_rec
     return code
 
 
+_KERNEL_FUNCTIONS = (_k_combine, _k_hermite, _k_hermite_derivative, _k_finite, _k_crossing, _k_error_norm,
+                     _k_step_loop)
+_KERNELS: dict[tuple[int, int, int], Any] = {}
 
-_KERNEL_FUNCTIONS = (_k_combine, _k_hermite, _k_crossing, _k_error_norm, _k_step_loop)
-_KERNELS: dict[tuple[int, int], Any] = {}
+
+@numba.njit(cache=True)
+def no_resets(x, p, e):
+    """The kernel's reset for twins without compiled resets (never called: such twins hand
+    every transition to Python)."""
+    return x.copy()
 
 
 def _importable(fn) -> str | None:
@@ -469,15 +616,16 @@ def get_kernel(twin: CompiledMode):
     numba caches its machine code there, so later processes load it in milliseconds; other
     twins (closures) get a kernel compiled in this process only.
     """
-    key = (id(twin.field), id(twin.guards))
+    resets = no_resets if twin.resets is None else twin.resets
+    key = (id(twin.field), id(twin.guards), id(resets))
     kernel = _KERNELS.get(key)
     if kernel is not None:
         return kernel
-    names = (_importable(twin.field), _importable(twin.guards))
+    names = (_importable(twin.field), _importable(twin.guards), _importable(resets))
     kernel = None
     if None not in names:
         imports = []
-        for alias, name in zip(("_twin_field", "_twin_guards"), names):
+        for alias, name in zip(("_twin_field", "_twin_guards", "_twin_resets"), names):
             module, qualname = name.split(":")
             imports.append(f"from {module} import {qualname} as {alias}")
         text = _kernel_source(imports).replace("cache=CACHE", "cache=True")
@@ -500,7 +648,7 @@ def get_kernel(twin: CompiledMode):
         except OSError:
             kernel = None  # no writable cache: compile in memory below
     if kernel is None:
-        namespace: dict[str, Any] = {"_twin_field": twin.field, "_twin_guards": twin.guards}
+        namespace: dict[str, Any] = {"_twin_field": twin.field, "_twin_guards": twin.guards, "_twin_resets": resets}
         text = _kernel_source([]).replace("cache=CACHE", "cache=False")
         exec(compile(text, "<legsim kernel>", "exec"), namespace)  # noqa: S102 - our own functions' source
         kernel = namespace["_k_step_loop"]
@@ -511,11 +659,12 @@ def get_kernel(twin: CompiledMode):
 # --------------------------------------------------------------------------------------------
 # The Python side: called by relaxed._Integrator._run_mode.
 # --------------------------------------------------------------------------------------------
-def _check_twin(integrator, data, t: float, x: np.ndarray, k0: np.ndarray) -> None:
-    """Once per mode and run: the twin must return the Python callables' shapes and values."""
-    checked = integrator.__dict__.setdefault("_compiled_checked", set())
+def _check_twin(integrator, data, t: float, x: np.ndarray, k0: np.ndarray) -> bool:
+    """Once per mode and run: the twin must return the Python callables' shapes and values.
+    Returns whether the kernel may cross this mode's strips itself."""
+    checked = integrator.__dict__.setdefault("_compiled_checked", {})
     if data.name in checked:
-        return
+        return checked[data.name]
     cm = data.mode.compiled
     name = integrator.system.name
     if not isinstance(cm, CompiledMode):
@@ -524,9 +673,12 @@ def _check_twin(integrator, data, t: float, x: np.ndarray, k0: np.ndarray) -> No
     if cm.n_guards != len(data.guards):
         raise ModelError(f"{name}: compiled twin of mode '{data.name}' declares {cm.n_guards} guards, the mode "
                          f"has {len(data.guards)} outgoing transitions")
+    xc = np.ascontiguousarray(x, dtype=float)
     try:
-        f = np.asarray(cm.field(float(t), np.ascontiguousarray(x, dtype=float), cm.params), dtype=float)
-        g = np.asarray(cm.guards(np.ascontiguousarray(x, dtype=float), cm.params), dtype=float)
+        f = np.asarray(cm.field(float(t), xc, cm.params), dtype=float)
+        g = np.asarray(cm.guards(xc, cm.params), dtype=float)
+        r = [np.asarray(cm.resets(xc, cm.params, e), dtype=float) for e in range(cm.n_guards)] \
+            if cm.resets is not None else []
     except Exception as exc:
         raise ModelError(f"{name}: compiled twin of mode '{data.name}' failed at t={t}: "
                          f"{type(exc).__name__}: {exc}") from exc
@@ -539,7 +691,14 @@ def _check_twin(integrator, data, t: float, x: np.ndarray, k0: np.ndarray) -> No
         raise ModelError(f"{name}: compiled twin of mode '{data.name}' disagrees with the Python callables at "
                          f"t={t}, x={x.tolist()}: field {f.tolist()} vs {k0.tolist()}, guards {g.tolist()} vs "
                          f"{g_py.tolist()}")
-    checked.add(data.name)
+    for e, (tr, reset, image) in enumerate(zip(data.transitions, data.resets, r)):
+        expected = np.asarray(reset(x.copy()), dtype=float)
+        if image.shape != expected.shape or not np.allclose(image, expected, rtol=1e-9, atol=1e-12, equal_nan=True):
+            raise ModelError(f"{name}: compiled reset {e} of mode '{data.name}' disagrees with the reset of "
+                             f"transition {tr.name} at x={x.tolist()}: {image.tolist()} vs {expected.tolist()}")
+    in_kernel = cm.resets is not None and all(target == data.name for target in data.targets)
+    checked[data.name] = in_kernel
+    return in_kernel
 
 
 def _grow(buf) -> None:
@@ -549,44 +708,108 @@ def _grow(buf) -> None:
     buf.dx = np.resize(buf.dx, (new, buf.dx.shape[1]))
 
 
+class _Workspace:
+    """Per-run scratch arrays of the kernel for one mode (reused across visits)."""
+
+    def __init__(self, n: int, stages: int, n_guards: int) -> None:
+        self.K = np.zeros((stages, n))
+        self.XS = np.zeros((stages, n))
+        self.x_new = np.zeros(n)
+        self.k1 = np.zeros(n)
+        self.gv = np.zeros(max(1, n_guards))
+        self.work = np.zeros(n)
+        self.q = np.zeros(n)
+        self.dq = np.zeros(n)
+        self.fs = np.zeros(8)
+        self.iv = np.zeros(10, dtype=np.int64)
+        self.cf = np.zeros(6)
+        self.ci = np.zeros(6, dtype=np.int64)
+        self.r_e = np.zeros(RECORD_CHUNK, dtype=np.int64)
+        self.r_f = np.zeros((RECORD_CHUNK, 4))
+        self.r_q = np.zeros((RECORD_CHUNK, n))
+        self.r_after = np.zeros((RECORD_CHUNK, n))
+        self.seg_end = np.zeros(RECORD_CHUNK, dtype=np.int64)
+
+
+def _commit_records(integrator, data, buf, ws: _Workspace, n_rec: int):
+    """Turn the transitions the kernel crossed into Execution pieces (what ``_transition`` and
+    the next visit's ``SegmentBuffer`` would have built), and move the current segment into a
+    fresh buffer. Returns that buffer."""
+    mode = data.name
+    trs = data.transitions
+    T, X, DX = buf.t, buf.x, buf.dx
+    # One copy of the records, shared by the pieces as views.
+    r_e = ws.r_e[:n_rec].tolist()
+    r_f = ws.r_f[:n_rec].tolist()
+    qs = ws.r_q[:n_rec].copy()
+    afters = ws.r_after[:n_rec].copy()
+    ends = ws.seg_end[:n_rec].tolist()
+    segments, strips, records = integrator.segments, integrator.strips, integrator.transitions
+    start = 0
+    strip_time = integrator.strip_time
+    for k in range(n_rec):
+        end = ends[k]
+        # Views of this buffer: it is never written again once the tail moves out below.
+        segments.append(Segment(mode, T[start:end], X[start:end], DX[start:end]))
+        e = r_e[k]
+        tc, t_land, exit_time, tau = r_f[k]
+        tr = trs[e]
+        strips.append(Strip(mode, tr.name, tc, exit_time, qs[k]))
+        strip_time += exit_time - tc
+        records.append(TransitionRecord(tr.name, mode, mode, e, tc, t_land, exit_time, qs[k], afters[k], tau))
+        start = end
+    integrator.strip_time = strip_time
+    size = buf.size
+    fresh = SegmentBuffer(mode, X.shape[1], capacity=max(256, 2 * (size - start)))
+    m = size - start
+    fresh.t[:m] = T[start:size]
+    fresh.x[:m] = X[start:size]
+    fresh.dx[:m] = DX[start:size]
+    fresh.size = m
+    return fresh
+
+
 def run_mode_compiled(integrator, data, buf, t: float, x: np.ndarray, k0: np.ndarray, t_final: float):
     """The step loop of one mode visit, compiled; returns what ``_Integrator._run_mode`` returns:
-    ``("next", mode, x, t)`` after a transition or ``("end", status, message, t, in_strip, pair)``."""
-    _check_twin(integrator, data, t, x, k0)
+    ``("next", mode, x, t)`` after a transition or ``("end", status, message, t, in_strip, pair)``.
+    With in-kernel transitions one call covers many visits of the same mode."""
+    in_kernel = _check_twin(integrator, data, t, x, k0)
     cm = data.mode.compiled
     kernel = get_kernel(cm)
     plan = plan_for(integrator.tableau)
     mode = data.name
     n = data.mode.dim
-    s = plan.stages
+    spaces = integrator.__dict__.setdefault("_compiled_spaces", {})
+    ws = spaces.get(mode)
+    if ws is None:
+        ws = spaces[mode] = _Workspace(n, plan.stages, cm.n_guards)
     x = np.array(x, dtype=float)
-    K = np.zeros((s, n))
-    K[0] = k0
-    XS = np.zeros((s, n))
-    x_new = np.zeros(n)
-    k1 = np.zeros(n)
-    gv = np.zeros(max(1, cm.n_guards))
-    work = np.zeros(n)
-    fs = np.zeros(8)
-    iv = np.zeros(8, dtype=np.int64)
+    ws.K[0] = k0
+    fs, iv, cf, ci = ws.fs, ws.iv, ws.cf, ws.ci
     fs[0] = t
     fs[1] = integrator.h_prop
-    iv[5] = buf.size
     progress = integrator.progress
-    max_steps = PROGRESS_CHUNK if progress is not None else _NO_LIMIT
-    adaptive = bool(integrator.adaptive)
-    err_exp = float(integrator.err_exponent) if adaptive else 0.0
+    cf[:] = (t_final, integrator.h, integrator.eps, integrator.rtol, integrator.atol,
+             integrator.err_exponent if integrator.adaptive else 0.0)
+    ci[:5] = (integrator.adaptive, integrator.aim, integrator.max_halvings,
+              PROGRESS_CHUNK if progress is not None else _NO_LIMIT, in_kernel)
     while True:
-        code = kernel(cm.params, cm.n_guards, plan.c, plan.n_groups, plan.weights,
-                      plan.n_members, plan.members, plan.b_err, plan.fsal, x, K, XS, x_new, k1, gv, work,
-                      buf.t, buf.x, buf.dx, fs, iv, float(t_final), float(integrator.h), float(integrator.eps),
-                      float(integrator.rtol), float(integrator.atol), err_exp, adaptive, bool(integrator.aim),
-                      int(integrator.max_halvings), max_steps)
+        ci[5] = max(0, integrator.max_transitions - len(integrator.transitions))
+        iv[5] = buf.size
+        code = kernel(cm.params, cm.n_guards, plan.c, plan.n_groups, plan.weights, plan.n_members, plan.members,
+                      plan.b_err, plan.fsal, x, ws.K, ws.XS, ws.x_new, ws.k1, ws.gv, ws.work, ws.q, ws.dq,
+                      buf.t, buf.x, buf.dx, fs, iv, cf, ci, ws.r_e, ws.r_f, ws.r_q, ws.r_after, ws.seg_end)
         buf.size = int(iv[5])
         integrator._flush(int(iv[0]), int(iv[1]), int(iv[2]), int(iv[3]), int(iv[4]), float(fs[1]))
+        integrator.reset_evals += int(iv[8])
+        n_rec = int(iv[9])
+        if n_rec:
+            buf = _commit_records(integrator, data, buf, ws, n_rec)
         t = float(fs[0])
         if code == BUFFER_FULL:
             _grow(buf)
+            continue
+        if code == RECORDS_FULL:
             continue
         if code == CHUNK:
             now = _time.perf_counter()
@@ -596,15 +819,19 @@ def run_mode_compiled(integrator, data, buf, t: float, x: np.ndarray, k0: np.nda
             continue
         break
     if code == TRANSITION:
-        gvals = [float(v) for v in gv[: cm.n_guards]]
-        return integrator._step_transition(buf, data, gvals, t, x.copy(), K[0].copy(), float(fs[2]), x_new.copy(),
-                                           k1.copy(), t_final)
+        return integrator._transition(buf, data, int(iv[6]), float(fs[6]), ws.q.copy(), float(fs[2]),
+                                      float(fs[7]), t_final)
+    if code == NEXT:
+        # The state entering the mode again needs the entry's special cases (in a strip, or a
+        # non-finite field or guard): Python's _run_mode takes it from here. The segment before
+        # it was committed with its transition; nothing of the next one is stored yet.
+        return ("next", mode, x.copy(), t)
     if code == FINISHED:
         return integrator._end_segment(buf, "finished", "", float(fs[4]))
     if code == GUARD_NAN:
         bad = int(iv[6])
         message = (f"guard of transition {data.transitions[bad].name} is nan at t={float(fs[5]):.17g} in mode "
-                   f"'{mode}', x={x_new.tolist()}")
+                   f"'{mode}', x={ws.x_new.tolist()}")
         return integrator._end_segment(buf, "non_finite", message, t)
     if code == NONFINITE_STEP:
         message = (f"the step from t={t:.17g} in mode '{mode}' gives a non-finite state even at "

@@ -28,12 +28,19 @@ def assert_same_execution(a, b, tol=1e-12):
         assert ta.name == tb.name
         assert abs(ta.time - tb.time) <= tol and abs(ta.exit_time - tb.exit_time) <= tol
         assert np.allclose(ta.state_before, tb.state_before, rtol=0, atol=tol)
+        assert np.allclose(ta.state_after, tb.state_after, rtol=0, atol=tol, equal_nan=True)
     assert len(a.segments) == len(b.segments)
     for sa, sb in zip(a.segments, b.segments):
         assert sa.t.shape == sb.t.shape
         assert np.allclose(sa.t, sb.t, rtol=0, atol=tol)
-        assert np.allclose(sa.x, sb.x, rtol=0, atol=tol * max(1.0, np.abs(sb.x).max()))
-        assert np.allclose(sa.dx, sb.dx, rtol=0, atol=tol * max(1.0, np.abs(sb.dx).max()))
+        scale = max(1.0, np.nanmax(np.abs(sb.x)))
+        assert np.allclose(sa.x, sb.x, rtol=0, atol=tol * scale, equal_nan=True)
+        assert np.allclose(sa.dx, sb.dx, rtol=0, atol=tol * max(1.0, np.nanmax(np.abs(sb.dx))), equal_nan=True)
+    assert len(a.strips) == len(b.strips)
+    for pa, pb in zip(a.strips, b.strips):
+        assert pa.name == pb.name and abs(pa.time - pb.time) <= tol and abs(pa.exit_time - pb.exit_time) <= tol
+    assert a.final_in_strip == b.final_in_strip and a.t_end == pytest.approx(b.t_end, abs=tol)
+    assert abs(a.counters["strip_time"] - b.counters["strip_time"]) <= tol * max(1, len(a.strips))
     for key in COUNTERS:
         assert a.counters[key] == b.counters[key], key
 
@@ -117,7 +124,7 @@ def test_progress_is_reported_from_the_compiled_loop(monkeypatch):
 
 
 # A probe twin for the failure paths: field (p0 x0^2 + p1 x1, p2); guard selected by p3:
-# 0 smooth (p4 - x0), 1 a jump from +1 to -1 at x0 = p4, 2 nan beyond p4.
+# 0 smooth (p4 - x0), 1 a jump from +1 to -1 at x0 = p4, 2 nan beyond p4; reset x0 -> p5.
 @numba.njit(cache=True)
 def probe_field(t, x, p):
     out = np.empty(2)
@@ -138,8 +145,16 @@ def probe_guards(x, p):
     return out
 
 
+@numba.njit(cache=True)
+def probe_resets(x, p, e):
+    out = np.empty(2)
+    out[0] = p[5]
+    out[1] = x[1]
+    return out
+
+
 def probe_system(p, n_guards=1, guard_py=None):
-    p = np.asarray(p, dtype=float)
+    p = np.asarray(list(p) + [0.0] * (6 - len(p)), dtype=float)
 
     def field(t, x, u):
         return np.array([p[0] * x[0] * x[0] + p[1] * x[1], p[2]])
@@ -151,9 +166,9 @@ def probe_system(p, n_guards=1, guard_py=None):
             return 1.0 if x[0] < p[4] else -1.0
         return 1.0 if x[0] < p[4] else math.nan
 
-    twin = CompiledMode(probe_field, probe_guards, n_guards, p)
+    twin = CompiledMode(probe_field, probe_guards, n_guards, p, probe_resets)
     return HybridSystem({"m": Mode(2, field, compiled=twin)},
-                        [Transition("m", "m", guard_py or guard, lambda x: np.array([0.0, x[1]]), name="wrap")])
+                        [Transition("m", "m", guard_py or guard, lambda x: np.array([p[5], x[1]]), name="wrap")])
 
 
 @pytest.mark.filterwarnings("ignore::RuntimeWarning")  # numpy warns on the Python path as x overflows
@@ -190,6 +205,52 @@ def test_twin_with_the_wrong_guard_count_is_refused():
         simulate(probe_system([0.0, 1.0, 1.0, 0.0, 0.5], n_guards=2), [0.0, 0.0], "m", 1.0, 1e-2, 1e-3)
     with pytest.raises(ModelError, match="n_guards must be an integer >= 0"):
         CompiledMode(probe_field, probe_guards, -1)
+
+
+def test_transitions_crossed_in_the_kernel_in_several_record_batches(monkeypatch):
+    # Sticking in Example 2 crosses hundreds of strips inside the kernel; with batches of 16
+    # records Python assembles them in many rounds, and the execution must not change.
+    monkeypatch.setattr(compiled, "RECORD_CHUNK", 16)
+    system, x0, _ = make_oscillator_example("ex2")
+    fast, slow = both_paths(system, x0, "free", 1.0, 1e-2, 1e-5, "rk4", landing="halve")
+    assert len(fast.transitions) > 100
+    assert_same_execution(fast, slow)
+
+
+def test_transition_budget_is_kept_inside_the_kernel():
+    system, x0, _ = make_oscillator_example("ex2")
+    fast, slow = both_paths(system, x0, "free", 4.0, 1e-2, 1e-5, "rk4", max_transitions=37)
+    assert fast.status == "max_transitions" and len(fast.transitions) == 37
+    assert_same_execution(fast, slow)
+
+
+def test_run_ending_inside_a_strip_after_kernel_transitions():
+    # A wide strip (5 cm) holds the ball for ~eps - tau seconds; end the run inside the third hold.
+    system = make_bouncing_ball(9.81, 0.8)
+    probe = simulate(system, [1.0, 0.0], "flight", 3.0, 1e-2, 0.05, "rk4")
+    third = probe.transitions[2]
+    t_end = 0.5 * (third.time + third.exit_time)
+    fast, slow = both_paths(system, [1.0, 0.0], "flight", t_end, 1e-2, 0.05, "rk4")
+    assert fast.final_in_strip and fast.status == "finished" and len(fast.transitions) == 2
+    assert_same_execution(fast, slow)
+
+
+def test_reset_into_a_strip_goes_back_to_python_at_the_entry():
+    # The reset puts x0 inside the strip (guard 0.5 - x0, image x0 = 0.5 + eps/2): every entry
+    # crosses at once (zero-time transitions) until the budget, as on the Python path.
+    eps = 1e-3
+    system = probe_system([0.0, 1.0, 0.0, 0.0, 0.5, 0.5 + 0.5 * eps])
+    fast, slow = both_paths(system, [0.0, 1.0], "m", 2.0, 1e-2, eps, "rk4", max_transitions=5)
+    assert fast.status == "max_transitions"
+    assert_same_execution(fast, slow)
+
+
+@pytest.mark.filterwarnings("ignore::RuntimeWarning")
+def test_non_finite_reset_image_ends_both_paths_alike():
+    system = probe_system([0.0, 1.0, 0.0, 0.0, 0.5, math.nan])
+    fast, slow = both_paths(system, [0.0, 1.0], "m", 2.0, 1e-2, 1e-3, "rk4")
+    assert fast.status == "non_finite" and "reset of transition wrap" in fast.message
+    assert_same_execution(fast, slow)
 
 
 def test_plan_reproduces_every_tableau():

@@ -26,7 +26,7 @@ from ..hybrid import HybridSystem, Mode, Transition
 
 _jit = numba.njit(cache=True, fastmath=False, nogil=True)
 
-# Oscillator parameter vector p: (two_a, w2, amplitude, frequency, inv_m, x_max).
+# Oscillator parameter vector p: (two_a, w2, amplitude, frequency, inv_m, x_max, c).
 
 
 @_jit
@@ -48,12 +48,21 @@ def oscillator_guards(x, p):
 
 
 @_jit
+def oscillator_resets(x, p, e):
+    """The impact (x, -c xd), shape (2,)."""
+    out = np.empty(2)
+    out[0] = x[0]
+    out[1] = -p[6] * x[1]
+    return out
+
+
+@_jit
 def oscillator_free_guards(x, p):
     """No stop: no guard, shape (0,)."""
     return np.empty(0)
 
 
-# Bouncing-ball parameter vector p: (g,).
+# Bouncing-ball parameter vector p: (g, c).
 
 
 @_jit
@@ -70,6 +79,15 @@ def ball_guards(x, p):
     """The floor's guard max(z, zd) (m), shape (1,)."""
     out = np.empty(1)
     out[0] = x[0] if x[0] > x[1] else x[1]
+    return out
+
+
+@_jit
+def ball_resets(x, p, e):
+    """The bounce (z, -c zd), shape (2,)."""
+    out = np.empty(2)
+    out[0] = x[0]
+    out[1] = -p[1] * x[1]
     return out
 
 
@@ -98,7 +116,7 @@ def make_oscillator(omega: float = 2.5, a: float = 0.05, x_max: float | None = 1
     stop = math.nan if x_max is None else float(x_max)
     if x_max is not None and not math.isfinite(stop):
         raise ModelError(f"fast oscillator: stop position x_max must be finite, got {x_max}")
-    params = np.array([two_a, w2, amplitude, frequency, inv_m, stop])
+    params = np.array([two_a, w2, amplitude, frequency, inv_m, stop, c])
 
     def field(t: float, x: np.ndarray, u: Any) -> np.ndarray:
         return np.array([x[1], amplitude * math.cos(frequency * t) * inv_m - two_a * x[1] - w2 * x[0]])
@@ -122,7 +140,7 @@ def make_oscillator(omega: float = 2.5, a: float = 0.05, x_max: float | None = 1
                                       guard_gradient=lambda x: np.array([-1.0, 0.0]) if stop - x[0] > -x[1]
                                       else np.array([0.0, -1.0]),
                                       reset_jacobian=lambda x: np.diag([1.0, -c])))
-        twin = CompiledMode(oscillator_field, oscillator_guards, 1, params)
+        twin = CompiledMode(oscillator_field, oscillator_guards, 1, params, oscillator_resets)
     else:
         twin = CompiledMode(oscillator_field, oscillator_free_guards, 0, params)
     mode = Mode(2, field, ("x", "xd"), jacobian, compiled=twin)
@@ -159,7 +177,7 @@ def make_bouncing_ball(g: float = 9.81, restitution: float = 0.5) -> HybridSyste
     def reset(x: np.ndarray) -> np.ndarray:
         return np.array([x[0], -c * x[1]])
 
-    twin = CompiledMode(ball_field, ball_guards, 1, np.array([g]))
+    twin = CompiledMode(ball_field, ball_guards, 1, np.array([g, c]), ball_resets)
     mode = Mode(2, field, ("z", "zd"), lambda t, x, u: np.array([[0.0, 1.0], [0.0, 0.0]]), compiled=twin)
     return HybridSystem({"flight": mode}, [Transition("flight", "flight", guard, reset, name="bounce",
                                                       reset_jacobian=lambda x: np.diag([1.0, -c]))],
