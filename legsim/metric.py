@@ -36,14 +36,17 @@ How guard points are found. Guards of the form ``max_k s_k (x[i_k] - c_k)`` with
 coordinates (coordinate hyperplanes and their conjunctions) are split into pieces ``{x[i_k] =
 c_k, s_l (x[i_l] - c_l) <= 0}``, each a box with one coordinate fixed, onto which projection is
 exact. Models can declare this with ``CoordinateGuard``; plain functions of that form are
-detected by probing (gradients at random points, then the candidate is checked against the
-function at fresh points). Affine resets are declared with ``AffineReset`` or detected the same
-way. With coordinate pieces and affine resets the minimisation over guard points of one walk is
-convex (a sum of norms of affine maps over a box) and is solved by SLSQP from the better of two
-greedy chains (projecting forwards from a and backwards from b). Any other guard is an equality
-constraint ``g(p) = 0`` (other guards of the mode ``>= 0`` as inequalities) handled by SLSQP from
-both chains: a local minimisation, so the result is the length of a path that exists but may not
-be the shortest one.
+detected by probing (gradients at random points, exact secant slopes, constants snapped to 12
+digits, then the candidate is checked against the function at fresh points). Affine resets are
+declared with ``AffineReset`` or detected the same way. With coordinate pieces and affine
+resets the minimisation over the guard points of one walk is convex (a sum of norms of affine
+maps over a box): one free variable by golden section; more by SLSQP where the minimum is
+smooth, and by a log-barrier interior-point method where a leg has zero length at the minimum
+(a kink, on which SLSQP stalls). Any other guard is an equality constraint ``g(p) = 0`` (other
+guards of the mode ``>= 0`` as inequalities) for one SLSQP run from the better of two greedy
+chains (projecting forwards from a and backwards from b): a local minimisation, so the result is
+the length of a path that exists but may not be the shortest one. A model function that fails
+at a probed point makes that walk unusable, not the distance.
 
 What the value is, exactly. The value returned is always the length of an explicit connected
 path, so it is >= the distance of the "chord" quotient metric (straight chords inside each
@@ -54,8 +57,11 @@ for a convex domain the two agree; for a non-convex one the chord may leave the 
 Euclidean value is then only a lower bound of the paper's domain distance. Within one mode the
 direct chord is also an upper bound of the quotient distance, and a path through transitions
 is searched for only when it could be shorter: each walk has the lower bound
-``m eps + dist(x_a, first entry set) + dist(x_b, last exit set)``, and walks are solved in order
-of that bound until it exceeds the best length found.
+``m eps + dist(x_a, first entry set) + dist(x_b, last exit set)`` (exact for coordinate pieces, a
+first-order estimate for other guards), and walks are solved in order of that bound until it
+exceeds the best length found; crossing an edge and straight back is skipped where the reset
+does not shrink distances on that side. With a cap of K crossings the triangle inequality that
+holds is d_2K(a, c) <= d_K(a, b) + d_K(b, c).
 
 Units: the strip width eps is in guard units (paper: the transverse coordinate), added to
 Euclidean lengths of states; both are the paper's choice.
@@ -697,7 +703,8 @@ def _set_distance_bound(edge: _Edge, piece: _Piece, x: np.ndarray, guard_side: b
     """Lower bound of the distance from x to the guard piece (guard_side) or to its reset image,
     used only to prune walks. Exact for coordinate pieces (with affine resets on the image side).
     For guards of unknown shape a projection would be a local minimisation as costly as the walk
-    itself, so a first-order estimate is used instead: |g(x)| / |grad g(x)| on the guard side;
+    itself, so a cautious first-order estimate is used instead: about |g(x)| / |grad g| on the
+    guard side (``_first_order_offset``);
     on the image side, for an affine reset, the distance from x to the reset's range combined
     with sigma_min times the guard offset of the least-squares preimage; 0 otherwise (no pruning).
     """
@@ -718,15 +725,21 @@ def _set_distance_bound(edge: _Edge, piece: _Piece, x: np.ndarray, guard_side: b
 
 
 def _first_order_offset(piece: _Piece, x: np.ndarray) -> float:
+    """A cautious estimate of the distance from x to {g = 0}: |g(x)| over the larger gradient
+    norm at x and at its Newton point, halved. |g| / |grad g| alone overestimates where the
+    gradient grows towards the guard (1 - |x|^2 seen from near the centre of the disk)."""
     g, dg = piece.eq  # type: ignore[misc]
     try:
         value, grad = float(g(x)), np.asarray(dg(x), dtype=float)
-    except Exception:
+        norm = float(np.linalg.norm(grad))
+        if not (math.isfinite(value) and math.isfinite(norm)) or norm == 0.0:
+            return 0.0
+        far = float(np.linalg.norm(np.asarray(dg(x - value * grad / (norm * norm)), dtype=float)))
+    except Exception:  # noqa: BLE001 - the model refused the probe: no estimate, no pruning
         return 0.0
-    norm = float(np.linalg.norm(grad))
-    if not (math.isfinite(value) and math.isfinite(norm)) or norm == 0.0:
-        return 0.0
-    return abs(value) / norm
+    if math.isfinite(far):
+        norm = max(norm, far)
+    return 0.5 * abs(value) / norm
 
 
 # ---------------------------------------------------------------------------------------------
