@@ -68,15 +68,17 @@ def test_error_is_linear_in_eps_at_small_h(reference):
 
 
 def test_error_is_order_eps_with_halving(reference):
-    eps = [1e-3, 1e-4, 1e-5, 1e-6, 1e-7]
-    halved = [final_error(reference, "rk4", 5e-3, e) for e in eps]
+    eps = np.array([1e-3, 1e-4, 1e-5, 1e-6, 1e-7])
+    halved = np.array([final_error(reference, "rk4", 5e-3, e) for e in eps])
+    aimed_constant = final_error(reference, "rk4", 5e-3, 1e-5, landing="aim") / 1e-5
     # Halving lands anywhere in the strip: each impact's delay eps - tau (1 - 1/v) lies in
-    # [eps / v, eps] (v ~ 5-25 m/s here), a factor up to v between runs. Over four decades that
-    # moves the fitted slope by up to log(v)/log(1e4) ~ 0.35 either way.
-    assert slope(eps, halved) == pytest.approx(1.0, abs=0.4)
-    aimed = final_error(reference, "rk4", 5e-3, 1e-5, landing="aim")
-    # Both are O(eps) with constants within the factor v of each other.
-    assert 1 / 25 < final_error(reference, "rk4", 5e-3, 1e-5) / aimed < 25
+    # [eps / v, eps] (v ~ 5-25 m/s here), so the error / eps ratio wanders between runs (measured
+    # 9 to 310 here) and a fitted slope means little. What holds is the O(eps) bound: every
+    # delay is at most twice the aimed landing's (which is ~eps/2), so the error stays below a
+    # small multiple of the aimed error (5: the three impacts' sensitivities differ in sign, so
+    # the aimed delays partly cancel), and it falls over four decades by at least three.
+    assert np.all(halved <= 5 * aimed_constant * eps)
+    assert halved[-1] <= 1e-3 * halved[0]
 
 
 @pytest.mark.slow
