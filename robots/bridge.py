@@ -77,7 +77,7 @@ from typing import Any, Callable, Iterable, Literal, Mapping, Sequence
 import numpy as np
 import pinocchio as pin
 
-from legsim.errors import ModelError
+from legsim.errors import ModelBreakdown, ModelError
 from legsim.hybrid import HybridSystem, Mode, Transition
 
 _LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
@@ -223,7 +223,19 @@ class ContactBridge:
     joint_damping:
         Optional viscous damping per joint name (N m s/rad or N s/m): ``tau -= b v``.
     actuated:
-        Joint names driven by the control ``u`` (one entry of u per joint, N m or N).
+        Joint names driven by the control ``u`` (one entry of u per joint, N m or N). With any,
+        the guards that depend on constraint forces (releases, plastic impacts, Zeno
+        continuation) are declared ``guard_args="t,x,u"`` so that the integrator evaluates them
+        with the control at the interpolated crossing time.
+    zeno_window:
+        Zeno continuation (off with None, the default): for every contact with restitution
+        c > 0, an impact whose next flight would be shorter than ``zeno_window`` seconds (its
+        post-impact normal speed ``c |v_n|`` below ``a_n zeno_window / 2``, a_n the normal
+        acceleration with which the contact presses closed) enters the contact's constrained
+        mode through a plastic impact instead of bouncing, provided the contact then pushes
+        (normal force > 0); the usual release guard on that force leaves it. Set it to h + eps of
+        the run: the least time one relaxed transition takes (a step plus a strip), so only
+        flights the integrator could not resolve anyway are skipped.
     name:
         Name of the system.
 
@@ -243,6 +255,7 @@ class ContactBridge:
         mode_names: Mapping[Iterable[str], str] | None = None,
         joint_damping: Mapping[str, float] | None = None,
         actuated: Sequence[str] = (),
+        zeno_window: float | None = None,
         name: str = "robot",
     ) -> None:
         if not isinstance(model, pin.Model):
@@ -301,6 +314,10 @@ class ContactBridge:
                 raise ModelError(f"{name}: actuated joint '{jname}' must have one dof, has {j.nv}")
             act.append(j.idx_v)
         self._act_idx = np.array(act, dtype=int)
+        # Constraint forces depend on the control only through actuated joints.
+        self._timed = bool(act)
+        self.zeno_window = None if zeno_window is None else _finite(
+            zeno_window, f"{name}: zeno_window (s)", low=0.0, low_open=True)
 
         self._mode_names: dict[frozenset[str], str] = {}
         self._mode_sets: dict[str, frozenset[str]] = {}
@@ -644,22 +661,49 @@ class ContactBridge:
             # jumps there, no step can land in the strip, and the run ends (halving_exhausted)
             # instead of pinning a foot that never came out of the ground.
             out[lg.leg.name] = z if vz <= 0.0 else max(z, vz)
+            hip_z = pin.updateFramePlacement(model, data, lg.hip_id).translation[2] - lg.leg.ground
+            if hip_z < 0.0:
+                raise ModelBreakdown(f"{self.name}: the hip of leg '{lg.leg.name}' is {-hip_z:.3g} m below the "
+                                     f"ground: the runner fell (the model has no body-ground contact)")
         for i, lg in enumerate(spec.springs):
             p = pin.updateFramePlacement(model, data, lg.hip_id).translation
             vel = pin.getFrameVelocity(model, data, lg.hip_id, _LWA).linear
             dx = p[0] - x[2 * n + i]
             dz = p[2] - lg.leg.ground
+            if dz < 0.0:
+                raise ModelBreakdown(f"{self.name}: the hip of leg '{lg.leg.name}' is {-dz:.3g} m below the "
+                                     f"ground: the runner fell (the model has no body-ground contact)")
             r = math.hypot(dx, dz)
             rdot = (dx * vel[0] + dz * vel[2]) / r
-            out[lg.leg.name] = max(lg.leg.rest_length - r, -rdot)
+            g = max(lg.leg.rest_length - r, -rdot)
+            if g < 0.0:
+                # Past liftoff: the leg swings to its flight angle. A foot that would then be below
+                # the ground *and* moving down swung into it: the runner fell. (Below the ground but
+                # rising is a scuff, which every symmetric running gait grazes, within rounding.)
+                foot = pin.updateFramePlacement(model, data, lg.foot_id).translation[2] - lg.leg.ground
+                foot_vz = pin.getFrameVelocity(model, data, lg.foot_id, _LWA).linear[2]
+                if foot < 0.0 and foot_vz < 0.0:
+                    raise ModelBreakdown(
+                        f"{self.name}: at liftoff of leg '{lg.leg.name}' its foot, swung to the flight angle, "
+                        f"would be {-foot:.3g} m below the ground moving down ({foot_vz:.3g} m/s): "
+                        f"the runner fell")
+            out[lg.leg.name] = g
         spec.kin_key, spec.kin_val = key, out
         return out
 
-    def _release_guard(self, spec: _ModeSpec, row: int) -> Callable[[np.ndarray], float]:
+    def _release_guard(self, spec: _ModeSpec, row: int) -> tuple[Callable[..., float], str]:
+        """The normal force ``lambda[row]`` (N or N m) as a guard, and its ``guard_args``: on
+        (t, x, u) when the robot is actuated, since the force then depends on the control."""
+        if self._timed:
+            def g_txu(t: float, x: np.ndarray, u: Any) -> float:
+                _, lam = self._dynamics(spec, x, u)
+                return float(lam[row])
+            return g_txu, "t,x,u"
+
         def g(x: np.ndarray) -> float:
-            _, lam = self._dynamics(spec, x, self._last_u)
+            _, lam = self._dynamics(spec, x, None)
             return float(lam[row])
-        return g
+        return g, "x"
 
     def _kin_guard(self, spec: _ModeSpec, cname: str) -> Callable[[np.ndarray], float]:
         def g(x: np.ndarray) -> float:
@@ -725,7 +769,6 @@ class ContactBridge:
     def _transitions(self, spec: _ModeSpec) -> list[Transition]:
         out: list[Transition] = []
         active = set(spec.active)
-        n = self.n
         for cname in self._order:
             c = self._contacts[cname]
             if isinstance(c, SpringLeg):
@@ -747,46 +790,120 @@ class ContactBridge:
                         row = i - 1  # the normal row is the contact's last row
                 dst = self._spec(self.mode_name(active - {cname}))
                 kind = "release" if isinstance(c, JointStop) else "liftoff"
-                out.append(Transition(spec.name, dst.name, self._release_guard(spec, row),
-                                      self._plain_reset(spec, dst), name=f"{kind}_{cname}"))
+                guard, args = self._release_guard(spec, row)
+                out.append(Transition(spec.name, dst.name, guard, self._plain_reset(spec, dst),
+                                      name=f"{kind}_{cname}", guard_args=args))
                 continue
             released = set(getattr(c, "releases", ()))
             staying = (active - released)
-            rows = [(r, 0.0) for r in self._order if r in staying and r in self._rigid] + [(cname, c.restitution)]
+            kept = [(r, 0.0) for r in self._order if r in staying and r in self._rigid]
+            rows = kept + [(cname, c.restitution)]
+            stick = self._spec(self.mode_name(staying | {cname}))
+            free = self._spec(self.mode_name(staying))
+            args = "t,x,u" if self._timed else "x"
             if c.restitution == 0.0:
                 # A plastic impact sticks only if the contact then pushes (lambda > 0); otherwise
                 # the contact separates at once. The two cases are two transitions with the same
                 # impact law and complementary guards, so no reset lands outside its target.
-                stick = self._spec(self.mode_name(staying | {cname}))
-                free = self._spec(self.mode_name(staying))
                 kind = "impact" if isinstance(c, JointStop) else "touchdown"
                 stick_reset = self._impact_reset(spec, stick, rows)
                 out.append(Transition(spec.name, stick.name, self._plastic_guard(spec, cname, stick, stick_reset, 1.0),
-                                      stick_reset, name=f"{kind}_{cname}"))
+                                      stick_reset, name=f"{kind}_{cname}", guard_args=args))
                 out.append(Transition(spec.name, free.name, self._plastic_guard(spec, cname, stick, stick_reset, -1.0),
-                                      self._impact_reset(spec, free, rows), name=f"graze_{cname}"))
+                                      self._impact_reset(spec, free, rows), name=f"graze_{cname}", guard_args=args))
+            elif self.zeno_window is not None:
+                # Zeno continuation: a bounce whose next flight would be shorter than the window
+                # becomes a plastic impact into the constrained mode (when the contact then
+                # pushes); the two transitions have complementary guards, as above.
+                stick_reset = self._impact_reset(spec, stick, kept + [(cname, 0.0)])
+                accumulation = self._accumulation(spec, cname, c.restitution, stick, free, stick_reset)
+                out.append(Transition(spec.name, stick.name, self._zeno_guard(spec, cname, accumulation, True),
+                                      stick_reset, name=f"rest_{cname}", guard_args=args))
+                out.append(Transition(spec.name, free.name, self._zeno_guard(spec, cname, accumulation, False),
+                                      self._impact_reset(spec, free, rows), name=f"bounce_{cname}", guard_args=args))
             else:
-                dst = self._spec(self.mode_name(staying))
-                out.append(Transition(spec.name, dst.name, self._kin_guard(spec, cname),
-                                      self._impact_reset(spec, dst, rows), name=f"bounce_{cname}"))
+                out.append(Transition(spec.name, free.name, self._kin_guard(spec, cname),
+                                      self._impact_reset(spec, free, rows), name=f"bounce_{cname}"))
         return out
 
     def _plastic_guard(self, spec: _ModeSpec, cname: str, stick: _ModeSpec, stick_reset, sign: float):
         """``max(gap guard, -sign * lambda+)``: lambda+ is the contact's normal force right after
-        the plastic impact, computed only once the gap guard is past (then cached per state)."""
-        def g(x: np.ndarray) -> float:
+        the plastic impact, computed only once the gap guard is past (then cached per state and
+        control)."""
+        def value(x: np.ndarray, u: Any) -> float:
             base = self._kinematic_guards(spec, x)[cname]
             if base >= 0.0:
                 return base
-            key = x.tobytes()
+            key = x.tobytes() + _control_key(u)
             cached = spec.post.get(cname)
             if cached is not None and cached[0] == key:
                 lam = cached[1]
             else:
-                lam = float(self.constraint_forces(stick.name, stick_reset(x), self._last_u)[cname][-1])
+                lam = float(self.constraint_forces(stick.name, stick_reset(x), u)[cname][-1])
                 spec.post[cname] = (key, lam)
             return max(base, -sign * lam)
-        return g
+
+        if self._timed:
+            return lambda t, x, u: value(x, u)
+        return lambda x: value(x, None)
+
+    def _accumulation(self, spec: _ModeSpec, cname: str, c: float, stick: _ModeSpec, free: _ModeSpec,
+                      stick_reset) -> Callable[[np.ndarray, Any], tuple[float, float, float]]:
+        """``(x, u) -> (w, a_n, lambda+)`` for an impact of contact ``cname`` at x past its gap:
+        a_n is the normal acceleration with which the contact would press closed after a plastic
+        impact (``J_n (a_stuck - a_free)`` at the plastic post-impact state: what the constraint
+        force has to cancel), lambda+ its normal force there, and w = c v0 the rebound speed,
+        with v0 the approach speed back at the gap's zero, ``v0^2 = v_n^2 - 2 a_n depth``. Taking
+        v0 rather than the speed at x makes the decision the same all along a step's way through
+        the strip (the approach speeds up by a_n there), so the crossing search never meets a
+        guard that switches branch inside the strip. Cached for the last (x, u)."""
+        rigid = self._rigid[cname]
+        n = self.n
+        cache: dict[str, Any] = {"key": None, "value": None}
+
+        def measure(x: np.ndarray, u: Any) -> tuple[float, float, float]:
+            key = x.tobytes() + _control_key(u)
+            if cache["key"] == key:
+                return cache["value"]
+            q, v = x[:n], x[n:2 * n]
+            J, _ = self._constraint_rows([rigid], q, v, drift=False)
+            jn = J[-1]
+            if rigid.kind == "stop":
+                depth = -rigid.sign * (q[rigid.dof] - rigid.contact.position)
+            else:
+                depth = rigid.contact.ground - float(self.data.oMf[rigid.frame_id].translation[2])
+            after = stick_reset(x)
+            a_stuck = self._dynamics(stick, after, u)[0].copy()
+            lam_n = float(self.constraint_forces(stick.name, after, u)[cname][-1])
+            a_free, _ = self._dynamics(free, after, u)
+            a_n = float(jn @ (a_stuck - a_free))
+            v_n = min(0.0, float(jn @ v))
+            w = c * math.sqrt(max(v_n * v_n - 2.0 * a_n * max(depth, 0.0), 0.0))
+            cache["key"], cache["value"] = key, (w, a_n, lam_n)
+            return w, a_n, lam_n
+
+        return measure
+
+    def _zeno_guard(self, spec: _ModeSpec, cname: str, accumulation, rest: bool):
+        """Guards of the two impacts of a bouncing contact under Zeno continuation. Past the gap
+        guard (< 0) the impact *accumulates* when ``min(a_n window / 2 - w, lambda+) > 0`` (the
+        next flight would be shorter than the window and the contact would push). The guard of
+        the branch taken is the gap guard itself, so the strip keeps the gap's units and a
+        bounce is held exactly as without continuation; the other branch's guard is ``-gap``
+        (> 0, not past)."""
+        window = float(self.zeno_window)  # type: ignore[arg-type]
+
+        def value(x: np.ndarray, u: Any) -> float:
+            base = self._kinematic_guards(spec, x)[cname]
+            if base >= 0.0:
+                return base
+            w, a_n, lam = accumulation(x, u)
+            accumulating = min(0.5 * a_n * window - w, lam) > 0.0
+            return base if accumulating == rest else -base
+
+        if self._timed:
+            return lambda t, x, u: value(x, u)
+        return lambda x: value(x, None)
 
     def _plain_reset(self, src: _ModeSpec, dst: _ModeSpec) -> Callable[[np.ndarray], np.ndarray] | None:
         if src.springs == dst.springs:
@@ -874,6 +991,13 @@ class ContactBridge:
         """Set every counter to zero."""
         for k in self._counts:
             self._counts[k] = 0
+
+
+def _control_key(u: Any) -> bytes:
+    """Bytes identifying a control value, for caches keyed by state and control."""
+    if u is None:
+        return b""
+    return np.asarray(u, dtype=float).tobytes()
 
 
 def _solve_small(A: np.ndarray, b: np.ndarray) -> np.ndarray:

@@ -59,6 +59,13 @@ EFFECTS = {
                                  low=0.0, high=1.0),
             "position": Param(0.0, "stop angle", "rad", low=-math.pi, high=math.pi),
         }),
+    "zeno": Effect(
+        "Zeno continuation at the stop (c > 0): an impact whose next flight would be shorter than "
+        "`window` enters the constrained mode (plastic) instead of bouncing; the stop force's sign "
+        "change releases it", parameters={
+            "window": Param(2e-3, "shortest flight resolved; set it to h + eps of the run", "s",
+                            low=0.0, low_open=True),
+        }),
     "damping": Effect(
         "viscous joint damping", parameters={
             "b1": Param(0.1, "damping of joint 1", "N m s/rad", low=0.0),
@@ -98,9 +105,9 @@ def make_bridge(params: dict[str, Any], effects: dict[str, dict[str, Any]]) -> C
     names = {(): "unconstrained"}
     if contacts:
         names[("stop",)] = "constrained"
+    window = effects["zeno"]["window"] if "zeno" in effects else None
     return ContactBridge(model, contacts, coordinate_names=COORDINATES, velocity_names=VELOCITIES,
-                         mode_names=names,
-                         joint_damping=damping, name="double_pendulum")
+                         mode_names=names, joint_damping=damping, zeno_window=window, name="double_pendulum")
 
 
 def build(params: dict[str, Any], effects: dict[str, dict[str, Any]]) -> Model:

@@ -180,13 +180,11 @@ def test_bad_models_and_contacts_are_named():
         pronk.make({"k": -1.0})
 
 
-@pytest.mark.xfail(strict=True, reason="core: guards are guard(x) only, so a release guard whose force depends "
-                   "on the control u(t) cannot be evaluated at the interpolated crossing time (needs guard(t, x, u))")
 def test_release_under_a_time_varying_control_is_located_exactly():
     """A point mass resting on the floor is lifted by an actuator force u = F t: the floor force
-    m g - F t vanishes at t* = m g / F. The bridge's release guard can only use the control of its
-    last field evaluation, so the crossing search sees a constant guard along the step and the
-    release is reported at the step's start, O(h) early."""
+    m g - F t vanishes at t* = m g / F. The release guard of an actuated robot is declared on
+    (t, x, u), so the crossing search evaluates the force with the control at each interpolated
+    time (with the control of the last field evaluation it would be found O(h) early)."""
     model, _ = ball_model()
     model.gravity = pin.Motion(np.array([0, 0, -G, 0, 0, 0]))
     bridge = ContactBridge(model, [PointContact("floor", "ball", tangential=False)], actuated=("z",))

@@ -8,8 +8,10 @@ import pinocchio as pin
 import pytest
 
 from legsim import simulate
+from legsim.errors import ModelError, SceneError
 from legsim.hybrid import reachable_modes
 from robots import double_pendulum as dp
+from robots.bridge import ContactBridge
 
 # Deliberately not the defaults, so a parameter that is not wired through would show.
 P = dict(m1=1.3, m2=0.7, L1=0.9, L2=1.2, g=9.81)
@@ -220,3 +222,59 @@ def test_damping_is_computed_only_when_asked_and_dissipates():
     # dE/dt = -b . qd^2 <= 0: the energy never rises (beyond RK4's local error)
     E = np.array([damped.system.energy("unconstrained", x) for x in ex.segments[0].x])
     assert np.all(np.diff(E) < 1e-9) and E[-1] < E[0] - 0.1
+
+
+def test_zeno_continuation_rests_in_the_constrained_mode_and_is_released_where_eq_31_changes_sign():
+    # c = 0.5 with continuation (window h + eps): the accumulating impacts end in a plastic
+    # impact into the constrained mode, the straight pendulum swings as one body, and the stop
+    # lets go where eq. (31) changes sign: at theta1 = 0 for unit masses and lengths.
+    h = eps = 1e-3
+    model = dp.make(effects={"stop": {"restitution": 0.5}, "zeno": {"window": h + eps}})
+    plain = dp.make(effects={"stop": {"restitution": 0.5}})
+    x0 = [model.initial_state[n] for n in dp.STATE_NAMES]
+    ex = simulate(model.system, x0, "unconstrained", 2.5, h, eps)
+    names = [tr.name for tr in ex.transitions]
+    assert names.count("rest_stop") == 1 and names[-2:] == ["rest_stop", "release_stop"]
+    rest, release = ex.transitions[-2], ex.transitions[-1]
+    assert abs(release.state_before[0]) < 1e-8 and abs(eq31(release.state_before, DEFAULTS)) < 1e-8
+    # in the constrained mode theta2 and its rate stay at the stop and eq. (31) holds the link
+    for t in np.linspace(rest.exit_time, release.time, 7)[1:-1]:
+        mode, x = ex.state_at(t)
+        assert mode == "constrained" and abs(x[1]) < 1e-9 and abs(x[3]) < 1e-9 and eq31(x, DEFAULTS) < 0
+    # the rest is a plastic impact (eq. (30) with c = 0) of an impact whose rebound c |v| was
+    # below the threshold a_n (h + eps) / 2, a_n the free acceleration pressing on the stop
+    np.testing.assert_allclose(rest.state_after, eq30(rest.state_before, 0.0, DEFAULTS), atol=1e-12)
+    a_n = -plain.system.mode("unconstrained").field(0.0, rest.state_after, None)[3]
+    assert 0.5 * abs(rest.state_before[3]) < 0.5 * a_n * (h + eps)
+    # the bounces before it are those of the plain run, and cost a hundredth of its transitions
+    before = simulate(plain.system, x0, "unconstrained", 2.5, h, eps)
+    np.testing.assert_allclose([tr.time for tr in ex.transitions[:-2]],
+                               [tr.time for tr in before.transitions[:len(names) - 2]], atol=1e-12)
+    assert len(before.transitions) > 50 * len(names)
+
+
+def test_zeno_guards_are_complementary_past_the_stop():
+    # Past the gap guard exactly one of rest_stop / bounce_stop is past its guard: rest when the
+    # rebound is below the threshold (and the stop would push), bounce otherwise.
+    model = dp.make(effects={"stop": {"restitution": 0.5}, "zeno": {"window": 2e-3}})
+    guards = {tr.name: tr.guard for tr in model.system.outgoing("unconstrained")}
+    assert set(guards) == {"bounce_stop", "rest_stop"}
+    # theta1 = -0.6 (eq. (31) pushes, a_n ~ 6 rad/s^2), theta2 1e-6 rad past the stop, approaching
+    # at various speeds: the rebound c v0 counts the speed back at the stop, v0^2 = v^2 - 2 a_n depth,
+    # against the threshold a_n window / 2 ~ 6e-3 rad/s
+    for speed, resting in ((1e-4, True), (5e-3, True), (2e-2, False), (1.0, False)):
+        x = np.array([-0.6, -1e-6, 0.2, -speed])
+        assert (guards["rest_stop"](x) < 0) == resting and (guards["bounce_stop"](x) < 0) == (not resting)
+    # theta1 = +0.6: the stop would pull after a plastic impact, so even a slow impact bounces
+    x = np.array([0.6, -1e-6, 0.2, -1e-4])
+    assert guards["rest_stop"](x) >= 0 and guards["bounce_stop"](x) < 0
+    # inside the domain both are the gap guard, >= 0
+    x = np.array([-0.6, 0.1, 0.2, -1.0])
+    assert guards["rest_stop"](x) == guards["bounce_stop"](x) == pytest.approx(0.1)
+    # past it, the branch taken has the gap guard itself (the strip keeps its unit, rad), the other -gap
+    x = np.array([-0.6, -1e-4, 0.2, -1e-4])
+    assert guards["rest_stop"](x) == pytest.approx(-1e-4) and guards["bounce_stop"](x) == pytest.approx(1e-4)
+    with pytest.raises(ModelError, match=r"zeno_window \(s\) must be > 0, got 0"):
+        ContactBridge(dp.pinocchio_model(), [], zeno_window=0.0)
+    with pytest.raises(SceneError, match="effects.zeno.window"):
+        dp.make(effects={"zeno": {"window": -1.0}})

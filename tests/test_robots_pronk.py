@@ -234,3 +234,19 @@ def test_a_stance_initial_state_is_accepted_although_its_legs_are_not_at_rest_le
     model.system.check_state("both", x)
     ex = simulate(model.system, x, "both", 0.25, 1e-3, 1e-2)
     assert ex.status == "finished" and ex.mode_sequence == ["both"]
+
+
+def test_a_leg_swung_into_the_ground_at_liftoff_while_moving_down_is_a_fall():
+    # The paper's apex with psi = pi/5 is not periodic: the third stance runs backwards and, at
+    # the left leg's liftoff, its foot swung forward to the flight angle would be 0.78 m below
+    # the ground and descending. That is a fall (model_breakdown), not a scuff: a foot below the
+    # ground but rising (every symmetric gait's liftoff, within rounding) stays in flight.
+    model = pronk.make()
+    ex = simulate(model.system, pronk.state(), "aerial", 3.0, 1e-3, 1e-2)
+    assert ex.status == "model_breakdown" and "liftoff of leg 'left'" in ex.message
+    assert "moving down" in ex.message and ex.final_mode == "both"
+    bridge = model.info["bridge"]
+    x = ex.final_state
+    # at the last state kept, the left leg is still (barely) compressed: the fall is detected
+    # within the step that extends it past its rest length
+    assert 0.0 < bridge.leg_forces("both", x)["left"] < 1.0

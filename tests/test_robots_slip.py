@@ -66,3 +66,14 @@ def test_damping_term_only_when_asked():
     E = [damped.system.energy(s.mode, x) for s in ex.segments for x in s.x]
     assert E[-1] < E[0] - 0.1
     assert sorted(reachable_modes(plain.system, "flight")) == ["flight", "stance"]
+
+
+def test_a_runner_whose_hip_reaches_the_ground_ends_with_model_breakdown():
+    # A 5 N/m leg cannot hold 1 kg: the mass sinks through its stance to the ground, where the
+    # model (no body-ground contact) stops being physical. The run ends with model_breakdown,
+    # keeping the execution up to the last step with the hip above the ground.
+    model = slip.make({"k": 5.0})
+    ex = simulate(model.system, slip.state(), "flight", 3.0, 1e-3, 1e-3)
+    assert ex.status == "model_breakdown" and "hip of leg 'leg'" in ex.message and "fell" in ex.message
+    assert ex.mode_sequence == ["flight", "stance"]
+    assert 0.0 <= ex.final_state[1] < 0.01 and ex.final_state[3] < 0
