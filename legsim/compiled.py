@@ -169,17 +169,18 @@ def _twin_resets(x, p, e):  # placeholder, bound per twin in the generated modul
 
 def _k_combine(x, K, row, n_groups, weights, n_members, members, h, out):
     # out = x + sum_g (h * w_g) * (k_{m0} + k_{m1} + ...), evaluated left to right like
-    # the generated Python stepper.
+    # the generated Python stepper. Plain indexing only: a row view would cost two reference
+    # count updates per call.
     n = x.shape[0]
     for d in range(n):
         acc = x[d]
         for g in range(n_groups[row]):
-            m = members[row, g]
-            ssum = K[m[0], d]
-            for q in range(1, n_members[row, g]):
-                ssum = ssum + K[m[q], d]
+            ssum = K[members[row, g, 0], d]
+            for m in range(1, n_members[row, g]):
+                ssum = ssum + K[members[row, g, m], d]
             acc = acc + (h * weights[row, g]) * ssum
         out[d] = acc
+
 
 def _k_hermite(x0, d0, x1, d1, dt, s, out):
     s2 = s * s
@@ -341,13 +342,13 @@ def _k_step_loop(p, n_guards, c, n_groups, weights, n_members, members, b_err, f
         outcome = -1
         while True:
             for i in range(1, s_stages):
-                _k_combine(x, K, i, n_groups, weights, n_members, members, hk, XS[i])
-                ki = _twin_field(t + c[i] * hk, XS[i], p)
+                _k_combine(x, K, i, n_groups, weights, n_members, members, hk, XS)
+                ki = _twin_field(t + c[i] * hk, XS, p)
                 for d in range(n):
                     K[i, d] = ki[d]
-            if fsal:
+            if fsal:  # the last stage is evaluated at the new point itself
                 for d in range(n):
-                    x_new[d] = XS[s_stages - 1, d]
+                    x_new[d] = XS[d]
             else:
                 _k_combine(x, K, s_stages, n_groups, weights, n_members, members, hk, x_new)
             field_evals += s_stages - 1
@@ -713,7 +714,7 @@ class _Workspace:
 
     def __init__(self, n: int, stages: int, n_guards: int) -> None:
         self.K = np.zeros((stages, n))
-        self.XS = np.zeros((stages, n))
+        self.XS = np.zeros(n)
         self.x_new = np.zeros(n)
         self.k1 = np.zeros(n)
         self.gv = np.zeros(max(1, n_guards))
@@ -754,7 +755,7 @@ def _commit_records(integrator, data, buf, ws: _Workspace, n_rec: int):
         e = r_e[k]
         tc, t_land, exit_time, tau = r_f[k]
         tr = trs[e]
-        strips.append(Strip(mode, tr.name, tc, exit_time, qs[k]))
+        strips.append(Strip(mode, tr.name, tc, exit_time, qs[k], t_land, tau))
         strip_time += exit_time - tc
         records.append(TransitionRecord(tr.name, mode, mode, e, tc, t_land, exit_time, qs[k], afters[k], tau))
         start = end

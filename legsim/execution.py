@@ -80,13 +80,20 @@ class Segment:
 @dataclass(frozen=True)
 class Strip:
     """A relaxation interval: the state is held at ``state`` (the guard point q) in ``mode``
-    from ``time`` to ``exit_time`` (the end time of the run if the strip was cut short)."""
+    from ``time`` to ``exit_time`` (the end time of the run if the strip was cut short).
+
+    ``landing_time`` is the end of the step that landed in the strip and ``depth`` its depth
+    tau in guard units, so that the strip coordinate at time t in [landing_time, exit_time] is
+    tau + (t - landing_time) (paper 000 Fig. 12, step 13), also for a strip cut by t_final.
+    """
 
     mode: str
     name: str
     time: float
     exit_time: float
     state: np.ndarray
+    landing_time: float = 0.0
+    depth: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -358,7 +365,8 @@ class Execution:
         payload["seg_x"] = np.concatenate([s.x.ravel() for s in self.segments])
         payload["seg_dx"] = np.concatenate([s.dx.ravel() for s in self.segments])
         payload["strip_mode"] = np.array([index[s.mode] for s in self.strips], dtype=np.int64)
-        payload["strip_times"] = np.array([[s.time, s.exit_time] for s in self.strips]).reshape(-1, 2)
+        payload["strip_times"] = np.array([[s.time, s.exit_time, s.landing_time, s.depth]
+                                           for s in self.strips]).reshape(-1, 4)
         payload["strip_state"] = _flat([s.state for s in self.strips])
         payload["strip_dim"] = np.array([len(s.state) for s in self.strips], dtype=np.int64)
         trs = self.transitions
@@ -427,8 +435,9 @@ class Execution:
         for k, (m, d) in enumerate(zip(data["strip_mode"], data["strip_dim"])):
             state = data["strip_state"][off:off + d].copy()
             off += d
-            t0, t1 = data["strip_times"][k]
-            strips.append(Strip(modes[m], meta["strip_names"][k], float(t0), float(t1), state))
+            t0, t1, t_land, depth = data["strip_times"][k]
+            strips.append(Strip(modes[m], meta["strip_names"][k], float(t0), float(t1), state, float(t_land),
+                                float(depth)))
         transitions = []
         ob = oa = 0
         for k, ((s, tg, idx), (tm, tl, te, depth), (db, da)) in enumerate(

@@ -608,13 +608,13 @@ class _Integrator:
         mode = data.name
         self.segments.append(buf.freeze())
         if len(self.transitions) >= self.max_transitions:
-            self.strips.append(Strip(mode, tr.name, tc, tc, q.copy()))
+            self.strips.append(Strip(mode, tr.name, tc, tc, q.copy(), t_land, tau))
             return ("end", "max_transitions",
                     f"transition budget max_transitions={self.max_transitions} used up at t={tc:.17g} "
                     f"(next transition {tr.name} from mode '{mode}')", tc, True, None)
         exit_time = t_land + (self.eps - tau)
         if exit_time >= t_final:
-            self.strips.append(Strip(mode, tr.name, tc, t_final, q.copy()))
+            self.strips.append(Strip(mode, tr.name, tc, t_final, q.copy(), t_land, tau))
             self.strip_time += t_final - tc
             return ("end", "finished", "", t_final, True, None)
         target = data.targets[e]
@@ -627,7 +627,7 @@ class _Integrator:
         target_dim = self.system.mode(target).dim
         if x_after.shape != (target_dim,):
             check_reset_output(self.system.name, tr, target_dim, q)  # raises with the shapes named
-        self.strips.append(Strip(mode, tr.name, tc, exit_time, q.copy()))
+        self.strips.append(Strip(mode, tr.name, tc, exit_time, q.copy(), t_land, tau))
         self.strip_time += exit_time - tc
         self.transitions.append(TransitionRecord(tr.name, mode, target, e, tc, t_land, exit_time, q.copy(),
                                                  x_after.copy(), tau))

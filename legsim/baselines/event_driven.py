@@ -199,7 +199,7 @@ def _assemble(system, pieces, transitions, status, message, t0, t_end, t_final, 
         dx = np.array([field(tt, xx, None if control is None else control(tt, xx)) for tt, xx in zip(ts, xs)],
                       dtype=float).reshape(xs.shape)
         segments.append(Segment(mode, ts, xs, dx))
-    strips = [Strip(tr.source, tr.name, tr.time, tr.exit_time, tr.state_before) for tr in transitions]
+    strips = [Strip(tr.source, tr.name, tr.time, tr.exit_time, tr.state_before, tr.time, 0.0) for tr in transitions]
     counters = dict(counts, transitions=len(transitions), halvings=0, strip_time=0.0, wall_time_s=wall)
     names = {m: system.state_names(m) for m, _, _ in pieces}
     fields = dict(status=status, message=message, segments=segments, strips=strips, transitions=transitions,
