@@ -260,7 +260,7 @@ class HybridSystem:
         except ModelError:
             raise
         except Exception as exc:  # the user's callback failed: say which mode it was asked for
-            raise ModelError(f"{self._name}: expand('{mode}') failed: {exc}") from exc
+            raise ModelError(f"{self._name}: expand('{mode}') failed: {type(exc).__name__}: {exc}") from exc
         if not (isinstance(produced, tuple) and len(produced) == 2 and isinstance(produced[0], Mode)):
             raise ModelError(f"{self._name}: expand('{mode}') must return (Mode, [Transition, ...])")
         new_mode, new_transitions = produced

@@ -134,6 +134,16 @@ class Scene:
         """Coordinate names of the initial mode."""
         return tuple(self.model.system.state_names(self.initial_mode))
 
+    @property
+    def reference(self) -> Any:
+        """The model's reference for *this* scene's initial mode and state (which ``[initial]``
+        or ``--set`` may have changed), or None when the model has none. References that can be
+        restarted define ``with_initial(mode, x)``; others describe the model's default start."""
+        ref = self.model.reference
+        if ref is not None and hasattr(ref, "with_initial"):
+            return ref.with_initial(self.initial_mode, self.initial_state.copy())
+        return ref
+
     def simulate(self, progress: Callable[[float, float, float], None] | None = None) -> Execution:
         """Run the relaxed integrator with the scene's settings.
 

@@ -339,3 +339,15 @@ def test_geometry_puts_the_box_face_on_the_stop():
     parts = model.geometry("free", np.array([14.0, 0.0]))
     assert parts["mass"].shape == (5, 2) and parts["mass"][:, 0].max() == 14.0
     np.testing.assert_array_equal(model.scenery["stop"][:, 0], [14.0, 14.0])
+
+
+def test_scene_reference_follows_an_overridden_initial_state():
+    # The scene's reference must describe the run the scene makes, not the model's default start.
+    from legsim.scene import load_scene
+
+    scene = load_scene("oscillator_ex1", overrides=["initial.state.x=10.0", "initial.state.xd=0.0",
+                                                    "integrator.t_final=3.0"])
+    ref = scene.reference
+    assert ref.position(0.0) == pytest.approx(10.0)
+    ex = scene.simulate()
+    assert ex.final_state[0] == pytest.approx(ref.position(ex.t_end), abs=1e-5)
