@@ -155,7 +155,7 @@ def test_lazily_expanded_modes():
     def broken(name: str):
         raise KeyError(name)
 
-    with pytest.raises(ModelError, match=r"^broken: expand\('7'\) failed: '7'"):
+    with pytest.raises(ModelError, match=r"^broken: expand\('7'\) failed: KeyError: '7'"):
         HybridSystem({}, expand=broken, name="broken").mode("7")
 
 
