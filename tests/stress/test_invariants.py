@@ -1,0 +1,155 @@
+"""Every invariant of the stress suite can fail: each check is given an execution that breaks it
+(built by hand from a good run) and must say so, and must pass the good run."""
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+
+from legsim import HybridSystem, Mode, Transition, simulate
+from legsim import stress
+from legsim.execution import Segment, Strip
+from legsim.systems import bouncing_ball
+
+EPS = 1e-3
+
+
+@pytest.fixture(scope="module")
+def good():
+    system = bouncing_ball.make_system(restitution=0.5)
+    ex = simulate(system, [1.0, 0.0], "flight", 1.2, 1e-3, EPS)  # three bounces, before the Zeno time
+    assert len(ex.transitions) == 3
+    return system, ex
+
+
+def replaced(ex, **changes):
+    return dataclasses.replace(ex, **changes)
+
+
+def with_segment(ex, i, **changes):
+    segs = list(ex.segments)
+    segs[i] = dataclasses.replace(segs[i], **changes)
+    return replaced(ex, segments=segs)
+
+
+def test_the_good_run_passes_every_check(good):
+    system, ex = good
+    checks = stress.execution_checks(system, ex, EPS, energy="dissipative", energy_tol=1e-9, bound=3, bound_why="3")
+    assert [c.name for c in checks] == ["status", "finite", "time increasing", "in relaxed domain",
+                                        "resets in target domain", "energy non-increasing", "transition bound"]
+    assert all(c.passed for c in checks), [c.detail for c in checks if not c.passed]
+
+
+def test_finite_fails_on_a_nan_state(good):
+    _, ex = good
+    x = ex.segments[1].x.copy()
+    x[3, 1] = math.nan
+    check = stress.check_finite(with_segment(ex, 1, x=x))
+    assert not check.passed and "segment 1" in check.detail
+
+
+def test_time_fails_on_a_repeated_time_and_on_a_strip_going_back(good):
+    _, ex = good
+    t = ex.segments[2].t.copy()
+    t[5] = t[4]
+    check = stress.check_time(with_segment(ex, 2, t=t))
+    assert not check.passed and "segment 2" in check.detail
+    strips = list(ex.strips)
+    s = strips[0]
+    strips[0] = dataclasses.replace(s, exit_time=s.time - 1e-3)
+    assert not stress.check_time(replaced(ex, strips=strips)).passed
+    # a run that says it finished but stopped short of t_final
+    assert not stress.check_time(replaced(ex, t_final=ex.t_final + 1.0)).passed
+
+
+def test_domain_fails_beyond_eps_and_holds_within_it(good):
+    system, ex = good
+    x = ex.segments[1].x.copy()
+    x[4] = [-0.5 * EPS, -1.0]  # inside the strip: allowed
+    assert stress.check_domain(system, with_segment(ex, 1, x=x), EPS).passed
+    x[4] = [-2.0 * EPS, -1.0]  # past the strip
+    check = stress.check_domain(system, with_segment(ex, 1, x=x), EPS)
+    assert not check.passed and "bounce" in check.detail
+
+
+def test_resets_fail_on_a_wrong_image_and_on_an_image_past_the_target_guard(good):
+    system, ex = good
+    trs = list(ex.transitions)
+    tr = trs[0]
+    trs[0] = dataclasses.replace(tr, state_after=tr.state_after + np.array([0.0, 1e-6]))
+    check = stress.check_resets(system, replaced(ex, transitions=trs), EPS)
+    assert not check.passed and "!= reset" in check.detail
+    # an image past the floor while falling, and the strip point with it (reset keeps z)
+    trs[0] = dataclasses.replace(tr, state_before=np.array([-0.1, -4.0]), state_after=np.array([-0.1, 2.0]))
+    check = stress.check_resets(system, replaced(ex, transitions=trs), EPS)
+    assert not check.passed and "past a guard" in check.detail
+
+
+def test_energy_fails_when_it_rises_or_drifts(good):
+    system, ex = good
+    assert stress.check_energy(system, ex, "dissipative", 1e-9).passed
+    assert not stress.check_energy(system, ex, "conservative", 1e-3).passed  # the bounces lose energy
+    x = ex.segments[2].x.copy()
+    x[-1, 1] *= 1.01  # a 1% faster point: more energy than before
+    assert not stress.check_energy(system, with_segment(ex, 2, x=x), "dissipative", 1e-6).passed
+    with pytest.raises(ValueError, match="conservative"):
+        stress.check_energy(system, ex, "bounded", 1.0)
+
+
+def test_transition_bound_fails_above_it_and_on_the_budget(good):
+    _, ex = good
+    assert stress.check_transition_bound(ex, 3, "three bounces").passed
+    check = stress.check_transition_bound(ex, 2, "two")
+    assert not check.passed and "3 transitions" in check.detail
+    assert not stress.check_transition_bound(replaced(ex, status="max_transitions"), 10, "ten").passed
+
+
+def test_status_and_order_checks():
+    system = bouncing_ball.make_system()
+    ex = simulate(system, [1.0, 0.0], "flight", 0.3, 1e-3, EPS, max_transitions=0)
+    assert stress.check_status(ex).passed  # no impact before 0.45 s
+    assert not stress.check_status(replaced(ex, status="halving_exhausted")).passed
+    assert stress.check_order("o", [1.0, 0.5, 0.25], [1.0, 0.25, 0.0625], 1.9, 2.1).passed
+    assert not stress.check_order("o", [1.0, 0.5, 0.25], [1.0, 0.5, 0.25], 1.9, 2.1).passed
+    assert not stress.check_order("o", [1.0, 0.5], [1.0, 0.0], 0.0, 5.0).passed  # a zero error has no order
+
+
+def test_step_floor_is_the_largest_step_inside_the_strip_halved():
+    # a guard at rate 2 units/s, eps = 1e-3: steps <= 5e-4 s land in the strip; halving stops above 2.5e-4
+    assert stress.step_floor(1.0, 1e-3, rate=2.0) == pytest.approx(2.5e-4)
+    # from rest at acceleration 8: sqrt(2 eps / a) = 0.0158 s, halved
+    assert stress.step_floor(1.0, 1e-3, accel=8.0) == pytest.approx(0.5 * math.sqrt(2e-3 / 8.0))
+    assert stress.step_floor(1e-4, 1e-3, rate=2.0, accel=8.0) == 1e-4  # h itself when it is shorter
+
+
+def test_a_case_passes_only_with_checks_and_without_a_crash():
+    r = stress.CaseResult("x", "zeno")
+    assert not r.passed and r.failures == ["no invariant was checked"]
+    r.add(stress.Check("a", True))
+    assert r.passed
+    r.error = "RuntimeError: boom"
+    assert not r.passed and "crashed: RuntimeError: boom" in r.failures
+
+
+def test_a_crashing_case_is_reported_not_raised(monkeypatch):
+    monkeypatch.setattr(stress, "CASES", list(stress.CASES))
+
+    @stress.case("crashing_case", "extremes", "raises")
+    def _crash(result, quick):
+        raise RuntimeError("boom")
+
+    (result,) = stress.run_suite(True, ["crashing_case"])
+    assert not result.passed and result.error == "RuntimeError: boom"
+    table = stress.format_table([result])
+    assert "FAIL" in table and "FAIL crashing_case: crashed: RuntimeError: boom" in table
+
+
+def test_the_lifted_ball_rests_and_is_released_at_the_force_zero():
+    # the suite's own model: c = 0 lands plastically and leaves at m g / r exactly
+    system, control = stress.lifted_ball(0.0, 4.0)
+    ex = simulate(system, [0.2, 0.0], "flight", 3.0, 1e-2, 1e-4, control=control)
+    assert [tr.name for tr in ex.transitions] == ["land", "release"]
+    assert ex.transitions[1].time == pytest.approx(9.81 / 4.0, abs=1e-12)
+    with pytest.raises(ValueError, match="unknown group"):
+        stress.case("x", "nogroup", "")
