@@ -24,3 +24,21 @@ def test_dense_output_samples_between_steps_at_the_method_accuracy():
     assert err_dense < 1e-2 * err_plain  # Hermite on steps of ~0.5 s is much worse
     # At the step points both are the computed states.
     assert np.allclose(dense.sample(steps).stack(), plain.segments[0].x, rtol=0, atol=1e-15)
+
+
+def test_model_breakdown_inside_solve_ivp_ends_the_run_with_that_status():
+    # solve_ivp evaluates the guard at its trial points; a model that breaks down there (as the
+    # runner whose body goes through the ground) must end the run with a status, not a traceback.
+    from legsim import HybridSystem, Mode, Transition
+    from legsim.errors import ModelBreakdown
+
+    def guard(x):
+        if x[0] < -0.5:
+            raise ModelBreakdown("fell through the floor")
+        return x[0] + 10.0
+
+    system = HybridSystem({"m": Mode(1, lambda t, x, u: np.array([-1.0]))},
+                          [Transition("m", "m", guard, lambda x: x.copy())])
+    ex = simulate_events(system, [1.0], "m", 10.0, method="RK45", rtol=1e-6, atol=1e-9)
+    assert ex.status == "model_breakdown"
+    assert "fell through the floor" in ex.message and "mode 'm'" in ex.message

@@ -24,7 +24,7 @@ from typing import Any, Callable
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from ..errors import SimulationError
+from ..errors import ModelBreakdown, SimulationError
 from ..execution import Execution, Segment, Strip, TransitionRecord
 from ..hybrid import HybridSystem
 
@@ -96,13 +96,25 @@ def simulate_events(
                 return field(tt, y, control(tt, y))
         events = []
         for tr in trs:
-            def event(tt, y, guard=tr.guard):
-                return guard(y)
+            if tr.guard_args == "x":
+                def event(tt, y, guard=tr.guard):
+                    return guard(y)
+            else:
+                def event(tt, y, tr=tr):
+                    return tr.guard_value(y, tt, None if control is None else control(tt, y))
             event.terminal = True
             event.direction = -1
             events.append(event)
-        sol = solve_ivp(fun, (t, t_final), x, method=method, rtol=rtol, atol=atol, events=events or None,
-                        max_step=max_step, dense_output=dense_output)
+        try:
+            sol = solve_ivp(fun, (t, t_final), x, method=method, rtol=rtol, atol=atol, events=events or None,
+                            max_step=max_step, dense_output=dense_output)
+        except ModelBreakdown as exc:
+            # A trial step of solve_ivp left the model's range (e.g. a runner's body through the
+            # ground): the solver cannot shorten a step on such grounds, so the run ends here.
+            status, message = "model_breakdown", f"{exc} (solve_ivp in mode '{mode}' after t={t:.17g})"
+            pieces.append((mode, np.array([t]), np.asarray(x, dtype=float).reshape(1, -1).copy()))
+            dense.append(None)
+            break
         counts["field_evals"] += sol.nfev
         counts["steps"] += max(len(sol.t) - 1, 0)
         pieces.append((mode, sol.t.copy(), sol.y.T.copy()))
@@ -152,7 +164,8 @@ def _firing_at_entry(system, mode, x, t, control, tol, counts) -> int | None:
     field = system.mode(mode).field
     best = None
     for i, tr in enumerate(system.outgoing(mode)):
-        g = float(tr.guard(x))
+        u = None if control is None else control(t, x)
+        g = tr.guard_value(x, t, u)
         counts["guard_evals"] += 1
         if g < -tol:
             return i
@@ -160,7 +173,7 @@ def _firing_at_entry(system, mode, x, t, control, tol, counts) -> int | None:
             f = np.asarray(field(t, x, None if control is None else control(t, x)), dtype=float)
             counts["field_evals"] += 1
             delta = 1e-7 / max(1.0, float(np.linalg.norm(f)))
-            rate = (float(tr.guard(x + delta * f)) - g) / delta
+            rate = (tr.guard_value(x + delta * f, t, u) - g) / delta
             counts["guard_evals"] += 1
             if rate < 0 and (best is None or g < best[0]):
                 best = (g, i)

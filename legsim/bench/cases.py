@@ -1,0 +1,307 @@
+"""The work-precision cases: a system, its reference, and the sweep of each method's knobs.
+
+A case names the system legsim simulates (with compiled twins where the model has them), the
+system the event-driven baseline runs on, the position coordinates of the error of paper 000
+eq. (30), the reference, and the runs of the sweep. References are closed forms where they
+exist (oscillator, bouncing ball); otherwise a converged event-driven run (DOP853 at tolerance
+1e-12 with its own dense output) whose error is estimated against a run 100x looser.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, Callable
+
+import numpy as np
+
+from ..errors import LegsimError
+from ..hybrid import HybridSystem, Mode, Transition
+
+CASE_NAMES = ("oscillator-ex1", "oscillator-ex2", "bouncing-ball", "pronk", "double-pendulum")
+
+#: solve_ivp methods in the sweeps (explicit pairs: these models are not stiff).
+IVP_METHODS = ("RK45", "DOP853")
+#: Adaptive pairs of the relaxed integrator.
+ADAPTIVE_PAIRS = ("bs32", "dopri5")
+
+
+class BenchError(LegsimError):
+    """A benchmark could not be set up or run (unknown case, missing robot, bad option)."""
+
+
+@dataclass(frozen=True)
+class RunSpec:
+    """One run of a sweep.
+
+    kind: ``relaxed``, ``ps`` or ``solve_ivp``; method: the CSV name (``relaxed-rk4``, ``ps``,
+    ``solve_ivp-DOP853``, ...); h: step (s), the nominal/initial step for relaxed runs (nan for
+    solve_ivp); eps: strip width (guard units, nan where none); tol: rtol = atol of
+    error-controlled runs (nan otherwise); landing: relaxed landing rule; max_step: solve_ivp's
+    largest step (s): with long steps solve_ivp misses a guard crossed and recrossed within one
+    step (it only sees sign changes between step ends), so the sweep tries a bound too.
+    """
+
+    kind: str
+    method: str
+    h: float = math.nan
+    eps: float = math.nan
+    tol: float = math.nan
+    landing: str = "aim"
+    max_step: float = math.inf
+
+
+@dataclass
+class Target:
+    """A speed target: at error <= level, ``baseline`` family time / relaxed time >= ratio."""
+
+    name: str
+    level: float
+    baseline: str  # "ps" or "solve_ivp"
+    ratio: float
+
+
+@dataclass
+class Case:
+    """Everything one work-precision case needs."""
+
+    name: str
+    description: str
+    system: HybridSystem
+    ivp_system: HybridSystem
+    mode: str
+    x0: np.ndarray
+    t_final: float
+    positions: tuple[int, ...]
+    position_names: tuple[str, ...]
+    reference_positions: Callable[[np.ndarray], np.ndarray]  # times (N,) -> (N, len(positions))
+    reference_note: str
+    runs: list[RunSpec]
+    targets: list[Target]
+    ps: dict[str, float] | None = None
+    reference_execution: Any = None  # anything with sample(times), for rho
+    rho_points: int | None = None  # default of the bench when None
+    max_transitions: int = 1_000_000
+    info: dict[str, Any] = field(default_factory=dict)
+
+
+# ----------------------------------------------------------------------------------------------
+# Sweeps
+# ----------------------------------------------------------------------------------------------
+def _grid(kind: str, method: str, hs, epss, landing: str = "aim") -> list[RunSpec]:
+    return [RunSpec(kind, method, float(h), float(e), math.nan, landing) for h in hs for e in epss]
+
+
+def relaxed_sweep(h_ranges: dict[str, tuple[float, ...]], epss: tuple[float, ...] | dict[str, tuple[float, ...]],
+                  tols: tuple[float, ...], adaptive_eps: tuple[float, ...], h_adaptive: float) -> list[RunSpec]:
+    """Fixed-step methods on an h x eps grid (eps per method when a dict); adaptive pairs over
+    tolerances x eps, with h the initial and largest step."""
+    runs: list[RunSpec] = []
+    for name, hs in h_ranges.items():
+        runs += _grid("relaxed", f"relaxed-{name}", hs, epss[name] if isinstance(epss, dict) else epss)
+    for pair in ADAPTIVE_PAIRS:
+        for tol in tols:
+            for eps in adaptive_eps:
+                runs.append(RunSpec("relaxed", f"relaxed-{pair}", h_adaptive, eps, tol))
+    return runs
+
+
+def ivp_sweep(tols: tuple[float, ...], max_steps: tuple[float, ...] = (math.inf,)) -> list[RunSpec]:
+    return [RunSpec("solve_ivp", f"solve_ivp-{m}", math.nan, math.nan, tol, "", ms)
+            for m in IVP_METHODS for tol in tols for ms in max_steps]
+
+
+def ps_sweep(hs: tuple[float, ...]) -> list[RunSpec]:
+    return [RunSpec("ps", "ps", float(h)) for h in hs]
+
+
+# ----------------------------------------------------------------------------------------------
+# The solve_ivp system of a model with compiled twins: fields and guards call the twins.
+# ----------------------------------------------------------------------------------------------
+def compiled_callables(system: HybridSystem) -> HybridSystem:
+    """The same system with each mode's Python field and guards replaced by calls of its
+    numba twin (cheaper than numpy on 2-vectors), for the event-driven baseline: solve_ivp
+    calls them from Python, so this is as compiled as that baseline can be made."""
+    modes = {}
+    transitions = []
+    for name, mode in system.modes.items():
+        twin = mode.compiled
+        if twin is None:
+            modes[name] = mode
+            transitions += list(system.outgoing(name))
+            continue
+        p = twin.params
+        f = twin.field
+        modes[name] = Mode(mode.dim, lambda t, x, u, f=f, p=p: f(t, x, p), mode.names, mode.jacobian)
+        for i, tr in enumerate(system.outgoing(name)):
+            g = twin.guards
+            transitions.append(Transition(tr.source, tr.target, lambda x, g=g, p=p, i=i: g(x, p)[i], tr.reset,
+                                          tr.name, tr.guard_gradient, tr.reset_jacobian))
+    return HybridSystem(modes, transitions, name=system.name, energy=system.energy)
+
+
+# ----------------------------------------------------------------------------------------------
+# The cases
+# ----------------------------------------------------------------------------------------------
+def _oscillator(example: str, quick: bool) -> Case:
+    from ..systems.fast import make_oscillator_example
+    from ..systems.oscillator import EXAMPLES, OscillatorReference
+
+    system, x0, t_max = make_oscillator_example(example)
+    p = EXAMPLES[example]
+    ref = OscillatorReference.example(example)
+    ps = {"a": p["a"], "omega": p["omega"], "c": p["c"], "x_max": p["x_max"], "amplitude": p["amplitude"],
+          "frequency": p["frequency"], "x0": p["x0"], "xd0": p["xd0"], "mass": p["mass"]}
+    if example == "ex1":
+        targets = [Target("Ex.1 error <= 1e-3: time(PS) / time(relaxed)", 1e-3, "ps", 20.0),
+                   Target("Ex.1 error <= 1e-6: time(best solve_ivp) / time(relaxed)", 1e-6, "solve_ivp", 1.0)]
+    else:
+        targets = [Target("Ex.2 error <= 1e-6: time(PS) / time(relaxed)", 1e-6, "ps", 10.0)]
+    if quick:
+        t_final = min(t_max, 2.0 * math.pi)
+        runs = (_grid("relaxed", "relaxed-rk4", (1e-2, 3e-3), (1e-6,))
+                + _grid("relaxed", "relaxed-rk2", (1e-2,), (1e-6,))
+                + [RunSpec("relaxed", "relaxed-dopri5", 0.1, 1e-6, 1e-6)]
+                + ps_sweep((1e-3, 1e-4)))
+        if example == "ex1":
+            runs.append(RunSpec("solve_ivp", "solve_ivp-DOP853", math.nan, math.nan, 1e-6, "", 0.05))
+    elif example == "ex1":
+        t_final = t_max
+        # The error is about 150 eps (the hold of eps - tau seconds at ~30 m/s) plus the method's.
+        runs = relaxed_sweep(
+            {"euler": (1e-3, 1e-4, 1e-5), "rk2": (1e-2, 3e-3, 1e-3, 3e-4), "rk4": (1e-1, 3e-2, 1e-2, 3e-3, 1e-3)},
+            {"euler": (1e-7, 1e-9), "rk2": (1e-5, 1e-7, 1e-9, 1e-11), "rk4": (1e-5, 1e-7, 1e-9, 1e-11)},
+            (1e-4, 1e-6, 1e-8, 1e-10, 1e-12), (1e-7, 1e-9, 1e-11), 0.1)
+        runs += ps_sweep((1e-2, 3e-3, 1e-3, 3e-4, 1e-4, 3e-5, 1e-5, 3e-6))
+        runs += ivp_sweep((1e-4, 1e-6, 1e-8, 1e-10, 1e-12), (math.inf, 0.05))
+    else:
+        t_final = t_max
+        # The error is about 0.4 eps; sticking costs a strip crossing every ~sqrt(2 eps / F) s.
+        epss = (1e-4, 1e-5, 1e-6, 3e-7, 1e-7)
+        runs = relaxed_sweep({"euler": (1e-3, 1e-4), "rk2": (1e-2, 1e-3), "rk4": (1e-1, 1e-2, 1e-3)}, epss,
+                             (1e-6, 1e-9), (1e-6, 1e-7), 0.1)
+        runs += ps_sweep((1e-2, 1e-3, 1e-4, 3e-5, 1e-5, 5e-6, 2e-6, 1e-6))
+        # No solve_ivp: the mass starts at rest on the stop, pushed into it, and an event-driven
+        # simulator can only fire zero-time impacts there forever (it has no sticking mode).
+    name = f"oscillator-{example}"
+    return Case(
+        name=name,
+        description=f"forced oscillator with a stop, paper 000 Table I Example {example[-1]} (t in [0, {t_final:.4g}] s)",
+        system=system, ivp_system=compiled_callables(system), mode="free", x0=x0, t_final=t_final,
+        positions=(0,), position_names=("x",),
+        reference_positions=lambda t: ref.states(t)[:, :1],
+        reference_note="closed form (eq. (28) with impacts, sticking and Zeno sums: OscillatorReference)",
+        runs=runs, targets=targets, ps=ps, reference_execution=ref,
+    )
+
+
+def _bouncing_ball(quick: bool) -> Case:
+    from ..systems.bouncing_ball import BouncingBallReference
+    from ..systems.fast import make_bouncing_ball
+
+    g, c = 9.81, 0.8
+    system = make_bouncing_ball(g, c)
+    ref = BouncingBallReference(g, c, 1.0, 0.0)
+    # Before the Zeno time (4.06 s): the event-driven baseline cannot pass it.
+    t_final = 1.0 if quick else 3.0
+    if quick:
+        runs = (_grid("relaxed", "relaxed-rk4", (1e-2,), (1e-6,)) + _grid("relaxed", "relaxed-euler", (1e-3,), (1e-6,))
+                + [RunSpec("solve_ivp", "solve_ivp-RK45", math.nan, math.nan, 1e-6)])
+    else:
+        runs = relaxed_sweep(
+            {"euler": (1e-3, 1e-4, 1e-5), "rk2": (1e-2, 1e-3, 1e-4), "rk4": (1e-1, 1e-2, 1e-3)},
+            (1e-5, 1e-7, 1e-9, 1e-11), (1e-6, 1e-9), (1e-7, 1e-10), 0.1)
+        runs += ivp_sweep((1e-4, 1e-6, 1e-8, 1e-10, 1e-12))
+    return Case(
+        name="bouncing-ball",
+        description=f"ball dropped from 1 m onto a floor with restitution {c} (t in [0, {t_final}] s, before Zeno)",
+        system=system, ivp_system=compiled_callables(system), mode="flight", x0=np.array([1.0, 0.0]),
+        t_final=t_final, positions=(0,), position_names=("z",),
+        reference_positions=lambda t: ref.states(t)[:, :1],
+        reference_note="closed form (BouncingBallReference)",
+        runs=runs, targets=[Target("ball error <= 1e-6: time(best solve_ivp) / time(relaxed)", 1e-6, "solve_ivp",
+                                   1.0)],
+        reference_execution=ref,
+    )
+
+
+def _robot(name: str, quick: bool) -> Case:
+    try:
+        if name == "pronk":
+            import robots.pronk as module
+        else:
+            import robots.double_pendulum as module
+    except ImportError as exc:
+        raise BenchError(f"case {name}: the robot model cannot be imported ({exc}); install pinocchio "
+                         f"(`pip install pin`)") from exc
+    from ..baselines import simulate_events
+
+    if name == "pronk":
+        model = module.make()
+        x0 = module.state()
+        positions = (0, 1, 2)
+        t_final = 0.5 if quick else 2.0
+        description = f"pronking runner of paper 000 Sec. V-C (two hops, t in [0, {t_final}] s)"
+        hs = {"rk2": (3e-3, 1e-3, 3e-4), "rk4": (3e-2, 1e-2, 3e-3, 1e-3)}
+    else:
+        model = module.make(None, {"gravity": True, "stop": {"restitution": 0.0, "position": 0.0}})
+        x0 = np.array([module.INITIAL_STATE[n] for n in module.STATE_NAMES])
+        positions = (0, 1)
+        # Impact, constrained swing, release, graze, second impact and release; the event-driven
+        # baseline meets a Zeno chatter at t = 7.38 s.
+        t_final = 1.0 if quick else 5.0
+        description = (f"double pendulum with a plastic stop, paper 003 Fig. 2b (impact, constrained swing, "
+                       f"release; t in [0, {t_final}] s)")
+        hs = {"rk2": (3e-3, 1e-3, 3e-4), "rk4": (3e-2, 1e-2, 3e-3, 1e-3)}
+    system = model.system
+    mode = model.initial_mode
+    names = tuple(system.state_names(mode)[i] for i in positions)
+    ref_tol = 1e-10 if quick else 1e-12
+    # A bounded step: solve_ivp cannot reject a trial step whose state leaves the model's range.
+    reference = simulate_events(system, x0, mode, t_final, method="DOP853", rtol=ref_tol, atol=ref_tol,
+                                dense_output=True, max_step=0.02)
+    check = simulate_events(system, x0, mode, t_final, method="DOP853", rtol=100 * ref_tol, atol=100 * ref_tol,
+                            dense_output=True, max_step=0.02)
+    if reference.status != "finished" or check.status != "finished":
+        raise BenchError(f"case {name}: the reference run did not finish ({reference.status}: {reference.message})")
+    grid = np.linspace(0.0, t_final, 4001)
+
+    def ref_positions(times: np.ndarray) -> np.ndarray:
+        samples = reference.sample(np.clip(times, 0.0, reference.t_end))
+        return np.array([s[list(positions)] for s in samples.states])
+
+    diff = ref_positions(grid) - np.array([s[list(positions)] for s in check.sample(grid).states])
+    estimate = float(np.abs(diff).max())
+    if quick:
+        runs = (_grid("relaxed", "relaxed-rk4", (1e-2,), (1e-4,))
+                + [RunSpec("relaxed", "relaxed-dopri5", 0.1, 1e-6, 1e-6)]
+                + [RunSpec("solve_ivp", "solve_ivp-DOP853", math.nan, math.nan, 1e-6, "", 0.05)])
+    else:
+        runs = relaxed_sweep(hs, (1e-3, 1e-5, 1e-7), (1e-4, 1e-6, 1e-8, 1e-10), (1e-6, 1e-9), 0.1)
+        runs += ivp_sweep((1e-4, 1e-6, 1e-8, 1e-10), (math.inf, 0.05))
+    levels = (1e-3, 1e-5, 1e-7) if not quick else (1e-3,)
+    targets = [Target(f"{name} error <= {lv:g}: time(best solve_ivp) / time(relaxed)", lv, "solve_ivp", 1.0)
+               for lv in levels]
+    return Case(
+        name=name, description=description, system=system, ivp_system=system, mode=mode, x0=x0, t_final=t_final,
+        positions=positions, position_names=names, reference_positions=ref_positions,
+        reference_note=(f"converged event-driven run (solve_ivp DOP853, rtol = atol = {ref_tol:g}, dense output); "
+                        f"its error is below its difference to the run at {100 * ref_tol:g}: {estimate:.2e}"),
+        runs=runs, targets=targets, reference_execution=reference, info={"reference_error_estimate": estimate},
+        # rho is off by default here: the metric's projections onto these nonlinear guards
+        # (SLSQP) cost about 0.4 s per sample time; --rho-points asks for it.
+        rho_points=0,
+    )
+
+
+def make_case(name: str, quick: bool = False) -> Case:
+    """The case called ``name`` (one of ``CASE_NAMES``); ``quick`` shortens the run and the sweep."""
+    if name == "oscillator-ex1":
+        return _oscillator("ex1", quick)
+    if name == "oscillator-ex2":
+        return _oscillator("ex2", quick)
+    if name == "bouncing-ball":
+        return _bouncing_ball(quick)
+    if name in ("pronk", "double-pendulum"):
+        return _robot(name, quick)
+    raise BenchError(f"unknown case {name!r}; choose one of {', '.join(CASE_NAMES)}")

@@ -1,0 +1,221 @@
+"""What the relaxed integrator costs beyond the model: steps per second, the shares of time in
+fields, guards and resets, the overhead per step in units of one field evaluation, and the
+evaluations a transition costs with halving and with aiming.
+
+Method: a run's wall time minus (evaluations x the cost of one evaluation measured alone),
+per step. Evaluations are the run's own counters; one evaluation's cost is timed in a loop of
+the same kind as the caller's (a numba loop for the compiled path, a Python loop for the
+Python path), so the overhead is what the integrator adds around the model.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import statistics
+import time
+import timeit
+from typing import Any, Callable
+
+import numba
+import numpy as np
+
+from ..compiled import without_compiled
+from ..relaxed import simulate
+from ..systems.fast import make_bouncing_ball, make_oscillator, make_oscillator_example
+
+
+@numba.njit(cache=True)
+def _loop_field(field, p, x, n):
+    acc = 0.0
+    t = 0.0
+    for _ in range(n):
+        acc += field(t, x, p)[1]
+        t += 1e-9
+    return acc
+
+
+@numba.njit(cache=True)
+def _loop_guards(guards, p, x, n):
+    acc = 0.0
+    for _ in range(n):
+        acc += guards(x, p)[0]
+        x[1] += 1e-300
+    return acc
+
+
+@numba.njit(cache=True)
+def _loop_resets(resets, p, x, n):
+    acc = 0.0
+    for _ in range(n):
+        acc += resets(x, p, 0)[1]
+        x[1] += 1e-300
+    return acc
+
+
+@numba.njit(cache=True)
+def _loop_empty(p, x, n):
+    acc = 0.0
+    t = 0.0
+    for _ in range(n):
+        acc += x[1] + t
+        t += 1e-9
+    return acc
+
+
+def _best(fn: Callable[[], Any], repeats: int = 5) -> float:
+    times = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - start)
+    return min(times)
+
+
+def compiled_costs(twin, x: np.ndarray, n: int = 2_000_000) -> dict[str, float]:
+    """Seconds per call of the twin's field, guards and resets, called from compiled code."""
+    x = np.array(x, dtype=float)
+    p = twin.params
+    for fn, args in ((_loop_field, (twin.field,)), (_loop_guards, (twin.guards,)), (_loop_empty, ())):
+        fn(*args, p, x.copy(), 10)
+    empty = _best(lambda: _loop_empty(p, x.copy(), n))
+    out = {"field": (_best(lambda: _loop_field(twin.field, p, x.copy(), n)) - empty) / n,
+           "guards": (_best(lambda: _loop_guards(twin.guards, p, x.copy(), n)) - empty) / n}
+    if twin.resets is not None:
+        _loop_resets(twin.resets, p, x.copy(), 10)
+        out["reset"] = (_best(lambda: _loop_resets(twin.resets, p, x.copy(), n)) - empty) / n
+    else:
+        out["reset"] = math.nan
+    return out
+
+
+def python_costs(system, mode: str, x: np.ndarray, n: int = 50_000) -> dict[str, float]:
+    """Seconds per call of the Python field, first guard and first reset, from a Python loop."""
+    x = np.array(x, dtype=float)
+    field = system.mode(mode).field
+    tr = system.outgoing(mode)[0] if system.outgoing(mode) else None
+    number = n
+    cost = {"field": min(timeit.repeat(lambda: field(0.0, x, None), number=number, repeat=5)) / number}
+    if tr is not None:
+        cost["guards"] = min(timeit.repeat(lambda: tr.guard(x), number=number, repeat=5)) / number
+        cost["reset"] = min(timeit.repeat(lambda: tr.reset(x), number=number, repeat=5)) / number
+    else:
+        cost["guards"] = cost["reset"] = 0.0
+    return cost
+
+
+def measure_run(system, x0, mode: str, t_final: float, h: float, eps: float, method: str,
+                costs: dict[str, float], repeats: int = 3, **kw) -> dict[str, Any]:
+    """Time one run (median of repeats after a warm-up) and split its time."""
+    simulate(system, x0, mode, min(t_final, 0.1), h, eps, method, **kw)
+    walls = []
+    ex = None
+    for _ in range(repeats):
+        start = time.perf_counter()
+        ex = simulate(system, x0, mode, t_final, h, eps, method, **kw)
+        walls.append(time.perf_counter() - start)
+    wall = min(walls)  # best of the repeats, like the single-evaluation costs: least disturbed by other load
+    c = ex.counters
+    steps = max(int(c["steps"]), 1)
+    t_field = c["field_evals"] * costs["field"]
+    t_guard = c["guard_evals"] * costs["guards"]
+    t_reset = c["reset_evals"] * (0.0 if math.isnan(costs["reset"]) else costs["reset"])
+    rest = wall - t_field - t_guard - t_reset
+    return {
+        "method": method, "h": h, "eps": eps, "status": ex.status, "wall_s": wall, "steps": int(c["steps"]),
+        "halvings": int(c["halvings"]), "field_evals": int(c["field_evals"]), "guard_evals": int(c["guard_evals"]),
+        "reset_evals": int(c["reset_evals"]), "transitions": int(c["transitions"]),
+        "steps_per_s": c["steps"] / wall, "ns_per_step": 1e9 * wall / steps,
+        "share_field": t_field / wall, "share_guards": t_guard / wall, "share_resets": t_reset / wall,
+        "overhead_per_step_in_fields": rest / steps / costs["field"],
+    }
+
+
+def landing_costs(system, x0, mode, t_final, h, eps, method="rk4") -> dict[str, dict[str, float]]:
+    """Per transition: extra trial steps and evaluations spent landing in the strips, halve vs aim.
+    Extra field evaluations are those beyond the accepted steps' own."""
+    from ..methods import get_method
+
+    tab = get_method(method)
+    per_step = tab.stages - 1 + (0 if tab.fsal else 1)
+    out = {}
+    for landing in ("halve", "aim"):
+        ex = simulate(system, x0, mode, t_final, h, eps, method, landing=landing, max_transitions=1_000_000)
+        c = ex.counters
+        n = max(int(c["transitions"]), 1)
+        out[landing] = {
+            "transitions": int(c["transitions"]),
+            "trial_steps_per_transition": c["halvings"] / n,
+            "extra_field_evals_per_transition": (c["field_evals"] - per_step * c["steps"]) / n,
+            "guard_evals_per_transition": c["guard_evals"] / n - c["steps"] / n,
+        }
+    return out
+
+
+def collect(quick: bool = False) -> dict[str, Any]:
+    """All measurements: the oscillator of Example 1 at h = 1e-3, eps = 1e-6 (paper 000 Table I),
+    compiled and Python paths, euler/rk2/rk4; and landing costs on three cases."""
+    system, x0, t_max = make_oscillator_example("ex1")
+    t_final = t_max / 4 if quick else t_max
+    twin = system.mode("free").compiled
+    probe = np.array([1.0, 2.0])
+    costs_c = compiled_costs(twin, probe, 200_000 if quick else 2_000_000)
+    python_system = without_compiled(system)
+    costs_p = python_costs(python_system, "free", probe, 5_000 if quick else 50_000)
+    free = make_oscillator(2.5, 0.05, None, 0.9, 1.0, 20.0, 2.5)
+    result: dict[str, Any] = {
+        "case": f"oscillator Ex.1, t in [0, {t_final:.4g}] s, h = 1e-3, eps = 1e-6",
+        "cost_compiled_s": costs_c, "cost_python_s": costs_p, "compiled": [], "compiled_no_stop": [], "python": []}
+    repeats = 2 if quick else 5
+    for method in ("euler", "rk2", "rk4"):
+        result["compiled"].append(measure_run(system, x0, "free", t_final, 1e-3, 1e-6, method, costs_c, repeats))
+        result["compiled_no_stop"].append(measure_run(free, x0, "free", t_final, 1e-3, 1e-6, method,
+                                                      dict(costs_c, guards=0.0), repeats))
+        result["python"].append(measure_run(python_system, x0, "free", t_final, 1e-3, 1e-6, method, costs_p,
+                                            repeats))
+    ex2, x2, t2 = make_oscillator_example("ex2")
+    result["landing"] = {
+        "oscillator Ex.1 (h=1e-2, eps=1e-6)": landing_costs(system, x0, "free", t_final, 1e-2, 1e-6),
+        "oscillator Ex.2 (h=1e-2, eps=1e-6)": landing_costs(ex2, x2, "free", t2 / (4 if quick else 1), 1e-2, 1e-6),
+        "bouncing ball c=0.8 (h=1e-2, eps=1e-6, 3 s)": landing_costs(make_bouncing_ball(9.81, 0.8),
+                                                                     np.array([1.0, 0.0]), "flight", 3.0, 1e-2, 1e-6),
+    }
+    return result
+
+
+def format_report(r: dict[str, Any]) -> str:
+    lines = [f"# integrator overhead: {r['case']}"]
+    cc, cp = r["cost_compiled_s"], r["cost_python_s"]
+    lines.append(f"one evaluation, compiled (from numba): field {cc['field'] * 1e9:.1f} ns, guard "
+                 f"{cc['guards'] * 1e9:.1f} ns, reset {cc['reset'] * 1e9:.1f} ns")
+    lines.append(f"one evaluation, Python (from Python): field {cp['field'] * 1e9:.0f} ns, guard "
+                 f"{cp['guards'] * 1e9:.0f} ns, reset {cp['reset'] * 1e9:.0f} ns")
+    head = f"{'path':<18}{'method':<7}{'steps/s':>11}{'ns/step':>9}{'field':>7}{'guard':>7}{'reset':>7}" \
+           f"{'overhead/step':>15}{'trans':>7}"
+    lines.append(head)
+    for label, key in (("compiled", "compiled"), ("compiled, no stop", "compiled_no_stop"), ("python", "python")):
+        for m in r[key]:
+            lines.append(f"{label:<18}{m['method']:<7}{m['steps_per_s']:>11.3g}{m['ns_per_step']:>9.0f}"
+                         f"{100 * m['share_field']:>6.0f}%{100 * m['share_guards']:>6.0f}%"
+                         f"{100 * m['share_resets']:>6.1f}%{m['overhead_per_step_in_fields']:>10.2f} f-ev"
+                         f"{m['transitions']:>7}")
+    lines.append("")
+    lines.append("landing in a strip, per transition (rk4): trial steps, extra field evaluations, guard "
+                 "evaluations beyond one per step")
+    for case, d in r["landing"].items():
+        for landing, v in d.items():
+            lines.append(f"  {case:<46} {landing:<6} {v['trial_steps_per_transition']:6.2f} trials "
+                         f"{v['extra_field_evals_per_transition']:7.2f} f-ev {v['guard_evals_per_transition']:7.2f} "
+                         f"g-ev  ({v['transitions']} transitions)")
+    rk4 = next(m for m in r["compiled"] if m["method"] == "rk4")
+    target = rk4["overhead_per_step_in_fields"]
+    lines.append("")
+    lines.append(f"target: integrator overhead per step <= 2 field evaluations (compiled rk4, with the stop): "
+                 f"{target:.2f}: {'MET' if target <= 2 else 'MISSED'}")
+    return "\n".join(lines)
+
+
+def main(quick: bool = False, as_json: bool = False) -> int:
+    r = collect(quick)
+    print(json.dumps(r, indent=1) if as_json else format_report(r))
+    return 0

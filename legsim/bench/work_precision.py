@@ -1,0 +1,448 @@
+"""Work-precision runs: every configuration of a case timed, its error measured, the results
+written as CSV, a figure and a table, and the speed targets checked on the same run.
+
+Error (paper 000 eq. (30)): the largest difference of the position coordinates from the
+reference over the method's *own* sample points, i.e. the points it computed (the relaxed
+integrator's step and crossing points, solve_ivp's steps and events, the PS grid). rho
+(Definition 22) against the reference on a uniform time grid, for the relaxed runs, with the
+run's own eps.
+
+Time: wall-clock time of the call that produces the result (``simulate``, ``paoli_schatzman``),
+or the integration time solve_ivp reports (``counters["wall_time_s"]``, which leaves out the
+assembly of legsim's Execution, to the baseline's advantage); the median over repeats. Each
+method is run once untimed first, so compilation and caches never count.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import os
+import statistics
+import sys
+import tempfile
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any, Callable, Iterable, Sequence
+
+import numpy as np
+
+from .cases import BenchError, Case, RunSpec, Target, make_case
+
+#: CSV columns, in order.
+COLUMNS = ("case", "method", "kind", "h", "eps", "tol", "max_step", "landing", "error", "rho", "wall_s", "repeats",
+           "steps", "halvings", "field_evals", "guard_evals", "transitions", "status", "pareto")
+
+
+@dataclass
+class Row:
+    """One run's results (a CSV row)."""
+
+    case: str
+    method: str
+    kind: str
+    h: float
+    eps: float
+    tol: float
+    max_step: float
+    landing: str
+    error: float
+    rho: float
+    wall_s: float
+    repeats: int
+    steps: int
+    halvings: int
+    field_evals: int
+    guard_evals: int
+    transitions: int
+    status: str
+    pareto: int = 0
+
+
+@dataclass
+class TargetResult:
+    """A target evaluated on the rows of one bench run."""
+
+    target: Target
+    relaxed_time: float | None
+    relaxed_run: str
+    baseline_time: float | None
+    baseline_run: str
+    ratio: float | None
+    met: bool | None
+    note: str
+
+
+@dataclass
+class BenchResult:
+    case: Case
+    rows: list[Row]
+    targets: list[TargetResult] = field(default_factory=list)
+    csv_path: Path | None = None
+    figure_path: Path | None = None
+
+
+# ----------------------------------------------------------------------------------------------
+# Errors
+# ----------------------------------------------------------------------------------------------
+def own_points(execution: Any, positions: Sequence[int]) -> tuple[np.ndarray, np.ndarray]:
+    """The (times (N,), positions (N, k)) an execution computed: all its segment points."""
+    ts = [seg.t for seg in execution.segments]
+    xs = [seg.x[:, list(positions)] for seg in execution.segments]
+    return np.concatenate(ts), np.concatenate(xs)
+
+
+def position_error(times: np.ndarray, values: np.ndarray, reference: Callable[[np.ndarray], np.ndarray]) -> float:
+    """Eq. (30) of paper 000 over several position coordinates: max_k max_i |z_i(t_k) - x_i(t_k)|."""
+    values = np.asarray(values, dtype=float).reshape(len(times), -1)
+    exact = np.asarray(reference(np.asarray(times, dtype=float)), dtype=float).reshape(values.shape)
+    diff = np.abs(values - exact)
+    if not np.all(np.isfinite(diff)):
+        return math.inf
+    return float(diff.max()) if diff.size else math.inf
+
+
+def relaxed_rho(case: Case, execution: Any, eps: float, points: int) -> float:
+    """rho^eps (paper 000 Def. 22) against the case's reference on ``points`` uniform times."""
+    if points <= 0 or case.reference_execution is None or execution.status != "finished":
+        return math.nan
+    from ..metric import MetricError, rho
+
+    times = np.linspace(0.0, case.t_final, points)
+    try:
+        return rho(case.system, execution, case.reference_execution, times, eps)
+    except MetricError:
+        return math.nan
+
+
+# ----------------------------------------------------------------------------------------------
+# Running one configuration
+# ----------------------------------------------------------------------------------------------
+def _timed(fn: Callable[[], Any], repeats: int, wall_of: Callable[[Any, float], float]) -> tuple[Any, float, int]:
+    """Run fn up to ``repeats`` times (once only when it takes over a second); return the last
+    result, the median time and the number of runs."""
+    times = []
+    result = None
+    for _ in range(max(1, repeats)):
+        start = time.perf_counter()
+        result = fn()
+        times.append(wall_of(result, time.perf_counter() - start))
+        if times[-1] > 1.0:
+            break
+    return result, float(statistics.median(times)), len(times)
+
+
+def _ps_forcing(ps: dict[str, float]) -> Callable[[np.ndarray], np.ndarray]:
+    amplitude, frequency, inv_m = ps["amplitude"], ps["frequency"], 1.0 / ps["mass"]
+    return lambda t: amplitude * inv_m * np.cos(frequency * t)
+
+
+def run_one(case: Case, spec: RunSpec, repeats: int = 3, rho_points: int = 0) -> Row:
+    """Run one configuration of ``case`` and measure it."""
+    from ..baselines import paoli_schatzman, simulate_events
+    from ..relaxed import simulate
+
+    rho_value = math.nan
+    if spec.kind == "relaxed":
+        method = spec.method[len("relaxed-"):]
+        tols = {} if math.isnan(spec.tol) else {"rtol": spec.tol, "atol": spec.tol}
+
+        def call():
+            return simulate(case.system, case.x0, case.mode, case.t_final, spec.h, spec.eps, method,
+                            max_transitions=case.max_transitions, landing=spec.landing, **tols)
+
+        ex, wall, n = _timed(call, repeats, lambda r, dt: dt)
+        if ex.status == "finished":
+            error = position_error(*own_points(ex, case.positions), case.reference_positions)
+            rho_value = relaxed_rho(case, ex, spec.eps, rho_points)
+        else:
+            error = math.inf
+        c = ex.counters
+        return Row(case.name, spec.method, spec.kind, spec.h, spec.eps, spec.tol, math.nan, spec.landing, error,
+                   rho_value,
+                   wall, n, int(c["steps"]), int(c["halvings"]), int(c["field_evals"]), int(c["guard_evals"]),
+                   int(c["transitions"]), ex.status)
+    if spec.kind == "solve_ivp":
+        method = spec.method[len("solve_ivp-"):]
+
+        def call():
+            return simulate_events(case.ivp_system, case.x0, case.mode, case.t_final, method=method, rtol=spec.tol,
+                                   atol=spec.tol, max_transitions=10_000, max_step=spec.max_step)
+
+        ex, wall, n = _timed(call, repeats, lambda r, dt: float(r.counters["wall_time_s"]))
+        error = position_error(*own_points(ex, case.positions), case.reference_positions) \
+            if ex.status == "finished" else math.inf
+        c = ex.counters
+        return Row(case.name, spec.method, spec.kind, math.nan, math.nan, spec.tol, spec.max_step, "", error,
+                   math.nan, wall, n,
+                   int(c["steps"]), 0, int(c["field_evals"]), int(c["guard_evals"]), int(c["transitions"]), ex.status)
+    if spec.kind == "ps":
+        if case.ps is None:
+            raise BenchError(f"case {case.name} has no Paoli-Schatzman baseline (oscillator cases only)")
+        ps = case.ps
+        forcing = _ps_forcing(ps)
+
+        def call():
+            return paoli_schatzman(ps["a"], ps["omega"], ps["c"], ps["x_max"], forcing, ps["x0"], ps["xd0"],
+                                   case.t_final, spec.h, compiled=True)
+
+        (t, z), wall, n = _timed(call, repeats, lambda r, dt: dt)
+        error = position_error(t, z[:, None], case.reference_positions)
+        return Row(case.name, "ps", "ps", spec.h, math.nan, math.nan, math.nan, "", error, math.nan, wall, n,
+                   len(t) - 1, 0,
+                   len(t), 0, 0, "finished")
+    raise BenchError(f"unknown run kind {spec.kind!r}")
+
+
+def warm_up(case: Case, specs: Iterable[RunSpec]) -> None:
+    """One short untimed run per method, so that compilation and first-call costs never count."""
+    seen = set()
+    short = dict(case.__dict__)
+    short["t_final"] = min(case.t_final, 0.05)
+    tiny = Case(**short)
+    for spec in specs:
+        if spec.method in seen:
+            continue
+        seen.add(spec.method)
+        h = spec.h if math.isnan(spec.h) else min(spec.h, 0.01)
+        try:
+            run_one(tiny, RunSpec(spec.kind, spec.method, h, spec.eps, spec.tol, spec.landing, spec.max_step),
+                    repeats=1)
+        except BenchError:
+            raise
+        except Exception:  # the timed run will report the problem with its own status
+            pass
+
+
+# ----------------------------------------------------------------------------------------------
+# Reading the rows
+# ----------------------------------------------------------------------------------------------
+def mark_pareto(rows: list[Row]) -> None:
+    """Set ``pareto = 1`` on the runs no other run beats in both time and error."""
+    finite = sorted((r for r in rows if math.isfinite(r.error)),
+                    key=lambda r: (r.wall_s, r.error))
+    best = math.inf
+    for r in rows:
+        r.pareto = 0
+    for r in finite:
+        if r.error < best:
+            r.pareto = 1
+            best = r.error
+
+
+def family(row: Row) -> str:
+    """``relaxed``, ``ps`` or ``solve_ivp``."""
+    return row.kind
+
+
+def time_to_reach(rows: Iterable[Row], level: float, kind: str) -> Row | None:
+    """The fastest run of ``kind`` with error <= level, or None."""
+    ok = [r for r in rows if r.kind == kind and r.error <= level]
+    return min(ok, key=lambda r: r.wall_s) if ok else None
+
+
+def _label(r: Row) -> str:
+    parts = [r.method]
+    if math.isfinite(r.h):
+        parts.append(f"h={r.h:g}")
+    if math.isfinite(r.eps):
+        parts.append(f"eps={r.eps:g}")
+    if math.isfinite(r.tol):
+        parts.append(f"tol={r.tol:g}")
+    if math.isfinite(r.max_step):
+        parts.append(f"max_step={r.max_step:g}")
+    return " ".join(parts)
+
+
+def evaluate_targets(rows: list[Row], targets: Sequence[Target]) -> list[TargetResult]:
+    """Each target's measured ratio on these rows, and whether it is met."""
+    out = []
+    for tg in targets:
+        rel = time_to_reach(rows, tg.level, "relaxed")
+        base = time_to_reach(rows, tg.level, tg.baseline)
+        base_rows = [r for r in rows if r.kind == tg.baseline]
+        if rel is None:
+            best = min((r for r in rows if r.kind == "relaxed"), key=lambda r: r.error, default=None)
+            note = "relaxed never reaches the level" + (f" (best error {best.error:.2e}: {_label(best)})" if best else "")
+            out.append(TargetResult(tg, None, "", base.wall_s if base else None, _label(base) if base else "", None,
+                                    False, note))
+            continue
+        if base is None:
+            best = min(base_rows, key=lambda r: r.error, default=None)
+            slowest = max((r.wall_s for r in base_rows), default=math.nan)
+            bound = slowest / rel.wall_s if base_rows else math.nan
+            note = (f"{tg.baseline} never reaches the level in the sweep"
+                    + (f" (its best error {best.error:.2e}: {_label(best)}, {best.wall_s:.3g} s)" if best else ""))
+            out.append(TargetResult(tg, rel.wall_s, _label(rel), None, "", bound if base_rows else None,
+                                    True if base_rows else None, note))
+            continue
+        ratio = base.wall_s / rel.wall_s
+        out.append(TargetResult(tg, rel.wall_s, _label(rel), base.wall_s, _label(base), ratio, ratio >= tg.ratio,
+                                ""))
+    return out
+
+
+# ----------------------------------------------------------------------------------------------
+# Output
+# ----------------------------------------------------------------------------------------------
+def _atomic_write(path: Path, write: Callable[[str], None]) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=path.name + ".", suffix=".tmp" + path.suffix, dir=path.parent)
+    os.close(fd)
+    try:
+        write(tmp)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def write_csv(rows: Sequence[Row], path: Path) -> Path:
+    """One row per run, columns ``COLUMNS``; written completely or not at all."""
+
+    def write(tmp: str) -> None:
+        with open(tmp, "w", newline="") as fh:
+            w = csv.writer(fh)
+            w.writerow(COLUMNS)
+            for r in rows:
+                d = asdict(r)
+                w.writerow([_fmt_csv(d[c]) for c in COLUMNS])
+
+    _atomic_write(path, write)
+    return path
+
+
+def _fmt_csv(v: Any) -> Any:
+    if isinstance(v, float):
+        return "" if math.isnan(v) else repr(v)
+    return v
+
+
+def read_csv(path: Path) -> list[dict[str, str]]:
+    with open(path, newline="") as fh:
+        return list(csv.DictReader(fh))
+
+
+def write_figure(result: BenchResult, path: Path) -> Path:
+    """Error against wall time (log-log): each method's runs as points, its own Pareto front as
+    a line, the overall Pareto front dashed in black."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    rows = [r for r in result.rows if math.isfinite(r.error) and r.error > 0]
+    fig, ax = plt.subplots(figsize=(7.5, 5.2))
+    methods = sorted({r.method for r in rows}, key=lambda m: (not m.startswith("relaxed"), m))
+    cmap = plt.get_cmap("tab10")
+    for i, m in enumerate(methods):
+        pts = sorted((r for r in rows if r.method == m), key=lambda r: r.wall_s)
+        color = cmap(i % 10)
+        ax.scatter([r.wall_s for r in pts], [r.error for r in pts], s=14, color=color, alpha=0.45)
+        front, best = [], math.inf
+        for r in pts:
+            if r.error < best:
+                front.append(r)
+                best = r.error
+        ax.plot([r.wall_s for r in front], [r.error for r in front], "-o", ms=3.5, color=color, label=m)
+    pareto = sorted((r for r in rows if r.pareto), key=lambda r: r.wall_s)
+    if pareto:
+        ax.step([r.wall_s for r in pareto], [r.error for r in pareto], where="post", color="k", ls="--", lw=1.2,
+                label="Pareto front (all methods)")
+        ax.scatter([r.wall_s for r in pareto], [r.error for r in pareto], s=60, facecolors="none", edgecolors="k")
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("wall time (s), median of repeats")
+    ax.set_ylabel("position error, eq. (30)")
+    ax.set_title(f"{result.case.name}: work-precision")
+    ax.grid(True, which="both", alpha=0.25)
+    ax.legend(fontsize=8, loc="best")
+    fig.tight_layout()
+    _atomic_write(path, lambda tmp: fig.savefig(tmp, dpi=110, format="png"))
+    plt.close(fig)
+    return path
+
+
+def format_table(rows: Sequence[Row]) -> str:
+    """The rows as an aligned text table, sorted by method then error."""
+    head = ("method", "h", "eps", "tol", "max_step", "error", "rho", "wall_s", "steps", "halv", "f_evals", "trans",
+            "status", "P")
+    lines = []
+    body = []
+    for r in sorted(rows, key=lambda r: (r.method, -r.error if math.isfinite(r.error) else -math.inf)):
+        body.append((r.method, _g(r.h), _g(r.eps), _g(r.tol), "" if math.isinf(r.max_step) else _g(r.max_step),
+                     _e(r.error), _e(r.rho), f"{r.wall_s:.4g}", str(r.steps),
+                     str(r.halvings), str(r.field_evals), str(r.transitions), r.status, "*" if r.pareto else ""))
+    widths = [max(len(head[i]), *(len(b[i]) for b in body)) if body else len(head[i]) for i in range(len(head))]
+    lines.append("  ".join(h.ljust(w) for h, w in zip(head, widths)))
+    for b in body:
+        lines.append("  ".join(v.ljust(w) for v, w in zip(b, widths)))
+    return "\n".join(lines)
+
+
+def format_targets(results: Sequence[TargetResult]) -> str:
+    lines = []
+    for tr in results:
+        tg = tr.target
+        if tr.relaxed_time is None:
+            verdict = "MISSED (relaxed never reaches this error)"
+        elif tr.baseline_time is None:
+            verdict = (f"MET: the baseline never reaches this error in the sweep (ratio to its slowest run "
+                       f"{tr.ratio:.3g}x)" if tr.met else "n/a (no baseline run)")
+        else:
+            verdict = f"{tr.ratio:.3g}x (target >= {tg.ratio:g}x): {'MET' if tr.met else 'MISSED'}"
+        lines.append(f"- {tg.name}: {verdict}")
+        if tr.relaxed_run:
+            lines.append(f"    relaxed  {tr.relaxed_time:.4g} s  {tr.relaxed_run}")
+        if tr.baseline_run:
+            lines.append(f"    baseline {tr.baseline_time:.4g} s  {tr.baseline_run}")
+        if tr.note:
+            lines.append(f"    {tr.note}")
+    return "\n".join(lines)
+
+
+def _g(v: float) -> str:
+    return "" if math.isnan(v) else f"{v:g}"
+
+
+def _e(v: float) -> str:
+    return "" if math.isnan(v) else ("inf" if math.isinf(v) else f"{v:.2e}")
+
+
+# ----------------------------------------------------------------------------------------------
+# The whole bench
+# ----------------------------------------------------------------------------------------------
+def run_case(name: str, *, quick: bool = False, out: str | os.PathLike | None = None, repeats: int | None = None,
+             rho_points: int | None = None, figure: bool = True, log: Callable[[str], None] | None = None,
+             methods: Sequence[str] | None = None) -> BenchResult:
+    """Run the work-precision sweep of case ``name``; write ``out/name.csv`` and ``out/name.png``
+    when ``out`` is given.
+
+    quick: a short run and a small sweep (seconds), for CI. repeats: timed repeats per run
+    (median; default 3, 1 when quick). rho_points: times of the rho grid (default 400, 40 when
+    quick; 0 skips rho). methods: keep only the runs of these CSV method names.
+    """
+    say = log or (lambda s: None)
+    case = make_case(name, quick)
+    repeats = (1 if quick else 3) if repeats is None else int(repeats)
+    if rho_points is None:
+        rho_points = case.rho_points if case.rho_points is not None else (40 if quick else 400)
+    rho_points = int(rho_points)
+    runs = [r for r in case.runs if methods is None or r.method in methods]
+    say(f"{case.name}: {case.description}")
+    say(f"reference: {case.reference_note}")
+    warm_up(case, runs)
+    rows = []
+    for i, spec in enumerate(runs, 1):
+        row = run_one(case, spec, repeats, rho_points)
+        rows.append(row)
+        say(f"  [{i}/{len(runs)}] {_label(row)}: error {_e(row.error)}, {row.wall_s:.4g} s, {row.status}")
+    mark_pareto(rows)
+    result = BenchResult(case, rows, evaluate_targets(rows, case.targets))
+    if out is not None:
+        out = Path(out)
+        result.csv_path = write_csv(rows, out / f"{case.name}.csv")
+        if figure:
+            result.figure_path = write_figure(result, out / f"{case.name}.png")
+    return result

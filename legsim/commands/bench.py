@@ -1,0 +1,63 @@
+"""``legsim bench``: work-precision sweeps against the baselines, and the integrator's overhead."""
+
+from __future__ import annotations
+
+import argparse
+
+NAME = "bench"
+HELP = "benchmarks: work-precision against Paoli-Schatzman and solve_ivp, integrator overhead"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    sub = parser.add_subparsers(dest="bench", metavar="BENCH", required=True)
+    wp = sub.add_parser("work-precision", help="error against wall time for every method on one case",
+                        description="Sweep h, eps, tolerances and methods on one case, measure the error against "
+                                    "the reference and the wall time, write CASE.csv and CASE.png, print a table "
+                                    "and the speed targets.")
+    wp.add_argument("--case", required=True,
+                    help="oscillator-ex1, oscillator-ex2, bouncing-ball, pronk or double-pendulum")
+    wp.add_argument("--out", default=None, help="folder for CASE.csv and CASE.png (default: bench-out)")
+    wp.add_argument("--quick", action="store_true", help="short run, small sweep (seconds; for CI)")
+    wp.add_argument("--repeats", type=int, default=None, help="timed repeats per run, median kept (default 3)")
+    wp.add_argument("--rho-points", type=int, default=None,
+                    help="times of the rho grid (default 400, 40 with --quick; 0 skips rho)")
+    wp.add_argument("--methods", default=None, help="comma-separated CSV method names to keep")
+    wp.add_argument("--no-figure", action="store_true", help="write the CSV only")
+    wp.add_argument("--quiet", action="store_true", help="print only the table and the targets")
+    ov = sub.add_parser("overhead", help="integrator cost per step beyond the model's own evaluations",
+                        description="Steps per second, shares of time in fields, guards and resets, overhead per "
+                                    "step in field evaluations, and evaluations per transition for halve vs aim.")
+    ov.add_argument("--quick", action="store_true", help="shorter runs")
+    ov.add_argument("--json", action="store_true", help="print the measurements as JSON")
+
+
+def run(args: argparse.Namespace) -> int:
+    import sys
+
+    from ..bench.cases import BenchError
+
+    if args.bench == "overhead":
+        from ..bench import overhead
+
+        return overhead.main(quick=args.quick, as_json=args.json)
+    from ..bench.work_precision import format_table, format_targets, run_case
+
+    if args.repeats is not None and args.repeats < 1:
+        raise BenchError(f"--repeats must be >= 1, got {args.repeats}")
+    if args.rho_points is not None and args.rho_points < 0:
+        raise BenchError(f"--rho-points must be >= 0, got {args.rho_points}")
+    methods = None if args.methods is None else [m.strip() for m in args.methods.split(",") if m.strip()]
+    log = None if args.quiet else (lambda s: print(s, file=sys.stderr, flush=True))
+    result = run_case(args.case, quick=args.quick, out=args.out or "bench-out", repeats=args.repeats,
+                      rho_points=args.rho_points, figure=not args.no_figure, log=log, methods=methods)
+    if not result.rows:
+        raise BenchError(f"no run of case {args.case} matches --methods {args.methods}")
+    print(f"# {result.case.name}: {result.case.description}")
+    print(f"# reference: {result.case.reference_note}")
+    print(format_table(result.rows))
+    print()
+    print("targets:")
+    print(format_targets(result.targets) or "- none for this case")
+    print()
+    print(f"wrote {result.csv_path}" + (f" and {result.figure_path}" if result.figure_path else ""))
+    return 0
