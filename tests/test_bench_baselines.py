@@ -42,3 +42,25 @@ def test_model_breakdown_inside_solve_ivp_ends_the_run_with_that_status():
     ex = simulate_events(system, [1.0], "m", 10.0, method="RK45", rtol=1e-6, atol=1e-9)
     assert ex.status == "model_breakdown"
     assert "fell through the floor" in ex.message and "mode 'm'" in ex.message
+
+
+def test_zero_speed_graze_at_a_release_does_not_loop():
+    # Double pendulum, plastic stop: at the release (paper 003 eq. (31)) the link sits on the
+    # stop at zero speed with zero free acceleration, so the graze guard reads 0 with a rate of
+    # rounding size. Its plastic reset then maps the state to itself: firing it again and again
+    # at that instant would exhaust the transition cap (it did at rtol 1e-12).
+    pytest = __import__("pytest")
+    dp = pytest.importorskip("robots.double_pendulum")
+    model = dp.make(None, {"gravity": True, "stop": {"restitution": 0.0, "position": 0.0}})
+    x0 = np.array([dp.INITIAL_STATE[n] for n in dp.STATE_NAMES])
+    ex = simulate_events(model.system, x0, "unconstrained", 5.0, method="DOP853", rtol=1e-12, atol=1e-12,
+                         max_step=0.02, max_transitions=50)
+    assert ex.status == "finished"
+    impacts = [tr.time for tr in ex.transitions if tr.name == "impact_stop"]
+    releases = [tr.time for tr in ex.transitions if tr.name == "release_stop"]
+    assert len(impacts) == 2 and len(releases) == 2
+    # Each release follows its impact, after a constrained swing.
+    assert impacts[0] < releases[0] < impacts[1] < releases[1]
+    # Between them nothing fires more than twice at one instant.
+    times = np.array([tr.time for tr in ex.transitions])
+    assert max(np.sum(np.abs(times - t) < 1e-12) for t in times) <= 3

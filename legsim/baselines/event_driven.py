@@ -10,7 +10,10 @@ made as good as it reasonably gets so that comparisons against it mean something
   a guard that is already at or past zero and decreasing along the flow fires at once (the
   restart would otherwise miss it, because ``solve_ivp`` only sees sign changes *during* a step),
 * a transition cap, and an honest stop when events accumulate (Zeno): the run ends with status
-  ``max_transitions`` rather than looping forever.
+  ``max_transitions`` rather than looping forever; a self-transition whose reset leaves the state
+  unchanged (a graze at zero speed) is not fired again on that same state,
+* a trial step that leaves the model's range (``ModelBreakdown`` from a field or guard) ends the
+  run with status ``model_breakdown``.
 
 It returns a ``legsim.Execution`` so that the same metric and error code apply to it.
 """
@@ -140,10 +143,13 @@ def simulate_events(
             after = np.asarray(tr.reset(q) if tr.reset is not None else q.copy(), dtype=float)
             transitions.append(TransitionRecord(tr.name, mode, tr.target, e, t_event, t_event, t_event, q.copy(),
                                                 after.copy(), 0.0))
+            fixed_point = tr.target == mode and np.array_equal(after, q)
             mode, x, t = tr.target, after, t_event
             trs = system.outgoing(mode)
             nxt = _firing_at_entry(system, mode, x, t, control, event_tol, counts)
-            if nxt is None:
+            if nxt is None or (fixed_point and trs[nxt] is tr):
+                # A self-transition whose reset left the state unchanged would fire again on the
+                # same state forever (a graze at zero speed): firing it once is all it can do.
                 break
             e, q = nxt, x.copy()
             # A zero-length segment keeps the execution's segment/strip alternation.

@@ -24,6 +24,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     wp.add_argument("--methods", default=None, help="comma-separated CSV method names to keep")
     wp.add_argument("--no-figure", action="store_true", help="write the CSV only")
     wp.add_argument("--quiet", action="store_true", help="print only the table and the targets")
+    tg = sub.add_parser("targets", help="the table and the targets again, from a CSV written before",
+                        description="Read OUT/CASE.csv and print its table and the speed targets (no run).")
+    tg.add_argument("--case", required=True, help="the case name")
+    tg.add_argument("--out", default="bench-out", help="folder holding CASE.csv (default: bench-out)")
     ov = sub.add_parser("overhead", help="integrator cost per step beyond the model's own evaluations",
                         description="Steps per second, shares of time in fields, guards and resets, overhead per "
                                     "step in field evaluations, and evaluations per transition for halve vs aim.")
@@ -40,7 +44,20 @@ def run(args: argparse.Namespace) -> int:
         from ..bench import overhead
 
         return overhead.main(quick=args.quick, as_json=args.json)
-    from ..bench.work_precision import format_table, format_targets, run_case
+    from ..bench.work_precision import evaluate_targets, format_table, format_targets, read_rows, run_case
+
+    if args.bench == "targets":
+        from pathlib import Path
+
+        from ..bench.cases import targets_for
+
+        targets = targets_for(args.case)
+        rows = read_rows(Path(args.out) / f"{args.case}.csv")
+        print(format_table(rows))
+        print()
+        print("targets:")
+        print(format_targets(evaluate_targets(rows, targets)) or "- none for this case")
+        return 0
 
     if args.repeats is not None and args.repeats < 1:
         raise BenchError(f"--repeats must be >= 1, got {args.repeats}")
@@ -61,3 +78,4 @@ def run(args: argparse.Namespace) -> int:
     print()
     print(f"wrote {result.csv_path}" + (f" and {result.figure_path}" if result.figure_path else ""))
     return 0
+
