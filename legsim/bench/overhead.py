@@ -63,7 +63,7 @@ def _loop_empty(p, x, n):
     return acc
 
 
-def _best(fn: Callable[[], Any], repeats: int = 5) -> float:
+def _best(fn: Callable[[], Any], repeats: int = 7) -> float:
     times = []
     for _ in range(repeats):
         start = time.perf_counter()
@@ -166,7 +166,7 @@ def collect(quick: bool = False) -> dict[str, Any]:
     result: dict[str, Any] = {
         "case": f"oscillator Ex.1, t in [0, {t_final:.4g}] s, h = 1e-3, eps = 1e-6",
         "cost_compiled_s": costs_c, "cost_python_s": costs_p, "compiled": [], "compiled_no_stop": [], "python": []}
-    repeats = 2 if quick else 5
+    repeats = 2 if quick else 7
     for method in ("euler", "rk2", "rk4"):
         result["compiled"].append(measure_run(system, x0, "free", t_final, 1e-3, 1e-6, method, costs_c, repeats))
         result["compiled_no_stop"].append(measure_run(free, x0, "free", t_final, 1e-3, 1e-6, method,

@@ -28,7 +28,7 @@ from typing import Any, Callable, Iterable, Sequence
 
 import numpy as np
 
-from .cases import BenchError, Case, RunSpec, Target, make_case
+from .cases import BenchError, Case, RunSpec, Target, make_case, relaxed_method
 
 #: CSV columns, in order.
 COLUMNS = ("case", "method", "kind", "h", "eps", "tol", "max_step", "landing", "error", "rho", "wall_s", "repeats",
@@ -145,7 +145,7 @@ def run_one(case: Case, spec: RunSpec, repeats: int = 3, rho_points: int = 0) ->
 
     rho_value = math.nan
     if spec.kind == "relaxed":
-        method = spec.method[len("relaxed-"):]
+        method = relaxed_method(spec.method[len("relaxed-"):])
         tols = {} if math.isnan(spec.tol) else {"rtol": spec.tol, "atol": spec.tol}
 
         def call():
