@@ -28,6 +28,7 @@ evaluations per call where the Python aiming counts one per guard it calls.
 
 from __future__ import annotations
 
+import gc
 import hashlib
 import importlib
 import importlib.util
@@ -113,7 +114,8 @@ class _Plan:
     stages: int
 
 
-_PLANS: dict[int, _Plan] = {}
+# By id, holding the tableau itself too, so that an id cannot be reused by another tableau.
+_PLANS: dict[int, tuple[Tableau, _Plan]] = {}
 
 
 def _groups(weights: np.ndarray) -> list[tuple[float, list[int]]]:
@@ -126,9 +128,9 @@ def _groups(weights: np.ndarray) -> list[tuple[float, list[int]]]:
 
 def plan_for(tableau: Tableau) -> _Plan:
     """The tableau as the kernel's arrays (cached per tableau object)."""
-    plan = _PLANS.get(id(tableau))
-    if plan is not None:
-        return plan
+    entry = _PLANS.get(id(tableau))
+    if entry is not None and entry[0] is tableau:
+        return entry[1]
     s = tableau.stages
     rows = [_groups(tableau.A[i, :i]) if i > 0 else [] for i in range(s)] + [_groups(tableau.b)]
     width = max(1, max(len(r) for r in rows))
@@ -145,7 +147,7 @@ def plan_for(tableau: Tableau) -> _Plan:
     b_err = np.zeros(s) if tableau.b_err is None else np.asarray(tableau.b_err, dtype=float)
     plan = _Plan(np.asarray(tableau.c, dtype=float), n_groups, weights, n_members, members, b_err,
                  bool(tableau.fsal), s)
-    _PLANS[id(tableau)] = plan
+    _PLANS[id(tableau)] = (tableau, plan)
     return plan
 
 
@@ -784,12 +786,27 @@ class _Workspace:
         self.seg_end = np.zeros(RECORD_CHUNK, dtype=np.int64)
 
 
+def _build_pieces(mode, trs, T, X, DX, r_e, r_f, qs, afters, ends, segments, strips, records) -> None:
+    start = 0
+    q_rows = list(qs)  # row views, made in one go
+    after_rows = list(afters)
+    for k, end in enumerate(ends):
+        # Views of this buffer: it is never written again once the tail moves out.
+        segments.append(Segment(mode, T[start:end], X[start:end], DX[start:end]))
+        e = r_e[k]
+        tc, t_land, exit_time, tau = r_f[k]
+        tr = trs[e]
+        q = q_rows[k]
+        strips.append(Strip(mode, tr.name, tc, exit_time, q, t_land, tau))
+        records.append(TransitionRecord(tr.name, mode, mode, e, tc, t_land, exit_time, q, after_rows[k], tau))
+        start = end
+
+
 def _commit_records(integrator, data, buf, ws: _Workspace, n_rec: int):
     """Turn the transitions the kernel crossed into Execution pieces (what ``_transition`` and
     the next visit's ``SegmentBuffer`` would have built), and move the current segment into a
     fresh buffer. Returns that buffer."""
     mode = data.name
-    trs = data.transitions
     T, X, DX = buf.t, buf.x, buf.dx
     # One copy of the records, shared by the pieces as views.
     r_e = ws.r_e[:n_rec].tolist()
@@ -798,20 +815,21 @@ def _commit_records(integrator, data, buf, ws: _Workspace, n_rec: int):
     afters = ws.r_after[:n_rec].copy()
     ends = ws.seg_end[:n_rec].tolist()
     segments, strips, records = integrator.segments, integrator.strips, integrator.transitions
-    start = 0
+    # Thousands of small acyclic objects at once: the cyclic collector would scan the whole
+    # growing execution again and again while they are made (it doubled the time per transition
+    # at 2e4 transitions), and could free none of them.
+    gc_was_enabled = gc.isenabled()
+    gc.disable()
+    try:
+        _build_pieces(mode, data.transitions, T, X, DX, r_e, r_f, qs, afters, ends, segments, strips, records)
+    finally:
+        if gc_was_enabled:
+            gc.enable()
     strip_time = integrator.strip_time
-    for k in range(n_rec):
-        end = ends[k]
-        # Views of this buffer: it is never written again once the tail moves out below.
-        segments.append(Segment(mode, T[start:end], X[start:end], DX[start:end]))
-        e = r_e[k]
-        tc, t_land, exit_time, tau = r_f[k]
-        tr = trs[e]
-        strips.append(Strip(mode, tr.name, tc, exit_time, qs[k], t_land, tau))
+    for tc, _, exit_time, _ in r_f:  # summed in the order the Python path sums them
         strip_time += exit_time - tc
-        records.append(TransitionRecord(tr.name, mode, mode, e, tc, t_land, exit_time, qs[k], afters[k], tau))
-        start = end
     integrator.strip_time = strip_time
+    start = ends[-1]
     size = buf.size
     # As large as the old buffer: the steps to come will need it again.
     fresh = SegmentBuffer(mode, X.shape[1], capacity=max(len(T), 2 * (size - start)))
