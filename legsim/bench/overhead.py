@@ -63,7 +63,7 @@ def _loop_empty(p, x, n):
     return acc
 
 
-def _best(fn: Callable[[], Any], repeats: int = 7) -> float:
+def _best(fn: Callable[[], Any], repeats: int = 3) -> float:
     times = []
     for _ in range(repeats):
         start = time.perf_counter()
@@ -95,26 +95,35 @@ def python_costs(system, mode: str, x: np.ndarray, n: int = 50_000) -> dict[str,
     field = system.mode(mode).field
     tr = system.outgoing(mode)[0] if system.outgoing(mode) else None
     number = n
-    cost = {"field": min(timeit.repeat(lambda: field(0.0, x, None), number=number, repeat=5)) / number}
+    cost = {"field": min(timeit.repeat(lambda: field(0.0, x, None), number=number, repeat=3)) / number}
     if tr is not None:
-        cost["guards"] = min(timeit.repeat(lambda: tr.guard(x), number=number, repeat=5)) / number
-        cost["reset"] = min(timeit.repeat(lambda: tr.reset(x), number=number, repeat=5)) / number
+        cost["guards"] = min(timeit.repeat(lambda: tr.guard(x), number=number, repeat=3)) / number
+        cost["reset"] = min(timeit.repeat(lambda: tr.reset(x), number=number, repeat=3)) / number
     else:
         cost["guards"] = cost["reset"] = 0.0
     return cost
 
 
 def measure_run(system, x0, mode: str, t_final: float, h: float, eps: float, method: str,
-                costs: dict[str, float], repeats: int = 3, **kw) -> dict[str, Any]:
-    """Time one run (median of repeats after a warm-up) and split its time."""
+                costs: dict[str, float] | Callable[[], dict[str, float]], repeats: int = 3,
+                **kw) -> dict[str, Any]:
+    """Time one run and split its time. ``costs`` (seconds per evaluation) may be a function
+    that measures them: it is then called before every repeat, and for each quantity the
+    smallest time over the repeats is kept, run and evaluations alike, so that a burst of other
+    load on the machine disturbs neither side of the difference."""
     simulate(system, x0, mode, min(t_final, 0.1), h, eps, method, **kw)
     walls = []
+    measured: list[dict[str, float]] = []
     ex = None
     for _ in range(repeats):
+        if callable(costs):
+            measured.append(costs())
         start = time.perf_counter()
         ex = simulate(system, x0, mode, t_final, h, eps, method, **kw)
         walls.append(time.perf_counter() - start)
-    wall = min(walls)  # best of the repeats, like the single-evaluation costs: least disturbed by other load
+    if callable(costs):
+        costs = {k: min(m[k] for m in measured) for k in measured[0]}
+    wall = min(walls)
     c = ex.counters
     steps = max(int(c["steps"]), 1)
     t_field = c["field_evals"] * costs["field"]
@@ -125,7 +134,7 @@ def measure_run(system, x0, mode: str, t_final: float, h: float, eps: float, met
         "method": method, "h": h, "eps": eps, "status": ex.status, "wall_s": wall, "steps": int(c["steps"]),
         "halvings": int(c["halvings"]), "field_evals": int(c["field_evals"]), "guard_evals": int(c["guard_evals"]),
         "reset_evals": int(c["reset_evals"]), "transitions": int(c["transitions"]),
-        "steps_per_s": c["steps"] / wall, "ns_per_step": 1e9 * wall / steps,
+        "steps_per_s": c["steps"] / wall, "ns_per_step": 1e9 * wall / steps, "cost_field_s": costs["field"],
         "share_field": t_field / wall, "share_guards": t_guard / wall, "share_resets": t_reset / wall,
         "overhead_per_step_in_fields": rest / steps / costs["field"],
     }
@@ -156,23 +165,27 @@ def collect(quick: bool = False) -> dict[str, Any]:
     """All measurements: the oscillator of Example 1 at h = 1e-3, eps = 1e-6 (paper 000 Table I),
     compiled and Python paths, euler/rk2/rk4; and landing costs on three cases."""
     system, x0, t_max = make_oscillator_example("ex1")
-    t_final = t_max / 4 if quick else t_max
+    t_final = t_max / (8 if quick else 4)
     twin = system.mode("free").compiled
     probe = np.array([1.0, 2.0])
-    costs_c = compiled_costs(twin, probe, 200_000 if quick else 2_000_000)
+    n_c, n_p = (100_000, 2_000) if quick else (300_000, 20_000)
     python_system = without_compiled(system)
-    costs_p = python_costs(python_system, "free", probe, 5_000 if quick else 50_000)
     free = make_oscillator(2.5, 0.05, None, 0.9, 1.0, 20.0, 2.5)
+    compiled_cost = lambda: compiled_costs(twin, probe, n_c)  # noqa: E731
+    free_cost = lambda: dict(compiled_costs(twin, probe, n_c), guards=0.0)  # noqa: E731
+    python_cost = lambda: python_costs(python_system, "free", probe, n_p)  # noqa: E731
     result: dict[str, Any] = {
         "case": f"oscillator Ex.1, t in [0, {t_final:.4g}] s, h = 1e-3, eps = 1e-6",
-        "cost_compiled_s": costs_c, "cost_python_s": costs_p, "compiled": [], "compiled_no_stop": [], "python": []}
-    repeats = 2 if quick else 7
+        "cost_compiled_s": compiled_cost(), "cost_python_s": python_cost(), "compiled": [],
+        "compiled_no_stop": [], "python": []}
+    repeats = 3 if quick else 9
     for method in ("euler", "rk2", "rk4"):
-        result["compiled"].append(measure_run(system, x0, "free", t_final, 1e-3, 1e-6, method, costs_c, repeats))
-        result["compiled_no_stop"].append(measure_run(free, x0, "free", t_final, 1e-3, 1e-6, method,
-                                                      dict(costs_c, guards=0.0), repeats))
-        result["python"].append(measure_run(python_system, x0, "free", t_final, 1e-3, 1e-6, method, costs_p,
-                                            repeats))
+        result["compiled"].append(measure_run(system, x0, "free", t_final, 1e-3, 1e-6, method, compiled_cost,
+                                              repeats))
+        result["compiled_no_stop"].append(measure_run(free, x0, "free", t_final, 1e-3, 1e-6, method, free_cost,
+                                                      repeats))
+        result["python"].append(measure_run(python_system, x0, "free", t_final, 1e-3, 1e-6, method, python_cost,
+                                            max(3, repeats // 3)))
     ex2, x2, t2 = make_oscillator_example("ex2")
     result["landing"] = {
         "oscillator Ex.1 (h=1e-2, eps=1e-6)": landing_costs(system, x0, "free", t_final, 1e-2, 1e-6),
@@ -186,6 +199,7 @@ def collect(quick: bool = False) -> dict[str, Any]:
 def format_report(r: dict[str, Any]) -> str:
     lines = [f"# integrator overhead: {r['case']}"]
     cc, cp = r["cost_compiled_s"], r["cost_python_s"]
+    lines.append("costs of one evaluation measured alongside each run, the least disturbed of the repeats kept")
     lines.append(f"one evaluation, compiled (from numba): field {cc['field'] * 1e9:.1f} ns, guard "
                  f"{cc['guards'] * 1e9:.1f} ns, reset {cc['reset'] * 1e9:.1f} ns")
     lines.append(f"one evaluation, Python (from Python): field {cp['field'] * 1e9:.0f} ns, guard "
