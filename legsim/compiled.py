@@ -195,10 +195,12 @@ def _k_hermite(x0, d0, x1, d1, dt, s, out):
         out[d] = c00 * x0[d] + c10 * d0[d] + c01 * x1[d] + c11 * d1[d]
 
 def _k_crossing(p, e, shift, x0, d0, x1, d1, dt, g0, g1, tol, work):
-    # relaxed.crossing_on_step on the compiled guard e shifted by `shift`;
-    # returns (s, guard calls, converged).
+    # relaxed.crossing_on_step on the compiled guard e shifted by `shift` (the same iterates and
+    # the same choice of the past-side end); returns (s, guard calls, converged).
     if g0 <= 0.0:
         return 0.0, 0, True
+    if -g1 <= tol:
+        return 1.0, 0, True
     lo = 0.0
     hi = 1.0
     glo = g0
@@ -217,7 +219,7 @@ def _k_crossing(p, e, shift, x0, d0, x1, d1, dt, g0, g1, tol, work):
         evals += 1
         if not math.isfinite(g):
             return lo, evals, False
-        if abs(g) <= tol:
+        if g == 0.0:
             return s, evals, True
         if g > 0:
             lo = s
@@ -228,12 +230,18 @@ def _k_crossing(p, e, shift, x0, d0, x1, d1, dt, g0, g1, tol, work):
         else:
             hi = s
             ghi = g
+            if -g <= tol:
+                return hi, evals, True
             if side == -1:
                 glo *= 0.5
             side = -1
         if hi - lo <= 4e-16:
             break
-    return lo, evals, abs(glo) <= tol or (hi - lo <= 4e-16 and abs(glo) <= 1e3 * tol)
+    if hi - lo <= 4e-16:
+        _k_hermite(x0, d0, x1, d1, dt, hi, work)
+        if -(_twin_guards(work, p)[e] + shift) <= 1e6 * tol:
+            return hi, evals + 1, True
+    return lo, evals, False
 
 def _k_error_norm(b_err, hk, K, x, x_new, rtol, atol):
     n = x.shape[0]
@@ -468,7 +476,7 @@ def _k_step_loop(p, n_guards, c, n_groups, weights, n_members, members, b_err, f
                 for d in range(n):
                     k1[d] = kk[d]
             dt = t_new - t
-            tol = 1e-9 * eps
+            tol = 1e-12 * eps
             best_e = -1
             best_s = 0.0
             for j in range(n_guards):
@@ -491,11 +499,18 @@ def _k_step_loop(p, n_guards, c, n_groups, weights, n_members, members, b_err, f
                     for d in range(n):
                         q[d] = work[d]
                     _k_hermite_derivative(x, K[0], x_new, k1, dt, s, dq)
-                    T[size] = tc
+                    # As in relaxed._step_transition: a crossing that rounds to the step's start
+                    # replaces that point instead of repeating its time.
+                    row = size
+                    if tc <= t:
+                        tc = t
+                        row = size - 1
+                    else:
+                        T[size] = tc
+                        size += 1
                     for d in range(n):
-                        X[size, d] = q[d]
-                        DX[size, d] = dq[d]
-                    size += 1
+                        X[row, d] = q[d]
+                        DX[row, d] = dq[d]
             tau = -gv[e]
             fs[2] = t_new
             fs[6] = tc

@@ -74,17 +74,22 @@ def crossing_on_step(guard_at: Callable[[float], float], g0: float, g1: float,
 
     ``guard_at(s)`` is the guard on the interpolant at the step fraction s in [0, 1].
     Illinois regula falsi on the bracket [0, 1] with guard_at(0) = g0 >= 0 > g1 = guard_at(1),
-    bisecting when regula falsi stalls. When the guard is discontinuous along the
-    interpolant (no root inside the bracket) the domain-side end of the final bracket is
-    returned with converged=False.
+    bisecting every third iterate so that a kink cannot stall it. The point returned is the
+    end of the final bracket *past* the guard (-tol <= g <= 0): a strip point on the domain side,
+    however close, would put the reset image past a complementary guard (leave through x = 1,
+    come back through x = 1) and make the next mode cross again at once. When the guard is
+    discontinuous along the interpolant (no root in the bracket) the domain-side end is
+    returned with converged=False: it is never past the guard.
     """
     if g0 <= 0.0:
         return 0.0, 0, True
+    if -g1 <= tol:
+        return 1.0, 0, True
     lo, hi, glo, ghi = 0.0, 1.0, g0, g1
     evals = 0
     side = 0
     for it in range(100):
-        if it % 3 == 2:  # every third iterate bisects, so a kink cannot stall the search
+        if it % 3 == 2:
             s = 0.5 * (lo + hi)
         else:
             s = lo + (hi - lo) * glo / (glo - ghi)
@@ -94,7 +99,7 @@ def crossing_on_step(guard_at: Callable[[float], float], g0: float, g1: float,
         evals += 1
         if not math.isfinite(g):
             return lo, evals, False
-        if abs(g) <= tol:
+        if g == 0.0:
             return s, evals, True
         if g > 0:
             lo, glo = s, g
@@ -103,12 +108,18 @@ def crossing_on_step(guard_at: Callable[[float], float], g0: float, g1: float,
             side = 1
         else:
             hi, ghi = s, g
+            if -g <= tol:
+                return hi, evals, True
             if side == -1:
                 glo *= 0.5
             side = -1
         if hi - lo <= 4e-16:
             break
-    return lo, evals, abs(glo) <= tol or hi - lo <= 4e-16 and abs(glo) <= 1e3 * tol
+    # A collapsed bracket is a root up to rounding unless the guard jumps there by more than a
+    # millionth of what the caller tolerates as a strip (tol is a millionth of that again).
+    if hi - lo <= 4e-16 and -float(guard_at(hi)) <= 1e6 * tol:
+        return hi, evals + 1, True
+    return lo, evals, False
 
 
 def simulate(
@@ -392,7 +403,12 @@ class _Integrator:
             return self._end_segment(buf, "non_finite",
                                      f"guard of transition {data.transitions[bad].name} is {gvals[bad]} "
                                      f"at t={t:.17g} in mode '{mode}', x={x.tolist()}", t)
-        if n_guards and min(gvals) < 0.0:
+        # A guard within rounding of zero (a constrained mode released onto the guard it lives
+        # on, an identity reset between complementary guards) counts as *on* the guard, not past
+        # it: the first step decides. If the flow leaves, that step lands in the strip and the
+        # crossing is found at its start, at this same instant; if it goes inward, no spurious
+        # transition (and no spurious eps of delay) happens.
+        if n_guards and min(gvals) < -1e-9 * eps:
             e = int(np.argmin(gvals))
             if gvals[e] < -eps:
                 return self._end_segment(buf, "reset_outside_domain",
@@ -574,7 +590,8 @@ class _Integrator:
     def _step_transition(self, buf, data, gvals, t, x, k0, t1, x1, k1, t_final):
         """A step from (t, x) landed at (t1, x1) inside one or more strips."""
         dt = t1 - t
-        tol = 1e-9 * self.eps
+        # Locating q costs guard evaluations only: take it to a 1e-12 share of the strip.
+        tol = 1e-12 * self.eps
         best = None
         guard_fns = self._guard_fns(data)
         for e, g1 in enumerate(gvals):
@@ -597,6 +614,12 @@ class _Integrator:
             tc = t + s * dt
             if not np.all(np.isfinite(q)):
                 q, tc = x.copy(), t
+            elif tc <= t:
+                # s so small that t + s dt rounds to t: q replaces the step's start (they differ by
+                # rounding) rather than adding a second point at the same time.
+                buf.x[buf.size - 1] = q
+                buf.dx[buf.size - 1] = hermite_derivative(x, k0, x1, k1, dt, s)
+                tc = t
             else:
                 buf.append(tc, q, hermite_derivative(x, k0, x1, k1, dt, s))
         tau = -gvals[e]
@@ -621,6 +644,8 @@ class _Integrator:
         self.reset_evals += 1
         try:
             x_after = np.asarray(data.resets[e](q), dtype=float)
+        except ModelBreakdown:
+            raise  # ends the run with status model_breakdown (see run)
         except Exception as exc:
             raise ModelError(f"{self.system.name}: reset of transition {tr.name} failed at t={tc:.17g}, "
                              f"q={q.tolist()}: {type(exc).__name__}: {exc}") from exc
