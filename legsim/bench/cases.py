@@ -17,7 +17,7 @@ from typing import Any, Callable
 import numpy as np
 
 from ..errors import LegsimError
-from ..hybrid import HybridSystem, Mode, Transition
+from ..hybrid import HybridSystem
 from ..methods import Tableau
 
 CASE_NAMES = ("oscillator-ex1", "oscillator-ex2", "bouncing-ball", "pronk", "double-pendulum")
@@ -93,7 +93,7 @@ class Case:
     name: str
     description: str
     system: HybridSystem
-    ivp_system: HybridSystem
+    ivp_system: HybridSystem  # the system solve_ivp runs (its Python callables)
     mode: str
     x0: np.ndarray
     t_final: float
@@ -138,31 +138,6 @@ def ivp_sweep(tols: tuple[float, ...], max_steps: tuple[float, ...] = (math.inf,
 
 def ps_sweep(hs: tuple[float, ...]) -> list[RunSpec]:
     return [RunSpec("ps", "ps", float(h)) for h in hs]
-
-
-# ----------------------------------------------------------------------------------------------
-# The solve_ivp system of a model with compiled twins: fields and guards call the twins.
-# ----------------------------------------------------------------------------------------------
-def compiled_callables(system: HybridSystem) -> HybridSystem:
-    """The same system with each mode's Python field and guards replaced by calls of its
-    numba twin (cheaper than numpy on 2-vectors), for the event-driven baseline: solve_ivp
-    calls them from Python, so this is as compiled as that baseline can be made."""
-    modes = {}
-    transitions = []
-    for name, mode in system.modes.items():
-        twin = mode.compiled
-        if twin is None:
-            modes[name] = mode
-            transitions += list(system.outgoing(name))
-            continue
-        p = twin.params
-        f = twin.field
-        modes[name] = Mode(mode.dim, lambda t, x, u, f=f, p=p: f(t, x, p), mode.names, mode.jacobian)
-        for i, tr in enumerate(system.outgoing(name)):
-            g = twin.guards
-            transitions.append(Transition(tr.source, tr.target, lambda x, g=g, p=p, i=i: g(x, p)[i], tr.reset,
-                                          tr.name, tr.guard_gradient, tr.reset_jacobian))
-    return HybridSystem(modes, transitions, name=system.name, energy=system.energy)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -227,7 +202,7 @@ def _oscillator(example: str, quick: bool) -> Case:
     return Case(
         name=name,
         description=f"forced oscillator with a stop, paper 000 Table I Example {example[-1]} (t in [0, {t_final:.4g}] s)",
-        system=system, ivp_system=compiled_callables(system), mode="free", x0=x0, t_final=t_final,
+        system=system, ivp_system=system, mode="free", x0=x0, t_final=t_final,
         positions=(0,), position_names=("x",),
         reference_positions=lambda t: ref.states(t)[:, :1],
         reference_note="closed form (eq. (28) with impacts, sticking and Zeno sums: OscillatorReference)",
@@ -255,7 +230,7 @@ def _bouncing_ball(quick: bool) -> Case:
     return Case(
         name="bouncing-ball",
         description=f"ball dropped from 1 m onto a floor with restitution {c} (t in [0, {t_final}] s, before Zeno)",
-        system=system, ivp_system=compiled_callables(system), mode="flight", x0=np.array([1.0, 0.0]),
+        system=system, ivp_system=system, mode="flight", x0=np.array([1.0, 0.0]),
         t_final=t_final, positions=(0,), position_names=("z",),
         reference_positions=lambda t: ref.states(t)[:, :1],
         reference_note="closed form (BouncingBallReference)",
