@@ -52,6 +52,11 @@ ControlFn = Callable[[float, np.ndarray], Any]
 # Central differences balance truncation (O(d^2)) against rounding (O(eps / d)) at d ~ eps^(1/3).
 _FD_STEP = float(np.finfo(float).eps) ** (1.0 / 3.0)
 
+#: Most fixed steps one flow may be asked to take (certification level, stochastic execution).
+#: A ModeFlow advances a few thousand steps per second, so this is already about ten minutes of work:
+#: a request beyond it is a typo (h = 1e-12, t_final = 1e9) rather than a computation to start.
+MAX_STEPS = 2_000_000
+
 
 def _norm(v: np.ndarray) -> float:
     """Euclidean norm of a vector (np.linalg.norm's generality costs more than the arithmetic
@@ -417,14 +422,22 @@ class ModeFlow:
     The bound uses the running maximum of sigma_max(Df) as the Lipschitz constant (the
     paper's maximum over the points seen so far), so that points can be produced before the
     end of the flow is known; ``b0`` is an initial uncertainty radius, carried as
-    ``b0 e^{L (t - t0)}``.
+    ``b0 e^{L (t - t0)}``. ``progress(t)``, when given, is called every 256 points.
+
+    ``status`` ends as ``end`` (t_end reached), ``non_finite`` (a field or step that is not
+    finite), ``bound_overflow`` (B overflowed: the flow stops at its last finite ball) or
+    ``max_points``; ``message`` says where.
     """
 
     SAMPLES_PER_ACTIVE_STEP = 8
+    #: Fraction of a step between its ends and the probes that find extrema next to them; an
+    #: extremum closer to an end than this is within ~probe^2 of the end's own value.
+    EDGE_PROBE = 1e-6
 
     def __init__(self, system: HybridSystem, mode: str, x0: np.ndarray, t0: float, h: float,
                  estimator: LocalErrorEstimator, *, control: ControlFn | None = None, b0: float = 0.0,
-                 t_end: float = math.inf, max_points: int = 10_000_000) -> None:
+                 t_end: float = math.inf, max_points: int = 10_000_000,
+                 progress: Callable[[float], None] | None = None) -> None:
         self.system = system
         self.mode_name = mode
         self.mode = system.mode(mode)
@@ -435,9 +448,11 @@ class ModeFlow:
         self.control = control
         self.t_end = float(t_end)
         self.max_points = int(max_points)
+        self.progress = progress
         self.points: list[FlowPoint] = []
         self.status = "running"
         self.message = ""
+        self.t0 = float(t0)
         self._t = float(t0)
         self._x = np.array(x0, dtype=float)
         self._f: np.ndarray | None = None
@@ -507,8 +522,19 @@ class ModeFlow:
         if len(self.points) + 1 >= self.max_points and self.status == "running" and remaining > 0:
             self._finish("max_points", f"flow of mode '{self.mode_name}' reached {self.max_points} points "
                                        f"at t={t:.17g}")
-        radius = self._s + le
+        # A failed step's error is not part of the bound at its start point (its ball stays finite).
+        radius = self._s + (le if math.isfinite(le) else 0.0)
+        if not math.isfinite(radius):
+            # B grows like e^(L (t - t0)): past t - t0 ~ 700 / L it overflows, and a ball of
+            # infinite radius says nothing (every guard would be half crossed, 0 * inf = nan).
+            self._finish("bound_overflow",
+                         f"the error bound of mode '{self.mode_name}' overflowed at t={t:.6g} (it grows like "
+                         f"exp(L (t - t0)) with L = {self._L:.3g} 1/s from t0 = {self.t0:.6g} s): "
+                         f"shorten t_final or lower h")
+            return False
         self.points.append(FlowPoint(t, x, f0, radius, g, d))
+        if self.progress is not None and (len(self.points) & 255) == 0:
+            self.progress(t)
         if last:
             if self.status == "running":
                 self._finish("end", "")
@@ -578,20 +604,36 @@ class ModeFlow:
         for s in fractions:
             at(float(s))
         extra = []
+        # An extremum in the first or last sub-interval has no sample on one side inside the
+        # step (the next step starts past it): a probe just inside each end brackets it.
+        probe = self.EDGE_PROBE
         for j in np.flatnonzero(~(inside | past)):
             u = [ratio(float(s), j) for s in fractions]
             if not all(math.isfinite(v) for v in u):
                 continue  # a guard without a state gradient (a clock): no extremum to place
-            for i in range(1, k):
-                if (u[i] - u[i - 1]) * (u[i + 1] - u[i]) < 0.0:
-                    sign = 1.0 if u[i] <= u[i - 1] else -1.0  # a minimum of u, or a maximum
-                    res = minimize_scalar(lambda s: sign * ratio(float(s), j), bounds=(fractions[i - 1], fractions[i + 1]),
+            triples = [(u[i - 1], u[i], u[i + 1], fractions[i - 1], fractions[i + 1]) for i in range(1, k)]
+            triples.append((u[0], ratio(probe, j), u[1], 0.0, fractions[1]))
+            triples.append((u[k - 1], ratio(1.0 - probe, j), u[k], fractions[k - 1], 1.0))
+            for before, middle, after, lo_s, hi_s in triples:
+                if (middle - before) * (after - middle) < 0.0:
+                    sign = 1.0 if middle <= before else -1.0  # a minimum of u, or a maximum
+                    res = minimize_scalar(lambda s: sign * ratio(float(s), j), bounds=(lo_s, hi_s),
                                           method="bounded", options={"xatol": 1e-12})
                     extra.append(float(res.x))
         s_all = np.unique(np.concatenate([np.array(fractions), np.array(extra)]))
         xs, gs, ds = zip(*(at(float(s)) for s in s_all))
         return StepSamples(s_all, p0.t + s_all * dt, np.array(xs), (1.0 - s_all) * r0 + s_all * r1,
                            np.array(gs).reshape(len(s_all), -1), np.array(ds).reshape(len(s_all), -1))
+
+
+def check_steps(span: float, h: float, what: str) -> int:
+    """The number of fixed steps of size h (s) over ``span`` (s), or SimulationError naming
+    ``what`` when it exceeds ``MAX_STEPS``."""
+    steps = span / h
+    if not steps <= MAX_STEPS:
+        raise SimulationError(f"{what}: {span:g} s at h = {h:g} s is {steps:.3g} steps, more than the limit "
+                              f"{MAX_STEPS:.0e}: raise h or shorten t_final")
+    return int(math.ceil(steps))
 
 
 def check_step(name: str, value: Any) -> float:

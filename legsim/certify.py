@@ -50,7 +50,7 @@ from typing import Any, Callable, Sequence
 import numpy as np
 from scipy.optimize import brentq
 
-from .bounds import LocalErrorEstimator, ModeFlow, check_step, guard_gradient, reset_lipschitz
+from .bounds import MAX_STEPS, LocalErrorEstimator, ModeFlow, check_step, check_steps, guard_gradient, reset_lipschitz
 from .errors import ModelError, SimulationError
 from .hybrid import HybridSystem
 from .methods import Tableau
@@ -124,17 +124,22 @@ class Level:
 @dataclass
 class Certificate:
     """The outcome of ``certify``: the transitions (certified ones, then at most one refused),
-    the refinement levels tried and the settings."""
+    the refinement levels tried and the settings. ``complete`` is False when the last level
+    stopped at its transition budget (``max_transitions``) before t_final; ``message`` then
+    says where."""
 
     transitions: list[CertifiedTransition]
     levels: list[Level]
     settings: dict[str, Any] = field(default_factory=dict)
     end_time: float = math.nan
+    complete: bool = True
+    message: str = ""
 
     @property
     def certified(self) -> bool:
-        """True when every transition of the execution up to t_final is certified."""
-        return all(tr.certified for tr in self.transitions)
+        """True when every transition of the execution up to t_final is certified (so never
+        when the transition budget ran out before t_final)."""
+        return self.complete and all(tr.certified for tr in self.transitions)
 
     def to_list(self) -> list[dict[str, Any]]:
         """The per-transition verdicts as JSON-ready dicts."""
@@ -145,6 +150,8 @@ class Certificate:
         return {
             **self.settings,
             "certified": self.certified,
+            "complete": self.complete,
+            "message": self.message,
             "end_time": _num(self.end_time),
             "levels": [{"h": lv.h, "certified": lv.certified, "failure": lv.failure, "index": lv.index}
                        for lv in self.levels],
@@ -166,31 +173,34 @@ class _ConeRun:
     """One level of Algorithm 1: the computed execution at step h with its error cones."""
 
     def __init__(self, system: HybridSystem, h: float, estimator: LocalErrorEstimator, control: ControlFn | None,
-                 t_final: float, max_transitions: int) -> None:
+                 t_final: float, max_transitions: int, progress: Callable[[float], None] | None = None) -> None:
         self.system = system
         self.h = h
         self.estimator = estimator
         self.control = control
         self.t_final = t_final
         self.max_transitions = max_transitions
+        self.progress = progress
 
-    def run(self, mode: str, x: np.ndarray, t: float) -> tuple[list[CertifiedTransition], _Visit | None, float]:
+    def run(self, mode: str, x: np.ndarray, t: float) -> tuple[list[CertifiedTransition], _Visit | None, float, bool]:
+        """(certified records, the refused visit or None, end time, whether the transition
+        budget ran out before t_final)."""
         records: list[CertifiedTransition] = []
         b0 = 0.0
         while len(records) < self.max_transitions:
             visit = self.visit(len(records), mode, x, t, b0)
             if visit.kind == "end":
-                return records, None, visit.end_time
+                return records, None, visit.end_time, False
             if visit.kind != "certified":
-                return records, visit, visit.record.time if visit.record else t
+                return records, visit, visit.record.time if visit.record else t, False
             records.append(visit.record)  # type: ignore[arg-type]
             mode, x, t, b0 = visit.next_state  # type: ignore[misc]
-        return records, None, t
+        return records, None, t, True
 
     def visit(self, index: int, mode: str, x0: np.ndarray, t0: float, b0: float) -> _Visit:
         budget = int(4 * (self.t_final - t0) / self.h) + 10_000
         flow = ModeFlow(self.system, mode, x0, t0, self.h, self.estimator, control=self.control, b0=b0,
-                        max_points=budget)
+                        max_points=budget, progress=self.progress)
         trs = flow.transitions
         m = len(trs)
         p0 = flow.point(0)
@@ -201,7 +211,7 @@ class _ConeRun:
             return _Visit("end", end_time=self.t_final)
         walk = _Walk(self, flow, t0, b0)
         walk.run()
-        if flow.status == "non_finite":
+        if flow.status in ("non_finite", "bound_overflow"):
             last = flow.points[-1].t
             return _Visit("non_finite", self._record(index, mode, None, last, False, False, "refinement_limit",
                                                      (t0, last), b0, b0, [], flow.message))
@@ -411,11 +421,17 @@ class _Walk:
         r_cone = max([re] + [rk for _, rk in self.contact])
         fe = flow.field_at(te, xe)
         grad = guard_gradient(tr, xe, te, self._u(te, xe))
-        rate = abs(float(np.dot(grad, fe))) / max(float(np.linalg.norm(grad)), np.finfo(float).tiny)
-        spread = r_cone * float(np.linalg.norm(fe)) / rate if rate > 0.0 else math.inf
+        grad_norm = float(np.linalg.norm(grad))
+        if grad_norm == 0.0:
+            # A guard on time alone (a clock): the true trajectory switches at t_e exactly, where
+            # it lies in the ball of radius B(t_e); nothing spreads along the guard.
+            spread, half = r_cone, 0.0
+        else:
+            rate = abs(float(np.dot(grad, fe))) / grad_norm
+            spread = r_cone * float(np.linalg.norm(fe)) / rate if rate > 0.0 else math.inf
+            # The true trajectory meets the guard while the ball does: within B / |d'| of t_e.
+            half = r_cone / rate if rate > 0.0 else math.inf
         r_init = max([r_cone, spread] + [float(np.linalg.norm(xk - xe)) + rk for xk, rk in self.contact])
-        # The true trajectory meets the guard while the ball does: within B / |d'| of t_e.
-        half = r_cone / rate if rate > 0.0 else math.inf
         window = (min(window[0], te - half), max(window[1], te + half))
         rec = run._record(index, mode, tr, te, True, True, None, window, re, b0, names,
                           f"the cone meets only the guard of {tr.name} and leaves the domain at t={self.t_exit:.6g}")
@@ -451,6 +467,7 @@ def certify(
     alpha: float = 2.0,
     max_refinements: int = 6,
     max_transitions: int = 1000,
+    progress: Callable[[int, float, float], None] | None = None,
 ) -> Certificate:
     """Certify the transitions of the execution from ``(mode, x0)`` over [t0, t_final]
     (paper 004 Algorithm 1).
@@ -462,8 +479,12 @@ def certify(
     method: the Runge-Kutta method of the numerical solution; pair, floor: its local error
         estimation (``legsim.bounds``).
     control: optional control(t, x) -> u.
-    alpha: refinement factor (> 1); max_refinements: most refinements (>= 0).
-    max_transitions: most transitions certified in one level.
+    alpha: refinement factor (> 1); max_refinements: most refinements (>= 0). Refining stops
+        early, with the last level's verdict, when the next level would take more than
+        ``legsim.bounds.MAX_STEPS`` steps over [t0, t_final] (the first level raises instead).
+    max_transitions: most transitions certified in one level; when a level uses them up
+        before t_final the certificate is incomplete (``complete`` False, not ``certified``).
+    progress: optional ``progress(level, h, t)``, called every few hundred steps.
 
     Returns
     -------
@@ -487,14 +508,23 @@ def certify(
         if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
             raise SimulationError(f"{label} must be an integer >= {low}, got {value!r}")
     estimator = LocalErrorEstimator(method, pair, floor)
+    span = float(t_final) - float(t0)
+    check_steps(span, h, "certify")
     levels: list[Level] = []
     records: list[CertifiedTransition] = []
     failure: _Visit | None = None
     end_time = float(t_final)
+    exhausted = False
+    stopped = ""
     for r in range(int(max_refinements) + 1):
         h_r = h / alpha**r
-        run = _ConeRun(system, h_r, estimator, control, float(t_final), int(max_transitions))
-        records, failure, end_time = run.run(mode, x, float(t0))
+        if span / h_r > MAX_STEPS:
+            stopped = (f"refinement stopped at h = {levels[-1].h:g}: the next level (h = {h_r:.3g}) would take "
+                       f"{span / h_r:.3g} steps, more than {MAX_STEPS:.0e}")
+            break
+        level_progress = None if progress is None else (lambda t, r=r, h_r=h_r: progress(r, h_r, t))
+        run = _ConeRun(system, h_r, estimator, control, float(t_final), int(max_transitions), level_progress)
+        records, failure, end_time, exhausted = run.run(mode, x, float(t0))
         lv = Level(h_r, len(records))
         if failure is not None and failure.record is not None:
             lv.failure, lv.index = failure.kind, failure.record.index
@@ -509,15 +539,21 @@ def certify(
         if rec.reason == "refinement_limit" and failure.kind in ("grazing", "intersecting_guards"):
             rec.detail += (f"; refining is separating it (separation/bound {levels[-2].separation / levels[-2].bound:.3g}"
                            f" -> {levels[-1].separation / levels[-1].bound:.3g}): a smaller h may certify it")
+        if stopped:
+            rec.detail += f" ({stopped})"
         out.append(rec)
     settings = {"system": system.name, "initial_mode": mode, "t_final": float(t_final), "h": h,
                 "method": estimator.method.name, "pair": estimator.pair.name, "floor": estimator.floor,
-                "alpha": float(alpha), "max_refinements": int(max_refinements)}
-    return Certificate(out, levels, settings, end_time)
+                "alpha": float(alpha), "max_refinements": int(max_refinements), "max_transitions": int(max_transitions)}
+    message = ""
+    if exhausted and failure is None:
+        message = (f"stopped after max_transitions = {int(max_transitions)} certified transitions at "
+                   f"t = {end_time:.9g} s, before t_final = {float(t_final):g} s: the rest is not examined")
+    return Certificate(out, levels, settings, end_time, complete=not (exhausted and failure is None), message=message)
 
 
 def _reason(kind: str, levels: list[Level]) -> str:
-    if kind == "non_finite":
+    if kind in ("non_finite", "bound_overflow"):
         return "refinement_limit"
     if kind == "zeno":
         return "zeno"
@@ -571,13 +607,20 @@ def scene_settings(scene: Any, overrides: dict[str, Any] | None = None) -> dict[
     return settings
 
 
-def certify_scene(scene: Any, overrides: dict[str, Any] | None = None) -> Certificate:
+def certify_scene(scene: Any, overrides: dict[str, Any] | None = None, *,
+                  progress: Callable[[int, float, float], None] | None = None) -> Certificate:
     """Certify the transitions of a scene's execution (its ``[certify]`` section, defaults from
-    ``[integrator]``) from the scene's initial mode and state."""
+    ``[integrator]``) from the scene's initial mode and state; ``progress`` as in ``certify``."""
     s = scene_settings(scene, overrides)
+    t0 = float(scene.integrator.get("t0", 0.0))
+    try:
+        check_steps(s["t_final"] - t0, s["h"], "certify")
+    except SimulationError as exc:
+        from .errors import SceneError
+        raise SceneError(f"{scene.path}: certify.h / certify.t_final: {exc}") from None
     cert = certify(scene.model.system, scene.initial_mode, scene.initial_state, s["t_final"], s["h"], s["method"],
-                   t0=float(scene.integrator.get("t0", 0.0)), pair=None if s["pair"] == "auto" else s["pair"],
+                   t0=t0, pair=None if s["pair"] == "auto" else s["pair"],
                    control=scene.model.control, floor=s["floor"], alpha=s["alpha"],
-                   max_refinements=s["max_refinements"], max_transitions=s["max_transitions"])
+                   max_refinements=s["max_refinements"], max_transitions=s["max_transitions"], progress=progress)
     cert.settings["scene"] = scene.name
     return cert

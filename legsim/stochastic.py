@@ -51,13 +51,18 @@ from typing import Any, Callable, Sequence
 import numpy as np
 from scipy.optimize import brentq
 
-from .bounds import LocalErrorEstimator, ModeFlow, StepSamples, ball_fraction_past, check_step, reset_lipschitz
+from .bounds import (LocalErrorEstimator, ModeFlow, StepSamples, ball_fraction_past, check_step, check_steps,
+                     reset_lipschitz)
 from .errors import ModelError, SimulationError
 from .hybrid import HybridSystem
 from .methods import Tableau
 
 ControlFn = Callable[[float, np.ndarray], Any]
 INTENSITIES = ("hazard", "derivative")
+
+#: Most executions of one ensemble: each is kept in memory, and one takes milliseconds to
+#: seconds, so more is a typo rather than a Monte Carlo run to start.
+MAX_SAMPLES = 1_000_000
 
 # -log(1 - pi) with 1 - pi floored here: a hazard of 690 is certain switching (e^-690 ~ 1e-300).
 _TINY = 1e-300
@@ -149,8 +154,9 @@ def transition_functions(
     x = _check_start(system, mode, x0)
     h = check_step("h", h)
     form = _check_form(intensity)
-    if not t_final > t0:
-        raise SimulationError(f"t_final must be > t0 = {t0}, got {t_final}")
+    if not (isinstance(t_final, (int, float, np.integer, np.floating)) and math.isfinite(t_final) and t_final > t0):
+        raise SimulationError(f"t_final must be a finite number > t0 = {t0}, got {t_final!r}")
+    check_steps(float(t_final) - float(t0), h, "transition functions")
     flow = ModeFlow(system, mode, x, float(t0), h, _make_estimator(method, pair, floor), control=control,
                     b0=b0, t_end=float(t_final))
     pieces: list[StepSamples] = []
@@ -199,7 +205,14 @@ class StochasticExecution:
     transitions: names of the transitions taken (k).
     states: state entering each visit (k + 1), after the reset.
     final_state: numerical state at t_end; t_end: end time (s).
-    status: ``finished`` (t_final reached), ``max_transitions`` or ``non_finite``.
+    max_radius: the widest error ball met (at the switches and along the last visit), state
+        units; 0 means the approximation was deterministic (the method is exact on the fields
+        and no floor was declared).
+    status: ``finished`` (t_final reached), ``max_transitions``, ``non_finite`` (a field or step
+        that is not finite), ``bound_overflow`` (the error bound overflowed: the execution
+        stops at the last time it was finite) or ``stalled`` (a switch fell at the instant of
+        the previous one, in floating point: the ball is too small to keep switches apart, as
+        with a bound at rounding level near a Zeno point); ``message`` says where.
     message: why it stopped, when not finished.
     t0: start time (s).
     """
@@ -213,6 +226,7 @@ class StochasticExecution:
     status: str
     message: str = ""
     t0: float = 0.0
+    max_radius: float = 0.0
 
     @property
     def dwell_times(self) -> np.ndarray:
@@ -339,6 +353,7 @@ def sample_execution(
         raise SimulationError(f"t_final must be a finite number > t0 = {t0}, got {t_final!r}")
     if isinstance(max_transitions, bool) or not isinstance(max_transitions, (int, np.integer)) or max_transitions < 0:
         raise SimulationError(f"max_transitions must be an integer >= 0, got {max_transitions!r}")
+    check_steps(float(t_final) - float(t0), h, "stochastic execution")
     generator = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
     estimator = _make_estimator(method, pair, floor)
     times: list[float] = []
@@ -347,20 +362,32 @@ def sample_execution(
     states = [x.copy()]
     t = float(t0)
     visit = _first or _Visit(ModeFlow(system, mode, x, t, h, estimator, control=control, t_end=float(t_final)), form)
+    widest = 0.0
     while True:
         drawn = _sample_visit(visit, generator)
         if drawn is None:
             flow = visit.flow
             last = flow.points[-1]
             status = "finished" if flow.status == "end" else flow.status
+            widest = max([widest] + [p.radius for p in flow.points])
             return StochasticExecution(np.array(times), modes, names, states, last.x.copy(), last.t, status,
-                                       flow.message, t0=float(t0))
+                                       flow.message, t0=float(t0), max_radius=widest)
         if len(times) >= max_transitions:
             return StochasticExecution(np.array(times), modes, names, states, visit.flow.points[-1].x.copy(), t,
                                        "max_transitions",
                                        f"transition budget max_transitions={max_transitions} used up at t={t:.17g}",
-                                       t0=float(t0))
+                                       t0=float(t0), max_radius=widest)
         tau, j, x_tau, radius = drawn
+        widest = max(widest, radius)
+        if tau <= t:
+            # Def. 4 needs tau_{i+1} > tau_i. A switch at the very instant of the previous one
+            # means the visits have shrunk below the resolution of the time (a ball at rounding
+            # level cannot hold off an accumulation): going on would only repeat it.
+            return StochasticExecution(np.array(times), modes, names, states, x_tau.copy(), t, "stalled",
+                                       f"the switching times stopped advancing at t={t:.17g} after {len(times)} "
+                                       f"switches (a visit shorter than the time resolution; error ball "
+                                       f"{radius:.3g}): the bound is too small to keep the switches apart, "
+                                       f"declare a larger local error floor", t0=float(t0), max_radius=widest)
         tr = visit.flow.transitions[j]
         x_new = np.asarray(x_tau if tr.reset is None else tr.reset(x_tau), dtype=float)
         b0 = radius * reset_lipschitz(tr, x_tau, len(x_new)) if carry else 0.0
@@ -410,6 +437,7 @@ class Ensemble:
                                        "max": int(per_sample.max())},
             "switching_times": switches,
             "min_dwell_time": min_dwell,
+            "max_radius": max((e.max_radius for e in self.executions), default=0.0),
             "statuses": dict(statuses),
         }
 
@@ -431,12 +459,14 @@ def sample_ensemble(
     intensity: str = "hazard",
     max_transitions: int = 1000,
     carry: bool = True,
+    progress: Callable[[int, int], None] | None = None,
 ) -> Ensemble:
     """``samples`` independent stochastic executions (one numpy Generator seeded by ``seed``).
     The first visit's numerical flow is computed once and shared, as every sample starts it
-    from the same state."""
-    if isinstance(samples, bool) or not isinstance(samples, (int, np.integer)) or samples < 1:
-        raise SimulationError(f"samples must be an integer >= 1, got {samples!r}")
+    from the same state. ``samples`` is at most ``MAX_SAMPLES``; ``progress(done, samples)``,
+    when given, is called after each execution."""
+    if isinstance(samples, bool) or not isinstance(samples, (int, np.integer)) or not 1 <= samples <= MAX_SAMPLES:
+        raise SimulationError(f"samples must be an integer in [1, {MAX_SAMPLES}], got {samples!r}")
     x = _check_start(system, mode, x0)
     h = check_step("h", h)
     _check_form(intensity)
@@ -445,17 +475,20 @@ def sample_ensemble(
     rng = np.random.default_rng(seed)
     estimator = _make_estimator(method, pair, floor)
     first = _Visit(ModeFlow(system, mode, x, float(t0), h, estimator, control=control, t_end=float(t_final)), intensity)
-    runs = [sample_execution(system, mode, x, t_final, h, method, rng=rng, t0=t0, pair=pair, control=control,
-                             floor=floor, intensity=intensity, max_transitions=max_transitions, carry=carry,
-                             _first=first)
-            for _ in range(int(samples))]
+    runs = []
+    for k in range(int(samples)):
+        runs.append(sample_execution(system, mode, x, t_final, h, method, rng=rng, t0=t0, pair=pair, control=control,
+                                     floor=floor, intensity=intensity, max_transitions=max_transitions, carry=carry,
+                                     _first=first))
+        if progress is not None:
+            progress(k + 1, int(samples))
     settings = {"system": system.name, "initial_mode": mode, "h": h, "method": estimator.method.name,
                 "pair": estimator.pair.name, "floor": estimator.floor, "intensity": intensity, "carry": carry,
                 "t_final": float(t_final), "seed": seed}
     return Ensemble(runs, settings)
 
 
-__all__: Sequence[str] = ("Ensemble", "INTENSITIES", "StochasticExecution", "TransitionFunctions",
+__all__: Sequence[str] = ("Ensemble", "INTENSITIES", "MAX_SAMPLES", "StochasticExecution", "TransitionFunctions",
                           "ensemble_from_scene", "sample_ensemble", "sample_execution", "scene_settings",
                           "transition_functions")
 
@@ -469,7 +502,7 @@ def section_schema(scene: Any) -> dict[str, Any]:
     integ = scene.integrator
     methods = tuple(sorted(METHODS) + sorted(ALIASES))
     return {
-        "samples": Param(100, "number of sampled executions", low=1),
+        "samples": Param(100, "number of sampled executions", low=1, high=MAX_SAMPLES),
         "seed": Param(0, "seed of the random generator", low=0),
         "h": Param(float(integ["h"]), "fixed step of the numerical solution", "s", low=0.0, low_open=True),
         "method": Param(str(integ["method"]), "Runge-Kutta method of the numerical solution", choices=methods),
@@ -492,20 +525,26 @@ def scene_settings(scene: Any, overrides: dict[str, Any] | None = None) -> dict[
     given.update({k: v for k, v in (overrides or {}).items() if v is not None})
     settings = resolve_parameters(section_schema(scene), given, f"{scene.path}: stochastic")
     t0 = float(scene.integrator.get("t0", 0.0))
+    from .errors import SceneError
     if not settings["t_final"] > t0:
-        from .errors import SceneError
         raise SceneError(f"{scene.path}: stochastic.t_final: must be > t0 = {t0}, got {settings['t_final']}")
+    try:
+        check_steps(settings["t_final"] - t0, settings["h"], "stochastic")
+    except SimulationError as exc:
+        raise SceneError(f"{scene.path}: stochastic.h / stochastic.t_final: {exc}") from None
     return settings
 
 
-def ensemble_from_scene(scene: Any, overrides: dict[str, Any] | None = None) -> Ensemble:
+def ensemble_from_scene(scene: Any, overrides: dict[str, Any] | None = None, *,
+                        progress: Callable[[int, int], None] | None = None) -> Ensemble:
     """Monte Carlo ensemble of the scene's stochastic approximation (its ``[stochastic]``
-    section, with defaults from ``[integrator]``) from the scene's initial mode and state."""
+    section, with defaults from ``[integrator]``) from the scene's initial mode and state;
+    ``progress`` as in ``sample_ensemble``."""
     s = scene_settings(scene, overrides)
     ens = sample_ensemble(scene.model.system, scene.initial_mode, scene.initial_state, s["t_final"], s["h"],
                           s["method"], samples=s["samples"], seed=s["seed"], t0=float(scene.integrator.get("t0", 0.0)),
                           pair=None if s["pair"] == "auto" else s["pair"], control=scene.model.control,
                           floor=s["floor"], intensity=s["intensity"], max_transitions=s["max_transitions"],
-                          carry=s["carry"])
+                          carry=s["carry"], progress=progress)
     ens.settings["scene"] = scene.name
     return ens

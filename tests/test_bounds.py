@@ -175,3 +175,40 @@ def test_linearised_distance_to_a_curved_guard_is_second_order_accurate():
         x = r * np.array([0.6, 0.8])
         assert signed_distance(tr, x) == pytest.approx(rho - r, abs=(rho - r) ** 2 / (2 * r) * 1.01 + 1e-9)
         assert abs(signed_distance(tr, x) - (rho - r)) >= (rho - r) ** 2 / (2 * r) * 0.99 - 1e-9
+
+
+def test_bound_overflow_ends_the_flow_at_its_last_finite_ball():
+    # sigma_max of this stable non-normal matrix is ~1000 1/s: B grows like e^(1000 t) and
+    # overflows near t = 0.7 s. The flow must stop there with finite balls, not go on with
+    # infinite ones (0 * inf = nan in every interpolated radius).
+    A = np.array([[-1.0, 1000.0], [0.0, -1.0]])
+    flow = ModeFlow(linear(A), "m", X0, 0.0, 0.01, LocalErrorEstimator("rk4"), t_end=5.0)
+    n = 0
+    while flow.step_samples(n) is not None:
+        n += 1
+    assert flow.status == "bound_overflow" and "overflowed" in flow.message
+    radii = np.array([p.radius for p in flow.points])
+    assert np.all(np.isfinite(radii)) and radii[-1] > 1e250
+    assert 0.5 < flow.points[-1].t < 1.0  # 709 / 1000 s, give or take the local errors' size
+
+
+def test_extrema_next_to_a_step_end_are_sampled():
+    # The circle of radius 1 touches x1 = 1 at t = pi/2; started so that the tangency falls at
+    # 95% of a step, the closest approach lies in the step's last sub-interval, where no sample
+    # follows it inside the step. The samples must still hold the interpolant's minimum distance.
+    from scipy.optimize import minimize_scalar
+
+    h = 0.1
+    t0 = math.pi / 2 - 15.95 * h
+    x0 = CircularReference(1.0, 1.0).state(np.array([0.0, 1.0]), t0)
+    flow = ModeFlow(circular_flow(), "inside", x0, t0, h, LocalErrorEstimator("rk4"), t_end=t0 + 3.0)
+    smp = flow.step_samples(15)
+    closest = minimize_scalar(lambda s: 1.0 - flow.state(15, s)[0], bounds=(0.9, 1.0), method="bounded",
+                              options={"xatol": 1e-12})
+    assert 0.94 < closest.x < 0.96
+    # At the step's end the distance is ~h^2/800 = 1.25e-5 (the ball is 1.5e-5): without the
+    # minimum among the samples a ball reaching half past the plane would be missed.
+    assert smp.distance[-1, 0] > 1e-5
+    # Both minimisations stop within ~1e-8 of the minimiser in s: ~1e-14 in distance, against
+    # the 1.2e-5 by which the end sample misses it.
+    assert smp.distance[:, 0].min() <= closest.fun + 1e-12

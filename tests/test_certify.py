@@ -130,3 +130,44 @@ def test_a_clock_guard_on_t_is_certified_at_its_exact_time():
     cert = certify(system, "a", [1.0], 2.0, 0.3, "rk4")
     (tr,) = cert.transitions
     assert tr.certified and tr.time == pytest.approx(1.0, abs=1e-12)
+    # The true switch is at the computed time itself: the window is that instant, not (-inf, inf),
+    # and the next mode is entered with the ball of the event, not an infinite one.
+    assert tr.window[0] <= 1.0 <= tr.window[1] and tr.window[1] - tr.window[0] < 1e-12
+    assert cert.certified and len(cert.levels) == 1
+
+
+def test_an_exact_tangency_next_to_a_step_end_is_still_refused_as_grazing():
+    # The grazing circle started so that the tangency falls at 95% of a step: the closest
+    # approach is in the step's last sub-interval. The cone still meets the guard there.
+    h = 0.0125
+    t0 = math.pi / 2 - 15.95 * h
+    x0 = CircularReference(1.0, 1.0).state(np.array([0.0, 1.0]), t0)
+    cert = certify(circular_flow(), "inside", x0, t0 + 3.0, h, "rk4", t0=t0, max_refinements=0)
+    (tr,) = cert.transitions
+    assert (tr.reason, tr.taken, cert.certified) == ("grazing", False, False)
+    assert tr.time == pytest.approx(math.pi / 2, abs=1e-3)
+
+
+def test_a_used_up_transition_budget_leaves_the_certificate_incomplete():
+    ref = TwoTankReference(0.75, 0.5, 0.5)
+    x0 = np.array([1.0, 1.0])
+    cert = certify(two_tanks(), "q1", x0, 10.0, 0.05, "rk4", floor=1.0, max_transitions=3)
+    assert all(tr.certified for tr in cert.transitions) and len(cert.transitions) == 3
+    exact, _ = ref.switching_times("q1", x0, 3)
+    assert [tr.time for tr in cert.transitions] == pytest.approx(list(exact), abs=1e-9)
+    # Three transitions certified up to 6.5 s say nothing about the rest of [0, 10]: not certified.
+    assert not cert.complete and not cert.certified
+    assert "max_transitions = 3" in cert.message and cert.end_time == pytest.approx(6.5, abs=1e-9)
+
+
+def test_refinement_stops_before_a_level_beyond_the_step_limit():
+    from legsim.bounds import MAX_STEPS
+
+    # alpha = 1e6: the first refinement would take 3e7 steps over 3 s; the verdict of the last
+    # level that ran stands (grazing), and the detail says why refining stopped.
+    cert = certify(circular_flow(), "inside", [0.0, 1.0], 3.0, 0.1, "rk4", alpha=1e6, max_refinements=3)
+    (tr,) = cert.transitions
+    assert tr.reason == "grazing" and len(cert.levels) == 1
+    assert "refinement stopped at h = 0.1" in tr.detail and f"{MAX_STEPS:.0e}" in tr.detail
+    with pytest.raises(SimulationError, match="steps, more than the limit"):
+        certify(circular_flow(), "inside", [0.0, 1.0], 3.0, 3.0 / (2 * MAX_STEPS), "rk4")

@@ -3,6 +3,7 @@ against closed forms, exit codes and error messages."""
 
 import json
 import math
+import re
 
 import numpy as np
 import pytest
@@ -86,6 +87,11 @@ def test_stochastic_two_tanks_text_output_and_seed_reproducibility(capsys):
     (("certify", "no_such_scene"), "no_such_scene"),
     (("certify", "grazing", "--set", "certify.alpha=1.0"), "certify.alpha"),
     (("certify", "grazing", "--max-refinements", "-1"), "--max-refinements must be an integer >= 0"),
+    # Absurd sizes are refused up front rather than started (they would run for days).
+    (("stochastic", "grazing", "--samples", "1000000000"), "stochastic.samples: 1000000000 is out of range"),
+    (("stochastic", "grazing", "--set", "stochastic.h=1e-12"), "steps, more than the limit"),
+    (("stochastic", "grazing", "--set", "stochastic.t_final=1e12"), "steps, more than the limit"),
+    (("certify", "grazing", "--set", "certify.h=1e-12"), "certify.h / certify.t_final"),
 ])
 def test_bad_input_exits_2_with_a_message(capsys, argv, message):
     code, out, err = run_cli(capsys, *argv)
@@ -96,3 +102,32 @@ def test_bad_input_exits_2_with_a_message(capsys, argv, message):
 def test_non_integer_samples_is_a_usage_error(capsys):
     code, out, err = run_cli(capsys, "stochastic", "grazing", "--samples", "many")
     assert code == 2 and "invalid int value: 'many'" in err
+
+
+def test_certify_with_a_used_up_transition_budget_exits_3_as_incomplete(capsys):
+    code, out, err = run_cli(capsys, "certify", "two_tanks", "--set", "certify.max_transitions=3")
+    assert code == 3
+    assert sum(line.endswith("   certified") for line in out.splitlines()) == 3
+    assert "all transitions certified" not in out
+    assert "incomplete: stopped after max_transitions = 3" in out
+    assert "legsim: certification incomplete" in err
+
+
+def test_stochastic_reports_stalled_and_overflowing_executions(capsys):
+    # Two tanks without a floor: the ball is rounding noise and the switches pile up at 8 s.
+    code, out, err = run_cli(capsys, "stochastic", "two_tanks", "--samples", "2", "--set", "stochastic.floor=0")
+    assert code == 3 and "statuses: stalled 2" in out
+    assert "stopped advancing at t=8" in err
+    # A circle at omega = 50 rad/s over 20 s: B grows like e^(50 t) and overflows near 14 s
+    # (709 / 50, less the local errors' own size). The execution stops there, with no switch at
+    # a nan time after it.
+    code, out, err = run_cli(capsys, "stochastic", "grazing", "--samples", "1", "--set", "robot.parameters.omega=50",
+                             "--set", "stochastic.h=0.01", "--set", "stochastic.t_final=20", "--json")
+    assert code == 3
+    s = json.loads(out)
+    assert s["statuses"] == {"bound_overflow": 1}
+    t_overflow = float(re.search(r"overflowed at t=([0-9.]+)", err).group(1))
+    # e^(50 t) overflows at 709 / 50 = 14.2 s after the visit's start, less ln(1 / B0) / 50 for
+    # a first local error B0 between 1e-15 and 1 (0.7 .. 0 s), plus the visit's start (< 0.5 s).
+    assert 13.0 < t_overflow < 14.7
+    assert all(sw["max"] < t_overflow for sw in s["switching_times"])

@@ -121,7 +121,7 @@ def test_restarting_the_bound_at_each_switch_lets_the_accumulation_back_in():
 
 def test_bad_input_is_reported_by_name():
     system = circular_flow()
-    with pytest.raises(SimulationError, match="samples must be an integer >= 1"):
+    with pytest.raises(SimulationError, match=r"samples must be an integer in \[1, 1000000\]"):
         sample_ensemble(system, "inside", [0.0, 1.0], 1.0, 0.1, samples=0)
     with pytest.raises(SimulationError, match="intensity must be one of"):
         sample_execution(system, "inside", [0.0, 1.0], 1.0, 0.1, intensity="rate")
@@ -145,3 +145,37 @@ def test_two_tank_reference_samples_match_a_relaxed_run_and_refuse_the_zeno_time
     assert np.allclose(np.array(got.states), np.array(want.states), atol=1e-8)
     with pytest.raises(SimulationError, match="past the Zeno time 8.0"):
         ref.sample([8.5])
+
+
+@pytest.mark.parametrize("phase", [0.02, 0.5, 0.95])
+def test_grazing_probability_does_not_depend_on_where_the_step_grid_meets_the_tangency(phase):
+    # Started so that the tangency at pi/2 falls at this fraction of a step: the largest share
+    # of the ball past the plane is the disc-segment share at the computed trajectory's closest
+    # approach wherever that lies in the step (next to a step's end too).
+    from scipy.optimize import minimize_scalar
+
+    from legsim.bounds import LocalErrorEstimator, ModeFlow
+    from legsim.systems.circular_flow import CircularReference
+
+    t0 = math.pi / 2 - (15 + phase) * H
+    x0 = CircularReference(1.0, 1.0).state(np.array([0.0, 1.0]), t0)
+    tf = transition_functions(circular_flow(), "inside", x0, t0 + 3.0, H, "rk4", t0=t0)
+    # The same numerical flow, to find the interpolant's closest approach in step 15 directly.
+    flow = ModeFlow(circular_flow(), "inside", x0, t0, H, LocalErrorEstimator("rk4"), t_end=t0 + 3.0)
+    flow.point(16)
+    closest = minimize_scalar(lambda s: float(flow.on_step(15, s)[4][0] / flow.on_step(15, s)[2]),
+                              bounds=(0.0, 1.0), method="bounded", options={"xatol": 1e-12})
+    assert abs(closest.x - phase) < 0.01
+    assert tf.switching_probability[-1] == pytest.approx(float(segment_fraction(closest.fun)), abs=1e-6)
+    assert 0.45 < tf.switching_probability[-1] <= 0.5
+
+
+def test_a_bound_at_rounding_level_stops_a_zeno_accumulation_as_stalled():
+    # Without a floor the two tanks' constant flows are integrated exactly: the ball is rounding
+    # noise (~1e-13) and the visits shrink to nothing at the Zeno time 8 s. The execution must
+    # stop there (status stalled) rather than record switches at one and the same instant.
+    e = sample_execution(two_tanks(), "q1", [1.0, 1.0], 9.0, 0.02, "euler", rng=1, floor=0.0, max_transitions=10_000)
+    assert e.status == "stalled" and "stopped advancing" in e.message
+    assert len(e.times) < 200 and np.all(e.dwell_times > 0.0)
+    assert e.times[-1] == pytest.approx(8.0, abs=1e-9)
+    assert 0.0 < e.max_radius < 1e-10

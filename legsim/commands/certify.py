@@ -7,7 +7,9 @@ transition with ``source``, ``target``, ``time``, ``certified`` and ``reason`` (
 grazing, intersecting_guards, zeno, refinement_limit), and more.
 
 Exit codes: 0 when every transition up to t_final is certified; 3 when one is refused (the
-verdicts say why); 2 for errors in the scene or the arguments.
+verdicts say why) or when ``max_transitions`` were certified before t_final (the rest is not
+examined); 2 for errors in the scene or the arguments. Long runs draw a progress bar on a
+terminal's stderr (not with --quiet).
 """
 
 from __future__ import annotations
@@ -31,26 +33,58 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--json", action="store_true", help="print the list of per-transition verdicts as JSON")
     parser.add_argument("--max-refinements", type=int, metavar="R",
                         help="most refinements h := h / alpha (default: certify.max_refinements, else 6)")
+    parser.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
 
 
 def run(args: argparse.Namespace) -> int:
     from ..certify import certify_scene
+    from ..progress import progress_for
     from ..scene import load_scene
 
     if args.max_refinements is not None and args.max_refinements < 0:
         raise LegsimError(f"--max-refinements must be an integer >= 0, got {args.max_refinements}")
     scene = load_scene(args.scene, overrides=args.overrides)
-    cert = certify_scene(scene, {"max_refinements": args.max_refinements})
+    bar = progress_for(sys.stderr, enabled=not args.quiet, label=scene.name)
+    try:
+        cert = certify_scene(scene, {"max_refinements": args.max_refinements},
+                             progress=None if bar is None else _level_progress(bar, scene))
+    finally:
+        if bar is not None:
+            bar.close()
     if args.json:
         print(json.dumps(cert.to_list(), allow_nan=False))
     else:
         print(format_certificate(cert.summary()))
     if not cert.certified:
         refused = [tr for tr in cert.transitions if not tr.certified]
-        print(f"legsim: transition {refused[0].index} ({refused[0].name}) not certified: {refused[0].reason}",
-              file=sys.stderr)
+        if refused:
+            print(f"legsim: transition {refused[0].index} ({refused[0].name}) not certified: {refused[0].reason}",
+                  file=sys.stderr)
+        else:
+            print(f"legsim: certification incomplete: {cert.message}", file=sys.stderr)
         return 3
     return 0
+
+
+def _level_progress(bar, scene):
+    """progress(level, h, t) drawing the bar of the current refinement level, a few times a
+    second once the run has lasted half a second."""
+    import time
+
+    t0 = float(scene.integrator.get("t0", 0.0))
+    t_final = float(scene.sections.get("certify", {}).get("t_final", scene.integrator["t_final"]))
+    started = time.perf_counter()
+    last = [0.0]
+
+    def progress(level: int, h: float, t: float) -> None:
+        now = time.perf_counter()
+        if now - started < 0.5 or now - last[0] < 0.2:
+            return
+        last[0] = now
+        bar.label = f"{scene.name} level {level} (h = {h:.3g})"
+        bar(min(t, t_final), t0, t_final)
+
+    return progress
 
 
 def format_certificate(s: dict[str, Any]) -> str:
@@ -73,6 +107,8 @@ def format_certificate(s: dict[str, Any]) -> str:
     if refused:
         lines.append(f"why: {refused[0]['detail']}")
         lines.append("later transitions are not examined: they would be certified only on an uncertain branch")
+    elif not s.get("complete", True):
+        lines.append(f"incomplete: {s['message']}")
     else:
         lines.append("all transitions certified" if s["transitions"] else "certified")
     return "\n".join(lines)

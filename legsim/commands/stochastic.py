@@ -7,7 +7,9 @@ Prints the distribution of mode sequences and of the first switching times, besi
 deterministic (relaxed) execution's switching times.
 
 Exit codes: 0 when every sampled execution reached t_final; 3 when some stopped early
-(transition budget, non-finite state); 2 for errors in the scene or the arguments.
+(transition budget, non-finite state, overflowing error bound); 2 for errors in the scene or
+the arguments. Long runs show the number of executions done on a terminal's stderr (not with
+--quiet).
 """
 
 from __future__ import annotations
@@ -33,6 +35,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     parser.add_argument("--switches", type=int, default=10, metavar="K",
                         help="summarise the first K switching times (default 10)")
+    parser.add_argument("--quiet", "-q", action="store_true", help="no progress line")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -46,19 +49,67 @@ def run(args: argparse.Namespace) -> int:
     if args.switches < 0:
         raise LegsimError(f"--switches must be >= 0, got {args.switches}")
     scene = load_scene(args.scene, overrides=args.overrides)
-    ensemble = ensemble_from_scene(scene, {"samples": args.samples, "seed": args.seed})
+    counter = _SampleCounter(sys.stderr, scene.name) if not args.quiet and _isatty(sys.stderr) else None
+    try:
+        ensemble = ensemble_from_scene(scene, {"samples": args.samples, "seed": args.seed}, progress=counter)
+    finally:
+        if counter is not None:
+            counter.close()
     summary = ensemble.summary(max_switches=args.switches)
     summary["deterministic"] = _deterministic(scene, args.switches)
     if args.json:
         print(json.dumps(_finite(summary), allow_nan=False))
     else:
         print(format_summary(summary))
+    if summary["max_radius"] == 0.0:
+        print("legsim: note: the error bound is 0 along every execution (the method is exact on these fields and "
+              "no floor is declared): the stochastic approximation is the deterministic system itself (paper 004's "
+              "Theorem 2 needs a non-trivial bound); declare a local error floor, e.g. --set stochastic.floor=1",
+              file=sys.stderr)
     stopped = {k: v for k, v in summary["statuses"].items() if k != "finished"}
     if stopped:
+        example = next(e for e in ensemble.executions if e.status != "finished")
         print(f"legsim: {sum(stopped.values())} of {summary['samples']} sampled executions stopped early: "
-              f"{stopped}", file=sys.stderr)
+              f"{stopped}; e.g. {example.status}: {example.message}", file=sys.stderr)
         return 3
     return 0
+
+
+def _isatty(stream) -> bool:
+    try:
+        return bool(stream.isatty())
+    except (AttributeError, ValueError):
+        return False
+
+
+class _SampleCounter:
+    """``counter(done, total)`` draws ``name  37 / 100 executions  4.2 s`` on one terminal line,
+    a few times a second once the run has lasted half a second; ``close()`` erases it."""
+
+    def __init__(self, stream, label: str) -> None:
+        import time
+
+        self.stream = stream
+        self.label = label
+        self.clock = time.perf_counter
+        self.started = self.clock()
+        self.last = 0.0
+        self.width = 0
+
+    def __call__(self, done: int, total: int) -> None:
+        now = self.clock()
+        if now - self.started < 0.5 or (now - self.last < 0.2 and done < total):
+            return
+        self.last = now
+        text = f"{self.label}  {done} / {total} executions  {now - self.started:.1f} s"
+        self.stream.write("\r" + text + " " * max(0, self.width - len(text)))
+        self.stream.flush()
+        self.width = len(text)
+
+    def close(self) -> None:
+        if self.width:
+            self.stream.write("\r" + " " * self.width + "\r")
+            self.stream.flush()
 
 
 def _deterministic(scene: Any, count: int) -> dict[str, Any]:
