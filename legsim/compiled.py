@@ -11,19 +11,30 @@ with ``p`` a float64 parameter array. Parameters travel as data rather than as c
 constants so that one compilation of the kernel serves every parameter set of a model (numba
 treats closure variables as constants and would compile the kernel again for each).
 
-When the run has no control (compiled twins take none), ``relaxed._Integrator._run_mode``
-hands the step loop to ``run_mode_compiled``: the kernel takes the steps, shortens a step
-that would leave the relaxed domain (halving, or aiming with the step's interpolant), controls
-the local error of embedded pairs, stores the points in the segment buffer, and returns to
-Python only when the buffer is full, for a progress report, at the end of the run, on a
-failure, or when a step lands in a strip. The strip crossing, hold and reset then run in the
-shared Python code (``_step_transition``), so the two paths differ only in speed.
+and optionally ``resets(x, p, e) -> x'`` (the reset of outgoing transition e).
+
+When the run has no control (compiled twins take none) and no guard depends on (t, u),
+``relaxed._Integrator._run_mode`` hands the step loop to ``run_mode_compiled``: the kernel
+takes the steps, shortens a step that would leave the relaxed domain (halving, or aiming with
+the step's interpolant), controls the local error of embedded pairs, stores the points in the
+segment buffer, and locates the strip point of a step that lands in a strip (the same root
+search as ``relaxed.crossing_on_step``). When the twin has resets and every outgoing transition
+returns to the same mode (impacts, bounces), the kernel also holds, resets and re-enters, so a
+run with thousands of transitions (chattering, Zeno) stays compiled and Python only turns the
+recorded transitions into ``Execution`` pieces in batches. Everything else (transitions to
+other modes, the budget, a run ending in a strip, non-finite reset images, a reset image inside
+a strip) goes through the shared Python code (``_transition``, ``_run_mode``).
 
 The kernel does the same floating-point operations in the same order as the Python stepper
-(stage combinations grouped as ``methods.make_stepper`` groups them, the same Hermite
-interpolant and root search), so both paths give the same execution to rounding.
-Difference: a kernel evaluates all guards of a mode at once, and counts ``n_guards`` guard
-evaluations per call where the Python aiming counts one per guard it calls.
+(stage combinations grouped as ``methods.make_stepper`` groups them, unrolled per built-in
+method, the same Hermite interpolant, root search and error norm), so both paths give the same
+execution, in practice to the bit (tests/test_compiled.py). Difference: a kernel evaluates all
+guards of a mode at once, and counts ``n_guards`` guard evaluations per call where the Python
+loop counts one per guard it calls (the same count for one guard).
+
+The kernel's source is the ``_k_*`` functions below, plain Python; ``get_kernel`` writes, per
+pair of module-level twin functions, a module that imports them as globals into
+``cache_dir()``, and numba caches its machine code there (first use ~5 s, then milliseconds).
 """
 
 from __future__ import annotations
