@@ -456,6 +456,8 @@ class _Integrator:
                             gvals = [float(g(t_trial, x_new)) for g in guards]
                             guard_evals += n_guards
                             gmin = min(gvals)
+                            if gmin == gmin and math.isnan(sum(gvals)):
+                                gmin = math.nan  # min() keeps a nan only when it comes first
                         else:
                             gmin = 0.0
                         if gmin >= -eps:

@@ -57,3 +57,15 @@ def test_a_model_breakdown_ends_the_run_with_its_message_and_keeps_the_execution
     # Everything up to the last good step is kept: x = t there.
     assert 0.49 <= ex.t_end <= 0.5 + 1e-12
     assert ex.final_state[0] == pytest.approx(ex.t_end, abs=1e-12)
+
+
+def test_a_nan_guard_after_the_first_ends_the_run_non_finite():
+    # min([1.0, nan]) is 1.0 in Python: the second guard's nan must still be caught and named.
+    system = HybridSystem(
+        {"a": Mode(1, lambda t, x, u: np.ones(1))},
+        [Transition("a", "a", guard=lambda x: 1.0, name="fine"),
+         Transition("a", "a", guard=lambda x: math.nan if x[0] > 0.5 else 1.0, name="broken")])
+    ex = simulate(system, [0.0], "a", 2.0, 0.1, 1e-3)
+    assert ex.status == "non_finite"
+    assert "guard of transition broken is nan" in ex.message
+    assert ex.t_end <= 0.5 + 1e-12
