@@ -103,7 +103,8 @@ from .relaxed import simulate
 
 __all__ = [
     "OrbitError", "Section", "OrbitProblem", "Return", "ReturnMap", "OrbitResult", "Family", "FamilyPoint",
-    "StabilityChange", "OrbitSettings", "problem_from_scene", "default_fd_step", "find_orbit", "return_map", "jacobian_fd", "jacobian_saltation", "saltation_matrix",
+    "StabilityChange", "OrbitSettings", "problem_from_scene", "default_fd_step", "find_orbit", "return_map",
+    "jacobian_fd", "jacobian_saltation", "saltation_matrix", "MAX_STEPS_PER_RETURN", "MAX_FD_STEP",
     "reset_on_guard_jacobian",
     "floquet_multipliers", "continue_family", "STATUSES",
 ]
@@ -114,14 +115,25 @@ STATUSES = ("converged", "no_return", "simulation_failed", "singular_jacobian", 
 
 _CBRT_EPS = np.finfo(float).eps ** (1.0 / 3.0)  # optimal relative step of a central difference
 
+#: Most steps of size h over t_max that one return may take (``legsim.simulate`` makes about
+#: 2e4 RK4 steps per second on the robots, so this is minutes per simulation): more is a typo
+#: in h or t_max, not a computation to start.
+MAX_STEPS_PER_RETURN = 10_000_000
+#: Largest relative finite-difference step: beyond it a difference is no derivative at all
+#: (the default is 1e-6, see ``default_fd_step``).
+MAX_FD_STEP = 0.1
+
 
 class OrbitError(LegsimError, ValueError):
     """An orbit computation failed or was set up wrongly; the message says why (no return within
-    the time limit, a failed simulation, a singular Jacobian, divergence, bad problem)."""
+    the time limit, a failed simulation, a singular Jacobian, divergence, bad problem).
+    ``key`` names the problem setting at fault, when there is one (e.g. ``"cyclic"``), so that a
+    scene's error can name its ``[orbit]`` key."""
 
-    def __init__(self, message: str, status: str = "invalid") -> None:
+    def __init__(self, message: str, status: str = "invalid", key: str | None = None) -> None:
         super().__init__(message)
         self.status = status
+        self.key = key
 
 
 # --------------------------------------------------------------------------------------------
@@ -294,6 +306,8 @@ class OrbitProblem:
     trivial_multipliers: how many multipliers are 1 because of conserved quantities; they are
         left out of the stability verdict (the ones closest to 1).
     rtol, atol: passed to ``simulate`` for error-controlled steps (embedded methods only).
+    progress: optional ``progress(t, t0, t_final)`` passed to every ``simulate`` (a progress
+        bar for long returns).
     """
 
     system: SystemLike
@@ -317,25 +331,31 @@ class OrbitProblem:
     trivial_multipliers: int = 0
     rtol: float | None = None
     atol: float | None = None
+    progress: Callable[[float, float, float], None] | None = field(default=None, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         for name in ("h", "eps", "t_max"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
-                raise OrbitError(f"orbit problem: {name} must be a finite number > 0, got {value!r}")
+                raise OrbitError(f"orbit problem: {name} must be a finite number > 0, got {value!r}", key=name)
+        if self.rtol is None and self.atol is None and self.t_max / self.h > MAX_STEPS_PER_RETURN:
+            raise OrbitError(f"orbit problem: t_max / h = {self.t_max:g} s / {self.h:g} s = {self.t_max / self.h:.3g} "
+                             f"steps per return, more than the limit {MAX_STEPS_PER_RETURN:.0e}: raise h or lower "
+                             f"t_max", key="t_max")
         self.tableau = get_method(self.method)
         if not isinstance(self.section, Section):
             raise OrbitError(f"orbit problem: section must be a Section, got {type(self.section).__name__}")
         for name in ("returns", "max_transitions"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-                raise OrbitError(f"orbit problem: {name} must be an integer >= 1, got {value!r}")
+                raise OrbitError(f"orbit problem: {name} must be an integer >= 1, got {value!r}", key=name)
         if isinstance(self.min_transitions, bool) or not isinstance(self.min_transitions, int) \
                 or self.min_transitions < 0:
-            raise OrbitError(f"orbit problem: min_transitions must be an integer >= 0, got {self.min_transitions!r}")
+            raise OrbitError(f"orbit problem: min_transitions must be an integer >= 0, got {self.min_transitions!r}",
+                             key="min_transitions")
         if self.section.kind == "crossing" and self.min_transitions == 0 and self.min_time <= 0:
             raise OrbitError("orbit problem: a crossing section with min_transitions = 0 needs min_time > 0, "
-                             "or the start itself would count as the return")
+                             "or the start itself would count as the return", key="min_transitions")
         self.parameters = {str(k): float(v) for k, v in dict(self.parameters).items()}
         self.free = tuple(self.free)
         self.fixed = tuple(self.fixed)
@@ -352,7 +372,7 @@ class OrbitProblem:
         missing = [p for p in self.free if p not in self.parameters]
         if missing:
             raise OrbitError(f"orbit problem: free parameter(s) {missing} need initial values in parameters "
-                             f"(given: {sorted(self.parameters)})")
+                             f"(given: {sorted(self.parameters)})", key="free")
         if self.free and not self.is_factory:
             raise OrbitError("orbit problem: free parameters need a system factory system(parameters) -> "
                              "HybridSystem, not a fixed HybridSystem")
@@ -364,7 +384,7 @@ class OrbitProblem:
             unknown = [c for c in group if c not in names]
             if unknown:
                 raise OrbitError(f"orbit problem: {label} coordinate(s) {unknown} are not coordinates of mode "
-                                 f"'{self.bound.mode}' {list(names)}")
+                                 f"'{self.bound.mode}' {list(names)}", key=label)
         self.names = names
         self.dim = len(names)
         self.cyclic_idx = [names.index(c) for c in self.cyclic]
@@ -378,12 +398,22 @@ class OrbitProblem:
                                            else 0) + len(self.constraints) + (self.energy is not None)
         n_unknowns = len(self.unknown_idx) + len(self.free)
         if n_unknowns == 0:
-            raise OrbitError("orbit problem: nothing to solve for: every coordinate is fixed and no parameter is free")
+            raise OrbitError("orbit problem: nothing to solve for: every coordinate is fixed and no parameter is free",
+                             key="fixed")
         if n_rows < n_unknowns:
             raise OrbitError(f"orbit problem: {n_unknowns} unknowns ({self.unknown_names}) but only {n_rows} "
-                             f"equations: fix coordinates or drop free parameters")
+                             f"equations: fix coordinates or drop free parameters", key="free")
         if self.energy is not None and system.energy is None:
-            raise OrbitError(f"orbit problem: an energy level is asked for but {system.name} defines no energy")
+            raise OrbitError(f"orbit problem: an energy level is asked for but {system.name} defines no energy",
+                             key="energy")
+        # Multipliers live on the section without the cyclic coordinates: n - 1 - #cyclic of them.
+        n_multipliers = self.dim - 1 - len(self.cyclic_idx)
+        trivial = self.trivial_multipliers
+        if isinstance(trivial, bool) or not isinstance(trivial, int) or trivial < 0 \
+                or (trivial > 0 and trivial >= n_multipliers):
+            raise OrbitError(f"orbit problem: trivial_multipliers = {trivial!r} must be an integer >= 0 that leaves "
+                             f"at least one of the section's {n_multipliers} multiplier(s) to judge stability by",
+                             key="trivial_multipliers")
         for item in self.constraints:
             if not (isinstance(item, tuple) and len(item) == 2 and callable(item[1])):
                 raise OrbitError(f"orbit problem: constraints must be (name, c(x, parameters)) pairs, got {item!r}")
@@ -518,7 +548,7 @@ class ReturnMap:
             self.evaluations += 1
             try:
                 ex = simulate(system, x, p.bound.mode, horizon, p.h, p.eps, p.tableau, control,
-                              max_transitions=p.max_transitions, rtol=p.rtol, atol=p.atol)
+                              max_transitions=p.max_transitions, rtol=p.rtol, atol=p.atol, progress=p.progress)
             except LegsimError as exc:
                 raise OrbitError(f"return map: the simulation from {self._show(x)} over {horizon:g} s failed before "
                                  f"returning to the section {p.section.label}: {exc}", "simulation_failed") from exc
@@ -837,6 +867,12 @@ def _difference(fn: Callable[[float], np.ndarray], d: float, base: Callable[[], 
     return (base() - minus) / d
 
 
+def _check_fd_step(step: Any) -> float:
+    if isinstance(step, bool) or not isinstance(step, (int, float)) or not 0.0 < step <= MAX_FD_STEP:
+        raise OrbitError(f"fd_step must be a relative step in (0, {MAX_FD_STEP:g}], got {step!r}", key="fd_step")
+    return float(step)
+
+
 def default_fd_step(problem: OrbitProblem) -> float:
     """Relative finite-difference step of the return map: 1e-6 for fixed steps, the cube root
     of the tolerance with error-controlled steps (module docstring)."""
@@ -852,7 +888,7 @@ def jacobian_fd(problem: OrbitProblem, x: np.ndarray, parameters: Mapping[str, f
     relative step, default ``default_fd_step`` (module docstring); ``columns``: only these columns (the others
     are left 0)."""
     rmap = rmap or ReturnMap(problem)
-    step = default_fd_step(problem) if step is None else float(step)
+    step = default_fd_step(problem) if step is None else _check_fd_step(step)
     n = problem.dim
     J = np.zeros((n, n))
     cols = range(n) if columns is None else columns
@@ -1115,7 +1151,7 @@ def find_orbit(problem: OrbitProblem, guess: Mapping[str, float] | Sequence[floa
         is <= tol.
     max_iterations: Newton iterations allowed.
     jacobian: ``"saltation"`` or ``"fd"`` (module docstring).
-    fd_step: relative finite-difference step (default ``default_fd_step(problem)``).
+    fd_step: relative finite-difference step in (0, 0.1] (default ``default_fd_step(problem)``).
     singular_tol: the Jacobian counts as singular when its smallest singular value is below
         singular_tol times its largest.
     max_backtracks: step halvings tried when a full Newton step does not reduce the residual.
@@ -1131,6 +1167,8 @@ def find_orbit(problem: OrbitProblem, guess: Mapping[str, float] | Sequence[floa
         raise OrbitError(f"tol must be a number > 0, got {tol!r}")
     if isinstance(max_iterations, bool) or not isinstance(max_iterations, int) or max_iterations < 0:
         raise OrbitError(f"max_iterations must be an integer >= 0, got {max_iterations!r}")
+    if fd_step is not None:
+        fd_step = _check_fd_step(fd_step)
     x0 = problem.state_vector(guess)
     rmap = ReturnMap(problem)
     eq = _Equations(problem, x0, rmap)
@@ -1433,7 +1471,7 @@ ORBIT_KEYS = {
     "tol": "convergence tolerance on the orbit equations (state units), default 1e-9",
     "max_iterations": "Newton iterations, default 30",
     "jacobian": "'saltation' (default) or 'fd'",
-    "fd_step": "relative finite-difference step, default 1e-6 (see legsim.orbits)",
+    "fd_step": "relative finite-difference step in (0, 0.1], default 1e-6 (see legsim.orbits)",
     "singular_tol": "relative singular value below which the Jacobian is singular, default 1e-9",
     "t_max": "time limit of one return (s), default the scene's integrator.t_final",
     "returns": "returns per period (2 for a period-two orbit), default 1",
@@ -1460,30 +1498,34 @@ def _scene_fail(scene, key: str, message: str) -> LegsimError:
     return SceneError(f"{scene.path}: orbit.{key}: {message}")
 
 
-def _parameter_setter(scene, name: str):
-    """(get, set) of a real-valued robot parameter ``name`` or effect parameter ``EFFECT.PARAM``."""
+def _parameter_setter(scene, name: str, label: str = "orbit.free"):
+    """(spec, value) of a real-valued robot parameter ``name`` or effect parameter
+    ``EFFECT.PARAM``; errors name ``label`` (the [orbit] key, or the continued parameter)."""
+    from .errors import SceneError
+
+    def fail(message: str) -> LegsimError:
+        return SceneError(f"{scene.path}: {label}: {message}")
+
     builder = scene.builder
     if "." in name:
         effect, param = name.split(".", 1)
         if effect not in builder.effects:
-            raise _scene_fail(scene, "free", f"unknown effect '{effect}' in '{name}'; effects: {sorted(builder.effects)}")
+            raise fail(f"unknown effect '{effect}' in '{name}'; effects: {sorted(builder.effects)}")
         if effect not in scene.effects:
-            raise _scene_fail(scene, "free", f"effect '{effect}' is switched off in this scene")
+            raise fail(f"effect '{effect}' is switched off in this scene")
         schema = builder.effects[effect].parameters
         if param not in schema:
-            raise _scene_fail(scene, "free", f"effect '{effect}' has no parameter '{param}'; parameters: "
-                                             f"{sorted(schema)}")
+            raise fail(f"effect '{effect}' has no parameter '{param}'; parameters: {sorted(schema)}")
         spec = schema[param]
         value = scene.effects[effect][param]
     else:
         if name not in builder.parameters:
-            raise _scene_fail(scene, "free", f"robot '{scene.robot}' has no parameter '{name}'; parameters: "
-                                             f"{sorted(builder.parameters)}")
+            raise fail(f"robot '{scene.robot}' has no parameter '{name}'; parameters: {sorted(builder.parameters)}")
         spec = builder.parameters[name]
         value = scene.parameters[name]
     if type(spec.default) is not float:
-        raise _scene_fail(scene, "free", f"parameter '{name}' is {type(spec.default).__name__}-valued; only real "
-                                         f"parameters can be solved for or continued")
+        raise fail(f"parameter '{name}' is {type(spec.default).__name__}-valued; only real parameters can be "
+                   f"solved for or continued")
     return spec, float(value)
 
 
@@ -1545,7 +1587,7 @@ def problem_from_scene(scene: Any, *, extra_parameters: Sequence[str] = ()) -> O
     params: dict[str, float] = {}
     specs = {}
     for name in tuple(free) + tuple(extra_parameters):
-        spec, value = _parameter_setter(scene, name)
+        spec, value = _parameter_setter(scene, name, "orbit.free" if name in free else "continued parameter")
         specs[name] = spec
         params[name] = value
     base_params = dict(scene.parameters)
@@ -1579,7 +1621,10 @@ def problem_from_scene(scene: Any, *, extra_parameters: Sequence[str] = ()) -> O
             min_time=number("min_time", 0.0, low=0.0), max_transitions=number("max_transitions", 10_000, int, 1),
             trivial_multipliers=number("trivial_multipliers", 0, int, 0))
     except OrbitError as exc:
-        raise _scene_fail(scene, "section", str(exc)) from None
+        if exc.key in ("h", "eps"):  # they come from [integrator]
+            from .errors import SceneError
+            raise SceneError(f"{scene.path}: integrator.{exc.key}: {exc}") from None
+        raise _scene_fail(scene, exc.key or "section", str(exc)) from None
     if problem.bound.mode != scene.initial_mode:
         raise _scene_fail(scene, "section", f"the section lies in mode '{problem.bound.mode}' but the scene starts "
                                             f"in '{scene.initial_mode}': set [initial] mode = \"{problem.bound.mode}\"")
@@ -1598,4 +1643,6 @@ def problem_from_scene(scene: Any, *, extra_parameters: Sequence[str] = ()) -> O
               "singular_tol": number("singular_tol", 1e-9, low=0.0)}
     if solver["tol"] == 0:
         raise _scene_fail(scene, "tol", "must be > 0")
+    if solver["fd_step"] is not None and not 0.0 < solver["fd_step"] <= MAX_FD_STEP:
+        raise _scene_fail(scene, "fd_step", f"must be a relative step in (0, {MAX_FD_STEP:g}], got {solver['fd_step']!r}")
     return OrbitSettings(problem, problem.state_vector(x0), solver, scene)

@@ -320,12 +320,25 @@ def test_divergence_when_there_is_no_orbit():
     ({"free": ["kick"]}, r"free parameter\(s\) \['kick'\] need initial values"),
     ({"fixed": ["x", "v"]}, "nothing to solve for"),
     ({"min_transitions": 0}, "needs min_time > 0"),
+    # The oscillator's section has 2 - 1 = 1 multiplier: leaving it out leaves no verdict.
+    ({"trivial_multipliers": 1}, "leaves at least one of the section's 1 multiplier"),
+    ({"h": 1e-9, "t_max": 100.0}, r"1e\+11 steps per return, more than the limit 1e\+07"),
 ])
 def test_bad_problems_are_rejected_with_messages(kwargs, message):
     base = dict(system=impact_oscillator(), section=Section.level("free", "v", 0.0, -1), h=1e-2, eps=1e-4)
     base.update(kwargs)
     with pytest.raises(OrbitError, match=message):
         OrbitProblem(**base)
+
+
+@pytest.mark.parametrize("step", [0.0, -1e-6, 0.5, float("nan")])
+def test_finite_difference_steps_outside_zero_to_a_tenth_are_rejected(step):
+    # fd_step = 0 divided by zero (an internal SVD error); 10 gave a converged orbit with a
+    # multiplier off by a factor 4 (a chord across the whole map, no derivative).
+    prob = OrbitProblem(impact_oscillator(), Section.after("impact"), h=1e-2, eps=1e-4)
+    with pytest.raises(OrbitError, match=r"fd_step must be a relative step in \(0, 0.1\]") as info:
+        find_orbit(prob, [0.0, 1.0], jacobian="fd", fd_step=step)
+    assert info.value.key == "fd_step"
 
 
 def test_bad_sections_are_rejected_with_messages():

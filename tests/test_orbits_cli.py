@@ -4,6 +4,7 @@ stability changes and plots, exit codes and error messages."""
 import json
 import math
 
+import numpy as np
 import pytest
 
 from legsim.cli import main
@@ -78,6 +79,15 @@ def test_continuation_locates_the_compass_gait_period_doubling(capsys):
     # At the located slope the leading multiplier is real and at -1 (to the bracket's width).
     re, im = change["multiplier"]
     assert im == 0.0 and abs(re + 1.0) < 0.02
+    # The independent point-mass computation of test_orbits_walkers (scipy DOP853, no Pinocchio,
+    # no legsim) has its multiplier cross -1 inside the same bracket.
+    from test_orbits_walkers import STANDARD, PointMassCompassGait
+
+    def leading(slope):
+        mu = PointMassCompassGait(**dict(STANDARD, slope=slope)).gait(guess=(-0.3, 1.14, 0.22))["multipliers"]
+        return float(np.min(mu.real))
+
+    assert leading(lo) > -1.0 > leading(hi)
 
 
 def test_continuation_text_table_and_change_report(capsys):
@@ -117,6 +127,25 @@ def test_no_orbit_exits_3_with_the_reason(capsys):
     (["orbit", "slip_orbit", "--continue", "damping.b", "0", "1"], "effect 'damping' is switched off in this scene"),
     (["orbit", "rimless_wheel", "--continue", "slope", "3", "4", "--plot", "out.txt"],
      "the file must end in .png, .pdf or .svg"),
+    # Checked before any orbit is searched for (each of these used to fail, or run for days,
+    # after the family was computed).
+    (["orbit", "rimless_wheel", "--continue", "slope", "3", "4", "--plot", "/proc/no/such/folder/f.png"],
+     "cannot create the folder /proc/no/such/folder"),
+    (["orbit", "rimless_wheel", "--continue", "slope", "5", "1e300"],
+     "--continue TO = 1e+300: orbit problem: no system for parameters"),
+    (["orbit", "rimless_wheel", "--continue", "slope", "3", "4", "--steps", "1000000000"], "--steps must be in [1, 10000]"),
+    (["orbit", "rimless_wheel", "--continue", "slope", "3", "4", "--locate", "-1"], "--locate must be in [0, 50]"),
+    (["orbit", "rimless_wheel", "--continue", "nonsense", "3", "4"], "continued parameter: robot 'rimless_wheel' has no"),
+    # Absurd [orbit] values, named by their key.
+    (["orbit", "rimless_wheel", "--set", "orbit.fd_step=0", "--set", "orbit.jacobian=\"fd\""],
+     "orbit.fd_step: must be a relative step in (0, 0.1]"),
+    (["orbit", "rimless_wheel", "--set", "orbit.fd_step=10"], "orbit.fd_step: must be a relative step in (0, 0.1]"),
+    (["orbit", "rimless_wheel", "--set", "orbit.trivial_multipliers=1"],
+     "orbit.trivial_multipliers: orbit problem: trivial_multipliers = 1 must be"),
+    (["orbit", "rimless_wheel", "--set", "orbit.cyclic=[\"nope\"]"], "orbit.cyclic: orbit problem: cyclic coordinate(s)"),
+    (["orbit", "rimless_wheel", "--set", "orbit.free=[\"slope\"]"], "orbit.free: orbit problem: 3 unknowns"),
+    (["orbit", "rimless_wheel", "--set", "integrator.h=1e-9", "--set", "integrator.max_steps=100000000000"],
+     "orbit.t_max: orbit problem: t_max / h = 3 s / 1e-09 s = 3e+09 steps per return, more than the limit"),
 ])
 def test_bad_requests_exit_2_with_a_message(capsys, argv, message):
     code, out, err = run_cli(capsys, *argv)

@@ -8,7 +8,8 @@ with the stability changes and, with ``--plot FILE``, draws it.
 
 Exit codes: 0 when the orbit (every orbit of the family) was found; 3 when the search stopped
 without an orbit (the message says why: no return, singular Jacobian, divergence, ...); 2 for
-errors in the scene or the arguments.
+errors in the scene or the arguments. Long simulations draw a progress bar on a terminal's
+stderr (not with --quiet).
 """
 
 from __future__ import annotations
@@ -22,6 +23,11 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import LegsimError
+
+#: Most parameter steps of ``--continue`` (one orbit search each) and bisections of ``--locate``
+#: (beyond ~50 the parameter interval is below double precision).
+MAX_CONTINUATION_STEPS = 10_000
+MAX_LOCATE = 50
 
 NAME = "orbit"
 HELP = "find a periodic orbit (gait) of a scene from its [orbit] section, or follow a family (--continue)"
@@ -40,19 +46,39 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="with --continue: narrow each stability change by K bisections of the parameter "
                              "(default 8; 0 interpolates between the family's orbits)")
     parser.add_argument("--plot", metavar="FILE", help="with --continue: plot the family (png, pdf, svg)")
-    parser.add_argument("--quiet", "-q", action="store_true", help="print nothing but errors")
+    parser.add_argument("--quiet", "-q", action="store_true", help="print nothing but errors; no progress bar")
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..orbits import continue_family, find_orbit, problem_from_scene
+    from ..progress import progress_for
     from ..scene import load_scene
 
     if args.plot and not args.continuation:
         raise LegsimError("--plot draws a family: use it with --continue PARAM FROM TO")
+    if args.continuation:
+        if not 1 <= args.steps <= MAX_CONTINUATION_STEPS:
+            raise LegsimError(f"--steps must be in [1, {MAX_CONTINUATION_STEPS}], got {args.steps}")
+        if not 0 <= args.locate <= MAX_LOCATE:
+            raise LegsimError(f"--locate must be in [0, {MAX_LOCATE}], got {args.locate}")
     scene = load_scene(args.scene, overrides=args.overrides)
+    plot_path = _check_plot_path(args.plot) if args.plot else None
+    bar = progress_for(sys.stderr, enabled=not args.quiet, label=scene.name)
+    try:
+        return _run(args, scene, plot_path, bar)
+    finally:
+        if bar is not None:
+            bar.close()
+
+
+def _run(args: argparse.Namespace, scene, plot_path: Path | None, bar) -> int:
+    from ..orbits import continue_family, find_orbit, problem_from_scene
+
     if not args.continuation:
         settings = problem_from_scene(scene)
+        settings.problem.progress = bar
         result = find_orbit(settings.problem, settings.guess, **settings.solver)
+        if bar is not None:
+            bar.close()
         payload = result.to_json()
         payload["scene"] = scene.name
         if args.json:
@@ -66,14 +92,20 @@ def run(args: argparse.Namespace) -> int:
 
     param, start_text, stop_text = args.continuation
     start, stop = _number("--continue FROM", start_text), _number("--continue TO", stop_text)
-    if args.steps < 1:
-        raise LegsimError(f"--steps must be >= 1, got {args.steps}")
     if start == stop:
         raise LegsimError("--continue needs FROM != TO")
     settings = problem_from_scene(scene, extra_parameters=[param])
-    plot_path = _check_plot_path(args.plot) if args.plot else None
+    for label, value in (("FROM", start), ("TO", stop)):
+        # Both ends must be valid values of the parameter before any orbit is searched for.
+        try:
+            settings.problem.instantiate({param: value})
+        except LegsimError as exc:
+            raise LegsimError(f"--continue {label} = {value:g}: {exc}") from None
+    settings.problem.progress = bar
 
     def progress(point) -> None:
+        if bar is not None:
+            bar.close()
         if not (args.json or args.quiet):
             print(format_row(param, point.value, point.result.to_json(), widths), flush=True)
 
@@ -82,10 +114,10 @@ def run(args: argparse.Namespace) -> int:
         header, widths = format_header(param, settings.problem)
         print(f"{scene.name}: family of orbits over {param} from {start:g} to {stop:g} ({args.steps} steps)")
         print(header)
-    if args.locate < 0:
-        raise LegsimError(f"--locate must be >= 0, got {args.locate}")
     family = continue_family(settings.problem, param, start, stop, args.steps, settings.guess, progress=progress,
                              locate=args.locate, **settings.solver)
+    if bar is not None:
+        bar.close()
     payload = family.to_json()
     payload["scene"] = scene.name
     if plot_path is not None and family.points:
@@ -118,11 +150,19 @@ def _number(label: str, text: str) -> float:
 
 
 def _check_plot_path(path_text: str) -> Path:
+    """The plot's path, checked before any orbit is computed: its suffix, and a folder that
+    exists (or can be made) and can be written to."""
     path = Path(path_text)
     if path.suffix.lower().lstrip(".") not in ("png", "pdf", "svg"):
         raise LegsimError(f"--plot {path}: the file must end in .png, .pdf or .svg")
     if path.is_dir():
         raise LegsimError(f"--plot {path}: is a directory")
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise LegsimError(f"--plot {path}: cannot create the folder {path.parent}: {exc.strerror or exc}") from None
+    if not os.access(path.parent, os.W_OK):
+        raise LegsimError(f"--plot {path}: the folder {path.parent} is not writable")
     return path
 
 
