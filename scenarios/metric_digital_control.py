@@ -79,6 +79,10 @@ def plot(result: dict[str, np.ndarray], path: Path) -> Path:
     os.close(fd)
     try:
         fig.savefig(tmp, dpi=120)
+        # mkstemp makes the file private (0600); the figure gets the usual permissions.
+        mask = os.umask(0)
+        os.umask(mask)
+        os.chmod(tmp, 0o666 & ~mask)
         os.replace(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
@@ -131,8 +135,16 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--oscillator", action="store_true",
                         help="also print rho^eps against eps and h for the oscillator of Table I")
     args = parser.parse_args(argv)
-    if args.deltas < 2:
-        parser.error("--deltas must be at least 2 (a slope needs two points)")
+    if not 2 <= args.deltas <= 50:
+        parser.error("--deltas must be between 2 (a slope needs two points) and 50")
+    out = Path(args.out)
+    # Check the output folder before the sweep (seconds of work), not after it.
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        parser.error(f"--out {out}: cannot create the folder: {exc.strerror or exc}")
+    if not os.access(out, os.W_OK):
+        parser.error(f"--out {out}: the folder is not writable")
     result = sweep(np.logspace(-1, -4, args.deltas))
     print(f"{'delta':>10} {'rho':>12} {'rho window':>12} {'rho^eps':>12} {'trajectory':>11}")
     for i, delta in enumerate(result["delta"]):
@@ -142,7 +154,7 @@ def main(argv: list[str] | None = None) -> int:
     print(f"slope of log rho vs log delta: {np.polyfit(log_d, np.log(result['rho']), 1)[0]:.4f}; "
           f"in the mismatch window: {np.polyfit(log_d, np.log(result['rho_window']), 1)[0]:.4f}")
     print(f"min trajectory-space distance: {result['trajectory'].min():.6f}")
-    path = plot(result, Path(args.out) / "metric_digital_control.png")
+    path = plot(result, out / "metric_digital_control.png")
     print(f"wrote {path}")
     if args.oscillator:
         oscillator_table()

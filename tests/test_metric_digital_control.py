@@ -90,3 +90,32 @@ def test_relaxed_simulations_of_y_and_z_are_close_in_rho_eps():
         values.append(rho(system, y, z, times, eps))
         assert trajectory_space_distance(y, z, times) >= 1.0
     np.testing.assert_allclose(values, math.sqrt(2) * np.array([1e-1, 3e-2, 1e-2]), atol=4 * eps)
+
+
+def test_scenario_script_prints_the_table_and_writes_the_figure(tmp_path, capsys):
+    # scenarios/metric_digital_control.py: the table's rho column is the closed form sqrt(2)
+    # delta, the trajectory-space column stays above 1, and the figure is a readable PNG; a
+    # folder that cannot be made is refused before the sweep.
+    import importlib.util
+    import os
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "scenarios" / "metric_digital_control.py"
+    spec = importlib.util.spec_from_file_location("metric_digital_control", path)
+    script = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(script)
+    assert script.main(["--out", str(tmp_path), "--deltas", "2"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    rows = [[float(v) for v in line.split()] for line in lines[1:3]]
+    for delta, rho_exact, _, rho_eps, trajectory in rows:
+        assert rho_exact == pytest.approx(math.sqrt(2) * delta, rel=1e-4)  # printed to 5 digits
+        assert abs(rho_eps - rho_exact) <= 4e-4 and trajectory >= 1.0  # 4 eps, as above
+    figure = tmp_path / "metric_digital_control.png"
+    assert figure.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    mask = os.umask(0)
+    os.umask(mask)
+    assert os.stat(figure).st_mode & 0o777 == 0o666 & ~mask  # like any file the user writes (not 0600)
+    assert [f.name for f in tmp_path.iterdir()] == [figure.name]
+    with pytest.raises(SystemExit):
+        script.main(["--out", "/proc/no/such/folder", "--deltas", "2"])
+    assert "cannot create the folder" in capsys.readouterr().err
