@@ -1211,11 +1211,18 @@ def find_orbit(problem: OrbitProblem, guess: Mapping[str, float] | Sequence[floa
             names = problem.unknown_names
             lead = ", ".join(f"{names[i]} ({null[i]:+.2f})" for i in np.argsort(-np.abs(null))[:3]
                              if abs(null[i]) > 0.1)
-            return fail("singular_jacobian",
-                        f"iteration {it + 1}: the Jacobian of the orbit equations is singular (singular values "
-                        f"{sv[0]:.3g} .. {sv[-1]:.3g}): the orbit is not isolated along {lead}; a conserved "
-                        f"quantity or symmetry leaves a family of orbits: fix one of these coordinates or add a "
-                        f"constraint (e.g. energy)", z, res, it, ret)
+            head = (f"iteration {it + 1}: the Jacobian of the orbit equations is singular (singular values "
+                    f"{sv[0]:.3g} .. {sv[-1]:.3g}, residual {res:.3g})")
+            if res <= max(1e3 * tol, 1e-6):
+                # Next to an orbit: a whole family of them passes through it.
+                detail = (f"the orbit is not isolated along {lead}; a conserved quantity or symmetry leaves a "
+                          f"family of orbits: fix one of these coordinates or add a constraint (e.g. energy)")
+            else:
+                # Far from any orbit the iterate may simply have wandered where the map degenerates.
+                detail = (f"the iterate {rmap._show(eq.unpack(z)[0])} is still far from an orbit and the return "
+                          f"map degenerates there along {lead}: try another initial guess (or, if a conserved "
+                          f"quantity leaves a family of orbits, fix one of these coordinates or add a constraint)")
+            return fail("singular_jacobian", f"{head}: {detail}", z, res, it, ret)
         dz = -(Vt.T @ ((U.T @ F) / sv))
         lam = 1.0
         accepted = False

@@ -35,7 +35,8 @@ impulse: on a second Pinocchio model with a planar floating base at the hip and 
 point contacts, ``ContactBridge.impact_velocity`` gives the post-impact velocity with the new
 foot pinned, ``v+ = v - M^-1 J^T (J M^-1 J^T)^-1 J v``. The legs then exchange roles:
 ``(stance, hip) -> (stance + hip, -hip)`` and the rates likewise; ``foot_x`` advances by the step.
-The stance foot is assumed to stay on the ground (its normal force is not checked).
+The stance foot is assumed to stay on the ground (its normal force is not checked). A hip below
+the slope ends a run (status ``model_breakdown``): the walker fell.
 """
 
 from __future__ import annotations
@@ -47,6 +48,7 @@ import numpy as np
 import pinocchio as pin
 
 from legsim.builders import Builder, Model, Param
+from legsim.errors import ModelBreakdown
 from legsim.hybrid import HybridSystem, Mode, Transition
 
 from .bridge import ContactBridge, PointContact, add_point_frame, planar_floating_base
@@ -155,7 +157,15 @@ class CompassGait:
         return np.array([p[0], p[2]]), np.array([w[0], w[2]])
 
     def heel_strike_guard(self, x: np.ndarray) -> float:
-        """max(swing foot height, its vertical velocity, -(its lead over the stance foot)) [m]."""
+        """max(swing foot height, its vertical velocity, -(its lead over the stance foot)) [m].
+
+        Raises ModelBreakdown once the hip is below the slope: the walker has fallen (the model
+        has no body-ground contact, and a leg hanging under its pinned foot would swing on as a
+        pendulum, a "gait" of legs through the ground)."""
+        hip_z = self.l * math.cos(float(x[0]))
+        if hip_z < 0.0:
+            raise ModelBreakdown(f"compass_gait: the hip is {-hip_z:.3g} m below the slope (stance leg at "
+                                 f"{float(x[0]):.3g} rad from the normal): the walker fell")
         p, w = self.swing_foot(x)
         return max(p[1], w[1], -p[0])
 

@@ -290,3 +290,15 @@ def test_rimless_wheel_too_slow_to_vault_comes_to_rest_and_no_orbit_is_reported(
     short = OrbitProblem(model.system, Section.after("impact"), h=2e-3, eps=1e-6, t_max=0.2, cyclic=["foot_x"])
     res = find_orbit(short, [-ref["alpha"], 0.5, 0.0])
     assert res.status == "no_return" and "within t_max = 0.2 s" in res.message
+
+
+def test_a_walker_that_falls_is_a_failure_not_a_gait():
+    # Thrown backwards (stance rate -5 rad/s) the walker tips over its stance foot: once the hip
+    # is below the slope the run ends (model_breakdown), and no orbit is reported. (Before, the
+    # legs went on swinging under the ground like a pendulum, and Newton found a "family" there.)
+    prob, _ = compass_problem()
+    res = find_orbit(prob, [-0.27, 0.54, -5.0, -0.72, 0.0])
+    assert res.status == "simulation_failed" and res.multipliers is None
+    assert "the walker fell" in res.message and "model_breakdown" in res.message
+    # The hip height l cos(stance) reaches 0 at stance = -pi/2: where the run stopped.
+    assert "stance leg at -1.5" in res.message
