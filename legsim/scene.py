@@ -64,10 +64,21 @@ ROBOT_KEYS = {"name": "a builder name (required)", "parameters": "a table of the
 INITIAL_KEYS = {"mode": "a mode name", "state": "a table of coordinate name = number"}
 OUTPUT_KEYS = ("rrd", "html", "plot")
 
+#: Key of ``Model.info`` under which a builder may put ``check(mode, x, eps) -> str | None``: the
+#: reason an initial state is impossible for the model although it is inside the relaxed domain
+#: (None when it is fine). ``load_scene`` calls it and reports the reason at ``initial.state``.
+INITIAL_CHECK = "initial_check"
+
 # Integrator settings as Params, so their messages say what is allowed exactly as the
 # builders' do. t_final, h and eps have no default: their right values depend on the model
 # (eps is in guard units), so a scene must state them.
 REQUIRED_INTEGRATOR = ("t_final", "h", "eps")
+
+# A run stores every step (t, x, dx), so (t_final - t0) / h bounds its memory and time: 1e7
+# steps of an 8-dimensional robot are ~1.4 GB and minutes of Python. An absurd t_final or h is
+# refused before the run instead of filling memory for hours; a scene that means it raises
+# integrator.max_steps.
+MAX_STEPS = 10_000_000
 
 
 def _integrator_schema() -> dict[str, Param]:
@@ -81,6 +92,7 @@ def _integrator_schema() -> dict[str, Param]:
         "t0": Param(0.0, "start time", "s"),
         "max_transitions": Param(100_000, "transition budget", low=0),
         "max_halvings": Param(64, "most halvings of one step", low=1),
+        "max_steps": Param(MAX_STEPS, "most nominal steps (t_final - t0) / h a run may take", low=1),
         "landing": Param("halve", "how a step past the strip is shortened", choices=("halve", "aim")),
         # Optional error control (no default: absent means fixed nominal steps).
         "rtol": Param(1e-6, "relative tolerance of error-controlled steps", low=0.0, low_open=True),
@@ -106,7 +118,8 @@ class Scene:
     model: the built ``legsim.builders.Model``.
     initial_mode: mode name; ``initial_state``: float64 array (n,) in that mode's coordinates.
     integrator: method, h (s), eps (guard units), t_final (s), t0 (s), max_transitions,
-        max_halvings, landing ("halve" or "aim"), rtol and atol (None unless error-controlled).
+        max_halvings, max_steps (bound on (t_final - t0) / h, checked at loading), landing
+        ("halve" or "aim"), rtol and atol (None unless error-controlled).
     output: rrd, html, plot paths (str) or None.
     sections: the tool sections present (``orbit``, ``certify``, ...), as tables.
     data: the scene's TOML content after overrides.
@@ -210,7 +223,15 @@ def run_summary(execution: Execution, scene: Scene | None = None) -> dict[str, A
         out["robot"] = scene.robot
         if scene.model.system.energy is not None:
             out["energy_initial"] = scene.energy(scene.initial_mode, scene.initial_state)
-            out["energy_final"] = scene.energy(execution.final_mode, execution.final_state)
+            try:
+                out["energy_final"] = scene.energy(execution.final_mode, execution.final_state)
+            except ModelError:
+                # A run that stopped (non_finite, ...) may end on a state the energy cannot take
+                # (a float overflow); its summary must still be printed. After a finished run a
+                # failing energy is the model's bug and is raised.
+                if execution.status == "finished":
+                    raise
+                out["energy_final"] = None
     for key, value in execution.counters.items():
         if key not in out:
             out[key] = value
@@ -471,6 +492,12 @@ def _integrator(path: Path, table: dict[str, Any]) -> dict[str, Any]:
                                                    f"method = '{out['method']}'")
     if out["t_final"] <= out["t0"]:
         raise _fail(path, "integrator.t_final", f"{out['t_final']!r} must be > integrator.t0 = {out['t0']!r}")
+    nominal = (out["t_final"] - out["t0"]) / out["h"]
+    if nominal > out["max_steps"]:
+        raise _fail(path, "integrator.max_steps",
+                    f"t_final - t0 = {out['t_final'] - out['t0']:g} s at h = {out['h']:g} s is {nominal:.3g} steps, "
+                    f"more than max_steps = {out['max_steps']}; every step is stored, so check t_final and h, "
+                    f"or raise integrator.max_steps if the run is meant to be that long")
     return out
 
 
@@ -545,6 +572,17 @@ def _initial(path: Path, model: Model, table: dict[str, Any], eps: float, t0: fl
         raise _fail(path, "initial.state", f"{dict(zip(names, values))} lies past the guard of transition "
                                            f"{tr.name} by {-gvals[worst]:.3g} > eps = {eps:g} (guard units); "
                                            f"start inside the domain of mode '{mode}'")
+    # Guards written as "and" conditions (max(z, zd): below the floor AND falling) admit states
+    # that no execution reaches, e.g. a ball 5 m under the floor at rest; the model may name them.
+    check = model.info.get(INITIAL_CHECK) if isinstance(model.info, Mapping) else None
+    if callable(check):
+        try:
+            problem = check(mode, x0.copy(), eps)
+        except Exception as exc:
+            raise ModelError(f"{path}: the initial-state check of robot model '{system.name}' failed on "
+                             f"{x0.tolist()}: {type(exc).__name__}: {exc}") from exc
+        if problem:
+            raise _fail(path, "initial.state", f"{dict(zip(names, values))}: {problem}")
     return mode, x0
 
 

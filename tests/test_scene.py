@@ -140,6 +140,11 @@ BAD = {
                                  ["integrator.max_transitions: -1 is out of range, allowed: int in [0, inf)"]),
     "max_transitions not an integer": (_replace("t_final = 1.0", "t_final = 1.0\nmax_transitions = 1e5"),
                                        ["integrator.max_transitions: expected an integer (int in [0, inf)), got 100000.0"]),
+    "more steps than max_steps": (_replace("t_final = 1.0", "t_final = 1e12"),
+                                  ["integrator.max_steps: t_final - t0 = 1e+12 s at h = 0.001 s is 1e+15 steps, "
+                                   "more than max_steps = 10000000", "raise integrator.max_steps"]),
+    "max_steps zero": (_replace("t_final = 1.0", "t_final = 1.0\nmax_steps = 0"),
+                       ["integrator.max_steps: 0 is out of range, allowed: int in [1, inf)"]),
     "unknown integrator key": (_replace("t_final = 1.0", "t_final = 1.0\ndt = 1e-3"),
                                ["integrator: unknown parameter(s) ['dt']; allowed: ["]),
     "rtol without an embedded method": (_replace("t_final = 1.0", "t_final = 1.0\nrtol = 1e-6"),
@@ -161,6 +166,43 @@ def test_bad_scene_is_rejected_naming_file_field_and_allowed(tmp_path, case):
     assert message.startswith(f"{path}: "), message
     for fragment in fragments:
         assert fragment in message, f"{fragment!r} not in {message!r}"
+
+
+def test_max_steps_bounds_the_nominal_step_count_and_can_be_raised(tmp_path):
+    # (t_final - t0) / h = 2e7 nominal steps: refused by default (1e7), accepted when the scene
+    # says it means it; nothing is simulated either way.
+    path = write_scene(tmp_path, _replace("t_final = 1.0", "t_final = 1.0\nt0 = -1.0").replace("h = 1e-3", "h = 1e-7"))
+    with pytest.raises(SceneError, match=r"integrator.max_steps: t_final - t0 = 2 s at h = 1e-07 s is 2e\+07 steps"):
+        load_scene(path)
+    assert load_scene(path, overrides=["integrator.max_steps=20000000"]).integrator["max_steps"] == 20_000_000
+
+
+def test_model_initial_check_refuses_states_the_guards_admit(tmp_path, monkeypatch):
+    # max(z, zd) >= 0 holds for a ball 5 m under the floor at rest; the model's own check
+    # (Model.info["initial_check"]) names it, and a check that fails is a ModelError.
+    import dataclasses
+    import test_scene_support as support
+
+    def build(params, effects):
+        model = support._build(params, effects)
+        model.info["initial_check"] = lambda mode, x, eps: f"z below -eps = {-eps:g}" if x[0] < -eps else None
+        return model
+
+    monkeypatch.setattr(support, "BUILDER", dataclasses.replace(support.BUILDER, build=build))
+    path = write_scene(tmp_path)
+    assert load_scene(path, overrides=["initial.state.z=-5e-4"]).initial_state[0] == -5e-4  # inside the strip
+    with pytest.raises(SceneError, match=rf"^{path}: initial.state: \{{'z': -5.0, 'zd': 0.0\}}: z below -eps = -0.001$"):
+        load_scene(path, overrides=["initial.state.z=-5"])
+
+    def broken(params, effects):
+        model = support._build(params, effects)
+        model.info["initial_check"] = lambda mode, x, eps: 1 / 0
+        return model
+
+    monkeypatch.setattr(support, "BUILDER", dataclasses.replace(support.BUILDER, build=broken))
+    with pytest.raises(ModelError, match=r"initial-state check of robot model 'tinyball' failed on \[1.0, 0.0\]: "
+                                         r"ZeroDivisionError"):
+        load_scene(path)
 
 
 def test_toml_syntax_error_names_file_and_line(tmp_path):
