@@ -149,3 +149,15 @@ def test_scene_and_builder():
     np.testing.assert_allclose(ex.final_state, no_floor.reference.state(1.0), atol=1e-12)  # a cubic: exact
     box = scene.model.geometry("flight", np.array([0.3, 0.0]))["ball"]
     assert box[:, 1].min() == 0.3  # the box's bottom is the coordinate z
+
+
+def test_a_start_below_the_floor_is_refused_and_huge_states_have_infinite_energy():
+    from legsim import SceneError
+
+    # max(z, zd) >= 0 holds for a ball 5 m under the floor at rest: the builder's check names it.
+    with pytest.raises(SceneError, match=r"bouncing_ball.toml: initial.state: \{'z': -5.0, 'zd': 0.0\}: z = -5 m "
+                                         r"lies below the floor \(z >= 0\) by more than eps = 0.0001 m$"):
+        load_scene("bouncing_ball", overrides=["initial.state.z=-5"])
+    # Inside the strip is a legal start (a run may be continued from where one ended).
+    assert load_scene("bouncing_ball", overrides=["initial.state.z=-5e-5"]).initial_state[0] == -5e-5
+    assert bb.make_system().energy("flight", np.array([0.0, 1e200])) == math.inf

@@ -55,18 +55,29 @@ EXAMPLES: dict[str, dict[str, float]] = {
 }
 
 
-def forcing(amplitude: float, frequency: float) -> Callable[[float, np.ndarray], float]:
-    """The control ``u(t, x) = amplitude * cos(frequency * t)`` (N; frequency in rad/s)."""
+def forcing(amplitude: float, frequency: float, counters: dict[str, int] | None = None
+            ) -> Callable[[float, np.ndarray], float]:
+    """The control ``u(t, x) = amplitude * cos(frequency * t)`` (N; frequency in rad/s).
+
+    ``counters``, when given, counts the evaluations under ``forcing_evals``.
+    """
     amplitude, frequency = float(amplitude), float(frequency)
 
-    def u(t: float, x: np.ndarray) -> float:
-        return amplitude * math.cos(frequency * t)
+    if counters is None:
+        def u(t: float, x: np.ndarray) -> float:
+            return amplitude * math.cos(frequency * t)
+    else:
+        counters.setdefault("forcing_evals", 0)
+
+        def u(t: float, x: np.ndarray) -> float:
+            counters["forcing_evals"] += 1
+            return amplitude * math.cos(frequency * t)
 
     return u
 
 
 def make_system(omega: float = 2.5, a: float = 0.05, x_max: float | None = 14.0, c: float = 0.9,
-                mass: float = 1.0) -> HybridSystem:
+                mass: float = 1.0, counters: dict[str, int] | None = None) -> HybridSystem:
     """The oscillator as a hybrid system; pass ``x_max=None`` for no stop (no guard).
 
     Parameters
@@ -76,6 +87,8 @@ def make_system(omega: float = 2.5, a: float = 0.05, x_max: float | None = 14.0,
     x_max: position of the stop (m), or None.
     c: coefficient of restitution at the stop, in [0, 1].
     mass: m (kg), > 0; the control u is a force (N), the field uses u / m (None means u = 0).
+    counters: when given, ``damping_evals`` counts the evaluations of the damping term (none
+        at all when a = 0: the field then has no such term).
     """
     omega, a, c, mass = float(omega), float(a), float(c), float(mass)
     if not (omega > 0 and math.isfinite(omega)):
@@ -89,16 +102,35 @@ def make_system(omega: float = 2.5, a: float = 0.05, x_max: float | None = 14.0,
     w2 = omega * omega
     two_a = 2.0 * a
     inv_m = 1.0 / mass
+    # Finite parameters can still overflow the field's coefficients (omega = 1e300): refuse
+    # them here by name rather than let every field value be inf or nan.
+    for label, value in (("omega^2", w2), ("2 a", two_a), ("1 / mass", inv_m)):
+        if not math.isfinite(value):
+            raise ModelError(f"oscillator: {label} overflows (omega = {omega:g}, a = {a:g}, mass = {mass:g})")
 
-    def field(t: float, x: np.ndarray, u: Any) -> np.ndarray:
-        force = 0.0 if u is None else u
-        return np.array([x[1], force * inv_m - two_a * x[1] - w2 * x[0]])
+    if a == 0.0:
+        def field(t: float, x: np.ndarray, u: Any) -> np.ndarray:
+            force = 0.0 if u is None else u
+            return np.array([x[1], force * inv_m - w2 * x[0]])
+    elif counters is None:
+        def field(t: float, x: np.ndarray, u: Any) -> np.ndarray:
+            force = 0.0 if u is None else u
+            return np.array([x[1], force * inv_m - two_a * x[1] - w2 * x[0]])
+    else:
+        counters.setdefault("damping_evals", 0)
+
+        def field(t: float, x: np.ndarray, u: Any) -> np.ndarray:
+            counters["damping_evals"] += 1
+            force = 0.0 if u is None else u
+            return np.array([x[1], force * inv_m - two_a * x[1] - w2 * x[0]])
 
     def jacobian(t: float, x: np.ndarray, u: Any) -> np.ndarray:
         return np.array([[0.0, 1.0], [-w2, -two_a]])
 
     def energy(mode: str, x: np.ndarray) -> float:
-        return 0.5 * mass * (float(x[1]) ** 2 + w2 * float(x[0]) ** 2)
+        # Products, not float powers: ** raises OverflowError where * gives inf.
+        q, qd = float(x[0]), float(x[1])
+        return 0.5 * mass * (qd * qd + w2 * q * q)
 
     transitions = []
     x0 = 0.0
@@ -555,12 +587,15 @@ def _build(params: dict[str, Any], effects: dict[str, dict[str, Any]]) -> Model:
     x_max = None if stop is None else stop["position"]
     c = 0.0 if stop is None else stop["restitution"]
     a = 0.0 if damping is None else damping["a"]
-    system = make_system(params["omega"], a, x_max, c, params["mass"])
-    control = None if force is None else forcing(force["amplitude"], force["frequency"])
+    counts = {"damping_evals": 0, "forcing_evals": 0}
+    system = make_system(params["omega"], a, x_max, c, params["mass"], counters=counts)
+    control = None if force is None else forcing(force["amplitude"], force["frequency"], counts)
     amplitude = 0.0 if force is None else force["amplitude"]
     frequency = 0.0 if force is None else force["frequency"]
     size = params["size"]
     info: dict[str, Any] = {"guard units": {"impact": "m (distance to the stop)"} if stop else {}}
+    if x_max is not None:
+        info["initial_check"] = _beyond_the_stop(x_max)
     try:
         reference = OscillatorReference(params["omega"], a, x_max, c, params["mass"], amplitude, frequency,
                                         params["x0"], params["xd0"])
@@ -582,7 +617,19 @@ def _build(params: dict[str, Any], effects: dict[str, dict[str, Any]]) -> Model:
         scenery["stop"] = segment([x_max, 0.0], [x_max, 2.0 * size])
     scenery["rest"] = segment([0.0, -0.25 * size], [0.0, 0.0])
     return Model(system, MODE, {"x": params["x0"], "xd": params["xd0"]}, control, geometry, scenery, reference,
-                 info=info)
+                 counters=lambda: dict(counts), info=info)
+
+
+def _beyond_the_stop(x_max: float) -> Callable[[str, np.ndarray, float], str | None]:
+    """The scene's initial-state check: the guard max(x_max - x, -xd) counts a mass beyond the
+    stop as inside while it moves away from it (that is how it leaves the stop after an impact
+    in the strip), so a start deeper than the strip must be refused by name."""
+    def check(mode: str, x: np.ndarray, eps: float) -> str | None:
+        if x[0] > x_max + eps:
+            return f"x = {x[0]:g} m lies beyond the stop x_max = {x_max:g} m by more than eps = {eps:g} m"
+        return None
+
+    return check
 
 
 BUILDER = Builder(
