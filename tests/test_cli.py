@@ -347,3 +347,86 @@ def test_unwritable_output_fails_before_the_run(tmp_path, capsys, monkeypatch):
     assert err == f"legsim: error: --plot {blocker / 'sub' / 'p.png'}: {blocker} is not a directory\n"
     code, _, err = run_cli(capsys, "run", str(path), "--html", str(tmp_path))
     assert code == 2 and err == f"legsim: error: --html {tmp_path}: is a directory\n" and calls == []
+
+
+def test_a_bad_plot_format_fails_before_the_run(tmp_path, capsys, monkeypatch):
+    # The real plot writer declares its suffixes: a wrong one costs no simulation and writes
+    # no other output.
+    import legsim.scene as scene_module
+
+    ran = []
+    original = scene_module.Scene.simulate
+    monkeypatch.setattr(scene_module.Scene, "simulate", lambda self, **kw: ran.append(1) or original(self, **kw))
+    path = write_scene(tmp_path)
+    out_dir = tmp_path / "out"
+    code, out, err = run_cli(capsys, "run", str(path), "--rrd", str(out_dir / "a.rrd"), "--plot", str(out_dir / "a.rrd"))
+    assert code == 2 and out == "" and ran == [] and not out_dir.exists()
+    assert err == (f"legsim: error: --plot {out_dir / 'a.rrd'}: unsupported format '.rrd'; "
+                   f"use one of ['.png', '.pdf', '.svg', '.jpg', '.jpeg']\n")
+
+
+def test_a_diverging_run_prints_its_summary_without_numpy_warnings(capsys):
+    # Damping a = 1e6 with h = 1e-2 makes explicit RK4 blow up: the run ends non_finite, the
+    # summary is printed (the final energy, which overflows, as null), the reason on stderr,
+    # and numpy's overflow warnings do not bury it.
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # any RuntimeWarning leaking from the run fails the test
+        code, out, err = run_cli(capsys, "run", "oscillator_ex1", "--json", "--set", "effects.damping.a=1e6")
+    summary = json.loads(out)
+    assert code == 3 and summary["status"] == "non_finite" and summary["energy_final"] is None
+    assert summary["energy_initial"] == pytest.approx(0.5 * (31.4 ** 2 + 2.5 ** 2 * 11.36 ** 2))
+    assert err.startswith("legsim: run stopped early (non_finite): the step from t=") and err.count("\n") == 1
+    code, out, _ = run_cli(capsys, "run", "oscillator_ex1", "--set", "effects.damping.a=1e6")
+    assert code == 3 and "energy 896.26 J -> n/a J" in out
+
+
+def test_replay_checks_every_output_before_writing_any(tmp_path, capsys, monkeypatch):
+    from legsim.record import write_rrd
+
+    scene = load_scene(write_scene(tmp_path))
+    rrd = write_rrd(scene.simulate(), scene, tmp_path / "tiny.rrd")
+    code, out, err = run_cli(capsys, "replay", str(rrd), "--html", str(tmp_path / "a.html"), "--plot",
+                             str(tmp_path / "a.gif"))
+    assert code == 2 and out == "" and "--plot " in err and "unsupported format '.gif'" in err
+    assert not (tmp_path / "a.html").exists()
+    # --spawn without a display fails at once, before printing a summary it cannot follow up.
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    code, out, err = run_cli(capsys, "replay", str(rrd), "--spawn")
+    assert code == 2 and out == "" and err.startswith("legsim: error: --spawn needs a display")
+
+
+def test_progress_bar_is_drawn_on_a_terminal_and_erased(tmp_path):
+    # `legsim run` with stderr on a pseudo-terminal (stdout a pipe): the bar is drawn on stderr
+    # with carriage returns, its fraction grows, it is erased at the end, and stdout carries
+    # only the summary. 150000 Euler steps (1 s here) take well over the 0.2 s after which simulate
+    # reports progress.
+    import pty
+
+    master, slave = pty.openpty()
+    proc = subprocess.Popen([PYTHON, "-m", "legsim", "run", "oscillator_ex1", "--set", "effects.stop=false",
+                             "--set", "integrator.method=euler", "--set", "integrator.h=1e-5",
+                             "--set", "integrator.t_final=1.5"],
+                            stdout=subprocess.PIPE, stderr=slave, cwd=REPO)
+    os.close(slave)
+    received = b""
+    while True:
+        try:
+            chunk = os.read(master, 4096)
+        except OSError:  # EIO: the child closed the terminal
+            break
+        if not chunk:
+            break
+        received += chunk
+    out = proc.stdout.read().decode()
+    assert proc.wait(timeout=60) == 0
+    os.close(master)
+    err = received.decode()
+    bars = [part for part in err.split("\r") if part.startswith("oscillator_ex1 [")]
+    assert bars, f"no progress bar drawn: {err!r}"
+    fractions = [float(b.split("]")[1].split("%")[0]) for b in bars]
+    assert fractions == sorted(fractions) and 0.0 <= fractions[0] and fractions[-1] <= 100.0
+    assert err.endswith("\r") and err.split("\r")[-2].strip() == ""  # erased: blanks, then return
+    assert "\r" not in out and out.startswith("oscillator_ex1: finished at t = 1.5 s (euler, h = 1e-05 s")

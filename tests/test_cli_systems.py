@@ -118,3 +118,31 @@ def test_pronk_with_one_leg_has_two_modes_and_a_fall_exits_3(capsys):
     assert code == 3 and summary["status"] != "finished" and summary["t_final"] < 2.0
     assert set(summary["mode_sequence"]) <= {"aerial", "right"}
     assert err.startswith(f"legsim: run stopped early ({summary['status']}): ")
+
+
+def test_readme_demo_writes_rrd_html_and_png_and_replay_agrees(tmp_path, capsys):
+    # `make demo` is `legsim run pronk --rrd out/pronk.rrd --html out/pronk.html --plot out/pronk.png`;
+    # cut to the first hop (0.8 s: touchdowns, both stance, liftoffs) to keep the test short.
+    from matplotlib.image import imread
+
+    from legsim.record import read_rrd
+
+    out = tmp_path / "out"
+    files = {kind: out / f"pronk.{ext}" for kind, ext in (("rrd", "rrd"), ("html", "html"), ("plot", "png"))}
+    code, summary, err = run_json(capsys, "pronk", "--set", "integrator.t_final=0.8",
+                                  *[a for kind, p in files.items() for a in (f"--{kind}", str(p))])
+    assert code == 0 and err == "" and summary["transitions"] == 4
+    assert summary["outputs"] == {kind: str(p) for kind, p in files.items()}
+    assert sorted(p.name for p in out.iterdir()) == ["pronk.html", "pronk.png", "pronk.rrd"]  # no temporaries
+    # The recording is this run: `legsim replay --json` gives the same summary.
+    assert main(["replay", str(files["rrd"]), "--json"]) == 0
+    replayed = json.loads(capsys.readouterr().out)
+    assert {k: v for k, v in replayed.items() if k != "outputs"} == {k: v for k, v in summary.items() if k != "outputs"}
+    data = read_rrd(files["rrd"])
+    # The symmetric pronk (paper 000 Fig. 17 left): theta stays 0 in every recorded sample.
+    assert np.abs(data["series"]["theta"][1]).max() < 1e-9
+    assert data["frames"] is not None and set(data["frames"].parts) >= {"body"}
+    # The page embeds meshcat's viewer and no network resource; the png is a full figure.
+    page = files["html"].read_text()
+    assert "<script" in page and "http://" not in page.replace("http://www.w3.org", "")
+    assert imread(files["plot"]).shape[0] > 400

@@ -177,3 +177,7 @@ def write_plot(execution: Execution | None, scene: Any = None, path: str | os.Pa
         raise OutputError("write_plot needs a path to write to")
     fig = state_figure(plot_data(execution, scene, model=model, recording=recording), coordinates)
     return save_figure(fig, path)
+
+
+#: The suffixes write_plot can write; ``legsim run`` checks a --plot path against them before the run.
+write_plot.suffixes = tuple("." + f for f in FORMATS)

@@ -80,14 +80,24 @@ def run(args: argparse.Namespace) -> int:
     from ..errors import LegsimError
     from ..record import read_rrd
 
+    from .run import check_suffix, check_writable
+
     path = Path(args.file)
+    if args.spawn and not has_display():
+        raise LegsimError(f"--spawn needs a display, and there is none here (DISPLAY and WAYLAND_DISPLAY are "
+                          f"unset); copy {path} to a machine with a display and run `rerun {path.name}` there")
+    # Every requested output is checked before any is written, so a bad --plot does not leave
+    # a fresh --html behind it.
+    wanted = {kind: getattr(args, kind) for kind in ("html", "plot") if getattr(args, kind)}
+    writers = {kind: _writer(kind) for kind in wanted}
+    for kind, target in wanted.items():
+        check_writable(Path(target), f"--{kind}")
+        check_suffix(writers[kind], Path(target), f"--{kind}")
     data = read_rrd(path)
     summary = dict(data["summary"])
     outputs: dict[str, str] = {}
-    if args.html:
-        outputs["html"] = str(_writer("html")(None, None, args.html, recording=data))
-    if args.plot:
-        outputs["plot"] = str(_writer("plot")(None, None, args.plot, recording=data))
+    for kind, target in wanted.items():
+        outputs[kind] = str(writers[kind](None, None, target, recording=data))
     summary["outputs"] = outputs
     if args.json:
         print(json.dumps(summary, indent=2, allow_nan=False))
@@ -96,9 +106,6 @@ def run(args: argparse.Namespace) -> int:
         for kind, out in outputs.items():
             print(f"wrote {out} ({kind})")
     if args.spawn:
-        if not has_display():
-            raise LegsimError(f"--spawn needs a display, and there is none here (DISPLAY and WAYLAND_DISPLAY are "
-                              f"unset); copy {path} to a machine with a display and run `rerun {path.name}` there")
         # rerun-sdk runs its bundled viewer as `python -m rerun_cli FILE`; detach it so that
         # the viewer outlives this command.
         subprocess.Popen([sys.executable, "-m", "rerun_cli", str(path)], start_new_session=True,

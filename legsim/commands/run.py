@@ -57,10 +57,17 @@ def run(args: argparse.Namespace) -> int:
     writers = {kind: find_writer(kind, source) for kind, (_, source) in outputs.items()}
     for kind, (path, source) in outputs.items():
         check_writable(path, source)
+        check_suffix(writers[kind], path, source)
+
+    import numpy as np
 
     bar = progress_for(sys.stderr, enabled=not (args.quiet or args.json), label=scene.name)
     try:
-        execution = scene.simulate(progress=bar)
+        # The integrator checks every state for finiteness and ends a diverging run with status
+        # non_finite naming mode, time and state; numpy's overflow warnings on the way there
+        # would only bury that message.
+        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+            execution = scene.simulate(progress=bar)
     finally:
         if bar is not None:
             bar.close()
@@ -145,6 +152,15 @@ def check_writable(path: Path, label: str) -> None:
         raise LegsimError(f"{label} {path}: cannot write in {ancestor} (permission denied)")
 
 
+def check_suffix(writer: Writer, path: Path, label: str) -> None:
+    """LegsimError naming ``label`` when ``writer`` declares the suffixes it can write
+    (attribute ``suffixes``, e.g. ('.png', '.pdf')) and ``path`` has none of them, so that a
+    wrong format is refused before the run rather than after it."""
+    suffixes = getattr(writer, "suffixes", None)
+    if suffixes and Path(path).suffix.lower() not in suffixes:
+        raise LegsimError(f"{label} {path}: unsupported format '{Path(path).suffix}'; use one of {list(suffixes)}")
+
+
 def write_outputs(execution: Any, scene: Any, paths: dict[str, Path],
                   writers: dict[str, Writer] | None = None) -> dict[str, Path]:
     """Call each writer on a temporary file next to its target and rename it into place.
@@ -193,7 +209,9 @@ def _compact_modes(sequence: list[str], limit: int = 6) -> str:
 
 
 def _num(value: Any) -> str:
-    return "nan" if value is None else f"{value:.6g}"
+    # None is what the JSON summary holds for a number that is not finite (or could not be
+    # computed on a diverged state): say so rather than print a made-up nan.
+    return "n/a" if value is None else f"{value:.6g}"
 
 
 CORE_KEYS = {"system", "status", "message", "t_final", "final_mode", "final_state", "state_names",
