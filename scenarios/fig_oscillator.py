@@ -2,7 +2,7 @@
 
 Each panel shows the position of the analytical solution (solid; ``model.reference``, the
 closed form of eq. (28) with impacts, sticking and releases), the position of the stop
-(dotted), and the relaxed simulation of the scene (dashed; RK4, the scene's h and eps), with
+(dotted), and the relaxed simulation of the scene (dashed; the scene's method, h and eps), with
 the largest position error over the simulated points, rho-hat of eq. (30).
 
 (b) Example 1 (scene ``oscillator_ex1``): a = 0.05, c = 0.9, u = 20 cos(2.5 t), x0 = 11.36,
@@ -39,7 +39,8 @@ def main(argv=None) -> int:
         # The computed points (not the held strip points): the samples of rho-hat, eq. (30).
         t_sim = np.concatenate([s.t for s in ex.segments])
         x_sim = np.concatenate([s.x[:, 0] for s in ex.segments])
-        ax.plot(t_sim, x_sim, "--", color="tab:orange", lw=0.9, label=f"relaxed RK4, h = {scene.integrator['h']:g}")
+        s = scene.integrator
+        ax.plot(t_sim, x_sim, "--", color="tab:orange", lw=0.9, label=f"relaxed {s['method'].upper()}, h = {s['h']:g}")
         note = ""
         if reference is not None:
             rho_hat = float(np.max(np.abs(x_sim - reference.position(t_sim))))

@@ -66,9 +66,11 @@ def hopper_model(k: float = 400.0, c: float = 0.9, r: float = 0.1) -> Model:
 
 
 def ball_model(c: float = 0.5) -> Model:
-    """A bouncing ball without geometry (states and events only): one mode (z, zd), guard z."""
+    """A bouncing ball without geometry (states and events only): one mode (z, zd), guard
+    max(z, zd) (below the floor *and* falling), so that a strip point q on or a rounding error
+    past the floor leaves it after the reset instead of bouncing again at once."""
     fl = Mode(2, lambda t, x, u: np.array([x[1], -G]), names=("z", "zd"))
-    tr = Transition("flight", "flight", guard=lambda x: x[0], reset=lambda x: np.array([x[0], -c * x[1]]),
+    tr = Transition("flight", "flight", guard=lambda x: max(x[0], x[1]), reset=lambda x: np.array([x[0], -c * x[1]]),
                     name="bounce")
     return Model(HybridSystem({"flight": fl}, [tr], name="ball"), "flight", {"z": 1.0, "zd": 0.0})
 

@@ -57,14 +57,23 @@ def test_oscillator_figure_matches_the_analytical_solution(tmp_path, capsys):
     assert _script("fig_oscillator").main([str(tmp_path)]) == 0
     assert (tmp_path / "fig_oscillator.png").stat().st_size > 10_000
     printed = capsys.readouterr().out
-    for name in ("oscillator_ex1", "oscillator_ex2"):
+    from legsim.systems.oscillator import OscillatorReference
+
+    # rho-hat of eq. (30) recomputed from the recording against the closed form (not read
+    # from the script): Example 2 (|x + 0.8| <= 0.06 m) within the paper's 1e-4 m, Example 1
+    # (|x| up to 15 m, 49 impacts) within 1e-3 m, so the curves coincide to the eye. Strip
+    # holds are left out: there the simulation waits at q by construction.
+    for name, key, bound in (("oscillator_ex1", "ex1", 1e-3), ("oscillator_ex2", "ex2", 1e-4)):
         data = read_rrd(tmp_path / f"{name}.rrd")
         assert data["summary"]["status"] == "finished"
-        # The printed rho-hat is small against the motion (|x| up to 15 m and 0.06 m): the
-        # figure's simulated and analytical curves coincide to the eye.
+        t, x = data["series"]["x"]
+        held = np.zeros(len(t), dtype=bool)
+        for strip in data["strips"]:
+            held |= (t > strip["time"]) & (t <= strip["exit_time"])
+        rho_hat = np.abs(x[~held] - OscillatorReference.example(key).position(t[~held])).max()
+        assert rho_hat < bound, (name, rho_hat)
         line = next(l for l in printed.splitlines() if l.startswith(name))
-        rho_hat = float(line.rsplit("=", 1)[1].split()[0])
-        assert rho_hat < 1e-3
+        assert float(line.rsplit("=", 1)[1].split()[0]) < bound
 
 
 def test_pronk_snapshot_figure_and_recordings(tmp_path):
