@@ -146,3 +146,22 @@ def test_readme_demo_writes_rrd_html_and_png_and_replay_agrees(tmp_path, capsys)
     page = files["html"].read_text()
     assert "<script" in page and "http://" not in page.replace("http://www.w3.org", "")
     assert imread(files["plot"]).shape[0] > 400
+
+
+@pytest.mark.parametrize("scene, moving", [("double_pendulum_zeno", ()), ("pronk", (0,)), ("slip", (0,))])
+def test_gravity_effect_off_leaves_free_inertial_motion(capsys, scene, moving):
+    # Issue 4 lists gravity among the effects a scene switches. Without it the robots start at
+    # rest (pendulum) or flying level at xd0 = 3.4 m/s (runners): the closed form is
+    # x(t) = x0 + xd0 t with every other coordinate constant, no contact is ever reached and
+    # the energy is the initial kinetic energy (0, or m xd0^2 / 2 = 5.78 J for m = 1).
+    t_final = 1.0
+    code, summary, _ = run_json(capsys, scene, "--set", "effects.gravity=false", "--set", f"integrator.t_final={t_final}")
+    start = load_scene(scene).initial_state
+    expected = start.copy()
+    for i in moving:
+        expected[i] += 3.4 * t_final
+    assert code == 0 and summary["transitions"] == 0
+    np.testing.assert_allclose(summary["final_state"], expected, rtol=0, atol=1e-12)
+    kinetic = 0.0 if not moving else 0.5 * 3.4 ** 2
+    assert summary["energy_initial"] == pytest.approx(kinetic, abs=1e-12)
+    assert summary["energy_final"] == pytest.approx(kinetic, abs=1e-12)
