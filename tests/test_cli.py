@@ -347,6 +347,11 @@ def test_unwritable_output_fails_before_the_run(tmp_path, capsys, monkeypatch):
     assert err == f"legsim: error: --plot {blocker / 'sub' / 'p.png'}: {blocker} is not a directory\n"
     code, _, err = run_cli(capsys, "run", str(path), "--html", str(tmp_path))
     assert code == 2 and err == f"legsim: error: --html {tmp_path}: is a directory\n" and calls == []
+    # A folder whose permission bits say yes (to root) but where no file can be created: the
+    # probe finds it before the run, not the writer after it.
+    if Path("/proc/self").is_dir():
+        code, out, err = run_cli(capsys, "run", str(path), "--rrd", "/proc/x.rrd")
+        assert code == 2 and out == "" and calls == [] and err.startswith("legsim: error: --rrd /proc/x.rrd: cannot write in /proc (")
 
 
 def test_a_bad_plot_format_fails_before_the_run(tmp_path, capsys, monkeypatch):

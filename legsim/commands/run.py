@@ -139,7 +139,9 @@ def find_writer(kind: str, source: str = "") -> Writer:
 
 def check_writable(path: Path, label: str) -> None:
     """LegsimError naming ``label`` unless ``path`` can be created (its folder exists and is
-    writable, or can be made inside a writable folder). Creates nothing."""
+    writable, or can be made inside a writable folder). Leaves nothing behind: the folder is
+    probed with an unnamed temporary file, because permission bits alone say yes to root on a
+    read-only or virtual file system (/proc, /sys)."""
     path = Path(path)
     if path.is_dir():
         raise LegsimError(f"{label} {path}: is a directory")
@@ -150,6 +152,13 @@ def check_writable(path: Path, label: str) -> None:
         raise LegsimError(f"{label} {path}: {ancestor} is not a directory")
     if not os.access(ancestor, os.W_OK | os.X_OK):
         raise LegsimError(f"{label} {path}: cannot write in {ancestor} (permission denied)")
+    import tempfile
+
+    try:
+        with tempfile.TemporaryFile(dir=ancestor):
+            pass
+    except OSError as exc:
+        raise LegsimError(f"{label} {path}: cannot write in {ancestor} ({exc.strerror or exc})") from None
 
 
 def check_suffix(writer: Writer, path: Path, label: str) -> None:
