@@ -498,6 +498,15 @@ def _integrator(path: Path, table: dict[str, Any]) -> dict[str, Any]:
                     f"t_final - t0 = {out['t_final'] - out['t0']:g} s at h = {out['h']:g} s is {nominal:.3g} steps, "
                     f"more than max_steps = {out['max_steps']}; every step is stored, so check t_final and h, "
                     f"or raise integrator.max_steps if the run is meant to be that long")
+    # Far from t = 0 the spacing of float64 times can exceed h: t + h == t, and the integrator
+    # would make no progress (or no halving could land). Ask for h to be resolved to a
+    # millionth (2^20 spacings), which leaves room for the halvings of a landing.
+    spacing = float(np.spacing(max(abs(out["t0"]), abs(out["t_final"]))))
+    if out["h"] < 2.0 ** 20 * spacing:
+        raise _fail(path, "integrator.h", f"{out['h']:g} s is too small for times near "
+                                          f"{max(abs(out['t0']), abs(out['t_final'])):g} s, where float64 "
+                                          f"times are {spacing:.3g} s apart; h must be >= {2.0 ** 20 * spacing:.3g} s "
+                                          f"(2^20 spacings), or shift t0 and t_final towards 0")
     return out
 
 

@@ -143,6 +143,9 @@ BAD = {
     "more steps than max_steps": (_replace("t_final = 1.0", "t_final = 1e12"),
                                   ["integrator.max_steps: t_final - t0 = 1e+12 s at h = 0.001 s is 1e+15 steps, "
                                    "more than max_steps = 10000000", "raise integrator.max_steps"]),
+    "h below the time resolution": (_replace("t_final = 1.0", "t0 = 1e15\nt_final = 1.000000000000002e15"),
+                                    ["integrator.h: 0.001 s is too small for times near 1e+15 s, where float64 times "
+                                     "are 0.125 s apart; h must be >= 1.31e+05 s"]),
     "max_steps zero": (_replace("t_final = 1.0", "t_final = 1.0\nmax_steps = 0"),
                        ["integrator.max_steps: 0 is out of range, allowed: int in [1, inf)"]),
     "unknown integrator key": (_replace("t_final = 1.0", "t_final = 1.0\ndt = 1e-3"),
