@@ -435,3 +435,18 @@ def test_progress_bar_is_drawn_on_a_terminal_and_erased(tmp_path):
     assert fractions == sorted(fractions) and 0.0 <= fractions[0] and fractions[-1] <= 100.0
     assert err.endswith("\r") and err.split("\r")[-2].strip() == ""  # erased: blanks, then return
     assert "\r" not in out and out.startswith("oscillator_ex1: finished at t = 1.5 s (euler, h = 1e-05 s")
+
+
+def test_ctrl_c_while_writing_leaves_no_temporary(tmp_path, capsys, monkeypatch):
+    import legsim.commands.run as run_module
+
+    def interrupted(execution, scene, path):
+        Path(path).write_text("half a plot")
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(run_module, "find_writer", lambda kind, source="": interrupted)
+    out_dir = tmp_path / "out"
+    out_dir.mkdir()
+    code, _, err = run_cli(capsys, "run", str(write_scene(tmp_path)), "--plot", str(out_dir / "p.png"))
+    assert code == 130 and err == "legsim: interrupted\n"
+    assert list(out_dir.iterdir()) == []

@@ -193,13 +193,16 @@ def write_outputs(execution: Any, scene: Any, paths: dict[str, Path],
             if not tmp.exists():
                 raise LegsimError(f"--{kind} {path}: the writer returned without writing a file")
             os.replace(tmp, path)
-        except LegsimError as exc:
+        except BaseException as exc:
+            # Also on Ctrl-C (KeyboardInterrupt is no Exception): never leave the temporary behind.
             tmp.unlink(missing_ok=True)
-            # The writer only saw the temporary name: say which file was asked for.
-            raise LegsimError(f"--{kind} {path}: writing failed: {str(exc).replace(str(tmp), str(path))}") from exc
-        except Exception as exc:
-            tmp.unlink(missing_ok=True)
-            raise LegsimError(f"--{kind} {path}: writing failed: {type(exc).__name__}: {exc}") from exc
+            if isinstance(exc, LegsimError):
+                # The writer only saw the temporary name: say which file was asked for.
+                raise LegsimError(f"--{kind} {path}: writing failed: "
+                                  f"{str(exc).replace(str(tmp), str(path))}") from exc
+            if isinstance(exc, Exception):
+                raise LegsimError(f"--{kind} {path}: writing failed: {type(exc).__name__}: {exc}") from exc
+            raise
         written[kind] = path
     return written
 
