@@ -450,3 +450,12 @@ def test_ctrl_c_while_writing_leaves_no_temporary(tmp_path, capsys, monkeypatch)
     code, _, err = run_cli(capsys, "run", str(write_scene(tmp_path)), "--plot", str(out_dir / "p.png"))
     assert code == 130 and err == "legsim: interrupted\n"
     assert list(out_dir.iterdir()) == []
+
+
+def test_html_of_a_model_without_geometry_fails_before_the_run(tmp_path, capsys):
+    # The tiny ball defines no geometry; the real html writer says it needs one.
+    path = write_scene(tmp_path)
+    code, out, err = run_cli(capsys, "run", str(path), "--html", str(tmp_path / "a.html"))
+    assert code == 2 and out == "" and not (tmp_path / "a.html").exists()
+    assert err == (f"legsim: error: --html {tmp_path / 'a.html'}: this output draws the robot, and tinyball defines "
+                   f"no geometry (Model.geometry is None); use --plot or --rrd for it\n")

@@ -355,3 +355,7 @@ def write_html(execution: Execution | None, scene: Any = None, path: str | os.Pa
         title = run_title(execution, scene, resolve_model(scene, model, "html")).split("  ·  ")[0]
     page = animation_html(frames, title=title, speed=speed)
     return write_atomic(path, lambda tmp: tmp.write_text(page, encoding="utf-8"), suffix=".html")
+
+
+#: ``legsim run`` refuses --html before the run when the scene's model has no geometry.
+write_html.needs_geometry = True

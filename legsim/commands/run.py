@@ -58,6 +58,9 @@ def run(args: argparse.Namespace) -> int:
     for kind, (path, source) in outputs.items():
         check_writable(path, source)
         check_suffix(writers[kind], path, source)
+        if getattr(writers[kind], "needs_geometry", False) and scene.model.geometry is None:
+            raise LegsimError(f"{source} {path}: this output draws the robot, and {scene.model.system.name} "
+                              f"defines no geometry (Model.geometry is None); use --plot or --rrd for it")
 
     import numpy as np
 
