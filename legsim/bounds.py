@@ -41,7 +41,7 @@ import numpy as np
 from scipy.optimize import minimize_scalar
 from scipy.special import betainc
 
-from .errors import SimulationError
+from .errors import ModelBreakdown, SimulationError
 from .execution import Execution
 from .hybrid import HybridSystem, Mode, Transition
 from .methods import Tableau, error_estimate, get_method, make_stepper
@@ -425,8 +425,9 @@ class ModeFlow:
     ``b0 e^{L (t - t0)}``. ``progress(t)``, when given, is called every 256 points.
 
     ``status`` ends as ``end`` (t_end reached), ``non_finite`` (a field or step that is not
-    finite), ``bound_overflow`` (B overflowed: the flow stops at its last finite ball) or
-    ``max_points``; ``message`` says where.
+    finite), ``bound_overflow`` (B overflowed: the flow stops at its last finite ball),
+    ``model_breakdown`` (a model function raised ``ModelBreakdown``, e.g. a runner's hip through
+    the ground once it flows on past a touchdown) or ``max_points``; ``message`` says where.
     """
 
     SAMPLES_PER_ACTIVE_STEP = 8
@@ -491,6 +492,15 @@ class ModeFlow:
         """Compute the next point; False when the flow has ended."""
         if self._done:
             return False
+        try:
+            return self._advance_point()
+        except ModelBreakdown as exc:
+            # Flowing on past the guards can take a model out of its range (a runner's hip
+            # through the ground after a touchdown it did not take): the flow ends there.
+            self._finish("model_breakdown", f"{exc} (flowing mode '{self.mode_name}' on from t={self._t:.6g})")
+            return False
+
+    def _advance_point(self) -> bool:
         t, x = self._t, self._x
         f0 = self.field_at(t, x) if self._f is None else self._f
         if not _finite(f0):
@@ -508,13 +518,21 @@ class ModeFlow:
             hn = min(self.h, remaining)
             if remaining - hn <= 1e-9 * self.h:
                 hn = remaining
-            x_new, le = self.estimator.step(self.mode.field, t, x, hn, f0, self.control)
-            f_new = self.field_at(t + hn, x_new) if _finite(x_new) else x_new
-            if _finite(f_new):
-                x_half = self.estimator.pair_solution(self.mode.field, t, x, 0.5 * hn, f0, self.control)
-                midpoint = 0.5 * (x + x_new) + (0.125 * hn) * (f0 - f_new)
-                le += _norm(midpoint - x_half)
-            if not (_finite(x_new) and _finite(f_new) and math.isfinite(le)):
+            try:
+                x_new, le = self.estimator.step(self.mode.field, t, x, hn, f0, self.control)
+                f_new = self.field_at(t + hn, x_new) if _finite(x_new) else x_new
+                if _finite(f_new):
+                    x_half = self.estimator.pair_solution(self.mode.field, t, x, 0.5 * hn, f0, self.control)
+                    midpoint = 0.5 * (x + x_new) + (0.125 * hn) * (f0 - f_new)
+                    le += _norm(midpoint - x_half)
+            except ModelBreakdown as exc:
+                # The step leaves the model's range, its start point does not: keep that point
+                # (the cone may leave the domain there) and end the flow.
+                self._finish("model_breakdown", f"{exc} (flowing mode '{self.mode_name}' on from t={t:.6g})")
+                x_new = f_new = x
+                last = True
+                le = math.inf
+            if not last and not (_finite(x_new) and _finite(f_new) and math.isfinite(le)):
                 self._finish("non_finite", f"step from t={t:.17g} in mode '{self.mode_name}' is not finite "
                                            f"(x={x.tolist()})")
                 last = True
@@ -564,7 +582,16 @@ class ModeFlow:
 
     def step_samples(self, n: int) -> StepSamples | None:
         """Step n (point n to n + 1) at sample fractions resolving every guard the ball may
-        reach during the step; just the two ends when it reaches none. None past the end."""
+        reach during the step; just the two ends when it reaches none. None past the end (or
+        when the model breaks down inside the step: status ``model_breakdown``)."""
+        try:
+            return self._step_samples(n)
+        except ModelBreakdown as exc:
+            if not self._done:
+                self._finish("model_breakdown", f"{exc} (flowing mode '{self.mode_name}' on, inside step {n})")
+            return None
+
+    def _step_samples(self, n: int) -> StepSamples | None:
         p0 = self.point(n)
         p1 = self.point(n + 1)
         if p0 is None or p1 is None:

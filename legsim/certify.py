@@ -51,7 +51,7 @@ import numpy as np
 from scipy.optimize import brentq
 
 from .bounds import MAX_STEPS, LocalErrorEstimator, ModeFlow, check_step, check_steps, guard_gradient, reset_lipschitz
-from .errors import ModelError, SimulationError
+from .errors import ModelBreakdown, ModelError, SimulationError
 from .hybrid import HybridSystem
 from .methods import Tableau
 
@@ -210,12 +210,24 @@ class _ConeRun:
         if m == 0:
             return _Visit("end", end_time=self.t_final)
         walk = _Walk(self, flow, t0, b0)
-        walk.run()
-        if flow.status in ("non_finite", "bound_overflow"):
-            last = flow.points[-1].t
-            return _Visit("non_finite", self._record(index, mode, None, last, False, False, "refinement_limit",
-                                                     (t0, last), b0, b0, [], flow.message))
-        return walk.verdict(index)
+        try:
+            walk.run()
+            # A flow that stopped early still decides the visit if the cone had left the domain.
+            if walk.t_exit is not None or flow.status not in ("non_finite", "bound_overflow", "model_breakdown"):
+                return walk.verdict(index)
+            message = flow.message
+        except ModelBreakdown as exc:  # at an interpolated point or in the reset of the event
+            message = str(exc)
+        last = flow.points[-1].t
+        event = walk.event
+        met = np.flatnonzero(walk.met)
+        tr = trs[event[1]] if event is not None else (trs[met[0]] if len(met) else None)
+        if event is not None and walk.t_exit is None:
+            message = (f"the cone had not left the domain after the crossing of {tr.name} at t={event[0]:.6g} "
+                       f"(bound {event[3]:.3g}) when the flow stopped: {message}")
+        return _Visit("non_finite", self._record(index, mode, tr, event[0] if event is not None else last,
+                                                 event is not None, False, "refinement_limit", (t0, last), b0, b0,
+                                                 [trs[j].name for j in met], message))
 
     def _locate(self, flow: ModeFlow, n: int, s_lo: float, s_hi: float, crossed: np.ndarray) -> tuple[float, int, np.ndarray, float]:
         """The first crossing among the guards ``crossed`` between fractions s_lo and s_hi of

@@ -53,7 +53,7 @@ from scipy.optimize import brentq
 
 from .bounds import (LocalErrorEstimator, ModeFlow, StepSamples, ball_fraction_past, check_step, check_steps,
                      reset_lipschitz)
-from .errors import ModelError, SimulationError
+from .errors import ModelBreakdown, ModelError, SimulationError
 from .hybrid import HybridSystem
 from .methods import Tableau
 
@@ -209,7 +209,8 @@ class StochasticExecution:
         units; 0 means the approximation was deterministic (the method is exact on the fields
         and no floor was declared).
     status: ``finished`` (t_final reached), ``max_transitions``, ``non_finite`` (a field or step
-        that is not finite), ``bound_overflow`` (the error bound overflowed: the execution
+        that is not finite), ``model_breakdown`` (a model function raised ``ModelBreakdown``),
+        ``bound_overflow`` (the error bound overflowed: the execution
         stops at the last time it was finite) or ``stalled`` (a switch fell at the instant of
         the previous one, in floating point: the ball is too small to keep switches apart, as
         with a bound at rounding level near a Zeno point); ``message`` says where.
@@ -389,7 +390,12 @@ def sample_execution(
                                        f"{radius:.3g}): the bound is too small to keep the switches apart, "
                                        f"declare a larger local error floor", t0=float(t0), max_radius=widest)
         tr = visit.flow.transitions[j]
-        x_new = np.asarray(x_tau if tr.reset is None else tr.reset(x_tau), dtype=float)
+        try:
+            x_new = np.asarray(x_tau if tr.reset is None else tr.reset(x_tau), dtype=float)
+        except ModelBreakdown as exc:
+            return StochasticExecution(np.array(times), modes, names, states, x_tau.copy(), tau, "model_breakdown",
+                                       f"the reset of {tr.name} at t={tau:.6g}: {exc}", t0=float(t0),
+                                       max_radius=widest)
         b0 = radius * reset_lipschitz(tr, x_tau, len(x_new)) if carry else 0.0
         times.append(tau)
         names.append(tr.name)

@@ -179,3 +179,19 @@ def test_a_bound_at_rounding_level_stops_a_zeno_accumulation_as_stalled():
     assert len(e.times) < 200 and np.all(e.dwell_times > 0.0)
     assert e.times[-1] == pytest.approx(8.0, abs=1e-9)
     assert 0.0 < e.max_radius < 1e-10
+
+
+def test_a_model_breaking_down_past_the_guard_ends_that_execution_only():
+    # x' = 1 towards the wall x = 1, valid only up to x = 1.03 (tests/test_certify.py). With
+    # Euler, h = 0.1 and floor 0.5 the flow's last point is on the wall, where half the ball is
+    # past it: an execution that has not switched by then stops (model_breakdown), the others
+    # switch and finish. The ensemble itself must not raise.
+    from test_certify import _breaking_line
+
+    ens = sample_ensemble(_breaking_line(), "a", [0.0], 2.0, 0.1, "euler", samples=40, seed=2, floor=0.5)
+    statuses = ens.summary()["statuses"]
+    assert set(statuses) == {"finished", "model_breakdown"}
+    broken = [e for e in ens.executions if e.status == "model_breakdown"]
+    assert all("past its range 1.03" in e.message and not len(e.times) for e in broken)
+    # P(no switch by the last point) = 1 - pi there, pi ~ 1/2 (a 1-ball half past the wall).
+    assert abs(len(broken) / 40 - 0.5) < 4 * math.sqrt(0.25 / 40)
