@@ -136,6 +136,7 @@ def test_no_orbit_exits_3_with_the_reason(capsys):
     (["orbit", "rimless_wheel", "--continue", "slope", "3", "4", "--steps", "1000000000"], "--steps must be in [1, 10000]"),
     (["orbit", "rimless_wheel", "--continue", "slope", "3", "4", "--locate", "-1"], "--locate must be in [0, 50]"),
     (["orbit", "rimless_wheel", "--continue", "nonsense", "3", "4"], "continued parameter: robot 'rimless_wheel' has no"),
+    (["orbit", "slip_orbit", "--continue", "psi", "0.6", "0.65"], "--continue psi: 'psi' is a free parameter"),
     # Absurd [orbit] values, named by their key.
     (["orbit", "rimless_wheel", "--set", "orbit.fd_step=0", "--set", "orbit.jacobian=\"fd\""],
      "orbit.fd_step: must be a relative step in (0, 0.1]"),
@@ -151,3 +152,4 @@ def test_bad_requests_exit_2_with_a_message(capsys, argv, message):
     code, out, err = run_cli(capsys, *argv)
     assert code == 2, (out, err)
     assert message in err and err.startswith("legsim: error: ")
+    assert out == ""  # refused before any table header or result

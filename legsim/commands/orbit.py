@@ -95,6 +95,9 @@ def _run(args: argparse.Namespace, scene, plot_path: Path | None, bar) -> int:
     if start == stop:
         raise LegsimError("--continue needs FROM != TO")
     settings = problem_from_scene(scene, extra_parameters=[param])
+    if param in settings.problem.free:
+        raise LegsimError(f"--continue {param}: '{param}' is a free parameter of the scene's [orbit] section "
+                          f"(solved for at each orbit); continue another parameter or drop it from orbit.free")
     for label, value in (("FROM", start), ("TO", stop)):
         # Both ends must be valid values of the parameter before any orbit is searched for.
         try:
