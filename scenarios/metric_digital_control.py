@@ -143,8 +143,12 @@ def main(argv: list[str] | None = None) -> int:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         parser.error(f"--out {out}: cannot create the folder: {exc.strerror or exc}")
-    if not os.access(out, os.W_OK):
-        parser.error(f"--out {out}: the folder is not writable")
+    try:
+        # Probe with an unnamed file: permission bits say yes to root where writes still fail (/proc).
+        with tempfile.TemporaryFile(dir=out):
+            pass
+    except OSError as exc:
+        parser.error(f"--out {out}: cannot write in the folder: {exc.strerror or exc}")
     result = sweep(np.logspace(-1, -4, args.deltas))
     print(f"{'delta':>10} {'rho':>12} {'rho window':>12} {'rho^eps':>12} {'trajectory':>11}")
     for i, delta in enumerate(result["delta"]):

@@ -131,6 +131,8 @@ def test_no_orbit_exits_3_with_the_reason(capsys):
     # after the family was computed).
     (["orbit", "rimless_wheel", "--continue", "slope", "3", "4", "--plot", "/proc/no/such/folder/f.png"],
      "cannot create the folder /proc/no/such/folder"),
+    (["orbit", "rimless_wheel", "--continue", "slope", "3", "4", "--plot", "/proc/f.png"],
+     "cannot write in the folder /proc"),  # even as root, whose permission bits say yes
     (["orbit", "rimless_wheel", "--continue", "slope", "5", "1e300"],
      "--continue TO = 1e+300: orbit problem: no system for parameters"),
     (["orbit", "rimless_wheel", "--continue", "slope", "3", "4", "--steps", "1000000000"], "--steps must be in [1, 10000]"),

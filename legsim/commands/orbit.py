@@ -19,6 +19,7 @@ import json
 import math
 import os
 import sys
+import tempfile
 from pathlib import Path
 from typing import Any
 
@@ -164,8 +165,12 @@ def _check_plot_path(path_text: str) -> Path:
         path.parent.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise LegsimError(f"--plot {path}: cannot create the folder {path.parent}: {exc.strerror or exc}") from None
-    if not os.access(path.parent, os.W_OK):
-        raise LegsimError(f"--plot {path}: the folder {path.parent} is not writable")
+    try:
+        # Probe with an unnamed file: permission bits say yes to root where writes still fail (/proc).
+        with tempfile.TemporaryFile(dir=path.parent):
+            pass
+    except OSError as exc:
+        raise LegsimError(f"--plot {path}: cannot write in the folder {path.parent}: {exc.strerror or exc}") from None
     return path
 
 
