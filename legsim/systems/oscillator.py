@@ -13,6 +13,12 @@ and eps is measured in metres. Without the stop there is no transition. The forc
 model's *control* ``u(t, x) = U cos(Omega t)``, so that it travels the integrator's control
 path (sampled at every Runge-Kutta stage).
 
+With the effect ``zeno = { window = h + eps }`` (Zeno continuation, off by default) an impact
+whose next flight would be shorter than the window sticks instead of chattering: transition
+``stick`` into mode ``stuck`` (state held), left through ``release`` when the free acceleration
+at the stop ``F = u/m - omega^2 x_max`` changes sign, as the exact mass does (guards on
+(t, x, u); see ``make_system`` and docs/stress.md).
+
 Table I of paper 000 (m = 1):
 
 =========  ====  ===  =======  ===============  =====  =====  =====  =====
@@ -43,6 +49,7 @@ from ..hybrid import HybridSystem, Mode, Transition
 from ._reference import as_times, box, make_samples, segment, zigzag
 
 MODE = "free"
+STUCK = "stuck"  # at rest on the stop (Zeno continuation only)
 NAMES = ("x", "xd")
 
 #: Table I of paper 000, as keyword arguments of ``make_system``/``OscillatorReference`` plus the
@@ -77,7 +84,8 @@ def forcing(amplitude: float, frequency: float, counters: dict[str, int] | None 
 
 
 def make_system(omega: float = 2.5, a: float = 0.05, x_max: float | None = 14.0, c: float = 0.9,
-                mass: float = 1.0, counters: dict[str, int] | None = None) -> HybridSystem:
+                mass: float = 1.0, counters: dict[str, int] | None = None,
+                zeno_window: float = 0.0) -> HybridSystem:
     """The oscillator as a hybrid system; pass ``x_max=None`` for no stop (no guard).
 
     Parameters
@@ -89,6 +97,12 @@ def make_system(omega: float = 2.5, a: float = 0.05, x_max: float | None = 14.0,
     mass: m (kg), > 0; the control u is a force (N), the field uses u / m (None means u = 0).
     counters: when given, ``damping_evals`` counts the evaluations of the damping term (none
         at all when a = 0: the field then has no such term).
+    zeno_window: Zeno continuation (s; 0, the default, switches it off): an impact whose next
+        flight would be shorter than the window (rebound ``c v0 < F zeno_window / 2``, F the free
+        acceleration pressing the mass on the stop, v0 the approach speed back at the stop) and
+        after which the stop would push (F > 0) sticks instead: mode ``stuck`` (x, xd held), left
+        through ``release`` when F changes sign. Set it to h + eps of the run (see
+        docs/stress.md). The guards then depend on the forcing, so they are declared on (t, x, u).
     """
     omega, a, c, mass = float(omega), float(a), float(c), float(mass)
     if not (omega > 0 and math.isfinite(omega)):
@@ -150,11 +164,54 @@ def make_system(omega: float = 2.5, a: float = 0.05, x_max: float | None = 14.0,
         def reset(x: np.ndarray) -> np.ndarray:
             return np.array([x[0], -c * x[1]])
 
-        transitions.append(Transition(MODE, MODE, guard, reset, name="impact", guard_gradient=guard_gradient,
-                                      reset_jacobian=lambda x: np.diag([1.0, -c])))
-    return HybridSystem({MODE: Mode(2, field, NAMES, jacobian)}, transitions,
+        window = float(zeno_window)
+        if not (window >= 0.0 and math.isfinite(window)):
+            raise ModelError(f"oscillator: zeno_window must be finite and >= 0 s, got {zeno_window}")
+        if window == 0.0:
+            transitions.append(Transition(MODE, MODE, guard, reset, name="impact", guard_gradient=guard_gradient,
+                                          reset_jacobian=lambda x: np.diag([1.0, -c])))
+        else:
+            transitions.extend(_zeno_transitions(guard, reset, stop, c, w2, inv_m, window))
+    modes = {MODE: Mode(2, field, NAMES, jacobian)}
+    if any(tr.target == STUCK for tr in transitions):
+        modes[STUCK] = Mode(2, lambda t, x, u: np.zeros(2), NAMES, lambda t, x, u: np.zeros((2, 2)))
+    return HybridSystem(modes, transitions,
                         name="oscillator with stop" if transitions else "oscillator",
                         energy=energy, initial=(MODE, np.array([x0, 0.0])))
+
+
+def _zeno_transitions(gap: Callable[[np.ndarray], float], bounce: Callable[[np.ndarray], np.ndarray], stop: float,
+                      c: float, w2: float, inv_m: float, window: float) -> list[Transition]:
+    """Zeno continuation at the stop: ``impact`` (bounce) and ``stick`` (plastic, into ``stuck``)
+    from ``free`` with complementary guards, and ``release`` from ``stuck``.
+
+    Past the stop's guard the impact *accumulates* when the free acceleration at rest on the stop,
+    ``F = u/m - omega^2 x`` (m/s^2, > 0 pressing), is positive and the rebound ``c v0`` with
+    ``v0^2 = xd^2 - 2 F (x - x_max)`` (the approach speed back at the stop, so that the decision is
+    the same all along a step through the strip) is below ``F window / 2``. The branch taken has
+    the stop's guard itself (m), the other its opposite (not past). ``release``: guard F itself,
+    the stop pushes while F >= 0 (paper 000 below Table I)."""
+
+    def pressing(x: np.ndarray, u: Any) -> float:
+        return (0.0 if u is None else u) * inv_m - w2 * x[0]
+
+    def branch(sticks: bool):
+        def g(t: float, x: np.ndarray, u: Any) -> float:
+            base = gap(x)
+            if base >= 0.0:
+                return base
+            F = pressing(x, u)
+            v0 = math.sqrt(max(x[1] * x[1] - 2.0 * F * max(x[0] - stop, 0.0), 0.0))
+            accumulating = F > 0.0 and c * v0 < 0.5 * F * window
+            return base if accumulating == sticks else -base
+        return g
+
+    def stick(x: np.ndarray) -> np.ndarray:
+        return np.array([x[0], 0.0])
+
+    return [Transition(MODE, MODE, branch(False), bounce, name="impact", guard_args="t,x,u"),
+            Transition(MODE, STUCK, branch(True), stick, name="stick", guard_args="t,x,u"),
+            Transition(STUCK, MODE, lambda t, x, u: pressing(x, u), name="release", guard_args="t,x,u")]
 
 
 @dataclass(frozen=True)
@@ -588,12 +645,16 @@ def _build(params: dict[str, Any], effects: dict[str, dict[str, Any]]) -> Model:
     c = 0.0 if stop is None else stop["restitution"]
     a = 0.0 if damping is None else damping["a"]
     counts = {"damping_evals": 0, "forcing_evals": 0}
-    system = make_system(params["omega"], a, x_max, c, params["mass"], counters=counts)
+    window = effects["zeno"]["window"] if "zeno" in effects and stop is not None else 0.0
+    system = make_system(params["omega"], a, x_max, c, params["mass"], counters=counts, zeno_window=window)
     control = None if force is None else forcing(force["amplitude"], force["frequency"], counts)
     amplitude = 0.0 if force is None else force["amplitude"]
     frequency = 0.0 if force is None else force["frequency"]
     size = params["size"]
     info: dict[str, Any] = {"guard units": {"impact": "m (distance to the stop)"} if stop else {}}
+    if window > 0.0:
+        info["guard units"].update({"stick": "m (distance to the stop)",
+                                    "release": "m/s^2 (free acceleration pressing the mass on the stop)"})
     if x_max is not None:
         info["initial_check"] = _beyond_the_stop(x_max)
     try:
@@ -647,6 +708,10 @@ BUILDER = Builder(
                        parameters={"position": Param(14.0, "position of the stop x_max", "m"),
                                    "restitution": Param(0.9, "coefficient of restitution c", "", low=0.0,
                                                         high=1.0)}),
+        "zeno": Effect("Zeno continuation at the stop: an impact whose next flight would be shorter than "
+                       "`window` sticks (mode 'stuck') until the stop force changes sign (needs the stop)",
+                       parameters={"window": Param(2e-3, "shortest flight resolved; set it to h + eps of the run",
+                                                   "s", low=0.0, low_open=True)}),
         "damping": Effect("viscous damping 2 a xd", default_on=True,
                           parameters={"a": Param(0.05, "damping rate mu / (2 m)", "1/s", low=0.0)}),
         "forcing": Effect("external force u(t) = amplitude cos(frequency t), passed as the control",
