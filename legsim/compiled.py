@@ -343,7 +343,7 @@ def _k_step_loop(p, n_guards, c, n_groups, weights, n_members, members, b_err, f
     method_id = ci[6]
     s_stages = c.shape[0]
     n = x.shape[0]
-    span = max(1.0, abs(t_final))
+    finish_tol = 8.0 * 2.220446049250313e-16 * abs(t_final)  # as relaxed._run_mode
     t = fs[0]
     h_prop = fs[1]
     size = iv[5]
@@ -360,7 +360,7 @@ def _k_step_loop(p, n_guards, c, n_groups, weights, n_members, members, b_err, f
     gmin = 0.0
     while True:
         remaining = t_final - t
-        if remaining <= 1e-14 * span:
+        if remaining <= finish_tol:
             fs[4] = t_final if remaining > 0 else t
             code = 0
             break

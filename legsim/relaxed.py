@@ -195,6 +195,12 @@ def simulate(
     t_final = float(t_final)
     if not math.isfinite(t_final) or t_final <= t0:
         raise SimulationError(f"t_final must be finite and > t0 = {t0}, got {t_final}")
+    scale = max(abs(t0), abs(t_final))
+    if scale + h == scale:
+        raise SimulationError(
+            f"h = {h:g} s is below the time resolution at t = {scale:g} s (float64 times are "
+            f"{float(np.spacing(scale)):.3g} s apart there): no step could advance time; "
+            f"shift t0 towards 0 or raise h")
     tableau = get_method(method)
     if control is not None and not callable(control):
         raise SimulationError(f"control must be callable control(t, x) -> u or None, got {type(control).__name__}")
@@ -422,7 +428,9 @@ class _Integrator:
 
             return run_mode_compiled(self, data, buf, t, x, k0, t_final)
 
-        span = max(1.0, abs(t_final))
+        # Finished once t_final is a few float spacings away (an absolute test: a relative one
+        # would call a run near t = 1e15 finished before its first step).
+        finish_tol = 8.0 * 2.220446049250313e-16 * abs(t_final)
         progress = self.progress
         T, X, DX, size = buf.t, buf.x, buf.dx, buf.size
         steps = halvings = rejections = field_evals = guard_evals = 0
@@ -431,7 +439,7 @@ class _Integrator:
         try:
             while True:
                 remaining = t_final - t
-                if remaining <= 1e-14 * span:
+                if remaining <= finish_tol:
                     outcome = ("finished", "", t_final if remaining > 0 else t)
                     break
                 hk = h_prop if h_prop < h_max else h_max
@@ -498,7 +506,8 @@ class _Integrator:
                             outcome = ("halving_exhausted",
                                        f"no step from t={t:.17g} in mode '{mode}' lands in the relaxed domain after "
                                        f"{shortened - 1} halvings: the flow leaves through the guard of transition "
-                                       f"{data.transitions[e].name} without entering its strip (x={x.tolist()})", t)
+                                       f"{data.transitions[e].name} without entering its strip (x={x.tolist()})"
+                                       + _resolution_hint(eps, x), t)
                         break
                 halvings += shortened
                 if outcome is not None:
@@ -665,6 +674,14 @@ class _Integrator:
             return ("end", "non_finite", f"reset of transition {tr.name} at t={exit_time:.17g} gives a non-finite "
                     f"state {x_after.tolist()} from q={q.tolist()}", exit_time, False, None)
         return ("next", target, x_after, exit_time)
+
+
+def _resolution_hint(eps: float, x: np.ndarray) -> str:
+    """A second explanation when eps is too thin for float64 near x: no step can land inside it."""
+    spacing = float(np.spacing(1.0 + float(np.max(np.abs(x)))))
+    if eps < 1e3 * spacing:
+        return f"; or eps = {eps:g} is thinner than float64 can resolve near this state (spacing {spacing:.3g}): raise eps"
+    return ""
 
 
 def _first_nonfinite(values) -> int | None:

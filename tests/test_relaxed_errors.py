@@ -205,12 +205,14 @@ def test_the_transition_budget_ends_the_run(ball):
         ex.raise_for_status()
 
 
-@pytest.mark.xfail(strict=True, reason="core: with t + h == t (t0 = 1e15, h = 1e-3) simulate reports 'finished' at "
-                                       "t_final after 0 steps with the initial state; it should stop with a status "
-                                       "naming h and t (scenes refuse such h since legsim.scene checks it)")
-def test_a_step_below_the_time_resolution_is_not_called_finished(ball):
-    # Near t = 1e15 float64 times are 0.125 s apart, so t + 1e-3 == t: no step can advance.
-    ex = simulate(ball, [1.0, 0.0], "flight", 1e15 + 2.0, 1e-3, 1e-4, t0=1e15)
-    # The ball falls for 2 s (its first impact is at 0.45 s), so a finished run cannot end at
-    # rest at z = 1 after 0 steps.
-    assert ex.status != "finished" or ex.counters["steps"] > 0
+def test_a_step_below_the_time_resolution_is_refused(ball):
+    # Near t = 1e15 float64 times are 0.125 s apart, so t + 1e-3 == t: no step can advance, and
+    # the run must not pretend to have finished.
+    with pytest.raises(SimulationError, match=r"h = 0.001 s is below the time resolution at t = 1e\+15 s"):
+        simulate(ball, [1.0, 0.0], "flight", 1e15 + 2.0, 1e-3, 1e-4, t0=1e15)
+
+
+def test_an_eps_below_float_resolution_says_so(ball):
+    ex = simulate(ball, [1.0, 0.0], "flight", 1.0, 1e-3, 1e-300)
+    assert ex.status == "halving_exhausted"
+    assert "eps = 1e-300 is thinner than float64 can resolve near this state" in ex.message
