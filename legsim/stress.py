@@ -537,6 +537,41 @@ def _zeno_ball_08(result: CaseResult, quick: bool) -> None:
     _zeno_ball(result, quick, 0.8)
 
 
+@case("zeno_ball_c0.8_continued", "zeno", "bouncing ball, c = 0.8, Zeno continuation: the plain bounces, then rest")
+def _zeno_ball_continued(result: CaseResult, quick: bool) -> None:
+    g, z0, c, h, eps = 9.81, 1.0, 0.8, 1e-3, 1e-4
+    window = h + eps
+    model = build("bouncing_ball", {"g": g, "z0": z0}, {"floor": {"restitution": c}, "zeno": {"window": window}})
+    plain_model = build("bouncing_ball", {"g": g, "z0": z0}, {"floor": {"restitution": c}})
+    ref = model.reference
+    T = 2.0 * ref.zeno_time
+    # the exact impacts leave at c^k v1 and the continuation keeps those with c^k v1 >= g window / 2
+    bound = math.log(c * ref.impact_speed / (0.5 * g * window)) / math.log(1.0 / c) + 3
+    start = time.perf_counter()
+    ex = simulate(model.system, [z0, 0.0], "flight", T, h, eps, max_transitions=1000)
+    cost = time.perf_counter() - start
+    result.main_run(ex)
+    result.add(execution_checks(model.system, ex, eps, energy="dissipative", energy_tol=1e-9, bound=bound,
+                                bound_why="log(c v1/w_th)/log(1/c) + 2 bounces and the rest"))
+    result.add(ball_flight_checks(ex, g, eps, resolved=4 * h))
+    start = time.perf_counter()
+    plain = simulate(plain_model.system, [z0, 0.0], "flight", T, h, eps, max_transitions=10 ** 6)
+    plain_cost = time.perf_counter() - start
+    kept = ex.transitions[:-1]
+    same = [a.exit_time for a in kept] == [b.exit_time for b in plain.transitions[:len(kept)]]
+    rests = ex.final_mode == "rest" and ex.transitions[-1].name == "rest"
+    v = abs(float(ex.transitions[-1].state_before[1]))
+    t_rest = ex.transitions[-1].time
+    early = 2 * c * v / (g * (1 - c))
+    ok = same and rests and ref.zeno_time - early - 1e-12 <= t_rest <= ref.zeno_time + len(kept) * window
+    result.add(Check("plain bounces, then rest", ok,
+                     f"{len(kept)} bounces identical to the plain run's, rest at {t_rest:.5g} s (t_zeno "
+                     f"{ref.zeno_time:.5g} s; the skipped tail is {early:.2g} s)"))
+    result.numbers.update({"transitions_plain": len(plain.transitions), "wall_s": cost, "wall_s_plain": plain_cost})
+    result.outcome = (f"{ex.status} in '{ex.final_mode}'; {len(ex.transitions)} transitions vs "
+                      f"{len(plain.transitions)} plain ({cost:.2g} s vs {plain_cost:.2g} s)")
+
+
 # ---------------------------------------------------------------------------------------------
 # Zeno: the double pendulum with a stop (paper 003 Fig. 2c)
 # ---------------------------------------------------------------------------------------------

@@ -77,3 +77,27 @@ def test_the_scene_switches_it_on_by_effect():
     assert ex.status == "finished" and len(ex.transitions) <= 15
     with pytest.raises(SceneError, match="effects.zeno.window"):
         load_scene("oscillator_ex2", overrides=["effects.zeno.window=0"])
+
+
+def test_the_ball_rests_after_its_bounces_as_long_as_a_step_and_keeps_the_plain_bounces_before():
+    from legsim.systems.bouncing_ball import BouncingBallReference, make_system as ball
+
+    g, c, h, eps = 9.81, 0.5, 1e-3, 1e-4
+    ref = BouncingBallReference(g, c)
+    cont = simulate(ball(g, c, zeno_window=h + eps), [1.0, 0.0], "flight", 2 * ref.zeno_time, h, eps)
+    plain = simulate(ball(g, c), [1.0, 0.0], "flight", 2 * ref.zeno_time, h, eps)
+    names = [tr.name for tr in cont.transitions]
+    assert names[-1] == "rest" and names.count("rest") == 1 and cont.final_mode == "rest"
+    # the bounces it keeps are the plain run's, strip for strip (same guard values, same holds)
+    kept = cont.transitions[:-1]
+    np.testing.assert_array_equal([tr.exit_time for tr in kept], [tr.exit_time for tr in plain.transitions[:len(kept)]])
+    # it rests once the rebound c v would fly less than h + eps: c v < g (h + eps) / 2
+    v = abs(cont.transitions[-1].state_before[1])
+    assert c * v < 0.5 * g * (h + eps) <= c * abs(kept[-1].state_before[1])
+    # ... which is before the exact Zeno time by at most the skipped tail, 2 c v / (g (1 - c)),
+    # plus the holds of the strips kept (each at most h + eps)
+    t_rest = cont.transitions[-1].time
+    assert ref.zeno_time - 2 * c * v / (g * (1 - c)) - 1e-12 <= t_rest <= ref.zeno_time + len(kept) * (h + eps)
+    assert len(plain.transitions) > 100 * len(names)
+    with pytest.raises(ModelError, match="zeno_window"):
+        ball(g, c, zeno_window=math.inf)
