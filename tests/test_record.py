@@ -54,12 +54,15 @@ def hopper_model(k: float = 400.0, c: float = 0.9, r: float = 0.1) -> Model:
                           [touchdown, liftoff], name="hopper", energy=energy)
     th = np.linspace(0.0, 2 * np.pi, 13)
 
+    leg = 0.4  # m, drawn rest length: longer than the deepest compression (z > -0.2), so every
+    # frame is drawn above the ground, whichever frame a screenshot catches
+
     def geometry(mode, x):
         z = x[0]
-        body = np.c_[r * np.cos(th), z + 2 * r + r * np.sin(th)]
-        foot = min(z, 0.0) if mode == "stance" else z
+        body = np.c_[r * np.cos(th), z + leg + r + r * np.sin(th)]
+        foot = 0.0 if mode == "stance" else z  # the foot rests on the ground in stance
         # The foot is a single point: recorded as a Rerun point, not a line strip.
-        return {"body": body, "leg": np.array([[0.0, z + r], [0.0, foot]]), "foot": np.array([[0.0, foot]])}
+        return {"body": body, "leg": np.array([[0.0, z + leg], [0.0, foot]]), "foot": np.array([[0.0, foot]])}
 
     return Model(system, "flight", {"z": 0.5, "zd": 0.0}, geometry=geometry,
                  scenery={"ground": np.array([[-1.0, 0.0], [1.0, 0.0]])})
