@@ -46,6 +46,21 @@ Guards (``>= 0`` inside; the strip width eps is in the guard's unit, see :meth:`
     * liftoff of a spring leg: ``max(l - r, -dr/dt)`` (m), past once the leg has extended back
       through its rest length.
 
+    Guards that depend on constraint forces (releases, plastic impacts, Zeno continuation) are
+    declared on ``(t, x, u)`` when the robot has actuated joints, so that the crossing search
+    evaluates them with the control at each interpolated time.
+
+Zeno continuation (``zeno_window``, off by default)
+    a contact with c > 0 gets two impact transitions with complementary guards: ``bounce_<c>``
+    as without continuation, and ``rest_<c>``, a plastic impact into the constrained mode, taken
+    when the rebound would fly shorter than the window (``c v0 < a_n window / 2``) and the contact
+    would then push; the release guard leaves it when the force changes sign (docs/stress.md).
+
+Falls
+    the models have no body-ground contact: a hip below the ground, or a liftoff that would swing
+    a foot into the ground while it moves down, raises ``ModelBreakdown`` (status
+    ``model_breakdown``, the execution kept).
+
 Resets
     * impact of a rigid contact with restitution c (generalised Newton impact): with ``J`` the
       Jacobian rows of the contacts that stay active after the impact plus the striking one,
