@@ -725,6 +725,40 @@ class ContactBridge:
             return self._kinematic_guards(spec, x)[cname]
         return g
 
+    def initial_check(self) -> Callable[[str, np.ndarray, float], str | None]:
+        """The scene's initial-state check (``Model.info["initial_check"]``): ``check(mode, x,
+        eps)`` names the first inactive joint stop or point contact whose position lies past it
+        by more than eps (rad or m), else None. The guards are "and" conditions (past the stop
+        AND moving into it), so they count a state deep past a stop but moving away as inside;
+        no execution reaches such a state, and a run started there would not be the model's."""
+        def check(mode: str, x: np.ndarray, eps: float) -> str | None:
+            active = self._spec(mode).active
+            n = self.n
+            q = np.asarray(x, dtype=float)[:n]
+            for r in self._rigid.values():
+                c = r.contact
+                if c.name in active:
+                    continue
+                if r.kind == "stop":
+                    depth = -r.sign * (q[r.dof] - c.position)
+                    if depth > eps:
+                        name = self.coordinate_names[r.dof]
+                        bound = ">=" if c.side == "lower" else "<="
+                        return (f"{name} = {q[r.dof]:g} lies past the {c.side} stop '{c.name}' ({name} {bound} "
+                                f"{c.position:g}) by {depth:.3g} > eps = {eps:g} in mode '{mode}' where the "
+                                f"stop is inactive")
+                else:
+                    pin.forwardKinematics(self.model, self.data, q)
+                    z = pin.updateFramePlacement(self.model, self.data, r.frame_id).translation[2]
+                    depth = c.ground - z
+                    if depth > eps:
+                        return (f"contact point '{c.name}' (frame '{c.frame}') at height {z:g} m lies below the "
+                                f"ground {c.ground:g} m by {depth:.3g} > eps = {eps:g} in mode '{mode}' where "
+                                f"the contact is inactive")
+            return None
+
+        return check
+
     def guard_units(self) -> dict[str, str]:
         """Unit of each kind of guard by transition name prefix (eps is measured in these)."""
         units = {}

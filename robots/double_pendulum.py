@@ -131,7 +131,8 @@ def build(params: dict[str, Any], effects: dict[str, dict[str, Any]]) -> Model:
 
     reach = 1.1 * (L1 + L2)
     info = {"guard_units": bridge.guard_units(), "parameters": dict(params), "effects": dict(effects),
-            "bridge": bridge}
+            "bridge": bridge,
+            "initial_check": bridge.initial_check()}
     return Model(system=system, initial_mode="unconstrained", initial_state=dict(INITIAL_STATE),
                  geometry=geometry, scenery={"support": np.array([[-0.25 * reach, 0.0], [0.25 * reach, 0.0]])},
                  counters=bridge.counters, info=info)

@@ -116,7 +116,8 @@ def build(params: dict[str, Any], effects: dict[str, dict[str, Any]]) -> Model:
         return parts
 
     info = {"guard_units": bridge.guard_units(), "parameters": dict(params), "effects": dict(effects),
-            "bridge": bridge}
+            "bridge": bridge,
+            "initial_check": bridge.initial_check()}
     return Model(system=system, initial_mode=initial_mode, initial_state=dict(INITIAL_STATE),
                  geometry=geometry, scenery={"ground": np.array([[-2.0, 0.0], [15.0, 0.0]])},
                  counters=bridge.counters, info=info)

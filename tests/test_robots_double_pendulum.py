@@ -278,3 +278,21 @@ def test_zeno_guards_are_complementary_past_the_stop():
         ContactBridge(dp.pinocchio_model(), [], zeno_window=0.0)
     with pytest.raises(SceneError, match="effects.zeno.window"):
         dp.make(effects={"zeno": {"window": -1.0}})
+
+
+def test_scene_refuses_an_initial_state_past_the_stop_by_more_than_eps():
+    # The guard max(theta2 - pos, theta2d) counts theta2 = -1 at rest as inside the free mode, so
+    # the run "finished" 1 rad past the stop; the bridge's initial check must name it.
+    from legsim.scene import load_scene
+    with pytest.raises(SceneError) as err:
+        load_scene("double_pendulum_plastic", overrides=["initial.state.theta2=-1"])
+    msg = str(err.value)
+    assert "theta2 = -1" in msg and "stop 'stop'" in msg and "by 1 >" in msg and "'unconstrained'" in msg
+    eps = load_scene("double_pendulum_plastic").integrator["eps"]
+    # Within the strip (depth < eps) is a legitimate start: the run enters the strip at once.
+    scene = load_scene("double_pendulum_plastic", overrides=[f"initial.state.theta2={-0.5 * eps!r}"])
+    assert scene.initial_state[1] == pytest.approx(-0.5 * eps)
+    check = scene.model.info["initial_check"]
+    # In the constrained mode the stop is active: no depth is measured against it.
+    assert check("constrained", np.array([0.5, -1.0, 0.0, 0.0]), eps) is None
+    assert check("unconstrained", np.array([0.5, -2.0 * eps, 0.0, 0.0]), eps) is not None
