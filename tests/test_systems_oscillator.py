@@ -15,6 +15,7 @@ import pytest
 from scipy.integrate import quad, solve_ivp
 
 from legsim import simulate
+from legsim.errors import SimulationError
 from legsim.scene import load_scene
 from legsim.systems import oscillator as osc
 from legsim.systems.oscillator import EXAMPLES, OscillatorReference
@@ -390,3 +391,40 @@ def test_absurd_oscillator_input_is_refused_by_name():
         osc.make_system(mass=1e-320)
     # The energy of a huge state is inf, not an OverflowError.
     assert osc.make_system().energy("free", np.array([0.0, 1e200])) == math.inf
+
+
+@pytest.mark.parametrize("x_max, amplitude, frequency", [(0.0, 0.0, 0.0), (0.0, 0.0, 1.3), (0.25, 1.5625, 0.0)])
+def test_reference_mass_at_rest_on_a_stop_at_equilibrium_stays_at_rest(x_max, amplitude, frequency):
+    # F(t) = u/m - omega^2 x_max vanishes identically (omega = 2.5: 2.5^2 * 0.25 = 1.5625), so the
+    # exact solution is x = x_max, xd = 0 for ever; the impact search used to bisect the zero gap
+    # over the whole flight down to 1e-13 s and never return.
+    ref = OscillatorReference(2.5, 0.05, x_max, 0.5, 1.0, amplitude, frequency, x_max, 0.0)
+    states = ref.states([0.0, 0.7, 10.0])
+    assert np.array_equal(states, np.tile([x_max, 0.0], (3, 1)))
+    assert len(ref.impact_times(10.0)) == 0
+
+
+def test_reference_plastic_impact_at_the_equilibrium_stop_rests_there():
+    # c = 0, stop at the spring's equilibrium, unforced: the free motion from x0 < 0 at rest reaches
+    # x = 0 when cos(wd t + phase) decays to zero; after the plastic impact F = 0, so the mass rests.
+    omega, a, x0 = 2.5, 0.05, -0.3
+    ref = OscillatorReference(omega, a, 0.0, 0.0, 1.0, 0.0, 0.0, x0, 0.0)
+    wd = math.sqrt(omega ** 2 - a ** 2)
+    # x = x0 e^{-a t} (cos wd t + (a/wd) sin wd t) = 0 at tan(wd t) = -wd/a
+    t_hit = (math.pi - math.atan(wd / a)) / wd
+    impacts = ref.impact_times(5.0)
+    assert len(impacts) == 1 and impacts[0] == pytest.approx(t_hit, rel=1e-12)
+    assert np.array_equal(ref.states([t_hit + 1e-6, 5.0]), np.zeros((2, 2)))
+
+
+def test_reference_impact_search_has_a_work_bound():
+    # A flight whose gap is zero everywhere (forced here by claiming the resting mass does not
+    # stay) must end in a named error, not a hang.
+    class Leaves(OscillatorReference):
+        def _stays(self, t):
+            return False
+
+    ref = Leaves(2.5, 0.05, 0.0, 0.5, 1.0, 0.0, 0.0, 0.0, 0.0)
+    ref.max_refinements = 2_000
+    with pytest.raises(SimulationError, match="visited 2000 intervals"):
+        ref.state(1.0)

@@ -43,7 +43,7 @@ import numpy as np
 from scipy.optimize import brentq
 
 from ..builders import Builder, Effect, Model, Param
-from ..errors import ModelError
+from ..errors import ModelError, SimulationError
 from ..execution import Samples
 from ..hybrid import HybridSystem, Mode, Transition
 from ._reference import as_times, box, make_samples, segment, zigzag
@@ -295,6 +295,11 @@ class OscillatorReference:
         # Spacing of the impact search grid: a small fraction of the fastest period.
         self.grid = 0.05 / max(self.omega, self.frequency)
         self.min_interval = 1e-13
+        # Bisection nodes one impact search may visit: a search that resolves an impact visits a
+        # few per halving level (about 40 levels from the grid down to min_interval); a gap that
+        # stays within rounding of zero over a whole interval would visit ~1e11.
+        self.max_refinements = 100_000
+        self._refinements = 0
         self._phases: list[_Phase] = []
         self._starts: list[float] = []
         self._impacts: list[tuple[float, float]] = []  # (time, speed before the impact)
@@ -390,7 +395,7 @@ class OscillatorReference:
             if xd > 0:
                 self._impact(t, xd)
                 return
-            if xd == 0.0 and self.free_acceleration(t) > 0:
+            if xd == 0.0 and self._stays(t):
                 self._stick(t)
                 return
         self._push(_Phase("flight", t, x, xd))
@@ -401,7 +406,7 @@ class OscillatorReference:
         self._impacts.append((t, speed))
         rebound = self.c * speed
         F = self.free_acceleration(t)
-        if rebound < self.zeno_speed and F > 0:
+        if rebound < self.zeno_speed and (F > 0 or (rebound == 0 and self._stays(t))):
             if rebound > 0 and self.c < 1.0:
                 t_acc = float(t + 2.0 * rebound / (F * (1.0 - self.c)))
                 self._chatters.append((t, t_acc))
@@ -426,6 +431,15 @@ class OscillatorReference:
         self._push(_Phase("flight", t_release, self.x_max, 0.0))
         self._open = True
         self._horizon = t_release
+
+    def _stays(self, t: float) -> bool:
+        """True when a mass at rest on the stop at t stays there: F(t) > 0 presses it on, and an F
+        that is identically zero (constant forcing that balances the spring exactly, or no forcing
+        with the stop at the spring's equilibrium) leaves it in equilibrium for ever. The latter
+        must not start a flight: its gap is zero everywhere and no impact search can clear it."""
+        F = self.free_acceleration(t)
+        constant = self.frequency == 0.0 or self.amplitude == 0.0
+        return bool(F > 0 or (F == 0 and constant))
 
     def _release_time(self, t: float) -> float:
         """First time >= t at which F turns negative (inf if never)."""
@@ -500,6 +514,7 @@ class OscillatorReference:
         y0, v0, k_pos, _ = coeffs
         hom_amp = math.hypot(y0, k_pos)  # amplitude of the homogeneous position at the flight start
         ctx = (ph, coeffs, hom_amp)
+        self._refinements = 0
         lo = tau_from
         while lo < tau_to:
             edges = lo + self.grid * np.arange(65)
@@ -539,6 +554,13 @@ class OscillatorReference:
     def _refine(self, ctx, tl: float, tr: float) -> float | None:
         """First root of x - x_max in (tl, tr] by bisection of uncleared intervals, then Brent."""
         ph, coeffs, hom_amp = ctx
+        self._refinements += 1
+        if self._refinements > self.max_refinements:
+            raise SimulationError(
+                f"oscillator reference: the impact search of the flight from t = {ph.t:g} s (x = {ph.x:g} m, "
+                f"xd = {ph.xd:g} m/s) visited {self.max_refinements} intervals near t = {ph.t + tl:g} s without "
+                f"clearing the stop x_max = {self.x_max:g} m or crossing it: the gap stays within rounding "
+                f"of zero (a mass resting on the stop?)")
         g_l, gd = self._gap(ph, tl, coeffs)
         g_r, _ = self._gap(ph, tr, coeffs)
         g_l, gd, g_r = float(g_l), float(gd), float(g_r)
