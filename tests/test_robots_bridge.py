@@ -252,3 +252,23 @@ def test_an_armed_contact_lands_only_where_it_is_armed():
     np.testing.assert_allclose(bridge.system().guard_values("free", np.array([0.5, -0.1, 2.0, -1.0])), [0.5])
     with pytest.raises(ModelError, match="armed must be callable"):
         ContactBridge(model, [PointContact("floor", "ball", armed=1.0)])
+
+
+def test_initial_check_measures_a_point_below_the_ground_and_a_stop_from_its_side():
+    # The rod's tip at (L/2) from the base, pitched by theta about +y: its height is
+    # z - (L/2) sin(theta) (RY turns +x towards -z); ground at 0.2 m.
+    model = rod_model(L=1.0)
+    bridge = ContactBridge(model, [PointContact("tip", "tip", ground=0.2)], mode_names={(): "air"})
+    check = bridge.initial_check()
+    theta = 0.5
+    depth = 0.2 - (0.1 - 0.5 * math.sin(theta))
+    msg = check("air", np.array([0.0, 0.1, theta, 0, 0, 0]), 0.01)
+    assert msg is not None and "'tip'" in msg and f"by {depth:.3g} >" in msg
+    assert check("air", np.array([0.0, 0.1, theta, 0, 0, 0]), depth * 1.001) is None
+    assert check("tip", np.array([0.0, 0.1, theta, 0, 0, 0]), 0.01) is None  # active: on the ground
+    # An upper stop at 0.3 m on z: the domain is z <= 0.3.
+    ball, _ = ball_model()
+    stop = ContactBridge(ball, [JointStop("lid", "z", position=0.3, side="upper")], mode_names={(): "free"})
+    msg = stop.initial_check()("free", np.array([0.0, 0.8, 0.0, -1.0]), 0.1)
+    assert msg is not None and "upper stop 'lid'" in msg and "by 0.5 >" in msg
+    assert stop.initial_check()("free", np.array([0.0, -5.0, 0.0, 0.0]), 0.1) is None
