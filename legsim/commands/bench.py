@@ -21,7 +21,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     wp.add_argument("--repeats", type=int, default=None, help="timed repeats per run, median kept (default 3)")
     wp.add_argument("--rho-points", type=int, default=None,
                     help="times of the rho grid (default 400, 40 with --quick; 0 skips rho)")
-    wp.add_argument("--methods", default=None, help="comma-separated CSV method names to keep")
+    wp.add_argument("--methods", default=None, help="comma-separated CSV method names to keep (e.g. relaxed-rk4,relaxed-rk4-zeno,ps; "
+                                               "-zeno: Zeno continuation, oscillator-ex2 only)")
     wp.add_argument("--no-figure", action="store_true", help="write the CSV only")
     wp.add_argument("--quiet", action="store_true", help="print only the table and the targets")
     tg = sub.add_parser("targets", help="the table and the targets again, from a CSV written before",
