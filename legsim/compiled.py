@@ -379,6 +379,7 @@ def _k_step_loop(p, n_guards, c, n_groups, weights, n_members, members, b_err, f
             hk = remaining
         shortened = 0
         aimed = 0
+        rejected = False
         outcome = -1
         while True:
             _k_stages(t, x, hk, K, XS, x_new, p, c, n_groups, weights, n_members, members, fsal)  # STAGES
@@ -410,13 +411,19 @@ def _k_step_loop(p, n_guards, c, n_groups, weights, n_members, members, b_err, f
                         err = _k_error_norm(b_err, hk, K, x, x_new, rtol, atol)
                         if err > 1.0:
                             rejections += 1
+                            rejected = True
                             hk *= max(0.2, 0.9 * err ** err_exp)
                             last = False
                             continue
                         if err > 0:
-                            h_prop = hk * min(5.0, max(0.2, 0.9 * err ** err_exp))
+                            proposal = hk * min(5.0, max(0.2, 0.9 * err ** err_exp))
                         else:
-                            h_prop = 5.0 * hk
+                            proposal = 5.0 * hk
+                        if rejected and proposal > hk:
+                            proposal = hk
+                        # As relaxed._run_mode: a step shortened to land keeps the proposal.
+                        if shortened == 0 or rejected or proposal > h_prop:
+                            h_prop = proposal
                     break
                 if gmin != gmin:
                     for j in range(n_guards):
@@ -448,7 +455,7 @@ def _k_step_loop(p, n_guards, c, n_groups, weights, n_members, members, b_err, f
                 s, n_evals, converged = _k_crossing(p, e, half, x, K[0], x_new, k1, hk, g0,
                                                     gv[e] + half, 1e-3 * half, work)
                 guard_evals += n_evals * n_guards
-                if not converged or not (0.0 < s < 0.9):
+                if not converged or not (0.0 < s < 1.0):
                     hk = 0.5 * hk
                 else:
                     hk = s * hk

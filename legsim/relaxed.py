@@ -447,6 +447,7 @@ class _Integrator:
                 if last:
                     hk = remaining
                 shortened = aimed = 0
+                rejected = False
                 while True:
                     x_new, stages = step(field, t, x, hk, k0, control)
                     field_evals += evals_per_step
@@ -473,10 +474,18 @@ class _Integrator:
                                 err = self._error_norm(hk, stages, x, x_new)
                                 if err > 1.0:
                                     rejections += 1
+                                    rejected = True
                                     hk *= max(0.2, 0.9 * err ** self.err_exponent)
                                     last = False
                                     continue
-                                h_prop = hk * min(5.0, max(0.2, 0.9 * err ** self.err_exponent)) if err > 0 else 5.0 * hk
+                                proposal = hk * min(5.0, max(0.2, 0.9 * err ** self.err_exponent)) if err > 0 else 5.0 * hk
+                                if rejected and proposal > hk:
+                                    proposal = hk  # no growth right after a rejection (Hairer, scipy)
+                                # A step shortened to land in the relaxed domain says nothing about
+                                # the step the error allows: its tiny error must not shrink the next
+                                # proposal (after a landing the next mode would restart near eps and
+                                # creep back up by 5x per step).
+                                h_prop = proposal if not shortened or rejected or proposal > h_prop else h_prop
                             break
                         if gmin != gmin:  # a guard returned nan
                             gvals = [float(g(t_trial, x_new)) for g in guards]
@@ -590,7 +599,7 @@ class _Integrator:
 
         s, n_evals, converged = crossing_on_step(shifted, g0, gvals[e] + half, 1e-3 * half)
         self.guard_evals += n_evals
-        if not converged or not (0.0 < s < 0.9):
+        if not converged or not (0.0 < s < 1.0):
             return 0.5 * hk
         return s * hk
 

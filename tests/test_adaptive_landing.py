@@ -1,0 +1,61 @@
+"""What a landing costs an error-controlled run (issue 6, item 2).
+
+A step shortened to land in a strip is shortened by a guard, not by the error: it must not shrink
+the step the error control proposes next, or the mode after a transition restarts at the
+landing step's length and creeps back up by 5x per step. And the aimed landing must use the
+failed step's interpolant where it is most accurate, next to the step's end, rather than halving.
+"""
+
+import numpy as np
+import pytest
+
+from legsim import HybridSystem, Mode, Transition, simulate
+
+
+def drift_system(gap: float) -> HybridSystem:
+    """x' = y' = 1: mode a leaves at x = 1, mode b at y = 1 + gap, mode c runs free. With a
+    linear field every embedded pair is exact, so only guards ever shorten a step."""
+
+    def field(t, x, u):
+        return np.ones(2)
+
+    def identity(x):
+        return x.copy()
+
+    return HybridSystem(
+        {"a": Mode(2, field, names=("x", "y")), "b": Mode(2, field, names=("x", "y")),
+         "c": Mode(2, field, names=("x", "y"))},
+        [Transition("a", "b", guard=lambda x: 1.0 - x[0], reset=identity, name="a_to_b"),
+         Transition("b", "c", guard=lambda x: 1.0 + gap - x[1], reset=identity, name="b_to_c")],
+    )
+
+
+@pytest.mark.parametrize("method", ["dopri5", "bs32"])
+def test_a_landing_does_not_shrink_the_next_modes_steps(method):
+    # Mode b lasts 1e-10 s: its landing step is ~1e-10 s long. Mode c must start again at the
+    # largest step h, not at 5x the landing step (which took 14 steps to grow back to h).
+    h, t_final = 0.25, 3.0
+    ex = simulate(drift_system(1e-10), [0.0, 0.0], "a", t_final, h, 1e-12, method=method, rtol=1e-8, atol=1e-8)
+    assert ex.status == "finished" and ex.mode_sequence == ["a", "b", "c"]
+    c = ex.segments[-1]
+    steps_in_c = np.diff(c.t)
+    assert steps_in_c[0] == pytest.approx(h)
+    # c runs from ~1 s to 3 s: eight steps of h (the last one shortened to t_final).
+    assert len(steps_in_c) == int(np.ceil((t_final - c.t[0]) / h - 1e-9))
+
+
+@pytest.mark.parametrize("method", ["dopri5", "dop853"])
+def test_aimed_landing_in_a_thin_strip_costs_about_one_trial_step(method):
+    # The pronk with eps = 1e-9 m: its liftoffs happen where the cubic interpolant of a 0.04 s
+    # step is ~3e-6 m off, so the first aim misses the strip; the second aim, on the shorter
+    # failed step, finds the crossing at s ~ 0.99997 where the interpolant is exact to far below
+    # eps. Refusing aims past s = 0.9 used to fall back to halving: 42 shortened trial steps
+    # for 8 transitions with dop853 (5.25 each); now 10.
+    pronk = pytest.importorskip("robots.pronk")
+    from legsim.bench.cases import relaxed_method
+
+    model = pronk.make()
+    ex = simulate(model.system, pronk.state(), model.initial_mode, 2.0, 0.1, 1e-9, method=relaxed_method(method),
+                  rtol=1e-8, atol=1e-8, landing="aim")
+    assert ex.status == "finished" and len(ex.transitions) == 8
+    assert ex.counters["halvings"] / len(ex.transitions) <= 1.5
