@@ -1169,8 +1169,15 @@ def _resting(result: CaseResult, quick: bool, c: float, window: bool) -> None:
                          f"z(T) = {z_end:.6g} m vs the cubic's {exact_end:.6g} (allowed {allowed:.2g})"))
         result.numbers["lift_lag"] = lag
     result.numbers["transitions"] = len(ex.transitions)
-    result.outcome = (f"{ex.status}; {len(ex.transitions)} transitions, "
-                      + (f"released at {releases[0].time:.6g} s" if releases else "no release"))
+    # The plain run has no release transition: it leaves the floor when its last strip exit
+    # is not followed by another impact.
+    if releases:
+        how = f"released at {releases[0].time:.6g} s"
+    elif ex.transitions:
+        how = f"lifts off at {ex.transitions[-1].exit_time:.6g} s (last strip exit)"
+    else:
+        how = "no impact"
+    result.outcome = f"{ex.status}; {len(ex.transitions)} transitions, {how}"
 
 
 @case("resting_ball_c0", "resting", "ball, plastic floor (c = 0): rests, then a lift u = 3 t N releases it at t* = m g / 3")

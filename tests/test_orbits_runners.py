@@ -106,3 +106,20 @@ def test_pronk_orbit_is_the_slip_orbit(slip_orbit):
     # The two others belong to the pitch motion, which the SLIP does not have.
     pitch = [m for m in mu if np.min(np.abs(slip_orbit.multipliers - m)) > 1e-3]
     assert len(pitch) == 2 and abs(pitch[0] - np.conj(pitch[1])) < 1e-9
+
+
+@pytest.mark.parametrize("eps", [4e-2, 1e-2, 1e-3])
+def test_pronk_orbit_does_not_degrade_with_eps(eps, reference):
+    # The fixed point through two simultaneous touchdowns and liftoffs, as eps shrinks: the
+    # strips hold the state for eps - tau seconds at each of the 4 transitions, which delays the
+    # relaxed return by at most 4 eps (the hold is time, not motion), while the gait itself
+    # (angle, stride, period without the holds) stays at the independent SLIP's values to
+    # RK4's accuracy at h = 1e-3 whatever eps.
+    settings = problem_from_scene(load_scene("pronk_orbit", overrides=[f"integrator.eps={eps!r}"]))
+    res = find_orbit(settings.problem, settings.guess, **settings.solver)
+    assert res.converged, res.message
+    assert abs(res.parameters["psi"] - reference["psi"]) < 1e-9
+    assert abs(res.period - reference["period"]) < 1e-9
+    assert abs(res.step_length - reference["step"]) < 1e-8
+    delay = res.return_time - res.period
+    assert 0.0 < delay <= 4 * eps * (1 + 1e-9)

@@ -128,16 +128,20 @@ def _grid(kind: str, method: str, hs, epss, landing: str = "aim") -> list[RunSpe
 
 
 def relaxed_sweep(h_ranges: dict[str, tuple[float, ...]], epss: tuple[float, ...] | dict[str, tuple[float, ...]],
-                  tols: tuple[float, ...], adaptive_eps: tuple[float, ...], h_adaptive: float) -> list[RunSpec]:
+                  tols: tuple[float, ...], adaptive_eps: tuple[float, ...],
+                  h_adaptive: float | tuple[float, ...]) -> list[RunSpec]:
     """Fixed-step methods on an h x eps grid (eps per method when a dict); adaptive pairs over
-    tolerances x eps, with h the initial and largest step."""
+    tolerances x eps, with h the initial and largest step (each of ``h_adaptive``: the robots
+    sweep the same largest step 0.05 s that solve_ivp's ``max_step`` gets)."""
     runs: list[RunSpec] = []
     for name, hs in h_ranges.items():
         runs += _grid("relaxed", f"relaxed-{name}", hs, epss[name] if isinstance(epss, dict) else epss)
+    h_largest = (h_adaptive,) if isinstance(h_adaptive, float) else h_adaptive
     for pair in ADAPTIVE_PAIRS:
-        for tol in tols:
-            for eps in adaptive_eps:
-                runs.append(RunSpec("relaxed", f"relaxed-{pair}", h_adaptive, eps, tol))
+        for h in h_largest:
+            for tol in tols:
+                for eps in adaptive_eps:
+                    runs.append(RunSpec("relaxed", f"relaxed-{pair}", h, eps, tol))
     return runs
 
 
@@ -330,7 +334,7 @@ def _robot(name: str, quick: bool) -> Case:
                 + [RunSpec("relaxed", "relaxed-dopri5", 0.1, 1e-6, 1e-6)]
                 + [RunSpec("solve_ivp", "solve_ivp-DOP853", math.nan, math.nan, 1e-6, "", 0.05)])
     else:
-        runs = relaxed_sweep(hs, (1e-3, 1e-5, 1e-7), (1e-4, 1e-6, 1e-8, 1e-10), (1e-6, 1e-9), 0.1)
+        runs = relaxed_sweep(hs, (1e-3, 1e-5, 1e-7), (1e-4, 1e-6, 1e-8, 1e-10), (1e-6, 1e-9), (0.1, 0.05))
         runs += ivp_sweep((1e-4, 1e-6, 1e-8, 1e-10), (math.inf, 0.05))
     targets = targets_for(name, quick)
     return Case(
