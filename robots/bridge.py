@@ -346,7 +346,6 @@ class ContactBridge:
             self._mode_names[subset] = mname
             self._mode_sets[mname] = subset
         self._specs: dict[str, _ModeSpec] = {}
-        self._last_u: Any = None
         self._counts = {"aba": 0, "kkt": 0, "jacobians": 0, "kinematics": 0, "spring_forces": 0,
                         "damping_evals": 0, "actuation_evals": 0, "impacts": 0, "energy_evals": 0, "cache_hits": 0}
 
@@ -548,8 +547,10 @@ class ContactBridge:
 
     def _dynamics(self, spec: _ModeSpec, x: np.ndarray, u: Any) -> tuple[np.ndarray, np.ndarray]:
         """(acceleration (nv,), constraint forces (rows,)) at x, cached for the last state."""
-        key = x.tobytes()
-        if spec.dyn_val is not None and key == spec.dyn_key and u is self._last_u:
+        # Keyed by the control's value, not its identity: a controller returns a new array at each
+        # call, and the guard at a state and the field at the same state must share one solve.
+        key = x.tobytes() + _control_key(u)
+        if spec.dyn_val is not None and key == spec.dyn_key:
             self._counts["cache_hits"] += 1
             return spec.dyn_val
         n = self.n
@@ -568,7 +569,6 @@ class ContactBridge:
                 lam = np.array((-s * a[k] / col[k],))
                 a -= col * (a[k] / col[k])
                 spec.dyn_key, spec.dyn_val = key, (a, lam)
-                self._last_u = u
                 return a, lam
             if spec.stop_dofs is not None:
                 # joint stops only: J selects (signed) dofs, no Jacobian, no drift
@@ -586,7 +586,6 @@ class ContactBridge:
         else:
             lam = np.zeros(0)
         spec.dyn_key, spec.dyn_val = key, (a, lam)
-        self._last_u = u
         return a, lam
 
     def field(self, mode: str) -> Callable[[float, np.ndarray, Any], np.ndarray]:

@@ -21,12 +21,18 @@ Transitions and guard units (eps is measured in them):
   force the stop exerts, > 0 while it holds the link).
 
 Without the stop effect the system has one mode and no guard.
+
+Effect ``controller`` (off by default): a PD controller on the shoulder joint ``theta1``,
+``u = kp (target - theta1) - kd dtheta1/dt`` (N m), the generalised torque of that joint in both
+modes. Only with it is the joint actuated: then the bridge adds u to the shoulder torque, the
+stop's force-dependent guards are evaluated with the control (``t,x,u``), and the ``Model``
+carries ``control``; without it no actuation term exists (``actuation_evals`` stays 0).
 """
 
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 import pinocchio as pin
@@ -36,6 +42,8 @@ from legsim.builders import Builder, Effect, Model, Param
 from .bridge import ContactBridge, JointStop, add_point_frame
 
 COORDINATES = ("theta1", "theta2")
+#: The joint the ``controller`` effect drives: the Pinocchio joint name of theta1 (the shoulder).
+SHOULDER = "theta1"
 VELOCITIES = ("theta1d", "theta2d")
 STATE_NAMES = COORDINATES + VELOCITIES
 
@@ -70,6 +78,17 @@ EFFECTS = {
         "viscous joint damping", parameters={
             "b1": Param(0.1, "damping of joint 1", "N m s/rad", low=0.0),
             "b2": Param(0.1, "damping of joint 2", "N m s/rad", low=0.0),
+        }),
+    "controller": Effect(
+        "PD controller on the shoulder joint theta1: u = kp (target - theta1) - kd dtheta1/dt (N m)",
+        parameters={
+            # Defaults hold the straight pendulum near the bottom: kp = 50 N m/rad exceeds the
+            # gravity stiffness (m1 + m2) g L1 + m2 g L2 = 29.4 N m/rad of the default links, and
+            # kd = 10 N m s/rad damps the shoulder's swing (inertia 5 kg m^2, stiffness 79 N m/rad:
+            # damping ratio 0.25) so that it settles within a few seconds.
+            "kp": Param(50.0, "proportional gain", "N m/rad", low=0.0),
+            "kd": Param(10.0, "derivative gain (on dtheta1/dt, the target is constant)", "N m s/rad", low=0.0),
+            "target": Param(0.0, "shoulder angle the controller holds", "rad", low=-math.pi, high=math.pi),
         }),
 }
 
@@ -106,8 +125,29 @@ def make_bridge(params: dict[str, Any], effects: dict[str, dict[str, Any]]) -> C
     if contacts:
         names[("stop",)] = "constrained"
     window = effects["zeno"]["window"] if "zeno" in effects else None
+    # Actuate the shoulder only when a controller is asked for: an actuated bridge declares its
+    # force-dependent guards on (t, x, u) and adds the control to every field evaluation.
+    actuated = (SHOULDER,) if "controller" in effects else ()
     return ContactBridge(model, contacts, coordinate_names=COORDINATES, velocity_names=VELOCITIES,
-                         mode_names=names, joint_damping=damping, zeno_window=window, name="double_pendulum")
+                         mode_names=names, joint_damping=damping, actuated=actuated, zeno_window=window,
+                         name="double_pendulum")
+
+
+def pd_control(kp: float, kd: float, target: float) -> Callable[[float, np.ndarray], np.ndarray]:
+    """``control(t, x) -> u``: the PD shoulder torque ``[kp (target - theta1) - kd theta1d]`` (N m),
+    one entry (the one actuated joint). kp in N m/rad, kd in N m s/rad, target in rad.
+
+    Both modes' states start with (theta1, theta2, theta1d, theta2d) (the constrained mode keeps
+    theta2 and its rate, at the stop), so the same indices serve in either mode. A fresh array
+    each call: the bridge's dynamics cache compares the control by identity.
+    """
+    i_q = COORDINATES.index(SHOULDER)
+    i_v = STATE_NAMES.index(VELOCITIES[i_q])
+
+    def control(t: float, x: np.ndarray) -> np.ndarray:
+        return np.array((kp * (target - x[i_q]) - kd * x[i_v],))
+
+    return control
 
 
 def build(params: dict[str, Any], effects: dict[str, dict[str, Any]]) -> Model:
@@ -130,11 +170,16 @@ def build(params: dict[str, Any], effects: dict[str, dict[str, Any]]) -> Model:
         return parts
 
     reach = 1.1 * (L1 + L2)
+    control = None
+    if "controller" in effects:
+        pd = effects["controller"]
+        control = pd_control(pd["kp"], pd["kd"], pd["target"])
     info = {"guard_units": bridge.guard_units(), "parameters": dict(params), "effects": dict(effects),
             "bridge": bridge,
             "initial_check": bridge.initial_check()}
     return Model(system=system, initial_mode="unconstrained", initial_state=dict(INITIAL_STATE),
-                 geometry=geometry, scenery={"support": np.array([[-0.25 * reach, 0.0], [0.25 * reach, 0.0]])},
+                 control=control, geometry=geometry,
+                 scenery={"support": np.array([[-0.25 * reach, 0.0], [0.25 * reach, 0.0]])},
                  counters=bridge.counters, info=info)
 
 

@@ -296,3 +296,147 @@ def test_scene_refuses_an_initial_state_past_the_stop_by_more_than_eps():
     # In the constrained mode the stop is active: no depth is measured against it.
     assert check("constrained", np.array([0.5, -1.0, 0.0, 0.0]), eps) is None
     assert check("unconstrained", np.array([0.5, -2.0 * eps, 0.0, 0.0]), eps) is not None
+
+
+# -- the controller effect: PD on the shoulder --------------------------------------------------
+def pd_torque(x, kp, kd, target):
+    """u = kp (target - theta1) - kd theta1d (N m), computed here from its definition."""
+    return kp * (target - x[0]) - kd * x[2]
+
+
+def test_controller_effect_actuates_the_shoulder_only_when_asked():
+    # Off (the default): no control, no actuated joint, force guards on x alone, no actuation term.
+    plain = dp.make(effects={"stop": {"restitution": 0.0}})
+    assert plain.control is None
+    assert {tr.guard_args for tr in plain.system.outgoing("unconstrained")} == {"x"}
+    x0 = [plain.initial_state[n] for n in dp.STATE_NAMES]
+    simulate(plain.system, x0, "unconstrained", 1.0, 1e-3, 1e-3, "rk4", plain.control)
+    assert plain.counters()["actuation_evals"] == 0 and plain.counters()["aba"] > 0
+
+    # On: control(t, x) is the PD torque, one entry; the stop's force guards see the control.
+    kp, kd, target = 35.0, 4.0, 0.7
+    pd = dp.make(effects={"stop": {"restitution": 0.0}, "controller": {"kp": kp, "kd": kd, "target": target}})
+    assert pd.info["bridge"]._act_idx.tolist() == [0]  # theta1's velocity index
+    for x in random_states(4, seed=11):
+        u = pd.control(0.3, x)
+        assert np.shape(u) == (1,) and u[0] == pytest.approx(pd_torque(x, kp, kd, target), abs=1e-12)
+    assert {tr.guard_args for tr in pd.system.outgoing("unconstrained")} == {"t,x,u"}
+    assert [tr.guard_args for tr in pd.system.outgoing("constrained")] == ["t,x,u"]
+    pd.info["bridge"].reset_counters()  # building checked the initial field once, without control
+    ex = simulate(pd.system, x0, "unconstrained", 1.0, 1e-3, 1e-3, "rk4", pd.control)
+    counts = pd.counters()
+    # every dynamics solve adds the control: one actuation term per ABA call
+    assert counts["actuation_evals"] == counts["aba"] > 0
+    # and it changes the motion: the uncontrolled run ends elsewhere
+    assert abs(ex.final_state[0] - simulate(plain.system, x0, "unconstrained", 1.0, 1e-3, 1e-3, "rk4").final_state[0]) > 0.1
+
+
+def test_controlled_field_and_stop_force_equal_the_closed_form_with_the_shoulder_torque():
+    # M qdd = [u, 0] - C qd - G in the free mode; at the stop (theta2 = theta2d = 0) the stop
+    # torque is what keeps qdd_2 = 0: lambda = -(M^-1 ([u, 0] - C qd - G))_2 / (M^-1)_22.
+    kp, kd, target = 35.0, 4.0, -0.4
+    model = dp.make(P, effects={"controller": {"kp": kp, "kd": kd, "target": target}})
+    f = model.system.mode("unconstrained").field
+    bridge = model.info["bridge"]
+    for x in random_states(6, seed=12):
+        q, qd = x[:2], x[2:]
+        tau = np.array([pd_torque(x, kp, kd, target), 0.0])
+        qdd = np.linalg.solve(mass_matrix(q, **P), tau - coriolis(q, qd, **P) - gravity(q, **P))
+        np.testing.assert_allclose(f(0.0, x, model.control(0.0, x))[2:], qdd, rtol=1e-10, atol=1e-10)
+    for x in random_states(6, seed=13, at_stop=True):
+        x[3] = 0.0
+        q, qd = x[:2], x[2:]
+        tau = np.array([pd_torque(x, kp, kd, target), 0.0])
+        Minv = np.linalg.inv(mass_matrix(q, **P))
+        lam = -(Minv[1] @ (tau - coriolis(q, qd, **P) - gravity(q, **P))) / Minv[1, 1]
+        assert bridge.constraint_forces("constrained", x, model.control(0.0, x))["stop"][0] == pytest.approx(lam, abs=1e-9)
+        # the constrained field keeps link 2 at the stop and turns the straight pendulum (inertia
+        # M_11 at theta2 = 0) under the shoulder torque and gravity
+        a = model.system.mode("constrained").field(0.0, x, model.control(0.0, x))
+        assert abs(a[3]) < 1e-10
+        assert a[2] == pytest.approx((tau[0] - gravity(q, **P)[0]) / mass_matrix(q, **P)[0, 0], rel=1e-10)
+
+
+def test_controlled_run_balances_energy_with_the_control_and_damping_power():
+    # dE/dt = u theta1d - b1 theta1d^2 - b2 theta2d^2 along the unconstrained flow (no stop, so
+    # no impact losses). E from the closed form, the work by the trapezoid rule over the stored
+    # RK4 steps: the two agree to the rule's O(h^2) error (about 5e-6 J at h = 1e-3 s) at every
+    # step, while the controller's own work is near a joule, so a control applied with the wrong
+    # sign, to the wrong joint or not at all breaks the balance by orders of magnitude.
+    kp, kd, target, b1, b2 = 40.0, 3.0, 0.8, 0.3, 0.2
+    model = dp.make(P, effects={"stop": False, "controller": {"kp": kp, "kd": kd, "target": target},
+                                "damping": {"b1": b1, "b2": b2}})
+    x0 = [model.initial_state[n] for n in dp.STATE_NAMES]
+    ex = simulate(model.system, x0, "unconstrained", 3.0, 1e-3, 1e-3, "rk4", model.control)
+    assert ex.status == "finished" and len(ex.segments) == 1
+    seg = ex.segments[0]
+    t, x = seg.t, seg.x
+    power_u = pd_torque(x.T, kp, kd, target) * x[:, 2]
+    power_b = -b1 * x[:, 2] ** 2 - b2 * x[:, 3] ** 2
+    half = 0.5 * np.diff(t)  # cumulative trapezoid rule, W(t_k) for every stored step
+    work_u = np.concatenate(([0.0], np.cumsum(half * (power_u[1:] + power_u[:-1]))))
+    work_b = np.concatenate(([0.0], np.cumsum(half * (power_b[1:] + power_b[:-1]))))
+    E = np.array([energy(xi, P) for xi in x])
+    residual = E - E[0] - work_u - work_b
+    assert np.abs(residual).max() < 2e-5
+    assert abs(work_u[-1]) > 0.5 and np.abs(work_u).max() > 0.5
+    # the model's own energy (what `legsim run` reports) is the closed form's
+    assert model.system.energy("unconstrained", x[-1]) == pytest.approx(E[-1], abs=1e-12)
+
+
+def test_pd_holds_the_shoulder_where_it_balances_the_hanging_pendulums_gravity():
+    # Gravity on, no stop, damping on both joints: the run settles where link 2 hangs vertically
+    # (theta1 + theta2 = 0, no torque at the elbow) and the shoulder torque balances gravity,
+    # kp (target - theta1) = (m1 + m2) g L1 sin theta1 (link 2's weight acts at the elbow).
+    from scipy.optimize import brentq
+
+    kp, kd, target = 60.0, 5.0, 0.8
+    model = dp.make(P, effects={"stop": False, "controller": {"kp": kp, "kd": kd, "target": target},
+                                "damping": {"b1": 1.0, "b2": 3.0}})
+    x0 = [model.initial_state[n] for n in dp.STATE_NAMES]
+    ex = simulate(model.system, x0, "unconstrained", 25.0, 5e-3, 1e-3, "rk4", model.control)
+    m1, m2, L1, g = P["m1"], P["m2"], P["L1"], P["g"]
+    theta = brentq(lambda th: kp * (target - th) - (m1 + m2) * g * L1 * math.sin(th), 0.0, target)
+    assert 0.5 < theta < target - 0.1  # gravity pulls it well short of the target
+    final = ex.final_state
+    assert final[0] == pytest.approx(theta, abs=1e-9)
+    assert final[0] + final[1] == pytest.approx(0.0, abs=1e-9)
+    assert np.abs(final[2:]).max() < 1e-9
+
+
+def test_pd_scene_rests_on_the_stop_where_the_pd_balances_the_straight_pendulum():
+    # The bundled scene: link 2 lands on the stop (plastic), and the straight pendulum settles in
+    # the constrained mode at kp (target - theta1) = ((m1 + m2) L1 + m2 L2) g sin theta1.
+    from scipy.optimize import brentq
+
+    from legsim.scene import load_scene
+
+    scene = load_scene("double_pendulum_pd")
+    ex = scene.simulate()
+    assert ex.status == "finished" and ex.final_mode == "constrained"
+    assert ex.transitions[-1].name == "impact_stop"
+    p, c = scene.model.info["parameters"], scene.model.info["effects"]["controller"]
+    stiffness = ((p["m1"] + p["m2"]) * p["L1"] + p["m2"] * p["L2"]) * p["g"]
+    theta = brentq(lambda th: c["kp"] * (c["target"] - th) - stiffness * math.sin(th), 0.0, c["target"])
+    assert ex.final_state[0] == pytest.approx(theta, abs=1e-8)
+    assert abs(ex.final_state[1]) < 1e-12 and np.abs(ex.final_state[2:]).max() < 1e-8
+    assert ex.counters["actuation_evals"] > 0
+    # the stop holds it there: its force is positive at rest
+    lam = scene.model.info["bridge"].constraint_forces("constrained", ex.final_state, scene.model.control(0.0, ex.final_state))
+    assert lam["stop"][0] > 0.0
+
+
+@pytest.mark.parametrize("override, message", [
+    ("effects.controller.kp=-1", "effects.controller.kp: -1.0 is out of range, allowed: float in [0, inf)"),
+    ("effects.controller.kd=-0.5", "effects.controller.kd: -0.5 is out of range, allowed: float in [0, inf)"),
+    ("effects.controller.target=4", "effects.controller.target: 4.0 is out of range, allowed: float in [-3.14159, 3.14159]"),
+    ("effects.controller.kp=\"x\"", "effects.controller.kp: expected a number"),
+    ("effects.controller.kx=1", "effects.controller: unknown parameter(s) ['kx']; allowed: ['kd', 'kp', 'target']"),
+    ("effects.controller=1", "effects.controller: expected true, false or a table of parameters"),
+])
+def test_bad_controller_parameters_are_scene_errors_naming_the_field(override, message):
+    from legsim.scene import load_scene
+
+    with pytest.raises(SceneError) as err:
+        load_scene("double_pendulum_pd", overrides=[override])
+    assert message in str(err.value) and "double_pendulum_pd.toml" in str(err.value)
