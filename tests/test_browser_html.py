@@ -104,3 +104,46 @@ def test_page_written_from_a_recording_shows_the_robot(chromium, hopper_run, tmp
     data = read_rrd(write_rrd(ex, None, tmp_path / "hopper.rrd", model=model))
     page = write_html(None, None, tmp_path / "replayed.html", recording=data)
     assert saturated(screenshot(chromium, page, tmp_path)).sum() > 300
+
+
+# Bundled robots, each at a short t_final (the page and the screenshot stay under a few
+# seconds): a runner above the ground and a pendulum hanging from its pivot (the support
+# line, drawn as scenery at z = 0, which the pendulum swings below).
+BUNDLED = {"pronk": ("1.0", "above"), "double_pendulum_plastic": ("1.0", "below")}
+
+
+@pytest.mark.parametrize("name", sorted(BUNDLED))
+def test_page_of_a_bundled_robot_shows_it(chromium, name, tmp_path):
+    from legsim.scene import load_scene
+
+    t_final, side = BUNDLED[name]
+    scene = load_scene(name, overrides=[f"integrator.t_final={t_final}"])
+    ex = scene.simulate()
+    assert ex.status == "finished", ex.summary()["message"]
+    page = write_html(ex, scene, tmp_path / f"{name}.html")
+    html = page.read_text()
+    # Offline: everything is inline, nothing is fetched from elsewhere.
+    assert "<script src=" not in html and "<link " not in html
+    img = screenshot(chromium, page, tmp_path)
+    assert img.shape[:2] == (WINDOW[1], WINDOW[0])
+    robot = saturated(img)
+    assert robot.sum() > 300, f"only {robot.sum()} robot-coloured pixels"
+
+    # Same scenery and camera without the robot: no robot-coloured pixel, so the ones above are
+    # the robot's and not the background's or the scenery's.
+    frames = geometry_frames(ex, scene.model, frame_times(ex, 30.0, 900))
+    empty = Frames(frames.times, frames.modes, {p: [None] * len(frames) for p in frames.parts}, frames.scenery)
+    empty_page = write_atomic(tmp_path / "empty.html", lambda tmp: tmp.write_text(animation_html(empty)),
+                              suffix=".html")
+    assert saturated(screenshot(chromium, empty_page, tmp_path)).sum() == 0
+
+    # The scenery line (ground, or the pendulum's support) is the row with most gray pixels;
+    # z is up: the runner is drawn above it, the pendulum mostly below it.
+    gray = np.all(np.abs(img - 0x6E / 255) < 0.06, axis=-1)
+    line_row = int(np.argmax(gray.sum(axis=1)))
+    assert gray[line_row].sum() > 20
+    rows = np.nonzero(robot)[0]
+    if side == "above":
+        assert np.mean(rows < line_row) > 0.9 and rows.min() < line_row - 50
+    else:
+        assert np.mean(rows > line_row) > 0.9 and rows.max() > line_row + 50

@@ -195,6 +195,55 @@ def test_failed_run_writes_nothing(tmp_path, capsys, monkeypatch):
     assert calls == [] and not out_dir.exists()
 
 
+def test_failed_writer_after_an_early_stop_keeps_exit_3_and_the_other_outputs(tmp_path, capsys, monkeypatch):
+    # The run's status is the result: a writer that cannot draw a run which stopped early is
+    # reported on one line, leaves no file, costs the other outputs nothing, and the exit code
+    # stays 3 (2 would say the input was bad).
+    calls = []
+    _fake_writers(monkeypatch, calls, fail=("plot",))
+    path = write_scene(tmp_path)
+    out_dir = tmp_path / "out"
+    code, out, err = run_cli(capsys, "run", str(path), "--json", "--set", "integrator.max_transitions=1",
+                             "--plot", str(out_dir / "p.png"), "--html", str(out_dir / "a.html"))
+    assert code == 3
+    assert json.loads(out)["outputs"] == {"html": str(out_dir / "a.html")}
+    lines = err.splitlines()
+    assert lines[0] == f"legsim: error: --plot {out_dir / 'p.png'}: writing failed: RuntimeError: plot writer broke"
+    assert lines[1].startswith("legsim: run stopped early (max_transitions): ") and len(lines) == 2
+    assert sorted(p.name for p in out_dir.iterdir()) == ["a.html"]
+
+
+DIVERGING = ["oscillator_ex1", "-q", "--set", "effects.stop=false", "--set", "effects.damping=false",
+             "--set", 'integrator.method="euler"', "--set", "integrator.h=0.5", "--set", "integrator.t_final=5000"]
+
+
+def test_diverged_run_writes_its_outputs_quietly_and_exits_3(tmp_path):
+    # Explicit Euler at h = 0.5 on the undamped oscillator grows until the state is not finite
+    # (t = 750.5 s, |x| ~ 1e308). A real process, so that stderr is exactly what a user sees
+    # (pytest would otherwise catch the warnings before they reach stderr).
+    from matplotlib.image import imread
+
+    from legsim.record import read_rrd
+
+    out_dir = tmp_path / "o"
+    done = subprocess.run([PYTHON, "-m", "legsim", "run", *DIVERGING, "--plot", str(out_dir / "div.png"),
+                           "--html", str(out_dir / "div.html"), "--rrd", str(out_dir / "div.rrd")],
+                          capture_output=True, text=True, cwd=tmp_path, timeout=120)
+    assert done.returncode == 3, done.stderr
+    assert "Warning" not in done.stderr and "error" not in done.stderr, done.stderr
+    assert done.stderr.startswith("legsim: run stopped early (non_finite): ")
+    assert len(done.stderr.splitlines()) == 1 and done.stdout == ""
+    # Complete files only, no temporaries left behind.
+    assert sorted(p.name for p in out_dir.iterdir()) == ["div.html", "div.png", "div.rrd"]
+    img = imread(out_dir / "div.png")
+    assert img.ndim == 3 and img.shape[0] > 100 and img.shape[1] > 100
+    # The lines are drawn (dark pixels beyond the axes' frame and text).
+    assert (img[..., :3].max(axis=-1) < 0.2).sum() > 1000
+    html = (out_dir / "div.html").read_text()
+    assert html.rstrip().endswith("</html>") and "diverged: not drawn past t = " in html
+    assert read_rrd(out_dir / "div.rrd")["summary"]["status"] == "non_finite"
+
+
 def test_missing_writers_fail_for_their_flag_only(tmp_path, capsys, monkeypatch):
     from importlib import metadata
 

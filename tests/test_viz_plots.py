@@ -144,3 +144,58 @@ def test_sub_pixel_gaps_between_strips_are_joined():
         assert np.any((shaded[:, 0] <= a) & (b <= shaded[:, 1]))
     assert set(shaded[:, 0]) <= set(strips[:, 0]) and set(shaded[:, 1]) <= set(strips[:, 1])
     assert np.all(shaded[1:, 0] - shaded[:-1, 1] > tol)
+
+
+@pytest.fixture(scope="module")
+def diverged():
+    """Explicit Euler at h = 0.5 on the undamped oscillator: status non_finite at t = 750.5 s
+    with |x| ~ 1e308, beyond what matplotlib's tick arithmetic survives."""
+    from legsim.scene import load_scene
+
+    scene = load_scene("oscillator_ex1", overrides=["effects.stop=false", "effects.damping=false",
+                                                    'integrator.method="euler"', "integrator.h=0.5",
+                                                    "integrator.t_final=5000"])
+    # The run's own overflow on the way to non_finite is not what is tested here.
+    with np.errstate(over="ignore", invalid="ignore"):
+        ex = scene.simulate()
+    assert ex.status == "non_finite"
+    return scene, ex
+
+
+def test_diverged_run_is_plotted_up_to_the_divergence(diverged, tmp_path):
+    import warnings
+
+    from matplotlib.image import imread
+
+    from viz._common import PLOT_LIMIT
+
+    scene, ex = diverged
+    data = plot_data(ex, scene)
+    assert data.omitted_from is not None and 0 < data.omitted_from < ex.t_end
+    for t, v in data.series.values():
+        drawn = v[~np.isnan(v)]
+        assert len(drawn) > 100 and np.all(np.abs(drawn) <= PLOT_LIMIT)
+        # Everything before the divergence is drawn.
+        assert not np.isnan(v[t < data.omitted_from]).any()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no numpy or matplotlib warning on the way
+        fig = state_figure(data)
+        path = write_plot(ex, scene, tmp_path / "div.png")
+    assert "values past t = " in fig.axes[0].get_title() and "omitted" in fig.axes[0].get_title()
+    img = imread(path)
+    assert img.ndim == 3 and img.shape[0] > 100
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["div.png"]
+
+
+def test_diverged_recording_is_plotted_too(diverged, tmp_path):
+    import warnings
+
+    scene, ex = diverged
+    # Rerun stores some fields as float32, where the last states overflow to inf.
+    with np.errstate(over="ignore", invalid="ignore"):
+        data = read_rrd(write_rrd(ex, scene, tmp_path / "div.rrd"))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        path = write_plot(None, None, tmp_path / "div.png", recording=data)
+    assert path.stat().st_size > 1000
+    assert plot_data(recording=data).omitted_from is not None

@@ -20,6 +20,12 @@ class OutputError(LegsimError, ValueError):
     """An output (html, plot) cannot be produced; the message names the file."""
 
 
+#: Largest magnitude a plot draws. matplotlib's tick and transform arithmetic overflows on
+#: values near the float64 limit (1.8e308: "arange: cannot compute length"), which is where a
+#: diverging run ends, so larger (and non-finite) values are left out of the lines.
+PLOT_LIMIT = 1e300
+
+
 def resolve_model(scene: Any, model: Model | None, what: str) -> Model | None:
     """The model of ``scene`` or the ``model=`` keyword (not both)."""
     if scene is not None:
@@ -62,6 +68,8 @@ class PlotData:
     strips: (entry, exit) times of the strips (s).
     segments: (mode, t_start, t_end) of every mode visit (s).
     title: one line; t0, t_end: the executed interval (s).
+    omitted_from: earliest time (s) of a value left out of ``series`` because it is beyond
+        ``PLOT_LIMIT`` or not finite (a diverged run), None when every value is drawn.
     """
 
     series: dict[str, tuple[np.ndarray, np.ndarray]]
@@ -71,6 +79,38 @@ class PlotData:
     t0: float
     t_end: float
     units: dict[str, str] = field(default_factory=dict)
+    omitted_from: float | None = None
+
+    @property
+    def omitted_note(self) -> str:
+        """One line saying which values were left out ('' when none were)."""
+        if self.omitted_from is None:
+            return ""
+        return (f"values past t = {self.omitted_from:.6g} s omitted (diverged: |value| > {PLOT_LIMIT:g} "
+                f"or not finite)")
+
+
+def drawable(series: dict[str, tuple[np.ndarray, np.ndarray]]
+             ) -> tuple[dict[str, tuple[np.ndarray, np.ndarray]], float | None]:
+    """``series`` with every value beyond ``PLOT_LIMIT`` or not finite replaced by NaN (a
+    break in the line), and the earliest time of such a value (None when there is none).
+
+    The NaN breaks that ``_with_breaks`` inserts (time NaN too) are not counted as omitted.
+    """
+    out = {}
+    first: float | None = None
+    for name, (t, v) in series.items():
+        v = np.asarray(v, dtype=float)
+        t = np.asarray(t, dtype=float)
+        # NaN fails the comparison, so a NaN value at a real time (a coordinate the run could
+        # not compute) is omitted too; a break (time NaN as well) is not.
+        bad = ~(np.abs(v) <= PLOT_LIMIT) & ~np.isnan(t)
+        if bad.any():
+            v = np.where(bad, np.nan, v)
+            t_bad = float(np.min(t[bad]))
+            first = t_bad if first is None else min(first, t_bad)
+        out[name] = (t, v)
+    return out, first
 
 
 def _with_breaks(rows: np.ndarray, times: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -90,8 +130,10 @@ def plot_data_from_execution(execution: Execution, title: str) -> PlotData:
     trace = execution_trace(execution)
     series = {nm: _with_breaks(rows, trace.times[rows], vals)
               for nm, (rows, vals) in trace_series(execution, trace).items()}
+    series, omitted = drawable(series)
     segments = [(s.mode, s.t_start, s.t_end) for s in execution.segments]
-    return PlotData(series, execution.strip_intervals(), segments, title, float(execution.t0), float(execution.t_end))
+    return PlotData(series, execution.strip_intervals(), segments, title, float(execution.t0), float(execution.t_end),
+                    omitted_from=omitted)
 
 
 def plot_data_from_recording(data: dict[str, Any]) -> PlotData:
@@ -103,7 +145,10 @@ def plot_data_from_recording(data: dict[str, Any]) -> PlotData:
     title = _title(s.get("scene") or s.get("system") or "run", s)
     meta = data["meta"]
     strips = [(st["time"], st["exit_time"]) for st in data["strips"]]
-    return PlotData(series, strips, list(data["segments"]), title, float(meta["t0"]), float(meta["t_end"]))
+    # Where Rerun stored a diverged run's values as float32 they are inf: left out the same way.
+    series, omitted = drawable(series)
+    return PlotData(series, strips, list(data["segments"]), title, float(meta["t0"]), float(meta["t_end"]),
+                    omitted_from=omitted)
 
 
 def _title(name: str, summary: dict[str, Any]) -> str:

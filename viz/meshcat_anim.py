@@ -45,6 +45,9 @@ BACKGROUND_BOTTOM = [0.90, 0.91, 0.93]
 TINY = 1e-9  # scale of an absent segment: invisible yet an invertible transform
 FOV_DEG = 75.0  # meshcat's default perspective camera
 ASSUMED_ASPECT = 1.3  # window width / height the framing is computed for
+#: Largest coordinate (m) drawn. A diverged run's geometry reaches inf, which would put the
+#: camera at infinity (and three.js keyframes are float32): parts past it are left out.
+HTML_LIMIT = 1e6
 
 
 def html_frames(execution: Execution | None, scene: Any = None, *, model: Model | None = None,
@@ -52,14 +55,22 @@ def html_frames(execution: Execution | None, scene: Any = None, *, model: Model 
                 max_frames: int = HTML_MAX_FRAMES) -> Frames:
     """The geometry frames to animate: from ``recording`` (``legsim.record.read_rrd``) when
     given, else ``model.geometry`` evaluated on ``execution`` at ``fps`` frames per simulated
-    second. Raises OutputError when there is no geometry to draw."""
+    second; parts past ``HTML_LIMIT`` (a diverged run) are absent. Raises OutputError when
+    there is no geometry to draw."""
+    return _frames_and_cut(execution, scene, model=model, recording=recording, fps=fps, max_frames=max_frames)[0]
+
+
+def _frames_and_cut(execution: Execution | None, scene: Any = None, *, model: Model | None = None,
+                    recording: dict[str, Any] | None = None, fps: float = HTML_FPS,
+                    max_frames: int = HTML_MAX_FRAMES) -> tuple[Frames, float | None]:
+    """``html_frames`` and the time from which parts were left out (``drawable_frames``)."""
     if recording is not None:
         frames = recording.get("frames")
         if frames is None or not len(frames):
             name = recording.get("summary", {}).get("system", "this run")
             raise OutputError(f"an html animation needs the robot's geometry, and the recording of {name} has "
                               f"none (its model defines no Model.geometry)")
-        return frames
+        return drawable_frames(frames)
     if not isinstance(execution, Execution):
         raise OutputError(f"an html animation needs a legsim Execution (or recording=), got {type(execution).__name__}")
     model = resolve_model(scene, model, "html")
@@ -68,7 +79,29 @@ def html_frames(execution: Execution | None, scene: Any = None, *, model: Model 
     if model.geometry is None:
         raise OutputError(f"an html animation needs the robot's geometry, and {model.system.name} defines none "
                           f"(Model.geometry is None); use --plot or --rrd for this system")
-    return geometry_frames(execution, model, frame_times(execution, fps, max_frames))
+    # Interpolating a diverged run's last steps (values near the float64 limit) overflows;
+    # those frames are left out by drawable_frames.
+    with np.errstate(over="ignore", invalid="ignore"):
+        frames = geometry_frames(execution, model, frame_times(execution, fps, max_frames))
+    return drawable_frames(frames)
+
+
+def drawable_frames(frames: Frames) -> tuple[Frames, float | None]:
+    """``frames`` with every part that has a coordinate beyond ``HTML_LIMIT`` or not finite
+    made absent (None) in that frame, and the first time that happened (None if never)."""
+    first: float | None = None
+    parts: dict[str, list[np.ndarray | None]] = {}
+    for part, lines in frames.parts.items():
+        kept: list[np.ndarray | None] = []
+        for t, line in zip(frames.times, lines):
+            if line is not None and len(line) and not np.all(np.abs(line) <= HTML_LIMIT):
+                first = float(t) if first is None else min(first, float(t))
+                line = None
+            kept.append(line)
+        parts[part] = kept
+    if first is None:
+        return frames, None
+    return Frames(frames.times, frames.modes, parts, frames.scenery), first
 
 
 # -- geometry of the animation ------------------------------------------------------------------
@@ -347,12 +380,16 @@ def write_html(execution: Execution | None, scene: Any = None, path: str | os.Pa
     if path is None:
         raise OutputError("write_html needs a path to write to")
     path = Path(path)
-    frames = html_frames(execution, scene, model=model, recording=recording, fps=fps, max_frames=max_frames)
+    frames, cut = _frames_and_cut(execution, scene, model=model, recording=recording, fps=fps,
+                                  max_frames=max_frames)
     if recording is not None:
         s = recording.get("summary", {})
         title = s.get("scene") or s.get("system") or "legsim"
     else:
         title = run_title(execution, scene, resolve_model(scene, model, "html")).split("  ·  ")[0]
+    if cut is not None:
+        # Otherwise a robot vanishing mid-animation would look like a bug of the page.
+        title += f" (diverged: not drawn past t = {cut:.6g} s)"
     page = animation_html(frames, title=title, speed=speed)
     return write_atomic(path, lambda tmp: tmp.write_text(page, encoding="utf-8"), suffix=".html")
 

@@ -90,7 +90,9 @@ def state_figure(data: PlotData, coordinates: Sequence[str] | None = None, *, wi
     band.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.9), ncol=min(len(handles), 6),
                 fontsize="small", frameon=False)
     seq = [m for m, _, _ in data.segments]
-    axes[0].set_title(f"{data.title}\nmode sequence: {_short_sequence(seq)}", fontsize="medium")
+    # Say what a diverged run's plot leaves out, so that a line ending early is not misread.
+    note = f"\n{data.omitted_note}" if data.omitted_note else ""
+    axes[0].set_title(f"{data.title}\nmode sequence: {_short_sequence(seq)}{note}", fontsize="medium")
     return fig
 
 

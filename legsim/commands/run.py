@@ -6,7 +6,11 @@ The output writers are looked up only when asked for: ``--rrd`` uses
 Every file is written under a temporary name in its directory and renamed into place only
 when its writer returned, so an output is complete or absent. A run that stops before
 t_final (status other than ``finished``) still writes its outputs (they record the status and
-show where it stopped) and exits with code 3.
+show where it stopped) and exits with code 3, also when one of them cannot be made: that
+output's error is printed on one line (``legsim: error: --plot FILE: writing failed: ...``),
+no file is left for it, the others are still written, and the exit code stays 3 (the run's
+status is the result; a writer failing on a diverged state is no bad input). After a finished
+run a failed output is an error (exit code 2) as before.
 """
 
 from __future__ import annotations
@@ -75,7 +79,23 @@ def run(args: argparse.Namespace) -> int:
         if bar is not None:
             bar.close()
 
-    written = write_outputs(execution, scene, {kind: path for kind, (path, _) in outputs.items()}, writers)
+    stopped_early = execution.status != "finished"
+    written: dict[str, Path] = {}
+    failures: list[LegsimError] = []
+    # A diverged run hands the writers states near the float64 limit: interpolating them and
+    # Rerun's float32 cast overflow on the way. The writers draw or store what is finite (the
+    # plot leaves out, and says so, what matplotlib cannot draw); numpy's warnings would only
+    # bury the status line, as during the run.
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        for kind, (path, _) in outputs.items():
+            try:
+                written.update(write_outputs(execution, scene, {kind: path}, {kind: writers[kind]}))
+            except LegsimError as exc:
+                if not stopped_early:
+                    raise
+                # The run's status is the result the exit code reports (3), not the output that
+                # could not be made: say which one and why, and still write the others.
+                failures.append(exc)
 
     from ..scene import run_summary
 
@@ -88,6 +108,8 @@ def run(args: argparse.Namespace) -> int:
         print(format_summary(summary))
         for kind, path in written.items():
             print(f"wrote {path} ({kind})")
+    for exc in failures:
+        print(f"legsim: error: {exc}", file=sys.stderr)
     if summary["status"] != "finished":
         print(f"legsim: run stopped early ({summary['status']}): {summary['message']}", file=sys.stderr)
         return 3
