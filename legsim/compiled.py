@@ -206,8 +206,8 @@ def _k_hermite(x0, d0, x1, d1, dt, s, out):
         out[d] = c00 * x0[d] + c10 * d0[d] + c01 * x1[d] + c11 * d1[d]
 
 def _k_crossing(p, e, shift, x0, d0, x1, d1, dt, g0, g1, tol, work):
-    # relaxed.crossing_on_step on the compiled guard e shifted by `shift` (the same iterates and
-    # the same choice of the past-side end); returns (s, guard calls, converged).
+    # relaxed.crossing_on_step on the compiled guard e shifted by `shift` (the same iterates, the
+    # same safeguards and the same choice of the past-side end); returns (s, guard calls, converged).
     if g0 <= 0.0:
         return 0.0, 0, True
     if -g1 <= tol:
@@ -216,15 +216,23 @@ def _k_crossing(p, e, shift, x0, d0, x1, d1, dt, g0, g1, tol, work):
     hi = 1.0
     glo = g0
     ghi = g1
+    g_hi = g1
     evals = 0
     side = 0
-    for it in range(100):
-        if it % 3 == 2:
+    width = 1.0
+    stalled = 0
+    for _ in range(200):
+        if stalled >= 3:  # relaxed._STALL (literals: this source is copied into each twin's module)
             s = 0.5 * (lo + hi)
         else:
             s = lo + (hi - lo) * glo / (glo - ghi)
             if not (lo < s < hi):
                 s = 0.5 * (lo + hi)
+        if hi - lo > 8e-16:  # 2 relaxed._MIN_STEP
+            if s - lo < 4e-16:
+                s = lo + 4e-16
+            elif hi - s < 4e-16:
+                s = hi - 4e-16
         _k_hermite(x0, d0, x1, d1, dt, s, work)
         g = _twin_guards(work, p)[e] + shift
         evals += 1
@@ -241,17 +249,21 @@ def _k_crossing(p, e, shift, x0, d0, x1, d1, dt, g0, g1, tol, work):
         else:
             hi = s
             ghi = g
+            g_hi = g
             if -g <= tol:
                 return hi, evals, True
             if side == -1:
                 glo *= 0.5
             side = -1
+        if hi - lo <= 0.5 * width:
+            width = hi - lo
+            stalled = 0
+        else:
+            stalled += 1
         if hi - lo <= 4e-16:
             break
-    if hi - lo <= 4e-16:
-        _k_hermite(x0, d0, x1, d1, dt, hi, work)
-        if -(_twin_guards(work, p)[e] + shift) <= 1e6 * tol:
-            return hi, evals + 1, True
+    if hi - lo <= 4e-16 and -g_hi <= 1e6 * tol:
+        return hi, evals, True
     return lo, evals, False
 
 def _k_error_norm(b_err, hk, K, x, x_new, rtol, atol):

@@ -68,33 +68,52 @@ def hermite_derivative(x0, d0, x1, d1, dt: float, s: float) -> np.ndarray:
             + (-6 * s2 + 6 * s) * x1 / dt + (3 * s2 - 2 * s) * d1)
 
 
+#: Iterates without the bracket halving before crossing_on_step bisects.
+_STALL = 3
+#: Closest an iterate of crossing_on_step comes to an end of its bracket (step fractions): a few
+#: float spacings at 1, so that an end that is the root to rounding is straddled.
+_MIN_STEP = 4e-16
+
+
 def crossing_on_step(guard_at: Callable[[float], float], g0: float, g1: float,
                      tol: float) -> tuple[float, int, bool]:
     """Where a step's interpolant meets a guard: returns (s, guard evaluations, converged).
 
     ``guard_at(s)`` is the guard on the interpolant at the step fraction s in [0, 1].
     Illinois regula falsi on the bracket [0, 1] with guard_at(0) = g0 >= 0 > g1 = guard_at(1),
-    bisecting every third iterate so that a kink cannot stall it. The point returned is the
-    end of the final bracket *past* the guard (-tol <= g <= 0): a strip point on the domain side,
-    however close, would put the reset image past a complementary guard (leave through x = 1,
-    come back through x = 1) and make the next mode cross again at once. When the guard is
-    discontinuous along the interpolant (no root in the bracket) the domain-side end is
-    returned with converged=False: it is never past the guard.
+    safeguarded as in Brent's method: a bisection whenever the bracket has not halved within
+    ``_STALL`` iterates (so that a kink or a jump cannot stall it), and no iterate closer than
+    ``_MIN_STEP`` to an end of the bracket (so that an end already at the root, to rounding, is
+    straddled at once instead of being approached from one side forever; a fixed bisection
+    schedule would reset Illinois' halving of the stale end and crawl to it). The point returned
+    is the end of the final bracket *past* the guard (-tol <= g <= 0): a strip point on the
+    domain side, however close, would put the reset image past a complementary guard (leave
+    through x = 1, come back through x = 1) and make the next mode cross again at once. When
+    the guard is discontinuous along the interpolant (no root in the bracket) the domain-side
+    end is returned with converged=False: it is never past the guard.
     """
     if g0 <= 0.0:
         return 0.0, 0, True
     if -g1 <= tol:
         return 1.0, 0, True
     lo, hi, glo, ghi = 0.0, 1.0, g0, g1
+    g_hi = g1  # the guard's value at hi (ghi is Illinois' scaled copy)
     evals = 0
     side = 0
-    for it in range(100):
-        if it % 3 == 2:
+    width = 1.0  # the bracket's width when it last halved
+    stalled = 0
+    for _ in range(200):
+        if stalled >= _STALL:
             s = 0.5 * (lo + hi)
         else:
             s = lo + (hi - lo) * glo / (glo - ghi)
             if not (lo < s < hi):
                 s = 0.5 * (lo + hi)
+        if hi - lo > 2.0 * _MIN_STEP:
+            if s - lo < _MIN_STEP:
+                s = lo + _MIN_STEP
+            elif hi - s < _MIN_STEP:
+                s = hi - _MIN_STEP
         g = float(guard_at(s))
         evals += 1
         if not math.isfinite(g):
@@ -107,18 +126,23 @@ def crossing_on_step(guard_at: Callable[[float], float], g0: float, g1: float,
                 ghi *= 0.5
             side = 1
         else:
-            hi, ghi = s, g
+            hi, ghi, g_hi = s, g, g
             if -g <= tol:
                 return hi, evals, True
             if side == -1:
                 glo *= 0.5
             side = -1
+        if hi - lo <= 0.5 * width:
+            width = hi - lo
+            stalled = 0
+        else:
+            stalled += 1
         if hi - lo <= 4e-16:
             break
     # A collapsed bracket is a root up to rounding unless the guard jumps there by more than a
     # millionth of what the caller tolerates as a strip (tol is a millionth of that again).
-    if hi - lo <= 4e-16 and -float(guard_at(hi)) <= 1e6 * tol:
-        return hi, evals + 1, True
+    if hi - lo <= 4e-16 and -g_hi <= 1e6 * tol:
+        return hi, evals, True
     return lo, evals, False
 
 

@@ -144,6 +144,11 @@ def test_page_of_a_bundled_robot_shows_it(chromium, name, tmp_path):
     assert gray[line_row].sum() > 20
     rows = np.nonzero(robot)[0]
     if side == "above":
-        assert np.mean(rows < line_row) > 0.9 and rows.min() < line_row - 50
+        # Which frame the screenshot catches depends on timing: in stance the feet rest on the
+        # ground and their markers (~8 px radius) reach just below the line (10-12% of the
+        # pixels then). What holds in every frame: nothing deeper than a foot marker below the
+        # line, most of the robot above it, and its body well above.
+        assert rows.max() <= line_row + 12
+        assert np.mean(rows < line_row) > 0.8 and rows.min() < line_row - 50
     else:
         assert np.mean(rows > line_row) > 0.9 and rows.max() > line_row + 50

@@ -305,3 +305,15 @@ def test_closure_twin_runs_compiled_in_memory():
                                       lambda x: np.array([x[0], -0.5 * x[1]]))])
     fast, slow = both_paths(system, [1.0, 0.0], "f", 1.5, 1e-2, 1e-4, "rk4", max_transitions=100)
     assert_same_execution(fast, slow)
+
+
+def test_kernel_crossing_uses_the_python_safeguards():
+    # The kernel's source is copied into each twin's module, so it spells relaxed's safeguard
+    # constants as literals: they must stay the values crossing_on_step uses.
+    import inspect
+
+    from legsim import compiled, relaxed
+
+    src = inspect.getsource(compiled._k_crossing)
+    assert f"stalled >= {relaxed._STALL}:" in src
+    assert f"< {relaxed._MIN_STEP!r}" in src and f"> {2 * relaxed._MIN_STEP!r}" in src
