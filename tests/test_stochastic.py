@@ -91,18 +91,37 @@ def test_two_tank_switching_times_approach_the_deterministic_ones_as_h_falls():
     assert 0.7 < slope < 1.4, (rms, slope)
 
 
-def test_two_tank_stochastic_executions_are_not_zeno():
+@pytest.mark.parametrize("h", [
+    0.04,
+    0.02,
+    # At h = 0.01 (floor 1, Euler: a ball of order h^2 per step) 2 of these 8 executions (seed 5)
+    # accumulate switches just before t_zeno + 1 = 9 s: ~370 switches in the others, and in these
+    # two 53667 and 69450 switches down to visits of 7e-15 s (they stop at t = 8.999998) with the
+    # original cap of 100000, in ~130 s. Paper 004 Theorem 2 says S_h has no Zeno behaviour for
+    # every h > 0; reported rather than fixed (library code untouched), so strict xfail: it
+    # turns into a failure once the accumulation is gone.
+    pytest.param(0.01, marks=pytest.mark.xfail(strict=True, raises=AssertionError, reason=(
+        "h = 0.01: 2 of 8 stochastic executions accumulate switches before t = 9 s (visits down "
+        "to 7e-15 s), against paper 004 Theorem 2; reported, not fixed"))),
+])
+def test_two_tank_stochastic_executions_are_not_zeno(h):
     # The deterministic execution switches infinitely often before t_zeno = 8 s; a stochastic
     # one switches finitely often on [0, t_zeno + 1] and every visit lasts a positive time.
+    # The same 8 samples (seed 5) at each h: all three h together take ~7 s, so no need to cut
+    # samples; the cap of 2000 transitions is twice the count bound asserted below, so it changes
+    # no outcome, only makes a run-away execution fail in seconds rather than minutes.
     ref = TwoTankReference(0.75, 0.5, 0.5)
     x0 = np.array([1.0, 1.0])
     t_zeno = ref.zeno_time(x0)
-    ens = sample_ensemble(two_tanks(), "q1", x0, t_zeno + 1.0, 0.04, "euler", samples=8, seed=5, floor=1.0,
-                          max_transitions=100_000)
+    ens = sample_ensemble(two_tanks(), "q1", x0, t_zeno + 1.0, h, "euler", samples=8, seed=5, floor=1.0,
+                          max_transitions=2000)
     for e in ens.executions:
-        assert e.status == "finished"
+        assert e.status == "finished", e.message
         assert e.t_end == pytest.approx(t_zeno + 1.0)
         assert np.all(np.diff(np.concatenate([[0.0], e.times])) > 0.0)
+        # Before the Zeno time the ball keeps visits apart at every h: a handful of switches
+        # (measured 5-12 at h = 0.04, 0.02, 0.01) where the deterministic execution has infinitely many.
+        assert np.sum(e.times < t_zeno) < 50
     counts = [len(e.times) for e in ens.executions]
     assert max(counts) < 1000, counts
     # ... and they go on past the Zeno time.
