@@ -74,6 +74,52 @@ def _cumulative(pi: np.ndarray, form: str) -> np.ndarray:
     return pi
 
 
+#: Default ``hazard_cap``: the most hazard one visit gains per error-ball radius its state moves
+#: relative to a guard.
+HAZARD_CAP = 16.0
+
+
+def _check_hazard_cap(hazard_cap: float) -> float:
+    """Validate ``hazard_cap`` (dimensionless, > 0; inf for none).
+
+    Theorem 2 (no Zeno behaviour for h > 0) rests on bounded intensities (paper 004, Remark 3).
+    The hazard reading is not bounded: its rate d/dt -log(1 - pi) = pi' / (1 - pi) grows without
+    limit as pi -> 1, so a visit that starts with its ball nearly all past its guard switches
+    almost at once; past the two tanks' Zeno time the visits then shrank geometrically, to
+    7e-15 s at h = 0.01 (an accumulation of the sampled executions themselves). The fraction past
+    a guard is a function of z = d / B (signed distance over the ball's radius), so the cap is
+    put in those units: a guard's hazard grows at most ``hazard_cap`` per unit of |dz|, the rate
+    is then at most hazard_cap |dz/dt|, bounded for h > 0, and each passage of the ball through
+    a guard allows a bounded number of switches. It binds only where pi'/(1 - pi) exceeds it,
+    for the default 16 in the last ~1% of the probability (a disk: 1 - pi < 0.01), so grazing
+    probabilities and switching times (Theorem 1) keep their values."""
+    if isinstance(hazard_cap, bool) or not isinstance(hazard_cap, (int, float, np.integer, np.floating)) \
+            or not hazard_cap > 0.0:
+        raise SimulationError(f"hazard_cap must be a number > 0 (inf for no cap), got {hazard_cap!r}")
+    return float(hazard_cap)
+
+
+def _capped_gain(gain: np.ndarray, z_from: np.ndarray, z_to: np.ndarray, pi_from: np.ndarray, pi_to: np.ndarray,
+                 cap: float, form: str) -> np.ndarray:
+    """Per-guard hazard gains limited to cap |z_to - z_from| (z = d / B; a zero radius makes z
+    infinite and leaves the gain uncapped). In the hazard reading a ball wholly past its guard
+    (pi = 1) has switched for certain: while it moves on further past, its uncapped rate is
+    infinite, so it gains the cap's full cap |dz| (without this, a passage whose drawn hazard
+    exceeds what the cap allowed before pi reached 1 would never switch)."""
+    if cap == math.inf:
+        return gain
+    with np.errstate(invalid="ignore", divide="ignore"):
+        dz = z_to - z_from
+    if form == "hazard":
+        gain = np.where((pi_from >= 1.0) & (pi_to >= 1.0) & (dz < 0.0), np.inf, gain)
+    return np.minimum(gain, cap * np.where(np.isnan(dz), np.inf, np.abs(dz)))
+
+
+def _ratio(d: np.ndarray, r: Any) -> np.ndarray:
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.asarray(d, dtype=float) / r
+
+
 def _check_form(intensity: str) -> str:
     if intensity not in INTENSITIES:
         raise SimulationError(f"intensity must be one of {list(INTENSITIES)}, got {intensity!r}")
@@ -242,9 +288,10 @@ class _Visit:
     """A mode visit's flow, shared by the samples that start it from the same state, with the
     cumulative hazard of each guard at the samples of each step, computed once."""
 
-    def __init__(self, flow: ModeFlow, form: str) -> None:
+    def __init__(self, flow: ModeFlow, form: str, cap: float = HAZARD_CAP) -> None:
         self.flow = flow
         self.form = form
+        self.cap = cap
         self.dim = flow.dim
         self._steps: list[tuple[StepSamples, np.ndarray, np.ndarray]] = []
 
@@ -257,7 +304,9 @@ class _Visit:
                 return None
             pi = ball_fraction_past(samples.distance, samples.radius[:, None], self.dim).reshape(samples.distance.shape)
             cum = _cumulative(pi, self.form)
-            gain = np.maximum(np.diff(cum, axis=0), 0.0).sum(axis=1)
+            z = _ratio(samples.distance, samples.radius[:, None])
+            gain = _capped_gain(np.maximum(np.diff(cum, axis=0), 0.0), z[:-1], z[1:], pi[:-1], pi[1:], self.cap,
+                                self.form).sum(axis=1)
             self._steps.append((samples, cum, np.concatenate([[0.0], np.cumsum(gain)])))
         return self._steps[n]
 
@@ -288,13 +337,20 @@ def _switch_in_piece(visit: _Visit, n: int, samples: StepSamples, cum: np.ndarra
     dt = p1.t - p0.t
     s_lo, s_hi = float(samples.s[i - 1]), float(samples.s[i])
     c_lo = cum[i - 1]
+    z_lo = _ratio(samples.distance[i - 1], samples.radius[i - 1])
+    pi_lo = ball_fraction_past(samples.distance[i - 1], samples.radius[i - 1], visit.dim).reshape(-1)
 
     def pi_at(s: float) -> np.ndarray:
         _, _, r, _, d = flow.on_step(n, s)
         return ball_fraction_past(d, r, visit.dim).reshape(-1)
 
     def gained(s: float) -> float:
-        return float(np.maximum(_cumulative(pi_at(s), visit.form) - c_lo, 0.0).sum()) - need
+        # Capped as the pieces are (each guard's gain and its cap are non-decreasing in s, so is
+        # their minimum), meeting the piece's own gain at sample i.
+        _, _, r, _, d = flow.on_step(n, s)
+        pi = ball_fraction_past(d, r, visit.dim).reshape(-1)
+        free = np.maximum(_cumulative(pi, visit.form) - c_lo, 0.0)
+        return float(_capped_gain(free, z_lo, _ratio(d, r).reshape(-1), pi_lo, pi, visit.cap, visit.form).sum()) - need
 
     # Between samples every pi_j is monotone, so gained is non-decreasing: one sign change.
     lo_val, hi_val = gained(s_lo), gained(s_hi)
@@ -329,6 +385,7 @@ def sample_execution(
     intensity: str = "hazard",
     max_transitions: int = 1000,
     carry: bool = True,
+    hazard_cap: float = HAZARD_CAP,
     _first: _Visit | None = None,
 ) -> StochasticExecution:
     """One stochastic execution of the approximation S_h of ``system`` (paper 004 Def. 4).
@@ -346,10 +403,14 @@ def sample_execution(
     carry: start each visit with the uncertainty inherited through the switch,
         ``b0 = sigma_max(DR) B(tau)`` (the computed state at the switch is only known to within
         B(tau)); False restarts every visit's bound at 0.
+    hazard_cap: most hazard a visit gains per error-ball radius its state moves relative to a
+        guard (``HAZARD_CAP``; ``math.inf`` for none): bounded intensities keep S_h free of
+        Zeno behaviour (Theorem 2), see ``_check_hazard_cap``.
     """
     x = _check_start(system, mode, x0)
     h = check_step("h", h)
     form = _check_form(intensity)
+    cap = _check_hazard_cap(hazard_cap)
     if not (isinstance(t_final, (int, float, np.integer, np.floating)) and math.isfinite(t_final) and t_final > t0):
         raise SimulationError(f"t_final must be a finite number > t0 = {t0}, got {t_final!r}")
     if isinstance(max_transitions, bool) or not isinstance(max_transitions, (int, np.integer)) or max_transitions < 0:
@@ -362,7 +423,8 @@ def sample_execution(
     names: list[str] = []
     states = [x.copy()]
     t = float(t0)
-    visit = _first or _Visit(ModeFlow(system, mode, x, t, h, estimator, control=control, t_end=float(t_final)), form)
+    visit = _first or _Visit(ModeFlow(system, mode, x, t, h, estimator, control=control, t_end=float(t_final)), form,
+                             cap)
     widest = 0.0
     while True:
         drawn = _sample_visit(visit, generator)
@@ -403,7 +465,7 @@ def sample_execution(
         states.append(x_new.copy())
         t = tau
         visit = _Visit(ModeFlow(system, tr.target, x_new, t, h, estimator, control=control, b0=b0,
-                                t_end=float(t_final)), form)
+                                t_end=float(t_final)), form, cap)
 
 
 @dataclass
@@ -465,6 +527,7 @@ def sample_ensemble(
     intensity: str = "hazard",
     max_transitions: int = 1000,
     carry: bool = True,
+    hazard_cap: float = HAZARD_CAP,
     progress: Callable[[int, int], None] | None = None,
 ) -> Ensemble:
     """``samples`` independent stochastic executions (one numpy Generator seeded by ``seed``).
@@ -476,20 +539,23 @@ def sample_ensemble(
     x = _check_start(system, mode, x0)
     h = check_step("h", h)
     _check_form(intensity)
+    cap = _check_hazard_cap(hazard_cap)
     if not (isinstance(t_final, (int, float, np.integer, np.floating)) and math.isfinite(t_final) and t_final > t0):
         raise SimulationError(f"t_final must be a finite number > t0 = {t0}, got {t_final!r}")
     rng = np.random.default_rng(seed)
     estimator = _make_estimator(method, pair, floor)
-    first = _Visit(ModeFlow(system, mode, x, float(t0), h, estimator, control=control, t_end=float(t_final)), intensity)
+    first = _Visit(ModeFlow(system, mode, x, float(t0), h, estimator, control=control, t_end=float(t_final)), intensity,
+                   cap)
     runs = []
     for k in range(int(samples)):
         runs.append(sample_execution(system, mode, x, t_final, h, method, rng=rng, t0=t0, pair=pair, control=control,
                                      floor=floor, intensity=intensity, max_transitions=max_transitions, carry=carry,
-                                     _first=first))
+                                     hazard_cap=cap, _first=first))
         if progress is not None:
             progress(k + 1, int(samples))
     settings = {"system": system.name, "initial_mode": mode, "h": h, "method": estimator.method.name,
                 "pair": estimator.pair.name, "floor": estimator.floor, "intensity": intensity, "carry": carry,
+                "hazard_cap": cap,
                 "t_final": float(t_final), "seed": seed}
     return Ensemble(runs, settings)
 
@@ -519,6 +585,9 @@ def section_schema(scene: Any) -> dict[str, Any]:
         "t_final": Param(float(integ["t_final"]), "end time", "s"),
         "max_transitions": Param(1000, "most switches of one sampled execution", low=0),
         "carry": Param(True, "carry the error ball through switches"),
+        "hazard_cap": Param(HAZARD_CAP, "most hazard per error-ball radius moved relative to a guard "
+                                        "(bounded intensities: no Zeno behaviour; 1e300: in effect none)", low=0.0,
+                            low_open=True),
     }
 
 
@@ -551,6 +620,6 @@ def ensemble_from_scene(scene: Any, overrides: dict[str, Any] | None = None, *,
                           s["method"], samples=s["samples"], seed=s["seed"], t0=float(scene.integrator.get("t0", 0.0)),
                           pair=None if s["pair"] == "auto" else s["pair"], control=scene.model.control,
                           floor=s["floor"], intensity=s["intensity"], max_transitions=s["max_transitions"],
-                          carry=s["carry"], progress=progress)
+                          carry=s["carry"], hazard_cap=s["hazard_cap"], progress=progress)
     ens.settings["scene"] = scene.name
     return ens

@@ -84,6 +84,7 @@ def test_stochastic_two_tanks_text_output_and_seed_reproducibility(capsys):
     (("stochastic", "grazing", "--samples", "0"), "--samples must be an integer >= 1, got 0"),
     (("stochastic", "grazing", "--set", "stochastic.intensity=rate"), "stochastic.intensity"),
     (("stochastic", "grazing", "--set", "stochastic.bogus=1"), "unknown parameter(s) ['bogus']"),
+    (("stochastic", "two_tanks", "--set", "stochastic.hazard_cap=0"), "stochastic.hazard_cap: 0.0 is out of range"),
     (("certify", "no_such_scene"), "no_such_scene"),
     (("certify", "grazing", "--set", "certify.alpha=1.0"), "certify.alpha"),
     (("certify", "grazing", "--max-refinements", "-1"), "--max-refinements must be an integer >= 0"),
