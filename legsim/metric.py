@@ -832,7 +832,13 @@ def _optimise_walk(hops, x: np.ndarray, y: np.ndarray, tol: float) -> tuple[floa
         smooth = False
         if z is not None and converged and converged[0]:
             legs_at = _leg_residuals(hops, unpack(z, template), x, y)
-            smooth = min(float(np.linalg.norm(v)) for v in legs_at) > 1e-6 * scale
+            # Trusted only at a stationary point: SLSQP also reports convergence where its line
+            # search stalls just beside a kink (a leg 1e-3 long, the gradient still ~1 there),
+            # which a test on the legs' lengths alone took for smooth.
+            grad = objective(z, template)[1]
+            grad = np.where(((z <= lb) & (grad > 0.0)) | ((z >= ub) & (grad < 0.0)), 0.0, grad)
+            smooth = (min(float(np.linalg.norm(v)) for v in legs_at) > 1e-6 * scale
+                      and float(np.linalg.norm(grad)) <= 1e-6)
         candidates = [] if z is None else [z]
         if not smooth:
             legs = _affine_legs(lambda zz: _leg_residuals(hops, unpack(zz, template), x, y), len(z0))
