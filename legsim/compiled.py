@@ -434,7 +434,9 @@ def _k_step_loop(p, n_guards, c, n_groups, weights, n_members, members, b_err, f
                         if rejected and proposal > hk:
                             proposal = hk
                         # As relaxed._run_mode: a step shortened to land keeps the proposal.
-                        if shortened == 0 or rejected or proposal > h_prop:
+                        if shortened > 0 and not rejected:
+                            h_prop = max(h_prop, proposal)
+                        else:
                             h_prop = proposal
                     break
                 if gmin != gmin:

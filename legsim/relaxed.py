@@ -509,7 +509,7 @@ class _Integrator:
                                 # the step the error allows: its tiny error must not shrink the next
                                 # proposal (after a landing the next mode would restart near eps and
                                 # creep back up by 5x per step).
-                                h_prop = proposal if not shortened or rejected or proposal > h_prop else h_prop
+                                h_prop = max(h_prop, proposal) if shortened and not rejected else proposal
                             break
                         if gmin != gmin:  # a guard returned nan
                             gvals = [float(g(t_trial, x_new)) for g in guards]

@@ -337,20 +337,22 @@ def _switch_in_piece(visit: _Visit, n: int, samples: StepSamples, cum: np.ndarra
     dt = p1.t - p0.t
     s_lo, s_hi = float(samples.s[i - 1]), float(samples.s[i])
     c_lo = cum[i - 1]
-    z_lo = _ratio(samples.distance[i - 1], samples.radius[i - 1])
-    pi_lo = ball_fraction_past(samples.distance[i - 1], samples.radius[i - 1], visit.dim).reshape(-1)
+    def past(d: np.ndarray, r: Any) -> tuple[np.ndarray, np.ndarray]:
+        """The fraction of the ball past each guard, and z = d / B."""
+        return ball_fraction_past(d, r, visit.dim).reshape(-1), _ratio(d, r).reshape(-1)
 
-    def pi_at(s: float) -> np.ndarray:
+    def past_at(s: float) -> tuple[np.ndarray, np.ndarray]:
         _, _, r, _, d = flow.on_step(n, s)
-        return ball_fraction_past(d, r, visit.dim).reshape(-1)
+        return past(d, r)
+
+    pi_lo, z_lo = past(samples.distance[i - 1], samples.radius[i - 1])
 
     def gained(s: float) -> float:
         # Capped as the pieces are (each guard's gain and its cap are non-decreasing in s, so is
         # their minimum), meeting the piece's own gain at sample i.
-        _, _, r, _, d = flow.on_step(n, s)
-        pi = ball_fraction_past(d, r, visit.dim).reshape(-1)
+        pi, z = past_at(s)
         free = np.maximum(_cumulative(pi, visit.form) - c_lo, 0.0)
-        return float(_capped_gain(free, z_lo, _ratio(d, r).reshape(-1), pi_lo, pi, visit.cap, visit.form).sum()) - need
+        return float(_capped_gain(free, z_lo, z, pi_lo, pi, visit.cap, visit.form).sum()) - need
 
     # Between samples every pi_j is monotone, so gained is non-decreasing: one sign change.
     lo_val, hi_val = gained(s_lo), gained(s_hi)
@@ -360,9 +362,9 @@ def _switch_in_piece(visit: _Visit, n: int, samples: StepSamples, cum: np.ndarra
         s = s_hi
     else:
         s = brentq(gained, s_lo, s_hi, xtol=1e-15, rtol=8.9e-16)
-    pi = pi_at(s)
+    pi = past_at(s)[0]
     if pi.sum() <= 0.0:  # rounding at the bracket's end
-        pi = pi_at(s_hi)
+        pi = past_at(s_hi)[0]
     if pi.sum() <= 0.0:
         pi = np.maximum(cum[i] - c_lo, 0.0)
     j = int(rng.choice(len(pi), p=pi / pi.sum())) if len(pi) > 1 else 0
