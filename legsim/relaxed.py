@@ -39,7 +39,7 @@ import numpy as np
 from .errors import LegsimError, ModelBreakdown, ModelError, SimulationError
 from .execution import Execution, SegmentBuffer, Strip, TransitionRecord
 from .hybrid import HybridSystem, check_field_output, check_reset_output
-from .methods import Tableau, error_estimate, get_method, make_stepper
+from .methods import ContinuousStep, Tableau, dense_output, get_method, make_error_norm, make_stepper
 
 ProgressFn = Callable[[float, float, float], None]
 
@@ -189,10 +189,14 @@ def simulate(
         the guards keep their relaxed treatment (a step that would leave the relaxed domain
         is shortened until it lands inside it). Without them every step starts from h.
     landing: how a step that would leave the relaxed domain is shortened: ``"halve"``
-        (paper 000 Fig. 12, step 3) or ``"aim"``, which retries with the step length at which
+        (paper 000 Fig. 12, step 3); ``"aim"``, which retries with the step length at which
         the failed step's own interpolant reaches the middle of the strip (at most three aims,
-        then halving). Both accept only steps that land in the relaxed domain, so the
-        guarantee is the same; aiming needs fewer trial steps when eps << h.
+        then halving); or ``"dense"`` (methods with a continuous extension: bs32, dopri5, a
+        ``Tableau`` with ``dense``), which takes the landing step on the failed step's own
+        dense output, itself a Runge-Kutta step of the interpolant's order, once the failed
+        step passes the error test, so no step is retried (aiming as a fallback). All three
+        accept only steps that land in the relaxed domain, so the guarantee is the same;
+        aiming and dense landing need fewer trial steps when eps << h.
 
     Returns
     -------
@@ -261,8 +265,11 @@ def simulate(
             f"{-gvals[worst]:.3g} > eps = {eps:g} (guard units); start inside the domain of '{mode}'"
         )
 
-    if landing not in ("halve", "aim"):
-        raise SimulationError(f"landing must be 'halve' or 'aim', got {landing!r}")
+    if landing not in LANDINGS:
+        raise SimulationError(f"landing must be one of {', '.join(map(repr, LANDINGS))}, got {landing!r}")
+    if landing == "dense" and dense_output(tableau) is None:
+        raise SimulationError(f"landing 'dense' needs a method with a continuous extension (bs32, dopri5, or a "
+                              f"Tableau with dense output); method '{tableau.name}' has none: use landing 'aim'")
     if rtol is not None or atol is not None:
         if not tableau.embedded:
             raise SimulationError(
@@ -279,6 +286,14 @@ def simulate(
                              rtol, atol, landing)
     integrator._checked_modes.add(mode)  # check_state above already evaluated this mode's field
     return integrator.run(mode, x, t0, t_final)
+
+
+#: Most halvings of one step for leaving the model's range (ModelBreakdown) before the run ends:
+#: a long trial step through the ground needs a few; more means the boundary is at hand.
+_BREAKDOWN_HALVINGS = 10
+
+#: Landing rules of ``simulate(landing=...)``.
+LANDINGS = ("halve", "aim", "dense")
 
 
 def _known_modes(system: HybridSystem, mode: str):
@@ -310,7 +325,9 @@ class _Integrator:
         self.atol = 0.0 if atol is None else atol
         if self.adaptive:
             self.err_exponent = -1.0 / (min(tableau.order, tableau.error_order) + 1)
-        self.aim = landing == "aim"
+            self._error_norm = make_error_norm(tableau)
+        self.aim = landing in ("aim", "dense")
+        self.dense = landing == "dense"
         self.landing = landing
         self.t_start = 0.0
         self.steps = 0
@@ -409,6 +426,9 @@ class _Integrator:
         single_guard = guards[0] if n_guards == 1 else None
         adaptive = self.adaptive
         aim = self.aim
+        dense = self.dense
+        error_norm = self._error_norm if adaptive else None
+        rtol, atol = self.rtol, self.atol
         dim = data.mode.dim
         self.state_names.setdefault(mode, data.mode.names)
         buf = SegmentBuffer(mode, dim)
@@ -427,6 +447,7 @@ class _Integrator:
         # A state that enters a mode already inside one of its strips (a reset image at a guard
         # intersection, or an initial state in a strip) crosses that strip at once: q = x.
         gvals = [float(g(t, x)) for g in guards]
+        g_here = gvals  # guard values at the current (t, x), kept for the landing searches
         self.guard_evals += n_guards
         bad = _first_nonfinite(gvals)
         if bad is not None:
@@ -447,7 +468,7 @@ class _Integrator:
                                          f"x={x.tolist()}", t)
             return self._transition(buf, data, e, t, x, t, -gvals[e], t_final)
 
-        if data.mode.compiled is not None and control is None and not self._timed(data):
+        if data.mode.compiled is not None and control is None and not self.dense and not self._timed(data):
             from .compiled import run_mode_compiled  # numba is imported only by systems that use it
 
             return run_mode_compiled(self, data, buf, t, x, k0, t_final)
@@ -470,32 +491,43 @@ class _Integrator:
                 last = hk >= remaining
                 if last:
                     hk = remaining
-                shortened = aimed = 0
+                shortened = aimed = broke = 0
                 rejected = False
                 while True:
-                    x_new, stages = step(field, t, x, hk, k0, control)
-                    field_evals += evals_per_step
-                    # Exact and warning-free (a sum of squares would overflow, and warn, for finite
-                    # states above ~1e154); for the small states of these models it is also the
-                    # cheapest test numpy or Python offers.
-                    if not all(map(isfinite, x_new.tolist())):
-                        reason = "non_finite"
-                    else:
-                        t_trial = t_final if last else t + hk
-                        if single_guard is not None:
-                            gmin = float(single_guard(t_trial, x_new))
-                            guard_evals += 1
-                        elif n_guards:
-                            gvals = [float(g(t_trial, x_new)) for g in guards]
-                            guard_evals += n_guards
-                            gmin = min(gvals)
-                            if gmin == gmin and math.isnan(sum(gvals)):
-                                gmin = math.nan  # min() keeps a nan only when it comes first
+                    # A trial step whose stages or end leave the model's range (ModelBreakdown: a
+                    # runner's hip through the ground) has left the relaxed domain like one past a
+                    # strip: it is shortened. Unlike a strip, the model's boundary has no width to
+                    # land in, so once the boundary is within 2^-_BREAKDOWN_HALVINGS of the step
+                    # the flow itself is leaving the range: the run ends there rather than creep
+                    # towards the boundary by ever shorter steps.
+                    try:
+                        x_new, stages = step(field, t, x, hk, k0, control)
+                        field_evals += evals_per_step
+                        # Exact and warning-free (a sum of squares would overflow, and warn, for
+                        # finite states above ~1e154); for the small states of these models it is
+                        # also the cheapest test numpy or Python offers.
+                        if not all(map(isfinite, x_new.tolist())):
+                            reason = "non_finite"
                         else:
-                            gmin = 0.0
+                            reason = None
+                            t_trial = t_final if last else t + hk
+                            if single_guard is not None:
+                                gmin = float(single_guard(t_trial, x_new))
+                                guard_evals += 1
+                            elif n_guards:
+                                gvals = [float(g(t_trial, x_new)) for g in guards]
+                                guard_evals += n_guards
+                                gmin = min(gvals)
+                                if gmin == gmin and math.isnan(sum(gvals)):
+                                    gmin = math.nan  # min() keeps a nan only when it comes first
+                            else:
+                                gmin = 0.0
+                    except ModelBreakdown as exc:
+                        reason, breakdown = "model_breakdown", exc
+                    if reason is None:
                         if gmin >= -eps:
                             if adaptive:
-                                err = self._error_norm(hk, stages, x, x_new)
+                                err = error_norm(hk, stages, x, x_new, rtol, atol)
                                 if err > 1.0:
                                     rejections += 1
                                     rejected = True
@@ -518,19 +550,73 @@ class _Integrator:
                                        f"t={t + hk:.17g} in mode '{mode}', x={x_new.tolist()}", t)
                             break
                         reason = "past"
+                        if dense and aimed == 0:
+                            if adaptive:
+                                # Only a step the error test accepts may carry the landing on its
+                                # interpolant; otherwise shrink it as the error control says.
+                                err = error_norm(hk, stages, x, x_new, rtol, atol)
+                                if err > 1.0:
+                                    rejections += 1
+                                    rejected = True
+                                    hk *= max(0.2, 0.9 * err ** self.err_exponent)
+                                    last = False
+                                    continue
+                            try:
+                                landed = self._dense_landing(guards, gvals if single_guard is None else [gmin],
+                                                             g_here, field, t, x, hk, stages)
+                            except ModelBreakdown:  # the interpolant left the model's range: halve
+                                landed = (None, None, 0.5, None, None, 0)
+                            else:
+                                field_evals += landed[0].extra_evals
+                            guard_evals += landed[-1]
+                            if landed[1] is not None:
+                                curve, theta, x_land, g_land, crossing, _ = landed
+                                if adaptive:
+                                    proposal = hk * min(5.0, max(0.2, 0.9 * err ** self.err_exponent)) \
+                                        if err > 0 else 5.0 * hk
+                                    if rejected and proposal > hk:
+                                        proposal = hk
+                                    h_prop = max(h_prop, proposal) if shortened and not rejected else proposal
+                                steps += 1
+                                halvings += shortened + 1
+                                buf.size = size
+                                self._flush(steps, halvings, rejections, field_evals, guard_evals, h_prop)
+                                t_land = t + theta * hk
+
+                                def point(s, curve=curve, theta=theta):
+                                    return curve.point(s * theta)
+
+                                def slope(s, curve=curve, theta=theta):
+                                    return curve.slope(s * theta)
+
+                                return self._step_transition(buf, data, g_land, t, x, k0, t_land, x_land,
+                                                             curve.slope(theta), t_final, point, slope, crossing)
+                            aimed += 1  # the interpolant did not land: retry at its aim, checked as usual
+                            shortened += 1
+                            hk = landed[2] * hk
+                            last = False
+                            continue
                     shortened += 1
+                    if reason == "model_breakdown":
+                        broke += 1
                     hk_old = hk
                     if aim and reason == "past" and aimed < 3:
-                        hk = self._aim(guards, gvals if single_guard is None else [gmin], field, t, x, k0, hk,
-                                       x_new, stages)
+                        try:
+                            hk = self._aim(guards, gvals if single_guard is None else [gmin], field, t, x, k0, hk,
+                                           x_new, stages)
+                        except ModelBreakdown:  # the interpolant left the model's range: halve
+                            hk *= 0.5
                         aimed += 1
                     else:
                         hk *= 0.5
                     last = False
-                    if shortened > self.max_halvings or t + hk <= t:
+                    if shortened > self.max_halvings or t + hk <= t or broke > _BREAKDOWN_HALVINGS:
                         if reason == "non_finite":
                             outcome = ("non_finite", f"the step from t={t:.17g} in mode '{mode}' gives a non-finite "
                                        f"state even at h={hk_old:.3g}: x={x.tolist()}", t)
+                        elif reason == "model_breakdown":
+                            outcome = ("model_breakdown", f"{breakdown} (mode '{mode}', after t={t:.17g}: the flow "
+                                       f"leaves the model's range within {hk_old:.3g} s)", t)
                         else:
                             if single_guard is None:
                                 e = int(np.argmin(gvals))
@@ -559,6 +645,8 @@ class _Integrator:
                                                  t_final)
                 t = t_new
                 x = x_new
+                if dense:
+                    g_here = gvals if single_guard is None else [gmin]
                 if fsal:
                     k0 = stages[-1]
                 else:
@@ -599,10 +687,50 @@ class _Integrator:
         self.guard_evals += guard_evals
         self.h_prop = h_prop
 
-    def _error_norm(self, hk, stages, x, x_new) -> float:
-        est = error_estimate(self.tableau, hk, stages)
-        scale = self.atol + self.rtol * np.maximum(np.abs(x), np.abs(x_new))
-        return float(np.sqrt(np.mean((est / scale) ** 2)))
+    def _dense_landing(self, guards, gvals, g_start, field, t, x, hk, stages):
+        """Land on the failed step's own dense output. The crossing q is found on it first (the
+        earliest guard to reach zero), then the landing point, in the middle of that guard's
+        strip, by secant from q (the guard is nearly linear across a strip, so one guess
+        usually lands). Returns ``(curve, theta, x_land, guards_at_landing, crossing, evals)``
+        with crossing = (guard index, s of q on [t, t + theta hk], converged); theta is None
+        when no point of the interpolant was found in the relaxed domain (a guard that turns
+        back within the strip, or a second guard deeper than eps there): the caller retries a
+        real step of theta hk, with theta then the best guess."""
+        curve = ContinuousStep(self.tableau, field, t, x, hk, stages, self.control)
+        eps = self.eps
+        tol = 1e-12 * eps  # as in _step_transition: q costs guard evaluations only
+        evals = 0
+        best = None
+        for e, g1 in enumerate(gvals):
+            if g1 < 0.0:
+                guard = guards[e]
+
+                def guard_at(s, guard=guard):
+                    return float(guard(t + s * hk, curve.point(s)))
+
+                s, n_evals, converged = crossing_on_step(guard_at, g_start[e], g1, tol)
+                evals += n_evals
+                if best is None or s < best[1]:
+                    best = (e, s, converged, g1)
+        e, s_q, converged, g1 = best
+        theta = s_q + 0.5 * eps * (1.0 - s_q) / -g1
+        n_guards = len(guards)
+        for _ in range(3):
+            if not s_q <= theta < 1.0:
+                break
+            x_land = curve.point(theta)
+            t_land = t + theta * hk
+            g_land = [float(g(t_land, x_land)) for g in guards]
+            evals += n_guards
+            lowest = min(g_land)
+            if -eps <= lowest < 0.0 and all(map(isfinite, x_land.tolist())):
+                return curve, theta, x_land, g_land, (e, s_q / theta if theta > 0.0 else 0.0, converged), evals
+            depth = -g_land[e]
+            if not (depth == depth) or lowest < -eps and depth <= eps:
+                break  # another guard is the deeper one here: a real step decides
+            # Secant from q (guard 0) to this guess, aimed at the strip's middle again.
+            theta = s_q + (theta - s_q) * (0.5 * eps / depth if depth > 0.0 else 2.0)
+        return curve, None, min(max(theta, s_q), 1.0) if s_q > 0.0 else 0.5, None, None, evals
 
     def _aim(self, guards, gvals, field, t, x, k0, hk, x_new, stages) -> float:
         """A shorter step aimed at the middle of the deepest strip, found on the failed step's
@@ -631,20 +759,29 @@ class _Integrator:
         self.segments.append(buf.freeze())
         return ("end", status, message, t, False, None)
 
-    def _step_transition(self, buf, data, gvals, t, x, k0, t1, x1, k1, t_final):
-        """A step from (t, x) landed at (t1, x1) inside one or more strips."""
+    def _step_transition(self, buf, data, gvals, t, x, k0, t1, x1, k1, t_final, point=None, slope=None,
+                         crossing=None):
+        """A step from (t, x) landed at (t1, x1) inside one or more strips. ``point(s)`` and
+        ``slope(s)`` give the step's own interpolant at t + s (t1 - t) (default: cubic Hermite);
+        ``crossing`` = (guard index, s, converged) when the caller has already found q."""
         dt = t1 - t
+        if point is None:
+            def point(s):
+                return hermite(x, k0, x1, k1, dt, s)
+
+            def slope(s):
+                return hermite_derivative(x, k0, x1, k1, dt, s)
         # Locating q costs guard evaluations only: take it to a 1e-12 share of the strip.
         tol = 1e-12 * self.eps
-        best = None
+        best = crossing
         guard_fns = self._guard_fns(data)
-        for e, g1 in enumerate(gvals):
+        for e, g1 in enumerate(gvals if crossing is None else ()):
             if g1 < 0.0:
                 guard = guard_fns[e]
                 g0 = float(guard(t, x))
 
                 def guard_at(s, guard=guard):
-                    return guard(t + s * dt, hermite(x, k0, x1, k1, dt, s))
+                    return guard(t + s * dt, point(s))
 
                 s, n_evals, converged = crossing_on_step(guard_at, g0, g1, tol)
                 self.guard_evals += 1 + n_evals
@@ -654,7 +791,7 @@ class _Integrator:
         if s <= 0.0:
             q, tc = x.copy(), t
         else:
-            q = hermite(x, k0, x1, k1, dt, s)
+            q = point(s)
             tc = t + s * dt
             if not np.all(np.isfinite(q)):
                 q, tc = x.copy(), t
@@ -662,10 +799,10 @@ class _Integrator:
                 # s so small that t + s dt rounds to t: q replaces the step's start (they differ by
                 # rounding) rather than adding a second point at the same time.
                 buf.x[buf.size - 1] = q
-                buf.dx[buf.size - 1] = hermite_derivative(x, k0, x1, k1, dt, s)
+                buf.dx[buf.size - 1] = slope(s)
                 tc = t
             else:
-                buf.append(tc, q, hermite_derivative(x, k0, x1, k1, dt, s))
+                buf.append(tc, q, slope(s))
         tau = -gvals[e]
         return self._transition(buf, data, e, tc, q, t1, tau, t_final)
 

@@ -93,7 +93,7 @@ def _integrator_schema() -> dict[str, Param]:
         "max_transitions": Param(100_000, "transition budget", low=0),
         "max_halvings": Param(64, "most halvings of one step", low=1),
         "max_steps": Param(MAX_STEPS, "most nominal steps (t_final - t0) / h a run may take", low=1),
-        "landing": Param("halve", "how a step past the strip is shortened", choices=("halve", "aim")),
+        "landing": Param("halve", "how a step past the strip is shortened", choices=("halve", "aim", "dense")),
         # Optional error control (no default: absent means fixed nominal steps).
         "rtol": Param(1e-6, "relative tolerance of error-controlled steps", low=0.0, low_open=True),
         "atol": Param(1e-9, "absolute tolerance of error-controlled steps", low=0.0, low_open=True),
@@ -119,7 +119,7 @@ class Scene:
     initial_mode: mode name; ``initial_state``: float64 array (n,) in that mode's coordinates.
     integrator: method, h (s), eps (guard units), t_final (s), t0 (s), max_transitions,
         max_halvings, max_steps (bound on (t_final - t0) / h, checked at loading), landing
-        ("halve" or "aim"), rtol and atol (None unless error-controlled).
+        ("halve", "aim" or "dense"), rtol and atol (None unless error-controlled).
     output: rrd, html, plot paths (str) or None.
     sections: the tool sections present (``orbit``, ``certify``, ...), as tables.
     data: the scene's TOML content after overrides.
@@ -490,6 +490,13 @@ def _integrator(path: Path, table: dict[str, Any]) -> dict[str, Any]:
             raise _fail(path, f"integrator.{key}", f"error control needs a method with an embedded error "
                                                    f"estimate (method = 'bs32' or 'dopri5'), got "
                                                    f"method = '{out['method']}'")
+    if out["landing"] == "dense":
+        from .methods import dense_output, get_method
+
+        if dense_output(get_method(out["method"])) is None:
+            raise _fail(path, "integrator.landing", f"'dense' lands on the method's continuous extension, which "
+                                                    f"method = '{out['method']}' has not (bs32 and dopri5 have "
+                                                    f"one); use landing = 'aim'")
     if out["t_final"] <= out["t0"]:
         raise _fail(path, "integrator.t_final", f"{out['t_final']!r} must be > integrator.t0 = {out['t0']!r}")
     nominal = (out["t_final"] - out["t0"]) / out["h"]

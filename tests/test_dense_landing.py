@@ -1,0 +1,191 @@
+"""Landing on the failed step's own dense output (issue 6, item 2), and trial steps that leave
+the model's range.
+
+``landing="dense"``: a step that would leave the relaxed domain is not retried; once it passes
+the error test, its continuous extension (itself a Runge-Kutta step of the interpolant's order)
+gives the crossing q and a landing point inside the strip, which is checked like any step's end.
+"""
+
+import math
+
+import numpy as np
+import pytest
+
+from legsim import HybridSystem, Mode, Transition, simulate
+from legsim.bench.cases import dop853_tableau
+from legsim.errors import ModelBreakdown, SimulationError
+from legsim.methods import (ContinuousStep, dense_output, error_estimate, get_method, make_error_norm, make_stepper,
+                            rk_step)
+
+PAIRS = [get_method("bs32"), get_method("dopri5"), dop853_tableau()]
+
+
+def forced_pendulum(t, x, u=None):
+    return np.array([x[1], -math.sin(x[0]) + 0.3 * math.cos(1.7 * t)])
+
+
+def reference(t_end, x0):
+    from scipy.integrate import solve_ivp
+
+    return solve_ivp(forced_pendulum, (0.0, t_end), x0, method="DOP853", rtol=1e-13, atol=1e-15).y[:, -1]
+
+
+@pytest.mark.parametrize("tableau", PAIRS, ids=lambda t: t.name)
+def test_dense_output_has_its_order_and_meets_the_step_ends(tableau):
+    dense = dense_output(tableau)
+    step = make_stepper(tableau)
+    x0 = np.array([1.0, 0.2])
+    errors, slope_errors = [], []
+    hs = (0.4, 0.2, 0.1)
+    for h in hs:
+        x1, stages = step(forced_pendulum, 0.0, x0, h, forced_pendulum(0.0, x0), None)
+        curve = ContinuousStep(tableau, forced_pendulum, 0.0, x0, h, stages)
+        assert curve.extra_evals == len(dense.c_extra)
+        np.testing.assert_allclose(curve.point(0.0), x0, rtol=0, atol=1e-15)
+        np.testing.assert_allclose(curve.point(1.0), x1, rtol=0, atol=1e-14)
+        theta = 0.37
+        exact = reference(theta * h, x0)
+        errors.append(np.abs(curve.point(theta) - exact).max())
+        slope_errors.append(np.abs(curve.slope(theta) - forced_pendulum(theta * h, exact)).max())
+    # Local error O(h^(order+1)) of the value, O(h^order) of the slope.
+    rates = np.log2(np.array(errors[:-1]) / errors[1:])
+    slope_rates = np.log2(np.array(slope_errors[:-1]) / slope_errors[1:])
+    assert np.all(np.abs(rates - (dense.order + 1)) < 0.3), rates
+    assert np.all(np.abs(slope_rates - dense.order) < 0.3), slope_rates
+
+
+def test_stacked_stepper_and_generated_error_norm_match_the_references():
+    # DOP853's long rows are combined by one matrix product over stacked stages: the same step as
+    # the readable rk_step to rounding; the generated norm is the np.mean formula to the bit.
+    tableau = dop853_tableau()
+    x0 = np.array([0.7, -0.4])
+    x1, stages = make_stepper(tableau)(forced_pendulum, 0.3, x0, 0.05, forced_pendulum(0.3, x0), None)
+    K = np.zeros((tableau.stages, 2))
+    K[0] = forced_pendulum(0.3, x0)
+    ref = rk_step(forced_pendulum, 0.3, x0, 0.05, tableau, K)
+    np.testing.assert_allclose(x1, ref, rtol=0, atol=1e-15)
+    est = error_estimate(tableau, 0.05, stages)  # the sum in stage order, as the compiled kernel sums
+    scale = 1e-6 + 1e-6 * np.maximum(np.abs(x0), np.abs(x1))
+    expected = float(np.sqrt(np.mean((est / scale) ** 2)))
+    assert make_error_norm(tableau)(0.05, stages, x0, x1, 1e-6, 1e-6) == expected
+
+
+def doubling_system() -> HybridSystem:
+    """x' = x, reset at x = 2 back to 1: the crossings are at k ln 2 (plus the strips' delays)."""
+    return HybridSystem(
+        {"grow": Mode(1, lambda t, x, u: x.copy(), names=("x",))},
+        [Transition("grow", "grow", guard=lambda x: 2.0 - x[0], reset=lambda x: x * 0.5, name="halve")],
+    )
+
+
+@pytest.mark.parametrize("method", ["dopri5", "bs32"])
+def test_dense_landing_finds_the_crossing_without_retrying_a_step(method):
+    eps, tol = 1e-9, 1e-10
+    runs = {landing: simulate(doubling_system(), [1.0], "grow", 3.0, 0.5, eps, method=method, rtol=tol, atol=tol,
+                              landing=landing) for landing in ("aim", "dense")}
+    dense, aim = runs["dense"], runs["aim"]
+    assert dense.status == aim.status == "finished"
+    assert len(dense.transitions) == len(aim.transitions) == 4
+    for k, tr in enumerate(dense.transitions):
+        # q on the guard to the crossing search's tolerance; the k-th crossing at (k+1) ln 2 plus
+        # the k earlier strips' delays (each eps - tau <= eps).
+        assert tr.state_before[0] == pytest.approx(2.0, abs=1e-11)
+        assert 0.0 <= tr.depth <= eps
+        assert (k + 1) * math.log(2.0) - 1e-9 <= tr.time <= (k + 1) * math.log(2.0) + k * eps + 1e-9
+    # Every landing shortened exactly one step and retried none: fewer field evaluations.
+    assert dense.counters["halvings"] == len(dense.transitions)
+    assert dense.counters["field_evals"] < aim.counters["field_evals"]
+
+
+def test_dense_landing_with_dop853_keeps_the_strip_guarantee_on_the_pronk():
+    pronk = pytest.importorskip("robots.pronk")
+    model = pronk.make()
+    eps = 1e-9
+    ex = simulate(model.system, pronk.state(), model.initial_mode, 2.0, 0.1, eps, method=dop853_tableau(),
+                  rtol=1e-8, atol=1e-8, landing="dense")
+    aim = simulate(model.system, pronk.state(), model.initial_mode, 2.0, 0.1, eps, method=dop853_tableau(),
+                   rtol=1e-8, atol=1e-8, landing="aim")
+    assert ex.status == "finished" and len(ex.transitions) == 8
+    assert all(0.0 <= tr.depth <= eps for tr in ex.transitions)
+    # The same execution as the aimed landing, to the accuracy of the runs (rtol 1e-8): the same
+    # transitions at the same times from the same guard points (the symmetric pronk's two legs
+    # touch down together, in either order within the strip).
+    def by_name(run):
+        out = {}
+        for tr in run.transitions:
+            out.setdefault(tr.name, []).append(tr)
+        return out
+
+    ours, theirs = by_name(ex), by_name(aim)
+    assert sorted(ours) == sorted(theirs)
+    for name in ours:
+        assert len(ours[name]) == len(theirs[name])
+        for a, b in zip(ours[name], theirs[name]):
+            assert abs(a.time - b.time) < 1e-8
+            # the body (x, z, theta and rates; the feet in stance depend on the order of the legs)
+            np.testing.assert_allclose(a.state_before[:6], b.state_before[:6], rtol=0, atol=1e-7)
+    assert ex.counters["field_evals"] < aim.counters["field_evals"]
+
+
+def test_dense_landing_needs_a_method_with_a_continuous_extension():
+    with pytest.raises(SimulationError, match="landing 'dense'.*'rk4'.*aim"):
+        simulate(doubling_system(), [1.0], "grow", 1.0, 0.1, 1e-6, method="rk4", landing="dense")
+    with pytest.raises(SimulationError, match="landing must be one of"):
+        simulate(doubling_system(), [1.0], "grow", 1.0, 0.1, 1e-6, landing="bisect")
+
+
+def ball_through_the_floor(breakdown_depth: float) -> HybridSystem:
+    """A bouncing ball (c = 0.5) whose model is undefined deeper than breakdown_depth below the
+    floor (think of a runner's hip through the ground): the guard raises ModelBreakdown there."""
+
+    def floor(x):  # "at the floor moving down", so that a bounce's image is inside the domain
+        if x[0] < -breakdown_depth:
+            raise ModelBreakdown(f"ball {-x[0]:.3g} m below the floor")
+        return max(x[0], x[1])
+
+    return HybridSystem(
+        {"fly": Mode(2, lambda t, x, u: np.array([x[1], -9.81]), names=("z", "zd"))},
+        [Transition("fly", "fly", guard=floor, reset=lambda x: np.array([x[0], -0.5 * x[1]]), name="bounce")],
+    )
+
+
+@pytest.mark.parametrize("landing", ["halve", "aim", "dense"])
+def test_a_trial_step_that_leaves_the_models_range_is_shortened(landing):
+    # From 1 m at rest, a 1 s trial step ends 3.9 m below the floor, past the model's range: it
+    # is halved like a step past a strip (it used to end the run with model_breakdown). RK4 and
+    # dopri5 are exact on parabolas, so the impacts are the closed form's.
+    method = "dopri5" if landing == "dense" else "rk4"
+    eps = 1e-9
+    # (t_final = 1 s: before the third impact, far from the Zeno time 1.355 s.)
+    ex = simulate(ball_through_the_floor(0.3), [1.0, 0.0], "fly", 1.0, 1.0, eps, method=method, landing=landing)
+    assert ex.status == "finished", ex.message
+    t1 = math.sqrt(2.0 / 9.81)
+    v1 = 9.81 * t1
+    t2 = t1 + 2 * 0.5 * v1 / 9.81
+    times = [tr.time for tr in ex.transitions]
+    assert len(times) == 2
+    assert times[0] == pytest.approx(t1, abs=1e-9)
+    assert times[1] == pytest.approx(t2, abs=1e-8)
+
+
+def test_a_flow_into_the_models_range_ends_with_model_breakdown():
+    # Falling without a floor: the flow itself reaches the model's boundary at t = 1.1 s. Halving
+    # cannot get past it; the run ends once the boundary is within 2^-10 of a step (instead of
+    # creeping towards it by ever shorter steps), naming the mode.
+    system = HybridSystem(
+        {"fall": Mode(1, lambda t, x, u: np.array([-1.0]), names=("z",))},
+        [Transition("fall", "fall", guard=lambda x: _raise_below(x[0], 0.0) + 10.0, reset=lambda x: x.copy(),
+                    name="never")],
+    )
+    h = 0.25
+    ex = simulate(system, [1.1], "fall", 3.0, h, 1e-6, method="rk4")
+    assert ex.status == "model_breakdown"
+    assert "mode 'fall'" in ex.message and "leaves the model's range" in ex.message
+    assert 1.1 - h / 2**10 <= ex.t_end <= 1.1
+    assert ex.counters["steps"] < 40
+
+
+def _raise_below(z: float, depth: float) -> float:
+    if z < depth:
+        raise ModelBreakdown(f"z = {z:.3g} is below {depth}")
+    return z
