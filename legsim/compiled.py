@@ -28,7 +28,11 @@ a strip) goes through the shared Python code (``_transition``, ``_run_mode``).
 The kernel does the same floating-point operations in the same order as the Python stepper
 (stage combinations grouped as ``methods.make_stepper`` groups them, unrolled per built-in
 method, the same Hermite interpolant, root search and error norm), so both paths give the same
-execution, in practice to the bit (tests/test_compiled.py). Difference: a kernel evaluates all
+execution, in practice to the bit (tests/test_compiled.py) for the built-in methods. A tableau
+whose long rows the Python stepper combines by one matrix product (DOP853, see
+``methods._DOT_TERMS``) agrees to rounding instead: the same steps and transitions, step sizes
+within ~1e-8. The kernel never lands on dense output: ``landing="dense"`` runs the Python loop.
+Difference: a kernel evaluates all
 guards of a mode at once, and counts ``n_guards`` guard evaluations per call where the Python
 loop counts one per guard it calls (the same count for one guard).
 
@@ -120,7 +124,7 @@ class _Plan:
     weights: np.ndarray  # (s + 1, G)
     n_members: np.ndarray  # (s + 1, G)
     members: np.ndarray  # (s + 1, G, s)
-    b_err: np.ndarray  # (s,) zeros when the method has no embedded pair
+    b_err: np.ndarray  # (2, s): b_err and b_err_low, zeros where the method has none
     fsal: bool
     stages: int
 
@@ -155,7 +159,11 @@ def plan_for(tableau: Tableau) -> _Plan:
             weights[i, g] = w
             n_members[i, g] = len(js)
             members[i, g, : len(js)] = js
-    b_err = np.zeros(s) if tableau.b_err is None else np.asarray(tableau.b_err, dtype=float)
+    b_err = np.zeros((2, s))
+    if tableau.b_err is not None:
+        b_err[0] = tableau.b_err
+    if tableau.b_err_low is not None:
+        b_err[1] = tableau.b_err_low
     plan = _Plan(np.asarray(tableau.c, dtype=float), n_groups, weights, n_members, members, b_err,
                  bool(tableau.fsal), s)
     _PLANS[id(tableau)] = (tableau, plan)
@@ -268,25 +276,41 @@ def _k_crossing(p, e, shift, x0, d0, x1, d1, dt, g0, g1, tol, work):
 
 def _k_error_norm(b_err, hk, K, x, x_new, rtol, atol):
     n = x.shape[0]
+    blended = False
+    for j in range(b_err.shape[1]):
+        if b_err[1, j] != 0.0:
+            blended = True
     total = 0.0
     first = 0.0
+    low = 0.0
     for d in range(n):
+        scale = atol + rtol * max(abs(x[d]), abs(x_new[d]))
         acc = 0.0
         started = False
-        for j in range(b_err.shape[0]):
-            if b_err[j] != 0.0:
+        for j in range(b_err.shape[1]):
+            if b_err[0, j] != 0.0:
                 if started:
-                    acc = acc + b_err[j] * K[j, d]
+                    acc = acc + b_err[0, j] * K[j, d]
                 else:
-                    acc = b_err[j] * K[j, d]
+                    acc = b_err[0, j] * K[j, d]
                     started = True
-        est = hk * acc
-        scale = atol + rtol * max(abs(x[d]), abs(x_new[d]))
-        r = est / scale
+        r = (hk * acc) / scale
         if d == 0:
             first = r * r
         else:
             total += r * r
+        if blended:
+            acc = 0.0
+            for j in range(b_err.shape[1]):
+                acc += b_err[1, j] * K[j, d]
+            r = (hk * acc) / scale
+            low += r * r
+    if blended:
+        # Hairer's DOP853 norm (methods.make_error_norm), to rounding.
+        high = first + total
+        if high == 0.0 and low == 0.0:
+            return 0.0
+        return high / math.sqrt((high + 0.01 * low) * n)
     # numpy's mean: the first element plus the (sequential, n < 9) sum of the rest.
     return math.sqrt((first + total) / n)
 

@@ -54,6 +54,8 @@ class Tableau:
     error_order: order of the embedded (lower-order) solution, when there is one.
     fsal: the last stage is f at the new point (First Same As Last), so the next step
         reuses it and saves one field evaluation.
+    b_err_low: a second, lower-order error estimate that the error norm blends with b_err as
+        Hairer's DOP853 does (``err5^2 / sqrt(err5^2 + 0.01 err3^2)``), or None.
     dense: the method's continuous extension, when it has one (``landing="dense"``); the
         built-in bs32 and dopri5 have theirs through ``dense_output``, loaded on first use.
     """
@@ -67,6 +69,7 @@ class Tableau:
     error_order: int | None = None
     fsal: bool = False
     dense: DenseOutput | None = None
+    b_err_low: np.ndarray | None = None
 
     @property
     def stages(self) -> int:
@@ -287,15 +290,31 @@ def make_error_norm(tableau: Tableau) -> Callable[..., float]:
     """
     if tableau.b_err is None:
         raise SimulationError(f"method '{tableau.name}' has no embedded error estimate; use bs32 or dopri5")
-    key = ("norm",) + _tableau_key(tableau)
+    key = ("norm",) + _tableau_key(tableau) + (None if tableau.b_err_low is None else tableau.b_err_low.tobytes(),)
     if key not in _GENERATED:
-        terms = [f"{float(w)!r} * k{j}" for j, w in enumerate(tableau.b_err) if w != 0.0]
-        lines = ["def norm(h, stages, x, x_new, rtol, atol):",
-                 f"    {', '.join(f'k{j}' for j in range(tableau.stages))}, = stages",
-                 f"    r = (h * ({' + '.join(terms)})) / (atol + rtol * maximum(absolute(x), absolute(x_new)))",
-                 "    return sqrt(float(add_reduce(r * r)) / r.shape[0])"]
         namespace: dict[str, Any] = {"maximum": np.maximum, "absolute": np.absolute, "add_reduce": np.add.reduce,
-                                     "sqrt": math.sqrt}
+                                     "sqrt": math.sqrt, "stack": np.array}
+        scale = "(atol + rtol * maximum(absolute(x), absolute(x_new)))"
+        if tableau.b_err_low is None:
+            terms = [f"{float(w)!r} * k{j}" for j, w in enumerate(tableau.b_err) if w != 0.0]
+            lines = ["def norm(h, stages, x, x_new, rtol, atol):",
+                     f"    {', '.join(f'k{j}' for j in range(tableau.stages))}, = stages",
+                     f"    r = (h * ({' + '.join(terms)})) / {scale}",
+                     "    return sqrt(float(add_reduce(r * r)) / r.shape[0])"]
+        else:
+            # Hairer's DOP853 norm: the fifth-order estimate, damped where the third-order one is
+            # much larger (so that a step is not rejected for an estimate that is itself poor).
+            namespace["E"], namespace["E_LOW"] = np.array(tableau.b_err), np.array(tableau.b_err_low)
+            lines = ["def norm(h, stages, x, x_new, rtol, atol):",
+                     "    K = stack(stages)",
+                     f"    scale = {scale}",
+                     "    r = (h * (E @ K)) / scale",
+                     "    r_low = (h * (E_LOW @ K)) / scale",
+                     "    high = float(r @ r)",
+                     "    low = float(r_low @ r_low)",
+                     "    if high == 0.0 and low == 0.0:",
+                     "        return 0.0",
+                     "    return high / sqrt((high + 0.01 * low) * r.shape[0])"]
         exec("\n".join(lines), namespace)  # noqa: S102 - generated from the tableau's numbers only
         _GENERATED[key] = namespace["norm"]
     return _GENERATED[key]

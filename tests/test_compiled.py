@@ -317,3 +317,24 @@ def test_kernel_crossing_uses_the_python_safeguards():
     src = inspect.getsource(compiled._k_crossing)
     assert f"stalled >= {relaxed._STALL}:" in src
     assert f"< {relaxed._MIN_STEP!r}" in src and f"> {2 * relaxed._MIN_STEP!r}" in src
+
+
+def test_dop853_blended_error_norm_same_on_both_paths():
+    # DOP853's tableau (stacked stages, Hairer's blended E5/E3 norm) in the kernel. The Python
+    # stepper sums its long rows by a matrix product, the kernel term by term; the error estimate
+    # is a small difference of large stage sums, so rounding moves it by up to ~1e-4 relative and
+    # the step sizes by ~1e-8 s. Not bit for bit, then, but the same run: the same steps,
+    # rejections and evaluations, transitions at the same times, the same final state.
+    from legsim.bench.cases import dop853_tableau
+
+    system, x0, _ = make_oscillator_example("ex1")
+    fast, slow = both_paths(system, x0, "free", 12.0, 0.5, 1e-6, dop853_tableau(), landing="aim", rtol=1e-10,
+                            atol=1e-10)
+    assert fast.status == slow.status == "finished"
+    assert len(fast.transitions) == 4 and fast.counters["error_rejections"] > 0
+    for key in ("steps", "halvings", "error_rejections", "field_evals", "transitions"):
+        assert fast.counters[key] == slow.counters[key], key
+    assert abs(fast.counters["guard_evals"] - slow.counters["guard_evals"]) <= 0.02 * slow.counters["guard_evals"]
+    for a, b in zip(fast.transitions, slow.transitions):
+        assert abs(a.time - b.time) < 1e-12
+    np.testing.assert_allclose(fast.segments[-1].x[-1], slow.segments[-1].x[-1], rtol=0, atol=1e-10)

@@ -54,20 +54,30 @@ def test_dense_output_has_its_order_and_meets_the_step_ends(tableau):
     assert np.all(np.abs(slope_rates - dense.order) < 0.3), slope_rates
 
 
-def test_stacked_stepper_and_generated_error_norm_match_the_references():
+def test_stacked_stepper_and_generated_error_norms_match_the_references():
     # DOP853's long rows are combined by one matrix product over stacked stages: the same step as
-    # the readable rk_step to rounding; the generated norm is the np.mean formula to the bit.
+    # the readable rk_step to rounding. Its error norm is Hairer's blend of E5 and E3 (scipy's
+    # DOP853 norm); the plain norm of the built-in pairs is the np.mean formula to the bit.
     tableau = dop853_tableau()
     x0 = np.array([0.7, -0.4])
-    x1, stages = make_stepper(tableau)(forced_pendulum, 0.3, x0, 0.05, forced_pendulum(0.3, x0), None)
+    h = 0.05
+    x1, stages = make_stepper(tableau)(forced_pendulum, 0.3, x0, h, forced_pendulum(0.3, x0), None)
     K = np.zeros((tableau.stages, 2))
     K[0] = forced_pendulum(0.3, x0)
-    ref = rk_step(forced_pendulum, 0.3, x0, 0.05, tableau, K)
+    ref = rk_step(forced_pendulum, 0.3, x0, h, tableau, K)
     np.testing.assert_allclose(x1, ref, rtol=0, atol=1e-15)
-    est = error_estimate(tableau, 0.05, stages)  # the sum in stage order, as the compiled kernel sums
+    scale = 1e-6 + 1e-6 * np.maximum(np.abs(x0), np.abs(x1))
+    e5 = np.linalg.norm(h * (tableau.b_err @ K) / scale) ** 2
+    e3 = np.linalg.norm(h * (tableau.b_err_low @ K) / scale) ** 2
+    hairer = e5 / np.sqrt((e5 + 0.01 * e3) * 2)
+    assert make_error_norm(tableau)(h, stages, x0, x1, 1e-6, 1e-6) == pytest.approx(hairer, rel=1e-12)
+
+    pair = get_method("dopri5")
+    x1, stages = make_stepper(pair)(forced_pendulum, 0.3, x0, h, forced_pendulum(0.3, x0), None)
+    est = error_estimate(pair, h, stages)  # the sum in stage order, as the compiled kernel sums
     scale = 1e-6 + 1e-6 * np.maximum(np.abs(x0), np.abs(x1))
     expected = float(np.sqrt(np.mean((est / scale) ** 2)))
-    assert make_error_norm(tableau)(0.05, stages, x0, x1, 1e-6, 1e-6) == expected
+    assert make_error_norm(pair)(h, stages, x0, x1, 1e-6, 1e-6) == expected
 
 
 def doubling_system() -> HybridSystem:
@@ -98,33 +108,35 @@ def test_dense_landing_finds_the_crossing_without_retrying_a_step(method):
 
 
 def test_dense_landing_with_dop853_keeps_the_strip_guarantee_on_the_pronk():
-    pronk = pytest.importorskip("robots.pronk")
-    model = pronk.make()
+    pytest.importorskip("robots.pronk")
+    from legsim.bench.cases import make_case
+    from legsim.bench.work_precision import own_points, position_error
+
+    case = make_case("pronk")  # its reference: solve_ivp DOP853 at rtol = atol = 1e-12
     eps = 1e-9
-    ex = simulate(model.system, pronk.state(), model.initial_mode, 2.0, 0.1, eps, method=dop853_tableau(),
-                  rtol=1e-8, atol=1e-8, landing="dense")
-    aim = simulate(model.system, pronk.state(), model.initial_mode, 2.0, 0.1, eps, method=dop853_tableau(),
-                   rtol=1e-8, atol=1e-8, landing="aim")
+    runs = {landing: simulate(case.system, case.x0, case.mode, 2.0, 0.1, eps, method=dop853_tableau(), rtol=1e-8,
+                              atol=1e-8, landing=landing) for landing in ("aim", "dense")}
+    ex, aim = runs["dense"], runs["aim"]
     assert ex.status == "finished" and len(ex.transitions) == 8
     assert all(0.0 <= tr.depth <= eps for tr in ex.transitions)
-    # The same execution as the aimed landing, to the accuracy of the runs (rtol 1e-8): the same
-    # transitions at the same times from the same guard points (the symmetric pronk's two legs
-    # touch down together, in either order within the strip).
+    errors = {k: position_error(*own_points(r, case.positions), case.reference_positions) for k, r in runs.items()}
+    # q on the seventh-order interpolant instead of the landing step's cubic Hermite: at least as
+    # accurate (measured 2.0e-7 against 1.1e-6 m), with fewer field evaluations (513 against 597).
+    assert errors["dense"] <= errors["aim"] and errors["dense"] < 5e-7
+    assert ex.counters["field_evals"] < aim.counters["field_evals"]
+
+    # The same transitions, to the runs' accuracy (the symmetric pronk's legs touch down together,
+    # in either order within the strip).
     def by_name(run):
         out = {}
         for tr in run.transitions:
-            out.setdefault(tr.name, []).append(tr)
+            out.setdefault(tr.name, []).append(tr.time)
         return out
 
     ours, theirs = by_name(ex), by_name(aim)
     assert sorted(ours) == sorted(theirs)
     for name in ours:
-        assert len(ours[name]) == len(theirs[name])
-        for a, b in zip(ours[name], theirs[name]):
-            assert abs(a.time - b.time) < 1e-8
-            # the body (x, z, theta and rates; the feet in stance depend on the order of the legs)
-            np.testing.assert_allclose(a.state_before[:6], b.state_before[:6], rtol=0, atol=1e-7)
-    assert ex.counters["field_evals"] < aim.counters["field_evals"]
+        np.testing.assert_allclose(ours[name], theirs[name], rtol=0, atol=1e-7)
 
 
 def test_dense_landing_needs_a_method_with_a_continuous_extension():
