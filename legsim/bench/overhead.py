@@ -143,16 +143,19 @@ def measure_run(system, x0, mode: str, t_final: float, h: float, eps: float, met
     }
 
 
-def landing_costs(system, x0, mode, t_final, h, eps, method="rk4") -> dict[str, dict[str, float]]:
-    """Per transition: extra trial steps and evaluations spent landing in the strips, halve vs aim.
-    Extra field evaluations are those beyond the accepted steps' own."""
+def landing_costs(system, x0, mode, t_final, h, eps, method="rk4", landings=("halve", "aim"),
+                  tol: float | None = None) -> dict[str, dict[str, float]]:
+    """Per transition: extra trial steps and evaluations spent landing in the strips, for each
+    landing rule (error-controlled with rtol = atol = ``tol`` when given). Extra field evaluations
+    are those beyond the accepted steps' own (error rejections included)."""
     from ..methods import get_method
 
     tab = get_method(method)
     per_step = tab.stages - 1 + (0 if tab.fsal else 1)
+    tols = {} if tol is None else {"rtol": tol, "atol": tol}
     out = {}
-    for landing in ("halve", "aim"):
-        ex = simulate(system, x0, mode, t_final, h, eps, method, landing=landing, max_transitions=1_000_000)
+    for landing in landings:
+        ex = simulate(system, x0, mode, t_final, h, eps, method, landing=landing, max_transitions=1_000_000, **tols)
         c = ex.counters
         n = max(int(c["transitions"]), 1)
         out[landing] = {
@@ -196,6 +199,15 @@ def collect(quick: bool = False) -> dict[str, Any]:
         "bouncing ball c=0.8 (h=1e-2, eps=1e-6, 3 s)": landing_costs(make_bouncing_ball(9.81, 0.8),
                                                                      np.array([1.0, 0.0]), "flight", 3.0, 1e-2, 1e-6),
     }
+    # Error-controlled pairs: a retried step at the aim, or the landing on the failed step's own
+    # dense output (no retried step). The dense landing runs the Python loop (the kernel aims).
+    result["landing_pairs"] = {
+        "oscillator Ex.1 (h=0.1, eps=1e-6)": landing_costs(system, x0, "free", t_final, 0.1, 1e-6, "dopri5",
+                                                            ("aim", "dense"), 1e-8),
+        "bouncing ball c=0.8 (h=0.1, eps=1e-6, 3 s)": landing_costs(make_bouncing_ball(9.81, 0.8),
+                                                                    np.array([1.0, 0.0]), "flight", 3.0, 0.1, 1e-6,
+                                                                    "dopri5", ("aim", "dense"), 1e-8),
+    }
     return result
 
 
@@ -220,6 +232,14 @@ def format_report(r: dict[str, Any]) -> str:
     lines.append("landing in a strip, per transition (rk4): trial steps, extra field evaluations, guard "
                  "evaluations beyond one per step")
     for case, d in r["landing"].items():
+        for landing, v in d.items():
+            lines.append(f"  {case:<46} {landing:<6} {v['trial_steps_per_transition']:6.2f} trials "
+                         f"{v['extra_field_evals_per_transition']:7.2f} f-ev {v['guard_evals_per_transition']:7.2f} "
+                         f"g-ev  ({v['transitions']} transitions)")
+    lines.append("")
+    lines.append("landing in a strip, per transition (dopri5, rtol = atol = 1e-8): the same, aimed retry against "
+                 "the failed step's dense output")
+    for case, d in r.get("landing_pairs", {}).items():
         for landing, v in d.items():
             lines.append(f"  {case:<46} {landing:<6} {v['trial_steps_per_transition']:6.2f} trials "
                          f"{v['extra_field_evals_per_transition']:7.2f} f-ev {v['guard_evals_per_transition']:7.2f} "
