@@ -468,6 +468,14 @@ class _Integrator:
                                          f"x={x.tolist()}", t)
             return self._transition(buf, data, e, t, x, t, -gvals[e], t_final)
 
+        # A new mode's flow (a stance after a touchdown) may want a much shorter step than the
+        # one the previous mode ended with: start it at the step the standard estimate allows,
+        # as an event-driven integrator does at every restart. One field evaluation instead of
+        # one or two rejected steps (12 evaluations each for DOP853). Not after a
+        # self-transition (same field; the compiled kernel crosses those in place).
+        if adaptive and self.transitions and self.transitions[-1].source != mode:
+            self.h_prop = min(self.h_prop, self._starting_step(field, t, x, k0))
+
         if data.mode.compiled is not None and control is None and not self.dense and not self._timed(data):
             from .compiled import run_mode_compiled  # numba is imported only by systems that use it
 
@@ -686,6 +694,28 @@ class _Integrator:
         self.field_evals += field_evals
         self.guard_evals += guard_evals
         self.h_prop = h_prop
+
+    def _starting_step(self, field, t: float, x: np.ndarray, k0: np.ndarray) -> float:
+        """The starting step size of Hairer, Norsett and Wanner (Solving ODEs I, Sec. II.4): a step
+        whose estimated local error is about 1% of the tolerance, from f at x and at one explicit
+        Euler step away (one field evaluation). On any failure the current proposal stands."""
+        scale = self.atol + self.rtol * np.abs(x)
+        n = len(x)
+        d0 = math.sqrt(float(np.sum((x / scale) ** 2)) / n)
+        d1 = math.sqrt(float(np.sum((k0 / scale) ** 2)) / n)
+        h0 = 1e-6 if d0 < 1e-5 or d1 < 1e-5 else 0.01 * d0 / d1
+        h0 = min(h0, self.h)
+        try:
+            x1 = x + h0 * k0
+            f1 = np.asarray(self._f(field, t + h0, x1), dtype=float)
+        except (ModelBreakdown, ArithmeticError, ValueError):
+            return self.h_prop  # the steps themselves will report what is wrong
+        d2 = math.sqrt(float(np.sum(((f1 - k0) / scale) ** 2)) / n) / h0
+        if not math.isfinite(d2):
+            return self.h_prop
+        worst = max(d1, d2)
+        h1 = max(1e-6, 1e-3 * h0) if worst <= 1e-15 else (0.01 / worst) ** -self.err_exponent
+        return min(100.0 * h0, h1)
 
     def _dense_landing(self, guards, gvals, g_start, field, t, x, hk, stages):
         """Land on the failed step's own dense output. The crossing q is found on it first (the

@@ -120,9 +120,10 @@ def test_dense_landing_with_dop853_keeps_the_strip_guarantee_on_the_pronk():
     assert ex.status == "finished" and len(ex.transitions) == 8
     assert all(0.0 <= tr.depth <= eps for tr in ex.transitions)
     errors = {k: position_error(*own_points(r, case.positions), case.reference_positions) for k, r in runs.items()}
-    # q on the seventh-order interpolant instead of the landing step's cubic Hermite: at least as
-    # accurate (measured 2.0e-7 against 1.1e-6 m), with fewer field evaluations (513 against 597).
-    assert errors["dense"] <= errors["aim"] and errors["dense"] < 5e-7
+    # q on the seventh-order interpolant instead of a retried step and its cubic Hermite: as
+    # accurate (measured 7.0e-7 against 7.1e-7 m; the level is the tolerance's), with fewer field
+    # evaluations.
+    assert errors["dense"] <= 1.1 * errors["aim"] and errors["dense"] < 1e-6
     assert ex.counters["field_evals"] < aim.counters["field_evals"]
 
     # The same transitions, to the runs' accuracy (the symmetric pronk's legs touch down together,
@@ -201,3 +202,23 @@ def _raise_below(z: float, depth: float) -> float:
     if z < depth:
         raise ModelBreakdown(f"z = {z:.3g} is below {depth}")
     return z
+
+
+def test_a_tolerance_means_what_it_means_for_solve_ivp_on_the_pronk():
+    # Each new mode starts at the standard starting step, as solve_ivp restarts after an event,
+    # and DOP853 is controlled as scipy controls it: at rtol = atol = 1e-6 (largest step 0.2 s)
+    # the relaxed run is as accurate as solve_ivp's DOP853 with events (9.6e-6 m both; carrying
+    # the step over each transition gave 1.8e-5).
+    pytest.importorskip("robots.pronk")
+    from legsim.baselines import simulate_events
+    from legsim.bench.cases import make_case
+    from legsim.bench.work_precision import own_points, position_error
+
+    case = make_case("pronk")
+    relaxed = simulate(case.system, case.x0, case.mode, 2.0, 0.2, 1e-9, method=dop853_tableau(), rtol=1e-6,
+                       atol=1e-6, landing="dense")
+    ivp = simulate_events(case.ivp_system, case.x0, case.mode, 2.0, method="DOP853", rtol=1e-6, atol=1e-6,
+                          max_step=0.2)
+    errors = [position_error(*own_points(r, case.positions), case.reference_positions) for r in (relaxed, ivp)]
+    assert relaxed.status == ivp.status == "finished" and len(relaxed.transitions) == len(ivp.transitions) == 8
+    assert errors[0] <= 1.2 * errors[1], errors
