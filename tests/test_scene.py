@@ -46,6 +46,18 @@ def test_simulate_equals_direct_simulate_and_hits_closed_form_impact(tmp_path):
     assert abs(ex.transitions[0].time - math.sqrt(2 * 1.0 / 9.81)) < 1e-12
 
 
+def test_scene_with_dense_landing_lands_on_the_closed_form_impact(tmp_path):
+    text = TINY_SCENE.replace('method = "rk4"', 'method = "dopri5"').replace(
+        "t_final = 1.0", 't_final = 1.0\nlanding = "dense"\nrtol = 1e-8\natol = 1e-8')
+    scene = load_scene(write_scene(tmp_path, text))
+    assert scene.integrator["landing"] == "dense"
+    ex = scene.simulate()
+    assert ex.status == "finished" and ex.transitions
+    # dopri5 and its quartic interpolant are exact on the parabola of free fall.
+    assert abs(ex.transitions[0].time - math.sqrt(2 * 1.0 / 9.81)) < 1e-12
+    assert 0.0 <= ex.transitions[0].depth <= 1e-3
+
+
 # -- effects switched on and off, visible in the evaluation counts ----------------------------
 def test_effect_off_builds_no_guard_and_evaluates_none(tmp_path):
     scene = load_scene(write_scene(tmp_path), overrides=["effects.floor=false"])
@@ -153,6 +165,9 @@ BAD = {
     "rtol without an embedded method": (_replace("t_final = 1.0", "t_final = 1.0\nrtol = 1e-6"),
                                         ["integrator.rtol: error control needs a method with an embedded error estimate",
                                          "method = 'rk4'"]),
+    "dense landing without a continuous extension": (_replace("t_final = 1.0", 't_final = 1.0\nlanding = "dense"'),
+                                                     ["integrator.landing: 'dense' lands on the method's continuous "
+                                                      "extension, which method = 'rk4' has not", "landing = 'aim'"]),
     "unknown output": (TINY_SCENE + '\n[output]\ngif = "a.gif"\n',
                        ["output: unknown key(s) ['gif']; allowed: ['rrd', 'html', 'plot']"]),
     "output not a path": (TINY_SCENE + "\n[output]\nrrd = 3\n", ["output.rrd: expected a file path (string), got integer 3"]),
