@@ -534,42 +534,36 @@ class _Integrator:
                     except ModelBreakdown as exc:
                         reason, breakdown = "model_breakdown", exc
                     if reason is None:
-                        if gmin >= -eps:
-                            if adaptive:
-                                err = error_norm(hk, stages, x, x_new, rtol, atol)
-                                if err > 1.0:
-                                    rejections += 1
-                                    rejected = True
-                                    hk *= max(0.2, 0.9 * err ** self.err_exponent)
-                                    last = False
-                                    continue
-                                proposal = hk * min(5.0, max(0.2, 0.9 * err ** self.err_exponent)) if err > 0 else 5.0 * hk
-                                if rejected and proposal > hk:
-                                    proposal = hk  # no growth right after a rejection (Hairer, scipy)
-                                # A step shortened to land in the relaxed domain says nothing about
-                                # the step the error allows: its tiny error must not shrink the next
-                                # proposal (after a landing the next mode would restart near eps and
-                                # creep back up by 5x per step).
-                                h_prop = max(h_prop, proposal) if shortened and not rejected else proposal
-                            break
                         if gmin != gmin:  # a guard returned nan
                             gvals = [float(g(t_trial, x_new)) for g in guards]
                             bad = _first_nonfinite(gvals)
                             outcome = ("non_finite", f"guard of transition {data.transitions[bad].name} is nan at "
                                        f"t={t + hk:.17g} in mode '{mode}', x={x_new.tolist()}", t)
                             break
+                        inside = gmin >= -eps
+                        # The error test: for a step inside the relaxed domain, and for a step past
+                        # a strip that is to carry the landing on its own interpolant (dense).
+                        if adaptive and (inside or (dense and aimed == 0)):
+                            err = error_norm(hk, stages, x, x_new, rtol, atol)
+                            if err > 1.0:
+                                rejections += 1
+                                rejected = True
+                                hk *= max(0.2, 0.9 * err ** self.err_exponent)
+                                last = False
+                                continue
+                            proposal = hk * min(5.0, max(0.2, 0.9 * err ** self.err_exponent)) if err > 0 else 5.0 * hk
+                            if rejected and proposal > hk:
+                                proposal = hk  # no growth right after a rejection (Hairer, scipy)
+                        if inside:
+                            if adaptive:
+                                # A step shortened to land in the relaxed domain says nothing about
+                                # the step the error allows: its tiny error must not shrink the next
+                                # proposal (after a landing the next mode would restart near eps and
+                                # creep back up by 5x per step).
+                                h_prop = max(h_prop, proposal) if shortened and not rejected else proposal
+                            break
                         reason = "past"
                         if dense and aimed == 0:
-                            if adaptive:
-                                # Only a step the error test accepts may carry the landing on its
-                                # interpolant; otherwise shrink it as the error control says.
-                                err = error_norm(hk, stages, x, x_new, rtol, atol)
-                                if err > 1.0:
-                                    rejections += 1
-                                    rejected = True
-                                    hk *= max(0.2, 0.9 * err ** self.err_exponent)
-                                    last = False
-                                    continue
                             try:
                                 landed = self._dense_landing(guards, gvals if single_guard is None else [gmin],
                                                              g_here, field, t, x, hk, stages)
@@ -581,10 +575,6 @@ class _Integrator:
                             if landed[1] is not None:
                                 curve, theta, x_land, g_land, crossing, _ = landed
                                 if adaptive:
-                                    proposal = hk * min(5.0, max(0.2, 0.9 * err ** self.err_exponent)) \
-                                        if err > 0 else 5.0 * hk
-                                    if rejected and proposal > hk:
-                                        proposal = hk
                                     h_prop = max(h_prop, proposal) if shortened and not rejected else proposal
                                 steps += 1
                                 halvings += shortened + 1
