@@ -222,3 +222,52 @@ def test_a_tolerance_means_what_it_means_for_solve_ivp_on_the_pronk():
     errors = [position_error(*own_points(r, case.positions), case.reference_positions) for r in (relaxed, ivp)]
     assert relaxed.status == ivp.status == "finished" and len(relaxed.transitions) == len(ivp.transitions) == 8
     assert errors[0] <= 1.2 * errors[1], errors
+
+
+def drift(gap: float, calls: dict | None = None) -> HybridSystem:
+    """x' = y' = 1: mode a leaves at x = 1, mode b at y = 1 + gap, mode c runs free; gap = 0 is
+    a simultaneous event. ``calls`` counts the field evaluations per mode."""
+    calls = {} if calls is None else calls
+
+    def field_of(mode):
+        def field(t, x, u):
+            calls[mode] = calls.get(mode, 0) + 1
+            return np.ones(2)
+        return field
+
+    def identity(x):
+        return x.copy()
+
+    names = ("x", "y")
+    return HybridSystem(
+        {m: Mode(2, field_of(m), names=names) for m in ("a", "b", "c")},
+        [Transition("a", "b", guard=lambda x: 1.0 - x[0], reset=identity, name="a_to_b"),
+         Transition("b", "c", guard=lambda x: 1.0 + gap - x[1], reset=identity, name="b_to_c")],
+    )
+
+
+def test_a_simultaneous_event_costs_a_short_step_and_stays_continuous():
+    # Entering b on b's guard (gap 0) or a hair before it (gap 1e-13, 1e-11): the first step in b
+    # only has to reach b's strip, so it is a Heun step of about eps / 2 (one field evaluation),
+    # not a full dopri5 step (six). The crossing of b_to_c is the exact one (linear flow), and
+    # the execution is continuous in the gap: the symmetric case is the limit of its neighbours.
+    eps, h, tol = 1e-9, 0.25, 1e-10
+    runs, calls = {}, {}
+    for gap in (0.0, 1e-13, 1e-11):
+        calls[gap] = {}
+        runs[gap] = simulate(drift(gap, calls[gap]), [0.0, 0.0], "a", 2.0, h, eps, method="dopri5", rtol=tol,
+                             atol=tol, landing="dense")
+    for gap, ex in runs.items():
+        assert ex.status == "finished" and ex.mode_sequence == ["a", "b", "c"]
+        a_to_b, b_to_c = ex.transitions
+        # b is entered at a_to_b's exit, still at (1, 1); y then has 1 + gap - 1 to go
+        assert b_to_c.time == pytest.approx(a_to_b.exit_time + gap, abs=1e-15)
+        np.testing.assert_allclose(b_to_c.state_before, [1.0 + gap, 1.0 + gap], rtol=0, atol=1e-15)
+        assert 0.0 <= b_to_c.depth <= eps
+        # Mode b: the shape check of a mode's first visit, its entry evaluation, the starting-step
+        # estimate and the short step (a full dopri5 step would make it 9).
+        assert calls[gap]["b"] == 4, calls[gap]
+    # Continuity: the gap moves the final state by the gap (the strips' holds by less than eps).
+    final = {gap: ex.final_state for gap, ex in runs.items()}
+    for gap in (1e-13, 1e-11):
+        assert np.abs(final[gap] - final[0.0]).max() <= gap + 1e-12
