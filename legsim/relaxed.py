@@ -786,7 +786,6 @@ class _Integrator:
         real step of theta hk, with theta then the best guess."""
         curve = ContinuousStep(self.tableau, field, t, x, hk, stages, self.control)
         eps = self.eps
-        tol = 1e-12 * eps  # as in _step_transition: q costs guard evaluations only
         evals = 0
         best = None
         for e, g1 in enumerate(gvals):
@@ -796,6 +795,10 @@ class _Integrator:
                 def guard_at(s, guard=guard):
                     return float(guard(t + s * hk, curve.point(s)))
 
+                # q to a 1e-12 share of the strip, as in _step_transition, but no finer than the
+                # guard's own rounding (~1e-15 of its change over the step): below that the
+                # search only collapses its bracket by bisection.
+                tol = max(1e-12 * eps, 1e-15 * (g_start[e] - g1))
                 s, n_evals, converged = crossing_on_step(guard_at, g_start[e], g1, tol)
                 evals += n_evals
                 if best is None or s < best[1]:
