@@ -532,12 +532,17 @@ def _k_step_loop(p, n_guards, c, n_groups, weights, n_members, members, b_err, f
                 for d in range(n):
                     k1[d] = kk[d]
             dt = t_new - t
-            tol = 1e-12 * eps
             best_e = -1
             best_s = 0.0
             for j in range(n_guards):
                 if gv[j] < 0.0:
                     g0 = _twin_guards(x, p)[j]
+                    # As relaxed._step_transition: a 1e-12 share of the strip, no finer than the
+                    # guard's rounding.
+                    tol = 1e-12 * eps
+                    floor = 1e-15 * (g0 - gv[j])
+                    if floor > tol:
+                        tol = floor
                     s, n_evals, converged = _k_crossing(p, j, 0.0, x, K[0], x_new, k1, dt, g0, gv[j], tol, work)
                     guard_evals += n_guards * (1 + n_evals)
                     if best_e < 0 or s < best_s:

@@ -874,7 +874,9 @@ class _Integrator:
                 def guard_at(s, guard=guard):
                     return guard(t + s * dt, point(s))
 
-                s, n_evals, converged = crossing_on_step(guard_at, g0, g1, tol)
+                # No finer than the guard's own rounding (~1e-15 of its change over the step):
+                # below it the search would only collapse its bracket by bisection.
+                s, n_evals, converged = crossing_on_step(guard_at, g0, g1, max(tol, 1e-15 * (g0 - g1)))
                 self.guard_evals += 1 + n_evals
                 if best is None or s < best[1]:
                     best = (e, s, converged)
