@@ -804,23 +804,36 @@ class _Integrator:
                 if best is None or s < best[1]:
                     best = (e, s, converged, g1)
         e, s_q, converged, g1 = best
-        theta = s_q + 0.5 * eps * (1.0 - s_q) / -g1
-        n_guards = len(guards)
-        for _ in range(3):
-            if not s_q <= theta < 1.0:
-                break
+        guard = guards[e]
+        half = 0.5 * eps
+
+        def past_middle(theta):  # the guard plus eps/2 at theta: 0 in the middle of the strip
+            return float(guard(t + theta * hk, curve.point(theta))) + half
+
+        # The middle of the strip, by the secant from q (g = 0) to the step's end (g1 < -eps).
+        theta = s_q + half * (1.0 - s_q) / -g1
+        gap = past_middle(theta)
+        evals += 1
+        if not abs(gap) <= 0.5 * half:
+            # Outside the strip's middle half: a guard with a kink (the oscillator's
+            # max(x_max - x, -xd) while the mass sticks) fools the secant, and a landing at the
+            # strip's edge, valid but shallow, would hold the state for almost no time, so a
+            # chattering contact would take ~1e5 times more transitions. Search for the middle.
+            def on_rest(u):
+                return past_middle(s_q + u * (1.0 - s_q))
+
+            u, n_evals, _ = crossing_on_step(on_rest, half, g1 + half, 0.5 * half)
+            evals += n_evals
+            theta = s_q + u * (1.0 - s_q)
+        if s_q <= theta < 1.0:
             x_land = curve.point(theta)
             t_land = t + theta * hk
             g_land = [float(g(t_land, x_land)) for g in guards]
-            evals += n_guards
-            lowest = min(g_land)
-            if -eps <= lowest < 0.0 and all(map(isfinite, x_land.tolist())):
+            evals += len(guards)
+            if -eps <= min(g_land) < 0.0 and all(map(isfinite, x_land.tolist())):
                 return curve, theta, x_land, g_land, (e, s_q / theta if theta > 0.0 else 0.0, converged), evals
-            depth = -g_land[e]
-            if not (depth == depth) or lowest < -eps and depth <= eps:
-                break  # another guard is the deeper one here: a real step decides
-            # Secant from q (guard 0) to this guess, aimed at the strip's middle again.
-            theta = s_q + (theta - s_q) * (0.5 * eps / depth if depth > 0.0 else 2.0)
+        # Not in the relaxed domain there (another guard deeper than eps, a guard turning back):
+        # a real step of that length decides.
         return curve, None, min(max(theta, s_q), 1.0) if s_q > 0.0 else 0.5, None, None, evals
 
     def _aim(self, guards, gvals, field, t, x, k0, hk, x_new, stages) -> float:
