@@ -284,9 +284,10 @@ def make_error_norm(tableau: Tableau) -> Callable[..., float]:
     """``norm(h, stages, x, x_new, rtol, atol) -> float``: the RMS norm of the local error
     estimate scaled by ``atol + rtol max(|x|, |x_new|)`` (Hairer's, and scipy's, error norm).
 
-    Generated as straight-line code like the stepper; the arithmetic is that of
+    Generated as straight-line code like the stepper; the plain norm's arithmetic is that of
     ``error_estimate`` and ``np.mean`` (same order of operations), so the compiled kernel's
-    norm, which mimics those, takes the same step decisions to the bit.
+    norm, which mimics those, takes the same step decisions to the bit. The blended norm sums
+    by matrix products, which the kernel matches to rounding only.
     """
     if tableau.b_err is None:
         raise SimulationError(f"method '{tableau.name}' has no embedded error estimate; use bs32 or dopri5")

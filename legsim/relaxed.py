@@ -517,8 +517,9 @@ class _Integrator:
                     # the flow itself is leaving the range: the run ends there rather than creep
                     # towards the boundary by ever shorter steps.
                     try:
-                        x_new, stages = step(field, t, x, hk, k0, control)
+                        # Counted first: a trial that breaks down has made (at most) these.
                         field_evals += evals_per_step
+                        x_new, stages = step(field, t, x, hk, k0, control)
                         # Exact and warning-free (a sum of squares would overflow, and warn, for
                         # finite states above ~1e154); for the small states of these models it is
                         # also the cheapest test numpy or Python offers.
@@ -718,7 +719,7 @@ class _Integrator:
                 continue
             try:
                 g_ahead = float(guards[e](t + dt, x + dt * k0))
-            except ModelBreakdown:
+            except Exception:  # the ordinary first step will meet it and report it properly
                 continue
             self.guard_evals += 1
             rate = (g_ahead - g) / dt
@@ -727,8 +728,8 @@ class _Integrator:
             reach = (g + 0.5 * eps) / -rate
             if reach <= 1e-3 * h_next and (tau is None or reach < tau):
                 tau = reach
-        if tau is None or not t + tau > t:
-            return None
+        if tau is None or not t + tau > t or t + tau >= t_final:
+            return None  # (a strip reached only after t_final is for the ordinary last step)
         try:
             k1 = np.asarray(self._f(field, t + tau, x + tau * k0), dtype=float)
             x1 = x + (0.5 * tau) * (k0 + k1)
@@ -737,7 +738,7 @@ class _Integrator:
             if not err <= 1.0:
                 return None
             g1 = [float(g(t + tau, x1)) for g in guards]
-        except ModelBreakdown:
+        except Exception:  # the ordinary first step will meet it and report it properly
             return None
         self.guard_evals += len(guards)
         lowest = min(g1)
@@ -766,8 +767,8 @@ class _Integrator:
         try:
             x1 = x + h0 * k0
             f1 = np.asarray(self._f(field, t + h0, x1), dtype=float)
-        except (ModelBreakdown, ArithmeticError, ValueError):
-            return self.h_prop  # the steps themselves will report what is wrong
+        except Exception:
+            return self.h_prop  # the steps themselves will meet it and report it properly
         d2 = math.sqrt(float(np.sum(((f1 - k0) / scale) ** 2)) / n) / h0
         if not math.isfinite(d2):
             return self.h_prop
@@ -830,7 +831,10 @@ class _Integrator:
             t_land = t + theta * hk
             g_land = [float(g(t_land, x_land)) for g in guards]
             evals += len(guards)
-            if -eps <= min(g_land) < 0.0 and all(map(isfinite, x_land.tolist())):
+            # In the relaxed domain, every guard finite (min() skips a nan that is not first),
+            # and the crossed guard itself in its strip (its depth is the landing's tau).
+            if (all(map(isfinite, g_land)) and -eps <= min(g_land) and g_land[e] < 0.0
+                    and all(map(isfinite, x_land.tolist()))):
                 return curve, theta, x_land, g_land, (e, s_q / theta if theta > 0.0 else 0.0, converged), evals
         # Not in the relaxed domain there (another guard deeper than eps, a guard turning back):
         # a real step of that length decides.
@@ -931,8 +935,11 @@ class _Integrator:
         self.reset_evals += 1
         try:
             x_after = np.asarray(data.resets[e](q), dtype=float)
-        except ModelBreakdown:
-            raise  # ends the run with status model_breakdown (see run)
+        except ModelBreakdown as exc:
+            # Ends the run here: the segment is already stored and the counters flushed (the
+            # step loop's own handler would store them a second time).
+            return ("end", "model_breakdown", f"{exc} (reset of transition {tr.name} from mode '{mode}', "
+                    f"t={tc:.17g})", tc, False, None)
         except Exception as exc:
             raise ModelError(f"{self.system.name}: reset of transition {tr.name} failed at t={tc:.17g}, "
                              f"q={q.tolist()}: {type(exc).__name__}: {exc}") from exc

@@ -291,3 +291,64 @@ def test_dense_landing_aims_at_the_strips_middle_through_a_kinked_guard():
     assert n_dense <= 1.1 * n_aim
     depths = np.array([tr.depth for tr in runs["dense"].transitions])
     assert np.all((depths >= 0.25 * eps) & (depths <= 0.75 * eps))
+
+
+def two_planes() -> HybridSystem:
+    """(p, y)' = (-1, -1): A -> B at p = 10, B -> C at y = 10 (identity resets)."""
+
+    def field(t, x, u):
+        return np.array([-1.0, -1.0])
+
+    names = ("p", "y")
+    return HybridSystem(
+        {m: Mode(2, field, names=names) for m in ("A", "B", "C")},
+        [Transition("A", "B", guard=lambda x: x[0] - 10.0, reset=lambda x: x.copy(), name="AB"),
+         Transition("B", "C", guard=lambda x: x[1] - 10.0, reset=lambda x: x.copy(), name="BC")])
+
+
+def test_the_short_first_step_never_passes_t_final():
+    # B is entered 3e-7 s before BC's guard; t_final falls inside the short step's reach. The run
+    # ends at t_final in B, with no strip or point after it (the short step used to land past it).
+    eps = 1e-6
+    t_final = 1.05 + 1e-6 + 1e-7
+    ex = simulate(two_planes(), [11.05, 11.05 + 0.3 * eps], "A", t_final, 0.1, eps, method="dopri5", rtol=1e-6,
+                  atol=1e-9, landing="dense")
+    assert ex.status == "finished" and ex.t_end == t_final
+    assert max(seg.t[-1] for seg in ex.segments) <= t_final
+    assert all(s.time <= t_final and s.exit_time <= t_final for s in ex.strips)
+    assert 0.0 <= ex.counters["strip_time"] <= eps + 1e-15
+
+
+@pytest.mark.parametrize("landing", ["halve", "dense"])
+def test_a_reset_leaving_the_models_range_ends_the_run_once(landing):
+    # The reset raises ModelBreakdown at the first crossing (x = 2 at t = ln 2): the run ends there
+    # with model_breakdown, its one segment stored once and the counters not flushed twice (the
+    # step loop's handler used to store the segment again and count its steps twice).
+    def reset(x):
+        if x[0] > 1.5:
+            raise ModelBreakdown("reset out of range")
+        return 0.5 * x
+
+    system = HybridSystem({"grow": Mode(1, lambda t, x, u: x.copy(), names=("x",))},
+                          [Transition("grow", "grow", guard=lambda x: 2.0 - x[0], reset=reset, name="halve")])
+    ex = simulate(system, [1.0], "grow", 2.0, 0.1, 1e-6, method="dopri5", rtol=1e-6, atol=1e-9, landing=landing)
+    assert ex.status == "model_breakdown" and "reset out of range" in ex.message and "halve" in ex.message
+    assert len(ex.segments) == 1
+    assert ex.t_end == pytest.approx(math.log(2.0), abs=1e-6)
+    assert ex.counters["steps"] == len(ex.segments[0].t) - 1  # the landing step ends at q
+
+
+def test_dense_landing_reports_a_nan_guard_like_any_step():
+    # A second guard is nan inside the first guard's strip: the landing point is not accepted
+    # (min() would skip a nan that is not first); the run ends non_finite naming that guard.
+    eps = 1e-6
+
+    def g2(x):
+        return math.nan if 10 - 0.8 * eps < x[0] < 10 - 0.2 * eps else 1.0
+
+    field = lambda t, x, u: np.array([-1.0])  # noqa: E731
+    system = HybridSystem({"A": Mode(1, field, names=("p",)), "B": Mode(1, field, names=("p",))},
+                          [Transition("A", "B", guard=lambda x: x[0] - 10.0, reset=lambda x: x.copy(), name="AB"),
+                           Transition("A", "B", guard=g2, reset=lambda x: x.copy(), name="nanguard")])
+    ex = simulate(system, [11.05], "A", 1.5, 0.1, eps, method="dopri5", rtol=1e-6, atol=1e-9, landing="dense")
+    assert ex.status == "non_finite" and "nanguard" in ex.message
