@@ -218,6 +218,9 @@ def _k_crossing(p, e, shift, x0, d0, x1, d1, dt, g0, g1, tol, work):
     # same safeguards and the same choice of the past-side end); returns (s, guard calls, converged).
     if g0 <= 0.0:
         return 0.0, 0, True
+    floor = 1e-15 * (g0 - g1)  # relaxed.crossing_on_step: no finer than the guard's rounding
+    if floor > tol:
+        tol = floor
     if -g1 <= tol:
         return 1.0, 0, True
     lo = 0.0
@@ -537,13 +540,8 @@ def _k_step_loop(p, n_guards, c, n_groups, weights, n_members, members, b_err, f
             for j in range(n_guards):
                 if gv[j] < 0.0:
                     g0 = _twin_guards(x, p)[j]
-                    # As relaxed._step_transition: a 1e-12 share of the strip, no finer than the
-                    # guard's rounding.
-                    tol = 1e-12 * eps
-                    floor = 1e-15 * (g0 - gv[j])
-                    if floor > tol:
-                        tol = floor
-                    s, n_evals, converged = _k_crossing(p, j, 0.0, x, K[0], x_new, k1, dt, g0, gv[j], tol, work)
+                    s, n_evals, converged = _k_crossing(p, j, 0.0, x, K[0], x_new, k1, dt, g0, gv[j], 1e-12 * eps,
+                                                        work)
                     guard_evals += n_guards * (1 + n_evals)
                     if best_e < 0 or s < best_s:
                         best_e = j

@@ -90,10 +90,13 @@ def crossing_on_step(guard_at: Callable[[float], float], g0: float, g1: float,
     domain side, however close, would put the reset image past a complementary guard (leave
     through x = 1, come back through x = 1) and make the next mode cross again at once. When
     the guard is discontinuous along the interpolant (no root in the bracket) the domain-side
-    end is returned with converged=False: it is never past the guard.
+    end is returned with converged=False: it is never past the guard. ``tol`` is raised to the
+    guard's own rounding, 1e-15 of its change over the step: a finer one is met only by
+    collapsing the bracket by bisection.
     """
     if g0 <= 0.0:
         return 0.0, 0, True
+    tol = max(tol, 1e-15 * (g0 - g1))
     if -g1 <= tol:
         return 1.0, 0, True
     lo, hi, glo, ghi = 0.0, 1.0, g0, g1
@@ -734,7 +737,7 @@ class _Integrator:
             k1 = np.asarray(self._f(field, t + tau, x + tau * k0), dtype=float)
             x1 = x + (0.5 * tau) * (k0 + k1)
             scale = self.atol + self.rtol * np.maximum(np.abs(x), np.abs(x1))
-            err = math.sqrt(float(np.mean(((0.5 * tau) * (k1 - k0) / scale) ** 2)))
+            err = _rms((0.5 * tau) * (k1 - k0) / scale)
             if not err <= 1.0:
                 return None
             g1 = [float(g(t + tau, x1)) for g in guards]
@@ -759,9 +762,8 @@ class _Integrator:
         whose estimated local error is about 1% of the tolerance, from f at x and at one explicit
         Euler step away (one field evaluation). On any failure the current proposal stands."""
         scale = self.atol + self.rtol * np.abs(x)
-        n = len(x)
-        d0 = math.sqrt(float(np.sum((x / scale) ** 2)) / n)
-        d1 = math.sqrt(float(np.sum((k0 / scale) ** 2)) / n)
+        d0 = _rms(x / scale)
+        d1 = _rms(k0 / scale)
         h0 = 1e-6 if d0 < 1e-5 or d1 < 1e-5 else 0.01 * d0 / d1
         h0 = min(h0, self.h)
         try:
@@ -769,7 +771,7 @@ class _Integrator:
             f1 = np.asarray(self._f(field, t + h0, x1), dtype=float)
         except Exception:
             return self.h_prop  # the steps themselves will meet it and report it properly
-        d2 = math.sqrt(float(np.sum(((f1 - k0) / scale) ** 2)) / n) / h0
+        d2 = _rms((f1 - k0) / scale) / h0
         if not math.isfinite(d2):
             return self.h_prop
         worst = max(d1, d2)
@@ -796,11 +798,8 @@ class _Integrator:
                 def guard_at(s, guard=guard):
                     return float(guard(t + s * hk, curve.point(s)))
 
-                # q to a 1e-12 share of the strip, as in _step_transition, but no finer than the
-                # guard's own rounding (~1e-15 of its change over the step): below that the
-                # search only collapses its bracket by bisection.
-                tol = max(1e-12 * eps, 1e-15 * (g_start[e] - g1))
-                s, n_evals, converged = crossing_on_step(guard_at, g_start[e], g1, tol)
+                # q to a 1e-12 share of the strip, as in _step_transition.
+                s, n_evals, converged = crossing_on_step(guard_at, g_start[e], g1, 1e-12 * eps)
                 evals += n_evals
                 if best is None or s < best[1]:
                     best = (e, s, converged, g1)
@@ -891,9 +890,7 @@ class _Integrator:
                 def guard_at(s, guard=guard):
                     return guard(t + s * dt, point(s))
 
-                # No finer than the guard's own rounding (~1e-15 of its change over the step):
-                # below it the search would only collapse its bracket by bisection.
-                s, n_evals, converged = crossing_on_step(guard_at, g0, g1, max(tol, 1e-15 * (g0 - g1)))
+                s, n_evals, converged = crossing_on_step(guard_at, g0, g1, tol)
                 self.guard_evals += 1 + n_evals
                 if best is None or s < best[1]:
                     best = (e, s, converged)
@@ -965,6 +962,11 @@ def _resolution_hint(eps: float, x: np.ndarray) -> str:
     if eps < 1e3 * spacing:
         return f"; or eps = {eps:g} is thinner than float64 can resolve near this state (spacing {spacing:.3g}): raise eps"
     return ""
+
+
+def _rms(v: np.ndarray) -> float:
+    """Root mean square of a scaled vector (the error norms of Hairer's codes)."""
+    return math.sqrt(float(np.dot(v, v)) / len(v))
 
 
 def _first_nonfinite(values) -> int | None:
