@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 import pinocchio
 
-import robots.bridge as bridge_module
+import legsim.robots.bridge as bridge_module
 from legsim.scene import load_scene
 
 SCENES = ("double_pendulum_plastic", "double_pendulum_zeno", "pronk", "pronk_pitched", "slip")
@@ -80,7 +80,7 @@ def field_table(calls: int, repeat: int) -> list[tuple[str, str, int, float, flo
 
 
 class _TimedPin(types.ModuleType):
-    """Stand-in for the ``pinocchio`` module inside robots.bridge: every function is timed."""
+    """Stand-in for the ``pinocchio`` module inside legsim.robots.bridge: every function is timed."""
 
     def __init__(self) -> None:
         super().__init__("pinocchio_timed")

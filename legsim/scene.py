@@ -34,7 +34,7 @@ names the field (as a dotted path) and what is allowed.
 
 A scene is named either by a path or by a bare name, which is looked up as ``<name>.toml`` in
 the directories of ``LEGSIM_SCENE_PATH`` (``os.pathsep`` separated), then in the bundled
-``scenarios/`` directory of the repository.
+scenes (``legsim.scenarios``, the repository's ``scenarios/`` folder).
 """
 
 from __future__ import annotations
@@ -42,6 +42,7 @@ from __future__ import annotations
 import math
 import os
 import tomllib
+from importlib import resources
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Iterable, Mapping, Sequence
@@ -252,8 +253,9 @@ def _finite_or_none(obj: Any) -> Any:
 
 # -- finding scenes ----------------------------------------------------------------------------
 def bundled_dir() -> Path:
-    """The repository's ``scenarios/`` directory (next to the ``legsim`` package)."""
-    return Path(__file__).resolve().parents[1] / "scenarios"
+    """The folder of the bundled scenes: the package data of ``legsim.scenarios`` (the
+    repository's ``scenarios/`` folder in a checkout)."""
+    return Path(str(resources.files("legsim.scenarios")))
 
 
 def search_dirs() -> list[Path]:

@@ -1,9 +1,9 @@
 """Robots for legsim: Pinocchio models turned into hybrid systems by the contact-mode bridge.
 
-* ``robots.bridge``: ``ContactBridge`` (a Pinocchio model + ``PointContact`` / ``JointStop`` /
+* ``legsim.robots.bridge``: ``ContactBridge`` (a Pinocchio model + ``PointContact`` / ``JointStop`` /
   ``SpringLeg`` records -> ``legsim.HybridSystem``, one mode per set of active contacts) and the
   model helpers ``planar_floating_base`` and ``add_point_frame``.
-* ``robots.double_pendulum``, ``robots.pronk``, ``robots.slip``: the papers' robots, each with
+* ``legsim.robots.double_pendulum``, ``legsim.robots.pronk``, ``legsim.robots.slip``: the papers' robots, each with
   named coordinates, default parameters and a ``BUILDER`` that scenes find through the
   ``legsim.builders`` entry points.
 

@@ -19,7 +19,7 @@ Goswami et al. measure the angles from the true vertical, positive backwards: th
 non-support angles are ``theta_s = -stance - slope`` and ``theta_ns = -(stance + hip) - slope``
 (slope in rad), with rates ``-stanced`` and ``-(stanced + hipd)``.
 
-Dynamics (Pinocchio through ``robots.bridge.ContactBridge``): the stance phase is the chain
+Dynamics (Pinocchio through ``legsim.robots.bridge.ContactBridge``): the stance phase is the chain
 ``stance foot -RY- stance leg -RY- swing leg`` rooted at the stance foot, integrated with
 ``pinocchio.aba``. The swing foot passes through the ground around mid-stance (the model has no
 knees; the standard analysis ignores this scuffing), so heel strike is

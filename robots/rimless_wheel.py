@@ -12,7 +12,7 @@ Coordinates (mode ``stance``):
 * ``thetad``: its rate (rad/s);
 * ``foot_x``: position of the contact along the slope (m), a cyclic coordinate.
 
-Transitions (Pinocchio through ``robots.bridge``: the stance phase is one RY joint at the
+Transitions (Pinocchio through ``legsim.robots.bridge``: the stance phase is one RY joint at the
 contact integrated by ``pinocchio.aba``; an impact conserves the angular momentum about the
 striking spoke's tip, computed by ``pinocchio.computeCentroidalMomentum`` plus the moment of the
 linear momentum, and divides it by the rotational inertia about the new contact from

@@ -15,7 +15,7 @@ Run: ``.venv/bin/python scenarios/fig_double_pendulum.py [out]``
 
 from __future__ import annotations
 
-from viz._figures import finish, new_figure, parse_out, run_scene, state_panels
+from legsim.viz._figures import finish, new_figure, parse_out, run_scene, state_panels
 
 SCENES = [("double_pendulum_plastic", "(b) plastic impact, c = 0"), ("double_pendulum_zeno", "(c) Zeno, c = 0.5")]
 COORDINATES = ["theta1", "theta2", "theta1d", "theta2d"]

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from viz._figures import finish, new_figure, parse_out, run_scene
+from legsim.viz._figures import finish, new_figure, parse_out, run_scene
 
 SCENES = [("oscillator_ex1", "(b) Example 1"), ("oscillator_ex2", "(c) Example 2")]
 

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from viz._figures import (draw_parts, draw_scenery, finish, group_shots, new_figure, parse_out, run_scene,
+from legsim.viz._figures import (draw_parts, draw_scenery, finish, group_shots, new_figure, parse_out, run_scene,
                           snapshot_times)
 
 SCENES = [("pronk", r"$\theta_0 = 0$: both legs touch down and lift off together"),

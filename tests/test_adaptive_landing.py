@@ -60,7 +60,7 @@ def test_aimed_landing_in_a_thin_strip_costs_about_one_trial_step(method):
     # failed step, finds the crossing at s ~ 0.99997 where the interpolant is exact to far below
     # eps. Refusing aims past s = 0.9 used to fall back to halving: 42 shortened trial steps
     # for 8 transitions with dop853 (5.25 each); now 10.
-    pronk = pytest.importorskip("robots.pronk")
+    pronk = pytest.importorskip("legsim.robots.pronk")
     from legsim.bench.cases import relaxed_method
 
     model = pronk.make()

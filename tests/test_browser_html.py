@@ -19,8 +19,8 @@ from test_record import hopper_model
 
 from legsim.record import Frames, frame_times, geometry_frames, read_rrd, write_rrd
 from legsim.relaxed import simulate
-from viz._common import write_atomic
-from viz.meshcat_anim import animation_html, write_html
+from legsim.viz._common import write_atomic
+from legsim.viz.meshcat_anim import animation_html, write_html
 
 pytestmark = pytest.mark.browser
 

@@ -108,7 +108,7 @@ def test_dense_landing_finds_the_crossing_without_retrying_a_step(method):
 
 
 def test_dense_landing_with_dop853_keeps_the_strip_guarantee_on_the_pronk():
-    pytest.importorskip("robots.pronk")
+    pytest.importorskip("legsim.robots.pronk")
     from legsim.bench.cases import make_case
     from legsim.bench.work_precision import own_points, position_error
 
@@ -209,7 +209,7 @@ def test_a_tolerance_means_what_it_means_for_solve_ivp_on_the_pronk():
     # and DOP853 is controlled as scipy controls it: at rtol = atol = 1e-6 (largest step 0.2 s)
     # the relaxed run is as accurate as solve_ivp's DOP853 with events (9.6e-6 m both; carrying
     # the step over each transition gave 1.8e-5).
-    pytest.importorskip("robots.pronk")
+    pytest.importorskip("legsim.robots.pronk")
     from legsim.baselines import simulate_events
     from legsim.bench.cases import make_case
     from legsim.bench.work_precision import own_points, position_error

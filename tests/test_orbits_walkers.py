@@ -27,7 +27,7 @@ from scipy.integrate import solve_ivp
 from scipy.optimize import fsolve
 
 from legsim.orbits import OrbitProblem, Section, find_orbit, jacobian_fd, jacobian_saltation, return_map
-from robots import compass_gait, rimless_wheel
+from legsim.robots import compass_gait, rimless_wheel
 
 STANDARD = {"m": 5.0, "mH": 10.0, "a": 0.5, "b": 0.5, "g": 9.81, "slope": 3.0}
 

@@ -8,8 +8,8 @@ import pinocchio as pin
 import pytest
 
 from legsim import ModelError, SceneError, simulate
-from robots import pronk
-from robots.bridge import ContactBridge, JointStop, PointContact, SpringLeg, add_point_frame, planar_floating_base
+from legsim.robots import pronk
+from legsim.robots.bridge import ContactBridge, JointStop, PointContact, SpringLeg, add_point_frame, planar_floating_base
 
 G = 9.81
 

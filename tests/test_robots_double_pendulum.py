@@ -10,8 +10,8 @@ import pytest
 from legsim import simulate
 from legsim.errors import ModelError, SceneError
 from legsim.hybrid import reachable_modes
-from robots import double_pendulum as dp
-from robots.bridge import ContactBridge
+from legsim.robots import double_pendulum as dp
+from legsim.robots.bridge import ContactBridge
 
 # Deliberately not the defaults, so a parameter that is not wired through would show.
 P = dict(m1=1.3, m2=0.7, L1=0.9, L2=1.2, g=9.81)

@@ -10,7 +10,7 @@ import pytest
 
 from legsim import simulate
 from legsim.hybrid import reachable_modes
-from robots import pronk, slip
+from legsim.robots import pronk, slip
 
 FULL = os.environ.get("LEGSIM_FULL") == "1"
 

@@ -8,7 +8,7 @@ import pytest
 
 from legsim import simulate
 from legsim.hybrid import reachable_modes
-from robots import slip
+from legsim.robots import slip
 
 
 def test_touchdown_time_and_foothold_are_the_ballistic_closed_form():

@@ -14,8 +14,8 @@ from test_record import ball_model, hopper_model
 
 from legsim.record import Frames, read_rrd, write_rrd
 from legsim.relaxed import simulate
-from viz._common import OutputError
-from viz.meshcat_anim import _commands, _matrix, _segments, animation_html, camera_track, write_html
+from legsim.viz._common import OutputError
+from legsim.viz.meshcat_anim import _commands, _matrix, _segments, animation_html, camera_track, write_html
 
 
 def test_segment_boxes_land_on_the_polyline():
@@ -125,6 +125,6 @@ def test_camera_stays_put_for_a_wide_oscillation():
     cam_x, _, dist = camera_track(swing)
     assert np.ptp(cam_x) == 0.0
     # The whole swing (+-10.5 m) fits the view: half width <= distance * tan(fov/2) * aspect.
-    from viz.meshcat_anim import ASSUMED_ASPECT, FOV_DEG
+    from legsim.viz.meshcat_anim import ASSUMED_ASPECT, FOV_DEG
 
     assert 10.5 <= dist * np.tan(np.radians(FOV_DEG / 2)) * ASSUMED_ASPECT

@@ -9,8 +9,8 @@ from test_record import ball_model, hopper_model
 
 from legsim.record import read_rrd, trace_series, execution_trace, write_rrd
 from legsim.relaxed import simulate
-from viz._common import OutputError
-from viz.plots import MODE_GID, STRIP_GID, plot_data, span_bounds, state_figure, write_plot
+from legsim.viz._common import OutputError
+from legsim.viz.plots import MODE_GID, STRIP_GID, plot_data, span_bounds, state_figure, write_plot
 
 
 @pytest.fixture(scope="module")
@@ -126,7 +126,7 @@ def test_plot_needs_an_execution(tmp_path):
 def test_sub_pixel_gaps_between_strips_are_joined():
     # A bouncing ball with c = 0.5 ends in a Zeno cascade: strips separated by ever shorter
     # flights. Gaps narrower than the drawing tolerance are shaded through, wider ones not.
-    from viz.plots import SPAN_RESOLUTION
+    from legsim.viz.plots import SPAN_RESOLUTION
 
     model = ball_model(c=0.5)
     ex = simulate(model.system, np.array([1.0, 0.0]), "flight", 3.0, 1e-3, 1e-3, max_transitions=2000)
@@ -167,7 +167,7 @@ def test_diverged_run_is_plotted_up_to_the_divergence(diverged, tmp_path):
 
     from matplotlib.image import imread
 
-    from viz._common import PLOT_LIMIT
+    from legsim.viz._common import PLOT_LIMIT
 
     scene, ex = diverged
     data = plot_data(ex, scene)

@@ -319,9 +319,9 @@ def _bouncing_ball(quick: bool) -> Case:
 def _robot(name: str, quick: bool) -> Case:
     try:
         if name == "pronk":
-            import robots.pronk as module
+            import legsim.robots.pronk as module
         else:
-            import robots.double_pendulum as module
+            import legsim.robots.double_pendulum as module
     except ImportError as exc:
         raise BenchError(f"case {name}: the robot model cannot be imported ({exc}); install pinocchio "
                          f"(`pip install pin`)") from exc
