@@ -41,20 +41,18 @@ from __future__ import annotations
 
 import math
 import os
-import tomllib
-from importlib import resources
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Iterable, Mapping, Sequence
+from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
-from . import builders
-from .builders import Builder, Model, Param, resolve_parameters
-from .errors import LegsimError, ModelError, SceneError
-from .execution import Execution
-
-SCENE_PATH_ENV = "LEGSIM_SCENE_PATH"
+from .. import builders
+from ..builders import Builder, Model, Param, resolve_parameters
+from ..errors import LegsimError, ModelError, SceneError
+from ..execution import Execution
+from .fields import check_keys, describe, field_error, table_at
+from .files import apply_overrides, read_toml, resolve_scene_path
 
 CORE_SECTIONS = ("scene", "robot", "effects", "initial", "integrator", "output")
 TOOL_SECTIONS = ("orbit", "certify", "stochastic", "zeno", "stress", "bench")
@@ -83,7 +81,7 @@ MAX_STEPS = 10_000_000
 
 
 def _integrator_schema() -> dict[str, Param]:
-    from .methods import ALIASES, METHODS
+    from ..methods import ALIASES, METHODS
 
     return {
         "method": Param("rk4", "Runge-Kutta method", choices=tuple(sorted(METHODS) + sorted(ALIASES))),
@@ -166,7 +164,7 @@ class Scene:
         run are added to ``execution.counters`` under their own names (prefixed ``model_``
         where a name collides with an integrator counter).
         """
-        from .relaxed import simulate
+        from ..relaxed import simulate
 
         s = self.integrator
         before = _model_counters(self.model)
@@ -251,119 +249,6 @@ def _finite_or_none(obj: Any) -> Any:
     return obj
 
 
-# -- finding scenes ----------------------------------------------------------------------------
-def bundled_dir() -> Path:
-    """The folder of the bundled scenes: the package data of ``legsim.scenarios`` (the
-    repository's ``scenarios/`` folder in a checkout)."""
-    return Path(str(resources.files("legsim.scenarios")))
-
-
-def search_dirs() -> list[Path]:
-    """Directories searched for scene names: ``LEGSIM_SCENE_PATH`` entries, then the bundled one."""
-    dirs = [Path(p).expanduser() for p in os.environ.get(SCENE_PATH_ENV, "").split(os.pathsep) if p.strip()]
-    dirs.append(bundled_dir())
-    return dirs
-
-
-def scene_files() -> dict[str, Path]:
-    """Every scene a name can reach: name -> file, the first directory of ``search_dirs`` winning."""
-    found: dict[str, Path] = {}
-    for directory in search_dirs():
-        if not directory.is_dir():
-            continue
-        for path in sorted(directory.glob("*.toml")):
-            found.setdefault(path.stem, path)
-    return found
-
-
-def resolve_scene_path(path_or_name: str | os.PathLike) -> Path:
-    """The file of a scene given by path or by name; SceneError when there is none."""
-    if isinstance(path_or_name, os.PathLike):
-        candidate = Path(path_or_name)
-    elif isinstance(path_or_name, str) and path_or_name:
-        candidate = Path(path_or_name)
-    else:
-        raise SceneError(f"a scene must be a path or a name, got {path_or_name!r}")
-    if candidate.is_file():
-        return candidate
-    if candidate.exists():
-        raise SceneError(f"{candidate}: not a scene file (is a directory)")
-    text = str(path_or_name)
-    looks_like_path = isinstance(path_or_name, os.PathLike) or os.sep in text or "/" in text or text.endswith(".toml")
-    if not looks_like_path:
-        for directory in search_dirs():
-            path = directory / f"{text}.toml"
-            if path.is_file():
-                return path
-        known = sorted(scene_files())
-        raise SceneError(f"unknown scene '{text}': no such file, and no scene of that name in "
-                         f"{[str(d) for d in search_dirs()]}; known scenes: {known}")
-    hint = ""
-    if candidate.suffix == ".toml" and candidate.parent == Path(".") and candidate.stem in scene_files():
-        hint = f" (the scene named '{candidate.stem}' is {scene_files()[candidate.stem]}: run it by name)"
-    raise SceneError(f"{candidate}: no such scene file{hint}")
-
-
-# -- overrides ---------------------------------------------------------------------------------
-def parse_override(text: str) -> tuple[list[str], Any]:
-    """Split ``key.path=value`` into the key path and the value, read as a TOML literal
-    (``1e-4``, ``true``, ``"x"``, ``{ a = 1 }``, ``[1, 2]``) or else as a bare string."""
-    if not isinstance(text, str) or "=" not in text:
-        raise SceneError(f"--set {text!r}: expected key.path=value, e.g. integrator.h=1e-4")
-    key, raw = text.split("=", 1)
-    parts = [p.strip() for p in key.strip().split(".")]
-    if not key.strip() or any(not p for p in parts):
-        raise SceneError(f"--set {text!r}: the key must be a dotted path of names, e.g. integrator.h=1e-4")
-    raw = raw.strip()
-    try:
-        value = tomllib.loads(f"v = {raw}")["v"]
-    except tomllib.TOMLDecodeError:
-        value = raw
-    return parts, value
-
-
-def apply_overrides(data: dict[str, Any], overrides: Iterable[str]) -> list[str]:
-    """Apply ``key.path=value`` overrides to the scene's TOML tables in place (tables along the
-    path are created as needed; an effect set to ``true`` becomes a table of parameters)."""
-    applied = []
-    for text in overrides:
-        parts, value = parse_override(text)
-        node = data
-        for depth, part in enumerate(parts[:-1]):
-            child = node.get(part)
-            where = ".".join(parts[:depth + 1])
-            if child is None or child is True:
-                child = node[part] = {}
-            elif child is False:
-                raise SceneError(f"--set {text}: {where} is false (switched off); switch it on with "
-                                 f"--set {where}=true before setting its fields")
-            elif not isinstance(child, dict):
-                raise SceneError(f"--set {text}: {where} is {child!r}, not a table, so it has no field "
-                                 f"'{parts[depth + 1]}'")
-            node = child
-        node[parts[-1]] = value
-        applied.append(text)
-    return applied
-
-
-# -- loading -----------------------------------------------------------------------------------
-def read_toml(path: Path) -> dict[str, Any]:
-    """Parse a TOML file; SceneError names the file and the line of a syntax error."""
-    try:
-        raw = path.read_bytes()
-    except FileNotFoundError:
-        raise SceneError(f"{path}: no such scene file") from None
-    except OSError as exc:
-        raise SceneError(f"{path}: cannot read: {exc.strerror or exc}") from exc
-    try:
-        return tomllib.loads(raw.decode("utf-8"))
-    except UnicodeDecodeError as exc:
-        raise SceneError(f"{path}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
-    except tomllib.TOMLDecodeError as exc:
-        # tomllib says "... (at line L, column C)": keep it, it is what the user needs.
-        raise SceneError(f"{path}: TOML syntax error: {exc}") from None
-
-
 def load_scene(path_or_name: str | os.PathLike, overrides: Sequence[str] = ()) -> Scene:
     """Read, override and validate a scene; build its model.
 
@@ -387,65 +272,41 @@ def load_scene(path_or_name: str | os.PathLike, overrides: Sequence[str] = ()) -
     return _validate(path, data, applied)
 
 
-def _fail(path: Path, where: str, message: str) -> SceneError:
-    return SceneError(f"{path}: {where}: {message}")
-
-
-def _table(path: Path, data: Mapping[str, Any], key: str, where: str | None = None) -> dict[str, Any]:
-    value = data.get(key, {})
-    if not isinstance(value, dict):
-        raise _fail(path, where or key, f"expected a table, got {_show(value)}")
-    return value
-
-
-def _show(value: Any) -> str:
-    kind = {bool: "boolean", int: "integer", float: "float", str: "string", list: "array",
-            dict: "table"}.get(type(value), type(value).__name__)
-    return f"{kind} {value!r}"
-
-
-def _check_keys(path: Path, table: Mapping[str, Any], allowed: Iterable[str], where: str) -> None:
-    allowed = list(allowed)
-    unknown = sorted(set(table) - set(allowed))
-    if unknown:
-        raise _fail(path, where, f"unknown key(s) {unknown}; allowed: {allowed}")
-
-
 def _validate(path: Path, data: dict[str, Any], overrides: list[str]) -> Scene:
     unknown = sorted(set(data) - set(ALLOWED_SECTIONS))
     if unknown:
         raise SceneError(f"{path}: unknown section(s) {unknown}; allowed: {list(CORE_SECTIONS)} and tool "
                          f"sections {list(TOOL_SECTIONS)}")
     for key in ALLOWED_SECTIONS:
-        _table(path, data, key)
+        table_at(path, data, key)
 
     scene_t = data.get("scene", {})
-    _check_keys(path, scene_t, SCENE_KEYS, "scene")
+    check_keys(path, scene_t, SCENE_KEYS, "scene")
     description = scene_t.get("description", "")
     if not isinstance(description, str):
-        raise _fail(path, "scene.description", f"expected a string, got {_show(description)}")
+        raise field_error(path, "scene.description", f"expected a string, got {describe(description)}")
     name = path.stem
 
-    robot_t = _table(path, data, "robot")
-    _check_keys(path, robot_t, ROBOT_KEYS, "robot")
+    robot_t = table_at(path, data, "robot")
+    check_keys(path, robot_t, ROBOT_KEYS, "robot")
     if "name" not in robot_t:
-        raise _fail(path, "robot.name", f"missing; available robots: {sorted(builders.available())}")
+        raise field_error(path, "robot.name", f"missing; available robots: {sorted(builders.available())}")
     robot = robot_t["name"]
     if not isinstance(robot, str):
-        raise _fail(path, "robot.name", f"expected a string, got {_show(robot)}; "
+        raise field_error(path, "robot.name", f"expected a string, got {describe(robot)}; "
                                         f"available robots: {sorted(builders.available())}")
-    parameters = _table(path, robot_t, "parameters", "robot.parameters")
-    effects_t = _table(path, data, "effects")
+    parameters = table_at(path, robot_t, "parameters", "robot.parameters")
+    effects_t = table_at(path, data, "effects")
     # Integrator settings and outputs are checked before the model is built, so that a typo in
     # them is reported without paying for (possibly slow) model construction.
-    integrator = _integrator(path, _table(path, data, "integrator"))
-    output = _output(path, _table(path, data, "output"))
+    integrator = _integrator(path, table_at(path, data, "integrator"))
+    output = _output(path, table_at(path, data, "output"))
     sections = {key: data[key] for key in TOOL_SECTIONS if key in data}
 
     try:
         builder = builders.get_builder(robot)
     except SceneError as exc:
-        raise _fail(path, "robot.name", str(exc)) from None
+        raise field_error(path, "robot.name", str(exc)) from None
     where = str(path)
     # Builder.make would do these two steps too; they are done here so that the scene keeps the
     # resolved values (for recordings and tools) and the builder runs once.
@@ -464,7 +325,7 @@ def _validate(path: Path, data: dict[str, Any], overrides: list[str]) -> Scene:
         raise ModelError(f"{where}: builder '{robot}' returned {type(model).__name__}, "
                          f"expected legsim.builders.Model")
 
-    initial_mode, initial_state = _initial(path, model, _table(path, data, "initial"), integrator["eps"],
+    initial_mode, initial_state = _initial(path, model, table_at(path, data, "initial"), integrator["eps"],
                                          integrator["t0"])
 
     return Scene(path=path, name=name, description=description, robot=robot, builder=builder,
@@ -477,7 +338,7 @@ def _integrator(path: Path, table: dict[str, Any]) -> dict[str, Any]:
     schema = _integrator_schema()
     missing = [key for key in REQUIRED_INTEGRATOR if key not in table]
     if missing:
-        raise _fail(path, f"integrator.{missing[0]}",
+        raise field_error(path, f"integrator.{missing[0]}",
                     f"missing; a scene must give {list(REQUIRED_INTEGRATOR)} "
                     f"({', '.join(f'{k}: {schema[k].allowed()} {schema[k].unit}'.strip() for k in missing)})")
     out = resolve_parameters(schema, table, f"{path}: integrator")
@@ -485,25 +346,25 @@ def _integrator(path: Path, table: dict[str, Any]) -> dict[str, Any]:
         if key not in table:
             out[key] = None
     if out["rtol"] is not None or out["atol"] is not None:
-        from .methods import get_method
+        from ..methods import get_method
 
         if not get_method(out["method"]).embedded:
             key = "rtol" if out["rtol"] is not None else "atol"
-            raise _fail(path, f"integrator.{key}", f"error control needs a method with an embedded error "
+            raise field_error(path, f"integrator.{key}", f"error control needs a method with an embedded error "
                                                    f"estimate (method = 'bs32' or 'dopri5'), got "
                                                    f"method = '{out['method']}'")
     if out["landing"] == "dense":
-        from .methods import dense_output, get_method
+        from ..methods import dense_output, get_method
 
         if dense_output(get_method(out["method"])) is None:
-            raise _fail(path, "integrator.landing", f"'dense' lands on the method's continuous extension, which "
+            raise field_error(path, "integrator.landing", f"'dense' lands on the method's continuous extension, which "
                                                     f"method = '{out['method']}' has not (bs32 and dopri5 have "
                                                     f"one); use landing = 'aim'")
     if out["t_final"] <= out["t0"]:
-        raise _fail(path, "integrator.t_final", f"{out['t_final']!r} must be > integrator.t0 = {out['t0']!r}")
+        raise field_error(path, "integrator.t_final", f"{out['t_final']!r} must be > integrator.t0 = {out['t0']!r}")
     nominal = (out["t_final"] - out["t0"]) / out["h"]
     if nominal > out["max_steps"]:
-        raise _fail(path, "integrator.max_steps",
+        raise field_error(path, "integrator.max_steps",
                     f"t_final - t0 = {out['t_final'] - out['t0']:g} s at h = {out['h']:g} s is {nominal:.3g} steps, "
                     f"more than max_steps = {out['max_steps']}; every step is stored, so check t_final and h, "
                     f"or raise integrator.max_steps if the run is meant to be that long")
@@ -512,7 +373,7 @@ def _integrator(path: Path, table: dict[str, Any]) -> dict[str, Any]:
     # millionth (2^20 spacings), which leaves room for the halvings of a landing.
     spacing = float(np.spacing(max(abs(out["t0"]), abs(out["t_final"]))))
     if out["h"] < 2.0 ** 20 * spacing:
-        raise _fail(path, "integrator.h", f"{out['h']:g} s is too small for times near "
+        raise field_error(path, "integrator.h", f"{out['h']:g} s is too small for times near "
                                           f"{max(abs(out['t0']), abs(out['t_final'])):g} s, where float64 "
                                           f"times are {spacing:.3g} s apart; h must be >= {2.0 ** 20 * spacing:.3g} s "
                                           f"(2^20 spacings), or shift t0 and t_final towards 0")
@@ -520,18 +381,18 @@ def _integrator(path: Path, table: dict[str, Any]) -> dict[str, Any]:
 
 
 def _output(path: Path, table: dict[str, Any]) -> dict[str, str | None]:
-    _check_keys(path, table, OUTPUT_KEYS, "output")
+    check_keys(path, table, OUTPUT_KEYS, "output")
     out: dict[str, str | None] = {}
     for key in OUTPUT_KEYS:
         value = table.get(key)
         if value is not None and (not isinstance(value, str) or not value.strip()):
-            raise _fail(path, f"output.{key}", f"expected a file path (string), got {_show(value)}")
+            raise field_error(path, f"output.{key}", f"expected a file path (string), got {describe(value)}")
         out[key] = value
     return out
 
 
 def _known_modes(model: Model) -> list[str]:
-    from .hybrid import reachable_modes
+    from ..hybrid import reachable_modes
 
     try:
         return sorted(set(model.system.modes) | set(reachable_modes(model.system, model.initial_mode)))
@@ -540,22 +401,22 @@ def _known_modes(model: Model) -> list[str]:
 
 
 def _initial(path: Path, model: Model, table: dict[str, Any], eps: float, t0: float) -> tuple[str, np.ndarray]:
-    _check_keys(path, table, INITIAL_KEYS, "initial")
+    check_keys(path, table, INITIAL_KEYS, "initial")
     system = model.system
     mode = table.get("mode", model.initial_mode)
     if not isinstance(mode, str):
-        raise _fail(path, "initial.mode", f"expected a mode name (string), got {_show(mode)}; "
+        raise field_error(path, "initial.mode", f"expected a mode name (string), got {describe(mode)}; "
                                           f"modes: {_known_modes(model)}")
     try:
         names = system.state_names(mode)
     except ModelError:
-        raise _fail(path, "initial.mode", f"unknown mode {mode!r}; modes: {_known_modes(model)}") from None
+        raise field_error(path, "initial.mode", f"unknown mode {mode!r}; modes: {_known_modes(model)}") from None
     given = table.get("state", {})
     if not isinstance(given, dict):
-        raise _fail(path, "initial.state", f"expected a table of coordinate = number, got {_show(given)}")
+        raise field_error(path, "initial.state", f"expected a table of coordinate = number, got {describe(given)}")
     unknown = sorted(set(given) - set(names))
     if unknown:
-        raise _fail(path, "initial.state", f"unknown coordinate(s) {unknown} of mode '{mode}'; "
+        raise field_error(path, "initial.state", f"unknown coordinate(s) {unknown} of mode '{mode}'; "
                                            f"coordinates: {list(names)}")
     defaults = dict(model.initial_state)
     values = []
@@ -563,15 +424,15 @@ def _initial(path: Path, model: Model, table: dict[str, Any], eps: float, t0: fl
         if name in given:
             value = given[name]
             if isinstance(value, bool) or not isinstance(value, (int, float)):
-                raise _fail(path, f"initial.state.{name}", f"expected a number, got {_show(value)}")
+                raise field_error(path, f"initial.state.{name}", f"expected a number, got {describe(value)}")
         elif name in defaults:
             value = defaults[name]
         else:
-            raise _fail(path, f"initial.state.{name}", f"missing, and the robot has no default for it in "
+            raise field_error(path, f"initial.state.{name}", f"missing, and the robot has no default for it in "
                                                        f"mode '{mode}'; give {list(names)}")
         value = float(value)
         if not math.isfinite(value):
-            raise _fail(path, f"initial.state.{name}", f"must be finite, got {value!r}")
+            raise field_error(path, f"initial.state.{name}", f"must be finite, got {value!r}")
         values.append(value)
     x0 = np.array(values, dtype=float)
     try:
@@ -582,12 +443,12 @@ def _initial(path: Path, model: Model, table: dict[str, Any], eps: float, t0: fl
     try:
         system.check_state(mode, x0, t=t0, u=u0, label="initial state")
     except ModelError as exc:
-        raise _fail(path, "initial", str(exc)) from exc
+        raise field_error(path, "initial", str(exc)) from exc
     gvals = system.guard_values(mode, x0)
     if gvals.size and gvals.min() < -eps:
         worst = int(np.argmin(gvals))
         tr = system.outgoing(mode)[worst]
-        raise _fail(path, "initial.state", f"{dict(zip(names, values))} lies past the guard of transition "
+        raise field_error(path, "initial.state", f"{dict(zip(names, values))} lies past the guard of transition "
                                            f"{tr.name} by {-gvals[worst]:.3g} > eps = {eps:g} (guard units); "
                                            f"start inside the domain of mode '{mode}'")
     # Guards written as "and" conditions (max(z, zd): below the floor AND falling) admit states
@@ -600,23 +461,5 @@ def _initial(path: Path, model: Model, table: dict[str, Any], eps: float, t0: fl
             raise ModelError(f"{path}: the initial-state check of robot model '{system.name}' failed on "
                              f"{x0.tolist()}: {type(exc).__name__}: {exc}") from exc
         if problem:
-            raise _fail(path, "initial.state", f"{dict(zip(names, values))}: {problem}")
+            raise field_error(path, "initial.state", f"{dict(zip(names, values))}: {problem}")
     return mode, x0
-
-
-def scene_info(path: Path) -> dict[str, Any]:
-    """Name, robot and description of a scene file, read without building its model
-    (for listings); ``error`` holds the reason when the file cannot be read."""
-    info: dict[str, Any] = {"name": path.stem, "robot": None, "description": "", "path": str(path)}
-    try:
-        data = read_toml(path)
-    except SceneError as exc:
-        info["error"] = str(exc)
-        return info
-    scene_t = data.get("scene") if isinstance(data.get("scene"), dict) else {}
-    robot_t = data.get("robot") if isinstance(data.get("robot"), dict) else {}
-    if isinstance(scene_t.get("description"), str):
-        info["description"] = scene_t["description"]
-    if isinstance(robot_t.get("name"), str):
-        info["robot"] = robot_t["name"]
-    return info

@@ -1,0 +1,22 @@
+"""Scene files: a TOML description of one simulation, validated completely before anything runs.
+
+* ``files``: finding scenes by name (``LEGSIM_SCENE_PATH``, then the bundled scenes), reading
+  TOML, ``key.path=value`` overrides.
+* ``load``: the core sections (``[scene]``, ``[robot]``, ``[effects]``, ``[initial]``,
+  ``[integrator]``, ``[output]``) into a ``Scene`` with its model built.
+* ``fields``: the error helpers every section's reader shares.
+
+Tool sections (``[orbit]``, ``[certify]``, ``[stochastic]``, ...) are read here too, by the
+modules of this package named after them, into the plain arguments their algorithms take.
+"""
+
+from .files import (SCENE_PATH_ENV, apply_overrides, bundled_dir, parse_override, read_toml, resolve_scene_path,
+                    scene_files, scene_info, search_dirs)
+from .load import (ALLOWED_SECTIONS, CORE_SECTIONS, INITIAL_CHECK, MAX_STEPS, TOOL_SECTIONS, Scene, load_scene,
+                   run_summary)
+
+__all__ = [
+    "ALLOWED_SECTIONS", "CORE_SECTIONS", "INITIAL_CHECK", "MAX_STEPS", "SCENE_PATH_ENV", "Scene", "TOOL_SECTIONS",
+    "apply_overrides", "bundled_dir", "load_scene", "parse_override", "read_toml", "resolve_scene_path",
+    "run_summary", "scene_files", "scene_info", "search_dirs",
+]

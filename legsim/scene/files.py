@@ -1,0 +1,144 @@
+"""Finding and reading scene files: names looked up in ``LEGSIM_SCENE_PATH`` and the bundled
+scenes, TOML parsing with the line of a syntax error, and ``key.path=value`` overrides."""
+
+from __future__ import annotations
+
+import os
+import tomllib
+from importlib import resources
+from pathlib import Path
+from typing import Any, Iterable
+
+from ..errors import SceneError
+
+SCENE_PATH_ENV = "LEGSIM_SCENE_PATH"
+
+
+# -- finding scenes ----------------------------------------------------------------------------
+def bundled_dir() -> Path:
+    """The folder of the bundled scenes: the package data of ``legsim.scenarios`` (the
+    repository's ``scenarios/`` folder in a checkout)."""
+    return Path(str(resources.files("legsim.scenarios")))
+
+
+def search_dirs() -> list[Path]:
+    """Directories searched for scene names: ``LEGSIM_SCENE_PATH`` entries, then the bundled one."""
+    dirs = [Path(p).expanduser() for p in os.environ.get(SCENE_PATH_ENV, "").split(os.pathsep) if p.strip()]
+    dirs.append(bundled_dir())
+    return dirs
+
+
+def scene_files() -> dict[str, Path]:
+    """Every scene a name can reach: name -> file, the first directory of ``search_dirs`` winning."""
+    found: dict[str, Path] = {}
+    for directory in search_dirs():
+        if not directory.is_dir():
+            continue
+        for path in sorted(directory.glob("*.toml")):
+            found.setdefault(path.stem, path)
+    return found
+
+
+def resolve_scene_path(path_or_name: str | os.PathLike) -> Path:
+    """The file of a scene given by path or by name; SceneError when there is none."""
+    if isinstance(path_or_name, os.PathLike):
+        candidate = Path(path_or_name)
+    elif isinstance(path_or_name, str) and path_or_name:
+        candidate = Path(path_or_name)
+    else:
+        raise SceneError(f"a scene must be a path or a name, got {path_or_name!r}")
+    if candidate.is_file():
+        return candidate
+    if candidate.exists():
+        raise SceneError(f"{candidate}: not a scene file (is a directory)")
+    text = str(path_or_name)
+    looks_like_path = isinstance(path_or_name, os.PathLike) or os.sep in text or "/" in text or text.endswith(".toml")
+    if not looks_like_path:
+        for directory in search_dirs():
+            path = directory / f"{text}.toml"
+            if path.is_file():
+                return path
+        known = sorted(scene_files())
+        raise SceneError(f"unknown scene '{text}': no such file, and no scene of that name in "
+                         f"{[str(d) for d in search_dirs()]}; known scenes: {known}")
+    hint = ""
+    if candidate.suffix == ".toml" and candidate.parent == Path(".") and candidate.stem in scene_files():
+        hint = f" (the scene named '{candidate.stem}' is {scene_files()[candidate.stem]}: run it by name)"
+    raise SceneError(f"{candidate}: no such scene file{hint}")
+
+
+# -- overrides ---------------------------------------------------------------------------------
+def parse_override(text: str) -> tuple[list[str], Any]:
+    """Split ``key.path=value`` into the key path and the value, read as a TOML literal
+    (``1e-4``, ``true``, ``"x"``, ``{ a = 1 }``, ``[1, 2]``) or else as a bare string."""
+    if not isinstance(text, str) or "=" not in text:
+        raise SceneError(f"--set {text!r}: expected key.path=value, e.g. integrator.h=1e-4")
+    key, raw = text.split("=", 1)
+    parts = [p.strip() for p in key.strip().split(".")]
+    if not key.strip() or any(not p for p in parts):
+        raise SceneError(f"--set {text!r}: the key must be a dotted path of names, e.g. integrator.h=1e-4")
+    raw = raw.strip()
+    try:
+        value = tomllib.loads(f"v = {raw}")["v"]
+    except tomllib.TOMLDecodeError:
+        value = raw
+    return parts, value
+
+
+def apply_overrides(data: dict[str, Any], overrides: Iterable[str]) -> list[str]:
+    """Apply ``key.path=value`` overrides to the scene's TOML tables in place (tables along the
+    path are created as needed; an effect set to ``true`` becomes a table of parameters)."""
+    applied = []
+    for text in overrides:
+        parts, value = parse_override(text)
+        node = data
+        for depth, part in enumerate(parts[:-1]):
+            child = node.get(part)
+            where = ".".join(parts[:depth + 1])
+            if child is None or child is True:
+                child = node[part] = {}
+            elif child is False:
+                raise SceneError(f"--set {text}: {where} is false (switched off); switch it on with "
+                                 f"--set {where}=true before setting its fields")
+            elif not isinstance(child, dict):
+                raise SceneError(f"--set {text}: {where} is {child!r}, not a table, so it has no field "
+                                 f"'{parts[depth + 1]}'")
+            node = child
+        node[parts[-1]] = value
+        applied.append(text)
+    return applied
+
+
+def read_toml(path: Path) -> dict[str, Any]:
+    """Parse a TOML file; SceneError names the file and the line of a syntax error."""
+    try:
+        raw = path.read_bytes()
+    except FileNotFoundError:
+        raise SceneError(f"{path}: no such scene file") from None
+    except OSError as exc:
+        raise SceneError(f"{path}: cannot read: {exc.strerror or exc}") from exc
+    try:
+        return tomllib.loads(raw.decode("utf-8"))
+    except UnicodeDecodeError as exc:
+        raise SceneError(f"{path}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
+    except tomllib.TOMLDecodeError as exc:
+        # tomllib says "... (at line L, column C)": keep it, it is what the user needs.
+        raise SceneError(f"{path}: TOML syntax error: {exc}") from None
+
+
+def scene_info(path: Path) -> dict[str, Any]:
+    """Name, robot and description of a scene file, read without building its model
+    (for listings); ``error`` holds the reason when the file cannot be read."""
+    info: dict[str, Any] = {"name": path.stem, "robot": None, "description": "", "path": str(path)}
+    try:
+        data = read_toml(path)
+    except SceneError as exc:
+        info["error"] = str(exc)
+        return info
+    scene_t = data.get("scene") if isinstance(data.get("scene"), dict) else {}
+    robot_t = data.get("robot") if isinstance(data.get("robot"), dict) else {}
+    if isinstance(scene_t.get("description"), str):
+        info["description"] = scene_t["description"]
+    if isinstance(robot_t.get("name"), str):
+        info["robot"] = robot_t["name"]
+    return info
