@@ -30,3 +30,8 @@ class ModelBreakdown(LegsimError):
     (a runner's body hits the ground, a leg passes through the body). The integrator ends the
     run with status ``model_breakdown`` and this message, keeping the execution computed so far,
     instead of propagating the exception."""
+
+
+class OutputError(LegsimError):
+    """An output file cannot be written (or would replace something it must not); the message
+    names the output and the path."""
