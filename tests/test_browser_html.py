@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from test_record import hopper_model
+from helpers.models import hopper_model
 
 from legsim.record import Frames, frame_times, geometry_frames, read_rrd, write_rrd
 from legsim.relaxed import simulate

@@ -18,7 +18,7 @@ from legsim import simulate
 from legsim.cli import main
 from legsim.progress import ProgressBar, progress_for
 from legsim.scene import bundled_dir, load_scene
-from test_scene_support import TINY_SCENE, register_tiny, write_scene
+from helpers.scenes import TINY_SCENE, register_tiny, write_scene
 
 REPO = Path(__file__).resolve().parents[1]
 PYTHON = sys.executable

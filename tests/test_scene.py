@@ -9,7 +9,7 @@ import pytest
 
 from legsim import ModelError, SceneError, simulate
 from legsim.scene import apply_overrides, load_scene, parse_override, scene_files
-from test_scene_support import TINY_SCENE, register_tiny, write_scene
+from helpers.scenes import TINY_SCENE, register_tiny, write_scene
 
 
 @pytest.fixture(autouse=True)
@@ -199,7 +199,7 @@ def test_model_initial_check_refuses_states_the_guards_admit(tmp_path, monkeypat
     # max(z, zd) >= 0 holds for a ball 5 m under the floor at rest; the model's own check
     # (Model.info["initial_check"]) names it, and a check that fails is a ModelError.
     import dataclasses
-    import test_scene_support as support
+    import helpers.scenes as support
 
     def build(params, effects):
         model = support._build(params, effects)
@@ -256,7 +256,7 @@ def test_unknown_scene_name_lists_known_scenes(tmp_path, monkeypatch):
 
 def test_builder_failure_is_a_model_error_naming_file_and_robot(tmp_path, monkeypatch):
     import dataclasses
-    import test_scene_support as support
+    import helpers.scenes as support
 
     def broken(params, effects):
         raise ZeroDivisionError("division by zero")
@@ -269,7 +269,7 @@ def test_builder_failure_is_a_model_error_naming_file_and_robot(tmp_path, monkey
 
 def test_builder_returning_something_else_is_rejected(tmp_path, monkeypatch):
     import dataclasses
-    import test_scene_support as support
+    import helpers.scenes as support
 
     monkeypatch.setattr(support, "BUILDER", dataclasses.replace(support.BUILDER, build=lambda p, e: 42))
     with pytest.raises(ModelError, match="returned int, expected legsim.builders.Model"):

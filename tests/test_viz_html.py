@@ -10,7 +10,7 @@ import re
 import numpy as np
 import pytest
 import umsgpack
-from test_record import ball_model, hopper_model
+from helpers.models import ball_model, hopper_model
 
 from legsim.record import Frames, read_rrd, write_rrd
 from legsim.relaxed import simulate

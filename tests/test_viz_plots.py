@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from test_record import ball_model, hopper_model
+from helpers.models import ball_model, hopper_model
 
 from legsim.record import read_rrd, trace_series, execution_trace, write_rrd
 from legsim.relaxed import simulate

@@ -1,7 +1,7 @@
 """A tiny builder for scene and CLI tests, registered by monkeypatching the builder registry.
 
 The loader is tested against this builder so that its tests do not depend on the analytic
-systems and robots (tested with their own scenes in test_scene_bundled.py / test_cli.py).
+systems and robots (tested with their own scenes in test_scene_bundled.py and test_cli.py).
 A falling ball of height z (m) and velocity zd (m/s) with two effects: ``floor`` (an impact with
 restitution, on by default; guard max(z, zd) in metres) and ``drag`` (a linear drag term whose
 evaluations the model counts, off by default).
