@@ -209,7 +209,7 @@ class LocalErrorEstimator:
         self.pair = get_method(pair)
         if not self.pair.embedded:
             raise SimulationError(
-                f"error pair '{self.pair.name}' has no embedded error estimate; use 'bs32' or 'dopri5'")
+                f"error pair '{self.pair.name}' has no embedded error estimate; use 'bs32', 'dopri5' or 'dop853'")
         floor = float(floor)
         if not math.isfinite(floor) or floor < 0.0:
             raise SimulationError(f"error floor must be finite and >= 0, got {floor}")

@@ -9,7 +9,6 @@ exist (oscillator, bouncing ball); otherwise a converged event-driven run (DOP85
 
 from __future__ import annotations
 
-import functools
 import math
 from dataclasses import dataclass, field
 from typing import Any, Callable
@@ -18,13 +17,12 @@ import numpy as np
 
 from ..errors import LegsimError
 from ..hybrid import HybridSystem
-from ..methods import DenseOutput, Tableau
 
 CASE_NAMES = ("oscillator-ex1", "oscillator-ex2", "bouncing-ball", "pronk", "double-pendulum")
 
 #: solve_ivp methods in the sweeps (explicit pairs: these models are not stiff).
 IVP_METHODS = ("RK45", "DOP853")
-#: Adaptive pairs of the relaxed integrator (dop853: see ``dop853_tableau``).
+#: Adaptive pairs of the relaxed integrator.
 ADAPTIVE_PAIRS = ("bs32", "dopri5", "dop853")
 
 
@@ -32,61 +30,9 @@ class BenchError(LegsimError):
     """A benchmark could not be set up or run (unknown case, missing robot, bad option)."""
 
 
-@functools.lru_cache(maxsize=None)
-def dop853_tableau() -> Tableau:
-    """Dormand-Prince 8(5,3) as a legsim ``Tableau``, from scipy's coefficients: the 12 stages of
-    DOP853 plus a 13th at the new point (row = b, c = 1), which makes it FSAL; its error norm is
-    Hairer's blend of the fifth- and third-order estimates E5 and E3 with the step exponent 1/8,
-    and its dense output the seventh-order interpolant, as in scipy. solve_ivp's best method in
-    these sweeps is DOP853, so the relaxed integrator gets the same method, controlled the same
-    way, to compete at equal footing: methods.py stops at order 5."""
-    from scipy.integrate._ivp import dop853_coefficients as d
-
-    s = d.N_STAGES + 1
-    A = np.zeros((s, s))
-    A[: s - 1, : s - 1] = d.A[: s - 1, : s - 1]
-    A[s - 1, : s - 1] = d.B
-    c = np.concatenate([d.C[: s - 1], [1.0]])
-    b = np.concatenate([d.B, [0.0]])
-    # error_order 7: the step exponent -1/(7 + 1) of scipy's DOP853 (the blended norm scales as h^8).
-    return Tableau("dop853", 8, c, A, b, np.asarray(d.E5, dtype=float), 7, True, _dop853_dense(b),
-                   np.asarray(d.E3, dtype=float))
-
-
-def _dop853_dense(b: np.ndarray) -> DenseOutput:
-    """DOP853's seventh-order interpolant (three extra stages) in legsim's form x + h sum_i w_i(theta) k_i.
-
-    scipy writes it as x + F0 th + F1 th (1 - th) + F2 th^2 (1 - th) + ..., nested in th and 1 - th,
-    with rows F linear in the 16 stages; expanding the nesting once gives the weights P."""
-    from scipy.integrate._ivp import dop853_coefficients as d
-
-    n_all, s = d.N_STAGES_EXTENDED, d.N_STAGES + 1
-    rows = np.zeros((d.INTERPOLATOR_POWER, n_all))  # F = h * rows @ K
-    rows[0, :s] = b
-    rows[1, 0] += 1.0
-    rows[1, :s] -= b
-    rows[2, :s] += 2.0 * b
-    rows[2, 0] -= 1.0
-    rows[2, s - 1] -= 1.0  # K[12], f at the new point
-    rows[3:] = d.D
-    # Polynomial of each F row in theta: the nesting multiplies by th and (1 - th) in turn, last row first.
-    monomials = np.zeros((d.INTERPOLATOR_POWER, d.INTERPOLATOR_POWER + 1))
-    for r in range(d.INTERPOLATOR_POWER):
-        poly = np.zeros(d.INTERPOLATOR_POWER + 1)
-        for i, row in enumerate(reversed(range(d.INTERPOLATOR_POWER))):
-            if row == r:
-                poly[0] += 1.0
-            poly = np.concatenate([[0.0], poly[:-1]]) if i % 2 == 0 else poly - np.concatenate([[0.0], poly[:-1]])
-        monomials[r] = poly
-    assert np.all(monomials[:, 0] == 0.0)
-    P = rows.T @ monomials[:, 1:]
-    return DenseOutput(7, P, np.asarray(d.C[s:], dtype=float), np.asarray(d.A[s:], dtype=float))
-
-
-def relaxed_method(name: str) -> str | Tableau:
+def relaxed_method(name: str) -> str:
     """The ``simulate`` method of a ``relaxed-<name>`` run (``<name>-zeno`` for Zeno continuation)."""
-    name = name.removesuffix("-zeno")
-    return dop853_tableau() if name == "dop853" else name
+    return name.removesuffix("-zeno")
 
 
 @dataclass(frozen=True)
