@@ -7,10 +7,22 @@ import re
 import numpy as np
 import pytest
 
-from legsim.methods import get_method
-from legsim.bench import COLUMNS, Row, RunSpec, Target, evaluate_targets, make_case, mark_pareto
+from legsim.bench import (
+    COLUMNS,
+    Row,
+    RunSpec,
+    Target,
+    evaluate_targets,
+    make_case,
+    mark_pareto,
+)
 from legsim.bench.cases import BenchError
-from legsim.bench.work_precision import own_points, position_error, run_one, time_to_reach
+from legsim.bench.work_precision import (
+    own_points,
+    position_error,
+    run_one,
+    time_to_reach,
+)
 from legsim.cli import main
 
 METHOD_NAME = re.compile(r"^(relaxed-(euler|rk2|rk4|bs32|dopri5|dop853)(-zeno)?|ps|solve_ivp-(RK23|RK45|DOP853|LSODA|Radau|BDF))$")
@@ -186,10 +198,11 @@ def test_dop853_tableau_is_eighth_order_with_a_fifth_order_estimate():
     # x' = -x over [0, 1]: the global error of an order-8 method falls by 2^8 when h halves; the
     # embedded estimate h * sum(E5_j k_j) of one step is O(h^6) (fifth-order solution).
     from legsim import HybridSystem, Mode, simulate
-        from legsim.methods import error_estimate, make_stepper
+    from legsim.bench.cases import dop853_tableau
+    from legsim.methods import error_estimate, make_stepper
 
-    tab = get_method("dop853")
-    assert get_method("dop853") is tab and tab.fsal and tab.stages == 13
+    tab = dop853_tableau()
+    assert dop853_tableau() is tab and tab.fsal and tab.stages == 13
     system = HybridSystem({"m": Mode(1, lambda t, x, u: -x)})
     hs = (0.5, 0.25, 0.125)
     errors = [abs(simulate(system, [1.0], "m", 1.0, h, 1e-3, tab).final_state[0] - math.exp(-1.0)) for h in hs]
