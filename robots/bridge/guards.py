@@ -67,7 +67,8 @@ def _touch_guard(model: BridgeModel, data: BridgeData, r: RigidContact, q: np.nd
     """Touchdown or impact guard of an inactive rigid contact (frame kinematics already computed)."""
     if r.kind == "stop":
         return max(r.sign * (q[r.dof] - r.contact.position), r.sign * v[r.dof])
-    g = max(_frame_height_and_rise(model, data, r.frame_id, r.contact.ground))
+    z, vz = _frame_height_and_rise(model, data, r.frame_id, r.contact.ground)
+    g = max(z, vz)
     if r.contact.armed is not None:
         g = max(g, -float(r.contact.armed(q, v)))
     return g
@@ -107,11 +108,13 @@ def _liftoff_guard(model: BridgeModel, data: BridgeData, lg: LegFrames, x: np.nd
 
 
 def _fell(model: BridgeModel, leg: SpringLeg, hip_height: float) -> ModelBreakdown:
+    """The breakdown of a runner whose hip went below the ground (``hip_height`` < 0, m)."""
     return ModelBreakdown(f"{model.name}: the hip of leg '{leg.name}' is {-hip_height:.3g} m below the "
                           f"ground: the runner fell (the model has no body-ground contact)")
 
 
-def kinematic_guard(model: BridgeModel, data: BridgeData, spec: ModeSpec, contact: str) -> Callable[[np.ndarray], float]:
+def kinematic_guard(model: BridgeModel, data: BridgeData, spec: ModeSpec,
+                    contact: str) -> Callable[[np.ndarray], float]:
     """The position-level guard ``g(x)`` of contact ``contact`` in mode ``spec``."""
     def g(x: np.ndarray) -> float:
         return kinematic_guards(model, data, spec, x)[contact]
@@ -122,8 +125,8 @@ def state_guard(model: BridgeModel, value: Callable[[np.ndarray, Any], float]) -
     """``value(x, u)`` as a guard and its ``guard_args``: on (t, x, u) when the robot is actuated
     (the value then depends on the control), else on x with ``u = None``."""
     if model.timed:
-        return (lambda t, x, u: value(x, u)), "t,x,u"
-    return (lambda x: value(x, None)), "x"
+        return (lambda t, x, u: value(x, u)), model.guard_args
+    return (lambda x: value(x, None)), model.guard_args
 
 
 def release_guard(model: BridgeModel, data: BridgeData, spec: ModeSpec, row: int) -> tuple[Callable[..., float], str]:
@@ -156,7 +159,7 @@ def initial_check(model: BridgeModel, data: BridgeData,
 
 
 def _past_stop(model: BridgeModel, r: RigidContact, q: np.ndarray, eps: float, mode: str) -> str | None:
-    """How far q lies past the inactive stop, if by more than eps (rad or m); else None."""
+    """A message if q lies past the inactive stop by more than eps (rad or m), else None."""
     c = r.contact
     depth = -r.sign * (q[r.dof] - c.position)
     if depth > eps:
@@ -170,7 +173,7 @@ def _past_stop(model: BridgeModel, r: RigidContact, q: np.ndarray, eps: float, m
 
 def _below_ground(model: BridgeModel, data: BridgeData, r: RigidContact, q: np.ndarray, eps: float,
                   mode: str) -> str | None:
-    """How far the inactive contact point lies below the ground at q, if by more than eps (m); else None."""
+    """A message if the inactive contact point lies below the ground at q by more than eps (m), else None."""
     c = r.contact
     pin.forwardKinematics(model.pin_model, data.pin_data, q)
     z = pin.updateFramePlacement(model.pin_model, data.pin_data, r.frame_id).translation[2]
