@@ -78,7 +78,7 @@ def format_summary(path: Path, data: dict[str, Any]) -> str:
 
 def run(args: argparse.Namespace) -> int:
     from ..errors import LegsimError
-    from ..record import read_rrd
+    from ..output.rrd import read_rrd
 
     from .run import check_suffix, check_writable
 
@@ -94,11 +94,9 @@ def run(args: argparse.Namespace) -> int:
         check_writable(Path(target), f"--{kind}")
         check_suffix(writers[kind], Path(target), f"--{kind}")
     data = read_rrd(path)
-    summary = dict(data["summary"])
-    outputs: dict[str, str] = {}
-    for kind, target in wanted.items():
-        outputs[kind] = str(writers[kind](None, None, target, recording=data))
-    summary["outputs"] = outputs
+    outputs = {kind: str(writers[kind](None, None, target, recording=data)) for kind, target in wanted.items()}
+    # The recorded run_summary, with the files this command wrote, as `legsim run --json` has them.
+    summary = {**data["summary"], "outputs": outputs}
     if args.json:
         print(json.dumps(summary, indent=2, allow_nan=False))
     else:

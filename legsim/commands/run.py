@@ -97,11 +97,9 @@ def run(args: argparse.Namespace) -> int:
                 # could not be made: say which one and why, and still write the others.
                 failures.append(exc)
 
-    from ..scene import run_summary
+    from ..output.summary import run_summary
 
-    summary = run_summary(execution, scene)
-    summary["scene_file"] = str(scene.path)
-    summary["outputs"] = {kind: str(path) for kind, path in written.items()}
+    summary = run_summary(execution, scene, outputs=written)
     if args.json:
         print(json.dumps(summary, allow_nan=False))
     elif not args.quiet:
@@ -167,9 +165,10 @@ def check_writable(path: Path, label: str) -> None:
     writable, or can be made inside a writable folder). Leaves nothing behind: the folder is
     probed with an unnamed temporary file, because permission bits alone say yes to root on a
     read-only or virtual file system (/proc, /sys)."""
+    from ..output.files import check_target
+
     path = Path(path)
-    if path.is_dir():
-        raise LegsimError(f"{label} {path}: is a directory")
+    check_target(path, label)
     ancestor = path.parent
     while not ancestor.exists() and ancestor != ancestor.parent:
         ancestor = ancestor.parent
@@ -197,39 +196,35 @@ def check_suffix(writer: Writer, path: Path, label: str) -> None:
 
 def write_outputs(execution: Any, scene: Any, paths: dict[str, Path],
                   writers: dict[str, Writer] | None = None) -> dict[str, Path]:
-    """Call each writer on a temporary file next to its target and rename it into place.
+    """Write each output atomically (``legsim.output.files.write_atomic``): its writer is
+    called on a temporary file next to the target, which is renamed into place when it returns.
 
     Returns kind -> path of the files written. On a writer's failure its temporary file is
-    removed, the target is left as it was, and the error is raised (LegsimError as is, any
-    other exception wrapped in a LegsimError naming the file).
+    removed, the target is left as it was, and a LegsimError naming the flag and the file is
+    raised.
     """
     writers = dict(writers or {})
     written: dict[str, Path] = {}
     for kind, path in paths.items():
         writer = writers.get(kind) or find_writer(kind)
-        path = Path(path)
-        if path.is_dir():
-            raise LegsimError(f"--{kind} {path}: is a directory")
-        path.parent.mkdir(parents=True, exist_ok=True)
-        # Same directory (so the rename is atomic) and same suffix (writers may read the format from it).
-        tmp = path.with_name(f".{path.stem}.partial-{os.getpid()}{path.suffix}")
+        written[kind] = _write_output(writer, execution, scene, Path(path), f"--{kind}")
+    return written
+
+
+def _write_output(writer: Writer, execution: Any, scene: Any, path: Path, label: str) -> Path:
+    """``writer(execution, scene, tmp)`` through ``write_atomic``, its errors named by ``label``."""
+    from ..output.files import write_atomic
+
+    def write(tmp: Path) -> None:
         try:
             writer(execution, scene, tmp)
-            if not tmp.exists():
-                raise LegsimError(f"--{kind} {path}: the writer returned without writing a file")
-            os.replace(tmp, path)
-        except BaseException as exc:
-            # Also on Ctrl-C (KeyboardInterrupt is no Exception): never leave the temporary behind.
-            tmp.unlink(missing_ok=True)
-            if isinstance(exc, LegsimError):
-                # The writer only saw the temporary name: say which file was asked for.
-                raise LegsimError(f"--{kind} {path}: writing failed: "
-                                  f"{str(exc).replace(str(tmp), str(path))}") from exc
-            if isinstance(exc, Exception):
-                raise LegsimError(f"--{kind} {path}: writing failed: {type(exc).__name__}: {exc}") from exc
-            raise
-        written[kind] = path
-    return written
+        except LegsimError as exc:
+            # The writer only saw the temporary name: say which file was asked for.
+            raise LegsimError(f"{label} {path}: writing failed: {str(exc).replace(str(tmp), str(path))}") from exc
+        except Exception as exc:
+            raise LegsimError(f"{label} {path}: writing failed: {type(exc).__name__}: {exc}") from exc
+
+    return write_atomic(path, write, what=label)
 
 
 def _compact_modes(sequence: list[str], limit: int = 6) -> str:

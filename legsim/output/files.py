@@ -29,7 +29,8 @@ def check_target(path: Path, what: str) -> None:
     socket would be replaced by the rename)."""
     try:
         mode = path.stat().st_mode
-    except FileNotFoundError:
+    except (FileNotFoundError, NotADirectoryError):
+        # A new name (or one under a file, which creating its folder will report).
         return
     except OSError as exc:
         raise OutputError(f"{what} {path}: cannot write: {exc.strerror or exc}") from exc
@@ -44,8 +45,9 @@ def write_atomic(path: str | os.PathLike[str], write: Callable[[Path], None], *,
 
     ``what`` names the output in messages (``--rrd``, ``execution file``). Missing folders are
     created. On any failure, Ctrl-C included, the temporary file is removed and an older file at
-    ``path`` is left as it was. Raises ``OutputError`` naming the path for an OS error or a
-    writer that wrote nothing; other exceptions of ``write`` pass through.
+    ``path`` is left as it was. Raises ``OutputError`` naming the path for an OS error (chained
+    to it, as ``__cause__``) or a writer that wrote nothing; other exceptions of ``write`` pass
+    through.
     """
     path = Path(path)
     check_target(path, what)
