@@ -20,7 +20,6 @@ Run: ``.venv/bin/python scenarios/metric_digital_control.py [--out out] [--delta
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 import tempfile
 from pathlib import Path
@@ -29,6 +28,7 @@ import numpy as np
 
 from legsim import simulate
 from legsim.metric import distances, trajectory_space_distance
+from legsim.output.files import write_atomic
 from legsim.systems import digital_control as dc
 
 T_END = 2.0
@@ -74,22 +74,10 @@ def plot(result: dict[str, np.ndarray], path: Path) -> Path:
     ax.set_title("Digital control (paper 000, Sec. V-A)")
     ax.legend(fontsize=7, loc="lower right")
     fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=path.name + ".", suffix=".png", dir=path.parent)
-    os.close(fd)
     try:
-        fig.savefig(tmp, dpi=120)
-        # mkstemp makes the file private (0600); the figure gets the usual permissions.
-        mask = os.umask(0)
-        os.umask(mask)
-        os.chmod(tmp, 0o666 & ~mask)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+        return write_atomic(path, lambda tmp: fig.savefig(tmp, dpi=120), what="figure")
     finally:
         plt.close(fig)
-    return path
 
 
 def oscillator_table() -> None:

@@ -10,10 +10,11 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from legsim.errors import OutputError
 from legsim.execution import Execution
-from legsim.record import write_rrd
+from legsim.output.rrd import write_rrd
 
-from ._common import OutputError, plot_data_from_execution
+from ._common import plot_data_from_execution
 from .plots import MODE_COLOURS, STRIP_COLOUR, STRIP_GID, SPAN_RESOLUTION, save_figure, span_patch
 
 

@@ -30,10 +30,12 @@ from typing import Any
 import numpy as np
 
 from legsim.builders import Model
+from legsim.errors import OutputError
 from legsim.execution import Execution
-from legsim.record import Frames, frame_times, geometry_frames
+from legsim.output.files import write_atomic
+from legsim.output.trace import Frames, frame_times, geometry_frames, resolve_model
 
-from ._common import OutputError, resolve_model, run_title, write_atomic
+from ._common import run_title
 
 #: Frames per simulated second in an animation, and their most (longer runs get fewer).
 HTML_FPS = 30.0
@@ -391,7 +393,7 @@ def write_html(execution: Execution | None, scene: Any = None, path: str | os.Pa
         # Otherwise a robot vanishing mid-animation would look like a bug of the page.
         title += f" (diverged: not drawn past t = {cut:.6g} s)"
     page = animation_html(frames, title=title, speed=speed)
-    return write_atomic(path, lambda tmp: tmp.write_text(page, encoding="utf-8"), suffix=".html")
+    return write_atomic(path, lambda tmp: tmp.write_text(page, encoding="utf-8"), what="html")
 
 
 #: ``legsim run`` refuses --html before the run when the scene's model has no geometry.

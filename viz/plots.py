@@ -19,8 +19,11 @@ import numpy as np
 from legsim.builders import Model
 from legsim.execution import Execution
 
-from ._common import (OutputError, PlotData, plot_data_from_execution, plot_data_from_recording, resolve_model,
-                      run_title, write_atomic)
+from legsim.errors import OutputError
+from legsim.output.files import write_atomic
+from legsim.output.trace import resolve_model
+
+from ._common import PlotData, plot_data_from_execution, plot_data_from_recording, run_title
 
 #: gid of the strip shading in every state panel, and of the mode band (for tests and tools).
 STRIP_GID = "strips"
@@ -163,7 +166,7 @@ def save_figure(fig, path: str | os.PathLike, dpi: int = 120) -> Path:
     fmt = path.suffix.lower().lstrip(".")
     if fmt not in FORMATS:
         raise OutputError(f"{path}: unsupported figure format '{path.suffix}'; use one of {['.' + f for f in FORMATS]}")
-    return write_atomic(path, lambda tmp: fig.savefig(tmp, format=fmt, dpi=dpi), suffix=path.suffix)
+    return write_atomic(path, lambda tmp: fig.savefig(tmp, format=fmt, dpi=dpi), what="figure")
 
 
 def write_plot(execution: Execution | None, scene: Any = None, path: str | os.PathLike | None = None, *,
