@@ -8,12 +8,8 @@ from typing import Any
 import numpy as np
 
 from legsim.builders import Model
-from legsim.errors import OutputError
 from legsim.execution import Execution
-from legsim.output.trace import execution_trace, resolve_model, trace_series
-
-__all__ = ["OutputError", "PLOT_LIMIT", "PlotData", "drawable", "plot_data_from_execution",
-           "plot_data_from_recording", "resolve_model", "run_title"]
+from legsim.output.trace import execution_trace, trace_series
 
 #: Largest magnitude a plot draws. matplotlib's tick and transform arithmetic overflows on
 #: values near the float64 limit (1.8e308: "arange: cannot compute length"), which is where a
