@@ -21,14 +21,13 @@ from __future__ import annotations
 
 import argparse
 import sys
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
 from legsim import simulate
 from legsim.metric import distances, trajectory_space_distance
-from legsim.output.files import write_atomic
+from legsim.output.files import cannot_create_in, write_atomic
 from legsim.systems import digital_control as dc
 
 T_END = 2.0
@@ -131,12 +130,9 @@ def main(argv: list[str] | None = None) -> int:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         parser.error(f"--out {out}: cannot create the folder: {exc.strerror or exc}")
-    try:
-        # Probe with an unnamed file: permission bits say yes to root where writes still fail (/proc).
-        with tempfile.TemporaryFile(dir=out):
-            pass
-    except OSError as exc:
-        parser.error(f"--out {out}: cannot write in the folder: {exc.strerror or exc}")
+    reason = cannot_create_in(out)
+    if reason is not None:
+        parser.error(f"--out {out}: cannot write in the folder: {reason}")
     result = sweep(np.logspace(-1, -4, args.deltas))
     print(f"{'delta':>10} {'rho':>12} {'rho window':>12} {'rho^eps':>12} {'trajectory':>11}")
     for i, delta in enumerate(result["delta"]):

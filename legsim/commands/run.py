@@ -19,6 +19,7 @@ import argparse
 import json
 import os
 import sys
+from itertools import groupby
 from pathlib import Path
 from typing import Any, Callable
 
@@ -162,10 +163,9 @@ def find_writer(kind: str, source: str = "") -> Writer:
 
 def check_writable(path: Path, label: str) -> None:
     """LegsimError naming ``label`` unless ``path`` can be created (its folder exists and is
-    writable, or can be made inside a writable folder). Leaves nothing behind: the folder is
-    probed with an unnamed temporary file, because permission bits alone say yes to root on a
-    read-only or virtual file system (/proc, /sys)."""
-    from ..output.files import check_target
+    writable, or can be made inside a writable folder). Leaves nothing behind: no folder is
+    made, and the nearest existing one is probed with an unnamed temporary file."""
+    from ..output.files import cannot_create_in, check_target
 
     path = Path(path)
     check_target(path, label)
@@ -176,13 +176,9 @@ def check_writable(path: Path, label: str) -> None:
         raise LegsimError(f"{label} {path}: {ancestor} is not a directory")
     if not os.access(ancestor, os.W_OK | os.X_OK):
         raise LegsimError(f"{label} {path}: cannot write in {ancestor} (permission denied)")
-    import tempfile
-
-    try:
-        with tempfile.TemporaryFile(dir=ancestor):
-            pass
-    except OSError as exc:
-        raise LegsimError(f"{label} {path}: cannot write in {ancestor} ({exc.strerror or exc})") from None
+    reason = cannot_create_in(ancestor)
+    if reason is not None:
+        raise LegsimError(f"{label} {path}: cannot write in {ancestor} ({reason})")
 
 
 def check_suffix(writer: Writer, path: Path, label: str) -> None:
@@ -228,12 +224,8 @@ def _write_output(writer: Writer, execution: Any, scene: Any, path: Path, label:
 
 
 def _compact_modes(sequence: list[str], limit: int = 6) -> str:
-    runs: list[list[Any]] = []
-    for mode in sequence:
-        if runs and runs[-1][0] == mode:
-            runs[-1][1] += 1
-        else:
-            runs.append([mode, 1])
+    """Runs of one mode written once with a count (``flight x13``); long sequences keep their ends."""
+    runs = [(mode, len(list(repeats))) for mode, repeats in groupby(sequence)]
     parts = [m if n == 1 else f"{m} x{n}" for m, n in runs]
     if len(parts) > limit:
         parts = parts[:limit - 2] + ["..."] + parts[-2:]

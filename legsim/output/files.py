@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import os
 import stat
+import tempfile
 import uuid
 from pathlib import Path
 from typing import Callable
@@ -38,6 +39,17 @@ def check_target(path: Path, what: str) -> None:
         raise OutputError(f"{what} {path}: is a directory")
     if not stat.S_ISREG(mode):
         raise OutputError(f"{what} {path}: is not a regular file (a device, FIFO or socket); refusing to replace it")
+
+
+def cannot_create_in(folder: Path) -> str | None:
+    """The OS's reason why no file can be created in the existing ``folder``, or None when one
+    can. Probes with an unnamed temporary file, which leaves nothing behind, because permission
+    bits alone say yes to root on a read-only or virtual file system (/proc, /sys)."""
+    try:
+        with tempfile.TemporaryFile(dir=folder):
+            return None
+    except OSError as exc:
+        return str(exc.strerror or exc)
 
 
 def write_atomic(path: str | os.PathLike[str], write: Callable[[Path], None], *, what: str = "output") -> Path:
