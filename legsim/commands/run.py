@@ -4,13 +4,14 @@ The output writers are looked up only when asked for: ``--rrd`` uses
 ``legsim.record.write_rrd``, ``--html`` and ``--plot`` the ``html`` and ``plot`` writers of the
 ``legsim.writers`` entry-point group; each is called as ``writer(execution, scene, path)``.
 Every file is written under a temporary name in its directory and renamed into place only
-when its writer returned, so an output is complete or absent. A run that stops before
+when its writer returned (``legsim.output.files.write_atomic``), so an output is complete or
+absent. A run that stops before
 t_final (status other than ``finished``) still writes its outputs (they record the status and
 show where it stopped) and exits with code 3, also when one of them cannot be made: that
 output's error is printed on one line (``legsim: error: --plot FILE: writing failed: ...``),
 no file is left for it, the others are still written, and the exit code stays 3 (the run's
 status is the result; a writer failing on a diverged state is no bad input). After a finished
-run a failed output is an error (exit code 2) as before.
+run a failed output is an error (exit code 2).
 """
 
 from __future__ import annotations
@@ -52,54 +53,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..progress import progress_for
+    from ..output.summary import run_summary
     from ..scene import load_scene
 
     scene = load_scene(args.scene, overrides=args.overrides)
     outputs = requested_outputs(args, scene.output)
-    # Writers and target folders are checked before the run, so that a missing writer or an
-    # unwritable folder costs nothing.
-    writers = {kind: find_writer(kind, source) for kind, (_, source) in outputs.items()}
-    for kind, (path, source) in outputs.items():
-        check_writable(path, source)
-        check_suffix(writers[kind], path, source)
-        if getattr(writers[kind], "needs_geometry", False) and scene.model.geometry is None:
-            raise LegsimError(f"{source} {path}: this output draws the robot, and {scene.model.system.name} "
-                              f"defines no geometry (Model.geometry is None); use --plot or --rrd for it")
-
-    import numpy as np
-
-    bar = progress_for(sys.stderr, enabled=not (args.quiet or args.json), label=scene.name)
-    try:
-        # The integrator checks every state for finiteness and ends a diverging run with status
-        # non_finite naming mode, time and state; numpy's overflow warnings on the way there
-        # would only bury that message.
-        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-            execution = scene.simulate(progress=bar)
-    finally:
-        if bar is not None:
-            bar.close()
-
-    stopped_early = execution.status != "finished"
-    written: dict[str, Path] = {}
-    failures: list[LegsimError] = []
-    # A diverged run hands the writers states near the float64 limit: interpolating them and
-    # Rerun's float32 cast overflow on the way. The writers draw or store what is finite (the
-    # plot leaves out, and says so, what matplotlib cannot draw); numpy's warnings would only
-    # bury the status line, as during the run.
-    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-        for kind, (path, _) in outputs.items():
-            try:
-                written.update(write_outputs(execution, scene, {kind: path}, {kind: writers[kind]}))
-            except LegsimError as exc:
-                if not stopped_early:
-                    raise
-                # The run's status is the result the exit code reports (3), not the output that
-                # could not be made: say which one and why, and still write the others.
-                failures.append(exc)
-
-    from ..output.summary import run_summary
-
+    writers = checked_writers(outputs, scene)
+    execution = _simulate(scene, show_progress=not (args.quiet or args.json))
+    written, failures = _write_all(execution, scene, outputs, writers)
     summary = run_summary(execution, scene, outputs=written)
     if args.json:
         print(json.dumps(summary, allow_nan=False))
@@ -113,6 +74,65 @@ def run(args: argparse.Namespace) -> int:
         print(f"legsim: run stopped early ({summary['status']}): {summary['message']}", file=sys.stderr)
         return 3
     return 0
+
+
+def checked_writers(outputs: dict[str, tuple[Path, str]], scene: Any = None) -> dict[str, Writer]:
+    """kind -> writer of each output (kind -> (path, where it was asked for)), checked before
+    any work is done: writer found, folder writable, suffix accepted, and, with a scene, the
+    geometry present when the writer draws the robot."""
+    writers = {kind: find_writer(kind, source) for kind, (_, source) in outputs.items()}
+    for kind, (path, source) in outputs.items():
+        check_writable(path, source)
+        check_suffix(writers[kind], path, source)
+        if scene is not None and getattr(writers[kind], "needs_geometry", False) and scene.model.geometry is None:
+            raise LegsimError(f"{source} {path}: this output draws the robot, and {scene.model.system.name} "
+                              f"defines no geometry (Model.geometry is None); use --plot or --rrd for it")
+    return writers
+
+
+def _simulate(scene: Any, show_progress: bool) -> Any:
+    """``scene.simulate()`` with a progress bar on stderr (when shown and stderr is a terminal)."""
+    import numpy as np
+
+    from ..progress import progress_for
+
+    bar = progress_for(sys.stderr, enabled=show_progress, label=scene.name)
+    try:
+        # The integrator checks every state for finiteness and ends a diverging run with status
+        # non_finite naming mode, time and state; numpy's overflow warnings on the way there
+        # would only bury that message.
+        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+            return scene.simulate(progress=bar)
+    finally:
+        if bar is not None:
+            bar.close()
+
+
+def _write_all(execution: Any, scene: Any, outputs: dict[str, tuple[Path, str]], writers: dict[str, Writer]
+               ) -> tuple[dict[str, Path], list[LegsimError]]:
+    """Write every output: (kind -> path written, the errors of those that failed).
+
+    After a finished run a failed output is raised. After a run that stopped early the run's
+    status is the result the exit code reports (3), not the output that could not be made: its
+    error is returned to be printed, and the other outputs are still written.
+    """
+    import numpy as np
+
+    written: dict[str, Path] = {}
+    failures: list[LegsimError] = []
+    # A diverged run hands the writers states near the float64 limit: interpolating them and
+    # Rerun's float32 cast overflow on the way. The writers draw or store what is finite (the
+    # plot leaves out, and says so, what matplotlib cannot draw); numpy's warnings would only
+    # bury the status line, as during the run.
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        for kind, (path, _) in outputs.items():
+            try:
+                written.update(write_outputs(execution, scene, {kind: path}, {kind: writers[kind]}))
+            except LegsimError as exc:
+                if execution.status == "finished":
+                    raise
+                failures.append(exc)
+    return written, failures
 
 
 def requested_outputs(args: argparse.Namespace, scene_output: dict[str, str | None] | None = None
