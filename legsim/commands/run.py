@@ -5,13 +5,12 @@ The output writers are looked up only when asked for: ``--rrd`` uses
 ``legsim.writers`` entry-point group; each is called as ``writer(execution, scene, path)``.
 Every file is written under a temporary name in its directory and renamed into place only
 when its writer returned (``legsim.output.files.write_atomic``), so an output is complete or
-absent. A run that stops before
-t_final (status other than ``finished``) still writes its outputs (they record the status and
-show where it stopped) and exits with code 3, also when one of them cannot be made: that
-output's error is printed on one line (``legsim: error: --plot FILE: writing failed: ...``),
-no file is left for it, the others are still written, and the exit code stays 3 (the run's
-status is the result; a writer failing on a diverged state is no bad input). After a finished
-run a failed output is an error (exit code 2).
+absent. A run that stops before t_final (status other than ``finished``) still writes its
+outputs (they record the status and show where it stopped) and exits with code 3, also when
+one of them cannot be made: that output's error is printed on one line (``legsim: error:
+--plot FILE: writing failed: ...``), no file is left for it, the others are still written,
+and the exit code stays 3 (the run's status is the result; a writer failing on a diverged
+state is no bad input). After a finished run a failed output is an error (exit code 2).
 """
 
 from __future__ import annotations
