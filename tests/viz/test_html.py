@@ -12,9 +12,10 @@ import pytest
 import umsgpack
 from helpers.models import ball_model, hopper_model
 
-from legsim.record import Frames, read_rrd, write_rrd
+from legsim.errors import OutputError
+from legsim.output.rrd import read_rrd, write_rrd
+from legsim.output.trace import Frames
 from legsim.relaxed import simulate
-from legsim.viz._common import OutputError
 from legsim.viz.meshcat_anim import _commands, _matrix, _segments, animation_html, camera_track, write_html
 
 
@@ -40,7 +41,7 @@ def _decode(page: str) -> list[dict]:
 
 @pytest.fixture(scope="module")
 def hopper_frames():
-    from legsim.record import frame_times, geometry_frames
+    from legsim.output.trace import frame_times, geometry_frames
 
     model = hopper_model()
     ex = simulate(model.system, np.array([0.5, 0.0]), "flight", 1.0, 1e-3, 2e-3)

@@ -7,9 +7,10 @@ import numpy as np
 import pytest
 from helpers.models import ball_model, hopper_model
 
-from legsim.record import read_rrd, trace_series, execution_trace, write_rrd
+from legsim.errors import OutputError
+from legsim.output.rrd import read_rrd, write_rrd
+from legsim.output.trace import execution_trace, trace_series
 from legsim.relaxed import simulate
-from legsim.viz._common import OutputError
 from legsim.viz.plots import MODE_GID, STRIP_GID, plot_data, span_bounds, state_figure, write_plot
 
 

@@ -17,9 +17,9 @@ import numpy as np
 import pytest
 from helpers.models import hopper_model
 
+from legsim.output.files import write_atomic
 from legsim.record import Frames, frame_times, geometry_frames, read_rrd, write_rrd
 from legsim.relaxed import simulate
-from legsim.viz._common import write_atomic
 from legsim.viz.meshcat_anim import animation_html, write_html
 
 pytestmark = pytest.mark.browser
@@ -83,7 +83,7 @@ def test_page_shows_the_robot_above_the_ground(chromium, hopper_run, tmp_path):
     frames = geometry_frames(ex, model, frame_times(ex, 30.0, 900))
     empty = Frames(frames.times, frames.modes, {p: [None] * len(frames) for p in frames.parts}, frames.scenery)
     html = animation_html(empty)
-    empty_page = write_atomic(tmp_path / "empty.html", lambda tmp: tmp.write_text(html), suffix=".html")
+    empty_page = write_atomic(tmp_path / "empty.html", lambda tmp: tmp.write_text(html))
     bare = screenshot(chromium, empty_page, tmp_path)
     assert saturated(bare).sum() == 0
 
@@ -133,8 +133,7 @@ def test_page_of_a_bundled_robot_shows_it(chromium, name, tmp_path):
     # the robot's and not the background's or the scenery's.
     frames = geometry_frames(ex, scene.model, frame_times(ex, 30.0, 900))
     empty = Frames(frames.times, frames.modes, {p: [None] * len(frames) for p in frames.parts}, frames.scenery)
-    empty_page = write_atomic(tmp_path / "empty.html", lambda tmp: tmp.write_text(animation_html(empty)),
-                              suffix=".html")
+    empty_page = write_atomic(tmp_path / "empty.html", lambda tmp: tmp.write_text(animation_html(empty)))
     assert saturated(screenshot(chromium, empty_page, tmp_path)).sum() == 0
 
     # The scenery line (ground, or the pendulum's support) is the row with most gray pixels;

@@ -11,7 +11,7 @@ import pytest
 
 from legsim.record import read_rrd
 
-SCENARIOS = Path(__file__).resolve().parents[1] / "scenarios"
+SCENARIOS = Path(__file__).resolve().parents[2] / "scenarios"
 
 
 def _script(name: str):
