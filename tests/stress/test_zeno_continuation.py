@@ -10,14 +10,14 @@ import pytest
 
 from legsim import simulate
 from legsim.errors import ModelError
-from legsim.stress import _oscillator_model
+from legsim.stress.models import oscillator_ex2
 
 T = 4 * math.pi
 
 
 def test_example_2_sticks_and_releases_as_the_reference_does_with_few_transitions():
     h, eps = 1e-2, 1e-5
-    model = _oscillator_model(True, h + eps)
+    model = oscillator_ex2(True, h + eps)
     ref = model.reference
     ex = simulate(model.system, [-0.8, 0.0], "free", T, h, eps, control=model.control)
     names = [tr.name for tr in ex.transitions]
