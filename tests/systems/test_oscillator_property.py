@@ -42,7 +42,7 @@ def test_oscillator_keeps_the_invariants_and_its_first_impact(omega, damping, c,
     xs = np.concatenate([s.x for s in ex.segments])
     # the stop's guard max(x_max - x, -xd) accelerates at most at |U| + omega^2 max|x| + 2 a max|xd|
     acc = amplitude + omega ** 2 * float(np.max(np.abs(xs[:, 0]))) + 2 * a * float(np.max(np.abs(xs[:, 1])))
-    floor = min(stress.step_floor(h, eps, accel=acc, rate=float(np.max(np.abs(xs[:, 1])))), eps * (1 - 1e-9))
+    floor = stress.transition_floor(h, eps, accel=acc, rate=float(np.max(np.abs(xs[:, 1]))))
     checks = stress.execution_checks(system, ex, eps, control=control, bound=T / floor + 1, bound_why="T/floor")
     assert all(ch.passed for ch in checks), [f"{ch.name}: {ch.detail}" for ch in checks if not ch.passed]
     # before its first impact the run is a plain RK4 solution of eq. (28): compare with the
