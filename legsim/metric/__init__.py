@@ -79,8 +79,8 @@ from typing import Any, Callable, Iterable, Sequence
 import numpy as np
 from scipy.optimize import lsq_linear, minimize
 
-from .errors import LegsimError, ModelError
-from .hybrid import HybridSystem, Transition, reachable_modes
+from ..errors import LegsimError, ModelError
+from ..hybrid import HybridSystem, Transition, reachable_modes
 
 __all__ = [
     "AffineReset", "CoordinateGuard", "Crossing", "MetricError", "MetricPath", "distance",
