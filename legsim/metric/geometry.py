@@ -33,9 +33,9 @@ from ..hybrid import HybridSystem, Transition, reachable_modes
 from .detect import detect_affine_reset, detect_coordinate_guard
 from .shapes import AffineReset, CoordinateGuard
 
-#: Relative central-difference step of guard gradients and reset Jacobians a model does not
-#: give, taken uniform over the coordinates: relative to 1 + max|p| (shape constraints and
-#: leg gradients of the walk minimisation are evaluated there).
+#: Relative central-difference step of the guard gradients and reset Jacobians a model does
+#: not give: every coordinate moves by FD_STEP * (1 + max|p|), one absolute step for the whole
+#: point, so that coordinates near 0 still get a step of the point's size.
 FD_STEP = 1e-7
 
 #: A pair (h, grad h) of a scalar function of a state and its gradient (shape (n,)).
