@@ -100,7 +100,7 @@ def test_scenario_script_prints_the_table_and_writes_the_figure(tmp_path, capsys
     import os
     from pathlib import Path
 
-    path = Path(__file__).resolve().parents[1] / "scenarios" / "metric_digital_control.py"
+    path = Path(__file__).resolve().parents[2] / "scenarios" / "metric_digital_control.py"
     spec = importlib.util.spec_from_file_location("metric_digital_control", path)
     script = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(script)

@@ -7,6 +7,9 @@ exit time, then restarts from R(q) = (0, c v1). After the exit it is the exact e
 delayed by the lag L = exit_time - t1: x_sim(t) = x_ref(t - L). Inside the strip the state is
 the strip point (q, tau(t)) with tau from 0 at the crossing to the landing depth at the landing
 time and then at unit rate to eps at the exit (paper 000 Fig. 12, step 12).
+
+Bad executions (no sample method, samples that do not fit the system or the times, positions
+that are not numbers) raise with a message naming the argument: the last tests.
 """
 
 from __future__ import annotations
@@ -16,10 +19,11 @@ import math
 import numpy as np
 import pytest
 
+from helpers.metric_systems import C, ball, two_mode
 from legsim import Execution, simulate
+from legsim.errors import LegsimError
 from legsim.execution import Samples
-from legsim.metric import distance, distances, position_error, rho, trajectory_space_distance
-from test_metric_axioms import C, ball
+from legsim.metric import MetricError, distance, distances, position_error, rho, trajectory_space_distance
 
 G, Z0 = 9.81, 1.0
 T1 = math.sqrt(2 * Z0 / G)
@@ -125,3 +129,41 @@ def test_trajectory_space_distance_is_the_euclidean_sup_within_one_mode():
     times = np.linspace(0.0, 0.8, 101)
     expected = max(np.linalg.norm(ex_a.state_at(t)[1] - ex_b.state_at(t)[1]) for t in times)
     assert trajectory_space_distance(ex_a, ex_b, times) == pytest.approx(expected, abs=1e-15)
+
+
+# -- bad executions: the error class and its message ---------------------------------------------
+def test_times_outside_an_execution_name_its_interval(execution):
+    with pytest.raises(LegsimError, match=r"sample times must lie in \[0.0, 0.5\]"):
+        rho(ball(), execution, execution, [0.1, 0.7], 1e-3)
+
+
+def test_an_execution_needs_a_sample_method(execution):
+    with pytest.raises(MetricError, match=r"execution_b must have a sample\(times\) -> Samples method .* got list"):
+        distances(ball(), execution, [1, 2], [0.1], 1e-3)
+
+
+def test_samples_must_match_the_system(execution):
+    with pytest.raises(MetricError, match=r"execution_a at t=0.1: unknown mode 'fall' of two-mode"):
+        rho(two_mode(), execution, execution, [0.1], 1e-3)
+
+
+def test_samples_must_have_one_state_per_time(execution):
+    class Short:
+        def sample(self, times):
+            return execution.sample(times[:1])
+    with pytest.raises(MetricError, match=r"execution_b.sample\(times\) must return Samples with one mode and state"):
+        rho(ball(), execution, Short(), [0.1, 0.2], 1e-3)
+
+
+@pytest.mark.parametrize("simulated, coordinate, message", [
+    ([1.0, 2.0, 3.0], 0, "simulated gives 3 positions for 2 times"),
+    ([1.0, math.inf], 0, "simulated positions must be finite"),
+    (["x", "y"], 0, "simulated positions must be numbers"),
+    ("execution", "height", r"simulated: no coordinate named 'height' in mode 'fall' \(names: \('z', 'zd'\)\)"),
+    ("execution", 2, r"simulated: coordinate 2 is not an index of the 2-d state in mode 'fall'"),
+])
+def test_bad_position_error_input(execution, simulated, coordinate, message):
+    if simulated == "execution":
+        simulated = execution
+    with pytest.raises(MetricError, match=message):
+        position_error(simulated, execution, [0.1, 0.2], coordinate=coordinate)
