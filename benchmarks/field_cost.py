@@ -21,15 +21,18 @@ This is a benchmark, not a test: it prints numbers and asserts nothing.
 from __future__ import annotations
 
 import argparse
+import contextlib
+import importlib
+import pkgutil
 import statistics
 import time
 import types
-from typing import Any
+from typing import Any, Iterator
 
 import numpy as np
 import pinocchio
 
-import legsim.robots.bridge as bridge_module
+import legsim.robots.bridge as bridge_package
 from legsim.scene import load_scene
 
 SCENES = ("double_pendulum_plastic", "double_pendulum_zeno", "pronk", "pronk_pitched", "slip")
@@ -80,7 +83,7 @@ def field_table(calls: int, repeat: int) -> list[tuple[str, str, int, float, flo
 
 
 class _TimedPin(types.ModuleType):
-    """Stand-in for the ``pinocchio`` module inside legsim.robots.bridge: every function is timed."""
+    """Stand-in for the ``pinocchio`` module inside legsim.robots.bridge's modules: every function is timed."""
 
     def __init__(self) -> None:
         super().__init__("pinocchio_timed")
@@ -105,6 +108,26 @@ class _TimedPin(types.ModuleType):
         return timed
 
 
+def bridge_modules_using_pinocchio() -> list[types.ModuleType]:
+    """The modules of the bridge package that call Pinocchio through a module global ``pin``."""
+    modules = [importlib.import_module(f"{bridge_package.__name__}.{info.name}")
+               for info in pkgutil.iter_modules(bridge_package.__path__)]
+    return [m for m in modules if getattr(m, "pin", None) is pinocchio]
+
+
+@contextlib.contextmanager
+def pinocchio_replaced(stand_in: types.ModuleType) -> Iterator[None]:
+    """Make every bridge module call ``stand_in`` instead of Pinocchio, for the duration."""
+    modules = bridge_modules_using_pinocchio()
+    for m in modules:
+        m.pin = stand_in
+    try:
+        yield
+    finally:
+        for m in modules:
+            m.pin = pinocchio
+
+
 def share_table(repeat: int) -> list[tuple[str, float, float, int, float, int]]:
     rows = []
     bias = clock_bias()
@@ -116,16 +139,12 @@ def share_table(repeat: int) -> list[tuple[str, float, float, int, float, int]]:
             scene.simulate()
             plain.append(time.process_time() - t0)
         timed_pin = _TimedPin()
-        saved = bridge_module.pin
-        bridge_module.pin = timed_pin
-        try:
+        with pinocchio_replaced(timed_pin):
             scene = load_scene(name)
             timed_pin.seconds, timed_pin.calls = 0.0, 0
             t0 = time.process_time()
             ex = scene.simulate()
             wall = time.process_time() - t0
-        finally:
-            bridge_module.pin = saved
         # The inner time of each timed call includes part of the clock reads: subtract that bias
         # (measured on a wrapped no-op) and compare with the plain run, which has no timers.
         pin_seconds = timed_pin.seconds - timed_pin.calls * bias

@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import json
 import os
-import tempfile
 from dataclasses import dataclass, field
 from enum import StrEnum
 from pathlib import Path
@@ -266,30 +265,11 @@ class Execution:
         return self
 
     def summary(self) -> dict[str, Any]:
-        """JSON-ready summary (the keys of ``legsim run --json``)."""
-        mode, x = self._final_pair()
-        return {
-            "system": self.system_name,
-            "status": self.status,
-            "message": self.message,
-            "t_final": float(self.t_end),
-            "final_mode": mode,
-            "final_state": [float(v) for v in x],
-            "state_names": list(self.state_names.get(mode, ())),
-            "final_in_strip": bool(self.final_in_strip),
-            "mode_sequence": self.mode_sequence,
-            "transitions": len(self.transitions),
-            "steps": int(self.counters.get("steps", 0)),
-            "halvings": int(self.counters.get("halvings", 0)),
-            "field_evals": int(self.counters.get("field_evals", 0)),
-            "guard_evals": int(self.counters.get("guard_evals", 0)),
-            "reset_evals": int(self.counters.get("reset_evals", 0)),
-            "strip_time": float(self.counters.get("strip_time", 0.0)),
-            "wall_time_s": float(self.counters.get("wall_time_s", 0.0)),
-            "h": self.settings.get("h"),
-            "eps": self.settings.get("eps"),
-            "method": self.settings.get("method"),
-        }
+        """JSON-ready summary (the keys of ``legsim run --json`` that the execution alone
+        gives; see ``legsim.output.summary.run_summary``, which builds it)."""
+        from .output.summary import run_summary  # here: legsim.output imports this module
+
+        return run_summary(self)
 
     # -- sampling --------------------------------------------------------------------------
     def _pieces(self) -> tuple[np.ndarray, list[tuple[str, int]]]:
@@ -358,7 +338,8 @@ class Execution:
 
     # -- persistence -----------------------------------------------------------------------
     def save(self, path: str | os.PathLike) -> Path:
-        """Write the execution to a ``.npz`` file, completely or not at all."""
+        """Write the execution to a ``.npz`` file, completely or not at all (OutputError
+        naming the file when it cannot be written)."""
         path = Path(path)
         modes = sorted({s.mode for s in self.segments} | {s.mode for s in self.strips}
                        | {tr.target for tr in self.transitions})
@@ -400,16 +381,14 @@ class Execution:
             "final_in_strip": self.final_in_strip,
         }
         payload["meta"] = np.array(json.dumps(meta))
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=path.name + ".", suffix=".tmp.npz", dir=path.parent)
-        os.close(fd)
-        try:
-            np.savez_compressed(tmp, **payload)
-            os.replace(tmp, path)
-        except BaseException:
-            Path(tmp).unlink(missing_ok=True)
-            raise
-        return path
+        from .output.files import write_atomic  # here: legsim.output imports this module
+
+        def write(tmp: Path) -> None:
+            # A file object, because np.savez_compressed appends ".npz" to a name without it.
+            with open(tmp, "wb") as fh:
+                np.savez_compressed(fh, **payload)
+
+        return write_atomic(path, write, what="execution file")
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> "Execution":

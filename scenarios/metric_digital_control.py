@@ -20,15 +20,14 @@ Run: ``.venv/bin/python scenarios/metric_digital_control.py [--out out] [--delta
 from __future__ import annotations
 
 import argparse
-import os
 import sys
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
 from legsim import simulate
 from legsim.metric import distances, trajectory_space_distance
+from legsim.output.files import cannot_create_in, write_atomic
 from legsim.systems import digital_control as dc
 
 T_END = 2.0
@@ -74,22 +73,10 @@ def plot(result: dict[str, np.ndarray], path: Path) -> Path:
     ax.set_title("Digital control (paper 000, Sec. V-A)")
     ax.legend(fontsize=7, loc="lower right")
     fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=path.name + ".", suffix=".png", dir=path.parent)
-    os.close(fd)
     try:
-        fig.savefig(tmp, dpi=120)
-        # mkstemp makes the file private (0600); the figure gets the usual permissions.
-        mask = os.umask(0)
-        os.umask(mask)
-        os.chmod(tmp, 0o666 & ~mask)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+        return write_atomic(path, lambda tmp: fig.savefig(tmp, dpi=120), what="figure")
     finally:
         plt.close(fig)
-    return path
 
 
 def oscillator_table() -> None:
@@ -143,12 +130,9 @@ def main(argv: list[str] | None = None) -> int:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         parser.error(f"--out {out}: cannot create the folder: {exc.strerror or exc}")
-    try:
-        # Probe with an unnamed file: permission bits say yes to root where writes still fail (/proc).
-        with tempfile.TemporaryFile(dir=out):
-            pass
-    except OSError as exc:
-        parser.error(f"--out {out}: cannot write in the folder: {exc.strerror or exc}")
+    reason = cannot_create_in(out)
+    if reason is not None:
+        parser.error(f"--out {out}: cannot write in the folder: {reason}")
     result = sweep(np.logspace(-1, -4, args.deltas))
     print(f"{'delta':>10} {'rho':>12} {'rho window':>12} {'rho^eps':>12} {'trajectory':>11}")
     for i, delta in enumerate(result["delta"]):

@@ -1,62 +1,20 @@
-"""Shared plumbing of the writers: atomic files and what to draw from a run or a recording."""
+"""Shared plumbing of the writers: what to draw from a run or a recording, and the title."""
 
 from __future__ import annotations
 
-import os
-import uuid
 from dataclasses import dataclass, field
-from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 
 from legsim.builders import Model
-from legsim.errors import LegsimError
 from legsim.execution import Execution
-from legsim.record import execution_trace, trace_series
-
-
-class OutputError(LegsimError, ValueError):
-    """An output (html, plot) cannot be produced; the message names the file."""
-
+from legsim.output.trace import execution_trace, trace_series
 
 #: Largest magnitude a plot draws. matplotlib's tick and transform arithmetic overflows on
 #: values near the float64 limit (1.8e308: "arange: cannot compute length"), which is where a
 #: diverging run ends, so larger (and non-finite) values are left out of the lines.
 PLOT_LIMIT = 1e300
-
-
-def resolve_model(scene: Any, model: Model | None, what: str) -> Model | None:
-    """The model of ``scene`` or the ``model=`` keyword (not both)."""
-    if scene is not None:
-        if model is not None and model is not scene.model:
-            raise OutputError(f"{what}: give either a scene or model=, not both")
-        return scene.model
-    return model
-
-
-def write_atomic(path: str | os.PathLike, write: Callable[[Path], None], suffix: str = "") -> Path:
-    """Call ``write(tmp)`` on a temporary file next to ``path``, then rename it to ``path``.
-
-    The file appears complete or not at all; the temporary file is removed on any failure.
-    It is created with open(..., "xb") (not mkstemp) so it gets the usual permissions.
-    """
-    path = Path(path)
-    tmp = path.parent / f".{path.name}.{uuid.uuid4().hex[:12]}.tmp{suffix}"
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        open(tmp, "xb").close()
-    except OSError as exc:
-        raise OutputError(f"{path}: cannot write: {exc}") from exc
-    try:
-        write(tmp)
-        os.replace(tmp, path)
-    except BaseException as exc:
-        tmp.unlink(missing_ok=True)
-        if isinstance(exc, OSError):
-            raise OutputError(f"{path}: cannot write: {exc}") from exc
-        raise
-    return path
 
 
 @dataclass
@@ -137,7 +95,7 @@ def plot_data_from_execution(execution: Execution, title: str) -> PlotData:
 
 
 def plot_data_from_recording(data: dict[str, Any]) -> PlotData:
-    """The same, from ``legsim.record.read_rrd`` output."""
+    """The same, from ``legsim.record.read_rrd`` output (the recorded samples)."""
     series = {}
     for nm, (t, v) in data["series"].items():
         series[nm] = _with_breaks(np.asarray(data["series_rows"][nm]), np.asarray(t), np.asarray(v))

@@ -10,11 +10,12 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from legsim.errors import OutputError
 from legsim.execution import Execution
-from legsim.record import write_rrd
+from legsim.output.rrd import write_rrd
 
-from ._common import OutputError, plot_data_from_execution
-from .plots import MODE_COLOURS, STRIP_COLOUR, STRIP_GID, SPAN_RESOLUTION, save_figure, span_patch
+from ._common import plot_data_from_execution
+from .plots import SPAN_RESOLUTION, mode_band, save_figure, state_panel
 
 
 def parse_out(description: str, argv: Sequence[str] | None = None) -> Path:
@@ -99,29 +100,12 @@ def state_panels(fig, gridspec_column, execution: Execution, coordinates: Sequen
     tol = (data.t_end - data.t0) / SPAN_RESOLUTION
     for i, name in enumerate(coordinates):
         ax = fig.add_subplot(sub[i], sharex=axes[0] if axes else None)
-        t, v = data.series[name]
-        ax.plot(t, v, color="k", lw=1.0)
-        if data.strips:
-            span_patch(ax, data.strips, STRIP_COLOUR, STRIP_GID, tol)
+        state_panel(ax, data, name, tol)
         ax.set_ylabel(name + (f" ({units[name]})" if units and name in units else ""))
-        ax.grid(True, lw=0.3, alpha=0.5)
         ax.tick_params(labelbottom=False)
         axes.append(ax)
     band = fig.add_subplot(sub[-1], sharex=axes[0])
-    modes = list(dict.fromkeys(m for m, _, _ in data.segments))
-    for i, m in enumerate(modes):
-        span_patch(band, [(a, b) for mm, a, b in data.segments if mm == m], MODE_COLOURS[i % len(MODE_COLOURS)],
-                   f"modes:{m}", tol)
-    if data.strips:
-        span_patch(band, data.strips, STRIP_COLOUR, STRIP_GID, tol)
-    band.set_yticks([])
-    band.set_xlim(data.t0, data.t_end)
-    band.set_xlabel("time (s)")
-    from matplotlib.patches import Patch
-
-    handles = [Patch(color=MODE_COLOURS[i % len(MODE_COLOURS)], label=m) for i, m in enumerate(modes)]
-    if data.strips:
-        handles.append(Patch(color=STRIP_COLOUR, label="strip"))
+    handles = mode_band(band, data, tol)
     band.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.8), ncol=len(handles),
                 fontsize="small", frameon=False)
     axes[0].set_title(title, fontsize="medium")

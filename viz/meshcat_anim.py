@@ -30,10 +30,12 @@ from typing import Any
 import numpy as np
 
 from legsim.builders import Model
+from legsim.errors import OutputError
 from legsim.execution import Execution
-from legsim.record import Frames, frame_times, geometry_frames
+from legsim.output.files import write_atomic
+from legsim.output.trace import Frames, frame_times, geometry_frames, resolve_model
 
-from ._common import OutputError, resolve_model, run_title, write_atomic
+from ._common import run_title
 
 #: Frames per simulated second in an animation, and their most (longer runs get fewer).
 HTML_FPS = 30.0
@@ -211,86 +213,110 @@ def _meshcat():
 
 
 def _commands(frames: Frames, speed: float) -> list[dict[str, Any]]:
-    mc = _meshcat()
-    g = mc.geometry
-    Animation, AnimationClip, AnimationTrack = (mc.animation.Animation, mc.animation.AnimationClip,
-                                                mc.animation.AnimationTrack)
-    SetAnimation, SetObject, SetProperty, SetTransform = (mc.commands.SetAnimation, mc.commands.SetObject,
-                                                          mc.commands.SetProperty, mc.commands.SetTransform)
-    MPath = mc.path.Path
-
-    root = MPath(("meshcat",))
-    cmds: list[dict[str, Any]] = []
+    """The meshcat commands of the page, in the order they must run: background, scenery, the
+    robot's parts, the camera, and last the animation that moves what exists by then."""
     cam_x, cam_z, distance = camera_track(frames)
-    w = _thickness(frames, distance)
-    # Key times in seconds of playback (clip fps 1): three.js interpolates between them.
-    key_times = [float(t) for t in (np.asarray(frames.times) - frames.times[0]) / speed]
-
-    cmds.append(SetProperty("visible", False, MPath(("Grid",))).lower())
-    cmds.append(SetProperty("visible", False, MPath(("Axes",))).lower())
-    cmds.append(SetProperty("top_color", BACKGROUND_TOP, MPath(("Background",))).lower())
-    cmds.append(SetProperty("bottom_color", BACKGROUND_BOTTOM, MPath(("Background",))).lower())
-
+    scene = _SceneCommands(frames, speed, _thickness(frames, distance))
+    scene.background()
     for part, line in frames.scenery.items():
-        seg = _segments(line, max(len(line) - 1, 0))
-        for j, (mx, mz, length, phi, present, _) in enumerate(seg):
-            path = root.append(f"scenery/{part}/{j}")
-            cmds.append(SetObject(g.Box([1.0, w, w]), g.MeshBasicMaterial(color=SCENERY_COLOUR), path).lower())
-            cmds.append(SetTransform(_matrix(mx, mz, max(length, TINY), phi), path).lower())
-
-    animation = Animation(default_framerate=1)
+        scene.scenery(part, line)
     for k, (part, lines) in enumerate(frames.parts.items()):
-        colour = PART_COLOURS[k % len(PART_COLOURS)]
-        material = g.MeshBasicMaterial(color=colour)
-        most = max((len(line) for line in lines if line is not None), default=0)
-        if most == 0:
-            continue
-        if most == 1:
-            # A part drawn as a single point: a ball that moves.
-            path = root.append(f"robot/{part}/0")
-            cmds.append(SetObject(g.Sphere(2.5 * w), material, path).lower())
-            pos, scale = [], []
-            for line in lines:
-                there = line is not None and len(line) == 1
-                p = line[0] if there else np.zeros(2)
-                pos.append([float(p[0]), 0.0, float(p[1])])
-                s = 1.0 if there else TINY
-                scale.append([s, s, s])
-            clip = AnimationClip(fps=1)
-            clip.tracks["position"] = AnimationTrack("position", "vector3", list(key_times), pos)
-            clip.tracks["scale"] = AnimationTrack("scale", "vector3", list(key_times), scale)
-            animation.clips[path] = clip
-            continue
-        count = most - 1
-        table = np.stack([_segments(line, count) for line in lines])  # (F, count, 6)
-        for j in range(count):
-            path = root.append(f"robot/{part}/{j}")
-            cmds.append(SetObject(g.Box([1.0, w, w]), material, path).lower())
-            rows = table[:, j, :]
-            pos = [[float(r[0]), 0.0, float(r[1])] for r in rows]
-            quat = [[0.0, math.sin(r[3] / 2), 0.0, math.cos(r[3] / 2)] for r in rows]
-            scale = [[max(float(r[2]), TINY), 1.0, 1.0] if r[4] else [TINY, TINY, TINY] for r in rows]
-            clip = AnimationClip(fps=1)
-            clip.tracks["position"] = AnimationTrack("position", "vector3", list(key_times), pos)
-            clip.tracks["quaternion"] = AnimationTrack("quaternion", "quaternion", list(key_times), quat)
-            clip.tracks["scale"] = AnimationTrack("scale", "vector3", list(key_times), scale)
-            animation.clips[path] = clip
+        scene.part(part, lines, PART_COLOURS[k % len(PART_COLOURS)])
+    scene.camera(cam_x, cam_z, distance)
+    return scene.finish()
 
-    # meshcat's orbit controls always look at the world origin, so rather than moving the
-    # camera we move the whole drawing (/meshcat) to put the point of interest there.
-    cmds.append(SetTransform(_matrix(-float(cam_x[0]), -cam_z, 1.0, 0.0), root).lower())
-    # The camera sits in meshcat's y-up "rotated" frame: local +z is world -y.
-    cam_obj = MPath(("Cameras", "default", "rotated", "<object>"))
-    cmds.append(SetProperty("position", [0.0, 0.0, distance], cam_obj).lower())
-    cmds.append(SetProperty("far", 20.0 * distance + 100.0, cam_obj).lower())
-    if np.ptp(cam_x) > 0:
-        clip = AnimationClip(fps=1)
-        clip.tracks["position"] = AnimationTrack("position", "vector3", list(key_times),
-                                                 [[-float(x), 0.0, -cam_z] for x in cam_x])
-        animation.clips[root] = clip
-    if animation.clips:
-        cmds.append(SetAnimation(animation, play=True, repetitions=1_000_000).lower())
-    return cmds
+
+class _SceneCommands:
+    """Collects the lowered meshcat commands (``cmds``) and animation clips of one page.
+
+    ``key_times``: the frames' times in seconds of playback (clip fps 1; three.js interpolates
+    between them); ``w``: the width (m) of the drawn lines.
+    """
+
+    def __init__(self, frames: Frames, speed: float, w: float) -> None:
+        mc = _meshcat()
+        self.g, self.anim, self.commands, self.Path = mc.geometry, mc.animation, mc.commands, mc.path.Path
+        self.root = self.Path(("meshcat",))
+        self.w = w
+        self.key_times = [float(t) for t in (np.asarray(frames.times) - frames.times[0]) / speed]
+        self.cmds: list[dict[str, Any]] = []
+        self.animation = self.anim.Animation(default_framerate=1)
+
+    def set_property(self, name: str, value: Any, *path: str) -> None:
+        self.cmds.append(self.commands.SetProperty(name, value, self.Path(path)).lower())
+
+    def add(self, shape: Any, material: Any, path: Any, transform: np.ndarray | None = None) -> None:
+        self.cmds.append(self.commands.SetObject(shape, material, path).lower())
+        if transform is not None:
+            self.cmds.append(self.commands.SetTransform(transform, path).lower())
+
+    def clip(self, path: Any, **tracks: tuple[str, list]) -> None:
+        """Animate ``path``: track name -> (value type, one value per key time)."""
+        clip = self.anim.AnimationClip(fps=1)
+        for name, (kind, values) in tracks.items():
+            clip.tracks[name] = self.anim.AnimationTrack(name, kind, list(self.key_times), values)
+        self.animation.clips[path] = clip
+
+    def background(self) -> None:
+        self.set_property("visible", False, "Grid")
+        self.set_property("visible", False, "Axes")
+        self.set_property("top_color", BACKGROUND_TOP, "Background")
+        self.set_property("bottom_color", BACKGROUND_BOTTOM, "Background")
+
+    def scenery(self, part: str, line: np.ndarray) -> None:
+        """A static polyline: one box per segment."""
+        material = self.g.MeshBasicMaterial(color=SCENERY_COLOUR)
+        for j, (mx, mz, length, phi, _, _) in enumerate(_segments(line, max(len(line) - 1, 0))):
+            self.add(self.g.Box([1.0, self.w, self.w]), material, self.root.append(f"scenery/{part}/{j}"),
+                     _matrix(mx, mz, max(length, TINY), phi))
+
+    def part(self, part: str, lines: list[np.ndarray | None], colour: int) -> None:
+        """A robot part: a moving ball when it is one point, else one keyframed box per segment."""
+        material = self.g.MeshBasicMaterial(color=colour)
+        most = max((len(line) for line in lines if line is not None), default=0)
+        if most == 1:
+            self.point(part, lines, material)
+        table = np.stack([_segments(line, most - 1) for line in lines]) if most > 1 else None  # (F, most - 1, 6)
+        for j in range(most - 1):
+            self.segment(part, j, table[:, j, :], material)
+
+    def point(self, part: str, lines: list[np.ndarray | None], material: Any) -> None:
+        path = self.root.append(f"robot/{part}/0")
+        self.add(self.g.Sphere(2.5 * self.w), material, path)
+        pos, scale = [], []
+        for line in lines:
+            there = line is not None and len(line) == 1
+            p = line[0] if there else np.zeros(2)
+            pos.append([float(p[0]), 0.0, float(p[1])])
+            s = 1.0 if there else TINY
+            scale.append([s, s, s])
+        self.clip(path, position=("vector3", pos), scale=("vector3", scale))
+
+    def segment(self, part: str, j: int, rows: np.ndarray, material: Any) -> None:
+        """Segment ``j`` of a part: ``rows`` (F, 6) as ``_segments`` gives them, one per frame."""
+        path = self.root.append(f"robot/{part}/{j}")
+        self.add(self.g.Box([1.0, self.w, self.w]), material, path)
+        pos = [[float(r[0]), 0.0, float(r[1])] for r in rows]
+        quat = [[0.0, math.sin(r[3] / 2), 0.0, math.cos(r[3] / 2)] for r in rows]
+        scale = [[max(float(r[2]), TINY), 1.0, 1.0] if r[4] else [TINY, TINY, TINY] for r in rows]
+        self.clip(path, position=("vector3", pos), quaternion=("quaternion", quat), scale=("vector3", scale))
+
+    def camera(self, cam_x: np.ndarray, cam_z: float, distance: float) -> None:
+        # meshcat's orbit controls always look at the world origin, so rather than moving the
+        # camera we move the whole drawing (/meshcat) to put the point of interest there.
+        self.cmds.append(self.commands.SetTransform(_matrix(-float(cam_x[0]), -cam_z, 1.0, 0.0), self.root).lower())
+        # The camera sits in meshcat's y-up "rotated" frame: local +z is world -y.
+        cam_obj = ("Cameras", "default", "rotated", "<object>")
+        self.set_property("position", [0.0, 0.0, distance], *cam_obj)
+        self.set_property("far", 20.0 * distance + 100.0, *cam_obj)
+        if np.ptp(cam_x) > 0:
+            self.clip(self.root, position=("vector3", [[-float(x), 0.0, -cam_z] for x in cam_x]))
+
+    def finish(self) -> list[dict[str, Any]]:
+        """The commands, with the animation of every clip last."""
+        if self.animation.clips:
+            self.cmds.append(self.commands.SetAnimation(self.animation, play=True, repetitions=1_000_000).lower())
+        return self.cmds
 
 
 def _matrix(x: float, z: float, length: float, phi: float) -> np.ndarray:
@@ -391,7 +417,7 @@ def write_html(execution: Execution | None, scene: Any = None, path: str | os.Pa
         # Otherwise a robot vanishing mid-animation would look like a bug of the page.
         title += f" (diverged: not drawn past t = {cut:.6g} s)"
     page = animation_html(frames, title=title, speed=speed)
-    return write_atomic(path, lambda tmp: tmp.write_text(page, encoding="utf-8"), suffix=".html")
+    return write_atomic(path, lambda tmp: tmp.write_text(page, encoding="utf-8"), what="html")
 
 
 #: ``legsim run`` refuses --html before the run when the scene's model has no geometry.

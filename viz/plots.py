@@ -11,6 +11,7 @@ never through pyplot, so no display or global backend is touched.
 from __future__ import annotations
 
 import os
+from itertools import groupby
 from pathlib import Path
 from typing import Any, Sequence
 
@@ -19,8 +20,11 @@ import numpy as np
 from legsim.builders import Model
 from legsim.execution import Execution
 
-from ._common import (OutputError, PlotData, plot_data_from_execution, plot_data_from_recording, resolve_model,
-                      run_title, write_atomic)
+from legsim.errors import OutputError
+from legsim.output.files import write_atomic
+from legsim.output.trace import resolve_model
+
+from ._common import PlotData, plot_data_from_execution, plot_data_from_recording, run_title
 
 #: gid of the strip shading in every state panel, and of the mode band (for tests and tools).
 STRIP_GID = "strips"
@@ -50,7 +54,6 @@ def state_figure(data: PlotData, coordinates: Sequence[str] | None = None, *, wi
     """
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
-    from matplotlib.patches import Patch
 
     names = list(data.series) if coordinates is None else list(coordinates)
     unknown = [n for n in names if n not in data.series]
@@ -62,31 +65,15 @@ def state_figure(data: PlotData, coordinates: Sequence[str] | None = None, *, wi
     ratios = [3] * n + [1]
     axes = fig.subplots(n + 1, 1, sharex=True, gridspec_kw={"height_ratios": ratios})
     axes = np.atleast_1d(axes)
-    spans = data.strips
     # Intervals closer than 1/20 of a pixel (at 1000 px across) are drawn joined.
     tol = (data.t_end - data.t0) / SPAN_RESOLUTION
     for ax, name in zip(axes[:-1], names):
-        t, v = data.series[name]
-        ax.plot(t, v, color="k", lw=1.0)
-        if spans:
-            span_patch(ax, spans, STRIP_COLOUR, STRIP_GID, tol)
+        state_panel(ax, data, name, tol)
         ax.set_ylabel(name)
-        ax.grid(True, lw=0.3, alpha=0.5)
     band = axes[-1]
-    modes = list(dict.fromkeys(m for m, _, _ in data.segments))
-    colour = {m: MODE_COLOURS[i % len(MODE_COLOURS)] for i, m in enumerate(modes)}
-    for m in modes:
-        span_patch(band, [(a, b) for mm, a, b in data.segments if mm == m], colour[m], f"{MODE_GID}:{m}", tol)
-    if spans:
-        span_patch(band, spans, STRIP_COLOUR, STRIP_GID, tol)
+    handles = mode_band(band, data, tol)
     band.set_ylim(0, 1)
-    band.set_yticks([])
     band.set_ylabel("mode", rotation=0, ha="right", va="center")
-    band.set_xlabel("time (s)")
-    band.set_xlim(data.t0, data.t_end)
-    handles = [Patch(color=colour[m], label=m) for m in modes]
-    if spans:
-        handles.append(Patch(color=STRIP_COLOUR, label="strip"))
     band.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.9), ncol=min(len(handles), 6),
                 fontsize="small", frameon=False)
     seq = [m for m, _, _ in data.segments]
@@ -94,6 +81,37 @@ def state_figure(data: PlotData, coordinates: Sequence[str] | None = None, *, wi
     note = f"\n{data.omitted_note}" if data.omitted_note else ""
     axes[0].set_title(f"{data.title}\nmode sequence: {_short_sequence(seq)}{note}", fontsize="medium")
     return fig
+
+
+def state_panel(ax, data: PlotData, name: str, tol: float) -> None:
+    """One coordinate against time on ``ax``, with the strips shaded (``span_patch``, joined
+    within ``tol`` s)."""
+    t, v = data.series[name]
+    ax.plot(t, v, color="k", lw=1.0)
+    if data.strips:
+        span_patch(ax, data.strips, STRIP_COLOUR, STRIP_GID, tol)
+    ax.grid(True, lw=0.3, alpha=0.5)
+
+
+def mode_band(band, data: PlotData, tol: float) -> list:
+    """The mode band on ``band``: each segment's interval in its mode's colour, the strips over
+    them, over the run's time span with time labelled. Returns the legend handles (one per mode,
+    and one for the strips)."""
+    from matplotlib.patches import Patch
+
+    modes = list(dict.fromkeys(m for m, _, _ in data.segments))
+    colour = {m: MODE_COLOURS[i % len(MODE_COLOURS)] for i, m in enumerate(modes)}
+    for m in modes:
+        span_patch(band, [(a, b) for mm, a, b in data.segments if mm == m], colour[m], f"{MODE_GID}:{m}", tol)
+    if data.strips:
+        span_patch(band, data.strips, STRIP_COLOUR, STRIP_GID, tol)
+    band.set_yticks([])
+    band.set_xlabel("time (s)")
+    band.set_xlim(data.t0, data.t_end)
+    handles = [Patch(color=colour[m], label=m) for m in modes]
+    if data.strips:
+        handles.append(Patch(color=STRIP_COLOUR, label="strip"))
+    return handles
 
 
 def merge_spans(spans: Sequence[tuple[float, float]], tol: float = 0.0) -> np.ndarray:
@@ -145,12 +163,7 @@ def span_bounds(patch) -> np.ndarray:
 def _short_sequence(seq: list[str], keep: int = 4) -> str:
     """Runs of one mode written once with a count (a bouncing ball is ``flight ×13``); long
     sequences keep their ends."""
-    runs: list[list] = []
-    for m in seq:
-        if runs and runs[-1][0] == m:
-            runs[-1][1] += 1
-        else:
-            runs.append([m, 1])
+    runs = [(mode, len(list(repeats))) for mode, repeats in groupby(seq)]
     words = [m if k == 1 else f"{m} ×{k}" for m, k in runs]
     if len(words) <= 2 * keep:
         return " → ".join(words)
@@ -163,7 +176,7 @@ def save_figure(fig, path: str | os.PathLike, dpi: int = 120) -> Path:
     fmt = path.suffix.lower().lstrip(".")
     if fmt not in FORMATS:
         raise OutputError(f"{path}: unsupported figure format '{path.suffix}'; use one of {['.' + f for f in FORMATS]}")
-    return write_atomic(path, lambda tmp: fig.savefig(tmp, format=fmt, dpi=dpi), suffix=path.suffix)
+    return write_atomic(path, lambda tmp: fig.savefig(tmp, format=fmt, dpi=dpi), what="figure")
 
 
 def write_plot(execution: Execution | None, scene: Any = None, path: str | os.PathLike | None = None, *,

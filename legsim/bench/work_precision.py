@@ -20,7 +20,6 @@ import math
 import os
 import statistics
 import sys
-import tempfile
 import time
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
@@ -28,6 +27,7 @@ from typing import Any, Callable, Iterable, Sequence
 
 import numpy as np
 
+from ..output.files import write_atomic
 from .cases import BenchError, Case, RunSpec, Target, make_case, relaxed_method
 
 #: CSV columns, in order.
@@ -312,22 +312,10 @@ def _relaxed_variant(row: Row) -> str:
 # ----------------------------------------------------------------------------------------------
 # Output
 # ----------------------------------------------------------------------------------------------
-def _atomic_write(path: Path, write: Callable[[str], None]) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=path.name + ".", suffix=".tmp" + path.suffix, dir=path.parent)
-    os.close(fd)
-    try:
-        write(tmp)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-
-
 def write_csv(rows: Sequence[Row], path: Path) -> Path:
     """One row per run, columns ``COLUMNS``; written completely or not at all."""
 
-    def write(tmp: str) -> None:
+    def write(tmp: Path) -> None:
         with open(tmp, "w", newline="") as fh:
             w = csv.writer(fh)
             w.writerow(COLUMNS)
@@ -335,8 +323,7 @@ def write_csv(rows: Sequence[Row], path: Path) -> Path:
                 d = asdict(r)
                 w.writerow([_fmt_csv(d[c]) for c in COLUMNS])
 
-    _atomic_write(path, write)
-    return path
+    return write_atomic(path, write, what="bench CSV")
 
 
 def _fmt_csv(v: Any) -> Any:
@@ -404,9 +391,10 @@ def write_figure(result: BenchResult, path: Path) -> Path:
     ax.grid(True, which="both", alpha=0.25)
     ax.legend(fontsize=8, loc="best")
     fig.tight_layout()
-    _atomic_write(path, lambda tmp: fig.savefig(tmp, dpi=110, format="png"))
-    plt.close(fig)
-    return path
+    try:
+        return write_atomic(path, lambda tmp: fig.savefig(tmp, dpi=110, format="png"), what="bench figure")
+    finally:
+        plt.close(fig)
 
 
 def format_table(rows: Sequence[Row]) -> str:

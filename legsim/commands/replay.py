@@ -36,12 +36,6 @@ def has_display() -> bool:
     return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
 
 
-def _writer(kind: str):
-    from .run import find_writer
-
-    return find_writer(kind, f"--{kind}")
-
-
 def _fmt_vec(values) -> str:
     return "[" + ", ".join(f"{float(v):.6g}" for v in values) + "]"
 
@@ -78,9 +72,9 @@ def format_summary(path: Path, data: dict[str, Any]) -> str:
 
 def run(args: argparse.Namespace) -> int:
     from ..errors import LegsimError
-    from ..record import read_rrd
+    from ..output.rrd import read_rrd
 
-    from .run import check_suffix, check_writable
+    from .run import checked_writers
 
     path = Path(args.file)
     if args.spawn and not has_display():
@@ -89,16 +83,11 @@ def run(args: argparse.Namespace) -> int:
     # Every requested output is checked before any is written, so a bad --plot does not leave
     # a fresh --html behind it.
     wanted = {kind: getattr(args, kind) for kind in ("html", "plot") if getattr(args, kind)}
-    writers = {kind: _writer(kind) for kind in wanted}
-    for kind, target in wanted.items():
-        check_writable(Path(target), f"--{kind}")
-        check_suffix(writers[kind], Path(target), f"--{kind}")
+    writers = checked_writers({kind: (Path(target), f"--{kind}") for kind, target in wanted.items()})
     data = read_rrd(path)
-    summary = dict(data["summary"])
-    outputs: dict[str, str] = {}
-    for kind, target in wanted.items():
-        outputs[kind] = str(writers[kind](None, None, target, recording=data))
-    summary["outputs"] = outputs
+    outputs = {kind: str(writers[kind](None, None, target, recording=data)) for kind, target in wanted.items()}
+    # The recorded run_summary, with the files this command wrote, as `legsim run --json` has them.
+    summary = {**data["summary"], "outputs": outputs}
     if args.json:
         print(json.dumps(summary, indent=2, allow_nan=False))
     else:

@@ -4,13 +4,13 @@ The output writers are looked up only when asked for: ``--rrd`` uses
 ``legsim.record.write_rrd``, ``--html`` and ``--plot`` the ``html`` and ``plot`` writers of the
 ``legsim.writers`` entry-point group; each is called as ``writer(execution, scene, path)``.
 Every file is written under a temporary name in its directory and renamed into place only
-when its writer returned, so an output is complete or absent. A run that stops before
-t_final (status other than ``finished``) still writes its outputs (they record the status and
-show where it stopped) and exits with code 3, also when one of them cannot be made: that
-output's error is printed on one line (``legsim: error: --plot FILE: writing failed: ...``),
-no file is left for it, the others are still written, and the exit code stays 3 (the run's
-status is the result; a writer failing on a diverged state is no bad input). After a finished
-run a failed output is an error (exit code 2) as before.
+when its writer returned (``legsim.output.files.write_atomic``), so an output is complete or
+absent. A run that stops before t_final (status other than ``finished``) still writes its
+outputs (they record the status and show where it stopped) and exits with code 3, also when
+one of them cannot be made: that output's error is printed on one line (``legsim: error:
+--plot FILE: writing failed: ...``), no file is left for it, the others are still written,
+and the exit code stays 3 (the run's status is the result; a writer failing on a diverged
+state is no bad input). After a finished run a failed output is an error (exit code 2).
 """
 
 from __future__ import annotations
@@ -19,6 +19,7 @@ import argparse
 import json
 import os
 import sys
+from itertools import groupby
 from pathlib import Path
 from typing import Any, Callable
 
@@ -51,57 +52,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..progress import progress_for
+    from ..output.summary import run_summary
     from ..scene import load_scene
 
     scene = load_scene(args.scene, overrides=args.overrides)
     outputs = requested_outputs(args, scene.output)
-    # Writers and target folders are checked before the run, so that a missing writer or an
-    # unwritable folder costs nothing.
-    writers = {kind: find_writer(kind, source) for kind, (_, source) in outputs.items()}
-    for kind, (path, source) in outputs.items():
-        check_writable(path, source)
-        check_suffix(writers[kind], path, source)
-        if getattr(writers[kind], "needs_geometry", False) and scene.model.geometry is None:
-            raise LegsimError(f"{source} {path}: this output draws the robot, and {scene.model.system.name} "
-                              f"defines no geometry (Model.geometry is None); use --plot or --rrd for it")
-
-    import numpy as np
-
-    bar = progress_for(sys.stderr, enabled=not (args.quiet or args.json), label=scene.name)
-    try:
-        # The integrator checks every state for finiteness and ends a diverging run with status
-        # non_finite naming mode, time and state; numpy's overflow warnings on the way there
-        # would only bury that message.
-        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-            execution = scene.simulate(progress=bar)
-    finally:
-        if bar is not None:
-            bar.close()
-
-    stopped_early = execution.status != "finished"
-    written: dict[str, Path] = {}
-    failures: list[LegsimError] = []
-    # A diverged run hands the writers states near the float64 limit: interpolating them and
-    # Rerun's float32 cast overflow on the way. The writers draw or store what is finite (the
-    # plot leaves out, and says so, what matplotlib cannot draw); numpy's warnings would only
-    # bury the status line, as during the run.
-    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-        for kind, (path, _) in outputs.items():
-            try:
-                written.update(write_outputs(execution, scene, {kind: path}, {kind: writers[kind]}))
-            except LegsimError as exc:
-                if not stopped_early:
-                    raise
-                # The run's status is the result the exit code reports (3), not the output that
-                # could not be made: say which one and why, and still write the others.
-                failures.append(exc)
-
-    from ..scene import run_summary
-
-    summary = run_summary(execution, scene)
-    summary["scene_file"] = str(scene.path)
-    summary["outputs"] = {kind: str(path) for kind, path in written.items()}
+    writers = checked_writers(outputs, scene)
+    execution = _simulate(scene, show_progress=not (args.quiet or args.json))
+    written, failures = _write_all(execution, scene, outputs, writers)
+    summary = run_summary(execution, scene, outputs=written)
     if args.json:
         print(json.dumps(summary, allow_nan=False))
     elif not args.quiet:
@@ -114,6 +73,65 @@ def run(args: argparse.Namespace) -> int:
         print(f"legsim: run stopped early ({summary['status']}): {summary['message']}", file=sys.stderr)
         return 3
     return 0
+
+
+def checked_writers(outputs: dict[str, tuple[Path, str]], scene: Any = None) -> dict[str, Writer]:
+    """kind -> writer of each output (kind -> (path, where it was asked for)), checked before
+    any work is done: writer found, folder writable, suffix accepted, and, with a scene, the
+    geometry present when the writer draws the robot."""
+    writers = {kind: find_writer(kind, source) for kind, (_, source) in outputs.items()}
+    for kind, (path, source) in outputs.items():
+        check_writable(path, source)
+        check_suffix(writers[kind], path, source)
+        if scene is not None and getattr(writers[kind], "needs_geometry", False) and scene.model.geometry is None:
+            raise LegsimError(f"{source} {path}: this output draws the robot, and {scene.model.system.name} "
+                              f"defines no geometry (Model.geometry is None); use --plot or --rrd for it")
+    return writers
+
+
+def _simulate(scene: Any, show_progress: bool) -> Any:
+    """``scene.simulate()`` with a progress bar on stderr (when shown and stderr is a terminal)."""
+    import numpy as np
+
+    from ..progress import progress_for
+
+    bar = progress_for(sys.stderr, enabled=show_progress, label=scene.name)
+    try:
+        # The integrator checks every state for finiteness and ends a diverging run with status
+        # non_finite naming mode, time and state; numpy's overflow warnings on the way there
+        # would only bury that message.
+        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+            return scene.simulate(progress=bar)
+    finally:
+        if bar is not None:
+            bar.close()
+
+
+def _write_all(execution: Any, scene: Any, outputs: dict[str, tuple[Path, str]], writers: dict[str, Writer]
+               ) -> tuple[dict[str, Path], list[LegsimError]]:
+    """Write every output: (kind -> path written, the errors of those that failed).
+
+    After a finished run a failed output is raised. After a run that stopped early the run's
+    status is the result the exit code reports (3), not the output that could not be made: its
+    error is returned to be printed, and the other outputs are still written.
+    """
+    import numpy as np
+
+    written: dict[str, Path] = {}
+    failures: list[LegsimError] = []
+    # A diverged run hands the writers states near the float64 limit: interpolating them and
+    # Rerun's float32 cast overflow on the way. The writers draw or store what is finite (the
+    # plot leaves out, and says so, what matplotlib cannot draw); numpy's warnings would only
+    # bury the status line, as during the run.
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        for kind, (path, _) in outputs.items():
+            try:
+                written.update(write_outputs(execution, scene, {kind: path}, {kind: writers[kind]}))
+            except LegsimError as exc:
+                if execution.status == "finished":
+                    raise
+                failures.append(exc)
+    return written, failures
 
 
 def requested_outputs(args: argparse.Namespace, scene_output: dict[str, str | None] | None = None
@@ -164,12 +182,12 @@ def find_writer(kind: str, source: str = "") -> Writer:
 
 def check_writable(path: Path, label: str) -> None:
     """LegsimError naming ``label`` unless ``path`` can be created (its folder exists and is
-    writable, or can be made inside a writable folder). Leaves nothing behind: the folder is
-    probed with an unnamed temporary file, because permission bits alone say yes to root on a
-    read-only or virtual file system (/proc, /sys)."""
+    writable, or can be made inside a writable folder). Leaves nothing behind: no folder is
+    made, and the nearest existing one is probed with an unnamed temporary file."""
+    from ..output.files import cannot_create_in, check_target
+
     path = Path(path)
-    if path.is_dir():
-        raise LegsimError(f"{label} {path}: is a directory")
+    check_target(path, label)
     ancestor = path.parent
     while not ancestor.exists() and ancestor != ancestor.parent:
         ancestor = ancestor.parent
@@ -177,13 +195,9 @@ def check_writable(path: Path, label: str) -> None:
         raise LegsimError(f"{label} {path}: {ancestor} is not a directory")
     if not os.access(ancestor, os.W_OK | os.X_OK):
         raise LegsimError(f"{label} {path}: cannot write in {ancestor} (permission denied)")
-    import tempfile
-
-    try:
-        with tempfile.TemporaryFile(dir=ancestor):
-            pass
-    except OSError as exc:
-        raise LegsimError(f"{label} {path}: cannot write in {ancestor} ({exc.strerror or exc})") from None
+    reason = cannot_create_in(ancestor)
+    if reason is not None:
+        raise LegsimError(f"{label} {path}: cannot write in {ancestor} ({reason})")
 
 
 def check_suffix(writer: Writer, path: Path, label: str) -> None:
@@ -197,48 +211,40 @@ def check_suffix(writer: Writer, path: Path, label: str) -> None:
 
 def write_outputs(execution: Any, scene: Any, paths: dict[str, Path],
                   writers: dict[str, Writer] | None = None) -> dict[str, Path]:
-    """Call each writer on a temporary file next to its target and rename it into place.
+    """Write each output atomically (``legsim.output.files.write_atomic``): its writer is
+    called on a temporary file next to the target, which is renamed into place when it returns.
 
     Returns kind -> path of the files written. On a writer's failure its temporary file is
-    removed, the target is left as it was, and the error is raised (LegsimError as is, any
-    other exception wrapped in a LegsimError naming the file).
+    removed, the target is left as it was, and a LegsimError naming the flag and the file is
+    raised.
     """
     writers = dict(writers or {})
     written: dict[str, Path] = {}
     for kind, path in paths.items():
         writer = writers.get(kind) or find_writer(kind)
-        path = Path(path)
-        if path.is_dir():
-            raise LegsimError(f"--{kind} {path}: is a directory")
-        path.parent.mkdir(parents=True, exist_ok=True)
-        # Same directory (so the rename is atomic) and same suffix (writers may read the format from it).
-        tmp = path.with_name(f".{path.stem}.partial-{os.getpid()}{path.suffix}")
-        try:
-            writer(execution, scene, tmp)
-            if not tmp.exists():
-                raise LegsimError(f"--{kind} {path}: the writer returned without writing a file")
-            os.replace(tmp, path)
-        except BaseException as exc:
-            # Also on Ctrl-C (KeyboardInterrupt is no Exception): never leave the temporary behind.
-            tmp.unlink(missing_ok=True)
-            if isinstance(exc, LegsimError):
-                # The writer only saw the temporary name: say which file was asked for.
-                raise LegsimError(f"--{kind} {path}: writing failed: "
-                                  f"{str(exc).replace(str(tmp), str(path))}") from exc
-            if isinstance(exc, Exception):
-                raise LegsimError(f"--{kind} {path}: writing failed: {type(exc).__name__}: {exc}") from exc
-            raise
-        written[kind] = path
+        written[kind] = _write_output(writer, execution, scene, Path(path), f"--{kind}")
     return written
 
 
+def _write_output(writer: Writer, execution: Any, scene: Any, path: Path, label: str) -> Path:
+    """``writer(execution, scene, tmp)`` through ``write_atomic``, its errors named by ``label``."""
+    from ..output.files import write_atomic
+
+    def write(tmp: Path) -> None:
+        try:
+            writer(execution, scene, tmp)
+        except LegsimError as exc:
+            # The writer only saw the temporary name: say which file was asked for.
+            raise LegsimError(f"{label} {path}: writing failed: {str(exc).replace(str(tmp), str(path))}") from exc
+        except Exception as exc:
+            raise LegsimError(f"{label} {path}: writing failed: {type(exc).__name__}: {exc}") from exc
+
+    return write_atomic(path, write, what=label)
+
+
 def _compact_modes(sequence: list[str], limit: int = 6) -> str:
-    runs: list[list[Any]] = []
-    for mode in sequence:
-        if runs and runs[-1][0] == mode:
-            runs[-1][1] += 1
-        else:
-            runs.append([mode, 1])
+    """Runs of one mode written once with a count (``flight x13``); long sequences keep their ends."""
+    runs = [(mode, len(list(repeats))) for mode, repeats in groupby(sequence)]
     parts = [m if n == 1 else f"{m} x{n}" for m, n in runs]
     if len(parts) > limit:
         parts = parts[:limit - 2] + ["..."] + parts[-2:]

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import os
 import stat
+import tempfile
 import uuid
 from pathlib import Path
 from typing import Callable
@@ -29,7 +30,8 @@ def check_target(path: Path, what: str) -> None:
     socket would be replaced by the rename)."""
     try:
         mode = path.stat().st_mode
-    except FileNotFoundError:
+    except (FileNotFoundError, NotADirectoryError):
+        # A new name (or one under a file, which creating its folder will report).
         return
     except OSError as exc:
         raise OutputError(f"{what} {path}: cannot write: {exc.strerror or exc}") from exc
@@ -39,13 +41,25 @@ def check_target(path: Path, what: str) -> None:
         raise OutputError(f"{what} {path}: is not a regular file (a device, FIFO or socket); refusing to replace it")
 
 
+def cannot_create_in(folder: Path) -> str | None:
+    """The OS's reason why no file can be created in the existing ``folder``, or None when one
+    can. Probes with an unnamed temporary file, which leaves nothing behind, because permission
+    bits alone say yes to root on a read-only or virtual file system (/proc, /sys)."""
+    try:
+        with tempfile.TemporaryFile(dir=folder):
+            return None
+    except OSError as exc:
+        return str(exc.strerror or exc)
+
+
 def write_atomic(path: str | os.PathLike[str], write: Callable[[Path], None], *, what: str = "output") -> Path:
     """Call ``write(tmp)`` on a temporary file next to ``path``, then rename it to ``path``.
 
     ``what`` names the output in messages (``--rrd``, ``execution file``). Missing folders are
     created. On any failure, Ctrl-C included, the temporary file is removed and an older file at
-    ``path`` is left as it was. Raises ``OutputError`` naming the path for an OS error or a
-    writer that wrote nothing; other exceptions of ``write`` pass through.
+    ``path`` is left as it was. Raises ``OutputError`` naming the path for an OS error (chained
+    to it, as ``__cause__``) or a writer that wrote nothing; other exceptions of ``write`` pass
+    through.
     """
     path = Path(path)
     check_target(path, what)

@@ -51,6 +51,7 @@ from .. import builders
 from ..builders import Builder, Model, Param, resolve_parameters
 from ..errors import LegsimError, ModelError, SceneError
 from ..execution import Execution
+from ..output.summary import run_summary
 from .fields import check_keys, describe, field_error, table_at
 from .files import apply_overrides, read_toml, resolve_scene_path
 
@@ -193,9 +194,8 @@ class Scene:
         return value
 
     def summary(self, execution: Execution) -> dict[str, Any]:
-        """The run summary of ``legsim run --json``: ``Execution.summary()`` plus ``scene``,
-        ``robot``, energies (J, when the system defines one) and any extra counters (the model's).
-        Non-finite numbers become None so the result is valid JSON."""
+        """The run summary of ``legsim run --json`` (without ``outputs``): see
+        ``legsim.output.summary.run_summary``."""
         return run_summary(execution, self)
 
 
@@ -206,47 +206,6 @@ def _model_counters(model: Model) -> dict[str, Any]:
     if not isinstance(counts, Mapping):
         raise ModelError(f"{model.system.name}: Model.counters() must return a dict, got {type(counts).__name__}")
     return dict(counts)
-
-
-def run_summary(execution: Execution, scene: Scene | None = None) -> dict[str, Any]:
-    """JSON-ready summary of a run (the keys of ``legsim run --json`` and ``legsim replay --json``).
-
-    ``execution.summary()`` plus: ``scene`` and ``robot`` (when a scene is given),
-    ``energy_initial``/``energy_final`` in J (when the scene's system defines an energy), and
-    every counter of ``execution.counters`` that the summary does not already hold (the model's
-    counters added by ``Scene.simulate``). Non-finite floats are replaced by None.
-    """
-    out = execution.summary()
-    if scene is not None:
-        out["scene"] = scene.name
-        out["robot"] = scene.robot
-        if scene.model.system.energy is not None:
-            out["energy_initial"] = scene.energy(scene.initial_mode, scene.initial_state)
-            try:
-                out["energy_final"] = scene.energy(execution.final_mode, execution.final_state)
-            except ModelError:
-                # A run that stopped (non_finite, ...) may end on a state the energy cannot take
-                # (a float overflow); its summary must still be printed. After a finished run a
-                # failing energy is the model's bug and is raised.
-                if execution.status == "finished":
-                    raise
-                out["energy_final"] = None
-    for key, value in execution.counters.items():
-        if key not in out:
-            out[key] = value
-    return _finite_or_none(out)
-
-
-def _finite_or_none(obj: Any) -> Any:
-    if isinstance(obj, dict):
-        return {k: _finite_or_none(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_finite_or_none(v) for v in obj]
-    if isinstance(obj, (np.floating, np.integer)):
-        obj = obj.item()
-    if isinstance(obj, float) and not math.isfinite(obj):
-        return None
-    return obj
 
 
 def load_scene(path_or_name: str | os.PathLike, overrides: Sequence[str] = ()) -> Scene:

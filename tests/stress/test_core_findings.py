@@ -1,10 +1,9 @@
-"""Minimal reproductions of the core bugs the stress suite found, now fixed in the core
-(docs/stress.md, "Findings"): they keep the fixes in place."""
+"""Minimal reproductions of the core bugs the stress suite found (docs/stress.md, "Findings"):
+they keep the core's fixes in place."""
 
 import math
 
 import numpy as np
-import pytest
 
 from legsim import HybridSystem, Mode, Transition, simulate
 from legsim.errors import ModelBreakdown

@@ -2,8 +2,6 @@
 
 import json
 
-import pytest
-
 from legsim import stress
 from legsim.cli import main
 
@@ -19,9 +17,7 @@ def test_json_lists_name_and_passed_and_exits_zero_when_all_pass(capsys):
         assert all(c["passed"] for c in r["checks"])
 
 
-def test_table_names_the_failed_check_and_exits_one(capsys, monkeypatch):
-    monkeypatch.setattr(stress, "CASES", list(stress.CASES))
-
+def test_table_names_the_failed_check_and_exits_one(capsys, scratch_cases):
     @stress.case("always_failing", "extremes", "a check that cannot hold")
     def _fails(result, quick):
         result.add(stress.Check("impossible", False, "1 > 2"))
@@ -40,8 +36,3 @@ def test_list_and_unknown_selection(capsys):
     assert main(["stress", "--case", "no_such_case"]) == 2
     err = capsys.readouterr().err
     assert "no stress case matches ['no_such_case']" in err and "zeno_ball_c0.5" in err
-
-
-@pytest.mark.parametrize("group", ["zeno", "grazing", "simultaneous", "resting", "extremes"])
-def test_every_group_has_cases(group):
-    assert stress.select([group]), group

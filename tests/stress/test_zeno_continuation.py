@@ -1,6 +1,7 @@
-"""Zeno continuation of the forced oscillator with a stop (paper 000 Table I Example 2): the
-effect ``zeno = { window = h + eps }`` sticks where the impacts accumulate and releases where the
-free acceleration at the stop changes sign, against the exact reference; its guards."""
+"""Zeno continuation against the exact references: the forced oscillator with a stop (paper 000
+Table I Example 2, effect ``zeno = { window = h + eps }``) sticks where the impacts accumulate
+and releases where the free acceleration at the stop changes sign; the bouncing ball keeps the
+plain run's bounces, then rests. The oscillator's guards: tests/systems/test_oscillator_zeno.py."""
 
 import math
 
@@ -8,17 +9,15 @@ import numpy as np
 import pytest
 
 from legsim import simulate
-from legsim.errors import ModelError, SceneError
-from legsim.scene import load_scene
-from legsim.stress import _oscillator_model
-from legsim.systems.oscillator import make_system
+from legsim.errors import ModelError
+from legsim.stress.models import oscillator_ex2
 
 T = 4 * math.pi
 
 
 def test_example_2_sticks_and_releases_as_the_reference_does_with_few_transitions():
     h, eps = 1e-2, 1e-5
-    model = _oscillator_model(True, h + eps)
+    model = oscillator_ex2(True, h + eps)
     ref = model.reference
     ex = simulate(model.system, [-0.8, 0.0], "free", T, h, eps, control=model.control)
     names = [tr.name for tr in ex.transitions]
@@ -39,44 +38,6 @@ def test_example_2_sticks_and_releases_as_the_reference_does_with_few_transition
     ts = ex.step_times()
     rho = np.max(np.abs(np.concatenate([s.x[:, 0] for s in ex.segments]) - ref.position(ts)))
     assert rho < 1e-5
-
-
-def test_guards_decide_between_bounce_and_stick_by_the_rebound_and_the_force():
-    window = 2e-3
-    system = make_system(1.0, 0.95, -0.8, 0.5, zeno_window=window)
-    guards = {tr.name: tr for tr in system.outgoing("free")}
-    assert set(guards) == {"impact", "stick"} and all(tr.guard_args == "t,x,u" for tr in guards.values())
-    (release,) = system.outgoing("stuck")
-    assert release.name == "release" and release.target == "free"
-    depth = 1e-7
-    # u = 1 N: F = 1 + 0.8 = 1.8 m/s^2 pressing; threshold F window / 2 = 1.8e-3 m/s for c v0
-    for speed, sticks in ((1e-4, True), (3e-3, True), (4e-3, False), (1.0, False)):
-        x = np.array([-0.8 + depth, speed])
-        g_stick, g_impact = guards["stick"].guard_value(x, 0.0, 1.0), guards["impact"].guard_value(x, 0.0, 1.0)
-        assert (g_stick < 0) == sticks and (g_impact < 0) == (not sticks)
-        assert min(g_stick, g_impact) == pytest.approx(-depth)  # the branch taken has the stop's guard
-    # u = -1 N: F = -1 + 0.8 < 0 pulls the mass off: even a slow impact bounces
-    x = np.array([-0.8 + depth, 1e-4])
-    assert guards["stick"].guard_value(x, 0.0, -1.0) > 0 > guards["impact"].guard_value(x, 0.0, -1.0)
-    # the release guard is F itself (m/s^2)
-    assert release.guard_value(np.array([-0.8, 0.0]), 0.0, 1.0) == pytest.approx(1.8)
-
-
-def test_without_a_window_the_system_is_the_plain_one():
-    plain = make_system(1.0, 0.95, -0.8, 0.5)
-    assert list(plain.modes) == ["free"] and [tr.name for tr in plain.outgoing("free")] == ["impact"]
-    assert plain.outgoing("free")[0].guard_args == "x"
-    with pytest.raises(ModelError, match="zeno_window must be finite and >= 0"):
-        make_system(1.0, 0.95, -0.8, 0.5, zeno_window=-1.0)
-
-
-def test_the_scene_switches_it_on_by_effect():
-    scene = load_scene("oscillator_ex2", overrides=["effects.zeno.window=0.01001"])
-    assert sorted(scene.model.system.modes) == ["free", "stuck"]
-    ex = scene.simulate()
-    assert ex.status == "finished" and len(ex.transitions) <= 15
-    with pytest.raises(SceneError, match="effects.zeno.window"):
-        load_scene("oscillator_ex2", overrides=["effects.zeno.window=0"])
 
 
 def test_the_ball_rests_after_its_bounces_as_long_as_a_step_and_keeps_the_plain_bounces_before():

@@ -1,0 +1,142 @@
+"""The recorded components of a Rerun file, per entity, as arrow arrays with their row index.
+
+``read_columns`` streams a file with Rerun's own reader (``rerun.chunk.RrdReader``) and keeps
+every chunk's components under its entity; ``Columns`` converts them to numbers, strings or
+arrays only when asked for, sorted by row (the ``sample`` or ``frame`` timeline; -1 for static
+rows).
+"""
+
+from __future__ import annotations
+
+import warnings
+from pathlib import Path
+from typing import Any, Iterator
+
+import numpy as np
+
+from ..trace import RecordingError, concatenated_ranges
+from .layout import FRAME_TIMELINE, SAMPLE_TIMELINE, TIMELINE
+
+
+class Columns:
+    """The recorded components, per entity, as arrow arrays with their row index (the
+    ``sample`` or ``frame`` timeline; -1 for static rows), converted only when asked for."""
+
+    #: Index and bookkeeping columns of a chunk, which are no component.
+    SKIP = ("rerun.controls.RowId", TIMELINE, SAMPLE_TIMELINE, FRAME_TIMELINE, "log_time", "log_tick")
+
+    def __init__(self) -> None:
+        self.data: dict[str, dict[str, list[tuple[np.ndarray, Any]]]] = {}
+
+    def add(self, entity: str, index: np.ndarray, batch: Any) -> None:
+        """Keep the components of an arrow record batch whose rows have the indices ``index``."""
+        comps = self.data.setdefault(entity, {})
+        for name in batch.schema.names:
+            if name not in self.SKIP:
+                comps.setdefault(name, []).append((index, batch.column(name)))
+
+    def entities(self) -> list[str]:
+        return list(self.data)
+
+    def _pieces(self, entity: str, component: str) -> Iterator[tuple[np.ndarray, Any]]:
+        """(row indices, arrow column) of each chunk, without the rows where it is null."""
+        for index, column in self.data.get(entity, {}).get(component, []):
+            valid = column.is_valid()
+            yield index[np.asarray(valid.to_numpy(zero_copy_only=False), dtype=bool)], column.filter(valid)
+
+    def numbers(self, entity: str, component: str = "Scalars:scalars") -> tuple[np.ndarray, np.ndarray]:
+        """(row indices, values) of a one-number-per-row component, sorted by row."""
+        idx_parts, val_parts = [], []
+        for index, column in self._pieces(entity, component):
+            if len(column) and not np.all(column.value_lengths().to_numpy(zero_copy_only=False) == 1):
+                raise ValueError(f"{entity}:{component} holds more than one value per row")
+            idx_parts.append(index)
+            val_parts.append(np.asarray(column.flatten().to_numpy(zero_copy_only=False), dtype=float))
+        if not idx_parts:
+            return np.empty(0, dtype=np.int64), np.empty(0)
+        idx = np.concatenate(idx_parts)
+        vals = np.concatenate(val_parts)
+        order = np.argsort(idx, kind="stable")
+        return idx[order], vals[order]
+
+    def _sorted_flat(self, entity: str, component: str) -> tuple[np.ndarray, Any, np.ndarray]:
+        """(row indices sorted, flat values in that order, row lengths in that order)."""
+        import pyarrow as pa
+
+        idx_parts, flat_parts, len_parts = [], [], []
+        for index, column in self._pieces(entity, component):
+            idx_parts.append(index)
+            len_parts.append(np.asarray(column.value_lengths().to_numpy(zero_copy_only=False), dtype=np.int64))
+            flat_parts.append(column.flatten())
+        if not idx_parts:
+            return np.empty(0, dtype=np.int64), [], np.empty(0, dtype=np.int64)
+        idx = np.concatenate(idx_parts)
+        lengths = np.concatenate(len_parts)
+        flat = pa.concat_arrays([f.cast(flat_parts[0].type) for f in flat_parts]) if len(flat_parts) > 1 \
+            else flat_parts[0]
+        order = np.argsort(idx, kind="stable")
+        if np.any(order != np.arange(len(order))):
+            offsets = np.cumsum(lengths) - lengths
+            flat = flat.take(pa.array(concatenated_ranges(offsets[order], lengths[order])))
+            lengths = lengths[order]
+        return idx[order], flat, lengths
+
+    def strings(self, entity: str, component: str) -> list[str]:
+        """Each row's single string, sorted by row."""
+        _, flat, lengths = self._sorted_flat(entity, component)
+        if len(lengths) and not np.all(lengths == 1):
+            raise ValueError(f"{entity}:{component} holds more than one value per row")
+        return [] if not len(lengths) else flat.to_pylist()
+
+    def arrays(self, entity: str, component: str) -> list[np.ndarray]:
+        """Each row's values as a float array (rows may differ in length), sorted by row."""
+        _, flat, lengths = self._sorted_flat(entity, component)
+        if not len(lengths):
+            return []
+        values = np.asarray(flat.to_numpy(zero_copy_only=False), dtype=float)
+        return np.split(values, np.cumsum(lengths)[:-1])
+
+    def rows(self, entity: str, component: str) -> list[tuple[int, list]]:
+        """(row index, Python list of the row's values), sorted by row (small entities only)."""
+        out: list[tuple[int, list]] = []
+        for index, column in self._pieces(entity, component):
+            out.extend(zip(index.tolist(), column.to_pylist()))
+        out.sort(key=lambda r: r[0])
+        return out
+
+    def values(self, entity: str, component: str) -> list:
+        """Each row's Python list of values, sorted by row (small entities only)."""
+        return [r[1] for r in self.rows(entity, component)]
+
+
+def read_columns(path: Path) -> Columns:
+    """Every chunk of the Rerun file ``path`` on the sample or frame timeline, or static;
+    RecordingError naming the file when Rerun cannot read it."""
+    try:
+        from rerun.chunk import RrdReader
+
+        with warnings.catch_warnings():
+            # A damaged file also draws a RerunWarning about a missing footer; our error says it.
+            warnings.simplefilter("ignore")
+            chunks = list(RrdReader(path).stream())
+    except Exception as exc:  # rerun raises its own error types for foreign or truncated files
+        raise RecordingError(f"{path}: not a readable Rerun recording ({type(exc).__name__}: {exc})") from exc
+    out = Columns()
+    for chunk in chunks:
+        batch = chunk.to_record_batch()
+        index = _row_index(chunk, batch)
+        if index is not None:
+            out.add(chunk.entity_path, index, batch)
+    return out
+
+
+def _row_index(chunk: Any, batch: Any) -> np.ndarray | None:
+    """The rows' indices on the sample or frame timeline (-1 for static rows); None for a
+    chunk on neither (Rerun's own bookkeeping)."""
+    names = batch.schema.names
+    if chunk.is_static:
+        return np.full(batch.num_rows, -1, dtype=np.int64)
+    for timeline in (SAMPLE_TIMELINE, FRAME_TIMELINE):
+        if timeline in names:
+            return np.asarray(batch.column(timeline).to_numpy(zero_copy_only=False), dtype=np.int64)
+    return None

@@ -1,0 +1,127 @@
+"""The run summary: the one JSON object that describes a run.
+
+``legsim run --json`` prints it, a Rerun recording stores it (``legsim replay --json`` prints
+it back), ``Execution.summary()`` and ``Scene.summary()`` return it. Its keys are public:
+
+* from the execution: ``system``, ``status``, ``message``, ``t_final`` (the time reached, s),
+  ``final_mode``, ``final_state``, ``state_names`` (of the final mode), ``final_in_strip``,
+  ``mode_sequence``, ``transitions`` (a count), ``steps``, ``halvings``, ``field_evals``,
+  ``guard_evals``, ``reset_evals``, ``strip_time`` (s), ``wall_time_s``, ``h``, ``eps``,
+  ``method``;
+* with a scene: ``scene`` (its name) and ``robot``;
+* when the system defines an energy: ``energy_initial`` and ``energy_final`` (J);
+* every other counter of ``execution.counters`` (the model's own, ``error_rejections``);
+* with a scene read from a file: ``scene_file``;
+* from the commands that write files: ``outputs`` (kind -> path written).
+
+Numbers that are not finite become None, so the summary is valid JSON.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Mapping
+
+import numpy as np
+
+from ..errors import ModelError
+
+if TYPE_CHECKING:
+    from ..builders import Model
+    from ..execution import Execution
+    from ..scene import Scene
+
+
+def run_summary(execution: Execution, scene: Scene | None = None, model: Model | None = None, *,
+                outputs: Mapping[str, str | Path] | None = None) -> dict[str, Any]:
+    """The JSON-ready summary of ``execution`` (keys: see the module docstring).
+
+    ``scene`` (a ``legsim.scene.Scene``) adds its name, robot and file; its model, or else
+    ``model=``, gives the energies at the start and the end of the run. ``outputs`` (kind ->
+    path) is added as ``outputs`` by commands that wrote files.
+    """
+    if scene is not None:
+        model = scene.model
+    out = _execution_keys(execution)
+    if scene is not None:
+        out["scene"] = scene.name
+        out["robot"] = scene.robot
+    if model is not None and model.system.energy is not None and execution.segments:
+        out.update(_energies(execution, model))
+    for key, value in execution.counters.items():
+        out.setdefault(key, value)
+    if scene is not None and getattr(scene, "path", None) is not None:
+        out["scene_file"] = str(scene.path)
+    if outputs is not None:
+        out["outputs"] = {kind: str(path) for kind, path in outputs.items()}
+    return finite_or_none(out)
+
+
+def _execution_keys(execution: Execution) -> dict[str, Any]:
+    """The keys every run has: status, final state, mode sequence, counters, settings."""
+    mode, x = execution.final_mode, execution.final_state
+    counters, settings = execution.counters, execution.settings
+    return {
+        "system": execution.system_name,
+        "status": execution.status,
+        "message": execution.message,
+        "t_final": float(execution.t_end),
+        "final_mode": mode,
+        "final_state": [float(v) for v in x],
+        "state_names": list(execution.state_names.get(mode, ())),
+        "final_in_strip": bool(execution.final_in_strip),
+        "mode_sequence": execution.mode_sequence,
+        "transitions": len(execution.transitions),
+        "steps": int(counters.get("steps", 0)),
+        "halvings": int(counters.get("halvings", 0)),
+        "field_evals": int(counters.get("field_evals", 0)),
+        "guard_evals": int(counters.get("guard_evals", 0)),
+        "reset_evals": int(counters.get("reset_evals", 0)),
+        "strip_time": float(counters.get("strip_time", 0.0)),
+        "wall_time_s": float(counters.get("wall_time_s", 0.0)),
+        "h": settings.get("h"),
+        "eps": settings.get("eps"),
+        "method": settings.get("method"),
+    }
+
+
+def _energies(execution: Execution, model: Model) -> dict[str, float | None]:
+    """``energy_initial`` at the first computed point and ``energy_final`` at t_end (J).
+
+    A run that stopped early (non_finite, ...) may end on a state the energy cannot take (a
+    float overflow); its summary must still be printed, so its final energy is then None.
+    After a finished run a failing energy is the model's bug and is raised.
+    """
+    first = execution.segments[0]
+    initial = _energy(model, first.mode, first.x[0].copy())
+    try:
+        final = _energy(model, execution.final_mode, execution.final_state)
+    except ModelError:
+        if execution.status == "finished":
+            raise
+        final = None
+    return {"energy_initial": initial, "energy_final": final}
+
+
+def _energy(model: Model, mode: str, x: np.ndarray) -> float:
+    """The system's energy (J) at (mode, x); ModelError naming the mode when it fails."""
+    try:
+        return float(model.system.energy(mode, np.asarray(x, dtype=float)))
+    except Exception as exc:
+        raise ModelError(f"{model.system.name}: energy in mode '{mode}' failed: "
+                         f"{type(exc).__name__}: {exc}") from exc
+
+
+def finite_or_none(obj: Any) -> Any:
+    """``obj`` (nested dicts and lists) with numpy scalars made Python numbers and floats that
+    are not finite replaced by None, so that ``json.dumps(..., allow_nan=False)`` accepts it."""
+    if isinstance(obj, dict):
+        return {k: finite_or_none(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [finite_or_none(v) for v in obj]
+    if isinstance(obj, (np.floating, np.integer)):
+        obj = obj.item()
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return None
+    return obj

@@ -1,0 +1,434 @@
+"""Zeno cases: infinitely many transitions in finite time. The bouncing ball (plain and with
+Zeno continuation), the double pendulum with a stop (paper 003 Fig. 2c), the two-tank system
+(paper 004 Sec. IV-D) and the forced oscillator with a stop (paper 000 Table I Example 2): each
+runs through and past its Zeno time, and must neither stall nor leave its closed form's bounds.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+from ...execution import Execution
+from ...hybrid import HybridSystem
+from ...relaxed import simulate
+from ...systems.oscillator import EXAMPLES, OscillatorReference
+from ..framework import CaseResult, Check, case
+from ..invariants import check_order, execution_checks, transition_floor
+from ..models import build, double_pendulum, model_state, oscillator_ex2
+from ..reference_checks import ball_flight_checks, ball_rest_check, tank_level_rate, tank_switch_checks
+
+#: Paper 000 Table I Example 2, the oscillator cases' parameters.
+EX2 = EXAMPLES["ex2"]
+
+# ---------------------------------------------------------------------------------------------
+# the bouncing ball
+# ---------------------------------------------------------------------------------------------
+
+
+def _zeno_ball(result: CaseResult, quick: bool, c: float) -> None:
+    g, z0 = 9.81, 1.0
+    model = build("bouncing_ball", {"g": g, "z0": z0}, {"floor": {"restitution": c}})
+    ref = model.reference
+    system = model.system
+    T = 2.0 * ref.zeno_time
+    h, eps = 1e-3, 1e-4
+    floor = transition_floor(h, eps, accel=g)
+    bound = (T - ref.first_impact) / floor + 1
+    ex = simulate(system, [z0, 0.0], "flight", T, h, eps, max_transitions=int(2 * bound) + 10)
+    result.main_run(ex)
+    result.add(execution_checks(system, ex, eps, energy="dissipative", energy_tol=1e-9, bound=bound,
+                                bound_why=f"(T - t1)/{floor:.3g} s: a step or a strip per transition"))
+    result.add(ball_flight_checks(ex, g, eps, resolved=4 * h))
+    result.add(ball_rest_check(ex, c, g, eps, 1.5 * ref.zeno_time, T))
+    # Convergence: the relaxed impacts lag the exact ones by the strips they held; the lag of a
+    # late impact before the Zeno time shrinks like h + eps.
+    k = 6
+    levels = [(2e-3, 2e-4), (1e-3, 1e-4), (5e-4, 5e-5)] + ([] if quick else [(2.5e-4, 2.5e-5), (1.25e-4, 1.25e-5)])
+    lags = []
+    t_k = float(ref.impact_time(k))
+    for hh, ee in levels:
+        run = simulate(system, [z0, 0.0], "flight", t_k + 0.5 * (ref.zeno_time - t_k), hh, ee)
+        lags.append(run.transitions[k - 1].time - t_k)
+    result.add(check_order(f"impact {k} lag -> 0", [lv[0] for lv in levels], lags, 0.7, 1.3, "h (eps = h/10)"))
+    after = sum(tr.time > ref.zeno_time for tr in ex.transitions)
+    result.numbers.update({"zeno_time": ref.zeno_time, "transitions_after_zeno": after,
+                           "lag_impact6_h1e-3": lags[1]})
+    z_end = ex.final_state
+    result.outcome = (f"{ex.status}; {len(ex.transitions) - after} impacts before t_zeno = {ref.zeno_time:.4g} s, "
+                      f"rests (z = {z_end[0]:.1g} m) to {T:.3g} s")
+
+
+@case("zeno_ball_c0.5", "zeno", "bouncing ball, c = 0.5, through and past its Zeno time (to twice it)")
+def _zeno_ball_half(result: CaseResult, quick: bool) -> None:
+    _zeno_ball(result, quick, 0.5)
+
+
+@case("zeno_ball_c0.8", "zeno", "bouncing ball, c = 0.8, through and past its Zeno time (to twice it)")
+def _zeno_ball_08(result: CaseResult, quick: bool) -> None:
+    _zeno_ball(result, quick, 0.8)
+
+
+@case("zeno_ball_c0.8_continued", "zeno", "bouncing ball, c = 0.8, Zeno continuation: the plain bounces, then rest")
+def _zeno_ball_continued(result: CaseResult, quick: bool) -> None:
+    g, z0, c, h, eps = 9.81, 1.0, 0.8, 1e-3, 1e-4
+    window = h + eps
+    model = build("bouncing_ball", {"g": g, "z0": z0}, {"floor": {"restitution": c}, "zeno": {"window": window}})
+    plain_model = build("bouncing_ball", {"g": g, "z0": z0}, {"floor": {"restitution": c}})
+    ref = model.reference
+    T = 2.0 * ref.zeno_time
+    # the exact impacts leave at c^k v1 and the continuation keeps those with c^k v1 >= g window / 2
+    bound = math.log(c * ref.impact_speed / (0.5 * g * window)) / math.log(1.0 / c) + 3
+    start = time.perf_counter()
+    ex = simulate(model.system, [z0, 0.0], "flight", T, h, eps, max_transitions=1000)
+    cost = time.perf_counter() - start
+    result.main_run(ex)
+    result.add(execution_checks(model.system, ex, eps, energy="dissipative", energy_tol=1e-9, bound=bound,
+                                bound_why="log(c v1/w_th)/log(1/c) + 2 bounces and the rest"))
+    result.add(ball_flight_checks(ex, g, eps, resolved=4 * h))
+    start = time.perf_counter()
+    plain = simulate(plain_model.system, [z0, 0.0], "flight", T, h, eps, max_transitions=10 ** 6)
+    plain_cost = time.perf_counter() - start
+    kept = ex.transitions[:-1]
+    same = [a.exit_time for a in kept] == [b.exit_time for b in plain.transitions[:len(kept)]]
+    rests = ex.final_mode == "rest" and ex.transitions[-1].name == "rest"
+    v = abs(float(ex.transitions[-1].state_before[1]))
+    t_rest = ex.transitions[-1].time
+    early = 2 * c * v / (g * (1 - c))
+    ok = same and rests and ref.zeno_time - early - 1e-12 <= t_rest <= ref.zeno_time + len(kept) * window
+    result.add(Check("plain bounces, then rest", ok,
+                     f"{len(kept)} bounces identical to the plain run's, rest at {t_rest:.5g} s (t_zeno "
+                     f"{ref.zeno_time:.5g} s; the skipped tail is {early:.2g} s)"))
+    result.numbers.update({"transitions_plain": len(plain.transitions), "wall_s": cost, "wall_s_plain": plain_cost})
+    result.outcome = (f"{ex.status} in '{ex.final_mode}'; {len(ex.transitions)} transitions vs "
+                      f"{len(plain.transitions)} plain ({cost:.2g} s vs {plain_cost:.2g} s)")
+
+
+# ---------------------------------------------------------------------------------------------
+# the double pendulum with a stop (paper 003 Fig. 2c)
+# ---------------------------------------------------------------------------------------------
+
+
+def flight_ratios(ex: Execution, n: int) -> list[float]:
+    """Ratios of successive flights (strip exit to next crossing) of the first n+1 bounces."""
+    flights = [b.time - a.exit_time for a, b in zip(ex.transitions[:-1], ex.transitions[1:])
+               if a.source == a.target]
+    # The first flight follows the first impact, before which the motion was not a bounce.
+    return [b / a for a, b in zip(flights[1:n + 1], flights[2:n + 2])]
+
+
+def max_guard_accel(system: HybridSystem, ex: Execution, coordinate: int, stride: int = 1) -> float:
+    """Largest |d^2 q/dt^2| of a coordinate (index in the state's velocity block) over the run."""
+    best = 0.0
+    for seg in ex.segments:
+        field = system.mode(seg.mode).field
+        for x, t in zip(seg.x[::stride], seg.t[::stride]):
+            best = max(best, abs(float(np.asarray(field(t, x, None))[coordinate])))
+    return best
+
+
+@case("zeno_double_pendulum_c0.5", "zeno",
+      "double pendulum, stop c = 0.5 (paper 003 Fig. 2c), plain relaxed: impacts accumulate, the run carries on")
+def _zeno_pendulum_plain(result: CaseResult, quick: bool) -> None:
+    h, eps, c = 1e-3, 1e-3, 0.5
+    T = 2.5 if quick else 5.0
+    model, x0 = double_pendulum(c, None)
+    system = model.system
+    ex = simulate(system, x0, "unconstrained", T, h, eps, max_transitions=10 ** 6)
+    result.main_run(ex)
+    a_max = 2.0 * max_guard_accel(system, ex, 3)  # theta2'' measured on the run, with a factor 2 of slack
+    floor = transition_floor(h, eps, accel=a_max)
+    bound = T / floor + 1
+    result.add(execution_checks(system, ex, eps, energy="dissipative", energy_tol=1e-7, bound=bound,
+                                bound_why=f"T/{floor:.3g} s, |theta2''| <= {a_max:.3g} rad/s^2"))
+    ratios = flight_ratios(ex, 6)
+    ok = len(ratios) == 6 and all(abs(r - c) <= 0.02 for r in ratios)
+    result.add(Check("flights shrink by c", ok, "ratios " + ", ".join(f"{r:.3f}" for r in ratios)))
+    # Where the flights are shorter than one step the stop chatters: theta2 stays in the strip's
+    # band (the ball's bound with the largest acceleration).
+    short = [tr.time for a, tr in zip(ex.transitions[:-1], ex.transitions[1:]) if tr.time - a.exit_time < h]
+    t_chatter = short[0] if short else T
+    times = np.linspace(t_chatter, T, 300)
+    th2 = np.array([s[1] for s in ex.sample(times).states])
+    hi = eps * c * c / (1 - c * c)
+    ok = short != [] and th2.min() >= -eps * (1 + 1e-9) and th2.max() <= hi * (1 + 1e-9)
+    result.add(Check("stop chatters in its strip", ok,
+                     f"from {t_chatter:.4g} s theta2 in [{th2.min():.2g}, {th2.max():.2g}] within [-eps, {hi:.2g}] rad"))
+    # The finding: while the stop chatters every step crosses at its start, and the relaxed
+    # algorithm holds the whole state at the strip point: link 1 stops swinging.
+    th1 = np.array([s[0] for s in ex.sample(times).states])
+    frozen = float(np.ptp(th1))
+    result.numbers.update({"chatter_from": t_chatter, "theta1_range_while_chattering": frozen,
+                           "transitions": len(ex.transitions)})
+    result.outcome = (f"{ex.status}; {len(ex.transitions) - len(short)} resolved impacts, chatters from "
+                      f"{t_chatter:.3g} s; whole state held (theta1 range {frozen:.1g} rad)")
+
+
+@case("zeno_double_pendulum_c0.5_continued", "zeno",
+      "double pendulum, stop c = 0.5, Zeno continuation: rests in the constrained mode, released where eq. (31) changes sign")
+def _zeno_pendulum_continued(result: CaseResult, quick: bool) -> None:
+    h, eps, c = 1e-3, 1e-3, 0.5
+    T = 2.5 if quick else 5.0
+    model, x0 = double_pendulum(c, h + eps)
+    system = model.system
+    ex = simulate(system, x0, "unconstrained", T, h, eps, max_transitions=1000)
+    result.main_run(ex)
+    rests = [tr for tr in ex.transitions if tr.name == "rest_stop"]
+    releases = [tr for tr in ex.transitions if tr.name == "release_stop"]
+    bound, pressing = pressing_impact_bound(system, ex, c, h + eps)
+    result.add(execution_checks(system, ex, eps, energy="dissipative", energy_tol=1e-7, bound=bound,
+                                bound_why=f"pressing impacts per accumulation {pressing} <= log(w1/w_th)/log(1/c) + 2"))
+    # The stop torque of the straight rigid pendulum (theta2 = 0) is m2 L2 g sin(theta1) (1 - L (m1 L1 +
+    # m2 L)/(m1 L1^2 + m2 L^2)) with L = L1 + L2: with unit masses and lengths -0.2 g sin(theta1), so
+    # the release is exactly where theta1 crosses zero.
+    th1 = [abs(float(tr.state_before[0])) for tr in releases]
+    ok = len(releases) >= 1 and max(th1) <= 1e-6
+    result.add(Check("released where eq. (31) changes sign", ok,
+                     f"{len(releases)} release(s) at |theta1| <= {max(th1, default=math.nan):.2g} rad (closed form 0)"))
+    # Between each rest and the next release the pendulum is in its constrained mode.
+    ends = [tr.time for tr in rests]
+    spans = [(r.exit_time, next((q.time for q in releases if q.time > r.time), ex.t_end)) for r in rests]
+    modes = [set(ex.sample(np.linspace(a, b, 50, endpoint=False)).modes) for a, b in spans if b > a]
+    ok = bool(rests) and all(m == {"constrained"} for m in modes)
+    result.add(Check("rests in the constrained mode", ok,
+                     "constrained on " + ", ".join(f"[{a:.4g}, {b:.4g}]" for a, b in spans) + " s"))
+    # Cost and agreement with the plain relaxed run up to the accumulation.
+    plain = simulate(double_pendulum(c, None)[0].system, x0, "unconstrained",
+                     ends[0] - 0.05, h, eps, max_transitions=10 ** 6)
+    gap = float(np.max(np.abs(plain.final_state - ex.sample([plain.t_end]).states[0])))
+    result.add(Check("agrees with plain run before resting", gap <= 1e-9,
+                     f"|x_plain - x_continued| = {gap:.2g} at t = {plain.t_end:.4g} s"))
+    result.add(_release_time_converges(c, x0, quick))
+    result.numbers.update({"rest_time": ends[0], "release_times": ", ".join(f"{tr.time:.6g}" for tr in releases)})
+    result.outcome = (f"{ex.status} in '{ex.final_mode}'; rests at {ends[0]:.4g} s, released at "
+                      f"{', '.join(f'{tr.time:.4g}' for tr in releases)} s")
+
+
+def pressing_impact_bound(system: HybridSystem, ex: Execution, c: float, window: float) -> tuple[float, list[int]]:
+    """(bound on the transitions, pressing impacts per accumulation) of the double pendulum with
+    Zeno continuation (``window`` in s).
+
+    In each accumulation (the impacts since the last release) the impacts that press link 2 onto
+    the stop (free theta2'' < 0, acceleration a_n = -theta2'') leave with speeds falling by c,
+    from w1 = c max|theta2'| to the threshold a_n window / 2 at the least a_n: at most
+    log(w1/w_th)/log(1/c) + 2 of them. Impacts pulling away end long flights and are counted as
+    they come, as are the rests and releases."""
+    free = system.mode("unconstrained").field
+    bound, groups, pressing = 0.0, [[]], []
+    for tr in ex.transitions:
+        if tr.name == "bounce_stop" and -float(free(tr.time, tr.state_before, None)[3]) > 0:
+            groups[-1].append(tr)
+        else:
+            bound += 1
+        if tr.name == "release_stop":
+            groups.append([])
+    for grp in groups:
+        if grp:
+            w1 = c * max(abs(float(tr.state_before[3])) for tr in grp)
+            a_n = min(-float(free(tr.time, tr.state_before, None)[3]) for tr in grp)
+            bound += math.log(max(w1 / (0.5 * a_n * window), 1.0)) / math.log(1.0 / c) + 2
+            pressing.append(len(grp))
+    return bound, pressing
+
+
+def _release_time_converges(c: float, x0: np.ndarray, quick: bool) -> Check:
+    """The release time converges as h = eps shrinks (successive differences shrink at least like
+    h^0.5; the number of resolved flights grows like log(1/h))."""
+    levels = [4e-3, 2e-3, 1e-3] if quick else [4e-3, 2e-3, 1e-3, 5e-4, 2.5e-4]
+    times = []
+    for hh in levels:
+        m_l, _ = double_pendulum(c, 2 * hh)
+        run = simulate(m_l.system, x0, "unconstrained", 2.5, hh, hh, max_transitions=1000)
+        times.append(next(tr.time for tr in run.transitions if tr.name == "release_stop"))
+    diffs = [abs(a - b) for a, b in zip(times[:-1], times[1:])]
+    return check_order("release time converges", levels[:-1], diffs, 0.5, 1.5, "h = eps")
+
+
+# ---------------------------------------------------------------------------------------------
+# the two-tank system (paper 004 Sec. IV-D)
+# ---------------------------------------------------------------------------------------------
+
+
+def _two_tanks_run(h: float, eps: float, T: float, method: str = "rk4"):
+    """The two tanks from the model's initial state in q1 to T, with their transition bound:
+    (model, reference, x0, execution, bound, floor, the levels' largest rate)."""
+    model = build("two_tanks")
+    ref = model.reference
+    x0 = model_state(model, "q1")
+    rate = tank_level_rate(ref)
+    floor = transition_floor(h, eps, rate=rate)
+    bound = T / floor + 1
+    ex = simulate(model.system, x0, "q1", T, h, eps, method=method, max_transitions=int(2 * bound) + 10)
+    return model, ref, x0, ex, bound, floor, rate
+
+
+@case("zeno_two_tanks", "zeno", "two tanks, one switched inflow (paper 004 Sec. IV-D): through its Zeno time 8 s to 10 s")
+def _zeno_two_tanks(result: CaseResult, quick: bool) -> None:
+    h, eps, T = 0.01, 1e-3, 10.0
+    model, ref, x0, ex, bound, floor, rate = _two_tanks_run(h, eps, T)
+    result.main_run(ex)
+    result.add(execution_checks(model.system, ex, eps, bound=bound,
+                                bound_why=f"T/{floor:.3g} s: each transition costs a step, the levels move at "
+                                          f"<= {rate:g} m/s"))
+    result.add(tank_switch_checks(ex, ref, x0, 24))
+    # The total excess level falls at v1 + v2 - w while the flow runs and is frozen in the strips,
+    # so the relaxed excess never falls below the exact one, which reaches zero at the Zeno time.
+    t_zeno = ref.zeno_time(x0)
+    times = np.linspace(0.0, T, 501)
+    states = np.array(ex.sample(times).states)
+    excess = states.sum(axis=1) - ref.r1 - ref.r2
+    exact = np.maximum((x0.sum() - ref.r1 - ref.r2) - (ref.v1 + ref.v2 - ref.w) * times, 0.0)
+    late = times >= t_zeno + 0.5 * (T - t_zeno)
+    lo = float(states[late].min() - min(ref.r1, ref.r2))
+    hi = float(np.abs(excess[late]).max())
+    ok = bool(np.all(excess >= exact - 1e-9)) and lo >= -eps * (1 + 1e-9) and hi <= 2 * eps
+    result.add(Check("levels at their thresholds after t_zeno", ok,
+                     f"excess >= exact everywhere; for t >= {times[late][0]:.3g} s levels >= threshold - {-lo:.2g} m, "
+                     f"|excess| <= {hi:.2g} m <= 2 eps"))
+    # Convergence: the excess left at the Zeno time is the flow lost while held in strips, O(eps).
+    levels = [4e-3, 2e-3, 1e-3] if quick else [4e-3, 2e-3, 1e-3, 5e-4, 2.5e-4]
+    left = []
+    for ee in levels:
+        _, _, _, run, _, _, _ = _two_tanks_run(h, ee, t_zeno)
+        left.append(float(run.final_state.sum() - ref.r1 - ref.r2))
+    result.add(check_order("excess at t_zeno -> 0", levels, left, 0.8, 1.2, "eps"))
+    after = sum(tr.time > t_zeno for tr in ex.transitions)
+    result.numbers.update({"zeno_time": t_zeno, "transitions_after_zeno": after})
+    result.outcome = (f"{ex.status}; {len(ex.transitions) - after} switches before t_zeno = {t_zeno:g} s, levels held "
+                      f"at the thresholds to {T:g} s")
+
+
+# ---------------------------------------------------------------------------------------------
+# the forced oscillator with a stop (paper 000 Table I Example 2)
+# ---------------------------------------------------------------------------------------------
+
+
+@case("zeno_oscillator_ex2", "zeno",
+      "forced oscillator with a stop, paper 000 Table I Example 2: sticks, leaves, chatters (Zeno) and sticks again")
+def _zeno_oscillator(result: CaseResult, quick: bool) -> None:
+    _oscillator_ex2(result, quick, continued=False)
+
+
+@case("zeno_oscillator_ex2_continued", "zeno",
+      "Example 2 with Zeno continuation: sticks and releases as the exact execution does, at a fraction of the cost")
+def _zeno_oscillator_continued(result: CaseResult, quick: bool) -> None:
+    _oscillator_ex2(result, quick, continued=True)
+
+
+def rho_hat(ex: Execution, ref: OscillatorReference) -> float:
+    """Paper 000 eq. (30): the largest position error (m) at the run's step points against the
+    exact execution."""
+    ts = ex.step_times()
+    xs = np.concatenate([s.x[:, 0] for s in ex.segments])
+    return float(np.max(np.abs(xs - ref.position(ts))))
+
+
+def _oscillator_ex2(result: CaseResult, quick: bool, continued: bool) -> None:
+    h, eps = 1e-2, 1e-5
+    T = 4.0 * math.pi
+    model = oscillator_ex2(continued, h + eps)
+    ref = model.reference
+    start = time.perf_counter()
+    ex = simulate(model.system, [EX2["x_max"], 0.0], "free", T, h, eps, control=model.control,
+                  max_transitions=10 ** 6)
+    cost = time.perf_counter() - start
+    result.main_run(ex)
+    bound, why = _continued_bound(ref, T, h, eps) if continued else _plain_bound(ex, T, h, eps)
+    result.add(execution_checks(model.system, ex, eps, control=model.control, bound=bound, bound_why=why))
+    rho = rho_hat(ex, ref)
+    result.add(_on_the_stop_check(ex, ref, T, eps))
+    result.numbers.update({"rho_hat": rho, "wall_s": cost, "transitions": len(ex.transitions)})
+    if continued:
+        result.add(_sticks_and_releases_checks(ex, ref, T, h, eps))
+        _compare_with_plain(result, ex, ref, rho, cost, T, h, eps)
+    levels = [(1e-2, 1e-3), (1e-2, 1e-4), (1e-2, 1e-5)] + ([] if quick else [(1e-2, 1e-6)])
+    errs = []
+    for hh, ee in levels:
+        m_l = oscillator_ex2(continued, hh + ee)
+        run = simulate(m_l.system, [EX2["x_max"], 0.0], "free", T, hh, ee, control=m_l.control,
+                       max_transitions=10 ** 6)
+        errs.append(rho_hat(run, ref))
+    result.add(check_order("rho_hat -> 0", [lv[1] for lv in levels], errs, 0.5, 1.2, "eps (h = 1e-2)"))
+    result.outcome = (f"{ex.status}; {len(ex.transitions)} transitions, rho_hat = {rho:.2g} m, "
+                      f"{cost:.2g} s")
+
+
+def _plain_bound(ex: Execution, T: float, h: float, eps: float) -> tuple[float, str]:
+    """The transition bound of the plain run: the stop's guard accelerates at most at
+    |U|/m + omega^2 max|x| + 2 a max|xd|."""
+    xs = np.concatenate([s.x for s in ex.segments])
+    acc = (EX2["amplitude"] + EX2["omega"] ** 2 * float(np.max(np.abs(xs[:, 0])))
+           + 2 * EX2["a"] * float(np.max(np.abs(xs[:, 1]))))
+    floor = transition_floor(h, eps, accel=acc)
+    return T / floor + 1, f"T/{floor:.3g} s, guard acceleration <= {acc:.3g} m/s^2"
+
+
+def _continued_bound(ref: OscillatorReference, T: float, h: float, eps: float) -> tuple[float, str]:
+    """The transition bound with Zeno continuation: the exact impacts the continuation may still
+    bounce (rebound c v at least F window / 4, half the threshold for the approach-speed
+    estimate), plus a stick and a release per exact sticking phase and the first stick."""
+    speeds = ref.impact_speeds(T)
+    forces = ref.free_acceleration(ref.impact_times(T))
+    bouncing = int(np.sum(EX2["c"] * speeds >= forces * (h + eps) / 4.0))
+    phases = len(ref.sticking_intervals(T))
+    return bouncing + 2 * phases + 2, (f"{bouncing} exact impacts with rebound >= F window/4, a stick and "
+                                       f"a release per sticking phase ({phases})")
+
+
+def _on_the_stop_check(ex: Execution, ref: OscillatorReference, T: float, eps: float) -> Check:
+    """During the exact sticking phases the relaxed mass stays on the stop: within the strip past
+    it and below eps c^2/(1 - c^2) off it once the chatter has settled (the ball's bound)."""
+    x_max, c = EX2["x_max"], EX2["c"]
+    band = eps * c * c / (1 - c * c)
+    worst = 0.0
+    for s0, s1 in ref.sticking_intervals(T):
+        lo = s0 + (0.0 if s0 == 0.0 else 0.05)
+        tt = np.linspace(lo, min(s1, T) - 0.05, 200)
+        xx = np.array([st[0] for st in ex.sample(tt).states])
+        worst = max(worst, float(np.max(xx - x_max)) / eps, float(np.max(x_max - xx)) / band)
+    return Check("on the stop while the exact mass sticks", worst <= 1.0 + 1e-9,
+                 f"x within [x_max - eps c^2/(1-c^2), x_max + eps] on the exact sticking phases "
+                 f"(worst ratio {worst:.3g})")
+
+
+def _sticks_and_releases_checks(ex: Execution, ref: OscillatorReference, T: float, h: float,
+                                eps: float) -> list[Check]:
+    """With Zeno continuation the run sticks and releases as the reference does: the releases
+    where F = u/m - omega^2 x_max changes sign (closed form), the sticks at most the skipped tail
+    (window/(1 - c)) early and one transition's lag (h + eps) late."""
+    sticks = [tr for tr in ex.transitions if tr.name == "stick"]
+    releases = [tr for tr in ex.transitions if tr.name == "release"]
+    exact = ref.sticking_intervals(T)
+    starts = [s0 for s0, _ in exact]
+    ends = [s1 for _, s1 in exact if s1 < T]
+    rel_err = max((abs(a.time - b) for a, b in zip(releases, ends)), default=math.inf)
+    ok = len(releases) == len(ends) and rel_err <= 1e-9
+    released = Check("released where F changes sign", ok,
+                     f"{len(releases)} releases at the exact times {', '.join(f'{e:.9g}' for e in ends)} to "
+                     f"{rel_err:.2g} s")
+    lo, hi = (h + eps) / (1 - EX2["c"]) + (h + eps), (h + eps)
+    errs = [a.time - b for a, b in zip(sticks, starts)]
+    ok = len(sticks) == len(starts) and all(-lo <= e <= hi for e in errs)
+    stuck = Check("sticks where the impacts accumulate", ok,
+                  f"stick times - exact: {', '.join(f'{e:+.3g}' for e in errs)} s within [-{lo:.3g}, {hi:.3g}]")
+    return [released, stuck]
+
+
+def _compare_with_plain(result: CaseResult, ex: Execution, ref: OscillatorReference, rho: float, cost: float,
+                        T: float, h: float, eps: float) -> None:
+    """Zeno continuation is as accurate as the plain run (rho_hat at most twice) with at most a
+    tenth of its transitions; adds that check and the plain run's numbers."""
+    plain_model = oscillator_ex2(False)
+    start = time.perf_counter()
+    plain = simulate(plain_model.system, [EX2["x_max"], 0.0], "free", T, h, eps, control=plain_model.control,
+                     max_transitions=10 ** 6)
+    plain_cost = time.perf_counter() - start
+    rho_plain = rho_hat(plain, ref)
+    ok = rho <= 2.0 * rho_plain and 10 * len(ex.transitions) <= len(plain.transitions)
+    result.add(Check("as accurate at a fraction of the cost", ok,
+                     f"rho_hat {rho:.3g} m vs {rho_plain:.3g} m without; transitions {len(ex.transitions)} vs "
+                     f"{len(plain.transitions)}; {cost:.3g} s vs {plain_cost:.3g} s"))
+    result.numbers.update({"rho_hat_plain": rho_plain, "wall_s_plain": plain_cost,
+                           "transitions_plain": len(plain.transitions)})

@@ -1,0 +1,246 @@
+"""Contact declarations and their resolution against a Pinocchio model.
+
+``PointContact``, ``JointStop`` and ``SpringLeg`` are what a robot declares; resolving one checks
+it against the model and turns it into the ids the algorithms use (``RigidContact`` for point
+contacts and stops, ``LegFrames`` for spring legs). Also the model helpers the robots build their
+planar models with: ``planar_floating_base`` and ``add_point_frame``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Callable, Literal, Sequence
+
+import numpy as np
+import pinocchio as pin
+
+from legsim.errors import ModelError
+
+
+@dataclass(frozen=True)
+class PointContact:
+    """A point of the robot (the origin of Pinocchio frame ``frame``) against the ground.
+
+    Attributes
+    ----------
+    name: contact name (used in mode and transition names).
+    frame: Pinocchio frame whose origin touches the ground.
+    restitution: Newton restitution coefficient c in [0, 1]; 0 sticks (enters the mode with
+        the contact active), > 0 bounces.
+    ground: ground height (m).
+    tangential: True pins the point (no slip, x and z constrained); False constrains z only
+        (frictionless sliding).
+    releases: names of contacts that become inactive when this one strikes.
+    armed: optional ``armed(q, v) -> float``: the touchdown only counts where it is > 0 (for a
+        compass gait's swing foot, how far it is ahead of the stance foot, m, so that the scuff
+        at mid-swing is not a heel strike); the touchdown guard becomes
+        ``max(height, vertical velocity, -armed)``. The point must be above the ground when it
+        becomes armed, or the guard jumps past its strip.
+    """
+
+    name: str
+    frame: str
+    restitution: float = 0.0
+    ground: float = 0.0
+    tangential: bool = True
+    releases: tuple[str, ...] = ()
+    armed: Callable[[np.ndarray, np.ndarray], float] | None = None
+
+
+@dataclass(frozen=True)
+class JointStop:
+    """A mechanical stop on a one-dof joint.
+
+    Attributes
+    ----------
+    name: contact name.
+    joint: Pinocchio joint name (one dof: revolute RX/RY/RZ or prismatic PX/PY/PZ).
+    position: stop position (rad or m).
+    side: ``"lower"`` (the domain is ``q >= position``) or ``"upper"`` (``q <= position``).
+    restitution: Newton restitution coefficient c in [0, 1].
+    """
+
+    name: str
+    joint: str
+    position: float = 0.0
+    side: Literal["lower", "upper"] = "lower"
+    restitution: float = 0.0
+
+
+@dataclass(frozen=True)
+class SpringLeg:
+    """A massless linear spring leg hinged at frame ``frame`` (the hip).
+
+    Attributes
+    ----------
+    name: contact name.
+    frame: hip frame.
+    stiffness: k (N/m), > 0.
+    rest_length: l (m), > 0.
+    angle: leg angle in flight (rad) from the hip frame's -z axis towards its +x axis.
+    damping: viscous damping along the leg in stance (N s/m), >= 0; 0 computes no damping term.
+    ground: ground height (m).
+    """
+
+    name: str
+    frame: str
+    stiffness: float
+    rest_length: float
+    angle: float = 0.0
+    damping: float = 0.0
+    ground: float = 0.0
+
+
+Contact = PointContact | JointStop | SpringLeg
+
+
+@dataclass(frozen=True)
+class RigidContact:
+    """A point contact or joint stop resolved against the model: what its constraint rows need.
+
+    Attributes
+    ----------
+    contact: the declaration.
+    kind: ``"point"`` or ``"stop"``.
+    frame_id: Pinocchio frame id of a point contact (-1 for a stop).
+    dof: velocity index of a stop's joint (-1 for a point contact).
+    sign: +1 for a lower stop, -1 for an upper one: ``sign * (q - position) >= 0`` inside.
+    rows: constraint Jacobian rows (2 for a sticking point, else 1); the normal row is the last.
+    """
+
+    contact: PointContact | JointStop
+    kind: str
+    frame_id: int = -1
+    dof: int = -1
+    sign: float = 1.0
+    rows: int = 1
+
+
+@dataclass(frozen=True)
+class LegFrames:
+    """A spring leg resolved against the model: its hip frame and its flight foot frame."""
+
+    leg: SpringLeg
+    hip_id: int
+    foot_id: int
+
+
+def finite_number(value: Any, where: str, *, low: float | None = None, high: float | None = None,
+                  low_open: bool = False) -> float:
+    """``value`` as a float, or ``ModelError`` naming ``where`` if it is not a finite number in
+    ``[low, high]`` (``(low, high]`` with ``low_open``)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
+        raise ModelError(f"{where} must be a number, got {value!r}")
+    value = float(value)
+    if not math.isfinite(value):
+        raise ModelError(f"{where} must be finite, got {value}")
+    if low is not None and (value < low or (low_open and value == low)):
+        raise ModelError(f"{where} must be {'>' if low_open else '>='} {low:g}, got {value:g}")
+    if high is not None and value > high:
+        raise ModelError(f"{where} must be <= {high:g}, got {value:g}")
+    return value
+
+
+def joint_id(model: pin.Model, jname: Any, where: str, robot: str) -> int:
+    """Id of joint ``jname``, or ``ModelError`` listing the joints (``robot: where: ...``)."""
+    if not isinstance(jname, str) or not model.existJointName(jname):
+        raise ModelError(f"{robot}: {where}: unknown joint {jname!r}; joints: {list(model.names)[1:]}")
+    return int(model.getJointId(jname))
+
+
+def frame_id(model: pin.Model, fname: Any, where: str, robot: str) -> int:
+    """Id of frame ``fname``, or ``ModelError`` listing the frames (``robot: where: ...``)."""
+    if not isinstance(fname, str) or not model.existFrame(fname):
+        raise ModelError(f"{robot}: {where}: unknown frame {fname!r}; frames: "
+                         f"{[f.name for f in model.frames][1:]}")
+    return int(model.getFrameId(fname))
+
+
+def declared_contacts(contacts: Sequence[Any], robot: str) -> dict[str, Contact]:
+    """The contacts by name, in declared order; ``ModelError`` for a record of another type, a
+    bad name (empty, or with the mode-name separator ``+``) or a name used twice."""
+    out: dict[str, Contact] = {}
+    for c in contacts:
+        if not isinstance(c, (PointContact, JointStop, SpringLeg)):
+            raise ModelError(f"{robot}: contacts must be PointContact, JointStop or SpringLeg, got {type(c).__name__}")
+        if not isinstance(c.name, str) or not c.name or "+" in c.name:
+            raise ModelError(f"{robot}: contact names must be non-empty strings without '+', got {c.name!r}")
+        if c.name in out:
+            raise ModelError(f"{robot}: duplicate contact name '{c.name}'")
+        out[c.name] = c
+    return out
+
+
+def resolve_contact(model: pin.Model, contact: Contact, robot: str,
+                    declared: Sequence[str]) -> RigidContact | LegFrames:
+    """Check ``contact`` against ``model`` and resolve it; a spring leg adds its flight foot
+    frame ``<name>_foot`` to ``model`` (which must therefore be the bridge's own copy).
+    ``robot`` names the robot in error messages; ``declared``: every contact name, in declared
+    order (what ``releases`` may name)."""
+    where = f"contact '{contact.name}'"
+    if isinstance(contact, SpringLeg):
+        return _resolve_leg(model, contact, robot, where)
+    finite_number(contact.restitution, f"{robot}: {where}: restitution", low=0.0, high=1.0)
+    if isinstance(contact, PointContact):
+        return _resolve_point(model, contact, robot, where, declared)
+    return _resolve_stop(model, contact, robot, where)
+
+
+def _resolve_leg(model: pin.Model, leg: SpringLeg, robot: str, where: str) -> LegFrames:
+    finite_number(leg.stiffness, f"{robot}: {where}: stiffness", low=0.0, low_open=True)
+    finite_number(leg.rest_length, f"{robot}: {where}: rest_length", low=0.0, low_open=True)
+    finite_number(leg.angle, f"{robot}: {where}: angle")
+    finite_number(leg.damping, f"{robot}: {where}: damping", low=0.0)
+    finite_number(leg.ground, f"{robot}: {where}: ground")
+    hip = frame_id(model, leg.frame, where, robot)
+    frame = model.frames[hip]
+    # The flight foot is rigidly attached to the hip's joint: a frame gives its position
+    # and velocity from the same kinematics pass as everything else.
+    offset = leg.rest_length * np.array([math.sin(leg.angle), 0.0, -math.cos(leg.angle)])
+    placement = frame.placement * pin.SE3(np.eye(3), offset)
+    foot_name = f"{leg.name}_foot"
+    if model.existFrame(foot_name):
+        raise ModelError(f"{robot}: {where}: the model already has a frame '{foot_name}'")
+    foot = model.addFrame(pin.Frame(foot_name, frame.parentJoint, placement, pin.FrameType.OP_FRAME), False)
+    return LegFrames(leg, hip, int(foot))
+
+
+def _resolve_point(model: pin.Model, c: PointContact, robot: str, where: str,
+                   declared: Sequence[str]) -> RigidContact:
+    finite_number(c.ground, f"{robot}: {where}: ground")
+    fid = frame_id(model, c.frame, where, robot)
+    if isinstance(c.releases, str) or not all(isinstance(o, str) for o in c.releases):
+        raise ModelError(f"{robot}: {where}: releases must be a tuple of contact names, got {c.releases!r}")
+    if c.armed is not None and not callable(c.armed):
+        raise ModelError(f"{robot}: {where}: armed must be callable armed(q, v) -> float or None")
+    for other in c.releases:
+        if other not in declared or other == c.name:
+            raise ModelError(f"{robot}: {where}: releases unknown contact {other!r} (contacts: {list(declared)})")
+    return RigidContact(c, "point", frame_id=fid, rows=2 if c.tangential else 1)
+
+
+def _resolve_stop(model: pin.Model, c: JointStop, robot: str, where: str) -> RigidContact:
+    finite_number(c.position, f"{robot}: {where}: position")
+    if c.side not in ("lower", "upper"):
+        raise ModelError(f"{robot}: {where}: side must be 'lower' or 'upper', got {c.side!r}")
+    joint = model.joints[joint_id(model, c.joint, where, robot)]
+    if joint.nv != 1:
+        raise ModelError(f"{robot}: {where}: joint '{c.joint}' has {joint.nv} dofs; a stop needs one")
+    return RigidContact(c, "stop", dof=int(joint.idx_v), sign=1.0 if c.side == "lower" else -1.0)
+
+
+def planar_floating_base(model: pin.Model, parent: int = 0, placement: pin.SE3 | None = None,
+                         names: tuple[str, str, str] = ("x", "z", "theta")) -> int:
+    """Add the planar floating base (PX, PZ, RY joints) of a body moving in the (x, z) plane;
+    returns the id of the pitch joint, to which the body's inertia is attached. Positive pitch
+    (rotation about +y) turns the body's +x axis downwards (nose down)."""
+    jx = model.addJoint(parent, pin.JointModelPX(), placement or pin.SE3.Identity(), names[0])
+    jz = model.addJoint(jx, pin.JointModelPZ(), pin.SE3.Identity(), names[1])
+    return int(model.addJoint(jz, pin.JointModelRY(), pin.SE3.Identity(), names[2]))
+
+
+def add_point_frame(model: pin.Model, name: str, joint: int, xyz: Sequence[float]) -> int:
+    """Add an operational frame ``name`` at ``xyz`` (m) in joint ``joint``'s frame; returns its id."""
+    return int(model.addFrame(pin.Frame(name, joint, pin.SE3(np.eye(3), np.asarray(xyz, dtype=float)),
+                                        pin.FrameType.OP_FRAME), False))

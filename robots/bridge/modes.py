@@ -1,0 +1,158 @@
+"""Contact modes: which contacts are active, the mode's name and state layout, and the state map
+between two modes.
+
+A mode is a set of active contacts. It is named by ``mode_names`` when given there, ``"free"``
+when empty, else by its contacts in declared order joined with ``+``. Its state is
+``x = (q, v, footholds)``: q and v of size nv, then the foothold x (m) of each active spring leg
+in declared order. Modes are resolved into a ``ModeSpec`` on first use, so a robot with many
+contacts never enumerates the 2^n subsets.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Iterable, Mapping
+
+import numpy as np
+import pinocchio as pin
+
+from legsim.errors import ModelError
+
+from .contacts import LegFrames, RigidContact
+from .model import BridgeData, BridgeModel
+
+
+@dataclass(frozen=True, eq=False)
+class ModeSpec:
+    """Everything about one mode the fast paths need, resolved once.
+
+    Attributes
+    ----------
+    name: the mode's name.
+    active: its active contacts, in declared order.
+    rigid: the active point contacts and joint stops, in declared order.
+    springs: the active (stance) spring legs, in declared order: their footholds are the state's tail.
+    flight_legs: the inactive spring legs.
+    dim: state dimension, 2 nv + len(springs).
+    names: the state's coordinate names.
+    need_fk: some guard needs frame positions and velocities (one kinematics pass per guard evaluation).
+    stop_dofs: (dofs, signs) when only joint stops are active: their constraint rows select dofs.
+    """
+
+    name: str
+    active: tuple[str, ...]
+    rigid: tuple[RigidContact, ...]
+    springs: tuple[LegFrames, ...]
+    flight_legs: tuple[LegFrames, ...]
+    dim: int
+    names: tuple[str, ...]
+    need_fk: bool = False
+    stop_dofs: tuple[np.ndarray, np.ndarray] | None = None
+
+    def normal_row(self, contact: str) -> int:
+        """Index of the active rigid contact's normal row in the stacked constraint rows (its last row)."""
+        row, i = -1, 0
+        for r in self.rigid:
+            i += r.rows
+            if r.contact.name == contact:
+                row = i - 1
+        return row
+
+
+class ModeCatalog:
+    """Mode names <-> sets of active contacts, and each mode's ``ModeSpec``, built on first use.
+
+    ``mode_names``: optional readable names of contact subsets, ``{("left", "right"): "both", (): "aerial"}``
+    (a single contact may be given by its name).
+    """
+
+    def __init__(self, model: BridgeModel, mode_names: Mapping[Iterable[str] | str, str] | None = None) -> None:
+        self._model = model
+        self._names: dict[frozenset[str], str] = {}
+        self._sets: dict[str, frozenset[str]] = {}
+        self._specs: dict[str, ModeSpec] = {}
+        for key, mname in (mode_names or {}).items():
+            subset = frozenset([key] if isinstance(key, str) else key)
+            unknown = sorted(subset - set(model.contacts))
+            if unknown:
+                raise ModelError(f"{model.name}: mode_names names unknown contact(s) {unknown}; "
+                                 f"contacts: {model.order}")
+            if not isinstance(mname, str) or not mname or mname in self._sets:
+                raise ModelError(f"{model.name}: mode name {mname!r} is empty, not a string or used twice")
+            self._names[subset] = mname
+            self._sets[mname] = subset
+
+    def name_of(self, active: Iterable[str]) -> str:
+        """Name of the mode whose active contacts are ``active``."""
+        model = self._model
+        subset = frozenset(active)
+        unknown = sorted(subset - set(model.contacts))
+        if unknown:
+            raise ModelError(f"{model.name}: unknown contact(s) {unknown}; contacts: {model.order}")
+        if subset in self._names:
+            return self._names[subset]
+        if not subset:
+            return "free"
+        return "+".join(c for c in model.contacts if c in subset)
+
+    def active_contacts(self, mode: str) -> tuple[str, ...]:
+        """The active contacts of mode ``mode``, in declared order; ``ModelError`` if ``mode``
+        names no mode or a mode by another name than its own."""
+        model = self._model
+        if mode in self._sets:
+            subset = self._sets[mode]
+        elif mode == "free":
+            subset = frozenset()
+        else:
+            parts = mode.split("+")
+            if any(p not in model.contacts for p in parts) or len(set(parts)) != len(parts):
+                raise ModelError(f"{model.name}: '{mode}' is not a mode: name a set of contacts joined by '+' "
+                                 f"(contacts: {model.order}) or one of {sorted(self._sets)}")
+            subset = frozenset(parts)
+        if self.name_of(subset) != mode:
+            raise ModelError(f"{model.name}: mode '{mode}' is called '{self.name_of(subset)}'")
+        return tuple(c for c in model.contacts if c in subset)
+
+    def spec(self, mode: str) -> ModeSpec:
+        """The ``ModeSpec`` of mode ``mode`` (resolved on first use)."""
+        spec = self._specs.get(mode)
+        if spec is None:
+            spec = self._specs[mode] = build_spec(self._model, mode, self.active_contacts(mode))
+        return spec
+
+
+def build_spec(model: BridgeModel, mode: str, active: tuple[str, ...]) -> ModeSpec:
+    """The ``ModeSpec`` of mode ``mode`` with active contacts ``active`` (declared order)."""
+    rigid = tuple(model.rigid[c] for c in active if c in model.rigid)
+    springs = tuple(model.legs[c] for c in active if c in model.legs)
+    flight = tuple(lg for c, lg in model.legs.items() if c not in active)
+    names = model.coordinate_names + model.velocity_names + tuple(f"{lg.leg.name}_foot_x" for lg in springs)
+    # Frame kinematics serve the guards of legs (flight or stance) and of inactive points.
+    need_fk = bool(springs or flight or any(
+        r.kind == "point" and r.contact.name not in active for r in model.rigid.values()))
+    stop_dofs = None
+    if rigid and all(r.kind == "stop" for r in rigid):
+        stop_dofs = (np.array([r.dof for r in rigid]), np.array([r.sign for r in rigid]))
+    return ModeSpec(mode, active, rigid, springs, flight, 2 * model.n + len(springs), names,
+                    need_fk=need_fk, stop_dofs=stop_dofs)
+
+
+def flight_foot_x(model: BridgeModel, data: BridgeData, leg: LegFrames, q: np.ndarray) -> float:
+    """x (m) of the flight foot at q: where a touching-down foot is pinned."""
+    pin.forwardKinematics(model.pin_model, data.pin_data, q)
+    return float(pin.updateFramePlacement(model.pin_model, data.pin_data, leg.foot_id).translation[0])
+
+
+def map_state(model: BridgeModel, data: BridgeData, src: ModeSpec, dst: ModeSpec, x: np.ndarray,
+              v_new: np.ndarray | None) -> np.ndarray:
+    """State x of mode ``src`` in mode ``dst``'s layout: q kept, v kept or replaced by ``v_new``,
+    footholds of legs staying in stance kept, those of legs touching down appended."""
+    n = model.n
+    out = np.empty(dst.dim)
+    out[:n] = x[:n]
+    out[n:2 * n] = x[n:2 * n] if v_new is None else v_new
+    src_index = {lg.leg.name: i for i, lg in enumerate(src.springs)}
+    for i, lg in enumerate(dst.springs):
+        j = src_index.get(lg.leg.name)
+        out[2 * n + i] = flight_foot_x(model, data, lg, x[:n]) if j is None else x[2 * n + j]
+    return out

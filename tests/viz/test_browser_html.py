@@ -1,0 +1,153 @@
+"""The html animation in a real headless browser (Debian's chromium): the page loads offline and
+its canvas shows the robot.
+
+The set-up installs chromium with apt-get when /usr/bin/chromium is missing and skips, saying
+why, only when that fails. Robot parts are drawn in saturated flat colours on a white-to-gray
+background with a gray ground, so "pixels of the robot" are the saturated ones; a page with
+the same scenery and camera but no robot must have none.
+"""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+from helpers.models import hopper_model
+
+from legsim.output.files import write_atomic
+from legsim.record import Frames, frame_times, geometry_frames, read_rrd, write_rrd
+from legsim.relaxed import simulate
+from legsim.viz.meshcat_anim import animation_html, write_html
+
+pytestmark = pytest.mark.browser
+
+CHROMIUM = "/usr/bin/chromium"
+WINDOW = (900, 650)
+
+
+@pytest.fixture(scope="module")
+def chromium() -> str:
+    found = shutil.which("chromium") or (CHROMIUM if Path(CHROMIUM).exists() else None)
+    if found:
+        return found
+    try:
+        subprocess.run(["apt-get", "update"], check=True, capture_output=True, timeout=300)
+        subprocess.run(["apt-get", "install", "-y", "chromium"], check=True, capture_output=True, timeout=900)
+    except (OSError, subprocess.SubprocessError) as exc:
+        pytest.skip(f"chromium is not installed and `apt-get install -y chromium` failed: {exc}")
+    found = shutil.which("chromium")
+    if not found:
+        pytest.skip("apt-get installed chromium but no chromium executable is on PATH")
+    return found
+
+
+def screenshot(chromium: str, page: Path, tmp_path: Path) -> np.ndarray:
+    """RGB image (h, w, 3) in [0, 1] of ``page`` after the page has had time to load."""
+    from matplotlib.image import imread
+
+    shot = tmp_path / (page.stem + ".png")
+    profile = tmp_path / ("profile-" + page.stem)
+    cmd = [chromium, "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+           "--disable-background-networking", "--disable-component-update", "--disable-sync",
+           f"--user-data-dir={profile}", f"--window-size={WINDOW[0]},{WINDOW[1]}",
+           "--virtual-time-budget=2000", f"--screenshot={shot}", page.resolve().as_uri()]
+    result = subprocess.run(cmd, capture_output=True, text=True, timeout=60)
+    assert result.returncode == 0 and shot.exists(), result.stderr[-2000:]
+    return imread(shot)[..., :3]
+
+
+def saturated(img: np.ndarray) -> np.ndarray:
+    """Mask of clearly coloured pixels (robot parts), not white, gray or black."""
+    return (img.max(axis=-1) - img.min(axis=-1)) > 0.25
+
+
+@pytest.fixture(scope="module")
+def hopper_run():
+    model = hopper_model()
+    ex = simulate(model.system, np.array([0.5, 0.0]), "flight", 1.0, 1e-3, 2e-3)
+    return model, ex
+
+
+def test_page_shows_the_robot_above_the_ground(chromium, hopper_run, tmp_path):
+    model, ex = hopper_run
+    page = write_html(ex, None, tmp_path / "hopper.html", model=model)
+    img = screenshot(chromium, page, tmp_path)
+    assert img.shape[:2] == (WINDOW[1], WINDOW[0])
+    robot = saturated(img)
+    assert robot.sum() > 300, f"only {robot.sum()} robot-coloured pixels"
+
+    # The same scenery and camera with no robot: no robot-coloured pixel at all.
+    frames = geometry_frames(ex, model, frame_times(ex, 30.0, 900))
+    empty = Frames(frames.times, frames.modes, {p: [None] * len(frames) for p in frames.parts}, frames.scenery)
+    html = animation_html(empty)
+    empty_page = write_atomic(tmp_path / "empty.html", lambda tmp: tmp.write_text(html))
+    bare = screenshot(chromium, empty_page, tmp_path)
+    assert saturated(bare).sum() == 0
+
+    # z is up: the robot is drawn above the ground line (the rows of dark gray ground pixels).
+    gray = np.all(np.abs(img - 0x6E / 255) < 0.06, axis=-1)
+    ground_row = int(np.argmax(gray.sum(axis=1)))
+    assert gray[ground_row].sum() > WINDOW[0] // 3
+    # Markers and line boxes have a thickness (the foot's marker sits on z = 0 and reaches a few
+    # pixels below), so ask what "z is up" means: the robot's pixels are overwhelmingly above the
+    # ground line (a flipped axis would put them below it), and its top is well above it.
+    rows = np.nonzero(robot)[0]
+    assert np.mean(rows < ground_row) > 0.9
+    assert rows.min() < ground_row - 50
+
+
+def test_page_written_from_a_recording_shows_the_robot(chromium, hopper_run, tmp_path):
+    model, ex = hopper_run
+    data = read_rrd(write_rrd(ex, None, tmp_path / "hopper.rrd", model=model))
+    page = write_html(None, None, tmp_path / "replayed.html", recording=data)
+    assert saturated(screenshot(chromium, page, tmp_path)).sum() > 300
+
+
+# Bundled robots, each at a short t_final (the page and the screenshot stay under a few
+# seconds): a runner above the ground and a pendulum hanging from its pivot (the support
+# line, drawn as scenery at z = 0, which the pendulum swings below).
+BUNDLED = {"pronk": ("1.0", "above"), "double_pendulum_plastic": ("1.0", "below")}
+
+
+@pytest.mark.parametrize("name", sorted(BUNDLED))
+def test_page_of_a_bundled_robot_shows_it(chromium, name, tmp_path):
+    from legsim.scene import load_scene
+
+    t_final, side = BUNDLED[name]
+    scene = load_scene(name, overrides=[f"integrator.t_final={t_final}"])
+    ex = scene.simulate()
+    assert ex.status == "finished", ex.summary()["message"]
+    page = write_html(ex, scene, tmp_path / f"{name}.html")
+    html = page.read_text()
+    # Offline: everything is inline, nothing is fetched from elsewhere.
+    assert "<script src=" not in html and "<link " not in html
+    img = screenshot(chromium, page, tmp_path)
+    assert img.shape[:2] == (WINDOW[1], WINDOW[0])
+    robot = saturated(img)
+    assert robot.sum() > 300, f"only {robot.sum()} robot-coloured pixels"
+
+    # Same scenery and camera without the robot: no robot-coloured pixel, so the ones above are
+    # the robot's and not the background's or the scenery's.
+    frames = geometry_frames(ex, scene.model, frame_times(ex, 30.0, 900))
+    empty = Frames(frames.times, frames.modes, {p: [None] * len(frames) for p in frames.parts}, frames.scenery)
+    empty_page = write_atomic(tmp_path / "empty.html", lambda tmp: tmp.write_text(animation_html(empty)))
+    assert saturated(screenshot(chromium, empty_page, tmp_path)).sum() == 0
+
+    # The scenery line (ground, or the pendulum's support) is the row with most gray pixels;
+    # z is up: the runner is drawn above it, the pendulum mostly below it.
+    gray = np.all(np.abs(img - 0x6E / 255) < 0.06, axis=-1)
+    line_row = int(np.argmax(gray.sum(axis=1)))
+    assert gray[line_row].sum() > 20
+    rows = np.nonzero(robot)[0]
+    if side == "above":
+        # Which frame the screenshot catches depends on timing: in stance the feet rest on the
+        # ground and their markers (~8 px radius) reach just below the line (10-12% of the
+        # pixels then). What holds in every frame: nothing deeper than a foot marker below the
+        # line, most of the robot above it, and its body well above.
+        assert rows.max() <= line_row + 12
+        assert np.mean(rows < line_row) > 0.8 and rows.min() < line_row - 50
+    else:
+        assert np.mean(rows > line_row) > 0.9 and rows.max() > line_row + 50
