@@ -192,26 +192,3 @@ def test_aiming_lands_with_fewer_trial_steps_than_halving():
     assert costs["halve"]["trial_steps_per_transition"] > 10
     assert costs["aim"]["trial_steps_per_transition"] < 2
     assert costs["aim"]["extra_field_evals_per_transition"] < costs["halve"]["extra_field_evals_per_transition"]
-
-
-def test_dop853_tableau_is_eighth_order_with_a_fifth_order_estimate():
-    # x' = -x over [0, 1]: the global error of an order-8 method falls by 2^8 when h halves; the
-    # embedded estimate h * sum(E5_j k_j) of one step is O(h^6) (fifth-order solution).
-    from legsim import HybridSystem, Mode, simulate
-    from legsim.bench.cases import dop853_tableau
-    from legsim.methods import error_estimate, make_stepper
-
-    tab = dop853_tableau()
-    assert dop853_tableau() is tab and tab.fsal and tab.stages == 13
-    system = HybridSystem({"m": Mode(1, lambda t, x, u: -x)})
-    hs = (0.5, 0.25, 0.125)
-    errors = [abs(simulate(system, [1.0], "m", 1.0, h, 1e-3, tab).final_state[0] - math.exp(-1.0)) for h in hs]
-    slopes = np.diff(np.log(errors)) / np.diff(np.log(hs))
-    assert np.all(slopes > 7.5), slopes
-    step = make_stepper(tab)
-    est = []
-    for h in hs:
-        x = np.array([1.0])
-        _, stages = step(lambda t, y, u: -y, 0.0, x, h, -x, None)
-        est.append(abs(error_estimate(tab, h, stages)[0]))
-    assert np.all(np.diff(np.log(est)) / np.diff(np.log(hs)) > 5.5)

@@ -150,23 +150,6 @@ def _k_error(b_err, hk, K, x, x_new, err, err_low, rtol, atol):
     return error_norm(err, err_low, x, x_new, rtol, atol, blended)
 
 
-def _k_guards(p, x_new, gv, n_guards):
-    # The guards at x_new into gv; returns their least value (nan when one is nan).
-    if n_guards == 0:
-        return 0.0
-    g = _twin_guards(x_new, p)
-    gmin = g[0]
-    has_nan = g[0] != g[0]
-    gv[0] = g[0]
-    for j in range(1, n_guards):
-        gv[j] = g[j]
-        if g[j] != g[j]:
-            has_nan = True
-        elif g[j] < gmin:
-            gmin = g[j]
-    return math.nan if has_nan else gmin
-
-
 def _k_aim(p, n_guards, x, K, x_new, k1, gv, work, t, hk, eps, fsal, s_stages):
     # rules.aimed_step on the failed step's Hermite interpolant: the step at which the deepest
     # crossed guard reaches the middle of its strip (landing.Aim). Returns (step, field
@@ -234,24 +217,87 @@ def _k_store_crossing(x, K, x_new, k1, q, dq, work, t, dt, s, T, X, DX, size):
     return tc, size
 
 
+def _k_landed(p, n_guards, x, K, x_new, k1, gv, work, q, dq, T, X, DX, fsal, t, t_new, eps, size):
+    """A step that landed in a strip: q located and stored (relaxed.strip.cross_landing).
+    Returns (guard index, crossing time, depth, buffer size, field evaluations, guard evaluations)."""
+    n = x.shape[0]
+    field_evals = 0
+    if fsal:
+        for d in range(n):
+            k1[d] = K[K.shape[0] - 1, d]
+    else:
+        kk = _twin_field(t_new, x_new, p)
+        field_evals = 1
+        for d in range(n):
+            k1[d] = kk[d]
+    dt = t_new - t
+    e, s, guard_evals = _k_locate(p, n_guards, x, K, x_new, k1, gv, work, dt, eps)
+    tc, size = _k_store_crossing(x, K, x_new, k1, q, dq, work, t, dt, s, T, X, DX, size)
+    return e, tc, -gv[e], size, field_evals, guard_evals
+
+
+def _k_record(q, ra, r_e, r_f, r_q, r_after, seg_end, k, e, tc, t_land, exit_time, tau, size):
+    # The transition crossed in the kernel, for Python to turn into Execution pieces.
+    r_e[k] = e
+    r_f[k, 0] = tc
+    r_f[k, 1] = t_land
+    r_f[k, 2] = exit_time
+    r_f[k, 3] = tau
+    for d in range(q.shape[0]):
+        r_q[k, d] = q[d]
+        r_after[k, d] = ra[d]
+    seg_end[k] = size
+
+
+def _k_reenter(p, n_guards, x, ra, K, T, X, DX, t, size):
+    """Enter the mode again at the strip's exit with the reset image (relaxed.entry.enter_mode).
+    Returns the buffer size, or -1 when the entering state needs the entry's special cases (in a
+    strip, a non-finite field or guard), which Python takes."""
+    n = x.shape[0]
+    for d in range(n):
+        x[d] = ra[d]
+    kk = _twin_field(t, x, p)
+    if not _k_finite(kk):
+        return -1
+    if n_guards > 0:
+        g = _twin_guards(x, p)
+        for j in range(n_guards):
+            if not (g[j] >= 0.0):
+                return -1
+    for d in range(n):
+        K[0, d] = kk[d]
+    return _k_store(T, X, DX, size, t, x, kk)
+
+
+def _k_store(T, X, DX, size, t, x, dx):
+    T[size] = t
+    for d in range(x.shape[0]):
+        X[size, d] = x[d]
+        DX[size, d] = dx[d]
+    return size + 1
+
+
 def _k_step_loop(p, n_guards, c, n_groups, weights, n_members, members, b_err, fsal,
                  x, K, XS, x_new, k1, gv, work, err, err_low, q, dq, T, X, DX, fs, iv, cf, ci,
                  r_e, r_f, r_q, r_after, seg_end):
     """The step loop of relaxed.integrate.run_visit (see the module docstring for the arrays);
     in/out: x, K[0] (= k0), fs[F_T] = t, fs[F_HPROP] = h_prop, iv[I_SIZE] = buffer size.
     Transitions crossed here are recorded in r_* (guard index, (time, landing time, exit time,
-    depth), q, reset image; the segment before record k ends at buffer index seg_end[k])."""
+    depth), q, reset image; the segment before record k ends at buffer index seg_end[k]).
+    Returns the code of why it stopped; counts and the stopping point are written to fs and iv.
+
+    The work of every step (stages, guards, error test, storing the point) is written out here
+    rather than in helpers: in compiled code every array that crosses a call, inlined or not, costs
+    reference-count updates, which at this loop's ~20 arrays would double the cost of a step.
+    Landings, aims and in-kernel resets are rare and are calls."""
     t_final, h_max, eps, rtol, atol, err_exp = cf[0], cf[1], cf[2], cf[3], cf[4], cf[5]
     adaptive, aim, max_halvings, max_steps = ci[0] != 0, ci[1] != 0, ci[2], ci[3]
-    in_kernel, budget = ci[4] != 0, ci[5]
-    method_id = ci[6]  # noqa: F841 - read by the unrolled stages the generator puts in this source
+    in_kernel, budget, method_id = ci[4] != 0, ci[5], ci[6]  # noqa: F841 - method_id: read by the unrolled stages
     s_stages = c.shape[0]
     n = x.shape[0]
     finish_tol = finish_tolerance(t_final)
-    t = fs[F_T]
-    h_prop = fs[F_HPROP]
-    size = iv[I_SIZE]
-    steps = halvings = rejections = field_evals = guard_evals = resets = n_rec = 0
+    t, h_prop, size = fs[F_T], fs[F_HPROP], iv[I_SIZE]
+    steps = halvings = rejections = field_evals = guard_evals = n_rec = 0
     code = -1
     while True:
         remaining = t_final - t
@@ -262,12 +308,10 @@ def _k_step_loop(p, n_guards, c, n_groups, weights, n_members, members, b_err, f
         if size + 2 > T.shape[0]:  # room for a point, or a crossing point and the next segment's first
             code = BUFFER_FULL
             break
-        if steps >= max_steps:
-            code = CHUNK
+        if steps >= max_steps or n_rec == r_e.shape[0]:
+            code = CHUNK if steps >= max_steps else RECORDS_FULL
             break
-        if n_rec == r_e.shape[0]:
-            code = RECORDS_FULL
-            break
+        # -- trial steps until one lands in the relaxed domain (relaxed.integrate.take_step) ----
         hk = trial_length(h_prop, h_max, remaining)
         last = hk == remaining
         shortened = 0
@@ -278,9 +322,25 @@ def _k_step_loop(p, n_guards, c, n_groups, weights, n_members, members, b_err, f
             _k_stages(t, x, hk, K, XS, x_new, p, c, n_groups, weights, n_members, members, fsal)  # STAGES
             field_evals += s_stages - 1
             past = False
-            if _k_finite(x_new):
-                gmin = _k_guards(p, x_new, gv, n_guards)
-                guard_evals += n_guards
+            finite = True
+            for d in range(n):
+                if not math.isfinite(x_new[d]):
+                    finite = False
+            if finite:
+                if n_guards > 0:
+                    g = _twin_guards(x_new, p)
+                    guard_evals += n_guards
+                    gmin = g[0]
+                    has_nan = g[0] != g[0]
+                    gv[0] = g[0]
+                    for j in range(1, n_guards):
+                        gv[j] = g[j]
+                        if g[j] != g[j]:
+                            has_nan = True
+                        elif g[j] < gmin:
+                            gmin = g[j]
+                    if has_nan:
+                        gmin = math.nan
                 if gmin >= -eps:
                     if adaptive:
                         error = _k_error(b_err, hk, K, x, x_new, err, err_low, rtol, atol)
@@ -322,97 +382,55 @@ def _k_step_loop(p, n_guards, c, n_groups, weights, n_members, members, b_err, f
             break
         t_new = t_final if last else t + hk
         steps += 1
-        if n_guards > 0 and gmin < 0.0:
-            # The step landed in one or more strips (relaxed.strip.cross_landing).
+        if n_guards == 0 or gmin >= 0.0:
+            # -- the step's end becomes the current point --------------------------------------
+            t = t_new
+            for d in range(n):
+                x[d] = x_new[d]
             if fsal:
                 for d in range(n):
-                    k1[d] = K[s_stages - 1, d]
+                    K[0, d] = K[s_stages - 1, d]
             else:
-                kk = _twin_field(t_new, x_new, p)
+                kk = _twin_field(t, x, p)
                 field_evals += 1
                 for d in range(n):
-                    k1[d] = kk[d]
-            dt = t_new - t
-            e, s, ge = _k_locate(p, n_guards, x, K, x_new, k1, gv, work, dt, eps)
-            guard_evals += ge
-            tc, size = _k_store_crossing(x, K, x_new, k1, q, dq, work, t, dt, s, T, X, DX, size)
-            tau = -gv[e]
-            fs[F_LAND] = t_new
-            fs[F_TC] = tc
-            fs[F_TAU] = tau
-            iv[I_GUARD_INDEX] = e
-            exit_time = strip_exit_time(t_new, eps, tau)
-            # The strip stays here only for the ordinary case: a reset to this same mode with a
-            # finite image, inside the budget and before t_final (relaxed.strip.cross).
-            if not in_kernel or n_rec >= budget or exit_time >= t_final:
-                code = TRANSITION
-                break
-            ra = _twin_resets(q, p, e)
-            if not _k_finite(ra):
-                code = TRANSITION
-                break
-            resets += 1
-            r_e[n_rec] = e
-            r_f[n_rec, 0] = tc
-            r_f[n_rec, 1] = t_new
-            r_f[n_rec, 2] = exit_time
-            r_f[n_rec, 3] = tau
-            for d in range(n):
-                r_q[n_rec, d] = q[d]
-                r_after[n_rec, d] = ra[d]
-            seg_end[n_rec] = size
-            n_rec += 1
-            # Entering the mode again at the strip's exit (relaxed.entry.enter_mode); a state that
-            # needs the entry's special cases (in a strip, a non-finite field or guard) goes back to Python.
-            t = exit_time
-            for d in range(n):
-                x[d] = ra[d]
-            kk = _twin_field(t, x, p)
-            entry_ok = _k_finite(kk)
-            if entry_ok and n_guards > 0:
-                g = _twin_guards(x, p)
-                for j in range(n_guards):
-                    if not (g[j] >= 0.0):
-                        entry_ok = False
-            if not entry_ok:
-                code = NEXT
-                break
-            field_evals += 1
-            guard_evals += n_guards
-            for d in range(n):
-                K[0, d] = kk[d]
+                    K[0, d] = kk[d]
             T[size] = t
             for d in range(n):
                 X[size, d] = x[d]
-                DX[size, d] = kk[d]
+                DX[size, d] = K[0, d]
             size += 1
             continue
-        t = t_new
-        for d in range(n):
-            x[d] = x_new[d]
-        if fsal:
-            for d in range(n):
-                K[0, d] = K[s_stages - 1, d]
-        else:
-            kk = _twin_field(t, x, p)
-            field_evals += 1
-            for d in range(n):
-                K[0, d] = kk[d]
-        T[size] = t
-        for d in range(n):
-            X[size, d] = x[d]
-            DX[size, d] = K[0, d]
-        size += 1
-    fs[F_T] = t
-    fs[F_HPROP] = h_prop
-    iv[I_STEPS] = steps
-    iv[I_HALVINGS] = halvings
-    iv[I_REJECTIONS] = rejections
-    iv[I_FIELD] = field_evals
-    iv[I_GUARD] = guard_evals
-    iv[I_SIZE] = size
-    iv[I_RESETS] = resets
-    iv[I_RECORDS] = n_rec
+        # -- the step landed in one or more strips (relaxed.strip.cross_landing) ------------------
+        e, tc, tau, size, fe, ge = _k_landed(p, n_guards, x, K, x_new, k1, gv, work, q, dq, T, X, DX, fsal, t, t_new,
+                                             eps, size)
+        field_evals += fe
+        guard_evals += ge
+        fs[F_LAND], fs[F_TC], fs[F_TAU], iv[I_GUARD_INDEX] = t_new, tc, tau, e
+        exit_time = strip_exit_time(t_new, eps, tau)
+        # The strip stays here only for the ordinary case: a reset to this same mode with a
+        # finite image, inside the budget and before t_final (relaxed.strip.cross).
+        code = TRANSITION
+        if not in_kernel or n_rec >= budget or exit_time >= t_final:
+            break
+        ra = _twin_resets(q, p, e)
+        if not _k_finite(ra):
+            break
+        _k_record(q, ra, r_e, r_f, r_q, r_after, seg_end, n_rec, e, tc, t_new, exit_time, tau, size)
+        n_rec += 1
+        t = exit_time
+        entered = _k_reenter(p, n_guards, x, ra, K, T, X, DX, t, size)
+        if entered < 0:
+            code = NEXT
+            break
+        size = entered
+        field_evals += 1
+        guard_evals += n_guards
+        code = -1
+    fs[F_T], fs[F_HPROP] = t, h_prop
+    iv[I_STEPS], iv[I_HALVINGS], iv[I_REJECTIONS], iv[I_FIELD], iv[I_GUARD] = (steps, halvings, rejections,
+                                                                                 field_evals, guard_evals)
+    iv[I_SIZE], iv[I_RESETS], iv[I_RECORDS] = size, n_rec, n_rec
     return code
 
 
@@ -425,7 +443,10 @@ def _k_first_nan(values, n):
 
 #: The kernel's functions, in the order the generated module defines them.
 KERNEL_FUNCTIONS = (_k_combine, _k_stages, _k_hermite, _k_hermite_slope, _k_finite, _k_argmin, _k_first_nan,
-                    _k_crossing, _k_error, _k_guards, _k_aim, _k_locate, _k_store_crossing, _k_step_loop)
+                    _k_crossing, _k_error, _k_aim, _k_locate, _k_store_crossing, _k_landed, _k_record, _k_store,
+                    _k_reenter, _k_step_loop)
+#: The functions every step runs (inlined into the loop by the generator).
+EVERY_STEP = (_k_stages, _k_combine, trial_length, finish_tolerance, rejected_step, proposed_step, kept_proposal)
 #: The rules the kernel calls, compiled from their own source.
 RULES = (trial_length, finish_tolerance, rejected_step, proposed_step, kept_proposal, shortening_exhausted,
          aimed_step, crossing_start, crossing_point, crossing_update, hermite_weights, hermite_slope_weights,

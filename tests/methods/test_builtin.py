@@ -153,3 +153,25 @@ def test_dop853_runs_from_simulate_by_name_at_its_order():
     assert errors[0] / errors[1] > 2 ** 7
     ex = simulate(logistic_system(), [y0], "m", t_end, 0.5, 1e-3, "DOP853", rtol=1e-10, atol=1e-12)
     assert ex.settings["method"] == "dop853" and abs(ex.final_state[0] - logistic_exact(t_end, y0)) < 1e-9
+
+
+def test_dop853_tableau_is_eighth_order_with_a_fifth_order_estimate():
+    # x' = -x over [0, 1]: the global error of an order-8 method falls by 2^8 when h halves; the
+    # embedded estimate h * sum(E5_j k_j) of one step is O(h^6) (fifth-order solution).
+    from legsim import HybridSystem, Mode, simulate
+    from legsim.methods import error_estimate, make_stepper
+
+    tab = get_method("dop853")
+    assert get_method("dop853") is tab and tab.fsal and tab.stages == 13
+    system = HybridSystem({"m": Mode(1, lambda t, x, u: -x)})
+    hs = (0.5, 0.25, 0.125)
+    errors = [abs(simulate(system, [1.0], "m", 1.0, h, 1e-3, tab).final_state[0] - math.exp(-1.0)) for h in hs]
+    slopes = np.diff(np.log(errors)) / np.diff(np.log(hs))
+    assert np.all(slopes > 7.5), slopes
+    step = make_stepper(tab)
+    est = []
+    for h in hs:
+        x = np.array([1.0])
+        _, stages = step(lambda t, y, u: -y, 0.0, x, h, -x, None)
+        est.append(abs(error_estimate(tab, h, stages)[0]))
+    assert np.all(np.diff(np.log(est)) / np.diff(np.log(hs)) > 5.5)
