@@ -1,6 +1,6 @@
 """``legsim orbit SCENE``: find a periodic orbit (a gait) of a scene, or follow a family of them.
 
-The problem is the scene's ``[orbit]`` section (``legsim.orbits.ORBIT_KEYS``): the Poincare
+The problem is the scene's ``[orbit]`` section (``legsim.scene.orbit.ORBIT_KEYS``): the Poincare
 section, fixed and cyclic coordinates, free parameters, tolerances; the initial guess is the
 scene's ``[initial]`` state. ``--continue PARAM FROM TO`` follows the family of orbits as the
 real parameter PARAM (a robot parameter, or EFFECT.PARAM) goes from FROM to TO, prints a table
@@ -17,13 +17,12 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import os
 import sys
 import tempfile
 from pathlib import Path
 from typing import Any
 
-from ..errors import LegsimError
+from ..errors import LegsimError, OutputError
 
 #: Most parameter steps of ``--continue`` (one orbit search each) and bisections of ``--locate``
 #: (beyond ~50 the parameter interval is below double precision).
@@ -72,7 +71,8 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _run(args: argparse.Namespace, scene, plot_path: Path | None, bar) -> int:
-    from ..orbits import continue_family, find_orbit, problem_from_scene
+    from ..orbits import continue_family, find_orbit
+    from ..scene.orbit import problem_from_scene
 
     if not args.continuation:
         settings = problem_from_scene(scene)
@@ -250,11 +250,13 @@ def format_row(param: str, value: float, payload: dict[str, Any], layout: tuple[
 
 
 def write_family_plot(family, title: str, path: Path) -> None:
-    """Fixed-point coordinates, period and multiplier moduli against the parameter; the file is
-    written under a temporary name and renamed into place."""
+    """Fixed-point coordinates, period and multiplier moduli against the parameter, written to
+    ``path`` (png, pdf or svg by its suffix) so that it appears complete or not at all."""
     import numpy as np
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
+
+    from ..output.files import write_atomic
 
     values = np.array([p.value for p in family.points])
     first = family.points[0].result
@@ -287,11 +289,9 @@ def write_family_plot(family, title: str, path: Path) -> None:
     ax3.set_ylabel("|multiplier|")
     ax3.set_xlabel(family.parameter)
     ax3.legend(loc="best", fontsize="small")
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.stem}.partial-{os.getpid()}{path.suffix}")
     try:
-        fig.savefig(tmp, format=path.suffix.lower().lstrip("."))
-        os.replace(tmp, path)
+        write_atomic(path, lambda tmp: fig.savefig(tmp, format=path.suffix.lower().lstrip(".")), what="--plot")
+    except LegsimError:
+        raise
     except Exception as exc:
-        tmp.unlink(missing_ok=True)
-        raise LegsimError(f"--plot {path}: writing failed: {type(exc).__name__}: {exc}") from exc
+        raise OutputError(f"--plot {path}: writing failed: {type(exc).__name__}: {exc}") from exc
