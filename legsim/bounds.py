@@ -41,6 +41,7 @@ import numpy as np
 from scipy.optimize import minimize_scalar
 from scipy.special import betainc
 
+from .derivatives import gradient, jacobian
 from .errors import ModelBreakdown, SimulationError
 from .execution import Execution
 from .hybrid import HybridSystem, Mode, Transition
@@ -48,9 +49,6 @@ from .methods import Tableau, error_estimate, get_method, make_stepper
 from .relaxed import hermite
 
 ControlFn = Callable[[float, np.ndarray], Any]
-
-# Central differences balance truncation (O(d^2)) against rounding (O(eps / d)) at d ~ eps^(1/3).
-_FD_STEP = float(np.finfo(float).eps) ** (1.0 / 3.0)
 
 #: Most fixed steps one flow may be asked to take (certification level, stochastic execution).
 #: A ModeFlow advances a few thousand steps per second, so this is already about ten minutes of work:
@@ -78,16 +76,7 @@ def field_jacobian(mode: Mode, t: float, x: np.ndarray, u: Any = None) -> np.nda
         if J.shape != (mode.dim, mode.dim):
             raise SimulationError(f"jacobian of a mode with dim {mode.dim} returned shape {J.shape}")
         return J
-    n = mode.dim
-    J = np.empty((n, n))
-    for j in range(n):
-        d = _FD_STEP * max(1.0, abs(x[j]))
-        xp = x.copy()
-        xm = x.copy()
-        xp[j] += d
-        xm[j] -= d
-        J[:, j] = (np.asarray(mode.field(t, xp, u), dtype=float) - np.asarray(mode.field(t, xm, u), dtype=float)) / (2 * d)
-    return J
+    return jacobian(lambda y: mode.field(t, y, u), x)
 
 
 def lipschitz_estimate(mode: Mode, t: float, x: np.ndarray, u: Any = None) -> float:
@@ -105,35 +94,19 @@ def guard_gradient(transition: Transition, x: np.ndarray, t: float = 0.0, u: Any
     given, central finite differences otherwise (t and u matter for ``guard_args="t,x,u"``)."""
     if transition.guard_gradient is not None:
         return np.asarray(transition.guard_gradient(x), dtype=float).reshape(-1)
-    n = len(x)
-    grad = np.empty(n)
-    for j in range(n):
-        d = _FD_STEP * max(1.0, abs(x[j]))
-        xp = x.copy()
-        xm = x.copy()
-        xp[j] += d
-        xm[j] -= d
-        grad[j] = (transition.guard_value(xp, t, u) - transition.guard_value(xm, t, u)) / (2 * d)
-    return grad
+    return gradient(lambda y: transition.guard_value(y, t, u), x)
 
 
 def reset_lipschitz(transition: Transition, x: np.ndarray, target_dim: int) -> float:
-    """sigma_max of the reset's Jacobian at x (how much the reset can stretch a ball):
-    ``reset_jacobian`` when given, central differences otherwise; 1 for the identity."""
+    """sigma_max of the reset's Jacobian at x (how much the reset can stretch a ball), the
+    Jacobian of shape (target_dim, n): ``reset_jacobian`` when given, central differences
+    otherwise; 1 for the identity."""
     if transition.reset_jacobian is not None:
         J = np.asarray(transition.reset_jacobian(x), dtype=float)
     elif transition.reset is None:
         return 1.0
     else:
-        n = len(x)
-        J = np.empty((target_dim, n))
-        for j in range(n):
-            d = _FD_STEP * max(1.0, abs(x[j]))
-            xp = x.copy()
-            xm = x.copy()
-            xp[j] += d
-            xm[j] -= d
-            J[:, j] = (np.asarray(transition.reset(xp), dtype=float) - np.asarray(transition.reset(xm), dtype=float)) / (2 * d)
+        J = jacobian(transition.reset, x).reshape(target_dim, len(x))
     if not _finite(J):
         return math.inf
     return float(np.linalg.svd(J, compute_uv=False)[0])
