@@ -583,56 +583,14 @@ __all__: Sequence[str] = ("Certificate", "CertifiedTransition", "Level", "REASON
                           "scene_settings")
 
 
-# -- scenes ---------------------------------------------------------------------------------
-def section_schema(scene: Any) -> dict[str, Any]:
-    """The keys of a scene's ``[certify]`` section, with defaults from its ``[integrator]``."""
-    from .builders import Param
-    from .methods import ALIASES, METHODS
-
-    integ = scene.integrator
-    return {
-        "h": Param(float(integ["h"]), "initial step, divided by alpha at each refinement", "s", low=0.0, low_open=True),
-        "method": Param(str(integ["method"]), "Runge-Kutta method of the numerical solution",
-                        choices=tuple(sorted(METHODS) + sorted(ALIASES))),
-        "pair": Param("auto", "embedded pair of the local error estimates (auto: the method if embedded, "
-                              "else dopri5)", choices=("auto", "bs32", "dopri5", "rk23", "rk45", "dp54")),
-        "floor": Param(0.0, "declared local error floor coefficient (state units / s^(p+1))", low=0.0),
-        "alpha": Param(2.0, "refinement factor h := h / alpha", low=1.0, low_open=True),
-        "max_refinements": Param(6, "most refinements", low=0),
-        "t_final": Param(float(integ["t_final"]), "end time", "s"),
-        "max_transitions": Param(1000, "most transitions certified", low=1),
-    }
+#: Names of the scene layer's ``[certify]`` reader (``legsim.scene.certify``) that this module
+#: re-exports, loaded on first use so that the algorithm does not depend on the scene layer.
+_SCENE_NAMES = ("certify_scene", "scene_settings", "section_schema")
 
 
-def scene_settings(scene: Any, overrides: dict[str, Any] | None = None) -> dict[str, Any]:
-    """The validated ``[certify]`` settings of a scene (``overrides`` take precedence).
-    Raises SceneError naming the file and key."""
-    from .builders import resolve_parameters
-    from .errors import SceneError
+def __getattr__(name: str) -> Any:
+    if name in _SCENE_NAMES:
+        from .scene import certify as section
 
-    given = dict(scene.sections.get("certify", {}))
-    given.update({k: v for k, v in (overrides or {}).items() if v is not None})
-    settings = resolve_parameters(section_schema(scene), given, f"{scene.path}: certify")
-    t0 = float(scene.integrator.get("t0", 0.0))
-    if not settings["t_final"] > t0:
-        raise SceneError(f"{scene.path}: certify.t_final: must be > t0 = {t0}, got {settings['t_final']}")
-    return settings
-
-
-def certify_scene(scene: Any, overrides: dict[str, Any] | None = None, *,
-                  progress: Callable[[int, float, float], None] | None = None) -> Certificate:
-    """Certify the transitions of a scene's execution (its ``[certify]`` section, defaults from
-    ``[integrator]``) from the scene's initial mode and state; ``progress`` as in ``certify``."""
-    s = scene_settings(scene, overrides)
-    t0 = float(scene.integrator.get("t0", 0.0))
-    try:
-        check_steps(s["t_final"] - t0, s["h"], "certify")
-    except SimulationError as exc:
-        from .errors import SceneError
-        raise SceneError(f"{scene.path}: certify.h / certify.t_final: {exc}") from None
-    cert = certify(scene.model.system, scene.initial_mode, scene.initial_state, s["t_final"], s["h"], s["method"],
-                   t0=t0, pair=None if s["pair"] == "auto" else s["pair"],
-                   control=scene.model.control, floor=s["floor"], alpha=s["alpha"],
-                   max_refinements=s["max_refinements"], max_transitions=s["max_transitions"], progress=progress)
-    cert.settings["scene"] = scene.name
-    return cert
+        return getattr(section, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

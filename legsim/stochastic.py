@@ -567,61 +567,14 @@ __all__: Sequence[str] = ("Ensemble", "INTENSITIES", "MAX_SAMPLES", "StochasticE
                           "transition_functions")
 
 
-# -- scenes ---------------------------------------------------------------------------------
-def section_schema(scene: Any) -> dict[str, Any]:
-    """The keys of a scene's ``[stochastic]`` section, with defaults from its ``[integrator]``."""
-    from .builders import Param
-    from .methods import ALIASES, METHODS
-
-    integ = scene.integrator
-    methods = tuple(sorted(METHODS) + sorted(ALIASES))
-    return {
-        "samples": Param(100, "number of sampled executions", low=1, high=MAX_SAMPLES),
-        "seed": Param(0, "seed of the random generator", low=0),
-        "h": Param(float(integ["h"]), "fixed step of the numerical solution", "s", low=0.0, low_open=True),
-        "method": Param(str(integ["method"]), "Runge-Kutta method of the numerical solution", choices=methods),
-        "pair": Param("auto", "embedded pair of the local error estimates (auto: the method if embedded, "
-                              "else dopri5)", choices=("auto", "bs32", "dopri5", "rk23", "rk45", "dp54")),
-        "floor": Param(0.0, "declared local error floor coefficient (state units / s^(p+1))", low=0.0),
-        "intensity": Param("hazard", "reading of the intensity (see legsim.stochastic)", choices=INTENSITIES),
-        "t_final": Param(float(integ["t_final"]), "end time", "s"),
-        "max_transitions": Param(1000, "most switches of one sampled execution", low=0),
-        "carry": Param(True, "carry the error ball through switches"),
-        "hazard_cap": Param(HAZARD_CAP, "most hazard per error-ball radius moved relative to a guard "
-                                        "(bounded intensities: no Zeno behaviour; 1e300: in effect none)", low=0.0,
-                            low_open=True),
-    }
+#: Names of the scene layer's ``[stochastic]`` reader (``legsim.scene.stochastic``) that this module
+#: re-exports, loaded on first use so that the algorithm does not depend on the scene layer.
+_SCENE_NAMES = ("ensemble_from_scene", "scene_settings", "section_schema")
 
 
-def scene_settings(scene: Any, overrides: dict[str, Any] | None = None) -> dict[str, Any]:
-    """The validated ``[stochastic]`` settings of a scene (``overrides``, e.g. from the command
-    line, take precedence). Raises SceneError naming the file and key."""
-    from .builders import resolve_parameters
+def __getattr__(name: str) -> Any:
+    if name in _SCENE_NAMES:
+        from .scene import stochastic as section
 
-    given = dict(scene.sections.get("stochastic", {}))
-    given.update({k: v for k, v in (overrides or {}).items() if v is not None})
-    settings = resolve_parameters(section_schema(scene), given, f"{scene.path}: stochastic")
-    t0 = float(scene.integrator.get("t0", 0.0))
-    from .errors import SceneError
-    if not settings["t_final"] > t0:
-        raise SceneError(f"{scene.path}: stochastic.t_final: must be > t0 = {t0}, got {settings['t_final']}")
-    try:
-        check_steps(settings["t_final"] - t0, settings["h"], "stochastic")
-    except SimulationError as exc:
-        raise SceneError(f"{scene.path}: stochastic.h / stochastic.t_final: {exc}") from None
-    return settings
-
-
-def ensemble_from_scene(scene: Any, overrides: dict[str, Any] | None = None, *,
-                        progress: Callable[[int, int], None] | None = None) -> Ensemble:
-    """Monte Carlo ensemble of the scene's stochastic approximation (its ``[stochastic]``
-    section, with defaults from ``[integrator]``) from the scene's initial mode and state;
-    ``progress`` as in ``sample_ensemble``."""
-    s = scene_settings(scene, overrides)
-    ens = sample_ensemble(scene.model.system, scene.initial_mode, scene.initial_state, s["t_final"], s["h"],
-                          s["method"], samples=s["samples"], seed=s["seed"], t0=float(scene.integrator.get("t0", 0.0)),
-                          pair=None if s["pair"] == "auto" else s["pair"], control=scene.model.control,
-                          floor=s["floor"], intensity=s["intensity"], max_transitions=s["max_transitions"],
-                          carry=s["carry"], hazard_cap=s["hazard_cap"], progress=progress)
-    ens.settings["scene"] = scene.name
-    return ens
+        return getattr(section, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

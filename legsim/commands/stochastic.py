@@ -1,8 +1,9 @@
 """``legsim stochastic SCENE``: sample the stochastic approximation of a scene (paper 004 Sec. IV).
 
-Settings come from the scene's ``[stochastic]`` section (``legsim.stochastic.section_schema``:
-samples, seed, h, method, pair, floor, intensity, t_final, max_transitions, carry), with h,
-method and t_final defaulting to ``[integrator]``; ``--samples`` and ``--seed`` override it.
+Settings come from the scene's ``[stochastic]`` section
+(``legsim.scene.stochastic.section_schema``: samples, seed, h, method, pair, floor, intensity,
+t_final, max_transitions, carry, hazard_cap), with h, method and t_final defaulting to
+``[integrator]``; ``--samples`` and ``--seed`` override it.
 Prints the distribution of mode sequences and of the first switching times, beside the
 deterministic (relaxed) execution's switching times.
 
@@ -40,7 +41,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from ..scene import load_scene
-    from ..stochastic import ensemble_from_scene
+    from ..scene.stochastic import ensemble_from_scene
 
     if args.samples is not None and args.samples < 1:
         raise LegsimError(f"--samples must be an integer >= 1, got {args.samples}")

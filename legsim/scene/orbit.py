@@ -176,7 +176,8 @@ def _parameter_factory(scene: Any, free: Sequence[str], extra: Sequence[str]):
     params: dict[str, float] = {}
     specs: dict[str, Param] = {}
     for name in tuple(free) + tuple(extra):
-        specs[name], params[name] = _real_parameter(scene, name, "orbit.free" if name in free else "continued parameter")
+        label = "orbit.free" if name in free else "continued parameter"
+        specs[name], params[name] = _real_parameter(scene, name, label)
     base_params = dict(scene.parameters)
     base_effects = {k: dict(v) for k, v in scene.effects.items()}
     builder = scene.builder
