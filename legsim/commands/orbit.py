@@ -71,40 +71,39 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _run(args: argparse.Namespace, scene, plot_path: Path | None, bar) -> int:
-    from ..orbits import continue_family, find_orbit
+    if args.continuation:
+        return _run_family(args, scene, plot_path, bar)
+    return _run_orbit(args, scene, bar)
+
+
+def _run_orbit(args: argparse.Namespace, scene, bar) -> int:
+    """One orbit search: its report, and exit code 3 when no orbit was found."""
+    from ..orbits import find_orbit
     from ..scene.orbit import problem_from_scene
 
-    if not args.continuation:
-        settings = problem_from_scene(scene)
-        settings.problem.progress = bar
-        result = find_orbit(settings.problem, settings.guess, **settings.solver)
-        if bar is not None:
-            bar.close()
-        payload = result.to_json()
-        payload["scene"] = scene.name
-        if args.json:
-            print(json.dumps(payload, allow_nan=False))
-        elif not args.quiet:
-            print(format_orbit(payload, scene.name))
-        if not result.converged:
-            print(f"legsim: no orbit ({result.status}): {result.message}", file=sys.stderr)
-            return 3
-        return 0
+    settings = problem_from_scene(scene)
+    settings.problem.progress = bar
+    result = find_orbit(settings.problem, settings.guess, **settings.solver)
+    if bar is not None:
+        bar.close()
+    payload = result.to_json()
+    payload["scene"] = scene.name
+    if args.json:
+        print(json.dumps(payload, allow_nan=False))
+    elif not args.quiet:
+        print(format_orbit(payload, scene.name))
+    if not result.converged:
+        print(f"legsim: no orbit ({result.status}): {result.message}", file=sys.stderr)
+        return 3
+    return 0
 
-    param, start_text, stop_text = args.continuation
-    start, stop = _number("--continue FROM", start_text), _number("--continue TO", stop_text)
-    if start == stop:
-        raise LegsimError("--continue needs FROM != TO")
-    settings = problem_from_scene(scene, extra_parameters=[param])
-    if param in settings.problem.free:
-        raise LegsimError(f"--continue {param}: '{param}' is a free parameter of the scene's [orbit] section "
-                          f"(solved for at each orbit); continue another parameter or drop it from orbit.free")
-    for label, value in (("FROM", start), ("TO", stop)):
-        # Both ends must be valid values of the parameter before any orbit is searched for.
-        try:
-            settings.problem.instantiate({param: value})
-        except LegsimError as exc:
-            raise LegsimError(f"--continue {label} = {value:g}: {exc}") from None
+
+def _run_family(args: argparse.Namespace, scene, plot_path: Path | None, bar) -> int:
+    """``--continue``: the family's table (or JSON), its plot, exit code 3 when incomplete."""
+    from ..orbits import continue_family
+
+    param = args.continuation[0]
+    settings, start, stop = _continuation_settings(scene, args.continuation)
     settings.problem.progress = bar
 
     def progress(point) -> None:
@@ -124,23 +123,50 @@ def _run(args: argparse.Namespace, scene, plot_path: Path | None, bar) -> int:
         bar.close()
     payload = family.to_json()
     payload["scene"] = scene.name
-    if plot_path is not None and family.points:
+    plotted = plot_path is not None and bool(family.points)
+    if plotted:
         write_family_plot(family, scene.name, plot_path)
         payload["plot"] = str(plot_path)
     if args.json:
         print(json.dumps(payload, allow_nan=False))
     elif not args.quiet:
-        for change in family.stability_changes:
-            print("stability change: " + change.describe(param))
-        if not family.stability_changes:
-            print("stability change: none in this range")
-        print(("complete: " if family.complete else "incomplete: ") + family.message)
-        if plot_path is not None and family.points:
-            print(f"wrote {plot_path} (plot)")
+        print(format_family_end(family, param, plot_path if plotted else None))
     if not family.complete:
         print(f"legsim: the family is incomplete: {family.message}", file=sys.stderr)
         return 3
     return 0
+
+
+def _continuation_settings(scene, continuation: list[str]):
+    """(the scene's orbit settings with the continued parameter, FROM, TO), both ends checked
+    as values of the parameter before any orbit is searched for."""
+    from ..scene.orbit import problem_from_scene
+
+    param, start_text, stop_text = continuation
+    start, stop = _number("--continue FROM", start_text), _number("--continue TO", stop_text)
+    if start == stop:
+        raise LegsimError("--continue needs FROM != TO")
+    settings = problem_from_scene(scene, extra_parameters=[param])
+    if param in settings.problem.free:
+        raise LegsimError(f"--continue {param}: '{param}' is a free parameter of the scene's [orbit] section "
+                          f"(solved for at each orbit); continue another parameter or drop it from orbit.free")
+    for label, value in (("FROM", start), ("TO", stop)):
+        try:
+            settings.problem.instantiate({param: value})
+        except LegsimError as exc:
+            raise LegsimError(f"--continue {label} = {value:g}: {exc}") from None
+    return settings, start, stop
+
+
+def format_family_end(family, param: str, plot_path: Path | None) -> str:
+    """The lines after the ``--continue`` table: stability changes, completeness, the plot."""
+    lines = ["stability change: " + change.describe(param) for change in family.stability_changes]
+    if not family.stability_changes:
+        lines.append("stability change: none in this range")
+    lines.append(("complete: " if family.complete else "incomplete: ") + family.message)
+    if plot_path is not None:
+        lines.append(f"wrote {plot_path} (plot)")
+    return "\n".join(lines)
 
 
 def _number(label: str, text: str) -> float:
