@@ -618,18 +618,4 @@ def _reason(kind: str, levels: list[Level]) -> str:
     return kind
 
 
-__all__: Sequence[str] = ("Certificate", "CertifiedTransition", "Level", "REASONS", "certify", "certify_scene",
-                          "scene_settings")
-
-
-#: Names of the scene layer's ``[certify]`` reader (``legsim.scene.certify``) that this module
-#: re-exports, loaded on first use so that the algorithm does not depend on the scene layer.
-_SCENE_NAMES = ("certify_scene", "scene_settings", "section_schema")
-
-
-def __getattr__(name: str) -> Any:
-    if name in _SCENE_NAMES:
-        from .scene import certify as section
-
-        return getattr(section, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+__all__: Sequence[str] = ("Certificate", "CertifiedTransition", "Level", "REASONS", "certify")

@@ -161,10 +161,6 @@ class TransitionFunctions:
         return 1.0 - self.survival
 
 
-def _make_estimator(method: str | Tableau, pair: str | Tableau | None, floor: float) -> LocalErrorEstimator:
-    return LocalErrorEstimator(method, pair, floor)
-
-
 def transition_functions(
     system: HybridSystem,
     mode: str,
@@ -190,7 +186,7 @@ def transition_functions(
     form = _check_form(intensity)
     t_final = check_t_final(t_final, t0)
     check_steps(t_final - float(t0), h, "transition functions")
-    flow = ModeFlow(system, mode, x, float(t0), h, _make_estimator(method, pair, floor), control=control,
+    flow = ModeFlow(system, mode, x, float(t0), h, LocalErrorEstimator(method, pair, floor), control=control,
                     b0=b0, t_end=t_final)
     pieces: list[StepSamples] = []
     n = 0
@@ -404,7 +400,7 @@ def sample_execution(
     max_transitions = check_count("max_transitions", max_transitions, 0)
     check_steps(t_final - float(t0), h, "stochastic execution")
     generator = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
-    estimator = _make_estimator(method, pair, floor)
+    estimator = LocalErrorEstimator(method, pair, floor)
 
     def visit(mode: str, x: np.ndarray, t: float, b0: float) -> _Visit:
         return _Visit(ModeFlow(system, mode, x, t, h, estimator, control=control, b0=b0, t_end=t_final), form, cap)
@@ -546,7 +542,7 @@ def sample_ensemble(
     cap = _check_hazard_cap(hazard_cap)
     t_final = check_t_final(t_final, t0)
     rng = np.random.default_rng(seed)
-    estimator = _make_estimator(method, pair, floor)
+    estimator = LocalErrorEstimator(method, pair, floor)
     first = _Visit(ModeFlow(system, mode, x, float(t0), h, estimator, control=control, t_end=t_final), intensity, cap)
     runs = []
     for k in range(int(samples)):
@@ -562,18 +558,4 @@ def sample_ensemble(
 
 
 __all__: Sequence[str] = ("Ensemble", "INTENSITIES", "MAX_SAMPLES", "StochasticExecution", "TransitionFunctions",
-                          "ensemble_from_scene", "sample_ensemble", "sample_execution", "scene_settings",
-                          "transition_functions")
-
-
-#: Names of the scene layer's ``[stochastic]`` reader (``legsim.scene.stochastic``) that this module
-#: re-exports, loaded on first use so that the algorithm does not depend on the scene layer.
-_SCENE_NAMES = ("ensemble_from_scene", "scene_settings", "section_schema")
-
-
-def __getattr__(name: str) -> Any:
-    if name in _SCENE_NAMES:
-        from .scene import stochastic as section
-
-        return getattr(section, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+                          "sample_ensemble", "sample_execution", "transition_functions")

@@ -3,8 +3,6 @@ legsim.scene.stochastic): defaults from ``[integrator]``, overrides, and errors 
 
 import pytest
 
-import legsim.certify
-import legsim.stochastic
 from legsim.errors import SceneError
 from legsim.scene import certify as certify_section
 from legsim.scene import load_scene
@@ -39,9 +37,3 @@ def test_t_final_before_t0_and_too_many_steps_are_named_by_their_keys(section):
     with pytest.raises(SceneError, match=rf"{section}.h / {section}.t_final: .* more than the limit"):
         reader.scene_settings(scene)
 
-
-def test_the_algorithm_modules_re_export_the_readers():
-    assert legsim.certify.certify_scene is certify_section.certify_scene
-    assert legsim.certify.scene_settings is certify_section.scene_settings
-    assert legsim.stochastic.ensemble_from_scene is stochastic_section.ensemble_from_scene
-    assert legsim.stochastic.scene_settings is stochastic_section.scene_settings

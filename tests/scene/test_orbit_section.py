@@ -1,6 +1,9 @@
 """The ``[orbit]`` section reader (legsim.scene.orbit): what it builds from a bundled scene, and
 errors that name the file and the ``orbit.KEY`` at fault."""
 
+import subprocess
+import sys
+
 import numpy as np
 import pytest
 
@@ -26,6 +29,12 @@ def test_the_rimless_wheel_section_becomes_a_problem_with_solver_settings_and_gu
 def test_the_orbit_package_re_exports_the_reader():
     assert legsim.orbits.problem_from_scene is problem_from_scene
     assert legsim.orbits.ORBIT_KEYS is ORBIT_KEYS and legsim.orbits.OrbitSettings is OrbitSettings
+
+
+def test_the_algorithms_do_not_load_the_scene_layer():
+    code = "import sys, legsim.orbits, legsim.certify, legsim.stochastic; print('legsim.scene' in sys.modules)"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "False"
 
 
 @pytest.mark.parametrize("override, message", [
