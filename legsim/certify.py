@@ -230,7 +230,8 @@ class _ConeRun:
                                                  event is not None, False, "refinement_limit", (t0, last), b0, b0,
                                                  [trs[j].name for j in met], message))
 
-    def _locate(self, flow: ModeFlow, n: int, s_lo: float, s_hi: float, crossed: np.ndarray) -> tuple[float, int, np.ndarray, float]:
+    def _locate(self, flow: ModeFlow, n: int, s_lo: float, s_hi: float,
+                crossed: np.ndarray) -> tuple[float, int, np.ndarray, float]:
         """The first crossing among the guards ``crossed`` between fractions s_lo and s_hi of
         step n, found on the Hermite interpolant: (t_e, guard index, x_e, B(t_e))."""
         p0, p1 = flow.points[n], flow.points[n + 1]
@@ -557,7 +558,8 @@ class _Refinement:
                  estimator: LocalErrorEstimator, control: ControlFn | None, max_transitions: int,
                  progress: Callable[[int, float, float], None] | None) -> None:
         self.system, self.mode, self.x, self.t0, self.t_final = system, mode, x, t0, t_final
-        self.estimator, self.control, self.max_transitions, self.progress = estimator, control, max_transitions, progress
+        self.estimator, self.control = estimator, control
+        self.max_transitions, self.progress = max_transitions, progress
         self.levels: list[Level] = []
         self.records: list[CertifiedTransition] = []
         self.failure: _Visit | None = None

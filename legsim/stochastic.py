@@ -218,7 +218,8 @@ def transition_functions(
     if len(dt):
         lam[:-1] = incr / np.maximum(dt, np.finfo(float).tiny)[:, None]
     hazard = np.concatenate([[0.0], np.cumsum(incr.sum(axis=1))])
-    return TransitionFunctions(mode, tuple(tr.name for tr in flow.transitions), tuple(tr.target for tr in flow.transitions),
+    trs = flow.transitions
+    return TransitionFunctions(mode, tuple(tr.name for tr in trs), tuple(tr.target for tr in trs),
                                t, xs, radius, distance, pi, lam, hazard, np.exp(-hazard), form)
 
 

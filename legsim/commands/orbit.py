@@ -20,9 +20,12 @@ import math
 import sys
 import tempfile
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ..errors import LegsimError, OutputError
+
+if TYPE_CHECKING:
+    from ..orbits import Family, FamilyPoint, OrbitProblem
 
 #: Most parameter steps of ``--continue`` (one orbit search each) and bisections of ``--locate``
 #: (beyond ~50 the parameter interval is below double precision).
@@ -34,7 +37,8 @@ HELP = "find a periodic orbit (gait) of a scene from its [orbit] section, or fol
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("scene", metavar="SCENE", help="scene file (.toml) or bundled scene name with an [orbit] section")
+    parser.add_argument("scene", metavar="SCENE",
+                        help="scene file (.toml) or bundled scene name with an [orbit] section")
     parser.add_argument("--set", dest="overrides", metavar="KEY=VALUE", action="append", default=[],
                         help="override a scene field, e.g. --set robot.parameters.slope=4 --set orbit.tol=1e-8")
     parser.add_argument("--json", action="store_true", help="print one JSON object")
@@ -106,7 +110,7 @@ def _run_family(args: argparse.Namespace, scene, plot_path: Path | None, bar) ->
     settings, start, stop = _continuation_settings(scene, args.continuation)
     settings.problem.progress = bar
 
-    def progress(point) -> None:
+    def progress(point: FamilyPoint) -> None:
         if bar is not None:
             bar.close()
         if not (args.json or args.quiet):
@@ -158,7 +162,7 @@ def _continuation_settings(scene, continuation: list[str]):
     return settings, start, stop
 
 
-def format_family_end(family, param: str, plot_path: Path | None) -> str:
+def format_family_end(family: Family, param: str, plot_path: Path | None) -> str:
     """The lines after the ``--continue`` table: stability changes, completeness, the plot."""
     lines = ["stability change: " + change.describe(param) for change in family.stability_changes]
     if not family.stability_changes:
@@ -211,7 +215,8 @@ def format_orbit(payload: dict[str, Any], name: str) -> str:
     lines = []
     if payload["status"] == "converged":
         lines.append(f"{name}: periodic orbit found in {payload['iterations']} iteration(s), residual "
-                     f"{payload['residual']:.3g} ({payload['jacobian']} Jacobian, {payload['evaluations']} simulations)")
+                     f"{payload['residual']:.3g} ({payload['jacobian']} Jacobian, "
+                     f"{payload['evaluations']} simulations)")
     else:
         lines.append(f"{name}: no orbit ({payload['status']}): {payload['message']}")
         lines.append("last iterate:")
@@ -233,13 +238,14 @@ def format_orbit(payload: dict[str, Any], name: str) -> str:
         mus.append(f"{text} (|mu| {math.hypot(re, im):.6g})")
     lines.append("Floquet multipliers: " + (", ".join(mus) if mus else "none"))
     verdict = "stable" if payload["stable"] else "unstable"
-    trivial = f", {payload['trivial_multipliers']} trivial multiplier(s) 1 left out" if payload["trivial_multipliers"] else ""
+    trivial = (f", {payload['trivial_multipliers']} trivial multiplier(s) 1 left out"
+               if payload["trivial_multipliers"] else "")
     lines.append(f"{verdict}: spectral radius {payload['spectral_radius']:.6g}{trivial}")
     lines.append("transitions per period: " + ", ".join(payload["transitions"]))
     return "\n".join(lines)
 
 
-def format_header(param: str, problem) -> tuple[str, tuple[list[str], list[int]]]:
+def format_header(param: str, problem: OrbitProblem) -> tuple[str, tuple[list[str], list[int]]]:
     """The table header of ``--continue`` and its columns: the parameter, the unknown
     coordinates, the free parameters, period, step length, largest |multiplier|, verdict."""
     cols = [param] + [problem.names[i] for i in problem.unknown_idx] + list(problem.free) + \
@@ -275,7 +281,7 @@ def format_row(param: str, value: float, payload: dict[str, Any], layout: tuple[
     return "".join(cells)
 
 
-def write_family_plot(family, title: str, path: Path) -> None:
+def write_family_plot(family: Family, title: str, path: Path) -> None:
     """Fixed-point coordinates, period and multiplier moduli against the parameter, written to
     ``path`` (png, pdf or svg by its suffix) so that it appears complete or not at all."""
     import numpy as np

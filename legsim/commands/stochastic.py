@@ -30,7 +30,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("scene", metavar="SCENE", help="scene file (.toml) or bundled scene name")
     parser.add_argument("--samples", type=int, metavar="N", help="number of sampled executions "
                                                                   "(default: stochastic.samples, else 100)")
-    parser.add_argument("--seed", type=int, metavar="S", help="seed of the random generator (default: stochastic.seed, else 0)")
+    parser.add_argument("--seed", type=int, metavar="S",
+                        help="seed of the random generator (default: stochastic.seed, else 0)")
     parser.add_argument("--set", dest="overrides", metavar="KEY=VALUE", action="append", default=[],
                         help="override a scene field, e.g. --set stochastic.h=0.01 --set stochastic.floor=1")
     parser.add_argument("--json", action="store_true", help="print one JSON object")

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any, Mapping, Sequence
+from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
@@ -170,7 +170,8 @@ def _real_parameter(scene: Any, name: str, label: str) -> tuple[Param, float]:
     return spec, float(value)
 
 
-def _parameter_factory(scene: Any, free: Sequence[str], extra: Sequence[str]):
+def _parameter_factory(scene: Any, free: Sequence[str],
+                       extra: Sequence[str]) -> tuple[dict[str, float], Callable[[Mapping[str, float]], Any]]:
     """(the scene's values of the free and extra parameters, a factory that builds the scene's
     model for new values of them, each checked against its spec)."""
     params: dict[str, float] = {}
@@ -183,7 +184,7 @@ def _parameter_factory(scene: Any, free: Sequence[str], extra: Sequence[str]):
     builder = scene.builder
     where = f"{scene.path}: orbit"
 
-    def factory(values: Mapping[str, float]):
+    def factory(values: Mapping[str, float]) -> Any:
         p = dict(base_params)
         e = {k: dict(v) for k, v in base_effects.items()}
         for name, value in values.items():
@@ -199,7 +200,7 @@ def _parameter_factory(scene: Any, free: Sequence[str], extra: Sequence[str]):
 
 
 def _problem(scene: Any, table: Mapping[str, Any], section: Section, free: tuple[str, ...],
-             params: dict[str, float], factory) -> OrbitProblem:
+             params: dict[str, float], factory: Callable[[Mapping[str, float]], Any]) -> OrbitProblem:
     integ = scene.integrator
     energy = _number(scene, table, "energy", None)
     try:
