@@ -288,6 +288,7 @@ class _NewtonSearch:
         self.res = math.inf
 
     def run(self, max_iterations: int) -> OrbitResult:
+        """Iterate from the initial guess until converged, failed, or ``max_iterations`` steps."""
         try:
             self.ret, self.F = self.eq.evaluate(self.z)
         except OrbitError as exc:
