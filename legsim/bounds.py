@@ -41,16 +41,14 @@ import numpy as np
 from scipy.optimize import minimize_scalar
 from scipy.special import betainc
 
-from .errors import ModelBreakdown, SimulationError
+from .derivatives import gradient, jacobian
+from .errors import ModelBreakdown, ModelError, SimulationError
 from .execution import Execution
 from .hybrid import HybridSystem, Mode, Transition
 from .methods import Tableau, error_estimate, get_method, make_stepper
 from .relaxed import hermite
 
 ControlFn = Callable[[float, np.ndarray], Any]
-
-# Central differences balance truncation (O(d^2)) against rounding (O(eps / d)) at d ~ eps^(1/3).
-_FD_STEP = float(np.finfo(float).eps) ** (1.0 / 3.0)
 
 #: Most fixed steps one flow may be asked to take (certification level, stochastic execution).
 #: A ModeFlow advances a few thousand steps per second, so this is already about ten minutes of work:
@@ -78,16 +76,7 @@ def field_jacobian(mode: Mode, t: float, x: np.ndarray, u: Any = None) -> np.nda
         if J.shape != (mode.dim, mode.dim):
             raise SimulationError(f"jacobian of a mode with dim {mode.dim} returned shape {J.shape}")
         return J
-    n = mode.dim
-    J = np.empty((n, n))
-    for j in range(n):
-        d = _FD_STEP * max(1.0, abs(x[j]))
-        xp = x.copy()
-        xm = x.copy()
-        xp[j] += d
-        xm[j] -= d
-        J[:, j] = (np.asarray(mode.field(t, xp, u), dtype=float) - np.asarray(mode.field(t, xm, u), dtype=float)) / (2 * d)
-    return J
+    return jacobian(lambda y: mode.field(t, y, u), x)
 
 
 def lipschitz_estimate(mode: Mode, t: float, x: np.ndarray, u: Any = None) -> float:
@@ -105,35 +94,19 @@ def guard_gradient(transition: Transition, x: np.ndarray, t: float = 0.0, u: Any
     given, central finite differences otherwise (t and u matter for ``guard_args="t,x,u"``)."""
     if transition.guard_gradient is not None:
         return np.asarray(transition.guard_gradient(x), dtype=float).reshape(-1)
-    n = len(x)
-    grad = np.empty(n)
-    for j in range(n):
-        d = _FD_STEP * max(1.0, abs(x[j]))
-        xp = x.copy()
-        xm = x.copy()
-        xp[j] += d
-        xm[j] -= d
-        grad[j] = (transition.guard_value(xp, t, u) - transition.guard_value(xm, t, u)) / (2 * d)
-    return grad
+    return gradient(lambda y: transition.guard_value(y, t, u), x)
 
 
 def reset_lipschitz(transition: Transition, x: np.ndarray, target_dim: int) -> float:
-    """sigma_max of the reset's Jacobian at x (how much the reset can stretch a ball):
-    ``reset_jacobian`` when given, central differences otherwise; 1 for the identity."""
+    """sigma_max of the reset's Jacobian at x (how much the reset can stretch a ball), the
+    Jacobian of shape (target_dim, n): ``reset_jacobian`` when given, central differences
+    otherwise; 1 for the identity."""
     if transition.reset_jacobian is not None:
         J = np.asarray(transition.reset_jacobian(x), dtype=float)
     elif transition.reset is None:
         return 1.0
     else:
-        n = len(x)
-        J = np.empty((target_dim, n))
-        for j in range(n):
-            d = _FD_STEP * max(1.0, abs(x[j]))
-            xp = x.copy()
-            xm = x.copy()
-            xp[j] += d
-            xm[j] -= d
-            J[:, j] = (np.asarray(transition.reset(xp), dtype=float) - np.asarray(transition.reset(xm), dtype=float)) / (2 * d)
+        J = jacobian(transition.reset, x).reshape(target_dim, len(x))
     if not _finite(J):
         return math.inf
     return float(np.linalg.svd(J, compute_uv=False)[0])
@@ -512,31 +485,9 @@ class ModeFlow:
         remaining = self.t_end - t
         at_end = math.isfinite(self.t_end) and remaining <= 1e-12 * max(1.0, abs(self.t_end))
         last = at_end or len(self.points) + 1 >= self.max_points
-        le = 0.0
-        hn = 0.0
+        le = hn = 0.0
         if not last:
-            hn = min(self.h, remaining)
-            if remaining - hn <= 1e-9 * self.h:
-                hn = remaining
-            try:
-                x_new, le = self.estimator.step(self.mode.field, t, x, hn, f0, self.control)
-                f_new = self.field_at(t + hn, x_new) if _finite(x_new) else x_new
-                if _finite(f_new):
-                    x_half = self.estimator.pair_solution(self.mode.field, t, x, 0.5 * hn, f0, self.control)
-                    midpoint = 0.5 * (x + x_new) + (0.125 * hn) * (f0 - f_new)
-                    le += _norm(midpoint - x_half)
-            except ModelBreakdown as exc:
-                # The step leaves the model's range, its start point does not: keep that point
-                # (the cone may leave the domain there) and end the flow.
-                self._finish("model_breakdown", f"{exc} (flowing mode '{self.mode_name}' on from t={t:.6g})")
-                x_new = f_new = x
-                last = True
-                le = math.inf
-            if not last and not (_finite(x_new) and _finite(f_new) and math.isfinite(le)):
-                self._finish("non_finite", f"step from t={t:.17g} in mode '{self.mode_name}' is not finite "
-                                           f"(x={x.tolist()})")
-                last = True
-                le = math.inf
+            hn, x_new, f_new, le, last = self._step(t, x, f0, remaining)
         if len(self.points) + 1 >= self.max_points and self.status == "running" and remaining > 0:
             self._finish("max_points", f"flow of mode '{self.mode_name}' reached {self.max_points} points "
                                        f"at t={t:.17g}")
@@ -562,6 +513,32 @@ class ModeFlow:
         self._x = x_new
         self._f = f_new
         return True
+
+    def _step(self, t: float, x: np.ndarray, f0: np.ndarray,
+              remaining: float) -> tuple[float, np.ndarray, np.ndarray, float, bool]:
+        """One step from (t, x), f0 = f(t, x), at most ``remaining`` (s) long: (its length, the
+        new state and field, its local error with the interpolant's, whether the flow ends at
+        its start: the model broke down or the step is not finite, its error then infinite)."""
+        hn = min(self.h, remaining)
+        if remaining - hn <= 1e-9 * self.h:
+            hn = remaining
+        try:
+            x_new, le = self.estimator.step(self.mode.field, t, x, hn, f0, self.control)
+            f_new = self.field_at(t + hn, x_new) if _finite(x_new) else x_new
+            if _finite(f_new):
+                x_half = self.estimator.pair_solution(self.mode.field, t, x, 0.5 * hn, f0, self.control)
+                midpoint = 0.5 * (x + x_new) + (0.125 * hn) * (f0 - f_new)
+                le += _norm(midpoint - x_half)
+        except ModelBreakdown as exc:
+            # The step leaves the model's range, its start point does not: keep that point
+            # (the cone may leave the domain there) and end the flow.
+            self._finish("model_breakdown", f"{exc} (flowing mode '{self.mode_name}' on from t={t:.6g})")
+            return hn, x, x, math.inf, True
+        if not (_finite(x_new) and _finite(f_new) and math.isfinite(le)):
+            self._finish("non_finite", f"step from t={t:.17g} in mode '{self.mode_name}' is not finite "
+                                       f"(x={x.tolist()})")
+            return hn, x_new, f_new, math.inf, True
+        return hn, x_new, f_new, le, False
 
     def _finish(self, status: str, message: str) -> None:
         self._done = True
@@ -661,6 +638,34 @@ def check_steps(span: float, h: float, what: str) -> int:
         raise SimulationError(f"{what}: {span:g} s at h = {h:g} s is {steps:.3g} steps, more than the limit "
                               f"{MAX_STEPS:.0e}: raise h or shorten t_final")
     return int(math.ceil(steps))
+
+
+def check_start(system: HybridSystem, mode: Any, x0: Any) -> np.ndarray:
+    """x0 as a state of ``mode`` of ``system``, shape (n,), or SimulationError naming what is
+    wrong."""
+    if not isinstance(system, HybridSystem):
+        raise SimulationError(f"system must be a legsim.HybridSystem, got {type(system).__name__}")
+    if not isinstance(mode, str):
+        raise SimulationError(f"mode must be a mode name (str), got {mode!r}")
+    try:
+        system.mode(mode)
+    except ModelError as exc:
+        raise SimulationError(f"unknown mode {mode!r}: {exc}") from exc
+    return system.check_state(mode, x0, label="x0")
+
+
+def check_t_final(t_final: Any, t0: float) -> float:
+    """t_final (s) as a float, or SimulationError unless it is a finite number after t0."""
+    if not (isinstance(t_final, (int, float, np.integer, np.floating)) and math.isfinite(t_final) and t_final > t0):
+        raise SimulationError(f"t_final must be a finite number > t0 = {t0}, got {t_final!r}")
+    return float(t_final)
+
+
+def check_count(name: str, value: Any, low: int) -> int:
+    """An integer >= ``low`` (a budget or a number of refinements), or SimulationError naming it."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
+        raise SimulationError(f"{name} must be an integer >= {low}, got {value!r}")
+    return int(value)
 
 
 def check_step(name: str, value: Any) -> float:

@@ -50,8 +50,9 @@ from typing import Any, Callable, Sequence
 import numpy as np
 from scipy.optimize import brentq
 
-from .bounds import MAX_STEPS, LocalErrorEstimator, ModeFlow, check_step, check_steps, guard_gradient, reset_lipschitz
-from .errors import ModelBreakdown, ModelError, SimulationError
+from .bounds import (MAX_STEPS, LocalErrorEstimator, ModeFlow, check_count, check_start, check_step, check_steps,
+                     check_t_final, guard_gradient, reset_lipschitz)
+from .errors import ModelBreakdown, SimulationError
 from .hybrid import HybridSystem
 from .methods import Tableau
 
@@ -229,7 +230,8 @@ class _ConeRun:
                                                  event is not None, False, "refinement_limit", (t0, last), b0, b0,
                                                  [trs[j].name for j in met], message))
 
-    def _locate(self, flow: ModeFlow, n: int, s_lo: float, s_hi: float, crossed: np.ndarray) -> tuple[float, int, np.ndarray, float]:
+    def _locate(self, flow: ModeFlow, n: int, s_lo: float, s_hi: float,
+                crossed: np.ndarray) -> tuple[float, int, np.ndarray, float]:
         """The first crossing among the guards ``crossed`` between fractions s_lo and s_hi of
         step n, found on the Hermite interpolant: (t_e, guard index, x_e, B(t_e))."""
         p0, p1 = flow.points[n], flow.points[n + 1]
@@ -378,61 +380,91 @@ class _Walk:
         return False
 
     def verdict(self, index: int) -> _Visit:
-        run = self.run_
-        flow = self.flow
-        trs = flow.transitions
-        mode = flow.mode_name
-        b0 = self.b0
-        met = self.met
-        names = [trs[j].name for j in np.flatnonzero(met)]
-        if self.beyond:
-            return _Visit("end", end_time=run.t_final)
+        """The visit's outcome once the walk has ended: the end of the run, a near miss, a
+        refused crossing or a certified one."""
+        if self.beyond or (self.event is None and not self.met.any()):
+            return _Visit("end", end_time=self.run_.t_final)
         if self.event is None:
-            if not met.any():
-                return _Visit("end", end_time=run.t_final)
-            candidates = np.where(met, self.closest, np.inf)
-            j = int(np.argmin(candidates))
-            if not math.isfinite(candidates[j]):
-                j = int(np.flatnonzero(met)[0])
-            closest, r, t = self.closest[j], self.closest_r[j], self.closest_t[j]
-            if not math.isfinite(closest):
-                closest, r, t = 0.0, math.nan, self.first_touch[j]
-            rec = run._record(index, mode, trs[j], t, False, False, "grazing", (self.first_touch[j], self.last_touch[j]),
-                              r, b0, names,
-                              f"near miss: the cone reaches the guard of {trs[j].name} (closest approach of the "
-                              f"computed trajectory {closest:.3g}, bound {r:.3g}) but the computed trajectory "
-                              f"does not cross it")
-            return _Visit("grazing", rec, closest, r)
-        te, je, xe, re = self.event
+            return self._near_miss(index)
+        te, je, _, re = self.event
         window = (min(self.first_touch[je], te), max(self.last_touch[je], te))
+        trs = self.flow.transitions
         if self.zeno_guard is not None:
             jz = self.zeno_guard
-            rec = run._record(index, mode, trs[je], te, True, False, "zeno", window, re, b0, names,
-                              f"the entry ball (radius {self.entry_radius:.3g}) already meets the guard of "
-                              f"{trs[jz].name} {self.entry_distance[jz]:.3g} away, which the flow moves towards: "
-                              f"the visit may last no time")
+            rec = self._record(index, je, True, "zeno", window, re,
+                               f"the entry ball (radius {self.entry_radius:.3g}) already meets the guard of "
+                               f"{trs[jz].name} {self.entry_distance[jz]:.3g} away, which the flow moves towards: "
+                               f"the visit may last no time")
             return _Visit("zeno", rec, max(float(self.entry_distance[jz]), 0.0), self.entry_radius)
-        others = [j for j in np.flatnonzero(met) if j != je]
+        others = [j for j in np.flatnonzero(self.met) if j != je]
         if others:
             assert self.event_distance is not None
             jo = min(others, key=lambda j: abs(float(self.event_distance[j])))
-            rec = run._record(index, mode, trs[je], te, True, False, "intersecting_guards", window, re, b0, names,
-                              f"the cone meets the guards of {', '.join(names)} before leaving the domain "
-                              f"(the event point is {abs(float(self.event_distance[jo])):.3g} from the guard of "
-                              f"{trs[jo].name}, bound {re:.3g})")
+            rec = self._record(index, je, True, "intersecting_guards", window, re,
+                               f"the cone meets the guards of {', '.join(self._names_met())} before leaving the "
+                               f"domain (the event point is {abs(float(self.event_distance[jo])):.3g} from the "
+                               f"guard of {trs[jo].name}, bound {re:.3g})")
             return _Visit("intersecting_guards", rec, abs(float(self.event_distance[jo])), re)
         if self.t_exit is None:
-            rec = run._record(index, mode, trs[je], te, True, False, "grazing", window, re, b0, names,
-                              f"the computed trajectory crosses the guard of {trs[je].name} but the cone never "
-                              f"leaves the domain (deepest {self.deepest[1]:.3g} past, bound {self.deepest[2]:.3g})")
+            rec = self._record(index, je, True, "grazing", window, re,
+                               f"the computed trajectory crosses the guard of {trs[je].name} but the cone never "
+                               f"leaves the domain (deepest {self.deepest[1]:.3g} past, bound {self.deepest[2]:.3g})")
             return _Visit("grazing", rec, max(float(self.deepest[1]), 0.0), self.deepest[2])
-        tr = trs[je]
-        # The cone's trace on the guard: around x_e, the balls of radius B met while |d| <= B,
-        # i.e. for |t - t_e| <= B / |d'|, spread it along the guard to B |f| / |d'| (d' the
-        # rate of the distance to the guard); sampled contact points are added in case B varies.
+        return self._certified(index, window)
+
+    def _names_met(self) -> list[str]:
+        trs = self.flow.transitions
+        return [trs[j].name for j in np.flatnonzero(self.met)]
+
+    def _record(self, index: int, j: int, taken: bool, reason: str | None, window: tuple[float, float],
+                radius: float, detail: str, time: float | None = None) -> CertifiedTransition:
+        """The verdict on guard j of this visit (at the computed event time unless ``time``)."""
+        t = self.event[0] if time is None else time  # type: ignore[index]
+        return self.run_._record(index, self.flow.mode_name, self.flow.transitions[j], t, taken, reason is None,
+                                 reason, window, radius, self.b0, self._names_met(), detail)
+
+    def _near_miss(self, index: int) -> _Visit:
+        """The cone meets a guard that the computed trajectory does not cross: refused as
+        grazing, at the closest approach to the nearest such guard."""
+        met = self.met
+        candidates = np.where(met, self.closest, np.inf)
+        j = int(np.argmin(candidates))
+        if not math.isfinite(candidates[j]):
+            j = int(np.flatnonzero(met)[0])
+        closest, r, t = self.closest[j], self.closest_r[j], self.closest_t[j]
+        if not math.isfinite(closest):
+            closest, r, t = 0.0, math.nan, self.first_touch[j]
+        name = self.flow.transitions[j].name
+        rec = self._record(index, j, False, "grazing", (self.first_touch[j], self.last_touch[j]), r,
+                           f"near miss: the cone reaches the guard of {name} (closest approach of the computed "
+                           f"trajectory {closest:.3g}, bound {r:.3g}) but the computed trajectory does not cross it",
+                           time=t)
+        return _Visit("grazing", rec, closest, r)
+
+    def _certified(self, index: int, window: tuple[float, float]) -> _Visit:
+        """The certified transition, and the next visit's start: the reset image of the event
+        point with an entry ball that holds the cone's trace on the guard, stretched by the reset."""
+        te, je, xe, re = self.event  # type: ignore[misc]
+        tr = self.flow.transitions[je]
+        r_trace, half = self._trace_on_guard()
+        window = (min(window[0], te - half), max(window[1], te + half))
+        rec = self._record(index, je, True, None, window, re,
+                           f"the cone meets only the guard of {tr.name} and leaves the domain at t={self.t_exit:.6g}")
+        x_next = np.asarray(xe if tr.reset is None else tr.reset(xe), dtype=float)
+        b_next = r_trace * reset_lipschitz(tr, xe, len(x_next))
+        return _Visit("certified", rec, next_state=(tr.target, x_next, te, b_next))
+
+    def _trace_on_guard(self) -> tuple[float, float]:
+        """(radius of a ball around the event point x_e holding the cone's trace on the event
+        guard, half-width (s) of the time window in which the true trajectory meets the guard).
+
+        Around x_e the balls of radius B are met while |d| <= B, i.e. for |t - t_e| <= B / |d'|,
+        which spreads them along the guard to B |f| / |d'| (d' the rate of the distance to the
+        guard); sampled contact points are added in case B varies."""
+        te, je, xe, re = self.event  # type: ignore[misc]
         r_cone = max([re] + [rk for _, rk in self.contact])
-        fe = flow.field_at(te, xe)
-        grad = guard_gradient(tr, xe, te, self._u(te, xe))
+        fe = self.flow.field_at(te, xe)
+        grad = guard_gradient(self.flow.transitions[je], xe, te, self._u(te, xe))
         grad_norm = float(np.linalg.norm(grad))
         if grad_norm == 0.0:
             # A guard on time alone (a clock): the true trajectory switches at t_e exactly, where
@@ -441,15 +473,9 @@ class _Walk:
         else:
             rate = abs(float(np.dot(grad, fe))) / grad_norm
             spread = r_cone * float(np.linalg.norm(fe)) / rate if rate > 0.0 else math.inf
-            # The true trajectory meets the guard while the ball does: within B / |d'| of t_e.
             half = r_cone / rate if rate > 0.0 else math.inf
-        r_init = max([r_cone, spread] + [float(np.linalg.norm(xk - xe)) + rk for xk, rk in self.contact])
-        window = (min(window[0], te - half), max(window[1], te + half))
-        rec = run._record(index, mode, tr, te, True, True, None, window, re, b0, names,
-                          f"the cone meets only the guard of {tr.name} and leaves the domain at t={self.t_exit:.6g}")
-        x_next = np.asarray(xe if tr.reset is None else tr.reset(xe), dtype=float)
-        b_next = r_init * reset_lipschitz(tr, xe, len(x_next))
-        return _Visit("certified", rec, next_state=(tr.target, x_next, te, b_next))
+        r_trace = max([r_cone, spread] + [float(np.linalg.norm(xk - xe)) + rk for xk, rk in self.contact])
+        return r_trace, half
 
 
 def _samples(flow: ModeFlow):
@@ -502,66 +528,81 @@ def certify(
     -------
     Certificate: per transition ``certified`` and ``reason`` (None or one of ``REASONS``).
     """
-    if not isinstance(system, HybridSystem):
-        raise SimulationError(f"system must be a legsim.HybridSystem, got {type(system).__name__}")
-    if not isinstance(mode, str):
-        raise SimulationError(f"mode must be a mode name (str), got {mode!r}")
-    try:
-        system.mode(mode)
-    except ModelError as exc:
-        raise SimulationError(f"unknown mode {mode!r}: {exc}") from exc
-    x = system.check_state(mode, x0, label="x0")
+    x = check_start(system, mode, x0)
     h = check_step("h", h)
-    if not (isinstance(t_final, (int, float, np.integer, np.floating)) and math.isfinite(t_final) and t_final > t0):
-        raise SimulationError(f"t_final must be a finite number > t0 = {t0}, got {t_final!r}")
+    t_final = check_t_final(t_final, t0)
     if isinstance(alpha, bool) or not isinstance(alpha, (int, float)) or not math.isfinite(alpha) or alpha <= 1.0:
         raise SimulationError(f"alpha must be a number > 1, got {alpha!r}")
-    for label, value, low in (("max_refinements", max_refinements, 0), ("max_transitions", max_transitions, 1)):
-        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
-            raise SimulationError(f"{label} must be an integer >= {low}, got {value!r}")
+    max_refinements = check_count("max_refinements", max_refinements, 0)
+    max_transitions = check_count("max_transitions", max_transitions, 1)
     estimator = LocalErrorEstimator(method, pair, floor)
-    span = float(t_final) - float(t0)
-    check_steps(span, h, "certify")
-    levels: list[Level] = []
-    records: list[CertifiedTransition] = []
-    failure: _Visit | None = None
-    end_time = float(t_final)
-    exhausted = False
-    stopped = ""
-    for r in range(int(max_refinements) + 1):
-        h_r = h / alpha**r
-        if span / h_r > MAX_STEPS:
-            stopped = (f"refinement stopped at h = {levels[-1].h:g}: the next level (h = {h_r:.3g}) would take "
-                       f"{span / h_r:.3g} steps, more than {MAX_STEPS:.0e}")
-            break
-        level_progress = None if progress is None else (lambda t, r=r, h_r=h_r: progress(r, h_r, t))
-        run = _ConeRun(system, h_r, estimator, control, float(t_final), int(max_transitions), level_progress)
-        records, failure, end_time, exhausted = run.run(mode, x, float(t0))
-        lv = Level(h_r, len(records))
-        if failure is not None and failure.record is not None:
-            lv.failure, lv.index = failure.kind, failure.record.index
-            lv.separation, lv.bound = failure.separation, failure.bound
-        levels.append(lv)
-        if failure is None:
-            break
-    out = list(records)
-    if failure is not None and failure.record is not None:
-        rec = failure.record
-        rec.reason = _reason(failure.kind, levels)
-        if rec.reason == "refinement_limit" and failure.kind in ("grazing", "intersecting_guards"):
-            rec.detail += (f"; refining is separating it (separation/bound {levels[-2].separation / levels[-2].bound:.3g}"
-                           f" -> {levels[-1].separation / levels[-1].bound:.3g}): a smaller h may certify it")
-        if stopped:
-            rec.detail += f" ({stopped})"
-        out.append(rec)
-    settings = {"system": system.name, "initial_mode": mode, "t_final": float(t_final), "h": h,
+    check_steps(t_final - float(t0), h, "certify")
+    done = _Refinement(system, mode, x, float(t0), t_final, estimator, control, max_transitions, progress)
+    done.run(h, alpha, max_refinements)
+    settings = {"system": system.name, "initial_mode": mode, "t_final": t_final, "h": h,
                 "method": estimator.method.name, "pair": estimator.pair.name, "floor": estimator.floor,
-                "alpha": float(alpha), "max_refinements": int(max_refinements), "max_transitions": int(max_transitions)}
+                "alpha": float(alpha), "max_refinements": max_refinements, "max_transitions": max_transitions}
+    incomplete = done.exhausted and done.failure is None
     message = ""
-    if exhausted and failure is None:
-        message = (f"stopped after max_transitions = {int(max_transitions)} certified transitions at "
-                   f"t = {end_time:.9g} s, before t_final = {float(t_final):g} s: the rest is not examined")
-    return Certificate(out, levels, settings, end_time, complete=not (exhausted and failure is None), message=message)
+    if incomplete:
+        message = (f"stopped after max_transitions = {max_transitions} certified transitions at "
+                   f"t = {done.end_time:.9g} s, before t_final = {t_final:g} s: the rest is not examined")
+    return Certificate(done.verdicts(), done.levels, settings, done.end_time, complete=not incomplete, message=message)
+
+
+class _Refinement:
+    """Algorithm 1's levels: the run at h, h / alpha, ... until one is not refused; the last
+    level's certified transitions and the failure that stopped it (if any)."""
+
+    def __init__(self, system: HybridSystem, mode: str, x: np.ndarray, t0: float, t_final: float,
+                 estimator: LocalErrorEstimator, control: ControlFn | None, max_transitions: int,
+                 progress: Callable[[int, float, float], None] | None) -> None:
+        self.system, self.mode, self.x, self.t0, self.t_final = system, mode, x, t0, t_final
+        self.estimator, self.control = estimator, control
+        self.max_transitions, self.progress = max_transitions, progress
+        self.levels: list[Level] = []
+        self.records: list[CertifiedTransition] = []
+        self.failure: _Visit | None = None
+        self.end_time = t_final
+        self.exhausted = False  # the last level used up its transition budget before t_final
+        self.stopped = ""  # why refining stopped before max_refinements, when it did
+
+    def run(self, h: float, alpha: float, max_refinements: int) -> None:
+        span = self.t_final - self.t0
+        for r in range(max_refinements + 1):
+            h_r = h / alpha**r
+            if span / h_r > MAX_STEPS:
+                self.stopped = (f"refinement stopped at h = {self.levels[-1].h:g}: the next level (h = {h_r:.3g}) "
+                                f"would take {span / h_r:.3g} steps, more than {MAX_STEPS:.0e}")
+                return
+            progress = self.progress
+            level_progress = None if progress is None else (lambda t, r=r, h_r=h_r: progress(r, h_r, t))
+            run = _ConeRun(self.system, h_r, self.estimator, self.control, self.t_final, self.max_transitions,
+                           level_progress)
+            self.records, self.failure, self.end_time, self.exhausted = run.run(self.mode, self.x, self.t0)
+            level = Level(h_r, len(self.records))
+            if self.failure is not None and self.failure.record is not None:
+                level.failure, level.index = self.failure.kind, self.failure.record.index
+                level.separation, level.bound = self.failure.separation, self.failure.bound
+            self.levels.append(level)
+            if self.failure is None:
+                return
+
+    def verdicts(self) -> list[CertifiedTransition]:
+        """The last level's certified transitions, then the refused one with its final reason."""
+        out = list(self.records)
+        failure, levels = self.failure, self.levels
+        if failure is not None and failure.record is not None:
+            rec = failure.record
+            rec.reason = _reason(failure.kind, levels)
+            if rec.reason == "refinement_limit" and failure.kind in ("grazing", "intersecting_guards"):
+                rec.detail += (f"; refining is separating it (separation/bound "
+                               f"{levels[-2].separation / levels[-2].bound:.3g} -> "
+                               f"{levels[-1].separation / levels[-1].bound:.3g}): a smaller h may certify it")
+            if self.stopped:
+                rec.detail += f" ({self.stopped})"
+            out.append(rec)
+        return out
 
 
 def _reason(kind: str, levels: list[Level]) -> str:
@@ -579,60 +620,4 @@ def _reason(kind: str, levels: list[Level]) -> str:
     return kind
 
 
-__all__: Sequence[str] = ("Certificate", "CertifiedTransition", "Level", "REASONS", "certify", "certify_scene",
-                          "scene_settings")
-
-
-# -- scenes ---------------------------------------------------------------------------------
-def section_schema(scene: Any) -> dict[str, Any]:
-    """The keys of a scene's ``[certify]`` section, with defaults from its ``[integrator]``."""
-    from .builders import Param
-    from .methods import ALIASES, METHODS
-
-    integ = scene.integrator
-    return {
-        "h": Param(float(integ["h"]), "initial step, divided by alpha at each refinement", "s", low=0.0, low_open=True),
-        "method": Param(str(integ["method"]), "Runge-Kutta method of the numerical solution",
-                        choices=tuple(sorted(METHODS) + sorted(ALIASES))),
-        "pair": Param("auto", "embedded pair of the local error estimates (auto: the method if embedded, "
-                              "else dopri5)", choices=("auto", "bs32", "dopri5", "rk23", "rk45", "dp54")),
-        "floor": Param(0.0, "declared local error floor coefficient (state units / s^(p+1))", low=0.0),
-        "alpha": Param(2.0, "refinement factor h := h / alpha", low=1.0, low_open=True),
-        "max_refinements": Param(6, "most refinements", low=0),
-        "t_final": Param(float(integ["t_final"]), "end time", "s"),
-        "max_transitions": Param(1000, "most transitions certified", low=1),
-    }
-
-
-def scene_settings(scene: Any, overrides: dict[str, Any] | None = None) -> dict[str, Any]:
-    """The validated ``[certify]`` settings of a scene (``overrides`` take precedence).
-    Raises SceneError naming the file and key."""
-    from .builders import resolve_parameters
-    from .errors import SceneError
-
-    given = dict(scene.sections.get("certify", {}))
-    given.update({k: v for k, v in (overrides or {}).items() if v is not None})
-    settings = resolve_parameters(section_schema(scene), given, f"{scene.path}: certify")
-    t0 = float(scene.integrator.get("t0", 0.0))
-    if not settings["t_final"] > t0:
-        raise SceneError(f"{scene.path}: certify.t_final: must be > t0 = {t0}, got {settings['t_final']}")
-    return settings
-
-
-def certify_scene(scene: Any, overrides: dict[str, Any] | None = None, *,
-                  progress: Callable[[int, float, float], None] | None = None) -> Certificate:
-    """Certify the transitions of a scene's execution (its ``[certify]`` section, defaults from
-    ``[integrator]``) from the scene's initial mode and state; ``progress`` as in ``certify``."""
-    s = scene_settings(scene, overrides)
-    t0 = float(scene.integrator.get("t0", 0.0))
-    try:
-        check_steps(s["t_final"] - t0, s["h"], "certify")
-    except SimulationError as exc:
-        from .errors import SceneError
-        raise SceneError(f"{scene.path}: certify.h / certify.t_final: {exc}") from None
-    cert = certify(scene.model.system, scene.initial_mode, scene.initial_state, s["t_final"], s["h"], s["method"],
-                   t0=t0, pair=None if s["pair"] == "auto" else s["pair"],
-                   control=scene.model.control, floor=s["floor"], alpha=s["alpha"],
-                   max_refinements=s["max_refinements"], max_transitions=s["max_transitions"], progress=progress)
-    cert.settings["scene"] = scene.name
-    return cert
+__all__: Sequence[str] = ("Certificate", "CertifiedTransition", "Level", "REASONS", "certify")

@@ -51,9 +51,9 @@ from typing import Any, Callable, Sequence
 import numpy as np
 from scipy.optimize import brentq
 
-from .bounds import (LocalErrorEstimator, ModeFlow, StepSamples, ball_fraction_past, check_step, check_steps,
-                     reset_lipschitz)
-from .errors import ModelBreakdown, ModelError, SimulationError
+from .bounds import (LocalErrorEstimator, ModeFlow, StepSamples, ball_fraction_past, check_count, check_start,
+                     check_step, check_steps, check_t_final, reset_lipschitz)
+from .errors import ModelBreakdown, SimulationError
 from .hybrid import HybridSystem
 from .methods import Tableau
 
@@ -85,14 +85,14 @@ def _check_hazard_cap(hazard_cap: float) -> float:
     Theorem 2 (no Zeno behaviour for h > 0) rests on bounded intensities (paper 004, Remark 3).
     The hazard reading is not bounded: its rate d/dt -log(1 - pi) = pi' / (1 - pi) grows without
     limit as pi -> 1, so a visit that starts with its ball nearly all past its guard switches
-    almost at once; past the two tanks' Zeno time the visits then shrank geometrically, to
-    7e-15 s at h = 0.01 (an accumulation of the sampled executions themselves). The fraction past
-    a guard is a function of z = d / B (signed distance over the ball's radius), so the cap is
-    put in those units: a guard's hazard grows at most ``hazard_cap`` per unit of |dz|, the rate
-    is then at most hazard_cap |dz/dt|, bounded for h > 0, and each passage of the ball through
-    a guard allows a bounded number of switches. It binds only where pi'/(1 - pi) exceeds it,
-    for the default 16 in the last ~1% of the probability (a disk: 1 - pi < 0.01), so grazing
-    probabilities and switching times (Theorem 1) keep their values."""
+    almost at once; without a cap, past the two tanks' Zeno time the visits shrink geometrically
+    down to the resolution of time (an accumulation of the sampled executions themselves). The
+    fraction past a guard is a function of z = d / B (signed distance over the ball's radius),
+    so the cap is put in those units: a guard's hazard grows at most ``hazard_cap`` per unit of
+    |dz|, the rate is then at most hazard_cap |dz/dt|, bounded for h > 0, and each passage of the
+    ball through a guard allows a bounded number of switches. It binds only where pi'/(1 - pi)
+    exceeds it, for the default 16 in the last ~1% of the probability (a disk: 1 - pi < 0.01),
+    so grazing probabilities and switching times (Theorem 1) keep their values."""
     if isinstance(hazard_cap, bool) or not isinstance(hazard_cap, (int, float, np.integer, np.floating)) \
             or not hazard_cap > 0.0:
         raise SimulationError(f"hazard_cap must be a number > 0 (inf for no cap), got {hazard_cap!r}")
@@ -161,22 +161,6 @@ class TransitionFunctions:
         return 1.0 - self.survival
 
 
-def _make_estimator(method: str | Tableau, pair: str | Tableau | None, floor: float) -> LocalErrorEstimator:
-    return LocalErrorEstimator(method, pair, floor)
-
-
-def _check_start(system: HybridSystem, mode: Any, x0: Any) -> np.ndarray:
-    if not isinstance(system, HybridSystem):
-        raise SimulationError(f"system must be a legsim.HybridSystem, got {type(system).__name__}")
-    if not isinstance(mode, str):
-        raise SimulationError(f"mode must be a mode name (str), got {mode!r}")
-    try:
-        system.mode(mode)
-    except ModelError as exc:
-        raise SimulationError(f"unknown mode {mode!r}: {exc}") from exc
-    return system.check_state(mode, x0, label="x0")
-
-
 def transition_functions(
     system: HybridSystem,
     mode: str,
@@ -197,14 +181,13 @@ def transition_functions(
 
     Parameters: as ``sample_execution``; ``b0`` is an initial uncertainty radius.
     """
-    x = _check_start(system, mode, x0)
+    x = check_start(system, mode, x0)
     h = check_step("h", h)
     form = _check_form(intensity)
-    if not (isinstance(t_final, (int, float, np.integer, np.floating)) and math.isfinite(t_final) and t_final > t0):
-        raise SimulationError(f"t_final must be a finite number > t0 = {t0}, got {t_final!r}")
-    check_steps(float(t_final) - float(t0), h, "transition functions")
-    flow = ModeFlow(system, mode, x, float(t0), h, _make_estimator(method, pair, floor), control=control,
-                    b0=b0, t_end=float(t_final))
+    t_final = check_t_final(t_final, t0)
+    check_steps(t_final - float(t0), h, "transition functions")
+    flow = ModeFlow(system, mode, x, float(t0), h, LocalErrorEstimator(method, pair, floor), control=control,
+                    b0=b0, t_end=t_final)
     pieces: list[StepSamples] = []
     n = 0
     while True:
@@ -235,7 +218,8 @@ def transition_functions(
     if len(dt):
         lam[:-1] = incr / np.maximum(dt, np.finfo(float).tiny)[:, None]
     hazard = np.concatenate([[0.0], np.cumsum(incr.sum(axis=1))])
-    return TransitionFunctions(mode, tuple(tr.name for tr in flow.transitions), tuple(tr.target for tr in flow.transitions),
+    trs = flow.transitions
+    return TransitionFunctions(mode, tuple(tr.name for tr in trs), tuple(tr.target for tr in trs),
                                t, xs, radius, distance, pi, lam, hazard, np.exp(-hazard), form)
 
 
@@ -409,65 +393,80 @@ def sample_execution(
         guard (``HAZARD_CAP``; ``math.inf`` for none): bounded intensities keep S_h free of
         Zeno behaviour (Theorem 2), see ``_check_hazard_cap``.
     """
-    x = _check_start(system, mode, x0)
+    x = check_start(system, mode, x0)
     h = check_step("h", h)
     form = _check_form(intensity)
     cap = _check_hazard_cap(hazard_cap)
-    if not (isinstance(t_final, (int, float, np.integer, np.floating)) and math.isfinite(t_final) and t_final > t0):
-        raise SimulationError(f"t_final must be a finite number > t0 = {t0}, got {t_final!r}")
-    if isinstance(max_transitions, bool) or not isinstance(max_transitions, (int, np.integer)) or max_transitions < 0:
-        raise SimulationError(f"max_transitions must be an integer >= 0, got {max_transitions!r}")
-    check_steps(float(t_final) - float(t0), h, "stochastic execution")
+    t_final = check_t_final(t_final, t0)
+    max_transitions = check_count("max_transitions", max_transitions, 0)
+    check_steps(t_final - float(t0), h, "stochastic execution")
     generator = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
-    estimator = _make_estimator(method, pair, floor)
-    times: list[float] = []
-    modes = [mode]
-    names: list[str] = []
-    states = [x.copy()]
-    t = float(t0)
-    visit = _first or _Visit(ModeFlow(system, mode, x, t, h, estimator, control=control, t_end=float(t_final)), form,
-                             cap)
-    widest = 0.0
-    while True:
-        drawn = _sample_visit(visit, generator)
-        if drawn is None:
-            flow = visit.flow
-            last = flow.points[-1]
-            status = "finished" if flow.status == "end" else flow.status
-            widest = max([widest] + [p.radius for p in flow.points])
-            return StochasticExecution(np.array(times), modes, names, states, last.x.copy(), last.t, status,
-                                       flow.message, t0=float(t0), max_radius=widest)
-        if len(times) >= max_transitions:
-            return StochasticExecution(np.array(times), modes, names, states, visit.flow.points[-1].x.copy(), t,
-                                       "max_transitions",
-                                       f"transition budget max_transitions={max_transitions} used up at t={t:.17g}",
-                                       t0=float(t0), max_radius=widest)
-        tau, j, x_tau, radius = drawn
-        widest = max(widest, radius)
-        if tau <= t:
-            # Def. 4 needs tau_{i+1} > tau_i. A switch at the very instant of the previous one
-            # means the visits have shrunk below the resolution of the time (a ball at rounding
-            # level cannot hold off an accumulation): going on would only repeat it.
-            return StochasticExecution(np.array(times), modes, names, states, x_tau.copy(), t, "stalled",
-                                       f"the switching times stopped advancing at t={t:.17g} after {len(times)} "
-                                       f"switches (a visit shorter than the time resolution; error ball "
-                                       f"{radius:.3g}): the bound is too small to keep the switches apart, "
-                                       f"declare a larger local error floor", t0=float(t0), max_radius=widest)
-        tr = visit.flow.transitions[j]
-        try:
-            x_new = np.asarray(x_tau if tr.reset is None else tr.reset(x_tau), dtype=float)
-        except ModelBreakdown as exc:
-            return StochasticExecution(np.array(times), modes, names, states, x_tau.copy(), tau, "model_breakdown",
-                                       f"the reset of {tr.name} at t={tau:.6g}: {exc}", t0=float(t0),
-                                       max_radius=widest)
-        b0 = radius * reset_lipschitz(tr, x_tau, len(x_new)) if carry else 0.0
-        times.append(tau)
-        names.append(tr.name)
-        modes.append(tr.target)
-        states.append(x_new.copy())
-        t = tau
-        visit = _Visit(ModeFlow(system, tr.target, x_new, t, h, estimator, control=control, b0=b0,
-                                t_end=float(t_final)), form, cap)
+    estimator = LocalErrorEstimator(method, pair, floor)
+
+    def visit(mode: str, x: np.ndarray, t: float, b0: float) -> _Visit:
+        return _Visit(ModeFlow(system, mode, x, t, h, estimator, control=control, b0=b0, t_end=t_final), form, cap)
+
+    sampled = _SampledExecution(mode, x, float(t0), carry)
+    return sampled.run(_first or visit(mode, x, float(t0), 0.0), visit, generator, max_transitions)
+
+
+class _SampledExecution:
+    """A stochastic execution as it is drawn: the switches so far and the widest ball met."""
+
+    def __init__(self, mode: str, x: np.ndarray, t0: float, carry: bool) -> None:
+        self.t0 = t0
+        self.t = t0  # time of the last switch (s)
+        self.carry = carry
+        self.times: list[float] = []
+        self.modes = [mode]
+        self.names: list[str] = []
+        self.states = [x.copy()]
+        self.widest = 0.0
+
+    def run(self, visit: _Visit, next_visit: Callable[[str, np.ndarray, float, float], _Visit],
+            rng: np.random.Generator, max_transitions: int) -> StochasticExecution:
+        """Draw switches until the flow ends, the budget is used up or the switches stall;
+        ``next_visit(mode, x, t, b0)`` starts the visit after a switch."""
+        while True:
+            drawn = _sample_visit(visit, rng)
+            if drawn is None:
+                flow = visit.flow
+                last = flow.points[-1]
+                self.widest = max([self.widest] + [p.radius for p in flow.points])
+                return self.end(last.x.copy(), last.t, "finished" if flow.status == "end" else flow.status,
+                                flow.message)
+            if len(self.times) >= max_transitions:
+                return self.end(visit.flow.points[-1].x.copy(), self.t, "max_transitions",
+                                f"transition budget max_transitions={max_transitions} used up at t={self.t:.17g}")
+            tau, j, x_tau, radius = drawn
+            self.widest = max(self.widest, radius)
+            if tau <= self.t:
+                # Def. 4 needs tau_{i+1} > tau_i. A switch at the very instant of the previous one
+                # means the visits have shrunk below the resolution of the time (a ball at rounding
+                # level cannot hold off an accumulation): going on would only repeat it.
+                return self.end(x_tau.copy(), self.t, "stalled",
+                                f"the switching times stopped advancing at t={self.t:.17g} after {len(self.times)} "
+                                f"switches (a visit shorter than the time resolution; error ball {radius:.3g}): the "
+                                f"bound is too small to keep the switches apart, declare a larger local error floor")
+            tr = visit.flow.transitions[j]
+            try:
+                x_new = np.asarray(x_tau if tr.reset is None else tr.reset(x_tau), dtype=float)
+            except ModelBreakdown as exc:
+                return self.end(x_tau.copy(), tau, "model_breakdown", f"the reset of {tr.name} at t={tau:.6g}: {exc}")
+            b0 = radius * reset_lipschitz(tr, x_tau, len(x_new)) if self.carry else 0.0
+            self.switch(tau, tr.name, tr.target, x_new)
+            visit = next_visit(tr.target, x_new, tau, b0)
+
+    def switch(self, tau: float, name: str, target: str, x_new: np.ndarray) -> None:
+        self.times.append(tau)
+        self.names.append(name)
+        self.modes.append(target)
+        self.states.append(x_new.copy())
+        self.t = tau
+
+    def end(self, final_state: np.ndarray, t_end: float, status: str, message: str) -> StochasticExecution:
+        return StochasticExecution(np.array(self.times), self.modes, self.names, self.states, final_state, t_end,
+                                   status, message, t0=self.t0, max_radius=self.widest)
 
 
 @dataclass
@@ -538,16 +537,14 @@ def sample_ensemble(
     when given, is called after each execution."""
     if isinstance(samples, bool) or not isinstance(samples, (int, np.integer)) or not 1 <= samples <= MAX_SAMPLES:
         raise SimulationError(f"samples must be an integer in [1, {MAX_SAMPLES}], got {samples!r}")
-    x = _check_start(system, mode, x0)
+    x = check_start(system, mode, x0)
     h = check_step("h", h)
     _check_form(intensity)
     cap = _check_hazard_cap(hazard_cap)
-    if not (isinstance(t_final, (int, float, np.integer, np.floating)) and math.isfinite(t_final) and t_final > t0):
-        raise SimulationError(f"t_final must be a finite number > t0 = {t0}, got {t_final!r}")
+    t_final = check_t_final(t_final, t0)
     rng = np.random.default_rng(seed)
-    estimator = _make_estimator(method, pair, floor)
-    first = _Visit(ModeFlow(system, mode, x, float(t0), h, estimator, control=control, t_end=float(t_final)), intensity,
-                   cap)
+    estimator = LocalErrorEstimator(method, pair, floor)
+    first = _Visit(ModeFlow(system, mode, x, float(t0), h, estimator, control=control, t_end=t_final), intensity, cap)
     runs = []
     for k in range(int(samples)):
         runs.append(sample_execution(system, mode, x, t_final, h, method, rng=rng, t0=t0, pair=pair, control=control,
@@ -557,71 +554,9 @@ def sample_ensemble(
             progress(k + 1, int(samples))
     settings = {"system": system.name, "initial_mode": mode, "h": h, "method": estimator.method.name,
                 "pair": estimator.pair.name, "floor": estimator.floor, "intensity": intensity, "carry": carry,
-                "hazard_cap": cap,
-                "t_final": float(t_final), "seed": seed}
+                "hazard_cap": cap, "t_final": t_final, "seed": seed}
     return Ensemble(runs, settings)
 
 
 __all__: Sequence[str] = ("Ensemble", "INTENSITIES", "MAX_SAMPLES", "StochasticExecution", "TransitionFunctions",
-                          "ensemble_from_scene", "sample_ensemble", "sample_execution", "scene_settings",
-                          "transition_functions")
-
-
-# -- scenes ---------------------------------------------------------------------------------
-def section_schema(scene: Any) -> dict[str, Any]:
-    """The keys of a scene's ``[stochastic]`` section, with defaults from its ``[integrator]``."""
-    from .builders import Param
-    from .methods import ALIASES, METHODS
-
-    integ = scene.integrator
-    methods = tuple(sorted(METHODS) + sorted(ALIASES))
-    return {
-        "samples": Param(100, "number of sampled executions", low=1, high=MAX_SAMPLES),
-        "seed": Param(0, "seed of the random generator", low=0),
-        "h": Param(float(integ["h"]), "fixed step of the numerical solution", "s", low=0.0, low_open=True),
-        "method": Param(str(integ["method"]), "Runge-Kutta method of the numerical solution", choices=methods),
-        "pair": Param("auto", "embedded pair of the local error estimates (auto: the method if embedded, "
-                              "else dopri5)", choices=("auto", "bs32", "dopri5", "rk23", "rk45", "dp54")),
-        "floor": Param(0.0, "declared local error floor coefficient (state units / s^(p+1))", low=0.0),
-        "intensity": Param("hazard", "reading of the intensity (see legsim.stochastic)", choices=INTENSITIES),
-        "t_final": Param(float(integ["t_final"]), "end time", "s"),
-        "max_transitions": Param(1000, "most switches of one sampled execution", low=0),
-        "carry": Param(True, "carry the error ball through switches"),
-        "hazard_cap": Param(HAZARD_CAP, "most hazard per error-ball radius moved relative to a guard "
-                                        "(bounded intensities: no Zeno behaviour; 1e300: in effect none)", low=0.0,
-                            low_open=True),
-    }
-
-
-def scene_settings(scene: Any, overrides: dict[str, Any] | None = None) -> dict[str, Any]:
-    """The validated ``[stochastic]`` settings of a scene (``overrides``, e.g. from the command
-    line, take precedence). Raises SceneError naming the file and key."""
-    from .builders import resolve_parameters
-
-    given = dict(scene.sections.get("stochastic", {}))
-    given.update({k: v for k, v in (overrides or {}).items() if v is not None})
-    settings = resolve_parameters(section_schema(scene), given, f"{scene.path}: stochastic")
-    t0 = float(scene.integrator.get("t0", 0.0))
-    from .errors import SceneError
-    if not settings["t_final"] > t0:
-        raise SceneError(f"{scene.path}: stochastic.t_final: must be > t0 = {t0}, got {settings['t_final']}")
-    try:
-        check_steps(settings["t_final"] - t0, settings["h"], "stochastic")
-    except SimulationError as exc:
-        raise SceneError(f"{scene.path}: stochastic.h / stochastic.t_final: {exc}") from None
-    return settings
-
-
-def ensemble_from_scene(scene: Any, overrides: dict[str, Any] | None = None, *,
-                        progress: Callable[[int, int], None] | None = None) -> Ensemble:
-    """Monte Carlo ensemble of the scene's stochastic approximation (its ``[stochastic]``
-    section, with defaults from ``[integrator]``) from the scene's initial mode and state;
-    ``progress`` as in ``sample_ensemble``."""
-    s = scene_settings(scene, overrides)
-    ens = sample_ensemble(scene.model.system, scene.initial_mode, scene.initial_state, s["t_final"], s["h"],
-                          s["method"], samples=s["samples"], seed=s["seed"], t0=float(scene.integrator.get("t0", 0.0)),
-                          pair=None if s["pair"] == "auto" else s["pair"], control=scene.model.control,
-                          floor=s["floor"], intensity=s["intensity"], max_transitions=s["max_transitions"],
-                          carry=s["carry"], hazard_cap=s["hazard_cap"], progress=progress)
-    ens.settings["scene"] = scene.name
-    return ens
+                          "sample_ensemble", "sample_execution", "transition_functions")

@@ -12,6 +12,8 @@ from legsim.systems.circular_flow import make_system as circular_flow
 from legsim.systems.two_tanks import TwoTankReference
 from legsim.systems.two_tanks import make_system as two_tanks
 
+from helpers.breaking_line import breaking_line
+
 
 def corner():
     """A flow symmetric under x1 <-> x2 heading for the corner of two guards: from (0, 0) it
@@ -77,7 +79,6 @@ def test_guard_intersection_is_refused_and_a_nearby_crossing_certified_after_ref
 
 
 def test_symmetric_pronk_touchdown_is_a_guard_intersection():
-    pytest.importorskip("pinocchio")
     from legsim.scene import load_scene
 
     scene = load_scene("pronk")
@@ -173,31 +174,17 @@ def test_refinement_stops_before_a_level_beyond_the_step_limit():
         certify(circular_flow(), "inside", [0.0, 1.0], 3.0, 3.0 / (2 * MAX_STEPS), "rk4")
 
 
-def _breaking_line(limit=1.03):
-    """x' = 1 towards the guard x = 1; the model is valid only up to x = limit (a runner's hip
-    above the ground, say), so flowing on past the guard breaks it down."""
-    from legsim.errors import ModelBreakdown
-
-    def field(t, x, u):
-        if x[0] > limit:
-            raise ModelBreakdown(f"line: x = {x[0]:.4g} is past its range {limit}")
-        return np.array([1.0])
-
-    return HybridSystem({"a": Mode(1, field), "b": Mode(1, lambda t, x, u: np.zeros(1))},
-                        [Transition("a", "b", lambda x: 1.0 - x[0], name="wall")], name="line")
-
-
 def test_a_model_that_breaks_down_past_the_guard_is_a_refusal_then_certified_when_refined():
     # Euler with floor 0.5: B grows by 0.5 h^2 per step. The flow keeps its points up to the last
     # one inside the model's range (x <= 1.03): at h = 0.1 and 0.05 that is the point on the wall
-    # (x = 1), where the ball (0.055, 0.026) still straddles it: those levels cannot certify
-    # (certify used to raise ModelBreakdown out of the whole run). At h = 0.025 the point
+    # (x = 1), where the ball (0.055, 0.026) still straddles it: those levels cannot certify,
+    # and the breakdown is their refusal, not an exception out of the run. At h = 0.025 the point
     # x = 1.025 has its ball (0.013) wholly past the wall: certified there.
-    coarse = certify(_breaking_line(), "a", [0.0], 2.0, 0.1, "euler", floor=0.5, max_refinements=0)
+    coarse = certify(breaking_line(), "a", [0.0], 2.0, 0.1, "euler", floor=0.5, max_refinements=0)
     (tr,) = coarse.transitions
     assert (tr.name, tr.certified, tr.reason) == ("wall", False, "refinement_limit")
     assert "past its range 1.03" in tr.detail and tr.guards_met == ["wall"]
-    refined = certify(_breaking_line(), "a", [0.0], 2.0, 0.1, "euler", floor=0.5, max_refinements=3)
+    refined = certify(breaking_line(), "a", [0.0], 2.0, 0.1, "euler", floor=0.5, max_refinements=3)
     (tr,) = refined.transitions
     assert tr.certified and tr.time == pytest.approx(1.0, abs=1e-9)
     assert [lv.h for lv in refined.levels] == [0.1, 0.05, 0.025]

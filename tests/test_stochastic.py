@@ -11,6 +11,8 @@ from legsim.systems.circular_flow import make_system as circular_flow
 from legsim.systems.two_tanks import TwoTankReference
 from legsim.systems.two_tanks import make_system as two_tanks
 
+from helpers.breaking_line import breaking_line
+
 H = 0.1  # rk4 on the unit circle: B ~ 1.5e-5 at the tangency time pi/2
 
 
@@ -208,13 +210,11 @@ def test_a_bound_at_rounding_level_stops_a_zeno_accumulation_as_stalled():
 
 
 def test_a_model_breaking_down_past_the_guard_ends_that_execution_only():
-    # x' = 1 towards the wall x = 1, valid only up to x = 1.03 (tests/test_certify.py). With
+    # x' = 1 towards the wall x = 1, valid only up to x = 1.03 (helpers.breaking_line). With
     # Euler, h = 0.1 and floor 0.5 the flow's last point is on the wall, where half the ball is
     # past it: an execution that has not switched by then stops (model_breakdown), the others
     # switch and finish. The ensemble itself must not raise.
-    from test_certify import _breaking_line
-
-    ens = sample_ensemble(_breaking_line(), "a", [0.0], 2.0, 0.1, "euler", samples=40, seed=2, floor=0.5)
+    ens = sample_ensemble(breaking_line(), "a", [0.0], 2.0, 0.1, "euler", samples=40, seed=2, floor=0.5)
     statuses = ens.summary()["statuses"]
     assert set(statuses) == {"finished", "model_breakdown"}
     broken = [e for e in ens.executions if e.status == "model_breakdown"]

@@ -1,6 +1,6 @@
 """``legsim certify SCENE``: certify the transitions of a scene's execution (paper 004 Sec. V).
 
-Settings come from the scene's ``[certify]`` section (``legsim.certify.section_schema``: h,
+Settings come from the scene's ``[certify]`` section (``legsim.scene.certify.section_schema``: h,
 method, pair, floor, alpha, max_refinements, t_final, max_transitions), with h, method and
 t_final defaulting to ``[integrator]``. ``--json`` prints the list of verdicts, one object per
 transition with ``source``, ``target``, ``time``, ``certified`` and ``reason`` (null, or one of
@@ -37,9 +37,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..certify import certify_scene
     from ..progress import progress_for
     from ..scene import load_scene
+    from ..scene.certify import certify_scene
 
     if args.max_refinements is not None and args.max_refinements < 0:
         raise LegsimError(f"--max-refinements must be an integer >= 0, got {args.max_refinements}")
@@ -71,8 +71,11 @@ def _level_progress(bar, scene):
     second once the run has lasted half a second."""
     import time
 
-    t0 = float(scene.integrator.get("t0", 0.0))
-    t_final = float(scene.sections.get("certify", {}).get("t_final", scene.integrator["t_final"]))
+    from ..scene.certify import scene_settings
+    from ..scene.error_bounds import start_time
+
+    t0 = start_time(scene)
+    t_final = scene_settings(scene)["t_final"]
     started = time.perf_counter()
     last = [0.0]
 

@@ -1,6 +1,6 @@
 """``legsim orbit SCENE``: find a periodic orbit (a gait) of a scene, or follow a family of them.
 
-The problem is the scene's ``[orbit]`` section (``legsim.orbits.ORBIT_KEYS``): the Poincare
+The problem is the scene's ``[orbit]`` section (``legsim.scene.orbit.ORBIT_KEYS``): the Poincare
 section, fixed and cyclic coordinates, free parameters, tolerances; the initial guess is the
 scene's ``[initial]`` state. ``--continue PARAM FROM TO`` follows the family of orbits as the
 real parameter PARAM (a robot parameter, or EFFECT.PARAM) goes from FROM to TO, prints a table
@@ -17,13 +17,15 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import os
 import sys
 import tempfile
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from ..errors import LegsimError
+from ..errors import LegsimError, OutputError
+
+if TYPE_CHECKING:
+    from ..orbits import Family, FamilyPoint, OrbitProblem
 
 #: Most parameter steps of ``--continue`` (one orbit search each) and bisections of ``--locate``
 #: (beyond ~50 the parameter interval is below double precision).
@@ -35,7 +37,8 @@ HELP = "find a periodic orbit (gait) of a scene from its [orbit] section, or fol
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("scene", metavar="SCENE", help="scene file (.toml) or bundled scene name with an [orbit] section")
+    parser.add_argument("scene", metavar="SCENE",
+                        help="scene file (.toml) or bundled scene name with an [orbit] section")
     parser.add_argument("--set", dest="overrides", metavar="KEY=VALUE", action="append", default=[],
                         help="override a scene field, e.g. --set robot.parameters.slope=4 --set orbit.tol=1e-8")
     parser.add_argument("--json", action="store_true", help="print one JSON object")
@@ -72,42 +75,42 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _run(args: argparse.Namespace, scene, plot_path: Path | None, bar) -> int:
-    from ..orbits import continue_family, find_orbit, problem_from_scene
+    if args.continuation:
+        return _run_family(args, scene, plot_path, bar)
+    return _run_orbit(args, scene, bar)
 
-    if not args.continuation:
-        settings = problem_from_scene(scene)
-        settings.problem.progress = bar
-        result = find_orbit(settings.problem, settings.guess, **settings.solver)
-        if bar is not None:
-            bar.close()
-        payload = result.to_json()
-        payload["scene"] = scene.name
-        if args.json:
-            print(json.dumps(payload, allow_nan=False))
-        elif not args.quiet:
-            print(format_orbit(payload, scene.name))
-        if not result.converged:
-            print(f"legsim: no orbit ({result.status}): {result.message}", file=sys.stderr)
-            return 3
-        return 0
 
-    param, start_text, stop_text = args.continuation
-    start, stop = _number("--continue FROM", start_text), _number("--continue TO", stop_text)
-    if start == stop:
-        raise LegsimError("--continue needs FROM != TO")
-    settings = problem_from_scene(scene, extra_parameters=[param])
-    if param in settings.problem.free:
-        raise LegsimError(f"--continue {param}: '{param}' is a free parameter of the scene's [orbit] section "
-                          f"(solved for at each orbit); continue another parameter or drop it from orbit.free")
-    for label, value in (("FROM", start), ("TO", stop)):
-        # Both ends must be valid values of the parameter before any orbit is searched for.
-        try:
-            settings.problem.instantiate({param: value})
-        except LegsimError as exc:
-            raise LegsimError(f"--continue {label} = {value:g}: {exc}") from None
+def _run_orbit(args: argparse.Namespace, scene, bar) -> int:
+    """One orbit search: its report, and exit code 3 when no orbit was found."""
+    from ..orbits import find_orbit
+    from ..scene.orbit import problem_from_scene
+
+    settings = problem_from_scene(scene)
+    settings.problem.progress = bar
+    result = find_orbit(settings.problem, settings.guess, **settings.solver)
+    if bar is not None:
+        bar.close()
+    payload = result.to_json()
+    payload["scene"] = scene.name
+    if args.json:
+        print(json.dumps(payload, allow_nan=False))
+    elif not args.quiet:
+        print(format_orbit(payload, scene.name))
+    if not result.converged:
+        print(f"legsim: no orbit ({result.status}): {result.message}", file=sys.stderr)
+        return 3
+    return 0
+
+
+def _run_family(args: argparse.Namespace, scene, plot_path: Path | None, bar) -> int:
+    """``--continue``: the family's table (or JSON), its plot, exit code 3 when incomplete."""
+    from ..orbits import continue_family
+
+    param = args.continuation[0]
+    settings, start, stop = _continuation_settings(scene, args.continuation)
     settings.problem.progress = bar
 
-    def progress(point) -> None:
+    def progress(point: FamilyPoint) -> None:
         if bar is not None:
             bar.close()
         if not (args.json or args.quiet):
@@ -124,23 +127,50 @@ def _run(args: argparse.Namespace, scene, plot_path: Path | None, bar) -> int:
         bar.close()
     payload = family.to_json()
     payload["scene"] = scene.name
-    if plot_path is not None and family.points:
+    plotted = plot_path is not None and bool(family.points)
+    if plotted:
         write_family_plot(family, scene.name, plot_path)
         payload["plot"] = str(plot_path)
     if args.json:
         print(json.dumps(payload, allow_nan=False))
     elif not args.quiet:
-        for change in family.stability_changes:
-            print("stability change: " + change.describe(param))
-        if not family.stability_changes:
-            print("stability change: none in this range")
-        print(("complete: " if family.complete else "incomplete: ") + family.message)
-        if plot_path is not None and family.points:
-            print(f"wrote {plot_path} (plot)")
+        print(format_family_end(family, param, plot_path if plotted else None))
     if not family.complete:
         print(f"legsim: the family is incomplete: {family.message}", file=sys.stderr)
         return 3
     return 0
+
+
+def _continuation_settings(scene, continuation: list[str]):
+    """(the scene's orbit settings with the continued parameter, FROM, TO), both ends checked
+    as values of the parameter before any orbit is searched for."""
+    from ..scene.orbit import problem_from_scene
+
+    param, start_text, stop_text = continuation
+    start, stop = _number("--continue FROM", start_text), _number("--continue TO", stop_text)
+    if start == stop:
+        raise LegsimError("--continue needs FROM != TO")
+    settings = problem_from_scene(scene, extra_parameters=[param])
+    if param in settings.problem.free:
+        raise LegsimError(f"--continue {param}: '{param}' is a free parameter of the scene's [orbit] section "
+                          f"(solved for at each orbit); continue another parameter or drop it from orbit.free")
+    for label, value in (("FROM", start), ("TO", stop)):
+        try:
+            settings.problem.instantiate({param: value})
+        except LegsimError as exc:
+            raise LegsimError(f"--continue {label} = {value:g}: {exc}") from None
+    return settings, start, stop
+
+
+def format_family_end(family: Family, param: str, plot_path: Path | None) -> str:
+    """The lines after the ``--continue`` table: stability changes, completeness, the plot."""
+    lines = ["stability change: " + change.describe(param) for change in family.stability_changes]
+    if not family.stability_changes:
+        lines.append("stability change: none in this range")
+    lines.append(("complete: " if family.complete else "incomplete: ") + family.message)
+    if plot_path is not None:
+        lines.append(f"wrote {plot_path} (plot)")
+    return "\n".join(lines)
 
 
 def _number(label: str, text: str) -> float:
@@ -185,7 +215,8 @@ def format_orbit(payload: dict[str, Any], name: str) -> str:
     lines = []
     if payload["status"] == "converged":
         lines.append(f"{name}: periodic orbit found in {payload['iterations']} iteration(s), residual "
-                     f"{payload['residual']:.3g} ({payload['jacobian']} Jacobian, {payload['evaluations']} simulations)")
+                     f"{payload['residual']:.3g} ({payload['jacobian']} Jacobian, "
+                     f"{payload['evaluations']} simulations)")
     else:
         lines.append(f"{name}: no orbit ({payload['status']}): {payload['message']}")
         lines.append("last iterate:")
@@ -207,13 +238,14 @@ def format_orbit(payload: dict[str, Any], name: str) -> str:
         mus.append(f"{text} (|mu| {math.hypot(re, im):.6g})")
     lines.append("Floquet multipliers: " + (", ".join(mus) if mus else "none"))
     verdict = "stable" if payload["stable"] else "unstable"
-    trivial = f", {payload['trivial_multipliers']} trivial multiplier(s) 1 left out" if payload["trivial_multipliers"] else ""
+    trivial = (f", {payload['trivial_multipliers']} trivial multiplier(s) 1 left out"
+               if payload["trivial_multipliers"] else "")
     lines.append(f"{verdict}: spectral radius {payload['spectral_radius']:.6g}{trivial}")
     lines.append("transitions per period: " + ", ".join(payload["transitions"]))
     return "\n".join(lines)
 
 
-def format_header(param: str, problem) -> tuple[str, tuple[list[str], list[int]]]:
+def format_header(param: str, problem: OrbitProblem) -> tuple[str, tuple[list[str], list[int]]]:
     """The table header of ``--continue`` and its columns: the parameter, the unknown
     coordinates, the free parameters, period, step length, largest |multiplier|, verdict."""
     cols = [param] + [problem.names[i] for i in problem.unknown_idx] + list(problem.free) + \
@@ -249,12 +281,14 @@ def format_row(param: str, value: float, payload: dict[str, Any], layout: tuple[
     return "".join(cells)
 
 
-def write_family_plot(family, title: str, path: Path) -> None:
-    """Fixed-point coordinates, period and multiplier moduli against the parameter; the file is
-    written under a temporary name and renamed into place."""
+def write_family_plot(family: Family, title: str, path: Path) -> None:
+    """Fixed-point coordinates, period and multiplier moduli against the parameter, written to
+    ``path`` (png, pdf or svg by its suffix) so that it appears complete or not at all."""
     import numpy as np
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
+
+    from ..output.files import write_atomic
 
     values = np.array([p.value for p in family.points])
     first = family.points[0].result
@@ -287,11 +321,9 @@ def write_family_plot(family, title: str, path: Path) -> None:
     ax3.set_ylabel("|multiplier|")
     ax3.set_xlabel(family.parameter)
     ax3.legend(loc="best", fontsize="small")
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.stem}.partial-{os.getpid()}{path.suffix}")
     try:
-        fig.savefig(tmp, format=path.suffix.lower().lstrip("."))
-        os.replace(tmp, path)
+        write_atomic(path, lambda tmp: fig.savefig(tmp, format=path.suffix.lower().lstrip(".")), what="--plot")
+    except LegsimError:
+        raise
     except Exception as exc:
-        tmp.unlink(missing_ok=True)
-        raise LegsimError(f"--plot {path}: writing failed: {type(exc).__name__}: {exc}") from exc
+        raise OutputError(f"--plot {path}: writing failed: {type(exc).__name__}: {exc}") from exc

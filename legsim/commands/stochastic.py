@@ -1,8 +1,9 @@
 """``legsim stochastic SCENE``: sample the stochastic approximation of a scene (paper 004 Sec. IV).
 
-Settings come from the scene's ``[stochastic]`` section (``legsim.stochastic.section_schema``:
-samples, seed, h, method, pair, floor, intensity, t_final, max_transitions, carry), with h,
-method and t_final defaulting to ``[integrator]``; ``--samples`` and ``--seed`` override it.
+Settings come from the scene's ``[stochastic]`` section
+(``legsim.scene.stochastic.section_schema``: samples, seed, h, method, pair, floor, intensity,
+t_final, max_transitions, carry, hazard_cap), with h, method and t_final defaulting to
+``[integrator]``; ``--samples`` and ``--seed`` override it.
 Prints the distribution of mode sequences and of the first switching times, beside the
 deterministic (relaxed) execution's switching times.
 
@@ -29,7 +30,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("scene", metavar="SCENE", help="scene file (.toml) or bundled scene name")
     parser.add_argument("--samples", type=int, metavar="N", help="number of sampled executions "
                                                                   "(default: stochastic.samples, else 100)")
-    parser.add_argument("--seed", type=int, metavar="S", help="seed of the random generator (default: stochastic.seed, else 0)")
+    parser.add_argument("--seed", type=int, metavar="S",
+                        help="seed of the random generator (default: stochastic.seed, else 0)")
     parser.add_argument("--set", dest="overrides", metavar="KEY=VALUE", action="append", default=[],
                         help="override a scene field, e.g. --set stochastic.h=0.01 --set stochastic.floor=1")
     parser.add_argument("--json", action="store_true", help="print one JSON object")
@@ -40,7 +42,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from ..scene import load_scene
-    from ..stochastic import ensemble_from_scene
+    from ..scene.stochastic import ensemble_from_scene
 
     if args.samples is not None and args.samples < 1:
         raise LegsimError(f"--samples must be an integer >= 1, got {args.samples}")

@@ -7,7 +7,16 @@
 * ``fields``: the error helpers every section's reader shares.
 
 Tool sections (``[orbit]``, ``[certify]``, ``[stochastic]``, ...) are read here too, by the
-modules of this package named after them, into the plain arguments their algorithms take.
+modules of this package named after them, into the plain arguments their algorithms take:
+
+* ``orbit``: ``[orbit]`` into an ``OrbitProblem``, solver settings and guess (``problem_from_scene``).
+* ``certify``: ``[certify]`` into the arguments of ``legsim.certify.certify`` (``certify_scene``).
+* ``stochastic``: ``[stochastic]`` into those of ``legsim.stochastic.sample_ensemble``
+  (``ensemble_from_scene``).
+* ``error_bounds``: the keys and checks ``[certify]`` and ``[stochastic]`` share.
+
+They are imported by name (``from legsim.scene.orbit import problem_from_scene``), not here, so
+that loading a scene does not load every tool.
 """
 
 from .files import (SCENE_PATH_ENV, apply_overrides, bundled_dir, parse_override, read_toml, resolve_scene_path,

@@ -79,9 +79,9 @@ def test_continuation_locates_the_compass_gait_period_doubling(capsys):
     # At the located slope the leading multiplier is real and at -1 (to the bracket's width).
     re, im = change["multiplier"]
     assert im == 0.0 and abs(re + 1.0) < 0.02
-    # The independent point-mass computation of test_orbits_walkers (scipy DOP853, no Pinocchio,
-    # no legsim) has its multiplier cross -1 inside the same bracket.
-    from test_orbits_walkers import STANDARD, PointMassCompassGait
+    # The independent point-mass computation (scipy DOP853, no Pinocchio, no legsim) has its
+    # multiplier cross -1 inside the same bracket.
+    from helpers.compass_gait_reference import STANDARD, PointMassCompassGait
 
     def leading(slope):
         mu = PointMassCompassGait(**dict(STANDARD, slope=slope)).gait(guess=(-0.3, 1.14, 0.22))["multipliers"]
@@ -127,8 +127,8 @@ def test_no_orbit_exits_3_with_the_reason(capsys):
     (["orbit", "slip_orbit", "--continue", "damping.b", "0", "1"], "effect 'damping' is switched off in this scene"),
     (["orbit", "rimless_wheel", "--continue", "slope", "3", "4", "--plot", "out.txt"],
      "the file must end in .png, .pdf or .svg"),
-    # Checked before any orbit is searched for (each of these used to fail, or run for days,
-    # after the family was computed).
+    # Checked before any orbit is searched for: found only after the family was computed, each
+    # would waste the whole computation (or run for days).
     (["orbit", "rimless_wheel", "--continue", "slope", "3", "4", "--plot", "/proc/no/such/folder/f.png"],
      "cannot create the folder /proc/no/such/folder"),
     (["orbit", "rimless_wheel", "--continue", "slope", "3", "4", "--plot", "/proc/f.png"],

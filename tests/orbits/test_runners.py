@@ -18,8 +18,9 @@ import pytest
 from scipy.integrate import solve_ivp
 from scipy.optimize import brentq
 
-from legsim.orbits import find_orbit, problem_from_scene
+from legsim.orbits import find_orbit
 from legsim.scene import load_scene
+from legsim.scene.orbit import problem_from_scene
 
 M, K, L, G = 1.0, 60.0, 1.0, 9.81
 Z0, XD0 = 1.1, 3.4

@@ -1,12 +1,9 @@
 """Gaits of the passive walkers (robots built with the Pinocchio bridge) against closed forms,
 an independent high-accuracy computation and the literature.
 
-Compass gait reference. The test computes the gait independently of Pinocchio and of legsim:
-the equations of motion of the three point masses written out by hand (M = sum m J^T J, with the
-centripetal terms of each mass), the plastic heel strike as an impulse on a floating model with
-the hip free, integrated by scipy's DOP853 (rtol = atol = 1e-12) with a terminal event, and the
-fixed point solved by scipy's fsolve. Angles are the legs' leans from the slope normal
-(positive with the hip downhill of the foot), theta1 the stance leg, theta2 the swing leg.
+Compass gait reference: the gait computed independently of Pinocchio and of legsim, with the
+equations of motion of the three point masses written out by hand and scipy's DOP853 and fsolve
+(``helpers.compass_gait_reference``).
 
 Literature. For the standard parameters (m = 5, m_H = 10, a = b = 0.5, slope 3 deg) the stable
 period-one gait of Goswami, Thuilot & Espiau (INRIA RR-2996, 1996; Int. J. Robotics Research
@@ -16,81 +13,18 @@ vertical, positive backwards; [theta_ns, theta_s, dtheta_ns, dtheta_s]), as
 from the paper here; they are reproduced to all four digits with g = 9.8 m/s^2 (the velocities
 scale with sqrt(g); at g = 9.81 they would read -0.3774 and -1.0924), which we take as the
 value the quotation used. The test checks them at g = 9.8, and everything else against the
-independent computation above.
+independent computation.
 """
 
 import math
 
 import numpy as np
 import pytest
-from scipy.integrate import solve_ivp
-from scipy.optimize import fsolve
 
 from legsim.orbits import OrbitProblem, Section, find_orbit, jacobian_fd, jacobian_saltation, return_map
 from legsim.robots import compass_gait, rimless_wheel
 
-STANDARD = {"m": 5.0, "mH": 10.0, "a": 0.5, "b": 0.5, "g": 9.81, "slope": 3.0}
-
-
-# -- independent compass gait ----------------------------------------------------------------
-class PointMassCompassGait:
-    def __init__(self, m, mH, a, b, g, slope):
-        self.m, self.mH, self.a, self.b = m, mH, a, b
-        self.l = a + b
-        s = math.radians(slope)
-        self.gvec = g * np.array([math.sin(s), -math.cos(s)])
-
-    def rhs(self, t, x):
-        t1, t2, w1, w2 = x
-        m, mH, a, b, l = self.m, self.mH, self.a, self.b, self.l
-        u1, u2 = np.array([math.sin(t1), math.cos(t1)]), np.array([math.sin(t2), math.cos(t2)])
-        d1, d2 = np.array([math.cos(t1), -math.sin(t1)]), np.array([math.cos(t2), -math.sin(t2)])
-        z = np.zeros(2)
-        # (mass, Jacobian of its position wrt (theta1, theta2), J-dot times the rates)
-        parts = [(m, np.column_stack([a * d1, z]), -a * u1 * w1 ** 2),
-                 (mH, np.column_stack([l * d1, z]), -l * u1 * w1 ** 2),
-                 (m, np.column_stack([l * d1, -b * d2]), -l * u1 * w1 ** 2 + b * u2 * w2 ** 2)]
-        M = sum(mi * J.T @ J for mi, J, _ in parts)
-        f = sum(mi * J.T @ (self.gvec - jd) for mi, J, jd in parts)
-        return np.concatenate([[w1, w2], np.linalg.solve(M, f)])
-
-    def heel_strike(self, x):
-        t1, t2, w1, w2 = x
-        m, mH, b, l = self.m, self.mH, self.b, self.l
-        d1, d2 = np.array([math.cos(t1), -math.sin(t1)]), np.array([math.cos(t2), -math.sin(t2)])
-        I2, z = np.eye(2), np.zeros(2)
-        # Floating coordinates (hip x, hip z, theta1, theta2); masses at hip - b u_i and the hip.
-        parts = [(m, np.column_stack([I2, -b * d1, z])), (mH, np.column_stack([I2, z, z])),
-                 (m, np.column_stack([I2, z, -b * d2]))]
-        M = sum(mi * J.T @ J for mi, J in parts)
-        J2 = np.column_stack([I2, z, -l * d2])  # the swing foot hip - l u2
-        v = np.concatenate([l * w1 * d1, [w1, w2]])
-        Mi = np.linalg.inv(M)
-        vp = v - Mi @ J2.T @ np.linalg.solve(J2 @ Mi @ J2.T, J2 @ v)
-        return np.array([t2, t1, vp[3], vp[2]])
-
-    def step(self, x0):
-        def strike(t, x):  # swing foot height, counted only in front of the stance foot
-            return self.l * (math.cos(x[0]) - math.cos(x[1])) if x[1] < x[0] else 1.0
-        strike.terminal, strike.direction = True, -1
-        sol = solve_ivp(self.rhs, (0.0, 5.0), x0, method="DOP853", rtol=1e-12, atol=1e-12, events=strike)
-        return self.heel_strike(sol.y_events[0][0]), float(sol.t_events[0][0])
-
-    def gait(self, guess=(-0.27, 1.09, 0.38)):
-        def F(z):
-            x1, _ = self.step(np.array([z[0], -z[0], z[1], z[2]]))
-            return x1[[0, 2, 3]] - z
-        z = fsolve(F, guess, xtol=1e-13)
-        x0 = np.array([z[0], -z[0], z[1], z[2]])
-        x1, period = self.step(x0)
-        J = np.zeros((3, 3))
-        for j in range(3):
-            dz = np.zeros(3)
-            dz[j] = 1e-6
-            J[:, j] = (F(z + dz) - F(z - dz)) / 2e-6 + (np.arange(3) == j)
-        mu = np.linalg.eigvals(J)
-        return {"x": x0, "period": period, "step": 2 * self.l * math.sin(-z[0]), "residual": np.max(np.abs(F(z))),
-                "multipliers": mu[np.argsort(-np.abs(mu), kind="stable")]}
+from helpers.compass_gait_reference import STANDARD, PointMassCompassGait
 
 
 @pytest.fixture(scope="module")
@@ -294,8 +228,8 @@ def test_rimless_wheel_too_slow_to_vault_comes_to_rest_and_no_orbit_is_reported(
 
 def test_a_walker_that_falls_is_a_failure_not_a_gait():
     # Thrown backwards (stance rate -5 rad/s) the walker tips over its stance foot: once the hip
-    # is below the slope the run ends (model_breakdown), and no orbit is reported. (Before, the
-    # legs went on swinging under the ground like a pendulum, and Newton found a "family" there.)
+    # is below the slope the run ends (model_breakdown), and no orbit is reported (rather than
+    # legs swinging on under the ground like a pendulum, where Newton would find a "family").
     prob, _ = compass_problem()
     res = find_orbit(prob, [-0.27, 0.54, -5.0, -0.72, 0.0])
     assert res.status == "simulation_failed" and res.multipliers is None

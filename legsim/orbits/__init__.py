@@ -1,0 +1,55 @@
+"""Periodic orbits of hybrid systems: Poincare sections, return maps, fixed points, Floquet
+multipliers and continuation.
+
+A gait is a periodic orbit of a hybrid system. We find one as a fixed point of the *return
+map* P of a Poincare section S: start on S, simulate with the relaxed integrator until the
+trajectory comes back to S, and ask that P(x) = x.
+
+Modules, in the order a computation uses them:
+
+* ``sections``: ``Section`` (a level set crossed in a direction, or the states just after a
+  transition) and its binding to a system.
+* ``problem``: ``OrbitProblem``, the system, section, integrator settings and unknowns.
+* ``returns``: the return map (``ReturnMap``, ``return_map``, ``Return``): where the trajectory
+  comes back to the section, and the period without the strips' holds.
+* ``jacobians``: the return map's Jacobian by saltation matrices or finite differences, and the
+  Floquet multipliers.
+* ``newton``: ``find_orbit`` (Gauss-Newton on the orbit equations) and ``OrbitResult``.
+* ``continuation``: ``continue_family`` and the stability changes along a family.
+
+A scene's ``[orbit]`` section is read by ``legsim.scene.orbit`` (``problem_from_scene``); those
+names are importable from here too, loaded on first use so that the orbit modules do not depend
+on the scene layer.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from .continuation import Family, FamilyPoint, StabilityChange, continue_family
+from .errors import OrbitError
+from .jacobians import (MAX_FD_STEP, default_fd_step, floquet_multipliers, jacobian_fd, jacobian_saltation,
+                        reset_on_guard_jacobian, saltation_matrix)
+from .newton import STATUSES, OrbitResult, find_orbit
+from .problem import MAX_STEPS_PER_RETURN, OrbitProblem
+from .returns import Return, ReturnMap, return_map
+from .sections import Section
+
+__all__ = [
+    "OrbitError", "Section", "OrbitProblem", "Return", "ReturnMap", "OrbitResult", "Family", "FamilyPoint",
+    "StabilityChange", "OrbitSettings", "problem_from_scene", "default_fd_step", "find_orbit", "return_map",
+    "jacobian_fd", "jacobian_saltation", "saltation_matrix", "MAX_STEPS_PER_RETURN", "MAX_FD_STEP",
+    "reset_on_guard_jacobian",
+    "floquet_multipliers", "continue_family", "STATUSES",
+]
+
+#: Names of the scene layer's ``[orbit]`` reader that this package re-exports.
+_SCENE_NAMES = ("ORBIT_KEYS", "OrbitSettings", "problem_from_scene")
+
+
+def __getattr__(name: str) -> Any:
+    if name in _SCENE_NAMES:
+        from ..scene import orbit
+
+        return getattr(orbit, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -1,0 +1,310 @@
+"""Jacobians of the return map and the Floquet multipliers they give.
+
+Jacobians
+---------
+Two ways, compared in the tests:
+
+* ``jacobian="saltation"`` (default): along the relaxed execution, the derivative of each
+  Runge-Kutta step (the variational equation integrated with the same tableau on the same
+  steps, with the field's Jacobian from ``Mode.jacobian`` or forward differences) and, at each
+  transition with guard point q, the saltation matrix
+  ``Xi = DR + (f+ - DR f-) grad_g^T / (grad_g . f-)`` from the reset Jacobian DR(q), the guard
+  gradient (``Transition.reset_jacobian``/``guard_gradient`` or central differences) and the
+  fields either side. The return itself is not taken at a fixed time but where the
+  trajectory meets the section, so the product ends with a projection along the flow: for a
+  crossing section ``I - f grad_s^T / (grad_s . f)``; for a section after a transition the
+  returning transition contributes ``DR (I - f- grad_g^T / (grad_g . f-))`` (the derivative of
+  the reset image R(q)) instead of its saltation matrix. One simulation in all.
+* ``jacobian="fd"``: central differences of the return map, 2 simulations per coordinate.
+  Step ``delta_j = fd_step * max(1, |x_j|)``. The central difference error is about
+  ``eta / delta + delta**2 |P'''| / 6`` with eta the return map's own noise as a function of x
+  (rounding, and the O(h^p) jumps as the step that lands in a strip changes with x). For fixed
+  steps eta is tiny (about 3e-15 on the compass gait, with |P'''| ~ 5e3), so the optimum
+  (3 eta / |P'''|)^(1/3) is near 1e-6, the default. With error-controlled steps (rtol/atol)
+  the step sequence itself changes with x, eta ~ the tolerance, and the default becomes
+  tolerance^(1/3). ``docs/orbits.md`` has the measurements.
+
+Derivatives with respect to free parameters are always central differences of the return map
+(the system is rebuilt for each value). Where the simulation on one side of a difference fails
+(a model that refuses states on one side, such as a runner whose flight foot would start below
+the ground just off a symmetric gait), the one-sided difference on the other side is used.
+
+Multipliers
+-----------
+The return map extended off the section by the flow satisfies DP f(x*) = 0 (a start moved
+along the flow returns to the same point), so the n x n Jacobian DP has the trivial eigenvalue
+0 along f. In an orthonormal basis B of the complement f^perp, ``M = B^T DP B`` is the Jacobian
+of the return map restricted to a section, whatever the section's shape, and its n - 1
+eigenvalues are the Floquet multipliers. Cyclic coordinates (positions along a translation
+symmetry, such as a runner's x) are removed first: P(x + a e_c) = P(x) + a e_c, so they only add
+trivial multipliers 1. Multipliers known to be 1 because of a conserved quantity (the energy of a
+passive runner) are reported but can be excluded from the stability verdict with
+``trivial_multipliers``.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Callable, Mapping, Sequence
+
+import numpy as np
+
+from ..derivatives import gradient, jacobian
+from ..execution import Segment
+from ..hybrid import HybridSystem, Mode, Transition
+from ..methods import Tableau
+from .errors import OrbitError
+from .problem import OrbitProblem
+from .returns import Return, ReturnMap
+
+#: Largest relative finite-difference step: beyond it a difference is no derivative at all
+#: (the default is 1e-6, see ``default_fd_step``).
+MAX_FD_STEP = 0.1
+
+Control = Callable[[float, np.ndarray], Any] | None
+
+
+# -- the variational equation along the relaxed execution ---------------------------------------
+def field_at(mode: Mode, control: Control, t: float, x: np.ndarray) -> np.ndarray:
+    """The closed-loop field f(t, x, u(t, x)) of ``mode``, shape (n,)."""
+    return np.asarray(mode.field(t, x, None if control is None else control(t, x)), dtype=float)
+
+
+def _field_jacobian(mode: Mode, control: Control, t: float, x: np.ndarray, fx: np.ndarray) -> np.ndarray:
+    """df/dx at (t, x), given fx = f(t, x). ``Mode.jacobian`` when the mode has one (and there
+    is no control: with one, the closed-loop field x -> f(t, x, u(t, x)) is differentiated, since
+    Mode.jacobian holds u fixed); otherwise forward differences from fx, relative accuracy
+    ~1e-8 at n evaluations per Jacobian: half the cost of central differences, which would
+    dominate the cost of the saltation Jacobian."""
+    if mode.jacobian is not None and control is None:
+        return np.asarray(mode.jacobian(t, x, None), dtype=float)
+    return jacobian(lambda y: field_at(mode, control, t, y), x, scheme="forward", f0=fx)
+
+
+def _step_derivative(mode: Mode, control: Control, tableau: Tableau, t: float, x: np.ndarray, h: float) -> np.ndarray:
+    """Derivative of one explicit Runge-Kutta step x -> x + h sum b_j k_j with respect to x:
+    dk_j = J(X_j) (I + h sum_l A_jl dk_l), the variational equation stepped by the same method."""
+    n = len(x)
+    A, c, b = tableau.A, tableau.c, tableau.b
+    ks: list[np.ndarray] = []
+    dks: list[np.ndarray] = []
+    eye = np.eye(n)
+    for j in range(tableau.stages):
+        Xj = x.copy()
+        dXj = eye.copy()
+        for l in range(j):
+            if A[j, l] != 0.0:
+                Xj = Xj + h * A[j, l] * ks[l]
+                dXj = dXj + h * A[j, l] * dks[l]
+        tj = t + c[j] * h
+        ks.append(field_at(mode, control, tj, Xj))
+        dks.append(_field_jacobian(mode, control, tj, Xj, ks[-1]) @ dXj)
+    S = eye.copy()
+    for j in range(tableau.stages):
+        if b[j] != 0.0:
+            S = S + h * b[j] * dks[j]
+    return S
+
+
+def _segment_sensitivity(system: HybridSystem, control: Control, tableau: Tableau, seg: Segment,
+                         t_stop: float | None = None) -> np.ndarray:
+    """d x(end) / d x(start) along one stored segment, stepping the variational equation on the
+    segment's own steps (each from its stored start point); ``t_stop`` cuts the last step."""
+    mode = system.mode(seg.mode)
+    Phi = np.eye(seg.x.shape[1])
+    for i in range(len(seg.t) - 1):
+        t0 = seg.t[i]
+        if t_stop is not None and t0 >= t_stop:
+            break
+        t1 = seg.t[i + 1] if t_stop is None else min(seg.t[i + 1], t_stop)
+        if t1 <= t0:
+            continue
+        Phi = _step_derivative(mode, control, tableau, t0, seg.x[i], t1 - t0) @ Phi
+    return Phi
+
+
+# -- transitions ---------------------------------------------------------------------------------
+def _transition_pieces(system: HybridSystem, transition: Transition, q: np.ndarray, x_plus: np.ndarray,
+                       t_minus: float, t_plus: float,
+                       control: Control) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, float]:
+    """(DR, grad g, f-, f+, grad g . f-) of a transition at its guard point q; DR and grad g by
+    central differences where the transition does not give them."""
+    src = system.mode(transition.source)
+    tgt = system.mode(transition.target)
+    q = np.asarray(q, dtype=float)
+    x_plus = np.asarray(x_plus, dtype=float)
+    if transition.reset_jacobian is not None:
+        DR = np.asarray(transition.reset_jacobian(q), dtype=float).reshape(tgt.dim, src.dim)
+    elif transition.reset is None:
+        DR = np.eye(src.dim)
+    else:
+        DR = jacobian(transition.reset, q).reshape(tgt.dim, src.dim)
+    if transition.guard_gradient is not None:
+        grad = np.asarray(transition.guard_gradient(q), dtype=float).reshape(src.dim)
+    else:
+        grad = gradient(transition.guard, q)
+    f_minus = field_at(src, control, t_minus, q)
+    f_plus = field_at(tgt, control, t_plus, x_plus)
+    rate = float(grad @ f_minus)
+    scale = float(np.linalg.norm(grad) * np.linalg.norm(f_minus))
+    if scale == 0.0 or abs(rate) <= 1e-10 * scale:
+        raise OrbitError(f"transition {transition.name}: the flow is tangent to the guard at q = "
+                         f"{np.round(q, 8).tolist()} (grad g . f = {rate:.3g}): grazing, no saltation matrix",
+                         "singular_jacobian")
+    return DR, grad, f_minus, f_plus, rate
+
+
+def saltation_matrix(system: HybridSystem, transition: Transition, q: np.ndarray, x_plus: np.ndarray,
+                     t_minus: float = 0.0, t_plus: float = 0.0, control: Control = None) -> np.ndarray:
+    """The saltation matrix ``Xi = DR + (f+ - DR f-) grad_g^T / (grad_g . f-)`` of a transition
+    at its guard point q, shape (n_target, n_source): it maps a perturbation just before the
+    nominal transition time to the perturbation just after it (both at the same time).
+
+    DR is ``transition.reset_jacobian(q)`` (central differences of the reset when absent, the
+    identity for an identity reset), grad_g ``transition.guard_gradient(q)`` (central
+    differences when absent), f- the source field at (t_minus, q) and f+ the target field at
+    (t_plus, x_plus); times in s. Raises OrbitError when the flow is tangent to the guard
+    (grazing).
+    """
+    DR, grad, f_minus, f_plus, rate = _transition_pieces(system, transition, q, x_plus, t_minus, t_plus, control)
+    return DR + np.outer(f_plus - DR @ f_minus, grad) / rate
+
+
+def reset_on_guard_jacobian(system: HybridSystem, transition: Transition, q: np.ndarray, x_plus: np.ndarray,
+                            t_minus: float = 0.0, t_plus: float = 0.0, control: Control = None) -> np.ndarray:
+    """Derivative of the reset image R(q) itself (not of the state at a fixed time) with respect
+    to a perturbation just before the transition: ``DR (I - f- grad_g^T / (grad_g . f-))``, the
+    reset Jacobian after projecting onto the guard along the flow, shape (n_target, n_source).
+    This ends the Jacobian of the return map of a section ``after`` this transition (the
+    saltation matrix would add f+ dt)."""
+    DR, grad, f_minus, _, rate = _transition_pieces(system, transition, q, x_plus, t_minus, t_plus, control)
+    return DR @ (np.eye(len(grad)) - np.outer(f_minus, grad) / rate)
+
+
+# -- the return map's Jacobian -------------------------------------------------------------------
+def jacobian_saltation(problem: OrbitProblem, ret: Return) -> np.ndarray:
+    """The n x n Jacobian of the return map at ``ret.x_start``, through the variational equation
+    on the relaxed execution and the saltation matrix of each transition (module docstring)."""
+    system, control = problem.instantiate(ret.parameters)
+    ex = ret.execution
+    crossing = problem.section.kind == "crossing"
+    Phi = np.eye(problem.dim)
+    last = ret.segment
+    for k in range(last + 1):
+        stop = ret.t_return if (k == last and crossing) else None
+        Phi = _segment_sensitivity(system, control, problem.tableau, ex.segments[k], stop) @ Phi
+        if k == last and crossing:
+            break
+        rec = ex.transitions[k]
+        tr = system.outgoing(rec.source)[rec.index]
+        # Synchronous saltation inside the period; the returning transition of an "after"
+        # section maps onto the reset image itself.
+        jump = reset_on_guard_jacobian if k == last else saltation_matrix
+        Phi = jump(system, tr, rec.state_before, rec.state_after, rec.time, rec.exit_time, control) @ Phi
+    if crossing:
+        Phi = _onto_section(problem, system, control, ret) @ Phi
+    return Phi
+
+
+def _onto_section(problem: OrbitProblem, system: HybridSystem, control: Control, ret: Return) -> np.ndarray:
+    """The projection ``I - f grad_s^T / (grad_s . f)`` along the flow onto a crossing section
+    at the return, shape (n, n)."""
+    f = field_at(system.mode(problem.bound.mode), control, ret.t_return, ret.x_end)
+    grad = problem.bound.grad(ret.x_end)
+    rate = float(grad @ f)
+    if abs(rate) <= 1e-10 * float(np.linalg.norm(grad) * np.linalg.norm(f) + 1e-300):
+        raise OrbitError(f"the flow is tangent to the section {problem.section.label} at the return "
+                         f"(grad s . f = {rate:.3g})", "singular_jacobian")
+    return np.eye(problem.dim) - np.outer(f, grad) / rate
+
+
+def difference(fn: Callable[[float], np.ndarray], d: float, base: Callable[[], np.ndarray], label: str) -> np.ndarray:
+    """Central difference (fn(d) - fn(-d)) / 2d of a map that runs simulations; when the
+    simulation on one side fails (a model that refuses states on one side, e.g. a runner whose
+    flight foot would start below the ground), the one-sided difference against ``base()`` on
+    the other side, accurate to O(d) instead of O(d^2). ``label`` names the variable in the
+    error raised when both sides fail."""
+    plus = minus = None
+    errors = []
+    try:
+        plus = fn(d)
+    except OrbitError as exc:
+        errors.append(exc)
+    try:
+        minus = fn(-d)
+    except OrbitError as exc:
+        errors.append(exc)
+    if plus is not None and minus is not None:
+        return (plus - minus) / (2 * d)
+    if plus is None and minus is None:
+        raise OrbitError(f"finite difference in {label}: the simulations on both sides failed: {errors[0]}",
+                         errors[0].status)
+    if plus is not None:
+        return (plus - base()) / d
+    return (base() - minus) / d
+
+
+def check_fd_step(step: Any) -> float:
+    """A relative finite-difference step in (0, ``MAX_FD_STEP``], or an OrbitError with key
+    ``fd_step``."""
+    if isinstance(step, bool) or not isinstance(step, (int, float)) or not 0.0 < step <= MAX_FD_STEP:
+        raise OrbitError(f"fd_step must be a relative step in (0, {MAX_FD_STEP:g}], got {step!r}", key="fd_step")
+    return float(step)
+
+
+def default_fd_step(problem: OrbitProblem) -> float:
+    """Relative finite-difference step of the return map: 1e-6 for fixed steps, the cube root
+    of the tolerance with error-controlled steps (module docstring)."""
+    tols = [t for t in (problem.rtol, problem.atol) if t is not None]
+    return max(1e-6, max(tols) ** (1.0 / 3.0)) if tols else 1e-6
+
+
+def jacobian_fd(problem: OrbitProblem, x: np.ndarray, parameters: Mapping[str, float] | None = None,
+                step: float | None = None, columns: Sequence[int] | None = None,
+                rmap: ReturnMap | None = None) -> np.ndarray:
+    """The n x n Jacobian of the return map at x by central differences (columns of cyclic
+    coordinates are e_c by symmetry; one-sided where one side's simulation fails). ``step``:
+    relative step, default ``default_fd_step`` (module docstring); ``columns``: only these
+    columns (the others are left 0); ``rmap``: the return map to evaluate (a new one by
+    default)."""
+    rmap = rmap or ReturnMap(problem)
+    step = default_fd_step(problem) if step is None else check_fd_step(step)
+    n = problem.dim
+    J = np.zeros((n, n))
+    cache: list[np.ndarray] = []
+
+    def base() -> np.ndarray:
+        if not cache:
+            cache.append(rmap(x, parameters).x_end)
+        return cache[0]
+
+    for j in range(n) if columns is None else columns:
+        if j in problem.cyclic_idx:
+            J[j, j] = 1.0
+            continue
+
+        def shifted(delta: float, j=j) -> np.ndarray:
+            y = x.copy()
+            y[j] += delta
+            return rmap(y, parameters).x_end
+
+        J[:, j] = difference(shifted, step * max(1.0, abs(x[j])), base, f"coordinate {problem.names[j]}")
+    return J
+
+
+def floquet_multipliers(DP: np.ndarray, f: np.ndarray, cyclic: Sequence[int] = ()) -> tuple[np.ndarray, np.ndarray]:
+    """Floquet multipliers from the full return-map Jacobian ``DP`` (n x n) and the field ``f``
+    (n,) at the fixed point: removes cyclic coordinates, restricts to f^perp (DP f = 0 there) and
+    returns (multipliers sorted by decreasing modulus, the restricted matrix M)."""
+    keep = [i for i in range(DP.shape[0]) if i not in set(cyclic)]
+    D = DP[np.ix_(keep, keep)]
+    fk = np.asarray(f, dtype=float)[keep]
+    if np.linalg.norm(fk) == 0.0:
+        raise OrbitError("the field vanishes at the fixed point: it is an equilibrium, not a periodic orbit",
+                         "singular_jacobian")
+    # Orthonormal basis of f^perp: the last columns of a complete QR of f.
+    Q, _ = np.linalg.qr(fk.reshape(-1, 1), mode="complete")
+    B = Q[:, 1:]
+    M = B.T @ D @ B
+    mu = np.linalg.eigvals(M) if M.size else np.empty(0, dtype=complex)
+    order = np.argsort(-np.abs(mu), kind="stable")
+    return mu[order].astype(complex), M

@@ -1,0 +1,442 @@
+"""Finding a periodic orbit: Gauss-Newton on the orbit equations, and the result it reports.
+
+The unknowns z are the problem's free coordinates and free parameters; the equations F(z) = 0
+are periodicity ``P(x) - x`` on the non-cyclic coordinates other than the section's, s(x) = 0
+for a section given as a function, the constraints and the energy level. Each iteration solves
+the (possibly overdetermined, consistent) linear system by SVD and halves the step while it
+does not reduce the max-norm residual.
+
+Failures are never answers: ``find_orbit`` returns an ``OrbitResult`` whose ``status`` says why
+it stopped (``no_return``, ``simulation_failed``, ``singular_jacobian``, ``diverged``,
+``stalled``, ``max_iterations``) with a message; ``result.raise_for_status()`` turns it into an
+``OrbitError``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+
+from .. import derivatives
+from .errors import OrbitError
+from .jacobians import check_fd_step, default_fd_step, difference, field_at, floquet_multipliers, jacobian_fd, \
+    jacobian_saltation
+from .problem import OrbitProblem
+from .returns import Return, ReturnMap
+
+#: Ends of an orbit search.
+STATUSES = ("converged", "no_return", "simulation_failed", "singular_jacobian", "diverged", "stalled",
+            "max_iterations")
+
+
+@dataclass
+class OrbitResult:
+    """The outcome of an orbit search.
+
+    Attributes
+    ----------
+    status: one of ``STATUSES``; converged: status == "converged"; message: why it stopped.
+    mode, state_names: the section's mode and coordinates.
+    fixed_point: the last iterate, shape (n,) (the orbit's state on the section when converged).
+    parameters: all parameter values, free ones solved.
+    period: flow time of one return (s), strips excluded; return_time: relaxed return time (s).
+    step_length: the distance covered in one period (m), when defined.
+    multipliers: Floquet multipliers (complex, by decreasing modulus), shape (n - 1 - #cyclic,).
+    stable: True when every multiplier but the trivial ones has modulus < 1.
+    jacobian: the full return-map Jacobian at the fixed point (n, n); section_jacobian: its
+        restriction M to the section.
+    residual: max-norm of the orbit equations at fixed_point; iterations: Newton iterations.
+    history: residual max-norm after each iteration.
+    transitions: names of the transitions of one period.
+    evaluations: simulations run.
+    """
+
+    status: str
+    message: str
+    mode: str
+    state_names: tuple[str, ...]
+    fixed_point: np.ndarray
+    parameters: dict[str, float]
+    residual: float
+    iterations: int
+    history: list[float]
+    period: float | None = None
+    return_time: float | None = None
+    step_length: float | None = None
+    multipliers: np.ndarray | None = None
+    trivial_multipliers: int = 0
+    jacobian: np.ndarray | None = None
+    section_jacobian: np.ndarray | None = None
+    transitions: list[str] = field(default_factory=list)
+    evaluations: int = 0
+    jacobian_method: str = "saltation"
+    section: str = ""
+    free: tuple[str, ...] = ()
+
+    @property
+    def converged(self) -> bool:
+        return self.status == "converged"
+
+    @property
+    def spectral_radius(self) -> float | None:
+        """Largest modulus of the non-trivial multipliers."""
+        mu = self.nontrivial_multipliers
+        if mu is None:
+            return None
+        return float(np.max(np.abs(mu))) if mu.size else 0.0
+
+    @property
+    def nontrivial_multipliers(self) -> np.ndarray | None:
+        """The multipliers without the ``trivial_multipliers`` closest to 1."""
+        if self.multipliers is None:
+            return None
+        mu = self.multipliers
+        if self.trivial_multipliers <= 0:
+            return mu
+        drop = set(np.argsort(np.abs(mu - 1.0))[: self.trivial_multipliers].tolist())
+        return np.array([m for i, m in enumerate(mu) if i not in drop], dtype=complex)
+
+    @property
+    def stable(self) -> bool | None:
+        rho = self.spectral_radius
+        return None if rho is None else rho < 1.0
+
+    def raise_for_status(self) -> "OrbitResult":
+        """Raise ``OrbitError`` with the message unless the search converged."""
+        if not self.converged:
+            raise OrbitError(f"orbit search {self.status}: {self.message}", self.status)
+        return self
+
+    def to_json(self) -> dict[str, Any]:
+        """JSON-ready dict (the keys of ``legsim orbit --json``); non-finite numbers become None."""
+        def num(v):
+            if v is None:
+                return None
+            v = float(v)
+            return v if math.isfinite(v) else None
+
+        return {
+            "status": self.status,
+            "message": self.message,
+            "section": self.section,
+            "mode": self.mode,
+            "state_names": list(self.state_names),
+            "fixed_point": [num(v) for v in self.fixed_point],
+            "parameters": {k: num(v) for k, v in self.parameters.items()},
+            "free": list(self.free),
+            "period": num(self.period),
+            "return_time": num(self.return_time),
+            "step_length": num(self.step_length),
+            "multipliers": None if self.multipliers is None else
+            [[num(m.real), num(m.imag)] for m in self.multipliers],
+            "spectral_radius": num(self.spectral_radius),
+            "stable": self.stable,
+            "trivial_multipliers": self.trivial_multipliers,
+            "residual": num(self.residual),
+            "iterations": self.iterations,
+            "history": [num(v) for v in self.history],
+            "transitions": list(self.transitions),
+            "evaluations": self.evaluations,
+            "jacobian": self.jacobian_method,
+        }
+
+
+class _Equations:
+    """The orbit equations F(z) = 0 in the unknowns z = (free coordinates, free parameters)."""
+
+    def __init__(self, problem: OrbitProblem, x_template: np.ndarray, rmap: ReturnMap) -> None:
+        self.p = problem
+        self.template = x_template.copy()  # the state whose fixed coordinates z leaves as they are
+        self.rmap = rmap
+        self.n_x = len(problem.unknown_idx)
+
+    def unpack(self, z: np.ndarray) -> tuple[np.ndarray, dict[str, float]]:
+        """(state, all parameter values) of the unknowns z."""
+        x = self.template.copy()
+        x[self.p.unknown_idx] = z[: self.n_x]
+        params = dict(self.p.parameters)
+        params.update({name: float(v) for name, v in zip(self.p.free, z[self.n_x:])})
+        return x, params
+
+    def pack(self, x: np.ndarray, params: Mapping[str, float]) -> np.ndarray:
+        """The unknowns z of a state and parameter values."""
+        return np.concatenate([x[self.p.unknown_idx], [params[name] for name in self.p.free]])
+
+    def extra(self, x: np.ndarray, params: Mapping[str, float]) -> np.ndarray:
+        """Rows that do not need a simulation: section function, constraints, energy."""
+        p = self.p
+        rows = []
+        if p.has_section_row:
+            rows.append(p.bound.s(x))
+        for name, fn in p.constraints:
+            try:
+                rows.append(float(fn(x, params)))
+            except Exception as exc:
+                raise OrbitError(f"constraint '{name}' failed at x = {x.tolist()}: {type(exc).__name__}: {exc}") \
+                    from exc
+        if p.energy is not None:
+            system, _ = p.instantiate(params)
+            rows.append(float(system.energy(p.bound.mode, x)) - p.energy)  # type: ignore[misc]
+        return np.array(rows, dtype=float)
+
+    def residual(self, ret: Return) -> np.ndarray:
+        """F at a return's start: periodicity rows, then the extra rows."""
+        idx = self.p.periodic_idx
+        return np.concatenate([ret.x_end[idx] - ret.x_start[idx], self.extra(ret.x_start, ret.parameters)])
+
+    def evaluate(self, z: np.ndarray) -> tuple[Return, np.ndarray]:
+        """(the return from z, F(z)); OrbitError when there is no return."""
+        x, params = self.unpack(z)
+        ret = self.rmap(x, params)
+        return ret, self.residual(ret)
+
+    def jacobian(self, z: np.ndarray, ret: Return, method: str, fd_step: float | None) -> tuple[np.ndarray, np.ndarray]:
+        """(dF/dz, full DP at x): DP by ``method`` ("saltation" or "fd"), parameter columns by
+        differences of the return map."""
+        p = self.p
+        x, params = self.unpack(z)
+        if method == "saltation":
+            DP = jacobian_saltation(p, ret)
+        else:
+            DP = jacobian_fd(p, x, params, fd_step, columns=p.unknown_idx, rmap=self.rmap)
+        idx = p.periodic_idx
+        cols = []
+        for j in p.unknown_idx:
+            col_periodic = DP[idx, j] - (np.array(idx) == j).astype(float)
+            cols.append(np.concatenate([col_periodic, self._extra_column(x, params, coord=j)]))
+        step = default_fd_step(p) if fd_step is None else fd_step
+        for name in p.free:
+            def shifted(delta: float, name=name) -> np.ndarray:
+                q = dict(params)
+                q[name] += delta
+                return self.residual(self.rmap(x, q))
+
+            d = step * max(1.0, abs(params[name]))
+            cols.append(difference(shifted, d, lambda: self.residual(ret), f"parameter {name}"))
+        return np.column_stack(cols), DP
+
+    def _extra_column(self, x: np.ndarray, params: Mapping[str, float], coord: int) -> np.ndarray:
+        """d(extra rows)/d x[coord] by central differences (the rows are cheap: no simulation)."""
+        if not self.p.extra_rows:
+            return np.empty(0)
+
+        def along(value: np.ndarray) -> np.ndarray:
+            y = x.copy()
+            y[coord] = value[0]
+            return self.extra(y, params)
+
+        return derivatives.jacobian(along, x[coord:coord + 1])[:, 0]
+
+
+def find_orbit(problem: OrbitProblem, guess: Mapping[str, float] | Sequence[float] | np.ndarray, *,
+               tol: float = 1e-9, max_iterations: int = 30, jacobian: str = "saltation",
+               fd_step: float | None = None, singular_tol: float = 1e-9,
+               max_backtracks: int = 8) -> OrbitResult:
+    """Find a periodic orbit: a fixed point of the return map (P^returns) with Gauss-Newton.
+
+    Parameters
+    ----------
+    problem: the section, integrator settings, unknowns, fixed coordinates, free parameters.
+    guess: initial state of the section's mode (vector or {coordinate: value}); fixed and
+        cyclic coordinates keep these values.
+    tol: convergence when the max-norm of the equations (state units; J for an energy row)
+        is <= tol.
+    max_iterations: Newton iterations allowed.
+    jacobian: ``"saltation"`` or ``"fd"`` (``legsim.orbits.jacobians``).
+    fd_step: relative finite-difference step in (0, 0.1] (default ``default_fd_step(problem)``).
+    singular_tol: the Jacobian counts as singular when its smallest singular value is below
+        singular_tol times its largest.
+    max_backtracks: step halvings tried when a full Newton step does not reduce the residual.
+
+    Returns
+    -------
+    OrbitResult
+        converged or not; never raises for an ordinary failure (see ``STATUSES``).
+    """
+    if jacobian not in ("saltation", "fd"):
+        raise OrbitError(f"jacobian must be 'saltation' or 'fd', got {jacobian!r}")
+    if not (isinstance(tol, (int, float)) and tol > 0):
+        raise OrbitError(f"tol must be a number > 0, got {tol!r}")
+    if isinstance(max_iterations, bool) or not isinstance(max_iterations, int) or max_iterations < 0:
+        raise OrbitError(f"max_iterations must be an integer >= 0, got {max_iterations!r}")
+    if fd_step is not None:
+        fd_step = check_fd_step(fd_step)
+    search = _NewtonSearch(problem, problem.state_vector(guess), tol, jacobian, fd_step, singular_tol, max_backtracks)
+    return search.run(max_iterations)
+
+
+class _NewtonSearch:
+    """One Gauss-Newton search: the iterate z, its return and residual, and the history."""
+
+    def __init__(self, problem: OrbitProblem, x0: np.ndarray, tol: float, method: str, fd_step: float | None,
+                 singular_tol: float, max_backtracks: int) -> None:
+        self.p = problem
+        self.tol = tol
+        self.method = method
+        self.fd_step = fd_step
+        self.singular_tol = singular_tol
+        self.max_backtracks = max_backtracks
+        self.rmap = ReturnMap(problem)
+        self.eq = _Equations(problem, x0, self.rmap)
+        self.z = self.eq.pack(x0, problem.parameters)
+        self.history: list[float] = []
+        self.ret: Return | None = None
+        self.F = np.empty(0)
+        self.res = math.inf
+
+    def run(self, max_iterations: int) -> OrbitResult:
+        """Iterate from the initial guess until converged, failed, or ``max_iterations`` steps."""
+        try:
+            self.ret, self.F = self.eq.evaluate(self.z)
+        except OrbitError as exc:
+            return self.fail(exc.status, f"at the initial guess: {exc}", 0)
+        self.res = float(np.max(np.abs(self.F))) if self.F.size else 0.0
+        self.history.append(self.res)
+        z_scale = 1.0 + float(np.max(np.abs(self.z)))
+        for it in range(max_iterations + 1):
+            if self.res <= self.tol:
+                return self.converged(it)
+            if it == max_iterations:
+                break
+            failure = self.iterate(it, z_scale)
+            if failure is not None:
+                return failure
+            if float(np.max(np.abs(self.z))) > 1e8 * z_scale:
+                return self.fail("diverged", f"iteration {it + 1}: the iterates run away "
+                                             f"(|z| = {np.max(np.abs(self.z)):.3g})", it + 1)
+        return self.fail("max_iterations", f"no convergence in {max_iterations} iterations: residual {self.res:.3g} "
+                         f"> tol {self.tol:g} (history {[float(f'{v:.3g}') for v in self.history]})", max_iterations)
+
+    def iterate(self, it: int, z_scale: float) -> OrbitResult | None:
+        """One Newton step with backtracking; the failed result when there is none."""
+        try:
+            J, _ = self.eq.jacobian(self.z, self.ret, self.method, self.fd_step)  # type: ignore[arg-type]
+        except OrbitError as exc:
+            return self.fail(exc.status, f"iteration {it + 1}: {exc}", it)
+        U, sv, Vt = np.linalg.svd(J, full_matrices=False)
+        if sv.size == 0 or not np.all(np.isfinite(sv)):
+            return self.fail("singular_jacobian", f"iteration {it + 1}: the Jacobian is not finite", it)
+        if sv[0] == 0.0 and not self._near_orbit():
+            return self._flat(it)
+        if sv[-1] <= self.singular_tol * sv[0]:
+            return self.fail("singular_jacobian", self._singular_message(it, sv, Vt[-1]), it)
+        dz = -(Vt.T @ ((U.T @ self.F) / sv))
+        trial = self._line_search(dz)
+        if trial is None:
+            return self._no_step(it, dz, z_scale)
+        self.z, self.ret, self.F, self.res = trial
+        self.history.append(self.res)
+        return None
+
+    def _line_search(self, dz: np.ndarray) -> tuple[np.ndarray, Return, np.ndarray, float] | None:
+        """The first of z + dz, z + dz/2, ... (max_backtracks halvings) that lowers the residual."""
+        lam = 1.0
+        for _ in range(self.max_backtracks + 1):
+            trial = self.z + lam * dz
+            try:
+                ret, F = self.eq.evaluate(trial)
+                res = float(np.max(np.abs(F)))
+            except OrbitError:
+                res = math.inf
+            if res < self.res:
+                return trial, ret, F, res
+            lam *= 0.5
+        return None
+
+    def _near_orbit(self) -> bool:
+        """Whether the residual is small enough that a singular Jacobian means a family of orbits
+        through the iterate rather than a degenerate map far from any orbit."""
+        return self.res <= max(1e3 * self.tol, 1e-6)
+
+    def _flat(self, it: int) -> OrbitResult:
+        """``diverged`` for a Jacobian that is zero far from an orbit: no unknown moves the
+        residual to first order, so no Newton step exists and no orbit is near the iterate."""
+        x_now, params_now = self.eq.unpack(self.z)
+        return self.fail("diverged",
+                         f"iteration {it + 1}: no Newton step reduces the residual {self.res:.3g}: the orbit equations "
+                         f"do not change with any unknown at the last iterate {self.rmap.show_state(x_now)}"
+                         + (f" with parameters {params_now}" if self.p.free else "")
+                         + " (their Jacobian is zero there), so there may be no periodic orbit near it", it)
+
+    def _singular_message(self, it: int, sv: np.ndarray, null: np.ndarray) -> str:
+        names = self.p.unknown_names
+        lead = ", ".join(f"{names[i]} ({null[i]:+.2f})" for i in np.argsort(-np.abs(null))[:3] if abs(null[i]) > 0.1)
+        head = (f"iteration {it + 1}: the Jacobian of the orbit equations is singular (singular values "
+                f"{sv[0]:.3g} .. {sv[-1]:.3g}, residual {self.res:.3g})")
+        if self._near_orbit():
+            # Next to an orbit: a whole family of them passes through it.
+            return (f"{head}: the orbit is not isolated along {lead}; a conserved quantity or symmetry leaves a "
+                    f"family of orbits: fix one of these coordinates or add a constraint (e.g. energy)")
+        # Far from any orbit the iterate may simply have wandered where the map degenerates.
+        return (f"{head}: the iterate {self.rmap.show_state(self.eq.unpack(self.z)[0])} is still far from an orbit "
+                f"and the return map degenerates there along {lead}: try another initial guess (or, if a conserved "
+                f"quantity leaves a family of orbits, fix one of these coordinates or add a constraint)")
+
+    def _no_step(self, it: int, dz: np.ndarray, z_scale: float) -> OrbitResult:
+        """``stalled`` when the Newton step is below rounding (the return map's noise limits the
+        residual), ``diverged`` otherwise."""
+        step_norm = float(np.max(np.abs(dz)))
+        if step_norm <= 1e-12 * z_scale:
+            return self.fail("stalled",
+                             f"the residual stalls at {self.res:.3g} > tol {self.tol:g} after {it} iteration(s): the "
+                             f"Newton step ({step_norm:.2g}) is below rounding, so the return map's own noise "
+                             f"(rounding, and the integrator's steps at h = {self.p.h:g}, eps = {self.p.eps:g}) limits "
+                             f"the residual: raise tol", it)
+        x_now, params_now = self.eq.unpack(self.z)
+        return self.fail("diverged",
+                         f"iteration {it + 1}: no Newton step (lengths 1 .. 1/{2 ** self.max_backtracks}) reduces the "
+                         f"residual {self.res:.3g}; there may be no periodic orbit near the last iterate "
+                         f"{self.rmap.show_state(x_now)}" + (f" with parameters {params_now}" if self.p.free else ""),
+                         it)
+
+    def converged(self, it: int) -> OrbitResult:
+        """The converged result with the Jacobian and multipliers at the fixed point."""
+        ret = self.ret
+        assert ret is not None
+        try:
+            DP = jacobian_saltation(self.p, ret) if self.method == "saltation" else \
+                jacobian_fd(self.p, ret.x_start, ret.parameters, self.fd_step, rmap=self.rmap)
+        except OrbitError as exc:
+            return self.fail(exc.status, f"converged (residual {self.res:.3g}) but the Jacobian failed: {exc}", it)
+        result = self._result("converged", f"residual {self.res:.3g} <= tol {self.tol:g} after {it} iteration(s)",
+                              ret.x_start, ret.parameters, it)
+        return _add_multipliers(result, self.p, ret, DP)
+
+    def fail(self, status: str, message: str, iterations: int) -> OrbitResult:
+        """A result that is not converged, at the current iterate."""
+        x_now, params_now = self.eq.unpack(self.z)
+        return self._result(status, message, x_now, params_now, iterations)
+
+    def _result(self, status: str, message: str, x: np.ndarray, params: Mapping[str, float],
+                iterations: int) -> OrbitResult:
+        p = self.p
+        result = OrbitResult(status=status, message=message, mode=p.bound.mode, state_names=p.names,
+                             fixed_point=np.asarray(x, dtype=float).copy(), parameters=dict(params), residual=self.res,
+                             iterations=iterations, history=list(self.history),
+                             trivial_multipliers=p.trivial_multipliers, evaluations=self.rmap.evaluations,
+                             jacobian_method=self.method, section=p.section.label, free=tuple(p.free))
+        if self.ret is not None:
+            result.period = self.ret.flow_time
+            result.return_time = self.ret.time
+            result.step_length = self.ret.step_length
+            result.transitions = [tr.name for tr in self.ret.transitions]
+        return result
+
+
+def _add_multipliers(result: OrbitResult, problem: OrbitProblem, ret: Return, DP: np.ndarray) -> OrbitResult:
+    """Fill in the Jacobian, its restriction to the section and the multipliers; a field that
+    vanishes at the fixed point (an equilibrium) turns the result into that failure."""
+    system, control = problem.instantiate(ret.parameters)
+    f = field_at(system.mode(problem.bound.mode), control, 0.0, ret.x_start)
+    try:
+        mu, M = floquet_multipliers(DP, f, problem.cyclic_idx)
+    except OrbitError as exc:
+        result.status, result.message = exc.status, f"{result.message}; but {exc}"
+        return result
+    result.jacobian = DP
+    result.section_jacobian = M
+    result.multipliers = mu
+    return result

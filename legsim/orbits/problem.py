@@ -1,0 +1,277 @@
+"""The orbit problem: a system (or a factory of systems over parameters), a section, the
+integrator settings and the unknowns, checked once when the problem is made.
+
+The unknowns are the coordinates of the section's mode that are neither fixed, cyclic nor the
+section's own coordinate, then the free parameters; the equations (``legsim.orbits.newton``)
+are periodicity on the non-cyclic coordinates other than the section's, s(x) = 0 for a section
+given as a function, the constraints and the energy level. A problem with fewer equations than
+unknowns is refused here, before any simulation.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any, Callable, Mapping, Sequence
+
+import numpy as np
+
+from ..errors import LegsimError
+from ..hybrid import HybridSystem
+from ..methods import Tableau, get_method
+from .errors import OrbitError
+from .sections import Section, bind_section
+
+if TYPE_CHECKING:
+    from .returns import Return
+
+#: Most steps of size h over t_max that one return may take (``legsim.simulate`` makes about
+#: 2e4 RK4 steps per second on the robots, so this is minutes per simulation): more is a typo
+#: in h or t_max, not a computation to start.
+MAX_STEPS_PER_RETURN = 10_000_000
+
+#: Systems built for distinct parameter values that a problem keeps (Newton and finite
+#: differences revisit a handful of values; continuation moves on and never comes back).
+_CACHE_SIZE = 16
+
+SystemLike = Any  # HybridSystem, (HybridSystem, control), a builders.Model, or a factory of these
+
+
+@dataclass
+class OrbitProblem:
+    """Everything that defines the return map and the periodic-orbit equations.
+
+    Parameters
+    ----------
+    system: a ``HybridSystem``, or a factory ``system(parameters: dict) -> HybridSystem |
+        (HybridSystem, control) | legsim.builders.Model`` when parameters are free or continued.
+    section: the Poincare section.
+    h, eps, method: the relaxed integrator's step (s), strip width (guard units) and method.
+    t_max: time limit of one return (s); no return within it is a ``no_return`` failure.
+    control: ``control(t, x) -> u`` for a fixed system (a factory returns its own).
+    parameters: parameter values passed to the factory (initial guesses for the free ones).
+    free: names of parameters solved for (unknowns besides the state).
+    fixed: coordinates held at their initial values (e.g. the apex height). The coordinate of a
+        coordinate section is always fixed.
+    cyclic: coordinates along a symmetry (a horizontal position): fixed, left out of the
+        periodicity equations, their increment over a return is the step length.
+    constraints: extra equations ``(name, c(x, parameters) -> float)`` asked to be 0.
+    energy: when given, the constraint ``system.energy(mode, x) = energy`` (J).
+    returns: the orbit's period in returns (2 for a period-two gait).
+    min_transitions, min_time: a crossing section's return counts only after this many
+        transitions and this much time (s) since the previous return.
+    max_transitions: transition budget of one return (guards against chattering).
+    step_length: optional ``step_length(ret: Return) -> float`` (m) for walkers; by default the
+        increment of the first cyclic coordinate, if any.
+    trivial_multipliers: how many multipliers are 1 because of conserved quantities; they are
+        left out of the stability verdict (the ones closest to 1).
+    rtol, atol: passed to ``simulate`` for error-controlled steps (embedded methods only).
+    progress: optional ``progress(t, t0, t_final)`` passed to every ``simulate`` (a progress
+        bar for long returns).
+
+    Attributes set from these: ``tableau``, ``is_factory``, ``bound`` (the bound section),
+    ``names`` and ``dim`` (the section mode's coordinates), ``cyclic_idx``, ``unknown_idx``
+    (coordinates solved for) and ``periodic_idx`` (coordinates asked to return to themselves).
+    """
+
+    system: SystemLike
+    section: Section
+    h: float
+    eps: float
+    method: str | Tableau = "rk4"
+    t_max: float = 10.0
+    control: Callable[[float, np.ndarray], Any] | None = None
+    parameters: Mapping[str, float] = field(default_factory=dict)
+    free: Sequence[str] = ()
+    fixed: Sequence[str] = ()
+    cyclic: Sequence[str] = ()
+    constraints: Sequence[tuple[str, Callable[[np.ndarray, Mapping[str, float]], float]]] = ()
+    energy: float | None = None
+    returns: int = 1
+    min_transitions: int = 1
+    min_time: float = 0.0
+    max_transitions: int = 10_000
+    step_length: Callable[["Return"], float] | None = None
+    trivial_multipliers: int = 0
+    rtol: float | None = None
+    atol: float | None = None
+    progress: Callable[[float, float, float], None] | None = field(default=None, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        self._check_settings()
+        self._resolve_system()
+        self._cache: dict[tuple, tuple[HybridSystem, Any]] = {}
+        system, _ = self.instantiate(self.parameters)
+        self._bind(system)
+        self._check_equations(system)
+
+    # -- checks, in the order a reader fixes them: settings, system, coordinates, equations --
+    def _check_settings(self) -> None:
+        for name in ("h", "eps", "t_max"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
+                raise OrbitError(f"orbit problem: {name} must be a finite number > 0, got {value!r}", key=name)
+        if self.rtol is None and self.atol is None and self.t_max / self.h > MAX_STEPS_PER_RETURN:
+            raise OrbitError(f"orbit problem: t_max / h = {self.t_max:g} s / {self.h:g} s = {self.t_max / self.h:.3g} "
+                             f"steps per return, more than the limit {MAX_STEPS_PER_RETURN:.0e}: raise h or lower "
+                             f"t_max", key="t_max")
+        self.tableau = get_method(self.method)
+        if not isinstance(self.section, Section):
+            raise OrbitError(f"orbit problem: section must be a Section, got {type(self.section).__name__}")
+        for name, low in (("returns", 1), ("max_transitions", 1), ("min_transitions", 0)):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or value < low:
+                raise OrbitError(f"orbit problem: {name} must be an integer >= {low}, got {value!r}", key=name)
+        if self.section.kind == "crossing" and self.min_transitions == 0 and self.min_time <= 0:
+            raise OrbitError("orbit problem: a crossing section with min_transitions = 0 needs min_time > 0, "
+                             "or the start itself would count as the return", key="min_transitions")
+
+    def _resolve_system(self) -> None:
+        self.parameters = {str(k): float(v) for k, v in dict(self.parameters).items()}
+        self.free = tuple(self.free)
+        self.fixed = tuple(self.fixed)
+        self.cyclic = tuple(self.cyclic)
+        self.system, self.control = _system_and_control(self.system, self.control)
+        self.is_factory = not isinstance(self.system, HybridSystem)
+        if self.is_factory and not callable(self.system):
+            raise OrbitError(f"orbit problem: system must be a HybridSystem, a Model or a factory "
+                             f"system(parameters), got {type(self.system).__name__}")
+        missing = [p for p in self.free if p not in self.parameters]
+        if missing:
+            raise OrbitError(f"orbit problem: free parameter(s) {missing} need initial values in parameters "
+                             f"(given: {sorted(self.parameters)})", key="free")
+        if self.free and not self.is_factory:
+            raise OrbitError("orbit problem: free parameters need a system factory system(parameters) -> "
+                             "HybridSystem, not a fixed HybridSystem")
+
+    def _bind(self, system: HybridSystem) -> None:
+        self.bound = bind_section(self.section, system)
+        names = self.bound.names
+        for label, group in (("fixed", self.fixed), ("cyclic", self.cyclic)):
+            unknown = [c for c in group if c not in names]
+            if unknown:
+                raise OrbitError(f"orbit problem: {label} coordinate(s) {unknown} are not coordinates of mode "
+                                 f"'{self.bound.mode}' {list(names)}", key=label)
+        self.names = names
+        self.dim = len(names)
+        self.cyclic_idx = [names.index(c) for c in self.cyclic]
+        held = set(self.fixed) | set(self.cyclic)
+        if self.section.coordinate is not None:
+            held.add(self.section.coordinate)
+        self.unknown_idx = [i for i, c in enumerate(names) if c not in held]
+        self.periodic_idx = [i for i, c in enumerate(names) if i not in self.cyclic_idx
+                             and c != self.section.coordinate]
+
+    def _check_equations(self, system: HybridSystem) -> None:
+        n_rows = len(self.periodic_idx) + self.extra_rows
+        n_unknowns = len(self.unknown_idx) + len(self.free)
+        if n_unknowns == 0:
+            raise OrbitError("orbit problem: nothing to solve for: every coordinate is fixed and no parameter is free",
+                             key="fixed")
+        if n_rows < n_unknowns:
+            raise OrbitError(f"orbit problem: {n_unknowns} unknowns ({self.unknown_names}) but only {n_rows} "
+                             f"equations: fix coordinates or drop free parameters", key="free")
+        if self.energy is not None and system.energy is None:
+            raise OrbitError(f"orbit problem: an energy level is asked for but {system.name} defines no energy",
+                             key="energy")
+        # Multipliers live on the section without the cyclic coordinates: n - 1 - #cyclic of them.
+        n_multipliers = self.dim - 1 - len(self.cyclic_idx)
+        trivial = self.trivial_multipliers
+        if isinstance(trivial, bool) or not isinstance(trivial, int) or trivial < 0 \
+                or (trivial > 0 and trivial >= n_multipliers):
+            raise OrbitError(f"orbit problem: trivial_multipliers = {trivial!r} must be an integer >= 0 that leaves "
+                             f"at least one of the section's {n_multipliers} multiplier(s) to judge stability by",
+                             key="trivial_multipliers")
+        for item in self.constraints:
+            if not (isinstance(item, tuple) and len(item) == 2 and callable(item[1])):
+                raise OrbitError(f"orbit problem: constraints must be (name, c(x, parameters)) pairs, got {item!r}")
+
+    # -- what the solver reads ----------------------------------------------------------------
+    @property
+    def unknown_names(self) -> list[str]:
+        """Names of the unknowns: free coordinates, then free parameters."""
+        return [self.names[i] for i in self.unknown_idx] + list(self.free)
+
+    @property
+    def has_section_row(self) -> bool:
+        """Whether s(x) = 0 is an equation: for a crossing section given as a function (a
+        coordinate section holds its coordinate on the section instead)."""
+        return self.section.kind == "crossing" and self.section.coordinate is None
+
+    @property
+    def extra_rows(self) -> int:
+        """Equations that need no simulation: the section row, the constraints, the energy."""
+        return int(self.has_section_row) + len(self.constraints) + int(self.energy is not None)
+
+    def instantiate(self, parameters: Mapping[str, float] | None = None) -> tuple[HybridSystem, Any]:
+        """(system, control) for these parameter values (cached); the fixed system and control
+        when the problem has no factory."""
+        if not self.is_factory:
+            return self.system, self.control
+        params = dict(self.parameters)
+        if parameters:
+            params.update({k: float(v) for k, v in parameters.items()})
+        key = tuple(sorted(params.items()))
+        hit = self._cache.get(key)
+        if hit is not None:
+            return hit
+        built = self._build(params)
+        if len(self._cache) > _CACHE_SIZE:
+            self._cache.clear()
+        self._cache[key] = built
+        return built
+
+    def _build(self, params: dict[str, float]) -> tuple[HybridSystem, Any]:
+        """Call the factory; its failures become ``simulation_failed`` errors (a parameter value
+        the model refuses ends a continuation like a failed simulation does)."""
+        try:
+            built = self.system(params)
+        except OrbitError:
+            raise
+        except LegsimError as exc:
+            raise OrbitError(f"orbit problem: no system for parameters {params}: {exc}", "simulation_failed") from exc
+        except Exception as exc:
+            raise OrbitError(f"orbit problem: building the system with parameters {params} failed: "
+                             f"{type(exc).__name__}: {exc}", "simulation_failed") from exc
+        system, control = _system_and_control(built, self.control)
+        if not isinstance(system, HybridSystem):
+            raise OrbitError(f"orbit problem: the system factory returned {type(built).__name__}, expected a "
+                             f"HybridSystem, (HybridSystem, control) or a builders.Model")
+        return system, control
+
+    def state_vector(self, guess: Mapping[str, float] | Sequence[float] | np.ndarray) -> np.ndarray:
+        """A full state of the section's mode, shape (n,), from a vector or a {coordinate: value}
+        table; a coordinate section's coordinate is set to the section's value."""
+        x = self._guess_from_table(guess) if isinstance(guess, Mapping) else self._guess_from_vector(guess)
+        if not np.all(np.isfinite(x)):
+            raise OrbitError(f"initial guess must be finite, got {x.tolist()}")
+        if self.section.coordinate is not None:
+            x[self.bound.index] = self.section.value
+        return x
+
+    def _guess_from_table(self, guess: Mapping[str, float]) -> np.ndarray:
+        unknown = sorted(set(guess) - set(self.names))
+        if unknown:
+            raise OrbitError(f"initial guess: unknown coordinate(s) {unknown}; coordinates of mode "
+                             f"'{self.bound.mode}': {list(self.names)}")
+        missing = [c for c in self.names if c not in guess and c != self.section.coordinate]
+        if missing:
+            raise OrbitError(f"initial guess: missing coordinate(s) {missing} of mode '{self.bound.mode}'")
+        return np.array([float(guess.get(c, self.section.value)) for c in self.names])
+
+    def _guess_from_vector(self, guess: Sequence[float] | np.ndarray) -> np.ndarray:
+        x = np.asarray(guess, dtype=float).reshape(-1)
+        if x.shape != (self.dim,):
+            raise OrbitError(f"initial guess has shape {np.shape(guess)}, expected ({self.dim},) with "
+                             f"coordinates {list(self.names)} of mode '{self.bound.mode}'")
+        return x
+
+
+def _system_and_control(obj: Any, control: Any) -> tuple[Any, Any]:
+    """(system, control) of a ``(system, control)`` pair or a ``builders.Model``; ``obj`` with
+    ``control`` for anything else (a HybridSystem, or a factory still to be called)."""
+    if isinstance(obj, tuple) and len(obj) == 2:
+        return obj[0], obj[1]
+    if not isinstance(obj, HybridSystem) and isinstance(getattr(obj, "system", None), HybridSystem):
+        return obj.system, getattr(obj, "control", None)
+    return obj, control

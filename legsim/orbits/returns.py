@@ -1,0 +1,235 @@
+"""The return map: from a state on the section, simulate until the trajectory comes back to it.
+
+How the return is found
+-----------------------
+The return map simulates a bounded horizon with ``legsim.simulate`` and locates the crossing
+on the execution's dense output (the cubic Hermite interpolant of the step containing the sign
+change, solved with Brent's method); for a transition section it reads the reset image from the
+execution's transition record. We prefer this to adding the section as a guard of a wrapped
+system: an extra guard would change the computation being analysed (steps would be halved to
+land in the section's strip and the state held there), and starting on the section would fire
+that guard at once. The horizon grows: 1.5 times the last return time (plus 20 steps), or
+t_max / 8 at first, doubled until a return is found or t_max is reached. A return costs less
+than about twice its own time, and a model failure long after it (a runner that falls a few
+strides later) cannot hide it.
+
+A crossing of a function section counts only after at least ``min_transitions`` transitions
+(default 1) since the start, so that a start just off the section (as finite differences and
+Newton trials make) does not "return" to the section it has just left. Crossings are looked for
+inside continuous flow of the section's mode; a reset that jumps across s = 0 is not a crossing.
+
+Period
+------
+The relaxed integrator holds the state at the guard point q for ``eps - tau`` plus the rest of
+the landing step (``legsim.relaxed``), so the relaxed return time exceeds the hybrid system's
+period by eps + O(h) per transition. ``Return.flow_time`` is the return time less the time spent
+in strips, which converges at the method's order; ``Return.time`` is the relaxed one.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Callable, Mapping, Sequence
+
+import numpy as np
+from scipy.optimize import brentq
+
+from ..errors import LegsimError
+from ..execution import Execution, Segment, TransitionRecord
+from ..hybrid import HybridSystem
+from ..relaxed import simulate
+from .errors import OrbitError
+from .problem import OrbitProblem
+
+
+@dataclass
+class Return:
+    """One evaluation of the return map.
+
+    Attributes
+    ----------
+    x_start, x_end: the start and the returned state (section mode), shape (n,).
+    mode: the section's mode.
+    time: relaxed return time (s), strips included; flow_time: the same without the time spent
+        in strips (the hybrid system's period to the integrator's order).
+    transitions: the transition records of the return, in order.
+    execution: the simulation the return was read from (it may run past the return).
+    t_return: absolute time of the return in the execution (s).
+    segment: index of the segment holding the return (crossing sections) or of the last
+        segment before the returning transition.
+    parameters: the parameter values used.
+    step_length: the distance covered (m), when the problem defines one.
+    """
+
+    x_start: np.ndarray
+    x_end: np.ndarray
+    mode: str
+    time: float
+    flow_time: float
+    transitions: list[TransitionRecord]
+    execution: Execution
+    t_return: float
+    segment: int
+    parameters: dict[str, float]
+    step_length: float | None = None
+
+
+class ReturnMap:
+    """The return map of a problem's section, with an adaptive simulation horizon.
+
+    ``rmap(x, parameters=None) -> Return``; raises ``OrbitError`` (status ``no_return`` or
+    ``simulation_failed``) when there is no return. ``evaluations`` counts the simulations run.
+    """
+
+    def __init__(self, problem: OrbitProblem) -> None:
+        self.problem = problem
+        self.evaluations = 0
+        self._hint: float | None = None  # the last return time (s): where the next one is looked for
+
+    def __call__(self, x: np.ndarray, parameters: Mapping[str, float] | None = None) -> Return:
+        p = self.problem
+        x = np.asarray(x, dtype=float).copy()
+        params = dict(p.parameters)
+        if parameters:
+            params.update({k: float(v) for k, v in parameters.items()})
+        system, control = p.instantiate(params)
+        last_error: OrbitError | None = None
+        for horizon in self._horizons():
+            ex = self._simulate(system, control, x, horizon)
+            found = self._locate(ex, x, params)
+            if found is not None:
+                self._hint = found.time
+                return found
+            if ex.status != "finished":
+                raise OrbitError(f"return map: the simulation from {self.show_state(x)} stopped with status "
+                                 f"'{ex.status}' before returning to the section {p.section.label}: {ex.message}",
+                                 "simulation_failed")
+            seen = [tr.name for tr in ex.transitions]
+            last_error = OrbitError(
+                f"no return to the section {p.section.label} within t_max = {horizon:g} s from "
+                f"{self.show_state(x)} (transitions taken: {_abbreviate(seen)}; final mode '{ex.final_mode}', "
+                f"state {np.round(ex.final_state, 6).tolist()})", "no_return")
+        assert last_error is not None
+        raise last_error
+
+    def _horizons(self) -> list[float]:
+        """Growing simulation horizons (s): the last return time and a half (plus 20 steps), or
+        t_max / 8, doubled up to t_max (see the module docstring)."""
+        p = self.problem
+        horizon = 1.5 * self._hint + 20 * p.h if self._hint is not None else p.t_max / 8
+        horizons = []
+        while horizon < p.t_max:
+            horizons.append(horizon)
+            horizon *= 2
+        horizons.append(p.t_max)
+        return horizons
+
+    def _simulate(self, system: HybridSystem, control: Any, x: np.ndarray, horizon: float) -> Execution:
+        p = self.problem
+        self.evaluations += 1
+        try:
+            return simulate(system, x, p.bound.mode, horizon, p.h, p.eps, p.tableau, control,
+                            max_transitions=p.max_transitions, rtol=p.rtol, atol=p.atol, progress=p.progress)
+        except LegsimError as exc:
+            raise OrbitError(f"return map: the simulation from {self.show_state(x)} over {horizon:g} s failed before "
+                             f"returning to the section {p.section.label}: {exc}", "simulation_failed") from exc
+
+    def show_state(self, x: np.ndarray) -> str:
+        """A state of the section's mode as ``{name=value, ...}`` for messages."""
+        return "{" + ", ".join(f"{n}={v:.6g}" for n, v in zip(self.problem.names, x)) + "}"
+
+    def _locate(self, ex: Execution, x0: np.ndarray, params: dict[str, float]) -> Return | None:
+        if self.problem.section.kind == "transition":
+            return self._locate_after_transition(ex, x0, params)
+        return self._locate_crossing(ex, x0, params)
+
+    def _locate_after_transition(self, ex: Execution, x0: np.ndarray, params: dict[str, float]) -> Return | None:
+        """The ``returns``-th time the section's transition is taken."""
+        p = self.problem
+        count = 0
+        for k, rec in enumerate(ex.transitions):
+            if rec.name == p.section.transition:
+                count += 1
+                if count == p.returns:
+                    return self._make_return(ex, x0, rec.state_after.copy(), rec.exit_time, k,
+                                             ex.transitions[:k + 1], params)
+        return None
+
+    def _locate_crossing(self, ex: Execution, x0: np.ndarray, params: dict[str, float]) -> Return | None:
+        """The ``returns``-th crossing, scanning the segments of the section's mode in time
+        order. Segment k follows transitions[k-1], so k transitions precede it."""
+        p = self.problem
+        bound = p.bound
+        direction = p.section.direction
+        count = 0
+        last_k, last_t = 0, ex.t0
+        for k, seg in enumerate(ex.segments):
+            if seg.mode != bound.mode or len(seg.t) < 2 or k - last_k < p.min_transitions:
+                continue
+            hit = first_crossing(seg, bound.s, direction, last_t + p.min_time)
+            while hit is not None:
+                t_hit, x_hit = hit
+                count += 1
+                if count == p.returns:
+                    return self._make_return(ex, x0, x_hit, t_hit, k, ex.transitions[:k], params)
+                last_k, last_t = k, t_hit
+                if p.min_transitions > 0:
+                    break
+                hit = first_crossing(seg, bound.s, direction, last_t + p.min_time)
+        return None
+
+    def _make_return(self, ex: Execution, x0: np.ndarray, x_end: np.ndarray, t_ret: float, k: int,
+                     records: Sequence[TransitionRecord], params: dict[str, float]) -> Return:
+        p = self.problem
+        in_strips = sum(s.exit_time - s.time for s in ex.strips if s.exit_time <= t_ret + 1e-12 * max(1.0, t_ret))
+        ret = Return(x_start=x0.copy(), x_end=np.asarray(x_end, dtype=float), mode=p.bound.mode,
+                     time=t_ret - ex.t0, flow_time=t_ret - ex.t0 - in_strips, transitions=list(records),
+                     execution=ex, t_return=t_ret, segment=k, parameters=dict(params))
+        if p.step_length is not None:
+            ret.step_length = float(p.step_length(ret))
+        elif p.cyclic_idx:
+            c = p.cyclic_idx[0]
+            ret.step_length = float(ret.x_end[c] - ret.x_start[c])
+        return ret
+
+
+def first_crossing(seg: Segment, s: Callable[[np.ndarray], float], direction: int,
+                   not_before: float) -> tuple[float, np.ndarray] | None:
+    """First crossing (t, x) of s = 0 in ``direction`` on a segment's dense output after
+    ``not_before`` (s), or None."""
+    start = max(int(np.searchsorted(seg.t, not_before, side="right")) - 1, 0)
+    s1 = s(seg.x[start])
+    for i in range(start, len(seg.t) - 1):
+        s0, s1 = s1, s(seg.x[i + 1])
+        down = s0 > 0.0 >= s1
+        up = s0 < 0.0 <= s1
+        if not ((direction <= 0 and down) or (direction >= 0 and up)):
+            continue
+        tc = seg.t[i + 1] if s1 == 0.0 else _crossing_time(seg, s, seg.t[i], seg.t[i + 1])
+        if tc <= not_before:
+            continue
+        return tc, seg.interpolate(np.array([tc]))[0]
+    return None
+
+
+def _crossing_time(seg: Segment, s: Callable[[np.ndarray], float], t0: float, t1: float) -> float:
+    """The root of s along the interpolant between two stored points with a sign change; the
+    interpolant's ends are the stored points, so the bracket holds."""
+    def along(t: float) -> float:
+        return s(seg.interpolate(np.array([t]))[0])
+
+    return brentq(along, t0, t1, xtol=1e-15 * max(1.0, abs(t1)), rtol=4 * np.finfo(float).eps)
+
+
+def _abbreviate(names: list[str], limit: int = 8) -> str:
+    if not names:
+        return "none"
+    if len(names) <= limit:
+        return ", ".join(names)
+    return ", ".join(names[:limit]) + f", ... ({len(names)} in all)"
+
+
+def return_map(problem: OrbitProblem, x: Sequence[float] | np.ndarray,
+               parameters: Mapping[str, float] | None = None) -> Return:
+    """One evaluation of ``problem``'s return map from the state ``x`` (section's mode)."""
+    return ReturnMap(problem)(problem.state_vector(x), parameters)

@@ -1,0 +1,247 @@
+"""A scene's ``[orbit]`` section, read into an ``OrbitProblem``, the solver settings and the
+initial guess that ``legsim.orbits.find_orbit`` and ``continue_family`` take.
+
+::
+
+    [orbit]
+    section = { after = "heel_strike" }     # or { mode = ..., coordinate = ..., value = ..., direction = ... }
+    cyclic = ["foot_x"]
+    free = ["psi"]                          # robot parameters, or EFFECT.PARAM
+    tol = 1e-10
+
+The keys and what they hold are ``ORBIT_KEYS``. h, eps and the method come from
+``[integrator]``, the initial guess from ``[initial]`` (whose mode must be the section's).
+Every error is a ``SceneError`` naming the file and the ``orbit.KEY`` at fault.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Callable, Mapping, Sequence
+
+import numpy as np
+
+from ..builders import Param, resolve_parameters
+from ..errors import SceneError
+from ..orbits import MAX_FD_STEP, OrbitError, OrbitProblem, Section
+from .fields import check_keys, describe, field_error, table_at
+
+#: Keys of a scene's ``[orbit]`` section and what they hold.
+ORBIT_KEYS = {
+    "section": "{ after = TRANSITION } or { mode = MODE, coordinate = NAME, value = 0.0, direction = "
+               "'decreasing' | 'increasing' | 'either' }",
+    "fixed": "coordinates held at their initial values (list of names)",
+    "cyclic": "coordinates along a symmetry, left out of periodicity; their increment is the step length",
+    "free": "parameters solved for: robot parameter names or EFFECT.PARAM",
+    "energy": "energy level of the orbit (J), when the system defines an energy",
+    "guess": "initial guess by coordinate (default: the scene's [initial] state)",
+    "tol": "convergence tolerance on the orbit equations (state units), default 1e-9",
+    "max_iterations": "Newton iterations, default 30",
+    "jacobian": "'saltation' (default) or 'fd'",
+    "fd_step": "relative finite-difference step in (0, 0.1], default 1e-6 (see legsim.orbits)",
+    "singular_tol": "relative singular value below which the Jacobian is singular, default 1e-9",
+    "t_max": "time limit of one return (s), default the scene's integrator.t_final",
+    "returns": "returns per period (2 for a period-two orbit), default 1",
+    "min_transitions": "transitions before a crossing section counts, default 1",
+    "min_time": "time (s) before a crossing section counts, default 0",
+    "max_transitions": "transition budget of one return, default 10000",
+    "trivial_multipliers": "multipliers equal to 1 by a conserved quantity, left out of the stability verdict",
+}
+
+#: Keys of a crossing section's table (``{ after = ... }`` takes no other).
+LEVEL_SECTION_KEYS = ("mode", "coordinate", "value", "direction")
+
+
+@dataclass
+class OrbitSettings:
+    """An orbit problem read from a scene, with the solver settings (keyword arguments of
+    ``find_orbit``) and the initial guess, shape (n,)."""
+
+    problem: OrbitProblem
+    guess: np.ndarray
+    solver: dict[str, Any]
+    scene: Any
+
+
+def problem_from_scene(scene: Any, *, extra_parameters: Sequence[str] = ()) -> OrbitSettings:
+    """Read a scene's ``[orbit]`` section (keys: ``ORBIT_KEYS``) into an ``OrbitProblem``.
+
+    The system is rebuilt by the scene's builder for each value of the free (and
+    ``extra_parameters``, e.g. a continuation parameter) parameters; h, eps and method come
+    from ``[integrator]``, the initial guess from ``[initial]`` (overridden by ``orbit.guess``),
+    whose mode must be the section's. Errors are ``SceneError`` naming the file and key.
+    """
+    table = _orbit_table(scene)
+    section = _section(scene, table)
+    free = _names(scene, table, "free")
+    params, factory = _parameter_factory(scene, free, extra_parameters)
+    jacobian = table.get("jacobian", "saltation")
+    if jacobian not in ("saltation", "fd"):
+        raise _fail(scene, "jacobian", f"expected 'saltation' or 'fd', got {describe(jacobian)}")
+    problem = _problem(scene, table, section, free, params, factory)
+    if problem.bound.mode != scene.initial_mode:
+        raise _fail(scene, "section", f"the section lies in mode '{problem.bound.mode}' but the scene starts "
+                                      f"in '{scene.initial_mode}': set [initial] mode = \"{problem.bound.mode}\"")
+    x0 = _guess(scene, table, problem)
+    return OrbitSettings(problem, problem.state_vector(x0), _solver(scene, table, jacobian), scene)
+
+
+def _fail(scene: Any, key: str, message: str) -> SceneError:
+    return field_error(scene.path, f"orbit.{key}", message)
+
+
+def _orbit_table(scene: Any) -> dict[str, Any]:
+    table = scene.sections.get("orbit")
+    if table is None:
+        raise _fail(scene, "section", "the scene has no [orbit] section; add one, e.g. [orbit] "
+                                      "section = { after = \"touchdown\" }")
+    unknown = sorted(set(table) - set(ORBIT_KEYS))
+    if unknown:
+        # Named by the first unknown key's own path, where a typo is looked for.
+        check_keys(scene.path, table, sorted(ORBIT_KEYS), f"orbit.{unknown[0]}")
+    return table
+
+
+def _section(scene: Any, table: Mapping[str, Any]) -> Section:
+    if "section" not in table:
+        raise _fail(scene, "section", f"missing; expected {ORBIT_KEYS['section']}")
+    sec = table_at(scene.path, table, "section", "orbit.section")
+    try:
+        if "after" in sec:
+            if set(sec) != {"after"}:
+                raise _fail(scene, "section", f"'after' takes no other keys, got {sorted(sec)}")
+            return Section.after(sec["after"])
+        if set(sec) - set(LEVEL_SECTION_KEYS) or "coordinate" not in sec:
+            raise _fail(scene, "section", f"expected {ORBIT_KEYS['section']}, got keys {sorted(sec)}")
+        value = sec.get("value", 0.0)
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise _fail(scene, "section.value", f"expected a number, got {describe(value)}")
+        return Section.level(sec.get("mode", scene.initial_mode), sec["coordinate"], value,
+                             sec.get("direction", "decreasing"))
+    except OrbitError as exc:
+        raise _fail(scene, "section", str(exc)) from None
+
+
+def _names(scene: Any, table: Mapping[str, Any], key: str) -> tuple[str, ...]:
+    value = table.get(key, [])
+    if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
+        raise _fail(scene, key, f"expected a list of names, got {describe(value)}")
+    return tuple(value)
+
+
+def _number(scene: Any, table: Mapping[str, Any], key: str, default: Any, kind: type = float,
+            low: float | None = None) -> Any:
+    """``table[key]`` (or ``default``) as a ``kind``, finite and >= ``low``; None stays None."""
+    value = table.get(key, default)
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or (kind is int and not isinstance(value, int)):
+        raise _fail(scene, key, f"expected {'an integer' if kind is int else 'a number'}, got {describe(value)}")
+    if not math.isfinite(value) or (low is not None and value < low):
+        raise _fail(scene, key, f"must be finite{'' if low is None else f' and >= {low}'}, got {value!r}")
+    return kind(value)
+
+
+def _real_parameter(scene: Any, name: str, label: str) -> tuple[Param, float]:
+    """(spec, value) of a real-valued robot parameter ``name`` or effect parameter
+    ``EFFECT.PARAM``; errors name ``label`` (the [orbit] key, or the continued parameter)."""
+    def fail(message: str) -> SceneError:
+        return field_error(scene.path, label, message)
+
+    builder = scene.builder
+    if "." in name:
+        effect, param = name.split(".", 1)
+        if effect not in builder.effects:
+            raise fail(f"unknown effect '{effect}' in '{name}'; effects: {sorted(builder.effects)}")
+        if effect not in scene.effects:
+            raise fail(f"effect '{effect}' is switched off in this scene")
+        schema = builder.effects[effect].parameters
+        if param not in schema:
+            raise fail(f"effect '{effect}' has no parameter '{param}'; parameters: {sorted(schema)}")
+        spec, value = schema[param], scene.effects[effect][param]
+    else:
+        if name not in builder.parameters:
+            raise fail(f"robot '{scene.robot}' has no parameter '{name}'; parameters: {sorted(builder.parameters)}")
+        spec, value = builder.parameters[name], scene.parameters[name]
+    if type(spec.default) is not float:
+        raise fail(f"parameter '{name}' is {type(spec.default).__name__}-valued; only real parameters can be "
+                   f"solved for or continued")
+    return spec, float(value)
+
+
+def _parameter_factory(scene: Any, free: Sequence[str],
+                       extra: Sequence[str]) -> tuple[dict[str, float], Callable[[Mapping[str, float]], Any]]:
+    """(the scene's values of the free and extra parameters, a factory that builds the scene's
+    model for new values of them, each checked against its spec)."""
+    params: dict[str, float] = {}
+    specs: dict[str, Param] = {}
+    for name in tuple(free) + tuple(extra):
+        label = "orbit.free" if name in free else "continued parameter"
+        specs[name], params[name] = _real_parameter(scene, name, label)
+    base_params = dict(scene.parameters)
+    base_effects = {k: dict(v) for k, v in scene.effects.items()}
+    builder = scene.builder
+    where = f"{scene.path}: orbit"
+
+    def factory(values: Mapping[str, float]) -> Any:
+        p = dict(base_params)
+        e = {k: dict(v) for k, v in base_effects.items()}
+        for name, value in values.items():
+            if "." in name:
+                effect, param = name.split(".", 1)
+                e[effect][param] = specs[name].check(float(value), f"{where}: effects.{name}")
+            else:
+                p[name] = specs[name].check(float(value), f"{where}: robot.parameters.{name}")
+        p = resolve_parameters(builder.parameters, p, f"{where}: robot.parameters")
+        return builder.build(p, e)
+
+    return params, factory
+
+
+def _problem(scene: Any, table: Mapping[str, Any], section: Section, free: tuple[str, ...],
+             params: dict[str, float], factory: Callable[[Mapping[str, float]], Any]) -> OrbitProblem:
+    integ = scene.integrator
+    energy = _number(scene, table, "energy", None)
+    try:
+        return OrbitProblem(
+            system=factory if params else scene.model, section=section, h=integ["h"], eps=integ["eps"],
+            method=integ["method"], t_max=_number(scene, table, "t_max", integ["t_final"], low=0.0),
+            parameters=params, free=free, fixed=_names(scene, table, "fixed"), cyclic=_names(scene, table, "cyclic"),
+            energy=energy, returns=_number(scene, table, "returns", 1, int, 1),
+            min_transitions=_number(scene, table, "min_transitions", 1, int, 0),
+            min_time=_number(scene, table, "min_time", 0.0, low=0.0),
+            max_transitions=_number(scene, table, "max_transitions", 10_000, int, 1),
+            trivial_multipliers=_number(scene, table, "trivial_multipliers", 0, int, 0))
+    except OrbitError as exc:
+        if exc.key in ("h", "eps"):  # they come from [integrator]
+            raise field_error(scene.path, f"integrator.{exc.key}", str(exc)) from None
+        raise _fail(scene, exc.key or "section", str(exc)) from None
+
+
+def _guess(scene: Any, table: Mapping[str, Any], problem: OrbitProblem) -> np.ndarray:
+    """The scene's initial state with ``orbit.guess`` applied, shape (n,)."""
+    x0 = np.asarray(scene.initial_state, dtype=float).copy()
+    guess = table.get("guess", {})
+    if not isinstance(guess, dict):
+        raise _fail(scene, "guess", f"expected a table of coordinate = number, got {describe(guess)}")
+    for key, value in guess.items():
+        if key not in problem.names:
+            raise _fail(scene, "guess", f"unknown coordinate '{key}'; coordinates: {list(problem.names)}")
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+            raise _fail(scene, f"guess.{key}", f"expected a finite number, got {describe(value)}")
+        x0[problem.names.index(key)] = float(value)
+    return x0
+
+
+def _solver(scene: Any, table: Mapping[str, Any], jacobian: str) -> dict[str, Any]:
+    """The keyword arguments of ``find_orbit``."""
+    solver = {"tol": _number(scene, table, "tol", 1e-9, low=0.0),
+              "max_iterations": _number(scene, table, "max_iterations", 30, int, 0),
+              "jacobian": jacobian, "fd_step": _number(scene, table, "fd_step", None, low=0.0),
+              "singular_tol": _number(scene, table, "singular_tol", 1e-9, low=0.0)}
+    if solver["tol"] == 0:
+        raise _fail(scene, "tol", "must be > 0")
+    if solver["fd_step"] is not None and not 0.0 < solver["fd_step"] <= MAX_FD_STEP:
+        raise _fail(scene, "fd_step", f"must be a relative step in (0, {MAX_FD_STEP:g}], got {solver['fd_step']!r}")
+    return solver

@@ -1,0 +1,53 @@
+"""The ``[orbit]`` section reader (legsim.scene.orbit): what it builds from a bundled scene, and
+errors that name the file and the ``orbit.KEY`` at fault."""
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import legsim.orbits
+from legsim.errors import SceneError
+from legsim.scene import load_scene
+from legsim.scene.orbit import ORBIT_KEYS, OrbitSettings, problem_from_scene
+
+
+def test_the_rimless_wheel_section_becomes_a_problem_with_solver_settings_and_guess():
+    scene = load_scene("rimless_wheel")
+    settings = problem_from_scene(scene)
+    assert isinstance(settings, OrbitSettings) and settings.scene is scene
+    problem = settings.problem
+    assert problem.section.label == "after impact" and problem.bound.mode == scene.initial_mode
+    assert problem.cyclic == ("foot_x",) and problem.t_max == 3.0
+    assert (problem.h, problem.eps) == (scene.integrator["h"], scene.integrator["eps"])
+    assert settings.solver == {"tol": 1e-10, "max_iterations": 30, "jacobian": "saltation", "fd_step": None,
+                               "singular_tol": 1e-9}
+    assert np.array_equal(settings.guess, scene.initial_state)
+
+
+def test_the_orbit_package_re_exports_the_reader():
+    assert legsim.orbits.problem_from_scene is problem_from_scene
+    assert legsim.orbits.ORBIT_KEYS is ORBIT_KEYS and legsim.orbits.OrbitSettings is OrbitSettings
+
+
+def test_the_algorithms_do_not_load_the_scene_layer():
+    code = "import sys, legsim.orbits, legsim.certify, legsim.stochastic; print('legsim.scene' in sys.modules)"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "False"
+
+
+@pytest.mark.parametrize("override, message", [
+    ("orbit.tol=\"small\"", "orbit.tol: expected a number, got string 'small'"),
+    ("orbit.max_iterations=2.5", "orbit.max_iterations: expected an integer, got float 2.5"),
+    ("orbit.cyclic=\"foot_x\"", "orbit.cyclic: expected a list of names, got string 'foot_x'"),
+    ("orbit.guess={ nope = 1.0 }", "orbit.guess: unknown coordinate 'nope'"),
+    ("orbit.section={ coordinate = \"theta\", value = \"a\" }", "orbit.section.value: expected a number"),
+    ("orbit.section=3", "orbit.section: expected a table, got integer 3"),
+    ("orbit.jacobian=\"exact\"", "orbit.jacobian: expected 'saltation' or 'fd', got string 'exact'"),
+])
+def test_bad_values_are_named_by_their_key(override, message):
+    scene = load_scene("rimless_wheel", overrides=[override])
+    with pytest.raises(SceneError, match="rimless_wheel.toml: ") as info:
+        problem_from_scene(scene)
+    assert message in str(info.value)
