@@ -49,7 +49,7 @@ def enter_mode(run: Run, mode: str, x: np.ndarray, t: float) -> ModeVisit | Outc
         return run.end_visit(visit, Ended(Status.NON_FINITE, message, t))
     if gvals and entered_in_strip(min(gvals), run.eps):
         return _cross_at_once(run, visit, gvals)
-    visit.g_here = gvals
+    visit.g_entry = gvals
     if run.step_size.adaptive and run.transitions and run.transitions[-1].source != mode:
         # Not after a self-transition: the same field (the compiled kernel crosses those in place).
         run.step_size.restart(lambda t1, x1: run.f(visit.field, t1, x1), t, x, k0)

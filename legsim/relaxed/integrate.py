@@ -64,13 +64,14 @@ def run_visit(run: Run, visit: ModeVisit) -> Outcome:
             if remaining <= finish_tol:
                 return run.end_visit(visit, Ended(Status.FINISHED, "", run.t_final if remaining > 0 else visit.t))
             step = take_step(run, visit, remaining)
-            if isinstance(step, Ended):
+            if type(step) is Trial:
+                if step.gmin >= 0.0:
+                    _advance(run, visit, step)
+                    continue
+                step = _landing(run, visit, step)
+            if type(step) is Ended:
                 return run.end_visit(visit, step)
-            if isinstance(step, Landing):
-                return cross_landing(run, visit, step)
-            if step.gmin < 0.0:
-                return cross_landing(run, visit, _landing(run, visit, step))
-            _advance(run, visit, step)
+            return cross_landing(run, visit, step)
     except ModelBreakdown as exc:
         return run.end_visit(visit, Ended(Status.MODEL_BREAKDOWN, messages.model_breakdown(exc, visit.name, visit.t),
                                           visit.t))
@@ -138,7 +139,7 @@ def _attempt(run: Run, visit: ModeVisit, hk: float, last: bool) -> Trial:
     left the relaxed domain like one past a strip and is marked so, to be shortened."""
     t = visit.t
     t1 = run.t_final if last else t + hk
-    run.field_evals += run.tableau.stages - 1  # counted first: a trial that breaks down made at most these
+    run.field_evals += run.evals_per_step  # counted first: a trial that breaks down made at most these
     try:
         x1, stages = run.stepper(visit.field, t, visit.x, hk, visit.k0, run.control)
         # Exact and warning-free (a sum of squares would overflow for finite states above ~1e154).
@@ -182,9 +183,15 @@ def _landing(run: Run, visit: ModeVisit, trial: Trial) -> Landing:
 
 def _advance(run: Run, visit: ModeVisit, trial: Trial) -> None:
     """Move the visit to the accepted step's end and store the point."""
-    visit.t, visit.x = trial.t1, trial.x1
-    visit.g_here = trial.guard_values()
-    visit.k0 = trial.stages[-1] if run.tableau.fsal else run.f(visit.field, visit.t, visit.x)
-    visit.buf.append(visit.t, visit.x, visit.k0)
-    if run.steps % PROGRESS_STEPS == 0:
-        run.tick(visit.t)
+    t, x = visit.t, visit.x = trial.t1, trial.x1
+    visit.g_last = trial
+    if run.tableau.fsal:
+        k0 = trial.stages[-1]
+    else:
+        run.field_evals += 1
+        control = run.control
+        k0 = visit.field(t, x, None if control is None else control(t, x))
+    visit.k0 = k0
+    visit.buf.append(t, x, k0)
+    if not run.steps & (PROGRESS_STEPS - 1):
+        run.tick(t)

@@ -19,7 +19,7 @@ Control = Callable[[float, np.ndarray], Any]
 
 #: Wall-clock seconds between progress reports.
 PROGRESS_INTERVAL = 0.2
-#: Accepted steps between looks at the clock.
+#: Accepted steps between looks at the clock (a power of 2).
 PROGRESS_STEPS = 64
 
 
@@ -28,7 +28,7 @@ class ModeVisit:
     the loop calls them, the segment being stored, and the current point (t, x) with
     k0 = f(t, x) and, for dense landing, the guards there (``g_here``)."""
 
-    __slots__ = ("data", "name", "field", "guards", "single_guard", "buf", "t", "x", "k0", "g_here")
+    __slots__ = ("data", "name", "field", "guards", "single_guard", "buf", "t", "x", "k0", "g_entry", "g_last")
 
     def __init__(self, data: ModeData, guards: tuple[Callable[[float, np.ndarray], Any], ...], t: float,
                  x: np.ndarray) -> None:
@@ -41,7 +41,13 @@ class ModeVisit:
         self.t = t
         self.x = x
         self.k0: np.ndarray = np.zeros(0)
-        self.g_here: list[float] = []
+        self.g_entry: list[float] = []
+        self.g_last: Any = None  # the last accepted trial step, whose guards are those here
+
+    @property
+    def g_here(self) -> list[float]:
+        """The guards at the current point (t, x)."""
+        return self.g_entry if self.g_last is None else self.g_last.guard_values()
 
     def guard_values(self, t: float, x: np.ndarray) -> list[float]:
         """Every guard at (t, x), in the mode's transition order."""
@@ -58,6 +64,8 @@ class Run:
         self.system = system
         self.tableau = tableau
         self.stepper = make_stepper(tableau)
+        #: Field evaluations of a step beyond k0 = f(t, x).
+        self.evals_per_step = tableau.stages - 1
         self.step_size = step_size
         self.landing = landing
         self.eps = eps

@@ -7,6 +7,7 @@ from typing import Any
 
 import numpy as np
 
+from ..arguments import count, positive
 from ..errors import LegsimError, ModelError, SimulationError
 from ..execution import Execution
 from ..hybrid import HybridSystem
@@ -96,7 +97,7 @@ def simulate(
     tableau = get_method(method)
     if control is not None and not callable(control):
         raise SimulationError(f"control must be callable control(t, x) -> u or None, got {type(control).__name__}")
-    _check_budgets(max_transitions, max_halvings)
+    max_transitions, max_halvings = count("max_transitions", max_transitions, 0), count("max_halvings", max_halvings, 1)
     x = _initial_state(system, mode, x0, t0, eps, control)
     rule = step_size if step_size is not None else step_size_rule(tableau, h, rtol, atol)
     if isinstance(landing, str) and landing not in LANDINGS:
@@ -125,16 +126,6 @@ def step_size_rule(tableau: Tableau, h: float, rtol: float | None, atol: float |
     return ErrorControl(tableau, h, rtol, atol)
 
 
-def positive(name: str, value: Any) -> float:
-    """``value`` as a finite float > 0, else SimulationError naming it."""
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
-        raise SimulationError(f"{name} must be a number, got {type(value).__name__} {value!r}")
-    value = float(value)
-    if not math.isfinite(value) or value <= 0.0:
-        raise SimulationError(f"{name} must be finite and > 0, got {value}")
-    return value
-
-
 def _number(value: Any) -> bool:
     return not isinstance(value, bool) and isinstance(value, (int, float, np.floating, np.integer))
 
@@ -153,13 +144,6 @@ def _times(t0: Any, t_final: Any, h: float) -> tuple[float, float]:
             f"h = {h:g} s is below the time resolution at t = {scale:g} s (float64 times are "
             f"{float(np.spacing(scale)):.3g} s apart there): no step could advance time; shift t0 towards 0 or raise h")
     return t0, t_final
-
-
-def _check_budgets(max_transitions: Any, max_halvings: Any) -> None:
-    if isinstance(max_transitions, bool) or not isinstance(max_transitions, (int, np.integer)) or max_transitions < 0:
-        raise SimulationError(f"max_transitions must be an integer >= 0, got {max_transitions!r}")
-    if isinstance(max_halvings, bool) or not isinstance(max_halvings, (int, np.integer)) or max_halvings < 1:
-        raise SimulationError(f"max_halvings must be an integer >= 1, got {max_halvings!r}")
 
 
 def _initial_state(system: HybridSystem, mode: Any, x0: Any, t0: float, eps: float,
