@@ -132,7 +132,7 @@ def test_zeno_variant_of_ex2_beats_the_chattering_plain_run(tmp_path, capsys):
     # Example 2 sticks on the stop twice; the plain relaxed run chatters there (one strip crossing
     # every ~sqrt(2 eps / F) s) while the Zeno continuation rests. Its error against the closed
     # form must then be below the plain run's at the same h and eps, and below the 1e-6 m of the
-    # issue 6 target, the level the plain integrator missed.
+    # speed target, the level the plain integrator misses.
     code = main(["bench", "work-precision", "--case", "oscillator-ex2", "--quick", "--out", str(tmp_path),
                  "--quiet", "--no-figure", "--rho-points", "0"])
     assert code == 0

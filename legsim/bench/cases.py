@@ -148,7 +148,7 @@ def ps_sweep(hs: tuple[float, ...]) -> list[RunSpec]:
 
 
 # ----------------------------------------------------------------------------------------------
-# The targets of issue 6 (ratios measured in one bench run)
+# Speed targets (ratios measured in one bench run)
 # ----------------------------------------------------------------------------------------------
 def targets_for(name: str, quick: bool = False) -> list[Target]:
     """The speed targets checked on case ``name``."""

@@ -1,10 +1,5 @@
-"""Landing on the failed step's own dense output (issue 6, item 2), and trial steps that leave
-the model's range.
-
-``landing="dense"``: a step that would leave the relaxed domain is not retried; once it passes
-the error test, its continuous extension (itself a Runge-Kutta step of the interpolant's order)
-gives the crossing q and a landing point inside the strip, which is checked like any step's end.
-"""
+"""The methods' continuous extensions (bs32, dopri5, DOP853): each is a Runge-Kutta step of its
+stated order at any fraction of the step, and meets the step's ends."""
 
 import math
 

@@ -19,7 +19,7 @@ from legsim.systems import bouncing_ball as bb
 
 
 def test_nominal_step_is_restored_after_halving_and_after_each_transition():
-    # Issue 2 / Fig. 12 step 3: a step shortened to land in a strip does not shrink the next
+    # Fig. 12 step 3: a step shortened to land in a strip does not shrink the next
     # ones. The ball at h = 0.1 s with eps = 1e-4 m must halve to land (it falls 4 m/s * 0.1 s
     # = 0.4 m per step near the floor), and every flight after a bounce starts again at h.
     h = 0.1

@@ -42,7 +42,6 @@ def test_dense_landing_finds_the_crossing_without_retrying_a_step(method):
 
 
 def test_dense_landing_with_dop853_keeps_the_strip_guarantee_on_the_pronk():
-    pytest.importorskip("legsim.robots.pronk")
     from legsim.bench.cases import make_case
     from legsim.bench.work_precision import own_points, position_error
 
@@ -102,7 +101,7 @@ def ball_through_the_floor(breakdown_depth: float) -> HybridSystem:
 @pytest.mark.parametrize("landing", ["halve", "aim", "dense"])
 def test_a_trial_step_that_leaves_the_models_range_is_shortened(landing):
     # From 1 m at rest, a 1 s trial step ends 3.9 m below the floor, past the model's range: it
-    # is halved like a step past a strip (it used to end the run with model_breakdown). RK4 and
+    # is halved like a step past a strip, not the end of the run. RK4 and
     # dopri5 are exact on parabolas, so the impacts are the closed form's.
     method = "dopri5" if landing == "dense" else "rk4"
     eps = 1e-9
@@ -148,8 +147,7 @@ def test_a_tolerance_means_what_it_means_for_solve_ivp_on_the_pronk():
     # Each new mode starts at the standard starting step, as solve_ivp restarts after an event,
     # and DOP853 is controlled as scipy controls it: at rtol = atol = 1e-6 (largest step 0.2 s)
     # the relaxed run is as accurate as solve_ivp's DOP853 with events (9.6e-6 m both; carrying
-    # the step over each transition gave 1.8e-5).
-    pytest.importorskip("legsim.robots.pronk")
+    # the step over each transition would not be).
     from legsim.baselines import simulate_events
     from legsim.bench.cases import make_case
     from legsim.bench.work_precision import own_points, position_error
@@ -253,7 +251,7 @@ def two_planes() -> HybridSystem:
 
 def test_the_short_first_step_never_passes_t_final():
     # B is entered 3e-7 s before BC's guard; t_final falls inside the short step's reach. The run
-    # ends at t_final in B, with no strip or point after it (the short step used to land past it).
+    # ends at t_final in B, with no strip or point after it: the short step never lands past it.
     eps = 1e-6
     t_final = 1.05 + 1e-6 + 1e-7
     ex = simulate(two_planes(), [11.05, 11.05 + 0.3 * eps], "A", t_final, 0.1, eps, method="dopri5", rtol=1e-6,
@@ -268,8 +266,7 @@ def test_the_short_first_step_never_passes_t_final():
 @pytest.mark.parametrize("landing", ["halve", "dense"])
 def test_a_reset_leaving_the_models_range_ends_the_run_once(landing):
     # The reset raises ModelBreakdown at the first crossing (x = 2 at t = ln 2): the run ends there
-    # with model_breakdown, its one segment stored once and the counters not flushed twice (the
-    # step loop's handler used to store the segment again and count its steps twice).
+    # with model_breakdown, its one segment stored once and its steps counted once.
     def reset(x):
         if x[0] > 1.5:
             raise ModelBreakdown("reset out of range")
@@ -306,13 +303,11 @@ def test_aimed_landing_in_a_thin_strip_costs_about_one_trial_step(method):
     # The pronk with eps = 1e-9 m: its liftoffs happen where the cubic interpolant of a 0.04 s
     # step is ~3e-6 m off, so the first aim misses the strip; the second aim, on the shorter
     # failed step, finds the crossing at s ~ 0.99997 where the interpolant is exact to far below
-    # eps. Refusing aims past s = 0.9 used to fall back to halving: 42 shortened trial steps
-    # for 8 transitions with dop853 (5.25 each); now 10.
-    pronk = pytest.importorskip("legsim.robots.pronk")
-    from legsim.bench.cases import relaxed_method
+    # eps, so the aim is kept however close to the step's end it falls.
+    from legsim.robots import pronk
 
     model = pronk.make()
-    ex = simulate(model.system, pronk.state(), model.initial_mode, 2.0, 0.1, 1e-9, method=relaxed_method(method),
+    ex = simulate(model.system, pronk.state(), model.initial_mode, 2.0, 0.1, 1e-9, method=method,
                   rtol=1e-8, atol=1e-8, landing="aim")
     assert ex.status == "finished" and len(ex.transitions) == 8
     assert ex.counters["halvings"] / len(ex.transitions) <= 1.5

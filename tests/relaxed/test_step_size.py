@@ -1,4 +1,4 @@
-"""What a landing costs an error-controlled run (issue 6, item 2).
+"""What a landing costs an error-controlled run.
 
 A step shortened to land in a strip is shortened by a guard, not by the error: it must not shrink
 the step the error control proposes next, or the mode after a transition restarts at the
