@@ -35,7 +35,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any, Callable, Sequence
+from typing import Any, Callable
 
 import numpy as np
 from scipy.optimize import minimize_scalar
@@ -182,7 +182,7 @@ class LocalErrorEstimator:
         self.pair = get_method(pair)
         if not self.pair.embedded:
             raise SimulationError(
-                f"error pair '{self.pair.name}' has no embedded error estimate; use 'bs32' or 'dopri5'")
+                f"error pair '{self.pair.name}' has no embedded error estimate; use 'bs32', 'dopri5' or 'dop853'")
         floor = float(floor)
         if not math.isfinite(floor) or floor < 0.0:
             raise SimulationError(f"error floor must be finite and >= 0, got {floor}")
@@ -661,25 +661,3 @@ def check_t_final(t_final: Any, t0: float) -> float:
     return float(t_final)
 
 
-def check_count(name: str, value: Any, low: int) -> int:
-    """An integer >= ``low`` (a budget or a number of refinements), or SimulationError naming it."""
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
-        raise SimulationError(f"{name} must be an integer >= {low}, got {value!r}")
-    return int(value)
-
-
-def check_step(name: str, value: Any) -> float:
-    """A positive finite number (s) for a step size, or SimulationError naming it."""
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise SimulationError(f"{name} must be a number, got {value!r}")
-    value = float(value)
-    if not math.isfinite(value) or value <= 0.0:
-        raise SimulationError(f"{name} must be finite and > 0, got {value}")
-    return value
-
-
-__all__: Sequence[str] = (
-    "ErrorBound", "FlowPoint", "LocalErrorEstimator", "ModeFlow", "SegmentBound", "StepSamples",
-    "accumulate_bound", "ball_fraction_past", "error_bound", "field_jacobian", "guard_gradient",
-    "lipschitz_estimate", "reset_lipschitz", "signed_distance",
-)

@@ -50,7 +50,8 @@ from typing import Any, Callable, Sequence
 import numpy as np
 from scipy.optimize import brentq
 
-from .bounds import (MAX_STEPS, LocalErrorEstimator, ModeFlow, check_count, check_start, check_step, check_steps,
+from .arguments import count, positive
+from .bounds import (MAX_STEPS, LocalErrorEstimator, ModeFlow, check_start, check_steps,
                      check_t_final, guard_gradient, reset_lipschitz)
 from .errors import ModelBreakdown, SimulationError
 from .hybrid import HybridSystem
@@ -529,12 +530,12 @@ def certify(
     Certificate: per transition ``certified`` and ``reason`` (None or one of ``REASONS``).
     """
     x = check_start(system, mode, x0)
-    h = check_step("h", h)
+    h = positive("h", h)
     t_final = check_t_final(t_final, t0)
     if isinstance(alpha, bool) or not isinstance(alpha, (int, float)) or not math.isfinite(alpha) or alpha <= 1.0:
         raise SimulationError(f"alpha must be a number > 1, got {alpha!r}")
-    max_refinements = check_count("max_refinements", max_refinements, 0)
-    max_transitions = check_count("max_transitions", max_transitions, 1)
+    max_refinements = count("max_refinements", max_refinements, 0)
+    max_transitions = count("max_transitions", max_transitions, 1)
     estimator = LocalErrorEstimator(method, pair, floor)
     check_steps(t_final - float(t0), h, "certify")
     done = _Refinement(system, mode, x, float(t0), t_final, estimator, control, max_transitions, progress)

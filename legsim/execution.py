@@ -15,6 +15,7 @@ from __future__ import annotations
 import json
 import os
 from dataclasses import dataclass, field
+from enum import StrEnum
 from pathlib import Path
 from typing import Any, Iterable, Sequence
 
@@ -22,15 +23,20 @@ import numpy as np
 
 from .errors import SimulationError
 
-#: Ordinary ends of a run (diffrax-style result codes rather than exceptions).
-STATUSES = (
-    "finished",  # reached t_final
-    "max_transitions",  # the transition budget was used up
-    "halving_exhausted",  # no halved step lands in the relaxed domain (outward tangent flow)
-    "non_finite",  # a field, guard or reset produced inf/nan
-    "reset_outside_domain",  # a reset image lies past a guard of its target by more than eps
-    "model_breakdown",  # the model raised ModelBreakdown (left its range of validity)
-)
+class Status(StrEnum):
+    """How a run ended: ordinary ends of a simulation are result codes (as in diffrax), not
+    exceptions. Each value is the string the JSON summaries carry."""
+
+    FINISHED = "finished"  # reached t_final
+    MAX_TRANSITIONS = "max_transitions"  # the transition budget was used up
+    HALVING_EXHAUSTED = "halving_exhausted"  # no halved step lands in the relaxed domain (outward tangent flow)
+    NON_FINITE = "non_finite"  # a field, guard or reset produced inf/nan
+    RESET_OUTSIDE_DOMAIN = "reset_outside_domain"  # a reset image lies past a guard of its target by more than eps
+    MODEL_BREAKDOWN = "model_breakdown"  # the model raised ModelBreakdown (left its range of validity)
+
+
+#: The statuses' strings, in the order above.
+STATUSES = tuple(status.value for status in Status)
 
 
 @dataclass(frozen=True)

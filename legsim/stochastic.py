@@ -51,8 +51,9 @@ from typing import Any, Callable, Sequence
 import numpy as np
 from scipy.optimize import brentq
 
-from .bounds import (LocalErrorEstimator, ModeFlow, StepSamples, ball_fraction_past, check_count, check_start,
-                     check_step, check_steps, check_t_final, reset_lipschitz)
+from .arguments import count, positive
+from .bounds import (LocalErrorEstimator, ModeFlow, StepSamples, ball_fraction_past, check_start, check_steps,
+                     check_t_final, reset_lipschitz)
 from .errors import ModelBreakdown, SimulationError
 from .hybrid import HybridSystem
 from .methods import Tableau
@@ -182,7 +183,7 @@ def transition_functions(
     Parameters: as ``sample_execution``; ``b0`` is an initial uncertainty radius.
     """
     x = check_start(system, mode, x0)
-    h = check_step("h", h)
+    h = positive("h", h)
     form = _check_form(intensity)
     t_final = check_t_final(t_final, t0)
     check_steps(t_final - float(t0), h, "transition functions")
@@ -394,11 +395,11 @@ def sample_execution(
         Zeno behaviour (Theorem 2), see ``_check_hazard_cap``.
     """
     x = check_start(system, mode, x0)
-    h = check_step("h", h)
+    h = positive("h", h)
     form = _check_form(intensity)
     cap = _check_hazard_cap(hazard_cap)
     t_final = check_t_final(t_final, t0)
-    max_transitions = check_count("max_transitions", max_transitions, 0)
+    max_transitions = count("max_transitions", max_transitions, 0)
     check_steps(t_final - float(t0), h, "stochastic execution")
     generator = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
     estimator = LocalErrorEstimator(method, pair, floor)
@@ -538,7 +539,7 @@ def sample_ensemble(
     if isinstance(samples, bool) or not isinstance(samples, (int, np.integer)) or not 1 <= samples <= MAX_SAMPLES:
         raise SimulationError(f"samples must be an integer in [1, {MAX_SAMPLES}], got {samples!r}")
     x = check_start(system, mode, x0)
-    h = check_step("h", h)
+    h = positive("h", h)
     _check_form(intensity)
     cap = _check_hazard_cap(hazard_cap)
     t_final = check_t_final(t_final, t0)

@@ -49,8 +49,8 @@ def test_zero_speed_graze_at_a_release_does_not_loop():
     # stop at zero speed with zero free acceleration, so the graze guard reads 0 with a rate of
     # rounding size. Its plastic reset then maps the state to itself: firing it again and again
     # at that instant would exhaust the transition cap (it did at rtol 1e-12).
-    pytest = __import__("pytest")
-    dp = pytest.importorskip("legsim.robots.double_pendulum")
+    from legsim.robots import double_pendulum as dp
+
     model = dp.make(None, {"gravity": True, "stop": {"restitution": 0.0, "position": 0.0}})
     x0 = np.array([dp.INITIAL_STATE[n] for n in dp.STATE_NAMES])
     ex = simulate_events(model.system, x0, "unconstrained", 5.0, method="DOP853", rtol=1e-12, atol=1e-12,

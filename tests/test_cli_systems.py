@@ -1,5 +1,5 @@
 """`legsim run` on the bundled analytic scenes: the JSON summary against a direct `simulate` call
-and the closed forms, and effects switched on and off seen in the evaluation counts (issue 4)."""
+and the closed forms, and effects switched on and off seen in the evaluation counts."""
 
 from __future__ import annotations
 
@@ -166,7 +166,7 @@ def test_readme_demo_writes_rrd_html_and_png_and_replay_agrees(tmp_path, capsys)
 
 @pytest.mark.parametrize("scene, moving", [("double_pendulum_zeno", ()), ("pronk", (0,)), ("slip", (0,))])
 def test_gravity_effect_off_leaves_free_inertial_motion(capsys, scene, moving):
-    # Issue 4 lists gravity among the effects a scene switches. Without it the robots start at
+    # Gravity is an effect a scene switches. Without it the robots start at
     # rest (pendulum) or flying level at xd0 = 3.4 m/s (runners): the closed form is
     # x(t) = x0 + xd0 t with every other coordinate constant, no contact is ever reached and
     # the energy is the initial kinetic energy (0, or m xd0^2 / 2 = 5.78 J for m = 1).

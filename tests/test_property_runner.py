@@ -8,7 +8,6 @@ CI runs ten examples; LEGSIM_FULL=1 runs 100."""
 
 import os
 
-import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 

@@ -84,7 +84,7 @@ def test_impact_times_zeno_time_and_rest(ref):
     eps, h = 1e-4, 1e-3
     ex = simulate(bb.make_system(G, C), [Z0, 0.0], "flight", 2 * ref.zeno_time, h, eps)
     assert ex.status == "finished"
-    # Through the Zeno time to twice it with a bounded number of transitions (issue 2).
+    # Through the Zeno time to twice it with a bounded number of transitions.
     assert len(ex.transitions) < 20_000
     # Free fall is a cubic: RK4 and the Hermite crossing are exact, so the only error is the
     # strip: each crossing holds the ball for eps - tau + tau / v <= eps max(1, 1/v), delaying

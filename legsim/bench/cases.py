@@ -9,22 +9,21 @@ exist (oscillator, bouncing ball); otherwise a converged event-driven run (DOP85
 
 from __future__ import annotations
 
-import functools
 import math
 from dataclasses import dataclass, field
 from typing import Any, Callable
 
 import numpy as np
 
+from ..builders import get_builder
 from ..errors import LegsimError
 from ..hybrid import HybridSystem
-from ..methods import DenseOutput, Tableau
 
 CASE_NAMES = ("oscillator-ex1", "oscillator-ex2", "bouncing-ball", "pronk", "double-pendulum")
 
 #: solve_ivp methods in the sweeps (explicit pairs: these models are not stiff).
 IVP_METHODS = ("RK45", "DOP853")
-#: Adaptive pairs of the relaxed integrator (dop853: see ``dop853_tableau``).
+#: Adaptive pairs of the relaxed integrator.
 ADAPTIVE_PAIRS = ("bs32", "dopri5", "dop853")
 
 
@@ -32,61 +31,9 @@ class BenchError(LegsimError):
     """A benchmark could not be set up or run (unknown case, missing robot, bad option)."""
 
 
-@functools.lru_cache(maxsize=None)
-def dop853_tableau() -> Tableau:
-    """Dormand-Prince 8(5,3) as a legsim ``Tableau``, from scipy's coefficients: the 12 stages of
-    DOP853 plus a 13th at the new point (row = b, c = 1), which makes it FSAL; its error norm is
-    Hairer's blend of the fifth- and third-order estimates E5 and E3 with the step exponent 1/8,
-    and its dense output the seventh-order interpolant, as in scipy. solve_ivp's best method in
-    these sweeps is DOP853, so the relaxed integrator gets the same method, controlled the same
-    way, to compete at equal footing: methods.py stops at order 5."""
-    from scipy.integrate._ivp import dop853_coefficients as d
-
-    s = d.N_STAGES + 1
-    A = np.zeros((s, s))
-    A[: s - 1, : s - 1] = d.A[: s - 1, : s - 1]
-    A[s - 1, : s - 1] = d.B
-    c = np.concatenate([d.C[: s - 1], [1.0]])
-    b = np.concatenate([d.B, [0.0]])
-    # error_order 7: the step exponent -1/(7 + 1) of scipy's DOP853 (the blended norm scales as h^8).
-    return Tableau("dop853", 8, c, A, b, np.asarray(d.E5, dtype=float), 7, True, _dop853_dense(b),
-                   np.asarray(d.E3, dtype=float))
-
-
-def _dop853_dense(b: np.ndarray) -> DenseOutput:
-    """DOP853's seventh-order interpolant (three extra stages) in legsim's form x + h sum_i w_i(theta) k_i.
-
-    scipy writes it as x + F0 th + F1 th (1 - th) + F2 th^2 (1 - th) + ..., nested in th and 1 - th,
-    with rows F linear in the 16 stages; expanding the nesting once gives the weights P."""
-    from scipy.integrate._ivp import dop853_coefficients as d
-
-    n_all, s = d.N_STAGES_EXTENDED, d.N_STAGES + 1
-    rows = np.zeros((d.INTERPOLATOR_POWER, n_all))  # F = h * rows @ K
-    rows[0, :s] = b
-    rows[1, 0] += 1.0
-    rows[1, :s] -= b
-    rows[2, :s] += 2.0 * b
-    rows[2, 0] -= 1.0
-    rows[2, s - 1] -= 1.0  # K[12], f at the new point
-    rows[3:] = d.D
-    # Polynomial of each F row in theta: the nesting multiplies by th and (1 - th) in turn, last row first.
-    monomials = np.zeros((d.INTERPOLATOR_POWER, d.INTERPOLATOR_POWER + 1))
-    for r in range(d.INTERPOLATOR_POWER):
-        poly = np.zeros(d.INTERPOLATOR_POWER + 1)
-        for i, row in enumerate(reversed(range(d.INTERPOLATOR_POWER))):
-            if row == r:
-                poly[0] += 1.0
-            poly = np.concatenate([[0.0], poly[:-1]]) if i % 2 == 0 else poly - np.concatenate([[0.0], poly[:-1]])
-        monomials[r] = poly
-    assert np.all(monomials[:, 0] == 0.0)
-    P = rows.T @ monomials[:, 1:]
-    return DenseOutput(7, P, np.asarray(d.C[s:], dtype=float), np.asarray(d.A[s:], dtype=float))
-
-
-def relaxed_method(name: str) -> str | Tableau:
+def relaxed_method(name: str) -> str:
     """The ``simulate`` method of a ``relaxed-<name>`` run (``<name>-zeno`` for Zeno continuation)."""
-    name = name.removesuffix("-zeno")
-    return dop853_tableau() if name == "dop853" else name
+    return name.removesuffix("-zeno")
 
 
 @dataclass(frozen=True)
@@ -201,7 +148,7 @@ def ps_sweep(hs: tuple[float, ...]) -> list[RunSpec]:
 
 
 # ----------------------------------------------------------------------------------------------
-# The targets of issue 6 (ratios measured in one bench run)
+# Speed targets (ratios measured in one bench run)
 # ----------------------------------------------------------------------------------------------
 def targets_for(name: str, quick: bool = False) -> list[Target]:
     """The speed targets checked on case ``name``."""
@@ -317,26 +264,22 @@ def _bouncing_ball(quick: bool) -> Case:
 
 
 def _robot(name: str, quick: bool) -> Case:
+    # Through the builder registry, as scenes find robots: the core never imports legsim.robots.
     try:
-        if name == "pronk":
-            import legsim.robots.pronk as module
-        else:
-            import legsim.robots.double_pendulum as module
-    except ImportError as exc:
-        raise BenchError(f"case {name}: the robot model cannot be imported ({exc}); install pinocchio "
+        builder = get_builder("pronk" if name == "pronk" else "double_pendulum")
+    except LegsimError as exc:
+        raise BenchError(f"case {name}: the robot model cannot be loaded ({exc}); install pinocchio "
                          f"(`pip install pin`)") from exc
     from ..baselines import simulate_events
 
     if name == "pronk":
-        model = module.make()
-        x0 = module.state()
+        model = builder.make()
         positions = (0, 1, 2)
         t_final = 0.5 if quick else 2.0
         description = f"pronking runner of paper 000 Sec. V-C (two hops, t in [0, {t_final}] s)"
         hs = {"rk2": (3e-3, 1e-3, 3e-4), "rk4": (3e-2, 1e-2, 3e-3, 1e-3)}
     else:
-        model = module.make(None, {"gravity": True, "stop": {"restitution": 0.0, "position": 0.0}})
-        x0 = np.array([module.INITIAL_STATE[n] for n in module.STATE_NAMES])
+        model = builder.make(None, {"gravity": True, "stop": {"restitution": 0.0, "position": 0.0}})
         positions = (0, 1)
         # Impact, constrained swing, release, graze, second impact and release; the event-driven
         # baseline meets a Zeno chatter at t = 7.38 s.
@@ -346,6 +289,7 @@ def _robot(name: str, quick: bool) -> Case:
         hs = {"rk2": (3e-3, 1e-3, 3e-4), "rk4": (3e-2, 1e-2, 3e-3, 1e-3)}
     system = model.system
     mode = model.initial_mode
+    x0 = np.array([model.initial_state[n] for n in system.state_names(mode)])
     names = tuple(system.state_names(mode)[i] for i in positions)
     ref_tol = 1e-10 if quick else 1e-12
     # A bounded step: solve_ivp cannot reject a trial step whose state leaves the model's range.

@@ -310,15 +310,15 @@ def _integrator(path: Path, table: dict[str, Any]) -> dict[str, Any]:
         if not get_method(out["method"]).embedded:
             key = "rtol" if out["rtol"] is not None else "atol"
             raise field_error(path, f"integrator.{key}", f"error control needs a method with an embedded error "
-                                                   f"estimate (method = 'bs32' or 'dopri5'), got "
+                                                   f"estimate (method = 'bs32', 'dopri5' or 'dop853'), got "
                                                    f"method = '{out['method']}'")
     if out["landing"] == "dense":
         from ..methods import dense_output, get_method
 
         if dense_output(get_method(out["method"])) is None:
             raise field_error(path, "integrator.landing", f"'dense' lands on the method's continuous extension, which "
-                                                    f"method = '{out['method']}' has not (bs32 and dopri5 have "
-                                                    f"one); use landing = 'aim'")
+                                                    f"method = '{out['method']}' has not (bs32, dopri5 and dop853 "
+                                                    f"have one); use landing = 'aim'")
     if out["t_final"] <= out["t0"]:
         raise field_error(path, "integrator.t_final", f"{out['t_final']!r} must be > integrator.t0 = {out['t0']!r}")
     nominal = (out["t_final"] - out["t0"]) / out["h"]

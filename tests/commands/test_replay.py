@@ -68,7 +68,8 @@ def test_replay_of_a_bad_file_names_it(tmp_path):
 
 
 def test_replay_through_the_cli(hopper_run, capsys):
-    cli = pytest.importorskip("legsim.cli")
+    from legsim import cli
+
     _, ex, path, _ = hopper_run
     assert cli.main(["replay", str(path), "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["mode_sequence"] == ex.mode_sequence

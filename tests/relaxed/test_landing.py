@@ -1,10 +1,4 @@
-"""Landing on the failed step's own dense output (issue 6, item 2), and trial steps that leave
-the model's range.
-
-``landing="dense"``: a step that would leave the relaxed domain is not retried; once it passes
-the error test, its continuous extension (itself a Runge-Kutta step of the interpolant's order)
-gives the crossing q and a landing point inside the strip, which is checked like any step's end.
-"""
+"""Landing rules: halving, aiming at the strip's middle on the failed step's interpolant, and landing on the step's own dense output (no step retried); trial steps that leave the model's range are shortened like steps past a strip; the short first step to a simultaneous strip."""
 
 import math
 
@@ -12,72 +6,10 @@ import numpy as np
 import pytest
 
 from legsim import HybridSystem, Mode, Transition, simulate
-from legsim.bench.cases import dop853_tableau
 from legsim.errors import ModelBreakdown, SimulationError
-from legsim.methods import (ContinuousStep, dense_output, error_estimate, get_method, make_error_norm, make_stepper,
-                            rk_step)
-
-PAIRS = [get_method("bs32"), get_method("dopri5"), dop853_tableau()]
-
-
-def forced_pendulum(t, x, u=None):
-    return np.array([x[1], -math.sin(x[0]) + 0.3 * math.cos(1.7 * t)])
-
-
-def reference(t_end, x0):
-    from scipy.integrate import solve_ivp
-
-    return solve_ivp(forced_pendulum, (0.0, t_end), x0, method="DOP853", rtol=1e-13, atol=1e-15).y[:, -1]
-
-
-@pytest.mark.parametrize("tableau", PAIRS, ids=lambda t: t.name)
-def test_dense_output_has_its_order_and_meets_the_step_ends(tableau):
-    dense = dense_output(tableau)
-    step = make_stepper(tableau)
-    x0 = np.array([1.0, 0.2])
-    errors, slope_errors = [], []
-    hs = (0.4, 0.2, 0.1)
-    for h in hs:
-        x1, stages = step(forced_pendulum, 0.0, x0, h, forced_pendulum(0.0, x0), None)
-        curve = ContinuousStep(tableau, forced_pendulum, 0.0, x0, h, stages)
-        assert curve.extra_evals == len(dense.c_extra)
-        np.testing.assert_allclose(curve.point(0.0), x0, rtol=0, atol=1e-15)
-        np.testing.assert_allclose(curve.point(1.0), x1, rtol=0, atol=1e-14)
-        theta = 0.37
-        exact = reference(theta * h, x0)
-        errors.append(np.abs(curve.point(theta) - exact).max())
-        slope_errors.append(np.abs(curve.slope(theta) - forced_pendulum(theta * h, exact)).max())
-    # Local error O(h^(order+1)) of the value, O(h^order) of the slope.
-    rates = np.log2(np.array(errors[:-1]) / errors[1:])
-    slope_rates = np.log2(np.array(slope_errors[:-1]) / slope_errors[1:])
-    assert np.all(np.abs(rates - (dense.order + 1)) < 0.3), rates
-    assert np.all(np.abs(slope_rates - dense.order) < 0.3), slope_rates
-
-
-def test_stacked_stepper_and_generated_error_norms_match_the_references():
-    # DOP853's long rows are combined by one matrix product over stacked stages: the same step as
-    # the readable rk_step to rounding. Its error norm is Hairer's blend of E5 and E3 (scipy's
-    # DOP853 norm); the plain norm of the built-in pairs is the np.mean formula to the bit.
-    tableau = dop853_tableau()
-    x0 = np.array([0.7, -0.4])
-    h = 0.05
-    x1, stages = make_stepper(tableau)(forced_pendulum, 0.3, x0, h, forced_pendulum(0.3, x0), None)
-    K = np.zeros((tableau.stages, 2))
-    K[0] = forced_pendulum(0.3, x0)
-    ref = rk_step(forced_pendulum, 0.3, x0, h, tableau, K)
-    np.testing.assert_allclose(x1, ref, rtol=0, atol=1e-15)
-    scale = 1e-6 + 1e-6 * np.maximum(np.abs(x0), np.abs(x1))
-    e5 = np.linalg.norm(h * (tableau.b_err @ K) / scale) ** 2
-    e3 = np.linalg.norm(h * (tableau.b_err_low @ K) / scale) ** 2
-    hairer = e5 / np.sqrt((e5 + 0.01 * e3) * 2)
-    assert make_error_norm(tableau)(h, stages, x0, x1, 1e-6, 1e-6) == pytest.approx(hairer, rel=1e-12)
-
-    pair = get_method("dopri5")
-    x1, stages = make_stepper(pair)(forced_pendulum, 0.3, x0, h, forced_pendulum(0.3, x0), None)
-    est = error_estimate(pair, h, stages)  # the sum in stage order, as the compiled kernel sums
-    scale = 1e-6 + 1e-6 * np.maximum(np.abs(x0), np.abs(x1))
-    expected = float(np.sqrt(np.mean((est / scale) ** 2)))
-    assert make_error_norm(pair)(h, stages, x0, x1, 1e-6, 1e-6) == expected
+from legsim.methods import (
+    get_method,
+)
 
 
 def doubling_system() -> HybridSystem:
@@ -86,6 +18,7 @@ def doubling_system() -> HybridSystem:
         {"grow": Mode(1, lambda t, x, u: x.copy(), names=("x",))},
         [Transition("grow", "grow", guard=lambda x: 2.0 - x[0], reset=lambda x: x * 0.5, name="halve")],
     )
+
 
 
 @pytest.mark.parametrize("method", ["dopri5", "bs32"])
@@ -107,14 +40,14 @@ def test_dense_landing_finds_the_crossing_without_retrying_a_step(method):
     assert dense.counters["field_evals"] < aim.counters["field_evals"]
 
 
+
 def test_dense_landing_with_dop853_keeps_the_strip_guarantee_on_the_pronk():
-    pytest.importorskip("legsim.robots.pronk")
     from legsim.bench.cases import make_case
     from legsim.bench.work_precision import own_points, position_error
 
     case = make_case("pronk")  # its reference: solve_ivp DOP853 at rtol = atol = 1e-12
     eps = 1e-9
-    runs = {landing: simulate(case.system, case.x0, case.mode, 2.0, 0.1, eps, method=dop853_tableau(), rtol=1e-8,
+    runs = {landing: simulate(case.system, case.x0, case.mode, 2.0, 0.1, eps, method=get_method("dop853"), rtol=1e-8,
                               atol=1e-8, landing=landing) for landing in ("aim", "dense")}
     ex, aim = runs["dense"], runs["aim"]
     assert ex.status == "finished" and len(ex.transitions) == 8
@@ -140,11 +73,13 @@ def test_dense_landing_with_dop853_keeps_the_strip_guarantee_on_the_pronk():
         np.testing.assert_allclose(ours[name], theirs[name], rtol=0, atol=1e-7)
 
 
+
 def test_dense_landing_needs_a_method_with_a_continuous_extension():
     with pytest.raises(SimulationError, match="landing 'dense'.*'rk4'.*aim"):
         simulate(doubling_system(), [1.0], "grow", 1.0, 0.1, 1e-6, method="rk4", landing="dense")
     with pytest.raises(SimulationError, match="landing must be one of"):
         simulate(doubling_system(), [1.0], "grow", 1.0, 0.1, 1e-6, landing="bisect")
+
 
 
 def ball_through_the_floor(breakdown_depth: float) -> HybridSystem:
@@ -162,10 +97,11 @@ def ball_through_the_floor(breakdown_depth: float) -> HybridSystem:
     )
 
 
+
 @pytest.mark.parametrize("landing", ["halve", "aim", "dense"])
 def test_a_trial_step_that_leaves_the_models_range_is_shortened(landing):
     # From 1 m at rest, a 1 s trial step ends 3.9 m below the floor, past the model's range: it
-    # is halved like a step past a strip (it used to end the run with model_breakdown). RK4 and
+    # is halved like a step past a strip, not the end of the run. RK4 and
     # dopri5 are exact on parabolas, so the impacts are the closed form's.
     method = "dopri5" if landing == "dense" else "rk4"
     eps = 1e-9
@@ -179,6 +115,7 @@ def test_a_trial_step_that_leaves_the_models_range_is_shortened(landing):
     assert len(times) == 2
     assert times[0] == pytest.approx(t1, abs=1e-9)
     assert times[1] == pytest.approx(t2, abs=1e-8)
+
 
 
 def test_a_flow_into_the_models_range_ends_with_model_breakdown():
@@ -198,30 +135,32 @@ def test_a_flow_into_the_models_range_ends_with_model_breakdown():
     assert ex.counters["steps"] < 40
 
 
+
 def _raise_below(z: float, depth: float) -> float:
     if z < depth:
         raise ModelBreakdown(f"z = {z:.3g} is below {depth}")
     return z
 
 
+
 def test_a_tolerance_means_what_it_means_for_solve_ivp_on_the_pronk():
     # Each new mode starts at the standard starting step, as solve_ivp restarts after an event,
     # and DOP853 is controlled as scipy controls it: at rtol = atol = 1e-6 (largest step 0.2 s)
     # the relaxed run is as accurate as solve_ivp's DOP853 with events (9.6e-6 m both; carrying
-    # the step over each transition gave 1.8e-5).
-    pytest.importorskip("legsim.robots.pronk")
+    # the step over each transition would not be).
     from legsim.baselines import simulate_events
     from legsim.bench.cases import make_case
     from legsim.bench.work_precision import own_points, position_error
 
     case = make_case("pronk")
-    relaxed = simulate(case.system, case.x0, case.mode, 2.0, 0.2, 1e-9, method=dop853_tableau(), rtol=1e-6,
+    relaxed = simulate(case.system, case.x0, case.mode, 2.0, 0.2, 1e-9, method=get_method("dop853"), rtol=1e-6,
                        atol=1e-6, landing="dense")
     ivp = simulate_events(case.ivp_system, case.x0, case.mode, 2.0, method="DOP853", rtol=1e-6, atol=1e-6,
                           max_step=0.2)
     errors = [position_error(*own_points(r, case.positions), case.reference_positions) for r in (relaxed, ivp)]
     assert relaxed.status == ivp.status == "finished" and len(relaxed.transitions) == len(ivp.transitions) == 8
     assert errors[0] <= 1.2 * errors[1], errors
+
 
 
 def drift(gap: float, calls: dict | None = None) -> HybridSystem:
@@ -244,6 +183,7 @@ def drift(gap: float, calls: dict | None = None) -> HybridSystem:
         [Transition("a", "b", guard=lambda x: 1.0 - x[0], reset=identity, name="a_to_b"),
          Transition("b", "c", guard=lambda x: 1.0 + gap - x[1], reset=identity, name="b_to_c")],
     )
+
 
 
 def test_a_simultaneous_event_costs_a_short_step_and_stays_continuous():
@@ -273,6 +213,7 @@ def test_a_simultaneous_event_costs_a_short_step_and_stays_continuous():
         assert np.abs(final[gap] - final[0.0]).max() <= gap + 1e-12
 
 
+
 def test_dense_landing_aims_at_the_strips_middle_through_a_kinked_guard():
     # Example 2's mass sticks on the stop: its guard max(x_max - x, -xd) has a kink there, the
     # secant from q to the step's end lands at the strip's very edge (depth ~1e-12 of eps = 1e-7),
@@ -293,6 +234,7 @@ def test_dense_landing_aims_at_the_strips_middle_through_a_kinked_guard():
     assert np.all((depths >= 0.25 * eps) & (depths <= 0.75 * eps))
 
 
+
 def two_planes() -> HybridSystem:
     """(p, y)' = (-1, -1): A -> B at p = 10, B -> C at y = 10 (identity resets)."""
 
@@ -306,9 +248,10 @@ def two_planes() -> HybridSystem:
          Transition("B", "C", guard=lambda x: x[1] - 10.0, reset=lambda x: x.copy(), name="BC")])
 
 
+
 def test_the_short_first_step_never_passes_t_final():
     # B is entered 3e-7 s before BC's guard; t_final falls inside the short step's reach. The run
-    # ends at t_final in B, with no strip or point after it (the short step used to land past it).
+    # ends at t_final in B, with no strip or point after it: the short step never lands past it.
     eps = 1e-6
     t_final = 1.05 + 1e-6 + 1e-7
     ex = simulate(two_planes(), [11.05, 11.05 + 0.3 * eps], "A", t_final, 0.1, eps, method="dopri5", rtol=1e-6,
@@ -319,11 +262,11 @@ def test_the_short_first_step_never_passes_t_final():
     assert 0.0 <= ex.counters["strip_time"] <= eps + 1e-15
 
 
+
 @pytest.mark.parametrize("landing", ["halve", "dense"])
 def test_a_reset_leaving_the_models_range_ends_the_run_once(landing):
     # The reset raises ModelBreakdown at the first crossing (x = 2 at t = ln 2): the run ends there
-    # with model_breakdown, its one segment stored once and the counters not flushed twice (the
-    # step loop's handler used to store the segment again and count its steps twice).
+    # with model_breakdown, its one segment stored once and its steps counted once.
     def reset(x):
         if x[0] > 1.5:
             raise ModelBreakdown("reset out of range")
@@ -336,6 +279,7 @@ def test_a_reset_leaving_the_models_range_ends_the_run_once(landing):
     assert len(ex.segments) == 1
     assert ex.t_end == pytest.approx(math.log(2.0), abs=1e-6)
     assert ex.counters["steps"] == len(ex.segments[0].t) - 1  # the landing step ends at q
+
 
 
 def test_dense_landing_reports_a_nan_guard_like_any_step():
@@ -352,3 +296,18 @@ def test_dense_landing_reports_a_nan_guard_like_any_step():
                            Transition("A", "B", guard=g2, reset=lambda x: x.copy(), name="nanguard")])
     ex = simulate(system, [11.05], "A", 1.5, 0.1, eps, method="dopri5", rtol=1e-6, atol=1e-9, landing="dense")
     assert ex.status == "non_finite" and "nanguard" in ex.message
+
+
+@pytest.mark.parametrize("method", ["dopri5", "dop853"])
+def test_aimed_landing_in_a_thin_strip_costs_about_one_trial_step(method):
+    # The pronk with eps = 1e-9 m: its liftoffs happen where the cubic interpolant of a 0.04 s
+    # step is ~3e-6 m off, so the first aim misses the strip; the second aim, on the shorter
+    # failed step, finds the crossing at s ~ 0.99997 where the interpolant is exact to far below
+    # eps, so the aim is kept however close to the step's end it falls.
+    from legsim.robots import pronk
+
+    model = pronk.make()
+    ex = simulate(model.system, pronk.state(), model.initial_mode, 2.0, 0.1, 1e-9, method=method,
+                  rtol=1e-8, atol=1e-8, landing="aim")
+    assert ex.status == "finished" and len(ex.transitions) == 8
+    assert ex.counters["halvings"] / len(ex.transitions) <= 1.5

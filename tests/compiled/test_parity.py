@@ -11,10 +11,17 @@ import numpy as np
 import pytest
 
 import legsim.compiled as compiled
+import legsim.compiled.visit as compiled_visit
+import legsim.relaxed.run as run_module
 from legsim import HybridSystem, Mode, ModelError, Transition, simulate
 from legsim.compiled import CompiledMode, plan_for, without_compiled
-from legsim.methods import METHODS
-from legsim.systems.fast import make_bouncing_ball, make_oscillator, make_oscillator_example
+from legsim.compiled.generate import importable
+from legsim.methods import METHODS, get_method
+from legsim.systems.fast import (
+    make_bouncing_ball,
+    make_oscillator,
+    make_oscillator_example,
+)
 from legsim.systems.oscillator import OscillatorReference
 
 COUNTERS = ("steps", "halvings", "error_rejections", "field_evals", "guard_evals", "reset_evals", "transitions")
@@ -92,13 +99,13 @@ def test_long_free_flight_grows_the_buffer_and_matches_the_closed_form():
 
 def test_compiled_path_is_taken_only_without_control(monkeypatch):
     calls = []
-    real = compiled.run_mode_compiled
+    real = compiled.run_visit_compiled
 
     def spy(*args):
         calls.append(args[1].name)
         return real(*args)
 
-    monkeypatch.setattr(compiled, "run_mode_compiled", spy)
+    monkeypatch.setattr(compiled, "run_visit_compiled", spy)
     system = make_bouncing_ball()
     simulate(system, [1.0, 0.0], "flight", 0.3, 1e-2, 1e-4)  # before the first impact: one visit
     assert calls == ["flight"]
@@ -108,8 +115,8 @@ def test_compiled_path_is_taken_only_without_control(monkeypatch):
 
 def test_progress_is_reported_from_the_compiled_loop(monkeypatch):
     clock = iter(np.arange(0.0, 1e6, 1.0))  # every reading one second later than the last
-    monkeypatch.setattr(compiled._time, "perf_counter", lambda: float(next(clock)))
-    monkeypatch.setattr(compiled, "PROGRESS_CHUNK", 100)
+    monkeypatch.setattr(run_module.time, "perf_counter", lambda: float(next(clock)))
+    monkeypatch.setattr(compiled_visit, "PROGRESS_CHUNK", 100)
     seen = []
     system = make_oscillator(2.5, 0.05, None, 0.9, 1.0, 20.0, 2.5)
     ex = simulate(system, [1.0, 0.0], "free", 10.0, 1e-2, 1e-3, "rk4",
@@ -187,6 +194,16 @@ def test_discontinuous_guard_exhausts_halving_on_both_paths():
     assert_same_execution(fast, slow)
 
 
+def test_a_strip_too_thin_for_float64_gives_the_same_message_on_both_paths():
+    # eps = 1e-300 m: no step can land in the ball's strip. Both paths end with the one message
+    # the shared message builder makes, naming the transition and float64's resolution.
+    system = make_bouncing_ball(9.81, 0.5)
+    fast, slow = both_paths(system, [1.0, 0.0], "flight", 1.0, 1e-2, 1e-300, "rk4")
+    assert fast.status == "halving_exhausted"
+    assert "thinner than float64 can resolve" in fast.message
+    assert_same_execution(fast, slow)
+
+
 def test_nan_guard_ends_both_paths_alike():
     fast, slow = both_paths(probe_system([0.0, 1.0, 1.0, 2.0, 0.5]), [0.0, 0.0], "m", 2.0, 1e-2, 1e-3, "rk4")
     assert fast.status == "non_finite" and "guard of transition wrap is nan" in fast.message
@@ -210,7 +227,7 @@ def test_twin_with_the_wrong_guard_count_is_refused():
 def test_transitions_crossed_in_the_kernel_in_several_record_batches(monkeypatch):
     # Sticking in Example 2 crosses hundreds of strips inside the kernel; with batches of 16
     # records Python assembles them in many rounds, and the execution must not change.
-    monkeypatch.setattr(compiled, "RECORD_CHUNK", 16)
+    monkeypatch.setattr(compiled_visit, "RECORD_CHUNK", 16)
     system, x0, _ = make_oscillator_example("ex2")
     fast, slow = both_paths(system, x0, "free", 1.0, 1e-2, 1e-5, "rk4", landing="halve")
     assert len(fast.transitions) > 100
@@ -268,7 +285,7 @@ def test_plan_reproduces_every_tableau():
 
 
 def test_closures_are_not_importable_and_module_functions_are():
-    assert compiled._importable(probe_field) == f"{probe_field.py_func.__module__}:probe_field"
+    assert importable(probe_field) == f"{probe_field.py_func.__module__}:probe_field"
 
     def make():
         @numba.njit
@@ -277,7 +294,7 @@ def test_closures_are_not_importable_and_module_functions_are():
 
         return inner
 
-    assert compiled._importable(make()) is None
+    assert importable(make()) is None
 
 
 @pytest.mark.slow
@@ -307,16 +324,23 @@ def test_closure_twin_runs_compiled_in_memory():
     assert_same_execution(fast, slow)
 
 
-def test_kernel_crossing_uses_the_python_safeguards():
-    # The kernel's source is copied into each twin's module, so it spells relaxed's safeguard
-    # constants as literals: they must stay the values crossing_on_step uses.
+def test_the_kernel_compiles_the_python_loops_own_rules():
+    # One semantics: the generated kernel holds the decision rules the Python loop calls, copied
+    # from their source (crossing search, step-size update, landing aim, strip exit, error norm).
     import inspect
 
-    from legsim import compiled, relaxed
+    from legsim.compiled import kernel
+    from legsim.compiled.generate import kernel_source
+    from legsim.methods.stepper import error_norm
+    from legsim.relaxed import rules
 
-    src = inspect.getsource(compiled._k_crossing)
-    assert f"stalled >= {relaxed._STALL}:" in src
-    assert f"< {relaxed._MIN_STEP!r}" in src and f"> {2 * relaxed._MIN_STEP!r}" in src
+    source = kernel_source([], cache=False)
+    for rule in (rules.crossing_start, rules.crossing_point, rules.crossing_update, rules.rejected_step,
+                 rules.proposed_step, rules.kept_proposal, rules.aimed_step, rules.strip_exit_time, error_norm):
+        assert inspect.getsource(rule).rstrip() in source, rule.__name__
+        assert rule in kernel.RULES
+    for constant in ("STALL", "MIN_STEP", "SAFETY", "MAX_FACTOR"):
+        assert f"{constant} = {getattr(rules, constant)!r}" in source
 
 
 def test_dop853_blended_error_norm_same_on_both_paths():
@@ -325,10 +349,9 @@ def test_dop853_blended_error_norm_same_on_both_paths():
     # is a small difference of large stage sums, so rounding moves it by up to ~1e-4 relative and
     # the step sizes by ~1e-8 s. Not bit for bit, then, but the same run: the same steps,
     # rejections and evaluations, transitions at the same times, the same final state.
-    from legsim.bench.cases import dop853_tableau
-
+    
     system, x0, _ = make_oscillator_example("ex1")
-    fast, slow = both_paths(system, x0, "free", 12.0, 0.5, 1e-6, dop853_tableau(), landing="aim", rtol=1e-10,
+    fast, slow = both_paths(system, x0, "free", 12.0, 0.5, 1e-6, get_method("dop853"), landing="aim", rtol=1e-10,
                             atol=1e-10)
     assert fast.status == slow.status == "finished"
     assert len(fast.transitions) == 4 and fast.counters["error_rejections"] > 0

@@ -97,7 +97,7 @@ def test_initial_state_inside_the_strip_is_accepted_and_crosses_at_once(ball):
 
 
 def test_unknown_method_lists_the_choices(ball):
-    with pytest.raises(SimulationError, match=r"^unknown method 'rk5'; choose one of \['bs32', 'dopri5', 'euler'"):
+    with pytest.raises(SimulationError, match=r"^unknown method 'rk5'; choose one of \['bs32', 'dop853', 'dopri5', 'euler'"):
         simulate(ball, [1.0, 0.0], "flight", 1.0, 1e-3, 1e-3, method="rk5")
 
 
@@ -155,7 +155,7 @@ def test_a_field_that_blows_up_ends_non_finite():
     with np.errstate(over="ignore", invalid="ignore"):
         ex = simulate(system, [1.0], "a", 2.0, 0.01, 1e-3)
     assert ex.status == "non_finite"
-    # Issue 2: the message names the mode, the time and the state.
+    # The message names the mode, the time and the state.
     assert ex.message.startswith("the step from t=1.0") and "in mode 'a' gives a non-finite state" in ex.message
     assert f"x={ex.final_state.tolist()}" in ex.message
     # States stay finite (if huge) to within a couple of steps of the blow-up time.

@@ -1,12 +1,35 @@
-"""Guards that depend on time and input, and models that declare a breakdown."""
+"""The loop of paper 000 Fig. 12: the nominal step restored after halving and after each transition, guards on time and input crossed at their exact times, model breakdowns and nan guards ending the run with the execution kept."""
+
+from __future__ import annotations
 
 import math
 
 import numpy as np
 import pytest
 
-from legsim import HybridSystem, Mode, ModelError, Transition, simulate
+from legsim import (
+    HybridSystem,
+    Mode,
+    ModelError,
+    Transition,
+    simulate,
+)
 from legsim.errors import ModelBreakdown
+from legsim.systems import bouncing_ball as bb
+
+
+def test_nominal_step_is_restored_after_halving_and_after_each_transition():
+    # Fig. 12 step 3: a step shortened to land in a strip does not shrink the next
+    # ones. The ball at h = 0.1 s with eps = 1e-4 m must halve to land (it falls 4 m/s * 0.1 s
+    # = 0.4 m per step near the floor), and every flight after a bounce starts again at h.
+    h = 0.1
+    ex = simulate(bb.make_system(), [1.0, 0.0], "flight", 1.0, h, 1e-4)
+    assert ex.counters["halvings"] > 0 and len(ex.transitions) >= 2
+    for seg in ex.segments:
+        if seg.t_end - seg.t_start > 3 * h:
+            # Points: the segment's start (reset image), whole steps, then the step that was
+            # halved into the strip and its guard point q.
+            np.testing.assert_allclose(np.diff(seg.t[:3]), h, rtol=1e-12)
 
 
 def still(t, x, u):

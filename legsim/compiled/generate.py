@@ -1,0 +1,229 @@
+"""The kernel's source, generated per compiled twin, and the machine code numba caches for it.
+
+A module is written per pair of module-level twin functions (field, guards, resets), holding
+the constants and functions of ``legsim.relaxed.rules`` and ``legsim.compiled.kernel`` as
+globals. A module-level global is a compile-time constant numba can inline and cache on disk,
+whereas passing the twin's functions as arguments would recompile the whole loop in every
+process (5 s). The built-in methods' stages are unrolled into straight-line code (twice as fast
+for RK4 as the loop over a tableau's arrays, which stays for other tableaux), generated from the
+same grouping of terms as the Python stepper (``methods.stepper.stage_groups``).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib
+import importlib.util
+import inspect
+import os
+import sys
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+from types import ModuleType
+from typing import Any
+
+import numba
+import numpy as np
+
+from ..methods import METHODS, Tableau, stage_groups
+from ..methods.stepper import DOT_TERMS
+from ..relaxed import rules
+from . import kernel
+
+#: Built-in methods with straight-line stage code in the kernel, by method id; the methods whose
+#: long rows the Python stepper combines by matrix products (DOP853) run the generic loop.
+UNROLLED = tuple(t for t in METHODS.values()
+                 if all(np.count_nonzero(t.A[i, :i]) < DOT_TERMS for i in range(t.stages))
+                 and np.count_nonzero(t.b) < DOT_TERMS)
+
+
+@dataclass(frozen=True)
+class Plan:
+    """A tableau as the kernel's arrays: nodes c (s,), and per row (s rows of A, then b) its
+    groups of equal weights: counts (s + 1,), weights (s + 1, G), member counts (s + 1, G) and
+    members (s + 1, G, s); b_err (2, s): the error weights and the blended low-order ones (zeros
+    where the method has none)."""
+
+    c: np.ndarray
+    n_groups: np.ndarray
+    weights: np.ndarray
+    n_members: np.ndarray
+    members: np.ndarray
+    b_err: np.ndarray
+    fsal: bool
+    stages: int
+    method_id: int
+
+
+_PLANS: dict[int, tuple[Tableau, Plan]] = {}  # by id, holding the tableau so an id is never reused
+
+
+def plan_for(tableau: Tableau) -> Plan:
+    """The tableau as the kernel's arrays (cached per tableau object)."""
+    entry = _PLANS.get(id(tableau))
+    if entry is not None and entry[0] is tableau:
+        return entry[1]
+    s = tableau.stages
+    rows = [stage_groups(tableau.A[i, :i]) if i > 0 else [] for i in range(s)] + [stage_groups(tableau.b)]
+    width = max(1, max(len(r) for r in rows))
+    n_groups = np.zeros(s + 1, dtype=np.int64)
+    weights = np.zeros((s + 1, width))
+    n_members = np.zeros((s + 1, width), dtype=np.int64)
+    members = np.zeros((s + 1, width, s), dtype=np.int64)
+    for i, row in enumerate(rows):
+        n_groups[i] = len(row)
+        for g, (w, js) in enumerate(row):
+            weights[i, g] = w
+            n_members[i, g] = len(js)
+            members[i, g, : len(js)] = js
+    b_err = np.zeros((2, s))
+    if tableau.b_err is not None:
+        b_err[0] = tableau.b_err
+    if tableau.b_err_low is not None:
+        b_err[1] = tableau.b_err_low
+    method_id = next((i for i, t in enumerate(UNROLLED) if t is tableau), -1)
+    plan = Plan(np.asarray(tableau.c, dtype=float), n_groups, weights, n_members, members, b_err,
+                bool(tableau.fsal), s, method_id)
+    _PLANS[id(tableau)] = (tableau, plan)
+    return plan
+
+
+def _sum_source(base: str, weights: np.ndarray) -> str:
+    """``base + (hk * w) * (K[j, d] + ...) + ...`` in the Python stepper's grouping and order."""
+    out = base
+    for w, js in stage_groups(weights):
+        terms = " + ".join(f"K[{j}, d]" for j in js)
+        out += f" + (hk * {w!r}) * " + (f"({terms})" if len(js) > 1 else terms)
+    return out
+
+
+def _stage_source(tableau: Tableau, indent: str) -> list[str]:
+    """Straight-line stage code of one tableau (the body of kernel._k_stages, unrolled)."""
+    lines = []
+    for i in range(1, tableau.stages):
+        lines += ["for d in range(n):", f"    XS[d] = {_sum_source('x[d]', tableau.A[i, :i])}",
+                  f"ki = _twin_field(t + {float(tableau.c[i])!r} * hk, XS, p)",
+                  "for d in range(n):", f"    K[{i}, d] = ki[d]"]
+    last = "XS[d]" if tableau.fsal else _sum_source("x[d]", tableau.b)
+    lines += ["for d in range(n):", f"    x_new[d] = {last}"]
+    return [indent + line for line in lines]
+
+
+def _unrolled_stages(indent: str) -> str:
+    lines = []
+    for method_id, tableau in enumerate(UNROLLED):
+        lines.append(f"{indent}{'if' if method_id == 0 else 'elif'} method_id == {method_id}:  # {tableau.name}")
+        lines += _stage_source(tableau, indent + "    ")
+    lines += [f"{indent}else:", f"{indent}    {kernel.STAGES_CALL}"]
+    return "\n".join(lines)
+
+
+def _constants(module: ModuleType) -> list[str]:
+    return [f"{name} = {value!r}" for name, value in vars(module).items()
+            if name.isupper() and type(value) in (int, float)]
+
+
+def _function_source(fn: Any) -> str:
+    source = inspect.getsource(fn).rstrip()
+    if fn is kernel._k_step_loop:
+        marker = source.index(kernel.STAGES_CALL)
+        indent = source[source.rindex("\n", 0, marker) + 1: marker]
+        source = source[: marker - len(indent)] + _unrolled_stages(indent) + source[marker + len(kernel.STAGES_CALL):]
+    return source
+
+
+def kernel_source(imports: list[str], cache: bool) -> str:
+    """The generated module's text: the twin's functions imported as ``_twin_*`` (``imports``),
+    then the rules' and the kernel's constants and functions, each jitted."""
+    lines = ["# Generated by legsim.compiled.generate from legsim.relaxed.rules and legsim.compiled.kernel;",
+             "# edit those, not this file.", "import math", "", "import numba", ""]
+    lines += imports
+    # The scalar rules of every step are inlined where they are called; the functions of landings
+    # and aims stay calls, which keeps the step loop small.
+    lines += ["", f"_njit = numba.njit(cache={cache}, fastmath=False, nogil=True)",
+              f"_inline = numba.njit(cache={cache}, fastmath=False, nogil=True, inline='always')", ""]
+    lines += _constants(rules) + _constants(kernel)
+    for fn in kernel.RULES + kernel.KERNEL_FUNCTIONS:
+        decorator = "@_inline" if fn in kernel.EVERY_STEP else "@_njit"
+        lines += ["", "", decorator, _function_source(fn)]
+    return "\n".join(lines) + "\n"
+
+
+def cache_dir() -> Path:
+    """Where generated kernel modules and numba's compiled code for them live:
+    ``$LEGSIM_CACHE_DIR``, else ``$XDG_CACHE_HOME/legsim/kernels`` (``~/.cache/legsim/kernels``)."""
+    env = os.environ.get("LEGSIM_CACHE_DIR")
+    if env:
+        return Path(env)
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    return Path(base) / "legsim" / "kernels"
+
+
+@numba.njit(cache=True)
+def no_resets(x, p, e):
+    """The kernel's reset for twins without compiled resets (never called: such twins hand
+    every transition to Python)."""
+    return x.copy()
+
+
+def importable(fn: Any) -> str | None:
+    """``module:qualname`` of a module-level jitted function, or None (closures, __main__)."""
+    py = getattr(fn, "py_func", None)
+    module, qualname = getattr(py, "__module__", None), getattr(py, "__qualname__", "")
+    if py is None or module in (None, "__main__") or "<" in qualname or "." in qualname:
+        return None
+    try:
+        if getattr(importlib.import_module(module), qualname) is fn:
+            return f"{module}:{qualname}"
+    except Exception:
+        return None
+    return None
+
+
+_KERNELS: dict[tuple[int, int, int], Any] = {}
+
+
+def get_kernel(field: Any, guards: Any, resets: Any) -> Any:
+    """The jitted step loop bound to a twin's field, guards and resets (``no_resets`` when it
+    has none). For twins defined at module level the kernel is generated once into
+    ``cache_dir()`` and numba caches its machine code there, so later processes load it in
+    milliseconds; other twins (closures) get a kernel compiled in this process only."""
+    key = (id(field), id(guards), id(resets))
+    found = _KERNELS.get(key)
+    if found is None:
+        names = (importable(field), importable(guards), importable(resets))
+        found = _cached_kernel(names) if None not in names else None
+        if found is None:
+            namespace: dict[str, Any] = {"_twin_field": field, "_twin_guards": guards, "_twin_resets": resets}
+            exec(compile(kernel_source([], cache=False), "<legsim kernel>", "exec"), namespace)  # noqa: S102
+            found = namespace["_k_step_loop"]
+        _KERNELS[key] = found
+    return found
+
+
+def _cached_kernel(names: tuple[str | None, ...]) -> Any:
+    imports = []
+    for alias, name in zip(("_twin_field", "_twin_guards", "_twin_resets"), names):
+        module, qualname = str(name).split(":")
+        imports.append(f"from {module} import {qualname} as {alias}")
+    text = kernel_source(imports, cache=True)
+    digest = hashlib.sha256((text + numba.__version__).encode()).hexdigest()[:20]
+    try:
+        directory = cache_dir()
+        directory.mkdir(parents=True, exist_ok=True)
+        path = directory / f"legsim_kernel_{digest}.py"
+        if not path.exists() or path.read_text() != text:
+            fd, tmp = tempfile.mkstemp(prefix=path.name, suffix=".tmp", dir=directory)
+            with os.fdopen(fd, "w") as fh:
+                fh.write(text)
+            os.replace(tmp, path)
+        spec = importlib.util.spec_from_file_location(f"legsim_kernel_{digest}", path)
+        assert spec is not None and spec.loader is not None
+        module = importlib.util.module_from_spec(spec)
+        # numba's cache finds a function's module by name when it loads compiled code.
+        sys.modules[spec.name] = module
+        spec.loader.exec_module(module)
+        return module._k_step_loop
+    except OSError:
+        return None  # no writable cache: compile in memory instead

@@ -1,0 +1,103 @@
+"""The compiled twin of a mode: numba-jitted functions computing the same field, guards and
+(optionally) resets as its Python callables, which remain the reference and serve everything
+else.
+
+* ``field(t, x, p) -> dx/dt``, shape (n,);
+* ``guards(x, p) -> values``, shape (n_guards,), in the order of the mode's outgoing transitions;
+* ``resets(x, p, e) -> x'``, optional: the reset of outgoing transition e;
+
+with ``p`` a float64 parameter array. Parameters travel as data rather than as closure constants
+so that one compilation of the kernel serves every parameter set of a model (numba treats
+closure variables as constants and would compile the kernel again for each).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from ..errors import ModelError
+from ..hybrid import HybridSystem, ModeData
+
+
+@dataclass(frozen=True)
+class CompiledMode:
+    """The compiled twin of a mode.
+
+    Attributes
+    ----------
+    field: numba-jitted ``field(t, x, p) -> (n,)``, no control.
+    guards: numba-jitted ``guards(x, p) -> (n_guards,)``, ordered like the mode's outgoing
+        transitions, >= 0 inside the domain (same values as the Python guards).
+    n_guards: number of guards (the mode's outgoing transitions).
+    params: float64 parameter array ``p`` passed to all three.
+    resets: optional numba-jitted ``resets(x, p, e) -> x'`` (the reset of outgoing transition e,
+        same values as the Python reset). With it, and when every outgoing transition returns to
+        this same mode (impacts, bounces), the kernel also crosses the strips, so a run with
+        many transitions (chattering, Zeno) stays compiled; Python then only turns the
+        recorded transitions into Execution pieces.
+    """
+
+    field: Any
+    guards: Any
+    n_guards: int
+    params: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    resets: Any = None
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "params", np.ascontiguousarray(self.params, dtype=np.float64).reshape(-1))
+        if isinstance(self.n_guards, bool) or not isinstance(self.n_guards, (int, np.integer)) or self.n_guards < 0:
+            raise ModelError(f"CompiledMode n_guards must be an integer >= 0, got {self.n_guards!r}")
+        object.__setattr__(self, "n_guards", int(self.n_guards))
+
+
+def check_twin(system_name: str, data: ModeData, t: float, x: np.ndarray, k0: np.ndarray) -> bool:
+    """The twin of ``data``'s mode must return the Python callables' shapes and values at
+    (t, x), where the Python field is k0. Returns whether the kernel may cross the mode's strips
+    itself (compiled resets, every transition back to the same mode)."""
+    twin = data.mode.compiled
+    if not isinstance(twin, CompiledMode):
+        raise ModelError(f"{system_name}: mode '{data.name}'.compiled must be a legsim.compiled.CompiledMode, "
+                         f"got {type(twin).__name__}")
+    if twin.n_guards != len(data.guards):
+        raise ModelError(f"{system_name}: compiled twin of mode '{data.name}' declares {twin.n_guards} guards, the "
+                         f"mode has {len(data.guards)} outgoing transitions")
+    f, g, images = _evaluate(system_name, data.name, twin, t, x)
+    if f.shape != (data.mode.dim,) or g.shape != (twin.n_guards,):
+        raise ModelError(f"{system_name}: compiled twin of mode '{data.name}' returned field shape {f.shape} and "
+                         f"guards shape {g.shape}, expected ({data.mode.dim},) and ({twin.n_guards},)")
+    g_py = np.array([float(guard(x)) for guard in data.guards])
+    if not (np.all(np.abs(f - k0) <= 1e-9 * (1.0 + np.abs(k0))) and np.allclose(g, g_py, rtol=1e-9, atol=1e-12)):
+        raise ModelError(f"{system_name}: compiled twin of mode '{data.name}' disagrees with the Python callables at "
+                         f"t={t}, x={x.tolist()}: field {f.tolist()} vs {k0.tolist()}, guards {g.tolist()} vs "
+                         f"{g_py.tolist()}")
+    for e, (tr, reset, image) in enumerate(zip(data.transitions, data.resets, images)):
+        expected = np.asarray(reset(x.copy()), dtype=float)
+        if image.shape != expected.shape or not np.allclose(image, expected, rtol=1e-9, atol=1e-12, equal_nan=True):
+            raise ModelError(f"{system_name}: compiled reset {e} of mode '{data.name}' disagrees with the reset of "
+                             f"transition {tr.name} at x={x.tolist()}: {image.tolist()} vs {expected.tolist()}")
+    return twin.resets is not None and all(target == data.name for target in data.targets)
+
+
+def _evaluate(system_name: str, mode: str, twin: CompiledMode, t: float,
+              x: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[np.ndarray]]:
+    xc = np.ascontiguousarray(x, dtype=float)
+    try:
+        f = np.asarray(twin.field(float(t), xc, twin.params), dtype=float)
+        g = np.asarray(twin.guards(xc, twin.params), dtype=float)
+        images = [] if twin.resets is None else [np.asarray(twin.resets(xc, twin.params, e), dtype=float)
+                                                 for e in range(twin.n_guards)]
+    except Exception as exc:
+        raise ModelError(f"{system_name}: compiled twin of mode '{mode}' failed at t={t}: "
+                         f"{type(exc).__name__}: {exc}") from exc
+    return f, g, images
+
+
+def without_compiled(system: HybridSystem) -> HybridSystem:
+    """The same system with its modes' compiled twins removed, so ``simulate`` runs the Python
+    step loop (for comparisons of the two paths). Eagerly built systems only."""
+    modes = {name: dataclasses.replace(mode, compiled=None) for name, mode in system.modes.items()}
+    return HybridSystem(modes, system.transitions, name=system.name, energy=system.energy)

@@ -1,0 +1,93 @@
+"""Explicit Runge-Kutta methods as data: a Butcher tableau and, where a method has one, its
+continuous extension (dense output)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+@dataclass(frozen=True, eq=False)
+class DenseOutput:
+    """Continuous extension (dense output) of a Runge-Kutta step of size h from (t, x):
+
+        x(t + theta h) = x + h sum_i w_i(theta) k_i,   w_i(theta) = sum_j P[i, j] theta^(j + 1),
+
+    over the step's s stages followed by m extra stages (theta in [0, 1]). Taken at one theta it
+    is itself an explicit Runge-Kutta step of size theta h, of order ``order``.
+
+    Attributes
+    ----------
+    order: order of the interpolant (local error O(h^(order + 1))).
+    P: (s + m, degree) polynomial weights.
+    c_extra: (m,) nodes of the extra stages (empty when the interpolant is free).
+    A_extra: (m, s + m) their stage weights (row i over the stages before it).
+    """
+
+    order: int
+    P: np.ndarray
+    c_extra: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    A_extra: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
+
+
+@dataclass(frozen=True)
+class Tableau:
+    """Butcher tableau of an explicit Runge-Kutta method.
+
+    Attributes
+    ----------
+    name: short name used by ``simulate(method=...)``.
+    order: order of the propagated solution.
+    c, A, b: nodes (s,), matrix (s, s) and weights (s,).
+    b_err: weights of the local error estimate (s,), or None when the method has no
+        embedded pair.
+    error_order: order of the embedded (lower-order) solution, when there is one; the step-size
+        controller's exponent is -1 / (min(order, error_order) + 1).
+    fsal: the last stage is f at the new point (First Same As Last), so the next step
+        reuses it and saves one field evaluation.
+    dense: the method's continuous extension, when it has one (``landing="dense"``).
+    b_err_low: a second, lower-order error estimate that the error norm blends with b_err as
+        Hairer's DOP853 does (``err5^2 / sqrt(err5^2 + 0.01 err3^2)``), or None.
+    """
+
+    name: str
+    order: int
+    c: np.ndarray
+    A: np.ndarray
+    b: np.ndarray
+    b_err: np.ndarray | None = None
+    error_order: int | None = None
+    fsal: bool = False
+    dense: DenseOutput | None = None
+    b_err_low: np.ndarray | None = None
+
+    @property
+    def stages(self) -> int:
+        """Number of stages s."""
+        return len(self.b)
+
+    @property
+    def embedded(self) -> bool:
+        """True when the method carries a local error estimate."""
+        return self.b_err is not None
+
+
+def tableau(name: str, order: int, c, A, b, b_hat=None, error_order: int | None = None, fsal: bool = False,
+            dense: DenseOutput | None = None, b_err_low=None) -> Tableau:
+    """A ``Tableau`` from rows of A (each as long as its stage index), with the consistency
+    checks that catch a mistyped coefficient (row sums of A equal c, weights sum to 1).
+    ``b_hat`` is the embedded solution's weights; the tableau keeps b - b_hat."""
+    c_arr = np.array(c, dtype=float)
+    s = len(c_arr)
+    A_arr = np.zeros((s, s))
+    for i, row in enumerate(A):
+        A_arr[i, : len(row)] = row
+    b_arr = np.array(b, dtype=float)
+    b_err = None if b_hat is None else b_arr - np.array(b_hat, dtype=float)
+    if not np.allclose(A_arr.sum(axis=1), c_arr, rtol=0.0, atol=1e-13):
+        raise ValueError(f"tableau {name}: the rows of A must sum to c")
+    if abs(b_arr.sum() - 1.0) > 1e-13:
+        raise ValueError(f"tableau {name}: the weights b must sum to 1")
+    low = None if b_err_low is None else np.array(b_err_low, dtype=float)
+    return Tableau(name, order, c_arr, A_arr, b_arr, b_err, error_order, fsal, dense, low)

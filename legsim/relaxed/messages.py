@@ -1,0 +1,60 @@
+"""The messages of a run's ends, built in one place for the Python loop and the compiled kernel
+alike: each names the mode, the time and the state."""
+
+from __future__ import annotations
+
+from typing import Sequence
+
+import numpy as np
+
+
+def _resolution_hint(eps: float, x: np.ndarray) -> str:
+    """A second explanation when eps is too thin for float64 near x: no step can land inside it."""
+    spacing = float(np.spacing(1.0 + float(np.max(np.abs(x)))))
+    if eps < 1e3 * spacing:
+        return f"; or eps = {eps:g} is thinner than float64 can resolve near this state (spacing {spacing:.3g}): raise eps"
+    return ""
+
+
+def halving_exhausted(mode: str, t: float, x: np.ndarray, halvings: int, transition: str, eps: float) -> str:
+    """No shortened step landed in the relaxed domain: the flow crosses the guard of
+    ``transition`` without entering its strip (or eps is below float64's resolution)."""
+    return (f"no step from t={t:.17g} in mode '{mode}' lands in the relaxed domain after {halvings} halvings: "
+            f"the flow leaves through the guard of transition {transition} without entering its strip "
+            f"(x={x.tolist()})" + _resolution_hint(eps, x))
+
+
+def non_finite_step(mode: str, t: float, x: np.ndarray, hk: float) -> str:
+    """Even the shortest trial step from (t, x) gives a non-finite state."""
+    return f"the step from t={t:.17g} in mode '{mode}' gives a non-finite state even at h={hk:.3g}: x={x.tolist()}"
+
+
+def nan_guard(mode: str, t: float, x: np.ndarray, transition: str) -> str:
+    """A guard evaluated to nan at a trial step's end (t, x)."""
+    return f"guard of transition {transition} is nan at t={t:.17g} in mode '{mode}', x={x.tolist()}"
+
+
+def non_finite_guard(mode: str, t: float, x: np.ndarray, transition: str, value: float) -> str:
+    """A guard is not finite on the state entering a mode."""
+    return f"guard of transition {transition} is {value} at t={t:.17g} in mode '{mode}', x={x.tolist()}"
+
+
+def non_finite_field(mode: str, t: float, x: np.ndarray, f: np.ndarray) -> str:
+    """The field is not finite on the state entering a mode."""
+    return f"field of mode '{mode}' is not finite at t={t:.17g}, x={x.tolist()}: f={f.tolist()}"
+
+
+def model_breakdown(reason: object, mode: str, t: float, within: float | None = None) -> str:
+    """The model left its range of validity (``reason``: its ModelBreakdown) after time t; with
+    ``within``, the flow itself leaves the range within that many seconds."""
+    if within is None:
+        return f"{reason} (mode '{mode}', after t={t:.17g})"
+    return f"{reason} (mode '{mode}', after t={t:.17g}: the flow leaves the model's range within {within:.3g} s)"
+
+
+def first_nonfinite(values: Sequence[float]) -> int | None:
+    """Index of the first value that is not finite, or None."""
+    for i, v in enumerate(values):
+        if not (v - v == 0.0):
+            return i
+    return None

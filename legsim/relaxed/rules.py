@@ -1,0 +1,233 @@
+"""The relaxed integrator's decision rules, written once.
+
+Plain functions of numbers (and, for the error norm, of sequences indexed by position) that the
+Python step loop calls and that the compiled kernel compiles with numba from this same source
+(``legsim.compiled`` copies this module's functions and constants into each kernel it
+generates). A rule changed here changes both paths; the parity tests check that they agree to
+the bit.
+
+Units: times and step sizes in s, guard values in the guard's units (the strip width eps is in
+the same units), step fractions s in [0, 1].
+"""
+
+from __future__ import annotations
+
+import math
+
+# -- step-size control (Hairer, Norsett and Wanner I, Sec. II.4; the names scipy's RK uses) ------
+#: Safety factor on the step the error estimate asks for.
+SAFETY = 0.9
+#: Least factor by which one step may shrink the next.
+MIN_FACTOR = 0.2
+#: Most factor by which one accepted step may grow the next.
+MAX_FACTOR = 5.0
+
+
+def rejected_step(hk: float, err: float, exponent: float) -> float:
+    """The retry after a step of size hk failed the error test (err > 1)."""
+    return hk * max(MIN_FACTOR, SAFETY * err ** exponent)
+
+
+def proposed_step(hk: float, err: float, exponent: float, rejected: bool) -> float:
+    """The next step after a step of size hk passed the error test with norm err; no growth
+    right after a rejection (Hairer's codes and scipy alike)."""
+    if err > 0.0:
+        proposal = hk * min(MAX_FACTOR, max(MIN_FACTOR, SAFETY * err ** exponent))
+    else:
+        proposal = MAX_FACTOR * hk
+    if rejected and proposal > hk:
+        proposal = hk
+    return proposal
+
+
+def kept_proposal(h_prop: float, proposal: float, shortened: bool, rejected: bool) -> float:
+    """The proposal carried to the next step. A step shortened only to land in the relaxed
+    domain says nothing about the step the error allows: its tiny error must not shrink the next
+    proposal (after a landing the next mode would restart near eps and creep back up)."""
+    if shortened and not rejected:
+        return max(h_prop, proposal)
+    return proposal
+
+
+# -- the step's length ------------------------------------------------------------------------
+#: Finished once t_final is this many float spacings away (relative to |t_final|): an absolute
+#: test, since a relative one would call a run near t = 1e15 finished before its first step.
+FINISH_SPACINGS = 8.0
+
+
+def finish_tolerance(t_final: float) -> float:
+    """How close to t_final (s) a run counts as finished."""
+    return FINISH_SPACINGS * 2.220446049250313e-16 * abs(t_final)
+
+
+def trial_length(h_prop: float, h_max: float, remaining: float) -> float:
+    """The first trial step from the proposal, capped by h and by what remains to t_final."""
+    hk = h_prop if h_prop < h_max else h_max
+    return remaining if hk >= remaining else hk
+
+
+#: Most shortenings of one trial step for leaving the model's range (ModelBreakdown) before the
+#: run ends: a long trial step through the ground needs a few; more means the boundary is at hand.
+BREAKDOWN_HALVINGS = 10
+
+
+def shortening_exhausted(shortened: int, max_halvings: int, t: float, hk: float, broke: int) -> bool:
+    """True when a step shortened ``shortened`` times (``broke`` of them for leaving the
+    model's range) may not be shortened again: the budget is spent, or t + hk no longer moves."""
+    return shortened > max_halvings or t + hk <= t or broke > BREAKDOWN_HALVINGS
+
+
+#: Aimed retries of one step before falling back to halving.
+MAX_AIMS = 3
+
+
+def aimed_step(hk: float, s: float, converged: bool) -> float:
+    """The retry aimed at the strip's middle, found at fraction s of the failed step hk; half
+    the step when the search failed or fell outside the step."""
+    if not converged or not (0.0 < s < 1.0):
+        return 0.5 * hk
+    return s * hk
+
+
+# -- where a step's interpolant meets a guard -------------------------------------------------
+# A bracketed search for the root of g(s) on [0, 1], g(0) = g0 >= 0 > g1 = g(1): Illinois regula
+# falsi safeguarded as in Brent's method. The caller drives it, so that the Python loop (guard
+# callables) and the kernel (compiled guards) run the same iterates:
+#
+#     state = crossing_start(g0, g1, tol)
+#     while state[STATUS] == SEARCHING:
+#         s = crossing_point(state)
+#         state = crossing_update(state, s, g(s))
+#     s, converged = state[RESULT], state[STATUS] == CONVERGED
+#
+# The point returned is the end of the final bracket *past* the guard (-tol <= g <= 0): a strip
+# point on the domain side, however close, would put the reset image past a complementary guard
+# (leave through x = 1, come back through x = 1) and make the next mode cross again at once.
+# When the guard is discontinuous along the interpolant (no root in the bracket), the domain-side
+# end is returned, not converged: it is never past the guard.
+
+#: Positions in the search state (a tuple of floats).
+LO, HI, G_LO, G_HI, G_HI_TRUE, SIDE, WIDTH, STALLED, TOL, ITERATION, STATUS, RESULT = range(12)
+SEARCHING = 0.0
+CONVERGED = 1.0
+NOT_CONVERGED = 2.0
+#: Iterates without the bracket halving before the search bisects (so that a kink or a jump
+#: cannot stall Illinois' steps).
+STALL = 3.0
+#: Closest an iterate comes to an end of its bracket (step fractions): a few float spacings at 1,
+#: so that an end already at the root, to rounding, is straddled at once instead of approached
+#: from one side forever.
+MIN_STEP = 4e-16
+#: Bracket width at which the search stops.
+COLLAPSED = 4e-16
+#: Most guard evaluations of one search.
+MAX_ITERATIONS = 200.0
+#: The guard's own rounding, relative to its change over the step: a finer tolerance would only
+#: be met by collapsing the bracket by bisection.
+GUARD_ROUNDING = 1e-15
+
+
+def crossing_start(g0: float, g1: float, tol: float):
+    """The search state for a guard going from g0 >= 0 (s = 0) to g1 < 0 (s = 1), to be located
+    within ``tol`` guard units (raised to the guard's own rounding)."""
+    if g0 <= 0.0:
+        return (0.0, 1.0, g0, g1, g1, 0.0, 1.0, 0.0, tol, 0.0, CONVERGED, 0.0)
+    floor = GUARD_ROUNDING * (g0 - g1)
+    if floor > tol:
+        tol = floor
+    status = CONVERGED if -g1 <= tol else SEARCHING
+    return (0.0, 1.0, g0, g1, g1, 0.0, 1.0, 0.0, tol, 0.0, status, 1.0)
+
+
+def crossing_point(state) -> float:
+    """The next step fraction at which to evaluate the guard."""
+    lo = state[LO]
+    hi = state[HI]
+    if state[STALLED] >= STALL:
+        s = 0.5 * (lo + hi)
+    else:
+        s = lo + (hi - lo) * state[G_LO] / (state[G_LO] - state[G_HI])
+        if not (lo < s < hi):
+            s = 0.5 * (lo + hi)
+    if hi - lo > 2.0 * MIN_STEP:
+        if s - lo < MIN_STEP:
+            s = lo + MIN_STEP
+        elif hi - s < MIN_STEP:
+            s = hi - MIN_STEP
+    return s
+
+
+def crossing_update(state, s: float, g: float):
+    """The search state after the guard took the value g at fraction s."""
+    lo, hi, glo, ghi, g_hi, side, width, stalled, tol, it, _, _ = state
+    it += 1.0
+    if not math.isfinite(g):
+        return (lo, hi, glo, ghi, g_hi, side, width, stalled, tol, it, NOT_CONVERGED, lo)
+    if g == 0.0:
+        return (lo, hi, glo, ghi, g_hi, side, width, stalled, tol, it, CONVERGED, s)
+    if g > 0.0:
+        lo = s
+        glo = g
+        if side == 1.0:
+            ghi *= 0.5
+        side = 1.0
+    else:
+        hi = s
+        ghi = g
+        g_hi = g
+        if -g <= tol:
+            return (lo, hi, glo, ghi, g_hi, side, width, stalled, tol, it, CONVERGED, hi)
+        if side == -1.0:
+            glo *= 0.5
+        side = -1.0
+    if hi - lo <= 0.5 * width:
+        width = hi - lo
+        stalled = 0.0
+    else:
+        stalled += 1.0
+    status = SEARCHING
+    result = 0.0
+    if hi - lo <= COLLAPSED or it >= MAX_ITERATIONS:
+        # A collapsed bracket is a root up to rounding unless the guard jumps there by more than
+        # a millionth of what the caller tolerates as a strip (tol is a millionth of that again).
+        if hi - lo <= COLLAPSED and -g_hi <= 1e6 * tol:
+            status, result = CONVERGED, hi
+        else:
+            status, result = NOT_CONVERGED, lo
+    return (lo, hi, glo, ghi, g_hi, side, width, stalled, tol, it, status, result)
+
+
+# -- the step's cubic Hermite interpolant -------------------------------------------------------
+def hermite_weights(s, dt):
+    """Weights (w0, w1, w2, w3) of the cubic Hermite interpolant at fraction s of a step of
+    length dt: x(s) = w0 x0 + w1 d0 + w2 x1 + w3 d1 with d = dx/dt at the ends. s and dt may be
+    numbers or arrays of equal shape."""
+    s2 = s * s
+    s3 = s2 * s
+    return (2 * s3 - 3 * s2 + 1, (s3 - 2 * s2 + s) * dt, -2 * s3 + 3 * s2, (s3 - s2) * dt)
+
+
+def hermite_slope_weights(s):
+    """Weights (v0, v1, v2, v3) of the interpolant's derivative at fraction s:
+    dx/dt(s) = v0 x0 / dt + v1 d0 + v2 x1 / dt + v3 d1."""
+    s2 = s * s
+    return (6 * s2 - 6 * s, 3 * s2 - 4 * s + 1, -6 * s2 + 6 * s, 3 * s2 - 2 * s)
+
+
+# -- the strip -----------------------------------------------------------------------------------
+#: A guard within this share of eps below zero at a mode's entry counts as *on* the guard, not
+#: past it: the first step decides (a constrained mode released onto the guard it lives on, an
+#: identity reset between complementary guards). If the flow leaves, that step lands in the strip
+#: and the crossing is found at its start; if it goes inward, no spurious transition happens.
+ON_GUARD = 1e-9
+
+
+def entered_in_strip(gmin: float, eps: float) -> bool:
+    """True when a state entering a mode with least guard value gmin must cross at once."""
+    return gmin < -ON_GUARD * eps
+
+
+def strip_exit_time(t_land: float, eps: float, tau: float) -> float:
+    """When the held state leaves the strip (paper 000 Fig. 12, step 12): the landing step
+    ended at depth tau inside it, and the strip coordinate grows at unit rate to eps."""
+    return t_land + (eps - tau)

@@ -1,0 +1,147 @@
+"""One run's workspace: its parts, counters and the pieces of the execution being built, and
+the state of the current mode visit. The HybridSystem itself is never modified (the Pinocchio
+model/data split: the system is the immutable model, this is its scratch data)."""
+
+from __future__ import annotations
+
+import time
+from typing import Any, Callable
+
+import numpy as np
+
+from ..execution import Execution, SegmentBuffer, Status
+from ..hybrid import HybridSystem, ModeData
+from ..methods import Tableau, make_stepper
+from .outcomes import Ended
+
+ProgressFn = Callable[[float, float, float], None]
+Control = Callable[[float, np.ndarray], Any]
+
+#: Wall-clock seconds between progress reports.
+PROGRESS_INTERVAL = 0.2
+#: Accepted steps between looks at the clock (a power of 2).
+PROGRESS_STEPS = 64
+
+
+class ModeVisit:
+    """The flow in one mode between two transitions: the mode's data, its field and guards as
+    the loop calls them, the segment being stored, and the current point (t, x) with
+    k0 = f(t, x) and, for dense landing, the guards there (``g_here``)."""
+
+    __slots__ = ("data", "name", "field", "guards", "single_guard", "buf", "t", "x", "k0", "g_entry", "g_last")
+
+    def __init__(self, data: ModeData, guards: tuple[Callable[[float, np.ndarray], Any], ...], t: float,
+                 x: np.ndarray) -> None:
+        self.data = data
+        self.name = data.name
+        self.field = data.mode.field
+        self.guards = guards
+        self.single_guard = guards[0] if len(guards) == 1 else None
+        self.buf = SegmentBuffer(data.name, data.mode.dim)
+        self.t = t
+        self.x = x
+        self.k0: np.ndarray = np.zeros(0)
+        self.g_entry: list[float] = []
+        self.g_last: Any = None  # the last accepted trial step, whose guards are those here
+
+    @property
+    def g_here(self) -> list[float]:
+        """The guards at the current point (t, x)."""
+        return self.g_entry if self.g_last is None else self.g_last.guard_values()
+
+    def guard_values(self, t: float, x: np.ndarray) -> list[float]:
+        """Every guard at (t, x), in the mode's transition order."""
+        return [float(g(t, x)) for g in self.guards]
+
+
+class Run:
+    """The parts of one run (method, step-size rule, landing rule), its settings, counters and
+    the segments, strips and transitions of the execution so far."""
+
+    def __init__(self, system: HybridSystem, tableau: Tableau, step_size: Any, landing: Any, eps: float,
+                 control: Control | None, *, max_transitions: int, max_halvings: int,
+                 progress: ProgressFn | None, t0: float, t_final: float) -> None:
+        self.system = system
+        self.tableau = tableau
+        self.stepper = make_stepper(tableau)
+        #: Field evaluations of a step beyond k0 = f(t, x).
+        self.evals_per_step = tableau.stages - 1
+        self.step_size = step_size
+        self.landing = landing
+        self.eps = eps
+        self.control = control
+        self.max_transitions = max_transitions
+        self.max_halvings = max_halvings
+        self.t0, self.t_final = t0, t_final
+        self.steps = self.halvings = self.error_rejections = 0
+        self.field_evals = self.guard_evals = self.reset_evals = 0
+        self.strip_time = 0.0
+        self.segments: list = []
+        self.strips: list = []
+        self.transitions: list = []
+        self.state_names: dict[str, tuple[str, ...]] = {}
+        self.checked_modes: set[str] = set()
+        self._guard_cache: dict[str, tuple] = {}
+        #: Per-run caches of parts that keep state per mode (the compiled path's workspaces).
+        self.scratch: dict[str, Any] = {}
+        self._progress = progress
+        self._wall0 = self._last_report = time.perf_counter()
+
+    # -- evaluations ---------------------------------------------------------------------------
+    def f(self, field: Callable[..., np.ndarray], t: float, x: np.ndarray) -> np.ndarray:
+        """The field at (t, x) with the control there, counted."""
+        self.field_evals += 1
+        control = self.control
+        return np.asarray(field(t, x, None if control is None else control(t, x)), dtype=float)
+
+    def guard_fns(self, data: ModeData) -> tuple[Callable[[float, np.ndarray], Any], ...]:
+        """The mode's guards as g(t, x), with the control evaluated for ``t,x,u`` guards; built
+        once per mode and run."""
+        fns = self._guard_cache.get(data.name)
+        if fns is None:
+            fns = self._guard_cache[data.name] = tuple(self._guard_fn(tr) for tr in data.transitions)
+        return fns
+
+    def _guard_fn(self, transition) -> Callable[[float, np.ndarray], Any]:
+        g, control = transition.guard, self.control
+        if transition.guard_args == "x":
+            return lambda t, x: g(x)
+        if control is None:
+            return lambda t, x: g(t, x, None)
+        return lambda t, x: g(t, x, control(t, x))
+
+    # -- bookkeeping ---------------------------------------------------------------------------
+    def end_visit(self, visit: ModeVisit, ended: Ended) -> Ended:
+        """Store the visit's segment and end the run there."""
+        self.segments.append(visit.buf.freeze())
+        return ended
+
+    @property
+    def has_progress(self) -> bool:
+        """True when a progress callback wants reports."""
+        return self._progress is not None
+
+    def tick(self, t: float) -> None:
+        """Report progress when PROGRESS_INTERVAL has passed since the last report."""
+        if self._progress is None:
+            return
+        now = time.perf_counter()
+        if now - self._last_report > PROGRESS_INTERVAL:
+            self._last_report = now
+            self._progress(t, self.t0, self.t_final)
+
+    def execution(self, ended: Ended) -> Execution:
+        """The execution computed, ending as ``ended`` says."""
+        counters = {
+            "steps": self.steps, "halvings": self.halvings, "error_rejections": self.error_rejections,
+            "field_evals": self.field_evals, "guard_evals": self.guard_evals, "reset_evals": self.reset_evals,
+            "transitions": len(self.transitions), "strip_time": self.strip_time,
+            "wall_time_s": time.perf_counter() - self._wall0,
+        }
+        settings = {"h": self.step_size.h_max, "eps": self.eps, "method": self.tableau.name,
+                    **self.step_size.settings(), "landing": self.landing.name,
+                    "max_transitions": self.max_transitions, "control": self.control is not None}
+        return Execution(status=Status(ended.status), message=ended.message, segments=self.segments,
+                         strips=self.strips, transitions=self.transitions, t0=self.t0, t_end=ended.t,
+                         t_final=self.t_final, counters=counters, settings=settings, state_names=self.state_names,
+                         system_name=self.system.name, final_in_strip=ended.in_strip)

@@ -1,0 +1,188 @@
+"""``simulate``: check the arguments, turn them into the integrator's parts, run the loop."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from ..arguments import count, positive
+from ..errors import LegsimError, ModelError, SimulationError
+from ..execution import Execution
+from ..hybrid import HybridSystem
+from ..methods import Tableau, get_method
+from .integrate import integrate
+from .landing import Halve, landing_rule
+from .run import Control, ProgressFn, Run
+from .step_size import ErrorControl, FixedStep
+
+#: Landing rules of ``simulate(landing=...)``.
+LANDINGS = ("halve", "aim", "dense")
+
+
+def simulate(
+    system: HybridSystem,
+    x0: Any,
+    mode: str,
+    t_final: float,
+    h: float,
+    eps: float,
+    method: str | Tableau = "rk4",
+    control: Control | None = None,
+    *,
+    t0: float = 0.0,
+    max_transitions: int = 100_000,
+    max_halvings: int = 64,
+    progress: ProgressFn | None = None,
+    rtol: float | None = None,
+    atol: float | None = None,
+    landing: str | Halve = "halve",
+    step_size: FixedStep | ErrorControl | None = None,
+) -> Execution:
+    """Simulate ``system`` from ``(mode, x0)`` at time ``t0`` to ``t_final`` with the relaxed
+    hybrid integrator.
+
+    Parameters
+    ----------
+    system: the hybrid system.
+    x0: initial state, shape (n_mode,); it must lie in the relaxed domain of ``mode``.
+    mode: initial mode name.
+    t_final: end time (s), > t0.
+    h: nominal step size (s), > 0; each step starts from h and is shortened as needed. With
+        error control, the initial and largest step.
+    eps: strip width (guard units), > 0.
+    method: a Runge-Kutta method name (``euler``, ``rk2``, ``heun``, ``rk4``, ``bs32``,
+        ``dopri5``, ``dop853``) or a ``Tableau``.
+    control: optional ``control(t, x) -> u``, evaluated at every stage; u is passed to the
+        fields as their third argument (None without control).
+    t0: start time (s).
+    max_transitions: transition budget; reaching it ends the run with status
+        ``max_transitions``.
+    max_halvings: most halvings of one step before the run ends with ``halving_exhausted``.
+    progress: optional ``progress(t, t0, t_final)`` called about five times a second.
+    rtol, atol: with either given, the step size inside modes is error-controlled by the
+        method's embedded pair (``bs32``, ``dopri5`` or ``dop853``), h being the initial and
+        largest step; the guards keep their relaxed treatment (a step that would leave the
+        relaxed domain is shortened until it lands inside it). Without them every step starts
+        from h. One given alone sets the other to a thousandth of it.
+    landing: how a step that would leave the relaxed domain is shortened: ``"halve"`` (paper 000
+        Fig. 12, step 3); ``"aim"``, which retries with the step length at which the failed
+        step's own interpolant reaches the middle of the strip (at most three aims, then
+        halving); or ``"dense"`` (methods with a continuous extension: bs32, dopri5, dop853, a
+        ``Tableau`` with ``dense``), which lands on the failed step's own dense output once it
+        passes the error test, so no step is retried (aiming as a fallback). Or a landing rule
+        object (``legsim.relaxed.landing``).
+    step_size: a step-size rule object (``legsim.relaxed.step_size.FixedStep`` or
+        ``ErrorControl``) instead of h's fixed steps or rtol/atol; h still gives the largest step.
+
+    Returns
+    -------
+    Execution
+        with ``status`` one of ``finished``, ``max_transitions``, ``halving_exhausted``,
+        ``non_finite``, ``reset_outside_domain``, ``model_breakdown`` and a message naming mode,
+        time and state.
+
+    Raises
+    ------
+    SimulationError
+        for invalid arguments (h, eps, t_final, x0, mode, method, control, landing, tolerances).
+    ModelError
+        when the model's field, guard or reset misbehaves on the initial state.
+    """
+    if not isinstance(system, HybridSystem):
+        raise SimulationError(f"system must be a legsim.HybridSystem, got {type(system).__name__}")
+    h, eps = positive("h", h), positive("eps", eps)
+    t0, t_final = _times(t0, t_final, h)
+    tableau = get_method(method)
+    if control is not None and not callable(control):
+        raise SimulationError(f"control must be callable control(t, x) -> u or None, got {type(control).__name__}")
+    max_transitions, max_halvings = count("max_transitions", max_transitions, 0), count("max_halvings", max_halvings, 1)
+    x = _initial_state(system, mode, x0, t0, eps, control)
+    rule = step_size if step_size is not None else step_size_rule(tableau, h, rtol, atol)
+    if isinstance(landing, str) and landing not in LANDINGS:
+        raise SimulationError(f"landing must be one of {', '.join(map(repr, LANDINGS))}, got {landing!r}")
+    parts = landing_rule(landing, tableau) if isinstance(landing, str) else landing
+    run = Run(system, tableau, rule, parts, eps, control, max_transitions=max_transitions,
+              max_halvings=max_halvings, progress=progress, t0=t0, t_final=t_final)
+    run.checked_modes.add(mode)  # _initial_state's check already evaluated this mode's field
+    return integrate(run, mode, x, t0)
+
+
+def step_size_rule(tableau: Tableau, h: float, rtol: float | None, atol: float | None) -> FixedStep | ErrorControl:
+    """Fixed steps of h, or error control when rtol or atol is given (the other then a
+    thousandth of it)."""
+    if rtol is None and atol is None:
+        return FixedStep(h)
+    if not tableau.embedded:
+        raise SimulationError(f"rtol/atol need a method with an embedded error estimate (bs32, dopri5, dop853), "
+                              f"got '{tableau.name}'")
+    rtol = positive("rtol", rtol) if rtol is not None else None
+    atol = positive("atol", atol) if atol is not None else None
+    if rtol is None:
+        rtol = 1e-3 * atol
+    if atol is None:
+        atol = 1e-3 * rtol
+    return ErrorControl(tableau, h, rtol, atol)
+
+
+def _number(value: Any) -> bool:
+    return not isinstance(value, bool) and isinstance(value, (int, float, np.floating, np.integer))
+
+
+def _times(t0: Any, t_final: Any, h: float) -> tuple[float, float]:
+    if not _number(t0) or not math.isfinite(t0):
+        raise SimulationError(f"t0 must be a finite number, got {t0!r}")
+    if not _number(t_final):
+        raise SimulationError(f"t_final must be a number, got {type(t_final).__name__} {t_final!r}")
+    t0, t_final = float(t0), float(t_final)
+    if not math.isfinite(t_final) or t_final <= t0:
+        raise SimulationError(f"t_final must be finite and > t0 = {t0}, got {t_final}")
+    scale = max(abs(t0), abs(t_final))
+    if scale + h == scale:
+        raise SimulationError(
+            f"h = {h:g} s is below the time resolution at t = {scale:g} s (float64 times are "
+            f"{float(np.spacing(scale)):.3g} s apart there): no step could advance time; shift t0 towards 0 or raise h")
+    return t0, t_final
+
+
+def _initial_state(system: HybridSystem, mode: Any, x0: Any, t0: float, eps: float,
+                   control: Control | None) -> np.ndarray:
+    """x0 as a float64 vector of the mode's dimension, finite and in the relaxed domain, with
+    the mode's field, guards and resets evaluated once on it."""
+    if not isinstance(mode, str) or not _is_mode(system, mode):
+        raise SimulationError(f"unknown initial mode {mode!r}; modes: {sorted(system.modes)}")
+    dim = system.mode(mode).dim
+    try:
+        x = np.array(x0, dtype=float).reshape(-1) if np.ndim(x0) <= 1 else None
+    except (TypeError, ValueError) as exc:
+        raise SimulationError(f"x0 must be a numeric vector of length {dim} for mode '{mode}': {exc}") from exc
+    if x is None or x.shape != (dim,):
+        raise SimulationError(f"x0 has shape {np.shape(x0)}, expected ({dim},) for mode '{mode}' "
+                              f"with coordinates {system.state_names(mode)}")
+    if not np.all(np.isfinite(x)):
+        raise SimulationError(f"x0 must be finite, got {x} in mode '{mode}'")
+    try:
+        u0 = None if control is None else control(t0, x)
+    except LegsimError:
+        raise
+    except Exception as exc:
+        raise SimulationError(f"control(t0, x0) failed at t0={t0}: {type(exc).__name__}: {exc}") from exc
+    system.check_state(mode, x, t=t0, u=u0, label="x0")
+    gvals = system.guard_values(mode, x, t0, u0)
+    if gvals.size and gvals.min() < -eps:
+        worst = int(np.argmin(gvals))
+        raise SimulationError(
+            f"x0 lies past the guard of transition {system.outgoing(mode)[worst].name} by "
+            f"{-gvals[worst]:.3g} > eps = {eps:g} (guard units); start inside the domain of '{mode}'")
+    return x
+
+
+def _is_mode(system: HybridSystem, mode: str) -> bool:
+    try:
+        system.mode(mode)
+    except ModelError:
+        return False
+    return True
+
+

@@ -1,0 +1,78 @@
+"""The wheel as a user installs it: only the ``legsim`` name in site-packages, the bundled
+scenes found from any directory, and a local folder called ``robots/`` shadowing nothing.
+
+The wheel is built from this checkout and installed with ``pip --target`` into a temporary
+folder. It runs with ``python -S`` (no site processing, so the checkout's editable install is
+not seen), its dependencies taken from this environment's site-packages minus everything of
+legsim's own."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import sysconfig
+import zipfile
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+SITE = Path(sysconfig.get_paths()["purelib"])
+
+LAUNCHER = """
+import runpy, sys
+import cmeel_pth  # what cmeel.pth does at startup: put Pinocchio's prefix on the path
+sys.argv = ["legsim"] + sys.argv[1:]
+runpy.run_module("legsim", run_name="__main__")
+"""
+
+
+@pytest.fixture(scope="module")
+def installed(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("wheel")
+    subprocess.run([sys.executable, "-m", "pip", "wheel", "--quiet", "--no-deps", "-w", str(tmp / "dist"), str(ROOT)],
+                   check=True, capture_output=True)
+    wheel = next((tmp / "dist").glob("legsim-*.whl"))
+    subprocess.run([sys.executable, "-m", "pip", "install", "--quiet", "--no-deps", "--target", str(tmp / "site"),
+                    str(wheel)], check=True, capture_output=True)
+    deps = tmp / "deps"
+    deps.mkdir()
+    for entry in SITE.iterdir():
+        if not (entry.name.startswith(("legsim", "__editable__")) or entry.suffix == ".pth"):
+            (deps / entry.name).symlink_to(entry)
+    (tmp / "launch.py").write_text(LAUNCHER)
+    work = tmp / "empty"
+    (work / "robots").mkdir(parents=True)
+    (work / "robots" / "__init__.py").write_text("raise ImportError('a user folder was imported')\n")
+    return wheel, tmp, work
+
+
+def run(installed, *args: str) -> subprocess.CompletedProcess:
+    _, tmp, work = installed
+    env = {**os.environ, "PYTHONPATH": f"{tmp / 'site'}{os.pathsep}{tmp / 'deps'}"}
+    env.pop("LEGSIM_SCENE_PATH", None)
+    return subprocess.run([sys.executable, "-S", str(tmp / "launch.py"), *args], cwd=work, env=env,
+                          capture_output=True, text=True, timeout=300)
+
+
+def test_the_wheel_installs_only_the_legsim_name(installed):
+    wheel, _, _ = installed
+    with zipfile.ZipFile(wheel) as archive:
+        tops = {name.split("/")[0] for name in archive.namelist()}
+        scenes = [name for name in archive.namelist() if name.startswith("legsim/scenarios/") and name.endswith(".toml")]
+    assert tops == {"legsim", wheel.name.split("-")[0] + "-" + wheel.name.split("-")[1] + ".dist-info"}
+    assert "legsim/scenarios/pronk.toml" in scenes and len(scenes) == len(list((ROOT / "scenarios").glob("*.toml")))
+
+
+def test_an_installed_legsim_lists_and_runs_the_bundled_scenes_from_any_directory(installed):
+    listing = run(installed, "scenes")
+    assert listing.returncode == 0, listing.stderr
+    for name in (p.stem for p in (ROOT / "scenarios").glob("*.toml")):
+        assert name in listing.stdout
+    result = run(installed, "run", "pronk", "--json")
+    assert result.returncode == 0, result.stderr
+    summary = json.loads(result.stdout)
+    assert summary["status"] == "finished" and summary["scene"] == "pronk"
+    assert str(installed[1] / "site") in summary["scene_file"]

@@ -1,0 +1,74 @@
+"""The decision rules shared by the Python loop and the compiled kernel, on closed forms."""
+
+import math
+
+import pytest
+
+from legsim.relaxed import crossing_on_step, rules
+
+
+def test_the_crossing_of_a_smooth_guard_is_found_to_the_tolerance_past_the_guard():
+    # g(s) = 1 - 4 s^2 crosses at s = 1/2; the point returned is on the guard's far side.
+    s, evals, converged = crossing_on_step(lambda s: 1.0 - 4.0 * s * s, 1.0, -3.0, 1e-12)
+    assert converged and s >= 0.5 and 1.0 - 4.0 * s * s >= -1e-12 and s - 0.5 < 1e-12
+    assert evals < 15
+
+
+def test_a_jump_is_bracketed_and_its_domain_side_returned_unconverged():
+    s, _, converged = crossing_on_step(lambda s: 1.0 if s < 0.3 else -1.0, 1.0, -1.0, 1e-12)
+    assert not converged and s < 0.3 and 0.3 - s < 1e-15
+
+
+def test_an_end_already_at_the_root_is_straddled_at_once():
+    # The guard is ~0 at s = 1 (to rounding): the search must not crawl towards it.
+    s, evals, converged = crossing_on_step(lambda s: 1e-16 * (1.0 - s) - 1e-30, 1e-16, -1e-30, 0.0)
+    assert converged and evals < 60
+
+
+def test_trivial_brackets_need_no_evaluation():
+    assert crossing_on_step(lambda s: math.nan, 0.0, -1.0, 1e-9) == (0.0, 0, True)
+    assert crossing_on_step(lambda s: math.nan, 1.0, -1e-12, 1e-9) == (1.0, 0, True)
+
+
+def test_a_nan_inside_the_bracket_ends_the_search_on_the_domain_side():
+    s, evals, converged = crossing_on_step(lambda s: math.nan, 1.0, -1.0, 1e-9)
+    assert (s, evals, converged) == (0.0, 1, False)
+
+
+@pytest.mark.parametrize("err", [0.5, 1e-9, 0.0])
+def test_accepted_steps_grow_by_at_most_max_factor_and_never_after_a_rejection(err):
+    grown = rules.proposed_step(0.1, err, -0.2, False)
+    assert grown <= rules.MAX_FACTOR * 0.1 + 1e-15
+    assert rules.proposed_step(0.1, err, -0.2, True) <= 0.1
+
+
+def test_a_rejected_step_shrinks_by_the_safety_rule_within_bounds():
+    assert rules.rejected_step(1.0, 2.0 ** 5, -0.2) == pytest.approx(rules.SAFETY * 0.5)
+    assert rules.rejected_step(1.0, 1e30, -0.2) == rules.MIN_FACTOR
+
+
+def test_a_shortened_landing_keeps_the_larger_proposal():
+    assert rules.kept_proposal(0.1, 1e-6, True, False) == 0.1
+    assert rules.kept_proposal(0.1, 1e-6, True, True) == 1e-6
+    assert rules.kept_proposal(0.1, 0.2, False, False) == 0.2
+
+
+def test_the_aim_falls_back_to_halving_outside_the_step():
+    assert rules.aimed_step(0.2, 0.25, True) == 0.05
+    assert rules.aimed_step(0.2, 1.0, True) == 0.1
+    assert rules.aimed_step(0.2, 0.25, False) == 0.1
+
+
+def test_hermite_weights_reproduce_a_cubic_exactly():
+    # x(t) = t^3 on [1, 3]: ends 1, 27, slopes 3, 27.
+    for s in (0.0, 0.3, 0.5, 1.0):
+        w0, w1, w2, w3 = rules.hermite_weights(s, 2.0)
+        assert w0 * 1.0 + w1 * 3.0 + w2 * 27.0 + w3 * 27.0 == pytest.approx((1.0 + 2.0 * s) ** 3, rel=1e-14)
+        v0, v1, v2, v3 = rules.hermite_slope_weights(s)
+        assert v0 * 1.0 / 2.0 + v1 * 3.0 + v2 * 27.0 / 2.0 + v3 * 27.0 == pytest.approx(3 * (1.0 + 2.0 * s) ** 2,
+                                                                                        rel=1e-14)
+
+
+def test_the_strip_is_left_after_eps_minus_tau():
+    assert rules.strip_exit_time(2.0, 1e-3, 4e-4) == pytest.approx(2.0006, abs=1e-15)
+    assert rules.entered_in_strip(-1e-9, 1.0) is False and rules.entered_in_strip(-2e-9, 1.0) is True
