@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import math
 
-from ..methods.stepper import error_norm
+from ..methods.stepper import error_scale, scaled_norm
 from ..relaxed.rules import (CONVERGED, MAX_AIMS, RESULT, SEARCHING, STATUS, aimed_step, crossing_point,
                              crossing_start, crossing_update, finish_tolerance, hermite_slope_weights, hermite_weights,
                              kept_proposal, proposed_step, rejected_step, shortening_exhausted, strip_exit_time,
@@ -126,28 +126,6 @@ def _k_crossing(p, e, shift, x0, d0, x1, d1, dt, g0, g1, tol, work):
         state = crossing_update(state, s, _twin_guards(work, p)[e] + shift)
         evals += 1
     return state[RESULT], evals, state[STATUS] == CONVERGED
-
-
-def _k_error(b_err, hk, K, x, x_new, err, err_low, rtol, atol):
-    # The local error estimate in stage order (methods.stepper.error_estimator), then its norm.
-    blended = False
-    for j in range(b_err.shape[1]):
-        if b_err[1, j] != 0.0:
-            blended = True
-    for d in range(x.shape[0]):
-        acc = 0.0
-        started = False
-        for j in range(b_err.shape[1]):
-            if b_err[0, j] != 0.0:
-                acc = acc + b_err[0, j] * K[j, d] if started else b_err[0, j] * K[j, d]
-                started = True
-        err[d] = hk * acc
-        if blended:
-            low = 0.0
-            for j in range(b_err.shape[1]):
-                low += b_err[1, j] * K[j, d]
-            err_low[d] = hk * low
-    return error_norm(err, err_low, x, x_new, rtol, atol, blended)
 
 
 def _k_aim(p, n_guards, x, K, x_new, k1, gv, work, t, hk, eps, fsal, s_stages):
@@ -278,7 +256,7 @@ def _k_store(T, X, DX, size, t, x, dx):
 
 
 def _k_step_loop(p, n_guards, c, n_groups, weights, n_members, members, b_err, fsal,
-                 x, K, XS, x_new, k1, gv, work, err, err_low, q, dq, T, X, DX, fs, iv, cf, ci,
+                 x, K, XS, x_new, k1, gv, work, q, dq, T, X, DX, fs, iv, cf, ci,
                  r_e, r_f, r_q, r_after, seg_end):
     """The step loop of relaxed.integrate.run_visit (see the module docstring for the arrays);
     in/out: x, K[0] (= k0), fs[F_T] = t, fs[F_HPROP] = h_prop, iv[I_SIZE] = buffer size.
@@ -295,6 +273,10 @@ def _k_step_loop(p, n_guards, c, n_groups, weights, n_members, members, b_err, f
     in_kernel, budget, method_id = ci[4] != 0, ci[5], ci[6]  # noqa: F841 - method_id: read by the unrolled stages
     s_stages = c.shape[0]
     n = x.shape[0]
+    blended = False
+    for j in range(s_stages):
+        if b_err[1, j] != 0.0:
+            blended = True
     finish_tol = finish_tolerance(t_final)
     t, h_prop, size = fs[F_T], fs[F_HPROP], iv[I_SIZE]
     steps = halvings = rejections = field_evals = guard_evals = n_rec = 0
@@ -343,7 +325,26 @@ def _k_step_loop(p, n_guards, c, n_groups, weights, n_members, members, b_err, f
                         gmin = math.nan
                 if gmin >= -eps:
                     if adaptive:
-                        error = _k_error(b_err, hk, K, x, x_new, err, err_low, rtol, atol)
+                        # The estimate in stage order (methods.stepper.error_estimator) and its norm.
+                        high = 0.0
+                        low = 0.0
+                        for d in range(n):
+                            acc = 0.0
+                            acc_low = 0.0
+                            started = False
+                            for j in range(s_stages):
+                                if b_err[0, j] != 0.0:
+                                    acc = acc + b_err[0, j] * K[j, d] if started else b_err[0, j] * K[j, d]
+                                    started = True
+                                if blended:
+                                    acc_low += b_err[1, j] * K[j, d]
+                            scale = error_scale(x[d], x_new[d], rtol, atol)
+                            r = (hk * acc) / scale
+                            high += r * r
+                            if blended:
+                                r_low = (hk * acc_low) / scale
+                                low += r_low * r_low
+                        error = scaled_norm(high, low, n, blended)
                         if error > 1.0:
                             rejections += 1
                             rejected = True
@@ -443,13 +444,14 @@ def _k_first_nan(values, n):
 
 #: The kernel's functions, in the order the generated module defines them.
 KERNEL_FUNCTIONS = (_k_combine, _k_stages, _k_hermite, _k_hermite_slope, _k_finite, _k_argmin, _k_first_nan,
-                    _k_crossing, _k_error, _k_aim, _k_locate, _k_store_crossing, _k_landed, _k_record, _k_store,
+                    _k_crossing, _k_aim, _k_locate, _k_store_crossing, _k_landed, _k_record, _k_store,
                     _k_reenter, _k_step_loop)
 #: The functions every step runs (inlined into the loop by the generator).
-EVERY_STEP = (_k_stages, _k_combine, trial_length, finish_tolerance, rejected_step, proposed_step, kept_proposal)
+EVERY_STEP = (_k_stages, _k_combine, trial_length, finish_tolerance, rejected_step, proposed_step, kept_proposal,
+              error_scale, scaled_norm)
 #: The rules the kernel calls, compiled from their own source.
 RULES = (trial_length, finish_tolerance, rejected_step, proposed_step, kept_proposal, shortening_exhausted,
          aimed_step, crossing_start, crossing_point, crossing_update, hermite_weights, hermite_slope_weights,
-         strip_exit_time, error_norm)
+         strip_exit_time, error_scale, scaled_norm)
 #: The placeholder call of _k_stages in _k_step_loop that the generator unrolls per method.
 STAGES_CALL = "_k_stages(t, x, hk, K, XS, x_new, p, c, n_groups, weights, n_members, members, fsal)  # STAGES"

@@ -30,7 +30,7 @@ class Workspace:
     def __init__(self, n: int, stages: int, n_guards: int) -> None:
         self.K = np.zeros((stages, n))
         self.XS, self.x_new, self.k1, self.work = np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n)
-        self.err, self.err_low, self.q, self.dq = np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n)
+        self.q, self.dq = np.zeros(n), np.zeros(n)
         self.gv = np.zeros(max(1, n_guards))
         self.fs = np.zeros(8)
         self.iv = np.zeros(10, dtype=np.int64)
@@ -62,9 +62,8 @@ def run_visit_compiled(run: Run, visit: ModeVisit) -> Outcome:
         ws.iv[k.I_SIZE] = visit.buf.size
         buf = visit.buf
         code = kernel(twin.params, twin.n_guards, plan.c, plan.n_groups, plan.weights, plan.n_members, plan.members,
-                      plan.b_err, plan.fsal, x, ws.K, ws.XS, ws.x_new, ws.k1, ws.gv, ws.work, ws.err, ws.err_low,
-                      ws.q, ws.dq, buf.t, buf.x, buf.dx, ws.fs, ws.iv, ws.cf, ws.ci, ws.r_e, ws.r_f, ws.r_q,
-                      ws.r_after, ws.seg_end)
+                      plan.b_err, plan.fsal, x, ws.K, ws.XS, ws.x_new, ws.k1, ws.gv, ws.work, ws.q, ws.dq, buf.t, buf.x,
+                      buf.dx, ws.fs, ws.iv, ws.cf, ws.ci, ws.r_e, ws.r_f, ws.r_q, ws.r_after, ws.seg_end)
         buf.size = int(ws.iv[k.I_SIZE])
         _count(run, ws)
         if ws.iv[k.I_RECORDS]:

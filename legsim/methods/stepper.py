@@ -148,26 +148,36 @@ def _generate_estimator(tableau: Tableau) -> Callable[..., Any]:
     return namespace["estimate"]
 
 
-def error_norm(err, err_low, x, x_new, rtol: float, atol: float, blended: bool) -> float:
-    """RMS norm of the local error estimate ``err`` scaled by atol + rtol max(|x|, |x_new|)
-    (Hairer's and scipy's norm). ``blended``: Hairer's DOP853 norm, the fifth-order estimate
-    damped where the third-order one, ``err_low``, is much larger (a step is not rejected for an
-    estimate that is itself poor). Sequences of length n, summed in index order."""
-    n = len(x)
-    high = 0.0
-    low = 0.0
-    for d in range(n):
-        scale = atol + rtol * max(abs(x[d]), abs(x_new[d]))
-        r = err[d] / scale
-        high += r * r
-        if blended:
-            r_low = err_low[d] / scale
-            low += r_low * r_low
+def error_scale(x: float, x_new: float, rtol: float, atol: float) -> float:
+    """The tolerance of one coordinate of a step from x to x_new: atol + rtol max(|x|, |x_new|)."""
+    return atol + rtol * max(abs(x), abs(x_new))
+
+
+def scaled_norm(high: float, low: float, n: int, blended: bool) -> float:
+    """The error norm from the sums of squared scaled estimates: RMS of the estimate (``high``);
+    ``blended``: Hairer's DOP853 norm, the fifth-order estimate damped where the third-order one
+    (``low``) is much larger, so that a step is not rejected for an estimate that is itself poor."""
     if not blended:
         return math.sqrt(high / n)
     if high == 0.0 and low == 0.0:
         return 0.0
     return high / math.sqrt((high + 0.01 * low) * n)
+
+
+def error_norm(err, err_low, x, x_new, rtol: float, atol: float, blended: bool) -> float:
+    """Hairer's (and scipy's) error norm of a step's local error estimate ``err`` (and, blended,
+    ``err_low``): sequences of length n, summed in index order, each coordinate scaled by
+    ``error_scale``."""
+    high = 0.0
+    low = 0.0
+    for d in range(len(x)):
+        scale = error_scale(x[d], x_new[d], rtol, atol)
+        r = err[d] / scale
+        high += r * r
+        if blended:
+            r_low = err_low[d] / scale
+            low += r_low * r_low
+    return scaled_norm(high, low, len(x), blended)
 
 
 def make_error_norm(tableau: Tableau) -> Callable[..., float]:

@@ -331,12 +331,13 @@ def test_the_kernel_compiles_the_python_loops_own_rules():
 
     from legsim.compiled import kernel
     from legsim.compiled.generate import kernel_source
-    from legsim.methods.stepper import error_norm
+    from legsim.methods.stepper import error_scale, scaled_norm
     from legsim.relaxed import rules
 
     source = kernel_source([], cache=False)
     for rule in (rules.crossing_start, rules.crossing_point, rules.crossing_update, rules.rejected_step,
-                 rules.proposed_step, rules.kept_proposal, rules.aimed_step, rules.strip_exit_time, error_norm):
+                 rules.proposed_step, rules.kept_proposal, rules.aimed_step, rules.strip_exit_time, error_scale,
+                 scaled_norm):
         assert inspect.getsource(rule).rstrip() in source, rule.__name__
         assert rule in kernel.RULES
     for constant in ("STALL", "MIN_STEP", "SAFETY", "MAX_FACTOR"):
