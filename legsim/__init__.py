@@ -7,14 +7,14 @@ Public API::
 
 from .errors import LegsimError, ModelError, SceneError, SimulationError
 from .execution import Execution, Samples, Segment, Strip, TransitionRecord
-from .hybrid import HybridSystem, Mode, Transition
+from .hybrid import Continuation, HybridSystem, Mode, Transition
 from .methods import METHODS, Tableau, get_method
 from .relaxed import simulate
 
 __version__ = "0.1.0"
 
 __all__ = [
-    "Execution", "HybridSystem", "LegsimError", "METHODS", "Mode", "ModelError", "Samples", "SceneError",
+    "Continuation", "Execution", "HybridSystem", "LegsimError", "METHODS", "Mode", "ModelError", "Samples", "SceneError",
     "Segment", "SimulationError", "Strip", "Tableau", "Transition", "TransitionRecord", "get_method",
     "simulate", "__version__",
 ]

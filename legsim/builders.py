@@ -102,6 +102,19 @@ class Effect:
     parameters: Mapping[str, Param] = field(default_factory=dict)
 
 
+#: Key of ``Model.info`` under which a builder passes the ``zeno`` effect's window (s) to the
+#: runs of its scenes (``simulate(zeno_window=...)``; an ``integrator.zeno_window`` overrides it).
+ZENO_WINDOW = "zeno_window"
+
+#: The ``zeno`` effect of the builders whose transitions name continuations: it sets the window
+#: of the accumulation rule (``legsim.relaxed.zeno``). Continuation itself is on by default.
+ZENO_EFFECT = Effect("the window of the Zeno accumulation rule: shrinking flights shorter than `window` count as "
+                     "accumulating, and contacts continue in their constrained mode (continuation is on by "
+                     "default with window h + eps; `integrator.continuation = false` switches it off)",
+                     parameters={"window": Param(2e-3, "shortest flight resolved (s); by default h + eps of the run",
+                                                 "s", low=0.0, low_open=True)})
+
+
 @dataclass
 class Model:
     """What a builder returns: the hybrid system and what tools around it need.

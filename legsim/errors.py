@@ -35,3 +35,9 @@ class ModelBreakdown(LegsimError):
 class OutputError(LegsimError):
     """An output file cannot be written (or would replace something it must not); the message
     names the output and the path."""
+
+
+class ContractError(ModelError):
+    """A model's callable returned something the contract of ``legsim.hybrid`` does not allow at
+    some evaluation during a run (a guard that is not a real number, a field of the wrong shape).
+    The integrator re-raises it as a ``ModelError`` naming the mode, the transition and the time."""

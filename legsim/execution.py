@@ -33,6 +33,7 @@ class Status(StrEnum):
     NON_FINITE = "non_finite"  # a field, guard or reset produced inf/nan
     RESET_OUTSIDE_DOMAIN = "reset_outside_domain"  # a reset image lies past a guard of its target by more than eps
     MODEL_BREAKDOWN = "model_breakdown"  # the model raised ModelBreakdown (left its range of validity)
+    MAX_STEPS = "max_steps"  # the step budget was used up (every step is stored: it bounds memory)
 
 
 #: The statuses' strings, in the order above.
@@ -133,6 +134,31 @@ class TransitionRecord:
         return (self.source, self.target)
 
 
+@dataclass(frozen=True)
+class RunWarning:
+    """Something a finished run cannot vouch for (no silent wrong answers).
+
+    Attributes
+    ----------
+    kind: ``"accumulation"`` (transitions accumulate and the model names no continuation: past
+        the accumulation point the relaxed execution holds the state), ``"strip_hold"`` (the
+        state was held in strips for more than 1% of the run), ``"non_commuting_resets"``
+        (simultaneous transitions whose resets give different states in the two orders).
+    message: what happened, where, and the remedy.
+    time: when it began (s).
+    details: the numbers behind the message (JSON-ready).
+    """
+
+    kind: str
+    message: str
+    time: float
+    details: dict[str, Any] = field(default_factory=dict)
+
+    def as_dict(self) -> dict[str, Any]:
+        """The JSON form: kind, message, time and the details."""
+        return {"kind": self.kind, "message": self.message, "time": self.time, **self.details}
+
+
 @dataclass
 class Samples:
     """The execution sampled at given times.
@@ -215,6 +241,7 @@ class Execution:
     system_name: str = ""
     final_in_strip: bool = False
     _final: tuple[str, np.ndarray] | None = field(default=None, repr=False)
+    warnings: list[RunWarning] = field(default_factory=list)
 
     # -- the summary a user asks for --------------------------------------------------------
     @property

@@ -88,6 +88,29 @@ def _identity(x: np.ndarray) -> np.ndarray:
 
 
 @dataclass(frozen=True)
+class Continuation:
+    """What follows when the crossings of a transition accumulate (a Zeno point ahead): the
+    transition is replaced, at its crossing, by one into ``target`` with ``reset`` (identity if
+    None). For an impact this is the plastic impact into the constrained (resting, sticking)
+    mode, left again by that mode's own guards (where the constraint force changes sign).
+
+    Past an accumulation point the relaxed execution is only guaranteed up to the Zeno time
+    (paper 000, Thm. 26): without a continuation it holds the state in the strip instead of
+    moving it. The integrator decides when crossings accumulate (``legsim.relaxed.zeno``).
+    """
+
+    target: str
+    reset: ResetFn | None = None
+    name: str | None = None
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.target, str):
+            raise ModelError(f"continuation {self.name}: target must be a mode name (str), got {self.target!r}")
+        if self.reset is not None and not callable(self.reset):
+            raise ModelError(f"continuation {self.name}: reset must be callable reset(x) -> x' or None")
+
+
+@dataclass(frozen=True)
 class Transition:
     """A transition ``source -> target``: guard and reset map.
 
@@ -111,6 +134,9 @@ class Transition:
         depends on time or on the input, e.g. the release guard of a constraint force under a
         time-varying torque; the integrator then evaluates it, and the control, at the trial
         time of every step and along the step's interpolant when locating the crossing.
+    continuation:
+        Optional ``Continuation``: the transition taken instead when this one's crossings
+        accumulate (see ``Continuation``); its name defaults to ``"<name>_continued"``.
     """
 
     source: str
@@ -121,6 +147,7 @@ class Transition:
     guard_gradient: Callable[[np.ndarray], np.ndarray] | None = None
     reset_jacobian: Callable[[np.ndarray], np.ndarray] | None = None
     guard_args: str = "x"
+    continuation: Continuation | None = None
 
     def __post_init__(self) -> None:
         label = self.name or f"{self.source}->{self.target}"
@@ -136,6 +163,12 @@ class Transition:
         for attr in ("guard_gradient", "reset_jacobian"):
             if getattr(self, attr) is not None and not callable(getattr(self, attr)):
                 raise ModelError(f"transition {label}: {attr} must be callable or None")
+        if self.continuation is not None:
+            if not isinstance(self.continuation, Continuation):
+                raise ModelError(f"transition {label}: continuation must be a legsim.Continuation or None")
+            if self.continuation.name is None:
+                object.__setattr__(self, "continuation", Continuation(self.continuation.target,
+                                                                      self.continuation.reset, f"{label}_continued"))
 
     @property
     def edge(self) -> tuple[str, str]:
@@ -159,6 +192,7 @@ class ModeData:
     guards: tuple[GuardFn, ...]
     resets: tuple[ResetFn, ...]
     targets: tuple[str, ...]
+    continuations: tuple[Continuation | None, ...] = ()
 
 
 class HybridSystem:
@@ -228,6 +262,7 @@ class HybridSystem:
                         f"(modes: {sorted(self._modes)})"
                     )
         self._compiled: dict[str, ModeData] = {}
+        self._continued: dict[tuple[str, int], Transition] = {}
         if initial is not None:
             mode0, x0 = initial
             self.check_state(mode0, x0, label="initial state")
@@ -313,12 +348,9 @@ class HybridSystem:
             mode = self.mode(name)
             trs = tuple(self._outgoing[name])
             for tr in trs:
-                self._ensure(tr.target)
-                if tr.reset is None and self._modes[tr.target].dim != mode.dim:
-                    raise ModelError(
-                        f"{self._name}: transition {tr.name} has no reset but changes dimension "
-                        f"{mode.dim} -> {self._modes[tr.target].dim}"
-                    )
+                self._check_target(mode, tr.name, tr.target, tr.reset)
+                if tr.continuation is not None:
+                    self._check_target(mode, tr.continuation.name, tr.continuation.target, tr.continuation.reset)
             data = ModeData(
                 name=name,
                 mode=mode,
@@ -326,9 +358,30 @@ class HybridSystem:
                 guards=tuple(tr.guard for tr in trs),
                 resets=tuple(tr.reset if tr.reset is not None else _identity for tr in trs),
                 targets=tuple(tr.target for tr in trs),
+                continuations=tuple(tr.continuation for tr in trs),
             )
             self._compiled[name] = data
         return data
+
+    def _check_target(self, mode: Mode, name: str | None, target: str, reset: ResetFn | None) -> None:
+        self._ensure(target)
+        if reset is None and self._modes[target].dim != mode.dim:
+            raise ModelError(f"{self._name}: transition {name} has no reset but changes dimension "
+                             f"{mode.dim} -> {self._modes[target].dim}")
+
+    def taken(self, source: str, index: int, name: str) -> Transition:
+        """The transition a ``TransitionRecord`` (source, index, name) took: outgoing transition
+        ``index`` of ``source``, or, when the record carries its continuation's name, that
+        continuation as a transition (the same guard, the continuation's target and reset)."""
+        tr = self.outgoing(source)[index]
+        if tr.name == name or tr.continuation is None or tr.continuation.name != name:
+            return tr
+        key = (source, index)
+        if key not in self._continued:
+            cont = tr.continuation
+            self._continued[key] = Transition(source, cont.target, tr.guard, cont.reset, cont.name,
+                                              tr.guard_gradient, None, tr.guard_args)
+        return self._continued[key]
 
     def guard_values(self, mode: str, x: np.ndarray, t: float = 0.0, u: Any = None) -> np.ndarray:
         """All guard values of ``mode`` at ``x`` (shape (number of outgoing transitions,));
@@ -383,16 +436,43 @@ def check_field_output(system: str, mode_name: str, mode: Mode, t: float, x: np.
     return out
 
 
+def real_number(value: Any) -> float | None:
+    """``value`` as a float when it is a real number (a Python or numpy int or float, or a 0-d
+    numeric array), else None (a bool, None, an array of numbers, anything else)."""
+    if isinstance(value, float):
+        return float(value)
+    if isinstance(value, (bool, np.bool_)):
+        return None
+    if isinstance(value, (int, np.integer, np.floating)):
+        return float(value)
+    if isinstance(value, np.ndarray) and value.ndim == 0 and value.dtype.kind in "iuf":
+        return float(value)
+    return None
+
+
+def describe_value(value: Any) -> str:
+    """A model output as a message shows it: its type (and shape), then its value, shortened."""
+    shape = f" of shape {value.shape}" if isinstance(value, np.ndarray) else ""
+    text = repr(value)
+    return f"{type(value).__name__}{shape} {text[:60] + '...' if len(text) > 60 else text}"
+
+
+def not_a_number(value: Any) -> str:
+    """What is wrong with a guard's value that ``real_number`` refused, for a message."""
+    if isinstance(value, np.ndarray):
+        return f"must return a scalar, got shape {value.shape}"
+    return f"must return a real number (a float), got {describe_value(value)}"
+
+
 def check_guard_output(system: str, tr: Transition, x: np.ndarray, t: float = 0.0, u: Any = None) -> float:
-    """Evaluate a guard once and check that it returns a real scalar."""
+    """Evaluate a guard once and check that it returns a real number, not nan."""
     try:
         value = tr.guard(x) if tr.guard_args == "x" else tr.guard(t, x, u)
-        arr = np.asarray(value, dtype=float)
     except Exception as exc:
         raise ModelError(f"{system}: guard of transition {tr.name} failed: {type(exc).__name__}: {exc}") from exc
-    if arr.shape not in ((), (1,)):
-        raise ModelError(f"{system}: guard of transition {tr.name} must return a scalar, got shape {arr.shape}")
-    out = float(arr.reshape(()))
+    out = real_number(value)
+    if out is None:
+        raise ModelError(f"{system}: guard of transition {tr.name} {not_a_number(value)} at t={t}, x={x}")
     if math.isnan(out):
         raise ModelError(f"{system}: guard of transition {tr.name} returned nan at x={x}")
     return out

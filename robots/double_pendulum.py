@@ -37,7 +37,7 @@ from typing import Any, Callable
 import numpy as np
 import pinocchio as pin
 
-from legsim.builders import Builder, Effect, Model, Param
+from legsim.builders import ZENO_EFFECT, ZENO_WINDOW, Builder, Effect, Model, Param
 
 from .bridge import ContactBridge, JointStop, add_point_frame
 
@@ -67,13 +67,7 @@ EFFECTS = {
                                  low=0.0, high=1.0),
             "position": Param(0.0, "stop angle", "rad", low=-math.pi, high=math.pi),
         }),
-    "zeno": Effect(
-        "Zeno continuation at the stop (c > 0): an impact whose next flight would be shorter than "
-        "`window` enters the constrained mode (plastic) instead of bouncing; the stop force's sign "
-        "change releases it", parameters={
-            "window": Param(2e-3, "shortest flight resolved; set it to h + eps of the run", "s",
-                            low=0.0, low_open=True),
-        }),
+    "zeno": ZENO_EFFECT,
     "damping": Effect(
         "viscous joint damping", parameters={
             "b1": Param(0.1, "damping of joint 1", "N m s/rad", low=0.0),
@@ -124,12 +118,11 @@ def make_bridge(params: dict[str, Any], effects: dict[str, dict[str, Any]]) -> C
     names = {(): "unconstrained"}
     if contacts:
         names[("stop",)] = "constrained"
-    window = effects["zeno"]["window"] if "zeno" in effects else None
     # Actuate the shoulder only when a controller is asked for: an actuated bridge declares its
     # force-dependent guards on (t, x, u) and adds the control to every field evaluation.
     actuated = (SHOULDER,) if "controller" in effects else ()
     return ContactBridge(model, contacts, coordinate_names=COORDINATES, velocity_names=VELOCITIES,
-                         mode_names=names, joint_damping=damping, actuated=actuated, zeno_window=window,
+                         mode_names=names, joint_damping=damping, actuated=actuated,
                          name="double_pendulum")
 
 
@@ -177,6 +170,8 @@ def build(params: dict[str, Any], effects: dict[str, dict[str, Any]]) -> Model:
     info = {"guard_units": bridge.guard_units(), "parameters": dict(params), "effects": dict(effects),
             "bridge": bridge,
             "initial_check": bridge.initial_check()}
+    if "zeno" in effects:
+        info[ZENO_WINDOW] = effects["zeno"]["window"]
     return Model(system=system, initial_mode="unconstrained", initial_state=dict(INITIAL_STATE),
                  control=control, geometry=geometry,
                  scenery={"support": np.array([[-0.25 * reach, 0.0], [0.25 * reach, 0.0]])},

@@ -14,7 +14,8 @@ from legsim.systems.oscillator import EXAMPLES, OscillatorReference
 
 @pytest.fixture(scope="module")
 def ball_run() -> Execution:
-    return simulate(bb.make_system(), [1.0, 0.0], "flight", 2.0, 1e-2, 1e-3)
+    # The plain relaxed run: past the Zeno time the ball chatters in its strips.
+    return simulate(bb.make_system(), [1.0, 0.0], "flight", 2.0, 1e-2, 1e-3, continuation=False)
 
 
 
@@ -23,7 +24,7 @@ def sticking_run() -> Execution:
     E = EXAMPLES["ex2"]
     system = osc.make_system(E["omega"], E["a"], E["x_max"], E["c"])
     return simulate(system, [E["x0"], E["xd0"]], "free", 6.0, 1e-2, 1e-3, "rk2",
-                    osc.forcing(E["amplitude"], E["frequency"]))
+                    osc.forcing(E["amplitude"], E["frequency"]), continuation=False)
 
 
 

@@ -82,6 +82,12 @@ def check_twin(system_name: str, data: ModeData, t: float, x: np.ndarray, k0: np
     return twin.resets is not None and all(target == data.name for target in data.targets)
 
 
+def crosses_in_kernel(data: ModeData, continues: bool, checked: bool) -> bool:
+    """Whether the kernel may cross the mode's strips itself: the twin has compiled resets
+    (``checked``) and no crossing can take a continuation (the kernel knows of none)."""
+    return checked and not (continues and any(c is not None for c in data.continuations))
+
+
 def _evaluate(system_name: str, mode: str, twin: CompiledMode, t: float,
               x: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[np.ndarray]]:
     xc = np.ascontiguousarray(x, dtype=float)

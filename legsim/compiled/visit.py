@@ -13,9 +13,10 @@ from ..relaxed import messages
 from ..relaxed.outcomes import Ended, Entered, Outcome
 from ..relaxed.run import ModeVisit, Run
 from ..relaxed.strip import cross
+from ..relaxed.integrate import out_of_steps
 from . import kernel as k
 from .generate import get_kernel, no_resets, plan_for
-from .twin import check_twin
+from .twin import check_twin, crosses_in_kernel
 
 #: Transitions the kernel records per call before Python turns them into Execution pieces.
 RECORD_CHUNK = 4096
@@ -55,9 +56,10 @@ def run_visit_compiled(run: Run, visit: ModeVisit) -> Outcome:
     plan = plan_for(run.tableau)
     x = np.array(visit.x, dtype=float)
     ws.K[0] = visit.k0
-    _settings(run, ws, plan, checked[visit.name])
+    _settings(run, ws, plan, crosses_in_kernel(data, run.zeno.continues, checked[visit.name]))
     ws.fs[k.F_T], ws.fs[k.F_HPROP] = visit.t, run.step_size.h_prop
     while True:
+        ws.ci[3] = min(PROGRESS_CHUNK if run.has_progress else _NO_LIMIT, run.max_steps - run.steps)
         ws.ci[5] = max(0, run.max_transitions - len(run.transitions))
         ws.iv[k.I_SIZE] = visit.buf.size
         buf = visit.buf
@@ -73,7 +75,12 @@ def run_visit_compiled(run: Run, visit: ModeVisit) -> Outcome:
             _grow(visit.buf)
         elif code == k.CHUNK:
             run.tick(visit.t)
-        elif code != k.RECORDS_FULL:
+            if run.steps >= run.max_steps:
+                visit.x = x
+                return run.end_visit(visit, out_of_steps(run, visit))
+        elif code == k.RECORDS_FULL:
+            run.tick(visit.t)
+        else:
             break
     visit.x = x
     return _outcome(run, visit, ws, code)
@@ -91,8 +98,7 @@ def _settings(run: Run, ws: Workspace, plan, in_kernel: bool) -> None:
     step_size = run.step_size
     ws.cf[:] = (run.t_final, step_size.h_max, run.eps, getattr(step_size, "rtol", 0.0),
                 getattr(step_size, "atol", 0.0), getattr(step_size, "exponent", 0.0))
-    ws.ci[:5] = (step_size.adaptive, run.landing.name == "aim", run.max_halvings,
-                 PROGRESS_CHUNK if run.has_progress else _NO_LIMIT, in_kernel)
+    ws.ci[:5] = (step_size.adaptive, run.landing.name == "aim", run.max_halvings, 0, in_kernel)
     ws.ci[6] = plan.method_id
 
 
@@ -157,10 +163,6 @@ def _commit_records(run: Run, visit: ModeVisit, ws: Workspace, n_rec: int) -> Se
     finally:
         if gc_was_enabled:
             gc.enable()
-    strip_time = run.strip_time
-    for tc, _, exit_time, _ in r_f:  # summed in the order the Python path sums them
-        strip_time += exit_time - tc
-    run.strip_time = strip_time
     start, size = ends[-1], buf.size
     # As large as the old buffer: the steps to come will need it again.
     fresh = SegmentBuffer(mode, buf.x.shape[1], capacity=max(len(buf.t), 2 * (size - start)))
@@ -182,7 +184,9 @@ def _build_pieces(run: Run, visit: ModeVisit, r_e: list, r_f: list, qs: np.ndarr
         tc, t_land, exit_time, tau = r_f[j]
         tr = trs[r_e[j]]
         run.strips.append(Strip(mode, tr.name, tc, exit_time, q_rows[j], t_land, tau))
+        run.strip_time += exit_time - tc  # summed in the order the Python path sums them
         run.transitions.append(TransitionRecord(tr.name, mode, mode, r_e[j], tc, t_land, exit_time, q_rows[j],
                                                 after_rows[j], tau))
+        run.zeno.crossed(run, mode, r_e[j], tr.name, tc, exit_time, run.zeno.crossing(mode, r_e[j], tc), False)
         start = end
 

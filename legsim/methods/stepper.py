@@ -15,7 +15,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from ..errors import SimulationError
+from ..errors import ContractError, SimulationError
 from .tableau import Tableau
 
 #: A tableau with a row of at least this many non-zero weights keeps its stages stacked and
@@ -46,11 +46,22 @@ def _key(kind: str, tableau: Tableau) -> tuple:
     return (kind, tableau.name, tableau.fsal) + tuple(None if a is None else a.tobytes() for a in arrays)
 
 
+def field_value(k: Any, x: np.ndarray) -> np.ndarray:
+    """A field's output k at a state x, checked to be an array of x's shape (a field that returns
+    another shape would be broadcast silently into the step)."""
+    if k.__class__ is not np.ndarray or k.shape != x.shape:
+        k = np.asarray(k, dtype=float) if not isinstance(k, np.ndarray) else k
+        if k.shape != x.shape:
+            raise ContractError(f"field returned shape {k.shape}, expected {x.shape}")
+    return k
+
+
 def make_stepper(tableau: Tableau) -> Stepper:
     """``step(field, t, x, h, k0, control) -> (x_new, stages)`` specialised to ``tableau``, with
     ``stages`` the tuple of the s stage derivatives (``stages[0] is k0``). The control is sampled
     at each stage, ``u = control(t + c_i h, x_i)``, so that a time-varying input keeps the
-    method's order. Generated once per tableau (compiling the source costs more than a short run).
+    method's order. Every stage is checked to have x's shape (``field_value``; ContractError
+    otherwise). Generated once per tableau (compiling the source costs more than a short run).
     """
     key = _key("step", tableau)
     if key not in _GENERATED:
@@ -71,7 +82,7 @@ def _generate_stepper(tableau: Tableau) -> Stepper:
     s = tableau.stages
     weights = [tableau.A[i, :i] for i in range(1, s)] + ([] if tableau.fsal else [tableau.b])
     stacked = any(np.count_nonzero(w) >= DOT_TERMS for w in weights)
-    namespace: dict[str, Any] = {"empty": np.empty}
+    namespace: dict[str, Any] = {"empty": np.empty, "ndarray": np.ndarray, "field_value": field_value}
     lines = ["def step(field, t, x, h, k0, control):"]
     if stacked:
         lines += [f"    K = empty(({s}, x.shape[0]))", "    K[0] = k0"]
@@ -86,6 +97,8 @@ def _generate_stepper(tableau: Tableau) -> Stepper:
         lines.append(f"    t{i} = t + {float(tableau.c[i])!r} * h")
         lines.append(f"    x{i} = {combination(tableau.A[i, :i], i)}")
         lines.append(f"    k{i} = field(t{i}, x{i}, None if control is None else control(t{i}, x{i}))")
+        lines.append(f"    if k{i}.__class__ is not ndarray or k{i}.shape != x.shape:")
+        lines.append(f"        k{i} = field_value(k{i}, x)")
         if stacked and i < s - 1:
             lines.append(f"    K[{i}] = k{i}")
     stage_tuple = ", ".join(f"k{j}" for j in range(s))

@@ -195,7 +195,7 @@ def jacobian_saltation(problem: OrbitProblem, ret: Return) -> np.ndarray:
         if k == last and crossing:
             break
         rec = ex.transitions[k]
-        tr = system.outgoing(rec.source)[rec.index]
+        tr = system.taken(rec.source, rec.index, rec.name)
         # Synchronous saltation inside the period; the returning transition of an "after"
         # section maps onto the reset image itself.
         jump = reset_on_guard_jacobian if k == last else saltation_matrix

@@ -6,8 +6,9 @@ it back), ``Execution.summary()`` and ``Scene.summary()`` return it. Its keys ar
 * from the execution: ``system``, ``status``, ``message``, ``t_final`` (the time reached, s),
   ``final_mode``, ``final_state``, ``state_names`` (of the final mode), ``final_in_strip``,
   ``mode_sequence``, ``transitions`` (a count), ``steps``, ``halvings``, ``field_evals``,
-  ``guard_evals``, ``reset_evals``, ``strip_time`` (s), ``wall_time_s``, ``h``, ``eps``,
-  ``method``;
+  ``guard_evals``, ``reset_evals``, ``strip_time`` (total time held in strips, s),
+  ``longest_strip_hold`` (s), ``wall_time_s``, ``h``, ``eps``, ``method``, ``warnings`` (what the
+  run cannot vouch for: a list of ``{kind, message, time, ...}``, see ``RunWarning``);
 * with a scene: ``scene`` (its name) and ``robot``;
 * when the system defines an energy: ``energy_initial`` and ``energy_final`` (J);
 * every other counter of ``execution.counters`` (the model's own, ``error_rejections``);
@@ -83,7 +84,14 @@ def _execution_keys(execution: Execution) -> dict[str, Any]:
         "h": settings.get("h"),
         "eps": settings.get("eps"),
         "method": settings.get("method"),
+        "longest_strip_hold": longest_hold(execution),
+        "warnings": [w.as_dict() for w in execution.warnings],
     }
+
+
+def longest_hold(execution: Execution) -> float:
+    """The longest time (s) the state was held in one strip."""
+    return max((strip.exit_time - strip.time for strip in execution.strips), default=0.0)
 
 
 def _energies(execution: Execution, model: Model) -> dict[str, float | None]:

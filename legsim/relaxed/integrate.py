@@ -27,8 +27,9 @@ from math import isfinite
 
 import numpy as np
 
-from ..errors import LegsimError, ModelBreakdown, ModelError
+from ..errors import ContractError, LegsimError, ModelBreakdown, ModelError
 from ..execution import Execution, Status
+from ..methods.stepper import field_value
 from . import messages
 from .entry import enter_mode
 from .outcomes import Ended, Entered, Landing, Outcome, Trial
@@ -47,6 +48,8 @@ def integrate(run: Run, mode: str, x: np.ndarray, t: float) -> Execution:
             outcome = visit if not isinstance(visit, ModeVisit) else run_visit(run, visit)
         except ModelBreakdown as exc:  # raised while entering a mode or crossing a strip
             outcome = Ended(Status.MODEL_BREAKDOWN, f"{exc} (mode '{mode}', t={t:.17g})", t)
+        except ContractError as exc:
+            raise ModelError(f"{run.system.name}: {exc} in mode '{mode}' entered at t={t:.17g}") from exc
     return run.execution(outcome)
 
 
@@ -63,6 +66,8 @@ def run_visit(run: Run, visit: ModeVisit) -> Outcome:
             remaining = run.t_final - visit.t
             if remaining <= finish_tol:
                 return run.end_visit(visit, Ended(Status.FINISHED, "", run.t_final if remaining > 0 else visit.t))
+            if run.steps >= run.max_steps:
+                return run.end_visit(visit, out_of_steps(run, visit))
             step = take_step(run, visit, remaining)
             if type(step) is Trial:
                 if step.gmin >= 0.0:
@@ -75,6 +80,9 @@ def run_visit(run: Run, visit: ModeVisit) -> Outcome:
     except ModelBreakdown as exc:
         return run.end_visit(visit, Ended(Status.MODEL_BREAKDOWN, messages.model_breakdown(exc, visit.name, visit.t),
                                           visit.t))
+    except ContractError as exc:
+        raise ModelError(f"{run.system.name}: {exc} in the step from t={visit.t:.17g} in mode '{visit.name}' "
+                         f"(x={visit.x.tolist()})") from exc
     except LegsimError:
         raise
     except Exception as exc:
@@ -175,6 +183,12 @@ def _exhausted(run: Run, visit: ModeVisit, trial: Trial, shortened: int) -> Ende
     return Ended(Status.HALVING_EXHAUSTED, message, t)
 
 
+def out_of_steps(run: Run, visit: ModeVisit) -> Ended:
+    """The end of a run that used up its step budget."""
+    return Ended(Status.MAX_STEPS, f"step budget max_steps={run.max_steps} used up at t={visit.t:.17g} in mode "
+                                   f"'{visit.name}' (x={visit.x.tolist()})", visit.t)
+
+
 def _landing(run: Run, visit: ModeVisit, trial: Trial) -> Landing:
     """An accepted step that ended in a strip, with its cubic Hermite interpolant."""
     k1 = trial.stages[-1] if run.tableau.fsal else run.f(visit.field, trial.t1, trial.x1)
@@ -191,6 +205,8 @@ def _advance(run: Run, visit: ModeVisit, trial: Trial) -> None:
         run.field_evals += 1
         control = run.control
         k0 = visit.field(t, x, None if control is None else control(t, x))
+        if k0.__class__ is not np.ndarray or k0.shape != x.shape:
+            k0 = field_value(k0, x)
     visit.k0 = k0
     visit.buf.append(t, x, k0)
     if not run.steps & (PROGRESS_STEPS - 1):

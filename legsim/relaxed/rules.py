@@ -197,6 +197,13 @@ def crossing_update(state, s: float, g: float):
     return (lo, hi, glo, ghi, g_hi, side, width, stalled, tol, it, status, result)
 
 
+# -- accumulating transitions ------------------------------------------------------------------
+def accumulating(previous_flight: float, flight: float, window: float) -> bool:
+    """True when the crossings of a transition accumulate (a Zeno point ahead): the flight (s)
+    since its previous crossing is shorter than the window and than the flight before it."""
+    return flight <= window and flight < previous_flight
+
+
 # -- the step's cubic Hermite interpolant -------------------------------------------------------
 def hermite_weights(s, dt):
     """Weights (w0, w1, w2, w3) of the cubic Hermite interpolant at fraction s of a step of

@@ -9,10 +9,13 @@ from typing import Any, Callable
 
 import numpy as np
 
+from ..errors import ContractError, SimulationError
 from ..execution import Execution, SegmentBuffer, Status
-from ..hybrid import HybridSystem, ModeData
+from ..hybrid import HybridSystem, ModeData, not_a_number, real_number
 from ..methods import Tableau, make_stepper
+from ..methods.stepper import field_value
 from .outcomes import Ended
+from .zeno import ZenoWatch, strip_hold_warning
 
 ProgressFn = Callable[[float, float, float], None]
 Control = Callable[[float, np.ndarray], Any]
@@ -59,8 +62,8 @@ class Run:
     the segments, strips and transitions of the execution so far."""
 
     def __init__(self, system: HybridSystem, tableau: Tableau, step_size: Any, landing: Any, eps: float,
-                 control: Control | None, *, max_transitions: int, max_halvings: int,
-                 progress: ProgressFn | None, t0: float, t_final: float) -> None:
+                 control: Control | None, *, max_transitions: int, max_halvings: int, max_steps: int,
+                 progress: ProgressFn | None, t0: float, t_final: float, zeno: ZenoWatch) -> None:
         self.system = system
         self.tableau = tableau
         self.stepper = make_stepper(tableau)
@@ -72,6 +75,8 @@ class Run:
         self.control = control
         self.max_transitions = max_transitions
         self.max_halvings = max_halvings
+        self.max_steps = max_steps
+        self.zeno = zeno
         self.t0, self.t_final = t0, t_final
         self.steps = self.halvings = self.error_rejections = 0
         self.field_evals = self.guard_evals = self.reset_evals = 0
@@ -89,10 +94,10 @@ class Run:
 
     # -- evaluations ---------------------------------------------------------------------------
     def f(self, field: Callable[..., np.ndarray], t: float, x: np.ndarray) -> np.ndarray:
-        """The field at (t, x) with the control there, counted."""
+        """The field at (t, x) with the control there, counted and checked to have x's shape."""
         self.field_evals += 1
         control = self.control
-        return np.asarray(field(t, x, None if control is None else control(t, x)), dtype=float)
+        return field_value(field(t, x, None if control is None else control(t, x)), x)
 
     def guard_fns(self, data: ModeData) -> tuple[Callable[[float, np.ndarray], Any], ...]:
         """The mode's guards as g(t, x), with the control evaluated for ``t,x,u`` guards; built
@@ -102,13 +107,22 @@ class Run:
             fns = self._guard_cache[data.name] = tuple(self._guard_fn(tr) for tr in data.transitions)
         return fns
 
-    def _guard_fn(self, transition) -> Callable[[float, np.ndarray], Any]:
-        g, control = transition.guard, self.control
+    def _guard_fn(self, transition) -> Callable[[float, np.ndarray], float]:
+        """g(t, x) of ``transition``, its value checked to be a real number at every call (the
+        check costs an isinstance on the common path of a float)."""
+        g, control, name = transition.guard, self.control, transition.name
+
+        def number(value: Any) -> float:
+            out = real_number(value)
+            if out is None:
+                raise ContractError(f"guard of transition {name} {not_a_number(value)}")
+            return out
+
         if transition.guard_args == "x":
-            return lambda t, x: g(x)
+            return lambda t, x: v if isinstance(v := g(x), float) else number(v)
         if control is None:
-            return lambda t, x: g(t, x, None)
-        return lambda t, x: g(t, x, control(t, x))
+            return lambda t, x: v if isinstance(v := g(t, x, None), float) else number(v)
+        return lambda t, x: v if isinstance(v := g(t, x, control(t, x)), float) else number(v)
 
     # -- bookkeeping ---------------------------------------------------------------------------
     def end_visit(self, visit: ModeVisit, ended: Ended) -> Ended:
@@ -128,7 +142,10 @@ class Run:
         now = time.perf_counter()
         if now - self._last_report > PROGRESS_INTERVAL:
             self._last_report = now
-            self._progress(t, self.t0, self.t_final)
+            try:
+                self._progress(t, self.t0, self.t_final)
+            except Exception as exc:  # the caller's callback, not the model
+                raise SimulationError(f"the progress callback failed at t={t:.17g}: {type(exc).__name__}: {exc}") from exc
 
     def execution(self, ended: Ended) -> Execution:
         """The execution computed, ending as ``ended`` says."""
@@ -140,8 +157,12 @@ class Run:
         }
         settings = {"h": self.step_size.h_max, "eps": self.eps, "method": self.tableau.name,
                     **self.step_size.settings(), "landing": self.landing.name,
-                    "max_transitions": self.max_transitions, "control": self.control is not None}
+                    "max_transitions": self.max_transitions, "control": self.control is not None,
+                    "continuation": self.zeno.continues, "zeno_window": self.zeno.window}
+        warnings = self.zeno.warnings(self, ended.t)
+        held = strip_hold_warning(self.strip_time, self.t0, ended.t, warnings)
+        warnings += [held] if held is not None else []
         return Execution(status=Status(ended.status), message=ended.message, segments=self.segments,
                          strips=self.strips, transitions=self.transitions, t0=self.t0, t_end=ended.t,
                          t_final=self.t_final, counters=counters, settings=settings, state_names=self.state_names,
-                         system_name=self.system.name, final_in_strip=ended.in_strip)
+                         system_name=self.system.name, final_in_strip=ended.in_strip, warnings=warnings)

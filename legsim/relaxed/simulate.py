@@ -16,9 +16,15 @@ from .integrate import integrate
 from .landing import Halve, landing_rule
 from .run import Control, ProgressFn, Run
 from .step_size import ErrorControl, FixedStep
+from .zeno import ZenoWatch
 
 #: Landing rules of ``simulate(landing=...)``.
 LANDINGS = ("halve", "aim", "dense")
+
+#: Default step budget. A run stores every step (t, x, dx), so steps bound its memory and time:
+#: 1e7 steps of an 8-dimensional robot are ~1.4 GB and minutes of Python. A run that means to be
+#: longer raises it.
+MAX_STEPS = 10_000_000
 
 
 def simulate(
@@ -39,6 +45,9 @@ def simulate(
     atol: float | None = None,
     landing: str | Halve = "halve",
     step_size: FixedStep | ErrorControl | None = None,
+    max_steps: int = MAX_STEPS,
+    continuation: bool = True,
+    zeno_window: float | None = None,
 ) -> Execution:
     """Simulate ``system`` from ``(mode, x0)`` at time ``t0`` to ``t_final`` with the relaxed
     hybrid integrator.
@@ -75,13 +84,23 @@ def simulate(
         object (``legsim.relaxed.landing``).
     step_size: a step-size rule object (``legsim.relaxed.step_size.FixedStep`` or
         ``ErrorControl``) instead of h's fixed steps or rtol/atol; h still gives the largest step.
+    max_steps: step budget (default ``MAX_STEPS``, 1e7): a run whose nominal steps
+        (t_final - t0) / h exceed it is refused before it starts, and one that takes that many
+        accepted steps (error control may take more than nominal) ends with status ``max_steps``.
+    continuation: when the crossings of a transition accumulate (a Zeno point ahead), take the
+        ``Continuation`` the transition names (an impact's rest in its constrained mode), as the
+        bridge's contacts and stops and the analytic ball and oscillator declare; False keeps the
+        plain relaxed semantics. Either way an accumulation without continuation is reported in
+        ``Execution.warnings``.
+    zeno_window: flights (s) between crossings of one transition shorter than this, and shrinking,
+        count as accumulating (``legsim.relaxed.zeno``); default h + eps.
 
     Returns
     -------
     Execution
-        with ``status`` one of ``finished``, ``max_transitions``, ``halving_exhausted``,
-        ``non_finite``, ``reset_outside_domain``, ``model_breakdown`` and a message naming mode,
-        time and state.
+        with ``status`` one of ``finished``, ``max_transitions``, ``max_steps``,
+        ``halving_exhausted``, ``non_finite``, ``reset_outside_domain``, ``model_breakdown`` and a
+        message naming mode, time and state.
 
     Raises
     ------
@@ -98,13 +117,16 @@ def simulate(
     if control is not None and not callable(control):
         raise SimulationError(f"control must be callable control(t, x) -> u or None, got {type(control).__name__}")
     max_transitions, max_halvings = count("max_transitions", max_transitions, 0), count("max_halvings", max_halvings, 1)
+    max_steps = _check_step_budget(max_steps, t0, t_final, h)
     x = _initial_state(system, mode, x0, t0, eps, control)
     rule = step_size if step_size is not None else step_size_rule(tableau, h, rtol, atol)
     if isinstance(landing, str) and landing not in LANDINGS:
         raise SimulationError(f"landing must be one of {', '.join(map(repr, LANDINGS))}, got {landing!r}")
     parts = landing_rule(landing, tableau) if isinstance(landing, str) else landing
+    window = h + eps if zeno_window is None else positive("zeno_window", zeno_window)
     run = Run(system, tableau, rule, parts, eps, control, max_transitions=max_transitions,
-              max_halvings=max_halvings, progress=progress, t0=t0, t_final=t_final)
+              max_halvings=max_halvings, max_steps=max_steps, progress=progress, t0=t0, t_final=t_final,
+              zeno=ZenoWatch(window, bool(continuation)))
     run.checked_modes.add(mode)  # _initial_state's check already evaluated this mode's field
     return integrate(run, mode, x, t0)
 
@@ -144,6 +166,16 @@ def _times(t0: Any, t_final: Any, h: float) -> tuple[float, float]:
             f"h = {h:g} s is below the time resolution at t = {scale:g} s (float64 times are "
             f"{float(np.spacing(scale)):.3g} s apart there): no step could advance time; shift t0 towards 0 or raise h")
     return t0, t_final
+
+
+def _check_step_budget(max_steps: Any, t0: float, t_final: float, h: float) -> int:
+    max_steps = count("max_steps", max_steps, 1)
+    nominal = (t_final - t0) / h
+    if nominal > max_steps:
+        raise SimulationError(f"t_final - t0 = {t_final - t0:g} s at h = {h:g} s is {nominal:.3g} steps, more than "
+                              f"max_steps = {max_steps}; every step is stored, so check t_final and h, or raise "
+                              f"max_steps if the run is meant to be that long")
+    return max_steps
 
 
 def _initial_state(system: HybridSystem, mode: Any, x0: Any, t0: float, eps: float,

@@ -18,11 +18,11 @@ import numpy as np
 
 from ..errors import ModelBreakdown, ModelError
 from ..execution import SegmentBuffer, Status, Strip, TransitionRecord
-from ..hybrid import check_reset_output
+from ..hybrid import Continuation, check_reset_output
 from .outcomes import Ended, Entered, Landing, Outcome
 from .rules import (CONVERGED, RESULT, SEARCHING, STATUS, crossing_point, crossing_start, crossing_update,
-                    hermite_slope_weights, hermite_weights, strip_exit_time)
-from .run import ModeVisit, Run
+                    entered_in_strip, hermite_slope_weights, hermite_weights, strip_exit_time)
+from .run import PROGRESS_STEPS, ModeVisit, Run
 
 #: q is located to this share of the strip: it costs guard evaluations only.
 CROSSING_TOL = 1e-12
@@ -108,7 +108,8 @@ def cross_landing(run: Run, visit: ModeVisit, landing: Landing) -> Outcome:
 
 def cross(run: Run, visit: ModeVisit, e: int, tc: float, q: np.ndarray, t_land: float, tau: float) -> Outcome:
     """Cross the strip of transition e entered at time tc at the guard point q by a step that
-    landed at t_land, depth tau: hold q until t_land + eps - tau, then reset."""
+    landed at t_land, depth tau: hold q until t_land + eps - tau, then reset (or take the
+    transition's continuation when its crossings accumulate, ``zeno``)."""
     data = visit.data
     tr = data.transitions[e]
     run.segments.append(visit.buf.freeze())
@@ -122,10 +123,21 @@ def cross(run: Run, visit: ModeVisit, e: int, tc: float, q: np.ndarray, t_land: 
         run.strips.append(Strip(visit.name, tr.name, tc, run.t_final, q.copy(), t_land, tau))
         run.strip_time += run.t_final - tc
         return Ended(Status.FINISHED, "", run.t_final, True)
+    accumulates = run.zeno.crossing(visit.name, e, tc)
+    continuation = data.continuations[e] if accumulates and run.zeno.continues else None
+    if continuation is not None:
+        image = _continued_image(run, visit, e, continuation, tc, q, exit_time)
+        if image is not None:
+            outcome = record_crossing(run, visit.name, e, continuation.name, continuation.target, tc, q, t_land, tau,
+                                      exit_time, image)
+            run.zeno.crossed(run, visit.name, e, continuation.name, tc, exit_time, True, True)
+            return outcome
     x_after = _reset(run, visit, e, tc, q)
     if isinstance(x_after, Ended):
         return x_after
-    return record_crossing(run, visit.name, e, tc, q, t_land, tau, exit_time, x_after)
+    outcome = record_crossing(run, visit.name, e, tr.name, data.targets[e], tc, q, t_land, tau, exit_time, x_after)
+    run.zeno.crossed(run, visit.name, e, tr.name, tc, exit_time, accumulates, False)
+    return outcome
 
 
 def _reset(run: Run, visit: ModeVisit, e: int, tc: float, q: np.ndarray) -> np.ndarray | Ended:
@@ -148,20 +160,43 @@ def _reset(run: Run, visit: ModeVisit, e: int, tc: float, q: np.ndarray) -> np.n
     return x_after
 
 
-def record_crossing(run: Run, mode: str, e: int, tc: float, q: np.ndarray, t_land: float, tau: float,
-                    exit_time: float, x_after: np.ndarray) -> Outcome:
-    """Store the strip and the transition; continue in the target unless the image is not finite."""
-    data = run.system.mode_data(mode)
-    tr, target = data.transitions[e], data.targets[e]
-    run.strips.append(Strip(mode, tr.name, tc, exit_time, q.copy(), t_land, tau))
+def _continued_image(run: Run, visit: ModeVisit, e: int, continuation: Continuation, tc: float, q: np.ndarray,
+                     exit_time: float) -> np.ndarray | None:
+    """The continuation's image of q, or None when it does not lie in its target's domain (the
+    constraint it enters would pull at once): then the ordinary transition is taken."""
+    run.reset_evals += 1
+    try:
+        image = q.copy() if continuation.reset is None else np.asarray(continuation.reset(q), dtype=float)
+    except ModelBreakdown:
+        return None
+    except Exception as exc:
+        raise ModelError(f"{run.system.name}: reset of continuation {continuation.name} failed at t={tc:.17g}, "
+                         f"q={q.tolist()}: {type(exc).__name__}: {exc}") from exc
+    target = run.system.mode_data(continuation.target)
+    if image.shape != (target.mode.dim,):
+        raise ModelError(f"{run.system.name}: reset of continuation {continuation.name} returned shape {image.shape}, "
+                         f"expected ({target.mode.dim},) for mode '{continuation.target}'")
+    gvals = [g(exit_time, image) for g in run.guard_fns(target)]
+    run.guard_evals += len(gvals)
+    if not np.all(np.isfinite(image)) or (gvals and entered_in_strip(min(gvals), run.eps)):
+        return None
+    return image
+
+
+def record_crossing(run: Run, mode: str, e: int, name: str, target: str, tc: float, q: np.ndarray, t_land: float,
+                    tau: float, exit_time: float, x_after: np.ndarray) -> Outcome:
+    """Store the strip and the transition ``name`` (index e of ``mode``) into ``target``;
+    continue there unless the image is not finite."""
+    run.strips.append(Strip(mode, name, tc, exit_time, q.copy(), t_land, tau))
     run.strip_time += exit_time - tc
-    run.transitions.append(TransitionRecord(tr.name, mode, target, e, tc, t_land, exit_time, q.copy(),
-                                            x_after.copy(), tau))
+    run.transitions.append(TransitionRecord(name, mode, target, e, tc, t_land, exit_time, q.copy(), x_after.copy(),
+                                            tau))
+    if not len(run.transitions) & (PROGRESS_STEPS - 1):  # a Zeno run may cross many strips per step
+        run.tick(exit_time)
     if not np.all(np.isfinite(x_after)):
         seg = SegmentBuffer(target, len(x_after), capacity=1)
         seg.append(exit_time, x_after, np.zeros(len(x_after)))
         run.segments.append(seg.freeze())
-        return Ended(Status.NON_FINITE, f"reset of transition {tr.name} at t={exit_time:.17g} gives a non-finite "
+        return Ended(Status.NON_FINITE, f"reset of transition {name} at t={exit_time:.17g} gives a non-finite "
                                         f"state {x_after.tolist()} from q={q.tolist()}", exit_time)
     return Entered(target, x_after, exit_time)
-

@@ -48,9 +48,10 @@ from typing import Any, Callable, Mapping, Sequence
 import numpy as np
 
 from .. import builders
-from ..builders import Builder, Model, Param, resolve_parameters
+from ..builders import ZENO_WINDOW, Builder, Model, Param, resolve_parameters
 from ..errors import LegsimError, ModelError, SceneError
 from ..execution import Execution
+from ..relaxed.simulate import MAX_STEPS as SIMULATE_MAX_STEPS
 from ..output.summary import run_summary
 from .fields import check_keys, describe, field_error, table_at
 from .files import apply_overrides, read_toml, resolve_scene_path
@@ -74,11 +75,10 @@ INITIAL_CHECK = "initial_check"
 # (eps is in guard units), so a scene must state them.
 REQUIRED_INTEGRATOR = ("t_final", "h", "eps")
 
-# A run stores every step (t, x, dx), so (t_final - t0) / h bounds its memory and time: 1e7
-# steps of an 8-dimensional robot are ~1.4 GB and minutes of Python. An absurd t_final or h is
-# refused before the run instead of filling memory for hours; a scene that means it raises
+# The integrator's step budget (legsim.relaxed.simulate.MAX_STEPS): an absurd t_final or h is
+# refused at loading instead of filling memory for hours; a scene that means it raises
 # integrator.max_steps.
-MAX_STEPS = 10_000_000
+MAX_STEPS = SIMULATE_MAX_STEPS
 
 
 def _integrator_schema() -> dict[str, Param]:
@@ -94,13 +94,16 @@ def _integrator_schema() -> dict[str, Param]:
         "max_halvings": Param(64, "most halvings of one step", low=1),
         "max_steps": Param(MAX_STEPS, "most nominal steps (t_final - t0) / h a run may take", low=1),
         "landing": Param("halve", "how a step past the strip is shortened", choices=("halve", "aim", "dense")),
+        "continuation": Param(True, "take a transition's continuation when its crossings accumulate (Zeno)"),
         # Optional error control (no default: absent means fixed nominal steps).
         "rtol": Param(1e-6, "relative tolerance of error-controlled steps", low=0.0, low_open=True),
         "atol": Param(1e-9, "absolute tolerance of error-controlled steps", low=0.0, low_open=True),
+        "zeno_window": Param(2e-3, "shortest flight resolved before crossings count as accumulating (default "
+                                   "h + eps)", "s", low=0.0, low_open=True),
     }
 
 
-OPTIONAL_INTEGRATOR = ("rtol", "atol")
+OPTIONAL_INTEGRATOR = ("rtol", "atol", "zeno_window")
 
 
 @dataclass
@@ -172,7 +175,9 @@ class Scene:
         execution = simulate(self.model.system, self.initial_state.copy(), self.initial_mode, s["t_final"],
                              s["h"], s["eps"], s["method"], self.model.control, t0=s["t0"],
                              max_transitions=s["max_transitions"], max_halvings=s["max_halvings"],
-                             progress=progress, rtol=s["rtol"], atol=s["atol"], landing=s["landing"])
+                             progress=progress, rtol=s["rtol"], atol=s["atol"], landing=s["landing"],
+                             max_steps=s["max_steps"], continuation=s["continuation"],
+                             zeno_window=s["zeno_window"] or self.model.info.get(ZENO_WINDOW))
         after = _model_counters(self.model)
         for key, value in after.items():
             # Report this run's count: the builder may have evaluated terms while being checked.

@@ -105,7 +105,7 @@ def check_resets(system: HybridSystem, ex: Execution, eps: float, control: Contr
     tol = 1e-9 * eps if tol is None else tol
     problems = []
     for k, tr in enumerate(ex.transitions):
-        transition = system.outgoing(tr.source)[tr.index]
+        transition = system.taken(tr.source, tr.index, tr.name)
         u_before = _control_at(control, tr.time, tr.state_before)
         g_src = system.guard_values(tr.source, tr.state_before, tr.time, u_before)
         if g_src.size and g_src.min() < -eps - tol:

@@ -19,19 +19,18 @@ from typing import Any, Iterable
 
 import numpy as np
 
-from ..builders import Builder, Effect, Model, Param
+from ..builders import ZENO_EFFECT, ZENO_WINDOW, Builder, Effect, Model, Param
 from ..errors import ModelError
 from ..execution import Samples
-from ..hybrid import HybridSystem, Mode, Transition
+from ..hybrid import Continuation, HybridSystem, Mode, Transition
 from ._reference import as_times, box, make_samples, segment
 
 MODE = "flight"
-REST = "rest"  # on the floor at rest (Zeno continuation only)
+REST = "rest"  # on the floor at rest: where accumulating bounces continue
 NAMES = ("z", "zd")
 
 
-def make_system(g: float = 9.81, restitution: float = 0.5, floor: bool = True, mass: float = 1.0,
-                zeno_window: float = 0.0) -> HybridSystem:
+def make_system(g: float = 9.81, restitution: float = 0.5, floor: bool = True, mass: float = 1.0) -> HybridSystem:
     """The bouncing ball as a hybrid system.
 
     Parameters
@@ -40,11 +39,10 @@ def make_system(g: float = 9.81, restitution: float = 0.5, floor: bool = True, m
     restitution: coefficient of restitution c in [0, 1] (the floor's reset is ``zd -> -c zd``).
     floor: without a floor the ball falls freely (one mode, no transition).
     mass: mass (kg), only used by the energy ``mass (g z + zd^2 / 2)`` (J).
-    zeno_window: Zeno continuation (s; 0, the default, switches it off): a bounce whose next
-        flight would be shorter than the window (``c v0 < g zeno_window / 2``, v0 the speed back
-        at the floor, ``v0^2 = zd^2 + 2 g z`` past it) lands plastically instead, transition
-        ``rest`` into mode ``rest`` (state held: gravity never lifts it again). Set it to
-        h + eps of the run (see docs/stress.md).
+
+    The bounce's continuation (taken when bounces accumulate, ``legsim.relaxed.zeno``) is the
+    plastic impact into mode ``rest``: the ball lies on the floor, held there for good (gravity
+    never lifts it again).
     """
     g, c, mass = float(g), float(restitution), float(mass)
     if not (g > 0 and math.isfinite(g)):
@@ -53,6 +51,7 @@ def make_system(g: float = 9.81, restitution: float = 0.5, floor: bool = True, m
         raise ModelError(f"bouncing ball: restitution must lie in [0, 1], got {c}")
     if not (mass > 0 and math.isfinite(mass)):
         raise ModelError(f"bouncing ball: mass must be finite and > 0, got {mass}")
+
     def field(t: float, x: np.ndarray, u: Any) -> np.ndarray:
         return np.array([x[1], -g])
 
@@ -73,30 +72,12 @@ def make_system(g: float = 9.81, restitution: float = 0.5, floor: bool = True, m
         zd = float(x[1])
         return mass * (g * float(x[0]) + 0.5 * zd * zd)
 
-    window = float(zeno_window)
-    if not (window >= 0.0 and math.isfinite(window)):
-        raise ModelError(f"bouncing ball: zeno_window must be finite and >= 0 s, got {zeno_window}")
-    transitions = []
     modes = {MODE: Mode(2, field, NAMES, jacobian)}
-    if floor and window == 0.0:
+    transitions = []
+    if floor:
+        rest = Continuation(REST, lambda x: np.array([x[0], 0.0]), name="rest")
         transitions.append(Transition(MODE, MODE, guard, reset, name="bounce", guard_gradient=guard_gradient,
-                                      reset_jacobian=lambda x: np.diag([1.0, -c])))
-    elif floor:
-        # Past the floor the bounce *accumulates* when its rebound, counted from the speed back
-        # at z = 0 (the same all along a step through the strip), would fly shorter than the
-        # window. The branch taken has the floor's guard itself (m), the other its opposite.
-        def branch(rests: bool):
-            def g_branch(x: np.ndarray) -> float:
-                base = guard(x)
-                if base >= 0.0:
-                    return base
-                v0 = math.sqrt(max(x[1] * x[1] + 2.0 * g * min(x[0], 0.0), 0.0))
-                return base if (c * v0 < 0.5 * g * window) == rests else -base
-            return g_branch
-
-        transitions.append(Transition(MODE, MODE, branch(False), reset, name="bounce",
-                                      reset_jacobian=lambda x: np.diag([1.0, -c])))
-        transitions.append(Transition(MODE, REST, branch(True), lambda x: np.array([x[0], 0.0]), name="rest"))
+                                      reset_jacobian=lambda x: np.diag([1.0, -c]), continuation=rest))
         modes[REST] = Mode(2, lambda t, x, u: np.zeros(2), NAMES, lambda t, x, u: np.zeros((2, 2)))
     return HybridSystem(modes, transitions, name="bouncing ball",
                         energy=energy, initial=(MODE, np.array([1.0, 0.0])))
@@ -233,8 +214,7 @@ class BouncingBallReference:
 def _build(params: dict[str, Any], effects: dict[str, dict[str, Any]]) -> Model:
     floor = "floor" in effects
     c = effects["floor"]["restitution"] if floor else 0.0
-    window = effects["zeno"]["window"] if "zeno" in effects and floor else 0.0
-    system = make_system(params["g"], c, floor, params["mass"], window)
+    system = make_system(params["g"], c, floor, params["mass"])
     size = params["size"]
 
     def geometry(mode: str, x: np.ndarray) -> dict[str, np.ndarray]:
@@ -246,6 +226,8 @@ def _build(params: dict[str, Any], effects: dict[str, dict[str, Any]]) -> Model:
                             "zeno_time": reference.zeno_time, "first_impact": reference.first_impact}
     if floor:
         info["initial_check"] = below_the_floor
+    if "zeno" in effects:
+        info[ZENO_WINDOW] = effects["zeno"]["window"]
     return Model(system, MODE, {"z": params["z0"], "zd": params["zd0"]}, None, geometry, scenery, reference,
                  info=info)
 
@@ -273,10 +255,7 @@ BUILDER = Builder(
         "floor": Effect("a rigid floor at z = 0 with an impact law zd -> -c zd", default_on=True,
                         parameters={"restitution": Param(0.5, "coefficient of restitution c", "", low=0.0,
                                                          high=1.0)}),
-        "zeno": Effect("Zeno continuation: a bounce whose next flight would be shorter than `window` lands "
-                       "plastically and rests (mode 'rest'; needs the floor)",
-                       parameters={"window": Param(2e-3, "shortest flight resolved; set it to h + eps of the run",
-                                                   "s", low=0.0, low_open=True)}),
+        "zeno": ZENO_EFFECT,
     },
     build=_build,
 )

@@ -22,7 +22,7 @@ import numpy as np
 
 from ..compiled import CompiledMode
 from ..errors import ModelError
-from ..hybrid import HybridSystem, Mode, Transition
+from ..hybrid import Continuation, HybridSystem, Mode, Transition
 
 _jit = numba.njit(cache=True, fastmath=False, nogil=True)
 
@@ -136,15 +136,22 @@ def make_oscillator(omega: float = 2.5, a: float = 0.05, x_max: float | None = 1
         def reset(x: np.ndarray) -> np.ndarray:
             return np.array([x[0], -c * x[1]])
 
+        def pressing(t: float, x: np.ndarray, u: Any) -> float:
+            return amplitude * math.cos(frequency * t) * inv_m - w2 * x[0]
+
+        stick = Continuation("stuck", lambda x: np.array([x[0], 0.0]), name="stick")
         transitions.append(Transition("free", "free", guard, reset, name="impact",
                                       guard_gradient=lambda x: np.array([-1.0, 0.0]) if stop - x[0] > -x[1]
                                       else np.array([0.0, -1.0]),
-                                      reset_jacobian=lambda x: np.diag([1.0, -c])))
+                                      reset_jacobian=lambda x: np.diag([1.0, -c]), continuation=stick))
+        transitions.append(Transition("stuck", "free", pressing, name="release", guard_args="t,x,u"))
         twin = CompiledMode(oscillator_field, oscillator_guards, 1, params, oscillator_resets)
     else:
         twin = CompiledMode(oscillator_field, oscillator_free_guards, 0, params)
-    mode = Mode(2, field, ("x", "xd"), jacobian, compiled=twin)
-    return HybridSystem({"free": mode}, transitions, name="oscillator with stop (compiled)"
+    modes = {"free": Mode(2, field, ("x", "xd"), jacobian, compiled=twin)}
+    if transitions:  # at rest on the stop, where accumulating impacts continue (legsim.relaxed.zeno)
+        modes["stuck"] = Mode(2, lambda t, x, u: np.zeros(2), ("x", "xd"), lambda t, x, u: np.zeros((2, 2)))
+    return HybridSystem(modes, transitions, name="oscillator with stop (compiled)"
                         if transitions else "oscillator (compiled)", energy=energy)
 
 
@@ -178,8 +185,11 @@ def make_bouncing_ball(g: float = 9.81, restitution: float = 0.5) -> HybridSyste
         return np.array([x[0], -c * x[1]])
 
     twin = CompiledMode(ball_field, ball_guards, 1, np.array([g, c]), ball_resets)
+    held = Mode(2, lambda t, x, u: np.zeros(2), ("z", "zd"), lambda t, x, u: np.zeros((2, 2)))
     mode = Mode(2, field, ("z", "zd"), lambda t, x, u: np.array([[0.0, 1.0], [0.0, 0.0]]), compiled=twin)
-    return HybridSystem({"flight": mode}, [Transition("flight", "flight", guard, reset, name="bounce",
-                                                      reset_jacobian=lambda x: np.diag([1.0, -c]))],
+    rest = Continuation("rest", lambda x: np.array([x[0], 0.0]), name="rest")
+    return HybridSystem({"flight": mode, "rest": held},
+                        [Transition("flight", "flight", guard, reset, name="bounce",
+                                    reset_jacobian=lambda x: np.diag([1.0, -c]), continuation=rest)],
                         name="bouncing ball (compiled)",
                         energy=lambda mode, x: g * float(x[0]) + 0.5 * float(x[1]) ** 2)

@@ -38,8 +38,7 @@ Modules, in Pinocchio's style (a fixed model, a scratch data, free-function algo
 * ``dynamics``: applied forces, ABA and the KKT solve, constraint and leg forces, energy;
 * ``guards``: position guards, release guards, falls, guard units, the initial-state check;
 * ``impacts``: the generalised Newton impact, resets, the plastic/graze guard pair;
-* ``zeno``: Zeno continuation (``zeno_window``): the accumulation measure, the rest/bounce guards;
-* ``transitions``: the outgoing transitions of a mode;
+* ``transitions``: the outgoing transitions of a mode (a bouncing contact's continuation: its rest);
 * ``assembly``: ``ContactBridge``, the facade composing them.
 
 The bridge owns one ``pinocchio.Data``: a system built from it is not thread-safe.

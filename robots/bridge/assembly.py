@@ -42,18 +42,8 @@ class ContactBridge:
         Optional viscous damping per joint name (N m s/rad or N s/m): ``tau -= b v``.
     actuated:
         Joint names driven by the control ``u`` (one entry of u per joint, N m or N). With any,
-        the guards that depend on constraint forces (releases, plastic impacts, Zeno
-        continuation) are declared ``guard_args="t,x,u"`` so that the integrator evaluates them
+        the guards that depend on constraint forces (releases, plastic impacts) are declared ``guard_args="t,x,u"`` so that the integrator evaluates them
         with the control at the interpolated crossing time.
-    zeno_window:
-        Zeno continuation (off with None, the default): for every contact with restitution
-        c > 0, an impact whose next flight would be shorter than ``zeno_window`` seconds (its
-        post-impact normal speed ``c |v_n|`` below ``a_n zeno_window / 2``, a_n the normal
-        acceleration with which the contact presses closed) enters the contact's constrained
-        mode through a plastic impact instead of bouncing, provided the contact then pushes
-        (normal force > 0); the usual release guard on that force leaves it. Set it to h + eps of
-        the run: the least time one relaxed transition takes (a step plus a strip), so only
-        flights the integrator could not resolve anyway are skipped.
     name:
         Name of the system.
 
@@ -73,12 +63,10 @@ class ContactBridge:
         mode_names: Mapping[Iterable[str], str] | None = None,
         joint_damping: Mapping[str, float] | None = None,
         actuated: Sequence[str] = (),
-        zeno_window: float | None = None,
         name: str = "robot",
     ) -> None:
         self._model = build_model(model, contacts, coordinate_names=coordinate_names, velocity_names=velocity_names,
-                                  joint_damping=joint_damping, actuated=actuated, zeno_window=zeno_window,
-                                  name=name)
+                                  joint_damping=joint_damping, actuated=actuated, name=name)
         self._data = BridgeData.create(self._model)
         self._modes = ModeCatalog(self._model, mode_names)
 
@@ -112,11 +100,6 @@ class ContactBridge:
     def velocity_names(self) -> tuple[str, ...]:
         """Names of the nv velocities."""
         return self._model.velocity_names
-
-    @property
-    def zeno_window(self) -> float | None:
-        """Zeno continuation window (s), None when off."""
-        return self._model.zeno_window
 
     @property
     def _act_idx(self) -> np.ndarray:

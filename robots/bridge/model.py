@@ -42,7 +42,6 @@ class BridgeModel:
     coordinate_names, velocity_names: the n names of q and of v.
     damping_idx, damping_b: velocity indices with joint damping and their coefficients (N m s/rad or N s/m).
     actuated_idx: velocity index of each entry of the control u.
-    zeno_window: Zeno continuation window (s), None when off.
     """
 
     name: str
@@ -56,7 +55,6 @@ class BridgeModel:
     damping_idx: np.ndarray
     damping_b: np.ndarray
     actuated_idx: np.ndarray
-    zeno_window: float | None
 
     @property
     def order(self) -> list[str]:
@@ -117,7 +115,7 @@ class BridgeData:
 
 def build_model(model: pin.Model, contacts: Sequence[Contact], *, coordinate_names: Sequence[str] | None,
                 velocity_names: Sequence[str] | None, joint_damping: Mapping[str, float] | None,
-                actuated: Sequence[str], zeno_window: float | None, name: str) -> BridgeModel:
+                actuated: Sequence[str], name: str) -> BridgeModel:
     """Check and resolve the ``ContactBridge`` arguments (see there); ``ModelError`` names the
     contact, frame or joint at fault."""
     _check_pin_model(model, name)
@@ -135,10 +133,7 @@ def build_model(model: pin.Model, contacts: Sequence[Contact], *, coordinate_nam
         raise ModelError(f"{name}: coordinate and velocity names overlap: {sorted(set(coords) & set(vels))}")
     damping_idx, damping_b = _joint_damping(own, joint_damping, name)
     actuated_idx = _actuated_dofs(own, actuated, name)
-    window = None if zeno_window is None else finite_number(
-        zeno_window, f"{name}: zeno_window (s)", low=0.0, low_open=True)
-    return BridgeModel(name, own, n, declared, rigid, legs, coords, vels, damping_idx, damping_b, actuated_idx,
-                       window)
+    return BridgeModel(name, own, n, declared, rigid, legs, coords, vels, damping_idx, damping_b, actuated_idx)
 
 
 def _check_pin_model(model: Any, name: str) -> None:

@@ -5,20 +5,19 @@
 * an inactive rigid contact strikes (after dropping the contacts it ``releases``):
   with c = 0, ``touchdown_<point>`` / ``impact_<stop>`` into the mode with it active and
   ``graze_<name>`` into the mode without it (plastic guards, ``impacts``); with c > 0,
-  ``bounce_<name>`` back into the mode without it, or under Zeno continuation the pair
-  ``rest_<name>`` / ``bounce_<name>`` (``zeno``).
+  ``bounce_<name>`` back into the mode without it, continued by ``rest_<name>`` (a plastic impact
+  into the mode with it active) when its bounces accumulate (``legsim.relaxed.zeno``).
 """
 
 from __future__ import annotations
 
-from legsim.hybrid import Transition
+from legsim.hybrid import Continuation, Transition
 
 from .contacts import JointStop, SpringLeg
 from .guards import kinematic_guard, release_guard
 from .impacts import impact_reset, plain_reset, plastic_guard
 from .model import BridgeData, BridgeModel
 from .modes import ModeCatalog, ModeSpec
-from .zeno import accumulation, zeno_guard
 
 
 def outgoing(model: BridgeModel, data: BridgeData, modes: ModeCatalog, spec: ModeSpec) -> list[Transition]:
@@ -78,15 +77,9 @@ def _strike_transitions(model: BridgeModel, data: BridgeData, modes: ModeCatalog
                 Transition(spec.name, free.name, plastic_guard(model, data, spec, contact, stick, stick_reset, -1.0),
                            impact_reset(model, data, spec, free, rows), name=f"graze_{contact}", guard_args=args)]
     bounce_reset = impact_reset(model, data, spec, free, rows)
-    if model.zeno_window is None:
-        return [Transition(spec.name, free.name, kinematic_guard(model, data, spec, contact), bounce_reset,
-                           name=f"bounce_{contact}")]
-    # Zeno continuation: a bounce whose next flight would be shorter than the window
-    # becomes a plastic impact into the constrained mode (when the contact then
-    # pushes); the two transitions have complementary guards, as above.
-    stick_reset = impact_reset(model, data, spec, stick, kept + [(contact, 0.0)])
-    measure = accumulation(model, data, contact, c.restitution, stick, free, stick_reset)
-    return [Transition(spec.name, stick.name, zeno_guard(model, data, spec, contact, measure, True),
-                       stick_reset, name=f"rest_{contact}", guard_args=args),
-            Transition(spec.name, free.name, zeno_guard(model, data, spec, contact, measure, False),
-                       bounce_reset, name=f"bounce_{contact}", guard_args=args)]
+    # When bounces accumulate the contact rests: the plastic impact into the constrained mode,
+    # left again by its release guard where the contact force changes sign.
+    rest = Continuation(stick.name, impact_reset(model, data, spec, stick, kept + [(contact, 0.0)]),
+                        name=f"rest_{contact}")
+    return [Transition(spec.name, free.name, kinematic_guard(model, data, spec, contact), bounce_reset,
+                       name=f"bounce_{contact}", continuation=rest)]

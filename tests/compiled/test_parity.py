@@ -72,7 +72,8 @@ def test_oscillator_example1_same_on_both_paths(method, tols, landing):
 def test_bouncing_ball_zeno_same_on_both_paths(method, tols, landing):
     # Past the Zeno time the strips chain: many transitions, each with shortened steps.
     system = make_bouncing_ball(9.81, 0.5)
-    fast, slow = both_paths(system, [1.0, 0.0], "flight", 2.0, 1e-2, 1e-4, method, landing=landing,
+    # The plain relaxed semantics (no continuation): the kernel crosses the chain of strips.
+    fast, slow = both_paths(system, [1.0, 0.0], "flight", 2.0, 1e-2, 1e-4, method, landing=landing, continuation=False,
                             max_transitions=300, **tols)
     zeno = math.sqrt(2 / 9.81) * 3  # t1 (1 + 2c / (1 - c)) with c = 0.5
     assert len(fast.transitions) > 20 and fast.transitions[-1].time > zeno - 0.05
@@ -81,8 +82,23 @@ def test_bouncing_ball_zeno_same_on_both_paths(method, tols, landing):
 
 def test_oscillator_example2_sticking_same_on_both_paths():
     system, x0, t_max = make_oscillator_example("ex2")
-    fast, slow = both_paths(system, x0, "free", 0.5, 1e-2, 1e-5, "rk4", landing="aim", max_transitions=400)
+    fast, slow = both_paths(system, x0, "free", 0.5, 1e-2, 1e-5, "rk4", landing="aim", max_transitions=400,
+                            continuation=False)
     assert len(fast.transitions) > 20  # the mass sticks: a stream of strip crossings
+    assert_same_execution(fast, slow)
+
+
+@pytest.mark.parametrize("which", ["ball", "ex2"])
+def test_continuation_at_an_accumulation_is_the_same_on_both_paths(which):
+    # By default accumulating impacts continue in the resting/sticking mode: the kernel hands
+    # every crossing of a transition with a continuation to Python, which decides.
+    if which == "ball":
+        system, x0, mode, t_final = make_bouncing_ball(9.81, 0.5), [1.0, 0.0], "flight", 2.0
+    else:
+        system, x0, _ = make_oscillator_example("ex2")
+        mode, t_final = "free", 8.0
+    fast, slow = both_paths(system, x0, mode, t_final, 1e-2, 1e-5, "rk4", landing="aim")
+    assert any(tr.name in ("rest", "stick") for tr in fast.transitions)
     assert_same_execution(fast, slow)
 
 
@@ -229,14 +245,14 @@ def test_transitions_crossed_in_the_kernel_in_several_record_batches(monkeypatch
     # records Python assembles them in many rounds, and the execution must not change.
     monkeypatch.setattr(compiled_visit, "RECORD_CHUNK", 16)
     system, x0, _ = make_oscillator_example("ex2")
-    fast, slow = both_paths(system, x0, "free", 1.0, 1e-2, 1e-5, "rk4", landing="halve")
+    fast, slow = both_paths(system, x0, "free", 1.0, 1e-2, 1e-5, "rk4", landing="halve", continuation=False)
     assert len(fast.transitions) > 100
     assert_same_execution(fast, slow)
 
 
 def test_transition_budget_is_kept_inside_the_kernel():
     system, x0, _ = make_oscillator_example("ex2")
-    fast, slow = both_paths(system, x0, "free", 4.0, 1e-2, 1e-5, "rk4", max_transitions=37)
+    fast, slow = both_paths(system, x0, "free", 4.0, 1e-2, 1e-5, "rk4", max_transitions=37, continuation=False)
     assert fast.status == "max_transitions" and len(fast.transitions) == 37
     assert_same_execution(fast, slow)
 

@@ -216,3 +216,44 @@ def test_an_eps_below_float_resolution_says_so(ball):
     ex = simulate(ball, [1.0, 0.0], "flight", 1.0, 1e-3, 1e-300)
     assert ex.status == "halving_exhausted"
     assert "eps = 1e-300 is thinner than float64 can resolve near this state" in ex.message
+
+
+def test_a_step_budget_refuses_a_run_too_long_for_it(ball):
+    with pytest.raises(SimulationError, match=r"^t_final - t0 = 1e\+12 s at h = 0.001 s is 1e\+15 steps, more than "
+                                              r"max_steps = 10000000"):
+        simulate(ball, [1.0, 0.0], "flight", 1e12, 1e-3, 1e-3)
+
+
+def test_an_error_controlled_run_ends_when_it_has_taken_its_step_budget(ball):
+    # Nominally 10 steps of 0.1 s; the tolerance asks for many more: the budget ends the run
+    # with its own status, the execution kept.
+    ex = simulate(ball, [1.0, 0.0], "flight", 1.0, 0.1, 1e-6, "dopri5", rtol=1e-12, atol=1e-12, max_steps=20)
+    assert ex.status == "max_steps" and ex.steps == 20 and 0.0 < ex.t_end < 1.0
+    assert "step budget max_steps=20 used up" in ex.message
+
+
+def test_progress_is_reported_across_transitions_when_no_step_is_taken(monkeypatch):
+    # A Zeno ball past its accumulation point crosses strip after strip; progress must keep
+    # coming by wall-clock time, not only every 64 steps of one mode visit.
+    import legsim.relaxed.run as run_module
+    from legsim.systems import bouncing_ball as bb
+
+    clock = iter(range(10 ** 7))
+    monkeypatch.setattr(run_module.time, "perf_counter", lambda: float(next(clock)))
+    seen = []
+    ex = simulate(bb.make_system(restitution=0.5), [1.0, 0.0], "flight", 3.0, 1e-2, 1e-4, continuation=False,
+                  progress=lambda t, t0, t1: seen.append(t))
+    assert len(ex.transitions) > 640
+    assert len(seen) >= len(ex.transitions) // 64 - 1
+
+
+def test_a_failing_progress_callback_is_named_as_the_callers_not_the_models(ball, monkeypatch):
+    import legsim.relaxed.run as run_module
+
+    def progress(t, t0, t1):
+        raise RuntimeError("terminal closed")
+
+    clock = iter(range(10 ** 6))
+    monkeypatch.setattr(run_module.time, "perf_counter", lambda: float(next(clock)))
+    with pytest.raises(SimulationError, match=r"^the progress callback failed at t=.*RuntimeError: terminal closed"):
+        simulate(ball, [1.0, 0.0], "flight", 2.0, 1e-3, 1e-3, progress=progress)

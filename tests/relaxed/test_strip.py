@@ -12,7 +12,8 @@ from legsim.systems import bouncing_ball as bb
 
 @pytest.fixture(scope="module")
 def ball_run() -> Execution:
-    return simulate(bb.make_system(), [1.0, 0.0], "flight", 2.0, 1e-2, 1e-3)
+    # The plain relaxed run: past the Zeno time the ball chatters in its strips.
+    return simulate(bb.make_system(), [1.0, 0.0], "flight", 2.0, 1e-2, 1e-3, continuation=False)
 
 
 

@@ -7,7 +7,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from ...builders import Builder, Effect, Model, Param
+from ...builders import ZENO_EFFECT, ZENO_WINDOW, Builder, Effect, Model, Param
 from ...errors import ModelError
 from .._reference import box, segment, zigzag
 from .model import MODE, forcing, make_system
@@ -25,16 +25,16 @@ def _build(params: dict[str, Any], effects: dict[str, dict[str, Any]]) -> Model:
     c = 0.0 if stop is None else stop["restitution"]
     a = 0.0 if damping is None else damping["a"]
     counts = {"damping_evals": 0, "forcing_evals": 0}
-    window = effects["zeno"]["window"] if "zeno" in effects and stop is not None else 0.0
-    system = make_system(params["omega"], a, x_max, c, params["mass"], counters=counts, zeno_window=window)
+    system = make_system(params["omega"], a, x_max, c, params["mass"], counters=counts)
     control = None if force is None else forcing(force["amplitude"], force["frequency"], counts)
     amplitude = 0.0 if force is None else force["amplitude"]
     frequency = 0.0 if force is None else force["frequency"]
     size = params["size"]
-    info: dict[str, Any] = {"guard units": {"impact": "m (distance to the stop)"} if stop else {}}
-    if window > 0.0:
-        info["guard units"].update({"stick": "m (distance to the stop)",
-                                    "release": "m/s^2 (free acceleration pressing the mass on the stop)"})
+    info: dict[str, Any] = {"guard units": {"impact": "m (distance to the stop)",
+                                            "release": "m/s^2 (free acceleration pressing the mass on the stop)"}
+                            if stop else {}}
+    if "zeno" in effects:
+        info[ZENO_WINDOW] = effects["zeno"]["window"]
     if x_max is not None:
         info["initial_check"] = _beyond_the_stop(x_max)
     try:
@@ -93,10 +93,7 @@ BUILDER = Builder(
                        parameters={"position": Param(14.0, "position of the stop x_max", "m"),
                                    "restitution": Param(0.9, "coefficient of restitution c", "", low=0.0,
                                                         high=1.0)}),
-        "zeno": Effect("Zeno continuation at the stop: an impact whose next flight would be shorter than "
-                       "`window` sticks (mode 'stuck') until the stop force changes sign (needs the stop)",
-                       parameters={"window": Param(2e-3, "shortest flight resolved; set it to h + eps of the run",
-                                                   "s", low=0.0, low_open=True)}),
+        "zeno": ZENO_EFFECT,
         "damping": Effect("viscous damping 2 a xd", default_on=True,
                           parameters={"a": Param(0.05, "damping rate mu / (2 m)", "1/s", low=0.0)}),
         "forcing": Effect("external force u(t) = amplitude cos(frequency t), passed as the control",

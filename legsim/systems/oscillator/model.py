@@ -9,10 +9,10 @@ from typing import Any, Callable
 import numpy as np
 
 from ...errors import ModelError
-from ...hybrid import HybridSystem, Mode, Transition
+from ...hybrid import Continuation, HybridSystem, Mode, Transition
 
 MODE = "free"
-STUCK = "stuck"  # at rest on the stop (Zeno continuation only)
+STUCK = "stuck"  # at rest on the stop: where accumulating impacts continue
 NAMES = ("x", "xd")
 
 #: Table I of paper 000, as keyword arguments of ``make_system``/``OscillatorReference`` plus the
@@ -49,8 +49,7 @@ def forcing(amplitude: float, frequency: float, counters: dict[str, int] | None 
 
 
 def make_system(omega: float = 2.5, a: float = 0.05, x_max: float | None = 14.0, c: float = 0.9,
-                mass: float = 1.0, counters: dict[str, int] | None = None,
-                zeno_window: float = 0.0) -> HybridSystem:
+                mass: float = 1.0, counters: dict[str, int] | None = None) -> HybridSystem:
     """The oscillator as a hybrid system; pass ``x_max=None`` for no stop (no guard).
 
     Parameters
@@ -62,12 +61,10 @@ def make_system(omega: float = 2.5, a: float = 0.05, x_max: float | None = 14.0,
     mass: m (kg), > 0; the control u is a force (N), the field uses u / m (None means u = 0).
     counters: when given, ``damping_evals`` counts the evaluations of the damping term (none
         at all when a = 0: the field then has no such term).
-    zeno_window: Zeno continuation (s; 0, the default, switches it off): an impact whose next
-        flight would be shorter than the window (rebound ``c v0 < F zeno_window / 2``, F the free
-        acceleration pressing the mass on the stop, v0 the approach speed back at the stop) and
-        after which the stop would push (F > 0) sticks instead: mode ``stuck`` (x, xd held), left
-        through ``release`` when F changes sign. Set it to h + eps of the run (see
-        docs/stress.md). The guards then depend on the forcing, so they are declared on (t, x, u).
+
+    With a stop, the impact's continuation (taken when impacts accumulate, ``legsim.relaxed.zeno``)
+    is ``stick``: the mass rests on the stop in mode ``stuck`` (x, xd held) and leaves it through
+    ``release`` where the stop's force changes sign (paper 000 below Table I).
     """
     omega, a, c, mass = float(omega), float(a), float(c), float(mass)
     _check_parameters(omega, a, c, mass)
@@ -88,9 +85,9 @@ def make_system(omega: float = 2.5, a: float = 0.05, x_max: float | None = 14.0,
         if not math.isfinite(stop):
             raise ModelError(f"oscillator: stop position x_max must be finite, got {x_max}")
         x0 = min(0.0, stop)
-        transitions = _stop_transitions(stop, c, w2, inv_m, zeno_window)
+        transitions = _stop_transitions(stop, c, w2, inv_m)
     modes = {MODE: Mode(2, _field(w2, two_a, inv_m, counters), NAMES, jacobian)}
-    if any(tr.target == STUCK for tr in transitions):
+    if transitions:
         modes[STUCK] = Mode(2, lambda t, x, u: np.zeros(2), NAMES, lambda t, x, u: np.zeros((2, 2)))
     return HybridSystem(modes, transitions,
                         name="oscillator with stop" if transitions else "oscillator",
@@ -135,12 +132,14 @@ def _field(w2: float, two_a: float, inv_m: float, counters: dict[str, int] | Non
     return field
 
 
-def _stop_transitions(stop: float, c: float, w2: float, inv_m: float, zeno_window: float) -> list[Transition]:
-    """The stop at ``x = stop`` (m): ``impact`` alone, or with Zeno continuation (window > 0 s)
-    ``impact``, ``stick`` and ``release``.
+def _stop_transitions(stop: float, c: float, w2: float, inv_m: float) -> list[Transition]:
+    """The stop at ``x = stop`` (m): ``impact`` from ``free``, continued by ``stick`` into
+    ``stuck``, and ``release`` from ``stuck``.
 
-    The guard ``max(x_max - x, -xd)`` is past only beyond the stop *and* moving into it, so
-    near an impact its value is the distance to the stop and eps is measured in metres."""
+    The impact's guard ``max(x_max - x, -xd)`` is past only beyond the stop *and* moving into it,
+    so near an impact its value is the distance to the stop and eps is measured in metres.
+    ``release``: the free acceleration at rest on the stop, ``F = u/m - omega^2 x`` (m/s^2), the
+    stop pushing while F >= 0; it depends on the forcing, so it is declared on (t, x, u)."""
 
     def guard(x: np.ndarray) -> float:
         d = stop - x[0]
@@ -152,44 +151,10 @@ def _stop_transitions(stop: float, c: float, w2: float, inv_m: float, zeno_windo
     def reset(x: np.ndarray) -> np.ndarray:
         return np.array([x[0], -c * x[1]])
 
-    window = float(zeno_window)
-    if not (window >= 0.0 and math.isfinite(window)):
-        raise ModelError(f"oscillator: zeno_window must be finite and >= 0 s, got {zeno_window}")
-    if window == 0.0:
-        return [Transition(MODE, MODE, guard, reset, name="impact", guard_gradient=guard_gradient,
-                           reset_jacobian=lambda x: np.diag([1.0, -c]))]
-    return _zeno_transitions(guard, reset, stop, c, w2, inv_m, window)
-
-
-def _zeno_transitions(gap: Callable[[np.ndarray], float], bounce: Callable[[np.ndarray], np.ndarray], stop: float,
-                      c: float, w2: float, inv_m: float, window: float) -> list[Transition]:
-    """Zeno continuation at the stop: ``impact`` (bounce) and ``stick`` (plastic, into ``stuck``)
-    from ``free`` with complementary guards, and ``release`` from ``stuck``.
-
-    Past the stop's guard the impact *accumulates* when the free acceleration at rest on the stop,
-    ``F = u/m - omega^2 x`` (m/s^2, > 0 pressing), is positive and the rebound ``c v0`` with
-    ``v0^2 = xd^2 - 2 F (x - x_max)`` (the approach speed back at the stop, so that the decision is
-    the same all along a step through the strip) is below ``F window / 2``. The branch taken has
-    the stop's guard itself (m), the other its opposite (not past). ``release``: guard F itself,
-    the stop pushes while F >= 0 (paper 000 below Table I)."""
-
-    def pressing(x: np.ndarray, u: Any) -> float:
+    def pressing(t: float, x: np.ndarray, u: Any) -> float:
         return (0.0 if u is None else u) * inv_m - w2 * x[0]
 
-    def branch(sticks: bool):
-        def g(t: float, x: np.ndarray, u: Any) -> float:
-            base = gap(x)
-            if base >= 0.0:
-                return base
-            F = pressing(x, u)
-            v0 = math.sqrt(max(x[1] * x[1] - 2.0 * F * max(x[0] - stop, 0.0), 0.0))
-            accumulating = F > 0.0 and c * v0 < 0.5 * F * window
-            return base if accumulating == sticks else -base
-        return g
-
-    def stick(x: np.ndarray) -> np.ndarray:
-        return np.array([x[0], 0.0])
-
-    return [Transition(MODE, MODE, branch(False), bounce, name="impact", guard_args="t,x,u"),
-            Transition(MODE, STUCK, branch(True), stick, name="stick", guard_args="t,x,u"),
-            Transition(STUCK, MODE, lambda t, x, u: pressing(x, u), name="release", guard_args="t,x,u")]
+    stick = Continuation(STUCK, lambda x: np.array([x[0], 0.0]), name="stick")
+    return [Transition(MODE, MODE, guard, reset, name="impact", guard_gradient=guard_gradient,
+                       reset_jacobian=lambda x: np.diag([1.0, -c]), continuation=stick),
+            Transition(STUCK, MODE, pressing, name="release", guard_args="t,x,u")]
