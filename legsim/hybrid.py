@@ -183,6 +183,23 @@ class Transition:
 
 
 @dataclass(frozen=True)
+class JointCrossing:
+    """Several transitions of one mode crossed in the same landing, resolved at once by the model
+    (simultaneous impacts under one impact law): the name recorded, the target mode and the
+    image of the strip point there."""
+
+    name: str
+    target: str
+    state: np.ndarray
+
+
+#: ``joint(mode, transition names, q, rest) -> JointCrossing | None``: how a model resolves
+#: transitions crossed in the same landing step together (None: one after the other); ``rest``:
+#: these crossings accumulate, resolve them by their continuation (every impact plastic).
+JointFn = Callable[[str, tuple[str, ...], np.ndarray, bool], "JointCrossing | None"]
+
+
+@dataclass(frozen=True)
 class ModeData:
     """What the integrator needs about one mode, gathered once (internal)."""
 
@@ -216,6 +233,13 @@ class HybridSystem:
     initial:
         Optional ``(mode_name, x)`` on which fields, guards and resets are evaluated once
         at construction to check their dimensions.
+    joint:
+        Optional ``joint(mode, names, q, rest) -> JointCrossing | None``: resolves transitions
+        whose guards are crossed in the same landing step (their strips entered together:
+        simultaneous impacts) at once, from the strip point q of the first; ``rest`` when such
+        joint crossings accumulate (their continuation: every impact plastic). Without it, or
+        when it returns None, they are crossed one after the other, and the run warns where the
+        two orders of two self-transitions' resets give different states.
 
     Raises
     ------
@@ -232,6 +256,7 @@ class HybridSystem:
         expand: Callable[[str], tuple[Mode, Sequence[Transition]]] | None = None,
         energy: Callable[[str, np.ndarray], float] | None = None,
         initial: tuple[str, Any] | None = None,
+        joint: JointFn | None = None,
     ) -> None:
         if not isinstance(modes, Mapping):
             raise ModelError(f"{name}: modes must be a mapping name -> Mode, got {type(modes).__name__}")
@@ -244,6 +269,8 @@ class HybridSystem:
                 raise ModelError(f"{name}: mode '{key}' must be a legsim.Mode, got {type(mode).__name__}")
         if expand is not None and not callable(expand):
             raise ModelError(f"{name}: expand must be callable expand(mode_name) -> (Mode, transitions)")
+        if joint is not None and not callable(joint):
+            raise ModelError(f"{name}: joint must be callable joint(mode, names, q, rest) -> JointCrossing | None")
         if energy is not None and not callable(energy):
             raise ModelError(f"{name}: energy must be callable energy(mode, x) -> float")
         self._name = name
@@ -251,6 +278,7 @@ class HybridSystem:
         self._outgoing: dict[str, list[Transition]] = {key: [] for key in self._modes}
         self._expand = expand
         self._energy = energy
+        self._joint = joint
         self._transitions: list[Transition] = []
         for tr in transitions:
             self._add_transition(tr)
@@ -321,6 +349,11 @@ class HybridSystem:
     def transitions(self) -> tuple[Transition, ...]:
         """The transitions built so far."""
         return tuple(self._transitions)
+
+    @property
+    def joint(self) -> JointFn | None:
+        """``joint(mode, names, q)`` resolving simultaneous transitions at once, or None."""
+        return self._joint
 
     @property
     def energy(self) -> Callable[[str, np.ndarray], float] | None:

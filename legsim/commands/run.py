@@ -48,25 +48,35 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "--set effects.floor.restitution=0.8 (value read as TOML, else as a string)")
     parser.add_argument("--json", action="store_true", help="print one JSON object instead of the summary")
     parser.add_argument("--quiet", "-q", action="store_true", help="print nothing but errors; no progress bar")
+    parser.add_argument("--check-accuracy", action="store_true",
+                        help="run again with eps/10 and h/2 (tolerances/10 with error control) and report the "
+                             "estimated error of the final state, transition times and trajectory")
     add_output_arguments(parser)
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..output.summary import run_summary
+    from ..output.summary import finite_or_none, run_summary
     from ..scene import load_scene
 
     scene = load_scene(args.scene, overrides=args.overrides)
     outputs = requested_outputs(args, scene.output)
     writers = checked_writers(outputs, scene)
-    execution = _simulate(scene, show_progress=not (args.quiet or args.json))
+    execution, estimate = _simulate(scene, show_progress=not (args.quiet or args.json), check=args.check_accuracy)
     written, failures = _write_all(execution, scene, outputs, writers)
     summary = run_summary(execution, scene, outputs=written)
+    if estimate is not None:
+        summary["error_estimate"] = finite_or_none(estimate.as_dict())
     if args.json:
         print(json.dumps(summary, allow_nan=False))
     elif not args.quiet:
         print(format_summary(summary))
+        if estimate is not None:
+            print(format_estimate(estimate))
         for kind, path in written.items():
             print(f"wrote {path} ({kind})")
+    if not args.json:  # a result the method cannot vouch for says so, even with --quiet
+        for warning in summary["warnings"]:
+            print(f"legsim: warning: {warning['message']}", file=sys.stderr)
     for exc in failures:
         print(f"legsim: error: {exc}", file=sys.stderr)
     if summary["status"] != "finished":
@@ -89,8 +99,9 @@ def checked_writers(outputs: dict[str, tuple[Path, str]], scene: Any = None) -> 
     return writers
 
 
-def _simulate(scene: Any, show_progress: bool) -> Any:
-    """``scene.simulate()`` with a progress bar on stderr (when shown and stderr is a terminal)."""
+def _simulate(scene: Any, show_progress: bool, check: bool) -> tuple[Any, Any]:
+    """``scene.simulate()`` with a progress bar on stderr (when shown and stderr is a terminal);
+    with ``check``, ``scene.check_accuracy()``: (execution, error estimate or None)."""
     import numpy as np
 
     from ..progress import progress_for
@@ -101,7 +112,7 @@ def _simulate(scene: Any, show_progress: bool) -> Any:
         # non_finite naming mode, time and state; numpy's overflow warnings on the way there
         # would only bury that message.
         with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-            return scene.simulate(progress=bar)
+            return scene.check_accuracy(progress=bar) if check else (scene.simulate(progress=bar), None)
     finally:
         if bar is not None:
             bar.close()
@@ -132,6 +143,22 @@ def _write_all(execution: Any, scene: Any, outputs: dict[str, tuple[Path, str]],
                     raise
                 failures.append(exc)
     return written, failures
+
+
+def format_estimate(estimate: Any) -> str:
+    """The error estimate as lines of the text summary."""
+    final = ", ".join(f"{name} {value:.3g}" for name, value in estimate.final_state.items())
+    relative = "" if estimate.final_state_relative is None else f" (relative {estimate.final_state_relative:.3g})"
+    lines = [f"estimated error (against eps/10, {'tolerances/10' if estimate.refined.get('rtol') else 'h/2'}):",
+             f"  final state: {final}{relative}"]
+    if estimate.transition_times is not None:
+        differ = "; the transition sequences differ after those" if estimate.transitions_differ else ""
+        lines.append(f"  transition times: {estimate.transition_times:.3g} s over {estimate.transitions_matched} "
+                     f"transitions{differ}")
+    trajectory = ", ".join(f"{name} {value:.3g}" for name, value in estimate.trajectory.items())
+    lines.append(f"  trajectory (max over {100 * (1 - estimate.mode_mismatch):.0f}% of the run in the same mode): "
+                 f"{trajectory}")
+    return "\n".join(lines)
 
 
 def requested_outputs(args: argparse.Namespace, scene_output: dict[str, str | None] | None = None
@@ -260,7 +287,8 @@ def _num(value: Any) -> str:
 CORE_KEYS = {"system", "status", "message", "t_final", "final_mode", "final_state", "state_names",
              "final_in_strip", "mode_sequence", "transitions", "steps", "halvings", "field_evals",
              "guard_evals", "reset_evals", "strip_time", "wall_time_s", "h", "eps", "method", "scene",
-             "robot", "energy_initial", "energy_final", "scene_file", "outputs", "error_rejections"}
+             "robot", "energy_initial", "energy_final", "scene_file", "outputs", "error_rejections",
+             "longest_strip_hold", "warnings", "error_estimate"}
 
 
 def format_summary(summary: dict[str, Any]) -> str:
@@ -277,6 +305,9 @@ def format_summary(summary: dict[str, Any]) -> str:
     rejected = f", error rejections {rejections}" if rejections else ""
     lines.append(f"steps {summary['steps']}, halvings {summary['halvings']}{rejected}; evaluations: field "
                  f"{summary['field_evals']}, guard {summary['guard_evals']}, reset {summary['reset_evals']}")
+    if summary.get("strip_time"):
+        lines.append(f"held in strips {_num(summary['strip_time'])} s in all, the longest hold "
+                     f"{_num(summary.get('longest_strip_hold'))} s")
     extra = {k: v for k, v in summary.items() if k not in CORE_KEYS and isinstance(v, (int, float))}
     if extra:
         lines.append("other counters: " + ", ".join(f"{k} {v}" for k, v in extra.items()))

@@ -84,7 +84,8 @@ def check_twin(system_name: str, data: ModeData, t: float, x: np.ndarray, k0: np
 
 def crosses_in_kernel(data: ModeData, continues: bool, checked: bool) -> bool:
     """Whether the kernel may cross the mode's strips itself: the twin has compiled resets
-    (``checked``) and no crossing can take a continuation (the kernel knows of none)."""
+    (``checked``) and no crossing can take a continuation (the kernel knows of none; nor does it
+    know joint crossings, which the caller checks on the system)."""
     return checked and not (continues and any(c is not None for c in data.continuations))
 
 
@@ -106,4 +107,4 @@ def without_compiled(system: HybridSystem) -> HybridSystem:
     """The same system with its modes' compiled twins removed, so ``simulate`` runs the Python
     step loop (for comparisons of the two paths). Eagerly built systems only."""
     modes = {name: dataclasses.replace(mode, compiled=None) for name, mode in system.modes.items()}
-    return HybridSystem(modes, system.transitions, name=system.name, energy=system.energy)
+    return HybridSystem(modes, system.transitions, name=system.name, energy=system.energy, joint=system.joint)

@@ -56,7 +56,8 @@ def run_visit_compiled(run: Run, visit: ModeVisit) -> Outcome:
     plan = plan_for(run.tableau)
     x = np.array(visit.x, dtype=float)
     ws.K[0] = visit.k0
-    _settings(run, ws, plan, crosses_in_kernel(data, run.zeno.continues, checked[visit.name]))
+    in_kernel = crosses_in_kernel(data, run.zeno.continues, checked[visit.name]) and run.system.joint is None
+    _settings(run, ws, plan, in_kernel)
     ws.fs[k.F_T], ws.fs[k.F_HPROP] = visit.t, run.step_size.h_prop
     while True:
         ws.ci[3] = min(PROGRESS_CHUNK if run.has_progress else _NO_LIMIT, run.max_steps - run.steps)
@@ -118,8 +119,9 @@ def _outcome(run: Run, visit: ModeVisit, ws: Workspace, code: int) -> Outcome:
     fs, iv, t, name = ws.fs, ws.iv, visit.t, visit.name
     transitions = visit.data.transitions
     if code == k.TRANSITION:
-        return cross(run, visit, int(iv[k.I_GUARD_INDEX]), float(fs[k.F_TC]), ws.q.copy(), float(fs[k.F_LAND]),
-                     float(fs[k.F_TAU]))
+        e = int(iv[k.I_GUARD_INDEX])
+        crossed = [e] + [f for f in range(len(transitions)) if ws.gv[f] < 0.0 and f != e]
+        return cross(run, visit, e, float(fs[k.F_TC]), ws.q.copy(), float(fs[k.F_LAND]), float(fs[k.F_TAU]), crossed)
     if code == k.NEXT:
         # The state entering the mode again needs the entry's special cases (in a strip, or a
         # non-finite field or guard): the Python entry takes it from here. The segment before it
@@ -187,6 +189,7 @@ def _build_pieces(run: Run, visit: ModeVisit, r_e: list, r_f: list, qs: np.ndarr
         run.strip_time += exit_time - tc  # summed in the order the Python path sums them
         run.transitions.append(TransitionRecord(tr.name, mode, mode, r_e[j], tc, t_land, exit_time, q_rows[j],
                                                 after_rows[j], tau))
-        run.zeno.crossed(run, mode, r_e[j], tr.name, tc, exit_time, run.zeno.crossing(mode, r_e[j], tc), False)
+        run.zeno.crossed(run, mode, tr.name, tc, exit_time, run.zeno.crossing(mode, tr.name, tc), False,
+                         tr.continuation is not None)
         start = end
 

@@ -15,6 +15,7 @@ from ..hybrid import HybridSystem, ModeData, not_a_number, real_number
 from ..methods import Tableau, make_stepper
 from ..methods.stepper import field_value
 from .outcomes import Ended
+from .simultaneous import OrderWatch
 from .zeno import ZenoWatch, strip_hold_warning
 
 ProgressFn = Callable[[float, float, float], None]
@@ -77,6 +78,7 @@ class Run:
         self.max_halvings = max_halvings
         self.max_steps = max_steps
         self.zeno = zeno
+        self.order = OrderWatch()
         self.t0, self.t_final = t0, t_final
         self.steps = self.halvings = self.error_rejections = 0
         self.field_evals = self.guard_evals = self.reset_evals = 0
@@ -159,7 +161,7 @@ class Run:
                     **self.step_size.settings(), "landing": self.landing.name,
                     "max_transitions": self.max_transitions, "control": self.control is not None,
                     "continuation": self.zeno.continues, "zeno_window": self.zeno.window}
-        warnings = self.zeno.warnings(self, ended.t)
+        warnings = self.zeno.warnings(self, ended.t) + self.order.warnings()
         held = strip_hold_warning(self.strip_time, self.t0, ended.t, warnings)
         warnings += [held] if held is not None else []
         return Execution(status=Status(ended.status), message=ended.message, segments=self.segments,

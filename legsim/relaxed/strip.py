@@ -23,6 +23,7 @@ from .outcomes import Ended, Entered, Landing, Outcome
 from .rules import (CONVERGED, RESULT, SEARCHING, STATUS, crossing_point, crossing_start, crossing_update,
                     entered_in_strip, hermite_slope_weights, hermite_weights, strip_exit_time)
 from .run import PROGRESS_STEPS, ModeVisit, Run
+from .simultaneous import joint_crossing, joint_name
 
 #: q is located to this share of the strip: it costs guard evaluations only.
 CROSSING_TOL = 1e-12
@@ -103,13 +104,17 @@ def cross_landing(run: Run, visit: ModeVisit, landing: Landing) -> Outcome:
         else:
             q = candidate
             visit.buf.append(tc, q, landing.slope(s))
-    return cross(run, visit, e, tc, q, landing.t1, -landing.gvals[e])
+    crossed = [e] + [f for f, g in enumerate(landing.gvals) if g < 0.0 and f != e]
+    return cross(run, visit, e, tc, q, landing.t1, -landing.gvals[e], crossed)
 
 
-def cross(run: Run, visit: ModeVisit, e: int, tc: float, q: np.ndarray, t_land: float, tau: float) -> Outcome:
+def cross(run: Run, visit: ModeVisit, e: int, tc: float, q: np.ndarray, t_land: float, tau: float,
+          crossed: list[int] | None = None) -> Outcome:
     """Cross the strip of transition e entered at time tc at the guard point q by a step that
-    landed at t_land, depth tau: hold q until t_land + eps - tau, then reset (or take the
-    transition's continuation when its crossings accumulate, ``zeno``)."""
+    landed at t_land, depth tau: hold q until t_land + eps - tau, then reset. With ``crossed``,
+    the transitions whose guards the landing step crossed (e first): resolved together by the
+    model's joint function when it has one (``simultaneous``). A transition whose crossings
+    accumulate takes its continuation (``zeno``)."""
     data = visit.data
     tr = data.transitions[e]
     run.segments.append(visit.buf.freeze())
@@ -123,20 +128,48 @@ def cross(run: Run, visit: ModeVisit, e: int, tc: float, q: np.ndarray, t_land: 
         run.strips.append(Strip(visit.name, tr.name, tc, run.t_final, q.copy(), t_land, tau))
         run.strip_time += run.t_final - tc
         return Ended(Status.FINISHED, "", run.t_final, True)
-    accumulates = run.zeno.crossing(visit.name, e, tc)
+    if crossed is not None and len(crossed) > 1:
+        outcome = _cross_jointly(run, visit, crossed, tc, q, t_land, tau, exit_time)
+        if outcome is not None:
+            return outcome
+        run.order.check(data, crossed, q, tc)
+    accumulates = run.zeno.crossing(visit.name, tr.name, tc)
     continuation = data.continuations[e] if accumulates and run.zeno.continues else None
     if continuation is not None:
         image = _continued_image(run, visit, e, continuation, tc, q, exit_time)
         if image is not None:
             outcome = record_crossing(run, visit.name, e, continuation.name, continuation.target, tc, q, t_land, tau,
                                       exit_time, image)
-            run.zeno.crossed(run, visit.name, e, continuation.name, tc, exit_time, True, True)
+            run.zeno.crossed(run, visit.name, tr.name, tc, exit_time, True, True)
             return outcome
     x_after = _reset(run, visit, e, tc, q)
     if isinstance(x_after, Ended):
         return x_after
     outcome = record_crossing(run, visit.name, e, tr.name, data.targets[e], tc, q, t_land, tau, exit_time, x_after)
-    run.zeno.crossed(run, visit.name, e, tr.name, tc, exit_time, accumulates, False)
+    run.zeno.crossed(run, visit.name, tr.name, tc, exit_time, accumulates, False, tr.continuation is not None)
+    return outcome
+
+
+def _cross_jointly(run: Run, visit: ModeVisit, crossed: list[int], tc: float, q: np.ndarray, t_land: float,
+                   tau: float, exit_time: float) -> Outcome | None:
+    """The model's joint resolution of the transitions ``crossed`` together (their continuation,
+    every striker plastic, when these joint crossings accumulate), recorded; None when the model
+    has none."""
+    key = joint_name(visit.data, crossed)
+    accumulates = run.zeno.crossing(visit.name, key, tc)
+    rest = accumulates and run.zeno.continues
+    joint = joint_crossing(run.system, visit.data, crossed, q, rest)
+    if joint is None:
+        return None
+    run.reset_evals += 1
+    image = np.asarray(joint.state, dtype=float)
+    target_dim = run.system.mode(joint.target).dim
+    if image.shape != (target_dim,):
+        raise ModelError(f"{run.system.name}: joint crossing {joint.name} returned shape {image.shape}, expected "
+                         f"({target_dim},) for mode '{joint.target}'")
+    outcome = record_crossing(run, visit.name, crossed[0], joint.name, joint.target, tc, q, t_land, tau, exit_time,
+                              image)
+    run.zeno.crossed(run, visit.name, key, tc, exit_time, accumulates, rest)
     return outcome
 
 

@@ -34,6 +34,7 @@ class _Episode:
     transitions_before: int
     strip_time_before: float
     estimate: float
+    remedy: str
 
 
 class ZenoWatch:
@@ -44,32 +45,36 @@ class ZenoWatch:
     def __init__(self, window: float, continues: bool) -> None:
         self.window = window
         self.continues = continues
-        self._chain: tuple[str, int] | None = None
+        self._chain: tuple[str, str] | None = None
         self._last_exit = -math.inf
         self._flight = math.inf
         self._episode: _Episode | None = None
         self.episodes: list[tuple[_Episode, int, float, float]] = []
 
-    def crossing(self, mode: str, index: int, tc: float) -> bool:
-        """A crossing of transition ``index`` of ``mode`` at time tc: True when the crossings
-        of this transition accumulate (``rules.accumulating``)."""
-        if self._chain != (mode, index):
+    def crossing(self, mode: str, name: str, tc: float) -> bool:
+        """A crossing of transition ``name`` of ``mode`` at time tc: True when the crossings of
+        this transition accumulate (``rules.accumulating``)."""
+        if self._chain != (mode, name):
             return False
         return accumulating(self._flight, tc - self._last_exit, self.window)
 
-    def crossed(self, run, mode: str, index: int, name: str, tc: float, exit_time: float, accumulates: bool,
-                continued: bool) -> None:
-        """Record the crossing (its strip left at ``exit_time``): the chain goes on or restarts,
-        and an accumulation without continuation opens an episode for the warnings."""
-        flight = tc - self._last_exit if self._chain == (mode, index) else math.inf
-        if self._chain != (mode, index) or continued:
+    def crossed(self, run, mode: str, name: str, tc: float, exit_time: float, accumulates: bool,
+                continued: bool, has_continuation: bool = False) -> None:
+        """Record the crossing of ``name`` (its strip left at ``exit_time``): the chain goes on or
+        restarts, and an accumulation without continuation opens an episode for the warnings."""
+        flight = tc - self._last_exit if self._chain == (mode, name) else math.inf
+        if self._chain != (mode, name) or continued:
             self._close(run, tc)
         if accumulates and not continued and self._episode is None:
             ratio = flight / self._flight if self._flight > 0.0 else 1.0
             estimate = exit_time + flight * ratio / (1.0 - ratio) if ratio < 1.0 else exit_time
+            remedy = ("run with continuation (the default: simulate(continuation=True), integrator.continuation = "
+                      "true), which takes the transition's continuation there" if has_continuation else
+                      "give the transition a continuation (legsim.Continuation: the constrained mode entered when its "
+                      "crossings accumulate)")
             self._episode = _Episode(mode, name, tc, len(run.transitions) - 1, run.strip_time - (exit_time - tc),
-                                     estimate)
-        self._chain = None if continued else (mode, index)
+                                     estimate, remedy)
+        self._chain = None if continued else (mode, name)
         self._last_exit, self._flight = exit_time, flight
 
     def _close(self, run, t: float) -> None:
@@ -93,8 +98,7 @@ def _accumulation_warning(episode: _Episode, transitions: int, strip_time: float
                f"(a Zeno point near t={episode.estimate:.6g} s): {transitions} transitions and {strip_time:.3g} s "
                f"held in its strip until t={until:.6g} s. Past an accumulation point the relaxed execution holds "
                f"the state in the strip instead of moving it (paper 000, Thm. 26), so the result there is not the "
-               f"hybrid system's. Remedy: give the transition a continuation (legsim.Continuation: the constrained "
-               f"mode entered when its crossings accumulate), or end the run before t={episode.estimate:.6g} s.")
+               f"hybrid system's. Remedy: {episode.remedy}, or end the run before t={episode.estimate:.6g} s.")
     return RunWarning("accumulation", message, episode.start,
                       {"transition": episode.transition, "mode": episode.mode, "accumulation_time": episode.estimate,
                        "transitions_since": transitions, "strip_time_since": strip_time})

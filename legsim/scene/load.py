@@ -39,6 +39,7 @@ scenes (``legsim.scenarios``, the repository's ``scenarios/`` folder).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 from dataclasses import dataclass, field
@@ -185,6 +186,17 @@ class Scene:
             name = key if key not in execution.counters else f"model_{key}"
             execution.counters[name] = delta
         return execution
+
+    def check_accuracy(self, progress: Callable[[float, float, float], None] | None = None
+                       ) -> tuple[Execution, Any]:
+        """The scene's run and the estimate of its error (``legsim.accuracy``): the run repeated
+        with eps / 10 and h / 2 (tolerances / 10 under error control). Returns (the execution,
+        its ``ErrorEstimate``)."""
+        from ..accuracy import compare, refined
+
+        run = self.simulate(progress)
+        fine = dataclasses.replace(self, integrator=refined(self.integrator)).simulate(progress)
+        return run, compare(run, fine)
 
     def energy(self, mode: str, x: np.ndarray) -> float | None:
         """The system's energy (J) at (mode, x), or None when it defines none."""

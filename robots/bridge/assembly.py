@@ -12,10 +12,11 @@ from typing import Any, Callable, Iterable, Mapping, Sequence
 import numpy as np
 import pinocchio as pin
 
-from legsim.hybrid import HybridSystem, Mode, Transition
+from legsim.hybrid import HybridSystem, JointCrossing, Mode, Transition
 
 from . import dynamics, guards, impacts
 from .contacts import Contact, frame_id
+from .joint import resolve
 from .model import BridgeData, build_model
 from .modes import ModeCatalog
 from .transitions import outgoing
@@ -222,7 +223,13 @@ class ContactBridge:
             if x0 is not None:
                 initial = (initial_mode, x0)
         return HybridSystem({}, (), name=self.name, expand=self.expand,
-                            energy=self.energy if energy else None, initial=initial)
+                            energy=self.energy if energy else None, initial=initial, joint=self.joint)
+
+    def joint(self, mode: str, names: tuple[str, ...], x: np.ndarray, rest: bool = False) -> JointCrossing | None:
+        """The contacts struck by the transitions ``names`` (crossed in one landing step) at x,
+        resolved under one impact law (``joint``; ``rest``: all plastic, their bounces having
+        accumulated), or None to take them one after the other."""
+        return resolve(self._model, self._data, self._modes, mode, names, x, rest)
 
     def counters(self) -> dict[str, int]:
         """Model-side evaluation counts since construction (or the last ``reset_counters``):

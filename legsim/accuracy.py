@@ -1,0 +1,151 @@
+"""How accurate is a run? An estimate every run can state.
+
+The run is repeated with a finer setting (the strip width eps / 10, and the step h / 2 for fixed
+steps or the tolerances / 10 for error-controlled ones) and the two are compared: the final state,
+the transition times and the sampled trajectory, per coordinate. The relaxed execution converges
+at O(eps) + O(h^order) (paper 000), so the refined run is several times closer to the true one,
+and the difference estimates the original run's error (its error times 1 - 1/ratio, within a
+factor of about 2 of it for ratios of 2 and more).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, Callable
+
+import numpy as np
+
+from .execution import Execution
+
+#: Times at which the two trajectories are compared.
+SAMPLES = 2001
+#: A coordinate whose size along the run is below this share of the largest coordinate's stays at
+#: zero to rounding (a symmetric gait's pitch): it has no size to be relative to.
+ZERO_SIZE = 1e-9
+
+
+@dataclass(frozen=True)
+class ErrorEstimate:
+    """The estimated error of a run, from its difference with a refined run.
+
+    Attributes
+    ----------
+    final_state: per coordinate of the final mode, |x - x_refined| at t_end (in the coordinate's
+        units); coordinates the refined run's final mode lacks are left out.
+    final_state_relative: max over coordinates of that error over the coordinate's size in the run
+        (its largest |value| along the refined run); coordinates that stay at zero to rounding
+        (below ``ZERO_SIZE`` of the largest size) are left out of it. None when the final modes
+        differ.
+    transition_times: max |t_k - t_k refined| (s) over the transitions both runs take in the same
+        order (None without any); ``transitions_matched`` of them, ``transitions_differ`` when the
+        sequences differ in name or count.
+    trajectory: per coordinate, max |x(t) - x_refined(t)| over ``SAMPLES`` times where both runs
+        are in the same mode; ``mode_mismatch``: the share of those times where they are not.
+    refined: the refined run's settings (h, eps, rtol, atol).
+    """
+
+    final_state: dict[str, float]
+    final_state_relative: float | None
+    transition_times: float | None
+    transitions_matched: int
+    transitions_differ: bool
+    trajectory: dict[str, float]
+    mode_mismatch: float
+    refined: dict[str, Any] = field(default_factory=dict)
+
+    def as_dict(self) -> dict[str, Any]:
+        """The JSON form (``legsim run --check-accuracy --json``: key ``error_estimate``)."""
+        return {"final_state": self.final_state, "final_state_relative": self.final_state_relative,
+                "transition_times": self.transition_times, "transitions_matched": self.transitions_matched,
+                "transitions_differ": self.transitions_differ, "trajectory": self.trajectory,
+                "mode_mismatch": self.mode_mismatch, "refined": self.refined}
+
+
+def refined(settings: dict[str, Any]) -> dict[str, Any]:
+    """The refined settings: eps / 10; h / 2 for fixed steps, rtol and atol / 10 with error control."""
+    out = dict(settings)
+    out["eps"] = settings["eps"] / 10.0
+    if settings.get("rtol") is None and settings.get("atol") is None:
+        out["h"] = settings["h"] / 2.0
+    else:
+        out["rtol"] = None if settings.get("rtol") is None else settings["rtol"] / 10.0
+        out["atol"] = None if settings.get("atol") is None else settings["atol"] / 10.0
+    return out
+
+
+def compare(run: Execution, fine: Execution) -> ErrorEstimate:
+    """The error estimate of ``run`` against its refined repetition ``fine``."""
+    final, relative = _final_state(run, fine)
+    times, matched, differ = _transition_times(run, fine)
+    trajectory, mismatch = _trajectory(run, fine)
+    settings = {key: fine.settings.get(key) for key in ("h", "eps", "rtol", "atol")}
+    return ErrorEstimate(final, relative, times, matched, differ, trajectory, mismatch, settings)
+
+
+def check_accuracy(system, x0: Any, mode: str, t_final: float, h: float, eps: float, method: Any = "rk4",
+                   control: Callable | None = None, **options: Any) -> tuple[Execution, ErrorEstimate]:
+    """``simulate`` with these arguments, and the estimate of its error from a refined run (see
+    ``refined``). Returns (the execution, its ``ErrorEstimate``)."""
+    from .relaxed import simulate
+
+    run = simulate(system, x0, mode, t_final, h, eps, method, control, **options)
+    fine_settings = refined({"h": h, "eps": eps, "rtol": options.get("rtol"), "atol": options.get("atol")})
+    fine_options = {**options, "rtol": fine_settings["rtol"], "atol": fine_settings["atol"]}
+    fine = simulate(system, x0, mode, t_final, fine_settings["h"], fine_settings["eps"], method, control,
+                    **fine_options)
+    return run, compare(run, fine)
+
+
+def _final_state(run: Execution, fine: Execution) -> tuple[dict[str, float], float | None]:
+    names = run.state_names.get(run.final_mode, ())
+    fine_names = fine.state_names.get(fine.final_mode, ())
+    x, xf = run.final_state, fine.final_state
+    index = {name: i for i, name in enumerate(fine_names)}
+    out = {name: abs(float(x[i]) - float(xf[index[name]])) for i, name in enumerate(names) if name in index}
+    if run.final_mode != fine.final_mode or not out:
+        return out, None
+    sizes = _sizes(fine)
+    floor = ZERO_SIZE * max(sizes.values(), default=0.0)
+    ratios = [value / sizes[name] for name, value in out.items() if sizes.get(name, 0.0) > floor]
+    return out, (max(ratios) if ratios else None)
+
+
+def _sizes(execution: Execution) -> dict[str, float]:
+    """Each coordinate's largest |value| along the run (its size, for relative errors)."""
+    sizes: dict[str, float] = {}
+    for seg in execution.segments:
+        finite = np.where(np.isfinite(seg.x), np.abs(seg.x), 0.0).max(axis=0)
+        for name, value in zip(execution.state_names[seg.mode], finite):
+            sizes[name] = max(sizes.get(name, 0.0), float(value))
+    return sizes
+
+
+def _transition_times(run: Execution, fine: Execution) -> tuple[float | None, int, bool]:
+    matched, worst = 0, 0.0
+    for a, b in zip(run.transitions, fine.transitions):
+        if a.name != b.name:
+            break
+        matched += 1
+        worst = max(worst, abs(a.time - b.time))
+    differ = matched != len(run.transitions) or len(run.transitions) != len(fine.transitions)
+    return (worst if matched else None), matched, differ
+
+
+def _trajectory(run: Execution, fine: Execution) -> tuple[dict[str, float], float]:
+    t_end = min(run.t_end, fine.t_end)
+    if not t_end > run.t0:
+        return {}, 0.0
+    times = np.linspace(run.t0, t_end, SAMPLES)
+    a, b = run.sample(times), fine.sample(times)
+    worst: dict[str, float] = {}
+    mismatched = 0
+    for mode_a, mode_b, xa, xb in zip(a.modes, b.modes, a.states, b.states):
+        if mode_a != mode_b:
+            mismatched += 1
+            continue
+        for name, va, vb in zip(run.state_names[mode_a], xa, xb):
+            difference = abs(float(va) - float(vb))
+            if not math.isnan(difference):
+                worst[name] = max(worst.get(name, 0.0), difference)
+    return worst, mismatched / len(times)
