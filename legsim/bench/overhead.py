@@ -167,6 +167,40 @@ def landing_costs(system, x0, mode, t_final, h, eps, method="rk4", landings=("ha
     return out
 
 
+def _unchecked_guard(run: Any, transition: Any) -> Callable[[float, np.ndarray], Any]:
+    g, control = transition.guard, run.control
+    if transition.guard_args == "x":
+        return lambda t, x: g(x)
+    return lambda t, x: g(t, x, None if control is None else control(t, x))
+
+
+def contract_cost(system, x0: np.ndarray, t_final: float, method: str, repeats: int) -> float:
+    """Median ratio of run times with the model-contract checks every evaluation runs (each
+    stage's shape, each guard's type) to the same runs with them left out, interleaved pairs on
+    the Python path (``system`` without compiled twins: the cheapest fields, where the checks'
+    share is largest)."""
+    import legsim.relaxed.run as run_module
+    from ..methods.stepper import make_stepper
+
+    def once() -> float:
+        start = time.perf_counter()
+        simulate(system, x0, "free", t_final, 1e-3, 1e-6, method, continuation=False)
+        return time.perf_counter() - start
+
+    checked_guard = run_module.Run._guard_fn
+
+    def unchecked() -> float:
+        run_module.Run._guard_fn = _unchecked_guard
+        run_module.make_stepper = lambda tableau: make_stepper(tableau, checked=False)
+        try:
+            return once()
+        finally:
+            run_module.Run._guard_fn, run_module.make_stepper = checked_guard, make_stepper
+
+    once(), unchecked()  # both steppers generated before anything is timed
+    return statistics.median([once() / unchecked() for _ in range(repeats)])
+
+
 def collect(quick: bool = False) -> dict[str, Any]:
     """All measurements: the oscillator of Example 1 at h = 1e-3, eps = 1e-6 (paper 000 Table I),
     compiled and Python paths, euler/rk2/rk4; and landing costs on three cases."""
@@ -192,6 +226,8 @@ def collect(quick: bool = False) -> dict[str, Any]:
                                                       repeats))
         result["python"].append(measure_run(python_system, x0, "free", t_final, 1e-3, 1e-6, method, python_cost,
                                             max(3, repeats // 3)))
+    result["contract"] = {method: contract_cost(python_system, x0, t_final / (4 if quick else 2), method, repeats)
+                          for method in ("euler", "rk4")}
     ex2, x2, t2 = make_oscillator_example("ex2")
     result["landing"] = {
         "oscillator Ex.1 (h=1e-2, eps=1e-6)": landing_costs(system, x0, "free", t_final, 1e-2, 1e-6),
@@ -245,6 +281,11 @@ def format_report(r: dict[str, Any]) -> str:
                          f"{v['extra_field_evals_per_transition']:7.2f} f-ev {v['guard_evals_per_transition']:7.2f} "
                          f"g-ev  ({v['transitions']} transitions)")
     rk4 = next(m for m in r["compiled"] if m["method"] == "rk4")
+    lines.append("")
+    lines.append("model-contract checks (each stage's shape, each guard's type) on the Python path: run time with "
+                 "/ without them, median of interleaved pairs: "
+                 + ", ".join(f"{method} {ratio:.3f}" for method, ratio in r["contract"].items())
+                 + f" (target <= 1.05: {'MET' if max(r['contract'].values()) <= 1.05 else 'MISSED'})")
     target = rk4["overhead_per_step_in_fields"]
     lines.append("")
     lines.append(f"target: integrator overhead per step <= 2 field evaluations (compiled rk4, with the stop): "

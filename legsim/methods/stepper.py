@@ -56,16 +56,17 @@ def field_value(k: Any, x: np.ndarray) -> np.ndarray:
     return k
 
 
-def make_stepper(tableau: Tableau) -> Stepper:
+def make_stepper(tableau: Tableau, checked: bool = True) -> Stepper:
     """``step(field, t, x, h, k0, control) -> (x_new, stages)`` specialised to ``tableau``, with
     ``stages`` the tuple of the s stage derivatives (``stages[0] is k0``). The control is sampled
     at each stage, ``u = control(t + c_i h, x_i)``, so that a time-varying input keeps the
     method's order. Every stage is checked to have x's shape (``field_value``; ContractError
-    otherwise). Generated once per tableau (compiling the source costs more than a short run).
+    otherwise; ``checked=False`` leaves that out, to measure its cost). Generated once per
+    tableau (compiling the source costs more than a short run).
     """
-    key = _key("step", tableau)
+    key = _key("step" if checked else "step-unchecked", tableau)
     if key not in _GENERATED:
-        _GENERATED[key] = _generate_stepper(tableau)
+        _GENERATED[key] = _generate_stepper(tableau, checked)
     return _GENERATED[key]
 
 
@@ -78,7 +79,7 @@ def _combination(base: str, weights: np.ndarray) -> str:
     return base if not terms else base + " + " + " + ".join(terms)
 
 
-def _generate_stepper(tableau: Tableau) -> Stepper:
+def _generate_stepper(tableau: Tableau, checked: bool) -> Stepper:
     s = tableau.stages
     weights = [tableau.A[i, :i] for i in range(1, s)] + ([] if tableau.fsal else [tableau.b])
     stacked = any(np.count_nonzero(w) >= DOT_TERMS for w in weights)
@@ -97,8 +98,9 @@ def _generate_stepper(tableau: Tableau) -> Stepper:
         lines.append(f"    t{i} = t + {float(tableau.c[i])!r} * h")
         lines.append(f"    x{i} = {combination(tableau.A[i, :i], i)}")
         lines.append(f"    k{i} = field(t{i}, x{i}, None if control is None else control(t{i}, x{i}))")
-        lines.append(f"    if k{i}.__class__ is not ndarray or k{i}.shape != x.shape:")
-        lines.append(f"        k{i} = field_value(k{i}, x)")
+        if checked:
+            lines.append(f"    if k{i}.__class__ is not ndarray or k{i}.shape != x.shape:")
+            lines.append(f"        k{i} = field_value(k{i}, x)")
         if stacked and i < s - 1:
             lines.append(f"    K[{i}] = k{i}")
     stage_tuple = ", ".join(f"k{j}" for j in range(s))
