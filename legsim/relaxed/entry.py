@@ -16,6 +16,7 @@ import math
 import numpy as np
 
 from ..execution import Status
+from ..control import Bound
 from ..hybrid import check_field_output
 from . import messages
 from .outcomes import Ended, Landing, Outcome
@@ -29,6 +30,8 @@ def enter_mode(run: Run, mode: str, x: np.ndarray, t: float) -> ModeVisit | Outc
     """The visit of ``mode`` from (t, x), ready to step; or the outcome when the entering state
     crosses a strip at once or ends the run."""
     data = run.system.mode_data(mode)
+    if isinstance(run.control, Bound):
+        run.control.enter(mode, t, x)
     visit = ModeVisit(data, run.guard_fns(data), t, x)
     run.state_names.setdefault(mode, data.mode.names)
     if mode not in run.checked_modes:

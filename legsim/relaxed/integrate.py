@@ -199,7 +199,10 @@ def _advance(run: Run, visit: ModeVisit, trial: Trial) -> None:
     """Move the visit to the accepted step's end and store the point."""
     t, x = visit.t, visit.x = trial.t1, trial.x1
     visit.g_last = trial
-    if run.tableau.fsal:
+    if run.held:  # a zero-order hold samples the controller at the step's start: f changes there
+        run.control.step_from(t, x)
+        k0 = run.f(visit.field, t, x)
+    elif run.tableau.fsal:
         k0 = trial.stages[-1]
     else:
         run.field_evals += 1

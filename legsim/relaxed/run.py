@@ -74,6 +74,8 @@ class Run:
         self.landing = landing
         self.eps = eps
         self.control = control
+        #: A controller held over each step (zero-order hold), sampled at each step's start.
+        self.held = bool(getattr(control, "hold", False))
         self.max_transitions = max_transitions
         self.max_halvings = max_halvings
         self.max_steps = max_steps

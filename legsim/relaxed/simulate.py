@@ -8,6 +8,7 @@ from typing import Any
 import numpy as np
 
 from ..arguments import count, positive
+from ..control import Bound, bind
 from ..errors import LegsimError, ModelError, SimulationError
 from ..execution import Execution
 from ..hybrid import HybridSystem
@@ -63,8 +64,10 @@ def simulate(
     eps: strip width (guard units), > 0.
     method: a Runge-Kutta method name (``euler``, ``rk2``, ``heun``, ``rk4``, ``bs32``,
         ``dopri5``, ``dop853``) or a ``Tableau``.
-    control: optional ``control(t, x) -> u``, evaluated at every stage; u is passed to the
-        fields as their third argument (None without control).
+    control: optional ``control(t, x) -> u``, evaluated at every stage, or a
+        ``legsim.control.Controller`` (told the mode, reset at every mode entry, and evaluated at
+        every stage or held over each step); u is passed to the fields as their third argument
+        (None without control).
     t0: start time (s).
     max_transitions: transition budget; reaching it ends the run with status
         ``max_transitions``.
@@ -115,7 +118,9 @@ def simulate(
     t0, t_final = _times(t0, t_final, h)
     tableau = get_method(method)
     if control is not None and not callable(control):
-        raise SimulationError(f"control must be callable control(t, x) -> u or None, got {type(control).__name__}")
+        raise SimulationError(f"control must be callable control(t, x) -> u or None, got {type(control).__name__}; "
+                              f"a legsim.control.Controller also does")
+    control = bind(control)
     max_transitions, max_halvings = count("max_transitions", max_transitions, 0), count("max_halvings", max_halvings, 1)
     max_steps = _check_step_budget(max_steps, t0, t_final, h)
     x = _initial_state(system, mode, x0, t0, eps, control)
@@ -195,7 +200,10 @@ def _initial_state(system: HybridSystem, mode: Any, x0: Any, t0: float, eps: flo
     if not np.all(np.isfinite(x)):
         raise SimulationError(f"x0 must be finite, got {x} in mode '{mode}'")
     try:
-        u0 = None if control is None else control(t0, x)
+        if isinstance(control, Bound):  # not entered yet: the run enters the mode when it starts
+            u0 = control.controller(mode, t0, x)
+        else:
+            u0 = None if control is None else control(t0, x)
     except LegsimError:
         raise
     except Exception as exc:

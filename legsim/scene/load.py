@@ -55,9 +55,10 @@ from ..execution import Execution
 from ..relaxed.simulate import MAX_STEPS as SIMULATE_MAX_STEPS
 from ..output.summary import run_summary
 from .fields import check_keys, describe, field_error, table_at
+from .controller import scene_controller
 from .files import apply_overrides, read_toml, resolve_scene_path
 
-CORE_SECTIONS = ("scene", "robot", "effects", "initial", "integrator", "output")
+CORE_SECTIONS = ("scene", "robot", "effects", "initial", "integrator", "output", "controller")
 TOOL_SECTIONS = ("orbit", "certify", "stochastic", "zeno", "stress", "bench")
 ALLOWED_SECTIONS = CORE_SECTIONS + TOOL_SECTIONS
 
@@ -145,6 +146,13 @@ class Scene:
     sections: dict[str, dict[str, Any]]
     data: dict[str, Any] = field(repr=False)
     overrides: list[str] = field(default_factory=list)
+    controller: Any = None
+
+    @property
+    def control(self) -> Any:
+        """What the run is controlled by: the ``[controller]`` section's controller, else the
+        model's own control (None without either)."""
+        return self.controller if self.controller is not None else self.model.control
 
     @property
     def state_names(self) -> tuple[str, ...]:
@@ -174,7 +182,7 @@ class Scene:
         s = self.integrator
         before = _model_counters(self.model)
         execution = simulate(self.model.system, self.initial_state.copy(), self.initial_mode, s["t_final"],
-                             s["h"], s["eps"], s["method"], self.model.control, t0=s["t0"],
+                             s["h"], s["eps"], s["method"], self.control, t0=s["t0"],
                              max_transitions=s["max_transitions"], max_halvings=s["max_halvings"],
                              progress=progress, rtol=s["rtol"], atol=s["atol"], landing=s["landing"],
                              max_steps=s["max_steps"], continuation=s["continuation"],
@@ -301,13 +309,14 @@ def _validate(path: Path, data: dict[str, Any], overrides: list[str]) -> Scene:
         raise ModelError(f"{where}: builder '{robot}' returned {type(model).__name__}, "
                          f"expected legsim.builders.Model")
 
+    controller = scene_controller(path, table_at(path, data, "controller"), model)
     initial_mode, initial_state = _initial(path, model, table_at(path, data, "initial"), integrator["eps"],
-                                         integrator["t0"])
+                                         integrator["t0"], controller)
 
     return Scene(path=path, name=name, description=description, robot=robot, builder=builder,
                  parameters=resolved_params, effects=chosen, model=model, initial_mode=initial_mode,
                  initial_state=initial_state, integrator=integrator, output=output, sections=sections,
-                 data=data, overrides=overrides)
+                 data=data, overrides=overrides, controller=controller)
 
 
 def _integrator(path: Path, table: dict[str, Any]) -> dict[str, Any]:
@@ -376,7 +385,8 @@ def _known_modes(model: Model) -> list[str]:
         return sorted(model.system.modes)
 
 
-def _initial(path: Path, model: Model, table: dict[str, Any], eps: float, t0: float) -> tuple[str, np.ndarray]:
+def _initial(path: Path, model: Model, table: dict[str, Any], eps: float, t0: float,
+             controller: Any = None) -> tuple[str, np.ndarray]:
     check_keys(path, table, INITIAL_KEYS, "initial")
     system = model.system
     mode = table.get("mode", model.initial_mode)
@@ -412,7 +422,10 @@ def _initial(path: Path, model: Model, table: dict[str, Any], eps: float, t0: fl
         values.append(value)
     x0 = np.array(values, dtype=float)
     try:
-        u0 = None if model.control is None else model.control(t0, x0)
+        if controller is not None:
+            u0 = controller(mode, t0, x0)
+        else:
+            u0 = None if model.control is None else model.control(t0, x0)
     except Exception as exc:
         raise ModelError(f"{path}: the control of robot model '{system.name}' failed on the initial state "
                          f"{x0.tolist()}: {type(exc).__name__}: {exc}") from exc

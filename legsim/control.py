@@ -1,0 +1,113 @@
+"""Controllers as parts of a run: an object that knows the mode, may keep state across
+transitions, and is either evaluated at every stage of a step or held over it.
+
+A plain ``control(t, x) -> u`` still works wherever a control is taken. A ``Controller``:
+
+* ``__call__(mode, t, x) -> u``: the input in mode ``mode`` at (t, x);
+* ``reset(mode, t, x)``: called when the run enters a mode (at the start and after every
+  transition), so a controller can update internal state at transitions (a Raibert hopper
+  plans its next foot placement at liftoff);
+* ``hold``: False evaluates it at every stage of a Runge-Kutta step (a time-varying input keeps
+  the method's order); True holds u(t_k) over the step from t_k, a zero-order hold as the papers'
+  digital controllers (paper 000 Fig. 1).
+
+Scenes name controllers by a registry (the ``legsim.controllers`` entry-point group, like
+robots): a ``ControllerSpec`` names its parameters and makes a ``Controller`` for a model.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from importlib import metadata
+from typing import Any, Callable, Mapping
+
+import numpy as np
+
+from .builders import Model, Param, resolve_parameters
+from .errors import SceneError
+
+ENTRY_POINT_GROUP = "legsim.controllers"
+
+
+class Controller:
+    """Base class of controllers (see the module docstring). Subclasses define ``__call__``
+    and, when they keep state, ``reset``."""
+
+    hold: bool = False
+
+    def reset(self, mode: str, t: float, x: np.ndarray) -> None:
+        """Entering ``mode`` at (t, x): update internal state (nothing by default)."""
+
+    def __call__(self, mode: str, t: float, x: np.ndarray) -> Any:
+        raise NotImplementedError
+
+
+class Bound:
+    """A ``Controller`` as the integrator calls a control, ``u(t, x)``, bound to the mode the run
+    is in, with the held value of a zero-order hold."""
+
+    def __init__(self, controller: Controller) -> None:
+        self.controller = controller
+        self.hold = bool(controller.hold)
+        self.mode = ""
+        self._held: Any = None
+
+    def enter(self, mode: str, t: float, x: np.ndarray) -> None:
+        """The run enters ``mode`` at (t, x): reset the controller, and hold its value there."""
+        self.mode = mode
+        self.controller.reset(mode, t, x)
+        self.step_from(t, x)
+
+    def step_from(self, t: float, x: np.ndarray) -> None:
+        """A step starts at (t, x): a held controller is sampled there."""
+        if self.hold:
+            self._held = self.controller(self.mode, t, x)
+
+    def __call__(self, t: float, x: np.ndarray) -> Any:
+        return self._held if self.hold else self.controller(self.mode, t, x)
+
+
+def bind(control: Controller | Callable[[float, np.ndarray], Any] | None) -> Any:
+    """What the integrator calls: a ``Bound`` controller, or the plain control itself."""
+    return Bound(control) if isinstance(control, Controller) else control
+
+
+@dataclass(frozen=True)
+class ControllerSpec:
+    """A named controller scenes can ask for: ``make(model, parameters) -> Controller`` receives
+    the scene's model and every parameter (defaults filled in, checked)."""
+
+    name: str
+    description: str
+    parameters: Mapping[str, Param]
+    make: Callable[[Model, dict[str, Any]], Controller]
+
+    def build(self, model: Model, parameters: Mapping[str, Any] | None = None, where: str = "") -> Controller:
+        """Check ``parameters`` and make the controller for ``model``."""
+        prefix = f"{where}: " if where else ""
+        params = resolve_parameters(self.parameters, parameters or {}, f"{prefix}controller.parameters")
+        controller = self.make(model, params)
+        if not isinstance(controller, Controller):
+            raise SceneError(f"{prefix}controller '{self.name}' made {type(controller).__name__}, expected a "
+                             f"legsim.control.Controller")
+        return controller
+
+
+def available() -> dict[str, metadata.EntryPoint]:
+    """The registered controllers by name (not yet imported)."""
+    return {ep.name: ep for ep in metadata.entry_points(group=ENTRY_POINT_GROUP)}
+
+
+def get_controller(name: str) -> ControllerSpec:
+    """Load the controller called ``name``; SceneError lists the known names when it is unknown."""
+    found = available()
+    if name not in found:
+        raise SceneError(f"unknown controller '{name}'; available: {sorted(found)}")
+    try:
+        spec = found[name].load()
+    except Exception as exc:
+        raise SceneError(f"controller '{name}' could not be loaded from {found[name].value}: "
+                         f"{type(exc).__name__}: {exc}") from exc
+    if not isinstance(spec, ControllerSpec):
+        raise SceneError(f"entry point '{name}' ({found[name].value}) is not a legsim.control.ControllerSpec")
+    return spec
