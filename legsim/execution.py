@@ -242,6 +242,7 @@ class Execution:
     final_in_strip: bool = False
     _final: tuple[str, np.ndarray] | None = field(default=None, repr=False)
     warnings: list[RunWarning] = field(default_factory=list)
+    evaluated: Samples | None = None
 
     # -- the summary a user asks for --------------------------------------------------------
     @property

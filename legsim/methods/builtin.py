@@ -101,6 +101,14 @@ METHODS: dict[str, Tableau] = {
 }
 ALIASES = {"midpoint": "rk2", "rk45": "dopri5", "dp54": "dopri5", "rk23": "bs32"}
 
+#: scipy's ``solve_ivp`` names, spelled as scipy spells them: they imply error-controlled steps,
+#: so without rtol/atol a run by one of these names takes scipy's default tolerances
+#: (``ADAPTIVE_DEFAULTS``); legsim's own names (``dopri5``, ``bs32``, ``dop853``) step by h unless
+#: a tolerance is given.
+SCIPY_NAMES = ("RK45", "RK23", "DOP853")
+#: scipy's default tolerances (rtol, atol) of solve_ivp.
+ADAPTIVE_DEFAULTS = (1e-3, 1e-6)
+
 
 def get_method(method: str | Tableau) -> Tableau:
     """Look a method up by name (``euler``, ``rk2``/``midpoint``, ``heun``, ``rk4``,

@@ -13,6 +13,7 @@ from ..errors import LegsimError, ModelError, SimulationError
 from ..execution import Execution
 from ..hybrid import HybridSystem
 from ..methods import Tableau, get_method
+from ..methods.builtin import ADAPTIVE_DEFAULTS, SCIPY_NAMES
 from .integrate import integrate
 from .landing import Halve, landing_rule
 from .run import Control, ProgressFn, Run
@@ -49,6 +50,7 @@ def simulate(
     max_steps: int = MAX_STEPS,
     continuation: bool = True,
     zeno_window: float | None = None,
+    t_eval: Any = None,
 ) -> Execution:
     """Simulate ``system`` from ``(mode, x0)`` at time ``t0`` to ``t_final`` with the relaxed
     hybrid integrator.
@@ -63,7 +65,9 @@ def simulate(
         error control, the initial and largest step.
     eps: strip width (guard units), > 0.
     method: a Runge-Kutta method name (``euler``, ``rk2``, ``heun``, ``rk4``, ``bs32``,
-        ``dopri5``, ``dop853``) or a ``Tableau``.
+        ``dopri5``, ``dop853``; case-insensitive) or a ``Tableau``. scipy's spellings ``"RK45"``,
+        ``"RK23"`` and ``"DOP853"`` imply error control as in ``solve_ivp``: without rtol/atol
+        they take scipy's defaults, rtol = 1e-3, atol = 1e-6.
     control: optional ``control(t, x) -> u``, evaluated at every stage, or a
         ``legsim.control.Controller`` (told the mode, reset at every mode entry, and evaluated at
         every stage or held over each step); u is passed to the fields as their third argument
@@ -75,8 +79,9 @@ def simulate(
     progress: optional ``progress(t, t0, t_final)`` called about five times a second.
     rtol, atol: with either given, the step size inside modes is error-controlled by the
         method's embedded pair (``bs32``, ``dopri5`` or ``dop853``), h being the initial and
-        largest step; the guards keep their relaxed treatment (a step that would leave the
-        relaxed domain is shortened until it lands inside it). Without them every step starts
+        largest step (unlike solve_ivp, h always caps the step: it is also the step the relaxed
+        landing starts from); the guards keep their relaxed treatment (a step that would leave
+        the relaxed domain is shortened until it lands inside it). Without them every step starts
         from h. One given alone sets the other to a thousandth of it.
     landing: how a step that would leave the relaxed domain is shortened: ``"halve"`` (paper 000
         Fig. 12, step 3); ``"aim"``, which retries with the step length at which the failed
@@ -97,6 +102,10 @@ def simulate(
         ``Execution.warnings``.
     zeno_window: flights (s) between crossings of one transition shorter than this, and shrinking,
         count as accumulating (``legsim.relaxed.zeno``); default h + eps.
+    t_eval: optional times (s), increasing, in [t0, t_final]: the execution's mode and state
+        there, in ``Execution.evaluated`` (a ``Samples``; the cubic Hermite interpolant of the
+        steps, the held point inside strips). Times past the end of a run that stopped early are
+        left out.
 
     Returns
     -------
@@ -117,6 +126,8 @@ def simulate(
     h, eps = positive("h", h), positive("eps", eps)
     t0, t_final = _times(t0, t_final, h)
     tableau = get_method(method)
+    if method in SCIPY_NAMES and rtol is None and atol is None and step_size is None:
+        rtol, atol = ADAPTIVE_DEFAULTS
     if control is not None and not callable(control):
         raise SimulationError(f"control must be callable control(t, x) -> u or None, got {type(control).__name__}; "
                               f"a legsim.control.Controller also does")
@@ -133,7 +144,11 @@ def simulate(
               max_halvings=max_halvings, max_steps=max_steps, progress=progress, t0=t0, t_final=t_final,
               zeno=ZenoWatch(window, bool(continuation)))
     run.checked_modes.add(mode)  # _initial_state's check already evaluated this mode's field
-    return integrate(run, mode, x, t0)
+    times = _eval_times(t_eval, t0, t_final)
+    execution = integrate(run, mode, x, t0)
+    if times is not None:
+        execution.evaluated = execution.sample(times[times <= execution.t_end])
+    return execution
 
 
 def step_size_rule(tableau: Tableau, h: float, rtol: float | None, atol: float | None) -> FixedStep | ErrorControl:
@@ -171,6 +186,19 @@ def _times(t0: Any, t_final: Any, h: float) -> tuple[float, float]:
             f"h = {h:g} s is below the time resolution at t = {scale:g} s (float64 times are "
             f"{float(np.spacing(scale)):.3g} s apart there): no step could advance time; shift t0 towards 0 or raise h")
     return t0, t_final
+
+
+def _eval_times(t_eval: Any, t0: float, t_final: float) -> np.ndarray | None:
+    if t_eval is None:
+        return None
+    try:
+        times = np.asarray(t_eval, dtype=float).reshape(-1)
+    except (TypeError, ValueError) as exc:
+        raise SimulationError(f"t_eval must be a sequence of times (s): {exc}") from exc
+    if times.size and (not np.all(np.isfinite(times)) or np.any(np.diff(times) < 0)
+                       or times[0] < t0 or times[-1] > t_final):
+        raise SimulationError(f"t_eval must be finite, increasing times in [t0, t_final] = [{t0}, {t_final}]")
+    return times
 
 
 def _check_step_budget(max_steps: Any, t0: float, t_final: float, h: float) -> int:

@@ -257,3 +257,23 @@ def test_a_failing_progress_callback_is_named_as_the_callers_not_the_models(ball
     monkeypatch.setattr(run_module.time, "perf_counter", lambda: float(next(clock)))
     with pytest.raises(SimulationError, match=r"^the progress callback failed at t=.*RuntimeError: terminal closed"):
         simulate(ball, [1.0, 0.0], "flight", 2.0, 1e-3, 1e-3, progress=progress)
+
+
+def test_scipys_adaptive_names_imply_error_control_with_scipys_default_tolerances(ball):
+    adaptive = simulate(ball, [1.0, 0.0], "flight", 1.0, 0.1, 1e-3, "RK45")
+    assert adaptive.settings["rtol"] == 1e-3 and adaptive.settings["atol"] == 1e-6
+    fixed = simulate(ball, [1.0, 0.0], "flight", 1.0, 0.1, 1e-3, "dopri5")
+    assert fixed.settings["rtol"] is None and fixed.settings["atol"] is None
+    assert simulate(ball, [1.0, 0.0], "flight", 1.0, 0.1, 1e-3, "DOP853").settings["rtol"] == 1e-3
+
+
+def test_t_eval_gives_the_states_at_those_times_in_one_call(ball):
+    import math
+
+    times = np.linspace(0.0, 0.4, 9)  # before the first impact at sqrt(2/g) = 0.4515 s
+    ex = simulate(ball, [1.0, 0.0], "flight", 1.0, 1e-2, 1e-4, "rk4", t_eval=times)
+    z = np.array(ex.evaluated.states)[:, 0]
+    np.testing.assert_allclose(z, 1.0 - 0.5 * 9.81 * times ** 2, rtol=0, atol=1e-12)
+    assert ex.evaluated.modes == ["flight"] * 9 and math.isclose(ex.evaluated.times[-1], 0.4)
+    with pytest.raises(SimulationError, match=r"t_eval must be finite, increasing times in \[t0, t_final\]"):
+        simulate(ball, [1.0, 0.0], "flight", 1.0, 1e-2, 1e-4, t_eval=[0.5, 0.2])
