@@ -223,7 +223,7 @@ class Execution:
     t0: start time; t_end: time reached (s); t_final: time requested (s).
     counters: steps, halvings, field_evals, guard_evals, reset_evals, strip_time, ...
     settings: h, eps, method and the other arguments of the run.
-    state_names: coordinate names per mode visited.
+    state_names: coordinate names per mode visited; ``state_units``: their units (``Mode.units``).
     system_name: name of the simulated system.
     """
 
@@ -243,6 +243,7 @@ class Execution:
     _final: tuple[str, np.ndarray] | None = field(default=None, repr=False)
     warnings: list[RunWarning] = field(default_factory=list)
     evaluated: Samples | None = None
+    state_units: dict[str, tuple[str, ...]] = field(default_factory=dict)
 
     # -- the summary a user asks for --------------------------------------------------------
     @property
@@ -405,6 +406,8 @@ class Execution:
             "counters": self.counters,
             "settings": _jsonable(self.settings),
             "state_names": {k: list(v) for k, v in self.state_names.items()},
+            "state_units": {k: list(v) for k, v in self.state_units.items()},
+            "warnings": [w.as_dict() for w in self.warnings],
             "system_name": self.system_name,
             "final_in_strip": self.final_in_strip,
         }
@@ -467,6 +470,10 @@ class Execution:
             transitions=transitions, t0=meta["t0"], t_end=meta["t_end"], t_final=meta["t_final"],
             counters=meta["counters"], settings=meta["settings"],
             state_names={k: tuple(v) for k, v in meta["state_names"].items()},
+            state_units={k: tuple(v) for k, v in meta.get("state_units", {}).items()},
+            warnings=[RunWarning(w["kind"], w["message"], w["time"],
+                                 {k: v for k, v in w.items() if k not in ("kind", "message", "time")})
+                      for w in meta.get("warnings", [])],
             system_name=meta["system_name"], final_in_strip=meta["final_in_strip"],
         )
 

@@ -55,6 +55,9 @@ class Mode:
         guards that let the step loop inside this mode run compiled. It must compute the same
         field and the same guards (in the order of the mode's outgoing transitions) as the
         Python callables, which remain the reference and serve everything else.
+    units:
+        Optional unit of each coordinate (``"m"``, ``"rad"``, ``"m/s"``, ...; ``""`` for none),
+        for plots and recordings; default all ``""``.
     """
 
     dim: int
@@ -62,6 +65,7 @@ class Mode:
     names: tuple[str, ...] | None = None
     jacobian: Callable[[float, np.ndarray, Any], np.ndarray] | None = None
     compiled: Any = None
+    units: tuple[str, ...] | None = None
 
     def __post_init__(self) -> None:
         if isinstance(self.dim, bool) or not isinstance(self.dim, (int, np.integer)) or self.dim < 1:
@@ -81,6 +85,10 @@ class Mode:
         if len(set(names)) != len(names):
             raise ModelError(f"Mode coordinate names must be unique, got {names}")
         object.__setattr__(self, "names", names)
+        units = ("",) * self.dim if self.units is None else tuple(str(u) for u in self.units)
+        if len(units) != self.dim:
+            raise ModelError(f"Mode has dim {self.dim} but {len(units)} units {units}")
+        object.__setattr__(self, "units", units)
 
 
 def _identity(x: np.ndarray) -> np.ndarray:

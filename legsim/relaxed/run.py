@@ -89,6 +89,7 @@ class Run:
         self.strips: list = []
         self.transitions: list = []
         self.state_names: dict[str, tuple[str, ...]] = {}
+        self.state_units: dict[str, tuple[str, ...]] = {}
         self.checked_modes: set[str] = set()
         self._guard_cache: dict[str, tuple] = {}
         #: Per-run caches of parts that keep state per mode (the compiled path's workspaces).
@@ -169,4 +170,5 @@ class Run:
         return Execution(status=Status(ended.status), message=ended.message, segments=self.segments,
                          strips=self.strips, transitions=self.transitions, t0=self.t0, t_end=ended.t,
                          t_final=self.t_final, counters=counters, settings=settings, state_names=self.state_names,
-                         system_name=self.system.name, final_in_strip=ended.in_strip, warnings=warnings)
+                         system_name=self.system.name, final_in_strip=ended.in_strip, warnings=warnings,
+                         state_units=self.state_units)

@@ -28,6 +28,7 @@ from ._reference import as_times, box, make_samples, segment
 MODE = "flight"
 REST = "rest"  # on the floor at rest: where accumulating bounces continue
 NAMES = ("z", "zd")
+UNITS = ("m", "m/s")
 
 
 def make_system(g: float = 9.81, restitution: float = 0.5, floor: bool = True, mass: float = 1.0) -> HybridSystem:
@@ -72,13 +73,13 @@ def make_system(g: float = 9.81, restitution: float = 0.5, floor: bool = True, m
         zd = float(x[1])
         return mass * (g * float(x[0]) + 0.5 * zd * zd)
 
-    modes = {MODE: Mode(2, field, NAMES, jacobian)}
+    modes = {MODE: Mode(2, field, NAMES, jacobian, units=UNITS)}
     transitions = []
     if floor:
         rest = Continuation(REST, lambda x: np.array([x[0], 0.0]), name="rest")
         transitions.append(Transition(MODE, MODE, guard, reset, name="bounce", guard_gradient=guard_gradient,
                                       reset_jacobian=lambda x: np.diag([1.0, -c]), continuation=rest))
-        modes[REST] = Mode(2, lambda t, x, u: np.zeros(2), NAMES, lambda t, x, u: np.zeros((2, 2)))
+        modes[REST] = Mode(2, lambda t, x, u: np.zeros(2), NAMES, lambda t, x, u: np.zeros((2, 2)), units=UNITS)
     return HybridSystem(modes, transitions, name="bouncing ball",
                         energy=energy, initial=(MODE, np.array([1.0, 0.0])))
 

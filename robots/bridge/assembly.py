@@ -207,7 +207,7 @@ class ContactBridge:
     def mode(self, mode: str) -> Mode:
         """The legsim ``Mode`` of contact mode ``mode``."""
         spec = self._modes.spec(mode)
-        return Mode(spec.dim, self.field(mode), names=spec.names)
+        return Mode(spec.dim, self.field(mode), names=spec.names, units=spec.units)
 
     def expand(self, mode: str) -> tuple[Mode, list[Transition]]:
         """``HybridSystem`` expand callback: the mode and its outgoing transitions."""

@@ -47,6 +47,7 @@ class ModeSpec:
     dim: int
     names: tuple[str, ...]
     need_fk: bool = False
+    units: tuple[str, ...] = ()
     stop_dofs: tuple[np.ndarray, np.ndarray] | None = None
 
     def normal_row(self, contact: str) -> int:
@@ -133,8 +134,22 @@ def build_spec(model: BridgeModel, mode: str, active: tuple[str, ...]) -> ModeSp
     stop_dofs = None
     if rigid and all(r.kind == "stop" for r in rigid):
         stop_dofs = (np.array([r.dof for r in rigid]), np.array([r.sign for r in rigid]))
+    positions = dof_units(model.pin_model)
+    units = positions + tuple(f"{u}/s" for u in positions) + ("m",) * len(springs)
     return ModeSpec(mode, active, rigid, springs, flight, 2 * model.n + len(springs), names,
-                    need_fk=need_fk, stop_dofs=stop_dofs)
+                    need_fk=need_fk, stop_dofs=stop_dofs, units=units)
+
+
+def dof_units(pin_model: pin.Model) -> tuple[str, ...]:
+    """The unit of each configuration coordinate: ``"m"`` for a prismatic joint, ``"rad"`` for
+    a revolute one (composite joints by their parts), ``""`` for any other kind."""
+    def of(joint) -> list[str]:
+        kind = joint.shortname()
+        if kind == "JointModelComposite":
+            return [u for part in joint.extract().joints for u in of(part)]
+        unit = "m" if kind.startswith("JointModelP") else "rad" if kind.startswith("JointModelR") else ""
+        return [unit] * joint.nv
+    return tuple(u for joint in pin_model.joints[1:] for u in of(joint))
 
 
 def flight_foot_x(model: BridgeModel, data: BridgeData, leg: LegFrames, q: np.ndarray) -> float:

@@ -14,6 +14,7 @@ from ...hybrid import Continuation, HybridSystem, Mode, Transition
 MODE = "free"
 STUCK = "stuck"  # at rest on the stop: where accumulating impacts continue
 NAMES = ("x", "xd")
+UNITS = ("m", "m/s")
 
 #: Table I of paper 000, as keyword arguments of ``make_system``/``OscillatorReference`` plus the
 #: initial state and the end time.
@@ -86,9 +87,9 @@ def make_system(omega: float = 2.5, a: float = 0.05, x_max: float | None = 14.0,
             raise ModelError(f"oscillator: stop position x_max must be finite, got {x_max}")
         x0 = min(0.0, stop)
         transitions = _stop_transitions(stop, c, w2, inv_m)
-    modes = {MODE: Mode(2, _field(w2, two_a, inv_m, counters), NAMES, jacobian)}
+    modes = {MODE: Mode(2, _field(w2, two_a, inv_m, counters), NAMES, jacobian, units=UNITS)}
     if transitions:
-        modes[STUCK] = Mode(2, lambda t, x, u: np.zeros(2), NAMES, lambda t, x, u: np.zeros((2, 2)))
+        modes[STUCK] = Mode(2, lambda t, x, u: np.zeros(2), NAMES, lambda t, x, u: np.zeros((2, 2)), units=UNITS)
     return HybridSystem(modes, transitions,
                         name="oscillator with stop" if transitions else "oscillator",
                         energy=energy, initial=(MODE, np.array([x0, 0.0])))
