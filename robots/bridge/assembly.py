@@ -7,6 +7,8 @@ method resolves the mode and hands over to the free functions of ``dynamics``, `
 
 from __future__ import annotations
 
+import dataclasses
+
 from typing import Any, Callable, Iterable, Mapping, Sequence
 
 import numpy as np
@@ -228,7 +230,11 @@ class ContactBridge:
     def expand(self, mode: str) -> tuple[Mode, list[Transition]]:
         """``HybridSystem`` expand callback: the mode and its outgoing transitions."""
         spec = self._modes.spec(mode)
-        return self.mode(mode), outgoing(self._model, self._data, self._modes, spec)
+        transitions = outgoing(self._model, self._data, self._modes, spec)
+        from .twins import bridge_twin  # numba and the native library load with the first mode
+
+        twin = bridge_twin(self._model, self._modes, spec, transitions)
+        return dataclasses.replace(self.mode(mode), compiled=twin), transitions
 
     def system(self, initial_mode: str | None = None, x0: Any = None, *, energy: bool = True) -> HybridSystem:
         """A lazily expanded ``HybridSystem`` of this robot (modes appear as transitions reach
