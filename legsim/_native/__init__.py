@@ -67,6 +67,8 @@ def load() -> bool:
         return False
     lib.lsn_create.restype = ctypes.c_long
     lib.lsn_create.argtypes = [ctypes.POINTER(ctypes.c_double), ctypes.c_long]
+    lib.lsn_time_aba.restype = ctypes.c_double
+    lib.lsn_time_aba.argtypes = [ctypes.c_long] + [ctypes.POINTER(ctypes.c_double)] * 3 + [ctypes.c_long]
     _state["lib"], _state["loaded"] = lib, True
     return True
 
@@ -96,3 +98,15 @@ def create_model(description: np.ndarray) -> int:
     if handle < 0:
         raise ValueError("the native library refused the model description")
     return handle
+
+
+def time_aba(handle: int, q: np.ndarray, v: np.ndarray, tau: np.ndarray, reps: int) -> float:
+    """Seconds per call of bare C++ ABA on the model ``handle`` at (q, v, tau), timed inside
+    the library (no Python, no numba around it): the best of 5 batches of ``reps`` calls, as
+    other timings on a shared machine take the best of repeats."""
+    if not load():
+        raise RuntimeError(f"native library unavailable: {_state['reason']}")
+    arrays = [np.ascontiguousarray(a, dtype=np.float64) for a in (q, v, tau)]
+    pointers = [a.ctypes.data_as(ctypes.POINTER(ctypes.c_double)) for a in arrays]
+    lib = _state["lib"]
+    return min(float(lib.lsn_time_aba(handle, *pointers, int(reps))) for _ in range(5))  # type: ignore[attr-defined]
