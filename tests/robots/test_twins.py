@@ -177,3 +177,32 @@ def test_walker_that_falls_ends_alike_on_both_paths(monkeypatch):
     slow, _ = run(monkeypatch, "compass_gait", True, overrides)
     assert fast.status == "model_breakdown" and "the walker fell" in fast.message
     assert fast.message == slow.message and fast.t_end == pytest.approx(slow.t_end, abs=1e-9)
+
+
+def test_without_the_native_library_robots_run_in_python_and_say_so_once(tmp_path):
+    # LEGSIM_NATIVE=0 stands for an install without a compiler: no twin is attached, one
+    # warning names the reason, and the runs finish on the Python path with the same result.
+    import json
+    import os
+    import subprocess
+    import sys
+
+    script = (
+        "import json\n"
+        "from legsim.scene import load_scene\n"
+        "out = {}\n"
+        "for name in ('compass_gait', 'double_pendulum_plastic', 'pronk'):\n"
+        "    scene = load_scene(name, ['integrator.t_final=1.0'])\n"
+        "    ex = scene.simulate()\n"
+        "    out[name] = [ex.status, ex.final_state.tolist(), scene.model.system.modes and\n"
+        "                 any(m.compiled is not None for m in scene.model.system.modes.values())]\n"
+        "print(json.dumps(out))\n")
+    env = {**os.environ, "LEGSIM_NATIVE": "0", "LEGSIM_CACHE_DIR": str(tmp_path)}
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=env, timeout=300)
+    assert done.returncode == 0, done.stderr
+    assert done.stderr.count("compiled robot twins unavailable (switched off by LEGSIM_NATIVE=0)") == 1
+    results = json.loads(done.stdout)
+    for name, (status, final, any_twin) in results.items():
+        assert status == "finished" and not any_twin
+        reference = load_scene(name, ["integrator.t_final=1.0"]).simulate()  # with the twins, in this process
+        close(final, reference.final_state, 1e-9)
