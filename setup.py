@@ -9,9 +9,11 @@ One optional C++ extension, ``legsim._native._pinlegsim``: Pinocchio's algorithm
 plain C ABI for the compiled robot twins (legsim/_native/). It is built from the Pinocchio and
 Eigen headers of the build environment (the ``libpinocchio`` and ``cmeel-eigen`` wheels named in
 pyproject.toml's build requirements); without a C++ compiler or those headers the build skips it
-and legsim runs its robots on the Python path (``legsim._native.status()`` says why).
+and legsim runs its robots on the Python path (``legsim._native.status()`` says why);
+``LEGSIM_BUILD_NATIVE=0`` skips it on purpose.
 """
 
+import os
 import sys
 from pathlib import Path
 
@@ -38,6 +40,9 @@ def cmeel_include() -> Path | None:
 
 
 def native_extensions() -> list[Extension]:
+    if os.environ.get("LEGSIM_BUILD_NATIVE", "1") == "0":
+        print("legsim: LEGSIM_BUILD_NATIVE=0: building without the native robot twins", file=sys.stderr)
+        return []
     include = cmeel_include()
     if include is None:
         print("legsim: Pinocchio or Eigen headers not found: building without the native robot twins", file=sys.stderr)

@@ -49,3 +49,14 @@ def test_rimless_wheel_case_is_on_its_closed_form_cycle_and_the_sweep_is_measure
         assert len(list(csv.DictReader(fh))) == len(rows)
     costs = robots.cost_report(case, rows)
     assert costs["aba_s"] > 0 and costs["field_s"] > 0
+
+
+def test_zero_time_chains_of_transitions_count_as_one_event():
+    # A release followed at the same instant by grazes (rounding decides how many) is one
+    # event: its time is the first transition's, its state the last one's.
+    from types import SimpleNamespace as T
+
+    chain = [T(time=1.0, state_after=np.array([1.0])), T(time=1.0, state_after=np.array([2.0])),
+             T(time=1.0 + 1e-9, state_after=np.array([3.0])), T(time=2.0, state_after=np.array([4.0]))]
+    merged = robots.events(T(transitions=chain))
+    assert [t for t, _ in merged] == [1.0, 2.0] and [x[0] for _, x in merged] == [3.0, 4.0]
