@@ -52,7 +52,7 @@ def test_rimless_wheel_case_is_on_its_closed_form_cycle_and_the_sweep_is_measure
 
 
 def test_zero_time_chains_of_transitions_count_as_one_event():
-    # A release followed at the same instant by grazes (rounding decides how many) is one
+    # A release followed at once by grazes (rounding decides how many) is one
     # event: its time is the first transition's, its state the last one's.
     from types import SimpleNamespace as T
 
