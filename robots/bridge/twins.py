@@ -52,6 +52,11 @@ K_GAP, K_PLASTIC, K_RELEASE, K_LEG_TOUCH, K_LEG_LIFT = range(5)
 G_KIND, G_GAP_KIND, G_A, G_B, G_C, G_IMPACT, G_NIMPACT, G_COEFF, G_SIDE, G_STICK, G_NSTICK, G_ROW = range(12)
 GUARD_SIZE = 12
 
+#: Model counters (``BridgeData.counts`` names) a twin keeps in the last len(COUNTED) entries of
+#: its p, so that a robot's counters stay true on the compiled path (``add_counts``).
+COUNTED = ("aba", "kkt", "jacobians", "kinematics", "spring_forces", "damping_evals", "impacts")
+C_ABA, C_KKT, C_JACOBIANS, C_KINEMATICS, C_SPRINGS, C_DAMPING, C_IMPACTS = range(len(COUNTED))
+
 _HANDLES: dict[int, tuple[Any, int]] = {}
 _JOINT_CODES = {"JointModelRX": 0, "JointModelRY": 1, "JointModelRZ": 2, "JointModelPX": 3, "JointModelPY": 4,
                 "JointModelPZ": 5}
@@ -84,6 +89,23 @@ def native_ready() -> bool:
     return AVAILABLE
 
 
+def with_counters(values: Sequence[float]) -> np.ndarray:
+    """A twin's p: ``values`` followed by its zeroed counters."""
+    return np.array(list(values) + [0.0] * len(COUNTED), dtype=float)
+
+
+def add_counts(counts: dict[str, int], twin: CompiledMode | None, reset: bool = False) -> None:
+    """Add the twin's counters to ``counts`` (a robot's model counters), or zero them with ``reset``."""
+    if twin is None:
+        return
+    tail = twin.params[twin.params.shape[0] - len(COUNTED):]
+    if reset:
+        tail[:] = 0.0
+        return
+    for name, value in zip(COUNTED, tail):
+        counts[name] = counts.get(name, 0) + int(value)
+
+
 def handle_for(model: Any) -> int | None:
     """The native handle of a Pinocchio model (created once per model object), or None."""
     found = _HANDLES.get(id(model))
@@ -106,6 +128,12 @@ def _ptr(a, i):
 
 
 @_jit
+def count(p, counter, amount=1.0):
+    """Add to one of the twin's counters (the tail of p)."""
+    p[p.shape[0] - len(COUNTED) + counter] += amount
+
+
+@_jit
 def _applied_forces(x, p, n):
     """tau (n,) of dynamics.applied_forces: stance springs (with damping), joint damping."""
     tau = np.zeros(n)
@@ -115,6 +143,8 @@ def _applied_forces(x, p, n):
     for i in range(int(p[P_NSPRING])):
         s = base + SPRING_SIZE * i
         lsn_frame_jacobian(h, x.ctypes.data, np.int64(p[s]), jac.ctypes.data)
+        count(p, C_JACOBIANS)
+        count(p, C_SPRINGS)
         d0 = jac[0] - x[2 * n + i]
         d1 = jac[1] - p[s + 4]
         r = math.hypot(d0, d1)
@@ -122,6 +152,7 @@ def _applied_forces(x, p, n):
         d1 /= r
         f = p[s + 1] * (p[s + 2] - r)
         if p[s + 3] > 0.0:
+            count(p, C_DAMPING)
             jv0 = 0.0
             jv1 = 0.0
             for j in range(n):
@@ -133,6 +164,8 @@ def _applied_forces(x, p, n):
         for j in range(n):
             tau[j] += w0 * jac[2 + j] + w1 * jac[2 + n + j]
     base = int(p[P_DAMP])
+    if int(p[P_NDAMP]) > 0:
+        count(p, C_DAMPING)
     for i in range(int(p[P_NDAMP])):
         k = int(p[base + 2 * i])
         tau[k] -= p[base + 2 * i + 1] * x[n + k]
@@ -145,9 +178,11 @@ def _accelerate(x, p, n, nrigid, rigid_at, rows, a, lam):
     dynamics.dynamics for the rigid blocks at p[rigid_at:] (ABA when there are none)."""
     tau = _applied_forces(x, p, n)
     h = np.int64(p[P_HANDLE])
+    count(p, C_ABA)
     if nrigid == 0:
         lsn_aba(h, x.ctypes.data, _ptr(x, n), tau.ctypes.data, a.ctypes.data)
     else:
+        count(p, C_KKT)
         lsn_constrained(h, x.ctypes.data, _ptr(x, n), tau.ctypes.data, np.int64(nrigid), _ptr(p, rigid_at),
                         a.ctypes.data, lam.ctypes.data)
 
@@ -186,6 +221,7 @@ def _post_impact_force(x, p, g, n):
     stick mode right after the impact."""
     h = np.int64(p[P_HANDLE])
     after = x.copy()
+    count(p, C_IMPACTS)
     lsn_impact(h, x.ctypes.data, _ptr(x, n), np.int64(p[g + G_NIMPACT]), _ptr(p, int(p[g + G_IMPACT])),
                _ptr(p, int(p[g + G_COEFF])), _ptr(after, n))
     nstick = int(p[g + G_NSTICK])
@@ -230,16 +266,17 @@ def _leg_lift(x, p, g, kin, n):
 def bridge_guards(x, p):
     """The mode's guards in the order of its outgoing transitions, shape (n_guards,)."""
     n = int(p[P_N])
-    count = int(p[P_NGUARD])
-    out = np.empty(count)
+    n_guards = int(p[P_NGUARD])
+    out = np.empty(n_guards)
     nframe = int(p[P_NFRAME])
     kin = np.empty(4 * max(1, nframe))
     if nframe > 0:
+        count(p, C_KINEMATICS)
         lsn_frames(np.int64(p[P_HANDLE]), x.ctypes.data, _ptr(x, n), np.int64(nframe), _ptr(p, int(p[P_FRAME])),
                    kin.ctypes.data)
     lam = np.empty(max(1, int(p[P_ROWS])))
     solved = False
-    for e in range(count):
+    for e in range(n_guards):
         g = int(p[P_GUARD]) + GUARD_SIZE * e
         kind = int(p[g + G_KIND])
         if kind == K_GAP:
@@ -262,7 +299,7 @@ def bridge_guards(x, p):
             out[e] = _leg_touch(p, g, kin)
         else:
             out[e] = _leg_lift(x, p, g, kin, n)
-    for e in range(count):  # one guard past the model's range: every guard says so
+    for e in range(n_guards):  # one guard past the model's range: every guard says so
         if out[e] != out[e]:
             out[:] = math.nan
     return out
@@ -275,6 +312,7 @@ def bridge_resets(x, p, e):
     n = int(p[P_N])
     g = int(p[P_GUARD]) + GUARD_SIZE * e
     out = x.copy()
+    count(p, C_IMPACTS)
     lsn_impact(np.int64(p[P_HANDLE]), x.ctypes.data, _ptr(x, n), np.int64(p[g + G_NIMPACT]),
                _ptr(p, int(p[g + G_IMPACT])), _ptr(p, int(p[g + G_COEFF])), _ptr(out, n))
     return out
@@ -392,6 +430,7 @@ def bridge_twin(model: BridgeModel, modes: ModeCatalog, spec: ModeSpec,
     header[P_GUARD] = pp.append([v for _, record in records for v in record])
     header[P_NFRAME] = len(pp.frames)
     header[P_FRAME] = pp.append(pp.frames)
+    pp.append([0.0] * len(COUNTED))
     bounces_only = bool(records) and all(tr.target == spec.name for tr in transitions)
     return CompiledMode(bridge_field, bridge_guards, len(records), np.array(pp.p),
                         bridge_resets if bounces_only else None, fallback=True)

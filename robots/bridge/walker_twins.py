@@ -16,7 +16,7 @@ import numpy as np
 from legsim._native.calls import lsn_aba, lsn_crba, lsn_frames, lsn_impact, lsn_momentum_about
 from legsim.compiled import CompiledMode
 
-from .twins import _jit, _ptr, handle_for, native_ready
+from .twins import C_ABA, C_IMPACTS, C_KINEMATICS, _jit, _ptr, count, handle_for, native_ready, with_counters
 
 # Compass gait p: stance model handle, impact model handle, leg length l (m), the stance
 # model's swing-foot frame, the impact block (point, foot2's frame, sign, 2 rows) and its
@@ -31,6 +31,7 @@ def compass_field(t, x, p):
     tau = np.zeros(2)
     out[0] = x[2]
     out[1] = x[3]
+    count(p, C_ABA)
     lsn_aba(np.int64(p[CG_STANCE]), x.ctypes.data, _ptr(x, 2), tau.ctypes.data, _ptr(out, 2))
     return out
 
@@ -39,6 +40,7 @@ def compass_field(t, x, p):
 def _swing_foot(x, p):
     """(x, z, vx, vz) of the swing foot relative to the stance foot (m, m/s)."""
     kin = np.empty(4)
+    count(p, C_KINEMATICS)
     lsn_frames(np.int64(p[CG_STANCE]), x.ctypes.data, _ptr(x, 2), np.int64(1), _ptr(p, CG_FOOT), kin.ctypes.data)
     return kin
 
@@ -66,6 +68,7 @@ def compass_resets(x, p, e):
     qf = np.array([l * math.sin(th), l * math.cos(th), th, phi])
     vf = np.array([l * thd * math.cos(th), -l * thd * math.sin(th), thd, phid])
     v_plus = np.empty(4)
+    count(p, C_IMPACTS)
     lsn_impact(np.int64(p[CG_IMPACT]), qf.ctypes.data, vf.ctypes.data, np.int64(1), _ptr(p, CG_BLOCK),
                _ptr(p, CG_COEFF), v_plus.ctypes.data)
     kin = _swing_foot(x, p)
@@ -86,9 +89,11 @@ def compass_gait_twin(walker: Any) -> CompiledMode | None:
     if stance is None or impact is None:
         return None
     foot2 = walker.impact_bridge.model.getFrameId("foot2")
-    p = np.array([stance, impact, walker.l, walker.stance_bridge.model.getFrameId("swing_foot"),
-                  1.0, foot2, 1.0, 2.0, 0.0])
-    return CompiledMode(compass_field, compass_guards, 1, p, compass_resets, fallback=True)
+    p = with_counters([stance, impact, walker.l, walker.stance_bridge.model.getFrameId("swing_foot"),
+                       1.0, foot2, 1.0, 2.0, 0.0])
+    twin = CompiledMode(compass_field, compass_guards, 1, p, compass_resets, fallback=True)
+    walker.stance_bridge.count_twin(twin)
+    return twin
 
 
 # Rimless wheel p: model handle, alpha (rad), the front and back spoke tips' frames.
@@ -101,6 +106,7 @@ def rimless_field(t, x, p):
     out = np.zeros(3)
     tau = np.zeros(1)
     out[0] = x[1]
+    count(p, C_ABA)
     lsn_aba(np.int64(p[RW_HANDLE]), x.ctypes.data, _ptr(x, 1), tau.ctypes.data, _ptr(out, 1))
     return out
 
@@ -124,6 +130,7 @@ def rimless_resets(x, p, e):
     frame = p[RW_FRONT] if e == 0 else p[RW_BACK]
     shift = -2.0 * p[RW_ALPHA] if e == 0 else 2.0 * p[RW_ALPHA]
     momentum = np.empty(3)
+    count(p, C_IMPACTS)
     lsn_momentum_about(h, x.ctypes.data, _ptr(x, 1), np.int64(frame), momentum.ctypes.data)
     new = np.array([x[0] + shift])
     inertia = np.empty(1)
@@ -141,5 +148,7 @@ def rimless_wheel_twin(wheel: Any) -> CompiledMode | None:
     if handle is None:
         return None
     model = wheel.stance_bridge.model
-    p = np.array([handle, wheel.alpha, model.getFrameId("front_tip"), model.getFrameId("back_tip")])
-    return CompiledMode(rimless_field, rimless_guards, 2, p, rimless_resets)
+    p = with_counters([handle, wheel.alpha, model.getFrameId("front_tip"), model.getFrameId("back_tip")])
+    twin = CompiledMode(rimless_field, rimless_guards, 2, p, rimless_resets)
+    wheel.stance_bridge.count_twin(twin)
+    return twin
