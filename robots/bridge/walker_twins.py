@@ -25,15 +25,21 @@ CG_STANCE, CG_IMPACT, CG_L, CG_FOOT, CG_BLOCK, CG_COEFF = 0, 1, 2, 3, 4, 8
 
 
 @_jit
+def _passive_field(x, p, handle, nv):
+    """(v, ABA(q, v, 0), 0 for foot_x) of a passive chain whose state is (q, v, foot_x), shape (2 nv + 1,)."""
+    out = np.zeros(2 * nv + 1)
+    tau = np.zeros(nv)
+    for j in range(nv):
+        out[j] = x[nv + j]
+    count(p, C_ABA)
+    lsn_aba(np.int64(handle), x.ctypes.data, _ptr(x, nv), tau.ctypes.data, _ptr(out, nv))
+    return out
+
+
+@_jit
 def compass_field(t, x, p):
     """(stanced, hipd, ABA accelerations, 0), shape (5,)."""
-    out = np.zeros(5)
-    tau = np.zeros(2)
-    out[0] = x[2]
-    out[1] = x[3]
-    count(p, C_ABA)
-    lsn_aba(np.int64(p[CG_STANCE]), x.ctypes.data, _ptr(x, 2), tau.ctypes.data, _ptr(out, 2))
-    return out
+    return _passive_field(x, p, p[CG_STANCE], 2)
 
 
 @_jit
@@ -103,12 +109,7 @@ RW_HANDLE, RW_ALPHA, RW_FRONT, RW_BACK = 0, 1, 2, 3
 @_jit
 def rimless_field(t, x, p):
     """(thetad, ABA acceleration, 0), shape (3,)."""
-    out = np.zeros(3)
-    tau = np.zeros(1)
-    out[0] = x[1]
-    count(p, C_ABA)
-    lsn_aba(np.int64(p[RW_HANDLE]), x.ctypes.data, _ptr(x, 1), tau.ctypes.data, _ptr(out, 1))
-    return out
+    return _passive_field(x, p, p[RW_HANDLE], 1)
 
 
 @_jit
