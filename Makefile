@@ -6,7 +6,8 @@ STAMP := $(VENV)/.installed
 
 .PHONY: demo test test-full install clean
 
-$(STAMP): pyproject.toml
+# setup.py and the C++ source: the optional native extension is built by the install.
+$(STAMP): pyproject.toml setup.py legsim/_native/pinlegsim.cpp
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
 	$(BIN)/pip install --quiet -e ".[test]"

@@ -189,7 +189,9 @@ class CompassGait:
         return self.stance_bridge.energy("stance", np.asarray(x, dtype=float)[:4])
 
     def system(self, x0: Sequence[float] | None = None) -> HybridSystem:
-        mode = Mode(5, self.field, names=STATE_NAMES, jacobian=self.jacobian)
+        from .bridge.walker_twins import compass_gait_twin
+
+        mode = Mode(5, self.field, names=STATE_NAMES, jacobian=self.jacobian, compiled=compass_gait_twin(self))
         heel = Transition("stance", "stance", guard=self.heel_strike_guard, reset=self.heel_strike,
                           name="heel_strike")
         return HybridSystem({"stance": mode}, [heel], name="compass_gait", energy=self.energy,

@@ -135,7 +135,9 @@ class RimlessWheel:
         return self.stance_bridge.energy("stance", np.asarray(x, dtype=float)[:2])
 
     def system(self, x0: Sequence[float] | None = None) -> HybridSystem:
-        mode = Mode(3, self.field, names=STATE_NAMES)
+        from .bridge.walker_twins import rimless_wheel_twin
+
+        mode = Mode(3, self.field, names=STATE_NAMES, compiled=rimless_wheel_twin(self))
         transitions = [Transition("stance", "stance", guard=self.impact_guard, reset=self.impact, name="impact"),
                        Transition("stance", "stance", guard=self.back_guard, reset=self.back_impact,
                                   name="back_impact")]

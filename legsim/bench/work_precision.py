@@ -359,12 +359,17 @@ def read_rows(path: str | os.PathLike) -> list[Row]:
 def write_figure(result: BenchResult, path: Path) -> Path:
     """Error against wall time (log-log): each method's runs as points, its own Pareto front as
     a line, the overall Pareto front dashed in black."""
+    return plot_rows(result.rows, path, f"{result.case.name}: work-precision", "position error, eq. (30)")
+
+
+def plot_rows(all_rows: Sequence[Row], path: Path, title: str, ylabel: str) -> Path:
+    """The work-precision figure of ``all_rows`` (see ``write_figure``) written to ``path``."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    rows = [r for r in result.rows if math.isfinite(r.error) and r.error > 0]
+    rows = [r for r in all_rows if math.isfinite(r.error) and r.error > 0]
     fig, ax = plt.subplots(figsize=(7.5, 5.2))
     methods = sorted({r.method for r in rows}, key=lambda m: (not m.startswith("relaxed"), m))
     cmap = plt.get_cmap("tab10")
@@ -386,8 +391,8 @@ def write_figure(result: BenchResult, path: Path) -> Path:
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_xlabel("wall time (s), median of repeats")
-    ax.set_ylabel("position error, eq. (30)")
-    ax.set_title(f"{result.case.name}: work-precision")
+    ax.set_ylabel(ylabel)
+    ax.set_title(title)
     ax.grid(True, which="both", alpha=0.25)
     ax.legend(fontsize=8, loc="best")
     fig.tight_layout()

@@ -29,6 +29,19 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         description="Read OUT/CASE.csv and print its table and the speed targets (no run).")
     tg.add_argument("--case", required=True, help="the case name")
     tg.add_argument("--out", default="bench-out", help="folder holding CASE.csv (default: bench-out)")
+    rb = sub.add_parser("robots", help="the robots on the compiled path against solve_ivp, and the cost limit",
+                        description="Compass gait and rimless wheel (Drake's parameters, on their limit cycles), "
+                                    "pronk and double pendulum: compiled relaxed runs, the Python path's best and "
+                                    "solve_ivp over their knobs; the fastest of each below errors 1e-4, 1e-6, 1e-8 "
+                                    "and their ratios; the cost of a field evaluation against a bare C++ aba. "
+                                    "Writes OUT/robots-CASE.csv and .png.")
+    rb.add_argument("--case", action="append", default=None,
+                    help="compass-gait, rimless-wheel, pronk or double-pendulum (repeatable; default: all)")
+    rb.add_argument("--out", default="bench-out", help="folder for the CSV files and figures (default: bench-out)")
+    rb.add_argument("--quick", action="store_true", help="short runs, small sweep (for CI)")
+    rb.add_argument("--repeats", type=int, default=5, help="timed repeats per run, median kept (default 5)")
+    rb.add_argument("--no-figure", action="store_true", help="write the CSV files only")
+    rb.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
     ov = sub.add_parser("overhead", help="integrator cost per step beyond the model's own evaluations",
                         description="Steps per second, shares of time in fields, guards and resets, overhead per "
                                     "step in field evaluations, and evaluations per transition for halve vs aim.")
@@ -45,6 +58,17 @@ def run(args: argparse.Namespace) -> int:
         from ..bench import overhead
 
         return overhead.main(quick=args.quick, as_json=args.json)
+    if args.bench == "robots":
+        from ..bench import robots
+
+        cases = args.case or list(robots.CASES)
+        unknown = [c for c in cases if c not in robots.CASES]
+        if unknown or args.repeats < 1:
+            raise BenchError(f"--case must name {', '.join(robots.CASES)} (got {unknown}); --repeats must be >= 1"
+                             if unknown else f"--repeats must be >= 1, got {args.repeats}")
+        log = None if args.quiet else (lambda s: print(s, file=sys.stderr, flush=True))
+        return robots.main(cases, quick=args.quick, out=args.out, repeats=args.repeats, figure=not args.no_figure,
+                           log=log)
     from ..bench.work_precision import evaluate_targets, format_table, format_targets, read_rows, run_case
 
     if args.bench == "targets":

@@ -202,13 +202,34 @@ def get_kernel(field: Any, guards: Any, resets: Any) -> Any:
     return found
 
 
+def _twin_sources(names: tuple[str | None, ...]) -> str:
+    """The source of the twins' modules and of the modules of the jitted functions they use:
+    numba links the twins' machine code into the cached kernel, and checks only the generated
+    module's own file, so a changed twin must change the kernel's name."""
+    modules: dict[str, ModuleType] = {}
+    for name in names:
+        module = importlib.import_module(str(name).split(":")[0])
+        modules[module.__name__] = module
+        for value in vars(module).values():
+            used = getattr(value, "py_func", None)
+            if used is not None and getattr(used, "__module__", None) in sys.modules:
+                modules.setdefault(used.__module__, sys.modules[used.__module__])
+    sources = []
+    for module_name in sorted(modules):
+        try:
+            sources.append(inspect.getsource(modules[module_name]))
+        except (OSError, TypeError):
+            sources.append(module_name)
+    return "".join(sources)
+
+
 def _cached_kernel(names: tuple[str | None, ...]) -> Any:
     imports = []
     for alias, name in zip(("_twin_field", "_twin_guards", "_twin_resets"), names):
         module, qualname = str(name).split(":")
         imports.append(f"from {module} import {qualname} as {alias}")
     text = kernel_source(imports, cache=True)
-    digest = hashlib.sha256((text + numba.__version__).encode()).hexdigest()[:20]
+    digest = hashlib.sha256((text + numba.__version__ + _twin_sources(names)).encode()).hexdigest()[:20]
     try:
         directory = cache_dir()
         directory.mkdir(parents=True, exist_ok=True)

@@ -39,6 +39,11 @@ class CompiledMode:
         this same mode (impacts, bounces), the kernel also crosses the strips, so a run with
         many transitions (chattering, Zeno) stays compiled; Python then only turns the
         recorded transitions into Execution pieces.
+    fallback: True when a nan guard means "past the model's range" (a robot's hip below the
+        ground, which its Python guards raise as ModelBreakdown): the Python loop then takes
+        the rest of the visit from the kernel's last accepted point, shortening that step as it
+        does for a breakdown, and says what happened. False: a nan guard ends the run as on the
+        Python path.
     """
 
     field: Any
@@ -46,6 +51,7 @@ class CompiledMode:
     n_guards: int
     params: np.ndarray = field(default_factory=lambda: np.zeros(0))
     resets: Any = None
+    fallback: bool = False
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "params", np.ascontiguousarray(self.params, dtype=np.float64).reshape(-1))

@@ -84,7 +84,19 @@ def run_visit_compiled(run: Run, visit: ModeVisit) -> Outcome:
         else:
             break
     visit.x = x
+    if code == k.GUARD_NAN and twin.fallback:
+        return _python_rest(run, visit, ws)
     return _outcome(run, visit, ws, code)
+
+
+def _python_rest(run: Run, visit: ModeVisit, ws: Workspace) -> Outcome:
+    """The rest of the visit on the Python loop, from the kernel's last accepted point: a twin
+    with ``fallback`` returns nan guards past its model's range, where the Python callables
+    raise the ModelBreakdown the loop shortens the step for (or ends the run with)."""
+    from ..relaxed.integrate import run_visit
+
+    visit.k0 = ws.K[0].copy()
+    return run_visit(run, visit, python=True)
 
 
 def _workspace(run: Run, visit: ModeVisit, n_guards: int) -> Workspace:

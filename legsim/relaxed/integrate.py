@@ -53,9 +53,11 @@ def integrate(run: Run, mode: str, x: np.ndarray, t: float) -> Execution:
     return run.execution(outcome)
 
 
-def run_visit(run: Run, visit: ModeVisit) -> Outcome:
-    """Step through one mode visit until a transition or the end of the run."""
-    if visit.data.mode.compiled is not None and run.control is None and not run.landing.lands_on_extension \
+def run_visit(run: Run, visit: ModeVisit, *, python: bool = False) -> Outcome:
+    """Step through one mode visit until a transition or the end of the run (with ``python``,
+    in this loop even when the mode has a compiled twin)."""
+    if not python and visit.data.mode.compiled is not None and run.control is None \
+            and not run.landing.lands_on_extension \
             and all(tr.guard_args == "x" for tr in visit.data.transitions):
         from ..compiled import run_visit_compiled  # numba is imported only by systems that use it
 

@@ -7,6 +7,8 @@ method resolves the mode and hands over to the free functions of ``dynamics``, `
 
 from __future__ import annotations
 
+import dataclasses
+
 from typing import Any, Callable, Iterable, Mapping, Sequence
 
 import numpy as np
@@ -70,6 +72,7 @@ class ContactBridge:
                                   joint_damping=joint_damping, actuated=actuated, name=name)
         self._data = BridgeData.create(self._model)
         self._modes = ModeCatalog(self._model, mode_names)
+        self._twins: list[Any] = []  # compiled twins, whose evaluations counters() adds
 
     # -- the robot ------------------------------------------------------------------------
     @property
@@ -212,7 +215,17 @@ class ContactBridge:
     def expand(self, mode: str) -> tuple[Mode, list[Transition]]:
         """``HybridSystem`` expand callback: the mode and its outgoing transitions."""
         spec = self._modes.spec(mode)
-        return self.mode(mode), outgoing(self._model, self._data, self._modes, spec)
+        transitions = outgoing(self._model, self._data, self._modes, spec)
+        from .twins import bridge_twin  # numba and the native library load with the first mode
+
+        twin = bridge_twin(self._model, self._modes, spec, transitions)
+        self.count_twin(twin)
+        return dataclasses.replace(self.mode(mode), compiled=twin), transitions
+
+    def count_twin(self, twin: Any) -> None:
+        """Report a compiled twin's evaluations (its own counters) in ``counters()``."""
+        if twin is not None:
+            self._twins.append(twin)
 
     def system(self, initial_mode: str | None = None, x0: Any = None, *, energy: bool = True) -> HybridSystem:
         """A lazily expanded ``HybridSystem`` of this robot (modes appear as transitions reach
@@ -235,9 +248,18 @@ class ContactBridge:
         """Model-side evaluation counts since construction (or the last ``reset_counters``):
         aba, kkt (constrained solves), jacobians, kinematics (guard passes), spring_forces,
         damping_evals, actuation_evals, impacts, energy_evals, cache_hits."""
-        return dict(self._data.counts)
+        from .twins import add_counts
+
+        counts = dict(self._data.counts)
+        for twin in self._twins:  # evaluations on the compiled path
+            add_counts(counts, twin)
+        return counts
 
     def reset_counters(self) -> None:
         """Set every counter to zero."""
+        from .twins import add_counts
+
         for k in self._data.counts:
             self._data.counts[k] = 0
+        for twin in self._twins:
+            add_counts({}, twin, reset=True)
