@@ -411,7 +411,7 @@ def bridge_twin(model: BridgeModel, modes: ModeCatalog, spec: ModeSpec,
     if not native_ready():
         return None
     handle = handle_for(model.pin_model)
-    if handle is None or model.zeno_window is not None or model.actuated_idx.size:
+    if handle is None or model.actuated_idx.size:
         return None
     pp = _Params()
     records = _records(model, modes, spec, pp)
