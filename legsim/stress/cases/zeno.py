@@ -15,12 +15,14 @@ import time
 
 import numpy as np
 
+from ...builders import Model
 from ...execution import Execution
 from ...hybrid import HybridSystem
 from ...relaxed import simulate
 from ...systems.oscillator import EXAMPLES, OscillatorReference
 from ..framework import CaseResult, Check, case
-from ..invariants import check_accumulation, check_order, execution_checks, first_accumulating_crossing, transition_floor
+from ..invariants import (check_accumulation, check_order, execution_checks, first_accumulating_crossing,
+                          transition_floor)
 from ..models import build, double_pendulum, model_state, oscillator_ex2
 from ..reference_checks import (ball_flight_checks, ball_rest_check, ball_rest_crossing, oscillator_stick_sequence,
                                 tank_level_rate, tank_switch_checks)
@@ -459,7 +461,7 @@ def _sticks_and_releases_checks(ex: Execution, ref: OscillatorReference, T: floa
     return [released, stuck]
 
 
-def _compare_with_plain(result: CaseResult, model, ex: Execution, rho: float, cost: float, T: float, h: float,
+def _compare_with_plain(result: CaseResult, model: Model, ex: Execution, rho: float, cost: float, T: float, h: float,
                         eps: float) -> None:
     """The continued run is as accurate as the plain one (rho_hat at most twice) with at most a
     tenth of its transitions; adds that check and the plain run's numbers."""
