@@ -129,15 +129,16 @@ def test_quick_bench_writes_csv_figure_and_table(tmp_path, capsys):
 
 
 def test_zeno_variant_of_ex2_beats_the_chattering_plain_run(tmp_path, capsys):
-    # Example 2 sticks on the stop twice; the plain relaxed run chatters there (one strip crossing
-    # every ~sqrt(2 eps / F) s) while the Zeno continuation rests. Its error against the closed
+    # Example 2 sticks on the stop twice; the plain relaxed run (continuation=False) chatters there
+    # (one strip crossing every ~sqrt(2 eps / F) s) while the -zeno run, with the default
+    # continuation, sticks. Its error against the closed
     # form must then be below the plain run's at the same h and eps, and below the 1e-6 m of the
     # speed target, the level the plain integrator misses.
     code = main(["bench", "work-precision", "--case", "oscillator-ex2", "--quick", "--out", str(tmp_path),
                  "--quiet", "--no-figure", "--rho-points", "0"])
     assert code == 0
     out = capsys.readouterr().out
-    assert "plain or Zeno continuation" in out and "Zeno continuation option" in out
+    assert "plain or Zeno continuation" in out and "takes the model's Zeno continuation (simulate's default" in out
     with open(tmp_path / "oscillator-ex2.csv", newline="") as fh:
         rows = list(csv.DictReader(fh))
     assert all(METHOD_NAME.match(r["method"]) for r in rows)

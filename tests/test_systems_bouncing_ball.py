@@ -1,5 +1,6 @@
 """The bouncing ball: its closed-form reference checked on its own, then the relaxed integrator
-through the Zeno time and on to twice it."""
+through the Zeno time and on to twice it: the paper's relaxed execution (continuation=False),
+and by default resting where the bounces accumulate (legsim.relaxed.zeno)."""
 
 from __future__ import annotations
 
@@ -82,7 +83,9 @@ def test_reference_special_cases():
 # -- the relaxed integrator ------------------------------------------------------------------------
 def test_impact_times_zeno_time_and_rest(ref):
     eps, h = 1e-4, 1e-3
-    ex = simulate(bb.make_system(G, C), [Z0, 0.0], "flight", 2 * ref.zeno_time, h, eps)
+    # The paper's relaxed execution (continuation=False): past the Zeno time the ball chatters
+    # in the strip band; by default it rests (test_by_default_the_ball_rests_...).
+    ex = simulate(bb.make_system(G, C), [Z0, 0.0], "flight", 2 * ref.zeno_time, h, eps, continuation=False)
     assert ex.status == "finished"
     # Through the Zeno time to twice it with a bounded number of transitions.
     assert len(ex.transitions) < 20_000
@@ -111,6 +114,37 @@ def test_impact_times_zeno_time_and_rest(ref):
     states = np.array(ex.sample(ts[after]).states)
     assert np.all(np.abs(states[:, 0]) <= eps)
     assert np.all(np.abs(states[:, 1]) <= math.sqrt(2 * G * eps))
+
+
+def test_by_default_the_ball_rests_at_the_crossing_the_rule_names_with_the_plain_bounces_before(ref):
+    g, c, h, eps = G, C, 1e-3, 1e-4
+    window = h + eps
+    cont = simulate(bb.make_system(g, c), [Z0, 0.0], "flight", 2 * ref.zeno_time, h, eps)
+    plain = simulate(bb.make_system(g, c), [Z0, 0.0], "flight", 2 * ref.zeno_time, h, eps, continuation=False)
+    names = [tr.name for tr in cont.transitions]
+    assert names[-1] == "rest" and names.count("rest") == 1 and cont.final_mode == "rest"
+    assert cont.warnings == [] and [w.kind for w in plain.warnings] == ["accumulation"]
+    # the bounces it keeps are the plain run's, strip for strip (same guard values, same holds)
+    kept = cont.transitions[:-1]
+    np.testing.assert_array_equal([tr.exit_time for tr in kept], [tr.exit_time for tr in plain.transitions[:len(kept)]])
+    # It rests at the crossing that ends the first flight no longer than the window: the flight
+    # after impact j is 2 c^j v1 / g (free fall is a cubic, integrated exactly), so at impact
+    # k = 1 + ceil(log(2 v1 / (g window)) / log(1/c)), 11 here.
+    v1 = ref.impact_speed
+    k = 1 + math.ceil(math.log(2 * v1 / (g * window)) / math.log(1 / c))
+    assert len(cont.transitions) == k == 11
+    rest = cont.transitions[-1]
+    assert rest.time - kept[-1].exit_time <= window < kept[-1].time - kept[-2].exit_time
+    # ... which is the exact k-th impact delayed by the strips held before it: at most the
+    # exact flights still to come, window c / (1 - c), before the Zeno time, and at most those
+    # holds after it
+    held = sum(tr.exit_time - tr.time for tr in kept)
+    assert rest.time == pytest.approx(float(ref.impact_time(k)) + held, abs=1e-9)
+    assert ref.zeno_time - window * c / (1 - c) <= rest.time - held <= ref.zeno_time
+    # at rest on the floor: the rest's image is the strip point with no speed, held from then on
+    assert rest.state_after[1] == 0.0 and abs(rest.state_after[0]) <= 1e-12
+    np.testing.assert_array_equal(cont.final_state, rest.state_after)
+    assert len(plain.transitions) > 100 * len(names)
 
 
 @pytest.mark.parametrize("eps", [1e-2, 1e-3, 1e-4])

@@ -32,7 +32,8 @@ class BenchError(LegsimError):
 
 
 def relaxed_method(name: str) -> str:
-    """The ``simulate`` method of a ``relaxed-<name>`` run (``<name>-zeno`` for Zeno continuation)."""
+    """The ``simulate`` method of a ``relaxed-<name>`` run (``<name>-zeno`` for a run with the
+    default continuation)."""
     return name.removesuffix("-zeno")
 
 
@@ -46,8 +47,10 @@ class RunSpec:
     error-controlled runs (nan otherwise); landing: relaxed landing rule; max_step: solve_ivp's
     largest step (s): with long steps solve_ivp misses a guard crossed and recrossed within one
     step (it only sees sign changes between step ends), so the sweep tries a bound too.
-    zeno: relaxed run of the case's ``zeno_system`` (Zeno continuation, window = h + eps, as
-    docs/stress.md recommends); its method name ends in ``-zeno``.
+    zeno: relaxed run with the default Zeno continuation (``simulate(continuation=True)``: the
+    case's ``zeno_system`` enters its resting or sticking mode where its impacts accumulate,
+    window h + eps); its method name ends in ``-zeno``. Every other relaxed run is the paper's
+    relaxed execution, ``continuation=False``.
     """
 
     kind: str
@@ -96,8 +99,8 @@ class Case:
     rho_points: int | None = None  # default of the bench when None
     max_transitions: int = 1_000_000
     info: dict[str, Any] = field(default_factory=dict)
-    # window (s) -> (system, control) of the Zeno-continuation runs (RunSpec.zeno); None: none.
-    zeno_system: Callable[[float], tuple[HybridSystem, Any]] | None = None
+    # (system, control) of the runs with continuation (RunSpec.zeno); None: the case has none.
+    zeno_system: tuple[HybridSystem, Any] | None = None
 
 
 # ----------------------------------------------------------------------------------------------
@@ -133,9 +136,9 @@ def ivp_sweep(tols: tuple[float, ...], max_steps: tuple[float, ...] = (math.inf,
 
 def zeno_sweep(hs: dict[str, tuple[float, ...]], epss: tuple[float, ...], tols: tuple[float, ...] = (),
                h_adaptive: float = 1e-2) -> list[RunSpec]:
-    """Zeno-continuation runs (``relaxed-<name>-zeno``): fixed-step methods on h x eps, dopri5
-    over tolerances x eps with ``h_adaptive`` the initial and largest step (the window is
-    h + eps, so the adaptive runs need a small largest step)."""
+    """Runs with the default continuation (``relaxed-<name>-zeno``): fixed-step methods on
+    h x eps, dopri5 over tolerances x eps with ``h_adaptive`` the initial and largest step (the
+    window is h + eps, so the adaptive runs need a small largest step)."""
     runs = [RunSpec("relaxed", f"relaxed-{name}-zeno", float(h), float(e), zeno=True)
             for name, grid in hs.items() for h in grid for e in epss]
     runs += [RunSpec("relaxed", "relaxed-dopri5-zeno", h_adaptive, float(e), float(tol), zeno=True)
@@ -157,7 +160,7 @@ def targets_for(name: str, quick: bool = False) -> list[Target]:
                 Target("Ex.1 error <= 1e-6: time(best solve_ivp) / time(relaxed)", 1e-6, "solve_ivp", 1.0)]
     if name == "oscillator-ex2":
         # The plain relaxed integrator chatters where the exact mass sticks (its error floor is
-        # ~1e-6 m at eps = 2e-7); the -zeno runs use the Zeno continuation option of the model.
+        # ~1e-6 m at eps = 2e-7); the -zeno runs take the model's continuation there (the default).
         return [Target("Ex.2 error <= 1e-6: time(PS) / time(relaxed, plain or Zeno continuation)", 1e-6, "ps", 10.0),
                 Target("Ex.2 error <= 1e-6: time(PS) / time(plain relaxed, no continuation)", 1e-6, "ps", 10.0,
                        relaxed="plain")]
@@ -175,7 +178,7 @@ def targets_for(name: str, quick: bool = False) -> list[Target]:
 # ----------------------------------------------------------------------------------------------
 def _oscillator(example: str, quick: bool) -> Case:
     from ..systems.fast import make_oscillator_example
-    from ..systems.oscillator import EXAMPLES, OscillatorReference, forcing, make_system
+    from ..systems.oscillator import EXAMPLES, OscillatorReference
 
     system, x0, t_max = make_oscillator_example(example)
     p = EXAMPLES[example]
@@ -216,12 +219,6 @@ def _oscillator(example: str, quick: bool) -> Case:
         # simulator can only fire zero-time impacts there forever (it has no sticking mode).
     name = f"oscillator-{example}"
 
-    def zeno_system(window: float) -> tuple[HybridSystem, Any]:
-        # The compiled twin (systems/fast.py) has no Zeno continuation: these runs take the
-        # Python path, with the forcing passed as the control (its guards read u).
-        return (make_system(p["omega"], p["a"], p["x_max"], p["c"], p["mass"], zeno_window=window),
-                forcing(p["amplitude"], p["frequency"]))
-
     return Case(
         name=name,
         description=f"forced oscillator with a stop, paper 000 Table I Example {example[-1]} (t in [0, {t_final:.4g}] s)",
@@ -230,7 +227,9 @@ def _oscillator(example: str, quick: bool) -> Case:
         reference_positions=lambda t: ref.states(t)[:, :1],
         reference_note="closed form (eq. (28) with impacts, sticking and Zeno sums: OscillatorReference)",
         runs=runs, targets=targets, ps=ps, reference_execution=ref,
-        zeno_system=zeno_system if example == "ex2" else None,
+        # The compiled twin names the stop's continuation too (stick, release at the forcing's
+        # sign change): the -zeno runs step in the kernel and cross in Python.
+        zeno_system=(system, None) if example == "ex2" else None,
     )
 
 

@@ -314,6 +314,7 @@ def format_summary(summary: dict[str, Any]) -> str:
     if "energy_initial" in summary:
         lines.append(f"energy {_num(summary['energy_initial'])} J -> {_num(summary['energy_final'])} J")
     lines.append(f"wall time {summary['wall_time_s']:.3g} s")
+    lines += [f"warning: {w['message']}" for w in summary.get("warnings", [])]
     if status != "finished" and summary.get("message"):
         lines.append(f"stopped: {summary['message']}")
     return "\n".join(lines)

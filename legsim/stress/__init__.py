@@ -32,11 +32,16 @@ module                  responsibility
 ``framework``           ``Check``, ``CaseResult``, ``Case``, the registry ``CASES`` and the
                         ``case`` decorator, ``select`` and ``run_suite``
 ``invariants``          the execution invariants every case checks, ``step_floor`` and
-                        ``transition_floor`` (transition bounds), ``check_order`` (convergence)
+                        ``transition_floor`` (transition bounds), ``check_order`` (convergence),
+                        ``check_accumulation`` (the run's accumulation warnings)
 ``report``              ``format_table``, the table ``legsim stress`` prints
-``models``              the models the cases run (``build``, ``model_state``, ``lifted_ball``)
+``models``              the models the cases run (``build``, ``model_state``, ``lifted_ball``,
+                        ``curved_floor_ball``)
 ``reference_checks``    checks against closed forms shared by several families (ball, tanks)
+                        and where the accumulation rule continues the ball and the oscillator
 ``cases.zeno``          Zeno: the bouncing ball, the double pendulum, two tanks, the oscillator
+``cases.continuation``  Zeno, past the accumulation: the curved-floor ball (no continuation:
+                        a warning), the double pendulum converging with its continuation
 ``cases.grazing``       grazing: the circular flow near tangency
 ``cases.simultaneous``  simultaneous guards: the pronk, the digital controller
 ``cases.resting``       resting contact: the lifted ball
@@ -49,11 +54,12 @@ from .cases.extremes import PAPER_SLIP_PSI, STABLE_PRONK, apex_heights, hop_peri
 from .cases.simultaneous import pair_checks
 from .cases.zeno import flight_ratios, max_guard_accel, pressing_impact_bound, rho_hat
 from .framework import CASES, GROUPS, Case, CaseResult, Check, case, run_suite, select
-from .invariants import (GENERIC, check_domain, check_energy, check_finite, check_order, check_resets,
-                         check_status, check_time, check_transition_bound, energies, execution_checks, slope,
-                         step_floor, transition_floor)
-from .models import build, lifted_ball, model_state
-from .reference_checks import ball_flight_checks, ball_hold_check, ball_rest_check, tank_level_rate, tank_switch_checks
+from .invariants import (GENERIC, check_accumulation, check_domain, check_energy, check_finite, check_order,
+                         check_resets, check_status, check_time, check_transition_bound, energies, execution_checks,
+                         first_accumulating_crossing, slope, step_floor, transition_floor)
+from .models import build, curved_floor_ball, lifted_ball, model_state
+from .reference_checks import (ball_flight_checks, ball_hold_check, ball_rest_check, ball_rest_crossing,
+                               oscillator_stick_sequence, tank_level_rate, tank_switch_checks)
 from .report import format_table, invariant_summary
 
 #: ``model_state`` under the name tests/test_property_runner.py calls it by.
@@ -61,10 +67,10 @@ _state = model_state
 
 __all__ = [
     "CASES", "GENERIC", "GROUPS", "PAPER_SLIP_PSI", "STABLE_PRONK", "Case", "CaseResult", "Check",
-    "apex_heights", "ball_flight_checks", "ball_hold_check", "ball_rest_check", "build", "case", "cases",
-    "check_domain", "check_energy", "check_finite", "check_order", "check_resets", "check_status", "check_time",
-    "check_transition_bound", "energies", "execution_checks", "flight_ratios", "format_table", "hop_period",
-    "invariant_summary", "lifted_ball", "max_guard_accel", "model_state", "pair_checks", "pressing_impact_bound",
-    "rho_hat", "run_suite", "select", "slope", "step_floor", "tank_level_rate", "tank_switch_checks",
-    "transition_floor",
+    "apex_heights", "ball_flight_checks", "ball_hold_check", "ball_rest_check", "ball_rest_crossing", "build", "case",
+    "cases", "check_accumulation", "check_domain", "check_energy", "check_finite", "check_order", "check_resets",
+    "check_status", "check_time", "check_transition_bound", "curved_floor_ball", "energies", "execution_checks",
+    "first_accumulating_crossing", "flight_ratios", "format_table", "hop_period", "invariant_summary", "lifted_ball",
+    "max_guard_accel", "model_state", "oscillator_stick_sequence", "pair_checks", "pressing_impact_bound", "rho_hat",
+    "run_suite", "select", "slope", "step_floor", "tank_level_rate", "tank_switch_checks", "transition_floor",
 ]

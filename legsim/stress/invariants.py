@@ -162,6 +162,37 @@ def check_transition_bound(ex: Execution, bound: float, why: str) -> Check:
     return Check("transition bound", ok, detail)
 
 
+def first_accumulating_crossing(ex: Execution, name: str, window: float, after: float = -math.inf) -> int | None:
+    """Index of the first crossing of transition ``name`` later than ``after`` (s) that ends a
+    flight (from the previous crossing's strip exit, with no other transition between) no longer
+    than ``window`` (s) and shorter than the flight before: where the accumulation rule
+    (``legsim.relaxed.rules.accumulating``) fires, read off the execution's records. None when
+    there is none."""
+    previous_flight = math.inf
+    for k in range(1, len(ex.transitions)):
+        a, b = ex.transitions[k - 1], ex.transitions[k]
+        if a.name != name or b.name != name:
+            previous_flight = math.inf
+            continue
+        flight = b.time - a.exit_time
+        if b.time > after and flight <= window and flight < previous_flight:
+            return k
+        previous_flight = flight
+    return None
+
+
+def check_accumulation(ex: Execution, expected: Sequence[tuple[str, float, float]]) -> Check:
+    """The run's accumulation warnings (``Execution.warnings`` of kind ``accumulation``) are one
+    per ``(transition, earliest, latest)`` expected, in order, each beginning in [earliest,
+    latest] (s)."""
+    found = [(w.details.get("transition"), w.time) for w in ex.warnings if w.kind == "accumulation"]
+    ok = len(found) == len(expected) and all(
+        name == want and lo <= t <= hi for (name, t), (want, lo, hi) in zip(found, expected))
+    seen = ", ".join(f"{name} from {t:.9g} s" for name, t in found) or "none"
+    wanted = ", ".join(f"{name} from [{lo:.9g}, {hi:.9g}] s" for name, lo, hi in expected) or "none"
+    return Check("accumulation reported", ok, f"warnings: {seen}; expected: {wanted}")
+
+
 def check_status(ex: Execution, expected: str | Sequence[str] = "finished") -> Check:
     """The run ended as expected."""
     allowed = (expected,) if isinstance(expected, str) else tuple(expected)

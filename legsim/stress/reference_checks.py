@@ -65,6 +65,33 @@ def ball_hold_check(ex: Execution, eps: float) -> Check:
     return Check("holds <= eps (1 + 1/v)", ok, f"worst hold / bound = {worst:.3g}")
 
 
+def ball_rest_crossing(v1: float, c: float, g: float, window: float) -> int:
+    """The crossing (counted from 1, the first impact at speed v1 m/s) at which the accumulation
+    rule rests a ball of restitution c: the k-th impact ends the flight 2 c^(k-1) v1 / g, and the
+    rule fires at the first one no longer than ``window`` (s),
+    k = 1 + ceil(log(2 v1 / (g window)) / log(1/c)), never before the second crossing."""
+    return 1 + max(1, math.ceil(math.log(2.0 * v1 / (g * window)) / math.log(1.0 / c)))
+
+
+def oscillator_stick_sequence(ref: Any, t_end: float, window: float) -> list[str]:
+    """The transitions of the oscillator's run to ``t_end`` under the accumulation rule with
+    ``window`` (s), from its exact execution ``ref`` (an ``OscillatorReference`` starting at rest
+    on the stop, as Example 2 does, with ``t_end`` inside a sticking phase): ``impact`` then
+    ``stick`` (a flight of zero) for the first sticking phase; after each release the exact
+    impacts bounce until the first that ends a flight no longer than the window, which sticks."""
+    impacts = ref.impact_times(t_end)
+    phases = ref.sticking_intervals(t_end)
+    if not phases or phases[0][0] != ref.t0 or phases[-1][1] < t_end:
+        raise ValueError("the exact execution must start and end stuck on the stop")
+    names = ["impact", "stick"]
+    for (_, released), (stuck, _) in zip(phases, phases[1:]):
+        flights = np.diff(impacts[(impacts > released) & (impacts <= stuck)])
+        if not np.any(flights <= window):
+            raise ValueError(f"no exact flight before the stick at {stuck:.6g} s is as short as {window:g} s")
+        names += ["release"] + ["impact"] * (int(np.argmax(flights <= window)) + 1) + ["stick"]
+    return names
+
+
 def tank_switch_checks(ex: Execution, ref: Any, x0: np.ndarray, count: int) -> Check:
     """Constant fields are integrated exactly and the guards are linear, so the relaxed execution
     is the exact one with pauses: its k-th strip point is the exact k-th switching state, and its

@@ -54,12 +54,12 @@ def test_final_time_must_exceed_a_given_start(ball):
 
 
 def test_unknown_mode_lists_the_modes(ball):
-    with pytest.raises(SimulationError, match=r"^unknown initial mode 'stance'; modes: \['flight'\]"):
+    with pytest.raises(SimulationError, match=r"^unknown initial mode 'stance'; modes: \['flight', 'rest'\]"):
         simulate(ball, [1.0, 0.0], "stance", 1.0, 1e-3, 1e-3)
 
 
 def test_mode_must_be_a_name(ball):
-    with pytest.raises(SimulationError, match=r"^unknown initial mode 0; modes: \['flight'\]"):
+    with pytest.raises(SimulationError, match=r"^unknown initial mode 0; modes: \['flight', 'rest'\]"):
         simulate(ball, [1.0, 0.0], 0, 1.0, 1e-3, 1e-3)
 
 

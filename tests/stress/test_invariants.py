@@ -127,3 +127,20 @@ def test_transition_floor_is_the_step_floor_or_a_strip_whichever_is_shorter():
     # a strip of eps = 1e-3 s is shorter than the steps of 5e-3 s a slow guard allows
     assert stress.transition_floor(1.0, 1e-3, rate=0.1) == pytest.approx(1e-3 * (1 - 1e-9), rel=1e-15)
     assert stress.transition_floor(1.0, 1e-3, rate=0.1) < 1e-3
+
+
+def test_the_accumulation_check_fails_on_a_missing_misplaced_or_misnamed_warning():
+    system = bouncing_ball.make_system(restitution=0.5)
+    ex = simulate(system, [1.0, 0.0], "flight", 2.0, 1e-3, EPS, continuation=False)  # past t_zeno = 1.355 s
+    (warning,) = ex.warnings
+    t = warning.time
+    assert stress.check_accumulation(ex, [("bounce", t, t)]).passed
+    assert not stress.check_accumulation(ex, [("bounce", t + 1e-9, t + 1.0)]).passed  # misplaced
+    assert not stress.check_accumulation(ex, [("land", t, t)]).passed  # another transition
+    assert not stress.check_accumulation(replaced(ex, warnings=[]), [("bounce", t, t)]).passed  # missing
+    assert not stress.check_accumulation(ex, []).passed  # not expected
+    assert stress.check_accumulation(replaced(ex, warnings=[]), []).passed
+    # the crossing it began at: the first whose flight is within the window and shrinking
+    k = stress.first_accumulating_crossing(ex, "bounce", 1e-3 + EPS)
+    assert ex.transitions[k].time == t
+    assert stress.first_accumulating_crossing(ex, "other", 1e-3 + EPS) is None

@@ -14,10 +14,12 @@ G, C, H, EPS = 9.81, 0.5, 1e-3, 1e-4
 
 @pytest.fixture(scope="module")
 def ball():
-    """The ball from 1 m through and past its Zeno time (1.35 s), and that time."""
+    """The ball from 1 m through and past its Zeno time (1.35 s), and that time: the paper's
+    relaxed execution (continuation=False), whose rest is a chatter in the strip band."""
     model = stress.build("bouncing_ball", {"g": G, "z0": 1.0}, {"floor": {"restitution": C}})
     t_zeno = model.reference.zeno_time
-    return simulate(model.system, [1.0, 0.0], "flight", 2 * t_zeno, H, EPS, max_transitions=10 ** 5), t_zeno
+    return simulate(model.system, [1.0, 0.0], "flight", 2 * t_zeno, H, EPS, max_transitions=10 ** 5,
+                    continuation=False), t_zeno
 
 
 def with_transition(ex, k, **changes):
@@ -63,3 +65,30 @@ def test_tank_level_rate_is_the_fastest_level_in_either_mode():
     x = np.array([0.3, 0.2])
     fastest = max(float(np.max(np.abs(model.system.mode(m).field(0.0, x, None)))) for m in ("q1", "q2"))
     assert stress.tank_level_rate(model.reference) == fastest
+
+
+def test_the_ball_rests_at_the_first_crossing_that_ends_a_flight_within_the_window(ball):
+    # Counted flight by flight: the k-th impact ends the flight 2 c^(k-1) v1 / g.
+    v1 = (2 * G) ** 0.5
+    for window in (1.1e-3, 0.01, 0.05, 0.2, 1.0):
+        k = 2
+        while 2 * C ** (k - 1) * v1 / G > window:
+            k += 1
+        assert stress.ball_rest_crossing(v1, C, G, window) == k
+    # the plain run's accumulation begins at that crossing too
+    ex, _ = ball
+    k = stress.ball_rest_crossing(v1, C, G, H + EPS)
+    assert stress.first_accumulating_crossing(ex, "bounce", H + EPS) == k - 1  # an index
+    assert stress.first_accumulating_crossing(ex, "bounce", H + EPS, after=ex.transitions[k - 1].time) == k
+
+
+def test_the_oscillator_sequence_needs_a_run_that_starts_and_ends_stuck():
+    from legsim.systems.oscillator import OscillatorReference
+
+    ex2 = OscillatorReference.example("ex2")
+    names = stress.oscillator_stick_sequence(ex2, 4 * np.pi, 1e-2 + 1e-5)
+    assert names[:3] == ["impact", "stick", "release"] and names[-1] == "stick" and names.count("release") == 2
+    with pytest.raises(ValueError, match="start and end stuck"):
+        stress.oscillator_stick_sequence(OscillatorReference.example("ex1"), 10.0, 1e-2)
+    with pytest.raises(ValueError, match="as short as 1e-12 s"):
+        stress.oscillator_stick_sequence(ex2, 4 * np.pi, 1e-12)

@@ -25,10 +25,12 @@ def example_system(name: str):
 
 # -- the relaxed integrator against the reference ----------------------------------------------
 def run(name: str, eps: float, h: float = 1e-2, method: str = "rk4", landing: str = "halve", t_final=None):
+    """The paper's relaxed execution (continuation=False: Example 2 chatters where the mass
+    sticks, as in paper 000); the default continuation: tests/systems/test_oscillator_zeno.py."""
     E = EXAMPLES[name]
     system, control = example_system(name)
     return simulate(system, [E["x0"], E["xd0"]], "free", E["t_max"] if t_final is None else t_final, h, eps, method,
-                    control, landing=landing)
+                    control, landing=landing, continuation=False)
 
 
 def test_example1_impact_times_and_state_at_40_pi(ref1):

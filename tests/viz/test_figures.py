@@ -40,7 +40,8 @@ def test_double_pendulum_figure_and_recordings(tmp_path):
     plastic = read_rrd(tmp_path / "double_pendulum_plastic.rrd")
     zeno = read_rrd(tmp_path / "double_pendulum_zeno.rrd")
     # Paper 003 Sec. V: with c = 0 the second link stays on the stop (constrained mode) until
-    # the constraint force changes sign; with c > 0 every impact resets to unconstrained motion.
+    # the constraint force changes sign; with c > 0 every impact resets to unconstrained motion
+    # (Fig. 2c is the paper's relaxed execution: the script runs it without continuation).
     assert "constrained" in plastic["mode_sequence"]
     assert set(zeno["mode_sequence"]) == {"unconstrained"}
     # ... and the impacts accumulate: the gaps between strips shrink, as in Fig. 2c.

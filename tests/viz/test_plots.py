@@ -125,12 +125,14 @@ def test_plot_needs_an_execution(tmp_path):
 
 
 def test_sub_pixel_gaps_between_strips_are_joined():
-    # A bouncing ball with c = 0.5 ends in a Zeno cascade: strips separated by ever shorter
-    # flights. Gaps narrower than the drawing tolerance are shaded through, wider ones not.
+    # A bouncing ball with c = 0.5 ends in a Zeno cascade in the paper's relaxed execution
+    # (continuation=False): strips separated by ever shorter flights. Gaps narrower than the
+    # drawing tolerance are shaded through, wider ones not.
     from legsim.viz.plots import SPAN_RESOLUTION
 
     model = ball_model(c=0.5)
-    ex = simulate(model.system, np.array([1.0, 0.0]), "flight", 3.0, 1e-3, 1e-3, max_transitions=2000)
+    ex = simulate(model.system, np.array([1.0, 0.0]), "flight", 3.0, 1e-3, 1e-3, max_transitions=2000,
+                  continuation=False)
     fig = state_figure(plot_data(ex, model=model))
     (patch,) = _collections(fig.axes[0], STRIP_GID)
     shaded = span_bounds(patch)

@@ -4,6 +4,6 @@ its module registers them."""
 
 # In group order, so that ``CASES`` itself (which ``legsim stress`` lists when a selection
 # matches nothing) reads in the order of the table.
-from . import zeno, grazing, simultaneous, resting, extremes  # noqa: I001
+from . import zeno, continuation, grazing, simultaneous, resting, extremes  # noqa: I001
 
-__all__ = ["extremes", "grazing", "resting", "simultaneous", "zeno"]
+__all__ = ["continuation", "extremes", "grazing", "resting", "simultaneous", "zeno"]

@@ -1,7 +1,11 @@
-"""Zeno cases: infinitely many transitions in finite time. The bouncing ball (plain and with
-Zeno continuation), the double pendulum with a stop (paper 003 Fig. 2c), the two-tank system
-(paper 004 Sec. IV-D) and the forced oscillator with a stop (paper 000 Table I Example 2): each
-runs through and past its Zeno time, and must neither stall nor leave its closed form's bounds.
+"""Zeno cases: infinitely many transitions in finite time. The bouncing ball, the double
+pendulum with a stop (paper 003 Fig. 2c), the two-tank system (paper 004 Sec. IV-D) and the
+forced oscillator with a stop (paper 000 Table I Example 2): each runs through and past its Zeno
+time, and must neither stall nor leave its closed form's bounds. The plain cases run the paper's
+relaxed execution (``continuation=False``) and check that the run says where its transitions
+accumulate; the ``_continued`` cases run the default, the continuation the model names
+(``legsim.relaxed.zeno``), taken at the crossing that ends the first flight no longer than the
+window h + eps.
 """
 
 from __future__ import annotations
@@ -11,14 +15,17 @@ import time
 
 import numpy as np
 
+from ...builders import Model
 from ...execution import Execution
 from ...hybrid import HybridSystem
 from ...relaxed import simulate
 from ...systems.oscillator import EXAMPLES, OscillatorReference
 from ..framework import CaseResult, Check, case
-from ..invariants import check_order, execution_checks, transition_floor
+from ..invariants import (check_accumulation, check_order, execution_checks, first_accumulating_crossing,
+                          transition_floor)
 from ..models import build, double_pendulum, model_state, oscillator_ex2
-from ..reference_checks import ball_flight_checks, ball_rest_check, tank_level_rate, tank_switch_checks
+from ..reference_checks import (ball_flight_checks, ball_rest_check, ball_rest_crossing, oscillator_stick_sequence,
+                                tank_level_rate, tank_switch_checks)
 
 #: Paper 000 Table I Example 2, the oscillator cases' parameters.
 EX2 = EXAMPLES["ex2"]
@@ -37,12 +44,17 @@ def _zeno_ball(result: CaseResult, quick: bool, c: float) -> None:
     h, eps = 1e-3, 1e-4
     floor = transition_floor(h, eps, accel=g)
     bound = (T - ref.first_impact) / floor + 1
-    ex = simulate(system, [z0, 0.0], "flight", T, h, eps, max_transitions=int(2 * bound) + 10)
+    ex = simulate(system, [z0, 0.0], "flight", T, h, eps, max_transitions=int(2 * bound) + 10, continuation=False)
     result.main_run(ex)
     result.add(execution_checks(system, ex, eps, energy="dissipative", energy_tol=1e-9, bound=bound,
                                 bound_why=f"(T - t1)/{floor:.3g} s: a step or a strip per transition"))
     result.add(ball_flight_checks(ex, g, eps, resolved=4 * h))
     result.add(ball_rest_check(ex, c, g, eps, 1.5 * ref.zeno_time, T))
+    # The accumulation begins at the k-th impact, the first to end a flight no longer than
+    # h + eps (closed form), which the relaxed run reaches late by the strips held before it.
+    k_acc = ball_rest_crossing(ref.impact_speed, c, g, h + eps)
+    t_acc = float(ref.impact_time(k_acc)) + sum(tr.exit_time - tr.time for tr in ex.transitions[:k_acc - 1])
+    result.add(check_accumulation(ex, [("bounce", t_acc - 1e-9, t_acc + 1e-9)]))
     # Convergence: the relaxed impacts lag the exact ones by the strips they held; the lag of a
     # late impact before the Zeno time shrinks like h + eps.
     k = 6
@@ -50,7 +62,7 @@ def _zeno_ball(result: CaseResult, quick: bool, c: float) -> None:
     lags = []
     t_k = float(ref.impact_time(k))
     for hh, ee in levels:
-        run = simulate(system, [z0, 0.0], "flight", t_k + 0.5 * (ref.zeno_time - t_k), hh, ee)
+        run = simulate(system, [z0, 0.0], "flight", t_k + 0.5 * (ref.zeno_time - t_k), hh, ee, continuation=False)
         lags.append(run.transitions[k - 1].time - t_k)
     result.add(check_order(f"impact {k} lag -> 0", [lv[0] for lv in levels], lags, 0.7, 1.3, "h (eps = h/10)"))
     after = sum(tr.time > ref.zeno_time for tr in ex.transitions)
@@ -61,46 +73,48 @@ def _zeno_ball(result: CaseResult, quick: bool, c: float) -> None:
                       f"rests (z = {z_end[0]:.1g} m) to {T:.3g} s")
 
 
-@case("zeno_ball_c0.5", "zeno", "bouncing ball, c = 0.5, through and past its Zeno time (to twice it)")
+@case("zeno_ball_c0.5", "zeno", "bouncing ball, c = 0.5, plain relaxed, through and past its Zeno time (to twice it)")
 def _zeno_ball_half(result: CaseResult, quick: bool) -> None:
     _zeno_ball(result, quick, 0.5)
 
 
-@case("zeno_ball_c0.8", "zeno", "bouncing ball, c = 0.8, through and past its Zeno time (to twice it)")
+@case("zeno_ball_c0.8", "zeno", "bouncing ball, c = 0.8, plain relaxed, through and past its Zeno time (to twice it)")
 def _zeno_ball_08(result: CaseResult, quick: bool) -> None:
     _zeno_ball(result, quick, 0.8)
 
 
-@case("zeno_ball_c0.8_continued", "zeno", "bouncing ball, c = 0.8, Zeno continuation: the plain bounces, then rest")
+@case("zeno_ball_c0.8_continued", "zeno", "bouncing ball, c = 0.8, default continuation: the plain bounces, then rest")
 def _zeno_ball_continued(result: CaseResult, quick: bool) -> None:
     g, z0, c, h, eps = 9.81, 1.0, 0.8, 1e-3, 1e-4
     window = h + eps
-    model = build("bouncing_ball", {"g": g, "z0": z0}, {"floor": {"restitution": c}, "zeno": {"window": window}})
-    plain_model = build("bouncing_ball", {"g": g, "z0": z0}, {"floor": {"restitution": c}})
+    model = build("bouncing_ball", {"g": g, "z0": z0}, {"floor": {"restitution": c}})
     ref = model.reference
     T = 2.0 * ref.zeno_time
-    # the exact impacts leave at c^k v1 and the continuation keeps those with c^k v1 >= g window / 2
-    bound = math.log(c * ref.impact_speed / (0.5 * g * window)) / math.log(1.0 / c) + 3
+    k = ball_rest_crossing(ref.impact_speed, c, g, window)
     start = time.perf_counter()
     ex = simulate(model.system, [z0, 0.0], "flight", T, h, eps, max_transitions=1000)
     cost = time.perf_counter() - start
     result.main_run(ex)
-    result.add(execution_checks(model.system, ex, eps, energy="dissipative", energy_tol=1e-9, bound=bound,
-                                bound_why="log(c v1/w_th)/log(1/c) + 2 bounces and the rest"))
+    result.add(execution_checks(model.system, ex, eps, energy="dissipative", energy_tol=1e-9, bound=k,
+                                bound_why="k - 1 bounces and the rest, k = 1 + ceil(log(2 v1/(g w))/log(1/c))"))
     result.add(ball_flight_checks(ex, g, eps, resolved=4 * h))
     start = time.perf_counter()
-    plain = simulate(plain_model.system, [z0, 0.0], "flight", T, h, eps, max_transitions=10 ** 6)
+    plain = simulate(model.system, [z0, 0.0], "flight", T, h, eps, max_transitions=10 ** 6, continuation=False)
     plain_cost = time.perf_counter() - start
     kept = ex.transitions[:-1]
     same = [a.exit_time for a in kept] == [b.exit_time for b in plain.transitions[:len(kept)]]
-    rests = ex.final_mode == "rest" and ex.transitions[-1].name == "rest"
-    v = abs(float(ex.transitions[-1].state_before[1]))
+    rests = ex.final_mode == "rest" and ex.transitions[-1].name == "rest" and len(ex.transitions) == k
+    # The rest is the exact k-th impact delayed by the strips held before it, so at most the
+    # exact flights still to come, window c / (1 - c), before the Zeno time.
+    held = sum(tr.exit_time - tr.time for tr in kept)
     t_rest = ex.transitions[-1].time
-    early = 2 * c * v / (g * (1 - c))
-    ok = same and rests and ref.zeno_time - early - 1e-12 <= t_rest <= ref.zeno_time + len(kept) * window
+    exact = float(ref.impact_time(k)) + held
+    ok = (same and rests and abs(t_rest - exact) <= 1e-9 and ex.warnings == []
+          and ref.zeno_time - window * c / (1 - c) <= t_rest - held <= ref.zeno_time)
     result.add(Check("plain bounces, then rest", ok,
-                     f"{len(kept)} bounces identical to the plain run's, rest at {t_rest:.5g} s (t_zeno "
-                     f"{ref.zeno_time:.5g} s; the skipped tail is {early:.2g} s)"))
+                     f"{len(kept)} bounces identical to the plain run's, rest at crossing {len(ex.transitions)} (closed "
+                     f"form {k}) at {t_rest:.9g} s = exact impact + held {held:.3g} s (to {abs(t_rest - exact):.2g}); "
+                     f"t_zeno {ref.zeno_time:.5g} s, the tail after it {window * c / (1 - c):.2g} s"))
     result.numbers.update({"transitions_plain": len(plain.transitions), "wall_s": cost, "wall_s_plain": plain_cost})
     result.outcome = (f"{ex.status} in '{ex.final_mode}'; {len(ex.transitions)} transitions vs "
                       f"{len(plain.transitions)} plain ({cost:.2g} s vs {plain_cost:.2g} s)")
@@ -134,9 +148,9 @@ def max_guard_accel(system: HybridSystem, ex: Execution, coordinate: int, stride
 def _zeno_pendulum_plain(result: CaseResult, quick: bool) -> None:
     h, eps, c = 1e-3, 1e-3, 0.5
     T = 2.5 if quick else 5.0
-    model, x0 = double_pendulum(c, None)
+    model, x0 = double_pendulum(c)
     system = model.system
-    ex = simulate(system, x0, "unconstrained", T, h, eps, max_transitions=10 ** 6)
+    ex = simulate(system, x0, "unconstrained", T, h, eps, max_transitions=10 ** 6, continuation=False)
     result.main_run(ex)
     a_max = 2.0 * max_guard_accel(system, ex, 3)  # theta2'' measured on the run, with a factor 2 of slack
     floor = transition_floor(h, eps, accel=a_max)
@@ -156,6 +170,11 @@ def _zeno_pendulum_plain(result: CaseResult, quick: bool) -> None:
     ok = short != [] and th2.min() >= -eps * (1 + 1e-9) and th2.max() <= hi * (1 + 1e-9)
     result.add(Check("stop chatters in its strip", ok,
                      f"from {t_chatter:.4g} s theta2 in [{th2.min():.2g}, {th2.max():.2g}] within [-eps, {hi:.2g}] rad"))
+    # The run says so: its impacts accumulate from the crossing that ends the first flight no
+    # longer than h + eps, before the chatter (flights shorter than a step) begins.
+    k = first_accumulating_crossing(ex, "bounce_stop", h + eps)
+    t_acc = ex.transitions[k].time if k is not None else math.nan
+    result.add(check_accumulation(ex, [("bounce_stop", t_acc, min(t_acc, t_chatter))]))
     # The finding: while the stop chatters every step crosses at its start, and the relaxed
     # algorithm holds the whole state at the strip point: link 1 stops swinging.
     th1 = np.array([s[0] for s in ex.sample(times).states])
@@ -167,11 +186,11 @@ def _zeno_pendulum_plain(result: CaseResult, quick: bool) -> None:
 
 
 @case("zeno_double_pendulum_c0.5_continued", "zeno",
-      "double pendulum, stop c = 0.5, Zeno continuation: rests in the constrained mode, released where eq. (31) changes sign")
+      "double pendulum, stop c = 0.5, default continuation: rests in the constrained mode, released where eq. (31) changes sign")
 def _zeno_pendulum_continued(result: CaseResult, quick: bool) -> None:
     h, eps, c = 1e-3, 1e-3, 0.5
     T = 2.5 if quick else 5.0
-    model, x0 = double_pendulum(c, h + eps)
+    model, x0 = double_pendulum(c)
     system = model.system
     ex = simulate(system, x0, "unconstrained", T, h, eps, max_transitions=1000)
     result.main_run(ex)
@@ -195,8 +214,7 @@ def _zeno_pendulum_continued(result: CaseResult, quick: bool) -> None:
     result.add(Check("rests in the constrained mode", ok,
                      "constrained on " + ", ".join(f"[{a:.4g}, {b:.4g}]" for a, b in spans) + " s"))
     # Cost and agreement with the plain relaxed run up to the accumulation.
-    plain = simulate(double_pendulum(c, None)[0].system, x0, "unconstrained",
-                     ends[0] - 0.05, h, eps, max_transitions=10 ** 6)
+    plain = simulate(system, x0, "unconstrained", ends[0] - 0.05, h, eps, max_transitions=10 ** 6, continuation=False)
     gap = float(np.max(np.abs(plain.final_state - ex.sample([plain.t_end]).states[0])))
     result.add(Check("agrees with plain run before resting", gap <= 1e-9,
                      f"|x_plain - x_continued| = {gap:.2g} at t = {plain.t_end:.4g} s"))
@@ -207,14 +225,15 @@ def _zeno_pendulum_continued(result: CaseResult, quick: bool) -> None:
 
 
 def pressing_impact_bound(system: HybridSystem, ex: Execution, c: float, window: float) -> tuple[float, list[int]]:
-    """(bound on the transitions, pressing impacts per accumulation) of the double pendulum with
-    Zeno continuation (``window`` in s).
+    """(bound on the transitions, pressing impacts per accumulation) of the double pendulum
+    continued at its accumulations (window ``window`` in s).
 
     In each accumulation (the impacts since the last release) the impacts that press link 2 onto
-    the stop (free theta2'' < 0, acceleration a_n = -theta2'') leave with speeds falling by c,
-    from w1 = c max|theta2'| to the threshold a_n window / 2 at the least a_n: at most
-    log(w1/w_th)/log(1/c) + 2 of them. Impacts pulling away end long flights and are counted as
-    they come, as are the rests and releases."""
+    the stop (free theta2'' < 0, acceleration a_n = -theta2'') leave with speeds w falling by c
+    from w1 = c max|theta2'|, and fly 2 w / a_n. The rest comes at the crossing that ends the
+    first flight no longer than the window, after the first bounce with w <= w_th = a_n window / 2
+    at the least a_n: at most log(w1/w_th)/log(1/c) + 2 bounces. Impacts pulling away end long
+    flights and are counted as they come, as are the rests and releases."""
     free = system.mode("unconstrained").field
     bound, groups, pressing = 0.0, [[]], []
     for tr in ex.transitions:
@@ -238,9 +257,9 @@ def _release_time_converges(c: float, x0: np.ndarray, quick: bool) -> Check:
     h^0.5; the number of resolved flights grows like log(1/h))."""
     levels = [4e-3, 2e-3, 1e-3] if quick else [4e-3, 2e-3, 1e-3, 5e-4, 2.5e-4]
     times = []
+    model, _ = double_pendulum(c)
     for hh in levels:
-        m_l, _ = double_pendulum(c, 2 * hh)
-        run = simulate(m_l.system, x0, "unconstrained", 2.5, hh, hh, max_transitions=1000)
+        run = simulate(model.system, x0, "unconstrained", 2.5, hh, hh, max_transitions=1000)
         times.append(next(tr.time for tr in run.transitions if tr.name == "release_stop"))
     diffs = [abs(a - b) for a, b in zip(times[:-1], times[1:])]
     return check_order("release time converges", levels[:-1], diffs, 0.5, 1.5, "h = eps")
@@ -294,10 +313,25 @@ def _zeno_two_tanks(result: CaseResult, quick: bool) -> None:
         _, _, _, run, _, _, _ = _two_tanks_run(h, ee, t_zeno)
         left.append(float(run.final_state.sum() - ref.r1 - ref.r2))
     result.add(check_order("excess at t_zeno -> 0", levels, left, 0.8, 1.2, "eps"))
+    result.add(_held_and_says_so(ex, t_zeno))
     after = sum(tr.time > t_zeno for tr in ex.transitions)
     result.numbers.update({"zeno_time": t_zeno, "transitions_after_zeno": after})
     result.outcome = (f"{ex.status}; {len(ex.transitions) - after} switches before t_zeno = {t_zeno:g} s, levels held "
                       f"at the thresholds to {T:g} s")
+
+
+def _held_and_says_so(ex: Execution, t_zeno: float) -> Check:
+    """Past their Zeno time the tanks are held in the strips of two alternating transitions; the
+    run must say so: by an accumulation warning that begins before the relaxed Zeno time (the
+    exact one delayed by the strips held), or, as the accumulation rule follows the crossings of
+    one transition at a time, by a strip-hold warning stating the time held."""
+    held = sum(strip.exit_time - strip.time for strip in ex.strips)
+    before = sum(strip.exit_time - strip.time for strip in ex.strips if strip.time < t_zeno)
+    says = [w for w in ex.warnings if w.kind in ("accumulation", "strip_hold")]
+    ok = len(says) == 1 and (abs(says[0].details.get("strip_time", math.nan) - held) <= 1e-9
+                             if says[0].kind == "strip_hold" else says[0].time <= t_zeno + before)
+    return Check("says it is held", ok, f"warnings {[(w.kind, round(w.time, 6)) for w in ex.warnings]}; "
+                                        f"{held:.3g} s held in strips")
 
 
 # ---------------------------------------------------------------------------------------------
@@ -306,13 +340,13 @@ def _zeno_two_tanks(result: CaseResult, quick: bool) -> None:
 
 
 @case("zeno_oscillator_ex2", "zeno",
-      "forced oscillator with a stop, paper 000 Table I Example 2: sticks, leaves, chatters (Zeno) and sticks again")
+      "forced oscillator with a stop, paper 000 Table I Example 2, plain relaxed: sticks, leaves, chatters (Zeno), sticks again")
 def _zeno_oscillator(result: CaseResult, quick: bool) -> None:
     _oscillator_ex2(result, quick, continued=False)
 
 
 @case("zeno_oscillator_ex2_continued", "zeno",
-      "Example 2 with Zeno continuation: sticks and releases as the exact execution does, at a fraction of the cost")
+      "Example 2, default continuation: sticks and releases as the exact execution does, at a fraction of the cost")
 def _zeno_oscillator_continued(result: CaseResult, quick: bool) -> None:
     _oscillator_ex2(result, quick, continued=True)
 
@@ -328,27 +362,30 @@ def rho_hat(ex: Execution, ref: OscillatorReference) -> float:
 def _oscillator_ex2(result: CaseResult, quick: bool, continued: bool) -> None:
     h, eps = 1e-2, 1e-5
     T = 4.0 * math.pi
-    model = oscillator_ex2(continued, h + eps)
+    model = oscillator_ex2()
     ref = model.reference
     start = time.perf_counter()
     ex = simulate(model.system, [EX2["x_max"], 0.0], "free", T, h, eps, control=model.control,
-                  max_transitions=10 ** 6)
+                  max_transitions=10 ** 6, continuation=continued)
     cost = time.perf_counter() - start
     result.main_run(ex)
-    bound, why = _continued_bound(ref, T, h, eps) if continued else _plain_bound(ex, T, h, eps)
+    sequence = oscillator_stick_sequence(ref, T, h + eps)
+    bound, why = ((len(sequence), "the rule's sticks on the exact impacts, and the releases") if continued
+                  else _plain_bound(ex, T, h, eps))
     result.add(execution_checks(model.system, ex, eps, control=model.control, bound=bound, bound_why=why))
     rho = rho_hat(ex, ref)
     result.add(_on_the_stop_check(ex, ref, T, eps))
     result.numbers.update({"rho_hat": rho, "wall_s": cost, "transitions": len(ex.transitions)})
     if continued:
-        result.add(_sticks_and_releases_checks(ex, ref, T, h, eps))
-        _compare_with_plain(result, ex, ref, rho, cost, T, h, eps)
+        result.add(_sticks_and_releases_checks(ex, ref, T, h, eps, sequence))
+        _compare_with_plain(result, model, ex, rho, cost, T, h, eps)
+    else:
+        result.add(_chatter_reported(ex, ref, T))
     levels = [(1e-2, 1e-3), (1e-2, 1e-4), (1e-2, 1e-5)] + ([] if quick else [(1e-2, 1e-6)])
     errs = []
     for hh, ee in levels:
-        m_l = oscillator_ex2(continued, hh + ee)
-        run = simulate(m_l.system, [EX2["x_max"], 0.0], "free", T, hh, ee, control=m_l.control,
-                       max_transitions=10 ** 6)
+        run = simulate(model.system, [EX2["x_max"], 0.0], "free", T, hh, ee, control=model.control,
+                       max_transitions=10 ** 6, continuation=continued)
         errs.append(rho_hat(run, ref))
     result.add(check_order("rho_hat -> 0", [lv[1] for lv in levels], errs, 0.5, 1.2, "eps (h = 1e-2)"))
     result.outcome = (f"{ex.status}; {len(ex.transitions)} transitions, rho_hat = {rho:.2g} m, "
@@ -365,16 +402,15 @@ def _plain_bound(ex: Execution, T: float, h: float, eps: float) -> tuple[float, 
     return T / floor + 1, f"T/{floor:.3g} s, guard acceleration <= {acc:.3g} m/s^2"
 
 
-def _continued_bound(ref: OscillatorReference, T: float, h: float, eps: float) -> tuple[float, str]:
-    """The transition bound with Zeno continuation: the exact impacts the continuation may still
-    bounce (rebound c v at least F window / 4, half the threshold for the approach-speed
-    estimate), plus a stick and a release per exact sticking phase and the first stick."""
-    speeds = ref.impact_speeds(T)
-    forces = ref.free_acceleration(ref.impact_times(T))
-    bouncing = int(np.sum(EX2["c"] * speeds >= forces * (h + eps) / 4.0))
-    phases = len(ref.sticking_intervals(T))
-    return bouncing + 2 * phases + 2, (f"{bouncing} exact impacts with rebound >= F window/4, a stick and "
-                                       f"a release per sticking phase ({phases})")
+def _chatter_reported(ex: Execution, ref: OscillatorReference, T: float) -> Check:
+    """The plain run chatters where the exact mass sticks, and says so: its accumulation
+    warnings name the impact, and the first begins in the first sticking phase, each in one."""
+    phases = ref.sticking_intervals(T)
+    found = [(w.details.get("transition"), w.time) for w in ex.warnings if w.kind == "accumulation"]
+    ok = bool(found) and phases[0][0] <= found[0][1] <= phases[0][1] and all(
+        name == "impact" and any(s0 <= t <= s1 for s0, s1 in phases) for name, t in found)
+    return Check("accumulation reported", ok, f"warnings from {', '.join(f'{t:.6g}' for _, t in found) or 'none'} s; "
+                                              f"exact sticking phases {', '.join(f'[{a:.4g}, {b:.4g}]' for a, b in phases)}")
 
 
 def _on_the_stop_check(ex: Execution, ref: OscillatorReference, T: float, eps: float) -> Check:
@@ -393,39 +429,47 @@ def _on_the_stop_check(ex: Execution, ref: OscillatorReference, T: float, eps: f
                  f"(worst ratio {worst:.3g})")
 
 
-def _sticks_and_releases_checks(ex: Execution, ref: OscillatorReference, T: float, h: float,
-                                eps: float) -> list[Check]:
-    """With Zeno continuation the run sticks and releases as the reference does: the releases
-    where F = u/m - omega^2 x_max changes sign (closed form), the sticks at most the skipped tail
-    (window/(1 - c)) early and one transition's lag (h + eps) late."""
-    sticks = [tr for tr in ex.transitions if tr.name == "stick"]
-    releases = [tr for tr in ex.transitions if tr.name == "release"]
-    exact = ref.sticking_intervals(T)
-    starts = [s0 for s0, _ in exact]
-    ends = [s1 for _, s1 in exact if s1 < T]
-    rel_err = max((abs(a.time - b) for a, b in zip(releases, ends)), default=math.inf)
-    ok = len(releases) == len(ends) and rel_err <= 1e-9
+def _sticks_and_releases_checks(ex: Execution, ref: OscillatorReference, T: float, h: float, eps: float,
+                                sequence: list[str]) -> list[Check]:
+    """The default continuation sticks and releases as the reference does: the transitions the
+    rule takes on the exact impacts (``sequence``), the releases where F = u/m - omega^2 x_max
+    changes sign (closed form), and each stick at the crossing that ends a flight no longer than
+    the window: at most the exact flights still to come, window c / (1 - c), before the exact
+    start (F grows through Example 2's accumulations, so the flights shrink faster than by c),
+    and at most the strips held since the chain began after it."""
+    window, c = h + eps, EX2["c"]
+    names = [tr.name for tr in ex.transitions]
+    ends = [s1 for _, s1 in ref.sticking_intervals(T) if s1 < T]
+    releases = [tr.time for tr in ex.transitions if tr.name == "release"]
+    rel_err = max((abs(a - b) for a, b in zip(releases, ends)), default=math.inf)
+    ok = names == sequence and len(releases) == len(ends) and rel_err <= 1e-9
     released = Check("released where F changes sign", ok,
-                     f"{len(releases)} releases at the exact times {', '.join(f'{e:.9g}' for e in ends)} to "
-                     f"{rel_err:.2g} s")
-    lo, hi = (h + eps) / (1 - EX2["c"]) + (h + eps), (h + eps)
-    errs = [a.time - b for a, b in zip(sticks, starts)]
-    ok = len(sticks) == len(starts) and all(-lo <= e <= hi for e in errs)
-    stuck = Check("sticks where the impacts accumulate", ok,
-                  f"stick times - exact: {', '.join(f'{e:+.3g}' for e in errs)} s within [-{lo:.3g}, {hi:.3g}]")
+                     f"transitions as the rule takes them on the exact impacts: {names == sequence}; "
+                     f"{len(releases)} releases at the exact times {', '.join(f'{e:.9g}' for e in ends)} to {rel_err:.2g} s")
+    errs, ok, chain = [], True, 0
+    for k, tr in enumerate(ex.transitions):
+        if tr.name == "release":
+            chain = k + 1
+        elif tr.name == "stick":
+            s0 = min(ref.sticking_intervals(T), key=lambda iv: abs(iv[0] - tr.time))[0]
+            held = sum(t.exit_time - t.time for t in ex.transitions[chain:k])
+            errs.append((tr.time - s0, held))
+            ok = ok and -window * c / (1 - c) <= tr.time - s0 <= held + 1e-9
+    stuck = Check("sticks where the impacts accumulate", ok and bool(errs),
+                  f"stick times - exact: {', '.join(f'{e:+.3g} (held {hd:.2g})' for e, hd in errs)} s, from "
+                  f"-{window * c / (1 - c):.3g} to the time held")
     return [released, stuck]
 
 
-def _compare_with_plain(result: CaseResult, ex: Execution, ref: OscillatorReference, rho: float, cost: float,
-                        T: float, h: float, eps: float) -> None:
-    """Zeno continuation is as accurate as the plain run (rho_hat at most twice) with at most a
+def _compare_with_plain(result: CaseResult, model: Model, ex: Execution, rho: float, cost: float, T: float, h: float,
+                        eps: float) -> None:
+    """The continued run is as accurate as the plain one (rho_hat at most twice) with at most a
     tenth of its transitions; adds that check and the plain run's numbers."""
-    plain_model = oscillator_ex2(False)
     start = time.perf_counter()
-    plain = simulate(plain_model.system, [EX2["x_max"], 0.0], "free", T, h, eps, control=plain_model.control,
-                     max_transitions=10 ** 6)
+    plain = simulate(model.system, [EX2["x_max"], 0.0], "free", T, h, eps, control=model.control,
+                     max_transitions=10 ** 6, continuation=False)
     plain_cost = time.perf_counter() - start
-    rho_plain = rho_hat(plain, ref)
+    rho_plain = rho_hat(plain, model.reference)
     ok = rho <= 2.0 * rho_plain and 10 * len(ex.transitions) <= len(plain.transitions)
     result.add(Check("as accurate at a fraction of the cost", ok,
                      f"rho_hat {rho:.3g} m vs {rho_plain:.3g} m without; transitions {len(ex.transitions)} vs "
