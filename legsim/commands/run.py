@@ -74,7 +74,7 @@ def run(args: argparse.Namespace) -> int:
             print(format_estimate(estimate))
         for kind, path in written.items():
             print(f"wrote {path} ({kind})")
-    if not args.json:  # a result the method cannot vouch for says so, even with --quiet
+    if args.quiet:  # the summary prints them otherwise: a result it cannot vouch for says so, even quiet
         for warning in summary["warnings"]:
             print(f"legsim: warning: {warning['message']}", file=sys.stderr)
     for exc in failures:
