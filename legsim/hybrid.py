@@ -297,6 +297,11 @@ class HybridSystem:
                         f"{name}: transition {tr.name} targets unknown mode '{tr.target}' "
                         f"(modes: {sorted(self._modes)})"
                     )
+                if tr.continuation is not None and tr.continuation.target not in self._modes:
+                    raise ModelError(
+                        f"{name}: continuation {tr.continuation.name} of transition {tr.name} targets unknown mode "
+                        f"'{tr.continuation.target}' (modes: {sorted(self._modes)})"
+                    )
         self._compiled: dict[str, ModeData] = {}
         self._continued: dict[tuple[str, int], Transition] = {}
         if initial is not None:

@@ -140,6 +140,8 @@ def simulate(
         raise SimulationError(f"landing must be one of {', '.join(map(repr, LANDINGS))}, got {landing!r}")
     parts = landing_rule(landing, tableau) if isinstance(landing, str) else landing
     window = h + eps if zeno_window is None else positive("zeno_window", zeno_window)
+    if not isinstance(continuation, (bool, np.bool_)):
+        raise SimulationError(f"continuation must be True or False, got {type(continuation).__name__} {continuation!r}")
     run = Run(system, tableau, rule, parts, eps, control, max_transitions=max_transitions,
               max_halvings=max_halvings, max_steps=max_steps, progress=progress, t0=t0, t_final=t_final,
               zeno=ZenoWatch(window, bool(continuation)))

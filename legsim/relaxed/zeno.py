@@ -3,9 +3,8 @@
 The relaxed execution converges to the hybrid one up to a Zeno time (paper 000, Thm. 26); past
 it the strips hold the state while time runs, which is an artefact, not motion. The rule that
 detects an accumulation is written once (``rules.accumulating``): the flight since the previous
-crossing of the same transition, with no other transition between, is shorter than the window
-(by default h + eps: shorter than the integrator can resolve) and shorter than the flight
-before it. At such a crossing:
+crossing of the same transition is shorter than the window (by default h + eps: shorter than the
+integrator can resolve) and shorter than the flight before it. At such a crossing:
 
 * a transition that names a ``Continuation`` (an impact's plastic impact into the resting or
   sticking mode) takes it instead, provided its reset image lies in its target's domain (the
@@ -26,10 +25,11 @@ from .rules import accumulating
 
 @dataclass
 class _Episode:
-    """Crossings of one transition accumulating without a continuation, since ``start``."""
+    """Crossings accumulating without a continuation, since ``start``: those of ``members``
+    ((mode, transition) pairs, the first one first; a Zeno cycle through several modes has one
+    member per transition of the cycle)."""
 
-    mode: str
-    transition: str
+    members: list[tuple[str, str]]
     start: float
     transitions_before: int
     strip_time_before: float
@@ -37,71 +37,103 @@ class _Episode:
     remedy: str
 
 
+@dataclass
+class _History:
+    """The crossings of one transition so far: when the last left its strip and the flight that
+    ended there."""
+
+    last_exit: float
+    flight: float = math.inf
+
+
 class ZenoWatch:
-    """Follows the chain of crossings of one transition, for the accumulation rule and the
-    warnings. ``window`` (s): flights shorter than this may accumulate; ``continues``: whether a
-    transition's continuation is taken when they do (``simulate(continuation=...)``)."""
+    """Follows the crossings of each transition, for the accumulation rule and the warnings.
+    ``window`` (s): flights shorter than this may accumulate; ``continues``: whether a
+    transition's continuation is taken when they do (``simulate(continuation=...)``).
+
+    A transition's flights are the times from one of its crossings to the next, whatever
+    happens between: the cycle of a Zeno execution through several modes (two tanks filled in
+    turn) accumulates like a single bouncing contact, and is one episode. An episode without
+    continuation lasts until a flight of one of its transitions is longer than the window again
+    (the execution left the accumulation: a released mass, a ball kicked up) or one of them
+    takes its continuation."""
 
     def __init__(self, window: float, continues: bool) -> None:
         self.window = window
         self.continues = continues
-        self._chain: tuple[str, str] | None = None
-        self._last_exit = -math.inf
-        self._flight = math.inf
-        self._episode: _Episode | None = None
+        self._histories: dict[tuple[str, str], _History] = {}
+        self._open: _Episode | None = None
         self.episodes: list[tuple[_Episode, int, float, float]] = []
 
     def crossing(self, mode: str, name: str, tc: float) -> bool:
         """A crossing of transition ``name`` of ``mode`` at time tc: True when the crossings of
         this transition accumulate (``rules.accumulating``)."""
-        if self._chain != (mode, name):
-            return False
-        return accumulating(self._flight, tc - self._last_exit, self.window)
+        history = self._histories.get((mode, name))
+        return history is not None and accumulating(history.flight, tc - history.last_exit, self.window)
 
     def crossed(self, run, mode: str, name: str, tc: float, exit_time: float, accumulates: bool,
                 continued: bool, has_continuation: bool = False) -> None:
-        """Record the crossing of ``name`` (its strip left at ``exit_time``): the chain goes on or
-        restarts, and an accumulation without continuation opens an episode for the warnings."""
-        flight = tc - self._last_exit if self._chain == (mode, name) else math.inf
-        if self._chain != (mode, name) or continued:
-            self._close(run, tc)
-        if accumulates and not continued and self._episode is None:
-            ratio = flight / self._flight if self._flight > 0.0 else 1.0
-            estimate = exit_time + flight * ratio / (1.0 - ratio) if ratio < 1.0 else exit_time
-            remedy = ("run with continuation (the default: simulate(continuation=True), integrator.continuation = "
-                      "true), which takes the transition's continuation there" if has_continuation else
-                      "give the transition a continuation (legsim.Continuation: the constrained mode entered when its "
-                      "crossings accumulate)")
-            self._episode = _Episode(mode, name, tc, len(run.transitions) - 1, run.strip_time - (exit_time - tc),
-                                     estimate, remedy)
-        self._chain = None if continued else (mode, name)
-        self._last_exit, self._flight = exit_time, flight
+        """Record the crossing of ``name`` (its strip left at ``exit_time``; ``continued`` when
+        its continuation was taken): an accumulation without continuation opens an episode for
+        the warnings or joins the open one, a long flight or a continuation closes it."""
+        key = (mode, name)
+        history = self._histories.get(key)
+        flight = tc - history.last_exit if history is not None else math.inf
+        episode = self._open
+        if episode is not None and key in episode.members and (continued or flight > self.window):
+            self._close(run, tc, ending=True)
+        if continued:  # the model took over: a later crossing starts a new sequence
+            self._histories.pop(key, None)
+            return
+        if history is None:
+            history = self._histories[key] = _History(exit_time)
+        if accumulates:
+            if self._open is None:
+                self._open = _open(run, key, tc, exit_time, flight, history.flight, has_continuation)
+            elif key not in self._open.members:
+                self._open.members.append(key)
+        history.last_exit, history.flight = exit_time, flight
 
-    def _close(self, run, t: float) -> None:
-        episode = self._episode
-        if episode is not None:
-            self.episodes.append((episode, len(run.transitions) - 1 - episode.transitions_before,
-                                  run.strip_time - episode.strip_time_before, t))
-            self._episode = None
+    def _close(self, run, t: float, ending: bool) -> None:
+        episode = self._open
+        assert episode is not None
+        counted = len(run.transitions) - (1 if ending else 0) - episode.transitions_before
+        self.episodes.append((episode, counted, run.strip_time - episode.strip_time_before, t))
+        self._open = None
 
     def warnings(self, run, t_end: float) -> list[RunWarning]:
-        """One warning per accumulation that no continuation resolved."""
-        if self._episode is not None:
-            self.episodes.append((self._episode, len(run.transitions) - self._episode.transitions_before,
-                                  run.strip_time - self._episode.strip_time_before, t_end))
-            self._episode = None
+        """One warning per accumulation that no continuation resolved, in the order they began."""
+        if self._open is not None:
+            self._close(run, t_end, ending=False)
         return [_accumulation_warning(*entry) for entry in self.episodes]
 
 
+def _open(run, key: tuple[str, str], tc: float, exit_time: float, flight: float, previous: float,
+          has_continuation: bool) -> _Episode:
+    """An episode from the crossing of ``key`` at tc, with the Zeno time extrapolated from its
+    flights as a geometric series."""
+    ratio = flight / previous if previous > 0.0 else 1.0
+    estimate = exit_time + flight * ratio / (1.0 - ratio) if ratio < 1.0 else exit_time
+    remedy = ("run with continuation (the default: simulate(continuation=True), integrator.continuation = true), "
+              "which takes the transition's continuation there" if has_continuation else
+              "give the transition a continuation (legsim.Continuation: the constrained mode entered when its "
+              "crossings accumulate)")
+    return _Episode([key], tc, len(run.transitions) - 1, run.strip_time - (exit_time - tc), estimate, remedy)
+
+
 def _accumulation_warning(episode: _Episode, transitions: int, strip_time: float, until: float) -> RunWarning:
-    message = (f"transition {episode.transition} in mode '{episode.mode}' accumulates from t={episode.start:.6g} s "
-               f"(a Zeno point near t={episode.estimate:.6g} s): {transitions} transitions and {strip_time:.3g} s "
-               f"held in its strip until t={until:.6g} s. Past an accumulation point the relaxed execution holds "
-               f"the state in the strip instead of moving it (paper 000, Thm. 26), so the result there is not the "
-               f"hybrid system's. Remedy: {episode.remedy}, or end the run before t={episode.estimate:.6g} s.")
+    mode, name = episode.members[0]
+    which = " and ".join(f"{n} in mode '{m}'" for m, n in episode.members)
+    subject = f"transition {which} accumulates" if len(episode.members) == 1 else f"transitions {which} accumulate"
+    message = (f"{subject} from t={episode.start:.6g} s (a Zeno point near t={episode.estimate:.6g} s): "
+               f"{transitions} transitions and {strip_time:.3g} s held in strips until t={until:.6g} s. Past an "
+               f"accumulation point the relaxed execution holds the state in the strip instead of moving it "
+               f"(paper 000, Thm. 26), so the result there is not the hybrid system's. Remedy: {episode.remedy}, "
+               f"or end the run before t={episode.estimate:.6g} s.")
     return RunWarning("accumulation", message, episode.start,
-                      {"transition": episode.transition, "mode": episode.mode, "accumulation_time": episode.estimate,
-                       "transitions_since": transitions, "strip_time_since": strip_time})
+                      {"transition": name, "mode": mode, "transitions": [n for _, n in episode.members],
+                       "accumulation_time": episode.estimate, "transitions_since": transitions,
+                       "strip_time_since": strip_time})
 
 
 #: Share of a run's time held in strips above which the run says so.

@@ -164,20 +164,20 @@ def check_transition_bound(ex: Execution, bound: float, why: str) -> Check:
 
 def first_accumulating_crossing(ex: Execution, name: str, window: float, after: float = -math.inf) -> int | None:
     """Index of the first crossing of transition ``name`` later than ``after`` (s) that ends a
-    flight (from the previous crossing's strip exit, with no other transition between) no longer
-    than ``window`` (s) and shorter than the flight before: where the accumulation rule
+    flight (from the previous crossing of ``name``'s strip exit, whatever happened between) no
+    longer than ``window`` (s) and shorter than the flight before: where the accumulation rule
     (``legsim.relaxed.rules.accumulating``) fires, read off the execution's records. None when
     there is none."""
-    previous_flight = math.inf
-    for k in range(1, len(ex.transitions)):
-        a, b = ex.transitions[k - 1], ex.transitions[k]
-        if a.name != name or b.name != name:
-            previous_flight = math.inf
+    previous_flight, last_exit = math.inf, None
+    for k, record in enumerate(ex.transitions):
+        if record.name != name:
             continue
-        flight = b.time - a.exit_time
-        if b.time > after and flight <= window and flight < previous_flight:
-            return k
-        previous_flight = flight
+        if last_exit is not None:
+            flight = record.time - last_exit
+            if record.time > after and flight <= window and flight < previous_flight:
+                return k
+            previous_flight = flight
+        last_exit = record.exit_time
     return None
 
 
