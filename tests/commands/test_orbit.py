@@ -86,6 +86,8 @@ def test_continuation_follows_the_closed_form_family_and_plots_it(capsys, tmp_pa
     assert code == 0, err
     data = json.loads(out)
     assert data["complete"] and data["parameter"] == "slope"
+    assert data["integrator"] == {"method": "rk4", "h": 2e-3, "eps": 1e-6, "rtol": None, "atol": None,
+                                  "landing": "halve", "max_halvings": 64}
     values = [p["value"] for p in data["points"]]
     assert values == pytest.approx([3.0, 4.0, 5.0, 6.0, 7.0], abs=1e-12)
     for p in data["points"]:
