@@ -19,16 +19,18 @@ import csv
 import math
 import os
 import statistics
-import sys
 import time
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
-from typing import Any, Callable, Iterable, Sequence
+from typing import TYPE_CHECKING, Any, Callable, Iterable, Sequence
 
 import numpy as np
 
 from ..output.files import write_atomic
-from .cases import BenchError, Case, RunSpec, Target, make_case, relaxed_method
+from .cases import BenchError, Case, RunSpec, make_case, relaxed_method
+
+if TYPE_CHECKING:
+    from .targets import Extension, TargetResult
 
 #: CSV columns, in order.
 COLUMNS = ("case", "method", "kind", "h", "eps", "tol", "max_step", "landing", "error", "rho", "wall_s", "repeats",
@@ -61,26 +63,16 @@ class Row:
 
 
 @dataclass
-class TargetResult:
-    """A target evaluated on the rows of one bench run."""
-
-    target: Target
-    relaxed_time: float | None
-    relaxed_run: str
-    baseline_time: float | None
-    baseline_run: str
-    ratio: float | None
-    met: bool | None
-    note: str
-
-
-@dataclass
 class BenchResult:
+    """One bench run: its rows (the sweep, then any extension runs), the targets' verdicts, the
+    extensions of the baselines' sweeps and the files written."""
+
     case: Case
     rows: list[Row]
     targets: list[TargetResult] = field(default_factory=list)
     csv_path: Path | None = None
     figure_path: Path | None = None
+    extensions: list[Extension] = field(default_factory=list)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -250,7 +242,8 @@ def time_to_reach(rows: Iterable[Row], level: float, kind: str) -> Row | None:
     return min(ok, key=lambda r: r.wall_s) if ok else None
 
 
-def _label(r: Row) -> str:
+def run_label(r: Row) -> str:
+    """The run's method and settings, e.g. ``ps h=5e-06`` or ``solve_ivp-DOP853 tol=1e-08 max_step=0.05``."""
     parts = [r.method]
     if math.isfinite(r.h):
         parts.append(f"h={r.h:g}")
@@ -261,51 +254,6 @@ def _label(r: Row) -> str:
     if math.isfinite(r.max_step):
         parts.append(f"max_step={r.max_step:g}")
     return " ".join(parts)
-
-
-def evaluate_targets(rows: list[Row], targets: Sequence[Target]) -> list[TargetResult]:
-    """Each target's measured ratio on these rows, and whether it is met."""
-    out = []
-    for tg in targets:
-        competing = [r for r in rows if r.kind != "relaxed" or _relaxed_variant(r) in _VARIANTS[tg.relaxed]]
-        rel = time_to_reach(competing, tg.level, "relaxed")
-        base = time_to_reach(rows, tg.level, tg.baseline)
-        base_rows = [r for r in rows if r.kind == tg.baseline]
-        zeno_note = ("the relaxed run takes the model's Zeno continuation (simulate's default, window = h + eps; the "
-                     "plain runs pass continuation=False)" if rel is not None and _relaxed_variant(rel) == "zeno" else "")
-        if rel is None:
-            best = min((r for r in competing if r.kind == "relaxed"), key=lambda r: r.error, default=None)
-            note = "relaxed never reaches the level" + (f" (best error {best.error:.2e}: {_label(best)})" if best else "")
-            out.append(TargetResult(tg, None, "", base.wall_s if base else None, _label(base) if base else "", None,
-                                    False, note))
-            continue
-        if base is None:
-            best = min(base_rows, key=lambda r: r.error, default=None)
-            slowest = max((r.wall_s for r in base_rows), default=math.nan)
-            bound = slowest / rel.wall_s if base_rows else math.nan
-            note = f"{tg.baseline} never reaches the level in the sweep"
-            if best is not None and math.isfinite(best.error):
-                # The comparison that stays meaningful: at the baseline's own best error.
-                at_best = time_to_reach(competing, best.error, "relaxed")
-                note += f" (its best error {best.error:.2e}: {_label(best)}, {best.wall_s:.3g} s)"
-                if at_best is not None:
-                    note += (f"; at that error relaxed takes {at_best.wall_s:.3g} s ({_label(at_best)}): "
-                             f"{best.wall_s / at_best.wall_s:.3g}x faster")
-            out.append(TargetResult(tg, rel.wall_s, _label(rel), None, "", bound if base_rows else None,
-                                    True if base_rows else None, "; ".join(n for n in (note, zeno_note) if n)))
-            continue
-        ratio = base.wall_s / rel.wall_s
-        out.append(TargetResult(tg, rel.wall_s, _label(rel), base.wall_s, _label(base), ratio, ratio >= tg.ratio,
-                                zeno_note))
-    return out
-
-
-_VARIANTS = {"all": ("plain", "zeno"), "plain": ("plain",), "zeno": ("zeno",)}
-
-
-def _relaxed_variant(row: Row) -> str:
-    """``zeno`` for a Zeno-continuation run (method ``relaxed-<name>-zeno``), else ``plain``."""
-    return "zeno" if row.method.endswith("-zeno") else "plain"
 
 
 # ----------------------------------------------------------------------------------------------
@@ -418,27 +366,6 @@ def format_table(rows: Sequence[Row]) -> str:
     return "\n".join(lines)
 
 
-def format_targets(results: Sequence[TargetResult]) -> str:
-    lines = []
-    for tr in results:
-        tg = tr.target
-        if tr.relaxed_time is None:
-            verdict = "MISSED (relaxed never reaches this error)"
-        elif tr.baseline_time is None:
-            verdict = (f"MET: the baseline never reaches this error in the sweep (ratio to its slowest run "
-                       f"{tr.ratio:.3g}x)" if tr.met else "n/a (no baseline run)")
-        else:
-            verdict = f"{tr.ratio:.3g}x (target >= {tg.ratio:g}x): {'MET' if tr.met else 'MISSED'}"
-        lines.append(f"- {tg.name}: {verdict}")
-        if tr.relaxed_run:
-            lines.append(f"    relaxed  {tr.relaxed_time:.4g} s  {tr.relaxed_run}")
-        if tr.baseline_run:
-            lines.append(f"    baseline {tr.baseline_time:.4g} s  {tr.baseline_run}")
-        if tr.note:
-            lines.append(f"    {tr.note}")
-    return "\n".join(lines)
-
-
 def _g(v: float) -> str:
     return "" if math.isnan(v) else f"{v:g}"
 
@@ -452,20 +379,29 @@ def _e(v: float) -> str:
 # ----------------------------------------------------------------------------------------------
 def run_case(name: str, *, quick: bool = False, out: str | os.PathLike | None = None, repeats: int | None = None,
              rho_points: int | None = None, figure: bool = True, log: Callable[[str], None] | None = None,
-             methods: Sequence[str] | None = None) -> BenchResult:
-    """Run the work-precision sweep of case ``name``; write ``out/name.csv`` and ``out/name.png``
-    when ``out`` is given.
+             methods: Sequence[str] | None = None, extension_budget: float | None = None) -> BenchResult:
+    """Run the work-precision sweep of case ``name``, extend the baselines' sweeps where they
+    miss a target's level (``legsim.bench.targets.extend_baselines``), judge the targets; write
+    ``out/name.csv`` (every run, extensions included) and ``out/name.png`` when ``out`` is given.
 
     quick: a short run and a small sweep (seconds), for CI. repeats: timed repeats per run
     (median; default 3, 1 when quick). rho_points: times of the rho grid (default 400, 40 when
     quick; 0 skips rho). methods: keep only the runs of these CSV method names.
+    extension_budget: wall time (s) the extensions may take (default ``EXTENSION_BUDGET``, or
+    ``EXTENSION_BUDGET_QUICK`` when quick; 0 extends nothing).
     """
+    from .targets import EXTENSION_BUDGET, EXTENSION_BUDGET_QUICK, evaluate_targets, extend_baselines
+
     say = log or (lambda s: None)
     case = make_case(name, quick)
     repeats = (1 if quick else 3) if repeats is None else int(repeats)
     if rho_points is None:
         rho_points = case.rho_points if case.rho_points is not None else (40 if quick else 400)
     rho_points = int(rho_points)
+    if extension_budget is None:
+        extension_budget = EXTENSION_BUDGET_QUICK if quick else EXTENSION_BUDGET
+    if not extension_budget >= 0:
+        raise BenchError(f"the extension budget must be >= 0 s, got {extension_budget!r}")
     runs = [r for r in case.runs if methods is None or r.method in methods]
     say(f"{case.name}: {case.description}")
     say(f"reference: {case.reference_note}")
@@ -474,9 +410,13 @@ def run_case(name: str, *, quick: bool = False, out: str | os.PathLike | None = 
     for i, spec in enumerate(runs, 1):
         row = run_one(case, spec, repeats, rho_points)
         rows.append(row)
-        say(f"  [{i}/{len(runs)}] {_label(row)}: error {_e(row.error)}, {row.wall_s:.4g} s, {row.status}")
+        say(f"  [{i}/{len(runs)}] {run_label(row)}: error {_e(row.error)}, {row.wall_s:.4g} s, {row.status}")
+    extensions = extend_baselines(case, rows, case.targets, extension_budget,
+                                  lambda spec: run_one(case, spec, repeats, rho_points), say)
+    rows += [row for ext in extensions for row in ext.rows]
     mark_pareto(rows)
-    result = BenchResult(case, rows, evaluate_targets(rows, case.targets))
+    notes = {ext.kind: ext.describe() for ext in extensions}
+    result = BenchResult(case, rows, evaluate_targets(rows, case.targets, notes), extensions=extensions)
     if out is not None:
         out = Path(out)
         result.csv_path = write_csv(rows, out / f"{case.name}.csv")

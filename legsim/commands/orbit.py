@@ -92,6 +92,7 @@ def _run_orbit(args: argparse.Namespace, scene, bar) -> int:
         bar.close()
     payload = result.to_json()
     payload["scene"] = scene.name
+    payload["integrator"] = settings.problem.integrator_settings
     if args.json:
         print(json.dumps(payload, allow_nan=False))
     elif not args.quiet:
@@ -120,6 +121,7 @@ def _run_family(args: argparse.Namespace, scene, plot_path: Path | None, bar) ->
     if not (args.json or args.quiet):
         header, widths = format_header(param, settings.problem)
         print(f"{scene.name}: family of orbits over {param} from {start:g} to {stop:g} ({args.steps} steps)")
+        print(f"integrator: {settings.problem.integrator_label}")
         print(header)
     family = continue_family(settings.problem, param, start, stop, args.steps, settings.guess, progress=progress,
                              locate=args.locate, **settings.solver)
@@ -127,6 +129,7 @@ def _run_family(args: argparse.Namespace, scene, plot_path: Path | None, bar) ->
         bar.close()
     payload = family.to_json()
     payload["scene"] = scene.name
+    payload["integrator"] = settings.problem.integrator_settings
     plotted = plot_path is not None and bool(family.points)
     if plotted:
         write_family_plot(family, scene.name, plot_path)
@@ -211,7 +214,10 @@ def _fmt(value: Any, width: int = 12) -> str:
 
 
 def format_orbit(payload: dict[str, Any], name: str) -> str:
-    """The human-readable report of one orbit search (a ``OrbitResult.to_json()`` dict)."""
+    """The human-readable report of one orbit search (a ``OrbitResult.to_json()`` dict, with
+    the problem's ``integrator_settings`` under ``integrator`` when known)."""
+    from ..orbits.problem import describe_integrator
+
     lines = []
     if payload["status"] == "converged":
         lines.append(f"{name}: periodic orbit found in {payload['iterations']} iteration(s), residual "
@@ -220,6 +226,8 @@ def format_orbit(payload: dict[str, Any], name: str) -> str:
     else:
         lines.append(f"{name}: no orbit ({payload['status']}): {payload['message']}")
         lines.append("last iterate:")
+    if "integrator" in payload:
+        lines.append(f"integrator: {describe_integrator(payload['integrator'])}")
     lines.append(f"section: {payload['section']} (mode {payload['mode']})")
     width = max(len(n) for n in list(payload["state_names"]) + list(payload["free"]))
     for n, v in zip(payload["state_names"], payload["fixed_point"]):

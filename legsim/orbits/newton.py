@@ -383,7 +383,7 @@ class _NewtonSearch:
             return self.fail("stalled",
                              f"the residual stalls at {self.res:.3g} > tol {self.tol:g} after {it} iteration(s): the "
                              f"Newton step ({step_norm:.2g}) is below rounding, so the return map's own noise "
-                             f"(rounding, and the integrator's steps at h = {self.p.h:g}, eps = {self.p.eps:g}) limits "
+                             f"(rounding, and the integrator's steps: {self.p.integrator_label}) limits "
                              f"the residual: raise tol", it)
         x_now, params_now = self.eq.unpack(self.z)
         return self.fail("diverged",

@@ -16,9 +16,13 @@ from typing import TYPE_CHECKING, Any, Callable, Mapping, Sequence
 
 import numpy as np
 
-from ..errors import LegsimError
+from ..arguments import count
+from ..errors import LegsimError, SimulationError
 from ..hybrid import HybridSystem
 from ..methods import Tableau, get_method
+from ..relaxed.landing import landing_rule
+from ..relaxed.simulate import step_size_rule
+from ..relaxed.step_size import ErrorControl
 from .errors import OrbitError
 from .sections import Section, bind_section
 
@@ -65,11 +69,17 @@ class OrbitProblem:
         increment of the first cyclic coordinate, if any.
     trivial_multipliers: how many multipliers are 1 because of conserved quantities; they are
         left out of the stability verdict (the ones closest to 1).
-    rtol, atol: passed to ``simulate`` for error-controlled steps (embedded methods only).
+    rtol, atol: passed to ``simulate`` for error-controlled steps (embedded methods only: bs32,
+        dopri5, dop853); h is then the first and largest step. Without them every step starts
+        from h.
+    landing: how ``simulate`` shortens a step that would leave the relaxed domain: ``"halve"``,
+        ``"aim"`` or ``"dense"`` (methods with a continuous extension).
+    max_halvings: most halvings of one step (``simulate``'s budget).
     progress: optional ``progress(t, t0, t_final)`` passed to every ``simulate`` (a progress
         bar for long returns).
 
-    Attributes set from these: ``tableau``, ``is_factory``, ``bound`` (the bound section),
+    Attributes set from these: ``tableau``, ``integrator_settings`` (what every return runs
+    with, tolerances as ``simulate`` completes them), ``is_factory``, ``bound`` (the bound section),
     ``names`` and ``dim`` (the section mode's coordinates), ``cyclic_idx``, ``unknown_idx``
     (coordinates solved for) and ``periodic_idx`` (coordinates asked to return to themselves).
     """
@@ -95,6 +105,8 @@ class OrbitProblem:
     trivial_multipliers: int = 0
     rtol: float | None = None
     atol: float | None = None
+    landing: str = "halve"
+    max_halvings: int = 64
     progress: Callable[[float, float, float], None] | None = field(default=None, repr=False, compare=False)
 
     def __post_init__(self) -> None:
@@ -116,6 +128,7 @@ class OrbitProblem:
                              f"steps per return, more than the limit {MAX_STEPS_PER_RETURN:.0e}: raise h or lower "
                              f"t_max", key="t_max")
         self.tableau = get_method(self.method)
+        self._check_integrator()
         if not isinstance(self.section, Section):
             raise OrbitError(f"orbit problem: section must be a Section, got {type(self.section).__name__}")
         for name, low in (("returns", 1), ("max_transitions", 1), ("min_transitions", 0)):
@@ -125,6 +138,38 @@ class OrbitProblem:
         if self.section.kind == "crossing" and self.min_transitions == 0 and self.min_time <= 0:
             raise OrbitError("orbit problem: a crossing section with min_transitions = 0 needs min_time > 0, "
                              "or the start itself would count as the return", key="min_transitions")
+
+    def _check_integrator(self) -> None:
+        """Refuse, before any simulation, what ``simulate`` would refuse at the first return: a
+        tolerance without an embedded pair, a landing the method cannot do, a halving budget
+        below 1. The ``OrbitError``'s key names the setting."""
+        checks = (("rtol" if self.rtol is not None else "atol",
+                   lambda: step_size_rule(self.tableau, self.h, self.rtol, self.atol)),
+                  ("landing", lambda: landing_rule(self.landing, self.tableau)),
+                  ("max_halvings", lambda: count("max_halvings", self.max_halvings, 1)))
+        rules = []
+        for key, check in checks:
+            try:
+                rules.append(check())
+            except SimulationError as exc:
+                raise OrbitError(f"orbit problem: {exc}", key=key) from None
+        steps = rules[0]  # FixedStep, or ErrorControl with the tolerances simulate will use
+        self._tolerances = (steps.rtol, steps.atol) if isinstance(steps, ErrorControl) else (None, None)
+
+    @property
+    def integrator_settings(self) -> dict[str, Any]:
+        """The settings every return is simulated with (the keys of ``legsim orbit --json``'s
+        ``integrator``): method, h (s, the largest step under error control), eps (guard
+        units), rtol and atol as ``simulate`` uses them (one given alone sets the other; both
+        None for fixed steps), landing, max_halvings."""
+        return {"method": self.tableau.name, "h": float(self.h), "eps": float(self.eps),
+                "rtol": self._tolerances[0], "atol": self._tolerances[1],
+                "landing": self.landing, "max_halvings": self.max_halvings}
+
+    @property
+    def integrator_label(self) -> str:
+        """``integrator_settings`` in one line for reports (``describe_integrator``)."""
+        return describe_integrator(self.integrator_settings)
 
     def _resolve_system(self) -> None:
         self.parameters = {str(k): float(v) for k, v in dict(self.parameters).items()}
@@ -265,6 +310,16 @@ class OrbitProblem:
             raise OrbitError(f"initial guess has shape {np.shape(guess)}, expected ({self.dim},) with "
                              f"coordinates {list(self.names)} of mode '{self.bound.mode}'")
         return x
+
+
+def describe_integrator(settings: Mapping[str, Any]) -> str:
+    """One line for reports from ``OrbitProblem.integrator_settings``: the method, its steps
+    (h, or the tolerances and the largest step h), eps and the landing."""
+    if settings["rtol"] is None:
+        steps = f"h = {settings['h']:g} s"
+    else:
+        steps = f"rtol = {settings['rtol']:g}, atol = {settings['atol']:g}, largest step h = {settings['h']:g} s"
+    return f"{settings['method']}, {steps}, eps = {settings['eps']:g}, landing '{settings['landing']}'"
 
 
 def _system_and_control(obj: Any, control: Any) -> tuple[Any, Any]:

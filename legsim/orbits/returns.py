@@ -129,7 +129,8 @@ class ReturnMap:
         self.evaluations += 1
         try:
             return simulate(system, x, p.bound.mode, horizon, p.h, p.eps, p.tableau, control,
-                            max_transitions=p.max_transitions, rtol=p.rtol, atol=p.atol, progress=p.progress)
+                            max_transitions=p.max_transitions, max_halvings=p.max_halvings, rtol=p.rtol,
+                            atol=p.atol, landing=p.landing, progress=p.progress)
         except LegsimError as exc:
             raise OrbitError(f"return map: the simulation from {self.show_state(x)} over {horizon:g} s failed before "
                              f"returning to the section {p.section.label}: {exc}", "simulation_failed") from exc

@@ -9,8 +9,10 @@ initial guess that ``legsim.orbits.find_orbit`` and ``continue_family`` take.
     free = ["psi"]                          # robot parameters, or EFFECT.PARAM
     tol = 1e-10
 
-The keys and what they hold are ``ORBIT_KEYS``. h, eps and the method come from
-``[integrator]``, the initial guess from ``[initial]`` (whose mode must be the section's).
+The keys and what they hold are ``ORBIT_KEYS``. The integrator settings (``INTEGRATOR_KEYS``:
+method, h, eps, rtol, atol, landing, max_halvings) come from ``[integrator]``, so that a return
+is computed as ``legsim run`` computes a run; the initial guess comes from ``[initial]`` (whose
+mode must be the section's).
 Every error is a ``SceneError`` naming the file and the ``orbit.KEY`` at fault.
 """
 
@@ -49,6 +51,10 @@ ORBIT_KEYS = {
     "trivial_multipliers": "multipliers equal to 1 by a conserved quantity, left out of the stability verdict",
 }
 
+#: The ``[integrator]`` settings every return of the orbit search runs with, as in ``legsim run``
+#: (t0 and t_final are not: a return starts at 0 and its horizon is ``orbit.t_max``).
+INTEGRATOR_KEYS = ("method", "h", "eps", "rtol", "atol", "landing", "max_halvings")
+
 #: Keys of a crossing section's table (``{ after = ... }`` takes no other).
 LEVEL_SECTION_KEYS = ("mode", "coordinate", "value", "direction")
 
@@ -68,9 +74,9 @@ def problem_from_scene(scene: Any, *, extra_parameters: Sequence[str] = ()) -> O
     """Read a scene's ``[orbit]`` section (keys: ``ORBIT_KEYS``) into an ``OrbitProblem``.
 
     The system is rebuilt by the scene's builder for each value of the free (and
-    ``extra_parameters``, e.g. a continuation parameter) parameters; h, eps and method come
-    from ``[integrator]``, the initial guess from ``[initial]`` (overridden by ``orbit.guess``),
-    whose mode must be the section's. Errors are ``SceneError`` naming the file and key.
+    ``extra_parameters``, e.g. a continuation parameter) parameters; the integrator settings
+    (``INTEGRATOR_KEYS``) come from ``[integrator]``, the initial guess from ``[initial]``
+    (overridden by ``orbit.guess``), whose mode must be the section's. Errors are ``SceneError`` naming the file and key.
     """
     table = _orbit_table(scene)
     section = _section(scene, table)
@@ -205,8 +211,8 @@ def _problem(scene: Any, table: Mapping[str, Any], section: Section, free: tuple
     energy = _number(scene, table, "energy", None)
     try:
         return OrbitProblem(
-            system=factory if params else scene.model, section=section, h=integ["h"], eps=integ["eps"],
-            method=integ["method"], t_max=_number(scene, table, "t_max", integ["t_final"], low=0.0),
+            system=factory if params else scene.model, section=section, **{key: integ[key] for key in INTEGRATOR_KEYS},
+            t_max=_number(scene, table, "t_max", integ["t_final"], low=0.0),
             parameters=params, free=free, fixed=_names(scene, table, "fixed"), cyclic=_names(scene, table, "cyclic"),
             energy=energy, returns=_number(scene, table, "returns", 1, int, 1),
             min_transitions=_number(scene, table, "min_transitions", 1, int, 0),
@@ -214,7 +220,7 @@ def _problem(scene: Any, table: Mapping[str, Any], section: Section, free: tuple
             max_transitions=_number(scene, table, "max_transitions", 10_000, int, 1),
             trivial_multipliers=_number(scene, table, "trivial_multipliers", 0, int, 0))
     except OrbitError as exc:
-        if exc.key in ("h", "eps"):  # they come from [integrator]
+        if exc.key in INTEGRATOR_KEYS:
             raise field_error(scene.path, f"integrator.{exc.key}", str(exc)) from None
         raise _fail(scene, exc.key or "section", str(exc)) from None
 

@@ -49,6 +49,36 @@ def test_orbit_text_report(capsys):
     assert "step length 0.53544" in out
 
 
+def test_orbit_runs_with_the_scenes_tolerances_and_reaches_the_reference_gait(capsys):
+    # The independent computation (helpers.compass_gait_reference: scipy DOP853 at 1e-12, no
+    # legsim): with fixed 0.1 s steps of dopri5 the gait would be 2e-5 off; with the scene's
+    # rtol the steps are error-controlled and the fixed point is within 1e-9.
+    from helpers.compass_gait_reference import STANDARD, PointMassCompassGait
+
+    code, out, err = run_cli(capsys, "orbit", "compass_gait", "--set", "integrator.method=\"dopri5\"",
+                             "--set", "integrator.rtol=1e-10", "--set", "integrator.h=0.1", "--json")
+    assert code == 0, err
+    data = json.loads(out)
+    assert data["integrator"] == {"method": "dopri5", "h": 0.1, "eps": 1e-6, "rtol": 1e-10,
+                                  "atol": pytest.approx(1e-13, rel=1e-15), "landing": "halve", "max_halvings": 64}
+    stance, hip, stanced, hipd, _ = data["fixed_point"]
+    ref = PointMassCompassGait(**STANDARD).gait()
+    leans = np.array([stance, stance + hip, stanced, stanced + hipd])
+    assert np.max(np.abs(leans - ref["x"])) < 1e-9
+    assert abs(data["period"] - ref["period"]) < 1e-9
+
+
+def test_orbit_report_names_the_integrator_settings(capsys):
+    code, out, err = run_cli(capsys, "orbit", "rimless_wheel", "--set", "integrator.method=\"bs32\"",
+                             "--set", "integrator.atol=1e-9", "--set", "integrator.landing=\"aim\"")
+    assert code == 0, err
+    assert out.splitlines()[1] == ("integrator: bs32, rtol = 1e-12, atol = 1e-09, largest step h = 0.002 s, "
+                                   "eps = 1e-06, landing 'aim'")
+    code, out, err = run_cli(capsys, "orbit", "rimless_wheel", "--continue", "slope", "4", "5", "--steps", "1")
+    assert code == 0, err
+    assert out.splitlines()[1] == "integrator: rk4, h = 0.002 s, eps = 1e-06, landing 'halve'"
+
+
 def test_continuation_follows_the_closed_form_family_and_plots_it(capsys, tmp_path):
     plot = tmp_path / "family.png"
     code, out, err = run_cli(capsys, "orbit", "rimless_wheel", "--continue", "slope", "3", "7", "--steps", "4",
@@ -56,6 +86,8 @@ def test_continuation_follows_the_closed_form_family_and_plots_it(capsys, tmp_pa
     assert code == 0, err
     data = json.loads(out)
     assert data["complete"] and data["parameter"] == "slope"
+    assert data["integrator"] == {"method": "rk4", "h": 2e-3, "eps": 1e-6, "rtol": None, "atol": None,
+                                  "landing": "halve", "max_halvings": 64}
     values = [p["value"] for p in data["points"]]
     assert values == pytest.approx([3.0, 4.0, 5.0, 6.0, 7.0], abs=1e-12)
     for p in data["points"]:
@@ -96,8 +128,8 @@ def test_continuation_text_table_and_change_report(capsys):
     lines = out.splitlines()
     assert lines[0] == "rimless_wheel: family of orbits over slope from 4 to 6 (2 steps)"
     # The unknowns (theta and thetad; foot_x is cyclic), then the orbit's figures.
-    assert lines[1].split() == ["slope", "theta", "thetad", "period", "step", "max|mu|", "stable"]
-    rows = [line.split() for line in lines[2:5]]
+    assert lines[2].split() == ["slope", "theta", "thetad", "period", "step", "max|mu|", "stable"]
+    rows = [line.split() for line in lines[3:6]]
     assert [float(r[0]) for r in rows] == [4.0, 5.0, 6.0]
     for r in rows:
         assert abs(float(r[1]) + ALPHA) < 1e-5
@@ -147,6 +179,11 @@ def test_no_orbit_exits_3_with_the_reason(capsys):
      "orbit.trivial_multipliers: orbit problem: trivial_multipliers = 1 must be"),
     (["orbit", "rimless_wheel", "--set", "orbit.cyclic=[\"nope\"]"], "orbit.cyclic: orbit problem: cyclic coordinate(s)"),
     (["orbit", "rimless_wheel", "--set", "orbit.free=[\"slope\"]"], "orbit.free: orbit problem: 3 unknowns"),
+    # Tolerances need an embedded pair: refused by the setting's name, not run at fixed steps.
+    (["orbit", "compass_gait", "--set", "integrator.rtol=1e-10"],
+     "integrator.rtol: error control needs a method with an embedded error estimate"),
+    (["orbit", "compass_gait", "--set", "integrator.landing=\"dense\""],
+     "integrator.landing: 'dense' lands on the method's continuous extension"),
     (["orbit", "rimless_wheel", "--set", "integrator.h=1e-9", "--set", "integrator.max_steps=100000000000"],
      "orbit.t_max: orbit problem: t_max / h = 3 s / 1e-09 s = 3e+09 steps per return, more than the limit"),
 ])

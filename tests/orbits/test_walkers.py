@@ -21,7 +21,7 @@ import math
 import numpy as np
 import pytest
 
-from legsim.orbits import OrbitProblem, Section, find_orbit, jacobian_fd, jacobian_saltation, return_map
+from legsim.orbits import OrbitError, OrbitProblem, Section, find_orbit, jacobian_fd, jacobian_saltation, return_map
 from legsim.robots import compass_gait, rimless_wheel
 
 from helpers.compass_gait_reference import STANDARD, PointMassCompassGait
@@ -34,9 +34,10 @@ def reference():
     return ref
 
 
-def compass_problem(params=None, h=2e-3, eps=1e-6):
+def compass_problem(params=None, h=2e-3, eps=1e-6, **integrator):
     model = compass_gait.make(params or {})
-    return OrbitProblem(model.system, Section.after("heel_strike"), h=h, eps=eps, t_max=3.0, cyclic=["foot_x"]), model
+    return OrbitProblem(model.system, Section.after("heel_strike"), h=h, eps=eps, t_max=3.0, cyclic=["foot_x"],
+                        **integrator), model
 
 
 def leans(x):
@@ -154,6 +155,38 @@ def test_compass_gait_converges_at_order_four(reference):
         errs.append(max(np.max(np.abs(leans(res.fixed_point) - reference["x"])), abs(res.period - reference["period"])))
     slope = np.polyfit(np.log(hs), np.log(errs), 1)[0]
     assert 3.5 < slope < 4.5, (slope, errs)
+
+
+def test_error_controlled_search_reaches_the_reference_gait_and_follows_the_tolerance(reference):
+    # dopri5 with h = 0.1 s as the largest step: with fixed steps of 0.1 s the "gait" is 2e-5
+    # off (measured 2.0e-5), under error control the fixed point's error follows rtol (measured
+    # 6.0e-7, 5.5e-9 and 5.0e-11 at rtol 1e-6, 1e-8, 1e-10) down to the reference's own 1e-12.
+    def error(**tolerances):
+        prob, _ = compass_problem(h=0.1, method="dopri5", **tolerances)
+        res = find_orbit(prob, GUESS, tol=1e-12)
+        assert res.converged, res.message
+        return max(np.max(np.abs(leans(res.fixed_point) - reference["x"])), abs(res.period - reference["period"]))
+
+    assert error() > 1e-6
+    rtols = [1e-6, 1e-8, 1e-10]
+    errs = [error(rtol=rtol) for rtol in rtols]
+    assert errs[-1] < 1e-9
+    slope = np.polyfit(np.log(rtols), np.log(errs), 1)[0]
+    assert 0.8 < slope < 1.2, (slope, errs)
+
+
+def test_the_return_map_lands_and_halves_as_the_problem_says():
+    # At eps = 1e-6 a step of ~0.02 s reaches the heel-strike strip only after a dozen halvings
+    # (0.02 / 2^14 ~ 1e-6); aimed and dense landings need none. A budget of 2 halvings therefore
+    # ends a halving return, and not a dense one.
+    def first_return(landing, max_halvings):
+        prob, _ = compass_problem(h=0.1, method="dopri5", rtol=1e-10, landing=landing, max_halvings=max_halvings)
+        return return_map(prob, GUESS)
+
+    assert first_return("halve", 64).execution.counters["halvings"] >= 12
+    assert first_return("dense", 2).execution.counters["halvings"] <= 2
+    with pytest.raises(OrbitError, match="halving_exhausted"):
+        first_return("halve", 2)
 
 
 # -- rimless wheel: closed forms --------------------------------------------------------------------

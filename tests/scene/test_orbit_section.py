@@ -26,6 +26,33 @@ def test_the_rimless_wheel_section_becomes_a_problem_with_solver_settings_and_gu
     assert np.array_equal(settings.guess, scene.initial_state)
 
 
+def test_the_scenes_integrator_settings_reach_the_problem():
+    scene = load_scene("compass_gait", overrides=["integrator.method=\"dopri5\"", "integrator.rtol=1e-10",
+                                                  "integrator.atol=1e-12", "integrator.h=0.1",
+                                                  "integrator.landing=\"dense\"", "integrator.max_halvings=20",
+                                                  "integrator.eps=1e-7"])
+    problem = problem_from_scene(scene).problem
+    assert problem.tableau.name == "dopri5"
+    assert (problem.rtol, problem.atol, problem.h, problem.eps) == (1e-10, 1e-12, 0.1, 1e-7)
+    assert (problem.landing, problem.max_halvings) == ("dense", 20)
+    assert problem.integrator_settings == {"method": "dopri5", "h": 0.1, "eps": 1e-7, "rtol": 1e-10, "atol": 1e-12,
+                                           "landing": "dense", "max_halvings": 20}
+    # Without tolerances the steps are fixed, as in `legsim run`.
+    plain = problem_from_scene(load_scene("compass_gait")).problem
+    assert (plain.rtol, plain.atol, plain.landing) == (None, None, "halve")
+
+
+def test_an_integrator_setting_the_problem_refuses_is_named_as_an_integrator_field(monkeypatch):
+    # The scene loader refuses rtol without an embedded pair itself; a setting that only the
+    # orbit problem refuses is still named as the [integrator] field it came from.
+    scene = load_scene("compass_gait")
+    monkeypatch.setitem(scene.integrator, "rtol", 1e-8)
+    with pytest.raises(SceneError) as info:
+        problem_from_scene(scene)
+    assert "compass_gait.toml: integrator.rtol: orbit problem: rtol/atol need a method with an embedded" \
+        in str(info.value) and "got 'rk4'" in str(info.value)
+
+
 def test_the_orbit_package_re_exports_the_reader():
     assert legsim.orbits.problem_from_scene is problem_from_scene
     assert legsim.orbits.ORBIT_KEYS is ORBIT_KEYS and legsim.orbits.OrbitSettings is OrbitSettings
