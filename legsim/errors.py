@@ -35,3 +35,9 @@ class ModelBreakdown(LegsimError):
 class OutputError(LegsimError):
     """An output file cannot be written (or would replace something it must not); the message
     names the output and the path."""
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM (what ``timeout``, systemd and container runtimes send) as the command line
+    raises it: a ``KeyboardInterrupt``, so that a run stops the way Ctrl-C stops it (temporary
+    files removed, no output half-written), and exits with 143 = 128 + SIGTERM."""
