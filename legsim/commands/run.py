@@ -256,7 +256,7 @@ def format_summary(summary: dict[str, Any]) -> str:
     if extra:
         lines.append("other counters: " + ", ".join(f"{k} {v}" for k, v in extra.items()))
     if "energy_initial" in summary:
-        lines.append(f"energy {_num(summary['energy_initial'])} J -> {_num(summary['energy_final'])} J")
+        lines.append(f"energy {_num(summary['energy_initial'])} J -> {_num(summary.get('energy_final'))} J")
     lines.append(f"wall time {summary['wall_time_s']:.3g} s")
     if status != "finished" and summary.get("message"):
         lines.append(f"stopped: {summary['message']}")

@@ -63,6 +63,11 @@ META_KEYS = {"format": (str,), "modes": (list,), "strip_names": (list,), "tr_nam
              "counters": (dict,), "settings": (dict,), "state_names": (dict,), "system_name": (str,),
              "final_in_strip": (bool,)}
 
+#: The integrator's counters and settings that summaries print as numbers (or names).
+COUNTERS = ("steps", "halvings", "field_evals", "guard_evals", "reset_evals", "strip_time", "wall_time_s",
+            "error_rejections", "transitions")
+SETTINGS = {"h": (int, float, type(None)), "eps": (int, float, type(None)), "method": (str, type(None))}
+
 
 class DamagedFile(ValueError):
     """Something in an execution file is not what the format says (message: what and where)."""
@@ -238,6 +243,8 @@ def _meta(text: str) -> dict[str, Any]:
             check_list(meta[key], (str,), f"meta.{key}")
         for mode, names in meta["state_names"].items():
             check_list(names, (str,), f"meta.state_names.{mode}")
+        check_object(meta["counters"], {}, "meta.counters", optional=dict.fromkeys(COUNTERS, (int, float)))
+        check_object(meta["settings"], {}, "meta.settings", optional=SETTINGS)
     except ValueError as exc:
         raise DamagedFile(str(exc)) from None
     from ..execution import STATUSES
