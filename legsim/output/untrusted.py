@@ -42,15 +42,23 @@ def _no_constant(name: str) -> Any:
     raise ValueError(f"{name} is not a JSON number")
 
 
+def _finite_float(text: str) -> float:
+    value = float(text)
+    if not math.isfinite(value):
+        raise ValueError(f"{text} is beyond the range of a float")
+    return value
+
+
 def load_json(text: str, max_depth: int = MAX_JSON_DEPTH) -> Any:
-    """Parse strict JSON: ValueError (with the reason) for a syntax error, ``NaN`` or
-    ``Infinity``, or nesting deeper than ``max_depth``; never RecursionError."""
+    """Parse strict JSON: ValueError (with the reason) for a syntax error, ``NaN``,
+    ``Infinity`` or a number beyond float range (``1e400``), or nesting deeper than
+    ``max_depth``; never RecursionError."""
     if not isinstance(text, str):
         raise ValueError(f"expected JSON text, got {type(text).__name__}")
     if json_depth(text, max_depth) > max_depth:
         raise ValueError(f"nested more than {max_depth} levels deep")
     try:
-        return json.loads(text, parse_constant=_no_constant)
+        return json.loads(text, parse_constant=_no_constant, parse_float=_finite_float)
     except RecursionError:  # only reachable with a lowered interpreter recursion limit
         raise ValueError("nested too deep to parse") from None
 
@@ -58,8 +66,8 @@ def load_json(text: str, max_depth: int = MAX_JSON_DEPTH) -> Any:
 def printable(text: Any, *, newlines: bool = True) -> str:
     """``str(text)`` with control characters (ANSI escapes, carriage returns, bidirectional
     overrides) written as ``\\x1b``-style escapes, so that printing it cannot move the cursor,
-    recolour or clear the terminal. ``newlines=False`` escapes line breaks too (one-line fields
-    such as a listing's columns)."""
+    recolour or clear the terminal. ``newlines=False`` escapes line breaks and tabs too (one-line
+    fields such as a listing's columns)."""
     pattern = _CONTROL if newlines else _CONTROL_OR_NEWLINE
     return pattern.sub(lambda m: m.group().encode("unicode_escape").decode("ascii"), str(text))
 

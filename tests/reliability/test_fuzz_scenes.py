@@ -57,6 +57,8 @@ def toml_string(text: str) -> str:
 
 
 def toml_value(value) -> str:
+    if isinstance(value, Nested):
+        return value.toml()
     if isinstance(value, bool):
         return "true" if value else "false"
     if isinstance(value, int):
@@ -89,11 +91,15 @@ VALUES = st.recursive(SCALARS, lambda inner: st.one_of(st.lists(inner, max_size=
                       max_leaves=12)
 
 
-def nested(depth: int, inline_array: bool):
-    value = 1
-    for _ in range(depth):
-        value = [value] if inline_array else {"a": value}
-    return value
+class Nested:
+    """Arrays or inline tables ``depth`` deep, written out without recursion."""
+
+    def __init__(self, depth: int, arrays: bool) -> None:
+        self.depth, self.arrays = depth, arrays
+
+    def toml(self) -> str:
+        return "[" * self.depth + "1" + "]" * self.depth if self.arrays else \
+            "{ a = " * self.depth + "1" + " }" * self.depth
 
 
 # Paths aimed at what a scene must not touch; {root} is the fuzz folder, never the host's.
@@ -162,7 +168,7 @@ def edit_structure(draw, data: dict) -> None:
     elif action == "remove":
         parent.pop(path[-1], None)
     elif action == "nest":
-        parent[path[-1]] = nested(draw(st.integers(20, 600)), draw(st.booleans()))
+        parent[path[-1]] = Nested(draw(st.integers(20, 600)), draw(st.booleans()))
     else:
         parent[path[-1]] = draw(VALUES)
 
@@ -175,11 +181,11 @@ def edit_text(draw, text: str) -> str:
         return text[:at] + draw(st.text(min_size=1, max_size=4)) + text[at:]
     if action == "delete":
         return text[:at] + text[at + draw(st.integers(1, 20)):]
-    if action == "duplicate":
-        lines = text.splitlines(keepends=True)
+    lines = text.splitlines(keepends=True)
+    if action == "duplicate" and lines:
         k = draw(st.integers(0, len(lines) - 1))
         return "".join(lines[:k + 1] + lines[k:])
-    return text[:at]
+    return text[:at] if action == "truncate" else text
 
 
 @st.composite
