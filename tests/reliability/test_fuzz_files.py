@@ -34,7 +34,7 @@ from legsim import Execution
 from legsim.errors import SimulationError
 from legsim.scene import load_scene
 
-FUZZ = settings(max_examples=3000 if FULL else 60, deadline=None, derandomize=not FULL, database=None,
+FUZZ = settings(max_examples=3000 if FULL else 100, deadline=None, derandomize=not FULL, database=None,
                 suppress_health_check=list(HealthCheck))
 
 JSON_SCALARS = st.one_of(st.none(), st.booleans(), st.integers(-(2 ** 70), 2 ** 70), st.floats(allow_nan=False),

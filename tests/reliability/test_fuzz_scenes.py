@@ -39,7 +39,7 @@ BASES = {name: (bundled_dir() / f"{name}.toml").read_text()
 STEP_BUDGET = "integrator.max_steps=20000"
 HANG_SECONDS = 120
 
-FUZZ = settings(max_examples=1500 if FULL else 30, deadline=None, derandomize=not FULL, database=None,
+FUZZ = settings(max_examples=1500 if FULL else 50, deadline=None, derandomize=not FULL, database=None,
                 suppress_health_check=list(HealthCheck))
 
 
