@@ -223,10 +223,11 @@ def _header(fh: Any, name: str) -> tuple[tuple[int, ...], bool, np.dtype]:
 
 def _check_layout(name: str, dims: tuple[int, ...], dtype: np.dtype, kind: str, shape: tuple[int, ...]) -> None:
     sizes = {"i": (8,), "f": (8,), "U": None}[kind]
-    if dtype.hasobject or dtype.kind != kind or (sizes is not None and dtype.itemsize not in sizes):
+    wrong_size = not dtype.itemsize or (sizes is not None and dtype.itemsize not in sizes)
+    if dtype.hasobject or dtype.kind != kind or wrong_size:
         expected = {"i": "int64", "f": "float64", "U": "a string"}[kind]
         raise DamagedFile(f"{name} has dtype {dtype}, expected {expected}")
-    if len(dims) != len(shape) or any(want not in (-1, got) for want, got in zip(shape, dims)):
+    if len(dims) != len(shape) or any(want not in (-1, got) or got < 0 for want, got in zip(shape, dims)):
         raise DamagedFile(f"{name} has shape {dims}, expected {tuple('N' if d == -1 else d for d in shape)}")
 
 

@@ -77,7 +77,8 @@ DAMAGE = {
     "meta nested 100,000 deep": (lambda a: DEEP_JSON, "nested more than 64 levels"),
     "an unknown status": (_meta(lambda m: m.update(status="exploded")), "meta.status 'exploded' is not one of"),
     "final_in_strip contradicting the strips": (_meta(lambda m: m.update(final_in_strip=True)), "final_in_strip"),
-    "float indices": (lambda a: a.update(seg_mode=a["seg_mode"].astype(float)) or None, "dtype float64, expected int64"),
+    "float indices": (lambda a: a.update(seg_mode=a["seg_mode"].astype(float)) or None,
+                      "dtype float64, expected int64"),
     "strip times of the wrong shape": (lambda a: a.update(strip_times=a["strip_times"].reshape(-1, 2)) or None,
                                        r"strip_times has shape \(\d+, 2\), expected \('N', 4\)"),
     "an extra array": (lambda a: a.update(payload=np.zeros(3)) or None, r"unexpected arrays \['payload'\]"),
@@ -131,6 +132,22 @@ def zip_bomb(path, arrays, member: str, values: int):
             for _ in range(values * 8 // len(chunk)):
                 fh.write(chunk)
     return path
+
+
+def test_an_array_header_with_a_negative_length_is_refused(saved, tmp_path):
+    from numpy.lib import format as npy
+
+    _, arrays = saved
+    path = tmp_path / "negative.npz"
+    with zipfile.ZipFile(path, "w") as archive:
+        for name, value in arrays.items():
+            with archive.open(f"{name}.npy", "w") as fh:
+                if name == "seg_t":
+                    npy.write_array_header_1_0(fh, {"descr": "<f8", "fortran_order": False, "shape": (-5,)})
+                else:
+                    npy.write_array(fh, np.array(json.dumps(value)) if name == "meta" else value)
+    with pytest.raises(SimulationError, match=r"seg_t has shape \(-5,\), expected \('N',\)"):
+        Execution.load(path)
 
 
 def test_a_small_file_that_inflates_a_thousandfold_is_refused_before_allocating(saved, tmp_path):

@@ -209,7 +209,8 @@ def scene_inputs(draw):
         text = toml_dumps(data)
     flags = []
     for kind in draw(st.lists(st.sampled_from(["rrd", "html", "plot"]), max_size=2, unique=True)):
-        flags += [f"--{kind}", draw(st.sampled_from(CLI_PATHS + [f"cli/b.{dict(rrd='rrd', html='html', plot='png')[kind]}"] * 6))]
+        good = f"cli/b.{dict(rrd='rrd', html='html', plot='png')[kind]}"
+        flags += [f"--{kind}", draw(st.sampled_from(CLI_PATHS + [good] * 6))]
     return text, draw(st.sampled_from(["scene.toml", "scene.rrd"])), flags
 
 
