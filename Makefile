@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test test-full install clean
+.PHONY: demo test test-full test-browser install clean
 
 # setup.py and the C++ source: the optional native extension is built by the install.
 $(STAMP): pyproject.toml setup.py legsim/_native/pinlegsim.cpp
@@ -24,6 +24,20 @@ test: $(STAMP)
 
 test-full: $(STAMP)
 	LEGSIM_FULL=1 $(BIN)/python -m pytest -q -n 2
+
+# The only target that changes the machine: it installs Chromium with apt-get (as root, or
+# through sudo) when no Chromium is on PATH, then runs the browser tests. `make test` never
+# installs anything; without a browser it reports these tests as skipped.
+BROWSERS := chromium chromium-browser google-chrome google-chrome-stable
+SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
+
+test-browser: $(STAMP)
+	@found=""; for b in $(BROWSERS); do command -v $$b >/dev/null 2>&1 && found=$$b && break; done; \
+	if [ -z "$$found" ]; then \
+	  echo "test-browser: no Chromium on PATH; installing the package chromium with apt-get (this changes the system)"; \
+	  $(SUDO) apt-get update && $(SUDO) apt-get install -y chromium || exit 1; \
+	fi
+	$(BIN)/python -m pytest -q -p no:xdist -m browser tests/viz/test_browser_html.py
 
 clean:
 	rm -rf $(VENV) out .pytest_cache

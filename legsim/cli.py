@@ -7,7 +7,10 @@ at every start, so they keep heavy imports (rerun, matplotlib, pinocchio, scipy)
 
 Exit codes: 0 success; 2 a usage error or any ``LegsimError`` (one line ``legsim: error: ...``
 on stderr, the traceback only with ``--debug``); 3 a run that stopped before t_final (the
-command says why); 1 an unexpected internal error; 130 interrupted.
+command says why); 1 an unexpected internal error; 130 interrupted (Ctrl-C); 143 terminated
+(SIGTERM, which is turned into the same clean shutdown as Ctrl-C: no temporary file is left).
+Messages are printed with their control characters escaped: they quote scene files, names and
+recordings that may come from someone else.
 """
 
 from __future__ import annotations
@@ -16,18 +19,22 @@ import argparse
 import importlib
 import os
 import pkgutil
+import signal
 import sys
+import threading
 import traceback
+from contextlib import contextmanager
 from types import ModuleType
-from typing import Sequence
+from typing import Iterator, Sequence
 
-from .errors import LegsimError
+from .errors import LegsimError, Terminated
 
 EXIT_OK = 0
 EXIT_INTERNAL = 1
 EXIT_ERROR = 2
 EXIT_STOPPED = 3
 EXIT_INTERRUPTED = 130
+EXIT_TERMINATED = 128 + signal.SIGTERM
 
 REQUIRED = ("NAME", "HELP", "add_arguments", "run")
 
@@ -97,33 +104,62 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line with ``argv`` (default ``sys.argv[1:]``); returns the exit code."""
     argv = list(sys.argv[1:] if argv is None else argv)
     debug = "--debug" in argv
-    try:
-        parser = build_parser()
+    with sigterm_as_interrupt():
         try:
-            args = parser.parse_args(argv)
-        except SystemExit as exc:  # argparse: --help, --version, usage errors (already printed)
-            return int(exc.code) if isinstance(exc.code, int) else EXIT_ERROR
-        if getattr(args, "_run", None) is None:
-            parser.print_help(sys.stderr)
-            return EXIT_ERROR
-        return int(args._run(args) or 0)
-    except LegsimError as exc:
-        return _report(f"legsim: error: {exc}", debug, EXIT_ERROR)
-    except OSError as exc:
-        if isinstance(exc, BrokenPipeError):
-            return _broken_pipe()
-        return _report(f"legsim: error: {exc}", debug, EXIT_ERROR)
-    except KeyboardInterrupt:
-        return _report("legsim: interrupted", debug, EXIT_INTERRUPTED)
-    except Exception as exc:
-        return _report(f"legsim: internal error: {type(exc).__name__}: {exc}"
-                       + ("" if debug else " (run with --debug for the traceback)"), debug, EXIT_INTERNAL)
+            return _dispatch(argv)
+        except LegsimError as exc:
+            return _report(f"legsim: error: {exc}", debug, EXIT_ERROR)
+        except OSError as exc:
+            if isinstance(exc, BrokenPipeError):
+                return _broken_pipe()
+            return _report(f"legsim: error: {exc}", debug, EXIT_ERROR)
+        except Terminated:
+            return _report("legsim: terminated", debug, EXIT_TERMINATED)
+        except KeyboardInterrupt:
+            return _report("legsim: interrupted", debug, EXIT_INTERRUPTED)
+        except Exception as exc:
+            return _report(f"legsim: internal error: {type(exc).__name__}: {exc}"
+                           + ("" if debug else " (run with --debug for the traceback)"), debug, EXIT_INTERNAL)
+
+
+def _dispatch(argv: list[str]) -> int:
+    parser = build_parser()
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:  # argparse: --help, --version, usage errors (already printed)
+        return int(exc.code) if isinstance(exc.code, int) else EXIT_ERROR
+    if getattr(args, "_run", None) is None:
+        parser.print_help(sys.stderr)
+        return EXIT_ERROR
+    return int(args._run(args) or 0)
+
+
+@contextmanager
+def sigterm_as_interrupt() -> Iterator[None]:
+    """Within the block, SIGTERM raises ``Terminated`` (a KeyboardInterrupt) in the main thread,
+    so that every ``finally`` and ``except BaseException`` runs: ``write_atomic`` removes its
+    temporary file. The previous handler is restored afterwards (``main`` may be called from a
+    program or a test). Outside the main thread signals cannot be handled, and nothing changes."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def terminate(signum: int, frame: object) -> None:
+        raise Terminated(f"signal {signum}")
+
+    previous = signal.signal(signal.SIGTERM, terminate)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, signal.SIG_DFL if previous is None else previous)
 
 
 def _report(line: str, debug: bool, code: int) -> int:
+    from .output.untrusted import printable
+
     if debug:
         traceback.print_exc()
-    print(line, file=sys.stderr)
+    print(printable(line), file=sys.stderr)
     return code
 
 

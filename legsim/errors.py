@@ -41,3 +41,9 @@ class ContractError(ModelError):
     """A model's callable returned something the contract of ``legsim.hybrid`` does not allow at
     some evaluation during a run (a guard that is not a real number, a field of the wrong shape).
     The integrator re-raises it as a ``ModelError`` naming the mode, the transition and the time."""
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM (what ``timeout``, systemd and container runtimes send) as the command line
+    raises it: a ``KeyboardInterrupt``, so that a run stops the way Ctrl-C stops it (temporary
+    files removed, no output half-written), and exits with 143 = 128 + SIGTERM."""

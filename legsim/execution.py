@@ -12,12 +12,11 @@ interpolation of paper 000 Fig. 12 step 9, which would limit any off-grid compar
 
 from __future__ import annotations
 
-import json
 import os
 from dataclasses import dataclass, field
 from enum import StrEnum
 from pathlib import Path
-from typing import Any, Iterable, Sequence
+from typing import Any, Iterable
 
 import numpy as np
 
@@ -368,127 +367,17 @@ class Execution:
     # -- persistence -----------------------------------------------------------------------
     def save(self, path: str | os.PathLike) -> Path:
         """Write the execution to a ``.npz`` file, completely or not at all (OutputError
-        naming the file when it cannot be written)."""
-        path = Path(path)
-        modes = sorted({s.mode for s in self.segments} | {s.mode for s in self.strips}
-                       | {tr.target for tr in self.transitions})
-        index = {m: i for i, m in enumerate(modes)}
-        payload: dict[str, np.ndarray] = {}
-        payload["seg_mode"] = np.array([index[s.mode] for s in self.segments], dtype=np.int64)
-        payload["seg_len"] = np.array([len(s.t) for s in self.segments], dtype=np.int64)
-        payload["seg_dim"] = np.array([s.x.shape[1] for s in self.segments], dtype=np.int64)
-        payload["seg_t"] = np.concatenate([s.t for s in self.segments])
-        payload["seg_x"] = np.concatenate([s.x.ravel() for s in self.segments])
-        payload["seg_dx"] = np.concatenate([s.dx.ravel() for s in self.segments])
-        payload["strip_mode"] = np.array([index[s.mode] for s in self.strips], dtype=np.int64)
-        payload["strip_times"] = np.array([[s.time, s.exit_time, s.landing_time, s.depth]
-                                           for s in self.strips]).reshape(-1, 4)
-        payload["strip_state"] = _flat([s.state for s in self.strips])
-        payload["strip_dim"] = np.array([len(s.state) for s in self.strips], dtype=np.int64)
-        trs = self.transitions
-        payload["tr_edge"] = np.array([[index[t.source], index[t.target], t.index] for t in trs],
-                                      dtype=np.int64).reshape(-1, 3)
-        payload["tr_times"] = np.array([[t.time, t.landing_time, t.exit_time, t.depth] for t in trs]).reshape(-1, 4)
-        payload["tr_before"] = _flat([t.state_before for t in trs])
-        payload["tr_after"] = _flat([t.state_after for t in trs])
-        payload["tr_dims"] = np.array([[len(t.state_before), len(t.state_after)] for t in trs],
-                                      dtype=np.int64).reshape(-1, 2)
-        meta = {
-            "format": "legsim-execution-1",
-            "modes": modes,
-            "strip_names": [s.name for s in self.strips],
-            "tr_names": [t.name for t in trs],
-            "status": self.status,
-            "message": self.message,
-            "t0": self.t0,
-            "t_end": self.t_end,
-            "t_final": self.t_final,
-            "counters": self.counters,
-            "settings": _jsonable(self.settings),
-            "state_names": {k: list(v) for k, v in self.state_names.items()},
-            "state_units": {k: list(v) for k, v in self.state_units.items()},
-            "warnings": [w.as_dict() for w in self.warnings],
-            "system_name": self.system_name,
-            "final_in_strip": self.final_in_strip,
-        }
-        payload["meta"] = np.array(json.dumps(meta))
-        from .output.files import write_atomic  # here: legsim.output imports this module
+        naming the file when it cannot be written or does not end in ``.npz``)."""
+        from .output.execution_file import save_execution  # here: legsim.output imports this module
 
-        def write(tmp: Path) -> None:
-            # A file object, because np.savez_compressed appends ".npz" to a name without it.
-            with open(tmp, "wb") as fh:
-                np.savez_compressed(fh, **payload)
-
-        return write_atomic(path, write, what="execution file")
+        return save_execution(self, path)
 
     @classmethod
-    def load(cls, path: str | os.PathLike) -> "Execution":
-        """Read an execution written by ``save``."""
-        path = Path(path)
-        if not path.exists():
-            raise SimulationError(f"{path}: no such execution file")
-        try:
-            with np.load(path, allow_pickle=False) as archive:
-                # Each access to an NpzFile member decompresses it again: read every array once.
-                data = {key: archive[key] for key in archive.files}
-            meta = json.loads(str(data["meta"]))
-        except Exception as exc:
-            raise SimulationError(f"{path}: not a legsim execution file ({exc})") from exc
-        if meta.get("format") != "legsim-execution-1":
-            raise SimulationError(f"{path}: unknown execution format {meta.get('format')!r}")
-        modes = meta["modes"]
-        segments = []
-        t_off = x_off = 0
-        for m, n, d in zip(data["seg_mode"], data["seg_len"], data["seg_dim"]):
-            t = data["seg_t"][t_off:t_off + n]
-            x = data["seg_x"][x_off:x_off + n * d].reshape(n, d)
-            dx = data["seg_dx"][x_off:x_off + n * d].reshape(n, d)
-            segments.append(Segment(modes[m], t.copy(), x.copy(), dx.copy()))
-            t_off += n
-            x_off += n * d
-        strips = []
-        off = 0
-        for k, (m, d) in enumerate(zip(data["strip_mode"], data["strip_dim"])):
-            state = data["strip_state"][off:off + d].copy()
-            off += d
-            t0, t1, t_land, depth = data["strip_times"][k]
-            strips.append(Strip(modes[m], meta["strip_names"][k], float(t0), float(t1), state, float(t_land),
-                                float(depth)))
-        transitions = []
-        ob = oa = 0
-        for k, ((s, tg, idx), (tm, tl, te, depth), (db, da)) in enumerate(
-            zip(data["tr_edge"], data["tr_times"], data["tr_dims"])
-        ):
-            before = data["tr_before"][ob:ob + db].copy()
-            after = data["tr_after"][oa:oa + da].copy()
-            ob += db
-            oa += da
-            transitions.append(TransitionRecord(meta["tr_names"][k], modes[s], modes[tg], int(idx), float(tm),
-                                                float(tl), float(te), before, after, float(depth)))
-        return cls(
-            status=meta["status"], message=meta["message"], segments=segments, strips=strips,
-            transitions=transitions, t0=meta["t0"], t_end=meta["t_end"], t_final=meta["t_final"],
-            counters=meta["counters"], settings=meta["settings"],
-            state_names={k: tuple(v) for k, v in meta["state_names"].items()},
-            state_units={k: tuple(v) for k, v in meta.get("state_units", {}).items()},
-            warnings=[RunWarning(w["kind"], w["message"], w["time"],
-                                 {k: v for k, v in w.items() if k not in ("kind", "message", "time")})
-                      for w in meta.get("warnings", [])],
-            system_name=meta["system_name"], final_in_strip=meta["final_in_strip"],
-        )
+    def load(cls, path: str | os.PathLike, max_bytes: int | None = None) -> "Execution":
+        """Read an execution written by ``save``, checking everything in the file: its arrays'
+        sizes against the file's before they are allocated (``max_bytes`` overrides the bound),
+        dtypes, shapes, index ranges, finite and ordered times, and that the pieces fit
+        together. SimulationError naming the file and what is wrong otherwise."""
+        from .output.execution_file import load_execution
 
-
-def _flat(arrays: Sequence[np.ndarray]) -> np.ndarray:
-    return np.concatenate([np.asarray(a, dtype=float).ravel() for a in arrays]) if arrays else np.empty(0)
-
-
-def _jsonable(obj: Any) -> Any:
-    if isinstance(obj, dict):
-        return {str(k): _jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_jsonable(v) for v in obj]
-    if isinstance(obj, (np.floating, np.integer)):
-        return obj.item()
-    if isinstance(obj, (str, int, float, bool)) or obj is None:
-        return obj
-    return repr(obj)
+        return load_execution(path, max_bytes)

@@ -5,8 +5,14 @@ them with ``-m slow`` runs the long sweeps too.
 """
 
 import os
+import tempfile
 
 import pytest
+from hypothesis.configuration import set_hypothesis_home_dir
+
+# Hypothesis keeps caches (``.hypothesis/``: constants, unicode tables, examples) in the working
+# folder; tests write only in temporary folders.
+set_hypothesis_home_dir(tempfile.mkdtemp(prefix="legsim-hypothesis-"))
 
 
 def pytest_collection_modifyitems(config, items):

@@ -150,7 +150,8 @@ def test_outputs_from_flags_and_scene_are_written_atomically(tmp_path, capsys, m
     calls = []
     _fake_writers(monkeypatch, calls)
     out_dir = tmp_path / "out"
-    path = write_scene(tmp_path, TINY_SCENE + f'\n[output]\nrrd = "{out_dir / "scene.rrd"}"\nplot = "{out_dir / "s.png"}"\n')
+    # A scene's [output] paths are relative to its own folder (tmp_path).
+    path = write_scene(tmp_path, TINY_SCENE + '\n[output]\nrrd = "out/scene.rrd"\nplot = "out/s.png"\n')
     code, out, _ = run_cli(capsys, "run", str(path), "--json", "--plot", str(out_dir / "flag.png"),
                            "--html", str(out_dir / "a.html"))
     assert code == 0

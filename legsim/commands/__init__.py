@@ -5,6 +5,6 @@ A module here is a command when it defines ``NAME`` (str), ``HELP`` (one line),
 meaning). ``legsim.cli`` imports every module at start: keep heavy imports inside ``run``.
 Errors a user can provoke are raised as ``LegsimError`` subclasses; the CLI prints them as one
 line. Modules whose names start with ``_`` are skipped. ``legsim.commands.run`` exposes
-``add_output_arguments``/``write_outputs``/``format_summary`` for commands that write or print
+``add_output_arguments``/``plan_outputs``/``write_output``/``format_summary`` for commands that write or print
 executions the same way (``replay``).
 """

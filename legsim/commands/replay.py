@@ -73,31 +73,33 @@ def format_summary(path: Path, data: dict[str, Any]) -> str:
 def run(args: argparse.Namespace) -> int:
     from ..errors import LegsimError
     from ..output.rrd import read_rrd
+    from ..output.untrusted import printable
 
-    from .run import checked_writers
+    from .run import plan_outputs, write_output
 
     path = Path(args.file)
     if args.spawn and not has_display():
         raise LegsimError(f"--spawn needs a display, and there is none here (DISPLAY and WAYLAND_DISPLAY are "
                           f"unset); copy {path} to a machine with a display and run `rerun {path.name}` there")
     # Every requested output is checked before any is written, so a bad --plot does not leave
-    # a fresh --html behind it.
-    wanted = {kind: getattr(args, kind) for kind in ("html", "plot") if getattr(args, kind)}
-    writers = checked_writers({kind: (Path(target), f"--{kind}") for kind, target in wanted.items()})
+    # a fresh --html behind it; none may overwrite the recording it is drawn from.
+    wanted = {kind: (Path(target), f"--{kind}") for kind in ("html", "plot") if (target := getattr(args, kind))}
+    plan, writers = plan_outputs(wanted, inputs=[path])
     data = read_rrd(path)
-    outputs = {kind: str(writers[kind](None, None, target, recording=data)) for kind, target in wanted.items()}
+    outputs = {kind: str(write_output(plan, kind, writers[kind], None, None, recording=data)) for kind in plan}
     # The recorded run_summary, with the files this command wrote, as `legsim run --json` has them.
     summary = {**data["summary"], "outputs": outputs}
     if args.json:
         print(json.dumps(summary, indent=2, allow_nan=False))
     else:
-        print(format_summary(path, data))
+        # Names and messages come from the file, which may come from someone else.
+        print(printable(format_summary(path, data)))
         for kind, out in outputs.items():
-            print(f"wrote {out} ({kind})")
+            print(printable(f"wrote {out} ({kind})"))
     if args.spawn:
         # rerun-sdk runs its bundled viewer as `python -m rerun_cli FILE`; detach it so that
         # the viewer outlives this command.
         subprocess.Popen([sys.executable, "-m", "rerun_cli", str(path)], start_new_session=True,
                          stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-        print(f"opened {path} in the Rerun viewer", file=sys.stderr)
+        print(printable(f"opened {path} in the Rerun viewer"), file=sys.stderr)
     return 0

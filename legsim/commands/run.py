@@ -3,6 +3,10 @@
 The output writers are looked up only when asked for: ``--rrd`` uses
 ``legsim.record.write_rrd``, ``--html`` and ``--plot`` the ``html`` and ``plot`` writers of the
 ``legsim.writers`` entry-point group; each is called as ``writer(execution, scene, path)``.
+The outputs are planned before the run (``legsim.output.files.OutputPlan``): an output may not
+overwrite the scene file, share its file with another output, replace a device, FIFO or
+folder, or have the wrong suffix for its kind. A scene's own ``[output]`` paths are relative
+to its folder (or ``--out-dir``); paths given with ``--rrd/--html/--plot`` are the user's.
 Every file is written under a temporary name in its directory and renamed into place only
 when its writer returned (``legsim.output.files.write_atomic``), so an output is complete or
 absent. A run that stops before t_final (status other than ``finished``) still writes its
@@ -17,19 +21,23 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import sys
 from itertools import groupby
 from pathlib import Path
-from typing import Any, Callable
+from typing import TYPE_CHECKING, Any, Callable
 
 from ..errors import LegsimError
+
+if TYPE_CHECKING:
+    from ..output.files import OutputPlan
 
 NAME = "run"
 HELP = "run a scene (a TOML file or a bundled scene name) and print its summary"
 
 OUTPUT_KINDS = ("rrd", "html", "plot")
 WRITER_GROUP = "legsim.writers"
+#: The file types of each kind of output, unless its writer declares its own (``suffixes``).
+KIND_SUFFIXES = {"rrd": (".rrd",), "html": (".html", ".htm")}
 
 Writer = Callable[[Any, Any, Path], Any]
 
@@ -52,51 +60,60 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="run again with eps/10 and h/2 (tolerances/10 with error control) and report the "
                              "estimated error of the final state, transition times and trajectory")
     add_output_arguments(parser)
+    parser.add_argument("--out-dir", metavar="DIR",
+                        help="where the scene's own [output] files go (default: the scene's folder)")
 
 
 def run(args: argparse.Namespace) -> int:
     from ..output.summary import finite_or_none, run_summary
+    from ..output.untrusted import printable
     from ..scene import load_scene
 
     scene = load_scene(args.scene, overrides=args.overrides)
-    outputs = requested_outputs(args, scene.output)
-    writers = checked_writers(outputs, scene)
+    outputs = requested_outputs(args, scene.output_paths(args.out_dir))
+    plan, writers = plan_outputs(outputs, inputs=[scene.path], scene=scene)
     execution, estimate = _simulate(scene, show_progress=not (args.quiet or args.json), check=args.check_accuracy)
-    written, failures = _write_all(execution, scene, outputs, writers)
+    written, failures = _write_all(execution, scene, plan, writers)
     summary = run_summary(execution, scene, outputs=written)
     if estimate is not None:
         summary["error_estimate"] = finite_or_none(estimate.as_dict())
     if args.json:
         print(json.dumps(summary, allow_nan=False))
     elif not args.quiet:
-        print(format_summary(summary))
+        print(printable(format_summary(summary)))
         if estimate is not None:
-            print(format_estimate(estimate))
+            print(printable(format_estimate(estimate)))
         for kind, path in written.items():
-            print(f"wrote {path} ({kind})")
+            print(printable(f"wrote {path} ({kind})"))
     if args.quiet:  # the summary prints them otherwise: a result it cannot vouch for says so, even quiet
         for warning in summary["warnings"]:
-            print(f"legsim: warning: {warning['message']}", file=sys.stderr)
+            print(printable(f"legsim: warning: {warning['message']}"), file=sys.stderr)
     for exc in failures:
-        print(f"legsim: error: {exc}", file=sys.stderr)
+        print(printable(f"legsim: error: {exc}"), file=sys.stderr)
     if summary["status"] != "finished":
-        print(f"legsim: run stopped early ({summary['status']}): {summary['message']}", file=sys.stderr)
+        print(printable(f"legsim: run stopped early ({summary['status']}): {summary['message']}"), file=sys.stderr)
         return 3
     return 0
 
 
-def checked_writers(outputs: dict[str, tuple[Path, str]], scene: Any = None) -> dict[str, Writer]:
-    """kind -> writer of each output (kind -> (path, where it was asked for)), checked before
-    any work is done: writer found, folder writable, suffix accepted, and, with a scene, the
-    geometry present when the writer draws the robot."""
+def plan_outputs(outputs: dict[str, tuple[Path, str]], inputs: list[Path], scene: Any = None
+                 ) -> tuple[OutputPlan, dict[str, Writer]]:
+    """The output plan and kind -> writer of each output (kind -> (path, how messages name
+    it)), checked before any work is done: writer found, file type, target (no input, no
+    device, no second output on one file), folder writable, and, with a scene, the geometry
+    present when the writer draws the robot."""
+    from ..output.files import OutputPlan
+
+    plan = OutputPlan(inputs)
     writers = {kind: find_writer(kind, source) for kind, (_, source) in outputs.items()}
     for kind, (path, source) in outputs.items():
-        check_writable(path, source)
-        check_suffix(writers[kind], path, source)
-        if scene is not None and getattr(writers[kind], "needs_geometry", False) and scene.model.geometry is None:
+        writer = writers[kind]
+        suffixes = getattr(writer, "suffixes", None) or KIND_SUFFIXES.get(kind, ())
+        plan.add(kind, path, what=source, suffixes=suffixes)
+        if scene is not None and getattr(writer, "needs_geometry", False) and scene.model.geometry is None:
             raise LegsimError(f"{source} {path}: this output draws the robot, and {scene.model.system.name} "
                               f"defines no geometry (Model.geometry is None); use --plot or --rrd for it")
-    return writers
+    return plan, writers
 
 
 def _simulate(scene: Any, show_progress: bool, check: bool) -> tuple[Any, Any]:
@@ -104,9 +121,10 @@ def _simulate(scene: Any, show_progress: bool, check: bool) -> tuple[Any, Any]:
     with ``check``, ``scene.check_accuracy()``: (execution, error estimate or None)."""
     import numpy as np
 
+    from ..output.untrusted import printable
     from ..progress import progress_for
 
-    bar = progress_for(sys.stderr, enabled=show_progress, label=scene.name)
+    bar = progress_for(sys.stderr, enabled=show_progress, label=printable(scene.name, newlines=False))
     try:
         # The integrator checks every state for finiteness and ends a diverging run with status
         # non_finite naming mode, time and state; numpy's overflow warnings on the way there
@@ -118,9 +136,9 @@ def _simulate(scene: Any, show_progress: bool, check: bool) -> tuple[Any, Any]:
             bar.close()
 
 
-def _write_all(execution: Any, scene: Any, outputs: dict[str, tuple[Path, str]], writers: dict[str, Writer]
+def _write_all(execution: Any, scene: Any, plan: OutputPlan, writers: dict[str, Writer]
                ) -> tuple[dict[str, Path], list[LegsimError]]:
-    """Write every output: (kind -> path written, the errors of those that failed).
+    """Write every planned output: (kind -> path written, the errors of those that failed).
 
     After a finished run a failed output is raised. After a run that stopped early the run's
     status is the result the exit code reports (3), not the output that could not be made: its
@@ -135,9 +153,9 @@ def _write_all(execution: Any, scene: Any, outputs: dict[str, tuple[Path, str]],
     # plot leaves out, and says so, what matplotlib cannot draw); numpy's warnings would only
     # bury the status line, as during the run.
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-        for kind, (path, _) in outputs.items():
+        for kind in plan:
             try:
-                written.update(write_outputs(execution, scene, {kind: path}, {kind: writers[kind]}))
+                written[kind] = write_output(plan, kind, writers[kind], execution, scene)
             except LegsimError as exc:
                 if execution.status == "finished":
                     raise
@@ -161,16 +179,17 @@ def format_estimate(estimate: Any) -> str:
     return "\n".join(lines)
 
 
-def requested_outputs(args: argparse.Namespace, scene_output: dict[str, str | None] | None = None
+def requested_outputs(args: argparse.Namespace, scene_outputs: dict[str, Path] | None = None
                       ) -> dict[str, tuple[Path, str]]:
-    """kind -> (path, where it was asked for): a flag wins over the scene's ``[output]``."""
+    """kind -> (path, where it was asked for): a flag wins over the scene's ``[output]``
+    (``scene_outputs``: kind -> path, already resolved by ``Scene.output_paths``)."""
     out: dict[str, tuple[Path, str]] = {}
     for kind in OUTPUT_KINDS:
         flag = getattr(args, kind, None)
         if flag:
             out[kind] = (Path(flag), f"--{kind}")
-        elif scene_output and scene_output.get(kind):
-            out[kind] = (Path(scene_output[kind]), f"output.{kind} of the scene")
+        elif scene_outputs and scene_outputs.get(kind):
+            out[kind] = (Path(scene_outputs[kind]), f"output.{kind} of the scene")
     return out
 
 
@@ -207,66 +226,22 @@ def find_writer(kind: str, source: str = "") -> Writer:
     return writer
 
 
-def check_writable(path: Path, label: str) -> None:
-    """LegsimError naming ``label`` unless ``path`` can be created (its folder exists and is
-    writable, or can be made inside a writable folder). Leaves nothing behind: no folder is
-    made, and the nearest existing one is probed with an unnamed temporary file."""
-    from ..output.files import cannot_create_in, check_target
-
-    path = Path(path)
-    check_target(path, label)
-    ancestor = path.parent
-    while not ancestor.exists() and ancestor != ancestor.parent:
-        ancestor = ancestor.parent
-    if not ancestor.is_dir():
-        raise LegsimError(f"{label} {path}: {ancestor} is not a directory")
-    if not os.access(ancestor, os.W_OK | os.X_OK):
-        raise LegsimError(f"{label} {path}: cannot write in {ancestor} (permission denied)")
-    reason = cannot_create_in(ancestor)
-    if reason is not None:
-        raise LegsimError(f"{label} {path}: cannot write in {ancestor} ({reason})")
-
-
-def check_suffix(writer: Writer, path: Path, label: str) -> None:
-    """LegsimError naming ``label`` when ``writer`` declares the suffixes it can write
-    (attribute ``suffixes``, e.g. ('.png', '.pdf')) and ``path`` has none of them, so that a
-    wrong format is refused before the run rather than after it."""
-    suffixes = getattr(writer, "suffixes", None)
-    if suffixes and Path(path).suffix.lower() not in suffixes:
-        raise LegsimError(f"{label} {path}: unsupported format '{Path(path).suffix}'; use one of {list(suffixes)}")
-
-
-def write_outputs(execution: Any, scene: Any, paths: dict[str, Path],
-                  writers: dict[str, Writer] | None = None) -> dict[str, Path]:
-    """Write each output atomically (``legsim.output.files.write_atomic``): its writer is
-    called on a temporary file next to the target, which is renamed into place when it returns.
-
-    Returns kind -> path of the files written. On a writer's failure its temporary file is
-    removed, the target is left as it was, and a LegsimError naming the flag and the file is
-    raised.
-    """
-    writers = dict(writers or {})
-    written: dict[str, Path] = {}
-    for kind, path in paths.items():
-        writer = writers.get(kind) or find_writer(kind)
-        written[kind] = _write_output(writer, execution, scene, Path(path), f"--{kind}")
-    return written
-
-
-def _write_output(writer: Writer, execution: Any, scene: Any, path: Path, label: str) -> Path:
-    """``writer(execution, scene, tmp)`` through ``write_atomic``, its errors named by ``label``."""
-    from ..output.files import write_atomic
+def write_output(plan: OutputPlan, kind: str, writer: Writer, execution: Any, scene: Any, **extra: Any) -> Path:
+    """``writer(execution, scene, tmp, **extra)`` through the plan (``write_atomic``): its
+    temporary file is renamed over the planned target when it returns, removed when it fails;
+    its errors are a LegsimError naming the output and the file."""
+    label, path = plan.outputs[kind].what, plan.outputs[kind].path
 
     def write(tmp: Path) -> None:
         try:
-            writer(execution, scene, tmp)
+            writer(execution, scene, tmp, **extra)
         except LegsimError as exc:
             # The writer only saw the temporary name: say which file was asked for.
             raise LegsimError(f"{label} {path}: writing failed: {str(exc).replace(str(tmp), str(path))}") from exc
         except Exception as exc:
             raise LegsimError(f"{label} {path}: writing failed: {type(exc).__name__}: {exc}") from exc
 
-    return write_atomic(path, write, what=label)
+    return plan.write(kind, write)
 
 
 def _compact_modes(sequence: list[str], limit: int = 6) -> str:
@@ -312,7 +287,7 @@ def format_summary(summary: dict[str, Any]) -> str:
     if extra:
         lines.append("other counters: " + ", ".join(f"{k} {v}" for k, v in extra.items()))
     if "energy_initial" in summary:
-        lines.append(f"energy {_num(summary['energy_initial'])} J -> {_num(summary['energy_final'])} J")
+        lines.append(f"energy {_num(summary['energy_initial'])} J -> {_num(summary.get('energy_final'))} J")
     lines.append(f"wall time {summary['wall_time_s']:.3g} s")
     lines += [f"warning: {w['message']}" for w in summary.get("warnings", [])]
     if status != "finished" and summary.get("message"):

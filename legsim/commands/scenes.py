@@ -31,13 +31,23 @@ def run(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(rows))
     elif rows:
-        wn = max(len(r["name"]) for r in rows)
-        wr = max(len(r["robot"] or "?") for r in rows)
-        for r in rows:
-            text = r["description"] if "error" not in r else f"INVALID: {r['error']}"
-            print(f"{r['name']:<{wn}}  {r['robot'] or '?':<{wr}}  {text}".rstrip())
+        print(format_rows(rows))
     else:
         from ..scene import search_dirs
 
         print(f"no scenes found in {[str(d) for d in search_dirs()]}")
     return 2 if any("error" in r for r in rows) else 0
+
+
+def format_rows(rows: list[dict]) -> str:
+    """One line per scene: name, robot, description (or why the file is invalid). Every field
+    comes from a file someone may have sent: control characters and line breaks are escaped,
+    so a description cannot clear the terminal or forge lines of the listing."""
+    from ..output.untrusted import printable
+
+    cells = [(printable(r["name"], newlines=False), printable(r["robot"] or "?", newlines=False),
+              printable(r["description"] if "error" not in r else f"INVALID: {r['error']}", newlines=False))
+             for r in rows]
+    wn = max(len(name) for name, _, _ in cells)
+    wr = max(len(robot) for _, robot, _ in cells)
+    return "\n".join(f"{name:<{wn}}  {robot:<{wr}}  {text}".rstrip() for name, robot, text in cells)

@@ -1,88 +1,219 @@
-"""Writing output files so that they appear complete or not at all.
+"""Writing output files so that they never destroy data: complete or absent, never over an input.
 
 Every file legsim writes (recordings, pages, figures, tables, saved executions) goes through
-``write_atomic``: the content is written to a temporary file in the target's own folder (so the
-final rename is atomic on every POSIX file system) and renamed over the target only once it is
-complete. The temporary file is opened with ``open(..., "xb")``, not ``mkstemp``, so it gets the
-permissions of any file the user creates (0666 less the umask), which the renamed file keeps.
+``write_atomic``, which first refuses a target that
+
+* is not a regular file or a new name (a directory, device, FIFO or socket, which the final
+  rename would replace: ``--rrd /dev/null`` run as root would replace the system's /dev/null),
+* is one of the run's inputs (the scene file, a replayed recording; also through a link),
+* lacks the suffix of its kind (``.rrd`` for a recording: ``--rrd scene.toml`` is a typo),
+* lies in a folder no file can be created in (saying why: permission denied, read-only file
+  system, a file where a folder should be);
+
+then writes the content to a temporary file in the target's own folder (so the final rename is
+atomic on every POSIX file system) and renames it over the target only once it is complete. The
+temporary file is opened with ``open(..., "xb")``, not ``mkstemp``, so it gets the permissions
+of any file the user creates (0666 less the umask), which the renamed file keeps.
+
+On any exception, Ctrl-C included, the temporary file is removed; the command line turns
+SIGTERM into the same exception (``legsim.cli``). SIGKILL cannot be caught: the temporary name
+carries the writer's process id, and the next write of the same target removes the temporary
+files of writers that no longer run.
+
+``OutputPlan`` holds the outputs of one run: each is checked when it is added, before the run
+starts, and two outputs of one run may not share a file.
 """
 
 from __future__ import annotations
 
+import errno
 import os
+import re
 import stat
 import tempfile
 import uuid
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
+from typing import Callable, Iterable, Iterator
 
 from ..errors import OutputError
 
+PathLike = str | os.PathLike[str]
 
+
+# -- names ---------------------------------------------------------------------------------------
 def temporary_name(path: Path) -> Path:
-    """A hidden name next to ``path`` for its content while it is written; it keeps the suffix,
-    since some writers (matplotlib, numpy) choose the format from it."""
-    return path.with_name(f".{path.stem}.{uuid.uuid4().hex[:12]}.partial{path.suffix}")
+    """A hidden name next to ``path`` for its content while it is written. It keeps the suffix,
+    since some writers (matplotlib, numpy) choose the format from it, and carries this process's
+    id so that a later write can tell a dead writer's leftover from a live writer's file."""
+    return path.with_name(f".{path.stem}.{os.getpid()}-{uuid.uuid4().hex[:12]}.partial{path.suffix}")
 
 
-def check_target(path: Path, what: str) -> None:
+def _temporary_pattern(path: Path) -> re.Pattern[str]:
+    # A writer handed a temporary name may write it atomically in turn: its own temporary file
+    # then has the first one's name inside (``..a.PID-X.partial.PID-Y.partial.png``).
+    mark = r"\.(\d+)-[0-9a-f]{12}\.partial"
+    return re.compile(rf"\.+{re.escape(path.stem)}{mark}(?:{mark})*{re.escape(path.suffix)}")
+
+
+def _process_runs(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:  # another user's process (EPERM): it runs
+        return True
+    return True
+
+
+def remove_stale_temporaries(path: Path) -> list[Path]:
+    """Remove the temporary files of ``path`` left by writers that were killed (SIGKILL, power
+    loss): those whose process id no longer runs. Returns the files removed."""
+    pattern = _temporary_pattern(path)
+    removed = []
+    try:
+        entries = list(os.scandir(path.parent))
+    except OSError:
+        return removed
+    for entry in entries:
+        match = pattern.fullmatch(entry.name)
+        if match and entry.is_file(follow_symlinks=False) and not _process_runs(int(match.group(1))):
+            try:
+                os.unlink(entry.path)
+                removed.append(Path(entry.path))
+            except OSError:
+                pass
+    return removed
+
+
+def same_file(a: Path, b: Path) -> bool:
+    """True when ``a`` and ``b`` name one file: the same inode when both exist (so a hard or
+    symbolic link to a file counts as that file), else the same absolute path."""
+    try:
+        return os.path.samefile(a, b)
+    except OSError:
+        return Path(os.path.abspath(a)) == Path(os.path.abspath(b))
+
+
+# -- checks --------------------------------------------------------------------------------------
+def check_target(path: Path, what: str, *, suffixes: Iterable[str] = (), inputs: Iterable[Path] = ()) -> None:
     """Refuse a target that is not a regular file or a new name (a directory, device, FIFO or
-    socket would be replaced by the rename)."""
+    socket would be replaced by the rename), is one of ``inputs``, or has none of ``suffixes``
+    (when given). OutputError naming ``what`` and the path."""
+    if "\x00" in str(path):
+        raise OutputError(f"{what} {str(path)!r}: a file name cannot contain a NUL character")
     try:
         mode = path.stat().st_mode
     except (FileNotFoundError, NotADirectoryError):
-        # A new name (or one under a file, which creating its folder will report).
-        return
+        mode = None  # a new name (or one under a file, which check_folder reports)
     except OSError as exc:
-        raise OutputError(f"{what} {path}: cannot write: {exc.strerror or exc}") from exc
-    if stat.S_ISDIR(mode):
+        raise OutputError(f"{what} {path}: cannot write: {os_reason(exc)}") from exc
+    if mode is not None and stat.S_ISDIR(mode):
         raise OutputError(f"{what} {path}: is a directory")
-    if not stat.S_ISREG(mode):
-        raise OutputError(f"{what} {path}: is not a regular file (a device, FIFO or socket); refusing to replace it")
+    if mode is not None and not stat.S_ISREG(mode):
+        raise OutputError(f"{what} {path}: is not a regular file ({file_kind(mode)}); refusing to replace it")
+    for source in inputs:
+        if same_file(path, source):
+            raise OutputError(f"{what} {path}: is an input of this run ({source}); refusing to overwrite it")
+    suffixes = tuple(s.lower() for s in suffixes)
+    if suffixes and path.suffix.lower() not in suffixes:
+        raise OutputError(f"{what} {path}: unsupported format '{path.suffix}'; use one of {list(suffixes)}")
+
+
+def file_kind(mode: int) -> str:
+    """What a file of ``st_mode`` is, as a message says it."""
+    for test, name in ((stat.S_ISDIR, "a directory"), (stat.S_ISCHR, "a character device"),
+                       (stat.S_ISBLK, "a block device"), (stat.S_ISFIFO, "a FIFO"), (stat.S_ISSOCK, "a socket"),
+                       (stat.S_ISREG, "a regular file")):
+        if test(mode):
+            return name
+    return "a special file"
 
 
 def cannot_create_in(folder: Path) -> str | None:
     """The OS's reason why no file can be created in the existing ``folder``, or None when one
     can. Probes with an unnamed temporary file, which leaves nothing behind, because permission
-    bits alone say yes to root on a read-only or virtual file system (/proc, /sys)."""
+    bits alone say yes to root on a read-only or virtual file system (/proc, /sys), and
+    ``os.access`` says "permission denied" where the truth is "read-only file system"."""
     try:
         with tempfile.TemporaryFile(dir=folder):
             return None
     except OSError as exc:
-        return str(exc.strerror or exc)
+        return os_reason(exc)
 
 
-def write_atomic(path: str | os.PathLike[str], write: Callable[[Path], None], *, what: str = "output") -> Path:
+def os_reason(exc: OSError) -> str:
+    """The OS's words for ``exc`` ("Read-only file system", "Permission denied", ...)."""
+    if exc.errno is not None and not exc.strerror:
+        return os.strerror(exc.errno)
+    return str(exc.strerror or exc)
+
+
+def check_folder(path: Path, what: str) -> None:
+    """OutputError naming ``what`` unless ``path`` can be created: its folder exists and a file
+    can be made in it, or the folder can be made inside one where a file can. Makes nothing."""
+    ancestor = path.parent
+    while not ancestor.exists() and ancestor != ancestor.parent:
+        if ancestor.is_symlink():
+            raise OutputError(f"{what} {path}: {ancestor} is a broken symbolic link")
+        ancestor = ancestor.parent
+    if not ancestor.is_dir():
+        raise OutputError(f"{what} {path}: {ancestor} is not a directory")
+    reason = cannot_create_in(ancestor)
+    if reason is not None:
+        raise OutputError(f"{what} {path}: cannot write in {ancestor} ({reason})")
+
+
+# -- writing -------------------------------------------------------------------------------------
+def write_atomic(path: PathLike, write: Callable[[Path], None], *, what: str = "output",
+                 suffixes: Iterable[str] = (), inputs: Iterable[PathLike] = ()) -> Path:
     """Call ``write(tmp)`` on a temporary file next to ``path``, then rename it to ``path``.
 
-    ``what`` names the output in messages (``--rrd``, ``execution file``). Missing folders are
-    created. On any failure, Ctrl-C included, the temporary file is removed and an older file at
-    ``path`` is left as it was. Raises ``OutputError`` naming the path for an OS error (chained
-    to it, as ``__cause__``) or a writer that wrote nothing; other exceptions of ``write`` pass
-    through.
+    ``what`` names the output in messages (``--rrd``, ``execution file``); ``suffixes`` are the
+    file types the output may have (any when empty); ``inputs`` the files the run read, which
+    must not be overwritten. Missing folders are created. On any failure, Ctrl-C and SIGTERM
+    included, the temporary file is removed and an older file at ``path`` is left as it was.
+    Raises ``OutputError`` naming the path for a refused target, an OS error (chained to it, as
+    ``__cause__``) or a writer that wrote nothing; other exceptions of ``write`` pass through.
     """
     path = Path(path)
-    check_target(path, what)
+    check_target(path, what, suffixes=suffixes, inputs=[Path(p) for p in inputs])
+    check_folder(path, what)
+    remove_stale_temporaries(path)
     tmp = temporary_name(path)
+    created = False
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         open(tmp, "xb").close()
-    except OSError as exc:
-        raise OutputError(f"{what} {path}: cannot write: {exc.strerror or exc}") from exc
-    try:
+        created = True
         write(tmp)
         if not tmp.exists():
             raise OutputError(f"{what} {path}: the writer returned without writing the file")
         os.replace(tmp, path)
     except BaseException as exc:
-        tmp.unlink(missing_ok=True)
+        if created:
+            _remove(tmp)
         if isinstance(exc, OSError):
-            raise OutputError(f"{what} {path}: cannot write: {exc.strerror or exc}") from exc
+            raise OutputError(f"{what} {path}: cannot write: {_write_reason(exc, path)}") from exc
         raise
     return path
 
 
-def write_bytes_atomic(path: str | os.PathLike[str], data: bytes, *, what: str = "output") -> Path:
+def _remove(tmp: Path) -> None:
+    try:
+        tmp.unlink(missing_ok=True)
+    except OSError:
+        pass
+
+
+def _write_reason(exc: OSError, path: Path) -> str:
+    if exc.errno == errno.EEXIST and not path.parent.is_dir():
+        return f"{path.parent} is not a directory"
+    return os_reason(exc)
+
+
+def write_bytes_atomic(path: PathLike, data: bytes, *, what: str = "output", suffixes: Iterable[str] = (),
+                       inputs: Iterable[PathLike] = ()) -> Path:
     """``write_atomic`` for content already in memory; flushed to disk before the rename."""
 
     def write(tmp: Path) -> None:
@@ -91,4 +222,50 @@ def write_bytes_atomic(path: str | os.PathLike[str], data: bytes, *, what: str =
             fh.flush()
             os.fsync(fh.fileno())
 
-    return write_atomic(path, write, what=what)
+    return write_atomic(path, write, what=what, suffixes=suffixes, inputs=inputs)
+
+
+# -- the outputs of one run ----------------------------------------------------------------------
+@dataclass(frozen=True)
+class PlannedOutput:
+    """One output of a run: the file, how messages name it, the file types it may have."""
+
+    path: Path
+    what: str
+    suffixes: tuple[str, ...] = ()
+
+
+class OutputPlan:
+    """The files one run will write, checked together before the run starts.
+
+    ``inputs`` are the files the run reads (the scene file, a replayed recording): no output may
+    overwrite them. ``add`` checks an output at once (type, suffix, input, folder, and that no
+    other output of the run has the same file); ``write`` writes it through ``write_atomic``.
+    """
+
+    def __init__(self, inputs: Iterable[PathLike] = ()) -> None:
+        self.inputs = tuple(Path(p) for p in inputs)
+        self.outputs: dict[str, PlannedOutput] = {}
+
+    def add(self, key: str, path: PathLike, *, what: str, suffixes: Iterable[str] = ()) -> Path:
+        """Plan output ``key`` at ``path``; OutputError naming ``what`` when it cannot be written."""
+        planned = PlannedOutput(Path(path), what, tuple(suffixes))
+        check_target(planned.path, what, suffixes=planned.suffixes, inputs=self.inputs)
+        for other in self.outputs.values():
+            if same_file(planned.path, other.path):
+                raise OutputError(f"{what} {planned.path}: {other.what} writes the same file; give each output "
+                                  f"its own file")
+        check_folder(planned.path, what)
+        self.outputs[key] = planned
+        return planned.path
+
+    def write(self, key: str, write: Callable[[Path], None]) -> Path:
+        """Write the planned output ``key`` with ``write(tmp)`` (see ``write_atomic``)."""
+        planned = self.outputs[key]
+        return write_atomic(planned.path, write, what=planned.what, suffixes=planned.suffixes, inputs=self.inputs)
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self.outputs)
+
+    def __len__(self) -> int:
+        return len(self.outputs)

@@ -4,14 +4,21 @@ scenes, TOML parsing with the line of a syntax error, and ``key.path=value`` ove
 from __future__ import annotations
 
 import os
+import stat
 import tomllib
 from importlib import resources
 from pathlib import Path
 from typing import Any, Iterable
 
 from ..errors import SceneError
+from ..output.files import file_kind
 
 SCENE_PATH_ENV = "LEGSIM_SCENE_PATH"
+
+#: Largest scene file read (bytes): the bundled ones are below 3 kB.
+MAX_SCENE_BYTES = 1 << 20
+#: Deepest nesting of tables and arrays in a scene: the bundled ones nest four levels.
+MAX_SCENE_DEPTH = 32
 
 
 # -- finding scenes ----------------------------------------------------------------------------
@@ -50,7 +57,7 @@ def resolve_scene_path(path_or_name: str | os.PathLike) -> Path:
     if candidate.is_file():
         return candidate
     if candidate.exists():
-        raise SceneError(f"{candidate}: not a scene file (is a directory)")
+        raise SceneError(f"{candidate}: not a scene file (it is {file_kind(candidate.stat().st_mode)})")
     text = str(path_or_name)
     looks_like_path = isinstance(path_or_name, os.PathLike) or os.sep in text or "/" in text or text.endswith(".toml")
     if not looks_like_path:
@@ -82,6 +89,8 @@ def parse_override(text: str) -> tuple[list[str], Any]:
         value = tomllib.loads(f"v = {raw}")["v"]
     except tomllib.TOMLDecodeError:
         value = raw
+    except RecursionError:
+        raise SceneError(f"--set {key.strip()}: the value is nested more than {MAX_SCENE_DEPTH} levels deep") from None
     return parts, value
 
 
@@ -110,20 +119,53 @@ def apply_overrides(data: dict[str, Any], overrides: Iterable[str]) -> list[str]
 
 
 def read_toml(path: Path) -> dict[str, Any]:
-    """Parse a TOML file; SceneError names the file and the line of a syntax error."""
+    """Parse a TOML scene file; SceneError names the file and what is wrong: the line of a
+    syntax error, a file that is no regular file (a FIFO or /dev/zero would never end), larger
+    than ``MAX_SCENE_BYTES`` or nested deeper than ``MAX_SCENE_DEPTH``."""
+    raw = _read_bounded(path)
     try:
-        raw = path.read_bytes()
-    except FileNotFoundError:
-        raise SceneError(f"{path}: no such scene file") from None
-    except OSError as exc:
-        raise SceneError(f"{path}: cannot read: {exc.strerror or exc}") from exc
-    try:
-        return tomllib.loads(raw.decode("utf-8"))
+        return checked_depth(path, tomllib.loads(raw.decode("utf-8")))
     except UnicodeDecodeError as exc:
         raise SceneError(f"{path}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
     except tomllib.TOMLDecodeError as exc:
         # tomllib says "... (at line L, column C)": keep it, it is what the user needs.
         raise SceneError(f"{path}: TOML syntax error: {exc}") from None
+    except RecursionError:  # inline tables or arrays nested hundreds deep
+        raise SceneError(f"{path}: nested more than {MAX_SCENE_DEPTH} levels deep (tables and arrays)") from None
+
+
+def _read_bounded(path: Path) -> bytes:
+    """The bytes of the regular file ``path``, at most ``MAX_SCENE_BYTES`` of them."""
+    try:
+        # O_NONBLOCK: opening a FIFO must not wait for a writer before fstat can refuse it.
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
+    except FileNotFoundError:
+        raise SceneError(f"{path}: no such scene file") from None
+    except OSError as exc:
+        raise SceneError(f"{path}: cannot read: {exc.strerror or exc}") from exc
+    with os.fdopen(fd, "rb") as fh:
+        mode = os.fstat(fd).st_mode
+        if not stat.S_ISREG(mode):
+            raise SceneError(f"{path}: not a scene file (it is {file_kind(mode)})")
+        try:
+            raw = fh.read(MAX_SCENE_BYTES + 1)
+        except OSError as exc:
+            raise SceneError(f"{path}: cannot read: {exc.strerror or exc}") from exc
+    if len(raw) > MAX_SCENE_BYTES:
+        raise SceneError(f"{path}: larger than {MAX_SCENE_BYTES} bytes, which no scene needs")
+    return raw
+
+
+def checked_depth(path: Path, data: dict[str, Any]) -> dict[str, Any]:
+    """``data`` when its tables and arrays nest at most ``MAX_SCENE_DEPTH`` deep (dotted keys
+    nest without brackets, so the parsed content is measured); SceneError otherwise."""
+    level = [data]
+    for _ in range(MAX_SCENE_DEPTH + 1):
+        level = [child for node in level for child in (node.values() if isinstance(node, dict) else node)
+                 if isinstance(child, (dict, list))]
+        if not level:
+            return data
+    raise SceneError(f"{path}: nested more than {MAX_SCENE_DEPTH} levels deep (tables and arrays)")
 
 
 def scene_info(path: Path) -> dict[str, Any]:

@@ -56,7 +56,7 @@ from ..relaxed.simulate import MAX_STEPS as SIMULATE_MAX_STEPS
 from ..output.summary import run_summary
 from .fields import check_keys, describe, field_error, table_at
 from .controller import scene_controller
-from .files import apply_overrides, read_toml, resolve_scene_path
+from .files import apply_overrides, checked_depth, read_toml, resolve_scene_path
 
 CORE_SECTIONS = ("scene", "robot", "effects", "initial", "integrator", "output", "controller")
 TOOL_SECTIONS = ("orbit", "certify", "stochastic", "zeno", "stress", "bench")
@@ -125,7 +125,8 @@ class Scene:
     integrator: method, h (s), eps (guard units), t_final (s), t0 (s), max_transitions,
         max_halvings, max_steps (bound on (t_final - t0) / h, checked at loading), landing
         ("halve", "aim" or "dense"), rtol and atol (None unless error-controlled).
-    output: rrd, html, plot paths (str) or None.
+    output: rrd, html, plot paths (str, relative to the scene's folder) or None; ``output_paths``
+        resolves them.
     sections: the tool sections present (``orbit``, ``certify``, ...), as tables.
     data: the scene's TOML content after overrides.
     overrides: the ``key.path=value`` overrides applied.
@@ -168,6 +169,24 @@ class Scene:
         if ref is not None and hasattr(ref, "with_initial"):
             return ref.with_initial(self.initial_mode, self.initial_state.copy())
         return ref
+
+    def output_paths(self, out_dir: str | os.PathLike | None = None) -> dict[str, Path]:
+        """kind -> file of each ``[output]`` of this scene, resolved against ``out_dir`` or else the
+        scene's own folder. SceneError naming the file and field when a symbolic link on the way
+        leads out of that folder (a downloaded scene may bring one)."""
+        base = Path(out_dir) if out_dir is not None else self.path.parent
+        real_base = os.path.realpath(base)
+        out: dict[str, Path] = {}
+        for kind, relative in self.output.items():
+            if not relative:
+                continue
+            target = base / relative
+            real = os.path.realpath(target)
+            if os.path.commonpath([real_base, real]) != real_base:
+                raise field_error(self.path, f"output.{kind}", f"{relative!r} leads out of {base} to {real} through a "
+                                                                f"symbolic link; give --{kind} FILE to write there")
+            out[kind] = target
+        return out
 
     def simulate(self, progress: Callable[[float, float, float], None] | None = None) -> Execution:
         """Run the relaxed integrator with the scene's settings.
@@ -253,7 +272,7 @@ def load_scene(path_or_name: str | os.PathLike, overrides: Sequence[str] = ()) -
     path = resolve_scene_path(path_or_name)
     data = read_toml(path)
     applied = apply_overrides(data, overrides)
-    return _validate(path, data, applied)
+    return _validate(path, checked_depth(path, data), applied)
 
 
 def _validate(path: Path, data: dict[str, Any], overrides: list[str]) -> Scene:
@@ -366,14 +385,31 @@ def _integrator(path: Path, table: dict[str, Any]) -> dict[str, Any]:
 
 
 def _output(path: Path, table: dict[str, Any]) -> dict[str, str | None]:
+    """The ``[output]`` paths, each relative and inside the scene's folder (see ``output_paths``)."""
     check_keys(path, table, OUTPUT_KEYS, "output")
     out: dict[str, str | None] = {}
     for key in OUTPUT_KEYS:
         value = table.get(key)
-        if value is not None and (not isinstance(value, str) or not value.strip()):
-            raise field_error(path, f"output.{key}", f"expected a file path (string), got {describe(value)}")
+        if value is not None:
+            _check_output_path(path, f"output.{key}", value)
         out[key] = value
     return out
+
+
+def _check_output_path(path: Path, where: str, value: Any) -> None:
+    """A scene may come from someone else: its output paths may only name files in its own
+    folder (or ``--out-dir``), never an absolute path or one that climbs out with ``..``."""
+    if not isinstance(value, str) or not value.strip():
+        raise field_error(path, where, f"expected a file path (string), got {describe(value)}")
+    if "\x00" in value:
+        raise field_error(path, where, f"{value!r} contains a NUL character")
+    if os.path.isabs(value) or os.path.splitdrive(value)[0]:
+        raise field_error(path, where, f"{value!r} is an absolute path; a scene's outputs are relative to its "
+                                       f"folder (or --out-dir); give --{where.split('.')[-1]} FILE to write elsewhere")
+    normal = os.path.normpath(value)
+    if normal == os.curdir or normal == os.pardir or normal.startswith(os.pardir + os.sep):
+        raise field_error(path, where, f"{value!r} leaves the scene's folder; a scene's outputs stay inside its "
+                                       f"folder (or --out-dir); give --{where.split('.')[-1]} FILE to write elsewhere")
 
 
 def _known_modes(model: Model) -> list[str]:

@@ -75,3 +75,24 @@ def test_replay_through_the_cli(hopper_run, capsys):
     assert json.loads(capsys.readouterr().out)["mode_sequence"] == ex.mode_sequence
     assert cli.main(["replay", str(Path(path).with_name("missing.rrd"))]) == 2
     assert "missing.rrd: no such recording file" in capsys.readouterr().err
+
+
+def test_replay_never_writes_over_the_recording_it_reads(hopper_run, tmp_path):
+    from legsim.errors import OutputError
+
+    _, _, path, _ = hopper_run
+    # A copy named like a page: only its identity with the input refuses it.
+    page = tmp_path / "hopper.html"
+    page.write_bytes(Path(path).read_bytes())
+    before = page.read_bytes()
+    with pytest.raises(OutputError, match=rf"^--html {page}: is an input of this run"):
+        _replay(page, html=page)
+    assert page.read_bytes() == before and sorted(p.name for p in tmp_path.iterdir()) == ["hopper.html"]
+
+
+def test_replay_writes_its_outputs_through_temporary_files(hopper_run, tmp_path, capsys):
+    _, _, path, data = hopper_run
+    assert _replay(path, plot=tmp_path / "p.png", html=tmp_path / "p.html") == 0
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["p.html", "p.png"]
+    assert (tmp_path / "p.png").read_bytes()[:4] == b"\x89PNG" and "<html" in (tmp_path / "p.html").read_text()
+    assert f"wrote {tmp_path / 'p.png'} (plot)" in capsys.readouterr().out

@@ -48,3 +48,43 @@ def test_a_fifo_or_directory_target_is_refused(tmp_path):
     assert stat.S_ISFIFO(fifo.stat().st_mode)
     with pytest.raises(OutputError, match="is a directory"):
         write_bytes_atomic(tmp_path, b"x")
+
+
+# -- what a run may write where ------------------------------------------------------------------
+def test_a_target_with_the_wrong_suffix_or_an_input_is_refused(tmp_path):
+    scene = tmp_path / "scene.toml"
+    scene.write_text("precious")
+    with pytest.raises(OutputError, match=r"^--rrd .*a\.png: unsupported format '\.png'; use one of \['\.rrd'\]$"):
+        write_bytes_atomic(tmp_path / "a.png", b"x", what="--rrd", suffixes=(".rrd",))
+    # Suffixes compare without case; an input is refused whatever its suffix says.
+    assert write_bytes_atomic(tmp_path / "A.RRD", b"x", suffixes=(".rrd",)).read_bytes() == b"x"
+    with pytest.raises(OutputError, match=r"is an input of this run .*scene\.toml\); refusing to overwrite it"):
+        write_bytes_atomic(tmp_path / "sub" / ".." / "scene.toml", b"x", what="--html", inputs=[scene])
+    assert scene.read_text() == "precious" and not (tmp_path / "sub").exists()
+
+
+def test_an_output_plan_refuses_two_outputs_on_one_file_before_writing_any(tmp_path):
+    from legsim.output.files import OutputPlan
+
+    plan = OutputPlan()
+    first = plan.add("plot", tmp_path / "out" / "a.png", what="--plot", suffixes=(".png",))
+    with pytest.raises(OutputError, match=r"^--figure .*a\.png: --plot writes the same file; give each output its "):
+        plan.add("figure", tmp_path / "out" / "." / "a.png", what="--figure")
+    # Planning creates nothing; writing through the plan does.
+    assert list(plan) == ["plot"] and not (tmp_path / "out").exists()
+    assert plan.write("plot", lambda tmp: tmp.write_bytes(b"png")) == first and first.read_bytes() == b"png"
+    assert sorted(p.name for p in first.parent.iterdir()) == ["a.png"]
+
+
+def test_a_folder_that_cannot_be_made_is_named_with_the_reason(tmp_path):
+    from legsim.output.files import check_folder
+
+    blocker = tmp_path / "afile"
+    blocker.write_text("x")
+    with pytest.raises(OutputError, match=rf"^--plot {blocker}/a/b.png: {blocker} is not a directory$"):
+        check_folder(blocker / "a" / "b.png", "--plot")
+    os.symlink(tmp_path / "gone", tmp_path / "dangling")
+    with pytest.raises(OutputError, match="dangling is a broken symbolic link"):
+        check_folder(tmp_path / "dangling" / "b.png", "--plot")
+    check_folder(tmp_path / "new" / "deeper" / "b.png", "--plot")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["afile", "dangling"]

@@ -1,14 +1,18 @@
-"""The html animation in a real headless browser (Debian's chromium): the page loads offline and
-its canvas shows the robot.
+"""The html animation in a real headless browser: the page loads offline and its canvas shows
+the robot.
 
-The set-up installs chromium with apt-get when /usr/bin/chromium is missing and skips, saying
-why, only when that fails. Robot parts are drawn in saturated flat colours on a white-to-gray
-background with a gray ground, so "pixels of the robot" are the saturated ones; a page with
-the same scenery and camera but no robot must have none.
+The browser is looked for, never installed: ``LEGSIM_BROWSER`` (a path; empty to leave the
+tests out), else ``chromium``, ``chromium-browser``, ``google-chrome`` or
+``google-chrome-stable`` on PATH. Without one every test here is skipped, and pytest's summary
+(``-ra``) says why; ``make test-browser`` installs Chromium first when it is missing. Robot
+parts are drawn in saturated flat colours on a white-to-gray background with a gray ground, so
+"pixels of the robot" are the saturated ones; a page with the same scenery and camera but no
+robot must have none.
 """
 
 from __future__ import annotations
 
+import os
 import shutil
 import subprocess
 from pathlib import Path
@@ -24,23 +28,32 @@ from legsim.viz.meshcat_anim import animation_html, write_html
 
 pytestmark = pytest.mark.browser
 
-CHROMIUM = "/usr/bin/chromium"
+BROWSER_ENV = "LEGSIM_BROWSER"
+BROWSERS = ("chromium", "chromium-browser", "google-chrome", "google-chrome-stable")
 WINDOW = (900, 650)
+
+
+def find_browser() -> tuple[str | None, str]:
+    """(the headless browser to use, or None; the reason when there is none)."""
+    if BROWSER_ENV in os.environ:
+        chosen = os.environ[BROWSER_ENV]
+        if not chosen:
+            return None, f"{BROWSER_ENV} is empty: browser tests switched off"
+        found = shutil.which(chosen)
+        return found, "" if found else f"{BROWSER_ENV}={chosen} is not an executable"
+    for name in BROWSERS:
+        found = shutil.which(name)
+        if found:
+            return found, ""
+    return None, (f"no headless Chromium on PATH (looked for {', '.join(BROWSERS)}); `make test-browser` "
+                  f"installs it, or set {BROWSER_ENV}=/path/to/chromium")
 
 
 @pytest.fixture(scope="module")
 def chromium() -> str:
-    found = shutil.which("chromium") or (CHROMIUM if Path(CHROMIUM).exists() else None)
-    if found:
-        return found
-    try:
-        subprocess.run(["apt-get", "update"], check=True, capture_output=True, timeout=300)
-        subprocess.run(["apt-get", "install", "-y", "chromium"], check=True, capture_output=True, timeout=900)
-    except (OSError, subprocess.SubprocessError) as exc:
-        pytest.skip(f"chromium is not installed and `apt-get install -y chromium` failed: {exc}")
-    found = shutil.which("chromium")
-    if not found:
-        pytest.skip("apt-get installed chromium but no chromium executable is on PATH")
+    found, reason = find_browser()
+    if found is None:
+        pytest.skip(reason)
     return found
 
 

@@ -1,0 +1,118 @@
+"""Issue 16, "half-written or left behind": SIGTERM during an output write ends the command
+like Ctrl-C (exit 143, no temporary file, the older file intact); SIGKILL, which nothing can
+catch, leaves a temporary file that the next write of the same output removes.
+
+Each case runs a real process that signals itself while its writer is half-way through the
+file, so the signal lands inside the write, every time."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+
+import pytest
+from helpers.reliability import temporaries, write_ball
+
+# A `legsim run` whose --plot writer writes half a file, sends itself SIGNAL, then finishes.
+RUN_WITH_SIGNAL = textwrap.dedent("""
+    import os, signal, sys
+    from pathlib import Path
+    import legsim.commands.run as run_module
+
+    real = run_module.find_writer
+    def find_writer(kind, source=""):
+        writer = real(kind, source)
+        def half_then_signal(execution, scene, path, **kw):
+            Path(path).write_bytes(b"half a figure" * 1000)
+            os.kill(os.getpid(), getattr(signal, sys.argv[1]))
+            writer(execution, scene, path, **kw)
+        half_then_signal.suffixes = writer.suffixes
+        return half_then_signal
+    run_module.find_writer = find_writer
+    from legsim.cli import main
+    sys.exit(main(sys.argv[2:]))
+""")
+
+# Execution.save whose numpy writer writes half the archive, then the process is killed.
+SAVE_WITH_SIGNAL = textwrap.dedent("""
+    import os, signal, sys
+    import numpy as np
+    from legsim.scene import load_scene
+
+    execution = load_scene(sys.argv[2]).simulate()
+    real = np.savez_compressed
+    def half_then_signal(fh, **arrays):
+        fh.write(b"PK half an archive" * 1000)
+        fh.flush()
+        os.kill(os.getpid(), getattr(signal, sys.argv[1]))
+        real(fh, **arrays)
+    if sys.argv[1] != "none":
+        np.savez_compressed = half_then_signal
+    execution.save(sys.argv[3])
+""")
+
+
+def run(script: str, *argv, cwd) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-c", script, *map(str, argv)], capture_output=True, text=True,
+                          timeout=300, cwd=cwd)
+
+
+def test_sigterm_while_writing_is_a_clean_shutdown(tmp_path):
+    scene = write_ball(tmp_path)
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "ball.png").write_bytes(b"yesterday's figure")
+    done = run(RUN_WITH_SIGNAL, "SIGTERM", "run", scene, "--plot", out / "ball.png", "-q", cwd=tmp_path)
+    assert done.returncode == 128 + signal.SIGTERM, done.stderr
+    assert done.stderr == "legsim: terminated\n"
+    assert temporaries(tmp_path) == []
+    assert (out / "ball.png").read_bytes() == b"yesterday's figure"
+
+
+def test_the_temporary_of_a_killed_run_is_removed_by_the_next_write(tmp_path):
+    scene = write_ball(tmp_path)
+    target = tmp_path / "out" / "ball.png"
+    killed = run(RUN_WITH_SIGNAL, "SIGKILL", "run", scene, "--plot", target, "-q", cwd=tmp_path)
+    assert killed.returncode == -signal.SIGKILL
+    left = temporaries(tmp_path)
+    assert [p.parent for p in left] == [target.parent] and not target.exists()  # SIGKILL cannot be caught
+    done = run(RUN_WITH_SIGNAL.replace("os.kill(os.getpid(), getattr(signal, sys.argv[1]))", "pass"), "SIGKILL",
+               "run", scene, "--plot", target, "-q", cwd=tmp_path)
+    assert done.returncode == 0, done.stderr
+    assert temporaries(tmp_path) == [] and target.read_bytes()[:4] == b"\x89PNG"
+
+
+@pytest.mark.parametrize("sig", ["SIGTERM", "SIGKILL"])
+def test_a_killed_save_leaves_nothing_after_the_next_save(tmp_path, sig):
+    from legsim import Execution
+
+    scene = write_ball(tmp_path)
+    target = tmp_path / "run.npz"
+    killed = run(SAVE_WITH_SIGNAL, sig, scene, target, cwd=tmp_path)
+    assert killed.returncode == -getattr(signal, sig) and not target.exists()
+    # A program using the library keeps Python's own SIGTERM handling (the process ends at
+    # once): what it leaves is removed by the next save of that file.
+    done = run(SAVE_WITH_SIGNAL, "none", scene, target, cwd=tmp_path)
+    assert done.returncode == 0, done.stderr
+    assert temporaries(tmp_path) == [] and Execution.load(target).status == "finished"
+
+
+def test_a_live_writers_temporary_is_left_alone(tmp_path):
+    # Another process writing the same target right now: its file is not a leftover.
+    from legsim.output.files import remove_stale_temporaries, temporary_name
+
+    target = tmp_path / "a.png"
+    ours = temporary_name(target)
+    ours.write_bytes(b"being written")
+    sleeper = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
+    try:
+        theirs = tmp_path / ours.name.replace(f".{os.getpid()}-", f".{sleeper.pid}-")
+        theirs.write_bytes(b"being written elsewhere")
+        assert remove_stale_temporaries(target) == []
+    finally:
+        sleeper.kill()
+        sleeper.wait()
+    assert remove_stale_temporaries(target) == [theirs] and ours.exists()
