@@ -34,7 +34,8 @@ MANIFEST = "sweep.json"
 TIMING_COLUMNS = ("wall_time_s",)
 
 _F64, _I64, _STR, _BOOL = pa.float64(), pa.int64(), pa.string(), pa.bool_()
-_VECTOR = pa.list_(pa.float64())
+# Lists named as Parquet names them ("element"), so a table read back has this same schema.
+_VECTOR = pa.list_(pa.field("element", pa.float64()))
 
 BASE_COLUMNS = {"task_status": _STR, "error": _STR}
 
@@ -92,7 +93,9 @@ def to_table(rows: Iterable[dict[str, Any]], table_schema: pa.Schema) -> pa.Tabl
 
 
 def write_table(path: Path, table: pa.Table, what: str) -> Path:
-    """Write ``table`` to ``path`` atomically, with fixed settings (same table, same bytes)."""
+    """Write ``table`` to ``path`` atomically, with fixed settings and as one chunk per column,
+    so that the same rows give the same bytes however they were batched."""
+    table = table.combine_chunks()
     return write_atomic(path, lambda tmp: pq.write_table(table, tmp, compression="zstd"), what=what)
 
 

@@ -117,6 +117,8 @@ class _Walker:
         p = self.problem
         last_return = t
         while True:
+            if self.progress is not None:  # a deadline: checked between runs too
+                self.progress(t, t, t)
             ex = self.flow(mode, x, t, last_return + p.t_max)
             for t_hit, x_hit in self.crossings(ex, last_return):
                 last_return = t_hit
