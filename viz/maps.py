@@ -123,12 +123,13 @@ def stability_figure(table: Any, info: Mapping[str, Any]):
     fig.colorbar(mesh, ax=ax, label="spectral radius of the Floquet multipliers")
     handles = [Line2D([], [], color="0.85", marker="s", linestyle="none", markersize=10, label="no orbit found")]
     if len(xs) > 1 and len(ys) > 1 and np.isfinite(rho).sum() >= 4:
-        ax.contour(xs, ys, np.ma.masked_invalid(rho), levels=[1.0], colors="black", linewidths=2)
+        ax.contour(xs, ys, np.ma.masked_invalid(rho), levels=[1.0], colors="black", linewidths=2).set_gid(
+            "stability_boundary")
         handles.append(Line2D([], [], color="black", lw=2, label="stability boundary (radius 1)"))
         pd = np.array([[_most_negative_real(a, b, s) for a, b, s in zip(ra, ia, sr)] for ra, ia, sr in zip(re, im, status)])
         if np.nanmin(pd, initial=np.inf) < -1.0 < np.nanmax(pd, initial=-np.inf):
             ax.contour(xs, ys, np.ma.masked_invalid(pd), levels=[-1.0], colors="blue", linewidths=2,
-                       linestyles="dashed")
+                       linestyles="dashed").set_gid("period_doubling")
             handles.append(Line2D([], [], color="blue", lw=2, ls="--",
                                   label="period doubling (a multiplier through -1)"))
     ax.legend(handles=handles, loc="best", fontsize=8, framealpha=0.85)

@@ -215,7 +215,8 @@ def _connect(scheduler: str | None, workers: int | None) -> tuple[Any, Any]:
             raise
         return client, None
     n = workers or default_workers()
-    cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
+    # The dashboard on a free port: the default 8787 may be another cluster's on a shared machine.
+    cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
                            silence_logs=logging.ERROR)
     return Client(cluster), cluster
 
