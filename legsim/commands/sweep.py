@@ -101,7 +101,7 @@ def run(args: argparse.Namespace) -> int:
 def format_summary(s: dict[str, Any]) -> str:
     """The text report of ``legsim sweep``."""
     lines = [f"{s['scene']}: {s['variations']} variations ({s['computed']} run now, {s['resumed']} already done) "
-             f"in {s['elapsed_s']:.1f} s on {s['where']}",
+             f"in {s['elapsed_s']:.1f} s on {s['where']} (started in {s['startup_s']:.1f} s)",
              "tasks: " + ", ".join(f"{k} {v}" for k, v in sorted(s["task_status"].items()))]
     for column, label in (("outcome", "walks"), ("status", "runs"), ("orbit_status", "orbit searches"),
                           ("orbit_stable", "stable orbits")):

@@ -27,7 +27,8 @@ class SweepResult:
 
     table: every row, sorted by index (``legsim.sweep.table`` lists the columns); results: the
     Parquet file (None without an output folder); figures: kind -> file; computed: rows run this
-    time; resumed: rows already done; elapsed_s: wall time of this run (s); where: the engine.
+    time; resumed: rows already done; elapsed_s: wall time of this run once the engine was up
+    (s); startup_s: starting or reaching the engine (s); where: the engine.
     """
 
     spec: SweepSpec
@@ -37,6 +38,7 @@ class SweepResult:
     resumed: int
     elapsed_s: float
     where: str
+    startup_s: float = 0.0
     figures: dict[str, Path] = field(default_factory=dict)
 
     def counts(self, column: str) -> dict[str, int]:
@@ -48,7 +50,8 @@ class SweepResult:
     def summary(self) -> dict[str, Any]:
         """JSON-ready summary of the sweep (``legsim sweep --json``)."""
         out = {"scene": self.spec.scene, "variations": len(self.spec), "computed": self.computed,
-               "resumed": self.resumed, "elapsed_s": self.elapsed_s, "where": self.where,
+               "resumed": self.resumed, "elapsed_s": self.elapsed_s, "startup_s": self.startup_s,
+               "where": self.where,
                "task_status": self.counts("task_status"), "results": None if self.results is None else str(self.results),
                "figures": {k: str(v) for k, v in self.figures.items()}}
         for column in ("status", "outcome", "orbit_status", "orbit_stable"):
@@ -69,6 +72,8 @@ def run_sweep(spec: SweepSpec, *, out: str | Path | None = None, resume: bool = 
     start = time.perf_counter()
     engine = Engine(workers=workers, scheduler=scheduler, in_process=in_process or not todo, batch_size=batch_size)
     with engine:
+        startup = time.perf_counter() - start
+        start = time.perf_counter()
         if log is not None:
             log(f"{len(todo)} of {len(spec)} variation(s) to run on {engine.where}")
         if store is not None:
@@ -89,7 +94,7 @@ def run_sweep(spec: SweepSpec, *, out: str | Path | None = None, resume: bool = 
                 # Interrupted or not, the rows finished so far make the table.
                 table = store.assemble() if store is not None else to_table(sorted(rows, key=_index), schema(spec))
     result = SweepResult(spec, table, None if store is None else store.results, len(todo), len(done),
-                         time.perf_counter() - start, engine.where)
+                         time.perf_counter() - start, engine.where, startup)
     if store is not None and figures:
         result.figures = write_figures(result, store.folder, fixed_point)
     return result

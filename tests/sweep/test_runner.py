@@ -188,3 +188,16 @@ def test_a_walk_sweep_draws_the_basin_and_an_orbit_sweep_the_stability_map(tmp_p
         assert row["orbit_spectral_radius"] == pytest.approx(math.cos(math.pi / 5) ** 2, rel=1e-6)
         assert row["orbit_stable"] is True
     assert (tmp_path / "o" / "stability.png").stat().st_size > 0
+
+
+def test_orbit_rows_place_the_compass_gaits_period_doubling_where_continuation_does():
+    # `legsim orbit compass_gait --continue slope 3 6` locates the period doubling at
+    # slope 4.3909 (README): the sweep's independent orbit searches on either side agree.
+    result = legsim.sweep("compass_gait", grid={"robot.parameters.slope": [4.2, 4.6]}, run=False, orbit=True,
+                          in_process=True)
+    below, above = result.table.to_pylist()
+    assert below["orbit_status"] == above["orbit_status"] == "converged"
+    assert below["orbit_spectral_radius"] < 1 < above["orbit_spectral_radius"]
+    assert below["orbit_stable"] is True and above["orbit_stable"] is False
+    real = [re for re, im in zip(above["orbit_multipliers_re"], above["orbit_multipliers_im"]) if im == 0.0]
+    assert min(real) < -1.0  # through -1: a period doubling
