@@ -151,8 +151,12 @@ class _Walker:
     def flow(self, mode: str, x: np.ndarray, t: float, t_final: float) -> Execution:
         """The relaxed run from (mode, x) at t up to the guard point of the next transition."""
         p = self.problem
+        # The landing rule and halving budget of the problem where it carries them, as its
+        # return map runs (so the gait's fixed point is one of these steps'); simulate's
+        # defaults otherwise.
+        rules = {key: getattr(p, key) for key in ("landing", "max_halvings") if hasattr(p, key)}
         ex = simulate(self.system, x, mode, max(t_final, t + p.h), p.h, p.eps, p.tableau, self.control, t0=t,
-                      max_transitions=0, rtol=p.rtol, atol=p.atol, progress=self.progress)
+                      max_transitions=0, rtol=p.rtol, atol=p.atol, progress=self.progress, **rules)
         for key in COUNTERS:
             self.counters[key] += ex.counters.get(key, 0)
         return ex
