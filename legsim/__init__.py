@@ -3,6 +3,7 @@
 Public API::
 
     from legsim import HybridSystem, Mode, Transition, simulate, Execution
+    legsim.sweep(scene, grid=..., walk=..., orbit=..., out=...)   # many variations on Dask
 """
 
 from .errors import LegsimError, ModelError, SceneError, SimulationError
@@ -10,11 +11,12 @@ from .execution import Execution, Samples, Segment, Strip, TransitionRecord
 from .hybrid import Continuation, HybridSystem, Mode, Transition
 from .methods import METHODS, Tableau, get_method
 from .relaxed import simulate
+from . import sweep  # callable: legsim.sweep(...) runs a sweep (Dask is imported only then)
 
 __version__ = "0.1.0"
 
 __all__ = [
     "Continuation", "Execution", "HybridSystem", "LegsimError", "METHODS", "Mode", "ModelError", "Samples", "SceneError",
     "Segment", "SimulationError", "Strip", "Tableau", "Transition", "TransitionRecord", "get_method",
-    "simulate", "__version__",
+    "simulate", "sweep", "__version__",
 ]

@@ -512,6 +512,14 @@ class Ensemble:
         }
 
 
+def sample_generator(seed: int | None, index: int) -> np.random.Generator:
+    """The random generator of execution ``index`` of an ensemble seeded by ``seed``: child
+    ``index`` of ``numpy.random.SeedSequence(seed)`` (independent streams, numpy's way of
+    seeding parallel work). ``seed`` None draws fresh entropy: such an ensemble is not
+    reproducible, and its executions are drawn from unrelated streams."""
+    return np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(int(index),)))
+
+
 def sample_ensemble(
     system: HybridSystem,
     mode: str,
@@ -531,28 +539,34 @@ def sample_ensemble(
     carry: bool = True,
     hazard_cap: float = HAZARD_CAP,
     progress: Callable[[int, int], None] | None = None,
+    indices: Sequence[int] | None = None,
 ) -> Ensemble:
-    """``samples`` independent stochastic executions (one numpy Generator seeded by ``seed``).
+    """``samples`` independent stochastic executions. Execution k draws from its own numpy
+    Generator, ``sample_generator(seed, k)``, so that its draws do not depend on the executions
+    before it: any subset (``indices``, e.g. one batch of a Monte Carlo run spread over
+    processes, ``legsim.sweep.stochastic``) gives the same executions as the whole ensemble.
     The first visit's numerical flow is computed once and shared, as every sample starts it
-    from the same state. ``samples`` is at most ``MAX_SAMPLES``; ``progress(done, samples)``,
+    from the same state. ``samples`` is at most ``MAX_SAMPLES``; ``progress(done, total)``,
     when given, is called after each execution."""
     if isinstance(samples, bool) or not isinstance(samples, (int, np.integer)) or not 1 <= samples <= MAX_SAMPLES:
         raise SimulationError(f"samples must be an integer in [1, {MAX_SAMPLES}], got {samples!r}")
+    chosen = range(int(samples)) if indices is None else [int(k) for k in indices]
+    if any(not 0 <= k < samples for k in chosen):
+        raise SimulationError(f"indices must lie in [0, {samples}), got {list(chosen)[:10]}")
     x = check_start(system, mode, x0)
     h = positive("h", h)
     _check_form(intensity)
     cap = _check_hazard_cap(hazard_cap)
     t_final = check_t_final(t_final, t0)
-    rng = np.random.default_rng(seed)
     estimator = LocalErrorEstimator(method, pair, floor)
     first = _Visit(ModeFlow(system, mode, x, float(t0), h, estimator, control=control, t_end=t_final), intensity, cap)
     runs = []
-    for k in range(int(samples)):
-        runs.append(sample_execution(system, mode, x, t_final, h, method, rng=rng, t0=t0, pair=pair, control=control,
-                                     floor=floor, intensity=intensity, max_transitions=max_transitions, carry=carry,
-                                     hazard_cap=cap, _first=first))
+    for done, k in enumerate(chosen, 1):
+        runs.append(sample_execution(system, mode, x, t_final, h, method, rng=sample_generator(seed, k), t0=t0,
+                                     pair=pair, control=control, floor=floor, intensity=intensity,
+                                     max_transitions=max_transitions, carry=carry, hazard_cap=cap, _first=first))
         if progress is not None:
-            progress(k + 1, int(samples))
+            progress(done, len(chosen))
     settings = {"system": system.name, "initial_mode": mode, "h": h, "method": estimator.method.name,
                 "pair": estimator.pair.name, "floor": estimator.floor, "intensity": intensity, "carry": carry,
                 "hazard_cap": cap, "t_final": t_final, "seed": seed}
@@ -560,4 +574,4 @@ def sample_ensemble(
 
 
 __all__: Sequence[str] = ("Ensemble", "INTENSITIES", "MAX_SAMPLES", "StochasticExecution", "TransitionFunctions",
-                          "sample_ensemble", "sample_execution", "transition_functions")
+                          "sample_ensemble", "sample_execution", "sample_generator", "transition_functions")

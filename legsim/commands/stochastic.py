@@ -5,7 +5,11 @@ Settings come from the scene's ``[stochastic]`` section
 t_final, max_transitions, carry, hazard_cap), with h, method and t_final defaulting to
 ``[integrator]``; ``--samples`` and ``--seed`` override it.
 Prints the distribution of mode sequences and of the first switching times, beside the
-deterministic (relaxed) execution's switching times.
+deterministic (relaxed) execution's switching times; ``--plot FILE`` draws their histograms.
+
+With ``--workers N`` or ``--scheduler ADDRESS`` (or ``DASK_SCHEDULER_ADDRESS``) the executions
+are drawn in batches on the sweep engine's Dask cluster (``legsim.sweep.stochastic``); each
+execution has its own random stream, so the numbers are those of the serial run.
 
 Exit codes: 0 when every sampled execution reached t_final; 3 when some stopped early
 (transition budget, non-finite state, overflowing error bound); 2 for errors in the scene or
@@ -17,7 +21,9 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
+from pathlib import Path
 from typing import Any
 
 from ..errors import LegsimError
@@ -38,11 +44,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--switches", type=int, default=10, metavar="K",
                         help="summarise the first K switching times (default 10)")
     parser.add_argument("--quiet", "-q", action="store_true", help="no progress line")
+    parser.add_argument("--plot", metavar="FILE", help="write histograms of the switching times (.png, .pdf, .svg)")
+    parser.add_argument("--workers", type=int, default=None, metavar="N",
+                        help="draw the executions on an embedded Dask cluster of N worker processes")
+    parser.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                        help="draw them on a running Dask scheduler (default: $DASK_SCHEDULER_ADDRESS)")
 
 
 def run(args: argparse.Namespace) -> int:
     from ..scene import load_scene
     from ..scene.stochastic import ensemble_from_scene
+    from ..sweep import engine
 
     if args.samples is not None and args.samples < 1:
         raise LegsimError(f"--samples must be an integer >= 1, got {args.samples}")
@@ -51,18 +63,27 @@ def run(args: argparse.Namespace) -> int:
     if args.switches < 0:
         raise LegsimError(f"--switches must be >= 0, got {args.switches}")
     scene = load_scene(args.scene, overrides=args.overrides)
+    histogram = _histogram_writer(args.plot)
     counter = _SampleCounter(sys.stderr, scene.name) if not args.quiet and _isatty(sys.stderr) else None
+    settings = {"samples": args.samples, "seed": args.seed}
     try:
-        ensemble = ensemble_from_scene(scene, {"samples": args.samples, "seed": args.seed}, progress=counter)
+        if args.workers is not None or args.scheduler or os.environ.get(engine.SCHEDULER_ENV):
+            ensemble = _on_engine(args, scene, settings, counter)
+        else:
+            ensemble = ensemble_from_scene(scene, settings, progress=counter)
     finally:
         if counter is not None:
             counter.close()
     summary = ensemble.summary(max_switches=args.switches)
     summary["deterministic"] = _deterministic(scene, args.switches)
+    if histogram is not None:
+        summary["outputs"] = {"plot": str(_write_histograms(histogram, Path(args.plot), ensemble, summary))}
     if args.json:
         print(json.dumps(_finite(summary), allow_nan=False))
     else:
         print(format_summary(summary))
+        for kind, path in summary.get("outputs", {}).items():
+            print(f"wrote {path} ({kind})")
     if summary["max_radius"] == 0.0:
         print("legsim: note: the error bound is 0 along every execution (the method is exact on these fields and "
               "no floor is declared): the stochastic approximation is the deterministic system itself (paper 004's "
@@ -75,6 +96,38 @@ def run(args: argparse.Namespace) -> int:
               f"{stopped}; e.g. {example.status}: {example.message}", file=sys.stderr)
         return 3
     return 0
+
+
+def _on_engine(args: argparse.Namespace, scene: Any, settings: dict[str, Any], counter: Any) -> Any:
+    """The ensemble drawn on the sweep engine (Dask)."""
+    from ..sweep.engine import Engine
+    from ..sweep.spec import scene_reference
+    from ..sweep.stochastic import ensemble_on_engine
+
+    with Engine(workers=args.workers, scheduler=args.scheduler) as engine:
+        return ensemble_on_engine(scene, scene_reference(args.scene), settings, engine, progress=counter)
+
+
+def _histogram_writer(path: str | None) -> Any:
+    """The switching-time histogram writer, checked before the run (None without --plot)."""
+    if path is None:
+        return None
+    from .run import check_suffix, check_writable, find_writer
+
+    writer = find_writer("switching_histograms", "--plot")
+    check_writable(Path(path), "--plot")
+    check_suffix(writer, Path(path), "--plot")
+    return writer
+
+
+def _write_histograms(writer: Any, path: Path, ensemble: Any, summary: dict[str, Any]) -> Path:
+    from ..output.files import write_atomic
+
+    count = len(summary["switching_times"])
+    times = [ensemble.switching_times(i).tolist() for i in range(count)]
+    info = {"scene": summary.get("scene", summary["system"]), "samples": summary["samples"],
+            "deterministic": summary["deterministic"]["switching_times"]}
+    return write_atomic(path, lambda tmp: writer(times, info, tmp), what="--plot")
 
 
 def _isatty(stream) -> bool:

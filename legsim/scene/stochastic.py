@@ -8,7 +8,7 @@ samples the scene's stochastic approximation from its initial mode and state wit
 
 from __future__ import annotations
 
-from typing import Any, Callable
+from typing import Any, Callable, Sequence
 
 from ..builders import Param
 from ..stochastic import HAZARD_CAP, INTENSITIES, MAX_SAMPLES, Ensemble, sample_ensemble
@@ -39,15 +39,16 @@ def scene_settings(scene: Any, overrides: dict[str, Any] | None = None) -> dict[
 
 
 def ensemble_from_scene(scene: Any, overrides: dict[str, Any] | None = None, *,
-                        progress: Callable[[int, int], None] | None = None) -> Ensemble:
+                        progress: Callable[[int, int], None] | None = None,
+                        indices: Sequence[int] | None = None) -> Ensemble:
     """Monte Carlo ensemble of the scene's stochastic approximation (its ``[stochastic]``
     section, with defaults from ``[integrator]``) from the scene's initial mode and state;
-    ``progress`` as in ``sample_ensemble``."""
+    ``progress`` and ``indices`` (the executions to draw, default all) as in ``sample_ensemble``."""
     s = scene_settings(scene, overrides)
     ens = sample_ensemble(scene.model.system, scene.initial_mode, scene.initial_state, s["t_final"], s["h"],
                           s["method"], samples=s["samples"], seed=s["seed"], t0=start_time(scene),
                           pair=pair_argument(s), control=scene.model.control, floor=s["floor"],
                           intensity=s["intensity"], max_transitions=s["max_transitions"], carry=s["carry"],
-                          hazard_cap=s["hazard_cap"], progress=progress)
+                          hazard_cap=s["hazard_cap"], progress=progress, indices=indices)
     ens.settings["scene"] = scene.name
     return ens

@@ -1,0 +1,242 @@
+"""Where the batches run: Dask, on an embedded local cluster or a running scheduler, or this
+process.
+
+* default: an embedded ``distributed.LocalCluster`` of worker processes (one per core, or
+  ``workers``), one thread each (the runs are pure Python holding the GIL, so threads would
+  not run in parallel), started for the sweep and stopped after it;
+* ``scheduler=ADDRESS`` (or the ``DASK_SCHEDULER_ADDRESS`` environment variable): a Dask
+  cluster already running (``dask scheduler`` and ``dask worker`` processes on one machine or
+  many); the workers must have the same version of legsim installed;
+* ``in_process=True``: no Dask at all, the batches run one after another here (the reference
+  the engine's overhead is measured against).
+
+Batches. A task is a batch of items, so the engine's cost per task (scheduling, pickling, a
+round trip: about a millisecond) is paid once per batch: ``BatchSizer`` sizes each batch to
+``target_seconds`` of work from the cost per item measured so far, smaller towards the end so
+that the last batches finish together. The engine keeps two batches per worker in flight, so
+a worker never waits for the client, and hands each finished batch to ``on_done`` as it
+arrives. A batch whose task fails (a worker died, a result could not be unpickled) is handed
+over with the exception, and the sweep goes on.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import os
+import time
+from typing import Any, Callable, Iterator, Sequence
+
+from ..errors import LegsimError
+
+SCHEDULER_ENV = "DASK_SCHEDULER_ADDRESS"
+
+#: Seconds to wait for a scheduler to answer, and for its first worker.
+CONNECT_TIMEOUT = 20.0
+
+BatchFn = Callable[[Any, list], list]
+OnDone = Callable[[list, "list | BaseException"], None]
+
+
+class EngineError(LegsimError):
+    """The engine cannot start or reach its cluster; the message says which and why."""
+
+
+def default_workers() -> int:
+    """One worker per core available to this process."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # not on Linux
+        return max(1, os.cpu_count() or 1)
+
+
+def timed(fn: BatchFn, common: Any, batch: list) -> tuple[float, list]:
+    """``fn(common, batch)`` with its wall time (s) on the worker."""
+    start = time.perf_counter()
+    results = fn(common, batch)
+    return time.perf_counter() - start, results
+
+
+class BatchSizer:
+    """Batch sizes: ``first`` items until costs are known, then ``target_seconds`` of work at
+    the mean cost per item so far, at most ``max_size`` and at most an even share of what is
+    left over ``2 * workers`` batches (so that the sweep's tail is balanced)."""
+
+    def __init__(self, workers: int, target_seconds: float = 2.0, first: int = 1, max_size: int = 1000,
+                 fixed: int | None = None) -> None:
+        self.workers, self.target, self.first, self.max_size, self.fixed = workers, target_seconds, first, max_size, fixed
+        self.seconds = 0.0
+        self.items = 0
+
+    def record(self, seconds: float, items: int) -> None:
+        self.seconds += seconds
+        self.items += items
+
+    def size(self, remaining: int) -> int:
+        if self.fixed is not None:
+            return max(1, min(self.fixed, remaining))
+        if self.items == 0:
+            return max(1, min(self.first, remaining))
+        per_item = max(self.seconds / self.items, 1e-6)
+        share = math.ceil(remaining / (2 * self.workers))
+        return max(1, min(int(self.target / per_item), self.max_size, share, remaining))
+
+
+class Engine:
+    """Runs ``fn(common, batch)`` over batches of items (see the module docstring).
+
+    ``with Engine(workers=2) as engine: engine.run(fn, common, items, on_done)``.
+    """
+
+    def __init__(self, workers: int | None = None, scheduler: str | None = None, in_process: bool = False,
+                 batch_size: int | None = None, target_seconds: float = 2.0) -> None:
+        if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
+            raise EngineError(f"--workers must be an integer >= 1, got {workers!r}")
+        if batch_size is not None and (isinstance(batch_size, bool) or not isinstance(batch_size, int)
+                                       or batch_size < 1):
+            raise EngineError(f"--batch must be an integer >= 1, got {batch_size!r}")
+        if in_process and scheduler:
+            raise EngineError("--in-process and --scheduler exclude each other")
+        self.scheduler = None if in_process else (scheduler or os.environ.get(SCHEDULER_ENV) or None)
+        if self.scheduler and workers is not None:
+            raise EngineError(f"--workers sets the size of the embedded cluster; with a scheduler "
+                              f"({self.scheduler}) the cluster's own workers run the sweep")
+        self.in_process = in_process
+        self.requested = workers
+        self.batch_size, self.target_seconds = batch_size, target_seconds
+        self.client = None
+        self.cluster = None
+        self.workers = 1
+
+    @property
+    def where(self) -> str:
+        """Where the batches run, for messages."""
+        if self.in_process:
+            return "this process"
+        if self.scheduler:
+            return f"the Dask scheduler at {self.scheduler} ({self.workers} worker(s))"
+        return f"an embedded Dask cluster of {self.workers} worker process(es)"
+
+    def __enter__(self) -> "Engine":
+        if not self.in_process:
+            self.client, self.cluster = _connect(self.scheduler, self.requested)
+            self.workers = max(1, len(self.client.scheduler_info().get("workers", {})))
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        for part in (self.client, self.cluster):
+            if part is not None:
+                try:
+                    part.close()
+                except Exception:  # closing a cluster that is already going away
+                    pass
+        self.client = self.cluster = None
+
+    def run(self, fn: BatchFn, common: Any, items: Sequence[Any], on_done: OnDone) -> None:
+        """Run ``fn(common, batch)`` over ``items`` in batches; ``on_done(batch, results)`` (or
+        ``(batch, exception)``) for each batch as it finishes."""
+        sizer = BatchSizer(self.workers, self.target_seconds, first=1, fixed=self.batch_size)
+        batches = _batches(list(items), sizer)
+        if self.in_process:
+            for batch in batches:
+                try:
+                    seconds, results = timed(fn, common, batch)
+                except Exception as exc:
+                    on_done(batch, exc)
+                    continue
+                sizer.record(seconds, len(batch))
+                on_done(batch, results)
+            return
+        self._run_on_dask(fn, common, batches, sizer, on_done)
+
+    def _run_on_dask(self, fn: BatchFn, common: Any, batches: Iterator[list], sizer: BatchSizer,
+                     on_done: OnDone) -> None:
+        from distributed import as_completed
+
+        window = 2 * self.workers
+        in_flight: dict[str, tuple[Any, list]] = {}
+        queue = as_completed()
+
+        def submit() -> None:
+            batch = next(batches, None)
+            if batch is not None:
+                future = self.client.submit(timed, fn, common, batch, pure=False)
+                in_flight[future.key] = (future, batch)
+                queue.add(future)
+
+        for _ in range(window):
+            submit()
+        try:
+            for future in queue:
+                _, batch = in_flight.pop(future.key)
+                try:
+                    seconds, results = future.result()
+                except Exception as exc:
+                    on_done(batch, exc)
+                else:
+                    sizer.record(seconds, len(batch))
+                    on_done(batch, results)
+                future.release()
+                submit()
+        except BaseException:  # Ctrl-C or a failing on_done: stop what is still queued
+            self.client.cancel([future for future, _ in in_flight.values()])
+            raise
+
+
+def _batches(items: list, sizer: BatchSizer) -> Iterator[list]:
+    start = 0
+    while start < len(items):
+        size = sizer.size(len(items) - start)
+        yield items[start:start + size]
+        start += size
+
+
+def _connect(scheduler: str | None, workers: int | None) -> tuple[Any, Any]:
+    """(client, cluster): a client of the scheduler, or of a new embedded cluster (its cluster)."""
+    try:
+        from distributed import Client, LocalCluster
+    except ImportError as exc:
+        raise EngineError(f"the sweep engine needs Dask's distributed scheduler ({exc}); "
+                          f"pip install 'dask[distributed]', or run with --in-process") from exc
+    if scheduler:
+        try:
+            client = Client(scheduler, timeout=CONNECT_TIMEOUT)
+        except (OSError, TimeoutError) as exc:
+            raise EngineError(f"cannot reach the Dask scheduler at {scheduler}: {exc}") from exc
+        try:
+            client.wait_for_workers(1, timeout=CONNECT_TIMEOUT)
+            _check_workers(client, scheduler)
+        except (OSError, TimeoutError) as exc:
+            client.close()
+            raise EngineError(f"the Dask scheduler at {scheduler} has no worker (none joined within "
+                              f"{CONNECT_TIMEOUT:g} s): start one with `dask worker {scheduler}`") from exc
+        except BaseException:
+            client.close()
+            raise
+        return client, None
+    n = workers or default_workers()
+    # The dashboard on a free port: the default 8787 may be another cluster's on a shared machine.
+    cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
+                           silence_logs=logging.ERROR)
+    return Client(cluster), cluster
+
+
+def _check_workers(client: Any, scheduler: str) -> None:
+    """The scheduler's workers must run this version of legsim."""
+    from .. import __version__
+
+    try:
+        versions = client.run(_legsim_version)
+    except Exception as exc:
+        raise EngineError(f"the workers of the Dask scheduler at {scheduler} cannot run legsim "
+                          f"({type(exc).__name__}: {exc}); install legsim {__version__} where they run") from exc
+    wrong = {worker: version for worker, version in versions.items() if version != __version__}
+    if wrong:
+        raise EngineError(f"the workers of the Dask scheduler at {scheduler} run another legsim: {wrong}; "
+                          f"this is legsim {__version__}")
+
+
+def _legsim_version() -> str:
+    from .. import __version__
+
+    return __version__

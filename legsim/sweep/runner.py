@@ -1,0 +1,180 @@
+"""Running a sweep: check it, start the engine, stream the rows to the table, draw the maps."""
+
+from __future__ import annotations
+
+import sys
+import time
+from collections import Counter
+from contextlib import contextmanager, nullcontext
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable, Iterator
+
+import pyarrow as pa
+
+from .engine import Engine
+from .spec import SweepError, SweepSpec, corners, variation_overrides
+from .table import ResultStore, schema, to_table
+from .tasks import run_batch
+
+#: Names of the figure writers in the ``legsim.writers`` entry points, and their files.
+FIGURES = {"walk": ("basin_map", "basin.png"), "orbit": ("stability_map", "stability.png")}
+
+
+@dataclass
+class SweepResult:
+    """A finished (or resumed) sweep.
+
+    table: every row, sorted by index (``legsim.sweep.table`` lists the columns); results: the
+    Parquet file (None without an output folder); figures: kind -> file; computed: rows run this
+    time; resumed: rows already done; elapsed_s: wall time of this run once the engine was up
+    (s); startup_s: starting or reaching the engine (s); where: the engine.
+    """
+
+    spec: SweepSpec
+    table: pa.Table
+    results: Path | None
+    computed: int
+    resumed: int
+    elapsed_s: float
+    where: str
+    startup_s: float = 0.0
+    figures: dict[str, Path] = field(default_factory=dict)
+
+    def counts(self, column: str) -> dict[str, int]:
+        """How many rows hold each value of a column (``task_status``, ``outcome``, ...)."""
+        if column not in self.table.column_names:
+            return {}
+        return dict(Counter(v for v in self.table.column(column).to_pylist() if v is not None))
+
+    def summary(self) -> dict[str, Any]:
+        """JSON-ready summary of the sweep (``legsim sweep --json``)."""
+        out = {"scene": self.spec.scene, "variations": len(self.spec), "computed": self.computed,
+               "resumed": self.resumed, "elapsed_s": self.elapsed_s, "startup_s": self.startup_s,
+               "where": self.where,
+               "task_status": self.counts("task_status"), "results": None if self.results is None else str(self.results),
+               "figures": {k: str(v) for k, v in self.figures.items()}}
+        for column in ("status", "outcome", "orbit_status", "orbit_stable"):
+            if column in self.table.column_names:
+                out[column] = {str(k): v for k, v in self.counts(column).items()}
+        return out
+
+
+def run_sweep(spec: SweepSpec, *, out: str | Path | None = None, resume: bool = False, workers: int | None = None,
+              scheduler: str | None = None, in_process: bool = False, batch_size: int | None = None,
+              progress: bool = False, figures: bool = True, log: Callable[[str], None] | None = None) -> SweepResult:
+    """Run every variation of ``spec`` not done yet (see ``legsim.sweep.sweep`` for the arguments)."""
+    fixed_point = check_sweep(spec)
+    store = ResultStore(out, spec) if out is not None else None
+    done = store.prepare(resume) if store is not None else set()
+    todo = [i for i in range(len(spec)) if i not in done]
+    rows: list[dict[str, Any]] = []
+    start = time.perf_counter()
+    engine = Engine(workers=workers, scheduler=scheduler, in_process=in_process or not todo, batch_size=batch_size)
+    with engine:
+        startup = time.perf_counter() - start
+        start = time.perf_counter()
+        if log is not None:
+            log(f"{len(todo)} of {len(spec)} variation(s) to run on {engine.where}")
+        if store is not None:
+            store.start()
+        with _progress_bar(progress, len(spec), len(done)) as advance:
+            def on_done(batch: list, results: Any) -> None:
+                if isinstance(results, BaseException):
+                    results = [failed_row(index, values, results) for index, values in batch]
+                if store is not None:
+                    store.add(results)
+                else:
+                    rows.extend(results)
+                advance(len(results))
+
+            try:
+                engine.run(run_batch, spec, list(spec.items(todo)), on_done)
+            finally:
+                # Interrupted or not, the rows finished so far make the table.
+                table = store.assemble() if store is not None else to_table(sorted(rows, key=_index), schema(spec))
+    result = SweepResult(spec, table, None if store is None else store.results, len(todo), len(done),
+                         time.perf_counter() - start, engine.where, startup)
+    if store is not None and figures:
+        result.figures = write_figures(result, store.folder, fixed_point)
+    return result
+
+
+def _index(row: dict[str, Any]) -> int:
+    return row["index"]
+
+
+def failed_row(index: int, values: dict[str, Any], exc: BaseException) -> dict[str, Any]:
+    """The row of a variation whose whole batch failed on its worker (a worker that died)."""
+    return {"index": index, **values, "task_status": "error",
+            "error": f"the batch failed on its worker: {type(exc).__name__}: {exc}"}
+
+
+def check_sweep(spec: SweepSpec) -> dict[str, float] | None:
+    """Load the scene at every axis's ends, so that a wrong field or value is reported before
+    anything runs; for a walk, the reference gait of the scene (its fixed point by coordinate,
+    None when the walks vary the model, each then finding its own)."""
+    from ..scene import load_scene
+    from ..scene.orbit import problem_from_scene
+
+    base = load_scene(spec.scene, list(spec.overrides))
+    for values in corners(spec):
+        load_scene(spec.scene, list(spec.overrides) + variation_overrides(values))
+    if spec.run == "walk" or spec.orbit:
+        problem_from_scene(base)  # the [orbit] section is there and valid
+    if spec.run != "walk" or any(not k.startswith("initial.") for k in spec.keys):
+        return None
+    from .tasks import reference_gait
+
+    gait = reference_gait(spec, {})
+    if not gait.converged:
+        raise SweepError(f"{base.path}: the walks need the scene's gait, and its orbit search ended with "
+                         f"{gait.status}: {gait.message}")
+    return dict(zip(gait.state_names, (float(v) for v in gait.fixed_point)))
+
+
+@contextmanager
+def _progress_bar(enabled: bool, total: int, done: int) -> Iterator[Callable[[int], None]]:
+    """``advance(n)`` for a rich progress bar on stderr (done / total, elapsed, ETA) when
+    enabled and stderr is a terminal; a no-op otherwise."""
+    if not (enabled and _isatty(sys.stderr)):
+        yield lambda n: None
+        return
+    from rich.console import Console
+    from rich.progress import (BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn,
+                               TimeRemainingColumn)
+
+    columns = (TextColumn("sweep"), BarColumn(), MofNCompleteColumn(), TextColumn("elapsed"), TimeElapsedColumn(),
+               TextColumn("ETA"), TimeRemainingColumn())
+    with Progress(*columns, console=Console(file=sys.stderr), transient=True) as bar:
+        task = bar.add_task("sweep", total=total, completed=done)
+        yield lambda n: bar.advance(task, n)
+
+
+def _isatty(stream: Any) -> bool:
+    try:
+        return bool(stream.isatty())
+    except (AttributeError, ValueError):
+        return False
+
+
+def write_figures(result: SweepResult, folder: Path, fixed_point: dict[str, float] | None) -> dict[str, Path]:
+    """The maps of a sweep over a two-axis grid: the basin of attraction of walks, the stability
+    map of orbit searches (``legsim.viz.maps``, found through the ``legsim.writers`` entry
+    points); none for other shapes."""
+    spec = result.spec
+    if len(spec.grid) != 2 or spec.random:
+        return {}
+    from ..commands.run import find_writer
+    from ..output.files import write_atomic
+
+    wanted = [kind for kind in ("walk", "orbit") if (kind == "walk" and spec.run == "walk") or
+              (kind == "orbit" and spec.orbit)]
+    written = {}
+    info = {"x": spec.grid[0].key, "y": spec.grid[1].key, "fixed_point": fixed_point, "scene": spec.scene}
+    for kind in wanted:
+        name, filename = FIGURES[kind]
+        writer = find_writer(name, f"the {name} figure")
+        written[name] = write_atomic(folder / filename, lambda tmp, w=writer: w(result.table, info, tmp),
+                                     what=f"--out {name} figure")
+    return written

@@ -1,0 +1,268 @@
+"""What a sweep runs: the scene, its variations (grids and random draws over scene fields) and
+the measures asked of every run, as one JSON-ready ``SweepSpec`` that is stored beside the
+results (``sweep.json``) so that ``--resume`` can check it is continuing the same sweep.
+
+Variations
+----------
+A variation sets scene fields by their dotted path, exactly as ``--set`` does
+(``initial.state.thetad``, ``robot.parameters.slope``, ``integrator.h``):
+
+* ``grid``: ``KEY=LO:HI:N`` (N values evenly spaced from LO to HI, both included) or
+  ``KEY=V1,V2,...`` (the values listed, read as TOML literals). Several grids make the
+  Cartesian product, the first axis varying slowest.
+* ``random``: ``KEY=LO:HI`` drawn uniformly in [LO, HI), ``samples`` draws from a numpy
+  generator seeded by ``seed``. With grids too, every grid cell is run with every draw (the
+  draws are shared: common random numbers).
+
+Variation ``index`` (0-based, the table's ``index`` column) is ``cell * samples + draw``.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import os
+import tomllib
+from dataclasses import asdict, dataclass, field
+from typing import Any, Iterator, Sequence
+
+import numpy as np
+
+from ..errors import LegsimError
+
+#: Most variations of one sweep: each is a row held in memory while the table is assembled.
+MAX_VARIATIONS = 10_000_000
+
+#: What a row's run is: the scene to its t_final, a walk until it falls or converges, or none.
+RUN_KINDS = ("scene", "walk", "none")
+
+
+class SweepError(LegsimError):
+    """A sweep is misdescribed (axes, measures, output folder); the message names the option."""
+
+
+@dataclass(frozen=True)
+class Axis:
+    """One varied scene field: ``key`` (dotted path) and its grid ``values``, or for a random
+    axis the interval ``[low, high)``."""
+
+    key: str
+    values: tuple[Any, ...] = ()
+    low: float | None = None
+    high: float | None = None
+
+    @property
+    def is_random(self) -> bool:
+        return self.low is not None
+
+
+@dataclass(frozen=True)
+class SweepSpec:
+    """A sweep, complete: everything its rows depend on.
+
+    scene: the scene file (absolute path) or bundled name; overrides: ``--set`` strings applied
+    to every variation first; grid, random: the axes; samples, seed: the random draws;
+    run: one of ``RUN_KINDS``; orbit: search each variation's periodic orbit; max_steps and
+    tol: a walk's step budget and its convergence tolerance (state units); timeout: seconds
+    one variation may take (None: no limit).
+    """
+
+    scene: str
+    overrides: tuple[str, ...] = ()
+    grid: tuple[Axis, ...] = ()
+    random: tuple[Axis, ...] = ()
+    samples: int = 1
+    seed: int = 0
+    run: str = "scene"
+    orbit: bool = False
+    max_steps: int = 20
+    tol: float = 1e-3
+    timeout: float | None = None
+    _draws: Any = field(default=None, init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        check_spec(self)
+
+    # -- the variations -------------------------------------------------------------------
+    @property
+    def keys(self) -> tuple[str, ...]:
+        """The varied fields, grid axes first."""
+        return tuple(a.key for a in self.grid + self.random)
+
+    @property
+    def cells(self) -> int:
+        return math.prod(len(a.values) for a in self.grid)
+
+    def __len__(self) -> int:
+        return self.cells * (self.samples if self.random else 1)
+
+    def values(self, index: int) -> dict[str, Any]:
+        """The field values of variation ``index``: key -> value."""
+        draws = self.samples if self.random else 1
+        cell, draw = divmod(index, draws)
+        out: dict[str, Any] = {}
+        for axis in reversed(self.grid):
+            cell, k = divmod(cell, len(axis.values))
+            out[axis.key] = axis.values[k]
+        out = {a.key: out[a.key] for a in self.grid}
+        if self.random:
+            row = self.draws()[draw]
+            out.update({a.key: float(v) for a, v in zip(self.random, row)})
+        return out
+
+    def draws(self) -> np.ndarray:
+        """The random draws, shape (samples, len(random)), made once."""
+        if self._draws is None:
+            rng = np.random.default_rng(self.seed)
+            low = np.array([a.low for a in self.random])
+            high = np.array([a.high for a in self.random])
+            object.__setattr__(self, "_draws", rng.uniform(low, high, size=(self.samples, len(self.random))))
+        return self._draws
+
+    def items(self, indices: Sequence[int] | None = None) -> Iterator[tuple[int, dict[str, Any]]]:
+        """(index, values) of the variations, all of them or those of ``indices``."""
+        for index in range(len(self)) if indices is None else indices:
+            yield index, self.values(index)
+
+    # -- persistence --------------------------------------------------------------------------
+    def to_json(self) -> dict[str, Any]:
+        out = asdict(self)
+        out.pop("_draws")
+        return out
+
+    @classmethod
+    def from_json(cls, data: dict[str, Any]) -> "SweepSpec":
+        axes = {k: tuple(Axis(a["key"], tuple(a["values"]), a["low"], a["high"]) for a in data[k])
+                for k in ("grid", "random")}
+        return cls(**{**data, **axes, "overrides": tuple(data["overrides"])})
+
+    def fingerprint(self) -> str:
+        """A hash of everything the rows depend on (``--resume`` continues only the same sweep)."""
+        text = json.dumps(self.to_json(), sort_keys=True, allow_nan=True)
+        return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def check_spec(spec: SweepSpec) -> None:
+    """SweepError naming the option for anything inconsistent."""
+    if spec.run not in RUN_KINDS:
+        raise SweepError(f"run must be one of {list(RUN_KINDS)}, got {spec.run!r}")
+    if spec.run == "none" and not spec.orbit:
+        raise SweepError("nothing to measure: the run is 'none' (--no-run) and no --orbit is asked for")
+    keys = [a.key for a in spec.grid + spec.random]
+    repeated = sorted({k for k in keys if keys.count(k) > 1})
+    if repeated:
+        raise SweepError(f"--grid/--random: field(s) {repeated} varied twice")
+    if isinstance(spec.samples, bool) or not isinstance(spec.samples, int) or spec.samples < 1:
+        raise SweepError(f"--samples must be an integer >= 1, got {spec.samples!r}")
+    if isinstance(spec.seed, bool) or not isinstance(spec.seed, int) or spec.seed < 0:
+        raise SweepError(f"--seed must be an integer >= 0, got {spec.seed!r}")
+    if isinstance(spec.max_steps, bool) or not isinstance(spec.max_steps, int) or spec.max_steps < 1:
+        raise SweepError(f"--max-steps must be an integer >= 1, got {spec.max_steps!r}")
+    if not (isinstance(spec.tol, (int, float)) and math.isfinite(spec.tol) and spec.tol > 0):
+        raise SweepError(f"--tol must be a finite number > 0, got {spec.tol!r}")
+    if spec.timeout is not None and not (isinstance(spec.timeout, (int, float)) and spec.timeout > 0):
+        raise SweepError(f"--timeout must be a number of seconds > 0, got {spec.timeout!r}")
+    if len(spec) > MAX_VARIATIONS:
+        raise SweepError(f"{len(spec)} variations, more than the limit {MAX_VARIATIONS:.0e}: check the grid sizes")
+
+
+# -- parsing the command line's axes ----------------------------------------------------------
+def parse_grid(text: str) -> Axis:
+    """``KEY=LO:HI:N`` or ``KEY=V1,V2,...`` into an Axis (values in scene units)."""
+    key, raw = _split(text, "--grid", "KEY=LO:HI:N or KEY=V1,V2,...")
+    if ":" in raw:
+        parts = raw.split(":")
+        if len(parts) != 3:
+            raise SweepError(f"--grid {text!r}: expected KEY=LO:HI:N, e.g. initial.state.thetad=-2:2:101")
+        low, high = (_number(p, text, "--grid") for p in parts[:2])
+        n = _number(parts[2], text, "--grid")
+        if not float(n).is_integer() or n < 1:
+            raise SweepError(f"--grid {text!r}: N must be an integer >= 1, got {parts[2]}")
+        values = np.linspace(low, high, int(n)) if n > 1 else np.array([low])
+        if isinstance(low, int) and isinstance(high, int) and np.all(values == np.round(values)):
+            return Axis(key, tuple(int(v) for v in values))
+        return Axis(key, tuple(float(v) for v in values))
+    values = tuple(_literal(v.strip(), text) for v in raw.split(","))
+    if any(v == "" for v in values):
+        raise SweepError(f"--grid {text!r}: an empty value in the list")
+    return Axis(key, values)
+
+
+def parse_random(text: str) -> Axis:
+    """``KEY=LO:HI`` into a random Axis, drawn uniformly in [LO, HI)."""
+    key, raw = _split(text, "--random", "KEY=LO:HI")
+    parts = raw.split(":")
+    if len(parts) != 2:
+        raise SweepError(f"--random {text!r}: expected KEY=LO:HI, e.g. robot.parameters.slope=2:5")
+    low, high = (float(_number(p, text, "--random")) for p in parts)
+    if not high > low:
+        raise SweepError(f"--random {text!r}: HI must be > LO")
+    return Axis(key, (), low, high)
+
+
+def _split(text: str, option: str, form: str) -> tuple[str, str]:
+    if not isinstance(text, str) or "=" not in text:
+        raise SweepError(f"{option} {text!r}: expected {form}")
+    key, raw = (s.strip() for s in text.split("=", 1))
+    if not key or any(not p.strip() for p in key.split(".")):
+        raise SweepError(f"{option} {text!r}: the key must be a dotted path of scene fields, e.g. initial.state.x")
+    return key, raw
+
+
+def _number(raw: str, text: str, option: str) -> int | float:
+    value = _literal(raw.strip(), text)
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise SweepError(f"{option} {text!r}: {raw.strip()!r} is not a finite number")
+    return value
+
+
+def _literal(raw: str, text: str) -> Any:
+    try:
+        return tomllib.loads(f"v = {raw}")["v"]
+    except tomllib.TOMLDecodeError:
+        return raw
+
+
+def override(key: str, value: Any) -> str:
+    """``key=value`` as ``--set`` reads it, the value exact (floats by ``repr``, which
+    round-trips, and TOML reads back bit for bit)."""
+    if isinstance(value, bool):
+        return f"{key}={'true' if value else 'false'}"
+    if isinstance(value, float):
+        text = repr(value) if math.isfinite(value) else ("nan" if value != value else ("inf" if value > 0 else "-inf"))
+        return f"{key}={text}"
+    if isinstance(value, int):
+        return f"{key}={value}"
+    if isinstance(value, str):
+        return f"{key}={json.dumps(value)}"
+    raise SweepError(f"{key}: cannot vary a field over {type(value).__name__} values")
+
+
+def variation_overrides(values: dict[str, Any]) -> list[str]:
+    """The ``--set`` strings of one variation's values."""
+    return [override(k, v) for k, v in values.items()]
+
+
+def scene_reference(scene: str | os.PathLike) -> str:
+    """A scene as the workers will load it: a bundled scene by its name (found in each
+    worker's own installation), any other by its absolute path (which workers on other hosts
+    must see at the same place, e.g. on a shared file system)."""
+    from ..scene import bundled_dir, resolve_scene_path
+
+    path = resolve_scene_path(scene).resolve()
+    if path.parent == bundled_dir().resolve():
+        return path.stem
+    return str(path)
+
+
+def corners(spec: SweepSpec) -> Iterator[dict[str, Any]]:
+    """Variations at the axes' ends (grid: first and last value; random: LO and a value just
+    under HI), the other axes at their first end: loading them checks every axis's range
+    before the sweep starts."""
+    ends = [(a.values[0], a.values[-1]) if not a.is_random else (a.low, float(np.nextafter(a.high, a.low)))
+            for a in spec.grid + spec.random]
+    first = [e[0] for e in ends]
+    yield dict(zip(spec.keys, first))
+    for k, (_, last) in enumerate(ends):
+        yield dict(zip(spec.keys, first[:k] + [last] + first[k + 1:]))

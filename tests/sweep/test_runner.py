@@ -1,0 +1,203 @@
+"""Whole sweeps: rows against closed forms, errors and timeouts as rows, the same table from
+this process and from a Dask cluster, resuming an interrupted 1,000-run sweep without
+recomputing a finished row, and the command line."""
+
+from __future__ import annotations
+
+import io
+import json
+import math
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+import pytest
+
+import legsim
+from legsim.cli import main
+from legsim.sweep import runner
+from legsim.sweep.table import TIMING_COLUMNS
+from legsim.sweep.walk import OUTCOMES
+
+G = 9.81
+BALL = ["integrator.t_final=0.3"]
+
+
+def table_bytes(table: pa.Table) -> bytes:
+    """The table without its timing column, as Parquet bytes (equal tables, equal bytes)."""
+    sink = io.BytesIO()
+    pq.write_table(table.drop_columns(list(TIMING_COLUMNS)).combine_chunks(), sink, compression="zstd")
+    return sink.getvalue()
+
+
+def test_rows_hold_each_variations_run_against_the_closed_form(tmp_path):
+    result = legsim.sweep("bouncing_ball", grid={"initial.state.z": (0.5, 2.0, 7)}, overrides=BALL,
+                          out=tmp_path / "s", in_process=True)
+    table = pq.read_table(tmp_path / "s" / "results.parquet")
+    assert table.equals(result.table) and table.num_rows == 7
+    assert table.column("index").to_pylist() == list(range(7))
+    for row in table.to_pylist():
+        assert row["task_status"] == "done" and row["error"] is None and row["status"] == "finished"
+        z0 = row["initial.state.z"]
+        # Free fall for 0.3 s (g t^2 / 2 = 0.441 m): above it no bounce yet, z = z0 - 0.441.
+        if z0 > 0.5:
+            assert row["transitions"] == 0
+            assert row["final_state"][0] == pytest.approx(z0 - G * 0.09 / 2, abs=1e-12)
+            assert row["final_state"][1] == pytest.approx(-G * 0.3, abs=1e-12)
+        assert row["energy_initial"] == pytest.approx(G * z0)
+        assert row["wall_time_s"] > 0
+    assert json.loads((tmp_path / "s" / "sweep.json").read_text())["scene"] == "bouncing_ball"
+
+
+def test_a_failing_or_timed_out_variation_is_a_row_with_its_error_and_the_sweep_goes_on(tmp_path):
+    # Without its floor the ball falls freely: a long run is all flow, where the deadline is
+    # checked a few times a second.
+    result = legsim.sweep("bouncing_ball", grid={"integrator.t_final": [0.1, 1000.0, -1.0, 0.2]},
+                          overrides=["effects.floor=false"], timeout=0.5, in_process=True)
+    rows = result.table.to_pylist()
+    assert [r["task_status"] for r in rows] == ["done", "timeout", "error", "done"]
+    assert "took longer than --timeout 0.5 s" in rows[1]["error"]
+    assert 0.5 <= rows[1]["wall_time_s"] < 5.0
+    assert "integrator.t_final" in rows[2]["error"] and "out of range" in rows[2]["error"]
+    assert rows[2]["status"] is None and rows[3]["status"] == "finished"
+    assert rows[3]["final_state"][1] == pytest.approx(-G * 0.2, abs=1e-12)
+    assert result.counts("task_status") == {"done": 2, "timeout": 1, "error": 1}
+
+
+def test_an_axis_out_of_range_is_refused_before_anything_runs(tmp_path):
+    with pytest.raises(legsim.SceneError, match=r"robot.parameters.slope"):
+        legsim.sweep("compass_gait", grid={"robot.parameters.slope": (3.0, 40.0, 3)}, out=tmp_path / "s",
+                     in_process=True)
+    assert not (tmp_path / "s").exists()
+
+
+def test_a_local_dask_cluster_gives_the_table_of_this_process(tmp_path):
+    kwargs = dict(grid={"initial.state.z": (0.5, 2.0, 9), "integrator.method": ["rk4", "heun"]},
+                  overrides=["integrator.t_final=0.5"])
+    here = legsim.sweep("bouncing_ball", in_process=True, **kwargs)
+    dask = legsim.sweep("bouncing_ball", workers=2, batch_size=4, out=tmp_path / "d", **kwargs)
+    assert dask.where.startswith("an embedded Dask cluster of 2")
+    assert table_bytes(dask.table) == table_bytes(here.table)
+    assert table_bytes(pq.read_table(tmp_path / "d" / "results.parquet")) == table_bytes(here.table)
+
+
+RESUME_ARGS = ["sweep", "bouncing_ball", "--grid", "initial.state.z=0.5:2.0:1000", "--set",
+               "integrator.t_final=0.05", "--in-process", "--batch", "50", "--quiet"]
+
+
+def test_resuming_an_interrupted_1000_run_sweep_recomputes_no_finished_row(tmp_path, monkeypatch):
+    out = tmp_path / "s"
+    calls = []
+    real = runner.run_batch
+
+    def interrupted(spec, items):
+        if len(calls) == 7:
+            raise KeyboardInterrupt
+        calls.append([i for i, _ in items])
+        return real(spec, items)
+
+    monkeypatch.setattr(runner, "run_batch", interrupted)
+    assert main(RESUME_ARGS + ["--out", str(out)]) == 130
+    before = pq.read_table(out / "results.parquet")
+    assert before.num_rows == 350 and before.column("index").to_pylist() == list(range(350))
+
+    ran = []
+
+    def spy(spec, items):
+        ran.extend(i for i, _ in items)
+        return real(spec, items)
+
+    monkeypatch.setattr(runner, "run_batch", spy)
+    assert main(RESUME_ARGS + ["--out", str(out), "--resume"]) == 0
+    after = pq.read_table(out / "results.parquet")
+    assert sorted(ran) == list(range(350, 1000))
+    assert after.num_rows == 1000 and after.column("index").to_pylist() == list(range(1000))
+    # The finished rows are those of the first run, their wall times included (not recomputed).
+    assert after.slice(0, 350).equals(before)
+    assert not (out / "results.parts").exists()
+
+
+def test_a_sweep_killed_outright_resumes_from_the_batches_it_streamed(tmp_path):
+    out = tmp_path / "s"
+    proc = subprocess.Popen([sys.executable, "-m", "legsim.cli"] + RESUME_ARGS + ["--out", str(out)],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    parts = out / "results.parts"
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline and len(list(parts.glob("part-*.parquet"))) < 3 and proc.poll() is None:
+        time.sleep(0.05)
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.wait()
+    streamed = pa.concat_tables([pq.read_table(p) for p in sorted(parts.glob("part-*.parquet"))]).sort_by("index")
+    assert 3 <= len(list(parts.glob("part-*.parquet"))) and streamed.num_rows < 1000
+    result = legsim.sweep("bouncing_ball", grid={"initial.state.z": (0.5, 2.0, 1000)},
+                          overrides=["integrator.t_final=0.05"], out=out, resume=True, in_process=True, batch_size=50)
+    assert result.resumed == streamed.num_rows and result.computed == 1000 - streamed.num_rows
+    kept = result.table.filter(pa.compute.is_in(result.table.column("index"), streamed.column("index")))
+    assert kept.equals(streamed)  # the streamed rows, wall times and all: none recomputed
+
+
+def test_the_command_line_reports_rows_without_result_and_refuses_bad_input(tmp_path, capsys):
+    out = tmp_path / "s"
+    code = main(["sweep", "bouncing_ball", "--grid", "integrator.h=1e-3,-1,2e-3", "--set", "integrator.t_final=0.1",
+                 "--out", str(out), "--in-process", "--json"])
+    captured = capsys.readouterr()
+    summary = json.loads(captured.out)
+    assert code == 3 and summary["task_status"] == {"done": 2, "error": 1}
+    assert summary["variations"] == 3 and summary["results"] == str(out / "results.parquet")
+    assert "row 1: " in captured.err and "integrator.h" in captured.err
+    # The folder holds that sweep: neither a new sweep nor another one's --resume may touch it.
+    assert main(["sweep", "bouncing_ball", "--grid", "integrator.h=1e-3,2e-3", "--out", str(out), "--in-process"]) == 2
+    assert "already holds a sweep" in capsys.readouterr().err
+    assert main(["sweep", "bouncing_ball", "--grid", "integrator.h=1e-3,2e-3", "--out", str(out), "--in-process",
+                 "--resume"]) == 2
+    assert "holds another sweep" in capsys.readouterr().err
+    for argv, message in ((["--grid", "integrator.h"], "expected KEY=LO:HI:N"),
+                          (["--samples", "3"], "--samples needs a --random"),
+                          (["--walk", "--no-run"], "exclude each other"),
+                          (["--grid", "initial.state.q=0:1:3"], "unknown coordinate"),
+                          (["--workers", "0"], "--workers must be an integer >= 1")):
+        assert main(["sweep", "bouncing_ball", "--out", str(tmp_path / "x")] + argv) == 2
+        assert message in capsys.readouterr().err
+
+
+def test_a_walk_sweep_draws_the_basin_and_an_orbit_sweep_the_stability_map(tmp_path):
+    basin = legsim.sweep("rimless_wheel", grid={"initial.state.theta": [-math.pi / 10, 0.0],
+                                                "initial.state.thetad": [0.8, 2.6]},
+                         walk=True, out=tmp_path / "b", in_process=True)
+    rows = basin.table.to_pylist()
+    # Just after an impact (theta = -alpha) the step map's closed form gives the steps
+    # (tests/sweep/test_walk.py): 15 from 0.8 rad/s, 18 from 2.6 rad/s.
+    assert [(r["outcome"], r["steps_to_gait"]) for r in rows[:2]] == [("converges", 15), ("converges", 18)]
+    assert all(r["task_status"] == "done" and r["outcome"] in OUTCOMES for r in rows)
+    assert (tmp_path / "b" / "basin.png").stat().st_size > 0
+    omega = math.sqrt(math.cos(math.pi / 5) ** 2 * 4 * G * math.sin(math.pi / 10) * math.sin(math.radians(5))
+                      / (1 - math.cos(math.pi / 5) ** 2))
+    orbits = legsim.sweep("rimless_wheel", grid={"robot.parameters.slope": [5.0], "robot.parameters.m": [1.0, 2.0]},
+                          run=False, orbit=True, out=tmp_path / "o", in_process=True)
+    rows = orbits.table.to_pylist()
+    assert [r["orbit_status"] for r in rows] == ["converged", "converged"]
+    # The wheel's gait is independent of its mass; its multiplier is c^2 (closed form).
+    for row in rows:
+        assert row["orbit_fixed_point"][1] == pytest.approx(omega, rel=1e-8)
+        assert row["orbit_spectral_radius"] == pytest.approx(math.cos(math.pi / 5) ** 2, rel=1e-6)
+        assert row["orbit_stable"] is True
+    assert (tmp_path / "o" / "stability.png").stat().st_size > 0
+
+
+def test_orbit_rows_place_the_compass_gaits_period_doubling_where_continuation_does():
+    # `legsim orbit compass_gait --continue slope 3 6` locates the period doubling at
+    # slope 4.3909 (README): the sweep's independent orbit searches on either side agree.
+    result = legsim.sweep("compass_gait", grid={"robot.parameters.slope": [4.2, 4.6]}, run=False, orbit=True,
+                          in_process=True)
+    below, above = result.table.to_pylist()
+    assert below["orbit_status"] == above["orbit_status"] == "converged"
+    assert below["orbit_spectral_radius"] < 1 < above["orbit_spectral_radius"]
+    assert below["orbit_stable"] is True and above["orbit_stable"] is False
+    real = [re for re, im in zip(above["orbit_multipliers_re"], above["orbit_multipliers_im"]) if im == 0.0]
+    assert min(real) < -1.0  # through -1: a period doubling

@@ -1,0 +1,114 @@
+"""Walks against closed forms: the rimless wheel's step map w -> c sqrt(w^2 + K) (steps to the
+gait and the distance left), the bouncing ball's bounces accumulating at a geometric rate (a
+walk that chatters in place stops), the elastic ball repeating its bounce (another gait), and
+the compass gait falling (its hip below the slope)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from legsim.orbits import OrbitProblem, Section, find_orbit
+from legsim.scene import load_scene
+from legsim.scene.orbit import problem_from_scene
+from legsim.sweep.walk import CHATTER_RETURNS, MIN_RETURN_STEPS, walk
+from legsim.systems.bouncing_ball import make_system
+
+ALPHA = math.pi / 10
+C = math.cos(2 * ALPHA)
+
+
+def wheel_map(w: float, slope_deg: float = 5.0) -> float:
+    K = 4 * 9.81 * math.sin(ALPHA) * math.sin(math.radians(slope_deg))
+    return C * math.sqrt(w * w + K)
+
+
+def omega_star(slope_deg: float = 5.0) -> float:
+    K = 4 * 9.81 * math.sin(ALPHA) * math.sin(math.radians(slope_deg))
+    return math.sqrt(C * C * K / (1 - C * C))
+
+
+@pytest.mark.parametrize("w0", [2.6, 0.8])
+def test_rimless_wheel_walk_converges_after_the_steps_of_its_step_map(w0):
+    scene = load_scene("rimless_wheel", [f"initial.state.thetad={w0!r}"])
+    problem = problem_from_scene(scene).problem
+    fixed = np.array([-ALPHA, omega_star(), 0.0])
+    tol = 1e-3
+    # The closed form: w_k = map^k(w0); the walk converges at the first k with |w_k - w*| < tol.
+    w, k, distances = w0, 0, []
+    while abs(w - omega_star()) >= tol:
+        w, k = wheel_map(w), k + 1
+        distances.append(abs(w - omega_star()))
+    # Not a borderline case: the step before is clearly out, this one clearly in.
+    assert distances[-1] < 0.9 * tol and distances[-2] > 1.1 * tol
+    result = walk(problem, scene.initial_state, 0.0, fixed, max_steps=40, tol=tol)
+    assert result.outcome == "converges" and result.status == "finished"
+    assert result.steps_to_gait == k == result.steps
+    assert result.distance == pytest.approx(distances[-1], abs=1e-7)
+    assert result.period == 1 and result.transitions == k
+    # Each step advances the contact by one spoke spacing 2 l sin(alpha).
+    assert result.state[2] == pytest.approx(k * 2 * math.sin(ALPHA), rel=1e-9)
+
+
+def ball_problem(restitution: float, h: float = 1e-3) -> OrbitProblem:
+    return OrbitProblem(make_system(restitution=restitution), Section.after("bounce"), h=h, eps=1e-6, t_max=3.0)
+
+
+def test_bounces_accumulating_like_a_zeno_execution_make_a_walk_that_stops():
+    # From z = 1 m at rest, bounce j + 1 follows bounce j after 2 v1 c^j / g (v1 = sqrt(2 g)).
+    # The walk stops at the first return whose last CHATTER_RETURNS intervals are all shorter
+    # than MIN_RETURN_STEPS steps h; the intervals shrink, so that is when the interval after
+    # return K - CHATTER_RETURNS falls below it.
+    h, c, g = 1e-3, 0.5, 9.81
+    v1 = math.sqrt(2 * g)
+    interval = [None] + [2 * v1 * c ** j / g for j in range(1, 40)]
+    first = next(j for j in range(1, 40) if interval[j] < MIN_RETURN_STEPS * h)
+    assert interval[first] < 0.8 * MIN_RETURN_STEPS * h < interval[first - 1] * 0.8  # not borderline
+    expected = first + CHATTER_RETURNS
+    result = walk(ball_problem(c, h), np.array([1.0, 0.0]), 0.0, None, max_steps=40)
+    assert result.outcome == "stops" and "chatters in place" in result.message
+    assert result.steps == expected
+    # ... at the closed-form time of that bounce (the relaxation delays each by O(eps)).
+    t_expected = math.sqrt(2 / g) + sum(interval[1:expected])
+    assert result.t_end == pytest.approx(t_expected, abs=1e-3)
+
+
+def test_an_elastic_ball_repeats_its_bounce_which_is_another_gait_without_a_reference():
+    result = walk(ball_problem(1.0), np.array([1.0, 0.0]), 0.0, None, max_steps=10)
+    assert result.outcome == "other_gait" and result.period == 1 and result.steps == 2
+    # With the bounce itself as the reference it converges at the first return instead.
+    fixed = np.array([0.0, math.sqrt(2 * 9.81)])
+    result = walk(ball_problem(1.0), np.array([1.0, 0.0]), 0.0, fixed, max_steps=10, tol=1e-3)
+    assert result.outcome == "converges" and result.steps_to_gait == 1
+
+
+def test_a_walk_that_runs_out_of_steps_is_undecided():
+    # The wheel from far below its gait needs many steps (closed form above): 3 are too few.
+    scene = load_scene("rimless_wheel", ["initial.state.thetad=0.9"])
+    result = walk(problem_from_scene(scene).problem, scene.initial_state, 0.0, np.array([-ALPHA, omega_star(), 0.0]),
+                  max_steps=3, tol=1e-3)
+    assert result.outcome == "undecided" and result.steps == 3 and result.steps_to_gait is None
+    w = 0.9
+    for _ in range(3):
+        w = wheel_map(w)
+    assert result.distance == pytest.approx(abs(w - omega_star()), abs=1e-7)
+
+
+def test_a_compass_gait_kicked_backwards_falls_with_its_hip_below_the_slope():
+    scene = load_scene("compass_gait", ["initial.state.stanced=0.6", "initial.state.hipd=-2.0"])
+    settings = problem_from_scene(scene)
+    gait = find_orbit(settings.problem, settings.guess, **settings.solver)
+    result = walk(settings.problem, scene.initial_state, 0.0, gait.fixed_point)
+    assert result.outcome == "falls" and result.status == "model_breakdown"
+    assert math.cos(result.state[0]) < 1e-4  # the hip l cos(stance) is at or below the slope
+
+
+def test_a_compass_gait_started_on_its_gait_converges_at_once():
+    scene = load_scene("compass_gait")
+    settings = problem_from_scene(scene)
+    gait = find_orbit(settings.problem, settings.guess, **settings.solver)
+    result = walk(settings.problem, gait.fixed_point, 0.0, gait.fixed_point, tol=1e-6)
+    assert result.outcome == "converges" and result.steps_to_gait == 1 and result.distance < 1e-8
+    assert result.t_end == pytest.approx(gait.return_time, rel=1e-9)
