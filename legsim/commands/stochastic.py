@@ -63,7 +63,7 @@ def run(args: argparse.Namespace) -> int:
     if args.switches < 0:
         raise LegsimError(f"--switches must be >= 0, got {args.switches}")
     scene = load_scene(args.scene, overrides=args.overrides)
-    histogram = _histogram_writer(args.plot)
+    histogram = _histogram_writer(args.plot, scene.path)
     counter = _SampleCounter(sys.stderr, scene.name) if not args.quiet and _isatty(sys.stderr) else None
     settings = {"samples": args.samples, "seed": args.seed}
     try:
@@ -77,7 +77,7 @@ def run(args: argparse.Namespace) -> int:
     summary = ensemble.summary(max_switches=args.switches)
     summary["deterministic"] = _deterministic(scene, args.switches)
     if histogram is not None:
-        summary["outputs"] = {"plot": str(_write_histograms(histogram, Path(args.plot), ensemble, summary))}
+        summary["outputs"] = {"plot": str(_write_histograms(histogram, ensemble, summary))}
     if args.json:
         print(json.dumps(_finite(summary), allow_nan=False))
     else:
@@ -108,26 +108,27 @@ def _on_engine(args: argparse.Namespace, scene: Any, settings: dict[str, Any], c
         return ensemble_on_engine(scene, scene_reference(args.scene), settings, engine, progress=counter)
 
 
-def _histogram_writer(path: str | None) -> Any:
-    """The switching-time histogram writer, checked before the run (None without --plot)."""
+def _histogram_writer(path: str | None, scene_path: Path | None) -> Any:
+    """(output plan, switching-time histogram writer), checked before the run (None without
+    --plot): the file must be writable, of a type the writer draws, and not the scene."""
     if path is None:
         return None
-    from .run import check_suffix, check_writable, find_writer
+    from ..output.files import OutputPlan
+    from .run import find_writer
 
     writer = find_writer("switching_histograms", "--plot")
-    check_writable(Path(path), "--plot")
-    check_suffix(writer, Path(path), "--plot")
-    return writer
+    plan = OutputPlan([scene_path] if scene_path is not None else [])
+    plan.add("plot", path, what="--plot", suffixes=getattr(writer, "suffixes", ()))
+    return plan, writer
 
 
-def _write_histograms(writer: Any, path: Path, ensemble: Any, summary: dict[str, Any]) -> Path:
-    from ..output.files import write_atomic
-
+def _write_histograms(histogram: Any, ensemble: Any, summary: dict[str, Any]) -> Path:
+    plan, writer = histogram
     count = len(summary["switching_times"])
     times = [ensemble.switching_times(i).tolist() for i in range(count)]
     info = {"scene": summary.get("scene", summary["system"]), "samples": summary["samples"],
             "deterministic": summary["deterministic"]["switching_times"]}
-    return write_atomic(path, lambda tmp: writer(times, info, tmp), what="--plot")
+    return plan.write("plot", lambda tmp: writer(times, info, tmp))
 
 
 def _isatty(stream) -> bool:

@@ -9,7 +9,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from ..errors import ContractError, SimulationError
+from ..errors import ContractError, LegsimError, SimulationError
 from ..execution import Execution, SegmentBuffer, Status
 from ..hybrid import HybridSystem, ModeData, not_a_number, real_number
 from ..methods import Tableau, make_stepper
@@ -149,7 +149,9 @@ class Run:
             self._last_report = now
             try:
                 self._progress(t, self.t0, self.t_final)
-            except Exception as exc:  # the caller's callback, not the model
+            except LegsimError:  # the caller stopping the run with its own error (a deadline)
+                raise
+            except Exception as exc:  # a bug in the caller's callback, not the model
                 raise SimulationError(f"the progress callback failed at t={t:.17g}: {type(exc).__name__}: {exc}") from exc
 
     def execution(self, ended: Ended) -> Execution:

@@ -151,12 +151,11 @@ class _Walker:
     def flow(self, mode: str, x: np.ndarray, t: float, t_final: float) -> Execution:
         """The relaxed run from (mode, x) at t up to the guard point of the next transition."""
         p = self.problem
-        # The landing rule and halving budget of the problem where it carries them, as its
-        # return map runs (so the gait's fixed point is one of these steps'); simulate's
-        # defaults otherwise.
-        rules = {key: getattr(p, key) for key in ("landing", "max_halvings") if hasattr(p, key)}
+        # The problem's landing rule and halving budget, as its return map runs: the gait's
+        # fixed point is then one of these steps'.
         ex = simulate(self.system, x, mode, max(t_final, t + p.h), p.h, p.eps, p.tableau, self.control, t0=t,
-                      max_transitions=0, rtol=p.rtol, atol=p.atol, progress=self.progress, **rules)
+                      max_transitions=0, rtol=p.rtol, atol=p.atol, progress=self.progress, landing=p.landing,
+                      max_halvings=p.max_halvings)
         for key in COUNTERS:
             self.counters[key] += ex.counters.get(key, 0)
         return ex

@@ -259,6 +259,25 @@ def test_a_failing_progress_callback_is_named_as_the_callers_not_the_models(ball
         simulate(ball, [1.0, 0.0], "flight", 2.0, 1e-3, 1e-3, progress=progress)
 
 
+def test_a_progress_callback_stops_the_run_with_its_own_legsim_error(ball, monkeypatch):
+    # A deadline (the sweep's --timeout) stops a run by raising its own LegsimError from the
+    # callback: the caller must receive that error, not a SimulationError wrapping it.
+    import legsim.relaxed.run as run_module
+    from legsim.errors import LegsimError
+
+    class Deadline(LegsimError):
+        pass
+
+    def progress(t, t0, t1):
+        if t > 0.5:
+            raise Deadline(f"stopped at {t}")
+
+    clock = iter(range(10 ** 6))
+    monkeypatch.setattr(run_module.time, "perf_counter", lambda: float(next(clock)))
+    with pytest.raises(Deadline, match="stopped at"):
+        simulate(ball, [1.0, 0.0], "flight", 2.0, 1e-3, 1e-3, progress=progress)
+
+
 def test_scipys_adaptive_names_imply_error_control_with_scipys_default_tolerances(ball):
     adaptive = simulate(ball, [1.0, 0.0], "flight", 1.0, 0.1, 1e-3, "RK45")
     assert adaptive.settings["rtol"] == 1e-3 and adaptive.settings["atol"] == 1e-6
