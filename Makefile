@@ -11,6 +11,7 @@ $(STAMP): pyproject.toml setup.py legsim/_native/pinlegsim.cpp
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
 	$(BIN)/pip install --quiet -e ".[test]"
+	@$(BIN)/python -c "import legsim._native as n; print('legsim: compiled robot twins:', n.status())"
 	touch $(STAMP)
 
 install: $(STAMP)
