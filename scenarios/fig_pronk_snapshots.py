@@ -1,16 +1,18 @@
 """Paper 000 Fig. 17: snapshots of the pronking runner at its discrete transition times.
 
 Top: the pronk from (x, z, theta, xd, zd, thetad) = (0, 1.1, 0, 3.4, 0, 0), where both legs
-touch down and lift off together (scene ``pronk``). Bottom: the same with theta0 = -0.4
-(scene ``pronk_pitched``), where the legs touch down one after the other. Parameters
-(m, I, k, l, d, g, psi) = (1, 1, 30, 1, 1, 9.81, pi/5), RK4 with h = 1e-3, eps = 1e-2.
+touch down and lift off together (scene ``pronk_paper``). Bottom: the same with theta0 = -0.4
+(scene ``pronk_pitched_paper``), where the legs touch down one after the other. Parameters
+(m, I, k, l, d, g, psi) = (1, 1, 30, 1, 1, 9.81, pi/5), RK4 with h = 1e-3 and the paper's
+coarse eps = 1e-2 (whose strip holds delay the runs; ``pronk`` and ``pronk_pitched`` are the
+converged runs).
 
 Each snapshot draws the robot at the guard point q of a transition (the strip entry), in the
 mode it leaves, coloured by time; transitions less than 30 ms apart (a simultaneous
 touchdown crosses its second guard within the first one's strip) share one label. The dashed
 line is the centre of mass.
 
-Writes ``<out>/fig_pronk_snapshots.png``, ``<out>/pronk.rrd`` and ``<out>/pronk_pitched.rrd``.
+Writes ``<out>/fig_pronk_snapshots.png``, ``<out>/pronk_paper.rrd`` and ``<out>/pronk_pitched_paper.rrd``.
 Run: ``.venv/bin/python scenarios/fig_pronk_snapshots.py [out]``
 """
 
@@ -21,8 +23,8 @@ import numpy as np
 from legsim.viz._figures import (draw_parts, draw_scenery, finish, group_shots, new_figure, parse_out, run_scene,
                           snapshot_times)
 
-SCENES = [("pronk", r"$\theta_0 = 0$: both legs touch down and lift off together"),
-          ("pronk_pitched", r"$\theta_0 = -0.4$: the left leg touches down first")]
+SCENES = [("pronk_paper", r"$\theta_0 = 0$: both legs touch down and lift off together"),
+          ("pronk_pitched_paper", r"$\theta_0 = -0.4$: the left leg touches down first")]
 GROUP_WITHIN = 0.03  # s
 
 

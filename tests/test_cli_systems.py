@@ -87,7 +87,7 @@ def test_double_pendulum_stop_and_damping_switch_guards_and_terms(capsys):
     # The damping term is computed only when the scene asks for it.
     assert with_stop["damping_evals"] == 0 and no_stop["damping_evals"] == 0
     assert damped["damping_evals"] >= damped["steps"] > 0
-    # Without damping or a stop the pendulum's energy is conserved up to Euler's drift; the
+    # Without damping or a stop the pendulum's energy is conserved up to the method's drift; the
     # damped one loses energy (b > 0) relative to the undamped run with the same impacts.
     assert damped["energy_final"] < with_stop["energy_final"]
 

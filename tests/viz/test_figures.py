@@ -33,15 +33,15 @@ def _needs(*scenes: str) -> None:
 def test_double_pendulum_figure_and_recordings(tmp_path):
     from matplotlib.image import imread
 
-    _needs("double_pendulum_plastic", "double_pendulum_zeno")
+    _needs("double_pendulum_plastic_paper", "double_pendulum_zeno_paper")
     assert _script("fig_double_pendulum").main([str(tmp_path)]) == 0
     img = imread(tmp_path / "fig_double_pendulum.png")
     assert img.shape[:2] == (round(8.0 * 130), round(12.0 * 130))
-    plastic = read_rrd(tmp_path / "double_pendulum_plastic.rrd")
-    zeno = read_rrd(tmp_path / "double_pendulum_zeno.rrd")
+    plastic = read_rrd(tmp_path / "double_pendulum_plastic_paper.rrd")
+    zeno = read_rrd(tmp_path / "double_pendulum_zeno_paper.rrd")
     # Paper 003 Sec. V: with c = 0 the second link stays on the stop (constrained mode) until
     # the constraint force changes sign; with c > 0 every impact resets to unconstrained motion
-    # (Fig. 2c is the paper's relaxed execution: the script runs it without continuation).
+    # (Fig. 2c is the paper's relaxed execution: its scene runs without continuation).
     assert "constrained" in plastic["mode_sequence"]
     assert set(zeno["mode_sequence"]) == {"unconstrained"}
     # ... and the impacts accumulate: the gaps between strips shrink, as in Fig. 2c.
@@ -78,11 +78,11 @@ def test_oscillator_figure_matches_the_analytical_solution(tmp_path, capsys):
 
 
 def test_pronk_snapshot_figure_and_recordings(tmp_path):
-    _needs("pronk", "pronk_pitched")
+    _needs("pronk_paper", "pronk_pitched_paper")
     assert _script("fig_pronk_snapshots").main([str(tmp_path)]) == 0
     assert (tmp_path / "fig_pronk_snapshots.png").exists()
-    level = read_rrd(tmp_path / "pronk.rrd")
-    pitched = read_rrd(tmp_path / "pronk_pitched.rrd")
+    level = read_rrd(tmp_path / "pronk_paper.rrd")
+    pitched = read_rrd(tmp_path / "pronk_pitched_paper.rrd")
     # Fig. 17: from theta0 = 0 the pitch stays 0; from theta0 = -0.4 the runner lands on the
     # left leg first, then on both.
     _, theta = level["series"]["theta"]
