@@ -27,6 +27,7 @@ from typing import TYPE_CHECKING, Any, Callable, Iterable, Sequence
 import numpy as np
 
 from ..output.files import write_atomic
+from ..relaxed.simulate import MAX_STEPS
 from .cases import BenchError, Case, RunSpec, make_case, relaxed_method
 
 if TYPE_CHECKING:
@@ -146,10 +147,14 @@ def run_one(case: Case, spec: RunSpec, repeats: int = 3, rho_points: int = 0) ->
                 raise BenchError(f"case {case.name} has no Zeno continuation variant (oscillator-ex2 only)")
             system, control = case.zeno_system
 
+        # The sweep's finest fixed steps are meant to be long (Ex.1's Euler at h = 1e-5 is 1.3e7
+        # steps): the budget is twice the nominal count, never below simulate's default.
+        budget = max(MAX_STEPS, 2 * math.ceil(case.t_final / spec.h))
+
         def call():
             return simulate(system, case.x0, case.mode, case.t_final, spec.h, spec.eps, method, control,
                             max_transitions=case.max_transitions, landing=spec.landing, continuation=spec.zeno,
-                            **tols)
+                            max_steps=budget, **tols)
 
         ex, wall, n = _timed(call, repeats, lambda r, dt: dt)
         if ex.status == "finished":
