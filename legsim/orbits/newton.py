@@ -199,7 +199,7 @@ class _Equations:
         p = self.p
         x, params = self.unpack(z)
         if method == "saltation":
-            DP = jacobian_saltation(p, ret)
+            DP = jacobian_saltation(p, ret, newton=True)
         else:
             DP = jacobian_fd(p, x, params, fd_step, columns=p.unknown_idx, rmap=self.rmap)
         idx = p.periodic_idx
