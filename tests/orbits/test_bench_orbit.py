@@ -50,6 +50,9 @@ def test_the_report_picks_a_baseline_at_least_as_accurate_as_legsim():
     looser = [row for row in r["sweep"] if row["tol"] > r["scipy"]["tol"]]
     assert all(row["error"] > r["legsim"]["error"] or row["residual"] > r["orbit_tol"] for row in looser)
     assert math.isclose(r["ratio"], r["scipy"]["wall_s"] / r["legsim"]["wall_s"])
+    # The bracketing tolerance: the next looser one in the sweep, less accurate than legsim.
+    looser = r["scipy_looser"]
+    assert looser["tol"] == max(row["tol"] for row in r["sweep"] if row["tol"] > r["scipy"]["tol"])
 
 
 @pytest.mark.parametrize("argv, message", [
