@@ -27,14 +27,13 @@ import hashlib
 import importlib.util
 import inspect
 import math
-import os
 import sys
-import tempfile
 from typing import Any
 
 import numpy as np
 
 from ..derivatives import CENTRAL_STEP, FORWARD_STEP
+from ..errors import OutputError
 from ..execution import Segment
 from ..hybrid import Mode
 from ..methods import Tableau
@@ -232,26 +231,23 @@ def _generate(field: Any) -> Any:
     import numba
 
     from ..compiled.generate import _twin_sources, cache_dir, importable
+    from ..output.files import write_atomic
 
     name = importable(field)
     if name is None:
         return None
     text = module_source(name)
     digest = hashlib.sha256((text + numba.__version__ + _twin_sources((name,))).encode()).hexdigest()[:20]
+    path = cache_dir() / f"legsim_sensitivity_{digest}.py"
     try:
-        directory = cache_dir()
-        directory.mkdir(parents=True, exist_ok=True)
-        path = directory / f"legsim_sensitivity_{digest}.py"
         if not path.exists() or path.read_text() != text:
-            fd, tmp = tempfile.mkstemp(prefix=path.name, suffix=".tmp", dir=directory)
-            with os.fdopen(fd, "w") as fh:
-                fh.write(text)
-            os.replace(tmp, path)
+            write_atomic(path, lambda tmp: tmp.write_text(text), what="compiled sensitivity module",
+                         suffixes=(".py",))
         spec = importlib.util.spec_from_file_location(path.stem, path)
         assert spec is not None and spec.loader is not None
         module = importlib.util.module_from_spec(spec)
         sys.modules[spec.name] = module  # numba's cache finds a function's module by name
         spec.loader.exec_module(module)
         return module
-    except OSError:
+    except (OSError, OutputError):
         return None

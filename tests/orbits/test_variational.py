@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from legsim.orbits import OrbitProblem, Section, jacobian_saltation, jacobians, return_map
+from legsim.orbits import variational
 from legsim.orbits.variational import compiled_sensitivity
 from legsim.robots import compass_gait
 
@@ -65,3 +66,17 @@ def test_a_mode_without_a_compiled_twin_is_left_to_the_python_path():
     mode = prob.system.mode(seg.mode)
     assert mode.compiled is None
     assert compiled_sensitivity(mode, prob.tableau, seg) is None
+
+
+def test_an_unwritable_kernel_cache_leaves_the_product_to_the_python_path(compass_return, monkeypatch, tmp_path):
+    prob, ret = compass_return
+    reference = python_path_jacobian(prob, ret, monkeypatch)
+    blocker = tmp_path / "not_a_folder"
+    blocker.write_text("")
+    monkeypatch.setenv("LEGSIM_CACHE_DIR", str(blocker / "kernels"))
+    monkeypatch.setattr(variational, "_MODULES", {})
+    system, _ = prob.instantiate(ret.parameters)
+    seg = ret.execution.segments[0]
+    assert compiled_sensitivity(system.mode(seg.mode), prob.tableau, seg) is None
+    # The Python path (analytic field Jacobians) gives the same Jacobian, bit for bit.
+    assert np.array_equal(jacobian_saltation(prob, ret), reference)
