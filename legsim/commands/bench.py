@@ -1,11 +1,11 @@
-"""``legsim bench``: work-precision sweeps against the baselines, and the integrator's overhead."""
+"""``legsim bench``: work-precision sweeps, the robots, the orbit search against scipy, integrator overhead."""
 
 from __future__ import annotations
 
 import argparse
 
 NAME = "bench"
-HELP = "benchmarks: work-precision against Paoli-Schatzman and solve_ivp, integrator overhead"
+HELP = "benchmarks: work-precision against Paoli-Schatzman and solve_ivp, robots, orbit search, integrator overhead"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -47,6 +47,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     rb.add_argument("--repeats", type=int, default=5, help="timed repeats per run, median kept (default 5)")
     rb.add_argument("--no-figure", action="store_true", help="write the CSV files only")
     rb.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
+    ob = sub.add_parser("orbit", help="legsim orbit against a scipy Newton iteration at the same accuracy",
+                        description="The scene's orbit search (what `legsim orbit SCENE` runs) against Newton's "
+                                    "method on a solve_ivp DOP853 step map with events (forward-difference "
+                                    "Jacobian), both measured against a reference fixed point at rtol = atol = "
+                                    "1e-12; the baseline at the loosest tolerance reaching legsim's error; median "
+                                    "wall times of interleaved repeats and their ratio.")
+    ob.add_argument("--scene", default="compass_gait", help="a scene with an orbit section (default: compass_gait)")
+    ob.add_argument("--repeats", type=int, default=7, help="interleaved timed repeats, median kept (default 7)")
+    ob.add_argument("--json", action="store_true", help="print the measurements as JSON")
+    ob.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
     ov = sub.add_parser("overhead", help="integrator cost per step beyond the model's own evaluations",
                         description="Steps per second, shares of time in fields, guards and resets, overhead per "
                                     "step in field evaluations, and evaluations per transition for halve vs aim.")
@@ -63,6 +73,13 @@ def run(args: argparse.Namespace) -> int:
         from ..bench import overhead
 
         return overhead.main(quick=args.quick, as_json=args.json)
+    if args.bench == "orbit":
+        from ..bench import orbit
+
+        if args.repeats < 1:
+            raise BenchError(f"--repeats must be >= 1, got {args.repeats}")
+        log = None if args.quiet else (lambda s: print(s, file=sys.stderr, flush=True))
+        return orbit.main(args.scene, repeats=args.repeats, as_json=args.json, log=log)
     if args.bench == "robots":
         from ..bench import robots
 

@@ -6,7 +6,9 @@ Two ways, compared in the tests:
 
 * ``jacobian="saltation"`` (default): along the relaxed execution, the derivative of each
   Runge-Kutta step (the variational equation integrated with the same tableau on the same
-  steps, with the field's Jacobian from ``Mode.jacobian`` or forward differences) and, at each
+  steps, with the field's Jacobian from ``Mode.jacobian`` or central differences, ~1e-10
+  relative; on a mode with a compiled twin and no control in compiled code, from the twin's
+  field, ``variational``) and, at each
   transition with guard point q, the saltation matrix
   ``Xi = DR + (f+ - DR f-) grad_g^T / (grad_g . f-)`` from the reset Jacobian DR(q), the guard
   gradient (``Transition.reset_jacobian``/``guard_gradient`` or central differences) and the
@@ -15,6 +17,12 @@ Two ways, compared in the tests:
   crossing section ``I - f grad_s^T / (grad_s . f)``; for a section after a transition the
   returning transition contributes ``DR (I - f- grad_g^T / (grad_g . f-))`` (the derivative of
   the reset image R(q)) instead of its saltation matrix. One simulation in all.
+  A Newton step needs the Jacobian only to well below the residual it reduces (an error eta in
+  the Jacobian adds about eta times the residual to the next one), so Newton's iterations ask
+  for less (``jacobian_saltation(..., newton=True)``): forward differences (~1e-8), and on the
+  compiled path the field Jacobian interpolated linearly between the stored step points where
+  it changes slowly (~1e-6 on the compass gait, a quarter of the evaluations); the Jacobian at
+  the converged orbit, reported with its multipliers, is the accurate one.
 * ``jacobian="fd"``: central differences of the return map, 2 simulations per coordinate.
   Step ``delta_j = fd_step * max(1, |x_j|)``. The central difference error is about
   ``eta / delta + delta**2 |P'''| / 6`` with eta the return map's own noise as a function of x
@@ -48,13 +56,14 @@ from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
-from ..derivatives import gradient, jacobian
+from ..derivatives import Scheme, gradient, jacobian
 from ..execution import Segment
 from ..hybrid import HybridSystem, Mode, Transition
 from ..methods import Tableau
 from .errors import OrbitError
 from .problem import OrbitProblem
 from .returns import Return, ReturnMap
+from .variational import compiled_sensitivity
 
 #: Largest relative finite-difference step: beyond it a difference is no derivative at all
 #: (the default is 1e-6, see ``default_fd_step``).
@@ -69,18 +78,19 @@ def field_at(mode: Mode, control: Control, t: float, x: np.ndarray) -> np.ndarra
     return np.asarray(mode.field(t, x, None if control is None else control(t, x)), dtype=float)
 
 
-def _field_jacobian(mode: Mode, control: Control, t: float, x: np.ndarray, fx: np.ndarray) -> np.ndarray:
+def _field_jacobian(mode: Mode, control: Control, t: float, x: np.ndarray, fx: np.ndarray,
+                    scheme: Scheme) -> np.ndarray:
     """df/dx at (t, x), given fx = f(t, x). ``Mode.jacobian`` when the mode has one (and there
     is no control: with one, the closed-loop field x -> f(t, x, u(t, x)) is differentiated, since
-    Mode.jacobian holds u fixed); otherwise forward differences from fx, relative accuracy
-    ~1e-8 at n evaluations per Jacobian: half the cost of central differences, which would
-    dominate the cost of the saltation Jacobian."""
+    Mode.jacobian holds u fixed); otherwise ``scheme`` differences (module docstring)."""
     if mode.jacobian is not None and control is None:
         return np.asarray(mode.jacobian(t, x, None), dtype=float)
-    return jacobian(lambda y: field_at(mode, control, t, y), x, scheme="forward", f0=fx)
+    return jacobian(lambda y: field_at(mode, control, t, y), x, scheme=scheme,
+                    f0=fx if scheme == "forward" else None)
 
 
-def _step_derivative(mode: Mode, control: Control, tableau: Tableau, t: float, x: np.ndarray, h: float) -> np.ndarray:
+def _step_derivative(mode: Mode, control: Control, tableau: Tableau, t: float, x: np.ndarray, h: float,
+                     scheme: Scheme) -> np.ndarray:
     """Derivative of one explicit Runge-Kutta step x -> x + h sum b_j k_j with respect to x:
     dk_j = J(X_j) (I + h sum_l A_jl dk_l), the variational equation stepped by the same method."""
     n = len(x)
@@ -97,7 +107,7 @@ def _step_derivative(mode: Mode, control: Control, tableau: Tableau, t: float, x
                 dXj = dXj + h * A[j, l] * dks[l]
         tj = t + c[j] * h
         ks.append(field_at(mode, control, tj, Xj))
-        dks.append(_field_jacobian(mode, control, tj, Xj, ks[-1]) @ dXj)
+        dks.append(_field_jacobian(mode, control, tj, Xj, ks[-1], scheme) @ dXj)
     S = eye.copy()
     for j in range(tableau.stages):
         if b[j] != 0.0:
@@ -106,10 +116,17 @@ def _step_derivative(mode: Mode, control: Control, tableau: Tableau, t: float, x
 
 
 def _segment_sensitivity(system: HybridSystem, control: Control, tableau: Tableau, seg: Segment,
-                         t_stop: float | None = None) -> np.ndarray:
+                         t_stop: float | None, newton: bool) -> np.ndarray:
     """d x(end) / d x(start) along one stored segment, stepping the variational equation on the
-    segment's own steps (each from its stored start point); ``t_stop`` cuts the last step."""
+    segment's own steps (each from its stored start point); ``t_stop`` cuts the last step. In
+    compiled code when the mode has a compiled twin and there is no control (``variational``);
+    ``newton``: to the accuracy of a Newton step (module docstring)."""
     mode = system.mode(seg.mode)
+    if control is None:
+        compiled = compiled_sensitivity(mode, tableau, seg, t_stop, newton)
+        if compiled is not None:
+            return compiled
+    scheme: Scheme = "forward" if newton else "central"
     Phi = np.eye(seg.x.shape[1])
     for i in range(len(seg.t) - 1):
         t0 = seg.t[i]
@@ -118,7 +135,7 @@ def _segment_sensitivity(system: HybridSystem, control: Control, tableau: Tablea
         t1 = seg.t[i + 1] if t_stop is None else min(seg.t[i + 1], t_stop)
         if t1 <= t0:
             continue
-        Phi = _step_derivative(mode, control, tableau, t0, seg.x[i], t1 - t0) @ Phi
+        Phi = _step_derivative(mode, control, tableau, t0, seg.x[i], t1 - t0, scheme) @ Phi
     return Phi
 
 
@@ -181,9 +198,11 @@ def reset_on_guard_jacobian(system: HybridSystem, transition: Transition, q: np.
 
 
 # -- the return map's Jacobian -------------------------------------------------------------------
-def jacobian_saltation(problem: OrbitProblem, ret: Return) -> np.ndarray:
+def jacobian_saltation(problem: OrbitProblem, ret: Return, newton: bool = False) -> np.ndarray:
     """The n x n Jacobian of the return map at ``ret.x_start``, through the variational equation
-    on the relaxed execution and the saltation matrix of each transition (module docstring)."""
+    on the relaxed execution and the saltation matrix of each transition (module docstring):
+    to about 1e-10 relative, or with ``newton`` to the accuracy a Newton step needs (~1e-6) at
+    a fraction of the cost."""
     system, control = problem.instantiate(ret.parameters)
     ex = ret.execution
     crossing = problem.section.kind == "crossing"
@@ -191,7 +210,7 @@ def jacobian_saltation(problem: OrbitProblem, ret: Return) -> np.ndarray:
     last = ret.segment
     for k in range(last + 1):
         stop = ret.t_return if (k == last and crossing) else None
-        Phi = _segment_sensitivity(system, control, problem.tableau, ex.segments[k], stop) @ Phi
+        Phi = _segment_sensitivity(system, control, problem.tableau, ex.segments[k], stop, newton) @ Phi
         if k == last and crossing:
             break
         rec = ex.transitions[k]

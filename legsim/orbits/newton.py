@@ -28,6 +28,11 @@ from .problem import OrbitProblem
 from .returns import Return, ReturnMap
 
 #: Ends of an orbit search.
+#: Relative smallest singular value below which a Newton iteration recomputes the saltation
+#: Jacobian accurately before deciding whether it is singular: far above the Newton Jacobian's
+#: own error (~1e-6 relative), so that error cannot decide it.
+NEAR_SINGULAR = 1e-4
+
 STATUSES = ("converged", "no_return", "simulation_failed", "singular_jacobian", "diverged", "stalled",
             "max_iterations")
 
@@ -193,13 +198,15 @@ class _Equations:
         ret = self.rmap(x, params)
         return ret, self.residual(ret)
 
-    def jacobian(self, z: np.ndarray, ret: Return, method: str, fd_step: float | None) -> tuple[np.ndarray, np.ndarray]:
-        """(dF/dz, full DP at x): DP by ``method`` ("saltation" or "fd"), parameter columns by
-        differences of the return map."""
+    def jacobian(self, z: np.ndarray, ret: Return, method: str, fd_step: float | None,
+                 newton: bool = True) -> tuple[np.ndarray, np.ndarray]:
+        """(dF/dz, full DP at x): DP by ``method`` ("saltation" or "fd"; the saltation one with
+        ``newton`` to the accuracy a Newton step needs, see ``jacobian_saltation``), parameter
+        columns by differences of the return map."""
         p = self.p
         x, params = self.unpack(z)
         if method == "saltation":
-            DP = jacobian_saltation(p, ret)
+            DP = jacobian_saltation(p, ret, newton=newton)
         else:
             DP = jacobian_fd(p, x, params, fd_step, columns=p.unknown_idx, rmap=self.rmap)
         idx = p.periodic_idx
@@ -313,10 +320,13 @@ class _NewtonSearch:
     def iterate(self, it: int, z_scale: float) -> OrbitResult | None:
         """One Newton step with backtracking; the failed result when there is none."""
         try:
-            J, _ = self.eq.jacobian(self.z, self.ret, self.method, self.fd_step)  # type: ignore[arg-type]
+            U, sv, Vt = self._decomposition(newton=True)
+            if self.method == "saltation" and sv.size and np.all(np.isfinite(sv)) and sv[-1] <= NEAR_SINGULAR * sv[0]:
+                # The Newton Jacobian's error (~1e-6 relative) could hide a singular one:
+                # decide on the accurate Jacobian.
+                U, sv, Vt = self._decomposition(newton=False)
         except OrbitError as exc:
             return self.fail(exc.status, f"iteration {it + 1}: {exc}", it)
-        U, sv, Vt = np.linalg.svd(J, full_matrices=False)
         if sv.size == 0 or not np.all(np.isfinite(sv)):
             return self.fail("singular_jacobian", f"iteration {it + 1}: the Jacobian is not finite", it)
         if sv[0] == 0.0 and not self._near_orbit():
@@ -330,6 +340,13 @@ class _NewtonSearch:
         self.z, self.ret, self.F, self.res = trial
         self.history.append(self.res)
         return None
+
+    def _decomposition(self, newton: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The SVD (U, singular values, V^T) of dF/dz at the current iterate; OrbitError when the
+        Jacobian cannot be computed."""
+        J, _ = self.eq.jacobian(self.z, self.ret, self.method, self.fd_step, newton=newton)  # type: ignore[arg-type]
+        U, sv, Vt = np.linalg.svd(J, full_matrices=False)
+        return U, sv, Vt
 
     def _line_search(self, dz: np.ndarray) -> tuple[np.ndarray, Return, np.ndarray, float] | None:
         """The first of z + dz, z + dz/2, ... (max_backtracks halvings) that lowers the residual."""

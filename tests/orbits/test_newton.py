@@ -7,6 +7,7 @@ import math
 import numpy as np
 import pytest
 
+from legsim.orbits import newton as newton_module
 from legsim.orbits import OrbitProblem, Section, find_orbit
 
 from helpers.orbit_systems import (APEX, G, hopf_closed_form, hopf_reset, hopping_ball, impact_oscillator,
@@ -131,3 +132,19 @@ def test_divergence_when_there_is_no_orbit():
     assert res.status == "diverged", res.message
     assert "no Newton step" in res.message and "no periodic orbit" in res.message
     assert not res.converged and res.multipliers is None
+
+
+def test_a_newton_jacobians_error_does_not_hide_a_singular_jacobian(monkeypatch):
+    # Inside the iterations the saltation Jacobian may carry ~1e-6 relative error (compiled
+    # twins, ``newton=True``); singularity must still be decided on the accurate one.
+    accurate = newton_module.jacobian_saltation
+
+    def noisy(problem, ret, newton=False):
+        J = accurate(problem, ret)
+        return J + 1e-6 * np.max(np.abs(J)) * np.array([[0.3, -0.7], [0.9, 0.4]]) if newton else J
+
+    monkeypatch.setattr(newton_module, "jacobian_saltation", noisy)
+    prob = OrbitProblem(impact_oscillator(zeta=0.0, e=1.0, kick=0.0), Section.after("impact"), h=1e-2, eps=1e-4,
+                        t_max=5.0)
+    res = find_orbit(prob, {"x": 0.0, "v": 1.0}, tol=1e-14)
+    assert res.status == "singular_jacobian", res.message
