@@ -45,6 +45,7 @@ from legsim.hybrid import HybridSystem, Mode, Transition
 from .bridge import ContactBridge, add_point_frame
 
 STATE_NAMES = ("theta", "thetad", "foot_x")
+STATE_UNITS = ("rad", "rad/s", "m")
 
 PARAMETERS = {
     "m": Param(1.0, "hub mass", "kg", low=0.0, low_open=True),
@@ -137,7 +138,7 @@ class RimlessWheel:
     def system(self, x0: Sequence[float] | None = None) -> HybridSystem:
         from .bridge.walker_twins import rimless_wheel_twin
 
-        mode = Mode(3, self.field, names=STATE_NAMES, compiled=rimless_wheel_twin(self))
+        mode = Mode(3, self.field, names=STATE_NAMES, compiled=rimless_wheel_twin(self), units=STATE_UNITS)
         transitions = [Transition("stance", "stance", guard=self.impact_guard, reset=self.impact, name="impact"),
                        Transition("stance", "stance", guard=self.back_guard, reset=self.back_impact,
                                   name="back_impact")]
