@@ -229,7 +229,9 @@ def build(params: dict[str, Any], effects: dict[str, dict[str, Any]]) -> Model:
     rot = _slope_rotation(params["slope"])
     ground = np.array([rot @ np.array([-1.0, 0.0]), rot @ np.array([8.0, 0.0])])
     info = {"guard_units": {"heel_strike": "m (swing foot depth below the slope, in front and descending)"},
-            "parameters": dict(params), "compass_gait": cg}
+            "parameters": dict(params), "compass_gait": cg,
+            # the stance foot, the one contact (legsim.viz.contacts)
+            "contact_points": lambda mode, x: {"stance_foot": cg.geometry(mode, x)["stance_leg"][0]}}
     return Model(system=system, initial_mode="stance", initial_state=dict(INITIAL_STATE), geometry=cg.geometry,
                  scenery={"ground": ground}, counters=cg.stance_bridge.counters, info=info)
 

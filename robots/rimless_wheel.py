@@ -176,7 +176,9 @@ def build(params: dict[str, Any], effects: dict[str, dict[str, Any]]) -> Model:
     ground = np.array([rot @ np.array([-1.0, 0.0]), rot @ np.array([12.0, 0.0])])
     info = {"guard_units": {"impact": "rad (spoke angle past alpha, rolling forward)",
                             "back_impact": "rad (spoke angle past -alpha, rolling back)"},
-            "parameters": dict(params), "rimless_wheel": rw}
+            "parameters": dict(params), "rimless_wheel": rw,
+            # the stance spoke's tip, the one contact (legsim.viz.contacts)
+            "contact_points": lambda mode, x: {"stance_spoke": rot @ np.array([float(x[2]), 0.0])}}
     return Model(system=system, initial_mode="stance", initial_state=initial, geometry=rw.geometry,
                  scenery={"ground": ground}, counters=rw.stance_bridge.counters, info=info)
 
