@@ -11,10 +11,12 @@ and log files never receive control characters.
 from __future__ import annotations
 
 import sys
-from typing import Callable, TextIO
+from contextlib import contextmanager
+from typing import Callable, Iterator, TextIO
 
 from rich.console import Console
-from rich.progress import BarColumn, Progress, TaskProgressColumn, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+from rich.progress import (BarColumn, MofNCompleteColumn, Progress, TaskProgressColumn, TextColumn, TimeElapsedColumn,
+                           TimeRemainingColumn)
 
 #: Characters of the bar itself; the other columns have fixed widths too.
 BAR_WIDTH = 30
@@ -73,13 +75,33 @@ class ProgressBar:
             self.drawn = False
 
 
+@contextmanager
+def counting(total: int, label: str, *, enabled: bool = True, stream: TextIO | None = None,
+             clock: Callable[[], float] | None = None) -> Iterator[Callable[[int], None]]:
+    """``advance(n)`` counting ``n`` more of ``total`` items (the cases of ``legsim stress``)
+    on a bar with done / total, elapsed time and ETA, on ``stream`` (default stderr) when
+    enabled and it is a terminal; a no-op otherwise. Lines printed to stderr meanwhile appear
+    above the bar; the bar is erased at the end."""
+    stream = stream if stream is not None else sys.stderr
+    if not (enabled and _interactive(stream)):
+        yield lambda n: None
+        return
+    columns = (TextColumn(label, markup=False), BarColumn(bar_width=BAR_WIDTH), MofNCompleteColumn(),
+               TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn())
+    with Progress(*columns, console=Console(file=stream, highlight=False), transient=True, redirect_stdout=False,
+                  get_time=clock) as bar:
+        task = bar.add_task(label, total=total)
+        yield lambda n: bar.advance(task, n)
+
+
+def _interactive(stream: TextIO) -> bool:
+    try:
+        return bool(stream.isatty())
+    except (AttributeError, ValueError):
+        return False
+
+
 def progress_for(stream: TextIO | None = None, *, enabled: bool = True, label: str = "") -> ProgressBar | None:
     """A ProgressBar on ``stream`` (default stderr) when enabled and the stream is a terminal, else None."""
     stream = stream if stream is not None else sys.stderr
-    if not enabled:
-        return None
-    try:
-        interactive = stream.isatty()
-    except (AttributeError, ValueError):
-        interactive = False
-    return ProgressBar(stream, label) if interactive else None
+    return ProgressBar(stream, label) if enabled and _interactive(stream) else None

@@ -79,3 +79,22 @@ def test_a_new_label_starts_a_new_phase():
     last = frames(stream)[-1]
     assert last.startswith("level 1 ") and " 0% " in last and "0:00:05 ETA" in last  # elapsed restarts
     bar.close()
+
+
+def test_counting_counts_to_the_total_off_a_terminal_silently():
+    from legsim.progress import counting
+
+    quiet = io.StringIO()
+    with counting(5, "stress", stream=quiet) as advance:
+        advance(1)
+    assert quiet.getvalue() == ""
+    now = [0.0]
+    stream = Terminal()
+    with counting(4, "stress", stream=stream, clock=lambda: now[0]) as advance:
+        for wall in (10.0, 20.0, 30.0, 40.0):
+            now[0] = wall
+            advance(1)
+    # The last drawing (made as the bar closes): all four done after 40 s of wall time.
+    last = frames(stream)[-1]
+    assert last.startswith("stress ") and " 4/4 0:00:40 ETA" in last
+    assert stream.getvalue().endswith("\x1b[2K")  # erased
