@@ -27,6 +27,7 @@ from typing import TYPE_CHECKING, Any, Callable, Iterable, Sequence
 import numpy as np
 
 from ..output.files import write_atomic
+from ..progress import counting
 from ..tables import render_table
 from .cases import BenchError, Case, RunSpec, make_case, relaxed_method
 
@@ -404,10 +405,13 @@ def run_case(name: str, *, quick: bool = False, out: str | os.PathLike | None = 
     say(f"reference: {case.reference_note}")
     warm_up(case, runs)
     rows = []
-    for i, spec in enumerate(runs, 1):
-        row = run_one(case, spec, repeats, rho_points)
-        rows.append(row)
-        say(f"  [{i}/{len(runs)}] {run_label(row)}: error {_e(row.error)}, {row.wall_s:.4g} s, {row.status}")
+    # The bar (with its ETA) only when progress is reported at all, and only on a terminal.
+    with counting(len(runs), case.name, enabled=log is not None) as advance:
+        for i, spec in enumerate(runs, 1):
+            row = run_one(case, spec, repeats, rho_points)
+            rows.append(row)
+            say(f"  [{i}/{len(runs)}] {run_label(row)}: error {_e(row.error)}, {row.wall_s:.4g} s, {row.status}")
+            advance(1)
     extensions = extend_baselines(case, rows, case.targets, extension_budget,
                                   lambda spec: run_one(case, spec, repeats, rho_points), say)
     rows += [row for ext in extensions for row in ext.rows]
