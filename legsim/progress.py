@@ -76,10 +76,11 @@ class ProgressBar:
 
 
 @contextmanager
-def counting(total: int, label: str, *, enabled: bool = True, stream: TextIO | None = None,
+def counting(total: int, label: str, *, done: int = 0, enabled: bool = True, stream: TextIO | None = None,
              clock: Callable[[], float] | None = None) -> Iterator[Callable[[int], None]]:
-    """``advance(n)`` counting ``n`` more of ``total`` items (the cases of ``legsim stress``)
-    on a bar with done / total, elapsed time and ETA, on ``stream`` (default stderr) when
+    """``advance(n)`` counting ``n`` more of ``total`` items (the cases of ``legsim stress``,
+    the tasks of a sweep, ``done`` of them already) on a bar with done / total, elapsed time
+    and ETA, on ``stream`` (default stderr) when
     enabled and it is a terminal; a no-op otherwise. Lines printed to stderr meanwhile appear
     above the bar; the bar is erased at the end."""
     stream = stream if stream is not None else sys.stderr
@@ -90,7 +91,7 @@ def counting(total: int, label: str, *, enabled: bool = True, stream: TextIO | N
                TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn())
     with Progress(*columns, console=Console(file=stream, highlight=False), transient=True, redirect_stdout=False,
                   get_time=clock) as bar:
-        task = bar.add_task(label, total=total)
+        task = bar.add_task(label, total=total, completed=done)
         yield lambda n: bar.advance(task, n)
 
 

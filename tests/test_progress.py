@@ -98,3 +98,17 @@ def test_counting_counts_to_the_total_off_a_terminal_silently():
     last = frames(stream)[-1]
     assert last.startswith("stress ") and " 4/4 0:00:40 ETA" in last
     assert stream.getvalue().endswith("\x1b[2K")  # erased
+
+
+def test_counting_starts_from_the_items_already_done():
+    # A resumed sweep: 3 of 5 done before, 2 run now.
+    stream = Terminal()
+    with counting_bar(5, done=3, stream=stream) as advance:
+        advance(2)
+    assert " 5/5 " in frames(stream)[-1]
+
+
+def counting_bar(total, **kwargs):
+    from legsim.progress import counting
+
+    return counting(total, "sweep", **kwargs)
