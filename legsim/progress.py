@@ -1,73 +1,108 @@
-"""A progress bar on the simulated time, for long interactive runs.
+"""A progress bar on the simulated time, for long interactive runs (``rich.progress``).
 
 ``simulate(..., progress=bar)`` calls ``bar(t, t0, t_final)`` a few times a second once a run
-has lasted a moment, so short runs never draw anything. The bar is drawn on one terminal line
-(carriage return, no newline) and erased by ``close()``; it is only ever created for a TTY,
-so pipes and log files never receive control characters.
+has lasted a moment, so short runs never draw anything. The bar shows the fraction of the
+simulated time done, the simulated time, the wall time elapsed and the estimated time left;
+its columns have fixed widths, so the line does not jump as the numbers change. It is drawn on
+one terminal line and erased by ``close()``; it is only ever created for a terminal, so pipes
+and log files never receive control characters.
 """
 
 from __future__ import annotations
 
-import shutil
 import sys
-import time
-from typing import TextIO
+from contextlib import contextmanager
+from typing import Callable, Iterator, TextIO
+
+from rich.console import Console
+from rich.progress import (BarColumn, MofNCompleteColumn, Progress, TaskProgressColumn, TextColumn, TimeElapsedColumn,
+                           TimeRemainingColumn)
+
+#: Characters of the bar itself; the other columns have fixed widths too.
+BAR_WIDTH = 30
 
 
 class ProgressBar:
-    """``bar(t, t0, t_final)`` draws ``[#####-----]  42%  t = 1.13 / 2.7 s  0.8 s`` on ``stream``.
+    """``bar(t, t0, t_final)`` draws ``label ━━━━━━━━╺━━━━━  42%  t = 1.13 / 2.7 s  0:00:01 ETA 0:00:02``.
 
     Parameters
     ----------
-    stream: where to draw (a terminal).
+    stream: where to draw (a terminal; default stderr).
     label: a short prefix, e.g. the scene's name.
-    width: bar width in characters; default: what fits the terminal.
+    width: the console's width in characters; default: the terminal's.
+    clock: the wall clock (s) the elapsed time and the estimate are measured with; default:
+        a monotonic clock.
     """
 
-    def __init__(self, stream: TextIO | None = None, label: str = "", width: int | None = None) -> None:
-        self.stream = stream if stream is not None else sys.stderr
-        self.label = label
-        self.width = width
-        self.started = time.perf_counter()
+    def __init__(self, stream: TextIO | None = None, label: str = "", width: int | None = None,
+                 clock: Callable[[], float] | None = None) -> None:
+        console = Console(file=stream if stream is not None else sys.stderr, width=width, highlight=False)
+        columns = (TextColumn("{task.description}", markup=False), BarColumn(bar_width=BAR_WIDTH),
+                   TaskProgressColumn(), TextColumn("{task.fields[clock]}", markup=False), TimeElapsedColumn(),
+                   TextColumn("ETA"), TimeRemainingColumn())
+        # Redrawn on each call rather than by a thread: simulate calls a few times a second.
+        # Only stderr is routed above the bar: what a command prints on stdout stays there.
+        self.progress = Progress(*columns, console=console, auto_refresh=False, transient=True,
+                                 redirect_stdout=False, get_time=clock)
+        self.task = self.progress.add_task(label, total=1.0, clock="")
         self.drawn = False
-        self._last_len = 0
 
-    def line(self, t: float, t0: float, t_final: float) -> str:
-        """The text of the bar at simulated time t (s) of [t0, t_final]."""
-        span = t_final - t0
-        frac = 0.0 if span <= 0 else min(1.0, max(0.0, (t - t0) / span))
-        tail = f" {frac * 100:5.1f}%  t = {t:.6g} / {t_final:.6g} s  {time.perf_counter() - self.started:.1f} s"
-        head = f"{self.label} " if self.label else ""
-        width = self.width
-        if width is None:
-            columns = shutil.get_terminal_size((80, 24)).columns
-            width = max(10, min(50, columns - len(head) - len(tail) - 3))
-        filled = int(round(frac * width))
-        return f"{head}[{'#' * filled}{'-' * (width - filled)}]{tail}"
+    @property
+    def label(self) -> str:
+        """The prefix of the bar; setting it starts a new phase (``legsim certify``'s refinement
+        levels): the fraction, elapsed time and estimate start again."""
+        return str(self.progress.tasks[0].description)
+
+    @label.setter
+    def label(self, text: str) -> None:
+        self.progress.reset(self.task, total=1.0, description=text, clock="")
 
     def __call__(self, t: float, t0: float, t_final: float) -> None:
-        text = self.line(t, t0, t_final)
-        pad = " " * max(0, self._last_len - len(text))
-        self.stream.write("\r" + text + pad)
-        self.stream.flush()
-        self._last_len = len(text)
-        self.drawn = True
+        """Show simulated time t (s) of [t0, t_final]."""
+        span = t_final - t0
+        done = 1.0 if span <= 0 else min(1.0, max(0.0, (t - t0) / span))
+        self.progress.update(self.task, completed=done, clock=f"t = {t:<9.4g} / {t_final:.4g} s")
+        if self.drawn:
+            self.progress.refresh()
+        else:
+            self.progress.start()  # draws the first line
+            self.drawn = True
 
     def close(self) -> None:
-        """Erase the bar (only if it was drawn), leaving the cursor at the line's start."""
+        """Erase the bar (only if it was drawn)."""
         if self.drawn:
-            self.stream.write("\r" + " " * self._last_len + "\r")
-            self.stream.flush()
+            self.progress.stop()
             self.drawn = False
+
+
+@contextmanager
+def counting(total: int, label: str, *, done: int = 0, enabled: bool = True, stream: TextIO | None = None,
+             clock: Callable[[], float] | None = None) -> Iterator[Callable[[int], None]]:
+    """``advance(n)`` counting ``n`` more of ``total`` items (the cases of ``legsim stress``,
+    the tasks of a sweep, ``done`` of them already) on a bar with done / total, elapsed time
+    and ETA, on ``stream`` (default stderr) when
+    enabled and it is a terminal; a no-op otherwise. Lines printed to stderr meanwhile appear
+    above the bar; the bar is erased at the end."""
+    stream = stream if stream is not None else sys.stderr
+    if not (enabled and _interactive(stream)):
+        yield lambda n: None
+        return
+    columns = (TextColumn(label, markup=False), BarColumn(bar_width=BAR_WIDTH), MofNCompleteColumn(),
+               TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn())
+    with Progress(*columns, console=Console(file=stream, highlight=False), transient=True, redirect_stdout=False,
+                  get_time=clock) as bar:
+        task = bar.add_task(label, total=total, completed=done)
+        yield lambda n: bar.advance(task, n)
+
+
+def _interactive(stream: TextIO) -> bool:
+    try:
+        return bool(stream.isatty())
+    except (AttributeError, ValueError):
+        return False
 
 
 def progress_for(stream: TextIO | None = None, *, enabled: bool = True, label: str = "") -> ProgressBar | None:
     """A ProgressBar on ``stream`` (default stderr) when enabled and the stream is a terminal, else None."""
     stream = stream if stream is not None else sys.stderr
-    if not enabled:
-        return None
-    try:
-        interactive = stream.isatty()
-    except (AttributeError, ValueError):
-        interactive = False
-    return ProgressBar(stream, label) if interactive else None
+    return ProgressBar(stream, label) if enabled and _interactive(stream) else None

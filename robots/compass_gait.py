@@ -54,6 +54,7 @@ from legsim.hybrid import HybridSystem, Mode, Transition
 from .bridge import ContactBridge, PointContact, add_point_frame, planar_floating_base
 
 STATE_NAMES = ("stance", "hip", "stanced", "hipd", "foot_x")
+STATE_UNITS = ("rad", "rad", "rad/s", "rad/s", "m")
 
 PARAMETERS = {
     "m": Param(5.0, "mass of each leg (a point at distance a from the foot)", "kg", low=0.0, low_open=True),
@@ -191,7 +192,8 @@ class CompassGait:
     def system(self, x0: Sequence[float] | None = None) -> HybridSystem:
         from .bridge.walker_twins import compass_gait_twin
 
-        mode = Mode(5, self.field, names=STATE_NAMES, jacobian=self.jacobian, compiled=compass_gait_twin(self))
+        mode = Mode(5, self.field, names=STATE_NAMES, jacobian=self.jacobian, compiled=compass_gait_twin(self),
+                    units=STATE_UNITS)
         heel = Transition("stance", "stance", guard=self.heel_strike_guard, reset=self.heel_strike,
                           name="heel_strike")
         return HybridSystem({"stance": mode}, [heel], name="compass_gait", energy=self.energy,
@@ -227,7 +229,9 @@ def build(params: dict[str, Any], effects: dict[str, dict[str, Any]]) -> Model:
     rot = _slope_rotation(params["slope"])
     ground = np.array([rot @ np.array([-1.0, 0.0]), rot @ np.array([8.0, 0.0])])
     info = {"guard_units": {"heel_strike": "m (swing foot depth below the slope, in front and descending)"},
-            "parameters": dict(params), "compass_gait": cg}
+            "parameters": dict(params), "compass_gait": cg,
+            # the stance foot, the one contact (legsim.viz.contacts)
+            "contact_points": lambda mode, x: {"stance_foot": cg.geometry(mode, x)["stance_leg"][0]}}
     return Model(system=system, initial_mode="stance", initial_state=dict(INITIAL_STATE), geometry=cg.geometry,
                  scenery={"ground": ground}, counters=cg.stance_bridge.counters, info=info)
 

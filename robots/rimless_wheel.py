@@ -45,6 +45,7 @@ from legsim.hybrid import HybridSystem, Mode, Transition
 from .bridge import ContactBridge, add_point_frame
 
 STATE_NAMES = ("theta", "thetad", "foot_x")
+STATE_UNITS = ("rad", "rad/s", "m")
 
 PARAMETERS = {
     "m": Param(1.0, "hub mass", "kg", low=0.0, low_open=True),
@@ -137,7 +138,7 @@ class RimlessWheel:
     def system(self, x0: Sequence[float] | None = None) -> HybridSystem:
         from .bridge.walker_twins import rimless_wheel_twin
 
-        mode = Mode(3, self.field, names=STATE_NAMES, compiled=rimless_wheel_twin(self))
+        mode = Mode(3, self.field, names=STATE_NAMES, compiled=rimless_wheel_twin(self), units=STATE_UNITS)
         transitions = [Transition("stance", "stance", guard=self.impact_guard, reset=self.impact, name="impact"),
                        Transition("stance", "stance", guard=self.back_guard, reset=self.back_impact,
                                   name="back_impact")]
@@ -175,7 +176,9 @@ def build(params: dict[str, Any], effects: dict[str, dict[str, Any]]) -> Model:
     ground = np.array([rot @ np.array([-1.0, 0.0]), rot @ np.array([12.0, 0.0])])
     info = {"guard_units": {"impact": "rad (spoke angle past alpha, rolling forward)",
                             "back_impact": "rad (spoke angle past -alpha, rolling back)"},
-            "parameters": dict(params), "rimless_wheel": rw}
+            "parameters": dict(params), "rimless_wheel": rw,
+            # the stance spoke's tip, the one contact (legsim.viz.contacts)
+            "contact_points": lambda mode, x: {"stance_spoke": rot @ np.array([float(x[2]), 0.0])}}
     return Model(system=system, initial_mode="stance", initial_state=initial, geometry=rw.geometry,
                  scenery={"ground": ground}, counters=rw.stance_bridge.counters, info=info)
 

@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-import io
 import json
 import os
+import re
 import subprocess
 import sys
 import types
@@ -15,7 +15,6 @@ import pytest
 import legsim.commands
 from legsim import simulate
 from legsim.cli import main
-from legsim.progress import ProgressBar, progress_for
 from legsim.scene import bundled_dir, load_scene
 from helpers.scenes import TINY_SCENE, register_tiny, write_scene
 
@@ -348,31 +347,6 @@ def test_python_m_legsim_and_startup_imports_nothing_heavy():
 
 
 # -- progress ----------------------------------------------------------------------------------
-class _Terminal(io.StringIO):
-    def isatty(self):
-        return True
-
-
-def test_progress_only_on_a_terminal():
-    assert progress_for(io.StringIO()) is None
-    assert progress_for(_Terminal(), enabled=False) is None
-    bar = progress_for(_Terminal(), label="ball")
-    assert isinstance(bar, ProgressBar)
-
-
-def test_progress_bar_shows_the_simulated_time_fraction():
-    stream = _Terminal()
-    bar = ProgressBar(stream, label="ball", width=20)
-    bar(1.0, 0.0, 4.0)
-    text = stream.getvalue()
-    assert text.startswith("\rball [#####---------------]  25.0%  t = 1 / 4 s")
-    bar(4.0, 0.0, 4.0)
-    assert "[####################] 100.0%" in stream.getvalue()
-    bar.close()
-    # Closing erases the line: the stream ends with a carriage return after blanks.
-    assert stream.getvalue().endswith("\r") and "\n" not in stream.getvalue()
-
-
 def test_scene_simulate_calls_progress_on_long_runs(tmp_path):
     # A run of a few tenths of a second reports progress (simulate reports every ~0.2 s);
     # the reported times increase within [t0, t_final].
@@ -478,11 +452,13 @@ def test_progress_bar_is_drawn_on_a_terminal_and_erased(tmp_path):
     assert proc.wait(timeout=60) == 0
     os.close(master)
     err = received.decode()
-    bars = [part for part in err.split("\r") if part.startswith("oscillator_ex1 [")]
+    plain = [re.sub(r"\x1b\[[0-9;?]*[A-Za-z]", "", part) for part in err.split("\r")]
+    bars = [part for part in plain if part.startswith("oscillator_ex1 ")]
     assert bars, f"no progress bar drawn: {err!r}"
-    fractions = [float(b.split("]")[1].split("%")[0]) for b in bars]
+    fractions = [float(re.search(r" (\d+)% ", b).group(1)) for b in bars]
     assert fractions == sorted(fractions) and 0.0 <= fractions[0] and fractions[-1] <= 100.0
-    assert err.endswith("\r") and err.split("\r")[-2].strip() == ""  # erased: blanks, then return
+    assert all(" ETA " in b for b in bars)
+    assert err.endswith("\x1b[1A\x1b[2K")  # erased: the cursor goes up to the bar's line and clears it
     assert "\r" not in out and out.startswith("oscillator_ex1: finished at t = 1.5 s (euler, h = 1e-05 s")
 
 

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Mapping
 
 import numpy as np
 
@@ -26,8 +26,11 @@ class PlotData:
     strips: (entry, exit) times of the strips (s).
     segments: (mode, t_start, t_end) of every mode visit (s).
     title: one line; t0, t_end: the executed interval (s).
+    units: coordinate name -> unit (``Mode.units``; "" where the model declares none); a name
+        missing here has no recorded unit.
     omitted_from: earliest time (s) of a value left out of ``series`` because it is beyond
         ``PLOT_LIMIT`` or not finite (a diverged run), None when every value is drawn.
+    strip_modes: the mode each strip holds the state in, one per entry of ``strips``.
     """
 
     series: dict[str, tuple[np.ndarray, np.ndarray]]
@@ -38,6 +41,7 @@ class PlotData:
     t_end: float
     units: dict[str, str] = field(default_factory=dict)
     omitted_from: float | None = None
+    strip_modes: list[str] = field(default_factory=list)
 
     @property
     def omitted_note(self) -> str:
@@ -90,8 +94,33 @@ def plot_data_from_execution(execution: Execution, title: str) -> PlotData:
               for nm, (rows, vals) in trace_series(execution, trace).items()}
     series, omitted = drawable(series)
     segments = [(s.mode, s.t_start, s.t_end) for s in execution.segments]
+    units = units_by_name(execution.state_names, execution.state_units)
     return PlotData(series, execution.strip_intervals(), segments, title, float(execution.t0), float(execution.t_end),
-                    omitted_from=omitted)
+                    units=units, omitted_from=omitted, strip_modes=[s.mode for s in execution.strips])
+
+
+def units_by_name(names: Mapping[str, Any], units: Mapping[str, Any]) -> dict[str, str]:
+    """Coordinate name -> unit from per-mode names and units (``Execution.state_names`` and
+    ``state_units``, or a recording's); the first mode that declares a unit for a name wins.
+    Entries that are not strings (a recording may come from someone else) are ignored."""
+    out: dict[str, str] = {}
+    for mode, mode_names in names.items():
+        mode_units = units.get(mode)
+        if not isinstance(mode_names, (list, tuple)) or not isinstance(mode_units, (list, tuple)):
+            continue
+        for name, unit in zip(mode_names, mode_units):
+            # A unit declared in one mode replaces "" (none declared) from another.
+            if isinstance(name, str) and isinstance(unit, str) and not out.get(name):
+                out[name] = unit
+    return out
+
+
+def axis_label(name: str, unit: str | None) -> str:
+    """``name (unit)``; ``name (no unit)`` where the model declares none ("") and ``name (unit
+    unknown)`` where nothing is known (None: a recording without units). Dollar signs are
+    escaped, so that a name from a file is never parsed as mathtext."""
+    shown = "unit unknown" if unit is None else (unit or "no unit")
+    return f"{name} ({shown})".replace("$", r"\$")
 
 
 def plot_data_from_recording(data: dict[str, Any]) -> PlotData:
@@ -106,7 +135,22 @@ def plot_data_from_recording(data: dict[str, Any]) -> PlotData:
     # Where Rerun stored a diverged run's values as float32 they are inf: left out the same way.
     series, omitted = drawable(series)
     return PlotData(series, strips, list(data["segments"]), title, float(meta["t0"]), float(meta["t_end"]),
-                    omitted_from=omitted)
+                    units=recorded_units(data), omitted_from=omitted,
+                    strip_modes=[str(st.get("mode", "")) for st in data["strips"]])
+
+
+def recorded_units(data: Mapping[str, Any]) -> dict[str, str]:
+    """Coordinate name -> unit of a recording: its reader's ``units`` (name -> unit) when it
+    has them, else the ``state_units`` (mode -> units) of its ``legsim/meta``; empty when the
+    recording stores no units."""
+    flat = data.get("units")
+    if isinstance(flat, Mapping):
+        return {k: v for k, v in flat.items() if isinstance(k, str) and isinstance(v, str)}
+    meta = data.get("meta") or {}
+    per_mode = meta.get("state_units")
+    if isinstance(per_mode, Mapping) and isinstance(meta.get("state_names"), Mapping):
+        return units_by_name(meta["state_names"], per_mode)
+    return {}
 
 
 def _title(name: str, summary: dict[str, Any]) -> str:

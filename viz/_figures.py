@@ -14,7 +14,7 @@ from legsim.errors import OutputError
 from legsim.execution import Execution
 from legsim.output.rrd import write_rrd
 
-from ._common import plot_data_from_execution
+from ._common import axis_label, plot_data_from_execution
 from .plots import SPAN_RESOLUTION, mode_band, save_figure, state_panel
 
 
@@ -90,7 +90,8 @@ def group_shots(shots: list[tuple[float, str, np.ndarray, str]], within: float
 def state_panels(fig, gridspec_column, execution: Execution, coordinates: Sequence[str], title: str,
                  units: dict[str, str] | None = None) -> list:
     """State against time in a column of ``fig``: one panel per coordinate with the strips
-    shaded gray, and a mode band below (paper 003 Fig. 2)."""
+    shaded gray, and a mode band below (paper 003 Fig. 2). Each panel is labelled with the
+    coordinate's unit: ``units[name]`` when given, else the model's (``Mode.units``)."""
     data = plot_data_from_execution(execution, title)
     unknown = [c for c in coordinates if c not in data.series]
     if unknown:
@@ -101,7 +102,7 @@ def state_panels(fig, gridspec_column, execution: Execution, coordinates: Sequen
     for i, name in enumerate(coordinates):
         ax = fig.add_subplot(sub[i], sharex=axes[0] if axes else None)
         state_panel(ax, data, name, tol)
-        ax.set_ylabel(name + (f" ({units[name]})" if units and name in units else ""))
+        ax.set_ylabel(axis_label(name, (units or {}).get(name, data.units.get(name))))
         ax.tick_params(labelbottom=False)
         axes.append(ax)
     band = fig.add_subplot(sub[-1], sharex=axes[0])

@@ -22,6 +22,7 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
+from ._common import axis_label
 from ._figures import new_figure
 
 #: Outcome -> colour of the basin map, in legend order (``legsim.sweep.walk.OUTCOMES``, then
@@ -57,6 +58,34 @@ def _label(key: str) -> str:
     return key.split(".")[-1] if key.startswith("initial.state.") else key
 
 
+#: Units of the integrator's fields a sweep can vary (eps is in the guard's own units).
+INTEGRATOR_UNITS = {"integrator.h": "s", "integrator.t_final": "s", "integrator.t0": "s"}
+
+
+def field_units(info: Mapping[str, Any]) -> dict[str, str]:
+    """Unit of each swept field (``info["x"]``, ``info["y"]``) of the scene ``info["scene"]``:
+    ``initial.state.NAME`` from the initial mode's ``Mode.units``, ``robot.parameters.NAME``
+    from the builder's ``Param.unit``, the integrator's times in s. A field whose unit is not
+    known (or a scene that no longer loads) is left out: its axis says "unit unknown"."""
+    from legsim.errors import LegsimError
+    from legsim.scene import load_scene
+
+    try:
+        scene = load_scene(info["scene"], overrides=list(info.get("overrides") or ()))
+    except (LegsimError, KeyError, TypeError):
+        return {}
+    mode = scene.model.system.mode(scene.initial_mode)
+    units = dict(zip((f"initial.state.{n}" for n in mode.names), mode.units))
+    units.update({f"robot.parameters.{n}": p.unit for n, p in scene.builder.parameters.items()})
+    units.update(INTEGRATOR_UNITS)
+    return {key: units[key] for key in (info.get("x"), info.get("y")) if key in units}
+
+
+def _axis_labels(ax, info: Mapping[str, Any], units: Mapping[str, str]) -> None:
+    x, y = info["x"], info["y"]
+    ax.set(xlabel=axis_label(_label(x), units.get(x)), ylabel=axis_label(_label(y), units.get(y)))
+
+
 def basin_figure(table: Any, info: Mapping[str, Any]):
     """The basin map (outcome per cell) and the steps to convergence, side by side."""
     from matplotlib.colors import ListedColormap
@@ -77,14 +106,16 @@ def basin_figure(table: Any, info: Mapping[str, Any]):
                for label, n in counts.items() if n]
     _mark_fixed_point(ax, info, handles)
     ax.legend(handles=handles, loc="upper left", fontsize=8, framealpha=0.85)
-    ax.set(xlabel=_label(x), ylabel=_label(y), title=f"{info.get('scene', '')}: basin of attraction "
-                                                       f"({codes.size} initial states)")
+    units = field_units(info)
+    _axis_labels(ax, info, units)
+    ax.set_title(f"{info.get('scene', '')}: basin of attraction ({codes.size} initial states)")
     _, _, steps = grid_of(table, x, y, "steps_to_gait")
     steps = np.array([[np.nan if v is None else float(v) for v in row] for row in steps])
     mesh = ax_steps.pcolormesh(_edges(xs), _edges(ys), np.ma.masked_invalid(steps), cmap="viridis", shading="flat")
-    fig.colorbar(mesh, ax=ax_steps, label="steps to converge onto the gait")
+    fig.colorbar(mesh, ax=ax_steps, label="steps to converge onto the gait (count)")
     _mark_fixed_point(ax_steps, info, [])
-    ax_steps.set(xlabel=_label(x), ylabel=_label(y), title="steps to the gait (converging walks)")
+    _axis_labels(ax_steps, info, units)
+    ax_steps.set_title("steps to the gait (converging walks)")
     return fig
 
 
@@ -120,7 +151,7 @@ def stability_figure(table: Any, info: Mapping[str, Any]):
     top = max(2.0, float(np.nanmax(rho)) if np.isfinite(rho).any() else 2.0)
     mesh = ax.pcolormesh(_edges(xs), _edges(ys), np.ma.masked_invalid(rho), cmap="RdYlGn_r", shading="flat",
                          norm=TwoSlopeNorm(vmin=0.0, vcenter=1.0, vmax=top), gid="spectral_radius")
-    fig.colorbar(mesh, ax=ax, label="spectral radius of the Floquet multipliers")
+    fig.colorbar(mesh, ax=ax, label="spectral radius of the Floquet multipliers (dimensionless)")
     handles = [Line2D([], [], color="0.85", marker="s", linestyle="none", markersize=10, label="no orbit found")]
     if len(xs) > 1 and len(ys) > 1 and np.isfinite(rho).sum() >= 4:
         ax.contour(xs, ys, np.ma.masked_invalid(rho), levels=[1.0], colors="black", linewidths=2).set_gid(
@@ -133,7 +164,8 @@ def stability_figure(table: Any, info: Mapping[str, Any]):
             handles.append(Line2D([], [], color="blue", lw=2, ls="--",
                                   label="period doubling (a multiplier through -1)"))
     ax.legend(handles=handles, loc="best", fontsize=8, framealpha=0.85)
-    ax.set(xlabel=_label(x), ylabel=_label(y), title=f"{info.get('scene', '')}: stability of the periodic orbit")
+    _axis_labels(ax, info, field_units(info))
+    ax.set_title(f"{info.get('scene', '')}: stability of the periodic orbit")
     return fig
 
 
@@ -164,7 +196,7 @@ def switching_figure(times: Sequence[Sequence[float]], info: Mapping[str, Any]):
         if k < len(reference) and reference[k] is not None:
             ax.axvline(reference[k], color="#d62728", lw=1.5, label="deterministic")
             ax.legend(fontsize=8)
-        ax.set(xlabel="time (s)", ylabel="executions",
+        ax.set(xlabel="time (s)", ylabel="executions (count)",
                title=f"switch #{k + 1}: {len(panels[k])}" + (f" of {samples}" if samples else ""))
     if not panels:
         axes[0].text(0.5, 0.5, "no execution switched", ha="center", va="center", transform=axes[0].transAxes)

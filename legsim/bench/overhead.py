@@ -25,6 +25,7 @@ import numpy as np
 from ..compiled import without_compiled
 from ..relaxed import simulate
 from ..systems.fast import make_bouncing_ball, make_oscillator, make_oscillator_example
+from ..tables import render_table
 
 
 @numba.njit(cache=True)
@@ -247,7 +248,8 @@ def collect(quick: bool = False) -> dict[str, Any]:
     return result
 
 
-def format_report(r: dict[str, Any]) -> str:
+def format_report(r: dict[str, Any], width: int | None = None) -> str:
+    """The measurements as text; the table at most ``width`` characters wide (``legsim.tables``)."""
     lines = [f"# integrator overhead: {r['case']}"]
     cc, cp = r["cost_compiled_s"], r["cost_python_s"]
     lines.append("costs of one evaluation measured alongside each run, the least disturbed of the repeats kept")
@@ -255,31 +257,21 @@ def format_report(r: dict[str, Any]) -> str:
                  f"{cc['guards'] * 1e9:.1f} ns, reset {cc['reset'] * 1e9:.1f} ns")
     lines.append(f"one evaluation, Python (from Python): field {cp['field'] * 1e9:.0f} ns, guard "
                  f"{cp['guards'] * 1e9:.0f} ns, reset {cp['reset'] * 1e9:.0f} ns")
-    head = f"{'path':<18}{'method':<7}{'steps/s':>11}{'ns/step':>9}{'field':>7}{'guard':>7}{'reset':>7}" \
-           f"{'overhead/step':>15}{'trans':>7}"
-    lines.append(head)
-    for label, key in (("compiled", "compiled"), ("compiled, no stop", "compiled_no_stop"), ("python", "python")):
-        for m in r[key]:
-            lines.append(f"{label:<18}{m['method']:<7}{m['steps_per_s']:>11.3g}{m['ns_per_step']:>9.0f}"
-                         f"{100 * m['share_field']:>6.0f}%{100 * m['share_guards']:>6.0f}%"
-                         f"{100 * m['share_resets']:>6.1f}%{m['overhead_per_step_in_fields']:>10.2f} f-ev"
-                         f"{m['transitions']:>7}")
+    head = ("path", "method", "steps/s", "ns/step", "field", "guard", "reset", "overhead/step", "trans")
+    rows = [(label, m["method"], f"{m['steps_per_s']:.3g}", f"{m['ns_per_step']:.0f}", f"{100 * m['share_field']:.0f}%",
+             f"{100 * m['share_guards']:.0f}%", f"{100 * m['share_resets']:.1f}%",
+             f"{m['overhead_per_step_in_fields']:.2f} f-ev", str(m["transitions"]))
+            for label, key in (("compiled", "compiled"), ("compiled, no stop", "compiled_no_stop"), ("python", "python"))
+            for m in r[key]]
+    lines.append(render_table(head, rows, right=range(2, 9), whole=range(9), width=width))
     lines.append("")
     lines.append("landing in a strip, per transition (rk4): trial steps, extra field evaluations, guard "
                  "evaluations beyond one per step")
-    for case, d in r["landing"].items():
-        for landing, v in d.items():
-            lines.append(f"  {case:<46} {landing:<6} {v['trial_steps_per_transition']:6.2f} trials "
-                         f"{v['extra_field_evals_per_transition']:7.2f} f-ev {v['guard_evals_per_transition']:7.2f} "
-                         f"g-ev  ({v['transitions']} transitions)")
+    lines.append(_landing_table(r["landing"], width))
     lines.append("")
     lines.append("landing in a strip, per transition (dopri5, rtol = atol = 1e-8): the same, aimed retry against "
                  "the failed step's dense output")
-    for case, d in r.get("landing_pairs", {}).items():
-        for landing, v in d.items():
-            lines.append(f"  {case:<46} {landing:<6} {v['trial_steps_per_transition']:6.2f} trials "
-                         f"{v['extra_field_evals_per_transition']:7.2f} f-ev {v['guard_evals_per_transition']:7.2f} "
-                         f"g-ev  ({v['transitions']} transitions)")
+    lines.append(_landing_table(r.get("landing_pairs", {}), width))
     rk4 = next(m for m in r["compiled"] if m["method"] == "rk4")
     lines.append("")
     lines.append("model-contract checks (each stage's shape, each guard's type) on the Python path: run time with "
@@ -291,6 +283,15 @@ def format_report(r: dict[str, Any]) -> str:
     lines.append(f"target: integrator overhead per step <= 2 field evaluations (compiled rk4, with the stop): "
                  f"{target:.2f}: {'MET' if target <= 2 else 'MISSED'}")
     return "\n".join(lines)
+
+
+def _landing_table(costs: dict[str, dict[str, dict[str, Any]]], width: int | None) -> str:
+    """case -> landing -> its costs per transition, as a table."""
+    head = ("case", "landing", "trial steps", "extra field evals", "guard evals", "transitions")
+    rows = [(case, landing, f"{v['trial_steps_per_transition']:.2f}", f"{v['extra_field_evals_per_transition']:.2f}",
+             f"{v['guard_evals_per_transition']:.2f}", str(v["transitions"]))
+            for case, d in costs.items() for landing, v in d.items()]
+    return render_table(head, rows, right=range(2, 6), whole=range(1, 6), width=width)
 
 
 def main(quick: bool = False, as_json: bool = False) -> int:

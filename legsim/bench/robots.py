@@ -30,6 +30,7 @@ import numpy as np
 
 from ..builders import get_builder
 from ..errors import LegsimError
+from ..progress import counting
 from .cases import BenchError, RunSpec
 from .work_precision import Row, _timed, format_table, mark_pareto, plot_rows, write_csv
 
@@ -277,12 +278,15 @@ def run_case(name: str, *, quick: bool, out: str | os.PathLike, repeats: int, fi
     """Sweep one case; write OUT/robots-NAME.csv (and .png)."""
     case = make_robot_case(name, quick)
     rows = []
-    for spec in sweep(quick):
-        run_one(case, spec, 1)  # warm: kernels loaded, caches filled
-        rows.append(run_one(case, spec, repeats))
-        if log is not None:
-            r = rows[-1]
-            log(f"{name}: {r.method} h={r.h:g} tol={r.tol:g} error {r.error:.2e} wall {1e3 * r.wall_s:.3g} ms")
+    specs = sweep(quick)
+    with counting(len(specs), name, enabled=log is not None) as advance:
+        for spec in specs:
+            run_one(case, spec, 1)  # warm: kernels loaded, caches filled
+            rows.append(run_one(case, spec, repeats))
+            if log is not None:
+                r = rows[-1]
+                log(f"{name}: {r.method} h={r.h:g} tol={r.tol:g} error {r.error:.2e} wall {1e3 * r.wall_s:.3g} ms")
+            advance(1)
     mark_pareto(rows)
     folder = Path(out)
     folder.mkdir(parents=True, exist_ok=True)

@@ -27,7 +27,9 @@ from typing import TYPE_CHECKING, Any, Callable, Iterable, Sequence
 import numpy as np
 
 from ..output.files import write_atomic
+from ..progress import counting
 from ..relaxed.simulate import MAX_STEPS
+from ..tables import render_table
 from .cases import BenchError, Case, RunSpec, make_case, relaxed_method
 
 if TYPE_CHECKING:
@@ -354,21 +356,17 @@ def plot_rows(all_rows: Sequence[Row], path: Path, title: str, ylabel: str) -> P
         plt.close(fig)
 
 
-def format_table(rows: Sequence[Row]) -> str:
-    """The rows as an aligned text table, sorted by method then error."""
+def format_table(rows: Sequence[Row], width: int | None = None) -> str:
+    """The rows as a text table (``legsim.tables``, at most ``width`` characters wide), sorted
+    by method then error."""
     head = ("method", "h", "eps", "tol", "max_step", "error", "rho", "wall_s", "steps", "halv", "f_evals", "trans",
             "status", "P")
-    lines = []
     body = []
     for r in sorted(rows, key=lambda r: (r.method, -r.error if math.isfinite(r.error) else -math.inf)):
         body.append((r.method, _g(r.h), _g(r.eps), _g(r.tol), "" if math.isinf(r.max_step) else _g(r.max_step),
                      _e(r.error), _e(r.rho), f"{r.wall_s:.4g}", str(r.steps),
                      str(r.halvings), str(r.field_evals), str(r.transitions), r.status, "*" if r.pareto else ""))
-    widths = [max(len(head[i]), *(len(b[i]) for b in body)) if body else len(head[i]) for i in range(len(head))]
-    lines.append("  ".join(h.ljust(w) for h, w in zip(head, widths)))
-    for b in body:
-        lines.append("  ".join(v.ljust(w) for v, w in zip(b, widths)))
-    return "\n".join(lines)
+    return render_table(head, body, right=range(1, 12), whole=range(0, 12), width=width)
 
 
 def _g(v: float) -> str:
@@ -412,10 +410,13 @@ def run_case(name: str, *, quick: bool = False, out: str | os.PathLike | None = 
     say(f"reference: {case.reference_note}")
     warm_up(case, runs)
     rows = []
-    for i, spec in enumerate(runs, 1):
-        row = run_one(case, spec, repeats, rho_points)
-        rows.append(row)
-        say(f"  [{i}/{len(runs)}] {run_label(row)}: error {_e(row.error)}, {row.wall_s:.4g} s, {row.status}")
+    # The bar (with its ETA) only when progress is reported at all, and only on a terminal.
+    with counting(len(runs), case.name, enabled=log is not None) as advance:
+        for i, spec in enumerate(runs, 1):
+            row = run_one(case, spec, repeats, rho_points)
+            rows.append(row)
+            say(f"  [{i}/{len(runs)}] {run_label(row)}: error {_e(row.error)}, {row.wall_s:.4g} s, {row.status}")
+            advance(1)
     extensions = extend_baselines(case, rows, case.targets, extension_budget,
                                   lambda spec: run_one(case, spec, repeats, rho_points), say)
     rows += [row for ext in extensions for row in ext.rows]

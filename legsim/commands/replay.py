@@ -25,6 +25,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="open the recording in the Rerun viewer (needs a display)")
     parser.add_argument("--html", metavar="OUT.html",
                         help="write a self-contained meshcat animation of the recorded robot")
+    parser.add_argument("--html-camera", choices=("fixed", "follow"),
+                        help="the animation's camera: fixed on the whole run (default) or following the robot")
     parser.add_argument("--plot", metavar="OUT.png",
                         help="write the recorded state against time, strips shaded (matplotlib)")
 
@@ -75,7 +77,7 @@ def run(args: argparse.Namespace) -> int:
     from ..output.rrd import read_rrd
     from ..output.untrusted import printable
 
-    from .run import plan_outputs, write_output
+    from .run import html_options, plan_outputs, write_output
 
     path = Path(args.file)
     if args.spawn and not has_display():
@@ -86,7 +88,9 @@ def run(args: argparse.Namespace) -> int:
     wanted = {kind: (Path(target), f"--{kind}") for kind in ("html", "plot") if (target := getattr(args, kind))}
     plan, writers = plan_outputs(wanted, inputs=[path])
     data = read_rrd(path)
-    outputs = {kind: str(write_output(plan, kind, writers[kind], None, None, recording=data)) for kind in plan}
+    options = html_options(args)
+    outputs = {kind: str(write_output(plan, kind, writers[kind], None, None, recording=data, **options.get(kind, {})))
+               for kind in plan}
     # The recorded run_summary, with the files this command wrote, as `legsim run --json` has them.
     summary = {**data["summary"], "outputs": outputs}
     if args.json:

@@ -46,6 +46,9 @@ def add_output_arguments(parser: argparse.ArgumentParser) -> None:
     """The ``--rrd/--html/--plot FILE`` options (shared with commands that write executions)."""
     parser.add_argument("--rrd", metavar="FILE", help="write a Rerun recording of the execution")
     parser.add_argument("--html", metavar="FILE", help="write a self-contained meshcat animation")
+    parser.add_argument("--html-camera", choices=("fixed", "follow"),
+                        help="the animation's camera: fixed on the whole run (default; planted feet stand "
+                             "still) or following a travelling robot")
     parser.add_argument("--plot", metavar="FILE", help="write a plot of the state against time")
 
 
@@ -73,7 +76,7 @@ def run(args: argparse.Namespace) -> int:
     outputs = requested_outputs(args, scene.output_paths(args.out_dir))
     plan, writers = plan_outputs(outputs, inputs=[scene.path], scene=scene)
     execution, estimate = _simulate(scene, show_progress=not (args.quiet or args.json), check=args.check_accuracy)
-    written, failures = _write_all(execution, scene, plan, writers)
+    written, failures = _write_all(execution, scene, plan, writers, html_options(args))
     summary = run_summary(execution, scene, outputs=written)
     if estimate is not None:
         summary["error_estimate"] = finite_or_none(estimate.as_dict())
@@ -94,6 +97,13 @@ def run(args: argparse.Namespace) -> int:
         print(printable(f"legsim: run stopped early ({summary['status']}): {summary['message']}"), file=sys.stderr)
         return 3
     return 0
+
+
+def html_options(args: argparse.Namespace) -> dict[str, dict[str, Any]]:
+    """kind -> keyword arguments for its writer: the html camera, only when asked for (a
+    writer is called as ``writer(execution, scene, path)`` otherwise)."""
+    camera = getattr(args, "html_camera", None)
+    return {"html": {"camera": camera}} if camera else {}
 
 
 def plan_outputs(outputs: dict[str, tuple[Path, str]], inputs: list[Path], scene: Any = None
@@ -136,9 +146,10 @@ def _simulate(scene: Any, show_progress: bool, check: bool) -> tuple[Any, Any]:
             bar.close()
 
 
-def _write_all(execution: Any, scene: Any, plan: OutputPlan, writers: dict[str, Writer]
-               ) -> tuple[dict[str, Path], list[LegsimError]]:
-    """Write every planned output: (kind -> path written, the errors of those that failed).
+def _write_all(execution: Any, scene: Any, plan: OutputPlan, writers: dict[str, Writer],
+               options: dict[str, dict[str, Any]] | None = None) -> tuple[dict[str, Path], list[LegsimError]]:
+    """Write every planned output: (kind -> path written, the errors of those that failed);
+    ``options``: kind -> keyword arguments of its writer (the html camera).
 
     After a finished run a failed output is raised. After a run that stopped early the run's
     status is the result the exit code reports (3), not the output that could not be made: its
@@ -155,7 +166,8 @@ def _write_all(execution: Any, scene: Any, plan: OutputPlan, writers: dict[str, 
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
         for kind in plan:
             try:
-                written[kind] = write_output(plan, kind, writers[kind], execution, scene)
+                extra = (options or {}).get(kind, {})
+                written[kind] = write_output(plan, kind, writers[kind], execution, scene, **extra)
             except LegsimError as exc:
                 if execution.status == "finished":
                     raise

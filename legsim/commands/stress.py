@@ -30,6 +30,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from ..errors import LegsimError
+    from ..progress import counting
     from ..stress import CASES, format_table, run_suite, select
 
     chosen = select(args.cases)
@@ -41,12 +42,15 @@ def run(args: argparse.Namespace) -> int:
             print(f"{c.name:<{width}}  {c.group:<12}  {c.description}")
         return 0
     show = sys.stderr.isatty() and not args.json
+    with counting(len(chosen), "stress", enabled=show) as advance:
 
-    def progress(case, result) -> None:
-        if show:
-            print(f"  {case.name}: {'pass' if result.passed else 'FAIL'} ({result.wall_time:.1f} s)", file=sys.stderr)
+        def progress(case, result) -> None:
+            if show:
+                print(f"  {case.name}: {'pass' if result.passed else 'FAIL'} ({result.wall_time:.1f} s)",
+                      file=sys.stderr)
+            advance(1)
 
-    results = run_suite(quick=args.quick, names=args.cases, progress=progress)
+        results = run_suite(quick=args.quick, names=args.cases, progress=progress)
     if args.json:
         print(json.dumps([r.to_dict() for r in results], allow_nan=False))
     else:

@@ -4,41 +4,28 @@ cost and the invariants it checked, then every failed check spelled out."""
 from __future__ import annotations
 
 import re
+import textwrap
 from typing import Sequence
 
+from ..tables import output_width, render_table
 from .framework import CaseResult, Check
 from .invariants import GENERIC
 
 
-def format_table(results: Sequence[CaseResult]) -> str:
-    """The table ``legsim stress`` prints: one row per case, then the failures spelled out."""
+def format_table(results: Sequence[CaseResult], width: int | None = None) -> str:
+    """The table ``legsim stress`` prints: one row per case (long cells wrap within ``width``
+    characters, default ``legsim.tables.output_width()``), then the failures spelled out."""
     header = ("case", "outcome", "trans.", "steps", "wall s", "invariants checked", "verdict")
-    rows = []
-    for r in results:
-        rows.append((r.name, r.outcome, str(r.transitions), str(r.steps), f"{r.wall_time:.2f}",
-                     invariant_summary(r.checks), "pass" if r.passed else "FAIL"))
-    widths = [max(len(h), *(len(row[i]) for row in rows)) if rows else len(h) for i, h in enumerate(header)]
-    widths[1] = min(widths[1], 64)
-    widths[5] = min(widths[5], 64)
-
-    def line(cells):
-        out = []
-        for i, cell in enumerate(cells):
-            text = cell if len(cell) <= widths[i] else cell[:widths[i] - 3] + "..."
-            out.append(text.rjust(widths[i]) if i in (2, 3, 4) else text.ljust(widths[i]))
-        return "  ".join(out).rstrip()
-
-    lines = [line(header), line(["-" * w for w in widths])]
-    lines.extend(line(row) for row in rows)
+    rows = [(r.name, r.outcome, str(r.transitions), str(r.steps), f"{r.wall_time:.2f}", invariant_summary(r.checks),
+             "pass" if r.passed else "FAIL") for r in results]
+    width = width or output_width()
     failed = [r for r in results if not r.passed]
-    lines.append("")
-    lines.append("invariants: " + ", ".join(f"{k} {v}" for k, v in GENERIC.items())
-                 + "; then the case's own checks (see --json for all of them with their numbers)")
-    lines.append(f"{len(results) - len(failed)} of {len(results)} cases passed")
-    for r in failed:
-        for f in r.failures:
-            lines.append(f"FAIL {r.name}: {f}")
-    return "\n".join(lines)
+    notes = ["invariants: " + ", ".join(f"{k} {v}" for k, v in GENERIC.items())
+             + "; then the case's own checks (see --json for all of them with their numbers)",
+             f"{len(results) - len(failed)} of {len(results)} cases passed"]
+    notes += [f"FAIL {r.name}: {f}" for r in failed for f in r.failures]
+    wrapped = [textwrap.fill(note, width, subsequent_indent="    ", break_on_hyphens=False) for note in notes]
+    return "\n".join([render_table(header, rows, right=(2, 3, 4), whole=(0, 2, 3, 4, 6), width=width), "", *wrapped])
 
 
 def invariant_summary(checks: Sequence[Check]) -> str:

@@ -2,16 +2,16 @@
 
 from __future__ import annotations
 
-import sys
 import time
 from collections import Counter
-from contextlib import contextmanager, nullcontext
+from contextlib import nullcontext
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Iterator
+from typing import Any, Callable
 
 import pyarrow as pa
 
+from ..progress import counting
 from .engine import Engine
 from .spec import SweepError, SweepSpec, corners, variation_overrides
 from .table import ResultStore, schema, to_table
@@ -78,7 +78,7 @@ def run_sweep(spec: SweepSpec, *, out: str | Path | None = None, resume: bool = 
             log(f"{len(todo)} of {len(spec)} variation(s) to run on {engine.where}")
         if store is not None:
             store.start()
-        with _progress_bar(progress, len(spec), len(done)) as advance:
+        with counting(len(spec), "sweep", done=len(done), enabled=progress) as advance:
             def on_done(batch: list, results: Any) -> None:
                 if isinstance(results, BaseException):
                     results = [failed_row(index, values, results) for index, values in batch]
@@ -131,31 +131,6 @@ def check_sweep(spec: SweepSpec) -> dict[str, float] | None:
         raise SweepError(f"{base.path}: the walks need the scene's gait, and its orbit search ended with "
                          f"{gait.status}: {gait.message}")
     return dict(zip(gait.state_names, (float(v) for v in gait.fixed_point)))
-
-
-@contextmanager
-def _progress_bar(enabled: bool, total: int, done: int) -> Iterator[Callable[[int], None]]:
-    """``advance(n)`` for a rich progress bar on stderr (done / total, elapsed, ETA) when
-    enabled and stderr is a terminal; a no-op otherwise."""
-    if not (enabled and _isatty(sys.stderr)):
-        yield lambda n: None
-        return
-    from rich.console import Console
-    from rich.progress import (BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn,
-                               TimeRemainingColumn)
-
-    columns = (TextColumn("sweep"), BarColumn(), MofNCompleteColumn(), TextColumn("elapsed"), TimeElapsedColumn(),
-               TextColumn("ETA"), TimeRemainingColumn())
-    with Progress(*columns, console=Console(file=sys.stderr), transient=True) as bar:
-        task = bar.add_task("sweep", total=total, completed=done)
-        yield lambda n: bar.advance(task, n)
-
-
-def _isatty(stream: Any) -> bool:
-    try:
-        return bool(stream.isatty())
-    except (AttributeError, ValueError):
-        return False
 
 
 def write_figures(result: SweepResult, folder: Path, fixed_point: dict[str, float] | None) -> dict[str, Path]:

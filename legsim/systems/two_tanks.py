@@ -33,6 +33,7 @@ from ..hybrid import HybridSystem, Mode, Transition
 from ._reference import as_times, box, make_samples, segment
 
 NAMES = ("x1", "x2")
+UNITS = ("m", "m")  # water levels
 
 
 @dataclass(frozen=True)
@@ -136,8 +137,8 @@ def make_system(w: float = 0.75, v1: float = 0.5, v2: float = 0.5, r1: float = 0
     f2 = np.array([-v1, w - v2])
     zero = np.zeros((2, 2))
     modes = {
-        "q1": Mode(2, lambda t, x, u: f1.copy(), names=NAMES, jacobian=lambda t, x, u: zero.copy()),
-        "q2": Mode(2, lambda t, x, u: f2.copy(), names=NAMES, jacobian=lambda t, x, u: zero.copy()),
+        "q1": Mode(2, lambda t, x, u: f1.copy(), names=NAMES, jacobian=lambda t, x, u: zero.copy(), units=UNITS),
+        "q2": Mode(2, lambda t, x, u: f2.copy(), names=NAMES, jacobian=lambda t, x, u: zero.copy(), units=UNITS),
     }
     e1 = np.array([1.0, 0.0])
     e2 = np.array([0.0, 1.0])

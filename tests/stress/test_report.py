@@ -21,10 +21,34 @@ def test_table_has_a_row_per_case_and_spells_out_failures():
     good.add(_checks("status", "finite"))
     bad = stress.CaseResult("bad_case", "extremes", outcome="x" * 100)
     bad.add(stress.Check("impossible", False, "1 > 2"))
-    lines = stress.format_table([good, bad]).splitlines()
+    lines = stress.format_table([good, bad], width=200).splitlines()
     assert lines[0].split() == ["case", "outcome", "trans.", "steps", "wall", "s", "invariants", "checked",
                                 "verdict"]
     row = next(line for line in lines if line.startswith("good_case"))
     assert row.split()[-6:] == ["finished", "3", "40", "0.50", "SF", "pass"]
-    assert "..." in next(line for line in lines if line.startswith("bad_case"))  # a long outcome is cut
+    assert "x" * 100 in next(line for line in lines if line.startswith("bad_case"))  # a long outcome whole
     assert "1 of 2 cases passed" in lines and "FAIL bad_case: impossible: 1 > 2" in lines
+
+
+def test_a_narrow_table_wraps_its_cells_and_keeps_every_character():
+    # Long cells wrap inside their column: nothing is cut, no line is wider than asked.
+    from helpers.tables import read_cells
+
+    outcome = "diverged: " + " ".join(f"word{k}" for k in range(30)) + " " + "y" * 70
+    results = []
+    for name, text in (("first_case_with_a_long_name", outcome), ("second", "finished")):
+        r = stress.CaseResult(name, "extremes", outcome=text, transitions=12345, steps=678901, wall_time=12.3456)
+        r.add(_checks("status", "finite", "time increasing", "converges (d = 1e-06)",
+                      "released where eq. (31) changes sign", "a check whose name is long enough to wrap"))
+        r.add(stress.Check("impossible", False, "the error 3.2e-4 is over the bound 1e-4 " * 4))
+        results.append(r)
+    for width in (60, 80, 100):
+        text = stress.format_table(results, width=width)
+        assert max(len(line) for line in text.splitlines()) <= width, text
+        header, rows = read_cells(text, 7, key=6)
+        assert header == ["case", "outcome", "trans.", "steps", "walls", "invariantschecked", "verdict"]
+        expected = [["".join(cell.split()) for cell in (r.name, r.outcome, str(r.transitions), str(r.steps),
+                                                         f"{r.wall_time:.2f}", stress.invariant_summary(r.checks),
+                                                         "FAIL")] for r in results]
+        assert rows == expected, text
+        assert "..." not in text and "".join(text.split()).count("FAILfirst_case") == 1

@@ -57,24 +57,33 @@ def chromium() -> str:
     return found
 
 
-def screenshot(chromium: str, page: Path, tmp_path: Path) -> np.ndarray:
-    """RGB image (h, w, 3) in [0, 1] of ``page`` after the page has had time to load."""
+def screenshot(chromium: str, page: Path, tmp_path: Path, at: float | None = None) -> np.ndarray:
+    """RGB image (h, w, 3) in [0, 1] of ``page`` after the page has had time to load; with
+    ``at``, paused at that simulated time (s) through the page's ``#t=`` address."""
     from matplotlib.image import imread
 
-    shot = tmp_path / (page.stem + ".png")
-    profile = tmp_path / ("profile-" + page.stem)
+    stem = page.stem if at is None else f"{page.stem}-at-{at:g}"
+    shot = tmp_path / (stem + ".png")
+    profile = tmp_path / ("profile-" + stem)
+    address = page.resolve().as_uri() + ("" if at is None else f"#t={at!r}")
     cmd = [chromium, "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
            "--disable-background-networking", "--disable-component-update", "--disable-sync",
            f"--user-data-dir={profile}", f"--window-size={WINDOW[0]},{WINDOW[1]}",
-           "--virtual-time-budget=2000", f"--screenshot={shot}", page.resolve().as_uri()]
+           "--virtual-time-budget=2000", f"--screenshot={shot}", address]
     result = subprocess.run(cmd, capture_output=True, text=True, timeout=60)
     assert result.returncode == 0 and shot.exists(), result.stderr[-2000:]
     return imread(shot)[..., :3]
 
 
 def saturated(img: np.ndarray) -> np.ndarray:
-    """Mask of clearly coloured pixels (robot parts), not white, gray or black."""
+    """Mask of clearly coloured pixels (robot parts and contact rings), not white, gray or black."""
     return (img.max(axis=-1) - img.min(axis=-1)) > 0.25
+
+
+def contact_rings(img: np.ndarray) -> np.ndarray:
+    """Mask of the contact markers' magenta (``CONTACT_COLOUR``) pixels, anti-aliased edges included."""
+    r, g, b = img[..., 0], img[..., 1], img[..., 2]
+    return (r > 0.75) & (b > 0.75) & (g < 0.75) & (np.minimum(r, b) - g > 0.2)
 
 
 @pytest.fixture(scope="module")
@@ -154,7 +163,8 @@ def test_page_of_a_bundled_robot_shows_it(chromium, name, tmp_path):
     gray = np.all(np.abs(img - 0x6E / 255) < 0.06, axis=-1)
     line_row = int(np.argmax(gray.sum(axis=1)))
     assert gray[line_row].sum() > 20
-    rows = np.nonzero(robot)[0]
+    # The rings around planted feet are drawn on the ground, not part of the robot.
+    rows = np.nonzero(robot & ~contact_rings(img))[0]
     if side == "above":
         # Which frame the screenshot catches depends on timing: in stance the feet rest on the
         # ground and their markers (~8 px radius) reach just below the line (10-12% of the
@@ -164,3 +174,48 @@ def test_page_of_a_bundled_robot_shows_it(chromium, name, tmp_path):
         assert np.mean(rows < line_row) > 0.8 and rows.min() < line_row - 50
     else:
         assert np.mean(rows > line_row) > 0.9 and rows.max() > line_row + 50
+
+
+# -- the pronk's planted feet stand still on the page -------------------------------------------
+def ring_centres(img: np.ndarray) -> np.ndarray:
+    """Pixel centres (x, y) of the contact rings on the page, left to right."""
+    from scipy import ndimage
+
+    labels, count = ndimage.label(contact_rings(img))
+    sizes = ndimage.sum_labels(np.ones_like(labels), labels, range(1, count + 1))
+    keep = [k + 1 for k in range(count) if sizes[k] > 20]  # whole rings, not stray edge pixels
+    centres = [ndimage.center_of_mass(labels == k)[::-1] for k in keep]
+    return np.array(sorted(centres))
+
+
+@pytest.fixture(scope="module")
+def pronk_stance():
+    """The bundled pronk and five times spread over its first double stance (s)."""
+    from legsim.scene import load_scene
+
+    scene = load_scene("pronk")
+    ex = scene.simulate()
+    (stance, *_) = [s for s in ex.segments if s.mode == "both"]
+    times = np.linspace(stance.t_start, stance.t_end, 7)[1:-1]
+    return scene, ex, [round(float(t), 4) for t in times]
+
+
+def test_planted_feet_keep_their_pixels_through_a_stance(chromium, pronk_stance, tmp_path):
+    scene, ex, times = pronk_stance
+    page = write_html(ex, scene, tmp_path / "pronk.html")
+    centres = np.array([ring_centres(screenshot(chromium, page, tmp_path, at=t)) for t in times])
+    assert centres.shape == (len(times), 2, 2), "one ring per planted foot in every shot"
+    # The two feet's rings are apart (the footholds lie a body length apart) ...
+    assert np.all(centres[:, 1, 0] - centres[:, 0, 0] > 20)
+    # ... and each moves by at most 2 px over the stance.
+    assert np.ptp(centres, axis=0).max() <= 2.0, centres
+
+
+def test_a_following_camera_moves_the_planted_feet(chromium, pronk_stance, tmp_path):
+    # What the issue saw with the camera following the robot (63 px of skating in one
+    # stance): the same measure fails, so the test above can tell.
+    scene, ex, times = pronk_stance
+    page = write_html(ex, scene, tmp_path / "follow.html", camera="follow")
+    centres = np.array([ring_centres(screenshot(chromium, page, tmp_path, at=t)) for t in (times[0], times[-1])])
+    assert centres.shape == (2, 2, 2)
+    assert np.ptp(centres[:, :, 0], axis=0).min() > 10.0, centres

@@ -3,6 +3,8 @@ band is its mode sequence, the lines are its samples; written atomically."""
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 from helpers.models import ball_model, hopper_model
@@ -34,7 +36,7 @@ def test_strip_bars_match_the_strip_intervals_in_every_panel(hopper):
     model, ex = hopper
     fig = state_figure(plot_data(ex, model=model))
     *panels, band = fig.axes[: len(ex.state_names["stance"]) + 1]
-    assert [ax.get_ylabel() for ax in panels] == ["z", "zd", "n"]
+    assert [ax.get_ylabel() for ax in panels] == ["z (no unit)", "zd (no unit)", "n (no unit)"]
     want = sorted(ex.strip_intervals())
     for ax in panels + [band]:
         (coll,) = _collections(ax, STRIP_GID)
@@ -202,3 +204,152 @@ def test_diverged_recording_is_plotted_too(diverged, tmp_path):
         path = write_plot(None, None, tmp_path / "div.png", recording=data)
     assert path.stat().st_size > 1000
     assert plot_data(recording=data).omitted_from is not None
+
+
+# -- units on every axis, constant coordinates, modes that live in strips ----------------------
+#: An axis label that ends with its unit in parentheses: "x (m)", "time (s)", "n (no unit)".
+UNIT_LABEL = re.compile(r"\(([^()]+)\)$")
+
+
+def labels_of_numbered_axes(fig) -> list[str]:
+    """The label of every axis that shows numbers (a visible tick label with text)."""
+    fig.canvas.draw()
+    labels = []
+    for ax in fig.axes:
+        if not ax.get_visible():
+            continue
+        for axis, label in ((ax.xaxis, ax.get_xlabel()), (ax.yaxis, ax.get_ylabel())):
+            if any(t.get_visible() and t.get_text() for t in axis.get_ticklabels()):
+                labels.append(label)
+    return labels
+
+
+def assert_units_everywhere(fig, known: bool = True) -> None:
+    labels = labels_of_numbered_axes(fig)
+    assert labels, "no axis shows numbers"
+    missing = [label for label in labels if not UNIT_LABEL.search(label)]
+    assert not missing, f"axes without a unit: {missing}"
+    if known:
+        assert not [label for label in labels if label.endswith("(unit unknown)")], labels
+
+
+@pytest.fixture(scope="module")
+def pronk():
+    from legsim.scene import load_scene
+
+    scene = load_scene("pronk")
+    ex = scene.simulate()
+    assert ex.status == "finished"
+    return scene, ex
+
+
+def test_every_axis_of_a_run_plot_has_the_models_unit(pronk):
+    scene, ex = pronk
+    fig = state_figure(plot_data(ex, scene))
+    assert_units_everywhere(fig)
+    labels = {ax.get_ylabel() for ax in fig.axes}
+    assert {"x (m)", "z (m)", "xd (m/s)", "zd (m/s)", "left_foot_x (m)"} <= labels
+    assert fig.axes[-1].get_xlabel() == "time (s)"
+
+
+def test_a_replayed_plot_has_the_recorded_units_or_says_they_are_unknown(pronk, tmp_path):
+    scene, ex = pronk
+    data = read_rrd(write_rrd(ex, scene, tmp_path / "p.rrd"))
+    with_units = {**data, "meta": {**data["meta"], "state_units": {m: list(u) for m, u in ex.state_units.items()}}}
+    fig = state_figure(plot_data(recording=with_units))
+    assert_units_everywhere(fig)
+    assert "theta" not in str([ax.get_ylabel() for ax in fig.axes])  # constant: collapsed here too
+    # A recording without units says so on its axes rather than leaving them bare.
+    data.pop("units", None)
+    data["meta"].pop("state_units", None)
+    fig = state_figure(plot_data(recording=data))
+    assert_units_everywhere(fig, known=False)
+    assert "x (unit unknown)" in {ax.get_ylabel() for ax in fig.axes}
+
+
+def test_figure_script_panels_take_the_models_units(pronk):
+    from legsim.viz._figures import new_figure, state_panels
+
+    scene, ex = pronk
+    fig = new_figure(6.0, 6.0)
+    axes = state_panels(fig, fig.add_gridspec(1, 1)[0], ex, ["x", "theta"], "pronk")
+    assert [ax.get_ylabel() for ax in axes[:2]] == ["x (m)", "theta (rad)"]
+    assert_units_everywhere(fig)
+
+
+def test_every_axis_of_the_sweep_maps_and_histograms_has_a_unit():
+    import pyarrow as pa
+
+    from legsim.viz.maps import basin_figure, stability_figure, switching_figure
+
+    rows = [{"initial.state.stanced": a, "initial.state.hipd": b, "robot.parameters.slope": a,
+             "robot.parameters.mH": b, "task_status": "done", "outcome": "converges", "steps_to_gait": 3,
+             "orbit_status": "converged", "orbit_spectral_radius": 0.5 + a / 4 + b / 8,
+             "orbit_multipliers_re": [0.5], "orbit_multipliers_im": [0.0]}
+            for a in (0.5, 1.0, 1.5) for b in (-1.0, 0.0)]
+    table = pa.Table.from_pylist(rows)
+    basin = basin_figure(table, {"x": "initial.state.stanced", "y": "initial.state.hipd", "scene": "compass_gait"})
+    assert basin.axes[0].get_xlabel() == "stanced (rad/s)" and basin.axes[0].get_ylabel() == "hipd (rad/s)"
+    stability = stability_figure(table, {"x": "robot.parameters.slope", "y": "robot.parameters.mH",
+                                         "scene": "compass_gait"})
+    assert stability.axes[0].get_xlabel() == "robot.parameters.slope (deg)"
+    histograms = switching_figure([[1.0, 1.1, 1.2]], {"deterministic": [1.1], "samples": 3, "scene": "toy"})
+    for fig in (basin, stability, histograms):
+        assert_units_everywhere(fig)
+
+
+def test_a_constant_coordinate_is_a_note_not_a_series(pronk):
+    scene, ex = pronk
+    data = plot_data(ex, scene)
+    theta = data.series["theta"][1]
+    # What the issue saw: rounding noise, not exactly zero (else this test would prove nothing).
+    assert 0 < np.nanmax(np.abs(theta)) < 1e-12
+    fig = state_figure(data)
+    drawn = [line.get_ydata() for ax in fig.axes for line in ax.get_lines()]
+    assert not any(len(y) == len(theta) and np.array_equal(y, theta, equal_nan=True) for y in drawn)
+    assert not any(ax.get_ylabel().startswith(("theta", "thetad")) for ax in fig.axes)
+    assert "theta = 0 rad, thetad = 0 rad/s throughout" in fig.axes[0].get_title()
+    # Asked for by name, it is drawn.
+    asked = state_figure(data, ["x", "theta"])
+    assert [ax.get_ylabel() for ax in asked.axes[:2]] == ["x (m)", "theta (rad)"]
+    assert "theta = 0" not in asked.axes[0].get_title()
+
+
+def test_small_real_motion_is_not_taken_for_a_constant():
+    from legsim.viz._common import PlotData
+    from legsim.viz.plots import constant_coordinates
+
+    t = np.linspace(0.0, 10.0, 101)
+    series = {"x": (t, 1e4 * t / 10), "z": (t, 1.0 + 0.1 * np.sin(t)), "zd": (t, 0.1 * np.cos(t)),
+              "pitch": (t, 1e-6 * np.sin(t)),                       # real, small: 1e-6 rad
+              "noise": (t, 1e-16 * np.cos(7 * t)),                  # rounding noise around 0
+              "offset": (t, 2.5 + 1e-15 * np.sin(3 * t)),           # a constant plus noise
+              "exact": (t, np.full_like(t, -0.75))}
+    data = PlotData(series, [], [("m", 0.0, 10.0)], "t", 0.0, 10.0)
+    found = constant_coordinates(data)
+    assert set(found) == {"noise", "offset", "exact"}
+    assert found["noise"] == 0.0 and found["exact"] == -0.75 and abs(found["offset"] - 2.5) < 1e-14
+
+
+def test_a_mode_that_only_lives_inside_strips_is_on_the_band(pronk):
+    from matplotlib.colors import to_rgb
+
+    scene, ex = pronk
+    # The pronk's one-leg mode "left": every visit has zero length (both feet land within one
+    # strip), so the segments alone never show it.
+    assert all(s.t_end == s.t_start for s in ex.segments if s.mode == "left")
+    fig = state_figure(plot_data(ex, scene))
+    band = fig.axes[-1]
+    (held,) = _collections(band, f"{MODE_GID}:left:held")
+    want = sorted((s.time, s.exit_time) for s in ex.strips if s.mode == "left")
+    np.testing.assert_allclose(np.array(_spans(held)), np.array(want), rtol=0, atol=1e-12)
+    legend = {text.get_text(): handle for text, handle in zip(band.get_legend().get_texts(),
+                                                              band.get_legend().legend_handles)}
+    colour = to_rgb(legend["left"].get_facecolor())
+    # And it is there in the picture: pixels of left's colour inside the band.
+    fig.canvas.draw()
+    img = np.asarray(fig.canvas.buffer_rgba())[..., :3] / 255.0
+    x0, y0, x1, y1 = band.get_window_extent().extents
+    h = img.shape[0]
+    crop = img[int(h - y1) + 1:int(h - y0) - 1, int(x0) + 1:int(x1) - 1]
+    assert np.all(np.abs(crop - colour) < 0.02, axis=-1).sum() >= 4 * len(want)
