@@ -141,3 +141,21 @@ def test_foreign_rerun_file_is_named(tmp_path):
     foreign.write_bytes(memory.drain_as_bytes())
     with pytest.raises(RecordingError, match=r"foreign\.rrd: a Rerun recording without legsim data"):
         read_rrd(foreign)
+
+
+def test_a_recording_of_the_earlier_layout_is_refused_by_name(tmp_path):
+    import json
+    import uuid
+
+    import rerun as rr
+
+    # The earlier layout's document, as legsim-rrd-1 wrote it (entity legsim/meta).
+    rec = rr.RecordingStream("legsim", recording_id=uuid.uuid4())
+    memory = rec.memory_recording()
+    rec.log("legsim/meta", rr.TextDocument(json.dumps({"format": "legsim-rrd-1", "summary": {}})), static=True)
+    rec.flush()
+    old = tmp_path / "old.rrd"
+    old.write_bytes(memory.drain_as_bytes())
+    with pytest.raises(RecordingError, match=r"old\.rrd: a legsim recording of layout legsim-rrd-1, written by an "
+                                             r"earlier legsim; this version reads layout legsim-rrd-2 only"):
+        read_rrd(old)
