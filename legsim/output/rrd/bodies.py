@@ -19,6 +19,9 @@ from .layout import PALETTE, ROBOT, entity
 from .poses import Shape, to_3d, transform_columns
 
 SHAPE, ABSENT, POLYLINE = "shape", "absent", "polyline"
+#: Largest change of a rotation (quaternion) or scale since the value last sent that is not
+#: sent again: the rounding noise of the fit, far below the float32 the viewer stores.
+UNCHANGED = 1e-12
 #: Radii of the drawn parts in the viewer's user-interface points (negative in Rerun).
 LINE_RADIUS, POINT_RADIUS = -2.5, -6.0
 
@@ -121,7 +124,7 @@ class BodyLogger:
         identity = {"quaternion": np.array([0.0, 0.0, 0.0, 1.0]), "scale": np.ones(3)}
         sent: dict[str, np.ndarray] = {"translation": translation}
         for key, value in (("quaternion", quaternion), ("scale", scale)):
-            if np.any(value != track.last.get(key, identity[key])):
+            if np.abs(value - track.last.get(key, identity[key])).max(initial=0.0) > UNCHANGED:
                 sent[key] = value
         for key, value in sent.items():
             track.last[key] = value[-1]

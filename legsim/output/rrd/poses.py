@@ -86,7 +86,9 @@ class Shape:
             scale[:, 1] = turned[:, :, 1] @ across / weight
         predicted = self.local[None, :, :] * scale[:, None, :]
         error = np.abs(turned - predicted).max(axis=(1, 2))
-        fitted = (length > 0.0) & (error <= _tolerance(polylines))
+        # A part drawn with no length along its axis (a spring pressed flat) is its shape scaled
+        # by 0 along the axis: arctan2 gives angle 0 there, and the error check decides.
+        fitted = error <= _tolerance(polylines)
         return origin, angle, scale, fitted
 
 

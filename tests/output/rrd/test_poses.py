@@ -59,3 +59,9 @@ def test_the_quaternion_turns_the_plane_as_the_fit_does():
     u = np.array([x, y, z])
     turned = v + 2 * w * np.cross(u, v) + 2 * np.cross(u, np.cross(u, v))
     np.testing.assert_allclose(turned, [np.cos(a), 0.0, np.sin(a)], atol=1e-15)
+
+
+def test_a_spring_pressed_flat_is_its_shape_scaled_by_zero_along_its_axis():
+    spring = np.array([[0.0, 0.0], [0.1, 0.05], [0.2, -0.05], [0.3, 0.05], [0.4, 0.0]])
+    flat = (spring * [0.0, 1.0] + [1.0, 0.0])[None]
+    np.testing.assert_allclose(_round_trip(Shape.of(spring), flat), flat, atol=1e-15)
