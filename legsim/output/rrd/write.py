@@ -32,6 +32,9 @@ from .views import blueprint, coordinate_units, series_label, unit_groups
 
 #: Samples whose robot geometry is drawn and sent at a time.
 BLOCK = 4096
+#: Rows sent to Rerun between waits for its pipeline to write them (``drain``): Rerun queues
+#: what it is sent, some 150 bytes a row, until its file sink has written it.
+DRAIN_ROWS = 65536
 
 
 def write_rrd(execution: Execution, scene: Any = None, path: str | os.PathLike | None = None, *,
@@ -225,6 +228,7 @@ class _Logger:
 
     def __init__(self, rr: Any, rec: Any, content: Content) -> None:
         self.rr, self.rec, self.content, self.trace = rr, rec, content, content.trace
+        self.unwritten = 0
 
     def indexes(self, rows: np.ndarray) -> list:
         """The ``sample`` and ``sim_time`` index columns of the sample rows ``rows``."""
@@ -234,6 +238,22 @@ class _Logger:
 
     def send(self, path: str, rows: np.ndarray, columns: list) -> None:
         self.rec.send_columns(path, indexes=self.indexes(rows), columns=columns)
+        self.drain(len(rows))
+
+    def send_values(self, path: str, rows: np.ndarray, values: np.ndarray, columns: Callable[[np.ndarray], list]
+                    ) -> None:
+        """``columns(values[piece])`` at ``rows[piece]``, a piece of ``DRAIN_ROWS`` at a time."""
+        for start in range(0, len(rows), DRAIN_ROWS):
+            piece = slice(start, start + DRAIN_ROWS)
+            self.send(path, rows[piece], columns(values[piece]))
+
+    def drain(self, rows: int) -> None:
+        """Count ``rows`` sent; every ``DRAIN_ROWS`` wait until Rerun has written what it was
+        sent, so that its queue, and memory, stay bounded however long the run."""
+        self.unwritten += rows
+        if self.unwritten >= DRAIN_ROWS:
+            self.rec.flush()
+            self.unwritten = 0
 
     def header(self, meta: dict[str, Any], bodies: BodyLogger | None, scenery: dict[str, np.ndarray]) -> None:
         """``legsim/meta`` and the markdown ``summary``."""
@@ -245,7 +265,7 @@ class _Logger:
     def samples(self) -> None:
         """``legsim/samples``: the exact time of every sample."""
         rows = np.arange(len(self.trace.times))
-        self.send(SAMPLES, rows, typed_columns(self.rr, t=self.trace.times))
+        self.send_values(SAMPLES, rows, self.trace.times, lambda t: typed_columns(self.rr, t=t))
 
     def series(self) -> dict[str, str]:
         """``state/<name>``, each named with its unit; returns coordinate name -> entity path."""
@@ -255,7 +275,7 @@ class _Logger:
         for name, (rows, values) in trace_series(ex, self.trace).items():
             path = entities[name] = entity(STATE, name)
             self.rec.log(path, rr.SeriesLines(names=[series_label(name, units.get(name, ""))]), static=True)
-            self.send(path, rows, rr.Scalars.columns(scalars=values))
+            self.send_values(path, rows, values, lambda v: rr.Scalars.columns(scalars=v))
         return entities
 
     def modes(self) -> None:
@@ -315,6 +335,7 @@ class _Logger:
                 mode, state = state_at(row)
                 drawn.append(_draw(model, mode, state, float(trace.times[row])))
             bodies.add(rows, drawn)
+            self.drain(len(rows) * len(bodies.tracks))
         bodies.finish()
         return bodies
 
