@@ -4,8 +4,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import subprocess
 import sys
 from pathlib import Path
 from typing import Any
@@ -29,13 +27,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="the animation's camera: fixed on the whole run (default) or following the robot")
     parser.add_argument("--plot", metavar="OUT.png",
                         help="write the recorded state against time, strips shaded (matplotlib)")
-
-
-def has_display() -> bool:
-    """True when a graphical viewer can open a window here."""
-    if sys.platform in ("darwin", "win32"):
-        return True
-    return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
 
 
 def _fmt_vec(values) -> str:
@@ -73,16 +64,15 @@ def format_summary(path: Path, data: dict[str, Any]) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..errors import LegsimError
     from ..output.rrd import read_rrd
+    from ..output.rrd.live import check_display, open_in_viewer
     from ..output.untrusted import printable
 
     from .run import html_options, plan_outputs, write_output
 
     path = Path(args.file)
-    if args.spawn and not has_display():
-        raise LegsimError(f"--spawn needs a display, and there is none here (DISPLAY and WAYLAND_DISPLAY are "
-                          f"unset); copy {path} to a machine with a display and run `rerun {path.name}` there")
+    if args.spawn:
+        check_display("--spawn", f"copy {path} to a machine with a display and run `rerun {path.name}` there")
     # Every requested output is checked before any is written, so a bad --plot does not leave
     # a fresh --html behind it; none may overwrite the recording it is drawn from.
     wanted = {kind: (Path(target), f"--{kind}") for kind in ("html", "plot") if (target := getattr(args, kind))}
@@ -101,9 +91,6 @@ def run(args: argparse.Namespace) -> int:
         for kind, out in outputs.items():
             print(printable(f"wrote {out} ({kind})"))
     if args.spawn:
-        # rerun-sdk runs its bundled viewer as `python -m rerun_cli FILE`; detach it so that
-        # the viewer outlives this command.
-        subprocess.Popen([sys.executable, "-m", "rerun_cli", str(path)], start_new_session=True,
-                         stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        open_in_viewer(path)
         print(printable(f"opened {path} in the Rerun viewer"), file=sys.stderr)
     return 0

@@ -65,6 +65,19 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_output_arguments(parser)
     parser.add_argument("--out-dir", metavar="DIR",
                         help="where the scene's own [output] files go (default: the scene's folder)")
+    add_live_arguments(parser)
+
+
+def add_live_arguments(parser: argparse.ArgumentParser) -> None:
+    """``--spawn``/``--connect`` (stream the recording to a Rerun viewer) and ``--rrd-rate``."""
+    live = parser.add_mutually_exclusive_group()
+    live.add_argument("--spawn", action="store_true", help="stream the recording to a new Rerun viewer (needs a display)")
+    live.add_argument("--connect", metavar="ADDRESS",
+                      help="stream the recording to the Rerun viewer at ADDRESS (a port, HOST:PORT or "
+                           "rerun+http://HOST:PORT/proxy)")
+    parser.add_argument("--rrd-rate", metavar="HZ", type=float,
+                        help="record at most HZ samples per second of simulated time (--rrd, --spawn, --connect); "
+                             "every transition's states before and after its reset are kept")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -75,8 +88,10 @@ def run(args: argparse.Namespace) -> int:
     scene = load_scene(args.scene, overrides=args.overrides)
     outputs = requested_outputs(args, scene.output_paths(args.out_dir))
     plan, writers = plan_outputs(outputs, inputs=[scene.path], scene=scene)
+    rrd_options = _check_live(args, "rrd" in outputs)
     execution, estimate = _simulate(scene, show_progress=not (args.quiet or args.json), check=args.check_accuracy)
-    written, failures = _write_all(execution, scene, plan, writers, html_options(args))
+    written, failures = _write_all(execution, scene, plan, writers, {**html_options(args), "rrd": rrd_options})
+    failures += _stream_live(args, execution, scene, rrd_options)
     summary = run_summary(execution, scene, outputs=written)
     if estimate is not None:
         summary["error_estimate"] = finite_or_none(estimate.as_dict())
@@ -146,10 +161,44 @@ def _simulate(scene: Any, show_progress: bool, check: bool) -> tuple[Any, Any]:
             bar.close()
 
 
+def _check_live(args: argparse.Namespace, records: bool) -> dict[str, Any]:
+    """The recording's options (``rate``), after checking the live flags before the run: a
+    display for ``--spawn``, a viewer answering at ``--connect``, a positive ``--rrd-rate``
+    with something to record (``records``: a recording file is written)."""
+    from ..arguments import positive
+    from ..output.rrd.live import check_display, check_reachable, viewer_url
+
+    if args.spawn:
+        check_display("--spawn", "write the recording with --rrd FILE and open it with `rerun FILE` elsewhere")
+    if args.connect is not None:
+        check_reachable(args.connect, viewer_url(args.connect))
+    if args.rrd_rate is None:
+        return {}
+    if not (records or args.spawn or args.connect is not None):
+        raise LegsimError("--rrd-rate thins a recording: give --rrd FILE, --spawn or --connect ADDRESS with it")
+    return {"rate": positive("--rrd-rate", args.rrd_rate)}
+
+
+def _stream_live(args: argparse.Namespace, execution: Any, scene: Any, options: dict[str, Any]) -> list[LegsimError]:
+    """Stream the recording to the viewer of ``--spawn``/``--connect``; its error, as
+    ``_write_all`` returns them, after a run that stopped early."""
+    if not (args.spawn or args.connect is not None):
+        return []
+    from ..output.rrd.live import stream_rrd
+
+    try:
+        stream_rrd(execution, scene, spawn=args.spawn, connect=args.connect, **options)
+    except LegsimError as exc:
+        if execution.status == "finished":
+            raise
+        return [exc]
+    return []
+
+
 def _write_all(execution: Any, scene: Any, plan: OutputPlan, writers: dict[str, Writer],
                options: dict[str, dict[str, Any]] | None = None) -> tuple[dict[str, Path], list[LegsimError]]:
-    """Write every planned output: (kind -> path written, the errors of those that failed);
-    ``options``: kind -> keyword arguments of its writer (the html camera).
+    """Write every planned output (``options``: kind -> keyword arguments of its writer):
+    (kind -> path written, the errors of those that failed).
 
     After a finished run a failed output is raised. After a run that stopped early the run's
     status is the result the exit code reports (3), not the output that could not be made: its
@@ -166,8 +215,8 @@ def _write_all(execution: Any, scene: Any, plan: OutputPlan, writers: dict[str, 
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
         for kind in plan:
             try:
-                extra = (options or {}).get(kind, {})
-                written[kind] = write_output(plan, kind, writers[kind], execution, scene, **extra)
+                written[kind] = write_output(plan, kind, writers[kind], execution, scene,
+                                             **(options or {}).get(kind, {}))
             except LegsimError as exc:
                 if execution.status == "finished":
                     raise

@@ -1,10 +1,14 @@
 """Rerun recordings of runs (``.rrd``): ``write_rrd`` records a run headlessly, ``read_rrd``
 reads it back with Rerun's own reader.
 
-* ``layout``: the format name, timelines, entities and colours of a recording.
-* ``write``: ``write_rrd``, the logging of each entity and the viewer's blueprint.
-* ``read``: ``read_rrd``, which assembles the recorded rows into numbers.
-* ``columns``: the reader of the recorded components per entity.
+* ``layout``: the format name, timelines, entity tree and colours of a recording.
+* ``write``: ``write_rrd``, the logging of each entity, and the thinning to a rate.
+* ``bodies``: each body's shape logged once and a Transform3D per sample; ``poses`` the
+  fitting of a shape's pose to each polyline the model draws.
+* ``views``: the plot views grouped by unit and the blueprint the viewer opens on.
+* ``live``: ``stream_rrd`` to a spawned or running viewer (``legsim run --spawn/--connect``).
+* ``read``: ``read_rrd``, which assembles the recorded rows into numbers; ``columns`` the
+  reader of the recorded components per entity; ``frames`` the robot back as polylines.
 
 rerun is imported inside the functions only: importing this package costs nothing.
 """

@@ -2,8 +2,7 @@
 
 ``read_columns`` streams a file with Rerun's own reader (``rerun.chunk.RrdReader``) and keeps
 every chunk's components under its entity; ``Columns`` converts them to numbers, strings or
-arrays only when asked for, sorted by row (the ``sample`` or ``frame`` timeline; -1 for static
-rows).
+arrays only when asked for, sorted by row (the ``sample`` timeline; -1 for static rows).
 """
 
 from __future__ import annotations
@@ -15,15 +14,15 @@ from typing import Any, Iterator
 import numpy as np
 
 from ..trace import RecordingError, concatenated_ranges
-from .layout import FRAME_TIMELINE, SAMPLE_TIMELINE, TIMELINE
+from .layout import SAMPLE_TIMELINE, TIMELINE
 
 
 class Columns:
     """The recorded components, per entity, as arrow arrays with their row index (the
-    ``sample`` or ``frame`` timeline; -1 for static rows), converted only when asked for."""
+    ``sample`` timeline; -1 for static rows), converted only when asked for."""
 
     #: Index and bookkeeping columns of a chunk, which are no component.
-    SKIP = ("rerun.controls.RowId", TIMELINE, SAMPLE_TIMELINE, FRAME_TIMELINE, "log_time", "log_tick")
+    SKIP = ("rerun.controls.RowId", TIMELINE, SAMPLE_TIMELINE, "log_time", "log_tick")
 
     def __init__(self) -> None:
         self.data: dict[str, dict[str, list[tuple[np.ndarray, Any]]]] = {}
@@ -58,6 +57,24 @@ class Columns:
         vals = np.concatenate(val_parts)
         order = np.argsort(idx, kind="stable")
         return idx[order], vals[order]
+
+    def matrix(self, entity: str, component: str, width: int) -> tuple[np.ndarray, np.ndarray]:
+        """(row indices, values (n, width)) of a component of one fixed-size vector per row
+        (a translation, a quaternion), sorted by row."""
+        idx_parts, val_parts = [], []
+        for index, column in self._pieces(entity, component):
+            if len(column) and not np.all(column.value_lengths().to_numpy(zero_copy_only=False) == 1):
+                raise ValueError(f"{entity}:{component} holds more than one value per row")
+            values = np.asarray(column.flatten().flatten().to_numpy(zero_copy_only=False), dtype=float)
+            if values.size != width * len(index):
+                raise ValueError(f"{entity}:{component} holds vectors of other than {width} numbers")
+            idx_parts.append(index)
+            val_parts.append(values.reshape(-1, width))
+        if not idx_parts:
+            return np.empty(0, dtype=np.int64), np.empty((0, width))
+        idx = np.concatenate(idx_parts)
+        order = np.argsort(idx, kind="stable")
+        return idx[order], np.concatenate(val_parts)[order]
 
     def _sorted_flat(self, entity: str, component: str) -> tuple[np.ndarray, Any, np.ndarray]:
         """(row indices sorted, flat values in that order, row lengths in that order)."""
@@ -110,7 +127,7 @@ class Columns:
 
 
 def read_columns(path: Path) -> Columns:
-    """Every chunk of the Rerun file ``path`` on the sample or frame timeline, or static;
+    """Every chunk of the Rerun file ``path`` on the sample timeline, or static;
     RecordingError naming the file when Rerun cannot read it."""
     try:
         from rerun.chunk import RrdReader
@@ -131,12 +148,10 @@ def read_columns(path: Path) -> Columns:
 
 
 def _row_index(chunk: Any, batch: Any) -> np.ndarray | None:
-    """The rows' indices on the sample or frame timeline (-1 for static rows); None for a
-    chunk on neither (Rerun's own bookkeeping)."""
-    names = batch.schema.names
+    """The rows' indices on the sample timeline (-1 for static rows); None for a chunk off it
+    (Rerun's own bookkeeping)."""
     if chunk.is_static:
         return np.full(batch.num_rows, -1, dtype=np.int64)
-    for timeline in (SAMPLE_TIMELINE, FRAME_TIMELINE):
-        if timeline in names:
-            return np.asarray(batch.column(timeline).to_numpy(zero_copy_only=False), dtype=np.int64)
+    if SAMPLE_TIMELINE in batch.schema.names:
+        return np.asarray(batch.column(SAMPLE_TIMELINE).to_numpy(zero_copy_only=False), dtype=np.int64)
     return None

@@ -1,37 +1,77 @@
-"""The layout of a legsim Rerun recording (``.rrd``): format name, timelines, entities, colours.
+"""The layout of a legsim Rerun recording (``.rrd``, format ``legsim-rrd-2``): timelines, the
+entity tree, views and colours.
 
-A recording holds everything needed to inspect a run later without the model:
+A recording holds everything needed to inspect a run later without the model. Its rows are
+the run's *samples* (``legsim.output.trace.Trace``: every computed point of every segment and,
+for every strip, its held guard point q at the entry and at the exit), all of them or, with a
+rate, a thinned subset that always keeps each piece's first and last sample (so every
+transition's state before and after its reset). Two timelines index them: ``sim_time`` (the
+simulated time, what the viewer scrubs) and ``sample`` (the row, 0, 1, ...).
 
-* ``state/<name>``: every state coordinate by name (Rerun ``Scalars``), one row per *sample*
-  (``legsim.output.trace.Trace``): the computed points of every segment and, for every strip,
-  its entry and exit with the held state q, in time order. A coordinate only has rows in the
-  modes that have it.
-* ``samples/t`` (the exact time as float64; the ``sim_time`` timeline only keeps nanoseconds),
-  ``strip/active`` (1 inside a strip, 0 outside) and ``mode/index`` (index into the mode list
-  of ``legsim/meta``) on the same rows.
-* ``mode``: a text log row at the start of every segment (the mode sequence), with its start
-  and end times.
-* ``events/strips`` and ``events/transitions``: one row per strip (mode, transition name, entry
-  and exit times) and per transition (edge, times, depth, state before and after the reset),
-  as text for the viewer and as typed values for reading back.
-* ``robot/<part>``: the robot's polylines (``Model.geometry``) on frames of the ``frame``
-  timeline, drawn in the x-z plane of a z-up 3D view (parts that are one point in every frame
-  as points); ``scenery/<part>`` the static ground and stops; ``frames/t`` and
-  ``frames/mode`` the exact frame times and modes.
-* ``summary`` (markdown for the viewer) and ``legsim/meta`` (JSON: format, run summary with the
-  keys of ``legsim run --json``, state names per mode, mode list, geometry part names).
+Entity tree::
 
-Timelines: ``sim_time`` (simulated time, what the viewer scrubs), ``sample`` (row index of the
-state samples) and ``frame`` (row index of the geometry frames).
+    /world                       view coordinates: z up; the sagittal plane (x, z) at y = 0
+      /scenery/<part>            the ground and stops: LineStrips3D, static
+      /robot/<part>              each body's shape in its own frame, logged once (static):
+                                 LineStrips3D, or Points3D for a one-point part; moved by a
+                                 Transform3D per sample (translation, rotation about y, scale)
+    /state/<coordinate>          Scalars per sample in the modes that have the coordinate;
+                                 SeriesLines names it with its unit ("x (m)")
+    /mode                        StateChange (the mode's name) at each segment's first sample,
+                                 with its start and end times; StateConfiguration (colours)
+    /strip                       StateChange: the transition's name while its strip holds the
+                                 state, reset ("") after it
+    /events/transitions          TextLog (INFO) per transition at its strip's entry, with its
+                                 fields: name, source, target, edge, index, time, landing_time,
+                                 exit_time, depth, state_before, state_after
+    /events/strips               TextLog (DEBUG) per strip: mode, name, entry, exit
+    /events/warnings             TextLog (WARN) per run warning: kind, time
+    /legsim/samples              the exact time of each sample (float64; sim_time keeps ns)
+    /legsim/meta                 JSON: format, run summary (keys of ``legsim run --json``),
+                                 names and units per mode, the coordinate -> entity map, parts
+    /summary                     the run summary as markdown
+
+A part whose shape is not a moved, rotated or stretched copy of its first shape in some sample
+(or is absent there) is drawn from that sample on by its own polyline in world coordinates
+under an identity transform; its first shape is then logged at its first sample instead of
+statically.
 """
 
-FORMAT = "legsim-rrd-1"
+FORMAT = "legsim-rrd-2"
+#: Formats of earlier versions, which this version refuses by name.
+OLD_FORMATS = ("legsim-rrd-1",)
 APPLICATION_ID = "legsim"
 TIMELINE = "sim_time"
 SAMPLE_TIMELINE = "sample"
-FRAME_TIMELINE = "frame"
 
-# Colours (RGB) of robot parts in the viewer, in order of part name; scenery is grey.
-PART_COLOURS = [(31, 119, 180), (214, 39, 40), (44, 160, 44), (255, 127, 14), (148, 103, 189),
-                (140, 86, 75), (227, 119, 194), (23, 190, 207), (188, 189, 34)]
+WORLD = "/world"
+ROBOT = "/world/robot"
+SCENERY = "/world/scenery"
+STATE = "/state"
+MODE = "/mode"
+STRIP = "/strip"
+TRANSITIONS = "/events/transitions"
+STRIPS = "/events/strips"
+WARNINGS = "/events/warnings"
+SAMPLES = "/legsim/samples"
+META = "/legsim/meta"
+SUMMARY = "/summary"
+
+# Colours (RGB) of robot parts and modes in the viewer, in order; scenery is grey.
+PALETTE = [(31, 119, 180), (214, 39, 40), (44, 160, 44), (255, 127, 14), (148, 103, 189),
+           (140, 86, 75), (227, 119, 194), (23, 190, 207), (188, 189, 34)]
 SCENERY_COLOUR = (110, 110, 110)
+
+#: What the coordinates of a unit are called in the names of the plot views, in the order the
+#: views are laid out; other units are named by the unit alone.
+UNIT_WORDS = {"m": "positions", "rad": "angles", "m/s": "velocities", "rad/s": "angular velocities",
+              "m/s^2": "accelerations", "rad/s^2": "angular accelerations", "N": "forces", "N m": "torques",
+              "J": "energies", "s": "times"}
+NO_UNIT = "without unit"
+
+
+def entity(parent: str, name: str) -> str:
+    """The entity path of ``name`` (a coordinate or a part, any text) under ``parent``."""
+    import rerun as rr
+
+    return f"{parent}/{rr.escape_entity_path_part(name)}"

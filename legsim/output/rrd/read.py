@@ -9,10 +9,11 @@ from typing import Any
 
 import numpy as np
 
-from ..trace import Frames, RecordingError
+from ..trace import RecordingError
 from ..untrusted import check_list, check_object, load_json
 from .columns import Columns, read_columns
-from .layout import FORMAT
+from .frames import frames
+from .layout import FORMAT, META, MODE, OLD_FORMATS, SAMPLES, SCENERY, STATE, STRIPS, TRANSITIONS, entity
 
 
 def read_rrd(path: str | os.PathLike) -> dict[str, Any]:
@@ -21,8 +22,10 @@ def read_rrd(path: str | os.PathLike) -> dict[str, Any]:
     Returns a dict:
 
     * ``summary``: the run summary (keys of ``legsim run --json``); ``meta``: the whole
-      ``legsim/meta`` document (state names per mode, mode list, part names, scene path).
-    * ``times`` (N,), ``modes`` (N names), ``in_strip`` (N,) bool: the recorded samples.
+      ``legsim/meta`` document (state names and units per mode, mode list, part names, scene
+      path, the rate the samples were thinned to or null).
+    * ``times`` (N,), ``modes`` (N names), ``in_strip`` (N,) bool: the recorded samples (all
+      the run computed, or with a rate the kept ones).
     * ``series``: coordinate name -> (times (M,), values (M,)) for the samples whose mode has it;
       ``series_rows``: name -> the sample indices (M,) of those values.
     * ``mode_sequence``: the mode of every segment, in order; ``segments``: (mode, t_start,
@@ -30,10 +33,12 @@ def read_rrd(path: str | os.PathLike) -> dict[str, Any]:
     * ``strips``: list of dicts (mode, name, time, exit_time).
     * ``transitions``: list of dicts (name, source, target, index, time, landing_time,
       exit_time, depth, state_before, state_after arrays).
-    * ``frames``: a ``Frames`` (geometry, float32 precision) or None; ``scenery``: part -> (k, 2).
+    * ``frames``: a ``Frames`` (the robot at a selection of the samples, float32 precision:
+      ``legsim.output.rrd.frames``) or None, ``frame_rows`` the samples they show (or None);
+      ``scenery``: part -> (k, 2).
 
-    Raises RecordingError naming the file when it is missing, not a Rerun file, or not written
-    by legsim.
+    Raises RecordingError naming the file when it is missing, not a Rerun file, not written
+    by legsim, or written in an earlier layout (naming it).
     """
     path = Path(path)
     if not path.is_file():
@@ -47,9 +52,10 @@ def read_rrd(path: str | os.PathLike) -> dict[str, Any]:
 
 
 #: The keys of ``legsim/meta`` and their JSON types (None: null).
-META_KEYS = {"format": (str,), "summary": (dict,), "state_names": (dict,), "modes": (list,),
-             "t0": (int, float), "t_end": (int, float), "parts": (list,), "point_parts": (list,),
-             "scenery": (list,), "has_geometry": (bool,)}
+META_KEYS = {"format": (str,), "summary": (dict,), "state_names": (dict,), "state_units": (dict,),
+             "modes": (list,), "t0": (int, float), "t_end": (int, float), "parts": (list,), "point_parts": (list,),
+             "scenery": (list,), "has_geometry": (bool,), "rate": (int, float, type(None)),
+             "computed_samples": (int,), "samples": (int,)}
 NUMBER = (int, float)
 MAYBE_NUMBER = (int, float, type(None))
 MAYBE_TEXT = (str, type(None))
@@ -66,7 +72,7 @@ SUMMARY_OPTIONAL = {"system": (str,), "message": MAYBE_TEXT, "scene": MAYBE_TEXT
 
 def _read_meta(path: Path, columns: Columns) -> dict[str, Any]:
     """The ``legsim/meta`` document, checked to be of this format, every key of its type."""
-    meta_rows = columns.values("/legsim/meta", "TextDocument:text")
+    meta_rows = columns.values(META, "TextDocument:text")
     if not meta_rows:
         raise RecordingError(f"{path}: a Rerun recording without legsim data (no legsim/meta entity); "
                              f"was it written by `legsim run --rrd`?")
@@ -74,8 +80,12 @@ def _read_meta(path: Path, columns: Columns) -> dict[str, Any]:
         meta = load_json(meta_rows[0][0] if meta_rows[0] else None)
     except ValueError as exc:
         raise RecordingError(f"{path}: legsim/meta is not valid JSON: {exc}") from exc
-    if not isinstance(meta, dict) or meta.get("format") != FORMAT:
-        found = meta.get("format") if isinstance(meta, dict) else meta
+    found = meta.get("format") if isinstance(meta, dict) else meta
+    if isinstance(found, str) and found in OLD_FORMATS:
+        raise RecordingError(f"{path}: a legsim recording of layout {found}, written by an earlier legsim; this "
+                             f"version reads layout {FORMAT} only: record the run again (`legsim run SCENE --rrd "
+                             f"FILE`)")
+    if not isinstance(meta, dict) or found != FORMAT:
         raise RecordingError(f"{path}: unknown legsim recording format {found!r:.80} (expected {FORMAT})")
     try:
         return checked_meta(meta)
@@ -89,8 +99,9 @@ def checked_meta(meta: dict[str, Any]) -> dict[str, Any]:
     check_object(meta, META_KEYS, "legsim/meta")
     for key in ("modes", "parts", "point_parts", "scenery"):
         check_list(meta[key], (str,), f"legsim/meta.{key}")
-    for mode, names in meta["state_names"].items():
-        check_list(names, (str,), f"legsim/meta.state_names.{mode}")
+    for key in ("state_names", "state_units"):
+        for mode, names in meta[key].items():
+            check_list(names, (str,), f"legsim/meta.{key}.{mode}")
     summary = check_object(meta["summary"], SUMMARY_KEYS, "summary", optional=SUMMARY_OPTIONAL)
     for key in ("state_names", "mode_sequence"):
         check_list(summary[key], (str,), f"summary.{key}")
@@ -104,35 +115,32 @@ def checked_meta(meta: dict[str, Any]) -> dict[str, Any]:
 
 def _assemble(columns: Columns, meta: dict[str, Any]) -> dict[str, Any]:
     """The dict ``read_rrd`` returns; KeyError, IndexError or ValueError when parts are missing."""
-    idx, times = columns.numbers("/samples/t")
-    if not np.array_equal(idx, np.arange(len(idx))):
-        raise ValueError("sample rows are not contiguous")
-    _, in_strip = columns.numbers("/strip/active")
-    _, mode_idx = columns.numbers("/mode/index")
-    if not (len(in_strip) == len(mode_idx) == len(times)):
-        raise ValueError("sample columns differ in length")
-    _ordered_times(times, "samples/t")
-    if not np.all((in_strip == 0) | (in_strip == 1)):
-        raise ValueError("strip/active holds values other than 0 and 1")
-    series, series_rows = _series(columns, times)
-    mode_sequence = columns.strings("/mode", "TextLog:text")
-    _, t_start = columns.numbers("/mode", "t_start")
-    _, t_end = columns.numbers("/mode", "t_end")
+    idx, times = columns.numbers(SAMPLES, "t")
+    if not len(idx) or not np.array_equal(idx, np.arange(len(idx))):
+        raise ValueError("sample rows are missing or not contiguous")
+    _ordered_times(times, "legsim/samples")
+    series, series_rows = _series(columns, meta, times)
+    starts, t_start = columns.numbers(MODE, "t_start")
+    _, t_end = columns.numbers(MODE, "t_end")
+    mode_sequence = columns.strings(MODE, "StateChange:state")
     _ordered_times(np.column_stack([t_start, t_end]).ravel() if len(t_start) == len(t_end) else t_start, "mode")
+    strips = _strips(columns, len(times))
     scenery = _scenery(columns, meta)
+    robot, robot_rows = frames(columns, meta, times, strips, scenery) if meta.get("has_geometry") else (None, None)
     return {
         "summary": meta["summary"],
         "meta": meta,
         "times": times,
-        "modes": [meta["modes"][i] for i in _indices(mode_idx, len(meta["modes"]), "mode/index")],
-        "in_strip": in_strip.astype(bool),
+        "modes": _sample_modes(starts, mode_sequence, meta["modes"], len(times)),
+        "in_strip": _in_strip(strips, len(times)),
         "series": series,
         "series_rows": series_rows,
         "mode_sequence": mode_sequence,
         "segments": [(m, float(a), float(b)) for m, a, b in zip(mode_sequence, t_start, t_end, strict=True)],
-        "strips": _strips(columns),
+        "strips": [{k: v for k, v in s.items() if k != "row"} for s in strips],
         "transitions": _transitions(columns),
-        "frames": _frames(columns, meta, scenery) if meta.get("has_geometry") else None,
+        "frames": robot,
+        "frame_rows": robot_rows,
         "scenery": scenery,
     }
 
@@ -152,34 +160,56 @@ def _indices(values: np.ndarray, n: int, entity: str) -> list[int]:
     return values.astype(np.int64).tolist()
 
 
-def _series(columns: Columns, times: np.ndarray) -> tuple[dict[str, tuple[np.ndarray, np.ndarray]],
-                                                           dict[str, np.ndarray]]:
-    """name -> (times, values) and name -> sample rows of every ``state/<name>`` entity."""
+def _series(columns: Columns, meta: dict[str, Any], times: np.ndarray
+            ) -> tuple[dict[str, tuple[np.ndarray, np.ndarray]], dict[str, np.ndarray]]:
+    """name -> (times, values) and name -> sample rows of every coordinate of ``meta``."""
     series: dict[str, tuple[np.ndarray, np.ndarray]] = {}
     series_rows: dict[str, np.ndarray] = {}
-    for entity in columns.entities():
-        if entity.startswith("/state/"):
-            rows, vals = columns.numbers(entity)
-            if len(rows):
-                name = entity[len("/state/"):]
-                series[name] = (times[rows], vals)
-                series_rows[name] = rows
+    names = dict.fromkeys(name for names in meta["state_names"].values() for name in names)
+    for name in names:
+        rows, vals = columns.numbers(entity(STATE, name))
+        if len(rows):
+            _indices(rows, len(times), f"state/{name} rows")
+            series[name] = (times[rows], vals)
+            series_rows[name] = rows
     return series, series_rows
 
 
-def _strips(columns: Columns) -> list[dict[str, Any]]:
-    """The rows of ``events/strips``: mode, name, time (entry) and exit_time (s)."""
-    ev = "/events/strips"
-    _, entry = columns.numbers(ev, "entry")
-    _, exit_ = columns.numbers(ev, "exit")
+def _sample_modes(starts: np.ndarray, sequence: list[str], modes: list[str], n: int) -> list[str]:
+    """The mode of every sample: that of the last segment that starts at or before it."""
+    _indices(starts, n, "mode rows")
+    if len(starts) != len(sequence) or not len(starts) or starts[0] != 0 or np.any(np.diff(starts) <= 0):
+        raise ValueError("mode rows do not start each segment in order from the first sample")
+    unknown = set(sequence) - set(modes)
+    if unknown:
+        raise ValueError(f"mode names a mode not in legsim/meta.modes: {sorted(unknown)[0]!r:.80}")
+    lengths = np.diff(np.concatenate([starts, [n]])).astype(np.int64)
+    return [mode for mode, count in zip(sequence, lengths.tolist()) for _ in range(count)]
+
+
+def _in_strip(strips: list[dict[str, Any]], n: int) -> np.ndarray:
+    """True for the two samples (entry and exit, state held at q) of every strip."""
+    flags = np.zeros(n, dtype=bool)
+    for strip in strips:
+        flags[strip["row"]:strip["row"] + 2] = True
+    return flags
+
+
+def _strips(columns: Columns, n: int) -> list[dict[str, Any]]:
+    """The rows of ``events/strips``: mode, name, time (entry) and exit_time (s), and the
+    sample ``row`` of the entry (the exit is the next sample)."""
+    rows, entry = columns.numbers(STRIPS, "entry")
+    _, exit_ = columns.numbers(STRIPS, "exit")
     _ordered_times(entry, "events/strips")
-    return [{"mode": m, "name": n, "time": float(a), "exit_time": float(b)}
-            for m, n, a, b in zip(columns.strings(ev, "mode"), columns.strings(ev, "name"), entry, exit_, strict=True)]
+    _indices(rows, max(n - 1, 0), "events/strips rows")
+    return [{"mode": m, "name": name, "time": float(a), "exit_time": float(b), "row": int(r)}
+            for m, name, a, b, r in zip(columns.strings(STRIPS, "mode"), columns.strings(STRIPS, "name"), entry,
+                                        exit_, rows, strict=True)]
 
 
 def _transitions(columns: Columns) -> list[dict[str, Any]]:
     """The rows of ``events/transitions``, with the states before and after the reset."""
-    ev = "/events/transitions"
+    ev = TRANSITIONS
     text = {f: columns.strings(ev, f) for f in ("name", "source", "target")}
     nums = {f: columns.numbers(ev, f)[1] for f in ("index", "time", "landing_time", "exit_time", "depth")}
     before = columns.arrays(ev, "state_before")
@@ -197,36 +227,10 @@ def _transitions(columns: Columns) -> list[dict[str, Any]]:
     } for k in range(len(text["name"]))]
 
 
-def _xz(points: list) -> np.ndarray:
-    """Recorded 3D points (x, 0, z) back as (k, 2) points (x, z)."""
-    return np.array(points, dtype=float)[:, [0, 2]].reshape(-1, 2)
-
-
 def _scenery(columns: Columns, meta: dict[str, Any]) -> dict[str, np.ndarray]:
     scenery = {}
     for part in meta.get("scenery", []):
-        rows = columns.values(f"/scenery/{part}", "LineStrips3D:strips")
+        rows = columns.values(entity(SCENERY, part), "LineStrips3D:strips")
         if rows and rows[0]:
-            scenery[part] = _xz(rows[0][0])
+            scenery[part] = np.array(rows[0][0], dtype=float)[:, [0, 2]].reshape(-1, 2)
     return scenery
-
-
-def _frames(columns: Columns, meta: dict[str, Any], scenery: dict[str, np.ndarray]) -> Frames:
-    """The robot's polylines per frame (float32 precision; None where a part is absent)."""
-    _, f_times = columns.numbers("/frames/t")
-    _ordered_times(f_times, "frames/t")
-    f_modes = columns.strings("/frames/mode", "TextLog:text")
-    point_parts = set(meta.get("point_parts", []))
-    parts: dict[str, list[np.ndarray | None]] = {}
-    for part in meta.get("parts", []):
-        lines: list[np.ndarray | None] = [None] * len(f_times)
-        if part in point_parts:
-            for i, points in columns.rows(f"/robot/{part}", "Points3D:positions"):
-                if 0 <= i < len(lines) and points:
-                    lines[i] = _xz(points)
-        else:
-            for i, strips_row in columns.rows(f"/robot/{part}", "LineStrips3D:strips"):
-                if 0 <= i < len(lines) and strips_row and len(strips_row[0]):
-                    lines[i] = _xz(strips_row[0])
-        parts[part] = lines
-    return Frames(f_times, f_modes, parts, scenery)

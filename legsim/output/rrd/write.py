@@ -1,8 +1,10 @@
-"""Writing a run to a Rerun recording (``write_rrd``), headlessly: no viewer, no network.
+"""Writing a run to a Rerun recording (``write_rrd``) headlessly, or streaming it to a viewer
+(``legsim.output.rrd.live``): the entities of ``legsim.output.rrd.layout``.
 
-The entities and timelines written are described in ``legsim.output.rrd.layout``. rerun (and
-pyarrow, which it brings) is imported inside the functions only, so that importing this
-module costs nothing and the rest of legsim never needs rerun.
+The recording streams to its file while it is made: series and events go to Rerun as columns
+(``send_columns``), the robot block by block, so the memory it takes beyond the execution's own
+does not grow with the length of the run. rerun (and pyarrow, which it brings) is imported
+inside the functions only, so that importing this module costs nothing.
 """
 
 from __future__ import annotations
@@ -10,67 +12,176 @@ from __future__ import annotations
 import json
 import os
 import uuid
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
+from ...arguments import positive
 from ...builders import Model
-from ...errors import OutputError
+from ...errors import LegsimError, OutputError
 from ...execution import Execution
-from ..files import write_bytes_atomic
+from ..files import write_atomic
 from ..summary import run_summary
-from ..trace import (DEFAULT_FPS, DEFAULT_MAX_FRAMES, Frames, RecordingError, Trace, execution_trace,
-                     geometry_frames, resolve_model, scenery_only, trace_series)
-from .layout import (APPLICATION_ID, FORMAT, FRAME_TIMELINE, PART_COLOURS, SAMPLE_TIMELINE, SCENERY_COLOUR,
-                     TIMELINE)
+from ..trace import RecordingError, Trace, _draw, execution_trace, resolve_model, scenery_only, trace_series
+from .bodies import BodyLogger
+from .layout import (APPLICATION_ID, FORMAT, MODE, PALETTE, SAMPLE_TIMELINE, SAMPLES, SCENERY, SCENERY_COLOUR,
+                     STATE, STRIP, STRIPS, SUMMARY, TIMELINE, TRANSITIONS, WARNINGS, WORLD, META, entity)
+from .views import blueprint, coordinate_units, series_label, unit_groups
+
+#: Samples whose robot geometry is drawn and sent at a time.
+BLOCK = 4096
+#: Rows sent to Rerun between waits for its pipeline to write them (``drain``): Rerun queues
+#: what it is sent, some 150 bytes a row, until its file sink has written it.
+DRAIN_ROWS = 65536
 
 
 def write_rrd(execution: Execution, scene: Any = None, path: str | os.PathLike | None = None, *,
-              model: Model | None = None, fps: float = DEFAULT_FPS,
-              max_frames: int = DEFAULT_MAX_FRAMES) -> Path:
+              model: Model | None = None, rate: float | None = None) -> Path:
     """Record ``execution`` to the Rerun file ``path`` headlessly (no viewer, no network).
 
     ``scene`` is a ``legsim.scene.Scene`` (its model gives geometry, scenery and energy) or
     None with ``model=`` a ``legsim.builders.Model`` (or neither: states and events only).
-    Geometry frames are drawn at ``frame_times(execution, fps, max_frames)``. The file is
-    written completely or not at all: it is assembled in memory and written atomically
-    (``legsim.output.files``). Returns the path; raises RecordingError naming the file.
+    ``rate`` (per simulated second) thins the samples: see ``kept_samples``. The file is written
+    to a temporary name, streamed there, and renamed when complete (``legsim.output.files``).
+    Returns the path; raises RecordingError naming the file.
     """
     if path is None:
         raise RecordingError("write_rrd needs a path to write to")
     path = Path(path)
-    if not isinstance(execution, Execution):
-        raise RecordingError(f"{path}: write_rrd needs a legsim Execution, got {type(execution).__name__}")
-    model = resolve_model(scene, model, "write_rrd")
-    summary = run_summary(execution, scene, model)
-    trace = execution_trace(execution)
-    frames = None
-    if model is not None and model.geometry is not None:
-        frames = geometry_frames(execution, model, fps=fps, max_frames=max_frames)
-    scenery = frames.scenery if frames is not None else scenery_only(model)
-    meta = _meta(execution, scene, summary, frames, scenery)
-    _write(path, _record_bytes(execution, trace, frames, scenery, meta))
+    content = prepare(execution, scene, model, rate, str(path))
+
+    def write(tmp: Path) -> None:
+        with recording_stream() as rec:
+            rec.save(tmp)
+            record(rec, content)
+
+    try:
+        write_atomic(path, write, what="recording")
+    except OutputError as exc:
+        # write_atomic chains the OSError behind a failed write: say what the OS said.
+        reason = exc.__cause__
+        if isinstance(reason, OSError):
+            raise RecordingError(f"{path}: cannot write the recording: {reason.strerror or reason}") from exc
+        raise RecordingError(str(exc)) from exc
     return path
 
 
-def _meta(execution: Execution, scene: Any, summary: dict[str, Any], frames: Frames | None,
-          scenery: dict[str, np.ndarray]) -> dict[str, Any]:
+@dataclass
+class Content:
+    """What a recording holds: the execution, its model (or None), the samples to record and
+    the run summary."""
+
+    execution: Execution
+    scene: Any
+    model: Model | None
+    trace: Trace
+    computed_samples: int
+    rate: float | None
+    summary: dict[str, Any]
+
+
+def prepare(execution: Execution, scene: Any, model: Model | None, rate: float | None, where: str) -> Content:
+    """The content of a recording, its arguments checked (RecordingError naming ``where``)."""
+    if not isinstance(execution, Execution):
+        raise RecordingError(f"{where}: write_rrd needs a legsim Execution, got {type(execution).__name__}")
+    if rate is not None:
+        try:
+            rate = positive("rate", rate)
+        except LegsimError as exc:
+            raise RecordingError(f"{where}: {exc}") from None
+    model = resolve_model(scene, model, "write_rrd")
+    trace = execution_trace(execution)
+    computed = len(trace.times)
+    trace = thin_trace(trace, kept_samples(trace, rate))
+    return Content(execution, scene, model, trace, computed, rate, run_summary(execution, scene, model))
+
+
+def kept_samples(trace: Trace, rate: float | None) -> np.ndarray:
+    """The rows of ``trace`` to record: all of them without a rate; with one, the first sample
+    in each interval of 1/rate s from the start, and the first and last sample of every piece
+    (segment or strip), so that each transition's state before and after its reset is kept."""
+    n = len(trace.times)
+    if rate is None or n == 0 or rate * float(trace.times[-1] - trace.times[0]) >= n:
+        return np.arange(n)
+    starts = np.sort(np.concatenate([trace.segment_starts, trace.strip_samples])).astype(np.int64)
+    ends = np.concatenate([starts[1:] - 1, [n - 1]])
+    bins = np.floor((trace.times - trace.times[0]) * rate)
+    keep = np.concatenate([[True], bins[1:] != bins[:-1]])
+    keep[starts] = True
+    keep[ends] = True
+    return np.flatnonzero(keep)
+
+
+def thin_trace(trace: Trace, keep: np.ndarray) -> Trace:
+    """``trace`` restricted to the rows ``keep`` (sorted), renumbered 0, 1, ..."""
+    if len(keep) == len(trace.times):
+        return trace
+    renumber = np.full(len(trace.times), -1, dtype=np.int64)
+    renumber[keep] = np.arange(len(keep))
+    blocks = {}
+    for mode, (rows, states) in trace.blocks.items():
+        new = renumber[rows]
+        blocks[mode] = (new[new >= 0], states[new >= 0])
+    return Trace(times=trace.times[keep], mode_names=trace.mode_names, mode_index=trace.mode_index[keep],
+                 in_strip=trace.in_strip[keep], blocks=blocks, segment_starts=renumber[trace.segment_starts],
+                 strip_samples=renumber[trace.strip_samples])
+
+
+class recording_stream:
+    """A new Rerun recording stream (``with``: disconnected, its sinks flushed, on leaving)."""
+
+    def __enter__(self) -> Any:
+        import rerun as rr
+
+        self.rec = rr.RecordingStream(APPLICATION_ID, recording_id=uuid.uuid4())
+        if not rr.is_enabled(self.rec):
+            raise RecordingError("Rerun logging is disabled in this environment (RERUN=off?); "
+                                 "unset RERUN to write recordings")
+        return self.rec
+
+    def __exit__(self, *exc: object) -> None:
+        try:
+            self.rec.flush()
+        finally:
+            self.rec.disconnect()
+
+
+def record(rec: Any, content: Content) -> None:
+    """Log the whole recording of ``content`` to the stream ``rec``."""
+    import rerun as rr
+
+    log = _Logger(rr, rec, content)
+    rec.log(WORLD, rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
+    log.samples()
+    entities = log.series()
+    log.modes()
+    log.events()
+    bodies = log.robot()
+    scenery = log.scenery()
+    log.header(_meta(content, bodies, scenery), bodies, scenery)
+    log.blueprint(entities, bodies, scenery)
+
+
+def _meta(content: Content, bodies: BodyLogger | None, scenery: dict[str, np.ndarray]) -> dict[str, Any]:
     """The ``legsim/meta`` document: what reading the recording back needs besides the rows."""
+    ex = content.execution
     return {
         "format": FORMAT,
-        "summary": summary,
-        "scene": None if scene is None else str(getattr(scene, "path", "")),
-        "state_names": {m: list(v) for m, v in execution.state_names.items()},
-        "modes": _mode_list(execution),
-        "t0": float(execution.t0),
-        "t_end": float(execution.t_end),
-        "parts": [] if frames is None else list(frames.parts),
-        # Parts that are a single point in every frame (a centre of mass, a foot) are points.
-        "point_parts": [] if frames is None else [p for p, lines in frames.parts.items()
-                                                  if all(line is None or len(line) <= 1 for line in lines)],
+        "summary": content.summary,
+        "scene": None if content.scene is None else str(getattr(content.scene, "path", "")),
+        "state_names": {m: list(v) for m, v in ex.state_names.items()},
+        "state_units": {m: list(v) for m, v in ex.state_units.items()},
+        "modes": _mode_list(ex),
+        "t0": float(ex.t0),
+        "t_end": float(ex.t_end),
+        "parts": [] if bodies is None else list(bodies.parts),
+        "point_parts": [] if bodies is None else bodies.point_parts,
         "scenery": list(scenery),
-        "has_geometry": frames is not None,
+        "has_geometry": bodies is not None,
+        "rate": content.rate,
+        "computed_samples": content.computed_samples,
     }
 
 
@@ -84,18 +195,6 @@ def _mode_list(execution: Execution) -> list[str]:
     for tr in execution.transitions:
         seen.setdefault(tr.target, None)
     return list(seen)
-
-
-def _write(path: Path, data: bytes) -> None:
-    """Write the recording atomically; a failure is a RecordingError naming the file."""
-    try:
-        write_bytes_atomic(path, data, what="recording")
-    except OutputError as exc:
-        # write_bytes_atomic chains the OSError behind a failed write: say what the OS said.
-        reason = exc.__cause__
-        if isinstance(reason, OSError):
-            raise RecordingError(f"{path}: cannot write the recording: {reason.strerror or reason}") from exc
-        raise RecordingError(str(exc)) from exc
 
 
 def _summary_markdown(meta: dict[str, Any]) -> str:
@@ -115,140 +214,186 @@ def _summary_markdown(meta: dict[str, Any]) -> str:
         f"* mode sequence: {shown}",
         f"* final mode {s.get('final_mode')}: {final}",
     ]
+    if meta.get("rate"):
+        lines.append(f"* recorded {meta.get('samples')} of {meta.get('computed_samples')} samples "
+                     f"(at most {meta['rate']:g} per second, every transition kept)")
     if "energy_initial" in s:
         lines.append(f"* energy: {s.get('energy_initial')} J → {s.get('energy_final')} J")
     lines += ["", "```json", json.dumps(s, indent=2), "```"]
     return "\n".join(lines)
 
 
-def _record_bytes(execution: Execution, trace: Trace, frames: Frames | None,
-                  scenery: dict[str, np.ndarray], meta: dict[str, Any]) -> bytes:
-    """The whole recording, logged to an in-memory Rerun stream."""
-    import rerun as rr
-
-    rec = rr.RecordingStream(APPLICATION_ID, recording_id=uuid.uuid4())
-    if not rr.is_enabled(rec):
-        raise RecordingError("Rerun logging is disabled in this environment (RERUN=off?); "
-                             "unset RERUN to write recordings")
-    memory = rec.memory_recording()
-    try:
-        log = _Logger(rr, rec, trace)
-        log.header(meta, frames, scenery)
-        log.samples(execution, meta["modes"])
-        log.events(execution)
-        log.geometry(frames, scenery, set(meta["point_parts"]))
-        rec.flush()
-        data = memory.drain_as_bytes()
-    finally:
-        rec.disconnect()
-    return data
-
-
 class _Logger:
     """Logs the parts of a recording to the stream ``rec`` (``rr`` is the rerun module)."""
 
-    def __init__(self, rr: Any, rec: Any, trace: Trace) -> None:
-        self.rr, self.rec, self.trace = rr, rec, trace
+    def __init__(self, rr: Any, rec: Any, content: Content) -> None:
+        self.rr, self.rec, self.content, self.trace = rr, rec, content, content.trace
+        self.unwritten = 0
 
-    def sample_indexes(self, rows: np.ndarray) -> list:
+    def indexes(self, rows: np.ndarray) -> list:
         """The ``sample`` and ``sim_time`` index columns of the sample rows ``rows``."""
         rr = self.rr
         return [rr.TimeColumn(SAMPLE_TIMELINE, sequence=np.asarray(rows, dtype=np.int64)),
                 rr.TimeColumn(TIMELINE, duration=self.trace.times[rows])]
 
-    def header(self, meta: dict[str, Any], frames: Frames | None, scenery: dict[str, np.ndarray]) -> None:
-        """The viewer's layout, ``legsim/meta`` and the markdown ``summary``."""
-        import rerun.blueprint as rrb
+    def send(self, path: str, rows: np.ndarray, columns: list) -> None:
+        self.rec.send_columns(path, indexes=self.indexes(rows), columns=columns)
+        self.drain(len(rows))
 
+    def send_values(self, path: str, rows: np.ndarray, values: np.ndarray, columns: Callable[[np.ndarray], list]
+                    ) -> None:
+        """``columns(values[piece])`` at ``rows[piece]``, a piece of ``DRAIN_ROWS`` at a time."""
+        for start in range(0, len(rows), DRAIN_ROWS):
+            piece = slice(start, start + DRAIN_ROWS)
+            self.send(path, rows[piece], columns(values[piece]))
+
+    def drain(self, rows: int) -> None:
+        """Count ``rows`` sent; every ``DRAIN_ROWS`` wait until Rerun has written what it was
+        sent, so that its queue, and memory, stay bounded however long the run."""
+        self.unwritten += rows
+        if self.unwritten >= DRAIN_ROWS:
+            self.rec.flush()
+            self.unwritten = 0
+
+    def header(self, meta: dict[str, Any], bodies: BodyLogger | None, scenery: dict[str, np.ndarray]) -> None:
+        """``legsim/meta`` and the markdown ``summary``."""
         rr, rec = self.rr, self.rec
-        rec.send_blueprint(_blueprint(rrb, frames, scenery))
-        rec.log("legsim/meta", rr.TextDocument(json.dumps(meta), media_type="text/plain"), static=True)
-        rec.log("summary", rr.TextDocument(_summary_markdown(meta), media_type="text/markdown"), static=True)
+        meta = {**meta, "samples": len(self.trace.times)}
+        rec.log(META, rr.TextDocument(json.dumps(meta), media_type="text/plain"), static=True)
+        rec.log(SUMMARY, rr.TextDocument(_summary_markdown(meta), media_type="text/markdown"), static=True)
 
-    def samples(self, execution: Execution, modes: list[str]) -> None:
-        """``samples/t``, ``strip/active``, ``mode/index`` and ``state/<name>``."""
-        rr, rec, trace = self.rr, self.rec, self.trace
-        every = self.sample_indexes(np.arange(len(trace.times)))
-        rec.send_columns("samples/t", indexes=every, columns=rr.Scalars.columns(scalars=trace.times))
-        rec.send_columns("strip/active", indexes=every,
-                         columns=rr.Scalars.columns(scalars=trace.in_strip.astype(float)))
-        position = {m: i for i, m in enumerate(modes)}
-        lookup = np.array([position[m] for m in trace.mode_names], dtype=float)
-        rec.send_columns("mode/index", indexes=every, columns=rr.Scalars.columns(scalars=lookup[trace.mode_index]))
-        for name, (rows, values) in trace_series(execution, trace).items():
-            rec.log(f"state/{name}", rr.SeriesLines(names=[name]), static=True)
-            rec.send_columns(f"state/{name}", indexes=self.sample_indexes(rows),
-                             columns=rr.Scalars.columns(scalars=values))
+    def samples(self) -> None:
+        """``legsim/samples``: the exact time of every sample."""
+        rows = np.arange(len(self.trace.times))
+        self.send_values(SAMPLES, rows, self.trace.times, lambda t: typed_columns(self.rr, t=t))
 
-    def events(self, execution: Execution) -> None:
-        """``mode`` (one row per segment), ``events/strips`` and ``events/transitions``."""
-        rr, rec, trace = self.rr, self.rec, self.trace
-        segs, strips, trs = execution.segments, execution.strips, execution.transitions
-        if len(trace.segment_starts):
-            rec.send_columns("mode", indexes=self.sample_indexes(trace.segment_starts), columns=[
-                *rr.TextLog.columns(text=[s.mode for s in segs]),
-                *_typed_columns(rr, t_start=np.array([s.t_start for s in segs], dtype=float),
-                                t_end=np.array([s.t_end for s in segs], dtype=float)),
-            ])
-        strip_rows = np.asarray(trace.strip_samples, dtype=np.int64)
-        if len(strip_rows):
-            rec.send_columns("events/strips", indexes=self.sample_indexes(strip_rows), columns=[
+    def series(self) -> dict[str, str]:
+        """``state/<name>``, each named with its unit; returns coordinate name -> entity path."""
+        rr, ex = self.rr, self.content.execution
+        units = coordinate_units(ex.state_names, ex.state_units)
+        entities = {}
+        for name, (rows, values) in trace_series(ex, self.trace).items():
+            path = entities[name] = entity(STATE, name)
+            self.rec.log(path, rr.SeriesLines(names=[series_label(name, units.get(name, ""))]), static=True)
+            self.send_values(path, rows, values, lambda v: rr.Scalars.columns(scalars=v))
+        return entities
+
+    def modes(self) -> None:
+        """``mode`` (a state change per segment, with its times) and ``strip`` (the band of
+        the strips: the transition's name from a strip's entry, reset after its exit)."""
+        rr, trace, ex = self.rr, self.trace, self.content.execution
+        modes = _mode_list(ex)
+        self.rec.log(MODE, rr.StateConfiguration(values=modes, colors=[PALETTE[i % len(PALETTE)]
+                                                                        for i in range(len(modes))]), static=True)
+        segs = ex.segments
+        self.send(MODE, trace.segment_starts, [
+            *rr.StateChange.columns(state=[s.mode for s in segs]),
+            *typed_columns(rr, t_start=np.array([s.t_start for s in segs], dtype=float),
+                           t_end=np.array([s.t_end for s in segs], dtype=float))])
+        entries = np.asarray(trace.strip_samples, dtype=np.int64)
+        resets = entries[entries + 2 < len(trace.times)] + 2
+        rows = np.concatenate([entries, resets])
+        states = [s.name for s in ex.strips] + [""] * len(resets)
+        order = np.argsort(rows, kind="stable")
+        if len(rows):
+            self.send(STRIP, rows[order], rr.StateChange.columns(state=[states[i] for i in order]))
+
+    def events(self) -> None:
+        """``events/strips``, ``events/transitions`` and ``events/warnings`` (text with fields)."""
+        rr, trace, ex = self.rr, self.trace, self.content.execution
+        strips, trs = ex.strips, ex.transitions
+        rows = np.asarray(trace.strip_samples, dtype=np.int64)
+        if len(rows):
+            self.send(STRIPS, rows, [
                 *rr.TextLog.columns(text=[f"strip of {s.name} in '{s.mode}': {s.time:.9g} s to {s.exit_time:.9g} s"
-                                          for s in strips]),
-                *_typed_columns(rr, mode=[s.mode for s in strips], name=[s.name for s in strips],
-                                entry=np.array([s.time for s in strips], dtype=float),
-                                exit=np.array([s.exit_time for s in strips], dtype=float)),
-            ])
+                                          for s in strips], level=["DEBUG"] * len(strips)),
+                *typed_columns(rr, mode=[s.mode for s in strips], name=[s.name for s in strips],
+                               entry=np.array([s.time for s in strips], dtype=float),
+                               exit=np.array([s.exit_time for s in strips], dtype=float))])
         if trs:
             # A transition is logged on its strip's entry sample; strips and transitions pair up
             # in order, except a final strip cut short by t_final or the transition budget.
-            rec.send_columns("events/transitions", indexes=self.sample_indexes(strip_rows[:len(trs)]),
-                             columns=_transition_columns(rr, trs))
+            self.send(TRANSITIONS, rows[:len(trs)], _transition_columns(rr, trs))
+        if ex.warnings:
+            at = np.searchsorted(trace.times, [w.time for w in ex.warnings], side="right") - 1
+            self.send(WARNINGS, np.clip(at, 0, len(trace.times) - 1), [
+                *rr.TextLog.columns(text=[w.message for w in ex.warnings], level=["WARN"] * len(ex.warnings)),
+                *typed_columns(rr, kind=[w.kind for w in ex.warnings],
+                               time=np.array([w.time for w in ex.warnings], dtype=float))])
 
-    def geometry(self, frames: Frames | None, scenery: dict[str, np.ndarray], point_parts: set[str]) -> None:
-        """``scenery/<part>`` (static), and ``frames/t``, ``frames/mode``, ``robot/<part>``."""
-        rr, rec = self.rr, self.rec
-        # The sagittal plane (x, z) is drawn at y = 0 of a z-up 3D view.
-        rec.log("/", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
+    def robot(self) -> BodyLogger | None:
+        """``world/robot/<part>``: the parts drawn at every sample, a block at a time."""
+        model, trace = self.content.model, self.trace
+        if model is None or model.geometry is None:
+            return None
+        bodies = BodyLogger(self.rr, self.rec, self.indexes)
+        state_at = _state_lookup(trace)
+        for start in range(0, len(trace.times), BLOCK):
+            rows = np.arange(start, min(start + BLOCK, len(trace.times)))
+            drawn = []
+            for row in rows.tolist():
+                mode, state = state_at(row)
+                drawn.append(_draw(model, mode, state, float(trace.times[row])))
+            bodies.add(rows, drawn)
+            self.drain(len(rows) * len(bodies.tracks))
+        bodies.finish()
+        return bodies
+
+    def scenery(self) -> dict[str, np.ndarray]:
+        """``world/scenery/<part>``, static."""
+        from .poses import to_3d
+
+        rr, scenery = self.rr, scenery_only(self.content.model)
         for part, line in scenery.items():
-            rec.log(f"scenery/{part}", rr.LineStrips3D([_xz_to_3d(line)], colors=[SCENERY_COLOUR], radii=[-1.5]),
-                    static=True)
-        if frames is None or not len(frames):
-            return
-        f_idx = [rr.TimeColumn(FRAME_TIMELINE, sequence=np.arange(len(frames), dtype=np.int64)),
-                 rr.TimeColumn(TIMELINE, duration=frames.times)]
-        rec.send_columns("frames/t", indexes=f_idx, columns=rr.Scalars.columns(scalars=frames.times))
-        rec.send_columns("frames/mode", indexes=f_idx, columns=rr.TextLog.columns(text=frames.modes))
-        for k, (part, lines) in enumerate(frames.parts.items()):
-            colour = PART_COLOURS[k % len(PART_COLOURS)]
-            if part in point_parts:
-                # A one-point "polyline" would not be drawn as a line strip: log it as a point.
-                rec.log(f"robot/{part}", rr.Points3D.from_fields(colors=[colour], radii=[-6.0]), static=True)
-                rec.send_columns(f"robot/{part}", indexes=f_idx, columns=_point_columns(rr, lines))
-            else:
-                rec.log(f"robot/{part}", rr.LineStrips3D.from_fields(colors=[colour], radii=[-2.5]), static=True)
-                strips = [np.zeros((0, 3)) if line is None else _xz_to_3d(line) for line in lines]
-                rec.send_columns(f"robot/{part}", indexes=f_idx, columns=rr.LineStrips3D.columns(strips=strips))
+            self.rec.log(entity(SCENERY, part), rr.LineStrips3D([to_3d(line)], colors=[SCENERY_COLOUR],
+                                                                radii=[-1.5]), static=True)
+        return scenery
+
+    def blueprint(self, entities: dict[str, str], bodies: BodyLogger | None, scenery: dict[str, np.ndarray]) -> None:
+        """The viewer's layout (``legsim.output.rrd.views``), sent with the recording."""
+        import rerun.blueprint as rrb
+
+        ex = self.content.execution
+        groups = unit_groups(entities, coordinate_units(ex.state_names, ex.state_units))
+        box = bodies.box() if bodies is not None else None
+        if box is None and scenery:
+            allp = np.concatenate(list(scenery.values()))
+            box = (allp.min(axis=0), allp.max(axis=0))
+        self.rec.send_blueprint(blueprint(rrb, groups, box))
+
+
+def _state_lookup(trace: Trace) -> Callable[[int], tuple[str, np.ndarray]]:
+    """row -> (mode, state) of a sample of ``trace``."""
+    position = np.zeros(len(trace.times), dtype=np.int64)
+    for rows, _ in trace.blocks.values():
+        position[rows] = np.arange(len(rows))
+
+    def state_at(row: int) -> tuple[str, np.ndarray]:
+        mode = trace.mode_names[trace.mode_index[row]]
+        return mode, trace.blocks[mode][1][position[row]]
+
+    return state_at
 
 
 def _transition_columns(rr: Any, trs: list) -> list:
-    """The ``events/transitions`` columns: a text line and the typed values of each transition."""
+    """The ``events/transitions`` columns: a text line and the fields of each transition."""
     return [
         *rr.TextLog.columns(text=[f"{t.name}: {t.source} -> {t.target} at {t.time:.9g} s "
-                                  f"(reset at {t.exit_time:.9g} s, depth {t.depth:.3g})" for t in trs]),
-        *_typed_columns(rr, name=[t.name for t in trs], source=[t.source for t in trs],
-                        target=[t.target for t in trs],
-                        index=np.array([t.index for t in trs], dtype=np.int64),
-                        time=np.array([t.time for t in trs], dtype=float),
-                        landing_time=np.array([t.landing_time for t in trs], dtype=float),
-                        exit_time=np.array([t.exit_time for t in trs], dtype=float),
-                        depth=np.array([t.depth for t in trs], dtype=float),
-                        state_before=[np.asarray(t.state_before, dtype=float) for t in trs],
-                        state_after=[np.asarray(t.state_after, dtype=float) for t in trs]),
+                                  f"(reset at {t.exit_time:.9g} s, depth {t.depth:.3g})" for t in trs],
+                            level=["INFO"] * len(trs)),
+        *typed_columns(rr, name=[t.name for t in trs], source=[t.source for t in trs],
+                       target=[t.target for t in trs], edge=[f"{t.source} -> {t.target}" for t in trs],
+                       index=np.array([t.index for t in trs], dtype=np.int64),
+                       time=np.array([t.time for t in trs], dtype=float),
+                       landing_time=np.array([t.landing_time for t in trs], dtype=float),
+                       exit_time=np.array([t.exit_time for t in trs], dtype=float),
+                       depth=np.array([t.depth for t in trs], dtype=float),
+                       state_before=[np.asarray(t.state_before, dtype=float) for t in trs],
+                       state_after=[np.asarray(t.state_after, dtype=float) for t in trs]),
     ]
 
 
-def _typed_columns(rr: Any, **columns: Any) -> list:
+def typed_columns(rr: Any, **columns: Any) -> list:
     """``AnyValues`` columns from arrays (one number per row), lists of strings and lists of
     arrays (one variable-length list per row).
 
@@ -269,52 +414,3 @@ def _typed_columns(rr: Any, **columns: Any) -> list:
             arrays[key] = pa.array(value)
     return [*rr.AnyValues.columns(**arrays)]
 
-
-def _point_columns(rr: Any, lines: list[np.ndarray | None]) -> Any:
-    """``Points3D`` columns of a point part: each frame's points (none where it is absent)."""
-    present = [line for line in lines if line is not None and len(line)]
-    positions = np.concatenate([_xz_to_3d(line) for line in present]) if present else np.zeros((0, 3))
-    counts = [0 if line is None else len(line) for line in lines]
-    return rr.Points3D.columns(positions=positions).partition(counts)
-
-
-def _xz_to_3d(line: np.ndarray) -> np.ndarray:
-    """(k, 2) points (x, z) as (k, 3) points (x, 0, z) of the z-up 3D view."""
-    out = np.zeros((len(line), 3))
-    out[:, 0] = line[:, 0]
-    out[:, 2] = line[:, 1]
-    return out
-
-
-def _blueprint(rrb: Any, frames: Frames | None, scenery: dict[str, np.ndarray]) -> Any:
-    """The viewer's layout: the robot (when there is geometry), the state plots, the summary
-    and the event log, with the time panel on ``sim_time``."""
-    views = []
-    if frames is not None or scenery:
-        views.append(rrb.Spatial3DView(origin="/", contents=["robot/**", "scenery/**"], name="robot",
-                                       eye_controls=_eye(rrb, frames, scenery)))
-    views.append(rrb.Vertical(
-        rrb.TimeSeriesView(origin="state", name="state"),
-        rrb.TimeSeriesView(contents=["strip/active", "mode/index"], name="strip and mode"),
-        row_shares=[3, 1],
-    ))
-    side = rrb.Vertical(rrb.TextDocumentView(origin="summary", name="summary"),
-                        rrb.TextLogView(contents=["mode", "events/**"], name="events"))
-    return rrb.Blueprint(rrb.Horizontal(*views, side), rrb.TimePanel(timeline=TIMELINE), collapse_panels=True)
-
-
-def _eye(rrb: Any, frames: Frames | None, scenery: dict[str, np.ndarray]) -> Any:
-    """A camera looking along +y at the box of everything drawn (the robot's polylines, else
-    the scenery), far enough back to see it whole; None when nothing is drawn."""
-    pts = [line for lines in (frames.parts.values() if frames is not None else []) for line in lines
-           if line is not None and len(line)]
-    if not pts:
-        pts = list(scenery.values())
-    if not pts:
-        return None
-    allp = np.concatenate(pts)
-    lo, hi = allp.min(axis=0), allp.max(axis=0)
-    centre = (lo + hi) / 2
-    size = float(max(hi[0] - lo[0], hi[1] - lo[1], 0.5))
-    return rrb.EyeControls3D(position=(float(centre[0]), -1.6 * size, float(centre[1])),
-                             look_target=(float(centre[0]), 0.0, float(centre[1])), eye_up=(0.0, 0.0, 1.0))

@@ -59,17 +59,25 @@ def test_mode_sequence_strips_and_transitions_round_trip(hopper_run):
 
 def test_geometry_frames_match_the_model(hopper_run):
     model, ex, _, data = hopper_run
-    frames = data["frames"]
-    np.testing.assert_array_equal(frames.times, frame_times(ex))
+    frames, rows = data["frames"], data["frame_rows"]
+    # The frames are recorded samples, the last one at or before each time of frame_times's
+    # grid (the hopper's step is 1 ms, the grid's 1/60 s).
+    trace = execution_trace(ex)
+    np.testing.assert_array_equal(frames.times, trace.times[rows])
+    grid = frame_times(ex)
+    assert len(frames) >= len(grid) - 1
+    assert np.all(grid - frames.times[np.searchsorted(frames.times, grid, side="right") - 1] < 1e-3 + 1e-12)
     # Each transition's strip entry and exit is a frame, so the viewer shows every contact.
     for s in ex.strips:
         assert s.time in frames.times and s.exit_time in frames.times
-    samples = ex.sample(frames.times)
-    assert frames.modes == samples.modes
-    for i in range(0, len(frames), 37):
-        want = model.geometry(samples.modes[i], samples.states[i])
+    assert frames.modes == [trace.modes[r] for r in rows]
+    state_of = {}
+    for mode, (mode_rows, states) in trace.blocks.items():
+        state_of.update(zip(mode_rows.tolist(), states))
+    for i, row in enumerate(rows.tolist()):
+        want = model.geometry(trace.modes[row], state_of[row])
         for part, line in want.items():
-            # Rerun stores line strips as float32: compare to that precision.
+            # Rerun stores transforms and shapes as float32: compare to that precision.
             np.testing.assert_allclose(frames.parts[part][i], line, rtol=0, atol=1e-6 * (1 + np.abs(line).max()))
     np.testing.assert_array_equal(data["scenery"]["ground"], model.scenery["ground"])
     assert data["meta"]["point_parts"] == ["foot"]
@@ -133,3 +141,21 @@ def test_foreign_rerun_file_is_named(tmp_path):
     foreign.write_bytes(memory.drain_as_bytes())
     with pytest.raises(RecordingError, match=r"foreign\.rrd: a Rerun recording without legsim data"):
         read_rrd(foreign)
+
+
+def test_a_recording_of_the_earlier_layout_is_refused_by_name(tmp_path):
+    import json
+    import uuid
+
+    import rerun as rr
+
+    # The earlier layout's document, as legsim-rrd-1 wrote it (entity legsim/meta).
+    rec = rr.RecordingStream("legsim", recording_id=uuid.uuid4())
+    memory = rec.memory_recording()
+    rec.log("legsim/meta", rr.TextDocument(json.dumps({"format": "legsim-rrd-1", "summary": {}})), static=True)
+    rec.flush()
+    old = tmp_path / "old.rrd"
+    old.write_bytes(memory.drain_as_bytes())
+    with pytest.raises(RecordingError, match=r"old\.rrd: a legsim recording of layout legsim-rrd-1, written by an "
+                                             r"earlier legsim; this version reads layout legsim-rrd-2 only"):
+        read_rrd(old)
