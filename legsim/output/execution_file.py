@@ -428,7 +428,8 @@ def _check_pieces(segs: list, strips: list, trs: list, meta: dict[str, Any]) -> 
         if (tr.source, tr.target) != (segs[k].mode, segs[k + 1].mode) or strips[k].name != tr.name:
             raise DamagedFile(f"transition {k} ({tr.name}: {tr.source} -> {tr.target}) does not join segments "
                               f"{k} ({segs[k].mode}) and {k + 1} ({segs[k + 1].mode}) through its strip")
-    if any(strip.mode != seg.mode for strip, seg in zip(strips, segs, strict=True)):
+    # A run that did not end in a strip has one segment more than strips.
+    if any(strip.mode != seg.mode for strip, seg in zip(strips, segs, strict=False)):
         raise DamagedFile("a strip is held in another mode than the segment it ends")
     starts = [t for k, seg in enumerate(segs) for t in ((seg.t_start, strips[k].time) if k < len(strips)
                                                           else (seg.t_start,))]
