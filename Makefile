@@ -60,4 +60,4 @@ test-browser: $(STAMP)
 	$(BIN)/python -m pytest -q -p no:xdist -m browser tests/viz/test_browser_html.py
 
 clean:
-	rm -rf $(VENV) out .pytest_cache build/typecheck
+	rm -rf $(VENV) out .pytest_cache .mypy_cache .ruff_cache build/typecheck
