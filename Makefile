@@ -38,12 +38,15 @@ $(LINT_STAMP): $(STAMP) pyproject.toml
 	$(BIN)/pip install --quiet -r $(VENV)/lint-requirements.txt
 	touch $(LINT_STAMP)
 
+# Both checkers run even when the first finds something, so one run lists every finding.
 lint: $(LINT_STAMP)
-	$(BIN)/ruff check
 	rm -rf $(TYPECHECK_TREE) && mkdir -p $(TYPECHECK_TREE)
 	for entry in legsim/*; do ln -s "$(CURDIR)/$$entry" $(TYPECHECK_TREE)/; done
 	ln -s "$(CURDIR)/robots" "$(CURDIR)/viz" $(TYPECHECK_TREE)/
-	$(BIN)/mypy
+	@status=0; \
+	echo "$(BIN)/ruff check"; $(BIN)/ruff check || status=1; \
+	echo "$(BIN)/mypy"; $(BIN)/mypy || status=1; \
+	exit $$status
 
 # The only target that changes the machine: it installs Chromium with apt-get (as root, or
 # through sudo) when no Chromium is on PATH, then runs the browser tests. `make test` never
