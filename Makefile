@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test test-full test-browser install clean
+.PHONY: demo test test-full test-browser install lint clean
 
 # setup.py and the C++ source: the optional native extension is built by the install.
 $(STAMP): pyproject.toml setup.py legsim/_native/pinlegsim.cpp
@@ -26,6 +26,28 @@ test: $(STAMP)
 test-full: $(STAMP)
 	LEGSIM_FULL=1 $(BIN)/python -m pytest -q -n 2
 
+# The lint extra (exact ruff, mypy and stub versions) on top of the install, with its own stamp.
+LINT_STAMP := $(VENV)/.lint-installed
+# mypy checks the package under its installed names: a tree of links where robots/ and viz/ sit
+# inside legsim/ as setup.py installs them ([tool.mypy] in pyproject.toml).
+TYPECHECK_TREE := build/typecheck/legsim
+
+# Only the extra's own requirements: reinstalling legsim itself would rebuild the native extension.
+$(LINT_STAMP): $(STAMP) pyproject.toml
+	$(BIN)/python -c 'import tomllib; print(*tomllib.load(open("pyproject.toml", "rb"))["project"]["optional-dependencies"]["lint"], sep="\n")' > $(VENV)/lint-requirements.txt
+	$(BIN)/pip install --quiet -r $(VENV)/lint-requirements.txt
+	touch $(LINT_STAMP)
+
+# Both checkers run even when the first finds something, so one run lists every finding.
+lint: $(LINT_STAMP)
+	rm -rf $(TYPECHECK_TREE) && mkdir -p $(TYPECHECK_TREE)
+	for entry in legsim/*; do ln -s "$(CURDIR)/$$entry" $(TYPECHECK_TREE)/; done
+	ln -s "$(CURDIR)/robots" "$(CURDIR)/viz" $(TYPECHECK_TREE)/
+	@status=0; \
+	echo "$(BIN)/ruff check"; $(BIN)/ruff check || status=1; \
+	echo "$(BIN)/mypy"; $(BIN)/mypy || status=1; \
+	exit $$status
+
 # The only target that changes the machine: it installs Chromium with apt-get (as root, or
 # through sudo) when no Chromium is on PATH, then runs the browser tests. `make test` never
 # installs anything; without a browser it reports these tests as skipped.
@@ -41,4 +63,4 @@ test-browser: $(STAMP)
 	$(BIN)/python -m pytest -q -p no:xdist -m browser tests/viz/test_browser_html.py
 
 clean:
-	rm -rf $(VENV) out .pytest_cache
+	rm -rf $(VENV) out .pytest_cache .mypy_cache .ruff_cache build/typecheck

@@ -6,17 +6,33 @@ Public API::
     legsim.sweep(scene, grid=..., walk=..., orbit=..., out=...)   # many variations on Dask
 """
 
+from . import sweep  # callable: legsim.sweep(...) runs a sweep (Dask is imported only then)
 from .errors import LegsimError, ModelError, SceneError, SimulationError
 from .execution import Execution, Samples, Segment, Strip, TransitionRecord
 from .hybrid import Continuation, HybridSystem, Mode, Transition
 from .methods import METHODS, Tableau, get_method
 from .relaxed import simulate
-from . import sweep  # callable: legsim.sweep(...) runs a sweep (Dask is imported only then)
 
 __version__ = "0.1.0"
 
 __all__ = [
-    "Continuation", "Execution", "HybridSystem", "LegsimError", "METHODS", "Mode", "ModelError", "Samples", "SceneError",
-    "Segment", "SimulationError", "Strip", "Tableau", "Transition", "TransitionRecord", "get_method",
-    "simulate", "sweep", "__version__",
+    "METHODS",
+    "Continuation",
+    "Execution",
+    "HybridSystem",
+    "LegsimError",
+    "Mode",
+    "ModelError",
+    "Samples",
+    "SceneError",
+    "Segment",
+    "SimulationError",
+    "Strip",
+    "Tableau",
+    "Transition",
+    "TransitionRecord",
+    "__version__",
+    "get_method",
+    "simulate",
+    "sweep",
 ]

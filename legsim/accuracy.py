@@ -11,12 +11,15 @@ factor of about 2 of it for ratios of 2 and more).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 
 from .execution import Execution
+from .hybrid import HybridSystem
+from .methods import Tableau
 
 #: Times at which the two trajectories are compared.
 SAMPLES = 2001
@@ -83,8 +86,9 @@ def compare(run: Execution, fine: Execution) -> ErrorEstimate:
     return ErrorEstimate(final, relative, times, matched, differ, trajectory, mismatch, settings)
 
 
-def check_accuracy(system, x0: Any, mode: str, t_final: float, h: float, eps: float, method: Any = "rk4",
-                   control: Callable | None = None, **options: Any) -> tuple[Execution, ErrorEstimate]:
+def check_accuracy(system: HybridSystem, x0: Any, mode: str, t_final: float, h: float, eps: float,
+                   method: str | Tableau = "rk4", control: Callable[[float, np.ndarray], Any] | None = None,
+                   **options: Any) -> tuple[Execution, ErrorEstimate]:
     """``simulate`` with these arguments, and the estimate of its error from a refined run (see
     ``refined``). Returns (the execution, its ``ErrorEstimate``)."""
     from .relaxed import simulate
@@ -116,14 +120,15 @@ def _sizes(execution: Execution) -> dict[str, float]:
     sizes: dict[str, float] = {}
     for seg in execution.segments:
         finite = np.where(np.isfinite(seg.x), np.abs(seg.x), 0.0).max(axis=0)
-        for name, value in zip(execution.state_names[seg.mode], finite):
+        for name, value in zip(execution.state_names[seg.mode], finite, strict=True):
             sizes[name] = max(sizes.get(name, 0.0), float(value))
     return sizes
 
 
 def _transition_times(run: Execution, fine: Execution) -> tuple[float | None, int, bool]:
     matched, worst = 0, 0.0
-    for a, b in zip(run.transitions, fine.transitions):
+    # The runs may take different numbers of transitions: compare the common prefix, then say so.
+    for a, b in zip(run.transitions, fine.transitions, strict=False):
         if a.name != b.name:
             break
         matched += 1
@@ -140,11 +145,11 @@ def _trajectory(run: Execution, fine: Execution) -> tuple[dict[str, float], floa
     a, b = run.sample(times), fine.sample(times)
     worst: dict[str, float] = {}
     mismatched = 0
-    for mode_a, mode_b, xa, xb in zip(a.modes, b.modes, a.states, b.states):
+    for mode_a, mode_b, xa, xb in zip(a.modes, b.modes, a.states, b.states, strict=True):
         if mode_a != mode_b:
             mismatched += 1
             continue
-        for name, va, vb in zip(run.state_names[mode_a], xa, xb):
+        for name, va, vb in zip(run.state_names[mode_a], xa, xb, strict=True):
             difference = abs(float(va) - float(vb))
             if not math.isnan(difference):
                 worst[name] = max(worst.get(name, 0.0), difference)

@@ -34,8 +34,9 @@ Section V need), and carries the bound along with the signed distances to the mo
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 from scipy.optimize import minimize_scalar
@@ -611,7 +612,7 @@ class ModeFlow:
         # An extremum in the first or last sub-interval has no sample on one side inside the
         # step (the next step starts past it): a probe just inside each end brackets it.
         probe = self.EDGE_PROBE
-        for j in np.flatnonzero(~(inside | past)):
+        for j in np.flatnonzero(~(inside | past)).tolist():
             u = [ratio(float(s), j) for s in fractions]
             if not all(math.isfinite(v) for v in u):
                 continue  # a guard without a state gradient (a clock): no extremum to place
@@ -621,11 +622,11 @@ class ModeFlow:
             for before, middle, after, lo_s, hi_s in triples:
                 if (middle - before) * (after - middle) < 0.0:
                     sign = 1.0 if middle <= before else -1.0  # a minimum of u, or a maximum
-                    res = minimize_scalar(lambda s: sign * ratio(float(s), j), bounds=(lo_s, hi_s),
+                    res = minimize_scalar(lambda s, sign=sign, j=j: sign * ratio(float(s), j), bounds=(lo_s, hi_s),
                                           method="bounded", options={"xatol": 1e-12})
                     extra.append(float(res.x))
         s_all = np.unique(np.concatenate([np.array(fractions), np.array(extra)]))
-        xs, gs, ds = zip(*(at(float(s)) for s in s_all))
+        xs, gs, ds = zip(*(at(float(s)) for s in s_all), strict=True)
         return StepSamples(s_all, p0.t + s_all * dt, np.array(xs), (1.0 - s_all) * r0 + s_all * r1,
                            np.array(gs).reshape(len(s_all), -1), np.array(ds).reshape(len(s_all), -1))
 
@@ -637,7 +638,7 @@ def check_steps(span: float, h: float, what: str) -> int:
     if not steps <= MAX_STEPS:
         raise SimulationError(f"{what}: {span:g} s at h = {h:g} s is {steps:.3g} steps, more than the limit "
                               f"{MAX_STEPS:.0e}: raise h or shorten t_final")
-    return int(math.ceil(steps))
+    return math.ceil(steps)
 
 
 def check_start(system: HybridSystem, mode: Any, x0: Any) -> np.ndarray:

@@ -12,9 +12,10 @@ declares ``[project.entry-points."legsim.builders"] myrobot = "mypkg.myrobot:BUI
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from importlib import metadata
-from typing import Any, Callable, Mapping
+from typing import Any
 
 import numpy as np
 
@@ -216,7 +217,8 @@ def get_builder(name: str) -> Builder:
     try:
         builder = eps[name].load()
     except Exception as exc:
-        raise SceneError(f"robot '{name}' could not be loaded from {eps[name].value}: {type(exc).__name__}: {exc}") from exc
+        raise SceneError(f"robot '{name}' could not be loaded from {eps[name].value}: "
+                         f"{type(exc).__name__}: {exc}") from exc
     if not isinstance(builder, Builder):
         raise SceneError(f"entry point '{name}' ({eps[name].value}) is not a legsim.builders.Builder")
     return builder

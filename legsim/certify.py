@@ -44,15 +44,24 @@ only conditionally on a branch that is not certain.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Callable, Sequence
+from typing import Any
 
 import numpy as np
 from scipy.optimize import brentq
 
 from .arguments import count, positive
-from .bounds import (MAX_STEPS, LocalErrorEstimator, ModeFlow, check_start, check_steps,
-                     check_t_final, guard_gradient, reset_lipschitz)
+from .bounds import (
+    MAX_STEPS,
+    LocalErrorEstimator,
+    ModeFlow,
+    check_start,
+    check_steps,
+    check_t_final,
+    guard_gradient,
+    reset_lipschitz,
+)
 from .errors import ModelBreakdown, SimulationError
 from .hybrid import HybridSystem
 from .methods import Tableau
@@ -195,8 +204,10 @@ class _ConeRun:
                 return records, None, visit.end_time, False
             if visit.kind != "certified":
                 return records, visit, visit.record.time if visit.record else t, False
-            records.append(visit.record)  # type: ignore[arg-type]
-            mode, x, t, b0 = visit.next_state  # type: ignore[misc]
+            record, next_state = visit.record, visit.next_state
+            assert record is not None and next_state is not None  # a certified visit carries both
+            records.append(record)
+            mode, x, t, b0 = next_state
         return records, None, t, True
 
     def visit(self, index: int, mode: str, x0: np.ndarray, t0: float, b0: float) -> _Visit:
@@ -225,7 +236,8 @@ class _ConeRun:
         met = np.flatnonzero(walk.met)
         tr = trs[event[1]] if event is not None else (trs[met[0]] if len(met) else None)
         if event is not None and walk.t_exit is None:
-            message = (f"the cone had not left the domain after the crossing of {tr.name} at t={event[0]:.6g} "
+            message = (f"the cone had not left the domain after the crossing of {trs[event[1]].name} at "
+                       f"t={event[0]:.6g} "
                        f"(bound {event[3]:.3g}) when the flow stopped: {message}")
         return _Visit("non_finite", self._record(index, mode, tr, event[0] if event is not None else last,
                                                  event is not None, False, "refinement_limit", (t0, last), b0, b0,
@@ -236,7 +248,7 @@ class _ConeRun:
         """The first crossing among the guards ``crossed`` between fractions s_lo and s_hi of
         step n, found on the Hermite interpolant: (t_e, guard index, x_e, B(t_e))."""
         p0, p1 = flow.points[n], flow.points[n + 1]
-        best = None
+        best: tuple[float, int] | None = None
         for j in np.flatnonzero(crossed):
 
             def g(s: float, j=j) -> float:
@@ -246,15 +258,20 @@ class _ConeRun:
             s = s_lo if lo_val < 0.0 else brentq(g, s_lo, s_hi, xtol=1e-15, rtol=8.9e-16)
             if best is None or s < best[0]:
                 best = (s, int(j))
-        s, j = best  # type: ignore[misc]
-        t = p0.t + s * (p1.t - p0.t)
-        return t, j, flow.state(n, s), (1.0 - s) * p0.radius + s * p1.radius
+        assert best is not None  # ``crossed`` names at least one guard
+        s_event, j_event = best
+        t = p0.t + s_event * (p1.t - p0.t)
+        return t, j_event, flow.state(n, s_event), (1.0 - s_event) * p0.radius + s_event * p1.radius
 
     def _record(self, index, mode, tr, time, taken, certified, reason, window, radius, entry_radius, names, detail):
         return CertifiedTransition(index, tr.name if tr is not None else "", mode, tr.target if tr is not None else "",
                                    float(time), bool(taken), bool(certified), reason, self.h,
                                    (float(window[0]), float(window[1])), float(radius), float(entry_radius),
                                    list(names), detail)
+
+
+#: The computed event of a visit: (t_e, guard index j, x_e, B(t_e)).
+_Event = tuple[float, int, np.ndarray, float]
 
 
 class _Walk:
@@ -264,7 +281,7 @@ class _Walk:
         control = self.flow.control
         return None if control is None else control(t, x)
 
-    def __init__(self, run: "_ConeRun", flow: ModeFlow, t0: float, b0: float) -> None:
+    def __init__(self, run: _ConeRun, flow: ModeFlow, t0: float, b0: float) -> None:
         self.run_ = run
         self.flow = flow
         self.t0 = t0
@@ -290,7 +307,7 @@ class _Walk:
         self.closest = np.full(m, math.inf)  # smallest distance of x_hat to each plane while met
         self.closest_r = np.full(m, math.nan)
         self.closest_t = np.full(m, math.nan)
-        self.event: tuple[float, int, np.ndarray, float] | None = None  # (t_e, j, x_e, B(t_e))
+        self.event: _Event | None = None
         self.event_distance: np.ndarray | None = None
         self.t_exit: float | None = None
         self.deepest = (-math.inf, math.nan, math.nan)  # (depth / B, depth, B) past the event guard
@@ -305,12 +322,11 @@ class _Walk:
         flow = self.flow
         for n, s, tk, xk, rk, gk, dk in _samples(flow):
             prev = self.prev
-            if tk > horizon:
-                # Past t_final a guard the ball still meets may be about to be crossed: look a
-                # little further, so that a crossing just after t_final is not a near miss.
-                if self.event is not None or tk > tail or prev is None \
-                        or not np.any((np.abs(prev[3]) <= prev[4]) & self.met):
-                    return
+            # Past t_final a guard the ball still meets may be about to be crossed: look a
+            # little further, so that a crossing just after t_final is not a near miss.
+            if tk > horizon and (self.event is not None or tk > tail or prev is None
+                                 or not np.any((np.abs(prev[3]) <= prev[4]) & self.met)):
+                return
             if self.event is None and prev is not None:
                 crossed = (prev[2] >= 0.0) & (gk < 0.0) & ~self.departing
                 if crossed.any():
@@ -395,33 +411,34 @@ class _Walk:
             rec = self._record(index, je, True, "zeno", window, re,
                                f"the entry ball (radius {self.entry_radius:.3g}) already meets the guard of "
                                f"{trs[jz].name} {self.entry_distance[jz]:.3g} away, which the flow moves towards: "
-                               f"the visit may last no time")
+                               f"the visit may last no time", time=te)
             return _Visit("zeno", rec, max(float(self.entry_distance[jz]), 0.0), self.entry_radius)
         others = [j for j in np.flatnonzero(self.met) if j != je]
         if others:
-            assert self.event_distance is not None
-            jo = min(others, key=lambda j: abs(float(self.event_distance[j])))
+            distances = self.event_distance
+            assert distances is not None
+            jo = min(others, key=lambda j: abs(float(distances[j])))
             rec = self._record(index, je, True, "intersecting_guards", window, re,
                                f"the cone meets the guards of {', '.join(self._names_met())} before leaving the "
-                               f"domain (the event point is {abs(float(self.event_distance[jo])):.3g} from the "
-                               f"guard of {trs[jo].name}, bound {re:.3g})")
-            return _Visit("intersecting_guards", rec, abs(float(self.event_distance[jo])), re)
+                               f"domain (the event point is {abs(float(distances[jo])):.3g} from the "
+                               f"guard of {trs[jo].name}, bound {re:.3g})", time=te)
+            return _Visit("intersecting_guards", rec, abs(float(distances[jo])), re)
         if self.t_exit is None:
             rec = self._record(index, je, True, "grazing", window, re,
                                f"the computed trajectory crosses the guard of {trs[je].name} but the cone never "
-                               f"leaves the domain (deepest {self.deepest[1]:.3g} past, bound {self.deepest[2]:.3g})")
+                               f"leaves the domain (deepest {self.deepest[1]:.3g} past, bound {self.deepest[2]:.3g})",
+                               time=te)
             return _Visit("grazing", rec, max(float(self.deepest[1]), 0.0), self.deepest[2])
-        return self._certified(index, window)
+        return self._certified(index, window, self.event)
 
     def _names_met(self) -> list[str]:
         trs = self.flow.transitions
         return [trs[j].name for j in np.flatnonzero(self.met)]
 
     def _record(self, index: int, j: int, taken: bool, reason: str | None, window: tuple[float, float],
-                radius: float, detail: str, time: float | None = None) -> CertifiedTransition:
-        """The verdict on guard j of this visit (at the computed event time unless ``time``)."""
-        t = self.event[0] if time is None else time  # type: ignore[index]
-        return self.run_._record(index, self.flow.mode_name, self.flow.transitions[j], t, taken, reason is None,
+                radius: float, detail: str, time: float) -> CertifiedTransition:
+        """The verdict on guard j of this visit, at ``time`` (s)."""
+        return self.run_._record(index, self.flow.mode_name, self.flow.transitions[j], time, taken, reason is None,
                                  reason, window, radius, self.b0, self._names_met(), detail)
 
     def _near_miss(self, index: int) -> _Visit:
@@ -442,27 +459,28 @@ class _Walk:
                            time=t)
         return _Visit("grazing", rec, closest, r)
 
-    def _certified(self, index: int, window: tuple[float, float]) -> _Visit:
+    def _certified(self, index: int, window: tuple[float, float], event: _Event) -> _Visit:
         """The certified transition, and the next visit's start: the reset image of the event
         point with an entry ball that holds the cone's trace on the guard, stretched by the reset."""
-        te, je, xe, re = self.event  # type: ignore[misc]
+        te, je, xe, re = event
         tr = self.flow.transitions[je]
-        r_trace, half = self._trace_on_guard()
+        r_trace, half = self._trace_on_guard(event)
         window = (min(window[0], te - half), max(window[1], te + half))
         rec = self._record(index, je, True, None, window, re,
-                           f"the cone meets only the guard of {tr.name} and leaves the domain at t={self.t_exit:.6g}")
+                           f"the cone meets only the guard of {tr.name} and leaves the domain at t={self.t_exit:.6g}",
+                           time=te)
         x_next = np.asarray(xe if tr.reset is None else tr.reset(xe), dtype=float)
         b_next = r_trace * reset_lipschitz(tr, xe, len(x_next))
         return _Visit("certified", rec, next_state=(tr.target, x_next, te, b_next))
 
-    def _trace_on_guard(self) -> tuple[float, float]:
+    def _trace_on_guard(self, event: _Event) -> tuple[float, float]:
         """(radius of a ball around the event point x_e holding the cone's trace on the event
         guard, half-width (s) of the time window in which the true trajectory meets the guard).
 
         Around x_e the balls of radius B are met while |d| <= B, i.e. for |t - t_e| <= B / |d'|,
         which spreads them along the guard to B |f| / |d'| (d' the rate of the distance to the
         guard); sampled contact points are added in case B varies."""
-        te, je, xe, re = self.event  # type: ignore[misc]
+        te, je, xe, re = event
         r_cone = max([re] + [rk for _, rk in self.contact])
         fe = self.flow.field_at(te, xe)
         grad = guard_gradient(self.flow.transitions[je], xe, te, self._u(te, xe))
@@ -577,7 +595,8 @@ class _Refinement:
                                 f"would take {span / h_r:.3g} steps, more than {MAX_STEPS:.0e}")
                 return
             progress = self.progress
-            level_progress = None if progress is None else (lambda t, r=r, h_r=h_r: progress(r, h_r, t))
+            level_progress = None if progress is None else (
+                lambda t, r=r, h_r=h_r, progress=progress: progress(r, h_r, t))
             run = _ConeRun(self.system, h_r, self.estimator, self.control, self.t_final, self.max_transitions,
                            level_progress)
             self.records, self.failure, self.end_time, self.exhausted = run.run(self.mode, self.x, self.t0)
@@ -613,12 +632,12 @@ def _reason(kind: str, levels: list[Level]) -> str:
         return "zeno"
     if len(levels) >= 2:
         last, prev = levels[-1], levels[-2]
+        # A real separation stays put while the bound shrinks; a numerical one shrinks with it.
         if prev.failure == last.failure and prev.index == last.index and last.separation > 0.0 \
-                and prev.separation > 0.0 and 0.0 < last.bound < prev.bound:
-            # A real separation stays put while the bound shrinks; a numerical one shrinks with it.
-            if last.separation / prev.separation > math.sqrt(last.bound / prev.bound):
-                return "refinement_limit"
+                and prev.separation > 0.0 and 0.0 < last.bound < prev.bound \
+                and last.separation / prev.separation > math.sqrt(last.bound / prev.bound):
+            return "refinement_limit"
     return kind
 
 
-__all__: Sequence[str] = ("Certificate", "CertifiedTransition", "Level", "REASONS", "certify")
+__all__: Sequence[str] = ("REASONS", "Certificate", "CertifiedTransition", "Level", "certify")

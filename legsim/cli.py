@@ -23,9 +23,9 @@ import signal
 import sys
 import threading
 import traceback
+from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from types import ModuleType
-from typing import Iterator, Sequence
 
 from .errors import LegsimError, Terminated
 

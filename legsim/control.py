@@ -17,9 +17,10 @@ robots): a ``ControllerSpec`` names its parameters and makes a ``Controller`` fo
 
 from __future__ import annotations
 
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from importlib import metadata
-from typing import Any, Callable, Mapping
+from typing import Any
 
 import numpy as np
 

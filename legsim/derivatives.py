@@ -11,9 +11,11 @@ rounding x_j + d) is the one divided by.
 from __future__ import annotations
 
 import math
-from typing import Callable, Literal
+from collections.abc import Callable
+from typing import Literal
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 #: Relative step of forward differences: sqrt(machine eps).
 FORWARD_STEP = math.sqrt(float(np.finfo(float).eps))
@@ -23,7 +25,7 @@ CENTRAL_STEP = float(np.finfo(float).eps) ** (1.0 / 3.0)
 Scheme = Literal["central", "forward"]
 
 
-def jacobian(fn: Callable[[np.ndarray], np.ndarray], x: np.ndarray, *, scheme: Scheme = "central",
+def jacobian(fn: Callable[[np.ndarray], ArrayLike], x: np.ndarray, *, scheme: Scheme = "central",
              step: float | None = None, scale: float | np.ndarray | None = None,
              f0: np.ndarray | None = None) -> np.ndarray:
     """d fn / dx at ``x`` by finite differences, shape (m, n) for fn: R^n -> R^m.

@@ -13,14 +13,16 @@ interpolation of paper 000 Fig. 12 step 9, which would limit any off-grid compar
 from __future__ import annotations
 
 import os
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from enum import StrEnum
 from pathlib import Path
-from typing import Any, Iterable
+from typing import Any
 
 import numpy as np
 
 from .errors import SimulationError
+
 
 class Status(StrEnum):
     """How a run ended: ordinary ends of a simulation are result codes (as in diffrax), not
@@ -79,7 +81,8 @@ class Segment:
         h10 = s**3 - 2 * s**2 + s
         h01 = -2 * s**3 + 3 * s**2
         h11 = s**3 - s**2
-        return h00 * x0 + h10 * d0 + h01 * x1 + h11 * d1
+        values: np.ndarray = h00 * x0 + h10 * d0 + h01 * x1 + h11 * d1
+        return values
 
 
 @dataclass(frozen=True)
@@ -182,7 +185,7 @@ class Samples:
 class SegmentBuffer:
     """Growable preallocated storage for one segment (internal to the integrator)."""
 
-    __slots__ = ("mode", "t", "x", "dx", "size")
+    __slots__ = ("dx", "mode", "size", "t", "x")
 
     def __init__(self, mode: str, dim: int, capacity: int = 256) -> None:
         self.mode = mode
@@ -286,7 +289,7 @@ class Execution:
         """(entry, exit) times of every strip, the last one possibly cut by t_end."""
         return [(s.time, s.exit_time) for s in self.strips]
 
-    def raise_for_status(self) -> "Execution":
+    def raise_for_status(self) -> Execution:
         """Raise ``SimulationError`` with the message unless the run finished."""
         if self.status != "finished":
             raise SimulationError(f"simulation stopped with status '{self.status}': {self.message}")
@@ -365,7 +368,7 @@ class Execution:
         return np.concatenate([s.t for s in self.segments])
 
     # -- persistence -----------------------------------------------------------------------
-    def save(self, path: str | os.PathLike) -> Path:
+    def save(self, path: str | os.PathLike[str]) -> Path:
         """Write the execution to a ``.npz`` file, completely or not at all (OutputError
         naming the file when it cannot be written or does not end in ``.npz``)."""
         from .output.execution_file import save_execution  # here: legsim.output imports this module
@@ -373,7 +376,7 @@ class Execution:
         return save_execution(self, path)
 
     @classmethod
-    def load(cls, path: str | os.PathLike, max_bytes: int | None = None) -> "Execution":
+    def load(cls, path: str | os.PathLike[str], max_bytes: int | None = None) -> Execution:
         """Read an execution written by ``save``, checking everything in the file: its arrays'
         sizes against the file's before they are allocated (``max_bytes`` overrides the bound),
         dtypes, shapes, index ranges, finite and ordered times, and that the pieces fit

@@ -22,16 +22,19 @@ callback, for models whose contact subsets are too many to enumerate up front.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from types import MappingProxyType
-from typing import Any, Callable, Iterable, Mapping, Sequence
+from typing import Any, cast
 
 import numpy as np
 
 from .errors import ModelError
 
 FieldFn = Callable[[float, np.ndarray, Any], np.ndarray]
-GuardFn = Callable[[np.ndarray], float]
+#: ``guard(x) -> float``, or ``guard(t, x, u) -> float`` for a transition declared with
+#: ``guard_args="t,x,u"`` (which of the two is known only from that field, at run time).
+GuardFn = Callable[..., float]
 ResetFn = Callable[[np.ndarray], np.ndarray]
 
 
@@ -75,11 +78,7 @@ class Mode:
             raise ModelError(f"Mode field must be callable f(t, x, u), got {type(self.field).__name__}")
         if self.jacobian is not None and not callable(self.jacobian):
             raise ModelError("Mode jacobian must be callable jacobian(t, x, u) or None")
-        names = self.names
-        if names is None:
-            names = tuple(f"x{i}" for i in range(self.dim))
-        else:
-            names = tuple(str(n) for n in names)
+        names = tuple(f"x{i}" for i in range(self.dim)) if self.names is None else tuple(str(n) for n in self.names)
         if len(names) != self.dim:
             raise ModelError(f"Mode has dim {self.dim} but {len(names)} coordinate names {names}")
         if len(set(names)) != len(names):
@@ -109,13 +108,15 @@ class Continuation:
 
     target: str
     reset: ResetFn | None = None
-    name: str | None = None
+    #: Empty: ``"<transition>_continued"``, given by the transition it continues.
+    name: str = ""
 
     def __post_init__(self) -> None:
+        label = self.name or None  # not named yet
         if not isinstance(self.target, str):
-            raise ModelError(f"continuation {self.name}: target must be a mode name (str), got {self.target!r}")
+            raise ModelError(f"continuation {label}: target must be a mode name (str), got {self.target!r}")
         if self.reset is not None and not callable(self.reset):
-            raise ModelError(f"continuation {self.name}: reset must be callable reset(x) -> x' or None")
+            raise ModelError(f"continuation {label}: reset must be callable reset(x) -> x' or None")
 
 
 @dataclass(frozen=True)
@@ -133,7 +134,7 @@ class Transition:
         ``reset(x) -> x'`` from the source's state space to the target's; identity if None
         (allowed only when the dimensions agree).
     name:
-        A readable name for messages and recordings; default ``"source->target"``.
+        A readable name for messages and recordings; empty (the default) or None: ``"source->target"``.
     guard_gradient, reset_jacobian:
         Optional derivatives (shape (n_source,) and (n_target, n_source)); finite
         differences are used where they are missing.
@@ -151,7 +152,7 @@ class Transition:
     target: str
     guard: GuardFn
     reset: ResetFn | None = None
-    name: str | None = None
+    name: str = ""
     guard_gradient: Callable[[np.ndarray], np.ndarray] | None = None
     reset_jacobian: Callable[[np.ndarray], np.ndarray] | None = None
     guard_args: str = "x"
@@ -174,7 +175,7 @@ class Transition:
         if self.continuation is not None:
             if not isinstance(self.continuation, Continuation):
                 raise ModelError(f"transition {label}: continuation must be a legsim.Continuation or None")
-            if self.continuation.name is None:
+            if not self.continuation.name:
                 object.__setattr__(self, "continuation", Continuation(self.continuation.target,
                                                                       self.continuation.reset, f"{label}_continued"))
 
@@ -317,12 +318,12 @@ class HybridSystem:
                 f"{self._name}: transition {tr.name} leaves unknown mode '{tr.source}' "
                 f"(modes: {sorted(self._modes)})"
             )
-        if tr.reset is None and self._expand is None and tr.target in self._modes:
-            if self._modes[tr.source].dim != self._modes[tr.target].dim:
-                raise ModelError(
-                    f"{self._name}: transition {tr.name} has no reset but changes dimension "
-                    f"{self._modes[tr.source].dim} -> {self._modes[tr.target].dim}"
-                )
+        if tr.reset is None and self._expand is None and tr.target in self._modes \
+                and self._modes[tr.source].dim != self._modes[tr.target].dim:
+            raise ModelError(
+                f"{self._name}: transition {tr.name} has no reset but changes dimension "
+                f"{self._modes[tr.source].dim} -> {self._modes[tr.target].dim}"
+            )
         self._transitions.append(tr)
         self._outgoing[tr.source].append(tr)
 
@@ -385,7 +386,7 @@ class HybridSystem:
 
     def state_names(self, name: str) -> tuple[str, ...]:
         """Coordinate names of mode ``name``."""
-        return self.mode(name).names  # type: ignore[return-value]
+        return cast(tuple[str, ...], self.mode(name).names)  # Mode.__post_init__ always sets the names
 
     def mode_data(self, name: str) -> ModeData:
         """Everything the integrator needs about mode ``name``, gathered once and cached."""
@@ -527,7 +528,7 @@ def check_guard_output(system: str, tr: Transition, x: np.ndarray, t: float = 0.
 def check_reset_output(system: str, tr: Transition, target_dim: int, x: np.ndarray) -> np.ndarray:
     """Evaluate a reset once and check the dimension of its image."""
     try:
-        out = np.asarray(tr.reset(x), dtype=float)  # type: ignore[misc]
+        out = np.asarray(x if tr.reset is None else tr.reset(x), dtype=float)
     except Exception as exc:
         raise ModelError(f"{system}: reset of transition {tr.name} failed: {type(exc).__name__}: {exc}") from exc
     if out.shape != (target_dim,):

@@ -9,8 +9,18 @@ is written or read.
 
 from .output.rrd import FORMAT, read_rrd, write_rrd
 from .output.summary import run_summary
-from .output.trace import (DEFAULT_FPS, DEFAULT_MAX_FRAMES, Frames, RecordingError, Trace, execution_trace,
-                           frame_times, geometry_frames, scenery_only, trace_series)
+from .output.trace import (
+    DEFAULT_FPS,
+    DEFAULT_MAX_FRAMES,
+    Frames,
+    RecordingError,
+    Trace,
+    execution_trace,
+    frame_times,
+    geometry_frames,
+    scenery_only,
+    trace_series,
+)
 
 __all__ = [
     "DEFAULT_FPS", "DEFAULT_MAX_FRAMES", "FORMAT", "Frames", "RecordingError", "Trace", "execution_trace",

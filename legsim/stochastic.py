@@ -45,15 +45,24 @@ from __future__ import annotations
 
 import math
 from collections import Counter
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Callable, Sequence
+from typing import Any
 
 import numpy as np
 from scipy.optimize import brentq
 
 from .arguments import count, positive
-from .bounds import (LocalErrorEstimator, ModeFlow, StepSamples, ball_fraction_past, check_start, check_steps,
-                     check_t_final, reset_lipschitz)
+from .bounds import (
+    LocalErrorEstimator,
+    ModeFlow,
+    StepSamples,
+    ball_fraction_past,
+    check_start,
+    check_steps,
+    check_t_final,
+    reset_lipschitz,
+)
 from .errors import ModelBreakdown, SimulationError
 from .hybrid import HybridSystem
 from .methods import Tableau
@@ -493,7 +502,7 @@ class Ensemble:
             if i >= max_switches:
                 break
             ts = self.switching_times(i)
-            switches.append({"index": i + 1, "count": int(len(ts)), "mean": float(ts.mean()),
+            switches.append({"index": i + 1, "count": len(ts), "mean": float(ts.mean()),
                              "std": float(ts.std()), "min": float(ts.min()), "max": float(ts.max())})
         dwell = [e.dwell_times for e in self.executions if len(e.times)]
         min_dwell = float(min(d.min() for d in dwell)) if dwell else None
@@ -573,5 +582,14 @@ def sample_ensemble(
     return Ensemble(runs, settings)
 
 
-__all__: Sequence[str] = ("Ensemble", "INTENSITIES", "MAX_SAMPLES", "StochasticExecution", "TransitionFunctions",
-                          "sample_ensemble", "sample_execution", "sample_generator", "transition_functions")
+__all__: Sequence[str] = (
+    "INTENSITIES",
+    "MAX_SAMPLES",
+    "Ensemble",
+    "StochasticExecution",
+    "TransitionFunctions",
+    "sample_ensemble",
+    "sample_execution",
+    "sample_generator",
+    "transition_functions",
+)

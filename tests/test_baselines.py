@@ -93,7 +93,7 @@ def test_paoli_schatzman_is_second_order_away_from_the_stop(compiled):
 
 
 def test_paoli_schatzman_never_passes_the_stop_and_rejects_bad_input():
-    t, z = paoli_schatzman(0.0, 1.0, 0.5, 0.5, lambda t: 0.0 * t, 0.0, 2.0, 10.0, 1e-3)
+    _t, z = paoli_schatzman(0.0, 1.0, 0.5, 0.5, lambda t: 0.0 * t, 0.0, 2.0, 10.0, 1e-3)
     # The scheme keeps positions on the admissible side up to O(h) (weighted-average constraint).
     assert z.max() <= 0.5 + 2.0 * 1e-3
     with pytest.raises(SimulationError, match="restitution c must be in"):

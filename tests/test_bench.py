@@ -1,6 +1,7 @@
 """The work-precision bench: its error measure, its reading of the rows, its files and its CLI."""
 
 import csv
+import itertools
 import math
 import re
 from dataclasses import replace
@@ -34,7 +35,8 @@ from legsim.bench.work_precision import (
 )
 from legsim.cli import main
 
-METHOD_NAME = re.compile(r"^(relaxed-(euler|rk2|rk4|bs32|dopri5|dop853)(-zeno)?|ps|solve_ivp-(RK23|RK45|DOP853|LSODA|Radau|BDF))$")
+METHOD_NAME = re.compile(r"^(relaxed-(euler|rk2|rk4|bs32|dopri5|dop853)(-zeno)?|ps"
+                         r"|solve_ivp-(RK23|RK45|DOP853|LSODA|Radau|BDF))$")
 
 
 def test_error_of_euler_free_fall_is_the_closed_form():
@@ -284,7 +286,7 @@ def test_quick_bench_writes_csv_figure_and_table(tmp_path, capsys):
             assert float(r["h"]) > 0 and float(r["eps"]) > 0 and float(r["rho"]) > 0
     # The marked front: faster runs have larger errors.
     front = sorted((r for r in rows if r["pareto"] == "1"), key=lambda r: float(r["wall_s"]))
-    assert front and all(float(a["error"]) > float(b["error"]) for a, b in zip(front, front[1:]))
+    assert front and all(float(a["error"]) > float(b["error"]) for a, b in itertools.pairwise(front))
     assert (tmp_path / "oscillator-ex1.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert not list(tmp_path.glob("*.tmp*"))  # written atomically
 

@@ -1,5 +1,6 @@
 """Global error bounds of paper 004 Section III (legsim.bounds)."""
 
+import itertools
 import math
 
 import numpy as np
@@ -8,8 +9,15 @@ import scipy.linalg as sl
 from scipy.stats import norm
 
 from legsim import HybridSystem, Mode, SimulationError, simulate
-from legsim.bounds import (LocalErrorEstimator, ModeFlow, accumulate_bound, ball_fraction_past, error_bound,
-                           field_jacobian, lipschitz_estimate)
+from legsim.bounds import (
+    LocalErrorEstimator,
+    ModeFlow,
+    accumulate_bound,
+    ball_fraction_past,
+    error_bound,
+    field_jacobian,
+    lipschitz_estimate,
+)
 from legsim.systems.circular_flow import CircularReference
 from legsim.systems.circular_flow import make_system as circular_flow
 
@@ -116,7 +124,7 @@ def test_high_dimensional_ball_concentrates_at_its_equator():
     # Volume concentrates near any hyperplane through the centre as dim grows, so a fixed
     # relative offset leaves less and less of the ball past the plane.
     fractions = [float(ball_fraction_past(0.2, 1.0, d)) for d in (2, 10, 50, 200)]
-    assert all(a > b for a, b in zip(fractions, fractions[1:]))
+    assert all(a > b for a, b in itertools.pairwise(fractions))
     # A coordinate of a uniform point of the d-ball tends to N(0, 1/(d + 2)): the cap beyond
     # 0.2 tends to the normal tail at 0.2 sqrt(d + 2) (2.8 sigma at d = 200; 10% at that size).
     assert fractions[-1] == pytest.approx(norm.sf(0.2 * math.sqrt(202)), rel=0.1)
@@ -148,7 +156,7 @@ def test_bad_input_is_reported_by_name():
         error_bound(ex, system, floor=-1.0)
     with pytest.raises(SimulationError, match="lipschitz must be 'max' or"):
         error_bound(ex, system, lipschitz="min")
-    with pytest.raises(SimulationError, match="needs a legsim.Execution"):
+    with pytest.raises(SimulationError, match=r"needs a legsim\.Execution"):
         error_bound("run.npz", system)
     with pytest.raises(SimulationError, match="ball dimension must be a positive integer"):
         ball_fraction_past(0.1, 1.0, 0)

@@ -1,18 +1,18 @@
 """Certified transitions of paper 004 Section V (legsim.certify)."""
 
+import itertools
 import math
 
 import numpy as np
 import pytest
 
+from helpers.breaking_line import breaking_line
 from legsim import HybridSystem, Mode, SimulationError, Transition
 from legsim.certify import REASONS, certify
 from legsim.systems.circular_flow import CircularReference
 from legsim.systems.circular_flow import make_system as circular_flow
 from legsim.systems.two_tanks import TwoTankReference
 from legsim.systems.two_tanks import make_system as two_tanks
-
-from helpers.breaking_line import breaking_line
 
 
 def corner():
@@ -34,7 +34,7 @@ def test_transversal_crossings_are_certified_and_bracket_the_true_switching_time
     assert all(tr.reason is None and tr.taken for tr in cert.transitions)
     # Exact crossing times of the circle of radius 1.5 with x1 = 1: asin(2/3) and pi - asin(2/3).
     exact = [ref.crossing_time(np.array([0.0, 1.5])), math.pi - math.asin(2 / 3)]
-    for tr, t in zip(cert.transitions, exact):
+    for tr, t in zip(cert.transitions, exact, strict=True):
         # rk4 at h = 0.1 over 2.4 s: about 2e-6 of global error in the second crossing.
         assert tr.time == pytest.approx(t, abs=1e-5)
         assert tr.window[0] <= t <= tr.window[1]
@@ -87,9 +87,9 @@ def test_symmetric_pronk_touchdown_is_a_guard_intersection():
     (tr,) = cert.transitions
     assert tr.reason == "intersecting_guards"
     assert sorted(tr.guards_met) == ["touchdown_left", "touchdown_right"]
-    # Ballistic flight: the touchdown time is where z - l cos(psi) reaches 0 from z = 1.1.
-    l, psi, z0, g = 1.0, math.pi / 5, 1.1, 9.81
-    assert tr.time == pytest.approx(math.sqrt(2 * (z0 - l * math.cos(psi)) / g), abs=1e-9)
+    # Ballistic flight: the touchdown time is where z - leg cos(psi) reaches 0 from z = 1.1.
+    leg, psi, z0, g = 1.0, math.pi / 5, 1.1, 9.81
+    assert tr.time == pytest.approx(math.sqrt(2 * (z0 - leg * math.cos(psi)) / g), abs=1e-9)
 
 
 def test_zeno_point_is_refused_as_zeno_after_certifying_more_transitions_at_each_refinement():
@@ -99,9 +99,9 @@ def test_zeno_point_is_refused_as_zeno_after_certifying_more_transitions_at_each
     *done, last = cert.transitions
     assert last.reason == "zeno" and not last.certified
     counts = [lv.certified for lv in cert.levels]
-    assert all(a < b for a, b in zip(counts, counts[1:])), counts
+    assert all(a < b for a, b in itertools.pairwise(counts)), counts
     exact, modes = ref.switching_times("q1", x0, len(done))
-    for tr, t, target in zip(done, exact, modes):
+    for tr, t, target in zip(done, exact, modes, strict=True):
         assert tr.certified and tr.target == target
         assert tr.time == pytest.approx(t, abs=1e-9)
         assert tr.window[0] <= t <= tr.window[1]

@@ -29,13 +29,13 @@ def test_certify_json_lists_verdicts_with_the_documented_keys(capsys):
     *done, last = verdicts
     assert last["reason"] == "zeno" and last["certified"] is False
     exact, modes = TwoTankReference(0.75, 0.5, 0.5).switching_times("q1", np.array([1.0, 1.0]), len(done))
-    for v, t, target in zip(done, exact, modes):
+    for v, t, target in zip(done, exact, modes, strict=True):
         assert v["certified"] is True and v["reason"] is None and v["target"] == target
         assert v["time"] == pytest.approx(t, abs=1e-9)
 
 
 def test_certify_grazing_scene_refuses_with_grazing(capsys):
-    code, out, err = run_cli(capsys, "certify", "grazing", "--json", "--max-refinements", "1")
+    code, out, _err = run_cli(capsys, "certify", "grazing", "--json", "--max-refinements", "1")
     assert code == 3
     (v,) = json.loads(out)
     assert (v["source"], v["target"], v["certified"], v["reason"], v["taken"]) == ("inside", "outside", False,
@@ -51,7 +51,7 @@ def test_certify_transversal_crossing_succeeds_with_exit_code_zero(capsys):
 
 
 def test_stochastic_json_summarises_sequences_and_switching_times(capsys):
-    code, out, err = run_cli(capsys, "stochastic", "grazing", "--samples", "60", "--seed", "4", "--json")
+    code, out, _err = run_cli(capsys, "stochastic", "grazing", "--samples", "60", "--seed", "4", "--json")
     assert code == 0
     s = json.loads(out)
     assert s["samples"] == 60 and s["seed"] == 4
@@ -95,13 +95,13 @@ def test_stochastic_two_tanks_text_output_and_seed_reproducibility(capsys):
     (("certify", "grazing", "--set", "certify.h=1e-12"), "certify.h / certify.t_final"),
 ])
 def test_bad_input_exits_2_with_a_message(capsys, argv, message):
-    code, out, err = run_cli(capsys, *argv)
+    code, _out, err = run_cli(capsys, *argv)
     assert code == 2
     assert message in err and "Traceback" not in err
 
 
 def test_non_integer_samples_is_a_usage_error(capsys):
-    code, out, err = run_cli(capsys, "stochastic", "grazing", "--samples", "many")
+    code, _out, err = run_cli(capsys, "stochastic", "grazing", "--samples", "many")
     assert code == 2 and "invalid int value: 'many'" in err
 
 

@@ -13,10 +13,10 @@ from pathlib import Path
 import pytest
 
 import legsim.commands
+from helpers.scenes import TINY_SCENE, register_tiny, write_scene
 from legsim import simulate
 from legsim.cli import main
 from legsim.scene import bundled_dir, load_scene
-from helpers.scenes import TINY_SCENE, register_tiny, write_scene
 
 REPO = Path(__file__).resolve().parents[1]
 PYTHON = sys.executable
@@ -44,7 +44,7 @@ def test_run_json_matches_a_direct_simulate_call(tmp_path, capsys):
     code, out, err = run_cli(capsys, "run", str(path), "--json")
     assert code == 0 and err == ""
     summary = json.loads(out)
-    assert REQUIRED_KEYS <= set(summary)
+    assert set(summary) >= REQUIRED_KEYS
     system = load_scene(path).model.system
     direct = simulate(system, [1.0, 0.0], "flight", 1.0, 1e-3, 1e-3, "rk4")
     assert summary["status"] == "finished" and summary["t_final"] == 1.0
@@ -162,7 +162,7 @@ def test_outputs_from_flags_and_scene_are_written_atomically(tmp_path, capsys, m
     for kind, target in summary["outputs"].items():
         assert Path(target).read_text() == f"{kind} of tiny: {summary['transitions']}"
     # Each writer wrote a temporary file in the target's directory with the target's suffix.
-    for kind, tmp, status, name in calls:
+    for kind, tmp, status, _ in calls:
         assert tmp.parent == out_dir and tmp.suffix == Path(summary["outputs"][kind]).suffix
         assert tmp.name.startswith(".") and not tmp.exists() and status == "finished"
     assert sorted(p.name for p in out_dir.iterdir()) == ["a.html", "flag.png", "scene.rrd"]
@@ -175,8 +175,9 @@ def test_failed_writer_leaves_no_partial_file(tmp_path, capsys, monkeypatch):
     out_dir = tmp_path / "out"
     out_dir.mkdir()
     (out_dir / "old.html").write_text("previous")
-    code, out, err = run_cli(capsys, "run", str(path), "--html", str(out_dir / "old.html"))
-    assert code == 2 and err == f"legsim: error: --html {out_dir / 'old.html'}: writing failed: RuntimeError: html writer broke\n"
+    code, _out, err = run_cli(capsys, "run", str(path), "--html", str(out_dir / "old.html"))
+    assert code == 2
+    assert err == f"legsim: error: --html {out_dir / 'old.html'}: writing failed: RuntimeError: html writer broke\n"
     # The earlier file is untouched and no temporary file is left behind.
     assert sorted(p.name for p in out_dir.iterdir()) == ["old.html"]
     assert (out_dir / "old.html").read_text() == "previous"
@@ -291,7 +292,7 @@ def test_scenes_lists_every_bundled_file(capsys, monkeypatch):
     if BUNDLED:
         lines = text.splitlines()
         assert [line.split()[0] for line in lines] == BUNDLED
-        for row, line in zip(rows, lines):
+        for row, line in zip(rows, lines, strict=True):
             assert row["robot"] in line.split() and row["description"] in line
 
 
@@ -374,7 +375,8 @@ def test_unwritable_output_fails_before_the_run(tmp_path, capsys, monkeypatch):
     # probe finds it before the run, not the writer after it.
     if Path("/proc/self").is_dir():
         code, out, err = run_cli(capsys, "run", str(path), "--rrd", "/proc/x.rrd")
-        assert code == 2 and out == "" and calls == [] and err.startswith("legsim: error: --rrd /proc/x.rrd: cannot write in /proc (")
+        assert code == 2 and out == "" and calls == []
+        assert err.startswith("legsim: error: --rrd /proc/x.rrd: cannot write in /proc (")
 
 
 def test_a_bad_plot_format_fails_before_the_run(tmp_path, capsys, monkeypatch):
@@ -387,7 +389,8 @@ def test_a_bad_plot_format_fails_before_the_run(tmp_path, capsys, monkeypatch):
     monkeypatch.setattr(scene_module.Scene, "simulate", lambda self, **kw: ran.append(1) or original(self, **kw))
     path = write_scene(tmp_path)
     out_dir = tmp_path / "out"
-    code, out, err = run_cli(capsys, "run", str(path), "--rrd", str(out_dir / "a.rrd"), "--plot", str(out_dir / "a.rrd"))
+    code, out, err = run_cli(capsys, "run", str(path), "--rrd", str(out_dir / "a.rrd"),
+                             "--plot", str(out_dir / "a.rrd"))
     assert code == 2 and out == "" and ran == [] and not out_dir.exists()
     assert err == (f"legsim: error: --plot {out_dir / 'a.rrd'}: unsupported format '.rrd'; "
                    f"use one of ['.png', '.pdf', '.svg', '.jpg', '.jpeg']\n")
@@ -456,7 +459,7 @@ def test_progress_bar_is_drawn_on_a_terminal_and_erased(tmp_path):
     bars = [part for part in plain if part.startswith("oscillator_ex1 ")]
     assert bars, f"no progress bar drawn: {err!r}"
     fractions = [float(re.search(r" (\d+)% ", b).group(1)) for b in bars]
-    assert fractions == sorted(fractions) and 0.0 <= fractions[0] and fractions[-1] <= 100.0
+    assert fractions == sorted(fractions) and fractions[0] >= 0.0 and fractions[-1] <= 100.0
     assert all(" ETA " in b for b in bars)
     assert err.endswith("\x1b[1A\x1b[2K")  # erased: the cursor goes up to the bar's line and clears it
     assert "\r" not in out and out.startswith("oscillator_ex1: finished at t = 1.5 s (euler, h = 1e-05 s")

@@ -171,7 +171,8 @@ def test_gravity_effect_off_leaves_free_inertial_motion(capsys, scene, moving):
     # x(t) = x0 + xd0 t with every other coordinate constant, no contact is ever reached and
     # the energy is the initial kinetic energy (0, or m xd0^2 / 2 = 5.78 J for m = 1).
     t_final = 1.0
-    code, summary, _ = run_json(capsys, scene, "--set", "effects.gravity=false", "--set", f"integrator.t_final={t_final}")
+    code, summary, _ = run_json(capsys, scene, "--set", "effects.gravity=false",
+                                "--set", f"integrator.t_final={t_final}")
     start = load_scene(scene).initial_state
     expected = start.copy()
     for i in moving:

@@ -35,16 +35,16 @@ def assert_same_execution(a: Execution, b: Execution) -> None:
     assert a.final_in_strip == b.final_in_strip and a.final_mode == b.final_mode
     np.testing.assert_array_equal(a.final_state, b.final_state)
     assert len(a.segments) == len(b.segments)
-    for s, r in zip(a.segments, b.segments):
+    for s, r in zip(a.segments, b.segments, strict=True):
         assert s.mode == r.mode
         for name in ("t", "x", "dx"):
             np.testing.assert_array_equal(getattr(s, name), getattr(r, name))
     assert [(s.mode, s.name, s.time, s.exit_time) for s in a.strips] == \
            [(s.mode, s.name, s.time, s.exit_time) for s in b.strips]
-    for s, r in zip(a.strips, b.strips):
+    for s, r in zip(a.strips, b.strips, strict=True):
         np.testing.assert_array_equal(s.state, r.state)
     assert len(a.transitions) == len(b.transitions)
-    for s, r in zip(a.transitions, b.transitions):
+    for s, r in zip(a.transitions, b.transitions, strict=True):
         assert (s.name, s.source, s.target, s.index, s.time, s.landing_time, s.exit_time, s.depth) == \
                (r.name, r.source, r.target, r.index, r.time, r.landing_time, r.exit_time, r.depth)
         np.testing.assert_array_equal(s.state_before, r.state_before)
@@ -122,7 +122,7 @@ def test_dense_output_is_fourth_order_between_steps():
                       osc.forcing(E["amplitude"], E["frequency"]))
         seg = ex.segments[0]
         worst = 0.0
-        for t_left, x_left, t_right in zip(seg.t[:-1:5], seg.x[:-1:5], seg.t[1::5]):
+        for t_left, x_left, t_right in zip(seg.t[:-1:5], seg.x[:-1:5], seg.t[1::5], strict=True):
             local = OscillatorReference(E["omega"], E["a"], None, E["c"], 1.0, E["amplitude"], E["frequency"],
                                         x_left[0], x_left[1], t0=t_left)
             mid = 0.5 * (t_left + t_right)

@@ -68,9 +68,11 @@ def test_system_needs_a_mapping_of_modes():
 
 
 def test_unknown_source_and_target_modes_are_named():
-    with pytest.raises(ModelError, match=r"^hybrid system: transition x->a leaves unknown mode 'x' \(modes: \['a', 'b'\]\)"):
+    with pytest.raises(ModelError,
+                       match=r"^hybrid system: transition x->a leaves unknown mode 'x' \(modes: \['a', 'b'\]\)"):
         two_modes(transitions=[Transition("x", "a", lambda x: 0.0)])
-    with pytest.raises(ModelError, match=r"^hybrid system: transition a->zz targets unknown mode 'zz' \(modes: \['a', 'b'\]\)"):
+    with pytest.raises(ModelError,
+                       match=r"^hybrid system: transition a->zz targets unknown mode 'zz' \(modes: \['a', 'b'\]\)"):
         two_modes(transitions=[Transition("a", "zz", lambda x: 0.0)])
 
 
@@ -96,15 +98,17 @@ def test_failing_field_is_named():
 
 
 def test_guard_must_return_a_real_scalar():
-    with pytest.raises(ModelError, match=r"^hybrid system: guard of transition g2 must return a scalar, got shape \(2,\)"):
+    with pytest.raises(ModelError,
+                       match=r"^hybrid system: guard of transition g2 must return a scalar, got shape \(2,\)"):
         two_modes(transitions=[Transition("a", "b", lambda x: np.zeros(2), name="g2")], initial=("a", [0.0, 0.0]))
     with pytest.raises(ModelError, match=r"^hybrid system: guard of transition gn returned nan at x="):
         two_modes(transitions=[Transition("a", "b", lambda x: float("nan"), name="gn")], initial=("a", [0.0, 0.0]))
-    with pytest.raises(ModelError, match=r"^hybrid system: guard of transition gs must return a real number \(a float\), "
-                                         r"got str 'high'"):
+    with pytest.raises(ModelError, match=r"^hybrid system: guard of transition gs must return a real number "
+                                         r"\(a float\), got str 'high'"):
         two_modes(transitions=[Transition("a", "b", lambda x: "high", name="gs")], initial=("a", [0.0, 0.0]))
     for value, shown in ((True, "bool True"), (None, "NoneType None")):
-        with pytest.raises(ModelError, match=rf"guard of transition gb must return a real number \(a float\), got {shown}"):
+        with pytest.raises(ModelError,
+                           match=rf"guard of transition gb must return a real number \(a float\), got {shown}"):
             two_modes(transitions=[Transition("a", "b", lambda x, v=value: v, name="gb")], initial=("a", [0.0, 0.0]))
 
 

@@ -44,7 +44,8 @@ def imported_modules(path: Path) -> set[str]:
         elif isinstance(node, ast.ImportFrom):
             base = node.module or ""
             if node.level:
-                package = path.relative_to(ROOT).parent.parts[: len(path.relative_to(ROOT).parent.parts) - node.level + 1]
+                parts = path.relative_to(ROOT).parent.parts
+                package = parts[: len(parts) - node.level + 1]
                 base = ".".join(("legsim",) + package[1:] + ((base,) if base else ()))
             names.add(base)
     return names

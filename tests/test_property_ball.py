@@ -33,7 +33,7 @@ def test_ball_keeps_the_invariants_through_and_past_its_zeno_time(z0, zd0, c, g,
     floor = min(stress.step_floor(h, eps, accel=g), eps * (1 - 1e-9))
     # past the Zeno time every transition costs at least `floor`: cap that part at 300 of them
     T = ref.zeno_time + min(ref.zeno_time - ref.first_impact + 0.1, 300 * floor)
-    bound = (T - ref.first_impact) / floor + 1 if T > ref.first_impact else 0
+    bound = (T - ref.first_impact) / floor + 1 if ref.first_impact < T else 0
     # The paper's relaxed execution (continuation=False): the bound and the rest band below are
     # its own; the default continuation is the next property.
     ex = simulate(system, [z0, zd0], "flight", T, h, eps, max_transitions=int(2 * bound) + 10, continuation=False)

@@ -6,6 +6,7 @@ at most once per hop.
 
 CI runs ten examples; LEGSIM_FULL=1 runs 100."""
 
+import itertools
 import os
 
 from hypothesis import given, settings
@@ -39,4 +40,4 @@ def test_runner_keeps_the_invariants_and_its_energy(z, xd, theta, thetad, eps):
     # the legs alternate touchdown and liftoff
     for leg in ("left", "right"):
         kinds = [tr.name.split("_")[0] for tr in ex.transitions if tr.name.endswith(leg)]
-        assert all(a != b for a, b in zip(kinds, kinds[1:])), kinds
+        assert all(a != b for a, b in itertools.pairwise(kinds)), kinds

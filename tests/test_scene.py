@@ -7,9 +7,9 @@ import math
 import numpy as np
 import pytest
 
+from helpers.scenes import TINY_SCENE, register_tiny, write_scene
 from legsim import ModelError, SceneError, simulate
 from legsim.scene import apply_overrides, load_scene, parse_override, scene_files
-from helpers.scenes import TINY_SCENE, register_tiny, write_scene
 
 
 @pytest.fixture(autouse=True)
@@ -137,21 +137,29 @@ BAD = {
     "unknown initial key": (_replace("state = { z = 1.0 }", "state = { z = 1.0 }\nt = 0"),
                             ["initial: unknown key(s) ['t']; allowed: ['mode', 'state']"]),
     "initial state past the guard": (_replace("state = { z = 1.0 }", "state = { z = -0.5, zd = -1.0 }"),
-                                     ["initial.state:", "lies past the guard of transition bounce by 0.5 > eps = 0.001"]),
+                                     ["initial.state:",
+                                      "lies past the guard of transition bounce by 0.5 > eps = 0.001"]),
     "h zero": (_replace("h = 1e-3", "h = 0"), ["integrator.h: 0.0 is out of range, allowed: float in (0, inf)"]),
-    "h negative": (_replace("h = 1e-3", "h = -1e-3"), ["integrator.h: -0.001 is out of range, allowed: float in (0, inf)"]),
+    "h negative": (_replace("h = 1e-3", "h = -1e-3"),
+                   ["integrator.h: -0.001 is out of range, allowed: float in (0, inf)"]),
     "h not finite": (_replace("h = 1e-3", "h = inf"), ["integrator.h: must be finite, got inf"]),
-    "h wrong type": (_replace("h = 1e-3", 'h = "small"'), ["integrator.h: expected a number (float in (0, inf)), got 'small'"]),
-    "eps zero": (_replace("eps = 1e-3", "eps = 0.0"), ["integrator.eps: 0.0 is out of range, allowed: float in (0, inf)"]),
-    "t_final zero": (_replace("t_final = 1.0", "t_final = 0"), ["integrator.t_final: 0.0 is out of range, allowed: float in (0, inf)"]),
-    "t_final before t0": (_replace("t_final = 1.0", "t_final = 1.0\nt0 = 2.0"), ["integrator.t_final: 1.0 must be > integrator.t0 = 2.0"]),
-    "t_final missing": (_replace("t_final = 1.0", ""), ["integrator.t_final: missing; a scene must give ['t_final', 'h', 'eps']"]),
+    "h wrong type": (_replace("h = 1e-3", 'h = "small"'),
+                     ["integrator.h: expected a number (float in (0, inf)), got 'small'"]),
+    "eps zero": (_replace("eps = 1e-3", "eps = 0.0"),
+                 ["integrator.eps: 0.0 is out of range, allowed: float in (0, inf)"]),
+    "t_final zero": (_replace("t_final = 1.0", "t_final = 0"),
+                     ["integrator.t_final: 0.0 is out of range, allowed: float in (0, inf)"]),
+    "t_final before t0": (_replace("t_final = 1.0", "t_final = 1.0\nt0 = 2.0"),
+                          ["integrator.t_final: 1.0 must be > integrator.t0 = 2.0"]),
+    "t_final missing": (_replace("t_final = 1.0", ""),
+                        ["integrator.t_final: missing; a scene must give ['t_final', 'h', 'eps']"]),
     "unknown method": (_replace('method = "rk4"', 'method = "rk5"'),
                        ["integrator.method: 'rk5' is not allowed, choose one of [", "'dopri5'", "'rk4'"]),
     "max_transitions negative": (_replace("t_final = 1.0", "t_final = 1.0\nmax_transitions = -1"),
                                  ["integrator.max_transitions: -1 is out of range, allowed: int in [0, inf)"]),
     "max_transitions not an integer": (_replace("t_final = 1.0", "t_final = 1.0\nmax_transitions = 1e5"),
-                                       ["integrator.max_transitions: expected an integer (int in [0, inf)), got 100000.0"]),
+                                       ["integrator.max_transitions: expected an integer (int in [0, inf)), "
+                                        "got 100000.0"]),
     "more steps than max_steps": (_replace("t_final = 1.0", "t_final = 1e12"),
                                   ["integrator.max_steps: t_final - t0 = 1e+12 s at h = 0.001 s is 1e+15 steps, "
                                    "more than max_steps = 10000000", "raise integrator.max_steps"]),
@@ -163,14 +171,16 @@ BAD = {
     "unknown integrator key": (_replace("t_final = 1.0", "t_final = 1.0\ndt = 1e-3"),
                                ["integrator: unknown parameter(s) ['dt']; allowed: ["]),
     "rtol without an embedded method": (_replace("t_final = 1.0", "t_final = 1.0\nrtol = 1e-6"),
-                                        ["integrator.rtol: error control needs a method with an embedded error estimate",
+                                        ["integrator.rtol: error control needs a method with an embedded "
+                                         "error estimate",
                                          "method = 'rk4'"]),
     "dense landing without a continuous extension": (_replace("t_final = 1.0", 't_final = 1.0\nlanding = "dense"'),
                                                      ["integrator.landing: 'dense' lands on the method's continuous "
                                                       "extension, which method = 'rk4' has not", "landing = 'aim'"]),
     "unknown output": (TINY_SCENE + '\n[output]\ngif = "a.gif"\n',
                        ["output: unknown key(s) ['gif']; allowed: ['rrd', 'html', 'plot']"]),
-    "output not a path": (TINY_SCENE + "\n[output]\nrrd = 3\n", ["output.rrd: expected a file path (string), got integer 3"]),
+    "output not a path": (TINY_SCENE + "\n[output]\nrrd = 3\n",
+                          ["output.rrd: expected a file path (string), got integer 3"]),
 }
 
 
@@ -199,6 +209,7 @@ def test_model_initial_check_refuses_states_the_guards_admit(tmp_path, monkeypat
     # max(z, zd) >= 0 holds for a ball 5 m under the floor at rest; the model's own check
     # (Model.info["initial_check"]) names it, and a check that fails is a ModelError.
     import dataclasses
+
     import helpers.scenes as support
 
     def build(params, effects):
@@ -209,7 +220,8 @@ def test_model_initial_check_refuses_states_the_guards_admit(tmp_path, monkeypat
     monkeypatch.setattr(support, "BUILDER", dataclasses.replace(support.BUILDER, build=build))
     path = write_scene(tmp_path)
     assert load_scene(path, overrides=["initial.state.z=-5e-4"]).initial_state[0] == -5e-4  # inside the strip
-    with pytest.raises(SceneError, match=rf"^{path}: initial.state: \{{'z': -5.0, 'zd': 0.0\}}: z below -eps = -0.001$"):
+    with pytest.raises(SceneError,
+                       match=rf"^{path}: initial.state: \{{'z': -5.0, 'zd': 0.0\}}: z below -eps = -0.001$"):
         load_scene(path, overrides=["initial.state.z=-5"])
 
     def broken(params, effects):
@@ -256,6 +268,7 @@ def test_unknown_scene_name_lists_known_scenes(tmp_path, monkeypatch):
 
 def test_builder_failure_is_a_model_error_naming_file_and_robot(tmp_path, monkeypatch):
     import dataclasses
+
     import helpers.scenes as support
 
     def broken(params, effects):
@@ -269,10 +282,11 @@ def test_builder_failure_is_a_model_error_naming_file_and_robot(tmp_path, monkey
 
 def test_builder_returning_something_else_is_rejected(tmp_path, monkeypatch):
     import dataclasses
+
     import helpers.scenes as support
 
     monkeypatch.setattr(support, "BUILDER", dataclasses.replace(support.BUILDER, build=lambda p, e: 42))
-    with pytest.raises(ModelError, match="returned int, expected legsim.builders.Model"):
+    with pytest.raises(ModelError, match=r"returned int, expected legsim\.builders\.Model"):
         load_scene(write_scene(tmp_path))
 
 

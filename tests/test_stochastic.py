@@ -1,17 +1,17 @@
 """Stochastic approximation of paper 004 Section IV (legsim.stochastic)."""
 
+import itertools
 import math
 
 import numpy as np
 import pytest
 
+from helpers.breaking_line import breaking_line
 from legsim import SimulationError
 from legsim.stochastic import sample_ensemble, sample_execution, transition_functions
 from legsim.systems.circular_flow import make_system as circular_flow
 from legsim.systems.two_tanks import TwoTankReference
 from legsim.systems.two_tanks import make_system as two_tanks
-
-from helpers.breaking_line import breaking_line
 
 H = 0.1  # rk4 on the unit circle: B ~ 1.5e-5 at the tangency time pi/2
 
@@ -34,13 +34,13 @@ def test_grazing_probability_rises_towards_one_half_as_the_trajectory_nears_tang
     offsets = b_star * np.array([4.0, 0.8, 0.5, 0.2, 0.05, 0.0])
     probs = [grazing(1.0 - d).switching_probability[-1] for d in offsets]
     assert probs[0] == 0.0  # the ball never reaches the plane
-    assert all(a < b for a, b in zip(probs, probs[1:])), probs
+    assert all(a < b for a, b in itertools.pairwise(probs)), probs
     # At tangency half the ball lies past the plane; the computed circle sits inside the true
     # one by the method's own O(h^4) error, a few percent of B here.
     assert 0.45 < probs[-1] <= 0.5
     # Each value is the disc-segment share at the computed closest approach (hazard reading:
     # probability of switching = largest share of the ball past the guard).
-    for d, p in zip(offsets, probs):
+    for d, p in zip(offsets, probs, strict=True):
         tf = grazing(1.0 - d)
         j = int(np.argmin(tf.distance[:, 0] / tf.radius))
         assert p == pytest.approx(float(segment_fraction(tf.distance[j, 0] / tf.radius[j])), abs=1e-6)
@@ -171,7 +171,7 @@ def test_two_tank_reference_samples_match_a_relaxed_run_and_refuse_the_zeno_time
     got, want = ex.sample(times), ref.sample(times)
     assert got.modes == want.modes
     assert np.allclose(np.array(got.states), np.array(want.states), atol=1e-8)
-    with pytest.raises(SimulationError, match="past the Zeno time 8.0"):
+    with pytest.raises(SimulationError, match=r"past the Zeno time 8\.0"):
         ref.sample([8.5])
 
 

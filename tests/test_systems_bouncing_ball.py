@@ -27,7 +27,7 @@ def test_impact_times_are_the_sums_of_the_flights(ref):
     # Independent recursion: fall sqrt(2 z0 / g), then flights of 2 v_k / g with v_k = c^k v1.
     v = math.sqrt(2 * G * Z0)
     t, times = math.sqrt(2 * Z0 / G), []
-    for k in range(40):
+    for _ in range(40):
         times.append(t)
         v *= C
         t += 2 * v / G

@@ -42,7 +42,7 @@ def test_reference_solves_each_mode_ode(mode_start, x0):
     modes = ref.modes(ts)
     states = ref.states(ts)
     d = 1e-5
-    for t, m, x in zip(ts[1:-1:50], modes[1:-1:50], states[1:-1:50]):
+    for t, m, x in zip(ts[1:-1:50], modes[1:-1:50], states[1:-1:50], strict=True):
         if any(abs(t - tc) < 2 * d for tc in ref.transition_times):
             continue
         fd = (ref.state(t + d) - ref.state(t - d)) / (2 * d)
@@ -53,7 +53,7 @@ def test_reference_solves_each_mode_ode(mode_start, x0):
         left, right = ref.state(tc - 1e-12), ref.state(tc)
         np.testing.assert_allclose(left, right, atol=1e-11)
     # Domains: a quantity whose threshold the mode still watches is <= 0.
-    for m, x in zip(modes, states):
+    for m, x in zip(modes, states, strict=True):
         for _, _, i in dc.EDGES[m]:
             assert x[i] <= 1e-15
 
@@ -64,8 +64,8 @@ def test_perturbed_executions_take_the_two_paths_and_converge_to_the_nominal():
     nominal = dc.make_reference()
     gaps = []
     for delta in (1e-2, 1e-3, 1e-4):
-        y = dc.make_reference(dc.nominal_initial_state() + [-delta, 0.0])
-        z = dc.make_reference(dc.nominal_initial_state() + [0.0, -delta])
+        y = dc.make_reference(dc.nominal_initial_state() + np.array([-delta, 0.0]))
+        z = dc.make_reference(dc.nominal_initial_state() + np.array([0.0, -delta]))
         assert y.mode_sequence == ["0", "2", "3"] and z.mode_sequence == ["0", "1", "3"]
         assert not y.simultaneous and not z.simultaneous
         gaps.append(max(np.abs(y.state(T) - nominal.state(T)).max(), np.abs(z.state(T) - nominal.state(T)).max()))
@@ -111,7 +111,7 @@ def test_simulation_of_the_perturbed_executions(system, shift, path):
     # The samples carry the mode too, in Execution.sample's format.
     ts = np.linspace(0, T, 201)
     sim, exact = ex.sample(ts), ref.sample(ts)
-    mismatched = [t for t, a, b in zip(ts, sim.modes, exact.modes) if a != b]
+    mismatched = [t for t, a, b in zip(ts, sim.modes, exact.modes, strict=True) if a != b]
     assert all(min(abs(t - tc) for tc in ref.transition_times) < 1e-4 for t in mismatched)
     assert np.abs(sim.stack() - exact.stack()).max() < 1e-5
 

@@ -16,6 +16,7 @@ import importlib.machinery
 import os
 import warnings
 from pathlib import Path
+from typing import cast
 
 import numpy as np
 
@@ -93,8 +94,8 @@ def create_model(description: np.ndarray) -> int:
     if not load():
         raise RuntimeError(f"native library unavailable: {_state['reason']}")
     desc = np.ascontiguousarray(description, dtype=np.float64)
-    lib = _state["lib"]
-    handle = int(lib.lsn_create(desc.ctypes.data_as(ctypes.POINTER(ctypes.c_double)), desc.size))  # type: ignore[attr-defined]
+    lib = cast(ctypes.CDLL, _state["lib"])  # load() succeeded
+    handle = int(lib.lsn_create(desc.ctypes.data_as(ctypes.POINTER(ctypes.c_double)), desc.size))
     if handle < 0:
         raise ValueError("the native library refused the model description")
     return handle
@@ -108,5 +109,5 @@ def time_aba(handle: int, q: np.ndarray, v: np.ndarray, tau: np.ndarray, reps: i
         raise RuntimeError(f"native library unavailable: {_state['reason']}")
     arrays = [np.ascontiguousarray(a, dtype=np.float64) for a in (q, v, tau)]
     pointers = [a.ctypes.data_as(ctypes.POINTER(ctypes.c_double)) for a in arrays]
-    lib = _state["lib"]
-    return min(float(lib.lsn_time_aba(handle, *pointers, int(reps))) for _ in range(5))  # type: ignore[attr-defined]
+    lib = cast(ctypes.CDLL, _state["lib"])  # load() succeeded
+    return min(float(lib.lsn_time_aba(handle, *pointers, int(reps))) for _ in range(5))

@@ -22,17 +22,40 @@ from __future__ import annotations
 
 import math
 import time as _time
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any, Literal, cast
 
 import numpy as np
 from scipy.integrate import solve_ivp
 
 from ..errors import ModelBreakdown, SimulationError
 from ..execution import Execution, Segment, Strip, TransitionRecord
-from ..hybrid import HybridSystem
+from ..hybrid import HybridSystem, Transition
 
 #: solve_ivp's explicit methods that make sense for these non-stiff models.
 METHODS = ("RK23", "RK45", "DOP853", "LSODA", "Radau", "BDF")
+IvpMethod = Literal["RK23", "RK45", "DOP853", "LSODA", "Radau", "BDF"]
+
+
+class _GuardEvent:
+    """A transition's guard as a terminal solve_ivp event, crossed downwards (scipy reads the
+    ``terminal`` and ``direction`` attributes). Its evaluations are counted like the relaxed
+    integrator's guard evaluations (every step end, every root-finding iterate), so that the
+    bench compares like with like."""
+
+    terminal = True
+    direction = -1
+
+    def __init__(self, transition: Transition, control: Callable[[float, np.ndarray], Any] | None,
+                 counts: dict[str, int]) -> None:
+        self.transition, self.control, self.counts = transition, control, counts
+
+    def __call__(self, tt: float, y: np.ndarray) -> float:
+        self.counts["guard_evals"] += 1
+        tr = self.transition
+        if tr.guard_args == "x":
+            return tr.guard(y)
+        return tr.guard_value(y, tt, None if self.control is None else self.control(tt, y))
 
 
 def simulate_events(
@@ -97,24 +120,10 @@ def simulate_events(
         else:
             def fun(tt, y, field=field):
                 return field(tt, y, control(tt, y))
-        events = []
-        for tr in trs:
-            # Counted like the relaxed integrator's guard evaluations (every step end, every
-            # root-finding iterate), so that the bench compares like with like.
-            if tr.guard_args == "x":
-                def event(tt, y, guard=tr.guard):
-                    counts["guard_evals"] += 1
-                    return guard(y)
-            else:
-                def event(tt, y, tr=tr):
-                    counts["guard_evals"] += 1
-                    return tr.guard_value(y, tt, None if control is None else control(tt, y))
-            event.terminal = True
-            event.direction = -1
-            events.append(event)
+        events = [_GuardEvent(tr, control, counts) for tr in trs]
         try:
-            sol = solve_ivp(fun, (t, t_final), x, method=method, rtol=rtol, atol=atol, events=events or None,
-                            max_step=max_step, dense_output=dense_output)
+            sol = solve_ivp(fun, (t, t_final), x, method=cast(IvpMethod, method), rtol=rtol, atol=atol,
+                            events=events or None, max_step=max_step, dense_output=dense_output)
         except ModelBreakdown as exc:
             # A trial step of solve_ivp left the model's range (e.g. a runner's body through the
             # ground): the solver cannot shorten a step on such grounds, so the run ends here.
@@ -132,9 +141,11 @@ def simulate_events(
         if sol.status == 0:
             t = float(sol.t[-1])
             break
-        fired = [(float(te[0]), i) for i, te in enumerate(sol.t_events) if len(te)]
+        t_events, y_events = sol.t_events, sol.y_events
+        assert t_events is not None and y_events is not None  # status 1: a terminal event fired
+        fired = [(float(te[0]), i) for i, te in enumerate(t_events) if len(te)]
         t_event, e = min(fired)
-        q = np.asarray(sol.y_events[e][0], dtype=float)
+        q = np.asarray(y_events[e][0], dtype=np.float64)
         # Chain transitions at this instant while reset images sit on further guards.
         while True:
             if len(transitions) >= max_transitions:
@@ -219,8 +230,8 @@ def _assemble(system, pieces, transitions, status, message, t0, t_end, t_final, 
     segments = []
     for mode, ts, xs in pieces:
         field = system.mode(mode).field
-        dx = np.array([field(tt, xx, None if control is None else control(tt, xx)) for tt, xx in zip(ts, xs)],
-                      dtype=float).reshape(xs.shape)
+        dx = np.array([field(tt, xx, None if control is None else control(tt, xx))
+                       for tt, xx in zip(ts, xs, strict=True)], dtype=float).reshape(xs.shape)
         segments.append(Segment(mode, ts, xs, dx))
     strips = [Strip(tr.source, tr.name, tr.time, tr.exit_time, tr.state_before, tr.time, 0.0) for tr in transitions]
     counters = dict(counts, transitions=len(transitions), halvings=0, strip_time=0.0, wall_time_s=wall)

@@ -16,7 +16,7 @@ with numpy (one vectorised call), and the recurrence runs on plain floats, eithe
 from __future__ import annotations
 
 import math
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 
@@ -87,7 +87,7 @@ def paoli_schatzman(
             raise SimulationError(f"{label} must be finite and > 0, got {value!r}")
     if not 0.0 <= c <= 1.0:
         raise SimulationError(f"restitution c must be in [0, 1], got {c}")
-    n = int(math.floor(t_max / h + 1e-9)) + 1
+    n = math.floor(t_max / h + 1e-9) + 1
     if n < 2:
         raise SimulationError(f"t_max = {t_max} is shorter than one step h = {h}")
     t = np.arange(n) * h

@@ -273,7 +273,7 @@ def _robot(name: str, quick: bool) -> Case:
 
     if name == "pronk":
         model = builder.make()
-        positions = (0, 1, 2)
+        positions: tuple[int, ...] = (0, 1, 2)
         t_final = 0.5 if quick else 2.0
         description = f"pronking runner of paper 000 Sec. V-C (two hops, t in [0, {t_final}] s)"
         hs = {"rk2": (3e-3, 1e-3, 3e-4), "rk4": (3e-2, 1e-2, 3e-3, 1e-3)}

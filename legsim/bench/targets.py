@@ -144,9 +144,11 @@ def _common_level(rows: list[Row], tg: Target, result: TargetResult) -> list[str
             said.append(f"no {kind} run finished")
         elif row.error > tg.level:
             said.append(f"{kind} never reaches {tg.level:g}: its best error is {row.error:.3g} ({run_label(row)})")
-    if best["relaxed"] is not None and best[tg.baseline] is not None:
-        level = max(best["relaxed"].error, best[tg.baseline].error)
+    best_relaxed, best_baseline = best["relaxed"], best[tg.baseline]
+    if best_relaxed is not None and best_baseline is not None:
+        level = max(best_relaxed.error, best_baseline.error)
         rel, base = time_to_reach(rows, level, "relaxed"), time_to_reach(rows, level, tg.baseline)
+        assert rel is not None and base is not None  # each side's best run reaches the coarser level
         result.common_level, result.common_ratio = level, base.wall_s / rel.wall_s
         said.append(f"at {level:.3g}, the finest error both reach: {tg.baseline} {base.wall_s:.4g} s "
                     f"({run_label(base)}), relaxed {rel.wall_s:.4g} s ({run_label(rel)}), "

@@ -23,8 +23,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     wp.add_argument("--repeats", type=int, default=None, help="timed repeats per run, median kept (default 3)")
     wp.add_argument("--rho-points", type=int, default=None,
                     help="times of the rho grid (default 400, 40 with --quick; 0 skips rho)")
-    wp.add_argument("--methods", default=None, help="comma-separated CSV method names to keep (e.g. relaxed-rk4,relaxed-rk4-zeno,ps; "
-                                               "-zeno: Zeno continuation, oscillator-ex2 only)")
+    wp.add_argument("--methods", default=None,
+                    help="comma-separated CSV method names to keep (e.g. relaxed-rk4,relaxed-rk4-zeno,ps; "
+                         "-zeno: Zeno continuation, oscillator-ex2 only)")
     wp.add_argument("--extend-budget", type=float, default=None, metavar="SECONDS",
                     help="wall time the bench may spend refining a baseline's sweep (PS's step, solve_ivp's "
                          "tolerance) towards a target level it never reached (default 60, 5 with --quick; 0: none)")

@@ -20,7 +20,7 @@ def run(args: argparse.Namespace) -> int:
     from ..scene import load_scene, scene_files, scene_info
 
     rows = []
-    for name, path in scene_files().items():
+    for path in scene_files().values():
         info = scene_info(path)
         if args.check and "error" not in info:
             try:

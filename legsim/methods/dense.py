@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
@@ -25,7 +26,7 @@ class ContinuousStep:
             raise SimulationError(f"method '{tableau.name}' has no dense output")
         K = np.empty((len(dense.P), len(x)))
         K[: len(stages)] = stages
-        for i, (ci, row) in enumerate(zip(dense.c_extra, dense.A_extra)):
+        for i, (ci, row) in enumerate(zip(dense.c_extra, dense.A_extra, strict=True)):
             s = len(stages) + i
             xi = x + h * (row[:s] @ K[:s])
             ti = t + float(ci) * h

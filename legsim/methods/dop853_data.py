@@ -4,6 +4,10 @@ third-order error estimates E5 and E3, and three extra stages (c = 0.1, 0.2, 7/9
 D of the seventh-order continuous extension. Stored as float64 values (as parsed from the
 published decimal expansions); ``legsim.methods.builtin`` assembles them into a ``Tableau``."""
 
+# One stage row per line, as in the published tables (E501 is ignored for this file in
+# pyproject.toml); the formatter keeps the rows whole.
+# fmt: off
+
 STAGES = 12
 EXTENDED_STAGES = 16
 INTERPOLATOR_POWER = 7

@@ -11,7 +11,8 @@ tested against (tests/helpers/reference_rk.py).
 from __future__ import annotations
 
 import math
-from typing import Any, Callable
+from collections.abc import Callable, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -27,7 +28,7 @@ DOT_TERMS = 7
 DOT_ROW = 3
 
 Stepper = Callable[..., tuple[np.ndarray, tuple[np.ndarray, ...]]]
-_GENERATED: dict[tuple, Callable[..., Any]] = {}
+_GENERATED: dict[tuple[Any, ...], Callable[..., Any]] = {}
 
 
 def stage_groups(weights: np.ndarray) -> list[tuple[float, list[int]]]:
@@ -41,19 +42,18 @@ def stage_groups(weights: np.ndarray) -> list[tuple[float, list[int]]]:
     return list(groups.items())
 
 
-def _key(kind: str, tableau: Tableau) -> tuple:
+def _key(kind: str, tableau: Tableau) -> tuple[Any, ...]:
     arrays = (tableau.c, tableau.A, tableau.b, tableau.b_err, tableau.b_err_low)
-    return (kind, tableau.name, tableau.fsal) + tuple(None if a is None else a.tobytes() for a in arrays)
+    return (kind, tableau.name, tableau.fsal, *(None if a is None else a.tobytes() for a in arrays))
 
 
 def field_value(k: Any, x: np.ndarray) -> np.ndarray:
     """A field's output k at a state x, checked to be an array of x's shape (a field that returns
     another shape would be broadcast silently into the step)."""
-    if k.__class__ is not np.ndarray or k.shape != x.shape:
-        k = np.asarray(k, dtype=float) if not isinstance(k, np.ndarray) else k
-        if k.shape != x.shape:
-            raise ContractError(f"field returned shape {k.shape}, expected {x.shape}")
-    return k
+    value = k if isinstance(k, np.ndarray) else np.asarray(k, dtype=float)
+    if value.shape != x.shape:
+        raise ContractError(f"field returned shape {value.shape}, expected {x.shape}")
+    return value
 
 
 def make_stepper(tableau: Tableau, checked: bool = True) -> Stepper:
@@ -111,27 +111,31 @@ def _generate_stepper(tableau: Tableau, checked: bool) -> Stepper:
         if stacked:
             lines.append(f"    K[{s - 1}] = k{s - 1}")
         lines.append(f"    return {combination(tableau.b, s)}, ({stage_tuple},)")
-    exec("\n".join(lines), namespace)  # noqa: S102 - generated from the tableau's numbers only
-    return namespace["step"]
+    exec("\n".join(lines), namespace)  # generated from the tableau's numbers only
+    step: Stepper = namespace["step"]
+    return step
 
 
-def _require_embedded(tableau: Tableau) -> None:
+def _require_embedded(tableau: Tableau) -> np.ndarray:
+    """The weights b_err of the tableau's error estimate; SimulationError when it has none."""
     if tableau.b_err is None:
         raise SimulationError(f"method '{tableau.name}' has no embedded error estimate; "
                               f"use bs32 or dopri5 (low order), or dop853 (high order)")
+    return tableau.b_err
 
 
 def error_estimate(tableau: Tableau, h: float, stages: tuple[np.ndarray, ...]) -> np.ndarray:
     """Local error estimate h * sum_j b_err_j k_j of an embedded pair, shape (n,)."""
-    _require_embedded(tableau)
-    acc = None
-    for be, k in zip(tableau.b_err, stages):
+    acc: np.ndarray | None = None
+    for be, k in zip(_require_embedded(tableau), stages, strict=True):
         if be != 0.0:
             acc = be * k if acc is None else acc + be * k
-    return h * acc
+    # All-zero weights (b_hat equal to b) estimate no error at all.
+    return h * acc if acc is not None else np.zeros_like(stages[0])
 
 
-def error_estimator(tableau: Tableau) -> Callable[[float, tuple[np.ndarray, ...]], tuple[np.ndarray, np.ndarray | None]]:
+def error_estimator(
+        tableau: Tableau) -> Callable[[float, tuple[np.ndarray, ...]], tuple[np.ndarray, np.ndarray | None]]:
     """``estimate(h, stages) -> (err, err_low)``: the local error estimate h sum_j b_err_j k_j of
     an embedded pair, shape (n,), and the lower-order one of ``b_err_low`` (None without).
 
@@ -149,18 +153,20 @@ def error_estimator(tableau: Tableau) -> Callable[[float, tuple[np.ndarray, ...]
 
 def _generate_estimator(tableau: Tableau) -> Callable[..., Any]:
     namespace: dict[str, Any] = {"stack": np.array}
+    b_err = _require_embedded(tableau)
     if tableau.b_err_low is None:
-        terms = [f"{float(w)!r} * k{j}" for j, w in enumerate(tableau.b_err) if w != 0.0]
+        terms = [f"{float(w)!r} * k{j}" for j, w in enumerate(b_err) if w != 0.0]
         lines = ["def estimate(h, stages):",
                  f"    {', '.join(f'k{j}' for j in range(tableau.stages))}, = stages",
                  f"    return h * ({' + '.join(terms)}), None"]
     else:
-        namespace["E"], namespace["E_LOW"] = np.array(tableau.b_err), np.array(tableau.b_err_low)
+        namespace["E"], namespace["E_LOW"] = np.array(b_err), np.array(tableau.b_err_low)
         lines = ["def estimate(h, stages):",
                  "    K = stack(stages)",
                  "    return h * (E @ K), h * (E_LOW @ K)"]
-    exec("\n".join(lines), namespace)  # noqa: S102 - generated from the tableau's numbers only
-    return namespace["estimate"]
+    exec("\n".join(lines), namespace)  # generated from the tableau's numbers only
+    estimate: Callable[..., Any] = namespace["estimate"]
+    return estimate
 
 
 def error_scale(x: float, x_new: float, rtol: float, atol: float) -> float:
@@ -179,7 +185,8 @@ def scaled_norm(high: float, low: float, n: int, blended: bool) -> float:
     return high / math.sqrt((high + 0.01 * low) * n)
 
 
-def error_norm(err, err_low, x, x_new, rtol: float, atol: float, blended: bool) -> float:
+def error_norm(err: Sequence[float], err_low: Sequence[float], x: Sequence[float], x_new: Sequence[float], rtol: float,
+               atol: float, blended: bool) -> float:
     """Hairer's (and scipy's) error norm of a step's local error estimate ``err`` (and, blended,
     ``err_low``): sequences of length n, summed in index order, each coordinate scaled by
     ``error_scale``."""
@@ -204,7 +211,7 @@ def make_error_norm(tableau: Tableau) -> Callable[..., float]:
     def norm(h: float, stages: tuple[np.ndarray, ...], x: np.ndarray, x_new: np.ndarray, rtol: float,
              atol: float) -> float:
         err, err_low = estimate(h, stages)
-        return error_norm(err.tolist(), err_low.tolist() if blended else (), x.tolist(), x_new.tolist(), rtol,
-                          atol, blended)
+        return error_norm(err.tolist(), err_low.tolist() if err_low is not None else (), x.tolist(), x_new.tolist(),
+                          rtol, atol, blended)
 
     return norm

@@ -38,7 +38,7 @@ The package, from the declarations a model uses up to the comparison of executio
 
 from .executions import distances, position_error, rho, trajectory_space_distance
 from .geometry import geometry_of
-from .inputs import DEFAULT_MAX_HOPS, MetricError
+from .inputs import MetricError
 from .search import Crossing, MetricPath, distance, shortest_path
 from .shapes import AffineReset, CoordinateGuard
 

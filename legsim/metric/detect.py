@@ -13,7 +13,7 @@ which the metric handles by local minimisation instead.
 from __future__ import annotations
 
 import math
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 
@@ -77,7 +77,7 @@ def detect_affine_reset(reset: Callable | None, n_in: int, n_out: int,
                     return None
                 if np.max(np.abs(A @ x + r - y)) > 1e-8 * (1.0 + np.max(np.abs(y)) + np.max(np.abs(x))):
                     return None
-    except Exception:  # noqa: BLE001 - a reset failing at a probe is simply not recognised
+    except Exception:  # a reset failing at a probe is simply not recognised
         return None
     snap_all = np.vectorize(snap, otypes=[float])
     return snap_all(A), snap_all(r)
@@ -114,7 +114,7 @@ def _safe_float(fn: Callable, x: np.ndarray) -> float | None:
     try:
         with np.errstate(all="ignore"):
             v = float(np.asarray(fn(x), dtype=float).reshape(()))
-    except Exception:  # noqa: BLE001 - any failure of the model function means "no value here"
+    except Exception:  # any failure of the model function means "no value here"
         return None
     return v if math.isfinite(v) else None
 
@@ -140,7 +140,9 @@ def _probed_terms(guard: Callable, dim: int, center: np.ndarray,
     mixed = 0
     for x in probe_points(dim, center, rng, 30):
         g = _safe_float(guard, x)
-        grad = None if g is None else _probe_gradient(guard, x)
+        if g is None:
+            return None
+        grad = _probe_gradient(guard, x)
         if grad is None:
             return None
         big = np.abs(grad) > 1e-7 * max(1.0, float(np.max(np.abs(grad))))

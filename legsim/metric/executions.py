@@ -9,13 +9,22 @@ the transverse coordinate of paper 000 Fig. 12, or an analytic reference.
 from __future__ import annotations
 
 import math
-from typing import Any, Sequence
+from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 
 from ..hybrid import HybridSystem
-from .inputs import DEFAULT_MAX_HOPS, HybridPoint, MetricError, check_eps, check_hops, check_point, check_system, \
-    check_times
+from .inputs import (
+    DEFAULT_MAX_HOPS,
+    HybridPoint,
+    MetricError,
+    check_eps,
+    check_hops,
+    check_point,
+    check_system,
+    check_times,
+)
 from .search import path_between
 
 
@@ -34,7 +43,7 @@ def distances(system: HybridSystem, execution_a: Any, execution_b: Any, times: A
     pa = _points(system, execution_a, t, eps, "execution_a")
     pb = _points(system, execution_b, t, eps, "execution_b")
     out = np.empty(len(t))
-    for i, (p, q) in enumerate(zip(pa, pb)):
+    for i, (p, q) in enumerate(zip(pa, pb, strict=True)):
         if p.strip is None and q.strip is None and p.mode == q.mode:
             d0 = float(np.linalg.norm(p.x - q.x))
             if d0 <= eps or max_hops == 0:  # no crossing can be shorter than one strip width
@@ -69,7 +78,7 @@ def trajectory_space_distance(execution_a: Any, execution_b: Any, times: Any) ->
     sa = _sample(execution_a, t, "execution_a")
     sb = _sample(execution_b, t, "execution_b")
     worst = 0.0
-    for ma, xa, mb, xb in zip(sa.modes, sa.states, sb.modes, sb.states):
+    for ma, xa, mb, xb in zip(sa.modes, sa.states, sb.modes, sb.states, strict=True):
         xa, xb = np.asarray(xa, dtype=float), np.asarray(xb, dtype=float)
         if xa.shape != xb.shape:
             return math.inf
@@ -115,9 +124,10 @@ def _points(system: HybridSystem, execution: Any, times: np.ndarray, eps: float,
     samples = _sample(execution, times, label)
     taus = _strip_taus(execution, samples, eps)
     points = []
-    for i, (mode, x) in enumerate(zip(samples.modes, samples.states)):
+    for i, (mode, x) in enumerate(zip(samples.modes, samples.states, strict=True)):
         where = f"{label} at t={times[i]:.12g}"
-        point = (mode, x) if taus[i] is None else (mode, x, *taus[i])
+        tau = taus[i]
+        point = (mode, x) if tau is None else (mode, x, *tau)
         points.append(check_point(system, point, eps, where))
     return points
 
@@ -163,7 +173,7 @@ def _positions(obj: Any, t: np.ndarray, coordinate: int | str, label: str,
     if hasattr(obj, "sample") and callable(obj.sample):
         samples = _sample(obj, t, label)
         out = np.empty(len(t))
-        for i, (mode, x) in enumerate(zip(samples.modes, samples.states)):
+        for i, (mode, x) in enumerate(zip(samples.modes, samples.states, strict=True)):
             x = np.asarray(x, dtype=float)
             out[i] = x[_coordinate_index(coordinate, mode, len(x), label, names)]
         return out

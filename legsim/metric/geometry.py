@@ -23,8 +23,8 @@ from __future__ import annotations
 
 import math
 import weakref
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
-from typing import Callable, Iterable
 
 import numpy as np
 
@@ -156,7 +156,7 @@ class Geometry:
         self.n_modes = len(self.system.modes)
 
 
-_GEOMETRY: "weakref.WeakKeyDictionary[HybridSystem, Geometry]" = weakref.WeakKeyDictionary()
+_GEOMETRY: weakref.WeakKeyDictionary[HybridSystem, Geometry] = weakref.WeakKeyDictionary()
 
 
 def geometry_of(system: HybridSystem) -> Geometry:
@@ -168,13 +168,13 @@ def geometry_of(system: HybridSystem) -> Geometry:
     return geo
 
 
-def _domain_without(k: int, outgoing: list[Transition], shapes: list[CoordinateGuard | None],
+def _domain_without(k: int, outgoing: Sequence[Transition], shapes: list[CoordinateGuard | None],
                     n: int) -> tuple[np.ndarray, np.ndarray, tuple[ScalarWithGradient, ...]]:
     """The domain of the mode as far as every guard but the k-th bounds it (each >= 0): a box
     (lb, ub) from single-term coordinate guards, inequalities from the others."""
     lb, ub = np.full(n, -np.inf), np.full(n, np.inf)
     ineqs = []
-    for f, (other, shape) in enumerate(zip(outgoing, shapes)):
+    for f, (other, shape) in enumerate(zip(outgoing, shapes, strict=True)):
         if f == k:
             continue
         if shape is not None and len(shape.terms) == 1:

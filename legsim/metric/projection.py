@@ -10,12 +10,12 @@ from __future__ import annotations
 
 import math
 import warnings
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 from scipy.optimize import lsq_linear
 
-from .geometry import Edge, Piece
+from .geometry import Edge, Piece, ScalarWithGradient
 from .solvers import slsqp
 
 #: A function of a guard point p returning (value, gradient (shape (n,))).
@@ -71,14 +71,14 @@ def set_distance_bound(edge: Edge, piece: Piece, x: np.ndarray, guard_side: bool
     if guard_side:
         if piece.eq is None:
             return float(np.linalg.norm(piece.clip(x) - x))  # the box alone: a superset
-        return _first_order_offset(piece, x)
+        return _first_order_offset(piece.eq, x)
     if edge.affine is None or piece.eq is None:
         return 0.0
     A, r = edge.affine
     pre = np.linalg.lstsq(A, x - r, rcond=None)[0]
     off_range = float(np.linalg.norm(A @ pre + r - x))
     smallest = float(edge.sigma[0]) if edge.sigma is not None else 0.0
-    return math.hypot(off_range, smallest * _first_order_offset(piece, pre))
+    return math.hypot(off_range, smallest * _first_order_offset(piece.eq, pre))
 
 
 def piece_constraints(piece: Piece, free: np.ndarray, full: Callable[[np.ndarray], np.ndarray]) -> list[dict]:
@@ -144,13 +144,18 @@ def _local_min(piece: Piece, fun: Objective, s0: np.ndarray, tol: float, scale: 
     free = piece.free
     for group in (_generic_starts(piece, s0), _axis_starts(piece, s0)):
         for start in group:
-            def full(z: np.ndarray, base: np.ndarray = start.copy()) -> np.ndarray:
+            start_copy = start.copy()
+
+            def full(z: np.ndarray, base: np.ndarray = start_copy) -> np.ndarray:
                 p = base.copy()
                 p[free] = z
                 return p
 
-            z = slsqp(lambda z, full=full: _restrict(fun(full(z)), free), start[free], piece.lb[free],
-                      piece.ub[free], piece_constraints(piece, free, full), ftol=1e-14 * scale, maxiter=60)
+            def objective(z: np.ndarray, full: Callable[[np.ndarray], np.ndarray] = full) -> tuple[float, np.ndarray]:
+                return _restrict(fun(full(z)), free)
+
+            z = slsqp(objective, start[free], piece.lb[free], piece.ub[free], piece_constraints(piece, free, full),
+                      ftol=1e-14 * scale, maxiter=60)
             if z is None:
                 continue
             p = piece.clip(full(z))
@@ -174,7 +179,7 @@ def _generic_starts(piece: Piece, s0: np.ndarray) -> list[np.ndarray]:
         g, dg = piece.eq
         try:
             value, grad = g(s0), np.asarray(dg(s0), dtype=float)
-        except Exception:  # noqa: BLE001 - the model refused the probe: keep the plain start
+        except Exception:  # the model refused the probe: keep the plain start
             value, grad = math.nan, np.zeros(len(s0))
         norm2 = float(grad @ grad)
         if math.isfinite(value) and norm2 > 0.0 and np.all(np.isfinite(grad)):
@@ -195,18 +200,18 @@ def _axis_starts(piece: Piece, s0: np.ndarray) -> list[np.ndarray]:
     return out
 
 
-def _first_order_offset(piece: Piece, x: np.ndarray) -> float:
+def _first_order_offset(eq: ScalarWithGradient, x: np.ndarray) -> float:
     """A cautious estimate of the distance from x to {g = 0}: |g(x)| over the larger gradient
     norm at x and at its Newton point, halved. |g| / |grad g| alone overestimates where the
     gradient grows towards the guard (1 - |x|^2 seen from near the centre of the disk)."""
-    g, dg = piece.eq  # type: ignore[misc]
+    g, dg = eq
     try:
         value, grad = float(g(x)), np.asarray(dg(x), dtype=float)
         norm = float(np.linalg.norm(grad))
         if not (math.isfinite(value) and math.isfinite(norm)) or norm == 0.0:
             return 0.0
         far = float(np.linalg.norm(np.asarray(dg(x - value * grad / (norm * norm)), dtype=float)))
-    except Exception:  # noqa: BLE001 - the model refused the probe: no estimate, no pruning
+    except Exception:  # the model refused the probe: no estimate, no pruning
         return 0.0
     if math.isfinite(far):
         norm = max(norm, far)

@@ -131,7 +131,7 @@ def path_between(system: HybridSystem, a: HybridPoint, b: HybridPoint, eps: floa
             if length + extra < best.length:
                 ends = tuple(c for c in (cross_a,) if c is not None) + crossings
                 if cross_b is not None:
-                    ends = ends + (Crossing(cross_b.name, cross_b.end, cross_b.start, False, cross_b.point),)
+                    ends = (*ends, Crossing(cross_b.name, cross_b.end, cross_b.start, False, cross_b.point))
                 best = MetricPath(length + extra, ends, eps, extra)
     return best
 
@@ -221,7 +221,7 @@ class _Search:
                 lbf = bounds.first(he) if not walk else lb_first
                 if m * self.eps + lbf >= limit:
                     continue
-                new_walk = walk + [he]
+                new_walk = [*walk, he]
                 if he.there == end:
                     candidates += self._piece_choices(new_walk, bounds, limit)
                 if m < self.max_hops:
@@ -236,7 +236,7 @@ class _Search:
         for choice in itertools.product(*(range(len(h.edge.pieces)) for h in walk)):
             lb = len(walk) * self.eps + bounds.entry(first, choice[0]) + bounds.exit(last, choice[-1])
             if lb < limit:
-                out.append((lb, list(zip(walk, choice))))
+                out.append((lb, list(zip(walk, choice, strict=True))))
         return out
 
     def _solve(self, walks: list[tuple[float, PieceWalk]], x: np.ndarray, y: np.ndarray, tol: float, best: float,
@@ -255,7 +255,7 @@ class _Search:
             if length < best:
                 best = length
                 best_path = tuple(Crossing(he.edge.tr.name, he.here, he.there, he.forward, p.copy())
-                                  for (he, _), p in zip(hops, res[1]))
+                                  for (he, _), p in zip(hops, res[1], strict=True))
         return best, best_path
 
 
@@ -266,5 +266,5 @@ def _optimise_or_skip(hops: list[Hop], x: np.ndarray, y: np.ndarray,
             return optimise_walk(hops, x, y, tol)
     except (MetricError, ModelError):
         raise
-    except Exception:  # noqa: BLE001 - a guard or reset failed at a probed guard point:
+    except Exception:  # a guard or reset failed at a probed guard point:
         return None  # this walk gives no path (the direct chord and other walks remain)

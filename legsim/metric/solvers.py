@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import math
 import warnings
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 from scipy.optimize import minimize
@@ -21,14 +21,14 @@ def slsqp(fun: Callable[[np.ndarray], tuple[float, np.ndarray]], z0: np.ndarray,
     failed during the search. Appends SLSQP's own success flag to ``converged`` if given.
     """
     bounds = [(None if not math.isfinite(lo) else lo, None if not math.isfinite(hi) else hi)
-              for lo, hi in zip(lb, ub)]
+              for lo, hi in zip(lb, ub, strict=True)]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         with np.errstate(all="ignore"):
             try:
                 res = minimize(fun, z0, jac=True, method="SLSQP", bounds=bounds, constraints=constraints,
                                options={"ftol": ftol, "maxiter": maxiter})
-            except Exception:  # noqa: BLE001 - a model function failed at a probed point (e.g.
+            except Exception:  # a model function failed at a probed point (e.g.
                 # a robot whose guard refuses states where the body is below ground): this
                 # start yields no path, the others still may.
                 return None

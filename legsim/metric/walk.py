@@ -17,7 +17,7 @@ shortest one.
 
 from __future__ import annotations
 
-from typing import Callable, Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
@@ -59,7 +59,7 @@ def leg_residuals(hops: Sequence[Hop], points: Sequence[np.ndarray], x: np.ndarr
     """The vectors whose norms add up to a walk's length (each entry minus the previous exit)."""
     out = []
     cur = x
-    for (he, _), p in zip(hops, points):
+    for (he, _), p in zip(hops, points, strict=True):
         entry, exit_ = he.ends(p)
         out.append(entry - cur)
         cur = exit_
@@ -88,7 +88,7 @@ def chain(hops: Sequence[Hop], x: np.ndarray, y: np.ndarray, tol: float,
         p = res[1]
         points[i] = p
         cur = np.asarray(he.edge.reset(p), dtype=float) if onto_guard else p
-    return points  # type: ignore[return-value]
+    return [p for p in points if p is not None]  # the loop filled every hop
 
 
 class _WalkUnknowns:
@@ -101,19 +101,19 @@ class _WalkUnknowns:
         self.frees = [piece.free for _, piece in hops]
         self.offsets = np.cumsum([0] + [len(f) for f in self.frees])
         self.size = int(self.offsets[-1])
-        self.lb = np.concatenate([piece.lb[f] for (_, piece), f in zip(hops, self.frees)])
-        self.ub = np.concatenate([piece.ub[f] for (_, piece), f in zip(hops, self.frees)])
+        self.lb = np.concatenate([piece.lb[f] for (_, piece), f in zip(hops, self.frees, strict=True)])
+        self.ub = np.concatenate([piece.ub[f] for (_, piece), f in zip(hops, self.frees, strict=True)])
         self.scale = 1.0 + float(np.linalg.norm(x)) + float(np.linalg.norm(y))
 
     def start(self) -> np.ndarray:
-        return np.concatenate([p[f] for p, f in zip(self.template, self.frees)])
+        return np.concatenate([p[f] for p, f in zip(self.template, self.frees, strict=True)])
 
     def points(self, z: np.ndarray) -> list[np.ndarray]:
         return [_put(p0, free, z[self.offsets[k]:self.offsets[k + 1]])
-                for k, (free, p0) in enumerate(zip(self.frees, self.template))]
+                for k, (free, p0) in enumerate(zip(self.frees, self.template, strict=True))]
 
     def clipped_points(self, z: np.ndarray) -> list[np.ndarray]:
-        return [piece.clip(p) for (_, piece), p in zip(self.hops, self.points(z))]
+        return [piece.clip(p) for (_, piece), p in zip(self.hops, self.points(z), strict=True)]
 
     def length(self, z: np.ndarray) -> float:
         return walk_length(self.hops, self.points(z), self.x, self.y)
@@ -127,21 +127,24 @@ class _WalkUnknowns:
         grads = [np.zeros(len(p)) for p in pts]
         total = 0.0
         cur, cur_jac, cur_k = self.x, None, -1
-        for k, ((he, _), p) in enumerate(zip(self.hops, pts)):
+        for k, ((he, _), p) in enumerate(zip(self.hops, pts, strict=True)):
             J = he.edge.jacobian(p)
             entry, exit_ = he.ends(p)
             entry_jac, exit_jac = (None, J) if he.forward else (J, None)
             total += _add_leg(entry - cur, grads, k, entry_jac, cur_k, cur_jac)
             cur, cur_jac, cur_k = exit_, exit_jac, k
         total += _add_leg(self.y - cur, grads, -1, None, cur_k, cur_jac)
-        return total, np.concatenate([g[f] for g, f in zip(grads, self.frees)])
+        return total, np.concatenate([g[f] for g, f in zip(grads, self.frees, strict=True)])
 
     def constraints(self) -> list[dict]:
         """Every piece's equality and inequalities as scipy constraints on z."""
         cons = []
         for k, (_, piece) in enumerate(self.hops):
             sl = slice(self.offsets[k], self.offsets[k + 1])
-            full = (lambda z, k=k, sl=sl: _put(self.template[k], self.frees[k], z[sl]))
+
+            def full(z: np.ndarray, k: int = k, sl: slice = sl) -> np.ndarray:
+                return _put(self.template[k], self.frees[k], z[sl])
+
             for c in piece_constraints(piece, self.frees[k], full):
                 inner_jac = c["jac"]
                 c["jac"] = (lambda z, inner_jac=inner_jac, sl=sl: _embed(inner_jac(z), sl, self.size))
@@ -189,7 +192,7 @@ def _generic_walk(unknowns: _WalkUnknowns, tol: float) -> list[list[np.ndarray]]
     if z is None:
         return []
     pts = unknowns.clipped_points(z)
-    if not all(piece.feasible(p, tol) for (_, piece), p in zip(unknowns.hops, pts)):
+    if not all(piece.feasible(p, tol) for (_, piece), p in zip(unknowns.hops, pts, strict=True)):
         return []
     return [pts]
 

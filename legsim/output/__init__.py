@@ -16,8 +16,18 @@ Nothing here imports rerun, pyarrow or matplotlib at import time.
 from .files import write_atomic, write_bytes_atomic
 from .rrd import FORMAT, read_rrd, write_rrd
 from .summary import run_summary
-from .trace import (DEFAULT_FPS, DEFAULT_MAX_FRAMES, Frames, RecordingError, Trace, execution_trace, frame_times,
-                    geometry_frames, scenery_only, trace_series)
+from .trace import (
+    DEFAULT_FPS,
+    DEFAULT_MAX_FRAMES,
+    Frames,
+    RecordingError,
+    Trace,
+    execution_trace,
+    frame_times,
+    geometry_frames,
+    scenery_only,
+    trace_series,
+)
 
 __all__ = [
     "DEFAULT_FPS", "DEFAULT_MAX_FRAMES", "FORMAT", "Frames", "RecordingError", "Trace", "execution_trace",

@@ -21,14 +21,16 @@ Arrays (``S`` segments, ``K`` strips, ``T`` transitions; int64 or float64):
 
 from __future__ import annotations
 
+import io
 import json
 import math
 import os
 import stat
 import zipfile
 import zlib
+from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Sequence
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 
@@ -78,7 +80,7 @@ class DamagedFile(ValueError):
 
 
 # -- saving --------------------------------------------------------------------------------------
-def save_execution(execution: Execution, path: str | os.PathLike) -> Path:
+def save_execution(execution: Execution, path: str | os.PathLike[str]) -> Path:
     """Write ``execution`` to the ``.npz`` file ``path`` completely or not at all (OutputError
     naming the file when it cannot be written, or has another suffix)."""
     modes = sorted({s.mode for s in execution.segments} | {s.mode for s in execution.strips}
@@ -99,7 +101,8 @@ def save_execution(execution: Execution, path: str | os.PathLike) -> Path:
     def write(tmp: Path) -> None:
         # A file object, because np.savez_compressed appends ".npz" to a name without it.
         with open(tmp, "wb") as fh:
-            np.savez_compressed(fh, **payload)
+            # numpy's stub types **kwds with its allow_pickle keyword: the arrays are named by payload's keys.
+            np.savez_compressed(fh, **payload)  # type: ignore[arg-type]
 
     return write_atomic(path, write, what="execution file", suffixes=(".npz",))
 
@@ -144,7 +147,7 @@ def _jsonable(obj: Any) -> Any:
 
 
 # -- loading -------------------------------------------------------------------------------------
-def load_execution(path: str | os.PathLike, max_bytes: int | None = None) -> Execution:
+def load_execution(path: str | os.PathLike[str], max_bytes: int | None = None) -> Execution:
     """Read an execution written by ``save_execution``, checking everything (module docstring).
 
     ``max_bytes`` bounds the decompressed arrays (default ``MAX_INFLATION`` times the file's
@@ -204,7 +207,8 @@ def _read_member(archive: zipfile.ZipFile, info: zipfile.ZipInfo, name: str) -> 
             if count * dtype.itemsize > info.file_size:
                 raise DamagedFile(f"{name} declares {count} values, more than its {info.file_size} bytes hold")
             out = np.empty(count, dtype=dtype)
-            got = fh.readinto(memoryview(out).cast("B")) if count else 0
+            # ZipFile.open returns a ZipExtFile, a BufferedIOBase; typeshed says IO[bytes], without readinto.
+            got = cast(io.BufferedIOBase, fh).readinto(out.data.cast("B")) if count else 0
     except (zipfile.BadZipFile, zlib.error, EOFError, OSError, NotImplementedError, RuntimeError) as exc:
         raise DamagedFile(f"{name} cannot be read ({type(exc).__name__}: {exc})") from None
     if got != count * dtype.itemsize:
@@ -233,7 +237,7 @@ def _check_layout(name: str, dims: tuple[int, ...], dtype: np.dtype, kind: str, 
     if dtype.hasobject or dtype.kind != kind or wrong_size:
         expected = {"i": "int64", "f": "float64", "U": "a string"}[kind]
         raise DamagedFile(f"{name} has dtype {dtype}, expected {expected}")
-    if len(dims) != len(shape) or any(want not in (-1, got) or got < 0 for want, got in zip(shape, dims)):
+    if len(dims) != len(shape) or any(want not in (-1, got) or got < 0 for want, got in zip(shape, dims, strict=True)):
         raise DamagedFile(f"{name} has shape {dims}, expected {tuple('N' if d == -1 else d for d in shape)}")
 
 
@@ -365,7 +369,7 @@ def _segments(arrays: dict[str, np.ndarray], modes: list[str], dims: list[int], 
     xs = _pieces_of(arrays["seg_x"], sizes, "seg_x", finite)
     dxs = _pieces_of(arrays["seg_dx"], sizes, "seg_dx", finite)
     return [Segment(modes[m], t, x.reshape(len(t), d), dx.reshape(len(t), d))
-            for m, t, x, dx, d in zip(index, times, xs, dxs, seg_dims)]
+            for m, t, x, dx, d in zip(index, times, xs, dxs, seg_dims, strict=True)]
 
 
 def _strips(arrays: dict[str, np.ndarray], meta: dict[str, Any], dims: list[int], finite: bool) -> list:
@@ -384,7 +388,7 @@ def _strips(arrays: dict[str, np.ndarray], meta: dict[str, Any], dims: list[int]
         raise DamagedFile("strip_times has a negative depth or an exit before its entry")
     states = _pieces_of(arrays["strip_state"], arrays["strip_dim"], "strip_state", finite)
     return [Strip(modes[m], name, float(t0), float(t1), state, float(landing), float(depth))
-            for m, name, (t0, t1, landing, depth), state in zip(index, meta["strip_names"], times, states)]
+            for m, name, (t0, t1, landing, depth), state in zip(index, meta["strip_names"], times, states, strict=True)]
 
 
 def _transitions(arrays: dict[str, np.ndarray], meta: dict[str, Any], dims: list[int], finite: bool) -> list:
@@ -407,7 +411,8 @@ def _transitions(arrays: dict[str, np.ndarray], meta: dict[str, Any], dims: list
     before = _pieces_of(arrays["tr_before"], arrays["tr_dims"][:, 0], "tr_before", finite)
     after = _pieces_of(arrays["tr_after"], arrays["tr_dims"][:, 1], "tr_after", finite)
     return [TransitionRecord(name, modes[s], modes[g], int(i), float(tm), float(tl), float(te), b, a, float(depth))
-            for name, (s, g, i), (tm, tl, te, depth), b, a in zip(meta["tr_names"], edges, times, before, after)]
+            for name, (s, g, i), (tm, tl, te, depth), b, a
+            in zip(meta["tr_names"], edges, times, before, after, strict=True)]
 
 
 def _check_pieces(segs: list, strips: list, trs: list, meta: dict[str, Any]) -> None:
@@ -423,7 +428,8 @@ def _check_pieces(segs: list, strips: list, trs: list, meta: dict[str, Any]) -> 
         if (tr.source, tr.target) != (segs[k].mode, segs[k + 1].mode) or strips[k].name != tr.name:
             raise DamagedFile(f"transition {k} ({tr.name}: {tr.source} -> {tr.target}) does not join segments "
                               f"{k} ({segs[k].mode}) and {k + 1} ({segs[k + 1].mode}) through its strip")
-    if any(strip.mode != seg.mode for strip, seg in zip(strips, segs)):
+    # A run that did not end in a strip has one segment more than strips.
+    if any(strip.mode != seg.mode for strip, seg in zip(strips, segs, strict=False)):
         raise DamagedFile("a strip is held in another mode than the segment it ends")
     starts = [t for k, seg in enumerate(segs) for t in ((seg.t_start, strips[k].time) if k < len(strips)
                                                           else (seg.t_start,))]

@@ -26,15 +26,16 @@ starts, and two outputs of one run may not share a file.
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import os
 import re
 import stat
 import tempfile
 import uuid
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable, Iterable, Iterator
 
 from ..errors import OutputError
 
@@ -70,7 +71,7 @@ def remove_stale_temporaries(path: Path) -> list[Path]:
     """Remove the temporary files of ``path`` left by writers that were killed (SIGKILL, power
     loss): those whose process id no longer runs. Returns the files removed."""
     pattern = _temporary_pattern(path)
-    removed = []
+    removed: list[Path] = []
     try:
         entries = list(os.scandir(path.parent))
     except OSError:
@@ -165,7 +166,7 @@ def check_folder(path: Path, what: str) -> None:
 
 
 # -- writing -------------------------------------------------------------------------------------
-def write_atomic(path: PathLike, write: Callable[[Path], None], *, what: str = "output",
+def write_atomic(path: PathLike, write: Callable[[Path], object], *, what: str = "output",
                  suffixes: Iterable[str] = (), inputs: Iterable[PathLike] = ()) -> Path:
     """Call ``write(tmp)`` on a temporary file next to ``path``, then rename it to ``path``.
 
@@ -200,10 +201,8 @@ def write_atomic(path: PathLike, write: Callable[[Path], None], *, what: str = "
 
 
 def _remove(tmp: Path) -> None:
-    try:
+    with contextlib.suppress(OSError):
         tmp.unlink(missing_ok=True)
-    except OSError:
-        pass
 
 
 def _write_reason(exc: OSError, path: Path) -> str:

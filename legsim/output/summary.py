@@ -21,8 +21,9 @@ Numbers that are not finite become None, so the summary is valid JSON.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Mapping
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Mapping
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -32,6 +33,9 @@ if TYPE_CHECKING:
     from ..builders import Model
     from ..execution import Execution
     from ..scene import Scene
+
+#: ``energy(mode, x) -> float`` (J), as ``HybridSystem.energy``.
+EnergyFn = Callable[[str, np.ndarray], float]
 
 
 def run_summary(execution: Execution, scene: Scene | None = None, model: Model | None = None, *,
@@ -49,7 +53,7 @@ def run_summary(execution: Execution, scene: Scene | None = None, model: Model |
         out["scene"] = scene.name
         out["robot"] = scene.robot
     if model is not None and model.system.energy is not None and execution.segments:
-        out.update(_energies(execution, model))
+        out.update(_energies(execution, model.system.energy, model.system.name))
     for key, value in execution.counters.items():
         out.setdefault(key, value)
     if scene is not None and getattr(scene, "path", None) is not None:
@@ -94,7 +98,7 @@ def longest_hold(execution: Execution) -> float:
     return max((strip.exit_time - strip.time for strip in execution.strips), default=0.0)
 
 
-def _energies(execution: Execution, model: Model) -> dict[str, float | None]:
+def _energies(execution: Execution, energy: EnergyFn, system: str) -> dict[str, float | None]:
     """``energy_initial`` at the first computed point and ``energy_final`` at t_end (J).
 
     A run that stopped early (non_finite, ...) may end on a state the energy cannot take (a
@@ -102,9 +106,9 @@ def _energies(execution: Execution, model: Model) -> dict[str, float | None]:
     After a finished run a failing energy is the model's bug and is raised.
     """
     first = execution.segments[0]
-    initial = _energy(model, first.mode, first.x[0].copy())
+    initial = _energy(energy, system, first.mode, first.x[0].copy())
     try:
-        final = _energy(model, execution.final_mode, execution.final_state)
+        final = _energy(energy, system, execution.final_mode, execution.final_state)
     except ModelError:
         if execution.status == "finished":
             raise
@@ -112,12 +116,13 @@ def _energies(execution: Execution, model: Model) -> dict[str, float | None]:
     return {"energy_initial": initial, "energy_final": final}
 
 
-def _energy(model: Model, mode: str, x: np.ndarray) -> float:
-    """The system's energy (J) at (mode, x); ModelError naming the mode when it fails."""
+def _energy(energy: EnergyFn, system: str, mode: str, x: np.ndarray) -> float:
+    """The energy (J) of the system named ``system`` at (mode, x); ModelError naming the mode
+    when it fails."""
     try:
-        return float(model.system.energy(mode, np.asarray(x, dtype=float)))
+        return float(energy(mode, np.asarray(x, dtype=float)))
     except Exception as exc:
-        raise ModelError(f"{model.system.name}: energy in mode '{mode}' failed: "
+        raise ModelError(f"{system}: energy in mode '{mode}' failed: "
                          f"{type(exc).__name__}: {exc}") from exc
 
 

@@ -12,8 +12,9 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
 
@@ -196,11 +197,11 @@ def _polyline(value: Any, part: str, mode: str, t: float, system: str) -> np.nda
     return arr
 
 
-def _draw(model: Model, mode: str, x: np.ndarray, t: float) -> dict[str, np.ndarray]:
-    """``model.geometry(mode, x)`` checked: part name -> (k, 2) polyline."""
-    name = model.system.name
+def _draw(geometry: Callable[[str, np.ndarray], Any], name: str, mode: str, x: np.ndarray,
+          t: float) -> dict[str, np.ndarray]:
+    """``geometry(mode, x)`` of the system ``name`` checked: part name -> (k, 2) polyline."""
     try:
-        parts = model.geometry(mode, np.asarray(x, dtype=float))
+        parts = geometry(mode, np.asarray(x, dtype=float))
     except ModelError:
         raise
     except Exception as exc:
@@ -215,13 +216,15 @@ def geometry_frames(execution: Execution, model: Model, times: np.ndarray | None
     """Evaluate ``model.geometry(mode, x)`` on the execution at ``times`` (s; default
     ``frame_times``). Raises ModelError naming the part, mode and time when the geometry is
     missing or malformed."""
-    if model.geometry is None:
+    geometry = model.geometry
+    if geometry is None:
         raise ModelError(f"{model.system.name}: the model has no geometry (Model.geometry is None), "
                          f"so there is no robot to draw")
     if times is None:
         times = frame_times(execution, fps, max_frames)
     samples = execution.sample(times)
-    drawn = [_draw(model, mode, x, float(t)) for t, mode, x in zip(samples.times, samples.modes, samples.states)]
+    drawn = [_draw(geometry, model.system.name, mode, x, float(t))
+             for t, mode, x in zip(samples.times, samples.modes, samples.states, strict=True)]
     names = sorted({p for d in drawn for p in d})
     per_part = {p: [d.get(p) for d in drawn] for p in names}
     scenery = _scenery(model, float(execution.t0))

@@ -12,7 +12,8 @@ from __future__ import annotations
 import json
 import math
 import re
-from typing import Any, Mapping
+from collections.abc import Mapping
+from typing import Any
 
 #: Deepest nesting of arrays and objects ``load_json`` accepts: legsim's own documents nest
 #: four levels (meta -> summary -> outputs -> path); the margin is for a user's settings.

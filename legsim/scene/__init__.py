@@ -19,13 +19,44 @@ They are imported by name (``from legsim.scene.orbit import problem_from_scene``
 that loading a scene does not load every tool.
 """
 
-from .files import (SCENE_PATH_ENV, apply_overrides, bundled_dir, parse_override, read_toml, resolve_scene_path,
-                    scene_files, scene_info, search_dirs)
-from .load import (ALLOWED_SECTIONS, CORE_SECTIONS, INITIAL_CHECK, MAX_STEPS, TOOL_SECTIONS, Scene, load_scene,
-                   run_summary)
+from ..output.summary import run_summary
+from .files import (
+    SCENE_PATH_ENV,
+    apply_overrides,
+    bundled_dir,
+    parse_override,
+    read_toml,
+    resolve_scene_path,
+    scene_files,
+    scene_info,
+    search_dirs,
+)
+from .load import (
+    ALLOWED_SECTIONS,
+    CORE_SECTIONS,
+    INITIAL_CHECK,
+    MAX_STEPS,
+    TOOL_SECTIONS,
+    Scene,
+    load_scene,
+)
 
 __all__ = [
-    "ALLOWED_SECTIONS", "CORE_SECTIONS", "INITIAL_CHECK", "MAX_STEPS", "SCENE_PATH_ENV", "Scene", "TOOL_SECTIONS",
-    "apply_overrides", "bundled_dir", "load_scene", "parse_override", "read_toml", "resolve_scene_path",
-    "run_summary", "scene_files", "scene_info", "search_dirs",
+    "ALLOWED_SECTIONS",
+    "CORE_SECTIONS",
+    "INITIAL_CHECK",
+    "MAX_STEPS",
+    "SCENE_PATH_ENV",
+    "TOOL_SECTIONS",
+    "Scene",
+    "apply_overrides",
+    "bundled_dir",
+    "load_scene",
+    "parse_override",
+    "read_toml",
+    "resolve_scene_path",
+    "run_summary",
+    "scene_files",
+    "scene_info",
+    "search_dirs",
 ]

@@ -7,7 +7,8 @@ its initial mode and state with them.
 
 from __future__ import annotations
 
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 from ..builders import Param
 from ..certify import Certificate, certify

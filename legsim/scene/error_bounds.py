@@ -4,7 +4,8 @@ error estimation (pair, floor) and the end time, with defaults from ``[integrato
 
 from __future__ import annotations
 
-from typing import Any, Mapping
+from collections.abc import Mapping
+from typing import Any
 
 from ..bounds import check_steps
 from ..builders import Param, resolve_parameters

@@ -3,8 +3,9 @@ starts with the file and names the field as a dotted path."""
 
 from __future__ import annotations
 
+from collections.abc import Iterable, Mapping
 from pathlib import Path
-from typing import Any, Iterable, Mapping
+from typing import Any
 
 from ..errors import SceneError
 

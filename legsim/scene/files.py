@@ -6,9 +6,10 @@ from __future__ import annotations
 import os
 import stat
 import tomllib
+from collections.abc import Iterable
 from importlib import resources
 from pathlib import Path
-from typing import Any, Iterable
+from typing import Any
 
 from ..errors import SceneError
 from ..output.files import file_kind
@@ -46,11 +47,9 @@ def scene_files() -> dict[str, Path]:
     return found
 
 
-def resolve_scene_path(path_or_name: str | os.PathLike) -> Path:
+def resolve_scene_path(path_or_name: str | os.PathLike[str]) -> Path:
     """The file of a scene given by path or by name; SceneError when there is none."""
-    if isinstance(path_or_name, os.PathLike):
-        candidate = Path(path_or_name)
-    elif isinstance(path_or_name, str) and path_or_name:
+    if isinstance(path_or_name, os.PathLike) or (isinstance(path_or_name, str) and path_or_name):
         candidate = Path(path_or_name)
     else:
         raise SceneError(f"a scene must be a path or a name, got {path_or_name!r}")
@@ -159,7 +158,7 @@ def _read_bounded(path: Path) -> bytes:
 def checked_depth(path: Path, data: dict[str, Any]) -> dict[str, Any]:
     """``data`` when its tables and arrays nest at most ``MAX_SCENE_DEPTH`` deep (dotted keys
     nest without brackets, so the parsed content is measured); SceneError otherwise."""
-    level = [data]
+    level: list[dict[str, Any] | list[Any]] = [data]
     for _ in range(MAX_SCENE_DEPTH + 1):
         level = [child for node in level for child in (node.values() if isinstance(node, dict) else node)
                  if isinstance(child, (dict, list))]
@@ -177,8 +176,10 @@ def scene_info(path: Path) -> dict[str, Any]:
     except SceneError as exc:
         info["error"] = str(exc)
         return info
-    scene_t = data.get("scene") if isinstance(data.get("scene"), dict) else {}
-    robot_t = data.get("robot") if isinstance(data.get("robot"), dict) else {}
+    scene_t = data.get("scene")
+    robot_t = data.get("robot")
+    scene_t = scene_t if isinstance(scene_t, dict) else {}
+    robot_t = robot_t if isinstance(robot_t, dict) else {}
     if isinstance(scene_t.get("description"), str):
         info["description"] = scene_t["description"]
     if isinstance(robot_t.get("name"), str):

@@ -42,9 +42,10 @@ from __future__ import annotations
 import dataclasses
 import math
 import os
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Mapping, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -52,10 +53,10 @@ from .. import builders
 from ..builders import ZENO_WINDOW, Builder, Model, Param, resolve_parameters
 from ..errors import LegsimError, ModelError, SceneError
 from ..execution import Execution
-from ..relaxed.simulate import MAX_STEPS as SIMULATE_MAX_STEPS
 from ..output.summary import run_summary
-from .fields import check_keys, describe, field_error, table_at
+from ..relaxed.simulate import MAX_STEPS as SIMULATE_MAX_STEPS
 from .controller import scene_controller
+from .fields import check_keys, describe, field_error, table_at
 from .files import apply_overrides, checked_depth, read_toml, resolve_scene_path
 
 CORE_SECTIONS = ("scene", "robot", "effects", "initial", "integrator", "output", "controller")
@@ -170,7 +171,7 @@ class Scene:
             return ref.with_initial(self.initial_mode, self.initial_state.copy())
         return ref
 
-    def output_paths(self, out_dir: str | os.PathLike | None = None) -> dict[str, Path]:
+    def output_paths(self, out_dir: str | os.PathLike[str] | None = None) -> dict[str, Path]:
         """kind -> file of each ``[output]`` of this scene, resolved against ``out_dir`` or else the
         scene's own folder. SceneError naming the file and field when a symbolic link on the way
         leads out of that folder (a downloaded scene may bring one)."""
@@ -252,7 +253,7 @@ def _model_counters(model: Model) -> dict[str, Any]:
     return dict(counts)
 
 
-def load_scene(path_or_name: str | os.PathLike, overrides: Sequence[str] = ()) -> Scene:
+def load_scene(path_or_name: str | os.PathLike[str], overrides: Sequence[str] = ()) -> Scene:
     """Read, override and validate a scene; build its model.
 
     Parameters
@@ -473,7 +474,8 @@ def _initial(path: Path, model: Model, table: dict[str, Any], eps: float, t0: fl
     if gvals.size and gvals.min() < -eps:
         worst = int(np.argmin(gvals))
         tr = system.outgoing(mode)[worst]
-        raise field_error(path, "initial.state", f"{dict(zip(names, values))} lies past the guard of transition "
+        state = dict(zip(names, values, strict=True))
+        raise field_error(path, "initial.state", f"{state} lies past the guard of transition "
                                            f"{tr.name} by {-gvals[worst]:.3g} > eps = {eps:g} (guard units); "
                                            f"start inside the domain of mode '{mode}'")
     # Guards written as "and" conditions (max(z, zd): below the floor AND falling) admit states
@@ -486,5 +488,5 @@ def _initial(path: Path, model: Model, table: dict[str, Any], eps: float, t0: fl
             raise ModelError(f"{path}: the initial-state check of robot model '{system.name}' failed on "
                              f"{x0.tolist()}: {type(exc).__name__}: {exc}") from exc
         if problem:
-            raise field_error(path, "initial.state", f"{dict(zip(names, values))}: {problem}")
+            raise field_error(path, "initial.state", f"{dict(zip(names, values, strict=True))}: {problem}")
     return mode, x0

@@ -19,8 +19,9 @@ Every error is a ``SceneError`` naming the file and the ``orbit.KEY`` at fault.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any, Callable, Mapping, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -76,7 +77,8 @@ def problem_from_scene(scene: Any, *, extra_parameters: Sequence[str] = ()) -> O
     The system is rebuilt by the scene's builder for each value of the free (and
     ``extra_parameters``, e.g. a continuation parameter) parameters; the integrator settings
     (``INTEGRATOR_KEYS``) come from ``[integrator]``, the initial guess from ``[initial]``
-    (overridden by ``orbit.guess``), whose mode must be the section's. Errors are ``SceneError`` naming the file and key.
+    (overridden by ``orbit.guess``), whose mode must be the section's. Errors are ``SceneError``
+    naming the file and key.
     """
     table = _orbit_table(scene)
     section = _section(scene, table)

@@ -8,7 +8,8 @@ samples the scene's stochastic approximation from its initial mode and state wit
 
 from __future__ import annotations
 
-from typing import Any, Callable, Sequence
+from collections.abc import Callable, Sequence
+from typing import Any
 
 from ..builders import Param
 from ..stochastic import HAZARD_CAP, INTENSITIES, MAX_SAMPLES, Ensemble, sample_ensemble

@@ -30,12 +30,14 @@ from __future__ import annotations
 
 import sys
 import types
+from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any, Mapping, Sequence
+from typing import Any
 
 
-def sweep(scene: str | Path, *, grid: Mapping[str, Any] | None = None, random: Mapping[str, tuple[float, float]] | None = None,
-          samples: int = 1, seed: int = 0, overrides: Sequence[str] = (), run: bool = True, walk: bool = False,
+def sweep(scene: str | Path, *, grid: Mapping[str, Any] | None = None,
+          random: Mapping[str, tuple[float, float]] | None = None, samples: int = 1, seed: int = 0,
+          overrides: Sequence[str] = (), run: bool = True, walk: bool = False,
           orbit: bool = False, max_steps: int = 20, tol: float = 1e-3, timeout: float | None = None,
           out: str | Path | None = None, resume: bool = False, workers: int | None = None,
           scheduler: str | None = None, in_process: bool = False, batch_size: int | None = None,

@@ -21,13 +21,19 @@ over with the exception, and the sweep goes on.
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import math
 import os
 import time
-from typing import Any, Callable, Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
+from typing import TYPE_CHECKING, Any
 
 from ..errors import LegsimError
+
+if TYPE_CHECKING:
+    from dask.typing import Key
+    from distributed import Client, LocalCluster
 
 SCHEDULER_ENV = "DASK_SCHEDULER_ADDRESS"
 
@@ -64,7 +70,8 @@ class BatchSizer:
 
     def __init__(self, workers: int, target_seconds: float = 2.0, first: int = 1, max_size: int = 1000,
                  fixed: int | None = None) -> None:
-        self.workers, self.target, self.first, self.max_size, self.fixed = workers, target_seconds, first, max_size, fixed
+        self.workers, self.target, self.first = workers, target_seconds, first
+        self.max_size, self.fixed = max_size, fixed
         self.seconds = 0.0
         self.items = 0
 
@@ -104,8 +111,8 @@ class Engine:
         self.in_process = in_process
         self.requested = workers
         self.batch_size, self.target_seconds = batch_size, target_seconds
-        self.client = None
-        self.cluster = None
+        self.client: Client | None = None
+        self.cluster: LocalCluster | None = None
         self.workers = 1
 
     @property
@@ -117,19 +124,19 @@ class Engine:
             return f"the Dask scheduler at {self.scheduler} ({self.workers} worker(s))"
         return f"an embedded Dask cluster of {self.workers} worker process(es)"
 
-    def __enter__(self) -> "Engine":
+    def __enter__(self) -> Engine:
         if not self.in_process:
-            self.client, self.cluster = _connect(self.scheduler, self.requested)
-            self.workers = max(1, len(self.client.scheduler_info().get("workers", {})))
+            client, self.cluster = _connect(self.scheduler, self.requested)
+            self.client = client
+            self.workers = max(1, len(client.scheduler_info().get("workers", {})))
         return self
 
     def __exit__(self, *exc: Any) -> None:
         for part in (self.client, self.cluster):
+            # Closing a cluster that is already going away may raise anything.
             if part is not None:
-                try:
+                with contextlib.suppress(Exception):
                     part.close()
-                except Exception:  # closing a cluster that is already going away
-                    pass
         self.client = self.cluster = None
 
     def run(self, fn: BatchFn, common: Any, items: Sequence[Any], on_done: OnDone) -> None:
@@ -153,14 +160,17 @@ class Engine:
                      on_done: OnDone) -> None:
         from distributed import as_completed
 
+        client = self.client
+        if client is None:
+            raise EngineError("the Dask engine runs batches only inside its `with` block (not connected)")
         window = 2 * self.workers
-        in_flight: dict[str, tuple[Any, list]] = {}
+        in_flight: dict[Key, tuple[Any, list[Any]]] = {}
         queue = as_completed()
 
         def submit() -> None:
             batch = next(batches, None)
             if batch is not None:
-                future = self.client.submit(timed, fn, common, batch, pure=False)
+                future = client.submit(timed, fn, common, batch, pure=False)
                 in_flight[future.key] = (future, batch)
                 queue.add(future)
 
@@ -179,7 +189,7 @@ class Engine:
                 future.release()
                 submit()
         except BaseException:  # Ctrl-C or a failing on_done: stop what is still queued
-            self.client.cancel([future for future, _ in in_flight.values()])
+            client.cancel([future for future, _ in in_flight.values()])
             raise
 
 
@@ -191,7 +201,7 @@ def _batches(items: list, sizer: BatchSizer) -> Iterator[list]:
         start += size
 
 
-def _connect(scheduler: str | None, workers: int | None) -> tuple[Any, Any]:
+def _connect(scheduler: str | None, workers: int | None) -> tuple[Client, LocalCluster | None]:
     """(client, cluster): a client of the scheduler, or of a new embedded cluster (its cluster)."""
     try:
         from distributed import Client, LocalCluster

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import time
 from collections import Counter
-from contextlib import nullcontext
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import pyarrow as pa
 
@@ -52,7 +52,8 @@ class SweepResult:
         out = {"scene": self.spec.scene, "variations": len(self.spec), "computed": self.computed,
                "resumed": self.resumed, "elapsed_s": self.elapsed_s, "startup_s": self.startup_s,
                "where": self.where,
-               "task_status": self.counts("task_status"), "results": None if self.results is None else str(self.results),
+               "task_status": self.counts("task_status"),
+               "results": None if self.results is None else str(self.results),
                "figures": {k: str(v) for k, v in self.figures.items()}}
         for column in ("status", "outcome", "orbit_status", "orbit_stable"):
             if column in self.table.column_names:
@@ -79,7 +80,7 @@ def run_sweep(spec: SweepSpec, *, out: str | Path | None = None, resume: bool = 
         if store is not None:
             store.start()
         with counting(len(spec), "sweep", done=len(done), enabled=progress) as advance:
-            def on_done(batch: list, results: Any) -> None:
+            def on_done(batch: list[Any], results: Any) -> None:
                 if isinstance(results, BaseException):
                     results = [failed_row(index, values, results) for index, values in batch]
                 if store is not None:
@@ -101,7 +102,7 @@ def run_sweep(spec: SweepSpec, *, out: str | Path | None = None, resume: bool = 
 
 
 def _index(row: dict[str, Any]) -> int:
-    return row["index"]
+    return int(row["index"])
 
 
 def failed_row(index: int, values: dict[str, Any], exc: BaseException) -> dict[str, Any]:
@@ -130,7 +131,7 @@ def check_sweep(spec: SweepSpec) -> dict[str, float] | None:
     if not gait.converged:
         raise SweepError(f"{base.path}: the walks need the scene's gait, and its orbit search ended with "
                          f"{gait.status}: {gait.message}")
-    return dict(zip(gait.state_names, (float(v) for v in gait.fixed_point)))
+    return dict(zip(gait.state_names, (float(v) for v in gait.fixed_point), strict=True))
 
 
 def write_figures(result: SweepResult, folder: Path, fixed_point: dict[str, float] | None) -> dict[str, Path]:
@@ -150,6 +151,9 @@ def write_figures(result: SweepResult, folder: Path, fixed_point: dict[str, floa
     for kind in wanted:
         name, filename = FIGURES[kind]
         writer = find_writer(name, f"the {name} figure")
-        written[name] = write_atomic(folder / filename, lambda tmp, w=writer: w(result.table, info, tmp),
-                                     what=f"--out {name} figure")
+
+        def write(tmp: Path, writer: Callable[[Any, Any, Path], Any] = writer) -> object:
+            return writer(result.table, info, tmp)
+
+        written[name] = write_atomic(folder / filename, write, what=f"--out {name} figure")
     return written

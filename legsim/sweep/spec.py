@@ -24,8 +24,9 @@ import json
 import math
 import os
 import tomllib
+from collections.abc import Iterator, Sequence
 from dataclasses import asdict, dataclass, field
-from typing import Any, Iterator, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -108,7 +109,7 @@ class SweepSpec:
         out = {a.key: out[a.key] for a in self.grid}
         if self.random:
             row = self.draws()[draw]
-            out.update({a.key: float(v) for a, v in zip(self.random, row)})
+            out.update({a.key: float(v) for a, v in zip(self.random, row, strict=True)})
         return out
 
     def draws(self) -> np.ndarray:
@@ -132,7 +133,7 @@ class SweepSpec:
         return out
 
     @classmethod
-    def from_json(cls, data: dict[str, Any]) -> "SweepSpec":
+    def from_json(cls, data: dict[str, Any]) -> SweepSpec:
         axes = {k: tuple(Axis(a["key"], tuple(a["values"]), a["low"], a["high"]) for a in data[k])
                 for k in ("grid", "random")}
         return cls(**{**data, **axes, "overrides": tuple(data["overrides"])})
@@ -179,10 +180,10 @@ def parse_grid(text: str) -> Axis:
         n = _number(parts[2], text, "--grid")
         if not float(n).is_integer() or n < 1:
             raise SweepError(f"--grid {text!r}: N must be an integer >= 1, got {parts[2]}")
-        values = np.linspace(low, high, int(n)) if n > 1 else np.array([low])
-        if isinstance(low, int) and isinstance(high, int) and np.all(values == np.round(values)):
-            return Axis(key, tuple(int(v) for v in values))
-        return Axis(key, tuple(float(v) for v in values))
+        grid = np.linspace(low, high, int(n)) if n > 1 else np.array([low])
+        if isinstance(low, int) and isinstance(high, int) and np.all(grid == np.round(grid)):
+            return Axis(key, tuple(int(v) for v in grid))
+        return Axis(key, tuple(float(v) for v in grid))
     values = tuple(_literal(v.strip(), text) for v in raw.split(","))
     if any(v == "" for v in values):
         raise SweepError(f"--grid {text!r}: an empty value in the list")
@@ -244,7 +245,7 @@ def variation_overrides(values: dict[str, Any]) -> list[str]:
     return [override(k, v) for k, v in values.items()]
 
 
-def scene_reference(scene: str | os.PathLike) -> str:
+def scene_reference(scene: str | os.PathLike[str]) -> str:
     """A scene as the workers will load it: a bundled scene by its name (found in each
     worker's own installation), any other by its absolute path (which workers on other hosts
     must see at the same place, e.g. on a shared file system)."""
@@ -256,13 +257,19 @@ def scene_reference(scene: str | os.PathLike) -> str:
     return str(path)
 
 
+def _ends(axis: Axis) -> tuple[Any, Any]:
+    """A grid axis's first and last values; a random axis's LO and the value just under HI."""
+    if axis.low is None or axis.high is None:
+        return axis.values[0], axis.values[-1]
+    return axis.low, float(np.nextafter(axis.high, axis.low))
+
+
 def corners(spec: SweepSpec) -> Iterator[dict[str, Any]]:
     """Variations at the axes' ends (grid: first and last value; random: LO and a value just
     under HI), the other axes at their first end: loading them checks every axis's range
     before the sweep starts."""
-    ends = [(a.values[0], a.values[-1]) if not a.is_random else (a.low, float(np.nextafter(a.high, a.low)))
-            for a in spec.grid + spec.random]
+    ends = [_ends(a) for a in spec.grid + spec.random]
     first = [e[0] for e in ends]
-    yield dict(zip(spec.keys, first))
+    yield dict(zip(spec.keys, first, strict=True))
     for k, (_, last) in enumerate(ends):
-        yield dict(zip(spec.keys, first[:k] + [last] + first[k + 1:]))
+        yield dict(zip(spec.keys, [*first[:k], last, *first[k + 1:]], strict=True))

@@ -8,8 +8,9 @@ process: the ensemble, and every number of its summary, is the serial one.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Any
 
 from ..stochastic import Ensemble
 
@@ -50,7 +51,7 @@ def ensemble_on_engine(scene: Any, scene_ref: str, settings: dict[str, Any], eng
     def on_done(batch: list[int], results: Any) -> None:
         if isinstance(results, BaseException):
             raise results
-        drawn.update(zip(batch, results))
+        drawn.update(zip(batch, results, strict=True))
         if progress is not None:
             progress(len(drawn), samples)
 

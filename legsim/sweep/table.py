@@ -17,8 +17,9 @@ ran and however they were batched, give the same table up to that column.
 from __future__ import annotations
 
 import uuid
+from collections.abc import Iterable, Sequence
 from pathlib import Path
-from typing import Any, Iterable, Sequence
+from typing import Any, cast
 
 import pyarrow as pa
 import pyarrow.parquet as pq
@@ -33,28 +34,34 @@ MANIFEST = "sweep.json"
 #: Columns that two runs of the same sweep do not share.
 TIMING_COLUMNS = ("wall_time_s",)
 
-_F64, _I64, _STR, _BOOL = pa.float64(), pa.int64(), pa.string(), pa.bool_()
+_F64: pa.DataType = pa.float64()
+_I64: pa.DataType = pa.int64()
+_STR: pa.DataType = pa.string()
+_BOOL: pa.DataType = pa.bool_()
 # Lists named as Parquet names them ("element"), so a table read back has this same schema.
-_VECTOR = pa.list_(pa.field("element", pa.float64()))
+_VECTOR: pa.DataType = pa.list_(pa.field("element", pa.float64()))
 
-BASE_COLUMNS = {"task_status": _STR, "error": _STR}
+BASE_COLUMNS: dict[str, pa.DataType] = {"task_status": _STR, "error": _STR}
 
 #: The run's summary (``legsim.output.summary.run_summary`` keys; ``t_end`` is its ``t_final``,
 #: the time reached) and ``fell`` (the model broke down: status ``model_breakdown``).
-RUN_COLUMNS = {"status": _STR, "message": _STR, "t_end": _F64, "final_mode": _STR, "final_state": _VECTOR,
-               "transitions": _I64, "steps": _I64, "halvings": _I64, "field_evals": _I64, "guard_evals": _I64,
-               "reset_evals": _I64, "energy_initial": _F64, "energy_final": _F64, "fell": _BOOL}
+RUN_COLUMNS: dict[str, pa.DataType] = {
+    "status": _STR, "message": _STR, "t_end": _F64, "final_mode": _STR, "final_state": _VECTOR,
+    "transitions": _I64, "steps": _I64, "halvings": _I64, "field_evals": _I64, "guard_evals": _I64,
+    "reset_evals": _I64, "energy_initial": _F64, "energy_final": _F64, "fell": _BOOL}
 
 #: A walk's verdict (``legsim.sweep.walk``).
-WALK_COLUMNS = {"outcome": _STR, "walk_steps": _I64, "steps_to_gait": _I64, "distance_to_gait": _F64,
-                "gait_period": _I64}
+WALK_COLUMNS: dict[str, pa.DataType] = {
+    "outcome": _STR, "walk_steps": _I64, "steps_to_gait": _I64, "distance_to_gait": _F64,
+    "gait_period": _I64}
 
 #: The variation's periodic orbit (``legsim.orbits.find_orbit``): multipliers by decreasing
 #: modulus as real and imaginary parts.
-ORBIT_COLUMNS = {"orbit_status": _STR, "orbit_message": _STR, "orbit_fixed_point": _VECTOR, "orbit_period": _F64,
-                 "orbit_step_length": _F64, "orbit_multipliers_re": _VECTOR, "orbit_multipliers_im": _VECTOR,
-                 "orbit_spectral_radius": _F64, "orbit_stable": _BOOL, "orbit_residual": _F64,
-                 "orbit_iterations": _I64}
+ORBIT_COLUMNS: dict[str, pa.DataType] = {
+    "orbit_status": _STR, "orbit_message": _STR, "orbit_fixed_point": _VECTOR, "orbit_period": _F64,
+    "orbit_step_length": _F64, "orbit_multipliers_re": _VECTOR, "orbit_multipliers_im": _VECTOR,
+    "orbit_spectral_radius": _F64, "orbit_stable": _BOOL, "orbit_residual": _F64,
+    "orbit_iterations": _I64}
 
 
 def input_type(values: Sequence[Any]) -> pa.DataType:
@@ -72,7 +79,7 @@ def input_type(values: Sequence[Any]) -> pa.DataType:
 
 def schema(spec: SweepSpec) -> pa.Schema:
     """The table's columns for this sweep, with its fingerprint in the metadata."""
-    fields = [pa.field("index", _I64, nullable=False)]
+    fields: list[pa.Field[Any]] = [pa.field("index", _I64, nullable=False)]
     fields += [pa.field(a.key, _F64 if a.is_random else input_type(a.values)) for a in spec.grid + spec.random]
     columns = dict(BASE_COLUMNS)
     if spec.run != "none":
@@ -155,7 +162,8 @@ class ResultStore:
         """Indices of the rows already on disk (final table and parts)."""
         done: set[int] = set()
         for path in ([self.results] if self.results.exists() else []) + self.part_files():
-            done.update(pq.read_table(path, columns=["index"]).column("index").to_pylist())
+            # The index column is not nullable (``schema``): its values are ints.
+            done.update(cast(list[int], pq.read_table(path, columns=["index"]).column("index").to_pylist()))
         return done
 
     def add(self, rows: list[dict[str, Any]]) -> Path:

@@ -11,7 +11,8 @@ of a walk (found by a deterministic orbit search, once per worker and scene vari
 from __future__ import annotations
 
 import time
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
@@ -136,7 +137,7 @@ def reference_gait(spec: SweepSpec, values: dict[str, Any]) -> Any:
 
     kept = {k: v for k, v in values.items() if not k.startswith("initial.")}
     overrides = tuple(spec.overrides) + tuple(variation_overrides(kept))
-    key = (spec.scene,) + overrides
+    key = (spec.scene, *overrides)
     if key not in _gaits:
         settings = problem_from_scene(load_scene(spec.scene, list(overrides)))
         if len(_gaits) >= _GAIT_CACHE_SIZE:

@@ -33,9 +33,10 @@ Outcomes (``OUTCOMES``):
 from __future__ import annotations
 
 import math
-from collections import Counter
+from collections import defaultdict
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 
@@ -111,7 +112,7 @@ class _Walker:
         self.events = 0  # section events: a return every problem.returns of them
         self.transitions = 0
         self.since_event = 0  # transitions since the last section event
-        self.counters: Counter = Counter()
+        self.counters: defaultdict[str, float] = defaultdict(int)
 
     def run(self, mode: str, x: np.ndarray, t: float) -> WalkResult:
         p = self.problem
@@ -188,7 +189,9 @@ class _Walker:
         t_exit = strip_exit_time(strip.landing_time, self.problem.eps, strip.depth)
         self.counters["reset_evals"] += 1
         try:
-            x_after = np.asarray(tr.reset(strip.state.copy()), dtype=float)
+            # No reset is the identity (hybrid.Transition).
+            q = strip.state.copy()
+            x_after = np.asarray(q if tr.reset is None else tr.reset(q), dtype=float)
         except ModelBreakdown as exc:
             return self.finish("falls", "model_breakdown", f"{exc} (reset of {tr.name})", strip.mode, strip.state,
                                strip.time)

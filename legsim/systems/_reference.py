@@ -3,7 +3,7 @@ polylines their pictures are drawn with."""
 
 from __future__ import annotations
 
-from typing import Iterable, Sequence
+from collections.abc import Iterable, Sequence
 
 import numpy as np
 

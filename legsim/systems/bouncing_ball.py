@@ -15,7 +15,8 @@ impact has take-off speed ``c^k v1`` and lasts ``2 c^k v1 / g``, so the impact t
 from __future__ import annotations
 
 import math
-from typing import Any, Iterable
+from collections.abc import Iterable
+from typing import Any
 
 import numpy as np
 
@@ -124,7 +125,7 @@ class BouncingBallReference:
         else:
             self.zeno_time = math.inf
 
-    def with_initial(self, mode: str, x: Iterable[float], t0: float = 0.0) -> "BouncingBallReference":
+    def with_initial(self, mode: str, x: Iterable[float], t0: float = 0.0) -> BouncingBallReference:
         """The same ball from another initial state ``x = (z, zd)`` in mode ``flight`` at t0."""
         if mode != MODE:
             raise ModelError(f"bouncing ball reference: unknown mode '{mode}' (modes: ['{MODE}'])")
@@ -169,7 +170,7 @@ class BouncingBallReference:
             k = int((t - self.first_impact) * g / (2.0 * v1)) + 1
         else:
             frac = 1.0 - (t - self.first_impact) * g * (1.0 - c) / (2.0 * v1 * c)
-            k = int(math.floor(math.log(frac) / math.log(c))) + 1 if frac > 0 else 1
+            k = math.floor(math.log(frac) / math.log(c)) + 1 if frac > 0 else 1
         # The logarithm can be off by one at a boundary: settle it with the closed-form times.
         while k > 1 and float(self.impact_time(k)) > t:
             k -= 1
@@ -190,7 +191,7 @@ class BouncingBallReference:
             elif t >= self.zeno_time:
                 out[i] = (0.0, 0.0)
             else:
-                k = self.impact_count(t)
+                k = int(self.impact_count(t))  # finite before the Zeno time
                 tk = float(self.impact_time(k))
                 v = self.impact_speed * self.c ** k
                 tau = t - tk

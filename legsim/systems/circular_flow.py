@@ -15,8 +15,8 @@ grazing of paper 004 Fig. 1. The exact solution is a rotation (``CircularReferen
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass, replace
-from typing import Iterable
 
 import numpy as np
 
@@ -40,7 +40,7 @@ class CircularReference:
     x0: tuple[float, float] = (0.0, 1.0)
     t0: float = 0.0
 
-    def with_initial(self, mode: str, x: Iterable[float], t0: float = 0.0) -> "CircularReference":
+    def with_initial(self, mode: str, x: Iterable[float], t0: float = 0.0) -> CircularReference:
         """The same flow from ``x`` at t0 (the mode follows from x)."""
         if mode not in ("inside", "outside"):
             raise ModelError(f"circular_flow reference: unknown mode '{mode}' (modes: ['inside', 'outside'])")

@@ -37,7 +37,8 @@ exact execution (exponentials and logarithms only).
 from __future__ import annotations
 
 import math
-from typing import Any, Iterable
+from collections.abc import Iterable
+from typing import Any
 
 import numpy as np
 
@@ -182,7 +183,7 @@ class DigitalControlReference:
         self.mode_sequence = [m for _, m, _ in self._pieces]
         self._starts = np.array([p[0] for p in self._pieces])
 
-    def with_initial(self, mode: str, x: Iterable[float], t0: float = 0.0) -> "DigitalControlReference":
+    def with_initial(self, mode: str, x: Iterable[float], t0: float = 0.0) -> DigitalControlReference:
         """The same system from another initial mode and state."""
         return DigitalControlReference(x, mode, t0, self.rate, self.target, self.hold, self.boost)
 

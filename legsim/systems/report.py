@@ -68,11 +68,11 @@ def scenes() -> None:
             sim = np.array([tr.time for tr in ex.transitions])
             line += f", max impact time error {np.abs(sim - ref.impact_times(E['t_max'])).max():.2e} s"
         print(line)
-    ref = bb.BouncingBallReference()
+    ball = bb.BouncingBallReference()
     ex = simulate(bb.make_system(), [1.0, 0.0], "flight", 2.7, 1e-3, 1e-4)
     sim = np.array([tr.time for tr in ex.transitions[:10]])
     print(f"bouncing ball rk4 h=1e-3 eps=1e-4 to 2.7 s: {len(ex.transitions)} transitions, first 10 impact "
-          f"times late by {(sim - ref.impact_time(np.arange(1, 11))).max():.2e} s at most, final state "
+          f"times late by {(sim - ball.impact_time(np.arange(1, 11))).max():.2e} s at most, final state "
           f"{ex.final_state.tolist()}")
     d = dc.make_reference()
     for eps in (1e-3, 1e-4, 1e-5):

@@ -21,8 +21,8 @@ visit then lasts half the previous one after the first two.
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass, field, replace
-from typing import Iterable
 
 import numpy as np
 
@@ -51,7 +51,7 @@ class TwoTankReference:
     t0: float = 0.0
     _cache: dict = field(default_factory=dict, repr=False, compare=False)
 
-    def with_initial(self, mode: str, x: Iterable[float], t0: float = 0.0) -> "TwoTankReference":
+    def with_initial(self, mode: str, x: Iterable[float], t0: float = 0.0) -> TwoTankReference:
         """The same tanks from levels ``x`` in ``mode`` at t0."""
         if mode not in ("q1", "q2"):
             raise ModelError(f"two_tanks reference: unknown mode '{mode}' (modes: ['q1', 'q2'])")
@@ -71,7 +71,7 @@ class TwoTankReference:
         switch_times, entered = self._cache["switches"]
         flows = {"q1": np.array([self.w - self.v1, -self.v2]), "q2": np.array([-self.v1, self.w - self.v2])}
         starts = np.concatenate([[self.t0], switch_times])
-        modes = [self.mode] + entered
+        modes = [self.mode, *entered]
         states = [x0]
         for k in range(len(switch_times)):
             states.append(states[-1] + (switch_times[k] - starts[k]) * flows[modes[k]])

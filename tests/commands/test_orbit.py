@@ -167,9 +167,11 @@ def test_no_orbit_exits_3_with_the_reason(capsys):
      "cannot write in the folder /proc"),  # even as root, whose permission bits say yes
     (["orbit", "rimless_wheel", "--continue", "slope", "5", "1e300"],
      "--continue TO = 1e+300: orbit problem: no system for parameters"),
-    (["orbit", "rimless_wheel", "--continue", "slope", "3", "4", "--steps", "1000000000"], "--steps must be in [1, 10000]"),
+    (["orbit", "rimless_wheel", "--continue", "slope", "3", "4", "--steps", "1000000000"],
+     "--steps must be in [1, 10000]"),
     (["orbit", "rimless_wheel", "--continue", "slope", "3", "4", "--locate", "-1"], "--locate must be in [0, 50]"),
-    (["orbit", "rimless_wheel", "--continue", "nonsense", "3", "4"], "continued parameter: robot 'rimless_wheel' has no"),
+    (["orbit", "rimless_wheel", "--continue", "nonsense", "3", "4"],
+     "continued parameter: robot 'rimless_wheel' has no"),
     (["orbit", "slip_orbit", "--continue", "psi", "0.6", "0.65"], "--continue psi: 'psi' is a free parameter"),
     # Absurd [orbit] values, named by their key.
     (["orbit", "rimless_wheel", "--set", "orbit.fd_step=0", "--set", "orbit.jacobian=\"fd\""],
@@ -177,7 +179,8 @@ def test_no_orbit_exits_3_with_the_reason(capsys):
     (["orbit", "rimless_wheel", "--set", "orbit.fd_step=10"], "orbit.fd_step: must be a relative step in (0, 0.1]"),
     (["orbit", "rimless_wheel", "--set", "orbit.trivial_multipliers=1"],
      "orbit.trivial_multipliers: orbit problem: trivial_multipliers = 1 must be"),
-    (["orbit", "rimless_wheel", "--set", "orbit.cyclic=[\"nope\"]"], "orbit.cyclic: orbit problem: cyclic coordinate(s)"),
+    (["orbit", "rimless_wheel", "--set", "orbit.cyclic=[\"nope\"]"],
+     "orbit.cyclic: orbit problem: cyclic coordinate(s)"),
     (["orbit", "rimless_wheel", "--set", "orbit.free=[\"slope\"]"], "orbit.free: orbit problem: 3 unknowns"),
     # Tolerances need an embedded pair: refused by the setting's name, not run at fixed steps.
     (["orbit", "compass_gait", "--set", "integrator.rtol=1e-10"],

@@ -8,8 +8,8 @@ import json
 from pathlib import Path
 
 import pytest
-from helpers.recordings import recorded_hopper
 
+from helpers.recordings import recorded_hopper
 from legsim.output.summary import run_summary
 from legsim.output.trace import RecordingError
 
@@ -46,7 +46,7 @@ def test_replay_text_lists_modes_transitions_and_final_state(hopper_run, capsys)
     tr = ex.transitions[0]
     assert f"t = {tr.time:.9g} s  touchdown: flight -> stance" in out
     assert f"mode sequence ({len(ex.segments)} segments): flight -> stance -> flight" in out
-    final = ", ".join(f"{n} = {v:.6g}" for n, v in zip(ex.state_names[ex.final_mode], ex.final_state))
+    final = ", ".join(f"{n} = {v:.6g}" for n, v in zip(ex.state_names[ex.final_mode], ex.final_state, strict=True))
     assert final in out
 
 
@@ -91,7 +91,7 @@ def test_replay_never_writes_over_the_recording_it_reads(hopper_run, tmp_path):
 
 
 def test_replay_writes_its_outputs_through_temporary_files(hopper_run, tmp_path, capsys):
-    _, _, path, data = hopper_run
+    _, _, path, _data = hopper_run
     assert _replay(path, plot=tmp_path / "p.png", html=tmp_path / "p.html") == 0
     assert sorted(p.name for p in tmp_path.iterdir()) == ["p.html", "p.png"]
     assert (tmp_path / "p.png").read_bytes()[:4] == b"\x89PNG" and "<html" in (tmp_path / "p.html").read_text()

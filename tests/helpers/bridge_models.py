@@ -3,7 +3,6 @@ rod on the planar floating base."""
 
 import numpy as np
 import pinocchio as pin
-
 from legsim.robots.bridge import add_point_frame, planar_floating_base
 
 G = 9.81
@@ -19,7 +18,7 @@ def ball_model(m=1.0):
     return model, jz
 
 
-def rod_model(m=1.0, I=0.3, L=1.0):
+def rod_model(m=1.0, I=0.3, L=1.0):  # noqa: E741 - I is the inertia, as callers name it
     """A rod (mass m kg, inertia I kg m^2) on the planar floating base, frame "tip" at L/2 (m) along it."""
     model = pin.Model()
     body = planar_floating_base(model)

@@ -30,29 +30,29 @@ class PointMassCompassGait:
 
     def rhs(self, t, x):
         t1, t2, w1, w2 = x
-        m, mH, a, b, l = self.m, self.mH, self.a, self.b, self.l
+        m, mH, a, b, leg = self.m, self.mH, self.a, self.b, self.l
         u1, u2 = np.array([math.sin(t1), math.cos(t1)]), np.array([math.sin(t2), math.cos(t2)])
         d1, d2 = np.array([math.cos(t1), -math.sin(t1)]), np.array([math.cos(t2), -math.sin(t2)])
         z = np.zeros(2)
         # (mass, Jacobian of its position wrt (theta1, theta2), J-dot times the rates)
         parts = [(m, np.column_stack([a * d1, z]), -a * u1 * w1 ** 2),
-                 (mH, np.column_stack([l * d1, z]), -l * u1 * w1 ** 2),
-                 (m, np.column_stack([l * d1, -b * d2]), -l * u1 * w1 ** 2 + b * u2 * w2 ** 2)]
+                 (mH, np.column_stack([leg * d1, z]), -leg * u1 * w1 ** 2),
+                 (m, np.column_stack([leg * d1, -b * d2]), -leg * u1 * w1 ** 2 + b * u2 * w2 ** 2)]
         M = sum(mi * J.T @ J for mi, J, _ in parts)
         f = sum(mi * J.T @ (self.gvec - jd) for mi, J, jd in parts)
         return np.concatenate([[w1, w2], np.linalg.solve(M, f)])
 
     def heel_strike(self, x):
         t1, t2, w1, w2 = x
-        m, mH, b, l = self.m, self.mH, self.b, self.l
+        m, mH, b, leg = self.m, self.mH, self.b, self.l
         d1, d2 = np.array([math.cos(t1), -math.sin(t1)]), np.array([math.cos(t2), -math.sin(t2)])
         I2, z = np.eye(2), np.zeros(2)
         # Floating coordinates (hip x, hip z, theta1, theta2); masses at hip - b u_i and the hip.
         parts = [(m, np.column_stack([I2, -b * d1, z])), (mH, np.column_stack([I2, z, z])),
                  (m, np.column_stack([I2, z, -b * d2]))]
         M = sum(mi * J.T @ J for mi, J in parts)
-        J2 = np.column_stack([I2, z, -l * d2])  # the swing foot hip - l u2
-        v = np.concatenate([l * w1 * d1, [w1, w2]])
+        J2 = np.column_stack([I2, z, -leg * d2])  # the swing foot hip - leg u2
+        v = np.concatenate([leg * w1 * d1, [w1, w2]])
         Mi = np.linalg.inv(M)
         vp = v - Mi @ J2.T @ np.linalg.solve(J2 @ Mi @ J2.T, J2 @ v)
         return np.array([t2, t1, vp[3], vp[2]])
@@ -70,7 +70,7 @@ class PointMassCompassGait:
             return x1[[0, 2, 3]] - z
         z = fsolve(F, guess, xtol=1e-13)
         x0 = np.array([z[0], -z[0], z[1], z[2]])
-        x1, period = self.step(x0)
+        _x1, period = self.step(x0)
         J = np.zeros((3, 3))
         for j in range(3):
             dz = np.zeros(3)

@@ -36,7 +36,7 @@ def expected_series(ex) -> dict[str, list[tuple[float, float]]]:
     out: dict[str, list[tuple[float, float]]] = {}
     for seg in ex.segments:
         for col, name in enumerate(ex.state_names[seg.mode]):
-            out.setdefault(name, []).extend(zip(seg.t.tolist(), seg.x[:, col].tolist()))
+            out.setdefault(name, []).extend(zip(seg.t.tolist(), seg.x[:, col].tolist(), strict=True))
     for strip in ex.strips:
         for col, name in enumerate(ex.state_names[strip.mode]):
             out.setdefault(name, []).extend([(strip.time, strip.state[col]), (strip.exit_time, strip.state[col])])

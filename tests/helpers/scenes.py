@@ -11,8 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from legsim import HybridSystem, Mode, Transition
-from legsim import builders
+from legsim import HybridSystem, Mode, Transition, builders
 from legsim.builders import Builder, Effect, Model, Param
 
 TINY = "tinyball"

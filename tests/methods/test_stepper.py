@@ -1,4 +1,6 @@
-"""The one step routine: generated steppers against the readable reference rk_step (tests/helpers/reference_rk.py), the error estimate's order, and the generated error norms against their formulas."""
+"""The one step routine: generated steppers against the readable reference rk_step
+(tests/helpers/reference_rk.py), the error estimate's order, and the generated error norms
+against their formulas."""
 
 from __future__ import annotations
 
@@ -6,8 +8,8 @@ import math
 
 import numpy as np
 import pytest
-from helpers.reference_rk import rk_step
 
+from helpers.reference_rk import rk_step
 from legsim.methods import (
     METHODS,
     error_estimate,

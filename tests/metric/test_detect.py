@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from legsim import HybridSystem, ModelError, Mode, Transition
+from legsim import HybridSystem, Mode, ModelError, Transition
 from legsim.metric import CoordinateGuard, distance
 from legsim.metric.detect import detect_affine_reset, detect_coordinate_guard
 
@@ -19,7 +19,8 @@ def test_declared_coordinate_guard_beyond_the_dimension_is_named():
     bad = HybridSystem({"m": Mode(1, lambda t, x, u: np.zeros(1))},
                        [Transition("m", "m", CoordinateGuard((3, 1.0, 0.0)), lambda x: -x)])
     assert distance(system, ("m", [1.0]), ("m", [2.0]), 0.1) == pytest.approx(1.0)
-    with pytest.raises(ModelError, match=r"CoordinateGuard\(\(3, 1.0, 0.0\),\) refers to coordinate beyond dimension 1"):
+    with pytest.raises(ModelError,
+                       match=r"CoordinateGuard\(\(3, 1\.0, 0\.0\),\) refers to coordinate beyond dimension 1"):
         distance(bad, ("m", [1.0]), ("m", [-2.0]), 0.1)
 
 

@@ -76,7 +76,7 @@ def test_inside_the_strip_the_state_has_the_transverse_coordinate_of_fig_12(run)
     times = np.linspace(tr.time, tr.exit_time, 41)[1:-1]
     samples = ex.sample(times)
     assert samples.in_strip.all()
-    for t, d in zip(times, distances(system, ex, ref, times, eps)):
+    for t, d in zip(times, distances(system, ex, ref, times, eps), strict=True):
         if t <= tr.landing_time:
             tau = tr.depth * (t - tr.time) / (tr.landing_time - tr.time)
         else:

@@ -28,7 +28,7 @@ DELTAS = np.array([1e-1, 3e-2, 1e-2, 3e-3, 1e-3])
 
 def _pair(delta: float):
     x0 = dc.nominal_initial_state()
-    return dc.make_reference(x0 + [-delta, 0.0]), dc.make_reference(x0 + [0.0, -delta])
+    return dc.make_reference(x0 + np.array([-delta, 0.0])), dc.make_reference(x0 + np.array([0.0, -delta]))
 
 
 def _times(y, z, delta: float) -> np.ndarray:
@@ -84,8 +84,8 @@ def test_relaxed_simulations_of_y_and_z_are_close_in_rho_eps():
     times = np.linspace(0.0, T_END, 801)
     values = []
     for delta in (1e-1, 3e-2, 1e-2):
-        y = simulate(system, x0 + [-delta, 0.0], "0", T_END, h, eps)
-        z = simulate(system, x0 + [0.0, -delta], "0", T_END, h, eps)
+        y = simulate(system, x0 + np.array([-delta, 0.0]), "0", T_END, h, eps)
+        z = simulate(system, x0 + np.array([0.0, -delta]), "0", T_END, h, eps)
         assert y.mode_sequence == ["0", "2", "3"] and z.mode_sequence == ["0", "1", "3"]
         values.append(rho(system, y, z, times, eps))
         assert trajectory_space_distance(y, z, times) >= 1.0

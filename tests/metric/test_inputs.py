@@ -37,7 +37,7 @@ def test_bad_max_hops(hops):
 
 
 def test_system_must_be_a_hybrid_system():
-    with pytest.raises(MetricError, match="system must be a legsim.HybridSystem, got dict"):
+    with pytest.raises(MetricError, match=r"system must be a legsim\.HybridSystem, got dict"):
         distance({}, A, A, 0.1)
 
 
@@ -49,7 +49,8 @@ def test_system_must_be_a_hybrid_system():
     (("fall", [0.0]), r"b: state in mode 'fall' has shape \(1,\), expected \(2,\) with coordinates \('z', 'zd'\)"),
     (("fall", ["a", "b"]), "b: state in mode 'fall' is not a numeric vector"),
     (("fall", [0.0, math.nan]), "b: state in mode 'fall' is not finite"),
-    (("fall", [0.0, -1.0], "skid", 0.0), r"b: 'skid' is not a transition leaving mode 'fall' \(those are \['bounce'\]\)"),
+    (("fall", [0.0, -1.0], "skid", 0.0),
+     r"b: 'skid' is not a transition leaving mode 'fall' \(those are \['bounce'\]\)"),
     (("fall", [0.0, -1.0], "bounce", 0.2), r"b: strip coordinate tau must be a number in \[0, eps=0.1\]"),
     (("fall", [0.0, -1.0], "bounce", -0.01), r"strip coordinate tau must be a number in \[0, eps=0.1\]"),
 ])

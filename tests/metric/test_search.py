@@ -44,7 +44,8 @@ def disk_brute_force(a: np.ndarray, b: np.ndarray, eps: float) -> float:
     for forward in (True, False):
         values = [via(t, forward) for t in thetas]
         k = int(np.argmin(values))
-        res = minimize_scalar(lambda t: via(t, forward), bounds=(thetas[max(k - 1, 0)], thetas[min(k + 1, 3600)]),
+        res = minimize_scalar(lambda t, forward=forward: via(t, forward),
+                              bounds=(thetas[max(k - 1, 0)], thetas[min(k + 1, 3600)]),
                               method="bounded", options={"xatol": 1e-12})
         best = min(best, res.fun + eps)
     return best
@@ -227,7 +228,7 @@ def test_strip_point_is_tau_from_its_guard_point_and_eps_minus_tau_from_the_rese
     point = ("fall", q, "bounce", tau)
     assert distance(system, point, ("fall", q), eps) == pytest.approx(tau, abs=1e-14)
     assert distance(system, point, ("fall", [0.0, C * v]), eps) == pytest.approx(eps - tau, abs=1e-14)
-    other = ("fall", q + [0.0, -0.01], "bounce", eps - tau)
+    other = ("fall", q + np.array([0.0, -0.01]), "bounce", eps - tau)
     # Inside the strip (metric (12): chord along the guard plus |tau - tau'|), out through the
     # guard ends, or out through the reset ends where the chord shrinks by c.
     expected = min(0.01 + abs(eps - 2 * tau), tau + 0.01 + (eps - tau), (eps - tau) + C * 0.01 + tau)

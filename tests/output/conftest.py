@@ -1,6 +1,7 @@
 """Fixtures of the output tests: one recorded hopper run, shared by the whole session."""
 
 import pytest
+
 from helpers.recordings import recorded_hopper
 
 

@@ -64,7 +64,6 @@ def test_numbers_that_are_not_finite_become_none(hopper_run):
 
 def test_final_energy_of_a_stopped_run_may_fail_but_not_of_a_finished_one():
     from helpers.models import ball_model
-
     from legsim.builders import Model
     from legsim.errors import ModelError
     from legsim.hybrid import HybridSystem

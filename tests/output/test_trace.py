@@ -4,8 +4,8 @@ and each strip's held state twice; frame times are capped."""
 from __future__ import annotations
 
 import numpy as np
-from helpers.recordings import run_hopper
 
+from helpers.recordings import run_hopper
 from legsim.output.trace import frame_times
 
 
@@ -18,7 +18,6 @@ def test_frame_times_are_capped():
 
 def test_trace_holds_every_segment_point_and_each_strip_twice():
     from helpers.recordings import expected_series
-
     from legsim.output.trace import execution_trace, trace_series
 
     _, ex = run_hopper()
@@ -29,4 +28,4 @@ def test_trace_holds_every_segment_point_and_each_strip_twice():
     assert [trace.modes[i] for i in trace.segment_starts] == ex.mode_sequence
     for name, pairs in expected_series(ex).items():
         rows, values = trace_series(ex, trace)[name]
-        assert sorted(zip(trace.times[rows].tolist(), values.tolist())) == sorted(pairs), name
+        assert sorted(zip(trace.times[rows].tolist(), values.tolist(), strict=True)) == sorted(pairs), name

@@ -62,7 +62,8 @@ def test_the_wheel_installs_only_the_legsim_name(installed):
     wheel, _, _ = installed
     with zipfile.ZipFile(wheel) as archive:
         tops = {name.split("/")[0] for name in archive.namelist()}
-        scenes = [name for name in archive.namelist() if name.startswith("legsim/scenarios/") and name.endswith(".toml")]
+        scenes = [name for name in archive.namelist()
+                  if name.startswith("legsim/scenarios/") and name.endswith(".toml")]
     assert tops == {"legsim", wheel.name.split("-")[0] + "-" + wheel.name.split("-")[1] + ".dist-info"}
     assert "legsim/scenarios/pronk.toml" in scenes and len(scenes) == len(list((ROOT / "scenarios").glob("*.toml")))
 

@@ -16,9 +16,9 @@ import zipfile
 
 import numpy as np
 import pytest
+
 from helpers.recordings import run_hopper
 from helpers.reliability import npz_arrays, recording_with_meta, run_cli, write_ball, write_npz
-
 from legsim import Execution
 from legsim.errors import SimulationError
 
@@ -103,7 +103,7 @@ def test_the_undamaged_copy_loads_and_samples(saved, hopper, tmp_path):
     loaded = Execution.load(write_npz(tmp_path / "same.npz", copy))
     times = np.linspace(loaded.t0, loaded.t_end, 97)
     got, want = loaded.sample(times), hopper[1].sample(times)
-    assert got.modes == want.modes and all(np.array_equal(a, b) for a, b in zip(got.states, want.states))
+    assert got.modes == want.modes and all(np.array_equal(a, b) for a, b in zip(got.states, want.states, strict=True))
 
 
 def test_a_pickled_array_is_refused_without_unpickling(saved, tmp_path):

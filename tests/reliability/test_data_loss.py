@@ -13,6 +13,7 @@ import stat
 from pathlib import Path
 
 import pytest
+
 from helpers.reliability import run_cli, snapshot, temporaries, write_ball
 
 

@@ -24,12 +24,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from helpers.recordings import run_hopper
-from helpers.reliability import (FULL, Hang, npz_arrays, record, run_cli, temporaries, watchdog,
-                                 write_npz)
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from helpers.recordings import run_hopper
+from helpers.reliability import FULL, Hang, npz_arrays, record, run_cli, temporaries, watchdog, write_npz
 from legsim import Execution
 from legsim.errors import SimulationError
 from legsim.scene import load_scene
@@ -49,8 +48,8 @@ def json_paths(doc, prefix=()) -> list[tuple]:
     out = []
     items = doc.items() if isinstance(doc, dict) else enumerate(doc) if isinstance(doc, list) else []
     for key, value in items:
-        out.append(prefix + (key,))
-        out += json_paths(value, prefix + (key,))
+        out.append((*prefix, key))
+        out += json_paths(value, (*prefix, key))
     return out
 
 
@@ -175,7 +174,7 @@ def load_outcome(path: Path) -> tuple[str, str]:
     try:
         times = np.linspace(ex.t0, ex.t_end, 41)
         sampled = ex.sample(times)
-        for mode, state in zip(sampled.modes, sampled.states):
+        for mode, state in zip(sampled.modes, sampled.states, strict=True):
             assert len(state) == len(ex.state_names[mode])
         assert len(ex.final_state) == len(ex.state_names[ex.final_mode])
         json.dumps(ex.summary(), allow_nan=False)
@@ -245,7 +244,7 @@ def damaged_recordings(draw, meta):
         text = mutate_json(draw, doc)
     else:
         entity = draw(st.sampled_from(["/mode/index", "/samples/t", "/strip/active", "/mode", "/frames/t"]))
-        column = (entity, draw(st.integers(0, 10 ** 6)), draw(st.sampled_from(ODD_NUMBERS + [0.5, 2.0, 1e9])))
+        column = (entity, draw(st.integers(0, 10 ** 6)), draw(st.sampled_from([*ODD_NUMBERS, 0.5, 2.0, 1000000000.0])))
     return text, column, draw(st.sampled_from(["text", "--json"]))
 
 

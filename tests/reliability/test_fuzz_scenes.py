@@ -27,10 +27,10 @@ import tempfile
 import tomllib
 from pathlib import Path
 
-from helpers.reliability import FULL, Hang, record, run_cli, snapshot, temporaries, watchdog
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from helpers.reliability import FULL, Hang, record, run_cli, snapshot, temporaries, watchdog
 from legsim.scene import bundled_dir, load_scene
 
 BASES = {name: (bundled_dir() / f"{name}.toml").read_text()
@@ -125,9 +125,9 @@ def numbers(data: dict, prefix=()) -> list[tuple]:
     out = []
     for key, value in data.items():
         if isinstance(value, dict):
-            out += numbers(value, prefix + (key,))
+            out += numbers(value, (*prefix, key))
         elif isinstance(value, (int, float)) and not isinstance(value, bool):
-            out.append(prefix + (key,))
+            out.append((*prefix, key))
     return out
 
 
@@ -146,16 +146,16 @@ def edit_number(draw, data: dict) -> None:
 def key_paths(data: dict, prefix=()) -> list[tuple]:
     out = []
     for key, value in data.items():
-        out.append(prefix + (key,))
+        out.append((*prefix, key))
         if isinstance(value, dict):
-            out += key_paths(value, prefix + (key,))
+            out += key_paths(value, (*prefix, key))
     return out
 
 
 def edit_structure(draw, data: dict) -> None:
     """Replace, remove or add one value somewhere in ``data``."""
     paths = key_paths(data)
-    path = draw(st.sampled_from(paths + [("integrator", "new_key"), ("new_section",), ("effects", "floor", "x")]))
+    path = draw(st.sampled_from([*paths, ("integrator", "new_key"), ("new_section",), ("effects", "floor", "x")]))
     parent = data
     for key in path[:-1]:
         if not isinstance(parent.get(key), dict):

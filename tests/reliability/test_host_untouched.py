@@ -17,8 +17,8 @@ INSTALLERS = ("apt-get", "apt", "aptitude", "dpkg", "dnf", "yum", "zypper", "pac
 
 def test_no_test_calls_a_system_package_manager():
     # A command line in a test that starts with an installer: ["apt-get", ...] or "apt-get ...".
-    call = re.compile(r"""[\[(,]\s*["'](?:%s)["']|["'](?:%s)\s+(?:install|update|upgrade|-)"""
-                      % ("|".join(map(re.escape, INSTALLERS)), "|".join(map(re.escape, INSTALLERS))))
+    names = "|".join(map(re.escape, INSTALLERS))
+    call = re.compile(rf"""[\[(,]\s*["'](?:{names})["']|["'](?:{names})\s+(?:install|update|upgrade|-)""")
     found = {str(p.relative_to(REPO)): m.group() for p in sorted(TESTS.rglob("*.py"))
              if p != Path(__file__).resolve() and (m := call.search(p.read_text()))}
     assert found == {}

@@ -14,6 +14,7 @@ import sys
 import textwrap
 
 import pytest
+
 from helpers.reliability import temporaries, write_ball
 
 # A `legsim run` whose --plot writer writes half a file, sends itself SIGNAL, then finishes.

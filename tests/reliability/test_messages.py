@@ -8,8 +8,8 @@ import errno
 import os
 
 import pytest
-from helpers.reliability import run_cli, write_ball
 
+from helpers.reliability import run_cli, write_ball
 from legsim.errors import OutputError
 
 
@@ -41,7 +41,7 @@ def test_execution_save_reports_what_is_wrong_as_an_output_error(execution, tmp_
         tmp_path / "run.toml": "unsupported format '.toml'; use one of ['.npz']",
     }
     for target, reason in cases.items():
-        with pytest.raises(OutputError, match="^execution file .*: ") as caught:
+        with pytest.raises(OutputError, match=r"^execution file .*: ") as caught:
             execution.save(target)
         assert reason in str(caught.value), str(caught.value)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["afile"]

@@ -4,8 +4,8 @@ no scene (a FIFO, a device) refused without reading them."""
 import os
 
 import pytest
-from helpers.scenes import TINY_SCENE, register_tiny, write_scene
 
+from helpers.scenes import TINY_SCENE, register_tiny, write_scene
 from legsim.errors import SceneError
 from legsim.scene import load_scene, read_toml
 from legsim.scene.files import MAX_SCENE_BYTES, MAX_SCENE_DEPTH, parse_override

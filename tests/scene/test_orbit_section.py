@@ -75,6 +75,6 @@ def test_the_algorithms_do_not_load_the_scene_layer():
 ])
 def test_bad_values_are_named_by_their_key(override, message):
     scene = load_scene("rimless_wheel", overrides=[override])
-    with pytest.raises(SceneError, match="rimless_wheel.toml: ") as info:
+    with pytest.raises(SceneError, match=r"rimless_wheel\.toml: ") as info:
         problem_from_scene(scene)
     assert message in str(info.value)

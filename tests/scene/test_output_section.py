@@ -3,8 +3,8 @@
 import os
 
 import pytest
-from helpers.scenes import TINY_SCENE, register_tiny, write_scene
 
+from helpers.scenes import TINY_SCENE, register_tiny, write_scene
 from legsim.errors import SceneError
 from legsim.scene import load_scene
 
@@ -61,5 +61,5 @@ def test_a_link_out_of_the_folder_is_refused_when_resolved(tmp_path):
 def test_an_override_cannot_send_an_output_out_either(tmp_path):
     # --set is read as part of the scene; --plot FILE is how the user writes elsewhere.
     path = write_scene(tmp_path)
-    with pytest.raises(SceneError, match="output.plot: '/tmp/x.png' is an absolute path; .*give --plot FILE"):
+    with pytest.raises(SceneError, match=r"output\.plot: '/tmp/x\.png' is an absolute path; .*give --plot FILE"):
         load_scene(path, ['output.plot="/tmp/x.png"'])

@@ -12,9 +12,7 @@ import signal
 import subprocess
 import sys
 import time
-from pathlib import Path
 
-import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
@@ -103,7 +101,7 @@ def test_resuming_an_interrupted_1000_run_sweep_recomputes_no_finished_row(tmp_p
         return real(spec, items)
 
     monkeypatch.setattr(runner, "run_batch", interrupted)
-    assert main(RESUME_ARGS + ["--out", str(out)]) == 130
+    assert main([*RESUME_ARGS, "--out", str(out)]) == 130
     before = pq.read_table(out / "results.parquet")
     assert before.num_rows == 350 and before.column("index").to_pylist() == list(range(350))
 
@@ -114,7 +112,7 @@ def test_resuming_an_interrupted_1000_run_sweep_recomputes_no_finished_row(tmp_p
         return real(spec, items)
 
     monkeypatch.setattr(runner, "run_batch", spy)
-    assert main(RESUME_ARGS + ["--out", str(out), "--resume"]) == 0
+    assert main([*RESUME_ARGS, "--out", str(out), "--resume"]) == 0
     after = pq.read_table(out / "results.parquet")
     assert sorted(ran) == list(range(350, 1000))
     assert after.num_rows == 1000 and after.column("index").to_pylist() == list(range(1000))
@@ -125,7 +123,7 @@ def test_resuming_an_interrupted_1000_run_sweep_recomputes_no_finished_row(tmp_p
 
 def test_a_sweep_killed_outright_resumes_from_the_batches_it_streamed(tmp_path):
     out = tmp_path / "s"
-    proc = subprocess.Popen([sys.executable, "-m", "legsim.cli"] + RESUME_ARGS + ["--out", str(out)],
+    proc = subprocess.Popen([sys.executable, "-m", "legsim.cli", *RESUME_ARGS, "--out", str(out)],
                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     parts = out / "results.parts"
     deadline = time.monotonic() + 60
@@ -134,7 +132,7 @@ def test_a_sweep_killed_outright_resumes_from_the_batches_it_streamed(tmp_path):
     os.kill(proc.pid, signal.SIGKILL)
     proc.wait()
     streamed = pa.concat_tables([pq.read_table(p) for p in sorted(parts.glob("part-*.parquet"))]).sort_by("index")
-    assert 3 <= len(list(parts.glob("part-*.parquet"))) and streamed.num_rows < 1000
+    assert len(list(parts.glob("part-*.parquet"))) >= 3 and streamed.num_rows < 1000
     result = legsim.sweep("bouncing_ball", grid={"initial.state.z": (0.5, 2.0, 1000)},
                           overrides=["integrator.t_final=0.05"], out=out, resume=True, in_process=True, batch_size=50)
     assert result.resumed == streamed.num_rows and result.computed == 1000 - streamed.num_rows
@@ -162,7 +160,7 @@ def test_the_command_line_reports_rows_without_result_and_refuses_bad_input(tmp_
                           (["--walk", "--no-run"], "exclude each other"),
                           (["--grid", "initial.state.q=0:1:3"], "unknown coordinate"),
                           (["--workers", "0"], "--workers must be an integer >= 1")):
-        assert main(["sweep", "bouncing_ball", "--out", str(tmp_path / "x")] + argv) == 2
+        assert main(["sweep", "bouncing_ball", "--out", str(tmp_path / "x"), *argv]) == 2
         assert message in capsys.readouterr().err
 
 
@@ -199,5 +197,6 @@ def test_orbit_rows_place_the_compass_gaits_period_doubling_where_continuation_d
     assert below["orbit_status"] == above["orbit_status"] == "converged"
     assert below["orbit_spectral_radius"] < 1 < above["orbit_spectral_radius"]
     assert below["orbit_stable"] is True and above["orbit_stable"] is False
-    real = [re for re, im in zip(above["orbit_multipliers_re"], above["orbit_multipliers_im"]) if im == 0.0]
+    real = [re for re, im in zip(above["orbit_multipliers_re"], above["orbit_multipliers_im"], strict=True)
+            if im == 0.0]
     assert min(real) < -1.0  # through -1: a period doubling

@@ -44,38 +44,36 @@ def without_timing(path: Path) -> bytes:
 def cluster(tmp_path):
     """A scheduler and one worker (two processes, one thread each) on localhost; their address."""
     scheduler_file = tmp_path / "scheduler.json"
-    logs = [open(tmp_path / name, "wb") for name in ("scheduler.log", "worker.log")]
-    common = {"cwd": tmp_path, "stderr": subprocess.STDOUT}
-    scheduler = subprocess.Popen(dask_command() + ["scheduler", "--host", "127.0.0.1", "--port", "0",
-                                                   "--no-dashboard", "--scheduler-file", str(scheduler_file)],
-                                 stdout=logs[0], **common)
-    processes = [scheduler]
-    try:
-        deadline = time.monotonic() + 60
-        while not scheduler_file.exists() and time.monotonic() < deadline and scheduler.poll() is None:
-            time.sleep(0.1)
-        address = json.loads(scheduler_file.read_text())["address"]
-        processes.append(subprocess.Popen(dask_command() + ["worker", address, "--nworkers", "2", "--nthreads", "1",
-                                                            "--no-dashboard", "--local-directory", str(tmp_path)],
-                                          stdout=logs[1], **common))
-        yield address
-    finally:
-        for proc in reversed(processes):
-            proc.terminate()
-        for proc in reversed(processes):
-            try:
-                proc.wait(timeout=30)
-            except subprocess.TimeoutExpired:
-                proc.kill()
-                proc.wait()
-        for log in logs:
-            log.close()
+    with open(tmp_path / "scheduler.log", "wb") as scheduler_log, open(tmp_path / "worker.log", "wb") as worker_log:
+        common = {"cwd": tmp_path, "stderr": subprocess.STDOUT}
+        scheduler = subprocess.Popen([*dask_command(), "scheduler", "--host", "127.0.0.1", "--port", "0",
+                                      "--no-dashboard", "--scheduler-file", str(scheduler_file)],
+                                     stdout=scheduler_log, **common)
+        processes = [scheduler]
+        try:
+            deadline = time.monotonic() + 60
+            while not scheduler_file.exists() and time.monotonic() < deadline and scheduler.poll() is None:
+                time.sleep(0.1)
+            address = json.loads(scheduler_file.read_text())["address"]
+            processes.append(subprocess.Popen([*dask_command(), "worker", address, "--nworkers", "2", "--nthreads", "1",
+                                               "--no-dashboard", "--local-directory", str(tmp_path)],
+                                              stdout=worker_log, **common))
+            yield address
+        finally:
+            for proc in reversed(processes):
+                proc.terminate()
+            for proc in reversed(processes):
+                try:
+                    proc.wait(timeout=30)
+                except subprocess.TimeoutExpired:
+                    proc.kill()
+                    proc.wait()
 
 
 def test_a_hand_started_scheduler_gives_the_embedded_clusters_table(cluster, tmp_path, capsys):
-    assert main(SWEEP + ["--out", str(tmp_path / "remote"), "--scheduler", cluster]) == 0
+    assert main([*SWEEP, "--out", str(tmp_path / "remote"), "--scheduler", cluster]) == 0
     assert "on the Dask scheduler at " + cluster in capsys.readouterr().out
-    assert main(SWEEP + ["--out", str(tmp_path / "local"), "--workers", "2"]) == 0
+    assert main([*SWEEP, "--out", str(tmp_path / "local"), "--workers", "2"]) == 0
     remote, local = tmp_path / "remote" / "results.parquet", tmp_path / "local" / "results.parquet"
     assert without_timing(remote) == without_timing(local)
     table = pq.read_table(remote)
@@ -85,6 +83,6 @@ def test_a_hand_started_scheduler_gives_the_embedded_clusters_table(cluster, tmp
 
 def test_an_unreachable_scheduler_is_an_error_naming_it(tmp_path, capsys, monkeypatch):
     monkeypatch.setattr("legsim.sweep.engine.CONNECT_TIMEOUT", 2.0)
-    assert main(SWEEP + ["--out", str(tmp_path / "x"), "--scheduler", "tcp://127.0.0.1:9"]) == 2
+    assert main([*SWEEP, "--out", str(tmp_path / "x"), "--scheduler", "tcp://127.0.0.1:9"]) == 2
     assert "cannot reach the Dask scheduler at tcp://127.0.0.1:9" in capsys.readouterr().err
     assert not (tmp_path / "x").exists()

@@ -9,8 +9,17 @@ import numpy as np
 import pytest
 
 from legsim.scene import load_scene
-from legsim.sweep.spec import (Axis, SweepError, SweepSpec, corners, override, parse_grid, parse_random,
-                               scene_reference, variation_overrides)
+from legsim.sweep.spec import (
+    Axis,
+    SweepError,
+    SweepSpec,
+    corners,
+    override,
+    parse_grid,
+    parse_random,
+    scene_reference,
+    variation_overrides,
+)
 
 
 def test_a_range_grid_is_evenly_spaced_with_both_ends_and_a_list_keeps_its_values():

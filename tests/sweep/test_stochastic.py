@@ -26,7 +26,7 @@ def test_any_subset_of_an_ensemble_draws_the_same_executions():
     args = (two_tanks(), "q1", [1.0, 1.0], 6.3, 0.04, "euler")
     whole = sample_ensemble(*args, samples=12, seed=3, floor=1.0)
     part = sample_ensemble(*args, samples=12, seed=3, floor=1.0, indices=[11, 4, 7])
-    assert all(same(p, whole.executions[k]) for p, k in zip(part.executions, [11, 4, 7]))
+    assert all(same(p, whole.executions[k]) for p, k in zip(part.executions, [11, 4, 7], strict=True))
     # Independent streams: distinct executions differ, and the same seed gives the same draws.
     assert not np.array_equal(whole.executions[0].times, whole.executions[1].times)
     assert sample_generator(3, 5).random() == sample_generator(3, 5).random() != sample_generator(3, 6).random()
@@ -37,7 +37,7 @@ def test_batches_on_the_engine_give_the_serial_ensemble():
     serial = ensemble_from_scene(scene, {"samples": 10, "seed": 2})
     with Engine(in_process=True, batch_size=3) as engine:
         batched = ensemble_on_engine(scene, "two_tanks", {"samples": 10, "seed": 2}, engine)
-    assert all(same(a, b) for a, b in zip(serial.executions, batched.executions))
+    assert all(same(a, b) for a, b in zip(serial.executions, batched.executions, strict=True))
     assert batched.summary() == serial.summary()
 
 
@@ -45,7 +45,7 @@ def test_the_command_on_a_dask_cluster_prints_the_serial_numbers(capsys, tmp_pat
     argv = ["stochastic", "grazing", "--samples", "40", "--seed", "4", "--json"]
     assert main(argv) == 0
     serial = json.loads(capsys.readouterr().out)
-    assert main(argv + ["--workers", "2", "--plot", str(tmp_path / "switching.png")]) == 0
+    assert main([*argv, "--workers", "2", "--plot", str(tmp_path / "switching.png")]) == 0
     on_dask = json.loads(capsys.readouterr().out)
     assert on_dask.pop("outputs") == {"plot": str(tmp_path / "switching.png")}
     assert on_dask == serial

@@ -74,7 +74,7 @@ def test_example2_sticks_chatters_and_leaves_with_the_reference(ref2):
             assert np.abs(states[inside, 1]).max() <= math.sqrt(2 * F_max * eps)
         # It leaves the stop when the reference does: 1 mm below the stop at the same instant
         # (to the sampling step; the release is resolved to a step h and the motion grows as t^3).
-        for s, e in ref2.sticking_intervals(T)[:2]:
+        for s, _ in ref2.sticking_intervals(T)[:2]:
             after = ts > s
             t_sim = ts[after][np.argmax(states[after, 0] < x_max - 1e-3)]
             t_ref = ts[after][np.argmax(ref_states[after, 0] < x_max - 1e-3)]

@@ -5,6 +5,7 @@ resting cases its impact search must not hang on."""
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import numpy as np
@@ -119,7 +120,7 @@ def test_reference_energy_balance_over_flights(ref1):
     energy = lambda s: 0.5 * E["mass"] * (s[1] ** 2 + E["omega"] ** 2 * s[0] ** 2)  # noqa: E731
     power = lambda t: (E["amplitude"] * math.cos(E["frequency"] * t) * ref1.velocity(t)  # noqa: E731
                        - 2 * E["a"] * E["mass"] * ref1.velocity(t) ** 2)
-    for t1, t2 in zip(times[:-1], times[1:]):
+    for t1, t2 in itertools.pairwise(times):
         work, _ = quad(power, t1, t2, epsabs=1e-11, epsrel=1e-11, limit=200)
         before = ref1.state(t2 - 1e-12 * (t2 - t1))
         assert energy(before) - energy(ref1.state(t1)) == pytest.approx(work, rel=1e-7, abs=1e-7)

@@ -12,8 +12,8 @@ import pytest
 from legsim import simulate
 from legsim.errors import SceneError
 from legsim.scene import load_scene
-from legsim.stress.models import oscillator_ex2
 from legsim.stress import oscillator_stick_sequence
+from legsim.stress.models import oscillator_ex2
 from legsim.systems.oscillator import make_system
 
 T = 4 * math.pi
@@ -102,9 +102,9 @@ def test_the_scene_sets_the_window_by_effect_or_integrator_and_can_switch_contin
     assert ex_plain.settings["continuation"] is False and "stuck" not in ex_plain.mode_sequence
     # one accumulation warning per sticking phase begun by t = 6 s ([0, 2.498] and from 5.065 s)
     assert len(ex_plain.transitions) > 100 and [w.kind for w in ex_plain.warnings] == ["accumulation"] * 2
-    with pytest.raises(SceneError, match="effects.zeno.window"):
+    with pytest.raises(SceneError, match=r"effects\.zeno\.window"):
         load_scene("oscillator_ex2", overrides=["effects.zeno.window=0"])
-    with pytest.raises(SceneError, match="integrator.zeno_window"):
+    with pytest.raises(SceneError, match=r"integrator\.zeno_window"):
         load_scene("oscillator_ex2", overrides=["integrator.zeno_window=-1"])
-    with pytest.raises(SceneError, match="integrator.continuation"):
+    with pytest.raises(SceneError, match=r"integrator\.continuation"):
         load_scene("oscillator_ex2", overrides=["integrator.continuation=3"])

@@ -333,7 +333,7 @@ class _Logger:
             drawn = []
             for row in rows.tolist():
                 mode, state = state_at(row)
-                drawn.append(_draw(model, mode, state, float(trace.times[row])))
+                drawn.append(_draw(model.geometry, model.system.name, mode, state, float(trace.times[row])))
             bodies.add(rows, drawn)
             self.drain(len(rows) * len(bodies.tracks))
         bodies.finish()

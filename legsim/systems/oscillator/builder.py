@@ -3,7 +3,8 @@ its picture (a box on a spring against the stop) and the exact reference of the 
 
 from __future__ import annotations
 
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 

@@ -8,8 +8,8 @@ summed in closed form; see the class docstring for the error made.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
-from typing import Iterable
 
 import numpy as np
 from scipy.optimize import brentq
@@ -116,7 +116,7 @@ class OscillatorReference:
         self._start(self.t0, self.x0, self.xd0)
 
     # -- construction from a model -----------------------------------------------------------
-    def with_initial(self, mode: str, x: Iterable[float], t0: float = 0.0) -> "OscillatorReference":
+    def with_initial(self, mode: str, x: Iterable[float], t0: float = 0.0) -> OscillatorReference:
         """The same oscillator from another initial state ``x = (x, xd)`` at t0."""
         if mode != MODE:
             raise ModelError(f"oscillator reference: unknown mode '{mode}' (modes: ['{MODE}'])")
@@ -125,7 +125,7 @@ class OscillatorReference:
                                    self.frequency, x_, xd_, t0, self.zeno_speed)
 
     @classmethod
-    def example(cls, name: str, **overrides: float) -> "OscillatorReference":
+    def example(cls, name: str, **overrides: float) -> OscillatorReference:
         """The reference of Table I ``ex1`` or ``ex2``."""
         p = dict(EXAMPLES[name])
         p.pop("t_max")
@@ -165,7 +165,7 @@ class OscillatorReference:
         """x - x_max and xd ``tau`` seconds into the flight ``ph``, the gap summed from the
         increments so that it keeps its relative precision right after an impact."""
         dx, dv = self._flight_increments(ph, tau, coeffs)
-        return (ph.x - self.x_max) + dx, ph.xd + dv
+        return (ph.x - self._stop) + dx, ph.xd + dv
 
     def _flight_increments(self, ph: _Phase, tau: np.ndarray | float, coeffs=None):
         """Increments of position and velocity ``tau`` seconds into the flight ``ph``."""
@@ -216,12 +216,12 @@ class OscillatorReference:
             if rebound > 0 and self.c < 1.0:
                 t_acc = float(t + 2.0 * rebound / (F * (1.0 - self.c)))
                 self._chatters.append((t, t_acc))
-                self._push(_Phase("chatter", t, self.x_max, 0.0))
+                self._push(_Phase("chatter", t, self._stop, 0.0))
                 self._stick(t_acc)
             else:
                 self._stick(t)
             return
-        self._push(_Phase("flight", t, self.x_max, -rebound))
+        self._push(_Phase("flight", t, self._stop, -rebound))
         self._open = True
 
     def _stick(self, t: float) -> None:
@@ -229,12 +229,12 @@ class OscillatorReference:
         t_release = self._release_time(t)
         if t_release > t:
             self._sticks.append([t, t_release])
-            self._push(_Phase("stick", t, self.x_max, 0.0))
+            self._push(_Phase("stick", t, self._stop, 0.0))
         if math.isinf(t_release):
             self._open = False
             self._horizon = math.inf
             return
-        self._push(_Phase("flight", t_release, self.x_max, 0.0))
+        self._push(_Phase("flight", t_release, self._stop, 0.0))
         self._open = True
         self._horizon = t_release
 
@@ -249,7 +249,7 @@ class OscillatorReference:
 
     def _release_time(self, t: float) -> float:
         """First time >= t at which F turns negative (inf if never)."""
-        F0 = self.omega ** 2 * self.x_max
+        F0 = self.omega ** 2 * self._stop
         amp = abs(self.amplitude) / self.mass
         if self.frequency == 0.0 or amp == 0.0:
             return t if self.free_acceleration(t) < 0 else math.inf
@@ -296,14 +296,14 @@ class OscillatorReference:
         certainly off the stop, from its Taylor expansion with a bound on the fourth derivative:
         ``x - x_max <= c2 s^2 + c3 s^3 + D4 s^4 / 24``. Without it the interval search would
         have to halve its way out of the triple root of a release (where F(t) = 0)."""
-        y0, v0, k_pos, _ = self._flight_coeffs(ph)
+        y0, _v0, k_pos, _ = self._flight_coeffs(ph)
         d4 = math.hypot(y0, k_pos) * self.omega ** 4 + self.p_amp * self.frequency ** 4
         acc = float(self._accel(ph.t, ph.x, 0.0))
         jerk = float(-self.amplitude * self.frequency * math.sin(self.frequency * ph.t)) / self.mass \
             - 2.0 * self.a * acc
         c2, c3 = 0.5 * acc, jerk / 6.0
         # At a release F(t) = 0 exactly but is known only to rounding: such a c2 counts as zero.
-        if abs(c2) <= 1e-12 * (abs(self.amplitude) / self.mass + self.omega ** 2 * abs(self.x_max)):
+        if abs(c2) <= 1e-12 * (abs(self.amplitude) / self.mass + self.omega ** 2 * abs(self._stop)):
             c2 = 0.0
         if d4 == 0.0 or c2 > 0.0 or (c2 == 0.0 and c3 >= 0.0):
             return 0.0
@@ -317,7 +317,7 @@ class OscillatorReference:
     def _next_impact(self, ph: _Phase, tau_from: float, tau_to: float) -> float | None:
         """First tau in (tau_from, tau_to] where the flight reaches the stop, or None."""
         coeffs = self._flight_coeffs(ph)
-        y0, v0, k_pos, _ = coeffs
+        y0, _v0, k_pos, _ = coeffs
         hom_amp = math.hypot(y0, k_pos)  # amplitude of the homogeneous position at the flight start
         ctx = (ph, coeffs, hom_amp)
         self._refinements = 0
@@ -339,7 +339,7 @@ class OscillatorReference:
 
     def _cleared(self, ctx, tl, tr, g, gd) -> np.ndarray:
         """True where x < x_max is certain on (tl, tr] (arrays), from the quadratic upper bound."""
-        ph, coeffs, hom_amp = ctx
+        ph, _coeffs, hom_amp = ctx
         length = tr - tl
         C = hom_amp * np.exp(-self.a * tl) * self.omega ** 3 + self.p_amp * self.frequency ** 3
         gdd = self._accel(ph.t + tl, g + self.x_max, gd)
@@ -372,7 +372,7 @@ class OscillatorReference:
         g_l, gd, g_r = float(g_l), float(gd), float(g_r)
         length = tr - tl
         C = hom_amp * math.exp(-self.a * tl) * self.omega ** 3 + self.p_amp * self.frequency ** 3
-        gdd = float(self._accel(ph.t + tl, g_l + self.x_max, gd))
+        gdd = float(self._accel(ph.t + tl, g_l + self._stop, gd))
         if _bound_clears(g_l, gd, gdd + C * length, length):
             return None
         if g_l < 0 <= g_r:
@@ -387,6 +387,13 @@ class OscillatorReference:
         return root if root is not None else self._refine(ctx, mid, tr)
 
     # -- queries -------------------------------------------------------------------------------
+    @property
+    def _stop(self) -> float:
+        """x_max (m), in the code of impacts and rest, which runs only for an oscillator with a stop."""
+        if self.x_max is None:
+            raise SimulationError("oscillator reference: an impact without a stop (x_max is None)")
+        return self.x_max
+
     def states(self, times: Iterable[float] | float) -> np.ndarray:
         """Exact states (x, xd) at ``times`` (s), shape (len, 2); right-continuous at impacts
         (the state at an impact time is the reset image)."""
@@ -409,12 +416,12 @@ class OscillatorReference:
         """Exact state (x, xd) at time t (s)."""
         return self.states([t])[0]
 
-    def position(self, t: Iterable[float] | float) -> np.ndarray | float:
+    def position(self, t: Sequence[float] | np.ndarray | float) -> np.ndarray | float:
         """Exact position x(t) (m), for a float or an array of times."""
         out = self.states(t)[:, 0]
         return float(out[0]) if np.ndim(t) == 0 else out
 
-    def velocity(self, t: Iterable[float] | float) -> np.ndarray | float:
+    def velocity(self, t: Sequence[float] | np.ndarray | float) -> np.ndarray | float:
         """Exact velocity xd(t) (m/s)."""
         out = self.states(t)[:, 1]
         return float(out[0]) if np.ndim(t) == 0 else out
