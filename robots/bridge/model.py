@@ -62,6 +62,12 @@ class BridgeModel:
         return list(self.contacts)
 
     @property
+    def coulomb(self) -> bool:
+        """Whether some contact has Coulomb friction (its strikes then choose stuck or slipping
+        outcomes, ``friction``)."""
+        return any(r.mu is not None for r in self.rigid.values())
+
+    @property
     def timed(self) -> bool:
         """Whether constraint forces depend on the control: they do only through actuated joints."""
         return bool(self.actuated_idx.size)
@@ -100,6 +106,9 @@ class BridgeData:
     pin_data: pin.Data
     counts: dict[str, int]
     modes: dict[str, ModeScratch] = field(default_factory=dict)
+    #: The control of the last dynamics evaluation: what a joint impact (resolved by the
+    #: integrator without a control) takes for the post-impact contact forces.
+    last_control: Any = None
 
     @classmethod
     def create(cls, model: BridgeModel) -> BridgeData:

@@ -7,17 +7,26 @@
   ``graze_<name>`` into the mode without it (plastic guards, ``impacts``); with c > 0,
   ``bounce_<name>`` back into the mode without it, continued by ``rest_<name>`` (a plastic impact
   into the mode with it active) when its bounces accumulate (``legsim.relaxed.zeno``).
+
+When some contact has Coulomb friction (``friction``), every strike is resolved by the impact law
+with the friction cone and may lead to any mode its contacts can take: one transition per
+possible target (``friction.outcome_transitions``), named as above when the other contacts stay
+as they are (``touchdown_<c>``, ``graze_<c>``, ``bounce_<c>``) and ``<that name>@<target>``
+otherwise; a stuck contact with friction also has ``slip_<c>>`` / ``slip_<c><`` (its force
+reaching the cone's edge) and a slipping one ``stick_<c>`` (its slip velocity back through 0,
+with the same several outcomes).
 """
 
 from __future__ import annotations
 
 from legsim.hybrid import Continuation, Transition
 
-from .contacts import JointStop, SpringLeg
-from .guards import kinematic_guard, release_guard
+from . import friction
+from .contacts import SLIP_SUFFIX, JointStop, SpringLeg
+from .guards import kinematic_guard, kinematic_guards, release_guard
 from .impacts import impact_reset, plain_reset, plastic_guard
 from .model import BridgeData, BridgeModel
-from .modes import ModeCatalog, ModeSpec
+from .modes import ModeCatalog, ModeSpec, map_state
 
 
 def outgoing(model: BridgeModel, data: BridgeData, modes: ModeCatalog, spec: ModeSpec) -> list[Transition]:
@@ -30,6 +39,10 @@ def outgoing(model: BridgeModel, data: BridgeData, modes: ModeCatalog, spec: Mod
             out.append(_leg_transition(model, data, modes, spec, cname))
         elif cname in active:
             out.append(_release_transition(model, data, modes, spec, cname))
+            if model.rigid[cname].mu is not None:
+                out.extend(_friction_transitions(model, data, modes, spec, cname))
+        elif model.coulomb:
+            out.extend(_coulomb_strikes(model, data, modes, spec, cname))
         else:
             out.extend(_strike_transitions(model, data, modes, spec, cname))
     return out
@@ -83,3 +96,71 @@ def _strike_transitions(model: BridgeModel, data: BridgeData, modes: ModeCatalog
                         name=f"rest_{contact}")
     return [Transition(spec.name, free.name, kinematic_guard(model, data, spec, contact), bounce_reset,
                        name=f"bounce_{contact}", continuation=rest)]
+
+
+def _replaced(modes: ModeCatalog, spec: ModeSpec, contact: str, new_entry: str) -> str:
+    """The mode of ``spec`` with ``contact``'s entry replaced by ``new_entry``."""
+    return modes.name_of([new_entry if c == contact else e for e, c in zip(spec.entries, spec.active)])
+
+
+def _friction_transitions(model: BridgeModel, data: BridgeData, modes: ModeCatalog, spec: ModeSpec,
+                          contact: str) -> list[Transition]:
+    """A stuck contact's ``slip_<c>>`` and ``slip_<c><``; a slipping contact's ``stick_<c>``."""
+    slip = spec.rigid_of(contact).slip
+    args = model.guard_args
+    if not slip:
+        out = []
+        for s, suffix in SLIP_SUFFIX.items():
+            value = friction.stick_slip_guard(model, data, spec, contact, s)
+            guard = (lambda t, x, u, value=value: value(x, u)) if model.timed else (lambda x, value=value: value(x, None))
+            out.append(Transition(spec.name, _replaced(modes, spec, contact, contact + suffix), guard, None,
+                                  name=f"slip_{contact}{suffix}", guard_args=args))
+        return out
+    involved = [r.contact.name for r in spec.rigid]
+    targets = friction.candidate_targets(model, modes, spec, involved)
+    canonical = _replaced(modes, spec, contact, contact)
+
+    def solve(x, u):
+        return friction.event_outcome(model, data, modes, spec, x, u, (), {}, stopping=(contact,))
+
+    def label(target: str) -> str:
+        return f"stick_{contact}" if target == canonical else f"stick_{contact}@{target}"
+
+    return friction.outcome_transitions(model, data, spec, targets, friction.slip_stop_guard(model, data, spec, contact),
+                                        solve, label)
+
+
+def _coulomb_strikes(model: BridgeModel, data: BridgeData, modes: ModeCatalog, spec: ModeSpec,
+                     contact: str) -> list[Transition]:
+    """The strike of ``contact`` in a robot with friction: one transition per possible target
+    (module docstring); a bouncing contact's canonical bounce is continued by its rest."""
+    c = model.contacts[contact]
+    released = [r for r in getattr(c, "releases", ()) if r in spec.active]
+    kept = [r.contact.name for r in spec.rigid if r.contact.name not in released]
+    bouncing = [contact] if c.restitution > 0.0 else []
+    targets = friction.candidate_targets(model, modes, spec, kept + [contact], bouncing, released)
+    staying = [e for e, a in zip(spec.entries, spec.active) if a not in released]
+    free, stuck = modes.name_of(staying), modes.name_of(staying + [contact])
+    kind = "bounce" if bouncing else ("impact" if isinstance(c, JointStop) else "touchdown")
+
+    def label(target: str) -> str:
+        if target in (free, stuck):
+            return f"{kind if target == stuck or bouncing else 'graze'}_{contact}"
+        landed = contact in modes.active_contacts(target)
+        return f"{kind if landed or bouncing else 'graze'}_{contact}@{target}"
+
+    def solve(x, u, rest=False):
+        return friction.event_outcome(model, data, modes, spec, x, u, (contact,),
+                                      {contact: 0.0 if rest else c.restitution})
+
+    def base(x, u):
+        return kinematic_guards(model, data, spec, x)[contact]
+
+    out = friction.outcome_transitions(model, data, spec, targets, base, solve, label)
+    if bouncing:
+        target = modes.spec(stuck)
+        rest = Continuation(stuck, lambda x: map_state(model, data, spec, target, x, solve(x, data.last_control, True)[1][model.n:2 * model.n]),
+                            name=f"rest_{contact}")
+        out = [Transition(tr.source, tr.target, tr.guard, tr.reset, tr.name, guard_args=tr.guard_args,
+                          continuation=rest if tr.target == free else None) for tr in out]
+    return out
