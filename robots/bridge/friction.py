@@ -238,7 +238,9 @@ def settle(model: BridgeModel, data: BridgeData, modes: ModeCatalog, src: ModeSp
     """The mode an impact leads to and the image there (module docstring): ``fixed``, the
     entries of ``src`` the impact leaves as they are; the engaged contacts that end on the
     ground (plastic), stuck or slipping with their velocity; then pulling contacts dropped and
-    stuck ones outside the cone slipping, one at a time."""
+    stuck ones outside the cone slipping, one at a time. The forces are taken under the control
+    the controller previews for each candidate mode at its image (``BridgeData.preview``), else
+    under u."""
     scale = 1.0 + float(np.max(np.abs(result.v_plus)))
     slips: dict[str, float] = {}
     for e in result.engaged:
@@ -249,7 +251,8 @@ def settle(model: BridgeModel, data: BridgeData, modes: ModeCatalog, src: ModeSp
     for _ in range(3 * len(result.engaged) + 3):
         dst = modes.spec(modes.name_of(list(fixed) + [entry(c, s) for c, s in slips.items()]))
         image = map_state(model, data, src, dst, x, result.v_plus)
-        change = _force_change(model, data, dst, image, u, slips)
+        control = u if data.preview is None else data.preview(dst.name, data.last_time, image)
+        change = _force_change(model, data, dst, image, control, slips)
         if change is None:
             return dst, image
         name, slip = change
@@ -345,18 +348,20 @@ def outcome_transitions(model: BridgeModel, data: BridgeData, spec: ModeSpec, ta
         return cache["value"]
 
     def make(target: str) -> Transition:
-        def value(x: np.ndarray, u: Any) -> float:
+        def value(x: np.ndarray, u: Any, t: float = 0.0) -> float:
             b = base(x, u)
             if b >= 0.0:
                 return b
+            data.remember_control(x, u)
+            data.last_time = t
             return b if outcome(x, u)[0].name == target else -b
 
         def reset(x: np.ndarray) -> np.ndarray:
             if cache.get("x") == x.tobytes():  # the guard was evaluated at this state: its outcome
                 return cache["value"][1].copy()
-            return outcome(x, data.last_control)[1].copy()
+            return outcome(x, data.control_at(x))[1].copy()
 
-        guard = (lambda t, x, u: value(x, u)) if model.timed else (lambda x: value(x, None))
+        guard = (lambda t, x, u: value(x, u, t)) if model.timed else (lambda x: value(x, None))
         return Transition(spec.name, target, guard, reset, name=label(target), guard_args=model.guard_args)
 
     return [make(target) for target in targets]

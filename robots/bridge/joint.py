@@ -18,7 +18,8 @@ its own restitution c_i) gives ``v+ = v + M^-1 J^T Lambda``, ``Lambda = (J M^-1 
 Contacts that close in different steps are still taken one after the other; the window is one
 landing step's strip. A robot with Coulomb friction resolves them with the friction cone
 (``friction.event_outcome``: stuck or sliding impulses, then the mode whose contact forces are
-consistent), the post-impact forces taken under the control of the last field evaluation.
+consistent), the post-impact forces taken under the control the strike guards were evaluated
+with at x (``BridgeData.control_at``).
 """
 
 from __future__ import annotations
@@ -117,7 +118,7 @@ def resolve(model: BridgeModel, data: BridgeData, modes: ModeCatalog, mode: str,
     src = modes.spec(mode)
     if model.coulomb:
         restitution = {name: 0.0 if rest else model.contacts[name].restitution for name in strikers}
-        dst, image = event_outcome(model, data, modes, src, x, data.last_control, strikers, restitution)
+        dst, image = event_outcome(model, data, modes, src, x, data.control_at(x), strikers, restitution)
         return JointCrossing(f"{'rest' if rest else 'joint'}_{'+'.join(strikers)}", dst.name, image)
     released = {r for name in strikers for r in getattr(model.contacts[name], "releases", ())}
     staying = [c for c in src.active if c not in released]

@@ -159,7 +159,7 @@ def _coulomb_strikes(model: BridgeModel, data: BridgeData, modes: ModeCatalog, s
     out = friction.outcome_transitions(model, data, spec, targets, base, solve, label)
     if bouncing:
         target = modes.spec(stuck)
-        rest = Continuation(stuck, lambda x: map_state(model, data, spec, target, x, solve(x, data.last_control, True)[1][model.n:2 * model.n]),
+        rest = Continuation(stuck, lambda x: map_state(model, data, spec, target, x, solve(x, data.control_at(x), True)[1][model.n:2 * model.n]),
                             name=f"rest_{contact}")
         out = [Transition(tr.source, tr.target, tr.guard, tr.reset, tr.name, guard_args=tr.guard_args,
                           continuation=rest if tr.target == free else None) for tr in out]
