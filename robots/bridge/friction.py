@@ -237,10 +237,7 @@ def settle(model: BridgeModel, data: BridgeData, modes: ModeCatalog, src: ModeSp
            fixed: Sequence[str], result: ImpactResult, u: Any) -> tuple[ModeSpec, np.ndarray]:
     """The mode an impact leads to and the image there (module docstring): ``fixed``, the
     entries of ``src`` the impact leaves as they are; the engaged contacts that end on the
-    ground (plastic), stuck or slipping with their velocity; then pulling contacts dropped and
-    stuck ones outside the cone slipping, one at a time. The forces are taken under the control
-    the controller previews for each candidate mode at its image (``BridgeData.preview``), else
-    under u."""
+    ground (plastic), stuck or slipping with their velocity; then ``settle_slips``."""
     scale = 1.0 + float(np.max(np.abs(result.v_plus)))
     slips: dict[str, float] = {}
     for e in result.engaged:
@@ -248,11 +245,32 @@ def settle(model: BridgeModel, data: BridgeData, modes: ModeCatalog, src: ModeSp
             continue
         vt = result.velocity[e.name][0]
         slips[e.name] = float(np.sign(vt)) if e.status == SLIDE and abs(vt) > TOL * scale else 0.0
-    for _ in range(3 * len(result.engaged) + 3):
+    return settle_slips(model, data, modes, src, x, result.v_plus, fixed, slips, u)
+
+
+def settle_slips(model: BridgeModel, data: BridgeData, modes: ModeCatalog, src: ModeSpec, x: np.ndarray,
+                 v_new: np.ndarray | None, fixed: Sequence[str], slips: dict[str, float],
+                 u: Any) -> tuple[ModeSpec, np.ndarray]:
+    """From the rigid contacts ``slips`` (name -> slip direction, 0: stuck) and the ``fixed``
+    entries, with velocity ``v_new`` (None: x's), the mode whose contact forces are consistent:
+    pulling contacts dropped and stuck ones outside the cone slipping, one change at a time. The
+    forces are taken under the control the controller previews for each candidate mode at its
+    image (``BridgeData.preview``), else under u. Where slipping has no consistent forces (the
+    Painleve paradox: pushing on a slipping point would drive it into the ground), the slipping
+    contacts stick instead, their slip stopped by a tangential impulse: the resolution of the
+    paradox by an impact without collision (Genot and Brogliato, 1999); counted in
+    ``painleve_sticks``."""
+    for _ in range(3 * len(slips) + 3):
         dst = modes.spec(modes.name_of(list(fixed) + [entry(c, s) for c, s in slips.items()]))
-        image = map_state(model, data, src, dst, x, result.v_plus)
+        image = map_state(model, data, src, dst, x, v_new)
         control = u if data.preview is None else data.preview(dst.name, data.last_time, image)
-        change = _force_change(model, data, dst, image, control, slips)
+        try:
+            change = _force_change(model, data, dst, image, control, slips)
+        except ModelBreakdown:
+            if not dst.slipping:
+                raise
+            v_new = _stick_all(model, data, slips, x, v_new)
+            continue
         if change is None:
             return dst, image
         name, slip = change
@@ -261,6 +279,32 @@ def settle(model: BridgeModel, data: BridgeData, modes: ModeCatalog, src: ModeSp
         else:
             slips[name] = slip
     return dst, image
+
+
+def _stick_all(model: BridgeModel, data: BridgeData, slips: dict[str, float], x: np.ndarray,
+               v_new: np.ndarray | None) -> np.ndarray:
+    """The velocity after every slipping contact of ``slips`` is stopped (and set stuck there) by
+    an impulse that keeps every contact of ``slips`` on the ground."""
+    n = model.n
+    v = x[n:2 * n] if v_new is None else v_new
+    engaged = [Engaged(model.rigid[c], 0.0, STICK if model.rigid[c].rows == 2 else NORMAL, held=True) for c in slips]
+    for c in slips:
+        slips[c] = 0.0
+    data.counts["painleve_sticks"] += 1
+    return frictional_impact(model, data, engaged, x[:n], v).v_plus
+
+
+def mode_change(model: BridgeModel, data: BridgeData, modes: ModeCatalog, spec: ModeSpec, x: np.ndarray, u: Any,
+                contact: str, slip: float | None) -> tuple[ModeSpec, np.ndarray]:
+    """The mode after ``contact`` lifts off (``slip`` None) or starts slipping towards ``slip``
+    in mode ``spec`` at x, the others then settled under their new control (no impulse)."""
+    fixed = [e for e, c in zip(spec.entries, spec.active) if c not in model.rigid]
+    slips = {r.contact.name: r.slip for r in spec.rigid}
+    if slip is None:
+        del slips[contact]
+    else:
+        slips[contact] = slip
+    return settle_slips(model, data, modes, spec, x, None, fixed, slips, u)
 
 
 def _force_change(model: BridgeModel, data: BridgeData, dst: ModeSpec, image: np.ndarray, u: Any,
@@ -296,7 +340,13 @@ def event_outcome(model: BridgeModel, data: BridgeData, modes: ModeCatalog, spec
             if r.contact.name not in released and r.contact.name not in strikers and r.contact.name not in stopping]
     fixed = [e for e, c in zip(spec.entries, spec.active) if c not in model.rigid]
     engaged = engage(model, spec, kept, strikers, restitution, (q, v), data)
-    engaged += [Engaged(model.rigid[c], 0.0, STICK, held=True) for c in stopping]
+    if stopping:
+        # Coming to rest is continuous: the impact only removes the residual slip velocity the
+        # strip leaves (O(eps)), so every contact keeps its constraint through it and the
+        # forces after it decide the mode.
+        for e in engaged:
+            e.held = True
+        engaged += [Engaged(model.rigid[c], 0.0, STICK, held=True) for c in stopping]
     result = frictional_impact(model, data, engaged, q, v)
     return settle(model, data, modes, spec, x, fixed, result, u)
 
@@ -354,7 +404,10 @@ def outcome_transitions(model: BridgeModel, data: BridgeData, spec: ModeSpec, ta
                 return b
             data.remember_control(x, u)
             data.last_time = t
-            return b if outcome(x, u)[0].name == target else -b
+            dst, image = outcome(x, u)
+            if dst.name == spec.name and np.array_equal(image, x):
+                return -b  # nothing strikes (a point grazing the ground without approaching it)
+            return b if dst.name == target else -b
 
         def reset(x: np.ndarray) -> np.ndarray:
             if cache.get("x") == x.tobytes():  # the guard was evaluated at this state: its outcome

@@ -119,6 +119,8 @@ def resolve(model: BridgeModel, data: BridgeData, modes: ModeCatalog, mode: str,
     if model.coulomb:
         restitution = {name: 0.0 if rest else model.contacts[name].restitution for name in strikers}
         dst, image = event_outcome(model, data, modes, src, x, data.control_at(x), strikers, restitution)
+        if dst.name == mode and np.array_equal(image, x):
+            return None  # none of them approaches the ground at x: they are crossed one by one
         return JointCrossing(f"{'rest' if rest else 'joint'}_{'+'.join(strikers)}", dst.name, image)
     released = {r for name in strikers for r in getattr(model.contacts[name], "releases", ())}
     staying = [c for c in src.active if c not in released]

@@ -24,7 +24,7 @@ from .contacts import Contact, LegFrames, RigidContact, declared_contacts, finit
 LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 
 COUNTERS = ("aba", "kkt", "jacobians", "kinematics", "spring_forces", "damping_evals", "actuation_evals",
-            "impacts", "energy_evals", "cache_hits")
+            "impacts", "energy_evals", "cache_hits", "painleve_sticks")
 
 
 @dataclass(frozen=True, eq=False)

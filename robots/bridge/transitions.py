@@ -37,10 +37,10 @@ def outgoing(model: BridgeModel, data: BridgeData, modes: ModeCatalog, spec: Mod
     for cname, c in model.contacts.items():
         if isinstance(c, SpringLeg):
             out.append(_leg_transition(model, data, modes, spec, cname))
+        elif cname in active and model.coulomb:
+            out.extend(_settled_changes(model, data, modes, spec, cname))
         elif cname in active:
             out.append(_release_transition(model, data, modes, spec, cname))
-            if model.rigid[cname].mu is not None:
-                out.extend(_friction_transitions(model, data, modes, spec, cname))
         elif model.coulomb:
             out.extend(_coulomb_strikes(model, data, modes, spec, cname))
         else:
@@ -103,31 +103,51 @@ def _replaced(modes: ModeCatalog, spec: ModeSpec, contact: str, new_entry: str) 
     return modes.name_of([new_entry if c == contact else e for e, c in zip(spec.entries, spec.active)])
 
 
-def _friction_transitions(model: BridgeModel, data: BridgeData, modes: ModeCatalog, spec: ModeSpec,
-                          contact: str) -> list[Transition]:
-    """A stuck contact's ``slip_<c>>`` and ``slip_<c><``; a slipping contact's ``stick_<c>``."""
-    slip = spec.rigid_of(contact).slip
-    args = model.guard_args
-    if not slip:
-        out = []
-        for s, suffix in SLIP_SUFFIX.items():
-            value = friction.stick_slip_guard(model, data, spec, contact, s)
-            guard = (lambda t, x, u, value=value: value(x, u)) if model.timed else (lambda x, value=value: value(x, None))
-            out.append(Transition(spec.name, _replaced(modes, spec, contact, contact + suffix), guard, None,
-                                  name=f"slip_{contact}{suffix}", guard_args=args))
-        return out
+def _settled_changes(model: BridgeModel, data: BridgeData, modes: ModeCatalog, spec: ModeSpec,
+                     contact: str) -> list[Transition]:
+    """The changes of an active rigid contact in a robot with friction, each leading to the mode
+    whose forces are consistent under the controller's new control (``friction.mode_change``):
+    ``liftoff_<c>`` / ``release_<c>`` (its normal force through 0); for a stuck contact with
+    friction ``slip_<c>>`` and ``slip_<c><`` (its force at the cone's edge); for a slipping one
+    ``stick_<c>`` (its slip velocity back through 0)."""
     involved = [r.contact.name for r in spec.rigid]
     targets = friction.candidate_targets(model, modes, spec, involved)
-    canonical = _replaced(modes, spec, contact, contact)
+    kind = "release" if isinstance(model.contacts[contact], JointStop) else "liftoff"
+    guard, _ = release_guard(model, data, spec, spec.normal_row(contact))
+    lift = (lambda x, u: guard(0.0, x, u)) if model.timed else (lambda x, u: guard(x))
+    out = _changes(model, data, spec, targets, lift, kind, contact, None, modes)
+    slip = spec.rigid_of(contact).slip
+    if model.rigid[contact].mu is None:
+        return out
+    if not slip:
+        for s, suffix in SLIP_SUFFIX.items():
+            base = friction.stick_slip_guard(model, data, spec, contact, s)
+            out += _changes(model, data, spec, targets, base, f"slip", contact, s, modes, suffix)
+        return out
 
     def solve(x, u):
         return friction.event_outcome(model, data, modes, spec, x, u, (), {}, stopping=(contact,))
 
-    def label(target: str) -> str:
-        return f"stick_{contact}" if target == canonical else f"stick_{contact}@{target}"
+    canonical = _replaced(modes, spec, contact, contact)
+    return out + friction.outcome_transitions(
+        model, data, spec, targets, friction.slip_stop_guard(model, data, spec, contact), solve,
+        lambda target: f"stick_{contact}" if target == canonical else f"stick_{contact}@{target}")
 
-    return friction.outcome_transitions(model, data, spec, targets, friction.slip_stop_guard(model, data, spec, contact),
-                                        solve, label)
+
+def _changes(model: BridgeModel, data: BridgeData, spec: ModeSpec, targets: list[str], base, kind: str,
+             contact: str, slip: float | None, modes: ModeCatalog, suffix: str = "") -> list[Transition]:
+    """Outcome transitions of a contact lifting off (slip None) or starting to slip."""
+    canonical = _replaced(modes, spec, contact, contact + suffix) if slip is not None else \
+        modes.name_of([e for e, c in zip(spec.entries, spec.active) if c != contact])
+
+    def solve(x, u):
+        return friction.mode_change(model, data, modes, spec, x, u, contact, slip)
+
+    def label(target: str) -> str:
+        name = f"{kind}_{contact}{suffix}"
+        return name if target == canonical else f"{name}@{target}"
+
+    return friction.outcome_transitions(model, data, spec, targets, base, solve, label)
 
 
 def _coulomb_strikes(model: BridgeModel, data: BridgeData, modes: ModeCatalog, spec: ModeSpec,

@@ -19,11 +19,11 @@ CONTACTS = [{"name": "hind", "frame": "hind_foot", "friction": 0.8}, {"name": "f
 
 def hand_built_quadruped() -> pin.Model:
     """The bundled quadruped from its numbers (scenarios/quadruped.urdf), with Pinocchio's API:
-    body 5 kg, thighs 0.4 kg and shanks 0.15 kg of 0.25 m, hips at x = -+0.3 m. Joints in the
+    body 5 kg (pitch inertia 0.45 kg m^2), thighs 0.4 kg and shanks 0.15 kg of 0.25 m, hips at x = -+0.3 m. Joints in the
     parser's order (front before hind: Pinocchio visits a link's children by name)."""
     model = pin.Model()
     body = planar_floating_base(model, names=("x", "z", "pitch"))
-    model.appendBodyToJoint(body, pin.Inertia(5.0, np.zeros(3), np.diag([0.02, 0.27, 0.27])), pin.SE3.Identity())
+    model.appendBodyToJoint(body, pin.Inertia(5.0, np.zeros(3), np.diag([0.02, 0.45, 0.45])), pin.SE3.Identity())
     for side, x in (("front", 0.3), ("hind", -0.3)):
         hip = model.addJoint(body, pin.JointModelRY(), pin.SE3(np.eye(3), np.array([x, 0, 0])), f"{side}_hip")
         model.appendBodyToJoint(hip, pin.Inertia(0.4, np.array([0, 0, -0.125]), np.diag([0.0021, 0.0021, 0.0001])),
