@@ -15,9 +15,10 @@ the state:
 
 ``RunnerRaibert`` drives articulated legs (a hip and a knee per leg, a point foot): the flight
 posture by a joint PD with gravity compensation on the inverse kinematics of the foot placement,
-the stance spring through the leg Jacobian (tau = J^T f). ``SpringRaibert`` drives the
-massless spring legs of the SLIP and the pronk, whose flight angle, rest length and hip torque
-are the control (``SpringLeg(actuated=True)``).
+the stance spring through the leg Jacobian (tau = J^T f). ``SlipRaibert`` drives the SLIP
+hopper (``robots/slip_hopper.py``): its control is the massless leg's swing rate in flight, a
+servo to the foot placement's leg angle; its spring is passive and the SLIP conserves energy,
+so its hopping height needs no thrust (it trades with the speed).
 """
 
 from __future__ import annotations
@@ -266,3 +267,48 @@ def _make_runner(model: Model, params: dict[str, Any]) -> RunnerRaibert:
 
 RUNNER = ControllerSpec("raibert_runner", "Raibert's controller for articulated legs: foot placement, thrust, "
                                           "attitude by the stance hips", RUNNER_PARAMETERS, _make_runner)
+
+
+class SlipRaibert(Controller):
+    """Raibert's foot placement for the SLIP hopper: in flight the leg swings at
+    ``k_swing (psi* - psi)`` (rad/s) to ``psi* = asin((xd T_s / 2 + k_x (xd - xd*)) / l)``, T_s the
+    last stance's duration (s), measured at each liftoff (``reset``); 0 in stance."""
+
+    def __init__(self, l: float, speed: float, k_x: float, k_swing: float, stance_time: float) -> None:
+        self.l, self.speed, self.k_x, self.k_swing = l, speed, k_x, k_swing
+        self.stance_time, self.touchdown, self.in_stance = stance_time, 0.0, False
+
+    def reset(self, mode: str, t: float, x: np.ndarray) -> None:
+        if mode == "stance" and not self.in_stance:
+            self.touchdown = t
+        elif mode == "flight" and self.in_stance:
+            self.stance_time = t - self.touchdown
+        self.in_stance = mode == "stance"
+
+    def target_angle(self, xd: float) -> float:
+        """The touchdown leg angle psi* (rad) at forward speed xd (m/s)."""
+        ahead = xd * self.stance_time / 2 + self.k_x * (xd - self.speed)
+        return math.asin(max(-0.9, min(0.9, ahead / self.l)))
+
+    def __call__(self, mode: str, t: float, x: np.ndarray) -> np.ndarray:
+        if mode != "flight":
+            return np.zeros(1)
+        return np.array([self.k_swing * (self.target_angle(x[3]) - x[2])])
+
+
+def _make_slip(model: Model, params: dict[str, Any]) -> SlipRaibert:
+    hopper = model.info.get("slip_hopper") if isinstance(model.info, dict) else None
+    if hopper is None:
+        raise SceneError(f"controller 'raibert_slip' drives the SLIP hopper (robot 'slip_hopper'); "
+                         f"{model.system.name} is not one")
+    stance_time = params["stance_time"] or math.pi * math.sqrt(hopper["m"] / hopper["k"])
+    return SlipRaibert(hopper["l"], params["speed"], params["k_x"], params["k_swing"], stance_time)
+
+
+SLIP = ControllerSpec("raibert_slip", "Raibert's foot placement for the SLIP hopper (its leg's swing rate in flight)",
+                      {"speed": Param(3.0, "commanded forward speed xd*", "m/s"),
+                       "k_x": Param(0.05, "foot placement gain (m per m/s of speed error)", "s", low=0.0),
+                       "k_swing": Param(20.0, "leg swing servo gain", "1/s", low=0.0, low_open=True),
+                       "stance_time": Param(0.0, "stance duration assumed before the first liftoff; 0: "
+                                                 "half the spring-mass period, pi sqrt(m/k)", "s", low=0.0)},
+                      _make_slip)
