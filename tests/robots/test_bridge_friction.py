@@ -2,7 +2,7 @@
 on a slope (stick/slip threshold at tan(theta) = mu, slide distance and time), the slip onset
 under a growing push, a rod falling from upright until its foot slips, impacts with the friction
 cone (Pinocchio's impulse dynamics inside it, Newton's laws for a sliding impact), and impacts
-never adding kinetic energy."""
+never adding kinetic energy, the Painleve paradox resolved by a tangential impulse."""
 
 import math
 
@@ -12,9 +12,9 @@ import pytest
 from scipy.optimize import brentq
 
 from legsim import simulate
-from legsim.errors import ModelError
+from legsim.errors import ModelBreakdown, ModelError
 from legsim.robots.bridge import ContactBridge, PointContact, add_point_frame, planar_floating_base
-from legsim.robots.bridge.friction import Engaged, frictional_impact
+from legsim.robots.bridge.friction import Engaged, frictional_impact, mode_change
 
 G = 9.81
 LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
@@ -231,3 +231,26 @@ def test_friction_declarations_are_checked():
         ContactBridge(model, [PointContact("p", "p", friction=0.5, tangential=False)])
     with pytest.raises(ModelError, match="may not contain '<' or '>'"):
         ContactBridge(model, [PointContact("p>", "p", friction=0.5)])
+
+
+def test_a_slip_without_consistent_forces_is_stopped_by_a_tangential_impulse():
+    """Painleve: a rod (inertia m a^2 / 3 about its centre, a = L / 2) slipping on its end
+    towards -x while leaning towards +x by theta has the Delassus diagonal
+    (1 + 3 sin^2 theta - 3 mu sin theta cos theta) / m, negative for mu = 2 at theta = 0.8:
+    the slipping mode has no contact forces (ModelBreakdown names the paradox), and a slip onset
+    into it is resolved by sticking the end with a tangential impulse, which adds no energy."""
+    mu, theta = 2.0, 0.8
+    diagonal = 1 + 3 * math.sin(theta) ** 2 - 3 * mu * math.sin(theta) * math.cos(theta)  # m = 1 kg
+    assert diagonal < 0
+    bridge = rod(mu)
+    model, data, modes = bridge._model, bridge._data, bridge._modes
+    x = np.array([0.5 * math.sin(theta), 0.5 * math.cos(theta), theta, -0.1, 0.0, 0.0])  # the end slides at -0.1 m/s
+    with pytest.raises(ModelBreakdown, match=rf"Delassus matrix \[\[{diagonal:.6f}\]\]: the Painleve paradox"):
+        bridge.constraint_forces("foot<", x)
+    dst, image = mode_change(model, data, modes, modes.spec("foot"), x, None, "foot", -1.0)
+    assert dst.name == "foot" and data.counts["painleve_sticks"] == 1
+    q, v = image[:3], image[3:]
+    J = pin.computeFrameJacobian(bridge.model, bridge.data, q, model.rigid["foot"].frame_id, LWA)
+    np.testing.assert_allclose(J[[0, 2]] @ v, 0.0, atol=1e-12)  # the end stopped
+    M = pin.crba(bridge.model, bridge.data, q)
+    assert v @ M @ v <= x[3:] @ M @ x[3:]
