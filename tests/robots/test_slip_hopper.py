@@ -1,6 +1,6 @@
 """The SLIP hopper (robots/slip_hopper.py) and Raibert's foot placement for it
 (raibert.SlipRaibert): uncontrolled it is the bridge's SLIP; controlled it runs 100 hops and
-tracks the commanded speed, conserving energy."""
+tracks the commanded speed, conserving energy, on a stable periodic gait."""
 
 import math
 
@@ -9,6 +9,7 @@ import pytest
 
 from legsim import simulate
 from legsim.errors import SceneError
+from legsim.orbits import OrbitProblem, Section, find_orbit
 from legsim.robots import raibert, slip, slip_hopper
 from legsim.scene import load_scene
 
@@ -54,3 +55,24 @@ def test_raibert_slip_tracks_the_commanded_speed_over_100_hops():
 def test_raibert_slip_needs_the_hopper():
     with pytest.raises(SceneError, match="slip_hopper"):
         raibert.SLIP.build(slip.make(), {})
+
+
+def test_raibert_slip_gait_is_a_stable_periodic_orbit():
+    """`legsim.orbits` on the controlled hopper (apex section, the scene's energy): the periodic
+    gait's apex speed is the speed the 100-hop run settles at, its period the run's hop time,
+    and its multipliers, besides the energy's 1, lie inside the unit circle. The controller's
+    stance time T_s is held at its value on the gait (there the orbit is the closed loop's; the
+    multipliers are those of the foot placement with T_s frozen)."""
+    scene = load_scene("slip_raibert")
+    ex = scene.simulate()
+    controller = scene.controller
+    touchdowns = [tr for tr in ex.transitions if tr.name == "touchdown"]
+    problem = OrbitProblem(scene.model.system, Section.level("flight", "zd", 0.0, direction=-1), 1e-3, 1e-4, "rk4",
+                           t_max=2.0, control=lambda t, x: controller("flight", t, x), cyclic=["x"],
+                           energy=scene.model.system.energy("flight", scene.initial_state), trivial_multipliers=1)
+    orbit = find_orbit(problem, {"x": 0.0, "z": 1.2, "psi": 0.1, "xd": 1.4, "zd": 0.0})
+    assert orbit.converged and orbit.stable
+    assert orbit.fixed_point[3] == pytest.approx(touchdowns[-1].state_before[3], abs=1e-6)
+    assert orbit.period == pytest.approx(touchdowns[-1].time - touchdowns[-2].time, abs=2e-3)
+    moduli = sorted(abs(orbit.multipliers))
+    assert moduli[-1] == pytest.approx(1.0, abs=1e-6) and moduli[-2] < 0.5
