@@ -31,7 +31,8 @@ class Param:
 
     ``low``/``high`` bound numbers (inclusive unless ``low_open``/``high_open``);
     ``choices`` restricts strings. The type is the default's type (int is accepted where a
-    float is expected, bool never is).
+    float is expected, bool never is). ``path``: the string is a file path, which a scene
+    resolves against its own folder (and checks that the file exists).
     """
 
     default: Any
@@ -42,6 +43,7 @@ class Param:
     low_open: bool = False
     high_open: bool = False
     choices: tuple[Any, ...] | None = None
+    path: bool = False
 
     def allowed(self) -> str:
         """Human description of the allowed values (for error messages and docs)."""

@@ -315,6 +315,7 @@ def _validate(path: Path, data: dict[str, Any], overrides: list[str]) -> Scene:
     # Builder.make would do these two steps too; they are done here so that the scene keeps the
     # resolved values (for recordings and tools) and the builder runs once.
     resolved_params = resolve_parameters(builder.parameters, parameters, f"{where}: robot.parameters")
+    _scene_relative_files(path, builder, resolved_params)
     chosen = builders.resolve_effects(builder.effects, effects_t, f"{where}: effects")
     try:
         model = builder.build(resolved_params, chosen)
@@ -337,6 +338,21 @@ def _validate(path: Path, data: dict[str, Any], overrides: list[str]) -> Scene:
                  parameters=resolved_params, effects=chosen, model=model, initial_mode=initial_mode,
                  initial_state=initial_state, integrator=integrator, output=output, sections=sections,
                  data=data, overrides=overrides, controller=controller)
+
+
+def _scene_relative_files(path: Path, builder: Builder, params: dict[str, Any]) -> None:
+    """File parameters (``Param(path=True)``) resolved against the scene's folder, in place;
+    a missing file is an error naming the field."""
+    for name, param in builder.parameters.items():
+        value = params.get(name)
+        if not param.path or not isinstance(value, str) or not value:
+            continue
+        file = Path(value).expanduser()
+        file = file if file.is_absolute() else path.parent / file
+        if not file.is_file():
+            raise field_error(path, f"robot.parameters.{name}", f"no such file {value!r} (a relative path is read "
+                                                               f"from the scene's folder {path.parent})")
+        params[name] = str(file)
 
 
 def _integrator(path: Path, table: dict[str, Any]) -> dict[str, Any]:

@@ -111,6 +111,11 @@ class ContactBridge:
         return self._model.actuated_idx
 
     @property
+    def actuated_dofs(self) -> np.ndarray:
+        """Velocity index of each actuated joint, in the order of the control's entries."""
+        return self._model.actuated_idx.copy()
+
+    @property
     def contacts(self) -> tuple[Contact, ...]:
         """The contacts, in declared order."""
         return tuple(self._model.contacts.values())
@@ -243,6 +248,14 @@ class ContactBridge:
         resolved under one impact law (``joint``; ``rest``: all plastic, their bounces having
         accumulated), or None to take them one after the other."""
         return resolve(self._model, self._data, self._modes, mode, names, x, rest)
+
+    def attach_control(self, preview: Callable[[str, float, np.ndarray], Any] | None) -> None:
+        """Tell the bridge the control each mode will get: ``preview(mode, t, x) -> u`` (without
+        changing the controller's state). After an impact the bridge then chooses the mode whose
+        contact forces are consistent under that control (a controller whose output depends on
+        the mode, or on velocities an impact changes, needs this); without it they are taken
+        under the control the impact guard was evaluated with."""
+        self._data.preview = preview
 
     def counters(self) -> dict[str, int]:
         """Model-side evaluation counts since construction (or the last ``reset_counters``):

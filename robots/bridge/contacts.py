@@ -31,6 +31,13 @@ class PointContact:
     ground: ground height (m).
     tangential: True pins the point (no slip, x and z constrained); False constrains z only
         (frictionless sliding).
+    friction: Coulomb friction coefficient mu >= 0, or None (the default) for no friction
+        limit (a tangential contact then never slips). With mu the active contact is in one
+        of three modes: stuck (``<name>``: x and z constrained, while the tangential force
+        stays inside the cone |lambda_t| <= mu lambda_n), slipping towards +x (``<name>>``)
+        or towards -x (``<name><``) (z constrained, friction force -s mu lambda_n on the
+        point, s the slip direction); see ``legsim.robots.bridge.friction``. Needs
+        ``tangential=True``.
     releases: names of contacts that become inactive when this one strikes.
     armed: optional ``armed(q, v) -> float``: the touchdown only counts where it is > 0 (for a
         compass gait's swing foot, how far it is ahead of the stance foot, m, so that the scuff
@@ -46,6 +53,12 @@ class PointContact:
     tangential: bool = True
     releases: tuple[str, ...] = ()
     armed: Callable[[np.ndarray, np.ndarray], float] | None = None
+    friction: float | None = None
+
+
+#: Suffixes of a Coulomb contact's slipping modes: ``<name>>`` slips towards +x, ``<name><``
+#: towards -x; the stuck contact is named by its name alone.
+SLIP_SUFFIX = {1.0: ">", -1.0: "<"}
 
 
 @dataclass(frozen=True)
@@ -107,6 +120,8 @@ class RigidContact:
     dof: velocity index of a stop's joint (-1 for a point contact).
     sign: +1 for a lower stop, -1 for an upper one: ``sign * (q - position) >= 0`` inside.
     rows: constraint Jacobian rows (2 for a sticking point, else 1); the normal row is the last.
+    slip: in a mode where a Coulomb contact slips, the slip direction s (+1: towards +x, -1:
+        towards -x), and then one row (the normal); 0 otherwise.
     """
 
     contact: PointContact | JointStop
@@ -115,6 +130,12 @@ class RigidContact:
     dof: int = -1
     sign: float = 1.0
     rows: int = 1
+    slip: float = 0.0
+
+    @property
+    def mu(self) -> float | None:
+        """The Coulomb friction coefficient of a point contact, or None (no friction limit)."""
+        return getattr(self.contact, "friction", None)
 
 
 @dataclass(frozen=True)
@@ -166,6 +187,9 @@ def declared_contacts(contacts: Sequence[Any], robot: str) -> dict[str, Contact]
             raise ModelError(f"{robot}: contacts must be PointContact, JointStop or SpringLeg, got {type(c).__name__}")
         if not isinstance(c.name, str) or not c.name or "+" in c.name:
             raise ModelError(f"{robot}: contact names must be non-empty strings without '+', got {c.name!r}")
+        if getattr(c, "friction", None) is not None and any(ch in c.name for ch in SLIP_SUFFIX.values()):
+            raise ModelError(f"{robot}: the name of a contact with friction may not contain '<' or '>' (they name "
+                             f"its slipping modes), got {c.name!r}")
         if c.name in out:
             raise ModelError(f"{robot}: duplicate contact name '{c.name}'")
         out[c.name] = c
@@ -217,6 +241,11 @@ def _resolve_point(model: pin.Model, c: PointContact, robot: str, where: str,
     for other in c.releases:
         if other not in declared or other == c.name:
             raise ModelError(f"{robot}: {where}: releases unknown contact {other!r} (contacts: {list(declared)})")
+    if c.friction is not None:
+        finite_number(c.friction, f"{robot}: {where}: friction", low=0.0)
+        if not c.tangential:
+            raise ModelError(f"{robot}: {where}: friction {c.friction!r} needs tangential=True (a contact with "
+                             f"tangential=False is frictionless)")
     return RigidContact(c, "point", frame_id=fid, rows=2 if c.tangential else 1)
 
 

@@ -19,7 +19,7 @@ from typing import Any, Sequence
 import numpy as np
 import pinocchio as pin
 
-from legsim.errors import ModelError
+from legsim.errors import ModelBreakdown, ModelError
 
 from .contacts import LegFrames, RigidContact
 from .model import LWA, BridgeData, BridgeModel
@@ -74,12 +74,22 @@ def constraint_rows(model: BridgeModel, data: BridgeData, rigid: Sequence[RigidC
     """Stacked constraint Jacobian (rows, nv) and, with ``drift``, dJ/dt v (rows,) (else zeros);
     the normal row of each contact is its last row and points into the domain (gap increasing).
     Computing a point's Jacobian also updates its frame placement in ``data.pin_data.oMf``."""
+    J, gamma, _ = constraint_system(model, data, rigid, q, v, drift)
+    return J, gamma
+
+
+def constraint_system(model: BridgeModel, data: BridgeData, rigid: Sequence[RigidContact], q: np.ndarray,
+                      v: np.ndarray, drift: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``constraint_rows`` and the directions W (rows, nv) along which the constraint forces act,
+    ``tau_c = W^T lambda``: W = J, except on the normal row of a slipping contact, where the
+    friction force ``-s mu lambda_n`` along x joins the normal force: ``W = J_z - s mu J_x``."""
     rows = sum(r.rows for r in rigid)
     J = np.zeros((rows, model.n))
     gamma = np.zeros(rows)
     pm, pd = model.pin_model, data.pin_data
     i = 0
     has_points = False
+    friction_rows: list[tuple[int, np.ndarray]] = []
     for r in rigid:
         if r.kind == "stop":
             J[i, r.dof] = r.sign
@@ -91,6 +101,8 @@ def constraint_rows(model: BridgeModel, data: BridgeData, rigid: Sequence[RigidC
                 J[i + 1] = Jf[2]
             else:
                 J[i] = Jf[2]
+                if r.slip:
+                    friction_rows.append((i, -r.slip * r.mu * Jf[0]))
             has_points = True
         i += r.rows
     if drift and has_points:  # a stop's row is constant: no drift
@@ -104,7 +116,12 @@ def constraint_rows(model: BridgeModel, data: BridgeData, rigid: Sequence[RigidC
                 else:
                     gamma[i] = acc[2]
             i += r.rows
-    return J, gamma
+    if not friction_rows:
+        return J, gamma, J
+    W = J.copy()
+    for row, friction in friction_rows:
+        W[row] += friction
+    return J, gamma, W
 
 
 def solve_small(A: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -132,6 +149,8 @@ def dynamics(model: BridgeModel, data: BridgeData, spec: ModeSpec, x: np.ndarray
     n = model.n
     q = x[:n]
     v = x[n:2 * n]
+    if u is not None:
+        data.last_control = u
     tau = applied_forces(model, data, spec, q, v, x, u)
     a = pin.aba(model.pin_model, data.pin_data, q, v, tau).copy()
     data.counts["aba"] += 1
@@ -160,25 +179,44 @@ def _constrain(model: BridgeModel, data: BridgeData, spec: ModeSpec, q: np.ndarr
         A = MJt[idx] * sign[:, None]
         rhs = -a[idx] * sign
     else:
-        J, gamma = constraint_rows(model, data, spec.rigid, q, v, drift=True)
-        MJt = Minv @ J.T
+        J, gamma, W = constraint_system(model, data, spec.rigid, q, v, drift=True)
+        MJt = Minv @ W.T
         A = J @ MJt
         rhs = -(J @ a + gamma)
+        if spec.slipping:
+            check_consistent(model, spec, A)
     lam = solve_small(A, rhs)
     a += MJt @ lam
     return lam
 
 
+def check_consistent(model: BridgeModel, spec: ModeSpec, A: np.ndarray) -> None:
+    """``ModelBreakdown`` when a mode with slipping contacts has no unique contact forces: a
+    diagonal entry of its Delassus matrix (normal rows against the normal-plus-friction force
+    directions) <= 0, where pushing on the contact would drive it into the ground (the Painleve
+    paradox), or a singular matrix. (With several slipping contacts a matrix that is not a
+    P-matrix may admit other consistent modes too; this mode's forces are then one of them.)"""
+    diagonal = np.diag(A)
+    scale = float(np.max(np.abs(A)))
+    if np.any(diagonal <= 1e-12 * scale) or abs(np.linalg.det(A)) <= 1e-12 * scale ** len(A):
+        raise ModelBreakdown(f"{model.name}: mode '{spec.name}': with its slipping contacts the rigid contact "
+                             f"problem has no unique solution (Delassus matrix {np.round(A, 6).tolist()}: the "
+                             f"Painleve paradox); lower the friction coefficient")
+
+
 def constraint_forces(model: BridgeModel, data: BridgeData, spec: ModeSpec, x: np.ndarray,
                       u: Any) -> dict[str, np.ndarray]:
     """Constraint forces of the mode's active rigid contacts at x: ``{name: lambda}`` with
-    ``lambda = (f_x, f_z)`` (N) for a sticking point contact, ``(f_z,)`` for a frictionless one
+    ``lambda = (f_x, f_z)`` (N) for a sticking or slipping point contact (slipping: f_x is the
+    friction force ``-s mu f_z``), ``(f_z,)`` for a frictionless one
     and ``(tau,)`` (N m or N) for a joint stop; the last entry is the normal force, >= 0 when the
     contact pushes the robot into its domain."""
     _, lam = dynamics(model, data, spec, x, u)
     out, i = {}, 0
     for r in spec.rigid:
         out[r.contact.name] = lam[i:i + r.rows].copy()
+        if r.slip:  # the friction force joins the normal force: (f_x, f_z)
+            out[r.contact.name] = np.array((-r.slip * r.mu * lam[i], lam[i]))
         i += r.rows
     return out
 

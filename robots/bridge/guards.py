@@ -24,7 +24,7 @@ import pinocchio as pin
 
 from legsim.errors import ModelBreakdown
 
-from .contacts import LegFrames, PointContact, RigidContact, SpringLeg, joint_id
+from .contacts import SLIP_SUFFIX, LegFrames, PointContact, RigidContact, SpringLeg, joint_id
 from .dynamics import dynamics
 from .model import LWA, BridgeData, BridgeModel
 from .modes import ModeSpec
@@ -198,6 +198,11 @@ def guard_units(model: BridgeModel) -> dict[str, str]:
             if c.restitution == 0.0:
                 units[f"graze_{cname}"] = units[f"{kind}_{cname}"]
                 units[f"liftoff_{cname}"] = "N (normal contact force)"
+            if c.friction is not None:
+                units[f"liftoff_{cname}"] = "N (normal contact force)"
+                for suffix in SLIP_SUFFIX.values():
+                    units[f"slip_{cname}{suffix}"] = "N (mu f_n -+ f_t: the force's distance to the friction cone's edge)"
+                units[f"stick_{cname}"] = "m/s (slip velocity, while the friction decelerates it)"
         else:
             joint = model.pin_model.joints[joint_id(model.pin_model, c.joint, "stop", model.name)]
             rot = joint.shortname().startswith(("JointModelR",))

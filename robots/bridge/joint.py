@@ -16,7 +16,10 @@ its own restitution c_i) gives ``v+ = v + M^-1 J^T Lambda``, ``Lambda = (J M^-1 
   force then pushes; the elastic ones bounce off.
 
 Contacts that close in different steps are still taken one after the other; the window is one
-landing step's strip.
+landing step's strip. A robot with Coulomb friction resolves them with the friction cone
+(``friction.event_outcome``: stuck or sliding impulses, then the mode whose contact forces are
+consistent), the post-impact forces taken under the control the strike guards were evaluated
+with at x (``BridgeData.control_at``).
 """
 
 from __future__ import annotations
@@ -27,6 +30,7 @@ import pinocchio as pin
 from legsim.hybrid import JointCrossing
 
 from .dynamics import constraint_forces, constraint_rows, solve_small
+from .friction import event_outcome
 from .model import BridgeData, BridgeModel
 from .modes import ModeCatalog, map_state
 
@@ -42,7 +46,7 @@ def striking_contacts(model: BridgeModel, names: tuple[str, ...]) -> list[str] |
     struck = []
     for name in names:
         prefix = next((p for p in STRIKES if name.startswith(p)), None)
-        contact = name[len(prefix):] if prefix else None
+        contact = name[len(prefix):].split("@")[0] if prefix else None
         if contact not in model.rigid:
             return None
         struck.append(contact)
@@ -112,6 +116,12 @@ def resolve(model: BridgeModel, data: BridgeData, modes: ModeCatalog, mode: str,
     if strikers is None or len(strikers) < 2:
         return None
     src = modes.spec(mode)
+    if model.coulomb:
+        restitution = {name: 0.0 if rest else model.contacts[name].restitution for name in strikers}
+        dst, image = event_outcome(model, data, modes, src, x, data.control_at(x), strikers, restitution)
+        if dst.name == mode and np.array_equal(image, x):
+            return None  # none of them approaches the ground at x: they are crossed one by one
+        return JointCrossing(f"{'rest' if rest else 'joint'}_{'+'.join(strikers)}", dst.name, image)
     released = {r for name in strikers for r in getattr(model.contacts[name], "releases", ())}
     staying = [c for c in src.active if c not in released]
     kept = [c for c in staying if c in model.rigid]

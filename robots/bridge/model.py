@@ -10,7 +10,7 @@ modules.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, Iterable, Mapping, Sequence
+from typing import Any, Callable, Iterable, Mapping, Sequence
 
 import numpy as np
 import pinocchio as pin
@@ -24,7 +24,7 @@ from .contacts import Contact, LegFrames, RigidContact, declared_contacts, finit
 LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 
 COUNTERS = ("aba", "kkt", "jacobians", "kinematics", "spring_forces", "damping_evals", "actuation_evals",
-            "impacts", "energy_evals", "cache_hits")
+            "impacts", "energy_evals", "cache_hits", "painleve_sticks")
 
 
 @dataclass(frozen=True, eq=False)
@@ -60,6 +60,12 @@ class BridgeModel:
     def order(self) -> list[str]:
         """Contact names in declared order."""
         return list(self.contacts)
+
+    @property
+    def coulomb(self) -> bool:
+        """Whether some contact has Coulomb friction (its strikes then choose stuck or slipping
+        outcomes, ``friction``)."""
+        return any(r.mu is not None for r in self.rigid.values())
 
     @property
     def timed(self) -> bool:
@@ -100,6 +106,29 @@ class BridgeData:
     pin_data: pin.Data
     counts: dict[str, int]
     modes: dict[str, ModeScratch] = field(default_factory=dict)
+    #: The control of the last dynamics evaluation, and the controls the strike guards were
+    #: last evaluated with, by state: a joint impact is resolved by the integrator without a
+    #: control, at a state whose guards were evaluated with it (``control_at``).
+    last_control: Any = None
+    recent_controls: dict[bytes, Any] = field(default_factory=dict)
+    #: ``preview(mode, t, x) -> u``: the control a mode will get at a state, given by the
+    #: controller driving the robot (``ContactBridge.attach_control``); the mode after an impact
+    #: is chosen with the contact forces under it. ``last_time``: the time of the last strike
+    #: guard evaluated past its guard (s).
+    preview: Callable[[str, float, np.ndarray], Any] | None = None
+    last_time: float = 0.0
+
+    def remember_control(self, x: np.ndarray, u: Any) -> None:
+        """Remember the control u a guard was evaluated with at x (the last few states)."""
+        if u is None:
+            return
+        if len(self.recent_controls) >= 16:
+            self.recent_controls.pop(next(iter(self.recent_controls)))
+        self.recent_controls[x.tobytes()] = u
+
+    def control_at(self, x: np.ndarray) -> Any:
+        """The control a guard was evaluated with at x, else that of the last dynamics evaluation."""
+        return self.recent_controls.get(x.tobytes(), self.last_control)
 
     @classmethod
     def create(cls, model: BridgeModel) -> BridgeData:

@@ -1,8 +1,10 @@
 """Contact modes: which contacts are active, the mode's name and state layout, and the state map
 between two modes.
 
-A mode is a set of active contacts. It is named by ``mode_names`` when given there, ``"free"``
-when empty, else by its contacts in declared order joined with ``+``. Its state is
+A mode is a set of active contacts, each an *entry*: the contact's name, or for a contact with
+Coulomb friction that slips, its name with the slip direction's suffix (``front>`` slips towards
++x, ``front<`` towards -x; ``front`` alone is stuck). It is named by ``mode_names`` when given
+there, ``"free"`` when empty, else by its entries in declared order joined with ``+``. Its state is
 ``x = (q, v, footholds)``: q and v of size nv, then the foothold x (m) of each active spring leg
 in declared order. Modes are resolved into a ``ModeSpec`` on first use, so a robot with many
 contacts never enumerates the 2^n subsets.
@@ -10,7 +12,7 @@ contacts never enumerates the 2^n subsets.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Iterable, Mapping
 
 import numpy as np
@@ -18,7 +20,7 @@ import pinocchio as pin
 
 from legsim.errors import ModelError
 
-from .contacts import LegFrames, RigidContact
+from .contacts import SLIP_SUFFIX, LegFrames, RigidContact
 from .model import BridgeData, BridgeModel
 
 
@@ -30,7 +32,8 @@ class ModeSpec:
     ----------
     name: the mode's name.
     active: its active contacts, in declared order.
-    rigid: the active point contacts and joint stops, in declared order.
+    rigid: the active point contacts and joint stops, in declared order (a slipping contact with
+        one row and its slip direction, ``RigidContact.slip``).
     springs: the active (stance) spring legs, in declared order: their footholds are the state's tail.
     flight_legs: the inactive spring legs.
     dim: state dimension, 2 nv + len(springs).
@@ -49,6 +52,16 @@ class ModeSpec:
     need_fk: bool = False
     units: tuple[str, ...] = ()
     stop_dofs: tuple[np.ndarray, np.ndarray] | None = None
+    entries: tuple[str, ...] = ()
+
+    @property
+    def slipping(self) -> bool:
+        """Whether some contact of the mode slips (its constraint forces then include friction)."""
+        return any(r.slip for r in self.rigid)
+
+    def rigid_of(self, contact: str) -> RigidContact:
+        """The active rigid contact ``contact`` as this mode holds it."""
+        return next(r for r in self.rigid if r.contact.name == contact)
 
     def normal_row(self, contact: str) -> int:
         """Index of the active rigid contact's normal row in the stacked constraint rows (its last row)."""
@@ -61,10 +74,10 @@ class ModeSpec:
 
 
 class ModeCatalog:
-    """Mode names <-> sets of active contacts, and each mode's ``ModeSpec``, built on first use.
+    """Mode names <-> sets of active entries, and each mode's ``ModeSpec``, built on first use.
 
-    ``mode_names``: optional readable names of contact subsets, ``{("left", "right"): "both", (): "aerial"}``
-    (a single contact may be given by its name).
+    ``mode_names``: optional readable names of entry subsets, ``{("left", "right"): "both", (): "aerial"}``
+    (a single entry may be given by its name).
     """
 
     def __init__(self, model: BridgeModel, mode_names: Mapping[Iterable[str] | str, str] | None = None) -> None:
@@ -74,7 +87,7 @@ class ModeCatalog:
         self._specs: dict[str, ModeSpec] = {}
         for key, mname in (mode_names or {}).items():
             subset = frozenset([key] if isinstance(key, str) else key)
-            unknown = sorted(subset - set(model.contacts))
+            unknown = sorted(e for e in subset if self._parse(e) is None)
             if unknown:
                 raise ModelError(f"{model.name}: mode_names names unknown contact(s) {unknown}; "
                                  f"contacts: {model.order}")
@@ -83,21 +96,44 @@ class ModeCatalog:
             self._names[subset] = mname
             self._sets[mname] = subset
 
-    def name_of(self, active: Iterable[str]) -> str:
-        """Name of the mode whose active contacts are ``active``."""
+    def _parse(self, entry: str) -> tuple[str, float] | None:
+        """(contact, slip direction) of an entry, or None when it names no contact (or a slip of a
+        contact without friction)."""
+        contacts = self._model.contacts
+        if entry in contacts:
+            return entry, 0.0
+        for s, suffix in SLIP_SUFFIX.items():
+            if entry.endswith(suffix) and getattr(contacts.get(entry[:-1]), "friction", None) is not None:
+                return entry[:-1], s
+        return None
+
+    def _check(self, subset: frozenset[str]) -> None:
         model = self._model
-        subset = frozenset(active)
-        unknown = sorted(subset - set(model.contacts))
+        parsed = [self._parse(e) for e in subset]
+        unknown = sorted(e for e, p in zip(subset, parsed) if p is None)
         if unknown:
             raise ModelError(f"{model.name}: unknown contact(s) {unknown}; contacts: {model.order}")
+        names = [p[0] for p in parsed if p is not None]
+        if len(set(names)) != len(names):
+            raise ModelError(f"{model.name}: a contact is named twice in {sorted(subset)}")
+
+    def name_of(self, active: Iterable[str]) -> str:
+        """Name of the mode whose active entries are ``active``."""
+        subset = frozenset(active)
+        self._check(subset)
         if subset in self._names:
             return self._names[subset]
         if not subset:
             return "free"
-        return "+".join(c for c in model.contacts if c in subset)
+        return "+".join(self.ordered(subset))
 
-    def active_contacts(self, mode: str) -> tuple[str, ...]:
-        """The active contacts of mode ``mode``, in declared order; ``ModelError`` if ``mode``
+    def ordered(self, entries: Iterable[str]) -> tuple[str, ...]:
+        """``entries`` in the declared order of their contacts."""
+        rank = {c: i for i, c in enumerate(self._model.contacts)}
+        return tuple(sorted(entries, key=lambda e: rank[self._parse(e)[0]]))  # type: ignore[index]
+
+    def entries(self, mode: str) -> tuple[str, ...]:
+        """The active entries of mode ``mode``, in declared order; ``ModelError`` if ``mode``
         names no mode or a mode by another name than its own."""
         model = self._model
         if mode in self._sets:
@@ -106,25 +142,35 @@ class ModeCatalog:
             subset = frozenset()
         else:
             parts = mode.split("+")
-            if any(p not in model.contacts for p in parts) or len(set(parts)) != len(parts):
+            if any(self._parse(p) is None for p in parts) or len(set(parts)) != len(parts):
                 raise ModelError(f"{model.name}: '{mode}' is not a mode: name a set of contacts joined by '+' "
                                  f"(contacts: {model.order}) or one of {sorted(self._sets)}")
             subset = frozenset(parts)
         if self.name_of(subset) != mode:
             raise ModelError(f"{model.name}: mode '{mode}' is called '{self.name_of(subset)}'")
-        return tuple(c for c in model.contacts if c in subset)
+        return self.ordered(subset)
+
+    def active_contacts(self, mode: str) -> tuple[str, ...]:
+        """The active contacts of mode ``mode`` (without slip suffixes), in declared order."""
+        return tuple(self._parse(e)[0] for e in self.entries(mode))  # type: ignore[index]
 
     def spec(self, mode: str) -> ModeSpec:
         """The ``ModeSpec`` of mode ``mode`` (resolved on first use)."""
         spec = self._specs.get(mode)
         if spec is None:
-            spec = self._specs[mode] = build_spec(self._model, mode, self.active_contacts(mode))
+            entries = self.entries(mode)
+            slips = dict(self._parse(e) for e in entries)  # type: ignore[misc]
+            spec = self._specs[mode] = build_spec(self._model, mode, tuple(slips), slips, entries)
         return spec
 
 
-def build_spec(model: BridgeModel, mode: str, active: tuple[str, ...]) -> ModeSpec:
-    """The ``ModeSpec`` of mode ``mode`` with active contacts ``active`` (declared order)."""
-    rigid = tuple(model.rigid[c] for c in active if c in model.rigid)
+def build_spec(model: BridgeModel, mode: str, active: tuple[str, ...], slips: Mapping[str, float] | None = None,
+               entries: tuple[str, ...] | None = None) -> ModeSpec:
+    """The ``ModeSpec`` of mode ``mode`` with active contacts ``active`` (declared order);
+    ``slips``: the slip direction of each slipping contact (absent or 0: stuck)."""
+    slips = slips or {}
+    rigid = tuple(replace(model.rigid[c], rows=1, slip=slips[c]) if slips.get(c) else model.rigid[c]
+                  for c in active if c in model.rigid)
     springs = tuple(model.legs[c] for c in active if c in model.legs)
     flight = tuple(lg for c, lg in model.legs.items() if c not in active)
     names = model.coordinate_names + model.velocity_names + tuple(f"{lg.leg.name}_foot_x" for lg in springs)
@@ -137,7 +183,8 @@ def build_spec(model: BridgeModel, mode: str, active: tuple[str, ...]) -> ModeSp
     positions = dof_units(model.pin_model)
     units = positions + tuple(f"{u}/s" for u in positions) + ("m",) * len(springs)
     return ModeSpec(mode, active, rigid, springs, flight, 2 * model.n + len(springs), names,
-                    need_fk=need_fk, stop_dofs=stop_dofs, units=units)
+                    need_fk=need_fk, stop_dofs=stop_dofs, units=units,
+                    entries=active if entries is None else entries)
 
 
 def dof_units(pin_model: pin.Model) -> tuple[str, ...]:

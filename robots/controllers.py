@@ -1,0 +1,66 @@
+"""Controllers bundled with legsim, found by scenes through the ``legsim.controllers`` entry points.
+
+* ``joint_pd``: a joint-space PD with feed-forward gravity compensation on the actuated joints of
+  any bridge robot, ``u = kp (q* - q) - kd dq/dt + g(q)`` (N m or N), g the generalised gravity
+  of the actuated joints (``pinocchio.computeGeneralizedGravity``: exact for a fixed base, the
+  legs' own weight for a floating one).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
+
+from legsim.builders import Model, Param
+from legsim.control import Controller, ControllerSpec
+from legsim.errors import SceneError
+
+
+def bridge_of(model: Model, controller: str) -> Any:
+    """The ``ContactBridge`` of a model (``Model.info["bridge"]``), or SceneError."""
+    bridge = model.info.get("bridge") if isinstance(model.info, dict) else None
+    if bridge is None:
+        raise SceneError(f"controller '{controller}' drives Pinocchio robots (a model with info['bridge']); "
+                         f"{model.system.name} is not one")
+    return bridge
+
+
+class JointPD(Controller):
+    """``u = kp (q* - q) - kd dq/dt + g(q)`` on the actuated joints (module docstring)."""
+
+    def __init__(self, bridge: Any, kp: float, kd: float, targets: np.ndarray, gravity: bool) -> None:
+        self.bridge = bridge
+        self.dofs = bridge.actuated_dofs
+        self.kp, self.kd, self.targets, self.gravity = kp, kd, targets, gravity
+        self._data = bridge.model.createData()
+        bridge.attach_control(self)
+
+    def __call__(self, mode: str, t: float, x: np.ndarray) -> np.ndarray:
+        n = self.bridge.n
+        q, v = x[:n], x[n:2 * n]
+        u = self.kp * (self.targets - q[self.dofs]) - self.kd * v[self.dofs]
+        if self.gravity:
+            u += pin.computeGeneralizedGravity(self.bridge.model, self._data, q)[self.dofs]
+        return u
+
+
+def _make_joint_pd(model: Model, params: dict[str, Any]) -> JointPD:
+    bridge = bridge_of(model, "joint_pd")
+    count = len(bridge.actuated_dofs)
+    if not count:
+        raise SceneError("controller 'joint_pd': the robot has no actuated joint (robot.parameters.actuated)")
+    targets = np.asarray(params["targets"] or [0.0] * count, dtype=float)
+    if targets.shape != (count,):
+        raise SceneError(f"controller.parameters.targets: expected {count} numbers (one per actuated joint), "
+                         f"got {params['targets']!r}")
+    return JointPD(bridge, params["kp"], params["kd"], targets, params["gravity"])
+
+
+JOINT_PD = ControllerSpec(
+    "joint_pd", "joint-space PD with feed-forward gravity compensation on the actuated joints",
+    {"kp": Param(50.0, "stiffness", "N m/rad", low=0.0), "kd": Param(2.0, "damping", "N m s/rad", low=0.0),
+     "targets": Param([], "target of each actuated joint (rad or m); empty: all 0"),
+     "gravity": Param(True, "add the actuated joints' generalised gravity g(q)")},
+    _make_joint_pd)

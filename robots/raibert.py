@@ -1,0 +1,314 @@
+"""Raibert's running controllers (Raibert, *Legged Robots That Balance*, 1986): forward speed by
+foot placement, hopping height by thrust, body attitude by hip torque in stance.
+
+Each leg is controlled on its own, from the mode the run is in (the controller is told it) and
+the state:
+
+* **flight**: the foot is placed ahead of the hip by ``x_f = xd T_s / 2 + k_x (xd - xd*)`` (m):
+  half the distance the body travels during the last stance of that leg (the neutral point,
+  which keeps the speed) plus a correction proportional to the speed error; the leg is held at
+  its touchdown length;
+* **stance**: the leg pushes along itself like a spring of stiffness k and rest length l, with
+  a thrust that lengthens the spring during extension by ``delta`` (m), adapted hop by hop to
+  the apex height error; the hip adds ``k_p (theta - theta*) + k_d dtheta/dt`` (N m) to keep
+  the body level (the body gets the opposite torque).
+
+``RunnerRaibert`` drives articulated legs (a hip and a knee per leg, a point foot): the flight
+posture by a joint PD with gravity compensation on the inverse kinematics of the foot placement,
+the stance spring through the leg Jacobian (tau = J^T f). ``SlipRaibert`` drives the SLIP
+hopper (``robots/slip_hopper.py``): its control is the massless leg's swing rate in flight, a
+servo to the foot placement's leg angle; its spring is passive and the SLIP conserves energy,
+so its hopping height needs no thrust (it trades with the speed).
+"""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
+
+from legsim.builders import Model, Param
+from legsim.control import Controller, ControllerSpec
+from legsim.errors import SceneError
+
+from .controllers import bridge_of
+
+
+@dataclass
+class Leg:
+    """An articulated leg: hip and knee velocity indices and positions in u, segment lengths
+    (m), the knee's bending sign (+1: positive knee angles), the hip's x in the body frame (m),
+    the foot's contact name, and what
+    the controller remembers of it (touchdown time, last stance duration (s), thrust (m))."""
+
+    contact: str
+    hip: int
+    knee: int
+    u_hip: int
+    u_knee: int
+    thigh: float
+    shank: float
+    bend: float
+    offset: float = 0.0
+    touchdown: float = 0.0
+    stance_time: float = 0.12
+    thrust: float = 0.0
+    in_stance: bool = False
+    apex: float = field(default=float("nan"))
+
+
+def leg_point(leg: Leg, q_hip: float, q_knee: float) -> np.ndarray:
+    """Foot relative to the hip in the body frame (x, z) (m)."""
+    a, b = q_hip, q_hip + q_knee
+    return np.array((-leg.thigh * math.sin(a) - leg.shank * math.sin(b), -leg.thigh * math.cos(a) - leg.shank * math.cos(b)))
+
+
+def leg_jacobian(leg: Leg, q_hip: float, q_knee: float) -> np.ndarray:
+    """d(foot - hip)/d(q_hip, q_knee) in the body frame (2, 2)."""
+    a, b = q_hip, q_hip + q_knee
+    return np.array(((-leg.thigh * math.cos(a) - leg.shank * math.cos(b), -leg.shank * math.cos(b)),
+                     (leg.thigh * math.sin(a) + leg.shank * math.sin(b), leg.shank * math.sin(b))))
+
+
+def leg_angles(leg: Leg, length: float, angle: float) -> tuple[float, float]:
+    """(q_hip, q_knee) putting the foot at ``length`` (m) from the hip, ``angle`` (rad) from the
+    body's -z axis towards +x (the knee bent by its sign)."""
+    l1, l2 = leg.thigh, leg.shank
+    c = (length ** 2 - l1 ** 2 - l2 ** 2) / (2 * l1 * l2)
+    knee = leg.bend * math.acos(max(-1.0, min(1.0, c)))
+    # the foot's direction is u(q_hip + phi) with phi the angle the shank adds to the thigh's
+    phi = math.atan2(l2 * math.sin(knee), l1 + l2 * math.cos(knee))
+    return -angle - phi, knee
+
+
+def find_legs(bridge: Any) -> list[Leg]:
+    """The articulated legs of a bridge robot: each point contact whose frame hangs below two
+    actuated revolute joints (hip, then knee)."""
+    model = bridge.model
+    dofs = list(bridge.actuated_dofs)
+    legs = []
+    for contact in bridge.contacts:
+        frame = getattr(contact, "frame", None)
+        if frame is None or not hasattr(contact, "tangential"):
+            continue
+        fid = model.getFrameId(frame)
+        knee = model.frames[fid].parentJoint
+        hip = model.parents[knee]
+        kv, hv = model.joints[knee].idx_v, model.joints[hip].idx_v
+        if kv not in dofs or hv not in dofs:
+            continue
+        thigh = float(np.linalg.norm(model.jointPlacements[knee].translation))
+        shank = float(np.linalg.norm(model.frames[fid].placement.translation))
+        bend = 1.0 if model.upperPositionLimit[model.joints[knee].idx_q] > -model.lowerPositionLimit[model.joints[knee].idx_q] else -1.0
+        offset = float(model.jointPlacements[hip].translation[0])
+        legs.append(Leg(contact.name, hv, kv, dofs.index(hv), dofs.index(kv), thigh, shank, bend, offset))
+    return legs
+
+
+#: Most force (N) a stance leg past its rest length pulls its foot up with, and the largest
+#: share of the leg's force times its length the stance hip's attitude torque may take.
+UNLOAD = 5.0
+ATTITUDE_SHARE = 0.5
+#: Extension rate (m/s) at which the stance thrust is fully on; the swing's leg length (share of
+#: the touchdown length) while the body rises, so that the foot clears the ground.
+THRUST_RATE = 0.2
+SWING_SHARE = 0.75
+
+
+@dataclass
+class Gains:
+    """The Raibert controller's settings (units in ``RUNNER_PARAMETERS``)."""
+
+    speed: float
+    height: float
+    k_x: float
+    leg_length: float
+    stiffness: float
+    damping: float
+    k_height: float
+    kp_attitude: float
+    kd_attitude: float
+    kp_joint: float
+    kd_joint: float
+    max_thrust: float
+
+
+class RunnerRaibert(Controller):
+    """Raibert's controller for articulated legs (module docstring); ``attitude``: the stance
+    hips servo the pitch (a pronk), or leave it free (a bound, where each leg pair hops on its
+    own: with the body's pitch inertia near m (d/2)^2 the hips move as two separate hoppers)."""
+
+    def __init__(self, bridge: Any, legs: list[Leg], gains: Gains, attitude: bool) -> None:
+        self.bridge, self.legs, self.gains, self.attitude = bridge, legs, gains, attitude
+        self.n = bridge.n
+        self.count = len(bridge.actuated_dofs)
+        self._data = bridge.model.createData()
+        bridge.attach_control(self.preview)
+
+    def preview(self, mode: str, t: float, x: np.ndarray) -> np.ndarray:
+        """The control on entering ``mode`` at (t, x), the controller's own state left as it is
+        (the bridge chooses the mode after an impact with it)."""
+        clone = copy.copy(self)
+        clone.legs = [dataclasses.replace(leg) for leg in self.legs]
+        clone.reset(mode, t, x)
+        return clone(mode, t, x)
+
+    def reset(self, mode: str, t: float, x: np.ndarray) -> None:
+        active = set(self.bridge.active_contacts(mode))
+        for leg in self.legs:
+            stance = leg.contact in active
+            if stance and not leg.in_stance:
+                leg.touchdown = t
+            elif leg.in_stance and not stance:
+                leg.stance_time = min(max(t - leg.touchdown, 0.02), 0.5)
+                self._adapt_thrust(leg, x)
+            leg.in_stance = stance
+
+    def _adapt_thrust(self, leg: Leg, x: np.ndarray) -> None:
+        """At liftoff: the apex the body's centre will reach, against the commanded height."""
+        g = self.gains
+        z, zd = x[1], x[self.n + 1]
+        leg.apex = z + max(zd, 0.0) ** 2 / (2 * 9.81)
+        leg.thrust = min(max(leg.thrust + g.k_height * (g.height - leg.apex), 0.0), g.max_thrust)
+
+    def __call__(self, mode: str, t: float, x: np.ndarray) -> np.ndarray:
+        n, g = self.n, self.gains
+        q, v = x[:n], x[n:2 * n]
+        active = set(self.bridge.active_contacts(mode))
+        u = np.zeros(self.count)
+        stance_legs = [leg for leg in self.legs if leg.contact in active]
+        attitude = g.kp_attitude * q[2] + g.kd_attitude * v[2] if self.attitude else 0.0
+        # A pronk lifts off together: once a leg has left, the others unload while they extend.
+        together = self.attitude and len(stance_legs) < len(self.legs)
+        for leg in self.legs:
+            if leg.contact in active:
+                u[[leg.u_hip, leg.u_knee]] += self._stance(leg, q, v, attitude / len(stance_legs), together)
+            else:
+                u[[leg.u_hip, leg.u_knee]] += self._flight(leg, q, v)
+        return u
+
+    def _stance(self, leg: Leg, q: np.ndarray, v: np.ndarray, attitude: float, unload: bool = False) -> np.ndarray:
+        """Hip and knee torques (N m) of the leg's spring along itself, with thrust while extending,
+        and the hip's share of the attitude torque. Past its rest length the leg pulls its foot up
+        (at most ``UNLOAD`` N), so that it lifts off rather than dragging; the attitude torque is
+        kept below ``ATTITUDE_SHARE`` of the leg force times its length, so that the foot's force
+        stays well inside the friction cone."""
+        g = self.gains
+        p = leg_point(leg, q[leg.hip], q[leg.knee])
+        J = leg_jacobian(leg, q[leg.hip], q[leg.knee])
+        r = float(np.linalg.norm(p))
+        rdot = float(p @ (J @ v[[leg.hip, leg.knee]])) / r
+        # the thrust comes in with the extension rate (not at once at the bottom of the stance, so
+        # that the contact forces, and the guards on them, stay continuous)
+        rest = g.leg_length + leg.thrust * min(max(rdot / THRUST_RATE, 0.0), 1.0)
+        force = max(g.stiffness * (rest - r) - g.damping * rdot, -UNLOAD)
+        if unload and rdot > 0.0:
+            force = -UNLOAD
+        limit = ATTITUDE_SHARE * max(force, 0.0) * r
+        torque = J.T @ (force * p / r)
+        torque[0] += max(-limit, min(limit, attitude))
+        return torque
+
+    def _flight(self, leg: Leg, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """Hip and knee torques (N m) servoing the foot to its touchdown placement. In a pronk
+        the legs' lengths make up for the pitch, so that the feet hang at one height and land
+        together (the stance hips then level the body)."""
+        g = self.gains
+        xd = v[0]
+        ahead = xd * leg.stance_time / 2 + g.k_x * (xd - g.speed)
+        world = math.asin(max(-0.9, min(0.9, ahead / g.leg_length)))
+        angle = world + q[2]
+        length = g.leg_length if v[1] < 0.0 else SWING_SHARE * g.leg_length
+        if self.attitude:  # the hip is -offset sin(pitch) above the body's centre
+            length -= leg.offset * math.sin(q[2]) / math.cos(world)
+        hip, knee = leg_angles(leg, length, angle)
+        dofs = [leg.hip, leg.knee]
+        gravity = pin.computeGeneralizedGravity(self.bridge.model, self._data, q)[dofs]
+        return g.kp_joint * (np.array((hip, knee)) - q[dofs]) - g.kd_joint * v[dofs] + gravity
+
+
+RUNNER_PARAMETERS = {
+    "gait": Param("pronk", "pronk: the stance hips keep the body level; bound: the pitch is left free",
+                  choices=("pronk", "bound")),
+    "speed": Param(1.0, "commanded forward speed xd*", "m/s"),
+    "height": Param(0.55, "commanded apex height of the body's centre", "m", low=0.0, low_open=True),
+    "k_x": Param(0.05, "foot placement gain (m per m/s of speed error)", "s", low=0.0),
+    "leg_length": Param(0.42, "leg length at touchdown, and the stance spring's rest length", "m",
+                        low=0.0, low_open=True),
+    "stiffness": Param(2000.0, "stance spring stiffness along the leg", "N/m", low=0.0, low_open=True),
+    "damping": Param(10.0, "stance damping along the leg", "N s/m", low=0.0),
+    "thrust": Param(0.02, "initial thrust: the stance spring's rest-length extension while the leg extends",
+                    "m", low=0.0),
+    "k_height": Param(0.2, "thrust adaptation per metre of apex height error", "", low=0.0),
+    "max_thrust": Param(0.1, "largest thrust", "m", low=0.0),
+    "kp_attitude": Param(60.0, "stance hip torque per radian of pitch", "N m/rad", low=0.0),
+    "kd_attitude": Param(6.0, "stance hip torque per rad/s of pitch rate", "N m s/rad", low=0.0),
+    "kp_joint": Param(60.0, "flight joint stiffness", "N m/rad", low=0.0),
+    "kd_joint": Param(2.0, "flight joint damping", "N m s/rad", low=0.0),
+}
+
+
+def _make_runner(model: Model, params: dict[str, Any]) -> RunnerRaibert:
+    bridge = bridge_of(model, "raibert_runner")
+    legs = find_legs(bridge)
+    if not legs:
+        raise SceneError("controller 'raibert_runner' found no articulated leg: a point contact on a frame below "
+                         "two actuated revolute joints (hip, knee)")
+    gains = Gains(**{k: params[k] for k in Gains.__dataclass_fields__})
+    for leg in legs:
+        leg.thrust = params["thrust"]
+    return RunnerRaibert(bridge, legs, gains, attitude=params["gait"] == "pronk")
+
+
+RUNNER = ControllerSpec("raibert_runner", "Raibert's controller for articulated legs: foot placement, thrust, "
+                                          "attitude by the stance hips", RUNNER_PARAMETERS, _make_runner)
+
+
+class SlipRaibert(Controller):
+    """Raibert's foot placement for the SLIP hopper: in flight the leg swings at
+    ``k_swing (psi* - psi)`` (rad/s) to ``psi* = asin((xd T_s / 2 + k_x (xd - xd*)) / l)``, T_s the
+    last stance's duration (s), measured at each liftoff (``reset``); 0 in stance."""
+
+    def __init__(self, l: float, speed: float, k_x: float, k_swing: float, stance_time: float) -> None:
+        self.l, self.speed, self.k_x, self.k_swing = l, speed, k_x, k_swing
+        self.stance_time, self.touchdown, self.in_stance = stance_time, 0.0, False
+
+    def reset(self, mode: str, t: float, x: np.ndarray) -> None:
+        if mode == "stance" and not self.in_stance:
+            self.touchdown = t
+        elif mode == "flight" and self.in_stance:
+            self.stance_time = t - self.touchdown
+        self.in_stance = mode == "stance"
+
+    def target_angle(self, xd: float) -> float:
+        """The touchdown leg angle psi* (rad) at forward speed xd (m/s)."""
+        ahead = xd * self.stance_time / 2 + self.k_x * (xd - self.speed)
+        return math.asin(max(-0.9, min(0.9, ahead / self.l)))
+
+    def __call__(self, mode: str, t: float, x: np.ndarray) -> np.ndarray:
+        if mode != "flight":
+            return np.zeros(1)
+        return np.array([self.k_swing * (self.target_angle(x[3]) - x[2])])
+
+
+def _make_slip(model: Model, params: dict[str, Any]) -> SlipRaibert:
+    hopper = model.info.get("slip_hopper") if isinstance(model.info, dict) else None
+    if hopper is None:
+        raise SceneError(f"controller 'raibert_slip' drives the SLIP hopper (robot 'slip_hopper'); "
+                         f"{model.system.name} is not one")
+    stance_time = params["stance_time"] or math.pi * math.sqrt(hopper["m"] / hopper["k"])
+    return SlipRaibert(hopper["l"], params["speed"], params["k_x"], params["k_swing"], stance_time)
+
+
+SLIP = ControllerSpec("raibert_slip", "Raibert's foot placement for the SLIP hopper (its leg's swing rate in flight)",
+                      {"speed": Param(3.0, "commanded forward speed xd*", "m/s"),
+                       "k_x": Param(0.05, "foot placement gain (m per m/s of speed error)", "s", low=0.0),
+                       "k_swing": Param(20.0, "leg swing servo gain", "1/s", low=0.0, low_open=True),
+                       "stance_time": Param(0.0, "stance duration assumed before the first liftoff; 0: "
+                                                 "half the spring-mass period, pi sqrt(m/k)", "s", low=0.0)},
+                      _make_slip)

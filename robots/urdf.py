@@ -1,0 +1,266 @@
+"""Robots from URDF files: parsed with Pinocchio, given a planar root, contacts and joint stops
+declared by the scene, and drawn from the URDF's visual geometry.
+
+A scene names the file (relative to the scene's folder) and declares what the URDF does not
+say::
+
+    [robot]
+    name = "urdf"
+    [robot.parameters]
+    file = "quadruped.urdf"                  # read with pinocchio.buildModelFromUrdf
+    root = "planar"                          # x, z, pitch (a PX + PZ + RY composite joint), or "fixed"
+    actuated = ["hind_hip", "hind_knee"]     # joints driven by the control u, in this order ("all": every one)
+    contacts = [{ name = "hind", frame = "hind_foot", friction = 0.8, restitution = 0.0 }]
+    stops = [{ name = "hind_knee_stop", joint = "hind_knee", position = 0.2, side = "lower" }]
+
+The robot must be planar: every joint rotates about y or slides in the (x, z) plane, so that
+its motion stays in the sagittal plane the bridge simulates; every joint has nq == nv (a
+``continuous`` joint, parsed as (cos, sin), must be declared ``revolute`` with limits). The
+URDF's visual shapes (box, cylinder, sphere, capsule, mesh vertices) are drawn as their
+outlines in the (x, z) plane (``Outlines``), which the meshcat page and the Rerun recording
+draw like any robot's geometry.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+import pinocchio as pin
+from scipy.spatial import ConvexHull
+
+from legsim.builders import Builder, Model, Param
+from legsim.errors import ModelError, SceneError
+
+from .bridge import ContactBridge, JointStop, PointContact
+
+PLANAR_ROOT = ("x", "z", "pitch")
+#: Points sampled on a round visual shape's outline.
+ROUND_SAMPLES = 32
+
+
+def planar_root() -> pin.JointModel:
+    """The planar root joint: PX, PZ and RY composed into one joint with nq == nv == 3
+    (Pinocchio's own planar joint stores the angle as (cos, sin), nq = 4)."""
+    root = pin.JointModelComposite()
+    root.addJoint(pin.JointModelPX())
+    root.addJoint(pin.JointModelPZ())
+    root.addJoint(pin.JointModelRY())
+    return root
+
+
+def load_model(file: str | Path, root: str = "planar", g: float = 9.81) -> tuple[pin.Model, tuple[str, ...]]:
+    """The URDF's Pinocchio model with its root (``"planar"``: x, z, pitch; ``"fixed"``: none)
+    and gravity g (m/s^2) along -z, and the names of its nv coordinates (the root's, then each
+    joint's name). ``ModelError`` naming the file and joint for anything the bridge cannot
+    simulate."""
+    file = Path(file)
+    try:
+        if root == "planar":
+            model = pin.buildModelFromUrdf(str(file), planar_root(), "root")
+        else:
+            model = pin.buildModelFromUrdf(str(file))
+    except Exception as exc:  # Pinocchio's parser raises RuntimeError or ValueError with its reason
+        raise ModelError(f"{file}: Pinocchio could not read the URDF: {type(exc).__name__}: {exc}") from exc
+    first = 2 if root == "planar" else 1
+    _check_joints(model, file, first)
+    model.gravity = pin.Motion(np.array([0.0, 0.0, -g, 0.0, 0.0, 0.0]))
+    names = (PLANAR_ROOT if root == "planar" else ()) + tuple(model.names[j] for j in range(first, model.njoints))
+    return model, names
+
+
+def _check_joints(model: pin.Model, file: Path, first: int) -> None:
+    """``ModelError`` for a joint that is not one planar degree of freedom."""
+    for j in range(first, model.njoints):
+        joint, name = model.joints[j], model.names[j]
+        kind = joint.shortname()
+        if joint.nq != joint.nv:
+            raise ModelError(f"{file}: joint '{name}' ({kind}) has nq = {joint.nq}, nv = {joint.nv}: the bridge needs "
+                             f"nq == nv; declare a continuous joint as revolute with limits")
+        axis = _axis(joint)
+        rotation = model.jointPlacements[j].rotation
+        planar = (kind.startswith("JointModelR") and abs(abs((rotation @ axis)[1]) - 1.0) < 1e-9) or \
+                 (kind.startswith("JointModelP") and abs((rotation @ axis)[1]) < 1e-9)
+        if not planar or abs(abs(rotation[1, 1]) - 1.0) > 1e-9:
+            raise ModelError(f"{file}: joint '{name}' ({kind}) does not move in the (x, z) plane: revolute joints "
+                             f"must turn about y and prismatic ones slide along x or z")
+
+
+def _axis(joint: Any) -> np.ndarray:
+    """The unit axis of a one-dof joint in its own frame."""
+    kind = joint.shortname()
+    for letter, axis in (("X", (1, 0, 0)), ("Y", (0, 1, 0)), ("Z", (0, 0, 1))):
+        if kind in (f"JointModelR{letter}", f"JointModelP{letter}"):
+            return np.array(axis, dtype=float)
+    extracted = getattr(joint, "extract", lambda: joint)()
+    return np.asarray(getattr(extracted, "axis", (0.0, 0.0, 0.0)), dtype=float)
+
+
+class Outlines:
+    """The visual shapes of a URDF as polylines in the (x, z) plane (m): each shape's outline
+    (the convex hull of its projection) in its joint's frame, placed by the joint's pose."""
+
+    def __init__(self, model: pin.Model, file: str | Path) -> None:
+        file = Path(file)
+        try:
+            visual = pin.buildGeomFromUrdf(model, str(file), pin.GeometryType.VISUAL, package_dirs=[str(file.parent)])
+        except Exception as exc:
+            raise ModelError(f"{file}: the visual geometry could not be read: {type(exc).__name__}: {exc}") from exc
+        self._model = model
+        self._data = model.createData()
+        self.parts: dict[str, tuple[int, np.ndarray]] = {}
+        for obj in visual.geometryObjects:
+            points = _shape_points(obj.geometry, obj.name, file)
+            placed = points @ obj.placement.rotation.T + obj.placement.translation
+            self.parts[_part_name(obj.name, self.parts)] = (int(obj.parentJoint), _hull(placed[:, [0, 2]]))
+
+    def __call__(self, q: np.ndarray) -> dict[str, np.ndarray]:
+        """Closed polylines (k, 2) of every visual shape at configuration q."""
+        pin.forwardKinematics(self._model, self._data, np.asarray(q, dtype=float))
+        out = {}
+        for name, (joint, polygon) in self.parts.items():
+            placement = self._data.oMi[joint]
+            rotation = placement.rotation[np.ix_([0, 2], [0, 2])]
+            out[name] = polygon @ rotation.T + placement.translation[[0, 2]]
+        return out
+
+
+def _part_name(name: str, taken: Mapping[str, Any]) -> str:
+    """A geometry object's name without Pinocchio's ``_<index>`` suffix, unless that is taken."""
+    base, _, index = name.rpartition("_")
+    short = base if index.isdigit() and base else name
+    return short if short not in taken else name
+
+
+def _shape_points(shape: Any, name: str, file: Path) -> np.ndarray:
+    """Points (k, 3) whose convex hull's projection on (x, z) is the shape's outline."""
+    kind = type(shape).__name__
+    ring = np.linspace(0.0, 2.0 * math.pi, ROUND_SAMPLES, endpoint=False)
+    if kind == "Box":
+        half = np.asarray(shape.halfSide, dtype=float)
+        return np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]) * half
+    if kind in ("Cylinder", "Capsule"):
+        r, h = float(shape.radius), float(shape.halfLength)
+        circle = np.stack([r * np.cos(ring), r * np.sin(ring), np.zeros_like(ring)], axis=1)
+        if kind == "Capsule":  # hemispherical caps: their silhouettes are circles about the ends
+            circle = np.stack([r * np.cos(ring), np.zeros_like(ring), r * np.sin(ring)], axis=1)
+        return np.concatenate([circle + (0, 0, h), circle - (0, 0, h)])
+    if kind == "Sphere":
+        r = float(shape.radius)
+        return np.stack([r * np.cos(ring), np.zeros_like(ring), r * np.sin(ring)], axis=1)
+    vertices = getattr(shape, "vertices", None)
+    if callable(vertices):
+        points = np.asarray(vertices(), dtype=float).reshape(-1, 3)
+        if len(points) >= 3:
+            return points
+    raise ModelError(f"{file}: visual '{name}' is a {kind}; the outlines know box, cylinder, sphere, capsule and meshes")
+
+
+def _hull(points: np.ndarray) -> np.ndarray:
+    """The closed outline (k + 1, 2) of 2D points: their convex hull, first vertex repeated."""
+    try:
+        vertices = points[ConvexHull(points).vertices]
+    except Exception:  # flat or degenerate: the extent along the longer axis
+        axis = int(np.argmax(np.ptp(points, axis=0)))
+        vertices = points[[int(np.argmin(points[:, axis])), int(np.argmax(points[:, axis]))]]
+    return np.vstack([vertices, vertices[:1]])
+
+
+CONTACT_KEYS = {"name": str, "frame": str, "restitution": float, "friction": float, "ground": float,
+                "tangential": bool}
+STOP_KEYS = {"name": str, "joint": str, "position": float, "side": str, "restitution": float}
+
+
+def _record(table: Any, keys: Mapping[str, type], required: Sequence[str], where: str) -> dict[str, Any]:
+    """A scene table checked against ``keys`` (name -> type): SceneError naming ``where`` and the key."""
+    if not isinstance(table, Mapping):
+        raise SceneError(f"{where}: expected a table {{{', '.join(keys)}}}, got {table!r}")
+    unknown = sorted(set(table) - set(keys))
+    if unknown:
+        raise SceneError(f"{where}: unknown key(s) {unknown}; allowed: {list(keys)}")
+    for key in required:
+        if key not in table:
+            raise SceneError(f"{where}.{key}: missing")
+    out = {}
+    for key, value in table.items():
+        kind = keys[key]
+        ok = isinstance(value, bool) if kind is bool else (
+            isinstance(value, (int, float)) and not isinstance(value, bool) if kind is float else isinstance(value, kind))
+        if not ok:
+            raise SceneError(f"{where}.{key}: expected a {kind.__name__}, got {value!r}")
+        out[key] = float(value) if kind is float else value
+    return out
+
+
+def scene_contacts(contacts: Sequence[Any], stops: Sequence[Any]) -> list[PointContact | JointStop]:
+    """The ``contacts`` (point contacts on frames) and ``stops`` (joint stops) of a scene's tables."""
+    out: list[PointContact | JointStop] = []
+    for i, table in enumerate(contacts):
+        out.append(PointContact(**_record(table, CONTACT_KEYS, ("name", "frame"), f"robot.parameters.contacts[{i}]")))
+    for i, table in enumerate(stops):
+        out.append(JointStop(**_record(table, STOP_KEYS, ("name", "joint"), f"robot.parameters.stops[{i}]")))
+    return out
+
+
+PARAMETERS = {
+    "file": Param("", "the URDF file (relative to the scene's folder)", path=True),
+    "root": Param("planar", "the root joint: planar (x, z, pitch) or fixed to the world", choices=("planar", "fixed")),
+    "actuated": Param([], "joints driven by the control u, in the order of u's entries (N m or N); ['all']: every "
+                          "joint but the root"),
+    "contacts": Param([], "point contacts: tables {name, frame, restitution = 0, friction (mu; none: no limit), "
+                          "ground = 0 (m), tangential = true}"),
+    "stops": Param([], "joint stops: tables {name, joint, position (rad or m), side = 'lower' | 'upper', "
+                       "restitution = 0}"),
+    "g": Param(9.81, "gravitational acceleration", "m/s^2", low=0.0),
+    "flight_mode": Param("flight", "name of the mode without active contacts"),
+}
+
+
+def make_bridge(params: Mapping[str, Any]) -> tuple[ContactBridge, Outlines]:
+    """The bridge of a URDF robot from the builder's parameters, and its outlines."""
+    if not params["file"]:
+        raise SceneError("robot.parameters.file: give the URDF file (a path relative to the scene)")
+    model, names = load_model(params["file"], params["root"], params["g"])
+    first = 2 if params["root"] == "planar" else 1
+    joints = [model.names[j] for j in range(first, model.njoints)]
+    actuated = joints if list(params["actuated"]) == ["all"] else list(params["actuated"])
+    contacts = scene_contacts(params["contacts"], params["stops"])
+    bridge = ContactBridge(model, contacts, coordinate_names=names, velocity_names=[f"{n}d" for n in names],
+                           mode_names={(): params["flight_mode"]}, actuated=actuated, name=Path(params["file"]).stem)
+    return bridge, Outlines(bridge.model, params["file"])
+
+
+def _build(params: dict[str, Any], effects: dict[str, dict[str, Any]]) -> Model:
+    bridge, outlines = make_bridge(params)
+    n = bridge.n
+    flight = params["flight_mode"]
+    initial = dict.fromkeys(bridge.state_names(flight), 0.0)
+    system = bridge.system(flight, np.zeros(2 * n))
+
+    def geometry(mode: str, x: np.ndarray) -> dict[str, np.ndarray]:
+        return outlines(np.asarray(x, dtype=float)[:n])
+
+    info = {"guard_units": bridge.guard_units(), "bridge": bridge, "initial_check": bridge.initial_check(),
+            "parameters": dict(params), "outlines": outlines}
+    counters = bridge.counters
+    return Model(system=system, initial_mode=flight, initial_state=initial, geometry=geometry,
+                 scenery={"ground": np.array([[-2.0, 0.0], [60.0, 0.0]])}, counters=counters, info=info)
+
+
+BUILDER = Builder("urdf", "a planar robot from a URDF file, with the contacts and stops the scene declares",
+                  PARAMETERS, {}, _build)
+
+
+def make(parameters: dict[str, Any]) -> Model:
+    """The URDF robot's model from builder parameters (``file`` absolute or relative to the
+    working directory)."""
+    return BUILDER.make(parameters, {})
+
+
+def bundled(name: str) -> Path:
+    """The path of a URDF file bundled with legsim's scenes (``legsim.scenarios``)."""
+    from importlib import resources
+
+    return Path(str(resources.files("legsim.scenarios"))) / name

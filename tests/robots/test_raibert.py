@@ -1,0 +1,93 @@
+"""Raibert's controller for articulated legs (robots/raibert.py): its leg kinematics against the
+parsed URDF model, its registration, and the bundled quadruped's pronk under it -- from a
+symmetric start both feet land in one impact of the joint law and the pitch stays 0 to
+rounding; from a pitched start the run tends to the symmetric one as the pitch goes to 0."""
+
+import math
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from legsim.control import available, get_controller
+from legsim.derivatives import jacobian
+from legsim.robots import raibert
+from legsim.scene import load_scene
+
+SCENE = "quadruped_pronk"
+
+
+def pronk(t_final: float, *overrides: str):
+    return load_scene(SCENE, [f"integrator.t_final={t_final}", *overrides])
+
+
+def test_the_runner_controller_is_an_entry_point():
+    assert "raibert_runner" in available()
+    assert get_controller("raibert_runner") is raibert.RUNNER
+
+
+def test_leg_kinematics_match_the_parsed_urdf():
+    """Foot relative to the hip in the body frame by ``leg_point`` vs Pinocchio's frame
+    placements; ``leg_jacobian`` vs finite differences; ``leg_angles`` inverts ``leg_point``."""
+    bridge = pronk(0.1).model.info["bridge"]
+    model, data = bridge.model, bridge.model.createData()
+    legs = raibert.find_legs(bridge)
+    assert sorted(leg.contact for leg in legs) == ["front", "hind"]
+    rng = np.random.default_rng(11)
+    for leg in legs:
+        hip_joint = [j for j in range(model.njoints) if model.joints[j].idx_v == leg.hip][0]
+        foot = model.getFrameId(f"{leg.contact}_foot")
+        for _ in range(5):
+            q = pin.neutral(model)
+            q[[leg.hip, leg.knee]] = rng.uniform(-1.2, 1.2, 2)
+            pin.framesForwardKinematics(model, data, q)
+            relative = data.oMf[foot].translation - data.oMi[hip_joint].translation
+            np.testing.assert_allclose(raibert.leg_point(leg, *q[[leg.hip, leg.knee]]), relative[[0, 2]], atol=1e-14)
+            angles = q[[leg.hip, leg.knee]]
+            numeric = jacobian(lambda a: raibert.leg_point(leg, *a), angles)
+            np.testing.assert_allclose(raibert.leg_jacobian(leg, *angles), numeric, atol=1e-9)
+        for length, angle in ((0.42, 0.0), (0.3, 0.4), (0.45, -0.3)):
+            hip, knee = raibert.leg_angles(leg, length, angle)
+            assert math.copysign(1.0, knee) == leg.bend
+            np.testing.assert_allclose(raibert.leg_point(leg, hip, knee),
+                                       [length * math.sin(angle), -length * math.cos(angle)], atol=1e-14)
+
+
+def test_symmetric_pronk_lands_both_feet_in_one_joint_impact_with_zero_pitch():
+    """In place (speed 0) from a mirror-symmetric start the run is mirror-symmetric: every
+    touchdown is one joint impact of both feet, and the pitch stays 0 up to rounding."""
+    ex = pronk(1.0, "controller.parameters.speed=0.0").simulate()
+    assert ex.status == "finished" and not ex.warnings
+    touchdowns = [tr for tr, mode in zip(ex.transitions, ex.mode_sequence) if mode == "flight"]
+    assert len(touchdowns) == 2 and all(tr.name == "joint_hind+front" for tr in touchdowns)
+    assert max(float(np.max(np.abs(seg.x[:, 2]))) for seg in ex.segments) < 1e-12
+    assert max(float(np.max(np.abs(seg.x[:, 7]))) for seg in ex.segments) < 1e-12  # forward speed
+
+
+def test_pitched_start_tends_to_the_symmetric_run():
+    """Continuity in the pitch: the configuration after the first stance from an initial pitch
+    p approaches the symmetric run's linearly as p -> 0, although the order of the stance's
+    events (which foot slips first, which lifts off) changes with p. (The velocities converge
+    too, but slower: a liftoff time moved by O(eps) is amplified by the stiff flight servo.)"""
+    ends = {}
+    for p in (0.0, 1e-3, 1e-5):
+        ex = pronk(0.4, "controller.parameters.speed=0.0", f"initial.state.pitch={p}").simulate()
+        assert ex.status == "finished" and ex.mode_sequence[-1] == "flight"
+        ends[p] = ex.segments[-1].x[-1][:7]
+    far, near = (np.linalg.norm(ends[p] - ends[0.0]) for p in (1e-3, 1e-5))
+    assert far < 10 * 1e-3 and near < 10 * 1e-5
+    assert near < 0.05 * far
+
+
+@pytest.mark.slow
+def test_symmetric_pronk_hops_in_place_for_twenty_seconds():
+    """The controlled pronk is stable: 20 s of hops, each touchdown one joint impact of both
+    feet, apex heights settled (every touchdown's body height within 2 mm of the last), pitch 0
+    to rounding."""
+    ex = pronk(20.0, "controller.parameters.speed=0.0").simulate()
+    assert ex.status == "finished" and ex.t_end == 20.0 and not ex.warnings
+    touchdowns = [tr for tr, mode in zip(ex.transitions, ex.mode_sequence) if mode == "flight"]
+    assert len(touchdowns) >= 40 and {tr.name for tr in touchdowns} == {"joint_hind+front"}
+    heights = np.array([tr.state_before[1] for tr in touchdowns[5:]])
+    assert np.ptp(heights) < 2e-3
+    assert max(float(np.max(np.abs(seg.x[:, 2]))) for seg in ex.segments) < 1e-11

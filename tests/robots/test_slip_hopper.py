@@ -1,0 +1,78 @@
+"""The SLIP hopper (robots/slip_hopper.py) and Raibert's foot placement for it
+(raibert.SlipRaibert): uncontrolled it is the bridge's SLIP; controlled it runs 100 hops and
+tracks the commanded speed, conserving energy, on a stable periodic gait."""
+
+import math
+
+import numpy as np
+import pytest
+
+from legsim import simulate
+from legsim.errors import SceneError
+from legsim.orbits import OrbitProblem, Section, find_orbit
+from legsim.robots import raibert, slip, slip_hopper
+from legsim.scene import load_scene
+
+
+def test_without_control_the_hopper_is_the_bridge_slip():
+    """Leg angle fixed (u = 0): the first touchdown at the ballistic closed form, the stance and
+    the liftoff at the bridge SLIP's times and states (the same flow, built independently; after
+    liftoff the SLIP swings its leg back to psi, the uncontrolled hopper leaves it behind)."""
+    hopper = slip_hopper.make_system(m=1.0, k=60.0, l=1.0, g=9.81)
+    psi = math.pi / 5
+    mine = simulate(hopper, np.array([0.0, 1.1, psi, 3.4, 0.0]), "flight", 1.0, 1e-3, 1e-6)
+    theirs = simulate(slip.make().system, slip.state(), "flight", 1.0, 1e-3, 1e-6)
+    assert mine.status == theirs.status == "finished"
+    assert [tr.name for tr in mine.transitions] == ["touchdown", "liftoff"]
+    assert [tr.name for tr in theirs.transitions] == ["touchdown_leg", "liftoff_leg"]
+    assert mine.transitions[0].time == pytest.approx(math.sqrt(2 * (1.1 - math.cos(psi)) / 9.81), abs=1e-6)
+    for a, b in zip(mine.transitions, theirs.transitions):
+        assert a.time == pytest.approx(b.time, abs=1e-9)
+    np.testing.assert_allclose(mine.transitions[0].state_after, theirs.transitions[0].state_after, atol=1e-9)
+    np.testing.assert_allclose(mine.transitions[1].state_after[[0, 1, 3, 4]], theirs.transitions[1].state_after,
+                               atol=1e-9)
+
+
+def test_raibert_slip_tracks_the_commanded_speed_over_100_hops():
+    """The scene: from 1 m/s to the commanded 1.5 m/s; from the 20th hop on every flight's speed
+    within 5% of it (proportional foot placement leaves a steady error), energy conserved."""
+    scene = load_scene("slip_raibert")
+    ex = scene.simulate()
+    assert ex.status == "finished" and not ex.warnings
+    touchdowns = [tr for tr in ex.transitions if tr.name == "touchdown"]
+    assert len(touchdowns) >= 100
+    speed = scene.controller.speed
+    errors = np.array([abs(tr.state_before[3] - speed) / speed for tr in touchdowns])
+    assert errors[0] > 0.3 and np.all(errors[20:] < 0.05)
+    energy = scene.model.system.energy
+    initial = energy("flight", scene.initial_state)
+    assert max(abs(energy("flight", tr.state_before) - initial) for tr in touchdowns) < 1e-6 * initial
+    # the controller measured the last stance's duration at its liftoff
+    liftoff = ex.transitions[-1] if ex.transitions[-1].name == "liftoff" else ex.transitions[-2]
+    assert scene.controller.stance_time == pytest.approx(liftoff.time - touchdowns[-1].time, abs=2e-3)
+
+
+def test_raibert_slip_needs_the_hopper():
+    with pytest.raises(SceneError, match="slip_hopper"):
+        raibert.SLIP.build(slip.make(), {})
+
+
+def test_raibert_slip_gait_is_a_stable_periodic_orbit():
+    """`legsim.orbits` on the controlled hopper (apex section, the scene's energy): the periodic
+    gait's apex speed is the speed the 100-hop run settles at, its period the run's hop time,
+    and its multipliers, besides the energy's 1, lie inside the unit circle. The controller's
+    stance time T_s is held at its value on the gait (there the orbit is the closed loop's; the
+    multipliers are those of the foot placement with T_s frozen)."""
+    scene = load_scene("slip_raibert")
+    ex = scene.simulate()
+    controller = scene.controller
+    touchdowns = [tr for tr in ex.transitions if tr.name == "touchdown"]
+    problem = OrbitProblem(scene.model.system, Section.level("flight", "zd", 0.0, direction=-1), 1e-3, 1e-4, "rk4",
+                           t_max=2.0, control=lambda t, x: controller("flight", t, x), cyclic=["x"],
+                           energy=scene.model.system.energy("flight", scene.initial_state), trivial_multipliers=1)
+    orbit = find_orbit(problem, {"x": 0.0, "z": 1.2, "psi": 0.1, "xd": 1.4, "zd": 0.0})
+    assert orbit.converged and orbit.stable
+    assert orbit.fixed_point[3] == pytest.approx(touchdowns[-1].state_before[3], abs=1e-6)
+    assert orbit.period == pytest.approx(touchdowns[-1].time - touchdowns[-2].time, abs=2e-3)
+    moduli = sorted(abs(orbit.multipliers))
+    assert moduli[-1] == pytest.approx(1.0, abs=1e-6) and moduli[-2] < 0.5
