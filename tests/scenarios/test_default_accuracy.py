@@ -24,8 +24,10 @@ BOUND = 1e-3
 NAMES = sorted(p.stem for p in bundled_dir().glob("*.toml"))
 PAPER = [name for name in NAMES if name.endswith("_paper")]
 #: The check of these takes a second or more (the PD pendulum's controller and Example 1's
-#: 49 impacts run 10^4 steps each; the two tanks chatter 10^3 times past their Zeno time).
-SLOW = {"double_pendulum_pd", "oscillator_ex1", "two_tanks"}
+#: 49 impacts run 10^4 steps each; the two tanks chatter 10^3 times past their Zeno time; the
+#: controlled SLIP hopper runs 100 hops and the URDF quadruped's controlled runs take the Python
+#: path at milliseconds per step).
+SLOW = {"double_pendulum_pd", "oscillator_ex1", "two_tanks", "slip_raibert", "quadruped_stand", "quadruped_pronk"}
 DEFAULTS = [pytest.param(name, marks=pytest.mark.slow) if name in SLOW else name
             for name in NAMES if name not in PAPER]
 #: Below this a relative error is rounding (a state at rest, a symmetric coordinate).
