@@ -27,12 +27,13 @@ import pkgutil
 import statistics
 import time
 import types
-from typing import Any, Iterator
+from collections.abc import Iterator
+from typing import Any
 
+import legsim.robots.bridge as bridge_package
 import numpy as np
 import pinocchio
 
-import legsim.robots.bridge as bridge_package
 from legsim.scene import load_scene
 
 SCENES = ("double_pendulum_plastic", "double_pendulum_zeno", "pronk", "pronk_pitched", "slip")

@@ -16,7 +16,6 @@ Run: ``.venv/bin/python scenarios/fig_oscillator.py [out]``
 from __future__ import annotations
 
 import numpy as np
-
 from legsim.viz._figures import finish, new_figure, parse_out, run_scene
 
 SCENES = [("oscillator_ex1", "(b) Example 1"), ("oscillator_ex2", "(c) Example 2")]

@@ -19,9 +19,16 @@ Run: ``.venv/bin/python scenarios/fig_pronk_snapshots.py [out]``
 from __future__ import annotations
 
 import numpy as np
-
-from legsim.viz._figures import (draw_parts, draw_scenery, finish, group_shots, new_figure, parse_out, run_scene,
-                          snapshot_times)
+from legsim.viz._figures import (
+    draw_parts,
+    draw_scenery,
+    finish,
+    group_shots,
+    new_figure,
+    parse_out,
+    run_scene,
+    snapshot_times,
+)
 
 SCENES = [("pronk_paper", r"$\theta_0 = 0$: both legs touch down and lift off together"),
           ("pronk_pitched_paper", r"$\theta_0 = -0.4$: the left leg touches down first")]

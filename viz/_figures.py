@@ -5,8 +5,9 @@ from __future__ import annotations
 
 import argparse
 import sys
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -121,5 +122,14 @@ def finish(fig, path: Path, rrds: Sequence[Path]) -> None:
         print(f"wrote {rrd}", file=sys.stderr)
 
 
-__all__ = ["parse_out", "run_scene", "new_figure", "draw_parts", "draw_scenery", "snapshot_times", "group_shots",
-           "state_panels", "finish"]
+__all__ = [
+    "draw_parts",
+    "draw_scenery",
+    "finish",
+    "group_shots",
+    "new_figure",
+    "parse_out",
+    "run_scene",
+    "snapshot_times",
+    "state_panels",
+]

@@ -15,7 +15,8 @@ Models with neither have no contact markers.
 
 from __future__ import annotations
 
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 

@@ -17,8 +17,9 @@ Figures are built on matplotlib's Agg canvas (no pyplot).
 from __future__ import annotations
 
 import os
+from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any, Mapping, Sequence
+from typing import Any
 
 import numpy as np
 

@@ -16,16 +16,16 @@ never through pyplot, so no display or global backend is touched.
 from __future__ import annotations
 
 import os
+from collections.abc import Sequence
 from itertools import groupby
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 
 from legsim.builders import Model
-from legsim.execution import Execution
-
 from legsim.errors import OutputError
+from legsim.execution import Execution
 from legsim.output.files import write_atomic
 from legsim.output.trace import resolve_model
 

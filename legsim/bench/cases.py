@@ -10,8 +10,9 @@ exist (oscillator, bouncing ball); otherwise a converged event-driven run (DOP85
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 

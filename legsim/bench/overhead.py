@@ -17,7 +17,8 @@ import math
 import statistics
 import time
 import timeit
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 import numba
 import numpy as np
@@ -181,6 +182,7 @@ def contract_cost(system, x0: np.ndarray, t_final: float, method: str, repeats: 
     the Python path (``system`` without compiled twins: the cheapest fields, where the checks'
     share is largest)."""
     import legsim.relaxed.run as run_module
+
     from ..methods.stepper import make_stepper
 
     def once() -> float:

@@ -52,7 +52,8 @@ passive runner) are reported but can be excluded from the stability verdict with
 
 from __future__ import annotations
 
-from typing import Any, Callable, Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
+from typing import Any
 
 import numpy as np
 

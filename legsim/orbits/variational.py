@@ -38,7 +38,6 @@ from ..execution import Segment
 from ..hybrid import Mode
 from ..methods import Tableau
 
-
 #: Largest relative change of the field Jacobian over a step (max norms) for which a Newton
 #: Jacobian interpolates it between the step's ends: the interpolation's error is then about
 #: (change)^2 / 8 of the step's contribution, ~1e-6 over a compass-gait step at h = 2e-3

@@ -11,8 +11,9 @@ from __future__ import annotations
 import math
 import time
 import traceback
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Callable, Iterable, Sequence
+from typing import Any
 
 from ..execution import Execution
 

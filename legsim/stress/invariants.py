@@ -9,7 +9,8 @@ Every check can fail: tests/stress/test_invariants.py breaks a good execution fo
 from __future__ import annotations
 
 import math
-from typing import Any, Callable, Sequence
+from collections.abc import Callable, Sequence
+from typing import Any
 
 import numpy as np
 

@@ -7,12 +7,11 @@ import math
 import numpy as np
 import pytest
 
+from helpers.reliability import run_cli
 from legsim.bench import orbit
 from legsim.orbits import find_orbit
 from legsim.scene import load_scene
 from legsim.scene.orbit import problem_from_scene
-
-from helpers.reliability import run_cli
 
 
 @pytest.fixture(scope="module")

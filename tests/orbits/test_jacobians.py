@@ -5,10 +5,17 @@ import math
 import numpy as np
 import pytest
 
-from legsim.orbits import (OrbitError, OrbitProblem, Section, find_orbit, jacobian_fd, jacobian_saltation,
-                           return_map, saltation_matrix)
-
 from helpers.orbit_systems import hopf_reset, impact_oscillator
+from legsim.orbits import (
+    OrbitError,
+    OrbitProblem,
+    Section,
+    find_orbit,
+    jacobian_fd,
+    jacobian_saltation,
+    return_map,
+    saltation_matrix,
+)
 
 
 @pytest.mark.parametrize("section", [Section.after("jump"), Section.level("arc", "x", 0.0, 1)])

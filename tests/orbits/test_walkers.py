@@ -20,11 +20,10 @@ import math
 
 import numpy as np
 import pytest
-
-from legsim.orbits import OrbitError, OrbitProblem, Section, find_orbit, jacobian_fd, jacobian_saltation, return_map
 from legsim.robots import compass_gait, rimless_wheel
 
 from helpers.compass_gait_reference import STANDARD, PointMassCompassGait
+from legsim.orbits import OrbitError, OrbitProblem, Section, find_orbit, jacobian_fd, jacobian_saltation, return_map
 
 
 @pytest.fixture(scope="module")

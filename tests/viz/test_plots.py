@@ -7,13 +7,13 @@ import re
 
 import numpy as np
 import pytest
-from helpers.models import ball_model, hopper_model
+from legsim.viz.plots import MODE_GID, STRIP_GID, plot_data, span_bounds, state_figure, write_plot
 
+from helpers.models import ball_model, hopper_model
 from legsim.errors import OutputError
 from legsim.output.rrd import read_rrd, write_rrd
 from legsim.output.trace import execution_trace, trace_series
 from legsim.relaxed import simulate
-from legsim.viz.plots import MODE_GID, STRIP_GID, plot_data, span_bounds, state_figure, write_plot
 
 
 @pytest.fixture(scope="module")
@@ -170,9 +170,8 @@ def diverged():
 def test_diverged_run_is_plotted_up_to_the_divergence(diverged, tmp_path):
     import warnings
 
-    from matplotlib.image import imread
-
     from legsim.viz._common import PLOT_LIMIT
+    from matplotlib.image import imread
 
     scene, ex = diverged
     data = plot_data(ex, scene)
@@ -279,7 +278,6 @@ def test_figure_script_panels_take_the_models_units(pronk):
 
 def test_every_axis_of_the_sweep_maps_and_histograms_has_a_unit():
     import pyarrow as pa
-
     from legsim.viz.maps import basin_figure, stability_figure, switching_figure
 
     rows = [{"initial.state.stanced": a, "initial.state.hipd": b, "robot.parameters.slope": a,

@@ -10,8 +10,9 @@ the first gets the shape statically, once. See ``legsim.output.rrd.layout``.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 

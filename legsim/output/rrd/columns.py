@@ -8,8 +8,9 @@ arrays only when asked for, sorted by row (the ``sample`` timeline; -1 for stati
 from __future__ import annotations
 
 import warnings
+from collections.abc import Iterator
 from pathlib import Path
-from typing import Any, Iterator
+from typing import Any
 
 import numpy as np
 

@@ -3,8 +3,9 @@ the unit, and the blueprint (the 3D robot, the mode and strip band, the plots, t
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
 

@@ -12,9 +12,10 @@ from __future__ import annotations
 import json
 import os
 import uuid
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 
@@ -26,8 +27,26 @@ from ..files import write_atomic
 from ..summary import run_summary
 from ..trace import RecordingError, Trace, _draw, execution_trace, resolve_model, scenery_only, trace_series
 from .bodies import BodyLogger
-from .layout import (APPLICATION_ID, FORMAT, MODE, PALETTE, SAMPLE_TIMELINE, SAMPLES, SCENERY, SCENERY_COLOUR,
-                     STATE, STRIP, STRIPS, SUMMARY, TIMELINE, TRANSITIONS, WARNINGS, WORLD, META, entity)
+from .layout import (
+    APPLICATION_ID,
+    FORMAT,
+    META,
+    MODE,
+    PALETTE,
+    SAMPLE_TIMELINE,
+    SAMPLES,
+    SCENERY,
+    SCENERY_COLOUR,
+    STATE,
+    STRIP,
+    STRIPS,
+    SUMMARY,
+    TIMELINE,
+    TRANSITIONS,
+    WARNINGS,
+    WORLD,
+    entity,
+)
 from .views import blueprint, coordinate_units, series_label, unit_groups
 
 #: Samples whose robot geometry is drawn and sent at a time.

@@ -14,8 +14,14 @@ from ...relaxed import simulate
 from ..framework import CaseResult, Check, case
 from ..invariants import check_order, energies, execution_checks, transition_floor
 from ..models import build, model_state, pronk
-from ..reference_checks import (ball_flight_checks, ball_hold_check, ball_rest_check, ball_rest_crossing,
-                                tank_level_rate, tank_switch_checks)
+from ..reference_checks import (
+    ball_flight_checks,
+    ball_hold_check,
+    ball_rest_check,
+    ball_rest_crossing,
+    tank_level_rate,
+    tank_switch_checks,
+)
 
 
 @case("extreme_eps", "extremes", "bouncing ball with eps = 1e-12 ... 1e-1 (plain to 0.95 t_zeno; by default to 2 t_zeno)")

@@ -5,7 +5,7 @@ circle that touches, misses or cuts the plane by a tiny distance.
 
 from __future__ import annotations
 
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 

@@ -21,11 +21,22 @@ from ...hybrid import HybridSystem
 from ...relaxed import simulate
 from ...systems.oscillator import EXAMPLES, OscillatorReference
 from ..framework import CaseResult, Check, case
-from ..invariants import (check_accumulation, check_order, execution_checks, first_accumulating_crossing,
-                          transition_floor)
+from ..invariants import (
+    check_accumulation,
+    check_order,
+    execution_checks,
+    first_accumulating_crossing,
+    transition_floor,
+)
 from ..models import build, double_pendulum, model_state, oscillator_ex2
-from ..reference_checks import (ball_flight_checks, ball_rest_check, ball_rest_crossing, oscillator_stick_sequence,
-                                tank_level_rate, tank_switch_checks)
+from ..reference_checks import (
+    ball_flight_checks,
+    ball_rest_check,
+    ball_rest_crossing,
+    oscillator_stick_sequence,
+    tank_level_rate,
+    tank_switch_checks,
+)
 
 #: Paper 000 Table I Example 2, the oscillator cases' parameters.
 EX2 = EXAMPLES["ex2"]

@@ -6,9 +6,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+
 from helpers.models import ball_model
 from helpers.recordings import expected_series
-
 from legsim.output.rrd import read_rrd, write_rrd
 from legsim.output.trace import RecordingError, execution_trace, frame_times
 from legsim.relaxed import simulate
