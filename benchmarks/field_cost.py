@@ -149,8 +149,8 @@ def share_table(repeat: int) -> list[tuple[str, float, float, int, float, int]]:
         # The inner time of each timed call includes part of the clock reads: subtract that bias
         # (measured on a wrapped no-op) and compare with the plain run, which has no timers.
         pin_seconds = timed_pin.seconds - timed_pin.calls * bias
-        rows.append((name, statistics.median(plain), wall, timed_pin.calls, 1.0 - pin_seconds / statistics.median(plain),
-                     int(ex.counters["field_evals"])))
+        rows.append((name, statistics.median(plain), wall, timed_pin.calls,
+                     1.0 - pin_seconds / statistics.median(plain), int(ex.counters["field_evals"])))
     return rows
 
 

@@ -26,7 +26,7 @@ def main(argv=None) -> int:
     fig = new_figure(12.0, 4.6)
     axes = fig.subplots(1, len(SCENES))
     rrds = []
-    for ax, (name, caption) in zip(axes, SCENES):
+    for ax, (name, caption) in zip(axes, SCENES, strict=True):
         scene, ex, rrd = run_scene(name, out)
         rrds.append(rrd)
         reference = scene.model.reference

@@ -43,7 +43,7 @@ def main(argv=None) -> int:
     axes = fig.subplots(len(SCENES), 1)
     cmap = colormaps["viridis"]
     rrds = []
-    for ax, (name, caption) in zip(axes, SCENES):
+    for ax, (name, caption) in zip(axes, SCENES, strict=True):
         scene, ex, rrd = run_scene(name, out)
         rrds.append(rrd)
         model = scene.model
@@ -64,7 +64,7 @@ def main(argv=None) -> int:
                         xytext=(0, 6 + 22 * (k % 2)), ha="center", fontsize=7, color=colour)
         samples = ex.sample(np.linspace(ex.t0, ex.t_end, 400))
         com = np.array([model.geometry(m, s).get("com", np.full((1, 2), np.nan))[0]
-                        for m, s in zip(samples.modes, samples.states)])
+                        for m, s in zip(samples.modes, samples.states, strict=True)])
         ax.plot(com[:, 0], com[:, 1], "--", color="0.5", lw=0.8, zorder=0)
         draw_scenery(ax, model.scenery)
         ax.set_xlim(min(xs) - 0.3, max(xs) + 0.3)

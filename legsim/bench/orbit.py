@@ -175,7 +175,8 @@ def tolerance_sweep(problem: Any, guess: np.ndarray, orbit_tol: float, reference
     return sweep
 
 
-def measure(scene_name: str = "compass_gait", repeats: int = 7, log: Callable[[str], None] | None = None) -> dict[str, Any]:
+def measure(scene_name: str = "compass_gait", repeats: int = 7,
+            log: Callable[[str], None] | None = None) -> dict[str, Any]:
     """Everything ``legsim bench orbit`` prints (the keys of its ``--json``). Besides the
     baseline at the loosest tolerance reaching legsim's error, the next looser one (less
     accurate than legsim) is timed too: the ratio at exactly equal error lies between the two."""
@@ -255,7 +256,8 @@ def format_report(r: dict[str, Any]) -> str:
               f"ratio scipy / legsim: {r['ratio']:.2f} (fixed point only), {r['ratio_with_multipliers']:.2f} "
               f"(with multipliers)",
               *([] if r["scipy_looser"] is None else [
-                  f"  (scipy at the next looser tol {r['scipy_looser']['tol']:g}, error {r['scipy_looser']['error']:.2e} "
+                  f"  (scipy at the next looser tol {r['scipy_looser']['tol']:g}, "
+                  f"error {r['scipy_looser']['error']:.2e} "
                   f"> legsim's: {1e3 * r['scipy_looser']['wall_s']:.1f} ms, ratio {r['scipy_looser']['ratio']:.2f})"]),
               f"target: legsim orbit no slower than the scipy baseline at equal accuracy: {verdict}"]
     return "\n".join(lines)

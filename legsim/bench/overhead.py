@@ -5,9 +5,10 @@ evaluations a transition costs with halving and with aiming.
 Method: a run's time minus (evaluations x the cost of one evaluation measured alone), per step.
 Times are CPU times of this process (``time.process_time``), not wall-clock times: on a
 machine shared with other jobs the wall clock also counts the time this process waits for a
-core, which can double a short measurement; CPU time counts the work. Evaluations are the run's own counters; one evaluation's cost is timed in a loop of
-the same kind as the caller's (a numba loop for the compiled path, a Python loop for the
-Python path), so the overhead is what the integrator adds around the model.
+core, which can double a short measurement; CPU time counts the work. Evaluations are the
+run's own counters; one evaluation's cost is timed in a loop of the same kind as the caller's
+(a numba loop for the compiled path, a Python loop for the Python path), so the overhead is
+what the integrator adds around the model.
 """
 
 from __future__ import annotations
@@ -139,7 +140,8 @@ def measure_run(system, x0, mode: str, t_final: float, h: float, eps: float, met
         "method": method, "h": h, "eps": eps, "status": ex.status, "wall_s": wall, "steps": int(c["steps"]),
         "halvings": int(c["halvings"]), "field_evals": int(c["field_evals"]), "guard_evals": int(c["guard_evals"]),
         "reset_evals": int(c["reset_evals"]), "transitions": int(c["transitions"]),
-        "steps_per_s": c["steps"] / wall, "ns_per_step": 1e9 * wall / steps, "cost_field_s": costs["field"], "clock": "process CPU time",
+        "steps_per_s": c["steps"] / wall, "ns_per_step": 1e9 * wall / steps, "cost_field_s": costs["field"],
+        "clock": "process CPU time",
         "share_field": t_field / wall, "share_guards": t_guard / wall, "share_resets": t_reset / wall,
         "overhead_per_step_in_fields": rest / steps / costs["field"],
     }
@@ -263,7 +265,8 @@ def format_report(r: dict[str, Any], width: int | None = None) -> str:
     rows = [(label, m["method"], f"{m['steps_per_s']:.3g}", f"{m['ns_per_step']:.0f}", f"{100 * m['share_field']:.0f}%",
              f"{100 * m['share_guards']:.0f}%", f"{100 * m['share_resets']:.1f}%",
              f"{m['overhead_per_step_in_fields']:.2f} f-ev", str(m["transitions"]))
-            for label, key in (("compiled", "compiled"), ("compiled, no stop", "compiled_no_stop"), ("python", "python"))
+            for label, key in (("compiled", "compiled"), ("compiled, no stop", "compiled_no_stop"),
+                               ("python", "python"))
             for m in r[key]]
     lines.append(render_table(head, rows, right=range(2, 9), whole=range(9), width=width))
     lines.append("")

@@ -297,7 +297,7 @@ def _extend_family(case: Case, row: Row, best: float, ext: Extension, budget: fl
 
 def _why(ext: Extension, reasons: list[str], budget: float) -> str:
     if "reached" in reasons:
-        return f"reached it ({[r for r in ext.rows if r.error <= ext.level][0].error:.3g})"
+        return f"reached it ({next(r for r in ext.rows if r.error <= ext.level).error:.3g})"
     said = {"budget": f"the time budget of {budget:g} s is spent",
             "floor": f"the error stopped falling ({MAX_NON_IMPROVING} finer runs without improvement)"}
     unique = list(dict.fromkeys(said.get(r, r) for r in reasons))

@@ -171,7 +171,7 @@ class _Equations:
         x = self.template.copy()
         x[self.p.unknown_idx] = z[: self.n_x]
         params = dict(self.p.parameters)
-        params.update({name: float(v) for name, v in zip(self.p.free, z[self.n_x:])})
+        params.update({name: float(v) for name, v in zip(self.p.free, z[self.n_x:], strict=True)})
         return x, params
 
     def pack(self, x: np.ndarray, params: Mapping[str, float]) -> np.ndarray:

@@ -138,7 +138,7 @@ class ReturnMap:
 
     def show_state(self, x: np.ndarray) -> str:
         """A state of the section's mode as ``{name=value, ...}`` for messages."""
-        return "{" + ", ".join(f"{n}={v:.6g}" for n, v in zip(self.problem.names, x)) + "}"
+        return "{" + ", ".join(f"{n}={v:.6g}" for n, v in zip(self.problem.names, x, strict=False)) + "}"
 
     def _locate(self, ex: Execution, x0: np.ndarray, params: dict[str, float]) -> Return | None:
         if self.problem.section.kind == "transition":

@@ -51,7 +51,7 @@ def test_saltation_matrix_of_the_wall_impact_in_closed_form():
     # DR = diag(1, -e). Xi = DR + (f+ - DR f-) e_x^T / (-V).
     sysm = impact_oscillator()
     tr = sysm.transitions[0]
-    V, e, kick = 1.7, 0.8, 1.0
+    V, e = 1.7, 0.8
     q = np.array([0.0, -V])
     xp = tr.reset(q)
     f = sysm.mode("free").field

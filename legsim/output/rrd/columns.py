@@ -118,7 +118,7 @@ class Columns:
         """(row index, Python list of the row's values), sorted by row (small entities only)."""
         out: list[tuple[int, list]] = []
         for index, column in self._pieces(entity, component):
-            out.extend(zip(index.tolist(), column.to_pylist()))
+            out.extend(zip(index.tolist(), column.to_pylist(), strict=False))
         out.sort(key=lambda r: r[0])
         return out
 

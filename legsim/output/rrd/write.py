@@ -223,7 +223,7 @@ def _summary_markdown(meta: dict[str, Any]) -> str:
     shown = " → ".join(seq[:30]) + (f" … ({len(seq) - 30} more)" if len(seq) > 30 else "")
     names = s.get("state_names", [])
     final = ", ".join(f"{n} = {v:.6g}" if isinstance(v, float) else f"{n} = {v}"
-                      for n, v in zip(names, s.get("final_state", [])))
+                      for n, v in zip(names, s.get("final_state", []), strict=False))
     lines = [
         f"# {s.get('scene') or s.get('system', 'legsim run')}",
         "",
@@ -421,12 +421,12 @@ def typed_columns(rr: Any, **columns: Any) -> list:
     """
     import pyarrow as pa
 
-    arrays = {}
+    arrays: dict[str, pa.Array] = {}
     for key, value in columns.items():
         if isinstance(value, list) and value and isinstance(value[0], np.ndarray):
             sizes = np.array([len(v) for v in value], dtype=np.int32)
             offsets = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int32)
-            arrays[key] = pa.ListArray.from_arrays(pa.array(offsets), pa.array(np.concatenate(value)))
+            arrays[key] = pa.ListArray.from_arrays(pa.array(offsets, type=pa.int32()), pa.array(np.concatenate(value)))
         elif isinstance(value, list):
             arrays[key] = pa.array(value, type=pa.string())
         else:
