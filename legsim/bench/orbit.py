@@ -45,6 +45,19 @@ REFERENCE_TOL = 1e-12
 MAX_ITERATIONS = 30
 
 
+class _GuardEvent:
+    """A solve_ivp event: the guard ``guard(x)`` crossing zero from above, which ends the solve."""
+
+    terminal = True
+    direction = -1.0
+
+    def __init__(self, guard: Callable[[np.ndarray], float]) -> None:
+        self.guard = guard
+
+    def __call__(self, t: float, y: np.ndarray) -> float:
+        return self.guard(y)
+
+
 class StepMap:
     """The step map of a scene's orbit problem by ``solve_ivp`` DOP853 with events: from a state
     just after the section's transition to the state just after it fires again. ``calls``
@@ -65,12 +78,7 @@ class StepMap:
     def _mode_pieces(self, mode: str) -> tuple[Callable, list, list]:
         field = self.system.mode(mode).field
         transitions = self.system.outgoing(mode)
-        events = []
-        for tr in transitions:
-            def event(t: float, y: np.ndarray, guard=tr.guard) -> float:
-                return guard(y)
-            event.terminal, event.direction = True, -1
-            events.append(event)
+        events = [_GuardEvent(tr.guard) for tr in transitions]
         return (lambda t, y: field(t, y, None)), transitions, events
 
     def __call__(self, x: np.ndarray) -> np.ndarray:
@@ -83,6 +91,7 @@ class StepMap:
             if sol.status != 1:
                 raise BenchError(f"bench orbit: the baseline's step map found no {self.transition} within "
                                  f"t_max = {self.t_max:g} s from {np.round(x, 8).tolist()} ({sol.message})")
+            assert sol.t_events is not None and sol.y_events is not None  # solve_ivp was given events
             t, e = min((float(te[0]), i) for i, te in enumerate(sol.t_events) if len(te))
             tr = transitions[e]
             y = np.asarray(tr.reset(sol.y_events[e][0]), dtype=float)

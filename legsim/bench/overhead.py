@@ -19,7 +19,9 @@ import statistics
 import time
 import timeit
 from collections.abc import Callable
+from functools import partial
 from typing import Any
+from unittest.mock import patch
 
 import numba
 import numpy as np
@@ -81,8 +83,10 @@ def compiled_costs(twin, x: np.ndarray, n: int = 2_000_000) -> dict[str, float]:
     """Seconds per call of the twin's field, guards and resets, called from compiled code."""
     x = np.array(x, dtype=float)
     p = twin.params
-    for fn, args in ((_loop_field, (twin.field,)), (_loop_guards, (twin.guards,)), (_loop_empty, ())):
-        fn(*args, p, x.copy(), 10)
+    # compile each loop before it is timed
+    _loop_field(twin.field, p, x.copy(), 10)
+    _loop_guards(twin.guards, p, x.copy(), 10)
+    _loop_empty(p, x.copy(), 10)
     empty = _best(lambda: _loop_empty(p, x.copy(), n))
     out = {"field": (_best(lambda: _loop_field(twin.field, p, x.copy(), n)) - empty) / n,
            "guards": (_best(lambda: _loop_guards(twin.guards, p, x.copy(), n)) - empty) / n}
@@ -129,6 +133,7 @@ def measure_run(system, x0, mode: str, t_final: float, h: float, eps: float, met
         walls.append(time.process_time() - start)
     if callable(costs):
         costs = {k: min(m[k] for m in measured) for k in measured[0]}
+    assert ex is not None  # repeats >= 1 runs
     wall = min(walls)
     c = ex.counters
     steps = max(int(c["steps"]), 1)
@@ -156,10 +161,10 @@ def landing_costs(system, x0, mode, t_final, h, eps, method="rk4", landings=("ha
 
     tab = get_method(method)
     per_step = tab.stages - 1 + (0 if tab.fsal else 1)
-    tols = {} if tol is None else {"rtol": tol, "atol": tol}
     out = {}
     for landing in landings:
-        ex = simulate(system, x0, mode, t_final, h, eps, method, landing=landing, max_transitions=1_000_000, **tols)
+        ex = simulate(system, x0, mode, t_final, h, eps, method, landing=landing, max_transitions=1_000_000,
+                      rtol=tol, atol=tol)
         c = ex.counters
         n = max(int(c["transitions"]), 1)
         out[landing] = {
@@ -192,15 +197,10 @@ def contract_cost(system, x0: np.ndarray, t_final: float, method: str, repeats: 
         simulate(system, x0, "free", t_final, 1e-3, 1e-6, method, continuation=False)
         return time.perf_counter() - start
 
-    checked_guard = run_module.Run._guard_fn
-
     def unchecked() -> float:
-        run_module.Run._guard_fn = _unchecked_guard
-        run_module.make_stepper = lambda tableau: make_stepper(tableau, checked=False)
-        try:
+        with (patch.object(run_module.Run, "_guard_fn", _unchecked_guard),
+              patch.object(run_module, "make_stepper", partial(make_stepper, checked=False))):
             return once()
-        finally:
-            run_module.Run._guard_fn, run_module.make_stepper = checked_guard, make_stepper
 
     once(), unchecked()  # both steppers generated before anything is timed
     return statistics.median([once() / unchecked() for _ in range(repeats)])

@@ -298,7 +298,7 @@ def read_rows(path: str | os.PathLike) -> list[Row]:
             raise BenchError(f"{path}: not a bench CSV (columns {reader.fieldnames}, expected {list(COLUMNS)})")
         out = []
         for line in reader:
-            values = {}
+            values: dict[str, Any] = {}
             for name, kind in Row.__annotations__.items():
                 text = line[name]
                 if kind == "float":
