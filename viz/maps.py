@@ -31,6 +31,8 @@ from ._figures import new_figure
 OUTCOME_COLOURS = {"converges": "#2ca02c", "other_gait": "#1f77b4", "falls": "#d62728", "stops": "#ff7f0e",
                    "undecided": "#bcbd22", "failed": "#7f7f7f", "no result": "#000000"}
 FORMATS = ("png", "pdf", "svg")
+#: The suffixes the map writers write: a command checks its output path against them before it runs.
+SUFFIXES = tuple("." + f for f in FORMATS)
 
 
 def grid_of(table: Any, x: str, y: str, column: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -216,19 +218,19 @@ def _save(fig, path: str | os.PathLike) -> Path:
     return path
 
 
-@writer_attributes(suffixes=tuple("." + f for f in FORMATS))
+@writer_attributes(suffixes=SUFFIXES)
 def write_basin_map(table: Any, info: Mapping[str, Any], path: str | os.PathLike) -> Path:
     """Entry point ``basin_map``: the basin figure of a walk sweep's table."""
     return _save(basin_figure(table, info), path)
 
 
-@writer_attributes(suffixes=tuple("." + f for f in FORMATS))
+@writer_attributes(suffixes=SUFFIXES)
 def write_stability_map(table: Any, info: Mapping[str, Any], path: str | os.PathLike) -> Path:
     """Entry point ``stability_map``: the stability figure of an orbit sweep's table."""
     return _save(stability_figure(table, info), path)
 
 
-@writer_attributes(suffixes=tuple("." + f for f in FORMATS))
+@writer_attributes(suffixes=SUFFIXES)
 def write_switching_histograms(times: Sequence[Sequence[float]], info: Mapping[str, Any],
                                path: str | os.PathLike) -> Path:
     """Entry point ``switching_histograms``: the histograms of a stochastic ensemble's switching
