@@ -105,8 +105,8 @@ def _after_last_impact(name: str) -> np.ndarray:
 def impact_error(run, ref) -> float:
     if len(run) != len(ref):
         return math.inf
-    return max([0.0] + [max(abs(a[0] - b[0]), float(np.max(np.abs(a[1] - b[1])))) for a, b in zip(run, ref)
-                         if a[1] is not None and b[1] is not None])
+    return max([0.0] + [max(abs(a[0] - b[0]), float(np.max(np.abs(a[1] - b[1]))))
+                         for a, b in zip(run, ref, strict=True) if a[1] is not None and b[1] is not None])
 
 
 def drake_configs(quick: bool) -> list[tuple]:
@@ -145,10 +145,10 @@ def main() -> int:
                 if i < len(specs):
                     l_rows.append(robots.run_one(case, specs[i], 3))
             for lv in LEVELS:
-                d_best = min([t for t, e in zip(d_time, d_err) if e <= lv], default=math.inf)
+                d_best = min([t for t, e in zip(d_time, d_err, strict=True) if e <= lv], default=math.inf)
                 l_best = min([r.wall_s for r in l_rows if r.error <= lv], default=math.inf)
                 ratios[lv].append(d_best / l_best if math.isfinite(l_best) else math.nan)
-                cfg = next((c for c, t, e in zip(configs, d_time, d_err) if t == d_best and e <= lv), None)
+                cfg = next((c for c, t, e in zip(configs, d_time, d_err, strict=True) if t == d_best and e <= lv), None)
                 row = next((r for r in l_rows if r.wall_s == l_best), None)
                 print(f"{name} round {rnd + 1} error <= {lv:g}: Drake {cfg} {1e3 * d_best:.3g} ms; legsim "
                       f"{row.method if row else None} tol={row.tol if row else None} h={row.h if row else None} "

@@ -27,12 +27,13 @@ import pkgutil
 import statistics
 import time
 import types
-from typing import Any, Iterator
+from collections.abc import Iterator
+from typing import Any
 
+import legsim.robots.bridge as bridge_package
 import numpy as np
 import pinocchio
 
-import legsim.robots.bridge as bridge_package
 from legsim.scene import load_scene
 
 SCENES = ("double_pendulum_plastic", "double_pendulum_zeno", "pronk", "pronk_pitched", "slip")
@@ -148,8 +149,8 @@ def share_table(repeat: int) -> list[tuple[str, float, float, int, float, int]]:
         # The inner time of each timed call includes part of the clock reads: subtract that bias
         # (measured on a wrapped no-op) and compare with the plain run, which has no timers.
         pin_seconds = timed_pin.seconds - timed_pin.calls * bias
-        rows.append((name, statistics.median(plain), wall, timed_pin.calls, 1.0 - pin_seconds / statistics.median(plain),
-                     int(ex.counters["field_evals"])))
+        rows.append((name, statistics.median(plain), wall, timed_pin.calls,
+                     1.0 - pin_seconds / statistics.median(plain), int(ex.counters["field_evals"])))
     return rows
 
 

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 import time
+from functools import partial
 
 import numpy as np
 
@@ -58,11 +59,8 @@ def main() -> None:
           f"{'us/step':>8s} {'ratio':>6s}")
     for ivp_method, tableau in (("DOP853", dop853_tableau()), ("RK45", "dopri5")):
         for tol in (1e-6, 1e-9):
-            def relaxed():
-                return simulate(hs, x0, "a", 200.0, 0.2, 1e-9, tableau, rtol=tol, atol=tol, landing="dense")
-
-            def ivp():
-                return simulate_events(hs, x0, "a", 200.0, method=ivp_method, rtol=tol, atol=tol, max_step=0.2)
+            relaxed = partial(simulate, hs, x0, "a", 200.0, 0.2, 1e-9, tableau, rtol=tol, atol=tol, landing="dense")
+            ivp = partial(simulate_events, hs, x0, "a", 200.0, method=ivp_method, rtol=tol, atol=tol, max_step=0.2)
 
             r, i = relaxed(), ivp()  # warm up, and the step counts
             t_relaxed, t_ivp = best_cpu_time(relaxed, args.repeat), best_cpu_time(ivp, args.repeat)

@@ -52,7 +52,8 @@ def load() -> str:
 
 def report(label: str, result, workers: int) -> None:
     rows = float(np.sum(result.table.column("wall_time_s").to_numpy()))
-    print(f"{label:28s} {result.table.num_rows:6d} cells  {result.elapsed_s:8.1f} s  (start-up {result.startup_s:4.1f} s)"
+    print(f"{label:28s} {result.table.num_rows:6d} cells  {result.elapsed_s:8.1f} s  "
+          f"(start-up {result.startup_s:4.1f} s)"
           f"  rows' own time {rows:8.1f} s  busy {100 * busy_share(result, workers):5.1f}%  "
           f"outcomes {dict(sorted(result.counts('outcome').items()))}", flush=True)
 
@@ -76,8 +77,8 @@ def main() -> None:
         report("basin: Dask, 2 workers", two, 2)
     print(f"load average after: {load()}")
     print(f"speed-up 2 workers / 1 worker: {one.elapsed_s / two.elapsed_s:.2f}x (target >= 1.8x)")
-    print(f"engine overhead (a), Dask 1 worker vs this process: {100 * (one_small.elapsed_s / here.elapsed_s - 1):+.1f}%"
-          f" (target < 5%)")
+    print("engine overhead (a), Dask 1 worker vs this process: "
+          f"{100 * (one_small.elapsed_s / here.elapsed_s - 1):+.1f}% (target < 5%)")
     print(f"engine overhead (b), workers' time not in rows: 1 worker {100 * (1 - busy_share(one, 1)):.1f}%, "
           f"2 workers {100 * (1 - busy_share(two, 2)):.1f}% (target < 5%)")
 

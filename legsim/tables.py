@@ -11,7 +11,8 @@ from __future__ import annotations
 import io
 import shutil
 import sys
-from typing import Iterable, Sequence, TextIO
+from collections.abc import Iterable, Sequence
+from typing import TextIO
 
 from rich.box import Box
 from rich.console import Console

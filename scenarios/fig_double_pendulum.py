@@ -32,8 +32,8 @@ def main(argv=None) -> int:
     fig = new_figure(12.0, 8.0)
     grid = fig.add_gridspec(1, len(SCENES))
     rrds = []
-    for column, (name, caption) in zip(grid, SCENES):
-        scene, ex, rrd = run_scene(name, out)
+    for column, (name, caption) in zip(grid, SCENES, strict=True):
+        _scene, ex, rrd = run_scene(name, out)
         rrds.append(rrd)
         strip_time = sum(b - a for a, b in ex.strip_intervals())
         title = f"{caption}\n{len(ex.transitions)} transitions, {strip_time:.2f} s of {ex.t_end:g} s in strips"

@@ -16,7 +16,6 @@ Run: ``.venv/bin/python scenarios/fig_oscillator.py [out]``
 from __future__ import annotations
 
 import numpy as np
-
 from legsim.viz._figures import finish, new_figure, parse_out, run_scene
 
 SCENES = [("oscillator_ex1", "(b) Example 1"), ("oscillator_ex2", "(c) Example 2")]
@@ -27,7 +26,7 @@ def main(argv=None) -> int:
     fig = new_figure(12.0, 4.6)
     axes = fig.subplots(1, len(SCENES))
     rrds = []
-    for ax, (name, caption) in zip(axes, SCENES):
+    for ax, (name, caption) in zip(axes, SCENES, strict=True):
         scene, ex, rrd = run_scene(name, out)
         rrds.append(rrd)
         reference = scene.model.reference

@@ -19,9 +19,16 @@ Run: ``.venv/bin/python scenarios/fig_pronk_snapshots.py [out]``
 from __future__ import annotations
 
 import numpy as np
-
-from legsim.viz._figures import (draw_parts, draw_scenery, finish, group_shots, new_figure, parse_out, run_scene,
-                          snapshot_times)
+from legsim.viz._figures import (
+    draw_parts,
+    draw_scenery,
+    finish,
+    group_shots,
+    new_figure,
+    parse_out,
+    run_scene,
+    snapshot_times,
+)
 
 SCENES = [("pronk_paper", r"$\theta_0 = 0$: both legs touch down and lift off together"),
           ("pronk_pitched_paper", r"$\theta_0 = -0.4$: the left leg touches down first")]
@@ -36,7 +43,7 @@ def main(argv=None) -> int:
     axes = fig.subplots(len(SCENES), 1)
     cmap = colormaps["viridis"]
     rrds = []
-    for ax, (name, caption) in zip(axes, SCENES):
+    for ax, (name, caption) in zip(axes, SCENES, strict=True):
         scene, ex, rrd = run_scene(name, out)
         rrds.append(rrd)
         model = scene.model
@@ -57,7 +64,7 @@ def main(argv=None) -> int:
                         xytext=(0, 6 + 22 * (k % 2)), ha="center", fontsize=7, color=colour)
         samples = ex.sample(np.linspace(ex.t0, ex.t_end, 400))
         com = np.array([model.geometry(m, s).get("com", np.full((1, 2), np.nan))[0]
-                        for m, s in zip(samples.modes, samples.states)])
+                        for m, s in zip(samples.modes, samples.states, strict=True)])
         ax.plot(com[:, 0], com[:, 1], "--", color="0.5", lw=0.8, zorder=0)
         draw_scenery(ax, model.scenery)
         ax.set_xlim(min(xs) - 0.3, max(xs) + 0.3)

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -40,8 +41,8 @@ def sweep(deltas: np.ndarray) -> dict[str, np.ndarray]:
     x0 = dc.nominal_initial_state()
     out = {"delta": deltas, "rho": [], "rho_window": [], "rho_eps": [], "trajectory": []}
     for delta in deltas:
-        y = dc.make_reference(x0 + [-delta, 0.0])
-        z = dc.make_reference(x0 + [0.0, -delta])
+        y = dc.make_reference(x0 + np.array([-delta, 0.0]))
+        z = dc.make_reference(x0 + np.array([0.0, -delta]))
         events = np.array(y.transition_times + z.transition_times)
         times = np.union1d(np.linspace(0.0, T_END, 401),
                            np.linspace(events.min() - delta, events.max() + delta, 201))
@@ -50,8 +51,8 @@ def sweep(deltas: np.ndarray) -> dict[str, np.ndarray]:
         out["rho"].append(d.max())
         out["rho_window"].append(d[mismatch].max())
         out["trajectory"].append(trajectory_space_distance(y, z, times))
-        ys = simulate(system, x0 + [-delta, 0.0], "0", T_END, H, EPS)
-        zs = simulate(system, x0 + [0.0, -delta], "0", T_END, H, EPS)
+        ys = simulate(system, x0 + np.array([-delta, 0.0]), "0", T_END, H, EPS)
+        zs = simulate(system, x0 + np.array([0.0, -delta]), "0", T_END, H, EPS)
         out["rho_eps"].append(distances(system, ys, zs, times, EPS).max())
     return {k: np.asarray(v) for k, v in out.items()}
 
@@ -94,9 +95,8 @@ def oscillator_table() -> None:
         control = osc.forcing(ex["amplitude"], ex["frequency"])
         times = np.linspace(0.0, t_end, 2001)
 
-        def run(h: float, eps: float, method: str):
-            return simulate(system, [ex["x0"], ex["xd0"]], "free", t_end, h, eps, method=method, control=control,
-                            max_transitions=10**6)
+        # run(h, eps, method)
+        run = partial(simulate, system, [ex["x0"], ex["xd0"]], "free", t_end, control=control, max_transitions=10**6)
 
         print(f"{name} (t in [0, {t_end:.4g}] s, 2001 samples)")
         epsilons, means = [1e-2, 1e-3, 1e-4, 1e-5], []

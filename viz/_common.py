@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from typing import Any, Mapping
+from typing import Any, TypeVar
 
 import numpy as np
 
@@ -15,6 +16,20 @@ from legsim.output.trace import execution_trace, trace_series
 #: values near the float64 limit (1.8e308: "arange: cannot compute length"), which is where a
 #: diverging run ends, so larger (and non-finite) values are left out of the lines.
 PLOT_LIMIT = 1e300
+
+_Writer = TypeVar("_Writer", bound=Callable[..., Any])
+
+
+def writer_attributes(**attributes: Any) -> Callable[[_Writer], _Writer]:
+    """Decorator: attach to an output writer what ``legsim run`` reads from it with getattr
+    before the run (``suffixes``: the file suffixes it writes; ``needs_geometry``: it draws
+    the model, so a model without geometry is refused)."""
+
+    def attach(writer: _Writer) -> _Writer:
+        writer.__dict__.update(attributes)
+        return writer
+
+    return attach
 
 
 @dataclass
@@ -108,7 +123,7 @@ def units_by_name(names: Mapping[str, Any], units: Mapping[str, Any]) -> dict[st
         mode_units = units.get(mode)
         if not isinstance(mode_names, (list, tuple)) or not isinstance(mode_units, (list, tuple)):
             continue
-        for name, unit in zip(mode_names, mode_units):
+        for name, unit in zip(mode_names, mode_units, strict=False):
             # A unit declared in one mode replaces "" (none declared) from another.
             if isinstance(name, str) and isinstance(unit, str) and not out.get(name):
                 out[name] = unit

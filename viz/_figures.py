@@ -5,8 +5,9 @@ from __future__ import annotations
 
 import argparse
 import sys
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, Sequence
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -16,6 +17,9 @@ from legsim.output.rrd import write_rrd
 
 from ._common import axis_label, plot_data_from_execution
 from .plots import SPAN_RESOLUTION, mode_band, save_figure, state_panel
+
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
 
 
 def parse_out(description: str, argv: Sequence[str] | None = None) -> Path:
@@ -97,7 +101,7 @@ def state_panels(fig, gridspec_column, execution: Execution, coordinates: Sequen
     if unknown:
         raise OutputError(f"{title}: unknown coordinate(s) {unknown}; recorded: {list(data.series)}")
     sub = gridspec_column.subgridspec(len(coordinates) + 1, 1, height_ratios=[3] * len(coordinates) + [1])
-    axes = []
+    axes: list[Axes] = []
     tol = (data.t_end - data.t0) / SPAN_RESOLUTION
     for i, name in enumerate(coordinates):
         ax = fig.add_subplot(sub[i], sharex=axes[0] if axes else None)
@@ -110,7 +114,7 @@ def state_panels(fig, gridspec_column, execution: Execution, coordinates: Sequen
     band.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.8), ncol=len(handles),
                 fontsize="small", frameon=False)
     axes[0].set_title(title, fontsize="medium")
-    return axes + [band]
+    return [*axes, band]
 
 
 def finish(fig, path: Path, rrds: Sequence[Path]) -> None:
@@ -121,5 +125,14 @@ def finish(fig, path: Path, rrds: Sequence[Path]) -> None:
         print(f"wrote {rrd}", file=sys.stderr)
 
 
-__all__ = ["parse_out", "run_scene", "new_figure", "draw_parts", "draw_scenery", "snapshot_times", "group_shots",
-           "state_panels", "finish"]
+__all__ = [
+    "draw_parts",
+    "draw_scenery",
+    "finish",
+    "group_shots",
+    "new_figure",
+    "parse_out",
+    "run_scene",
+    "snapshot_times",
+    "state_panels",
+]

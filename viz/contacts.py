@@ -15,7 +15,8 @@ Models with neither have no contact markers.
 
 from __future__ import annotations
 
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
@@ -66,7 +67,7 @@ def contact_frames(execution: Execution, model: Model | None, times: np.ndarray
         return {}
     samples = execution.sample(times)
     per_frame = [_evaluated(points_of, mode, x, float(t), model)
-                 for t, mode, x in zip(samples.times, samples.modes, samples.states)]
+                 for t, mode, x in zip(samples.times, samples.modes, samples.states, strict=True)]
     names = list(dict.fromkeys(name for frame in per_frame for name in frame))
     return {name: [frame.get(name) for frame in per_frame] for name in names}
 

@@ -17,12 +17,13 @@ Figures are built on matplotlib's Agg canvas (no pyplot).
 from __future__ import annotations
 
 import os
+from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any, Mapping, Sequence
+from typing import Any
 
 import numpy as np
 
-from ._common import axis_label
+from ._common import axis_label, writer_attributes
 from ._figures import new_figure
 
 #: Outcome -> colour of the basin map, in legend order (``legsim.sweep.walk.OUTCOMES``, then
@@ -30,6 +31,8 @@ from ._figures import new_figure
 OUTCOME_COLOURS = {"converges": "#2ca02c", "other_gait": "#1f77b4", "falls": "#d62728", "stops": "#ff7f0e",
                    "undecided": "#bcbd22", "failed": "#7f7f7f", "no result": "#000000"}
 FORMATS = ("png", "pdf", "svg")
+#: The suffixes the map writers write: a command checks its output path against them before it runs.
+SUFFIXES = tuple("." + f for f in FORMATS)
 
 
 def grid_of(table: Any, x: str, y: str, column: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -41,7 +44,7 @@ def grid_of(table: Any, x: str, y: str, column: str) -> tuple[np.ndarray, np.nda
     xs, ys = sorted(set(xs_all)), sorted(set(ys_all))
     ix, iy = {v: i for i, v in enumerate(xs)}, {v: i for i, v in enumerate(ys)}
     grid = np.full((len(ys), len(xs)), None, dtype=object)
-    for a, b, v in zip(xs_all, ys_all, values):
+    for a, b, v in zip(xs_all, ys_all, values, strict=True):
         grid[iy[b], ix[a]] = v
     return np.array(xs, dtype=float), np.array(ys, dtype=float), grid
 
@@ -75,7 +78,8 @@ def field_units(info: Mapping[str, Any]) -> dict[str, str]:
     except (LegsimError, KeyError, TypeError):
         return {}
     mode = scene.model.system.mode(scene.initial_mode)
-    units = dict(zip((f"initial.state.{n}" for n in mode.names), mode.units))
+    # Mode fills in names and units (None only before its __post_init__).
+    units = dict(zip((f"initial.state.{n}" for n in mode.names or ()), mode.units or (), strict=True))
     units.update({f"robot.parameters.{n}": p.unit for n, p in scene.builder.parameters.items()})
     units.update(INTEGRATOR_UNITS)
     return {key: units[key] for key in (info.get("x"), info.get("y")) if key in units}
@@ -96,7 +100,8 @@ def basin_figure(table: Any, info: Mapping[str, Any]):
     _, _, status = grid_of(table, x, y, "task_status")
     labels = list(OUTCOME_COLOURS)
     codes = np.array([[labels.index(o) if (o in OUTCOME_COLOURS and s == "done") else labels.index("no result")
-                       for o, s in zip(orow, srow)] for orow, srow in zip(outcome, status)], dtype=float)
+                       for o, s in zip(orow, srow, strict=True)]
+                      for orow, srow in zip(outcome, status, strict=True)], dtype=float)
     fig = new_figure(12.0, 5.2)
     ax, ax_steps = fig.subplots(1, 2)
     ax.pcolormesh(_edges(xs), _edges(ys), codes, cmap=ListedColormap(list(OUTCOME_COLOURS.values())),
@@ -143,8 +148,8 @@ def stability_figure(table: Any, info: Mapping[str, Any]):
     _, _, status = grid_of(table, x, y, "orbit_status")
     _, _, re = grid_of(table, x, y, "orbit_multipliers_re")
     _, _, im = grid_of(table, x, y, "orbit_multipliers_im")
-    rho = np.array([[np.nan if (r is None or s != "converged") else float(r) for r, s in zip(rr, sr)]
-                    for rr, sr in zip(radius, status)])
+    rho = np.array([[np.nan if (r is None or s != "converged") else float(r) for r, s in zip(rr, sr, strict=True)]
+                    for rr, sr in zip(radius, status, strict=True)])
     fig = new_figure(7.5, 5.8)
     ax = fig.subplots()
     ax.set_facecolor("0.85")  # cells without an orbit
@@ -157,7 +162,8 @@ def stability_figure(table: Any, info: Mapping[str, Any]):
         ax.contour(xs, ys, np.ma.masked_invalid(rho), levels=[1.0], colors="black", linewidths=2).set_gid(
             "stability_boundary")
         handles.append(Line2D([], [], color="black", lw=2, label="stability boundary (radius 1)"))
-        pd = np.array([[_most_negative_real(a, b, s) for a, b, s in zip(ra, ia, sr)] for ra, ia, sr in zip(re, im, status)])
+        pd = np.array([[_most_negative_real(a, b, s) for a, b, s in zip(ra, ia, sr, strict=True)]
+                       for ra, ia, sr in zip(re, im, status, strict=True)])
         if np.nanmin(pd, initial=np.inf) < -1.0 < np.nanmax(pd, initial=-np.inf):
             ax.contour(xs, ys, np.ma.masked_invalid(pd), levels=[-1.0], colors="blue", linewidths=2,
                        linestyles="dashed").set_gid("period_doubling")
@@ -171,9 +177,10 @@ def stability_figure(table: Any, info: Mapping[str, Any]):
 
 def _most_negative_real(re: Sequence[float] | None, im: Sequence[float] | None, status: str | None) -> float:
     """The most negative real multiplier of a converged search (NaN without one)."""
-    if status != "converged" or not re:
+    if status != "converged" or not re or im is None:
         return np.nan
-    real = [a for a, b in zip(re, im) if a is not None and b is not None and abs(b) <= 1e-9 * max(1.0, abs(a))]
+    real = [a for a, b in zip(re, im, strict=False)
+            if a is not None and b is not None and abs(b) <= 1e-9 * max(1.0, abs(a))]
     return min(real) if real else np.nan
 
 
@@ -211,22 +218,22 @@ def _save(fig, path: str | os.PathLike) -> Path:
     return path
 
 
+@writer_attributes(suffixes=SUFFIXES)
 def write_basin_map(table: Any, info: Mapping[str, Any], path: str | os.PathLike) -> Path:
     """Entry point ``basin_map``: the basin figure of a walk sweep's table."""
     return _save(basin_figure(table, info), path)
 
 
+@writer_attributes(suffixes=SUFFIXES)
 def write_stability_map(table: Any, info: Mapping[str, Any], path: str | os.PathLike) -> Path:
     """Entry point ``stability_map``: the stability figure of an orbit sweep's table."""
     return _save(stability_figure(table, info), path)
 
 
+@writer_attributes(suffixes=SUFFIXES)
 def write_switching_histograms(times: Sequence[Sequence[float]], info: Mapping[str, Any],
                                path: str | os.PathLike) -> Path:
     """Entry point ``switching_histograms``: the histograms of a stochastic ensemble's switching
     times (``times[i]``: the (i+1)-th switching time of every execution that has one)."""
     return _save(switching_figure(times, info), path)
 
-
-write_basin_map.suffixes = write_stability_map.suffixes = write_switching_histograms.suffixes = tuple(
-    "." + f for f in FORMATS)

@@ -45,7 +45,7 @@ from legsim.execution import Execution
 from legsim.output.files import write_atomic
 from legsim.output.trace import Frames, frame_times, geometry_frames, resolve_model
 
-from ._common import run_title
+from ._common import run_title, writer_attributes
 from .contacts import contact_frames
 
 #: Frames per simulated second in an animation, and their most (longer runs get fewer).
@@ -118,7 +118,7 @@ def drawable_frames(frames: Frames) -> tuple[Frames, float | None]:
     parts: dict[str, list[np.ndarray | None]] = {}
     for part, lines in frames.parts.items():
         kept: list[np.ndarray | None] = []
-        for t, line in zip(frames.times, lines):
+        for t, line in zip(frames.times, lines, strict=True):
             if line is not None and len(line) and not np.all(np.abs(line) <= HTML_LIMIT):
                 first = float(t) if first is None else min(first, float(t))
                 line = None
@@ -150,7 +150,8 @@ def _robot_points(frames: Frames) -> list[np.ndarray]:
     """All robot points of each frame, (k, 2) per frame (empty where nothing is drawn)."""
     per_frame = []
     for i in range(len(frames)):
-        pts = [lines[i] for lines in frames.parts.values() if lines[i] is not None and len(lines[i])]
+        at_frame = (lines[i] for lines in frames.parts.values())
+        pts = [line for line in at_frame if line is not None and len(line)]
         per_frame.append(np.concatenate(pts) if pts else np.zeros((0, 2)))
     return per_frame
 
@@ -179,7 +180,7 @@ def camera_track(frames: Frames, follow: bool = False) -> tuple[np.ndarray, floa
         cam_x = np.full(len(per_frame), (lo[0] + hi[0]) / 2)
         half_w = (hi[0] - lo[0]) / 2
     else:
-        half_w = max((float(np.max(np.abs(p[:, 0] - cx))) for p, cx in zip(per_frame, cam_x) if len(p)),
+        half_w = max((float(np.max(np.abs(p[:, 0] - cx))) for p, cx in zip(per_frame, cam_x, strict=False) if len(p)),
                      default=body)
     # Show the ground below the robot: scenery points within the robot's horizontal range.
     z_lo, z_hi = lo[1], hi[1]
@@ -208,7 +209,7 @@ def _following(per_frame: list[np.ndarray], frames: Frames, body: float) -> np.n
     if not (spread > 3.0 * body and progress > 0.5 * spread):
         return None
     per_second = len(centres) / max(frames.times[-1] - frames.times[0], 1e-9)
-    window = max(1, min(len(centres), int(round(per_second * 0.5))))
+    window = max(1, min(len(centres), round(per_second * 0.5)))
     pad = np.pad(centres, (window // 2, window - 1 - window // 2), mode="edge")
     return np.convolve(pad, np.ones(window) / window, mode="valid")
 
@@ -383,7 +384,7 @@ class _SceneCommands:
         longer and with their x below them (``view_height``: the height of the view, m)."""
         material = self.g.MeshBasicMaterial(color=SCENERY_COLOUR)
         size = 0.12 * view_height  # of a label's square: its text is about a quarter as tall
-        for j, (x, z, big) in enumerate(zip(xs, zs, labelled)):
+        for j, (x, z, big) in enumerate(zip(xs, zs, labelled, strict=False)):
             length = (0.04 if big else 0.02) * view_height
             self.add(self.g.Box([1.0, 0.7 * self.w, 0.7 * self.w]), material,
                      self.root.append(f"scenery/ruler/tick/{j}"), _matrix(float(x), float(z) - length / 2, length,
@@ -422,9 +423,10 @@ class _SceneCommands:
         most = max((len(line) for line in lines if line is not None), default=0)
         if most == 1:
             self.point(part, lines, material)
-        table = np.stack([_segments(line, most - 1) for line in lines]) if most > 1 else None  # (F, most - 1, 6)
-        for j in range(most - 1):
-            self.segment(part, j, table[:, j, :], material)
+        if most > 1:
+            table = np.stack([_segments(line, most - 1) for line in lines])  # (F, most - 1, 6)
+            for j in range(most - 1):
+                self.segment(part, j, table[:, j, :], material)
 
     def point(self, part: str, lines: list[np.ndarray | None], material: Any) -> None:
         path = self.root.append(f"robot/{part}/0")
@@ -432,7 +434,7 @@ class _SceneCommands:
         pos, scale = [], []
         for line in lines:
             there = line is not None and len(line) == 1
-            p = line[0] if there else np.zeros(2)
+            p = line[0] if line is not None and there else np.zeros(2)
             pos.append([float(p[0]), 0.0, float(p[1])])
             s = 1.0 if there else TINY
             scale.append([s, s, s])
@@ -564,6 +566,8 @@ if (legsimAt) legsimSeek(parseFloat(legsimAt[1]));
 """
 
 
+# ``legsim run`` refuses --html before the run when the scene's model has no geometry.
+@writer_attributes(needs_geometry=True)
 def write_html(execution: Execution | None, scene: Any = None, path: str | os.PathLike | None = None, *,
                model: Model | None = None, recording: dict[str, Any] | None = None, fps: float = HTML_FPS,
                max_frames: int = HTML_MAX_FRAMES, speed: float = 1.0, camera: str = "fixed") -> Path:
@@ -588,6 +592,7 @@ def write_html(execution: Execution | None, scene: Any = None, path: str | os.Pa
         s = recording.get("summary", {})
         title = s.get("scene") or s.get("system") or "legsim"
     else:
+        assert isinstance(execution, Execution)  # _frames_and_cut refuses anything else
         resolved = resolve_model(scene, model, "html")
         title = run_title(execution, scene, resolved).split("  ·  ")[0]
         with np.errstate(over="ignore", invalid="ignore"):
@@ -598,6 +603,3 @@ def write_html(execution: Execution | None, scene: Any = None, path: str | os.Pa
     page = animation_html(frames, title=title, speed=speed, contacts=contacts, camera=camera)
     return write_atomic(path, lambda tmp: tmp.write_text(page, encoding="utf-8"), what="html")
 
-
-#: ``legsim run`` refuses --html before the run when the scene's model has no geometry.
-write_html.needs_geometry = True

@@ -16,20 +16,27 @@ never through pyplot, so no display or global backend is touched.
 from __future__ import annotations
 
 import os
+from collections.abc import Sequence
 from itertools import groupby
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 
 from legsim.builders import Model
-from legsim.execution import Execution
-
 from legsim.errors import OutputError
+from legsim.execution import Execution
 from legsim.output.files import write_atomic
 from legsim.output.trace import resolve_model
 
-from ._common import PlotData, axis_label, plot_data_from_execution, plot_data_from_recording, run_title
+from ._common import (
+    PlotData,
+    axis_label,
+    plot_data_from_execution,
+    plot_data_from_recording,
+    run_title,
+    writer_attributes,
+)
 
 #: gid of the strip shading in every state panel, and of the mode band (for tests and tools);
 #: on the band, ``modes:<mode>`` shades the segments of a mode, ``modes:<mode>:held`` the strips
@@ -85,7 +92,7 @@ def state_figure(data: PlotData, coordinates: Sequence[str] | None = None, *, wi
     axes = np.atleast_1d(fig.subplots(n + 1, 1, sharex=True, gridspec_kw={"height_ratios": [3] * n + [1]}))
     # Intervals closer than 1/20 of a pixel (at 1000 px across) are drawn joined.
     tol = (data.t_end - data.t0) / SPAN_RESOLUTION
-    for ax, name in zip(axes[:-1], names):
+    for ax, name in zip(axes[:-1], names, strict=True):
         state_panel(ax, data, name, tol)
         ax.set_ylabel(axis_label(name, data.units.get(name)))
     band = axes[-1]
@@ -125,13 +132,14 @@ def constant_coordinates(data: PlotData) -> dict[str, float]:
 def constants_note(constants: dict[str, float], data: PlotData, skip: Sequence[str] = ()) -> str:
     """``theta = 0 rad, thetad = 0 rad/s throughout``: the constant coordinates not drawn
     (``skip``: those drawn anyway); "wherever defined" for one absent in some modes."""
-    parts = {"throughout": [], "wherever defined": []}
+    parts: dict[str, list[str]] = {"throughout": [], "wherever defined": []}
     for name, value in constants.items():
         if name in skip:
             continue
         unit = data.units.get(name) or ""
         absent = bool(np.isnan(data.series[name][1]).any())
-        parts["wherever defined" if absent else "throughout"].append(f"{name} = {value:.6g}" + (f" {unit}" if unit else ""))
+        shown = f"{name} = {value:.6g}" + (f" {unit}" if unit else "")
+        parts["wherever defined" if absent else "throughout"].append(shown)
     return "; ".join(", ".join(items) + f" {when}" for when, items in parts.items() if items).replace("$", r"\$")
 
 
@@ -157,7 +165,7 @@ def mode_band(band, data: PlotData, tol: float) -> list:
     thin = (data.t_end - data.t0) * THIN_FRACTION
     for m in modes:
         spans = [(a, b) for mm, a, b in data.segments if mm == m]
-        held = [span for span, mm in zip(data.strips, data.strip_modes) if mm == m]
+        held = [span for span, mm in zip(data.strips, data.strip_modes, strict=True) if mm == m]
         if spans:
             span_patch(band, spans, colour[m], f"{MODE_GID}:{m}", tol)
         if held:
@@ -235,9 +243,10 @@ def span_bounds(patch) -> np.ndarray:
 
 def _short_sequence(seq: list[str], keep: int = 4) -> str:
     """Runs of one mode written once with a count (a bouncing ball is ``flight ×13``); long
-    sequences keep their ends."""
+    sequences keep their ends."""  # noqa: RUF002 (the multiplication sign the band shows)
     runs = [(mode, len(list(repeats))) for mode, repeats in groupby(seq)]
-    words = [m if k == 1 else f"{m} ×{k}" for m, k in runs]
+    # The multiplication sign, not the letter x: the band's labels are typeset.
+    words = [m if k == 1 else f"{m} ×{k}" for m, k in runs]  # noqa: RUF001
     if len(words) <= 2 * keep:
         return " → ".join(words)
     return " → ".join(words[:keep]) + f" → … ({len(words) - 2 * keep} more) → " + " → ".join(words[-keep:])
@@ -252,6 +261,8 @@ def save_figure(fig, path: str | os.PathLike, dpi: int = 120) -> Path:
     return write_atomic(path, lambda tmp: fig.savefig(tmp, format=fmt, dpi=dpi), what="figure")
 
 
+# ``legsim run`` checks a --plot path against these suffixes before the run.
+@writer_attributes(suffixes=tuple("." + f for f in FORMATS))
 def write_plot(execution: Execution | None, scene: Any = None, path: str | os.PathLike | None = None, *,
                model: Model | None = None, recording: dict[str, Any] | None = None,
                coordinates: Sequence[str] | None = None) -> Path:
@@ -266,6 +277,3 @@ def write_plot(execution: Execution | None, scene: Any = None, path: str | os.Pa
     fig = state_figure(plot_data(execution, scene, model=model, recording=recording), coordinates)
     return save_figure(fig, path)
 
-
-#: The suffixes write_plot can write; ``legsim run`` checks a --plot path against them before the run.
-write_plot.suffixes = tuple("." + f for f in FORMATS)

@@ -10,8 +10,9 @@ exist (oscillator, bouncing ball); otherwise a converged event-driven run (DOP85
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 
@@ -221,7 +222,8 @@ def _oscillator(example: str, quick: bool) -> Case:
 
     return Case(
         name=name,
-        description=f"forced oscillator with a stop, paper 000 Table I Example {example[-1]} (t in [0, {t_final:.4g}] s)",
+        description=(f"forced oscillator with a stop, paper 000 Table I Example {example[-1]} "
+                     f"(t in [0, {t_final:.4g}] s)"),
         system=system, ivp_system=system, mode="free", x0=x0, t_final=t_final,
         positions=(0,), position_names=("x",),
         reference_positions=lambda t: ref.states(t)[:, :1],
@@ -307,9 +309,9 @@ def _robot(name: str, quick: bool) -> Case:
     diff = ref_positions(grid) - np.array([s[list(positions)] for s in check.sample(grid).states])
     estimate = float(np.abs(diff).max())
     if quick:
-        runs = (_grid("relaxed", "relaxed-rk4", (1e-2,), (1e-4,))
-                + [RunSpec("relaxed", "relaxed-dopri5", 0.1, 1e-6, 1e-6, "dense")]
-                + [RunSpec("solve_ivp", "solve_ivp-DOP853", math.nan, math.nan, 1e-6, "", 0.05)])
+        runs = [*_grid("relaxed", "relaxed-rk4", (1e-2,), (1e-4,)),
+                RunSpec("relaxed", "relaxed-dopri5", 0.1, 1e-6, 1e-6, "dense"),
+                RunSpec("solve_ivp", "solve_ivp-DOP853", math.nan, math.nan, 1e-6, "", 0.05)]
     else:
         # Both sides get the same largest steps (solve_ivp also unbounded): a long trial step
         # puts the pronk's hip through the ground, which the relaxed integrator shortens like

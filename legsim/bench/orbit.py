@@ -28,8 +28,9 @@ from __future__ import annotations
 import math
 import statistics
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 from scipy.integrate import solve_ivp
@@ -42,6 +43,19 @@ TOLERANCES = (1e-8, 3e-9, 1e-9, 3e-10, 1e-10, 3e-11, 1e-11, 3e-12, 1e-12)
 REFERENCE_TOL = 1e-12
 #: Newton iterations allowed to the baseline.
 MAX_ITERATIONS = 30
+
+
+class _GuardEvent:
+    """A solve_ivp event: the guard ``guard(x)`` crossing zero from above, which ends the solve."""
+
+    terminal = True
+    direction = -1.0
+
+    def __init__(self, guard: Callable[[np.ndarray], float]) -> None:
+        self.guard = guard
+
+    def __call__(self, t: float, y: np.ndarray) -> float:
+        return self.guard(y)
 
 
 class StepMap:
@@ -64,12 +78,7 @@ class StepMap:
     def _mode_pieces(self, mode: str) -> tuple[Callable, list, list]:
         field = self.system.mode(mode).field
         transitions = self.system.outgoing(mode)
-        events = []
-        for tr in transitions:
-            def event(t: float, y: np.ndarray, guard=tr.guard) -> float:
-                return guard(y)
-            event.terminal, event.direction = True, -1
-            events.append(event)
+        events = [_GuardEvent(tr.guard) for tr in transitions]
         return (lambda t, y: field(t, y, None)), transitions, events
 
     def __call__(self, x: np.ndarray) -> np.ndarray:
@@ -82,6 +91,7 @@ class StepMap:
             if sol.status != 1:
                 raise BenchError(f"bench orbit: the baseline's step map found no {self.transition} within "
                                  f"t_max = {self.t_max:g} s from {np.round(x, 8).tolist()} ({sol.message})")
+            assert sol.t_events is not None and sol.y_events is not None  # solve_ivp was given events
             t, e = min((float(te[0]), i) for i, te in enumerate(sol.t_events) if len(te))
             tr = transitions[e]
             y = np.asarray(tr.reset(sol.y_events[e][0]), dtype=float)
@@ -174,7 +184,8 @@ def tolerance_sweep(problem: Any, guess: np.ndarray, orbit_tol: float, reference
     return sweep
 
 
-def measure(scene_name: str = "compass_gait", repeats: int = 7, log: Callable[[str], None] | None = None) -> dict[str, Any]:
+def measure(scene_name: str = "compass_gait", repeats: int = 7,
+            log: Callable[[str], None] | None = None) -> dict[str, Any]:
     """Everything ``legsim bench orbit`` prints (the keys of its ``--json``). Besides the
     baseline at the loosest tolerance reaching legsim's error, the next looser one (less
     accurate than legsim) is timed too: the ratio at exactly equal error lies between the two."""
@@ -254,7 +265,8 @@ def format_report(r: dict[str, Any]) -> str:
               f"ratio scipy / legsim: {r['ratio']:.2f} (fixed point only), {r['ratio_with_multipliers']:.2f} "
               f"(with multipliers)",
               *([] if r["scipy_looser"] is None else [
-                  f"  (scipy at the next looser tol {r['scipy_looser']['tol']:g}, error {r['scipy_looser']['error']:.2e} "
+                  f"  (scipy at the next looser tol {r['scipy_looser']['tol']:g}, "
+                  f"error {r['scipy_looser']['error']:.2e} "
                   f"> legsim's: {1e3 * r['scipy_looser']['wall_s']:.1f} ms, ratio {r['scipy_looser']['ratio']:.2f})"]),
               f"target: legsim orbit no slower than the scipy baseline at equal accuracy: {verdict}"]
     return "\n".join(lines)

@@ -5,9 +5,10 @@ evaluations a transition costs with halving and with aiming.
 Method: a run's time minus (evaluations x the cost of one evaluation measured alone), per step.
 Times are CPU times of this process (``time.process_time``), not wall-clock times: on a
 machine shared with other jobs the wall clock also counts the time this process waits for a
-core, which can double a short measurement; CPU time counts the work. Evaluations are the run's own counters; one evaluation's cost is timed in a loop of
-the same kind as the caller's (a numba loop for the compiled path, a Python loop for the
-Python path), so the overhead is what the integrator adds around the model.
+core, which can double a short measurement; CPU time counts the work. Evaluations are the
+run's own counters; one evaluation's cost is timed in a loop of the same kind as the caller's
+(a numba loop for the compiled path, a Python loop for the Python path), so the overhead is
+what the integrator adds around the model.
 """
 
 from __future__ import annotations
@@ -17,7 +18,10 @@ import math
 import statistics
 import time
 import timeit
-from typing import Any, Callable
+from collections.abc import Callable
+from functools import partial
+from typing import Any
+from unittest.mock import patch
 
 import numba
 import numpy as np
@@ -79,8 +83,10 @@ def compiled_costs(twin, x: np.ndarray, n: int = 2_000_000) -> dict[str, float]:
     """Seconds per call of the twin's field, guards and resets, called from compiled code."""
     x = np.array(x, dtype=float)
     p = twin.params
-    for fn, args in ((_loop_field, (twin.field,)), (_loop_guards, (twin.guards,)), (_loop_empty, ())):
-        fn(*args, p, x.copy(), 10)
+    # compile each loop before it is timed
+    _loop_field(twin.field, p, x.copy(), 10)
+    _loop_guards(twin.guards, p, x.copy(), 10)
+    _loop_empty(p, x.copy(), 10)
     empty = _best(lambda: _loop_empty(p, x.copy(), n))
     out = {"field": (_best(lambda: _loop_field(twin.field, p, x.copy(), n)) - empty) / n,
            "guards": (_best(lambda: _loop_guards(twin.guards, p, x.copy(), n)) - empty) / n}
@@ -127,6 +133,7 @@ def measure_run(system, x0, mode: str, t_final: float, h: float, eps: float, met
         walls.append(time.process_time() - start)
     if callable(costs):
         costs = {k: min(m[k] for m in measured) for k in measured[0]}
+    assert ex is not None  # repeats >= 1 runs
     wall = min(walls)
     c = ex.counters
     steps = max(int(c["steps"]), 1)
@@ -138,7 +145,8 @@ def measure_run(system, x0, mode: str, t_final: float, h: float, eps: float, met
         "method": method, "h": h, "eps": eps, "status": ex.status, "wall_s": wall, "steps": int(c["steps"]),
         "halvings": int(c["halvings"]), "field_evals": int(c["field_evals"]), "guard_evals": int(c["guard_evals"]),
         "reset_evals": int(c["reset_evals"]), "transitions": int(c["transitions"]),
-        "steps_per_s": c["steps"] / wall, "ns_per_step": 1e9 * wall / steps, "cost_field_s": costs["field"], "clock": "process CPU time",
+        "steps_per_s": c["steps"] / wall, "ns_per_step": 1e9 * wall / steps, "cost_field_s": costs["field"],
+        "clock": "process CPU time",
         "share_field": t_field / wall, "share_guards": t_guard / wall, "share_resets": t_reset / wall,
         "overhead_per_step_in_fields": rest / steps / costs["field"],
     }
@@ -153,10 +161,10 @@ def landing_costs(system, x0, mode, t_final, h, eps, method="rk4", landings=("ha
 
     tab = get_method(method)
     per_step = tab.stages - 1 + (0 if tab.fsal else 1)
-    tols = {} if tol is None else {"rtol": tol, "atol": tol}
     out = {}
     for landing in landings:
-        ex = simulate(system, x0, mode, t_final, h, eps, method, landing=landing, max_transitions=1_000_000, **tols)
+        ex = simulate(system, x0, mode, t_final, h, eps, method, landing=landing, max_transitions=1_000_000,
+                      rtol=tol, atol=tol)
         c = ex.counters
         n = max(int(c["transitions"]), 1)
         out[landing] = {
@@ -181,6 +189,7 @@ def contract_cost(system, x0: np.ndarray, t_final: float, method: str, repeats: 
     the Python path (``system`` without compiled twins: the cheapest fields, where the checks'
     share is largest)."""
     import legsim.relaxed.run as run_module
+
     from ..methods.stepper import make_stepper
 
     def once() -> float:
@@ -188,15 +197,10 @@ def contract_cost(system, x0: np.ndarray, t_final: float, method: str, repeats: 
         simulate(system, x0, "free", t_final, 1e-3, 1e-6, method, continuation=False)
         return time.perf_counter() - start
 
-    checked_guard = run_module.Run._guard_fn
-
     def unchecked() -> float:
-        run_module.Run._guard_fn = _unchecked_guard
-        run_module.make_stepper = lambda tableau: make_stepper(tableau, checked=False)
-        try:
+        with (patch.object(run_module.Run, "_guard_fn", _unchecked_guard),
+              patch.object(run_module, "make_stepper", partial(make_stepper, checked=False))):
             return once()
-        finally:
-            run_module.Run._guard_fn, run_module.make_stepper = checked_guard, make_stepper
 
     once(), unchecked()  # both steppers generated before anything is timed
     return statistics.median([once() / unchecked() for _ in range(repeats)])
@@ -261,7 +265,8 @@ def format_report(r: dict[str, Any], width: int | None = None) -> str:
     rows = [(label, m["method"], f"{m['steps_per_s']:.3g}", f"{m['ns_per_step']:.0f}", f"{100 * m['share_field']:.0f}%",
              f"{100 * m['share_guards']:.0f}%", f"{100 * m['share_resets']:.1f}%",
              f"{m['overhead_per_step_in_fields']:.2f} f-ev", str(m["transitions"]))
-            for label, key in (("compiled", "compiled"), ("compiled, no stop", "compiled_no_stop"), ("python", "python"))
+            for label, key in (("compiled", "compiled"), ("compiled, no stop", "compiled_no_stop"),
+                               ("python", "python"))
             for m in r[key]]
     lines.append(render_table(head, rows, right=range(2, 9), whole=range(9), width=width))
     lines.append("")

@@ -22,8 +22,9 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Callable, Iterable, Mapping, Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -296,7 +297,7 @@ def _extend_family(case: Case, row: Row, best: float, ext: Extension, budget: fl
 
 def _why(ext: Extension, reasons: list[str], budget: float) -> str:
     if "reached" in reasons:
-        return f"reached it ({[r for r in ext.rows if r.error <= ext.level][0].error:.3g})"
+        return f"reached it ({next(r for r in ext.rows if r.error <= ext.level).error:.3g})"
     said = {"budget": f"the time budget of {budget:g} s is spent",
             "floor": f"the error stopped falling ({MAX_NON_IMPROVING} finer runs without improvement)"}
     unique = list(dict.fromkeys(said.get(r, r) for r in reasons))

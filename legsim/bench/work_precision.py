@@ -20,9 +20,10 @@ import math
 import os
 import statistics
 import time
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Callable, Iterable, Sequence
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -297,7 +298,7 @@ def read_rows(path: str | os.PathLike) -> list[Row]:
             raise BenchError(f"{path}: not a bench CSV (columns {reader.fieldnames}, expected {list(COLUMNS)})")
         out = []
         for line in reader:
-            values = {}
+            values: dict[str, Any] = {}
             for name, kind in Row.__annotations__.items():
                 text = line[name]
                 if kind == "float":

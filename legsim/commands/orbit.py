@@ -131,7 +131,7 @@ def _run_family(args: argparse.Namespace, scene, plot_path: Path | None, bar) ->
     payload["scene"] = scene.name
     payload["integrator"] = settings.problem.integrator_settings
     plotted = plot_path is not None and bool(family.points)
-    if plotted:
+    if plot_path is not None and plotted:
         write_family_plot(family, scene.name, plot_path)
         payload["plot"] = str(plot_path)
     if args.json:
@@ -230,7 +230,7 @@ def format_orbit(payload: dict[str, Any], name: str) -> str:
         lines.append(f"integrator: {describe_integrator(payload['integrator'])}")
     lines.append(f"section: {payload['section']} (mode {payload['mode']})")
     width = max(len(n) for n in list(payload["state_names"]) + list(payload["free"]))
-    for n, v in zip(payload["state_names"], payload["fixed_point"]):
+    for n, v in zip(payload["state_names"], payload["fixed_point"], strict=False):
         lines.append(f"  {n.ljust(width)} = {v: .10g}")
     for n in payload["free"]:
         lines.append(f"  {n.ljust(width)} = {payload['parameters'][n]: .10g}  (free parameter)")
@@ -259,7 +259,7 @@ def format_header(param: str, problem: OrbitProblem) -> tuple[str, tuple[list[st
     cols = [param] + [problem.names[i] for i in problem.unknown_idx] + list(problem.free) + \
         ["period", "step", "max|mu|", "stable"]
     widths = [max(12, len(c) + 2) for c in cols]
-    return "".join(c.rjust(w) for c, w in zip(cols, widths)), (cols, widths)
+    return "".join(c.rjust(w) for c, w in zip(cols, widths, strict=True)), (cols, widths)
 
 
 def format_row(param: str, value: float, payload: dict[str, Any], layout: tuple[list[str], list[int]] | None) -> str:
@@ -267,9 +267,9 @@ def format_row(param: str, value: float, payload: dict[str, Any], layout: tuple[
     if layout is None:
         return ""
     cols, widths = layout
-    state = dict(zip(payload["state_names"], payload["fixed_point"]))
+    state = dict(zip(payload["state_names"], payload["fixed_point"], strict=False))
     cells = []
-    for col, width in zip(cols, widths):
+    for col, width in zip(cols, widths, strict=True):
         if col == param:
             v: Any = value
         elif col in state:
@@ -318,10 +318,10 @@ def write_family_plot(family: Family, title: str, path: Path) -> None:
     if all(s is not None for s in steps):
         ax2.plot(values, steps, marker=".", label="step length (m)")
     ax2.legend(loc="best", fontsize="small")
-    n_mu = max(len(p.result.multipliers) for p in family.points)
-    for k in range(n_mu):
-        ax3.plot(values, [abs(p.result.multipliers[k]) if k < len(p.result.multipliers) else np.nan
-                          for p in family.points], marker=".", label=f"|mu_{k + 1}|")
+    moduli = [np.abs(p.result.multipliers) if p.result.multipliers is not None else np.empty(0)
+              for p in family.points]
+    for k in range(max(len(m) for m in moduli)):
+        ax3.plot(values, [m[k] if k < len(m) else np.nan for m in moduli], marker=".", label=f"|mu_{k + 1}|")
     ax3.axhline(1.0, color="k", lw=0.8)
     for change in family.stability_changes:
         for ax in (ax1, ax2, ax3):

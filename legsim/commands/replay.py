@@ -67,7 +67,6 @@ def run(args: argparse.Namespace) -> int:
     from ..output.rrd import read_rrd
     from ..output.rrd.live import check_display, open_in_viewer
     from ..output.untrusted import printable
-
     from .run import html_options, plan_outputs, write_output
 
     path = Path(args.file)

@@ -22,9 +22,10 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from collections.abc import Callable
 from itertools import groupby
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Callable
+from typing import TYPE_CHECKING, Any
 
 from ..errors import LegsimError
 
@@ -71,7 +72,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def add_live_arguments(parser: argparse.ArgumentParser) -> None:
     """``--spawn``/``--connect`` (stream the recording to a Rerun viewer) and ``--rrd-rate``."""
     live = parser.add_mutually_exclusive_group()
-    live.add_argument("--spawn", action="store_true", help="stream the recording to a new Rerun viewer (needs a display)")
+    live.add_argument("--spawn", action="store_true",
+                      help="stream the recording to a new Rerun viewer (needs a display)")
     live.add_argument("--connect", metavar="ADDRESS",
                       help="stream the recording to the Rerun viewer at ADDRESS (a port, HOST:PORT or "
                            "rerun+http://HOST:PORT/proxy)")
@@ -310,7 +312,7 @@ def _compact_modes(sequence: list[str], limit: int = 6) -> str:
     runs = [(mode, len(list(repeats))) for mode, repeats in groupby(sequence)]
     parts = [m if n == 1 else f"{m} x{n}" for m, n in runs]
     if len(parts) > limit:
-        parts = parts[:limit - 2] + ["..."] + parts[-2:]
+        parts = [*parts[:limit - 2], "...", *parts[-2:]]
     return " -> ".join(parts) + f" ({len(sequence)} visits)"
 
 
@@ -333,7 +335,7 @@ def format_summary(summary: dict[str, Any]) -> str:
     status = summary["status"]
     lines = [f"{name}: {status} at t = {_num(summary['t_final'])} s "
              f"({summary.get('method')}, h = {_num(summary.get('h'))} s, eps = {_num(summary.get('eps'))})"]
-    state = ", ".join(f"{n} = {_num(v)}" for n, v in zip(summary["state_names"], summary["final_state"]))
+    state = ", ".join(f"{n} = {_num(v)}" for n, v in zip(summary["state_names"], summary["final_state"], strict=False))
     strip = " (held in a strip)" if summary.get("final_in_strip") else ""
     lines.append(f"final mode {summary['final_mode']}{strip}: {state}")
     lines.append(f"transitions {summary['transitions']}: {_compact_modes(summary['mode_sequence'])}")

@@ -28,19 +28,44 @@ from typing import Any
 
 from .continuation import Family, FamilyPoint, StabilityChange, continue_family
 from .errors import OrbitError
-from .jacobians import (MAX_FD_STEP, default_fd_step, floquet_multipliers, jacobian_fd, jacobian_saltation,
-                        reset_on_guard_jacobian, saltation_matrix)
+from .jacobians import (
+    MAX_FD_STEP,
+    default_fd_step,
+    floquet_multipliers,
+    jacobian_fd,
+    jacobian_saltation,
+    reset_on_guard_jacobian,
+    saltation_matrix,
+)
 from .newton import STATUSES, OrbitResult, find_orbit
 from .problem import MAX_STEPS_PER_RETURN, OrbitProblem
 from .returns import Return, ReturnMap, return_map
 from .sections import Section
 
 __all__ = [
-    "OrbitError", "Section", "OrbitProblem", "Return", "ReturnMap", "OrbitResult", "Family", "FamilyPoint",
-    "StabilityChange", "OrbitSettings", "problem_from_scene", "default_fd_step", "find_orbit", "return_map",
-    "jacobian_fd", "jacobian_saltation", "saltation_matrix", "MAX_STEPS_PER_RETURN", "MAX_FD_STEP",
+    "MAX_FD_STEP",
+    "MAX_STEPS_PER_RETURN",
+    "STATUSES",
+    "Family",
+    "FamilyPoint",
+    "OrbitError",
+    "OrbitProblem",
+    "OrbitResult",
+    "OrbitSettings",
+    "Return",
+    "ReturnMap",
+    "Section",
+    "StabilityChange",
+    "continue_family",
+    "default_fd_step",
+    "find_orbit",
+    "floquet_multipliers",
+    "jacobian_fd",
+    "jacobian_saltation",
+    "problem_from_scene",
     "reset_on_guard_jacobian",
-    "floquet_multipliers", "continue_family", "STATUSES",
+    "return_map",
+    "saltation_matrix",
 ]
 
 #: Names of the scene layer's ``[orbit]`` reader that this package re-exports.

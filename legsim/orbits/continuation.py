@@ -4,8 +4,10 @@ and where along the family the orbits change stability."""
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, replace
-from typing import Any, Callable, Mapping, Sequence
+from itertools import pairwise
+from typing import Any
 
 import numpy as np
 
@@ -185,14 +187,15 @@ def _locate_change(problem: OrbitProblem, parameter: str, points: list[FamilyPoi
 def _stability_changes(points: list[FamilyPoint]) -> list[StabilityChange]:
     """The changes between consecutive points whose spectral radii lie on either side of 1."""
     changes = []
-    for a, b in zip(points, points[1:]):
+    for a, b in pairwise(points):
         ra, rb = a.result.spectral_radius, b.result.spectral_radius
         if ra is None or rb is None or (ra < 1.0) == (rb < 1.0):
             continue
         at = a.value + (1.0 - ra) * (b.value - a.value) / (rb - ra)
         unstable = a.result if ra >= 1.0 else b.result
         mu = unstable.nontrivial_multipliers
-        m = complex(mu[np.argmax(np.abs(mu))])  # type: ignore[index]
+        assert mu is not None  # its spectral radius is not None
+        m = complex(mu[np.argmax(np.abs(mu))])
         changes.append(StabilityChange((a.value, b.value), at, "unstable" if rb >= 1.0 else "stable",
                                        _change_kind(m), m))
     return changes

@@ -52,7 +52,8 @@ passive runner) are reported but can be excluded from the stability verdict with
 
 from __future__ import annotations
 
-from typing import Any, Callable, Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -101,10 +102,10 @@ def _step_derivative(mode: Mode, control: Control, tableau: Tableau, t: float, x
     for j in range(tableau.stages):
         Xj = x.copy()
         dXj = eye.copy()
-        for l in range(j):
-            if A[j, l] != 0.0:
-                Xj = Xj + h * A[j, l] * ks[l]
-                dXj = dXj + h * A[j, l] * dks[l]
+        for i in range(j):
+            if A[j, i] != 0.0:
+                Xj = Xj + h * A[j, i] * ks[i]
+                dXj = dXj + h * A[j, i] * dks[i]
         tj = t + c[j] * h
         ks.append(field_at(mode, control, tj, Xj))
         dks.append(_field_jacobian(mode, control, tj, Xj, ks[-1], scheme) @ dXj)

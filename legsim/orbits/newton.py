@@ -15,15 +15,23 @@ it stopped (``no_return``, ``simulation_failed``, ``singular_jacobian``, ``diver
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Mapping, Sequence
+from typing import Any
 
 import numpy as np
 
 from .. import derivatives
 from .errors import OrbitError
-from .jacobians import check_fd_step, default_fd_step, difference, field_at, floquet_multipliers, jacobian_fd, \
-    jacobian_saltation
+from .jacobians import (
+    check_fd_step,
+    default_fd_step,
+    difference,
+    field_at,
+    floquet_multipliers,
+    jacobian_fd,
+    jacobian_saltation,
+)
 from .problem import OrbitProblem
 from .returns import Return, ReturnMap
 
@@ -109,7 +117,7 @@ class OrbitResult:
         rho = self.spectral_radius
         return None if rho is None else rho < 1.0
 
-    def raise_for_status(self) -> "OrbitResult":
+    def raise_for_status(self) -> OrbitResult:
         """Raise ``OrbitError`` with the message unless the search converged."""
         if not self.converged:
             raise OrbitError(f"orbit search {self.status}: {self.message}", self.status)
@@ -163,7 +171,7 @@ class _Equations:
         x = self.template.copy()
         x[self.p.unknown_idx] = z[: self.n_x]
         params = dict(self.p.parameters)
-        params.update({name: float(v) for name, v in zip(self.p.free, z[self.n_x:])})
+        params.update({name: float(v) for name, v in zip(self.p.free, z[self.n_x:], strict=True)})
         return x, params
 
     def pack(self, x: np.ndarray, params: Mapping[str, float]) -> np.ndarray:

@@ -11,8 +11,9 @@ unknowns is refused here, before any simulation.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, Callable, Mapping, Sequence
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -101,7 +102,7 @@ class OrbitProblem:
     min_transitions: int = 1
     min_time: float = 0.0
     max_transitions: int = 10_000
-    step_length: Callable[["Return"], float] | None = None
+    step_length: Callable[[Return], float] | None = None
     trivial_multipliers: int = 0
     rtol: float | None = None
     atol: float | None = None

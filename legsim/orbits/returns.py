@@ -28,8 +28,9 @@ in strips, which converges at the method's order; ``Return.time`` is the relaxed
 
 from __future__ import annotations
 
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any, Callable, Mapping, Sequence
+from typing import Any
 
 import numpy as np
 from scipy.optimize import brentq
@@ -137,7 +138,7 @@ class ReturnMap:
 
     def show_state(self, x: np.ndarray) -> str:
         """A state of the section's mode as ``{name=value, ...}`` for messages."""
-        return "{" + ", ".join(f"{n}={v:.6g}" for n, v in zip(self.problem.names, x)) + "}"
+        return "{" + ", ".join(f"{n}={v:.6g}" for n, v in zip(self.problem.names, x, strict=False)) + "}"
 
     def _locate(self, ex: Execution, x0: np.ndarray, params: dict[str, float]) -> Return | None:
         if self.problem.section.kind == "transition":

@@ -13,8 +13,9 @@ against a system once, into a ``BoundSection`` that evaluates s(x) and its gradi
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, replace
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 
@@ -51,7 +52,7 @@ class Section:
 
     @classmethod
     def crossing(cls, mode: str, function: Callable[[np.ndarray], float], direction: int = -1,
-                 gradient: Callable[[np.ndarray], np.ndarray] | None = None, label: str = "") -> "Section":
+                 gradient: Callable[[np.ndarray], np.ndarray] | None = None, label: str = "") -> Section:
         """The level set ``function(x) = 0`` in ``mode``, crossed in ``direction`` (-1: s goes
         from > 0 to <= 0; +1: from < 0 to >= 0; 0: either)."""
         if not callable(function):
@@ -60,7 +61,7 @@ class Section:
                    label or f"s(x) = 0 in {mode}")
 
     @classmethod
-    def level(cls, mode: str, coordinate: str, value: float = 0.0, direction: int = -1) -> "Section":
+    def level(cls, mode: str, coordinate: str, value: float = 0.0, direction: int = -1) -> Section:
         """``x[coordinate] = value`` in ``mode``, crossed in ``direction`` (e.g. the apex:
         ``Section.level("flight", "zd", 0.0, -1)``)."""
         if not isinstance(coordinate, str):
@@ -74,7 +75,7 @@ class Section:
                    f"{coordinate} = {value:g} ({arrow}) in {mode}")
 
     @classmethod
-    def after(cls, transition: str) -> "Section":
+    def after(cls, transition: str) -> Section:
         """The states just after ``transition`` (its reset images), in its target mode."""
         if not isinstance(transition, str) or not transition:
             raise OrbitError(f"Section.after: transition must be a transition name, got {transition!r}")

@@ -54,12 +54,34 @@ from .cases.extremes import PAPER_SLIP_PSI, STABLE_PRONK, apex_heights, hop_peri
 from .cases.simultaneous import pair_checks
 from .cases.zeno import flight_ratios, max_guard_accel, pressing_impact_bound, rho_hat
 from .framework import CASES, GROUPS, Case, CaseResult, Check, case, run_suite, select
-from .invariants import (GENERIC, check_accumulation, check_domain, check_energy, check_finite, check_order,
-                         check_resets, check_status, check_time, check_transition_bound, energies, execution_checks,
-                         first_accumulating_crossing, slope, step_floor, transition_floor)
+from .invariants import (
+                         GENERIC,
+                         check_accumulation,
+                         check_domain,
+                         check_energy,
+                         check_finite,
+                         check_order,
+                         check_resets,
+                         check_status,
+                         check_time,
+                         check_transition_bound,
+                         energies,
+                         execution_checks,
+                         first_accumulating_crossing,
+                         slope,
+                         step_floor,
+                         transition_floor,
+)
 from .models import build, curved_floor_ball, lifted_ball, model_state
-from .reference_checks import (ball_flight_checks, ball_hold_check, ball_rest_check, ball_rest_crossing,
-                               oscillator_stick_sequence, tank_level_rate, tank_switch_checks)
+from .reference_checks import (
+                         ball_flight_checks,
+                         ball_hold_check,
+                         ball_rest_check,
+                         ball_rest_crossing,
+                         oscillator_stick_sequence,
+                         tank_level_rate,
+                         tank_switch_checks,
+)
 from .report import format_table, invariant_summary
 
 #: ``model_state`` under the name tests/test_property_runner.py calls it by.

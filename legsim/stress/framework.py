@@ -11,8 +11,9 @@ from __future__ import annotations
 import math
 import time
 import traceback
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Callable, Iterable, Sequence
+from typing import Any
 
 from ..execution import Execution
 
@@ -40,7 +41,8 @@ class CaseResult:
     transitions, steps: of the case's main run.
     wall_time: seconds for the whole case (all its runs and checks).
     checks: the invariants checked; the case passes when all hold and it did not crash.
-    numbers: measured numbers worth reporting (errors, drifts, costs).
+    numbers: measured numbers worth reporting (errors, drifts, costs), or their text where a
+        number alone does not say it (a list of errors per step size, a crash's traceback).
     error: the exception text when the case itself crashed.
     """
 
@@ -51,7 +53,7 @@ class CaseResult:
     steps: int = 0
     wall_time: float = 0.0
     checks: list[Check] = field(default_factory=list)
-    numbers: dict[str, float] = field(default_factory=dict)
+    numbers: dict[str, float | str] = field(default_factory=dict)
     error: str | None = None
 
     @property

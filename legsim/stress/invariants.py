@@ -9,7 +9,8 @@ Every check can fail: tests/stress/test_invariants.py breaks a good execution fo
 from __future__ import annotations
 
 import math
-from typing import Any, Callable, Sequence
+from collections.abc import Callable, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -126,21 +127,30 @@ def check_resets(system: HybridSystem, ex: Execution, eps: float, control: Contr
     return Check("resets in target domain", False, "; ".join(problems) or ex.message)
 
 
+def energy_of(system: HybridSystem) -> Callable[[str, np.ndarray], float]:
+    """The system's ``energy(mode, x)`` (J); a case that checks energy needs one."""
+    energy = system.energy
+    if energy is None:
+        raise ValueError(f"{system.name}: the model defines no energy function to check")
+    return energy
+
+
 def energies(system: HybridSystem, ex: Execution, stride: int = 1) -> tuple[np.ndarray, np.ndarray]:
     """(times, energies) at every ``stride``-th segment point and every segment's ends (J)."""
+    energy = energy_of(system)
     ts, es = [], []
     for seg in ex.segments:
         idx = sorted(set(range(0, len(seg.t), max(1, stride))) | {len(seg.t) - 1})
         for i in idx:
             ts.append(float(seg.t[i]))
-            es.append(float(system.energy(seg.mode, seg.x[i])))
+            es.append(float(energy(seg.mode, seg.x[i])))
     return np.array(ts), np.array(es)
 
 
 def check_energy(system: HybridSystem, ex: Execution, kind: str, tol: float, stride: int = 1) -> Check:
     """``kind="conservative"``: |E - E(0)| <= tol everywhere; ``"dissipative"``: E never rises
     more than tol above its lowest earlier value. Transitions are included (resets)."""
-    ts, es = energies(system, ex, stride)
+    _ts, es = energies(system, ex, stride)
     if kind == "conservative":
         drift = float(np.max(np.abs(es - es[0])))
         ok = drift <= tol
@@ -158,7 +168,8 @@ def check_transition_bound(ex: Execution, bound: float, why: str) -> Check:
     its transition budget."""
     n = len(ex.transitions)
     ok = n <= bound and ex.status != "max_transitions"
-    detail = f"{n} <= {bound:.6g} ({why})" if ok else f"{n} transitions (status {ex.status}) vs bound {bound:.6g} ({why})"
+    detail = (f"{n} <= {bound:.6g} ({why})" if ok
+              else f"{n} transitions (status {ex.status}) vs bound {bound:.6g} ({why})")
     return Check("transition bound", ok, detail)
 
 
@@ -187,7 +198,7 @@ def check_accumulation(ex: Execution, expected: Sequence[tuple[str, float, float
     latest] (s)."""
     found = [(w.details.get("transition"), w.time) for w in ex.warnings if w.kind == "accumulation"]
     ok = len(found) == len(expected) and all(
-        name == want and lo <= t <= hi for (name, t), (want, lo, hi) in zip(found, expected))
+        name == want and lo <= t <= hi for (name, t), (want, lo, hi) in zip(found, expected, strict=True))
     seen = ", ".join(f"{name} from {t:.9g} s" for name, t in found) or "none"
     wanted = ", ".join(f"{name} from [{lo:.9g}, {hi:.9g}] s" for name, lo, hi in expected) or "none"
     return Check("accumulation reported", ok, f"warnings: {seen}; expected: {wanted}")
@@ -250,5 +261,5 @@ def check_order(name: str, xs: Sequence[float], errors: Sequence[float], low: fl
         return Check(name, False, f"errors {errors} must be positive and finite to fit an order")
     p = slope(xs, errors)
     ok = low <= p <= high
-    pairs = ", ".join(f"{x:g}: {e:.3g}" for x, e in zip(xs, errors))
+    pairs = ", ".join(f"{x:g}: {e:.3g}" for x, e in zip(xs, errors, strict=True))
     return Check(name, ok, f"order {p:.2f} {'in' if ok else 'outside'} [{low}, {high}] ({label} -> error: {pairs})")

@@ -4,6 +4,7 @@ families: the bouncing ball's flights, rest and holds, and the two tanks' switch
 from __future__ import annotations
 
 import math
+from itertools import pairwise
 from typing import Any
 
 import numpy as np
@@ -19,7 +20,7 @@ def ball_flight_checks(ex: Execution, g: float, eps: float, resolved: float) -> 
     than ``resolved`` (s) are skipped: they start from a strip point whose height (|z| <= 1e-9
     eps) is comparable to the flight itself."""
     worst, count = 0.0, 0
-    for a, b in zip(ex.transitions[:-1], ex.transitions[1:]):
+    for a, b in pairwise(ex.transitions):
         z0, w = a.state_after
         flight = b.time - a.exit_time
         expected = (w + math.sqrt(max(w * w + 2.0 * g * z0, 0.0))) / g
@@ -84,7 +85,7 @@ def oscillator_stick_sequence(ref: Any, t_end: float, window: float) -> list[str
     if not phases or phases[0][0] != ref.t0 or phases[-1][1] < t_end:
         raise ValueError("the exact execution must start and end stuck on the stop")
     names = ["impact", "stick"]
-    for (_, released), (stuck, _) in zip(phases, phases[1:]):
+    for (_, released), (stuck, _) in pairwise(phases):
         flights = np.diff(impacts[(impacts > released) & (impacts <= stuck)])
         if not np.any(flights <= window):
             raise ValueError(f"no exact flight before the stick at {stuck:.6g} s is as short as {window:g} s")

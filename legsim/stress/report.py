@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import re
 import textwrap
-from typing import Sequence
+from collections.abc import Sequence
 
 from ..tables import output_width, render_table
 from .framework import CaseResult, Check

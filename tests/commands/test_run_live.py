@@ -54,7 +54,7 @@ def test_connect_streams_the_recording_rrd_writes(tmp_path):
     np.testing.assert_array_equal(received["times"], expected["times"])
     assert received["transitions"][0]["time"] == expected["transitions"][0]["time"]
     assert received["modes"] == expected["modes"]
-    for name, (t, values) in expected["series"].items():
+    for name, (_t, values) in expected["series"].items():
         np.testing.assert_array_equal(received["series"][name][1], values)
 
 

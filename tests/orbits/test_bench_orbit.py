@@ -7,12 +7,11 @@ import math
 import numpy as np
 import pytest
 
+from helpers.reliability import run_cli
 from legsim.bench import orbit
 from legsim.orbits import find_orbit
 from legsim.scene import load_scene
 from legsim.scene.orbit import problem_from_scene
-
-from helpers.reliability import run_cli
 
 
 @pytest.fixture(scope="module")
@@ -61,5 +60,5 @@ def test_the_report_picks_a_baseline_at_least_as_accurate_as_legsim():
     (("--scene", "bouncing_ball"), "no [orbit] section"),
 ])
 def test_bad_requests_are_refused_with_a_message(argv, message):
-    code, out, err = run_cli("bench", "orbit", "--quiet", *argv)
+    code, _out, err = run_cli("bench", "orbit", "--quiet", *argv)
     assert code != 0 and message in err and "Traceback" not in err

@@ -2,9 +2,8 @@
 
 import numpy as np
 
-from legsim.orbits import OrbitProblem, continue_family
-
 from helpers.orbit_systems import APEX, G, hopping_ball
+from legsim.orbits import OrbitProblem, continue_family
 
 
 def test_continuation_finds_the_period_doubling_of_the_hopping_ball():

@@ -5,10 +5,17 @@ import math
 import numpy as np
 import pytest
 
-from legsim.orbits import (OrbitError, OrbitProblem, Section, find_orbit, jacobian_fd, jacobian_saltation,
-                           return_map, saltation_matrix)
-
 from helpers.orbit_systems import hopf_reset, impact_oscillator
+from legsim.orbits import (
+    OrbitError,
+    OrbitProblem,
+    Section,
+    find_orbit,
+    jacobian_fd,
+    jacobian_saltation,
+    return_map,
+    saltation_matrix,
+)
 
 
 @pytest.mark.parametrize("section", [Section.after("jump"), Section.level("arc", "x", 0.0, 1)])
@@ -44,7 +51,7 @@ def test_saltation_matrix_of_the_wall_impact_in_closed_form():
     # DR = diag(1, -e). Xi = DR + (f+ - DR f-) e_x^T / (-V).
     sysm = impact_oscillator()
     tr = sysm.transitions[0]
-    V, e, kick = 1.7, 0.8, 1.0
+    V, e = 1.7, 0.8
     q = np.array([0.0, -V])
     xp = tr.reset(q)
     f = sysm.mode("free").field

@@ -7,11 +7,17 @@ import math
 import numpy as np
 import pytest
 
-from legsim.orbits import newton as newton_module
+from helpers.orbit_systems import (
+    APEX,
+    G,
+    hopf_closed_form,
+    hopf_reset,
+    hopping_ball,
+    impact_oscillator,
+    oscillator_closed_form,
+)
 from legsim.orbits import OrbitProblem, Section, find_orbit
-
-from helpers.orbit_systems import (APEX, G, hopf_closed_form, hopf_reset, hopping_ball, impact_oscillator,
-                                   oscillator_closed_form)
+from legsim.orbits import newton as newton_module
 
 
 def test_impact_oscillator_after_transition_matches_closed_form():

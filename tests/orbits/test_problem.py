@@ -2,9 +2,8 @@
 
 import pytest
 
-from legsim.orbits import OrbitError, OrbitProblem, Section, find_orbit
-
 from helpers.orbit_systems import impact_oscillator
+from legsim.orbits import OrbitError, OrbitProblem, Section, find_orbit
 
 
 @pytest.mark.parametrize("kwargs, message", [

@@ -4,9 +4,8 @@ when it does not."""
 import numpy as np
 import pytest
 
-from legsim.orbits import OrbitError, OrbitProblem, Section, find_orbit, return_map
-
 from helpers.orbit_systems import hopf_reset, impact_oscillator, oscillator_closed_form
+from legsim.orbits import OrbitError, OrbitProblem, Section, find_orbit, return_map
 
 
 def test_found_orbit_returns_to_itself_under_a_finer_simulation():

@@ -2,9 +2,8 @@
 
 import pytest
 
-from legsim.orbits import OrbitError, OrbitProblem, Section
-
 from helpers.orbit_systems import impact_oscillator
+from legsim.orbits import OrbitError, OrbitProblem, Section
 
 
 def test_bad_sections_are_rejected_with_messages():

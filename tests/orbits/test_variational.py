@@ -2,13 +2,11 @@
 
 import numpy as np
 import pytest
-
-from legsim.orbits import OrbitProblem, Section, jacobian_saltation, jacobians, return_map
-from legsim.orbits import variational
-from legsim.orbits.variational import compiled_sensitivity
 from legsim.robots import compass_gait
 
 from helpers.orbit_systems import hopf_reset
+from legsim.orbits import OrbitProblem, Section, jacobian_saltation, jacobians, return_map, variational
+from legsim.orbits.variational import compiled_sensitivity
 
 
 @pytest.fixture(scope="module")

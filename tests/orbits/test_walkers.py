@@ -20,11 +20,10 @@ import math
 
 import numpy as np
 import pytest
-
-from legsim.orbits import OrbitError, OrbitProblem, Section, find_orbit, jacobian_fd, jacobian_saltation, return_map
 from legsim.robots import compass_gait, rimless_wheel
 
 from helpers.compass_gait_reference import STANDARD, PointMassCompassGait
+from legsim.orbits import OrbitError, OrbitProblem, Section, find_orbit, jacobian_fd, jacobian_saltation, return_map
 
 
 @pytest.fixture(scope="module")
@@ -57,7 +56,7 @@ def gait():
 
 
 def test_compass_gait_matches_the_independent_computation(gait, reference):
-    prob, model, res = gait
+    _prob, _model, res = gait
     # RK4 at h = 2e-3 (errors ~1e-10 here) against DOP853 at 1e-12.
     assert np.max(np.abs(leans(res.fixed_point) - reference["x"])) < 1e-8
     assert abs(res.period - reference["period"]) < 1e-8
@@ -190,7 +189,7 @@ def test_the_return_map_lands_and_halves_as_the_problem_says():
 
 
 # -- rimless wheel: closed forms --------------------------------------------------------------------
-def rimless_closed_form(m, I, l, spokes, g, slope):
+def rimless_closed_form(m, I, l, spokes, g, slope):  # noqa: E741 (the model's parameter names: called with **params)
     alpha, gamma = math.pi / spokes, math.radians(slope)
     c = (I + m * l * l * math.cos(2 * alpha)) / (I + m * l * l)
     K = 4 * m * g * l * math.sin(alpha) * math.sin(gamma) / (I + m * l * l)

@@ -7,8 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from legsim import simulate
-from legsim import stress
+from legsim import simulate, stress
 from legsim.systems import bouncing_ball
 
 EPS = 1e-3

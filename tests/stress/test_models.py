@@ -4,8 +4,7 @@ registered builders with their states by coordinate name."""
 import numpy as np
 import pytest
 
-from legsim import simulate
-from legsim import stress
+from legsim import simulate, stress
 
 
 def test_the_lifted_ball_rests_and_is_released_at_the_force_zero():

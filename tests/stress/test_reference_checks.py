@@ -6,8 +6,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from legsim import simulate
-from legsim import stress
+from legsim import simulate, stress
 
 G, C, H, EPS = 9.81, 0.5, 1e-3, 1e-4
 
@@ -57,7 +56,7 @@ def test_tank_switches_are_the_exact_ones_and_a_moved_strip_point_fails():
     assert stress.tank_switch_checks(ex, model.reference, x0, 24).passed
     moved = with_transition(ex, 3, state_before=ex.transitions[3].state_before + np.array([1e-6, 0.0]))
     check = stress.tank_switch_checks(moved, model.reference, x0, 24)
-    assert not check.passed and "switches exact" == check.name
+    assert not check.passed and check.name == "switches exact"
 
 
 def test_tank_level_rate_is_the_fastest_level_in_either_mode():

@@ -19,12 +19,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from helpers.models import hopper_model
+from legsim.viz.meshcat_anim import animation_html, write_html
 
+from helpers.models import hopper_model
 from legsim.output.files import write_atomic
 from legsim.record import Frames, frame_times, geometry_frames, read_rrd, write_rrd
 from legsim.relaxed import simulate
-from legsim.viz.meshcat_anim import animation_html, write_html
 
 pytestmark = pytest.mark.browser
 

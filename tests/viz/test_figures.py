@@ -73,7 +73,7 @@ def test_oscillator_figure_matches_the_analytical_solution(tmp_path, capsys):
             held |= (t > strip["time"]) & (t <= strip["exit_time"])
         rho_hat = np.abs(x[~held] - OscillatorReference.example(key).position(t[~held])).max()
         assert rho_hat < bound, (name, rho_hat)
-        line = next(l for l in printed.splitlines() if l.startswith(name))
+        line = next(row for row in printed.splitlines() if row.startswith(name))
         assert float(line.rsplit("=", 1)[1].split()[0]) < bound
 
 

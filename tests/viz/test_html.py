@@ -10,13 +10,13 @@ import re
 import numpy as np
 import pytest
 import umsgpack
-from helpers.models import ball_model, hopper_model
+from legsim.viz.meshcat_anim import _commands, _matrix, _segments, animation_html, camera_track, write_html
 
+from helpers.models import ball_model, hopper_model
 from legsim.errors import OutputError
 from legsim.output.rrd import read_rrd, write_rrd
 from legsim.output.trace import Frames
 from legsim.relaxed import simulate
-from legsim.viz.meshcat_anim import _commands, _matrix, _segments, animation_html, camera_track, write_html
 
 
 def test_segment_boxes_land_on_the_polyline():
@@ -77,11 +77,11 @@ def test_page_is_self_contained(hopper_frames):
 def test_camera_follows_a_travelling_robot_and_not_a_still_one():
     t = np.linspace(0.0, 2.0, 61)
     box = np.array([[-0.1, 0.0], [0.1, 0.0], [0.1, 0.2], [-0.1, 0.2]])
-    moving = Frames(t, ["m"] * len(t), {"body": [box + [3.0 * ti, 0.0] for ti in t]})
-    cam_x, _, dist = camera_track(moving, follow=True)
+    moving = Frames(t, ["m"] * len(t), {"body": [box + np.array([3.0 * ti, 0.0]) for ti in t]})
+    cam_x, _, _dist = camera_track(moving, follow=True)
     assert np.ptp(cam_x) > 4.0  # follows the 6 m of travel
     assert np.max(np.abs(cam_x - 3.0 * t)) < 0.5
-    still = Frames(t, ["m"] * len(t), {"body": [box + [0.05 * np.sin(ti), 0.0] for ti in t]})
+    still = Frames(t, ["m"] * len(t), {"body": [box + np.array([0.05 * np.sin(ti), 0.0]) for ti in t]})
     cam_x, _, _ = camera_track(still, follow=True)
     assert np.ptp(cam_x) == 0.0
 
@@ -91,7 +91,7 @@ def test_default_camera_is_fixed_and_frames_the_whole_travel():
 
     t = np.linspace(0.0, 2.0, 61)
     box = np.array([[-0.1, 0.0], [0.1, 0.0], [0.1, 0.2], [-0.1, 0.2]])
-    moving = Frames(t, ["m"] * len(t), {"body": [box + [3.0 * ti, 0.0] for ti in t]})
+    moving = Frames(t, ["m"] * len(t), {"body": [box + np.array([3.0 * ti, 0.0]) for ti in t]})
     cam_x, _, dist = camera_track(moving)
     assert np.ptp(cam_x) == 0.0 and cam_x[0] == pytest.approx(3.0)
     # From x = -0.1 to 6.1 m: all of it in view.
@@ -132,7 +132,7 @@ def test_the_page_draws_ruler_ticks_and_labels_fixed_to_the_world():
     t = np.linspace(0.0, 2.0, 61)
     box = np.array([[-0.1, 0.0], [0.1, 0.0], [0.1, 0.2], [-0.1, 0.2]])
     ground = {"ground": np.array([[-2.0, 0.0], [15.0, 0.0]])}
-    moving = Frames(t, ["m"] * len(t), {"body": [box + [3.0 * ti, 0.0] for ti in t]}, ground)
+    moving = Frames(t, ["m"] * len(t), {"body": [box + np.array([3.0 * ti, 0.0]) for ti in t]}, ground)
     cmds = _commands(moving, 1.0)
     ticks = [c for c in cmds if c["type"] == "set_transform" and "/ruler/tick/" in c["path"]]
     xs = sorted(np.array(c["matrix"]).reshape(4, 4).T[0, 3] for c in ticks)
@@ -146,9 +146,10 @@ def test_the_page_draws_ruler_ticks_and_labels_fixed_to_the_world():
 
 # -- contact markers -----------------------------------------------------------------------------
 def test_contact_rings_sit_on_the_footholds_while_the_contact_is_active():
+    from legsim.viz.contacts import contact_frames
+
     from legsim.output.trace import frame_times, geometry_frames
     from legsim.scene import load_scene
-    from legsim.viz.contacts import contact_frames
 
     scene = load_scene("pronk", overrides=["integrator.t_final=1.0"])
     ex = scene.simulate()
@@ -156,7 +157,7 @@ def test_contact_rings_sit_on_the_footholds_while_the_contact_is_active():
     contacts = contact_frames(ex, scene.model, frames.times)
     assert sorted(contacts) == ["left", "right"]
     samples = ex.sample(frames.times)
-    for i, (mode, x) in enumerate(zip(samples.modes, samples.states)):
+    for i, (mode, x) in enumerate(zip(samples.modes, samples.states, strict=False)):
         names = ex.state_names[mode]
         for leg in ("left", "right"):
             point = contacts[leg][i]
@@ -172,13 +173,15 @@ def test_contact_rings_sit_on_the_footholds_while_the_contact_is_active():
     assert tracks[".position"]["interpolation"] == tracks[".scale"]["interpolation"] == 2300
     shown = [k["value"][0] == 1.0 for k in tracks[".scale"]["keys"]]
     assert shown == [p is not None for p in contacts["left"]]
-    on = [k["value"] for k, p in zip(tracks[".position"]["keys"], contacts["left"]) if p is not None]
-    assert all(v[0] == p[0] and v[2] == p[1] for v, p in zip(on, [p for p in contacts["left"] if p is not None]))
+    on = [k["value"] for k, p in zip(tracks[".position"]["keys"], contacts["left"], strict=False) if p is not None]
+    placed = [p for p in contacts["left"] if p is not None]
+    assert all(v[0] == p[0] and v[2] == p[1] for v, p in zip(on, placed, strict=False))
 
 
 def test_walkers_and_bridge_robots_mark_their_contacts():
-    from legsim.scene import load_scene
     from legsim.viz.contacts import contact_frames
+
+    from legsim.scene import load_scene
 
     found = {}
     for name in ("compass_gait", "rimless_wheel", "rod", "double_pendulum_plastic"):
@@ -240,13 +243,13 @@ def test_camera_stays_put_for_a_wide_oscillation():
     # A mass swinging over 20 m and ending where it started: a fixed camera frames it all.
     t = np.linspace(0.0, 10.0, 301)
     box = np.array([[-0.5, 0.0], [0.5, 0.0], [0.5, 1.0], [-0.5, 1.0]])
-    swing = Frames(t, ["m"] * len(t), {"mass": [box + [10.0 * np.sin(2.5 * ti), 0.0] for ti in t]})
+    swing = Frames(t, ["m"] * len(t), {"mass": [box + np.array([10.0 * np.sin(2.5 * ti), 0.0]) for ti in t]})
     cam_x, _, dist = camera_track(swing)
     assert np.ptp(cam_x) == 0.0
     # The whole swing (+-10.5 m) fits the view: half width <= distance * tan(fov/2) * aspect.
     from legsim.viz.meshcat_anim import ASSUMED_ASPECT, FOV_DEG
 
-    assert 10.5 <= dist * np.tan(np.radians(FOV_DEG / 2)) * ASSUMED_ASPECT
+    assert dist * np.tan(np.radians(FOV_DEG / 2)) * ASSUMED_ASPECT >= 10.5
 
 
 def test_legsim_run_and_replay_take_the_camera_option(tmp_path):

@@ -7,9 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pyarrow as pa
 import pytest
-
-from legsim.viz.maps import (OUTCOME_COLOURS, basin_figure, grid_of, stability_figure, switching_figure,
-                             write_basin_map)
+from legsim.viz.maps import OUTCOME_COLOURS, basin_figure, grid_of, stability_figure, switching_figure, write_basin_map
 
 
 def by_gid(fig, gid):

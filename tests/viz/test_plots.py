@@ -7,13 +7,13 @@ import re
 
 import numpy as np
 import pytest
-from helpers.models import ball_model, hopper_model
+from legsim.viz.plots import MODE_GID, STRIP_GID, plot_data, span_bounds, state_figure, write_plot
 
+from helpers.models import ball_model, hopper_model
 from legsim.errors import OutputError
 from legsim.output.rrd import read_rrd, write_rrd
 from legsim.output.trace import execution_trace, trace_series
 from legsim.relaxed import simulate
-from legsim.viz.plots import MODE_GID, STRIP_GID, plot_data, span_bounds, state_figure, write_plot
 
 
 @pytest.fixture(scope="module")
@@ -38,7 +38,7 @@ def test_strip_bars_match_the_strip_intervals_in_every_panel(hopper):
     *panels, band = fig.axes[: len(ex.state_names["stance"]) + 1]
     assert [ax.get_ylabel() for ax in panels] == ["z (no unit)", "zd (no unit)", "n (no unit)"]
     want = sorted(ex.strip_intervals())
-    for ax in panels + [band]:
+    for ax in [*panels, band]:
         (coll,) = _collections(ax, STRIP_GID)
         got = _spans(coll)
         assert len(got) == len(want)
@@ -64,7 +64,7 @@ def test_lines_are_the_recorded_samples_with_breaks(hopper):
     fig = state_figure(plot_data(ex, model=model))
     series = trace_series(ex)
     times = execution_trace(ex).times
-    for ax, name in zip(fig.axes, ["z", "zd", "n"]):
+    for ax, name in zip(fig.axes, ["z", "zd", "n"], strict=False):
         (line,) = ax.get_lines()
         x, y = line.get_xdata(), line.get_ydata()
         rows, vals = series[name]
@@ -81,7 +81,7 @@ def test_plot_from_a_recording_equals_the_plot_from_the_execution(hopper, tmp_pa
     data = read_rrd(write_rrd(ex, None, tmp_path / "h.rrd", model=model))
     a = state_figure(plot_data(ex, model=model))
     b = state_figure(plot_data(recording=data))
-    for ax_a, ax_b in zip(a.axes[:3], b.axes[:3]):
+    for ax_a, ax_b in zip(a.axes[:3], b.axes[:3], strict=False):
         assert _spans(_collections(ax_a, STRIP_GID)[0]) == _spans(_collections(ax_b, STRIP_GID)[0])
         np.testing.assert_array_equal(ax_a.get_lines()[0].get_ydata(), ax_b.get_lines()[0].get_ydata())
 
@@ -170,9 +170,8 @@ def diverged():
 def test_diverged_run_is_plotted_up_to_the_divergence(diverged, tmp_path):
     import warnings
 
-    from matplotlib.image import imread
-
     from legsim.viz._common import PLOT_LIMIT
+    from matplotlib.image import imread
 
     scene, ex = diverged
     data = plot_data(ex, scene)
@@ -270,7 +269,7 @@ def test_a_replayed_plot_has_the_recorded_units_or_says_they_are_unknown(pronk, 
 def test_figure_script_panels_take_the_models_units(pronk):
     from legsim.viz._figures import new_figure, state_panels
 
-    scene, ex = pronk
+    _scene, ex = pronk
     fig = new_figure(6.0, 6.0)
     axes = state_panels(fig, fig.add_gridspec(1, 1)[0], ex, ["x", "theta"], "pronk")
     assert [ax.get_ylabel() for ax in axes[:2]] == ["x (m)", "theta (rad)"]
@@ -279,7 +278,6 @@ def test_figure_script_panels_take_the_models_units(pronk):
 
 def test_every_axis_of_the_sweep_maps_and_histograms_has_a_unit():
     import pyarrow as pa
-
     from legsim.viz.maps import basin_figure, stability_figure, switching_figure
 
     rows = [{"initial.state.stanced": a, "initial.state.hipd": b, "robot.parameters.slope": a,
@@ -344,7 +342,7 @@ def test_a_mode_that_only_lives_inside_strips_is_on_the_band(pronk):
     want = sorted((s.time, s.exit_time) for s in ex.strips if s.mode == "left")
     np.testing.assert_allclose(np.array(_spans(held)), np.array(want), rtol=0, atol=1e-12)
     legend = {text.get_text(): handle for text, handle in zip(band.get_legend().get_texts(),
-                                                              band.get_legend().legend_handles)}
+                                                              band.get_legend().legend_handles, strict=False)}
     colour = to_rgb(legend["left"].get_facecolor())
     # And it is there in the picture: pixels of left's colour inside the band.
     fig.canvas.draw()

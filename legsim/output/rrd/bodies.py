@@ -10,8 +10,9 @@ the first gets the shape statically, once. See ``legsim.output.rrd.layout``.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 
@@ -55,7 +56,7 @@ class BodyLogger:
 
     def add(self, rows: np.ndarray, drawn: list[dict[str, np.ndarray]]) -> None:
         """Log the parts drawn at the sample ``rows`` (``drawn[i]``: part -> (k, 2) polyline)."""
-        for row, parts in zip(rows.tolist(), drawn):
+        for row, parts in zip(rows.tolist(), drawn, strict=True):
             for part, line in parts.items():
                 if part not in self.tracks:
                     self._start(part, line, row)
@@ -63,7 +64,7 @@ class BodyLogger:
                 self.high = np.maximum(self.high, line.max(axis=0))
         for part, track in self.tracks.items():
             mine = rows >= track.first_row
-            lines = [parts.get(part) for parts, keep in zip(drawn, mine) if keep]
+            lines = [parts.get(part) for parts, keep in zip(drawn, mine, strict=True) if keep]
             if len(lines):
                 self._add_part(track, rows[mine], lines)
 
@@ -80,9 +81,11 @@ class BodyLogger:
         n = len(rows)
         origin, angle, scale = np.zeros((n, 2)), np.zeros(n), np.ones((n, 2))
         fitted = np.zeros(n, dtype=bool)
-        same = [i for i, line in enumerate(lines) if line is not None and line.shape == track.shape.local.shape]
+        matching = {i: line for i, line in enumerate(lines)
+                    if line is not None and line.shape == track.shape.local.shape}
+        same = list(matching)
         if same:
-            fit = track.shape.fit(np.stack([lines[i] for i in same]))
+            fit = track.shape.fit(np.stack(list(matching.values())))
             origin[same], angle[same], scale[same], fitted[same] = fit
         shown = [SHAPE if fitted[i] else ABSENT if lines[i] is None else POLYLINE for i in range(n)]
         self._log_geometry(track, rows, lines, shown)
@@ -92,7 +95,7 @@ class BodyLogger:
                       shown: list[str]) -> None:
         """Geometry rows where what the part shows changes (and every row it is its own polyline)."""
         logged_rows, drawn = [], []
-        for i, (row, now) in enumerate(zip(rows.tolist(), shown)):
+        for i, (row, now) in enumerate(zip(rows.tolist(), shown, strict=False)):
             if now != SHAPE:
                 track.only_shape = False
             if now == track.shown and now != POLYLINE:

@@ -8,8 +8,9 @@ arrays only when asked for, sorted by row (the ``sample`` timeline; -1 for stati
 from __future__ import annotations
 
 import warnings
+from collections.abc import Iterator
 from pathlib import Path
-from typing import Any, Iterator
+from typing import Any
 
 import numpy as np
 
@@ -117,7 +118,7 @@ class Columns:
         """(row index, Python list of the row's values), sorted by row (small entities only)."""
         out: list[tuple[int, list]] = []
         for index, column in self._pieces(entity, component):
-            out.extend(zip(index.tolist(), column.to_pylist()))
+            out.extend(zip(index.tolist(), column.to_pylist(), strict=False))
         out.sort(key=lambda r: r[0])
         return out
 

@@ -67,7 +67,7 @@ def _part_lines(columns: Columns, path: str, rows: np.ndarray) -> list[np.ndarra
             continue
         at = np.flatnonzero(which == k)
         world = apply_poses(shapes[k], *(transforms[key][at] for key in ("translation", "quaternion", "scale")))
-        for i, points in zip(at.tolist(), world):
+        for i, points in zip(at.tolist(), world, strict=False):
             lines[i] = points
     return lines
 

@@ -76,8 +76,10 @@ def _read_meta(path: Path, columns: Columns) -> dict[str, Any]:
     if not meta_rows:
         raise RecordingError(f"{path}: a Rerun recording without legsim data (no legsim/meta entity); "
                              f"was it written by `legsim run --rrd`?")
+    if not meta_rows[0]:
+        raise RecordingError(f"{path}: legsim/meta is an empty document; was it written by `legsim run --rrd`?")
     try:
-        meta = load_json(meta_rows[0][0] if meta_rows[0] else None)
+        meta = load_json(meta_rows[0][0])
     except ValueError as exc:
         raise RecordingError(f"{path}: legsim/meta is not valid JSON: {exc}") from exc
     found = meta.get("format") if isinstance(meta, dict) else meta
@@ -184,7 +186,7 @@ def _sample_modes(starts: np.ndarray, sequence: list[str], modes: list[str], n: 
     if unknown:
         raise ValueError(f"mode names a mode not in legsim/meta.modes: {sorted(unknown)[0]!r:.80}")
     lengths = np.diff(np.concatenate([starts, [n]])).astype(np.int64)
-    return [mode for mode, count in zip(sequence, lengths.tolist()) for _ in range(count)]
+    return [mode for mode, count in zip(sequence, lengths.tolist(), strict=False) for _ in range(count)]
 
 
 def _in_strip(strips: list[dict[str, Any]], n: int) -> np.ndarray:

@@ -3,8 +3,9 @@ the unit, and the blueprint (the 3D robot, the mode and strip band, the plots, t
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
 
@@ -30,7 +31,7 @@ def coordinate_units(state_names: Mapping[str, tuple[str, ...]], state_units: Ma
     units: dict[str, str] = {}
     for mode, names in state_names.items():
         given = tuple(state_units.get(mode, ())) or ("",) * len(names)
-        for name, unit in zip(names, given):
+        for name, unit in zip(names, given, strict=False):
             units[name] = unit if units.get(name, unit) == unit else ""
     return units
 
@@ -67,7 +68,7 @@ def blueprint(rrb: Any, groups: list[UnitGroup], box: tuple[np.ndarray, np.ndarr
         left = rrb.Vertical(robot, band, row_shares=[4, 1])
     plots = [rrb.TimeSeriesView(contents=list(g.entities), name=g.title) for g in groups]
     if len(plots) > STACKED_VIEWS:
-        plots = plots[:STACKED_VIEWS - 1] + [rrb.Tabs(*plots[STACKED_VIEWS - 1:])]
+        plots = [*plots[:STACKED_VIEWS - 1], rrb.Tabs(*plots[STACKED_VIEWS - 1:])]
     side = rrb.Tabs(rrb.TextLogView(origin="/events", name="events"),
                     rrb.TextDocumentView(origin=SUMMARY, name="summary"))
     columns = [left, rrb.Vertical(*plots), side] if plots else [left, side]

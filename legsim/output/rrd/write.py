@@ -12,9 +12,10 @@ from __future__ import annotations
 import json
 import os
 import uuid
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 
@@ -26,8 +27,26 @@ from ..files import write_atomic
 from ..summary import run_summary
 from ..trace import RecordingError, Trace, _draw, execution_trace, resolve_model, scenery_only, trace_series
 from .bodies import BodyLogger
-from .layout import (APPLICATION_ID, FORMAT, MODE, PALETTE, SAMPLE_TIMELINE, SAMPLES, SCENERY, SCENERY_COLOUR,
-                     STATE, STRIP, STRIPS, SUMMARY, TIMELINE, TRANSITIONS, WARNINGS, WORLD, META, entity)
+from .layout import (
+    APPLICATION_ID,
+    FORMAT,
+    META,
+    MODE,
+    PALETTE,
+    SAMPLE_TIMELINE,
+    SAMPLES,
+    SCENERY,
+    SCENERY_COLOUR,
+    STATE,
+    STRIP,
+    STRIPS,
+    SUMMARY,
+    TIMELINE,
+    TRANSITIONS,
+    WARNINGS,
+    WORLD,
+    entity,
+)
 from .views import blueprint, coordinate_units, series_label, unit_groups
 
 #: Samples whose robot geometry is drawn and sent at a time.
@@ -204,7 +223,7 @@ def _summary_markdown(meta: dict[str, Any]) -> str:
     shown = " → ".join(seq[:30]) + (f" … ({len(seq) - 30} more)" if len(seq) > 30 else "")
     names = s.get("state_names", [])
     final = ", ".join(f"{n} = {v:.6g}" if isinstance(v, float) else f"{n} = {v}"
-                      for n, v in zip(names, s.get("final_state", [])))
+                      for n, v in zip(names, s.get("final_state", []), strict=False))
     lines = [
         f"# {s.get('scene') or s.get('system', 'legsim run')}",
         "",
@@ -402,12 +421,12 @@ def typed_columns(rr: Any, **columns: Any) -> list:
     """
     import pyarrow as pa
 
-    arrays = {}
+    arrays: dict[str, pa.Array] = {}
     for key, value in columns.items():
         if isinstance(value, list) and value and isinstance(value[0], np.ndarray):
             sizes = np.array([len(v) for v in value], dtype=np.int32)
             offsets = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int32)
-            arrays[key] = pa.ListArray.from_arrays(pa.array(offsets), pa.array(np.concatenate(value)))
+            arrays[key] = pa.ListArray.from_arrays(pa.array(offsets, type=pa.int32()), pa.array(np.concatenate(value)))
         elif isinstance(value, list):
             arrays[key] = pa.array(value, type=pa.string())
         else:

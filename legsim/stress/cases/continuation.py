@@ -8,6 +8,7 @@ accumulations as eps and h shrink, link 1 swinging on.
 from __future__ import annotations
 
 import math
+from itertools import pairwise
 
 import numpy as np
 
@@ -25,7 +26,8 @@ RADIUS, RESTITUTION = 2.0, 0.8  # m, the valley z = x^2 / (2 R)
 
 
 @case("zeno_curved_floor", "zeno",
-      "ball sliding in a valley (core API, c = 0.8, no continuation): bounces accumulate while it slides; the run warns")
+      "ball sliding in a valley (core API, c = 0.8, no continuation): bounces accumulate while it slides; "
+      "the run warns")
 def _curved_floor(result: CaseResult, quick: bool) -> None:
     g, h, eps = 9.81, 1e-3, 1e-4
     T = 3.0 if quick else 6.0
@@ -65,7 +67,7 @@ def _estimate_check(ex, k: int | None) -> Check:
     if w is None or k is None:
         return Check("accumulation time estimated", False, "no accumulation warning")
     trs = ex.transitions
-    to_come = sum(b.time - a.exit_time for a, b in zip(trs[k:], trs[k + 1:]))
+    to_come = sum(b.time - a.exit_time for a, b in pairwise(trs[k:]))
     estimate = w.details["accumulation_time"] - trs[k].exit_time
     ok = abs(estimate - to_come) <= 0.01 * to_come
     return Check("accumulation time estimated", ok,
@@ -85,7 +87,8 @@ def _pendulum_converges(result: CaseResult, quick: bool) -> None:
     model, x0 = double_pendulum(c)
     system = model.system
     levels = [(1e-3, 1e-3), (5e-4, 1e-4), (2.5e-4, 1e-5)] + ([] if quick else [(1.25e-4, 1e-6)])
-    finals, releases, swings = [], [], []
+    finals: list[np.ndarray] = []
+    releases, swings = [], []
     last = np.linspace(T - 0.5, T, 101)
     for h, eps in levels:
         ex = simulate(system, x0, "unconstrained", T, h, eps, max_transitions=1000)
@@ -102,8 +105,8 @@ def _pendulum_converges(result: CaseResult, quick: bool) -> None:
                          f"warnings {[w.kind for w in ex.warnings]}"))
     # Each difference between successive levels at most half the previous one: at least linear
     # in h (the default window h + eps about halves from one level to the next).
-    diffs = [float(np.max(np.abs(a - b))) for a, b in zip(finals, finals[1:])]
-    ok = all(b <= 0.5 * a for a, b in zip(diffs, diffs[1:]))
+    diffs = [float(np.max(np.abs(a - b))) for a, b in pairwise(finals)]
+    ok = all(b <= 0.5 * a for a, b in pairwise(diffs))
     result.add(Check("final state converges", ok, "max |x_k(6) - x_(k+1)(6)|: " + ", ".join(f"{d:.3g}" for d in diffs)))
     # Released where eq. (31) changes sign, at theta1 = 0 (the straight pendulum, unit masses and
     # lengths), twice at every level; link 1 still swinging at 6 s.

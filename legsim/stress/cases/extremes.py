@@ -12,13 +12,20 @@ import numpy as np
 from ...execution import Execution
 from ...relaxed import simulate
 from ..framework import CaseResult, Check, case
-from ..invariants import check_order, energies, execution_checks, transition_floor
+from ..invariants import check_order, energies, energy_of, execution_checks, transition_floor
 from ..models import build, model_state, pronk
-from ..reference_checks import (ball_flight_checks, ball_hold_check, ball_rest_check, ball_rest_crossing,
-                                tank_level_rate, tank_switch_checks)
+from ..reference_checks import (
+    ball_flight_checks,
+    ball_hold_check,
+    ball_rest_check,
+    ball_rest_crossing,
+    tank_level_rate,
+    tank_switch_checks,
+)
 
 
-@case("extreme_eps", "extremes", "bouncing ball with eps = 1e-12 ... 1e-1 (plain to 0.95 t_zeno; by default to 2 t_zeno)")
+@case("extreme_eps", "extremes",
+      "bouncing ball with eps = 1e-12 ... 1e-1 (plain to 0.95 t_zeno; by default to 2 t_zeno)")
 def _extreme_eps(result: CaseResult, quick: bool) -> None:
     g, c, z0, h = 9.81, 0.5, 1.0, 1e-3
     model = build("bouncing_ball", {"g": g, "z0": z0}, {"floor": {"restitution": c}})
@@ -53,13 +60,16 @@ def _extreme_eps(result: CaseResult, quick: bool) -> None:
                                                                  f"{len(ex2.transitions)} transitions (closed form "
                                                                  f"{k}), z = {ex2.final_state[0]:.2g} m"))
     result.add(check_order("first impact's strip exit -> t1", epss[1:-1], lags[1:-1], 0.9, 1.1, "eps"))
+    assert main is not None  # set by the loop above, which runs at least once
     result.main_run(main)
     result.numbers.update({f"halvings_per_impact_eps{e:g}": v for e, v in halvings.items()})
     result.outcome = (f"eps {epss[0]:g} .. {epss[-1]:g}: first impact held {lags[0]:.2g} .. {lags[-1]:.2g} s; "
                       f"{halvings[epss[0]]:.0f} halvings per impact at eps = {epss[0]:g}")
 
 
-@case("extreme_large_h", "extremes", "h longer than the time between events: ball (h = 0.25, 1 s), two tanks (h = 2 s), digital control (h = 1 s)")
+@case("extreme_large_h", "extremes",
+      "h longer than the time between events: ball (h = 0.25, 1 s), two tanks (h = 2 s), "
+      "digital control (h = 1 s)")
 def _extreme_large_h(result: CaseResult, quick: bool) -> None:
     g, c, z0, eps = 9.81, 0.5, 1.0, 1e-3
     model = build("bouncing_ball", {"g": g, "z0": z0}, {"floor": {"restitution": c}})
@@ -99,27 +109,30 @@ def _extreme_large_h(result: CaseResult, quick: bool) -> None:
     # RK4 on a relaxation at rate 1 with h = 1: |e^-1 - (1 - 1 + 1/2 - 1/6 + 1/24)| = 7.1e-3 per
     # step and unit amplitude; 3 steps, amplitudes <= 2
     result.add(Check("digital control exact up to holds and RK4", warp <= 3 * 2 * 7.2e-3,
-                     f"|x(T) - x_exact(T - held)| = {warp:.2g} <= {3 * 2 * 7.2e-3:.2g}; path {'->'.join(ex.mode_sequence)}"))
+                     f"|x(T) - x_exact(T - held)| = {warp:.2g} <= {3 * 2 * 7.2e-3:.2g}; "
+                     f"path {'->'.join(ex.mode_sequence)}"))
+    assert main is not None  # set by the loop above, which runs at least once
     result.main_run(main)
     result.outcome = "ball rests after t_zeno; tank switches exact; digital path " + "->".join(ex.mode_sequence)
 
 
-def hop_period(g: float, k: float, m: float, l: float, apex: float) -> tuple[float, float]:
+def hop_period(g: float, k: float, m: float, length: float, apex: float) -> tuple[float, float]:
     """(stance time, hop period) of a vertical hopper (SLIP with psi = 0) from apex height z0:
-    ballistic flights and a harmonic stance about z_eq = l - m g / k at omega = sqrt(k/m)."""
-    v = math.sqrt(2.0 * g * (apex - l))
+    ballistic flights and a harmonic stance about z_eq = length - m g / k at omega = sqrt(k/m)."""
+    v = math.sqrt(2.0 * g * (apex - length))
     omega = math.sqrt(k / m)
     d = m * g / k  # the spring's static compression: the touchdown point is d above z_eq
     stance = (math.pi + 2.0 * math.atan(d * omega / v)) / omega
     return stance, 2.0 * v / g + stance
 
 
-@case("extreme_stiff_legs", "extremes", "stiff leg (k = 1e5 N/m, stance 10 ms): vertical hopping SLIP, RK4 at omega h = 0.3 ... 0.08")
+@case("extreme_stiff_legs", "extremes",
+      "stiff leg (k = 1e5 N/m, stance 10 ms): vertical hopping SLIP, RK4 at omega h = 0.3 ... 0.08")
 def _extreme_stiff(result: CaseResult, quick: bool) -> None:
-    k, m, l, g, z0 = 1e5, 1.0, 1.0, 9.81, 1.1
-    model = build("slip", {"k": k, "m": m, "l": l, "g": g, "psi": 0.0})
+    k, m, length, g, z0 = 1e5, 1.0, 1.0, 9.81, 1.1
+    model = build("slip", {"k": k, "m": m, "l": length, "g": g, "psi": 0.0})
     x0 = model_state(model, "flight", {"x": 0.0, "z": z0, "xd": 0.0, "zd": 0.0})
-    stance, period = hop_period(g, k, m, l, z0)
+    stance, period = hop_period(g, k, m, length, z0)
     T = 2.0 if quick else 10.0
     eps = 1e-7  # m: the leg compresses by v/omega = 4.4 mm
     hs = [1e-3, 5e-4, 2.5e-4]
@@ -142,10 +155,12 @@ def _extreme_stiff(result: CaseResult, quick: bool) -> None:
     # RK4 on a harmonic stance: |R(i omega h)| = 1 - (omega h)^6/144, an energy loss of (omega h)^6/72
     # per step, so (omega h)^5 per stance: order 5 (the flights are exact)
     result.add(check_order("energy drift order", hs, drifts, 4.5, 5.5, "h"))
+    assert main is not None  # set by the loop above, which runs at least once
     result.main_run(main)
     result.numbers.update({"stance_s": stance, "period_s": period,
-                           "energy_drift": ", ".join(f"h={h:g}: {d:.2g} J" for h, d in zip(hs, drifts))})
-    result.outcome = f"{main.status}; {len(main.transitions)} transitions, stance {stance * 1e3:.3g} ms, drift {drifts[0]:.2g} J at h = 1e-3"
+                           "energy_drift": ", ".join(f"h={h:g}: {d:.2g} J" for h, d in zip(hs, drifts, strict=True))})
+    result.outcome = (f"{main.status}; {len(main.transitions)} transitions, stance {stance * 1e3:.3g} ms, "
+                      f"drift {drifts[0]:.2g} J at h = 1e-3")
 
 
 #: The stable pronking gait used for the long horizon: k = 200 N/m per leg (dimensionless leg
@@ -171,7 +186,8 @@ def apex_heights(ex: Execution) -> list[tuple[float, float]]:
         for i in np.nonzero((zd[:-1] > 0) & (zd[1:] <= 0))[0]:
             # the apex on the step's Hermite interpolant, to first order in the step
             s = zd[i] / (zd[i] - zd[i + 1])
-            out.append((float(seg.t[i] + s * (seg.t[i + 1] - seg.t[i])), float(seg.x[i, 1] + s * (seg.x[i + 1, 1] - seg.x[i, 1]))))
+            out.append((float(seg.t[i] + s * (seg.t[i + 1] - seg.t[i])),
+                        float(seg.x[i, 1] + s * (seg.x[i + 1, 1] - seg.x[i, 1]))))
     return out
 
 
@@ -193,8 +209,8 @@ def _extreme_long(result: CaseResult, quick: bool) -> None:
     result.main_run(ex)
     result.add(execution_checks(model.system, ex, eps, energy="conservative", energy_tol=bound_e,
                                 bound=4 * (T / period + 1), bound_why=f"4 per stride of {period:.4g} s", stride=stride))
-    jumps = max(abs(model.system.energy(tr.target, tr.state_after) - model.system.energy(tr.source, tr.state_before))
-                for tr in ex.transitions)
+    energy = energy_of(model.system)
+    jumps = max(abs(energy(tr.target, tr.state_after) - energy(tr.source, tr.state_before)) for tr in ex.transitions)
     result.add(Check("energy kept by every transition", jumps <= 1e-9, f"largest change at a transition {jumps:.2g} J"))
     apexes = apex_heights(ex)
     last_z = apexes[-1][1] if apexes else math.nan
@@ -203,7 +219,7 @@ def _extreme_long(result: CaseResult, quick: bool) -> None:
     ok = len(apexes) >= least and abs(last_z - STABLE_PRONK["apex"]["z"]) <= 1e-3
     result.add(Check("stays on the gait", ok, f"{len(apexes)} apexes (>= {least:.0f}), the last at z = {last_z:.6f} m "
                                               f"(start 1 m)"))
-    ts, es = energies(model.system, ex, stride)
+    _ts, es = energies(model.system, ex, stride)
     drift = float(np.max(np.abs(es - es[0])))
     result.numbers.update({"energy_drift_J": drift, "energy_drift_bound_J": bound_e, "strides": len(apexes)})
     # The paper's gait: unstable, multiplier 5.86 per stride of 0.916 s. A perturbation of the
@@ -239,14 +255,15 @@ def _extreme_on_guard(result: CaseResult, quick: bool) -> None:
 
     floor = transition_floor(h, eps, accel=g)
     # at rest exactly on the floor: the corner z = zd = 0 of the guard max(z, zd); stays at rest
-    ex = run(ball.system, [0.0, 0.0], "flight", 0.5, bound=0.5 / floor + 1, why=f"T/{floor:.3g} s", energy="dissipative")
+    ex = run(ball.system, [0.0, 0.0], "flight", 0.5, bound=0.5 / floor + 1, why=f"T/{floor:.3g} s",
+             energy="dissipative")
     result.add(ball_rest_check(ex, c, g, eps, 0.0, 0.5))
     main = ex
     # by default the ball at rest on the floor crosses at t0 and, the next crossing ending a
     # flight of one landing step and strip (<= h + eps), rests there
     rest = simulate(ball.system, [0.0, 0.0], "flight", 0.5, h, eps)
     names = [tr.name for tr in rest.transitions]
-    ok = names == ["bounce", "rest"] and rest.transitions[0].time == 0.0 and np.all(rest.final_state == 0.0)
+    ok = names == ["bounce", "rest"] and rest.transitions[0].time == 0.0 and bool(np.all(rest.final_state == 0.0))
     result.add(Check("rests at once by default", ok, f"transitions {names}, final {rest.final_mode} "
                                                      f"{rest.final_state.tolist()}"))
     # on the floor moving down: bounces at t = 0 exactly, then flies 2 c v / g
@@ -259,20 +276,22 @@ def _extreme_on_guard(result: CaseResult, quick: bool) -> None:
     # on the floor moving up: no transition at t = 0, lands at 2 v / g exactly
     ex = run(ball.system, [0.0, 1.0], "flight", 0.25, bound=1, why="one landing", energy="dissipative")
     ok = len(ex.transitions) == 1 and abs(ex.transitions[0].time - 2.0 / g) <= 1e-12
-    result.add(Check("leaves the guard", ok, f"lands at {ex.transitions[0].time if ex.transitions else math.nan:.15g} s, "
-                                             f"2 v/g = {2 / g:.15g}"))
+    landed = ex.transitions[0].time if ex.transitions else math.nan
+    result.add(Check("leaves the guard", ok, f"lands at {landed:.15g} s, 2 v/g = {2 / g:.15g}"))
     # inside the strip (half of eps below the floor, moving down): crosses at t0, held eps/2
     ex = run(ball.system, [-0.5 * eps, -1.0], "flight", 0.15, bound=3, why="a bounce at 0, one at 2 c/g")
     first = ex.transitions[0] if ex.transitions else None
     ok = first is not None and first.time == 0.0 and abs(first.exit_time - 0.5 * eps) <= 1e-15
-    result.add(Check("starts in the strip", ok, f"crossed at {first.time if first else math.nan}, held to "
-                                                f"{first.exit_time if first else math.nan:.3g} s (eps/2 = {eps / 2:g})"))
+    result.add(Check("starts in the strip", ok,
+                     f"crossed at {first.time if first else math.nan}, held to "
+                     f"{first.exit_time if first else math.nan:.3g} s (eps/2 = {eps / 2:g})"))
     # two tanks with tank 2 exactly at its threshold: switches at once, then exact
     tanks = build("two_tanks")
     x0 = np.array([1.0, 0.0])
     ex = run(tanks.system, x0, "q1", 3.0, bound=3.0 / transition_floor(h, eps, rate=0.5) + 1, why="T/floor")
     ok = bool(ex.transitions) and ex.transitions[0].time == 0.0 and ex.transitions[0].target == "q2"
-    result.add(Check("tank switches at t0", ok, f"first switch at {ex.transitions[0].time if ex.transitions else None}"))
+    result.add(Check("tank switches at t0", ok,
+                     f"first switch at {ex.transitions[0].time if ex.transitions else None}"))
     result.add(tank_switch_checks(ex, tanks.reference, x0, 2))
     # the circle started on the plane, tangent to it: never crosses
     circle = build("circular_flow")
@@ -317,6 +336,8 @@ def _extreme_corner(result: CaseResult, quick: bool) -> None:
     # every execution is the exact one paused for its two strips (eps - depth + the landing step
     # each, < 2 (h + eps)), so the final states differ by at most the speed times that
     ok = spread <= 2 * (h + eps) * 2.0
-    result.add(Check("paths meet again", ok, f"final states within {spread:.2g} of each other (<= 2 (h + eps) x speed 2)"))
+    result.add(Check("paths meet again", ok,
+                     f"final states within {spread:.2g} of each other (<= 2 (h + eps) x speed 2)"))
+    assert main is not None  # set by the loop above, which runs at least once
     result.main_run(main)
     result.outcome = f"{n} starts within 1e-9 of the corner: both paths, final spread {spread:.2g}"

@@ -5,7 +5,7 @@ circle that touches, misses or cuts the plane by a tiny distance.
 
 from __future__ import annotations
 
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -50,13 +50,14 @@ def _grazing(result: CaseResult, quick: bool, offsets: Sequence[float], label: s
             errs.append(err)
             worst_state = max(worst_state, state_ratio)
             worst_mode = max(worst_mode, mode_ratio)
-        result.numbers[f"error_d{d:g}"] = ", ".join(f"h={h:g}: {e:.2g}" for h, e in zip(hs, errs))
+        result.numbers[f"error_d{d:g}"] = ", ".join(f"h={h:g}: {e:.2g}" for h, e in zip(hs, errs, strict=True))
         result.add(_converges(d, hs, errs, switched))
     result.add(Check("state on the circle", worst_state <= 1.0,
                      f"state error <= RK4 bound + two holds x speed (worst ratio {worst_state:.2g})"))
     result.add(Check("modes differ only at the plane", worst_mode <= 1.0 + 1e-9,
                      f"where the relaxed and exact modes differ the exact x1 is within the state error + |d| of "
                      f"the plane (worst ratio {worst_mode:.2g})"))
+    assert main is not None  # set by the loop above, which runs at least once
     result.main_run(main)
     result.outcome = f"{label}; switches per run {counts}"
 
@@ -79,7 +80,7 @@ def _graze(result: CaseResult, system: HybridSystem, ref, x0: np.ndarray, d: flo
     allowed = rk4 + OMEGA * radius * min(held, 2 * (h + eps)) + 1e-12
     err = float(np.max(np.abs(np.array(got.states) - np.array(want.states))))
     # modes may differ only where the exact state is within the state error of the plane
-    near = [abs(float(s[0]) - WALL) for s, a, b in zip(want.states, got.modes, want.modes) if a != b]
+    near = [abs(float(s[0]) - WALL) for s, a, b in zip(want.states, got.modes, want.modes, strict=False) if a != b]
     mode_ratio = max([0.0] + [n / (err + abs(d) + 1e-15) for n in near])
     return ex, err, err / allowed, mode_ratio
 
@@ -92,7 +93,7 @@ def _converges(d: float, hs: Sequence[float], errs: Sequence[float], switched: S
     if not any(switched):
         return check_order(f"converges (d = {d:g})", hs, errs, 3.5, 4.5, "h, eps = 1e-3")
     return Check(f"converges (d = {d:g})", False,
-                 f"some refinements switch and others do not: {dict(zip(hs, switched))}")
+                 f"some refinements switch and others do not: {dict(zip(hs, switched, strict=True))}")
 
 
 @case("grazing_tangent", "grazing", "circular flow from (0, 1): touches x1 = 1 at t = pi/2 without crossing")
@@ -105,6 +106,7 @@ def _grazing_inside(result: CaseResult, quick: bool) -> None:
     _grazing(result, quick, [-1e-9, -1e-6], "misses")
 
 
-@case("grazing_outside", "grazing", "circular flow a tiny distance beyond tangency (radius 1 + 1e-9, 1 + 1e-6): two switches")
+@case("grazing_outside", "grazing",
+      "circular flow a tiny distance beyond tangency (radius 1 + 1e-9, 1 + 1e-6): two switches")
 def _grazing_outside(result: CaseResult, quick: bool) -> None:
     _grazing(result, quick, [1e-9, 1e-6], "cuts")

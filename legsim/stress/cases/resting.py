@@ -83,7 +83,7 @@ def _rest_and_release_checks(ex: Execution, releases: list, t_star: float, T: fl
         checks.append(Check("flight after release exact", err <= 1e-9, f"|z - cubic| <= {err:.2g} m"))
     lands = [tr for tr in ex.transitions if tr.name == "land"]
     span = (lands[0].exit_time, releases[0].time) if lands and releases else (0.0, 0.0)
-    modes = set(ex.sample(np.linspace(*span, 100, endpoint=False)).modes) if span[1] > span[0] else set()
+    modes = set(ex.sample(np.linspace(span[0], span[1], 100, endpoint=False)).modes) if span[1] > span[0] else set()
     checks.append(Check("rests on the floor", modes == {"rest"}, f"mode rest on [{span[0]:.4g}, {span[1]:.4g}] s"))
     return checks
 
@@ -108,12 +108,14 @@ def _lift_off_check(ex: Execution, t_star: float, T: float) -> tuple[Check, floa
     return check, lag
 
 
-@case("resting_ball_c0", "resting", "ball, plastic floor (c = 0): rests, then a lift u = 3 t N releases it at t* = m g / 3")
+@case("resting_ball_c0", "resting",
+      "ball, plastic floor (c = 0): rests, then a lift u = 3 t N releases it at t* = m g / 3")
 def _resting_plastic(result: CaseResult, quick: bool) -> None:
     _resting(result, quick, 0.0, False)
 
 
-@case("resting_ball_c0.2", "resting", "ball, c = 0.2, plain relaxed: chatters on the floor until the lift exceeds its weight")
+@case("resting_ball_c0.2", "resting",
+      "ball, c = 0.2, plain relaxed: chatters on the floor until the lift exceeds its weight")
 def _resting_chatter(result: CaseResult, quick: bool) -> None:
     _resting(result, quick, 0.2, False)
 

@@ -24,7 +24,7 @@ def pair_checks(ex: Execution, h: float) -> Check:
     trs = ex.transitions
     worst, pairs = 0.0, 0
     ok = len(trs) % 2 == 0 and len(trs) > 0
-    for a, b in zip(trs[0::2], trs[1::2]):
+    for a, b in zip(trs[0::2], trs[1::2], strict=False):
         kind_a, kind_b = a.name.split("_")[0], b.name.split("_")[0]
         if kind_a != kind_b or a.name == b.name:
             ok = False
@@ -65,7 +65,8 @@ def _simultaneous_pronk(result: CaseResult, quick: bool) -> None:
     result.add(check_order("distance to the SLIP limit -> 0", levels, dist, 0.8, 1.2, "eps (h = 2.5e-4)"))
     E = energies(model.system, ex)[1]
     result.numbers.update({"energy_drift": float(np.max(np.abs(E - E[0]))), "max_theta": theta})
-    result.outcome = f"{ex.status}; {len(ex.transitions) // 2} pairs of simultaneous transitions, |theta| <= {theta:.0g}"
+    result.outcome = (f"{ex.status}; {len(ex.transitions) // 2} pairs of simultaneous transitions, "
+                      f"|theta| <= {theta:.0g}")
 
 
 @case("simultaneous_runner_random_pitch", "simultaneous",
@@ -92,7 +93,8 @@ def _simultaneous_random_pitch(result: CaseResult, quick: bool) -> None:
     # theta > 0 pitches the nose (the right hip) down: the right foot is lower and lands first.
     expected = ["touchdown_right" if th > 0 else "touchdown_left" for th in pitches]
     result.add(Check("the lower foot lands first", firsts == expected,
-                     f"{sum(a == b for a, b in zip(firsts, expected))}/{len(pitches)} as the sign of theta0 says"))
+                     f"{sum(a == b for a, b in zip(firsts, expected, strict=True))}/{len(pitches)} "
+                     "as the sign of theta0 says"))
     # Continuity through the corner: whichever foot is taken first, the states after the hop
     # differ by O(|theta_i - theta_j|), with the sensitivity measured at a pitch 100 times larger.
     x = x0.copy()
@@ -109,6 +111,7 @@ def _simultaneous_random_pitch(result: CaseResult, quick: bool) -> None:
                      f"(worst ratio {worst:.2g})"))
     corner, worst_corner = _corner_is_the_limit(model.system, x0, pitches[0], lipschitz, T, quick)
     result.add(corner)
+    assert main is not None  # set by the loop above, which runs at least once
     result.main_run(main)
     result.numbers.update({"pitches": ", ".join(f"{p:.2g}" for p in pitches), "lipschitz": lipschitz,
                            "corner_ratio_worst": worst_corner})
@@ -167,6 +170,7 @@ def _simultaneous_digital(result: CaseResult, quick: bool) -> None:
                 errors.append(float(np.max(np.abs(ex.final_state - ref.state(T)))))
     ok = paths == {"x": "0->1->3", "y_delta": "0->2->3", "z_delta": "0->1->3"}
     result.add(Check("paths", ok, f"{paths} (x takes the first listed guard on the tie; y crosses xi2 first)"))
+    assert main is not None  # set by the loop above, which runs at least once
     t_cross = [tr.time for tr in main.transitions]
     ok = abs(t_cross[0] - math.log(2.0)) <= 1e-9 and t_cross[1] == main.transitions[0].exit_time
     result.add(Check("both thresholds at ln 2", ok,

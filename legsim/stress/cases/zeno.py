@@ -12,20 +12,32 @@ from __future__ import annotations
 
 import math
 import time
+from itertools import pairwise
 
 import numpy as np
 
 from ...builders import Model
-from ...execution import Execution
+from ...execution import Execution, TransitionRecord
 from ...hybrid import HybridSystem
 from ...relaxed import simulate
 from ...systems.oscillator import EXAMPLES, OscillatorReference
 from ..framework import CaseResult, Check, case
-from ..invariants import (check_accumulation, check_order, execution_checks, first_accumulating_crossing,
-                          transition_floor)
+from ..invariants import (
+    check_accumulation,
+    check_order,
+    execution_checks,
+    first_accumulating_crossing,
+    transition_floor,
+)
 from ..models import build, double_pendulum, model_state, oscillator_ex2
-from ..reference_checks import (ball_flight_checks, ball_rest_check, ball_rest_crossing, oscillator_stick_sequence,
-                                tank_level_rate, tank_switch_checks)
+from ..reference_checks import (
+    ball_flight_checks,
+    ball_rest_check,
+    ball_rest_crossing,
+    oscillator_stick_sequence,
+    tank_level_rate,
+    tank_switch_checks,
+)
 
 #: Paper 000 Table I Example 2, the oscillator cases' parameters.
 EX2 = EXAMPLES["ex2"]
@@ -112,8 +124,9 @@ def _zeno_ball_continued(result: CaseResult, quick: bool) -> None:
     ok = (same and rests and abs(t_rest - exact) <= 1e-9 and ex.warnings == []
           and ref.zeno_time - window * c / (1 - c) <= t_rest - held <= ref.zeno_time)
     result.add(Check("plain bounces, then rest", ok,
-                     f"{len(kept)} bounces identical to the plain run's, rest at crossing {len(ex.transitions)} (closed "
-                     f"form {k}) at {t_rest:.9g} s = exact impact + held {held:.3g} s (to {abs(t_rest - exact):.2g}); "
+                     f"{len(kept)} bounces identical to the plain run's, rest at crossing {len(ex.transitions)} "
+                     f"(closed form {k}) at {t_rest:.9g} s = exact impact + held {held:.3g} s "
+                     f"(to {abs(t_rest - exact):.2g}); "
                      f"t_zeno {ref.zeno_time:.5g} s, the tail after it {window * c / (1 - c):.2g} s"))
     result.numbers.update({"transitions_plain": len(plain.transitions), "wall_s": cost, "wall_s_plain": plain_cost})
     result.outcome = (f"{ex.status} in '{ex.final_mode}'; {len(ex.transitions)} transitions vs "
@@ -127,10 +140,10 @@ def _zeno_ball_continued(result: CaseResult, quick: bool) -> None:
 
 def flight_ratios(ex: Execution, n: int) -> list[float]:
     """Ratios of successive flights (strip exit to next crossing) of the first n+1 bounces."""
-    flights = [b.time - a.exit_time for a, b in zip(ex.transitions[:-1], ex.transitions[1:])
+    flights = [b.time - a.exit_time for a, b in pairwise(ex.transitions)
                if a.source == a.target]
     # The first flight follows the first impact, before which the motion was not a bounce.
-    return [b / a for a, b in zip(flights[1:n + 1], flights[2:n + 2])]
+    return [b / a for a, b in pairwise(flights[1:n + 2])]
 
 
 def max_guard_accel(system: HybridSystem, ex: Execution, coordinate: int, stride: int = 1) -> float:
@@ -138,7 +151,7 @@ def max_guard_accel(system: HybridSystem, ex: Execution, coordinate: int, stride
     best = 0.0
     for seg in ex.segments:
         field = system.mode(seg.mode).field
-        for x, t in zip(seg.x[::stride], seg.t[::stride]):
+        for x, t in zip(seg.x[::stride], seg.t[::stride], strict=True):
             best = max(best, abs(float(np.asarray(field(t, x, None))[coordinate])))
     return best
 
@@ -162,14 +175,15 @@ def _zeno_pendulum_plain(result: CaseResult, quick: bool) -> None:
     result.add(Check("flights shrink by c", ok, "ratios " + ", ".join(f"{r:.3f}" for r in ratios)))
     # Where the flights are shorter than one step the stop chatters: theta2 stays in the strip's
     # band (the ball's bound with the largest acceleration).
-    short = [tr.time for a, tr in zip(ex.transitions[:-1], ex.transitions[1:]) if tr.time - a.exit_time < h]
+    short = [tr.time for a, tr in pairwise(ex.transitions) if tr.time - a.exit_time < h]
     t_chatter = short[0] if short else T
     times = np.linspace(t_chatter, T, 300)
     th2 = np.array([s[1] for s in ex.sample(times).states])
     hi = eps * c * c / (1 - c * c)
     ok = short != [] and th2.min() >= -eps * (1 + 1e-9) and th2.max() <= hi * (1 + 1e-9)
     result.add(Check("stop chatters in its strip", ok,
-                     f"from {t_chatter:.4g} s theta2 in [{th2.min():.2g}, {th2.max():.2g}] within [-eps, {hi:.2g}] rad"))
+                     f"from {t_chatter:.4g} s theta2 in [{th2.min():.2g}, {th2.max():.2g}] "
+                     f"within [-eps, {hi:.2g}] rad"))
     # The run says so: its impacts accumulate from the crossing that ends the first flight no
     # longer than h + eps, before the chatter (flights shorter than a step) begins.
     k = first_accumulating_crossing(ex, "bounce_stop", h + eps)
@@ -186,7 +200,8 @@ def _zeno_pendulum_plain(result: CaseResult, quick: bool) -> None:
 
 
 @case("zeno_double_pendulum_c0.5_continued", "zeno",
-      "double pendulum, stop c = 0.5, default continuation: rests in the constrained mode, released where eq. (31) changes sign")
+      "double pendulum, stop c = 0.5, default continuation: rests in the constrained mode, "
+      "released where eq. (31) changes sign")
 def _zeno_pendulum_continued(result: CaseResult, quick: bool) -> None:
     h, eps, c = 1e-3, 1e-3, 0.5
     T = 2.5 if quick else 5.0
@@ -235,7 +250,8 @@ def pressing_impact_bound(system: HybridSystem, ex: Execution, c: float, window:
     at the least a_n: at most log(w1/w_th)/log(1/c) + 2 bounces. Impacts pulling away end long
     flights and are counted as they come, as are the rests and releases."""
     free = system.mode("unconstrained").field
-    bound, groups, pressing = 0.0, [[]], []
+    groups: list[list[TransitionRecord]] = [[]]
+    bound, pressing = 0.0, []
     for tr in ex.transitions:
         if tr.name == "bounce_stop" and -float(free(tr.time, tr.state_before, None)[3]) > 0:
             groups[-1].append(tr)
@@ -261,7 +277,7 @@ def _release_time_converges(c: float, x0: np.ndarray, quick: bool) -> Check:
     for hh in levels:
         run = simulate(model.system, x0, "unconstrained", 2.5, hh, hh, max_transitions=1000)
         times.append(next(tr.time for tr in run.transitions if tr.name == "release_stop"))
-    diffs = [abs(a - b) for a, b in zip(times[:-1], times[1:])]
+    diffs = [abs(a - b) for a, b in pairwise(times)]
     return check_order("release time converges", levels[:-1], diffs, 0.5, 1.5, "h = eps")
 
 
@@ -283,7 +299,8 @@ def _two_tanks_run(h: float, eps: float, T: float, method: str = "rk4"):
     return model, ref, x0, ex, bound, floor, rate
 
 
-@case("zeno_two_tanks", "zeno", "two tanks, one switched inflow (paper 004 Sec. IV-D): through its Zeno time 8 s to 10 s")
+@case("zeno_two_tanks", "zeno",
+      "two tanks, one switched inflow (paper 004 Sec. IV-D): through its Zeno time 8 s to 10 s")
 def _zeno_two_tanks(result: CaseResult, quick: bool) -> None:
     h, eps, T = 0.01, 1e-3, 10.0
     model, ref, x0, ex, bound, floor, rate = _two_tanks_run(h, eps, T)
@@ -339,7 +356,8 @@ def _held_and_says_so(ex: Execution, t_zeno: float) -> Check:
 
 
 @case("zeno_oscillator_ex2", "zeno",
-      "forced oscillator with a stop, paper 000 Table I Example 2, plain relaxed: sticks, leaves, chatters (Zeno), sticks again")
+      "forced oscillator with a stop, paper 000 Table I Example 2, plain relaxed: sticks, leaves, "
+      "chatters (Zeno), sticks again")
 def _zeno_oscillator(result: CaseResult, quick: bool) -> None:
     _oscillator_ex2(result, quick, continued=False)
 
@@ -409,7 +427,7 @@ def _chatter_reported(ex: Execution, ref: OscillatorReference, T: float, h: floa
     found = [(w.details.get("transition"), w.details.get("accumulation_time", math.nan))
              for w in ex.warnings if w.kind == "accumulation"]
     ok = len(found) == len(phases) and all(name == "impact" and abs(t - s0) <= h
-                                           for (name, t), (s0, _) in zip(found, phases))
+                                           for (name, t), (s0, _) in zip(found, phases, strict=True))
     return Check("accumulation reported", ok,
                  f"warnings' Zeno times {', '.join(f'{t:.6g}' for _, t in found) or 'none'} s; exact sticking phases "
                  f"{', '.join(f'[{a:.6g}, {b:.4g}]' for a, b in phases)}")
@@ -443,11 +461,12 @@ def _sticks_and_releases_checks(ex: Execution, ref: OscillatorReference, T: floa
     names = [tr.name for tr in ex.transitions]
     ends = [s1 for _, s1 in ref.sticking_intervals(T) if s1 < T]
     releases = [tr.time for tr in ex.transitions if tr.name == "release"]
-    rel_err = max((abs(a - b) for a, b in zip(releases, ends)), default=math.inf)
+    rel_err = max((abs(a - b) for a, b in zip(releases, ends, strict=False)), default=math.inf)
     ok = names == sequence and len(releases) == len(ends) and rel_err <= 1e-9
     released = Check("released where F changes sign", ok,
                      f"transitions as the rule takes them on the exact impacts: {names == sequence}; "
-                     f"{len(releases)} releases at the exact times {', '.join(f'{e:.9g}' for e in ends)} to {rel_err:.2g} s")
+                     f"{len(releases)} releases at the exact times {', '.join(f'{e:.9g}' for e in ends)} "
+                     f"to {rel_err:.2g} s")
     errs, ok, chain = [], True, 0
     for k, tr in enumerate(ex.transitions):
         if tr.name == "release":

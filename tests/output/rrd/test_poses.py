@@ -23,7 +23,7 @@ def test_a_rigidly_moved_trunk_is_fitted_and_reproduced():
     trunk = np.array([[0.0, 0.0], [0.4, 0.1], [0.5, 0.3], [-0.1, 0.2], [0.0, 0.0]])  # closed outline
     shape = Shape.of(trunk)
     angles = np.linspace(-3.0, 3.0, 7)
-    moved = np.stack([_turn(trunk, a) + [1.5 * a, 0.2] for a in angles])
+    moved = np.stack([_turn(trunk, a) + np.array([1.5 * a, 0.2]) for a in angles])
     np.testing.assert_allclose(_round_trip(shape, moved), moved, atol=1e-12)
 
 
@@ -32,7 +32,7 @@ def test_a_spring_leg_stretched_along_its_axis_is_fitted():
     shape = Shape.of(leg)
     lengths = np.array([0.6, 0.8, 1.2])
     # The leg compressed to each length along its axis and leaning by 0.3 rad.
-    moved = np.stack([_turn((leg - leg[0]) * [1.0, k], 0.3) + [2.0, 1.0] for k in lengths])
+    moved = np.stack([_turn((leg - leg[0]) * [1.0, k], 0.3) + np.array([2.0, 1.0]) for k in lengths])
     np.testing.assert_allclose(_round_trip(shape, moved), moved, atol=1e-12)
 
 

@@ -6,9 +6,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+
 from helpers.models import ball_model
 from helpers.recordings import expected_series
-
 from legsim.output.rrd import read_rrd, write_rrd
 from legsim.output.trace import RecordingError, execution_trace, frame_times
 from legsim.relaxed import simulate
@@ -22,7 +22,7 @@ def test_every_coordinate_sample_round_trips_exactly(hopper_run):
         t, v = data["series"][name]
         # Samples at one instant (a segment's last point and its strip's entry) may come in
         # either order, so compare sorted (time, value) pairs; float64 is stored, so exactly.
-        assert sorted(zip(t.tolist(), v.tolist())) == sorted(pairs), name
+        assert sorted(zip(t.tolist(), v.tolist(), strict=False)) == sorted(pairs), name
     # n exists in stance only: its samples are exactly the stance samples.
     stance_points = sum(len(s.t) for s in ex.segments if s.mode == "stance") + \
         2 * sum(1 for s in ex.strips if s.mode == "stance")
@@ -35,7 +35,7 @@ def test_sample_times_modes_and_strip_flags(hopper_run):
     assert data["times"][0] == ex.t0 and data["times"][-1] == ex.t_end
     # Every sample lies in the piece its mode and strip flag say: check against sampling.
     inside = ~data["in_strip"]
-    for t, mode in zip(data["times"][inside][::50], np.array(data["modes"], dtype=object)[inside][::50]):
+    for t, mode in zip(data["times"][inside][::50], np.array(data["modes"], dtype=object)[inside][::50], strict=False):
         assert any(s.mode == mode and s.t_start <= t <= s.t_end for s in ex.segments)
     assert int(data["in_strip"].sum()) == 2 * len(ex.strips)
 
@@ -47,7 +47,7 @@ def test_mode_sequence_strips_and_transitions_round_trip(hopper_run):
     assert [(s["mode"], s["name"], s["time"], s["exit_time"]) for s in data["strips"]] == \
         [(s.mode, s.name, s.time, s.exit_time) for s in ex.strips]
     assert len(data["transitions"]) == len(ex.transitions)
-    for got, tr in zip(data["transitions"], ex.transitions):
+    for got, tr in zip(data["transitions"], ex.transitions, strict=False):
         assert (got["name"], got["source"], got["target"], got["index"]) == (tr.name, tr.source, tr.target, tr.index)
         assert (got["time"], got["landing_time"], got["exit_time"], got["depth"]) == \
             (tr.time, tr.landing_time, tr.exit_time, tr.depth)
@@ -72,8 +72,8 @@ def test_geometry_frames_match_the_model(hopper_run):
         assert s.time in frames.times and s.exit_time in frames.times
     assert frames.modes == [trace.modes[r] for r in rows]
     state_of = {}
-    for mode, (mode_rows, states) in trace.blocks.items():
-        state_of.update(zip(mode_rows.tolist(), states))
+    for _mode, (mode_rows, states) in trace.blocks.items():
+        state_of.update(zip(mode_rows.tolist(), states, strict=False))
     for i, row in enumerate(rows.tolist()):
         want = model.geometry(trace.modes[row], state_of[row])
         for part, line in want.items():
@@ -92,7 +92,7 @@ def test_model_without_geometry_records_states_only(tmp_path):
     assert data["frames"] is None and data["scenery"] == {}
     assert data["mode_sequence"] == ex.mode_sequence
     assert "energy_initial" not in data["summary"]  # the ball defines no energy
-    t, z = data["series"]["z"]
+    t, _z = data["series"]["z"]
     trace = execution_trace(ex)
     np.testing.assert_array_equal(t, trace.times)
 

@@ -74,7 +74,7 @@ def test_series_are_named_with_their_units(pronk):
     names = {path: column["SeriesLines:names"][0][0] for (path, static), column in chunks.items()
              if static and path.startswith("/state/")}
     for mode, coordinates in ex.state_names.items():
-        for name, unit in zip(coordinates, ex.state_units[mode]):
+        for name, unit in zip(coordinates, ex.state_units[mode], strict=False):
             assert names[f"/state/{name}"] == f"{name} ({unit})"
 
 

@@ -52,7 +52,7 @@ def test_every_transition_and_its_states_are_kept(long_run):
     recorded = data["transitions"]
     assert [t["time"] for t in recorded] == [t.time for t in ex.transitions]
     names = ex.state_names[ex.segments[0].mode]
-    for tr, rec in zip(ex.transitions, recorded):
+    for tr, rec in zip(ex.transitions, recorded, strict=False):
         np.testing.assert_array_equal(rec["state_before"], tr.state_before)
         np.testing.assert_array_equal(rec["state_after"], tr.state_after)
         # The state after the reset is the first sample of the next segment, at the strip's exit.

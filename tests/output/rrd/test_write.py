@@ -6,8 +6,8 @@ from __future__ import annotations
 import os
 
 import pytest
-from helpers.recordings import run_hopper
 
+from helpers.recordings import run_hopper
 from legsim.builders import Model
 from legsim.output.rrd import write_rrd
 from legsim.output.trace import RecordingError
