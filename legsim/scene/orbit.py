@@ -211,6 +211,14 @@ def _problem(scene: Any, table: Mapping[str, Any], section: Section, free: tuple
              params: dict[str, float], factory: Callable[[Mapping[str, float]], Any]) -> OrbitProblem:
     integ = scene.integrator
     energy = _number(scene, table, "energy", None)
+    if getattr(scene, "controller", None) is not None:
+        # A scene controller keeps memory across transitions (a Raibert hopper's measured stance
+        # time), so a return from the section is not a function of the section state alone:
+        # refused rather than searched without the controller, which would be another system.
+        raise field_error(scene.path, "controller", "the orbit search does not run a scene's [controller] (it "
+                          "keeps state across transitions, so the return map is not a function of the section "
+                          "state); search the closed loop from Python with OrbitProblem(control=...) as "
+                          "docs/robots.md shows, holding the controller's state fixed")
     try:
         return OrbitProblem(
             system=factory if params else scene.model, section=section, **{key: integ[key] for key in INTEGRATOR_KEYS},

@@ -9,7 +9,7 @@ import pytest
 
 import legsim.orbits
 from legsim.errors import SceneError
-from legsim.scene import load_scene
+from legsim.scene import bundled_dir, load_scene
 from legsim.scene.orbit import ORBIT_KEYS, OrbitSettings, problem_from_scene
 
 
@@ -78,3 +78,13 @@ def test_bad_values_are_named_by_their_key(override, message):
     with pytest.raises(SceneError, match=r"rimless_wheel\.toml: ") as info:
         problem_from_scene(scene)
     assert message in str(info.value)
+
+
+def test_a_scene_with_a_controller_is_refused_rather_than_searched_without_it(tmp_path):
+    # Searching without the controller would be another system (the uncontrolled hop in place).
+    text = (bundled_dir() / "slip_raibert.toml").read_text() + (
+        '\n[orbit]\nsection = { mode = "flight", coordinate = "zd", value = 0.0, direction = "decreasing" }\n')
+    path = tmp_path / "controlled.toml"
+    path.write_text(text)
+    with pytest.raises(SceneError, match=r"controlled\.toml: controller: the orbit search does not run"):
+        problem_from_scene(load_scene(path))
