@@ -141,6 +141,9 @@ def assert_same_run(a, b, tol=1e-9):
     for key in ("steps", "halvings", "error_rejections", "field_evals", "transitions"):
         assert a.counters[key] == b.counters[key], key
     close(a.final_state, b.final_state, tol)
+    assert [(s.mode, s.name) for s in a.strips] == [(s.mode, s.name) for s in b.strips]
+    assert abs(a.counters["strip_time"] - b.counters["strip_time"]) <= tol * max(1, len(a.strips))
+    assert [(w.kind, w.message) for w in a.warnings] == [(w.kind, w.message) for w in b.warnings]
 
 
 SCENES = [
@@ -158,6 +161,32 @@ SCENES = [
     ("pronk_pitched", ("integrator.method=\"dopri5\"", "integrator.rtol=1e-7", "integrator.atol=1e-7", "integrator.h=0.1",
                "integrator.landing=\"aim\"")),
 ]
+
+
+#: Runs that cross mode changes, continuations and joint impacts (with continuation on and off).
+MODE_CHANGES = [
+    ("pronk", ()),
+    ("double_pendulum_plastic", ()),
+    ("double_pendulum_zeno", ("integrator.t_final=2.0", "integrator.method=\"rk4\"", "integrator.eps=1e-3")),
+    ("double_pendulum_zeno", ("integrator.t_final=2.0", "integrator.continuation=false", "integrator.eps=1e-3")),
+    ("rod", ()),
+]
+
+
+@pytest.mark.parametrize("scene,overrides", MODE_CHANGES)
+def test_mode_changes_are_crossed_in_the_kernel_as_in_python(monkeypatch, scene, overrides):
+    # Each mode's first entry goes through Python (which checks its twin and its field); from
+    # then on the kernel crosses the run's transitions, mode changes included, and returns only
+    # for what Python decides: a continuation (whose reset the twins do not compute) or a
+    # joint impact (the rod's two ends).
+    fast, n_kernel = run(monkeypatch, scene, False, overrides)
+    slow, _ = run(monkeypatch, scene, True, overrides)
+    assert fast.status == "finished"
+    assert_same_run(fast, slow)
+    modes = {s.mode for s in fast.segments}
+    python_taken = sum(t.name.startswith(("rest_", "joint_")) for t in fast.transitions)
+    assert len(fast.transitions) > len(modes)
+    assert n_kernel <= len(modes) + python_taken
 
 
 @pytest.mark.parametrize("scene,overrides", SCENES)
