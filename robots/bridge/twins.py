@@ -5,12 +5,12 @@ A twin computes what the Python mode computes, in the same order: the field of
 ``dynamics.dynamics`` (applied forces of stance spring legs and joint damping, then ABA, or the
 KKT solve when rigid contacts are active), the guards of ``transitions.outgoing`` (gaps of
 inactive stops and points, plastic-impact pairs, release forces, spring-leg touchdown and
-liftoff) and the resets of those transitions (impacts, releases, footholds mapped), so the
-compiled kernel can cross a gait's mode changes itself; a Zeno continuation's reset it does not
-compute, and the kernel hands those crossings to Python.
-The Python bridge stays the reference: the relaxed loop checks each twin against it at the first
-visit of its mode, and a mode whose structure the twin does not know (Zeno continuation, armed
-contacts, actuation, a transition it does not recognise) gets no twin and runs in Python.
+liftoff) and the resets of those transitions and of their Zeno continuations (impacts,
+releases, footholds mapped; a bounce's continuation is its impact made plastic), so the compiled
+kernel crosses a gait's mode changes itself. The Python bridge stays the reference: the relaxed
+loop checks each twin against it at the first visit of its mode, and a mode whose structure the
+twin does not know (armed contacts, actuation, a transition it does not recognise) gets no twin
+and runs in Python.
 
 Everything a twin needs travels in its parameter array p (float64; layout: the ``P_*`` header
 positions and the ``G_*`` fields of each guard record). A state past the model's range (a hip
@@ -311,12 +311,20 @@ def bridge_guards(x, p):
 @_jit
 def bridge_resets(x, p, e):
     """The reset of transition e into its target's state (impacts.impact_reset,
-    impacts.plain_reset): an impact (bounce, plastic stick or graze) replaces v by the
+    impacts.plain_reset; for e >= the guard count, the continuation of transition e - count):
+    an impact (bounce, plastic stick or graze) replaces v by the
     generalised Newton impact's; a release keeps x; a spring leg's touchdown or liftoff keeps q
     and v and maps the footholds (modes.map_state: kept, dropped, or the touching foot's x)."""
     n = int(p[P_N])
-    g = int(p[P_GUARD]) + GUARD_SIZE * e
+    n_guards = int(p[P_NGUARD])
+    g = int(p[P_GUARD]) + GUARD_SIZE * (e % n_guards)
     kind = int(p[g + G_KIND])
+    if e >= n_guards:  # the continuation of a bounce: its impact, plastic, into the resting mode
+        out = x.copy()
+        count(p, C_IMPACTS)
+        lsn_impact(np.int64(p[P_HANDLE]), x.ctypes.data, _ptr(x, n), np.int64(p[g + G_NIMPACT]),
+                   _ptr(p, int(p[g + G_IMPACT])), _ptr(p, int(p[g + G_ROW])), _ptr(out, n))
+        return out
     if kind == K_GAP or kind == K_PLASTIC:
         out = x.copy()
         count(p, C_IMPACTS)
@@ -393,7 +401,8 @@ def _strike_records(model: BridgeModel, modes: ModeCatalog, spec: ModeSpec, cnam
     gap = _gap_fields(model.rigid[cname], pp)
     if c.restitution > 0.0:
         coeff_at = pp.append([0.0] * len(kept) + [c.restitution])
-        return [(f"bounce_{cname}", [K_GAP, *gap, impact_at, len(rows), coeff_at, 0.0, 0.0, 0.0, 0.0])]
+        rest_at = pp.append([0.0] * len(rows))  # the continuation's: the same impact, plastic
+        return [(f"bounce_{cname}", [K_GAP, *gap, impact_at, len(rows), coeff_at, 0.0, 0.0, 0.0, rest_at])]
     coeff_at = pp.append([0.0] * len(rows))
     stick = modes.spec(modes.name_of(staying | {cname}))
     stick_at = pp.append(_rigid_blocks(stick.rigid))
@@ -468,7 +477,7 @@ def bridge_twin(model: BridgeModel, modes: ModeCatalog, spec: ModeSpec,
     header[P_FRAME] = pp.append(pp.frames)
     pp.append([0.0] * len(COUNTED))
     return CompiledMode(bridge_field, bridge_guards, len(records), np.array(pp.p), bridge_resets, fallback=True,
-                        joint_groups=tuple(_joint_group(model, name) for name, _ in records))
+                        continued=True, joint_groups=tuple(_joint_group(model, name) for name, _ in records))
 
 
 def _joint_group(model: BridgeModel, name: str) -> int:
