@@ -50,7 +50,7 @@ class Table:
             return index[name]
 
         sets: list[tuple] = []
-        params, mi, ti, self.keys = [], [], [], []
+        params, mi, ti, self.keys, self.twins = [], [], [], [], []
         offset = 0
         for name in modes:
             data = system.mode_data(name)
@@ -61,6 +61,7 @@ class Table:
             mi.append((sets.index(functions), data.mode.dim, twin.n_guards, offset, offset + twin.params.size, len(ti),
                        twin.resets is not None))
             params.append(twin.params)
+            self.twins.append((twin, offset))
             offset += twin.params.size
             for e, (tr, target) in enumerate(zip(data.transitions, data.targets)):
                 cont = tr.continuation
@@ -77,11 +78,20 @@ class Table:
         #: The widest state of the table's modes: the kernel's buffers hold any of them.
         self.width = int(self.mi[:, 1].max()) if len(mi) else 0
 
-    def load_histories(self, run: Run) -> None:
-        """The Zeno histories of the table's transitions, from the run's ZenoWatch."""
+    def load(self, run: Run) -> None:
+        """The twins' parameters into P, and the Zeno histories of the table's transitions from
+        the run's ZenoWatch."""
+        for twin, offset in self.twins:
+            self.P[offset:offset + twin.params.size] = twin.params
         for row, (mode, name) in enumerate(self.keys):
             history = run.zeno.history(mode, name)
             self.hist[row] = (0.0, 0.0, 0.0) if history is None else (1.0, history[0], history[1])
+
+    def store(self) -> None:
+        """P back into the twins' parameters: a twin may count its evaluations there (a robot's
+        model counters, ``robots.bridge.twins.add_counts``)."""
+        for twin, offset in self.twins:
+            twin.params[:] = self.P[offset:offset + twin.params.size]
 
 
 class Workspace:
@@ -126,12 +136,13 @@ def run_visit_compiled(run: Run, visit: ModeVisit) -> Outcome:
         ws.ci[kt.CI_MAX_STEPS] = min(PROGRESS_CHUNK if run.has_progress else _NO_LIMIT, run.max_steps - run.steps)
         ws.ci[kt.CI_BUDGET] = max(0, run.max_transitions - len(run.transitions))
         ws.iv[k.I_SIZE] = visit.buf.size
-        table.load_histories(run)
+        table.load(run)
         buf = visit.buf
         code = kernel(table.P, table.mi, table.ti, table.hist, plan.c, plan.n_groups, plan.weights, plan.n_members,
                       plan.members, plan.b_err, plan.fsal, ws.x, ws.K, ws.XS, ws.x_new, ws.k1, ws.gv, ws.work, ws.q,
                       ws.dq, ws.raw, buf.t, buf.x, buf.dx, ws.fs, ws.iv, ws.cf, ws.ci, ws.cnt, ws.r_i, ws.r_f, ws.r_q,
                       ws.r_after)
+        table.store()
         buf.size = int(ws.iv[k.I_SIZE])
         _count(run, ws)
         if ws.iv[k.I_RECORDS]:

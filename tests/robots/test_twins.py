@@ -190,6 +190,8 @@ def test_mode_changes_are_crossed_in_the_kernel_as_in_python(monkeypatch, scene,
         assert n_kernel <= len(modes) + sum("+" in t.name for t in fast.transitions)
     else:
         assert n_kernel == len(modes)
+    # The kernel's field evaluations count in the model's counters (each one an ABA or a KKT solve).
+    assert fast.counters["aba"] + fast.counters["kkt"] >= fast.counters["field_evals"]
     if "rk4" in str(overrides):  # continuations into the resting mode, all but the first in the kernel
         assert sum(t.name == "rest_stop" for t in fast.transitions) >= 3
 
