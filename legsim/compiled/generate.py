@@ -129,7 +129,7 @@ def _constants(module: ModuleType) -> list[str]:
 
 def _function_source(fn: Any) -> str:
     source = inspect.getsource(fn).rstrip()
-    if fn is kernel._k_step_loop:
+    if fn is kernel._k_mode_loop:
         marker = source.index(kernel.STAGES_CALL)
         indent = source[source.rindex("\n", 0, marker) + 1: marker]
         source = source[: marker - len(indent)] + _unrolled_stages(indent) + source[marker + len(kernel.STAGES_CALL):]

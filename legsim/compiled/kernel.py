@@ -207,28 +207,51 @@ def _k_step_loop(P, mi, ti, hist, c, n_groups, weights, n_members, members, b_er
     iv[I_MODE] at (fs[F_T], xw, Kw[:n] = k0), through the transitions ``transit`` takes;
     in/out: iv[I_MODE], xw, Kw, fs[F_T] = t, fs[F_HPROP] = h_prop, iv[I_SIZE] = buffer size.
     Transitions crossed here are recorded in r_* (source, index, target, continued, end of the
-    segment before it; (time, landing time, exit time, depth); q; the image).
+    segment before it, image length; (time, landing time, exit time, depth); q; the image).
     Returns the code of why it stopped; counts and the stopping point are written to fs and iv.
 
-    The work of every step (stages, guards, error test, storing the point) is written out here
-    rather than in helpers: in compiled code every array that crosses a call, inlined or not, costs
-    reference-count updates, which at this loop's ~20 arrays would double the cost of a step.
-    Landings, aims and transitions are rare and are calls."""
+    Each visit's steps run in ``_k_mode_loop`` on that mode's views of the wide arrays: as its
+    arguments they stay fixed through its loop, which keeps the step as fast as a single mode's."""
+    iv[I_STEPS] = iv[I_HALVINGS] = iv[I_REJECTIONS] = iv[I_FIELD] = iv[I_GUARD] = iv[I_RECORDS] = 0
+    cnt[N_FIELD] = cnt[N_GUARD] = cnt[N_RESET] = 0
+    s_stages = c.shape[0]
+    while True:
+        fid, n, n_guards, p, x, K, XS, x_new, k1, work, q, dq = _k_views(P, mi, iv[I_MODE], s_stages, xw, Kw, XSw,
+                                                                         x_neww, k1w, workw, qw, dqw)
+        code = _k_mode_loop(P, mi, ti, hist, c, n_groups, weights, n_members, members, b_err, fsal, fid, n_guards, p,
+                            x, K, XS, x_new, k1, work, q, dq, xw, Kw, workw, qw, gv, raw, T, X, DX, fs, iv, cf, ci,
+                            cnt, r_i, r_f, r_q, r_after)
+        if code != CONTINUE:
+            break
+    iv[I_FIELD] += cnt[N_FIELD]
+    iv[I_GUARD] += cnt[N_GUARD]
+    iv[I_RESETS] = cnt[N_RESET]
+    return code
+
+
+def _k_mode_loop(P, mi, ti, hist, c, n_groups, weights, n_members, members, b_err, fsal, fid, n_guards, p,
+                 x, K, XS, x_new, k1, work, q, dq, xw, Kw, workw, qw, gv, raw, T, X, DX, fs, iv, cf, ci,
+                 cnt, r_i, r_f, r_q, r_after):
+    """The steps of one visit of mode iv[I_MODE] (x, K, ...: its views), until it ends or
+    ``transit`` enters a mode (CONTINUE: the caller goes on there). The work of every step
+    (stages, guards, error test, storing the point) is written out here rather than in helpers:
+    in compiled code every array that crosses a call, inlined or not, costs reference-count
+    updates, which at this loop's ~20 arrays would double the cost of a step. Landings, aims and
+    transitions are rare and are calls."""
     t_final, h_max, eps, rtol, atol, err_exp = cf[0], cf[1], cf[2], cf[3], cf[4], cf[5]
     adaptive, aim, max_halvings, max_steps = ci[0] != 0, ci[1] != 0, ci[2], ci[3]
     method_id, joint = ci[5], ci[7] != 0  # noqa: F841 - method_id: read by the unrolled stages
     s_stages = c.shape[0]
+    n = x.shape[0]
     m = iv[I_MODE]
-    fid, n, n_guards, p, x, K, XS, x_new, k1, work, q, dq = _k_views(P, mi, m, s_stages, xw, Kw, XSw, x_neww, k1w,
-                                                                     workw, qw, dqw)
     blended = False
     for j in range(s_stages):
         if b_err[1, j] != 0.0:
             blended = True
     finish_tol = finish_tolerance(t_final)
     t, h_prop, size = fs[F_T], fs[F_HPROP], iv[I_SIZE]
-    steps = halvings = rejections = field_evals = guard_evals = n_rec = 0
-    cnt[N_FIELD] = cnt[N_GUARD] = cnt[N_RESET] = 0
+    steps, halvings, rejections = iv[I_STEPS], iv[I_HALVINGS], iv[I_REJECTIONS]
+    field_evals, guard_evals, n_rec = iv[I_FIELD], iv[I_GUARD], iv[I_RECORDS]
     code = -1
     while True:
         remaining = t_final - t
@@ -362,13 +385,10 @@ def _k_step_loop(P, mi, ti, hist, c, n_groups, weights, n_members, members, b_er
             break
         code, m, t, size, n_rec, h_prop = transit(P, mi, ti, hist, xw, Kw, workw, qw, raw, T, X, DX, iv, cf, ci, cnt,
                                                   r_i, r_f, r_q, r_after, m, e, tc, t_new, tau, t, size, n_rec, h_prop)
-        if code != CONTINUE:
-            break
-        fid, n, n_guards, p, x, K, XS, x_new, k1, work, q, dq = _k_views(P, mi, m, s_stages, xw, Kw, XSw, x_neww,
-                                                                         k1w, workw, qw, dqw)
+        break  # CONTINUE: the caller goes on in mode m
     fs[F_T], fs[F_HPROP] = t, h_prop
     iv[I_STEPS], iv[I_HALVINGS], iv[I_REJECTIONS] = steps, halvings, rejections
-    iv[I_FIELD], iv[I_GUARD], iv[I_RESETS] = field_evals + cnt[N_FIELD], guard_evals + cnt[N_GUARD], cnt[N_RESET]
+    iv[I_FIELD], iv[I_GUARD] = field_evals, guard_evals
     iv[I_SIZE], iv[I_RECORDS], iv[I_MODE] = size, n_rec, m
     return code
 
@@ -382,7 +402,7 @@ def _k_first_nan(values, n):
 
 #: The kernel's functions, in the order the generated module defines them.
 KERNEL_FUNCTIONS = (_k_combine, _k_stages, _k_hermite, _k_hermite_slope, _k_first_nan, _k_crossing, _k_aim,
-                    _k_locate, _k_store_crossing, _k_landed, _k_views, _k_step_loop) + TRANSIT_FUNCTIONS
+                    _k_locate, _k_store_crossing, _k_landed, _k_views, _k_mode_loop, _k_step_loop) + TRANSIT_FUNCTIONS
 #: The functions every step runs (inlined into the loop by the generator).
 EVERY_STEP = (_k_stages, _k_combine, trial_length, finish_tolerance, rejected_step, proposed_step, kept_proposal,
               error_scale, scaled_norm)
@@ -390,5 +410,5 @@ EVERY_STEP = (_k_stages, _k_combine, trial_length, finish_tolerance, rejected_st
 RULES = (trial_length, finish_tolerance, rejected_step, proposed_step, kept_proposal, shortening_exhausted,
          aimed_step, crossing_start, crossing_point, crossing_update, hermite_weights, hermite_slope_weights,
          error_scale, scaled_norm) + TRANSIT_RULES
-#: The placeholder call of _k_stages in _k_step_loop that the generator unrolls per method.
+#: The placeholder call of _k_stages in _k_mode_loop that the generator unrolls per method.
 STAGES_CALL = "_k_stages(fid, t, x, hk, K, XS, x_new, p, c, n_groups, weights, n_members, members, fsal)  # STAGES"
