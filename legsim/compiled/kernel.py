@@ -1,21 +1,26 @@
 """The compiled step loop, as plain Python that numba compiles (``generate`` copies these
-functions, with the rules they call, into a module per compiled twin).
+functions, with the rules they call, into a module per set of twin functions).
 
-It runs one mode visit as ``relaxed.integrate.run_visit`` does: trial steps from the method's
-stages, the guards at their ends, error control, shortening by halving or aiming, and the
-location of q for a step that lands in a strip. When the twin has compiled resets and every
-outgoing transition returns to the same mode (impacts, bounces), it also crosses the strip,
-resets and re-enters, recording the transitions for Python to turn into Execution pieces in
-batches; everything else returns to Python with a code. Every numeric decision is a function
-of ``legsim.relaxed.rules`` (or ``legsim.methods.stepper.error_norm``), the same the Python
-loop calls. ``_twin_field``, ``_twin_guards`` and ``_twin_resets`` are bound per twin.
+It runs a system's modes as ``relaxed.integrate`` does: trial steps from the method's stages,
+the guards at their ends, error control, shortening by halving or aiming, and the location of q
+for a step that lands in a strip; then (``transit``) the crossing of the strip, the reset at q,
+the Zeno continuation and the entry of the next mode, for every mode of the system's table
+(``table``), recording the transitions for Python to turn into Execution pieces in batches.
+What the kernel cannot take returns to Python with a code. Every numeric decision is a
+function of ``legsim.relaxed.rules`` (or ``legsim.methods.stepper.error_norm``), the same the
+Python loop calls. ``_twin_field``, ``_twin_guards`` and ``_twin_resets`` dispatch on the mode's
+function set (``fid``) and are bound in the generated module.
 
 Layout of the in/out arrays: ``fs`` (floats): t, h_prop, landing time, last trial step, end
 time, time of a nan guard, crossing time, depth; ``iv`` (ints): steps, halvings, rejections,
 field evaluations, guard evaluations, buffer size, guard index, halvings of a failed step,
-resets, transitions recorded; ``cf``: t_final, h_max, eps, rtol, atol, step exponent;
-``ci``: adaptive, aim, max_halvings, max_steps, in-kernel transitions, transition budget,
-method id (straight-line stages of a built-in method, or -1).
+resets, transitions recorded, current mode, length of the state handed back; ``cf``: t_final,
+h_max, eps, rtol, atol, step exponent, Zeno window; ``ci``: adaptive, aim, max_halvings,
+max_steps, transition budget, method id (straight-line stages of a built-in method, or -1),
+continuation, joint resolution; ``cnt``: evaluations made by the transitions (field, guard,
+reset). The mode table: ``mi`` (modes x MI_*), ``ti`` (transitions x TI_*), ``hist``
+(transitions x H_*: the Zeno histories), ``P`` (every mode's parameters, spans in ``mi``).
+Wide arrays (``*w``, of the largest state) hold the current mode's state in their first n.
 """
 
 from __future__ import annotations
@@ -25,36 +30,24 @@ import math
 from ..methods.stepper import error_scale, scaled_norm
 from ..relaxed.rules import (CONVERGED, MAX_AIMS, RESULT, SEARCHING, STATUS, aimed_step, crossing_point,
                              crossing_start, crossing_update, finish_tolerance, hermite_slope_weights, hermite_weights,
-                             kept_proposal, proposed_step, rejected_step, shortening_exhausted, strip_exit_time,
-                             trial_length)
+                             kept_proposal, proposed_step, rejected_step, shortening_exhausted, trial_length)
+from .transit import (CONTINUE, I_MODE, I_XLEN, MI_DIM, MI_FID, MI_NG, MI_P0, MI_P1, MI_SLOT, N_FIELD, N_GUARD,  # noqa: F401
+                      N_RESET, NEXT, TRANSIT_FUNCTIONS, TRANSIT_RULES, TRANSITION, _k_argmin, _k_finite, _twin_field,
+                      _twin_guards, single_crossing, transit)
 
-# Return codes.
+# Return codes (TRANSITION, NEXT: ``transit``).
 FINISHED = 0
-TRANSITION = 1
 NONFINITE_STEP = 2
 GUARD_NAN = 3
 EXHAUSTED = 4
 BUFFER_FULL = 5
 CHUNK = 6
-NEXT = 7
 RECORDS_FULL = 8
 
-# Positions in fs and iv.
+# Positions in fs and iv (I_MODE, I_XLEN: ``transit``).
 F_T, F_HPROP, F_LAND, F_HTRIED, F_END, F_NAN_T, F_TC, F_TAU = range(8)
 I_STEPS, I_HALVINGS, I_REJECTIONS, I_FIELD, I_GUARD, I_SIZE, I_GUARD_INDEX, I_FAILED_HALVINGS, I_RESETS, \
     I_RECORDS = range(10)
-
-
-def _twin_field(t, x, p):  # bound per twin in the generated module
-    raise NotImplementedError
-
-
-def _twin_guards(x, p):  # bound per twin in the generated module
-    raise NotImplementedError
-
-
-def _twin_resets(x, p, e):  # bound per twin in the generated module
-    raise NotImplementedError
 
 
 def _k_combine(x, K, row, n_groups, weights, n_members, members, h, out):
@@ -71,14 +64,14 @@ def _k_combine(x, K, row, n_groups, weights, n_members, members, h, out):
         out[d] = acc
 
 
-def _k_stages(t, x, hk, K, XS, x_new, p, c, n_groups, weights, n_members, members, fsal):
+def _k_stages(fid, t, x, hk, K, XS, x_new, p, c, n_groups, weights, n_members, members, fsal):
     # The stages of any tableau from its arrays; the generated module replaces its call in the
     # step loop by straight-line code for each built-in method.
     n = x.shape[0]
     s_stages = c.shape[0]
     for i in range(1, s_stages):
         _k_combine(x, K, i, n_groups, weights, n_members, members, hk, XS)
-        ki = _twin_field(t + c[i] * hk, XS, p)
+        ki = _twin_field(fid, t + c[i] * hk, XS, p)
         for d in range(n):
             K[i, d] = ki[d]
     if fsal:  # the last stage is evaluated at the new point itself
@@ -100,22 +93,7 @@ def _k_hermite_slope(x0, d0, x1, d1, dt, s, out):
         out[d] = v0 * x0[d] / dt + v1 * d0[d] + v2 * x1[d] / dt + v3 * d1[d]
 
 
-def _k_finite(v):
-    for d in range(v.shape[0]):
-        if not math.isfinite(v[d]):
-            return False
-    return True
-
-
-def _k_argmin(values, n):
-    e = 0
-    for j in range(1, n):
-        if values[j] < values[e]:
-            e = j
-    return e
-
-
-def _k_crossing(p, e, shift, x0, d0, x1, d1, dt, g0, g1, tol, work):
+def _k_crossing(fid, p, e, shift, x0, d0, x1, d1, dt, g0, g1, tol, work):
     # relaxed.strip.crossing_on_step on the compiled guard e, shifted by `shift`, along the
     # step's Hermite interpolant: returns (s, guard calls, converged).
     state = crossing_start(g0, g1, tol)
@@ -123,12 +101,12 @@ def _k_crossing(p, e, shift, x0, d0, x1, d1, dt, g0, g1, tol, work):
     while state[STATUS] == SEARCHING:
         s = crossing_point(state)
         _k_hermite(x0, d0, x1, d1, dt, s, work)
-        state = crossing_update(state, s, _twin_guards(work, p)[e] + shift)
+        state = crossing_update(state, s, _twin_guards(fid, work, p)[e] + shift)
         evals += 1
     return state[RESULT], evals, state[STATUS] == CONVERGED
 
 
-def _k_aim(p, n_guards, x, K, x_new, k1, gv, work, t, hk, eps, fsal, s_stages):
+def _k_aim(fid, p, n_guards, x, K, x_new, k1, gv, work, t, hk, eps, fsal, s_stages):
     # rules.aimed_step on the failed step's Hermite interpolant: the step at which the deepest
     # crossed guard reaches the middle of its strip (landing.Aim). Returns (step, field
     # evaluations, guard evaluations).
@@ -139,17 +117,17 @@ def _k_aim(p, n_guards, x, K, x_new, k1, gv, work, t, hk, eps, fsal, s_stages):
         for d in range(n):
             k1[d] = K[s_stages - 1, d]
     else:
-        kk = _twin_field(t + hk, x_new, p)
+        kk = _twin_field(fid, t + hk, x_new, p)
         field_evals = 1
         for d in range(n):
             k1[d] = kk[d]
     half = 0.5 * eps
-    g0 = _twin_guards(x, p)[e] + half
-    s, evals, converged = _k_crossing(p, e, half, x, K[0], x_new, k1, hk, g0, gv[e] + half, 1e-3 * half, work)
+    g0 = _twin_guards(fid, x, p)[e] + half
+    s, evals, converged = _k_crossing(fid, p, e, half, x, K[0], x_new, k1, hk, g0, gv[e] + half, 1e-3 * half, work)
     return aimed_step(hk, s, converged), field_evals, (1 + evals) * n_guards
 
 
-def _k_locate(p, n_guards, x, K, x_new, k1, gv, work, dt, eps):
+def _k_locate(fid, p, n_guards, x, K, x_new, k1, gv, work, dt, eps):
     # q: the earliest crossing on the step's interpolant among the guards it ended past
     # (relaxed.strip.locate). Returns (guard index, fraction s, guard evaluations).
     best_e = -1
@@ -157,8 +135,8 @@ def _k_locate(p, n_guards, x, K, x_new, k1, gv, work, dt, eps):
     guard_evals = 0
     for j in range(n_guards):
         if gv[j] < 0.0:
-            g0 = _twin_guards(x, p)[j]
-            s, evals, _ = _k_crossing(p, j, 0.0, x, K[0], x_new, k1, dt, g0, gv[j], 1e-12 * eps, work)
+            g0 = _twin_guards(fid, x, p)[j]
+            s, evals, _ = _k_crossing(fid, p, j, 0.0, x, K[0], x_new, k1, dt, g0, gv[j], 1e-12 * eps, work)
             guard_evals += n_guards * (1 + evals)
             if best_e < 0 or s < best_s:
                 best_e = j
@@ -195,7 +173,7 @@ def _k_store_crossing(x, K, x_new, k1, q, dq, work, t, dt, s, T, X, DX, size):
     return tc, size
 
 
-def _k_landed(p, n_guards, x, K, x_new, k1, gv, work, q, dq, T, X, DX, fsal, t, t_new, eps, size):
+def _k_landed(fid, p, n_guards, x, K, x_new, k1, gv, work, q, dq, T, X, DX, fsal, t, t_new, eps, size):
     """A step that landed in a strip: q located and stored (relaxed.strip.cross_landing).
     Returns (guard index, crossing time, depth, buffer size, field evaluations, guard evaluations)."""
     n = x.shape[0]
@@ -204,82 +182,76 @@ def _k_landed(p, n_guards, x, K, x_new, k1, gv, work, q, dq, T, X, DX, fsal, t, 
         for d in range(n):
             k1[d] = K[K.shape[0] - 1, d]
     else:
-        kk = _twin_field(t_new, x_new, p)
+        kk = _twin_field(fid, t_new, x_new, p)
         field_evals = 1
         for d in range(n):
             k1[d] = kk[d]
     dt = t_new - t
-    e, s, guard_evals = _k_locate(p, n_guards, x, K, x_new, k1, gv, work, dt, eps)
+    e, s, guard_evals = _k_locate(fid, p, n_guards, x, K, x_new, k1, gv, work, dt, eps)
     tc, size = _k_store_crossing(x, K, x_new, k1, q, dq, work, t, dt, s, T, X, DX, size)
     return e, tc, -gv[e], size, field_evals, guard_evals
 
 
-def _k_record(q, ra, r_e, r_f, r_q, r_after, seg_end, k, e, tc, t_land, exit_time, tau, size):
-    # The transition crossed in the kernel, for Python to turn into Execution pieces.
-    r_e[k] = e
-    r_f[k, 0] = tc
-    r_f[k, 1] = t_land
-    r_f[k, 2] = exit_time
-    r_f[k, 3] = tau
-    for d in range(q.shape[0]):
-        r_q[k, d] = q[d]
-        r_after[k, d] = ra[d]
-    seg_end[k] = size
+def _k_views(P, mi, m, s_stages, xw, Kw, XSw, x_neww, k1w, workw, qw, dqw):
+    # Mode m's function set, dimension, guard count and parameters, and its first n entries of
+    # the wide arrays (K as (stages, n)).
+    n = mi[m, MI_DIM]
+    return (mi[m, MI_FID], n, mi[m, MI_NG], P[mi[m, MI_P0]:mi[m, MI_P1]], xw[:n],
+            Kw[:s_stages * n].reshape((s_stages, n)), XSw[:n], x_neww[:n], k1w[:n], workw[:n], qw[:n], dqw[:n])
 
 
-def _k_reenter(p, n_guards, x, ra, K, T, X, DX, t, size):
-    """Enter the mode again at the strip's exit with the reset image (relaxed.entry.enter_mode).
-    Returns the buffer size, or -1 when the entering state needs the entry's special cases (in a
-    strip, a non-finite field or guard), which Python takes."""
-    n = x.shape[0]
-    for d in range(n):
-        x[d] = ra[d]
-    kk = _twin_field(t, x, p)
-    if not _k_finite(kk):
-        return -1
-    if n_guards > 0:
-        g = _twin_guards(x, p)
-        for j in range(n_guards):
-            if not (g[j] >= 0.0):
-                return -1
-    for d in range(n):
-        K[0, d] = kk[d]
-    return _k_store(T, X, DX, size, t, x, kk)
-
-
-def _k_store(T, X, DX, size, t, x, dx):
-    T[size] = t
-    for d in range(x.shape[0]):
-        X[size, d] = x[d]
-        DX[size, d] = dx[d]
-    return size + 1
-
-
-def _k_step_loop(p, n_guards, c, n_groups, weights, n_members, members, b_err, fsal,
-                 x, K, XS, x_new, k1, gv, work, q, dq, T, X, DX, fs, iv, cf, ci,
-                 r_e, r_f, r_q, r_after, seg_end):
-    """The step loop of relaxed.integrate.run_visit (see the module docstring for the arrays);
-    in/out: x, K[0] (= k0), fs[F_T] = t, fs[F_HPROP] = h_prop, iv[I_SIZE] = buffer size.
-    Transitions crossed here are recorded in r_* (guard index, (time, landing time, exit time,
-    depth), q, reset image; the segment before record k ends at buffer index seg_end[k]).
+def _k_step_loop(P, mi, ti, hist, c, n_groups, weights, n_members, members, b_err, fsal,
+                 xw, Kw, XSw, x_neww, k1w, gv, workw, qw, dqw, raw, T, X, DX, fs, iv, cf, ci, cnt,
+                 r_i, r_f, r_q, r_after):
+    """The step loop of relaxed.integrate (see the module docstring for the arrays) from mode
+    iv[I_MODE] at (fs[F_T], xw, Kw[:n] = k0), through the transitions ``transit`` takes;
+    in/out: iv[I_MODE], xw, Kw, fs[F_T] = t, fs[F_HPROP] = h_prop, iv[I_SIZE] = buffer size.
+    Transitions crossed here are recorded in r_* (source, index, target, continued, end of the
+    segment before it, image length; (time, landing time, exit time, depth); q; the image).
     Returns the code of why it stopped; counts and the stopping point are written to fs and iv.
 
-    The work of every step (stages, guards, error test, storing the point) is written out here
-    rather than in helpers: in compiled code every array that crosses a call, inlined or not, costs
-    reference-count updates, which at this loop's ~20 arrays would double the cost of a step.
-    Landings, aims and in-kernel resets are rare and are calls."""
+    Each visit's steps run in ``_k_mode_loop`` on that mode's views of the wide arrays: as its
+    arguments they stay fixed through its loop, which keeps the step as fast as a single mode's."""
+    iv[I_STEPS] = iv[I_HALVINGS] = iv[I_REJECTIONS] = iv[I_FIELD] = iv[I_GUARD] = iv[I_RECORDS] = 0
+    cnt[N_FIELD] = cnt[N_GUARD] = cnt[N_RESET] = 0
+    s_stages = c.shape[0]
+    while True:
+        fid, n, n_guards, p, x, K, XS, x_new, k1, work, q, dq = _k_views(P, mi, iv[I_MODE], s_stages, xw, Kw, XSw,
+                                                                         x_neww, k1w, workw, qw, dqw)
+        code = _k_mode_loop(P, mi, ti, hist, c, n_groups, weights, n_members, members, b_err, fsal, fid, n_guards, p,
+                            x, K, XS, x_new, k1, work, q, dq, xw, Kw, workw, qw, gv, raw, T, X, DX, fs, iv, cf, ci,
+                            cnt, r_i, r_f, r_q, r_after)
+        if code != CONTINUE:
+            break
+    iv[I_FIELD] += cnt[N_FIELD]
+    iv[I_GUARD] += cnt[N_GUARD]
+    iv[I_RESETS] = cnt[N_RESET]
+    return code
+
+
+def _k_mode_loop(P, mi, ti, hist, c, n_groups, weights, n_members, members, b_err, fsal, fid, n_guards, p,
+                 x, K, XS, x_new, k1, work, q, dq, xw, Kw, workw, qw, gv, raw, T, X, DX, fs, iv, cf, ci,
+                 cnt, r_i, r_f, r_q, r_after):
+    """The steps of one visit of mode iv[I_MODE] (x, K, ...: its views), until it ends or
+    ``transit`` enters a mode (CONTINUE: the caller goes on there). The work of every step
+    (stages, guards, error test, storing the point) is written out here rather than in helpers:
+    in compiled code every array that crosses a call, inlined or not, costs reference-count
+    updates, which at this loop's ~20 arrays would double the cost of a step. Landings, aims and
+    transitions are rare and are calls."""
     t_final, h_max, eps, rtol, atol, err_exp = cf[0], cf[1], cf[2], cf[3], cf[4], cf[5]
     adaptive, aim, max_halvings, max_steps = ci[0] != 0, ci[1] != 0, ci[2], ci[3]
-    in_kernel, budget, method_id = ci[4] != 0, ci[5], ci[6]  # noqa: F841 - method_id: read by the unrolled stages
+    method_id, joint = ci[5], ci[7] != 0  # noqa: F841 - method_id: read by the unrolled stages
     s_stages = c.shape[0]
     n = x.shape[0]
+    m = iv[I_MODE]
     blended = False
     for j in range(s_stages):
         if b_err[1, j] != 0.0:
             blended = True
     finish_tol = finish_tolerance(t_final)
     t, h_prop, size = fs[F_T], fs[F_HPROP], iv[I_SIZE]
-    steps = halvings = rejections = field_evals = guard_evals = n_rec = 0
+    steps, halvings, rejections = iv[I_STEPS], iv[I_HALVINGS], iv[I_REJECTIONS]
+    field_evals, guard_evals, n_rec = iv[I_FIELD], iv[I_GUARD], iv[I_RECORDS]
     code = -1
     while True:
         remaining = t_final - t
@@ -290,7 +262,7 @@ def _k_step_loop(p, n_guards, c, n_groups, weights, n_members, members, b_err, f
         if size + 2 > T.shape[0]:  # room for a point, or a crossing point and the next segment's first
             code = BUFFER_FULL
             break
-        if steps >= max_steps or n_rec == r_e.shape[0]:
+        if steps >= max_steps or n_rec == r_i.shape[0]:
             code = CHUNK if steps >= max_steps else RECORDS_FULL
             break
         # -- trial steps until one lands in the relaxed domain (relaxed.integrate.take_step) ----
@@ -301,7 +273,7 @@ def _k_step_loop(p, n_guards, c, n_groups, weights, n_members, members, b_err, f
         rejected = False
         gmin = 0.0
         while True:
-            _k_stages(t, x, hk, K, XS, x_new, p, c, n_groups, weights, n_members, members, fsal)  # STAGES
+            _k_stages(fid, t, x, hk, K, XS, x_new, p, c, n_groups, weights, n_members, members, fsal)  # STAGES
             field_evals += s_stages - 1
             past = False
             finite = True
@@ -310,7 +282,7 @@ def _k_step_loop(p, n_guards, c, n_groups, weights, n_members, members, b_err, f
                     finite = False
             if finite:
                 if n_guards > 0:
-                    g = _twin_guards(x_new, p)
+                    g = _twin_guards(fid, x_new, p)
                     guard_evals += n_guards
                     gmin = g[0]
                     has_nan = g[0] != g[0]
@@ -363,7 +335,7 @@ def _k_step_loop(p, n_guards, c, n_groups, weights, n_members, members, b_err, f
             shortened += 1
             hk_tried = hk
             if aim and past and aimed < MAX_AIMS:
-                hk, fe, ge = _k_aim(p, n_guards, x, K, x_new, k1, gv, work, t, hk, eps, fsal, s_stages)
+                hk, fe, ge = _k_aim(fid, p, n_guards, x, K, x_new, k1, gv, work, t, hk, eps, fsal, s_stages)
                 field_evals += fe
                 guard_evals += ge
                 aimed += 1
@@ -392,7 +364,7 @@ def _k_step_loop(p, n_guards, c, n_groups, weights, n_members, members, b_err, f
                 for d in range(n):
                     K[0, d] = K[s_stages - 1, d]
             else:
-                kk = _twin_field(t, x, p)
+                kk = _twin_field(fid, t, x, p)
                 field_evals += 1
                 for d in range(n):
                     K[0, d] = kk[d]
@@ -403,35 +375,21 @@ def _k_step_loop(p, n_guards, c, n_groups, weights, n_members, members, b_err, f
             size += 1
             continue
         # -- the step landed in one or more strips (relaxed.strip.cross_landing) ------------------
-        e, tc, tau, size, fe, ge = _k_landed(p, n_guards, x, K, x_new, k1, gv, work, q, dq, T, X, DX, fsal, t, t_new,
-                                             eps, size)
+        e, tc, tau, size, fe, ge = _k_landed(fid, p, n_guards, x, K, x_new, k1, gv, work, q, dq, T, X, DX, fsal, t,
+                                             t_new, eps, size)
         field_evals += fe
         guard_evals += ge
         fs[F_LAND], fs[F_TC], fs[F_TAU], iv[I_GUARD_INDEX] = t_new, tc, tau, e
-        exit_time = strip_exit_time(t_new, eps, tau)
-        # The strip stays here only for the ordinary case: a reset to this same mode with a
-        # finite image, inside the budget and before t_final (relaxed.strip.cross).
         code = TRANSITION
-        if not in_kernel or n_rec >= budget or exit_time >= t_final:
+        if not single_crossing(ti, mi[m, MI_SLOT], gv, n_guards, joint):
             break
-        ra = _twin_resets(q, p, e)
-        if not _k_finite(ra):
-            break
-        _k_record(q, ra, r_e, r_f, r_q, r_after, seg_end, n_rec, e, tc, t_new, exit_time, tau, size)
-        n_rec += 1
-        t = exit_time
-        entered = _k_reenter(p, n_guards, x, ra, K, T, X, DX, t, size)
-        if entered < 0:
-            code = NEXT
-            break
-        size = entered
-        field_evals += 1
-        guard_evals += n_guards
-        code = -1
+        code, m, t, size, n_rec, h_prop = transit(P, mi, ti, hist, xw, Kw, workw, qw, raw, T, X, DX, iv, cf, ci, cnt,
+                                                  r_i, r_f, r_q, r_after, m, e, tc, t_new, tau, t, size, n_rec, h_prop)
+        break  # CONTINUE: the caller goes on in mode m
     fs[F_T], fs[F_HPROP] = t, h_prop
-    iv[I_STEPS], iv[I_HALVINGS], iv[I_REJECTIONS], iv[I_FIELD], iv[I_GUARD] = (steps, halvings, rejections,
-                                                                                 field_evals, guard_evals)
-    iv[I_SIZE], iv[I_RESETS], iv[I_RECORDS] = size, n_rec, n_rec
+    iv[I_STEPS], iv[I_HALVINGS], iv[I_REJECTIONS] = steps, halvings, rejections
+    iv[I_FIELD], iv[I_GUARD] = field_evals, guard_evals
+    iv[I_SIZE], iv[I_RECORDS], iv[I_MODE] = size, n_rec, m
     return code
 
 
@@ -443,15 +401,14 @@ def _k_first_nan(values, n):
 
 
 #: The kernel's functions, in the order the generated module defines them.
-KERNEL_FUNCTIONS = (_k_combine, _k_stages, _k_hermite, _k_hermite_slope, _k_finite, _k_argmin, _k_first_nan,
-                    _k_crossing, _k_aim, _k_locate, _k_store_crossing, _k_landed, _k_record, _k_store,
-                    _k_reenter, _k_step_loop)
+KERNEL_FUNCTIONS = (_k_combine, _k_stages, _k_hermite, _k_hermite_slope, _k_first_nan, _k_crossing, _k_aim,
+                    _k_locate, _k_store_crossing, _k_landed, _k_views, _k_mode_loop, _k_step_loop) + TRANSIT_FUNCTIONS
 #: The functions every step runs (inlined into the loop by the generator).
 EVERY_STEP = (_k_stages, _k_combine, trial_length, finish_tolerance, rejected_step, proposed_step, kept_proposal,
               error_scale, scaled_norm)
 #: The rules the kernel calls, compiled from their own source.
 RULES = (trial_length, finish_tolerance, rejected_step, proposed_step, kept_proposal, shortening_exhausted,
          aimed_step, crossing_start, crossing_point, crossing_update, hermite_weights, hermite_slope_weights,
-         strip_exit_time, error_scale, scaled_norm)
-#: The placeholder call of _k_stages in _k_step_loop that the generator unrolls per method.
-STAGES_CALL = "_k_stages(t, x, hk, K, XS, x_new, p, c, n_groups, weights, n_members, members, fsal)  # STAGES"
+         error_scale, scaled_norm) + TRANSIT_RULES
+#: The placeholder call of _k_stages in _k_mode_loop that the generator unrolls per method.
+STAGES_CALL = "_k_stages(fid, t, x, hk, K, XS, x_new, p, c, n_groups, weights, n_members, members, fsal)  # STAGES"

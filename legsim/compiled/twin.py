@@ -4,7 +4,9 @@ else.
 
 * ``field(t, x, p) -> dx/dt``, shape (n,);
 * ``guards(x, p) -> values``, shape (n_guards,), in the order of the mode's outgoing transitions;
-* ``resets(x, p, e) -> x'``, optional: the reset of outgoing transition e;
+* ``resets(x, p, e) -> x'``, optional: the reset of outgoing transition e, into its target's
+  state (for e >= n_guards, with ``continued``: the reset of transition e - n_guards's
+  continuation);
 
 with ``p`` a float64 parameter array. Parameters travel as data rather than as closure constants
 so that one compilation of the kernel serves every parameter set of a model (numba treats
@@ -34,11 +36,18 @@ class CompiledMode:
         transitions, >= 0 inside the domain (same values as the Python guards).
     n_guards: number of guards (the mode's outgoing transitions).
     params: float64 parameter array ``p`` passed to all three.
-    resets: optional numba-jitted ``resets(x, p, e) -> x'`` (the reset of outgoing transition e,
-        same values as the Python reset). With it, and when every outgoing transition returns to
-        this same mode (impacts, bounces), the kernel also crosses the strips, so a run with
-        many transitions (chattering, Zeno) stays compiled; Python then only turns the
-        recorded transitions into Execution pieces.
+    resets: optional numba-jitted ``resets(x, p, e) -> x'`` (the reset of outgoing transition e
+        into its target's state, same values as the Python reset). With it the kernel also
+        crosses the mode's strips and enters the targets that have twins (``table``), so a run
+        through many transitions (a gait, chattering, Zeno) stays compiled; Python then only
+        turns the recorded transitions into Execution pieces.
+    continued: True when ``resets`` also computes the continuations' resets, transition e's at
+        ``n_guards + e``, so that the kernel takes a Zeno continuation itself.
+    joint_groups: for a system with a ``joint`` function, each transition's group: the model's
+        joint function resolves the transitions a landing crossed together exactly when every
+        one of them has a group >= 0 and they span two groups or more (the bridge: strikes of
+        two rigid contacts); the kernel hands those landings to Python and crosses the others
+        itself. None: every landing that crosses two guards or more goes to Python.
     fallback: True when a nan guard means "past the model's range" (a robot's hip below the
         ground, which its Python guards raise as ModelBreakdown): the Python loop then takes
         the rest of the visit from the kernel's last accepted point, shortening that step as it
@@ -52,18 +61,25 @@ class CompiledMode:
     params: np.ndarray = field(default_factory=lambda: np.zeros(0))
     resets: Any = None
     fallback: bool = False
+    continued: bool = False
+    joint_groups: tuple[int, ...] | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "params", np.ascontiguousarray(self.params, dtype=np.float64).reshape(-1))
         if isinstance(self.n_guards, bool) or not isinstance(self.n_guards, (int, np.integer)) or self.n_guards < 0:
             raise ModelError(f"CompiledMode n_guards must be an integer >= 0, got {self.n_guards!r}")
         object.__setattr__(self, "n_guards", int(self.n_guards))
+        if self.joint_groups is not None:
+            groups = tuple(int(g) for g in self.joint_groups)
+            if len(groups) != self.n_guards:
+                raise ModelError(f"CompiledMode joint_groups has {len(groups)} entries for {self.n_guards} guards")
+            object.__setattr__(self, "joint_groups", groups)
 
 
-def check_twin(system_name: str, data: ModeData, t: float, x: np.ndarray, k0: np.ndarray) -> bool:
+def check_twin(system_name: str, data: ModeData, t: float, x: np.ndarray, k0: np.ndarray) -> None:
     """The twin of ``data``'s mode must return the Python callables' shapes and values at
-    (t, x), where the Python field is k0. Returns whether the kernel may cross the mode's strips
-    itself (compiled resets, every transition back to the same mode)."""
+    (t, x), where the Python field is k0: field, guards, and the resets (and continuation
+    resets) it computes. Raises ModelError naming what disagrees."""
     twin = data.mode.compiled
     if not isinstance(twin, CompiledMode):
         raise ModelError(f"{system_name}: mode '{data.name}'.compiled must be a legsim.compiled.CompiledMode, "
@@ -71,7 +87,7 @@ def check_twin(system_name: str, data: ModeData, t: float, x: np.ndarray, k0: np
     if twin.n_guards != len(data.guards):
         raise ModelError(f"{system_name}: compiled twin of mode '{data.name}' declares {twin.n_guards} guards, the "
                          f"mode has {len(data.guards)} outgoing transitions")
-    f, g, images = _evaluate(system_name, data.name, twin, t, x)
+    f, g, images = _evaluate(system_name, data, twin, t, x)
     if f.shape != (data.mode.dim,) or g.shape != (twin.n_guards,):
         raise ModelError(f"{system_name}: compiled twin of mode '{data.name}' returned field shape {f.shape} and "
                          f"guards shape {g.shape}, expected ({data.mode.dim},) and ({twin.n_guards},)")
@@ -80,31 +96,33 @@ def check_twin(system_name: str, data: ModeData, t: float, x: np.ndarray, k0: np
         raise ModelError(f"{system_name}: compiled twin of mode '{data.name}' disagrees with the Python callables at "
                          f"t={t}, x={x.tolist()}: field {f.tolist()} vs {k0.tolist()}, guards {g.tolist()} vs "
                          f"{g_py.tolist()}")
-    for e, (tr, reset, image) in enumerate(zip(data.transitions, data.resets, images)):
+    for name, reset, image in images:
         expected = np.asarray(reset(x.copy()), dtype=float)
         if image.shape != expected.shape or not np.allclose(image, expected, rtol=1e-9, atol=1e-12, equal_nan=True):
-            raise ModelError(f"{system_name}: compiled reset {e} of mode '{data.name}' disagrees with the reset of "
-                             f"transition {tr.name} at x={x.tolist()}: {image.tolist()} vs {expected.tolist()}")
-    return twin.resets is not None and all(target == data.name for target in data.targets)
+            raise ModelError(f"{system_name}: compiled reset of {name} of mode '{data.name}' disagrees with its Python "
+                             f"reset at x={x.tolist()}: {image.tolist()} vs {expected.tolist()}")
 
 
-def crosses_in_kernel(data: ModeData, continues: bool, checked: bool) -> bool:
-    """Whether the kernel may cross the mode's strips itself: the twin has compiled resets
-    (``checked``) and no crossing can take a continuation (the kernel knows of none; nor does it
-    know joint crossings, which the caller checks on the system)."""
-    return checked and not (continues and any(c is not None for c in data.continuations))
-
-
-def _evaluate(system_name: str, mode: str, twin: CompiledMode, t: float,
-              x: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[np.ndarray]]:
+def _evaluate(system_name: str, data: ModeData, twin: CompiledMode, t: float,
+              x: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[tuple[str, Any, np.ndarray]]]:
+    """The twin's field and guards at (t, x), and (name, Python reset, twin image) of every reset
+    it computes."""
     xc = np.ascontiguousarray(x, dtype=float)
+    ng = twin.n_guards
     try:
         f = np.asarray(twin.field(float(t), xc, twin.params), dtype=float)
         g = np.asarray(twin.guards(xc, twin.params), dtype=float)
-        images = [] if twin.resets is None else [np.asarray(twin.resets(xc, twin.params, e), dtype=float)
-                                                 for e in range(twin.n_guards)]
+        images = []
+        if twin.resets is not None:
+            for e, (tr, reset) in enumerate(zip(data.transitions, data.resets)):
+                images.append((f"transition {tr.name}", reset, np.asarray(twin.resets(xc, twin.params, e), dtype=float)))
+                cont = tr.continuation
+                if twin.continued and cont is not None:
+                    python = cont.reset if cont.reset is not None else np.copy
+                    image = np.asarray(twin.resets(xc, twin.params, ng + e), dtype=float)
+                    images.append((f"continuation {cont.name}", python, image))
     except Exception as exc:
-        raise ModelError(f"{system_name}: compiled twin of mode '{mode}' failed at t={t}: "
+        raise ModelError(f"{system_name}: compiled twin of mode '{data.name}' failed at t={t}: "
                          f"{type(exc).__name__}: {exc}") from exc
     return f, g, images
 

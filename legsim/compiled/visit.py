@@ -1,90 +1,181 @@
-"""The compiled path's Python side: hand a mode visit's step loop to the kernel, turn the
-transitions it crossed into Execution pieces in batches, and its return code into the same
-outcome the Python loop reaches (``relaxed.integrate.run_visit``), with the same messages."""
+"""The compiled path's Python side: hand a mode visit's step loop to the kernel with the table
+of the system's modes it may enter (``Table``), turn the transitions it crossed into Execution
+pieces in batches, and its return code into the same outcome the Python loop reaches
+(``relaxed.integrate.run_visit``), with the same messages.
+
+A mode enters the table once Python has entered it (and checked its twin and field there);
+from then on the kernel crosses the strips into it, resets and enters it itself. The kernel
+keeps the points of every mode in one buffer as wide as the table's widest state."""
 
 from __future__ import annotations
 
 import gc
+import weakref
 
 import numpy as np
 
 from ..execution import Segment, SegmentBuffer, Status, Strip, TransitionRecord
+from ..hybrid import ModeData
 from ..relaxed import messages
 from ..relaxed.outcomes import Ended, Entered, Outcome
 from ..relaxed.run import ModeVisit, Run
 from ..relaxed.strip import cross
 from ..relaxed.integrate import out_of_steps
 from . import kernel as k
+from . import transit as kt
 from .generate import get_kernel, no_resets, plan_for
-from .twin import check_twin, crosses_in_kernel
+from .twin import check_twin
 
 #: Transitions the kernel records per call before Python turns them into Execution pieces.
 RECORD_CHUNK = 4096
 #: Steps per kernel call when a progress callback wants reports (about 1 ms of work).
 PROGRESS_CHUNK = 8192
 _NO_LIMIT = 1 << 62
+#: The modes (a system's ModeData, by id) whose twin was checked against the Python callables
+#: at its first visit in this process: the check costs as much as a short run, and its answer
+#: does not change from one run to the next.
+_VERIFIED: weakref.WeakValueDictionary[int, ModeData] = weakref.WeakValueDictionary()
+
+
+class Table:
+    """The modes the kernel may run and enter: those whose twin was checked at their first
+    visit, entered once in Python (so their field's output was checked), whose guards take x
+    alone. ``names`` lists them first (indices 0 .. len(mi) - 1), then the other modes
+    their transitions lead to (indices past the table: the kernel hands their entry to Python).
+    Arrays as ``transit`` describes them; ``keys`` the (mode, transition) of each history row."""
+
+    def __init__(self, run: Run, modes: list[str]) -> None:
+        system = run.system
+        self.names = list(modes)
+        index = {name: i for i, name in enumerate(self.names)}
+
+        def number(name: str) -> int:
+            if name not in index:
+                index[name] = len(self.names)
+                self.names.append(name)
+            return index[name]
+
+        sets: list[tuple] = []
+        params, mi, ti, self.keys, self.twins = [], [], [], [], []
+        offset = 0
+        for name in modes:
+            data = system.mode_data(name)
+            twin = data.mode.compiled
+            functions = (twin.field, twin.guards, no_resets if twin.resets is None else twin.resets)
+            if functions not in sets:
+                sets.append(functions)
+            mi.append((sets.index(functions), data.mode.dim, twin.n_guards, offset, offset + twin.params.size, len(ti),
+                       twin.resets is not None))
+            params.append(twin.params)
+            self.twins.append((twin, offset))
+            offset += twin.params.size
+            for e, (tr, target) in enumerate(zip(data.transitions, data.targets)):
+                cont = tr.continuation
+                ti.append((number(target), kt.NO_MODE if cont is None else number(cont.target),
+                           cont is not None and twin.continued,
+                           kt.UNKNOWN_GROUP if twin.joint_groups is None else twin.joint_groups[e], target == name,
+                           len(self.keys)))
+                self.keys.append((name, tr.name))
+        self.sets = tuple(sets)
+        self.P = np.concatenate(params) if params else np.zeros(0)
+        self.mi = np.array(mi, dtype=np.int64).reshape(-1, 7)
+        self.ti = np.array(ti, dtype=np.int64).reshape(-1, 6)
+        self.hist = np.zeros((max(1, len(self.keys)), 3))
+        #: The widest state of the table's modes: the kernel's buffers hold any of them.
+        self.width = int(self.mi[:, 1].max()) if len(mi) else 0
+
+    def load(self, run: Run) -> None:
+        """The twins' parameters into P, and the Zeno histories of the table's transitions from
+        the run's ZenoWatch."""
+        for twin, offset in self.twins:
+            self.P[offset:offset + twin.params.size] = twin.params
+        for row, (mode, name) in enumerate(self.keys):
+            history = run.zeno.history(mode, name)
+            self.hist[row] = (0.0, 0.0, 0.0) if history is None else (1.0, history[0], history[1])
+
+    def store(self) -> None:
+        """P back into the twins' parameters: a twin may count its evaluations there (a robot's
+        model counters, ``robots.bridge.twins.add_counts``)."""
+        for twin, offset in self.twins:
+            twin.params[:] = self.P[offset:offset + twin.params.size]
 
 
 class Workspace:
-    """Per-run scratch arrays of the kernel for one mode (reused across visits)."""
+    """Per-run scratch arrays of the kernel, as wide as the widest state (``width``)."""
 
-    def __init__(self, n: int, stages: int, n_guards: int) -> None:
-        self.K = np.zeros((stages, n))
-        self.XS, self.x_new, self.k1, self.work = np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n)
-        self.q, self.dq = np.zeros(n), np.zeros(n)
+    def __init__(self, width: int, stages: int, n_guards: int) -> None:
+        self.K = np.zeros(stages * width)
+        self.x, self.XS, self.x_new, self.k1, self.work = (np.zeros(width) for _ in range(5))
+        self.q, self.dq, self.raw = np.zeros(width), np.zeros(width), np.zeros(width)
         self.gv = np.zeros(max(1, n_guards))
         self.fs = np.zeros(8)
-        self.iv = np.zeros(10, dtype=np.int64)
-        self.cf = np.zeros(6)
-        self.ci = np.zeros(7, dtype=np.int64)
-        self.r_e = np.zeros(RECORD_CHUNK, dtype=np.int64)
+        self.iv = np.zeros(12, dtype=np.int64)
+        self.cf = np.zeros(7)
+        self.ci = np.zeros(8, dtype=np.int64)
+        self.cnt = np.zeros(3, dtype=np.int64)
+        self.r_i = np.zeros((RECORD_CHUNK, 6), dtype=np.int64)
         self.r_f = np.zeros((RECORD_CHUNK, 4))
-        self.r_q = np.zeros((RECORD_CHUNK, n))
-        self.r_after = np.zeros((RECORD_CHUNK, n))
-        self.seg_end = np.zeros(RECORD_CHUNK, dtype=np.int64)
+        self.r_q = np.zeros((RECORD_CHUNK, width))
+        self.r_after = np.zeros((RECORD_CHUNK, width))
 
 
 def run_visit_compiled(run: Run, visit: ModeVisit) -> Outcome:
-    """The step loop of one mode visit, compiled. With in-kernel transitions one call covers
-    many visits of the same mode."""
-    data, twin = visit.data, visit.data.mode.compiled
-    checked = run.scratch.setdefault("compiled_checked", {})
+    """The step loop from a mode visit, compiled: through the transitions the kernel takes
+    (``transit``), possibly into other modes of the table, until the run ends or Python must
+    take a crossing or an entry."""
+    checked = run.scratch.setdefault("compiled_checked", set())
     if visit.name not in checked:
-        checked[visit.name] = check_twin(run.system.name, data, visit.t, visit.x, visit.k0)
-    ws = _workspace(run, visit, twin.n_guards)
-    kernel = get_kernel(twin.field, twin.guards, no_resets if twin.resets is None else twin.resets)
+        if _VERIFIED.get(id(visit.data)) is not visit.data:
+            check_twin(run.system.name, visit.data, visit.t, visit.x, visit.k0)
+            _VERIFIED[id(visit.data)] = visit.data
+        checked.add(visit.name)
+    table = _table(run, visit)
+    kernel = get_kernel(table.sets)
     plan = plan_for(run.tableau)
-    x = np.array(visit.x, dtype=float)
-    ws.K[0] = visit.k0
-    in_kernel = crosses_in_kernel(data, run.zeno.continues, checked[visit.name]) and run.system.joint is None
-    _settings(run, ws, plan, in_kernel)
+    ws = _workspace(run, table)
+    visit.buf = _with_width(visit.buf, table.width)
+    n = visit.data.mode.dim
+    ws.x[:n] = visit.x
+    ws.K[:n] = visit.k0
+    _settings(run, ws, plan)
     ws.fs[k.F_T], ws.fs[k.F_HPROP] = visit.t, run.step_size.h_prop
+    ws.iv[kt.I_MODE] = 0
     while True:
-        ws.ci[3] = min(PROGRESS_CHUNK if run.has_progress else _NO_LIMIT, run.max_steps - run.steps)
-        ws.ci[5] = max(0, run.max_transitions - len(run.transitions))
+        ws.ci[kt.CI_MAX_STEPS] = min(PROGRESS_CHUNK if run.has_progress else _NO_LIMIT, run.max_steps - run.steps)
+        ws.ci[kt.CI_BUDGET] = max(0, run.max_transitions - len(run.transitions))
         ws.iv[k.I_SIZE] = visit.buf.size
+        table.load(run)
         buf = visit.buf
-        code = kernel(twin.params, twin.n_guards, plan.c, plan.n_groups, plan.weights, plan.n_members, plan.members,
-                      plan.b_err, plan.fsal, x, ws.K, ws.XS, ws.x_new, ws.k1, ws.gv, ws.work, ws.q, ws.dq, buf.t, buf.x,
-                      buf.dx, ws.fs, ws.iv, ws.cf, ws.ci, ws.r_e, ws.r_f, ws.r_q, ws.r_after, ws.seg_end)
+        code = kernel(table.P, table.mi, table.ti, table.hist, plan.c, plan.n_groups, plan.weights, plan.n_members,
+                      plan.members, plan.b_err, plan.fsal, ws.x, ws.K, ws.XS, ws.x_new, ws.k1, ws.gv, ws.work, ws.q,
+                      ws.dq, ws.raw, buf.t, buf.x, buf.dx, ws.fs, ws.iv, ws.cf, ws.ci, ws.cnt, ws.r_i, ws.r_f, ws.r_q,
+                      ws.r_after)
+        table.store()
         buf.size = int(ws.iv[k.I_SIZE])
         _count(run, ws)
         if ws.iv[k.I_RECORDS]:
-            visit.buf = _commit_records(run, visit, ws, int(ws.iv[k.I_RECORDS]))
+            visit = _commit_records(run, visit, table, ws, int(ws.iv[k.I_RECORDS]))
         visit.t = float(ws.fs[k.F_T])
         if code == k.BUFFER_FULL:
             _grow(visit.buf)
         elif code == k.CHUNK:
             run.tick(visit.t)
             if run.steps >= run.max_steps:
-                visit.x = x
+                visit.x = ws.x[:visit.data.mode.dim].copy()
+                visit.buf = _with_width(visit.buf, visit.data.mode.dim)
                 return run.end_visit(visit, out_of_steps(run, visit))
         elif code == k.RECORDS_FULL:
             run.tick(visit.t)
         else:
             break
-    visit.x = x
-    if code == k.GUARD_NAN and twin.fallback:
+    if code == kt.NEXT:
+        # The kernel reached a mode whose entry Python takes (outside the table, or a state
+        # for the entry's special cases): the segments before it are committed with their
+        # transitions, nothing of the next one is stored yet.
+        return Entered(table.names[int(ws.iv[kt.I_MODE])], ws.x[:int(ws.iv[kt.I_XLEN])].copy(), visit.t)
+    visit.x = ws.x[:visit.data.mode.dim].copy()
+    visit.buf = _with_width(visit.buf, visit.data.mode.dim)
+    if code == k.GUARD_NAN and visit.data.mode.compiled.fallback:
         return _python_rest(run, visit, ws)
     return _outcome(run, visit, ws, code)
 
@@ -95,24 +186,44 @@ def _python_rest(run: Run, visit: ModeVisit, ws: Workspace) -> Outcome:
     raise the ModelBreakdown the loop shortens the step for (or ends the run with)."""
     from ..relaxed.integrate import run_visit
 
-    visit.k0 = ws.K[0].copy()
+    visit.k0 = ws.K[:visit.data.mode.dim].copy()
     return run_visit(run, visit, python=True)
 
 
-def _workspace(run: Run, visit: ModeVisit, n_guards: int) -> Workspace:
-    spaces = run.scratch.setdefault("compiled_workspaces", {})
-    ws = spaces.get(visit.name)
-    if ws is None:
-        ws = spaces[visit.name] = Workspace(visit.data.mode.dim, run.tableau.stages, n_guards)
+def _table(run: Run, visit: ModeVisit) -> Table:
+    """The table over the modes eligible now, the visit's first (rebuilt as more modes become
+    eligible)."""
+    system = run.system
+    checked = run.scratch["compiled_checked"]
+    # A bridge robot builds its modes as they are first reached: the table lists those known.
+    modes = [name for name in list(system.modes) if name in checked and name in run.checked_modes]
+    modes.remove(visit.name)
+    modes.insert(0, visit.name)
+    tables = run.scratch.setdefault("compiled_tables", {})
+    key = tuple(modes)
+    table = tables.get(key)
+    if table is None:
+        table = tables[key] = Table(run, modes)
+    return table
+
+
+def _workspace(run: Run, table: Table) -> Workspace:
+    """The run's workspace, made wider when the table's states or guards need it."""
+    ws = run.scratch.get("compiled_workspace")
+    dim, guards = table.width, int(table.mi[:, 2].max())
+    if ws is None or ws.x.size < dim or ws.gv.size < guards:
+        if ws is not None:
+            dim, guards = max(dim, ws.x.size), max(guards, ws.gv.size)
+        ws = run.scratch["compiled_workspace"] = Workspace(dim, run.tableau.stages, guards)
     return ws
 
 
-def _settings(run: Run, ws: Workspace, plan, in_kernel: bool) -> None:
+def _settings(run: Run, ws: Workspace, plan) -> None:
     step_size = run.step_size
     ws.cf[:] = (run.t_final, step_size.h_max, run.eps, getattr(step_size, "rtol", 0.0),
-                getattr(step_size, "atol", 0.0), getattr(step_size, "exponent", 0.0))
-    ws.ci[:5] = (step_size.adaptive, run.landing.name == "aim", run.max_halvings, 0, in_kernel)
-    ws.ci[6] = plan.method_id
+                getattr(step_size, "atol", 0.0), getattr(step_size, "exponent", 0.0), run.zeno.window)
+    ws.ci[:] = (step_size.adaptive, run.landing.name == "aim", run.max_halvings, 0, 0, plan.method_id,
+                run.zeno.continues, run.system.joint is not None)
 
 
 def _count(run: Run, ws: Workspace) -> None:
@@ -130,19 +241,17 @@ def _outcome(run: Run, visit: ModeVisit, ws: Workspace, code: int) -> Outcome:
     """What the kernel's return code means, as the Python loop would have said it."""
     fs, iv, t, name = ws.fs, ws.iv, visit.t, visit.name
     transitions = visit.data.transitions
+    n = visit.data.mode.dim
     if code == k.TRANSITION:
         e = int(iv[k.I_GUARD_INDEX])
         crossed = [e] + [f for f in range(len(transitions)) if ws.gv[f] < 0.0 and f != e]
-        return cross(run, visit, e, float(fs[k.F_TC]), ws.q.copy(), float(fs[k.F_LAND]), float(fs[k.F_TAU]), crossed)
-    if code == k.NEXT:
-        # The state entering the mode again needs the entry's special cases (in a strip, or a
-        # non-finite field or guard): the Python entry takes it from here. The segment before it
-        # was committed with its transition; nothing of the next one is stored yet.
-        return Entered(name, visit.x.copy(), t)
+        return cross(run, visit, e, float(fs[k.F_TC]), ws.q[:n].copy(), float(fs[k.F_LAND]), float(fs[k.F_TAU]),
+                     crossed)
     if code == k.FINISHED:
         return run.end_visit(visit, Ended(Status.FINISHED, "", float(fs[k.F_END])))
     if code == k.GUARD_NAN:
-        message = messages.nan_guard(name, float(fs[k.F_NAN_T]), ws.x_new, transitions[int(iv[k.I_GUARD_INDEX])].name)
+        message = messages.nan_guard(name, float(fs[k.F_NAN_T]), ws.x_new[:n],
+                                     transitions[int(iv[k.I_GUARD_INDEX])].name)
         return run.end_visit(visit, Ended(Status.NON_FINITE, message, t))
     if code == k.NONFINITE_STEP:
         message = messages.non_finite_step(name, t, visit.x, float(fs[k.F_HTRIED]))
@@ -154,6 +263,19 @@ def _outcome(run: Run, visit: ModeVisit, ws: Workspace, code: int) -> Outcome:
     raise RuntimeError(f"compiled kernel returned unknown code {code}")  # pragma: no cover
 
 
+def _with_width(buf: SegmentBuffer, width: int) -> SegmentBuffer:
+    """``buf`` with rows of ``width`` entries (its points' first entries kept): the kernel
+    stores the points of every mode of its table in one buffer as wide as the widest, Python
+    stores a mode's points in a buffer of its own width."""
+    if buf.x.shape[1] == width:
+        return buf
+    wide = SegmentBuffer(buf.mode, width, capacity=len(buf.t))
+    n, size = min(width, buf.x.shape[1]), buf.size
+    wide.t[:size], wide.x[:size, :n], wide.dx[:size, :n] = buf.t[:size], buf.x[:size, :n], buf.dx[:size, :n]
+    wide.size = size
+    return wide
+
+
 def _grow(buf: SegmentBuffer) -> None:
     new = 4 * len(buf.t)  # every return from the kernel costs microseconds: grow fast
     buf.t = np.resize(buf.t, new)
@@ -161,47 +283,61 @@ def _grow(buf: SegmentBuffer) -> None:
     buf.dx = np.resize(buf.dx, (new, buf.dx.shape[1]))
 
 
-def _commit_records(run: Run, visit: ModeVisit, ws: Workspace, n_rec: int) -> SegmentBuffer:
+def _commit_records(run: Run, visit: ModeVisit, table: Table, ws: Workspace, n_rec: int) -> ModeVisit:
     """Turn the transitions the kernel crossed into Execution pieces (what ``strip.cross`` and
-    the next visit's buffer would have built), and move the current segment into a fresh
-    buffer, which is returned."""
-    buf, mode = visit.buf, visit.name
-    r_f = ws.r_f[:n_rec].tolist()
-    ends = ws.seg_end[:n_rec].tolist()
+    the next visits' buffers would have built), and move the current segment into a fresh
+    buffer of the visit of the mode the kernel is in, which is returned."""
+    buf = visit.buf
+    ends = ws.r_i[:n_rec, kt.R_END].tolist()
     # Thousands of small acyclic objects at once: the cyclic collector would scan the whole growing
     # execution again and again while they are made, and could free none of them.
     gc_was_enabled = gc.isenabled()
     gc.disable()
     try:
-        _build_pieces(run, visit, ws.r_e[:n_rec].tolist(), r_f, ws.r_q[:n_rec].copy(), ws.r_after[:n_rec].copy(), ends)
+        _build_pieces(run, table, buf, ws.r_i[:n_rec].tolist(), ws.r_f[:n_rec].tolist(), ws.r_q[:n_rec].copy(),
+                      ws.r_after[:n_rec].copy())
     finally:
         if gc_was_enabled:
             gc.enable()
+    mode = table.names[int(ws.iv[kt.I_MODE])]
+    if mode != visit.name:
+        data = run.system.mode_data(mode)
+        visit = ModeVisit(data, run.guard_fns(data), visit.t, visit.x)
     start, size = ends[-1], buf.size
     # As large as the old buffer: the steps to come will need it again.
     fresh = SegmentBuffer(mode, buf.x.shape[1], capacity=max(len(buf.t), 2 * (size - start)))
     m = size - start
     fresh.t[:m], fresh.x[:m], fresh.dx[:m] = buf.t[start:size], buf.x[start:size], buf.dx[start:size]
     fresh.size = m
-    return fresh
+    visit.buf = fresh
+    return visit
 
 
-def _build_pieces(run: Run, visit: ModeVisit, r_e: list, r_f: list, qs: np.ndarray, afters: np.ndarray,
-                  ends: list) -> None:
-    mode, trs, buf = visit.name, visit.data.transitions, visit.buf
+def _build_pieces(run: Run, table: Table, buf: SegmentBuffer, r_i: list, r_f: list, qs: np.ndarray,
+                  afters: np.ndarray) -> None:
+    system, names = run.system, table.names
     T, X, DX = buf.t, buf.x, buf.dx
     q_rows, after_rows = list(qs), list(afters)  # row views, made in one go
     start = 0
-    for j, end in enumerate(ends):
-        # Views of this buffer: it is never written again once the tail moves out.
-        run.segments.append(Segment(mode, T[start:end], X[start:end], DX[start:end]))
+    for j, (src, e, target, continued, end, length) in enumerate(r_i):
+        mode = names[src]
+        data = system.mode_data(mode)
+        n = data.mode.dim
+        # Views of this buffer: it is never written again once the tail moves out (copies of a
+        # narrower mode's points).
+        x, dx = (X[start:end], DX[start:end]) if n == X.shape[1] else (X[start:end, :n].copy(), DX[start:end, :n].copy())
+        run.segments.append(Segment(mode, T[start:end], x, dx))
         tc, t_land, exit_time, tau = r_f[j]
-        tr = trs[r_e[j]]
-        run.strips.append(Strip(mode, tr.name, tc, exit_time, q_rows[j], t_land, tau))
+        tr = data.transitions[e]
+        name = tr.continuation.name if continued else tr.name
+        q = q_rows[j][:n]
+        after = after_rows[j][:length]
+        run.strips.append(Strip(mode, name, tc, exit_time, q, t_land, tau))
         run.strip_time += exit_time - tc  # summed in the order the Python path sums them
-        run.transitions.append(TransitionRecord(tr.name, mode, mode, r_e[j], tc, t_land, exit_time, q_rows[j],
-                                                after_rows[j], tau))
-        run.zeno.crossed(run, mode, tr.name, tc, exit_time, run.zeno.crossing(mode, tr.name, tc), False,
-                         tr.continuation is not None)
+        run.transitions.append(TransitionRecord(name, mode, names[target], e, tc, t_land, exit_time, q, after, tau))
+        if continued:
+            run.zeno.crossed(run, mode, tr.name, tc, exit_time, True, True)
+        else:
+            run.zeno.crossed(run, mode, tr.name, tc, exit_time, run.zeno.crossing(mode, tr.name, tc), False,
+                             tr.continuation is not None)
         start = end
-

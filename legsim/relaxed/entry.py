@@ -20,7 +20,7 @@ from ..control import Bound
 from ..hybrid import check_field_output
 from . import messages
 from .outcomes import Ended, Landing, Outcome
-from .rules import entered_in_strip
+from .rules import entered_in_strip, past_strip
 from .run import ModeVisit, Run
 from .step_size import rms
 from .strip import cross, cross_landing
@@ -67,7 +67,7 @@ def enter_mode(run: Run, mode: str, x: np.ndarray, t: float) -> ModeVisit | Outc
 def _cross_at_once(run: Run, visit: ModeVisit, gvals: list[float]) -> Outcome:
     e = min(range(len(gvals)), key=gvals.__getitem__)
     t, x = visit.t, visit.x
-    if gvals[e] < -run.eps:
+    if past_strip(gvals[e], run.eps):
         message = (f"state entering mode '{visit.name}' at t={t:.17g} lies past the guard of transition "
                    f"{visit.data.transitions[e].name} by {-gvals[e]:.3g} > eps={run.eps:g}: x={x.tolist()}")
         return run.end_visit(visit, Ended(Status.RESET_OUTSIDE_DOMAIN, message, t))

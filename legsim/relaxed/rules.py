@@ -49,6 +49,38 @@ def kept_proposal(h_prop: float, proposal: float, shortened: bool, rejected: boo
     return proposal
 
 
+def restarted_step(h_prop: float, start: float) -> float:
+    """The proposal carried into a newly entered mode: the smaller of the one carried and the
+    new flow's starting step (``starting_step``)."""
+    return min(h_prop, start)
+
+
+# -- a new flow's starting step (Hairer, Norsett and Wanner I, Sec. II.4) ------------------------
+def scaled_rms(values, reference, rtol: float, atol: float) -> float:
+    """RMS of values[d] / (atol + rtol |reference[d]|), summed in index order (sequences of
+    equal length n), as both loops sum it."""
+    total = 0.0
+    for d in range(len(values)):
+        r = values[d] / (atol + rtol * abs(reference[d]))
+        total += r * r
+    return math.sqrt(total / len(values))
+
+
+def starting_guess(d0: float, d1: float, h_max: float) -> float:
+    """The first trial h0 (s) of the starting-step estimate from the scaled norms of x (d0) and
+    of f(t, x) (d1, 1/s), capped by h_max."""
+    h0 = 1e-6 if d0 < 1e-5 or d1 < 1e-5 else 0.01 * d0 / d1
+    return min(h0, h_max)
+
+
+def starting_step(h0: float, d1: float, d2: float, exponent: float) -> float:
+    """The starting step (s): local error about 1% of the tolerance, from d1 and the scaled
+    rate of change of f over h0 (d2, 1/s^2); ``exponent`` is the controller's, -1/(order + 1)."""
+    worst = max(d1, d2)
+    h1 = max(1e-6, 1e-3 * h0) if worst <= 1e-15 else (0.01 / worst) ** -exponent
+    return min(100.0 * h0, h1)
+
+
 # -- the step's length ------------------------------------------------------------------------
 #: Finished once t_final is this many float spacings away (relative to |t_final|): an absolute
 #: test, since a relative one would call a run near t = 1e15 finished before its first step.
@@ -204,6 +236,12 @@ def accumulating(previous_flight: float, flight: float, window: float) -> bool:
     return flight <= window and flight < previous_flight
 
 
+def flight_since(has_history: bool, last_exit: float, tc: float) -> float:
+    """The flight (s) of a transition crossed at tc since its previous crossing left its strip
+    at ``last_exit``; infinite for its first crossing (or the first after a continuation)."""
+    return tc - last_exit if has_history else math.inf
+
+
 # -- the step's cubic Hermite interpolant -------------------------------------------------------
 def hermite_weights(s, dt):
     """Weights (w0, w1, w2, w3) of the cubic Hermite interpolant at fraction s of a step of
@@ -232,6 +270,12 @@ ON_GUARD = 1e-9
 def entered_in_strip(gmin: float, eps: float) -> bool:
     """True when a state entering a mode with least guard value gmin must cross at once."""
     return gmin < -ON_GUARD * eps
+
+
+def past_strip(g: float, eps: float) -> bool:
+    """True when a state entering a mode lies past a guard by more than the strip (its run then
+    ends: the reset left the relaxed domain)."""
+    return g < -eps
 
 
 def strip_exit_time(t_land: float, eps: float, tau: float) -> float:

@@ -16,7 +16,8 @@ import numpy as np
 
 from ..methods import Tableau
 from ..methods.stepper import error_estimator, error_norm
-from .rules import kept_proposal, proposed_step, rejected_step
+from .rules import (kept_proposal, proposed_step, rejected_step, restarted_step, scaled_rms, starting_guess,
+                    starting_step)
 
 
 class FixedStep:
@@ -80,28 +81,25 @@ class ErrorControl:
         smaller of that and the standard starting step, as an event-driven integrator does at
         every restart; for one field evaluation a tolerance then buys the accuracy it buys
         solve_ivp."""
-        self.h_prop = min(self.h_prop, self.starting_step(f, t, x, k0))
+        self.h_prop = restarted_step(self.h_prop, self.starting_step(f, t, x, k0))
 
     def starting_step(self, f: Callable[[float, np.ndarray], np.ndarray], t: float, x: np.ndarray,
                       k0: np.ndarray) -> float:
         """The starting step size of Hairer, Norsett and Wanner (I, Sec. II.4): a step whose
         estimated local error is about 1% of the tolerance, from f at x and at one explicit Euler
-        step away (one evaluation of ``f(t, x)``). On any failure the current proposal stands."""
-        scale = self.atol + self.rtol * np.abs(x)
-        d0 = rms(x / scale)
-        d1 = rms(k0 / scale)
-        h0 = 1e-6 if d0 < 1e-5 or d1 < 1e-5 else 0.01 * d0 / d1
-        h0 = min(h0, self.h_max)
+        step away (one evaluation of ``f(t, x)``). On any failure the current proposal stands.
+        The norms are ``rules.scaled_rms``, which the compiled kernel sums the same way."""
+        rtol, atol, xs = self.rtol, self.atol, x.tolist()
+        d1 = scaled_rms(k0.tolist(), xs, rtol, atol)
+        h0 = starting_guess(scaled_rms(xs, xs, rtol, atol), d1, self.h_max)
         try:
             f1 = f(t + h0, x + h0 * k0)
         except Exception:
             return self.h_prop  # the steps themselves will meet it and report it properly
-        d2 = rms((f1 - k0) / scale) / h0
+        d2 = scaled_rms((f1 - k0).tolist(), xs, rtol, atol) / h0
         if not math.isfinite(d2):
             return self.h_prop
-        worst = max(d1, d2)
-        h1 = max(1e-6, 1e-3 * h0) if worst <= 1e-15 else (0.01 / worst) ** -self.exponent
-        return min(100.0 * h0, h1)
+        return starting_step(h0, d1, d2, self.exponent)
 
     def settings(self) -> dict[str, Any]:
         return {"rtol": self.rtol, "atol": self.atol}

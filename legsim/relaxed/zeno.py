@@ -20,7 +20,7 @@ import math
 from dataclasses import dataclass
 
 from ..execution import RunWarning
-from .rules import accumulating
+from .rules import accumulating, flight_since
 
 
 @dataclass
@@ -78,7 +78,7 @@ class ZenoWatch:
         the warnings or joins the open one, a long flight or a continuation closes it."""
         key = (mode, name)
         history = self._histories.get(key)
-        flight = tc - history.last_exit if history is not None else math.inf
+        flight = flight_since(history is not None, history.last_exit if history is not None else 0.0, tc)
         episode = self._open
         if episode is not None and key in episode.members and (continued or flight > self.window):
             self._close(run, tc, ending=True)
@@ -93,6 +93,13 @@ class ZenoWatch:
             elif key not in self._open.members:
                 self._open.members.append(key)
         history.last_exit, history.flight = exit_time, flight
+
+    def history(self, mode: str, name: str) -> tuple[float, float] | None:
+        """(when its last crossing left the strip (s), the flight that ended there (s)) of
+        transition ``name`` of ``mode``, or None before its first crossing (or after a
+        continuation): what the compiled kernel starts from."""
+        history = self._histories.get((mode, name))
+        return None if history is None else (history.last_exit, history.flight)
 
     def _close(self, run, t: float, ending: bool) -> None:
         episode = self._open

@@ -5,10 +5,12 @@ A twin computes what the Python mode computes, in the same order: the field of
 ``dynamics.dynamics`` (applied forces of stance spring legs and joint damping, then ABA, or the
 KKT solve when rigid contacts are active), the guards of ``transitions.outgoing`` (gaps of
 inactive stops and points, plastic-impact pairs, release forces, spring-leg touchdown and
-liftoff) and, when every outgoing transition is a bounce back into the mode, the impact resets.
-The Python bridge stays the reference: the relaxed loop checks each twin against it at the first
-visit of its mode, and a mode whose structure the twin does not know (Zeno continuation, armed
-contacts, actuation, a transition it does not recognise) gets no twin and runs in Python.
+liftoff) and the resets of those transitions and of their Zeno continuations (impacts,
+releases, footholds mapped; a bounce's continuation is its impact made plastic), so the compiled
+kernel crosses a gait's mode changes itself. The Python bridge stays the reference: the relaxed
+loop checks each twin against it at the first visit of its mode, and a mode whose structure the
+twin does not know (armed contacts, actuation, a transition it does not recognise) gets no twin
+and runs in Python.
 
 Everything a twin needs travels in its parameter array p (float64; layout: the ``P_*`` header
 positions and the ``G_*`` fields of each guard record). A state past the model's range (a hip
@@ -29,6 +31,7 @@ from legsim._native.calls import lsn_aba, lsn_constrained, lsn_frame_jacobian, l
 from legsim.compiled import CompiledMode
 
 from .contacts import JointStop, PointContact, RigidContact, SpringLeg
+from .joint import striking_contacts
 from .model import BridgeModel
 from .modes import ModeCatalog, ModeSpec
 
@@ -307,14 +310,45 @@ def bridge_guards(x, p):
 
 @_jit
 def bridge_resets(x, p, e):
-    """The bounce of guard e (impacts.impact_reset into the same mode): q and the footholds
-    kept, v by the generalised Newton impact."""
+    """The reset of transition e into its target's state (impacts.impact_reset,
+    impacts.plain_reset; for e >= the guard count, the continuation of transition e - count):
+    an impact (bounce, plastic stick or graze) replaces v by the
+    generalised Newton impact's; a release keeps x; a spring leg's touchdown or liftoff keeps q
+    and v and maps the footholds (modes.map_state: kept, dropped, or the touching foot's x)."""
     n = int(p[P_N])
-    g = int(p[P_GUARD]) + GUARD_SIZE * e
-    out = x.copy()
-    count(p, C_IMPACTS)
-    lsn_impact(np.int64(p[P_HANDLE]), x.ctypes.data, _ptr(x, n), np.int64(p[g + G_NIMPACT]),
-               _ptr(p, int(p[g + G_IMPACT])), _ptr(p, int(p[g + G_COEFF])), _ptr(out, n))
+    n_guards = int(p[P_NGUARD])
+    g = int(p[P_GUARD]) + GUARD_SIZE * (e % n_guards)
+    kind = int(p[g + G_KIND])
+    if e >= n_guards:  # the continuation of a bounce: its impact, plastic, into the resting mode
+        out = x.copy()
+        count(p, C_IMPACTS)
+        lsn_impact(np.int64(p[P_HANDLE]), x.ctypes.data, _ptr(x, n), np.int64(p[g + G_NIMPACT]),
+                   _ptr(p, int(p[g + G_IMPACT])), _ptr(p, int(p[g + G_ROW])), _ptr(out, n))
+        return out
+    if kind == K_GAP or kind == K_PLASTIC:
+        out = x.copy()
+        count(p, C_IMPACTS)
+        lsn_impact(np.int64(p[P_HANDLE]), x.ctypes.data, _ptr(x, n), np.int64(p[g + G_NIMPACT]),
+                   _ptr(p, int(p[g + G_IMPACT])), _ptr(p, int(p[g + G_COEFF])), _ptr(out, n))
+        return out
+    if kind == K_RELEASE:
+        return x.copy()
+    footholds = int(p[g + G_NSTICK])
+    out = np.empty(2 * n + footholds)
+    for d in range(2 * n):
+        out[d] = x[d]
+    at = int(p[g + G_STICK])
+    for i in range(footholds):
+        j = int(p[at + i])
+        if j >= 0:
+            out[2 * n + i] = x[2 * n + j]
+        else:  # the touching foot's x at q (modes.flight_foot_x)
+            kin = np.empty(4)
+            frame = np.empty(1)
+            frame[0] = p[int(p[P_FRAME]) + int(p[g + G_A])]
+            lsn_frames(np.int64(p[P_HANDLE]), x.ctypes.data, _ptr(x, n), np.int64(1), frame.ctypes.data,
+                       kin.ctypes.data)
+            out[2 * n + i] = kin[0]
     return out
 
 
@@ -367,7 +401,8 @@ def _strike_records(model: BridgeModel, modes: ModeCatalog, spec: ModeSpec, cnam
     gap = _gap_fields(model.rigid[cname], pp)
     if c.restitution > 0.0:
         coeff_at = pp.append([0.0] * len(kept) + [c.restitution])
-        return [(f"bounce_{cname}", [K_GAP, *gap, impact_at, len(rows), coeff_at, 0.0, 0.0, 0.0, 0.0])]
+        rest_at = pp.append([0.0] * len(rows))  # the continuation's: the same impact, plastic
+        return [(f"bounce_{cname}", [K_GAP, *gap, impact_at, len(rows), coeff_at, 0.0, 0.0, 0.0, rest_at])]
     coeff_at = pp.append([0.0] * len(rows))
     stick = modes.spec(modes.name_of(staying | {cname}))
     stick_at = pp.append(_rigid_blocks(stick.rigid))
@@ -376,6 +411,13 @@ def _strike_records(model: BridgeModel, modes: ModeCatalog, spec: ModeSpec, cnam
     tail = [stick_at, len(stick.rigid), stick.normal_row(cname)]
     return [(f"{kind}_{cname}", [K_PLASTIC, *gap, *common, 1.0, *tail]),
             (f"graze_{cname}", [K_PLASTIC, *gap, *common, -1.0, *tail])]
+
+
+def _foothold_map(src: ModeSpec, dst: ModeSpec) -> list[float]:
+    """Where each foothold of ``dst`` comes from (modes.map_state): its index in ``src``'s
+    footholds, or -1 for a leg touching down (its foot's x)."""
+    index = {lg.leg.name: i for i, lg in enumerate(src.springs)}
+    return [float(index.get(lg.leg.name, -1)) for lg in dst.springs]
 
 
 def _records(model: BridgeModel, modes: ModeCatalog, spec: ModeSpec,
@@ -387,11 +429,14 @@ def _records(model: BridgeModel, modes: ModeCatalog, spec: ModeSpec,
         if isinstance(c, SpringLeg):
             lg = model.legs[cname]
             foot, hip = pp.slot(lg.foot_id), pp.slot(lg.hip_id)
+            dst = modes.spec(modes.name_of(set(spec.active) ^ {cname}))
+            at = pp.append(_foothold_map(spec, dst))
             if cname in stance:
                 out.append((f"liftoff_{cname}", [K_LEG_LIFT, 0.0, foot, hip, c.ground, c.rest_length, 0.0, 0.0, 0.0,
-                                                  0.0, 0.0, stance[cname]]))
+                                                  at, len(dst.springs), stance[cname]]))
             else:
-                out.append((f"touchdown_{cname}", [K_LEG_TOUCH, 0.0, foot, hip, c.ground] + [0.0] * 7))
+                out.append((f"touchdown_{cname}", [K_LEG_TOUCH, 0.0, foot, hip, c.ground, 0.0, 0.0, 0.0, 0.0, at,
+                                                   len(dst.springs), 0.0]))
         elif cname in spec.active:
             kind = "release" if isinstance(c, JointStop) else "liftoff"
             out.append((f"{kind}_{cname}", [K_RELEASE, 0.0, spec.normal_row(cname)] + [0.0] * 9))
@@ -431,6 +476,12 @@ def bridge_twin(model: BridgeModel, modes: ModeCatalog, spec: ModeSpec,
     header[P_NFRAME] = len(pp.frames)
     header[P_FRAME] = pp.append(pp.frames)
     pp.append([0.0] * len(COUNTED))
-    bounces_only = bool(records) and all(tr.target == spec.name for tr in transitions)
-    return CompiledMode(bridge_field, bridge_guards, len(records), np.array(pp.p),
-                        bridge_resets if bounces_only else None, fallback=True)
+    return CompiledMode(bridge_field, bridge_guards, len(records), np.array(pp.p), bridge_resets, fallback=True,
+                        continued=True, joint_groups=tuple(_joint_group(model, name) for name, _ in records))
+
+
+def _joint_group(model: BridgeModel, name: str) -> int:
+    """The joint group of transition ``name``: the index of the rigid contact it strikes, which
+    joint.resolve resolves with the strikes of other contacts, or -1 (not a strike)."""
+    struck = striking_contacts(model, (name,))
+    return -1 if not struck else list(model.rigid).index(struck[0])

@@ -90,8 +90,8 @@ def test_oscillator_example2_sticking_same_on_both_paths():
 
 @pytest.mark.parametrize("which", ["ball", "ex2"])
 def test_continuation_at_an_accumulation_is_the_same_on_both_paths(which):
-    # By default accumulating impacts continue in the resting/sticking mode: the kernel hands
-    # every crossing of a transition with a continuation to Python, which decides.
+    # By default accumulating impacts continue in the resting/sticking mode: these twins do not
+    # compute the continuation's reset, so the kernel hands an accumulating crossing to Python.
     if which == "ball":
         system, x0, mode, t_final = make_bouncing_ball(9.81, 0.5), [1.0, 0.0], "flight", 2.0
     else:

@@ -141,6 +141,9 @@ def assert_same_run(a, b, tol=1e-9):
     for key in ("steps", "halvings", "error_rejections", "field_evals", "transitions"):
         assert a.counters[key] == b.counters[key], key
     close(a.final_state, b.final_state, tol)
+    assert [(s.mode, s.name) for s in a.strips] == [(s.mode, s.name) for s in b.strips]
+    assert abs(a.counters["strip_time"] - b.counters["strip_time"]) <= tol * max(1, len(a.strips))
+    assert [(w.kind, w.message) for w in a.warnings] == [(w.kind, w.message) for w in b.warnings]
 
 
 SCENES = [
@@ -158,6 +161,39 @@ SCENES = [
     ("pronk_pitched", ("integrator.method=\"dopri5\"", "integrator.rtol=1e-7", "integrator.atol=1e-7", "integrator.h=0.1",
                "integrator.landing=\"aim\"")),
 ]
+
+
+#: Runs that cross mode changes, Zeno continuations (on and off) and joint impacts, and whether
+#: Python takes some of their crossings after each mode's first entry (the rod's joint impacts).
+MODE_CHANGES = [
+    ("pronk", (), False),
+    ("double_pendulum_plastic", (), False),
+    ("double_pendulum_zeno", ("integrator.t_final=12.0", "integrator.method=\"rk4\"", "integrator.eps=1e-3"), False),
+    ("double_pendulum_zeno", ("integrator.t_final=2.0", "integrator.continuation=false", "integrator.eps=1e-3"), False),
+    ("rod", (), True),
+]
+
+
+@pytest.mark.parametrize("scene,overrides,joint", MODE_CHANGES)
+def test_mode_changes_are_crossed_in_the_kernel_as_in_python(monkeypatch, scene, overrides, joint):
+    # Each mode's first entry goes through Python (which checks its twin and its field there);
+    # from then on the kernel crosses the run's transitions itself, mode changes and the
+    # continuations into modes already entered included, and returns only for what Python
+    # decides: a joint impact of two rigid contacts (the rod's two ends).
+    fast, n_kernel = run(monkeypatch, scene, False, overrides)
+    slow, _ = run(monkeypatch, scene, True, overrides)
+    assert fast.status == "finished"
+    assert_same_run(fast, slow)
+    modes = {s.mode for s in fast.segments}
+    assert len(fast.transitions) > len(modes)
+    if joint:
+        assert n_kernel <= len(modes) + sum("+" in t.name for t in fast.transitions)
+    else:
+        assert n_kernel == len(modes)
+    # The kernel's field evaluations count in the model's counters (each one an ABA or a KKT solve).
+    assert fast.counters["aba"] + fast.counters["kkt"] >= fast.counters["field_evals"]
+    if "rk4" in str(overrides):  # continuations into the resting mode, all but the first in the kernel
+        assert sum(t.name == "rest_stop" for t in fast.transitions) >= 3
 
 
 @pytest.mark.parametrize("scene,overrides", SCENES)
