@@ -40,7 +40,7 @@ def run_bench(checkout: Path, case: str, out: Path, quick: bool, reuse: bool) ->
     if reuse and (out / f"{case}.csv").exists():
         return out / f"{case}.csv"
     out.mkdir(parents=True, exist_ok=True)
-    command = [str(legsim), "bench", "work-precision", "--case", case, "--out", str(out), "--no-figure", "--quiet"]
+    command = [str(legsim), "bench", "work-precision", "--case", case, "--out", str(out), "--quiet"]
     if quick:
         command.append("--quick")
     subprocess.run(command, cwd=checkout, check=True, stdout=subprocess.DEVNULL)
