@@ -21,6 +21,7 @@ import numpy as np
 
 from .errors import ModelError, SceneError
 from .hybrid import HybridSystem
+from .registry import load_registered, registered
 
 ENTRY_POINT_GROUP = "legsim.builders"
 
@@ -208,19 +209,9 @@ def resolve_effects(schema: Mapping[str, Effect], given: Mapping[str, Any], wher
 
 def available() -> dict[str, metadata.EntryPoint]:
     """The registered builders by name (not yet imported)."""
-    return {ep.name: ep for ep in metadata.entry_points(group=ENTRY_POINT_GROUP)}
+    return registered(ENTRY_POINT_GROUP)
 
 
 def get_builder(name: str) -> Builder:
-    """Load the builder called ``name``; SceneError lists the known names when it is unknown."""
-    eps = available()
-    if name not in eps:
-        raise SceneError(f"unknown robot '{name}'; available: {sorted(eps)}")
-    try:
-        builder = eps[name].load()
-    except Exception as exc:
-        raise SceneError(f"robot '{name}' could not be loaded from {eps[name].value}: "
-                         f"{type(exc).__name__}: {exc}") from exc
-    if not isinstance(builder, Builder):
-        raise SceneError(f"entry point '{name}' ({eps[name].value}) is not a legsim.builders.Builder")
-    return builder
+    """Load the robot called ``name``; SceneError lists the known names when it is unknown."""
+    return load_registered(available(), name, "robot", Builder)

@@ -26,6 +26,7 @@ import numpy as np
 
 from .builders import Model, Param, resolve_parameters
 from .errors import SceneError
+from .registry import load_registered, registered
 
 ENTRY_POINT_GROUP = "legsim.controllers"
 
@@ -96,19 +97,9 @@ class ControllerSpec:
 
 def available() -> dict[str, metadata.EntryPoint]:
     """The registered controllers by name (not yet imported)."""
-    return {ep.name: ep for ep in metadata.entry_points(group=ENTRY_POINT_GROUP)}
+    return registered(ENTRY_POINT_GROUP)
 
 
 def get_controller(name: str) -> ControllerSpec:
     """Load the controller called ``name``; SceneError lists the known names when it is unknown."""
-    found = available()
-    if name not in found:
-        raise SceneError(f"unknown controller '{name}'; available: {sorted(found)}")
-    try:
-        spec = found[name].load()
-    except Exception as exc:
-        raise SceneError(f"controller '{name}' could not be loaded from {found[name].value}: "
-                         f"{type(exc).__name__}: {exc}") from exc
-    if not isinstance(spec, ControllerSpec):
-        raise SceneError(f"entry point '{name}' ({found[name].value}) is not a legsim.control.ControllerSpec")
-    return spec
+    return load_registered(available(), name, "controller", ControllerSpec)
