@@ -48,11 +48,24 @@ def native_extensions() -> list[Extension]:
         print("legsim: Pinocchio or Eigen headers not found: building without the native robot twins", file=sys.stderr)
         return []
     # Pinocchio's own compile definitions (from its CMake config), header-only use.
-    defines = [("NDEBUG", None), ("BOOST_MPL_LIMIT_LIST_SIZE", "30"), ("BOOST_MPL_LIMIT_VECTOR_SIZE", "30"),
-               ("BOOST_MPL_CFG_NO_PREPROCESSED_HEADERS", None), ("BOOST_FUSION_INVOKE_MAX_ARITY", "12")]
-    return [Extension("legsim._native._pinlegsim", ["legsim/_native/pinlegsim.cpp"], language="c++",
-                      include_dirs=[str(include), str(include / "eigen3")], define_macros=defines,
-                      extra_compile_args=["-std=c++17", "-O2", "-g0", "-w"], optional=True)]
+    defines = [
+        ("NDEBUG", None),
+        ("BOOST_MPL_LIMIT_LIST_SIZE", "30"),
+        ("BOOST_MPL_LIMIT_VECTOR_SIZE", "30"),
+        ("BOOST_MPL_CFG_NO_PREPROCESSED_HEADERS", None),
+        ("BOOST_FUSION_INVOKE_MAX_ARITY", "12"),
+    ]
+    return [
+        Extension(
+            "legsim._native._pinlegsim",
+            ["legsim/_native/pinlegsim.cpp"],
+            language="c++",
+            include_dirs=[str(include), str(include / "eigen3")],
+            define_macros=defines,
+            extra_compile_args=["-std=c++17", "-O2", "-g0", "-w"],
+            optional=True,
+        )
+    ]
 
 
 setup(packages=packages(), package_dir=FOLDERS, ext_modules=native_extensions())

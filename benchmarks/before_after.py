@@ -49,9 +49,14 @@ def run_bench(checkout: Path, case: str, out: Path, quick: bool, reuse: bool) ->
 
 def fastest(rows: list[dict[str, str]], level: float, relaxed: bool) -> float:
     """Wall time (s) of the fastest finished run reaching ``level``; inf when none does."""
-    times = [float(row["wall_s"]) for row in rows
-             if (row["kind"] == "relaxed") == relaxed and row["status"] == "finished"
-             and row["error"] and float(row["error"]) <= level]
+    times = [
+        float(row["wall_s"])
+        for row in rows
+        if (row["kind"] == "relaxed") == relaxed
+        and row["status"] == "finished"
+        and row["error"]
+        and float(row["error"]) <= level
+    ]
     return min(times, default=math.inf)
 
 
@@ -87,8 +92,11 @@ def main(argv: list[str] | None = None) -> int:
         for level in LEVELS:
             (t0, r0), (t1, r1) = before[level], after[level]
             change = r1 / r0 if math.isfinite(r0) and math.isfinite(r1) else math.nan
-            print(f"| {case} | {level:g} | {cell(t0 * 1e3)}, {cell(r0, 'x')} | {cell(t1 * 1e3)}, {cell(r1, 'x')} "
-                  f"| {cell(change)} |", flush=True)
+            print(
+                f"| {case} | {level:g} | {cell(t0 * 1e3)}, {cell(r0, 'x')} | {cell(t1 * 1e3)}, {cell(r1, 'x')} "
+                f"| {cell(change)} |",
+                flush=True,
+            )
     return 0
 
 

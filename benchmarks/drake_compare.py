@@ -105,8 +105,14 @@ def _after_last_impact(name: str) -> np.ndarray:
 def impact_error(run, ref) -> float:
     if len(run) != len(ref):
         return math.inf
-    return max([0.0] + [max(abs(a[0] - b[0]), float(np.max(np.abs(a[1] - b[1]))))
-                         for a, b in zip(run, ref, strict=True) if a[1] is not None and b[1] is not None])
+    return max(
+        [0.0]
+        + [
+            max(abs(a[0] - b[0]), float(np.max(np.abs(a[1] - b[1]))))
+            for a, b in zip(run, ref, strict=True)
+            if a[1] is not None and b[1] is not None
+        ]
+    )
 
 
 def drake_configs(quick: bool) -> list[tuple]:
@@ -150,12 +156,16 @@ def main() -> int:
                 ratios[lv].append(d_best / l_best if math.isfinite(l_best) else math.nan)
                 cfg = next((c for c, t, e in zip(configs, d_time, d_err, strict=True) if t == d_best and e <= lv), None)
                 row = next((r for r in l_rows if r.wall_s == l_best), None)
-                print(f"{name} round {rnd + 1} error <= {lv:g}: Drake {cfg} {1e3 * d_best:.3g} ms; legsim "
-                      f"{row.method if row else None} tol={row.tol if row else None} h={row.h if row else None} "
-                      f"{1e3 * l_best:.3g} ms")
+                print(
+                    f"{name} round {rnd + 1} error <= {lv:g}: Drake {cfg} {1e3 * d_best:.3g} ms; legsim "
+                    f"{row.method if row else None} tol={row.tol if row else None} h={row.h if row else None} "
+                    f"{1e3 * l_best:.3g} ms"
+                )
         for lv in LEVELS:
-            print(f"{name} error <= {lv:g}: Drake / legsim median {statistics.median(ratios[lv]):.3g} "
-                  f"(rounds {', '.join(f'{r:.3g}' for r in ratios[lv])})")
+            print(
+                f"{name} error <= {lv:g}: Drake / legsim median {statistics.median(ratios[lv]):.3g} "
+                f"(rounds {', '.join(f'{r:.3g}' for r in ratios[lv])})"
+            )
     return 0
 
 

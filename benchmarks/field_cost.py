@@ -78,7 +78,7 @@ def field_table(calls: int, repeat: int) -> list[tuple[str, str, int, float, flo
             us = time_calls(field, [(0.0, x, None) for x in xs], calls, repeat)
             n = bridge.n
             tau = np.zeros(n)
-            aba = time_calls(pinocchio.aba, [(model, data, x[:n], x[n:2 * n], tau) for x in xs], calls, repeat)
+            aba = time_calls(pinocchio.aba, [(model, data, x[:n], x[n : 2 * n], tau) for x in xs], calls, repeat)
             rows.append((robot, mode, len(xs[0]), us, aba))
     return rows
 
@@ -111,8 +111,10 @@ class _TimedPin(types.ModuleType):
 
 def bridge_modules_using_pinocchio() -> list[types.ModuleType]:
     """The modules of the bridge package that call Pinocchio through a module global ``pin``."""
-    modules = [importlib.import_module(f"{bridge_package.__name__}.{info.name}")
-               for info in pkgutil.iter_modules(bridge_package.__path__)]
+    modules = [
+        importlib.import_module(f"{bridge_package.__name__}.{info.name}")
+        for info in pkgutil.iter_modules(bridge_package.__path__)
+    ]
     return [m for m in modules if getattr(m, "pin", None) is pinocchio]
 
 
@@ -149,8 +151,16 @@ def share_table(repeat: int) -> list[tuple[str, float, float, int, float, int]]:
         # The inner time of each timed call includes part of the clock reads: subtract that bias
         # (measured on a wrapped no-op) and compare with the plain run, which has no timers.
         pin_seconds = timed_pin.seconds - timed_pin.calls * bias
-        rows.append((name, statistics.median(plain), wall, timed_pin.calls,
-                     1.0 - pin_seconds / statistics.median(plain), int(ex.counters["field_evals"])))
+        rows.append(
+            (
+                name,
+                statistics.median(plain),
+                wall,
+                timed_pin.calls,
+                1.0 - pin_seconds / statistics.median(plain),
+                int(ex.counters["field_evals"]),
+            )
+        )
     return rows
 
 
@@ -181,8 +191,9 @@ def main() -> None:
         print(f"{robot:16s} {mode:14s} {dim:3d} {us:9.2f} {aba:12.2f} {us / aba:6.1f}")
     print()
     print("Scene runs: CPU time and share outside Pinocchio")
-    print(f"{'scene':24s} {'cpu s':>7s} {'timed cpu s':>12s} {'pin calls':>10s} {'field evals':>12s} "
-          f"{'outside pin':>12s}")
+    print(
+        f"{'scene':24s} {'cpu s':>7s} {'timed cpu s':>12s} {'pin calls':>10s} {'field evals':>12s} {'outside pin':>12s}"
+    )
     for name, plain, wall, calls, outside, fevals in share_table(args.repeat):
         print(f"{name:24s} {plain:7.3f} {wall:12.3f} {calls:10d} {fevals:12d} {100 * outside:11.1f}%")
 

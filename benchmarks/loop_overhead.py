@@ -33,8 +33,9 @@ def decay(t: float, x: np.ndarray, u: object) -> np.ndarray:
 
 
 def system() -> HybridSystem:
-    far = [Transition("a", "a", guard=lambda x, i=i: x[i] + 10.0, reset=lambda x: x.copy(), name=f"far{i}")
-           for i in (0, 1)]
+    far = [
+        Transition("a", "a", guard=lambda x, i=i: x[i] + 10.0, reset=lambda x: x.copy(), name=f"far{i}") for i in (0, 1)
+    ]
     return HybridSystem({"a": Mode(6, decay)}, far)
 
 
@@ -54,8 +55,10 @@ def main() -> None:
     hs = system()
     x0 = np.ones(6)
     print("per-step cost, field included (about 1 us per evaluation), 6 states, 2 guards")
-    print(f"{'method':8s} {'tol':>6s} {'relaxed steps':>13s} {'us/step':>8s} {'solve_ivp steps':>15s} "
-          f"{'us/step':>8s} {'ratio':>6s}")
+    print(
+        f"{'method':8s} {'tol':>6s} {'relaxed steps':>13s} {'us/step':>8s} {'solve_ivp steps':>15s} "
+        f"{'us/step':>8s} {'ratio':>6s}"
+    )
     for ivp_method, tableau in (("DOP853", "dop853"), ("RK45", "dopri5")):
         for tol in (1e-6, 1e-9):
             relaxed = partial(simulate, hs, x0, "a", 200.0, 0.2, 1e-9, tableau, rtol=tol, atol=tol, landing="dense")
@@ -65,8 +68,10 @@ def main() -> None:
             t_relaxed, t_ivp = best_cpu_time(relaxed, args.repeat), best_cpu_time(ivp, args.repeat)
             per_r = t_relaxed / r.counters["steps"] * 1e6
             per_i = t_ivp / i.counters["steps"] * 1e6
-            print(f"{ivp_method:8s} {tol:6.0e} {r.counters['steps']:13d} {per_r:8.1f} {i.counters['steps']:15d} "
-                  f"{per_i:8.1f} {per_i / per_r:5.2f}x")
+            print(
+                f"{ivp_method:8s} {tol:6.0e} {r.counters['steps']:13d} {per_r:8.1f} {i.counters['steps']:15d} "
+                f"{per_i:8.1f} {per_i / per_r:5.2f}x"
+            )
 
 
 if __name__ == "__main__":

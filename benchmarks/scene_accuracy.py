@@ -56,10 +56,15 @@ def measure(name: str, repeat: int) -> dict[str, Any]:
     once = refined(scene.integrator)
     fine = dataclasses.replace(scene, integrator=once).simulate()
     finest = dataclasses.replace(scene, integrator=refined(once)).simulate()
-    return {"scene": name, "settings": settings_text(scene.integrator), "wall_s": statistics.median(walls),
-            "estimate": compare(run, fine).final_state_relative,
-            "measured": compare(run, finest).final_state_relative,
-            "status": run.status, "warnings": sorted({w.kind for w in run.warnings})}
+    return {
+        "scene": name,
+        "settings": settings_text(scene.integrator),
+        "wall_s": statistics.median(walls),
+        "estimate": compare(run, fine).final_state_relative,
+        "measured": compare(run, finest).final_state_relative,
+        "status": run.status,
+        "warnings": sorted({w.kind for w in run.warnings}),
+    }
 
 
 def _relative(value: float | None) -> str:
@@ -68,8 +73,14 @@ def _relative(value: float | None) -> str:
 
 def _cells(row: dict[str, Any]) -> list[str]:
     notes = ", ".join([*([] if row["status"] == "finished" else [str(row["status"])]), *row["warnings"]])
-    return [row["scene"], row["settings"], f"{row['wall_s']:.3f}", _relative(row["estimate"]),
-            _relative(row["measured"]), notes or "-"]
+    return [
+        row["scene"],
+        row["settings"],
+        f"{row['wall_s']:.3f}",
+        _relative(row["estimate"]),
+        _relative(row["measured"]),
+        notes or "-",
+    ]
 
 
 HEADERS = ["scene", "settings", "wall (s)", "estimated rel. error", "vs eps/100", "status, warnings"]

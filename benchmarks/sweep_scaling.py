@@ -35,9 +35,15 @@ import legsim
 
 def basin(cells: int, out: Path, max_steps: int, **engine) -> legsim.sweep.runner.SweepResult:
     side = max(2, round(math.sqrt(cells)))
-    return legsim.sweep("compass_gait", grid={"initial.state.stanced": (0.6, 1.6, side),
-                                              "initial.state.hipd": (-2.0, 0.5, side)},
-                        walk=True, max_steps=max_steps, out=out, figures=False, **engine)
+    return legsim.sweep(
+        "compass_gait",
+        grid={"initial.state.stanced": (0.6, 1.6, side), "initial.state.hipd": (-2.0, 0.5, side)},
+        walk=True,
+        max_steps=max_steps,
+        out=out,
+        figures=False,
+        **engine,
+    )
 
 
 def busy_share(result, workers: int) -> float:
@@ -52,10 +58,13 @@ def load() -> str:
 
 def report(label: str, result, workers: int) -> None:
     rows = float(np.sum(result.table.column("wall_time_s").to_numpy()))
-    print(f"{label:28s} {result.table.num_rows:6d} cells  {result.elapsed_s:8.1f} s  "
-          f"(start-up {result.startup_s:4.1f} s)"
-          f"  rows' own time {rows:8.1f} s  busy {100 * busy_share(result, workers):5.1f}%  "
-          f"outcomes {dict(sorted(result.counts('outcome').items()))}", flush=True)
+    print(
+        f"{label:28s} {result.table.num_rows:6d} cells  {result.elapsed_s:8.1f} s  "
+        f"(start-up {result.startup_s:4.1f} s)"
+        f"  rows' own time {rows:8.1f} s  busy {100 * busy_share(result, workers):5.1f}%  "
+        f"outcomes {dict(sorted(result.counts('outcome').items()))}",
+        flush=True,
+    )
 
 
 def main() -> None:
@@ -77,10 +86,14 @@ def main() -> None:
         report("basin: Dask, 2 workers", two, 2)
     print(f"load average after: {load()}")
     print(f"speed-up 2 workers / 1 worker: {one.elapsed_s / two.elapsed_s:.2f}x (target >= 1.8x)")
-    print("engine overhead (a), Dask 1 worker vs this process: "
-          f"{100 * (one_small.elapsed_s / here.elapsed_s - 1):+.1f}% (target < 5%)")
-    print(f"engine overhead (b), workers' time not in rows: 1 worker {100 * (1 - busy_share(one, 1)):.1f}%, "
-          f"2 workers {100 * (1 - busy_share(two, 2)):.1f}% (target < 5%)")
+    print(
+        "engine overhead (a), Dask 1 worker vs this process: "
+        f"{100 * (one_small.elapsed_s / here.elapsed_s - 1):+.1f}% (target < 5%)"
+    )
+    print(
+        f"engine overhead (b), workers' time not in rows: 1 worker {100 * (1 - busy_share(one, 1)):.1f}%, "
+        f"2 workers {100 * (1 - busy_share(two, 2)):.1f}% (target < 5%)"
+    )
 
 
 if __name__ == "__main__":

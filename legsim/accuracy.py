@@ -59,10 +59,16 @@ class ErrorEstimate:
 
     def as_dict(self) -> dict[str, Any]:
         """The JSON form (``legsim run --check-accuracy --json``: key ``error_estimate``)."""
-        return {"final_state": self.final_state, "final_state_relative": self.final_state_relative,
-                "transition_times": self.transition_times, "transitions_matched": self.transitions_matched,
-                "transitions_differ": self.transitions_differ, "trajectory": self.trajectory,
-                "mode_mismatch": self.mode_mismatch, "refined": self.refined}
+        return {
+            "final_state": self.final_state,
+            "final_state_relative": self.final_state_relative,
+            "transition_times": self.transition_times,
+            "transitions_matched": self.transitions_matched,
+            "transitions_differ": self.transitions_differ,
+            "trajectory": self.trajectory,
+            "mode_mismatch": self.mode_mismatch,
+            "refined": self.refined,
+        }
 
 
 def refined(settings: dict[str, Any]) -> dict[str, Any]:
@@ -86,9 +92,17 @@ def compare(run: Execution, fine: Execution) -> ErrorEstimate:
     return ErrorEstimate(final, relative, times, matched, differ, trajectory, mismatch, settings)
 
 
-def check_accuracy(system: HybridSystem, x0: Any, mode: str, t_final: float, h: float, eps: float,
-                   method: str | Tableau = "rk4", control: Callable[[float, np.ndarray], Any] | None = None,
-                   **options: Any) -> tuple[Execution, ErrorEstimate]:
+def check_accuracy(
+    system: HybridSystem,
+    x0: Any,
+    mode: str,
+    t_final: float,
+    h: float,
+    eps: float,
+    method: str | Tableau = "rk4",
+    control: Callable[[float, np.ndarray], Any] | None = None,
+    **options: Any,
+) -> tuple[Execution, ErrorEstimate]:
     """``simulate`` with these arguments, and the estimate of its error from a refined run (see
     ``refined``). Returns (the execution, its ``ErrorEstimate``)."""
     from .relaxed import simulate
@@ -96,8 +110,9 @@ def check_accuracy(system: HybridSystem, x0: Any, mode: str, t_final: float, h: 
     run = simulate(system, x0, mode, t_final, h, eps, method, control, **options)
     fine_settings = refined({"h": h, "eps": eps, "rtol": options.get("rtol"), "atol": options.get("atol")})
     fine_options = {**options, "rtol": fine_settings["rtol"], "atol": fine_settings["atol"]}
-    fine = simulate(system, x0, mode, t_final, fine_settings["h"], fine_settings["eps"], method, control,
-                    **fine_options)
+    fine = simulate(
+        system, x0, mode, t_final, fine_settings["h"], fine_settings["eps"], method, control, **fine_options
+    )
     return run, compare(run, fine)
 
 

@@ -43,7 +43,7 @@ from scipy.optimize import minimize_scalar
 from scipy.special import betainc
 
 from .derivatives import gradient, jacobian
-from .errors import ModelBreakdown, ModelError, SimulationError
+from .errors import ModelBreakdown, SimulationError
 from .execution import Execution
 from .hybrid import HybridSystem, Mode, Transition
 from .methods import Tableau, error_estimate, get_method, make_stepper
@@ -183,7 +183,8 @@ class LocalErrorEstimator:
         self.pair = get_method(pair)
         if not self.pair.embedded:
             raise SimulationError(
-                f"error pair '{self.pair.name}' has no embedded error estimate; use 'bs32', 'dopri5' or 'dop853'")
+                f"error pair '{self.pair.name}' has no embedded error estimate; use 'bs32', 'dopri5' or 'dop853'"
+            )
         floor = float(floor)
         if not math.isfinite(floor) or floor < 0.0:
             raise SimulationError(f"error floor must be finite and >= 0, got {floor}")
@@ -193,8 +194,9 @@ class LocalErrorEstimator:
         self._method_step = self._pair_step if self.same else make_stepper(self.method)
         self._power = self.method.order + 1
 
-    def step(self, field: Callable, t: float, x: np.ndarray, h: float, k0: np.ndarray,
-             control: ControlFn | None) -> tuple[np.ndarray, float]:
+    def step(
+        self, field: Callable, t: float, x: np.ndarray, h: float, k0: np.ndarray, control: ControlFn | None
+    ) -> tuple[np.ndarray, float]:
         """One step of the computing method from (t, x) and the estimate of its local error."""
         x_hi, stages = self._pair_step(field, t, x, h, k0, control)
         le = _norm(error_estimate(self.pair, h, stages))
@@ -203,20 +205,29 @@ class LocalErrorEstimator:
         else:
             x_new, _ = self._method_step(field, t, x, h, k0, control)
             le += _norm(x_new - x_hi)
-        return x_new, le + self.floor * h ** self._power
+        return x_new, le + self.floor * h**self._power
 
-    def pair_solution(self, field: Callable, t: float, x: np.ndarray, h: float, k0: np.ndarray,
-                      control: ControlFn | None) -> np.ndarray:
+    def pair_solution(
+        self, field: Callable, t: float, x: np.ndarray, h: float, k0: np.ndarray, control: ControlFn | None
+    ) -> np.ndarray:
         """The pair's propagated solution from (t, x) over h (a reference for interpolants)."""
         return self._pair_step(field, t, x, h, k0, control)[0]
 
-    def estimate(self, field: Callable, t: float, x: np.ndarray, h: float, k0: np.ndarray,
-                 control: ControlFn | None, x_next: np.ndarray) -> float:
+    def estimate(
+        self,
+        field: Callable,
+        t: float,
+        x: np.ndarray,
+        h: float,
+        k0: np.ndarray,
+        control: ControlFn | None,
+        x_next: np.ndarray,
+    ) -> float:
         """Local error estimate of a given step (t, x) -> (t + h, x_next)."""
         x_hi, stages = self._pair_step(field, t, x, h, k0, control)
         le = _norm(error_estimate(self.pair, h, stages))
         le += _norm(x_next - x_hi)
-        return le + self.floor * h ** self._power
+        return le + self.floor * h**self._power
 
 
 # -- the bound along a computed execution -----------------------------------------------------
@@ -268,8 +279,9 @@ class ErrorBound:
         for seg in reversed(self.segments):
             if seg.t[0] <= t <= seg.t[-1]:
                 return float(seg.radius(t))
-        raise SimulationError(f"time {t} is outside the bounded execution "
-                              f"[{self.segments[0].t[0]}, {self.segments[-1].t[-1]}]")
+        raise SimulationError(
+            f"time {t} is outside the bounded execution [{self.segments[0].t[0]}, {self.segments[-1].t[-1]}]"
+        )
 
     def summary(self) -> dict[str, Any]:
         """JSON-ready summary: per visit the mode, time span, L and the largest bound."""
@@ -279,8 +291,14 @@ class ErrorBound:
             "floor": self.floor,
             "max_bound": self.max_bound,
             "visits": [
-                {"mode": s.mode, "t_start": float(s.t[0]), "t_end": float(s.t[-1]), "lipschitz": s.lipschitz,
-                 "max_bound": float(s.bound.max()), "final_bound": float(s.bound[-1])}
+                {
+                    "mode": s.mode,
+                    "t_start": float(s.t[0]),
+                    "t_end": float(s.t[-1]),
+                    "lipschitz": s.lipschitz,
+                    "max_bound": float(s.bound.max()),
+                    "final_bound": float(s.bound[-1]),
+                }
                 for s in self.segments
             ],
         }
@@ -342,10 +360,14 @@ def error_bound(
                 k0 = np.asarray(fieldfn(t, x, u), dtype=float)
                 le[n] = estimator.estimate(fieldfn, t, x, hn, k0, control, seg.x[n + 1])
         L = fixed_l if fixed_l is not None else float(sigma.max())
-        out.append(SegmentBound(seg.mode, seg.t.copy(), seg.x.copy(), le, sigma, L,
-                                accumulate_bound(seg.t, le, L)))
-    return ErrorBound(tuple(out), estimator.method.name, estimator.pair.name, estimator.floor,
-                      {"lipschitz": lipschitz if fixed_l is None else fixed_l})
+        out.append(SegmentBound(seg.mode, seg.t.copy(), seg.x.copy(), le, sigma, L, accumulate_bound(seg.t, le, L)))
+    return ErrorBound(
+        tuple(out),
+        estimator.method.name,
+        estimator.pair.name,
+        estimator.floor,
+        {"lipschitz": lipschitz if fixed_l is None else fixed_l},
+    )
 
 
 # -- a mode's numerical flow, past its guards, with the bound ---------------------------------
@@ -409,10 +431,21 @@ class ModeFlow:
     #: extremum closer to an end than this is within ~probe^2 of the end's own value.
     EDGE_PROBE = 1e-6
 
-    def __init__(self, system: HybridSystem, mode: str, x0: np.ndarray, t0: float, h: float,
-                 estimator: LocalErrorEstimator, *, control: ControlFn | None = None, b0: float = 0.0,
-                 t_end: float = math.inf, max_points: int = 10_000_000,
-                 progress: Callable[[float], None] | None = None) -> None:
+    def __init__(
+        self,
+        system: HybridSystem,
+        mode: str,
+        x0: np.ndarray,
+        t0: float,
+        h: float,
+        estimator: LocalErrorEstimator,
+        *,
+        control: ControlFn | None = None,
+        b0: float = 0.0,
+        t_end: float = math.inf,
+        max_points: int = 10_000_000,
+        progress: Callable[[float], None] | None = None,
+    ) -> None:
         self.system = system
         self.mode_name = mode
         self.mode = system.mode(mode)
@@ -490,17 +523,20 @@ class ModeFlow:
         if not last:
             hn, x_new, f_new, le, last = self._step(t, x, f0, remaining)
         if len(self.points) + 1 >= self.max_points and self.status == "running" and remaining > 0:
-            self._finish("max_points", f"flow of mode '{self.mode_name}' reached {self.max_points} points "
-                                       f"at t={t:.17g}")
+            self._finish(
+                "max_points", f"flow of mode '{self.mode_name}' reached {self.max_points} points at t={t:.17g}"
+            )
         # A failed step's error is not part of the bound at its start point (its ball stays finite).
         radius = self._s + (le if math.isfinite(le) else 0.0)
         if not math.isfinite(radius):
             # B grows like e^(L (t - t0)): past t - t0 ~ 700 / L it overflows, and a ball of
             # infinite radius says nothing (every guard would be half crossed, 0 * inf = nan).
-            self._finish("bound_overflow",
-                         f"the error bound of mode '{self.mode_name}' overflowed at t={t:.6g} (it grows like "
-                         f"exp(L (t - t0)) with L = {self._L:.3g} 1/s from t0 = {self.t0:.6g} s): "
-                         f"shorten t_final or lower h")
+            self._finish(
+                "bound_overflow",
+                f"the error bound of mode '{self.mode_name}' overflowed at t={t:.6g} (it grows like "
+                f"exp(L (t - t0)) with L = {self._L:.3g} 1/s from t0 = {self.t0:.6g} s): "
+                f"shorten t_final or lower h",
+            )
             return False
         self.points.append(FlowPoint(t, x, f0, radius, g, d))
         if self.progress is not None and (len(self.points) & 255) == 0:
@@ -515,8 +551,9 @@ class ModeFlow:
         self._f = f_new
         return True
 
-    def _step(self, t: float, x: np.ndarray, f0: np.ndarray,
-              remaining: float) -> tuple[float, np.ndarray, np.ndarray, float, bool]:
+    def _step(
+        self, t: float, x: np.ndarray, f0: np.ndarray, remaining: float
+    ) -> tuple[float, np.ndarray, np.ndarray, float, bool]:
         """One step from (t, x), f0 = f(t, x), at most ``remaining`` (s) long: (its length, the
         new state and field, its local error with the interpolant's, whether the flow ends at
         its start: the model broke down or the step is not finite, its error then infinite)."""
@@ -536,8 +573,9 @@ class ModeFlow:
             self._finish("model_breakdown", f"{exc} (flowing mode '{self.mode_name}' on from t={t:.6g})")
             return hn, x, x, math.inf, True
         if not (_finite(x_new) and _finite(f_new) and math.isfinite(le)):
-            self._finish("non_finite", f"step from t={t:.17g} in mode '{self.mode_name}' is not finite "
-                                       f"(x={x.tolist()})")
+            self._finish(
+                "non_finite", f"step from t={t:.17g} in mode '{self.mode_name}' is not finite (x={x.tolist()})"
+            )
             return hn, x_new, f_new, math.inf, True
         return hn, x_new, f_new, le, False
 
@@ -585,14 +623,22 @@ class ModeFlow:
         hi = np.maximum(p0.distance, p1.distance)
         inside = lo - rmax > margin
         past = hi + rmax < -margin
-        ends = StepSamples(np.array([0.0, 1.0]), np.array([p0.t, p1.t]), np.array([p0.x, p1.x]),
-                           np.array([r0, r1]), np.array([p0.guard, p1.guard]), np.array([p0.distance, p1.distance]))
+        ends = StepSamples(
+            np.array([0.0, 1.0]),
+            np.array([p0.t, p1.t]),
+            np.array([p0.x, p1.x]),
+            np.array([r0, r1]),
+            np.array([p0.guard, p1.guard]),
+            np.array([p0.distance, p1.distance]),
+        )
         if np.all(inside | past) or dt <= 0.0:
             return ends
         k = self.SAMPLES_PER_ACTIVE_STEP
         fractions = list(np.linspace(0.0, 1.0, k + 1))
-        cache: dict[float, tuple[np.ndarray, np.ndarray, np.ndarray]] = {0.0: (p0.x, p0.guard, p0.distance),
-                                                                           1.0: (p1.x, p1.guard, p1.distance)}
+        cache: dict[float, tuple[np.ndarray, np.ndarray, np.ndarray]] = {
+            0.0: (p0.x, p0.guard, p0.distance),
+            1.0: (p1.x, p1.guard, p1.distance),
+        }
 
         def at(s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
             if s not in cache:
@@ -622,13 +668,23 @@ class ModeFlow:
             for before, middle, after, lo_s, hi_s in triples:
                 if (middle - before) * (after - middle) < 0.0:
                     sign = 1.0 if middle <= before else -1.0  # a minimum of u, or a maximum
-                    res = minimize_scalar(lambda s, sign=sign, j=j: sign * ratio(float(s), j), bounds=(lo_s, hi_s),
-                                          method="bounded", options={"xatol": 1e-12})
+                    res = minimize_scalar(
+                        lambda s, sign=sign, j=j: sign * ratio(float(s), j),
+                        bounds=(lo_s, hi_s),
+                        method="bounded",
+                        options={"xatol": 1e-12},
+                    )
                     extra.append(float(res.x))
         s_all = np.unique(np.concatenate([np.array(fractions), np.array(extra)]))
         xs, gs, ds = zip(*(at(float(s)) for s in s_all), strict=True)
-        return StepSamples(s_all, p0.t + s_all * dt, np.array(xs), (1.0 - s_all) * r0 + s_all * r1,
-                           np.array(gs).reshape(len(s_all), -1), np.array(ds).reshape(len(s_all), -1))
+        return StepSamples(
+            s_all,
+            p0.t + s_all * dt,
+            np.array(xs),
+            (1.0 - s_all) * r0 + s_all * r1,
+            np.array(gs).reshape(len(s_all), -1),
+            np.array(ds).reshape(len(s_all), -1),
+        )
 
 
 def check_steps(span: float, h: float, what: str) -> int:
@@ -636,29 +692,8 @@ def check_steps(span: float, h: float, what: str) -> int:
     ``what`` when it exceeds ``MAX_STEPS``."""
     steps = span / h
     if not steps <= MAX_STEPS:
-        raise SimulationError(f"{what}: {span:g} s at h = {h:g} s is {steps:.3g} steps, more than the limit "
-                              f"{MAX_STEPS:.0e}: raise h or shorten t_final")
+        raise SimulationError(
+            f"{what}: {span:g} s at h = {h:g} s is {steps:.3g} steps, more than the limit "
+            f"{MAX_STEPS:.0e}: raise h or shorten t_final"
+        )
     return math.ceil(steps)
-
-
-def check_start(system: HybridSystem, mode: Any, x0: Any) -> np.ndarray:
-    """x0 as a state of ``mode`` of ``system``, shape (n,), or SimulationError naming what is
-    wrong."""
-    if not isinstance(system, HybridSystem):
-        raise SimulationError(f"system must be a legsim.HybridSystem, got {type(system).__name__}")
-    if not isinstance(mode, str):
-        raise SimulationError(f"mode must be a mode name (str), got {mode!r}")
-    try:
-        system.mode(mode)
-    except ModelError as exc:
-        raise SimulationError(f"unknown mode {mode!r}: {exc}") from exc
-    return system.check_state(mode, x0, label="x0")
-
-
-def check_t_final(t_final: Any, t0: float) -> float:
-    """t_final (s) as a float, or SimulationError unless it is a finite number after t0."""
-    if not (isinstance(t_final, (int, float, np.integer, np.floating)) and math.isfinite(t_final) and t_final > t0):
-        raise SimulationError(f"t_final must be a finite number > t0 = {t0}, got {t_final!r}")
-    return float(t_final)
-
-

@@ -112,11 +112,16 @@ ZENO_WINDOW = "zeno_window"
 
 #: The ``zeno`` effect of the builders whose transitions name continuations: it sets the window
 #: of the accumulation rule (``legsim.relaxed.zeno``). Continuation itself is on by default.
-ZENO_EFFECT = Effect("the window of the Zeno accumulation rule: shrinking flights shorter than `window` count as "
-                     "accumulating, and contacts continue in their constrained mode (continuation is on by "
-                     "default with window h + eps; `integrator.continuation = false` switches it off)",
-                     parameters={"window": Param(2e-3, "shortest flight resolved (s); by default h + eps of the run",
-                                                 "s", low=0.0, low_open=True)})
+ZENO_EFFECT = Effect(
+    "the window of the Zeno accumulation rule: shrinking flights shorter than `window` count as "
+    "accumulating, and contacts continue in their constrained mode (continuation is on by "
+    "default with window h + eps; `integrator.continuation = false` switches it off)",
+    parameters={
+        "window": Param(
+            2e-3, "shortest flight resolved (s); by default h + eps of the run", "s", low=0.0, low_open=True
+        )
+    },
+)
 
 
 @dataclass
@@ -162,8 +167,9 @@ class Builder:
     effects: Mapping[str, Effect]
     build: Callable[[dict[str, Any], dict[str, dict[str, Any]]], Model]
 
-    def make(self, parameters: Mapping[str, Any] | None = None,
-             effects: Mapping[str, Any] | None = None, where: str = "") -> Model:
+    def make(
+        self, parameters: Mapping[str, Any] | None = None, effects: Mapping[str, Any] | None = None, where: str = ""
+    ) -> Model:
         """Validate ``parameters`` and ``effects`` (as a scene would give them) and build."""
         prefix = f"{where}: " if where else ""
         params = resolve_parameters(self.parameters, parameters or {}, f"{prefix}robot.parameters")

@@ -72,12 +72,15 @@ def build_parser() -> argparse.ArgumentParser:
     """The argument parser with one subparser per discovered command."""
     common = argparse.ArgumentParser(add_help=False)
     # SUPPRESS lets --debug be given before or after the command without one hiding the other.
-    common.add_argument("--debug", action="store_true", default=argparse.SUPPRESS,
-                        help="show the full traceback of errors")
+    common.add_argument(
+        "--debug", action="store_true", default=argparse.SUPPRESS, help="show the full traceback of errors"
+    )
     parser = argparse.ArgumentParser(
-        prog="legsim", parents=[common],
+        prog="legsim",
+        parents=[common],
         description="Simulate legged robots as controlled hybrid systems with the relaxed hybrid integrator.",
-        epilog="Run `legsim COMMAND --help` for a command's options.")
+        epilog="Run `legsim COMMAND --help` for a command's options.",
+    )
     parser.add_argument("--version", action="version", version=f"legsim {_version()}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", title="commands")
     commands, broken = discover_commands()
@@ -97,6 +100,7 @@ def build_parser() -> argparse.ArgumentParser:
 def _unavailable(name: str, reason: str):
     def run(args: argparse.Namespace) -> int:
         raise LegsimError(f"command '{name}' is unavailable: its module failed to load ({reason})")
+
     return run
 
 
@@ -118,8 +122,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         except KeyboardInterrupt:
             return _report("legsim: interrupted", debug, EXIT_INTERRUPTED)
         except Exception as exc:
-            return _report(f"legsim: internal error: {type(exc).__name__}: {exc}"
-                           + ("" if debug else " (run with --debug for the traceback)"), debug, EXIT_INTERNAL)
+            return _report(
+                f"legsim: internal error: {type(exc).__name__}: {exc}"
+                + ("" if debug else " (run with --debug for the traceback)"),
+                debug,
+                EXIT_INTERNAL,
+            )
 
 
 def _dispatch(argv: list[str]) -> int:

@@ -90,8 +90,10 @@ class ControllerSpec:
         params = resolve_parameters(self.parameters, parameters or {}, f"{prefix}controller.parameters")
         controller = self.make(model, params)
         if not isinstance(controller, Controller):
-            raise SceneError(f"{prefix}controller '{self.name}' made {type(controller).__name__}, expected a "
-                             f"legsim.control.Controller")
+            raise SceneError(
+                f"{prefix}controller '{self.name}' made {type(controller).__name__}, expected a "
+                f"legsim.control.Controller"
+            )
         return controller
 
 

@@ -25,9 +25,15 @@ CENTRAL_STEP = float(np.finfo(float).eps) ** (1.0 / 3.0)
 Scheme = Literal["central", "forward"]
 
 
-def jacobian(fn: Callable[[np.ndarray], ArrayLike], x: np.ndarray, *, scheme: Scheme = "central",
-             step: float | None = None, scale: float | np.ndarray | None = None,
-             f0: np.ndarray | None = None) -> np.ndarray:
+def jacobian(
+    fn: Callable[[np.ndarray], ArrayLike],
+    x: np.ndarray,
+    *,
+    scheme: Scheme = "central",
+    step: float | None = None,
+    scale: float | np.ndarray | None = None,
+    f0: np.ndarray | None = None,
+) -> np.ndarray:
     """d fn / dx at ``x`` by finite differences, shape (m, n) for fn: R^n -> R^m.
 
     Parameters
@@ -56,8 +62,10 @@ def jacobian(fn: Callable[[np.ndarray], ArrayLike], x: np.ndarray, *, scheme: Sc
             minus = x.copy()
             minus[j] -= d
             width = plus[j] - minus[j]  # the steps actually taken, after rounding
-            columns.append((np.atleast_1d(np.asarray(fn(plus), dtype=float))
-                            - np.atleast_1d(np.asarray(fn(minus), dtype=float))) / width)
+            columns.append(
+                (np.atleast_1d(np.asarray(fn(plus), dtype=float)) - np.atleast_1d(np.asarray(fn(minus), dtype=float)))
+                / width
+            )
         elif scheme == "forward":
             columns.append((np.atleast_1d(np.asarray(fn(plus), dtype=float)) - base) / (plus[j] - x[j]))
         else:

@@ -42,16 +42,28 @@ class ProgressBar:
         a monotonic clock.
     """
 
-    def __init__(self, stream: TextIO | None = None, label: str = "", width: int | None = None,
-                 clock: Callable[[], float] | None = None) -> None:
+    def __init__(
+        self,
+        stream: TextIO | None = None,
+        label: str = "",
+        width: int | None = None,
+        clock: Callable[[], float] | None = None,
+    ) -> None:
         console = Console(file=stream if stream is not None else sys.stderr, width=width, highlight=False)
-        columns = (TextColumn("{task.description}", markup=False), BarColumn(bar_width=BAR_WIDTH),
-                   TaskProgressColumn(), TextColumn("{task.fields[clock]}", markup=False), TimeElapsedColumn(),
-                   TextColumn("ETA"), TimeRemainingColumn())
+        columns = (
+            TextColumn("{task.description}", markup=False),
+            BarColumn(bar_width=BAR_WIDTH),
+            TaskProgressColumn(),
+            TextColumn("{task.fields[clock]}", markup=False),
+            TimeElapsedColumn(),
+            TextColumn("ETA"),
+            TimeRemainingColumn(),
+        )
         # Redrawn on each call rather than by a thread: simulate calls a few times a second.
         # Only stderr is routed above the bar: what a command prints on stdout stays there.
-        self.progress = Progress(*columns, console=console, auto_refresh=False, transient=True,
-                                 redirect_stdout=False, get_time=clock)
+        self.progress = Progress(
+            *columns, console=console, auto_refresh=False, transient=True, redirect_stdout=False, get_time=clock
+        )
         self.task = self.progress.add_task(label, total=1.0, clock="")
         self.drawn = False
 
@@ -84,8 +96,15 @@ class ProgressBar:
 
 
 @contextmanager
-def counting(total: int, label: str, *, done: int = 0, enabled: bool = True, stream: TextIO | None = None,
-             clock: Callable[[], float] | None = None) -> Iterator[Callable[[int], None]]:
+def counting(
+    total: int,
+    label: str,
+    *,
+    done: int = 0,
+    enabled: bool = True,
+    stream: TextIO | None = None,
+    clock: Callable[[], float] | None = None,
+) -> Iterator[Callable[[int], None]]:
     """``advance(n)`` counting ``n`` more of ``total`` items (the cases of ``legsim stress``,
     the tasks of a sweep, ``done`` of them already) on a bar with done / total, elapsed time
     and ETA, on ``stream`` (default stderr) when
@@ -95,10 +114,17 @@ def counting(total: int, label: str, *, done: int = 0, enabled: bool = True, str
     if not (enabled and _interactive(stream)):
         yield lambda n: None
         return
-    columns = (TextColumn(label, markup=False), BarColumn(bar_width=BAR_WIDTH), MofNCompleteColumn(),
-               TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn())
-    with Progress(*columns, console=Console(file=stream, highlight=False), transient=True, redirect_stdout=False,
-                  get_time=clock) as bar:
+    columns = (
+        TextColumn(label, markup=False),
+        BarColumn(bar_width=BAR_WIDTH),
+        MofNCompleteColumn(),
+        TimeElapsedColumn(),
+        TextColumn("ETA"),
+        TimeRemainingColumn(),
+    )
+    with Progress(
+        *columns, console=Console(file=stream, highlight=False), transient=True, redirect_stdout=False, get_time=clock
+    ) as bar:
         task = bar.add_task(label, total=total, completed=done)
         yield lambda n: bar.advance(task, n)
 

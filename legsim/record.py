@@ -23,6 +23,18 @@ from .output.trace import (
 )
 
 __all__ = [
-    "DEFAULT_FPS", "DEFAULT_MAX_FRAMES", "FORMAT", "Frames", "RecordingError", "Trace", "execution_trace",
-    "frame_times", "geometry_frames", "read_rrd", "run_summary", "scenery_only", "trace_series", "write_rrd",
+    "DEFAULT_FPS",
+    "DEFAULT_MAX_FRAMES",
+    "FORMAT",
+    "Frames",
+    "RecordingError",
+    "Trace",
+    "execution_trace",
+    "frame_times",
+    "geometry_frames",
+    "read_rrd",
+    "run_summary",
+    "scenery_only",
+    "trace_series",
+    "write_rrd",
 ]

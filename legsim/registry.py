@@ -25,9 +25,11 @@ def load_registered(found: dict[str, metadata.EntryPoint], name: str, kind: str,
     try:
         plugin = found[name].load()
     except Exception as exc:
-        raise SceneError(f"{kind} '{name}' could not be loaded from {found[name].value}: "
-                         f"{type(exc).__name__}: {exc}") from exc
+        raise SceneError(
+            f"{kind} '{name}' could not be loaded from {found[name].value}: {type(exc).__name__}: {exc}"
+        ) from exc
     if not isinstance(plugin, expected):
-        raise SceneError(f"entry point '{name}' ({found[name].value}) is not a "
-                         f"{expected.__module__}.{expected.__qualname__}")
+        raise SceneError(
+            f"entry point '{name}' ({found[name].value}) is not a {expected.__module__}.{expected.__qualname__}"
+        )
     return plugin

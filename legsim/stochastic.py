@@ -52,17 +52,8 @@ from typing import Any
 import numpy as np
 from scipy.optimize import brentq
 
-from .arguments import count, positive
-from .bounds import (
-    LocalErrorEstimator,
-    ModeFlow,
-    StepSamples,
-    ball_fraction_past,
-    check_start,
-    check_steps,
-    check_t_final,
-    reset_lipschitz,
-)
+from .arguments import check_start, check_t_final, count, positive
+from .bounds import LocalErrorEstimator, ModeFlow, StepSamples, ball_fraction_past, check_steps, reset_lipschitz
 from .errors import ModelBreakdown, SimulationError
 from .hybrid import HybridSystem
 from .methods import Tableau
@@ -103,14 +94,24 @@ def _check_hazard_cap(hazard_cap: float) -> float:
     ball through a guard allows a bounded number of switches. It binds only where pi'/(1 - pi)
     exceeds it, for the default 16 in the last ~1% of the probability (a disk: 1 - pi < 0.01),
     so grazing probabilities and switching times (Theorem 1) keep their values."""
-    if isinstance(hazard_cap, bool) or not isinstance(hazard_cap, (int, float, np.integer, np.floating)) \
-            or not hazard_cap > 0.0:
+    if (
+        isinstance(hazard_cap, bool)
+        or not isinstance(hazard_cap, (int, float, np.integer, np.floating))
+        or not hazard_cap > 0.0
+    ):
         raise SimulationError(f"hazard_cap must be a number > 0 (inf for no cap), got {hazard_cap!r}")
     return float(hazard_cap)
 
 
-def _capped_gain(gain: np.ndarray, z_from: np.ndarray, z_to: np.ndarray, pi_from: np.ndarray, pi_to: np.ndarray,
-                 cap: float, form: str) -> np.ndarray:
+def _capped_gain(
+    gain: np.ndarray,
+    z_from: np.ndarray,
+    z_to: np.ndarray,
+    pi_from: np.ndarray,
+    pi_to: np.ndarray,
+    cap: float,
+    form: str,
+) -> np.ndarray:
     """Per-guard hazard gains limited to cap |z_to - z_from| (z = d / B; a zero radius makes z
     infinite and leaves the gain uncapped). In the hazard reading a ball wholly past its guard
     (pi = 1) has switched for certain: while it moves on further past, its uncapped rate is
@@ -196,8 +197,9 @@ def transition_functions(
     form = _check_form(intensity)
     t_final = check_t_final(t_final, t0)
     check_steps(t_final - float(t0), h, "transition functions")
-    flow = ModeFlow(system, mode, x, float(t0), h, LocalErrorEstimator(method, pair, floor), control=control,
-                    b0=b0, t_end=t_final)
+    flow = ModeFlow(
+        system, mode, x, float(t0), h, LocalErrorEstimator(method, pair, floor), control=control, b0=b0, t_end=t_final
+    )
     pieces: list[StepSamples] = []
     n = 0
     while True:
@@ -210,11 +212,13 @@ def transition_functions(
         p = flow.point(0)
         if p is None:
             raise SimulationError(f"mode '{mode}': {flow.message}")
-        pieces.append(StepSamples(np.zeros(1), np.array([p.t]), p.x[None], np.array([p.radius]),
-                                  p.guard[None], p.distance[None]))
+        pieces.append(
+            StepSamples(np.zeros(1), np.array([p.t]), p.x[None], np.array([p.radius]), p.guard[None], p.distance[None])
+        )
     # Consecutive steps share their end points: keep each once.
-    keep = [pieces[0]] + [StepSamples(q.s[1:], q.t[1:], q.x[1:], q.radius[1:], q.guard[1:], q.distance[1:])
-                          for q in pieces[1:]]
+    keep = [pieces[0]] + [
+        StepSamples(q.s[1:], q.t[1:], q.x[1:], q.radius[1:], q.guard[1:], q.distance[1:]) for q in pieces[1:]
+    ]
     t = np.concatenate([q.t for q in keep])
     xs = np.concatenate([q.x for q in keep])
     radius = np.concatenate([q.radius for q in keep])
@@ -229,8 +233,20 @@ def transition_functions(
         lam[:-1] = incr / np.maximum(dt, np.finfo(float).tiny)[:, None]
     hazard = np.concatenate([[0.0], np.cumsum(incr.sum(axis=1))])
     trs = flow.transitions
-    return TransitionFunctions(mode, tuple(tr.name for tr in trs), tuple(tr.target for tr in trs),
-                               t, xs, radius, distance, pi, lam, hazard, np.exp(-hazard), form)
+    return TransitionFunctions(
+        mode,
+        tuple(tr.name for tr in trs),
+        tuple(tr.target for tr in trs),
+        t,
+        xs,
+        radius,
+        distance,
+        pi,
+        lam,
+        hazard,
+        np.exp(-hazard),
+        form,
+    )
 
 
 # -- sampled stochastic executions ------------------------------------------------------------
@@ -299,8 +315,9 @@ class _Visit:
             pi = ball_fraction_past(samples.distance, samples.radius[:, None], self.dim).reshape(samples.distance.shape)
             cum = _cumulative(pi, self.form)
             z = _ratio(samples.distance, samples.radius[:, None])
-            gain = _capped_gain(np.maximum(np.diff(cum, axis=0), 0.0), z[:-1], z[1:], pi[:-1], pi[1:], self.cap,
-                                self.form).sum(axis=1)
+            gain = _capped_gain(
+                np.maximum(np.diff(cum, axis=0), 0.0), z[:-1], z[1:], pi[:-1], pi[1:], self.cap, self.form
+            ).sum(axis=1)
             self._steps.append((samples, cum, np.concatenate([[0.0], np.cumsum(gain)])))
         return self._steps[n]
 
@@ -323,14 +340,16 @@ def _sample_visit(visit: _Visit, rng: np.random.Generator) -> tuple[float, int, 
         n += 1
 
 
-def _switch_in_piece(visit: _Visit, n: int, samples: StepSamples, cum: np.ndarray, i: int, need: float,
-                     rng: np.random.Generator) -> tuple[float, int, np.ndarray, float]:
+def _switch_in_piece(
+    visit: _Visit, n: int, samples: StepSamples, cum: np.ndarray, i: int, need: float, rng: np.random.Generator
+) -> tuple[float, int, np.ndarray, float]:
     """The switch falls between samples i - 1 and i of step n, after a further hazard ``need``."""
     flow = visit.flow
     p0, p1 = flow.points[n], flow.points[n + 1]
     dt = p1.t - p0.t
     s_lo, s_hi = float(samples.s[i - 1]), float(samples.s[i])
     c_lo = cum[i - 1]
+
     def past(d: np.ndarray, r: Any) -> tuple[np.ndarray, np.ndarray]:
         """The fraction of the ball past each guard, and z = d / B."""
         return ball_fraction_past(d, r, visit.dim).reshape(-1), _ratio(d, r).reshape(-1)
@@ -433,8 +452,13 @@ class _SampledExecution:
         self.states = [x.copy()]
         self.widest = 0.0
 
-    def run(self, visit: _Visit, next_visit: Callable[[str, np.ndarray, float, float], _Visit],
-            rng: np.random.Generator, max_transitions: int) -> StochasticExecution:
+    def run(
+        self,
+        visit: _Visit,
+        next_visit: Callable[[str, np.ndarray, float, float], _Visit],
+        rng: np.random.Generator,
+        max_transitions: int,
+    ) -> StochasticExecution:
         """Draw switches until the flow ends, the budget is used up or the switches stall;
         ``next_visit(mode, x, t, b0)`` starts the visit after a switch."""
         while True:
@@ -443,21 +467,30 @@ class _SampledExecution:
                 flow = visit.flow
                 last = flow.points[-1]
                 self.widest = max([self.widest] + [p.radius for p in flow.points])
-                return self.end(last.x.copy(), last.t, "finished" if flow.status == "end" else flow.status,
-                                flow.message)
+                return self.end(
+                    last.x.copy(), last.t, "finished" if flow.status == "end" else flow.status, flow.message
+                )
             if len(self.times) >= max_transitions:
-                return self.end(visit.flow.points[-1].x.copy(), self.t, "max_transitions",
-                                f"transition budget max_transitions={max_transitions} used up at t={self.t:.17g}")
+                return self.end(
+                    visit.flow.points[-1].x.copy(),
+                    self.t,
+                    "max_transitions",
+                    f"transition budget max_transitions={max_transitions} used up at t={self.t:.17g}",
+                )
             tau, j, x_tau, radius = drawn
             self.widest = max(self.widest, radius)
             if tau <= self.t:
                 # Def. 4 needs tau_{i+1} > tau_i. A switch at the very instant of the previous one
                 # means the visits have shrunk below the resolution of the time (a ball at rounding
                 # level cannot hold off an accumulation): going on would only repeat it.
-                return self.end(x_tau.copy(), self.t, "stalled",
-                                f"the switching times stopped advancing at t={self.t:.17g} after {len(self.times)} "
-                                f"switches (a visit shorter than the time resolution; error ball {radius:.3g}): the "
-                                f"bound is too small to keep the switches apart, declare a larger local error floor")
+                return self.end(
+                    x_tau.copy(),
+                    self.t,
+                    "stalled",
+                    f"the switching times stopped advancing at t={self.t:.17g} after {len(self.times)} "
+                    f"switches (a visit shorter than the time resolution; error ball {radius:.3g}): the "
+                    f"bound is too small to keep the switches apart, declare a larger local error floor",
+                )
             tr = visit.flow.transitions[j]
             try:
                 x_new = np.asarray(x_tau if tr.reset is None else tr.reset(x_tau), dtype=float)
@@ -475,8 +508,18 @@ class _SampledExecution:
         self.t = tau
 
     def end(self, final_state: np.ndarray, t_end: float, status: str, message: str) -> StochasticExecution:
-        return StochasticExecution(np.array(self.times), self.modes, self.names, self.states, final_state, t_end,
-                                   status, message, t0=self.t0, max_radius=self.widest)
+        return StochasticExecution(
+            np.array(self.times),
+            self.modes,
+            self.names,
+            self.states,
+            final_state,
+            t_end,
+            status,
+            message,
+            t0=self.t0,
+            max_radius=self.widest,
+        )
 
 
 @dataclass
@@ -494,16 +537,26 @@ class Ensemble:
         """JSON-ready summary: distribution of mode sequences and of switching times."""
         n = len(self.executions)
         counts = Counter(tuple(e.modes) for e in self.executions)
-        sequences = [{"modes": list(seq), "transitions": len(seq) - 1, "count": c, "fraction": c / n}
-                     for seq, c in counts.most_common(max_sequences)]
+        sequences = [
+            {"modes": list(seq), "transitions": len(seq) - 1, "count": c, "fraction": c / n}
+            for seq, c in counts.most_common(max_sequences)
+        ]
         per_sample = np.array([len(e.times) for e in self.executions])
         switches = []
         for i in range(int(per_sample.max(initial=0))):
             if i >= max_switches:
                 break
             ts = self.switching_times(i)
-            switches.append({"index": i + 1, "count": len(ts), "mean": float(ts.mean()),
-                             "std": float(ts.std()), "min": float(ts.min()), "max": float(ts.max())})
+            switches.append(
+                {
+                    "index": i + 1,
+                    "count": len(ts),
+                    "mean": float(ts.mean()),
+                    "std": float(ts.std()),
+                    "min": float(ts.min()),
+                    "max": float(ts.max()),
+                }
+            )
         dwell = [e.dwell_times for e in self.executions if len(e.times)]
         min_dwell = float(min(d.min() for d in dwell)) if dwell else None
         statuses = Counter(e.status for e in self.executions)
@@ -512,8 +565,11 @@ class Ensemble:
             "samples": n,
             "distinct_sequences": len(counts),
             "sequences": sequences,
-            "transitions_per_sample": {"mean": float(per_sample.mean()), "min": int(per_sample.min()),
-                                       "max": int(per_sample.max())},
+            "transitions_per_sample": {
+                "mean": float(per_sample.mean()),
+                "min": int(per_sample.min()),
+                "max": int(per_sample.max()),
+            },
             "switching_times": switches,
             "min_dwell_time": min_dwell,
             "max_radius": max((e.max_radius for e in self.executions), default=0.0),
@@ -571,14 +627,41 @@ def sample_ensemble(
     first = _Visit(ModeFlow(system, mode, x, float(t0), h, estimator, control=control, t_end=t_final), intensity, cap)
     runs = []
     for done, k in enumerate(chosen, 1):
-        runs.append(sample_execution(system, mode, x, t_final, h, method, rng=sample_generator(seed, k), t0=t0,
-                                     pair=pair, control=control, floor=floor, intensity=intensity,
-                                     max_transitions=max_transitions, carry=carry, hazard_cap=cap, _first=first))
+        runs.append(
+            sample_execution(
+                system,
+                mode,
+                x,
+                t_final,
+                h,
+                method,
+                rng=sample_generator(seed, k),
+                t0=t0,
+                pair=pair,
+                control=control,
+                floor=floor,
+                intensity=intensity,
+                max_transitions=max_transitions,
+                carry=carry,
+                hazard_cap=cap,
+                _first=first,
+            )
+        )
         if progress is not None:
             progress(done, len(chosen))
-    settings = {"system": system.name, "initial_mode": mode, "h": h, "method": estimator.method.name,
-                "pair": estimator.pair.name, "floor": estimator.floor, "intensity": intensity, "carry": carry,
-                "hazard_cap": cap, "t_final": t_final, "seed": seed}
+    settings = {
+        "system": system.name,
+        "initial_mode": mode,
+        "h": h,
+        "method": estimator.method.name,
+        "pair": estimator.pair.name,
+        "floor": estimator.floor,
+        "intensity": intensity,
+        "carry": carry,
+        "hazard_cap": cap,
+        "t_final": t_final,
+        "seed": seed,
+    }
     return Ensemble(runs, settings)
 
 

@@ -24,14 +24,7 @@ PIPE_WIDTH = 120
 #: Characters a wrapping column is left at least before the columns kept whole are wrapped too.
 MIN_WRAPPED = 12
 #: The header, a rule of dashes under it, the rows: no frame, no lines between rows.
-PLAIN_HEAD = Box("    \n"
-                 "    \n"
-                 " -- \n"
-                 "    \n"
-                 "    \n"
-                 "    \n"
-                 "    \n"
-                 "    \n", ascii=True)
+PLAIN_HEAD = Box("    \n    \n -- \n    \n    \n    \n    \n    \n", ascii=True)
 
 
 def output_width(stream: TextIO | None = None) -> int:
@@ -45,8 +38,14 @@ def output_width(stream: TextIO | None = None) -> int:
     return shutil.get_terminal_size((PIPE_WIDTH, 24)).columns if interactive else PIPE_WIDTH
 
 
-def render_table(header: Sequence[str], rows: Iterable[Sequence[str]], *, right: Iterable[int] = (),
-                 whole: Iterable[int] = (), width: int | None = None) -> str:
+def render_table(
+    header: Sequence[str],
+    rows: Iterable[Sequence[str]],
+    *,
+    right: Iterable[int] = (),
+    whole: Iterable[int] = (),
+    width: int | None = None,
+) -> str:
     """The table as text at most ``width`` characters wide (default ``output_width()``).
 
     ``header``: the column titles; ``rows``: one sequence of cell texts per row, as many as the
@@ -65,13 +64,15 @@ def render_table(header: Sequence[str], rows: Iterable[Sequence[str]], *, right:
     kept = _kept_whole(header, cells, set(whole), width)
     table = Table(box=PLAIN_HEAD, show_edge=False, pad_edge=False, collapse_padding=True)
     for i, title in enumerate(header):
-        table.add_column(Text(title), justify="right" if i in aligned_right else "left", overflow="fold",
-                         no_wrap=i in kept)
+        table.add_column(
+            Text(title), justify="right" if i in aligned_right else "left", overflow="fold", no_wrap=i in kept
+        )
     for row in cells:
         table.add_row(*(Text(cell) for cell in row))
     buffer = io.StringIO()
-    console = Console(file=buffer, width=width, color_system=None, highlight=False,
-                      force_terminal=False, legacy_windows=False)
+    console = Console(
+        file=buffer, width=width, color_system=None, highlight=False, force_terminal=False, legacy_windows=False
+    )
     console.print(table)
     return "\n".join(line.rstrip() for line in buffer.getvalue().rstrip("\n").splitlines())
 

@@ -21,8 +21,10 @@ from legsim.viz._figures import finish, new_figure, parse_out, run_scene, state_
 
 # (scene, caption): Fig. 2c shows the paper's relaxed execution; its scene turns off the
 # continuation legsim takes by default where the impacts accumulate.
-SCENES = [("double_pendulum_plastic_paper", "(b) plastic impact, c = 0"),
-          ("double_pendulum_zeno_paper", "(c) Zeno, c = 0.5")]
+SCENES = [
+    ("double_pendulum_plastic_paper", "(b) plastic impact, c = 0"),
+    ("double_pendulum_zeno_paper", "(c) Zeno, c = 0.5"),
+]
 COORDINATES = ["theta1", "theta2", "theta1d", "theta2d"]
 UNITS = {"theta1": "rad", "theta2": "rad", "theta1d": "rad/s", "theta2d": "rad/s"}
 
@@ -38,9 +40,13 @@ def main(argv=None) -> int:
         strip_time = sum(b - a for a, b in ex.strip_intervals())
         title = f"{caption}\n{len(ex.transitions)} transitions, {strip_time:.2f} s of {ex.t_end:g} s in strips"
         state_panels(fig, column, ex, COORDINATES, title, UNITS)
-        print(f"{name}: {len(ex.transitions)} transitions, modes {' -> '.join(ex.mode_sequence[:8])}"
-              f"{' ...' if len(ex.mode_sequence) > 8 else ''}; strip time {strip_time:.3f} s; "
-              f"first impact at t = {ex.transitions[0].time:.4f} s" if ex.transitions else f"{name}: no transition")
+        print(
+            f"{name}: {len(ex.transitions)} transitions, modes {' -> '.join(ex.mode_sequence[:8])}"
+            f"{' ...' if len(ex.mode_sequence) > 8 else ''}; strip time {strip_time:.3f} s; "
+            f"first impact at t = {ex.transitions[0].time:.4f} s"
+            if ex.transitions
+            else f"{name}: no transition"
+        )
     finish(fig, out / "fig_double_pendulum.png", rrds)
     return 0
 

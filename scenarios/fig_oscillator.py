@@ -44,8 +44,10 @@ def main(argv=None) -> int:
         if reference is not None:
             rho_hat = float(np.max(np.abs(x_sim - reference.position(t_sim))))
             note = f", rho-hat = {rho_hat:.2e} m"
-            print(f"{name}: {len(ex.transitions)} transitions, rho-hat (max |x_sim - x_exact| over "
-                  f"{len(t_sim)} points) = {rho_hat:.3e} m")
+            print(
+                f"{name}: {len(ex.transitions)} transitions, rho-hat (max |x_sim - x_exact| over "
+                f"{len(t_sim)} points) = {rho_hat:.3e} m"
+            )
         ax.set_xlim(ex.t0, ex.t_end)
         ax.set_xlabel("time (s)")
         ax.set_ylabel("x (m)")

@@ -30,8 +30,10 @@ from legsim.viz._figures import (
     snapshot_times,
 )
 
-SCENES = [("pronk_paper", r"$\theta_0 = 0$: both legs touch down and lift off together"),
-          ("pronk_pitched_paper", r"$\theta_0 = -0.4$: the left leg touches down first")]
+SCENES = [
+    ("pronk_paper", r"$\theta_0 = 0$: both legs touch down and lift off together"),
+    ("pronk_pitched_paper", r"$\theta_0 = -0.4$: the left leg touches down first"),
+]
 GROUP_WITHIN = 0.03  # s
 
 
@@ -56,15 +58,29 @@ def main(argv=None) -> int:
                 draw_parts(ax, parts, colour, lw=2.2, point_size=25)
             pts = np.concatenate([np.asarray(p).reshape(-1, 2) for p in parts.values()])
             xs.extend([pts[:, 0].min(), pts[:, 0].max()])
-            transitions = [group[0][3].split(" → ")[0]] + [g[3].split(" → ")[-1] for g in group] \
-                if group[0][3].find("→") >= 0 else [group[0][3]]
+            transitions = (
+                [group[0][3].split(" → ")[0]] + [g[3].split(" → ")[-1] for g in group]
+                if group[0][3].find("→") >= 0
+                else [group[0][3]]
+            )
             label = f"{group[0][0]:.3f} s\n" + " → ".join(dict.fromkeys(transitions))
             # Alternate label heights so that neighbouring snapshots do not overwrite each other.
-            ax.annotate(label, (float(pts[:, 0].mean()), float(pts[:, 1].max())), textcoords="offset points",
-                        xytext=(0, 6 + 22 * (k % 2)), ha="center", fontsize=7, color=colour)
+            ax.annotate(
+                label,
+                (float(pts[:, 0].mean()), float(pts[:, 1].max())),
+                textcoords="offset points",
+                xytext=(0, 6 + 22 * (k % 2)),
+                ha="center",
+                fontsize=7,
+                color=colour,
+            )
         samples = ex.sample(np.linspace(ex.t0, ex.t_end, 400))
-        com = np.array([model.geometry(m, s).get("com", np.full((1, 2), np.nan))[0]
-                        for m, s in zip(samples.modes, samples.states, strict=True)])
+        com = np.array(
+            [
+                model.geometry(m, s).get("com", np.full((1, 2), np.nan))[0]
+                for m, s in zip(samples.modes, samples.states, strict=True)
+            ]
+        )
         ax.plot(com[:, 0], com[:, 1], "--", color="0.5", lw=0.8, zorder=0)
         draw_scenery(ax, model.scenery)
         ax.set_xlim(min(xs) - 0.3, max(xs) + 0.3)
@@ -73,8 +89,10 @@ def main(argv=None) -> int:
         ax.set_xlabel("x (m)")
         ax.set_ylabel("z (m)")
         ax.set_title(f"{caption}   ({len(ex.transitions)} transitions in {ex.t_end:g} s)", fontsize=10)
-        print(f"{name}: {len(ex.transitions)} transitions at t = "
-              + ", ".join(f"{tr.time:.4f} ({tr.source}->{tr.target})" for tr in ex.transitions))
+        print(
+            f"{name}: {len(ex.transitions)} transitions at t = "
+            + ", ".join(f"{tr.time:.4f} ({tr.source}->{tr.target})" for tr in ex.transitions)
+        )
     finish(fig, out / "fig_pronk_snapshots.png", rrds)
     return 0
 

@@ -44,8 +44,7 @@ def sweep(deltas: np.ndarray) -> dict[str, np.ndarray]:
         y = dc.make_reference(x0 + np.array([-delta, 0.0]))
         z = dc.make_reference(x0 + np.array([0.0, -delta]))
         events = np.array(y.transition_times + z.transition_times)
-        times = np.union1d(np.linspace(0.0, T_END, 401),
-                           np.linspace(events.min() - delta, events.max() + delta, 201))
+        times = np.union1d(np.linspace(0.0, T_END, 401), np.linspace(events.min() - delta, events.max() + delta, 201))
         d = distances(system, y, z, times, 0.0)
         mismatch = np.array(y.modes(times)) != np.array(z.modes(times))
         out["rho"].append(d.max())
@@ -59,6 +58,7 @@ def sweep(deltas: np.ndarray) -> dict[str, np.ndarray]:
 
 def plot(result: dict[str, np.ndarray], path: Path) -> Path:
     import matplotlib
+
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
@@ -97,15 +97,25 @@ def oscillator_table() -> None:
 
         # run(h, eps, method): the paper's relaxed execution (no Zeno continuation), whose modes
         # are the reference's, so that rho compares like with like
-        run = partial(simulate, system, [ex["x0"], ex["xd0"]], "free", t_end, control=control, max_transitions=10**6,
-                      continuation=False)
+        run = partial(
+            simulate,
+            system,
+            [ex["x0"], ex["xd0"]],
+            "free",
+            t_end,
+            control=control,
+            max_transitions=10**6,
+            continuation=False,
+        )
 
         print(f"{name} (t in [0, {t_end:.4g}] s, 2001 samples)")
         epsilons, means = [1e-2, 1e-3, 1e-4, 1e-5], []
         for eps in epsilons:
             means.append(np.mean([rho(system, run(h, eps, "rk4"), ref, times, eps) for h in (1e-2, 7.7e-3, 6.1e-3)]))
-            print(f"  rk4 eps={eps:.0e}: mean rho^eps over h = 1e-2, 7.7e-3, 6.1e-3: {means[-1]:.3g} "
-                  f"(rho/eps {means[-1] / eps:.0f})")
+            print(
+                f"  rk4 eps={eps:.0e}: mean rho^eps over h = 1e-2, 7.7e-3, 6.1e-3: {means[-1]:.3g} "
+                f"(rho/eps {means[-1] / eps:.0f})"
+            )
         print(f"  slope in eps: {np.polyfit(np.log(epsilons), np.log(means), 1)[0]:.3f}")
         steps, values, positions = [1e-2, 5e-3, 2.5e-3], [], []
         for h in steps:
@@ -113,16 +123,19 @@ def oscillator_table() -> None:
             values.append(rho(system, sim, ref, times, 1e-8))
             positions.append(position_error(sim, ref, times))
             print(f"  rk2 h={h:g} eps=1e-8: rho^eps {values[-1]:.3g}, position error (30) {positions[-1]:.3g}")
-        print(f"  slope in h: rho {np.polyfit(np.log(steps), np.log(values), 1)[0]:.3f}, "
-              f"position error {np.polyfit(np.log(steps), np.log(positions), 1)[0]:.3f}")
+        print(
+            f"  slope in h: rho {np.polyfit(np.log(steps), np.log(values), 1)[0]:.3f}, "
+            f"position error {np.polyfit(np.log(steps), np.log(positions), 1)[0]:.3f}"
+        )
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", default="out", help="output folder (default: out)")
     parser.add_argument("--deltas", type=int, default=7, help="number of offsets in [1e-4, 1e-1] (default: 7)")
-    parser.add_argument("--oscillator", action="store_true",
-                        help="also print rho^eps against eps and h for the oscillator of Table I")
+    parser.add_argument(
+        "--oscillator", action="store_true", help="also print rho^eps against eps and h for the oscillator of Table I"
+    )
     args = parser.parse_args(argv)
     if not 2 <= args.deltas <= 50:
         parser.error("--deltas must be between 2 (a slope needs two points) and 50")
@@ -138,11 +151,15 @@ def main(argv: list[str] | None = None) -> int:
     result = sweep(np.logspace(-1, -4, args.deltas))
     print(f"{'delta':>10} {'rho':>12} {'rho window':>12} {'rho^eps':>12} {'trajectory':>11}")
     for i, delta in enumerate(result["delta"]):
-        print(f"{delta:10.3g} {result['rho'][i]:12.5g} {result['rho_window'][i]:12.5g} "
-              f"{result['rho_eps'][i]:12.5g} {result['trajectory'][i]:11.5g}")
+        print(
+            f"{delta:10.3g} {result['rho'][i]:12.5g} {result['rho_window'][i]:12.5g} "
+            f"{result['rho_eps'][i]:12.5g} {result['trajectory'][i]:11.5g}"
+        )
     log_d = np.log(result["delta"])
-    print(f"slope of log rho vs log delta: {np.polyfit(log_d, np.log(result['rho']), 1)[0]:.4f}; "
-          f"in the mismatch window: {np.polyfit(log_d, np.log(result['rho_window']), 1)[0]:.4f}")
+    print(
+        f"slope of log rho vs log delta: {np.polyfit(log_d, np.log(result['rho']), 1)[0]:.4f}; "
+        f"in the mismatch window: {np.polyfit(log_d, np.log(result['rho_window']), 1)[0]:.4f}"
+    )
     print(f"min trajectory-space distance: {result['trajectory'].min():.6f}")
     path = plot(result, out / "metric_digital_control.png")
     print(f"wrote {path}")

@@ -34,10 +34,18 @@ def test_the_estimate_of_the_ball_brackets_its_impact_time_error():
 
 
 def test_the_refined_run_has_eps_over_10_and_half_the_step_or_a_tenth_of_the_tolerances():
-    assert refined({"h": 0.1, "eps": 1e-3, "rtol": None, "atol": None}) == \
-        {"h": 0.05, "eps": 1e-4, "rtol": None, "atol": None}
-    assert refined({"h": 0.1, "eps": 1e-3, "rtol": 1e-6, "atol": 1e-9}) == \
-        {"h": 0.1, "eps": 1e-4, "rtol": 1e-7, "atol": 1e-10}
+    assert refined({"h": 0.1, "eps": 1e-3, "rtol": None, "atol": None}) == {
+        "h": 0.05,
+        "eps": 1e-4,
+        "rtol": None,
+        "atol": None,
+    }
+    assert refined({"h": 0.1, "eps": 1e-3, "rtol": 1e-6, "atol": 1e-9}) == {
+        "h": 0.1,
+        "eps": 1e-4,
+        "rtol": 1e-7,
+        "atol": 1e-10,
+    }
 
 
 def test_run_check_accuracy_reports_the_estimate_in_json_and_text(capsys):

@@ -12,8 +12,15 @@ G = 9.81
 def ball(c: float) -> HybridSystem:
     return HybridSystem(
         {"flight": Mode(2, lambda t, x, u: np.array([x[1], -G]), names=("z", "zd"))},
-        [Transition("flight", "flight", guard=lambda x: max(x[0], x[1]),
-                    reset=lambda x: np.array([x[0], -c * x[1]]), name="bounce")],
+        [
+            Transition(
+                "flight",
+                "flight",
+                guard=lambda x: max(x[0], x[1]),
+                reset=lambda x: np.array([x[0], -c * x[1]]),
+                name="bounce",
+            )
+        ],
     )
 
 
@@ -52,6 +59,7 @@ def test_event_driven_fires_simultaneous_guards_at_a_corner():
             y = x.copy()
             y[i] = 1.0
             return y
+
         return reset
 
     trs = [

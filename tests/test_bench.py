@@ -26,17 +26,13 @@ from legsim.bench import (
 )
 from legsim.bench.cases import BenchError
 from legsim.bench.targets import MAX_PS_POINTS, MIN_IVP_TOL
-from legsim.bench.work_precision import (
-    own_points,
-    position_error,
-    run_one,
-    time_to_reach,
-    write_csv,
-)
+from legsim.bench.work_precision import own_points, position_error, run_one, time_to_reach, write_csv
 from legsim.cli import main
 
-METHOD_NAME = re.compile(r"^(relaxed-(euler|rk2|rk4|bs32|dopri5|dop853)(-zeno)?|ps"
-                         r"|solve_ivp-(RK23|RK45|DOP853|LSODA|Radau|BDF))$")
+METHOD_NAME = re.compile(
+    r"^(relaxed-(euler|rk2|rk4|bs32|dopri5|dop853)(-zeno)?|ps"
+    r"|solve_ivp-(RK23|RK45|DOP853|LSODA|Radau|BDF))$"
+)
 
 
 def test_error_of_euler_free_fall_is_the_closed_form():
@@ -62,8 +58,18 @@ def test_ps_error_is_measured_at_its_own_grid_against_the_closed_form():
     rows = [run_one(case, RunSpec("ps", "ps", h), repeats=1) for h in (1e-3, 1e-4)]
     assert rows[1].error < 0.2 * rows[0].error
     ps = case.ps
-    t, z = paoli_schatzman(ps["a"], ps["omega"], ps["c"], ps["x_max"], lambda t: 20.0 * np.cos(2.5 * t), ps["x0"],
-                           ps["xd0"], case.t_final, 1e-3, compiled=True)
+    t, z = paoli_schatzman(
+        ps["a"],
+        ps["omega"],
+        ps["c"],
+        ps["x_max"],
+        lambda t: 20.0 * np.cos(2.5 * t),
+        ps["x0"],
+        ps["xd0"],
+        case.t_final,
+        1e-3,
+        compiled=True,
+    )
     direct = np.abs(z - OscillatorReference.example("ex1").position(t)).max()
     assert rows[0].error == pytest.approx(direct, rel=1e-12)
     assert rows[0].steps == len(t) - 1
@@ -79,7 +85,8 @@ def test_own_points_are_the_segment_points_of_every_mode():
     assert np.all(np.diff(times) >= 0)
     # A wrong reference shows as its offset.
     assert position_error(times, values, lambda t: case.reference_positions(t) + 0.25) == pytest.approx(
-        0.25, abs=row_error(case, ex) + 1e-12)
+        0.25, abs=row_error(case, ex) + 1e-12
+    )
 
 
 def row_error(case, ex):
@@ -87,14 +94,37 @@ def row_error(case, ex):
 
 
 def _row(method, kind, error, wall):
-    return Row("c", method, kind, math.nan, math.nan, math.nan, math.inf, "", error, math.nan, wall, 1, 1, 0, 1, 0,
-               0, "finished")
+    return Row(
+        "c",
+        method,
+        kind,
+        math.nan,
+        math.nan,
+        math.nan,
+        math.inf,
+        "",
+        error,
+        math.nan,
+        wall,
+        1,
+        1,
+        0,
+        1,
+        0,
+        0,
+        "finished",
+    )
 
 
 def test_pareto_front_and_time_to_reach():
-    rows = [_row("relaxed-rk4", "relaxed", 1e-3, 1.0), _row("relaxed-rk4", "relaxed", 1e-6, 2.0),
-            _row("ps", "ps", 1e-2, 0.5), _row("ps", "ps", 1e-4, 10.0), _row("ps", "ps", 1e-7, 3.0),
-            _row("solve_ivp-RK45", "solve_ivp", math.inf, 0.1)]
+    rows = [
+        _row("relaxed-rk4", "relaxed", 1e-3, 1.0),
+        _row("relaxed-rk4", "relaxed", 1e-6, 2.0),
+        _row("ps", "ps", 1e-2, 0.5),
+        _row("ps", "ps", 1e-4, 10.0),
+        _row("ps", "ps", 1e-7, 3.0),
+        _row("solve_ivp-RK45", "solve_ivp", math.inf, 0.1),
+    ]
     mark_pareto(rows)
     # By time: 0.1 (inf error: never on the front), 0.5 (1e-2), 1.0 (1e-3), 2.0 (1e-6), 3.0 (1e-7), 10 (1e-4).
     assert [r.pareto for r in rows] == [1, 1, 1, 0, 1, 0]
@@ -105,8 +135,9 @@ def test_pareto_front_and_time_to_reach():
 
 def test_targets_report_ratio_and_the_cases_without_one():
     rows = [_row("relaxed-rk4", "relaxed", 1e-4, 0.1), _row("ps", "ps", 5e-4, 4.0), _row("ps", "ps", 1e-2, 1.0)]
-    met, unreached, missed = evaluate_targets(rows, [Target("a", 1e-3, "ps", 20.0), Target("b", 1e-4, "ps", 20.0),
-                                                     Target("c", 1e-5, "ps", 20.0)])
+    met, unreached, missed = evaluate_targets(
+        rows, [Target("a", 1e-3, "ps", 20.0), Target("b", 1e-4, "ps", 20.0), Target("c", 1e-5, "ps", 20.0)]
+    )
     assert met.ratio == pytest.approx(40.0) and met.met and met.verdict == MET
     # PS never reaches 1e-4: no ratio at the level, so no verdict on the target; the finest error
     # both reach is PS's best, 5e-4, where the ratio is 4.0 / 0.1.
@@ -130,8 +161,12 @@ def test_a_target_is_met_only_by_a_ratio_at_or_above_it(baseline_time, verdict):
 def test_a_baseline_that_never_reaches_the_level_is_never_met_whatever_its_slowest_run():
     # The slowest PS run takes 100x the relaxed run, but PS's error never gets to 1e-6: the ratio
     # at the level does not exist. At PS's best error (1.05e-6) relaxed is slower: 0.5x.
-    rows = [_row("relaxed-rk4", "relaxed", 5e-7, 0.2), _row("relaxed-rk4", "relaxed", 1e-6 * 1.01, 0.2),
-            _row("ps", "ps", 1.05e-6, 0.1), _row("ps", "ps", 3e-6, 20.0)]
+    rows = [
+        _row("relaxed-rk4", "relaxed", 5e-7, 0.2),
+        _row("relaxed-rk4", "relaxed", 1e-6 * 1.01, 0.2),
+        _row("ps", "ps", 1.05e-6, 0.1),
+        _row("ps", "ps", 3e-6, 20.0),
+    ]
     (result,) = evaluate_targets(rows, [Target("Ex.2", 1e-6, "ps", 10.0)])
     assert result.verdict == NOT_COMPARABLE and result.met is None
     assert result.common_level == 1.05e-6 and result.common_ratio == pytest.approx(0.5)
@@ -141,11 +176,21 @@ def test_a_baseline_that_never_reaches_the_level_is_never_met_whatever_its_slowe
 
 
 def test_printed_verdict_lines():
-    rows = [_row("relaxed-rk4", "relaxed", 1e-7, 0.125), _row("solve_ivp-RK45", "solve_ivp", 1e-7, 1.0),
-            _row("ps", "ps", 2e-6, 0.0625)]
-    results = evaluate_targets(rows, [Target("fast", 1e-6, "solve_ivp", 4.0), Target("slow", 1e-6, "solve_ivp", 10.0),
-                                      Target("ps", 1e-6, "ps", 10.0), Target("fine", 1e-8, "solve_ivp", 1.0)],
-                               notes={"ps": "ps sweep extended by 2 run(s) towards 1e-06: not reached"})
+    rows = [
+        _row("relaxed-rk4", "relaxed", 1e-7, 0.125),
+        _row("solve_ivp-RK45", "solve_ivp", 1e-7, 1.0),
+        _row("ps", "ps", 2e-6, 0.0625),
+    ]
+    results = evaluate_targets(
+        rows,
+        [
+            Target("fast", 1e-6, "solve_ivp", 4.0),
+            Target("slow", 1e-6, "solve_ivp", 10.0),
+            Target("ps", 1e-6, "ps", 10.0),
+            Target("fine", 1e-8, "solve_ivp", 1.0),
+        ],
+        notes={"ps": "ps sweep extended by 2 run(s) towards 1e-06: not reached"},
+    )
     assert format_targets(results).splitlines() == [
         "- fast: MET: 8x >= 4x at error <= 1e-06",
         "    relaxed  0.125 s  relaxed-rk4",
@@ -170,15 +215,21 @@ def test_printed_verdict_lines():
 def test_targets_command_judges_a_written_csv_by_the_same_rule(tmp_path, capsys):
     # The Ex.2 rows behind the old "MET ... 6.58x": PS's best is 1.05e-6 > 1e-6, its slowest run
     # 6.58x the plain relaxed run, the plain relaxed run 1.59x faster at PS's best error.
-    rows = [_row("relaxed-rk2", "relaxed", 4.6e-7, 0.03955), _row("relaxed-rk4-zeno", "relaxed", 9.99e-7, 0.004565),
-            _row("ps", "ps", 1.05e-6, 0.0629), _row("ps", "ps", 2e-6, 0.26)]
+    rows = [
+        _row("relaxed-rk2", "relaxed", 4.6e-7, 0.03955),
+        _row("relaxed-rk4-zeno", "relaxed", 9.99e-7, 0.004565),
+        _row("ps", "ps", 1.05e-6, 0.0629),
+        _row("ps", "ps", 2e-6, 0.26),
+    ]
     for r in rows:
         r.case = "oscillator-ex2"
     write_csv(rows, tmp_path / "oscillator-ex2.csv")
     assert main(["bench", "targets", "--case", "oscillator-ex2", "--out", str(tmp_path)]) == 0
     out = capsys.readouterr().out
-    assert verdicts(out) == {"Ex.2 error <= 1e-6: time(PS) / time(relaxed, plain or Zeno continuation)": NOT_COMPARABLE,
-                             "Ex.2 error <= 1e-6: time(PS) / time(plain relaxed, no continuation)": NOT_COMPARABLE}
+    assert verdicts(out) == {
+        "Ex.2 error <= 1e-6: time(PS) / time(relaxed, plain or Zeno continuation)": NOT_COMPARABLE,
+        "Ex.2 error <= 1e-6: time(PS) / time(plain relaxed, no continuation)": NOT_COMPARABLE,
+    }
     assert "at 1.05e-06, the finest error both reach, 13.8x (target 10x at 1e-06)" in out
     assert "at 1.05e-06, the finest error both reach, 1.59x (target 10x at 1e-06)" in out
     assert "MET" not in out
@@ -186,8 +237,9 @@ def test_targets_command_judges_a_written_csv_by_the_same_rule(tmp_path, capsys)
 
 # -- extending a baseline's sweep --------------------------------------------------------------
 def _ps_row(h, error, wall=1e-3):
-    return Row("c", "ps", "ps", h, math.nan, math.nan, math.nan, "", error, math.nan, wall, 1, 1, 0, 1, 0, 0,
-               "finished")
+    return Row(
+        "c", "ps", "ps", h, math.nan, math.nan, math.nan, "", error, math.nan, wall, 1, 1, 0, 1, 0, 0, "finished"
+    )
 
 
 def _fake_ps(error_of_h):
@@ -235,13 +287,15 @@ def test_extension_respects_the_budget_the_point_limit_and_scipys_tolerance_floo
     target = [Target("t", 1e-6, "ps", 10.0)]
     run, asked = _fake_ps(lambda h: 10 * h)
     # The finest run took 10 s: the next (twice as long) would pass a 5 s budget.
-    (ext,) = extend_baselines(CASE, [_row("relaxed-rk4", "relaxed", 5e-7, 0.001), _ps_row(1e-5, 1e-4, wall=10.0)],
-                              target, 5.0, run)
+    (ext,) = extend_baselines(
+        CASE, [_row("relaxed-rk4", "relaxed", 5e-7, 0.001), _ps_row(1e-5, 1e-4, wall=10.0)], target, 5.0, run
+    )
     assert asked == [] and ext.rows == [] and "the time budget of 5 s is spent" in ext.stopped
     # Halving past MAX_PS_POINTS points is refused.
     long_case = SimpleNamespace(t_final=MAX_PS_POINTS * 1e-5)
-    (ext,) = extend_baselines(long_case, [_row("relaxed-rk4", "relaxed", 5e-7, 0.001), _ps_row(1e-5, 1e-4)],
-                              target, 60.0, run)
+    (ext,) = extend_baselines(
+        long_case, [_row("relaxed-rk4", "relaxed", 5e-7, 0.001), _ps_row(1e-5, 1e-4)], target, 60.0, run
+    )
     assert asked == [] and "more than 5e+07" in ext.stopped
     # solve_ivp: tol / 10 per run, per (method, max_step), down to scipy's floor of 100 eps.
     ivp = [_row("relaxed-rk4", "relaxed", 1e-14, 0.001), _row("solve_ivp-DOP853", "solve_ivp", 1e-12, 0.01)]
@@ -312,8 +366,21 @@ def test_zeno_variant_of_ex2_beats_the_chattering_plain_run(tmp_path, capsys):
     # continuation, sticks. Its error against the closed
     # form must then be below the plain run's at the same h and eps, and below the 1e-6 m of the
     # speed target, the level the plain integrator misses.
-    code = main(["bench", "work-precision", "--case", "oscillator-ex2", "--quick", "--out", str(tmp_path),
-                 "--quiet", "--no-figure", "--rho-points", "0"])
+    code = main(
+        [
+            "bench",
+            "work-precision",
+            "--case",
+            "oscillator-ex2",
+            "--quick",
+            "--out",
+            str(tmp_path),
+            "--quiet",
+            "--no-figure",
+            "--rho-points",
+            "0",
+        ]
+    )
     assert code == 0
     out = capsys.readouterr().out
     assert "plain or Zeno continuation" in out and "takes the model's Zeno continuation (simulate's default" in out
@@ -338,18 +405,25 @@ def test_zeno_variant_of_ex2_beats_the_chattering_plain_run(tmp_path, capsys):
 
 
 def test_zeno_rows_count_in_targets_only_where_asked():
-    rows = [_row("relaxed-rk4", "relaxed", 2e-6, 0.1), _row("relaxed-rk4-zeno", "relaxed", 1e-7, 0.01),
-            _row("ps", "ps", 5e-7, 1.0)]
-    both, plain = evaluate_targets(rows, [Target("all", 1e-6, "ps", 10.0),
-                                          Target("plain", 1e-6, "ps", 10.0, relaxed="plain")])
+    rows = [
+        _row("relaxed-rk4", "relaxed", 2e-6, 0.1),
+        _row("relaxed-rk4-zeno", "relaxed", 1e-7, 0.01),
+        _row("ps", "ps", 5e-7, 1.0),
+    ]
+    both, plain = evaluate_targets(
+        rows, [Target("all", 1e-6, "ps", 10.0), Target("plain", 1e-6, "ps", 10.0, relaxed="plain")]
+    )
     assert both.ratio == pytest.approx(100.0) and both.met and "Zeno continuation" in both.note
     assert plain.relaxed_time is None and plain.met is False and plain.verdict == MISSED
 
 
 def test_zeno_run_rejected_on_a_case_without_the_variant():
     with pytest.raises(BenchError, match="no Zeno continuation variant"):
-        run_one(make_case("bouncing-ball", quick=True), RunSpec("relaxed", "relaxed-rk4-zeno", 1e-2, 1e-6, zeno=True),
-                repeats=1)
+        run_one(
+            make_case("bouncing-ball", quick=True),
+            RunSpec("relaxed", "relaxed-rk4-zeno", 1e-2, 1e-6, zeno=True),
+            repeats=1,
+        )
 
 
 def test_bench_rejects_bad_input(capsys):

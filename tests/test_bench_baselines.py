@@ -13,8 +13,9 @@ def test_dense_output_samples_between_steps_at_the_method_accuracy():
     system = make_system(2.0, 0.1, None, 0.9)
     ref = OscillatorReference(2.0, 0.1, None, 0.9, 1.0, 0.0, 0.0, 1.0, 0.0)
     plain = simulate_events(system, [1.0, 0.0], "free", 10.0, method="DOP853", rtol=1e-11, atol=1e-12)
-    dense = simulate_events(system, [1.0, 0.0], "free", 10.0, method="DOP853", rtol=1e-11, atol=1e-12,
-                            dense_output=True)
+    dense = simulate_events(
+        system, [1.0, 0.0], "free", 10.0, method="DOP853", rtol=1e-11, atol=1e-12, dense_output=True
+    )
     assert np.array_equal(plain.segments[0].t, dense.segments[0].t)
     steps = plain.segments[0].t
     mids = 0.5 * (steps[1:] + steps[:-1])
@@ -37,8 +38,9 @@ def test_model_breakdown_inside_solve_ivp_ends_the_run_with_that_status():
             raise ModelBreakdown("fell through the floor")
         return x[0] + 10.0
 
-    system = HybridSystem({"m": Mode(1, lambda t, x, u: np.array([-1.0]))},
-                          [Transition("m", "m", guard, lambda x: x.copy())])
+    system = HybridSystem(
+        {"m": Mode(1, lambda t, x, u: np.array([-1.0]))}, [Transition("m", "m", guard, lambda x: x.copy())]
+    )
     ex = simulate_events(system, [1.0], "m", 10.0, method="RK45", rtol=1e-6, atol=1e-9)
     assert ex.status == "model_breakdown"
     assert "fell through the floor" in ex.message and "mode 'm'" in ex.message
@@ -53,8 +55,17 @@ def test_zero_speed_graze_at_a_release_does_not_loop():
 
     model = dp.make(None, {"gravity": True, "stop": {"restitution": 0.0, "position": 0.0}})
     x0 = np.array([dp.INITIAL_STATE[n] for n in dp.STATE_NAMES])
-    ex = simulate_events(model.system, x0, "unconstrained", 5.0, method="DOP853", rtol=1e-12, atol=1e-12,
-                         max_step=0.02, max_transitions=50)
+    ex = simulate_events(
+        model.system,
+        x0,
+        "unconstrained",
+        5.0,
+        method="DOP853",
+        rtol=1e-12,
+        atol=1e-12,
+        max_step=0.02,
+        max_transitions=50,
+    )
     assert ex.status == "finished"
     impacts = [tr.time for tr in ex.transitions if tr.name == "impact_stop"]
     releases = [tr.time for tr in ex.transitions if tr.name == "release_stop"]

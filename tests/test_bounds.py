@@ -28,8 +28,7 @@ X0 = np.array([1.0, 0.5])
 
 
 def linear(A, jacobian=False):
-    return HybridSystem({"m": Mode(len(A), lambda t, x, u: A @ x,
-                                   jacobian=(lambda t, x, u: A) if jacobian else None)})
+    return HybridSystem({"m": Mode(len(A), lambda t, x, u: A @ x, jacobian=(lambda t, x, u: A) if jacobian else None)})
 
 
 def exact(A, t):
@@ -103,13 +102,16 @@ def test_hybrid_execution_bound_contains_each_visit_error_including_the_strip_po
         assert seg.lipschitz == pytest.approx(1.0)
 
 
-@pytest.mark.parametrize("dim, closed_form", [
-    (1, lambda u: (1 - u) / 2),
-    # Circular segment: (arccos u - u sqrt(1 - u^2)) / pi.
-    (2, lambda u: (np.arccos(u) - u * np.sqrt(1 - u * u)) / np.pi),
-    # Spherical cap: (1 - u)^2 (2 + u) / 4.
-    (3, lambda u: (1 - u) ** 2 * (2 + u) / 4),
-])
+@pytest.mark.parametrize(
+    "dim, closed_form",
+    [
+        (1, lambda u: (1 - u) / 2),
+        # Circular segment: (arccos u - u sqrt(1 - u^2)) / pi.
+        (2, lambda u: (np.arccos(u) - u * np.sqrt(1 - u * u)) / np.pi),
+        # Spherical cap: (1 - u)^2 (2 + u) / 4.
+        (3, lambda u: (1 - u) ** 2 * (2 + u) / 4),
+    ],
+)
 def test_ball_fraction_past_a_hyperplane_matches_closed_forms(dim, closed_form):
     u = np.linspace(-0.99, 0.99, 41)
     got = ball_fraction_past(u * 2.0, 2.0, dim)
@@ -211,8 +213,9 @@ def test_extrema_next_to_a_step_end_are_sampled():
     x0 = CircularReference(1.0, 1.0).state(np.array([0.0, 1.0]), t0)
     flow = ModeFlow(circular_flow(), "inside", x0, t0, h, LocalErrorEstimator("rk4"), t_end=t0 + 3.0)
     smp = flow.step_samples(15)
-    closest = minimize_scalar(lambda s: 1.0 - flow.state(15, s)[0], bounds=(0.9, 1.0), method="bounded",
-                              options={"xatol": 1e-12})
+    closest = minimize_scalar(
+        lambda s: 1.0 - flow.state(15, s)[0], bounds=(0.9, 1.0), method="bounded", options={"xatol": 1e-12}
+    )
     assert 0.94 < closest.x < 0.96
     # At the step's end the distance is ~h^2/800 = 1.25e-5 (the ball is 1.5e-5): without the
     # minimum among the samples a ball reaching half past the plane would be missed.

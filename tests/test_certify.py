@@ -18,12 +18,19 @@ from legsim.systems.two_tanks import make_system as two_tanks
 def corner():
     """A flow symmetric under x1 <-> x2 heading for the corner of two guards: from (0, 0) it
     reaches x1 = 1 and x2 = 1 at the same instant."""
+
     def f(t, x, u):
         return np.array([1.0 + 0.2 * x[1], 1.0 + 0.2 * x[0]])
 
     modes = {name: Mode(2, f) for name in ("box", "A", "B")}
-    return HybridSystem(modes, [Transition("box", "A", lambda x: 1.0 - x[0], name="wall_x1"),
-                                Transition("box", "B", lambda x: 1.0 - x[1], name="wall_x2")], name="corner")
+    return HybridSystem(
+        modes,
+        [
+            Transition("box", "A", lambda x: 1.0 - x[0], name="wall_x1"),
+            Transition("box", "B", lambda x: 1.0 - x[1], name="wall_x2"),
+        ],
+        name="corner",
+    )
 
 
 def test_transversal_crossings_are_certified_and_bracket_the_true_switching_times():
@@ -82,8 +89,16 @@ def test_symmetric_pronk_touchdown_is_a_guard_intersection():
     from legsim.scene import load_scene
 
     scene = load_scene("pronk")
-    cert = certify(scene.model.system, scene.initial_mode, scene.initial_state, 1.0, 1e-2, "rk4",
-                   control=scene.model.control, max_refinements=1)
+    cert = certify(
+        scene.model.system,
+        scene.initial_mode,
+        scene.initial_state,
+        1.0,
+        1e-2,
+        "rk4",
+        control=scene.model.control,
+        max_refinements=1,
+    )
     (tr,) = cert.transitions
     assert tr.reason == "intersecting_guards"
     assert sorted(tr.guards_met) == ["touchdown_left", "touchdown_right"]
@@ -126,8 +141,10 @@ def test_bad_input_is_reported_by_name():
 
 def test_a_clock_guard_on_t_is_certified_at_its_exact_time():
     # guard(t, x, u) = 1 - t does not depend on the state, so no error ball can blur it.
-    system = HybridSystem({"a": Mode(1, lambda t, x, u: np.array([-x[0]])), "b": Mode(1, lambda t, x, u: np.zeros(1))},
-                          [Transition("a", "b", lambda t, x, u: 1.0 - t, name="clock", guard_args="t,x,u")])
+    system = HybridSystem(
+        {"a": Mode(1, lambda t, x, u: np.array([-x[0]])), "b": Mode(1, lambda t, x, u: np.zeros(1))},
+        [Transition("a", "b", lambda t, x, u: 1.0 - t, name="clock", guard_args="t,x,u")],
+    )
     cert = certify(system, "a", [1.0], 2.0, 0.3, "rk4")
     (tr,) = cert.transitions
     assert tr.certified and tr.time == pytest.approx(1.0, abs=1e-12)

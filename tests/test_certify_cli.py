@@ -38,8 +38,13 @@ def test_certify_grazing_scene_refuses_with_grazing(capsys):
     code, out, _err = run_cli(capsys, "certify", "grazing", "--json", "--max-refinements", "1")
     assert code == 3
     (v,) = json.loads(out)
-    assert (v["source"], v["target"], v["certified"], v["reason"], v["taken"]) == ("inside", "outside", False,
-                                                                                   "grazing", False)
+    assert (v["source"], v["target"], v["certified"], v["reason"], v["taken"]) == (
+        "inside",
+        "outside",
+        False,
+        "grazing",
+        False,
+    )
     assert v["time"] == pytest.approx(math.pi / 2, abs=1e-3)
 
 
@@ -79,21 +84,24 @@ def test_stochastic_two_tanks_text_output_and_seed_reproducibility(capsys):
     assert code == 0 and "switching times (s)" in out and "deterministic" in out
 
 
-@pytest.mark.parametrize("argv, message", [
-    (("stochastic", "no_such_scene"), "no_such_scene"),
-    (("stochastic", "grazing", "--samples", "0"), "--samples must be an integer >= 1, got 0"),
-    (("stochastic", "grazing", "--set", "stochastic.intensity=rate"), "stochastic.intensity"),
-    (("stochastic", "grazing", "--set", "stochastic.bogus=1"), "unknown parameter(s) ['bogus']"),
-    (("stochastic", "two_tanks", "--set", "stochastic.hazard_cap=0"), "stochastic.hazard_cap: 0.0 is out of range"),
-    (("certify", "no_such_scene"), "no_such_scene"),
-    (("certify", "grazing", "--set", "certify.alpha=1.0"), "certify.alpha"),
-    (("certify", "grazing", "--max-refinements", "-1"), "--max-refinements must be an integer >= 0"),
-    # Absurd sizes are refused up front rather than started (they would run for days).
-    (("stochastic", "grazing", "--samples", "1000000000"), "stochastic.samples: 1000000000 is out of range"),
-    (("stochastic", "grazing", "--set", "stochastic.h=1e-12"), "steps, more than the limit"),
-    (("stochastic", "grazing", "--set", "stochastic.t_final=1e12"), "steps, more than the limit"),
-    (("certify", "grazing", "--set", "certify.h=1e-12"), "certify.h / certify.t_final"),
-])
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        (("stochastic", "no_such_scene"), "no_such_scene"),
+        (("stochastic", "grazing", "--samples", "0"), "--samples must be an integer >= 1, got 0"),
+        (("stochastic", "grazing", "--set", "stochastic.intensity=rate"), "stochastic.intensity"),
+        (("stochastic", "grazing", "--set", "stochastic.bogus=1"), "unknown parameter(s) ['bogus']"),
+        (("stochastic", "two_tanks", "--set", "stochastic.hazard_cap=0"), "stochastic.hazard_cap: 0.0 is out of range"),
+        (("certify", "no_such_scene"), "no_such_scene"),
+        (("certify", "grazing", "--set", "certify.alpha=1.0"), "certify.alpha"),
+        (("certify", "grazing", "--max-refinements", "-1"), "--max-refinements must be an integer >= 0"),
+        # Absurd sizes are refused up front rather than started (they would run for days).
+        (("stochastic", "grazing", "--samples", "1000000000"), "stochastic.samples: 1000000000 is out of range"),
+        (("stochastic", "grazing", "--set", "stochastic.h=1e-12"), "steps, more than the limit"),
+        (("stochastic", "grazing", "--set", "stochastic.t_final=1e12"), "steps, more than the limit"),
+        (("certify", "grazing", "--set", "certify.h=1e-12"), "certify.h / certify.t_final"),
+    ],
+)
 def test_bad_input_exits_2_with_a_message(capsys, argv, message):
     code, _out, err = run_cli(capsys, *argv)
     assert code == 2
@@ -122,8 +130,20 @@ def test_stochastic_reports_stalled_and_overflowing_executions(capsys):
     # A circle at omega = 50 rad/s over 20 s: B grows like e^(50 t) and overflows near 14 s
     # (709 / 50, less the local errors' own size). The execution stops there, with no switch at
     # a nan time after it.
-    code, out, err = run_cli(capsys, "stochastic", "grazing", "--samples", "1", "--set", "robot.parameters.omega=50",
-                             "--set", "stochastic.h=0.01", "--set", "stochastic.t_final=20", "--json")
+    code, out, err = run_cli(
+        capsys,
+        "stochastic",
+        "grazing",
+        "--samples",
+        "1",
+        "--set",
+        "robot.parameters.omega=50",
+        "--set",
+        "stochastic.h=0.01",
+        "--set",
+        "stochastic.t_final=20",
+        "--json",
+    )
     assert code == 3
     s = json.loads(out)
     assert s["statuses"] == {"bound_overflow": 1}

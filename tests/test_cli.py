@@ -34,9 +34,25 @@ def run_cli(capsys, *argv):
 
 
 # -- legsim run --------------------------------------------------------------------------------
-REQUIRED_KEYS = {"status", "t_final", "final_mode", "final_state", "state_names", "mode_sequence", "transitions",
-                 "steps", "halvings", "wall_time_s", "field_evals", "guard_evals", "reset_evals",
-                 "energy_initial", "energy_final", "drag_evals", "scene"}
+REQUIRED_KEYS = {
+    "status",
+    "t_final",
+    "final_mode",
+    "final_state",
+    "state_names",
+    "mode_sequence",
+    "transitions",
+    "steps",
+    "halvings",
+    "wall_time_s",
+    "field_evals",
+    "guard_evals",
+    "reset_evals",
+    "energy_initial",
+    "energy_final",
+    "drag_evals",
+    "scene",
+}
 
 
 def test_run_json_matches_a_direct_simulate_call(tmp_path, capsys):
@@ -57,7 +73,7 @@ def test_run_json_matches_a_direct_simulate_call(tmp_path, capsys):
     # Energy g z + zd^2 / 2 at the initial and final states.
     assert summary["energy_initial"] == pytest.approx(9.81)
     z, zd = direct.final_state
-    assert summary["energy_final"] == pytest.approx(9.81 * z + 0.5 * zd ** 2, rel=1e-12)
+    assert summary["energy_final"] == pytest.approx(9.81 * z + 0.5 * zd**2, rel=1e-12)
     assert summary["drag_evals"] == 0 and summary["scene"] == "tiny" and summary["outputs"] == {}
 
 
@@ -74,12 +90,13 @@ def test_run_human_summary_names_the_state(tmp_path, capsys):
 
 def test_run_set_overrides_reach_the_simulation(tmp_path, capsys):
     path = write_scene(tmp_path)
-    code, out, _ = run_cli(capsys, "run", str(path), "--json", "--set", "integrator.t_final=0.25",
-                           "--set", "effects.floor=false")
+    code, out, _ = run_cli(
+        capsys, "run", str(path), "--json", "--set", "integrator.t_final=0.25", "--set", "effects.floor=false"
+    )
     summary = json.loads(out)
     assert code == 0 and summary["t_final"] == 0.25 and summary["guard_evals"] == 0
     # Free fall z(t) = 1 - g t^2 / 2: RK4 is exact on a cubic.
-    assert summary["final_state"][0] == pytest.approx(1 - 9.81 * 0.25 ** 2 / 2, abs=1e-13)
+    assert summary["final_state"][0] == pytest.approx(1 - 9.81 * 0.25**2 / 2, abs=1e-13)
 
 
 def test_run_bad_override_exits_2_with_one_line(tmp_path, capsys):
@@ -140,6 +157,7 @@ def _fake_writers(monkeypatch, calls, fail=()):
             if kind in fail:
                 raise RuntimeError(f"{kind} writer broke")
             Path(path).write_text(f"{kind} of {scene.name}: {len(execution.transitions)}")
+
         return writer
 
     monkeypatch.setattr(run_module, "find_writer", lambda kind, source="": make(kind))
@@ -151,13 +169,17 @@ def test_outputs_from_flags_and_scene_are_written_atomically(tmp_path, capsys, m
     out_dir = tmp_path / "out"
     # A scene's [output] paths are relative to its own folder (tmp_path).
     path = write_scene(tmp_path, TINY_SCENE + '\n[output]\nrrd = "out/scene.rrd"\nplot = "out/s.png"\n')
-    code, out, _ = run_cli(capsys, "run", str(path), "--json", "--plot", str(out_dir / "flag.png"),
-                           "--html", str(out_dir / "a.html"))
+    code, out, _ = run_cli(
+        capsys, "run", str(path), "--json", "--plot", str(out_dir / "flag.png"), "--html", str(out_dir / "a.html")
+    )
     assert code == 0
     summary = json.loads(out)
     # A flag wins over the scene's [output]; the scene's other outputs are kept.
-    assert summary["outputs"] == {"rrd": str(out_dir / "scene.rrd"), "html": str(out_dir / "a.html"),
-                                  "plot": str(out_dir / "flag.png")}
+    assert summary["outputs"] == {
+        "rrd": str(out_dir / "scene.rrd"),
+        "html": str(out_dir / "a.html"),
+        "plot": str(out_dir / "flag.png"),
+    }
     assert not (out_dir / "s.png").exists()
     for kind, target in summary["outputs"].items():
         assert Path(target).read_text() == f"{kind} of tiny: {summary['transitions']}"
@@ -189,8 +211,17 @@ def test_failed_run_writes_nothing(tmp_path, capsys, monkeypatch):
     path = write_scene(tmp_path)
     out_dir = tmp_path / "out"
     # The initial state lies past the floor: rejected before anything runs.
-    code, _, err = run_cli(capsys, "run", str(path), "--rrd", str(out_dir / "a.rrd"), "--set", "initial.state.z=-1",
-                           "--set", "initial.state.zd=-1")
+    code, _, err = run_cli(
+        capsys,
+        "run",
+        str(path),
+        "--rrd",
+        str(out_dir / "a.rrd"),
+        "--set",
+        "initial.state.z=-1",
+        "--set",
+        "initial.state.zd=-1",
+    )
     assert code == 2 and "lies past the guard of transition bounce" in err
     assert calls == [] and not out_dir.exists()
 
@@ -203,8 +234,18 @@ def test_failed_writer_after_an_early_stop_keeps_exit_3_and_the_other_outputs(tm
     _fake_writers(monkeypatch, calls, fail=("plot",))
     path = write_scene(tmp_path)
     out_dir = tmp_path / "out"
-    code, out, err = run_cli(capsys, "run", str(path), "--json", "--set", "integrator.max_transitions=1",
-                             "--plot", str(out_dir / "p.png"), "--html", str(out_dir / "a.html"))
+    code, out, err = run_cli(
+        capsys,
+        "run",
+        str(path),
+        "--json",
+        "--set",
+        "integrator.max_transitions=1",
+        "--plot",
+        str(out_dir / "p.png"),
+        "--html",
+        str(out_dir / "a.html"),
+    )
     assert code == 3
     assert json.loads(out)["outputs"] == {"html": str(out_dir / "a.html")}
     lines = err.splitlines()
@@ -213,8 +254,20 @@ def test_failed_writer_after_an_early_stop_keeps_exit_3_and_the_other_outputs(tm
     assert sorted(p.name for p in out_dir.iterdir()) == ["a.html"]
 
 
-DIVERGING = ["oscillator_ex1", "-q", "--set", "effects.stop=false", "--set", "effects.damping=false",
-             "--set", 'integrator.method="euler"', "--set", "integrator.h=0.5", "--set", "integrator.t_final=5000"]
+DIVERGING = [
+    "oscillator_ex1",
+    "-q",
+    "--set",
+    "effects.stop=false",
+    "--set",
+    "effects.damping=false",
+    "--set",
+    'integrator.method="euler"',
+    "--set",
+    "integrator.h=0.5",
+    "--set",
+    "integrator.t_final=5000",
+]
 
 
 def test_diverged_run_writes_its_outputs_quietly_and_exits_3(tmp_path):
@@ -226,9 +279,25 @@ def test_diverged_run_writes_its_outputs_quietly_and_exits_3(tmp_path):
     from legsim.record import read_rrd
 
     out_dir = tmp_path / "o"
-    done = subprocess.run([PYTHON, "-m", "legsim", "run", *DIVERGING, "--plot", str(out_dir / "div.png"),
-                           "--html", str(out_dir / "div.html"), "--rrd", str(out_dir / "div.rrd")],
-                          capture_output=True, text=True, cwd=tmp_path, timeout=120)
+    done = subprocess.run(
+        [
+            PYTHON,
+            "-m",
+            "legsim",
+            "run",
+            *DIVERGING,
+            "--plot",
+            str(out_dir / "div.png"),
+            "--html",
+            str(out_dir / "div.html"),
+            "--rrd",
+            str(out_dir / "div.rrd"),
+        ],
+        capture_output=True,
+        text=True,
+        cwd=tmp_path,
+        timeout=120,
+    )
     assert done.returncode == 3, done.stderr
     assert "Warning" not in done.stderr and "error" not in done.stderr, done.stderr
     assert done.stderr.startswith("legsim: run stopped early (non_finite): ")
@@ -255,8 +324,9 @@ def test_missing_writers_fail_for_their_flag_only(tmp_path, capsys, monkeypatch)
     assert code == 2 and err.startswith("legsim: error: --rrd: ") and "legsim.record" in err
     monkeypatch.setattr(metadata, "entry_points", lambda **kw: [])
     code, _, err = run_cli(capsys, "run", str(path), "--html", str(tmp_path / "a.html"))
-    assert code == 2 and err == ("legsim: error: --html: no 'html' writer is registered in the "
-                                 "legsim.writers entry points\n")
+    assert code == 2 and err == (
+        "legsim: error: --html: no 'html' writer is registered in the legsim.writers entry points\n"
+    )
     # Without the flags the same run succeeds, and nothing was written.
     code, _, _ = run_cli(capsys, "run", str(path), "--quiet")
     assert code == 0 and sorted(p.name for p in tmp_path.iterdir()) == ["tiny.toml"]
@@ -318,18 +388,21 @@ def test_commands_are_discovered_from_modules(tmp_path, capsys, monkeypatch):
     (tmp_path / "zz_hello.py").write_text(
         "NAME = 'hello'\nHELP = 'say hello'\n"
         "def add_arguments(p):\n    p.add_argument('--code', type=int, default=0)\n"
-        "def run(args):\n    print('hello'); return args.code\n")
+        "def run(args):\n    print('hello'); return args.code\n"
+    )
     (tmp_path / "zz_broken.py").write_text("import not_a_module_anywhere\n")
     (tmp_path / "zz_crash.py").write_text(
-        "NAME = 'crash'\nHELP = 'crash'\ndef add_arguments(p): pass\n"
-        "def run(args):\n    raise RuntimeError('boom')\n")
+        "NAME = 'crash'\nHELP = 'crash'\ndef add_arguments(p): pass\ndef run(args):\n    raise RuntimeError('boom')\n"
+    )
     monkeypatch.setattr(legsim.commands, "__path__", [*legsim.commands.__path__, str(tmp_path)])
     for name in ("zz_hello", "zz_broken", "zz_crash"):
         monkeypatch.delitem(sys.modules, f"legsim.commands.{name}", raising=False)
     assert run_cli(capsys, "hello", "--code", "5")[:2] == (5, "hello\n")
     code, _, err = run_cli(capsys, "zz_broken")
-    assert code == 2 and err.startswith("legsim: error: command 'zz_broken' is unavailable: its module failed "
-                                        "to load (ModuleNotFoundError: No module named 'not_a_module_anywhere')")
+    assert code == 2 and err.startswith(
+        "legsim: error: command 'zz_broken' is unavailable: its module failed "
+        "to load (ModuleNotFoundError: No module named 'not_a_module_anywhere')"
+    )
     code, _, err = run_cli(capsys, "crash")
     assert code == 1 and err == "legsim: internal error: RuntimeError: boom (run with --debug for the traceback)\n"
     code, _, err = run_cli(capsys, "crash", "--debug")
@@ -339,8 +412,10 @@ def test_commands_are_discovered_from_modules(tmp_path, capsys, monkeypatch):
 
 
 def test_python_m_legsim_and_startup_imports_nothing_heavy():
-    code = ("import sys; from legsim.cli import build_parser; build_parser(); "
-            "print(sorted(m for m in ('rerun', 'matplotlib', 'scipy', 'pinocchio', 'meshcat') if m in sys.modules))")
+    code = (
+        "import sys; from legsim.cli import build_parser; build_parser(); "
+        "print(sorted(m for m in ('rerun', 'matplotlib', 'scipy', 'pinocchio', 'meshcat') if m in sys.modules))"
+    )
     out = subprocess.run([PYTHON, "-c", code], capture_output=True, text=True, cwd=REPO, check=True).stdout
     assert out.strip() == "[]"
     done = subprocess.run([PYTHON, "-m", "legsim", "--version"], capture_output=True, text=True, cwd=REPO)
@@ -351,8 +426,9 @@ def test_python_m_legsim_and_startup_imports_nothing_heavy():
 def test_scene_simulate_calls_progress_on_long_runs(tmp_path):
     # A run of a few tenths of a second reports progress (simulate reports every ~0.2 s);
     # the reported times increase within [t0, t_final].
-    scene = load_scene(write_scene(tmp_path), overrides=["effects.floor=false", "integrator.h=5e-6",
-                                                         "integrator.method=euler"])
+    scene = load_scene(
+        write_scene(tmp_path), overrides=["effects.floor=false", "integrator.h=5e-6", "integrator.method=euler"]
+    )
     seen = []
     scene.simulate(progress=lambda t, t0, t1: seen.append((t, t0, t1)))
     assert seen, "no progress reported on a run of 200000 steps"
@@ -389,11 +465,14 @@ def test_a_bad_plot_format_fails_before_the_run(tmp_path, capsys, monkeypatch):
     monkeypatch.setattr(scene_module.Scene, "simulate", lambda self, **kw: ran.append(1) or original(self, **kw))
     path = write_scene(tmp_path)
     out_dir = tmp_path / "out"
-    code, out, err = run_cli(capsys, "run", str(path), "--rrd", str(out_dir / "a.rrd"),
-                             "--plot", str(out_dir / "a.rrd"))
+    code, out, err = run_cli(
+        capsys, "run", str(path), "--rrd", str(out_dir / "a.rrd"), "--plot", str(out_dir / "a.rrd")
+    )
     assert code == 2 and out == "" and ran == [] and not out_dir.exists()
-    assert err == (f"legsim: error: --plot {out_dir / 'a.rrd'}: unsupported format '.rrd'; "
-                   f"use one of ['.png', '.pdf', '.svg', '.jpg', '.jpeg']\n")
+    assert err == (
+        f"legsim: error: --plot {out_dir / 'a.rrd'}: unsupported format '.rrd'; "
+        f"use one of ['.png', '.pdf', '.svg', '.jpg', '.jpeg']\n"
+    )
 
 
 def test_a_diverging_run_prints_its_summary_without_numpy_warnings(capsys):
@@ -407,7 +486,7 @@ def test_a_diverging_run_prints_its_summary_without_numpy_warnings(capsys):
         code, out, err = run_cli(capsys, "run", "oscillator_ex1", "--json", "--set", "effects.damping.a=1e6")
     summary = json.loads(out)
     assert code == 3 and summary["status"] == "non_finite" and summary["energy_final"] is None
-    assert summary["energy_initial"] == pytest.approx(0.5 * (31.4 ** 2 + 2.5 ** 2 * 11.36 ** 2))
+    assert summary["energy_initial"] == pytest.approx(0.5 * (31.4**2 + 2.5**2 * 11.36**2))
     assert err.startswith("legsim: run stopped early (non_finite): the step from t=") and err.count("\n") == 1
     code, out, _ = run_cli(capsys, "run", "oscillator_ex1", "--set", "effects.damping.a=1e6")
     assert code == 3 and "energy 896.26 J -> n/a J" in out
@@ -418,8 +497,9 @@ def test_replay_checks_every_output_before_writing_any(tmp_path, capsys, monkeyp
 
     scene = load_scene(write_scene(tmp_path))
     rrd = write_rrd(scene.simulate(), scene, tmp_path / "tiny.rrd")
-    code, out, err = run_cli(capsys, "replay", str(rrd), "--html", str(tmp_path / "a.html"), "--plot",
-                             str(tmp_path / "a.gif"))
+    code, out, err = run_cli(
+        capsys, "replay", str(rrd), "--html", str(tmp_path / "a.html"), "--plot", str(tmp_path / "a.gif")
+    )
     assert code == 2 and out == "" and "--plot " in err and "unsupported format '.gif'" in err
     assert not (tmp_path / "a.html").exists()
     # --spawn without a display fails at once, before printing a summary it cannot follow up.
@@ -437,10 +517,26 @@ def test_progress_bar_is_drawn_on_a_terminal_and_erased(tmp_path):
     import pty
 
     master, slave = pty.openpty()
-    proc = subprocess.Popen([PYTHON, "-m", "legsim", "run", "oscillator_ex1", "--set", "effects.stop=false",
-                             "--set", "integrator.method=euler", "--set", "integrator.h=1e-5",
-                             "--set", "integrator.t_final=1.5"],
-                            stdout=subprocess.PIPE, stderr=slave, cwd=REPO)
+    proc = subprocess.Popen(
+        [
+            PYTHON,
+            "-m",
+            "legsim",
+            "run",
+            "oscillator_ex1",
+            "--set",
+            "effects.stop=false",
+            "--set",
+            "integrator.method=euler",
+            "--set",
+            "integrator.h=1e-5",
+            "--set",
+            "integrator.t_final=1.5",
+        ],
+        stdout=subprocess.PIPE,
+        stderr=slave,
+        cwd=REPO,
+    )
     os.close(slave)
     received = b""
     while True:
@@ -485,5 +581,7 @@ def test_html_of_a_model_without_geometry_fails_before_the_run(tmp_path, capsys)
     path = write_scene(tmp_path)
     code, out, err = run_cli(capsys, "run", str(path), "--html", str(tmp_path / "a.html"))
     assert code == 2 and out == "" and not (tmp_path / "a.html").exists()
-    assert err == (f"legsim: error: --html {tmp_path / 'a.html'}: this output draws the robot, and tinyball defines "
-                   f"no geometry (Model.geometry is None); use --plot or --rrd for it\n")
+    assert err == (
+        f"legsim: error: --html {tmp_path / 'a.html'}: this output draws the robot, and tinyball defines "
+        f"no geometry (Model.geometry is None); use --plot or --rrd for it\n"
+    )

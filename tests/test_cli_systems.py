@@ -40,7 +40,7 @@ def test_bouncing_ball_json_equals_direct_simulate_and_closed_form(capsys):
     # Energy m (g z + zd^2 / 2) with m = 1: 9.81 J at rest at z = 1.
     assert summary["energy_initial"] == pytest.approx(9.81, rel=1e-15)
     z, zd = summary["final_state"]
-    assert summary["energy_final"] == pytest.approx(9.81 * z + 0.5 * zd ** 2, rel=1e-12)
+    assert summary["energy_final"] == pytest.approx(9.81 * z + 0.5 * zd**2, rel=1e-12)
     # Past the Zeno time the ball rests on the floor: within eps of z = 0, at rest.
     ref = BouncingBallReference(g=9.81, restitution=0.5, z0=1.0)
     assert s["t_final"] > ref.zeno_time
@@ -53,8 +53,16 @@ def test_oscillator_without_stop_evaluates_no_guard_and_converges_to_closed_form
     t_final = 10 * math.pi
     errors = []
     for h in (2e-2, 1e-2):
-        code, summary, _ = run_json(capsys, "oscillator_ex1", "--set", "effects.stop=false",
-                                    "--set", f"integrator.h={h}", "--set", f"integrator.t_final={t_final}")
+        code, summary, _ = run_json(
+            capsys,
+            "oscillator_ex1",
+            "--set",
+            "effects.stop=false",
+            "--set",
+            f"integrator.h={h}",
+            "--set",
+            f"integrator.t_final={t_final}",
+        )
         assert code == 0
         # No stop: one mode, no guard, no reset, ever.
         assert summary["guard_evals"] == 0 and summary["reset_evals"] == 0 and summary["transitions"] == 0
@@ -112,8 +120,17 @@ def test_digital_control_json_takes_the_simultaneous_crossing(capsys):
     code, summary, _ = run_json(capsys, "digital_control")
     scene = load_scene("digital_control")
     s = scene.integrator
-    direct = simulate(scene.model.system, scene.initial_state, scene.initial_mode, s["t_final"], s["h"], s["eps"],
-                      s["method"], scene.model.control, max_transitions=s["max_transitions"])
+    direct = simulate(
+        scene.model.system,
+        scene.initial_state,
+        scene.initial_mode,
+        s["t_final"],
+        s["h"],
+        s["eps"],
+        s["method"],
+        scene.model.control,
+        max_transitions=s["max_transitions"],
+    )
     assert code == 0 and summary["mode_sequence"] == direct.mode_sequence
     # Both thresholds are crossed at once (paper 000 Fig. 1): one transition, then the next at once.
     assert summary["mode_sequence"] == ["0", "1", "3"]
@@ -145,8 +162,13 @@ def test_readme_demo_writes_rrd_html_and_png_and_replay_agrees(tmp_path, capsys)
 
     out = tmp_path / "out"
     files = {kind: out / f"pronk.{ext}" for kind, ext in (("rrd", "rrd"), ("html", "html"), ("plot", "png"))}
-    code, summary, err = run_json(capsys, "pronk", "--set", "integrator.t_final=0.8",
-                                  *[a for kind, p in files.items() for a in (f"--{kind}", str(p))])
+    code, summary, err = run_json(
+        capsys,
+        "pronk",
+        "--set",
+        "integrator.t_final=0.8",
+        *[a for kind, p in files.items() for a in (f"--{kind}", str(p))],
+    )
     assert code == 0 and err == "" and summary["transitions"] == 4
     assert summary["outputs"] == {kind: str(p) for kind, p in files.items()}
     assert sorted(p.name for p in out.iterdir()) == ["pronk.html", "pronk.png", "pronk.rrd"]  # no temporaries
@@ -171,14 +193,15 @@ def test_gravity_effect_off_leaves_free_inertial_motion(capsys, scene, moving):
     # x(t) = x0 + xd0 t with every other coordinate constant, no contact is ever reached and
     # the energy is the initial kinetic energy (0, or m xd0^2 / 2 = 5.78 J for m = 1).
     t_final = 1.0
-    code, summary, _ = run_json(capsys, scene, "--set", "effects.gravity=false",
-                                "--set", f"integrator.t_final={t_final}")
+    code, summary, _ = run_json(
+        capsys, scene, "--set", "effects.gravity=false", "--set", f"integrator.t_final={t_final}"
+    )
     start = load_scene(scene).initial_state
     expected = start.copy()
     for i in moving:
         expected[i] += 3.4 * t_final
     assert code == 0 and summary["transitions"] == 0
     np.testing.assert_allclose(summary["final_state"], expected, rtol=0, atol=1e-12)
-    kinetic = 0.0 if not moving else 0.5 * 3.4 ** 2
+    kinetic = 0.0 if not moving else 0.5 * 3.4**2
     assert summary["energy_initial"] == pytest.approx(kinetic, abs=1e-12)
     assert summary["energy_final"] == pytest.approx(kinetic, abs=1e-12)

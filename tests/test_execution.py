@@ -18,14 +18,21 @@ def ball_run() -> Execution:
     return simulate(bb.make_system(), [1.0, 0.0], "flight", 2.0, 1e-2, 1e-3, continuation=False)
 
 
-
 @pytest.fixture(scope="module")
 def sticking_run() -> Execution:
     E = EXAMPLES["ex2"]
     system = osc.make_system(E["omega"], E["a"], E["x_max"], E["c"])
-    return simulate(system, [E["x0"], E["xd0"]], "free", 6.0, 1e-2, 1e-3, "rk2",
-                    osc.forcing(E["amplitude"], E["frequency"]), continuation=False)
-
+    return simulate(
+        system,
+        [E["x0"], E["xd0"]],
+        "free",
+        6.0,
+        1e-2,
+        1e-3,
+        "rk2",
+        osc.forcing(E["amplitude"], E["frequency"]),
+        continuation=False,
+    )
 
 
 def assert_same_execution(a: Execution, b: Execution) -> None:
@@ -39,17 +46,25 @@ def assert_same_execution(a: Execution, b: Execution) -> None:
         assert s.mode == r.mode
         for name in ("t", "x", "dx"):
             np.testing.assert_array_equal(getattr(s, name), getattr(r, name))
-    assert [(s.mode, s.name, s.time, s.exit_time) for s in a.strips] == \
-           [(s.mode, s.name, s.time, s.exit_time) for s in b.strips]
+    assert [(s.mode, s.name, s.time, s.exit_time) for s in a.strips] == [
+        (s.mode, s.name, s.time, s.exit_time) for s in b.strips
+    ]
     for s, r in zip(a.strips, b.strips, strict=True):
         np.testing.assert_array_equal(s.state, r.state)
     assert len(a.transitions) == len(b.transitions)
     for s, r in zip(a.transitions, b.transitions, strict=True):
-        assert (s.name, s.source, s.target, s.index, s.time, s.landing_time, s.exit_time, s.depth) == \
-               (r.name, r.source, r.target, r.index, r.time, r.landing_time, r.exit_time, r.depth)
+        assert (s.name, s.source, s.target, s.index, s.time, s.landing_time, s.exit_time, s.depth) == (
+            r.name,
+            r.source,
+            r.target,
+            r.index,
+            r.time,
+            r.landing_time,
+            r.exit_time,
+            r.depth,
+        )
         np.testing.assert_array_equal(s.state_before, r.state_before)
         np.testing.assert_array_equal(s.state_after, r.state_after)
-
 
 
 @pytest.mark.parametrize("run", ["ball_run", "sticking_run"])
@@ -67,7 +82,6 @@ def test_save_load_round_trip(run, request, tmp_path):
     np.testing.assert_array_equal(a.stack(), b.stack())
 
 
-
 def test_load_errors_name_the_file(tmp_path):
     with pytest.raises(SimulationError, match=r"nothing.npz: no such execution file"):
         Execution.load(tmp_path / "nothing.npz")
@@ -75,7 +89,6 @@ def test_load_errors_name_the_file(tmp_path):
     bad.write_text("not numpy")
     with pytest.raises(SimulationError, match=r"bad.npz: not a legsim execution file"):
         Execution.load(bad)
-
 
 
 def test_run_ending_inside_a_strip(tmp_path):
@@ -86,7 +99,6 @@ def test_run_ending_inside_a_strip(tmp_path):
     assert ex.transitions == [] and len(ex.strips) == 1
     np.testing.assert_allclose(ex.final_state, [0.0, -ref.impact_speed], atol=1e-9)  # the held q
     assert_same_execution(ex, Execution.load(ex.save(tmp_path / "strip.npz")))
-
 
 
 def test_sample_is_continuous_between_transitions(sticking_run):
@@ -108,7 +120,6 @@ def test_sample_is_continuous_between_transitions(sticking_run):
     np.testing.assert_array_equal(got, seg.x[1:-1])
 
 
-
 def test_dense_output_is_fourth_order_between_steps():
     # The interpolation defect alone: at each step's midpoint, the sample against the exact flow
     # started from the step's own left point. Cubic Hermite interpolation leaves O(h^4) there
@@ -118,18 +129,19 @@ def test_dense_output_is_fourth_order_between_steps():
     defects = []
     hs = [4e-2, 2e-2, 1e-2]
     for h in hs:
-        ex = simulate(system, [E["x0"], E["xd0"]], "free", 1.0, h, 1e-3, "rk4",
-                      osc.forcing(E["amplitude"], E["frequency"]))
+        ex = simulate(
+            system, [E["x0"], E["xd0"]], "free", 1.0, h, 1e-3, "rk4", osc.forcing(E["amplitude"], E["frequency"])
+        )
         seg = ex.segments[0]
         worst = 0.0
         for t_left, x_left, t_right in zip(seg.t[:-1:5], seg.x[:-1:5], seg.t[1::5], strict=True):
-            local = OscillatorReference(E["omega"], E["a"], None, E["c"], 1.0, E["amplitude"], E["frequency"],
-                                        x_left[0], x_left[1], t0=t_left)
+            local = OscillatorReference(
+                E["omega"], E["a"], None, E["c"], 1.0, E["amplitude"], E["frequency"], x_left[0], x_left[1], t0=t_left
+            )
             mid = 0.5 * (t_left + t_right)
             worst = max(worst, np.abs(ex.sample([mid]).stack()[0] - local.state(mid)).max())
         defects.append(worst)
     assert np.polyfit(np.log(hs), np.log(defects), 1)[0] == pytest.approx(4.0, abs=0.3)
-
 
 
 def test_sample_rejects_times_outside_the_run(ball_run):
@@ -139,7 +151,6 @@ def test_sample_rejects_times_outside_the_run(ball_run):
         ball_run.sample([np.nan])
     with pytest.raises(SimulationError, match=r"sample times must be a 1-d sequence"):
         ball_run.sample(np.zeros((2, 2)))
-
 
 
 def test_summary_counts(ball_run):

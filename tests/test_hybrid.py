@@ -68,11 +68,13 @@ def test_system_needs_a_mapping_of_modes():
 
 
 def test_unknown_source_and_target_modes_are_named():
-    with pytest.raises(ModelError,
-                       match=r"^hybrid system: transition x->a leaves unknown mode 'x' \(modes: \['a', 'b'\]\)"):
+    with pytest.raises(
+        ModelError, match=r"^hybrid system: transition x->a leaves unknown mode 'x' \(modes: \['a', 'b'\]\)"
+    ):
         two_modes(transitions=[Transition("x", "a", lambda x: 0.0)])
-    with pytest.raises(ModelError,
-                       match=r"^hybrid system: transition a->zz targets unknown mode 'zz' \(modes: \['a', 'b'\]\)"):
+    with pytest.raises(
+        ModelError, match=r"^hybrid system: transition a->zz targets unknown mode 'zz' \(modes: \['a', 'b'\]\)"
+    ):
         two_modes(transitions=[Transition("a", "zz", lambda x: 0.0)])
 
 
@@ -98,30 +100,43 @@ def test_failing_field_is_named():
 
 
 def test_guard_must_return_a_real_scalar():
-    with pytest.raises(ModelError,
-                       match=r"^hybrid system: guard of transition g2 must return a scalar, got shape \(2,\)"):
+    with pytest.raises(
+        ModelError, match=r"^hybrid system: guard of transition g2 must return a scalar, got shape \(2,\)"
+    ):
         two_modes(transitions=[Transition("a", "b", lambda x: np.zeros(2), name="g2")], initial=("a", [0.0, 0.0]))
     with pytest.raises(ModelError, match=r"^hybrid system: guard of transition gn returned nan at x="):
         two_modes(transitions=[Transition("a", "b", lambda x: float("nan"), name="gn")], initial=("a", [0.0, 0.0]))
-    with pytest.raises(ModelError, match=r"^hybrid system: guard of transition gs must return a real number "
-                                         r"\(a float\), got str 'high'"):
+    with pytest.raises(
+        ModelError,
+        match=r"^hybrid system: guard of transition gs must return a real number "
+        r"\(a float\), got str 'high'",
+    ):
         two_modes(transitions=[Transition("a", "b", lambda x: "high", name="gs")], initial=("a", [0.0, 0.0]))
     for value, shown in ((True, "bool True"), (None, "NoneType None")):
-        with pytest.raises(ModelError,
-                           match=rf"guard of transition gb must return a real number \(a float\), got {shown}"):
+        with pytest.raises(
+            ModelError, match=rf"guard of transition gb must return a real number \(a float\), got {shown}"
+        ):
             two_modes(transitions=[Transition("a", "b", lambda x, v=value: v, name="gb")], initial=("a", [0.0, 0.0]))
 
 
 def test_reset_output_dimension_is_checked_against_the_target():
-    with pytest.raises(ModelError, match=r"^hybrid system: reset of transition r3 returned shape \(3,\), expected "
-                                         r"\(2,\) for mode 'b'"):
-        two_modes(transitions=[Transition("a", "b", lambda x: 1.0, lambda x: np.zeros(3), name="r3")],
-                  initial=("a", [0.0, 0.0]))
+    with pytest.raises(
+        ModelError,
+        match=r"^hybrid system: reset of transition r3 returned shape \(3,\), expected "
+        r"\(2,\) for mode 'b'",
+    ):
+        two_modes(
+            transitions=[Transition("a", "b", lambda x: 1.0, lambda x: np.zeros(3), name="r3")],
+            initial=("a", [0.0, 0.0]),
+        )
 
 
 def test_initial_state_shape_and_mode_are_checked():
-    with pytest.raises(ModelError, match=r"^hybrid system: initial state in mode 'a' has shape \(3,\), expected \(2,\) "
-                                         r"with coordinates \('x0', 'x1'\)"):
+    with pytest.raises(
+        ModelError,
+        match=r"^hybrid system: initial state in mode 'a' has shape \(3,\), expected \(2,\) "
+        r"with coordinates \('x0', 'x1'\)",
+    ):
         two_modes(initial=("a", [0.0, 0.0, 0.0]))
     with pytest.raises(ModelError, match=r"^hybrid system: unknown mode 'c' \(modes: \['a', 'b'\]\)"):
         two_modes(initial=("c", [0.0, 0.0]))
@@ -141,17 +156,22 @@ def test_reset_of_wrong_dimension_found_mid_run_names_the_transition():
     system = HybridSystem(
         {"a": Mode(1, lambda t, x, u: np.array([1.0]))},
         [Transition("a", "a", lambda x: 1.0 - x[0], lambda x: np.zeros(1 if x[0] < 0.5 else 2), name="wrap")],
-        initial=("a", [0.0]))
-    with pytest.raises(ModelError, match=r"^hybrid system: reset of transition wrap returned shape \(2,\), expected "
-                                         r"\(1,\) for mode 'a'"):
+        initial=("a", [0.0]),
+    )
+    with pytest.raises(
+        ModelError,
+        match=r"^hybrid system: reset of transition wrap returned shape \(2,\), expected "
+        r"\(1,\) for mode 'a'",
+    ):
         simulate(system, [0.0], "a", 2.0, 0.1, 1e-3)
 
 
 def test_lazily_expanded_modes():
     def expand(name: str):
         k = int(name)
-        return Mode(1, lambda t, x, u: np.array([1.0])), [Transition(name, str(k + 1), lambda x: 1.0 - x[0],
-                                                                     lambda x: np.array([0.0]))]
+        return Mode(1, lambda t, x, u: np.array([1.0])), [
+            Transition(name, str(k + 1), lambda x: 1.0 - x[0], lambda x: np.array([0.0]))
+        ]
 
     system = HybridSystem({}, expand=expand, name="ladder")
     ex = simulate(system, [0.0], "0", 3.5, 0.1, 1e-3)
@@ -168,8 +188,12 @@ def test_lazily_expanded_modes():
 
 
 def test_domain_views():
-    system = two_modes(transitions=[Transition("a", "b", lambda x: 1.0 - x[0], name="up"),
-                                    Transition("a", "b", lambda x: x[1], name="side")])
+    system = two_modes(
+        transitions=[
+            Transition("a", "b", lambda x: 1.0 - x[0], name="up"),
+            Transition("a", "b", lambda x: x[1], name="side"),
+        ]
+    )
     np.testing.assert_array_equal(system.guard_values("a", np.array([0.5, -0.25])), [0.5, -0.25])
     assert system.in_domain("a", np.array([0.5, 0.25]))
     assert not system.in_domain("a", np.array([0.5, -0.25]))

@@ -8,8 +8,11 @@ import ast
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-SOURCES = [p for folder in ("legsim", "robots", "viz", "scenarios", "tests", "benchmarks")
-           for p in sorted((ROOT / folder).rglob("*.py"))]
+SOURCES = [
+    p
+    for folder in ("legsim", "robots", "viz", "scenarios", "tests", "benchmarks")
+    for p in sorted((ROOT / folder).rglob("*.py"))
+]
 
 
 def code_lines(node: ast.FunctionDef | ast.AsyncFunctionDef) -> int:
@@ -57,8 +60,11 @@ def test_the_core_imports_neither_robots_nor_pictures_nor_their_libraries():
     for path in sorted((ROOT / "legsim").rglob("*.py")):
         rel = path.relative_to(ROOT)
         allowed_rerun = rel.parts[:3] == ("legsim", "output", "rrd")
-        bad = sorted(m for m in imported_modules(path)
-                     if m.startswith(forbidden) or (m.startswith("rerun") and not allowed_rerun))
+        bad = sorted(
+            m
+            for m in imported_modules(path)
+            if m.startswith(forbidden) or (m.startswith("rerun") and not allowed_rerun)
+        )
         if bad:
             found[str(rel)] = bad
     assert found == {}

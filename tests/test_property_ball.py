@@ -21,12 +21,18 @@ SETTINGS = settings(max_examples=200 if FULL else 12, deadline=None, derandomize
 
 
 def log_uniform(lo, hi):
-    return st.floats(math.log10(lo), math.log10(hi)).map(lambda e: 10.0 ** e)
+    return st.floats(math.log10(lo), math.log10(hi)).map(lambda e: 10.0**e)
 
 
 @SETTINGS
-@given(z0=st.floats(0.0, 3.0), zd0=st.floats(-5.0, 5.0), c=st.floats(0.0, 0.95), g=st.floats(1.0, 20.0),
-       h=log_uniform(1e-4, 5e-2), eps=log_uniform(1e-9, 1e-1))
+@given(
+    z0=st.floats(0.0, 3.0),
+    zd0=st.floats(-5.0, 5.0),
+    c=st.floats(0.0, 0.95),
+    g=st.floats(1.0, 20.0),
+    h=log_uniform(1e-4, 5e-2),
+    eps=log_uniform(1e-9, 1e-1),
+)
 def test_ball_keeps_the_invariants_through_and_past_its_zeno_time(z0, zd0, c, g, h, eps):
     system = make_system(g, c)
     ref = BouncingBallReference(g, c, z0, zd0)
@@ -38,13 +44,17 @@ def test_ball_keeps_the_invariants_through_and_past_its_zeno_time(z0, zd0, c, g,
     # its own; the default continuation is the next property.
     ex = simulate(system, [z0, zd0], "flight", T, h, eps, max_transitions=int(2 * bound) + 10, continuation=False)
     E0 = system.energy("flight", np.array([z0, zd0]))
-    checks = stress.execution_checks(system, ex, eps, energy="dissipative", energy_tol=1e-9 * max(1.0, E0),
-                                     bound=bound, bound_why="(T - t1)/floor")
+    checks = stress.execution_checks(
+        system, ex, eps, energy="dissipative", energy_tol=1e-9 * max(1.0, E0), bound=bound, bound_why="(T - t1)/floor"
+    )
     checks.append(stress.ball_hold_check(ex, eps))
     if len(ex.transitions) >= 2:
         checks.append(stress.ball_flight_checks(ex, g, eps, resolved=1e-3))
-    failed = [f"{c.name}: {c.detail}" for c in checks if not c.passed and not
-              (c.name == "flights exact" and "0 flights" in c.detail)]
+    failed = [
+        f"{c.name}: {c.detail}"
+        for c in checks
+        if not c.passed and not (c.name == "flights exact" and "0 flights" in c.detail)
+    ]
     assert not failed, failed
     # past its Zeno time the ball rests: it never climbs above the rest band again
     if c < 1.0 and T - ref.zeno_time > 10 * (h + eps):
@@ -68,8 +78,9 @@ def test_ball_rests_by_default_at_the_crossing_the_accumulation_rule_names(z0, c
     T = 2.0 * ref.zeno_time
     k = stress.ball_rest_crossing(ref.impact_speed, c, g, h + eps)
     ex = simulate(system, [z0, 0.0], "flight", T, h, eps, max_transitions=1000)
-    checks = stress.execution_checks(system, ex, eps, energy="dissipative", energy_tol=1e-9, bound=k,
-                                     bound_why="1 + ceil(log(2 v1/(g w))/log(1/c))")
+    checks = stress.execution_checks(
+        system, ex, eps, energy="dissipative", energy_tol=1e-9, bound=k, bound_why="1 + ceil(log(2 v1/(g w))/log(1/c))"
+    )
     assert all(ch.passed for ch in checks), [f"{ch.name}: {ch.detail}" for ch in checks if not ch.passed]
     # on the floor, within the strip, at the crossing the rule names
     assert len(ex.transitions) == k and ex.transitions[-1].name == "rest" and ex.final_mode == "rest"

@@ -21,8 +21,13 @@ FALLS = ("finished", "model_breakdown", "halving_exhausted", "reset_outside_doma
 
 
 @SETTINGS
-@given(z=st.floats(0.95, 1.4), xd=st.floats(2.0, 5.0), theta=st.floats(-0.1, 0.1), thetad=st.floats(-0.5, 0.5),
-       eps=st.sampled_from([1e-4, 1e-3, 1e-2]))
+@given(
+    z=st.floats(0.95, 1.4),
+    xd=st.floats(2.0, 5.0),
+    theta=st.floats(-0.1, 0.1),
+    thetad=st.floats(-0.5, 0.5),
+    eps=st.sampled_from([1e-4, 1e-3, 1e-2]),
+)
 def test_runner_keeps_the_invariants_and_its_energy(z, xd, theta, thetad, eps):
     system = MODEL.system
     x0 = stress._state(MODEL, "aerial", {"z": z, "xd": xd, "theta": theta, "thetad": thetad})
@@ -30,8 +35,9 @@ def test_runner_keeps_the_invariants_and_its_energy(z, xd, theta, thetad, eps):
     ex = simulate(system, x0, "aerial", T, h, eps, max_transitions=100)
     # each aerial phase ends with at most two touchdowns and two liftoffs before the next one
     aerials = ex.mode_sequence.count("aerial")
-    checks = stress.execution_checks(system, ex, eps, status=FALLS, energy="conservative", energy_tol=1e-6,
-                                     bound=4 * aerials, bound_why="4 per hop")
+    checks = stress.execution_checks(
+        system, ex, eps, status=FALLS, energy="conservative", energy_tol=1e-6, bound=4 * aerials, bound_why="4 per hop"
+    )
     assert all(ch.passed for ch in checks), [f"{ch.name}: {ch.detail}" for ch in checks if not ch.passed]
     for tr in ex.transitions:  # the feet are pinned and released at rest length: no energy jump
         assert abs(system.energy(tr.target, tr.state_after) - system.energy(tr.source, tr.state_before)) <= 1e-9

@@ -48,7 +48,8 @@ def test_simulate_equals_direct_simulate_and_hits_closed_form_impact(tmp_path):
 
 def test_scene_with_dense_landing_lands_on_the_closed_form_impact(tmp_path):
     text = TINY_SCENE.replace('method = "rk4"', 'method = "dopri5"').replace(
-        "t_final = 1.0", 't_final = 1.0\nlanding = "dense"\nrtol = 1e-8\natol = 1e-8')
+        "t_final = 1.0", 't_final = 1.0\nlanding = "dense"\nrtol = 1e-8\natol = 1e-8'
+    )
     scene = load_scene(write_scene(tmp_path, text))
     assert scene.integrator["landing"] == "dense"
     ex = scene.simulate()
@@ -87,100 +88,187 @@ def _replace(old: str, new: str) -> str:
 
 
 BAD = {
-    "unknown section": (TINY_SCENE + "\n[camera]\nzoom = 2\n",
-                        ["unknown section(s) ['camera']", "allowed:", "'integrator'", "'orbit'"]),
-    "tool section not a table": (TINY_SCENE.replace("[scene]", "orbit = 3\n[scene]"),
-                                 ["orbit: expected a table, got integer 3"]),
-    "core section not a table": (TINY_SCENE.replace("[scene]", "output = \"x.rrd\"\n[scene]"),
-                                 ["output: expected a table, got string 'x.rrd'"]),
-    "unknown scene key": (_replace('description = "a tiny ball"', 'descr = "x"'),
-                          ["scene: unknown key(s) ['descr']; allowed: ['description']"]),
-    "description not a string": (_replace('description = "a tiny ball"', "description = 3"),
-                                 ["scene.description: expected a string, got integer 3"]),
-    "unknown robot": (_replace('name = "tinyball"', 'name = "tinybal"'),
-                      ["robot.name: unknown robot 'tinybal'; available: [", "'tinyball'"]),
-    "robot name missing": (_replace('name = "tinyball"', ''), ["robot.name: missing; available robots:"]),
-    "robot name not a string": (_replace('name = "tinyball"', 'name = 1'),
-                                ["robot.name: expected a string, got integer 1"]),
-    "unknown robot key": (_replace('name = "tinyball"', 'name = "tinyball"\nmass = 1'),
-                          ["robot: unknown key(s) ['mass']; allowed: ['name', 'parameters']"]),
-    "unknown parameter": (_replace('name = "tinyball"', 'name = "tinyball"\nparameters = { gravity = 9.8 }'),
-                          ["robot.parameters: unknown parameter(s) ['gravity']; allowed: ['g']"]),
-    "parameter wrong type": (_replace('name = "tinyball"', 'name = "tinyball"\nparameters = { g = "earth" }'),
-                             ["robot.parameters.g: expected a number (float in (0, inf)), got 'earth'"]),
-    "parameter boolean": (_replace('name = "tinyball"', 'name = "tinyball"\nparameters = { g = true }'),
-                          ["robot.parameters.g: expected a number"]),
-    "parameter out of range": (_replace('name = "tinyball"', 'name = "tinyball"\nparameters = { g = -1 }'),
-                               ["robot.parameters.g: -1.0 is out of range, allowed: float in (0, inf)"]),
-    "unknown effect": (_replace("floor = { restitution = 0.5 }", "wind = true"),
-                       ["effects: unknown effect(s) ['wind']; allowed: ['drag', 'floor']"]),
-    "effect neither bool nor table": (_replace("floor = { restitution = 0.5 }", "floor = 1"),
-                                      ["effects.floor: expected true, false or a table of parameters, got 1"]),
-    "unknown effect parameter": (_replace("restitution = 0.5", "bounce = 0.5"),
-                                 ["effects.floor: unknown parameter(s) ['bounce']; allowed: ['restitution']"]),
-    "restitution above 1": (_replace("restitution = 0.5", "restitution = 1.5"),
-                            ["effects.floor.restitution: 1.5 is out of range, allowed: float in [0, 1]"]),
-    "restitution below 0": (_replace("restitution = 0.5", "restitution = -0.1"),
-                            ["effects.floor.restitution: -0.1 is out of range, allowed: float in [0, 1]"]),
-    "unknown initial mode": (_replace("state = { z = 1.0 }", 'mode = "stance"'),
-                             ["initial.mode: unknown mode 'stance'; modes: ['flight']"]),
-    "initial mode not a string": (_replace("state = { z = 1.0 }", "mode = 2"),
-                                  ["initial.mode: expected a mode name (string), got integer 2"]),
-    "unknown coordinate": (_replace("state = { z = 1.0 }", "state = { z = 1.0, y = 2.0 }"),
-                           ["initial.state: unknown coordinate(s) ['y'] of mode 'flight'; coordinates: ['z', 'zd']"]),
-    "coordinate wrong type": (_replace("state = { z = 1.0 }", 'state = { z = "high" }'),
-                              ["initial.state.z: expected a number, got string 'high'"]),
-    "coordinate not finite": (_replace("state = { z = 1.0 }", "state = { z = nan }"),
-                              ["initial.state.z: must be finite, got nan"]),
-    "state not a table": (_replace("state = { z = 1.0 }", "state = [1.0, 0.0]"),
-                          ["initial.state: expected a table of coordinate = number, got array"]),
-    "unknown initial key": (_replace("state = { z = 1.0 }", "state = { z = 1.0 }\nt = 0"),
-                            ["initial: unknown key(s) ['t']; allowed: ['mode', 'state']"]),
-    "initial state past the guard": (_replace("state = { z = 1.0 }", "state = { z = -0.5, zd = -1.0 }"),
-                                     ["initial.state:",
-                                      "lies past the guard of transition bounce by 0.5 > eps = 0.001"]),
+    "unknown section": (
+        TINY_SCENE + "\n[camera]\nzoom = 2\n",
+        ["unknown section(s) ['camera']", "allowed:", "'integrator'", "'orbit'"],
+    ),
+    "tool section not a table": (
+        TINY_SCENE.replace("[scene]", "orbit = 3\n[scene]"),
+        ["orbit: expected a table, got integer 3"],
+    ),
+    "core section not a table": (
+        TINY_SCENE.replace("[scene]", 'output = "x.rrd"\n[scene]'),
+        ["output: expected a table, got string 'x.rrd'"],
+    ),
+    "unknown scene key": (
+        _replace('description = "a tiny ball"', 'descr = "x"'),
+        ["scene: unknown key(s) ['descr']; allowed: ['description']"],
+    ),
+    "description not a string": (
+        _replace('description = "a tiny ball"', "description = 3"),
+        ["scene.description: expected a string, got integer 3"],
+    ),
+    "unknown robot": (
+        _replace('name = "tinyball"', 'name = "tinybal"'),
+        ["robot.name: unknown robot 'tinybal'; available: [", "'tinyball'"],
+    ),
+    "robot name missing": (_replace('name = "tinyball"', ""), ["robot.name: missing; available robots:"]),
+    "robot name not a string": (
+        _replace('name = "tinyball"', "name = 1"),
+        ["robot.name: expected a string, got integer 1"],
+    ),
+    "unknown robot key": (
+        _replace('name = "tinyball"', 'name = "tinyball"\nmass = 1'),
+        ["robot: unknown key(s) ['mass']; allowed: ['name', 'parameters']"],
+    ),
+    "unknown parameter": (
+        _replace('name = "tinyball"', 'name = "tinyball"\nparameters = { gravity = 9.8 }'),
+        ["robot.parameters: unknown parameter(s) ['gravity']; allowed: ['g']"],
+    ),
+    "parameter wrong type": (
+        _replace('name = "tinyball"', 'name = "tinyball"\nparameters = { g = "earth" }'),
+        ["robot.parameters.g: expected a number (float in (0, inf)), got 'earth'"],
+    ),
+    "parameter boolean": (
+        _replace('name = "tinyball"', 'name = "tinyball"\nparameters = { g = true }'),
+        ["robot.parameters.g: expected a number"],
+    ),
+    "parameter out of range": (
+        _replace('name = "tinyball"', 'name = "tinyball"\nparameters = { g = -1 }'),
+        ["robot.parameters.g: -1.0 is out of range, allowed: float in (0, inf)"],
+    ),
+    "unknown effect": (
+        _replace("floor = { restitution = 0.5 }", "wind = true"),
+        ["effects: unknown effect(s) ['wind']; allowed: ['drag', 'floor']"],
+    ),
+    "effect neither bool nor table": (
+        _replace("floor = { restitution = 0.5 }", "floor = 1"),
+        ["effects.floor: expected true, false or a table of parameters, got 1"],
+    ),
+    "unknown effect parameter": (
+        _replace("restitution = 0.5", "bounce = 0.5"),
+        ["effects.floor: unknown parameter(s) ['bounce']; allowed: ['restitution']"],
+    ),
+    "restitution above 1": (
+        _replace("restitution = 0.5", "restitution = 1.5"),
+        ["effects.floor.restitution: 1.5 is out of range, allowed: float in [0, 1]"],
+    ),
+    "restitution below 0": (
+        _replace("restitution = 0.5", "restitution = -0.1"),
+        ["effects.floor.restitution: -0.1 is out of range, allowed: float in [0, 1]"],
+    ),
+    "unknown initial mode": (
+        _replace("state = { z = 1.0 }", 'mode = "stance"'),
+        ["initial.mode: unknown mode 'stance'; modes: ['flight']"],
+    ),
+    "initial mode not a string": (
+        _replace("state = { z = 1.0 }", "mode = 2"),
+        ["initial.mode: expected a mode name (string), got integer 2"],
+    ),
+    "unknown coordinate": (
+        _replace("state = { z = 1.0 }", "state = { z = 1.0, y = 2.0 }"),
+        ["initial.state: unknown coordinate(s) ['y'] of mode 'flight'; coordinates: ['z', 'zd']"],
+    ),
+    "coordinate wrong type": (
+        _replace("state = { z = 1.0 }", 'state = { z = "high" }'),
+        ["initial.state.z: expected a number, got string 'high'"],
+    ),
+    "coordinate not finite": (
+        _replace("state = { z = 1.0 }", "state = { z = nan }"),
+        ["initial.state.z: must be finite, got nan"],
+    ),
+    "state not a table": (
+        _replace("state = { z = 1.0 }", "state = [1.0, 0.0]"),
+        ["initial.state: expected a table of coordinate = number, got array"],
+    ),
+    "unknown initial key": (
+        _replace("state = { z = 1.0 }", "state = { z = 1.0 }\nt = 0"),
+        ["initial: unknown key(s) ['t']; allowed: ['mode', 'state']"],
+    ),
+    "initial state past the guard": (
+        _replace("state = { z = 1.0 }", "state = { z = -0.5, zd = -1.0 }"),
+        ["initial.state:", "lies past the guard of transition bounce by 0.5 > eps = 0.001"],
+    ),
     "h zero": (_replace("h = 1e-3", "h = 0"), ["integrator.h: 0.0 is out of range, allowed: float in (0, inf)"]),
-    "h negative": (_replace("h = 1e-3", "h = -1e-3"),
-                   ["integrator.h: -0.001 is out of range, allowed: float in (0, inf)"]),
+    "h negative": (
+        _replace("h = 1e-3", "h = -1e-3"),
+        ["integrator.h: -0.001 is out of range, allowed: float in (0, inf)"],
+    ),
     "h not finite": (_replace("h = 1e-3", "h = inf"), ["integrator.h: must be finite, got inf"]),
-    "h wrong type": (_replace("h = 1e-3", 'h = "small"'),
-                     ["integrator.h: expected a number (float in (0, inf)), got 'small'"]),
-    "eps zero": (_replace("eps = 1e-3", "eps = 0.0"),
-                 ["integrator.eps: 0.0 is out of range, allowed: float in (0, inf)"]),
-    "t_final zero": (_replace("t_final = 1.0", "t_final = 0"),
-                     ["integrator.t_final: 0.0 is out of range, allowed: float in (0, inf)"]),
-    "t_final before t0": (_replace("t_final = 1.0", "t_final = 1.0\nt0 = 2.0"),
-                          ["integrator.t_final: 1.0 must be > integrator.t0 = 2.0"]),
-    "t_final missing": (_replace("t_final = 1.0", ""),
-                        ["integrator.t_final: missing; a scene must give ['t_final', 'h', 'eps']"]),
-    "unknown method": (_replace('method = "rk4"', 'method = "rk5"'),
-                       ["integrator.method: 'rk5' is not allowed, choose one of [", "'dopri5'", "'rk4'"]),
-    "max_transitions negative": (_replace("t_final = 1.0", "t_final = 1.0\nmax_transitions = -1"),
-                                 ["integrator.max_transitions: -1 is out of range, allowed: int in [0, inf)"]),
-    "max_transitions not an integer": (_replace("t_final = 1.0", "t_final = 1.0\nmax_transitions = 1e5"),
-                                       ["integrator.max_transitions: expected an integer (int in [0, inf)), "
-                                        "got 100000.0"]),
-    "more steps than max_steps": (_replace("t_final = 1.0", "t_final = 1e12"),
-                                  ["integrator.max_steps: t_final - t0 = 1e+12 s at h = 0.001 s is 1e+15 steps, "
-                                   "more than max_steps = 10000000", "raise integrator.max_steps"]),
-    "h below the time resolution": (_replace("t_final = 1.0", "t0 = 1e15\nt_final = 1.000000000000002e15"),
-                                    ["integrator.h: 0.001 s is too small for times near 1e+15 s, where float64 times "
-                                     "are 0.125 s apart; h must be >= 1.31e+05 s"]),
-    "max_steps zero": (_replace("t_final = 1.0", "t_final = 1.0\nmax_steps = 0"),
-                       ["integrator.max_steps: 0 is out of range, allowed: int in [1, inf)"]),
-    "unknown integrator key": (_replace("t_final = 1.0", "t_final = 1.0\ndt = 1e-3"),
-                               ["integrator: unknown parameter(s) ['dt']; allowed: ["]),
-    "rtol without an embedded method": (_replace("t_final = 1.0", "t_final = 1.0\nrtol = 1e-6"),
-                                        ["integrator.rtol: error control needs a method with an embedded "
-                                         "error estimate",
-                                         "method = 'rk4'"]),
-    "dense landing without a continuous extension": (_replace("t_final = 1.0", 't_final = 1.0\nlanding = "dense"'),
-                                                     ["integrator.landing: 'dense' lands on the method's continuous "
-                                                      "extension, which method = 'rk4' has not", "landing = 'aim'"]),
-    "unknown output": (TINY_SCENE + '\n[output]\ngif = "a.gif"\n',
-                       ["output: unknown key(s) ['gif']; allowed: ['rrd', 'html', 'plot']"]),
-    "output not a path": (TINY_SCENE + "\n[output]\nrrd = 3\n",
-                          ["output.rrd: expected a file path (string), got integer 3"]),
+    "h wrong type": (
+        _replace("h = 1e-3", 'h = "small"'),
+        ["integrator.h: expected a number (float in (0, inf)), got 'small'"],
+    ),
+    "eps zero": (
+        _replace("eps = 1e-3", "eps = 0.0"),
+        ["integrator.eps: 0.0 is out of range, allowed: float in (0, inf)"],
+    ),
+    "t_final zero": (
+        _replace("t_final = 1.0", "t_final = 0"),
+        ["integrator.t_final: 0.0 is out of range, allowed: float in (0, inf)"],
+    ),
+    "t_final before t0": (
+        _replace("t_final = 1.0", "t_final = 1.0\nt0 = 2.0"),
+        ["integrator.t_final: 1.0 must be > integrator.t0 = 2.0"],
+    ),
+    "t_final missing": (
+        _replace("t_final = 1.0", ""),
+        ["integrator.t_final: missing; a scene must give ['t_final', 'h', 'eps']"],
+    ),
+    "unknown method": (
+        _replace('method = "rk4"', 'method = "rk5"'),
+        ["integrator.method: 'rk5' is not allowed, choose one of [", "'dopri5'", "'rk4'"],
+    ),
+    "max_transitions negative": (
+        _replace("t_final = 1.0", "t_final = 1.0\nmax_transitions = -1"),
+        ["integrator.max_transitions: -1 is out of range, allowed: int in [0, inf)"],
+    ),
+    "max_transitions not an integer": (
+        _replace("t_final = 1.0", "t_final = 1.0\nmax_transitions = 1e5"),
+        ["integrator.max_transitions: expected an integer (int in [0, inf)), got 100000.0"],
+    ),
+    "more steps than max_steps": (
+        _replace("t_final = 1.0", "t_final = 1e12"),
+        [
+            "integrator.max_steps: t_final - t0 = 1e+12 s at h = 0.001 s is 1e+15 steps, "
+            "more than max_steps = 10000000",
+            "raise integrator.max_steps",
+        ],
+    ),
+    "h below the time resolution": (
+        _replace("t_final = 1.0", "t0 = 1e15\nt_final = 1.000000000000002e15"),
+        [
+            "integrator.h: 0.001 s is too small for times near 1e+15 s, where float64 times "
+            "are 0.125 s apart; h must be >= 1.31e+05 s"
+        ],
+    ),
+    "max_steps zero": (
+        _replace("t_final = 1.0", "t_final = 1.0\nmax_steps = 0"),
+        ["integrator.max_steps: 0 is out of range, allowed: int in [1, inf)"],
+    ),
+    "unknown integrator key": (
+        _replace("t_final = 1.0", "t_final = 1.0\ndt = 1e-3"),
+        ["integrator: unknown parameter(s) ['dt']; allowed: ["],
+    ),
+    "rtol without an embedded method": (
+        _replace("t_final = 1.0", "t_final = 1.0\nrtol = 1e-6"),
+        ["integrator.rtol: error control needs a method with an embedded error estimate", "method = 'rk4'"],
+    ),
+    "dense landing without a continuous extension": (
+        _replace("t_final = 1.0", 't_final = 1.0\nlanding = "dense"'),
+        [
+            "integrator.landing: 'dense' lands on the method's continuous extension, which method = 'rk4' has not",
+            "landing = 'aim'",
+        ],
+    ),
+    "unknown output": (
+        TINY_SCENE + '\n[output]\ngif = "a.gif"\n',
+        ["output: unknown key(s) ['gif']; allowed: ['rrd', 'html', 'plot']"],
+    ),
+    "output not a path": (
+        TINY_SCENE + "\n[output]\nrrd = 3\n",
+        ["output.rrd: expected a file path (string), got integer 3"],
+    ),
 }
 
 
@@ -220,8 +308,9 @@ def test_model_initial_check_refuses_states_the_guards_admit(tmp_path, monkeypat
     monkeypatch.setattr(support, "BUILDER", dataclasses.replace(support.BUILDER, build=build))
     path = write_scene(tmp_path)
     assert load_scene(path, overrides=["initial.state.z=-5e-4"]).initial_state[0] == -5e-4  # inside the strip
-    with pytest.raises(SceneError,
-                       match=rf"^{path}: initial.state: \{{'z': -5.0, 'zd': 0.0\}}: z below -eps = -0.001$"):
+    with pytest.raises(
+        SceneError, match=rf"^{path}: initial.state: \{{'z': -5.0, 'zd': 0.0\}}: z below -eps = -0.001$"
+    ):
         load_scene(path, overrides=["initial.state.z=-5"])
 
     def broken(params, effects):
@@ -230,8 +319,11 @@ def test_model_initial_check_refuses_states_the_guards_admit(tmp_path, monkeypat
         return model
 
     monkeypatch.setattr(support, "BUILDER", dataclasses.replace(support.BUILDER, build=broken))
-    with pytest.raises(ModelError, match=r"initial-state check of robot model 'tinyball' failed on \[1.0, 0.0\]: "
-                                         r"ZeroDivisionError"):
+    with pytest.raises(
+        ModelError,
+        match=r"initial-state check of robot model 'tinyball' failed on \[1.0, 0.0\]: "
+        r"ZeroDivisionError",
+    ):
         load_scene(path)
 
 
@@ -291,17 +383,20 @@ def test_builder_returning_something_else_is_rejected(tmp_path, monkeypatch):
 
 
 # -- overrides ---------------------------------------------------------------------------------
-@pytest.mark.parametrize("text, key, value", [
-    ("integrator.h=1e-4", ["integrator", "h"], 1e-4),
-    ("integrator.max_transitions=10", ["integrator", "max_transitions"], 10),
-    ("effects.drag=true", ["effects", "drag"], True),
-    ("integrator.method=dopri5", ["integrator", "method"], "dopri5"),
-    ('integrator.method="bs32"', ["integrator", "method"], "bs32"),
-    ("effects.floor={ restitution = 0.8 }", ["effects", "floor"], {"restitution": 0.8}),
-    ("a.b=[1, 2]", ["a", "b"], [1, 2]),
-    ("scene.description=two words", ["scene", "description"], "two words"),
-    (" initial.state.z = 2 ", ["initial", "state", "z"], 2),
-])
+@pytest.mark.parametrize(
+    "text, key, value",
+    [
+        ("integrator.h=1e-4", ["integrator", "h"], 1e-4),
+        ("integrator.max_transitions=10", ["integrator", "max_transitions"], 10),
+        ("effects.drag=true", ["effects", "drag"], True),
+        ("integrator.method=dopri5", ["integrator", "method"], "dopri5"),
+        ('integrator.method="bs32"', ["integrator", "method"], "bs32"),
+        ("effects.floor={ restitution = 0.8 }", ["effects", "floor"], {"restitution": 0.8}),
+        ("a.b=[1, 2]", ["a", "b"], [1, 2]),
+        ("scene.description=two words", ["scene", "description"], "two words"),
+        (" initial.state.z = 2 ", ["initial", "state", "z"], 2),
+    ],
+)
 def test_parse_override_reads_toml_literals_else_strings(text, key, value):
     parsed_key, parsed = parse_override(text)
     assert parsed_key == key and parsed == value and type(parsed) is type(value)
@@ -315,14 +410,25 @@ def test_malformed_override(text):
 
 def test_overrides_apply_before_validation(tmp_path):
     path = write_scene(tmp_path, _replace("floor = { restitution = 0.5 }", "floor = true"))
-    scene = load_scene(path, overrides=["integrator.h=1e-4", "effects.floor.restitution=0.8",
-                                        "initial.state.zd=2", "integrator.method=dopri5"])
+    scene = load_scene(
+        path,
+        overrides=[
+            "integrator.h=1e-4",
+            "effects.floor.restitution=0.8",
+            "initial.state.zd=2",
+            "integrator.method=dopri5",
+        ],
+    )
     assert scene.integrator["h"] == 1e-4 and scene.integrator["method"] == "dopri5"
     # An effect given as `true` becomes a table when one of its parameters is set.
     assert scene.effects["floor"] == {"restitution": 0.8}
     np.testing.assert_array_equal(scene.initial_state, [1.0, 2.0])
-    assert scene.overrides == ["integrator.h=1e-4", "effects.floor.restitution=0.8",
-                               "initial.state.zd=2", "integrator.method=dopri5"]
+    assert scene.overrides == [
+        "integrator.h=1e-4",
+        "effects.floor.restitution=0.8",
+        "initial.state.zd=2",
+        "integrator.method=dopri5",
+    ]
     # The reset uses the overridden restitution: an impact at speed v leaves at 0.8 v.
     ex = scene.simulate()
     tr = ex.transitions[0]
@@ -373,6 +479,9 @@ def test_missing_toml_file_named_like_a_known_scene_gets_a_hint(tmp_path, monkey
     write_scene(scenes, name="hinted")
     monkeypatch.setenv("LEGSIM_SCENE_PATH", str(scenes))
     monkeypatch.chdir(elsewhere)
-    with pytest.raises(SceneError, match=rf"^hinted.toml: no such scene file \(the scene named 'hinted' is "
-                                         rf"{scenes / 'hinted.toml'}: run it by name\)$"):
+    with pytest.raises(
+        SceneError,
+        match=rf"^hinted.toml: no such scene file \(the scene named 'hinted' is "
+        rf"{scenes / 'hinted.toml'}: run it by name\)$",
+    ):
         load_scene("hinted.toml")

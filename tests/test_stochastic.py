@@ -61,8 +61,9 @@ def test_grazing_probability_vanishes_away_from_the_guard():
 @pytest.mark.parametrize("intensity", ["hazard", "derivative"])
 def test_monte_carlo_switching_frequency_matches_the_survival_function(intensity):
     tf = grazing(1.0, intensity)
-    ens = sample_ensemble(circular_flow(), "inside", [0.0, 1.0], 3.0, H, "rk4", samples=400, seed=7,
-                          intensity=intensity)
+    ens = sample_ensemble(
+        circular_flow(), "inside", [0.0, 1.0], 3.0, H, "rk4", samples=400, seed=7, intensity=intensity
+    )
     switched = np.mean([len(e.times) > 0 for e in ens.executions])
     p = tf.switching_probability[-1]
     # Closed forms in the largest share pi* of the ball past the guard: pi* (hazard) and
@@ -103,8 +104,9 @@ def test_two_tank_stochastic_executions_are_not_zeno(h):
     ref = TwoTankReference(0.75, 0.5, 0.5)
     x0 = np.array([1.0, 1.0])
     t_zeno = ref.zeno_time(x0)
-    ens = sample_ensemble(two_tanks(), "q1", x0, t_zeno + 1.0, h, "euler", samples=8, seed=5, floor=1.0,
-                          max_transitions=2000)
+    ens = sample_ensemble(
+        two_tanks(), "q1", x0, t_zeno + 1.0, h, "euler", samples=8, seed=5, floor=1.0, max_transitions=2000
+    )
     for e in ens.executions:
         assert e.status == "finished", e.message
         assert e.t_end == pytest.approx(t_zeno + 1.0)
@@ -136,14 +138,27 @@ def test_restarting_the_bound_at_each_switch_lets_the_accumulation_back_in():
     # starts with a ball of one step's floor: visits shrink towards zero length again.
     x0 = np.array([1.0, 1.0])
     # The hazard cap (which bounds the intensities) is off here to show the carry's own effect.
-    carried = sample_execution(two_tanks(), "q1", x0, 9.0, 0.04, "euler", rng=1, floor=1.0, max_transitions=300,
-                               hazard_cap=math.inf)
-    restarted = sample_execution(two_tanks(), "q1", x0, 9.0, 0.04, "euler", rng=1, floor=1.0, max_transitions=300,
-                                 carry=False, hazard_cap=math.inf)
+    carried = sample_execution(
+        two_tanks(), "q1", x0, 9.0, 0.04, "euler", rng=1, floor=1.0, max_transitions=300, hazard_cap=math.inf
+    )
+    restarted = sample_execution(
+        two_tanks(),
+        "q1",
+        x0,
+        9.0,
+        0.04,
+        "euler",
+        rng=1,
+        floor=1.0,
+        max_transitions=300,
+        carry=False,
+        hazard_cap=math.inf,
+    )
     assert restarted.dwell_times.min() < 1e-3 * carried.dwell_times.min()
     # With the cap the restarted visits still shrink, but stay bounded below.
-    capped = sample_execution(two_tanks(), "q1", x0, 9.0, 0.04, "euler", rng=1, floor=1.0, max_transitions=300,
-                              carry=False)
+    capped = sample_execution(
+        two_tanks(), "q1", x0, 9.0, 0.04, "euler", rng=1, floor=1.0, max_transitions=300, carry=False
+    )
     assert capped.status == "finished" and capped.dwell_times.min() > 1e-6
 
 
@@ -191,8 +206,12 @@ def test_grazing_probability_does_not_depend_on_where_the_step_grid_meets_the_ta
     # The same numerical flow, to find the interpolant's closest approach in step 15 directly.
     flow = ModeFlow(circular_flow(), "inside", x0, t0, H, LocalErrorEstimator("rk4"), t_end=t0 + 3.0)
     flow.point(16)
-    closest = minimize_scalar(lambda s: float(flow.on_step(15, s)[4][0] / flow.on_step(15, s)[2]),
-                              bounds=(0.0, 1.0), method="bounded", options={"xatol": 1e-12})
+    closest = minimize_scalar(
+        lambda s: float(flow.on_step(15, s)[4][0] / flow.on_step(15, s)[2]),
+        bounds=(0.0, 1.0),
+        method="bounded",
+        options={"xatol": 1e-12},
+    )
     assert abs(closest.x - phase) < 0.01
     assert tf.switching_probability[-1] == pytest.approx(float(segment_fraction(closest.fun)), abs=1e-6)
     assert 0.45 < tf.switching_probability[-1] <= 0.5
@@ -231,12 +250,24 @@ def test_without_the_hazard_cap_the_two_tanks_accumulate_switches_past_the_zeno_
     ref = TwoTankReference(0.75, 0.5, 0.5)
     x0 = np.array([1.0, 1.0])
     t_final = ref.zeno_time(x0) + 1.0
-    uncapped = sample_ensemble(two_tanks(), "q1", x0, t_final, 0.01, "euler", samples=8, seed=5, floor=1.0,
-                               max_transitions=2000, hazard_cap=math.inf)
+    uncapped = sample_ensemble(
+        two_tanks(),
+        "q1",
+        x0,
+        t_final,
+        0.01,
+        "euler",
+        samples=8,
+        seed=5,
+        floor=1.0,
+        max_transitions=2000,
+        hazard_cap=math.inf,
+    )
     assert any(e.status == "max_transitions" for e in uncapped.executions)
     assert min(e.dwell_times.min() for e in uncapped.executions) < 1e-9
-    capped = sample_ensemble(two_tanks(), "q1", x0, t_final, 0.01, "euler", samples=8, seed=5, floor=1.0,
-                             max_transitions=2000)
+    capped = sample_ensemble(
+        two_tanks(), "q1", x0, t_final, 0.01, "euler", samples=8, seed=5, floor=1.0, max_transitions=2000
+    )
     assert all(e.status == "finished" for e in capped.executions)
     # The cap binds only in the tail of a passage (1 - pi below ~1%): a transversal crossing far
     # from the Zeno point switches at the same instant with and without it, for the same draw.

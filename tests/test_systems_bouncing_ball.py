@@ -52,7 +52,7 @@ def test_reference_states_obey_free_fall_and_the_impact_law(ref):
     d = 1e-4
     mids = 0.5 * (times[:-1] + times[1:])
     z = {k: ref.states(mids + k * d)[:, 0] for k in (-1, 0, 1)}
-    np.testing.assert_allclose((z[1] - 2 * z[0] + z[-1]) / d ** 2, -G, rtol=1e-6)
+    np.testing.assert_allclose((z[1] - 2 * z[0] + z[-1]) / d**2, -G, rtol=1e-6)
     np.testing.assert_allclose((z[1] - z[-1]) / (2 * d), ref.states(mids)[:, 1], rtol=1e-8, atol=1e-9)
     # At impacts: on the floor, velocity reversed and scaled by c.
     before = ref.states(times - 1e-12)
@@ -70,7 +70,7 @@ def test_reference_special_cases():
     up = BouncingBallReference(G, C, 0.0, 2.0)  # thrown up from the floor
     assert up.first_impact == pytest.approx(2 * 2.0 / G)
     down = BouncingBallReference(G, C, 1.0, -3.0)  # thrown down: root without cancellation
-    assert down.z0 + down.zd0 * down.first_impact - 0.5 * G * down.first_impact ** 2 == pytest.approx(0, abs=1e-15)
+    assert down.z0 + down.zd0 * down.first_impact - 0.5 * G * down.first_impact**2 == pytest.approx(0, abs=1e-15)
     plastic = BouncingBallReference(G, 0.0, 1.0)
     assert plastic.zeno_time == plastic.first_impact
     elastic = BouncingBallReference(G, 1.0, 1.0)
@@ -126,7 +126,9 @@ def test_by_default_the_ball_rests_at_the_crossing_the_rule_names_with_the_plain
     assert cont.warnings == [] and [w.kind for w in plain.warnings] == ["accumulation"]
     # the bounces it keeps are the plain run's, strip for strip (same guard values, same holds)
     kept = cont.transitions[:-1]
-    np.testing.assert_array_equal([tr.exit_time for tr in kept], [tr.exit_time for tr in plain.transitions[:len(kept)]])
+    np.testing.assert_array_equal(
+        [tr.exit_time for tr in kept], [tr.exit_time for tr in plain.transitions[: len(kept)]]
+    )
     # It rests at the crossing that ends the first flight no longer than the window: the flight
     # after impact j is 2 c^j v1 / g (free fall is a cubic, integrated exactly), so at impact
     # k = 1 + ceil(log(2 v1 / (g window)) / log(1/c)), 11 here.
@@ -189,8 +191,11 @@ def test_a_start_below_the_floor_is_refused_and_huge_states_have_infinite_energy
     from legsim import SceneError
 
     # max(z, zd) >= 0 holds for a ball 5 m under the floor at rest: the builder's check names it.
-    with pytest.raises(SceneError, match=r"bouncing_ball.toml: initial.state: \{'z': -5.0, 'zd': 0.0\}: z = -5 m "
-                                         r"lies below the floor \(z >= 0\) by more than eps = 0.0001 m$"):
+    with pytest.raises(
+        SceneError,
+        match=r"bouncing_ball.toml: initial.state: \{'z': -5.0, 'zd': 0.0\}: z = -5 m "
+        r"lies below the floor \(z >= 0\) by more than eps = 0.0001 m$",
+    ):
         load_scene("bouncing_ball", overrides=["initial.state.z=-5"])
     # Inside the strip is a legal start (a run may be continued from where one ended).
     assert load_scene("bouncing_ball", overrides=["initial.state.z=-5e-5"]).initial_state[0] == -5e-5

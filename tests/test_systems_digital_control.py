@@ -33,8 +33,9 @@ def test_nominal_reference_crosses_both_thresholds_at_ln2():
     np.testing.assert_allclose(ref.states(t), 0.5 * (1 - np.exp(-(t - math.log(2.0))))[:, None] * [1, 1], rtol=1e-14)
 
 
-@pytest.mark.parametrize("mode_start, x0", [("0", [-1.2, -0.7]), ("0", [-0.3, -2.0]), ("1", [0.1, -0.4]),
-                                            ("2", [-0.6, 0.3])])
+@pytest.mark.parametrize(
+    "mode_start, x0", [("0", [-1.2, -0.7]), ("0", [-0.3, -2.0]), ("1", [0.1, -0.4]), ("2", [-0.6, 0.3])]
+)
 def test_reference_solves_each_mode_ode(mode_start, x0):
     ref = dc.make_reference(x0, mode_start)
     setpoints = dc.setpoints()

@@ -12,8 +12,10 @@ from legsim.tables import PIPE_WIDTH, output_width, render_table
 
 def test_every_cell_is_in_the_table_and_no_line_is_wider_than_asked():
     header = ("name", "note", "value")
-    rows = [("first", "a note long enough to need several lines in a narrow table " * 2, "1.5e-07"),
-            ("second_name_that_is_long", "[bold]markup is text[/bold] " + "z" * 50, "12")]
+    rows = [
+        ("first", "a note long enough to need several lines in a narrow table " * 2, "1.5e-07"),
+        ("second_name_that_is_long", "[bold]markup is text[/bold] " + "z" * 50, "12"),
+    ]
     for width in (30, 50, 80, 200):
         text = render_table(header, rows, right=[2], whole=[0, 2], width=width)
         assert max(len(line) for line in text.splitlines()) <= width, text
@@ -52,9 +54,30 @@ def test_tables_fit_a_terminal_and_take_the_pipe_width_elsewhere(monkeypatch):
 
 
 def test_bench_table_keeps_every_run_and_fits_the_width():
-    rows = [Row("c", f"relaxed-rk4-with-a-long-method-name-{k}", "relaxed", 10.0 ** -k, 1e-6, math.nan, math.inf, "",
-                3.2e-5 * k, math.nan, 0.01 * k, 3, 1000 * k, k, 4000 * k, 10, 7, "finished: a status message " * 3,
-                k % 2) for k in range(1, 4)]
+    rows = [
+        Row(
+            "c",
+            f"relaxed-rk4-with-a-long-method-name-{k}",
+            "relaxed",
+            10.0**-k,
+            1e-6,
+            math.nan,
+            math.inf,
+            "",
+            3.2e-5 * k,
+            math.nan,
+            0.01 * k,
+            3,
+            1000 * k,
+            k,
+            4000 * k,
+            10,
+            7,
+            "finished: a status message " * 3,
+            k % 2,
+        )
+        for k in range(1, 4)
+    ]
     for width in (100, 160):
         text = format_table(rows, width=width)
         assert max(len(line) for line in text.splitlines()) <= width, text

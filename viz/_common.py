@@ -63,12 +63,12 @@ class PlotData:
         """One line saying which values were left out ('' when none were)."""
         if self.omitted_from is None:
             return ""
-        return (f"values past t = {self.omitted_from:.6g} s omitted (diverged: |value| > {PLOT_LIMIT:g} "
-                f"or not finite)")
+        return f"values past t = {self.omitted_from:.6g} s omitted (diverged: |value| > {PLOT_LIMIT:g} or not finite)"
 
 
-def drawable(series: dict[str, tuple[np.ndarray, np.ndarray]]
-             ) -> tuple[dict[str, tuple[np.ndarray, np.ndarray]], float | None]:
+def drawable(
+    series: dict[str, tuple[np.ndarray, np.ndarray]],
+) -> tuple[dict[str, tuple[np.ndarray, np.ndarray]], float | None]:
     """``series`` with every value beyond ``PLOT_LIMIT`` or not finite replaced by NaN (a
     break in the line), and the earliest time of such a value (None when there is none).
 
@@ -105,13 +105,23 @@ def _with_breaks(rows: np.ndarray, times: np.ndarray, values: np.ndarray) -> tup
 def plot_data_from_execution(execution: Execution, title: str) -> PlotData:
     """The recorded samples of ``execution`` (segment points and held strip points)."""
     trace = execution_trace(execution)
-    series = {nm: _with_breaks(rows, trace.times[rows], vals)
-              for nm, (rows, vals) in trace_series(execution, trace).items()}
+    series = {
+        nm: _with_breaks(rows, trace.times[rows], vals) for nm, (rows, vals) in trace_series(execution, trace).items()
+    }
     series, omitted = drawable(series)
     segments = [(s.mode, s.t_start, s.t_end) for s in execution.segments]
     units = units_by_name(execution.state_names, execution.state_units)
-    return PlotData(series, execution.strip_intervals(), segments, title, float(execution.t0), float(execution.t_end),
-                    units=units, omitted_from=omitted, strip_modes=[s.mode for s in execution.strips])
+    return PlotData(
+        series,
+        execution.strip_intervals(),
+        segments,
+        title,
+        float(execution.t0),
+        float(execution.t_end),
+        units=units,
+        omitted_from=omitted,
+        strip_modes=[s.mode for s in execution.strips],
+    )
 
 
 def units_by_name(names: Mapping[str, Any], units: Mapping[str, Any]) -> dict[str, str]:
@@ -149,9 +159,17 @@ def plot_data_from_recording(data: dict[str, Any]) -> PlotData:
     strips = [(st["time"], st["exit_time"]) for st in data["strips"]]
     # Where Rerun stored a diverged run's values as float32 they are inf: left out the same way.
     series, omitted = drawable(series)
-    return PlotData(series, strips, list(data["segments"]), title, float(meta["t0"]), float(meta["t_end"]),
-                    units=recorded_units(data), omitted_from=omitted,
-                    strip_modes=[str(st.get("mode", "")) for st in data["strips"]])
+    return PlotData(
+        series,
+        strips,
+        list(data["segments"]),
+        title,
+        float(meta["t0"]),
+        float(meta["t_end"]),
+        units=recorded_units(data),
+        omitted_from=omitted,
+        strip_modes=[str(st.get("mode", "")) for st in data["strips"]],
+    )
 
 
 def recorded_units(data: Mapping[str, Any]) -> dict[str, str]:

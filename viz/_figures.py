@@ -50,17 +50,25 @@ def new_figure(width: float, height: float):
     return fig
 
 
-def draw_parts(ax, parts: dict[str, np.ndarray], colour, *, lw: float = 2.0, alpha: float = 1.0,
-               point_size: float = 30.0, zorder: int = 2) -> None:
+def draw_parts(
+    ax,
+    parts: dict[str, np.ndarray],
+    colour,
+    *,
+    lw: float = 2.0,
+    alpha: float = 1.0,
+    point_size: float = 30.0,
+    zorder: int = 2,
+) -> None:
     """Draw a geometry frame (part -> (k, 2) polyline, single points as dots)."""
     for line in parts.values():
         line = np.asarray(line, dtype=float).reshape(-1, 2)
         if len(line) == 1:
-            ax.scatter(line[:, 0], line[:, 1], s=point_size, color=colour, alpha=alpha, zorder=zorder + 1,
-                       edgecolors="none")
+            ax.scatter(
+                line[:, 0], line[:, 1], s=point_size, color=colour, alpha=alpha, zorder=zorder + 1, edgecolors="none"
+            )
         elif len(line):
-            ax.plot(line[:, 0], line[:, 1], color=colour, lw=lw, alpha=alpha, zorder=zorder,
-                    solid_capstyle="round")
+            ax.plot(line[:, 0], line[:, 1], color=colour, lw=lw, alpha=alpha, zorder=zorder, solid_capstyle="round")
 
 
 def draw_scenery(ax, scenery: dict[str, np.ndarray]) -> None:
@@ -78,8 +86,9 @@ def snapshot_times(execution: Execution) -> list[tuple[float, str, np.ndarray, s
     return shots
 
 
-def group_shots(shots: list[tuple[float, str, np.ndarray, str]], within: float
-                ) -> list[list[tuple[float, str, np.ndarray, str]]]:
+def group_shots(
+    shots: list[tuple[float, str, np.ndarray, str]], within: float
+) -> list[list[tuple[float, str, np.ndarray, str]]]:
     """Snapshots closer than ``within`` seconds to the previous one, grouped (the transitions
     of a simultaneous touchdown follow each other within one strip)."""
     groups: list[list] = []
@@ -91,8 +100,14 @@ def group_shots(shots: list[tuple[float, str, np.ndarray, str]], within: float
     return groups
 
 
-def state_panels(fig, gridspec_column, execution: Execution, coordinates: Sequence[str], title: str,
-                 units: dict[str, str] | None = None) -> list:
+def state_panels(
+    fig,
+    gridspec_column,
+    execution: Execution,
+    coordinates: Sequence[str],
+    title: str,
+    units: dict[str, str] | None = None,
+) -> list:
     """State against time in a column of ``fig``: one panel per coordinate with the strips
     shaded gray, and a mode band below (paper 003 Fig. 2). Each panel is labelled with the
     coordinate's unit: ``units[name]`` when given, else the model's (``Mode.units``)."""
@@ -111,8 +126,14 @@ def state_panels(fig, gridspec_column, execution: Execution, coordinates: Sequen
         axes.append(ax)
     band = fig.add_subplot(sub[-1], sharex=axes[0])
     handles = mode_band(band, data, tol)
-    band.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.8), ncol=len(handles),
-                fontsize="small", frameon=False)
+    band.legend(
+        handles=handles,
+        loc="upper center",
+        bbox_to_anchor=(0.5, -0.8),
+        ncol=len(handles),
+        fontsize="small",
+        frameon=False,
+    )
     axes[0].set_title(title, fontsize="medium")
     return [*axes, band]
 

@@ -49,16 +49,18 @@ def bridge_contact_points(bridge: Any, mode: str, x: np.ndarray) -> dict[str, np
     contacts = {c.name: c for c in bridge.contacts}
     feet = bridge.foot_positions(mode, x)
     points = {name: np.asarray(feet[name], dtype=float) for name in active if name in feet}
-    frames = {name: contacts[name].frame for name in active
-              if name not in feet and hasattr(contacts[name], "frame") and not hasattr(contacts[name], "joint")}
+    frames = {
+        name: contacts[name].frame
+        for name in active
+        if name not in feet and hasattr(contacts[name], "frame") and not hasattr(contacts[name], "joint")
+    }
     if frames:
-        positions = bridge.frame_positions(np.asarray(x, dtype=float)[:bridge.n], list(frames.values()))
+        positions = bridge.frame_positions(np.asarray(x, dtype=float)[: bridge.n], list(frames.values()))
         points.update({name: positions[frame] for name, frame in frames.items()})
     return points
 
 
-def contact_frames(execution: Execution, model: Model | None, times: np.ndarray
-                   ) -> dict[str, list[np.ndarray | None]]:
+def contact_frames(execution: Execution, model: Model | None, times: np.ndarray) -> dict[str, list[np.ndarray | None]]:
     """Contact name -> its (2,) point (m) at each of ``times`` (s), None where it is not active
     (or not finite: a diverged run's last frames); empty when the model says nothing about its
     contacts. ModelError naming the mode and time when the model's hook fails."""
@@ -66,8 +68,10 @@ def contact_frames(execution: Execution, model: Model | None, times: np.ndarray
     if points_of is None or not len(times):
         return {}
     samples = execution.sample(times)
-    per_frame = [_evaluated(points_of, mode, x, float(t), model)
-                 for t, mode, x in zip(samples.times, samples.modes, samples.states, strict=True)]
+    per_frame = [
+        _evaluated(points_of, mode, x, float(t), model)
+        for t, mode, x in zip(samples.times, samples.modes, samples.states, strict=True)
+    ]
     names = list(dict.fromkeys(name for frame in per_frame for name in frame))
     return {name: [frame.get(name) for frame in per_frame] for name in names}
 
@@ -78,6 +82,7 @@ def _evaluated(points_of: ContactPoints, mode: str, x: np.ndarray, t: float, mod
         found = points_of(mode, np.asarray(x, dtype=float))
         points = {str(name): np.asarray(p, dtype=float).reshape(2) for name, p in found.items()}
     except Exception as exc:
-        raise ModelError(f"{model.system.name}: contact points failed in mode '{mode}' at t={t:.6g}: "
-                         f"{type(exc).__name__}: {exc}") from exc
+        raise ModelError(
+            f"{model.system.name}: contact points failed in mode '{mode}' at t={t:.6g}: {type(exc).__name__}: {exc}"
+        ) from exc
     return {name: p for name, p in points.items() if np.all(np.isfinite(p))}

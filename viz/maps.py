@@ -28,8 +28,15 @@ from ._figures import new_figure
 
 #: Outcome -> colour of the basin map, in legend order (``legsim.sweep.walk.OUTCOMES``, then
 #: rows without a result).
-OUTCOME_COLOURS = {"converges": "#2ca02c", "other_gait": "#1f77b4", "falls": "#d62728", "stops": "#ff7f0e",
-                   "undecided": "#bcbd22", "failed": "#7f7f7f", "no result": "#000000"}
+OUTCOME_COLOURS = {
+    "converges": "#2ca02c",
+    "other_gait": "#1f77b4",
+    "falls": "#d62728",
+    "stops": "#ff7f0e",
+    "undecided": "#bcbd22",
+    "failed": "#7f7f7f",
+    "no result": "#000000",
+}
 FORMATS = ("png", "pdf", "svg")
 #: The suffixes the map writers write: a command checks its output path against them before it runs.
 SUFFIXES = tuple("." + f for f in FORMATS)
@@ -99,16 +106,34 @@ def basin_figure(table: Any, info: Mapping[str, Any]):
     xs, ys, outcome = grid_of(table, x, y, "outcome")
     _, _, status = grid_of(table, x, y, "task_status")
     labels = list(OUTCOME_COLOURS)
-    codes = np.array([[labels.index(o) if (o in OUTCOME_COLOURS and s == "done") else labels.index("no result")
-                       for o, s in zip(orow, srow, strict=True)]
-                      for orow, srow in zip(outcome, status, strict=True)], dtype=float)
+    codes = np.array(
+        [
+            [
+                labels.index(o) if (o in OUTCOME_COLOURS and s == "done") else labels.index("no result")
+                for o, s in zip(orow, srow, strict=True)
+            ]
+            for orow, srow in zip(outcome, status, strict=True)
+        ],
+        dtype=float,
+    )
     fig = new_figure(12.0, 5.2)
     ax, ax_steps = fig.subplots(1, 2)
-    ax.pcolormesh(_edges(xs), _edges(ys), codes, cmap=ListedColormap(list(OUTCOME_COLOURS.values())),
-                  vmin=-0.5, vmax=len(labels) - 0.5, shading="flat", gid="basin")
+    ax.pcolormesh(
+        _edges(xs),
+        _edges(ys),
+        codes,
+        cmap=ListedColormap(list(OUTCOME_COLOURS.values())),
+        vmin=-0.5,
+        vmax=len(labels) - 0.5,
+        shading="flat",
+        gid="basin",
+    )
     counts = {label: int(np.sum(codes == k)) for k, label in enumerate(labels)}
-    handles = [Patch(color=OUTCOME_COLOURS[label], label=f"{label.replace('_', ' ')} ({n})")
-               for label, n in counts.items() if n]
+    handles = [
+        Patch(color=OUTCOME_COLOURS[label], label=f"{label.replace('_', ' ')} ({n})")
+        for label, n in counts.items()
+        if n
+    ]
     _mark_fixed_point(ax, info, handles)
     ax.legend(handles=handles, loc="upper left", fontsize=8, framealpha=0.85)
     units = field_units(info)
@@ -132,10 +157,28 @@ def _mark_fixed_point(ax, info: Mapping[str, Any], handles: list) -> None:
     names = [_label(info["x"]), _label(info["y"])]
     if not all(k.startswith("initial.state.") for k in (info["x"], info["y"])) or not all(n in fp for n in names):
         return
-    ax.plot([fp[names[0]]], [fp[names[1]]], marker="*", markersize=16, color="white", markeredgecolor="black",
-            linestyle="none", gid="fixed_point")
-    handles.append(Line2D([], [], marker="*", markersize=12, color="white", markeredgecolor="black",
-                          linestyle="none", label="the gait's fixed point"))
+    ax.plot(
+        [fp[names[0]]],
+        [fp[names[1]]],
+        marker="*",
+        markersize=16,
+        color="white",
+        markeredgecolor="black",
+        linestyle="none",
+        gid="fixed_point",
+    )
+    handles.append(
+        Line2D(
+            [],
+            [],
+            marker="*",
+            markersize=12,
+            color="white",
+            markeredgecolor="black",
+            linestyle="none",
+            label="the gait's fixed point",
+        )
+    )
 
 
 def stability_figure(table: Any, info: Mapping[str, Any]):
@@ -148,27 +191,45 @@ def stability_figure(table: Any, info: Mapping[str, Any]):
     _, _, status = grid_of(table, x, y, "orbit_status")
     _, _, re = grid_of(table, x, y, "orbit_multipliers_re")
     _, _, im = grid_of(table, x, y, "orbit_multipliers_im")
-    rho = np.array([[np.nan if (r is None or s != "converged") else float(r) for r, s in zip(rr, sr, strict=True)]
-                    for rr, sr in zip(radius, status, strict=True)])
+    rho = np.array(
+        [
+            [np.nan if (r is None or s != "converged") else float(r) for r, s in zip(rr, sr, strict=True)]
+            for rr, sr in zip(radius, status, strict=True)
+        ]
+    )
     fig = new_figure(7.5, 5.8)
     ax = fig.subplots()
     ax.set_facecolor("0.85")  # cells without an orbit
     top = max(2.0, float(np.nanmax(rho)) if np.isfinite(rho).any() else 2.0)
-    mesh = ax.pcolormesh(_edges(xs), _edges(ys), np.ma.masked_invalid(rho), cmap="RdYlGn_r", shading="flat",
-                         norm=TwoSlopeNorm(vmin=0.0, vcenter=1.0, vmax=top), gid="spectral_radius")
+    mesh = ax.pcolormesh(
+        _edges(xs),
+        _edges(ys),
+        np.ma.masked_invalid(rho),
+        cmap="RdYlGn_r",
+        shading="flat",
+        norm=TwoSlopeNorm(vmin=0.0, vcenter=1.0, vmax=top),
+        gid="spectral_radius",
+    )
     fig.colorbar(mesh, ax=ax, label="spectral radius of the Floquet multipliers (dimensionless)")
     handles = [Line2D([], [], color="0.85", marker="s", linestyle="none", markersize=10, label="no orbit found")]
     if len(xs) > 1 and len(ys) > 1 and np.isfinite(rho).sum() >= 4:
         ax.contour(xs, ys, np.ma.masked_invalid(rho), levels=[1.0], colors="black", linewidths=2).set_gid(
-            "stability_boundary")
+            "stability_boundary"
+        )
         handles.append(Line2D([], [], color="black", lw=2, label="stability boundary (radius 1)"))
-        pd = np.array([[_most_negative_real(a, b, s) for a, b, s in zip(ra, ia, sr, strict=True)]
-                       for ra, ia, sr in zip(re, im, status, strict=True)])
+        pd = np.array(
+            [
+                [_most_negative_real(a, b, s) for a, b, s in zip(ra, ia, sr, strict=True)]
+                for ra, ia, sr in zip(re, im, status, strict=True)
+            ]
+        )
         if np.nanmin(pd, initial=np.inf) < -1.0 < np.nanmax(pd, initial=-np.inf):
-            ax.contour(xs, ys, np.ma.masked_invalid(pd), levels=[-1.0], colors="blue", linewidths=2,
-                       linestyles="dashed").set_gid("period_doubling")
-            handles.append(Line2D([], [], color="blue", lw=2, ls="--",
-                                  label="period doubling (a multiplier through -1)"))
+            ax.contour(
+                xs, ys, np.ma.masked_invalid(pd), levels=[-1.0], colors="blue", linewidths=2, linestyles="dashed"
+            ).set_gid("period_doubling")
+            handles.append(
+                Line2D([], [], color="blue", lw=2, ls="--", label="period doubling (a multiplier through -1)")
+            )
     ax.legend(handles=handles, loc="best", fontsize=8, framealpha=0.85)
     _axis_labels(ax, info, field_units(info))
     ax.set_title(f"{info.get('scene', '')}: stability of the periodic orbit")
@@ -179,8 +240,9 @@ def _most_negative_real(re: Sequence[float] | None, im: Sequence[float] | None, 
     """The most negative real multiplier of a converged search (NaN without one)."""
     if status != "converged" or not re or im is None:
         return np.nan
-    real = [a for a, b in zip(re, im, strict=False)
-            if a is not None and b is not None and abs(b) <= 1e-9 * max(1.0, abs(a))]
+    real = [
+        a for a, b in zip(re, im, strict=False) if a is not None and b is not None and abs(b) <= 1e-9 * max(1.0, abs(a))
+    ]
     return min(real) if real else np.nan
 
 
@@ -203,8 +265,11 @@ def switching_figure(times: Sequence[Sequence[float]], info: Mapping[str, Any]):
         if k < len(reference) and reference[k] is not None:
             ax.axvline(reference[k], color="#d62728", lw=1.5, label="deterministic")
             ax.legend(fontsize=8)
-        ax.set(xlabel="time (s)", ylabel="executions (count)",
-               title=f"switch #{k + 1}: {len(panels[k])}" + (f" of {samples}" if samples else ""))
+        ax.set(
+            xlabel="time (s)",
+            ylabel="executions (count)",
+            title=f"switch #{k + 1}: {len(panels[k])}" + (f" of {samples}" if samples else ""),
+        )
     if not panels:
         axes[0].text(0.5, 0.5, "no execution switched", ha="center", va="center", transform=axes[0].transAxes)
     fig.suptitle(f"{info.get('scene', '')}: switching times of the stochastic executions")
@@ -231,9 +296,9 @@ def write_stability_map(table: Any, info: Mapping[str, Any], path: str | os.Path
 
 
 @writer_attributes(suffixes=SUFFIXES)
-def write_switching_histograms(times: Sequence[Sequence[float]], info: Mapping[str, Any],
-                               path: str | os.PathLike) -> Path:
+def write_switching_histograms(
+    times: Sequence[Sequence[float]], info: Mapping[str, Any], path: str | os.PathLike
+) -> Path:
     """Entry point ``switching_histograms``: the histograms of a stochastic ensemble's switching
     times (``times[i]``: the (i+1)-th switching time of every execution that has one)."""
     return _save(switching_figure(times, info), path)
-

@@ -75,9 +75,15 @@ MAX_TICKS = 120
 INTERPOLATE_DISCRETE = 2300
 
 
-def html_frames(execution: Execution | None, scene: Any = None, *, model: Model | None = None,
-                recording: dict[str, Any] | None = None, fps: float = HTML_FPS,
-                max_frames: int = HTML_MAX_FRAMES) -> Frames:
+def html_frames(
+    execution: Execution | None,
+    scene: Any = None,
+    *,
+    model: Model | None = None,
+    recording: dict[str, Any] | None = None,
+    fps: float = HTML_FPS,
+    max_frames: int = HTML_MAX_FRAMES,
+) -> Frames:
     """The geometry frames to animate: from ``recording`` (``legsim.record.read_rrd``) when
     given, else ``model.geometry`` evaluated on ``execution`` at ``fps`` frames per simulated
     second; parts past ``HTML_LIMIT`` (a diverged run) are absent. Raises OutputError when
@@ -85,16 +91,24 @@ def html_frames(execution: Execution | None, scene: Any = None, *, model: Model 
     return _frames_and_cut(execution, scene, model=model, recording=recording, fps=fps, max_frames=max_frames)[0]
 
 
-def _frames_and_cut(execution: Execution | None, scene: Any = None, *, model: Model | None = None,
-                    recording: dict[str, Any] | None = None, fps: float = HTML_FPS,
-                    max_frames: int = HTML_MAX_FRAMES) -> tuple[Frames, float | None]:
+def _frames_and_cut(
+    execution: Execution | None,
+    scene: Any = None,
+    *,
+    model: Model | None = None,
+    recording: dict[str, Any] | None = None,
+    fps: float = HTML_FPS,
+    max_frames: int = HTML_MAX_FRAMES,
+) -> tuple[Frames, float | None]:
     """``html_frames`` and the time from which parts were left out (``drawable_frames``)."""
     if recording is not None:
         frames = recording.get("frames")
         if frames is None or not len(frames):
             name = recording.get("summary", {}).get("system", "this run")
-            raise OutputError(f"an html animation needs the robot's geometry, and the recording of {name} has "
-                              f"none (its model defines no Model.geometry)")
+            raise OutputError(
+                f"an html animation needs the robot's geometry, and the recording of {name} has "
+                f"none (its model defines no Model.geometry)"
+            )
         return drawable_frames(frames)
     if not isinstance(execution, Execution):
         raise OutputError(f"an html animation needs a legsim Execution (or recording=), got {type(execution).__name__}")
@@ -102,8 +116,10 @@ def _frames_and_cut(execution: Execution | None, scene: Any = None, *, model: Mo
     if model is None:
         raise OutputError("an html animation needs the robot's geometry: pass a scene or model=")
     if model.geometry is None:
-        raise OutputError(f"an html animation needs the robot's geometry, and {model.system.name} defines none "
-                          f"(Model.geometry is None); use --plot or --rrd for this system")
+        raise OutputError(
+            f"an html animation needs the robot's geometry, and {model.system.name} defines none "
+            f"(Model.geometry is None); use --plot or --rrd for this system"
+        )
     # Interpolating a diverged run's last steps (values near the float64 limit) overflows;
     # those frames are left out by drawable_frames.
     with np.errstate(over="ignore", invalid="ignore"):
@@ -180,8 +196,10 @@ def camera_track(frames: Frames, follow: bool = False) -> tuple[np.ndarray, floa
         cam_x = np.full(len(per_frame), (lo[0] + hi[0]) / 2)
         half_w = (hi[0] - lo[0]) / 2
     else:
-        half_w = max((float(np.max(np.abs(p[:, 0] - cx))) for p, cx in zip(per_frame, cam_x, strict=False) if len(p)),
-                     default=body)
+        half_w = max(
+            (float(np.max(np.abs(p[:, 0] - cx))) for p, cx in zip(per_frame, cam_x, strict=False) if len(p)),
+            default=body,
+        )
     # Show the ground below the robot: scenery points within the robot's horizontal range.
     z_lo, z_hi = lo[1], hi[1]
     for line in frames.scenery.values():
@@ -219,8 +237,9 @@ def view_half_width(distance: float) -> float:
     return distance * math.tan(math.radians(FOV_DEG / 2)) * ASSUMED_ASPECT
 
 
-def ground_ruler(scenery: dict[str, np.ndarray], lo: float, hi: float
-                 ) -> tuple[float, np.ndarray, np.ndarray, np.ndarray] | None:
+def ground_ruler(
+    scenery: dict[str, np.ndarray], lo: float, hi: float
+) -> tuple[float, np.ndarray, np.ndarray, np.ndarray] | None:
     """Ticks along the ground between x = ``lo`` and ``hi`` (m): (spacing (m), tick x (k,),
     ground height z at each tick (k,), which ticks are labelled (k,) bool: every other one,
     on whole multiples of twice the spacing). None when the scenery has no ground part
@@ -269,8 +288,9 @@ def _meshcat():
     return meshcat
 
 
-def _commands(frames: Frames, speed: float, contacts: dict[str, list[np.ndarray | None]] | None = None,
-              camera: str = "fixed") -> list[dict[str, Any]]:
+def _commands(
+    frames: Frames, speed: float, contacts: dict[str, list[np.ndarray | None]] | None = None, camera: str = "fixed"
+) -> list[dict[str, Any]]:
     """The meshcat commands of the page, in the order they must run: background, scenery and
     the ground's ruler, the robot's parts, the contact markers, the camera, and last the
     animation that moves what exists by then."""
@@ -376,8 +396,12 @@ class _SceneCommands:
         """A static polyline: one box per segment."""
         material = self.g.MeshBasicMaterial(color=SCENERY_COLOUR)
         for j, (mx, mz, length, phi, _, _) in enumerate(_segments(line, max(len(line) - 1, 0))):
-            self.add(self.g.Box([1.0, self.w, self.w]), material, self.root.append(f"scenery/{part}/{j}"),
-                     _matrix(mx, mz, max(length, TINY), phi))
+            self.add(
+                self.g.Box([1.0, self.w, self.w]),
+                material,
+                self.root.append(f"scenery/{part}/{j}"),
+                _matrix(mx, mz, max(length, TINY), phi),
+            )
 
     def ruler(self, spacing: float, xs: np.ndarray, zs: np.ndarray, labelled: np.ndarray, view_height: float) -> None:
         """Ticks down from the ground at ``xs`` (m; heights ``zs``), the ``labelled`` ones
@@ -386,28 +410,41 @@ class _SceneCommands:
         size = 0.12 * view_height  # of a label's square: its text is about a quarter as tall
         for j, (x, z, big) in enumerate(zip(xs, zs, labelled, strict=False)):
             length = (0.04 if big else 0.02) * view_height
-            self.add(self.g.Box([1.0, 0.7 * self.w, 0.7 * self.w]), material,
-                     self.root.append(f"scenery/ruler/tick/{j}"), _matrix(float(x), float(z) - length / 2, length,
-                                                                            math.pi / 2))
+            self.add(
+                self.g.Box([1.0, 0.7 * self.w, 0.7 * self.w]),
+                material,
+                self.root.append(f"scenery/ruler/tick/{j}"),
+                _matrix(float(x), float(z) - length / 2, length, math.pi / 2),
+            )
             if big:
                 # meshcat draws the text just above its square's centre: the square's centre
                 # goes a fifth of its size below the tick's end.
-                self.label(f"{float(x) + 0.0:g} m", float(x), float(z) - length - 0.01 * view_height - 0.2 * size,
-                           size, f"scenery/ruler/label/{j}")
+                self.label(
+                    f"{float(x) + 0.0:g} m",
+                    float(x),
+                    float(z) - length - 0.01 * view_height - 0.2 * size,
+                    size,
+                    f"scenery/ruler/label/{j}",
+                )
 
     def label(self, text: str, x: float, z: float, size: float, path: str) -> None:
         """``text`` on a transparent square of side ``size`` (m) centred at (x, z), facing the camera."""
         texture = self.g.GenericTexture({"type": "_text", "text": text, "font_size": 64, "font_face": "sans-serif"})
         material = self.g.MeshBasicMaterial(color=0xFFFFFF, map=texture, transparent=True)
-        self.add(_Geometry("PlaneGeometry", FACING_CAMERA, width=size, height=size), material, self.root.append(path),
-                 _matrix(x, z, 1.0, 0.0))
+        self.add(
+            _Geometry("PlaneGeometry", FACING_CAMERA, width=size, height=size),
+            material,
+            self.root.append(path),
+            _matrix(x, z, 1.0, 0.0),
+        )
 
     def contact(self, name: str, points: list[np.ndarray | None]) -> None:
         """A ring around contact ``name`` in the frames where it is active (``points``: its
         (x, z) per frame, None where inactive), in front of the robot."""
         path = self.root.append(f"contacts/{name}")
-        ring = _Geometry("TorusGeometry", FACING_CAMERA, radius=3.5 * self.w, tube=0.6 * self.w, radialSegments=8,
-                         tubularSegments=40)
+        ring = _Geometry(
+            "TorusGeometry", FACING_CAMERA, radius=3.5 * self.w, tube=0.6 * self.w, radialSegments=8, tubularSegments=40
+        )
         self.add(ring, self.g.MeshBasicMaterial(color=CONTACT_COLOUR), path)
         last = next((p for p in points if p is not None), np.zeros(2))
         pos, scale = [], []
@@ -475,8 +512,14 @@ def _matrix(x: float, z: float, length: float, phi: float) -> np.ndarray:
     return m
 
 
-def animation_html(frames: Frames, *, title: str = "legsim", speed: float = 1.0,
-                   contacts: dict[str, list[np.ndarray | None]] | None = None, camera: str = "fixed") -> str:
+def animation_html(
+    frames: Frames,
+    *,
+    title: str = "legsim",
+    speed: float = 1.0,
+    contacts: dict[str, list[np.ndarray | None]] | None = None,
+    camera: str = "fixed",
+) -> str:
     """The complete page: meshcat's bundle, the scene commands and a clock showing the
     simulated time and mode of the frame on screen. ``contacts``: contact name -> its (x, z)
     point (m) per frame, None where inactive (``legsim.viz.contacts.contact_frames``);
@@ -496,23 +539,32 @@ def animation_html(frames: Frames, *, title: str = "legsim", speed: float = 1.0,
         js = bundle.read_text(encoding="utf-8")
     except OSError as exc:
         raise OutputError(f"meshcat's viewer bundle is missing ({bundle}): {exc}") from exc
-    clock = {"t": [float(t) for t in frames.times], "mode": list(frames.modes), "t0": float(frames.times[0]),
-             "speed": float(speed)}
+    clock = {
+        "t": [float(t) for t in frames.times],
+        "mode": list(frames.modes),
+        "t0": float(frames.times[0]),
+        "speed": float(speed),
+    }
     # "</" cannot appear inside a <script> element.
     safe_js = js.replace("</script", "<\\/script")
-    return _PAGE.format(title=html_lib.escape(title), bundle=safe_js,
-                        commands=json.dumps(packed), clock=json.dumps(clock).replace("</", "<\\/"))
+    return _PAGE.format(
+        title=html_lib.escape(title),
+        bundle=safe_js,
+        commands=json.dumps(packed),
+        clock=json.dumps(clock).replace("</", "<\\/"),
+    )
 
 
-def _drawable_contacts(contacts: dict[str, list[np.ndarray | None]], count: int
-                       ) -> dict[str, list[np.ndarray | None]]:
+def _drawable_contacts(contacts: dict[str, list[np.ndarray | None]], count: int) -> dict[str, list[np.ndarray | None]]:
     """``contacts`` with points beyond ``HTML_LIMIT`` absent; OutputError unless every contact
     has one entry per frame."""
     wrong = {name: len(points) for name, points in contacts.items() if len(points) != count}
     if wrong:
         raise OutputError(f"contacts need one point (or None) per frame ({count}), got {wrong}")
-    return {name: [p if p is not None and np.all(np.abs(p) <= HTML_LIMIT) else None for p in points]
-            for name, points in contacts.items()}
+    return {
+        name: [p if p is not None and np.all(np.abs(p) <= HTML_LIMIT) else None for p in points]
+        for name, points in contacts.items()
+    }
 
 
 _PAGE = """<!DOCTYPE html>
@@ -568,9 +620,18 @@ if (legsimAt) legsimSeek(parseFloat(legsimAt[1]));
 
 # ``legsim run`` refuses --html before the run when the scene's model has no geometry.
 @writer_attributes(needs_geometry=True)
-def write_html(execution: Execution | None, scene: Any = None, path: str | os.PathLike | None = None, *,
-               model: Model | None = None, recording: dict[str, Any] | None = None, fps: float = HTML_FPS,
-               max_frames: int = HTML_MAX_FRAMES, speed: float = 1.0, camera: str = "fixed") -> Path:
+def write_html(
+    execution: Execution | None,
+    scene: Any = None,
+    path: str | os.PathLike | None = None,
+    *,
+    model: Model | None = None,
+    recording: dict[str, Any] | None = None,
+    fps: float = HTML_FPS,
+    max_frames: int = HTML_MAX_FRAMES,
+    speed: float = 1.0,
+    camera: str = "fixed",
+) -> Path:
     """Write a self-contained meshcat animation of the run to ``path`` (the ``--html`` output).
 
     ``scene`` is a ``legsim.scene.Scene`` or None with ``model=`` a ``legsim.builders.Model``;
@@ -585,8 +646,7 @@ def write_html(execution: Execution | None, scene: Any = None, path: str | os.Pa
     if camera not in CAMERAS:
         raise OutputError(f"camera must be one of {list(CAMERAS)}, got {camera!r}")
     path = Path(path)
-    frames, cut = _frames_and_cut(execution, scene, model=model, recording=recording, fps=fps,
-                                  max_frames=max_frames)
+    frames, cut = _frames_and_cut(execution, scene, model=model, recording=recording, fps=fps, max_frames=max_frames)
     contacts = None
     if recording is not None:
         s = recording.get("summary", {})
@@ -602,4 +662,3 @@ def write_html(execution: Execution | None, scene: Any = None, path: str | os.Pa
         title += f" (diverged: not drawn past t = {cut:.6g} s)"
     page = animation_html(frames, title=title, speed=speed, contacts=contacts, camera=camera)
     return write_atomic(path, lambda tmp: tmp.write_text(page, encoding="utf-8"), what="html")
-

@@ -54,14 +54,29 @@ THIN_FRACTION = 1 / 500
 #: Height (axes fraction) of the stripe that shows a strip's mode on the band.
 HELD_STRIPE = (0.3, 0.7)
 STRIP_COLOUR = "0.78"
-MODE_COLOURS = ["#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f",
-                "#bcbd22", "#17becf"]
+MODE_COLOURS = [
+    "#1f77b4",
+    "#ff7f0e",
+    "#2ca02c",
+    "#d62728",
+    "#9467bd",
+    "#8c564b",
+    "#e377c2",
+    "#7f7f7f",
+    "#bcbd22",
+    "#17becf",
+]
 FORMATS = ("png", "pdf", "svg", "jpg", "jpeg")
 SPAN_RESOLUTION = 20_000
 
 
-def plot_data(execution: Execution | None = None, scene: Any = None, *, model: Model | None = None,
-              recording: dict[str, Any] | None = None) -> PlotData:
+def plot_data(
+    execution: Execution | None = None,
+    scene: Any = None,
+    *,
+    model: Model | None = None,
+    recording: dict[str, Any] | None = None,
+) -> PlotData:
     """What ``write_plot`` draws, from an execution or from ``legsim.record.read_rrd`` output."""
     if recording is not None:
         return plot_data_from_recording(recording)
@@ -99,8 +114,14 @@ def state_figure(data: PlotData, coordinates: Sequence[str] | None = None, *, wi
     handles = mode_band(band, data, tol)
     band.set_ylim(0, 1)
     band.set_ylabel("mode", rotation=0, ha="right", va="center")
-    band.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.9), ncol=min(len(handles), 6),
-                fontsize="small", frameon=False)
+    band.legend(
+        handles=handles,
+        loc="upper center",
+        bbox_to_anchor=(0.5, -0.9),
+        ncol=min(len(handles), 6),
+        fontsize="small",
+        frameon=False,
+    )
     seq = [m for m, _, _ in data.segments]
     # Say what a diverged run's plot leaves out, so that a line ending early is not misread.
     notes = [note for note in (constants_note(constants, data, skip=names), data.omitted_note) if note]
@@ -188,8 +209,9 @@ def _thin_marks(ax, spans: Sequence[tuple[float, float]], colour: str, gid: str,
     merged = merge_spans(spans, tol)
     narrow = merged[merged[:, 1] - merged[:, 0] < thin] if len(merged) else merged
     if len(narrow):
-        lines = ax.vlines(narrow.mean(axis=1), 0.0, 1.0, colors=colour, linewidth=1.5,
-                          transform=ax.get_xaxis_transform(), zorder=3)
+        lines = ax.vlines(
+            narrow.mean(axis=1), 0.0, 1.0, colors=colour, linewidth=1.5, transform=ax.get_xaxis_transform(), zorder=3
+        )
         lines.set_gid(gid)
 
 
@@ -206,8 +228,16 @@ def merge_spans(spans: Sequence[tuple[float, float]], tol: float = 0.0) -> np.nd
     return np.stack([a[first, 0], np.maximum.reduceat(a[:, 1], first)], axis=1)
 
 
-def span_patch(ax, spans: Sequence[tuple[float, float]], colour: str, gid: str, tol: float = 0.0, *,
-               y: tuple[float, float] = (0.0, 1.0), zorder: float = 0):
+def span_patch(
+    ax,
+    spans: Sequence[tuple[float, float]],
+    colour: str,
+    gid: str,
+    tol: float = 0.0,
+    *,
+    y: tuple[float, float] = (0.0, 1.0),
+    zorder: float = 0,
+):
     """Shade the time intervals ``spans`` over the height ``y`` (axes fraction; default the
     full height) of ``ax`` with one patch.
 
@@ -227,9 +257,15 @@ def span_patch(ax, spans: Sequence[tuple[float, float]], colour: str, gid: str, 
     verts[:, [0, 1, 4], 1] = y[0]
     verts[:, [2, 3], 1] = y[1]
     codes = np.tile([MPath.MOVETO, MPath.LINETO, MPath.LINETO, MPath.LINETO, MPath.CLOSEPOLY], len(a))
-    patch = PathPatch(MPath(verts.reshape(-1, 2), codes), facecolor=colour, edgecolor="none", linewidth=0,
-                      transform=ax.get_xaxis_transform(), zorder=zorder,
-                      antialiased=False)  # adjacent intervals would show anti-aliasing seams
+    patch = PathPatch(
+        MPath(verts.reshape(-1, 2), codes),
+        facecolor=colour,
+        edgecolor="none",
+        linewidth=0,
+        transform=ax.get_xaxis_transform(),
+        zorder=zorder,
+        antialiased=False,
+    )  # adjacent intervals would show anti-aliasing seams
     patch.set_gid(gid)
     ax.add_artist(patch)
     return patch
@@ -263,9 +299,15 @@ def save_figure(fig, path: str | os.PathLike, dpi: int = 120) -> Path:
 
 # ``legsim run`` checks a --plot path against these suffixes before the run.
 @writer_attributes(suffixes=tuple("." + f for f in FORMATS))
-def write_plot(execution: Execution | None, scene: Any = None, path: str | os.PathLike | None = None, *,
-               model: Model | None = None, recording: dict[str, Any] | None = None,
-               coordinates: Sequence[str] | None = None) -> Path:
+def write_plot(
+    execution: Execution | None,
+    scene: Any = None,
+    path: str | os.PathLike | None = None,
+    *,
+    model: Model | None = None,
+    recording: dict[str, Any] | None = None,
+    coordinates: Sequence[str] | None = None,
+) -> Path:
     """Write the state-against-time figure of a run (the ``--plot`` output) to ``path``.
 
     ``scene`` is a ``legsim.scene.Scene`` or None (then ``model=`` may name the model, which a
@@ -276,4 +318,3 @@ def write_plot(execution: Execution | None, scene: Any = None, path: str | os.Pa
         raise OutputError("write_plot needs a path to write to")
     fig = state_figure(plot_data(execution, scene, model=model, recording=recording), coordinates)
     return save_figure(fig, path)
-

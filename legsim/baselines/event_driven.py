@@ -46,8 +46,9 @@ class _GuardEvent:
     terminal = True
     direction = -1
 
-    def __init__(self, transition: Transition, control: Callable[[float, np.ndarray], Any] | None,
-                 counts: dict[str, int]) -> None:
+    def __init__(
+        self, transition: Transition, control: Callable[[float, np.ndarray], Any] | None, counts: dict[str, int]
+    ) -> None:
         self.transition, self.control, self.counts = transition, control, counts
 
     def __call__(self, tt: float, y: np.ndarray) -> float:
@@ -102,8 +103,9 @@ def simulate_events(
             raise SimulationError(f"{label} must be finite and > 0, got {value!r}")
     if not (isinstance(t_final, (int, float)) and math.isfinite(t_final) and t_final > t0):
         raise SimulationError(f"t_final must be finite and > t0 = {t0}, got {t_final!r}")
-    x = system.check_state(mode, x0, t=t0, u=None if control is None else control(t0, np.asarray(x0, float)),
-                           label="x0")
+    x = system.check_state(
+        mode, x0, t=t0, u=None if control is None else control(t0, np.asarray(x0, float)), label="x0"
+    )
     counts = {"field_evals": 0, "guard_evals": 0, "reset_evals": 0, "steps": 0}
     pieces: list[tuple[str, np.ndarray, np.ndarray]] = []
     dense: list[Any] = []
@@ -115,15 +117,27 @@ def simulate_events(
         trs = system.outgoing(mode)
         field = system.mode(mode).field
         if control is None:
+
             def fun(tt, y, field=field):
                 return field(tt, y, None)
         else:
+
             def fun(tt, y, field=field):
                 return field(tt, y, control(tt, y))
+
         events = [_GuardEvent(tr, control, counts) for tr in trs]
         try:
-            sol = solve_ivp(fun, (t, t_final), x, method=cast(IvpMethod, method), rtol=rtol, atol=atol,
-                            events=events or None, max_step=max_step, dense_output=dense_output)
+            sol = solve_ivp(
+                fun,
+                (t, t_final),
+                x,
+                method=cast(IvpMethod, method),
+                rtol=rtol,
+                atol=atol,
+                events=events or None,
+                max_step=max_step,
+                dense_output=dense_output,
+            )
         except ModelBreakdown as exc:
             # A trial step of solve_ivp left the model's range (e.g. a runner's body through the
             # ground): the solver cannot shorten a step on such grounds, so the run ends here.
@@ -150,14 +164,17 @@ def simulate_events(
         while True:
             if len(transitions) >= max_transitions:
                 status = "max_transitions"
-                message = (f"transition cap max_transitions={max_transitions} reached at t={t_event:.17g} "
-                           f"(events accumulate: Zeno)")
+                message = (
+                    f"transition cap max_transitions={max_transitions} reached at t={t_event:.17g} "
+                    f"(events accumulate: Zeno)"
+                )
                 break
             tr = trs[e]
             counts["reset_evals"] += 1
             after = np.asarray(tr.reset(q) if tr.reset is not None else q.copy(), dtype=float)
-            transitions.append(TransitionRecord(tr.name, mode, tr.target, e, t_event, t_event, t_event, q.copy(),
-                                                after.copy(), 0.0))
+            transitions.append(
+                TransitionRecord(tr.name, mode, tr.target, e, t_event, t_event, t_event, q.copy(), after.copy(), 0.0)
+            )
             fixed_point = tr.target == mode and np.array_equal(after, q)
             mode, x, t = tr.target, after, t_event
             trs = system.outgoing(mode)
@@ -175,9 +192,21 @@ def simulate_events(
                 status, message = "non_finite", f"reset gave a non-finite state at t={t:.17g}: {x.tolist()}"
             break
     wall = _time.perf_counter() - wall0
-    return _assemble(system, pieces, transitions, status, message, t0, t, t_final, counts, wall,
-                     {"method": f"solve_ivp-{method}", "rtol": rtol, "atol": atol}, control,
-                     dense if dense_output else None)
+    return _assemble(
+        system,
+        pieces,
+        transitions,
+        status,
+        message,
+        t0,
+        t,
+        t_final,
+        counts,
+        wall,
+        {"method": f"solve_ivp-{method}", "rtol": rtol, "atol": atol},
+        control,
+        dense if dense_output else None,
+    )
 
 
 def _firing_at_entry(system, mode, x, t, control, tol, counts) -> int | None:
@@ -225,20 +254,34 @@ class DenseExecution(Execution):
         return samples
 
 
-def _assemble(system, pieces, transitions, status, message, t0, t_end, t_final, counts, wall, settings, control,
-              dense=None):
+def _assemble(
+    system, pieces, transitions, status, message, t0, t_end, t_final, counts, wall, settings, control, dense=None
+):
     segments = []
     for mode, ts, xs in pieces:
         field = system.mode(mode).field
-        dx = np.array([field(tt, xx, None if control is None else control(tt, xx))
-                       for tt, xx in zip(ts, xs, strict=True)], dtype=float).reshape(xs.shape)
+        dx = np.array(
+            [field(tt, xx, None if control is None else control(tt, xx)) for tt, xx in zip(ts, xs, strict=True)],
+            dtype=float,
+        ).reshape(xs.shape)
         segments.append(Segment(mode, ts, xs, dx))
     strips = [Strip(tr.source, tr.name, tr.time, tr.exit_time, tr.state_before, tr.time, 0.0) for tr in transitions]
     counters = dict(counts, transitions=len(transitions), halvings=0, strip_time=0.0, wall_time_s=wall)
     names = {m: system.state_names(m) for m, _, _ in pieces}
-    fields = dict(status=status, message=message, segments=segments, strips=strips, transitions=transitions,
-                  t0=float(t0), t_end=float(t_end), t_final=float(t_final), counters=counters, settings=settings,
-                  state_names=names, system_name=system.name)
+    fields = dict(
+        status=status,
+        message=message,
+        segments=segments,
+        strips=strips,
+        transitions=transitions,
+        t0=float(t0),
+        t_end=float(t_end),
+        t_final=float(t_final),
+        counters=counters,
+        settings=settings,
+        state_names=names,
+        system_name=system.name,
+    )
     if dense is None:
         return Execution(**fields)
     execution = DenseExecution(**fields)

@@ -10,6 +10,23 @@ from .cases import CASE_NAMES, BenchError, Case, RunSpec, Target, make_case
 from .targets import MET, MISSED, NOT_COMPARABLE, TargetResult, evaluate_targets, extend_baselines, format_targets
 from .work_precision import COLUMNS, BenchResult, Row, mark_pareto, run_case
 
-__all__ = ["CASE_NAMES", "COLUMNS", "MET", "MISSED", "NOT_COMPARABLE", "BenchError", "BenchResult", "Case", "Row",
-           "RunSpec", "Target", "TargetResult", "evaluate_targets", "extend_baselines", "format_targets", "make_case",
-           "mark_pareto", "run_case"]
+__all__ = [
+    "CASE_NAMES",
+    "COLUMNS",
+    "MET",
+    "MISSED",
+    "NOT_COMPARABLE",
+    "BenchError",
+    "BenchResult",
+    "Case",
+    "Row",
+    "RunSpec",
+    "Target",
+    "TargetResult",
+    "evaluate_targets",
+    "extend_baselines",
+    "format_targets",
+    "make_case",
+    "mark_pareto",
+    "run_case",
+]

@@ -111,9 +111,14 @@ def _grid(kind: str, method: str, hs, epss, landing: str = "aim") -> list[RunSpe
     return [RunSpec(kind, method, float(h), float(e), math.nan, landing) for h in hs for e in epss]
 
 
-def relaxed_sweep(h_ranges: dict[str, tuple[float, ...]], epss: tuple[float, ...] | dict[str, tuple[float, ...]],
-                  tols: tuple[float, ...], adaptive_eps: tuple[float, ...],
-                  h_adaptive: float | tuple[float, ...], pair_landing: str = "aim") -> list[RunSpec]:
+def relaxed_sweep(
+    h_ranges: dict[str, tuple[float, ...]],
+    epss: tuple[float, ...] | dict[str, tuple[float, ...]],
+    tols: tuple[float, ...],
+    adaptive_eps: tuple[float, ...],
+    h_adaptive: float | tuple[float, ...],
+    pair_landing: str = "aim",
+) -> list[RunSpec]:
     """Fixed-step methods on an h x eps grid (eps per method when a dict); adaptive pairs over
     tolerances x eps, with h the initial and largest step (each of ``h_adaptive``: the robots
     sweep the same largest steps that solve_ivp's ``max_step`` gets), landing by
@@ -131,19 +136,31 @@ def relaxed_sweep(h_ranges: dict[str, tuple[float, ...]], epss: tuple[float, ...
 
 
 def ivp_sweep(tols: tuple[float, ...], max_steps: tuple[float, ...] = (math.inf,)) -> list[RunSpec]:
-    return [RunSpec("solve_ivp", f"solve_ivp-{m}", math.nan, math.nan, tol, "", ms)
-            for m in IVP_METHODS for tol in tols for ms in max_steps]
+    return [
+        RunSpec("solve_ivp", f"solve_ivp-{m}", math.nan, math.nan, tol, "", ms)
+        for m in IVP_METHODS
+        for tol in tols
+        for ms in max_steps
+    ]
 
 
-def zeno_sweep(hs: dict[str, tuple[float, ...]], epss: tuple[float, ...], tols: tuple[float, ...] = (),
-               h_adaptive: float = 1e-2) -> list[RunSpec]:
+def zeno_sweep(
+    hs: dict[str, tuple[float, ...]], epss: tuple[float, ...], tols: tuple[float, ...] = (), h_adaptive: float = 1e-2
+) -> list[RunSpec]:
     """Runs with the default continuation (``relaxed-<name>-zeno``): fixed-step methods on
     h x eps, dopri5 over tolerances x eps with ``h_adaptive`` the initial and largest step (the
     window is h + eps, so the adaptive runs need a small largest step)."""
-    runs = [RunSpec("relaxed", f"relaxed-{name}-zeno", float(h), float(e), zeno=True)
-            for name, grid in hs.items() for h in grid for e in epss]
-    runs += [RunSpec("relaxed", "relaxed-dopri5-zeno", h_adaptive, float(e), float(tol), zeno=True)
-             for tol in tols for e in epss]
+    runs = [
+        RunSpec("relaxed", f"relaxed-{name}-zeno", float(h), float(e), zeno=True)
+        for name, grid in hs.items()
+        for h in grid
+        for e in epss
+    ]
+    runs += [
+        RunSpec("relaxed", "relaxed-dopri5-zeno", h_adaptive, float(e), float(tol), zeno=True)
+        for tol in tols
+        for e in epss
+    ]
     return runs
 
 
@@ -157,20 +174,27 @@ def ps_sweep(hs: tuple[float, ...]) -> list[RunSpec]:
 def targets_for(name: str, quick: bool = False) -> list[Target]:
     """The speed targets checked on case ``name``."""
     if name == "oscillator-ex1":
-        return [Target("Ex.1 error <= 1e-3: time(PS) / time(relaxed)", 1e-3, "ps", 20.0),
-                Target("Ex.1 error <= 1e-6: time(best solve_ivp) / time(relaxed)", 1e-6, "solve_ivp", 1.0)]
+        return [
+            Target("Ex.1 error <= 1e-3: time(PS) / time(relaxed)", 1e-3, "ps", 20.0),
+            Target("Ex.1 error <= 1e-6: time(best solve_ivp) / time(relaxed)", 1e-6, "solve_ivp", 1.0),
+        ]
     if name == "oscillator-ex2":
         # The plain relaxed integrator chatters where the exact mass sticks (its error floor is
         # ~1e-6 m at eps = 2e-7); the -zeno runs take the model's continuation there (the default).
-        return [Target("Ex.2 error <= 1e-6: time(PS) / time(relaxed, plain or Zeno continuation)", 1e-6, "ps", 10.0),
-                Target("Ex.2 error <= 1e-6: time(PS) / time(plain relaxed, no continuation)", 1e-6, "ps", 10.0,
-                       relaxed="plain")]
+        return [
+            Target("Ex.2 error <= 1e-6: time(PS) / time(relaxed, plain or Zeno continuation)", 1e-6, "ps", 10.0),
+            Target(
+                "Ex.2 error <= 1e-6: time(PS) / time(plain relaxed, no continuation)", 1e-6, "ps", 10.0, relaxed="plain"
+            ),
+        ]
     if name == "bouncing-ball":
         return [Target("ball error <= 1e-6: time(best solve_ivp) / time(relaxed)", 1e-6, "solve_ivp", 1.0)]
     if name in ("pronk", "double-pendulum"):
         levels = (1e-3,) if quick else (1e-3, 1e-5, 1e-7)
-        return [Target(f"{name} error <= {lv:g}: time(best solve_ivp) / time(relaxed)", lv, "solve_ivp", 1.0)
-                for lv in levels]
+        return [
+            Target(f"{name} error <= {lv:g}: time(best solve_ivp) / time(relaxed)", lv, "solve_ivp", 1.0)
+            for lv in levels
+        ]
     raise BenchError(f"unknown case {name!r}; choose one of {', '.join(CASE_NAMES)}")
 
 
@@ -184,16 +208,27 @@ def _oscillator(example: str, quick: bool) -> Case:
     system, x0, t_max = make_oscillator_example(example)
     p = EXAMPLES[example]
     ref = OscillatorReference.example(example)
-    ps = {"a": p["a"], "omega": p["omega"], "c": p["c"], "x_max": p["x_max"], "amplitude": p["amplitude"],
-          "frequency": p["frequency"], "x0": p["x0"], "xd0": p["xd0"], "mass": p["mass"]}
+    ps = {
+        "a": p["a"],
+        "omega": p["omega"],
+        "c": p["c"],
+        "x_max": p["x_max"],
+        "amplitude": p["amplitude"],
+        "frequency": p["frequency"],
+        "x0": p["x0"],
+        "xd0": p["xd0"],
+        "mass": p["mass"],
+    }
     targets = targets_for(f"oscillator-{example}", quick)
     if quick:
         # Ex.2 keeps its whole 4 pi s: its second sticking phase is where the plain run chatters.
         t_final = min(t_max, 2.0 * math.pi) if example == "ex1" else t_max
-        runs = (_grid("relaxed", "relaxed-rk4", (1e-2, 3e-3), (1e-6,))
-                + _grid("relaxed", "relaxed-rk2", (1e-2,), (1e-6,))
-                + [RunSpec("relaxed", "relaxed-dopri5", 0.1, 1e-6, 1e-6)]
-                + ps_sweep((1e-3, 1e-4)))
+        runs = (
+            _grid("relaxed", "relaxed-rk4", (1e-2, 3e-3), (1e-6,))
+            + _grid("relaxed", "relaxed-rk2", (1e-2,), (1e-6,))
+            + [RunSpec("relaxed", "relaxed-dopri5", 0.1, 1e-6, 1e-6)]
+            + ps_sweep((1e-3, 1e-4))
+        )
         if example == "ex1":
             runs.append(RunSpec("solve_ivp", "solve_ivp-DOP853", math.nan, math.nan, 1e-6, "", 0.05))
         else:
@@ -204,15 +239,23 @@ def _oscillator(example: str, quick: bool) -> Case:
         runs = relaxed_sweep(
             {"euler": (1e-3, 1e-4, 1e-5), "rk2": (1e-2, 3e-3, 1e-3, 3e-4), "rk4": (1e-1, 3e-2, 1e-2, 3e-3, 1e-3)},
             {"euler": (1e-7, 1e-9), "rk2": (1e-5, 1e-7, 1e-9, 1e-11), "rk4": (1e-5, 1e-7, 1e-9, 1e-11)},
-            (1e-4, 1e-6, 1e-8, 1e-10, 1e-12), (1e-7, 1e-9, 1e-11), 0.1)
+            (1e-4, 1e-6, 1e-8, 1e-10, 1e-12),
+            (1e-7, 1e-9, 1e-11),
+            0.1,
+        )
         runs += ps_sweep((1e-2, 3e-3, 1e-3, 3e-4, 1e-4, 3e-5, 1e-5, 3e-6))
         runs += ivp_sweep((1e-4, 1e-6, 1e-8, 1e-10, 1e-12), (math.inf, 0.05))
     else:
         t_final = t_max
         # The error is about 0.4 eps; sticking costs a strip crossing every ~sqrt(2 eps / F) s.
         epss = (1e-4, 1e-5, 1e-6, 3e-7, 1e-7)
-        runs = relaxed_sweep({"euler": (1e-3, 1e-4), "rk2": (1e-2, 1e-3), "rk4": (1e-1, 3e-2, 2e-2, 1e-2, 1e-3)}, epss,
-                             (1e-6, 1e-9), (1e-6, 1e-7), 0.1)
+        runs = relaxed_sweep(
+            {"euler": (1e-3, 1e-4), "rk2": (1e-2, 1e-3), "rk4": (1e-1, 3e-2, 2e-2, 1e-2, 1e-3)},
+            epss,
+            (1e-6, 1e-9),
+            (1e-6, 1e-7),
+            0.1,
+        )
         runs += ps_sweep((1e-2, 1e-3, 1e-4, 3e-5, 1e-5, 5e-6, 2e-6, 1e-6))
         # With the chatter gone RK4's own error decides: below 1e-6 up to h = 0.02 (window 0.02 s).
         runs += zeno_sweep({"rk2": (1e-2, 1e-3), "rk4": (1e-1, 3e-2, 2e-2, 1e-2, 1e-3)}, epss, (1e-6, 1e-9))
@@ -222,13 +265,22 @@ def _oscillator(example: str, quick: bool) -> Case:
 
     return Case(
         name=name,
-        description=(f"forced oscillator with a stop, paper 000 Table I Example {example[-1]} "
-                     f"(t in [0, {t_final:.4g}] s)"),
-        system=system, ivp_system=system, mode="free", x0=x0, t_final=t_final,
-        positions=(0,), position_names=("x",),
+        description=(
+            f"forced oscillator with a stop, paper 000 Table I Example {example[-1]} (t in [0, {t_final:.4g}] s)"
+        ),
+        system=system,
+        ivp_system=system,
+        mode="free",
+        x0=x0,
+        t_final=t_final,
+        positions=(0,),
+        position_names=("x",),
         reference_positions=lambda t: ref.states(t)[:, :1],
         reference_note="closed form (eq. (28) with impacts, sticking and Zeno sums: OscillatorReference)",
-        runs=runs, targets=targets, ps=ps, reference_execution=ref,
+        runs=runs,
+        targets=targets,
+        ps=ps,
+        reference_execution=ref,
         # The compiled twin names the stop's continuation too (stick, release at the forcing's
         # sign change): the -zeno runs step in the kernel and cross in Python.
         zeno_system=(system, None) if example == "ex2" else None,
@@ -245,21 +297,34 @@ def _bouncing_ball(quick: bool) -> Case:
     # Before the Zeno time (4.06 s): the event-driven baseline cannot pass it.
     t_final = 1.0 if quick else 3.0
     if quick:
-        runs = (_grid("relaxed", "relaxed-rk4", (1e-2,), (1e-6,)) + _grid("relaxed", "relaxed-euler", (1e-3,), (1e-6,))
-                + [RunSpec("solve_ivp", "solve_ivp-RK45", math.nan, math.nan, 1e-6)])
+        runs = (
+            _grid("relaxed", "relaxed-rk4", (1e-2,), (1e-6,))
+            + _grid("relaxed", "relaxed-euler", (1e-3,), (1e-6,))
+            + [RunSpec("solve_ivp", "solve_ivp-RK45", math.nan, math.nan, 1e-6)]
+        )
     else:
         runs = relaxed_sweep(
             {"euler": (1e-3, 1e-4, 1e-5), "rk2": (1e-2, 1e-3, 1e-4), "rk4": (1e-1, 1e-2, 1e-3)},
-            (1e-5, 1e-7, 1e-9, 1e-11), (1e-6, 1e-9), (1e-7, 1e-10), 0.1)
+            (1e-5, 1e-7, 1e-9, 1e-11),
+            (1e-6, 1e-9),
+            (1e-7, 1e-10),
+            0.1,
+        )
         runs += ivp_sweep((1e-4, 1e-6, 1e-8, 1e-10, 1e-12))
     return Case(
         name="bouncing-ball",
         description=f"ball dropped from 1 m onto a floor with restitution {c} (t in [0, {t_final}] s, before Zeno)",
-        system=system, ivp_system=system, mode="flight", x0=np.array([1.0, 0.0]),
-        t_final=t_final, positions=(0,), position_names=("z",),
+        system=system,
+        ivp_system=system,
+        mode="flight",
+        x0=np.array([1.0, 0.0]),
+        t_final=t_final,
+        positions=(0,),
+        position_names=("z",),
         reference_positions=lambda t: ref.states(t)[:, :1],
         reference_note="closed form (BouncingBallReference)",
-        runs=runs, targets=targets_for("bouncing-ball", quick),
+        runs=runs,
+        targets=targets_for("bouncing-ball", quick),
         reference_execution=ref,
     )
 
@@ -269,8 +334,9 @@ def _robot(name: str, quick: bool) -> Case:
     try:
         builder = get_builder("pronk" if name == "pronk" else "double_pendulum")
     except LegsimError as exc:
-        raise BenchError(f"case {name}: the robot model cannot be loaded ({exc}); install pinocchio "
-                         f"(`pip install pin`)") from exc
+        raise BenchError(
+            f"case {name}: the robot model cannot be loaded ({exc}); install pinocchio (`pip install pin`)"
+        ) from exc
     from ..baselines import simulate_events
 
     if name == "pronk":
@@ -285,8 +351,10 @@ def _robot(name: str, quick: bool) -> Case:
         # Impact, constrained swing, release, graze, second impact and release; the event-driven
         # baseline meets a Zeno chatter at t = 7.38 s.
         t_final = 1.0 if quick else 5.0
-        description = (f"double pendulum with a plastic stop, paper 003 Fig. 2b (impact, constrained swing, "
-                       f"release; t in [0, {t_final}] s)")
+        description = (
+            f"double pendulum with a plastic stop, paper 003 Fig. 2b (impact, constrained swing, "
+            f"release; t in [0, {t_final}] s)"
+        )
         hs = {"rk2": (3e-3, 1e-3, 3e-4), "rk4": (3e-2, 1e-2, 3e-3, 1e-3)}
     system = model.system
     mode = model.initial_mode
@@ -294,10 +362,20 @@ def _robot(name: str, quick: bool) -> Case:
     names = tuple(system.state_names(mode)[i] for i in positions)
     ref_tol = 1e-10 if quick else 1e-12
     # A bounded step: solve_ivp cannot reject a trial step whose state leaves the model's range.
-    reference = simulate_events(system, x0, mode, t_final, method="DOP853", rtol=ref_tol, atol=ref_tol,
-                                dense_output=True, max_step=0.02)
-    check = simulate_events(system, x0, mode, t_final, method="DOP853", rtol=100 * ref_tol, atol=100 * ref_tol,
-                            dense_output=True, max_step=0.02)
+    reference = simulate_events(
+        system, x0, mode, t_final, method="DOP853", rtol=ref_tol, atol=ref_tol, dense_output=True, max_step=0.02
+    )
+    check = simulate_events(
+        system,
+        x0,
+        mode,
+        t_final,
+        method="DOP853",
+        rtol=100 * ref_tol,
+        atol=100 * ref_tol,
+        dense_output=True,
+        max_step=0.02,
+    )
     if reference.status != "finished" or check.status != "finished":
         raise BenchError(f"case {name}: the reference run did not finish ({reference.status}: {reference.message})")
     grid = np.linspace(0.0, t_final, 4001)
@@ -309,24 +387,44 @@ def _robot(name: str, quick: bool) -> Case:
     diff = ref_positions(grid) - np.array([s[list(positions)] for s in check.sample(grid).states])
     estimate = float(np.abs(diff).max())
     if quick:
-        runs = [*_grid("relaxed", "relaxed-rk4", (1e-2,), (1e-4,)),
-                RunSpec("relaxed", "relaxed-dopri5", 0.1, 1e-6, 1e-6, "dense"),
-                RunSpec("solve_ivp", "solve_ivp-DOP853", math.nan, math.nan, 1e-6, "", 0.05)]
+        runs = [
+            *_grid("relaxed", "relaxed-rk4", (1e-2,), (1e-4,)),
+            RunSpec("relaxed", "relaxed-dopri5", 0.1, 1e-6, 1e-6, "dense"),
+            RunSpec("solve_ivp", "solve_ivp-DOP853", math.nan, math.nan, 1e-6, "", 0.05),
+        ]
     else:
         # Both sides get the same largest steps (solve_ivp also unbounded): a long trial step
         # puts the pronk's hip through the ground, which the relaxed integrator shortens like
         # any step that leaves its domain, and which ends a solve_ivp run (model_breakdown).
-        runs = relaxed_sweep(hs, (1e-3, 1e-5, 1e-7), (1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-10), (1e-6, 1e-9),
-                             (0.2, 0.1, 0.05),
-                             pair_landing="dense")
+        runs = relaxed_sweep(
+            hs,
+            (1e-3, 1e-5, 1e-7),
+            (1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-10),
+            (1e-6, 1e-9),
+            (0.2, 0.1, 0.05),
+            pair_landing="dense",
+        )
         runs += ivp_sweep((1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-10), (math.inf, 0.2, 0.1, 0.05))
     targets = targets_for(name, quick)
     return Case(
-        name=name, description=description, system=system, ivp_system=system, mode=mode, x0=x0, t_final=t_final,
-        positions=positions, position_names=names, reference_positions=ref_positions,
-        reference_note=(f"converged event-driven run (solve_ivp DOP853, rtol = atol = {ref_tol:g}, dense output); "
-                        f"its error is below its difference to the run at {100 * ref_tol:g}: {estimate:.2e}"),
-        runs=runs, targets=targets, reference_execution=reference, info={"reference_error_estimate": estimate},
+        name=name,
+        description=description,
+        system=system,
+        ivp_system=system,
+        mode=mode,
+        x0=x0,
+        t_final=t_final,
+        positions=positions,
+        position_names=names,
+        reference_positions=ref_positions,
+        reference_note=(
+            f"converged event-driven run (solve_ivp DOP853, rtol = atol = {ref_tol:g}, dense output); "
+            f"its error is below its difference to the run at {100 * ref_tol:g}: {estimate:.2e}"
+        ),
+        runs=runs,
+        targets=targets,
+        reference_execution=reference,
+        info={"reference_error_estimate": estimate},
         # rho is off by default here: the metric's projections onto these nonlinear guards
         # (SLSQP) cost about 0.4 s per sample time; --rho-points asks for it.
         rho_points=0,

@@ -65,8 +65,10 @@ class StepMap:
 
     def __init__(self, problem: Any, tol: float) -> None:
         if problem.section.kind != "transition" or problem.returns != 1:
-            raise BenchError(f"bench orbit: the baseline's step map needs a section after a transition with "
-                             f"returns = 1, got section {problem.section.label}, returns {problem.returns}")
+            raise BenchError(
+                f"bench orbit: the baseline's step map needs a section after a transition with "
+                f"returns = 1, got section {problem.section.label}, returns {problem.returns}"
+            )
         self.system, control = problem.instantiate(problem.parameters)
         if control is not None:
             raise BenchError("bench orbit: the baseline's step map runs passive systems only (no control)")
@@ -89,8 +91,10 @@ class StepMap:
             sol = solve_ivp(fun, (t, self.t_max), y, method="DOP853", rtol=self.tol, atol=self.tol, events=events)
             self.field_evals += sol.nfev
             if sol.status != 1:
-                raise BenchError(f"bench orbit: the baseline's step map found no {self.transition} within "
-                                 f"t_max = {self.t_max:g} s from {np.round(x, 8).tolist()} ({sol.message})")
+                raise BenchError(
+                    f"bench orbit: the baseline's step map found no {self.transition} within "
+                    f"t_max = {self.t_max:g} s from {np.round(x, 8).tolist()} ({sol.message})"
+                )
             assert sol.t_events is not None and sol.y_events is not None  # solve_ivp was given events
             t, e = min((float(te[0]), i) for i, te in enumerate(sol.t_events) if len(te))
             tr = transitions[e]
@@ -112,8 +116,9 @@ class NewtonResult:
     multipliers: np.ndarray | None = None
 
 
-def scipy_newton(problem: Any, guess: np.ndarray, tol: float, residual_tol: float,
-                 multipliers: bool = False) -> NewtonResult:
+def scipy_newton(
+    problem: Any, guess: np.ndarray, tol: float, residual_tol: float, multipliers: bool = False
+) -> NewtonResult:
     """Newton's method on P(x) - x over ``problem``'s unknowns (its periodic rows), P the
     ``StepMap`` at ``tol``, forward-difference Jacobian; stops at residual <= ``residual_tol``
     or when the residual stops falling. With ``multipliers``, the eigenvalues of the step map's
@@ -121,8 +126,10 @@ def scipy_newton(problem: Any, guess: np.ndarray, tol: float, residual_tol: floa
     step_map = StepMap(problem, tol)
     rows, unknowns = problem.periodic_idx, problem.unknown_idx
     if rows != unknowns or problem.free or problem.extra_rows:
-        raise BenchError("bench orbit: the baseline solves periodicity of the unknown coordinates only "
-                         "(no free parameters, fixed periodic coordinates or extra equations)")
+        raise BenchError(
+            "bench orbit: the baseline solves periodicity of the unknown coordinates only "
+            "(no free parameters, fixed periodic coordinates or extra equations)"
+        )
     x = np.asarray(guess, dtype=float).copy()
     fd = math.sqrt(max(tol, np.finfo(float).eps))
     best = math.inf
@@ -167,8 +174,9 @@ def interleaved(calls: dict[str, Callable[[], Any]], repeats: int) -> dict[str, 
     return {name: float(statistics.median(t)) for name, t in times.items()}
 
 
-def tolerance_sweep(problem: Any, guess: np.ndarray, orbit_tol: float, reference: np.ndarray,
-                    log: Callable[[str], None]) -> list[dict[str, Any]]:
+def tolerance_sweep(
+    problem: Any, guess: np.ndarray, orbit_tol: float, reference: np.ndarray, log: Callable[[str], None]
+) -> list[dict[str, Any]]:
     """One run of the baseline at each of ``TOLERANCES``: its fixed point's error (max-norm over
     the unknowns) against ``reference`` (n,), iterations, step maps, residual, wall time (s)."""
     idx = problem.unknown_idx
@@ -178,14 +186,23 @@ def tolerance_sweep(problem: Any, guess: np.ndarray, orbit_tol: float, reference
         base = scipy_newton(problem, guess, tol_b, orbit_tol)
         wall = time.perf_counter() - start
         err = float(np.max(np.abs(base.fixed_point[idx] - reference[idx])))
-        sweep.append({"tol": tol_b, "error": err, "iterations": base.iterations, "step_maps": base.step_maps,
-                      "residual": base.residual, "wall_s": wall})
+        sweep.append(
+            {
+                "tol": tol_b,
+                "error": err,
+                "iterations": base.iterations,
+                "step_maps": base.step_maps,
+                "residual": base.residual,
+                "wall_s": wall,
+            }
+        )
         log(f"scipy tol {tol_b:g}: error {err:.2e}, {base.step_maps} step maps, {1e3 * wall:.1f} ms")
     return sweep
 
 
-def measure(scene_name: str = "compass_gait", repeats: int = 7,
-            log: Callable[[str], None] | None = None) -> dict[str, Any]:
+def measure(
+    scene_name: str = "compass_gait", repeats: int = 7, log: Callable[[str], None] | None = None
+) -> dict[str, Any]:
     """Everything ``legsim bench orbit`` prints (the keys of its ``--json``). Besides the
     baseline at the loosest tolerance reaching legsim's error, the next looser one (less
     accurate than legsim) is timed too: the ratio at exactly equal error lies between the two."""
@@ -211,35 +228,58 @@ def measure(scene_name: str = "compass_gait", repeats: int = 7,
     sweep = tolerance_sweep(problem, guess, tol, reference.fixed_point, log)
     at = next((i for i, row in enumerate(sweep) if row["error"] <= error and row["residual"] <= tol), None)
     if at is None:
-        raise BenchError(f"bench orbit: the baseline reaches legsim's error {error:.2e} at no tolerance down to "
-                         f"{TOLERANCES[-1]:g}")
+        raise BenchError(
+            f"bench orbit: the baseline reaches legsim's error {error:.2e} at no tolerance down to {TOLERANCES[-1]:g}"
+        )
     chosen, looser = sweep[at], (sweep[at - 1] if at > 0 else None)
 
     def baseline(tol_b: float, multipliers: bool) -> Callable[[], Any]:
         def call() -> Any:
             st = problem_from_scene(load_scene(scene_name))  # the same set-up: the scene's model is built
             return scipy_newton(st.problem, st.guess, tol_b, tol, multipliers)
+
         return call
 
-    calls = {"legsim": run_legsim, "scipy": baseline(chosen["tol"], False),
-             "scipy_multipliers": baseline(chosen["tol"], True)}
+    calls = {
+        "legsim": run_legsim,
+        "scipy": baseline(chosen["tol"], False),
+        "scipy_multipliers": baseline(chosen["tol"], True),
+    }
     if looser is not None:
         calls["scipy_looser"] = baseline(looser["tol"], False)
     times = interleaved(calls, repeats)
     with_mu = baseline(chosen["tol"], True)()
-    return {"scene": scene_name, "integrator": problem.integrator_settings, "orbit_tol": tol,
-            "reference": {"tol": REFERENCE_TOL, "residual": reference.residual,
-                          "fixed_point": reference.fixed_point.tolist()},
-            "legsim": {"error": error, "iterations": ours.iterations, "simulations": ours.evaluations,
-                       "residual": ours.residual, "wall_s": times["legsim"],
-                       "multipliers": [[m.real, m.imag] for m in ours.multipliers]},
-            "scipy": dict(chosen, wall_s=times["scipy"], wall_with_multipliers_s=times["scipy_multipliers"],
-                          multipliers=[[m.real, m.imag] for m in with_mu.multipliers]),
-            "scipy_looser": None if looser is None else dict(looser, wall_s=times["scipy_looser"],
-                                                             ratio=times["scipy_looser"] / times["legsim"]),
-            "sweep": sweep, "repeats": repeats,
-            "ratio": times["scipy"] / times["legsim"],
-            "ratio_with_multipliers": times["scipy_multipliers"] / times["legsim"]}
+    return {
+        "scene": scene_name,
+        "integrator": problem.integrator_settings,
+        "orbit_tol": tol,
+        "reference": {
+            "tol": REFERENCE_TOL,
+            "residual": reference.residual,
+            "fixed_point": reference.fixed_point.tolist(),
+        },
+        "legsim": {
+            "error": error,
+            "iterations": ours.iterations,
+            "simulations": ours.evaluations,
+            "residual": ours.residual,
+            "wall_s": times["legsim"],
+            "multipliers": [[m.real, m.imag] for m in ours.multipliers],
+        },
+        "scipy": dict(
+            chosen,
+            wall_s=times["scipy"],
+            wall_with_multipliers_s=times["scipy_multipliers"],
+            multipliers=[[m.real, m.imag] for m in with_mu.multipliers],
+        ),
+        "scipy_looser": None
+        if looser is None
+        else dict(looser, wall_s=times["scipy_looser"], ratio=times["scipy_looser"] / times["legsim"]),
+        "sweep": sweep,
+        "repeats": repeats,
+        "ratio": times["scipy"] / times["legsim"],
+        "ratio_with_multipliers": times["scipy_multipliers"] / times["legsim"],
+    }
 
 
 def format_report(r: dict[str, Any]) -> str:
@@ -248,32 +288,44 @@ def format_report(r: dict[str, Any]) -> str:
 
     L, S = r["legsim"], r["scipy"]
     verdict = "MET" if r["ratio"] >= 1.0 else "MISSED"
-    lines = [f"# orbit {r['scene']}: legsim orbit against scipy Newton on solve_ivp DOP853 + events",
-             f"reference: scipy Newton at rtol = atol = {r['reference']['tol']:g}, residual "
-             f"{r['reference']['residual']:.1e}",
-             f"legsim ({describe_integrator(r['integrator'])}, tol {r['orbit_tol']:g}): error {L['error']:.2e}, "
-             f"{L['iterations']} iterations, {L['simulations']} simulations, saltation Jacobian",
-             "scipy tolerance sweep (rtol = atol; Newton with forward-difference Jacobian):"]
+    lines = [
+        f"# orbit {r['scene']}: legsim orbit against scipy Newton on solve_ivp DOP853 + events",
+        f"reference: scipy Newton at rtol = atol = {r['reference']['tol']:g}, residual "
+        f"{r['reference']['residual']:.1e}",
+        f"legsim ({describe_integrator(r['integrator'])}, tol {r['orbit_tol']:g}): error {L['error']:.2e}, "
+        f"{L['iterations']} iterations, {L['simulations']} simulations, saltation Jacobian",
+        "scipy tolerance sweep (rtol = atol; Newton with forward-difference Jacobian):",
+    ]
     for row in r["sweep"]:
-        lines.append(f"  tol {row['tol']:<7g} error {row['error']:.2e}  {row['iterations']} iterations, "
-                     f"{row['step_maps']} step maps, {1e3 * row['wall_s']:.1f} ms (one run)")
-    lines += [f"baseline: tol {S['tol']:g}, the loosest with error <= legsim's ({S['error']:.2e})",
-              f"median of {r['repeats']} interleaved repeats (scene loaded and model built in each):",
-              f"  legsim orbit (fixed point, period, multipliers)   {1e3 * L['wall_s']:8.1f} ms",
-              f"  scipy Newton (fixed point)                        {1e3 * S['wall_s']:8.1f} ms",
-              f"  scipy Newton (fixed point, multipliers)           {1e3 * S['wall_with_multipliers_s']:8.1f} ms",
-              f"ratio scipy / legsim: {r['ratio']:.2f} (fixed point only), {r['ratio_with_multipliers']:.2f} "
-              f"(with multipliers)",
-              *([] if r["scipy_looser"] is None else [
-                  f"  (scipy at the next looser tol {r['scipy_looser']['tol']:g}, "
-                  f"error {r['scipy_looser']['error']:.2e} "
-                  f"> legsim's: {1e3 * r['scipy_looser']['wall_s']:.1f} ms, ratio {r['scipy_looser']['ratio']:.2f})"]),
-              f"target: legsim orbit no slower than the scipy baseline at equal accuracy: {verdict}"]
+        lines.append(
+            f"  tol {row['tol']:<7g} error {row['error']:.2e}  {row['iterations']} iterations, "
+            f"{row['step_maps']} step maps, {1e3 * row['wall_s']:.1f} ms (one run)"
+        )
+    lines += [
+        f"baseline: tol {S['tol']:g}, the loosest with error <= legsim's ({S['error']:.2e})",
+        f"median of {r['repeats']} interleaved repeats (scene loaded and model built in each):",
+        f"  legsim orbit (fixed point, period, multipliers)   {1e3 * L['wall_s']:8.1f} ms",
+        f"  scipy Newton (fixed point)                        {1e3 * S['wall_s']:8.1f} ms",
+        f"  scipy Newton (fixed point, multipliers)           {1e3 * S['wall_with_multipliers_s']:8.1f} ms",
+        f"ratio scipy / legsim: {r['ratio']:.2f} (fixed point only), {r['ratio_with_multipliers']:.2f} "
+        f"(with multipliers)",
+        *(
+            []
+            if r["scipy_looser"] is None
+            else [
+                f"  (scipy at the next looser tol {r['scipy_looser']['tol']:g}, "
+                f"error {r['scipy_looser']['error']:.2e} "
+                f"> legsim's: {1e3 * r['scipy_looser']['wall_s']:.1f} ms, ratio {r['scipy_looser']['ratio']:.2f})"
+            ]
+        ),
+        f"target: legsim orbit no slower than the scipy baseline at equal accuracy: {verdict}",
+    ]
     return "\n".join(lines)
 
 
-def main(scene_name: str = "compass_gait", repeats: int = 7, as_json: bool = False,
-         log: Callable[[str], None] | None = None) -> int:
+def main(
+    scene_name: str = "compass_gait", repeats: int = 7, as_json: bool = False, log: Callable[[str], None] | None = None
+) -> int:
     """``legsim bench orbit``: measure and print the report (or its JSON)."""
     import json
 

@@ -88,8 +88,10 @@ def compiled_costs(twin, x: np.ndarray, n: int = 2_000_000) -> dict[str, float]:
     _loop_guards(twin.guards, p, x.copy(), 10)
     _loop_empty(p, x.copy(), 10)
     empty = _best(lambda: _loop_empty(p, x.copy(), n))
-    out = {"field": (_best(lambda: _loop_field(twin.field, p, x.copy(), n)) - empty) / n,
-           "guards": (_best(lambda: _loop_guards(twin.guards, p, x.copy(), n)) - empty) / n}
+    out = {
+        "field": (_best(lambda: _loop_field(twin.field, p, x.copy(), n)) - empty) / n,
+        "guards": (_best(lambda: _loop_guards(twin.guards, p, x.copy(), n)) - empty) / n,
+    }
     if twin.resets is not None:
         _loop_resets(twin.resets, p, x.copy(), 10)
         out["reset"] = (_best(lambda: _loop_resets(twin.resets, p, x.copy(), n)) - empty) / n
@@ -114,9 +116,18 @@ def python_costs(system, mode: str, x: np.ndarray, n: int = 50_000) -> dict[str,
     return cost
 
 
-def measure_run(system, x0, mode: str, t_final: float, h: float, eps: float, method: str,
-                costs: dict[str, float] | Callable[[], dict[str, float]], repeats: int = 3,
-                **kw) -> dict[str, Any]:
+def measure_run(
+    system,
+    x0,
+    mode: str,
+    t_final: float,
+    h: float,
+    eps: float,
+    method: str,
+    costs: dict[str, float] | Callable[[], dict[str, float]],
+    repeats: int = 3,
+    **kw,
+) -> dict[str, Any]:
     """Time one run and split its time. ``costs`` (seconds per evaluation) may be a function
     that measures them: it is then called before every repeat, and for each quantity the
     smallest time over the repeats is kept, run and evaluations alike, so that a burst of other
@@ -142,18 +153,31 @@ def measure_run(system, x0, mode: str, t_final: float, h: float, eps: float, met
     t_reset = c["reset_evals"] * (0.0 if math.isnan(costs["reset"]) else costs["reset"])
     rest = wall - t_field - t_guard - t_reset
     return {
-        "method": method, "h": h, "eps": eps, "status": ex.status, "wall_s": wall, "steps": int(c["steps"]),
-        "halvings": int(c["halvings"]), "field_evals": int(c["field_evals"]), "guard_evals": int(c["guard_evals"]),
-        "reset_evals": int(c["reset_evals"]), "transitions": int(c["transitions"]),
-        "steps_per_s": c["steps"] / wall, "ns_per_step": 1e9 * wall / steps, "cost_field_s": costs["field"],
+        "method": method,
+        "h": h,
+        "eps": eps,
+        "status": ex.status,
+        "wall_s": wall,
+        "steps": int(c["steps"]),
+        "halvings": int(c["halvings"]),
+        "field_evals": int(c["field_evals"]),
+        "guard_evals": int(c["guard_evals"]),
+        "reset_evals": int(c["reset_evals"]),
+        "transitions": int(c["transitions"]),
+        "steps_per_s": c["steps"] / wall,
+        "ns_per_step": 1e9 * wall / steps,
+        "cost_field_s": costs["field"],
         "clock": "process CPU time",
-        "share_field": t_field / wall, "share_guards": t_guard / wall, "share_resets": t_reset / wall,
+        "share_field": t_field / wall,
+        "share_guards": t_guard / wall,
+        "share_resets": t_reset / wall,
         "overhead_per_step_in_fields": rest / steps / costs["field"],
     }
 
 
-def landing_costs(system, x0, mode, t_final, h, eps, method="rk4", landings=("halve", "aim"),
-                  tol: float | None = None) -> dict[str, dict[str, float]]:
+def landing_costs(
+    system, x0, mode, t_final, h, eps, method="rk4", landings=("halve", "aim"), tol: float | None = None
+) -> dict[str, dict[str, float]]:
     """Per transition: extra trial steps and evaluations spent landing in the strips, for each
     landing rule (error-controlled with rtol = atol = ``tol`` when given). Extra field evaluations
     are those beyond the accepted steps' own (error rejections included)."""
@@ -163,8 +187,9 @@ def landing_costs(system, x0, mode, t_final, h, eps, method="rk4", landings=("ha
     per_step = tab.stages - 1 + (0 if tab.fsal else 1)
     out = {}
     for landing in landings:
-        ex = simulate(system, x0, mode, t_final, h, eps, method, landing=landing, max_transitions=1_000_000,
-                      rtol=tol, atol=tol)
+        ex = simulate(
+            system, x0, mode, t_final, h, eps, method, landing=landing, max_transitions=1_000_000, rtol=tol, atol=tol
+        )
         c = ex.counters
         n = max(int(c["transitions"]), 1)
         out[landing] = {
@@ -198,8 +223,10 @@ def contract_cost(system, x0: np.ndarray, t_final: float, method: str, repeats: 
         return time.perf_counter() - start
 
     def unchecked() -> float:
-        with (patch.object(run_module.Run, "_guard_fn", _unchecked_guard),
-              patch.object(run_module, "make_stepper", partial(make_stepper, checked=False))):
+        with (
+            patch.object(run_module.Run, "_guard_fn", _unchecked_guard),
+            patch.object(run_module, "make_stepper", partial(make_stepper, checked=False)),
+        ):
             return once()
 
     once(), unchecked()  # both steppers generated before anything is timed
@@ -221,33 +248,50 @@ def collect(quick: bool = False) -> dict[str, Any]:
     python_cost = lambda: python_costs(python_system, "free", probe, n_p)  # noqa: E731
     result: dict[str, Any] = {
         "case": f"oscillator Ex.1, t in [0, {t_final:.4g}] s, h = 1e-3, eps = 1e-6",
-        "cost_compiled_s": compiled_cost(), "cost_python_s": python_cost(), "compiled": [],
-        "compiled_no_stop": [], "python": []}
+        "cost_compiled_s": compiled_cost(),
+        "cost_python_s": python_cost(),
+        "compiled": [],
+        "compiled_no_stop": [],
+        "python": [],
+    }
     repeats = 3 if quick else 9
     for method in ("euler", "rk2", "rk4"):
-        result["compiled"].append(measure_run(system, x0, "free", t_final, 1e-3, 1e-6, method, compiled_cost,
-                                              repeats))
-        result["compiled_no_stop"].append(measure_run(free, x0, "free", t_final, 1e-3, 1e-6, method, free_cost,
-                                                      repeats))
-        result["python"].append(measure_run(python_system, x0, "free", t_final, 1e-3, 1e-6, method, python_cost,
-                                            max(3, repeats // 3)))
-    result["contract"] = {method: contract_cost(python_system, x0, t_final / (4 if quick else 2), method, repeats)
-                          for method in ("euler", "rk4")}
+        result["compiled"].append(measure_run(system, x0, "free", t_final, 1e-3, 1e-6, method, compiled_cost, repeats))
+        result["compiled_no_stop"].append(
+            measure_run(free, x0, "free", t_final, 1e-3, 1e-6, method, free_cost, repeats)
+        )
+        result["python"].append(
+            measure_run(python_system, x0, "free", t_final, 1e-3, 1e-6, method, python_cost, max(3, repeats // 3))
+        )
+    result["contract"] = {
+        method: contract_cost(python_system, x0, t_final / (4 if quick else 2), method, repeats)
+        for method in ("euler", "rk4")
+    }
     ex2, x2, t2 = make_oscillator_example("ex2")
     result["landing"] = {
         "oscillator Ex.1 (h=1e-2, eps=1e-6)": landing_costs(system, x0, "free", t_final, 1e-2, 1e-6),
         "oscillator Ex.2 (h=1e-2, eps=1e-6)": landing_costs(ex2, x2, "free", t2 / (4 if quick else 1), 1e-2, 1e-6),
-        "bouncing ball c=0.8 (h=1e-2, eps=1e-6, 3 s)": landing_costs(make_bouncing_ball(9.81, 0.8),
-                                                                     np.array([1.0, 0.0]), "flight", 3.0, 1e-2, 1e-6),
+        "bouncing ball c=0.8 (h=1e-2, eps=1e-6, 3 s)": landing_costs(
+            make_bouncing_ball(9.81, 0.8), np.array([1.0, 0.0]), "flight", 3.0, 1e-2, 1e-6
+        ),
     }
     # Error-controlled pairs: a retried step at the aim, or the landing on the failed step's own
     # dense output (no retried step). The dense landing runs the Python loop (the kernel aims).
     result["landing_pairs"] = {
-        "oscillator Ex.1 (h=0.1, eps=1e-6)": landing_costs(system, x0, "free", t_final, 0.1, 1e-6, "dopri5",
-                                                            ("aim", "dense"), 1e-8),
-        "bouncing ball c=0.8 (h=0.1, eps=1e-6, 3 s)": landing_costs(make_bouncing_ball(9.81, 0.8),
-                                                                    np.array([1.0, 0.0]), "flight", 3.0, 0.1, 1e-6,
-                                                                    "dopri5", ("aim", "dense"), 1e-8),
+        "oscillator Ex.1 (h=0.1, eps=1e-6)": landing_costs(
+            system, x0, "free", t_final, 0.1, 1e-6, "dopri5", ("aim", "dense"), 1e-8
+        ),
+        "bouncing ball c=0.8 (h=0.1, eps=1e-6, 3 s)": landing_costs(
+            make_bouncing_ball(9.81, 0.8),
+            np.array([1.0, 0.0]),
+            "flight",
+            3.0,
+            0.1,
+            1e-6,
+            "dopri5",
+            ("aim", "dense"),
+            1e-8,
+        ),
     }
     return result
 
@@ -257,45 +301,75 @@ def format_report(r: dict[str, Any], width: int | None = None) -> str:
     lines = [f"# integrator overhead: {r['case']}"]
     cc, cp = r["cost_compiled_s"], r["cost_python_s"]
     lines.append("costs of one evaluation measured alongside each run, the least disturbed of the repeats kept")
-    lines.append(f"one evaluation, compiled (from numba): field {cc['field'] * 1e9:.1f} ns, guard "
-                 f"{cc['guards'] * 1e9:.1f} ns, reset {cc['reset'] * 1e9:.1f} ns")
-    lines.append(f"one evaluation, Python (from Python): field {cp['field'] * 1e9:.0f} ns, guard "
-                 f"{cp['guards'] * 1e9:.0f} ns, reset {cp['reset'] * 1e9:.0f} ns")
+    lines.append(
+        f"one evaluation, compiled (from numba): field {cc['field'] * 1e9:.1f} ns, guard "
+        f"{cc['guards'] * 1e9:.1f} ns, reset {cc['reset'] * 1e9:.1f} ns"
+    )
+    lines.append(
+        f"one evaluation, Python (from Python): field {cp['field'] * 1e9:.0f} ns, guard "
+        f"{cp['guards'] * 1e9:.0f} ns, reset {cp['reset'] * 1e9:.0f} ns"
+    )
     head = ("path", "method", "steps/s", "ns/step", "field", "guard", "reset", "overhead/step", "trans")
-    rows = [(label, m["method"], f"{m['steps_per_s']:.3g}", f"{m['ns_per_step']:.0f}", f"{100 * m['share_field']:.0f}%",
-             f"{100 * m['share_guards']:.0f}%", f"{100 * m['share_resets']:.1f}%",
-             f"{m['overhead_per_step_in_fields']:.2f} f-ev", str(m["transitions"]))
-            for label, key in (("compiled", "compiled"), ("compiled, no stop", "compiled_no_stop"),
-                               ("python", "python"))
-            for m in r[key]]
+    rows = [
+        (
+            label,
+            m["method"],
+            f"{m['steps_per_s']:.3g}",
+            f"{m['ns_per_step']:.0f}",
+            f"{100 * m['share_field']:.0f}%",
+            f"{100 * m['share_guards']:.0f}%",
+            f"{100 * m['share_resets']:.1f}%",
+            f"{m['overhead_per_step_in_fields']:.2f} f-ev",
+            str(m["transitions"]),
+        )
+        for label, key in (("compiled", "compiled"), ("compiled, no stop", "compiled_no_stop"), ("python", "python"))
+        for m in r[key]
+    ]
     lines.append(render_table(head, rows, right=range(2, 9), whole=range(9), width=width))
     lines.append("")
-    lines.append("landing in a strip, per transition (rk4): trial steps, extra field evaluations, guard "
-                 "evaluations beyond one per step")
+    lines.append(
+        "landing in a strip, per transition (rk4): trial steps, extra field evaluations, guard "
+        "evaluations beyond one per step"
+    )
     lines.append(_landing_table(r["landing"], width))
     lines.append("")
-    lines.append("landing in a strip, per transition (dopri5, rtol = atol = 1e-8): the same, aimed retry against "
-                 "the failed step's dense output")
+    lines.append(
+        "landing in a strip, per transition (dopri5, rtol = atol = 1e-8): the same, aimed retry against "
+        "the failed step's dense output"
+    )
     lines.append(_landing_table(r.get("landing_pairs", {}), width))
     rk4 = next(m for m in r["compiled"] if m["method"] == "rk4")
     lines.append("")
-    lines.append("model-contract checks (each stage's shape, each guard's type) on the Python path: run time with "
-                 "/ without them, median of interleaved pairs: "
-                 + ", ".join(f"{method} {ratio:.3f}" for method, ratio in r["contract"].items())
-                 + f" (target <= 1.05: {'MET' if max(r['contract'].values()) <= 1.05 else 'MISSED'})")
+    lines.append(
+        "model-contract checks (each stage's shape, each guard's type) on the Python path: run time with "
+        "/ without them, median of interleaved pairs: "
+        + ", ".join(f"{method} {ratio:.3f}" for method, ratio in r["contract"].items())
+        + f" (target <= 1.05: {'MET' if max(r['contract'].values()) <= 1.05 else 'MISSED'})"
+    )
     target = rk4["overhead_per_step_in_fields"]
     lines.append("")
-    lines.append(f"target: integrator overhead per step <= 2 field evaluations (compiled rk4, with the stop): "
-                 f"{target:.2f}: {'MET' if target <= 2 else 'MISSED'}")
+    lines.append(
+        f"target: integrator overhead per step <= 2 field evaluations (compiled rk4, with the stop): "
+        f"{target:.2f}: {'MET' if target <= 2 else 'MISSED'}"
+    )
     return "\n".join(lines)
 
 
 def _landing_table(costs: dict[str, dict[str, dict[str, Any]]], width: int | None) -> str:
     """case -> landing -> its costs per transition, as a table."""
     head = ("case", "landing", "trial steps", "extra field evals", "guard evals", "transitions")
-    rows = [(case, landing, f"{v['trial_steps_per_transition']:.2f}", f"{v['extra_field_evals_per_transition']:.2f}",
-             f"{v['guard_evals_per_transition']:.2f}", str(v["transitions"]))
-            for case, d in costs.items() for landing, v in d.items()]
+    rows = [
+        (
+            case,
+            landing,
+            f"{v['trial_steps_per_transition']:.2f}",
+            f"{v['extra_field_evals_per_transition']:.2f}",
+            f"{v['guard_evals_per_transition']:.2f}",
+            str(v["transitions"]),
+        )
+        for case, d in costs.items()
+        for landing, v in d.items()
+    ]
     return render_table(head, rows, right=range(2, 6), whole=range(1, 6), width=width)
 
 

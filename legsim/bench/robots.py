@@ -145,8 +145,17 @@ def make_robot_case(name: str, quick: bool = False) -> RobotCase:
         raise BenchError(f"unknown robot case {name!r}; choose one of {', '.join(CASES)}")
     if name in ("pronk", "double-pendulum"):
         x0 = np.array([model.initial_state[n] for n in system.state_names(mode)])
-    reference = simulate_events(system, x0, mode, t_final, method="DOP853", rtol=REFERENCE_TOL, atol=REFERENCE_TOL,
-                                max_step=0.02, max_transitions=100_000)
+    reference = simulate_events(
+        system,
+        x0,
+        mode,
+        t_final,
+        method="DOP853",
+        rtol=REFERENCE_TOL,
+        atol=REFERENCE_TOL,
+        max_step=0.02,
+        max_transitions=100_000,
+    )
     if reference.status != "finished":
         raise BenchError(f"case {name}: the reference run did not finish ({reference.status}: {reference.message})")
     return RobotCase(name, f"{description}, t in [0, {t_final:g}] s", system, mode, x0, t_final, reference)
@@ -156,15 +165,22 @@ def sweep(quick: bool) -> list[RunSpec]:
     """The runs of every case: compiled relaxed (rk4 over h; dopri5 and dop853 over tolerances,
     aimed landing), the Python path's dense-landing DOP853, and solve_ivp over tolerances."""
     tols = (1e-4, 1e-6, 1e-8) if quick else (1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10, 1e-11)
-    runs = [RunSpec("relaxed", "relaxed-rk4", h, 1e-10, landing="aim")
-            for h in ((1e-2, 2e-3) if quick else (2e-2, 1e-2, 5e-3, 2e-3, 1e-3))]
+    runs = [
+        RunSpec("relaxed", "relaxed-rk4", h, 1e-10, landing="aim")
+        for h in ((1e-2, 2e-3) if quick else (2e-2, 1e-2, 5e-3, 2e-3, 1e-3))
+    ]
     for method in ("dopri5", "dop853"):
         runs += [RunSpec("relaxed", f"relaxed-{method}", 0.1, min(1e-6, 1e-2 * tol), tol, "aim") for tol in tols]
-    runs += [RunSpec("relaxed-python", "relaxed-dop853-dense", 0.1, min(1e-6, 1e-2 * tol), tol, "dense")
-             for tol in tols[:: 2 if quick else 3]]
+    runs += [
+        RunSpec("relaxed-python", "relaxed-dop853-dense", 0.1, min(1e-6, 1e-2 * tol), tol, "dense")
+        for tol in tols[:: 2 if quick else 3]
+    ]
     for method in ("RK45", "DOP853"):
-        runs += [RunSpec("solve_ivp", f"solve_ivp-{method}", tol=tol, landing="", max_step=step)
-                 for tol in tols for step in (math.inf, 0.1)]
+        runs += [
+            RunSpec("solve_ivp", f"solve_ivp-{method}", tol=tol, landing="", max_step=step)
+            for tol in tols
+            for step in (math.inf, 0.1)
+        ]
     return runs
 
 
@@ -184,9 +200,20 @@ def run_one(case: RobotCase, spec: RunSpec, repeats: int) -> Row:
     from ..relaxed import simulate
 
     if spec.kind == "solve_ivp":
+
         def call() -> Any:
-            return simulate_events(case.system, case.x0, case.mode, case.t_final, method=spec.method[10:],
-                                   rtol=spec.tol, atol=spec.tol, max_step=spec.max_step, max_transitions=100_000)
+            return simulate_events(
+                case.system,
+                case.x0,
+                case.mode,
+                case.t_final,
+                method=spec.method[10:],
+                rtol=spec.tol,
+                atol=spec.tol,
+                max_step=spec.max_step,
+                max_transitions=100_000,
+            )
+
         wall_of: Callable[[Any, float], float] = _reported_wall
     else:
         # The same system on both relaxed families: dense landing runs the Python loop.
@@ -194,14 +221,43 @@ def run_one(case: RobotCase, spec: RunSpec, repeats: int) -> Row:
         tol = None if math.isnan(spec.tol) else spec.tol
 
         def call() -> Any:
-            return simulate(system, case.x0, case.mode, case.t_final, spec.h, spec.eps, spec.method.split("-")[1],
-                            landing=spec.landing, max_transitions=100_000, rtol=tol, atol=tol)
+            return simulate(
+                system,
+                case.x0,
+                case.mode,
+                case.t_final,
+                spec.h,
+                spec.eps,
+                spec.method.split("-")[1],
+                landing=spec.landing,
+                max_transitions=100_000,
+                rtol=tol,
+                atol=tol,
+            )
+
         wall_of = _measured_wall
     ex, wall, n = _timed(call, repeats, wall_of)
     c = ex.counters
-    return Row(case.name, spec.method, spec.kind, spec.h, spec.eps, spec.tol, spec.max_step, spec.landing,
-               case.error(ex), math.nan, wall, n, int(c["steps"]), int(c.get("halvings", 0)), int(c["field_evals"]),
-               int(c["guard_evals"]), int(c["transitions"]), str(ex.status))
+    return Row(
+        case.name,
+        spec.method,
+        spec.kind,
+        spec.h,
+        spec.eps,
+        spec.tol,
+        spec.max_step,
+        spec.landing,
+        case.error(ex),
+        math.nan,
+        wall,
+        n,
+        int(c["steps"]),
+        int(c.get("halvings", 0)),
+        int(c["field_evals"]),
+        int(c["guard_evals"]),
+        int(c["transitions"]),
+        str(ex.status),
+    )
 
 
 @dataclass
@@ -241,9 +297,14 @@ def format_levels(results: list[LevelResult]) -> str:
             knob = f"h={row.h:g}" if math.isnan(row.tol) else f"tol={row.tol:g}"
             step = "" if math.isinf(row.max_step) or math.isnan(row.max_step) else f" max_step={row.max_step:g}"
             parts.append(f"{family}: {row.method} {knob}{step} {1e3 * row.wall_s:.3g} ms")
-        ratios = [f"{name} {r:.3g}x" for name, r in (("solve_ivp/relaxed", res.ratio("solve_ivp")),
-                                                      ("python/compiled", res.ratio("relaxed-python")))
-                  if r is not None]
+        ratios = [
+            f"{name} {r:.3g}x"
+            for name, r in (
+                ("solve_ivp/relaxed", res.ratio("solve_ivp")),
+                ("python/compiled", res.ratio("relaxed-python")),
+            )
+            if r is not None
+        ]
         lines.append(f"error <= {res.level:g}: " + "; ".join(parts) + ("; " + ", ".join(ratios) if ratios else ""))
     return "\n".join(lines)
 
@@ -262,11 +323,17 @@ def cost_report(case: RobotCase, rows: list[Row]) -> dict[str, float]:
     n = int(case.system.mode_data(case.mode).mode.dim)
     x = np.ascontiguousarray(case.x0, dtype=float)
     nv = (n - 1) // 2 if case.name in ("compass-gait", "rimless-wheel") else n // 2
-    aba = _native.time_aba(int(twin.params[0]), x[:nv], x[nv:2 * nv], np.zeros(nv), 200_000)
+    aba = _native.time_aba(int(twin.params[0]), x[:nv], x[nv : 2 * nv], np.zeros(nv), 200_000)
     compiled = compiled_costs(twin, x, 200_000)
     python = python_costs(case.system, case.mode, x, 20_000)
-    out = {"aba_s": aba, "field_s": compiled["field"], "guards_s": compiled["guards"], "reset_s": compiled["reset"],
-           "python_field_s": python["field"], "field_over_aba": compiled["field"] / aba}
+    out = {
+        "aba_s": aba,
+        "field_s": compiled["field"],
+        "guards_s": compiled["guards"],
+        "reset_s": compiled["reset"],
+        "python_field_s": python["field"],
+        "field_over_aba": compiled["field"] / aba,
+    }
     best = at_levels(rows, (1e-6,))[0].best["relaxed"]
     if best is not None:
         out["outside_aba_share"] = 1.0 - best.field_evals * aba / best.wall_s
@@ -276,17 +343,26 @@ def cost_report(case: RobotCase, rows: list[Row]) -> dict[str, float]:
 def format_costs(costs: dict[str, float]) -> str:
     if not costs:
         return "cost: the model has no compiled twin (native library unavailable)"
-    text = (f"cost per call: bare C++ aba {1e6 * costs['aba_s']:.3g} us; compiled field all-in "
-            f"{1e6 * costs['field_s']:.3g} us ({costs['field_over_aba']:.2f}x aba); "
-            f"guards {1e6 * costs['guards_s']:.3g} us; reset {1e6 * costs['reset_s']:.3g} us; "
-            f"Python field {1e6 * costs['python_field_s']:.3g} us")
+    text = (
+        f"cost per call: bare C++ aba {1e6 * costs['aba_s']:.3g} us; compiled field all-in "
+        f"{1e6 * costs['field_s']:.3g} us ({costs['field_over_aba']:.2f}x aba); "
+        f"guards {1e6 * costs['guards_s']:.3g} us; reset {1e6 * costs['reset_s']:.3g} us; "
+        f"Python field {1e6 * costs['python_field_s']:.3g} us"
+    )
     if "outside_aba_share" in costs:
         text += f"; fastest compiled run at 1e-6: {100 * costs['outside_aba_share']:.0f}% of its time outside aba"
     return text
 
 
-def run_case(name: str, *, quick: bool, out: str | os.PathLike, repeats: int, figure: bool,
-             log: Callable[[str], None] | None = None) -> tuple[RobotCase, list[Row], Path, Path | None]:
+def run_case(
+    name: str,
+    *,
+    quick: bool,
+    out: str | os.PathLike,
+    repeats: int,
+    figure: bool,
+    log: Callable[[str], None] | None = None,
+) -> tuple[RobotCase, list[Row], Path, Path | None]:
     """Sweep one case; write OUT/robots-NAME.csv (and .png)."""
     case = make_robot_case(name, quick)
     rows = []
@@ -305,13 +381,18 @@ def run_case(name: str, *, quick: bool, out: str | os.PathLike, repeats: int, fi
     csv_path = write_csv(rows, folder / f"robots-{name}.csv")
     fig_path = None
     if figure:
-        fig_path = plot_rows(rows, folder / f"robots-{name}.png", f"{name}: work-precision",
-                             "error of transition times and post-impact states")
+        fig_path = plot_rows(
+            rows,
+            folder / f"robots-{name}.png",
+            f"{name}: work-precision",
+            "error of transition times and post-impact states",
+        )
     return case, rows, csv_path, fig_path
 
 
-def main(cases: list[str], *, quick: bool, out: str, repeats: int, figure: bool,
-         log: Callable[[str], None] | None) -> int:
+def main(
+    cases: list[str], *, quick: bool, out: str, repeats: int, figure: bool, log: Callable[[str], None] | None
+) -> int:
     """The command: every case's table, levels and costs."""
     from .. import _native
 

@@ -99,8 +99,11 @@ def relaxed_variant(row: Row) -> str:
 
 def _competing(rows: Iterable[Row], tg: Target) -> list[Row]:
     """The target's relaxed runs (its variant) and its baseline's runs."""
-    return [r for r in rows if (r.kind == "relaxed" and relaxed_variant(r) in _VARIANTS[tg.relaxed])
-            or r.kind == tg.baseline]
+    return [
+        r
+        for r in rows
+        if (r.kind == "relaxed" and relaxed_variant(r) in _VARIANTS[tg.relaxed]) or r.kind == tg.baseline
+    ]
 
 
 def _best(rows: Iterable[Row], kind: str) -> Row | None:
@@ -108,8 +111,9 @@ def _best(rows: Iterable[Row], kind: str) -> Row | None:
     return min((r for r in rows if r.kind == kind and math.isfinite(r.error)), key=lambda r: r.error, default=None)
 
 
-def evaluate_targets(rows: Sequence[Row], targets: Sequence[Target],
-                     notes: Mapping[str, str] | None = None) -> list[TargetResult]:
+def evaluate_targets(
+    rows: Sequence[Row], targets: Sequence[Target], notes: Mapping[str, str] | None = None
+) -> list[TargetResult]:
     """Each target's verdict on these rows. ``notes``: a line per baseline kind to add to its
     targets' notes (how its sweep was extended)."""
     return [_judge(_competing(rows, tg), tg, (notes or {}).get(tg.baseline, "")) for tg in targets]
@@ -120,10 +124,19 @@ def _judge(rows: list[Row], tg: Target, extension_note: str) -> TargetResult:
     base = time_to_reach(rows, tg.level, tg.baseline)
     notes = [extension_note]
     if rel is not None and relaxed_variant(rel) == "zeno":
-        notes.append("the relaxed run takes the model's Zeno continuation (simulate's default, window = h + eps; the "
-                     "plain runs pass continuation=False)")
-    result = TargetResult(tg, NOT_COMPARABLE, rel.wall_s if rel else None, run_label(rel) if rel else "",
-                          base.wall_s if base else None, run_label(base) if base else "", None)
+        notes.append(
+            "the relaxed run takes the model's Zeno continuation (simulate's default, window = h + eps; the "
+            "plain runs pass continuation=False)"
+        )
+    result = TargetResult(
+        tg,
+        NOT_COMPARABLE,
+        rel.wall_s if rel else None,
+        run_label(rel) if rel else "",
+        base.wall_s if base else None,
+        run_label(base) if base else "",
+        None,
+    )
     if rel is not None and base is not None:
         result.ratio = base.wall_s / rel.wall_s
         result.verdict = MET if result.ratio >= tg.ratio else MISSED
@@ -151,9 +164,11 @@ def _common_level(rows: list[Row], tg: Target, result: TargetResult) -> list[str
         rel, base = time_to_reach(rows, level, "relaxed"), time_to_reach(rows, level, tg.baseline)
         assert rel is not None and base is not None  # each side's best run reaches the coarser level
         result.common_level, result.common_ratio = level, base.wall_s / rel.wall_s
-        said.append(f"at {level:.3g}, the finest error both reach: {tg.baseline} {base.wall_s:.4g} s "
-                    f"({run_label(base)}), relaxed {rel.wall_s:.4g} s ({run_label(rel)}), "
-                    f"ratio {result.common_ratio:.3g}x")
+        said.append(
+            f"at {level:.3g}, the finest error both reach: {tg.baseline} {base.wall_s:.4g} s "
+            f"({run_label(base)}), relaxed {rel.wall_s:.4g} s ({run_label(rel)}), "
+            f"ratio {result.common_ratio:.3g}x"
+        )
     return said
 
 
@@ -180,8 +195,10 @@ def verdict_line(tr: TargetResult) -> str:
         return f"{MISSED}: relaxed never reaches error {tg.level:g}"
     if tr.common_level is None:
         return f"{NOT_COMPARABLE}: no {tg.baseline} run in the sweep finished"
-    return (f"{NOT_COMPARABLE}: {tg.baseline} never reaches error {tg.level:g}; at {tr.common_level:.3g}, the finest "
-            f"error both reach, {tr.common_ratio:.3g}x (target {tg.ratio:g}x at {tg.level:g})")
+    return (
+        f"{NOT_COMPARABLE}: {tg.baseline} never reaches error {tg.level:g}; at {tr.common_level:.3g}, the finest "
+        f"error both reach, {tr.common_ratio:.3g}x (target {tg.ratio:g}x at {tg.level:g})"
+    )
 
 
 # ----------------------------------------------------------------------------------------------
@@ -201,8 +218,7 @@ class Extension:
         """One line for the targets' notes."""
         if not self.rows:
             return f"{self.kind} sweep not extended towards {self.level:g}: {self.stopped}"
-        return (f"{self.kind} sweep extended by {len(self.rows)} run(s) towards {self.level:g}: "
-                f"{self.stopped}")
+        return f"{self.kind} sweep extended by {len(self.rows)} run(s) towards {self.level:g}: {self.stopped}"
 
 
 def levels_to_extend(rows: Sequence[Row], targets: Sequence[Target]) -> dict[str, float]:
@@ -244,8 +260,14 @@ def _families(rows: Sequence[Row], kind: str) -> list[list[Row]]:
     return [sorted(group, key=knob) for group in groups.values()]
 
 
-def extend_baselines(case: Case, rows: Sequence[Row], targets: Sequence[Target], budget: float,
-                     run: Callable[[RunSpec], Row], say: Callable[[str], None] = lambda s: None) -> list[Extension]:
+def extend_baselines(
+    case: Case,
+    rows: Sequence[Row],
+    targets: Sequence[Target],
+    budget: float,
+    run: Callable[[RunSpec], Row],
+    say: Callable[[str], None] = lambda s: None,
+) -> list[Extension]:
     """Refine each baseline's sweep (``finer``) towards the finest level it misses and the relaxed
     runs reach (``levels_to_extend``), family by family, until a run reaches it, the family's
     error has not fallen for ``MAX_NON_IMPROVING`` runs, no finer setting exists, or the next run
@@ -269,8 +291,15 @@ def extend_baselines(case: Case, rows: Sequence[Row], targets: Sequence[Target],
     return extensions
 
 
-def _extend_family(case: Case, row: Row, best: float, ext: Extension, budget: float,
-                   run: Callable[[RunSpec], Row], say: Callable[[str], None]) -> str:
+def _extend_family(
+    case: Case,
+    row: Row,
+    best: float,
+    ext: Extension,
+    budget: float,
+    run: Callable[[RunSpec], Row],
+    say: Callable[[str], None],
+) -> str:
     """Refine one family from its finest run ``row``; the runs go to ``ext.rows``. Returns why it
     stopped: ``reached``, ``budget``, ``floor`` (the error stopped falling) or the reason
     ``finer`` gives."""
@@ -298,7 +327,9 @@ def _extend_family(case: Case, row: Row, best: float, ext: Extension, budget: fl
 def _why(ext: Extension, reasons: list[str], budget: float) -> str:
     if "reached" in reasons:
         return f"reached it ({next(r for r in ext.rows if r.error <= ext.level).error:.3g})"
-    said = {"budget": f"the time budget of {budget:g} s is spent",
-            "floor": f"the error stopped falling ({MAX_NON_IMPROVING} finer runs without improvement)"}
+    said = {
+        "budget": f"the time budget of {budget:g} s is spent",
+        "floor": f"the error stopped falling ({MAX_NON_IMPROVING} finer runs without improvement)",
+    }
     unique = list(dict.fromkeys(said.get(r, r) for r in reasons))
     return "not reached: " + "; ".join(unique)

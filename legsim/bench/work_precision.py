@@ -37,8 +37,27 @@ if TYPE_CHECKING:
     from .targets import Extension, TargetResult
 
 #: CSV columns, in order.
-COLUMNS = ("case", "method", "kind", "h", "eps", "tol", "max_step", "landing", "error", "rho", "wall_s", "repeats",
-           "steps", "halvings", "field_evals", "guard_evals", "transitions", "status", "pareto")
+COLUMNS = (
+    "case",
+    "method",
+    "kind",
+    "h",
+    "eps",
+    "tol",
+    "max_step",
+    "landing",
+    "error",
+    "rho",
+    "wall_s",
+    "repeats",
+    "steps",
+    "halvings",
+    "field_evals",
+    "guard_evals",
+    "transitions",
+    "status",
+    "pareto",
+)
 
 
 @dataclass
@@ -142,7 +161,7 @@ def run_one(case: Case, spec: RunSpec, repeats: int = 3, rho_points: int = 0) ->
 
     rho_value = math.nan
     if spec.kind == "relaxed":
-        method = relaxed_method(spec.method[len("relaxed-"):])
+        method = relaxed_method(spec.method[len("relaxed-") :])
         tols = {} if math.isnan(spec.tol) else {"rtol": spec.tol, "atol": spec.tol}
         system, control = case.system, None
         if spec.zeno:
@@ -155,9 +174,21 @@ def run_one(case: Case, spec: RunSpec, repeats: int = 3, rho_points: int = 0) ->
         budget = max(MAX_STEPS, 2 * math.ceil(case.t_final / spec.h))
 
         def call():
-            return simulate(system, case.x0, case.mode, case.t_final, spec.h, spec.eps, method, control,
-                            max_transitions=case.max_transitions, landing=spec.landing, continuation=spec.zeno,
-                            max_steps=budget, **tols)
+            return simulate(
+                system,
+                case.x0,
+                case.mode,
+                case.t_final,
+                spec.h,
+                spec.eps,
+                method,
+                control,
+                max_transitions=case.max_transitions,
+                landing=spec.landing,
+                continuation=spec.zeno,
+                max_steps=budget,
+                **tols,
+            )
 
         ex, wall, n = _timed(call, repeats, lambda r, dt: dt)
         if ex.status == "finished":
@@ -168,24 +199,69 @@ def run_one(case: Case, spec: RunSpec, repeats: int = 3, rho_points: int = 0) ->
         else:
             error = math.inf
         c = ex.counters
-        return Row(case.name, spec.method, spec.kind, spec.h, spec.eps, spec.tol, math.nan, spec.landing, error,
-                   rho_value,
-                   wall, n, int(c["steps"]), int(c["halvings"]), int(c["field_evals"]), int(c["guard_evals"]),
-                   int(c["transitions"]), ex.status)
+        return Row(
+            case.name,
+            spec.method,
+            spec.kind,
+            spec.h,
+            spec.eps,
+            spec.tol,
+            math.nan,
+            spec.landing,
+            error,
+            rho_value,
+            wall,
+            n,
+            int(c["steps"]),
+            int(c["halvings"]),
+            int(c["field_evals"]),
+            int(c["guard_evals"]),
+            int(c["transitions"]),
+            ex.status,
+        )
     if spec.kind == "solve_ivp":
-        method = spec.method[len("solve_ivp-"):]
+        method = spec.method[len("solve_ivp-") :]
 
         def call():
-            return simulate_events(case.ivp_system, case.x0, case.mode, case.t_final, method=method, rtol=spec.tol,
-                                   atol=spec.tol, max_transitions=10_000, max_step=spec.max_step)
+            return simulate_events(
+                case.ivp_system,
+                case.x0,
+                case.mode,
+                case.t_final,
+                method=method,
+                rtol=spec.tol,
+                atol=spec.tol,
+                max_transitions=10_000,
+                max_step=spec.max_step,
+            )
 
         ex, wall, n = _timed(call, repeats, lambda r, dt: float(r.counters["wall_time_s"]))
-        error = position_error(*own_points(ex, case.positions), case.reference_positions) \
-            if ex.status == "finished" else math.inf
+        error = (
+            position_error(*own_points(ex, case.positions), case.reference_positions)
+            if ex.status == "finished"
+            else math.inf
+        )
         c = ex.counters
-        return Row(case.name, spec.method, spec.kind, math.nan, math.nan, spec.tol, spec.max_step, "", error,
-                   math.nan, wall, n,
-                   int(c["steps"]), 0, int(c["field_evals"]), int(c["guard_evals"]), int(c["transitions"]), ex.status)
+        return Row(
+            case.name,
+            spec.method,
+            spec.kind,
+            math.nan,
+            math.nan,
+            spec.tol,
+            spec.max_step,
+            "",
+            error,
+            math.nan,
+            wall,
+            n,
+            int(c["steps"]),
+            0,
+            int(c["field_evals"]),
+            int(c["guard_evals"]),
+            int(c["transitions"]),
+            ex.status,
+        )
     if spec.kind == "ps":
         if case.ps is None:
             raise BenchError(f"case {case.name} has no Paoli-Schatzman baseline (oscillator cases only)")
@@ -193,14 +269,41 @@ def run_one(case: Case, spec: RunSpec, repeats: int = 3, rho_points: int = 0) ->
         forcing = _ps_forcing(ps)
 
         def call():
-            return paoli_schatzman(ps["a"], ps["omega"], ps["c"], ps["x_max"], forcing, ps["x0"], ps["xd0"],
-                                   case.t_final, spec.h, compiled=True)
+            return paoli_schatzman(
+                ps["a"],
+                ps["omega"],
+                ps["c"],
+                ps["x_max"],
+                forcing,
+                ps["x0"],
+                ps["xd0"],
+                case.t_final,
+                spec.h,
+                compiled=True,
+            )
 
         (t, z), wall, n = _timed(call, repeats, lambda r, dt: dt)
         error = position_error(t, z[:, None], case.reference_positions)
-        return Row(case.name, "ps", "ps", spec.h, math.nan, math.nan, math.nan, "", error, math.nan, wall, n,
-                   len(t) - 1, 0,
-                   len(t), 0, 0, "finished")
+        return Row(
+            case.name,
+            "ps",
+            "ps",
+            spec.h,
+            math.nan,
+            math.nan,
+            math.nan,
+            "",
+            error,
+            math.nan,
+            wall,
+            n,
+            len(t) - 1,
+            0,
+            len(t),
+            0,
+            0,
+            "finished",
+        )
     raise BenchError(f"unknown run kind {spec.kind!r}")
 
 
@@ -228,8 +331,7 @@ def warm_up(case: Case, specs: Iterable[RunSpec]) -> None:
 # ----------------------------------------------------------------------------------------------
 def mark_pareto(rows: list[Row]) -> None:
     """Set ``pareto = 1`` on the runs no other run beats in both time and error."""
-    finite = sorted((r for r in rows if math.isfinite(r.error)),
-                    key=lambda r: (r.wall_s, r.error))
+    finite = sorted((r for r in rows if math.isfinite(r.error)), key=lambda r: (r.wall_s, r.error))
     best = math.inf
     for r in rows:
         r.pareto = 0
@@ -340,8 +442,15 @@ def plot_rows(all_rows: Sequence[Row], path: Path, title: str, ylabel: str) -> P
         ax.plot([r.wall_s for r in front], [r.error for r in front], "-o", ms=3.5, color=color, label=m)
     pareto = sorted((r for r in rows if r.pareto), key=lambda r: r.wall_s)
     if pareto:
-        ax.step([r.wall_s for r in pareto], [r.error for r in pareto], where="post", color="k", ls="--", lw=1.2,
-                label="Pareto front (all methods)")
+        ax.step(
+            [r.wall_s for r in pareto],
+            [r.error for r in pareto],
+            where="post",
+            color="k",
+            ls="--",
+            lw=1.2,
+            label="Pareto front (all methods)",
+        )
         ax.scatter([r.wall_s for r in pareto], [r.error for r in pareto], s=60, facecolors="none", edgecolors="k")
     ax.set_xscale("log")
     ax.set_yscale("log")
@@ -360,13 +469,42 @@ def plot_rows(all_rows: Sequence[Row], path: Path, title: str, ylabel: str) -> P
 def format_table(rows: Sequence[Row], width: int | None = None) -> str:
     """The rows as a text table (``legsim.tables``, at most ``width`` characters wide), sorted
     by method then error."""
-    head = ("method", "h", "eps", "tol", "max_step", "error", "rho", "wall_s", "steps", "halv", "f_evals", "trans",
-            "status", "P")
+    head = (
+        "method",
+        "h",
+        "eps",
+        "tol",
+        "max_step",
+        "error",
+        "rho",
+        "wall_s",
+        "steps",
+        "halv",
+        "f_evals",
+        "trans",
+        "status",
+        "P",
+    )
     body = []
     for r in sorted(rows, key=lambda r: (r.method, -r.error if math.isfinite(r.error) else -math.inf)):
-        body.append((r.method, _g(r.h), _g(r.eps), _g(r.tol), "" if math.isinf(r.max_step) else _g(r.max_step),
-                     _e(r.error), _e(r.rho), f"{r.wall_s:.4g}", str(r.steps),
-                     str(r.halvings), str(r.field_evals), str(r.transitions), r.status, "*" if r.pareto else ""))
+        body.append(
+            (
+                r.method,
+                _g(r.h),
+                _g(r.eps),
+                _g(r.tol),
+                "" if math.isinf(r.max_step) else _g(r.max_step),
+                _e(r.error),
+                _e(r.rho),
+                f"{r.wall_s:.4g}",
+                str(r.steps),
+                str(r.halvings),
+                str(r.field_evals),
+                str(r.transitions),
+                r.status,
+                "*" if r.pareto else "",
+            )
+        )
     return render_table(head, body, right=range(1, 12), whole=range(0, 12), width=width)
 
 
@@ -381,9 +519,18 @@ def _e(v: float) -> str:
 # ----------------------------------------------------------------------------------------------
 # The whole bench
 # ----------------------------------------------------------------------------------------------
-def run_case(name: str, *, quick: bool = False, out: str | os.PathLike | None = None, repeats: int | None = None,
-             rho_points: int | None = None, figure: bool = True, log: Callable[[str], None] | None = None,
-             methods: Sequence[str] | None = None, extension_budget: float | None = None) -> BenchResult:
+def run_case(
+    name: str,
+    *,
+    quick: bool = False,
+    out: str | os.PathLike | None = None,
+    repeats: int | None = None,
+    rho_points: int | None = None,
+    figure: bool = True,
+    log: Callable[[str], None] | None = None,
+    methods: Sequence[str] | None = None,
+    extension_budget: float | None = None,
+) -> BenchResult:
     """Run the work-precision sweep of case ``name``, extend the baselines' sweeps where they
     miss a target's level (``legsim.bench.targets.extend_baselines``), judge the targets; write
     ``out/name.csv`` (every run, extensions included) and ``out/name.png`` when ``out`` is given.
@@ -418,8 +565,9 @@ def run_case(name: str, *, quick: bool = False, out: str | os.PathLike | None = 
             rows.append(row)
             say(f"  [{i}/{len(runs)}] {run_label(row)}: error {_e(row.error)}, {row.wall_s:.4g} s, {row.status}")
             advance(1)
-    extensions = extend_baselines(case, rows, case.targets, extension_budget,
-                                  lambda spec: run_one(case, spec, repeats, rho_points), say)
+    extensions = extend_baselines(
+        case, rows, case.targets, extension_budget, lambda spec: run_one(case, spec, repeats, rho_points), say
+    )
     rows += [row for ext in extensions for row in ext.rows]
     mark_pareto(rows)
     notes = {ext.kind: ext.describe() for ext in extensions}

@@ -10,57 +10,86 @@ HELP = "benchmarks: work-precision against Paoli-Schatzman and solve_ivp, robots
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     sub = parser.add_subparsers(dest="bench", metavar="BENCH", required=True)
-    wp = sub.add_parser("work-precision", help="error against wall time for every method on one case",
-                        description="Sweep h, eps, tolerances and methods on one case, measure the error against "
-                                    "the reference and the wall time, write CASE.csv and CASE.png, print a table "
-                                    "and the speed targets: MET or MISSED by the ratio measured at the target's "
-                                    "error, NOT COMPARABLE where the baseline never reaches it (its sweep is "
-                                    "extended first, within --extend-budget).")
-    wp.add_argument("--case", required=True,
-                    help="oscillator-ex1, oscillator-ex2, bouncing-ball, pronk or double-pendulum")
+    wp = sub.add_parser(
+        "work-precision",
+        help="error against wall time for every method on one case",
+        description="Sweep h, eps, tolerances and methods on one case, measure the error against "
+        "the reference and the wall time, write CASE.csv and CASE.png, print a table "
+        "and the speed targets: MET or MISSED by the ratio measured at the target's "
+        "error, NOT COMPARABLE where the baseline never reaches it (its sweep is "
+        "extended first, within --extend-budget).",
+    )
+    wp.add_argument(
+        "--case", required=True, help="oscillator-ex1, oscillator-ex2, bouncing-ball, pronk or double-pendulum"
+    )
     wp.add_argument("--out", default=None, help="folder for CASE.csv and CASE.png (default: bench-out)")
     wp.add_argument("--quick", action="store_true", help="short run, small sweep (seconds; for CI)")
     wp.add_argument("--repeats", type=int, default=None, help="timed repeats per run, median kept (default 3)")
-    wp.add_argument("--rho-points", type=int, default=None,
-                    help="times of the rho grid (default 400, 40 with --quick; 0 skips rho)")
-    wp.add_argument("--methods", default=None,
-                    help="comma-separated CSV method names to keep (e.g. relaxed-rk4,relaxed-rk4-zeno,ps; "
-                         "-zeno: Zeno continuation, oscillator-ex2 only)")
-    wp.add_argument("--extend-budget", type=float, default=None, metavar="SECONDS",
-                    help="wall time the bench may spend refining a baseline's sweep (PS's step, solve_ivp's "
-                         "tolerance) towards a target level it never reached (default 60, 5 with --quick; 0: none)")
+    wp.add_argument(
+        "--rho-points", type=int, default=None, help="times of the rho grid (default 400, 40 with --quick; 0 skips rho)"
+    )
+    wp.add_argument(
+        "--methods",
+        default=None,
+        help="comma-separated CSV method names to keep (e.g. relaxed-rk4,relaxed-rk4-zeno,ps; "
+        "-zeno: Zeno continuation, oscillator-ex2 only)",
+    )
+    wp.add_argument(
+        "--extend-budget",
+        type=float,
+        default=None,
+        metavar="SECONDS",
+        help="wall time the bench may spend refining a baseline's sweep (PS's step, solve_ivp's "
+        "tolerance) towards a target level it never reached (default 60, 5 with --quick; 0: none)",
+    )
     wp.add_argument("--no-figure", action="store_true", help="write the CSV only")
     wp.add_argument("--quiet", action="store_true", help="print only the table and the targets")
-    tg = sub.add_parser("targets", help="the table and the targets again, from a CSV written before",
-                        description="Read OUT/CASE.csv and print its table and the speed targets (no run).")
+    tg = sub.add_parser(
+        "targets",
+        help="the table and the targets again, from a CSV written before",
+        description="Read OUT/CASE.csv and print its table and the speed targets (no run).",
+    )
     tg.add_argument("--case", required=True, help="the case name")
     tg.add_argument("--out", default="bench-out", help="folder holding CASE.csv (default: bench-out)")
-    rb = sub.add_parser("robots", help="the robots on the compiled path against solve_ivp, and the cost limit",
-                        description="Compass gait and rimless wheel (Drake's parameters, on their limit cycles), "
-                                    "pronk and double pendulum: compiled relaxed runs, the Python path's best and "
-                                    "solve_ivp over their knobs; the fastest of each below errors 1e-4, 1e-6, 1e-8 "
-                                    "and their ratios; the cost of a field evaluation against a bare C++ aba. "
-                                    "Writes OUT/robots-CASE.csv and .png.")
-    rb.add_argument("--case", action="append", default=None,
-                    help="compass-gait, rimless-wheel, pronk or double-pendulum (repeatable; default: all)")
+    rb = sub.add_parser(
+        "robots",
+        help="the robots on the compiled path against solve_ivp, and the cost limit",
+        description="Compass gait and rimless wheel (Drake's parameters, on their limit cycles), "
+        "pronk and double pendulum: compiled relaxed runs, the Python path's best and "
+        "solve_ivp over their knobs; the fastest of each below errors 1e-4, 1e-6, 1e-8 "
+        "and their ratios; the cost of a field evaluation against a bare C++ aba. "
+        "Writes OUT/robots-CASE.csv and .png.",
+    )
+    rb.add_argument(
+        "--case",
+        action="append",
+        default=None,
+        help="compass-gait, rimless-wheel, pronk or double-pendulum (repeatable; default: all)",
+    )
     rb.add_argument("--out", default="bench-out", help="folder for the CSV files and figures (default: bench-out)")
     rb.add_argument("--quick", action="store_true", help="short runs, small sweep (for CI)")
     rb.add_argument("--repeats", type=int, default=5, help="timed repeats per run, median kept (default 5)")
     rb.add_argument("--no-figure", action="store_true", help="write the CSV files only")
     rb.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
-    ob = sub.add_parser("orbit", help="legsim orbit against a scipy Newton iteration at the same accuracy",
-                        description="The scene's orbit search (what `legsim orbit SCENE` runs) against Newton's "
-                                    "method on a solve_ivp DOP853 step map with events (forward-difference "
-                                    "Jacobian), both measured against a reference fixed point at rtol = atol = "
-                                    "1e-12; the baseline at the loosest tolerance reaching legsim's error; median "
-                                    "wall times of interleaved repeats and their ratio.")
+    ob = sub.add_parser(
+        "orbit",
+        help="legsim orbit against a scipy Newton iteration at the same accuracy",
+        description="The scene's orbit search (what `legsim orbit SCENE` runs) against Newton's "
+        "method on a solve_ivp DOP853 step map with events (forward-difference "
+        "Jacobian), both measured against a reference fixed point at rtol = atol = "
+        "1e-12; the baseline at the loosest tolerance reaching legsim's error; median "
+        "wall times of interleaved repeats and their ratio.",
+    )
     ob.add_argument("--scene", default="compass_gait", help="a scene with an orbit section (default: compass_gait)")
     ob.add_argument("--repeats", type=int, default=7, help="interleaved timed repeats, median kept (default 7)")
     ob.add_argument("--json", action="store_true", help="print the measurements as JSON")
     ob.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
-    ov = sub.add_parser("overhead", help="integrator cost per step beyond the model's own evaluations",
-                        description="Steps per second, shares of time in fields, guards and resets, overhead per "
-                                    "step in field evaluations, and evaluations per transition for halve vs aim.")
+    ov = sub.add_parser(
+        "overhead",
+        help="integrator cost per step beyond the model's own evaluations",
+        description="Steps per second, shares of time in fields, guards and resets, overhead per "
+        "step in field evaluations, and evaluations per transition for halve vs aim.",
+    )
     ov.add_argument("--quick", action="store_true", help="shorter runs")
     ov.add_argument("--json", action="store_true", help="print the measurements as JSON")
 
@@ -87,11 +116,15 @@ def run(args: argparse.Namespace) -> int:
         cases = args.case or list(robots.CASES)
         unknown = [c for c in cases if c not in robots.CASES]
         if unknown or args.repeats < 1:
-            raise BenchError(f"--case must name {', '.join(robots.CASES)} (got {unknown}); --repeats must be >= 1"
-                             if unknown else f"--repeats must be >= 1, got {args.repeats}")
+            raise BenchError(
+                f"--case must name {', '.join(robots.CASES)} (got {unknown}); --repeats must be >= 1"
+                if unknown
+                else f"--repeats must be >= 1, got {args.repeats}"
+            )
         log = None if args.quiet else (lambda s: print(s, file=sys.stderr, flush=True))
-        return robots.main(cases, quick=args.quick, out=args.out, repeats=args.repeats, figure=not args.no_figure,
-                           log=log)
+        return robots.main(
+            cases, quick=args.quick, out=args.out, repeats=args.repeats, figure=not args.no_figure, log=log
+        )
     from ..bench.targets import evaluate_targets, format_targets
     from ..bench.work_precision import format_table, read_rows, run_case
 
@@ -116,9 +149,17 @@ def run(args: argparse.Namespace) -> int:
         raise BenchError(f"--extend-budget must be a finite number of seconds >= 0, got {args.extend_budget}")
     methods = None if args.methods is None else [m.strip() for m in args.methods.split(",") if m.strip()]
     log = None if args.quiet else (lambda s: print(s, file=sys.stderr, flush=True))
-    result = run_case(args.case, quick=args.quick, out=args.out or "bench-out", repeats=args.repeats,
-                      rho_points=args.rho_points, figure=not args.no_figure, log=log, methods=methods,
-                      extension_budget=args.extend_budget)
+    result = run_case(
+        args.case,
+        quick=args.quick,
+        out=args.out or "bench-out",
+        repeats=args.repeats,
+        rho_points=args.rho_points,
+        figure=not args.no_figure,
+        log=log,
+        methods=methods,
+        extension_budget=args.extend_budget,
+    )
     if not result.rows:
         raise BenchError(f"no run of case {args.case} matches --methods {args.methods}")
     print(f"# {result.case.name}: {result.case.description}")
@@ -130,4 +171,3 @@ def run(args: argparse.Namespace) -> int:
     print()
     print(f"wrote {result.csv_path}" + (f" and {result.figure_path}" if result.figure_path else ""))
     return 0
-

@@ -28,11 +28,21 @@ HELP = "certify that the true execution of a scene takes the computed transition
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("scene", metavar="SCENE", help="scene file (.toml) or bundled scene name")
-    parser.add_argument("--set", dest="overrides", metavar="KEY=VALUE", action="append", default=[],
-                        help="override a scene field, e.g. --set certify.h=0.01 --set certify.max_refinements=8")
+    parser.add_argument(
+        "--set",
+        dest="overrides",
+        metavar="KEY=VALUE",
+        action="append",
+        default=[],
+        help="override a scene field, e.g. --set certify.h=0.01 --set certify.max_refinements=8",
+    )
     parser.add_argument("--json", action="store_true", help="print the list of per-transition verdicts as JSON")
-    parser.add_argument("--max-refinements", type=int, metavar="R",
-                        help="most refinements h := h / alpha (default: certify.max_refinements, else 6)")
+    parser.add_argument(
+        "--max-refinements",
+        type=int,
+        metavar="R",
+        help="most refinements h := h / alpha (default: certify.max_refinements, else 6)",
+    )
     parser.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
 
 
@@ -46,8 +56,11 @@ def run(args: argparse.Namespace) -> int:
     scene = load_scene(args.scene, overrides=args.overrides)
     bar = progress_for(sys.stderr, enabled=not args.quiet, label=scene.name)
     try:
-        cert = certify_scene(scene, {"max_refinements": args.max_refinements},
-                             progress=None if bar is None else _level_progress(bar, scene))
+        cert = certify_scene(
+            scene,
+            {"max_refinements": args.max_refinements},
+            progress=None if bar is None else _level_progress(bar, scene),
+        )
     finally:
         if bar is not None:
             bar.close()
@@ -58,8 +71,10 @@ def run(args: argparse.Namespace) -> int:
     if not cert.certified:
         refused = [tr for tr in cert.transitions if not tr.certified]
         if refused:
-            print(f"legsim: transition {refused[0].index} ({refused[0].name}) not certified: {refused[0].reason}",
-                  file=sys.stderr)
+            print(
+                f"legsim: transition {refused[0].index} ({refused[0].name}) not certified: {refused[0].reason}",
+                file=sys.stderr,
+            )
         else:
             print(f"legsim: certification incomplete: {cert.message}", file=sys.stderr)
         return 3
@@ -93,8 +108,10 @@ def _level_progress(bar, scene):
 def format_certificate(s: dict[str, Any]) -> str:
     """Human-readable verdicts (the text output of ``legsim certify``)."""
     hs = ", ".join(f"{lv['h']:g}" for lv in s["levels"])
-    lines = [f"{s.get('scene', s['system'])}: certification to t = {s['t_final']:g} s with {s['method']} "
-             f"(pair {s['pair']}, floor {s['floor']:g}), h = {hs}"]
+    lines = [
+        f"{s.get('scene', s['system'])}: certification to t = {s['t_final']:g} s with {s['method']} "
+        f"(pair {s['pair']}, floor {s['floor']:g}), h = {hs}"
+    ]
     if not s["transitions"]:
         lines.append("no transition up to t_final, and the error cone meets no guard")
     else:
@@ -104,8 +121,10 @@ def format_certificate(s: dict[str, Any]) -> str:
         if not tr["taken"]:
             verdict += " (not taken by the computed trajectory)"
         time = tr["time"] if tr["time"] is not None else math.nan
-        lines.append(f"  {tr['index']:2d}  {tr['name']:<20s}  {tr['source'] + ' -> ' + tr['target']:<24s} "
-                     f"{time:12.9g}   {verdict}")
+        lines.append(
+            f"  {tr['index']:2d}  {tr['name']:<20s}  {tr['source'] + ' -> ' + tr['target']:<24s} "
+            f"{time:12.9g}   {verdict}"
+        )
     refused = [tr for tr in s["transitions"] if not tr["certified"]]
     if refused:
         lines.append(f"why: {refused[0]['detail']}")

@@ -37,18 +37,36 @@ HELP = "find a periodic orbit (gait) of a scene from its [orbit] section, or fol
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("scene", metavar="SCENE",
-                        help="scene file (.toml) or bundled scene name with an [orbit] section")
-    parser.add_argument("--set", dest="overrides", metavar="KEY=VALUE", action="append", default=[],
-                        help="override a scene field, e.g. --set robot.parameters.slope=4 --set orbit.tol=1e-8")
+    parser.add_argument(
+        "scene", metavar="SCENE", help="scene file (.toml) or bundled scene name with an [orbit] section"
+    )
+    parser.add_argument(
+        "--set",
+        dest="overrides",
+        metavar="KEY=VALUE",
+        action="append",
+        default=[],
+        help="override a scene field, e.g. --set robot.parameters.slope=4 --set orbit.tol=1e-8",
+    )
     parser.add_argument("--json", action="store_true", help="print one JSON object")
-    parser.add_argument("--continue", dest="continuation", nargs=3, metavar=("PARAM", "FROM", "TO"),
-                        help="follow the family of orbits as PARAM goes from FROM to TO")
-    parser.add_argument("--steps", type=int, default=10, metavar="N",
-                        help="number of equal parameter steps of --continue (default 10)")
-    parser.add_argument("--locate", type=int, default=8, metavar="K",
-                        help="with --continue: narrow each stability change by K bisections of the parameter "
-                             "(default 8; 0 interpolates between the family's orbits)")
+    parser.add_argument(
+        "--continue",
+        dest="continuation",
+        nargs=3,
+        metavar=("PARAM", "FROM", "TO"),
+        help="follow the family of orbits as PARAM goes from FROM to TO",
+    )
+    parser.add_argument(
+        "--steps", type=int, default=10, metavar="N", help="number of equal parameter steps of --continue (default 10)"
+    )
+    parser.add_argument(
+        "--locate",
+        type=int,
+        default=8,
+        metavar="K",
+        help="with --continue: narrow each stability change by K bisections of the parameter "
+        "(default 8; 0 interpolates between the family's orbits)",
+    )
     parser.add_argument("--plot", metavar="FILE", help="with --continue: plot the family (png, pdf, svg)")
     parser.add_argument("--quiet", "-q", action="store_true", help="print nothing but errors; no progress bar")
 
@@ -123,8 +141,17 @@ def _run_family(args: argparse.Namespace, scene, plot_path: Path | None, bar) ->
         print(f"{scene.name}: family of orbits over {param} from {start:g} to {stop:g} ({args.steps} steps)")
         print(f"integrator: {settings.problem.integrator_label}")
         print(header)
-    family = continue_family(settings.problem, param, start, stop, args.steps, settings.guess, progress=progress,
-                             locate=args.locate, **settings.solver)
+    family = continue_family(
+        settings.problem,
+        param,
+        start,
+        stop,
+        args.steps,
+        settings.guess,
+        progress=progress,
+        locate=args.locate,
+        **settings.solver,
+    )
     if bar is not None:
         bar.close()
     payload = family.to_json()
@@ -155,8 +182,10 @@ def _continuation_settings(scene, continuation: list[str]):
         raise LegsimError("--continue needs FROM != TO")
     settings = problem_from_scene(scene, extra_parameters=[param])
     if param in settings.problem.free:
-        raise LegsimError(f"--continue {param}: '{param}' is a free parameter of the scene's [orbit] section "
-                          f"(solved for at each orbit); continue another parameter or drop it from orbit.free")
+        raise LegsimError(
+            f"--continue {param}: '{param}' is a free parameter of the scene's [orbit] section "
+            f"(solved for at each orbit); continue another parameter or drop it from orbit.free"
+        )
     for label, value in (("FROM", start), ("TO", stop)):
         try:
             settings.problem.instantiate({param: value})
@@ -220,9 +249,11 @@ def format_orbit(payload: dict[str, Any], name: str) -> str:
 
     lines = []
     if payload["status"] == "converged":
-        lines.append(f"{name}: periodic orbit found in {payload['iterations']} iteration(s), residual "
-                     f"{payload['residual']:.3g} ({payload['jacobian']} Jacobian, "
-                     f"{payload['evaluations']} simulations)")
+        lines.append(
+            f"{name}: periodic orbit found in {payload['iterations']} iteration(s), residual "
+            f"{payload['residual']:.3g} ({payload['jacobian']} Jacobian, "
+            f"{payload['evaluations']} simulations)"
+        )
     else:
         lines.append(f"{name}: no orbit ({payload['status']}): {payload['message']}")
         lines.append("last iterate:")
@@ -246,8 +277,9 @@ def format_orbit(payload: dict[str, Any], name: str) -> str:
         mus.append(f"{text} (|mu| {math.hypot(re, im):.6g})")
     lines.append("Floquet multipliers: " + (", ".join(mus) if mus else "none"))
     verdict = "stable" if payload["stable"] else "unstable"
-    trivial = (f", {payload['trivial_multipliers']} trivial multiplier(s) 1 left out"
-               if payload["trivial_multipliers"] else "")
+    trivial = (
+        f", {payload['trivial_multipliers']} trivial multiplier(s) 1 left out" if payload["trivial_multipliers"] else ""
+    )
     lines.append(f"{verdict}: spectral radius {payload['spectral_radius']:.6g}{trivial}")
     lines.append("transitions per period: " + ", ".join(payload["transitions"]))
     return "\n".join(lines)
@@ -256,8 +288,12 @@ def format_orbit(payload: dict[str, Any], name: str) -> str:
 def format_header(param: str, problem: OrbitProblem) -> tuple[str, tuple[list[str], list[int]]]:
     """The table header of ``--continue`` and its columns: the parameter, the unknown
     coordinates, the free parameters, period, step length, largest |multiplier|, verdict."""
-    cols = [param] + [problem.names[i] for i in problem.unknown_idx] + list(problem.free) + \
-        ["period", "step", "max|mu|", "stable"]
+    cols = (
+        [param]
+        + [problem.names[i] for i in problem.unknown_idx]
+        + list(problem.free)
+        + ["period", "step", "max|mu|", "stable"]
+    )
     widths = [max(12, len(c) + 2) for c in cols]
     return "".join(c.rjust(w) for c, w in zip(cols, widths, strict=True)), (cols, widths)
 
@@ -318,8 +354,7 @@ def write_family_plot(family: Family, title: str, path: Path) -> None:
     if all(s is not None for s in steps):
         ax2.plot(values, steps, marker=".", label="step length (m)")
     ax2.legend(loc="best", fontsize="small")
-    moduli = [np.abs(p.result.multipliers) if p.result.multipliers is not None else np.empty(0)
-              for p in family.points]
+    moduli = [np.abs(p.result.multipliers) if p.result.multipliers is not None else np.empty(0) for p in family.points]
     for k in range(max(len(m) for m in moduli)):
         ax3.plot(values, [m[k] if k < len(m) else np.nan for m in moduli], marker=".", label=f"|mu_{k + 1}|")
     ax3.axhline(1.0, color="k", lw=0.8)

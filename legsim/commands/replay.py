@@ -17,16 +17,21 @@ SHOWN = 20
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("file", help="a recording written by `legsim run SCENE --rrd FILE.rrd`")
-    parser.add_argument("--json", action="store_true",
-                        help="print the summary as JSON (the keys of `legsim run --json`)")
-    parser.add_argument("--spawn", action="store_true",
-                        help="open the recording in the Rerun viewer (needs a display)")
-    parser.add_argument("--html", metavar="OUT.html",
-                        help="write a self-contained meshcat animation of the recorded robot")
-    parser.add_argument("--html-camera", choices=("fixed", "follow"),
-                        help="the animation's camera: fixed on the whole run (default) or following the robot")
-    parser.add_argument("--plot", metavar="OUT.png",
-                        help="write the recorded state against time, strips shaded (matplotlib)")
+    parser.add_argument(
+        "--json", action="store_true", help="print the summary as JSON (the keys of `legsim run --json`)"
+    )
+    parser.add_argument("--spawn", action="store_true", help="open the recording in the Rerun viewer (needs a display)")
+    parser.add_argument(
+        "--html", metavar="OUT.html", help="write a self-contained meshcat animation of the recorded robot"
+    )
+    parser.add_argument(
+        "--html-camera",
+        choices=("fixed", "follow"),
+        help="the animation's camera: fixed on the whole run (default) or following the robot",
+    )
+    parser.add_argument(
+        "--plot", metavar="OUT.png", help="write the recorded state against time, strips shaded (matplotlib)"
+    )
 
 
 def _fmt_vec(values) -> str:
@@ -51,9 +56,11 @@ def format_summary(path: Path, data: dict[str, Any]) -> str:
         if j and k != keep[j - 1] + 1:
             lines.append(f"    ... {k - keep[j - 1] - 1} more ...")
         tr = trs[k]
-        lines.append(f"    t = {tr['time']:.9g} s  {tr['name']}: {tr['source']} -> {tr['target']}, "
-                     f"reset at {tr['exit_time']:.9g} s: {_fmt_vec(tr['state_before'])} -> "
-                     f"{_fmt_vec(tr['state_after'])}")
+        lines.append(
+            f"    t = {tr['time']:.9g} s  {tr['name']}: {tr['source']} -> {tr['target']}, "
+            f"reset at {tr['exit_time']:.9g} s: {_fmt_vec(tr['state_before'])} -> "
+            f"{_fmt_vec(tr['state_after'])}"
+        )
     seq = data["mode_sequence"]
     if len(seq) <= 2 * SHOWN:
         shown = " -> ".join(seq)
@@ -78,8 +85,10 @@ def run(args: argparse.Namespace) -> int:
     plan, writers = plan_outputs(wanted, inputs=[path])
     data = read_rrd(path)
     options = html_options(args)
-    outputs = {kind: str(write_output(plan, kind, writers[kind], None, None, recording=data, **options.get(kind, {})))
-               for kind in plan}
+    outputs = {
+        kind: str(write_output(plan, kind, writers[kind], None, None, recording=data, **options.get(kind, {})))
+        for kind in plan
+    }
     # The recorded run_summary, with the files this command wrote, as `legsim run --json` has them.
     summary = {**data["summary"], "outputs": outputs}
     if args.json:

@@ -47,39 +47,59 @@ def add_output_arguments(parser: argparse.ArgumentParser) -> None:
     """The ``--rrd/--html/--plot FILE`` options (shared with commands that write executions)."""
     parser.add_argument("--rrd", metavar="FILE", help="write a Rerun recording of the execution")
     parser.add_argument("--html", metavar="FILE", help="write a self-contained meshcat animation")
-    parser.add_argument("--html-camera", choices=("fixed", "follow"),
-                        help="the animation's camera: fixed on the whole run (default; planted feet stand "
-                             "still) or following a travelling robot")
+    parser.add_argument(
+        "--html-camera",
+        choices=("fixed", "follow"),
+        help="the animation's camera: fixed on the whole run (default; planted feet stand "
+        "still) or following a travelling robot",
+    )
     parser.add_argument("--plot", metavar="FILE", help="write a plot of the state against time")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("scene", metavar="SCENE", help="scene file (.toml) or bundled scene name (see `legsim scenes`)")
-    parser.add_argument("--set", dest="overrides", metavar="KEY=VALUE", action="append", default=[],
-                        help="override a scene field, e.g. --set integrator.h=1e-4 "
-                             "--set effects.floor.restitution=0.8 (value read as TOML, else as a string)")
+    parser.add_argument(
+        "--set",
+        dest="overrides",
+        metavar="KEY=VALUE",
+        action="append",
+        default=[],
+        help="override a scene field, e.g. --set integrator.h=1e-4 "
+        "--set effects.floor.restitution=0.8 (value read as TOML, else as a string)",
+    )
     parser.add_argument("--json", action="store_true", help="print one JSON object instead of the summary")
     parser.add_argument("--quiet", "-q", action="store_true", help="print nothing but errors; no progress bar")
-    parser.add_argument("--check-accuracy", action="store_true",
-                        help="run again with eps/10 and h/2 (tolerances/10 with error control) and report the "
-                             "estimated error of the final state, transition times and trajectory")
+    parser.add_argument(
+        "--check-accuracy",
+        action="store_true",
+        help="run again with eps/10 and h/2 (tolerances/10 with error control) and report the "
+        "estimated error of the final state, transition times and trajectory",
+    )
     add_output_arguments(parser)
-    parser.add_argument("--out-dir", metavar="DIR",
-                        help="where the scene's own [output] files go (default: the scene's folder)")
+    parser.add_argument(
+        "--out-dir", metavar="DIR", help="where the scene's own [output] files go (default: the scene's folder)"
+    )
     add_live_arguments(parser)
 
 
 def add_live_arguments(parser: argparse.ArgumentParser) -> None:
     """``--spawn``/``--connect`` (stream the recording to a Rerun viewer) and ``--rrd-rate``."""
     live = parser.add_mutually_exclusive_group()
-    live.add_argument("--spawn", action="store_true",
-                      help="stream the recording to a new Rerun viewer (needs a display)")
-    live.add_argument("--connect", metavar="ADDRESS",
-                      help="stream the recording to the Rerun viewer at ADDRESS (a port, HOST:PORT or "
-                           "rerun+http://HOST:PORT/proxy)")
-    parser.add_argument("--rrd-rate", metavar="HZ", type=float,
-                        help="record at most HZ samples per second of simulated time (--rrd, --spawn, --connect); "
-                             "every transition's states before and after its reset are kept")
+    live.add_argument(
+        "--spawn", action="store_true", help="stream the recording to a new Rerun viewer (needs a display)"
+    )
+    live.add_argument(
+        "--connect",
+        metavar="ADDRESS",
+        help="stream the recording to the Rerun viewer at ADDRESS (a port, HOST:PORT or rerun+http://HOST:PORT/proxy)",
+    )
+    parser.add_argument(
+        "--rrd-rate",
+        metavar="HZ",
+        type=float,
+        help="record at most HZ samples per second of simulated time (--rrd, --spawn, --connect); "
+        "every transition's states before and after its reset are kept",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
@@ -123,8 +143,9 @@ def html_options(args: argparse.Namespace) -> dict[str, dict[str, Any]]:
     return {"html": {"camera": camera}} if camera else {}
 
 
-def plan_outputs(outputs: dict[str, tuple[Path, str]], inputs: list[Path], scene: Any = None
-                 ) -> tuple[OutputPlan, dict[str, Writer]]:
+def plan_outputs(
+    outputs: dict[str, tuple[Path, str]], inputs: list[Path], scene: Any = None
+) -> tuple[OutputPlan, dict[str, Writer]]:
     """The output plan and kind -> writer of each output (kind -> (path, how messages name
     it)), checked before any work is done: writer found, file type, target (no input, no
     device, no second output on one file), folder writable, and, with a scene, the geometry
@@ -138,8 +159,10 @@ def plan_outputs(outputs: dict[str, tuple[Path, str]], inputs: list[Path], scene
         suffixes = getattr(writer, "suffixes", None) or KIND_SUFFIXES.get(kind, ())
         plan.add(kind, path, what=source, suffixes=suffixes)
         if scene is not None and getattr(writer, "needs_geometry", False) and scene.model.geometry is None:
-            raise LegsimError(f"{source} {path}: this output draws the robot, and {scene.model.system.name} "
-                              f"defines no geometry (Model.geometry is None); use --plot or --rrd for it")
+            raise LegsimError(
+                f"{source} {path}: this output draws the robot, and {scene.model.system.name} "
+                f"defines no geometry (Model.geometry is None); use --plot or --rrd for it"
+            )
     return plan, writers
 
 
@@ -197,8 +220,13 @@ def _stream_live(args: argparse.Namespace, execution: Any, scene: Any, options: 
     return []
 
 
-def _write_all(execution: Any, scene: Any, plan: OutputPlan, writers: dict[str, Writer],
-               options: dict[str, dict[str, Any]] | None = None) -> tuple[dict[str, Path], list[LegsimError]]:
+def _write_all(
+    execution: Any,
+    scene: Any,
+    plan: OutputPlan,
+    writers: dict[str, Writer],
+    options: dict[str, dict[str, Any]] | None = None,
+) -> tuple[dict[str, Path], list[LegsimError]]:
     """Write every planned output (``options``: kind -> keyword arguments of its writer):
     (kind -> path written, the errors of those that failed).
 
@@ -217,8 +245,9 @@ def _write_all(execution: Any, scene: Any, plan: OutputPlan, writers: dict[str, 
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
         for kind in plan:
             try:
-                written[kind] = write_output(plan, kind, writers[kind], execution, scene,
-                                             **(options or {}).get(kind, {}))
+                written[kind] = write_output(
+                    plan, kind, writers[kind], execution, scene, **(options or {}).get(kind, {})
+                )
             except LegsimError as exc:
                 if execution.status == "finished":
                     raise
@@ -230,20 +259,26 @@ def format_estimate(estimate: Any) -> str:
     """The error estimate as lines of the text summary."""
     final = ", ".join(f"{name} {value:.3g}" for name, value in estimate.final_state.items())
     relative = "" if estimate.final_state_relative is None else f" (relative {estimate.final_state_relative:.3g})"
-    lines = [f"estimated error (against eps/10, {'tolerances/10' if estimate.refined.get('rtol') else 'h/2'}):",
-             f"  final state: {final}{relative}"]
+    lines = [
+        f"estimated error (against eps/10, {'tolerances/10' if estimate.refined.get('rtol') else 'h/2'}):",
+        f"  final state: {final}{relative}",
+    ]
     if estimate.transition_times is not None:
         differ = "; the transition sequences differ after those" if estimate.transitions_differ else ""
-        lines.append(f"  transition times: {estimate.transition_times:.3g} s over {estimate.transitions_matched} "
-                     f"transitions{differ}")
+        lines.append(
+            f"  transition times: {estimate.transition_times:.3g} s over {estimate.transitions_matched} "
+            f"transitions{differ}"
+        )
     trajectory = ", ".join(f"{name} {value:.3g}" for name, value in estimate.trajectory.items())
-    lines.append(f"  trajectory (max over {100 * (1 - estimate.mode_mismatch):.0f}% of the run in the same mode): "
-                 f"{trajectory}")
+    lines.append(
+        f"  trajectory (max over {100 * (1 - estimate.mode_mismatch):.0f}% of the run in the same mode): {trajectory}"
+    )
     return "\n".join(lines)
 
 
-def requested_outputs(args: argparse.Namespace, scene_outputs: dict[str, Path] | None = None
-                      ) -> dict[str, tuple[Path, str]]:
+def requested_outputs(
+    args: argparse.Namespace, scene_outputs: dict[str, Path] | None = None
+) -> dict[str, tuple[Path, str]]:
     """kind -> (path, where it was asked for): a flag wins over the scene's ``[output]``
     (``scene_outputs``: kind -> path, already resolved by ``Scene.output_paths``)."""
     out: dict[str, tuple[Path, str]] = {}
@@ -266,8 +301,9 @@ def find_writer(kind: str, source: str = "") -> Writer:
             module = importlib.import_module("legsim.record")
         except ModuleNotFoundError as exc:
             if exc.name != "legsim.record":
-                raise LegsimError(f"{label}: the Rerun recorder needs {exc.name!r}, which is not installed "
-                                  f"(pip install rerun-sdk)") from exc
+                raise LegsimError(
+                    f"{label}: the Rerun recorder needs {exc.name!r}, which is not installed (pip install rerun-sdk)"
+                ) from exc
             raise LegsimError(f"{label}: Rerun recordings are not available: legsim.record is missing") from exc
         writer = getattr(module, "write_rrd", None)
         if not callable(writer):
@@ -282,8 +318,9 @@ def find_writer(kind: str, source: str = "") -> Writer:
     try:
         writer = ep.load()
     except Exception as exc:
-        raise LegsimError(f"{label}: the '{kind}' writer {ep.value} could not be loaded: "
-                          f"{type(exc).__name__}: {exc}") from exc
+        raise LegsimError(
+            f"{label}: the '{kind}' writer {ep.value} could not be loaded: {type(exc).__name__}: {exc}"
+        ) from exc
     if not callable(writer):
         raise LegsimError(f"{label}: the '{kind}' writer {ep.value} is not callable")
     return writer
@@ -312,7 +349,7 @@ def _compact_modes(sequence: list[str], limit: int = 6) -> str:
     runs = [(mode, len(list(repeats))) for mode, repeats in groupby(sequence)]
     parts = [m if n == 1 else f"{m} x{n}" for m, n in runs]
     if len(parts) > limit:
-        parts = [*parts[:limit - 2], "...", *parts[-2:]]
+        parts = [*parts[: limit - 2], "...", *parts[-2:]]
     return " -> ".join(parts) + f" ({len(sequence)} visits)"
 
 
@@ -322,30 +359,63 @@ def _num(value: Any) -> str:
     return "n/a" if value is None else f"{value:.6g}"
 
 
-CORE_KEYS = {"system", "status", "message", "t_final", "final_mode", "final_state", "state_names",
-             "final_in_strip", "mode_sequence", "transitions", "steps", "halvings", "field_evals",
-             "guard_evals", "reset_evals", "strip_time", "wall_time_s", "h", "eps", "method", "scene",
-             "robot", "energy_initial", "energy_final", "scene_file", "outputs", "error_rejections",
-             "longest_strip_hold", "warnings", "error_estimate"}
+CORE_KEYS = {
+    "system",
+    "status",
+    "message",
+    "t_final",
+    "final_mode",
+    "final_state",
+    "state_names",
+    "final_in_strip",
+    "mode_sequence",
+    "transitions",
+    "steps",
+    "halvings",
+    "field_evals",
+    "guard_evals",
+    "reset_evals",
+    "strip_time",
+    "wall_time_s",
+    "h",
+    "eps",
+    "method",
+    "scene",
+    "robot",
+    "energy_initial",
+    "energy_final",
+    "scene_file",
+    "outputs",
+    "error_rejections",
+    "longest_strip_hold",
+    "warnings",
+    "error_estimate",
+}
 
 
 def format_summary(summary: dict[str, Any]) -> str:
     """The human-readable run summary (a few lines) of a ``run_summary`` dict."""
     name = summary.get("scene") or summary.get("system") or "run"
     status = summary["status"]
-    lines = [f"{name}: {status} at t = {_num(summary['t_final'])} s "
-             f"({summary.get('method')}, h = {_num(summary.get('h'))} s, eps = {_num(summary.get('eps'))})"]
+    lines = [
+        f"{name}: {status} at t = {_num(summary['t_final'])} s "
+        f"({summary.get('method')}, h = {_num(summary.get('h'))} s, eps = {_num(summary.get('eps'))})"
+    ]
     state = ", ".join(f"{n} = {_num(v)}" for n, v in zip(summary["state_names"], summary["final_state"], strict=False))
     strip = " (held in a strip)" if summary.get("final_in_strip") else ""
     lines.append(f"final mode {summary['final_mode']}{strip}: {state}")
     lines.append(f"transitions {summary['transitions']}: {_compact_modes(summary['mode_sequence'])}")
     rejections = summary.get("error_rejections") or 0
     rejected = f", error rejections {rejections}" if rejections else ""
-    lines.append(f"steps {summary['steps']}, halvings {summary['halvings']}{rejected}; evaluations: field "
-                 f"{summary['field_evals']}, guard {summary['guard_evals']}, reset {summary['reset_evals']}")
+    lines.append(
+        f"steps {summary['steps']}, halvings {summary['halvings']}{rejected}; evaluations: field "
+        f"{summary['field_evals']}, guard {summary['guard_evals']}, reset {summary['reset_evals']}"
+    )
     if summary.get("strip_time"):
-        lines.append(f"held in strips {_num(summary['strip_time'])} s in all, the longest hold "
-                     f"{_num(summary.get('longest_strip_hold'))} s")
+        lines.append(
+            f"held in strips {_num(summary['strip_time'])} s in all, the longest hold "
+            f"{_num(summary.get('longest_strip_hold'))} s"
+        )
     extra = {k: v for k, v in summary.items() if k not in CORE_KEYS and isinstance(v, (int, float))}
     if extra:
         lines.append("other counters: " + ", ".join(f"{k} {v}" for k, v in extra.items()))

@@ -11,8 +11,11 @@ HELP = "list the bundled scenes (name, robot, description)"
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--json", action="store_true", help="print a JSON list of {name, robot, description, path}")
-    parser.add_argument("--check", action="store_true",
-                        help="also load and validate each scene (builds its model); exit 2 if any is invalid")
+    parser.add_argument(
+        "--check",
+        action="store_true",
+        help="also load and validate each scene (builds its model); exit 2 if any is invalid",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
@@ -45,9 +48,14 @@ def format_rows(rows: list[dict]) -> str:
     so a description cannot clear the terminal or forge lines of the listing."""
     from ..output.untrusted import printable
 
-    cells = [(printable(r["name"], newlines=False), printable(r["robot"] or "?", newlines=False),
-              printable(r["description"] if "error" not in r else f"INVALID: {r['error']}", newlines=False))
-             for r in rows]
+    cells = [
+        (
+            printable(r["name"], newlines=False),
+            printable(r["robot"] or "?", newlines=False),
+            printable(r["description"] if "error" not in r else f"INVALID: {r['error']}", newlines=False),
+        )
+        for r in rows
+    ]
     wn = max(len(name) for name, _, _ in cells)
     wr = max(len(robot) for _, robot, _ in cells)
     return "\n".join(f"{name:<{wn}}  {robot:<{wr}}  {text}".rstrip() for name, robot, text in cells)

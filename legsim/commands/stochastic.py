@@ -34,21 +34,39 @@ HELP = "sample the stochastic approximation of a scene and summarise mode sequen
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("scene", metavar="SCENE", help="scene file (.toml) or bundled scene name")
-    parser.add_argument("--samples", type=int, metavar="N", help="number of sampled executions "
-                                                                  "(default: stochastic.samples, else 100)")
-    parser.add_argument("--seed", type=int, metavar="S",
-                        help="seed of the random generator (default: stochastic.seed, else 0)")
-    parser.add_argument("--set", dest="overrides", metavar="KEY=VALUE", action="append", default=[],
-                        help="override a scene field, e.g. --set stochastic.h=0.01 --set stochastic.floor=1")
+    parser.add_argument(
+        "--samples", type=int, metavar="N", help="number of sampled executions (default: stochastic.samples, else 100)"
+    )
+    parser.add_argument(
+        "--seed", type=int, metavar="S", help="seed of the random generator (default: stochastic.seed, else 0)"
+    )
+    parser.add_argument(
+        "--set",
+        dest="overrides",
+        metavar="KEY=VALUE",
+        action="append",
+        default=[],
+        help="override a scene field, e.g. --set stochastic.h=0.01 --set stochastic.floor=1",
+    )
     parser.add_argument("--json", action="store_true", help="print one JSON object")
-    parser.add_argument("--switches", type=int, default=10, metavar="K",
-                        help="summarise the first K switching times (default 10)")
+    parser.add_argument(
+        "--switches", type=int, default=10, metavar="K", help="summarise the first K switching times (default 10)"
+    )
     parser.add_argument("--quiet", "-q", action="store_true", help="no progress line")
     parser.add_argument("--plot", metavar="FILE", help="write histograms of the switching times (.png, .pdf, .svg)")
-    parser.add_argument("--workers", type=int, default=None, metavar="N",
-                        help="draw the executions on an embedded Dask cluster of N worker processes")
-    parser.add_argument("--scheduler", default=None, metavar="ADDRESS",
-                        help="draw them on a running Dask scheduler (default: $DASK_SCHEDULER_ADDRESS)")
+    parser.add_argument(
+        "--workers",
+        type=int,
+        default=None,
+        metavar="N",
+        help="draw the executions on an embedded Dask cluster of N worker processes",
+    )
+    parser.add_argument(
+        "--scheduler",
+        default=None,
+        metavar="ADDRESS",
+        help="draw them on a running Dask scheduler (default: $DASK_SCHEDULER_ADDRESS)",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
@@ -85,15 +103,20 @@ def run(args: argparse.Namespace) -> int:
         for kind, path in summary.get("outputs", {}).items():
             print(f"wrote {path} ({kind})")
     if summary["max_radius"] == 0.0:
-        print("legsim: note: the error bound is 0 along every execution (the method is exact on these fields and "
-              "no floor is declared): the stochastic approximation is the deterministic system itself (paper 004's "
-              "Theorem 2 needs a non-trivial bound); declare a local error floor, e.g. --set stochastic.floor=1",
-              file=sys.stderr)
+        print(
+            "legsim: note: the error bound is 0 along every execution (the method is exact on these fields and "
+            "no floor is declared): the stochastic approximation is the deterministic system itself (paper 004's "
+            "Theorem 2 needs a non-trivial bound); declare a local error floor, e.g. --set stochastic.floor=1",
+            file=sys.stderr,
+        )
     stopped = {k: v for k, v in summary["statuses"].items() if k != "finished"}
     if stopped:
         example = next(e for e in ensemble.executions if e.status != "finished")
-        print(f"legsim: {sum(stopped.values())} of {summary['samples']} sampled executions stopped early: "
-              f"{stopped}; e.g. {example.status}: {example.message}", file=sys.stderr)
+        print(
+            f"legsim: {sum(stopped.values())} of {summary['samples']} sampled executions stopped early: "
+            f"{stopped}; e.g. {example.status}: {example.message}",
+            file=sys.stderr,
+        )
         return 3
     return 0
 
@@ -126,8 +149,11 @@ def _write_histograms(histogram: Any, ensemble: Any, summary: dict[str, Any]) ->
     plan, writer = histogram
     count = len(summary["switching_times"])
     times = [ensemble.switching_times(i).tolist() for i in range(count)]
-    info = {"scene": summary.get("scene", summary["system"]), "samples": summary["samples"],
-            "deterministic": summary["deterministic"]["switching_times"]}
+    info = {
+        "scene": summary.get("scene", summary["system"]),
+        "samples": summary["samples"],
+        "deterministic": summary["deterministic"]["switching_times"],
+    }
     return plan.write("plot", lambda tmp: writer(times, info, tmp))
 
 
@@ -171,9 +197,12 @@ class _SampleCounter:
 def _deterministic(scene: Any, count: int) -> dict[str, Any]:
     """The relaxed execution's first switching times and mode sequence, for comparison."""
     execution = scene.simulate()
-    return {"status": execution.status, "transitions": len(execution.transitions),
-            "switching_times": [float(tr.time) for tr in execution.transitions[:count]],
-            "mode_sequence": execution.mode_sequence[: count + 1]}
+    return {
+        "status": execution.status,
+        "transitions": len(execution.transitions),
+        "switching_times": [float(tr.time) for tr in execution.transitions[:count]],
+        "mode_sequence": execution.mode_sequence[: count + 1],
+    }
 
 
 def _finite(obj: Any) -> Any:
@@ -210,8 +239,10 @@ def format_summary(s: dict[str, Any]) -> str:
         for i, sw in enumerate(s["switching_times"]):
             ref = det["switching_times"][i] if i < len(det["switching_times"]) else None
             ref_text = f"{ref:13.6g}" if ref is not None else "            -"
-            lines.append(f"  #{sw['index']:<3d}              {sw['count']:6d} {sw['mean']:9.6g} {sw['std']:9.3g} "
-                         f"{sw['min']:9.6g} {sw['max']:9.6g}   {ref_text}")
+            lines.append(
+                f"  #{sw['index']:<3d}              {sw['count']:6d} {sw['mean']:9.6g} {sw['std']:9.3g} "
+                f"{sw['min']:9.6g} {sw['max']:9.6g}   {ref_text}"
+            )
     if s["min_dwell_time"] is not None:
         lines.append(f"shortest visit: {s['min_dwell_time']:.3g} s")
     lines.append(f"deterministic (relaxed) execution: {det['transitions']} transitions, status {det['status']}")

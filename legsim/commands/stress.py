@@ -22,9 +22,15 @@ HELP = "run the stress suite (Zeno, grazing, simultaneous guards, resting contac
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--quick", action="store_true", help="the short form of every case (the one CI runs)")
     parser.add_argument("--json", action="store_true", help="print a JSON list of results (name, passed, checks, ...)")
-    parser.add_argument("--case", dest="cases", metavar="NAME", action="append", default=[],
-                        help="run only the cases whose name contains NAME, or the group NAME "
-                             "(zeno, grazing, simultaneous, resting, extremes); repeatable")
+    parser.add_argument(
+        "--case",
+        dest="cases",
+        metavar="NAME",
+        action="append",
+        default=[],
+        help="run only the cases whose name contains NAME, or the group NAME "
+        "(zeno, grazing, simultaneous, resting, extremes); repeatable",
+    )
     parser.add_argument("--list", action="store_true", help="list the cases and exit")
 
 
@@ -46,8 +52,9 @@ def run(args: argparse.Namespace) -> int:
 
         def progress(case, result) -> None:
             if show:
-                print(f"  {case.name}: {'pass' if result.passed else 'FAIL'} ({result.wall_time:.1f} s)",
-                      file=sys.stderr)
+                print(
+                    f"  {case.name}: {'pass' if result.passed else 'FAIL'} ({result.wall_time:.1f} s)", file=sys.stderr
+                )
             advance(1)
 
         results = run_suite(quick=args.quick, names=args.cases, progress=progress)

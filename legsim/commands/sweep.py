@@ -28,38 +28,80 @@ HELP = "run variations of a scene (grids, random draws) on Dask: basins of attra
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("scene", metavar="SCENE", help="scene file (.toml) or bundled scene name")
     axes = parser.add_argument_group("variations")
-    axes.add_argument("--grid", metavar="KEY=LO:HI:N", action="append", default=[],
-                      help="a grid over a scene field: N values from LO to HI, or KEY=V1,V2,... (repeat for a "
-                           "product), e.g. --grid initial.state.thetad=-2:2:101")
-    axes.add_argument("--random", metavar="KEY=LO:HI", action="append", default=[],
-                      help="uniform random draws of a scene field in [LO, HI) (with --samples, --seed)")
+    axes.add_argument(
+        "--grid",
+        metavar="KEY=LO:HI:N",
+        action="append",
+        default=[],
+        help="a grid over a scene field: N values from LO to HI, or KEY=V1,V2,... (repeat for a "
+        "product), e.g. --grid initial.state.thetad=-2:2:101",
+    )
+    axes.add_argument(
+        "--random",
+        metavar="KEY=LO:HI",
+        action="append",
+        default=[],
+        help="uniform random draws of a scene field in [LO, HI) (with --samples, --seed)",
+    )
     axes.add_argument("--samples", type=int, default=None, metavar="N", help="random draws (default 100)")
     axes.add_argument("--seed", type=int, default=0, metavar="S", help="seed of the random draws (default 0)")
-    axes.add_argument("--set", dest="overrides", metavar="KEY=VALUE", action="append", default=[],
-                      help="override a scene field in every variation (as legsim run --set)")
+    axes.add_argument(
+        "--set",
+        dest="overrides",
+        metavar="KEY=VALUE",
+        action="append",
+        default=[],
+        help="override a scene field in every variation (as legsim run --set)",
+    )
     measures = parser.add_argument_group("measures")
-    measures.add_argument("--walk", action="store_true",
-                          help="walk each variation step by step until it falls, stops or converges onto the "
-                               "scene's gait ([orbit] section) instead of running it to t_final")
+    measures.add_argument(
+        "--walk",
+        action="store_true",
+        help="walk each variation step by step until it falls, stops or converges onto the "
+        "scene's gait ([orbit] section) instead of running it to t_final",
+    )
     measures.add_argument("--max-steps", type=int, default=20, metavar="K", help="steps of a walk (default 20)")
-    measures.add_argument("--tol", type=float, default=1e-3,
-                          help="a walk has converged within this distance of the gait (state units, default 1e-3)")
-    measures.add_argument("--orbit", action="store_true",
-                          help="search each variation's periodic orbit: period, Floquet multipliers, stability")
+    measures.add_argument(
+        "--tol",
+        type=float,
+        default=1e-3,
+        help="a walk has converged within this distance of the gait (state units, default 1e-3)",
+    )
+    measures.add_argument(
+        "--orbit",
+        action="store_true",
+        help="search each variation's periodic orbit: period, Floquet multipliers, stability",
+    )
     measures.add_argument("--no-run", action="store_true", help="no run to t_final (with --orbit: orbits only)")
-    measures.add_argument("--timeout", type=float, default=None, metavar="S",
-                          help="seconds one variation may take; its row then says timeout (default: no limit)")
+    measures.add_argument(
+        "--timeout",
+        type=float,
+        default=None,
+        metavar="S",
+        help="seconds one variation may take; its row then says timeout (default: no limit)",
+    )
     engine = parser.add_argument_group("where it runs")
-    engine.add_argument("--out", required=True, metavar="DIR",
-                        help="folder for results.parquet, sweep.json and the maps")
+    engine.add_argument(
+        "--out", required=True, metavar="DIR", help="folder for results.parquet, sweep.json and the maps"
+    )
     engine.add_argument("--resume", action="store_true", help="continue the sweep in --out: run only missing rows")
-    engine.add_argument("--workers", type=int, default=None, metavar="N",
-                        help="worker processes of the embedded Dask cluster (default: one per core)")
-    engine.add_argument("--scheduler", default=None, metavar="ADDRESS",
-                        help="a running Dask scheduler, e.g. tcp://127.0.0.1:8786 (default: $DASK_SCHEDULER_ADDRESS)")
+    engine.add_argument(
+        "--workers",
+        type=int,
+        default=None,
+        metavar="N",
+        help="worker processes of the embedded Dask cluster (default: one per core)",
+    )
+    engine.add_argument(
+        "--scheduler",
+        default=None,
+        metavar="ADDRESS",
+        help="a running Dask scheduler, e.g. tcp://127.0.0.1:8786 (default: $DASK_SCHEDULER_ADDRESS)",
+    )
     engine.add_argument("--in-process", action="store_true", help="no Dask: run the variations in this process")
-    engine.add_argument("--batch", type=int, default=None, metavar="N",
-                        help="variations per task (default: sized to about 2 s of work)")
+    engine.add_argument(
+        "--batch", type=int, default=None, metavar="N", help="variations per task (default: sized to about 2 s of work)"
+    )
     parser.add_argument("--json", action="store_true", help="print the sweep's summary as one JSON object")
     parser.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
 
@@ -74,15 +116,31 @@ def run(args: argparse.Namespace) -> int:
         raise SweepError("--samples needs a --random field to draw")
     if args.walk and args.no_run:
         raise SweepError("--walk and --no-run exclude each other (a walk is the run)")
-    spec = SweepSpec(scene=scene_reference(args.scene), overrides=tuple(args.overrides),
-                     grid=tuple(parse_grid(g) for g in args.grid), random=tuple(parse_random(r) for r in args.random),
-                     samples=args.samples or 1, seed=args.seed,
-                     run="walk" if args.walk else ("none" if args.no_run else "scene"), orbit=args.orbit,
-                     max_steps=args.max_steps, tol=args.tol, timeout=args.timeout)
+    spec = SweepSpec(
+        scene=scene_reference(args.scene),
+        overrides=tuple(args.overrides),
+        grid=tuple(parse_grid(g) for g in args.grid),
+        random=tuple(parse_random(r) for r in args.random),
+        samples=args.samples or 1,
+        seed=args.seed,
+        run="walk" if args.walk else ("none" if args.no_run else "scene"),
+        orbit=args.orbit,
+        max_steps=args.max_steps,
+        tol=args.tol,
+        timeout=args.timeout,
+    )
     log = None if (args.quiet or args.json) else (lambda line: print(f"legsim sweep: {line}", file=sys.stderr))
-    result = run_sweep(spec, out=args.out, resume=args.resume, workers=args.workers, scheduler=args.scheduler,
-                       in_process=args.in_process, batch_size=args.batch, progress=not (args.quiet or args.json),
-                       log=log)
+    result = run_sweep(
+        spec,
+        out=args.out,
+        resume=args.resume,
+        workers=args.workers,
+        scheduler=args.scheduler,
+        in_process=args.in_process,
+        batch_size=args.batch,
+        progress=not (args.quiet or args.json),
+        log=log,
+    )
     summary = result.summary()
     if args.json:
         print(json.dumps(summary, allow_nan=False))
@@ -90,21 +148,31 @@ def run(args: argparse.Namespace) -> int:
         print(format_summary(summary))
     failed = {k: v for k, v in summary["task_status"].items() if k != "done"}
     if failed:
-        example = next(r for r in result.table.select(["index", "task_status", "error"]).to_pylist()
-                       if r["task_status"] != "done")
-        print(f"legsim: {sum(failed.values())} of {summary['variations']} variations have no result: {failed}; "
-              f"e.g. row {example['index']}: {example['error']}", file=sys.stderr)
+        example = next(
+            r for r in result.table.select(["index", "task_status", "error"]).to_pylist() if r["task_status"] != "done"
+        )
+        print(
+            f"legsim: {sum(failed.values())} of {summary['variations']} variations have no result: {failed}; "
+            f"e.g. row {example['index']}: {example['error']}",
+            file=sys.stderr,
+        )
         return 3
     return 0
 
 
 def format_summary(s: dict[str, Any]) -> str:
     """The text report of ``legsim sweep``."""
-    lines = [f"{s['scene']}: {s['variations']} variations ({s['computed']} run now, {s['resumed']} already done) "
-             f"in {s['elapsed_s']:.1f} s on {s['where']} (started in {s['startup_s']:.1f} s)",
-             "tasks: " + ", ".join(f"{k} {v}" for k, v in sorted(s["task_status"].items()))]
-    for column, label in (("outcome", "walks"), ("status", "runs"), ("orbit_status", "orbit searches"),
-                          ("orbit_stable", "stable orbits")):
+    lines = [
+        f"{s['scene']}: {s['variations']} variations ({s['computed']} run now, {s['resumed']} already done) "
+        f"in {s['elapsed_s']:.1f} s on {s['where']} (started in {s['startup_s']:.1f} s)",
+        "tasks: " + ", ".join(f"{k} {v}" for k, v in sorted(s["task_status"].items())),
+    ]
+    for column, label in (
+        ("outcome", "walks"),
+        ("status", "runs"),
+        ("orbit_status", "orbit searches"),
+        ("orbit_stable", "stable orbits"),
+    ):
         if s.get(column):
             lines.append(f"{label}: " + ", ".join(f"{k} {v}" for k, v in sorted(s[column].items())))
     if s["results"]:

@@ -19,8 +19,16 @@ class ContinuousStep:
     ``extra_evals`` is the number of field evaluations the extra stages cost.
     """
 
-    def __init__(self, tableau: Tableau, field: Callable[..., np.ndarray], t: float, x: np.ndarray, h: float,
-                 stages: tuple[np.ndarray, ...], control: Callable[[float, np.ndarray], Any] | None = None) -> None:
+    def __init__(
+        self,
+        tableau: Tableau,
+        field: Callable[..., np.ndarray],
+        t: float,
+        x: np.ndarray,
+        h: float,
+        stages: tuple[np.ndarray, ...],
+        control: Callable[[float, np.ndarray], Any] | None = None,
+    ) -> None:
         dense = tableau.dense
         if dense is None:
             raise SimulationError(f"method '{tableau.name}' has no dense output")
@@ -37,7 +45,7 @@ class ContinuousStep:
 
     def point(self, theta: float) -> np.ndarray:
         """x at t + theta h, shape (n,)."""
-        w = self._P @ (theta ** self._powers)
+        w = self._P @ (theta**self._powers)
         return self._x + self._h * (w @ self._K)
 
     def slope(self, theta: float) -> np.ndarray:

@@ -119,8 +119,10 @@ def _generate_stepper(tableau: Tableau, checked: bool) -> Stepper:
 def _require_embedded(tableau: Tableau) -> np.ndarray:
     """The weights b_err of the tableau's error estimate; SimulationError when it has none."""
     if tableau.b_err is None:
-        raise SimulationError(f"method '{tableau.name}' has no embedded error estimate; "
-                              f"use bs32 or dopri5 (low order), or dop853 (high order)")
+        raise SimulationError(
+            f"method '{tableau.name}' has no embedded error estimate; "
+            f"use bs32 or dopri5 (low order), or dop853 (high order)"
+        )
     return tableau.b_err
 
 
@@ -135,7 +137,8 @@ def error_estimate(tableau: Tableau, h: float, stages: tuple[np.ndarray, ...]) -
 
 
 def error_estimator(
-        tableau: Tableau) -> Callable[[float, tuple[np.ndarray, ...]], tuple[np.ndarray, np.ndarray | None]]:
+    tableau: Tableau,
+) -> Callable[[float, tuple[np.ndarray, ...]], tuple[np.ndarray, np.ndarray | None]]:
     """``estimate(h, stages) -> (err, err_low)``: the local error estimate h sum_j b_err_j k_j of
     an embedded pair, shape (n,), and the lower-order one of ``b_err_low`` (None without).
 
@@ -156,14 +159,14 @@ def _generate_estimator(tableau: Tableau) -> Callable[..., Any]:
     b_err = _require_embedded(tableau)
     if tableau.b_err_low is None:
         terms = [f"{float(w)!r} * k{j}" for j, w in enumerate(b_err) if w != 0.0]
-        lines = ["def estimate(h, stages):",
-                 f"    {', '.join(f'k{j}' for j in range(tableau.stages))}, = stages",
-                 f"    return h * ({' + '.join(terms)}), None"]
+        lines = [
+            "def estimate(h, stages):",
+            f"    {', '.join(f'k{j}' for j in range(tableau.stages))}, = stages",
+            f"    return h * ({' + '.join(terms)}), None",
+        ]
     else:
         namespace["E"], namespace["E_LOW"] = np.array(b_err), np.array(tableau.b_err_low)
-        lines = ["def estimate(h, stages):",
-                 "    K = stack(stages)",
-                 "    return h * (E @ K), h * (E_LOW @ K)"]
+        lines = ["def estimate(h, stages):", "    K = stack(stages)", "    return h * (E @ K), h * (E_LOW @ K)"]
     exec("\n".join(lines), namespace)  # generated from the tableau's numbers only
     estimate: Callable[..., Any] = namespace["estimate"]
     return estimate
@@ -185,8 +188,15 @@ def scaled_norm(high: float, low: float, n: int, blended: bool) -> float:
     return high / math.sqrt((high + 0.01 * low) * n)
 
 
-def error_norm(err: Sequence[float], err_low: Sequence[float], x: Sequence[float], x_new: Sequence[float], rtol: float,
-               atol: float, blended: bool) -> float:
+def error_norm(
+    err: Sequence[float],
+    err_low: Sequence[float],
+    x: Sequence[float],
+    x_new: Sequence[float],
+    rtol: float,
+    atol: float,
+    blended: bool,
+) -> float:
     """Hairer's (and scipy's) error norm of a step's local error estimate ``err`` (and, blended,
     ``err_low``): sequences of length n, summed in index order, each coordinate scaled by
     ``error_scale``."""
@@ -208,10 +218,18 @@ def make_error_norm(tableau: Tableau) -> Callable[..., float]:
     estimate = error_estimator(tableau)
     blended = tableau.b_err_low is not None
 
-    def norm(h: float, stages: tuple[np.ndarray, ...], x: np.ndarray, x_new: np.ndarray, rtol: float,
-             atol: float) -> float:
+    def norm(
+        h: float, stages: tuple[np.ndarray, ...], x: np.ndarray, x_new: np.ndarray, rtol: float, atol: float
+    ) -> float:
         err, err_low = estimate(h, stages)
-        return error_norm(err.tolist(), err_low.tolist() if err_low is not None else (), x.tolist(), x_new.tolist(),
-                          rtol, atol, blended)
+        return error_norm(
+            err.tolist(),
+            err_low.tolist() if err_low is not None else (),
+            x.tolist(),
+            x_new.tolist(),
+            rtol,
+            atol,
+            blended,
+        )
 
     return norm

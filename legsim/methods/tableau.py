@@ -75,9 +75,18 @@ class Tableau:
         return self.b_err is not None
 
 
-def tableau(name: str, order: int, c: ArrayLike, A: Sequence[Sequence[float]], b: ArrayLike,
-            b_hat: ArrayLike | None = None, error_order: int | None = None, fsal: bool = False,
-            dense: DenseOutput | None = None, b_err_low: ArrayLike | None = None) -> Tableau:
+def tableau(
+    name: str,
+    order: int,
+    c: ArrayLike,
+    A: Sequence[Sequence[float]],
+    b: ArrayLike,
+    b_hat: ArrayLike | None = None,
+    error_order: int | None = None,
+    fsal: bool = False,
+    dense: DenseOutput | None = None,
+    b_err_low: ArrayLike | None = None,
+) -> Tableau:
     """A ``Tableau`` from rows of A (each as long as its stage index), with the consistency
     checks that catch a mistyped coefficient (row sums of A equal c, weights sum to 1).
     ``b_hat`` is the embedded solution's weights; the tableau keeps b - b_hat."""

@@ -46,6 +46,15 @@ from .shapes import AffineReset, CoordinateGuard
 _geometry = geometry_of
 
 __all__ = [
-    "AffineReset", "CoordinateGuard", "Crossing", "MetricError", "MetricPath", "distance",
-    "distances", "position_error", "rho", "shortest_path", "trajectory_space_distance",
+    "AffineReset",
+    "CoordinateGuard",
+    "Crossing",
+    "MetricError",
+    "MetricPath",
+    "distance",
+    "distances",
+    "position_error",
+    "rho",
+    "shortest_path",
+    "trajectory_space_distance",
 ]

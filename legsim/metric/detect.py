@@ -54,8 +54,9 @@ def detect_coordinate_guard(guard: Callable, dim: int, center: np.ndarray) -> Co
     return candidate
 
 
-def detect_affine_reset(reset: Callable | None, n_in: int, n_out: int,
-                        center: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+def detect_affine_reset(
+    reset: Callable | None, n_in: int, n_out: int, center: np.ndarray
+) -> tuple[np.ndarray, np.ndarray] | None:
     """``(A, r)`` with ``reset(x) = A @ x + r`` (A shape (n_out, n_in)), declared or probed
     around ``center``; the identity for no reset; None when the reset is not affine."""
     if reset is None:
@@ -132,8 +133,9 @@ def _probe_gradient(guard: Callable, x: np.ndarray) -> np.ndarray | None:
         return None
 
 
-def _probed_terms(guard: Callable, dim: int, center: np.ndarray,
-                  rng: np.random.Generator) -> list[tuple[int, float, float]] | None:
+def _probed_terms(
+    guard: Callable, dim: int, center: np.ndarray, rng: np.random.Generator
+) -> list[tuple[int, float, float]] | None:
     """First guesses of the terms (index, scale, value), one per probe whose gradient has a
     single nonzero component; None when the probes contradict a coordinate guard."""
     found: list[tuple[int, float, float]] = []
@@ -171,8 +173,9 @@ def _merge_term(found: list[tuple[int, float, float]], term: tuple[int, float, f
     return True
 
 
-def _refine_terms(guard: Callable, candidate: CoordinateGuard, dim: int, center: np.ndarray,
-                  rng: np.random.Generator) -> CoordinateGuard | None:
+def _refine_terms(
+    guard: Callable, candidate: CoordinateGuard, dim: int, center: np.ndarray, rng: np.random.Generator
+) -> CoordinateGuard | None:
     """Exact slopes from secants over long steps where one term stays active (the guard is
     affine there), then the offset from one value: finite differences alone give 1e-10."""
     terms = []

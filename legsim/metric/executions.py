@@ -28,8 +28,15 @@ from .inputs import (
 from .search import path_between
 
 
-def distances(system: HybridSystem, execution_a: Any, execution_b: Any, times: Any, eps: float, *,
-              max_hops: int = DEFAULT_MAX_HOPS) -> np.ndarray:
+def distances(
+    system: HybridSystem,
+    execution_a: Any,
+    execution_b: Any,
+    times: Any,
+    eps: float,
+    *,
+    max_hops: int = DEFAULT_MAX_HOPS,
+) -> np.ndarray:
     """``distance`` between the two executions at each of ``times`` (s); shape (len(times),).
 
     Each execution is anything with ``sample(times) -> Samples`` (modes, states, optionally
@@ -53,8 +60,15 @@ def distances(system: HybridSystem, execution_a: Any, execution_b: Any, times: A
     return out
 
 
-def rho(system: HybridSystem, execution_a: Any, execution_b: Any, times: Any, eps: float, *,
-        max_hops: int = DEFAULT_MAX_HOPS) -> float:
+def rho(
+    system: HybridSystem,
+    execution_a: Any,
+    execution_b: Any,
+    times: Any,
+    eps: float,
+    *,
+    max_hops: int = DEFAULT_MAX_HOPS,
+) -> float:
     """rho^eps of paper 000 Definition 22: the supremum over ``times`` (s) of the relaxed
     quotient distance between the two executions (each anything with ``sample(times)``).
 
@@ -99,8 +113,14 @@ def position_error(simulated: Any, reference: Any, times: Any, *, coordinate: in
         ``state_names`` of whichever argument has them, per mode).
     """
     t = check_times(times)
-    names = next((n for n in (getattr(simulated, "state_names", None), getattr(reference, "state_names", None))
-                  if isinstance(n, dict)), None)
+    names = next(
+        (
+            n
+            for n in (getattr(simulated, "state_names", None), getattr(reference, "state_names", None))
+            if isinstance(n, dict)
+        ),
+        None,
+    )
     zs = _positions(simulated, t, coordinate, "simulated", names)
     xs = _positions(reference, t, coordinate, "reference", names)
     return float(np.max(np.abs(zs - xs)))
@@ -110,8 +130,10 @@ def _sample(execution: Any, times: np.ndarray, label: str) -> Any:
     """``execution.sample(times)``, checked to give one mode and one state per time."""
     sample = getattr(execution, "sample", None)
     if not callable(sample):
-        raise MetricError(f"{label} must have a sample(times) -> Samples method "
-                          f"(a legsim Execution or a reference), got {type(execution).__name__}")
+        raise MetricError(
+            f"{label} must have a sample(times) -> Samples method "
+            f"(a legsim Execution or a reference), got {type(execution).__name__}"
+        )
     samples = sample(times)
     modes, states = getattr(samples, "modes", None), getattr(samples, "states", None)
     if modes is None or states is None or len(modes) != len(times) or len(states) != len(times):
@@ -167,8 +189,9 @@ def _strip_tau(record: Any, entry_time: float, t: float) -> float:
     return record.depth if span <= 0 else record.depth * (t - record.time) / span
 
 
-def _positions(obj: Any, t: np.ndarray, coordinate: int | str, label: str,
-               names: dict[str, Sequence[str]] | None) -> np.ndarray:
+def _positions(
+    obj: Any, t: np.ndarray, coordinate: int | str, label: str, names: dict[str, Sequence[str]] | None
+) -> np.ndarray:
     """Positions (shape (len(t),)) from an execution, a callable of the times, or an array."""
     if hasattr(obj, "sample") and callable(obj.sample):
         samples = _sample(obj, t, label)
@@ -189,18 +212,19 @@ def _positions(obj: Any, t: np.ndarray, coordinate: int | str, label: str,
     return arr
 
 
-def _coordinate_index(coordinate: int | str, mode: str, dim: int, label: str,
-                      names: dict[str, Sequence[str]] | None) -> int:
+def _coordinate_index(
+    coordinate: int | str, mode: str, dim: int, label: str, names: dict[str, Sequence[str]] | None
+) -> int:
     """The index of ``coordinate`` (an index, or a name looked up in ``names[mode]``) in a
     state of dimension ``dim``."""
     index = coordinate
     if isinstance(coordinate, str):
         mode_names = tuple(names.get(mode, ())) if isinstance(names, dict) else ()
         if coordinate not in mode_names:
-            raise MetricError(f"{label}: no coordinate named '{coordinate}' in mode '{mode}' "
-                              f"(names: {mode_names or 'unknown'})")
+            raise MetricError(
+                f"{label}: no coordinate named '{coordinate}' in mode '{mode}' (names: {mode_names or 'unknown'})"
+            )
         index = mode_names.index(coordinate)
     if isinstance(index, bool) or not isinstance(index, (int, np.integer)) or not -dim <= index < dim:
-        raise MetricError(f"{label}: coordinate {coordinate!r} is not an index of the {dim}-d state "
-                          f"in mode '{mode}'")
+        raise MetricError(f"{label}: coordinate {coordinate!r} is not an index of the {dim}-d state in mode '{mode}'")
     return index

@@ -168,8 +168,9 @@ def geometry_of(system: HybridSystem) -> Geometry:
     return geo
 
 
-def _domain_without(k: int, outgoing: Sequence[Transition], shapes: list[CoordinateGuard | None],
-                    n: int) -> tuple[np.ndarray, np.ndarray, tuple[ScalarWithGradient, ...]]:
+def _domain_without(
+    k: int, outgoing: Sequence[Transition], shapes: list[CoordinateGuard | None], n: int
+) -> tuple[np.ndarray, np.ndarray, tuple[ScalarWithGradient, ...]]:
     """The domain of the mode as far as every guard but the k-th bounds it (each >= 0): a box
     (lb, ub) from single-term coordinate guards, inequalities from the others."""
     lb, ub = np.full(n, -np.inf), np.full(n, np.inf)
@@ -194,8 +195,13 @@ def _domain_without(k: int, outgoing: Sequence[Transition], shapes: list[Coordin
     return lb, ub, tuple(ineqs)
 
 
-def _guard_pieces(tr: Transition, shape: CoordinateGuard | None, lb0: np.ndarray, ub0: np.ndarray,
-                  ineqs: tuple[ScalarWithGradient, ...]) -> list[Piece]:
+def _guard_pieces(
+    tr: Transition,
+    shape: CoordinateGuard | None,
+    lb0: np.ndarray,
+    ub0: np.ndarray,
+    ineqs: tuple[ScalarWithGradient, ...],
+) -> list[Piece]:
     """The guard set of ``tr`` inside the domain: one box per term of a coordinate guard (that
     term's coordinate fixed, the other terms <= 0), else one piece with the equality g = 0."""
     if shape is None:
@@ -229,12 +235,14 @@ def _make_edge(tr: Transition, mode: str, pieces: list[Piece], n: int, n_target:
             # A self-loop crossing where the reset is the identity (the artefact piece
             # {v = 0, x >= x_max} of a stop) only adds eps: never shortest.
             pieces = [p for p in pieces if not _identity_on(affine, p)]
-    return Edge(tr, mode, tr.target, pieces, reset, affine, _reset_jacobian(tr, affine, reset, n_target),
-                n, n_target, sigma)
+    return Edge(
+        tr, mode, tr.target, pieces, reset, affine, _reset_jacobian(tr, affine, reset, n_target), n, n_target, sigma
+    )
 
 
-def _reset_jacobian(tr: Transition, affine: tuple[np.ndarray, np.ndarray] | None, reset: Callable,
-                    n_target: int) -> Callable[[np.ndarray], np.ndarray]:
+def _reset_jacobian(
+    tr: Transition, affine: tuple[np.ndarray, np.ndarray] | None, reset: Callable, n_target: int
+) -> Callable[[np.ndarray], np.ndarray]:
     """A declared affine matrix first (exact), then the model's own Jacobian, then a probed
     affine matrix, and finite differences last."""
     declared = tr.reset is None or isinstance(tr.reset, AffineReset)
@@ -262,6 +270,7 @@ def _as_float_fn(fn: Callable) -> Callable[[np.ndarray], float]:
 
 def _coordinate_gradient(shape: CoordinateGuard) -> Callable[[np.ndarray], np.ndarray]:
     """The gradient of a coordinate guard: that of its active (largest) term."""
+
     def grad(p: np.ndarray) -> np.ndarray:
         best, arg = -math.inf, 0
         for k, (i, s, c) in enumerate(shape.terms):
@@ -272,6 +281,7 @@ def _coordinate_gradient(shape: CoordinateGuard) -> Callable[[np.ndarray], np.nd
         i, s, _ = shape.terms[arg]
         out[i] = s
         return out
+
     return grad
 
 

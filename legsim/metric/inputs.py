@@ -110,8 +110,10 @@ def _check_state(system: HybridSystem, mode: Any, state: Any, label: str) -> np.
     except (TypeError, ValueError) as exc:
         raise MetricError(f"{label}: state in mode '{mode}' is not a numeric vector: {exc}") from None
     if x.shape != (dim,):
-        raise MetricError(f"{label}: state in mode '{mode}' has shape {x.shape}, expected ({dim},) "
-                          f"with coordinates {system.state_names(mode)}")
+        raise MetricError(
+            f"{label}: state in mode '{mode}' has shape {x.shape}, expected ({dim},) "
+            f"with coordinates {system.state_names(mode)}"
+        )
     if not np.all(np.isfinite(x)):
         raise MetricError(f"{label}: state in mode '{mode}' is not finite: {x.tolist()}")
     return x

@@ -154,8 +154,15 @@ def _local_min(piece: Piece, fun: Objective, s0: np.ndarray, tol: float, scale: 
             def objective(z: np.ndarray, full: Callable[[np.ndarray], np.ndarray] = full) -> tuple[float, np.ndarray]:
                 return _restrict(fun(full(z)), free)
 
-            z = slsqp(objective, start[free], piece.lb[free], piece.ub[free], piece_constraints(piece, free, full),
-                      ftol=1e-14 * scale, maxiter=60)
+            z = slsqp(
+                objective,
+                start[free],
+                piece.lb[free],
+                piece.ub[free],
+                piece_constraints(piece, free, full),
+                ftol=1e-14 * scale,
+                maxiter=60,
+            )
             if z is None:
                 continue
             p = piece.clip(full(z))

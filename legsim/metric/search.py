@@ -100,8 +100,7 @@ def distance(system: HybridSystem, a: Any, b: Any, eps: float, *, max_hops: int 
     return shortest_path(system, a, b, eps, max_hops=max_hops).length
 
 
-def shortest_path(system: HybridSystem, a: Any, b: Any, eps: float, *,
-                  max_hops: int = DEFAULT_MAX_HOPS) -> MetricPath:
+def shortest_path(system: HybridSystem, a: Any, b: Any, eps: float, *, max_hops: int = DEFAULT_MAX_HOPS) -> MetricPath:
     """The shortest connected path between hybrid states ``a`` and ``b`` in M^eps (see
     ``distance``), with the transitions it crosses and its guard points."""
     system = check_system(system)
@@ -144,9 +143,14 @@ def _strip_exits(geo: Geometry, point: HybridPoint, eps: float) -> list[tuple[fl
         return [(0.0, point, None)]
     edge = next(e for e in geo.edges if e.source == point.mode and e.tr.name == point.strip)
     image = np.asarray(edge.reset(point.x), dtype=float)
-    return [(point.tau, HybridPoint(point.mode, point.x), None),
-            (eps - point.tau, HybridPoint(edge.target, image),
-             Crossing(edge.tr.name, edge.source, edge.target, True, point.x.copy()))]
+    return [
+        (point.tau, HybridPoint(point.mode, point.x), None),
+        (
+            eps - point.tau,
+            HybridPoint(edge.target, image),
+            Crossing(edge.tr.name, edge.source, edge.target, True, point.x.copy()),
+        ),
+    ]
 
 
 def _dominated(prev: HalfEdge, nxt: HalfEdge) -> bool:
@@ -229,8 +233,7 @@ class _Search:
         candidates.sort(key=lambda c: (c[0], len(c[1])))
         return candidates
 
-    def _piece_choices(self, walk: list[HalfEdge], bounds: _EndBounds,
-                       limit: float) -> list[tuple[float, PieceWalk]]:
+    def _piece_choices(self, walk: list[HalfEdge], bounds: _EndBounds, limit: float) -> list[tuple[float, PieceWalk]]:
         out = []
         first, last = walk[0], walk[-1]
         for choice in itertools.product(*(range(len(h.edge.pieces)) for h in walk)):
@@ -239,8 +242,9 @@ class _Search:
                 out.append((lb, list(zip(walk, choice, strict=True))))
         return out
 
-    def _solve(self, walks: list[tuple[float, PieceWalk]], x: np.ndarray, y: np.ndarray, tol: float, best: float,
-               slack: float) -> tuple[float, tuple[Crossing, ...]]:
+    def _solve(
+        self, walks: list[tuple[float, PieceWalk]], x: np.ndarray, y: np.ndarray, tol: float, best: float, slack: float
+    ) -> tuple[float, tuple[Crossing, ...]]:
         """The shortest of the walks, solved in order of their bounds until a bound reaches the
         best length found (which starts at ``best``)."""
         best_path: tuple[Crossing, ...] = ()
@@ -254,13 +258,16 @@ class _Search:
             length = res[0] + len(hops) * self.eps
             if length < best:
                 best = length
-                best_path = tuple(Crossing(he.edge.tr.name, he.here, he.there, he.forward, p.copy())
-                                  for (he, _), p in zip(hops, res[1], strict=True))
+                best_path = tuple(
+                    Crossing(he.edge.tr.name, he.here, he.there, he.forward, p.copy())
+                    for (he, _), p in zip(hops, res[1], strict=True)
+                )
         return best, best_path
 
 
-def _optimise_or_skip(hops: list[Hop], x: np.ndarray, y: np.ndarray,
-                      tol: float) -> tuple[float, list[np.ndarray]] | None:
+def _optimise_or_skip(
+    hops: list[Hop], x: np.ndarray, y: np.ndarray, tol: float
+) -> tuple[float, list[np.ndarray]] | None:
     try:
         with np.errstate(all="ignore"):
             return optimise_walk(hops, x, y, tol)

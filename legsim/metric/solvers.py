@@ -12,22 +12,39 @@ import numpy as np
 from scipy.optimize import minimize
 
 
-def slsqp(fun: Callable[[np.ndarray], tuple[float, np.ndarray]], z0: np.ndarray, lb: np.ndarray, ub: np.ndarray,
-          constraints: list, ftol: float, maxiter: int = 200, converged: list | None = None) -> np.ndarray | None:
+def slsqp(
+    fun: Callable[[np.ndarray], tuple[float, np.ndarray]],
+    z0: np.ndarray,
+    lb: np.ndarray,
+    ub: np.ndarray,
+    constraints: list,
+    ftol: float,
+    maxiter: int = 200,
+    converged: list | None = None,
+) -> np.ndarray | None:
     """SLSQP from ``z0`` on ``fun`` (value and gradient) within the bounds ``lb <= z <= ub``
     (infinite entries: unbounded) and scipy-style ``constraints``.
 
     Returns the final point (shape like z0), or None when it is not finite or a model function
     failed during the search. Appends SLSQP's own success flag to ``converged`` if given.
     """
-    bounds = [(None if not math.isfinite(lo) else lo, None if not math.isfinite(hi) else hi)
-              for lo, hi in zip(lb, ub, strict=True)]
+    bounds = [
+        (None if not math.isfinite(lo) else lo, None if not math.isfinite(hi) else hi)
+        for lo, hi in zip(lb, ub, strict=True)
+    ]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         with np.errstate(all="ignore"):
             try:
-                res = minimize(fun, z0, jac=True, method="SLSQP", bounds=bounds, constraints=constraints,
-                               options={"ftol": ftol, "maxiter": maxiter})
+                res = minimize(
+                    fun,
+                    z0,
+                    jac=True,
+                    method="SLSQP",
+                    bounds=bounds,
+                    constraints=constraints,
+                    options={"ftol": ftol, "maxiter": maxiter},
+                )
             except Exception:  # a model function failed at a probed point (e.g.
                 # a robot whose guard refuses states where the body is below ground): this
                 # start yields no path, the others still may.
@@ -74,8 +91,9 @@ def _bracket_end(f: Callable[[float], float], z0: float, f0: float, direction: f
     return end
 
 
-def sum_of_norms(legs: list[tuple[np.ndarray, np.ndarray]], z0: np.ndarray, lb: np.ndarray, ub: np.ndarray,
-                 scale: float) -> np.ndarray:
+def sum_of_norms(
+    legs: list[tuple[np.ndarray, np.ndarray]], z0: np.ndarray, lb: np.ndarray, ub: np.ndarray, scale: float
+) -> np.ndarray:
     """Minimise sum_k |M_k z - c_k| over the box lb <= z <= ub (convex): a primal log-barrier
     method on the second-order-cone form, minimise sum_k t_k subject to t_k >= |M_k z - c_k|.
 

@@ -29,8 +29,9 @@ from .solvers import golden_convex, slsqp, sum_of_norms
 Hop = tuple[HalfEdge, Piece]
 
 
-def optimise_walk(hops: Sequence[Hop], x: np.ndarray, y: np.ndarray,
-                  tol: float) -> tuple[float, list[np.ndarray]] | None:
+def optimise_walk(
+    hops: Sequence[Hop], x: np.ndarray, y: np.ndarray, tol: float
+) -> tuple[float, list[np.ndarray]] | None:
     """(length, guard points) of the shortest path found through ``hops`` from x to y (strip
     widths not included), or None when no greedy chain reaches y's side."""
     starts = [c for c in (chain(hops, x, y, tol, False), chain(hops, x, y, tol, True)) if c is not None]
@@ -54,8 +55,7 @@ def optimise_walk(hops: Sequence[Hop], x: np.ndarray, y: np.ndarray,
     return best_len, best_pts
 
 
-def leg_residuals(hops: Sequence[Hop], points: Sequence[np.ndarray], x: np.ndarray,
-                  y: np.ndarray) -> list[np.ndarray]:
+def leg_residuals(hops: Sequence[Hop], points: Sequence[np.ndarray], x: np.ndarray, y: np.ndarray) -> list[np.ndarray]:
     """The vectors whose norms add up to a walk's length (each entry minus the previous exit)."""
     out = []
     cur = x
@@ -72,8 +72,7 @@ def walk_length(hops: Sequence[Hop], points: Sequence[np.ndarray], x: np.ndarray
     return sum(float(np.linalg.norm(leg)) for leg in leg_residuals(hops, points, x, y))
 
 
-def chain(hops: Sequence[Hop], x: np.ndarray, y: np.ndarray, tol: float,
-          backward: bool) -> list[np.ndarray] | None:
+def chain(hops: Sequence[Hop], x: np.ndarray, y: np.ndarray, tol: float, backward: bool) -> list[np.ndarray] | None:
     """Greedy guard points: each the projection of the previous point (forwards from x, or
     backwards from y). Always a valid path, and the start of the minimisation."""
     points: list[np.ndarray | None] = [None] * len(hops)
@@ -109,8 +108,10 @@ class _WalkUnknowns:
         return np.concatenate([p[f] for p, f in zip(self.template, self.frees, strict=True)])
 
     def points(self, z: np.ndarray) -> list[np.ndarray]:
-        return [_put(p0, free, z[self.offsets[k]:self.offsets[k + 1]])
-                for k, (free, p0) in enumerate(zip(self.frees, self.template, strict=True))]
+        return [
+            _put(p0, free, z[self.offsets[k] : self.offsets[k + 1]])
+            for k, (free, p0) in enumerate(zip(self.frees, self.template, strict=True))
+        ]
 
     def clipped_points(self, z: np.ndarray) -> list[np.ndarray]:
         return [piece.clip(p) for (_, piece), p in zip(self.hops, self.points(z), strict=True)]
@@ -147,7 +148,7 @@ class _WalkUnknowns:
 
             for c in piece_constraints(piece, self.frees[k], full):
                 inner_jac = c["jac"]
-                c["jac"] = (lambda z, inner_jac=inner_jac, sl=sl: _embed(inner_jac(z), sl, self.size))
+                c["jac"] = lambda z, inner_jac=inner_jac, sl=sl: _embed(inner_jac(z), sl, self.size)
                 cons.append(c)
         return cons
 
@@ -155,8 +156,14 @@ class _WalkUnknowns:
 def _golden_walk(unknowns: _WalkUnknowns, length0: float) -> list[np.ndarray]:
     """The guard points of a convex walk with one free coordinate (golden section)."""
     z0 = float(unknowns.start()[0])
-    z = golden_convex(lambda v: unknowns.length(np.array([v])), z0, length0, float(unknowns.lb[0]),
-                      float(unknowns.ub[0]), 1e-13 * unknowns.scale)
+    z = golden_convex(
+        lambda v: unknowns.length(np.array([v])),
+        z0,
+        length0,
+        float(unknowns.lb[0]),
+        float(unknowns.ub[0]),
+        1e-13 * unknowns.scale,
+    )
     return unknowns.points(np.array([z]))
 
 
@@ -187,8 +194,15 @@ def _smooth_minimum(unknowns: _WalkUnknowns, z: np.ndarray) -> bool:
 def _generic_walk(unknowns: _WalkUnknowns, tol: float) -> list[list[np.ndarray]]:
     """Guard points of a walk through guards or resets of unknown shape: one local search from
     the better greedy chain (each evaluation may cost a contact solve), kept when feasible."""
-    z = slsqp(unknowns.length_and_gradient, unknowns.start(), unknowns.lb, unknowns.ub, unknowns.constraints(),
-              ftol=1e-12 * unknowns.scale, maxiter=100)
+    z = slsqp(
+        unknowns.length_and_gradient,
+        unknowns.start(),
+        unknowns.lb,
+        unknowns.ub,
+        unknowns.constraints(),
+        ftol=1e-12 * unknowns.scale,
+        maxiter=100,
+    )
     if z is None:
         return []
     pts = unknowns.clipped_points(z)
@@ -204,8 +218,14 @@ def _affine_legs(residuals: Callable[[np.ndarray], list[np.ndarray]], q: int) ->
     return [(np.column_stack([cols[i][k] - base[k] for i in range(q)]), -base[k]) for k in range(len(base))]
 
 
-def _add_leg(d: np.ndarray, grads: list[np.ndarray], k_entry: int, entry_jac: np.ndarray | None, k_exit: int,
-             exit_jac: np.ndarray | None) -> float:
+def _add_leg(
+    d: np.ndarray,
+    grads: list[np.ndarray],
+    k_entry: int,
+    entry_jac: np.ndarray | None,
+    k_exit: int,
+    exit_jac: np.ndarray | None,
+) -> float:
     """Add |d| with d = entry(p_{k_entry}) - exit(p_{k_exit}) and its gradient (index -1: the
     fixed end x or y; a Jacobian of None: the identity)."""
     norm = float(np.linalg.norm(d))

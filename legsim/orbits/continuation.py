@@ -41,8 +41,10 @@ class StabilityChange:
 
     def describe(self, parameter: str) -> str:
         """One line naming the change, where it is and the multiplier that makes it."""
-        return (f"{parameter} ~ {self.at:.6g} (between {self.between[0]:.6g} and {self.between[1]:.6g}): becomes "
-                f"{self.becomes}, {self.kind} (multiplier {self.multiplier.real:+.4f}{self.multiplier.imag:+.4f}j)")
+        return (
+            f"{parameter} ~ {self.at:.6g} (between {self.between[0]:.6g} and {self.between[1]:.6g}): becomes "
+            f"{self.becomes}, {self.kind} (multiplier {self.multiplier.real:+.4f}{self.multiplier.imag:+.4f}j)"
+        )
 
 
 @dataclass
@@ -62,16 +64,32 @@ class Family:
             "complete": self.complete,
             "message": self.message,
             "points": [{"value": p.value, **p.result.to_json()} for p in self.points],
-            "stability_changes": [{"between": list(c.between), "at": c.at, "becomes": c.becomes, "kind": c.kind,
-                                   "multiplier": [c.multiplier.real, c.multiplier.imag]}
-                                  for c in self.stability_changes],
+            "stability_changes": [
+                {
+                    "between": list(c.between),
+                    "at": c.at,
+                    "becomes": c.becomes,
+                    "kind": c.kind,
+                    "multiplier": [c.multiplier.real, c.multiplier.imag],
+                }
+                for c in self.stability_changes
+            ],
         }
 
 
-def continue_family(problem: OrbitProblem, parameter: str, start: float, stop: float, steps: int,
-                    guess: Mapping[str, float] | Sequence[float] | np.ndarray, *, max_refinements: int = 4,
-                    locate: int = 0, progress: Callable[[FamilyPoint], None] | None = None,
-                    **solver: Any) -> Family:
+def continue_family(
+    problem: OrbitProblem,
+    parameter: str,
+    start: float,
+    stop: float,
+    steps: int,
+    guess: Mapping[str, float] | Sequence[float] | np.ndarray,
+    *,
+    max_refinements: int = 4,
+    locate: int = 0,
+    progress: Callable[[FamilyPoint], None] | None = None,
+    **solver: Any,
+) -> Family:
     """Follow a family of orbits as ``parameter`` goes from ``start`` to ``stop`` in ``steps``
     equal steps, with a secant predictor (linear extrapolation of the last two orbits' unknowns
     in the parameter; the previous orbit for the second point) and the Newton corrector
@@ -87,7 +105,7 @@ def continue_family(problem: OrbitProblem, parameter: str, start: float, stop: f
     _check_continuation(problem, parameter, start, stop, steps)
     x_guess = problem.state_vector(guess)
     grid = [float(v) for v in np.linspace(start, stop, steps + 1)]
-    min_step = abs(grid[1] - grid[0]) / 2 ** max_refinements
+    min_step = abs(grid[1] - grid[0]) / 2**max_refinements
     points: list[FamilyPoint] = []
     history: list[tuple[float, np.ndarray, dict[str, float]]] = []  # (value, fixed point, parameters)
     complete = True
@@ -115,9 +133,12 @@ def continue_family(problem: OrbitProblem, parameter: str, start: float, stop: f
                 value = half
                 continue
         complete = False
-        message = (f"the family ends near {parameter} = {value:g} (last orbit at {history[-1][0]:g}): "
-                   f"{result.status}: {result.message}" if history else
-                   f"no orbit at the start {parameter} = {value:g}: {result.status}: {result.message}")
+        message = (
+            f"the family ends near {parameter} = {value:g} (last orbit at {history[-1][0]:g}): "
+            f"{result.status}: {result.message}"
+            if history
+            else f"no orbit at the start {parameter} = {value:g}: {result.status}: {result.message}"
+        )
         break
     changes = _stability_changes(points)
     if locate > 0 and changes:
@@ -139,9 +160,13 @@ def _check_continuation(problem: OrbitProblem, parameter: str, start: float, sto
         raise OrbitError("continuation needs start != stop")
 
 
-def _predict(problem: OrbitProblem, parameter: str, value: float,
-             history: list[tuple[float, np.ndarray, dict[str, float]]],
-             x_guess: np.ndarray) -> tuple[np.ndarray, dict[str, float]]:
+def _predict(
+    problem: OrbitProblem,
+    parameter: str,
+    value: float,
+    history: list[tuple[float, np.ndarray, dict[str, float]]],
+    x_guess: np.ndarray,
+) -> tuple[np.ndarray, dict[str, float]]:
     """The predicted fixed point and parameters at ``value``: linear extrapolation of the last
     two orbits, the last orbit itself after the first, the user's guess at the start."""
     params = dict(problem.parameters)
@@ -159,8 +184,14 @@ def _predict(problem: OrbitProblem, parameter: str, value: float,
     return x_guess, params
 
 
-def _locate_change(problem: OrbitProblem, parameter: str, points: list[FamilyPoint], change: StabilityChange,
-                   bisections: int, solver: Mapping[str, Any]) -> StabilityChange:
+def _locate_change(
+    problem: OrbitProblem,
+    parameter: str,
+    points: list[FamilyPoint],
+    change: StabilityChange,
+    bisections: int,
+    solver: Mapping[str, Any],
+) -> StabilityChange:
     """Narrow a stability change's interval by bisection on the parameter, each midpoint's orbit
     warm-started halfway between the bracketing orbits."""
     by_value = {p.value: p for p in points}
@@ -196,8 +227,9 @@ def _stability_changes(points: list[FamilyPoint]) -> list[StabilityChange]:
         mu = unstable.nontrivial_multipliers
         assert mu is not None  # its spectral radius is not None
         m = complex(mu[np.argmax(np.abs(mu))])
-        changes.append(StabilityChange((a.value, b.value), at, "unstable" if rb >= 1.0 else "stable",
-                                       _change_kind(m), m))
+        changes.append(
+            StabilityChange((a.value, b.value), at, "unstable" if rb >= 1.0 else "stable", _change_kind(m), m)
+        )
     return changes
 
 

@@ -79,19 +79,20 @@ def field_at(mode: Mode, control: Control, t: float, x: np.ndarray) -> np.ndarra
     return np.asarray(mode.field(t, x, None if control is None else control(t, x)), dtype=float)
 
 
-def _field_jacobian(mode: Mode, control: Control, t: float, x: np.ndarray, fx: np.ndarray,
-                    scheme: Scheme) -> np.ndarray:
+def _field_jacobian(
+    mode: Mode, control: Control, t: float, x: np.ndarray, fx: np.ndarray, scheme: Scheme
+) -> np.ndarray:
     """df/dx at (t, x), given fx = f(t, x). ``Mode.jacobian`` when the mode has one (and there
     is no control: with one, the closed-loop field x -> f(t, x, u(t, x)) is differentiated, since
     Mode.jacobian holds u fixed); otherwise ``scheme`` differences (module docstring)."""
     if mode.jacobian is not None and control is None:
         return np.asarray(mode.jacobian(t, x, None), dtype=float)
-    return jacobian(lambda y: field_at(mode, control, t, y), x, scheme=scheme,
-                    f0=fx if scheme == "forward" else None)
+    return jacobian(lambda y: field_at(mode, control, t, y), x, scheme=scheme, f0=fx if scheme == "forward" else None)
 
 
-def _step_derivative(mode: Mode, control: Control, tableau: Tableau, t: float, x: np.ndarray, h: float,
-                     scheme: Scheme) -> np.ndarray:
+def _step_derivative(
+    mode: Mode, control: Control, tableau: Tableau, t: float, x: np.ndarray, h: float, scheme: Scheme
+) -> np.ndarray:
     """Derivative of one explicit Runge-Kutta step x -> x + h sum b_j k_j with respect to x:
     dk_j = J(X_j) (I + h sum_l A_jl dk_l), the variational equation stepped by the same method."""
     n = len(x)
@@ -116,8 +117,9 @@ def _step_derivative(mode: Mode, control: Control, tableau: Tableau, t: float, x
     return S
 
 
-def _segment_sensitivity(system: HybridSystem, control: Control, tableau: Tableau, seg: Segment,
-                         t_stop: float | None, newton: bool) -> np.ndarray:
+def _segment_sensitivity(
+    system: HybridSystem, control: Control, tableau: Tableau, seg: Segment, t_stop: float | None, newton: bool
+) -> np.ndarray:
     """d x(end) / d x(start) along one stored segment, stepping the variational equation on the
     segment's own steps (each from its stored start point); ``t_stop`` cuts the last step. In
     compiled code when the mode has a compiled twin and there is no control (``variational``);
@@ -141,9 +143,15 @@ def _segment_sensitivity(system: HybridSystem, control: Control, tableau: Tablea
 
 
 # -- transitions ---------------------------------------------------------------------------------
-def _transition_pieces(system: HybridSystem, transition: Transition, q: np.ndarray, x_plus: np.ndarray,
-                       t_minus: float, t_plus: float,
-                       control: Control) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, float]:
+def _transition_pieces(
+    system: HybridSystem,
+    transition: Transition,
+    q: np.ndarray,
+    x_plus: np.ndarray,
+    t_minus: float,
+    t_plus: float,
+    control: Control,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, float]:
     """(DR, grad g, f-, f+, grad g . f-) of a transition at its guard point q; DR and grad g by
     central differences where the transition does not give them."""
     src = system.mode(transition.source)
@@ -165,14 +173,23 @@ def _transition_pieces(system: HybridSystem, transition: Transition, q: np.ndarr
     rate = float(grad @ f_minus)
     scale = float(np.linalg.norm(grad) * np.linalg.norm(f_minus))
     if scale == 0.0 or abs(rate) <= 1e-10 * scale:
-        raise OrbitError(f"transition {transition.name}: the flow is tangent to the guard at q = "
-                         f"{np.round(q, 8).tolist()} (grad g . f = {rate:.3g}): grazing, no saltation matrix",
-                         "singular_jacobian")
+        raise OrbitError(
+            f"transition {transition.name}: the flow is tangent to the guard at q = "
+            f"{np.round(q, 8).tolist()} (grad g . f = {rate:.3g}): grazing, no saltation matrix",
+            "singular_jacobian",
+        )
     return DR, grad, f_minus, f_plus, rate
 
 
-def saltation_matrix(system: HybridSystem, transition: Transition, q: np.ndarray, x_plus: np.ndarray,
-                     t_minus: float = 0.0, t_plus: float = 0.0, control: Control = None) -> np.ndarray:
+def saltation_matrix(
+    system: HybridSystem,
+    transition: Transition,
+    q: np.ndarray,
+    x_plus: np.ndarray,
+    t_minus: float = 0.0,
+    t_plus: float = 0.0,
+    control: Control = None,
+) -> np.ndarray:
     """The saltation matrix ``Xi = DR + (f+ - DR f-) grad_g^T / (grad_g . f-)`` of a transition
     at its guard point q, shape (n_target, n_source): it maps a perturbation just before the
     nominal transition time to the perturbation just after it (both at the same time).
@@ -187,8 +204,15 @@ def saltation_matrix(system: HybridSystem, transition: Transition, q: np.ndarray
     return DR + np.outer(f_plus - DR @ f_minus, grad) / rate
 
 
-def reset_on_guard_jacobian(system: HybridSystem, transition: Transition, q: np.ndarray, x_plus: np.ndarray,
-                            t_minus: float = 0.0, t_plus: float = 0.0, control: Control = None) -> np.ndarray:
+def reset_on_guard_jacobian(
+    system: HybridSystem,
+    transition: Transition,
+    q: np.ndarray,
+    x_plus: np.ndarray,
+    t_minus: float = 0.0,
+    t_plus: float = 0.0,
+    control: Control = None,
+) -> np.ndarray:
     """Derivative of the reset image R(q) itself (not of the state at a fixed time) with respect
     to a perturbation just before the transition: ``DR (I - f- grad_g^T / (grad_g . f-))``, the
     reset Jacobian after projecting onto the guard along the flow, shape (n_target, n_source).
@@ -232,8 +256,10 @@ def _onto_section(problem: OrbitProblem, system: HybridSystem, control: Control,
     grad = problem.bound.grad(ret.x_end)
     rate = float(grad @ f)
     if abs(rate) <= 1e-10 * float(np.linalg.norm(grad) * np.linalg.norm(f) + 1e-300):
-        raise OrbitError(f"the flow is tangent to the section {problem.section.label} at the return "
-                         f"(grad s . f = {rate:.3g})", "singular_jacobian")
+        raise OrbitError(
+            f"the flow is tangent to the section {problem.section.label} at the return (grad s . f = {rate:.3g})",
+            "singular_jacobian",
+        )
     return np.eye(problem.dim) - np.outer(f, grad) / rate
 
 
@@ -256,8 +282,9 @@ def difference(fn: Callable[[float], np.ndarray], d: float, base: Callable[[], n
     if plus is not None and minus is not None:
         return (plus - minus) / (2 * d)
     if plus is None and minus is None:
-        raise OrbitError(f"finite difference in {label}: the simulations on both sides failed: {errors[0]}",
-                         errors[0].status)
+        raise OrbitError(
+            f"finite difference in {label}: the simulations on both sides failed: {errors[0]}", errors[0].status
+        )
     if plus is not None:
         return (plus - base()) / d
     return (base() - minus) / d
@@ -278,9 +305,14 @@ def default_fd_step(problem: OrbitProblem) -> float:
     return max(1e-6, max(tols) ** (1.0 / 3.0)) if tols else 1e-6
 
 
-def jacobian_fd(problem: OrbitProblem, x: np.ndarray, parameters: Mapping[str, float] | None = None,
-                step: float | None = None, columns: Sequence[int] | None = None,
-                rmap: ReturnMap | None = None) -> np.ndarray:
+def jacobian_fd(
+    problem: OrbitProblem,
+    x: np.ndarray,
+    parameters: Mapping[str, float] | None = None,
+    step: float | None = None,
+    columns: Sequence[int] | None = None,
+    rmap: ReturnMap | None = None,
+) -> np.ndarray:
     """The n x n Jacobian of the return map at x by central differences (columns of cyclic
     coordinates are e_c by symmetry; one-sided where one side's simulation fails). ``step``:
     relative step, default ``default_fd_step`` (module docstring); ``columns``: only these
@@ -319,8 +351,9 @@ def floquet_multipliers(DP: np.ndarray, f: np.ndarray, cyclic: Sequence[int] = (
     D = DP[np.ix_(keep, keep)]
     fk = np.asarray(f, dtype=float)[keep]
     if np.linalg.norm(fk) == 0.0:
-        raise OrbitError("the field vanishes at the fixed point: it is an equilibrium, not a periodic orbit",
-                         "singular_jacobian")
+        raise OrbitError(
+            "the field vanishes at the fixed point: it is an equilibrium, not a periodic orbit", "singular_jacobian"
+        )
     # Orthonormal basis of f^perp: the last columns of a complete QR of f.
     Q, _ = np.linalg.qr(fk.reshape(-1, 1), mode="complete")
     B = Q[:, 1:]

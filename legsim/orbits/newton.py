@@ -41,8 +41,7 @@ from .returns import Return, ReturnMap
 #: own error (~1e-6 relative), so that error cannot decide it.
 NEAR_SINGULAR = 1e-4
 
-STATUSES = ("converged", "no_return", "simulation_failed", "singular_jacobian", "diverged", "stalled",
-            "max_iterations")
+STATUSES = ("converged", "no_return", "simulation_failed", "singular_jacobian", "diverged", "stalled", "max_iterations")
 
 
 @dataclass
@@ -125,6 +124,7 @@ class OrbitResult:
 
     def to_json(self) -> dict[str, Any]:
         """JSON-ready dict (the keys of ``legsim orbit --json``); non-finite numbers become None."""
+
         def num(v):
             if v is None:
                 return None
@@ -143,8 +143,7 @@ class OrbitResult:
             "period": num(self.period),
             "return_time": num(self.return_time),
             "step_length": num(self.step_length),
-            "multipliers": None if self.multipliers is None else
-            [[num(m.real), num(m.imag)] for m in self.multipliers],
+            "multipliers": None if self.multipliers is None else [[num(m.real), num(m.imag)] for m in self.multipliers],
             "spectral_radius": num(self.spectral_radius),
             "stable": self.stable,
             "trivial_multipliers": self.trivial_multipliers,
@@ -171,7 +170,7 @@ class _Equations:
         x = self.template.copy()
         x[self.p.unknown_idx] = z[: self.n_x]
         params = dict(self.p.parameters)
-        params.update({name: float(v) for name, v in zip(self.p.free, z[self.n_x:], strict=True)})
+        params.update({name: float(v) for name, v in zip(self.p.free, z[self.n_x :], strict=True)})
         return x, params
 
     def pack(self, x: np.ndarray, params: Mapping[str, float]) -> np.ndarray:
@@ -188,8 +187,9 @@ class _Equations:
             try:
                 rows.append(float(fn(x, params)))
             except Exception as exc:
-                raise OrbitError(f"constraint '{name}' failed at x = {x.tolist()}: {type(exc).__name__}: {exc}") \
-                    from exc
+                raise OrbitError(
+                    f"constraint '{name}' failed at x = {x.tolist()}: {type(exc).__name__}: {exc}"
+                ) from exc
         if p.energy is not None:
             system, _ = p.instantiate(params)
             rows.append(float(system.energy(p.bound.mode, x)) - p.energy)  # type: ignore[misc]
@@ -206,8 +206,9 @@ class _Equations:
         ret = self.rmap(x, params)
         return ret, self.residual(ret)
 
-    def jacobian(self, z: np.ndarray, ret: Return, method: str, fd_step: float | None,
-                 newton: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    def jacobian(
+        self, z: np.ndarray, ret: Return, method: str, fd_step: float | None, newton: bool = True
+    ) -> tuple[np.ndarray, np.ndarray]:
         """(dF/dz, full DP at x): DP by ``method`` ("saltation" or "fd"; the saltation one with
         ``newton`` to the accuracy a Newton step needs, see ``jacobian_saltation``), parameter
         columns by differences of the return map."""
@@ -224,6 +225,7 @@ class _Equations:
             cols.append(np.concatenate([col_periodic, self._extra_column(x, params, coord=j)]))
         step = default_fd_step(p) if fd_step is None else fd_step
         for name in p.free:
+
             def shifted(delta: float, name=name) -> np.ndarray:
                 q = dict(params)
                 q[name] += delta
@@ -243,13 +245,20 @@ class _Equations:
             y[coord] = value[0]
             return self.extra(y, params)
 
-        return derivatives.jacobian(along, x[coord:coord + 1])[:, 0]
+        return derivatives.jacobian(along, x[coord : coord + 1])[:, 0]
 
 
-def find_orbit(problem: OrbitProblem, guess: Mapping[str, float] | Sequence[float] | np.ndarray, *,
-               tol: float = 1e-9, max_iterations: int = 30, jacobian: str = "saltation",
-               fd_step: float | None = None, singular_tol: float = 1e-9,
-               max_backtracks: int = 8) -> OrbitResult:
+def find_orbit(
+    problem: OrbitProblem,
+    guess: Mapping[str, float] | Sequence[float] | np.ndarray,
+    *,
+    tol: float = 1e-9,
+    max_iterations: int = 30,
+    jacobian: str = "saltation",
+    fd_step: float | None = None,
+    singular_tol: float = 1e-9,
+    max_backtracks: int = 8,
+) -> OrbitResult:
     """Find a periodic orbit: a fixed point of the return map (P^returns) with Gauss-Newton.
 
     Parameters
@@ -286,8 +295,16 @@ def find_orbit(problem: OrbitProblem, guess: Mapping[str, float] | Sequence[floa
 class _NewtonSearch:
     """One Gauss-Newton search: the iterate z, its return and residual, and the history."""
 
-    def __init__(self, problem: OrbitProblem, x0: np.ndarray, tol: float, method: str, fd_step: float | None,
-                 singular_tol: float, max_backtracks: int) -> None:
+    def __init__(
+        self,
+        problem: OrbitProblem,
+        x0: np.ndarray,
+        tol: float,
+        method: str,
+        fd_step: float | None,
+        singular_tol: float,
+        max_backtracks: int,
+    ) -> None:
         self.p = problem
         self.tol = tol
         self.method = method
@@ -320,10 +337,17 @@ class _NewtonSearch:
             if failure is not None:
                 return failure
             if float(np.max(np.abs(self.z))) > 1e8 * z_scale:
-                return self.fail("diverged", f"iteration {it + 1}: the iterates run away "
-                                             f"(|z| = {np.max(np.abs(self.z)):.3g})", it + 1)
-        return self.fail("max_iterations", f"no convergence in {max_iterations} iterations: residual {self.res:.3g} "
-                         f"> tol {self.tol:g} (history {[float(f'{v:.3g}') for v in self.history]})", max_iterations)
+                return self.fail(
+                    "diverged",
+                    f"iteration {it + 1}: the iterates run away (|z| = {np.max(np.abs(self.z)):.3g})",
+                    it + 1,
+                )
+        return self.fail(
+            "max_iterations",
+            f"no convergence in {max_iterations} iterations: residual {self.res:.3g} "
+            f"> tol {self.tol:g} (history {[float(f'{v:.3g}') for v in self.history]})",
+            max_iterations,
+        )
 
     def iterate(self, it: int, z_scale: float) -> OrbitResult | None:
         """One Newton step with backtracking; the failed result when there is none."""
@@ -380,54 +404,76 @@ class _NewtonSearch:
         """``diverged`` for a Jacobian that is zero far from an orbit: no unknown moves the
         residual to first order, so no Newton step exists and no orbit is near the iterate."""
         x_now, params_now = self.eq.unpack(self.z)
-        return self.fail("diverged",
-                         f"iteration {it + 1}: no Newton step reduces the residual {self.res:.3g}: the orbit equations "
-                         f"do not change with any unknown at the last iterate {self.rmap.show_state(x_now)}"
-                         + (f" with parameters {params_now}" if self.p.free else "")
-                         + " (their Jacobian is zero there), so there may be no periodic orbit near it", it)
+        return self.fail(
+            "diverged",
+            f"iteration {it + 1}: no Newton step reduces the residual {self.res:.3g}: the orbit equations "
+            f"do not change with any unknown at the last iterate {self.rmap.show_state(x_now)}"
+            + (f" with parameters {params_now}" if self.p.free else "")
+            + " (their Jacobian is zero there), so there may be no periodic orbit near it",
+            it,
+        )
 
     def _singular_message(self, it: int, sv: np.ndarray, null: np.ndarray) -> str:
         names = self.p.unknown_names
         lead = ", ".join(f"{names[i]} ({null[i]:+.2f})" for i in np.argsort(-np.abs(null))[:3] if abs(null[i]) > 0.1)
-        head = (f"iteration {it + 1}: the Jacobian of the orbit equations is singular (singular values "
-                f"{sv[0]:.3g} .. {sv[-1]:.3g}, residual {self.res:.3g})")
+        head = (
+            f"iteration {it + 1}: the Jacobian of the orbit equations is singular (singular values "
+            f"{sv[0]:.3g} .. {sv[-1]:.3g}, residual {self.res:.3g})"
+        )
         if self._near_orbit():
             # Next to an orbit: a whole family of them passes through it.
-            return (f"{head}: the orbit is not isolated along {lead}; a conserved quantity or symmetry leaves a "
-                    f"family of orbits: fix one of these coordinates or add a constraint (e.g. energy)")
+            return (
+                f"{head}: the orbit is not isolated along {lead}; a conserved quantity or symmetry leaves a "
+                f"family of orbits: fix one of these coordinates or add a constraint (e.g. energy)"
+            )
         # Far from any orbit the iterate may simply have wandered where the map degenerates.
-        return (f"{head}: the iterate {self.rmap.show_state(self.eq.unpack(self.z)[0])} is still far from an orbit "
-                f"and the return map degenerates there along {lead}: try another initial guess (or, if a conserved "
-                f"quantity leaves a family of orbits, fix one of these coordinates or add a constraint)")
+        return (
+            f"{head}: the iterate {self.rmap.show_state(self.eq.unpack(self.z)[0])} is still far from an orbit "
+            f"and the return map degenerates there along {lead}: try another initial guess (or, if a conserved "
+            f"quantity leaves a family of orbits, fix one of these coordinates or add a constraint)"
+        )
 
     def _no_step(self, it: int, dz: np.ndarray, z_scale: float) -> OrbitResult:
         """``stalled`` when the Newton step is below rounding (the return map's noise limits the
         residual), ``diverged`` otherwise."""
         step_norm = float(np.max(np.abs(dz)))
         if step_norm <= 1e-12 * z_scale:
-            return self.fail("stalled",
-                             f"the residual stalls at {self.res:.3g} > tol {self.tol:g} after {it} iteration(s): the "
-                             f"Newton step ({step_norm:.2g}) is below rounding, so the return map's own noise "
-                             f"(rounding, and the integrator's steps: {self.p.integrator_label}) limits "
-                             f"the residual: raise tol", it)
+            return self.fail(
+                "stalled",
+                f"the residual stalls at {self.res:.3g} > tol {self.tol:g} after {it} iteration(s): the "
+                f"Newton step ({step_norm:.2g}) is below rounding, so the return map's own noise "
+                f"(rounding, and the integrator's steps: {self.p.integrator_label}) limits "
+                f"the residual: raise tol",
+                it,
+            )
         x_now, params_now = self.eq.unpack(self.z)
-        return self.fail("diverged",
-                         f"iteration {it + 1}: no Newton step (lengths 1 .. 1/{2 ** self.max_backtracks}) reduces the "
-                         f"residual {self.res:.3g}; there may be no periodic orbit near the last iterate "
-                         f"{self.rmap.show_state(x_now)}" + (f" with parameters {params_now}" if self.p.free else ""),
-                         it)
+        return self.fail(
+            "diverged",
+            f"iteration {it + 1}: no Newton step (lengths 1 .. 1/{2**self.max_backtracks}) reduces the "
+            f"residual {self.res:.3g}; there may be no periodic orbit near the last iterate "
+            f"{self.rmap.show_state(x_now)}" + (f" with parameters {params_now}" if self.p.free else ""),
+            it,
+        )
 
     def converged(self, it: int) -> OrbitResult:
         """The converged result with the Jacobian and multipliers at the fixed point."""
         ret = self.ret
         assert ret is not None
         try:
-            DP = jacobian_saltation(self.p, ret) if self.method == "saltation" else \
-                jacobian_fd(self.p, ret.x_start, ret.parameters, self.fd_step, rmap=self.rmap)
+            DP = (
+                jacobian_saltation(self.p, ret)
+                if self.method == "saltation"
+                else jacobian_fd(self.p, ret.x_start, ret.parameters, self.fd_step, rmap=self.rmap)
+            )
         except OrbitError as exc:
             return self.fail(exc.status, f"converged (residual {self.res:.3g}) but the Jacobian failed: {exc}", it)
-        result = self._result("converged", f"residual {self.res:.3g} <= tol {self.tol:g} after {it} iteration(s)",
-                              ret.x_start, ret.parameters, it)
+        result = self._result(
+            "converged",
+            f"residual {self.res:.3g} <= tol {self.tol:g} after {it} iteration(s)",
+            ret.x_start,
+            ret.parameters,
+            it,
+        )
         return _add_multipliers(result, self.p, ret, DP)
 
     def fail(self, status: str, message: str, iterations: int) -> OrbitResult:
@@ -435,14 +481,26 @@ class _NewtonSearch:
         x_now, params_now = self.eq.unpack(self.z)
         return self._result(status, message, x_now, params_now, iterations)
 
-    def _result(self, status: str, message: str, x: np.ndarray, params: Mapping[str, float],
-                iterations: int) -> OrbitResult:
+    def _result(
+        self, status: str, message: str, x: np.ndarray, params: Mapping[str, float], iterations: int
+    ) -> OrbitResult:
         p = self.p
-        result = OrbitResult(status=status, message=message, mode=p.bound.mode, state_names=p.names,
-                             fixed_point=np.asarray(x, dtype=float).copy(), parameters=dict(params), residual=self.res,
-                             iterations=iterations, history=list(self.history),
-                             trivial_multipliers=p.trivial_multipliers, evaluations=self.rmap.evaluations,
-                             jacobian_method=self.method, section=p.section.label, free=tuple(p.free))
+        result = OrbitResult(
+            status=status,
+            message=message,
+            mode=p.bound.mode,
+            state_names=p.names,
+            fixed_point=np.asarray(x, dtype=float).copy(),
+            parameters=dict(params),
+            residual=self.res,
+            iterations=iterations,
+            history=list(self.history),
+            trivial_multipliers=p.trivial_multipliers,
+            evaluations=self.rmap.evaluations,
+            jacobian_method=self.method,
+            section=p.section.label,
+            free=tuple(p.free),
+        )
         if self.ret is not None:
             result.period = self.ret.flow_time
             result.return_time = self.ret.time

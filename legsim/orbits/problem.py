@@ -125,9 +125,12 @@ class OrbitProblem:
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
                 raise OrbitError(f"orbit problem: {name} must be a finite number > 0, got {value!r}", key=name)
         if self.rtol is None and self.atol is None and self.t_max / self.h > MAX_STEPS_PER_RETURN:
-            raise OrbitError(f"orbit problem: t_max / h = {self.t_max:g} s / {self.h:g} s = {self.t_max / self.h:.3g} "
-                             f"steps per return, more than the limit {MAX_STEPS_PER_RETURN:.0e}: raise h or lower "
-                             f"t_max", key="t_max")
+            raise OrbitError(
+                f"orbit problem: t_max / h = {self.t_max:g} s / {self.h:g} s = {self.t_max / self.h:.3g} "
+                f"steps per return, more than the limit {MAX_STEPS_PER_RETURN:.0e}: raise h or lower "
+                f"t_max",
+                key="t_max",
+            )
         self.tableau = get_method(self.method)
         self._check_integrator()
         if not isinstance(self.section, Section):
@@ -137,17 +140,24 @@ class OrbitProblem:
             if isinstance(value, bool) or not isinstance(value, int) or value < low:
                 raise OrbitError(f"orbit problem: {name} must be an integer >= {low}, got {value!r}", key=name)
         if self.section.kind == "crossing" and self.min_transitions == 0 and self.min_time <= 0:
-            raise OrbitError("orbit problem: a crossing section with min_transitions = 0 needs min_time > 0, "
-                             "or the start itself would count as the return", key="min_transitions")
+            raise OrbitError(
+                "orbit problem: a crossing section with min_transitions = 0 needs min_time > 0, "
+                "or the start itself would count as the return",
+                key="min_transitions",
+            )
 
     def _check_integrator(self) -> None:
         """Refuse, before any simulation, what ``simulate`` would refuse at the first return: a
         tolerance without an embedded pair, a landing the method cannot do, a halving budget
         below 1. The ``OrbitError``'s key names the setting."""
-        checks = (("rtol" if self.rtol is not None else "atol",
-                   lambda: step_size_rule(self.tableau, self.h, self.rtol, self.atol)),
-                  ("landing", lambda: landing_rule(self.landing, self.tableau)),
-                  ("max_halvings", lambda: count("max_halvings", self.max_halvings, 1)))
+        checks = (
+            (
+                "rtol" if self.rtol is not None else "atol",
+                lambda: step_size_rule(self.tableau, self.h, self.rtol, self.atol),
+            ),
+            ("landing", lambda: landing_rule(self.landing, self.tableau)),
+            ("max_halvings", lambda: count("max_halvings", self.max_halvings, 1)),
+        )
         rules = []
         for key, check in checks:
             try:
@@ -163,9 +173,15 @@ class OrbitProblem:
         ``integrator``): method, h (s, the largest step under error control), eps (guard
         units), rtol and atol as ``simulate`` uses them (one given alone sets the other; both
         None for fixed steps), landing, max_halvings."""
-        return {"method": self.tableau.name, "h": float(self.h), "eps": float(self.eps),
-                "rtol": self._tolerances[0], "atol": self._tolerances[1],
-                "landing": self.landing, "max_halvings": self.max_halvings}
+        return {
+            "method": self.tableau.name,
+            "h": float(self.h),
+            "eps": float(self.eps),
+            "rtol": self._tolerances[0],
+            "atol": self._tolerances[1],
+            "landing": self.landing,
+            "max_halvings": self.max_halvings,
+        }
 
     @property
     def integrator_label(self) -> str:
@@ -180,15 +196,22 @@ class OrbitProblem:
         self.system, self.control = _system_and_control(self.system, self.control)
         self.is_factory = not isinstance(self.system, HybridSystem)
         if self.is_factory and not callable(self.system):
-            raise OrbitError(f"orbit problem: system must be a HybridSystem, a Model or a factory "
-                             f"system(parameters), got {type(self.system).__name__}")
+            raise OrbitError(
+                f"orbit problem: system must be a HybridSystem, a Model or a factory "
+                f"system(parameters), got {type(self.system).__name__}"
+            )
         missing = [p for p in self.free if p not in self.parameters]
         if missing:
-            raise OrbitError(f"orbit problem: free parameter(s) {missing} need initial values in parameters "
-                             f"(given: {sorted(self.parameters)})", key="free")
+            raise OrbitError(
+                f"orbit problem: free parameter(s) {missing} need initial values in parameters "
+                f"(given: {sorted(self.parameters)})",
+                key="free",
+            )
         if self.free and not self.is_factory:
-            raise OrbitError("orbit problem: free parameters need a system factory system(parameters) -> "
-                             "HybridSystem, not a fixed HybridSystem")
+            raise OrbitError(
+                "orbit problem: free parameters need a system factory system(parameters) -> "
+                "HybridSystem, not a fixed HybridSystem"
+            )
 
     def _bind(self, system: HybridSystem) -> None:
         self.bound = bind_section(self.section, system)
@@ -196,8 +219,11 @@ class OrbitProblem:
         for label, group in (("fixed", self.fixed), ("cyclic", self.cyclic)):
             unknown = [c for c in group if c not in names]
             if unknown:
-                raise OrbitError(f"orbit problem: {label} coordinate(s) {unknown} are not coordinates of mode "
-                                 f"'{self.bound.mode}' {list(names)}", key=label)
+                raise OrbitError(
+                    f"orbit problem: {label} coordinate(s) {unknown} are not coordinates of mode "
+                    f"'{self.bound.mode}' {list(names)}",
+                    key=label,
+                )
         self.names = names
         self.dim = len(names)
         self.cyclic_idx = [names.index(c) for c in self.cyclic]
@@ -205,29 +231,41 @@ class OrbitProblem:
         if self.section.coordinate is not None:
             held.add(self.section.coordinate)
         self.unknown_idx = [i for i, c in enumerate(names) if c not in held]
-        self.periodic_idx = [i for i, c in enumerate(names) if i not in self.cyclic_idx
-                             and c != self.section.coordinate]
+        self.periodic_idx = [
+            i for i, c in enumerate(names) if i not in self.cyclic_idx and c != self.section.coordinate
+        ]
 
     def _check_equations(self, system: HybridSystem) -> None:
         n_rows = len(self.periodic_idx) + self.extra_rows
         n_unknowns = len(self.unknown_idx) + len(self.free)
         if n_unknowns == 0:
-            raise OrbitError("orbit problem: nothing to solve for: every coordinate is fixed and no parameter is free",
-                             key="fixed")
+            raise OrbitError(
+                "orbit problem: nothing to solve for: every coordinate is fixed and no parameter is free", key="fixed"
+            )
         if n_rows < n_unknowns:
-            raise OrbitError(f"orbit problem: {n_unknowns} unknowns ({self.unknown_names}) but only {n_rows} "
-                             f"equations: fix coordinates or drop free parameters", key="free")
+            raise OrbitError(
+                f"orbit problem: {n_unknowns} unknowns ({self.unknown_names}) but only {n_rows} "
+                f"equations: fix coordinates or drop free parameters",
+                key="free",
+            )
         if self.energy is not None and system.energy is None:
-            raise OrbitError(f"orbit problem: an energy level is asked for but {system.name} defines no energy",
-                             key="energy")
+            raise OrbitError(
+                f"orbit problem: an energy level is asked for but {system.name} defines no energy", key="energy"
+            )
         # Multipliers live on the section without the cyclic coordinates: n - 1 - #cyclic of them.
         n_multipliers = self.dim - 1 - len(self.cyclic_idx)
         trivial = self.trivial_multipliers
-        if isinstance(trivial, bool) or not isinstance(trivial, int) or trivial < 0 \
-                or (trivial > 0 and trivial >= n_multipliers):
-            raise OrbitError(f"orbit problem: trivial_multipliers = {trivial!r} must be an integer >= 0 that leaves "
-                             f"at least one of the section's {n_multipliers} multiplier(s) to judge stability by",
-                             key="trivial_multipliers")
+        if (
+            isinstance(trivial, bool)
+            or not isinstance(trivial, int)
+            or trivial < 0
+            or (trivial > 0 and trivial >= n_multipliers)
+        ):
+            raise OrbitError(
+                f"orbit problem: trivial_multipliers = {trivial!r} must be an integer >= 0 that leaves "
+                f"at least one of the section's {n_multipliers} multiplier(s) to judge stability by",
+                key="trivial_multipliers",
+            )
         for item in self.constraints:
             if not (isinstance(item, tuple) and len(item) == 2 and callable(item[1])):
                 raise OrbitError(f"orbit problem: constraints must be (name, c(x, parameters)) pairs, got {item!r}")
@@ -277,12 +315,16 @@ class OrbitProblem:
         except LegsimError as exc:
             raise OrbitError(f"orbit problem: no system for parameters {params}: {exc}", "simulation_failed") from exc
         except Exception as exc:
-            raise OrbitError(f"orbit problem: building the system with parameters {params} failed: "
-                             f"{type(exc).__name__}: {exc}", "simulation_failed") from exc
+            raise OrbitError(
+                f"orbit problem: building the system with parameters {params} failed: {type(exc).__name__}: {exc}",
+                "simulation_failed",
+            ) from exc
         system, control = _system_and_control(built, self.control)
         if not isinstance(system, HybridSystem):
-            raise OrbitError(f"orbit problem: the system factory returned {type(built).__name__}, expected a "
-                             f"HybridSystem, (HybridSystem, control) or a builders.Model")
+            raise OrbitError(
+                f"orbit problem: the system factory returned {type(built).__name__}, expected a "
+                f"HybridSystem, (HybridSystem, control) or a builders.Model"
+            )
         return system, control
 
     def state_vector(self, guess: Mapping[str, float] | Sequence[float] | np.ndarray) -> np.ndarray:
@@ -298,8 +340,10 @@ class OrbitProblem:
     def _guess_from_table(self, guess: Mapping[str, float]) -> np.ndarray:
         unknown = sorted(set(guess) - set(self.names))
         if unknown:
-            raise OrbitError(f"initial guess: unknown coordinate(s) {unknown}; coordinates of mode "
-                             f"'{self.bound.mode}': {list(self.names)}")
+            raise OrbitError(
+                f"initial guess: unknown coordinate(s) {unknown}; coordinates of mode "
+                f"'{self.bound.mode}': {list(self.names)}"
+            )
         missing = [c for c in self.names if c not in guess and c != self.section.coordinate]
         if missing:
             raise OrbitError(f"initial guess: missing coordinate(s) {missing} of mode '{self.bound.mode}'")
@@ -308,8 +352,10 @@ class OrbitProblem:
     def _guess_from_vector(self, guess: Sequence[float] | np.ndarray) -> np.ndarray:
         x = np.asarray(guess, dtype=float).reshape(-1)
         if x.shape != (self.dim,):
-            raise OrbitError(f"initial guess has shape {np.shape(guess)}, expected ({self.dim},) with "
-                             f"coordinates {list(self.names)} of mode '{self.bound.mode}'")
+            raise OrbitError(
+                f"initial guess has shape {np.shape(guess)}, expected ({self.dim},) with "
+                f"coordinates {list(self.names)} of mode '{self.bound.mode}'"
+            )
         return x
 
 

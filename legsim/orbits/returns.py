@@ -102,14 +102,18 @@ class ReturnMap:
                 self._hint = found.time
                 return found
             if ex.status != "finished":
-                raise OrbitError(f"return map: the simulation from {self.show_state(x)} stopped with status "
-                                 f"'{ex.status}' before returning to the section {p.section.label}: {ex.message}",
-                                 "simulation_failed")
+                raise OrbitError(
+                    f"return map: the simulation from {self.show_state(x)} stopped with status "
+                    f"'{ex.status}' before returning to the section {p.section.label}: {ex.message}",
+                    "simulation_failed",
+                )
             seen = [tr.name for tr in ex.transitions]
             last_error = OrbitError(
                 f"no return to the section {p.section.label} within t_max = {horizon:g} s from "
                 f"{self.show_state(x)} (transitions taken: {_abbreviate(seen)}; final mode '{ex.final_mode}', "
-                f"state {np.round(ex.final_state, 6).tolist()})", "no_return")
+                f"state {np.round(ex.final_state, 6).tolist()})",
+                "no_return",
+            )
         assert last_error is not None
         raise last_error
 
@@ -129,12 +133,28 @@ class ReturnMap:
         p = self.problem
         self.evaluations += 1
         try:
-            return simulate(system, x, p.bound.mode, horizon, p.h, p.eps, p.tableau, control,
-                            max_transitions=p.max_transitions, max_halvings=p.max_halvings, rtol=p.rtol,
-                            atol=p.atol, landing=p.landing, progress=p.progress)
+            return simulate(
+                system,
+                x,
+                p.bound.mode,
+                horizon,
+                p.h,
+                p.eps,
+                p.tableau,
+                control,
+                max_transitions=p.max_transitions,
+                max_halvings=p.max_halvings,
+                rtol=p.rtol,
+                atol=p.atol,
+                landing=p.landing,
+                progress=p.progress,
+            )
         except LegsimError as exc:
-            raise OrbitError(f"return map: the simulation from {self.show_state(x)} over {horizon:g} s failed before "
-                             f"returning to the section {p.section.label}: {exc}", "simulation_failed") from exc
+            raise OrbitError(
+                f"return map: the simulation from {self.show_state(x)} over {horizon:g} s failed before "
+                f"returning to the section {p.section.label}: {exc}",
+                "simulation_failed",
+            ) from exc
 
     def show_state(self, x: np.ndarray) -> str:
         """A state of the section's mode as ``{name=value, ...}`` for messages."""
@@ -153,8 +173,9 @@ class ReturnMap:
             if rec.name == p.section.transition:
                 count += 1
                 if count == p.returns:
-                    return self._make_return(ex, x0, rec.state_after.copy(), rec.exit_time, k,
-                                             ex.transitions[:k + 1], params)
+                    return self._make_return(
+                        ex, x0, rec.state_after.copy(), rec.exit_time, k, ex.transitions[: k + 1], params
+                    )
         return None
 
     def _locate_crossing(self, ex: Execution, x0: np.ndarray, params: dict[str, float]) -> Return | None:
@@ -180,13 +201,30 @@ class ReturnMap:
                 hit = first_crossing(seg, bound.s, direction, last_t + p.min_time)
         return None
 
-    def _make_return(self, ex: Execution, x0: np.ndarray, x_end: np.ndarray, t_ret: float, k: int,
-                     records: Sequence[TransitionRecord], params: dict[str, float]) -> Return:
+    def _make_return(
+        self,
+        ex: Execution,
+        x0: np.ndarray,
+        x_end: np.ndarray,
+        t_ret: float,
+        k: int,
+        records: Sequence[TransitionRecord],
+        params: dict[str, float],
+    ) -> Return:
         p = self.problem
         in_strips = sum(s.exit_time - s.time for s in ex.strips if s.exit_time <= t_ret + 1e-12 * max(1.0, t_ret))
-        ret = Return(x_start=x0.copy(), x_end=np.asarray(x_end, dtype=float), mode=p.bound.mode,
-                     time=t_ret - ex.t0, flow_time=t_ret - ex.t0 - in_strips, transitions=list(records),
-                     execution=ex, t_return=t_ret, segment=k, parameters=dict(params))
+        ret = Return(
+            x_start=x0.copy(),
+            x_end=np.asarray(x_end, dtype=float),
+            mode=p.bound.mode,
+            time=t_ret - ex.t0,
+            flow_time=t_ret - ex.t0 - in_strips,
+            transitions=list(records),
+            execution=ex,
+            t_return=t_ret,
+            segment=k,
+            parameters=dict(params),
+        )
         if p.step_length is not None:
             ret.step_length = float(p.step_length(ret))
         elif p.cyclic_idx:
@@ -195,8 +233,9 @@ class ReturnMap:
         return ret
 
 
-def first_crossing(seg: Segment, s: Callable[[np.ndarray], float], direction: int,
-                   not_before: float) -> tuple[float, np.ndarray] | None:
+def first_crossing(
+    seg: Segment, s: Callable[[np.ndarray], float], direction: int, not_before: float
+) -> tuple[float, np.ndarray] | None:
     """First crossing (t, x) of s = 0 in ``direction`` on a segment's dense output after
     ``not_before`` (s), or None."""
     start = max(int(np.searchsorted(seg.t, not_before, side="right")) - 1, 0)
@@ -217,6 +256,7 @@ def first_crossing(seg: Segment, s: Callable[[np.ndarray], float], direction: in
 def _crossing_time(seg: Segment, s: Callable[[np.ndarray], float], t0: float, t1: float) -> float:
     """The root of s along the interpolant between two stored points with a sign change; the
     interpolant's ends are the stored points, so the bracket holds."""
+
     def along(t: float) -> float:
         return s(seg.interpolate(np.array([t]))[0])
 
@@ -231,7 +271,8 @@ def _abbreviate(names: list[str], limit: int = 8) -> str:
     return ", ".join(names[:limit]) + f", ... ({len(names)} in all)"
 
 
-def return_map(problem: OrbitProblem, x: Sequence[float] | np.ndarray,
-               parameters: Mapping[str, float] | None = None) -> Return:
+def return_map(
+    problem: OrbitProblem, x: Sequence[float] | np.ndarray, parameters: Mapping[str, float] | None = None
+) -> Return:
     """One evaluation of ``problem``'s return map from the state ``x`` (section's mode)."""
     return ReturnMap(problem)(problem.state_vector(x), parameters)

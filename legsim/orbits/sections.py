@@ -51,14 +51,21 @@ class Section:
     label: str = ""
 
     @classmethod
-    def crossing(cls, mode: str, function: Callable[[np.ndarray], float], direction: int = -1,
-                 gradient: Callable[[np.ndarray], np.ndarray] | None = None, label: str = "") -> Section:
+    def crossing(
+        cls,
+        mode: str,
+        function: Callable[[np.ndarray], float],
+        direction: int = -1,
+        gradient: Callable[[np.ndarray], np.ndarray] | None = None,
+        label: str = "",
+    ) -> Section:
         """The level set ``function(x) = 0`` in ``mode``, crossed in ``direction`` (-1: s goes
         from > 0 to <= 0; +1: from < 0 to >= 0; 0: either)."""
         if not callable(function):
             raise OrbitError("Section.crossing: function must be callable s(x) -> float")
-        return cls(mode, function, _check_direction(direction), gradient, None, None, 0.0,
-                   label or f"s(x) = 0 in {mode}")
+        return cls(
+            mode, function, _check_direction(direction), gradient, None, None, 0.0, label or f"s(x) = 0 in {mode}"
+        )
 
     @classmethod
     def level(cls, mode: str, coordinate: str, value: float = 0.0, direction: int = -1) -> Section:
@@ -71,8 +78,9 @@ class Section:
             raise OrbitError(f"Section.level: value must be finite, got {value}")
         direction = _check_direction(direction)
         arrow = {-1: "decreasing", 1: "increasing", 0: "either way"}[direction]
-        return cls(mode, None, direction, None, None, coordinate, value,
-                   f"{coordinate} = {value:g} ({arrow}) in {mode}")
+        return cls(
+            mode, None, direction, None, None, coordinate, value, f"{coordinate} = {value:g} ({arrow}) in {mode}"
+        )
 
     @classmethod
     def after(cls, transition: str) -> Section:
@@ -96,8 +104,9 @@ def _check_direction(direction: Any) -> int:
     if direction in ("either", "both"):
         return 0
     if isinstance(direction, bool) or direction not in (-1, 0, 1):
-        raise OrbitError(f"section direction must be -1, 0, +1 (or 'decreasing', 'increasing', 'either'), "
-                         f"got {direction!r}")
+        raise OrbitError(
+            f"section direction must be -1, 0, +1 (or 'decreasing', 'increasing', 'either'), got {direction!r}"
+        )
     return int(direction)
 
 
@@ -143,13 +152,16 @@ def bind_section(section: Section, system: HybridSystem) -> BoundSection:
     try:
         names = tuple(system.state_names(section.mode))  # type: ignore[arg-type]
     except LegsimError:
-        raise OrbitError(f"section {section.label}: unknown mode {section.mode!r}; "
-                         f"modes: {sorted(system.modes)}") from None
+        raise OrbitError(
+            f"section {section.label}: unknown mode {section.mode!r}; modes: {sorted(system.modes)}"
+        ) from None
     index = None
     if section.coordinate is not None:
         if section.coordinate not in names:
-            raise OrbitError(f"section {section.label}: mode '{section.mode}' has no coordinate "
-                             f"'{section.coordinate}'; coordinates: {list(names)}")
+            raise OrbitError(
+                f"section {section.label}: mode '{section.mode}' has no coordinate "
+                f"'{section.coordinate}'; coordinates: {list(names)}"
+            )
         index = names.index(section.coordinate)
     return BoundSection(section, section.mode, names, index)  # type: ignore[arg-type]
 
@@ -159,11 +171,14 @@ def _bind_after(section: Section, system: HybridSystem) -> BoundSection:
     matches = [tr for tr in system.transitions if tr.name == section.transition]
     if not matches:
         known = sorted({tr.name for tr in system.transitions})
-        raise OrbitError(f"section after '{section.transition}': no transition of that name in "
-                         f"{system.name}; transitions: {known}")
+        raise OrbitError(
+            f"section after '{section.transition}': no transition of that name in {system.name}; transitions: {known}"
+        )
     targets = sorted({tr.target for tr in matches})
     if len(targets) > 1:
-        raise OrbitError(f"section after '{section.transition}': transitions of that name lead to "
-                         f"several modes {targets}; name them apart")
+        raise OrbitError(
+            f"section after '{section.transition}': transitions of that name lead to "
+            f"several modes {targets}; name them apart"
+        )
     mode = targets[0]
     return BoundSection(replace(section, mode=mode), mode, tuple(system.state_names(mode)), None)

@@ -30,7 +30,20 @@ from .trace import (
 )
 
 __all__ = [
-    "DEFAULT_FPS", "DEFAULT_MAX_FRAMES", "FORMAT", "Frames", "RecordingError", "Trace", "execution_trace",
-    "frame_times", "geometry_frames", "read_rrd", "run_summary", "scenery_only", "trace_series", "write_atomic",
-    "write_bytes_atomic", "write_rrd",
+    "DEFAULT_FPS",
+    "DEFAULT_MAX_FRAMES",
+    "FORMAT",
+    "Frames",
+    "RecordingError",
+    "Trace",
+    "execution_trace",
+    "frame_times",
+    "geometry_frames",
+    "read_rrd",
+    "run_summary",
+    "scenery_only",
+    "trace_series",
+    "write_atomic",
+    "write_bytes_atomic",
+    "write_rrd",
 ]

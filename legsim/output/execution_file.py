@@ -46,11 +46,20 @@ FORMAT = "legsim-execution-1"
 
 #: name -> (dtype kind, shape with -1 for "any length").
 ARRAYS: dict[str, tuple[str, tuple[int, ...]]] = {
-    "seg_mode": ("i", (-1,)), "seg_len": ("i", (-1,)), "seg_dim": ("i", (-1,)),
-    "seg_t": ("f", (-1,)), "seg_x": ("f", (-1,)), "seg_dx": ("f", (-1,)),
-    "strip_mode": ("i", (-1,)), "strip_times": ("f", (-1, 4)), "strip_state": ("f", (-1,)),
+    "seg_mode": ("i", (-1,)),
+    "seg_len": ("i", (-1,)),
+    "seg_dim": ("i", (-1,)),
+    "seg_t": ("f", (-1,)),
+    "seg_x": ("f", (-1,)),
+    "seg_dx": ("f", (-1,)),
+    "strip_mode": ("i", (-1,)),
+    "strip_times": ("f", (-1, 4)),
+    "strip_state": ("f", (-1,)),
     "strip_dim": ("i", (-1,)),
-    "tr_edge": ("i", (-1, 3)), "tr_times": ("f", (-1, 4)), "tr_before": ("f", (-1,)), "tr_after": ("f", (-1,)),
+    "tr_edge": ("i", (-1, 3)),
+    "tr_times": ("f", (-1, 4)),
+    "tr_before": ("f", (-1,)),
+    "tr_after": ("f", (-1,)),
     "tr_dims": ("i", (-1, 2)),
     "meta": ("U", ()),
 }
@@ -61,17 +70,38 @@ ARRAYS: dict[str, tuple[str, tuple[int, ...]]] = {
 MAX_INFLATION = 256
 MIN_LOAD_BYTES = 64 << 20
 
-META_KEYS = {"format": (str,), "modes": (list,), "strip_names": (list,), "tr_names": (list,), "status": (str,),
-             "message": (str,), "t0": (int, float), "t_end": (int, float), "t_final": (int, float),
-             "counters": (dict,), "settings": (dict,), "state_names": (dict,), "system_name": (str,),
-             "final_in_strip": (bool,)}
+META_KEYS = {
+    "format": (str,),
+    "modes": (list,),
+    "strip_names": (list,),
+    "tr_names": (list,),
+    "status": (str,),
+    "message": (str,),
+    "t0": (int, float),
+    "t_end": (int, float),
+    "t_final": (int, float),
+    "counters": (dict,),
+    "settings": (dict,),
+    "state_names": (dict,),
+    "system_name": (str,),
+    "final_in_strip": (bool,),
+}
 #: Keys of files written since units and warnings were recorded; older files lack them.
 OPTIONAL_META_KEYS = {"state_units": (dict,), "warnings": (list,)}
 WARNING_KEYS = {"kind": (str,), "message": (str,), "time": (int, float)}
 
 #: The integrator's counters and settings that summaries print as numbers (or names).
-COUNTERS = ("steps", "halvings", "field_evals", "guard_evals", "reset_evals", "strip_time", "wall_time_s",
-            "error_rejections", "transitions")
+COUNTERS = (
+    "steps",
+    "halvings",
+    "field_evals",
+    "guard_evals",
+    "reset_evals",
+    "strip_time",
+    "wall_time_s",
+    "error_rejections",
+    "transitions",
+)
 SETTINGS = {"h": (int, float, type(None)), "eps": (int, float, type(None)), "method": (str, type(None))}
 
 
@@ -83,18 +113,29 @@ class DamagedFile(ValueError):
 def save_execution(execution: Execution, path: str | os.PathLike[str]) -> Path:
     """Write ``execution`` to the ``.npz`` file ``path`` completely or not at all (OutputError
     naming the file when it cannot be written, or has another suffix)."""
-    modes = sorted({s.mode for s in execution.segments} | {s.mode for s in execution.strips}
-                   | {tr.target for tr in execution.transitions})
+    modes = sorted(
+        {s.mode for s in execution.segments}
+        | {s.mode for s in execution.strips}
+        | {tr.target for tr in execution.transitions}
+    )
     payload = _arrays(execution, {m: i for i, m in enumerate(modes)})
     meta = {
-        "format": FORMAT, "modes": modes, "strip_names": [s.name for s in execution.strips],
-        "tr_names": [t.name for t in execution.transitions], "status": execution.status,
-        "message": execution.message, "t0": execution.t0, "t_end": execution.t_end, "t_final": execution.t_final,
-        "counters": execution.counters, "settings": _jsonable(execution.settings),
+        "format": FORMAT,
+        "modes": modes,
+        "strip_names": [s.name for s in execution.strips],
+        "tr_names": [t.name for t in execution.transitions],
+        "status": execution.status,
+        "message": execution.message,
+        "t0": execution.t0,
+        "t_end": execution.t_end,
+        "t_final": execution.t_final,
+        "counters": execution.counters,
+        "settings": _jsonable(execution.settings),
         "state_names": {k: list(v) for k, v in execution.state_names.items()},
         "state_units": {k: list(v) for k, v in execution.state_units.items()},
         "warnings": [finite_or_none(w.as_dict()) for w in execution.warnings],
-        "system_name": execution.system_name, "final_in_strip": execution.final_in_strip,
+        "system_name": execution.system_name,
+        "final_in_strip": execution.final_in_strip,
     }
     payload["meta"] = np.array(json.dumps(_jsonable(meta)))
 
@@ -190,9 +231,11 @@ def _read_arrays(path: Path, limit: int) -> dict[str, np.ndarray]:
             raise DamagedFile(f"arrays missing {missing}" if missing else f"unexpected arrays {extra}")
         declared = sum(info.file_size for info in members.values())
         if declared > limit:
-            raise DamagedFile(f"its arrays would take {declared} bytes decompressed, more than the {limit} allowed "
-                              f"for a file of {path.stat().st_size} bytes (Execution.load(path, max_bytes=...) "
-                              f"raises the bound)")
+            raise DamagedFile(
+                f"its arrays would take {declared} bytes decompressed, more than the {limit} allowed "
+                f"for a file of {path.stat().st_size} bytes (Execution.load(path, max_bytes=...) "
+                f"raises the bound)"
+            )
         return {name: _read_member(archive, info, name) for name, info in members.items()}
 
 
@@ -271,8 +314,9 @@ def _meta(text: str) -> dict[str, Any]:
     for key in ("t0", "t_end", "t_final"):
         meta[key] = float(meta[key])
     if not (meta["t0"] <= meta["t_end"] <= meta["t_final"]):
-        raise DamagedFile(f"meta times t0 = {meta['t0']}, t_end = {meta['t_end']}, t_final = {meta['t_final']} "
-                          f"are not in order")
+        raise DamagedFile(
+            f"meta times t0 = {meta['t0']}, t_end = {meta['t_end']}, t_final = {meta['t_final']} are not in order"
+        )
     return meta
 
 
@@ -286,13 +330,23 @@ def _assemble(arrays: dict[str, np.ndarray], meta: dict[str, Any]) -> Execution:
     strip_list = _strips(arrays, meta, dims, finite)
     trs = _transitions(arrays, meta, dims, finite)
     _check_pieces(segs, strip_list, trs, meta)
-    return Execution(status=meta["status"], message=meta["message"], segments=segs, strips=strip_list,
-                     transitions=trs, t0=meta["t0"], t_end=meta["t_end"], t_final=meta["t_final"],
-                     counters=meta["counters"], settings=meta["settings"],
-                     state_names={k: tuple(v) for k, v in meta["state_names"].items()},
-                     state_units={k: tuple(v) for k, v in meta.get("state_units", {}).items()},
-                     warnings=[_warning(w) for w in meta.get("warnings", [])],
-                     system_name=meta["system_name"], final_in_strip=meta["final_in_strip"])
+    return Execution(
+        status=meta["status"],
+        message=meta["message"],
+        segments=segs,
+        strips=strip_list,
+        transitions=trs,
+        t0=meta["t0"],
+        t_end=meta["t_end"],
+        t_final=meta["t_final"],
+        counters=meta["counters"],
+        settings=meta["settings"],
+        state_names={k: tuple(v) for k, v in meta["state_names"].items()},
+        state_units={k: tuple(v) for k, v in meta.get("state_units", {}).items()},
+        warnings=[_warning(w) for w in meta.get("warnings", [])],
+        system_name=meta["system_name"],
+        final_in_strip=meta["final_in_strip"],
+    )
 
 
 def _warning(doc: dict[str, Any]) -> Any:
@@ -330,8 +384,10 @@ def _rows(name: str, got: int, want: int, of: str) -> None:
 def _pieces_of(flat: np.ndarray, sizes: np.ndarray, name: str, finite: bool) -> list[np.ndarray]:
     """``flat`` split into consecutive pieces of ``sizes`` (which must use all of it)."""
     if np.any(sizes > len(flat)) or int(sizes.sum()) != len(flat):
-        raise DamagedFile(f"{name} holds {len(flat)} values, but the counts that split it add up to "
-                          f"{int(sizes.sum()) if np.all(sizes <= len(flat)) else 'more'}")
+        raise DamagedFile(
+            f"{name} holds {len(flat)} values, but the counts that split it add up to "
+            f"{int(sizes.sum()) if np.all(sizes <= len(flat)) else 'more'}"
+        )
     if finite and not np.all(np.isfinite(flat)):
         raise DamagedFile(f"{name} holds values that are not finite (only a run that stopped non_finite may)")
     return np.split(flat, np.cumsum(sizes)[:-1]) if len(sizes) else []
@@ -356,8 +412,9 @@ def _segments(arrays: dict[str, np.ndarray], modes: list[str], dims: list[int], 
     wrong = np.flatnonzero(seg_dims != np.asarray(dims)[index])
     if wrong.size:
         k = wrong[0]
-        raise DamagedFile(f"seg_dim[{k}] = {seg_dims[k]}, but mode '{modes[index[k]]}' has {dims[index[k]]} "
-                          f"coordinates")
+        raise DamagedFile(
+            f"seg_dim[{k}] = {seg_dims[k]}, but mode '{modes[index[k]]}' has {dims[index[k]]} coordinates"
+        )
     _finite_times(arrays["seg_t"], "seg_t")
     times = _pieces_of(arrays["seg_t"], lengths, "seg_t", True)
     steps = np.diff(arrays["seg_t"])
@@ -368,8 +425,10 @@ def _segments(arrays: dict[str, np.ndarray], modes: list[str], dims: list[int], 
     sizes = lengths * seg_dims
     xs = _pieces_of(arrays["seg_x"], sizes, "seg_x", finite)
     dxs = _pieces_of(arrays["seg_dx"], sizes, "seg_dx", finite)
-    return [Segment(modes[m], t, x.reshape(len(t), d), dx.reshape(len(t), d))
-            for m, t, x, dx, d in zip(index, times, xs, dxs, seg_dims, strict=True)]
+    return [
+        Segment(modes[m], t, x.reshape(len(t), d), dx.reshape(len(t), d))
+        for m, t, x, dx, d in zip(index, times, xs, dxs, seg_dims, strict=True)
+    ]
 
 
 def _strips(arrays: dict[str, np.ndarray], meta: dict[str, Any], dims: list[int], finite: bool) -> list:
@@ -387,8 +446,10 @@ def _strips(arrays: dict[str, np.ndarray], meta: dict[str, Any], dims: list[int]
     if np.any(times[:, 3] < 0) or np.any(times[:, 1] < times[:, 0]):
         raise DamagedFile("strip_times has a negative depth or an exit before its entry")
     states = _pieces_of(arrays["strip_state"], arrays["strip_dim"], "strip_state", finite)
-    return [Strip(modes[m], name, float(t0), float(t1), state, float(landing), float(depth))
-            for m, name, (t0, t1, landing, depth), state in zip(index, meta["strip_names"], times, states, strict=True)]
+    return [
+        Strip(modes[m], name, float(t0), float(t1), state, float(landing), float(depth))
+        for m, name, (t0, t1, landing, depth), state in zip(index, meta["strip_names"], times, states, strict=True)
+    ]
 
 
 def _transitions(arrays: dict[str, np.ndarray], meta: dict[str, Any], dims: list[int], finite: bool) -> list:
@@ -410,9 +471,12 @@ def _transitions(arrays: dict[str, np.ndarray], meta: dict[str, Any], dims: list
         raise DamagedFile("tr_times has a negative depth or times out of order (time <= landing <= exit)")
     before = _pieces_of(arrays["tr_before"], arrays["tr_dims"][:, 0], "tr_before", finite)
     after = _pieces_of(arrays["tr_after"], arrays["tr_dims"][:, 1], "tr_after", finite)
-    return [TransitionRecord(name, modes[s], modes[g], int(i), float(tm), float(tl), float(te), b, a, float(depth))
-            for name, (s, g, i), (tm, tl, te, depth), b, a
-            in zip(meta["tr_names"], edges, times, before, after, strict=True)]
+    return [
+        TransitionRecord(name, modes[s], modes[g], int(i), float(tm), float(tl), float(te), b, a, float(depth))
+        for name, (s, g, i), (tm, tl, te, depth), b, a in zip(
+            meta["tr_names"], edges, times, before, after, strict=True
+        )
+    ]
 
 
 def _check_pieces(segs: list, strips: list, trs: list, meta: dict[str, Any]) -> None:
@@ -420,22 +484,28 @@ def _check_pieces(segs: list, strips: list, trs: list, meta: dict[str, Any]) -> 
     segments from the first's mode to the second's, the strip between them is held in the first's
     mode, and the pieces follow each other in time inside [t0, t_end]."""
     if len(trs) != len(segs) - 1 or len(strips) not in (len(segs) - 1, len(segs)):
-        raise DamagedFile(f"{len(segs)} segments need {len(segs) - 1} transitions and as many strips (one more "
-                          f"when the run ended in one), got {len(trs)} and {len(strips)}")
+        raise DamagedFile(
+            f"{len(segs)} segments need {len(segs) - 1} transitions and as many strips (one more "
+            f"when the run ended in one), got {len(trs)} and {len(strips)}"
+        )
     if meta["final_in_strip"] != (len(strips) == len(segs)):
         raise DamagedFile("meta.final_in_strip does not match the number of strips")
     for k, tr in enumerate(trs):
         if (tr.source, tr.target) != (segs[k].mode, segs[k + 1].mode) or strips[k].name != tr.name:
-            raise DamagedFile(f"transition {k} ({tr.name}: {tr.source} -> {tr.target}) does not join segments "
-                              f"{k} ({segs[k].mode}) and {k + 1} ({segs[k + 1].mode}) through its strip")
+            raise DamagedFile(
+                f"transition {k} ({tr.name}: {tr.source} -> {tr.target}) does not join segments "
+                f"{k} ({segs[k].mode}) and {k + 1} ({segs[k + 1].mode}) through its strip"
+            )
     # A run that did not end in a strip has one segment more than strips.
     if any(strip.mode != seg.mode for strip, seg in zip(strips, segs, strict=False)):
         raise DamagedFile("a strip is held in another mode than the segment it ends")
-    starts = [t for k, seg in enumerate(segs) for t in ((seg.t_start, strips[k].time) if k < len(strips)
-                                                          else (seg.t_start,))]
+    starts = [
+        t for k, seg in enumerate(segs) for t in ((seg.t_start, strips[k].time) if k < len(strips) else (seg.t_start,))
+    ]
     tol = 1e-9 * max(1.0, abs(meta["t0"]), abs(meta["t_end"]))
     if np.any(np.diff(starts) < 0) or starts[0] < meta["t0"] - tol or max(starts) > meta["t_end"] + tol:
-        raise DamagedFile(f"segments and strips do not follow each other in time inside [t0, t_end] = "
-                          f"[{meta['t0']}, {meta['t_end']}]")
+        raise DamagedFile(
+            f"segments and strips do not follow each other in time inside [t0, t_end] = [{meta['t0']}, {meta['t_end']}]"
+        )
     if max(seg.t_end for seg in segs) > meta["t_end"] + tol:
         raise DamagedFile(f"a segment runs past t_end = {meta['t_end']}")

@@ -123,9 +123,14 @@ def check_target(path: Path, what: str, *, suffixes: Iterable[str] = (), inputs:
 
 def file_kind(mode: int) -> str:
     """What a file of ``st_mode`` is, as a message says it."""
-    for test, name in ((stat.S_ISDIR, "a directory"), (stat.S_ISCHR, "a character device"),
-                       (stat.S_ISBLK, "a block device"), (stat.S_ISFIFO, "a FIFO"), (stat.S_ISSOCK, "a socket"),
-                       (stat.S_ISREG, "a regular file")):
+    for test, name in (
+        (stat.S_ISDIR, "a directory"),
+        (stat.S_ISCHR, "a character device"),
+        (stat.S_ISBLK, "a block device"),
+        (stat.S_ISFIFO, "a FIFO"),
+        (stat.S_ISSOCK, "a socket"),
+        (stat.S_ISREG, "a regular file"),
+    ):
         if test(mode):
             return name
     return "a special file"
@@ -166,8 +171,14 @@ def check_folder(path: Path, what: str) -> None:
 
 
 # -- writing -------------------------------------------------------------------------------------
-def write_atomic(path: PathLike, write: Callable[[Path], object], *, what: str = "output",
-                 suffixes: Iterable[str] = (), inputs: Iterable[PathLike] = ()) -> Path:
+def write_atomic(
+    path: PathLike,
+    write: Callable[[Path], object],
+    *,
+    what: str = "output",
+    suffixes: Iterable[str] = (),
+    inputs: Iterable[PathLike] = (),
+) -> Path:
     """Call ``write(tmp)`` on a temporary file next to ``path``, then rename it to ``path``.
 
     ``what`` names the output in messages (``--rrd``, ``execution file``); ``suffixes`` are the
@@ -211,8 +222,9 @@ def _write_reason(exc: OSError, path: Path) -> str:
     return os_reason(exc)
 
 
-def write_bytes_atomic(path: PathLike, data: bytes, *, what: str = "output", suffixes: Iterable[str] = (),
-                       inputs: Iterable[PathLike] = ()) -> Path:
+def write_bytes_atomic(
+    path: PathLike, data: bytes, *, what: str = "output", suffixes: Iterable[str] = (), inputs: Iterable[PathLike] = ()
+) -> Path:
     """``write_atomic`` for content already in memory; flushed to disk before the rename."""
 
     def write(tmp: Path) -> None:
@@ -252,8 +264,9 @@ class OutputPlan:
         check_target(planned.path, what, suffixes=planned.suffixes, inputs=self.inputs)
         for other in self.outputs.values():
             if same_file(planned.path, other.path):
-                raise OutputError(f"{what} {planned.path}: {other.what} writes the same file; give each output "
-                                  f"its own file")
+                raise OutputError(
+                    f"{what} {planned.path}: {other.what} writes the same file; give each output its own file"
+                )
         check_folder(planned.path, what)
         self.outputs[key] = planned
         return planned.path

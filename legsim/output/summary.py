@@ -38,8 +38,13 @@ if TYPE_CHECKING:
 EnergyFn = Callable[[str, np.ndarray], float]
 
 
-def run_summary(execution: Execution, scene: Scene | None = None, model: Model | None = None, *,
-                outputs: Mapping[str, str | Path] | None = None) -> dict[str, Any]:
+def run_summary(
+    execution: Execution,
+    scene: Scene | None = None,
+    model: Model | None = None,
+    *,
+    outputs: Mapping[str, str | Path] | None = None,
+) -> dict[str, Any]:
     """The JSON-ready summary of ``execution`` (keys: see the module docstring).
 
     ``scene`` (a ``legsim.scene.Scene``) adds its name, robot and file; its model, or else
@@ -122,8 +127,7 @@ def _energy(energy: EnergyFn, system: str, mode: str, x: np.ndarray) -> float:
     try:
         return float(energy(mode, np.asarray(x, dtype=float)))
     except Exception as exc:
-        raise ModelError(f"{system}: energy in mode '{mode}' failed: "
-                         f"{type(exc).__name__}: {exc}") from exc
+        raise ModelError(f"{system}: energy in mode '{mode}' failed: {type(exc).__name__}: {exc}") from exc
 
 
 def finite_or_none(obj: Any) -> Any:

@@ -80,8 +80,7 @@ def execution_trace(execution: Execution) -> Trace:
     """
     _, pieces = execution._pieces()
     is_strip = np.array([kind == "strip" for kind, _ in pieces], dtype=bool)
-    lengths = np.array([2 if kind == "strip" else len(execution.segments[k].t) for kind, k in pieces],
-                       dtype=np.int64)
+    lengths = np.array([2 if kind == "strip" else len(execution.segments[k].t) for kind, k in pieces], dtype=np.int64)
     starts = np.cumsum(lengths) - lengths
     times = np.concatenate([_piece_times(execution, kind, k) for kind, k in pieces]) if pieces else np.empty(0)
     piece_modes = [_piece(execution, kind, k).mode for kind, k in pieces]
@@ -92,11 +91,19 @@ def execution_trace(execution: Execution) -> Trace:
     for mode, i in code.items():
         mine = np.nonzero(piece_code == i)[0]
         states = [_piece_states(execution, *pieces[p]) for p in mine]
-        blocks[mode] = (concatenated_ranges(starts[mine], lengths[mine]),
-                        np.concatenate(states).astype(float, copy=False))
-    return Trace(times=times, mode_names=mode_names, mode_index=np.repeat(piece_code, lengths),
-                 in_strip=np.repeat(is_strip, lengths), blocks=blocks, segment_starts=starts[~is_strip],
-                 strip_samples=starts[is_strip])
+        blocks[mode] = (
+            concatenated_ranges(starts[mine], lengths[mine]),
+            np.concatenate(states).astype(float, copy=False),
+        )
+    return Trace(
+        times=times,
+        mode_names=mode_names,
+        mode_index=np.repeat(piece_code, lengths),
+        in_strip=np.repeat(is_strip, lengths),
+        blocks=blocks,
+        segment_starts=starts[~is_strip],
+        strip_samples=starts[is_strip],
+    )
 
 
 def _piece(execution: Execution, kind: str, k: int) -> Any:
@@ -197,8 +204,9 @@ def _polyline(value: Any, part: str, mode: str, t: float, system: str) -> np.nda
     return arr
 
 
-def _draw(geometry: Callable[[str, np.ndarray], Any], name: str, mode: str, x: np.ndarray,
-          t: float) -> dict[str, np.ndarray]:
+def _draw(
+    geometry: Callable[[str, np.ndarray], Any], name: str, mode: str, x: np.ndarray, t: float
+) -> dict[str, np.ndarray]:
     """``geometry(mode, x)`` of the system ``name`` checked: part name -> (k, 2) polyline."""
     try:
         parts = geometry(mode, np.asarray(x, dtype=float))
@@ -211,20 +219,29 @@ def _draw(geometry: Callable[[str, np.ndarray], Any], name: str, mode: str, x: n
     return {str(p): _polyline(v, str(p), mode, t, name) for p, v in parts.items()}
 
 
-def geometry_frames(execution: Execution, model: Model, times: np.ndarray | None = None, *,
-                    fps: float = DEFAULT_FPS, max_frames: int = DEFAULT_MAX_FRAMES) -> Frames:
+def geometry_frames(
+    execution: Execution,
+    model: Model,
+    times: np.ndarray | None = None,
+    *,
+    fps: float = DEFAULT_FPS,
+    max_frames: int = DEFAULT_MAX_FRAMES,
+) -> Frames:
     """Evaluate ``model.geometry(mode, x)`` on the execution at ``times`` (s; default
     ``frame_times``). Raises ModelError naming the part, mode and time when the geometry is
     missing or malformed."""
     geometry = model.geometry
     if geometry is None:
-        raise ModelError(f"{model.system.name}: the model has no geometry (Model.geometry is None), "
-                         f"so there is no robot to draw")
+        raise ModelError(
+            f"{model.system.name}: the model has no geometry (Model.geometry is None), so there is no robot to draw"
+        )
     if times is None:
         times = frame_times(execution, fps, max_frames)
     samples = execution.sample(times)
-    drawn = [_draw(geometry, model.system.name, mode, x, float(t))
-             for t, mode, x in zip(samples.times, samples.modes, samples.states, strict=True)]
+    drawn = [
+        _draw(geometry, model.system.name, mode, x, float(t))
+        for t, mode, x in zip(samples.times, samples.modes, samples.states, strict=True)
+    ]
     names = sorted({p for d in drawn for p in d})
     per_part = {p: [d.get(p) for d in drawn] for p in names}
     scenery = _scenery(model, float(execution.t0))

@@ -75,12 +75,24 @@ def printable(text: Any, *, newlines: bool = True) -> str:
 
 def describe_type(value: Any) -> str:
     """A JSON value's type as a message names it."""
-    return {bool: "a boolean", int: "an integer", float: "a number", str: "a string", list: "an array",
-            dict: "an object", type(None): "null"}.get(type(value), type(value).__name__)
+    return {
+        bool: "a boolean",
+        int: "an integer",
+        float: "a number",
+        str: "a string",
+        list: "an array",
+        dict: "an object",
+        type(None): "null",
+    }.get(type(value), type(value).__name__)
 
 
-def check_object(doc: Any, schema: Mapping[str, tuple[type, ...]], where: str, *,
-                 optional: Mapping[str, tuple[type, ...]] | None = None) -> dict[str, Any]:
+def check_object(
+    doc: Any,
+    schema: Mapping[str, tuple[type, ...]],
+    where: str,
+    *,
+    optional: Mapping[str, tuple[type, ...]] | None = None,
+) -> dict[str, Any]:
     """``doc`` as a dict whose keys in ``schema`` are present and whose keys in ``schema`` or
     ``optional`` have one of the given types (``bool`` is never taken for a number); ValueError
     naming ``where`` and the key otherwise."""
@@ -104,7 +116,7 @@ def _has_type(value: Any, types: tuple[type, ...]) -> bool:
         return float in types and math.isfinite(value)
     if isinstance(value, int) and int in types:
         # JSON integers are unbounded: 10**400 would overflow every float format.
-        return abs(value) < 2 ** 63
+        return abs(value) < 2**63
     return isinstance(value, types)
 
 
@@ -114,6 +126,7 @@ def check_list(value: Any, types: tuple[type, ...], where: str) -> list[Any]:
         raise ValueError(f"{where} is {describe_type(value)}, expected an array")
     for k, item in enumerate(value):
         if not _has_type(item, types):
-            raise ValueError(f"{where}[{k}] is {describe_type(item)}, expected "
-                             + " or ".join(t.__name__ for t in types))
+            raise ValueError(
+                f"{where}[{k}] is {describe_type(item)}, expected " + " or ".join(t.__name__ for t in types)
+            )
     return value

@@ -18,8 +18,11 @@ from ..control import Controller, available, get_controller
 from ..errors import LegsimError, SceneError
 from .fields import check_keys, describe, field_error
 
-CONTROLLER_KEYS = {"name": "a registered controller's name", "parameters": "a table of its parameters",
-                   "hold": "true: hold u over each step (zero-order hold); false: evaluate it at every stage"}
+CONTROLLER_KEYS = {
+    "name": "a registered controller's name",
+    "parameters": "a table of its parameters",
+    "hold": "true: hold u over each step (zero-order hold); false: evaluate it at every stage",
+}
 
 
 def scene_controller(path: Path, table: dict[str, Any], model: Model) -> Controller | None:
@@ -29,8 +32,11 @@ def scene_controller(path: Path, table: dict[str, Any], model: Model) -> Control
     check_keys(path, table, CONTROLLER_KEYS, "controller")
     name = table.get("name")
     if not isinstance(name, str):
-        raise field_error(path, "controller.name", f"expected a controller name, got {describe(name)}; "
-                                                   f"available: {sorted(available())}")
+        raise field_error(
+            path,
+            "controller.name",
+            f"expected a controller name, got {describe(name)}; available: {sorted(available())}",
+        )
     try:
         spec = get_controller(name)
     except SceneError as exc:

@@ -25,10 +25,16 @@ def numerical_solution_keys(scene: Any, h_help: str) -> dict[str, Param]:
     integ = scene.integrator
     return {
         "h": Param(float(integ["h"]), h_help, "s", low=0.0, low_open=True),
-        "method": Param(str(integ["method"]), "Runge-Kutta method of the numerical solution",
-                        choices=tuple(sorted(METHODS) + sorted(ALIASES))),
-        "pair": Param("auto", "embedded pair of the local error estimates (auto: the method if embedded, "
-                              "else dopri5)", choices=PAIRS),
+        "method": Param(
+            str(integ["method"]),
+            "Runge-Kutta method of the numerical solution",
+            choices=tuple(sorted(METHODS) + sorted(ALIASES)),
+        ),
+        "pair": Param(
+            "auto",
+            "embedded pair of the local error estimates (auto: the method if embedded, else dopri5)",
+            choices=PAIRS,
+        ),
         "floor": Param(0.0, "declared local error floor coefficient (state units / s^(p+1))", low=0.0),
         "t_final": Param(float(integ["t_final"]), "end time", "s"),
     }
@@ -44,8 +50,9 @@ def pair_argument(settings: Mapping[str, Any]) -> str | None:
     return None if settings["pair"] == "auto" else settings["pair"]
 
 
-def read_settings(scene: Any, section: str, schema: Mapping[str, Param],
-                  overrides: Mapping[str, Any] | None) -> dict[str, Any]:
+def read_settings(
+    scene: Any, section: str, schema: Mapping[str, Param], overrides: Mapping[str, Any] | None
+) -> dict[str, Any]:
     """The scene's ``[section]`` checked against ``schema`` (``overrides`` that are not None take
     precedence), with t_final after t0 and a number of steps of h the flows accept. Raises
     SceneError naming the file and key."""

@@ -25,8 +25,9 @@ def table_at(path: Path, data: Mapping[str, Any], key: str, where: str | None = 
 
 def describe(value: Any) -> str:
     """A TOML value as a message shows it: its TOML type, then its repr."""
-    kind = {bool: "boolean", int: "integer", float: "float", str: "string", list: "array",
-            dict: "table"}.get(type(value), type(value).__name__)
+    kind = {bool: "boolean", int: "integer", float: "float", str: "string", list: "array", dict: "table"}.get(
+        type(value), type(value).__name__
+    )
     return f"{kind} {value!r}"
 
 

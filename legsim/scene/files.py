@@ -65,8 +65,10 @@ def resolve_scene_path(path_or_name: str | os.PathLike[str]) -> Path:
             if path.is_file():
                 return path
         known = sorted(scene_files())
-        raise SceneError(f"unknown scene '{text}': no such file, and no scene of that name in "
-                         f"{[str(d) for d in search_dirs()]}; known scenes: {known}")
+        raise SceneError(
+            f"unknown scene '{text}': no such file, and no scene of that name in "
+            f"{[str(d) for d in search_dirs()]}; known scenes: {known}"
+        )
     hint = ""
     if candidate.suffix == ".toml" and candidate.parent == Path(".") and candidate.stem in scene_files():
         hint = f" (the scene named '{candidate.stem}' is {scene_files()[candidate.stem]}: run it by name)"
@@ -102,15 +104,18 @@ def apply_overrides(data: dict[str, Any], overrides: Iterable[str]) -> list[str]
         node = data
         for depth, part in enumerate(parts[:-1]):
             child = node.get(part)
-            where = ".".join(parts[:depth + 1])
+            where = ".".join(parts[: depth + 1])
             if child is None or child is True:
                 child = node[part] = {}
             elif child is False:
-                raise SceneError(f"--set {text}: {where} is false (switched off); switch it on with "
-                                 f"--set {where}=true before setting its fields")
+                raise SceneError(
+                    f"--set {text}: {where} is false (switched off); switch it on with "
+                    f"--set {where}=true before setting its fields"
+                )
             elif not isinstance(child, dict):
-                raise SceneError(f"--set {text}: {where} is {child!r}, not a table, so it has no field "
-                                 f"'{parts[depth + 1]}'")
+                raise SceneError(
+                    f"--set {text}: {where} is {child!r}, not a table, so it has no field '{parts[depth + 1]}'"
+                )
             node = child
         node[parts[-1]] = value
         applied.append(text)
@@ -160,8 +165,12 @@ def checked_depth(path: Path, data: dict[str, Any]) -> dict[str, Any]:
     nest without brackets, so the parsed content is measured); SceneError otherwise."""
     level: list[dict[str, Any] | list[Any]] = [data]
     for _ in range(MAX_SCENE_DEPTH + 1):
-        level = [child for node in level for child in (node.values() if isinstance(node, dict) else node)
-                 if isinstance(child, (dict, list))]
+        level = [
+            child
+            for node in level
+            for child in (node.values() if isinstance(node, dict) else node)
+            if isinstance(child, (dict, list))
+        ]
         if not level:
             return data
     raise SceneError(f"{path}: nested more than {MAX_SCENE_DEPTH} levels deep (tables and arrays)")

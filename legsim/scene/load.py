@@ -101,8 +101,13 @@ def _integrator_schema() -> dict[str, Param]:
         # Optional error control (no default: absent means fixed nominal steps).
         "rtol": Param(1e-6, "relative tolerance of error-controlled steps", low=0.0, low_open=True),
         "atol": Param(1e-9, "absolute tolerance of error-controlled steps", low=0.0, low_open=True),
-        "zeno_window": Param(2e-3, "shortest flight resolved before crossings count as accumulating (default "
-                                   "h + eps)", "s", low=0.0, low_open=True),
+        "zeno_window": Param(
+            2e-3,
+            "shortest flight resolved before crossings count as accumulating (default h + eps)",
+            "s",
+            low=0.0,
+            low_open=True,
+        ),
     }
 
 
@@ -184,8 +189,12 @@ class Scene:
             target = base / relative
             real = os.path.realpath(target)
             if os.path.commonpath([real_base, real]) != real_base:
-                raise field_error(self.path, f"output.{kind}", f"{relative!r} leads out of {base} to {real} through a "
-                                                                f"symbolic link; give --{kind} FILE to write there")
+                raise field_error(
+                    self.path,
+                    f"output.{kind}",
+                    f"{relative!r} leads out of {base} to {real} through a "
+                    f"symbolic link; give --{kind} FILE to write there",
+                )
             out[kind] = target
         return out
 
@@ -201,12 +210,26 @@ class Scene:
 
         s = self.integrator
         before = _model_counters(self.model)
-        execution = simulate(self.model.system, self.initial_state.copy(), self.initial_mode, s["t_final"],
-                             s["h"], s["eps"], s["method"], self.control, t0=s["t0"],
-                             max_transitions=s["max_transitions"], max_halvings=s["max_halvings"],
-                             progress=progress, rtol=s["rtol"], atol=s["atol"], landing=s["landing"],
-                             max_steps=s["max_steps"], continuation=s["continuation"],
-                             zeno_window=s["zeno_window"] or self.model.info.get(ZENO_WINDOW))
+        execution = simulate(
+            self.model.system,
+            self.initial_state.copy(),
+            self.initial_mode,
+            s["t_final"],
+            s["h"],
+            s["eps"],
+            s["method"],
+            self.control,
+            t0=s["t0"],
+            max_transitions=s["max_transitions"],
+            max_halvings=s["max_halvings"],
+            progress=progress,
+            rtol=s["rtol"],
+            atol=s["atol"],
+            landing=s["landing"],
+            max_steps=s["max_steps"],
+            continuation=s["continuation"],
+            zeno_window=s["zeno_window"] or self.model.info.get(ZENO_WINDOW),
+        )
         after = _model_counters(self.model)
         for key, value in after.items():
             # Report this run's count: the builder may have evaluated terms while being checked.
@@ -215,8 +238,7 @@ class Scene:
             execution.counters[name] = delta
         return execution
 
-    def check_accuracy(self, progress: Callable[[float, float, float], None] | None = None
-                       ) -> tuple[Execution, Any]:
+    def check_accuracy(self, progress: Callable[[float, float, float], None] | None = None) -> tuple[Execution, Any]:
         """The scene's run and the estimate of its error (``legsim.accuracy``): the run repeated
         with eps / 10 and h / 2 (tolerances / 10 under error control). Returns (the execution,
         its ``ErrorEstimate``)."""
@@ -234,8 +256,9 @@ class Scene:
         try:
             value = float(fn(mode, np.asarray(x, dtype=float)))
         except Exception as exc:
-            raise ModelError(f"{self.model.system.name}: energy in mode '{mode}' failed: "
-                             f"{type(exc).__name__}: {exc}") from exc
+            raise ModelError(
+                f"{self.model.system.name}: energy in mode '{mode}' failed: {type(exc).__name__}: {exc}"
+            ) from exc
         return value
 
     def summary(self, execution: Execution) -> dict[str, Any]:
@@ -279,8 +302,10 @@ def load_scene(path_or_name: str | os.PathLike[str], overrides: Sequence[str] = 
 def _validate(path: Path, data: dict[str, Any], overrides: list[str]) -> Scene:
     unknown = sorted(set(data) - set(ALLOWED_SECTIONS))
     if unknown:
-        raise SceneError(f"{path}: unknown section(s) {unknown}; allowed: {list(CORE_SECTIONS)} and tool "
-                         f"sections {list(TOOL_SECTIONS)}")
+        raise SceneError(
+            f"{path}: unknown section(s) {unknown}; allowed: {list(CORE_SECTIONS)} and tool "
+            f"sections {list(TOOL_SECTIONS)}"
+        )
     for key in ALLOWED_SECTIONS:
         table_at(path, data, key)
 
@@ -297,8 +322,11 @@ def _validate(path: Path, data: dict[str, Any], overrides: list[str]) -> Scene:
         raise field_error(path, "robot.name", f"missing; available robots: {sorted(builders.available())}")
     robot = robot_t["name"]
     if not isinstance(robot, str):
-        raise field_error(path, "robot.name", f"expected a string, got {describe(robot)}; "
-                                        f"available robots: {sorted(builders.available())}")
+        raise field_error(
+            path,
+            "robot.name",
+            f"expected a string, got {describe(robot)}; available robots: {sorted(builders.available())}",
+        )
     parameters = table_at(path, robot_t, "parameters", "robot.parameters")
     effects_t = table_at(path, data, "effects")
     # Integrator settings and outputs are checked before the model is built, so that a typo in
@@ -327,17 +355,31 @@ def _validate(path: Path, data: dict[str, Any], overrides: list[str]) -> Scene:
         detail = str(exc) if isinstance(exc, LegsimError) else f"{type(exc).__name__}: {exc}"
         raise ModelError(f"{where}: robot '{robot}' could not be built: {detail}") from exc
     if not isinstance(model, Model):
-        raise ModelError(f"{where}: builder '{robot}' returned {type(model).__name__}, "
-                         f"expected legsim.builders.Model")
+        raise ModelError(f"{where}: builder '{robot}' returned {type(model).__name__}, expected legsim.builders.Model")
 
     controller = scene_controller(path, table_at(path, data, "controller"), model)
-    initial_mode, initial_state = _initial(path, model, table_at(path, data, "initial"), integrator["eps"],
-                                         integrator["t0"], controller)
+    initial_mode, initial_state = _initial(
+        path, model, table_at(path, data, "initial"), integrator["eps"], integrator["t0"], controller
+    )
 
-    return Scene(path=path, name=name, description=description, robot=robot, builder=builder,
-                 parameters=resolved_params, effects=chosen, model=model, initial_mode=initial_mode,
-                 initial_state=initial_state, integrator=integrator, output=output, sections=sections,
-                 data=data, overrides=overrides, controller=controller)
+    return Scene(
+        path=path,
+        name=name,
+        description=description,
+        robot=robot,
+        builder=builder,
+        parameters=resolved_params,
+        effects=chosen,
+        model=model,
+        initial_mode=initial_mode,
+        initial_state=initial_state,
+        integrator=integrator,
+        output=output,
+        sections=sections,
+        data=data,
+        overrides=overrides,
+        controller=controller,
+    )
 
 
 def _scene_relative_files(path: Path, builder: Builder, params: dict[str, Any]) -> None:
@@ -350,8 +392,11 @@ def _scene_relative_files(path: Path, builder: Builder, params: dict[str, Any]) 
         file = Path(value).expanduser()
         file = file if file.is_absolute() else path.parent / file
         if not file.is_file():
-            raise field_error(path, f"robot.parameters.{name}", f"no such file {value!r} (a relative path is read "
-                                                               f"from the scene's folder {path.parent})")
+            raise field_error(
+                path,
+                f"robot.parameters.{name}",
+                f"no such file {value!r} (a relative path is read from the scene's folder {path.parent})",
+            )
         params[name] = str(file)
 
 
@@ -359,9 +404,12 @@ def _integrator(path: Path, table: dict[str, Any]) -> dict[str, Any]:
     schema = _integrator_schema()
     missing = [key for key in REQUIRED_INTEGRATOR if key not in table]
     if missing:
-        raise field_error(path, f"integrator.{missing[0]}",
-                    f"missing; a scene must give {list(REQUIRED_INTEGRATOR)} "
-                    f"({', '.join(f'{k}: {schema[k].allowed()} {schema[k].unit}'.strip() for k in missing)})")
+        raise field_error(
+            path,
+            f"integrator.{missing[0]}",
+            f"missing; a scene must give {list(REQUIRED_INTEGRATOR)} "
+            f"({', '.join(f'{k}: {schema[k].allowed()} {schema[k].unit}'.strip() for k in missing)})",
+        )
     out = resolve_parameters(schema, table, f"{path}: integrator")
     for key in OPTIONAL_INTEGRATOR:
         if key not in table:
@@ -371,33 +419,48 @@ def _integrator(path: Path, table: dict[str, Any]) -> dict[str, Any]:
 
         if not get_method(out["method"]).embedded:
             key = "rtol" if out["rtol"] is not None else "atol"
-            raise field_error(path, f"integrator.{key}", f"error control needs a method with an embedded error "
-                                                   f"estimate (method = 'bs32', 'dopri5' or 'dop853'), got "
-                                                   f"method = '{out['method']}'")
+            raise field_error(
+                path,
+                f"integrator.{key}",
+                f"error control needs a method with an embedded error "
+                f"estimate (method = 'bs32', 'dopri5' or 'dop853'), got "
+                f"method = '{out['method']}'",
+            )
     if out["landing"] == "dense":
         from ..methods import dense_output, get_method
 
         if dense_output(get_method(out["method"])) is None:
-            raise field_error(path, "integrator.landing", f"'dense' lands on the method's continuous extension, which "
-                                                    f"method = '{out['method']}' has not (bs32, dopri5 and dop853 "
-                                                    f"have one); use landing = 'aim'")
+            raise field_error(
+                path,
+                "integrator.landing",
+                f"'dense' lands on the method's continuous extension, which "
+                f"method = '{out['method']}' has not (bs32, dopri5 and dop853 "
+                f"have one); use landing = 'aim'",
+            )
     if out["t_final"] <= out["t0"]:
         raise field_error(path, "integrator.t_final", f"{out['t_final']!r} must be > integrator.t0 = {out['t0']!r}")
     nominal = (out["t_final"] - out["t0"]) / out["h"]
     if nominal > out["max_steps"]:
-        raise field_error(path, "integrator.max_steps",
-                    f"t_final - t0 = {out['t_final'] - out['t0']:g} s at h = {out['h']:g} s is {nominal:.3g} steps, "
-                    f"more than max_steps = {out['max_steps']}; every step is stored, so check t_final and h, "
-                    f"or raise integrator.max_steps if the run is meant to be that long")
+        raise field_error(
+            path,
+            "integrator.max_steps",
+            f"t_final - t0 = {out['t_final'] - out['t0']:g} s at h = {out['h']:g} s is {nominal:.3g} steps, "
+            f"more than max_steps = {out['max_steps']}; every step is stored, so check t_final and h, "
+            f"or raise integrator.max_steps if the run is meant to be that long",
+        )
     # Far from t = 0 the spacing of float64 times can exceed h: t + h == t, and the integrator
     # would make no progress (or no halving could land). Ask for h to be resolved to a
     # millionth (2^20 spacings), which leaves room for the halvings of a landing.
     spacing = float(np.spacing(max(abs(out["t0"]), abs(out["t_final"]))))
-    if out["h"] < 2.0 ** 20 * spacing:
-        raise field_error(path, "integrator.h", f"{out['h']:g} s is too small for times near "
-                                          f"{max(abs(out['t0']), abs(out['t_final'])):g} s, where float64 "
-                                          f"times are {spacing:.3g} s apart; h must be >= {2.0 ** 20 * spacing:.3g} s "
-                                          f"(2^20 spacings), or shift t0 and t_final towards 0")
+    if out["h"] < 2.0**20 * spacing:
+        raise field_error(
+            path,
+            "integrator.h",
+            f"{out['h']:g} s is too small for times near "
+            f"{max(abs(out['t0']), abs(out['t_final'])):g} s, where float64 "
+            f"times are {spacing:.3g} s apart; h must be >= {2.0**20 * spacing:.3g} s "
+            f"(2^20 spacings), or shift t0 and t_final towards 0",
+        )
     return out
 
 
@@ -421,12 +484,20 @@ def _check_output_path(path: Path, where: str, value: Any) -> None:
     if "\x00" in value:
         raise field_error(path, where, f"{value!r} contains a NUL character")
     if os.path.isabs(value) or os.path.splitdrive(value)[0]:
-        raise field_error(path, where, f"{value!r} is an absolute path; a scene's outputs are relative to its "
-                                       f"folder (or --out-dir); give --{where.split('.')[-1]} FILE to write elsewhere")
+        raise field_error(
+            path,
+            where,
+            f"{value!r} is an absolute path; a scene's outputs are relative to its "
+            f"folder (or --out-dir); give --{where.split('.')[-1]} FILE to write elsewhere",
+        )
     normal = os.path.normpath(value)
     if normal == os.curdir or normal == os.pardir or normal.startswith(os.pardir + os.sep):
-        raise field_error(path, where, f"{value!r} leaves the scene's folder; a scene's outputs stay inside its "
-                                       f"folder (or --out-dir); give --{where.split('.')[-1]} FILE to write elsewhere")
+        raise field_error(
+            path,
+            where,
+            f"{value!r} leaves the scene's folder; a scene's outputs stay inside its "
+            f"folder (or --out-dir); give --{where.split('.')[-1]} FILE to write elsewhere",
+        )
 
 
 def _known_modes(model: Model) -> list[str]:
@@ -438,14 +509,16 @@ def _known_modes(model: Model) -> list[str]:
         return sorted(model.system.modes)
 
 
-def _initial(path: Path, model: Model, table: dict[str, Any], eps: float, t0: float,
-             controller: Any = None) -> tuple[str, np.ndarray]:
+def _initial(
+    path: Path, model: Model, table: dict[str, Any], eps: float, t0: float, controller: Any = None
+) -> tuple[str, np.ndarray]:
     check_keys(path, table, INITIAL_KEYS, "initial")
     system = model.system
     mode = table.get("mode", model.initial_mode)
     if not isinstance(mode, str):
-        raise field_error(path, "initial.mode", f"expected a mode name (string), got {describe(mode)}; "
-                                          f"modes: {_known_modes(model)}")
+        raise field_error(
+            path, "initial.mode", f"expected a mode name (string), got {describe(mode)}; modes: {_known_modes(model)}"
+        )
     try:
         names = system.state_names(mode)
     except ModelError:
@@ -455,8 +528,9 @@ def _initial(path: Path, model: Model, table: dict[str, Any], eps: float, t0: fl
         raise field_error(path, "initial.state", f"expected a table of coordinate = number, got {describe(given)}")
     unknown = sorted(set(given) - set(names))
     if unknown:
-        raise field_error(path, "initial.state", f"unknown coordinate(s) {unknown} of mode '{mode}'; "
-                                           f"coordinates: {list(names)}")
+        raise field_error(
+            path, "initial.state", f"unknown coordinate(s) {unknown} of mode '{mode}'; coordinates: {list(names)}"
+        )
     defaults = dict(model.initial_state)
     values = []
     for name in names:
@@ -467,8 +541,11 @@ def _initial(path: Path, model: Model, table: dict[str, Any], eps: float, t0: fl
         elif name in defaults:
             value = defaults[name]
         else:
-            raise field_error(path, f"initial.state.{name}", f"missing, and the robot has no default for it in "
-                                                       f"mode '{mode}'; give {list(names)}")
+            raise field_error(
+                path,
+                f"initial.state.{name}",
+                f"missing, and the robot has no default for it in mode '{mode}'; give {list(names)}",
+            )
         value = float(value)
         if not math.isfinite(value):
             raise field_error(path, f"initial.state.{name}", f"must be finite, got {value!r}")
@@ -480,8 +557,10 @@ def _initial(path: Path, model: Model, table: dict[str, Any], eps: float, t0: fl
         else:
             u0 = None if model.control is None else model.control(t0, x0)
     except Exception as exc:
-        raise ModelError(f"{path}: the control of robot model '{system.name}' failed on the initial state "
-                         f"{x0.tolist()}: {type(exc).__name__}: {exc}") from exc
+        raise ModelError(
+            f"{path}: the control of robot model '{system.name}' failed on the initial state "
+            f"{x0.tolist()}: {type(exc).__name__}: {exc}"
+        ) from exc
     try:
         system.check_state(mode, x0, t=t0, u=u0, label="initial state")
     except ModelError as exc:
@@ -491,9 +570,13 @@ def _initial(path: Path, model: Model, table: dict[str, Any], eps: float, t0: fl
         worst = int(np.argmin(gvals))
         tr = system.outgoing(mode)[worst]
         state = dict(zip(names, values, strict=True))
-        raise field_error(path, "initial.state", f"{state} lies past the guard of transition "
-                                           f"{tr.name} by {-gvals[worst]:.3g} > eps = {eps:g} (guard units); "
-                                           f"start inside the domain of mode '{mode}'")
+        raise field_error(
+            path,
+            "initial.state",
+            f"{state} lies past the guard of transition "
+            f"{tr.name} by {-gvals[worst]:.3g} > eps = {eps:g} (guard units); "
+            f"start inside the domain of mode '{mode}'",
+        )
     # Guards written as "and" conditions (max(z, zd): below the floor AND falling) admit states
     # that no execution reaches, e.g. a ball 5 m under the floor at rest; the model may name them.
     check = model.info.get(INITIAL_CHECK) if isinstance(model.info, Mapping) else None
@@ -501,8 +584,10 @@ def _initial(path: Path, model: Model, table: dict[str, Any], eps: float, t0: fl
         try:
             problem = check(mode, x0.copy(), eps)
         except Exception as exc:
-            raise ModelError(f"{path}: the initial-state check of robot model '{system.name}' failed on "
-                             f"{x0.tolist()}: {type(exc).__name__}: {exc}") from exc
+            raise ModelError(
+                f"{path}: the initial-state check of robot model '{system.name}' failed on "
+                f"{x0.tolist()}: {type(exc).__name__}: {exc}"
+            ) from exc
         if problem:
             raise field_error(path, "initial.state", f"{dict(zip(names, values, strict=True))}: {problem}")
     return mode, x0

@@ -33,7 +33,7 @@ from .fields import check_keys, describe, field_error, table_at
 #: Keys of a scene's ``[orbit]`` section and what they hold.
 ORBIT_KEYS = {
     "section": "{ after = TRANSITION } or { mode = MODE, coordinate = NAME, value = 0.0, direction = "
-               "'decreasing' | 'increasing' | 'either' }",
+    "'decreasing' | 'increasing' | 'either' }",
     "fixed": "coordinates held at their initial values (list of names)",
     "cyclic": "coordinates along a symmetry, left out of periodicity; their increment is the step length",
     "free": "parameters solved for: robot parameter names or EFFECT.PARAM",
@@ -89,8 +89,12 @@ def problem_from_scene(scene: Any, *, extra_parameters: Sequence[str] = ()) -> O
         raise _fail(scene, "jacobian", f"expected 'saltation' or 'fd', got {describe(jacobian)}")
     problem = _problem(scene, table, section, free, params, factory)
     if problem.bound.mode != scene.initial_mode:
-        raise _fail(scene, "section", f"the section lies in mode '{problem.bound.mode}' but the scene starts "
-                                      f"in '{scene.initial_mode}': set [initial] mode = \"{problem.bound.mode}\"")
+        raise _fail(
+            scene,
+            "section",
+            f"the section lies in mode '{problem.bound.mode}' but the scene starts "
+            f"in '{scene.initial_mode}': set [initial] mode = \"{problem.bound.mode}\"",
+        )
     x0 = _guess(scene, table, problem)
     return OrbitSettings(problem, problem.state_vector(x0), _solver(scene, table, jacobian), scene)
 
@@ -102,8 +106,11 @@ def _fail(scene: Any, key: str, message: str) -> SceneError:
 def _orbit_table(scene: Any) -> dict[str, Any]:
     table = scene.sections.get("orbit")
     if table is None:
-        raise _fail(scene, "section", "the scene has no [orbit] section; add one, e.g. [orbit] "
-                                      "section = { after = \"touchdown\" }")
+        raise _fail(
+            scene,
+            "section",
+            'the scene has no [orbit] section; add one, e.g. [orbit] section = { after = "touchdown" }',
+        )
     unknown = sorted(set(table) - set(ORBIT_KEYS))
     if unknown:
         # Named by the first unknown key's own path, where a typo is looked for.
@@ -125,8 +132,9 @@ def _section(scene: Any, table: Mapping[str, Any]) -> Section:
         value = sec.get("value", 0.0)
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise _fail(scene, "section.value", f"expected a number, got {describe(value)}")
-        return Section.level(sec.get("mode", scene.initial_mode), sec["coordinate"], value,
-                             sec.get("direction", "decreasing"))
+        return Section.level(
+            sec.get("mode", scene.initial_mode), sec["coordinate"], value, sec.get("direction", "decreasing")
+        )
     except OrbitError as exc:
         raise _fail(scene, "section", str(exc)) from None
 
@@ -138,8 +146,9 @@ def _names(scene: Any, table: Mapping[str, Any], key: str) -> tuple[str, ...]:
     return tuple(value)
 
 
-def _number(scene: Any, table: Mapping[str, Any], key: str, default: Any, kind: type = float,
-            low: float | None = None) -> Any:
+def _number(
+    scene: Any, table: Mapping[str, Any], key: str, default: Any, kind: type = float, low: float | None = None
+) -> Any:
     """``table[key]`` (or ``default``) as a ``kind``, finite and >= ``low``; None stays None."""
     value = table.get(key, default)
     if value is None:
@@ -154,6 +163,7 @@ def _number(scene: Any, table: Mapping[str, Any], key: str, default: Any, kind: 
 def _real_parameter(scene: Any, name: str, label: str) -> tuple[Param, float]:
     """(spec, value) of a real-valued robot parameter ``name`` or effect parameter
     ``EFFECT.PARAM``; errors name ``label`` (the [orbit] key, or the continued parameter)."""
+
     def fail(message: str) -> SceneError:
         return field_error(scene.path, label, message)
 
@@ -173,13 +183,16 @@ def _real_parameter(scene: Any, name: str, label: str) -> tuple[Param, float]:
             raise fail(f"robot '{scene.robot}' has no parameter '{name}'; parameters: {sorted(builder.parameters)}")
         spec, value = builder.parameters[name], scene.parameters[name]
     if type(spec.default) is not float:
-        raise fail(f"parameter '{name}' is {type(spec.default).__name__}-valued; only real parameters can be "
-                   f"solved for or continued")
+        raise fail(
+            f"parameter '{name}' is {type(spec.default).__name__}-valued; only real parameters can be "
+            f"solved for or continued"
+        )
     return spec, float(value)
 
 
-def _parameter_factory(scene: Any, free: Sequence[str],
-                       extra: Sequence[str]) -> tuple[dict[str, float], Callable[[Mapping[str, float]], Any]]:
+def _parameter_factory(
+    scene: Any, free: Sequence[str], extra: Sequence[str]
+) -> tuple[dict[str, float], Callable[[Mapping[str, float]], Any]]:
     """(the scene's values of the free and extra parameters, a factory that builds the scene's
     model for new values of them, each checked against its spec)."""
     params: dict[str, float] = {}
@@ -207,28 +220,45 @@ def _parameter_factory(scene: Any, free: Sequence[str],
     return params, factory
 
 
-def _problem(scene: Any, table: Mapping[str, Any], section: Section, free: tuple[str, ...],
-             params: dict[str, float], factory: Callable[[Mapping[str, float]], Any]) -> OrbitProblem:
+def _problem(
+    scene: Any,
+    table: Mapping[str, Any],
+    section: Section,
+    free: tuple[str, ...],
+    params: dict[str, float],
+    factory: Callable[[Mapping[str, float]], Any],
+) -> OrbitProblem:
     integ = scene.integrator
     energy = _number(scene, table, "energy", None)
     if getattr(scene, "controller", None) is not None:
         # A scene controller keeps memory across transitions (a Raibert hopper's measured stance
         # time), so a return from the section is not a function of the section state alone:
         # refused rather than searched without the controller, which would be another system.
-        raise field_error(scene.path, "controller", "the orbit search does not run a scene's [controller] (it "
-                          "keeps state across transitions, so the return map is not a function of the section "
-                          "state); search the closed loop from Python with OrbitProblem(control=...) as "
-                          "docs/robots.md shows, holding the controller's state fixed")
+        raise field_error(
+            scene.path,
+            "controller",
+            "the orbit search does not run a scene's [controller] (it "
+            "keeps state across transitions, so the return map is not a function of the section "
+            "state); search the closed loop from Python with OrbitProblem(control=...) as "
+            "docs/robots.md shows, holding the controller's state fixed",
+        )
     try:
         return OrbitProblem(
-            system=factory if params else scene.model, section=section, **{key: integ[key] for key in INTEGRATOR_KEYS},
+            system=factory if params else scene.model,
+            section=section,
+            **{key: integ[key] for key in INTEGRATOR_KEYS},
             t_max=_number(scene, table, "t_max", integ["t_final"], low=0.0),
-            parameters=params, free=free, fixed=_names(scene, table, "fixed"), cyclic=_names(scene, table, "cyclic"),
-            energy=energy, returns=_number(scene, table, "returns", 1, int, 1),
+            parameters=params,
+            free=free,
+            fixed=_names(scene, table, "fixed"),
+            cyclic=_names(scene, table, "cyclic"),
+            energy=energy,
+            returns=_number(scene, table, "returns", 1, int, 1),
             min_transitions=_number(scene, table, "min_transitions", 1, int, 0),
             min_time=_number(scene, table, "min_time", 0.0, low=0.0),
             max_transitions=_number(scene, table, "max_transitions", 10_000, int, 1),
-            trivial_multipliers=_number(scene, table, "trivial_multipliers", 0, int, 0))
+            trivial_multipliers=_number(scene, table, "trivial_multipliers", 0, int, 0),
+        )
     except OrbitError as exc:
         if exc.key in INTEGRATOR_KEYS:
             raise field_error(scene.path, f"integrator.{exc.key}", str(exc)) from None
@@ -252,10 +282,13 @@ def _guess(scene: Any, table: Mapping[str, Any], problem: OrbitProblem) -> np.nd
 
 def _solver(scene: Any, table: Mapping[str, Any], jacobian: str) -> dict[str, Any]:
     """The keyword arguments of ``find_orbit``."""
-    solver = {"tol": _number(scene, table, "tol", 1e-9, low=0.0),
-              "max_iterations": _number(scene, table, "max_iterations", 30, int, 0),
-              "jacobian": jacobian, "fd_step": _number(scene, table, "fd_step", None, low=0.0),
-              "singular_tol": _number(scene, table, "singular_tol", 1e-9, low=0.0)}
+    solver = {
+        "tol": _number(scene, table, "tol", 1e-9, low=0.0),
+        "max_iterations": _number(scene, table, "max_iterations", 30, int, 0),
+        "jacobian": jacobian,
+        "fd_step": _number(scene, table, "fd_step", None, low=0.0),
+        "singular_tol": _number(scene, table, "singular_tol", 1e-9, low=0.0),
+    }
     if solver["tol"] == 0:
         raise _fail(scene, "tol", "must be > 0")
     if solver["fd_step"] is not None and not 0.0 < solver["fd_step"] <= MAX_FD_STEP:

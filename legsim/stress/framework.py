@@ -84,8 +84,13 @@ class CaseResult:
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready form (``legsim stress --json``)."""
         return {
-            "name": self.name, "group": self.group, "passed": self.passed, "outcome": self.outcome,
-            "transitions": self.transitions, "steps": self.steps, "wall_time_s": self.wall_time,
+            "name": self.name,
+            "group": self.group,
+            "passed": self.passed,
+            "outcome": self.outcome,
+            "transitions": self.transitions,
+            "steps": self.steps,
+            "wall_time_s": self.wall_time,
             "invariants": [c.name for c in self.checks],
             "checks": [{"name": c.name, "passed": c.passed, "detail": c.detail} for c in self.checks],
             "numbers": {k: _json_number(v) for k, v in self.numbers.items()},
@@ -155,8 +160,9 @@ def select(names: Sequence[str] | None = None) -> list[Case]:
     return [c for c in ordered if any(matches(n, c) for n in names)]
 
 
-def run_suite(quick: bool = True, names: Sequence[str] | None = None,
-              progress: Callable[[Case, CaseResult], None] | None = None) -> list[CaseResult]:
+def run_suite(
+    quick: bool = True, names: Sequence[str] | None = None, progress: Callable[[Case, CaseResult], None] | None = None
+) -> list[CaseResult]:
     """Run the selected cases (quick or full form) in order; ``progress(case, result)`` after each."""
     out = []
     for c in select(names):

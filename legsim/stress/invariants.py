@@ -22,8 +22,15 @@ from .framework import Check
 Control = Callable[[float, np.ndarray], Any] | None
 
 #: One-letter codes of the execution invariants in the table.
-GENERIC = {"S": "status", "F": "finite", "T": "time increasing", "D": "in relaxed domain",
-           "R": "resets in target domain", "E": "energy", "B": "transition bound"}
+GENERIC = {
+    "S": "status",
+    "F": "finite",
+    "T": "time increasing",
+    "D": "in relaxed domain",
+    "R": "resets in target domain",
+    "E": "energy",
+    "B": "transition bound",
+}
 
 
 def _control_at(control: Control, t: float, x: np.ndarray) -> Any:
@@ -59,8 +66,10 @@ def check_time(ex: Execution, strict: bool = True) -> Check:
         if i < len(ex.strips):
             strip = ex.strips[i]
             if strip.time < prev - 1e-12 * max(1.0, abs(prev)) or strip.exit_time < strip.time:
-                problems.append(f"strip {i} ({strip.name}) runs from {strip.time!r} to {strip.exit_time!r} "
-                                f"after the segment ended at {prev!r}")
+                problems.append(
+                    f"strip {i} ({strip.name}) runs from {strip.time!r} to {strip.exit_time!r} "
+                    f"after the segment ended at {prev!r}"
+                )
             prev = strip.exit_time
     if ex.status == "finished" and abs(ex.t_end - ex.t_final) > 1e-9 * max(1.0, abs(ex.t_final)):
         problems.append(f"finished at {ex.t_end!r} instead of t_final {ex.t_final!r}")
@@ -68,8 +77,9 @@ def check_time(ex: Execution, strict: bool = True) -> Check:
     return Check("time increasing", ok, "monotone" if ok else "; ".join(problems[:3]))
 
 
-def check_domain(system: HybridSystem, ex: Execution, eps: float, control: Control = None, stride: int = 1,
-                 tol: float | None = None) -> Check:
+def check_domain(
+    system: HybridSystem, ex: Execution, eps: float, control: Control = None, stride: int = 1, tol: float | None = None
+) -> Check:
     """No computed state lies past a guard of its mode by more than eps (plus ``tol``, default
     1e-9 eps: the crossing search's tolerance); every ``stride``-th segment point is checked,
     and every last point of a segment (the strip point of a crossing) always is."""
@@ -99,8 +109,14 @@ def check_domain(system: HybridSystem, ex: Execution, eps: float, control: Contr
     return Check("in relaxed domain", ok, detail if ok else f"lowest guard {worst[0]:.3g} < -eps = {-eps:.3g}{where}")
 
 
-def check_resets(system: HybridSystem, ex: Execution, eps: float, control: Control = None, tol: float | None = None,
-                 rtol: float = 1e-12) -> Check:
+def check_resets(
+    system: HybridSystem,
+    ex: Execution,
+    eps: float,
+    control: Control = None,
+    tol: float | None = None,
+    rtol: float = 1e-12,
+) -> Check:
     """Each strip point lies in the relaxed domain of its source; each reset image equals the
     reset of the strip point and lies in the relaxed domain of its target."""
     tol = 1e-9 * eps if tol is None else tol
@@ -158,8 +174,11 @@ def check_energy(system: HybridSystem, ex: Execution, kind: str, tol: float, str
     if kind == "dissipative":
         rise = float(np.max(es - np.minimum.accumulate(es)))
         ok = rise <= tol
-        return Check("energy non-increasing", ok,
-                     f"largest rise {rise:.3g} J {'<=' if ok else '>'} {tol:.3g} J; E {es[0]:.6g} -> {es[-1]:.6g} J")
+        return Check(
+            "energy non-increasing",
+            ok,
+            f"largest rise {rise:.3g} J {'<=' if ok else '>'} {tol:.3g} J; E {es[0]:.6g} -> {es[-1]:.6g} J",
+        )
     raise ValueError(f"energy kind must be 'conservative' or 'dissipative', got {kind!r}")
 
 
@@ -168,8 +187,9 @@ def check_transition_bound(ex: Execution, bound: float, why: str) -> Check:
     its transition budget."""
     n = len(ex.transitions)
     ok = n <= bound and ex.status != "max_transitions"
-    detail = (f"{n} <= {bound:.6g} ({why})" if ok
-              else f"{n} transitions (status {ex.status}) vs bound {bound:.6g} ({why})")
+    detail = (
+        f"{n} <= {bound:.6g} ({why})" if ok else f"{n} transitions (status {ex.status}) vs bound {bound:.6g} ({why})"
+    )
     return Check("transition bound", ok, detail)
 
 
@@ -198,7 +218,8 @@ def check_accumulation(ex: Execution, expected: Sequence[tuple[str, float, float
     latest] (s)."""
     found = [(w.details.get("transition"), w.time) for w in ex.warnings if w.kind == "accumulation"]
     ok = len(found) == len(expected) and all(
-        name == want and lo <= t <= hi for (name, t), (want, lo, hi) in zip(found, expected, strict=True))
+        name == want and lo <= t <= hi for (name, t), (want, lo, hi) in zip(found, expected, strict=True)
+    )
     seen = ", ".join(f"{name} from {t:.9g} s" for name, t in found) or "none"
     wanted = ", ".join(f"{name} from [{lo:.9g}, {hi:.9g}] s" for name, lo, hi in expected) or "none"
     return Check("accumulation reported", ok, f"warnings: {seen}; expected: {wanted}")
@@ -211,13 +232,28 @@ def check_status(ex: Execution, expected: str | Sequence[str] = "finished") -> C
     return Check("status", ok, f"{ex.status} at t = {ex.t_end:.6g}" + ("" if ok else f": {ex.message}"))
 
 
-def execution_checks(system: HybridSystem, ex: Execution, eps: float, *, control: Control = None,
-                     status: str | Sequence[str] = "finished", energy: str | None = None,
-                     energy_tol: float = 0.0, bound: float | None = None, bound_why: str = "",
-                     stride: int = 1, strict_time: bool = True) -> list[Check]:
+def execution_checks(
+    system: HybridSystem,
+    ex: Execution,
+    eps: float,
+    *,
+    control: Control = None,
+    status: str | Sequence[str] = "finished",
+    energy: str | None = None,
+    energy_tol: float = 0.0,
+    bound: float | None = None,
+    bound_why: str = "",
+    stride: int = 1,
+    strict_time: bool = True,
+) -> list[Check]:
     """The invariants every case checks on a run (see the module docstring)."""
-    checks = [check_status(ex, status), check_finite(ex), check_time(ex, strict_time),
-              check_domain(system, ex, eps, control, stride), check_resets(system, ex, eps, control)]
+    checks = [
+        check_status(ex, status),
+        check_finite(ex),
+        check_time(ex, strict_time),
+        check_domain(system, ex, eps, control, stride),
+        check_resets(system, ex, eps, control),
+    ]
     if energy is not None:
         checks.append(check_energy(system, ex, energy, energy_tol, stride))
     if bound is not None:
@@ -253,8 +289,9 @@ def slope(xs: Sequence[float], ys: Sequence[float]) -> float:
     return float(np.polyfit(lx, ly, 1)[0])
 
 
-def check_order(name: str, xs: Sequence[float], errors: Sequence[float], low: float, high: float,
-                label: str = "h") -> Check:
+def check_order(
+    name: str, xs: Sequence[float], errors: Sequence[float], low: float, high: float, label: str = "h"
+) -> Check:
     """The errors shrink with the fitted order in [low, high] as ``xs`` shrink."""
     errors = [float(e) for e in errors]
     if min(errors) <= 0 or not all(math.isfinite(e) for e in errors):

@@ -43,8 +43,11 @@ def oscillator_ex2() -> Model:
     continuation ``stick`` (into ``stuck``, left through ``release``), which ``simulate`` takes
     by default when the impacts accumulate; ``continuation=False`` runs the paper's relaxed
     execution, which chatters where the mass sticks."""
-    effects: dict[str, Any] = {"stop": {"position": -0.8, "restitution": 0.5}, "damping": {"a": 0.95},
-                               "forcing": {"amplitude": 1.0, "frequency": 1.0}}
+    effects: dict[str, Any] = {
+        "stop": {"position": -0.8, "restitution": 0.5},
+        "damping": {"a": 0.95},
+        "forcing": {"amplitude": 1.0, "frequency": 1.0},
+    }
     return build("oscillator", {"omega": 1.0, "mass": 1.0, "x0": -0.8, "xd0": 0.0}, effects)
 
 
@@ -61,8 +64,9 @@ def slip_twin(pronk_params: dict[str, Any] | None = None) -> Model:
     return build("slip", {"m": p["m"], "k": 2 * p["k"], "l": p["l"], "g": p["g"], "psi": p["psi"]})
 
 
-def lifted_ball(c: float, lift_rate: float, g: float = 9.81,
-                mass: float = 1.0) -> tuple[HybridSystem, Callable[[float, np.ndarray], float]]:
+def lifted_ball(
+    c: float, lift_rate: float, g: float = 9.81, mass: float = 1.0
+) -> tuple[HybridSystem, Callable[[float, np.ndarray], float]]:
     """A ball on a floor (restitution c) pulled up by the force ``u(t) = lift_rate t`` (N), and
     its control. Modes ``flight`` (z, zd) with field (zd, u/m - g) and ``rest`` (z, zd) with
     field 0, held on the floor while the floor pushes. Guards (eps in metres in flight, N at
@@ -81,6 +85,7 @@ def lifted_ball(c: float, lift_rate: float, g: float = 9.81,
     cubic z(t) = (r/m)((t - t*)^3 - (t_e - t*)^3)/6 - (r/m)(t_e - t*)^2 (t - t_e)/2, r = lift_rate,
     which RK4 integrates exactly.
     """
+
     def control(t: float, x: np.ndarray) -> float:
         return lift_rate * t
 
@@ -93,8 +98,12 @@ def lifted_ball(c: float, lift_rate: float, g: float = 9.81,
     def energy(mode: str, x: np.ndarray) -> float:
         return mass * (g * float(x[0]) + 0.5 * float(x[1]) ** 2)
 
-    system = HybridSystem({"flight": Mode(2, flight, ("z", "zd")), "rest": Mode(2, rest, ("z", "zd"))},
-                          _lifted_ball_transitions(c, g, mass), name=f"lifted ball c={c:g}", energy=energy)
+    system = HybridSystem(
+        {"flight": Mode(2, flight, ("z", "zd")), "rest": Mode(2, rest, ("z", "zd"))},
+        _lifted_ball_transitions(c, g, mass),
+        name=f"lifted ball c={c:g}",
+        energy=energy,
+    )
     return system, control
 
 
@@ -111,8 +120,14 @@ def _lifted_ball_transitions(c: float, g: float, mass: float) -> list[Transition
     ``release`` (see ``lifted_ball``)."""
     release = Transition("rest", "flight", lambda t, x, u: mass * g - u, name="release", guard_args="t,x,u")
     if c > 0.0:
-        bounce = Transition("flight", "flight", _floor_gap, lambda x: np.array([x[0], -c * x[1]]), name="bounce",
-                            continuation=Continuation("rest", _stop, name="land"))
+        bounce = Transition(
+            "flight",
+            "flight",
+            _floor_gap,
+            lambda x: np.array([x[0], -c * x[1]]),
+            name="bounce",
+            continuation=Continuation("rest", _stop, name="land"),
+        )
         return [bounce, release]
 
     # A plastic impact lands where the floor then pushes (the weight exceeds the lift) and grazes
@@ -124,10 +139,14 @@ def _lifted_ball_transitions(c: float, g: float, mass: float) -> list[Transition
             if base >= 0.0:
                 return base
             return base if (g - u / mass > 0.0) == lands else -base
+
         return guard
 
-    return [Transition("flight", "rest", branch(True), _stop, name="land", guard_args="t,x,u"),
-            Transition("flight", "flight", branch(False), _stop, name="graze", guard_args="t,x,u"), release]
+    return [
+        Transition("flight", "rest", branch(True), _stop, name="land", guard_args="t,x,u"),
+        Transition("flight", "flight", branch(False), _stop, name="graze", guard_args="t,x,u"),
+        release,
+    ]
 
 
 def curved_floor_ball(c: float = 0.8, radius: float = 2.0, g: float = 9.81) -> HybridSystem:
@@ -158,9 +177,12 @@ def curved_floor_ball(c: float = 0.8, radius: float = 2.0, g: float = 9.81) -> H
     def energy(mode: str, x: np.ndarray) -> float:
         return g * float(x[1]) + 0.5 * float(x[2] * x[2] + x[3] * x[3])
 
-    return HybridSystem({"fly": Mode(4, field, ("x", "z", "xd", "zd"))},
-                        [Transition("fly", "fly", guard, reset, name="bounce")], name="ball on a curved floor",
-                        energy=energy)
+    return HybridSystem(
+        {"fly": Mode(4, field, ("x", "z", "xd", "zd"))},
+        [Transition("fly", "fly", guard, reset, name="bounce")],
+        name="ball on a curved floor",
+        energy=energy,
+    )
 
 
 def floor_normal(x: np.ndarray, radius: float) -> np.ndarray:

@@ -30,8 +30,13 @@ def ball_flight_checks(ex: Execution, g: float, eps: float, resolved: float) -> 
         # the crossing is located to 1e-9 eps in height, i.e. to 1e-9 eps / w in time, at each end
         worst = max(worst, abs(flight - expected) / (1e-9 + 4e-9 * eps / w))
     ok = count > 0 and worst <= 1.0
-    return Check("flights exact", ok, f"{count} flights equal 2 w/g to the crossing tolerance (worst ratio {worst:.2g})"
-                 if ok else f"{count} flights checked, worst error {worst:.3g} x (1e-9 s + 4e-9 eps/w)")
+    return Check(
+        "flights exact",
+        ok,
+        f"{count} flights equal 2 w/g to the crossing tolerance (worst ratio {worst:.2g})"
+        if ok
+        else f"{count} flights checked, worst error {worst:.3g} x (1e-9 s + 4e-9 eps/w)",
+    )
 
 
 def ball_rest_check(ex: Execution, c: float, g: float, eps: float, t_from: float, t_to: float) -> Check:
@@ -46,11 +51,15 @@ def ball_rest_check(ex: Execution, c: float, g: float, eps: float, t_from: float
     slack = 1e-9 * eps
     z_min, z_max, v_max = float(states[:, 0].min()), float(states[:, 0].max()), float(np.abs(states[:, 1]).max())
     ok = z_min >= -eps - slack and z_max <= z_hi + slack and v_max <= v_hi + slack
-    return Check("rests on the floor", ok,
-                 f"t in [{t_from:.3g}, {t_to:.3g}] s: z in [{z_min:.2g}, {z_max:.2g}] within [-eps, {z_hi:.2g}] m, "
-                 f"|zd| <= {v_max:.2g} <= {v_hi:.2g} m/s" if ok else
-                 f"t in [{t_from:.3g}, {t_to:.3g}] s: z in [{z_min:.3g}, {z_max:.3g}] vs [-eps, {z_hi:.3g}] m, "
-                 f"|zd| up to {v_max:.3g} vs {v_hi:.3g} m/s")
+    return Check(
+        "rests on the floor",
+        ok,
+        f"t in [{t_from:.3g}, {t_to:.3g}] s: z in [{z_min:.2g}, {z_max:.2g}] within [-eps, {z_hi:.2g}] m, "
+        f"|zd| <= {v_max:.2g} <= {v_hi:.2g} m/s"
+        if ok
+        else f"t in [{t_from:.3g}, {t_to:.3g}] s: z in [{z_min:.3g}, {z_max:.3g}] vs [-eps, {z_hi:.3g}] m, "
+        f"|zd| up to {v_max:.3g} vs {v_hi:.3g} m/s",
+    )
 
 
 def ball_hold_check(ex: Execution, eps: float) -> Check:
@@ -115,8 +124,12 @@ def tank_switch_checks(ex: Execution, ref: Any, x0: np.ndarray, count: int) -> C
         held += tr.exit_time - tr.time
         t_prev, mode = times[k], tr.target
     ok = n == count and worst_x <= 1e-9 and worst_t <= 1e-9
-    return Check("switches exact", ok, f"first {n} strip points = exact switching states to {worst_x:.2g} m, "
-                                       f"crossing times = exact + held strips to {worst_t:.2g} s")
+    return Check(
+        "switches exact",
+        ok,
+        f"first {n} strip points = exact switching states to {worst_x:.2g} m, "
+        f"crossing times = exact + held strips to {worst_t:.2g} s",
+    )
 
 
 def tank_level_rate(ref: Any) -> float:

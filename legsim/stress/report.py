@@ -16,13 +16,26 @@ def format_table(results: Sequence[CaseResult], width: int | None = None) -> str
     """The table ``legsim stress`` prints: one row per case (long cells wrap within ``width``
     characters, default ``legsim.tables.output_width()``), then the failures spelled out."""
     header = ("case", "outcome", "trans.", "steps", "wall s", "invariants checked", "verdict")
-    rows = [(r.name, r.outcome, str(r.transitions), str(r.steps), f"{r.wall_time:.2f}", invariant_summary(r.checks),
-             "pass" if r.passed else "FAIL") for r in results]
+    rows = [
+        (
+            r.name,
+            r.outcome,
+            str(r.transitions),
+            str(r.steps),
+            f"{r.wall_time:.2f}",
+            invariant_summary(r.checks),
+            "pass" if r.passed else "FAIL",
+        )
+        for r in results
+    ]
     width = width or output_width()
     failed = [r for r in results if not r.passed]
-    notes = ["invariants: " + ", ".join(f"{k} {v}" for k, v in GENERIC.items())
-             + "; then the case's own checks (see --json for all of them with their numbers)",
-             f"{len(results) - len(failed)} of {len(results)} cases passed"]
+    notes = [
+        "invariants: "
+        + ", ".join(f"{k} {v}" for k, v in GENERIC.items())
+        + "; then the case's own checks (see --json for all of them with their numbers)",
+        f"{len(results) - len(failed)} of {len(results)} cases passed",
+    ]
     notes += [f"FAIL {r.name}: {f}" for r in failed for f in r.failures]
     wrapped = [textwrap.fill(note, width, subsequent_indent="    ", break_on_hyphens=False) for note in notes]
     return "\n".join([render_table(header, rows, right=(2, 3, 4), whole=(0, 2, 3, 4, 6), width=width), "", *wrapped])
@@ -31,8 +44,9 @@ def format_table(results: Sequence[CaseResult], width: int | None = None) -> str
 def invariant_summary(checks: Sequence[Check]) -> str:
     """``SFTDREB + own checks``: the execution invariants by letter, then the case's own."""
     names = list(dict.fromkeys(c.name for c in checks))
-    letters = "".join(k for k, v in GENERIC.items()
-                      if any(n == v or (k == "E" and n.startswith("energy ")) for n in names))
+    letters = "".join(
+        k for k, v in GENERIC.items() if any(n == v or (k == "E" and n.startswith("energy ")) for n in names)
+    )
     own = [n for n in names if n not in GENERIC.values() and not n.startswith("energy ")]
     # drop a run's label, "converges (d = 1e-06)" -> "converges"; keep "eq. (31)"
     own = list(dict.fromkeys(re.sub(r" \((?=[^()]*[=#])[^()]*\)$", "", n) for n in own))

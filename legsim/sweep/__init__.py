@@ -35,13 +35,29 @@ from pathlib import Path
 from typing import Any
 
 
-def sweep(scene: str | Path, *, grid: Mapping[str, Any] | None = None,
-          random: Mapping[str, tuple[float, float]] | None = None, samples: int = 1, seed: int = 0,
-          overrides: Sequence[str] = (), run: bool = True, walk: bool = False,
-          orbit: bool = False, max_steps: int = 20, tol: float = 1e-3, timeout: float | None = None,
-          out: str | Path | None = None, resume: bool = False, workers: int | None = None,
-          scheduler: str | None = None, in_process: bool = False, batch_size: int | None = None,
-          progress: bool = False, figures: bool = True) -> Any:
+def sweep(
+    scene: str | Path,
+    *,
+    grid: Mapping[str, Any] | None = None,
+    random: Mapping[str, tuple[float, float]] | None = None,
+    samples: int = 1,
+    seed: int = 0,
+    overrides: Sequence[str] = (),
+    run: bool = True,
+    walk: bool = False,
+    orbit: bool = False,
+    max_steps: int = 20,
+    tol: float = 1e-3,
+    timeout: float | None = None,
+    out: str | Path | None = None,
+    resume: bool = False,
+    workers: int | None = None,
+    scheduler: str | None = None,
+    in_process: bool = False,
+    batch_size: int | None = None,
+    progress: bool = False,
+    figures: bool = True,
+) -> Any:
     """Run variations of a scene and return a ``SweepResult`` (its ``table`` has one row each).
 
     Parameters
@@ -75,11 +91,30 @@ def sweep(scene: str | Path, *, grid: Mapping[str, Any] | None = None,
     axes = tuple(_grid_axis(key, value, parse_grid, Axis) for key, value in (grid or {}).items())
     draws = tuple(Axis(key, (), float(lo), float(hi)) for key, (lo, hi) in (random or {}).items())
     kind = "walk" if walk else ("scene" if run else "none")
-    spec = SweepSpec(scene=scene_reference(scene), overrides=tuple(overrides), grid=axes, random=draws,
-                     samples=samples if draws else 1, seed=seed, run=kind, orbit=orbit, max_steps=max_steps, tol=tol,
-                     timeout=timeout)
-    return run_sweep(spec, out=out, resume=resume, workers=workers, scheduler=scheduler, in_process=in_process,
-                     batch_size=batch_size, progress=progress, figures=figures)
+    spec = SweepSpec(
+        scene=scene_reference(scene),
+        overrides=tuple(overrides),
+        grid=axes,
+        random=draws,
+        samples=samples if draws else 1,
+        seed=seed,
+        run=kind,
+        orbit=orbit,
+        max_steps=max_steps,
+        tol=tol,
+        timeout=timeout,
+    )
+    return run_sweep(
+        spec,
+        out=out,
+        resume=resume,
+        workers=workers,
+        scheduler=scheduler,
+        in_process=in_process,
+        batch_size=batch_size,
+        progress=progress,
+        figures=figures,
+    )
 
 
 def _grid_axis(key: str, value: Any, parse: Any, axis: Any) -> Any:

@@ -68,8 +68,9 @@ class BatchSizer:
     the mean cost per item so far, at most ``max_size`` and at most an even share of what is
     left over ``2 * workers`` batches (so that the sweep's tail is balanced)."""
 
-    def __init__(self, workers: int, target_seconds: float = 2.0, first: int = 1, max_size: int = 1000,
-                 fixed: int | None = None) -> None:
+    def __init__(
+        self, workers: int, target_seconds: float = 2.0, first: int = 1, max_size: int = 1000, fixed: int | None = None
+    ) -> None:
         self.workers, self.target, self.first = workers, target_seconds, first
         self.max_size, self.fixed = max_size, fixed
         self.seconds = 0.0
@@ -95,19 +96,28 @@ class Engine:
     ``with Engine(workers=2) as engine: engine.run(fn, common, items, on_done)``.
     """
 
-    def __init__(self, workers: int | None = None, scheduler: str | None = None, in_process: bool = False,
-                 batch_size: int | None = None, target_seconds: float = 2.0) -> None:
+    def __init__(
+        self,
+        workers: int | None = None,
+        scheduler: str | None = None,
+        in_process: bool = False,
+        batch_size: int | None = None,
+        target_seconds: float = 2.0,
+    ) -> None:
         if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
             raise EngineError(f"--workers must be an integer >= 1, got {workers!r}")
-        if batch_size is not None and (isinstance(batch_size, bool) or not isinstance(batch_size, int)
-                                       or batch_size < 1):
+        if batch_size is not None and (
+            isinstance(batch_size, bool) or not isinstance(batch_size, int) or batch_size < 1
+        ):
             raise EngineError(f"--batch must be an integer >= 1, got {batch_size!r}")
         if in_process and scheduler:
             raise EngineError("--in-process and --scheduler exclude each other")
         self.scheduler = None if in_process else (scheduler or os.environ.get(SCHEDULER_ENV) or None)
         if self.scheduler and workers is not None:
-            raise EngineError(f"--workers sets the size of the embedded cluster; with a scheduler "
-                              f"({self.scheduler}) the cluster's own workers run the sweep")
+            raise EngineError(
+                f"--workers sets the size of the embedded cluster; with a scheduler "
+                f"({self.scheduler}) the cluster's own workers run the sweep"
+            )
         self.in_process = in_process
         self.requested = workers
         self.batch_size, self.target_seconds = batch_size, target_seconds
@@ -156,8 +166,9 @@ class Engine:
             return
         self._run_on_dask(fn, common, batches, sizer, on_done)
 
-    def _run_on_dask(self, fn: BatchFn, common: Any, batches: Iterator[list], sizer: BatchSizer,
-                     on_done: OnDone) -> None:
+    def _run_on_dask(
+        self, fn: BatchFn, common: Any, batches: Iterator[list], sizer: BatchSizer, on_done: OnDone
+    ) -> None:
         from distributed import as_completed
 
         client = self.client
@@ -197,7 +208,7 @@ def _batches(items: list, sizer: BatchSizer) -> Iterator[list]:
     start = 0
     while start < len(items):
         size = sizer.size(len(items) - start)
-        yield items[start:start + size]
+        yield items[start : start + size]
         start += size
 
 
@@ -206,8 +217,10 @@ def _connect(scheduler: str | None, workers: int | None) -> tuple[Client, LocalC
     try:
         from distributed import Client, LocalCluster
     except ImportError as exc:
-        raise EngineError(f"the sweep engine needs Dask's distributed scheduler ({exc}); "
-                          f"pip install 'dask[distributed]', or run with --in-process") from exc
+        raise EngineError(
+            f"the sweep engine needs Dask's distributed scheduler ({exc}); "
+            f"pip install 'dask[distributed]', or run with --in-process"
+        ) from exc
     if scheduler:
         try:
             client = Client(scheduler, timeout=CONNECT_TIMEOUT)
@@ -218,16 +231,19 @@ def _connect(scheduler: str | None, workers: int | None) -> tuple[Client, LocalC
             _check_workers(client, scheduler)
         except (OSError, TimeoutError) as exc:
             client.close()
-            raise EngineError(f"the Dask scheduler at {scheduler} has no worker (none joined within "
-                              f"{CONNECT_TIMEOUT:g} s): start one with `dask worker {scheduler}`") from exc
+            raise EngineError(
+                f"the Dask scheduler at {scheduler} has no worker (none joined within "
+                f"{CONNECT_TIMEOUT:g} s): start one with `dask worker {scheduler}`"
+            ) from exc
         except BaseException:
             client.close()
             raise
         return client, None
     n = workers or default_workers()
     # The dashboard on a free port: the default 8787 may be another cluster's on a shared machine.
-    cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
-                           silence_logs=logging.ERROR)
+    cluster = LocalCluster(
+        n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0", silence_logs=logging.ERROR
+    )
     return Client(cluster), cluster
 
 
@@ -238,12 +254,16 @@ def _check_workers(client: Any, scheduler: str) -> None:
     try:
         versions = client.run(_legsim_version)
     except Exception as exc:
-        raise EngineError(f"the workers of the Dask scheduler at {scheduler} cannot run legsim "
-                          f"({type(exc).__name__}: {exc}); install legsim {__version__} where they run") from exc
+        raise EngineError(
+            f"the workers of the Dask scheduler at {scheduler} cannot run legsim "
+            f"({type(exc).__name__}: {exc}); install legsim {__version__} where they run"
+        ) from exc
     wrong = {worker: version for worker, version in versions.items() if version != __version__}
     if wrong:
-        raise EngineError(f"the workers of the Dask scheduler at {scheduler} run another legsim: {wrong}; "
-                          f"this is legsim {__version__}")
+        raise EngineError(
+            f"the workers of the Dask scheduler at {scheduler} run another legsim: {wrong}; "
+            f"this is legsim {__version__}"
+        )
 
 
 def _legsim_version() -> str:

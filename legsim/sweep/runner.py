@@ -49,21 +49,37 @@ class SweepResult:
 
     def summary(self) -> dict[str, Any]:
         """JSON-ready summary of the sweep (``legsim sweep --json``)."""
-        out = {"scene": self.spec.scene, "variations": len(self.spec), "computed": self.computed,
-               "resumed": self.resumed, "elapsed_s": self.elapsed_s, "startup_s": self.startup_s,
-               "where": self.where,
-               "task_status": self.counts("task_status"),
-               "results": None if self.results is None else str(self.results),
-               "figures": {k: str(v) for k, v in self.figures.items()}}
+        out = {
+            "scene": self.spec.scene,
+            "variations": len(self.spec),
+            "computed": self.computed,
+            "resumed": self.resumed,
+            "elapsed_s": self.elapsed_s,
+            "startup_s": self.startup_s,
+            "where": self.where,
+            "task_status": self.counts("task_status"),
+            "results": None if self.results is None else str(self.results),
+            "figures": {k: str(v) for k, v in self.figures.items()},
+        }
         for column in ("status", "outcome", "orbit_status", "orbit_stable"):
             if column in self.table.column_names:
                 out[column] = {str(k): v for k, v in self.counts(column).items()}
         return out
 
 
-def run_sweep(spec: SweepSpec, *, out: str | Path | None = None, resume: bool = False, workers: int | None = None,
-              scheduler: str | None = None, in_process: bool = False, batch_size: int | None = None,
-              progress: bool = False, figures: bool = True, log: Callable[[str], None] | None = None) -> SweepResult:
+def run_sweep(
+    spec: SweepSpec,
+    *,
+    out: str | Path | None = None,
+    resume: bool = False,
+    workers: int | None = None,
+    scheduler: str | None = None,
+    in_process: bool = False,
+    batch_size: int | None = None,
+    progress: bool = False,
+    figures: bool = True,
+    log: Callable[[str], None] | None = None,
+) -> SweepResult:
     """Run every variation of ``spec`` not done yet (see ``legsim.sweep.sweep`` for the arguments)."""
     fixed_point = check_sweep(spec)
     store = ResultStore(out, spec) if out is not None else None
@@ -80,6 +96,7 @@ def run_sweep(spec: SweepSpec, *, out: str | Path | None = None, resume: bool = 
         if store is not None:
             store.start()
         with counting(len(spec), "sweep", done=len(done), enabled=progress) as advance:
+
             def on_done(batch: list[Any], results: Any) -> None:
                 if isinstance(results, BaseException):
                     results = [failed_row(index, values, results) for index, values in batch]
@@ -94,8 +111,16 @@ def run_sweep(spec: SweepSpec, *, out: str | Path | None = None, resume: bool = 
             finally:
                 # Interrupted or not, the rows finished so far make the table.
                 table = store.assemble() if store is not None else to_table(sorted(rows, key=_index), schema(spec))
-    result = SweepResult(spec, table, None if store is None else store.results, len(todo), len(done),
-                         time.perf_counter() - start, engine.where, startup)
+    result = SweepResult(
+        spec,
+        table,
+        None if store is None else store.results,
+        len(todo),
+        len(done),
+        time.perf_counter() - start,
+        engine.where,
+        startup,
+    )
     if store is not None and figures:
         result.figures = write_figures(result, store.folder, fixed_point)
     return result
@@ -107,8 +132,12 @@ def _index(row: dict[str, Any]) -> int:
 
 def failed_row(index: int, values: dict[str, Any], exc: BaseException) -> dict[str, Any]:
     """The row of a variation whose whole batch failed on its worker (a worker that died)."""
-    return {"index": index, **values, "task_status": "error",
-            "error": f"the batch failed on its worker: {type(exc).__name__}: {exc}"}
+    return {
+        "index": index,
+        **values,
+        "task_status": "error",
+        "error": f"the batch failed on its worker: {type(exc).__name__}: {exc}",
+    }
 
 
 def check_sweep(spec: SweepSpec) -> dict[str, float] | None:
@@ -129,8 +158,10 @@ def check_sweep(spec: SweepSpec) -> dict[str, float] | None:
 
     gait = reference_gait(spec, {})
     if not gait.converged:
-        raise SweepError(f"{base.path}: the walks need the scene's gait, and its orbit search ended with "
-                         f"{gait.status}: {gait.message}")
+        raise SweepError(
+            f"{base.path}: the walks need the scene's gait, and its orbit search ended with "
+            f"{gait.status}: {gait.message}"
+        )
     return dict(zip(gait.state_names, (float(v) for v in gait.fixed_point), strict=True))
 
 
@@ -144,8 +175,11 @@ def write_figures(result: SweepResult, folder: Path, fixed_point: dict[str, floa
     from ..commands.run import find_writer
     from ..output.files import write_atomic
 
-    wanted = [kind for kind in ("walk", "orbit") if (kind == "walk" and spec.run == "walk") or
-              (kind == "orbit" and spec.orbit)]
+    wanted = [
+        kind
+        for kind in ("walk", "orbit")
+        if (kind == "walk" and spec.run == "walk") or (kind == "orbit" and spec.orbit)
+    ]
     written = {}
     info = {"x": spec.grid[0].key, "y": spec.grid[1].key, "fixed_point": fixed_point, "scene": spec.scene}
     for kind in wanted:

@@ -134,8 +134,10 @@ class SweepSpec:
 
     @classmethod
     def from_json(cls, data: dict[str, Any]) -> SweepSpec:
-        axes = {k: tuple(Axis(a["key"], tuple(a["values"]), a["low"], a["high"]) for a in data[k])
-                for k in ("grid", "random")}
+        axes = {
+            k: tuple(Axis(a["key"], tuple(a["values"]), a["low"], a["high"]) for a in data[k])
+            for k in ("grid", "random")
+        }
         return cls(**{**data, **axes, "overrides": tuple(data["overrides"])})
 
     def fingerprint(self) -> str:
@@ -272,4 +274,4 @@ def corners(spec: SweepSpec) -> Iterator[dict[str, Any]]:
     first = [e[0] for e in ends]
     yield dict(zip(spec.keys, first, strict=True))
     for k, (_, last) in enumerate(ends):
-        yield dict(zip(spec.keys, [*first[:k], last, *first[k + 1:]], strict=True))
+        yield dict(zip(spec.keys, [*first[:k], last, *first[k + 1 :]], strict=True))

@@ -35,8 +35,13 @@ def sample_batch(job: SampleJob, indices: list[int]) -> list[tuple[dict[str, Any
     return [(ensemble.settings, execution) for execution in ensemble.executions]
 
 
-def ensemble_on_engine(scene: Any, scene_ref: str, settings: dict[str, Any], engine: Any,
-                       progress: Callable[[int, int], None] | None = None) -> Ensemble:
+def ensemble_on_engine(
+    scene: Any,
+    scene_ref: str,
+    settings: dict[str, Any],
+    engine: Any,
+    progress: Callable[[int, int], None] | None = None,
+) -> Ensemble:
     """The ensemble of a loaded ``scene`` (``scene_ref``: how workers load it) with the
     command line's ``[stochastic]`` settings, its executions drawn on ``engine``
     (``legsim.sweep.engine.Engine``, entered). A batch that fails on its worker raises."""
@@ -44,8 +49,9 @@ def ensemble_on_engine(scene: Any, scene_ref: str, settings: dict[str, Any], eng
 
     resolved = scene_settings(scene, settings)
     samples = resolved["samples"]
-    job = SampleJob(scene_ref, tuple(scene.overrides), tuple(sorted((k, v) for k, v in settings.items()
-                                                                    if v is not None)))
+    job = SampleJob(
+        scene_ref, tuple(scene.overrides), tuple(sorted((k, v) for k, v in settings.items() if v is not None))
+    )
     drawn: dict[int, Any] = {}
 
     def on_done(batch: list[int], results: Any) -> None:

@@ -46,22 +46,46 @@ BASE_COLUMNS: dict[str, pa.DataType] = {"task_status": _STR, "error": _STR}
 #: The run's summary (``legsim.output.summary.run_summary`` keys; ``t_end`` is its ``t_final``,
 #: the time reached) and ``fell`` (the model broke down: status ``model_breakdown``).
 RUN_COLUMNS: dict[str, pa.DataType] = {
-    "status": _STR, "message": _STR, "t_end": _F64, "final_mode": _STR, "final_state": _VECTOR,
-    "transitions": _I64, "steps": _I64, "halvings": _I64, "field_evals": _I64, "guard_evals": _I64,
-    "reset_evals": _I64, "energy_initial": _F64, "energy_final": _F64, "fell": _BOOL}
+    "status": _STR,
+    "message": _STR,
+    "t_end": _F64,
+    "final_mode": _STR,
+    "final_state": _VECTOR,
+    "transitions": _I64,
+    "steps": _I64,
+    "halvings": _I64,
+    "field_evals": _I64,
+    "guard_evals": _I64,
+    "reset_evals": _I64,
+    "energy_initial": _F64,
+    "energy_final": _F64,
+    "fell": _BOOL,
+}
 
 #: A walk's verdict (``legsim.sweep.walk``).
 WALK_COLUMNS: dict[str, pa.DataType] = {
-    "outcome": _STR, "walk_steps": _I64, "steps_to_gait": _I64, "distance_to_gait": _F64,
-    "gait_period": _I64}
+    "outcome": _STR,
+    "walk_steps": _I64,
+    "steps_to_gait": _I64,
+    "distance_to_gait": _F64,
+    "gait_period": _I64,
+}
 
 #: The variation's periodic orbit (``legsim.orbits.find_orbit``): multipliers by decreasing
 #: modulus as real and imaginary parts.
 ORBIT_COLUMNS: dict[str, pa.DataType] = {
-    "orbit_status": _STR, "orbit_message": _STR, "orbit_fixed_point": _VECTOR, "orbit_period": _F64,
-    "orbit_step_length": _F64, "orbit_multipliers_re": _VECTOR, "orbit_multipliers_im": _VECTOR,
-    "orbit_spectral_radius": _F64, "orbit_stable": _BOOL, "orbit_residual": _F64,
-    "orbit_iterations": _I64}
+    "orbit_status": _STR,
+    "orbit_message": _STR,
+    "orbit_fixed_point": _VECTOR,
+    "orbit_period": _F64,
+    "orbit_step_length": _F64,
+    "orbit_multipliers_re": _VECTOR,
+    "orbit_multipliers_im": _VECTOR,
+    "orbit_spectral_radius": _F64,
+    "orbit_stable": _BOOL,
+    "orbit_residual": _F64,
+    "orbit_iterations": _I64,
+}
 
 
 def input_type(values: Sequence[Any]) -> pa.DataType:
@@ -121,8 +145,10 @@ class ResultStore:
         """Check the folder (nothing is written yet); the indices already done when resuming."""
         existing = self.results.exists() or self.manifest.exists() or self.parts.exists()
         if existing and not resume:
-            raise SweepError(f"--out {self.folder}: already holds a sweep ({MANIFEST}, {RESULTS} or {PARTS}/); "
-                             f"continue it with --resume, or choose another folder")
+            raise SweepError(
+                f"--out {self.folder}: already holds a sweep ({MANIFEST}, {RESULTS} or {PARTS}/); "
+                f"continue it with --resume, or choose another folder"
+            )
         if self.folder.exists() and not self.folder.is_dir():
             raise SweepError(f"--out {self.folder}: is a file, not a folder")
         if not existing:
@@ -146,14 +172,17 @@ class ResultStore:
         try:
             stored = SweepSpec.from_json(json.loads(self.manifest.read_text()))
         except FileNotFoundError:
-            raise SweepError(f"--resume: {self.manifest} is missing, so the results in {self.folder} cannot be "
-                             f"matched to this sweep") from None
+            raise SweepError(
+                f"--resume: {self.manifest} is missing, so the results in {self.folder} cannot be matched to this sweep"
+            ) from None
         except (ValueError, KeyError, TypeError) as exc:
             raise SweepError(f"--resume: {self.manifest} is not a sweep manifest: {exc}") from exc
         if stored.fingerprint() != self.spec.fingerprint():
             changed = sorted(k for k, v in stored.to_json().items() if self.spec.to_json().get(k) != v)
-            raise SweepError(f"--resume: {self.folder} holds another sweep (differs in {changed}); resume it with "
-                             f"the same scene, --set, axes and measures, or choose another --out")
+            raise SweepError(
+                f"--resume: {self.folder} holds another sweep (differs in {changed}); resume it with "
+                f"the same scene, --set, axes and measures, or choose another --out"
+            )
 
     def part_files(self) -> list[Path]:
         return sorted(self.parts.glob("part-*.parquet")) if self.parts.is_dir() else []
@@ -175,8 +204,10 @@ class ResultStore:
     def assemble(self) -> pa.Table:
         """Merge the final table and the parts into ``results.parquet`` (sorted by index), remove
         the parts; the table."""
-        tables = [pq.read_table(p, schema=self.schema) for p in
-                  ([self.results] if self.results.exists() else []) + self.part_files()]
+        tables = [
+            pq.read_table(p, schema=self.schema)
+            for p in ([self.results] if self.results.exists() else []) + self.part_files()
+        ]
         table = pa.concat_tables(tables) if tables else self.schema.empty_table()
         table = _first_of_each_index(table.sort_by("index"))
         write_table(self.results, table, "--out results")

@@ -89,9 +89,23 @@ def run_columns(scene: Any, deadline: Deadline) -> dict[str, Any]:
     from ..output.summary import run_summary
 
     summary = run_summary(scene.simulate(progress=deadline.progress), scene)
-    out = {key: summary.get(key) for key in ("status", "message", "final_mode", "final_state", "transitions",
-                                             "steps", "halvings", "field_evals", "guard_evals", "reset_evals",
-                                             "energy_initial", "energy_final")}
+    out = {
+        key: summary.get(key)
+        for key in (
+            "status",
+            "message",
+            "final_mode",
+            "final_state",
+            "transitions",
+            "steps",
+            "halvings",
+            "field_evals",
+            "guard_evals",
+            "reset_evals",
+            "energy_initial",
+            "energy_final",
+        )
+    }
     out["t_end"] = summary["t_final"]
     out["fell"] = summary["status"] == "model_breakdown"
     return out
@@ -105,17 +119,35 @@ def walk_row(scene: Any, spec: SweepSpec, values: dict[str, Any], deadline: Dead
 
     gait = reference_gait(spec, values)
     if not gait.converged:
-        raise SweepError(f"no reference gait to walk to: the orbit search of the scene's [orbit] section "
-                         f"({gait.status}) {gait.message}")
+        raise SweepError(
+            f"no reference gait to walk to: the orbit search of the scene's [orbit] section "
+            f"({gait.status}) {gait.message}"
+        )
     problem = problem_from_scene(scene).problem
-    result = walk(problem, scene.initial_state, scene.integrator["t0"], gait.fixed_point, max_steps=spec.max_steps,
-                  tol=spec.tol, progress=deadline.progress)
-    out = {"status": result.status, "message": result.message, "t_end": result.t_end, "final_mode": result.mode,
-           "final_state": [float(v) for v in result.state], "transitions": result.transitions,
-           **{key: int(result.counters.get(key, 0)) for key in ("steps", "halvings", "field_evals", "guard_evals",
-                                                               "reset_evals")},
-           "energy_initial": _energy(scene, scene.initial_mode, scene.initial_state),
-           "energy_final": _energy(scene, result.mode, result.state), "fell": result.outcome == "falls"}
+    result = walk(
+        problem,
+        scene.initial_state,
+        scene.integrator["t0"],
+        gait.fixed_point,
+        max_steps=spec.max_steps,
+        tol=spec.tol,
+        progress=deadline.progress,
+    )
+    out = {
+        "status": result.status,
+        "message": result.message,
+        "t_end": result.t_end,
+        "final_mode": result.mode,
+        "final_state": [float(v) for v in result.state],
+        "transitions": result.transitions,
+        **{
+            key: int(result.counters.get(key, 0))
+            for key in ("steps", "halvings", "field_evals", "guard_evals", "reset_evals")
+        },
+        "energy_initial": _energy(scene, scene.initial_mode, scene.initial_state),
+        "energy_final": _energy(scene, result.mode, result.state),
+        "fell": result.outcome == "falls",
+    }
     out.update(walk_columns(result))
     return out
 
@@ -157,10 +189,16 @@ def orbit_columns(scene: Any, deadline: Deadline) -> dict[str, Any]:
     deadline.check()  # a search cut short by the deadline reports a failed simulation: say why
     data = result.to_json()
     multipliers = data["multipliers"] or []
-    return {"orbit_status": data["status"], "orbit_message": data["message"],
-            "orbit_fixed_point": data["fixed_point"], "orbit_period": data["period"],
-            "orbit_step_length": data["step_length"],
-            "orbit_multipliers_re": [m[0] for m in multipliers] if data["multipliers"] is not None else None,
-            "orbit_multipliers_im": [m[1] for m in multipliers] if data["multipliers"] is not None else None,
-            "orbit_spectral_radius": data["spectral_radius"], "orbit_stable": data["stable"],
-            "orbit_residual": data["residual"], "orbit_iterations": data["iterations"]}
+    return {
+        "orbit_status": data["status"],
+        "orbit_message": data["message"],
+        "orbit_fixed_point": data["fixed_point"],
+        "orbit_period": data["period"],
+        "orbit_step_length": data["step_length"],
+        "orbit_multipliers_re": [m[0] for m in multipliers] if data["multipliers"] is not None else None,
+        "orbit_multipliers_im": [m[1] for m in multipliers] if data["multipliers"] is not None else None,
+        "orbit_spectral_radius": data["spectral_radius"],
+        "orbit_stable": data["stable"],
+        "orbit_residual": data["residual"],
+        "orbit_iterations": data["iterations"],
+    }

@@ -98,8 +98,14 @@ class WalkResult:
 class _Walker:
     """One walk's state: where it is, the returns so far, the counters."""
 
-    def __init__(self, problem: OrbitProblem, fixed_point: np.ndarray | None, max_steps: int, tol: float,
-                 progress: Callable[[float, float, float], None] | None) -> None:
+    def __init__(
+        self,
+        problem: OrbitProblem,
+        fixed_point: np.ndarray | None,
+        max_steps: int,
+        tol: float,
+        progress: Callable[[float, float, float], None] | None,
+    ) -> None:
         self.problem = problem
         self.system, self.control = problem.instantiate()
         self.fixed_point = fixed_point
@@ -136,15 +142,22 @@ class _Walker:
                     last_return = t
                     verdict = self.returned(x, t)
                 elif self.since_event > MAX_TRANSITIONS_WITHOUT_RETURN:
-                    verdict = ("stops", f"{self.since_event} transitions without a return to the section "
-                                        f"{p.section.label}")
+                    verdict = (
+                        "stops",
+                        f"{self.since_event} transitions without a return to the section {p.section.label}",
+                    )
                 if verdict is not None:
                     return self.end(verdict, ex, mode, x, t)
             elif ex.status == Status.FINISHED and ex.t_end < last_return + p.t_max:
                 mode, x, t = ex.final_mode, ex.final_state.copy(), ex.t_end  # returned in this run: go on
             elif ex.status == Status.FINISHED:
-                return self.end(("stops", f"no return to the section {p.section.label} within t_max = "
-                                          f"{p.t_max:g} s"), ex, ex.final_mode, ex.final_state, ex.t_end)
+                return self.end(
+                    ("stops", f"no return to the section {p.section.label} within t_max = {p.t_max:g} s"),
+                    ex,
+                    ex.final_mode,
+                    ex.final_state,
+                    ex.t_end,
+                )
             else:
                 outcome = "falls" if ex.status == Status.MODEL_BREAKDOWN else "failed"
                 return self.end((outcome, ex.message), ex, ex.final_mode, ex.final_state, ex.t_end)
@@ -154,9 +167,23 @@ class _Walker:
         p = self.problem
         # The problem's landing rule and halving budget, as its return map runs: the gait's
         # fixed point is then one of these steps'.
-        ex = simulate(self.system, x, mode, max(t_final, t + p.h), p.h, p.eps, p.tableau, self.control, t0=t,
-                      max_transitions=0, rtol=p.rtol, atol=p.atol, progress=self.progress, landing=p.landing,
-                      max_halvings=p.max_halvings)
+        ex = simulate(
+            self.system,
+            x,
+            mode,
+            max(t_final, t + p.h),
+            p.h,
+            p.eps,
+            p.tableau,
+            self.control,
+            t0=t,
+            max_transitions=0,
+            rtol=p.rtol,
+            atol=p.atol,
+            progress=self.progress,
+            landing=p.landing,
+            max_halvings=p.max_halvings,
+        )
         for key in COUNTERS:
             self.counters[key] += ex.counters.get(key, 0)
         return ex
@@ -193,14 +220,23 @@ class _Walker:
             q = strip.state.copy()
             x_after = np.asarray(q if tr.reset is None else tr.reset(q), dtype=float)
         except ModelBreakdown as exc:
-            return self.finish("falls", "model_breakdown", f"{exc} (reset of {tr.name})", strip.mode, strip.state,
-                               strip.time)
+            return self.finish(
+                "falls", "model_breakdown", f"{exc} (reset of {tr.name})", strip.mode, strip.state, strip.time
+            )
         except Exception as exc:
-            raise ModelError(f"{self.system.name}: reset of transition {tr.name} failed at t={strip.time:.17g}: "
-                             f"{type(exc).__name__}: {exc}") from exc
+            raise ModelError(
+                f"{self.system.name}: reset of transition {tr.name} failed at t={strip.time:.17g}: "
+                f"{type(exc).__name__}: {exc}"
+            ) from exc
         if not np.all(np.isfinite(x_after)):
-            return self.finish("failed", "non_finite", f"reset of {tr.name} gives a non-finite state "
-                                                       f"{x_after.tolist()}", tr.target, x_after, t_exit)
+            return self.finish(
+                "failed",
+                "non_finite",
+                f"reset of {tr.name} gives a non-finite state {x_after.tolist()}",
+                tr.target,
+                x_after,
+                t_exit,
+            )
         self.transitions += 1
         self.since_event += 1
         return tr.name, tr.target, x_after, t_exit
@@ -211,10 +247,12 @@ class _Walker:
         self.return_times.append(t)
         k = len(self.returns)
         quick = MIN_RETURN_STEPS * self.problem.h
-        intervals = np.diff(self.return_times[-CHATTER_RETURNS - 1:])
+        intervals = np.diff(self.return_times[-CHATTER_RETURNS - 1 :])
         if len(intervals) == CHATTER_RETURNS and np.all(intervals < quick):
-            return "stops", (f"the last {CHATTER_RETURNS} returns came less than {MIN_RETURN_STEPS} steps h apart: "
-                             f"it chatters in place (a Zeno-like collapse), it does not walk")
+            return "stops", (
+                f"the last {CHATTER_RETURNS} returns came less than {MIN_RETURN_STEPS} steps h apart: "
+                f"it chatters in place (a Zeno-like collapse), it does not walk"
+            )
         if self.fixed_point is not None:
             self.distance = float(np.linalg.norm((x - self.fixed_point)[self.periodic]))
             if self.distance < self.tol:
@@ -224,8 +262,11 @@ class _Walker:
         # distance to it, mu a multiplier): repeating counts only when it is much tighter.
         repeat_tol = self.tol if self.distance is None else min(self.tol, REPEAT_SHARE * self.distance)
         for period in range(1, MAX_PERIOD + 1):
-            if k > period and t - self.return_times[k - 1 - period] >= period * quick \
-                    and np.linalg.norm((x - self.returns[k - 1 - period])[self.periodic]) < repeat_tol:
+            if (
+                k > period
+                and t - self.return_times[k - 1 - period] >= period * quick
+                and np.linalg.norm((x - self.returns[k - 1 - period])[self.periodic]) < repeat_tol
+            ):
                 self.period = period
                 return "other_gait", f"returns repeat every {period} step(s) away from the gait"
         if k >= self.max_steps:
@@ -239,14 +280,32 @@ class _Walker:
 
     def finish(self, outcome: str, status: str, message: str, mode: str, x: np.ndarray, t: float) -> WalkResult:
         k = len(self.returns)
-        return WalkResult(outcome=outcome, status=status, message=message, steps=k, mode=mode,
-                          state=np.asarray(x, dtype=float).copy(), t_end=float(t), transitions=self.transitions,
-                          steps_to_gait=k if outcome == "converges" else None, distance=self.distance,
-                          period=self.period, counters=dict(self.counters))
+        return WalkResult(
+            outcome=outcome,
+            status=status,
+            message=message,
+            steps=k,
+            mode=mode,
+            state=np.asarray(x, dtype=float).copy(),
+            t_end=float(t),
+            transitions=self.transitions,
+            steps_to_gait=k if outcome == "converges" else None,
+            distance=self.distance,
+            period=self.period,
+            counters=dict(self.counters),
+        )
 
 
-def walk(problem: OrbitProblem, x0: np.ndarray, t0: float, fixed_point: np.ndarray | None, *, max_steps: int = 20,
-         tol: float = 1e-3, progress: Callable[[float, float, float], None] | None = None) -> WalkResult:
+def walk(
+    problem: OrbitProblem,
+    x0: np.ndarray,
+    t0: float,
+    fixed_point: np.ndarray | None,
+    *,
+    max_steps: int = 20,
+    tol: float = 1e-3,
+    progress: Callable[[float, float, float], None] | None = None,
+) -> WalkResult:
     """Walk from ``x0`` (a state of the section's mode at time ``t0``, s) until the walk has an
     outcome (``OUTCOMES``), at most ``max_steps`` returns.
 
@@ -256,16 +315,24 @@ def walk(problem: OrbitProblem, x0: np.ndarray, t0: float, fixed_point: np.ndarr
     """
     x0 = np.asarray(x0, dtype=float)
     if x0.shape != (problem.dim,):
-        raise SimulationError(f"walk: the initial state has shape {x0.shape}, expected ({problem.dim},) in the "
-                              f"section's mode '{problem.bound.mode}'")
+        raise SimulationError(
+            f"walk: the initial state has shape {x0.shape}, expected ({problem.dim},) in the "
+            f"section's mode '{problem.bound.mode}'"
+        )
     if not (math.isfinite(tol) and tol > 0):
         raise SimulationError(f"walk: tol must be > 0, got {tol!r}")
-    walker = _Walker(problem, None if fixed_point is None else np.asarray(fixed_point, dtype=float), max_steps,
-                     tol, progress)
+    walker = _Walker(
+        problem, None if fixed_point is None else np.asarray(fixed_point, dtype=float), max_steps, tol, progress
+    )
     return walker.run(problem.bound.mode, x0.copy(), float(t0))
 
 
 def walk_columns(result: WalkResult) -> dict[str, Any]:
     """A walk's columns of the sweep table."""
-    return {"outcome": result.outcome, "walk_steps": result.steps, "steps_to_gait": result.steps_to_gait,
-            "distance_to_gait": result.distance, "gait_period": result.period}
+    return {
+        "outcome": result.outcome,
+        "walk_steps": result.steps,
+        "steps_to_gait": result.steps_to_gait,
+        "distance_to_gait": result.distance,
+        "gait_period": result.period,
+    }

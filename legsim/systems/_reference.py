@@ -25,14 +25,19 @@ def as_times(times: Iterable[float] | float, t0: float) -> np.ndarray:
 
 def make_samples(times: np.ndarray, modes: Sequence[str], states: np.ndarray | Sequence[np.ndarray]) -> Samples:
     """A ``Samples`` of an exact execution: no strips (the reference has eps = 0)."""
-    return Samples(np.asarray(times, dtype=float), list(modes), [np.array(s, dtype=float) for s in states],
-                   np.zeros(len(times), dtype=bool))
+    return Samples(
+        np.asarray(times, dtype=float),
+        list(modes),
+        [np.array(s, dtype=float) for s in states],
+        np.zeros(len(times), dtype=bool),
+    )
 
 
 def box(x_left: float, x_right: float, z_bottom: float, z_top: float) -> np.ndarray:
     """Closed rectangle as a polyline, shape (5, 2), points (x, z) in metres."""
-    return np.array([[x_left, z_bottom], [x_right, z_bottom], [x_right, z_top], [x_left, z_top],
-                     [x_left, z_bottom]], dtype=float)
+    return np.array(
+        [[x_left, z_bottom], [x_right, z_bottom], [x_right, z_top], [x_left, z_top], [x_left, z_bottom]], dtype=float
+    )
 
 
 def segment(p: Sequence[float], q: Sequence[float]) -> np.ndarray:

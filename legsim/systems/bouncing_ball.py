@@ -78,11 +78,20 @@ def make_system(g: float = 9.81, restitution: float = 0.5, floor: bool = True, m
     transitions = []
     if floor:
         rest = Continuation(REST, lambda x: np.array([x[0], 0.0]), name="rest")
-        transitions.append(Transition(MODE, MODE, guard, reset, name="bounce", guard_gradient=guard_gradient,
-                                      reset_jacobian=lambda x: np.diag([1.0, -c]), continuation=rest))
+        transitions.append(
+            Transition(
+                MODE,
+                MODE,
+                guard,
+                reset,
+                name="bounce",
+                guard_gradient=guard_gradient,
+                reset_jacobian=lambda x: np.diag([1.0, -c]),
+                continuation=rest,
+            )
+        )
         modes[REST] = Mode(2, lambda t, x, u: np.zeros(2), NAMES, lambda t, x, u: np.zeros((2, 2)), units=UNITS)
-    return HybridSystem(modes, transitions, name="bouncing ball",
-                        energy=energy, initial=(MODE, np.array([1.0, 0.0])))
+    return HybridSystem(modes, transitions, name="bouncing ball", energy=energy, initial=(MODE, np.array([1.0, 0.0])))
 
 
 class BouncingBallReference:
@@ -96,8 +105,15 @@ class BouncingBallReference:
         equal to ``first_impact`` when c == 0 (the ball stops at its first impact).
     """
 
-    def __init__(self, g: float = 9.81, restitution: float = 0.5, z0: float = 1.0, zd0: float = 0.0,
-                 t0: float = 0.0, floor: bool = True) -> None:
+    def __init__(
+        self,
+        g: float = 9.81,
+        restitution: float = 0.5,
+        z0: float = 1.0,
+        zd0: float = 0.0,
+        t0: float = 0.0,
+        floor: bool = True,
+    ) -> None:
         self.g, self.c, self.floor = float(g), float(restitution), bool(floor)
         self.z0, self.zd0, self.t0 = float(z0), float(zd0), float(t0)
         if not (self.g > 0):
@@ -193,7 +209,7 @@ class BouncingBallReference:
             else:
                 k = int(self.impact_count(t))  # finite before the Zeno time
                 tk = float(self.impact_time(k))
-                v = self.impact_speed * self.c ** k
+                v = self.impact_speed * self.c**k
                 tau = t - tk
                 out[i] = (v * tau - 0.5 * g * tau * tau, v - g * tau)
         return out
@@ -224,14 +240,16 @@ def _build(params: dict[str, Any], effects: dict[str, dict[str, Any]]) -> Model:
 
     scenery = {"floor": segment([-1.0, 0.0], [1.0, 0.0])} if floor else {}
     reference = BouncingBallReference(params["g"], c, params["z0"], params["zd0"], 0.0, floor)
-    info: dict[str, Any] = {"guard units": {"bounce": "m (height of the ball above the floor)"},
-                            "zeno_time": reference.zeno_time, "first_impact": reference.first_impact}
+    info: dict[str, Any] = {
+        "guard units": {"bounce": "m (height of the ball above the floor)"},
+        "zeno_time": reference.zeno_time,
+        "first_impact": reference.first_impact,
+    }
     if floor:
         info["initial_check"] = below_the_floor
     if "zeno" in effects:
         info[ZENO_WINDOW] = effects["zeno"]["window"]
-    return Model(system, MODE, {"z": params["z0"], "zd": params["zd0"]}, None, geometry, scenery, reference,
-                 info=info)
+    return Model(system, MODE, {"z": params["z0"], "zd": params["zd0"]}, None, geometry, scenery, reference, info=info)
 
 
 def below_the_floor(mode: str, x: np.ndarray, eps: float) -> str | None:
@@ -254,9 +272,11 @@ BUILDER = Builder(
         "size": Param(0.1, "side of the box drawn for the ball", "m", low=0.0, low_open=True),
     },
     effects={
-        "floor": Effect("a rigid floor at z = 0 with an impact law zd -> -c zd", default_on=True,
-                        parameters={"restitution": Param(0.5, "coefficient of restitution c", "", low=0.0,
-                                                         high=1.0)}),
+        "floor": Effect(
+            "a rigid floor at z = 0 with an impact law zd -> -c zd",
+            default_on=True,
+            parameters={"restitution": Param(0.5, "coefficient of restitution c", "", low=0.0, high=1.0)},
+        ),
         "zeno": ZENO_EFFECT,
     },
     build=_build,

@@ -95,10 +95,22 @@ def make_system(omega: float = 1.0, wall: float = 1.0) -> HybridSystem:
         "outside": Mode(2, field, names=NAMES, jacobian=jacobian),
     }
     transitions = [
-        Transition("inside", "outside", guard=lambda x: wall - x[0], name="cross",
-                   guard_gradient=lambda x: np.array([-1.0, 0.0]), reset_jacobian=lambda x: np.eye(2)),
-        Transition("outside", "inside", guard=lambda x: x[0] - wall, name="return",
-                   guard_gradient=lambda x: np.array([1.0, 0.0]), reset_jacobian=lambda x: np.eye(2)),
+        Transition(
+            "inside",
+            "outside",
+            guard=lambda x: wall - x[0],
+            name="cross",
+            guard_gradient=lambda x: np.array([-1.0, 0.0]),
+            reset_jacobian=lambda x: np.eye(2),
+        ),
+        Transition(
+            "outside",
+            "inside",
+            guard=lambda x: x[0] - wall,
+            name="return",
+            guard_gradient=lambda x: np.array([1.0, 0.0]),
+            reset_jacobian=lambda x: np.eye(2),
+        ),
     ]
     return HybridSystem(modes, transitions, name="circular flow")
 
@@ -112,8 +124,10 @@ def _build(params: dict, effects: dict) -> Model:
         return {"state": box(float(x[0]) - half, float(x[0]) + half, float(x[1]) - half, float(x[1]) + half)}
 
     angles = np.linspace(0.0, 2.0 * np.pi, 97)
-    scenery = {"wall": segment([wall, -1.5 * wall], [wall, 1.5 * wall]),
-               "grazing_circle": np.column_stack([wall * np.cos(angles), wall * np.sin(angles)])}
+    scenery = {
+        "wall": segment([wall, -1.5 * wall], [wall, 1.5 * wall]),
+        "grazing_circle": np.column_stack([wall * np.cos(angles), wall * np.sin(angles)]),
+    }
     return Model(
         system=make_system(omega, wall),
         initial_mode="inside",

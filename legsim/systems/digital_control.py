@@ -62,8 +62,12 @@ EDGES: dict[str, tuple[tuple[str, str, int], ...]] = {
 
 def setpoints(target: float = 1.0, hold: float = 0.5, boost: float = 2.0) -> dict[str, np.ndarray]:
     """The controller's set-point of (xi1, xi2) in each mode."""
-    return {"0": np.array([target, target]), "1": np.array([hold, boost]),
-            "2": np.array([boost, hold]), "3": np.array([hold, hold])}
+    return {
+        "0": np.array([target, target]),
+        "1": np.array([hold, boost]),
+        "2": np.array([boost, hold]),
+        "3": np.array([hold, hold]),
+    }
 
 
 def nominal_initial_state() -> np.ndarray:
@@ -117,8 +121,11 @@ def make_system(rate: float = 1.0, target: float = 1.0, hold: float = 0.5, boost
     for source, edges in EDGES.items():
         for name, target_mode, i in edges:
             guard, grad = make_guard(i)
-            transitions.append(Transition(source, target_mode, guard, None, name=name, guard_gradient=grad,
-                                          reset_jacobian=lambda x: np.eye(2)))
+            transitions.append(
+                Transition(
+                    source, target_mode, guard, None, name=name, guard_gradient=grad, reset_jacobian=lambda x: np.eye(2)
+                )
+            )
     return HybridSystem(modes, transitions, name="digital control", initial=("0", nominal_initial_state()))
 
 
@@ -138,8 +145,16 @@ class DigitalControlReference:
     simultaneous: True when some two transitions happen at the same instant.
     """
 
-    def __init__(self, x0: Iterable[float] | None = None, mode: str = "0", t0: float = 0.0, rate: float = 1.0,
-                 target: float = 1.0, hold: float = 0.5, boost: float = 2.0) -> None:
+    def __init__(
+        self,
+        x0: Iterable[float] | None = None,
+        mode: str = "0",
+        t0: float = 0.0,
+        rate: float = 1.0,
+        target: float = 1.0,
+        hold: float = 0.5,
+        boost: float = 2.0,
+    ) -> None:
         self.rate, self.target, self.hold, self.boost = float(rate), float(target), float(hold), float(boost)
         _check(self.rate, self.target, self.hold, self.boost)
         if mode not in MODES:
@@ -149,8 +164,10 @@ class DigitalControlReference:
             raise ModelError(f"digital control reference: x0 must be 2 finite numbers (xi1, xi2), got {x0!r}")
         for _, _, i in EDGES[mode]:
             if x[i] > 0:
-                raise ModelError(f"digital control reference: x0 = {x.tolist()} lies past the threshold of "
-                                 f"{NAMES[i]} in mode '{mode}'")
+                raise ModelError(
+                    f"digital control reference: x0 = {x.tolist()} lies past the threshold of "
+                    f"{NAMES[i]} in mode '{mode}'"
+                )
         self.t0 = float(t0)
         self.x0 = x
         self._sp = setpoints(self.target, self.hold, self.boost)
@@ -227,8 +244,9 @@ class DigitalControlReference:
         return make_samples(arr, self.modes(arr), self.states(arr))
 
 
-def make_reference(x0: Iterable[float] | None = None, mode: str = "0", t0: float = 0.0,
-                   **params: float) -> DigitalControlReference:
+def make_reference(
+    x0: Iterable[float] | None = None, mode: str = "0", t0: float = 0.0, **params: float
+) -> DigitalControlReference:
     """The exact execution from (mode, x0) at t0 (default: the nominal simultaneous crossing);
     ``params`` are those of ``make_system``."""
     return DigitalControlReference(x0, mode, t0, **params)
@@ -245,10 +263,21 @@ def _build(params: dict[str, Any], effects: dict[str, dict[str, Any]]) -> Model:
         return {"state": box(x[0] - size, x[0] + size, x[1] - size, x[1] + size)}
 
     scenery = {"threshold_xi1": segment([0.0, -1.5], [0.0, 2.5]), "threshold_xi2": segment([-1.5, 0.0], [2.5, 0.0])}
-    return Model(system, "0", {"xi1": float(x0[0]), "xi2": float(x0[1])}, None, geometry, scenery, reference,
-                 info={"guard units": {name: "units of the quantity (threshold at 0)"
-                                       for edges in EDGES.values() for name, _, _ in edges},
-                       "nominal_crossing_time": reference.transition_times[0]})
+    return Model(
+        system,
+        "0",
+        {"xi1": float(x0[0]), "xi2": float(x0[1])},
+        None,
+        geometry,
+        scenery,
+        reference,
+        info={
+            "guard units": {
+                name: "units of the quantity (threshold at 0)" for edges in EDGES.values() for name, _, _ in edges
+            },
+            "nominal_crossing_time": reference.transition_times[0],
+        },
+    )
 
 
 BUILDER = Builder(
@@ -256,14 +285,15 @@ BUILDER = Builder(
     description="Digital control system of paper 000 Fig. 1: two thresholds, four modes, simultaneous crossing.",
     parameters={
         "rate": Param(1.0, "relaxation rate towards the set-point", "1/s", low=0.0, low_open=True),
-        "target": Param(1.0, "set-point of both quantities before crossing", "units of xi", low=0.0,
-                        low_open=True),
+        "target": Param(1.0, "set-point of both quantities before crossing", "units of xi", low=0.0, low_open=True),
         "hold": Param(0.5, "set-point of a quantity after its own crossing", "units of xi"),
     },
     effects={
-        "boost": Effect("once one quantity has crossed, the controller pushes the other towards `setpoint`",
-                        default_on=True,
-                        parameters={"setpoint": Param(2.0, "set-point of the other quantity", "units of xi")}),
+        "boost": Effect(
+            "once one quantity has crossed, the controller pushes the other towards `setpoint`",
+            default_on=True,
+            parameters={"setpoint": Param(2.0, "set-point of the other quantity", "units of xi")},
+        )
     },
     build=_build,
 )

@@ -91,8 +91,15 @@ def ball_resets(x, p, e):
     return out
 
 
-def make_oscillator(omega: float = 2.5, a: float = 0.05, x_max: float | None = 14.0, c: float = 0.9,
-                    mass: float = 1.0, amplitude: float = 20.0, frequency: float = 2.5) -> HybridSystem:
+def make_oscillator(
+    omega: float = 2.5,
+    a: float = 0.05,
+    x_max: float | None = 14.0,
+    c: float = 0.9,
+    mass: float = 1.0,
+    amplitude: float = 20.0,
+    frequency: float = 2.5,
+) -> HybridSystem:
     """The forced oscillator with a stop (paper 000 Sec. V-B) with its forcing
     ``amplitude cos(frequency t)`` (N) inside the field, and a compiled twin.
 
@@ -110,8 +117,9 @@ def make_oscillator(omega: float = 2.5, a: float = 0.05, x_max: float | None = 1
     if not 0.0 <= c <= 1.0:
         raise ModelError(f"fast oscillator: restitution c must lie in [0, 1], got {c}")
     if not (math.isfinite(amplitude) and math.isfinite(frequency)):
-        raise ModelError(f"fast oscillator: forcing amplitude and frequency must be finite, got "
-                         f"{amplitude}, {frequency}")
+        raise ModelError(
+            f"fast oscillator: forcing amplitude and frequency must be finite, got {amplitude}, {frequency}"
+        )
     two_a, w2, inv_m = 2.0 * a, omega * omega, 1.0 / mass
     stop = math.nan if x_max is None else float(x_max)
     if x_max is not None and not math.isfinite(stop):
@@ -129,6 +137,7 @@ def make_oscillator(omega: float = 2.5, a: float = 0.05, x_max: float | None = 1
 
     transitions = []
     if x_max is not None:
+
         def guard(x: np.ndarray) -> float:
             d = stop - x[0]
             return d if d > -x[1] else -x[1]
@@ -140,10 +149,18 @@ def make_oscillator(omega: float = 2.5, a: float = 0.05, x_max: float | None = 1
             return amplitude * math.cos(frequency * t) * inv_m - w2 * x[0]
 
         stick = Continuation("stuck", lambda x: np.array([x[0], 0.0]), name="stick")
-        transitions.append(Transition("free", "free", guard, reset, name="impact",
-                                      guard_gradient=lambda x: np.array([-1.0, 0.0]) if stop - x[0] > -x[1]
-                                      else np.array([0.0, -1.0]),
-                                      reset_jacobian=lambda x: np.diag([1.0, -c]), continuation=stick))
+        transitions.append(
+            Transition(
+                "free",
+                "free",
+                guard,
+                reset,
+                name="impact",
+                guard_gradient=lambda x: np.array([-1.0, 0.0]) if stop - x[0] > -x[1] else np.array([0.0, -1.0]),
+                reset_jacobian=lambda x: np.diag([1.0, -c]),
+                continuation=stick,
+            )
+        )
         transitions.append(Transition("stuck", "free", pressing, name="release", guard_args="t,x,u"))
         twin = CompiledMode(oscillator_field, oscillator_guards, 1, params, oscillator_resets)
     else:
@@ -151,8 +168,12 @@ def make_oscillator(omega: float = 2.5, a: float = 0.05, x_max: float | None = 1
     modes = {"free": Mode(2, field, ("x", "xd"), jacobian, compiled=twin)}
     if transitions:  # at rest on the stop, where accumulating impacts continue (legsim.relaxed.zeno)
         modes["stuck"] = Mode(2, lambda t, x, u: np.zeros(2), ("x", "xd"), lambda t, x, u: np.zeros((2, 2)))
-    return HybridSystem(modes, transitions, name="oscillator with stop (compiled)"
-                        if transitions else "oscillator (compiled)", energy=energy)
+    return HybridSystem(
+        modes,
+        transitions,
+        name="oscillator with stop (compiled)" if transitions else "oscillator (compiled)",
+        energy=energy,
+    )
 
 
 def make_oscillator_example(name: str) -> tuple[HybridSystem, np.ndarray, float]:
@@ -188,8 +209,19 @@ def make_bouncing_ball(g: float = 9.81, restitution: float = 0.5) -> HybridSyste
     held = Mode(2, lambda t, x, u: np.zeros(2), ("z", "zd"), lambda t, x, u: np.zeros((2, 2)))
     mode = Mode(2, field, ("z", "zd"), lambda t, x, u: np.array([[0.0, 1.0], [0.0, 0.0]]), compiled=twin)
     rest = Continuation("rest", lambda x: np.array([x[0], 0.0]), name="rest")
-    return HybridSystem({"flight": mode, "rest": held},
-                        [Transition("flight", "flight", guard, reset, name="bounce",
-                                    reset_jacobian=lambda x: np.diag([1.0, -c]), continuation=rest)],
-                        name="bouncing ball (compiled)",
-                        energy=lambda mode, x: g * float(x[0]) + 0.5 * float(x[1]) ** 2)
+    return HybridSystem(
+        {"flight": mode, "rest": held},
+        [
+            Transition(
+                "flight",
+                "flight",
+                guard,
+                reset,
+                name="bounce",
+                reset_jacobian=lambda x: np.diag([1.0, -c]),
+                continuation=rest,
+            )
+        ],
+        name="bouncing ball (compiled)",
+        energy=lambda mode, x: g * float(x[0]) + 0.5 * float(x[1]) ** 2,
+    )

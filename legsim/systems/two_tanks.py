@@ -64,8 +64,10 @@ class TwoTankReference:
         x0 = np.array(self.x0)
         limit = self.zeno_time(x0, self.t0)
         if t.size and t.max() >= limit:
-            raise SimulationError(f"two_tanks reference: time {t.max()} is at or past the Zeno time {limit}, "
-                                  f"where the execution is not defined")
+            raise SimulationError(
+                f"two_tanks reference: time {t.max()} is at or past the Zeno time {limit}, "
+                f"where the execution is not defined"
+            )
         if "switches" not in self._cache:
             self._cache["switches"] = self.switching_times(self.mode, x0, max_switches, self.t0)
         switch_times, entered = self._cache["switches"]
@@ -143,10 +145,22 @@ def make_system(w: float = 0.75, v1: float = 0.5, v2: float = 0.5, r1: float = 0
     e1 = np.array([1.0, 0.0])
     e2 = np.array([0.0, 1.0])
     transitions = [
-        Transition("q1", "q2", guard=lambda x: x[1] - r2, name="q1->q2", guard_gradient=lambda x: e2.copy(),
-                   reset_jacobian=lambda x: np.eye(2)),
-        Transition("q2", "q1", guard=lambda x: x[0] - r1, name="q2->q1", guard_gradient=lambda x: e1.copy(),
-                   reset_jacobian=lambda x: np.eye(2)),
+        Transition(
+            "q1",
+            "q2",
+            guard=lambda x: x[1] - r2,
+            name="q1->q2",
+            guard_gradient=lambda x: e2.copy(),
+            reset_jacobian=lambda x: np.eye(2),
+        ),
+        Transition(
+            "q2",
+            "q1",
+            guard=lambda x: x[0] - r1,
+            name="q2->q1",
+            guard_gradient=lambda x: e1.copy(),
+            reset_jacobian=lambda x: np.eye(2),
+        ),
     ]
     return HybridSystem(modes, transitions, name="two tanks")
 
@@ -161,12 +175,18 @@ def _build(params: dict, effects: dict) -> Model:
         # Tank 1 spans x in [-1.2, -0.2] m, tank 2 [0.2, 1.2] m; levels drawn as water lines,
         # the inflow as a line from above into the tank that receives it.
         inlet = -0.7 if mode == "q1" else 0.7
-        return {"water_1": segment([-1.2, float(x[0])], [-0.2, float(x[0])]),
-                "water_2": segment([0.2, float(x[1])], [1.2, float(x[1])]),
-                "inflow": segment([inlet, 2.5], [inlet, max(float(x[0] if mode == "q1" else x[1]), 0.0)])}
+        return {
+            "water_1": segment([-1.2, float(x[0])], [-0.2, float(x[0])]),
+            "water_2": segment([0.2, float(x[1])], [1.2, float(x[1])]),
+            "inflow": segment([inlet, 2.5], [inlet, max(float(x[0] if mode == "q1" else x[1]), 0.0)]),
+        }
 
-    scenery = {"tank_1": box(-1.2, -0.2, min(0.0, r1), 2.0), "tank_2": box(0.2, 1.2, min(0.0, r2), 2.0),
-               "threshold_1": segment([-1.2, r1], [-0.2, r1]), "threshold_2": segment([0.2, r2], [1.2, r2])}
+    scenery = {
+        "tank_1": box(-1.2, -0.2, min(0.0, r1), 2.0),
+        "tank_2": box(0.2, 1.2, min(0.0, r2), 2.0),
+        "threshold_1": segment([-1.2, r1], [-0.2, r1]),
+        "threshold_2": segment([0.2, r2], [1.2, r2]),
+    }
     return Model(
         system=system,
         initial_mode="q1",

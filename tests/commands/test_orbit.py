@@ -30,8 +30,7 @@ def test_orbit_json_has_the_documented_keys_and_the_closed_form_orbit(capsys):
     code, out, err = run_cli(capsys, "orbit", "rimless_wheel", "--json")
     assert code == 0 and err == ""
     data = json.loads(out)
-    assert {"fixed_point", "state_names", "period", "multipliers", "residual", "iterations",
-            "step_length"} <= set(data)
+    assert {"fixed_point", "state_names", "period", "multipliers", "residual", "iterations", "step_length"} <= set(data)
     assert data["state_names"] == ["theta", "thetad", "foot_x"]
     assert abs(data["fixed_point"][0] + ALPHA) < 1e-12
     assert abs(data["fixed_point"][1] - omega_star(5.0)) < 1e-9
@@ -55,12 +54,29 @@ def test_orbit_runs_with_the_scenes_tolerances_and_reaches_the_reference_gait(ca
     # rtol the steps are error-controlled and the fixed point is within 1e-9.
     from helpers.compass_gait_reference import STANDARD, PointMassCompassGait
 
-    code, out, err = run_cli(capsys, "orbit", "compass_gait", "--set", "integrator.method=\"dopri5\"",
-                             "--set", "integrator.rtol=1e-10", "--set", "integrator.h=0.1", "--json")
+    code, out, err = run_cli(
+        capsys,
+        "orbit",
+        "compass_gait",
+        "--set",
+        'integrator.method="dopri5"',
+        "--set",
+        "integrator.rtol=1e-10",
+        "--set",
+        "integrator.h=0.1",
+        "--json",
+    )
     assert code == 0, err
     data = json.loads(out)
-    assert data["integrator"] == {"method": "dopri5", "h": 0.1, "eps": 1e-6, "rtol": 1e-10,
-                                  "atol": pytest.approx(1e-13, rel=1e-15), "landing": "halve", "max_halvings": 64}
+    assert data["integrator"] == {
+        "method": "dopri5",
+        "h": 0.1,
+        "eps": 1e-6,
+        "rtol": 1e-10,
+        "atol": pytest.approx(1e-13, rel=1e-15),
+        "landing": "halve",
+        "max_halvings": 64,
+    }
     stance, hip, stanced, hipd, _ = data["fixed_point"]
     ref = PointMassCompassGait(**STANDARD).gait()
     leans = np.array([stance, stance + hip, stanced, stanced + hipd])
@@ -69,11 +85,21 @@ def test_orbit_runs_with_the_scenes_tolerances_and_reaches_the_reference_gait(ca
 
 
 def test_orbit_report_names_the_integrator_settings(capsys):
-    code, out, err = run_cli(capsys, "orbit", "rimless_wheel", "--set", "integrator.method=\"bs32\"",
-                             "--set", "integrator.atol=1e-9", "--set", "integrator.landing=\"aim\"")
+    code, out, err = run_cli(
+        capsys,
+        "orbit",
+        "rimless_wheel",
+        "--set",
+        'integrator.method="bs32"',
+        "--set",
+        "integrator.atol=1e-9",
+        "--set",
+        'integrator.landing="aim"',
+    )
     assert code == 0, err
-    assert out.splitlines()[1] == ("integrator: bs32, rtol = 1e-12, atol = 1e-09, largest step h = 0.002 s, "
-                                   "eps = 1e-06, landing 'aim'")
+    assert out.splitlines()[1] == (
+        "integrator: bs32, rtol = 1e-12, atol = 1e-09, largest step h = 0.002 s, eps = 1e-06, landing 'aim'"
+    )
     code, out, err = run_cli(capsys, "orbit", "rimless_wheel", "--continue", "slope", "4", "5", "--steps", "1")
     assert code == 0, err
     assert out.splitlines()[1] == "integrator: rk4, h = 0.002 s, eps = 1e-06, landing 'halve'"
@@ -81,13 +107,21 @@ def test_orbit_report_names_the_integrator_settings(capsys):
 
 def test_continuation_follows_the_closed_form_family_and_plots_it(capsys, tmp_path):
     plot = tmp_path / "family.png"
-    code, out, err = run_cli(capsys, "orbit", "rimless_wheel", "--continue", "slope", "3", "7", "--steps", "4",
-                             "--plot", str(plot), "--json")
+    code, out, err = run_cli(
+        capsys, "orbit", "rimless_wheel", "--continue", "slope", "3", "7", "--steps", "4", "--plot", str(plot), "--json"
+    )
     assert code == 0, err
     data = json.loads(out)
     assert data["complete"] and data["parameter"] == "slope"
-    assert data["integrator"] == {"method": "rk4", "h": 2e-3, "eps": 1e-6, "rtol": None, "atol": None,
-                                  "landing": "halve", "max_halvings": 64}
+    assert data["integrator"] == {
+        "method": "rk4",
+        "h": 2e-3,
+        "eps": 1e-6,
+        "rtol": None,
+        "atol": None,
+        "landing": "halve",
+        "max_halvings": 64,
+    }
     values = [p["value"] for p in data["points"]]
     assert values == pytest.approx([3.0, 4.0, 5.0, 6.0, 7.0], abs=1e-12)
     for p in data["points"]:
@@ -100,14 +134,15 @@ def test_continuation_follows_the_closed_form_family_and_plots_it(capsys, tmp_pa
 
 
 def test_continuation_locates_the_compass_gait_period_doubling(capsys):
-    code, out, err = run_cli(capsys, "orbit", "compass_gait", "--continue", "slope", "4.25", "4.5", "--steps", "1",
-                             "--locate", "6", "--json")
+    code, out, err = run_cli(
+        capsys, "orbit", "compass_gait", "--continue", "slope", "4.25", "4.5", "--steps", "1", "--locate", "6", "--json"
+    )
     assert code == 0, err
     data = json.loads(out)
     (change,) = data["stability_changes"]
     assert change["becomes"] == "unstable" and change["kind"].startswith("period doubling")
     lo, hi = change["between"]
-    assert hi - lo <= 0.25 / 2 ** 6 + 1e-12 and lo <= change["at"] <= hi
+    assert hi - lo <= 0.25 / 2**6 + 1e-12 and lo <= change["at"] <= hi
     # At the located slope the leading multiplier is real and at -1 (to the bracket's width).
     re, im = change["multiplier"]
     assert im == 0.0 and abs(re + 1.0) < 0.02
@@ -146,50 +181,82 @@ def test_no_orbit_exits_3_with_the_reason(capsys):
     assert "legsim: no orbit (no_return): " in err and "within t_max = 0.1 s" in err
 
 
-@pytest.mark.parametrize("argv, message", [
-    (["orbit", "slip"], "the scene has no [orbit] section"),
-    (["orbit", "rimless_wheel", "--plot", "x.png"], "--plot draws a family: use it with --continue"),
-    (["orbit", "rimless_wheel", "--set", "orbit.nonsense=1"], "orbit.nonsense: unknown key(s) ['nonsense']"),
-    (["orbit", "rimless_wheel", "--continue", "spokes", "8", "10"], "parameter 'spokes' is int-valued"),
-    (["orbit", "rimless_wheel", "--continue", "mass", "1", "2"], "robot 'rimless_wheel' has no parameter 'mass'"),
-    (["orbit", "rimless_wheel", "--continue", "slope", "a", "2"], "--continue FROM: expected a number, got 'a'"),
-    (["orbit", "rimless_wheel", "--set", "orbit.section={ after = \"landing\" }"],
-     "no transition of that name in rimless_wheel; transitions: ['back_impact', 'impact']"),
-    (["orbit", "rimless_wheel", "--set", "orbit.fixed=[\"phi\"]"], "fixed coordinate(s) ['phi'] are not coordinates"),
-    (["orbit", "slip_orbit", "--continue", "damping.b", "0", "1"], "effect 'damping' is switched off in this scene"),
-    (["orbit", "rimless_wheel", "--continue", "slope", "3", "4", "--plot", "out.txt"],
-     "the file must end in .png, .pdf or .svg"),
-    # Checked before any orbit is searched for: found only after the family was computed, each
-    # would waste the whole computation (or run for days).
-    (["orbit", "rimless_wheel", "--continue", "slope", "3", "4", "--plot", "/proc/no/such/folder/f.png"],
-     "cannot create the folder /proc/no/such/folder"),
-    (["orbit", "rimless_wheel", "--continue", "slope", "3", "4", "--plot", "/proc/f.png"],
-     "cannot write in the folder /proc"),  # even as root, whose permission bits say yes
-    (["orbit", "rimless_wheel", "--continue", "slope", "5", "1e300"],
-     "--continue TO = 1e+300: orbit problem: no system for parameters"),
-    (["orbit", "rimless_wheel", "--continue", "slope", "3", "4", "--steps", "1000000000"],
-     "--steps must be in [1, 10000]"),
-    (["orbit", "rimless_wheel", "--continue", "slope", "3", "4", "--locate", "-1"], "--locate must be in [0, 50]"),
-    (["orbit", "rimless_wheel", "--continue", "nonsense", "3", "4"],
-     "continued parameter: robot 'rimless_wheel' has no"),
-    (["orbit", "slip_orbit", "--continue", "psi", "0.6", "0.65"], "--continue psi: 'psi' is a free parameter"),
-    # Absurd [orbit] values, named by their key.
-    (["orbit", "rimless_wheel", "--set", "orbit.fd_step=0", "--set", "orbit.jacobian=\"fd\""],
-     "orbit.fd_step: must be a relative step in (0, 0.1]"),
-    (["orbit", "rimless_wheel", "--set", "orbit.fd_step=10"], "orbit.fd_step: must be a relative step in (0, 0.1]"),
-    (["orbit", "rimless_wheel", "--set", "orbit.trivial_multipliers=1"],
-     "orbit.trivial_multipliers: orbit problem: trivial_multipliers = 1 must be"),
-    (["orbit", "rimless_wheel", "--set", "orbit.cyclic=[\"nope\"]"],
-     "orbit.cyclic: orbit problem: cyclic coordinate(s)"),
-    (["orbit", "rimless_wheel", "--set", "orbit.free=[\"slope\"]"], "orbit.free: orbit problem: 3 unknowns"),
-    # Tolerances need an embedded pair: refused by the setting's name, not run at fixed steps.
-    (["orbit", "compass_gait", "--set", "integrator.rtol=1e-10"],
-     "integrator.rtol: error control needs a method with an embedded error estimate"),
-    (["orbit", "compass_gait", "--set", "integrator.landing=\"dense\""],
-     "integrator.landing: 'dense' lands on the method's continuous extension"),
-    (["orbit", "rimless_wheel", "--set", "integrator.h=1e-9", "--set", "integrator.max_steps=100000000000"],
-     "orbit.t_max: orbit problem: t_max / h = 3 s / 1e-09 s = 3e+09 steps per return, more than the limit"),
-])
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        (["orbit", "slip"], "the scene has no [orbit] section"),
+        (["orbit", "rimless_wheel", "--plot", "x.png"], "--plot draws a family: use it with --continue"),
+        (["orbit", "rimless_wheel", "--set", "orbit.nonsense=1"], "orbit.nonsense: unknown key(s) ['nonsense']"),
+        (["orbit", "rimless_wheel", "--continue", "spokes", "8", "10"], "parameter 'spokes' is int-valued"),
+        (["orbit", "rimless_wheel", "--continue", "mass", "1", "2"], "robot 'rimless_wheel' has no parameter 'mass'"),
+        (["orbit", "rimless_wheel", "--continue", "slope", "a", "2"], "--continue FROM: expected a number, got 'a'"),
+        (
+            ["orbit", "rimless_wheel", "--set", 'orbit.section={ after = "landing" }'],
+            "no transition of that name in rimless_wheel; transitions: ['back_impact', 'impact']",
+        ),
+        (["orbit", "rimless_wheel", "--set", 'orbit.fixed=["phi"]'], "fixed coordinate(s) ['phi'] are not coordinates"),
+        (
+            ["orbit", "slip_orbit", "--continue", "damping.b", "0", "1"],
+            "effect 'damping' is switched off in this scene",
+        ),
+        (
+            ["orbit", "rimless_wheel", "--continue", "slope", "3", "4", "--plot", "out.txt"],
+            "the file must end in .png, .pdf or .svg",
+        ),
+        # Checked before any orbit is searched for: found only after the family was computed, each
+        # would waste the whole computation (or run for days).
+        (
+            ["orbit", "rimless_wheel", "--continue", "slope", "3", "4", "--plot", "/proc/no/such/folder/f.png"],
+            "cannot create the folder /proc/no/such/folder",
+        ),
+        (
+            ["orbit", "rimless_wheel", "--continue", "slope", "3", "4", "--plot", "/proc/f.png"],
+            "cannot write in the folder /proc",
+        ),  # even as root, whose permission bits say yes
+        (
+            ["orbit", "rimless_wheel", "--continue", "slope", "5", "1e300"],
+            "--continue TO = 1e+300: orbit problem: no system for parameters",
+        ),
+        (
+            ["orbit", "rimless_wheel", "--continue", "slope", "3", "4", "--steps", "1000000000"],
+            "--steps must be in [1, 10000]",
+        ),
+        (["orbit", "rimless_wheel", "--continue", "slope", "3", "4", "--locate", "-1"], "--locate must be in [0, 50]"),
+        (
+            ["orbit", "rimless_wheel", "--continue", "nonsense", "3", "4"],
+            "continued parameter: robot 'rimless_wheel' has no",
+        ),
+        (["orbit", "slip_orbit", "--continue", "psi", "0.6", "0.65"], "--continue psi: 'psi' is a free parameter"),
+        # Absurd [orbit] values, named by their key.
+        (
+            ["orbit", "rimless_wheel", "--set", "orbit.fd_step=0", "--set", 'orbit.jacobian="fd"'],
+            "orbit.fd_step: must be a relative step in (0, 0.1]",
+        ),
+        (["orbit", "rimless_wheel", "--set", "orbit.fd_step=10"], "orbit.fd_step: must be a relative step in (0, 0.1]"),
+        (
+            ["orbit", "rimless_wheel", "--set", "orbit.trivial_multipliers=1"],
+            "orbit.trivial_multipliers: orbit problem: trivial_multipliers = 1 must be",
+        ),
+        (
+            ["orbit", "rimless_wheel", "--set", 'orbit.cyclic=["nope"]'],
+            "orbit.cyclic: orbit problem: cyclic coordinate(s)",
+        ),
+        (["orbit", "rimless_wheel", "--set", 'orbit.free=["slope"]'], "orbit.free: orbit problem: 3 unknowns"),
+        # Tolerances need an embedded pair: refused by the setting's name, not run at fixed steps.
+        (
+            ["orbit", "compass_gait", "--set", "integrator.rtol=1e-10"],
+            "integrator.rtol: error control needs a method with an embedded error estimate",
+        ),
+        (
+            ["orbit", "compass_gait", "--set", 'integrator.landing="dense"'],
+            "integrator.landing: 'dense' lands on the method's continuous extension",
+        ),
+        (
+            ["orbit", "rimless_wheel", "--set", "integrator.h=1e-9", "--set", "integrator.max_steps=100000000000"],
+            "orbit.t_max: orbit problem: t_max / h = 3 s / 1e-09 s = 3e+09 steps per return, more than the limit",
+        ),
+    ],
+)
 def test_bad_requests_exit_2_with_a_message(capsys, argv, message):
     code, out, err = run_cli(capsys, *argv)
     assert code == 2, (out, err)

@@ -41,8 +41,11 @@ def test_connect_streams_the_recording_rrd_writes(tmp_path):
     # Rerun's own server stands in for a viewer: it saves what it receives to a file.
     port = _free_port()
     saved, written = tmp_path / "received.rrd", tmp_path / "written.rrd"
-    server = subprocess.Popen([sys.executable, "-m", "rerun_cli", "--save", str(saved), "--port", str(port)],
-                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    server = subprocess.Popen(
+        [sys.executable, "-m", "rerun_cli", "--save", str(saved), "--port", str(port)],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
     try:
         _wait_for(port)
         assert main(["run", *SHORT, "--rrd", str(written), "--connect", str(port), "--rrd-rate", "50"]) == 0
@@ -74,11 +77,14 @@ def test_spawn_without_a_display_is_refused(monkeypatch, capsys):
     assert "--spawn needs a display, and there is none here" in capsys.readouterr().err
 
 
-@pytest.mark.parametrize("argv, message", [
-    (["--rrd-rate", "10"], "--rrd-rate thins a recording: give --rrd FILE, --spawn or --connect"),
-    (["--rrd", "x.rrd", "--rrd-rate", "0"], "--rrd-rate must be finite and > 0"),
-    (["--rrd", "x.rrd", "--rrd-rate", "nan"], "--rrd-rate must be finite and > 0"),
-])
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        (["--rrd-rate", "10"], "--rrd-rate thins a recording: give --rrd FILE, --spawn or --connect"),
+        (["--rrd", "x.rrd", "--rrd-rate", "0"], "--rrd-rate must be finite and > 0"),
+        (["--rrd", "x.rrd", "--rrd-rate", "nan"], "--rrd-rate must be finite and > 0"),
+    ],
+)
 def test_a_bad_rate_is_named(argv, message, tmp_path, monkeypatch, capsys):
     monkeypatch.chdir(tmp_path)
     assert main(["run", *SHORT, *argv]) == 2
@@ -91,11 +97,14 @@ def test_spawn_and_connect_exclude_each_other(capsys):
     assert "not allowed with argument" in capsys.readouterr().err
 
 
-@pytest.mark.parametrize("address, url", [
-    ("9876", "rerun+http://127.0.0.1:9876/proxy"),
-    ("viewer.local:9000", "rerun+http://viewer.local:9000/proxy"),
-    ("rerun+https://viewer.local:443/proxy", "rerun+https://viewer.local:443/proxy"),
-])
+@pytest.mark.parametrize(
+    "address, url",
+    [
+        ("9876", "rerun+http://127.0.0.1:9876/proxy"),
+        ("viewer.local:9000", "rerun+http://viewer.local:9000/proxy"),
+        ("rerun+https://viewer.local:443/proxy", "rerun+https://viewer.local:443/proxy"),
+    ],
+)
 def test_viewer_addresses(address, url):
     assert viewer_url(address) == url
 

@@ -16,5 +16,8 @@ def breaking_line(limit: float = 1.03) -> HybridSystem:
             raise ModelBreakdown(f"line: x = {x[0]:.4g} is past its range {limit}")
         return np.array([1.0])
 
-    return HybridSystem({"a": Mode(1, field), "b": Mode(1, lambda t, x, u: np.zeros(1))},
-                        [Transition("a", "b", lambda x: 1.0 - x[0], name="wall")], name="line")
+    return HybridSystem(
+        {"a": Mode(1, field), "b": Mode(1, lambda t, x, u: np.zeros(1))},
+        [Transition("a", "b", lambda x: 1.0 - x[0], name="wall")],
+        name="line",
+    )

@@ -35,9 +35,11 @@ class PointMassCompassGait:
         d1, d2 = np.array([math.cos(t1), -math.sin(t1)]), np.array([math.cos(t2), -math.sin(t2)])
         z = np.zeros(2)
         # (mass, Jacobian of its position wrt (theta1, theta2), J-dot times the rates)
-        parts = [(m, np.column_stack([a * d1, z]), -a * u1 * w1 ** 2),
-                 (mH, np.column_stack([leg * d1, z]), -leg * u1 * w1 ** 2),
-                 (m, np.column_stack([leg * d1, -b * d2]), -leg * u1 * w1 ** 2 + b * u2 * w2 ** 2)]
+        parts = [
+            (m, np.column_stack([a * d1, z]), -a * u1 * w1**2),
+            (mH, np.column_stack([leg * d1, z]), -leg * u1 * w1**2),
+            (m, np.column_stack([leg * d1, -b * d2]), -leg * u1 * w1**2 + b * u2 * w2**2),
+        ]
         M = sum(mi * J.T @ J for mi, J, _ in parts)
         f = sum(mi * J.T @ (self.gvec - jd) for mi, J, jd in parts)
         return np.concatenate([[w1, w2], np.linalg.solve(M, f)])
@@ -48,8 +50,11 @@ class PointMassCompassGait:
         d1, d2 = np.array([math.cos(t1), -math.sin(t1)]), np.array([math.cos(t2), -math.sin(t2)])
         I2, z = np.eye(2), np.zeros(2)
         # Floating coordinates (hip x, hip z, theta1, theta2); masses at hip - b u_i and the hip.
-        parts = [(m, np.column_stack([I2, -b * d1, z])), (mH, np.column_stack([I2, z, z])),
-                 (m, np.column_stack([I2, z, -b * d2]))]
+        parts = [
+            (m, np.column_stack([I2, -b * d1, z])),
+            (mH, np.column_stack([I2, z, z])),
+            (m, np.column_stack([I2, z, -b * d2])),
+        ]
         M = sum(mi * J.T @ J for mi, J in parts)
         J2 = np.column_stack([I2, z, -leg * d2])  # the swing foot hip - leg u2
         v = np.concatenate([leg * w1 * d1, [w1, w2]])
@@ -60,6 +65,7 @@ class PointMassCompassGait:
     def step(self, x0):
         def strike(t, x):  # swing foot height, counted only in front of the stance foot
             return self.l * (math.cos(x[0]) - math.cos(x[1])) if x[1] < x[0] else 1.0
+
         strike.terminal, strike.direction = True, -1
         sol = solve_ivp(self.rhs, (0.0, 5.0), x0, method="DOP853", rtol=1e-12, atol=1e-12, events=strike)
         return self.heel_strike(sol.y_events[0][0]), float(sol.t_events[0][0])
@@ -68,6 +74,7 @@ class PointMassCompassGait:
         def F(z):
             x1, _ = self.step(np.array([z[0], -z[0], z[1], z[2]]))
             return x1[[0, 2, 3]] - z
+
         z = fsolve(F, guess, xtol=1e-13)
         x0 = np.array([z[0], -z[0], z[1], z[2]])
         _x1, period = self.step(x0)
@@ -77,5 +84,10 @@ class PointMassCompassGait:
             dz[j] = 1e-6
             J[:, j] = (F(z + dz) - F(z - dz)) / 2e-6 + (np.arange(3) == j)
         mu = np.linalg.eigvals(J)
-        return {"x": x0, "period": period, "step": 2 * self.l * math.sin(-z[0]), "residual": np.max(np.abs(F(z))),
-                "multipliers": mu[np.argsort(-np.abs(mu), kind="stable")]}
+        return {
+            "x": x0,
+            "period": period,
+            "step": 2 * self.l * math.sin(-z[0]),
+            "residual": np.max(np.abs(F(z))),
+            "multipliers": mu[np.argsort(-np.abs(mu), kind="stable")],
+        }

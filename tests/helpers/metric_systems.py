@@ -42,22 +42,25 @@ def ball(c: float = C, declared: bool = False) -> HybridSystem:
     return HybridSystem(
         {"fall": Mode(2, lambda t, x, u: np.array([x[1], -9.81]), names=("z", "zd"))},
         [Transition("fall", "fall", guard=guard, reset=reset, name="bounce")],
-        name="ball")
+        name="ball",
+    )
 
 
 def two_mode(declared: bool = False) -> HybridSystem:
     g_ab = CoordinateGuard((0, -1.0, 1.0)) if declared else (lambda x: 1.0 - x[0])
     return HybridSystem(
         {"a": Mode(2, still, names=("x", "y")), "b": Mode(3, still, names=("u", "v", "w"))},
-        [Transition("a", "b", guard=g_ab, reset=lambda x: np.array([0.0, x[1], 0.0]), name="a->b"),
-         Transition("b", "a", guard=lambda x: x[0] + 1.0, reset=lambda x: np.array([0.0, x[1] + x[2]]),
-                    name="b->a")],
-        name="two-mode")
+        [
+            Transition("a", "b", guard=g_ab, reset=lambda x: np.array([0.0, x[1], 0.0]), name="a->b"),
+            Transition("b", "a", guard=lambda x: x[0] + 1.0, reset=lambda x: np.array([0.0, x[1] + x[2]]), name="b->a"),
+        ],
+        name="two-mode",
+    )
 
 
 def disk() -> HybridSystem:
     return HybridSystem(
         {"disk": Mode(2, still)},
-        [Transition("disk", "disk", guard=lambda x: 1.0 - x[0] ** 2 - x[1] ** 2, reset=lambda x: -0.5 * x,
-                    name="rim")],
-        name="disk")
+        [Transition("disk", "disk", guard=lambda x: 1.0 - x[0] ** 2 - x[1] ** 2, reset=lambda x: -0.5 * x, name="rim")],
+        name="disk",
+    )

@@ -25,17 +25,25 @@ G = 9.81
 
 def impact_oscillator(zeta=0.1, omega=2.0, e=0.8, kick=1.0):
     def field(t, x, u):
-        return np.array([x[1], -2 * zeta * omega * x[1] - omega ** 2 * x[0]])
+        return np.array([x[1], -2 * zeta * omega * x[1] - omega**2 * x[0]])
 
     return HybridSystem(
         {"free": Mode(2, field, names=("x", "v"))},
-        [Transition("free", "free", guard=lambda x: max(x[0], x[1]),
-                    reset=lambda x: np.array([x[0], -e * x[1] + kick]), name="impact")],
-        name="impact oscillator")
+        [
+            Transition(
+                "free",
+                "free",
+                guard=lambda x: max(x[0], x[1]),
+                reset=lambda x: np.array([x[0], -e * x[1] + kick]),
+                name="impact",
+            )
+        ],
+        name="impact oscillator",
+    )
 
 
 def oscillator_closed_form(zeta=0.1, omega=2.0, e=0.8, kick=1.0):
-    wd = omega * math.sqrt(1 - zeta ** 2)
+    wd = omega * math.sqrt(1 - zeta**2)
     rho = math.exp(-zeta * omega * math.pi / wd)
     v_star = kick / (1 - e * rho)
     # Largest displacement after leaving the wall with speed V: (V / w) exp(-zeta w t_peak).
@@ -51,8 +59,12 @@ def hopf_reset(mu=1.0, omega=2 * math.pi, kappa=0.9, beta=2.0, analytic_derivati
 
     def jac(t, x, u):
         r2 = x[0] ** 2 + x[1] ** 2
-        return np.array([[mu * (1 - r2) - 2 * mu * x[0] ** 2, -2 * mu * x[0] * x[1] - omega],
-                         [-2 * mu * x[0] * x[1] + omega, mu * (1 - r2) - 2 * mu * x[1] ** 2]])
+        return np.array(
+            [
+                [mu * (1 - r2) - 2 * mu * x[0] ** 2, -2 * mu * x[0] * x[1] - omega],
+                [-2 * mu * x[0] * x[1] + omega, mu * (1 - r2) - 2 * mu * x[1] ** 2],
+            ]
+        )
 
     c, s = math.cos(beta), math.sin(beta)
     rot = np.array([[c, s], [-s, c]])  # rotation by -beta
@@ -66,22 +78,32 @@ def hopf_reset(mu=1.0, omega=2 * math.pi, kappa=0.9, beta=2.0, analytic_derivati
     return HybridSystem(
         {"arc": Mode(2, field, names=("x", "y"), jacobian=jac if analytic_derivatives else None)},
         [Transition("arc", "arc", guard=lambda x: max(-x[1], -x[0]), reset=reset, name="jump", **extra)],
-        name="hopf with reset")
+        name="hopf with reset",
+    )
 
 
 def hopf_closed_form(mu=1.0, omega=2 * math.pi, kappa=0.9, beta=2.0):
     E = math.exp(-2 * mu * beta / omega)
-    r_star = math.sqrt((kappa ** 2 - E) / (1 - E))
-    return {"r": r_star, "multiplier": E / kappa ** 2, "period": beta / omega}
+    r_star = math.sqrt((kappa**2 - E) / (1 - E))
+    return {"r": r_star, "multiplier": E / kappa**2, "period": beta / omega}
 
 
 def hopping_ball(params):
     kick, k = params["kick"], params.get("k", 0.5)
     return HybridSystem(
         {"flight": Mode(2, lambda t, x, u: np.array([x[1], -G]), names=("z", "zd"))},
-        [Transition("flight", "flight", guard=lambda x: max(x[0], x[1]),
-                    reset=lambda x: np.array([x[0], kick + k * x[1]]), name="bounce")],
-        name="hopping ball", energy=lambda mode, x: 0.5 * x[1] ** 2 + G * x[0])
+        [
+            Transition(
+                "flight",
+                "flight",
+                guard=lambda x: max(x[0], x[1]),
+                reset=lambda x: np.array([x[0], kick + k * x[1]]),
+                name="bounce",
+            )
+        ],
+        name="hopping ball",
+        energy=lambda mode, x: 0.5 * x[1] ** 2 + G * x[0],
+    )
 
 
 #: The hopping ball's apex: zd = 0 while zd decreases in flight.

@@ -11,8 +11,15 @@ import numpy as np
 from legsim.methods import Tableau
 
 
-def rk_step(field: Callable[[float, np.ndarray, Any], np.ndarray], t: float, x: np.ndarray, h: float,
-            tableau: Tableau, K: np.ndarray, control: Callable[[float, np.ndarray], Any] | None = None) -> np.ndarray:
+def rk_step(
+    field: Callable[[float, np.ndarray, Any], np.ndarray],
+    t: float,
+    x: np.ndarray,
+    h: float,
+    tableau: Tableau,
+    K: np.ndarray,
+    control: Callable[[float, np.ndarray], Any] | None = None,
+) -> np.ndarray:
     """One step of size h from (t, x). ``K`` (s, n) holds f(t, x, u(t, x)) in its first row on
     entry and all stages on exit; the control is sampled at each stage. Returns the new state."""
     A, c = tableau.A, tableau.c

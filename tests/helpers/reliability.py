@@ -83,8 +83,16 @@ def watchdog(seconds: float):
 OUTCOMES: dict[str, Counter] = defaultdict(Counter)
 
 #: The columns of the table in docs/reliability.md; the last five must stay 0.
-COLUMNS = ("inputs tried", "ran (exit 0 or 3)", "clear errors (exit 2)", "tracebacks", "hangs",
-           "silent wrong results", "files lost or changed", "temporaries left")
+COLUMNS = (
+    "inputs tried",
+    "ran (exit 0 or 3)",
+    "clear errors (exit 2)",
+    "tracebacks",
+    "hangs",
+    "silent wrong results",
+    "files lost or changed",
+    "temporaries left",
+)
 
 
 def record(fuzzer: str, outcome: str) -> None:

@@ -32,20 +32,36 @@ def _build(params, effects) -> Model:
     transitions = []
     if "floor" in effects:
         e = effects["floor"]["restitution"]
-        transitions.append(Transition("flight", "flight", guard=lambda x: max(x[0], x[1]),
-                                      reset=lambda x: np.array([x[0], -e * x[1]]), name="bounce"))
-    system = HybridSystem({"flight": Mode(2, field, names=("z", "zd"))}, transitions, name=TINY,
-                          energy=lambda mode, x: g * x[0] + 0.5 * x[1] ** 2)
-    return Model(system, "flight", {"z": 1.0, "zd": 0.0}, counters=lambda: dict(counts),
-                 info={"params": dict(params)})
+        transitions.append(
+            Transition(
+                "flight",
+                "flight",
+                guard=lambda x: max(x[0], x[1]),
+                reset=lambda x: np.array([x[0], -e * x[1]]),
+                name="bounce",
+            )
+        )
+    system = HybridSystem(
+        {"flight": Mode(2, field, names=("z", "zd"))},
+        transitions,
+        name=TINY,
+        energy=lambda mode, x: g * x[0] + 0.5 * x[1] ** 2,
+    )
+    return Model(system, "flight", {"z": 1.0, "zd": 0.0}, counters=lambda: dict(counts), info={"params": dict(params)})
 
 
 BUILDER = Builder(
-    TINY, "a falling ball",
+    TINY,
+    "a falling ball",
     {"g": Param(9.81, "gravity", "m/s^2", low=0.0, low_open=True)},
-    {"floor": Effect("impacts with the floor", default_on=True,
-                     parameters={"restitution": Param(0.5, "coefficient of restitution", low=0.0, high=1.0)}),
-     "drag": Effect("linear air drag", parameters={"c": Param(0.1, "drag rate", "1/s", low=0.0)})},
+    {
+        "floor": Effect(
+            "impacts with the floor",
+            default_on=True,
+            parameters={"restitution": Param(0.5, "coefficient of restitution", low=0.0, high=1.0)},
+        ),
+        "drag": Effect("linear air drag", parameters={"c": Param(0.1, "drag rate", "1/s", low=0.0)}),
+    },
     _build,
 )
 

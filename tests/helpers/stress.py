@@ -20,4 +20,5 @@ def known_failures(case_name: str) -> set[str]:
 def finding_reason(case_name: str) -> str:
     """Why a listed case fails: its own entry in CORE_FINDINGS_WHY, else those of its checks."""
     return CORE_FINDINGS_WHY.get(case_name) or "; ".join(
-        CORE_FINDINGS_WHY[check] for check in CORE_FINDINGS[case_name] if check in CORE_FINDINGS_WHY)
+        CORE_FINDINGS_WHY[check] for check in CORE_FINDINGS[case_name] if check in CORE_FINDINGS_WHY
+    )

@@ -26,14 +26,14 @@ def read_cells(table: str, columns: int, key: int = 0) -> tuple[list[str], list[
     ``key`` has text (cells are top-aligned)."""
     lines = table.split("\n\n")[0].splitlines()
     rule = next(i for i, line in enumerate(lines) if line and set(line) == {"-"})
-    spans = column_spans(lines[:rule] + lines[rule + 1:])
+    spans = column_spans(lines[:rule] + lines[rule + 1 :])
     assert len(spans) == columns, (spans, table)
 
     def cells(block: list[str]) -> list[str]:
         return ["".join("".join(line.ljust(b)[a:b].split()) for line in block) for a, b in spans]
 
     rows: list[list[str]] = []
-    for line in lines[rule + 1:]:
+    for line in lines[rule + 1 :]:
         a, b = spans[key]
         if line.ljust(b)[a:b].strip() or not rows:
             rows.append([])

@@ -15,22 +15,28 @@ from legsim.methods import ALIASES, METHODS, error_estimate, get_method
 ORDERS = {"euler": 1, "rk2": 2, "heun": 2, "rk4": 4, "bs32": 3, "dopri5": 5}
 
 
-
 def order_conditions(tab) -> dict[int, list[tuple[float, float]]]:
     """(value, required) of the order conditions for the rooted trees of order 1..5."""
     b, A, c = tab.b, tab.A, tab.c
-    Ac, Ac2, Ac3 = A @ c, A @ c ** 2, A @ c ** 3
+    Ac, Ac2, Ac3 = A @ c, A @ c**2, A @ c**3
     AAc = A @ Ac
     return {
         1: [(b.sum(), 1.0)],
         2: [(b @ c, 1 / 2)],
-        3: [(b @ c ** 2, 1 / 3), (b @ Ac, 1 / 6)],
-        4: [(b @ c ** 3, 1 / 4), (b @ (c * Ac), 1 / 8), (b @ Ac2, 1 / 12), (b @ AAc, 1 / 24)],
-        5: [(b @ c ** 4, 1 / 5), (b @ (c ** 2 * Ac), 1 / 10), (b @ (c * Ac2), 1 / 15), (b @ (c * AAc), 1 / 30),
-            (b @ (Ac * Ac), 1 / 20), (b @ Ac3, 1 / 20), (b @ (A @ (c * Ac)), 1 / 40), (b @ (A @ Ac2), 1 / 60),
-            (b @ (A @ AAc), 1 / 120)],
+        3: [(b @ c**2, 1 / 3), (b @ Ac, 1 / 6)],
+        4: [(b @ c**3, 1 / 4), (b @ (c * Ac), 1 / 8), (b @ Ac2, 1 / 12), (b @ AAc, 1 / 24)],
+        5: [
+            (b @ c**4, 1 / 5),
+            (b @ (c**2 * Ac), 1 / 10),
+            (b @ (c * Ac2), 1 / 15),
+            (b @ (c * AAc), 1 / 30),
+            (b @ (Ac * Ac), 1 / 20),
+            (b @ Ac3, 1 / 20),
+            (b @ (A @ (c * Ac)), 1 / 40),
+            (b @ (A @ Ac2), 1 / 60),
+            (b @ (A @ AAc), 1 / 120),
+        ],
     }
-
 
 
 @pytest.mark.parametrize("name", sorted(ORDERS))
@@ -48,7 +54,6 @@ def test_tableau_satisfies_exactly_its_order_conditions(name):
     assert np.all(np.triu(tab.A) == 0.0)  # explicit
 
 
-
 @pytest.mark.parametrize("name", ["bs32", "dopri5"])
 def test_embedded_weights_have_the_stated_lower_order(name):
     tab = METHODS[name]
@@ -59,7 +64,6 @@ def test_embedded_weights_have_the_stated_lower_order(name):
         for value, required in conditions[order]:
             assert value == pytest.approx(required, abs=1e-14)
     assert any(abs(v - r) > 1e-6 for v, r in conditions[tab.error_order + 1])
-
 
 
 def test_method_names_and_aliases():
@@ -75,15 +79,12 @@ def test_method_names_and_aliases():
         error_estimate(METHODS["rk4"], 0.1, ())
 
 
-
 def logistic_system() -> HybridSystem:
     return HybridSystem({"m": Mode(1, lambda t, x, u: x * (1.0 - x))})
 
 
-
 def logistic_exact(t: float, y0: float) -> float:
     return 1.0 / (1.0 + math.exp(-t) * (1.0 / y0 - 1.0))
-
 
 
 def forced_system() -> HybridSystem:
@@ -91,33 +92,41 @@ def forced_system() -> HybridSystem:
     return HybridSystem({"m": Mode(2, lambda t, x, u: np.array([x[1], -x[0] + u]))})
 
 
-
 def forced_exact(t: float) -> np.ndarray:
     # From (x, x') = (0, 1) with u = cos(2 t): x = cos(t)/3 + sin(t) - cos(2 t)/3.
-    return np.array([math.cos(t) / 3 + math.sin(t) - math.cos(2 * t) / 3,
-                     -math.sin(t) / 3 + math.cos(t) + 2 * math.sin(2 * t) / 3])
-
+    return np.array(
+        [math.cos(t) / 3 + math.sin(t) - math.cos(2 * t) / 3, -math.sin(t) / 3 + math.cos(t) + 2 * math.sin(2 * t) / 3]
+    )
 
 
 def fitted_order(hs, errors) -> float:
     return float(np.polyfit(np.log(hs), np.log(errors), 1)[0])
 
 
-
-STEP_SIZES = {"euler": [0.02, 0.01, 0.005, 0.0025], "rk2": [0.1, 0.05, 0.025, 0.0125],
-              "heun": [0.1, 0.05, 0.025, 0.0125], "bs32": [0.1, 0.05, 0.025, 0.0125],
-              "rk4": [0.2, 0.1, 0.05, 0.025], "dopri5": [0.2, 0.1, 0.05, 0.025]}
-
+STEP_SIZES = {
+    "euler": [0.02, 0.01, 0.005, 0.0025],
+    "rk2": [0.1, 0.05, 0.025, 0.0125],
+    "heun": [0.1, 0.05, 0.025, 0.0125],
+    "bs32": [0.1, 0.05, 0.025, 0.0125],
+    "rk4": [0.2, 0.1, 0.05, 0.025],
+    "dopri5": [0.2, 0.1, 0.05, 0.025],
+}
 
 
 @pytest.mark.parametrize("name", sorted(ORDERS))
 def test_global_error_converges_at_the_method_order(name):
     hs = STEP_SIZES[name]
-    err_logistic = [abs(simulate(logistic_system(), [0.1], "m", 4.0, h, 1.0, name).final_state[0]
-                        - logistic_exact(4.0, 0.1)) for h in hs]
+    err_logistic = [
+        abs(simulate(logistic_system(), [0.1], "m", 4.0, h, 1.0, name).final_state[0] - logistic_exact(4.0, 0.1))
+        for h in hs
+    ]
     control = lambda t, x: math.cos(2.0 * t)  # noqa: E731
-    err_forced = [np.abs(simulate(forced_system(), [0.0, 1.0], "m", 4.0, h, 1.0, name, control).final_state
-                         - forced_exact(4.0)).max() for h in hs]
+    err_forced = [
+        np.abs(
+            simulate(forced_system(), [0.0, 1.0], "m", 4.0, h, 1.0, name, control).final_state - forced_exact(4.0)
+        ).max()
+        for h in hs
+    ]
     p = ORDERS[name]
     # Asymptotic slopes are exact; 0.2 allows for the next-order term at the coarsest step.
     # dopri5's leading error constant on the logistic equation is so small that the h^6 term
@@ -150,7 +159,7 @@ def test_dop853_runs_from_simulate_by_name_at_its_order():
     for h in (0.5, 0.25):
         ex = simulate(logistic_system(), [y0], "m", t_end, h, 1e-3, "dop853")
         errors.append(abs(ex.final_state[0] - logistic_exact(t_end, y0)))
-    assert errors[0] / errors[1] > 2 ** 7
+    assert errors[0] / errors[1] > 2**7
     ex = simulate(logistic_system(), [y0], "m", t_end, 0.5, 1e-3, "DOP853", rtol=1e-10, atol=1e-12)
     assert ex.settings["method"] == "dop853" and abs(ex.final_state[0] - logistic_exact(t_end, y0)) < 1e-9
 

@@ -6,27 +6,19 @@ import math
 import numpy as np
 import pytest
 
-from legsim.methods import (
-    ContinuousStep,
-    dense_output,
-    get_method,
-    make_stepper,
-)
+from legsim.methods import ContinuousStep, dense_output, get_method, make_stepper
 
 PAIRS = [get_method("bs32"), get_method("dopri5"), get_method("dop853")]
-
 
 
 def forced_pendulum(t, x, u=None):
     return np.array([x[1], -math.sin(x[0]) + 0.3 * math.cos(1.7 * t)])
 
 
-
 def reference(t_end, x0):
     from scipy.integrate import solve_ivp
 
     return solve_ivp(forced_pendulum, (0.0, t_end), x0, method="DOP853", rtol=1e-13, atol=1e-15).y[:, -1]
-
 
 
 @pytest.mark.parametrize("tableau", PAIRS, ids=lambda t: t.name)

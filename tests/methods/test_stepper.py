@@ -10,21 +10,13 @@ import numpy as np
 import pytest
 
 from helpers.reference_rk import rk_step
-from legsim.methods import (
-    METHODS,
-    error_estimate,
-    get_method,
-    make_error_norm,
-    make_stepper,
-)
+from legsim.methods import METHODS, error_estimate, get_method, make_error_norm, make_stepper
 
 ORDERS = {"euler": 1, "rk2": 2, "heun": 2, "rk4": 4, "bs32": 3, "dopri5": 5}
 
 
-
 def pendulum(t, x, u):
     return np.array([x[1], -math.sin(x[0]) + (0.0 if u is None else u)])
-
 
 
 @pytest.mark.parametrize("name", sorted(ORDERS))
@@ -43,10 +35,8 @@ def test_generated_stepper_equals_the_reference_step(name):
         np.testing.assert_allclose(stages[-1], pendulum(0.45, got, control(0.45, got)), rtol=1e-14)
 
 
-
 def fitted_order(hs, errors) -> float:
     return float(np.polyfit(np.log(hs), np.log(errors), 1)[0])
-
 
 
 @pytest.mark.parametrize("name", ["bs32", "dopri5"])
@@ -75,7 +65,6 @@ def test_error_estimate_is_the_lower_order_local_error(name):
 
 def forced_pendulum(t, x, u=None):
     return np.array([x[1], -math.sin(x[0]) + 0.3 * math.cos(1.7 * t)])
-
 
 
 def test_stacked_stepper_and_generated_error_norms_match_the_references():

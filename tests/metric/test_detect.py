@@ -13,14 +13,19 @@ from legsim.metric.detect import detect_affine_reset, detect_coordinate_guard
 
 
 def test_declared_coordinate_guard_beyond_the_dimension_is_named():
-    system = HybridSystem({"m": Mode(1, lambda t, x, u: np.zeros(1))},
-                          [Transition("m", "m", CoordinateGuard((0, 1.0, 0.0)), lambda x: -x)])
+    system = HybridSystem(
+        {"m": Mode(1, lambda t, x, u: np.zeros(1))},
+        [Transition("m", "m", CoordinateGuard((0, 1.0, 0.0)), lambda x: -x)],
+    )
     # A guard declared on a coordinate the mode does not have.
-    bad = HybridSystem({"m": Mode(1, lambda t, x, u: np.zeros(1))},
-                       [Transition("m", "m", CoordinateGuard((3, 1.0, 0.0)), lambda x: -x)])
+    bad = HybridSystem(
+        {"m": Mode(1, lambda t, x, u: np.zeros(1))},
+        [Transition("m", "m", CoordinateGuard((3, 1.0, 0.0)), lambda x: -x)],
+    )
     assert distance(system, ("m", [1.0]), ("m", [2.0]), 0.1) == pytest.approx(1.0)
-    with pytest.raises(ModelError,
-                       match=r"CoordinateGuard\(\(3, 1\.0, 0\.0\),\) refers to coordinate beyond dimension 1"):
+    with pytest.raises(
+        ModelError, match=r"CoordinateGuard\(\(3, 1\.0, 0\.0\),\) refers to coordinate beyond dimension 1"
+    ):
         distance(bad, ("m", [1.0]), ("m", [-2.0]), 0.1)
 
 

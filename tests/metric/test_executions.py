@@ -115,12 +115,14 @@ def test_position_error_of_eq_30_for_positions_only():
     expected = float(np.max(np.abs(1e-3 * np.sin(7 * times))))
     assert position_error(noisy, ref, times) == pytest.approx(expected, abs=1e-15)
     assert position_error(noisy, lambda t: np.array([ref.state(s)[0] for s in t]), times) == pytest.approx(
-        expected, abs=1e-15)
+        expected, abs=1e-15
+    )
     ex = simulate(ball(), [Z0, 0.0], "fall", 0.8, 1e-3, 1e-3)
     by_name = position_error(ex, ref, times, coordinate="z")
     by_index = position_error(ex, ref, times, coordinate=0)
-    assert by_name == by_index == pytest.approx(
-        max(abs(ex.state_at(t)[1][0] - ref.state(t)[0]) for t in times), abs=1e-15)
+    assert (
+        by_name == by_index == pytest.approx(max(abs(ex.state_at(t)[1][0] - ref.state(t)[0]) for t in times), abs=1e-15)
+    )
 
 
 def test_trajectory_space_distance_is_the_euclidean_sup_within_one_mode():
@@ -151,17 +153,21 @@ def test_samples_must_have_one_state_per_time(execution):
     class Short:
         def sample(self, times):
             return execution.sample(times[:1])
+
     with pytest.raises(MetricError, match=r"execution_b.sample\(times\) must return Samples with one mode and state"):
         rho(ball(), execution, Short(), [0.1, 0.2], 1e-3)
 
 
-@pytest.mark.parametrize("simulated, coordinate, message", [
-    ([1.0, 2.0, 3.0], 0, "simulated gives 3 positions for 2 times"),
-    ([1.0, math.inf], 0, "simulated positions must be finite"),
-    (["x", "y"], 0, "simulated positions must be numbers"),
-    ("execution", "height", r"simulated: no coordinate named 'height' in mode 'fall' \(names: \('z', 'zd'\)\)"),
-    ("execution", 2, r"simulated: coordinate 2 is not an index of the 2-d state in mode 'fall'"),
-])
+@pytest.mark.parametrize(
+    "simulated, coordinate, message",
+    [
+        ([1.0, 2.0, 3.0], 0, "simulated gives 3 positions for 2 times"),
+        ([1.0, math.inf], 0, "simulated positions must be finite"),
+        (["x", "y"], 0, "simulated positions must be numbers"),
+        ("execution", "height", r"simulated: no coordinate named 'height' in mode 'fall' \(names: \('z', 'zd'\)\)"),
+        ("execution", 2, r"simulated: coordinate 2 is not an index of the 2-d state in mode 'fall'"),
+    ],
+)
 def test_bad_position_error_input(execution, simulated, coordinate, message):
     if simulated == "execution":
         simulated = execution

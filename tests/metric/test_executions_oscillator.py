@@ -42,10 +42,13 @@ def reference():
     return osc.OscillatorReference.example("ex1")
 
 
-@pytest.mark.parametrize("method, order, steps, eps", [
-    ("rk2", 2, (1e-2, 5e-3, 2.5e-3), 1e-8),  # the midpoint method of the paper's Fig. 14
-    ("rk4", 4, (4e-2, 2e-2, 1e-2), 1e-10),
-])
+@pytest.mark.parametrize(
+    "method, order, steps, eps",
+    [
+        ("rk2", 2, (1e-2, 5e-3, 2.5e-3), 1e-8),  # the midpoint method of the paper's Fig. 14
+        ("rk4", 4, (4e-2, 2e-2, 1e-2), 1e-10),
+    ],
+)
 def test_rho_falls_like_h_to_the_order_of_the_method(reference, method, order, steps, eps):
     system = _system()
     values = [rho(system, _run(system, h, eps, method), reference, TIMES, eps) for h in steps]
@@ -113,8 +116,18 @@ def _ex2_slope(t_end: float, samples: int) -> tuple[float, list[float]]:
         # The paper's relaxed execution (no continuation): sticking is simulated as eps-deep
         # chatter in the strip (~1e4 transitions per second of sticking at eps = 1e-8), hence the
         # raised cap.
-        ex = simulate(system, [EX2["x0"], EX2["xd0"]], "free", t_end, h, EX2_EPS, method="rk2", control=control,
-                      max_transitions=10**6, continuation=False)
+        ex = simulate(
+            system,
+            [EX2["x0"], EX2["xd0"]],
+            "free",
+            t_end,
+            h,
+            EX2_EPS,
+            method="rk2",
+            control=control,
+            max_transitions=10**6,
+            continuation=False,
+        )
         assert ex.status == "finished"
         values.append(rho(system, ex, reference, times, EX2_EPS))
     return float(np.polyfit(np.log(EX2_STEPS), np.log(values), 1)[0]), values

@@ -27,13 +27,21 @@ def ball_closed_form(v1: float, v2: float, eps: float, c: float = C) -> float:
 def two_mode_closed_form(p: np.ndarray, q: np.ndarray, eps: float) -> float:
     (x, y), (u, v, w) = p, q
     forward = math.hypot(1.0 - x + math.hypot(u, w), y - v) + eps
-    back = minimize_scalar(lambda s: math.sqrt((u + 1) ** 2 + (v + w - s) ** 2 / 2) + math.hypot(x, y - s),
-                           bounds=(-20.0, 20.0), method="bounded", options={"xatol": 1e-12}).fun + eps
+    back = (
+        minimize_scalar(
+            lambda s: math.sqrt((u + 1) ** 2 + (v + w - s) ** 2 / 2) + math.hypot(x, y - s),
+            bounds=(-20.0, 20.0),
+            method="bounded",
+            options={"xatol": 1e-12},
+        ).fun
+        + eps
+    )
     return min(forward, back)
 
 
 def disk_brute_force(a: np.ndarray, b: np.ndarray, eps: float) -> float:
     """Direct chord, or one crossing of the rim either way, minimised over the angle."""
+
     def via(theta: float, forward: bool) -> float:
         e = np.array([math.cos(theta), math.sin(theta)])
         entry, exit_ = (e, -0.5 * e) if forward else (-0.5 * e, e)
@@ -44,9 +52,12 @@ def disk_brute_force(a: np.ndarray, b: np.ndarray, eps: float) -> float:
     for forward in (True, False):
         values = [via(t, forward) for t in thetas]
         k = int(np.argmin(values))
-        res = minimize_scalar(lambda t, forward=forward: via(t, forward),
-                              bounds=(thetas[max(k - 1, 0)], thetas[min(k + 1, 3600)]),
-                              method="bounded", options={"xatol": 1e-12})
+        res = minimize_scalar(
+            lambda t, forward=forward: via(t, forward),
+            bounds=(thetas[max(k - 1, 0)], thetas[min(k + 1, 3600)]),
+            method="bounded",
+            options={"xatol": 1e-12},
+        )
         best = min(best, res.fun + eps)
     return best
 
@@ -158,8 +169,11 @@ def test_guard_point_and_its_reset_image_are_eps_apart(name, data, eps):
     if name == "ball":
         p = np.array([0.0, -data.draw(speed)])
     elif name == "two_mode":
-        p = (np.array([1.0, data.draw(coord)]) if tr.source == "a"
-             else np.array([-1.0, data.draw(coord), data.draw(coord)]))
+        p = (
+            np.array([1.0, data.draw(coord)])
+            if tr.source == "a"
+            else np.array([-1.0, data.draw(coord), data.draw(coord)])
+        )
     else:
         t = data.draw(st.floats(-math.pi, math.pi))
         p = np.array([math.cos(t), math.sin(t)])
@@ -206,9 +220,11 @@ def test_relaxed_distance_converges_linearly_with_slope_the_number_of_crossings(
     # Ball: the shortest path from (0.3, -1) to (0.1, 0.7) crosses once (slope 1); two_mode
     # from a to b crosses once; the ball from guard side to guard side crosses twice ("fr":
     # bounce, slide along the image where distances shrink by c, bounce back).
-    cases = [(ball(), ("fall", [0.3, -1.0]), ("fall", [0.1, 0.7]), 1),
-             (two_mode(), ("a", [0.5, 0.2]), ("b", [0.3, -0.4, 0.1]), 1),
-             (ball(), ("fall", [0.0, -1.0]), ("fall", [0.0, -3.0]), 2)]
+    cases = [
+        (ball(), ("fall", [0.3, -1.0]), ("fall", [0.1, 0.7]), 1),
+        (two_mode(), ("a", [0.5, 0.2]), ("b", [0.3, -0.4, 0.1]), 1),
+        (ball(), ("fall", [0.0, -1.0]), ("fall", [0.0, -3.0]), 2),
+    ]
     eps = np.logspace(-6, -2, 9)
     for system, a, b, hops in cases:
         d0 = distance(system, a, b, 0.0)
@@ -246,8 +262,9 @@ def test_shortest_path_reports_its_crossing_on_the_guard():
     assert crossing.name == "bounce" and crossing.forward
     assert crossing.point[0] == 0.0 and crossing.point[1] <= 0.0
     # The unfolded straight line: legs |(0.3, -1) - p| and |(0, -C p_zd) - (0.1, 0.7)|.
-    legs = (np.linalg.norm(np.array([0.3, -1.0]) - crossing.point)
-            + np.linalg.norm(np.array([0.0, -C * crossing.point[1]]) - [0.1, 0.7]))
+    legs = np.linalg.norm(np.array([0.3, -1.0]) - crossing.point) + np.linalg.norm(
+        np.array([0.0, -C * crossing.point[1]]) - [0.1, 0.7]
+    )
     assert path.length == pytest.approx(legs + 0.01, abs=1e-12)
 
 
@@ -270,7 +287,8 @@ def shift(declared: bool = False) -> HybridSystem:
     return HybridSystem(
         {"l": Mode(2, still, names=("x", "y")), "r": Mode(2, still, names=("u", "v"))},
         [Transition("l", "r", guard=guard, reset=reset, name="shift")],
-        name="shift")
+        name="shift",
+    )
 
 
 def shift_closed_form(a, b, eps: float) -> float:
@@ -306,10 +324,12 @@ def shift_pairs(draw):
         p = np.array([draw(st.floats(-2.0, 1.0)), draw(coord)])
         a, b = (m, p), (m, p + np.array([-abs(draw(offset)), draw(offset)]))
     else:
+
         def point():
             if draw(st.booleans()):
                 return ("l", np.array([draw(st.floats(-2.0, 1.0)), draw(coord)]))
             return ("r", np.array([draw(st.floats(-2.0, 2.0)), draw(coord)]))
+
         a, b = point(), point()
     return (b, a) if draw(st.booleans()) else (a, b)
 

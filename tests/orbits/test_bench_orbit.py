@@ -54,11 +54,14 @@ def test_the_report_picks_a_baseline_at_least_as_accurate_as_legsim():
     assert looser["tol"] == min(row["tol"] for row in r["sweep"] if row["tol"] > r["scipy"]["tol"])
 
 
-@pytest.mark.parametrize("argv, message", [
-    (("--repeats", "0"), "--repeats must be >= 1"),
-    (("--scene", "slip_orbit"), "needs a section after a transition"),
-    (("--scene", "bouncing_ball"), "no [orbit] section"),
-])
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        (("--repeats", "0"), "--repeats must be >= 1"),
+        (("--scene", "slip_orbit"), "needs a section after a transition"),
+        (("--scene", "bouncing_ball"), "no [orbit] section"),
+    ],
+)
 def test_bad_requests_are_refused_with_a_message(argv, message):
     code, _out, err = run_cli("bench", "orbit", "--quiet", *argv)
     assert code != 0 and message in err and "Traceback" not in err

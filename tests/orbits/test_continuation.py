@@ -14,7 +14,7 @@ def test_continuation_finds_the_period_doubling_of_the_hopping_ball():
     assert [round(p.value, 12) for p in fam.points] == [round(v, 12) for v in np.linspace(0.6, 1.4, 9)]
     for p in fam.points:
         v = D / (1 + p.value)
-        assert abs(p.result.fixed_point[0] - v ** 2 / (2 * G)) < 1e-9
+        assert abs(p.result.fixed_point[0] - v**2 / (2 * G)) < 1e-9
         assert abs(p.result.multipliers[0] - (-p.value)) < 1e-6
     assert len(fam.stability_changes) == 1
     change = fam.stability_changes[0]

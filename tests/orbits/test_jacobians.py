@@ -38,8 +38,9 @@ def test_analytic_derivatives_give_the_same_saltation_jacobian():
     x = np.array([-0.35, -0.55])
     J = []
     for analytic in (False, True):
-        prob = OrbitProblem(hopf_reset(analytic_derivatives=analytic), Section.after("jump"), h=2e-3, eps=1e-4,
-                            t_max=2.0)
+        prob = OrbitProblem(
+            hopf_reset(analytic_derivatives=analytic), Section.after("jump"), h=2e-3, eps=1e-4, t_max=2.0
+        )
         J.append(jacobian_saltation(prob, return_map(prob, x)))
     # Forward differences of the field (relative ~1e-8 per stage Jacobian) against the exact
     # Jacobian, guard gradient and reset Jacobian: measured 5.4e-9 over the whole return.

@@ -36,10 +36,13 @@ def test_impact_oscillator_after_transition_matches_closed_form():
     assert 0.0 <= res.return_time - res.period <= prob.eps + prob.h
 
 
-@pytest.mark.parametrize("section", [
-    Section.level("free", "v", 0.0, -1),
-    Section.crossing("free", lambda x: x[1], -1),  # the same section through a function (FD gradient)
-])
+@pytest.mark.parametrize(
+    "section",
+    [
+        Section.level("free", "v", 0.0, -1),
+        Section.crossing("free", lambda x: x[1], -1),  # the same section through a function (FD gradient)
+    ],
+)
 def test_impact_oscillator_crossing_section_matches_closed_form(section):
     ref = oscillator_closed_form()
     prob = OrbitProblem(impact_oscillator(), section, h=1e-2, eps=1e-4, t_max=5.0)
@@ -68,8 +71,9 @@ def test_hopf_reset_fixed_point_and_multiplier():
 def test_free_parameter_gives_the_kick_for_a_prescribed_apex_height():
     # Unknown: the kick D; fixed: the apex height H = 1 m. Closed form D = (1 + k) sqrt(2 g H).
     H, k = 1.0, 0.5
-    prob = OrbitProblem(hopping_ball, APEX, h=1e-2, eps=1e-4, t_max=4.0, parameters={"kick": 3.0, "k": k},
-                        free=["kick"], fixed=["z"])
+    prob = OrbitProblem(
+        hopping_ball, APEX, h=1e-2, eps=1e-4, t_max=4.0, parameters={"kick": 3.0, "k": k}, free=["kick"], fixed=["z"]
+    )
     res = find_orbit(prob, {"z": H})
     assert res.converged, res.message
     assert res.fixed_point[0] == H
@@ -81,8 +85,9 @@ def test_free_parameter_gives_the_kick_for_a_prescribed_apex_height():
 def test_energy_constraint_picks_the_orbit_of_an_energy_level():
     # Hopping ball with the kick free and the energy fixed: E = g H at the apex.
     H, k = 0.8, 0.5
-    prob = OrbitProblem(hopping_ball, APEX, h=1e-2, eps=1e-4, t_max=4.0, parameters={"kick": 3.0, "k": k},
-                        free=["kick"], energy=G * H)
+    prob = OrbitProblem(
+        hopping_ball, APEX, h=1e-2, eps=1e-4, t_max=4.0, parameters={"kick": 3.0, "k": k}, free=["kick"], energy=G * H
+    )
     res = find_orbit(prob, {"z": 1.2})
     assert res.converged, res.message
     assert abs(res.fixed_point[0] - H) < 1e-9
@@ -91,8 +96,16 @@ def test_energy_constraint_picks_the_orbit_of_an_energy_level():
 
 def test_general_constraint_in_place_of_a_fixed_coordinate():
     H, k = 0.6, 0.5
-    prob = OrbitProblem(hopping_ball, APEX, h=1e-2, eps=1e-4, t_max=4.0, parameters={"kick": 3.0, "k": k},
-                        free=["kick"], constraints=[("apex height", lambda x, p: x[0] - H)])
+    prob = OrbitProblem(
+        hopping_ball,
+        APEX,
+        h=1e-2,
+        eps=1e-4,
+        t_max=4.0,
+        parameters={"kick": 3.0, "k": k},
+        free=["kick"],
+        constraints=[("apex height", lambda x, p: x[0] - H)],
+    )
     res = find_orbit(prob, {"z": 1.0})
     assert res.converged, res.message
     assert abs(res.fixed_point[0] - H) < 1e-12
@@ -123,8 +136,9 @@ def test_fixed_point_converges_at_order_four_in_h_and_does_not_degrade_with_eps(
 
 def test_singular_jacobian_of_a_non_isolated_orbit():
     # Undamped, elastic, no kick: every launch speed is periodic (energy is conserved).
-    prob = OrbitProblem(impact_oscillator(zeta=0.0, e=1.0, kick=0.0), Section.after("impact"), h=1e-2, eps=1e-4,
-                        t_max=5.0)
+    prob = OrbitProblem(
+        impact_oscillator(zeta=0.0, e=1.0, kick=0.0), Section.after("impact"), h=1e-2, eps=1e-4, t_max=5.0
+    )
     res = find_orbit(prob, {"x": 0.0, "v": 1.0}, tol=1e-14)
     assert res.status == "singular_jacobian", res.message
     assert "not isolated" in res.message and "v" in res.message
@@ -150,7 +164,8 @@ def test_a_newton_jacobians_error_does_not_hide_a_singular_jacobian(monkeypatch)
         return J + 1e-6 * np.max(np.abs(J)) * np.array([[0.3, -0.7], [0.9, 0.4]]) if newton else J
 
     monkeypatch.setattr(newton_module, "jacobian_saltation", noisy)
-    prob = OrbitProblem(impact_oscillator(zeta=0.0, e=1.0, kick=0.0), Section.after("impact"), h=1e-2, eps=1e-4,
-                        t_max=5.0)
+    prob = OrbitProblem(
+        impact_oscillator(zeta=0.0, e=1.0, kick=0.0), Section.after("impact"), h=1e-2, eps=1e-4, t_max=5.0
+    )
     res = find_orbit(prob, {"x": 0.0, "v": 1.0}, tol=1e-14)
     assert res.status == "singular_jacobian", res.message

@@ -40,23 +40,25 @@ def slip_apex_map(z0, xd0, psi):
 
     def liftoff(t, y):
         return math.hypot(y[0] - foot, y[1]) - L
+
     liftoff.terminal, liftoff.direction = True, 1
-    sol = solve_ivp(stance, (0.0, 5.0), [xd0 * t_fall, z_td, xd0, vz], method="DOP853", rtol=1e-12, atol=1e-12,
-                    events=liftoff)
+    sol = solve_ivp(
+        stance, (0.0, 5.0), [xd0 * t_fall, z_td, xd0, vz], method="DOP853", rtol=1e-12, atol=1e-12, events=liftoff
+    )
     x, z, vx, vz = sol.y_events[0][0]
     t_rise = vz / G
-    return {"z": z + vz ** 2 / (2 * G), "xd": vx, "period": t_fall + sol.t_events[0][0] + t_rise,
-            "step": x + vx * t_rise}
+    return {"z": z + vz**2 / (2 * G), "xd": vx, "period": t_fall + sol.t_events[0][0] + t_rise, "step": x + vx * t_rise}
 
 
 @pytest.fixture(scope="module")
 def reference():
     psi = brentq(lambda p: slip_apex_map(Z0, XD0, p)["z"] - Z0, 0.60, 0.65, xtol=1e-14)
     out = slip_apex_map(Z0, XD0, psi)
-    energy = G * Z0 + 0.5 * XD0 ** 2
+    energy = G * Z0 + 0.5 * XD0**2
 
     def apex(z):
         return slip_apex_map(z, math.sqrt(2 * (energy - G * z)), psi)["z"]
+
     d = 1e-6
     out.update(psi=psi, multiplier=(apex(Z0 + d) - apex(Z0 - d)) / (2 * d))
     return out

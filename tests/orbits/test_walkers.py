@@ -35,8 +35,9 @@ def reference():
 
 def compass_problem(params=None, h=2e-3, eps=1e-6, **integrator):
     model = compass_gait.make(params or {})
-    return OrbitProblem(model.system, Section.after("heel_strike"), h=h, eps=eps, t_max=3.0, cyclic=["foot_x"],
-                        **integrator), model
+    return OrbitProblem(
+        model.system, Section.after("heel_strike"), h=h, eps=eps, t_max=3.0, cyclic=["foot_x"], **integrator
+    ), model
 
 
 def leans(x):
@@ -199,15 +200,27 @@ def rimless_closed_form(m, I, l, spokes, g, slope):  # noqa: E741 (the model's p
     from scipy.integrate import quad
 
     k = 2 * m * g * l / (I + m * l * l)
-    period, _ = quad(lambda p: 1 / math.sqrt(w * w + k * (math.cos(gamma - alpha) - math.cos(p))),
-                     gamma - alpha, gamma + alpha, epsabs=1e-14, epsrel=1e-13)
-    return {"alpha": alpha, "c": c, "K": K, "omega": w, "multiplier": c * c, "step": 2 * l * math.sin(alpha),
-            "period": period}
+    period, _ = quad(
+        lambda p: 1 / math.sqrt(w * w + k * (math.cos(gamma - alpha) - math.cos(p))),
+        gamma - alpha,
+        gamma + alpha,
+        epsabs=1e-14,
+        epsrel=1e-13,
+    )
+    return {
+        "alpha": alpha,
+        "c": c,
+        "K": K,
+        "omega": w,
+        "multiplier": c * c,
+        "step": 2 * l * math.sin(alpha),
+        "period": period,
+    }
 
 
 RIMLESS_CASES = [
     {"m": 1.0, "I": 0.0, "l": 1.0, "spokes": 10, "g": 9.81, "slope": 5.0},  # McGeer's point-mass wheel
-    {"m": 2.0, "I": 0.3, "l": 0.8, "spokes": 8, "g": 9.81, "slope": 8.0},   # with hub inertia (Coleman et al.)
+    {"m": 2.0, "I": 0.3, "l": 0.8, "spokes": 8, "g": 9.81, "slope": 8.0},  # with hub inertia (Coleman et al.)
 ]
 
 
@@ -242,8 +255,9 @@ def test_rimless_wheel_too_slow_to_vault_comes_to_rest_and_no_orbit_is_reported(
     # Vaulting over psi = 0 needs w^2 > 2 g / l (1 - cos(alpha - gamma)) = 0.503 (rad/s)^2: at
     # w = 0.5 the wheel rocks back onto the trailing spoke, rolls forward onto the next one and
     # loses speed at every impact: the motion dies out, there is no periodic orbit near here.
-    prob = OrbitProblem(model.system, Section.after("impact"), h=2e-3, eps=1e-6, t_max=2.0, cyclic=["foot_x"],
-                        max_transitions=200)
+    prob = OrbitProblem(
+        model.system, Section.after("impact"), h=2e-3, eps=1e-6, t_max=2.0, cyclic=["foot_x"], max_transitions=200
+    )
     first = return_map(prob, [-ref["alpha"], 0.5, 0.0])
     assert [tr.name for tr in first.transitions] == ["back_impact", "impact"]
     # Each swing returns to the impact angle with the speed it left with (energy is conserved

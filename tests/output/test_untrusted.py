@@ -12,15 +12,20 @@ def test_json_depth_counts_brackets_outside_strings_only():
     assert json_depth('{"a": [1, {"b": "[[[[\\"{{"}], "c": []}') == 3
     assert json_depth("[]") == 1 and json_depth("3") == 0 and json_depth('"[[["') == 0
     # Counting stops once past the limit: a 10^6-deep document costs no parsing.
-    assert json_depth("[" * 10 ** 6 + "]" * 10 ** 6, limit=64) == 65
+    assert json_depth("[" * 10**6 + "]" * 10**6, limit=64) == 65
 
 
 def test_load_json_is_strict_and_bounded():
     assert load_json('{"a": [1, 2.5, "NaN"]}') == {"a": [1, 2.5, "NaN"]}
     assert load_json("[" * 64 + "]" * 64) is not None
-    for text, reason in [("[" * 65 + "]" * 65, "nested more than 64 levels deep"), ('{"t": NaN}', "NaN is not"),
-                         ("[Infinity]", "Infinity is not"), ("[1e400]", "1e400 is beyond the range"),
-                         ("{", "Expecting"), (None, "expected JSON text")]:
+    for text, reason in [
+        ("[" * 65 + "]" * 65, "nested more than 64 levels deep"),
+        ('{"t": NaN}', "NaN is not"),
+        ("[Infinity]", "Infinity is not"),
+        ("[1e400]", "1e400 is beyond the range"),
+        ("{", "Expecting"),
+        (None, "expected JSON text"),
+    ]:
         with pytest.raises(ValueError, match=reason):
             load_json(text)
 

@@ -21,8 +21,10 @@ def test_the_documents_exist():
 
 
 def test_no_document_prints_a_machine_specific_absolute_path():
-    found = [f"{path.relative_to(ROOT)}:{number}: {match.group(0)}"
-             for path in documents()
-             for number, line in enumerate(path.read_text(encoding="utf-8").splitlines(), 1)
-             for match in MACHINE_PATH.finditer(line)]
+    found = [
+        f"{path.relative_to(ROOT)}:{number}: {match.group(0)}"
+        for path in documents()
+        for number, line in enumerate(path.read_text(encoding="utf-8").splitlines(), 1)
+        for match in MACHINE_PATH.finditer(line)
+    ]
     assert found == [], "machine paths in the docs:\n" + "\n".join(found)

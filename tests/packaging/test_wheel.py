@@ -33,11 +33,18 @@ runpy.run_module("legsim", run_name="__main__")
 def installed(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("wheel")
     # The layout is what is tested here: the native extension's compilation is left out.
-    subprocess.run([sys.executable, "-m", "pip", "wheel", "--quiet", "--no-deps", "-w", str(tmp / "dist"), str(ROOT)],
-                   check=True, capture_output=True, env={**os.environ, "LEGSIM_BUILD_NATIVE": "0"})
+    subprocess.run(
+        [sys.executable, "-m", "pip", "wheel", "--quiet", "--no-deps", "-w", str(tmp / "dist"), str(ROOT)],
+        check=True,
+        capture_output=True,
+        env={**os.environ, "LEGSIM_BUILD_NATIVE": "0"},
+    )
     wheel = next((tmp / "dist").glob("legsim-*.whl"))
-    subprocess.run([sys.executable, "-m", "pip", "install", "--quiet", "--no-deps", "--target", str(tmp / "site"),
-                    str(wheel)], check=True, capture_output=True)
+    subprocess.run(
+        [sys.executable, "-m", "pip", "install", "--quiet", "--no-deps", "--target", str(tmp / "site"), str(wheel)],
+        check=True,
+        capture_output=True,
+    )
     deps = tmp / "deps"
     deps.mkdir()
     for entry in SITE.iterdir():
@@ -54,16 +61,23 @@ def run(installed, *args: str) -> subprocess.CompletedProcess:
     _, tmp, work = installed
     env = {**os.environ, "PYTHONPATH": f"{tmp / 'site'}{os.pathsep}{tmp / 'deps'}"}
     env.pop("LEGSIM_SCENE_PATH", None)
-    return subprocess.run([sys.executable, "-S", str(tmp / "launch.py"), *args], cwd=work, env=env,
-                          capture_output=True, text=True, timeout=300)
+    return subprocess.run(
+        [sys.executable, "-S", str(tmp / "launch.py"), *args],
+        cwd=work,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
 
 
 def test_the_wheel_installs_only_the_legsim_name(installed):
     wheel, _, _ = installed
     with zipfile.ZipFile(wheel) as archive:
         tops = {name.split("/")[0] for name in archive.namelist()}
-        scenes = [name for name in archive.namelist()
-                  if name.startswith("legsim/scenarios/") and name.endswith(".toml")]
+        scenes = [
+            name for name in archive.namelist() if name.startswith("legsim/scenarios/") and name.endswith(".toml")
+        ]
     assert tops == {"legsim", wheel.name.split("-")[0] + "-" + wheel.name.split("-")[1] + ".dist-info"}
     assert "legsim/scenarios/pronk.toml" in scenes and len(scenes) == len(list((ROOT / "scenarios").glob("*.toml")))
 

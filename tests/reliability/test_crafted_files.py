@@ -48,12 +48,14 @@ def damaged(arrays, change):
 def _set(key, index, value):
     def change(a):
         a[key][index] = value
+
     return change
 
 
 def _meta(update):
     def change(a):
         update(a["meta"])
+
     return change
 
 
@@ -62,7 +64,7 @@ DAMAGE = {
     "an array missing": (lambda a: a.pop("seg_x") is None, r"arrays missing \['seg_x'\]"),
     "meta without modes": (_meta(lambda m: m.pop("modes")), r"meta lacks \['modes'\]"),
     "meta a list": (lambda a: "[1, 2]", "meta is an array, expected an object"),
-    "a segment longer than the times": (_set("seg_len", 0, 10 ** 6), "seg_t holds"),
+    "a segment longer than the times": (_set("seg_len", 0, 10**6), "seg_t holds"),
     "states one value short": (lambda a: a.update(seg_x=a["seg_x"][:-1]) or None, "seg_x holds"),
     "a negative mode index": (_set("seg_mode", -1, -1), r"seg_mode\[\d+\] = -1 is not an index"),
     "a negative segment length": (_set("seg_len", 0, -3), r"seg_len\[0\] < 1"),
@@ -77,10 +79,14 @@ DAMAGE = {
     "meta nested 100,000 deep": (lambda a: DEEP_JSON, "nested more than 64 levels"),
     "an unknown status": (_meta(lambda m: m.update(status="exploded")), "meta.status 'exploded' is not one of"),
     "final_in_strip contradicting the strips": (_meta(lambda m: m.update(final_in_strip=True)), "final_in_strip"),
-    "float indices": (lambda a: a.update(seg_mode=a["seg_mode"].astype(float)) or None,
-                      "dtype float64, expected int64"),
-    "strip times of the wrong shape": (lambda a: a.update(strip_times=a["strip_times"].reshape(-1, 2)) or None,
-                                       r"strip_times has shape \(\d+, 2\), expected \('N', 4\)"),
+    "float indices": (
+        lambda a: a.update(seg_mode=a["seg_mode"].astype(float)) or None,
+        "dtype float64, expected int64",
+    ),
+    "strip times of the wrong shape": (
+        lambda a: a.update(strip_times=a["strip_times"].reshape(-1, 2)) or None,
+        r"strip_times has shape \(\d+, 2\), expected \('N', 4\)",
+    ),
     "an extra array": (lambda a: a.update(payload=np.zeros(3)) or None, r"unexpected arrays \['payload'\]"),
 }
 
@@ -161,7 +167,7 @@ def test_a_small_file_that_inflates_a_thousandfold_is_refused_before_allocating(
         peak = tracemalloc.get_traced_memory()[1]
     finally:
         tracemalloc.stop()
-    assert peak < 16 << 20, f"{peak / 2 ** 20:.0f} MiB allocated to refuse it"
+    assert peak < 16 << 20, f"{peak / 2**20:.0f} MiB allocated to refuse it"
 
 
 # -- 7. legsim replay ----------------------------------------------------------------------------
@@ -178,6 +184,7 @@ def _summary(update):
     def change(m):
         update(m["summary"])
         return json.dumps(m)
+
     return change
 
 
@@ -189,7 +196,7 @@ META_DAMAGE = {
     "meta a list": (lambda m: "[]", "unknown legsim recording format"),
     "modes not names": (lambda m: json.dumps({**m, "modes": [1, 2]}), r"legsim/meta.modes\[0\] is an integer"),
     "a NaN": (lambda m: json.dumps({**m, "t0": "NAN"}).replace('"NAN"', "NaN"), "NaN is not a JSON"),
-    "an integer beyond float range": (_summary(lambda s: s.update(steps=10 ** 400)), "summary.steps is an integer"),
+    "an integer beyond float range": (_summary(lambda s: s.update(steps=10**400)), "summary.steps is an integer"),
 }
 
 
@@ -237,4 +244,3 @@ def test_one_bad_file_in_the_scene_path_is_listed_not_fatal(tmp_path, monkeypatc
     code, out, _ = run_cli("scenes", "--json")
     rows = {r["name"]: r for r in json.loads(out)}
     assert code == 2 and "error" not in rows["good"] and "nested" in rows["deep"]["error"]
-

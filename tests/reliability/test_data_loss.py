@@ -36,8 +36,10 @@ def test_a_link_to_the_scene_is_the_scene(tmp_path, link):
     (os.link if link == "hard" else os.symlink)(scene, alias)
     before = scene.read_bytes()
     code, _, err = run_cli("run", scene, "--rrd", alias, "-q")
-    assert code == 2 and err == f"legsim: error: --rrd {alias}: is an input of this run ({scene}); refusing to " \
-                                "overwrite it\n"
+    assert (
+        code == 2
+        and err == f"legsim: error: --rrd {alias}: is an input of this run ({scene}); refusing to overwrite it\n"
+    )
     assert scene.read_bytes() == before
 
 
@@ -83,12 +85,15 @@ def neighbourhood(tmp_path):
     return scenes, tmp_path
 
 
-@pytest.mark.parametrize("target, reason", [
-    ("{outside}/holiday.png", "is an absolute path"),
-    ("../victim/holiday.png", "leaves the scene's folder"),
-    ("out/../../victim/holiday.png", "leaves the scene's folder"),
-    ("shortcut/holiday.png", "through a symbolic link"),
-])
+@pytest.mark.parametrize(
+    "target, reason",
+    [
+        ("{outside}/holiday.png", "is an absolute path"),
+        ("../victim/holiday.png", "leaves the scene's folder"),
+        ("out/../../victim/holiday.png", "leaves the scene's folder"),
+        ("shortcut/holiday.png", "through a symbolic link"),
+    ],
+)
 def test_scene_outputs_stay_in_the_scene_folder(neighbourhood, monkeypatch, target, reason):
     scenes, root = neighbourhood
     target = target.format(outside=root / "downloads" / "victim")
@@ -135,8 +140,9 @@ def test_every_output_honours_the_umask(tmp_path):
     scene = write_ball(tmp_path)
     old = os.umask(0o027)
     try:
-        code, _, _ = run_cli("run", scene, "--rrd", tmp_path / "a.rrd", "--html", tmp_path / "a.html",
-                             "--plot", tmp_path / "a.png", "-q")
+        code, _, _ = run_cli(
+            "run", scene, "--rrd", tmp_path / "a.rrd", "--html", tmp_path / "a.html", "--plot", tmp_path / "a.png", "-q"
+        )
         load_scene(scene).simulate().save(tmp_path / "a.npz")
         write_csv([], tmp_path / "a.csv")
     finally:

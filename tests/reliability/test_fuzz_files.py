@@ -33,15 +33,28 @@ from legsim import Execution
 from legsim.errors import SimulationError
 from legsim.scene import load_scene
 
-FUZZ = settings(max_examples=3000 if FULL else 100, deadline=None, derandomize=not FULL, database=None,
-                suppress_health_check=list(HealthCheck))
+FUZZ = settings(
+    max_examples=3000 if FULL else 100,
+    deadline=None,
+    derandomize=not FULL,
+    database=None,
+    suppress_health_check=list(HealthCheck),
+)
 
-JSON_SCALARS = st.one_of(st.none(), st.booleans(), st.integers(-(2 ** 70), 2 ** 70), st.floats(allow_nan=False),
-                         st.text(max_size=8), st.sampled_from(["flight", "finished", "", "\x1b[2J", 1e308]))
-JSON_VALUES = st.recursive(JSON_SCALARS, lambda inner: st.one_of(st.lists(inner, max_size=4),
-                                                                 st.dictionaries(st.text(max_size=6), inner,
-                                                                                 max_size=4)), max_leaves=10)
-ODD_NUMBERS = [math.nan, math.inf, -math.inf, -1.0, 0.0, 1e300, -1e300, 2.0 ** 63, -(2 ** 62), 7.0, 1e-300]
+JSON_SCALARS = st.one_of(
+    st.none(),
+    st.booleans(),
+    st.integers(-(2**70), 2**70),
+    st.floats(allow_nan=False),
+    st.text(max_size=8),
+    st.sampled_from(["flight", "finished", "", "\x1b[2J", 1e308]),
+)
+JSON_VALUES = st.recursive(
+    JSON_SCALARS,
+    lambda inner: st.one_of(st.lists(inner, max_size=4), st.dictionaries(st.text(max_size=6), inner, max_size=4)),
+    max_leaves=10,
+)
+ODD_NUMBERS = [math.nan, math.inf, -math.inf, -1.0, 0.0, 1e300, -1e300, 2.0**63, -(2**62), 7.0, 1e-300]
 
 
 def json_paths(doc, prefix=()) -> list[tuple]:
@@ -82,9 +95,11 @@ def mutate_json(draw, doc) -> str:
 def saved_runs(tmp_path_factory):
     """name -> arrays of saved executions: modes of two dimensions, a run cut in a strip, three modes."""
     folder = tmp_path_factory.mktemp("saved")
-    runs = {"hopper": run_hopper(t_final=0.8)[1],
-            "ball cut in a strip": load_scene("bouncing_ball", ["integrator.max_transitions=6"]).simulate(),
-            "digital control": load_scene("digital_control").simulate()}
+    runs = {
+        "hopper": run_hopper(t_final=0.8)[1],
+        "ball cut in a strip": load_scene("bouncing_ball", ["integrator.max_transitions=6"]).simulate(),
+        "digital control": load_scene("digital_control").simulate(),
+    }
     return Saved({name: npz_arrays(ex.save(folder / f"{k}.npz")) for k, (name, ex) in enumerate(runs.items())})
 
 
@@ -105,15 +120,15 @@ def mutate_array(draw, arrays: dict) -> None:
             odd = draw(st.sampled_from(ODD_NUMBERS))
         else:  # within the range of an earlier mutation's dtype
             limits = np.iinfo(value.dtype)
-            odd = int(np.clip(draw(st.sampled_from([-1, -(2 ** 63), 2 ** 62, 0, 1, 3, 10 ** 6])), limits.min,
-                              limits.max))
+            odd = int(np.clip(draw(st.sampled_from([-1, -(2**63), 2**62, 0, 1, 3, 10**6])), limits.min, limits.max))
         flat[draw(st.integers(0, flat.size - 1))] = odd
         arrays[name] = flat.reshape(value.shape)
     elif action == "dtype":
         with warnings.catch_warnings():  # nan cast to int, complex to real: what a crafted file may hold
             warnings.simplefilter("ignore")
-            arrays[name] = value.astype(draw(st.sampled_from([np.float32, np.int32, np.float64, np.int64, np.uint8,
-                                                              np.complex128, object])))
+            arrays[name] = value.astype(
+                draw(st.sampled_from([np.float32, np.int32, np.float64, np.int64, np.uint8, np.complex128, object]))
+            )
     elif action == "shape":
         arrays[name] = value.reshape(-1) if value.ndim > 1 else value.reshape(1, -1)
     elif action == "cut":
@@ -137,8 +152,7 @@ def damaged_files(draw, saved):
     elif how == "meta":
         text = mutate_json(draw, arrays["meta"])
     else:
-        edits = draw(st.lists(st.tuples(st.floats(0, 1), st.integers(0, 255), st.booleans()), min_size=1,
-                              max_size=6))
+        edits = draw(st.lists(st.tuples(st.floats(0, 1), st.integers(0, 255), st.booleans()), min_size=1, max_size=6))
     return arrays, text, edits
 
 
@@ -244,7 +258,7 @@ def damaged_recordings(draw, meta):
         text = mutate_json(draw, doc)
     else:
         entity = draw(st.sampled_from(["/mode/index", "/samples/t", "/strip/active", "/mode", "/frames/t"]))
-        column = (entity, draw(st.integers(0, 10 ** 6)), draw(st.sampled_from([*ODD_NUMBERS, 0.5, 2.0, 1000000000.0])))
+        column = (entity, draw(st.integers(0, 10**6)), draw(st.sampled_from([*ODD_NUMBERS, 0.5, 2.0, 1000000000.0])))
     return text, column, draw(st.sampled_from(["text", "--json"]))
 
 

@@ -33,14 +33,21 @@ from hypothesis import strategies as st
 from helpers.reliability import FULL, Hang, record, run_cli, snapshot, temporaries, watchdog
 from legsim.scene import bundled_dir, load_scene
 
-BASES = {name: (bundled_dir() / f"{name}.toml").read_text()
-         for name in ("bouncing_ball", "digital_control", "two_tanks", "grazing")}
+BASES = {
+    name: (bundled_dir() / f"{name}.toml").read_text()
+    for name in ("bouncing_ball", "digital_control", "two_tanks", "grazing")
+}
 #: Every run is bounded, so that a mutated t_final or h cannot make one take minutes.
 STEP_BUDGET = "integrator.max_steps=20000"
 HANG_SECONDS = 120
 
-FUZZ = settings(max_examples=1500 if FULL else 50, deadline=None, derandomize=not FULL, database=None,
-                suppress_health_check=list(HealthCheck))
+FUZZ = settings(
+    max_examples=1500 if FULL else 50,
+    deadline=None,
+    derandomize=not FULL,
+    database=None,
+    suppress_health_check=list(HealthCheck),
+)
 
 
 # -- TOML written back ---------------------------------------------------------------------------
@@ -83,12 +90,19 @@ def toml_dumps(data: dict) -> str:
 
 # -- strategies ----------------------------------------------------------------------------------
 SCALARS = st.one_of(
-    st.integers(-(2 ** 63), 2 ** 63 - 1), st.sampled_from([0, 1, -1, 2 ** 62, 10 ** 9]),
-    st.floats(allow_nan=True, allow_infinity=True), st.sampled_from([0.0, -0.0, 1e-300, 1e300, 5e-324, 1e-12]),
-    st.booleans(), st.text(max_size=12), st.sampled_from(["rk4", "dopri5", "aim", "flight", "x\x1b[2J", ""]))
-VALUES = st.recursive(SCALARS, lambda inner: st.one_of(st.lists(inner, max_size=4),
-                                                       st.dictionaries(st.text(max_size=6), inner, max_size=4)),
-                      max_leaves=12)
+    st.integers(-(2**63), 2**63 - 1),
+    st.sampled_from([0, 1, -1, 2**62, 10**9]),
+    st.floats(allow_nan=True, allow_infinity=True),
+    st.sampled_from([0.0, -0.0, 1e-300, 1e300, 5e-324, 1e-12]),
+    st.booleans(),
+    st.text(max_size=12),
+    st.sampled_from(["rk4", "dopri5", "aim", "flight", "x\x1b[2J", ""]),
+)
+VALUES = st.recursive(
+    SCALARS,
+    lambda inner: st.one_of(st.lists(inner, max_size=4), st.dictionaries(st.text(max_size=6), inner, max_size=4)),
+    max_leaves=12,
+)
 
 
 class Nested:
@@ -98,15 +112,39 @@ class Nested:
         self.depth, self.arrays = depth, arrays
 
     def toml(self) -> str:
-        return "[" * self.depth + "1" + "]" * self.depth if self.arrays else \
-            "{ a = " * self.depth + "1" + " }" * self.depth
+        return (
+            "[" * self.depth + "1" + "]" * self.depth
+            if self.arrays
+            else "{ a = " * self.depth + "1" + " }" * self.depth
+        )
 
 
 # Paths aimed at what a scene must not touch; {root} is the fuzz folder, never the host's.
-OUTPUT_PATHS = ["out/x.png", "out/x.rrd", "out/x.html", "sub/dir/x.svg", "x.pdf", "{root}/outside/holiday.png",
-                "{root}/outside/new.rrd", "../outside/holiday.png", "../outside/new.html",
-                "out/../../outside/holiday.png", "shortcut/holiday.png", "shortcut/new.rrd", "fifo.png",
-                "scene.rrd", "./scene.rrd", "", " ", ".", "..", "out/", "x\x00.png", "x.toml", "out/x.png/y.png"]
+OUTPUT_PATHS = [
+    "out/x.png",
+    "out/x.rrd",
+    "out/x.html",
+    "sub/dir/x.svg",
+    "x.pdf",
+    "{root}/outside/holiday.png",
+    "{root}/outside/new.rrd",
+    "../outside/holiday.png",
+    "../outside/new.html",
+    "out/../../outside/holiday.png",
+    "shortcut/holiday.png",
+    "shortcut/new.rrd",
+    "fifo.png",
+    "scene.rrd",
+    "./scene.rrd",
+    "",
+    " ",
+    ".",
+    "..",
+    "out/",
+    "x\x00.png",
+    "x.toml",
+    "out/x.png/y.png",
+]
 CLI_PATHS = ["cli/a.rrd", "cli/a.html", "cli/a.png", "scene/scene.rrd", "scene/fifo.png", "cli", "cli/x.toml"]
 
 
@@ -115,8 +153,14 @@ GOOD_PATHS = {"rrd": "out/run.rrd", "html": "out/run.html", "plot": "out/run.png
 
 
 def outputs_value(draw) -> dict:
-    kinds = draw(st.lists(st.sampled_from(["rrd", "html", "plot", "rrd", "html", "plot", "movie"]), min_size=1,
-                          max_size=3, unique=True))
+    kinds = draw(
+        st.lists(
+            st.sampled_from(["rrd", "html", "plot", "rrd", "html", "plot", "movie"]),
+            min_size=1,
+            max_size=3,
+            unique=True,
+        )
+    )
     return {kind: draw(st.sampled_from(OUTPUT_PATHS + [GOOD_PATHS.get(kind, "x")] * 8)) for kind in kinds}
 
 
@@ -139,8 +183,9 @@ def edit_number(draw, data: dict) -> None:
         parent = parent[key]
     old = parent[path[-1]]
     factor = draw(st.sampled_from([0.5, 2.0, 10.0, 0.1, -1.0, 0.0, 1e-9, 1e9, math.nan, math.inf, 1.0000001]))
-    parent[path[-1]] = type(old)(old * factor) if isinstance(old, int) and math.isfinite(old * factor) \
-        else float(old) * factor
+    parent[path[-1]] = (
+        type(old)(old * factor) if isinstance(old, int) and math.isfinite(old * factor) else float(old) * factor
+    )
 
 
 def key_paths(data: dict, prefix=()) -> list[tuple]:
@@ -180,11 +225,11 @@ def edit_text(draw, text: str) -> str:
     if action == "insert":
         return text[:at] + draw(st.text(min_size=1, max_size=4)) + text[at:]
     if action == "delete":
-        return text[:at] + text[at + draw(st.integers(1, 20)):]
+        return text[:at] + text[at + draw(st.integers(1, 20)) :]
     lines = text.splitlines(keepends=True)
     if action == "duplicate" and lines:
         k = draw(st.integers(0, len(lines) - 1))
-        return "".join(lines[:k + 1] + lines[k:])
+        return "".join(lines[: k + 1] + lines[k:])
     return text[:at] if action == "truncate" else text
 
 
@@ -237,8 +282,12 @@ def outcome_of(root: Path, path: Path, flags: list[str]) -> tuple[str, str]:
             code, out, err = run_cli(*argv)
     except Hang as exc:
         return "hangs", str(exc)
-    if code not in (0, 2, 3) or "Traceback" in err or "internal error" in err or \
-            (code == 2 and not err.startswith("legsim: error: ")):
+    if (
+        code not in (0, 2, 3)
+        or "Traceback" in err
+        or "internal error" in err
+        or (code == 2 and not err.startswith("legsim: error: "))
+    ):
         return "tracebacks", f"exit {code}: {err[-2000:]}"
     if {k: v for k, v in snapshot(root).items() if not k.startswith(("scene", "cli"))} != guarded:
         return "files lost or changed", err

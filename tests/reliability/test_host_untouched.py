@@ -11,16 +11,32 @@ from pathlib import Path
 
 TESTS = Path(__file__).resolve().parents[1]
 REPO = TESTS.parent
-INSTALLERS = ("apt-get", "apt", "aptitude", "dpkg", "dnf", "yum", "zypper", "pacman", "apk", "snap", "brew",
-              "port", "sudo")
+INSTALLERS = (
+    "apt-get",
+    "apt",
+    "aptitude",
+    "dpkg",
+    "dnf",
+    "yum",
+    "zypper",
+    "pacman",
+    "apk",
+    "snap",
+    "brew",
+    "port",
+    "sudo",
+)
 
 
 def test_no_test_calls_a_system_package_manager():
     # A command line in a test that starts with an installer: ["apt-get", ...] or "apt-get ...".
     names = "|".join(map(re.escape, INSTALLERS))
     call = re.compile(rf"""[\[(,]\s*["'](?:{names})["']|["'](?:{names})\s+(?:install|update|upgrade|-)""")
-    found = {str(p.relative_to(REPO)): m.group() for p in sorted(TESTS.rglob("*.py"))
-             if p != Path(__file__).resolve() and (m := call.search(p.read_text()))}
+    found = {
+        str(p.relative_to(REPO)): m.group()
+        for p in sorted(TESTS.rglob("*.py"))
+        if p != Path(__file__).resolve() and (m := call.search(p.read_text()))
+    }
     assert found == {}
 
 
@@ -32,13 +48,29 @@ def test_without_a_browser_the_browser_tests_are_skipped_and_install_nothing(tmp
     calls = tmp_path / "installer-calls"
     for name in INSTALLERS:
         script = fake / name
-        script.write_text(f"#!/bin/sh\necho {name} \"$@\" >> {calls}\nexit 1\n")
+        script.write_text(f'#!/bin/sh\necho {name} "$@" >> {calls}\nexit 1\n')
         script.chmod(0o755)
     env = {k: v for k, v in os.environ.items() if k not in ("LEGSIM_BROWSER", "PYTEST_ADDOPTS", "PYTEST_XDIST_WORKER")}
     env["PATH"] = str(fake)
-    done = subprocess.run([sys.executable, "-m", "pytest", "-p", "no:xdist", "-p", "no:cacheprovider", "-q", "-rs",
-                           str(TESTS / "viz" / "test_browser_html.py")],
-                          cwd=tmp_path, env=env, capture_output=True, text=True, timeout=600)
+    done = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "pytest",
+            "-p",
+            "no:xdist",
+            "-p",
+            "no:cacheprovider",
+            "-q",
+            "-rs",
+            str(TESTS / "viz" / "test_browser_html.py"),
+        ],
+        cwd=tmp_path,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
     assert re.search(r"\b6 skipped\b", done.stdout) and "passed" not in done.stdout, done.stdout[-3000:]
     assert "no headless Chromium on PATH" in done.stdout and "make test-browser" in done.stdout

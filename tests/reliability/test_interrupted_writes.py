@@ -57,8 +57,9 @@ SAVE_WITH_SIGNAL = textwrap.dedent("""
 
 
 def run(script: str, *argv, cwd) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-c", script, *map(str, argv)], capture_output=True, text=True,
-                          timeout=300, cwd=cwd)
+    return subprocess.run(
+        [sys.executable, "-c", script, *map(str, argv)], capture_output=True, text=True, timeout=300, cwd=cwd
+    )
 
 
 def test_sigterm_while_writing_is_a_clean_shutdown(tmp_path):
@@ -80,8 +81,16 @@ def test_the_temporary_of_a_killed_run_is_removed_by_the_next_write(tmp_path):
     assert killed.returncode == -signal.SIGKILL
     left = temporaries(tmp_path)
     assert [p.parent for p in left] == [target.parent] and not target.exists()  # SIGKILL cannot be caught
-    done = run(RUN_WITH_SIGNAL.replace("os.kill(os.getpid(), getattr(signal, sys.argv[1]))", "pass"), "SIGKILL",
-               "run", scene, "--plot", target, "-q", cwd=tmp_path)
+    done = run(
+        RUN_WITH_SIGNAL.replace("os.kill(os.getpid(), getattr(signal, sys.argv[1]))", "pass"),
+        "SIGKILL",
+        "run",
+        scene,
+        "--plot",
+        target,
+        "-q",
+        cwd=tmp_path,
+    )
     assert done.returncode == 0, done.stderr
     assert temporaries(tmp_path) == [] and target.read_bytes()[:4] == b"\x89PNG"
 

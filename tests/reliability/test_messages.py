@@ -65,8 +65,13 @@ def test_a_read_only_file_system_is_not_called_permission_denied(tmp_path, monke
         execution.save(tmp_path / "ro" / "run.npz")
 
 
-ESCAPES = {"erase the screen": "\\u001b[2J", "recolour": "\\u001b[31m", "return to line start": "\\r",
-           "operating system command": "\\u001b]0;owned\\u0007", "right-to-left override": "\\u202e"}
+ESCAPES = {
+    "erase the screen": "\\u001b[2J",
+    "recolour": "\\u001b[31m",
+    "return to line start": "\\r",
+    "operating system command": "\\u001b]0;owned\\u0007",
+    "right-to-left override": "\\u202e",
+}
 
 
 @pytest.mark.parametrize("what", sorted(ESCAPES))

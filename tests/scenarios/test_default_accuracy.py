@@ -28,8 +28,7 @@ PAPER = [name for name in NAMES if name.endswith("_paper")]
 #: controlled SLIP hopper runs 100 hops and the URDF quadruped's controlled runs take the Python
 #: path at milliseconds per step).
 SLOW = {"double_pendulum_pd", "oscillator_ex1", "two_tanks", "slip_raibert", "quadruped_stand", "quadruped_pronk"}
-DEFAULTS = [pytest.param(name, marks=pytest.mark.slow) if name in SLOW else name
-            for name in NAMES if name not in PAPER]
+DEFAULTS = [pytest.param(name, marks=pytest.mark.slow) if name in SLOW else name for name in NAMES if name not in PAPER]
 #: Below this a relative error is rounding (a state at rest, a symmetric coordinate).
 ROUNDING = 1e-12
 
@@ -74,10 +73,11 @@ def test_paper_scene_says_it_is_not_accurate(name):
     assert run.warnings, "the coarse run reads as accurate"
 
 
-@pytest.mark.parametrize("case_name, scene_name, default_bound, paper_low",
-                         [("pronk", "pronk", 1e-5, 0.02), ("double-pendulum", "double_pendulum_plastic", 1e-4, 0.5)])
-def test_default_scene_matches_an_independent_event_driven_reference(case_name, scene_name, default_bound,
-                                                                     paper_low):
+@pytest.mark.parametrize(
+    "case_name, scene_name, default_bound, paper_low",
+    [("pronk", "pronk", 1e-5, 0.02), ("double-pendulum", "double_pendulum_plastic", 1e-4, 0.5)],
+)
+def test_default_scene_matches_an_independent_event_driven_reference(case_name, scene_name, default_bound, paper_low):
     from legsim.bench.cases import make_case
 
     case = make_case(case_name)  # solve_ivp DOP853 at rtol = atol = 1e-12 over the case's span

@@ -29,11 +29,9 @@ def test_each_section_keeps_its_own_keys_and_values():
 @pytest.mark.parametrize("section", ["certify", "stochastic"])
 def test_t_final_before_t0_and_too_many_steps_are_named_by_their_keys(section):
     reader = {"certify": certify_section, "stochastic": stochastic_section}[section]
-    scene = load_scene("grazing", overrides=["integrator.t0=5.0", "integrator.t_final=6.0",
-                                             f"{section}.t_final=4.0"])
+    scene = load_scene("grazing", overrides=["integrator.t0=5.0", "integrator.t_final=6.0", f"{section}.t_final=4.0"])
     with pytest.raises(SceneError, match=rf"grazing.toml: {section}.t_final: must be > t0 = 5.0"):
         reader.scene_settings(scene)
     scene = load_scene("grazing", overrides=[f"{section}.h=1e-9"])
     with pytest.raises(SceneError, match=rf"{section}.h / {section}.t_final: .* more than the limit"):
         reader.scene_settings(scene)
-

@@ -21,22 +21,42 @@ def test_the_rimless_wheel_section_becomes_a_problem_with_solver_settings_and_gu
     assert problem.section.label == "after impact" and problem.bound.mode == scene.initial_mode
     assert problem.cyclic == ("foot_x",) and problem.t_max == 3.0
     assert (problem.h, problem.eps) == (scene.integrator["h"], scene.integrator["eps"])
-    assert settings.solver == {"tol": 1e-10, "max_iterations": 30, "jacobian": "saltation", "fd_step": None,
-                               "singular_tol": 1e-9}
+    assert settings.solver == {
+        "tol": 1e-10,
+        "max_iterations": 30,
+        "jacobian": "saltation",
+        "fd_step": None,
+        "singular_tol": 1e-9,
+    }
     assert np.array_equal(settings.guess, scene.initial_state)
 
 
 def test_the_scenes_integrator_settings_reach_the_problem():
-    scene = load_scene("compass_gait", overrides=["integrator.method=\"dopri5\"", "integrator.rtol=1e-10",
-                                                  "integrator.atol=1e-12", "integrator.h=0.1",
-                                                  "integrator.landing=\"dense\"", "integrator.max_halvings=20",
-                                                  "integrator.eps=1e-7"])
+    scene = load_scene(
+        "compass_gait",
+        overrides=[
+            'integrator.method="dopri5"',
+            "integrator.rtol=1e-10",
+            "integrator.atol=1e-12",
+            "integrator.h=0.1",
+            'integrator.landing="dense"',
+            "integrator.max_halvings=20",
+            "integrator.eps=1e-7",
+        ],
+    )
     problem = problem_from_scene(scene).problem
     assert problem.tableau.name == "dopri5"
     assert (problem.rtol, problem.atol, problem.h, problem.eps) == (1e-10, 1e-12, 0.1, 1e-7)
     assert (problem.landing, problem.max_halvings) == ("dense", 20)
-    assert problem.integrator_settings == {"method": "dopri5", "h": 0.1, "eps": 1e-7, "rtol": 1e-10, "atol": 1e-12,
-                                           "landing": "dense", "max_halvings": 20}
+    assert problem.integrator_settings == {
+        "method": "dopri5",
+        "h": 0.1,
+        "eps": 1e-7,
+        "rtol": 1e-10,
+        "atol": 1e-12,
+        "landing": "dense",
+        "max_halvings": 20,
+    }
     # Without tolerances the steps are fixed, as in `legsim run`.
     plain = problem_from_scene(load_scene("compass_gait")).problem
     assert (plain.rtol, plain.atol, plain.landing) == (None, None, "halve")
@@ -49,8 +69,9 @@ def test_an_integrator_setting_the_problem_refuses_is_named_as_an_integrator_fie
     monkeypatch.setitem(scene.integrator, "rtol", 1e-8)
     with pytest.raises(SceneError) as info:
         problem_from_scene(scene)
-    assert "compass_gait.toml: integrator.rtol: orbit problem: rtol/atol need a method with an embedded" \
-        in str(info.value) and "got 'rk4'" in str(info.value)
+    assert "compass_gait.toml: integrator.rtol: orbit problem: rtol/atol need a method with an embedded" in str(
+        info.value
+    ) and "got 'rk4'" in str(info.value)
 
 
 def test_the_orbit_package_re_exports_the_reader():
@@ -64,15 +85,18 @@ def test_the_algorithms_do_not_load_the_scene_layer():
     assert out.strip() == "False"
 
 
-@pytest.mark.parametrize("override, message", [
-    ("orbit.tol=\"small\"", "orbit.tol: expected a number, got string 'small'"),
-    ("orbit.max_iterations=2.5", "orbit.max_iterations: expected an integer, got float 2.5"),
-    ("orbit.cyclic=\"foot_x\"", "orbit.cyclic: expected a list of names, got string 'foot_x'"),
-    ("orbit.guess={ nope = 1.0 }", "orbit.guess: unknown coordinate 'nope'"),
-    ("orbit.section={ coordinate = \"theta\", value = \"a\" }", "orbit.section.value: expected a number"),
-    ("orbit.section=3", "orbit.section: expected a table, got integer 3"),
-    ("orbit.jacobian=\"exact\"", "orbit.jacobian: expected 'saltation' or 'fd', got string 'exact'"),
-])
+@pytest.mark.parametrize(
+    "override, message",
+    [
+        ('orbit.tol="small"', "orbit.tol: expected a number, got string 'small'"),
+        ("orbit.max_iterations=2.5", "orbit.max_iterations: expected an integer, got float 2.5"),
+        ('orbit.cyclic="foot_x"', "orbit.cyclic: expected a list of names, got string 'foot_x'"),
+        ("orbit.guess={ nope = 1.0 }", "orbit.guess: unknown coordinate 'nope'"),
+        ('orbit.section={ coordinate = "theta", value = "a" }', "orbit.section.value: expected a number"),
+        ("orbit.section=3", "orbit.section: expected a table, got integer 3"),
+        ('orbit.jacobian="exact"', "orbit.jacobian: expected 'saltation' or 'fd', got string 'exact'"),
+    ],
+)
 def test_bad_values_are_named_by_their_key(override, message):
     scene = load_scene("rimless_wheel", overrides=[override])
     with pytest.raises(SceneError, match=r"rimless_wheel\.toml: ") as info:
@@ -83,7 +107,8 @@ def test_bad_values_are_named_by_their_key(override, message):
 def test_a_scene_with_a_controller_is_refused_rather_than_searched_without_it(tmp_path):
     # Searching without the controller would be another system (the uncontrolled hop in place).
     text = (bundled_dir() / "slip_raibert.toml").read_text() + (
-        '\n[orbit]\nsection = { mode = "flight", coordinate = "zd", value = 0.0, direction = "decreasing" }\n')
+        '\n[orbit]\nsection = { mode = "flight", coordinate = "zd", value = 0.0, direction = "decreasing" }\n'
+    )
     path = tmp_path / "controlled.toml"
     path.write_text(text)
     with pytest.raises(SceneError, match=r"controlled\.toml: controller: the orbit search does not run"):

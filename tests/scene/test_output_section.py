@@ -24,20 +24,26 @@ def test_outputs_resolve_against_the_scene_folder_or_out_dir(tmp_path, monkeypat
     monkeypatch.chdir(tmp_path.parent)
     scene = load_scene(path)
     assert scene.output == {"rrd": "out/a.rrd", "html": "page.html", "plot": "a/../b.png"}
-    assert scene.output_paths() == {"rrd": tmp_path / "out/a.rrd", "html": tmp_path / "page.html",
-                                    "plot": tmp_path / "a/../b.png"}
+    assert scene.output_paths() == {
+        "rrd": tmp_path / "out/a.rrd",
+        "html": tmp_path / "page.html",
+        "plot": tmp_path / "a/../b.png",
+    }
     assert scene.output_paths(tmp_path / "elsewhere")["rrd"] == tmp_path / "elsewhere" / "out/a.rrd"
 
 
-@pytest.mark.parametrize("value, reason", [
-    ("/tmp/a.png", "is an absolute path"),
-    ("../a.png", "leaves the scene's folder"),
-    ("a/../../a.png", "leaves the scene's folder"),
-    ("..", "leaves the scene's folder"),
-    (".", "leaves the scene's folder"),
-    ("a\\u0000.png", "contains a NUL character"),
-    ("", "expected a file path"),
-])
+@pytest.mark.parametrize(
+    "value, reason",
+    [
+        ("/tmp/a.png", "is an absolute path"),
+        ("../a.png", "leaves the scene's folder"),
+        ("a/../../a.png", "leaves the scene's folder"),
+        ("..", "leaves the scene's folder"),
+        (".", "leaves the scene's folder"),
+        ("a\\u0000.png", "contains a NUL character"),
+        ("", "expected a file path"),
+    ],
+)
 def test_an_output_path_that_leaves_the_folder_is_a_scene_error(tmp_path, value, reason):
     path = scene_with(tmp_path, plot=value)
     with pytest.raises(SceneError, match=rf"^{path}: output\.plot: .*{reason}"):

@@ -38,8 +38,9 @@ def test_a_reset_that_raises_model_breakdown_ends_the_run_with_that_status():
             raise ModelBreakdown("the leg swung into the ground")
         return x.copy()
 
-    system = HybridSystem({"a": Mode(1, lambda t, x, u: np.array([-1.0]))},
-                          [Transition("a", "a", lambda x: x[0], reset)])
+    system = HybridSystem(
+        {"a": Mode(1, lambda t, x, u: np.array([-1.0]))}, [Transition("a", "a", lambda x: x[0], reset)]
+    )
     ex = simulate(system, [1.0], "a", 3.0, 0.01, 1e-3)
     assert ex.status == "model_breakdown" and "swung into the ground" in ex.message
     assert math.isclose(ex.t_end, 1.0, abs_tol=0.02)

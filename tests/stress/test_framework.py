@@ -40,9 +40,11 @@ def test_select_by_exact_name_then_group_then_part_of_a_name():
     # an exact name selects that case only, not the cases whose names contain it
     assert [c.name for c in stress.select(["zeno_ball_c0.8"])] == ["zeno_ball_c0.8"]
     assert {c.group for c in stress.select(["grazing"])} == {"grazing"}
-    assert [c.name for c in stress.select(["double_pendulum"])] == ["zeno_double_pendulum_c0.5",
-                                                                    "zeno_double_pendulum_c0.5_continued",
-                                                                    "zeno_double_pendulum_c0.5_converges"]
+    assert [c.name for c in stress.select(["double_pendulum"])] == [
+        "zeno_double_pendulum_c0.5",
+        "zeno_double_pendulum_c0.5_continued",
+        "zeno_double_pendulum_c0.5_converges",
+    ]
     # in group order whatever the order asked for
     assert [c.group for c in stress.select(["extreme_corner", "zeno_two_tanks"])] == ["zeno", "extremes"]
     assert stress.select(["no_such_case"]) == []

@@ -34,8 +34,15 @@ def with_segment(ex, i, **changes):
 def test_the_good_run_passes_every_check(good):
     system, ex = good
     checks = stress.execution_checks(system, ex, EPS, energy="dissipative", energy_tol=1e-9, bound=3, bound_why="3")
-    assert [c.name for c in checks] == ["status", "finite", "time increasing", "in relaxed domain",
-                                        "resets in target domain", "energy non-increasing", "transition bound"]
+    assert [c.name for c in checks] == [
+        "status",
+        "finite",
+        "time increasing",
+        "in relaxed domain",
+        "resets in target domain",
+        "energy non-increasing",
+        "transition bound",
+    ]
     assert all(c.passed for c in checks), [c.detail for c in checks if not c.passed]
 
 

@@ -17,8 +17,9 @@ def ball():
     relaxed execution (continuation=False), whose rest is a chatter in the strip band."""
     model = stress.build("bouncing_ball", {"g": G, "z0": 1.0}, {"floor": {"restitution": C}})
     t_zeno = model.reference.zeno_time
-    return simulate(model.system, [1.0, 0.0], "flight", 2 * t_zeno, H, EPS, max_transitions=10 ** 5,
-                    continuation=False), t_zeno
+    return simulate(
+        model.system, [1.0, 0.0], "flight", 2 * t_zeno, H, EPS, max_transitions=10**5, continuation=False
+    ), t_zeno
 
 
 def with_transition(ex, k, **changes):
@@ -52,7 +53,7 @@ def test_ball_holds_are_at_most_eps_1_plus_1_over_v(ball):
 def test_tank_switches_are_the_exact_ones_and_a_moved_strip_point_fails():
     model = stress.build("two_tanks")
     x0 = stress.model_state(model, "q1")
-    ex = simulate(model.system, x0, "q1", 10.0, 1e-2, 1e-3, max_transitions=10 ** 5)  # past the Zeno time, 8 s
+    ex = simulate(model.system, x0, "q1", 10.0, 1e-2, 1e-3, max_transitions=10**5)  # past the Zeno time, 8 s
     assert stress.tank_switch_checks(ex, model.reference, x0, 24).passed
     moved = with_transition(ex, 3, state_before=ex.transitions[3].state_before + np.array([1e-6, 0.0]))
     check = stress.tank_switch_checks(moved, model.reference, x0, 24)

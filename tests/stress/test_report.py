@@ -9,9 +9,18 @@ def _checks(*names, passed=True):
 
 
 def test_invariant_summary_letters_then_own_checks_without_run_labels():
-    checks = _checks("status", "finite", "time increasing", "in relaxed domain", "resets in target domain",
-                     "energy non-increasing", "transition bound", "converges (d = 1e-06)", "converges (d = 0)",
-                     "released where eq. (31) changes sign")
+    checks = _checks(
+        "status",
+        "finite",
+        "time increasing",
+        "in relaxed domain",
+        "resets in target domain",
+        "energy non-increasing",
+        "transition bound",
+        "converges (d = 1e-06)",
+        "converges (d = 0)",
+        "released where eq. (31) changes sign",
+    )
     assert stress.invariant_summary(checks) == "SFTDREB + converges; released where eq. (31) changes sign"
     assert stress.invariant_summary(_checks("status", "finite")) == "SF"
 
@@ -22,8 +31,7 @@ def test_table_has_a_row_per_case_and_spells_out_failures():
     bad = stress.CaseResult("bad_case", "extremes", outcome="x" * 100)
     bad.add(stress.Check("impossible", False, "1 > 2"))
     lines = stress.format_table([good, bad], width=200).splitlines()
-    assert lines[0].split() == ["case", "outcome", "trans.", "steps", "wall", "s", "invariants", "checked",
-                                "verdict"]
+    assert lines[0].split() == ["case", "outcome", "trans.", "steps", "wall", "s", "invariants", "checked", "verdict"]
     row = next(line for line in lines if line.startswith("good_case"))
     assert row.split()[-6:] == ["finished", "3", "40", "0.50", "SF", "pass"]
     assert "x" * 100 in next(line for line in lines if line.startswith("bad_case"))  # a long outcome whole
@@ -38,8 +46,16 @@ def test_a_narrow_table_wraps_its_cells_and_keeps_every_character():
     results = []
     for name, text in (("first_case_with_a_long_name", outcome), ("second", "finished")):
         r = stress.CaseResult(name, "extremes", outcome=text, transitions=12345, steps=678901, wall_time=12.3456)
-        r.add(_checks("status", "finite", "time increasing", "converges (d = 1e-06)",
-                      "released where eq. (31) changes sign", "a check whose name is long enough to wrap"))
+        r.add(
+            _checks(
+                "status",
+                "finite",
+                "time increasing",
+                "converges (d = 1e-06)",
+                "released where eq. (31) changes sign",
+                "a check whose name is long enough to wrap",
+            )
+        )
         r.add(stress.Check("impossible", False, "the error 3.2e-4 is over the bound 1e-4 " * 4))
         results.append(r)
     for width in (60, 80, 100):
@@ -47,8 +63,20 @@ def test_a_narrow_table_wraps_its_cells_and_keeps_every_character():
         assert max(len(line) for line in text.splitlines()) <= width, text
         header, rows = read_cells(text, 7, key=6)
         assert header == ["case", "outcome", "trans.", "steps", "walls", "invariantschecked", "verdict"]
-        expected = [["".join(cell.split()) for cell in (r.name, r.outcome, str(r.transitions), str(r.steps),
-                                                         f"{r.wall_time:.2f}", stress.invariant_summary(r.checks),
-                                                         "FAIL")] for r in results]
+        expected = [
+            [
+                "".join(cell.split())
+                for cell in (
+                    r.name,
+                    r.outcome,
+                    str(r.transitions),
+                    str(r.steps),
+                    f"{r.wall_time:.2f}",
+                    stress.invariant_summary(r.checks),
+                    "FAIL",
+                )
+            ]
+            for r in results
+        ]
         assert rows == expected, text
         assert "..." not in text and "".join(text.split()).count("FAILfirst_case") == 1

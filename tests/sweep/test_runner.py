@@ -35,8 +35,9 @@ def table_bytes(table: pa.Table) -> bytes:
 
 
 def test_rows_hold_each_variations_run_against_the_closed_form(tmp_path):
-    result = legsim.sweep("bouncing_ball", grid={"initial.state.z": (0.5, 2.0, 7)}, overrides=BALL,
-                          out=tmp_path / "s", in_process=True)
+    result = legsim.sweep(
+        "bouncing_ball", grid={"initial.state.z": (0.5, 2.0, 7)}, overrides=BALL, out=tmp_path / "s", in_process=True
+    )
     table = pq.read_table(tmp_path / "s" / "results.parquet")
     assert table.equals(result.table) and table.num_rows == 7
     assert table.column("index").to_pylist() == list(range(7))
@@ -56,8 +57,13 @@ def test_rows_hold_each_variations_run_against_the_closed_form(tmp_path):
 def test_a_failing_or_timed_out_variation_is_a_row_with_its_error_and_the_sweep_goes_on(tmp_path):
     # Without its floor the ball falls freely: a long run is all flow, where the deadline is
     # checked a few times a second.
-    result = legsim.sweep("bouncing_ball", grid={"integrator.t_final": [0.1, 1000.0, -1.0, 0.2]},
-                          overrides=["effects.floor=false"], timeout=0.5, in_process=True)
+    result = legsim.sweep(
+        "bouncing_ball",
+        grid={"integrator.t_final": [0.1, 1000.0, -1.0, 0.2]},
+        overrides=["effects.floor=false"],
+        timeout=0.5,
+        in_process=True,
+    )
     rows = result.table.to_pylist()
     assert [r["task_status"] for r in rows] == ["done", "timeout", "error", "done"]
     assert "took longer than --timeout 0.5 s" in rows[1]["error"]
@@ -70,14 +76,17 @@ def test_a_failing_or_timed_out_variation_is_a_row_with_its_error_and_the_sweep_
 
 def test_an_axis_out_of_range_is_refused_before_anything_runs(tmp_path):
     with pytest.raises(legsim.SceneError, match=r"robot.parameters.slope"):
-        legsim.sweep("compass_gait", grid={"robot.parameters.slope": (3.0, 40.0, 3)}, out=tmp_path / "s",
-                     in_process=True)
+        legsim.sweep(
+            "compass_gait", grid={"robot.parameters.slope": (3.0, 40.0, 3)}, out=tmp_path / "s", in_process=True
+        )
     assert not (tmp_path / "s").exists()
 
 
 def test_a_local_dask_cluster_gives_the_table_of_this_process(tmp_path):
-    kwargs = dict(grid={"initial.state.z": (0.5, 2.0, 9), "integrator.method": ["rk4", "heun"]},
-                  overrides=["integrator.t_final=0.5"])
+    kwargs = dict(
+        grid={"initial.state.z": (0.5, 2.0, 9), "integrator.method": ["rk4", "heun"]},
+        overrides=["integrator.t_final=0.5"],
+    )
     here = legsim.sweep("bouncing_ball", in_process=True, **kwargs)
     dask = legsim.sweep("bouncing_ball", workers=2, batch_size=4, out=tmp_path / "d", **kwargs)
     assert dask.where.startswith("an embedded Dask cluster of 2")
@@ -85,8 +94,18 @@ def test_a_local_dask_cluster_gives_the_table_of_this_process(tmp_path):
     assert table_bytes(pq.read_table(tmp_path / "d" / "results.parquet")) == table_bytes(here.table)
 
 
-RESUME_ARGS = ["sweep", "bouncing_ball", "--grid", "initial.state.z=0.5:2.0:1000", "--set",
-               "integrator.t_final=0.05", "--in-process", "--batch", "50", "--quiet"]
+RESUME_ARGS = [
+    "sweep",
+    "bouncing_ball",
+    "--grid",
+    "initial.state.z=0.5:2.0:1000",
+    "--set",
+    "integrator.t_final=0.05",
+    "--in-process",
+    "--batch",
+    "50",
+    "--quiet",
+]
 
 
 def test_resuming_an_interrupted_1000_run_sweep_recomputes_no_finished_row(tmp_path, monkeypatch):
@@ -123,8 +142,11 @@ def test_resuming_an_interrupted_1000_run_sweep_recomputes_no_finished_row(tmp_p
 
 def test_a_sweep_killed_outright_resumes_from_the_batches_it_streamed(tmp_path):
     out = tmp_path / "s"
-    proc = subprocess.Popen([sys.executable, "-m", "legsim.cli", *RESUME_ARGS, "--out", str(out)],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "legsim.cli", *RESUME_ARGS, "--out", str(out)],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+    )
     parts = out / "results.parts"
     deadline = time.monotonic() + 60
     while time.monotonic() < deadline and len(list(parts.glob("part-*.parquet"))) < 3 and proc.poll() is None:
@@ -133,8 +155,15 @@ def test_a_sweep_killed_outright_resumes_from_the_batches_it_streamed(tmp_path):
     proc.wait()
     streamed = pa.concat_tables([pq.read_table(p) for p in sorted(parts.glob("part-*.parquet"))]).sort_by("index")
     assert len(list(parts.glob("part-*.parquet"))) >= 3 and streamed.num_rows < 1000
-    result = legsim.sweep("bouncing_ball", grid={"initial.state.z": (0.5, 2.0, 1000)},
-                          overrides=["integrator.t_final=0.05"], out=out, resume=True, in_process=True, batch_size=50)
+    result = legsim.sweep(
+        "bouncing_ball",
+        grid={"initial.state.z": (0.5, 2.0, 1000)},
+        overrides=["integrator.t_final=0.05"],
+        out=out,
+        resume=True,
+        in_process=True,
+        batch_size=50,
+    )
     assert result.resumed == streamed.num_rows and result.computed == 1000 - streamed.num_rows
     kept = result.table.filter(pa.compute.is_in(result.table.column("index"), streamed.column("index")))
     assert kept.equals(streamed)  # the streamed rows, wall times and all: none recomputed
@@ -142,8 +171,20 @@ def test_a_sweep_killed_outright_resumes_from_the_batches_it_streamed(tmp_path):
 
 def test_the_command_line_reports_rows_without_result_and_refuses_bad_input(tmp_path, capsys):
     out = tmp_path / "s"
-    code = main(["sweep", "bouncing_ball", "--grid", "integrator.h=1e-3,-1,2e-3", "--set", "integrator.t_final=0.1",
-                 "--out", str(out), "--in-process", "--json"])
+    code = main(
+        [
+            "sweep",
+            "bouncing_ball",
+            "--grid",
+            "integrator.h=1e-3,-1,2e-3",
+            "--set",
+            "integrator.t_final=0.1",
+            "--out",
+            str(out),
+            "--in-process",
+            "--json",
+        ]
+    )
     captured = capsys.readouterr()
     summary = json.loads(captured.out)
     assert code == 3 and summary["task_status"] == {"done": 2, "error": 1}
@@ -152,32 +193,63 @@ def test_the_command_line_reports_rows_without_result_and_refuses_bad_input(tmp_
     # The folder holds that sweep: neither a new sweep nor another one's --resume may touch it.
     assert main(["sweep", "bouncing_ball", "--grid", "integrator.h=1e-3,2e-3", "--out", str(out), "--in-process"]) == 2
     assert "already holds a sweep" in capsys.readouterr().err
-    assert main(["sweep", "bouncing_ball", "--grid", "integrator.h=1e-3,2e-3", "--out", str(out), "--in-process",
-                 "--resume"]) == 2
+    assert (
+        main(
+            [
+                "sweep",
+                "bouncing_ball",
+                "--grid",
+                "integrator.h=1e-3,2e-3",
+                "--out",
+                str(out),
+                "--in-process",
+                "--resume",
+            ]
+        )
+        == 2
+    )
     assert "holds another sweep" in capsys.readouterr().err
-    for argv, message in ((["--grid", "integrator.h"], "expected KEY=LO:HI:N"),
-                          (["--samples", "3"], "--samples needs a --random"),
-                          (["--walk", "--no-run"], "exclude each other"),
-                          (["--grid", "initial.state.q=0:1:3"], "unknown coordinate"),
-                          (["--workers", "0"], "--workers must be an integer >= 1")):
+    for argv, message in (
+        (["--grid", "integrator.h"], "expected KEY=LO:HI:N"),
+        (["--samples", "3"], "--samples needs a --random"),
+        (["--walk", "--no-run"], "exclude each other"),
+        (["--grid", "initial.state.q=0:1:3"], "unknown coordinate"),
+        (["--workers", "0"], "--workers must be an integer >= 1"),
+    ):
         assert main(["sweep", "bouncing_ball", "--out", str(tmp_path / "x"), *argv]) == 2
         assert message in capsys.readouterr().err
 
 
 def test_a_walk_sweep_draws_the_basin_and_an_orbit_sweep_the_stability_map(tmp_path):
-    basin = legsim.sweep("rimless_wheel", grid={"initial.state.theta": [-math.pi / 10, 0.0],
-                                                "initial.state.thetad": [0.8, 2.6]},
-                         walk=True, out=tmp_path / "b", in_process=True)
+    basin = legsim.sweep(
+        "rimless_wheel",
+        grid={"initial.state.theta": [-math.pi / 10, 0.0], "initial.state.thetad": [0.8, 2.6]},
+        walk=True,
+        out=tmp_path / "b",
+        in_process=True,
+    )
     rows = basin.table.to_pylist()
     # Just after an impact (theta = -alpha) the step map's closed form gives the steps
     # (tests/sweep/test_walk.py): 15 from 0.8 rad/s, 18 from 2.6 rad/s.
     assert [(r["outcome"], r["steps_to_gait"]) for r in rows[:2]] == [("converges", 15), ("converges", 18)]
     assert all(r["task_status"] == "done" and r["outcome"] in OUTCOMES for r in rows)
     assert (tmp_path / "b" / "basin.png").stat().st_size > 0
-    omega = math.sqrt(math.cos(math.pi / 5) ** 2 * 4 * G * math.sin(math.pi / 10) * math.sin(math.radians(5))
-                      / (1 - math.cos(math.pi / 5) ** 2))
-    orbits = legsim.sweep("rimless_wheel", grid={"robot.parameters.slope": [5.0], "robot.parameters.m": [1.0, 2.0]},
-                          run=False, orbit=True, out=tmp_path / "o", in_process=True)
+    omega = math.sqrt(
+        math.cos(math.pi / 5) ** 2
+        * 4
+        * G
+        * math.sin(math.pi / 10)
+        * math.sin(math.radians(5))
+        / (1 - math.cos(math.pi / 5) ** 2)
+    )
+    orbits = legsim.sweep(
+        "rimless_wheel",
+        grid={"robot.parameters.slope": [5.0], "robot.parameters.m": [1.0, 2.0]},
+        run=False,
+        orbit=True,
+        out=tmp_path / "o",
+        in_process=True,
+    )
     rows = orbits.table.to_pylist()
     assert [r["orbit_status"] for r in rows] == ["converged", "converged"]
     # The wheel's gait is independent of its mass; its multiplier is c^2 (closed form).
@@ -191,12 +263,14 @@ def test_a_walk_sweep_draws_the_basin_and_an_orbit_sweep_the_stability_map(tmp_p
 def test_orbit_rows_place_the_compass_gaits_period_doubling_where_continuation_does():
     # `legsim orbit compass_gait --continue slope 3 6` locates the period doubling at
     # slope 4.3909 (README): the sweep's independent orbit searches on either side agree.
-    result = legsim.sweep("compass_gait", grid={"robot.parameters.slope": [4.2, 4.6]}, run=False, orbit=True,
-                          in_process=True)
+    result = legsim.sweep(
+        "compass_gait", grid={"robot.parameters.slope": [4.2, 4.6]}, run=False, orbit=True, in_process=True
+    )
     below, above = result.table.to_pylist()
     assert below["orbit_status"] == above["orbit_status"] == "converged"
     assert below["orbit_spectral_radius"] < 1 < above["orbit_spectral_radius"]
     assert below["orbit_stable"] is True and above["orbit_stable"] is False
-    real = [re for re, im in zip(above["orbit_multipliers_re"], above["orbit_multipliers_im"], strict=True)
-            if im == 0.0]
+    real = [
+        re for re, im in zip(above["orbit_multipliers_re"], above["orbit_multipliers_im"], strict=True) if im == 0.0
+    ]
     assert min(real) < -1.0  # through -1: a period doubling

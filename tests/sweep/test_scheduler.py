@@ -18,8 +18,20 @@ import pytest
 from legsim.cli import main
 from legsim.sweep.table import TIMING_COLUMNS
 
-SWEEP = ["sweep", "compass_gait", "--grid", "initial.state.stanced=0.9:1.3:3", "--grid",
-         "initial.state.hipd=-1.2:-0.4:3", "--walk", "--max-steps", "8", "--batch", "2", "--quiet"]
+SWEEP = [
+    "sweep",
+    "compass_gait",
+    "--grid",
+    "initial.state.stanced=0.9:1.3:3",
+    "--grid",
+    "initial.state.hipd=-1.2:-0.4:3",
+    "--walk",
+    "--max-steps",
+    "8",
+    "--batch",
+    "2",
+    "--quiet",
+]
 
 
 def dask_command() -> list[str]:
@@ -46,18 +58,45 @@ def cluster(tmp_path):
     scheduler_file = tmp_path / "scheduler.json"
     with open(tmp_path / "scheduler.log", "wb") as scheduler_log, open(tmp_path / "worker.log", "wb") as worker_log:
         common = {"cwd": tmp_path, "stderr": subprocess.STDOUT}
-        scheduler = subprocess.Popen([*dask_command(), "scheduler", "--host", "127.0.0.1", "--port", "0",
-                                      "--no-dashboard", "--scheduler-file", str(scheduler_file)],
-                                     stdout=scheduler_log, **common)
+        scheduler = subprocess.Popen(
+            [
+                *dask_command(),
+                "scheduler",
+                "--host",
+                "127.0.0.1",
+                "--port",
+                "0",
+                "--no-dashboard",
+                "--scheduler-file",
+                str(scheduler_file),
+            ],
+            stdout=scheduler_log,
+            **common,
+        )
         processes = [scheduler]
         try:
             deadline = time.monotonic() + 60
             while not scheduler_file.exists() and time.monotonic() < deadline and scheduler.poll() is None:
                 time.sleep(0.1)
             address = json.loads(scheduler_file.read_text())["address"]
-            processes.append(subprocess.Popen([*dask_command(), "worker", address, "--nworkers", "2", "--nthreads", "1",
-                                               "--no-dashboard", "--local-directory", str(tmp_path)],
-                                              stdout=worker_log, **common))
+            processes.append(
+                subprocess.Popen(
+                    [
+                        *dask_command(),
+                        "worker",
+                        address,
+                        "--nworkers",
+                        "2",
+                        "--nthreads",
+                        "1",
+                        "--no-dashboard",
+                        "--local-directory",
+                        str(tmp_path),
+                    ],
+                    stdout=worker_log,
+                    **common,
+                )
+            )
             yield address
         finally:
             for proc in reversed(processes):

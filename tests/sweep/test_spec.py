@@ -35,16 +35,19 @@ def test_a_range_grid_is_evenly_spaced_with_both_ends_and_a_list_keeps_its_value
     assert parse_grid("robot.parameters.slope=3.5").values == (3.5,)
 
 
-@pytest.mark.parametrize("text, message", [
-    ("thetad", "expected KEY=LO:HI:N"),
-    ("=1:2:3", "dotted path"),
-    ("a..b=1:2:3", "dotted path"),
-    ("a.b=1:2", "expected KEY=LO:HI:N"),
-    ("a.b=1:2:0", "N must be an integer >= 1"),
-    ("a.b=1:2:2.5", "N must be an integer >= 1"),
-    ("a.b=x:2:3", "'x' is not a finite number"),
-    ("a.b=1:nan:3", "is not a finite number"),
-])
+@pytest.mark.parametrize(
+    "text, message",
+    [
+        ("thetad", "expected KEY=LO:HI:N"),
+        ("=1:2:3", "dotted path"),
+        ("a..b=1:2:3", "dotted path"),
+        ("a.b=1:2", "expected KEY=LO:HI:N"),
+        ("a.b=1:2:0", "N must be an integer >= 1"),
+        ("a.b=1:2:2.5", "N must be an integer >= 1"),
+        ("a.b=x:2:3", "'x' is not a finite number"),
+        ("a.b=1:nan:3", "is not a finite number"),
+    ],
+)
 def test_bad_grids_are_refused_with_the_option_named(text, message):
     with pytest.raises(SweepError, match="--grid") as err:
         parse_grid(text)
@@ -52,8 +55,7 @@ def test_bad_grids_are_refused_with_the_option_named(text, message):
 
 
 def test_random_axes_draw_uniformly_in_their_interval_reproducibly():
-    spec = SweepSpec(scene="compass_gait", random=(parse_random("robot.parameters.slope=2:5"),), samples=2000,
-                     seed=3)
+    spec = SweepSpec(scene="compass_gait", random=(parse_random("robot.parameters.slope=2:5"),), samples=2000, seed=3)
     draws = np.array([spec.values(i)["robot.parameters.slope"] for i in range(len(spec))])
     assert len(spec) == 2000 and draws.min() >= 2.0 and draws.max() < 5.0
     # Uniform on [2, 5): mean 3.5, std 3 / sqrt(12); the sample mean within 4 standard errors.
@@ -78,8 +80,10 @@ def test_variations_are_the_product_of_the_grids_first_axis_slowest_then_the_dra
 
 def test_overrides_carry_the_values_bit_for_bit_into_the_scene():
     value = 1.0 / 3.0 + 1e-17 * np.pi
-    scene = load_scene("compass_gait", variation_overrides({"initial.state.stanced": value,
-                                                           "robot.parameters.slope": 3.0000000000000004}))
+    scene = load_scene(
+        "compass_gait",
+        variation_overrides({"initial.state.stanced": value, "robot.parameters.slope": 3.0000000000000004}),
+    )
     assert scene.initial_state[2] == value
     assert scene.parameters["slope"] == 3.0000000000000004
     assert override("a.b", True) == "a.b=true" and override("a.b", "rk4") == 'a.b="rk4"'
@@ -89,28 +93,37 @@ def test_overrides_carry_the_values_bit_for_bit_into_the_scene():
 def test_the_fingerprint_follows_every_field_and_survives_the_manifest():
     spec = SweepSpec(scene="compass_gait", grid=(parse_grid("initial.state.hipd=-1:0:3"),), run="walk")
     assert SweepSpec.from_json(spec.to_json()).fingerprint() == spec.fingerprint()
-    assert SweepSpec(scene="compass_gait", grid=(parse_grid("initial.state.hipd=-1:0:4"),),
-                     run="walk").fingerprint() != spec.fingerprint()
+    assert (
+        SweepSpec(scene="compass_gait", grid=(parse_grid("initial.state.hipd=-1:0:4"),), run="walk").fingerprint()
+        != spec.fingerprint()
+    )
     assert SweepSpec(scene="compass_gait", grid=spec.grid, run="walk", tol=1e-4).fingerprint() != spec.fingerprint()
 
 
-@pytest.mark.parametrize("kwargs, message", [
-    ({"run": "none"}, "nothing to measure"),
-    ({"run": "fly"}, "run must be one of"),
-    ({"grid": (Axis("a.b", (1, 2)), Axis("a.b", (3,)))}, "varied twice"),
-    ({"max_steps": 0}, "--max-steps"),
-    ({"tol": -1.0}, "--tol"),
-    ({"timeout": 0}, "--timeout"),
-    ({"seed": -1}, "--seed"),
-])
+@pytest.mark.parametrize(
+    "kwargs, message",
+    [
+        ({"run": "none"}, "nothing to measure"),
+        ({"run": "fly"}, "run must be one of"),
+        ({"grid": (Axis("a.b", (1, 2)), Axis("a.b", (3,)))}, "varied twice"),
+        ({"max_steps": 0}, "--max-steps"),
+        ({"tol": -1.0}, "--tol"),
+        ({"timeout": 0}, "--timeout"),
+        ({"seed": -1}, "--seed"),
+    ],
+)
 def test_inconsistent_sweeps_are_refused(kwargs, message):
     with pytest.raises(SweepError, match=message):
         SweepSpec(scene="compass_gait", **kwargs)
 
 
 def test_corners_reach_both_ends_of_every_axis():
-    spec = SweepSpec(scene="x", grid=(parse_grid("a.x=0:1:5"), parse_grid("a.y=3,4,5")),
-                     random=(parse_random("a.r=-1:1"),), samples=3)
+    spec = SweepSpec(
+        scene="x",
+        grid=(parse_grid("a.x=0:1:5"), parse_grid("a.y=3,4,5")),
+        random=(parse_random("a.r=-1:1"),),
+        samples=3,
+    )
     seen = list(corners(spec))
     for key, ends in (("a.x", {0.0, 1.0}), ("a.y", {3, 5})):
         assert {c[key] for c in seen} == ends

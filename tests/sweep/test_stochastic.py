@@ -18,8 +18,12 @@ from legsim.systems.two_tanks import make_system as two_tanks
 
 
 def same(a, b) -> bool:
-    return (a.status == b.status and a.modes == b.modes and np.array_equal(a.times, b.times)
-            and np.array_equal(a.final_state, b.final_state))
+    return (
+        a.status == b.status
+        and a.modes == b.modes
+        and np.array_equal(a.times, b.times)
+        and np.array_equal(a.final_state, b.final_state)
+    )
 
 
 def test_any_subset_of_an_ensemble_draws_the_same_executions():

@@ -63,7 +63,7 @@ def test_bounces_accumulating_like_a_zeno_execution_make_a_walk_that_stops():
     # return K - CHATTER_RETURNS falls below it.
     h, c, g = 1e-3, 0.5, 9.81
     v1 = math.sqrt(2 * g)
-    interval = [None] + [2 * v1 * c ** j / g for j in range(1, 40)]
+    interval = [None] + [2 * v1 * c**j / g for j in range(1, 40)]
     first = next(j for j in range(1, 40) if interval[j] < MIN_RETURN_STEPS * h)
     assert interval[first] < 0.8 * MIN_RETURN_STEPS * h < interval[first - 1] * 0.8  # not borderline
     expected = first + CHATTER_RETURNS
@@ -87,8 +87,14 @@ def test_an_elastic_ball_repeats_its_bounce_which_is_another_gait_without_a_refe
 def test_a_walk_that_runs_out_of_steps_is_undecided():
     # The wheel from far below its gait needs many steps (closed form above): 3 are too few.
     scene = load_scene("rimless_wheel", ["initial.state.thetad=0.9"])
-    result = walk(problem_from_scene(scene).problem, scene.initial_state, 0.0, np.array([-ALPHA, omega_star(), 0.0]),
-                  max_steps=3, tol=1e-3)
+    result = walk(
+        problem_from_scene(scene).problem,
+        scene.initial_state,
+        0.0,
+        np.array([-ALPHA, omega_star(), 0.0]),
+        max_steps=3,
+        tol=1e-3,
+    )
     assert result.outcome == "undecided" and result.steps == 3 and result.steps_to_gait is None
     w = 0.9
     for _ in range(3):

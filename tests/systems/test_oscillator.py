@@ -19,8 +19,9 @@ EX1, EX2 = EXAMPLES["ex1"], EXAMPLES["ex2"]
 
 def example_system(name: str):
     E = EXAMPLES[name]
-    return osc.make_system(E["omega"], E["a"], E["x_max"], E["c"], E["mass"]), osc.forcing(E["amplitude"],
-                                                                                            E["frequency"])
+    return osc.make_system(E["omega"], E["a"], E["x_max"], E["c"], E["mass"]), osc.forcing(
+        E["amplitude"], E["frequency"]
+    )
 
 
 # -- the relaxed integrator against the reference ----------------------------------------------
@@ -29,8 +30,18 @@ def run(name: str, eps: float, h: float = 1e-2, method: str = "rk4", landing: st
     sticks, as in paper 000); the default continuation: tests/systems/test_oscillator_zeno.py."""
     E = EXAMPLES[name]
     system, control = example_system(name)
-    return simulate(system, [E["x0"], E["xd0"]], "free", E["t_max"] if t_final is None else t_final, h, eps, method,
-                    control, landing=landing, continuation=False)
+    return simulate(
+        system,
+        [E["x0"], E["xd0"]],
+        "free",
+        E["t_max"] if t_final is None else t_final,
+        h,
+        eps,
+        method,
+        control,
+        landing=landing,
+        continuation=False,
+    )
 
 
 def test_example1_impact_times_and_state_at_40_pi(ref1):
@@ -164,8 +175,9 @@ def test_scene_reference_follows_an_overridden_initial_state():
     # The scene's reference must describe the run the scene makes, not the model's default start.
     from legsim.scene import load_scene
 
-    scene = load_scene("oscillator_ex1", overrides=["initial.state.x=10.0", "initial.state.xd=0.0",
-                                                    "integrator.t_final=3.0"])
+    scene = load_scene(
+        "oscillator_ex1", overrides=["initial.state.x=10.0", "initial.state.xd=0.0", "integrator.t_final=3.0"]
+    )
     ref = scene.reference
     assert ref.position(0.0) == pytest.approx(10.0)
     ex = scene.simulate()
@@ -180,8 +192,9 @@ def test_damping_and_forcing_terms_are_computed_only_when_asked():
     # control; simulate also evaluates the field once to check it (not in field_evals).
     assert ex.counters["field_evals"] <= ex.counters["damping_evals"] <= ex.counters["field_evals"] + 2
     assert ex.counters["forcing_evals"] == ex.counters["damping_evals"]
-    off = load_scene("oscillator_ex1", overrides=["integrator.t_final=2.0", "effects.damping=false",
-                                                  "effects.forcing=false"])
+    off = load_scene(
+        "oscillator_ex1", overrides=["integrator.t_final=2.0", "effects.damping=false", "effects.forcing=false"]
+    )
     ex_off = off.simulate()
     assert ex_off.counters["damping_evals"] == 0 and ex_off.counters["forcing_evals"] == 0
     assert ex_off.counters["field_evals"] >= 3 * ex_off.counters["steps"] > 500
@@ -190,15 +203,18 @@ def test_damping_and_forcing_terms_are_computed_only_when_asked():
     energy = off.model.system.energy
     for tr in ex_off.transitions:
         lost = energy("free", tr.state_before) - energy("free", tr.state_after)
-        assert lost == pytest.approx(0.5 * (1 - 0.9 ** 2) * tr.state_before[1] ** 2, rel=1e-12)
+        assert lost == pytest.approx(0.5 * (1 - 0.9**2) * tr.state_before[1] ** 2, rel=1e-12)
 
 
 def test_absurd_oscillator_input_is_refused_by_name():
     from legsim import ModelError, SceneError
 
     # A start 6 m beyond the stop at rest is inside max(x_max - x, -xd) >= 0, yet impossible.
-    with pytest.raises(SceneError, match=r"oscillator_ex1.toml: initial.state: \{'x': 20.0, 'xd': 0.0\}: "
-                                         r"x = 20 m lies beyond the stop x_max = 14 m by more than eps = 1e-06 m$"):
+    with pytest.raises(
+        SceneError,
+        match=r"oscillator_ex1.toml: initial.state: \{'x': 20.0, 'xd': 0.0\}: "
+        r"x = 20 m lies beyond the stop x_max = 14 m by more than eps = 1e-06 m$",
+    ):
         load_scene("oscillator_ex1", overrides=["initial.state.x=20", "initial.state.xd=0"])
     # Finite parameters whose square overflows are named instead of giving inf/nan fields.
     with pytest.raises(ModelError, match=r"oscillator: omega\^2 overflows \(omega = 1e\+300"):

@@ -58,8 +58,12 @@ def test_reference_impact_law(name, ref1, ref2):
     assert np.all(np.diff(times) > 0) and np.all(speeds >= 0)
     after = ref.states(times)
     np.testing.assert_allclose(after[:, 0], E["x_max"], rtol=0, atol=1e-12)
-    np.testing.assert_allclose(after[:, 1][speeds * E["c"] >= ref.zeno_speed],
-                               -E["c"] * speeds[speeds * E["c"] >= ref.zeno_speed], rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(
+        after[:, 1][speeds * E["c"] >= ref.zeno_speed],
+        -E["c"] * speeds[speeds * E["c"] >= ref.zeno_speed],
+        rtol=1e-12,
+        atol=1e-15,
+    )
     # Just before each impact the mass arrives at the stop with the recorded speed.
     big = speeds > 1e-3
     dt = 1e-9  # short enough for the position's curvature term (< 1e-16 m) not to show
@@ -72,9 +76,12 @@ def event_driven(E: dict, t0: float, y0, t_end: float, stop_speed: float = 0.0):
     """Independent reference: DOP853 from impact to impact with scipy's event location. Each
     flight first runs 1e-5 s without events (shorter than any flight here), because the event
     function is zero at the flight's start, on the stop."""
+
     def f(t, y):
-        return [y[1], E["amplitude"] * math.cos(E["frequency"] * t) / E["mass"] - 2 * E["a"] * y[1]
-                - E["omega"] ** 2 * y[0]]
+        return [
+            y[1],
+            E["amplitude"] * math.cos(E["frequency"] * t) / E["mass"] - 2 * E["a"] * y[1] - E["omega"] ** 2 * y[0],
+        ]
 
     def hit(t, y):
         return y[0] - E["x_max"]
@@ -118,15 +125,17 @@ def test_reference_energy_balance_over_flights(ref1):
     E = EX1
     times = ref1.impact_times(30.0)
     energy = lambda s: 0.5 * E["mass"] * (s[1] ** 2 + E["omega"] ** 2 * s[0] ** 2)  # noqa: E731
-    power = lambda t: (E["amplitude"] * math.cos(E["frequency"] * t) * ref1.velocity(t)  # noqa: E731
-                       - 2 * E["a"] * E["mass"] * ref1.velocity(t) ** 2)
+    power = lambda t: (
+        E["amplitude"] * math.cos(E["frequency"] * t) * ref1.velocity(t)  # noqa: E731
+        - 2 * E["a"] * E["mass"] * ref1.velocity(t) ** 2
+    )
     for t1, t2 in itertools.pairwise(times):
         work, _ = quad(power, t1, t2, epsabs=1e-11, epsrel=1e-11, limit=200)
         before = ref1.state(t2 - 1e-12 * (t2 - t1))
         assert energy(before) - energy(ref1.state(t1)) == pytest.approx(work, rel=1e-7, abs=1e-7)
     speeds = ref1.impact_speeds(30.0)
     lost = [energy(ref1.state(t - 1e-10)) - energy(ref1.state(t)) for t in times]
-    np.testing.assert_allclose(lost, 0.5 * E["mass"] * (1 - E["c"] ** 2) * speeds ** 2, rtol=1e-6)
+    np.testing.assert_allclose(lost, 0.5 * E["mass"] * (1 - E["c"] ** 2) * speeds**2, rtol=1e-6)
 
 
 def test_reference_without_forcing_or_damping_conserves_energy():
@@ -204,7 +213,7 @@ def test_reference_plastic_impact_at_the_equilibrium_stop_rests_there():
     # x = 0 when cos(wd t + phase) decays to zero; after the plastic impact F = 0, so the mass rests.
     omega, a, x0 = 2.5, 0.05, -0.3
     ref = OscillatorReference(omega, a, 0.0, 0.0, 1.0, 0.0, 0.0, x0, 0.0)
-    wd = math.sqrt(omega ** 2 - a ** 2)
+    wd = math.sqrt(omega**2 - a**2)
     # x = x0 e^{-a t} (cos wd t + (a/wd) sin wd t) = 0 at tan(wd t) = -wd/a
     t_hit = (math.pi - math.atan(wd / a)) / wd
     impacts = ref.impact_times(5.0)

@@ -45,8 +45,10 @@ def find_browser() -> tuple[str | None, str]:
         found = shutil.which(name)
         if found:
             return found, ""
-    return None, (f"no headless Chromium on PATH (looked for {', '.join(BROWSERS)}); `make test-browser` "
-                  f"installs it, or set {BROWSER_ENV}=/path/to/chromium")
+    return None, (
+        f"no headless Chromium on PATH (looked for {', '.join(BROWSERS)}); `make test-browser` "
+        f"installs it, or set {BROWSER_ENV}=/path/to/chromium"
+    )
 
 
 @pytest.fixture(scope="module")
@@ -66,10 +68,22 @@ def screenshot(chromium: str, page: Path, tmp_path: Path, at: float | None = Non
     shot = tmp_path / (stem + ".png")
     profile = tmp_path / ("profile-" + stem)
     address = page.resolve().as_uri() + ("" if at is None else f"#t={at!r}")
-    cmd = [chromium, "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-           "--disable-background-networking", "--disable-component-update", "--disable-sync",
-           f"--user-data-dir={profile}", f"--window-size={WINDOW[0]},{WINDOW[1]}",
-           "--virtual-time-budget=2000", f"--screenshot={shot}", address]
+    cmd = [
+        chromium,
+        "--headless",
+        "--no-sandbox",
+        "--disable-gpu",
+        "--disable-quic",
+        "--no-first-run",
+        "--disable-background-networking",
+        "--disable-component-update",
+        "--disable-sync",
+        f"--user-data-dir={profile}",
+        f"--window-size={WINDOW[0]},{WINDOW[1]}",
+        "--virtual-time-budget=2000",
+        f"--screenshot={shot}",
+        address,
+    ]
     result = subprocess.run(cmd, capture_output=True, text=True, timeout=60)
     assert result.returncode == 0 and shot.exists(), result.stderr[-2000:]
     return imread(shot)[..., :3]

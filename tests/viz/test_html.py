@@ -29,7 +29,7 @@ def test_segment_boxes_land_on_the_polyline():
         m = _matrix(mx, mz, length, phi)
         # The unit box's axis ends (-0.5, 0, 0) and (0.5, 0, 0) go to the segment's ends.
         ends = m @ np.array([[-0.5, 0, 0, 1], [0.5, 0, 0, 1]]).T
-        np.testing.assert_allclose(ends[[0, 2]].T, line[j:j + 2], atol=1e-12)
+        np.testing.assert_allclose(ends[[0, 2]].T, line[j : j + 2], atol=1e-12)
         # and the box stays in the sagittal plane y = 0.
         np.testing.assert_allclose(ends[1], 0.0, atol=1e-15)
 
@@ -137,8 +137,9 @@ def test_the_page_draws_ruler_ticks_and_labels_fixed_to_the_world():
     ticks = [c for c in cmds if c["type"] == "set_transform" and "/ruler/tick/" in c["path"]]
     xs = sorted(np.array(c["matrix"]).reshape(4, 4).T[0, 3] for c in ticks)
     assert len(xs) >= 13 and np.allclose(np.diff(xs), 0.5) and min(xs) <= -0.1 and max(xs) >= 6.1
-    labels = [c["object"]["textures"][0]["text"] for c in cmds
-              if c["type"] == "set_object" and "/ruler/label/" in c["path"]]
+    labels = [
+        c["object"]["textures"][0]["text"] for c in cmds if c["type"] == "set_object" and "/ruler/label/" in c["path"]
+    ]
     assert {"0 m", "1 m", "2 m", "3 m", "4 m", "5 m", "6 m"} <= set(labels)
     (anim,) = [c for c in cmds if c["type"] == "set_animation"]
     assert not [a for a in anim["animations"] if "/scenery/" in a["path"]]
@@ -234,8 +235,9 @@ def test_html_from_recording_animates_the_recorded_frames(hopper_frames, tmp_pat
 def test_commands_hide_grid_and_axes(hopper_frames):
     _, _, frames = hopper_frames
     cmds = _commands(frames, 1.0)
-    hidden = {c["path"] for c in cmds if c["type"] == "set_property" and c["property"] == "visible"
-              and c["value"] is False}
+    hidden = {
+        c["path"] for c in cmds if c["type"] == "set_property" and c["property"] == "visible" and c["value"] is False
+    }
     assert hidden == {"/Grid", "/Axes"}
 
 

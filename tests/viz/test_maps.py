@@ -21,8 +21,16 @@ def basin_table():
     rows = []
     outcomes = ["converges", "falls", "stops", "other_gait", "undecided", "failed"]
     for k, (y, x) in enumerate((y, x) for y in ys for x in xs):
-        rows.append({"index": k, "initial.state.a": x, "initial.state.b": y, "task_status": "done",
-                     "outcome": outcomes[k], "steps_to_gait": 4 if outcomes[k] == "converges" else None})
+        rows.append(
+            {
+                "index": k,
+                "initial.state.a": x,
+                "initial.state.b": y,
+                "task_status": "done",
+                "outcome": outcomes[k],
+                "steps_to_gait": 4 if outcomes[k] == "converges" else None,
+            }
+        )
     rows[-1]["task_status"] = "error"  # no result, whatever its outcome column says
     return pa.Table.from_pylist(rows)
 
@@ -38,8 +46,14 @@ def test_the_basin_map_colours_every_cell_by_its_outcome_and_marks_the_fixed_poi
     fig = basin_figure(basin_table(), info)
     codes = by_gid(fig, "basin").get_array().reshape(2, 3)
     labels = list(OUTCOME_COLOURS)
-    assert [labels[int(c)] for c in codes.ravel()] == ["converges", "falls", "stops", "other_gait", "undecided",
-                                                       "no result"]
+    assert [labels[int(c)] for c in codes.ravel()] == [
+        "converges",
+        "falls",
+        "stops",
+        "other_gait",
+        "undecided",
+        "no result",
+    ]
     star = by_gid(fig, "fixed_point")
     assert star.get_xdata().tolist() == [1.0] and star.get_ydata().tolist() == [20.0]
     path = write_basin_map(basin_table(), info, tmp_path / "basin.png")
@@ -53,11 +67,17 @@ def test_the_stability_map_draws_its_boundaries_where_the_multipliers_cross():
     values = np.linspace(0.0, 1.5, 16)
     for k, (y, x) in enumerate((y, x) for y in values for x in values):
         failed = k == 0
-        rows.append({"index": k, "robot.parameters.p": float(x), "robot.parameters.q": float(y),
-                     "orbit_status": "no_return" if failed else "converged",
-                     "orbit_spectral_radius": None if failed else float(x + y),
-                     "orbit_multipliers_re": None if failed else [-float(x + y), 0.1],
-                     "orbit_multipliers_im": None if failed else [0.0, 0.0]})
+        rows.append(
+            {
+                "index": k,
+                "robot.parameters.p": float(x),
+                "robot.parameters.q": float(y),
+                "orbit_status": "no_return" if failed else "converged",
+                "orbit_spectral_radius": None if failed else float(x + y),
+                "orbit_multipliers_re": None if failed else [-float(x + y), 0.1],
+                "orbit_multipliers_im": None if failed else [0.0, 0.0],
+            }
+        )
     fig = stability_figure(pa.Table.from_pylist(rows), {"x": "robot.parameters.p", "y": "robot.parameters.q"})
     for gid in ("stability_boundary", "period_doubling"):
         vertices = np.concatenate(by_gid(fig, gid).allsegs[0])

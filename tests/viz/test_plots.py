@@ -133,8 +133,9 @@ def test_sub_pixel_gaps_between_strips_are_joined():
     from legsim.viz.plots import SPAN_RESOLUTION
 
     model = ball_model(c=0.5)
-    ex = simulate(model.system, np.array([1.0, 0.0]), "flight", 3.0, 1e-3, 1e-3, max_transitions=2000,
-                  continuation=False)
+    ex = simulate(
+        model.system, np.array([1.0, 0.0]), "flight", 3.0, 1e-3, 1e-3, max_transitions=2000, continuation=False
+    )
     fig = state_figure(plot_data(ex, model=model))
     (patch,) = _collections(fig.axes[0], STRIP_GID)
     shaded = span_bounds(patch)
@@ -157,9 +158,16 @@ def diverged():
     with |x| ~ 1e308, beyond what matplotlib's tick arithmetic survives."""
     from legsim.scene import load_scene
 
-    scene = load_scene("oscillator_ex1", overrides=["effects.stop=false", "effects.damping=false",
-                                                    'integrator.method="euler"', "integrator.h=0.5",
-                                                    "integrator.t_final=5000"])
+    scene = load_scene(
+        "oscillator_ex1",
+        overrides=[
+            "effects.stop=false",
+            "effects.damping=false",
+            'integrator.method="euler"',
+            "integrator.h=0.5",
+            "integrator.t_final=5000",
+        ],
+    )
     # The run's own overflow on the way to non_finite is not what is tested here.
     with np.errstate(over="ignore", invalid="ignore"):
         ex = scene.simulate()
@@ -280,16 +288,29 @@ def test_every_axis_of_the_sweep_maps_and_histograms_has_a_unit():
     import pyarrow as pa
     from legsim.viz.maps import basin_figure, stability_figure, switching_figure
 
-    rows = [{"initial.state.stanced": a, "initial.state.hipd": b, "robot.parameters.slope": a,
-             "robot.parameters.mH": b, "task_status": "done", "outcome": "converges", "steps_to_gait": 3,
-             "orbit_status": "converged", "orbit_spectral_radius": 0.5 + a / 4 + b / 8,
-             "orbit_multipliers_re": [0.5], "orbit_multipliers_im": [0.0]}
-            for a in (0.5, 1.0, 1.5) for b in (-1.0, 0.0)]
+    rows = [
+        {
+            "initial.state.stanced": a,
+            "initial.state.hipd": b,
+            "robot.parameters.slope": a,
+            "robot.parameters.mH": b,
+            "task_status": "done",
+            "outcome": "converges",
+            "steps_to_gait": 3,
+            "orbit_status": "converged",
+            "orbit_spectral_radius": 0.5 + a / 4 + b / 8,
+            "orbit_multipliers_re": [0.5],
+            "orbit_multipliers_im": [0.0],
+        }
+        for a in (0.5, 1.0, 1.5)
+        for b in (-1.0, 0.0)
+    ]
     table = pa.Table.from_pylist(rows)
     basin = basin_figure(table, {"x": "initial.state.stanced", "y": "initial.state.hipd", "scene": "compass_gait"})
     assert basin.axes[0].get_xlabel() == "stanced (rad/s)" and basin.axes[0].get_ylabel() == "hipd (rad/s)"
-    stability = stability_figure(table, {"x": "robot.parameters.slope", "y": "robot.parameters.mH",
-                                         "scene": "compass_gait"})
+    stability = stability_figure(
+        table, {"x": "robot.parameters.slope", "y": "robot.parameters.mH", "scene": "compass_gait"}
+    )
     assert stability.axes[0].get_xlabel() == "robot.parameters.slope (deg)"
     histograms = switching_figure([[1.0, 1.1, 1.2]], {"deterministic": [1.1], "samples": 3, "scene": "toy"})
     for fig in (basin, stability, histograms):
@@ -318,11 +339,15 @@ def test_small_real_motion_is_not_taken_for_a_constant():
     from legsim.viz.plots import constant_coordinates
 
     t = np.linspace(0.0, 10.0, 101)
-    series = {"x": (t, 1e4 * t / 10), "z": (t, 1.0 + 0.1 * np.sin(t)), "zd": (t, 0.1 * np.cos(t)),
-              "pitch": (t, 1e-6 * np.sin(t)),                       # real, small: 1e-6 rad
-              "noise": (t, 1e-16 * np.cos(7 * t)),                  # rounding noise around 0
-              "offset": (t, 2.5 + 1e-15 * np.sin(3 * t)),           # a constant plus noise
-              "exact": (t, np.full_like(t, -0.75))}
+    series = {
+        "x": (t, 1e4 * t / 10),
+        "z": (t, 1.0 + 0.1 * np.sin(t)),
+        "zd": (t, 0.1 * np.cos(t)),
+        "pitch": (t, 1e-6 * np.sin(t)),  # real, small: 1e-6 rad
+        "noise": (t, 1e-16 * np.cos(7 * t)),  # rounding noise around 0
+        "offset": (t, 2.5 + 1e-15 * np.sin(3 * t)),  # a constant plus noise
+        "exact": (t, np.full_like(t, -0.75)),
+    }
     data = PlotData(series, [], [("m", 0.0, 10.0)], "t", 0.0, 10.0)
     found = constant_coordinates(data)
     assert set(found) == {"noise", "offset", "exact"}
@@ -341,13 +366,15 @@ def test_a_mode_that_only_lives_inside_strips_is_on_the_band(pronk):
     (held,) = _collections(band, f"{MODE_GID}:left:held")
     want = sorted((s.time, s.exit_time) for s in ex.strips if s.mode == "left")
     np.testing.assert_allclose(np.array(_spans(held)), np.array(want), rtol=0, atol=1e-12)
-    legend = {text.get_text(): handle for text, handle in zip(band.get_legend().get_texts(),
-                                                              band.get_legend().legend_handles, strict=False)}
+    legend = {
+        text.get_text(): handle
+        for text, handle in zip(band.get_legend().get_texts(), band.get_legend().legend_handles, strict=False)
+    }
     colour = to_rgb(legend["left"].get_facecolor())
     # And it is there in the picture: pixels of left's colour inside the band.
     fig.canvas.draw()
     img = np.asarray(fig.canvas.buffer_rgba())[..., :3] / 255.0
     x0, y0, x1, y1 = band.get_window_extent().extents
     h = img.shape[0]
-    crop = img[int(h - y1) + 1:int(h - y0) - 1, int(x0) + 1:int(x1) - 1]
+    crop = img[int(h - y1) + 1 : int(h - y0) - 1, int(x0) + 1 : int(x1) - 1]
     assert np.all(np.abs(crop - colour) < 0.02, axis=-1).sum() >= 4 * len(want)

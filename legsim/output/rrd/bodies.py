@@ -72,8 +72,11 @@ class BodyLogger:
         rr = self.rr
         colour = PALETTE[len(self.tracks) % len(PALETTE)]
         track = PartTrack(entity(ROBOT, part), colour, Shape.of(line), len(line) == 1, row)
-        style = (rr.Points3D.from_fields(colors=[colour], radii=[POINT_RADIUS]) if track.points
-                 else rr.LineStrips3D.from_fields(colors=[colour], radii=[LINE_RADIUS]))
+        style = (
+            rr.Points3D.from_fields(colors=[colour], radii=[POINT_RADIUS])
+            if track.points
+            else rr.LineStrips3D.from_fields(colors=[colour], radii=[LINE_RADIUS])
+        )
         self.rec.log(track.entity, style, static=True)
         self.tracks[part] = track
 
@@ -81,8 +84,9 @@ class BodyLogger:
         n = len(rows)
         origin, angle, scale = np.zeros((n, 2)), np.zeros(n), np.ones((n, 2))
         fitted = np.zeros(n, dtype=bool)
-        matching = {i: line for i, line in enumerate(lines)
-                    if line is not None and line.shape == track.shape.local.shape}
+        matching = {
+            i: line for i, line in enumerate(lines) if line is not None and line.shape == track.shape.local.shape
+        }
         same = list(matching)
         if same:
             fit = track.shape.fit(np.stack(list(matching.values())))
@@ -91,8 +95,9 @@ class BodyLogger:
         self._log_geometry(track, rows, lines, shown)
         self._log_transforms(track, rows, *transform_columns(origin, angle, scale))
 
-    def _log_geometry(self, track: PartTrack, rows: np.ndarray, lines: list[np.ndarray | None],
-                      shown: list[str]) -> None:
+    def _log_geometry(
+        self, track: PartTrack, rows: np.ndarray, lines: list[np.ndarray | None], shown: list[str]
+    ) -> None:
         """Geometry rows where what the part shows changes (and every row it is its own polyline)."""
         logged_rows, drawn = [], []
         for i, (row, now) in enumerate(zip(rows.tolist(), shown, strict=False)):
@@ -120,8 +125,9 @@ class BodyLogger:
             columns = rr.LineStrips3D.columns(strips=present).partition([0 if line is None else 1 for line in drawn])
         self.rec.send_columns(track.entity, indexes=self.indexes(rows), columns=columns)
 
-    def _log_transforms(self, track: PartTrack, rows: np.ndarray, translation: np.ndarray,
-                        quaternion: np.ndarray, scale: np.ndarray) -> None:
+    def _log_transforms(
+        self, track: PartTrack, rows: np.ndarray, translation: np.ndarray, quaternion: np.ndarray, scale: np.ndarray
+    ) -> None:
         """A translation per row; rotation and scale in the blocks where they are not what was
         last sent (the viewer takes each component's latest value)."""
         identity = {"quaternion": np.array([0.0, 0.0, 0.0, 1.0]), "scale": np.ones(3)}
@@ -131,8 +137,7 @@ class BodyLogger:
                 sent[key] = value
         for key, value in sent.items():
             track.last[key] = value[-1]
-        self.rec.send_columns(track.entity, indexes=self.indexes(rows),
-                              columns=self.rr.Transform3D.columns(**sent))
+        self.rec.send_columns(track.entity, indexes=self.indexes(rows), columns=self.rr.Transform3D.columns(**sent))
 
     def finish(self) -> None:
         """Log each part's shape: statically when every sample shows it, else at its first row."""
@@ -142,8 +147,11 @@ class BodyLogger:
             if track.only_shape and track.first_row == 0:
                 rr = self.rr
                 local = to_3d(track.shape.local)
-                shape = rr.Points3D.from_fields(positions=local) if track.points \
+                shape = (
+                    rr.Points3D.from_fields(positions=local)
+                    if track.points
                     else rr.LineStrips3D.from_fields(strips=[local])
+                )
                 self.rec.log(track.entity, shape, static=True)
             else:
                 self._send_geometry(track, np.array([track.deferred_shape_row]), [track.shape.local])

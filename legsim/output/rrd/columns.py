@@ -90,8 +90,9 @@ class Columns:
             return np.empty(0, dtype=np.int64), [], np.empty(0, dtype=np.int64)
         idx = np.concatenate(idx_parts)
         lengths = np.concatenate(len_parts)
-        flat = pa.concat_arrays([f.cast(flat_parts[0].type) for f in flat_parts]) if len(flat_parts) > 1 \
-            else flat_parts[0]
+        flat = (
+            pa.concat_arrays([f.cast(flat_parts[0].type) for f in flat_parts]) if len(flat_parts) > 1 else flat_parts[0]
+        )
         order = np.argsort(idx, kind="stable")
         if np.any(order != np.arange(len(order))):
             offsets = np.cumsum(lengths) - lengths

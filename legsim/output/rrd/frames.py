@@ -21,8 +21,9 @@ from .poses import apply_poses
 IDENTITY = {"translation": np.zeros(3), "quaternion": np.array([0.0, 0.0, 0.0, 1.0]), "scale": np.ones(3)}
 
 
-def frame_rows(times: np.ndarray, strip_rows: list[int], fps: float = DEFAULT_FPS,
-               max_frames: int = DEFAULT_MAX_FRAMES) -> np.ndarray:
+def frame_rows(
+    times: np.ndarray, strip_rows: list[int], fps: float = DEFAULT_FPS, max_frames: int = DEFAULT_MAX_FRAMES
+) -> np.ndarray:
     """Sample rows to draw: the last sample at or before each time of a uniform grid of ``fps``
     per second (at most ``max_frames``), and each strip's entry and exit sample while the total
     stays within ``max_frames``."""
@@ -36,8 +37,13 @@ def frame_rows(times: np.ndarray, strip_rows: list[int], fps: float = DEFAULT_FP
     return rows
 
 
-def frames(columns: Columns, meta: dict[str, Any], times: np.ndarray, strips: list[dict[str, Any]],
-           scenery: dict[str, np.ndarray]) -> tuple[Frames, np.ndarray]:
+def frames(
+    columns: Columns,
+    meta: dict[str, Any],
+    times: np.ndarray,
+    strips: list[dict[str, Any]],
+    scenery: dict[str, np.ndarray],
+) -> tuple[Frames, np.ndarray]:
     """The robot's polylines at ``frame_rows`` (None where a part is absent), and those rows."""
     rows = frame_rows(times, [s["row"] for s in strips])
     modes = _modes_at(columns, rows)
@@ -58,8 +64,10 @@ def _part_lines(columns: Columns, path: str, rows: np.ndarray) -> list[np.ndarra
     """One part's world polylines (k, 2) at ``rows``: its shape (static, or the latest logged
     at or before each row; None where that is empty) under the latest transform."""
     shape_rows, shapes = _shapes(columns, path)
-    transforms = {key: _latest(columns, path, f"Transform3D:{key}", width, rows)
-                  for key, width in (("translation", 3), ("quaternion", 4), ("scale", 3))}
+    transforms = {
+        key: _latest(columns, path, f"Transform3D:{key}", width, rows)
+        for key, width in (("translation", 3), ("quaternion", 4), ("scale", 3))
+    }
     which = np.searchsorted(shape_rows, rows, side="right") - 1
     lines: list[np.ndarray | None] = [None] * len(rows)
     for k in np.unique(which[which >= 0]).tolist():

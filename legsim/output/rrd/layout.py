@@ -58,15 +58,33 @@ META = "/legsim/meta"
 SUMMARY = "/summary"
 
 # Colours (RGB) of robot parts and modes in the viewer, in order; scenery is grey.
-PALETTE = [(31, 119, 180), (214, 39, 40), (44, 160, 44), (255, 127, 14), (148, 103, 189),
-           (140, 86, 75), (227, 119, 194), (23, 190, 207), (188, 189, 34)]
+PALETTE = [
+    (31, 119, 180),
+    (214, 39, 40),
+    (44, 160, 44),
+    (255, 127, 14),
+    (148, 103, 189),
+    (140, 86, 75),
+    (227, 119, 194),
+    (23, 190, 207),
+    (188, 189, 34),
+]
 SCENERY_COLOUR = (110, 110, 110)
 
 #: What the coordinates of a unit are called in the names of the plot views, in the order the
 #: views are laid out; other units are named by the unit alone.
-UNIT_WORDS = {"m": "positions", "rad": "angles", "m/s": "velocities", "rad/s": "angular velocities",
-              "m/s^2": "accelerations", "rad/s^2": "angular accelerations", "N": "forces", "N m": "torques",
-              "J": "energies", "s": "times"}
+UNIT_WORDS = {
+    "m": "positions",
+    "rad": "angles",
+    "m/s": "velocities",
+    "rad/s": "angular velocities",
+    "m/s^2": "accelerations",
+    "rad/s^2": "angular accelerations",
+    "N": "forces",
+    "N m": "torques",
+    "J": "energies",
+    "s": "times",
+}
 NO_UNIT = "without unit"
 
 

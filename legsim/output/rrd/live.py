@@ -37,8 +37,9 @@ def has_display() -> bool:
 def check_display(flag: str, instead: str) -> None:
     """LegsimError naming ``flag`` when no window can open here; ``instead`` says what to do."""
     if not has_display():
-        raise LegsimError(f"{flag} needs a display, and there is none here (DISPLAY and WAYLAND_DISPLAY are "
-                          f"unset); {instead}")
+        raise LegsimError(
+            f"{flag} needs a display, and there is none here (DISPLAY and WAYLAND_DISPLAY are unset); {instead}"
+        )
 
 
 def viewer_url(address: str) -> str:
@@ -54,10 +55,17 @@ def viewer_url(address: str) -> str:
         port = parts.port
     except ValueError:
         parts, port = None, None
-    if parts is None or parts.scheme not in ("rerun", "rerun+http", "rerun+https") or not parts.hostname \
-            or parts.path.rstrip("/") != "/proxy" or (port is not None and not 0 < port < 65536):
-        raise LegsimError(f"--connect {address!r}: not a Rerun viewer address; give a port (9876), HOST:PORT "
-                          f"or rerun+http://HOST:PORT/proxy")
+    if (
+        parts is None
+        or parts.scheme not in ("rerun", "rerun+http", "rerun+https")
+        or not parts.hostname
+        or parts.path.rstrip("/") != "/proxy"
+        or (port is not None and not 0 < port < 65536)
+    ):
+        raise LegsimError(
+            f"--connect {address!r}: not a Rerun viewer address; give a port (9876), HOST:PORT "
+            f"or rerun+http://HOST:PORT/proxy"
+        )
     return text
 
 
@@ -68,13 +76,22 @@ def check_reachable(address: str, url: str) -> None:
     try:
         socket.create_connection((parts.hostname, port), timeout=CONNECT_TIMEOUT).close()
     except OSError as exc:
-        raise LegsimError(f"--connect {address}: no Rerun viewer answers at {parts.hostname}:{port} "
-                          f"({exc.strerror or exc}); start one with `rerun` (or `rerun --serve-grpc`) "
-                          f"there first") from None
+        raise LegsimError(
+            f"--connect {address}: no Rerun viewer answers at {parts.hostname}:{port} "
+            f"({exc.strerror or exc}); start one with `rerun` (or `rerun --serve-grpc`) "
+            f"there first"
+        ) from None
 
 
-def stream_rrd(execution: Execution, scene: Any = None, *, spawn: bool = False, connect: str | None = None,
-               model: Model | None = None, rate: float | None = None) -> None:
+def stream_rrd(
+    execution: Execution,
+    scene: Any = None,
+    *,
+    spawn: bool = False,
+    connect: str | None = None,
+    model: Model | None = None,
+    rate: float | None = None,
+) -> None:
     """Send the recording of ``execution`` (as ``write_rrd`` would write it, with the same
     ``scene``, ``model`` and ``rate``) to a new viewer (``spawn``) or to the viewer at
     ``connect`` (an address for ``viewer_url``)."""
@@ -96,5 +113,9 @@ def open_in_viewer(path: Path) -> None:
     """Open the recording file ``path`` in Rerun's bundled viewer, detached so that the viewer
     outlives this command."""
     # rerun-sdk runs its bundled viewer as `python -m rerun_cli FILE`.
-    subprocess.Popen([sys.executable, "-m", "rerun_cli", str(path)], start_new_session=True,
-                     stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    subprocess.Popen(
+        [sys.executable, "-m", "rerun_cli", str(path)],
+        start_new_session=True,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )

@@ -119,8 +119,9 @@ def to_3d(points: np.ndarray) -> np.ndarray:
     return out
 
 
-def transform_columns(origin: np.ndarray, angle: np.ndarray, scale: np.ndarray
-                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def transform_columns(
+    origin: np.ndarray, angle: np.ndarray, scale: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Rerun's Transform3D components of the poses: translation (n, 3), quaternion (n, 4),
     xyzw, and scale (n, 3)."""
     n = len(angle)
@@ -133,8 +134,7 @@ def transform_columns(origin: np.ndarray, angle: np.ndarray, scale: np.ndarray
     return translation, quaternion, scale3
 
 
-def apply_poses(local: np.ndarray, translation: np.ndarray, quaternion: np.ndarray, scale: np.ndarray
-                ) -> np.ndarray:
+def apply_poses(local: np.ndarray, translation: np.ndarray, quaternion: np.ndarray, scale: np.ndarray) -> np.ndarray:
     """World points (n, k, 2) of a shape with ``local`` (k, 3) points under n transforms:
     translation (n, 3), quaternion (n, 4) xyzw about y, scale (n, 3)."""
     # A diverged run's positions exceed float32, in which Rerun stores them: they come back

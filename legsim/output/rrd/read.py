@@ -52,30 +52,67 @@ def read_rrd(path: str | os.PathLike) -> dict[str, Any]:
 
 
 #: The keys of ``legsim/meta`` and their JSON types (None: null).
-META_KEYS = {"format": (str,), "summary": (dict,), "state_names": (dict,), "state_units": (dict,),
-             "modes": (list,), "t0": (int, float), "t_end": (int, float), "parts": (list,), "point_parts": (list,),
-             "scenery": (list,), "has_geometry": (bool,), "rate": (int, float, type(None)),
-             "computed_samples": (int,), "samples": (int,)}
+META_KEYS = {
+    "format": (str,),
+    "summary": (dict,),
+    "state_names": (dict,),
+    "state_units": (dict,),
+    "modes": (list,),
+    "t0": (int, float),
+    "t_end": (int, float),
+    "parts": (list,),
+    "point_parts": (list,),
+    "scenery": (list,),
+    "has_geometry": (bool,),
+    "rate": (int, float, type(None)),
+    "computed_samples": (int,),
+    "samples": (int,),
+}
 NUMBER = (int, float)
 MAYBE_NUMBER = (int, float, type(None))
 MAYBE_TEXT = (str, type(None))
 #: The run summary's keys that ``legsim replay`` prints, and their types.
-SUMMARY_KEYS = {"status": (str,), "t_final": MAYBE_NUMBER, "final_mode": (str,), "final_state": (list,),
-                "state_names": (list,), "mode_sequence": (list,), "transitions": (int,), "steps": (int,),
-                "halvings": (int,), "field_evals": (int,), "guard_evals": (int,), "reset_evals": (int,),
-                "wall_time_s": NUMBER}
-SUMMARY_OPTIONAL = {"system": (str,), "message": MAYBE_TEXT, "scene": MAYBE_TEXT, "robot": MAYBE_TEXT,
-                    "scene_file": MAYBE_TEXT, "method": MAYBE_TEXT, "h": MAYBE_NUMBER, "eps": MAYBE_NUMBER,
-                    "final_in_strip": (bool,), "strip_time": MAYBE_NUMBER, "error_rejections": MAYBE_NUMBER,
-                    "energy_initial": MAYBE_NUMBER, "energy_final": MAYBE_NUMBER, "outputs": (dict,)}
+SUMMARY_KEYS = {
+    "status": (str,),
+    "t_final": MAYBE_NUMBER,
+    "final_mode": (str,),
+    "final_state": (list,),
+    "state_names": (list,),
+    "mode_sequence": (list,),
+    "transitions": (int,),
+    "steps": (int,),
+    "halvings": (int,),
+    "field_evals": (int,),
+    "guard_evals": (int,),
+    "reset_evals": (int,),
+    "wall_time_s": NUMBER,
+}
+SUMMARY_OPTIONAL = {
+    "system": (str,),
+    "message": MAYBE_TEXT,
+    "scene": MAYBE_TEXT,
+    "robot": MAYBE_TEXT,
+    "scene_file": MAYBE_TEXT,
+    "method": MAYBE_TEXT,
+    "h": MAYBE_NUMBER,
+    "eps": MAYBE_NUMBER,
+    "final_in_strip": (bool,),
+    "strip_time": MAYBE_NUMBER,
+    "error_rejections": MAYBE_NUMBER,
+    "energy_initial": MAYBE_NUMBER,
+    "energy_final": MAYBE_NUMBER,
+    "outputs": (dict,),
+}
 
 
 def _read_meta(path: Path, columns: Columns) -> dict[str, Any]:
     """The ``legsim/meta`` document, checked to be of this format, every key of its type."""
     meta_rows = columns.values(META, "TextDocument:text")
     if not meta_rows:
-        raise RecordingError(f"{path}: a Rerun recording without legsim data (no legsim/meta entity); "
-                             f"was it written by `legsim run --rrd`?")
+        raise RecordingError(
+            f"{path}: a Rerun recording without legsim data (no legsim/meta entity); "
+            f"was it written by `legsim run --rrd`?"
+        )
     if not meta_rows[0]:
         raise RecordingError(f"{path}: legsim/meta is an empty document; was it written by `legsim run --rrd`?")
     try:
@@ -84,9 +121,11 @@ def _read_meta(path: Path, columns: Columns) -> dict[str, Any]:
         raise RecordingError(f"{path}: legsim/meta is not valid JSON: {exc}") from exc
     found = meta.get("format") if isinstance(meta, dict) else meta
     if isinstance(found, str) and found in OLD_FORMATS:
-        raise RecordingError(f"{path}: a legsim recording of layout {found}, written by an earlier legsim; this "
-                             f"version reads layout {FORMAT} only: record the run again (`legsim run SCENE --rrd "
-                             f"FILE`)")
+        raise RecordingError(
+            f"{path}: a legsim recording of layout {found}, written by an earlier legsim; this "
+            f"version reads layout {FORMAT} only: record the run again (`legsim run SCENE --rrd "
+            f"FILE`)"
+        )
     if not isinstance(meta, dict) or found != FORMAT:
         raise RecordingError(f"{path}: unknown legsim recording format {found!r:.80} (expected {FORMAT})")
     try:
@@ -162,8 +201,9 @@ def _indices(values: np.ndarray, n: int, entity: str) -> list[int]:
     return values.astype(np.int64).tolist()
 
 
-def _series(columns: Columns, meta: dict[str, Any], times: np.ndarray
-            ) -> tuple[dict[str, tuple[np.ndarray, np.ndarray]], dict[str, np.ndarray]]:
+def _series(
+    columns: Columns, meta: dict[str, Any], times: np.ndarray
+) -> tuple[dict[str, tuple[np.ndarray, np.ndarray]], dict[str, np.ndarray]]:
     """name -> (times, values) and name -> sample rows of every coordinate of ``meta``."""
     series: dict[str, tuple[np.ndarray, np.ndarray]] = {}
     series_rows: dict[str, np.ndarray] = {}
@@ -193,7 +233,7 @@ def _in_strip(strips: list[dict[str, Any]], n: int) -> np.ndarray:
     """True for the two samples (entry and exit, state held at q) of every strip."""
     flags = np.zeros(n, dtype=bool)
     for strip in strips:
-        flags[strip["row"]:strip["row"] + 2] = True
+        flags[strip["row"] : strip["row"] + 2] = True
     return flags
 
 
@@ -204,9 +244,12 @@ def _strips(columns: Columns, n: int) -> list[dict[str, Any]]:
     _, exit_ = columns.numbers(STRIPS, "exit")
     _ordered_times(entry, "events/strips")
     _indices(rows, max(n - 1, 0), "events/strips rows")
-    return [{"mode": m, "name": name, "time": float(a), "exit_time": float(b), "row": int(r)}
-            for m, name, a, b, r in zip(columns.strings(STRIPS, "mode"), columns.strings(STRIPS, "name"), entry,
-                                        exit_, rows, strict=True)]
+    return [
+        {"mode": m, "name": name, "time": float(a), "exit_time": float(b), "row": int(r)}
+        for m, name, a, b, r in zip(
+            columns.strings(STRIPS, "mode"), columns.strings(STRIPS, "name"), entry, exit_, rows, strict=True
+        )
+    ]
 
 
 def _transitions(columns: Columns) -> list[dict[str, Any]]:
@@ -216,17 +259,25 @@ def _transitions(columns: Columns) -> list[dict[str, Any]]:
     nums = {f: columns.numbers(ev, f)[1] for f in ("index", "time", "landing_time", "exit_time", "depth")}
     before = columns.arrays(ev, "state_before")
     after = columns.arrays(ev, "state_after")
-    _indices(nums["index"], 2 ** 31, "events/transitions:index")
+    _indices(nums["index"], 2**31, "events/transitions:index")
     for field in ("time", "landing_time", "exit_time", "depth"):
         if not np.all(np.isfinite(nums[field])):
             raise ValueError(f"events/transitions:{field} holds values that are not finite")
-    return [{
-        "name": text["name"][k], "source": text["source"][k], "target": text["target"][k],
-        "index": int(nums["index"][k]), "time": float(nums["time"][k]),
-        "landing_time": float(nums["landing_time"][k]), "exit_time": float(nums["exit_time"][k]),
-        "depth": float(nums["depth"][k]),
-        "state_before": before[k], "state_after": after[k],
-    } for k in range(len(text["name"]))]
+    return [
+        {
+            "name": text["name"][k],
+            "source": text["source"][k],
+            "target": text["target"][k],
+            "index": int(nums["index"][k]),
+            "time": float(nums["time"][k]),
+            "landing_time": float(nums["landing_time"][k]),
+            "exit_time": float(nums["exit_time"][k]),
+            "depth": float(nums["depth"][k]),
+            "state_before": before[k],
+            "state_after": after[k],
+        }
+        for k in range(len(text["name"]))
+    ]
 
 
 def _scenery(columns: Columns, meta: dict[str, Any]) -> dict[str, np.ndarray]:

@@ -25,8 +25,9 @@ class UnitGroup:
     entities: tuple[str, ...]
 
 
-def coordinate_units(state_names: Mapping[str, tuple[str, ...]], state_units: Mapping[str, tuple[str, ...]]
-                     ) -> dict[str, str]:
+def coordinate_units(
+    state_names: Mapping[str, tuple[str, ...]], state_units: Mapping[str, tuple[str, ...]]
+) -> dict[str, str]:
     """Coordinate name -> its unit, "" when the model gives none or its modes disagree."""
     units: dict[str, str] = {}
     for mode, names in state_names.items():
@@ -63,18 +64,21 @@ def blueprint(rrb: Any, groups: list[UnitGroup], box: tuple[np.ndarray, np.ndarr
     band = rrb.StateTimelineView(contents=[MODE, STRIP], name="mode and strips")
     left = band
     if box is not None:
-        robot = rrb.Spatial3DView(origin=WORLD, contents=[f"{ROBOT}/**", f"{SCENERY}/**"], name="robot",
-                                  eye_controls=_eye(rrb, *box))
+        robot = rrb.Spatial3DView(
+            origin=WORLD, contents=[f"{ROBOT}/**", f"{SCENERY}/**"], name="robot", eye_controls=_eye(rrb, *box)
+        )
         left = rrb.Vertical(robot, band, row_shares=[4, 1])
     plots = [rrb.TimeSeriesView(contents=list(g.entities), name=g.title) for g in groups]
     if len(plots) > STACKED_VIEWS:
-        plots = [*plots[:STACKED_VIEWS - 1], rrb.Tabs(*plots[STACKED_VIEWS - 1:])]
-    side = rrb.Tabs(rrb.TextLogView(origin="/events", name="events"),
-                    rrb.TextDocumentView(origin=SUMMARY, name="summary"))
+        plots = [*plots[: STACKED_VIEWS - 1], rrb.Tabs(*plots[STACKED_VIEWS - 1 :])]
+    side = rrb.Tabs(
+        rrb.TextLogView(origin="/events", name="events"), rrb.TextDocumentView(origin=SUMMARY, name="summary")
+    )
     columns = [left, rrb.Vertical(*plots), side] if plots else [left, side]
     shares = [3, 3, 2] if plots else [3, 2]
-    return rrb.Blueprint(rrb.Horizontal(*columns, column_shares=shares), rrb.TimePanel(timeline=TIMELINE),
-                         collapse_panels=True)
+    return rrb.Blueprint(
+        rrb.Horizontal(*columns, column_shares=shares), rrb.TimePanel(timeline=TIMELINE), collapse_panels=True
+    )
 
 
 def _eye(rrb: Any, low: np.ndarray, high: np.ndarray) -> Any:
@@ -82,5 +86,8 @@ def _eye(rrb: Any, low: np.ndarray, high: np.ndarray) -> Any:
     back to see it whole."""
     centre = (low + high) / 2
     size = float(max(high[0] - low[0], high[1] - low[1], 0.5))
-    return rrb.EyeControls3D(position=(float(centre[0]), -1.6 * size, float(centre[1])),
-                             look_target=(float(centre[0]), 0.0, float(centre[1])), eye_up=(0.0, 0.0, 1.0))
+    return rrb.EyeControls3D(
+        position=(float(centre[0]), -1.6 * size, float(centre[1])),
+        look_target=(float(centre[0]), 0.0, float(centre[1])),
+        eye_up=(0.0, 0.0, 1.0),
+    )

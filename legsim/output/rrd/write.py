@@ -56,8 +56,14 @@ BLOCK = 4096
 DRAIN_ROWS = 65536
 
 
-def write_rrd(execution: Execution, scene: Any = None, path: str | os.PathLike | None = None, *,
-              model: Model | None = None, rate: float | None = None) -> Path:
+def write_rrd(
+    execution: Execution,
+    scene: Any = None,
+    path: str | os.PathLike | None = None,
+    *,
+    model: Model | None = None,
+    rate: float | None = None,
+) -> Path:
     """Record ``execution`` to the Rerun file ``path`` headlessly (no viewer, no network).
 
     ``scene`` is a ``legsim.scene.Scene`` (its model gives geometry, scenery and energy) or
@@ -143,9 +149,15 @@ def thin_trace(trace: Trace, keep: np.ndarray) -> Trace:
     for mode, (rows, states) in trace.blocks.items():
         new = renumber[rows]
         blocks[mode] = (new[new >= 0], states[new >= 0])
-    return Trace(times=trace.times[keep], mode_names=trace.mode_names, mode_index=trace.mode_index[keep],
-                 in_strip=trace.in_strip[keep], blocks=blocks, segment_starts=renumber[trace.segment_starts],
-                 strip_samples=renumber[trace.strip_samples])
+    return Trace(
+        times=trace.times[keep],
+        mode_names=trace.mode_names,
+        mode_index=trace.mode_index[keep],
+        in_strip=trace.in_strip[keep],
+        blocks=blocks,
+        segment_starts=renumber[trace.segment_starts],
+        strip_samples=renumber[trace.strip_samples],
+    )
 
 
 class recording_stream:
@@ -156,8 +168,9 @@ class recording_stream:
 
         self.rec = rr.RecordingStream(APPLICATION_ID, recording_id=uuid.uuid4())
         if not rr.is_enabled(self.rec):
-            raise RecordingError("Rerun logging is disabled in this environment (RERUN=off?); "
-                                 "unset RERUN to write recordings")
+            raise RecordingError(
+                "Rerun logging is disabled in this environment (RERUN=off?); unset RERUN to write recordings"
+            )
         return self.rec
 
     def __exit__(self, *exc: object) -> None:
@@ -222,8 +235,10 @@ def _summary_markdown(meta: dict[str, Any]) -> str:
     seq = s.get("mode_sequence", [])
     shown = " → ".join(seq[:30]) + (f" … ({len(seq) - 30} more)" if len(seq) > 30 else "")
     names = s.get("state_names", [])
-    final = ", ".join(f"{n} = {v:.6g}" if isinstance(v, float) else f"{n} = {v}"
-                      for n, v in zip(names, s.get("final_state", []), strict=False))
+    final = ", ".join(
+        f"{n} = {v:.6g}" if isinstance(v, float) else f"{n} = {v}"
+        for n, v in zip(names, s.get("final_state", []), strict=False)
+    )
     lines = [
         f"# {s.get('scene') or s.get('system', 'legsim run')}",
         "",
@@ -234,8 +249,10 @@ def _summary_markdown(meta: dict[str, Any]) -> str:
         f"* final mode {s.get('final_mode')}: {final}",
     ]
     if meta.get("rate"):
-        lines.append(f"* recorded {meta.get('samples')} of {meta.get('computed_samples')} samples "
-                     f"(at most {meta['rate']:g} per second, every transition kept)")
+        lines.append(
+            f"* recorded {meta.get('samples')} of {meta.get('computed_samples')} samples "
+            f"(at most {meta['rate']:g} per second, every transition kept)"
+        )
     if "energy_initial" in s:
         lines.append(f"* energy: {s.get('energy_initial')} J → {s.get('energy_final')} J")
     lines += ["", "```json", json.dumps(s, indent=2), "```"]
@@ -252,15 +269,18 @@ class _Logger:
     def indexes(self, rows: np.ndarray) -> list:
         """The ``sample`` and ``sim_time`` index columns of the sample rows ``rows``."""
         rr = self.rr
-        return [rr.TimeColumn(SAMPLE_TIMELINE, sequence=np.asarray(rows, dtype=np.int64)),
-                rr.TimeColumn(TIMELINE, duration=self.trace.times[rows])]
+        return [
+            rr.TimeColumn(SAMPLE_TIMELINE, sequence=np.asarray(rows, dtype=np.int64)),
+            rr.TimeColumn(TIMELINE, duration=self.trace.times[rows]),
+        ]
 
     def send(self, path: str, rows: np.ndarray, columns: list) -> None:
         self.rec.send_columns(path, indexes=self.indexes(rows), columns=columns)
         self.drain(len(rows))
 
-    def send_values(self, path: str, rows: np.ndarray, values: np.ndarray, columns: Callable[[np.ndarray], list]
-                    ) -> None:
+    def send_values(
+        self, path: str, rows: np.ndarray, values: np.ndarray, columns: Callable[[np.ndarray], list]
+    ) -> None:
         """``columns(values[piece])`` at ``rows[piece]``, a piece of ``DRAIN_ROWS`` at a time."""
         for start in range(0, len(rows), DRAIN_ROWS):
             piece = slice(start, start + DRAIN_ROWS)
@@ -302,13 +322,24 @@ class _Logger:
         the strips: the transition's name from a strip's entry, reset after its exit)."""
         rr, trace, ex = self.rr, self.trace, self.content.execution
         modes = _mode_list(ex)
-        self.rec.log(MODE, rr.StateConfiguration(values=modes, colors=[PALETTE[i % len(PALETTE)]
-                                                                        for i in range(len(modes))]), static=True)
+        self.rec.log(
+            MODE,
+            rr.StateConfiguration(values=modes, colors=[PALETTE[i % len(PALETTE)] for i in range(len(modes))]),
+            static=True,
+        )
         segs = ex.segments
-        self.send(MODE, trace.segment_starts, [
-            *rr.StateChange.columns(state=[s.mode for s in segs]),
-            *typed_columns(rr, t_start=np.array([s.t_start for s in segs], dtype=float),
-                           t_end=np.array([s.t_end for s in segs], dtype=float))])
+        self.send(
+            MODE,
+            trace.segment_starts,
+            [
+                *rr.StateChange.columns(state=[s.mode for s in segs]),
+                *typed_columns(
+                    rr,
+                    t_start=np.array([s.t_start for s in segs], dtype=float),
+                    t_end=np.array([s.t_end for s in segs], dtype=float),
+                ),
+            ],
+        )
         entries = np.asarray(trace.strip_samples, dtype=np.int64)
         resets = entries[entries + 2 < len(trace.times)] + 2
         rows = np.concatenate([entries, resets])
@@ -323,22 +354,43 @@ class _Logger:
         strips, trs = ex.strips, ex.transitions
         rows = np.asarray(trace.strip_samples, dtype=np.int64)
         if len(rows):
-            self.send(STRIPS, rows, [
-                *rr.TextLog.columns(text=[f"strip of {s.name} in '{s.mode}': {s.time:.9g} s to {s.exit_time:.9g} s"
-                                          for s in strips], level=["DEBUG"] * len(strips)),
-                *typed_columns(rr, mode=[s.mode for s in strips], name=[s.name for s in strips],
-                               entry=np.array([s.time for s in strips], dtype=float),
-                               exit=np.array([s.exit_time for s in strips], dtype=float))])
+            self.send(
+                STRIPS,
+                rows,
+                [
+                    *rr.TextLog.columns(
+                        text=[
+                            f"strip of {s.name} in '{s.mode}': {s.time:.9g} s to {s.exit_time:.9g} s" for s in strips
+                        ],
+                        level=["DEBUG"] * len(strips),
+                    ),
+                    *typed_columns(
+                        rr,
+                        mode=[s.mode for s in strips],
+                        name=[s.name for s in strips],
+                        entry=np.array([s.time for s in strips], dtype=float),
+                        exit=np.array([s.exit_time for s in strips], dtype=float),
+                    ),
+                ],
+            )
         if trs:
             # A transition is logged on its strip's entry sample; strips and transitions pair up
             # in order, except a final strip cut short by t_final or the transition budget.
-            self.send(TRANSITIONS, rows[:len(trs)], _transition_columns(rr, trs))
+            self.send(TRANSITIONS, rows[: len(trs)], _transition_columns(rr, trs))
         if ex.warnings:
             at = np.searchsorted(trace.times, [w.time for w in ex.warnings], side="right") - 1
-            self.send(WARNINGS, np.clip(at, 0, len(trace.times) - 1), [
-                *rr.TextLog.columns(text=[w.message for w in ex.warnings], level=["WARN"] * len(ex.warnings)),
-                *typed_columns(rr, kind=[w.kind for w in ex.warnings],
-                               time=np.array([w.time for w in ex.warnings], dtype=float))])
+            self.send(
+                WARNINGS,
+                np.clip(at, 0, len(trace.times) - 1),
+                [
+                    *rr.TextLog.columns(text=[w.message for w in ex.warnings], level=["WARN"] * len(ex.warnings)),
+                    *typed_columns(
+                        rr,
+                        kind=[w.kind for w in ex.warnings],
+                        time=np.array([w.time for w in ex.warnings], dtype=float),
+                    ),
+                ],
+            )
 
     def robot(self) -> BodyLogger | None:
         """``world/robot/<part>``: the parts drawn at every sample, a block at a time."""
@@ -364,8 +416,11 @@ class _Logger:
 
         rr, scenery = self.rr, scenery_only(self.content.model)
         for part, line in scenery.items():
-            self.rec.log(entity(SCENERY, part), rr.LineStrips3D([to_3d(line)], colors=[SCENERY_COLOUR],
-                                                                radii=[-1.5]), static=True)
+            self.rec.log(
+                entity(SCENERY, part),
+                rr.LineStrips3D([to_3d(line)], colors=[SCENERY_COLOUR], radii=[-1.5]),
+                static=True,
+            )
         return scenery
 
     def blueprint(self, entities: dict[str, str], bodies: BodyLogger | None, scenery: dict[str, np.ndarray]) -> None:
@@ -397,18 +452,28 @@ def _state_lookup(trace: Trace) -> Callable[[int], tuple[str, np.ndarray]]:
 def _transition_columns(rr: Any, trs: list) -> list:
     """The ``events/transitions`` columns: a text line and the fields of each transition."""
     return [
-        *rr.TextLog.columns(text=[f"{t.name}: {t.source} -> {t.target} at {t.time:.9g} s "
-                                  f"(reset at {t.exit_time:.9g} s, depth {t.depth:.3g})" for t in trs],
-                            level=["INFO"] * len(trs)),
-        *typed_columns(rr, name=[t.name for t in trs], source=[t.source for t in trs],
-                       target=[t.target for t in trs], edge=[f"{t.source} -> {t.target}" for t in trs],
-                       index=np.array([t.index for t in trs], dtype=np.int64),
-                       time=np.array([t.time for t in trs], dtype=float),
-                       landing_time=np.array([t.landing_time for t in trs], dtype=float),
-                       exit_time=np.array([t.exit_time for t in trs], dtype=float),
-                       depth=np.array([t.depth for t in trs], dtype=float),
-                       state_before=[np.asarray(t.state_before, dtype=float) for t in trs],
-                       state_after=[np.asarray(t.state_after, dtype=float) for t in trs]),
+        *rr.TextLog.columns(
+            text=[
+                f"{t.name}: {t.source} -> {t.target} at {t.time:.9g} s "
+                f"(reset at {t.exit_time:.9g} s, depth {t.depth:.3g})"
+                for t in trs
+            ],
+            level=["INFO"] * len(trs),
+        ),
+        *typed_columns(
+            rr,
+            name=[t.name for t in trs],
+            source=[t.source for t in trs],
+            target=[t.target for t in trs],
+            edge=[f"{t.source} -> {t.target}" for t in trs],
+            index=np.array([t.index for t in trs], dtype=np.int64),
+            time=np.array([t.time for t in trs], dtype=float),
+            landing_time=np.array([t.landing_time for t in trs], dtype=float),
+            exit_time=np.array([t.exit_time for t in trs], dtype=float),
+            depth=np.array([t.depth for t in trs], dtype=float),
+            state_before=[np.asarray(t.state_before, dtype=float) for t in trs],
+            state_after=[np.asarray(t.state_after, dtype=float) for t in trs],
+        ),
     ]
 
 
@@ -432,4 +497,3 @@ def typed_columns(rr: Any, **columns: Any) -> list:
         else:
             arrays[key] = pa.array(value)
     return [*rr.AnyValues.columns(**arrays)]
-

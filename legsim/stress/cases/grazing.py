@@ -52,18 +52,29 @@ def _grazing(result: CaseResult, quick: bool, offsets: Sequence[float], label: s
             worst_mode = max(worst_mode, mode_ratio)
         result.numbers[f"error_d{d:g}"] = ", ".join(f"h={h:g}: {e:.2g}" for h, e in zip(hs, errs, strict=True))
         result.add(_converges(d, hs, errs, switched))
-    result.add(Check("state on the circle", worst_state <= 1.0,
-                     f"state error <= RK4 bound + two holds x speed (worst ratio {worst_state:.2g})"))
-    result.add(Check("modes differ only at the plane", worst_mode <= 1.0 + 1e-9,
-                     f"where the relaxed and exact modes differ the exact x1 is within the state error + |d| of "
-                     f"the plane (worst ratio {worst_mode:.2g})"))
+    result.add(
+        Check(
+            "state on the circle",
+            worst_state <= 1.0,
+            f"state error <= RK4 bound + two holds x speed (worst ratio {worst_state:.2g})",
+        )
+    )
+    result.add(
+        Check(
+            "modes differ only at the plane",
+            worst_mode <= 1.0 + 1e-9,
+            f"where the relaxed and exact modes differ the exact x1 is within the state error + |d| of "
+            f"the plane (worst ratio {worst_mode:.2g})",
+        )
+    )
     assert main is not None  # set by the loop above, which runs at least once
     result.main_run(main)
     result.outcome = f"{label}; switches per run {counts}"
 
 
-def _graze(result: CaseResult, system: HybridSystem, ref, x0: np.ndarray, d: float, h: float,
-           eps: float) -> tuple[Execution, float, float, float]:
+def _graze(
+    result: CaseResult, system: HybridSystem, ref, x0: np.ndarray, d: float, h: float, eps: float
+) -> tuple[Execution, float, float, float]:
     """One run from x0 (offset d from tangency) checked against the exact circle: adds its
     execution checks and returns (execution, state error, state error / allowed, worst mode
     mismatch / allowed)."""
@@ -92,8 +103,11 @@ def _converges(d: float, hs: Sequence[float], errs: Sequence[float], switched: S
         return check_order(f"converges (d = {d:g})", hs, errs, 0.7, 1.3, "h, eps = h/10")
     if not any(switched):
         return check_order(f"converges (d = {d:g})", hs, errs, 3.5, 4.5, "h, eps = 1e-3")
-    return Check(f"converges (d = {d:g})", False,
-                 f"some refinements switch and others do not: {dict(zip(hs, switched, strict=True))}")
+    return Check(
+        f"converges (d = {d:g})",
+        False,
+        f"some refinements switch and others do not: {dict(zip(hs, switched, strict=True))}",
+    )
 
 
 @case("grazing_tangent", "grazing", "circular flow from (0, 1): touches x1 = 1 at t = pi/2 without crossing")
@@ -106,7 +120,10 @@ def _grazing_inside(result: CaseResult, quick: bool) -> None:
     _grazing(result, quick, [-1e-9, -1e-6], "misses")
 
 
-@case("grazing_outside", "grazing",
-      "circular flow a tiny distance beyond tangency (radius 1 + 1e-9, 1 + 1e-6): two switches")
+@case(
+    "grazing_outside",
+    "grazing",
+    "circular flow a tiny distance beyond tangency (radius 1 + 1e-9, 1 + 1e-6): two switches",
+)
 def _grazing_outside(result: CaseResult, quick: bool) -> None:
     _grazing(result, quick, [1e-9, 1e-6], "cuts")

@@ -26,8 +26,9 @@ def _resting(result: CaseResult, quick: bool, c: float, continued: bool) -> None
     t_star = MASS * G / LIFT_RATE
     T = t_star + 1.0
     system, control = lifted_ball(c, LIFT_RATE, G, MASS)
-    ex = simulate(system, [Z0, 0.0], "flight", T, H, EPS, control=control, max_transitions=10 ** 6,
-                  continuation=continued)
+    ex = simulate(
+        system, [Z0, 0.0], "flight", T, H, EPS, control=control, max_transitions=10**6, continuation=continued
+    )
     result.main_run(ex)
     bound, why = _transition_bound(c, continued, t_star, T)
     result.add(execution_checks(system, ex, EPS, control=control, energy=None, bound=bound, bound_why=why))
@@ -71,8 +72,13 @@ def _rest_and_release_checks(ex: Execution, releases: list, t_star: float, T: fl
     """Rests, then the release is located on the force's zero crossing, t* = m g / r, and the
     flight after it is the exact cubic from the strip exit."""
     ok = len(releases) == 1 and abs(releases[0].time - t_star) <= 1e-9
-    checks = [Check("released at t* = m g / r", ok,
-                    f"release at {releases[0].time if releases else math.nan:.12g} s, t* = {t_star:.12g} s")]
+    checks = [
+        Check(
+            "released at t* = m g / r",
+            ok,
+            f"release at {releases[0].time if releases else math.nan:.12g} s, t* = {t_star:.12g} s",
+        )
+    ]
     if releases:
         te = releases[0].exit_time
         times = np.linspace(te, T, 50)
@@ -102,25 +108,37 @@ def _lift_off_check(ex: Execution, t_star: float, T: float) -> tuple[Check, floa
     lag = last - t_star
     allowed = w * (T - t_star) + k * (T - t_star) ** 2 * abs(lag) / 2 + 1e-9
     ok = abs(lag) <= 2 * (H + EPS) and abs(z_end - exact_end) <= allowed
-    check = Check("lifts off at t*", ok,
-                  f"last impact's strip exit {lag:+.2g} s from t* = {t_star:.6g} s (within 2 (h + eps)), "
-                  f"z(T) = {z_end:.6g} m vs the cubic's {exact_end:.6g} (allowed {allowed:.2g})")
+    check = Check(
+        "lifts off at t*",
+        ok,
+        f"last impact's strip exit {lag:+.2g} s from t* = {t_star:.6g} s (within 2 (h + eps)), "
+        f"z(T) = {z_end:.6g} m vs the cubic's {exact_end:.6g} (allowed {allowed:.2g})",
+    )
     return check, lag
 
 
-@case("resting_ball_c0", "resting",
-      "ball, plastic floor (c = 0): rests, then a lift u = 3 t N releases it at t* = m g / 3")
+@case(
+    "resting_ball_c0",
+    "resting",
+    "ball, plastic floor (c = 0): rests, then a lift u = 3 t N releases it at t* = m g / 3",
+)
 def _resting_plastic(result: CaseResult, quick: bool) -> None:
     _resting(result, quick, 0.0, False)
 
 
-@case("resting_ball_c0.2", "resting",
-      "ball, c = 0.2, plain relaxed: chatters on the floor until the lift exceeds its weight")
+@case(
+    "resting_ball_c0.2",
+    "resting",
+    "ball, c = 0.2, plain relaxed: chatters on the floor until the lift exceeds its weight",
+)
 def _resting_chatter(result: CaseResult, quick: bool) -> None:
     _resting(result, quick, 0.2, False)
 
 
-@case("resting_ball_c0.2_continued", "resting",
-      "ball, c = 0.2, default continuation: rests after the accumulation, released at t* exactly")
+@case(
+    "resting_ball_c0.2_continued",
+    "resting",
+    "ball, c = 0.2, default continuation: rests after the accumulation, released at t* exactly",
+)
 def _resting_continued(result: CaseResult, quick: bool) -> None:
     _resting(result, quick, 0.2, True)

@@ -32,12 +32,18 @@ def pair_checks(ex: Execution, h: float) -> Check:
         pairs += 1
         worst = max(worst, b.time - a.exit_time)
     ok = ok and 0.0 <= worst <= h
-    return Check("both legs in the same step", ok,
-                 f"{pairs} pairs; second crossing <= {worst:.2g} s after the first strip's exit (h = {h:g} s)")
+    return Check(
+        "both legs in the same step",
+        ok,
+        f"{pairs} pairs; second crossing <= {worst:.2g} s after the first strip's exit (h = {h:g} s)",
+    )
 
 
-@case("simultaneous_pronk", "simultaneous",
-      "symmetric pronk (paper 000 Fig. 17 left): both feet touch down and lift off together")
+@case(
+    "simultaneous_pronk",
+    "simultaneous",
+    "symmetric pronk (paper 000 Fig. 17 left): both feet touch down and lift off together",
+)
 def _simultaneous_pronk(result: CaseResult, quick: bool) -> None:
     h, eps, T = 1e-3, 1e-2, 2.0
     model = pronk()
@@ -47,9 +53,17 @@ def _simultaneous_pronk(result: CaseResult, quick: bool) -> None:
     bound = 2 * len(limit.transitions) + 4
     ex = simulate(model.system, x0, "aerial", T, h, eps, max_transitions=10 * bound)
     result.main_run(ex)
-    result.add(execution_checks(model.system, ex, eps, energy="conservative", energy_tol=1e-6, bound=bound,
-                                bound_why="two per SLIP transition + 4 (the SLIP twin's "
-                                          f"{len(limit.transitions)} in {T:g} s)"))
+    result.add(
+        execution_checks(
+            model.system,
+            ex,
+            eps,
+            energy="conservative",
+            energy_tol=1e-6,
+            bound=bound,
+            bound_why=f"two per SLIP transition + 4 (the SLIP twin's {len(limit.transitions)} in {T:g} s)",
+        )
+    )
     result.add(pair_checks(ex, h))
     theta = max(float(np.max(np.abs(seg.x[:, 2]))) for seg in ex.segments)
     result.add(Check("pitch stays zero", theta <= 1e-10, f"max |theta| = {theta:.2g} rad"))
@@ -65,12 +79,16 @@ def _simultaneous_pronk(result: CaseResult, quick: bool) -> None:
     result.add(check_order("distance to the SLIP limit -> 0", levels, dist, 0.8, 1.2, "eps (h = 2.5e-4)"))
     E = energies(model.system, ex)[1]
     result.numbers.update({"energy_drift": float(np.max(np.abs(E - E[0]))), "max_theta": theta})
-    result.outcome = (f"{ex.status}; {len(ex.transitions) // 2} pairs of simultaneous transitions, "
-                      f"|theta| <= {theta:.0g}")
+    result.outcome = (
+        f"{ex.status}; {len(ex.transitions) // 2} pairs of simultaneous transitions, |theta| <= {theta:.0g}"
+    )
 
 
-@case("simultaneous_runner_random_pitch", "simultaneous",
-      "pronk from random pitches |theta0| <= 1e-7: both feet reach the ground in the same step")
+@case(
+    "simultaneous_runner_random_pitch",
+    "simultaneous",
+    "pronk from random pitches |theta0| <= 1e-7: both feet reach the ground in the same step",
+)
 def _simultaneous_random_pitch(result: CaseResult, quick: bool) -> None:
     h, eps, T = 1e-3, 1e-2, 0.95  # one hop: touchdowns, liftoffs, and the next flight
     model = pronk()
@@ -85,16 +103,29 @@ def _simultaneous_random_pitch(result: CaseResult, quick: bool) -> None:
         x[2] = th
         ex = simulate(model.system, x, "aerial", T, h, eps, max_transitions=40)
         main = main or ex
-        result.add(execution_checks(model.system, ex, eps, energy="conservative", energy_tol=1e-6, bound=4,
-                                    bound_why="one hop: two touchdowns, two liftoffs"))
+        result.add(
+            execution_checks(
+                model.system,
+                ex,
+                eps,
+                energy="conservative",
+                energy_tol=1e-6,
+                bound=4,
+                bound_why="one hop: two touchdowns, two liftoffs",
+            )
+        )
         result.add(pair_checks(ex, h))
         finals.append(ex.final_state[:6])
         firsts.append(ex.transitions[0].name if ex.transitions else "")
     # theta > 0 pitches the nose (the right hip) down: the right foot is lower and lands first.
     expected = ["touchdown_right" if th > 0 else "touchdown_left" for th in pitches]
-    result.add(Check("the lower foot lands first", firsts == expected,
-                     f"{sum(a == b for a, b in zip(firsts, expected, strict=True))}/{len(pitches)} "
-                     "as the sign of theta0 says"))
+    result.add(
+        Check(
+            "the lower foot lands first",
+            firsts == expected,
+            f"{sum(a == b for a, b in zip(firsts, expected, strict=True))}/{len(pitches)} as the sign of theta0 says",
+        )
+    )
     # Continuity through the corner: whichever foot is taken first, the states after the hop
     # differ by O(|theta_i - theta_j|), with the sensitivity measured at a pitch 100 times larger.
     x = x0.copy()
@@ -104,22 +135,31 @@ def _simultaneous_random_pitch(result: CaseResult, quick: bool) -> None:
     worst = 0.0
     for i in range(n):
         for j in range(i + 1, n):
-            worst = max(worst, float(np.max(np.abs(finals[i] - finals[j]))) /
-                        (10 * lipschitz * abs(pitches[i] - pitches[j]) + 1e-12))
-    result.add(Check("continuous through the corner", worst <= 1.0,
-                     f"|x_i - x_j| <= 10 L |theta_i - theta_j| + 1e-12, L = {lipschitz:.3g} from theta0 = 1e-5 "
-                     f"(worst ratio {worst:.2g})"))
+            worst = max(
+                worst,
+                float(np.max(np.abs(finals[i] - finals[j]))) / (10 * lipschitz * abs(pitches[i] - pitches[j]) + 1e-12),
+            )
+    result.add(
+        Check(
+            "continuous through the corner",
+            worst <= 1.0,
+            f"|x_i - x_j| <= 10 L |theta_i - theta_j| + 1e-12, L = {lipschitz:.3g} from theta0 = 1e-5 "
+            f"(worst ratio {worst:.2g})",
+        )
+    )
     corner, worst_corner = _corner_is_the_limit(model.system, x0, pitches[0], lipschitz, T, quick)
     result.add(corner)
     assert main is not None  # set by the loop above, which runs at least once
     result.main_run(main)
-    result.numbers.update({"pitches": ", ".join(f"{p:.2g}" for p in pitches), "lipschitz": lipschitz,
-                           "corner_ratio_worst": worst_corner})
+    result.numbers.update(
+        {"pitches": ", ".join(f"{p:.2g}" for p in pitches), "lipschitz": lipschitz, "corner_ratio_worst": worst_corner}
+    )
     result.outcome = f"{len(pitches)} pitches: first touchdown follows the sign of theta0; pairs within one step"
 
 
-def _corner_is_the_limit(system: HybridSystem, x0: np.ndarray, pitch: float, lipschitz: float, T: float,
-                         quick: bool) -> tuple[Check, float]:
+def _corner_is_the_limit(
+    system: HybridSystem, x0: np.ndarray, pitch: float, lipschitz: float, T: float, quick: bool
+) -> tuple[Check, float]:
     """The symmetric start (exactly on the corner) is the limit of its pitched neighbours at every
     h and eps: its second leg's guard is within rounding of zero when its mode is entered,
     which counts as on the guard, so the crossing is found by the next step exactly as for a
@@ -133,20 +173,29 @@ def _corner_is_the_limit(system: HybridSystem, x0: np.ndarray, pitch: float, lip
         x[2] = pitch
         jump = float(np.max(np.abs(simulate(system, x, "aerial", T, hh, ee).final_state[:6] - sym)))
         ratios.append(jump / (10 * lipschitz * abs(pitch) + 1e-12))
-    check = Check("the corner is the limit of its neighbours", max(ratios) <= 1.0,
-                  f"|x(theta0 = 0) - x(theta0 = {pitch:.2g})| <= 10 L |theta0| + 1e-12 at h = "
-                  f"{', '.join(f'{lv[0]:g}' for lv in levels)} (eps = 10 h); worst ratio {max(ratios):.2g}")
+    check = Check(
+        "the corner is the limit of its neighbours",
+        max(ratios) <= 1.0,
+        f"|x(theta0 = 0) - x(theta0 = {pitch:.2g})| <= 10 L |theta0| + 1e-12 at h = "
+        f"{', '.join(f'{lv[0]:g}' for lv in levels)} (eps = 10 h); worst ratio {max(ratios):.2g}",
+    )
     return check, max(ratios)
 
 
-@case("simultaneous_digital_control", "simultaneous",
-      "digital control (paper 000 Fig. 1): both thresholds at t = ln 2; neighbours take 0->2->3 and 0->1->3")
+@case(
+    "simultaneous_digital_control",
+    "simultaneous",
+    "digital control (paper 000 Fig. 1): both thresholds at t = ln 2; neighbours take 0->2->3 and 0->1->3",
+)
 def _simultaneous_digital(result: CaseResult, quick: bool) -> None:
     model = build("digital_control", {}, {"boost": {"setpoint": 2.0}})
     ref0 = model.reference
     T, delta = 3.0, 1e-6
-    starts = {"x": np.array([-1.0, -1.0]), "y_delta": np.array([-1.0 - delta, -1.0]),
-              "z_delta": np.array([-1.0, -1.0 - delta])}
+    starts = {
+        "x": np.array([-1.0, -1.0]),
+        "y_delta": np.array([-1.0 - delta, -1.0]),
+        "z_delta": np.array([-1.0, -1.0 - delta]),
+    }
     paths = {}
     main = None
     levels = [(1e-2, 1e-4), (5e-3, 5e-5), (2.5e-3, 2.5e-5)] + ([] if quick else [(1.25e-3, 1.25e-5)])
@@ -156,16 +205,24 @@ def _simultaneous_digital(result: CaseResult, quick: bool) -> None:
         for k, (h, eps) in enumerate(levels):
             ex = simulate(model.system, x0, "0", T, h, eps, max_transitions=10)
             main = main or ex
-            result.add(execution_checks(model.system, ex, eps, bound=2,
-                                        bound_why="each threshold is crossed once; mode 3 has no guard"))
+            result.add(
+                execution_checks(
+                    model.system, ex, eps, bound=2, bound_why="each threshold is crossed once; mode 3 has no guard"
+                )
+            )
             if k == 0:
                 paths[label] = "->".join(ex.mode_sequence)
             # Autonomous fields and identity resets: the relaxed execution is the exact one
             # paused in its strips, so its state at T is the exact state at T minus the time held.
             held = sum(tr.exit_time - tr.time for tr in ex.transitions)
             warp = float(np.max(np.abs(ex.final_state - ref.state(T - held))))
-            result.add(Check(f"exact up to the holds ({label}, h={h:g})", warp <= 1e-9,
-                             f"|x(T) - x_exact(T - held)| = {warp:.2g} (held {held:.3g} s)"))
+            result.add(
+                Check(
+                    f"exact up to the holds ({label}, h={h:g})",
+                    warp <= 1e-9,
+                    f"|x(T) - x_exact(T - held)| = {warp:.2g} (held {held:.3g} s)",
+                )
+            )
             if label == "x":
                 errors.append(float(np.max(np.abs(ex.final_state - ref.state(T)))))
     ok = paths == {"x": "0->1->3", "y_delta": "0->2->3", "z_delta": "0->1->3"}
@@ -173,9 +230,13 @@ def _simultaneous_digital(result: CaseResult, quick: bool) -> None:
     assert main is not None  # set by the loop above, which runs at least once
     t_cross = [tr.time for tr in main.transitions]
     ok = abs(t_cross[0] - math.log(2.0)) <= 1e-9 and t_cross[1] == main.transitions[0].exit_time
-    result.add(Check("both thresholds at ln 2", ok,
-                     f"first crossing at {t_cross[0]:.12g} s (ln 2 = {math.log(2):.12g}), the second at the "
-                     f"first strip's exit"))
+    result.add(
+        Check(
+            "both thresholds at ln 2",
+            ok,
+            f"first crossing at {t_cross[0]:.12g} s (ln 2 = {math.log(2):.12g}), the second at the first strip's exit",
+        )
+    )
     result.add(check_order("x(T) -> exact", [lv[0] for lv in levels], errors, 0.8, 1.2, "h (eps = h/100)"))
     result.main_run(main)
     result.outcome = f"paths {paths['x']} (x), {paths['y_delta']} (y), {paths['z_delta']} (z)"

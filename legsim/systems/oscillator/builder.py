@@ -31,16 +31,22 @@ def _build(params: dict[str, Any], effects: dict[str, dict[str, Any]]) -> Model:
     amplitude = 0.0 if force is None else force["amplitude"]
     frequency = 0.0 if force is None else force["frequency"]
     size = params["size"]
-    info: dict[str, Any] = {"guard units": {"impact": "m (distance to the stop)",
-                                            "release": "m/s^2 (free acceleration pressing the mass on the stop)"}
-                            if stop else {}}
+    info: dict[str, Any] = {
+        "guard units": {
+            "impact": "m (distance to the stop)",
+            "release": "m/s^2 (free acceleration pressing the mass on the stop)",
+        }
+        if stop
+        else {}
+    }
     if "zeno" in effects:
         info[ZENO_WINDOW] = effects["zeno"]["window"]
     if x_max is not None:
         info["initial_check"] = _beyond_the_stop(x_max)
     try:
-        reference = OscillatorReference(params["omega"], a, x_max, c, params["mass"], amplitude, frequency,
-                                        params["x0"], params["xd0"])
+        reference = OscillatorReference(
+            params["omega"], a, x_max, c, params["mass"], amplitude, frequency, params["x0"], params["xd0"]
+        )
     except ModelError as exc:  # over-damped or undamped resonance: no closed form here
         reference = None
         info["reference"] = f"none: {exc}"
@@ -48,11 +54,22 @@ def _build(params: dict[str, Any], effects: dict[str, dict[str, Any]]) -> Model:
     def geometry(mode: str, x: np.ndarray) -> dict[str, np.ndarray]:
         pos = float(x[0])
         wall = -2.0 * size if x_max is None else min(-2.0 * size, x_max - 4.0 * size)
-        return {"mass": box(pos - size, pos, 0.0, size),
-                "spring": zigzag(min(wall, pos - size), pos - size, 0.5 * size, 0.2 * size)}
+        return {
+            "mass": box(pos - size, pos, 0.0, size),
+            "spring": zigzag(min(wall, pos - size), pos - size, 0.5 * size, 0.2 * size),
+        }
 
-    return Model(system, MODE, {"x": params["x0"], "xd": params["xd0"]}, control, geometry,
-                 _scenery(params["x0"], x_max, size), reference, counters=lambda: dict(counts), info=info)
+    return Model(
+        system,
+        MODE,
+        {"x": params["x0"], "xd": params["xd0"]},
+        control,
+        geometry,
+        _scenery(params["x0"], x_max, size),
+        reference,
+        counters=lambda: dict(counts),
+        info=info,
+    )
 
 
 def _scenery(x0: float, x_max: float | None, size: float) -> dict[str, np.ndarray]:
@@ -71,6 +88,7 @@ def _beyond_the_stop(x_max: float) -> Callable[[str, np.ndarray, float], str | N
     """The scene's initial-state check: the guard max(x_max - x, -xd) counts a mass beyond the
     stop as inside while it moves away from it (that is how it leaves the stop after an impact
     in the strip), so a start deeper than the strip must be refused by name."""
+
     def check(mode: str, x: np.ndarray, eps: float) -> str | None:
         if x[0] > x_max + eps:
             return f"x = {x[0]:g} m lies beyond the stop x_max = {x_max:g} m by more than eps = {eps:g} m"
@@ -90,17 +108,28 @@ BUILDER = Builder(
         "size": Param(1.0, "side of the box drawn for the mass", "m", low=0.0, low_open=True),
     },
     effects={
-        "stop": Effect("a rigid stop at x = position with the impact law xd -> -c xd", default_on=True,
-                       parameters={"position": Param(14.0, "position of the stop x_max", "m"),
-                                   "restitution": Param(0.9, "coefficient of restitution c", "", low=0.0,
-                                                        high=1.0)}),
+        "stop": Effect(
+            "a rigid stop at x = position with the impact law xd -> -c xd",
+            default_on=True,
+            parameters={
+                "position": Param(14.0, "position of the stop x_max", "m"),
+                "restitution": Param(0.9, "coefficient of restitution c", "", low=0.0, high=1.0),
+            },
+        ),
         "zeno": ZENO_EFFECT,
-        "damping": Effect("viscous damping 2 a xd", default_on=True,
-                          parameters={"a": Param(0.05, "damping rate mu / (2 m)", "1/s", low=0.0)}),
-        "forcing": Effect("external force u(t) = amplitude cos(frequency t), passed as the control",
-                          default_on=True,
-                          parameters={"amplitude": Param(20.0, "force amplitude", "N"),
-                                      "frequency": Param(2.5, "forcing frequency", "rad/s", low=0.0)}),
+        "damping": Effect(
+            "viscous damping 2 a xd",
+            default_on=True,
+            parameters={"a": Param(0.05, "damping rate mu / (2 m)", "1/s", low=0.0)},
+        ),
+        "forcing": Effect(
+            "external force u(t) = amplitude cos(frequency t), passed as the control",
+            default_on=True,
+            parameters={
+                "amplitude": Param(20.0, "force amplitude", "N"),
+                "frequency": Param(2.5, "forcing frequency", "rad/s", low=0.0),
+            },
+        ),
     },
     build=_build,
 )

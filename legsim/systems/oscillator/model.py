@@ -20,17 +20,38 @@ UNITS = ("m", "m/s")
 #: Table I of paper 000, as keyword arguments of ``make_system``/``OscillatorReference`` plus the
 #: initial state and the end time.
 EXAMPLES: dict[str, dict[str, float]] = {
-    "ex1": {"a": 0.05, "c": 0.9, "t_max": 40.0 * math.pi, "amplitude": 20.0, "frequency": 2.5,
-            "x0": 11.36, "xd0": 31.4, "x_max": 14.0, "omega": 2.5, "mass": 1.0},
-    "ex2": {"a": 0.95, "c": 0.5, "t_max": 4.0 * math.pi, "amplitude": 1.0, "frequency": 1.0,
-            "x0": -0.8, "xd0": 0.0, "x_max": -0.8, "omega": 1.0, "mass": 1.0},
+    "ex1": {
+        "a": 0.05,
+        "c": 0.9,
+        "t_max": 40.0 * math.pi,
+        "amplitude": 20.0,
+        "frequency": 2.5,
+        "x0": 11.36,
+        "xd0": 31.4,
+        "x_max": 14.0,
+        "omega": 2.5,
+        "mass": 1.0,
+    },
+    "ex2": {
+        "a": 0.95,
+        "c": 0.5,
+        "t_max": 4.0 * math.pi,
+        "amplitude": 1.0,
+        "frequency": 1.0,
+        "x0": -0.8,
+        "xd0": 0.0,
+        "x_max": -0.8,
+        "omega": 1.0,
+        "mass": 1.0,
+    },
 }
 
 Field = Callable[[float, np.ndarray, Any], np.ndarray]
 
 
-def forcing(amplitude: float, frequency: float, counters: dict[str, int] | None = None
-            ) -> Callable[[float, np.ndarray], float]:
+def forcing(
+    amplitude: float, frequency: float, counters: dict[str, int] | None = None
+) -> Callable[[float, np.ndarray], float]:
     """The control ``u(t, x) = amplitude * cos(frequency * t)`` (N; frequency in rad/s).
 
     ``counters``, when given, counts the evaluations under ``forcing_evals``.
@@ -38,6 +59,7 @@ def forcing(amplitude: float, frequency: float, counters: dict[str, int] | None 
     amplitude, frequency = float(amplitude), float(frequency)
 
     if counters is None:
+
         def u(t: float, x: np.ndarray) -> float:
             return amplitude * math.cos(frequency * t)
     else:
@@ -50,8 +72,14 @@ def forcing(amplitude: float, frequency: float, counters: dict[str, int] | None 
     return u
 
 
-def make_system(omega: float = 2.5, a: float = 0.05, x_max: float | None = 14.0, c: float = 0.9,
-                mass: float = 1.0, counters: dict[str, int] | None = None) -> HybridSystem:
+def make_system(
+    omega: float = 2.5,
+    a: float = 0.05,
+    x_max: float | None = 14.0,
+    c: float = 0.9,
+    mass: float = 1.0,
+    counters: dict[str, int] | None = None,
+) -> HybridSystem:
     """The oscillator as a hybrid system; pass ``x_max=None`` for no stop (no guard).
 
     Parameters
@@ -91,9 +119,13 @@ def make_system(omega: float = 2.5, a: float = 0.05, x_max: float | None = 14.0,
     modes = {MODE: Mode(2, _field(w2, two_a, inv_m, counters), NAMES, jacobian, units=UNITS)}
     if transitions:
         modes[STUCK] = Mode(2, lambda t, x, u: np.zeros(2), NAMES, lambda t, x, u: np.zeros((2, 2)), units=UNITS)
-    return HybridSystem(modes, transitions,
-                        name="oscillator with stop" if transitions else "oscillator",
-                        energy=energy, initial=(MODE, np.array([x0, 0.0])))
+    return HybridSystem(
+        modes,
+        transitions,
+        name="oscillator with stop" if transitions else "oscillator",
+        energy=energy,
+        initial=(MODE, np.array([x0, 0.0])),
+    )
 
 
 def _check_parameters(omega: float, a: float, c: float, mass: float) -> None:
@@ -117,10 +149,12 @@ def _field(w2: float, two_a: float, inv_m: float, counters: dict[str, int] | Non
     """The field (xd, u/m - 2 a xd - omega^2 x) of mode ``free``. Undamped, it has no damping
     term at all, so that ``damping_evals`` shows a scene without damping computes none."""
     if two_a == 0.0:
+
         def field(t: float, x: np.ndarray, u: Any) -> np.ndarray:
             force = 0.0 if u is None else u
             return np.array([x[1], force * inv_m - w2 * x[0]])
     elif counters is None:
+
         def field(t: float, x: np.ndarray, u: Any) -> np.ndarray:
             force = 0.0 if u is None else u
             return np.array([x[1], force * inv_m - two_a * x[1] - w2 * x[0]])
@@ -131,6 +165,7 @@ def _field(w2: float, two_a: float, inv_m: float, counters: dict[str, int] | Non
             counters["damping_evals"] += 1
             force = 0.0 if u is None else u
             return np.array([x[1], force * inv_m - two_a * x[1] - w2 * x[0]])
+
     return field
 
 
@@ -157,6 +192,16 @@ def _stop_transitions(stop: float, c: float, w2: float, inv_m: float) -> list[Tr
         return (0.0 if u is None else u) * inv_m - w2 * x[0]
 
     stick = Continuation(STUCK, lambda x: np.array([x[0], 0.0]), name="stick")
-    return [Transition(MODE, MODE, guard, reset, name="impact", guard_gradient=guard_gradient,
-                       reset_jacobian=lambda x: np.diag([1.0, -c]), continuation=stick),
-            Transition(STUCK, MODE, pressing, name="release", guard_args="t,x,u")]
+    return [
+        Transition(
+            MODE,
+            MODE,
+            guard,
+            reset,
+            name="impact",
+            guard_gradient=guard_gradient,
+            reset_jacobian=lambda x: np.diag([1.0, -c]),
+            continuation=stick,
+        ),
+        Transition(STUCK, MODE, pressing, name="release", guard_args="t,x,u"),
+    ]

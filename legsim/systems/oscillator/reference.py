@@ -65,17 +65,29 @@ class OscillatorReference:
     resonance (``a == 0`` with ``Omega == omega``).
     """
 
-    def __init__(self, omega: float = 2.5, a: float = 0.05, x_max: float | None = 14.0, c: float = 0.9,
-                 mass: float = 1.0, amplitude: float = 0.0, frequency: float = 0.0, x0: float = 0.0,
-                 xd0: float = 0.0, t0: float = 0.0, zeno_speed: float = 1e-9) -> None:
+    def __init__(
+        self,
+        omega: float = 2.5,
+        a: float = 0.05,
+        x_max: float | None = 14.0,
+        c: float = 0.9,
+        mass: float = 1.0,
+        amplitude: float = 0.0,
+        frequency: float = 0.0,
+        x0: float = 0.0,
+        xd0: float = 0.0,
+        t0: float = 0.0,
+        zeno_speed: float = 1e-9,
+    ) -> None:
         self.omega, self.a, self.c, self.mass = float(omega), float(a), float(c), float(mass)
         self.amplitude, self.frequency = float(amplitude), float(frequency)
         self.x_max = None if x_max is None else float(x_max)
         self.x0, self.xd0, self.t0 = float(x0), float(xd0), float(t0)
         self.zeno_speed = float(zeno_speed)
         if not (self.omega > 0 and 0 <= self.a < self.omega):
-            raise ModelError(f"oscillator reference: needs sub-critical damping 0 <= a < omega, "
-                             f"got a={self.a}, omega={self.omega}")
+            raise ModelError(
+                f"oscillator reference: needs sub-critical damping 0 <= a < omega, got a={self.a}, omega={self.omega}"
+            )
         if not 0.0 <= self.c <= 1.0:
             raise ModelError(f"oscillator reference: restitution c must lie in [0, 1], got {self.c}")
         if not self.mass > 0:
@@ -84,16 +96,18 @@ class OscillatorReference:
             raise ModelError(f"oscillator reference: forcing frequency must be >= 0, got {self.frequency}")
         if self.x_max is not None and self.x0 > self.x_max:
             raise ModelError(f"oscillator reference: x0 = {self.x0} lies beyond the stop x_max = {self.x_max}")
-        self.wd = math.sqrt(self.omega ** 2 - self.a ** 2)
+        self.wd = math.sqrt(self.omega**2 - self.a**2)
         # Particular solution of x'' + 2a x' + omega^2 x = (U/m) cos(Omega t): Re(Ubar e^{i Omega t}).
         f_amp = self.amplitude / self.mass
         if self.frequency == 0.0:
-            P, Q = f_amp / self.omega ** 2, 0.0
+            P, Q = f_amp / self.omega**2, 0.0
         else:
-            den = complex(self.omega ** 2 - self.frequency ** 2, 2.0 * self.a * self.frequency)
+            den = complex(self.omega**2 - self.frequency**2, 2.0 * self.a * self.frequency)
             if abs(den) == 0.0:
-                raise ModelError("oscillator reference: undamped resonance (a = 0, forcing frequency = omega) "
-                                 "has no periodic particular solution")
+                raise ModelError(
+                    "oscillator reference: undamped resonance (a = 0, forcing frequency = omega) "
+                    "has no periodic particular solution"
+                )
             ubar = f_amp / den
             P, Q = ubar.real, -ubar.imag
         self.P, self.Q = P, Q
@@ -121,8 +135,19 @@ class OscillatorReference:
         if mode != MODE:
             raise ModelError(f"oscillator reference: unknown mode '{mode}' (modes: ['{MODE}'])")
         x_, xd_ = (float(v) for v in x)
-        return OscillatorReference(self.omega, self.a, self.x_max, self.c, self.mass, self.amplitude,
-                                   self.frequency, x_, xd_, t0, self.zeno_speed)
+        return OscillatorReference(
+            self.omega,
+            self.a,
+            self.x_max,
+            self.c,
+            self.mass,
+            self.amplitude,
+            self.frequency,
+            x_,
+            xd_,
+            t0,
+            self.zeno_speed,
+        )
 
     @classmethod
     def example(cls, name: str, **overrides: float) -> OscillatorReference:
@@ -141,7 +166,7 @@ class OscillatorReference:
         """F(t) = u(t)/m - omega^2 x_max: the acceleration of the mass at rest on the stop (m/s^2);
         the stop's reaction is compressive (the mass stays) while F >= 0."""
         assert self.x_max is not None
-        return self.forcing(t) / self.mass - self.omega ** 2 * self.x_max
+        return self.forcing(t) / self.mass - self.omega**2 * self.x_max
 
     def _particular(self, t):
         th = self.frequency * t
@@ -153,7 +178,7 @@ class OscillatorReference:
         xp, vp = self._particular(ph.t)
         y0, v0 = ph.x - xp, ph.xd - vp
         k_pos = (self.a * y0 + v0) / self.wd
-        k_vel = (-self.omega ** 2 * y0 - self.a * v0) / self.wd
+        k_vel = (-(self.omega**2) * y0 - self.a * v0) / self.wd
         return y0, v0, k_pos, k_vel
 
     def _flight_eval(self, ph: _Phase, tau: np.ndarray | float, coeffs=None):
@@ -187,7 +212,7 @@ class OscillatorReference:
         return dx_h + dx_p, dv_h + dv_p
 
     def _accel(self, t, x, xd):
-        return self.forcing(t) / self.mass - 2.0 * self.a * xd - self.omega ** 2 * x
+        return self.forcing(t) / self.mass - 2.0 * self.a * xd - self.omega**2 * x
 
     # -- building the execution ---------------------------------------------------------------
     def _push(self, ph: _Phase) -> None:
@@ -249,7 +274,7 @@ class OscillatorReference:
 
     def _release_time(self, t: float) -> float:
         """First time >= t at which F turns negative (inf if never)."""
-        F0 = self.omega ** 2 * self._stop
+        F0 = self.omega**2 * self._stop
         amp = abs(self.amplitude) / self.mass
         if self.frequency == 0.0 or amp == 0.0:
             return t if self.free_acceleration(t) < 0 else math.inf
@@ -297,13 +322,14 @@ class OscillatorReference:
         ``x - x_max <= c2 s^2 + c3 s^3 + D4 s^4 / 24``. Without it the interval search would
         have to halve its way out of the triple root of a release (where F(t) = 0)."""
         y0, _v0, k_pos, _ = self._flight_coeffs(ph)
-        d4 = math.hypot(y0, k_pos) * self.omega ** 4 + self.p_amp * self.frequency ** 4
+        d4 = math.hypot(y0, k_pos) * self.omega**4 + self.p_amp * self.frequency**4
         acc = float(self._accel(ph.t, ph.x, 0.0))
-        jerk = float(-self.amplitude * self.frequency * math.sin(self.frequency * ph.t)) / self.mass \
-            - 2.0 * self.a * acc
+        jerk = (
+            float(-self.amplitude * self.frequency * math.sin(self.frequency * ph.t)) / self.mass - 2.0 * self.a * acc
+        )
         c2, c3 = 0.5 * acc, jerk / 6.0
         # At a release F(t) = 0 exactly but is known only to rounding: such a c2 counts as zero.
-        if abs(c2) <= 1e-12 * (abs(self.amplitude) / self.mass + self.omega ** 2 * abs(self._stop)):
+        if abs(c2) <= 1e-12 * (abs(self.amplitude) / self.mass + self.omega**2 * abs(self._stop)):
             c2 = 0.0
         if d4 == 0.0 or c2 > 0.0 or (c2 == 0.0 and c3 >= 0.0):
             return 0.0
@@ -341,10 +367,10 @@ class OscillatorReference:
         """True where x < x_max is certain on (tl, tr] (arrays), from the quadratic upper bound."""
         ph, _coeffs, hom_amp = ctx
         length = tr - tl
-        C = hom_amp * np.exp(-self.a * tl) * self.omega ** 3 + self.p_amp * self.frequency ** 3
+        C = hom_amp * np.exp(-self.a * tl) * self.omega**3 + self.p_amp * self.frequency**3
         gdd = self._accel(ph.t + tl, g + self.x_max, gd)
         beta = gdd + C * length
-        end = g + gd * length + 0.5 * beta * length ** 2
+        end = g + gd * length + 0.5 * beta * length**2
         # A concave bound (beta < 0) may peak inside the interval, at s* = -g'/beta.
         concave = beta < 0
         safe_beta = np.where(concave, beta, -1.0)
@@ -366,12 +392,13 @@ class OscillatorReference:
                 f"oscillator reference: the impact search of the flight from t = {ph.t:g} s (x = {ph.x:g} m, "
                 f"xd = {ph.xd:g} m/s) visited {self.max_refinements} intervals near t = {ph.t + tl:g} s without "
                 f"clearing the stop x_max = {self.x_max:g} m or crossing it: the gap stays within rounding "
-                f"of zero (a mass resting on the stop?)")
+                f"of zero (a mass resting on the stop?)"
+            )
         g_l, gd = self._gap(ph, tl, coeffs)
         g_r, _ = self._gap(ph, tr, coeffs)
         g_l, gd, g_r = float(g_l), float(gd), float(g_r)
         length = tr - tl
-        C = hom_amp * math.exp(-self.a * tl) * self.omega ** 3 + self.p_amp * self.frequency ** 3
+        C = hom_amp * math.exp(-self.a * tl) * self.omega**3 + self.p_amp * self.frequency**3
         gdd = float(self._accel(ph.t + tl, g_l + self._stop, gd))
         if _bound_clears(g_l, gd, gdd + C * length, length):
             return None

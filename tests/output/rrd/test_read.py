@@ -24,8 +24,9 @@ def test_every_coordinate_sample_round_trips_exactly(hopper_run):
         # either order, so compare sorted (time, value) pairs; float64 is stored, so exactly.
         assert sorted(zip(t.tolist(), v.tolist(), strict=False)) == sorted(pairs), name
     # n exists in stance only: its samples are exactly the stance samples.
-    stance_points = sum(len(s.t) for s in ex.segments if s.mode == "stance") + \
-        2 * sum(1 for s in ex.strips if s.mode == "stance")
+    stance_points = sum(len(s.t) for s in ex.segments if s.mode == "stance") + 2 * sum(
+        1 for s in ex.strips if s.mode == "stance"
+    )
     assert len(data["series"]["n"][0]) == stance_points
 
 
@@ -44,13 +45,18 @@ def test_mode_sequence_strips_and_transitions_round_trip(hopper_run):
     _, ex, _, data = hopper_run
     assert data["mode_sequence"] == ex.mode_sequence
     assert data["segments"] == [(s.mode, s.t_start, s.t_end) for s in ex.segments]
-    assert [(s["mode"], s["name"], s["time"], s["exit_time"]) for s in data["strips"]] == \
-        [(s.mode, s.name, s.time, s.exit_time) for s in ex.strips]
+    assert [(s["mode"], s["name"], s["time"], s["exit_time"]) for s in data["strips"]] == [
+        (s.mode, s.name, s.time, s.exit_time) for s in ex.strips
+    ]
     assert len(data["transitions"]) == len(ex.transitions)
     for got, tr in zip(data["transitions"], ex.transitions, strict=False):
         assert (got["name"], got["source"], got["target"], got["index"]) == (tr.name, tr.source, tr.target, tr.index)
-        assert (got["time"], got["landing_time"], got["exit_time"], got["depth"]) == \
-            (tr.time, tr.landing_time, tr.exit_time, tr.depth)
+        assert (got["time"], got["landing_time"], got["exit_time"], got["depth"]) == (
+            tr.time,
+            tr.landing_time,
+            tr.exit_time,
+            tr.depth,
+        )
         np.testing.assert_array_equal(got["state_before"], tr.state_before)
         np.testing.assert_array_equal(got["state_after"], tr.state_after)
     # The edges alternate flight -> stance -> flight, as the model allows.
@@ -156,6 +162,9 @@ def test_a_recording_of_the_earlier_layout_is_refused_by_name(tmp_path):
     rec.flush()
     old = tmp_path / "old.rrd"
     old.write_bytes(memory.drain_as_bytes())
-    with pytest.raises(RecordingError, match=r"old\.rrd: a legsim recording of layout legsim-rrd-1, written by an "
-                                             r"earlier legsim; this version reads layout legsim-rrd-2 only"):
+    with pytest.raises(
+        RecordingError,
+        match=r"old\.rrd: a legsim recording of layout legsim-rrd-1, written by an "
+        r"earlier legsim; this version reads layout legsim-rrd-2 only",
+    ):
         read_rrd(old)

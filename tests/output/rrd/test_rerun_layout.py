@@ -71,8 +71,11 @@ def test_a_foot_translation_is_where_the_model_draws_it(pronk):
 
 def test_series_are_named_with_their_units(pronk):
     _, ex, chunks, _ = pronk
-    names = {path: column["SeriesLines:names"][0][0] for (path, static), column in chunks.items()
-             if static and path.startswith("/state/")}
+    names = {
+        path: column["SeriesLines:names"][0][0]
+        for (path, static), column in chunks.items()
+        if static and path.startswith("/state/")
+    }
     for mode, coordinates in ex.state_names.items():
         for name, unit in zip(coordinates, ex.state_units[mode], strict=False):
             assert names[f"/state/{name}"] == f"{name} ({unit})"

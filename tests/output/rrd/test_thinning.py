@@ -59,8 +59,7 @@ def test_every_transition_and_its_states_are_kept(long_run):
         first_after = _state_at_first_sample(data, names, tr.exit_time, after_strip=True)
         np.testing.assert_array_equal(first_after, tr.state_after)
     for strip in ex.strips:
-        np.testing.assert_array_equal(_state_at_first_sample(data, names, strip.time, after_strip=False),
-                                      strip.state)
+        np.testing.assert_array_equal(_state_at_first_sample(data, names, strip.time, after_strip=False), strip.state)
 
 
 def _state_at_first_sample(data, names, time, after_strip):
