@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import gc
 import weakref
+from typing import Any
 
 import numpy as np
 
@@ -35,6 +36,10 @@ _NO_LIMIT = 1 << 62
 #: at its first visit in this process: the check costs as much as a short run, and its answer
 #: does not change from one run to the next.
 _VERIFIED: weakref.WeakValueDictionary[int, ModeData] = weakref.WeakValueDictionary()
+
+
+#: system -> (its table's modes -> Table), kept while the system lives.
+_TABLES: weakref.WeakKeyDictionary[Any, dict[tuple[str, ...], Table]] = weakref.WeakKeyDictionary()
 
 
 class Table:
@@ -199,7 +204,8 @@ def _table(run: Run, visit: ModeVisit) -> Table:
     modes = [name for name in list(system.modes) if name in checked and name in run.checked_modes]
     modes.remove(visit.name)
     modes.insert(0, visit.name)
-    tables = run.scratch.setdefault("compiled_tables", {})
+    # A table depends on the system and the modes listed only: made once, used by every run.
+    tables = _TABLES.setdefault(system, {})
     key = tuple(modes)
     table = tables.get(key)
     if table is None:
