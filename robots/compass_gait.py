@@ -42,7 +42,8 @@ the slope ends a run (status ``model_breakdown``): the walker fell.
 from __future__ import annotations
 
 import math
-from typing import Any, Sequence
+from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 import pinocchio as pin

@@ -32,7 +32,8 @@ carries ``control``; without it no actuation term exists (``actuation_evals`` st
 from __future__ import annotations
 
 import math
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 import pinocchio as pin

@@ -34,7 +34,8 @@ derivative there ``c^2`` (the step-to-step contraction). Step length ``2 l sin(a
 from __future__ import annotations
 
 import math
-from typing import Any, Sequence
+from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 import pinocchio as pin

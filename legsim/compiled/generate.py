@@ -222,7 +222,7 @@ def get_kernel(sets: tuple[FunctionSet, ...]) -> Any:
     if kernel_fn is None:
         namespace: dict[str, Any] = {f"_f{k}_{kind}": fn for k, functions in enumerate(sets)
                                      for (kind, _), fn in zip(TWIN_KINDS, functions)}
-        exec(compile(kernel_source([], cache=False, count=len(sets)), "<legsim kernel>", "exec"), namespace)  # noqa: S102
+        exec(compile(kernel_source([], cache=False, count=len(sets)), "<legsim kernel>", "exec"), namespace)
         kernel_fn = namespace["_k_step_loop"]
     _KERNELS[key] = (sets, kernel_fn)  # holding the functions keeps their ids from being reused
     return kernel_fn

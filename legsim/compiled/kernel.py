@@ -28,12 +28,49 @@ from __future__ import annotations
 import math
 
 from ..methods.stepper import error_scale, scaled_norm
-from ..relaxed.rules import (CONVERGED, MAX_AIMS, RESULT, SEARCHING, STATUS, aimed_step, crossing_point,
-                             crossing_start, crossing_update, finish_tolerance, hermite_slope_weights, hermite_weights,
-                             kept_proposal, proposed_step, rejected_step, shortening_exhausted, trial_length)
-from .transit import (CONTINUE, I_MODE, I_XLEN, MI_DIM, MI_FID, MI_NG, MI_P0, MI_P1, MI_SLOT, N_FIELD, N_GUARD,  # noqa: F401
-                      N_RESET, NEXT, TRANSIT_FUNCTIONS, TRANSIT_RULES, TRANSITION, _k_argmin, _k_finite, _twin_field,
-                      _twin_guards, single_crossing, transit)
+from ..relaxed.rules import (
+    CONVERGED,
+    MAX_AIMS,
+    RESULT,
+    SEARCHING,
+    STATUS,
+    aimed_step,
+    crossing_point,
+    crossing_start,
+    crossing_update,
+    finish_tolerance,
+    hermite_slope_weights,
+    hermite_weights,
+    kept_proposal,
+    proposed_step,
+    rejected_step,
+    shortening_exhausted,
+    trial_length,
+)
+from .transit import (  # noqa: F401
+    CONTINUE,
+    I_MODE,
+    I_XLEN,
+    MI_DIM,
+    MI_FID,
+    MI_NG,
+    MI_P0,
+    MI_P1,
+    MI_SLOT,
+    N_FIELD,
+    N_GUARD,
+    N_RESET,
+    NEXT,
+    TRANSIT_FUNCTIONS,
+    TRANSIT_RULES,
+    TRANSITION,
+    _k_argmin,
+    _k_finite,
+    _twin_field,
+    _twin_guards,
+    single_crossing,
+    transit,
+)
 
 # Return codes (TRANSITION, NEXT: ``transit``).
 FINISHED = 0

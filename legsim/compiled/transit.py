@@ -27,8 +27,17 @@ from __future__ import annotations
 
 import math
 
-from ..relaxed.rules import (accumulating, entered_in_strip, flight_since, past_strip, restarted_step, scaled_rms,
-                             starting_guess, starting_step, strip_exit_time)
+from ..relaxed.rules import (
+    accumulating,
+    entered_in_strip,
+    flight_since,
+    past_strip,
+    restarted_step,
+    scaled_rms,
+    starting_guess,
+    starting_step,
+    strip_exit_time,
+)
 
 # Return codes: the step loop goes on in the entered mode; Python takes the crossing; Python
 # enters the mode the kernel reached.

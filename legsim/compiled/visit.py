@@ -17,10 +17,10 @@ import numpy as np
 from ..execution import Segment, SegmentBuffer, Status, Strip, TransitionRecord
 from ..hybrid import ModeData
 from ..relaxed import messages
+from ..relaxed.integrate import out_of_steps
 from ..relaxed.outcomes import Ended, Entered, Outcome
 from ..relaxed.run import ModeVisit, Run
 from ..relaxed.strip import cross
-from ..relaxed.integrate import out_of_steps
 from . import kernel as k
 from . import transit as kt
 from .generate import get_kernel, no_resets, plan_for

@@ -3,7 +3,7 @@ alike: each names the mode, the time and the state."""
 
 from __future__ import annotations
 
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 

@@ -5,7 +5,8 @@ model/data split: the system is the immutable model, this is its scratch data)."
 from __future__ import annotations
 
 import time
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
@@ -32,7 +33,7 @@ class ModeVisit:
     the loop calls them, the segment being stored, and the current point (t, x) with
     k0 = f(t, x) and, for dense landing, the guards there (``g_here``)."""
 
-    __slots__ = ("data", "name", "field", "guards", "single_guard", "buf", "t", "x", "k0", "g_entry", "g_last")
+    __slots__ = ("buf", "data", "field", "g_entry", "g_last", "guards", "k0", "name", "single_guard", "t", "x")
 
     def __init__(self, data: ModeData, guards: tuple[Callable[[float, np.ndarray], Any], ...], t: float,
                  x: np.ndarray) -> None:

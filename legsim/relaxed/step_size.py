@@ -10,14 +10,22 @@ also restarts each new mode at the standard starting step (``restart``).
 from __future__ import annotations
 
 import math
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
 from ..methods import Tableau
 from ..methods.stepper import error_estimator, error_norm
-from .rules import (kept_proposal, proposed_step, rejected_step, restarted_step, scaled_rms, starting_guess,
-                    starting_step)
+from .rules import (
+    kept_proposal,
+    proposed_step,
+    rejected_step,
+    restarted_step,
+    scaled_rms,
+    starting_guess,
+    starting_step,
+)
 
 
 class FixedStep:

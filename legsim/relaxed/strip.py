@@ -12,7 +12,7 @@ on the interpolant is taken; the next mode then sees its own guard already cross
 
 from __future__ import annotations
 
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 
@@ -20,8 +20,19 @@ from ..errors import ModelBreakdown, ModelError
 from ..execution import SegmentBuffer, Status, Strip, TransitionRecord
 from ..hybrid import Continuation, check_reset_output
 from .outcomes import Ended, Entered, Landing, Outcome
-from .rules import (CONVERGED, RESULT, SEARCHING, STATUS, crossing_point, crossing_start, crossing_update,
-                    entered_in_strip, hermite_slope_weights, hermite_weights, strip_exit_time)
+from .rules import (
+    CONVERGED,
+    RESULT,
+    SEARCHING,
+    STATUS,
+    crossing_point,
+    crossing_start,
+    crossing_update,
+    entered_in_strip,
+    hermite_slope_weights,
+    hermite_weights,
+    strip_exit_time,
+)
 from .run import PROGRESS_STEPS, ModeVisit, Run
 from .simultaneous import joint_crossing, joint_name
 

@@ -8,8 +8,8 @@ method resolves the mode and hands over to the free functions of ``dynamics``, `
 from __future__ import annotations
 
 import dataclasses
-
-from typing import Any, Callable, Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from typing import Any
 
 import numpy as np
 import pinocchio as pin

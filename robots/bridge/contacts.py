@@ -9,8 +9,9 @@ planar models with: ``planar_floating_base`` and ``add_point_frame``.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any, Callable, Literal, Sequence
+from typing import Any, Literal
 
 import numpy as np
 import pinocchio as pin

@@ -14,7 +14,8 @@ active leg, no damping term without damping. Each kind of evaluation is counted 
 from __future__ import annotations
 
 import math
-from typing import Any, Sequence
+from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 import pinocchio as pin

@@ -17,7 +17,8 @@ foot into the ground while it moves down, raises ``ModelBreakdown``.
 from __future__ import annotations
 
 import math
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 import pinocchio as pin

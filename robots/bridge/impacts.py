@@ -13,7 +13,8 @@ appends its foothold.
 
 from __future__ import annotations
 
-from typing import Any, Callable, Sequence
+from collections.abc import Callable, Sequence
+from typing import Any
 
 import numpy as np
 import pinocchio as pin

@@ -12,8 +12,8 @@ contacts never enumerates the 2^n subsets.
 
 from __future__ import annotations
 
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, replace
-from typing import Iterable, Mapping
 
 import numpy as np
 import pinocchio as pin

@@ -122,7 +122,7 @@ def _settled_changes(model: BridgeModel, data: BridgeData, modes: ModeCatalog, s
     if not slip:
         for s, suffix in SLIP_SUFFIX.items():
             base = friction.stick_slip_guard(model, data, spec, contact, s)
-            out += _changes(model, data, spec, targets, base, f"slip", contact, s, modes, suffix)
+            out += _changes(model, data, spec, targets, base, "slip", contact, s, modes, suffix)
         return out
 
     def solve(x, u):

@@ -21,7 +21,8 @@ below the ground: ``ModelBreakdown`` in Python) gives nan guards, and the twin i
 from __future__ import annotations
 
 import math
-from typing import Any, Sequence
+from collections.abc import Sequence
+from typing import Any
 
 import numba
 import numpy as np

@@ -366,7 +366,7 @@ def test_dop853_blended_error_norm_same_on_both_paths():
     # is a small difference of large stage sums, so rounding moves it by up to ~1e-4 relative and
     # the step sizes by ~1e-8 s. Not bit for bit, then, but the same run: the same steps,
     # rejections and evaluations, transitions at the same times, the same final state.
-    
+
     system, x0, _ = make_oscillator_example("ex1")
     fast, slow = both_paths(system, x0, "free", 12.0, 0.5, 1e-6, get_method("dop853"), landing="aim", rtol=1e-10,
                             atol=1e-10)

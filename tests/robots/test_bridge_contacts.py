@@ -3,12 +3,11 @@ messages that name them."""
 
 import pinocchio as pin
 import pytest
-
-from legsim import ModelError, SceneError
 from legsim.robots import pronk
 from legsim.robots.bridge import ContactBridge, JointStop, PointContact, SpringLeg
 
 from helpers.bridge_models import ball_model
+from legsim import ModelError, SceneError
 
 
 def test_bad_models_and_contacts_are_named():

@@ -6,11 +6,10 @@ import math
 import numpy as np
 import pinocchio as pin
 import pytest
-
-from legsim import ModelError, simulate
 from legsim.robots.bridge import ContactBridge, PointContact, add_point_frame
 
 from helpers.bridge_models import G, ball_model, rod_model
+from legsim import ModelError, simulate
 
 
 def test_point_contact_holds_a_base_until_the_swinging_pendulum_lifts_it():

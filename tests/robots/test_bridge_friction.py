@@ -9,12 +9,12 @@ import math
 import numpy as np
 import pinocchio as pin
 import pytest
+from legsim.robots.bridge import ContactBridge, PointContact, add_point_frame, planar_floating_base
+from legsim.robots.bridge.friction import Engaged, frictional_impact, mode_change
 from scipy.optimize import brentq
 
 from legsim import simulate
 from legsim.errors import ModelBreakdown, ModelError
-from legsim.robots.bridge import ContactBridge, PointContact, add_point_frame, planar_floating_base
-from legsim.robots.bridge.friction import Engaged, frictional_impact, mode_change
 
 G = 9.81
 LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED

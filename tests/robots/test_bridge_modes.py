@@ -5,12 +5,11 @@ import math
 
 import numpy as np
 import pytest
-
-from legsim import ModelError
 from legsim.robots import pronk
 from legsim.robots.bridge import ContactBridge, PointContact, add_point_frame
 
 from helpers.bridge_models import rod_model
+from legsim import ModelError
 
 
 def test_many_contacts_build_only_the_modes_reached():

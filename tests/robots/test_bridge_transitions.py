@@ -4,11 +4,10 @@ import math
 
 import numpy as np
 import pytest
-
-from legsim import ModelError
 from legsim.robots.bridge import ContactBridge, PointContact, add_point_frame
 
 from helpers.bridge_models import rod_model
+from legsim import ModelError
 
 
 def test_a_striking_contact_releases_the_ones_it_names():

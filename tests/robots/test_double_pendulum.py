@@ -7,11 +7,11 @@ import math
 import numpy as np
 import pinocchio as pin
 import pytest
+from legsim.robots import double_pendulum as dp
 
 from legsim import simulate
 from legsim.errors import SceneError
 from legsim.hybrid import reachable_modes
-from legsim.robots import double_pendulum as dp
 
 # Deliberately not the defaults, so a parameter that is not wired through would show.
 P = dict(m1=1.3, m2=0.7, L1=0.9, L2=1.2, g=9.81)

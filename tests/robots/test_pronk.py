@@ -7,10 +7,10 @@ import os
 
 import numpy as np
 import pytest
+from legsim.robots import pronk, slip
 
 from legsim import simulate
 from legsim.hybrid import reachable_modes
-from legsim.robots import pronk, slip
 
 FULL = os.environ.get("LEGSIM_FULL") == "1"
 

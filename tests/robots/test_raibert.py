@@ -8,10 +8,10 @@ import math
 import numpy as np
 import pinocchio as pin
 import pytest
+from legsim.robots import raibert
 
 from legsim.control import available, get_controller
 from legsim.derivatives import jacobian
-from legsim.robots import raibert
 from legsim.scene import load_scene
 
 SCENE = "quadruped_pronk"

@@ -5,10 +5,10 @@ import math
 
 import numpy as np
 import pytest
+from legsim.robots import slip
 
 from legsim import simulate
 from legsim.hybrid import reachable_modes
-from legsim.robots import slip
 
 
 def test_touchdown_time_and_foothold_are_the_ballistic_closed_form():

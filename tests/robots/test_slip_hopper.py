@@ -6,11 +6,11 @@ import math
 
 import numpy as np
 import pytest
+from legsim.robots import raibert, slip, slip_hopper
 
 from legsim import simulate
 from legsim.errors import SceneError
 from legsim.orbits import OrbitProblem, Section, find_orbit
-from legsim.robots import raibert, slip, slip_hopper
 from legsim.scene import load_scene
 
 

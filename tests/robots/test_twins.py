@@ -14,11 +14,11 @@ import math
 import numpy as np
 import pinocchio as pin
 import pytest
-
-import legsim.compiled as compiled
-from legsim import _native, simulate
 from legsim.robots import compass_gait, double_pendulum, pronk, rimless_wheel
 from legsim.robots.bridge import twins, walker_twins
+
+import legsim.compiled as compiled
+from legsim import _native
 from legsim.scene import load_scene
 
 pytestmark = pytest.mark.skipif(not _native.load(), reason=f"native library: {_native.status()}")

@@ -7,10 +7,10 @@ import math
 import numpy as np
 import pinocchio as pin
 import pytest
-
-from legsim.errors import ModelError, SceneError
 from legsim.robots import urdf
 from legsim.robots.bridge import planar_floating_base
+
+from legsim.errors import ModelError, SceneError
 from legsim.scene import load_scene
 
 QUADRUPED = urdf.bundled("quadruped.urdf")
