@@ -274,7 +274,7 @@ class SlipRaibert(Controller):
     ``k_swing (psi* - psi)`` (rad/s) to ``psi* = asin((xd T_s / 2 + k_x (xd - xd*)) / l)``, T_s the
     last stance's duration (s), measured at each liftoff (``reset``); 0 in stance."""
 
-    def __init__(self, l: float, speed: float, k_x: float, k_swing: float, stance_time: float) -> None:
+    def __init__(self, l: float, speed: float, k_x: float, k_swing: float, stance_time: float) -> None:  # noqa: E741 -- the paper's symbols, also the scene's parameter names
         self.l, self.speed, self.k_x, self.k_swing = l, speed, k_x, k_swing
         self.stance_time, self.touchdown, self.in_stance = stance_time, 0.0, False
 

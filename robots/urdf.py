@@ -147,7 +147,7 @@ def _shape_points(shape: Any, name: str, file: Path) -> np.ndarray:
         circle = np.stack([r * np.cos(ring), r * np.sin(ring), np.zeros_like(ring)], axis=1)
         if kind == "Capsule":  # hemispherical caps: their silhouettes are circles about the ends
             circle = np.stack([r * np.cos(ring), np.zeros_like(ring), r * np.sin(ring)], axis=1)
-        return np.concatenate([circle + (0, 0, h), circle - (0, 0, h)])
+        return np.concatenate([circle + np.array([0.0, 0.0, h]), circle - np.array([0.0, 0.0, h])])
     if kind == "Sphere":
         r = float(shape.radius)
         return np.stack([r * np.cos(ring), np.zeros_like(ring), r * np.sin(ring)], axis=1)

@@ -221,7 +221,7 @@ def get_kernel(sets: tuple[FunctionSet, ...]) -> Any:
     kernel_fn = _cached_kernel(names, len(sets)) if None not in names else None
     if kernel_fn is None:
         namespace: dict[str, Any] = {f"_f{k}_{kind}": fn for k, functions in enumerate(sets)
-                                     for (kind, _), fn in zip(TWIN_KINDS, functions)}
+                                     for (kind, _), fn in zip(TWIN_KINDS, functions, strict=True)}
         exec(compile(kernel_source([], cache=False, count=len(sets)), "<legsim kernel>", "exec"), namespace)
         kernel_fn = namespace["_k_step_loop"]
     _KERNELS[key] = (sets, kernel_fn)  # holding the functions keeps their ids from being reused
@@ -252,7 +252,7 @@ def _twin_sources(names: list[str | None]) -> str:
 def _cached_kernel(names: list[str | None], count: int) -> Any:
     imports = []
     for k in range(count):
-        for (kind, _), name in zip(TWIN_KINDS, names[3 * k: 3 * k + 3]):
+        for (kind, _), name in zip(TWIN_KINDS, names[3 * k: 3 * k + 3], strict=True):
             module, qualname = str(name).split(":")
             imports.append(f"from {module} import {qualname} as _f{k}_{kind}")
     text = kernel_source(imports, cache=True, count=count)

@@ -253,7 +253,7 @@ def _k_step_loop(P, mi, ti, hist, c, n_groups, weights, n_members, members, b_er
     cnt[N_FIELD] = cnt[N_GUARD] = cnt[N_RESET] = 0
     s_stages = c.shape[0]
     while True:
-        fid, n, n_guards, p, x, K, XS, x_new, k1, work, q, dq = _k_views(P, mi, iv[I_MODE], s_stages, xw, Kw, XSw,
+        fid, _n, n_guards, p, x, K, XS, x_new, k1, work, q, dq = _k_views(P, mi, iv[I_MODE], s_stages, xw, Kw, XSw,
                                                                          x_neww, k1w, workw, qw, dqw)
         code = _k_mode_loop(P, mi, ti, hist, c, n_groups, weights, n_members, members, b_err, fsal, fid, n_guards, p,
                             x, K, XS, x_new, k1, work, q, dq, xw, Kw, workw, qw, gv, raw, T, X, DX, fs, iv, cf, ci,
@@ -439,13 +439,14 @@ def _k_first_nan(values, n):
 
 #: The kernel's functions, in the order the generated module defines them.
 KERNEL_FUNCTIONS = (_k_combine, _k_stages, _k_hermite, _k_hermite_slope, _k_first_nan, _k_crossing, _k_aim,
-                    _k_locate, _k_store_crossing, _k_landed, _k_views, _k_mode_loop, _k_step_loop) + TRANSIT_FUNCTIONS
+                    _k_locate, _k_store_crossing, _k_landed, _k_views, _k_mode_loop, _k_step_loop,
+                    *TRANSIT_FUNCTIONS)
 #: The functions every step runs (inlined into the loop by the generator).
 EVERY_STEP = (_k_stages, _k_combine, trial_length, finish_tolerance, rejected_step, proposed_step, kept_proposal,
               error_scale, scaled_norm)
 #: The rules the kernel calls, compiled from their own source.
 RULES = (trial_length, finish_tolerance, rejected_step, proposed_step, kept_proposal, shortening_exhausted,
          aimed_step, crossing_start, crossing_point, crossing_update, hermite_weights, hermite_slope_weights,
-         error_scale, scaled_norm) + TRANSIT_RULES
+         error_scale, scaled_norm, *TRANSIT_RULES)
 #: The placeholder call of _k_stages in _k_mode_loop that the generator unrolls per method.
 STAGES_CALL = "_k_stages(fid, t, x, hk, K, XS, x_new, p, c, n_groups, weights, n_members, members, fsal)  # STAGES"

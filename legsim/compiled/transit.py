@@ -78,7 +78,8 @@ def _twin_resets(fid, x, p, e):  # bound in the generated module
 
 
 def _k_finite(v):
-    for d in range(v.shape[0]):
+    # A loop, not all() over a generator: numba compiles this function.
+    for d in range(v.shape[0]):  # noqa: SIM110
         if not math.isfinite(v[d]):
             return False
     return True

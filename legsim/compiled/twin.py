@@ -114,7 +114,7 @@ def _evaluate(system_name: str, data: ModeData, twin: CompiledMode, t: float,
         g = np.asarray(twin.guards(xc, twin.params), dtype=float)
         images = []
         if twin.resets is not None:
-            for e, (tr, reset) in enumerate(zip(data.transitions, data.resets)):
+            for e, (tr, reset) in enumerate(zip(data.transitions, data.resets, strict=True)):
                 images.append((f"transition {tr.name}", reset, np.asarray(twin.resets(xc, twin.params, e), dtype=float)))
                 cont = tr.continuation
                 if twin.continued and cont is not None:

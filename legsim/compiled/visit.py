@@ -69,7 +69,7 @@ class Table:
             params.append(twin.params)
             self.twins.append((twin, offset))
             offset += twin.params.size
-            for e, (tr, target) in enumerate(zip(data.transitions, data.targets)):
+            for e, (tr, target) in enumerate(zip(data.transitions, data.targets, strict=True)):
                 cont = tr.continuation
                 ti.append((number(target), kt.NO_MODE if cont is None else number(cont.target),
                            cont is not None and twin.continued,

@@ -55,6 +55,6 @@ def model_breakdown(reason: object, mode: str, t: float, within: float | None = 
 def first_nonfinite(values: Sequence[float]) -> int | None:
     """Index of the first value that is not finite, or None."""
     for i, v in enumerate(values):
-        if not (v - v == 0.0):
+        if v - v != 0.0:
             return i
     return None

@@ -299,7 +299,7 @@ def mode_change(model: BridgeModel, data: BridgeData, modes: ModeCatalog, spec: 
                 contact: str, slip: float | None) -> tuple[ModeSpec, np.ndarray]:
     """The mode after ``contact`` lifts off (``slip`` None) or starts slipping towards ``slip``
     in mode ``spec`` at x, the others then settled under their new control (no impulse)."""
-    fixed = [e for e, c in zip(spec.entries, spec.active) if c not in model.rigid]
+    fixed = [e for e, c in zip(spec.entries, spec.active, strict=True) if c not in model.rigid]
     slips = {r.contact.name: r.slip for r in spec.rigid}
     if slip is None:
         del slips[contact]
@@ -339,7 +339,7 @@ def event_outcome(model: BridgeModel, data: BridgeData, modes: ModeCatalog, spec
     released = {r for c in strikers for r in getattr(model.contacts[c], "releases", ())}
     kept = [r.contact.name for r in spec.rigid
             if r.contact.name not in released and r.contact.name not in strikers and r.contact.name not in stopping]
-    fixed = [e for e, c in zip(spec.entries, spec.active) if c not in model.rigid]
+    fixed = [e for e, c in zip(spec.entries, spec.active, strict=True) if c not in model.rigid]
     engaged = engage(model, spec, kept, strikers, restitution, (q, v), data)
     if stopping:
         # Coming to rest is continuous: the impact only removes the residual slip velocity the
@@ -357,7 +357,7 @@ def candidate_targets(model: BridgeModel, modes: ModeCatalog, spec: ModeSpec, in
     """Every mode an event of the ``involved`` rigid contacts in mode ``spec`` may lead to:
     each involved contact absent, stuck or (with friction) slipping either way; a ``bouncing``
     one only absent; the ``dropped`` ones (released) absent; the other entries unchanged."""
-    fixed = [e for e, c in zip(spec.entries, spec.active) if c not in involved and c not in dropped]
+    fixed = [e for e, c in zip(spec.entries, spec.active, strict=True) if c not in involved and c not in dropped]
     options = []
     for c in involved:
         if c in bouncing:
@@ -373,7 +373,7 @@ def candidate_targets(model: BridgeModel, modes: ModeCatalog, spec: ModeSpec, in
                          f"friction, or frictionless ones")
     targets = []
     for choice in itertools.product(*options):
-        entries = fixed + [entry(c, s) for c, s in zip(involved, choice) if s is not None]
+        entries = fixed + [entry(c, s) for c, s in zip(involved, choice, strict=True) if s is not None]
         name = modes.name_of(entries)
         if name not in targets:
             targets.append(name)

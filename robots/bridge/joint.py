@@ -59,7 +59,7 @@ def newton_impact(model: BridgeModel, data: BridgeData, rows: list[tuple[str, fl
     order): the post-impact velocity (nv,) and each contact's normal impulse (N s or N m s)."""
     rigid = [model.rigid[name] for name, _ in rows]
     J, _ = constraint_rows(model, data, rigid, q, v, drift=False)
-    coeff = np.concatenate([np.full(r.rows, c) for r, (_, c) in zip(rigid, rows)])
+    coeff = np.concatenate([np.full(r.rows, c) for r, (_, c) in zip(rigid, rows, strict=True)])
     Minv = pin.computeMinverse(model.pin_model, data.pin_data, q)
     MJt = Minv @ J.T
     impulse = solve_small(J @ MJt, -(1.0 + coeff) * (J @ v))
@@ -80,7 +80,7 @@ def joint_impact(model: BridgeModel, data: BridgeData, kept: list[str], strikers
     rigid = [model.rigid[name] for name in strikers]
     J, _ = constraint_rows(model, data, rigid, q, v, drift=False)
     rows_end = np.cumsum([r.rows for r in rigid]) - 1
-    normal_rows = {name: J[i] for name, i in zip(strikers, rows_end)}
+    normal_rows = {name: J[i] for name, i in zip(strikers, rows_end, strict=True)}
     taking = [name for name in strikers if normal_rows[name] @ v < 0.0]
     if not taking:  # none approaches: no impulse
         return v.copy(), []

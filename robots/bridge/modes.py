@@ -110,7 +110,7 @@ class ModeCatalog:
     def _check(self, subset: frozenset[str]) -> None:
         model = self._model
         parsed = [self._parse(e) for e in subset]
-        unknown = sorted(e for e, p in zip(subset, parsed) if p is None)
+        unknown = sorted(e for e, p in zip(subset, parsed, strict=True) if p is None)
         if unknown:
             raise ModelError(f"{model.name}: unknown contact(s) {unknown}; contacts: {model.order}")
         names = [p[0] for p in parsed if p is not None]

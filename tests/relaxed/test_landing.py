@@ -75,7 +75,7 @@ def test_dense_landing_with_dop853_keeps_the_strip_guarantee_on_the_pronk():
 
 
 def test_dense_landing_needs_a_method_with_a_continuous_extension():
-    with pytest.raises(SimulationError, match="landing 'dense'.*'rk4'.*aim"):
+    with pytest.raises(SimulationError, match=r"landing 'dense'.*'rk4'.*aim"):
         simulate(doubling_system(), [1.0], "grow", 1.0, 0.1, 1e-6, method="rk4", landing="dense")
     with pytest.raises(SimulationError, match="landing must be one of"):
         simulate(doubling_system(), [1.0], "grow", 1.0, 0.1, 1e-6, landing="bisect")

@@ -225,7 +225,7 @@ def test_friction_declarations_are_checked():
     body = planar_floating_base(model)
     model.appendBodyToJoint(body, pin.Inertia(1.0, np.zeros(3), np.eye(3)), pin.SE3.Identity())
     add_point_frame(model, "p", body, (0, 0, 0))
-    with pytest.raises(ModelError, match="friction -0.1 is .*|friction must be >= 0"):
+    with pytest.raises(ModelError, match=r"friction -0\.1 is .*|friction must be >= 0"):
         ContactBridge(model, [PointContact("p", "p", friction=-0.1)])
     with pytest.raises(ModelError, match="needs tangential=True"):
         ContactBridge(model, [PointContact("p", "p", friction=0.5, tangential=False)])

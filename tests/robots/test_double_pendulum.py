@@ -2,6 +2,7 @@
 textbook closed form, the impact law eq. (30), the stop force eq. (31), the plastic and Zeno runs
 (the paper's relaxed execution, and by default resting where the impacts accumulate)."""
 
+import itertools
 import math
 
 import numpy as np
@@ -250,7 +251,7 @@ def test_by_default_the_stop_rests_in_the_constrained_mode_and_is_released_where
     # flight no longer than the window, the flights before it shrinking and all longer
     np.testing.assert_allclose(rest.state_after, eq30(rest.state_before, 0.0, DEFAULTS), atol=1e-12)
     bounces = ex.transitions[:-2]
-    flights = [b.time - a.exit_time for a, b in zip(bounces, bounces[1:] + [rest])]
+    flights = [b.time - a.exit_time for a, b in zip(bounces, [*bounces[1:], rest], strict=True)]
     assert flights[-1] <= window < min(flights[:-1]) and np.all(np.diff(flights) < 0)
     # the bounces before it are those of the plain run, and cost at most a fiftieth of its transitions
     plain = simulate(model.system, x0, "unconstrained", 2.5, h, eps, continuation=False)
@@ -278,7 +279,7 @@ def test_the_bounce_names_its_rest_which_is_taken_only_where_the_stop_pushes():
     # the `zeno` effect sets the window of the accumulation rule, which scenes pass to simulate
     windowed = dp.make(effects={"stop": {"restitution": 0.5}, "zeno": {"window": 5e-3}})
     assert windowed.info["zeno_window"] == 5e-3 and "zeno_window" not in model.info
-    with pytest.raises(SceneError, match="effects.zeno.window"):
+    with pytest.raises(SceneError, match=r"effects\.zeno\.window"):
         dp.make(effects={"zeno": {"window": -1.0}})
 
 
@@ -301,7 +302,7 @@ def test_at_c_half_the_run_to_6_s_converges_as_eps_and_h_shrink_and_link_1_keeps
         last = np.array(ex.sample(np.linspace(5.5, 6.0, 51)).states)
         assert np.ptp(last[:, 0]) > 0.1 and abs(ex.final_state[2]) > 1.5
         finals.append(ex.final_state)
-    diffs = [float(np.max(np.abs(a - b))) for a, b in zip(finals, finals[1:])]
+    diffs = [float(np.max(np.abs(a - b))) for a, b in itertools.pairwise(finals)]
     assert diffs[1] <= 0.5 * diffs[0] and diffs[2] <= 0.5 * diffs[1], diffs
     assert diffs[-1] < 5e-3
     # the paper's relaxed execution holds link 1 in the chattering stop's strip from 1.42 s on,

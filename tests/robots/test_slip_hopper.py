@@ -26,7 +26,7 @@ def test_without_control_the_hopper_is_the_bridge_slip():
     assert [tr.name for tr in mine.transitions] == ["touchdown", "liftoff"]
     assert [tr.name for tr in theirs.transitions] == ["touchdown_leg", "liftoff_leg"]
     assert mine.transitions[0].time == pytest.approx(math.sqrt(2 * (1.1 - math.cos(psi)) / 9.81), abs=1e-6)
-    for a, b in zip(mine.transitions, theirs.transitions):
+    for a, b in zip(mine.transitions, theirs.transitions, strict=True):
         assert a.time == pytest.approx(b.time, abs=1e-9)
     np.testing.assert_allclose(mine.transitions[0].state_after, theirs.transitions[0].state_after, atol=1e-9)
     np.testing.assert_allclose(mine.transitions[1].state_after[[0, 1, 3, 4]], theirs.transitions[1].state_after,
