@@ -115,7 +115,8 @@ def _evaluate(system_name: str, data: ModeData, twin: CompiledMode, t: float,
         images = []
         if twin.resets is not None:
             for e, (tr, reset) in enumerate(zip(data.transitions, data.resets, strict=True)):
-                images.append((f"transition {tr.name}", reset, np.asarray(twin.resets(xc, twin.params, e), dtype=float)))
+                image = np.asarray(twin.resets(xc, twin.params, e), dtype=float)
+                images.append((f"transition {tr.name}", reset, image))
                 cont = tr.continuation
                 if twin.continued and cont is not None:
                     python = cont.reset if cont.reset is not None else np.copy

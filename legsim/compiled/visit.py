@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import gc
 import weakref
+from typing import Any
 
 import numpy as np
 
@@ -24,7 +25,7 @@ from ..relaxed.strip import cross
 from . import kernel as k
 from . import transit as kt
 from .generate import get_kernel, no_resets, plan_for
-from .twin import check_twin
+from .twin import CompiledMode, check_twin
 
 #: Transitions the kernel records per call before Python turns them into Execution pieces.
 RECORD_CHUNK = 4096
@@ -55,8 +56,13 @@ class Table:
                 self.names.append(name)
             return index[name]
 
-        sets: list[tuple] = []
-        params, mi, ti, self.keys, self.twins = [], [], [], [], []
+        sets: list[tuple[Any, ...]] = []
+        params: list[np.ndarray] = []
+        # Rows of ``mi`` and ``ti`` (``transit`` describes their columns).
+        mi: list[tuple[int | bool, ...]] = []
+        ti: list[tuple[int | bool, ...]] = []
+        self.keys: list[tuple[str, str]] = []
+        self.twins: list[tuple[CompiledMode, int]] = []
         offset = 0
         for name in modes:
             data = system.mode_data(name)
@@ -325,7 +331,10 @@ def _build_pieces(run: Run, table: Table, buf: SegmentBuffer, r_i: list, r_f: li
         n = data.mode.dim
         # Views of this buffer: it is never written again once the tail moves out (copies of a
         # narrower mode's points).
-        x, dx = (X[start:end], DX[start:end]) if n == X.shape[1] else (X[start:end, :n].copy(), DX[start:end, :n].copy())
+        if n == X.shape[1]:
+            x, dx = X[start:end], DX[start:end]
+        else:
+            x, dx = X[start:end, :n].copy(), DX[start:end, :n].copy()
         run.segments.append(Segment(mode, T[start:end], x, dx))
         tc, t_land, exit_time, tau = r_f[j]
         tr = data.transitions[e]

@@ -12,7 +12,8 @@ def _resolution_hint(eps: float, x: np.ndarray) -> str:
     """A second explanation when eps is too thin for float64 near x: no step can land inside it."""
     spacing = float(np.spacing(1.0 + float(np.max(np.abs(x)))))
     if eps < 1e3 * spacing:
-        return f"; or eps = {eps:g} is thinner than float64 can resolve near this state (spacing {spacing:.3g}): raise eps"
+        return (f"; or eps = {eps:g} is thinner than float64 can resolve near this state (spacing {spacing:.3g}): "
+                f"raise eps")
     return ""
 
 

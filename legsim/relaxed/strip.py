@@ -33,7 +33,7 @@ from .rules import (
     hermite_weights,
     strip_exit_time,
 )
-from .run import PROGRESS_STEPS, ModeVisit, Run
+from .run import PROGRESS_STEPS, GuardAt, ModeVisit, Run
 from .simultaneous import joint_crossing, joint_name
 
 #: q is located to this share of the strip: it costs guard evaluations only.
@@ -87,7 +87,11 @@ def locate(run: Run, visit: ModeVisit, landing: Landing) -> tuple[int, float, bo
         if g1 < 0.0:
             guard = visit.guards[e]
             g0 = float(guard(t, landing.x))
-            s, evals, converged = crossing_on_step(lambda s, guard=guard: guard(t + s * dt, point(s)), g0, g1, tol)
+
+            def on_step(s: float, guard: GuardAt = guard) -> float:
+                return guard(t + s * dt, point(s))
+
+            s, evals, converged = crossing_on_step(on_step, g0, g1, tol)
             run.guard_evals += 1 + evals
             if best is None or s < best[1]:
                 best = (e, s, converged)
