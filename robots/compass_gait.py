@@ -84,7 +84,8 @@ def stance_model(m: float, mH: float, a: float, b: float, g: float, slope: float
     j1 = model.addJoint(0, pin.JointModelRY(), pin.SE3.Identity(), "stance")
     model.appendBodyToJoint(j1, pin.Inertia(m, np.array([0.0, 0.0, a]), np.zeros((3, 3))), pin.SE3.Identity())
     if mH > 0:
-        model.appendBodyToJoint(j1, pin.Inertia(mH, np.array([0.0, 0.0, leg_length]), np.zeros((3, 3))), pin.SE3.Identity())
+        model.appendBodyToJoint(j1, pin.Inertia(mH, np.array([0.0, 0.0, leg_length]), np.zeros((3, 3))),
+                                pin.SE3.Identity())
     j2 = model.addJoint(j1, pin.JointModelRY(), pin.SE3(np.eye(3), np.array([0.0, 0.0, leg_length])), "hip")
     model.appendBodyToJoint(j2, pin.Inertia(m, np.array([0.0, 0.0, -b]), np.zeros((3, 3))), pin.SE3.Identity())
     add_point_frame(model, "hip_point", j2, (0.0, 0.0, 0.0))
@@ -190,7 +191,7 @@ class CompassGait:
         """Kinetic plus gravitational energy (J), the stance foot at height 0 along the slope."""
         return self.stance_bridge.energy("stance", np.asarray(x, dtype=float)[:4])
 
-    def system(self, x0: Sequence[float] | None = None) -> HybridSystem:
+    def system(self, x0: Sequence[float] | np.ndarray | None = None) -> HybridSystem:
         from .bridge.walker_twins import compass_gait_twin
 
         mode = Mode(5, self.field, names=STATE_NAMES, jacobian=self.jacobian, compiled=compass_gait_twin(self),
@@ -239,7 +240,8 @@ def build(params: dict[str, Any], effects: dict[str, dict[str, Any]]) -> Model:
 
 BUILDER = Builder(
     name="compass_gait",
-    description="passive compass gait walker on a slope (Goswami et al.): two rigid legs, hip mass, plastic heel strike",
+    description=("passive compass gait walker on a slope (Goswami et al.): two rigid legs, hip mass, "
+                 "plastic heel strike"),
     parameters=PARAMETERS,
     effects={},
     build=build,

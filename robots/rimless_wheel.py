@@ -136,7 +136,7 @@ class RimlessWheel:
         """Kinetic plus gravitational energy (J), the contact at height 0 along the slope."""
         return self.stance_bridge.energy("stance", np.asarray(x, dtype=float)[:2])
 
-    def system(self, x0: Sequence[float] | None = None) -> HybridSystem:
+    def system(self, x0: Sequence[float] | np.ndarray | None = None) -> HybridSystem:
         from .bridge.walker_twins import rimless_wheel_twin
 
         mode = Mode(3, self.field, names=STATE_NAMES, compiled=rimless_wheel_twin(self), units=STATE_UNITS)

@@ -95,11 +95,15 @@ def build(params: dict[str, Any], effects: dict[str, dict[str, Any]]) -> Model:
 
     def geometry(mode: str, x: np.ndarray) -> dict[str, np.ndarray]:
         body = np.array([x[0], x[1]])
-        foot = body + rest_length * np.array([math.sin(x[2]), -math.cos(x[2])]) if mode == "flight" else np.array([x[4], 0.0])
+        if mode == "flight":
+            foot = body + rest_length * np.array([math.sin(x[2]), -math.cos(x[2])])
+        else:
+            foot = np.array([x[4], 0.0])
         return {"body": body[None, :], "leg": np.vstack([body, foot])}
 
     info = {"guard_units": {"touchdown": "m (foot height)", "liftoff": "m (rest length minus leg length)"},
-            "parameters": dict(params), "effects": dict(effects), "slip_hopper": {"m": m, "k": k, "l": rest_length, "g": g}}
+            "parameters": dict(params), "effects": dict(effects),
+            "slip_hopper": {"m": m, "k": k, "l": rest_length, "g": g}}
     return Model(system=system, initial_mode="flight", initial_state=dict(INITIAL_STATE), geometry=geometry,
                  scenery={"ground": np.array([[-2.0, 0.0], [400.0, 0.0]])}, info=info)
 

@@ -156,7 +156,8 @@ def _shape_points(shape: Any, name: str, file: Path) -> np.ndarray:
         points = np.asarray(vertices(), dtype=float).reshape(-1, 3)
         if len(points) >= 3:
             return points
-    raise ModelError(f"{file}: visual '{name}' is a {kind}; the outlines know box, cylinder, sphere, capsule and meshes")
+    raise ModelError(f"{file}: visual '{name}' is a {kind}; the outlines know box, cylinder, sphere, capsule "
+                     f"and meshes")
 
 
 def _hull(points: np.ndarray) -> np.ndarray:
@@ -187,8 +188,12 @@ def _record(table: Any, keys: Mapping[str, type], required: Sequence[str], where
     out = {}
     for key, value in table.items():
         kind = keys[key]
-        ok = isinstance(value, bool) if kind is bool else (
-            isinstance(value, (int, float)) and not isinstance(value, bool) if kind is float else isinstance(value, kind))
+        if kind is bool:
+            ok = isinstance(value, bool)
+        elif kind is float:
+            ok = isinstance(value, (int, float)) and not isinstance(value, bool)
+        else:
+            ok = isinstance(value, kind)
         if not ok:
             raise SceneError(f"{where}.{key}: expected a {kind.__name__}, got {value!r}")
         out[key] = float(value) if kind is float else value

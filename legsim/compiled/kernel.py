@@ -254,7 +254,7 @@ def _k_step_loop(P, mi, ti, hist, c, n_groups, weights, n_members, members, b_er
     s_stages = c.shape[0]
     while True:
         fid, _n, n_guards, p, x, K, XS, x_new, k1, work, q, dq = _k_views(P, mi, iv[I_MODE], s_stages, xw, Kw, XSw,
-                                                                         x_neww, k1w, workw, qw, dqw)
+                                                                          x_neww, k1w, workw, qw, dqw)
         code = _k_mode_loop(P, mi, ti, hist, c, n_groups, weights, n_members, members, b_err, fsal, fid, n_guards, p,
                             x, K, XS, x_new, k1, work, q, dq, xw, Kw, workw, qw, gv, raw, T, X, DX, fs, iv, cf, ci,
                             cnt, r_i, r_f, r_q, r_after)

@@ -138,6 +138,25 @@ class RigidContact:
         """The Coulomb friction coefficient of a point contact, or None (no friction limit)."""
         return getattr(self.contact, "friction", None)
 
+    @property
+    def slip_mu(self) -> float:
+        """slip * mu of a slipping contact: minus its friction force per unit normal force."""
+        mu = self.mu
+        assert mu is not None, f"'{self.contact.name}' slips, so it has a friction coefficient"
+        return self.slip * mu
+
+    @property
+    def point(self) -> PointContact:
+        """The declaration of a point contact (kind ``"point"``)."""
+        assert isinstance(self.contact, PointContact), f"'{self.contact.name}' is a joint stop"
+        return self.contact
+
+    @property
+    def stop(self) -> JointStop:
+        """The declaration of a joint stop (kind ``"stop"``)."""
+        assert isinstance(self.contact, JointStop), f"'{self.contact.name}' is a point contact"
+        return self.contact
+
 
 @dataclass(frozen=True)
 class LegFrames:

@@ -42,7 +42,7 @@ import pinocchio as pin
 from legsim.errors import ModelBreakdown, ModelError
 from legsim.hybrid import Transition
 
-from .contacts import SLIP_SUFFIX, RigidContact
+from .contacts import SLIP_SUFFIX, PointContact, RigidContact
 from .dynamics import constraint_forces, control_key, dynamics
 from .model import LWA, BridgeData, BridgeModel
 from .modes import ModeCatalog, ModeSpec, map_state
@@ -72,6 +72,13 @@ class Engaged:
     def name(self) -> str:
         return self.rigid.contact.name
 
+    @property
+    def slide_ratio(self) -> float:
+        """sigma mu: the friction impulse of a sliding contact per unit of its normal impulse."""
+        mu = self.rigid.mu
+        assert mu is not None, "only a contact with friction slides"
+        return self.sigma * mu
+
 
 @dataclass
 class ImpactResult:
@@ -92,7 +99,7 @@ def _rows(model: BridgeModel, data: BridgeData, r: RigidContact, q: np.ndarray) 
         return None, row
     Jf = pin.computeFrameJacobian(model.pin_model, data.pin_data, q, r.frame_id, LWA)
     data.counts["jacobians"] += 1
-    return (Jf[0].copy() if r.contact.tangential else None), Jf[2].copy()
+    return (Jf[0].copy() if r.point.tangential else None), Jf[2].copy()
 
 
 def _solve(engaged: list[Engaged], rows: dict[str, tuple[np.ndarray | None, np.ndarray]], Minv: np.ndarray,
@@ -100,20 +107,28 @@ def _solve(engaged: list[Engaged], rows: dict[str, tuple[np.ndarray | None, np.n
     """The impact of the engaged contacts with their current statuses: (v+, per constrained
     contact its (tangential, normal) impulse; the tangential one is the friction impulse of a
     sliding contact and 0 for a frictionless one)."""
-    J, W, target, at = [], [], [], {}
+    J: list[np.ndarray] = []
+    W: list[np.ndarray] = []
+    target: list[float] = []
+    at: dict[str, tuple[int, int]] = {}
     for e in engaged:
         t_row, n_row = rows[e.name]
         if e.status == FREE:
             continue
         t_index = -1
-        if e.status == STICK:
-            t_index = len(J)
-            J.append(t_row)
-            W.append(t_row)
-            target.append(0.0)
+        w_row = n_row
+        if e.status in (STICK, SLIDE):
+            assert t_row is not None, "a sticking or sliding contact is a point contact pinned along x"
+            if e.status == STICK:
+                t_index = len(J)
+                J.append(t_row)
+                W.append(t_row)
+                target.append(0.0)
+            else:
+                w_row = n_row + e.slide_ratio * t_row
         at[e.name] = (t_index, len(J))
         J.append(n_row)
-        W.append(n_row + e.sigma * e.rigid.mu * t_row if e.status == SLIDE else n_row)
+        W.append(w_row)
         target.append(-e.restitution * float(n_row @ v))
     if not J:
         return v.copy(), {}
@@ -125,7 +140,7 @@ def _solve(engaged: list[Engaged], rows: dict[str, tuple[np.ndarray | None, np.n
         if e.name in at:
             i_t, i_n = at[e.name]
             normal = float(impulse[i_n])
-            tangential = float(impulse[i_t]) if i_t >= 0 else (e.sigma * e.rigid.mu * normal if e.status == SLIDE else 0.0)
+            tangential = float(impulse[i_t]) if i_t >= 0 else (e.slide_ratio * normal if e.status == SLIDE else 0.0)
             out[e.name] = (tangential, normal)
     return v + MWt @ impulse, out
 
@@ -141,7 +156,8 @@ def _change(e: Engaged, impulse: tuple[float, float], velocity: tuple[float, flo
     if e.held:
         return None
     if e.status == FREE:
-        stuck = STICK if e.rigid.kind == "point" and e.rigid.contact.tangential else NORMAL
+        contact = e.rigid.contact
+        stuck = STICK if isinstance(contact, PointContact) and contact.tangential else NORMAL
         return (stuck, 0.0) if vn < -TOL * scale else None
     if e.status == STICK and mu is not None and abs(lt) > mu * max(ln, 0.0) * (1 + TOL) + TOL * scale:
         return SLIDE, (1.0 if lt > 0.0 else -1.0)
@@ -175,7 +191,8 @@ def frictional_impact(model: BridgeModel, data: BridgeData, engaged: list[Engage
         if not fresh:
             raise ModelBreakdown(f"{model.name}: the impact of {[e.name for e in engaged]} with friction has no "
                                  f"consistent outcome (stick, slide or separate) at q={q.tolist()}, v={v.tolist()}")
-        i, (engaged[i].status, engaged[i].sigma) = fresh[0]
+        i, (status, sigma) = fresh[0]
+        engaged[i].status, engaged[i].sigma = status, sigma
 
 
 def _with(engaged: list[Engaged], i: int, change: tuple[str, float]) -> tuple[tuple[str, float], ...]:
@@ -358,7 +375,7 @@ def candidate_targets(model: BridgeModel, modes: ModeCatalog, spec: ModeSpec, in
     each involved contact absent, stuck or (with friction) slipping either way; a ``bouncing``
     one only absent; the ``dropped`` ones (released) absent; the other entries unchanged."""
     fixed = [e for e, c in zip(spec.entries, spec.active, strict=True) if c not in involved and c not in dropped]
-    options = []
+    options: list[list[float | None]] = []  # per involved contact: absent (None) or its slip
     for c in involved:
         if c in bouncing:
             options.append([None])
@@ -448,7 +465,8 @@ def slip_rate(model: BridgeModel, data: BridgeData, spec: ModeSpec, contact: str
             float(pin.getFrameClassicalAcceleration(pm, pd, fid, LWA).linear[0]))
 
 
-def slip_stop_guard(model: BridgeModel, data: BridgeData, spec: ModeSpec, contact: str) -> Callable[[np.ndarray, Any], float]:
+def slip_stop_guard(model: BridgeModel, data: BridgeData, spec: ModeSpec,
+                    contact: str) -> Callable[[np.ndarray, Any], float]:
     """``max(s v_t, s a_t)`` (m/s) of the contact slipping towards s: past once the slip velocity
     has come back through 0 while the friction decelerates it (entering the slipping mode, the
     point accelerates towards s, so the guard is not past there)."""

@@ -117,7 +117,7 @@ def resolve(model: BridgeModel, data: BridgeData, modes: ModeCatalog, mode: str,
         return None
     src = modes.spec(mode)
     if model.coulomb:
-        restitution = {name: 0.0 if rest else model.contacts[name].restitution for name in strikers}
+        restitution = {name: 0.0 if rest else model.rigid[name].contact.restitution for name in strikers}
         dst, image = event_outcome(model, data, modes, src, x, data.control_at(x), strikers, restitution)
         if dst.name == mode and np.array_equal(image, x):
             return None  # none of them approaches the ground at x: they are crossed one by one
@@ -126,7 +126,7 @@ def resolve(model: BridgeModel, data: BridgeData, modes: ModeCatalog, mode: str,
     staying = [c for c in src.active if c not in released]
     kept = [c for c in staying if c in model.rigid]
     n = model.n
-    restitution = {name: 0.0 if rest else model.contacts[name].restitution for name in strikers}
+    restitution = {name: 0.0 if rest else model.rigid[name].contact.restitution for name in strikers}
     v_plus, taking = joint_impact(model, data, kept, strikers, x[:n], x[n:2 * n], restitution)
     plastic = [name for name in taking if restitution[name] == 0.0]
     while True:

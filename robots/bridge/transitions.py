@@ -72,7 +72,7 @@ def _strike_transitions(model: BridgeModel, data: BridgeData, modes: ModeCatalog
                         contact: str) -> list[Transition]:
     """Impact transitions of the inactive rigid contact ``contact``. The contacts staying active
     through the impact are constrained plastically with it (rows of ``impact_velocity``)."""
-    c = model.contacts[contact]
+    c = model.rigid[contact].contact
     staying = set(spec.active) - set(getattr(c, "releases", ()))
     kept = [(r, 0.0) for r in model.contacts if r in staying and r in model.rigid]
     rows = [*kept, (contact, c.restitution)]
@@ -154,7 +154,7 @@ def _coulomb_strikes(model: BridgeModel, data: BridgeData, modes: ModeCatalog, s
                      contact: str) -> list[Transition]:
     """The strike of ``contact`` in a robot with friction: one transition per possible target
     (module docstring); a bouncing contact's canonical bounce is continued by its rest."""
-    c = model.contacts[contact]
+    c = model.rigid[contact].contact
     released = [r for r in getattr(c, "releases", ()) if r in spec.active]
     kept = [r.contact.name for r in spec.rigid if r.contact.name not in released]
     bouncing = [contact] if c.restitution > 0.0 else []
@@ -179,7 +179,8 @@ def _coulomb_strikes(model: BridgeModel, data: BridgeData, modes: ModeCatalog, s
     out = friction.outcome_transitions(model, data, spec, targets, base, solve, label)
     if bouncing:
         target = modes.spec(stuck)
-        rest = Continuation(stuck, lambda x: map_state(model, data, spec, target, x, solve(x, data.control_at(x), True)[1][model.n:2 * model.n]),
+        rest = Continuation(stuck, lambda x: map_state(model, data, spec, target, x,
+                                                       solve(x, data.control_at(x), True)[1][model.n:2 * model.n]),
                             name=f"rest_{contact}")
         out = [Transition(tr.source, tr.target, tr.guard, tr.reset, tr.name, guard_args=tr.guard_args,
                           continuation=rest if tr.target == free else None) for tr in out]

@@ -383,16 +383,17 @@ def _rigid_blocks(blocks: Sequence[RigidContact]) -> list[float]:
 
 def _gap_fields(r: RigidContact, pp: _Params) -> list[float]:
     """Fields G_GAP_KIND, G_A, G_B, G_C of a stop's or point's gap."""
-    if r.kind == "stop":
-        return [0.0, r.dof, r.sign, r.contact.position]
-    return [1.0, pp.slot(r.frame_id), r.contact.ground, 0.0]
+    c = r.contact
+    if isinstance(c, JointStop):
+        return [0.0, r.dof, r.sign, c.position]
+    return [1.0, pp.slot(r.frame_id), c.ground, 0.0]
 
 
 def _strike_records(model: BridgeModel, modes: ModeCatalog, spec: ModeSpec, cname: str,
                     pp: _Params) -> list[tuple[str, list[float]]] | None:
     """(transition name, guard record) of the impacts of the inactive rigid contact ``cname``
     (as transitions._strike_transitions builds them), or None when the twin cannot follow."""
-    c = model.contacts[cname]
+    c = model.rigid[cname].contact
     if getattr(c, "armed", None) is not None:
         return None
     staying = set(spec.active) - set(getattr(c, "releases", ()))

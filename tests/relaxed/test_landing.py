@@ -1,4 +1,6 @@
-"""Landing rules: halving, aiming at the strip's middle on the failed step's interpolant, and landing on the step's own dense output (no step retried); trial steps that leave the model's range are shortened like steps past a strip; the short first step to a simultaneous strip."""
+"""Landing rules: halving, aiming at the strip's middle on the failed step's interpolant, and
+landing on the step's own dense output (no step retried); trial steps that leave the model's
+range are shortened like steps past a strip; the short first step to a simultaneous strip."""
 
 import math
 

@@ -360,7 +360,8 @@ def test_controller_effect_actuates_the_shoulder_only_when_asked():
     # every dynamics solve adds the control: one actuation term per ABA call
     assert counts["actuation_evals"] == counts["aba"] > 0
     # and it changes the motion: the uncontrolled run ends elsewhere
-    assert abs(ex.final_state[0] - simulate(plain.system, x0, "unconstrained", 1.0, 1e-3, 1e-3, "rk4").final_state[0]) > 0.1
+    uncontrolled = simulate(plain.system, x0, "unconstrained", 1.0, 1e-3, 1e-3, "rk4")
+    assert abs(ex.final_state[0] - uncontrolled.final_state[0]) > 0.1
 
 
 def test_controlled_field_and_stop_force_equal_the_closed_form_with_the_shoulder_torque():
@@ -381,7 +382,8 @@ def test_controlled_field_and_stop_force_equal_the_closed_form_with_the_shoulder
         tau = np.array([pd_torque(x, kp, kd, target), 0.0])
         Minv = np.linalg.inv(mass_matrix(q, **P))
         lam = -(Minv[1] @ (tau - coriolis(q, qd, **P) - gravity(q, **P))) / Minv[1, 1]
-        assert bridge.constraint_forces("constrained", x, model.control(0.0, x))["stop"][0] == pytest.approx(lam, abs=1e-9)
+        forces = bridge.constraint_forces("constrained", x, model.control(0.0, x))
+        assert forces["stop"][0] == pytest.approx(lam, abs=1e-9)
         # the constrained field keeps link 2 at the stop and turns the straight pendulum (inertia
         # M_11 at theta2 = 0) under the shoulder torque and gravity
         a = model.system.mode("constrained").field(0.0, x, model.control(0.0, x))
@@ -454,14 +456,16 @@ def test_pd_scene_rests_on_the_stop_where_the_pd_balances_the_straight_pendulum(
     assert abs(ex.final_state[1]) < 1e-12 and np.abs(ex.final_state[2:]).max() < 1e-8
     assert ex.counters["actuation_evals"] > 0
     # the stop holds it there: its force is positive at rest
-    lam = scene.model.info["bridge"].constraint_forces("constrained", ex.final_state, scene.model.control(0.0, ex.final_state))
+    lam = scene.model.info["bridge"].constraint_forces("constrained", ex.final_state,
+                                                       scene.model.control(0.0, ex.final_state))
     assert lam["stop"][0] > 0.0
 
 
 @pytest.mark.parametrize("override, message", [
     ("effects.controller.kp=-1", "effects.controller.kp: -1.0 is out of range, allowed: float in [0, inf)"),
     ("effects.controller.kd=-0.5", "effects.controller.kd: -0.5 is out of range, allowed: float in [0, inf)"),
-    ("effects.controller.target=4", "effects.controller.target: 4.0 is out of range, allowed: float in [-3.14159, 3.14159]"),
+    ("effects.controller.target=4",
+     "effects.controller.target: 4.0 is out of range, allowed: float in [-3.14159, 3.14159]"),
     ("effects.controller.kp=\"x\"", "effects.controller.kp: expected a number"),
     ("effects.controller.kx=1", "effects.controller: unknown parameter(s) ['kx']; allowed: ['kd', 'kp', 'target']"),
     ("effects.controller=1", "effects.controller: expected true, false or a table of parameters"),

@@ -30,7 +30,8 @@ def test_pronk_scene_pronks_and_conserves_energy(name):
     # while the first one's strip holds the state, so the pair is at most one hold (eps) apart.
     eps = scene.integrator["eps"]
     times = [tr.time for tr in ex.transitions]
-    assert len(times) == 8 and all(0.0 <= b - a <= eps * (1 + 1e-9) for a, b in zip(times[::2], times[1::2], strict=True))
+    assert len(times) == 8
+    assert all(0.0 <= b - a <= eps * (1 + 1e-9) for a, b in zip(times[::2], times[1::2], strict=True))
 
 
 @pytest.mark.parametrize("name", ["pronk_pitched", "pronk_pitched_paper"])

@@ -158,8 +158,8 @@ SCENES = [
                               "integrator.eps=1e-3")),
     ("pronk", ()),
     ("pronk_pitched", ()),
-    ("pronk_pitched", ("integrator.method=\"dopri5\"", "integrator.rtol=1e-7", "integrator.atol=1e-7", "integrator.h=0.1",
-               "integrator.landing=\"aim\"")),
+    ("pronk_pitched", ("integrator.method=\"dopri5\"", "integrator.rtol=1e-7", "integrator.atol=1e-7",
+                       "integrator.h=0.1", "integrator.landing=\"aim\"")),
 ]
 
 
