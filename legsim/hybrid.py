@@ -25,7 +25,7 @@ import math
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from types import MappingProxyType
-from typing import Any, cast
+from typing import Any
 
 import numpy as np
 
@@ -38,7 +38,7 @@ GuardFn = Callable[..., float]
 ResetFn = Callable[[np.ndarray], np.ndarray]
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, init=False)
 class Mode:
     """One discrete mode: a state dimension, a vector field and optional coordinate names.
 
@@ -65,29 +65,34 @@ class Mode:
 
     dim: int
     field: FieldFn
-    names: tuple[str, ...] | None = None
-    jacobian: Callable[[float, np.ndarray, Any], np.ndarray] | None = None
-    compiled: Any = None
-    units: tuple[str, ...] | None = None
+    names: tuple[str, ...]
+    jacobian: Callable[[float, np.ndarray, Any], np.ndarray] | None
+    compiled: Any
+    units: tuple[str, ...]
 
-    def __post_init__(self) -> None:
-        if isinstance(self.dim, bool) or not isinstance(self.dim, (int, np.integer)) or self.dim < 1:
-            raise ModelError(f"Mode dim must be a positive integer, got {self.dim!r}")
-        object.__setattr__(self, "dim", int(self.dim))
-        if not callable(self.field):
-            raise ModelError(f"Mode field must be callable f(t, x, u), got {type(self.field).__name__}")
-        if self.jacobian is not None and not callable(self.jacobian):
+    # A hand-written __init__ (the dataclass still gives eq, hash, repr and replace): names and
+    # units may be omitted, but once built a mode always has both, so the fields are typed so.
+    def __init__(self, dim: int, field: FieldFn, names: Iterable[str] | None = None,
+                 jacobian: Callable[[float, np.ndarray, Any], np.ndarray] | None = None, compiled: Any = None,
+                 units: Iterable[str] | None = None) -> None:
+        if isinstance(dim, bool) or not isinstance(dim, (int, np.integer)) or dim < 1:
+            raise ModelError(f"Mode dim must be a positive integer, got {dim!r}")
+        dim = int(dim)
+        if not callable(field):
+            raise ModelError(f"Mode field must be callable f(t, x, u), got {type(field).__name__}")
+        if jacobian is not None and not callable(jacobian):
             raise ModelError("Mode jacobian must be callable jacobian(t, x, u) or None")
-        names = tuple(f"x{i}" for i in range(self.dim)) if self.names is None else tuple(str(n) for n in self.names)
-        if len(names) != self.dim:
-            raise ModelError(f"Mode has dim {self.dim} but {len(names)} coordinate names {names}")
-        if len(set(names)) != len(names):
-            raise ModelError(f"Mode coordinate names must be unique, got {names}")
-        object.__setattr__(self, "names", names)
-        units = ("",) * self.dim if self.units is None else tuple(str(u) for u in self.units)
-        if len(units) != self.dim:
-            raise ModelError(f"Mode has dim {self.dim} but {len(units)} units {units}")
-        object.__setattr__(self, "units", units)
+        name_tuple = tuple(f"x{i}" for i in range(dim)) if names is None else tuple(str(n) for n in names)
+        if len(name_tuple) != dim:
+            raise ModelError(f"Mode has dim {dim} but {len(name_tuple)} coordinate names {name_tuple}")
+        if len(set(name_tuple)) != len(name_tuple):
+            raise ModelError(f"Mode coordinate names must be unique, got {name_tuple}")
+        unit_tuple = ("",) * dim if units is None else tuple(str(u) for u in units)
+        if len(unit_tuple) != dim:
+            raise ModelError(f"Mode has dim {dim} but {len(unit_tuple)} units {unit_tuple}")
+        for key, value in (("dim", dim), ("field", field), ("names", name_tuple), ("jacobian", jacobian),
+                           ("compiled", compiled), ("units", unit_tuple)):
+            object.__setattr__(self, key, value)
 
 
 def _identity(x: np.ndarray) -> np.ndarray:
@@ -386,7 +391,7 @@ class HybridSystem:
 
     def state_names(self, name: str) -> tuple[str, ...]:
         """Coordinate names of mode ``name``."""
-        return cast(tuple[str, ...], self.mode(name).names)  # Mode.__post_init__ always sets the names
+        return self.mode(name).names
 
     def mode_data(self, name: str) -> ModeData:
         """Everything the integrator needs about mode ``name``, gathered once and cached."""

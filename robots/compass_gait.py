@@ -42,7 +42,8 @@ the slope ends a run (status ``model_breakdown``): the walker fell.
 from __future__ import annotations
 
 import math
-from typing import Any, Sequence
+from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
@@ -78,16 +79,17 @@ def _gravity(g: float, slope_deg: float) -> pin.Motion:
 def stance_model(m: float, mH: float, a: float, b: float, g: float, slope: float) -> pin.Model:
     """The stance chain: RY joint ``stance`` at the stance foot (the origin), RY joint ``hip``
     at the hip; frames ``hip_point`` and ``swing_foot``."""
-    l = a + b
+    leg_length = a + b
     model = pin.Model()
     j1 = model.addJoint(0, pin.JointModelRY(), pin.SE3.Identity(), "stance")
     model.appendBodyToJoint(j1, pin.Inertia(m, np.array([0.0, 0.0, a]), np.zeros((3, 3))), pin.SE3.Identity())
     if mH > 0:
-        model.appendBodyToJoint(j1, pin.Inertia(mH, np.array([0.0, 0.0, l]), np.zeros((3, 3))), pin.SE3.Identity())
-    j2 = model.addJoint(j1, pin.JointModelRY(), pin.SE3(np.eye(3), np.array([0.0, 0.0, l])), "hip")
+        model.appendBodyToJoint(j1, pin.Inertia(mH, np.array([0.0, 0.0, leg_length]), np.zeros((3, 3))),
+                                pin.SE3.Identity())
+    j2 = model.addJoint(j1, pin.JointModelRY(), pin.SE3(np.eye(3), np.array([0.0, 0.0, leg_length])), "hip")
     model.appendBodyToJoint(j2, pin.Inertia(m, np.array([0.0, 0.0, -b]), np.zeros((3, 3))), pin.SE3.Identity())
     add_point_frame(model, "hip_point", j2, (0.0, 0.0, 0.0))
-    add_point_frame(model, "swing_foot", j2, (0.0, 0.0, -l))
+    add_point_frame(model, "swing_foot", j2, (0.0, 0.0, -leg_length))
     model.gravity = _gravity(g, slope)
     return model
 
@@ -95,7 +97,7 @@ def stance_model(m: float, mH: float, a: float, b: float, g: float, slope: float
 def floating_model(m: float, mH: float, a: float, b: float, g: float, slope: float) -> pin.Model:
     """Both legs free: planar floating base (x, z, pitch) at the hip carrying leg 1 (pitch is its
     angle), RY joint ``hip`` carrying leg 2; frames ``foot1`` and ``foot2``."""
-    l = a + b
+    leg_length = a + b
     model = pin.Model()
     jp = planar_floating_base(model, names=("hip_x", "hip_z", "leg1"))
     model.appendBodyToJoint(jp, pin.Inertia(m, np.array([0.0, 0.0, -b]), np.zeros((3, 3))), pin.SE3.Identity())
@@ -103,8 +105,8 @@ def floating_model(m: float, mH: float, a: float, b: float, g: float, slope: flo
         model.appendBodyToJoint(jp, pin.Inertia(mH, np.zeros(3), np.zeros((3, 3))), pin.SE3.Identity())
     j2 = model.addJoint(jp, pin.JointModelRY(), pin.SE3.Identity(), "hip")
     model.appendBodyToJoint(j2, pin.Inertia(m, np.array([0.0, 0.0, -b]), np.zeros((3, 3))), pin.SE3.Identity())
-    add_point_frame(model, "foot1", jp, (0.0, 0.0, -l))
-    add_point_frame(model, "foot2", j2, (0.0, 0.0, -l))
+    add_point_frame(model, "foot1", jp, (0.0, 0.0, -leg_length))
+    add_point_frame(model, "foot2", j2, (0.0, 0.0, -leg_length))
     model.gravity = _gravity(g, slope)
     return model
 
@@ -178,9 +180,9 @@ class CompassGait:
     def heel_strike(self, x: np.ndarray) -> np.ndarray:
         """Plastic impact of the swing foot, then the legs exchange roles."""
         th, phi, thd, phid = (float(v) for v in x[:4])
-        l = self.l
-        q_f = np.array([l * math.sin(th), l * math.cos(th), th, phi])
-        v_f = np.array([l * thd * math.cos(th), -l * thd * math.sin(th), thd, phid])
+        leg_length = self.l
+        q_f = np.array([leg_length * math.sin(th), leg_length * math.cos(th), th, phi])
+        v_f = np.array([leg_length * thd * math.cos(th), -leg_length * thd * math.sin(th), thd, phid])
         v_plus = self.impact_bridge.impact_velocity([("foot2", 0.0)], q_f, v_f)
         new_stance_rate = v_plus[2] + v_plus[3]
         return np.array([th + phi, -phi, new_stance_rate, -v_plus[3], x[4] + self.step_length(x)])
@@ -189,7 +191,7 @@ class CompassGait:
         """Kinetic plus gravitational energy (J), the stance foot at height 0 along the slope."""
         return self.stance_bridge.energy("stance", np.asarray(x, dtype=float)[:4])
 
-    def system(self, x0: Sequence[float] | None = None) -> HybridSystem:
+    def system(self, x0: Sequence[float] | np.ndarray | None = None) -> HybridSystem:
         from .bridge.walker_twins import compass_gait_twin
 
         mode = Mode(5, self.field, names=STATE_NAMES, jacobian=self.jacobian, compiled=compass_gait_twin(self),
@@ -238,7 +240,8 @@ def build(params: dict[str, Any], effects: dict[str, dict[str, Any]]) -> Model:
 
 BUILDER = Builder(
     name="compass_gait",
-    description="passive compass gait walker on a slope (Goswami et al.): two rigid legs, hip mass, plastic heel strike",
+    description=("passive compass gait walker on a slope (Goswami et al.): two rigid legs, hip mass, "
+                 "plastic heel strike"),
     parameters=PARAMETERS,
     effects={},
     build=build,

@@ -32,7 +32,8 @@ carries ``control``; without it no actuation term exists (``actuation_evals`` st
 from __future__ import annotations
 
 import math
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
@@ -115,7 +116,7 @@ def make_bridge(params: dict[str, Any], effects: dict[str, dict[str, Any]]) -> C
     damping = None
     if "damping" in effects:
         damping = {"theta1": effects["damping"]["b1"], "theta2": effects["damping"]["b2"]}
-    names = {(): "unconstrained"}
+    names: dict[tuple[str, ...], str] = {(): "unconstrained"}
     if contacts:
         names[("stop",)] = "constrained"
     # Actuate the shoulder only when a controller is asked for: an actuated bridge declares its
@@ -159,7 +160,8 @@ def build(params: dict[str, Any], effects: dict[str, dict[str, Any]]) -> Model:
         if stop is not None:
             # The stop turns with link 1: draw it where link 2 lies at theta2 = position.
             ang = float(x[0]) + stop["position"]
-            parts["stop"] = np.array([pos["elbow"], pos["elbow"] + 0.35 * L2 * np.array([math.sin(ang), -math.cos(ang)])])
+            tip = pos["elbow"] + 0.35 * L2 * np.array([math.sin(ang), -math.cos(ang)])
+            parts["stop"] = np.array([pos["elbow"], tip])
         return parts
 
     reach = 1.1 * (L1 + L2)

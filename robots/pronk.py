@@ -64,7 +64,7 @@ EFFECTS = {
 _MODE_NAMES = {(): "aerial", ("left",): "left", ("right",): "right", ("left", "right"): "both"}
 
 
-def pinocchio_model(m: float = 1.0, I: float = 1.0, d: float = 1.0, g: float = 9.81) -> pin.Model:
+def pinocchio_model(m: float = 1.0, I: float = 1.0, d: float = 1.0, g: float = 9.81) -> pin.Model:  # noqa: E741 -- the paper's symbols, also the scene's parameter names
     """The body on a planar floating base (PX, PZ, RY) with hip frames ``hip_left`` and
     ``hip_right`` at -d/2 and +d/2 along the body axis."""
     model = pin.Model()

@@ -65,7 +65,8 @@ class Leg:
 def leg_point(leg: Leg, q_hip: float, q_knee: float) -> np.ndarray:
     """Foot relative to the hip in the body frame (x, z) (m)."""
     a, b = q_hip, q_hip + q_knee
-    return np.array((-leg.thigh * math.sin(a) - leg.shank * math.sin(b), -leg.thigh * math.cos(a) - leg.shank * math.cos(b)))
+    return np.array((-leg.thigh * math.sin(a) - leg.shank * math.sin(b),
+                     -leg.thigh * math.cos(a) - leg.shank * math.cos(b)))
 
 
 def leg_jacobian(leg: Leg, q_hip: float, q_knee: float) -> np.ndarray:
@@ -104,7 +105,8 @@ def find_legs(bridge: Any) -> list[Leg]:
             continue
         thigh = float(np.linalg.norm(model.jointPlacements[knee].translation))
         shank = float(np.linalg.norm(model.frames[fid].placement.translation))
-        bend = 1.0 if model.upperPositionLimit[model.joints[knee].idx_q] > -model.lowerPositionLimit[model.joints[knee].idx_q] else -1.0
+        knee_q = model.joints[knee].idx_q
+        bend = 1.0 if model.upperPositionLimit[knee_q] > -model.lowerPositionLimit[knee_q] else -1.0
         offset = float(model.jointPlacements[hip].translation[0])
         legs.append(Leg(contact.name, hv, kv, dofs.index(hv), dofs.index(kv), thigh, shank, bend, offset))
     return legs
@@ -274,7 +276,7 @@ class SlipRaibert(Controller):
     ``k_swing (psi* - psi)`` (rad/s) to ``psi* = asin((xd T_s / 2 + k_x (xd - xd*)) / l)``, T_s the
     last stance's duration (s), measured at each liftoff (``reset``); 0 in stance."""
 
-    def __init__(self, l: float, speed: float, k_x: float, k_swing: float, stance_time: float) -> None:
+    def __init__(self, l: float, speed: float, k_x: float, k_swing: float, stance_time: float) -> None:  # noqa: E741 -- the paper's symbols, also the scene's parameter names
         self.l, self.speed, self.k_x, self.k_swing = l, speed, k_x, k_swing
         self.stance_time, self.touchdown, self.in_stance = stance_time, 0.0, False
 

@@ -34,7 +34,8 @@ derivative there ``c^2`` (the step-to-step contraction). Step length ``2 l sin(a
 from __future__ import annotations
 
 import math
-from typing import Any, Sequence
+from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
@@ -65,14 +66,14 @@ def _gravity(g: float, slope_deg: float) -> pin.Motion:
     return pin.Motion(np.array([g * math.sin(s), 0.0, -g * math.cos(s), 0.0, 0.0, 0.0]))
 
 
-def _hub_inertia(m: float, I: float, com: np.ndarray) -> pin.Inertia:
-    return pin.Inertia(m, com, np.diag([I, I, I]))
+def _hub_inertia(m: float, inertia: float, com: np.ndarray) -> pin.Inertia:
+    return pin.Inertia(m, com, np.diag([inertia, inertia, inertia]))
 
 
 class RimlessWheel:
     """The rimless wheel's pieces: field, guards, impact resets, energy and pictures."""
 
-    def __init__(self, m: float = 1.0, I: float = 0.0, l: float = 1.0, spokes: int = 10, g: float = 9.81,
+    def __init__(self, m: float = 1.0, I: float = 0.0, l: float = 1.0, spokes: int = 10, g: float = 9.81,  # noqa: E741 -- paper symbols, scene parameter names
                  slope: float = 5.0) -> None:
         self.m, self.I, self.l, self.spokes, self.g, self.slope = m, I, l, int(spokes), g, slope
         self.alpha = math.pi / self.spokes
@@ -135,7 +136,7 @@ class RimlessWheel:
         """Kinetic plus gravitational energy (J), the contact at height 0 along the slope."""
         return self.stance_bridge.energy("stance", np.asarray(x, dtype=float)[:2])
 
-    def system(self, x0: Sequence[float] | None = None) -> HybridSystem:
+    def system(self, x0: Sequence[float] | np.ndarray | None = None) -> HybridSystem:
         from .bridge.walker_twins import rimless_wheel_twin
 
         mode = Mode(3, self.field, names=STATE_NAMES, compiled=rimless_wheel_twin(self), units=STATE_UNITS)
@@ -148,13 +149,13 @@ class RimlessWheel:
     def geometry(self, mode: str, x: np.ndarray) -> dict[str, np.ndarray]:
         """Spokes and hub in the world (x, z) plane (m), the slope descending to +x."""
         th, foot = float(x[0]), float(x[2])
-        l = self.l
-        hub = np.array([foot + l * math.sin(th), l * math.cos(th)])
+        spoke_length = self.l
+        hub = np.array([foot + spoke_length * math.sin(th), spoke_length * math.cos(th)])
         rot = _slope_rotation(self.slope)
         spokes = []
         for k in range(self.spokes):
             ang = th + 2 * self.alpha * k
-            tip = hub - l * np.array([math.sin(ang), math.cos(ang)])
+            tip = hub - spoke_length * np.array([math.sin(ang), math.cos(ang)])
             spokes.append(rot @ hub)
             spokes.append(rot @ tip)
         return {"spokes": np.array(spokes), "hub": (rot @ hub)[None, :]}

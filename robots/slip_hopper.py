@@ -47,7 +47,7 @@ def swing_rate(u: Any) -> float:
     return float(np.asarray(u, dtype=float).reshape(-1)[0])
 
 
-def make_system(m: float, k: float, l: float, g: float) -> HybridSystem:
+def make_system(m: float, k: float, l: float, g: float) -> HybridSystem:  # noqa: E741 -- the paper's symbols, also the scene's parameter names
     """The SLIP hopper's hybrid system (module docstring) for mass m (kg), stiffness k (N/m),
     rest length l (m) and gravity g (m/s^2)."""
 
@@ -90,16 +90,20 @@ def make_system(m: float, k: float, l: float, g: float) -> HybridSystem:
 
 def build(params: dict[str, Any], effects: dict[str, dict[str, Any]]) -> Model:
     """Builder callback."""
-    m, k, l, g = (params[n] for n in ("m", "k", "l", "g"))
-    system = make_system(m, k, l, g)
+    m, k, rest_length, g = (params[n] for n in ("m", "k", "l", "g"))
+    system = make_system(m, k, rest_length, g)
 
     def geometry(mode: str, x: np.ndarray) -> dict[str, np.ndarray]:
         body = np.array([x[0], x[1]])
-        foot = body + l * np.array([math.sin(x[2]), -math.cos(x[2])]) if mode == "flight" else np.array([x[4], 0.0])
+        if mode == "flight":
+            foot = body + rest_length * np.array([math.sin(x[2]), -math.cos(x[2])])
+        else:
+            foot = np.array([x[4], 0.0])
         return {"body": body[None, :], "leg": np.vstack([body, foot])}
 
     info = {"guard_units": {"touchdown": "m (foot height)", "liftoff": "m (rest length minus leg length)"},
-            "parameters": dict(params), "effects": dict(effects), "slip_hopper": {"m": m, "k": k, "l": l, "g": g}}
+            "parameters": dict(params), "effects": dict(effects),
+            "slip_hopper": {"m": m, "k": k, "l": rest_length, "g": g}}
     return Model(system=system, initial_mode="flight", initial_state=dict(INITIAL_STATE), geometry=geometry,
                  scenery={"ground": np.array([[-2.0, 0.0], [400.0, 0.0]])}, info=info)
 

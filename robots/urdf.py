@@ -24,8 +24,9 @@ draw like any robot's geometry.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any, Mapping, Sequence
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
@@ -146,7 +147,7 @@ def _shape_points(shape: Any, name: str, file: Path) -> np.ndarray:
         circle = np.stack([r * np.cos(ring), r * np.sin(ring), np.zeros_like(ring)], axis=1)
         if kind == "Capsule":  # hemispherical caps: their silhouettes are circles about the ends
             circle = np.stack([r * np.cos(ring), np.zeros_like(ring), r * np.sin(ring)], axis=1)
-        return np.concatenate([circle + (0, 0, h), circle - (0, 0, h)])
+        return np.concatenate([circle + np.array([0.0, 0.0, h]), circle - np.array([0.0, 0.0, h])])
     if kind == "Sphere":
         r = float(shape.radius)
         return np.stack([r * np.cos(ring), np.zeros_like(ring), r * np.sin(ring)], axis=1)
@@ -155,7 +156,8 @@ def _shape_points(shape: Any, name: str, file: Path) -> np.ndarray:
         points = np.asarray(vertices(), dtype=float).reshape(-1, 3)
         if len(points) >= 3:
             return points
-    raise ModelError(f"{file}: visual '{name}' is a {kind}; the outlines know box, cylinder, sphere, capsule and meshes")
+    raise ModelError(f"{file}: visual '{name}' is a {kind}; the outlines know box, cylinder, sphere, capsule "
+                     f"and meshes")
 
 
 def _hull(points: np.ndarray) -> np.ndarray:
@@ -186,8 +188,12 @@ def _record(table: Any, keys: Mapping[str, type], required: Sequence[str], where
     out = {}
     for key, value in table.items():
         kind = keys[key]
-        ok = isinstance(value, bool) if kind is bool else (
-            isinstance(value, (int, float)) and not isinstance(value, bool) if kind is float else isinstance(value, kind))
+        if kind is bool:
+            ok = isinstance(value, bool)
+        elif kind is float:
+            ok = isinstance(value, (int, float)) and not isinstance(value, bool)
+        else:
+            ok = isinstance(value, kind)
         if not ok:
             raise SceneError(f"{where}.{key}: expected a {kind.__name__}, got {value!r}")
         out[key] = float(value) if kind is float else value

@@ -21,6 +21,7 @@ import inspect
 import os
 import sys
 import tempfile
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from types import ModuleType
@@ -221,14 +222,14 @@ def get_kernel(sets: tuple[FunctionSet, ...]) -> Any:
     kernel_fn = _cached_kernel(names, len(sets)) if None not in names else None
     if kernel_fn is None:
         namespace: dict[str, Any] = {f"_f{k}_{kind}": fn for k, functions in enumerate(sets)
-                                     for (kind, _), fn in zip(TWIN_KINDS, functions)}
-        exec(compile(kernel_source([], cache=False, count=len(sets)), "<legsim kernel>", "exec"), namespace)  # noqa: S102
+                                     for (kind, _), fn in zip(TWIN_KINDS, functions, strict=True)}
+        exec(compile(kernel_source([], cache=False, count=len(sets)), "<legsim kernel>", "exec"), namespace)
         kernel_fn = namespace["_k_step_loop"]
     _KERNELS[key] = (sets, kernel_fn)  # holding the functions keeps their ids from being reused
     return kernel_fn
 
 
-def _twin_sources(names: list[str | None]) -> str:
+def _twin_sources(names: Sequence[str | None]) -> str:
     """The source of the twins' modules and of the modules of the jitted functions they use:
     numba links the twins' machine code into the cached kernel, and checks only the generated
     module's own file, so a changed twin must change the kernel's name."""
@@ -252,9 +253,9 @@ def _twin_sources(names: list[str | None]) -> str:
 def _cached_kernel(names: list[str | None], count: int) -> Any:
     imports = []
     for k in range(count):
-        for (kind, _), name in zip(TWIN_KINDS, names[3 * k: 3 * k + 3]):
-            module, qualname = str(name).split(":")
-            imports.append(f"from {module} import {qualname} as _f{k}_{kind}")
+        for (kind, _), name in zip(TWIN_KINDS, names[3 * k: 3 * k + 3], strict=True):
+            module_name, qualname = str(name).split(":")
+            imports.append(f"from {module_name} import {qualname} as _f{k}_{kind}")
     text = kernel_source(imports, cache=True, count=count)
     digest = hashlib.sha256((text + numba.__version__ + _twin_sources(names)).encode()).hexdigest()[:20]
     try:

@@ -28,12 +28,49 @@ from __future__ import annotations
 import math
 
 from ..methods.stepper import error_scale, scaled_norm
-from ..relaxed.rules import (CONVERGED, MAX_AIMS, RESULT, SEARCHING, STATUS, aimed_step, crossing_point,
-                             crossing_start, crossing_update, finish_tolerance, hermite_slope_weights, hermite_weights,
-                             kept_proposal, proposed_step, rejected_step, shortening_exhausted, trial_length)
-from .transit import (CONTINUE, I_MODE, I_XLEN, MI_DIM, MI_FID, MI_NG, MI_P0, MI_P1, MI_SLOT, N_FIELD, N_GUARD,  # noqa: F401
-                      N_RESET, NEXT, TRANSIT_FUNCTIONS, TRANSIT_RULES, TRANSITION, _k_argmin, _k_finite, _twin_field,
-                      _twin_guards, single_crossing, transit)
+from ..relaxed.rules import (
+    CONVERGED,
+    MAX_AIMS,
+    RESULT,
+    SEARCHING,
+    STATUS,
+    aimed_step,
+    crossing_point,
+    crossing_start,
+    crossing_update,
+    finish_tolerance,
+    hermite_slope_weights,
+    hermite_weights,
+    kept_proposal,
+    proposed_step,
+    rejected_step,
+    shortening_exhausted,
+    trial_length,
+)
+from .transit import (  # noqa: F401
+    CONTINUE,
+    I_MODE,
+    I_XLEN,
+    MI_DIM,
+    MI_FID,
+    MI_NG,
+    MI_P0,
+    MI_P1,
+    MI_SLOT,
+    N_FIELD,
+    N_GUARD,
+    N_RESET,
+    NEXT,
+    TRANSIT_FUNCTIONS,
+    TRANSIT_RULES,
+    TRANSITION,
+    _k_argmin,
+    _k_finite,
+    _twin_field,
+    _twin_guards,
+    single_crossing,
+    transit,
+)
 
 # Return codes (TRANSITION, NEXT: ``transit``).
 FINISHED = 0
@@ -216,8 +253,8 @@ def _k_step_loop(P, mi, ti, hist, c, n_groups, weights, n_members, members, b_er
     cnt[N_FIELD] = cnt[N_GUARD] = cnt[N_RESET] = 0
     s_stages = c.shape[0]
     while True:
-        fid, n, n_guards, p, x, K, XS, x_new, k1, work, q, dq = _k_views(P, mi, iv[I_MODE], s_stages, xw, Kw, XSw,
-                                                                         x_neww, k1w, workw, qw, dqw)
+        fid, _n, n_guards, p, x, K, XS, x_new, k1, work, q, dq = _k_views(P, mi, iv[I_MODE], s_stages, xw, Kw, XSw,
+                                                                          x_neww, k1w, workw, qw, dqw)
         code = _k_mode_loop(P, mi, ti, hist, c, n_groups, weights, n_members, members, b_err, fsal, fid, n_guards, p,
                             x, K, XS, x_new, k1, work, q, dq, xw, Kw, workw, qw, gv, raw, T, X, DX, fs, iv, cf, ci,
                             cnt, r_i, r_f, r_q, r_after)
@@ -402,13 +439,14 @@ def _k_first_nan(values, n):
 
 #: The kernel's functions, in the order the generated module defines them.
 KERNEL_FUNCTIONS = (_k_combine, _k_stages, _k_hermite, _k_hermite_slope, _k_first_nan, _k_crossing, _k_aim,
-                    _k_locate, _k_store_crossing, _k_landed, _k_views, _k_mode_loop, _k_step_loop) + TRANSIT_FUNCTIONS
+                    _k_locate, _k_store_crossing, _k_landed, _k_views, _k_mode_loop, _k_step_loop,
+                    *TRANSIT_FUNCTIONS)
 #: The functions every step runs (inlined into the loop by the generator).
 EVERY_STEP = (_k_stages, _k_combine, trial_length, finish_tolerance, rejected_step, proposed_step, kept_proposal,
               error_scale, scaled_norm)
 #: The rules the kernel calls, compiled from their own source.
 RULES = (trial_length, finish_tolerance, rejected_step, proposed_step, kept_proposal, shortening_exhausted,
          aimed_step, crossing_start, crossing_point, crossing_update, hermite_weights, hermite_slope_weights,
-         error_scale, scaled_norm) + TRANSIT_RULES
+         error_scale, scaled_norm, *TRANSIT_RULES)
 #: The placeholder call of _k_stages in _k_mode_loop that the generator unrolls per method.
 STAGES_CALL = "_k_stages(fid, t, x, hk, K, XS, x_new, p, c, n_groups, weights, n_members, members, fsal)  # STAGES"

@@ -27,8 +27,17 @@ from __future__ import annotations
 
 import math
 
-from ..relaxed.rules import (accumulating, entered_in_strip, flight_since, past_strip, restarted_step, scaled_rms,
-                             starting_guess, starting_step, strip_exit_time)
+from ..relaxed.rules import (
+    accumulating,
+    entered_in_strip,
+    flight_since,
+    past_strip,
+    restarted_step,
+    scaled_rms,
+    starting_guess,
+    starting_step,
+    strip_exit_time,
+)
 
 # Return codes: the step loop goes on in the entered mode; Python takes the crossing; Python
 # enters the mode the kernel reached.
@@ -69,7 +78,8 @@ def _twin_resets(fid, x, p, e):  # bound in the generated module
 
 
 def _k_finite(v):
-    for d in range(v.shape[0]):
+    # A loop, not all() over a generator: numba compiles this function.
+    for d in range(v.shape[0]):  # noqa: SIM110
         if not math.isfinite(v[d]):
             return False
     return True

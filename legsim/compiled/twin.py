@@ -114,8 +114,9 @@ def _evaluate(system_name: str, data: ModeData, twin: CompiledMode, t: float,
         g = np.asarray(twin.guards(xc, twin.params), dtype=float)
         images = []
         if twin.resets is not None:
-            for e, (tr, reset) in enumerate(zip(data.transitions, data.resets)):
-                images.append((f"transition {tr.name}", reset, np.asarray(twin.resets(xc, twin.params, e), dtype=float)))
+            for e, (tr, reset) in enumerate(zip(data.transitions, data.resets, strict=True)):
+                image = np.asarray(twin.resets(xc, twin.params, e), dtype=float)
+                images.append((f"transition {tr.name}", reset, image))
                 cont = tr.continuation
                 if twin.continued and cont is not None:
                     python = cont.reset if cont.reset is not None else np.copy

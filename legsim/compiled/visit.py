@@ -18,14 +18,14 @@ import numpy as np
 from ..execution import Segment, SegmentBuffer, Status, Strip, TransitionRecord
 from ..hybrid import ModeData
 from ..relaxed import messages
+from ..relaxed.integrate import out_of_steps
 from ..relaxed.outcomes import Ended, Entered, Outcome
 from ..relaxed.run import ModeVisit, Run
 from ..relaxed.strip import cross
-from ..relaxed.integrate import out_of_steps
 from . import kernel as k
 from . import transit as kt
 from .generate import get_kernel, no_resets, plan_for
-from .twin import check_twin
+from .twin import CompiledMode, check_twin
 
 #: Transitions the kernel records per call before Python turns them into Execution pieces.
 RECORD_CHUNK = 4096
@@ -60,8 +60,13 @@ class Table:
                 self.names.append(name)
             return index[name]
 
-        sets: list[tuple] = []
-        params, mi, ti, self.keys, self.twins = [], [], [], [], []
+        sets: list[tuple[Any, ...]] = []
+        params: list[np.ndarray] = []
+        # Rows of ``mi`` and ``ti`` (``transit`` describes their columns).
+        mi: list[tuple[int | bool, ...]] = []
+        ti: list[tuple[int | bool, ...]] = []
+        self.keys: list[tuple[str, str]] = []
+        self.twins: list[tuple[CompiledMode, int]] = []
         offset = 0
         for name in modes:
             data = system.mode_data(name)
@@ -74,7 +79,7 @@ class Table:
             params.append(twin.params)
             self.twins.append((twin, offset))
             offset += twin.params.size
-            for e, (tr, target) in enumerate(zip(data.transitions, data.targets)):
+            for e, (tr, target) in enumerate(zip(data.transitions, data.targets, strict=True)):
                 cont = tr.continuation
                 ti.append((number(target), kt.NO_MODE if cont is None else number(cont.target),
                            cont is not None and twin.continued,
@@ -331,7 +336,10 @@ def _build_pieces(run: Run, table: Table, buf: SegmentBuffer, r_i: list, r_f: li
         n = data.mode.dim
         # Views of this buffer: it is never written again once the tail moves out (copies of a
         # narrower mode's points).
-        x, dx = (X[start:end], DX[start:end]) if n == X.shape[1] else (X[start:end, :n].copy(), DX[start:end, :n].copy())
+        if n == X.shape[1]:
+            x, dx = X[start:end], DX[start:end]
+        else:
+            x, dx = X[start:end, :n].copy(), DX[start:end, :n].copy()
         run.segments.append(Segment(mode, T[start:end], x, dx))
         tc, t_land, exit_time, tau = r_f[j]
         tr = data.transitions[e]

@@ -18,5 +18,15 @@ from .simulate import LANDINGS, simulate
 from .step_size import ErrorControl, FixedStep
 from .strip import crossing_on_step, hermite, hermite_slope
 
-__all__ = ["Aim", "Dense", "ErrorControl", "FixedStep", "Halve", "LANDINGS", "crossing_on_step", "hermite",
-           "hermite_slope", "simulate"]
+__all__ = [
+           "LANDINGS",
+           "Aim",
+           "Dense",
+           "ErrorControl",
+           "FixedStep",
+           "Halve",
+           "crossing_on_step",
+           "hermite",
+           "hermite_slope",
+           "simulate",
+]

@@ -15,8 +15,8 @@ import math
 
 import numpy as np
 
-from ..execution import Status
 from ..control import Bound
+from ..execution import Status
 from ..hybrid import check_field_output
 from . import messages
 from .outcomes import Ended, Landing, Outcome

@@ -32,7 +32,7 @@ from ..execution import Execution, Status
 from ..methods.stepper import field_value
 from . import messages
 from .entry import enter_mode
-from .outcomes import Ended, Entered, Landing, Outcome, Trial
+from .outcomes import NOT_REACHED, Ended, Entered, Landing, Outcome, Trial
 from .rules import finish_tolerance, shortening_exhausted, trial_length
 from .run import PROGRESS_STEPS, ModeVisit, Run
 from .strip import cross_landing, hermite_landing
@@ -108,6 +108,7 @@ def take_step(run: Run, visit: ModeVisit, remaining: float) -> Trial | Landing |
         if trial.failure is None:
             if trial.gmin != trial.gmin:
                 bad = messages.first_nonfinite(visit.guard_values(trial.t1, trial.x1))
+                assert bad is not None, "gmin is nan: one of the guards is"
                 return Ended(Status.NON_FINITE, messages.nan_guard(visit.name, visit.t + hk, trial.x1,
                                                                    visit.data.transitions[bad].name), visit.t)
             inside = trial.gmin >= -run.eps
@@ -154,7 +155,7 @@ def _attempt(run: Run, visit: ModeVisit, hk: float, last: bool) -> Trial:
         x1, stages = run.stepper(visit.field, t, visit.x, hk, visit.k0, run.control)
         # Exact and warning-free (a sum of squares would overflow for finite states above ~1e154).
         if not all(map(isfinite, x1.tolist())):
-            return Trial(hk, t1, failure="non_finite")
+            return Trial(hk, t1, x1, failure="non_finite")
         single = visit.single_guard
         if single is not None:
             run.guard_evals += 1
@@ -168,7 +169,7 @@ def _attempt(run: Run, visit: ModeVisit, hk: float, last: bool) -> Trial:
             gmin = math.nan  # min() keeps a nan only when it comes first
         return Trial(hk, t1, x1, stages, gvals, gmin)
     except ModelBreakdown as exc:
-        return Trial(hk, t1, failure="model_breakdown", breakdown=exc)
+        return Trial(hk, t1, NOT_REACHED, failure="model_breakdown", breakdown=exc)
 
 
 def _exhausted(run: Run, visit: ModeVisit, trial: Trial, shortened: int) -> Ended:
@@ -201,8 +202,9 @@ def _advance(run: Run, visit: ModeVisit, trial: Trial) -> None:
     """Move the visit to the accepted step's end and store the point."""
     t, x = visit.t, visit.x = trial.t1, trial.x1
     visit.g_last = trial
-    if run.held:  # a zero-order hold samples the controller at the step's start: f changes there
-        run.control.step_from(t, x)
+    held = run.held_control
+    if held is not None:  # a zero-order hold samples the controller at the step's start: f changes there
+        held.step_from(t, x)
         k0 = run.f(visit.field, t, x)
     elif run.tableau.fsal:
         k0 = trial.stages[-1]

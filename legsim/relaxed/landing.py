@@ -17,7 +17,7 @@ from ..errors import ModelBreakdown, SimulationError
 from ..methods import ContinuousStep, Tableau
 from .outcomes import Landing, Trial
 from .rules import MAX_AIMS, aimed_step
-from .run import ModeVisit, Run
+from .run import GuardAt, ModeVisit, Run
 from .strip import crossing_on_step, hermite
 
 
@@ -116,8 +116,11 @@ class Dense(Aim):
         for e, g1 in enumerate(gvals):
             if g1 < 0.0:
                 guard = visit.guards[e]
-                s, evals, converged = crossing_on_step(lambda s, guard=guard: guard(t + s * hk, curve.point(s)),
-                                                       visit.g_here[e], g1, 1e-12 * run.eps)
+
+                def on_curve(s: float, guard: GuardAt = guard) -> float:
+                    return guard(t + s * hk, curve.point(s))
+
+                s, evals, converged = crossing_on_step(on_curve, visit.g_here[e], g1, 1e-12 * run.eps)
                 run.guard_evals += evals
                 if best is None or s < best[1]:
                     best = (e, s, converged)

@@ -3,7 +3,7 @@ alike: each names the mode, the time and the state."""
 
 from __future__ import annotations
 
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -12,7 +12,8 @@ def _resolution_hint(eps: float, x: np.ndarray) -> str:
     """A second explanation when eps is too thin for float64 near x: no step can land inside it."""
     spacing = float(np.spacing(1.0 + float(np.max(np.abs(x)))))
     if eps < 1e3 * spacing:
-        return f"; or eps = {eps:g} is thinner than float64 can resolve near this state (spacing {spacing:.3g}): raise eps"
+        return (f"; or eps = {eps:g} is thinner than float64 can resolve near this state (spacing {spacing:.3g}): "
+                f"raise eps")
     return ""
 
 
@@ -55,6 +56,6 @@ def model_breakdown(reason: object, mode: str, t: float, within: float | None = 
 def first_nonfinite(values: Sequence[float]) -> int | None:
     """Index of the first value that is not finite, or None."""
     for i, v in enumerate(values):
-        if not (v - v == 0.0):
+        if v - v != 0.0:
             return i
     return None

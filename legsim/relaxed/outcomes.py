@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
+from typing import final
 
 import numpy as np
 
@@ -13,6 +14,9 @@ from ..execution import Status
 Curve = Callable[[float], np.ndarray]
 
 
+# Final: the step loop tells its outcomes apart by ``type(step) is X`` (faster than isinstance),
+# which the type checker can narrow only for classes that have no subclasses.
+@final
 @dataclass(frozen=True, slots=True)
 class Ended:
     """The run ends: its status, a message naming mode, time and state (empty when finished),
@@ -36,10 +40,17 @@ class Entered:
 Outcome = Ended | Entered
 
 
+#: ``Trial.x1`` of a step that broke down before reaching its end.
+NOT_REACHED = np.zeros(0)
+NOT_REACHED.flags.writeable = False
+
+
+@final
 @dataclass(slots=True)
 class Trial:
     """One trial step of length ``hk`` from (t, x) to (t1, x1).
 
+    ``x1`` is ``NOT_REACHED`` (empty) when the model broke down on the way.
     ``gvals`` are the guards at (t1, x1) (None for a mode's single guard, whose value is
     ``gmin``), ``gmin`` the least of them (nan when one is nan). ``failure`` is None for a step
     that was evaluated, else why it left the relaxed domain without a guard value:
@@ -48,7 +59,7 @@ class Trial:
 
     hk: float
     t1: float
-    x1: np.ndarray | None = None
+    x1: np.ndarray
     stages: tuple[np.ndarray, ...] = ()
     gvals: list[float] | None = None
     gmin: float = 0.0
@@ -60,6 +71,7 @@ class Trial:
         return [self.gmin] if self.gvals is None else self.gvals
 
 
+@final
 @dataclass(frozen=True, slots=True)
 class Landing:
     """A step that landed in one or more strips, with its own interpolant: ``point(s)`` and

@@ -5,10 +5,12 @@ model/data split: the system is the immutable model, this is its scratch data)."
 from __future__ import annotations
 
 import time
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
+from ..control import Bound
 from ..errors import ContractError, LegsimError, SimulationError
 from ..execution import Execution, SegmentBuffer, Status
 from ..hybrid import HybridSystem, ModeData, not_a_number, real_number
@@ -20,6 +22,8 @@ from .zeno import ZenoWatch, strip_hold_warning
 
 ProgressFn = Callable[[float, float, float], None]
 Control = Callable[[float, np.ndarray], Any]
+#: A mode's guard as the run calls it, ``guard(t, x)``: >= 0 inside the domain.
+GuardAt = Callable[[float, np.ndarray], Any]
 
 #: Wall-clock seconds between progress reports.
 PROGRESS_INTERVAL = 0.2
@@ -32,9 +36,9 @@ class ModeVisit:
     the loop calls them, the segment being stored, and the current point (t, x) with
     k0 = f(t, x) and, for dense landing, the guards there (``g_here``)."""
 
-    __slots__ = ("data", "name", "field", "guards", "single_guard", "buf", "t", "x", "k0", "g_entry", "g_last")
+    __slots__ = ("buf", "data", "field", "g_entry", "g_last", "guards", "k0", "name", "single_guard", "t", "x")
 
-    def __init__(self, data: ModeData, guards: tuple[Callable[[float, np.ndarray], Any], ...], t: float,
+    def __init__(self, data: ModeData, guards: tuple[GuardAt, ...], t: float,
                  x: np.ndarray) -> None:
         self.data = data
         self.name = data.name
@@ -75,7 +79,7 @@ class Run:
         self.eps = eps
         self.control = control
         #: A controller held over each step (zero-order hold), sampled at each step's start.
-        self.held = bool(getattr(control, "hold", False))
+        self.held_control = control if isinstance(control, Bound) and control.hold else None
         self.max_transitions = max_transitions
         self.max_halvings = max_halvings
         self.max_steps = max_steps
@@ -152,7 +156,8 @@ class Run:
             except LegsimError:  # the caller stopping the run with its own error (a deadline)
                 raise
             except Exception as exc:  # a bug in the caller's callback, not the model
-                raise SimulationError(f"the progress callback failed at t={t:.17g}: {type(exc).__name__}: {exc}") from exc
+                raise SimulationError(f"the progress callback failed at t={t:.17g}: "
+                                      f"{type(exc).__name__}: {exc}") from exc
 
     def execution(self, ended: Ended) -> Execution:
         """The execution computed, ending as ``ended`` says."""

@@ -161,12 +161,11 @@ def step_size_rule(tableau: Tableau, h: float, rtol: float | None, atol: float |
     if not tableau.embedded:
         raise SimulationError(f"rtol/atol need a method with an embedded error estimate (bs32, dopri5, dop853), "
                               f"got '{tableau.name}'")
-    rtol = positive("rtol", rtol) if rtol is not None else None
-    atol = positive("atol", atol) if atol is not None else None
-    if rtol is None:
-        rtol = 1e-3 * atol
-    if atol is None:
-        atol = 1e-3 * rtol
+    if rtol is None:  # atol given
+        atol = positive("atol", atol)
+        return ErrorControl(tableau, h, 1e-3 * atol, atol)
+    rtol = positive("rtol", rtol)
+    atol = 1e-3 * rtol if atol is None else positive("atol", atol)
     return ErrorControl(tableau, h, rtol, atol)
 
 
@@ -204,13 +203,13 @@ def _eval_times(t_eval: Any, t0: float, t_final: float) -> np.ndarray | None:
 
 
 def _check_step_budget(max_steps: Any, t0: float, t_final: float, h: float) -> int:
-    max_steps = count("max_steps", max_steps, 1)
+    budget = count("max_steps", max_steps, 1)
     nominal = (t_final - t0) / h
-    if nominal > max_steps:
+    if nominal > budget:
         raise SimulationError(f"t_final - t0 = {t_final - t0:g} s at h = {h:g} s is {nominal:.3g} steps, more than "
-                              f"max_steps = {max_steps}; every step is stored, so check t_final and h, or raise "
+                              f"max_steps = {budget}; every step is stored, so check t_final and h, or raise "
                               f"max_steps if the run is meant to be that long")
-    return max_steps
+    return budget
 
 
 def _initial_state(system: HybridSystem, mode: Any, x0: Any, t0: float, eps: float,

@@ -10,14 +10,23 @@ also restarts each new mode at the standard starting step (``restart``).
 from __future__ import annotations
 
 import math
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
+from ..errors import SimulationError
 from ..methods import Tableau
 from ..methods.stepper import error_estimator, error_norm
-from .rules import (kept_proposal, proposed_step, rejected_step, restarted_step, scaled_rms, starting_guess,
-                    starting_step)
+from .rules import (
+    kept_proposal,
+    proposed_step,
+    rejected_step,
+    restarted_step,
+    scaled_rms,
+    starting_guess,
+    starting_step,
+)
 
 
 class FixedStep:
@@ -52,6 +61,9 @@ class ErrorControl:
         self.h_max = h
         self.h_prop = h
         self.rtol, self.atol = rtol, atol
+        if tableau.error_order is None:
+            raise SimulationError(f"method '{tableau.name}' has an embedded error estimate but no error_order: "
+                                  f"error control needs it for its step exponent")
         self.exponent = -1.0 / (min(tableau.order, tableau.error_order) + 1)
         self._estimate = error_estimator(tableau)
         self._blended = tableau.b_err_low is not None
@@ -59,7 +71,7 @@ class ErrorControl:
     def error(self, hk: float, stages: tuple[np.ndarray, ...], x: np.ndarray, x_new: np.ndarray) -> float:
         """The scaled RMS norm of the step's local error estimate."""
         err, err_low = self._estimate(hk, stages)
-        return error_norm(err.tolist(), err_low.tolist() if self._blended else (), x.tolist(), x_new.tolist(),
+        return error_norm(err.tolist(), err_low.tolist() if err_low is not None else (), x.tolist(), x_new.tolist(),
                           self.rtol, self.atol, self._blended)
 
     def judge(self, hk: float, stages: tuple[np.ndarray, ...], x: np.ndarray, x_new: np.ndarray,

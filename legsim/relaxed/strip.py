@@ -12,7 +12,7 @@ on the interpolant is taken; the next mode then sees its own guard already cross
 
 from __future__ import annotations
 
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 
@@ -20,9 +20,20 @@ from ..errors import ModelBreakdown, ModelError
 from ..execution import SegmentBuffer, Status, Strip, TransitionRecord
 from ..hybrid import Continuation, check_reset_output
 from .outcomes import Ended, Entered, Landing, Outcome
-from .rules import (CONVERGED, RESULT, SEARCHING, STATUS, crossing_point, crossing_start, crossing_update,
-                    entered_in_strip, hermite_slope_weights, hermite_weights, strip_exit_time)
-from .run import PROGRESS_STEPS, ModeVisit, Run
+from .rules import (
+    CONVERGED,
+    RESULT,
+    SEARCHING,
+    STATUS,
+    crossing_point,
+    crossing_start,
+    crossing_update,
+    entered_in_strip,
+    hermite_slope_weights,
+    hermite_weights,
+    strip_exit_time,
+)
+from .run import PROGRESS_STEPS, GuardAt, ModeVisit, Run
 from .simultaneous import joint_crossing, joint_name
 
 #: q is located to this share of the strip: it costs guard evaluations only.
@@ -76,7 +87,11 @@ def locate(run: Run, visit: ModeVisit, landing: Landing) -> tuple[int, float, bo
         if g1 < 0.0:
             guard = visit.guards[e]
             g0 = float(guard(t, landing.x))
-            s, evals, converged = crossing_on_step(lambda s, guard=guard: guard(t + s * dt, point(s)), g0, g1, tol)
+
+            def on_step(s: float, guard: GuardAt = guard) -> float:
+                return guard(t + s * dt, point(s))
+
+            s, evals, converged = crossing_on_step(on_step, g0, g1, tol)
             run.guard_evals += 1 + evals
             if best is None or s < best[1]:
                 best = (e, s, converged)

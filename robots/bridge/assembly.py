@@ -8,8 +8,8 @@ method resolves the mode and hands over to the free functions of ``dynamics``, `
 from __future__ import annotations
 
 import dataclasses
-
-from typing import Any, Callable, Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
@@ -20,7 +20,7 @@ from . import dynamics, guards, impacts
 from .contacts import Contact, frame_id
 from .joint import resolve
 from .model import BridgeData, build_model
-from .modes import ModeCatalog
+from .modes import ModeCatalog, SubsetKey
 from .transitions import outgoing
 
 
@@ -45,8 +45,9 @@ class ContactBridge:
         Optional viscous damping per joint name (N m s/rad or N s/m): ``tau -= b v``.
     actuated:
         Joint names driven by the control ``u`` (one entry of u per joint, N m or N). With any,
-        the guards that depend on constraint forces (releases, plastic impacts) are declared ``guard_args="t,x,u"`` so that the integrator evaluates them
-        with the control at the interpolated crossing time.
+        the guards that depend on constraint forces (releases, plastic impacts) are declared
+        ``guard_args="t,x,u"`` so that the integrator evaluates them with the control at the
+        interpolated crossing time.
     name:
         Name of the system.
 
@@ -63,7 +64,7 @@ class ContactBridge:
         *,
         coordinate_names: Sequence[str] | None = None,
         velocity_names: Sequence[str] | None = None,
-        mode_names: Mapping[Iterable[str], str] | None = None,
+        mode_names: Mapping[SubsetKey, str] | None = None,
         joint_damping: Mapping[str, float] | None = None,
         actuated: Sequence[str] = (),
         name: str = "robot",

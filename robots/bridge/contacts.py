@@ -9,8 +9,9 @@ planar models with: ``planar_floating_base`` and ``add_point_frame``.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any, Callable, Literal, Sequence
+from typing import Any, Literal
 
 import numpy as np
 import pinocchio as pin
@@ -136,6 +137,25 @@ class RigidContact:
     def mu(self) -> float | None:
         """The Coulomb friction coefficient of a point contact, or None (no friction limit)."""
         return getattr(self.contact, "friction", None)
+
+    @property
+    def slip_mu(self) -> float:
+        """slip * mu of a slipping contact: minus its friction force per unit normal force."""
+        mu = self.mu
+        assert mu is not None, f"'{self.contact.name}' slips, so it has a friction coefficient"
+        return self.slip * mu
+
+    @property
+    def point(self) -> PointContact:
+        """The declaration of a point contact (kind ``"point"``)."""
+        assert isinstance(self.contact, PointContact), f"'{self.contact.name}' is a joint stop"
+        return self.contact
+
+    @property
+    def stop(self) -> JointStop:
+        """The declaration of a joint stop (kind ``"stop"``)."""
+        assert isinstance(self.contact, JointStop), f"'{self.contact.name}' is a point contact"
+        return self.contact
 
 
 @dataclass(frozen=True)

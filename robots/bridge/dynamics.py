@@ -14,7 +14,8 @@ active leg, no damping term without damping. Each kind of evaluation is counted 
 from __future__ import annotations
 
 import math
-from typing import Any, Sequence
+from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
@@ -102,7 +103,7 @@ def constraint_system(model: BridgeModel, data: BridgeData, rigid: Sequence[Rigi
             else:
                 J[i] = Jf[2]
                 if r.slip:
-                    friction_rows.append((i, -r.slip * r.mu * Jf[0]))
+                    friction_rows.append((i, -r.slip_mu * Jf[0]))
             has_points = True
         i += r.rows
     if drift and has_points:  # a stop's row is constant: no drift
@@ -216,7 +217,7 @@ def constraint_forces(model: BridgeModel, data: BridgeData, spec: ModeSpec, x: n
     for r in spec.rigid:
         out[r.contact.name] = lam[i:i + r.rows].copy()
         if r.slip:  # the friction force joins the normal force: (f_x, f_z)
-            out[r.contact.name] = np.array((-r.slip * r.mu * lam[i], lam[i]))
+            out[r.contact.name] = np.array((-r.slip_mu * lam[i], lam[i]))
         i += r.rows
     return out
 

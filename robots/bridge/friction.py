@@ -32,8 +32,9 @@ them is past (``outcome_transitions``).
 from __future__ import annotations
 
 import itertools
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any, Callable, Sequence
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
@@ -41,7 +42,7 @@ import pinocchio as pin
 from legsim.errors import ModelBreakdown, ModelError
 from legsim.hybrid import Transition
 
-from .contacts import SLIP_SUFFIX, RigidContact
+from .contacts import SLIP_SUFFIX, PointContact, RigidContact
 from .dynamics import constraint_forces, control_key, dynamics
 from .model import LWA, BridgeData, BridgeModel
 from .modes import ModeCatalog, ModeSpec, map_state
@@ -71,6 +72,13 @@ class Engaged:
     def name(self) -> str:
         return self.rigid.contact.name
 
+    @property
+    def slide_ratio(self) -> float:
+        """sigma mu: the friction impulse of a sliding contact per unit of its normal impulse."""
+        mu = self.rigid.mu
+        assert mu is not None, "only a contact with friction slides"
+        return self.sigma * mu
+
 
 @dataclass
 class ImpactResult:
@@ -91,7 +99,7 @@ def _rows(model: BridgeModel, data: BridgeData, r: RigidContact, q: np.ndarray) 
         return None, row
     Jf = pin.computeFrameJacobian(model.pin_model, data.pin_data, q, r.frame_id, LWA)
     data.counts["jacobians"] += 1
-    return (Jf[0].copy() if r.contact.tangential else None), Jf[2].copy()
+    return (Jf[0].copy() if r.point.tangential else None), Jf[2].copy()
 
 
 def _solve(engaged: list[Engaged], rows: dict[str, tuple[np.ndarray | None, np.ndarray]], Minv: np.ndarray,
@@ -99,20 +107,28 @@ def _solve(engaged: list[Engaged], rows: dict[str, tuple[np.ndarray | None, np.n
     """The impact of the engaged contacts with their current statuses: (v+, per constrained
     contact its (tangential, normal) impulse; the tangential one is the friction impulse of a
     sliding contact and 0 for a frictionless one)."""
-    J, W, target, at = [], [], [], {}
+    J: list[np.ndarray] = []
+    W: list[np.ndarray] = []
+    target: list[float] = []
+    at: dict[str, tuple[int, int]] = {}
     for e in engaged:
         t_row, n_row = rows[e.name]
         if e.status == FREE:
             continue
         t_index = -1
-        if e.status == STICK:
-            t_index = len(J)
-            J.append(t_row)
-            W.append(t_row)
-            target.append(0.0)
+        w_row = n_row
+        if e.status in (STICK, SLIDE):
+            assert t_row is not None, "a sticking or sliding contact is a point contact pinned along x"
+            if e.status == STICK:
+                t_index = len(J)
+                J.append(t_row)
+                W.append(t_row)
+                target.append(0.0)
+            else:
+                w_row = n_row + e.slide_ratio * t_row
         at[e.name] = (t_index, len(J))
         J.append(n_row)
-        W.append(n_row + e.sigma * e.rigid.mu * t_row if e.status == SLIDE else n_row)
+        W.append(w_row)
         target.append(-e.restitution * float(n_row @ v))
     if not J:
         return v.copy(), {}
@@ -124,7 +140,7 @@ def _solve(engaged: list[Engaged], rows: dict[str, tuple[np.ndarray | None, np.n
         if e.name in at:
             i_t, i_n = at[e.name]
             normal = float(impulse[i_n])
-            tangential = float(impulse[i_t]) if i_t >= 0 else (e.sigma * e.rigid.mu * normal if e.status == SLIDE else 0.0)
+            tangential = float(impulse[i_t]) if i_t >= 0 else (e.slide_ratio * normal if e.status == SLIDE else 0.0)
             out[e.name] = (tangential, normal)
     return v + MWt @ impulse, out
 
@@ -140,7 +156,8 @@ def _change(e: Engaged, impulse: tuple[float, float], velocity: tuple[float, flo
     if e.held:
         return None
     if e.status == FREE:
-        stuck = STICK if e.rigid.kind == "point" and e.rigid.contact.tangential else NORMAL
+        contact = e.rigid.contact
+        stuck = STICK if isinstance(contact, PointContact) and contact.tangential else NORMAL
         return (stuck, 0.0) if vn < -TOL * scale else None
     if e.status == STICK and mu is not None and abs(lt) > mu * max(ln, 0.0) * (1 + TOL) + TOL * scale:
         return SLIDE, (1.0 if lt > 0.0 else -1.0)
@@ -174,7 +191,8 @@ def frictional_impact(model: BridgeModel, data: BridgeData, engaged: list[Engage
         if not fresh:
             raise ModelBreakdown(f"{model.name}: the impact of {[e.name for e in engaged]} with friction has no "
                                  f"consistent outcome (stick, slide or separate) at q={q.tolist()}, v={v.tolist()}")
-        i, (engaged[i].status, engaged[i].sigma) = fresh[0]
+        i, (status, sigma) = fresh[0]
+        engaged[i].status, engaged[i].sigma = status, sigma
 
 
 def _with(engaged: list[Engaged], i: int, change: tuple[str, float]) -> tuple[tuple[str, float], ...]:
@@ -298,7 +316,7 @@ def mode_change(model: BridgeModel, data: BridgeData, modes: ModeCatalog, spec: 
                 contact: str, slip: float | None) -> tuple[ModeSpec, np.ndarray]:
     """The mode after ``contact`` lifts off (``slip`` None) or starts slipping towards ``slip``
     in mode ``spec`` at x, the others then settled under their new control (no impulse)."""
-    fixed = [e for e, c in zip(spec.entries, spec.active) if c not in model.rigid]
+    fixed = [e for e, c in zip(spec.entries, spec.active, strict=True) if c not in model.rigid]
     slips = {r.contact.name: r.slip for r in spec.rigid}
     if slip is None:
         del slips[contact]
@@ -338,7 +356,7 @@ def event_outcome(model: BridgeModel, data: BridgeData, modes: ModeCatalog, spec
     released = {r for c in strikers for r in getattr(model.contacts[c], "releases", ())}
     kept = [r.contact.name for r in spec.rigid
             if r.contact.name not in released and r.contact.name not in strikers and r.contact.name not in stopping]
-    fixed = [e for e, c in zip(spec.entries, spec.active) if c not in model.rigid]
+    fixed = [e for e, c in zip(spec.entries, spec.active, strict=True) if c not in model.rigid]
     engaged = engage(model, spec, kept, strikers, restitution, (q, v), data)
     if stopping:
         # Coming to rest is continuous: the impact only removes the residual slip velocity the
@@ -356,8 +374,8 @@ def candidate_targets(model: BridgeModel, modes: ModeCatalog, spec: ModeSpec, in
     """Every mode an event of the ``involved`` rigid contacts in mode ``spec`` may lead to:
     each involved contact absent, stuck or (with friction) slipping either way; a ``bouncing``
     one only absent; the ``dropped`` ones (released) absent; the other entries unchanged."""
-    fixed = [e for e, c in zip(spec.entries, spec.active) if c not in involved and c not in dropped]
-    options = []
+    fixed = [e for e, c in zip(spec.entries, spec.active, strict=True) if c not in involved and c not in dropped]
+    options: list[list[float | None]] = []  # per involved contact: absent (None) or its slip
     for c in involved:
         if c in bouncing:
             options.append([None])
@@ -372,7 +390,7 @@ def candidate_targets(model: BridgeModel, modes: ModeCatalog, spec: ModeSpec, in
                          f"friction, or frictionless ones")
     targets = []
     for choice in itertools.product(*options):
-        entries = fixed + [entry(c, s) for c, s in zip(involved, choice) if s is not None]
+        entries = fixed + [entry(c, s) for c, s in zip(involved, choice, strict=True) if s is not None]
         name = modes.name_of(entries)
         if name not in targets:
             targets.append(name)
@@ -447,7 +465,8 @@ def slip_rate(model: BridgeModel, data: BridgeData, spec: ModeSpec, contact: str
             float(pin.getFrameClassicalAcceleration(pm, pd, fid, LWA).linear[0]))
 
 
-def slip_stop_guard(model: BridgeModel, data: BridgeData, spec: ModeSpec, contact: str) -> Callable[[np.ndarray, Any], float]:
+def slip_stop_guard(model: BridgeModel, data: BridgeData, spec: ModeSpec,
+                    contact: str) -> Callable[[np.ndarray, Any], float]:
     """``max(s v_t, s a_t)`` (m/s) of the contact slipping towards s: past once the slip velocity
     has come back through 0 while the friction decelerates it (entering the slipping mode, the
     point accelerates towards s, so the guard is not past there)."""

@@ -17,14 +17,15 @@ foot into the ground while it moves down, raises ``ModelBreakdown``.
 from __future__ import annotations
 
 import math
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
 
 from legsim.errors import ModelBreakdown
 
-from .contacts import SLIP_SUFFIX, LegFrames, PointContact, RigidContact, SpringLeg, joint_id
+from .contacts import SLIP_SUFFIX, JointStop, LegFrames, PointContact, RigidContact, SpringLeg, joint_id
 from .dynamics import dynamics
 from .model import LWA, BridgeData, BridgeModel
 from .modes import ModeSpec
@@ -65,12 +66,13 @@ def kinematic_guards(model: BridgeModel, data: BridgeData, spec: ModeSpec, x: np
 
 def _touch_guard(model: BridgeModel, data: BridgeData, r: RigidContact, q: np.ndarray, v: np.ndarray) -> float:
     """Touchdown or impact guard of an inactive rigid contact (frame kinematics already computed)."""
-    if r.kind == "stop":
-        return max(r.sign * (q[r.dof] - r.contact.position), r.sign * v[r.dof])
-    z, vz = _frame_height_and_rise(model, data, r.frame_id, r.contact.ground)
+    c = r.contact
+    if isinstance(c, JointStop):
+        return max(r.sign * (q[r.dof] - c.position), r.sign * v[r.dof])
+    z, vz = _frame_height_and_rise(model, data, r.frame_id, c.ground)
     g = max(z, vz)
-    if r.contact.armed is not None:
-        g = max(g, -float(r.contact.armed(q, v)))
+    if c.armed is not None:
+        g = max(g, -float(c.armed(q, v)))
     return g
 
 
@@ -160,7 +162,7 @@ def initial_check(model: BridgeModel, data: BridgeData,
 
 def _past_stop(model: BridgeModel, r: RigidContact, q: np.ndarray, eps: float, mode: str) -> str | None:
     """A message if q lies past the inactive stop by more than eps (rad or m), else None."""
-    c = r.contact
+    c = r.stop
     depth = -r.sign * (q[r.dof] - c.position)
     if depth > eps:
         name = model.coordinate_names[r.dof]
@@ -174,7 +176,7 @@ def _past_stop(model: BridgeModel, r: RigidContact, q: np.ndarray, eps: float, m
 def _below_ground(model: BridgeModel, data: BridgeData, r: RigidContact, q: np.ndarray, eps: float,
                   mode: str) -> str | None:
     """A message if the inactive contact point lies below the ground at q by more than eps (m), else None."""
-    c = r.contact
+    c = r.point
     pin.forwardKinematics(model.pin_model, data.pin_data, q)
     z = pin.updateFramePlacement(model.pin_model, data.pin_data, r.frame_id).translation[2]
     depth = c.ground - z
@@ -201,7 +203,8 @@ def guard_units(model: BridgeModel) -> dict[str, str]:
             if c.friction is not None:
                 units[f"liftoff_{cname}"] = "N (normal contact force)"
                 for suffix in SLIP_SUFFIX.values():
-                    units[f"slip_{cname}{suffix}"] = "N (mu f_n -+ f_t: the force's distance to the friction cone's edge)"
+                    units[f"slip_{cname}{suffix}"] = ("N (mu f_n -+ f_t: the force's distance to the friction "
+                                                      "cone's edge)")
                 units[f"stick_{cname}"] = "m/s (slip velocity, while the friction decelerates it)"
         else:
             joint = model.pin_model.joints[joint_id(model.pin_model, c.joint, "stop", model.name)]

@@ -13,7 +13,8 @@ appends its foothold.
 
 from __future__ import annotations
 
-from typing import Any, Callable, Sequence
+from collections.abc import Callable, Sequence
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
@@ -37,7 +38,7 @@ def impact_velocity(model: BridgeModel, data: BridgeData, rows: Sequence[tuple[s
     data.counts["impacts"] += 1
     rigid = [model.rigid[name] for name, _ in rows]
     J, _ = constraint_rows(model, data, rigid, q, v, drift=False)
-    coeff = np.concatenate([np.full(r.rows, c) for r, (_, c) in zip(rigid, rows)])
+    coeff = np.concatenate([np.full(r.rows, c) for r, (_, c) in zip(rigid, rows, strict=True)])
     Minv = pin.computeMinverse(model.pin_model, data.pin_data, q)
     MJt = Minv @ J.T
     Jv = J @ v

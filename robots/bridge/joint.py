@@ -59,7 +59,7 @@ def newton_impact(model: BridgeModel, data: BridgeData, rows: list[tuple[str, fl
     order): the post-impact velocity (nv,) and each contact's normal impulse (N s or N m s)."""
     rigid = [model.rigid[name] for name, _ in rows]
     J, _ = constraint_rows(model, data, rigid, q, v, drift=False)
-    coeff = np.concatenate([np.full(r.rows, c) for r, (_, c) in zip(rigid, rows)])
+    coeff = np.concatenate([np.full(r.rows, c) for r, (_, c) in zip(rigid, rows, strict=True)])
     Minv = pin.computeMinverse(model.pin_model, data.pin_data, q)
     MJt = Minv @ J.T
     impulse = solve_small(J @ MJt, -(1.0 + coeff) * (J @ v))
@@ -80,7 +80,7 @@ def joint_impact(model: BridgeModel, data: BridgeData, kept: list[str], strikers
     rigid = [model.rigid[name] for name in strikers]
     J, _ = constraint_rows(model, data, rigid, q, v, drift=False)
     rows_end = np.cumsum([r.rows for r in rigid]) - 1
-    normal_rows = {name: J[i] for name, i in zip(strikers, rows_end)}
+    normal_rows = {name: J[i] for name, i in zip(strikers, rows_end, strict=True)}
     taking = [name for name in strikers if normal_rows[name] @ v < 0.0]
     if not taking:  # none approaches: no impulse
         return v.copy(), []
@@ -117,7 +117,7 @@ def resolve(model: BridgeModel, data: BridgeData, modes: ModeCatalog, mode: str,
         return None
     src = modes.spec(mode)
     if model.coulomb:
-        restitution = {name: 0.0 if rest else model.contacts[name].restitution for name in strikers}
+        restitution = {name: 0.0 if rest else model.rigid[name].contact.restitution for name in strikers}
         dst, image = event_outcome(model, data, modes, src, x, data.control_at(x), strikers, restitution)
         if dst.name == mode and np.array_equal(image, x):
             return None  # none of them approaches the ground at x: they are crossed one by one
@@ -126,7 +126,7 @@ def resolve(model: BridgeModel, data: BridgeData, modes: ModeCatalog, mode: str,
     staying = [c for c in src.active if c not in released]
     kept = [c for c in staying if c in model.rigid]
     n = model.n
-    restitution = {name: 0.0 if rest else model.contacts[name].restitution for name in strikers}
+    restitution = {name: 0.0 if rest else model.rigid[name].contact.restitution for name in strikers}
     v_plus, taking = joint_impact(model, data, kept, strikers, x[:n], x[n:2 * n], restitution)
     plastic = [name for name in taking if restitution[name] == 0.0]
     while True:

@@ -9,8 +9,9 @@ modules.
 
 from __future__ import annotations
 
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Callable, Iterable, Mapping, Sequence
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
@@ -154,7 +155,10 @@ def build_model(model: pin.Model, contacts: Sequence[Contact], *, coordinate_nam
     legs: dict[str, LegFrames] = {}
     for contact in declared.values():
         resolved = resolve_contact(own, contact, name, list(declared))
-        (legs if isinstance(resolved, LegFrames) else rigid)[contact.name] = resolved
+        if isinstance(resolved, LegFrames):
+            legs[contact.name] = resolved
+        else:
+            rigid[contact.name] = resolved
     n = int(own.nv)
     coords = _unique_names(coordinate_names, "coordinate_names", _joint_dof_names(own), n, name)
     vels = _unique_names(velocity_names, "velocity_names", tuple(f"{c}d" for c in coords), n, name)

@@ -12,8 +12,9 @@ contacts never enumerates the 2^n subsets.
 
 from __future__ import annotations
 
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, replace
-from typing import Iterable, Mapping
+from typing import TypeVar
 
 import numpy as np
 import pinocchio as pin
@@ -22,6 +23,10 @@ from legsim.errors import ModelError
 
 from .contacts import SLIP_SUFFIX, LegFrames, RigidContact
 from .model import BridgeData, BridgeModel
+
+#: A key of ``mode_names``: a subset of contacts (a tuple, a set, ...) or one contact's name.
+#: A type variable, not a union: a mapping's key type is invariant, and each caller's dict has its own.
+SubsetKey = TypeVar("SubsetKey", bound=Iterable[str])
 
 
 @dataclass(frozen=True, eq=False)
@@ -80,13 +85,13 @@ class ModeCatalog:
     (a single entry may be given by its name).
     """
 
-    def __init__(self, model: BridgeModel, mode_names: Mapping[Iterable[str] | str, str] | None = None) -> None:
+    def __init__(self, model: BridgeModel, mode_names: Mapping[SubsetKey, str] | None = None) -> None:
         self._model = model
         self._names: dict[frozenset[str], str] = {}
         self._sets: dict[str, frozenset[str]] = {}
         self._specs: dict[str, ModeSpec] = {}
         for key, mname in (mode_names or {}).items():
-            subset = frozenset([key] if isinstance(key, str) else key)
+            subset: frozenset[str] = frozenset([key]) if isinstance(key, str) else frozenset(key)
             unknown = sorted(e for e in subset if self._parse(e) is None)
             if unknown:
                 raise ModelError(f"{model.name}: mode_names names unknown contact(s) {unknown}; "
@@ -110,7 +115,7 @@ class ModeCatalog:
     def _check(self, subset: frozenset[str]) -> None:
         model = self._model
         parsed = [self._parse(e) for e in subset]
-        unknown = sorted(e for e, p in zip(subset, parsed) if p is None)
+        unknown = sorted(e for e, p in zip(subset, parsed, strict=True) if p is None)
         if unknown:
             raise ModelError(f"{model.name}: unknown contact(s) {unknown}; contacts: {model.order}")
         names = [p[0] for p in parsed if p is not None]

@@ -72,10 +72,10 @@ def _strike_transitions(model: BridgeModel, data: BridgeData, modes: ModeCatalog
                         contact: str) -> list[Transition]:
     """Impact transitions of the inactive rigid contact ``contact``. The contacts staying active
     through the impact are constrained plastically with it (rows of ``impact_velocity``)."""
-    c = model.contacts[contact]
+    c = model.rigid[contact].contact
     staying = set(spec.active) - set(getattr(c, "releases", ()))
     kept = [(r, 0.0) for r in model.contacts if r in staying and r in model.rigid]
-    rows = kept + [(contact, c.restitution)]
+    rows = [*kept, (contact, c.restitution)]
     stick = modes.spec(modes.name_of(staying | {contact}))
     free = modes.spec(modes.name_of(staying))
     args = model.guard_args
@@ -92,7 +92,7 @@ def _strike_transitions(model: BridgeModel, data: BridgeData, modes: ModeCatalog
     bounce_reset = impact_reset(model, data, spec, free, rows)
     # When bounces accumulate the contact rests: the plastic impact into the constrained mode,
     # left again by its release guard where the contact force changes sign.
-    rest = Continuation(stick.name, impact_reset(model, data, spec, stick, kept + [(contact, 0.0)]),
+    rest = Continuation(stick.name, impact_reset(model, data, spec, stick, [*kept, (contact, 0.0)]),
                         name=f"rest_{contact}")
     return [Transition(spec.name, free.name, kinematic_guard(model, data, spec, contact), bounce_reset,
                        name=f"bounce_{contact}", continuation=rest)]
@@ -100,7 +100,7 @@ def _strike_transitions(model: BridgeModel, data: BridgeData, modes: ModeCatalog
 
 def _replaced(modes: ModeCatalog, spec: ModeSpec, contact: str, new_entry: str) -> str:
     """The mode of ``spec`` with ``contact``'s entry replaced by ``new_entry``."""
-    return modes.name_of([new_entry if c == contact else e for e, c in zip(spec.entries, spec.active)])
+    return modes.name_of([new_entry if c == contact else e for e, c in zip(spec.entries, spec.active, strict=True)])
 
 
 def _settled_changes(model: BridgeModel, data: BridgeData, modes: ModeCatalog, spec: ModeSpec,
@@ -122,7 +122,7 @@ def _settled_changes(model: BridgeModel, data: BridgeData, modes: ModeCatalog, s
     if not slip:
         for s, suffix in SLIP_SUFFIX.items():
             base = friction.stick_slip_guard(model, data, spec, contact, s)
-            out += _changes(model, data, spec, targets, base, f"slip", contact, s, modes, suffix)
+            out += _changes(model, data, spec, targets, base, "slip", contact, s, modes, suffix)
         return out
 
     def solve(x, u):
@@ -138,7 +138,7 @@ def _changes(model: BridgeModel, data: BridgeData, spec: ModeSpec, targets: list
              contact: str, slip: float | None, modes: ModeCatalog, suffix: str = "") -> list[Transition]:
     """Outcome transitions of a contact lifting off (slip None) or starting to slip."""
     canonical = _replaced(modes, spec, contact, contact + suffix) if slip is not None else \
-        modes.name_of([e for e, c in zip(spec.entries, spec.active) if c != contact])
+        modes.name_of([e for e, c in zip(spec.entries, spec.active, strict=True) if c != contact])
 
     def solve(x, u):
         return friction.mode_change(model, data, modes, spec, x, u, contact, slip)
@@ -154,13 +154,13 @@ def _coulomb_strikes(model: BridgeModel, data: BridgeData, modes: ModeCatalog, s
                      contact: str) -> list[Transition]:
     """The strike of ``contact`` in a robot with friction: one transition per possible target
     (module docstring); a bouncing contact's canonical bounce is continued by its rest."""
-    c = model.contacts[contact]
+    c = model.rigid[contact].contact
     released = [r for r in getattr(c, "releases", ()) if r in spec.active]
     kept = [r.contact.name for r in spec.rigid if r.contact.name not in released]
     bouncing = [contact] if c.restitution > 0.0 else []
-    targets = friction.candidate_targets(model, modes, spec, kept + [contact], bouncing, released)
-    staying = [e for e, a in zip(spec.entries, spec.active) if a not in released]
-    free, stuck = modes.name_of(staying), modes.name_of(staying + [contact])
+    targets = friction.candidate_targets(model, modes, spec, [*kept, contact], bouncing, released)
+    staying = [e for e, a in zip(spec.entries, spec.active, strict=True) if a not in released]
+    free, stuck = modes.name_of(staying), modes.name_of([*staying, contact])
     kind = "bounce" if bouncing else ("impact" if isinstance(c, JointStop) else "touchdown")
 
     def label(target: str) -> str:
@@ -179,7 +179,8 @@ def _coulomb_strikes(model: BridgeModel, data: BridgeData, modes: ModeCatalog, s
     out = friction.outcome_transitions(model, data, spec, targets, base, solve, label)
     if bouncing:
         target = modes.spec(stuck)
-        rest = Continuation(stuck, lambda x: map_state(model, data, spec, target, x, solve(x, data.control_at(x), True)[1][model.n:2 * model.n]),
+        rest = Continuation(stuck, lambda x: map_state(model, data, spec, target, x,
+                                                       solve(x, data.control_at(x), True)[1][model.n:2 * model.n]),
                             name=f"rest_{contact}")
         out = [Transition(tr.source, tr.target, tr.guard, tr.reset, tr.name, guard_args=tr.guard_args,
                           continuation=rest if tr.target == free else None) for tr in out]

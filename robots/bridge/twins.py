@@ -21,7 +21,8 @@ below the ground: ``ModelBreakdown`` in Python) gives nan guards, and the twin i
 from __future__ import annotations
 
 import math
-from typing import Any, Sequence
+from collections.abc import Sequence
+from typing import Any
 
 import numba
 import numpy as np
@@ -105,7 +106,7 @@ def add_counts(counts: dict[str, int], twin: CompiledMode | None, reset: bool = 
     if reset:
         tail[:] = 0.0
         return
-    for name, value in zip(COUNTED, tail):
+    for name, value in zip(COUNTED, tail, strict=True):
         counts[name] = counts.get(name, 0) + int(value)
 
 
@@ -325,7 +326,7 @@ def bridge_resets(x, p, e):
         lsn_impact(np.int64(p[P_HANDLE]), x.ctypes.data, _ptr(x, n), np.int64(p[g + G_NIMPACT]),
                    _ptr(p, int(p[g + G_IMPACT])), _ptr(p, int(p[g + G_ROW])), _ptr(out, n))
         return out
-    if kind == K_GAP or kind == K_PLASTIC:
+    if kind in (K_GAP, K_PLASTIC):
         out = x.copy()
         count(p, C_IMPACTS)
         lsn_impact(np.int64(p[P_HANDLE]), x.ctypes.data, _ptr(x, n), np.int64(p[g + G_NIMPACT]),
@@ -382,21 +383,22 @@ def _rigid_blocks(blocks: Sequence[RigidContact]) -> list[float]:
 
 def _gap_fields(r: RigidContact, pp: _Params) -> list[float]:
     """Fields G_GAP_KIND, G_A, G_B, G_C of a stop's or point's gap."""
-    if r.kind == "stop":
-        return [0.0, r.dof, r.sign, r.contact.position]
-    return [1.0, pp.slot(r.frame_id), r.contact.ground, 0.0]
+    c = r.contact
+    if isinstance(c, JointStop):
+        return [0.0, r.dof, r.sign, c.position]
+    return [1.0, pp.slot(r.frame_id), c.ground, 0.0]
 
 
 def _strike_records(model: BridgeModel, modes: ModeCatalog, spec: ModeSpec, cname: str,
                     pp: _Params) -> list[tuple[str, list[float]]] | None:
     """(transition name, guard record) of the impacts of the inactive rigid contact ``cname``
     (as transitions._strike_transitions builds them), or None when the twin cannot follow."""
-    c = model.contacts[cname]
+    c = model.rigid[cname].contact
     if getattr(c, "armed", None) is not None:
         return None
     staying = set(spec.active) - set(getattr(c, "releases", ()))
     kept = [r for r in model.contacts if r in staying and r in model.rigid]
-    rows = [model.rigid[r] for r in kept + [cname]]
+    rows = [model.rigid[r] for r in [*kept, cname]]
     impact_at = pp.append(_rigid_blocks(rows))
     gap = _gap_fields(model.rigid[cname], pp)
     if c.restitution > 0.0:
@@ -470,7 +472,7 @@ def bridge_twin(model: BridgeModel, modes: ModeCatalog, spec: ModeSpec,
     header[P_SPRING] = pp.append([v for lg in spec.springs for v in (lg.hip_id, lg.leg.stiffness, lg.leg.rest_length,
                                                                      lg.leg.damping, lg.leg.ground)])
     header[P_NDAMP] = len(model.damping_idx)
-    header[P_DAMP] = pp.append([v for k, b in zip(model.damping_idx, model.damping_b) for v in (k, b)])
+    header[P_DAMP] = pp.append([v for k, b in zip(model.damping_idx, model.damping_b, strict=True) for v in (k, b)])
     header[P_NGUARD] = len(records)
     header[P_GUARD] = pp.append([v for _, record in records for v in record])
     header[P_NFRAME] = len(pp.frames)

@@ -70,9 +70,9 @@ def compass_resets(x, p, e):
     """Heel strike (CompassGait.heel_strike): plastic impact of the swing foot on the
     floating-base model, then the legs exchange roles and foot_x advances by the step."""
     th, phi, thd, phid = x[0], x[1], x[2], x[3]
-    l = p[CG_L]
-    qf = np.array([l * math.sin(th), l * math.cos(th), th, phi])
-    vf = np.array([l * thd * math.cos(th), -l * thd * math.sin(th), thd, phid])
+    leg_length = p[CG_L]
+    qf = np.array([leg_length * math.sin(th), leg_length * math.cos(th), th, phi])
+    vf = np.array([leg_length * thd * math.cos(th), -leg_length * thd * math.sin(th), thd, phid])
     v_plus = np.empty(4)
     count(p, C_IMPACTS)
     lsn_impact(np.int64(p[CG_IMPACT]), qf.ctypes.data, vf.ctypes.data, np.int64(1), _ptr(p, CG_BLOCK),

@@ -1,4 +1,6 @@
-"""The loop of paper 000 Fig. 12: the nominal step restored after halving and after each transition, guards on time and input crossed at their exact times, model breakdowns and nan guards ending the run with the execution kept."""
+"""The loop of paper 000 Fig. 12: the nominal step restored after halving and after each
+transition, guards on time and input crossed at their exact times, model breakdowns and nan
+guards ending the run with the execution kept."""
 
 from __future__ import annotations
 

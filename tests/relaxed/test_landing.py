@@ -1,4 +1,6 @@
-"""Landing rules: halving, aiming at the strip's middle on the failed step's interpolant, and landing on the step's own dense output (no step retried); trial steps that leave the model's range are shortened like steps past a strip; the short first step to a simultaneous strip."""
+"""Landing rules: halving, aiming at the strip's middle on the failed step's interpolant, and
+landing on the step's own dense output (no step retried); trial steps that leave the model's
+range are shortened like steps past a strip; the short first step to a simultaneous strip."""
 
 import math
 
@@ -75,7 +77,7 @@ def test_dense_landing_with_dop853_keeps_the_strip_guarantee_on_the_pronk():
 
 
 def test_dense_landing_needs_a_method_with_a_continuous_extension():
-    with pytest.raises(SimulationError, match="landing 'dense'.*'rk4'.*aim"):
+    with pytest.raises(SimulationError, match=r"landing 'dense'.*'rk4'.*aim"):
         simulate(doubling_system(), [1.0], "grow", 1.0, 0.1, 1e-6, method="rk4", landing="dense")
     with pytest.raises(SimulationError, match="landing must be one of"):
         simulate(doubling_system(), [1.0], "grow", 1.0, 0.1, 1e-6, landing="bisect")

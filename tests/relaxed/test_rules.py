@@ -21,7 +21,7 @@ def test_a_jump_is_bracketed_and_its_domain_side_returned_unconverged():
 
 def test_an_end_already_at_the_root_is_straddled_at_once():
     # The guard is ~0 at s = 1 (to rounding): the search must not crawl towards it.
-    s, evals, converged = crossing_on_step(lambda s: 1e-16 * (1.0 - s) - 1e-30, 1e-16, -1e-30, 0.0)
+    _s, evals, converged = crossing_on_step(lambda s: 1e-16 * (1.0 - s) - 1e-30, 1e-16, -1e-30, 0.0)
     assert converged and evals < 60
 
 

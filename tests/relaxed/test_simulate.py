@@ -97,7 +97,8 @@ def test_initial_state_inside_the_strip_is_accepted_and_crosses_at_once(ball):
 
 
 def test_unknown_method_lists_the_choices(ball):
-    with pytest.raises(SimulationError, match=r"^unknown method 'rk5'; choose one of \['bs32', 'dop853', 'dopri5', 'euler'"):
+    with pytest.raises(SimulationError,
+                       match=r"^unknown method 'rk5'; choose one of \['bs32', 'dop853', 'dopri5', 'euler'"):
         simulate(ball, [1.0, 0.0], "flight", 1.0, 1e-3, 1e-3, method="rk5")
 
 

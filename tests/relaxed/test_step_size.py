@@ -11,7 +11,8 @@ import math
 import numpy as np
 import pytest
 
-from legsim import HybridSystem, Mode, Transition, simulate
+from legsim import HybridSystem, Mode, SimulationError, Transition, simulate
+from legsim.methods.tableau import tableau
 
 
 def drift_system(gap: float) -> HybridSystem:
@@ -52,3 +53,11 @@ def test_a_landing_does_not_shrink_the_next_modes_steps(method):
     grown = int(np.argmax(steps_in_c >= h - 1e-12))
     assert steps_in_c[grown] == pytest.approx(h) and grown == math.ceil(math.log(h / start, 5))
     assert np.all(steps_in_c[grown:-1] == pytest.approx(h))
+
+
+def test_error_control_refuses_an_embedded_pair_without_its_order():
+    # Heun with an embedded Euler, declared without error_order: the controller's step exponent
+    # -1 / (min(order, error_order) + 1) cannot be formed, so the run is refused by name.
+    heun_euler = tableau("heun_euler", 2, [0.0, 1.0], [[0.0, 0.0], [1.0, 0.0]], [0.5, 0.5], b_hat=[1.0, 0.0])
+    with pytest.raises(SimulationError, match="method 'heun_euler' has an embedded error estimate but no error_order"):
+        simulate(drift_system(0.5), [0.0, 0.0], "a", 1.0, 0.1, 1e-3, method=heun_euler, rtol=1e-6)

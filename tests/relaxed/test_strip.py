@@ -21,7 +21,7 @@ def test_strips_hold_the_guard_point_and_exit_with_the_reset(ball_run):
     ex = ball_run
     # One strip per transition, plus the one the run ended in.
     assert len(ex.strips) == len(ex.transitions) + ex.final_in_strip > 5
-    for strip, tr in zip(ex.strips[:20], ex.transitions[:20]):
+    for strip, tr in zip(ex.strips[:20], ex.transitions[:20], strict=False):
         assert strip.time == tr.time and strip.exit_time == tr.exit_time
         inside = np.linspace(strip.time, strip.exit_time, 7)[1:-1]
         s = ex.sample(inside)
@@ -31,7 +31,7 @@ def test_strips_hold_the_guard_point_and_exit_with_the_reset(ball_run):
         # The guard point is on the guard (the floor), never the overshot landing point.
         assert abs(strip.state[0]) <= 1e-9 * 1e-3
         # At the exit the state is the reset image, and the next segment starts from it.
-        mode, x = ex.state_at(tr.exit_time)
+        _mode, x = ex.state_at(tr.exit_time)
         np.testing.assert_array_equal(x, tr.state_after)
         np.testing.assert_allclose(tr.state_after, [tr.state_before[0], -0.5 * tr.state_before[1]])
         # Strip length = landing - crossing + eps - depth.

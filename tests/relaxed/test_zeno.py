@@ -6,6 +6,7 @@ the new API. (The ball and the oscillator against their closed forms:
 tests/test_systems_bouncing_ball.py, tests/systems/test_oscillator_zeno.py; the double
 pendulum: tests/robots/test_double_pendulum.py.)"""
 
+import itertools
 import math
 
 import numpy as np
@@ -90,7 +91,7 @@ def test_a_chattering_user_system_without_continuation_says_where_its_crossings_
     assert ex.status == "finished"
     (warning,) = ex.warnings
     trs = ex.transitions
-    flights = [b.time - a.exit_time for a, b in zip(trs, trs[1:])]
+    flights = [b.time - a.exit_time for a, b in itertools.pairwise(trs)]
     # it began at the crossing that ends the first flight within the window (all are shrinking)
     start = next(i for i, f in enumerate(flights) if f <= h + eps) + 1
     assert all(f > h + eps for f in flights[:start - 1]) and all(np.diff(flights[:start]) < 0)

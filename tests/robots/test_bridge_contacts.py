@@ -3,12 +3,11 @@ messages that name them."""
 
 import pinocchio as pin
 import pytest
-
-from legsim import ModelError, SceneError
 from legsim.robots import pronk
 from legsim.robots.bridge import ContactBridge, JointStop, PointContact, SpringLeg
 
 from helpers.bridge_models import ball_model
+from legsim import ModelError, SceneError
 
 
 def test_bad_models_and_contacts_are_named():
@@ -33,9 +32,9 @@ def test_bad_models_and_contacts_are_named():
         ContactBridge(model, [], mode_names={("foot",): "stance"})
     unbounded = pin.Model()
     unbounded.addJoint(0, pin.JointModelRUBY(), pin.SE3.Identity(), "wheel")
-    with pytest.raises(ModelError, match="nq == model.nv"):
+    with pytest.raises(ModelError, match=r"nq == model\.nv"):
         ContactBridge(unbounded)
-    with pytest.raises(ModelError, match="pinocchio.Model"):
+    with pytest.raises(ModelError, match=r"pinocchio\.Model"):
         ContactBridge("robot.urdf")
     # builder parameters are checked before anything is built
     with pytest.raises(SceneError, match=r"robot.parameters.k: -1.0 is out of range"):

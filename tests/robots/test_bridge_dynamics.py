@@ -6,11 +6,10 @@ import math
 import numpy as np
 import pinocchio as pin
 import pytest
-
-from legsim import ModelError, simulate
 from legsim.robots.bridge import ContactBridge, PointContact, add_point_frame
 
 from helpers.bridge_models import G, ball_model, rod_model
+from legsim import ModelError, simulate
 
 
 def test_point_contact_holds_a_base_until_the_swinging_pendulum_lifts_it():
@@ -41,7 +40,7 @@ def test_point_contact_holds_a_base_until_the_swinging_pendulum_lifts_it():
     roots = np.roots([3 * m * G, m * (L * w0**2 - 2 * G), M * G])
     c = max(roots.real)  # phi grows from 0, cos(phi) falls from 1: the larger root comes first
     assert math.cos(lift.state_before[2]) == pytest.approx(c, abs=1e-8)
-    ground = [seg for seg in ex.segments if seg.mode == "ground"][0]
+    ground = next(seg for seg in ex.segments if seg.mode == "ground")
     assert np.abs(ground.x[:, [0, 1, 3, 4]]).max() < 1e-12  # the contact held the base still
 
 

@@ -9,12 +9,12 @@ import math
 import numpy as np
 import pinocchio as pin
 import pytest
+from legsim.robots.bridge import ContactBridge, PointContact, add_point_frame, planar_floating_base
+from legsim.robots.bridge.friction import Engaged, frictional_impact, mode_change
 from scipy.optimize import brentq
 
 from legsim import simulate
 from legsim.errors import ModelBreakdown, ModelError
-from legsim.robots.bridge import ContactBridge, PointContact, add_point_frame, planar_floating_base
-from legsim.robots.bridge.friction import Engaged, frictional_impact, mode_change
 
 G = 9.81
 LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
@@ -225,7 +225,7 @@ def test_friction_declarations_are_checked():
     body = planar_floating_base(model)
     model.appendBodyToJoint(body, pin.Inertia(1.0, np.zeros(3), np.eye(3)), pin.SE3.Identity())
     add_point_frame(model, "p", body, (0, 0, 0))
-    with pytest.raises(ModelError, match="friction -0.1 is .*|friction must be >= 0"):
+    with pytest.raises(ModelError, match=r"friction -0\.1 is .*|friction must be >= 0"):
         ContactBridge(model, [PointContact("p", "p", friction=-0.1)])
     with pytest.raises(ModelError, match="needs tangential=True"):
         ContactBridge(model, [PointContact("p", "p", friction=0.5, tangential=False)])

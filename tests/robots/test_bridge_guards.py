@@ -6,11 +6,10 @@ import math
 import numpy as np
 import pinocchio as pin
 import pytest
-
-from legsim import ModelError, simulate
 from legsim.robots.bridge import ContactBridge, JointStop, PointContact
 
 from helpers.bridge_models import G, ball_model, rod_model
+from legsim import ModelError, simulate
 
 
 def test_release_under_a_time_varying_control_is_located_exactly():

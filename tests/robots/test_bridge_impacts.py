@@ -6,11 +6,10 @@ import math
 import numpy as np
 import pinocchio as pin
 import pytest
-
-from legsim import simulate
 from legsim.robots.bridge import ContactBridge, PointContact, add_point_frame
 
 from helpers.bridge_models import G, ball_model, rod_model
+from legsim import simulate
 
 
 def test_bouncing_point_is_the_closed_form_ball():

@@ -5,10 +5,10 @@ the initial tilt; the law against Pinocchio's impulse dynamics; complementarity 
 import numpy as np
 import pinocchio as pin
 import pytest
-
-from legsim import simulate
 from legsim.robots import rod
 from legsim.robots.bridge.joint import joint_impact, newton_impact
+
+from legsim import simulate
 
 C, G = 0.5, 9.81
 

@@ -4,11 +4,10 @@ import math
 
 import numpy as np
 import pytest
-
-from legsim import ModelError
 from legsim.robots.bridge import ContactBridge, PointContact, add_point_frame
 
 from helpers.bridge_models import rod_model
+from legsim import ModelError
 
 
 def test_a_striking_contact_releases_the_ones_it_names():
@@ -24,7 +23,7 @@ def test_a_striking_contact_releases_the_ones_it_names():
         ("liftoff_a", "free"), ("touchdown_b", "b"), ("graze_b", "free")}
     # the impact solves only the striking contact: the released one may move
     q, v = np.array([0.0, 0.0, 0.0]), np.array([0.0, -1.0, 0.5])
-    reset = [tr for tr in system.outgoing("a") if tr.name == "touchdown_b"][0].reset
+    reset = next(tr for tr in system.outgoing("a") if tr.name == "touchdown_b").reset
     v_after = reset(np.concatenate([q, v]))[3:]
     np.testing.assert_allclose(v_after, bridge.impact_velocity([("b", 0.0)], q, v), atol=1e-15)
     with pytest.raises(ModelError, match="releases must be a tuple of contact names"):

@@ -7,10 +7,10 @@ import os
 
 import numpy as np
 import pytest
+from legsim.robots import pronk, slip
 
 from legsim import simulate
 from legsim.hybrid import reachable_modes
-from legsim.robots import pronk, slip
 
 FULL = os.environ.get("LEGSIM_FULL") == "1"
 
@@ -30,7 +30,7 @@ def newton_euler(x, legs, p=PAPER, b=0.0):
     axis_rate = thd * np.array([-math.sin(th), -math.cos(th)])
     force = np.array([0.0, -p["m"] * p["g"]])
     torque = 0.0
-    for side, foot_x in zip(legs, x[6:]):
+    for side, foot_x in zip(legs, x[6:], strict=False):
         sign = -1.0 if side == "left" else 1.0
         arm = sign * p["d"] / 2 * axis
         hip = np.array([X, Z]) + arm
@@ -69,8 +69,8 @@ def test_stance_fields_equal_newton_euler():
         for _ in range(5):
             x = np.concatenate([[0.3, 0.8, rng.uniform(-0.6, 0.6)], rng.normal(size=3),
                                 0.3 + rng.uniform(-0.5, 0.5, len(legs))])
-            np.testing.assert_allclose(f(0.0, x, None), np.concatenate([newton_euler(x, legs, params), np.zeros(len(legs))]),
-                                       rtol=0, atol=1e-12)
+            expected = np.concatenate([newton_euler(x, legs, params), np.zeros(len(legs))])
+            np.testing.assert_allclose(f(0.0, x, None), expected, rtol=0, atol=1e-12)
     damped = pronk.make(params, {"damping": {"b": 0.7}})
     x = np.array([0.1, 0.7, 0.2, 1.0, -2.0, 0.5, 0.4, 1.1])
     np.testing.assert_allclose(damped.system.mode("both").field(0.0, x, None)[:6],
@@ -179,7 +179,7 @@ def test_legs_and_damping_are_built_only_when_asked():
     assert sorted(reachable_modes(pronk.make().system, "aerial")) == ["aerial", "both", "left", "right"]
     left_only = pronk.make(effects={"right_leg": False})
     assert sorted(reachable_modes(left_only.system, "aerial")) == ["aerial", "left"]
-    assert left_only.system.mode("left").names == pronk.STATE_NAMES + ("left_foot_x",)
+    assert left_only.system.mode("left").names == (*pronk.STATE_NAMES, "left_foot_x")
     none = pronk.make(effects={"left_leg": False, "right_leg": False})
     assert reachable_modes(none.system, "aerial") == ["aerial"] and none.system.outgoing("aerial") == ()
 
@@ -220,7 +220,7 @@ def test_a_runner_that_falls_ends_the_run_instead_of_flying_through_the_ground()
         assert model.system.energy(tr.target, tr.state_after) == pytest.approx(
             model.system.energy(tr.source, tr.state_before), abs=1e-10)
     # the guard: a buried foot is in flight while it rises, past by its depth once it descends
-    guard = [tr.guard for tr in model.system.outgoing("aerial") if tr.name == "touchdown_left"][0]
+    guard = next(tr.guard for tr in model.system.outgoing("aerial") if tr.name == "touchdown_left")
     buried = math.cos(math.pi / 5) - 0.1
     assert guard(pronk.state({"z": buried, "zd": 1.0})) == pytest.approx(1.0)
     assert guard(pronk.state({"z": buried, "zd": -1e-3})) == pytest.approx(-0.1)

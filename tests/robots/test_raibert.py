@@ -8,10 +8,10 @@ import math
 import numpy as np
 import pinocchio as pin
 import pytest
+from legsim.robots import raibert
 
 from legsim.control import available, get_controller
 from legsim.derivatives import jacobian
-from legsim.robots import raibert
 from legsim.scene import load_scene
 
 SCENE = "quadruped_pronk"
@@ -35,7 +35,7 @@ def test_leg_kinematics_match_the_parsed_urdf():
     assert sorted(leg.contact for leg in legs) == ["front", "hind"]
     rng = np.random.default_rng(11)
     for leg in legs:
-        hip_joint = [j for j in range(model.njoints) if model.joints[j].idx_v == leg.hip][0]
+        hip_joint = next(j for j in range(model.njoints) if model.joints[j].idx_v == leg.hip)
         foot = model.getFrameId(f"{leg.contact}_foot")
         for _ in range(5):
             q = pin.neutral(model)
@@ -44,7 +44,7 @@ def test_leg_kinematics_match_the_parsed_urdf():
             relative = data.oMf[foot].translation - data.oMi[hip_joint].translation
             np.testing.assert_allclose(raibert.leg_point(leg, *q[[leg.hip, leg.knee]]), relative[[0, 2]], atol=1e-14)
             angles = q[[leg.hip, leg.knee]]
-            numeric = jacobian(lambda a: raibert.leg_point(leg, *a), angles)
+            numeric = jacobian(lambda a, leg=leg: raibert.leg_point(leg, *a), angles)
             np.testing.assert_allclose(raibert.leg_jacobian(leg, *angles), numeric, atol=1e-9)
         for length, angle in ((0.42, 0.0), (0.3, 0.4), (0.45, -0.3)):
             hip, knee = raibert.leg_angles(leg, length, angle)
@@ -58,7 +58,7 @@ def test_symmetric_pronk_lands_both_feet_in_one_joint_impact_with_zero_pitch():
     touchdown is one joint impact of both feet, and the pitch stays 0 up to rounding."""
     ex = pronk(1.0, "controller.parameters.speed=0.0").simulate()
     assert ex.status == "finished" and not ex.warnings
-    touchdowns = [tr for tr, mode in zip(ex.transitions, ex.mode_sequence) if mode == "flight"]
+    touchdowns = [tr for tr, mode in zip(ex.transitions, ex.mode_sequence, strict=False) if mode == "flight"]
     assert len(touchdowns) == 2 and all(tr.name == "joint_hind+front" for tr in touchdowns)
     assert max(float(np.max(np.abs(seg.x[:, 2]))) for seg in ex.segments) < 1e-12
     assert max(float(np.max(np.abs(seg.x[:, 7]))) for seg in ex.segments) < 1e-12  # forward speed
@@ -86,7 +86,7 @@ def test_symmetric_pronk_hops_in_place_for_twenty_seconds():
     to rounding."""
     ex = pronk(20.0, "controller.parameters.speed=0.0").simulate()
     assert ex.status == "finished" and ex.t_end == 20.0 and not ex.warnings
-    touchdowns = [tr for tr, mode in zip(ex.transitions, ex.mode_sequence) if mode == "flight"]
+    touchdowns = [tr for tr, mode in zip(ex.transitions, ex.mode_sequence, strict=False) if mode == "flight"]
     assert len(touchdowns) >= 40 and {tr.name for tr in touchdowns} == {"joint_hind+front"}
     heights = np.array([tr.state_before[1] for tr in touchdowns[5:]])
     assert np.ptp(heights) < 2e-3

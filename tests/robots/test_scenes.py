@@ -30,7 +30,8 @@ def test_pronk_scene_pronks_and_conserves_energy(name):
     # while the first one's strip holds the state, so the pair is at most one hold (eps) apart.
     eps = scene.integrator["eps"]
     times = [tr.time for tr in ex.transitions]
-    assert len(times) == 8 and all(0.0 <= b - a <= eps * (1 + 1e-9) for a, b in zip(times[::2], times[1::2]))
+    assert len(times) == 8
+    assert all(0.0 <= b - a <= eps * (1 + 1e-9) for a, b in zip(times[::2], times[1::2], strict=True))
 
 
 @pytest.mark.parametrize("name", ["pronk_pitched", "pronk_pitched_paper"])
@@ -115,7 +116,7 @@ def test_geometry_is_polylines_of_the_robot(name):
     scene = load_scene(name)
     ex = scene.simulate()
     model = scene.model
-    l = scene.parameters.get("l")
+    rest_length = scene.parameters.get("l")
     for seg in ex.segments:
         for x in seg.x[:: max(1, len(seg.x) // 5)]:
             parts = model.geometry(seg.mode, x)
@@ -129,9 +130,9 @@ def test_geometry_is_polylines_of_the_robot(name):
                     if stance:  # the foot is pinned at its foothold on the ground
                         names = scene.model.system.state_names(seg.mode)
                         assert foot.tolist() == [x[names.index(part[4:] + "_foot_x")], 0.0]
-                        assert length <= l + 1e-9
+                        assert length <= rest_length + 1e-9
                     else:  # flight: rest length
-                        assert length == pytest.approx(l, abs=1e-12)
+                        assert length == pytest.approx(rest_length, abs=1e-12)
             if name.startswith("double"):
                 link1, link2 = parts["link1"], parts["link2"]
                 assert np.linalg.norm(link1[1] - link1[0]) == pytest.approx(1.0, abs=1e-12)

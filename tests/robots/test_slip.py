@@ -5,21 +5,21 @@ import math
 
 import numpy as np
 import pytest
+from legsim.robots import slip
 
 from legsim import simulate
 from legsim.hybrid import reachable_modes
-from legsim.robots import slip
 
 
 def test_touchdown_time_and_foothold_are_the_ballistic_closed_form():
     model = slip.make()
-    z0, xd0, psi, g, l = 1.1, 3.4, math.pi / 5, 9.81, 1.0
+    z0, xd0, psi, g, rest_length = 1.1, 3.4, math.pi / 5, 9.81, 1.0
     ex = simulate(model.system, slip.state(), "flight", 0.4, 1e-3, 1e-3)
     td = ex.transitions[0]
-    t_td = math.sqrt(2 * (z0 - l * math.cos(psi)) / g)
+    t_td = math.sqrt(2 * (z0 - rest_length * math.cos(psi)) / g)
     # free fall is a quadratic: RK4 and the Hermite crossing are exact to rounding
     assert td.name == "touchdown_leg" and td.time == pytest.approx(t_td, abs=1e-12)
-    assert td.state_after[-1] == pytest.approx(xd0 * t_td + l * math.sin(psi), abs=1e-12)
+    assert td.state_after[-1] == pytest.approx(xd0 * t_td + rest_length * math.sin(psi), abs=1e-12)
     assert model.system.state_names("stance") == ("x", "z", "xd", "zd", "leg_foot_x")
 
 
@@ -28,7 +28,7 @@ def test_stance_without_gravity_conserves_angular_momentum_about_the_foothold():
     model = slip.make(effects={"gravity": False})
     ex = simulate(model.system, slip.state({"zd": -2.0}), "flight", 1.0, 1e-3, 1e-3)
     assert [tr.name for tr in ex.transitions][:2] == ["touchdown_leg", "liftoff_leg"]
-    stance = [seg for seg in ex.segments if seg.mode == "stance"][0]
+    stance = next(seg for seg in ex.segments if seg.mode == "stance")
     x, z, xd, zd, foot = stance.x.T
     L = (x - foot) * zd - z * xd
     assert np.ptp(L) < 1e-9 and abs(L[0]) > 1.0

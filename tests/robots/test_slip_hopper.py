@@ -6,11 +6,11 @@ import math
 
 import numpy as np
 import pytest
+from legsim.robots import raibert, slip, slip_hopper
 
 from legsim import simulate
 from legsim.errors import SceneError
 from legsim.orbits import OrbitProblem, Section, find_orbit
-from legsim.robots import raibert, slip, slip_hopper
 from legsim.scene import load_scene
 
 
@@ -26,7 +26,7 @@ def test_without_control_the_hopper_is_the_bridge_slip():
     assert [tr.name for tr in mine.transitions] == ["touchdown", "liftoff"]
     assert [tr.name for tr in theirs.transitions] == ["touchdown_leg", "liftoff_leg"]
     assert mine.transitions[0].time == pytest.approx(math.sqrt(2 * (1.1 - math.cos(psi)) / 9.81), abs=1e-6)
-    for a, b in zip(mine.transitions, theirs.transitions):
+    for a, b in zip(mine.transitions, theirs.transitions, strict=True):
         assert a.time == pytest.approx(b.time, abs=1e-9)
     np.testing.assert_allclose(mine.transitions[0].state_after, theirs.transitions[0].state_after, atol=1e-9)
     np.testing.assert_allclose(mine.transitions[1].state_after[[0, 1, 3, 4]], theirs.transitions[1].state_after,

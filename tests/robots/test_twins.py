@@ -14,11 +14,11 @@ import math
 import numpy as np
 import pinocchio as pin
 import pytest
-
-import legsim.compiled as compiled
-from legsim import _native, simulate
 from legsim.robots import compass_gait, double_pendulum, pronk, rimless_wheel
 from legsim.robots.bridge import twins, walker_twins
+
+import legsim.compiled as compiled
+from legsim import _native
 from legsim.scene import load_scene
 
 pytestmark = pytest.mark.skipif(not _native.load(), reason=f"native library: {_native.status()}")
@@ -108,9 +108,9 @@ def test_heel_strike_matches_pinocchio_impulse_dynamics():
     for th, ph, thd, phd in RNG.uniform(-0.4, 0.4, (10, 4)):
         x = np.array([th, ph, thd, phd, 0.0])
         after = twin.resets(x, twin.params, 0)
-        l = walker.l
-        q = np.array([l * math.sin(th), l * math.cos(th), th, ph])
-        v = np.array([l * thd * math.cos(th), -l * thd * math.sin(th), thd, phd])
+        leg_length = walker.l
+        q = np.array([leg_length * math.sin(th), leg_length * math.cos(th), th, ph])
+        v = np.array([leg_length * thd * math.cos(th), -leg_length * thd * math.sin(th), thd, phd])
         J = pin.computeFrameJacobian(model, data, q, foot2, pin.LOCAL_WORLD_ALIGNED)[[0, 2]]
         v_plus = pin.impulseDynamics(model, data, q, v, J, 0.0, 0.0)
         close(after[2:4], [v_plus[2] + v_plus[3], -v_plus[3]], 1e-10)
@@ -134,7 +134,7 @@ def run(monkeypatch, scene, python, overrides=()):
 def assert_same_run(a, b, tol=1e-9):
     assert a.status == b.status and a.message == b.message
     assert [t.name for t in a.transitions] == [t.name for t in b.transitions]
-    for ta, tb in zip(a.transitions, b.transitions):
+    for ta, tb in zip(a.transitions, b.transitions, strict=True):
         assert abs(ta.time - tb.time) <= tol and abs(ta.exit_time - tb.exit_time) <= tol
         close(ta.state_before, tb.state_before, tol)
         close(ta.state_after, tb.state_after, tol)
@@ -158,8 +158,8 @@ SCENES = [
                               "integrator.eps=1e-3")),
     ("pronk", ()),
     ("pronk_pitched", ()),
-    ("pronk_pitched", ("integrator.method=\"dopri5\"", "integrator.rtol=1e-7", "integrator.atol=1e-7", "integrator.h=0.1",
-               "integrator.landing=\"aim\"")),
+    ("pronk_pitched", ("integrator.method=\"dopri5\"", "integrator.rtol=1e-7", "integrator.atol=1e-7",
+                       "integrator.h=0.1", "integrator.landing=\"aim\"")),
 ]
 
 

@@ -7,20 +7,21 @@ import math
 import numpy as np
 import pinocchio as pin
 import pytest
-
-from legsim.errors import ModelError, SceneError
 from legsim.robots import urdf
 from legsim.robots.bridge import planar_floating_base
+
+from legsim.errors import ModelError, SceneError
 from legsim.scene import load_scene
 
 QUADRUPED = urdf.bundled("quadruped.urdf")
-CONTACTS = [{"name": "hind", "frame": "hind_foot", "friction": 0.8}, {"name": "front", "frame": "front_foot", "friction": 0.8}]
+CONTACTS = [{"name": "hind", "frame": "hind_foot", "friction": 0.8},
+            {"name": "front", "frame": "front_foot", "friction": 0.8}]
 
 
 def hand_built_quadruped() -> pin.Model:
     """The bundled quadruped from its numbers (scenarios/quadruped.urdf), with Pinocchio's API:
-    body 5 kg (pitch inertia 0.45 kg m^2), thighs 0.4 kg and shanks 0.15 kg of 0.25 m, hips at x = -+0.3 m. Joints in the
-    parser's order (front before hind: Pinocchio visits a link's children by name)."""
+    body 5 kg (pitch inertia 0.45 kg m^2), thighs 0.4 kg and shanks 0.15 kg of 0.25 m, hips at x = -+0.3 m.
+    Joints in the parser's order (front before hind: Pinocchio visits a link's children by name)."""
     model = pin.Model()
     body = planar_floating_base(model, names=("x", "z", "pitch"))
     model.appendBodyToJoint(body, pin.Inertia(5.0, np.zeros(3), np.diag([0.02, 0.45, 0.45])), pin.SE3.Identity())
@@ -97,12 +98,14 @@ def test_the_scene_declares_contacts_and_stops_with_a_file_relative_to_it():
 
 def test_bad_urdfs_and_tables_are_named(tmp_path):
     continuous = tmp_path / "wheel.urdf"
-    continuous.write_text(QUADRUPED.read_text().replace('name="hind_knee" type="revolute"', 'name="hind_knee" type="continuous"'))
-    with pytest.raises(ModelError, match="joint 'hind_knee'.*nq = 2, nv = 1"):
+    continuous.write_text(QUADRUPED.read_text().replace('name="hind_knee" type="revolute"',
+                                                        'name="hind_knee" type="continuous"'))
+    with pytest.raises(ModelError, match=r"joint 'hind_knee'.*nq = 2, nv = 1"):
         urdf.load_model(continuous)
     tilted = tmp_path / "tilted.urdf"
-    tilted.write_text(QUADRUPED.read_text().replace('<axis xyz="0 1 0"/>\n    <limit lower="0.0"', '<axis xyz="1 0 0"/>\n    <limit lower="0.0"'))
-    with pytest.raises(ModelError, match="joint 'hind_knee'.*does not move in the \\(x, z\\) plane"):
+    tilted.write_text(QUADRUPED.read_text().replace('<axis xyz="0 1 0"/>\n    <limit lower="0.0"',
+                                                    '<axis xyz="1 0 0"/>\n    <limit lower="0.0"'))
+    with pytest.raises(ModelError, match=r"joint 'hind_knee'.*does not move in the \(x, z\) plane"):
         urdf.load_model(tilted)
     with pytest.raises(ModelError, match="could not read the URDF"):
         urdf.load_model(tmp_path / "missing.urdf")
@@ -111,7 +114,8 @@ def test_bad_urdfs_and_tables_are_named(tmp_path):
     with pytest.raises(SceneError, match=r"stops\[0\].position: expected a float"):
         urdf.make({"file": str(QUADRUPED), "stops": [{"name": "s", "joint": "hind_knee", "position": "high"}]})
     scene = tmp_path / "robot.toml"
-    text = (urdf.bundled("quadruped_stand.toml")).read_text().replace('file = "quadruped.urdf"', 'file = "nowhere.urdf"')
+    text = urdf.bundled("quadruped_stand.toml").read_text().replace('file = "quadruped.urdf"',
+                                                                   'file = "nowhere.urdf"')
     scene.write_text(text)
     with pytest.raises(SceneError, match=r"robot.parameters.file: no such file 'nowhere.urdf'"):
         load_scene(str(scene))
