@@ -45,6 +45,7 @@ lint: $(LINT_STAMP)
 	ln -s "$(CURDIR)/robots" "$(CURDIR)/viz" $(TYPECHECK_TREE)/
 	@status=0; \
 	echo "$(BIN)/ruff check"; $(BIN)/ruff check || status=1; \
+	echo "$(BIN)/ruff format --check"; $(BIN)/ruff format --check || status=1; \
 	echo "$(BIN)/mypy"; $(BIN)/mypy || status=1; \
 	exit $$status
 

@@ -72,9 +72,15 @@ class Mode:
 
     # A hand-written __init__ (the dataclass still gives eq, hash, repr and replace): names and
     # units may be omitted, but once built a mode always has both, so the fields are typed so.
-    def __init__(self, dim: int, field: FieldFn, names: Iterable[str] | None = None,
-                 jacobian: Callable[[float, np.ndarray, Any], np.ndarray] | None = None, compiled: Any = None,
-                 units: Iterable[str] | None = None) -> None:
+    def __init__(
+        self,
+        dim: int,
+        field: FieldFn,
+        names: Iterable[str] | None = None,
+        jacobian: Callable[[float, np.ndarray, Any], np.ndarray] | None = None,
+        compiled: Any = None,
+        units: Iterable[str] | None = None,
+    ) -> None:
         if isinstance(dim, bool) or not isinstance(dim, (int, np.integer)) or dim < 1:
             raise ModelError(f"Mode dim must be a positive integer, got {dim!r}")
         dim = int(dim)
@@ -90,8 +96,14 @@ class Mode:
         unit_tuple = ("",) * dim if units is None else tuple(str(u) for u in units)
         if len(unit_tuple) != dim:
             raise ModelError(f"Mode has dim {dim} but {len(unit_tuple)} units {unit_tuple}")
-        for key, value in (("dim", dim), ("field", field), ("names", name_tuple), ("jacobian", jacobian),
-                           ("compiled", compiled), ("units", unit_tuple)):
+        for key, value in (
+            ("dim", dim),
+            ("field", field),
+            ("names", name_tuple),
+            ("jacobian", jacobian),
+            ("compiled", compiled),
+            ("units", unit_tuple),
+        ):
             object.__setattr__(self, key, value)
 
 
@@ -181,8 +193,11 @@ class Transition:
             if not isinstance(self.continuation, Continuation):
                 raise ModelError(f"transition {label}: continuation must be a legsim.Continuation or None")
             if not self.continuation.name:
-                object.__setattr__(self, "continuation", Continuation(self.continuation.target,
-                                                                      self.continuation.reset, f"{label}_continued"))
+                object.__setattr__(
+                    self,
+                    "continuation",
+                    Continuation(self.continuation.target, self.continuation.reset, f"{label}_continued"),
+                )
 
     @property
     def edge(self) -> tuple[str, str]:
@@ -320,11 +335,14 @@ class HybridSystem:
             raise ModelError(f"{self._name}: transitions must be legsim.Transition, got {type(tr).__name__}")
         if tr.source not in self._modes:
             raise ModelError(
-                f"{self._name}: transition {tr.name} leaves unknown mode '{tr.source}' "
-                f"(modes: {sorted(self._modes)})"
+                f"{self._name}: transition {tr.name} leaves unknown mode '{tr.source}' (modes: {sorted(self._modes)})"
             )
-        if tr.reset is None and self._expand is None and tr.target in self._modes \
-                and self._modes[tr.source].dim != self._modes[tr.target].dim:
+        if (
+            tr.reset is None
+            and self._expand is None
+            and tr.target in self._modes
+            and self._modes[tr.source].dim != self._modes[tr.target].dim
+        ):
             raise ModelError(
                 f"{self._name}: transition {tr.name} has no reset but changes dimension "
                 f"{self._modes[tr.source].dim} -> {self._modes[tr.target].dim}"
@@ -418,8 +436,10 @@ class HybridSystem:
     def _check_target(self, mode: Mode, name: str | None, target: str, reset: ResetFn | None) -> None:
         self._ensure(target)
         if reset is None and self._modes[target].dim != mode.dim:
-            raise ModelError(f"{self._name}: transition {name} has no reset but changes dimension "
-                             f"{mode.dim} -> {self._modes[target].dim}")
+            raise ModelError(
+                f"{self._name}: transition {name} has no reset but changes dimension "
+                f"{mode.dim} -> {self._modes[target].dim}"
+            )
 
     def taken(self, source: str, index: int, name: str) -> Transition:
         """The transition a ``TransitionRecord`` (source, index, name) took: outgoing transition
@@ -431,8 +451,9 @@ class HybridSystem:
         key = (source, index)
         if key not in self._continued:
             cont = tr.continuation
-            self._continued[key] = Transition(source, cont.target, tr.guard, cont.reset, cont.name,
-                                              tr.guard_gradient, None, tr.guard_args)
+            self._continued[key] = Transition(
+                source, cont.target, tr.guard, cont.reset, cont.name, tr.guard_gradient, None, tr.guard_args
+            )
         return self._continued[key]
 
     def guard_values(self, mode: str, x: np.ndarray, t: float = 0.0, u: Any = None) -> np.ndarray:
@@ -482,9 +503,7 @@ def check_field_output(system: str, mode_name: str, mode: Mode, t: float, x: np.
     except Exception as exc:
         raise ModelError(f"{system}: field of mode '{mode_name}' failed at t={t}: {type(exc).__name__}: {exc}") from exc
     if out.shape != (mode.dim,):
-        raise ModelError(
-            f"{system}: field of mode '{mode_name}' returned shape {out.shape}, expected ({mode.dim},)"
-        )
+        raise ModelError(f"{system}: field of mode '{mode_name}' returned shape {out.shape}, expected ({mode.dim},)")
     return out
 
 

@@ -84,8 +84,9 @@ def stance_model(m: float, mH: float, a: float, b: float, g: float, slope: float
     j1 = model.addJoint(0, pin.JointModelRY(), pin.SE3.Identity(), "stance")
     model.appendBodyToJoint(j1, pin.Inertia(m, np.array([0.0, 0.0, a]), np.zeros((3, 3))), pin.SE3.Identity())
     if mH > 0:
-        model.appendBodyToJoint(j1, pin.Inertia(mH, np.array([0.0, 0.0, leg_length]), np.zeros((3, 3))),
-                                pin.SE3.Identity())
+        model.appendBodyToJoint(
+            j1, pin.Inertia(mH, np.array([0.0, 0.0, leg_length]), np.zeros((3, 3))), pin.SE3.Identity()
+        )
     j2 = model.addJoint(j1, pin.JointModelRY(), pin.SE3(np.eye(3), np.array([0.0, 0.0, leg_length])), "hip")
     model.appendBodyToJoint(j2, pin.Inertia(m, np.array([0.0, 0.0, -b]), np.zeros((3, 3))), pin.SE3.Identity())
     add_point_frame(model, "hip_point", j2, (0.0, 0.0, 0.0))
@@ -114,17 +115,25 @@ def floating_model(m: float, mH: float, a: float, b: float, g: float, slope: flo
 class CompassGait:
     """The compass gait's pieces: field, heel-strike guard and reset, energy, kinematics."""
 
-    def __init__(self, m: float = 5.0, mH: float = 10.0, a: float = 0.5, b: float = 0.5, g: float = 9.81,
-                 slope: float = 3.0) -> None:
+    def __init__(
+        self, m: float = 5.0, mH: float = 10.0, a: float = 0.5, b: float = 0.5, g: float = 9.81, slope: float = 3.0
+    ) -> None:
         self.m, self.mH, self.a, self.b, self.g, self.slope = m, mH, a, b, g, slope
         self.l = a + b
-        self.stance_bridge = ContactBridge(stance_model(m, mH, a, b, g, slope), (),
-                                           coordinate_names=("stance", "hip"), velocity_names=("stanced", "hipd"),
-                                           mode_names={(): "stance"}, name="compass_gait")
+        self.stance_bridge = ContactBridge(
+            stance_model(m, mH, a, b, g, slope),
+            (),
+            coordinate_names=("stance", "hip"),
+            velocity_names=("stanced", "hipd"),
+            mode_names={(): "stance"},
+            name="compass_gait",
+        )
         self.impact_bridge = ContactBridge(
             floating_model(m, mH, a, b, g, slope),
             (PointContact("foot1", "foot1"), PointContact("foot2", "foot2", releases=("foot1",))),
-            coordinate_names=("hip_x", "hip_z", "leg1", "hip"), name="compass_gait_impact")
+            coordinate_names=("hip_x", "hip_z", "leg1", "hip"),
+            name="compass_gait_impact",
+        )
         self._mode4 = self.stance_bridge.mode("stance")
         # Own kinematics buffer for guards and pictures (the bridge's Data serves the field).
         self._kin_model = self.stance_bridge.model
@@ -155,8 +164,9 @@ class CompassGait:
         q, v = np.asarray(x[:2], dtype=float), np.asarray(x[2:4], dtype=float)
         pin.forwardKinematics(self._kin_model, self._kin_data, q, v)
         p = pin.updateFramePlacement(self._kin_model, self._kin_data, self._foot_id).translation
-        w = pin.getFrameVelocity(self._kin_model, self._kin_data, self._foot_id,
-                                 pin.ReferenceFrame.LOCAL_WORLD_ALIGNED).linear
+        w = pin.getFrameVelocity(
+            self._kin_model, self._kin_data, self._foot_id, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+        ).linear
         return np.array([p[0], p[2]]), np.array([w[0], w[2]])
 
     def heel_strike_guard(self, x: np.ndarray) -> float:
@@ -167,8 +177,10 @@ class CompassGait:
         pendulum, a "gait" of legs through the ground)."""
         hip_z = self.l * math.cos(float(x[0]))
         if hip_z < 0.0:
-            raise ModelBreakdown(f"compass_gait: the hip is {-hip_z:.3g} m below the slope (stance leg at "
-                                 f"{float(x[0]):.3g} rad from the normal): the walker fell")
+            raise ModelBreakdown(
+                f"compass_gait: the hip is {-hip_z:.3g} m below the slope (stance leg at "
+                f"{float(x[0]):.3g} rad from the normal): the walker fell"
+            )
         p, w = self.swing_foot(x)
         return max(p[1], w[1], -p[0])
 
@@ -194,12 +206,22 @@ class CompassGait:
     def system(self, x0: Sequence[float] | np.ndarray | None = None) -> HybridSystem:
         from .bridge.walker_twins import compass_gait_twin
 
-        mode = Mode(5, self.field, names=STATE_NAMES, jacobian=self.jacobian, compiled=compass_gait_twin(self),
-                    units=STATE_UNITS)
-        heel = Transition("stance", "stance", guard=self.heel_strike_guard, reset=self.heel_strike,
-                          name="heel_strike")
-        return HybridSystem({"stance": mode}, [heel], name="compass_gait", energy=self.energy,
-                            initial=None if x0 is None else ("stance", np.asarray(x0, dtype=float)))
+        mode = Mode(
+            5,
+            self.field,
+            names=STATE_NAMES,
+            jacobian=self.jacobian,
+            compiled=compass_gait_twin(self),
+            units=STATE_UNITS,
+        )
+        heel = Transition("stance", "stance", guard=self.heel_strike_guard, reset=self.heel_strike, name="heel_strike")
+        return HybridSystem(
+            {"stance": mode},
+            [heel],
+            name="compass_gait",
+            energy=self.energy,
+            initial=None if x0 is None else ("stance", np.asarray(x0, dtype=float)),
+        )
 
     def geometry(self, mode: str, x: np.ndarray) -> dict[str, np.ndarray]:
         """Legs and masses in the world (x, z) plane (m), the slope drawn descending to +x."""
@@ -212,9 +234,11 @@ class CompassGait:
         rot = _slope_rotation(self.slope)
         pts = {"stance_foot": origin, "hip": origin + hip, "swing_foot": origin + foot}
         world = {k: rot @ v for k, v in pts.items()}
-        return {"stance_leg": np.array([world["stance_foot"], world["hip"]]),
-                "swing_leg": np.array([world["hip"], world["swing_foot"]]),
-                "hip_mass": world["hip"][None, :]}
+        return {
+            "stance_leg": np.array([world["stance_foot"], world["hip"]]),
+            "swing_leg": np.array([world["hip"], world["swing_foot"]]),
+            "hip_mass": world["hip"][None, :],
+        }
 
 
 def _slope_rotation(slope_deg: float) -> np.ndarray:
@@ -230,18 +254,29 @@ def build(params: dict[str, Any], effects: dict[str, dict[str, Any]]) -> Model:
     system = cg.system(x0)
     rot = _slope_rotation(params["slope"])
     ground = np.array([rot @ np.array([-1.0, 0.0]), rot @ np.array([8.0, 0.0])])
-    info = {"guard_units": {"heel_strike": "m (swing foot depth below the slope, in front and descending)"},
-            "parameters": dict(params), "compass_gait": cg,
-            # the stance foot, the one contact (legsim.viz.contacts)
-            "contact_points": lambda mode, x: {"stance_foot": cg.geometry(mode, x)["stance_leg"][0]}}
-    return Model(system=system, initial_mode="stance", initial_state=dict(INITIAL_STATE), geometry=cg.geometry,
-                 scenery={"ground": ground}, counters=cg.stance_bridge.counters, info=info)
+    info = {
+        "guard_units": {"heel_strike": "m (swing foot depth below the slope, in front and descending)"},
+        "parameters": dict(params),
+        "compass_gait": cg,
+        # the stance foot, the one contact (legsim.viz.contacts)
+        "contact_points": lambda mode, x: {"stance_foot": cg.geometry(mode, x)["stance_leg"][0]},
+    }
+    return Model(
+        system=system,
+        initial_mode="stance",
+        initial_state=dict(INITIAL_STATE),
+        geometry=cg.geometry,
+        scenery={"ground": ground},
+        counters=cg.stance_bridge.counters,
+        info=info,
+    )
 
 
 BUILDER = Builder(
     name="compass_gait",
-    description=("passive compass gait walker on a slope (Goswami et al.): two rigid legs, hip mass, "
-                 "plastic heel strike"),
+    description=(
+        "passive compass gait walker on a slope (Goswami et al.): two rigid legs, hip mass, plastic heel strike"
+    ),
     parameters=PARAMETERS,
     effects={},
     build=build,

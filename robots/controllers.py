@@ -22,8 +22,10 @@ def bridge_of(model: Model, controller: str) -> Any:
     """The ``ContactBridge`` of a model (``Model.info["bridge"]``), or SceneError."""
     bridge = model.info.get("bridge") if isinstance(model.info, dict) else None
     if bridge is None:
-        raise SceneError(f"controller '{controller}' drives Pinocchio robots (a model with info['bridge']); "
-                         f"{model.system.name} is not one")
+        raise SceneError(
+            f"controller '{controller}' drives Pinocchio robots (a model with info['bridge']); "
+            f"{model.system.name} is not one"
+        )
     return bridge
 
 
@@ -39,7 +41,7 @@ class JointPD(Controller):
 
     def __call__(self, mode: str, t: float, x: np.ndarray) -> np.ndarray:
         n = self.bridge.n
-        q, v = x[:n], x[n:2 * n]
+        q, v = x[:n], x[n : 2 * n]
         u = self.kp * (self.targets - q[self.dofs]) - self.kd * v[self.dofs]
         if self.gravity:
             u += pin.computeGeneralizedGravity(self.bridge.model, self._data, q)[self.dofs]
@@ -53,14 +55,21 @@ def _make_joint_pd(model: Model, params: dict[str, Any]) -> JointPD:
         raise SceneError("controller 'joint_pd': the robot has no actuated joint (robot.parameters.actuated)")
     targets = np.asarray(params["targets"] or [0.0] * count, dtype=float)
     if targets.shape != (count,):
-        raise SceneError(f"controller.parameters.targets: expected {count} numbers (one per actuated joint), "
-                         f"got {params['targets']!r}")
+        raise SceneError(
+            f"controller.parameters.targets: expected {count} numbers (one per actuated joint), "
+            f"got {params['targets']!r}"
+        )
     return JointPD(bridge, params["kp"], params["kd"], targets, params["gravity"])
 
 
 JOINT_PD = ControllerSpec(
-    "joint_pd", "joint-space PD with feed-forward gravity compensation on the actuated joints",
-    {"kp": Param(50.0, "stiffness", "N m/rad", low=0.0), "kd": Param(2.0, "damping", "N m s/rad", low=0.0),
-     "targets": Param([], "target of each actuated joint (rad or m); empty: all 0"),
-     "gravity": Param(True, "add the actuated joints' generalised gravity g(q)")},
-    _make_joint_pd)
+    "joint_pd",
+    "joint-space PD with feed-forward gravity compensation on the actuated joints",
+    {
+        "kp": Param(50.0, "stiffness", "N m/rad", low=0.0),
+        "kd": Param(2.0, "damping", "N m s/rad", low=0.0),
+        "targets": Param([], "target of each actuated joint (rad or m); empty: all 0"),
+        "gravity": Param(True, "add the actuated joints' generalised gravity g(q)"),
+    },
+    _make_joint_pd,
+)

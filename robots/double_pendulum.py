@@ -62,18 +62,23 @@ PARAMETERS = {
 EFFECTS = {
     "gravity": Effect("gravity g pulling the masses down", default_on=True),
     "stop": Effect(
-        "mechanical stop on theta2 (domain theta2 >= position)", default_on=True,
+        "mechanical stop on theta2 (domain theta2 >= position)",
+        default_on=True,
         parameters={
-            "restitution": Param(0.0, "coefficient of restitution c (0: plastic, enters the constrained mode)",
-                                 low=0.0, high=1.0),
+            "restitution": Param(
+                0.0, "coefficient of restitution c (0: plastic, enters the constrained mode)", low=0.0, high=1.0
+            ),
             "position": Param(0.0, "stop angle", "rad", low=-math.pi, high=math.pi),
-        }),
+        },
+    ),
     "zeno": ZENO_EFFECT,
     "damping": Effect(
-        "viscous joint damping", parameters={
+        "viscous joint damping",
+        parameters={
             "b1": Param(0.1, "damping of joint 1", "N m s/rad", low=0.0),
             "b2": Param(0.1, "damping of joint 2", "N m s/rad", low=0.0),
-        }),
+        },
+    ),
     "controller": Effect(
         "PD controller on the shoulder joint theta1: u = kp (target - theta1) - kd dtheta1/dt (N m)",
         parameters={
@@ -84,7 +89,8 @@ EFFECTS = {
             "kp": Param(50.0, "proportional gain", "N m/rad", low=0.0),
             "kd": Param(10.0, "derivative gain (on dtheta1/dt, the target is constant)", "N m s/rad", low=0.0),
             "target": Param(0.0, "shoulder angle the controller holds", "rad", low=-math.pi, high=math.pi),
-        }),
+        },
+    ),
 }
 
 
@@ -111,8 +117,7 @@ def make_bridge(params: dict[str, Any], effects: dict[str, dict[str, Any]]) -> C
     contacts = []
     if "stop" in effects:
         s = effects["stop"]
-        contacts.append(JointStop("stop", "theta2", position=s["position"], side="lower",
-                                  restitution=s["restitution"]))
+        contacts.append(JointStop("stop", "theta2", position=s["position"], side="lower", restitution=s["restitution"]))
     damping = None
     if "damping" in effects:
         damping = {"theta1": effects["damping"]["b1"], "theta2": effects["damping"]["b2"]}
@@ -122,9 +127,16 @@ def make_bridge(params: dict[str, Any], effects: dict[str, dict[str, Any]]) -> C
     # Actuate the shoulder only when a controller is asked for: an actuated bridge declares its
     # force-dependent guards on (t, x, u) and adds the control to every field evaluation.
     actuated = (SHOULDER,) if "controller" in effects else ()
-    return ContactBridge(model, contacts, coordinate_names=COORDINATES, velocity_names=VELOCITIES,
-                         mode_names=names, joint_damping=damping, actuated=actuated,
-                         name="double_pendulum")
+    return ContactBridge(
+        model,
+        contacts,
+        coordinate_names=COORDINATES,
+        velocity_names=VELOCITIES,
+        mode_names=names,
+        joint_damping=damping,
+        actuated=actuated,
+        name="double_pendulum",
+    )
 
 
 def pd_control(kp: float, kd: float, target: float) -> Callable[[float, np.ndarray], np.ndarray]:
@@ -155,8 +167,12 @@ def build(params: dict[str, Any], effects: dict[str, dict[str, Any]]) -> Model:
     def geometry(mode: str, x: np.ndarray) -> dict[str, np.ndarray]:
         pos = bridge.frame_positions(np.asarray(x)[:2], ("elbow", "tip"))
         pivot = np.zeros(2)
-        parts = {"link1": np.array([pivot, pos["elbow"]]), "link2": np.array([pos["elbow"], pos["tip"]]),
-                 "mass1": pos["elbow"][None, :], "mass2": pos["tip"][None, :]}
+        parts = {
+            "link1": np.array([pivot, pos["elbow"]]),
+            "link2": np.array([pos["elbow"], pos["tip"]]),
+            "mass1": pos["elbow"][None, :],
+            "mass2": pos["tip"][None, :],
+        }
         if stop is not None:
             # The stop turns with link 1: draw it where link 2 lies at theta2 = position.
             ang = float(x[0]) + stop["position"]
@@ -169,15 +185,25 @@ def build(params: dict[str, Any], effects: dict[str, dict[str, Any]]) -> Model:
     if "controller" in effects:
         pd = effects["controller"]
         control = pd_control(pd["kp"], pd["kd"], pd["target"])
-    info = {"guard_units": bridge.guard_units(), "parameters": dict(params), "effects": dict(effects),
-            "bridge": bridge,
-            "initial_check": bridge.initial_check()}
+    info = {
+        "guard_units": bridge.guard_units(),
+        "parameters": dict(params),
+        "effects": dict(effects),
+        "bridge": bridge,
+        "initial_check": bridge.initial_check(),
+    }
     if "zeno" in effects:
         info[ZENO_WINDOW] = effects["zeno"]["window"]
-    return Model(system=system, initial_mode="unconstrained", initial_state=dict(INITIAL_STATE),
-                 control=control, geometry=geometry,
-                 scenery={"support": np.array([[-0.25 * reach, 0.0], [0.25 * reach, 0.0]])},
-                 counters=bridge.counters, info=info)
+    return Model(
+        system=system,
+        initial_mode="unconstrained",
+        initial_state=dict(INITIAL_STATE),
+        control=control,
+        geometry=geometry,
+        scenery={"support": np.array([[-0.25 * reach, 0.0], [0.25 * reach, 0.0]])},
+        counters=bridge.counters,
+        info=info,
+    )
 
 
 BUILDER = Builder(

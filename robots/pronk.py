@@ -49,16 +49,25 @@ PARAMETERS = {
     "l": Param(1.0, "leg rest length", "m", low=0.0, low_open=True),
     "d": Param(1.0, "distance between the hips", "m", low=0.0),
     "g": Param(9.81, "gravitational acceleration", "m/s^2", low=0.0),
-    "psi": Param(math.pi / 5, "leg angle in flight, from the body's downward normal, forward", "rad",
-                 low=-math.pi / 2, high=math.pi / 2, low_open=True, high_open=True),
+    "psi": Param(
+        math.pi / 5,
+        "leg angle in flight, from the body's downward normal, forward",
+        "rad",
+        low=-math.pi / 2,
+        high=math.pi / 2,
+        low_open=True,
+        high_open=True,
+    ),
 }
 
 EFFECTS = {
     "gravity": Effect("gravity g", default_on=True),
     "left_leg": Effect("the rear (left) spring leg", default_on=True),
     "right_leg": Effect("the front (right) spring leg", default_on=True),
-    "damping": Effect("viscous damping along the legs in stance (not conservative)",
-                      parameters={"b": Param(0.5, "leg damping", "N s/m", low=0.0)}),
+    "damping": Effect(
+        "viscous damping along the legs in stance (not conservative)",
+        parameters={"b": Param(0.5, "leg damping", "N s/m", low=0.0)},
+    ),
 }
 
 _MODE_NAMES = {(): "aerial", ("left",): "left", ("right",): "right", ("left", "right"): "both"}
@@ -81,18 +90,22 @@ def make_bridge(params: dict[str, Any], effects: dict[str, dict[str, Any]]) -> C
     g = params["g"] if "gravity" in effects else 0.0
     model = pinocchio_model(params["m"], params["I"], params["d"], g)
     b = effects["damping"]["b"] if "damping" in effects else 0.0
-    legs = [SpringLeg(side, f"hip_{side}", params["k"], params["l"], params["psi"], damping=b)
-            for side in LEGS if f"{side}_leg" in effects]
+    legs = [
+        SpringLeg(side, f"hip_{side}", params["k"], params["l"], params["psi"], damping=b)
+        for side in LEGS
+        if f"{side}_leg" in effects
+    ]
     names = {key: name for key, name in _MODE_NAMES.items() if all(f"{s}_leg" in effects for s in key)}
-    return ContactBridge(model, legs, coordinate_names=COORDINATES, velocity_names=VELOCITIES,
-                         mode_names=names, name="pronk")
+    return ContactBridge(
+        model, legs, coordinate_names=COORDINATES, velocity_names=VELOCITIES, mode_names=names, name="pronk"
+    )
 
 
 def leg_geometry(bridge: ContactBridge, mode: str, x: np.ndarray, hips: dict[str, str]) -> dict[str, np.ndarray]:
     """Polylines of the legs (hip -> foot) and feet (one point) of a spring-legged robot."""
     x = np.asarray(x, dtype=float)
     feet = bridge.foot_positions(mode, x)
-    pos = bridge.frame_positions(x[:bridge.n], [hips[leg] for leg in feet])
+    pos = bridge.frame_positions(x[: bridge.n], [hips[leg] for leg in feet])
     parts = {}
     for leg, foot in feet.items():
         parts[f"leg_{leg}"] = np.array([pos[hips[leg]], foot])
@@ -115,12 +128,22 @@ def build(params: dict[str, Any], effects: dict[str, dict[str, Any]]) -> Model:
         parts.update(leg_geometry(bridge, mode, x, hips))
         return parts
 
-    info = {"guard_units": bridge.guard_units(), "parameters": dict(params), "effects": dict(effects),
-            "bridge": bridge,
-            "initial_check": bridge.initial_check()}
-    return Model(system=system, initial_mode=initial_mode, initial_state=dict(INITIAL_STATE),
-                 geometry=geometry, scenery={"ground": np.array([[-2.0, 0.0], [15.0, 0.0]])},
-                 counters=bridge.counters, info=info)
+    info = {
+        "guard_units": bridge.guard_units(),
+        "parameters": dict(params),
+        "effects": dict(effects),
+        "bridge": bridge,
+        "initial_check": bridge.initial_check(),
+    }
+    return Model(
+        system=system,
+        initial_mode=initial_mode,
+        initial_state=dict(INITIAL_STATE),
+        geometry=geometry,
+        scenery={"ground": np.array([[-2.0, 0.0], [15.0, 0.0]])},
+        counters=bridge.counters,
+        info=info,
+    )
 
 
 BUILDER = Builder(

@@ -65,22 +65,27 @@ class Leg:
 def leg_point(leg: Leg, q_hip: float, q_knee: float) -> np.ndarray:
     """Foot relative to the hip in the body frame (x, z) (m)."""
     a, b = q_hip, q_hip + q_knee
-    return np.array((-leg.thigh * math.sin(a) - leg.shank * math.sin(b),
-                     -leg.thigh * math.cos(a) - leg.shank * math.cos(b)))
+    return np.array(
+        (-leg.thigh * math.sin(a) - leg.shank * math.sin(b), -leg.thigh * math.cos(a) - leg.shank * math.cos(b))
+    )
 
 
 def leg_jacobian(leg: Leg, q_hip: float, q_knee: float) -> np.ndarray:
     """d(foot - hip)/d(q_hip, q_knee) in the body frame (2, 2)."""
     a, b = q_hip, q_hip + q_knee
-    return np.array(((-leg.thigh * math.cos(a) - leg.shank * math.cos(b), -leg.shank * math.cos(b)),
-                     (leg.thigh * math.sin(a) + leg.shank * math.sin(b), leg.shank * math.sin(b))))
+    return np.array(
+        (
+            (-leg.thigh * math.cos(a) - leg.shank * math.cos(b), -leg.shank * math.cos(b)),
+            (leg.thigh * math.sin(a) + leg.shank * math.sin(b), leg.shank * math.sin(b)),
+        )
+    )
 
 
 def leg_angles(leg: Leg, length: float, angle: float) -> tuple[float, float]:
     """(q_hip, q_knee) putting the foot at ``length`` (m) from the hip, ``angle`` (rad) from the
     body's -z axis towards +x (the knee bent by its sign)."""
     l1, l2 = leg.thigh, leg.shank
-    c = (length ** 2 - l1 ** 2 - l2 ** 2) / (2 * l1 * l2)
+    c = (length**2 - l1**2 - l2**2) / (2 * l1 * l2)
     knee = leg.bend * math.acos(max(-1.0, min(1.0, c)))
     # the foot's direction is u(q_hip + phi) with phi the angle the shank adds to the thigh's
     phi = math.atan2(l2 * math.sin(knee), l1 + l2 * math.cos(knee))
@@ -180,7 +185,7 @@ class RunnerRaibert(Controller):
 
     def __call__(self, mode: str, t: float, x: np.ndarray) -> np.ndarray:
         n, g = self.n, self.gains
-        q, v = x[:n], x[n:2 * n]
+        q, v = x[:n], x[n : 2 * n]
         active = set(self.bridge.active_contacts(mode))
         u = np.zeros(self.count)
         stance_legs = [leg for leg in self.legs if leg.contact in active]
@@ -235,17 +240,20 @@ class RunnerRaibert(Controller):
 
 
 RUNNER_PARAMETERS = {
-    "gait": Param("pronk", "pronk: the stance hips keep the body level; bound: the pitch is left free",
-                  choices=("pronk", "bound")),
+    "gait": Param(
+        "pronk", "pronk: the stance hips keep the body level; bound: the pitch is left free", choices=("pronk", "bound")
+    ),
     "speed": Param(1.0, "commanded forward speed xd*", "m/s"),
     "height": Param(0.55, "commanded apex height of the body's centre", "m", low=0.0, low_open=True),
     "k_x": Param(0.05, "foot placement gain (m per m/s of speed error)", "s", low=0.0),
-    "leg_length": Param(0.42, "leg length at touchdown, and the stance spring's rest length", "m",
-                        low=0.0, low_open=True),
+    "leg_length": Param(
+        0.42, "leg length at touchdown, and the stance spring's rest length", "m", low=0.0, low_open=True
+    ),
     "stiffness": Param(2000.0, "stance spring stiffness along the leg", "N/m", low=0.0, low_open=True),
     "damping": Param(10.0, "stance damping along the leg", "N s/m", low=0.0),
-    "thrust": Param(0.02, "initial thrust: the stance spring's rest-length extension while the leg extends",
-                    "m", low=0.0),
+    "thrust": Param(
+        0.02, "initial thrust: the stance spring's rest-length extension while the leg extends", "m", low=0.0
+    ),
     "k_height": Param(0.2, "thrust adaptation per metre of apex height error", "", low=0.0),
     "max_thrust": Param(0.1, "largest thrust", "m", low=0.0),
     "kp_attitude": Param(60.0, "stance hip torque per radian of pitch", "N m/rad", low=0.0),
@@ -259,16 +267,22 @@ def _make_runner(model: Model, params: dict[str, Any]) -> RunnerRaibert:
     bridge = bridge_of(model, "raibert_runner")
     legs = find_legs(bridge)
     if not legs:
-        raise SceneError("controller 'raibert_runner' found no articulated leg: a point contact on a frame below "
-                         "two actuated revolute joints (hip, knee)")
+        raise SceneError(
+            "controller 'raibert_runner' found no articulated leg: a point contact on a frame below "
+            "two actuated revolute joints (hip, knee)"
+        )
     gains = Gains(**{k: params[k] for k in Gains.__dataclass_fields__})
     for leg in legs:
         leg.thrust = params["thrust"]
     return RunnerRaibert(bridge, legs, gains, attitude=params["gait"] == "pronk")
 
 
-RUNNER = ControllerSpec("raibert_runner", "Raibert's controller for articulated legs: foot placement, thrust, "
-                                          "attitude by the stance hips", RUNNER_PARAMETERS, _make_runner)
+RUNNER = ControllerSpec(
+    "raibert_runner",
+    "Raibert's controller for articulated legs: foot placement, thrust, attitude by the stance hips",
+    RUNNER_PARAMETERS,
+    _make_runner,
+)
 
 
 class SlipRaibert(Controller):
@@ -301,16 +315,26 @@ class SlipRaibert(Controller):
 def _make_slip(model: Model, params: dict[str, Any]) -> SlipRaibert:
     hopper = model.info.get("slip_hopper") if isinstance(model.info, dict) else None
     if hopper is None:
-        raise SceneError(f"controller 'raibert_slip' drives the SLIP hopper (robot 'slip_hopper'); "
-                         f"{model.system.name} is not one")
+        raise SceneError(
+            f"controller 'raibert_slip' drives the SLIP hopper (robot 'slip_hopper'); {model.system.name} is not one"
+        )
     stance_time = params["stance_time"] or math.pi * math.sqrt(hopper["m"] / hopper["k"])
     return SlipRaibert(hopper["l"], params["speed"], params["k_x"], params["k_swing"], stance_time)
 
 
-SLIP = ControllerSpec("raibert_slip", "Raibert's foot placement for the SLIP hopper (its leg's swing rate in flight)",
-                      {"speed": Param(3.0, "commanded forward speed xd*", "m/s"),
-                       "k_x": Param(0.05, "foot placement gain (m per m/s of speed error)", "s", low=0.0),
-                       "k_swing": Param(20.0, "leg swing servo gain", "1/s", low=0.0, low_open=True),
-                       "stance_time": Param(0.0, "stance duration assumed before the first liftoff; 0: "
-                                                 "half the spring-mass period, pi sqrt(m/k)", "s", low=0.0)},
-                      _make_slip)
+SLIP = ControllerSpec(
+    "raibert_slip",
+    "Raibert's foot placement for the SLIP hopper (its leg's swing rate in flight)",
+    {
+        "speed": Param(3.0, "commanded forward speed xd*", "m/s"),
+        "k_x": Param(0.05, "foot placement gain (m per m/s of speed error)", "s", low=0.0),
+        "k_swing": Param(20.0, "leg swing servo gain", "1/s", low=0.0, low_open=True),
+        "stance_time": Param(
+            0.0,
+            "stance duration assumed before the first liftoff; 0: half the spring-mass period, pi sqrt(m/k)",
+            "s",
+            low=0.0,
+        ),
+    },
+    _make_slip,
+)

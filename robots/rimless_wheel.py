@@ -73,8 +73,15 @@ def _hub_inertia(m: float, inertia: float, com: np.ndarray) -> pin.Inertia:
 class RimlessWheel:
     """The rimless wheel's pieces: field, guards, impact resets, energy and pictures."""
 
-    def __init__(self, m: float = 1.0, I: float = 0.0, l: float = 1.0, spokes: int = 10, g: float = 9.81,  # noqa: E741 -- paper symbols, scene parameter names
-                 slope: float = 5.0) -> None:
+    def __init__(
+        self,
+        m: float = 1.0,
+        I: float = 0.0,  # noqa: E741 -- the paper's symbol and the scene parameter's name
+        l: float = 1.0,  # noqa: E741 -- the paper's symbol and the scene parameter's name
+        spokes: int = 10,
+        g: float = 9.81,
+        slope: float = 5.0,
+    ) -> None:
         self.m, self.I, self.l, self.spokes, self.g, self.slope = m, I, l, int(spokes), g, slope
         self.alpha = math.pi / self.spokes
         chain = pin.Model()
@@ -87,8 +94,14 @@ class RimlessWheel:
         add_point_frame(chain, "back_tip", j, (-l * math.sin(a2), 0.0, l - l * math.cos(a2)))
         self._tip_ids = {"front": chain.getFrameId("front_tip"), "back": chain.getFrameId("back_tip")}
         chain.gravity = _gravity(g, slope)
-        self.stance_bridge = ContactBridge(chain, (), coordinate_names=("theta",), velocity_names=("thetad",),
-                                           mode_names={(): "stance"}, name="rimless_wheel")
+        self.stance_bridge = ContactBridge(
+            chain,
+            (),
+            coordinate_names=("theta",),
+            velocity_names=("thetad",),
+            mode_names={(): "stance"},
+            name="rimless_wheel",
+        )
         self._mode2 = self.stance_bridge.mode("stance")
         self._model = self.stance_bridge.model
         self._data = self._model.createData()
@@ -140,11 +153,17 @@ class RimlessWheel:
         from .bridge.walker_twins import rimless_wheel_twin
 
         mode = Mode(3, self.field, names=STATE_NAMES, compiled=rimless_wheel_twin(self), units=STATE_UNITS)
-        transitions = [Transition("stance", "stance", guard=self.impact_guard, reset=self.impact, name="impact"),
-                       Transition("stance", "stance", guard=self.back_guard, reset=self.back_impact,
-                                  name="back_impact")]
-        return HybridSystem({"stance": mode}, transitions, name="rimless_wheel", energy=self.energy,
-                            initial=None if x0 is None else ("stance", np.asarray(x0, dtype=float)))
+        transitions = [
+            Transition("stance", "stance", guard=self.impact_guard, reset=self.impact, name="impact"),
+            Transition("stance", "stance", guard=self.back_guard, reset=self.back_impact, name="back_impact"),
+        ]
+        return HybridSystem(
+            {"stance": mode},
+            transitions,
+            name="rimless_wheel",
+            energy=self.energy,
+            initial=None if x0 is None else ("stance", np.asarray(x0, dtype=float)),
+        )
 
     def geometry(self, mode: str, x: np.ndarray) -> dict[str, np.ndarray]:
         """Spokes and hub in the world (x, z) plane (m), the slope descending to +x."""
@@ -175,13 +194,25 @@ def build(params: dict[str, Any], effects: dict[str, dict[str, Any]]) -> Model:
     system = rw.system(x0)
     rot = _slope_rotation(params["slope"])
     ground = np.array([rot @ np.array([-1.0, 0.0]), rot @ np.array([12.0, 0.0])])
-    info = {"guard_units": {"impact": "rad (spoke angle past alpha, rolling forward)",
-                            "back_impact": "rad (spoke angle past -alpha, rolling back)"},
-            "parameters": dict(params), "rimless_wheel": rw,
-            # the stance spoke's tip, the one contact (legsim.viz.contacts)
-            "contact_points": lambda mode, x: {"stance_spoke": rot @ np.array([float(x[2]), 0.0])}}
-    return Model(system=system, initial_mode="stance", initial_state=initial, geometry=rw.geometry,
-                 scenery={"ground": ground}, counters=rw.stance_bridge.counters, info=info)
+    info = {
+        "guard_units": {
+            "impact": "rad (spoke angle past alpha, rolling forward)",
+            "back_impact": "rad (spoke angle past -alpha, rolling back)",
+        },
+        "parameters": dict(params),
+        "rimless_wheel": rw,
+        # the stance spoke's tip, the one contact (legsim.viz.contacts)
+        "contact_points": lambda mode, x: {"stance_spoke": rot @ np.array([float(x[2]), 0.0])},
+    }
+    return Model(
+        system=system,
+        initial_mode="stance",
+        initial_state=initial,
+        geometry=rw.geometry,
+        scenery={"ground": ground},
+        counters=rw.stance_bridge.counters,
+        info=info,
+    )
 
 
 BUILDER = Builder(

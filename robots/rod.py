@@ -43,16 +43,18 @@ def make_bridge(params: dict[str, Any]) -> ContactBridge:
     model = pin.Model()
     body = planar_floating_base(model)
     inertia = m * length * length / 12.0
-    model.appendBodyToJoint(body, pin.Inertia(m, np.zeros(3), np.diag([inertia, inertia, inertia])),
-                            pin.SE3.Identity())
+    model.appendBodyToJoint(body, pin.Inertia(m, np.zeros(3), np.diag([inertia, inertia, inertia])), pin.SE3.Identity())
     add_point_frame(model, "end_a", body, (0.5 * length, 0.0, 0.0))
     add_point_frame(model, "end_b", body, (-0.5 * length, 0.0, 0.0))
     model.gravity = pin.Motion(np.array([0.0, 0.0, -params["g"], 0.0, 0.0, 0.0]))
     c = params["restitution"]
-    contacts = [PointContact("a", "end_a", restitution=c, tangential=False),
-                PointContact("b", "end_b", restitution=c, tangential=False)]
-    return ContactBridge(model, contacts, coordinate_names=COORDINATES, velocity_names=VELOCITIES,
-                         mode_names={(): "air"}, name="rod")
+    contacts = [
+        PointContact("a", "end_a", restitution=c, tangential=False),
+        PointContact("b", "end_b", restitution=c, tangential=False),
+    ]
+    return ContactBridge(
+        model, contacts, coordinate_names=COORDINATES, velocity_names=VELOCITIES, mode_names={(): "air"}, name="rod"
+    )
 
 
 def _build(params: dict[str, Any], effects: dict[str, dict[str, Any]]) -> Model:
@@ -66,12 +68,20 @@ def _build(params: dict[str, Any], effects: dict[str, dict[str, Any]]) -> Model:
         return {"rod": np.array([[x[0] - dx, x[1] - dz], [x[0] + dx, x[1] + dz]])}
 
     info = {"guard_units": bridge.guard_units(), "bridge": bridge, "initial_check": bridge.initial_check()}
-    return Model(system=system, initial_mode="air", initial_state=dict(INITIAL_STATE), geometry=geometry,
-                 scenery={"floor": np.array([[-1.0, 0.0], [1.0, 0.0]])}, counters=bridge.counters, info=info)
+    return Model(
+        system=system,
+        initial_mode="air",
+        initial_state=dict(INITIAL_STATE),
+        geometry=geometry,
+        scenery={"floor": np.array([[-1.0, 0.0], [1.0, 0.0]])},
+        counters=bridge.counters,
+        info=info,
+    )
 
 
-BUILDER = Builder("rod", "a rigid rod dropped on a frictionless floor: simultaneous impacts of its two ends",
-                  PARAMETERS, {}, _build)
+BUILDER = Builder(
+    "rod", "a rigid rod dropped on a frictionless floor: simultaneous impacts of its two ends", PARAMETERS, {}, _build
+)
 
 
 def make(parameters: dict[str, Any] | None = None) -> Model:

@@ -34,14 +34,23 @@ PARAMETERS = {
     "k": Param(60.0, "leg stiffness", "N/m", low=0.0, low_open=True),
     "l": Param(1.0, "leg rest length", "m", low=0.0, low_open=True),
     "g": Param(9.81, "gravitational acceleration", "m/s^2", low=0.0),
-    "psi": Param(math.pi / 5, "leg angle in flight, from the downward vertical, forward", "rad",
-                 low=-math.pi / 2, high=math.pi / 2, low_open=True, high_open=True),
+    "psi": Param(
+        math.pi / 5,
+        "leg angle in flight, from the downward vertical, forward",
+        "rad",
+        low=-math.pi / 2,
+        high=math.pi / 2,
+        low_open=True,
+        high_open=True,
+    ),
 }
 
 EFFECTS = {
     "gravity": Effect("gravity g", default_on=True),
-    "damping": Effect("viscous damping along the leg in stance (not conservative)",
-                      parameters={"b": Param(0.5, "leg damping", "N s/m", low=0.0)}),
+    "damping": Effect(
+        "viscous damping along the leg in stance (not conservative)",
+        parameters={"b": Param(0.5, "leg damping", "N s/m", low=0.0)},
+    ),
 }
 
 
@@ -61,8 +70,14 @@ def make_bridge(params: dict[str, Any], effects: dict[str, dict[str, Any]]) -> C
     g = params["g"] if "gravity" in effects else 0.0
     b = effects["damping"]["b"] if "damping" in effects else 0.0
     leg = SpringLeg("leg", "hip", params["k"], params["l"], params["psi"], damping=b)
-    return ContactBridge(pinocchio_model(params["m"], g), [leg], coordinate_names=COORDINATES,
-                         velocity_names=VELOCITIES, mode_names={(): "flight", ("leg",): "stance"}, name="slip")
+    return ContactBridge(
+        pinocchio_model(params["m"], g),
+        [leg],
+        coordinate_names=COORDINATES,
+        velocity_names=VELOCITIES,
+        mode_names={(): "flight", ("leg",): "stance"},
+        name="slip",
+    )
 
 
 def build(params: dict[str, Any], effects: dict[str, dict[str, Any]]) -> Model:
@@ -77,11 +92,22 @@ def build(params: dict[str, Any], effects: dict[str, dict[str, Any]]) -> Model:
         parts.update(leg_geometry(bridge, mode, x, {"leg": "hip"}))
         return parts
 
-    info = {"guard_units": bridge.guard_units(), "parameters": dict(params), "effects": dict(effects),
-            "bridge": bridge,
-            "initial_check": bridge.initial_check()}
-    return Model(system=system, initial_mode="flight", initial_state=dict(INITIAL_STATE), geometry=geometry,
-                 scenery={"ground": np.array([[-2.0, 0.0], [15.0, 0.0]])}, counters=bridge.counters, info=info)
+    info = {
+        "guard_units": bridge.guard_units(),
+        "parameters": dict(params),
+        "effects": dict(effects),
+        "bridge": bridge,
+        "initial_check": bridge.initial_check(),
+    }
+    return Model(
+        system=system,
+        initial_mode="flight",
+        initial_state=dict(INITIAL_STATE),
+        geometry=geometry,
+        scenery={"ground": np.array([[-2.0, 0.0], [15.0, 0.0]])},
+        counters=bridge.counters,
+        info=info,
+    )
 
 
 BUILDER = Builder(

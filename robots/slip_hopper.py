@@ -82,10 +82,17 @@ def make_system(m: float, k: float, l: float, g: float) -> HybridSystem:  # noqa
         return m * (0.5 * (x[2] ** 2 + x[3] ** 2) + g * x[1]) + 0.5 * k * (l - r) ** 2
 
     modes = {"flight": Mode(5, flight, FLIGHT_NAMES), "stance": Mode(5, stance, STANCE_NAMES)}
-    transitions = [Transition("flight", "stance", touchdown_guard, land, name="touchdown"),
-                   Transition("stance", "flight", liftoff_guard, leave, name="liftoff")]
-    return HybridSystem(modes, transitions, name="slip_hopper", energy=energy,
-                        initial=("flight", np.array([INITIAL_STATE[n] for n in FLIGHT_NAMES])))
+    transitions = [
+        Transition("flight", "stance", touchdown_guard, land, name="touchdown"),
+        Transition("stance", "flight", liftoff_guard, leave, name="liftoff"),
+    ]
+    return HybridSystem(
+        modes,
+        transitions,
+        name="slip_hopper",
+        energy=energy,
+        initial=("flight", np.array([INITIAL_STATE[n] for n in FLIGHT_NAMES])),
+    )
 
 
 def build(params: dict[str, Any], effects: dict[str, dict[str, Any]]) -> Model:
@@ -101,11 +108,20 @@ def build(params: dict[str, Any], effects: dict[str, dict[str, Any]]) -> Model:
             foot = np.array([x[4], 0.0])
         return {"body": body[None, :], "leg": np.vstack([body, foot])}
 
-    info = {"guard_units": {"touchdown": "m (foot height)", "liftoff": "m (rest length minus leg length)"},
-            "parameters": dict(params), "effects": dict(effects),
-            "slip_hopper": {"m": m, "k": k, "l": rest_length, "g": g}}
-    return Model(system=system, initial_mode="flight", initial_state=dict(INITIAL_STATE), geometry=geometry,
-                 scenery={"ground": np.array([[-2.0, 0.0], [400.0, 0.0]])}, info=info)
+    info = {
+        "guard_units": {"touchdown": "m (foot height)", "liftoff": "m (rest length minus leg length)"},
+        "parameters": dict(params),
+        "effects": dict(effects),
+        "slip_hopper": {"m": m, "k": k, "l": rest_length, "g": g},
+    }
+    return Model(
+        system=system,
+        initial_mode="flight",
+        initial_state=dict(INITIAL_STATE),
+        geometry=geometry,
+        scenery={"ground": np.array([[-2.0, 0.0], [400.0, 0.0]])},
+        info=info,
+    )
 
 
 BUILDER = Builder(

@@ -78,15 +78,20 @@ def _check_joints(model: pin.Model, file: Path, first: int) -> None:
         joint, name = model.joints[j], model.names[j]
         kind = joint.shortname()
         if joint.nq != joint.nv:
-            raise ModelError(f"{file}: joint '{name}' ({kind}) has nq = {joint.nq}, nv = {joint.nv}: the bridge needs "
-                             f"nq == nv; declare a continuous joint as revolute with limits")
+            raise ModelError(
+                f"{file}: joint '{name}' ({kind}) has nq = {joint.nq}, nv = {joint.nv}: the bridge needs "
+                f"nq == nv; declare a continuous joint as revolute with limits"
+            )
         axis = _axis(joint)
         rotation = model.jointPlacements[j].rotation
-        planar = (kind.startswith("JointModelR") and abs(abs((rotation @ axis)[1]) - 1.0) < 1e-9) or \
-                 (kind.startswith("JointModelP") and abs((rotation @ axis)[1]) < 1e-9)
+        planar = (kind.startswith("JointModelR") and abs(abs((rotation @ axis)[1]) - 1.0) < 1e-9) or (
+            kind.startswith("JointModelP") and abs((rotation @ axis)[1]) < 1e-9
+        )
         if not planar or abs(abs(rotation[1, 1]) - 1.0) > 1e-9:
-            raise ModelError(f"{file}: joint '{name}' ({kind}) does not move in the (x, z) plane: revolute joints "
-                             f"must turn about y and prismatic ones slide along x or z")
+            raise ModelError(
+                f"{file}: joint '{name}' ({kind}) does not move in the (x, z) plane: revolute joints "
+                f"must turn about y and prismatic ones slide along x or z"
+            )
 
 
 def _axis(joint: Any) -> np.ndarray:
@@ -156,8 +161,9 @@ def _shape_points(shape: Any, name: str, file: Path) -> np.ndarray:
         points = np.asarray(vertices(), dtype=float).reshape(-1, 3)
         if len(points) >= 3:
             return points
-    raise ModelError(f"{file}: visual '{name}' is a {kind}; the outlines know box, cylinder, sphere, capsule "
-                     f"and meshes")
+    raise ModelError(
+        f"{file}: visual '{name}' is a {kind}; the outlines know box, cylinder, sphere, capsule and meshes"
+    )
 
 
 def _hull(points: np.ndarray) -> np.ndarray:
@@ -170,8 +176,7 @@ def _hull(points: np.ndarray) -> np.ndarray:
     return np.vstack([vertices, vertices[:1]])
 
 
-CONTACT_KEYS = {"name": str, "frame": str, "restitution": float, "friction": float, "ground": float,
-                "tangential": bool}
+CONTACT_KEYS = {"name": str, "frame": str, "restitution": float, "friction": float, "ground": float, "tangential": bool}
 STOP_KEYS = {"name": str, "joint": str, "position": float, "side": str, "restitution": float}
 
 
@@ -213,12 +218,17 @@ def scene_contacts(contacts: Sequence[Any], stops: Sequence[Any]) -> list[PointC
 PARAMETERS = {
     "file": Param("", "the URDF file (relative to the scene's folder)", path=True),
     "root": Param("planar", "the root joint: planar (x, z, pitch) or fixed to the world", choices=("planar", "fixed")),
-    "actuated": Param([], "joints driven by the control u, in the order of u's entries (N m or N); ['all']: every "
-                          "joint but the root"),
-    "contacts": Param([], "point contacts: tables {name, frame, restitution = 0, friction (mu; none: no limit), "
-                          "ground = 0 (m), tangential = true}"),
-    "stops": Param([], "joint stops: tables {name, joint, position (rad or m), side = 'lower' | 'upper', "
-                       "restitution = 0}"),
+    "actuated": Param(
+        [], "joints driven by the control u, in the order of u's entries (N m or N); ['all']: every joint but the root"
+    ),
+    "contacts": Param(
+        [],
+        "point contacts: tables {name, frame, restitution = 0, friction (mu; none: no limit), "
+        "ground = 0 (m), tangential = true}",
+    ),
+    "stops": Param(
+        [], "joint stops: tables {name, joint, position (rad or m), side = 'lower' | 'upper', restitution = 0}"
+    ),
     "g": Param(9.81, "gravitational acceleration", "m/s^2", low=0.0),
     "flight_mode": Param("flight", "name of the mode without active contacts"),
 }
@@ -233,8 +243,15 @@ def make_bridge(params: Mapping[str, Any]) -> tuple[ContactBridge, Outlines]:
     joints = [model.names[j] for j in range(first, model.njoints)]
     actuated = joints if list(params["actuated"]) == ["all"] else list(params["actuated"])
     contacts = scene_contacts(params["contacts"], params["stops"])
-    bridge = ContactBridge(model, contacts, coordinate_names=names, velocity_names=[f"{n}d" for n in names],
-                           mode_names={(): params["flight_mode"]}, actuated=actuated, name=Path(params["file"]).stem)
+    bridge = ContactBridge(
+        model,
+        contacts,
+        coordinate_names=names,
+        velocity_names=[f"{n}d" for n in names],
+        mode_names={(): params["flight_mode"]},
+        actuated=actuated,
+        name=Path(params["file"]).stem,
+    )
     return bridge, Outlines(bridge.model, params["file"])
 
 
@@ -248,15 +265,28 @@ def _build(params: dict[str, Any], effects: dict[str, dict[str, Any]]) -> Model:
     def geometry(mode: str, x: np.ndarray) -> dict[str, np.ndarray]:
         return outlines(np.asarray(x, dtype=float)[:n])
 
-    info = {"guard_units": bridge.guard_units(), "bridge": bridge, "initial_check": bridge.initial_check(),
-            "parameters": dict(params), "outlines": outlines}
+    info = {
+        "guard_units": bridge.guard_units(),
+        "bridge": bridge,
+        "initial_check": bridge.initial_check(),
+        "parameters": dict(params),
+        "outlines": outlines,
+    }
     counters = bridge.counters
-    return Model(system=system, initial_mode=flight, initial_state=initial, geometry=geometry,
-                 scenery={"ground": np.array([[-2.0, 0.0], [60.0, 0.0]])}, counters=counters, info=info)
+    return Model(
+        system=system,
+        initial_mode=flight,
+        initial_state=initial,
+        geometry=geometry,
+        scenery={"ground": np.array([[-2.0, 0.0], [60.0, 0.0]])},
+        counters=counters,
+        info=info,
+    )
 
 
-BUILDER = Builder("urdf", "a planar robot from a URDF file, with the contacts and stops the scene declares",
-                  PARAMETERS, {}, _build)
+BUILDER = Builder(
+    "urdf", "a planar robot from a URDF file, with the contacts and stops the scene declares", PARAMETERS, {}, _build
+)
 
 
 def make(parameters: dict[str, Any]) -> Model:

@@ -52,8 +52,10 @@ def load() -> bool:
         return False
     path = library_path()
     if path is None:
-        _state["reason"] = ("the extension legsim._native._pinlegsim was not built at install time (no C++ "
-                            "compiler, or no Pinocchio/Eigen headers); reinstall with a compiler to build it")
+        _state["reason"] = (
+            "the extension legsim._native._pinlegsim was not built at install time (no C++ "
+            "compiler, or no Pinocchio/Eigen headers); reinstall with a compiler to build it"
+        )
         return False
     try:
         import llvmlite.binding as llvm
@@ -84,8 +86,11 @@ def warn_unavailable() -> None:
     if _state["warned"] or load():
         return
     _state["warned"] = True
-    warnings.warn(f"legsim: compiled robot twins unavailable ({_state['reason']}); robots run on the Python path",
-                  NativeUnavailable, stacklevel=3)
+    warnings.warn(
+        f"legsim: compiled robot twins unavailable ({_state['reason']}); robots run on the Python path",
+        NativeUnavailable,
+        stacklevel=3,
+    )
 
 
 def create_model(description: np.ndarray) -> int:

@@ -44,7 +44,7 @@ only conditionally on a branch that is not certain.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -364,6 +364,3 @@ def _reason(kind: str, levels: list[Level]) -> str:
         ):
             return "refinement_limit"
     return kind
-
-
-__all__: Sequence[str] = ("REASONS", "Certificate", "CertifiedTransition", "Level", "certify")

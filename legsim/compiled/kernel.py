@@ -83,8 +83,9 @@ RECORDS_FULL = 8
 
 # Positions in fs and iv (I_MODE, I_XLEN: ``transit``).
 F_T, F_HPROP, F_LAND, F_HTRIED, F_END, F_NAN_T, F_TC, F_TAU = range(8)
-I_STEPS, I_HALVINGS, I_REJECTIONS, I_FIELD, I_GUARD, I_SIZE, I_GUARD_INDEX, I_FAILED_HALVINGS, I_RESETS, \
-    I_RECORDS = range(10)
+I_STEPS, I_HALVINGS, I_REJECTIONS, I_FIELD, I_GUARD, I_SIZE, I_GUARD_INDEX, I_FAILED_HALVINGS, I_RESETS, I_RECORDS = (
+    range(10)
+)
 
 
 def _k_combine(x, K, row, n_groups, weights, n_members, members, h, out):
@@ -233,13 +234,57 @@ def _k_views(P, mi, m, s_stages, xw, Kw, XSw, x_neww, k1w, workw, qw, dqw):
     # Mode m's function set, dimension, guard count and parameters, and its first n entries of
     # the wide arrays (K as (stages, n)).
     n = mi[m, MI_DIM]
-    return (mi[m, MI_FID], n, mi[m, MI_NG], P[mi[m, MI_P0]:mi[m, MI_P1]], xw[:n],
-            Kw[:s_stages * n].reshape((s_stages, n)), XSw[:n], x_neww[:n], k1w[:n], workw[:n], qw[:n], dqw[:n])
+    return (
+        mi[m, MI_FID],
+        n,
+        mi[m, MI_NG],
+        P[mi[m, MI_P0] : mi[m, MI_P1]],
+        xw[:n],
+        Kw[: s_stages * n].reshape((s_stages, n)),
+        XSw[:n],
+        x_neww[:n],
+        k1w[:n],
+        workw[:n],
+        qw[:n],
+        dqw[:n],
+    )
 
 
-def _k_step_loop(P, mi, ti, hist, c, n_groups, weights, n_members, members, b_err, fsal,
-                 xw, Kw, XSw, x_neww, k1w, gv, workw, qw, dqw, raw, T, X, DX, fs, iv, cf, ci, cnt,
-                 r_i, r_f, r_q, r_after):
+def _k_step_loop(
+    P,
+    mi,
+    ti,
+    hist,
+    c,
+    n_groups,
+    weights,
+    n_members,
+    members,
+    b_err,
+    fsal,
+    xw,
+    Kw,
+    XSw,
+    x_neww,
+    k1w,
+    gv,
+    workw,
+    qw,
+    dqw,
+    raw,
+    T,
+    X,
+    DX,
+    fs,
+    iv,
+    cf,
+    ci,
+    cnt,
+    r_i,
+    r_f,
+    r_q,
+    r_after,
+):
     """The step loop of relaxed.integrate (see the module docstring for the arrays) from mode
     iv[I_MODE] at (fs[F_T], xw, Kw[:n] = k0), through the transitions ``transit`` takes;
     in/out: iv[I_MODE], xw, Kw, fs[F_T] = t, fs[F_HPROP] = h_prop, iv[I_SIZE] = buffer size.
@@ -253,11 +298,51 @@ def _k_step_loop(P, mi, ti, hist, c, n_groups, weights, n_members, members, b_er
     cnt[N_FIELD] = cnt[N_GUARD] = cnt[N_RESET] = 0
     s_stages = c.shape[0]
     while True:
-        fid, _n, n_guards, p, x, K, XS, x_new, k1, work, q, dq = _k_views(P, mi, iv[I_MODE], s_stages, xw, Kw, XSw,
-                                                                          x_neww, k1w, workw, qw, dqw)
-        code = _k_mode_loop(P, mi, ti, hist, c, n_groups, weights, n_members, members, b_err, fsal, fid, n_guards, p,
-                            x, K, XS, x_new, k1, work, q, dq, xw, Kw, workw, qw, gv, raw, T, X, DX, fs, iv, cf, ci,
-                            cnt, r_i, r_f, r_q, r_after)
+        fid, _n, n_guards, p, x, K, XS, x_new, k1, work, q, dq = _k_views(
+            P, mi, iv[I_MODE], s_stages, xw, Kw, XSw, x_neww, k1w, workw, qw, dqw
+        )
+        code = _k_mode_loop(
+            P,
+            mi,
+            ti,
+            hist,
+            c,
+            n_groups,
+            weights,
+            n_members,
+            members,
+            b_err,
+            fsal,
+            fid,
+            n_guards,
+            p,
+            x,
+            K,
+            XS,
+            x_new,
+            k1,
+            work,
+            q,
+            dq,
+            xw,
+            Kw,
+            workw,
+            qw,
+            gv,
+            raw,
+            T,
+            X,
+            DX,
+            fs,
+            iv,
+            cf,
+            ci,
+            cnt,
+            r_i,
+            r_f,
+            r_q,
+            r_after,
+        )
         if code != CONTINUE:
             break
     iv[I_FIELD] += cnt[N_FIELD]
@@ -266,9 +351,48 @@ def _k_step_loop(P, mi, ti, hist, c, n_groups, weights, n_members, members, b_er
     return code
 
 
-def _k_mode_loop(P, mi, ti, hist, c, n_groups, weights, n_members, members, b_err, fsal, fid, n_guards, p,
-                 x, K, XS, x_new, k1, work, q, dq, xw, Kw, workw, qw, gv, raw, T, X, DX, fs, iv, cf, ci,
-                 cnt, r_i, r_f, r_q, r_after):
+def _k_mode_loop(
+    P,
+    mi,
+    ti,
+    hist,
+    c,
+    n_groups,
+    weights,
+    n_members,
+    members,
+    b_err,
+    fsal,
+    fid,
+    n_guards,
+    p,
+    x,
+    K,
+    XS,
+    x_new,
+    k1,
+    work,
+    q,
+    dq,
+    xw,
+    Kw,
+    workw,
+    qw,
+    gv,
+    raw,
+    T,
+    X,
+    DX,
+    fs,
+    iv,
+    cf,
+    ci,
+    cnt,
+    r_i,
+    r_f,
+    r_q,
+    r_after,
+):
     """The steps of one visit of mode iv[I_MODE] (x, K, ...: its views), until it ends or
     ``transit`` enters a mode (CONTINUE: the caller goes on there). The work of every step
     (stages, guards, error test, storing the point) is written out here rather than in helpers:
@@ -360,8 +484,9 @@ def _k_mode_loop(P, mi, ti, hist, c, n_groups, weights, n_members, members, b_er
                             hk = rejected_step(hk, error, err_exp)
                             last = False
                             continue
-                        h_prop = kept_proposal(h_prop, proposed_step(hk, error, err_exp, rejected), shortened > 0,
-                                               rejected)
+                        h_prop = kept_proposal(
+                            h_prop, proposed_step(hk, error, err_exp, rejected), shortened > 0, rejected
+                        )
                     break
                 if gmin != gmin:
                     iv[I_GUARD_INDEX] = _k_first_nan(gv, n_guards)
@@ -412,16 +537,46 @@ def _k_mode_loop(P, mi, ti, hist, c, n_groups, weights, n_members, members, b_er
             size += 1
             continue
         # -- the step landed in one or more strips (relaxed.strip.cross_landing) ------------------
-        e, tc, tau, size, fe, ge = _k_landed(fid, p, n_guards, x, K, x_new, k1, gv, work, q, dq, T, X, DX, fsal, t,
-                                             t_new, eps, size)
+        e, tc, tau, size, fe, ge = _k_landed(
+            fid, p, n_guards, x, K, x_new, k1, gv, work, q, dq, T, X, DX, fsal, t, t_new, eps, size
+        )
         field_evals += fe
         guard_evals += ge
         fs[F_LAND], fs[F_TC], fs[F_TAU], iv[I_GUARD_INDEX] = t_new, tc, tau, e
         code = TRANSITION
         if not single_crossing(ti, mi[m, MI_SLOT], gv, n_guards, joint):
             break
-        code, m, t, size, n_rec, h_prop = transit(P, mi, ti, hist, xw, Kw, workw, qw, raw, T, X, DX, iv, cf, ci, cnt,
-                                                  r_i, r_f, r_q, r_after, m, e, tc, t_new, tau, t, size, n_rec, h_prop)
+        code, m, t, size, n_rec, h_prop = transit(
+            P,
+            mi,
+            ti,
+            hist,
+            xw,
+            Kw,
+            workw,
+            qw,
+            raw,
+            T,
+            X,
+            DX,
+            iv,
+            cf,
+            ci,
+            cnt,
+            r_i,
+            r_f,
+            r_q,
+            r_after,
+            m,
+            e,
+            tc,
+            t_new,
+            tau,
+            t,
+            size,
+            n_rec,
+            h_prop,
+        )
         break  # CONTINUE: the caller goes on in mode m
     fs[F_T], fs[F_HPROP] = t, h_prop
     iv[I_STEPS], iv[I_HALVINGS], iv[I_REJECTIONS] = steps, halvings, rejections
@@ -438,15 +593,51 @@ def _k_first_nan(values, n):
 
 
 #: The kernel's functions, in the order the generated module defines them.
-KERNEL_FUNCTIONS = (_k_combine, _k_stages, _k_hermite, _k_hermite_slope, _k_first_nan, _k_crossing, _k_aim,
-                    _k_locate, _k_store_crossing, _k_landed, _k_views, _k_mode_loop, _k_step_loop,
-                    *TRANSIT_FUNCTIONS)
+KERNEL_FUNCTIONS = (
+    _k_combine,
+    _k_stages,
+    _k_hermite,
+    _k_hermite_slope,
+    _k_first_nan,
+    _k_crossing,
+    _k_aim,
+    _k_locate,
+    _k_store_crossing,
+    _k_landed,
+    _k_views,
+    _k_mode_loop,
+    _k_step_loop,
+    *TRANSIT_FUNCTIONS,
+)
 #: The functions every step runs (inlined into the loop by the generator).
-EVERY_STEP = (_k_stages, _k_combine, trial_length, finish_tolerance, rejected_step, proposed_step, kept_proposal,
-              error_scale, scaled_norm)
+EVERY_STEP = (
+    _k_stages,
+    _k_combine,
+    trial_length,
+    finish_tolerance,
+    rejected_step,
+    proposed_step,
+    kept_proposal,
+    error_scale,
+    scaled_norm,
+)
 #: The rules the kernel calls, compiled from their own source.
-RULES = (trial_length, finish_tolerance, rejected_step, proposed_step, kept_proposal, shortening_exhausted,
-         aimed_step, crossing_start, crossing_point, crossing_update, hermite_weights, hermite_slope_weights,
-         error_scale, scaled_norm, *TRANSIT_RULES)
+RULES = (
+    trial_length,
+    finish_tolerance,
+    rejected_step,
+    proposed_step,
+    kept_proposal,
+    shortening_exhausted,
+    aimed_step,
+    crossing_start,
+    crossing_point,
+    crossing_update,
+    hermite_weights,
+    hermite_slope_weights,
+    error_scale,
+    scaled_norm,
+    *TRANSIT_RULES,
+)
 #: The placeholder call of _k_stages in _k_mode_loop that the generator unrolls per method.
 STAGES_CALL = "_k_stages(fid, t, x, hk, K, XS, x_new, p, c, n_groups, weights, n_members, members, fsal)  # STAGES"

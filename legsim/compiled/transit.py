@@ -145,7 +145,7 @@ def _k_admits(P, mi, cont, image, eps):
     nc = mi[cont, MI_NG]
     if nc == 0:
         return True, 0, False
-    g = _twin_guards(mi[cont, MI_FID], image, P[mi[cont, MI_P0]:mi[cont, MI_P1]])
+    g = _twin_guards(mi[cont, MI_FID], image, P[mi[cont, MI_P0] : mi[cont, MI_P1]])
     gmin = g[0]
     for j in range(nc):
         if g[j] != g[j]:
@@ -161,11 +161,10 @@ def _k_decide(P, mi, ti, hist, q, raw, cf, ci, m, e, tc):
     else its reset. The image goes to raw. Returns (target, continued, image length, reset
     evaluations, guard evaluations), target NO_MODE when Python must decide."""
     fid = mi[m, MI_FID]
-    p = P[mi[m, MI_P0]:mi[m, MI_P1]]
+    p = P[mi[m, MI_P0] : mi[m, MI_P1]]
     k = mi[m, MI_SLOT] + e
     row = ti[k, TI_HIST]
-    accumulates = hist[row, H_HAS] != 0.0 and accumulating(hist[row, H_FLIGHT], tc - hist[row, H_LAST],
-                                                           cf[CF_WINDOW])
+    accumulates = hist[row, H_HAS] != 0.0 and accumulating(hist[row, H_FLIGHT], tc - hist[row, H_LAST], cf[CF_WINDOW])
     cont = ti[k, TI_CONT]
     resets = 0
     guards = 0
@@ -245,7 +244,7 @@ def _k_entry(P, mi, m, t, xw, Kw, cf):
     the entry's special cases need Python."""
     n = mi[m, MI_DIM]
     fid = mi[m, MI_FID]
-    p = P[mi[m, MI_P0]:mi[m, MI_P1]]
+    p = P[mi[m, MI_P0] : mi[m, MI_P1]]
     x = xw[:n]
     k0 = _twin_field(fid, t, x, p)
     if not _k_finite(k0):
@@ -265,8 +264,37 @@ def _k_entry(P, mi, m, t, xw, Kw, cf):
     return CONTINUE, e, -g[e]
 
 
-def transit(P, mi, ti, hist, xw, Kw, workw, qw, raw, T, X, DX, iv, cf, ci, cnt, r_i, r_f, r_q, r_after,
-            m, e, tc, t_land, tau, t, size, n_rec, h_prop):
+def transit(
+    P,
+    mi,
+    ti,
+    hist,
+    xw,
+    Kw,
+    workw,
+    qw,
+    raw,
+    T,
+    X,
+    DX,
+    iv,
+    cf,
+    ci,
+    cnt,
+    r_i,
+    r_f,
+    r_q,
+    r_after,
+    m,
+    e,
+    tc,
+    t_land,
+    tau,
+    t,
+    size,
+    n_rec,
+    h_prop,
+):
     """relaxed.strip.cross of transition e of mode m, located at (tc, q = qw[:n]) by a step
     from t that landed at t_land at depth tau; then relaxed.entry.enter_mode of its target, and
     of every target whose strip an entered state lies in (crossed at once, q = the state), until
@@ -290,8 +318,25 @@ def transit(P, mi, ti, hist, xw, Kw, workw, qw, raw, T, X, DX, iv, cf, ci, cnt, 
             size = _k_store(T, X, DX, size, tc, xw[:n], Kw[:n])
             cnt[N_FIELD] += 1
             cnt[N_GUARD] += mi[m, MI_NG]
-        _k_record(r_i, r_f, r_q, r_after, n_rec, m, e, target, continued, size, tc, t_land, exit_time, tau, qw[:n],
-                  raw, length)
+        _k_record(
+            r_i,
+            r_f,
+            r_q,
+            r_after,
+            n_rec,
+            m,
+            e,
+            target,
+            continued,
+            size,
+            tc,
+            t_land,
+            exit_time,
+            tau,
+            qw[:n],
+            raw,
+            length,
+        )
         _k_remember(hist, ti[mi[m, MI_SLOT] + e, TI_HIST], continued, tc, exit_time)
         cnt[N_GUARD] += guards
         cnt[N_RESET] += resets
@@ -319,15 +364,36 @@ def transit(P, mi, ti, hist, xw, Kw, workw, qw, raw, T, X, DX, iv, cf, ci, cnt, 
         cnt[N_FIELD] += 1
         cnt[N_GUARD] += mi[m, MI_NG]
         if ci[CI_ADAPTIVE] != 0 and source != m:  # a new flow: the standard starting step
-            p = P[mi[m, MI_P0]:mi[m, MI_P1]]
+            p = P[mi[m, MI_P0] : mi[m, MI_P1]]
             h_prop = restarted_step(h_prop, _k_starting_step(mi[m, MI_FID], p, t, xw[:n], Kw[:n], workw, cf, h_prop))
             cnt[N_FIELD] += 1
         return CONTINUE, m, t, size, n_rec, h_prop
 
 
 #: The functions of this module the generated kernel holds.
-TRANSIT_FUNCTIONS = (_k_finite, _k_argmin, _k_store, single_crossing, _k_copy, _k_admits, _k_decide, _k_record,
-                     _k_remember, _k_starting_step, _k_entry, transit)
+TRANSIT_FUNCTIONS = (
+    _k_finite,
+    _k_argmin,
+    _k_store,
+    single_crossing,
+    _k_copy,
+    _k_admits,
+    _k_decide,
+    _k_record,
+    _k_remember,
+    _k_starting_step,
+    _k_entry,
+    transit,
+)
 #: The rules they call, compiled from their own source.
-TRANSIT_RULES = (accumulating, entered_in_strip, flight_since, past_strip, restarted_step, scaled_rms, starting_guess,
-                 starting_step, strip_exit_time)
+TRANSIT_RULES = (
+    accumulating,
+    entered_in_strip,
+    flight_since,
+    past_strip,
+    restarted_step,
+    scaled_rms,
+    starting_guess,
+    starting_step,
+    strip_exit_time,
+)

@@ -82,29 +82,40 @@ def check_twin(system_name: str, data: ModeData, t: float, x: np.ndarray, k0: np
     resets) it computes. Raises ModelError naming what disagrees."""
     twin = data.mode.compiled
     if not isinstance(twin, CompiledMode):
-        raise ModelError(f"{system_name}: mode '{data.name}'.compiled must be a legsim.compiled.CompiledMode, "
-                         f"got {type(twin).__name__}")
+        raise ModelError(
+            f"{system_name}: mode '{data.name}'.compiled must be a legsim.compiled.CompiledMode, "
+            f"got {type(twin).__name__}"
+        )
     if twin.n_guards != len(data.guards):
-        raise ModelError(f"{system_name}: compiled twin of mode '{data.name}' declares {twin.n_guards} guards, the "
-                         f"mode has {len(data.guards)} outgoing transitions")
+        raise ModelError(
+            f"{system_name}: compiled twin of mode '{data.name}' declares {twin.n_guards} guards, the "
+            f"mode has {len(data.guards)} outgoing transitions"
+        )
     f, g, images = _evaluate(system_name, data, twin, t, x)
     if f.shape != (data.mode.dim,) or g.shape != (twin.n_guards,):
-        raise ModelError(f"{system_name}: compiled twin of mode '{data.name}' returned field shape {f.shape} and "
-                         f"guards shape {g.shape}, expected ({data.mode.dim},) and ({twin.n_guards},)")
+        raise ModelError(
+            f"{system_name}: compiled twin of mode '{data.name}' returned field shape {f.shape} and "
+            f"guards shape {g.shape}, expected ({data.mode.dim},) and ({twin.n_guards},)"
+        )
     g_py = np.array([float(guard(x)) for guard in data.guards])
     if not (np.all(np.abs(f - k0) <= 1e-9 * (1.0 + np.abs(k0))) and np.allclose(g, g_py, rtol=1e-9, atol=1e-12)):
-        raise ModelError(f"{system_name}: compiled twin of mode '{data.name}' disagrees with the Python callables at "
-                         f"t={t}, x={x.tolist()}: field {f.tolist()} vs {k0.tolist()}, guards {g.tolist()} vs "
-                         f"{g_py.tolist()}")
+        raise ModelError(
+            f"{system_name}: compiled twin of mode '{data.name}' disagrees with the Python callables at "
+            f"t={t}, x={x.tolist()}: field {f.tolist()} vs {k0.tolist()}, guards {g.tolist()} vs "
+            f"{g_py.tolist()}"
+        )
     for name, reset, image in images:
         expected = np.asarray(reset(x.copy()), dtype=float)
         if image.shape != expected.shape or not np.allclose(image, expected, rtol=1e-9, atol=1e-12, equal_nan=True):
-            raise ModelError(f"{system_name}: compiled reset of {name} of mode '{data.name}' disagrees with its Python "
-                             f"reset at x={x.tolist()}: {image.tolist()} vs {expected.tolist()}")
+            raise ModelError(
+                f"{system_name}: compiled reset of {name} of mode '{data.name}' disagrees with its Python "
+                f"reset at x={x.tolist()}: {image.tolist()} vs {expected.tolist()}"
+            )
 
 
-def _evaluate(system_name: str, data: ModeData, twin: CompiledMode, t: float,
-              x: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[tuple[str, Any, np.ndarray]]]:
+def _evaluate(
+    system_name: str, data: ModeData, twin: CompiledMode, t: float, x: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, list[tuple[str, Any, np.ndarray]]]:
     """The twin's field and guards at (t, x), and (name, Python reset, twin image) of every reset
     it computes."""
     xc = np.ascontiguousarray(x, dtype=float)
@@ -123,8 +134,9 @@ def _evaluate(system_name: str, data: ModeData, twin: CompiledMode, t: float,
                     image = np.asarray(twin.resets(xc, twin.params, ng + e), dtype=float)
                     images.append((f"continuation {cont.name}", python, image))
     except Exception as exc:
-        raise ModelError(f"{system_name}: compiled twin of mode '{data.name}' failed at t={t}: "
-                         f"{type(exc).__name__}: {exc}") from exc
+        raise ModelError(
+            f"{system_name}: compiled twin of mode '{data.name}' failed at t={t}: {type(exc).__name__}: {exc}"
+        ) from exc
     return f, g, images
 
 

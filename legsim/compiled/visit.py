@@ -74,17 +74,32 @@ class Table:
             functions = (twin.field, twin.guards, no_resets if twin.resets is None else twin.resets)
             if functions not in sets:
                 sets.append(functions)
-            mi.append((sets.index(functions), data.mode.dim, twin.n_guards, offset, offset + twin.params.size, len(ti),
-                       twin.resets is not None))
+            mi.append(
+                (
+                    sets.index(functions),
+                    data.mode.dim,
+                    twin.n_guards,
+                    offset,
+                    offset + twin.params.size,
+                    len(ti),
+                    twin.resets is not None,
+                )
+            )
             params.append(twin.params)
             self.twins.append((twin, offset))
             offset += twin.params.size
             for e, (tr, target) in enumerate(zip(data.transitions, data.targets, strict=True)):
                 cont = tr.continuation
-                ti.append((number(target), kt.NO_MODE if cont is None else number(cont.target),
-                           cont is not None and twin.continued,
-                           kt.UNKNOWN_GROUP if twin.joint_groups is None else twin.joint_groups[e], target == name,
-                           len(self.keys)))
+                ti.append(
+                    (
+                        number(target),
+                        kt.NO_MODE if cont is None else number(cont.target),
+                        cont is not None and twin.continued,
+                        kt.UNKNOWN_GROUP if twin.joint_groups is None else twin.joint_groups[e],
+                        target == name,
+                        len(self.keys),
+                    )
+                )
                 self.keys.append((name, tr.name))
         self.sets = tuple(sets)
         self.P = np.concatenate(params) if params else np.zeros(0)
@@ -98,7 +113,7 @@ class Table:
         """The twins' parameters into P, and the Zeno histories of the table's transitions from
         the run's ZenoWatch."""
         for twin, offset in self.twins:
-            self.P[offset:offset + twin.params.size] = twin.params
+            self.P[offset : offset + twin.params.size] = twin.params
         for row, (mode, name) in enumerate(self.keys):
             history = run.zeno.history(mode, name)
             self.hist[row] = (0.0, 0.0, 0.0) if history is None else (1.0, history[0], history[1])
@@ -107,7 +122,7 @@ class Table:
         """P back into the twins' parameters: a twin may count its evaluations there (a robot's
         model counters, ``robots.bridge.twins.add_counts``)."""
         for twin, offset in self.twins:
-            twin.params[:] = self.P[offset:offset + twin.params.size]
+            twin.params[:] = self.P[offset : offset + twin.params.size]
 
 
 class Workspace:
@@ -156,10 +171,41 @@ def run_visit_compiled(run: Run, visit: ModeVisit) -> Outcome:
         ws.iv[k.I_SIZE] = visit.buf.size
         table.load(run)
         buf = visit.buf
-        code = kernel(table.P, table.mi, table.ti, table.hist, plan.c, plan.n_groups, plan.weights, plan.n_members,
-                      plan.members, plan.b_err, plan.fsal, ws.x, ws.K, ws.XS, ws.x_new, ws.k1, ws.gv, ws.work, ws.q,
-                      ws.dq, ws.raw, buf.t, buf.x, buf.dx, ws.fs, ws.iv, ws.cf, ws.ci, ws.cnt, ws.r_i, ws.r_f, ws.r_q,
-                      ws.r_after)
+        code = kernel(
+            table.P,
+            table.mi,
+            table.ti,
+            table.hist,
+            plan.c,
+            plan.n_groups,
+            plan.weights,
+            plan.n_members,
+            plan.members,
+            plan.b_err,
+            plan.fsal,
+            ws.x,
+            ws.K,
+            ws.XS,
+            ws.x_new,
+            ws.k1,
+            ws.gv,
+            ws.work,
+            ws.q,
+            ws.dq,
+            ws.raw,
+            buf.t,
+            buf.x,
+            buf.dx,
+            ws.fs,
+            ws.iv,
+            ws.cf,
+            ws.ci,
+            ws.cnt,
+            ws.r_i,
+            ws.r_f,
+            ws.r_q,
+            ws.r_after,
+        )
         table.store()
         buf.size = int(ws.iv[k.I_SIZE])
         _count(run, ws)
@@ -171,7 +217,7 @@ def run_visit_compiled(run: Run, visit: ModeVisit) -> Outcome:
         elif code == k.CHUNK:
             run.tick(visit.t)
             if run.steps >= run.max_steps:
-                visit.x = ws.x[:visit.data.mode.dim].copy()
+                visit.x = ws.x[: visit.data.mode.dim].copy()
                 visit.buf = _with_width(visit.buf, visit.data.mode.dim)
                 return run.end_visit(visit, out_of_steps(run, visit))
         elif code == k.RECORDS_FULL:
@@ -182,8 +228,8 @@ def run_visit_compiled(run: Run, visit: ModeVisit) -> Outcome:
         # The kernel reached a mode whose entry Python takes (outside the table, or a state
         # for the entry's special cases): the segments before it are committed with their
         # transitions, nothing of the next one is stored yet.
-        return Entered(table.names[int(ws.iv[kt.I_MODE])], ws.x[:int(ws.iv[kt.I_XLEN])].copy(), visit.t)
-    visit.x = ws.x[:visit.data.mode.dim].copy()
+        return Entered(table.names[int(ws.iv[kt.I_MODE])], ws.x[: int(ws.iv[kt.I_XLEN])].copy(), visit.t)
+    visit.x = ws.x[: visit.data.mode.dim].copy()
     visit.buf = _with_width(visit.buf, visit.data.mode.dim)
     if code == k.GUARD_NAN and visit.data.mode.compiled.fallback:
         return _python_rest(run, visit, ws)
@@ -196,7 +242,7 @@ def _python_rest(run: Run, visit: ModeVisit, ws: Workspace) -> Outcome:
     raise the ModelBreakdown the loop shortens the step for (or ends the run with)."""
     from ..relaxed.integrate import run_visit
 
-    visit.k0 = ws.K[:visit.data.mode.dim].copy()
+    visit.k0 = ws.K[: visit.data.mode.dim].copy()
     return run_visit(run, visit, python=True)
 
 
@@ -231,10 +277,25 @@ def _workspace(run: Run, table: Table) -> Workspace:
 
 def _settings(run: Run, ws: Workspace, plan) -> None:
     step_size = run.step_size
-    ws.cf[:] = (run.t_final, step_size.h_max, run.eps, getattr(step_size, "rtol", 0.0),
-                getattr(step_size, "atol", 0.0), getattr(step_size, "exponent", 0.0), run.zeno.window)
-    ws.ci[:] = (step_size.adaptive, run.landing.name == "aim", run.max_halvings, 0, 0, plan.method_id,
-                run.zeno.continues, run.system.joint is not None)
+    ws.cf[:] = (
+        run.t_final,
+        step_size.h_max,
+        run.eps,
+        getattr(step_size, "rtol", 0.0),
+        getattr(step_size, "atol", 0.0),
+        getattr(step_size, "exponent", 0.0),
+        run.zeno.window,
+    )
+    ws.ci[:] = (
+        step_size.adaptive,
+        run.landing.name == "aim",
+        run.max_halvings,
+        0,
+        0,
+        plan.method_id,
+        run.zeno.continues,
+        run.system.joint is not None,
+    )
 
 
 def _count(run: Run, ws: Workspace) -> None:
@@ -256,20 +317,23 @@ def _outcome(run: Run, visit: ModeVisit, ws: Workspace, code: int) -> Outcome:
     if code == k.TRANSITION:
         e = int(iv[k.I_GUARD_INDEX])
         crossed = [e] + [f for f in range(len(transitions)) if ws.gv[f] < 0.0 and f != e]
-        return cross(run, visit, e, float(fs[k.F_TC]), ws.q[:n].copy(), float(fs[k.F_LAND]), float(fs[k.F_TAU]),
-                     crossed)
+        return cross(
+            run, visit, e, float(fs[k.F_TC]), ws.q[:n].copy(), float(fs[k.F_LAND]), float(fs[k.F_TAU]), crossed
+        )
     if code == k.FINISHED:
         return run.end_visit(visit, Ended(Status.FINISHED, "", float(fs[k.F_END])))
     if code == k.GUARD_NAN:
-        message = messages.nan_guard(name, float(fs[k.F_NAN_T]), ws.x_new[:n],
-                                     transitions[int(iv[k.I_GUARD_INDEX])].name)
+        message = messages.nan_guard(
+            name, float(fs[k.F_NAN_T]), ws.x_new[:n], transitions[int(iv[k.I_GUARD_INDEX])].name
+        )
         return run.end_visit(visit, Ended(Status.NON_FINITE, message, t))
     if code == k.NONFINITE_STEP:
         message = messages.non_finite_step(name, t, visit.x, float(fs[k.F_HTRIED]))
         return run.end_visit(visit, Ended(Status.NON_FINITE, message, t))
     if code == k.EXHAUSTED:
-        message = messages.halving_exhausted(name, t, visit.x, int(iv[k.I_FAILED_HALVINGS]),
-                                             transitions[int(iv[k.I_GUARD_INDEX])].name, run.eps)
+        message = messages.halving_exhausted(
+            name, t, visit.x, int(iv[k.I_FAILED_HALVINGS]), transitions[int(iv[k.I_GUARD_INDEX])].name, run.eps
+        )
         return run.end_visit(visit, Ended(Status.HALVING_EXHAUSTED, message, t))
     raise RuntimeError(f"compiled kernel returned unknown code {code}")  # pragma: no cover
 
@@ -305,8 +369,15 @@ def _commit_records(run: Run, visit: ModeVisit, table: Table, ws: Workspace, n_r
     gc_was_enabled = gc.isenabled()
     gc.disable()
     try:
-        _build_pieces(run, table, buf, ws.r_i[:n_rec].tolist(), ws.r_f[:n_rec].tolist(), ws.r_q[:n_rec].copy(),
-                      ws.r_after[:n_rec].copy())
+        _build_pieces(
+            run,
+            table,
+            buf,
+            ws.r_i[:n_rec].tolist(),
+            ws.r_f[:n_rec].tolist(),
+            ws.r_q[:n_rec].copy(),
+            ws.r_after[:n_rec].copy(),
+        )
     finally:
         if gc_was_enabled:
             gc.enable()
@@ -324,8 +395,9 @@ def _commit_records(run: Run, visit: ModeVisit, table: Table, ws: Workspace, n_r
     return visit
 
 
-def _build_pieces(run: Run, table: Table, buf: SegmentBuffer, r_i: list, r_f: list, qs: np.ndarray,
-                  afters: np.ndarray) -> None:
+def _build_pieces(
+    run: Run, table: Table, buf: SegmentBuffer, r_i: list, r_f: list, qs: np.ndarray, afters: np.ndarray
+) -> None:
     system, names = run.system, table.names
     T, X, DX = buf.t, buf.x, buf.dx
     q_rows, after_rows = list(qs), list(afters)  # row views, made in one go
@@ -352,6 +424,14 @@ def _build_pieces(run: Run, table: Table, buf: SegmentBuffer, r_i: list, r_f: li
         if continued:
             run.zeno.crossed(run, mode, tr.name, tc, exit_time, True, True)
         else:
-            run.zeno.crossed(run, mode, tr.name, tc, exit_time, run.zeno.crossing(mode, tr.name, tc), False,
-                             tr.continuation is not None)
+            run.zeno.crossed(
+                run,
+                mode,
+                tr.name,
+                tc,
+                exit_time,
+                run.zeno.crossing(mode, tr.name, tc),
+                False,
+                tr.continuation is not None,
+            )
         start = end

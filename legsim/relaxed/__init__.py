@@ -19,14 +19,14 @@ from .step_size import ErrorControl, FixedStep
 from .strip import crossing_on_step, hermite, hermite_slope
 
 __all__ = [
-           "LANDINGS",
-           "Aim",
-           "Dense",
-           "ErrorControl",
-           "FixedStep",
-           "Halve",
-           "crossing_on_step",
-           "hermite",
-           "hermite_slope",
-           "simulate",
+    "LANDINGS",
+    "Aim",
+    "Dense",
+    "ErrorControl",
+    "FixedStep",
+    "Halve",
+    "crossing_on_step",
+    "hermite",
+    "hermite_slope",
+    "simulate",
 ]

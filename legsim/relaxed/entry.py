@@ -68,8 +68,10 @@ def _cross_at_once(run: Run, visit: ModeVisit, gvals: list[float]) -> Outcome:
     e = min(range(len(gvals)), key=gvals.__getitem__)
     t, x = visit.t, visit.x
     if past_strip(gvals[e], run.eps):
-        message = (f"state entering mode '{visit.name}' at t={t:.17g} lies past the guard of transition "
-                   f"{visit.data.transitions[e].name} by {-gvals[e]:.3g} > eps={run.eps:g}: x={x.tolist()}")
+        message = (
+            f"state entering mode '{visit.name}' at t={t:.17g} lies past the guard of transition "
+            f"{visit.data.transitions[e].name} by {-gvals[e]:.3g} > eps={run.eps:g}: x={x.tolist()}"
+        )
         return run.end_visit(visit, Ended(Status.RESET_OUTSIDE_DOMAIN, message, t))
     return cross(run, visit, e, t, x, t, -gvals[e])
 
@@ -104,9 +106,20 @@ def short_first_step(run: Run, visit: ModeVisit) -> Outcome | None:
     if not (all(map(math.isfinite, g1)) and -run.eps <= min(g1) < 0.0 and all(map(math.isfinite, x1.tolist()))):
         return None
     run.steps += 1
-    return cross_landing(run, visit, Landing(t, x, k0, t + tau, x1, g1,
-                                             lambda s: x + tau * (s * k0 + (0.5 * s * s) * (k1 - k0)),
-                                             lambda s: k0 + s * (k1 - k0)))
+    return cross_landing(
+        run,
+        visit,
+        Landing(
+            t,
+            x,
+            k0,
+            t + tau,
+            x1,
+            g1,
+            lambda s: x + tau * (s * k0 + (0.5 * s * s) * (k1 - k0)),
+            lambda s: k0 + s * (k1 - k0),
+        ),
+    )
 
 
 def _time_to_simultaneous_strip(run: Run, visit: ModeVisit) -> float | None:
@@ -137,4 +150,3 @@ def _time_to_simultaneous_strip(run: Run, visit: ModeVisit) -> float | None:
         if reach <= SIMULTANEOUS * h_next and (tau is None or reach < tau):
             tau = reach
     return tau
-

@@ -56,9 +56,13 @@ def integrate(run: Run, mode: str, x: np.ndarray, t: float) -> Execution:
 def run_visit(run: Run, visit: ModeVisit, *, python: bool = False) -> Outcome:
     """Step through one mode visit until a transition or the end of the run (with ``python``,
     in this loop even when the mode has a compiled twin)."""
-    if not python and visit.data.mode.compiled is not None and run.control is None \
-            and not run.landing.lands_on_extension \
-            and all(tr.guard_args == "x" for tr in visit.data.transitions):
+    if (
+        not python
+        and visit.data.mode.compiled is not None
+        and run.control is None
+        and not run.landing.lands_on_extension
+        and all(tr.guard_args == "x" for tr in visit.data.transitions)
+    ):
         from ..compiled import run_visit_compiled  # numba is imported only by systems that use it
 
         return run_visit_compiled(run, visit)
@@ -80,17 +84,21 @@ def run_visit(run: Run, visit: ModeVisit, *, python: bool = False) -> Outcome:
                 return run.end_visit(visit, step)
             return cross_landing(run, visit, step)
     except ModelBreakdown as exc:
-        return run.end_visit(visit, Ended(Status.MODEL_BREAKDOWN, messages.model_breakdown(exc, visit.name, visit.t),
-                                          visit.t))
+        return run.end_visit(
+            visit, Ended(Status.MODEL_BREAKDOWN, messages.model_breakdown(exc, visit.name, visit.t), visit.t)
+        )
     except ContractError as exc:
-        raise ModelError(f"{run.system.name}: {exc} in the step from t={visit.t:.17g} in mode '{visit.name}' "
-                         f"(x={visit.x.tolist()})") from exc
+        raise ModelError(
+            f"{run.system.name}: {exc} in the step from t={visit.t:.17g} in mode '{visit.name}' (x={visit.x.tolist()})"
+        ) from exc
     except LegsimError:
         raise
     except Exception as exc:
         # A model's callable failed mid-run: name where, rather than leak a numpy traceback.
-        raise ModelError(f"{run.system.name}: evaluating mode '{visit.name}' failed in the step from "
-                         f"t={visit.t:.17g} (x={visit.x.tolist()}): {type(exc).__name__}: {exc}") from exc
+        raise ModelError(
+            f"{run.system.name}: evaluating mode '{visit.name}' failed in the step from "
+            f"t={visit.t:.17g} (x={visit.x.tolist()}): {type(exc).__name__}: {exc}"
+        ) from exc
 
 
 def take_step(run: Run, visit: ModeVisit, remaining: float) -> Trial | Landing | Ended:
@@ -109,8 +117,11 @@ def take_step(run: Run, visit: ModeVisit, remaining: float) -> Trial | Landing |
             if trial.gmin != trial.gmin:
                 bad = messages.first_nonfinite(visit.guard_values(trial.t1, trial.x1))
                 assert bad is not None, "gmin is nan: one of the guards is"
-                return Ended(Status.NON_FINITE, messages.nan_guard(visit.name, visit.t + hk, trial.x1,
-                                                                   visit.data.transitions[bad].name), visit.t)
+                return Ended(
+                    Status.NON_FINITE,
+                    messages.nan_guard(visit.name, visit.t + hk, trial.x1, visit.data.transitions[bad].name),
+                    visit.t,
+                )
             inside = trial.gmin >= -run.eps
             if inside or (landing.lands_on_extension and aims == 0):
                 passed, hk_next = step_size.judge(hk, trial.stages, visit.x, trial.x1, rejected)
@@ -188,8 +199,12 @@ def _exhausted(run: Run, visit: ModeVisit, trial: Trial, shortened: int) -> Ende
 
 def out_of_steps(run: Run, visit: ModeVisit) -> Ended:
     """The end of a run that used up its step budget."""
-    return Ended(Status.MAX_STEPS, f"step budget max_steps={run.max_steps} used up at t={visit.t:.17g} in mode "
-                                   f"'{visit.name}' (x={visit.x.tolist()})", visit.t)
+    return Ended(
+        Status.MAX_STEPS,
+        f"step budget max_steps={run.max_steps} used up at t={visit.t:.17g} in mode "
+        f"'{visit.name}' (x={visit.x.tolist()})",
+        visit.t,
+    )
 
 
 def _landing(run: Run, visit: ModeVisit, trial: Trial) -> Landing:

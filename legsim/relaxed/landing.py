@@ -57,8 +57,9 @@ class Aim(Halve):
         half = 0.5 * run.eps
         g0 = float(guard(t, x)) + half
         run.guard_evals += 1
-        s, evals, converged = crossing_on_step(lambda s: guard(t + s * hk, hermite(x, k0, x1, k1, hk, s)) + half,
-                                               g0, gvals[e] + half, 1e-3 * half)
+        s, evals, converged = crossing_on_step(
+            lambda s: guard(t + s * hk, hermite(x, k0, x1, k1, hk, s)) + half, g0, gvals[e] + half, 1e-3 * half
+        )
         run.guard_evals += evals
         return aimed_step(hk, s, converged)
 
@@ -71,9 +72,11 @@ class Dense(Aim):
 
     def __init__(self, tableau: Tableau) -> None:
         if tableau.dense is None:
-            raise SimulationError(f"landing 'dense' needs a method with a continuous extension (bs32, dopri5, "
-                                  f"dop853, or a Tableau with dense output); method '{tableau.name}' has none: "
-                                  f"use landing 'aim'")
+            raise SimulationError(
+                f"landing 'dense' needs a method with a continuous extension (bs32, dopri5, "
+                f"dop853, or a Tableau with dense output); method '{tableau.name}' has none: "
+                f"use landing 'aim'"
+            )
 
     def land(self, run: Run, visit: ModeVisit, trial: Trial) -> Landing | float:
         """The landing on the step's dense output, or, when no point of it lies in the relaxed
@@ -99,16 +102,30 @@ class Dense(Aim):
             run.guard_evals += len(g_land)
             # In the relaxed domain, every guard finite (min() skips a nan that is not first),
             # and the crossed guard itself in its strip (its depth is the landing's tau).
-            if (all(g - g == 0.0 for g in g_land) and -eps <= min(g_land) and g_land[e] < 0.0
-                    and all(v - v == 0.0 for v in x_land.tolist())):
-                return Landing(t, visit.x, visit.k0, t_land, x_land, g_land, lambda s: curve.point(s * theta),
-                               lambda s: curve.slope(s * theta), (e, s_q / theta if theta > 0.0 else 0.0, converged))
+            if (
+                all(g - g == 0.0 for g in g_land)
+                and -eps <= min(g_land)
+                and g_land[e] < 0.0
+                and all(v - v == 0.0 for v in x_land.tolist())
+            ):
+                return Landing(
+                    t,
+                    visit.x,
+                    visit.k0,
+                    t_land,
+                    x_land,
+                    g_land,
+                    lambda s: curve.point(s * theta),
+                    lambda s: curve.slope(s * theta),
+                    (e, s_q / theta if theta > 0.0 else 0.0, converged),
+                )
         # Not in the relaxed domain there: a real step of that length decides.
         return min(max(theta, s_q), 1.0) if s_q > 0.0 else 0.5
 
     @staticmethod
-    def _first_crossing(run: Run, visit: ModeVisit, trial: Trial, curve: ContinuousStep,
-                        gvals: list[float]) -> tuple[int, float, bool]:
+    def _first_crossing(
+        run: Run, visit: ModeVisit, trial: Trial, curve: ContinuousStep, gvals: list[float]
+    ) -> tuple[int, float, bool]:
         """q on the dense output: the earliest guard to reach zero, located to a 1e-12 share
         of the strip."""
         t, hk = visit.t, trial.hk
@@ -128,8 +145,9 @@ class Dense(Aim):
         return best
 
     @staticmethod
-    def _middle_of_strip(run: Run, visit: ModeVisit, trial: Trial, curve: ContinuousStep, e: int, s_q: float,
-                         g1: float) -> float:
+    def _middle_of_strip(
+        run: Run, visit: ModeVisit, trial: Trial, curve: ContinuousStep, e: int, s_q: float, g1: float
+    ) -> float:
         """The fraction of the step at which guard e is in the middle of its strip (-eps/2):
         by the secant from q (the guard is nearly linear across a strip, so one guess usually
         lands), else by a search on the rest of the step."""

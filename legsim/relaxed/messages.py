@@ -12,17 +12,20 @@ def _resolution_hint(eps: float, x: np.ndarray) -> str:
     """A second explanation when eps is too thin for float64 near x: no step can land inside it."""
     spacing = float(np.spacing(1.0 + float(np.max(np.abs(x)))))
     if eps < 1e3 * spacing:
-        return (f"; or eps = {eps:g} is thinner than float64 can resolve near this state (spacing {spacing:.3g}): "
-                f"raise eps")
+        return (
+            f"; or eps = {eps:g} is thinner than float64 can resolve near this state (spacing {spacing:.3g}): raise eps"
+        )
     return ""
 
 
 def halving_exhausted(mode: str, t: float, x: np.ndarray, halvings: int, transition: str, eps: float) -> str:
     """No shortened step landed in the relaxed domain: the flow crosses the guard of
     ``transition`` without entering its strip (or eps is below float64's resolution)."""
-    return (f"no step from t={t:.17g} in mode '{mode}' lands in the relaxed domain after {halvings} halvings: "
-            f"the flow leaves through the guard of transition {transition} without entering its strip "
-            f"(x={x.tolist()})" + _resolution_hint(eps, x))
+    return (
+        f"no step from t={t:.17g} in mode '{mode}' lands in the relaxed domain after {halvings} halvings: "
+        f"the flow leaves through the guard of transition {transition} without entering its strip "
+        f"(x={x.tolist()})" + _resolution_hint(eps, x)
+    )
 
 
 def non_finite_step(mode: str, t: float, x: np.ndarray, hk: float) -> str:

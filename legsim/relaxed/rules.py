@@ -25,13 +25,13 @@ MAX_FACTOR = 5.0
 
 def rejected_step(hk: float, err: float, exponent: float) -> float:
     """The retry after a step of size hk failed the error test (err > 1)."""
-    return hk * max(MIN_FACTOR, SAFETY * err ** exponent)
+    return hk * max(MIN_FACTOR, SAFETY * err**exponent)
 
 
 def proposed_step(hk: float, err: float, exponent: float, rejected: bool) -> float:
     """The next step after a step of size hk passed the error test with norm err; no growth
     right after a rejection (Hairer's codes and scipy alike)."""
-    proposal = hk * min(MAX_FACTOR, max(MIN_FACTOR, SAFETY * err ** exponent)) if err > 0.0 else MAX_FACTOR * hk
+    proposal = hk * min(MAX_FACTOR, max(MIN_FACTOR, SAFETY * err**exponent)) if err > 0.0 else MAX_FACTOR * hk
     if rejected and proposal > hk:
         proposal = hk
     return proposal

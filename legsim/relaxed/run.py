@@ -38,8 +38,7 @@ class ModeVisit:
 
     __slots__ = ("buf", "data", "field", "g_entry", "g_last", "guards", "k0", "name", "single_guard", "t", "x")
 
-    def __init__(self, data: ModeData, guards: tuple[GuardAt, ...], t: float,
-                 x: np.ndarray) -> None:
+    def __init__(self, data: ModeData, guards: tuple[GuardAt, ...], t: float, x: np.ndarray) -> None:
         self.data = data
         self.name = data.name
         self.field = data.mode.field
@@ -66,9 +65,23 @@ class Run:
     """The parts of one run (method, step-size rule, landing rule), its settings, counters and
     the segments, strips and transitions of the execution so far."""
 
-    def __init__(self, system: HybridSystem, tableau: Tableau, step_size: Any, landing: Any, eps: float,
-                 control: Control | None, *, max_transitions: int, max_halvings: int, max_steps: int,
-                 progress: ProgressFn | None, t0: float, t_final: float, zeno: ZenoWatch) -> None:
+    def __init__(
+        self,
+        system: HybridSystem,
+        tableau: Tableau,
+        step_size: Any,
+        landing: Any,
+        eps: float,
+        control: Control | None,
+        *,
+        max_transitions: int,
+        max_halvings: int,
+        max_steps: int,
+        progress: ProgressFn | None,
+        t0: float,
+        t_final: float,
+        zeno: ZenoWatch,
+    ) -> None:
         self.system = system
         self.tableau = tableau
         self.stepper = make_stepper(tableau)
@@ -156,26 +169,51 @@ class Run:
             except LegsimError:  # the caller stopping the run with its own error (a deadline)
                 raise
             except Exception as exc:  # a bug in the caller's callback, not the model
-                raise SimulationError(f"the progress callback failed at t={t:.17g}: "
-                                      f"{type(exc).__name__}: {exc}") from exc
+                raise SimulationError(
+                    f"the progress callback failed at t={t:.17g}: {type(exc).__name__}: {exc}"
+                ) from exc
 
     def execution(self, ended: Ended) -> Execution:
         """The execution computed, ending as ``ended`` says."""
         counters = {
-            "steps": self.steps, "halvings": self.halvings, "error_rejections": self.error_rejections,
-            "field_evals": self.field_evals, "guard_evals": self.guard_evals, "reset_evals": self.reset_evals,
-            "transitions": len(self.transitions), "strip_time": self.strip_time,
+            "steps": self.steps,
+            "halvings": self.halvings,
+            "error_rejections": self.error_rejections,
+            "field_evals": self.field_evals,
+            "guard_evals": self.guard_evals,
+            "reset_evals": self.reset_evals,
+            "transitions": len(self.transitions),
+            "strip_time": self.strip_time,
             "wall_time_s": time.perf_counter() - self._wall0,
         }
-        settings = {"h": self.step_size.h_max, "eps": self.eps, "method": self.tableau.name,
-                    **self.step_size.settings(), "landing": self.landing.name,
-                    "max_transitions": self.max_transitions, "control": self.control is not None,
-                    "continuation": self.zeno.continues, "zeno_window": self.zeno.window}
+        settings = {
+            "h": self.step_size.h_max,
+            "eps": self.eps,
+            "method": self.tableau.name,
+            **self.step_size.settings(),
+            "landing": self.landing.name,
+            "max_transitions": self.max_transitions,
+            "control": self.control is not None,
+            "continuation": self.zeno.continues,
+            "zeno_window": self.zeno.window,
+        }
         warnings = self.zeno.warnings(self, ended.t) + self.order.warnings()
         held = strip_hold_warning(self.strip_time, self.t0, ended.t, warnings)
         warnings += [held] if held is not None else []
-        return Execution(status=Status(ended.status), message=ended.message, segments=self.segments,
-                         strips=self.strips, transitions=self.transitions, t0=self.t0, t_end=ended.t,
-                         t_final=self.t_final, counters=counters, settings=settings, state_names=self.state_names,
-                         system_name=self.system.name, final_in_strip=ended.in_strip, warnings=warnings,
-                         state_units=self.state_units)
+        return Execution(
+            status=Status(ended.status),
+            message=ended.message,
+            segments=self.segments,
+            strips=self.strips,
+            transitions=self.transitions,
+            t0=self.t0,
+            t_end=ended.t,
+            t_final=self.t_final,
+            counters=counters,
+            settings=settings,
+            state_names=self.state_names,
+            system_name=self.system.name,
+            final_in_strip=ended.in_strip,
+            warnings=warnings,
+            state_units=self.state_units,
+        )

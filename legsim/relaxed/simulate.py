@@ -128,23 +128,30 @@ def simulate(
     tableau = get_method(method)
     if method in SCIPY_NAMES and rtol is None and atol is None and step_size is None:
         rtol, atol = ADAPTIVE_DEFAULTS
-    if control is not None and not callable(control):
-        raise SimulationError(f"control must be callable control(t, x) -> u or None, got {type(control).__name__}; "
-                              f"a legsim.control.Controller also does")
-    control = bind(control)
+    control = _bound_control(control)
     max_transitions, max_halvings = count("max_transitions", max_transitions, 0), count("max_halvings", max_halvings, 1)
     max_steps = _check_step_budget(max_steps, t0, t_final, h)
     x = _initial_state(system, mode, x0, t0, eps, control)
     rule = step_size if step_size is not None else step_size_rule(tableau, h, rtol, atol)
-    if isinstance(landing, str) and landing not in LANDINGS:
-        raise SimulationError(f"landing must be one of {', '.join(map(repr, LANDINGS))}, got {landing!r}")
-    parts = landing_rule(landing, tableau) if isinstance(landing, str) else landing
+    parts = _landing_part(landing, tableau)
     window = h + eps if zeno_window is None else positive("zeno_window", zeno_window)
     if not isinstance(continuation, (bool, np.bool_)):
         raise SimulationError(f"continuation must be True or False, got {type(continuation).__name__} {continuation!r}")
-    run = Run(system, tableau, rule, parts, eps, control, max_transitions=max_transitions,
-              max_halvings=max_halvings, max_steps=max_steps, progress=progress, t0=t0, t_final=t_final,
-              zeno=ZenoWatch(window, bool(continuation)))
+    run = Run(
+        system,
+        tableau,
+        rule,
+        parts,
+        eps,
+        control,
+        max_transitions=max_transitions,
+        max_halvings=max_halvings,
+        max_steps=max_steps,
+        progress=progress,
+        t0=t0,
+        t_final=t_final,
+        zeno=ZenoWatch(window, bool(continuation)),
+    )
     run.checked_modes.add(mode)  # _initial_state's check already evaluated this mode's field
     times = _eval_times(t_eval, t0, t_final)
     execution = integrate(run, mode, x, t0)
@@ -153,14 +160,32 @@ def simulate(
     return execution
 
 
+def _bound_control(control: Any) -> Any:
+    """What the loop calls as ``u(t, x)``: the control itself, or a Controller bound to the mode."""
+    if control is not None and not callable(control):
+        raise SimulationError(
+            f"control must be callable control(t, x) -> u or None, got {type(control).__name__}; "
+            f"a legsim.control.Controller also does"
+        )
+    return bind(control)
+
+
+def _landing_part(landing: str | Halve, tableau: Tableau) -> Halve:
+    """The landing rule named by ``landing`` (or the rule object given)."""
+    if isinstance(landing, str) and landing not in LANDINGS:
+        raise SimulationError(f"landing must be one of {', '.join(map(repr, LANDINGS))}, got {landing!r}")
+    return landing_rule(landing, tableau) if isinstance(landing, str) else landing
+
+
 def step_size_rule(tableau: Tableau, h: float, rtol: float | None, atol: float | None) -> FixedStep | ErrorControl:
     """Fixed steps of h, or error control when rtol or atol is given (the other then a
     thousandth of it)."""
     if rtol is None and atol is None:
         return FixedStep(h)
     if not tableau.embedded:
-        raise SimulationError(f"rtol/atol need a method with an embedded error estimate (bs32, dopri5, dop853), "
-                              f"got '{tableau.name}'")
+        raise SimulationError(
+            f"rtol/atol need a method with an embedded error estimate (bs32, dopri5, dop853), got '{tableau.name}'"
+        )
     if rtol is None:  # atol given
         atol = positive("atol", atol)
         return ErrorControl(tableau, h, 1e-3 * atol, atol)
@@ -185,7 +210,8 @@ def _times(t0: Any, t_final: Any, h: float) -> tuple[float, float]:
     if scale + h == scale:
         raise SimulationError(
             f"h = {h:g} s is below the time resolution at t = {scale:g} s (float64 times are "
-            f"{float(np.spacing(scale)):.3g} s apart there): no step could advance time; shift t0 towards 0 or raise h")
+            f"{float(np.spacing(scale)):.3g} s apart there): no step could advance time; shift t0 towards 0 or raise h"
+        )
     return t0, t_final
 
 
@@ -196,8 +222,9 @@ def _eval_times(t_eval: Any, t0: float, t_final: float) -> np.ndarray | None:
         times = np.asarray(t_eval, dtype=float).reshape(-1)
     except (TypeError, ValueError) as exc:
         raise SimulationError(f"t_eval must be a sequence of times (s): {exc}") from exc
-    if times.size and (not np.all(np.isfinite(times)) or np.any(np.diff(times) < 0)
-                       or times[0] < t0 or times[-1] > t_final):
+    if times.size and (
+        not np.all(np.isfinite(times)) or np.any(np.diff(times) < 0) or times[0] < t0 or times[-1] > t_final
+    ):
         raise SimulationError(f"t_eval must be finite, increasing times in [t0, t_final] = [{t0}, {t_final}]")
     return times
 
@@ -206,14 +233,17 @@ def _check_step_budget(max_steps: Any, t0: float, t_final: float, h: float) -> i
     budget = count("max_steps", max_steps, 1)
     nominal = (t_final - t0) / h
     if nominal > budget:
-        raise SimulationError(f"t_final - t0 = {t_final - t0:g} s at h = {h:g} s is {nominal:.3g} steps, more than "
-                              f"max_steps = {budget}; every step is stored, so check t_final and h, or raise "
-                              f"max_steps if the run is meant to be that long")
+        raise SimulationError(
+            f"t_final - t0 = {t_final - t0:g} s at h = {h:g} s is {nominal:.3g} steps, more than "
+            f"max_steps = {budget}; every step is stored, so check t_final and h, or raise "
+            f"max_steps if the run is meant to be that long"
+        )
     return budget
 
 
-def _initial_state(system: HybridSystem, mode: Any, x0: Any, t0: float, eps: float,
-                   control: Control | None) -> np.ndarray:
+def _initial_state(
+    system: HybridSystem, mode: Any, x0: Any, t0: float, eps: float, control: Control | None
+) -> np.ndarray:
     """x0 as a float64 vector of the mode's dimension, finite and in the relaxed domain, with
     the mode's field, guards and resets evaluated once on it."""
     if not isinstance(mode, str) or not _is_mode(system, mode):
@@ -224,8 +254,10 @@ def _initial_state(system: HybridSystem, mode: Any, x0: Any, t0: float, eps: flo
     except (TypeError, ValueError) as exc:
         raise SimulationError(f"x0 must be a numeric vector of length {dim} for mode '{mode}': {exc}") from exc
     if x is None or x.shape != (dim,):
-        raise SimulationError(f"x0 has shape {np.shape(x0)}, expected ({dim},) for mode '{mode}' "
-                              f"with coordinates {system.state_names(mode)}")
+        raise SimulationError(
+            f"x0 has shape {np.shape(x0)}, expected ({dim},) for mode '{mode}' "
+            f"with coordinates {system.state_names(mode)}"
+        )
     if not np.all(np.isfinite(x)):
         raise SimulationError(f"x0 must be finite, got {x} in mode '{mode}'")
     try:
@@ -243,7 +275,8 @@ def _initial_state(system: HybridSystem, mode: Any, x0: Any, t0: float, eps: flo
         worst = int(np.argmin(gvals))
         raise SimulationError(
             f"x0 lies past the guard of transition {system.outgoing(mode)[worst].name} by "
-            f"{-gvals[worst]:.3g} > eps = {eps:g} (guard units); start inside the domain of '{mode}'")
+            f"{-gvals[worst]:.3g} > eps = {eps:g} (guard units); start inside the domain of '{mode}'"
+        )
     return x
 
 
@@ -253,5 +286,3 @@ def _is_mode(system: HybridSystem, mode: str) -> bool:
     except ModelError:
         return False
     return True
-
-

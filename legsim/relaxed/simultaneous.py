@@ -61,10 +61,18 @@ class OrderWatch:
     def warnings(self) -> list[RunWarning]:
         out = []
         for (mode, a, b), (t, difference, count) in self._pairs.items():
-            message = (f"transitions {a} and {b} of mode '{mode}' were crossed in the same step {count} time(s) from "
-                       f"t={t:.6g} s, and their resets do not commute there: the two orders give states up to "
-                       f"{difference:.3g} apart, so the result depends on which guard rounding puts first. Remedy: "
-                       f"resolve them together (HybridSystem(joint=...)), or make the resets commute.")
-            out.append(RunWarning("non_commuting_resets", message, t,
-                                  {"mode": mode, "transitions": [a, b], "difference": difference, "count": count}))
+            message = (
+                f"transitions {a} and {b} of mode '{mode}' were crossed in the same step {count} time(s) from "
+                f"t={t:.6g} s, and their resets do not commute there: the two orders give states up to "
+                f"{difference:.3g} apart, so the result depends on which guard rounding puts first. Remedy: "
+                f"resolve them together (HybridSystem(joint=...)), or make the resets commute."
+            )
+            out.append(
+                RunWarning(
+                    "non_commuting_resets",
+                    message,
+                    t,
+                    {"mode": mode, "transitions": [a, b], "difference": difference, "count": count},
+                )
+            )
         return out

@@ -38,8 +38,9 @@ class FixedStep:
         self.h_max = h
         self.h_prop = h
 
-    def judge(self, hk: float, stages: tuple[np.ndarray, ...], x: np.ndarray, x_new: np.ndarray,
-              rejected: bool) -> tuple[bool, float]:
+    def judge(
+        self, hk: float, stages: tuple[np.ndarray, ...], x: np.ndarray, x_new: np.ndarray, rejected: bool
+    ) -> tuple[bool, float]:
         """Every step passes; the proposal stays h."""
         return True, self.h_max
 
@@ -62,8 +63,10 @@ class ErrorControl:
         self.h_prop = h
         self.rtol, self.atol = rtol, atol
         if tableau.error_order is None:
-            raise SimulationError(f"method '{tableau.name}' has an embedded error estimate but no error_order: "
-                                  f"error control needs it for its step exponent")
+            raise SimulationError(
+                f"method '{tableau.name}' has an embedded error estimate but no error_order: "
+                f"error control needs it for its step exponent"
+            )
         self.exponent = -1.0 / (min(tableau.order, tableau.error_order) + 1)
         self._estimate = error_estimator(tableau)
         self._blended = tableau.b_err_low is not None
@@ -71,11 +74,19 @@ class ErrorControl:
     def error(self, hk: float, stages: tuple[np.ndarray, ...], x: np.ndarray, x_new: np.ndarray) -> float:
         """The scaled RMS norm of the step's local error estimate."""
         err, err_low = self._estimate(hk, stages)
-        return error_norm(err.tolist(), err_low.tolist() if err_low is not None else (), x.tolist(), x_new.tolist(),
-                          self.rtol, self.atol, self._blended)
+        return error_norm(
+            err.tolist(),
+            err_low.tolist() if err_low is not None else (),
+            x.tolist(),
+            x_new.tolist(),
+            self.rtol,
+            self.atol,
+            self._blended,
+        )
 
-    def judge(self, hk: float, stages: tuple[np.ndarray, ...], x: np.ndarray, x_new: np.ndarray,
-              rejected: bool) -> tuple[bool, float]:
+    def judge(
+        self, hk: float, stages: tuple[np.ndarray, ...], x: np.ndarray, x_new: np.ndarray, rejected: bool
+    ) -> tuple[bool, float]:
         """(True, proposal for the next step) when the step passes the error test, else
         (False, the shorter step to retry)."""
         err = self.error(hk, stages, x, x_new)
@@ -95,8 +106,9 @@ class ErrorControl:
         solve_ivp."""
         self.h_prop = restarted_step(self.h_prop, self.starting_step(f, t, x, k0))
 
-    def starting_step(self, f: Callable[[float, np.ndarray], np.ndarray], t: float, x: np.ndarray,
-                      k0: np.ndarray) -> float:
+    def starting_step(
+        self, f: Callable[[float, np.ndarray], np.ndarray], t: float, x: np.ndarray, k0: np.ndarray
+    ) -> float:
         """The starting step size of Hairer, Norsett and Wanner (I, Sec. II.4): a step whose
         estimated local error is about 1% of the tolerance, from f at x and at one explicit Euler
         step away (one evaluation of ``f(t, x)``). On any failure the current proposal stands.

@@ -40,8 +40,7 @@ from .simultaneous import joint_crossing, joint_name
 CROSSING_TOL = 1e-12
 
 
-def crossing_on_step(guard_at: Callable[[float], float], g0: float, g1: float,
-                     tol: float) -> tuple[float, int, bool]:
+def crossing_on_step(guard_at: Callable[[float], float], g0: float, g1: float, tol: float) -> tuple[float, int, bool]:
     """Where a step's interpolant meets a guard: (s, guard evaluations, converged), with
     ``guard_at(s)`` the guard at step fraction s, g0 = guard_at(0) >= 0 > g1 = guard_at(1).
     The search and the point it returns are ``rules.crossing_*``'s."""
@@ -67,12 +66,14 @@ def hermite_slope(x0: np.ndarray, d0: np.ndarray, x1: np.ndarray, d1: np.ndarray
     return v0 * x0 / dt + v1 * d0 + v2 * x1 / dt + v3 * d1
 
 
-def hermite_landing(t: float, x: np.ndarray, k0: np.ndarray, t1: float, x1: np.ndarray, k1: np.ndarray,
-                    gvals: list[float]) -> Landing:
+def hermite_landing(
+    t: float, x: np.ndarray, k0: np.ndarray, t1: float, x1: np.ndarray, k1: np.ndarray, gvals: list[float]
+) -> Landing:
     """A step landed in a strip, with the cubic Hermite interpolant of its ends as its curve."""
     dt = t1 - t
-    return Landing(t, x, k0, t1, x1, gvals, lambda s: hermite(x, k0, x1, k1, dt, s),
-                   lambda s: hermite_slope(x, k0, x1, k1, dt, s))
+    return Landing(
+        t, x, k0, t1, x1, gvals, lambda s: hermite(x, k0, x1, k1, dt, s), lambda s: hermite_slope(x, k0, x1, k1, dt, s)
+    )
 
 
 def locate(run: Run, visit: ModeVisit, landing: Landing) -> tuple[int, float, bool]:
@@ -123,8 +124,16 @@ def cross_landing(run: Run, visit: ModeVisit, landing: Landing) -> Outcome:
     return cross(run, visit, e, tc, q, landing.t1, -landing.gvals[e], crossed)
 
 
-def cross(run: Run, visit: ModeVisit, e: int, tc: float, q: np.ndarray, t_land: float, tau: float,
-          crossed: list[int] | None = None) -> Outcome:
+def cross(
+    run: Run,
+    visit: ModeVisit,
+    e: int,
+    tc: float,
+    q: np.ndarray,
+    t_land: float,
+    tau: float,
+    crossed: list[int] | None = None,
+) -> Outcome:
     """Cross the strip of transition e entered at time tc at the guard point q by a step that
     landed at t_land, depth tau: hold q until t_land + eps - tau, then reset. With ``crossed``,
     the transitions whose guards the landing step crossed (e first): resolved together by the
@@ -135,9 +144,13 @@ def cross(run: Run, visit: ModeVisit, e: int, tc: float, q: np.ndarray, t_land: 
     run.segments.append(visit.buf.freeze())
     if len(run.transitions) >= run.max_transitions:
         run.strips.append(Strip(visit.name, tr.name, tc, tc, q.copy(), t_land, tau))
-        return Ended(Status.MAX_TRANSITIONS,
-                     f"transition budget max_transitions={run.max_transitions} used up at t={tc:.17g} "
-                     f"(next transition {tr.name} from mode '{visit.name}')", tc, True)
+        return Ended(
+            Status.MAX_TRANSITIONS,
+            f"transition budget max_transitions={run.max_transitions} used up at t={tc:.17g} "
+            f"(next transition {tr.name} from mode '{visit.name}')",
+            tc,
+            True,
+        )
     exit_time = strip_exit_time(t_land, run.eps, tau)
     if exit_time >= run.t_final:
         run.strips.append(Strip(visit.name, tr.name, tc, run.t_final, q.copy(), t_land, tau))
@@ -153,8 +166,9 @@ def cross(run: Run, visit: ModeVisit, e: int, tc: float, q: np.ndarray, t_land: 
     if continuation is not None:
         image = _continued_image(run, visit, e, continuation, tc, q, exit_time)
         if image is not None:
-            outcome = record_crossing(run, visit.name, e, continuation.name, continuation.target, tc, q, t_land, tau,
-                                      exit_time, image)
+            outcome = record_crossing(
+                run, visit.name, e, continuation.name, continuation.target, tc, q, t_land, tau, exit_time, image
+            )
             run.zeno.crossed(run, visit.name, tr.name, tc, exit_time, True, True)
             return outcome
     x_after = _reset(run, visit, e, tc, q)
@@ -165,8 +179,16 @@ def cross(run: Run, visit: ModeVisit, e: int, tc: float, q: np.ndarray, t_land: 
     return outcome
 
 
-def _cross_jointly(run: Run, visit: ModeVisit, crossed: list[int], tc: float, q: np.ndarray, t_land: float,
-                   tau: float, exit_time: float) -> Outcome | None:
+def _cross_jointly(
+    run: Run,
+    visit: ModeVisit,
+    crossed: list[int],
+    tc: float,
+    q: np.ndarray,
+    t_land: float,
+    tau: float,
+    exit_time: float,
+) -> Outcome | None:
     """The model's joint resolution of the transitions ``crossed`` together (their continuation,
     every striker plastic, when these joint crossings accumulate), recorded; None when the model
     has none."""
@@ -180,10 +202,13 @@ def _cross_jointly(run: Run, visit: ModeVisit, crossed: list[int], tc: float, q:
     image = np.asarray(joint.state, dtype=float)
     target_dim = run.system.mode(joint.target).dim
     if image.shape != (target_dim,):
-        raise ModelError(f"{run.system.name}: joint crossing {joint.name} returned shape {image.shape}, expected "
-                         f"({target_dim},) for mode '{joint.target}'")
-    outcome = record_crossing(run, visit.name, crossed[0], joint.name, joint.target, tc, q, t_land, tau, exit_time,
-                              image)
+        raise ModelError(
+            f"{run.system.name}: joint crossing {joint.name} returned shape {image.shape}, expected "
+            f"({target_dim},) for mode '{joint.target}'"
+        )
+    outcome = record_crossing(
+        run, visit.name, crossed[0], joint.name, joint.target, tc, q, t_land, tau, exit_time, image
+    )
     run.zeno.crossed(run, visit.name, key, tc, exit_time, accumulates, rest)
     return outcome
 
@@ -197,19 +222,23 @@ def _reset(run: Run, visit: ModeVisit, e: int, tc: float, q: np.ndarray) -> np.n
     try:
         x_after = np.asarray(data.resets[e](q), dtype=float)
     except ModelBreakdown as exc:
-        return Ended(Status.MODEL_BREAKDOWN, f"{exc} (reset of transition {tr.name} from mode '{visit.name}', "
-                                             f"t={tc:.17g})", tc)
+        return Ended(
+            Status.MODEL_BREAKDOWN, f"{exc} (reset of transition {tr.name} from mode '{visit.name}', t={tc:.17g})", tc
+        )
     except Exception as exc:
-        raise ModelError(f"{run.system.name}: reset of transition {tr.name} failed at t={tc:.17g}, "
-                         f"q={q.tolist()}: {type(exc).__name__}: {exc}") from exc
+        raise ModelError(
+            f"{run.system.name}: reset of transition {tr.name} failed at t={tc:.17g}, "
+            f"q={q.tolist()}: {type(exc).__name__}: {exc}"
+        ) from exc
     target_dim = run.system.mode(data.targets[e]).dim
     if x_after.shape != (target_dim,):
         check_reset_output(run.system.name, tr, target_dim, q)  # raises with the shapes named
     return x_after
 
 
-def _continued_image(run: Run, visit: ModeVisit, e: int, continuation: Continuation, tc: float, q: np.ndarray,
-                     exit_time: float) -> np.ndarray | None:
+def _continued_image(
+    run: Run, visit: ModeVisit, e: int, continuation: Continuation, tc: float, q: np.ndarray, exit_time: float
+) -> np.ndarray | None:
     """The continuation's image of q, or None when it does not lie in its target's domain (the
     constraint it enters would pull at once): then the ordinary transition is taken."""
     run.reset_evals += 1
@@ -218,12 +247,16 @@ def _continued_image(run: Run, visit: ModeVisit, e: int, continuation: Continuat
     except ModelBreakdown:
         return None
     except Exception as exc:
-        raise ModelError(f"{run.system.name}: reset of continuation {continuation.name} failed at t={tc:.17g}, "
-                         f"q={q.tolist()}: {type(exc).__name__}: {exc}") from exc
+        raise ModelError(
+            f"{run.system.name}: reset of continuation {continuation.name} failed at t={tc:.17g}, "
+            f"q={q.tolist()}: {type(exc).__name__}: {exc}"
+        ) from exc
     target = run.system.mode_data(continuation.target)
     if image.shape != (target.mode.dim,):
-        raise ModelError(f"{run.system.name}: reset of continuation {continuation.name} returned shape {image.shape}, "
-                         f"expected ({target.mode.dim},) for mode '{continuation.target}'")
+        raise ModelError(
+            f"{run.system.name}: reset of continuation {continuation.name} returned shape {image.shape}, "
+            f"expected ({target.mode.dim},) for mode '{continuation.target}'"
+        )
     gvals = [g(exit_time, image) for g in run.guard_fns(target)]
     run.guard_evals += len(gvals)
     if not np.all(np.isfinite(image)) or (gvals and entered_in_strip(min(gvals), run.eps)):
@@ -231,20 +264,36 @@ def _continued_image(run: Run, visit: ModeVisit, e: int, continuation: Continuat
     return image
 
 
-def record_crossing(run: Run, mode: str, e: int, name: str, target: str, tc: float, q: np.ndarray, t_land: float,
-                    tau: float, exit_time: float, x_after: np.ndarray) -> Outcome:
+def record_crossing(
+    run: Run,
+    mode: str,
+    e: int,
+    name: str,
+    target: str,
+    tc: float,
+    q: np.ndarray,
+    t_land: float,
+    tau: float,
+    exit_time: float,
+    x_after: np.ndarray,
+) -> Outcome:
     """Store the strip and the transition ``name`` (index e of ``mode``) into ``target``;
     continue there unless the image is not finite."""
     run.strips.append(Strip(mode, name, tc, exit_time, q.copy(), t_land, tau))
     run.strip_time += exit_time - tc
-    run.transitions.append(TransitionRecord(name, mode, target, e, tc, t_land, exit_time, q.copy(), x_after.copy(),
-                                            tau))
+    run.transitions.append(
+        TransitionRecord(name, mode, target, e, tc, t_land, exit_time, q.copy(), x_after.copy(), tau)
+    )
     if not len(run.transitions) & (PROGRESS_STEPS - 1):  # a Zeno run may cross many strips per step
         run.tick(exit_time)
     if not np.all(np.isfinite(x_after)):
         seg = SegmentBuffer(target, len(x_after), capacity=1)
         seg.append(exit_time, x_after, np.zeros(len(x_after)))
         run.segments.append(seg.freeze())
-        return Ended(Status.NON_FINITE, f"reset of transition {name} at t={exit_time:.17g} gives a non-finite "
-                                        f"state {x_after.tolist()} from q={q.tolist()}", exit_time)
+        return Ended(
+            Status.NON_FINITE,
+            f"reset of transition {name} at t={exit_time:.17g} gives a non-finite "
+            f"state {x_after.tolist()} from q={q.tolist()}",
+            exit_time,
+        )
     return Entered(target, x_after, exit_time)

@@ -71,8 +71,17 @@ class ZenoWatch:
         history = self._histories.get((mode, name))
         return history is not None and accumulating(history.flight, tc - history.last_exit, self.window)
 
-    def crossed(self, run, mode: str, name: str, tc: float, exit_time: float, accumulates: bool,
-                continued: bool, has_continuation: bool = False) -> None:
+    def crossed(
+        self,
+        run,
+        mode: str,
+        name: str,
+        tc: float,
+        exit_time: float,
+        accumulates: bool,
+        continued: bool,
+        has_continuation: bool = False,
+    ) -> None:
         """Record the crossing of ``name`` (its strip left at ``exit_time``; ``continued`` when
         its continuation was taken): an accumulation without continuation opens an episode for
         the warnings or joins the open one, a long flight or a continuation closes it."""
@@ -115,16 +124,20 @@ class ZenoWatch:
         return [_accumulation_warning(*entry) for entry in self.episodes]
 
 
-def _open(run, key: tuple[str, str], tc: float, exit_time: float, flight: float, previous: float,
-          has_continuation: bool) -> _Episode:
+def _open(
+    run, key: tuple[str, str], tc: float, exit_time: float, flight: float, previous: float, has_continuation: bool
+) -> _Episode:
     """An episode from the crossing of ``key`` at tc, with the Zeno time extrapolated from its
     flights as a geometric series."""
     ratio = flight / previous if previous > 0.0 else 1.0
     estimate = exit_time + flight * ratio / (1.0 - ratio) if ratio < 1.0 else exit_time
-    remedy = ("run with continuation (the default: simulate(continuation=True), integrator.continuation = true), "
-              "which takes the transition's continuation there" if has_continuation else
-              "give the transition a continuation (legsim.Continuation: the constrained mode entered when its "
-              "crossings accumulate)")
+    remedy = (
+        "run with continuation (the default: simulate(continuation=True), integrator.continuation = true), "
+        "which takes the transition's continuation there"
+        if has_continuation
+        else "give the transition a continuation (legsim.Continuation: the constrained mode entered when its "
+        "crossings accumulate)"
+    )
     return _Episode([key], tc, len(run.transitions) - 1, run.strip_time - (exit_time - tc), estimate, remedy)
 
 
@@ -132,15 +145,26 @@ def _accumulation_warning(episode: _Episode, transitions: int, strip_time: float
     mode, name = episode.members[0]
     which = " and ".join(f"{n} in mode '{m}'" for m, n in episode.members)
     subject = f"transition {which} accumulates" if len(episode.members) == 1 else f"transitions {which} accumulate"
-    message = (f"{subject} from t={episode.start:.6g} s (a Zeno point near t={episode.estimate:.6g} s): "
-               f"{transitions} transitions and {strip_time:.3g} s held in strips until t={until:.6g} s. Past an "
-               f"accumulation point the relaxed execution holds the state in the strip instead of moving it "
-               f"(paper 000, Thm. 26), so the result there is not the hybrid system's. Remedy: {episode.remedy}, "
-               f"or end the run before t={episode.estimate:.6g} s.")
-    return RunWarning("accumulation", message, episode.start,
-                      {"transition": name, "mode": mode, "transitions": [n for _, n in episode.members],
-                       "accumulation_time": episode.estimate, "transitions_since": transitions,
-                       "strip_time_since": strip_time})
+    message = (
+        f"{subject} from t={episode.start:.6g} s (a Zeno point near t={episode.estimate:.6g} s): "
+        f"{transitions} transitions and {strip_time:.3g} s held in strips until t={until:.6g} s. Past an "
+        f"accumulation point the relaxed execution holds the state in the strip instead of moving it "
+        f"(paper 000, Thm. 26), so the result there is not the hybrid system's. Remedy: {episode.remedy}, "
+        f"or end the run before t={episode.estimate:.6g} s."
+    )
+    return RunWarning(
+        "accumulation",
+        message,
+        episode.start,
+        {
+            "transition": name,
+            "mode": mode,
+            "transitions": [n for _, n in episode.members],
+            "accumulation_time": episode.estimate,
+            "transitions_since": transitions,
+            "strip_time_since": strip_time,
+        },
+    )
 
 
 #: Share of a run's time held in strips above which the run says so.
@@ -153,7 +177,9 @@ def strip_hold_warning(strip_time: float, t0: float, t_end: float, already: list
     span = t_end - t0
     if span <= 0.0 or strip_time <= STRIP_HOLD_SHARE * span or any(w.kind == "accumulation" for w in already):
         return None
-    message = (f"the state was held in strips for {strip_time:.3g} s of the run's {span:.3g} s "
-               f"({100.0 * strip_time / span:.1f}%): each hold delays the execution by up to eps, so the result "
-               f"is off by that much; a smaller eps (strip width) shortens the holds")
+    message = (
+        f"the state was held in strips for {strip_time:.3g} s of the run's {span:.3g} s "
+        f"({100.0 * strip_time / span:.1f}%): each hold delays the execution by up to eps, so the result "
+        f"is off by that much; a smaller eps (strip width) shortens the holds"
+    )
     return RunWarning("strip_hold", message, t0, {"strip_time": strip_time, "share": strip_time / span})

@@ -47,5 +47,12 @@ The bridge owns one ``pinocchio.Data``: a system built from it is not thread-saf
 from .assembly import ContactBridge
 from .contacts import Contact, JointStop, PointContact, SpringLeg, add_point_frame, planar_floating_base
 
-__all__ = ["Contact", "ContactBridge", "JointStop", "PointContact", "SpringLeg", "add_point_frame",
-           "planar_floating_base"]
+__all__ = [
+    "Contact",
+    "ContactBridge",
+    "JointStop",
+    "PointContact",
+    "SpringLeg",
+    "add_point_frame",
+    "planar_floating_base",
+]

@@ -69,8 +69,15 @@ class ContactBridge:
         actuated: Sequence[str] = (),
         name: str = "robot",
     ) -> None:
-        self._model = build_model(model, contacts, coordinate_names=coordinate_names, velocity_names=velocity_names,
-                                  joint_damping=joint_damping, actuated=actuated, name=name)
+        self._model = build_model(
+            model,
+            contacts,
+            coordinate_names=coordinate_names,
+            velocity_names=velocity_names,
+            joint_damping=joint_damping,
+            actuated=actuated,
+            name=name,
+        )
         self._data = BridgeData.create(self._model)
         self._modes = ModeCatalog(self._model, mode_names)
         self._twins: list[Any] = []  # compiled twins, whose evaluations counters() adds
@@ -144,8 +151,8 @@ class ContactBridge:
         def f(t: float, x: np.ndarray, u: Any = None) -> np.ndarray:
             a, _ = dynamics.dynamics(model, data, spec, x, u)
             out = np.zeros(dim)
-            out[:n] = x[n:2 * n]
-            out[n:2 * n] = a
+            out[:n] = x[n : 2 * n]
+            out[n : 2 * n] = a
             return out
 
         return f
@@ -241,8 +248,15 @@ class ContactBridge:
             self.active_contacts(initial_mode)
             if x0 is not None:
                 initial = (initial_mode, x0)
-        return HybridSystem({}, (), name=self.name, expand=self.expand,
-                            energy=self.energy if energy else None, initial=initial, joint=self.joint)
+        return HybridSystem(
+            {},
+            (),
+            name=self.name,
+            expand=self.expand,
+            energy=self.energy if energy else None,
+            initial=initial,
+            joint=self.joint,
+        )
 
     def joint(self, mode: str, names: tuple[str, ...], x: np.ndarray, rest: bool = False) -> JointCrossing | None:
         """The contacts struck by the transitions ``names`` (crossed in one landing step) at x,

@@ -167,8 +167,9 @@ class LegFrames:
     foot_id: int
 
 
-def finite_number(value: Any, where: str, *, low: float | None = None, high: float | None = None,
-                  low_open: bool = False) -> float:
+def finite_number(
+    value: Any, where: str, *, low: float | None = None, high: float | None = None, low_open: bool = False
+) -> float:
     """``value`` as a float, or ``ModelError`` naming ``where`` if it is not a finite number in
     ``[low, high]`` (``(low, high]`` with ``low_open``)."""
     if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
@@ -193,8 +194,7 @@ def joint_id(model: pin.Model, jname: Any, where: str, robot: str) -> int:
 def frame_id(model: pin.Model, fname: Any, where: str, robot: str) -> int:
     """Id of frame ``fname``, or ``ModelError`` listing the frames (``robot: where: ...``)."""
     if not isinstance(fname, str) or not model.existFrame(fname):
-        raise ModelError(f"{robot}: {where}: unknown frame {fname!r}; frames: "
-                         f"{[f.name for f in model.frames][1:]}")
+        raise ModelError(f"{robot}: {where}: unknown frame {fname!r}; frames: {[f.name for f in model.frames][1:]}")
     return int(model.getFrameId(fname))
 
 
@@ -208,16 +208,19 @@ def declared_contacts(contacts: Sequence[Any], robot: str) -> dict[str, Contact]
         if not isinstance(c.name, str) or not c.name or "+" in c.name:
             raise ModelError(f"{robot}: contact names must be non-empty strings without '+', got {c.name!r}")
         if getattr(c, "friction", None) is not None and any(ch in c.name for ch in SLIP_SUFFIX.values()):
-            raise ModelError(f"{robot}: the name of a contact with friction may not contain '<' or '>' (they name "
-                             f"its slipping modes), got {c.name!r}")
+            raise ModelError(
+                f"{robot}: the name of a contact with friction may not contain '<' or '>' (they name "
+                f"its slipping modes), got {c.name!r}"
+            )
         if c.name in out:
             raise ModelError(f"{robot}: duplicate contact name '{c.name}'")
         out[c.name] = c
     return out
 
 
-def resolve_contact(model: pin.Model, contact: Contact, robot: str,
-                    declared: Sequence[str]) -> RigidContact | LegFrames:
+def resolve_contact(
+    model: pin.Model, contact: Contact, robot: str, declared: Sequence[str]
+) -> RigidContact | LegFrames:
     """Check ``contact`` against ``model`` and resolve it; a spring leg adds its flight foot
     frame ``<name>_foot`` to ``model`` (which must therefore be the bridge's own copy).
     ``robot`` names the robot in error messages; ``declared``: every contact name, in declared
@@ -250,8 +253,7 @@ def _resolve_leg(model: pin.Model, leg: SpringLeg, robot: str, where: str) -> Le
     return LegFrames(leg, hip, int(foot))
 
 
-def _resolve_point(model: pin.Model, c: PointContact, robot: str, where: str,
-                   declared: Sequence[str]) -> RigidContact:
+def _resolve_point(model: pin.Model, c: PointContact, robot: str, where: str, declared: Sequence[str]) -> RigidContact:
     finite_number(c.ground, f"{robot}: {where}: ground")
     fid = frame_id(model, c.frame, where, robot)
     if isinstance(c.releases, str) or not all(isinstance(o, str) for o in c.releases):
@@ -264,8 +266,10 @@ def _resolve_point(model: pin.Model, c: PointContact, robot: str, where: str,
     if c.friction is not None:
         finite_number(c.friction, f"{robot}: {where}: friction", low=0.0)
         if not c.tangential:
-            raise ModelError(f"{robot}: {where}: friction {c.friction!r} needs tangential=True (a contact with "
-                             f"tangential=False is frictionless)")
+            raise ModelError(
+                f"{robot}: {where}: friction {c.friction!r} needs tangential=True (a contact with "
+                f"tangential=False is frictionless)"
+            )
     return RigidContact(c, "point", frame_id=fid, rows=2 if c.tangential else 1)
 
 
@@ -279,8 +283,12 @@ def _resolve_stop(model: pin.Model, c: JointStop, robot: str, where: str) -> Rig
     return RigidContact(c, "stop", dof=int(joint.idx_v), sign=1.0 if c.side == "lower" else -1.0)
 
 
-def planar_floating_base(model: pin.Model, parent: int = 0, placement: pin.SE3 | None = None,
-                         names: tuple[str, str, str] = ("x", "z", "theta")) -> int:
+def planar_floating_base(
+    model: pin.Model,
+    parent: int = 0,
+    placement: pin.SE3 | None = None,
+    names: tuple[str, str, str] = ("x", "z", "theta"),
+) -> int:
     """Add the planar floating base (PX, PZ, RY joints) of a body moving in the (x, z) plane;
     returns the id of the pitch joint, to which the body's inertia is attached. Positive pitch
     (rotation about +y) turns the body's +x axis downwards (nose down)."""
@@ -291,5 +299,8 @@ def planar_floating_base(model: pin.Model, parent: int = 0, placement: pin.SE3 |
 
 def add_point_frame(model: pin.Model, name: str, joint: int, xyz: Sequence[float]) -> int:
     """Add an operational frame ``name`` at ``xyz`` (m) in joint ``joint``'s frame; returns its id."""
-    return int(model.addFrame(pin.Frame(name, joint, pin.SE3(np.eye(3), np.asarray(xyz, dtype=float)),
-                                        pin.FrameType.OP_FRAME), False))
+    return int(
+        model.addFrame(
+            pin.Frame(name, joint, pin.SE3(np.eye(3), np.asarray(xyz, dtype=float)), pin.FrameType.OP_FRAME), False
+        )
+    )

@@ -38,13 +38,15 @@ def control_vector(model: BridgeModel, u: Any) -> np.ndarray:
     """The control u as a vector with one entry (N m or N) per actuated joint."""
     arr = np.asarray(u, dtype=float).reshape(-1)
     if arr.shape != model.actuated_idx.shape:
-        raise ModelError(f"{model.name}: control u has {arr.size} entries, the robot has "
-                         f"{model.actuated_idx.size} actuated joints")
+        raise ModelError(
+            f"{model.name}: control u has {arr.size} entries, the robot has {model.actuated_idx.size} actuated joints"
+        )
     return arr
 
 
-def applied_forces(model: BridgeModel, data: BridgeData, spec: ModeSpec, q: np.ndarray, v: np.ndarray,
-                   x: np.ndarray, u: Any) -> np.ndarray:
+def applied_forces(
+    model: BridgeModel, data: BridgeData, spec: ModeSpec, q: np.ndarray, v: np.ndarray, x: np.ndarray, u: Any
+) -> np.ndarray:
     """Generalised applied force tau (nv,): stance spring legs, joint damping, actuation."""
     tau = np.zeros(model.n)
     pm, pd, counts = model.pin_model, data.pin_data, data.counts
@@ -70,8 +72,9 @@ def applied_forces(model: BridgeModel, data: BridgeData, spec: ModeSpec, q: np.n
     return tau
 
 
-def constraint_rows(model: BridgeModel, data: BridgeData, rigid: Sequence[RigidContact], q: np.ndarray,
-                    v: np.ndarray, drift: bool) -> tuple[np.ndarray, np.ndarray]:
+def constraint_rows(
+    model: BridgeModel, data: BridgeData, rigid: Sequence[RigidContact], q: np.ndarray, v: np.ndarray, drift: bool
+) -> tuple[np.ndarray, np.ndarray]:
     """Stacked constraint Jacobian (rows, nv) and, with ``drift``, dJ/dt v (rows,) (else zeros);
     the normal row of each contact is its last row and points into the domain (gap increasing).
     Computing a point's Jacobian also updates its frame placement in ``data.pin_data.oMf``."""
@@ -79,8 +82,9 @@ def constraint_rows(model: BridgeModel, data: BridgeData, rigid: Sequence[RigidC
     return J, gamma
 
 
-def constraint_system(model: BridgeModel, data: BridgeData, rigid: Sequence[RigidContact], q: np.ndarray,
-                      v: np.ndarray, drift: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def constraint_system(
+    model: BridgeModel, data: BridgeData, rigid: Sequence[RigidContact], q: np.ndarray, v: np.ndarray, drift: bool
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``constraint_rows`` and the directions W (rows, nv) along which the constraint forces act,
     ``tau_c = W^T lambda``: W = J, except on the normal row of a slipping contact, where the
     friction force ``-s mu lambda_n`` along x joins the normal force: ``W = J_z - s mu J_x``."""
@@ -136,8 +140,9 @@ def solve_small(A: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.linalg.solve(A, b)
 
 
-def dynamics(model: BridgeModel, data: BridgeData, spec: ModeSpec, x: np.ndarray,
-             u: Any) -> tuple[np.ndarray, np.ndarray]:
+def dynamics(
+    model: BridgeModel, data: BridgeData, spec: ModeSpec, x: np.ndarray, u: Any
+) -> tuple[np.ndarray, np.ndarray]:
     """(acceleration (nv,), constraint forces (rows,)) of mode ``spec`` at x under control u,
     cached for the last state and control (counted in ``cache_hits``)."""
     # Keyed by the control's value, not its identity: a controller returns a new array at each
@@ -149,7 +154,7 @@ def dynamics(model: BridgeModel, data: BridgeData, spec: ModeSpec, x: np.ndarray
         return scratch.dyn_val
     n = model.n
     q = x[:n]
-    v = x[n:2 * n]
+    v = x[n : 2 * n]
     if u is not None:
         data.last_control = u
     tau = applied_forces(model, data, spec, q, v, x, u)
@@ -160,8 +165,9 @@ def dynamics(model: BridgeModel, data: BridgeData, spec: ModeSpec, x: np.ndarray
     return a, lam
 
 
-def _constrain(model: BridgeModel, data: BridgeData, spec: ModeSpec, q: np.ndarray, v: np.ndarray,
-               a: np.ndarray) -> np.ndarray:
+def _constrain(
+    model: BridgeModel, data: BridgeData, spec: ModeSpec, q: np.ndarray, v: np.ndarray, a: np.ndarray
+) -> np.ndarray:
     """Turn the unconstrained acceleration ``a`` (changed in place) into the constrained one;
     returns the constraint forces (rows,)."""
     data.counts["kkt"] += 1
@@ -200,13 +206,16 @@ def check_consistent(model: BridgeModel, spec: ModeSpec, A: np.ndarray) -> None:
     diagonal = np.diag(A)
     scale = float(np.max(np.abs(A)))
     if np.any(diagonal <= 1e-12 * scale) or abs(np.linalg.det(A)) <= 1e-12 * scale ** len(A):
-        raise ModelBreakdown(f"{model.name}: mode '{spec.name}': with its slipping contacts the rigid contact "
-                             f"problem has no unique solution (Delassus matrix {np.round(A, 6).tolist()}: the "
-                             f"Painleve paradox); lower the friction coefficient")
+        raise ModelBreakdown(
+            f"{model.name}: mode '{spec.name}': with its slipping contacts the rigid contact "
+            f"problem has no unique solution (Delassus matrix {np.round(A, 6).tolist()}: the "
+            f"Painleve paradox); lower the friction coefficient"
+        )
 
 
-def constraint_forces(model: BridgeModel, data: BridgeData, spec: ModeSpec, x: np.ndarray,
-                      u: Any) -> dict[str, np.ndarray]:
+def constraint_forces(
+    model: BridgeModel, data: BridgeData, spec: ModeSpec, x: np.ndarray, u: Any
+) -> dict[str, np.ndarray]:
     """Constraint forces of the mode's active rigid contacts at x: ``{name: lambda}`` with
     ``lambda = (f_x, f_z)`` (N) for a sticking or slipping point contact (slipping: f_x is the
     friction force ``-s mu f_z``), ``(f_z,)`` for a frictionless one
@@ -215,19 +224,18 @@ def constraint_forces(model: BridgeModel, data: BridgeData, spec: ModeSpec, x: n
     _, lam = dynamics(model, data, spec, x, u)
     out, i = {}, 0
     for r in spec.rigid:
-        out[r.contact.name] = lam[i:i + r.rows].copy()
+        out[r.contact.name] = lam[i : i + r.rows].copy()
         if r.slip:  # the friction force joins the normal force: (f_x, f_z)
             out[r.contact.name] = np.array((-r.slip_mu * lam[i], lam[i]))
         i += r.rows
     return out
 
 
-def leg_length(model: BridgeModel, data: BridgeData, leg: LegFrames, x: np.ndarray,
-               i: int) -> tuple[float, float]:
+def leg_length(model: BridgeModel, data: BridgeData, leg: LegFrames, x: np.ndarray, i: int) -> tuple[float, float]:
     """(length r (m), its rate dr/dt (m/s)) of the stance leg whose foothold is ``x[2 nv + i]``."""
     n = model.n
     pm, pd = model.pin_model, data.pin_data
-    pin.forwardKinematics(pm, pd, x[:n], x[n:2 * n])
+    pin.forwardKinematics(pm, pd, x[:n], x[n : 2 * n])
     p = pin.updateFramePlacement(pm, pd, leg.hip_id).translation
     vel = pin.getFrameVelocity(pm, pd, leg.hip_id, LWA).linear
     dx = p[0] - x[2 * n + i]
@@ -253,7 +261,7 @@ def energy(model: BridgeModel, data: BridgeData, spec: ModeSpec, x: np.ndarray) 
     n = model.n
     pm, pd = model.pin_model, data.pin_data
     data.counts["energy_evals"] += 1
-    q, v = x[:n], x[n:2 * n]
+    q, v = x[:n], x[n : 2 * n]
     e = pin.computeKineticEnergy(pm, pd, q, v) + pin.computePotentialEnergy(pm, pd, q)
     for i, lg in enumerate(spec.springs):
         r, _ = leg_length(model, data, lg, x, i)

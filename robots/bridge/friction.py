@@ -102,8 +102,9 @@ def _rows(model: BridgeModel, data: BridgeData, r: RigidContact, q: np.ndarray) 
     return (Jf[0].copy() if r.point.tangential else None), Jf[2].copy()
 
 
-def _solve(engaged: list[Engaged], rows: dict[str, tuple[np.ndarray | None, np.ndarray]], Minv: np.ndarray,
-           v: np.ndarray) -> tuple[np.ndarray, dict[str, tuple[float, float]]]:
+def _solve(
+    engaged: list[Engaged], rows: dict[str, tuple[np.ndarray | None, np.ndarray]], Minv: np.ndarray, v: np.ndarray
+) -> tuple[np.ndarray, dict[str, tuple[float, float]]]:
     """The impact of the engaged contacts with their current statuses: (v+, per constrained
     contact its (tangential, normal) impulse; the tangential one is the friction impulse of a
     sliding contact and 0 for a frictionless one)."""
@@ -145,8 +146,9 @@ def _solve(engaged: list[Engaged], rows: dict[str, tuple[np.ndarray | None, np.n
     return v + MWt @ impulse, out
 
 
-def _change(e: Engaged, impulse: tuple[float, float], velocity: tuple[float, float],
-            scale: float) -> tuple[str, float] | None:
+def _change(
+    e: Engaged, impulse: tuple[float, float], velocity: tuple[float, float], scale: float
+) -> tuple[str, float] | None:
     """The (status, sigma) contact e should take instead of its current one, or None when it is
     consistent. A stuck contact whose impulse leaves the cone (a pulling normal impulse leaves
     it too) slides before it is freed: separating needs the sliding impulse to pull."""
@@ -168,8 +170,9 @@ def _change(e: Engaged, impulse: tuple[float, float], velocity: tuple[float, flo
     return None
 
 
-def frictional_impact(model: BridgeModel, data: BridgeData, engaged: list[Engaged], q: np.ndarray,
-                      v: np.ndarray) -> ImpactResult:
+def frictional_impact(
+    model: BridgeModel, data: BridgeData, engaged: list[Engaged], q: np.ndarray, v: np.ndarray
+) -> ImpactResult:
     """The impact of the ``engaged`` contacts under the friction cone (module docstring); their
     statuses are updated in place. ``ModelBreakdown`` when the active set finds no consistent
     outcome (every change it asks for leads back to a set of statuses already tried)."""
@@ -182,15 +185,20 @@ def frictional_impact(model: BridgeModel, data: BridgeData, engaged: list[Engage
         tried.add(tuple((e.status, e.sigma) for e in engaged))
         v_plus, impulses = _solve(engaged, rows, Minv, v)
         velocity = {name: (0.0 if t is None else float(t @ v_plus), float(n @ v_plus)) for name, (t, n) in rows.items()}
-        changes = [(i, c) for i, e in enumerate(engaged)
-                   if (c := _change(e, impulses.get(e.name, (0.0, 0.0)), velocity[e.name], scale)) is not None]
+        changes = [
+            (i, c)
+            for i, e in enumerate(engaged)
+            if (c := _change(e, impulses.get(e.name, (0.0, 0.0)), velocity[e.name], scale)) is not None
+        ]
         if not changes:
             result = ImpactResult(v_plus, engaged, {k: ln for k, (_, ln) in impulses.items()}, velocity)
             return _energy_checked(model, data, result, rows, Minv, q, v)
         fresh = [(i, c) for i, c in changes if _with(engaged, i, c) not in tried]
         if not fresh:
-            raise ModelBreakdown(f"{model.name}: the impact of {[e.name for e in engaged]} with friction has no "
-                                 f"consistent outcome (stick, slide or separate) at q={q.tolist()}, v={v.tolist()}")
+            raise ModelBreakdown(
+                f"{model.name}: the impact of {[e.name for e in engaged]} with friction has no "
+                f"consistent outcome (stick, slide or separate) at q={q.tolist()}, v={v.tolist()}"
+            )
         i, (status, sigma) = fresh[0]
         engaged[i].status, engaged[i].sigma = status, sigma
 
@@ -200,9 +208,15 @@ def _with(engaged: list[Engaged], i: int, change: tuple[str, float]) -> tuple[tu
     return tuple(change if k == i else (e.status, e.sigma) for k, e in enumerate(engaged))
 
 
-def _energy_checked(model: BridgeModel, data: BridgeData, result: ImpactResult,
-                    rows: dict[str, tuple[np.ndarray | None, np.ndarray]], Minv: np.ndarray, q: np.ndarray,
-                    v: np.ndarray) -> ImpactResult:
+def _energy_checked(
+    model: BridgeModel,
+    data: BridgeData,
+    result: ImpactResult,
+    rows: dict[str, tuple[np.ndarray | None, np.ndarray]],
+    Minv: np.ndarray,
+    q: np.ndarray,
+    v: np.ndarray,
+) -> ImpactResult:
     """``result``, or when it adds kinetic energy the same contacts plastic, or else all stuck."""
     M = pin.crba(model.pin_model, data.pin_data, q)
     before = float(v @ M @ v)
@@ -224,8 +238,15 @@ def _energy_checked(model: BridgeModel, data: BridgeData, result: ImpactResult,
     return ImpactResult(v_plus, result.engaged, {k: ln for k, (_, ln) in impulses.items()}, velocity)
 
 
-def engage(model: BridgeModel, spec: ModeSpec, kept: Sequence[str], strikers: Sequence[str],
-           restitution: dict[str, float], q_v: tuple[np.ndarray, np.ndarray], data: BridgeData) -> list[Engaged]:
+def engage(
+    model: BridgeModel,
+    spec: ModeSpec,
+    kept: Sequence[str],
+    strikers: Sequence[str],
+    restitution: dict[str, float],
+    q_v: tuple[np.ndarray, np.ndarray],
+    data: BridgeData,
+) -> list[Engaged]:
     """The contacts of an impact in mode ``spec``: the ``kept`` active ones as the mode holds
     them (stuck, slipping or normal), and the ``strikers`` (each with its restitution), stuck if
     approaching the ground, else free."""
@@ -251,8 +272,16 @@ def entry(name: str, slip: float) -> str:
     return name + SLIP_SUFFIX[slip] if slip else name
 
 
-def settle(model: BridgeModel, data: BridgeData, modes: ModeCatalog, src: ModeSpec, x: np.ndarray,
-           fixed: Sequence[str], result: ImpactResult, u: Any) -> tuple[ModeSpec, np.ndarray]:
+def settle(
+    model: BridgeModel,
+    data: BridgeData,
+    modes: ModeCatalog,
+    src: ModeSpec,
+    x: np.ndarray,
+    fixed: Sequence[str],
+    result: ImpactResult,
+    u: Any,
+) -> tuple[ModeSpec, np.ndarray]:
     """The mode an impact leads to and the image there (module docstring): ``fixed``, the
     entries of ``src`` the impact leaves as they are; the engaged contacts that end on the
     ground (plastic), stuck or slipping with their velocity; then ``settle_slips``."""
@@ -266,9 +295,17 @@ def settle(model: BridgeModel, data: BridgeData, modes: ModeCatalog, src: ModeSp
     return settle_slips(model, data, modes, src, x, result.v_plus, fixed, slips, u)
 
 
-def settle_slips(model: BridgeModel, data: BridgeData, modes: ModeCatalog, src: ModeSpec, x: np.ndarray,
-                 v_new: np.ndarray | None, fixed: Sequence[str], slips: dict[str, float],
-                 u: Any) -> tuple[ModeSpec, np.ndarray]:
+def settle_slips(
+    model: BridgeModel,
+    data: BridgeData,
+    modes: ModeCatalog,
+    src: ModeSpec,
+    x: np.ndarray,
+    v_new: np.ndarray | None,
+    fixed: Sequence[str],
+    slips: dict[str, float],
+    u: Any,
+) -> tuple[ModeSpec, np.ndarray]:
     """From the rigid contacts ``slips`` (name -> slip direction, 0: stuck) and the ``fixed``
     entries, with velocity ``v_new`` (None: x's), the mode whose contact forces are consistent:
     pulling contacts dropped and stuck ones outside the cone slipping, one change at a time. The
@@ -299,12 +336,13 @@ def settle_slips(model: BridgeModel, data: BridgeData, modes: ModeCatalog, src: 
     return dst, image
 
 
-def _stick_all(model: BridgeModel, data: BridgeData, slips: dict[str, float], x: np.ndarray,
-               v_new: np.ndarray | None) -> np.ndarray:
+def _stick_all(
+    model: BridgeModel, data: BridgeData, slips: dict[str, float], x: np.ndarray, v_new: np.ndarray | None
+) -> np.ndarray:
     """The velocity after every slipping contact of ``slips`` is stopped (and set stuck there) by
     an impulse that keeps every contact of ``slips`` on the ground."""
     n = model.n
-    v = x[n:2 * n] if v_new is None else v_new
+    v = x[n : 2 * n] if v_new is None else v_new
     engaged = [Engaged(model.rigid[c], 0.0, STICK if model.rigid[c].rows == 2 else NORMAL, held=True) for c in slips]
     for c in slips:
         slips[c] = 0.0
@@ -312,8 +350,16 @@ def _stick_all(model: BridgeModel, data: BridgeData, slips: dict[str, float], x:
     return frictional_impact(model, data, engaged, x[:n], v).v_plus
 
 
-def mode_change(model: BridgeModel, data: BridgeData, modes: ModeCatalog, spec: ModeSpec, x: np.ndarray, u: Any,
-                contact: str, slip: float | None) -> tuple[ModeSpec, np.ndarray]:
+def mode_change(
+    model: BridgeModel,
+    data: BridgeData,
+    modes: ModeCatalog,
+    spec: ModeSpec,
+    x: np.ndarray,
+    u: Any,
+    contact: str,
+    slip: float | None,
+) -> tuple[ModeSpec, np.ndarray]:
     """The mode after ``contact`` lifts off (``slip`` None) or starts slipping towards ``slip``
     in mode ``spec`` at x, the others then settled under their new control (no impulse)."""
     fixed = [e for e, c in zip(spec.entries, spec.active, strict=True) if c not in model.rigid]
@@ -325,8 +371,9 @@ def mode_change(model: BridgeModel, data: BridgeData, modes: ModeCatalog, spec: 
     return settle_slips(model, data, modes, spec, x, None, fixed, slips, u)
 
 
-def _force_change(model: BridgeModel, data: BridgeData, dst: ModeSpec, image: np.ndarray, u: Any,
-                  slips: dict[str, float]) -> tuple[str, float | None] | None:
+def _force_change(
+    model: BridgeModel, data: BridgeData, dst: ModeSpec, image: np.ndarray, u: Any, slips: dict[str, float]
+) -> tuple[str, float | None] | None:
     """The first change the contact forces of mode ``dst`` at ``image`` ask of the contacts in
     ``slips``: (contact, None) to drop a pulling one, (contact, s) for a stuck one to slip."""
     if not slips:
@@ -345,17 +392,28 @@ def _force_change(model: BridgeModel, data: BridgeData, dst: ModeSpec, image: np
     return None
 
 
-def event_outcome(model: BridgeModel, data: BridgeData, modes: ModeCatalog, spec: ModeSpec, x: np.ndarray, u: Any,
-                  strikers: Sequence[str], restitution: dict[str, float],
-                  stopping: Sequence[str] = ()) -> tuple[ModeSpec, np.ndarray]:
+def event_outcome(
+    model: BridgeModel,
+    data: BridgeData,
+    modes: ModeCatalog,
+    spec: ModeSpec,
+    x: np.ndarray,
+    u: Any,
+    strikers: Sequence[str],
+    restitution: dict[str, float],
+    stopping: Sequence[str] = (),
+) -> tuple[ModeSpec, np.ndarray]:
     """The mode and image after the ``strikers`` strike in mode ``spec`` at x, and the slipping
     contacts ``stopping`` stop (stuck through the impact); every other active rigid contact not
     released by a striker is held plastically through the impact."""
     n = model.n
-    q, v = x[:n], x[n:2 * n]
+    q, v = x[:n], x[n : 2 * n]
     released = {r for c in strikers for r in getattr(model.contacts[c], "releases", ())}
-    kept = [r.contact.name for r in spec.rigid
-            if r.contact.name not in released and r.contact.name not in strikers and r.contact.name not in stopping]
+    kept = [
+        r.contact.name
+        for r in spec.rigid
+        if r.contact.name not in released and r.contact.name not in strikers and r.contact.name not in stopping
+    ]
     fixed = [e for e, c in zip(spec.entries, spec.active, strict=True) if c not in model.rigid]
     engaged = engage(model, spec, kept, strikers, restitution, (q, v), data)
     if stopping:
@@ -369,8 +427,14 @@ def event_outcome(model: BridgeModel, data: BridgeData, modes: ModeCatalog, spec
     return settle(model, data, modes, spec, x, fixed, result, u)
 
 
-def candidate_targets(model: BridgeModel, modes: ModeCatalog, spec: ModeSpec, involved: Sequence[str],
-                      bouncing: Sequence[str] = (), dropped: Sequence[str] = ()) -> list[str]:
+def candidate_targets(
+    model: BridgeModel,
+    modes: ModeCatalog,
+    spec: ModeSpec,
+    involved: Sequence[str],
+    bouncing: Sequence[str] = (),
+    dropped: Sequence[str] = (),
+) -> list[str]:
     """Every mode an event of the ``involved`` rigid contacts in mode ``spec`` may lead to:
     each involved contact absent, stuck or (with friction) slipping either way; a ``bouncing``
     one only absent; the ``dropped`` ones (released) absent; the other entries unchanged."""
@@ -385,9 +449,11 @@ def candidate_targets(model: BridgeModel, modes: ModeCatalog, spec: ModeSpec, in
             options.append([None, 0.0])
     count = int(np.prod([len(o) for o in options]))
     if count > MAX_OUTCOMES:
-        raise ModelError(f"{model.name}: an event in mode '{spec.name}' involves {list(involved)}, which could lead "
-                         f"to {count} modes (at most {MAX_OUTCOMES} are supported): declare fewer contacts with "
-                         f"friction, or frictionless ones")
+        raise ModelError(
+            f"{model.name}: an event in mode '{spec.name}' involves {list(involved)}, which could lead "
+            f"to {count} modes (at most {MAX_OUTCOMES} are supported): declare fewer contacts with "
+            f"friction, or frictionless ones"
+        )
     targets = []
     for choice in itertools.product(*options):
         entries = fixed + [entry(c, s) for c, s in zip(involved, choice, strict=True) if s is not None]
@@ -400,9 +466,15 @@ def candidate_targets(model: BridgeModel, modes: ModeCatalog, spec: ModeSpec, in
 Solve = Callable[[np.ndarray, Any], tuple[ModeSpec, np.ndarray]]
 
 
-def outcome_transitions(model: BridgeModel, data: BridgeData, spec: ModeSpec, targets: Sequence[str],
-                        base: Callable[[np.ndarray, Any], float], solve: Solve,
-                        label: Callable[[str], str]) -> list[Transition]:
+def outcome_transitions(
+    model: BridgeModel,
+    data: BridgeData,
+    spec: ModeSpec,
+    targets: Sequence[str],
+    base: Callable[[np.ndarray, Any], float],
+    solve: Solve,
+    label: Callable[[str], str],
+) -> list[Transition]:
     """One transition per possible target of an event whose guard is ``base(x, u)`` and whose
     outcome ``solve(x, u)`` gives: target T's guard is the base guard where the event leads to T
     and its absolute value elsewhere (so only the chosen transition is ever past), its reset the
@@ -438,8 +510,9 @@ def outcome_transitions(model: BridgeModel, data: BridgeData, spec: ModeSpec, ta
     return [make(target) for target in targets]
 
 
-def stick_slip_guard(model: BridgeModel, data: BridgeData, spec: ModeSpec, contact: str,
-                     slip: float) -> Callable[[np.ndarray, Any], float]:
+def stick_slip_guard(
+    model: BridgeModel, data: BridgeData, spec: ModeSpec, contact: str, slip: float
+) -> Callable[[np.ndarray, Any], float]:
     """``mu lambda_n + s lambda_t`` (N) of the stuck contact: >= 0 while its force is inside the
     cone on the side that would make it slip towards s."""
     mu = model.rigid[contact].mu
@@ -452,21 +525,25 @@ def stick_slip_guard(model: BridgeModel, data: BridgeData, spec: ModeSpec, conta
     return value
 
 
-def slip_rate(model: BridgeModel, data: BridgeData, spec: ModeSpec, contact: str, x: np.ndarray,
-              u: Any) -> tuple[float, float]:
+def slip_rate(
+    model: BridgeModel, data: BridgeData, spec: ModeSpec, contact: str, x: np.ndarray, u: Any
+) -> tuple[float, float]:
     """(tangential velocity (m/s), tangential acceleration (m/s^2)) of a contact point in mode ``spec``."""
     n = model.n
     a, _ = dynamics(model, data, spec, x, u)
     pm, pd = model.pin_model, data.pin_data
     fid = model.rigid[contact].frame_id
-    pin.forwardKinematics(pm, pd, x[:n], x[n:2 * n], a)
+    pin.forwardKinematics(pm, pd, x[:n], x[n : 2 * n], a)
     pin.updateFramePlacement(pm, pd, fid)
-    return (float(pin.getFrameVelocity(pm, pd, fid, LWA).linear[0]),
-            float(pin.getFrameClassicalAcceleration(pm, pd, fid, LWA).linear[0]))
+    return (
+        float(pin.getFrameVelocity(pm, pd, fid, LWA).linear[0]),
+        float(pin.getFrameClassicalAcceleration(pm, pd, fid, LWA).linear[0]),
+    )
 
 
-def slip_stop_guard(model: BridgeModel, data: BridgeData, spec: ModeSpec,
-                    contact: str) -> Callable[[np.ndarray, Any], float]:
+def slip_stop_guard(
+    model: BridgeModel, data: BridgeData, spec: ModeSpec, contact: str
+) -> Callable[[np.ndarray, Any], float]:
     """``max(s v_t, s a_t)`` (m/s) of the contact slipping towards s: past once the slip velocity
     has come back through 0 while the friction decelerates it (entering the slipping mode, the
     point accelerates towards s, so the guard is not past there)."""

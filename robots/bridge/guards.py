@@ -39,7 +39,7 @@ def kinematic_guards(model: BridgeModel, data: BridgeData, spec: ModeSpec, x: np
     if key == scratch.kin_key:
         return scratch.kin_val
     n = model.n
-    q, v = x[:n], x[n:2 * n]
+    q, v = x[:n], x[n : 2 * n]
     if spec.need_fk:
         pin.forwardKinematics(model.pin_model, data.pin_data, q, v)
         data.counts["kinematics"] += 1
@@ -105,21 +105,27 @@ def _liftoff_guard(model: BridgeModel, data: BridgeData, lg: LegFrames, x: np.nd
             raise ModelBreakdown(
                 f"{model.name}: at liftoff of leg '{lg.leg.name}' its foot, swung to the flight angle, "
                 f"would be {-foot:.3g} m below the ground moving down ({foot_vz:.3g} m/s): "
-                f"the runner fell")
+                f"the runner fell"
+            )
     return g
 
 
 def _fell(model: BridgeModel, leg: SpringLeg, hip_height: float) -> ModelBreakdown:
     """The breakdown of a runner whose hip went below the ground (``hip_height`` < 0, m)."""
-    return ModelBreakdown(f"{model.name}: the hip of leg '{leg.name}' is {-hip_height:.3g} m below the "
-                          f"ground: the runner fell (the model has no body-ground contact)")
+    return ModelBreakdown(
+        f"{model.name}: the hip of leg '{leg.name}' is {-hip_height:.3g} m below the "
+        f"ground: the runner fell (the model has no body-ground contact)"
+    )
 
 
-def kinematic_guard(model: BridgeModel, data: BridgeData, spec: ModeSpec,
-                    contact: str) -> Callable[[np.ndarray], float]:
+def kinematic_guard(
+    model: BridgeModel, data: BridgeData, spec: ModeSpec, contact: str
+) -> Callable[[np.ndarray], float]:
     """The position-level guard ``g(x)`` of contact ``contact`` in mode ``spec``."""
+
     def g(x: np.ndarray) -> float:
         return kinematic_guards(model, data, spec, x)[contact]
+
     return g
 
 
@@ -136,16 +142,18 @@ def release_guard(model: BridgeModel, data: BridgeData, spec: ModeSpec, row: int
     return state_guard(model, lambda x, u: float(dynamics(model, data, spec, x, u)[1][row]))
 
 
-def initial_check(model: BridgeModel, data: BridgeData,
-                  active_contacts: Callable[[str], tuple[str, ...]]) -> Callable[[str, np.ndarray, float], str | None]:
+def initial_check(
+    model: BridgeModel, data: BridgeData, active_contacts: Callable[[str], tuple[str, ...]]
+) -> Callable[[str, np.ndarray, float], str | None]:
     """The scene's initial-state check (``Model.info["initial_check"]``): ``check(mode, x, eps)``
     names the first inactive joint stop or point contact whose position lies past it by more
     than eps (rad or m), else None. The guards are "and" conditions (past the stop AND moving
     into it), so they count a state deep past a stop but moving away as inside; no execution
     reaches such a state, and a run started there would not be the model's."""
+
     def check(mode: str, x: np.ndarray, eps: float) -> str | None:
         active = active_contacts(mode)
-        q = np.asarray(x, dtype=float)[:model.n]
+        q = np.asarray(x, dtype=float)[: model.n]
         for r in model.rigid.values():
             if r.contact.name in active:
                 continue
@@ -167,23 +175,28 @@ def _past_stop(model: BridgeModel, r: RigidContact, q: np.ndarray, eps: float, m
     if depth > eps:
         name = model.coordinate_names[r.dof]
         bound = ">=" if c.side == "lower" else "<="
-        return (f"{name} = {q[r.dof]:g} lies past the {c.side} stop '{c.name}' ({name} {bound} "
-                f"{c.position:g}) by {depth:.3g} > eps = {eps:g} in mode '{mode}' where the "
-                f"stop is inactive")
+        return (
+            f"{name} = {q[r.dof]:g} lies past the {c.side} stop '{c.name}' ({name} {bound} "
+            f"{c.position:g}) by {depth:.3g} > eps = {eps:g} in mode '{mode}' where the "
+            f"stop is inactive"
+        )
     return None
 
 
-def _below_ground(model: BridgeModel, data: BridgeData, r: RigidContact, q: np.ndarray, eps: float,
-                  mode: str) -> str | None:
+def _below_ground(
+    model: BridgeModel, data: BridgeData, r: RigidContact, q: np.ndarray, eps: float, mode: str
+) -> str | None:
     """A message if the inactive contact point lies below the ground at q by more than eps (m), else None."""
     c = r.point
     pin.forwardKinematics(model.pin_model, data.pin_data, q)
     z = pin.updateFramePlacement(model.pin_model, data.pin_data, r.frame_id).translation[2]
     depth = c.ground - z
     if depth > eps:
-        return (f"contact point '{c.name}' (frame '{c.frame}') at height {z:g} m lies below the "
-                f"ground {c.ground:g} m by {depth:.3g} > eps = {eps:g} in mode '{mode}' where "
-                f"the contact is inactive")
+        return (
+            f"contact point '{c.name}' (frame '{c.frame}') at height {z:g} m lies below the "
+            f"ground {c.ground:g} m by {depth:.3g} > eps = {eps:g} in mode '{mode}' where "
+            f"the contact is inactive"
+        )
     return None
 
 
@@ -203,8 +216,9 @@ def guard_units(model: BridgeModel) -> dict[str, str]:
             if c.friction is not None:
                 units[f"liftoff_{cname}"] = "N (normal contact force)"
                 for suffix in SLIP_SUFFIX.values():
-                    units[f"slip_{cname}{suffix}"] = ("N (mu f_n -+ f_t: the force's distance to the friction "
-                                                      "cone's edge)")
+                    units[f"slip_{cname}{suffix}"] = (
+                        "N (mu f_n -+ f_t: the force's distance to the friction cone's edge)"
+                    )
                 units[f"stick_{cname}"] = "m/s (slip velocity, while the friction decelerates it)"
         else:
             joint = model.pin_model.joints[joint_id(model.pin_model, c.joint, "stop", model.name)]

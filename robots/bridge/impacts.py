@@ -27,8 +27,9 @@ from .modes import ModeSpec, map_state
 Reset = Callable[[np.ndarray], np.ndarray]
 
 
-def impact_velocity(model: BridgeModel, data: BridgeData, rows: Sequence[tuple[str, float]], q: np.ndarray,
-                    v: np.ndarray) -> np.ndarray:
+def impact_velocity(
+    model: BridgeModel, data: BridgeData, rows: Sequence[tuple[str, float]], q: np.ndarray, v: np.ndarray
+) -> np.ndarray:
     """Post-impact velocity (nv,) of the generalised Newton impact.
 
     ``rows``: ``(contact name, restitution)`` of the contacts constrained at the impact;
@@ -45,13 +46,14 @@ def impact_velocity(model: BridgeModel, data: BridgeData, rows: Sequence[tuple[s
     return v + MJt @ solve_small(J @ MJt, -(1.0 + coeff) * Jv)
 
 
-def impact_reset(model: BridgeModel, data: BridgeData, src: ModeSpec, dst: ModeSpec,
-                 rows: Sequence[tuple[str, float]]) -> Reset:
+def impact_reset(
+    model: BridgeModel, data: BridgeData, src: ModeSpec, dst: ModeSpec, rows: Sequence[tuple[str, float]]
+) -> Reset:
     """Reset of an impact from mode ``src`` into ``dst`` (``rows`` as in ``impact_velocity``)."""
     n = model.n
 
     def reset(x: np.ndarray) -> np.ndarray:
-        v_new = impact_velocity(model, data, rows, x[:n], x[n:2 * n])
+        v_new = impact_velocity(model, data, rows, x[:n], x[n : 2 * n])
         return map_state(model, data, src, dst, x, v_new)
 
     return reset
@@ -65,12 +67,14 @@ def plain_reset(model: BridgeModel, data: BridgeData, src: ModeSpec, dst: ModeSp
     return lambda x: map_state(model, data, src, dst, x, None)
 
 
-def plastic_guard(model: BridgeModel, data: BridgeData, spec: ModeSpec, contact: str, stick: ModeSpec,
-                  stick_reset: Reset, sign: float) -> Callable[..., float]:
+def plastic_guard(
+    model: BridgeModel, data: BridgeData, spec: ModeSpec, contact: str, stick: ModeSpec, stick_reset: Reset, sign: float
+) -> Callable[..., float]:
     """``max(gap guard, -sign * lambda+)`` of a plastic impact of ``contact`` from mode ``spec``
     (sign +1: the sticking transition into ``stick``; -1: the grazing one). lambda+ is the
     contact's normal force right after the impact, computed only once the gap guard is past
     (then cached per state and control). Declared with ``model.guard_args``."""
+
     def value(x: np.ndarray, u: Any) -> float:
         base = kinematic_guards(model, data, spec, x)[contact]
         if base >= 0.0:

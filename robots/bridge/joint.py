@@ -46,15 +46,16 @@ def striking_contacts(model: BridgeModel, names: tuple[str, ...]) -> list[str] |
     struck = []
     for name in names:
         prefix = next((p for p in STRIKES if name.startswith(p)), None)
-        contact = name[len(prefix):].split("@")[0] if prefix else None
+        contact = name[len(prefix) :].split("@")[0] if prefix else None
         if contact not in model.rigid:
             return None
         struck.append(contact)
     return [c for c in model.order if c in set(struck)]
 
 
-def newton_impact(model: BridgeModel, data: BridgeData, rows: list[tuple[str, float]], q: np.ndarray,
-                  v: np.ndarray) -> tuple[np.ndarray, dict[str, float]]:
+def newton_impact(
+    model: BridgeModel, data: BridgeData, rows: list[tuple[str, float]], q: np.ndarray, v: np.ndarray
+) -> tuple[np.ndarray, dict[str, float]]:
     """The generalised Newton impact of the contacts ``rows`` ((name, restitution), declared
     order): the post-impact velocity (nv,) and each contact's normal impulse (N s or N m s)."""
     rigid = [model.rigid[name] for name, _ in rows]
@@ -70,8 +71,15 @@ def newton_impact(model: BridgeModel, data: BridgeData, rows: list[tuple[str, fl
     return v + MJt @ impulse, normal
 
 
-def joint_impact(model: BridgeModel, data: BridgeData, kept: list[str], strikers: list[str], q: np.ndarray,
-                 v: np.ndarray, restitution: dict[str, float]) -> tuple[np.ndarray, list[str]]:
+def joint_impact(
+    model: BridgeModel,
+    data: BridgeData,
+    kept: list[str],
+    strikers: list[str],
+    q: np.ndarray,
+    v: np.ndarray,
+    restitution: dict[str, float],
+) -> tuple[np.ndarray, list[str]]:
     """The post-impact velocity of the strikers (with the ``kept`` contacts held plastically) and
     the strikers that take part, chosen as complementarity asks (an active set): only approaching
     contacts strike; one whose impulse would pull is dropped; one left out that the impact drives
@@ -106,8 +114,15 @@ def joint_impact(model: BridgeModel, data: BridgeData, kept: list[str], strikers
     return v_plus, taking
 
 
-def resolve(model: BridgeModel, data: BridgeData, modes: ModeCatalog, mode: str, names: tuple[str, ...],
-            x: np.ndarray, rest: bool) -> JointCrossing | None:
+def resolve(
+    model: BridgeModel,
+    data: BridgeData,
+    modes: ModeCatalog,
+    mode: str,
+    names: tuple[str, ...],
+    x: np.ndarray,
+    rest: bool,
+) -> JointCrossing | None:
     """``HybridSystem(joint=...)`` for the bridge: the contacts struck by ``names`` at x resolved
     together (``rest``: all plastic, as a bouncing contact continues when its bounces
     accumulate), or None when fewer than two rigid contacts strike (the integrator then takes the
@@ -127,7 +142,7 @@ def resolve(model: BridgeModel, data: BridgeData, modes: ModeCatalog, mode: str,
     kept = [c for c in staying if c in model.rigid]
     n = model.n
     restitution = {name: 0.0 if rest else model.rigid[name].contact.restitution for name in strikers}
-    v_plus, taking = joint_impact(model, data, kept, strikers, x[:n], x[n:2 * n], restitution)
+    v_plus, taking = joint_impact(model, data, kept, strikers, x[:n], x[n : 2 * n], restitution)
     plastic = [name for name in taking if restitution[name] == 0.0]
     while True:
         dst = modes.spec(modes.name_of(set(staying) | set(plastic)))

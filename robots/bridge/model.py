@@ -24,8 +24,19 @@ from .contacts import Contact, LegFrames, RigidContact, declared_contacts, finit
 # the world x and z of the (x, z) plane the robots move in.
 LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 
-COUNTERS = ("aba", "kkt", "jacobians", "kinematics", "spring_forces", "damping_evals", "actuation_evals",
-            "impacts", "energy_evals", "cache_hits", "painleve_sticks")
+COUNTERS = (
+    "aba",
+    "kkt",
+    "jacobians",
+    "kinematics",
+    "spring_forces",
+    "damping_evals",
+    "actuation_evals",
+    "impacts",
+    "energy_evals",
+    "cache_hits",
+    "painleve_sticks",
+)
 
 
 @dataclass(frozen=True, eq=False)
@@ -143,9 +154,16 @@ class BridgeData:
         return out
 
 
-def build_model(model: pin.Model, contacts: Sequence[Contact], *, coordinate_names: Sequence[str] | None,
-                velocity_names: Sequence[str] | None, joint_damping: Mapping[str, float] | None,
-                actuated: Sequence[str], name: str) -> BridgeModel:
+def build_model(
+    model: pin.Model,
+    contacts: Sequence[Contact],
+    *,
+    coordinate_names: Sequence[str] | None,
+    velocity_names: Sequence[str] | None,
+    joint_damping: Mapping[str, float] | None,
+    actuated: Sequence[str],
+    name: str,
+) -> BridgeModel:
     """Check and resolve the ``ContactBridge`` arguments (see there); ``ModelError`` names the
     contact, frame or joint at fault."""
     _check_pin_model(model, name)
@@ -175,7 +193,8 @@ def _check_pin_model(model: Any, name: str) -> None:
     if model.nq != model.nv:
         raise ModelError(
             f"{name}: the bridge needs model.nq == model.nv (prismatic and bounded revolute joints), "
-            f"got nq={model.nq}, nv={model.nv}")
+            f"got nq={model.nq}, nv={model.nv}"
+        )
     if model.nv < 1:
         raise ModelError(f"{name}: the model has no degree of freedom")
 
@@ -190,16 +209,18 @@ def _joint_dof_names(model: pin.Model) -> tuple[str, ...]:
     return tuple(names)
 
 
-def _unique_names(given: Iterable[Any] | None, label: str, default: Iterable[str], n: int,
-                  robot: str) -> tuple[str, ...]:
+def _unique_names(
+    given: Iterable[Any] | None, label: str, default: Iterable[str], n: int, robot: str
+) -> tuple[str, ...]:
     names = tuple(default if given is None else (str(s) for s in given))
     if len(names) != n or len(set(names)) != len(names):
         raise ModelError(f"{robot}: {label} must be {n} unique names, got {names}")
     return names
 
 
-def _joint_damping(model: pin.Model, joint_damping: Mapping[str, float] | None,
-                   robot: str) -> tuple[np.ndarray, np.ndarray]:
+def _joint_damping(
+    model: pin.Model, joint_damping: Mapping[str, float] | None, robot: str
+) -> tuple[np.ndarray, np.ndarray]:
     """(velocity indices, coefficients) of the joints with positive damping."""
     idx: list[int] = []
     bs: list[float] = []

@@ -94,8 +94,9 @@ class ModeCatalog:
             subset: frozenset[str] = frozenset([key]) if isinstance(key, str) else frozenset(key)
             unknown = sorted(e for e in subset if self._parse(e) is None)
             if unknown:
-                raise ModelError(f"{model.name}: mode_names names unknown contact(s) {unknown}; "
-                                 f"contacts: {model.order}")
+                raise ModelError(
+                    f"{model.name}: mode_names names unknown contact(s) {unknown}; contacts: {model.order}"
+                )
             if not isinstance(mname, str) or not mname or mname in self._sets:
                 raise ModelError(f"{model.name}: mode name {mname!r} is empty, not a string or used twice")
             self._names[subset] = mname
@@ -148,8 +149,10 @@ class ModeCatalog:
         else:
             parts = mode.split("+")
             if any(self._parse(p) is None for p in parts) or len(set(parts)) != len(parts):
-                raise ModelError(f"{model.name}: '{mode}' is not a mode: name a set of contacts joined by '+' "
-                                 f"(contacts: {model.order}) or one of {sorted(self._sets)}")
+                raise ModelError(
+                    f"{model.name}: '{mode}' is not a mode: name a set of contacts joined by '+' "
+                    f"(contacts: {model.order}) or one of {sorted(self._sets)}"
+                )
             subset = frozenset(parts)
         if self.name_of(subset) != mode:
             raise ModelError(f"{model.name}: mode '{mode}' is called '{self.name_of(subset)}'")
@@ -169,38 +172,59 @@ class ModeCatalog:
         return spec
 
 
-def build_spec(model: BridgeModel, mode: str, active: tuple[str, ...], slips: Mapping[str, float] | None = None,
-               entries: tuple[str, ...] | None = None) -> ModeSpec:
+def build_spec(
+    model: BridgeModel,
+    mode: str,
+    active: tuple[str, ...],
+    slips: Mapping[str, float] | None = None,
+    entries: tuple[str, ...] | None = None,
+) -> ModeSpec:
     """The ``ModeSpec`` of mode ``mode`` with active contacts ``active`` (declared order);
     ``slips``: the slip direction of each slipping contact (absent or 0: stuck)."""
     slips = slips or {}
-    rigid = tuple(replace(model.rigid[c], rows=1, slip=slips[c]) if slips.get(c) else model.rigid[c]
-                  for c in active if c in model.rigid)
+    rigid = tuple(
+        replace(model.rigid[c], rows=1, slip=slips[c]) if slips.get(c) else model.rigid[c]
+        for c in active
+        if c in model.rigid
+    )
     springs = tuple(model.legs[c] for c in active if c in model.legs)
     flight = tuple(lg for c, lg in model.legs.items() if c not in active)
     names = model.coordinate_names + model.velocity_names + tuple(f"{lg.leg.name}_foot_x" for lg in springs)
     # Frame kinematics serve the guards of legs (flight or stance) and of inactive points.
-    need_fk = bool(springs or flight or any(
-        r.kind == "point" and r.contact.name not in active for r in model.rigid.values()))
+    need_fk = bool(
+        springs or flight or any(r.kind == "point" and r.contact.name not in active for r in model.rigid.values())
+    )
     stop_dofs = None
     if rigid and all(r.kind == "stop" for r in rigid):
         stop_dofs = (np.array([r.dof for r in rigid]), np.array([r.sign for r in rigid]))
     positions = dof_units(model.pin_model)
     units = positions + tuple(f"{u}/s" for u in positions) + ("m",) * len(springs)
-    return ModeSpec(mode, active, rigid, springs, flight, 2 * model.n + len(springs), names,
-                    need_fk=need_fk, stop_dofs=stop_dofs, units=units,
-                    entries=active if entries is None else entries)
+    return ModeSpec(
+        mode,
+        active,
+        rigid,
+        springs,
+        flight,
+        2 * model.n + len(springs),
+        names,
+        need_fk=need_fk,
+        stop_dofs=stop_dofs,
+        units=units,
+        entries=active if entries is None else entries,
+    )
 
 
 def dof_units(pin_model: pin.Model) -> tuple[str, ...]:
     """The unit of each configuration coordinate: ``"m"`` for a prismatic joint, ``"rad"`` for
     a revolute one (composite joints by their parts), ``""`` for any other kind."""
+
     def of(joint) -> list[str]:
         kind = joint.shortname()
         if kind == "JointModelComposite":
             return [u for part in joint.extract().joints for u in of(part)]
         unit = "m" if kind.startswith("JointModelP") else "rad" if kind.startswith("JointModelR") else ""
         return [unit] * joint.nv
+
     return tuple(u for joint in pin_model.joints[1:] for u in of(joint))
 
 
@@ -210,14 +234,15 @@ def flight_foot_x(model: BridgeModel, data: BridgeData, leg: LegFrames, q: np.nd
     return float(pin.updateFramePlacement(model.pin_model, data.pin_data, leg.foot_id).translation[0])
 
 
-def map_state(model: BridgeModel, data: BridgeData, src: ModeSpec, dst: ModeSpec, x: np.ndarray,
-              v_new: np.ndarray | None) -> np.ndarray:
+def map_state(
+    model: BridgeModel, data: BridgeData, src: ModeSpec, dst: ModeSpec, x: np.ndarray, v_new: np.ndarray | None
+) -> np.ndarray:
     """State x of mode ``src`` in mode ``dst``'s layout: q kept, v kept or replaced by ``v_new``,
     footholds of legs staying in stance kept, those of legs touching down appended."""
     n = model.n
     out = np.empty(dst.dim)
     out[:n] = x[:n]
-    out[n:2 * n] = x[n:2 * n] if v_new is None else v_new
+    out[n : 2 * n] = x[n : 2 * n] if v_new is None else v_new
     src_index = {lg.leg.name: i for i, lg in enumerate(src.springs)}
     for i, lg in enumerate(dst.springs):
         j = src_index.get(lg.leg.name)

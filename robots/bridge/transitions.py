@@ -48,28 +48,35 @@ def outgoing(model: BridgeModel, data: BridgeData, modes: ModeCatalog, spec: Mod
     return out
 
 
-def _leg_transition(model: BridgeModel, data: BridgeData, modes: ModeCatalog, spec: ModeSpec,
-                    leg: str) -> Transition:
+def _leg_transition(model: BridgeModel, data: BridgeData, modes: ModeCatalog, spec: ModeSpec, leg: str) -> Transition:
     active = set(spec.active)
     if leg in active:
         dst, kind = modes.spec(modes.name_of(active - {leg})), "liftoff"
     else:
         dst, kind = modes.spec(modes.name_of(active | {leg})), "touchdown"
-    return Transition(spec.name, dst.name, kinematic_guard(model, data, spec, leg),
-                      plain_reset(model, data, spec, dst), name=f"{kind}_{leg}")
+    return Transition(
+        spec.name,
+        dst.name,
+        kinematic_guard(model, data, spec, leg),
+        plain_reset(model, data, spec, dst),
+        name=f"{kind}_{leg}",
+    )
 
 
-def _release_transition(model: BridgeModel, data: BridgeData, modes: ModeCatalog, spec: ModeSpec,
-                        contact: str) -> Transition:
+def _release_transition(
+    model: BridgeModel, data: BridgeData, modes: ModeCatalog, spec: ModeSpec, contact: str
+) -> Transition:
     dst = modes.spec(modes.name_of(set(spec.active) - {contact}))
     kind = "release" if isinstance(model.contacts[contact], JointStop) else "liftoff"
     guard, args = release_guard(model, data, spec, spec.normal_row(contact))
-    return Transition(spec.name, dst.name, guard, plain_reset(model, data, spec, dst),
-                      name=f"{kind}_{contact}", guard_args=args)
+    return Transition(
+        spec.name, dst.name, guard, plain_reset(model, data, spec, dst), name=f"{kind}_{contact}", guard_args=args
+    )
 
 
-def _strike_transitions(model: BridgeModel, data: BridgeData, modes: ModeCatalog, spec: ModeSpec,
-                        contact: str) -> list[Transition]:
+def _strike_transitions(
+    model: BridgeModel, data: BridgeData, modes: ModeCatalog, spec: ModeSpec, contact: str
+) -> list[Transition]:
     """Impact transitions of the inactive rigid contact ``contact``. The contacts staying active
     through the impact are constrained plastically with it (rows of ``impact_velocity``)."""
     c = model.rigid[contact].contact
@@ -85,17 +92,40 @@ def _strike_transitions(model: BridgeModel, data: BridgeData, modes: ModeCatalog
         # impact law and complementary guards, so no reset lands outside its target.
         kind = "impact" if isinstance(c, JointStop) else "touchdown"
         stick_reset = impact_reset(model, data, spec, stick, rows)
-        return [Transition(spec.name, stick.name, plastic_guard(model, data, spec, contact, stick, stick_reset, 1.0),
-                           stick_reset, name=f"{kind}_{contact}", guard_args=args),
-                Transition(spec.name, free.name, plastic_guard(model, data, spec, contact, stick, stick_reset, -1.0),
-                           impact_reset(model, data, spec, free, rows), name=f"graze_{contact}", guard_args=args)]
+        return [
+            Transition(
+                spec.name,
+                stick.name,
+                plastic_guard(model, data, spec, contact, stick, stick_reset, 1.0),
+                stick_reset,
+                name=f"{kind}_{contact}",
+                guard_args=args,
+            ),
+            Transition(
+                spec.name,
+                free.name,
+                plastic_guard(model, data, spec, contact, stick, stick_reset, -1.0),
+                impact_reset(model, data, spec, free, rows),
+                name=f"graze_{contact}",
+                guard_args=args,
+            ),
+        ]
     bounce_reset = impact_reset(model, data, spec, free, rows)
     # When bounces accumulate the contact rests: the plastic impact into the constrained mode,
     # left again by its release guard where the contact force changes sign.
-    rest = Continuation(stick.name, impact_reset(model, data, spec, stick, [*kept, (contact, 0.0)]),
-                        name=f"rest_{contact}")
-    return [Transition(spec.name, free.name, kinematic_guard(model, data, spec, contact), bounce_reset,
-                       name=f"bounce_{contact}", continuation=rest)]
+    rest = Continuation(
+        stick.name, impact_reset(model, data, spec, stick, [*kept, (contact, 0.0)]), name=f"rest_{contact}"
+    )
+    return [
+        Transition(
+            spec.name,
+            free.name,
+            kinematic_guard(model, data, spec, contact),
+            bounce_reset,
+            name=f"bounce_{contact}",
+            continuation=rest,
+        )
+    ]
 
 
 def _replaced(modes: ModeCatalog, spec: ModeSpec, contact: str, new_entry: str) -> str:
@@ -103,8 +133,9 @@ def _replaced(modes: ModeCatalog, spec: ModeSpec, contact: str, new_entry: str) 
     return modes.name_of([new_entry if c == contact else e for e, c in zip(spec.entries, spec.active, strict=True)])
 
 
-def _settled_changes(model: BridgeModel, data: BridgeData, modes: ModeCatalog, spec: ModeSpec,
-                     contact: str) -> list[Transition]:
+def _settled_changes(
+    model: BridgeModel, data: BridgeData, modes: ModeCatalog, spec: ModeSpec, contact: str
+) -> list[Transition]:
     """The changes of an active rigid contact in a robot with friction, each leading to the mode
     whose forces are consistent under the controller's new control (``friction.mode_change``):
     ``liftoff_<c>`` / ``release_<c>`` (its normal force through 0); for a stuck contact with
@@ -130,15 +161,34 @@ def _settled_changes(model: BridgeModel, data: BridgeData, modes: ModeCatalog, s
 
     canonical = _replaced(modes, spec, contact, contact)
     return out + friction.outcome_transitions(
-        model, data, spec, targets, friction.slip_stop_guard(model, data, spec, contact), solve,
-        lambda target: f"stick_{contact}" if target == canonical else f"stick_{contact}@{target}")
+        model,
+        data,
+        spec,
+        targets,
+        friction.slip_stop_guard(model, data, spec, contact),
+        solve,
+        lambda target: f"stick_{contact}" if target == canonical else f"stick_{contact}@{target}",
+    )
 
 
-def _changes(model: BridgeModel, data: BridgeData, spec: ModeSpec, targets: list[str], base, kind: str,
-             contact: str, slip: float | None, modes: ModeCatalog, suffix: str = "") -> list[Transition]:
+def _changes(
+    model: BridgeModel,
+    data: BridgeData,
+    spec: ModeSpec,
+    targets: list[str],
+    base,
+    kind: str,
+    contact: str,
+    slip: float | None,
+    modes: ModeCatalog,
+    suffix: str = "",
+) -> list[Transition]:
     """Outcome transitions of a contact lifting off (slip None) or starting to slip."""
-    canonical = _replaced(modes, spec, contact, contact + suffix) if slip is not None else \
-        modes.name_of([e for e, c in zip(spec.entries, spec.active, strict=True) if c != contact])
+    canonical = (
+        _replaced(modes, spec, contact, contact + suffix)
+        if slip is not None
+        else modes.name_of([e for e, c in zip(spec.entries, spec.active, strict=True) if c != contact])
+    )
 
     def solve(x, u):
         return friction.mode_change(model, data, modes, spec, x, u, contact, slip)
@@ -150,8 +200,9 @@ def _changes(model: BridgeModel, data: BridgeData, spec: ModeSpec, targets: list
     return friction.outcome_transitions(model, data, spec, targets, base, solve, label)
 
 
-def _coulomb_strikes(model: BridgeModel, data: BridgeData, modes: ModeCatalog, spec: ModeSpec,
-                     contact: str) -> list[Transition]:
+def _coulomb_strikes(
+    model: BridgeModel, data: BridgeData, modes: ModeCatalog, spec: ModeSpec, contact: str
+) -> list[Transition]:
     """The strike of ``contact`` in a robot with friction: one transition per possible target
     (module docstring); a bouncing contact's canonical bounce is continued by its rest."""
     c = model.rigid[contact].contact
@@ -170,8 +221,9 @@ def _coulomb_strikes(model: BridgeModel, data: BridgeData, modes: ModeCatalog, s
         return f"{kind if landed or bouncing else 'graze'}_{contact}@{target}"
 
     def solve(x, u, rest=False):
-        return friction.event_outcome(model, data, modes, spec, x, u, (contact,),
-                                      {contact: 0.0 if rest else c.restitution})
+        return friction.event_outcome(
+            model, data, modes, spec, x, u, (contact,), {contact: 0.0 if rest else c.restitution}
+        )
 
     def base(x, u):
         return kinematic_guards(model, data, spec, x)[contact]
@@ -179,9 +231,23 @@ def _coulomb_strikes(model: BridgeModel, data: BridgeData, modes: ModeCatalog, s
     out = friction.outcome_transitions(model, data, spec, targets, base, solve, label)
     if bouncing:
         target = modes.spec(stuck)
-        rest = Continuation(stuck, lambda x: map_state(model, data, spec, target, x,
-                                                       solve(x, data.control_at(x), True)[1][model.n:2 * model.n]),
-                            name=f"rest_{contact}")
-        out = [Transition(tr.source, tr.target, tr.guard, tr.reset, tr.name, guard_args=tr.guard_args,
-                          continuation=rest if tr.target == free else None) for tr in out]
+        rest = Continuation(
+            stuck,
+            lambda x: map_state(
+                model, data, spec, target, x, solve(x, data.control_at(x), True)[1][model.n : 2 * model.n]
+            ),
+            name=f"rest_{contact}",
+        )
+        out = [
+            Transition(
+                tr.source,
+                tr.target,
+                tr.guard,
+                tr.reset,
+                tr.name,
+                guard_args=tr.guard_args,
+                continuation=rest if tr.target == free else None,
+            )
+            for tr in out
+        ]
     return out

@@ -43,8 +43,22 @@ _jit = numba.njit(cache=True, fastmath=False, nogil=True)
 _F8 = 8  # bytes per float64, for pointer offsets
 
 # Header of p.
-P_HANDLE, P_N, P_DIM, P_NRIGID, P_RIGID, P_NSPRING, P_SPRING, P_NDAMP, P_DAMP, P_NGUARD, P_GUARD, P_NFRAME, \
-    P_FRAME, P_ROWS = range(14)
+(
+    P_HANDLE,
+    P_N,
+    P_DIM,
+    P_NRIGID,
+    P_RIGID,
+    P_NSPRING,
+    P_SPRING,
+    P_NDAMP,
+    P_DAMP,
+    P_NGUARD,
+    P_GUARD,
+    P_NFRAME,
+    P_FRAME,
+    P_ROWS,
+) = range(14)
 HEADER = 16
 SPRING_SIZE = 5  # hip frame, stiffness (N/m), rest length (m), damping (N s/m), ground (m)
 # Guard kinds.
@@ -62,8 +76,14 @@ COUNTED = ("aba", "kkt", "jacobians", "kinematics", "spring_forces", "damping_ev
 C_ABA, C_KKT, C_JACOBIANS, C_KINEMATICS, C_SPRINGS, C_DAMPING, C_IMPACTS = range(len(COUNTED))
 
 _HANDLES: dict[int, tuple[Any, int]] = {}
-_JOINT_CODES = {"JointModelRX": 0, "JointModelRY": 1, "JointModelRZ": 2, "JointModelPX": 3, "JointModelPY": 4,
-                "JointModelPZ": 5}
+_JOINT_CODES = {
+    "JointModelRX": 0,
+    "JointModelRY": 1,
+    "JointModelRZ": 2,
+    "JointModelPX": 3,
+    "JointModelPY": 4,
+    "JointModelPZ": 5,
+}
 
 
 def describe(model: Any) -> np.ndarray | None:
@@ -102,7 +122,7 @@ def add_counts(counts: dict[str, int], twin: CompiledMode | None, reset: bool = 
     """Add the twin's counters to ``counts`` (a robot's model counters), or zero them with ``reset``."""
     if twin is None:
         return
-    tail = twin.params[twin.params.shape[0] - len(COUNTED):]
+    tail = twin.params[twin.params.shape[0] - len(COUNTED) :]
     if reset:
         tail[:] = 0.0
         return
@@ -124,6 +144,7 @@ def handle_for(model: Any) -> int | None:
 
 
 # -- the twin's functions ---------------------------------------------------------------------
+
 
 @_jit
 def _ptr(a, i):
@@ -187,8 +208,16 @@ def _accelerate(x, p, n, nrigid, rigid_at, rows, a, lam):
         lsn_aba(h, x.ctypes.data, _ptr(x, n), tau.ctypes.data, a.ctypes.data)
     else:
         count(p, C_KKT)
-        lsn_constrained(h, x.ctypes.data, _ptr(x, n), tau.ctypes.data, np.int64(nrigid), _ptr(p, rigid_at),
-                        a.ctypes.data, lam.ctypes.data)
+        lsn_constrained(
+            h,
+            x.ctypes.data,
+            _ptr(x, n),
+            tau.ctypes.data,
+            np.int64(nrigid),
+            _ptr(p, rigid_at),
+            a.ctypes.data,
+            lam.ctypes.data,
+        )
 
 
 @_jit
@@ -226,8 +255,15 @@ def _post_impact_force(x, p, g, n):
     h = np.int64(p[P_HANDLE])
     after = x.copy()
     count(p, C_IMPACTS)
-    lsn_impact(h, x.ctypes.data, _ptr(x, n), np.int64(p[g + G_NIMPACT]), _ptr(p, int(p[g + G_IMPACT])),
-               _ptr(p, int(p[g + G_COEFF])), _ptr(after, n))
+    lsn_impact(
+        h,
+        x.ctypes.data,
+        _ptr(x, n),
+        np.int64(p[g + G_NIMPACT]),
+        _ptr(p, int(p[g + G_IMPACT])),
+        _ptr(p, int(p[g + G_COEFF])),
+        _ptr(after, n),
+    )
     nstick = int(p[g + G_NSTICK])
     a = np.empty(n)
     lam = np.empty(int(p[g + G_ROW]) + 1 + 2 * nstick)
@@ -276,8 +312,14 @@ def bridge_guards(x, p):
     kin = np.empty(4 * max(1, nframe))
     if nframe > 0:
         count(p, C_KINEMATICS)
-        lsn_frames(np.int64(p[P_HANDLE]), x.ctypes.data, _ptr(x, n), np.int64(nframe), _ptr(p, int(p[P_FRAME])),
-                   kin.ctypes.data)
+        lsn_frames(
+            np.int64(p[P_HANDLE]),
+            x.ctypes.data,
+            _ptr(x, n),
+            np.int64(nframe),
+            _ptr(p, int(p[P_FRAME])),
+            kin.ctypes.data,
+        )
     lam = np.empty(max(1, int(p[P_ROWS])))
     solved = False
     for e in range(n_guards):
@@ -323,14 +365,28 @@ def bridge_resets(x, p, e):
     if e >= n_guards:  # the continuation of a bounce: its impact, plastic, into the resting mode
         out = x.copy()
         count(p, C_IMPACTS)
-        lsn_impact(np.int64(p[P_HANDLE]), x.ctypes.data, _ptr(x, n), np.int64(p[g + G_NIMPACT]),
-                   _ptr(p, int(p[g + G_IMPACT])), _ptr(p, int(p[g + G_ROW])), _ptr(out, n))
+        lsn_impact(
+            np.int64(p[P_HANDLE]),
+            x.ctypes.data,
+            _ptr(x, n),
+            np.int64(p[g + G_NIMPACT]),
+            _ptr(p, int(p[g + G_IMPACT])),
+            _ptr(p, int(p[g + G_ROW])),
+            _ptr(out, n),
+        )
         return out
     if kind in (K_GAP, K_PLASTIC):
         out = x.copy()
         count(p, C_IMPACTS)
-        lsn_impact(np.int64(p[P_HANDLE]), x.ctypes.data, _ptr(x, n), np.int64(p[g + G_NIMPACT]),
-                   _ptr(p, int(p[g + G_IMPACT])), _ptr(p, int(p[g + G_COEFF])), _ptr(out, n))
+        lsn_impact(
+            np.int64(p[P_HANDLE]),
+            x.ctypes.data,
+            _ptr(x, n),
+            np.int64(p[g + G_NIMPACT]),
+            _ptr(p, int(p[g + G_IMPACT])),
+            _ptr(p, int(p[g + G_COEFF])),
+            _ptr(out, n),
+        )
         return out
     if kind == K_RELEASE:
         return x.copy()
@@ -347,13 +403,15 @@ def bridge_resets(x, p, e):
             kin = np.empty(4)
             frame = np.empty(1)
             frame[0] = p[int(p[P_FRAME]) + int(p[g + G_A])]
-            lsn_frames(np.int64(p[P_HANDLE]), x.ctypes.data, _ptr(x, n), np.int64(1), frame.ctypes.data,
-                       kin.ctypes.data)
+            lsn_frames(
+                np.int64(p[P_HANDLE]), x.ctypes.data, _ptr(x, n), np.int64(1), frame.ctypes.data, kin.ctypes.data
+            )
             out[2 * n + i] = kin[0]
     return out
 
 
 # -- building a mode's parameter array ---------------------------------------------------------
+
 
 class _Params:
     """p under construction: the header, then sections appended as they are described."""
@@ -389,8 +447,9 @@ def _gap_fields(r: RigidContact, pp: _Params) -> list[float]:
     return [1.0, pp.slot(r.frame_id), c.ground, 0.0]
 
 
-def _strike_records(model: BridgeModel, modes: ModeCatalog, spec: ModeSpec, cname: str,
-                    pp: _Params) -> list[tuple[str, list[float]]] | None:
+def _strike_records(
+    model: BridgeModel, modes: ModeCatalog, spec: ModeSpec, cname: str, pp: _Params
+) -> list[tuple[str, list[float]]] | None:
     """(transition name, guard record) of the impacts of the inactive rigid contact ``cname``
     (as transitions._strike_transitions builds them), or None when the twin cannot follow."""
     c = model.rigid[cname].contact
@@ -411,8 +470,10 @@ def _strike_records(model: BridgeModel, modes: ModeCatalog, spec: ModeSpec, cnam
     kind = "impact" if isinstance(c, JointStop) else "touchdown"
     common = [impact_at, len(rows), coeff_at]
     tail = [stick_at, len(stick.rigid), stick.normal_row(cname)]
-    return [(f"{kind}_{cname}", [K_PLASTIC, *gap, *common, 1.0, *tail]),
-            (f"graze_{cname}", [K_PLASTIC, *gap, *common, -1.0, *tail])]
+    return [
+        (f"{kind}_{cname}", [K_PLASTIC, *gap, *common, 1.0, *tail]),
+        (f"graze_{cname}", [K_PLASTIC, *gap, *common, -1.0, *tail]),
+    ]
 
 
 def _foothold_map(src: ModeSpec, dst: ModeSpec) -> list[float]:
@@ -422,8 +483,9 @@ def _foothold_map(src: ModeSpec, dst: ModeSpec) -> list[float]:
     return [float(index.get(lg.leg.name, -1)) for lg in dst.springs]
 
 
-def _records(model: BridgeModel, modes: ModeCatalog, spec: ModeSpec,
-             pp: _Params) -> list[tuple[str, list[float]]] | None:
+def _records(
+    model: BridgeModel, modes: ModeCatalog, spec: ModeSpec, pp: _Params
+) -> list[tuple[str, list[float]]] | None:
     """The guard records of the mode's outgoing transitions, in transitions.outgoing's order."""
     out: list[tuple[str, list[float]]] = []
     stance = {lg.leg.name: i for i, lg in enumerate(spec.springs)}
@@ -434,11 +496,32 @@ def _records(model: BridgeModel, modes: ModeCatalog, spec: ModeSpec,
             dst = modes.spec(modes.name_of(set(spec.active) ^ {cname}))
             at = pp.append(_foothold_map(spec, dst))
             if cname in stance:
-                out.append((f"liftoff_{cname}", [K_LEG_LIFT, 0.0, foot, hip, c.ground, c.rest_length, 0.0, 0.0, 0.0,
-                                                  at, len(dst.springs), stance[cname]]))
+                out.append(
+                    (
+                        f"liftoff_{cname}",
+                        [
+                            K_LEG_LIFT,
+                            0.0,
+                            foot,
+                            hip,
+                            c.ground,
+                            c.rest_length,
+                            0.0,
+                            0.0,
+                            0.0,
+                            at,
+                            len(dst.springs),
+                            stance[cname],
+                        ],
+                    )
+                )
             else:
-                out.append((f"touchdown_{cname}", [K_LEG_TOUCH, 0.0, foot, hip, c.ground, 0.0, 0.0, 0.0, 0.0, at,
-                                                   len(dst.springs), 0.0]))
+                out.append(
+                    (
+                        f"touchdown_{cname}",
+                        [K_LEG_TOUCH, 0.0, foot, hip, c.ground, 0.0, 0.0, 0.0, 0.0, at, len(dst.springs), 0.0],
+                    )
+                )
         elif cname in spec.active:
             kind = "release" if isinstance(c, JointStop) else "liftoff"
             out.append((f"{kind}_{cname}", [K_RELEASE, 0.0, spec.normal_row(cname)] + [0.0] * 9))
@@ -450,8 +533,9 @@ def _records(model: BridgeModel, modes: ModeCatalog, spec: ModeSpec,
     return out
 
 
-def bridge_twin(model: BridgeModel, modes: ModeCatalog, spec: ModeSpec,
-                transitions: Sequence[Any]) -> CompiledMode | None:
+def bridge_twin(
+    model: BridgeModel, modes: ModeCatalog, spec: ModeSpec, transitions: Sequence[Any]
+) -> CompiledMode | None:
     """The compiled twin of mode ``spec`` whose outgoing transitions are ``transitions``, or
     None when the native library is unavailable or the mode has something the twin does not
     compute (then the mode runs in Python)."""
@@ -469,8 +553,13 @@ def bridge_twin(model: BridgeModel, modes: ModeCatalog, spec: ModeSpec,
     header[P_NRIGID], header[P_ROWS] = len(spec.rigid), sum(r.rows for r in spec.rigid)
     header[P_RIGID] = pp.append(_rigid_blocks(spec.rigid))
     header[P_NSPRING] = len(spec.springs)
-    header[P_SPRING] = pp.append([v for lg in spec.springs for v in (lg.hip_id, lg.leg.stiffness, lg.leg.rest_length,
-                                                                     lg.leg.damping, lg.leg.ground)])
+    header[P_SPRING] = pp.append(
+        [
+            v
+            for lg in spec.springs
+            for v in (lg.hip_id, lg.leg.stiffness, lg.leg.rest_length, lg.leg.damping, lg.leg.ground)
+        ]
+    )
     header[P_NDAMP] = len(model.damping_idx)
     header[P_DAMP] = pp.append([v for k, b in zip(model.damping_idx, model.damping_b, strict=True) for v in (k, b)])
     header[P_NGUARD] = len(records)
@@ -478,8 +567,16 @@ def bridge_twin(model: BridgeModel, modes: ModeCatalog, spec: ModeSpec,
     header[P_NFRAME] = len(pp.frames)
     header[P_FRAME] = pp.append(pp.frames)
     pp.append([0.0] * len(COUNTED))
-    return CompiledMode(bridge_field, bridge_guards, len(records), np.array(pp.p), bridge_resets, fallback=True,
-                        continued=True, joint_groups=tuple(_joint_group(model, name) for name, _ in records))
+    return CompiledMode(
+        bridge_field,
+        bridge_guards,
+        len(records),
+        np.array(pp.p),
+        bridge_resets,
+        fallback=True,
+        continued=True,
+        joint_groups=tuple(_joint_group(model, name) for name, _ in records),
+    )
 
 
 def _joint_group(model: BridgeModel, name: str) -> int:

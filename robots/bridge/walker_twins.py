@@ -75,8 +75,15 @@ def compass_resets(x, p, e):
     vf = np.array([leg_length * thd * math.cos(th), -leg_length * thd * math.sin(th), thd, phid])
     v_plus = np.empty(4)
     count(p, C_IMPACTS)
-    lsn_impact(np.int64(p[CG_IMPACT]), qf.ctypes.data, vf.ctypes.data, np.int64(1), _ptr(p, CG_BLOCK),
-               _ptr(p, CG_COEFF), v_plus.ctypes.data)
+    lsn_impact(
+        np.int64(p[CG_IMPACT]),
+        qf.ctypes.data,
+        vf.ctypes.data,
+        np.int64(1),
+        _ptr(p, CG_BLOCK),
+        _ptr(p, CG_COEFF),
+        v_plus.ctypes.data,
+    )
     kin = _swing_foot(x, p)
     out = np.empty(5)
     out[0] = th + phi
@@ -95,8 +102,9 @@ def compass_gait_twin(walker: Any) -> CompiledMode | None:
     if stance is None or impact is None:
         return None
     foot2 = walker.impact_bridge.model.getFrameId("foot2")
-    p = with_counters([stance, impact, walker.l, walker.stance_bridge.model.getFrameId("swing_foot"),
-                       1.0, foot2, 1.0, 2.0, 0.0])
+    p = with_counters(
+        [stance, impact, walker.l, walker.stance_bridge.model.getFrameId("swing_foot"), 1.0, foot2, 1.0, 2.0, 0.0]
+    )
     twin = CompiledMode(compass_field, compass_guards, 1, p, compass_resets, fallback=True)
     walker.stance_bridge.count_twin(twin)
     return twin

@@ -17,11 +17,7 @@ from legsim import HybridSystem, Mode, ModelError, Transition, simulate
 from legsim.compiled import CompiledMode, plan_for, without_compiled
 from legsim.compiled.generate import importable
 from legsim.methods import METHODS, get_method
-from legsim.systems.fast import (
-    make_bouncing_ball,
-    make_oscillator,
-    make_oscillator_example,
-)
+from legsim.systems.fast import make_bouncing_ball, make_oscillator, make_oscillator_example
 from legsim.systems.oscillator import OscillatorReference
 
 COUNTERS = ("steps", "halvings", "error_rejections", "field_evals", "guard_evals", "reset_evals", "transitions")
@@ -73,8 +69,19 @@ def test_bouncing_ball_zeno_same_on_both_paths(method, tols, landing):
     # Past the Zeno time the strips chain: many transitions, each with shortened steps.
     system = make_bouncing_ball(9.81, 0.5)
     # The plain relaxed semantics (no continuation): the kernel crosses the chain of strips.
-    fast, slow = both_paths(system, [1.0, 0.0], "flight", 2.0, 1e-2, 1e-4, method, landing=landing, continuation=False,
-                            max_transitions=300, **tols)
+    fast, slow = both_paths(
+        system,
+        [1.0, 0.0],
+        "flight",
+        2.0,
+        1e-2,
+        1e-4,
+        method,
+        landing=landing,
+        continuation=False,
+        max_transitions=300,
+        **tols,
+    )
     zeno = math.sqrt(2 / 9.81) * 3  # t1 (1 + 2c / (1 - c)) with c = 0.5
     assert len(fast.transitions) > 20 and fast.transitions[-1].time > zeno - 0.05
     assert_same_execution(fast, slow)
@@ -82,8 +89,9 @@ def test_bouncing_ball_zeno_same_on_both_paths(method, tols, landing):
 
 def test_oscillator_example2_sticking_same_on_both_paths():
     system, x0, _t_max = make_oscillator_example("ex2")
-    fast, slow = both_paths(system, x0, "free", 0.5, 1e-2, 1e-5, "rk4", landing="aim", max_transitions=400,
-                            continuation=False)
+    fast, slow = both_paths(
+        system, x0, "free", 0.5, 1e-2, 1e-5, "rk4", landing="aim", max_transitions=400, continuation=False
+    )
     assert len(fast.transitions) > 20  # the mass sticks: a stream of strip crossings
     assert_same_execution(fast, slow)
 
@@ -135,8 +143,9 @@ def test_progress_is_reported_from_the_compiled_loop(monkeypatch):
     monkeypatch.setattr(compiled_visit, "PROGRESS_CHUNK", 100)
     seen = []
     system = make_oscillator(2.5, 0.05, None, 0.9, 1.0, 20.0, 2.5)
-    ex = simulate(system, [1.0, 0.0], "free", 10.0, 1e-2, 1e-3, "rk4",
-                  progress=lambda t, t0, t1: seen.append((t, t0, t1)))
+    ex = simulate(
+        system, [1.0, 0.0], "free", 10.0, 1e-2, 1e-3, "rk4", progress=lambda t, t0, t1: seen.append((t, t0, t1))
+    )
     assert ex.status == "finished"
     # 1000 steps; the kernel returns after at most 100 steps or when the buffer fills, and each
     # return after a full chunk is reported (the fake clock always says a second has passed).
@@ -191,8 +200,10 @@ def probe_system(p, n_guards=1, guard_py=None):
         return 1.0 if x[0] < p[4] else math.nan
 
     twin = CompiledMode(probe_field, probe_guards, n_guards, p, probe_resets)
-    return HybridSystem({"m": Mode(2, field, compiled=twin)},
-                        [Transition("m", "m", guard_py or guard, lambda x: np.array([p[5], x[1]]), name="wrap")])
+    return HybridSystem(
+        {"m": Mode(2, field, compiled=twin)},
+        [Transition("m", "m", guard_py or guard, lambda x: np.array([p[5], x[1]]), name="wrap")],
+    )
 
 
 @pytest.mark.filterwarnings("ignore::RuntimeWarning")  # numpy warns on the Python path as x overflows
@@ -205,8 +216,9 @@ def test_non_finite_state_ends_both_paths_alike():
 
 def test_discontinuous_guard_exhausts_halving_on_both_paths():
     # x0 moves at unit speed; the guard jumps from +1 to -1 at x0 = 0.5: no step can land in the strip.
-    fast, slow = both_paths(probe_system([0.0, 1.0, 0.0, 1.0, 0.5]), [0.0, 1.0], "m", 2.0, 1e-2, 1e-3, "rk4",
-                            max_halvings=20)
+    fast, slow = both_paths(
+        probe_system([0.0, 1.0, 0.0, 1.0, 0.5]), [0.0, 1.0], "m", 2.0, 1e-2, 1e-3, "rk4", max_halvings=20
+    )
     assert fast.status == "halving_exhausted" and "transition wrap" in fast.message
     assert_same_execution(fast, slow)
 
@@ -334,9 +346,10 @@ def test_closure_twin_runs_compiled_in_memory():
         return out
 
     twin = CompiledMode(field, guards, 1)
-    system = HybridSystem({"f": Mode(2, lambda t, x, u: np.array([x[1], -g]), compiled=twin)},
-                          [Transition("f", "f", lambda x: x[0] if x[0] > x[1] else x[1],
-                                      lambda x: np.array([x[0], -0.5 * x[1]]))])
+    system = HybridSystem(
+        {"f": Mode(2, lambda t, x, u: np.array([x[1], -g]), compiled=twin)},
+        [Transition("f", "f", lambda x: x[0] if x[0] > x[1] else x[1], lambda x: np.array([x[0], -0.5 * x[1]]))],
+    )
     fast, slow = both_paths(system, [1.0, 0.0], "f", 1.5, 1e-2, 1e-4, "rk4", max_transitions=100)
     assert_same_execution(fast, slow)
 
@@ -352,9 +365,18 @@ def test_the_kernel_compiles_the_python_loops_own_rules():
     from legsim.relaxed import rules
 
     source = kernel_source([], cache=False)
-    for rule in (rules.crossing_start, rules.crossing_point, rules.crossing_update, rules.rejected_step,
-                 rules.proposed_step, rules.kept_proposal, rules.aimed_step, rules.strip_exit_time, error_scale,
-                 scaled_norm):
+    for rule in (
+        rules.crossing_start,
+        rules.crossing_point,
+        rules.crossing_update,
+        rules.rejected_step,
+        rules.proposed_step,
+        rules.kept_proposal,
+        rules.aimed_step,
+        rules.strip_exit_time,
+        error_scale,
+        scaled_norm,
+    ):
         assert inspect.getsource(rule).rstrip() in source, rule.__name__
         assert rule in kernel.RULES
     for constant in ("STALL", "MIN_STEP", "SAFETY", "MAX_FACTOR"):
@@ -369,8 +391,9 @@ def test_dop853_blended_error_norm_same_on_both_paths():
     # rejections and evaluations, transitions at the same times, the same final state.
 
     system, x0, _ = make_oscillator_example("ex1")
-    fast, slow = both_paths(system, x0, "free", 12.0, 0.5, 1e-6, get_method("dop853"), landing="aim", rtol=1e-10,
-                            atol=1e-10)
+    fast, slow = both_paths(
+        system, x0, "free", 12.0, 0.5, 1e-6, get_method("dop853"), landing="aim", rtol=1e-10, atol=1e-10
+    )
     assert fast.status == slow.status == "finished"
     assert len(fast.transitions) == 4 and fast.counters["error_rejections"] > 0
     for key in ("steps", "halvings", "error_rejections", "field_evals", "transitions"):

@@ -10,8 +10,10 @@ from legsim import HybridSystem, Mode, ModelError, Transition, simulate
 
 def ball(guard, field=None):
     field = field or (lambda t, x, u: np.array([x[1], -9.81]))
-    return HybridSystem({"fly": Mode(2, field, names=("z", "zd"))},
-                        [Transition("fly", "fly", guard, lambda x: np.array([x[0], -0.5 * x[1]]), name="bounce")])
+    return HybridSystem(
+        {"fly": Mode(2, field, names=("z", "zd"))},
+        [Transition("fly", "fly", guard, lambda x: np.array([x[0], -0.5 * x[1]]), name="bounce")],
+    )
 
 
 def test_a_guard_that_turns_boolean_mid_run_is_a_model_error_naming_it():
@@ -20,8 +22,11 @@ def test_a_guard_that_turns_boolean_mid_run_is_a_model_error_naming_it():
     def guard(x):
         return float(x[0]) if x[0] > 0.5 else bool(x[0] > 0.0)
 
-    with pytest.raises(ModelError, match=r"guard of transition bounce must return a real number \(a float\), got "
-                                         r"bool True in the step from t=0\.3.* in mode 'fly'"):
+    with pytest.raises(
+        ModelError,
+        match=r"guard of transition bounce must return a real number \(a float\), got "
+        r"bool True in the step from t=0\.3.* in mode 'fly'",
+    ):
         simulate(ball(guard), [1.0, 0.0], "fly", 2.0, 1e-2, 1e-3)
 
 
@@ -37,8 +42,11 @@ def test_a_field_that_changes_shape_mid_run_is_a_model_error_naming_it():
     def field(t, x, u):
         return np.array([x[1], -9.81]) if t < 0.25 else np.array([-9.81])
 
-    with pytest.raises(ModelError, match=r"field returned shape \(1,\), expected \(2,\) in the step from "
-                                         r"t=0\.2.* in mode 'fly'"):
+    with pytest.raises(
+        ModelError,
+        match=r"field returned shape \(1,\), expected \(2,\) in the step from "
+        r"t=0\.2.* in mode 'fly'",
+    ):
         simulate(ball(lambda x: max(x[0], x[1]), field), [1.0, 0.0], "fly", 2.0, 1e-2, 1e-3)
 
 

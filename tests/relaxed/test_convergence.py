@@ -28,8 +28,13 @@ def final_error(reference, method: str, h: float, eps: float, landing: str = "ha
     ex = simulate(system, [E["x0"], E["xd0"]], "free", T, h, eps, method, control, landing=landing)
     assert ex.status == "finished"
     assert len(ex.transitions) == (3 if stop else 0)
-    ref = reference if stop else OscillatorReference(E["omega"], E["a"], None, E["c"], 1.0, E["amplitude"],
-                                                     E["frequency"], E["x0"], E["xd0"])
+    ref = (
+        reference
+        if stop
+        else OscillatorReference(
+            E["omega"], E["a"], None, E["c"], 1.0, E["amplitude"], E["frequency"], E["x0"], E["xd0"]
+        )
+    )
     return float(np.abs(ex.final_state - ref.state(T)).max())
 
 
@@ -38,11 +43,14 @@ def slope(xs, errors) -> float:
 
 
 # eps far below every error measured, so that the O(h^p) term is seen alone.
-@pytest.mark.parametrize("method, order, hs", [
-    ("euler", 1, [1e-3, 5e-4, 2.5e-4, 1.25e-4]),
-    ("rk2", 2, [1e-2, 5e-3, 2.5e-3, 1.25e-3]),
-    ("rk4", 4, [1.25e-2, 6.25e-3, 3.125e-3]),
-])
+@pytest.mark.parametrize(
+    "method, order, hs",
+    [
+        ("euler", 1, [1e-3, 5e-4, 2.5e-4, 1.25e-4]),
+        ("rk2", 2, [1e-2, 5e-3, 2.5e-3, 1.25e-3]),
+        ("rk4", 4, [1.25e-2, 6.25e-3, 3.125e-3]),
+    ],
+)
 def test_error_falls_like_h_to_the_order(reference, method, order, hs):
     errors = [final_error(reference, method, h, 1e-12) for h in hs]
     # The impacts amplify the local errors (the reset's saltation), so the coarsest steps carry
@@ -82,11 +90,14 @@ def test_error_is_order_eps_with_halving(reference):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("method, order, hs", [
-    ("euler", 1, [1e-3, 5e-4, 2.5e-4, 1.25e-4, 6.25e-5]),
-    ("rk2", 2, [1e-2, 5e-3, 2.5e-3, 1.25e-3, 6.25e-4]),
-    ("rk4", 4, [1.25e-2, 6.25e-3, 3.125e-3, 1.5625e-3]),
-])
+@pytest.mark.parametrize(
+    "method, order, hs",
+    [
+        ("euler", 1, [1e-3, 5e-4, 2.5e-4, 1.25e-4, 6.25e-5]),
+        ("rk2", 2, [1e-2, 5e-3, 2.5e-3, 1.25e-3, 6.25e-4]),
+        ("rk4", 4, [1.25e-2, 6.25e-3, 3.125e-3, 1.5625e-3]),
+    ],
+)
 def test_error_falls_like_h_to_the_order_long(reference, method, order, hs):
     errors = [final_error(reference, method, h, 1e-13) for h in hs]
     # The finest pairs alone: the asymptotic regime.

@@ -9,13 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from legsim import (
-    HybridSystem,
-    Mode,
-    ModelError,
-    Transition,
-    simulate,
-)
+from legsim import HybridSystem, Mode, ModelError, Transition, simulate
 from legsim.errors import ModelBreakdown
 from legsim.systems import bouncing_ball as bb
 
@@ -56,8 +50,7 @@ def test_a_time_dependent_guard_is_crossed_at_its_exact_time(landing):
 
 def test_a_guard_on_the_input_sees_the_control_at_the_trial_time():
     # The guard is the input itself, u(t) = cos(t): it reaches zero at pi/2.
-    ex = simulate(clock_system(lambda t, x, u: u), [0.0], "before", 2.0, 0.1, 1e-4,
-                  control=lambda t, x: math.cos(t))
+    ex = simulate(clock_system(lambda t, x, u: u), [0.0], "before", 2.0, 0.1, 1e-4, control=lambda t, x: math.cos(t))
     assert ex.transitions[0].time == pytest.approx(math.pi / 2, abs=1e-10)
     # The strip lasts eps - depth; the depth is measured in the guard's units at the landing.
     tr = ex.transitions[0]
@@ -88,8 +81,11 @@ def test_a_nan_guard_after_the_first_ends_the_run_non_finite():
     # min([1.0, nan]) is 1.0 in Python: the second guard's nan must still be caught and named.
     system = HybridSystem(
         {"a": Mode(1, lambda t, x, u: np.ones(1))},
-        [Transition("a", "a", guard=lambda x: 1.0, name="fine"),
-         Transition("a", "a", guard=lambda x: math.nan if x[0] > 0.5 else 1.0, name="broken")])
+        [
+            Transition("a", "a", guard=lambda x: 1.0, name="fine"),
+            Transition("a", "a", guard=lambda x: math.nan if x[0] > 0.5 else 1.0, name="broken"),
+        ],
+    )
     ex = simulate(system, [0.0], "a", 2.0, 0.1, 1e-3)
     assert ex.status == "non_finite"
     assert "guard of transition broken is nan" in ex.message

@@ -9,9 +9,7 @@ import pytest
 
 from legsim import HybridSystem, Mode, Transition, simulate
 from legsim.errors import ModelBreakdown, SimulationError
-from legsim.methods import (
-    get_method,
-)
+from legsim.methods import get_method
 
 
 def doubling_system() -> HybridSystem:
@@ -22,12 +20,15 @@ def doubling_system() -> HybridSystem:
     )
 
 
-
 @pytest.mark.parametrize("method", ["dopri5", "bs32"])
 def test_dense_landing_finds_the_crossing_without_retrying_a_step(method):
     eps, tol = 1e-9, 1e-10
-    runs = {landing: simulate(doubling_system(), [1.0], "grow", 3.0, 0.5, eps, method=method, rtol=tol, atol=tol,
-                              landing=landing) for landing in ("aim", "dense")}
+    runs = {
+        landing: simulate(
+            doubling_system(), [1.0], "grow", 3.0, 0.5, eps, method=method, rtol=tol, atol=tol, landing=landing
+        )
+        for landing in ("aim", "dense")
+    }
     dense, aim = runs["dense"], runs["aim"]
     assert dense.status == aim.status == "finished"
     assert len(dense.transitions) == len(aim.transitions) == 4
@@ -42,15 +43,27 @@ def test_dense_landing_finds_the_crossing_without_retrying_a_step(method):
     assert dense.counters["field_evals"] < aim.counters["field_evals"]
 
 
-
 def test_dense_landing_with_dop853_keeps_the_strip_guarantee_on_the_pronk():
     from legsim.bench.cases import make_case
     from legsim.bench.work_precision import own_points, position_error
 
     case = make_case("pronk")  # its reference: solve_ivp DOP853 at rtol = atol = 1e-12
     eps = 1e-9
-    runs = {landing: simulate(case.system, case.x0, case.mode, 2.0, 0.1, eps, method=get_method("dop853"), rtol=1e-8,
-                              atol=1e-8, landing=landing) for landing in ("aim", "dense")}
+    runs = {
+        landing: simulate(
+            case.system,
+            case.x0,
+            case.mode,
+            2.0,
+            0.1,
+            eps,
+            method=get_method("dop853"),
+            rtol=1e-8,
+            atol=1e-8,
+            landing=landing,
+        )
+        for landing in ("aim", "dense")
+    }
     ex, aim = runs["dense"], runs["aim"]
     assert ex.status == "finished" and len(ex.transitions) == 8
     assert all(0.0 <= tr.depth <= eps for tr in ex.transitions)
@@ -75,13 +88,11 @@ def test_dense_landing_with_dop853_keeps_the_strip_guarantee_on_the_pronk():
         np.testing.assert_allclose(ours[name], theirs[name], rtol=0, atol=1e-7)
 
 
-
 def test_dense_landing_needs_a_method_with_a_continuous_extension():
     with pytest.raises(SimulationError, match=r"landing 'dense'.*'rk4'.*aim"):
         simulate(doubling_system(), [1.0], "grow", 1.0, 0.1, 1e-6, method="rk4", landing="dense")
     with pytest.raises(SimulationError, match="landing must be one of"):
         simulate(doubling_system(), [1.0], "grow", 1.0, 0.1, 1e-6, landing="bisect")
-
 
 
 def ball_through_the_floor(breakdown_depth: float) -> HybridSystem:
@@ -97,7 +108,6 @@ def ball_through_the_floor(breakdown_depth: float) -> HybridSystem:
         {"fly": Mode(2, lambda t, x, u: np.array([x[1], -9.81]), names=("z", "zd"))},
         [Transition("fly", "fly", guard=floor, reset=lambda x: np.array([x[0], -0.5 * x[1]]), name="bounce")],
     )
-
 
 
 @pytest.mark.parametrize("landing", ["halve", "aim", "dense"])
@@ -119,15 +129,17 @@ def test_a_trial_step_that_leaves_the_models_range_is_shortened(landing):
     assert times[1] == pytest.approx(t2, abs=1e-8)
 
 
-
 def test_a_flow_into_the_models_range_ends_with_model_breakdown():
     # Falling without a floor: the flow itself reaches the model's boundary at t = 1.1 s. Halving
     # cannot get past it; the run ends once the boundary is within 2^-10 of a step (instead of
     # creeping towards it by ever shorter steps), naming the mode.
     system = HybridSystem(
         {"fall": Mode(1, lambda t, x, u: np.array([-1.0]), names=("z",))},
-        [Transition("fall", "fall", guard=lambda x: _raise_below(x[0], 0.0) + 10.0, reset=lambda x: x.copy(),
-                    name="never")],
+        [
+            Transition(
+                "fall", "fall", guard=lambda x: _raise_below(x[0], 0.0) + 10.0, reset=lambda x: x.copy(), name="never"
+            )
+        ],
     )
     h = 0.25
     ex = simulate(system, [1.1], "fall", 3.0, h, 1e-6, method="rk4")
@@ -137,12 +149,10 @@ def test_a_flow_into_the_models_range_ends_with_model_breakdown():
     assert ex.counters["steps"] < 40
 
 
-
 def _raise_below(z: float, depth: float) -> float:
     if z < depth:
         raise ModelBreakdown(f"z = {z:.3g} is below {depth}")
     return z
-
 
 
 def test_a_tolerance_means_what_it_means_for_solve_ivp_on_the_pronk():
@@ -155,14 +165,22 @@ def test_a_tolerance_means_what_it_means_for_solve_ivp_on_the_pronk():
     from legsim.bench.work_precision import own_points, position_error
 
     case = make_case("pronk")
-    relaxed = simulate(case.system, case.x0, case.mode, 2.0, 0.2, 1e-9, method=get_method("dop853"), rtol=1e-6,
-                       atol=1e-6, landing="dense")
-    ivp = simulate_events(case.ivp_system, case.x0, case.mode, 2.0, method="DOP853", rtol=1e-6, atol=1e-6,
-                          max_step=0.2)
+    relaxed = simulate(
+        case.system,
+        case.x0,
+        case.mode,
+        2.0,
+        0.2,
+        1e-9,
+        method=get_method("dop853"),
+        rtol=1e-6,
+        atol=1e-6,
+        landing="dense",
+    )
+    ivp = simulate_events(case.ivp_system, case.x0, case.mode, 2.0, method="DOP853", rtol=1e-6, atol=1e-6, max_step=0.2)
     errors = [position_error(*own_points(r, case.positions), case.reference_positions) for r in (relaxed, ivp)]
     assert relaxed.status == ivp.status == "finished" and len(relaxed.transitions) == len(ivp.transitions) == 8
     assert errors[0] <= 1.2 * errors[1], errors
-
 
 
 def drift(gap: float, calls: dict | None = None) -> HybridSystem:
@@ -174,6 +192,7 @@ def drift(gap: float, calls: dict | None = None) -> HybridSystem:
         def field(t, x, u):
             calls[mode] = calls.get(mode, 0) + 1
             return np.ones(2)
+
         return field
 
     def identity(x):
@@ -182,10 +201,11 @@ def drift(gap: float, calls: dict | None = None) -> HybridSystem:
     names = ("x", "y")
     return HybridSystem(
         {m: Mode(2, field_of(m), names=names) for m in ("a", "b", "c")},
-        [Transition("a", "b", guard=lambda x: 1.0 - x[0], reset=identity, name="a_to_b"),
-         Transition("b", "c", guard=lambda x: 1.0 + gap - x[1], reset=identity, name="b_to_c")],
+        [
+            Transition("a", "b", guard=lambda x: 1.0 - x[0], reset=identity, name="a_to_b"),
+            Transition("b", "c", guard=lambda x: 1.0 + gap - x[1], reset=identity, name="b_to_c"),
+        ],
     )
-
 
 
 def test_a_simultaneous_event_costs_a_short_step_and_stays_continuous():
@@ -197,8 +217,9 @@ def test_a_simultaneous_event_costs_a_short_step_and_stays_continuous():
     runs, calls = {}, {}
     for gap in (0.0, 1e-13, 1e-11):
         calls[gap] = {}
-        runs[gap] = simulate(drift(gap, calls[gap]), [0.0, 0.0], "a", 2.0, h, eps, method="dopri5", rtol=tol,
-                             atol=tol, landing="dense")
+        runs[gap] = simulate(
+            drift(gap, calls[gap]), [0.0, 0.0], "a", 2.0, h, eps, method="dopri5", rtol=tol, atol=tol, landing="dense"
+        )
     for gap, ex in runs.items():
         assert ex.status == "finished" and ex.mode_sequence == ["a", "b", "c"]
         a_to_b, b_to_c = ex.transitions
@@ -215,7 +236,6 @@ def test_a_simultaneous_event_costs_a_short_step_and_stays_continuous():
         assert np.abs(final[gap] - final[0.0]).max() <= gap + 1e-12
 
 
-
 def test_dense_landing_aims_at_the_strips_middle_through_a_kinked_guard():
     # Example 2's mass sticks on the stop: its guard max(x_max - x, -xd) has a kink there, the
     # secant from q to the step's end lands at the strip's very edge (depth ~1e-12 of eps = 1e-7),
@@ -227,16 +247,29 @@ def test_dense_landing_aims_at_the_strips_middle_through_a_kinked_guard():
 
     system, x0, _ = make_oscillator_example("ex2")
     eps = 1e-7
-    runs = {landing: simulate(system, x0, "free", 0.5, 0.1, eps, method="dopri5", rtol=1e-8, atol=1e-8,
-                              landing=landing, max_transitions=20_000, continuation=False)
-            for landing in ("aim", "dense")}
+    runs = {
+        landing: simulate(
+            system,
+            x0,
+            "free",
+            0.5,
+            0.1,
+            eps,
+            method="dopri5",
+            rtol=1e-8,
+            atol=1e-8,
+            landing=landing,
+            max_transitions=20_000,
+            continuation=False,
+        )
+        for landing in ("aim", "dense")
+    }
     assert runs["aim"].status == runs["dense"].status == "finished"
     n_aim, n_dense = len(runs["aim"].transitions), len(runs["dense"].transitions)
     assert n_aim > 100  # the mass chatters on the stop
     assert n_dense <= 1.1 * n_aim
     depths = np.array([tr.depth for tr in runs["dense"].transitions])
     assert np.all((depths >= 0.25 * eps) & (depths <= 0.75 * eps))
-
 
 
 def two_planes() -> HybridSystem:
@@ -248,9 +281,11 @@ def two_planes() -> HybridSystem:
     names = ("p", "y")
     return HybridSystem(
         {m: Mode(2, field, names=names) for m in ("A", "B", "C")},
-        [Transition("A", "B", guard=lambda x: x[0] - 10.0, reset=lambda x: x.copy(), name="AB"),
-         Transition("B", "C", guard=lambda x: x[1] - 10.0, reset=lambda x: x.copy(), name="BC")])
-
+        [
+            Transition("A", "B", guard=lambda x: x[0] - 10.0, reset=lambda x: x.copy(), name="AB"),
+            Transition("B", "C", guard=lambda x: x[1] - 10.0, reset=lambda x: x.copy(), name="BC"),
+        ],
+    )
 
 
 def test_the_short_first_step_never_passes_t_final():
@@ -258,13 +293,22 @@ def test_the_short_first_step_never_passes_t_final():
     # ends at t_final in B, with no strip or point after it: the short step never lands past it.
     eps = 1e-6
     t_final = 1.05 + 1e-6 + 1e-7
-    ex = simulate(two_planes(), [11.05, 11.05 + 0.3 * eps], "A", t_final, 0.1, eps, method="dopri5", rtol=1e-6,
-                  atol=1e-9, landing="dense")
+    ex = simulate(
+        two_planes(),
+        [11.05, 11.05 + 0.3 * eps],
+        "A",
+        t_final,
+        0.1,
+        eps,
+        method="dopri5",
+        rtol=1e-6,
+        atol=1e-9,
+        landing="dense",
+    )
     assert ex.status == "finished" and ex.t_end == t_final
     assert max(seg.t[-1] for seg in ex.segments) <= t_final
     assert all(s.time <= t_final and s.exit_time <= t_final for s in ex.strips)
     assert 0.0 <= ex.counters["strip_time"] <= eps + 1e-15
-
 
 
 @pytest.mark.parametrize("landing", ["halve", "dense"])
@@ -276,14 +320,15 @@ def test_a_reset_leaving_the_models_range_ends_the_run_once(landing):
             raise ModelBreakdown("reset out of range")
         return 0.5 * x
 
-    system = HybridSystem({"grow": Mode(1, lambda t, x, u: x.copy(), names=("x",))},
-                          [Transition("grow", "grow", guard=lambda x: 2.0 - x[0], reset=reset, name="halve")])
+    system = HybridSystem(
+        {"grow": Mode(1, lambda t, x, u: x.copy(), names=("x",))},
+        [Transition("grow", "grow", guard=lambda x: 2.0 - x[0], reset=reset, name="halve")],
+    )
     ex = simulate(system, [1.0], "grow", 2.0, 0.1, 1e-6, method="dopri5", rtol=1e-6, atol=1e-9, landing=landing)
     assert ex.status == "model_breakdown" and "reset out of range" in ex.message and "halve" in ex.message
     assert len(ex.segments) == 1
     assert ex.t_end == pytest.approx(math.log(2.0), abs=1e-6)
     assert ex.counters["steps"] == len(ex.segments[0].t) - 1  # the landing step ends at q
-
 
 
 def test_dense_landing_reports_a_nan_guard_like_any_step():
@@ -295,9 +340,13 @@ def test_dense_landing_reports_a_nan_guard_like_any_step():
         return math.nan if 10 - 0.8 * eps < x[0] < 10 - 0.2 * eps else 1.0
 
     field = lambda t, x, u: np.array([-1.0])  # noqa: E731
-    system = HybridSystem({"A": Mode(1, field, names=("p",)), "B": Mode(1, field, names=("p",))},
-                          [Transition("A", "B", guard=lambda x: x[0] - 10.0, reset=lambda x: x.copy(), name="AB"),
-                           Transition("A", "B", guard=g2, reset=lambda x: x.copy(), name="nanguard")])
+    system = HybridSystem(
+        {"A": Mode(1, field, names=("p",)), "B": Mode(1, field, names=("p",))},
+        [
+            Transition("A", "B", guard=lambda x: x[0] - 10.0, reset=lambda x: x.copy(), name="AB"),
+            Transition("A", "B", guard=g2, reset=lambda x: x.copy(), name="nanguard"),
+        ],
+    )
     ex = simulate(system, [11.05], "A", 1.5, 0.1, eps, method="dopri5", rtol=1e-6, atol=1e-9, landing="dense")
     assert ex.status == "non_finite" and "nanguard" in ex.message
 
@@ -311,7 +360,17 @@ def test_aimed_landing_in_a_thin_strip_costs_about_one_trial_step(method):
     from legsim.robots import pronk
 
     model = pronk.make()
-    ex = simulate(model.system, pronk.state(), model.initial_mode, 2.0, 0.1, 1e-9, method=method,
-                  rtol=1e-8, atol=1e-8, landing="aim")
+    ex = simulate(
+        model.system,
+        pronk.state(),
+        model.initial_mode,
+        2.0,
+        0.1,
+        1e-9,
+        method=method,
+        rtol=1e-8,
+        atol=1e-8,
+        landing="aim",
+    )
     assert ex.status == "finished" and len(ex.transitions) == 8
     assert ex.counters["halvings"] / len(ex.transitions) <= 1.5

@@ -43,7 +43,7 @@ def test_accepted_steps_grow_by_at_most_max_factor_and_never_after_a_rejection(e
 
 
 def test_a_rejected_step_shrinks_by_the_safety_rule_within_bounds():
-    assert rules.rejected_step(1.0, 2.0 ** 5, -0.2) == pytest.approx(rules.SAFETY * 0.5)
+    assert rules.rejected_step(1.0, 2.0**5, -0.2) == pytest.approx(rules.SAFETY * 0.5)
     assert rules.rejected_step(1.0, 1e30, -0.2) == rules.MIN_FACTOR
 
 
@@ -65,8 +65,9 @@ def test_hermite_weights_reproduce_a_cubic_exactly():
         w0, w1, w2, w3 = rules.hermite_weights(s, 2.0)
         assert w0 * 1.0 + w1 * 3.0 + w2 * 27.0 + w3 * 27.0 == pytest.approx((1.0 + 2.0 * s) ** 3, rel=1e-14)
         v0, v1, v2, v3 = rules.hermite_slope_weights(s)
-        assert v0 * 1.0 / 2.0 + v1 * 3.0 + v2 * 27.0 / 2.0 + v3 * 27.0 == pytest.approx(3 * (1.0 + 2.0 * s) ** 2,
-                                                                                        rel=1e-14)
+        assert v0 * 1.0 / 2.0 + v1 * 3.0 + v2 * 27.0 / 2.0 + v3 * 27.0 == pytest.approx(
+            3 * (1.0 + 2.0 * s) ** 2, rel=1e-14
+        )
 
 
 def test_the_strip_is_left_after_eps_minus_tau():

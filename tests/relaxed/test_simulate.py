@@ -65,8 +65,11 @@ def test_mode_must_be_a_name(ball):
 
 @pytest.mark.parametrize("x0, shape", [([1.0, 0.0, 0.0], r"\(3,\)"), ([[1.0, 0.0]], r"\(1, 2\)"), (1.0, r"\(\)")])
 def test_initial_state_shape_is_checked(ball, x0, shape):
-    with pytest.raises(SimulationError, match=rf"^x0 has shape {shape}, expected \(2,\) for mode 'flight' "
-                                              r"with coordinates \('z', 'zd'\)"):
+    with pytest.raises(
+        SimulationError,
+        match=rf"^x0 has shape {shape}, expected \(2,\) for mode 'flight' "
+        r"with coordinates \('z', 'zd'\)",
+    ):
         simulate(ball, x0, "flight", 1.0, 1e-3, 1e-3)
 
 
@@ -83,8 +86,11 @@ def test_initial_state_must_be_finite(ball, bad):
 
 def test_initial_state_past_a_guard_by_more_than_eps(ball):
     # max(z, zd) = -0.01 < -eps: below the floor and falling.
-    with pytest.raises(SimulationError, match=r"^x0 lies past the guard of transition bounce by 0.01 > eps = 0.001 "
-                                              r"\(guard units\); start inside the domain of 'flight'"):
+    with pytest.raises(
+        SimulationError,
+        match=r"^x0 lies past the guard of transition bounce by 0.01 > eps = 0.001 "
+        r"\(guard units\); start inside the domain of 'flight'",
+    ):
         simulate(ball, [-0.01, -1.0], "flight", 1.0, 1e-3, 1e-3)
 
 
@@ -97,8 +103,9 @@ def test_initial_state_inside_the_strip_is_accepted_and_crosses_at_once(ball):
 
 
 def test_unknown_method_lists_the_choices(ball):
-    with pytest.raises(SimulationError,
-                       match=r"^unknown method 'rk5'; choose one of \['bs32', 'dop853', 'dopri5', 'euler'"):
+    with pytest.raises(
+        SimulationError, match=r"^unknown method 'rk5'; choose one of \['bs32', 'dop853', 'dopri5', 'euler'"
+    ):
         simulate(ball, [1.0, 0.0], "flight", 1.0, 1e-3, 1e-3, method="rk5")
 
 
@@ -183,9 +190,12 @@ def test_a_nan_field_ends_non_finite_with_the_mode_named():
 def test_a_reset_outside_the_target_domain_ends_the_run():
     system = HybridSystem(
         {"a": Mode(1, constant(1.0)), "b": Mode(1, constant(1.0))},
-        [Transition("a", "b", lambda x: 1.0 - x[0], lambda x: np.array([-1.0]), name="jump"),
-         Transition("b", "a", lambda x: x[0], name="back")],
-        name="toy")
+        [
+            Transition("a", "b", lambda x: 1.0 - x[0], lambda x: np.array([-1.0]), name="jump"),
+            Transition("b", "a", lambda x: x[0], name="back"),
+        ],
+        name="toy",
+    )
     ex = simulate(system, [0.0], "a", 3.0, 0.1, 1e-3)
     assert ex.status == "reset_outside_domain"
     assert ex.message.startswith("state entering mode 'b' at t=1.00")
@@ -220,8 +230,11 @@ def test_an_eps_below_float_resolution_says_so(ball):
 
 
 def test_a_step_budget_refuses_a_run_too_long_for_it(ball):
-    with pytest.raises(SimulationError, match=r"^t_final - t0 = 1e\+12 s at h = 0.001 s is 1e\+15 steps, more than "
-                                              r"max_steps = 10000000"):
+    with pytest.raises(
+        SimulationError,
+        match=r"^t_final - t0 = 1e\+12 s at h = 0.001 s is 1e\+15 steps, more than "
+        r"max_steps = 10000000",
+    ):
         simulate(ball, [1.0, 0.0], "flight", 1e12, 1e-3, 1e-3)
 
 
@@ -239,11 +252,19 @@ def test_progress_is_reported_across_transitions_when_no_step_is_taken(monkeypat
     import legsim.relaxed.run as run_module
     from legsim.systems import bouncing_ball as bb
 
-    clock = iter(range(10 ** 7))
+    clock = iter(range(10**7))
     monkeypatch.setattr(run_module.time, "perf_counter", lambda: float(next(clock)))
     seen = []
-    ex = simulate(bb.make_system(restitution=0.5), [1.0, 0.0], "flight", 3.0, 1e-2, 1e-4, continuation=False,
-                  progress=lambda t, t0, t1: seen.append(t))
+    ex = simulate(
+        bb.make_system(restitution=0.5),
+        [1.0, 0.0],
+        "flight",
+        3.0,
+        1e-2,
+        1e-4,
+        continuation=False,
+        progress=lambda t, t0, t1: seen.append(t),
+    )
     assert len(ex.transitions) > 640
     assert len(seen) >= len(ex.transitions) // 64 - 1
 
@@ -254,7 +275,7 @@ def test_a_failing_progress_callback_is_named_as_the_callers_not_the_models(ball
     def progress(t, t0, t1):
         raise RuntimeError("terminal closed")
 
-    clock = iter(range(10 ** 6))
+    clock = iter(range(10**6))
     monkeypatch.setattr(run_module.time, "perf_counter", lambda: float(next(clock)))
     with pytest.raises(SimulationError, match=r"^the progress callback failed at t=.*RuntimeError: terminal closed"):
         simulate(ball, [1.0, 0.0], "flight", 2.0, 1e-3, 1e-3, progress=progress)
@@ -273,7 +294,7 @@ def test_a_progress_callback_stops_the_run_with_its_own_legsim_error(ball, monke
         if t > 0.5:
             raise Deadline(f"stopped at {t}")
 
-    clock = iter(range(10 ** 6))
+    clock = iter(range(10**6))
     monkeypatch.setattr(run_module.time, "perf_counter", lambda: float(next(clock)))
     with pytest.raises(Deadline, match="stopped at"):
         simulate(ball, [1.0, 0.0], "flight", 2.0, 1e-3, 1e-3, progress=progress)
@@ -293,7 +314,7 @@ def test_t_eval_gives_the_states_at_those_times_in_one_call(ball):
     times = np.linspace(0.0, 0.4, 9)  # before the first impact at sqrt(2/g) = 0.4515 s
     ex = simulate(ball, [1.0, 0.0], "flight", 1.0, 1e-2, 1e-4, "rk4", t_eval=times)
     z = np.array(ex.evaluated.states)[:, 0]
-    np.testing.assert_allclose(z, 1.0 - 0.5 * 9.81 * times ** 2, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(z, 1.0 - 0.5 * 9.81 * times**2, rtol=0, atol=1e-12)
     assert ex.evaluated.modes == ["flight"] * 9 and math.isclose(ex.evaluated.times[-1], 0.4)
     with pytest.raises(SimulationError, match=r"t_eval must be finite, increasing times in \[t0, t_final\]"):
         simulate(ball, [1.0, 0.0], "flight", 1.0, 1e-2, 1e-4, t_eval=[0.5, 0.2])

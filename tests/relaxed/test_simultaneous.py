@@ -12,10 +12,16 @@ def corner(mixing: float) -> HybridSystem:
     (guards max(x, vx) and max(y, vy), m), each reflecting its normal speed with c = 0.5; the x wall
     also pushes vx by ``mixing`` vy, so for mixing != 0 the two resets do not commute."""
     field = lambda t, s, u: np.array([s[2], s[3], 0.0, 0.0])  # noqa: E731
-    wall_x = Transition("p", "p", lambda s: max(s[0], s[2]),
-                        lambda s: np.array([s[0], s[1], -0.5 * s[2] + mixing * s[3], s[3]]), name="wall_x")
-    wall_y = Transition("p", "p", lambda s: max(s[1], s[3]),
-                        lambda s: np.array([s[0], s[1], s[2], -0.5 * s[3]]), name="wall_y")
+    wall_x = Transition(
+        "p",
+        "p",
+        lambda s: max(s[0], s[2]),
+        lambda s: np.array([s[0], s[1], -0.5 * s[2] + mixing * s[3], s[3]]),
+        name="wall_x",
+    )
+    wall_y = Transition(
+        "p", "p", lambda s: max(s[1], s[3]), lambda s: np.array([s[0], s[1], s[2], -0.5 * s[3]]), name="wall_y"
+    )
     return HybridSystem({"p": Mode(4, field, ("x", "y", "vx", "vy"))}, [wall_x, wall_y], name="corner")
 
 
@@ -31,4 +37,3 @@ def test_non_commuting_resets_crossed_together_are_reported_with_their_differenc
     # wall_x then wall_y: vx+ = 0.5 + 0.3 (-1) = 0.2; wall_y then wall_x: vx+ = 0.5 + 0.3 (0.5) = 0.65
     assert warning.details["difference"] == pytest.approx(0.45, rel=1e-9)
     assert abs(warning.time - 1.0) < 2e-3
-

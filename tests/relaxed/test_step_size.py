@@ -26,12 +26,16 @@ def drift_system(gap: float) -> HybridSystem:
         return x.copy()
 
     return HybridSystem(
-        {"a": Mode(2, field, names=("x", "y")), "b": Mode(2, field, names=("x", "y")),
-         "c": Mode(2, field, names=("x", "y"))},
-        [Transition("a", "b", guard=lambda x: 1.0 - x[0], reset=identity, name="a_to_b"),
-         Transition("b", "c", guard=lambda x: 1.0 + gap - x[1], reset=identity, name="b_to_c")],
+        {
+            "a": Mode(2, field, names=("x", "y")),
+            "b": Mode(2, field, names=("x", "y")),
+            "c": Mode(2, field, names=("x", "y")),
+        },
+        [
+            Transition("a", "b", guard=lambda x: 1.0 - x[0], reset=identity, name="a_to_b"),
+            Transition("b", "c", guard=lambda x: 1.0 + gap - x[1], reset=identity, name="b_to_c"),
+        ],
     )
-
 
 
 @pytest.mark.parametrize("method", ["dopri5", "bs32"])

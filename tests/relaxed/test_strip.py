@@ -16,7 +16,6 @@ def ball_run() -> Execution:
     return simulate(bb.make_system(), [1.0, 0.0], "flight", 2.0, 1e-2, 1e-3, continuation=False)
 
 
-
 def test_strips_hold_the_guard_point_and_exit_with_the_reset(ball_run):
     ex = ball_run
     # One strip per transition, plus the one the run ended in.

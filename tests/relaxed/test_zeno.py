@@ -36,8 +36,16 @@ def ball(rest_release: float | None) -> HybridSystem:
     fly = Mode(2, lambda t, x, u: np.array([x[1], -G]), names=("z", "zd"))
     held = Mode(2, lambda t, x, u: np.zeros(2), names=("z", "zd"))
     rest = None if rest_release is None else Continuation("rest", lambda x: np.array([x[0], 0.0]))
-    transitions = [Transition("fly", "fly", lambda x: max(x[0], x[1]), lambda x: np.array([x[0], -0.5 * x[1]]),
-                              name="bounce", continuation=rest)]
+    transitions = [
+        Transition(
+            "fly",
+            "fly",
+            lambda x: max(x[0], x[1]),
+            lambda x: np.array([x[0], -0.5 * x[1]]),
+            name="bounce",
+            continuation=rest,
+        )
+    ]
     modes = {"fly": fly}
     if rest_release is not None:
         modes["rest"] = held
@@ -87,14 +95,14 @@ def test_a_chattering_user_system_without_continuation_says_where_its_crossings_
     # since, and the remedy.
     radius, h, eps, t_final = 2.0, 1e-3, 1e-4, 3.0
     system = curved_floor_ball(0.8, radius)
-    ex = simulate(system, [1.0, 0.75, 0.0, 0.0], "fly", t_final, h, eps, max_transitions=10 ** 5)
+    ex = simulate(system, [1.0, 0.75, 0.0, 0.0], "fly", t_final, h, eps, max_transitions=10**5)
     assert ex.status == "finished"
     (warning,) = ex.warnings
     trs = ex.transitions
     flights = [b.time - a.exit_time for a, b in itertools.pairwise(trs)]
     # it began at the crossing that ends the first flight within the window (all are shrinking)
     start = next(i for i, f in enumerate(flights) if f <= h + eps) + 1
-    assert all(f > h + eps for f in flights[:start - 1]) and all(np.diff(flights[:start]) < 0)
+    assert all(f > h + eps for f in flights[: start - 1]) and all(np.diff(flights[:start]) < 0)
     assert warning.kind == "accumulation" and warning.time == trs[start].time
     details = warning.details
     assert details["transition"] == "bounce" and details["mode"] == "fly"
@@ -116,9 +124,11 @@ def test_a_chattering_user_system_without_continuation_says_where_its_crossings_
 
 def sawtooth() -> HybridSystem:
     """x' = 1 from 0 to the guard 1 - x, reset to 0: a transition every 1 s (plus its hold)."""
-    return HybridSystem({"a": Mode(1, lambda t, x, u: np.array([1.0]), names=("x",))},
-                        [Transition("a", "a", lambda x: float(1.0 - x[0]), lambda x: np.zeros(1), name="wrap")],
-                        name="sawtooth")
+    return HybridSystem(
+        {"a": Mode(1, lambda t, x, u: np.array([1.0]), names=("x",))},
+        [Transition("a", "a", lambda x: float(1.0 - x[0]), lambda x: np.zeros(1), name="wrap")],
+        name="sawtooth",
+    )
 
 
 def test_a_run_held_in_strips_over_one_percent_of_its_time_says_so():
@@ -141,9 +151,16 @@ def test_an_accumulation_warning_is_not_doubled_by_a_strip_hold_warning():
     assert [w.kind for w in ex.warnings] == ["accumulation"]
 
 
-@pytest.mark.parametrize("window, error", [(-1.0, "must be finite and > 0, got -1"), (0.0, "must be finite and > 0"),
-                                           (math.nan, "must be finite and > 0"), (math.inf, "must be finite and > 0"),
-                                           ("0.1", "must be a number, got str")])
+@pytest.mark.parametrize(
+    "window, error",
+    [
+        (-1.0, "must be finite and > 0, got -1"),
+        (0.0, "must be finite and > 0"),
+        (math.nan, "must be finite and > 0"),
+        (math.inf, "must be finite and > 0"),
+        ("0.1", "must be a number, got str"),
+    ],
+)
 def test_a_zeno_window_that_is_not_a_positive_time_is_refused_by_name(window, error):
     with pytest.raises(SimulationError, match=rf"^zeno_window {error}"):
         simulate(ball(1.0), [1.0, 0.0], "fly", 1.0, 1e-3, 1e-4, zeno_window=window)
@@ -170,14 +187,31 @@ def test_a_continuation_is_checked_by_name():
         Transition("fly", "fly", lambda x: x[0], name="bounce", continuation="rest")
     # into a mode the system does not have: refused naming the mode and listing those it has
     fly = Mode(2, lambda t, x, u: np.array([x[1], -G]), names=("z", "zd"))
-    with pytest.raises(ModelError, match=r"^ball: continuation .* of transition .* targets unknown mode 'rest' "
-                                         r"\(modes: \['fly'\]\)"):
-        HybridSystem({"fly": fly}, [Transition("fly", "fly", lambda x: max(x[0], x[1]),
-                                               continuation=Continuation("rest"))], name="ball")
+    with pytest.raises(
+        ModelError,
+        match=r"^ball: continuation .* of transition .* targets unknown mode 'rest' "
+        r"\(modes: \['fly'\]\)",
+    ):
+        HybridSystem(
+            {"fly": fly},
+            [Transition("fly", "fly", lambda x: max(x[0], x[1]), continuation=Continuation("rest"))],
+            name="ball",
+        )
     # a continuation without reset keeps the state: the target must have the source's dimension
     point = Mode(1, lambda t, x, u: np.zeros(1), names=("z",))
-    shrink = HybridSystem({"fly": fly, "rest": point},
-                          [Transition("fly", "fly", lambda x: max(x[0], x[1]), lambda x: np.array([x[0], -x[1]]),
-                                      name="bounce", continuation=Continuation("rest"))], name="ball")
+    shrink = HybridSystem(
+        {"fly": fly, "rest": point},
+        [
+            Transition(
+                "fly",
+                "fly",
+                lambda x: max(x[0], x[1]),
+                lambda x: np.array([x[0], -x[1]]),
+                name="bounce",
+                continuation=Continuation("rest"),
+            )
+        ],
+        name="ball",
+    )
     with pytest.raises(ModelError, match=r"transition bounce_continued has no reset but changes dimension 2 -> 1"):
         simulate(shrink, [1.0, 0.0], "fly", 1.0, 1e-3, 1e-4)

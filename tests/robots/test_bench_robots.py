@@ -12,13 +12,18 @@ from legsim.bench.work_precision import Row
 
 
 def row(kind, method, error, wall):
-    return Row("c", method, kind, 0.01, 1e-6, math.nan, math.inf, "aim", error, math.nan, wall, 1, 1, 0, 1, 1, 1,
-               "finished")
+    return Row(
+        "c", method, kind, 0.01, 1e-6, math.nan, math.inf, "aim", error, math.nan, wall, 1, 1, 0, 1, 1, 1, "finished"
+    )
 
 
 def test_levels_take_the_fastest_run_of_each_family_below_the_level():
-    rows = [row("relaxed", "relaxed-rk4", 1e-5, 0.002), row("relaxed", "relaxed-dop853", 1e-9, 0.003),
-            row("solve_ivp", "solve_ivp-DOP853", 1e-7, 0.03), row("solve_ivp", "solve_ivp-RK45", 1e-4, 0.01)]
+    rows = [
+        row("relaxed", "relaxed-rk4", 1e-5, 0.002),
+        row("relaxed", "relaxed-dop853", 1e-9, 0.003),
+        row("solve_ivp", "solve_ivp-DOP853", 1e-7, 0.03),
+        row("solve_ivp", "solve_ivp-RK45", 1e-4, 0.01),
+    ]
     res = robots.at_levels(rows)
     assert res[0].best["relaxed"].method == "relaxed-rk4" and res[0].best["solve_ivp"].method == "solve_ivp-RK45"
     assert res[0].ratio("solve_ivp") == pytest.approx(5.0)
@@ -56,7 +61,11 @@ def test_zero_time_chains_of_transitions_count_as_one_event():
     # event: its time is the first transition's, its state the last one's.
     from types import SimpleNamespace as T
 
-    chain = [T(time=1.0, state_after=np.array([1.0])), T(time=1.0, state_after=np.array([2.0])),
-             T(time=1.0 + 1e-9, state_after=np.array([3.0])), T(time=2.0, state_after=np.array([4.0]))]
+    chain = [
+        T(time=1.0, state_after=np.array([1.0])),
+        T(time=1.0, state_after=np.array([2.0])),
+        T(time=1.0 + 1e-9, state_after=np.array([3.0])),
+        T(time=2.0, state_after=np.array([4.0])),
+    ]
     merged = robots.events(T(transitions=chain))
     assert [t for t, _ in merged] == [1.0, 2.0] and [x[0] for _, x in merged] == [3.0, 4.0]

@@ -32,8 +32,9 @@ def test_point_contact_holds_a_base_until_the_swinging_pendulum_lifts_it():
     for phi, w in [(0.3, 6.0), (2.0, 3.0)]:
         x = np.array([0, 0, phi, 0, 0, w])
         T = m * G * math.cos(phi) + m * L * w**2
-        np.testing.assert_allclose(bridge.constraint_forces("ground", x)["foot"],
-                                   [-T * math.sin(phi), M * G + T * math.cos(phi)], atol=1e-12)
+        np.testing.assert_allclose(
+            bridge.constraint_forces("ground", x)["foot"], [-T * math.sin(phi), M * G + T * math.cos(phi)], atol=1e-12
+        )
     ex = simulate(system, x0, "ground", 1.0, 1e-3, 1e-3)
     lift = ex.transitions[0]
     assert lift.name == "liftoff_foot" and lift.target == "air"

@@ -29,8 +29,7 @@ def block(theta: float, mu: float, m: float = 2.0, actuated: tuple[str, ...] = (
     model.appendBodyToJoint(jz, pin.Inertia(m, np.zeros(3), np.zeros((3, 3))), pin.SE3.Identity())
     add_point_frame(model, "foot", jz, (0, 0, 0))
     model.gravity = pin.Motion(np.array([G * math.sin(theta), 0, -G * math.cos(theta), 0, 0, 0]))
-    return ContactBridge(model, [PointContact("foot", "foot", friction=mu)], mode_names={(): "air"},
-                         actuated=actuated)
+    return ContactBridge(model, [PointContact("foot", "foot", friction=mu)], mode_names={(): "air"}, actuated=actuated)
 
 
 def rod(mu: float, m: float = 1.0, length: float = 1.0, restitution: float = 0.0) -> ContactBridge:
@@ -38,12 +37,13 @@ def rod(mu: float, m: float = 1.0, length: float = 1.0, restitution: float = 0.0
     lower end "foot" a contact with friction mu (theta > 0 leans the top towards +x)."""
     model = pin.Model()
     body = planar_floating_base(model)
-    inertia = m * length ** 2 / 12
+    inertia = m * length**2 / 12
     model.appendBodyToJoint(body, pin.Inertia(m, np.zeros(3), np.diag([inertia] * 3)), pin.SE3.Identity())
     add_point_frame(model, "foot", body, (0, 0, -length / 2))
     model.gravity = pin.Motion(np.array([0, 0, -G, 0, 0, 0]))
-    return ContactBridge(model, [PointContact("foot", "foot", restitution=restitution, friction=mu)],
-                         mode_names={(): "air"})
+    return ContactBridge(
+        model, [PointContact("foot", "foot", restitution=restitution, friction=mu)], mode_names={(): "air"}
+    )
 
 
 @pytest.mark.parametrize("ratio", [1.05, 0.95])
@@ -59,7 +59,7 @@ def test_a_block_thrown_up_a_slope_stops_and_sticks_only_when_tan_theta_is_below
     stop = ex.transitions[0]
     decel = G * (math.sin(theta) + mu * math.cos(theta))
     assert stop.time == pytest.approx(v0 / decel, abs=2e-4)  # located within the strip (eps / a)
-    assert stop.state_before[0] == pytest.approx(-v0 ** 2 / (2 * decel), abs=1e-9)
+    assert stop.state_before[0] == pytest.approx(-(v0**2) / (2 * decel), abs=1e-9)
     if ratio > 1:
         assert (stop.name, ex.final_mode) == ("stick_foot", "foot")
         np.testing.assert_allclose(ex.final_state, [stop.state_before[0], 0, 0, 0], atol=1e-12)
@@ -79,7 +79,7 @@ def test_a_block_sliding_down_a_slope_comes_to_rest_after_the_closed_form_distan
         ex = simulate(bridge.system("foot>", x0), x0, "foot>", 3.0, 1e-3, 1e-4)
         decel = G * (mu * math.cos(theta) - math.sin(theta))
         assert [tr.name for tr in ex.transitions] == ["stick_foot"] and ex.final_mode == "foot"
-        assert ex.final_state[0] == pytest.approx(v0 ** 2 / (2 * decel), abs=1e-9)
+        assert ex.final_state[0] == pytest.approx(v0**2 / (2 * decel), abs=1e-9)
         # the energy lost is the friction's work mu m g cos(theta) d
         e0, e1 = ex.segments[0], ex.segments[-1]
         lost = bridge.energy("foot>", e0.x[0]) - bridge.energy("foot", e1.x[-1])
@@ -97,14 +97,14 @@ def test_a_block_on_flat_ground_slips_when_a_growing_push_reaches_mu_m_g():
     # then it slides with m a = rate t - mu m g
     t = ex.t_end
     t_star = mu * m * G / rate
-    assert ex.final_state[2] == pytest.approx((rate * (t ** 2 - t_star ** 2) / 2 - mu * m * G * (t - t_star)) / m,
-                                              rel=1e-6)
+    assert ex.final_state[2] == pytest.approx((rate * (t**2 - t_star**2) / 2 - mu * m * G * (t - t_star)) / m, rel=1e-6)
 
 
 def rod_slip_angle(mu: float, theta0: float) -> tuple[float, float]:
     """(first angle where a uniform rod pivoting on its foot from rest at theta0 needs |F| = mu N,
     the sign of F there) (m = 1, L = 1): theta_dd = 3 g sin / (2 L), theta_d^2 = 3 g (cos
     theta0 - cos) / L; from upright F / N = 3 sin (3 cos - 2) / (3 cos - 1)^2."""
+
     def forces(th: float) -> tuple[float, float]:
         w2 = 3 * G * (math.cos(theta0) - math.cos(th))
         acc = 1.5 * G * math.sin(th)
@@ -115,6 +115,7 @@ def rod_slip_angle(mu: float, theta0: float) -> tuple[float, float]:
     def excess(th: float) -> float:
         f, n = forces(th)
         return abs(f) - mu * n
+
     grid = np.linspace(theta0 + 1e-6, 1.2, 2000)
     i = next(k for k, th in enumerate(grid) if excess(th) > 0)
     angle = brentq(excess, grid[i - 1], grid[i], xtol=1e-14)
@@ -162,7 +163,7 @@ def test_a_sticking_impact_inside_the_cone_is_pinocchios_impulse_dynamics():
 def rod_sliding_impact(mu, c, q, v, length=1.0, m=1.0):
     """Newton's laws for a rod's end striking the floor and sliding: impulse (sigma mu P, P) at
     the end r from the centre, m dv = impulse, I dw = (r x impulse)_y, normal velocity -c v_n."""
-    inertia = m * length ** 2 / 12
+    inertia = m * length**2 / 12
     th = q[2]
     r = np.array([-0.5 * length * math.sin(th), -0.5 * length * math.cos(th)])  # end - centre (x, z)
 

@@ -39,8 +39,11 @@ def test_a_rod_landing_on_a_frictionless_floor_ends_lying_with_its_weight_shared
     model.gravity = pin.Motion(np.array([0, 0, -G, 0, 0, 0]))
     body = model.getJointId("theta")
     add_point_frame(model, "tail", body, (-0.5, 0, 0))
-    bridge = ContactBridge(model, [PointContact("a", "tip", tangential=False),
-                                   PointContact("b", "tail", tangential=False)], mode_names={(): "air"})
+    bridge = ContactBridge(
+        model,
+        [PointContact("a", "tip", tangential=False), PointContact("b", "tail", tangential=False)],
+        mode_names={(): "air"},
+    )
     x0 = [0.0, 1.0, 0.3, xd, 0.0, 0.0]
     system = bridge.system("air", x0)
     ex = simulate(system, x0, "air", 1.5, 1e-3, 1e-3)

@@ -56,8 +56,14 @@ def test_the_joint_law_is_pinocchios_impulse_dynamics_for_one_restitution():
     q = np.array([0.2, 0.0, 0.0])
     v = np.array([0.4, -2.0, 0.7])
     v_plus, normal = newton_impact(model, data, [("a", C), ("b", C)], q, v)
-    J = np.vstack([pin.computeFrameJacobian(bridge.model, bridge.data, q, model.rigid[n].frame_id,
-                                            pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)[2] for n in ("a", "b")])
+    J = np.vstack(
+        [
+            pin.computeFrameJacobian(
+                bridge.model, bridge.data, q, model.rigid[n].frame_id, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+            )[2]
+            for n in ("a", "b")
+        ]
+    )
     expected = pin.impulseDynamics(bridge.model, bridge.data, q, v, J, C, 0.0)
     np.testing.assert_allclose(v_plus, expected, rtol=0, atol=1e-12)
     assert normal["a"] > 0 and normal["b"] > 0
@@ -73,16 +79,25 @@ def two_points_on_one_side(c: float):
     model.appendBodyToJoint(body, pin.Inertia(1.0, np.zeros(3), np.diag([0.1] * 3)), pin.SE3.Identity())
     add_point_frame(model, "pa", body, (0.5, 0.0, 0.0))
     add_point_frame(model, "pb", body, (0.3, 0.0, 0.0))
-    return ContactBridge(model, [PointContact("a", "pa", restitution=c, tangential=False),
-                                 PointContact("b", "pb", restitution=c, tangential=False)])
+    return ContactBridge(
+        model,
+        [
+            PointContact("a", "pa", restitution=c, tangential=False),
+            PointContact("b", "pb", restitution=c, tangential=False),
+        ],
+    )
 
 
 def test_an_adhesive_contact_is_dropped_and_the_impact_solved_again():
     bridge = two_points_on_one_side(0.9)
     model, data = bridge._model, bridge._data
     q, v = np.zeros(3), np.array([0.0, 0.0284, 0.5467])  # both ends approaching (-0.245, -0.136 m/s)
-    normal_rows = {n: pin.computeFrameJacobian(bridge.model, bridge.data, q, model.rigid[n].frame_id,
-                                               pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)[2] for n in "ab"}
+    normal_rows = {
+        n: pin.computeFrameJacobian(
+            bridge.model, bridge.data, q, model.rigid[n].frame_id, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+        )[2]
+        for n in "ab"
+    }
     assert normal_rows["a"] @ v < 0 and normal_rows["b"] @ v < 0
     _, both = newton_impact(model, data, [("a", 0.9), ("b", 0.9)], q, v)
     assert both["b"] < 0  # one law on both would pull b onto the floor

@@ -20,7 +20,10 @@ def test_a_striking_contact_releases_the_ones_it_names():
     bridge = ContactBridge(model, contacts)
     system = bridge.system("a", [0.0, math.sin(0.3) * 0.5, -0.3, 0.0, 0.0, 0.0])
     assert {(tr.name, tr.target) for tr in system.outgoing("a")} == {
-        ("liftoff_a", "free"), ("touchdown_b", "b"), ("graze_b", "free")}
+        ("liftoff_a", "free"),
+        ("touchdown_b", "b"),
+        ("graze_b", "free"),
+    }
     # the impact solves only the striking contact: the released one may move
     q, v = np.array([0.0, 0.0, 0.0]), np.array([0.0, -1.0, 0.5])
     reset = next(tr for tr in system.outgoing("a") if tr.name == "touchdown_b").reset

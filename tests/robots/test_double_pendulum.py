@@ -76,8 +76,9 @@ def test_pinocchio_mass_matrix_bias_and_gravity_equal_the_closed_form():
         np.testing.assert_allclose(pin.crba(model, data, q), mass_matrix(q, **P), rtol=0, atol=1e-12)
         G = pin.computeGeneralizedGravity(model, data, q)
         np.testing.assert_allclose(G, gravity(q, **P), rtol=0, atol=1e-12)
-        np.testing.assert_allclose(pin.nonLinearEffects(model, data, q, qd) - G, coriolis(q, qd, **P),
-                                   rtol=0, atol=1e-12)
+        np.testing.assert_allclose(
+            pin.nonLinearEffects(model, data, q, qd) - G, coriolis(q, qd, **P), rtol=0, atol=1e-12
+        )
 
 
 def test_unconstrained_field_energy_and_geometry_equal_the_closed_form():
@@ -90,8 +91,10 @@ def test_unconstrained_field_energy_and_geometry_equal_the_closed_form():
         np.testing.assert_allclose(f(0.0, x, None), np.concatenate([qd, qdd]), rtol=0, atol=1e-11)
         assert model.system.energy("unconstrained", x) == pytest.approx(energy(x), abs=1e-12)
         tip = model.geometry("unconstrained", x)["link2"][1]
-        expected = [P["L1"] * math.sin(q[0]) + P["L2"] * math.sin(q[0] + q[1]),
-                    -P["L1"] * math.cos(q[0]) - P["L2"] * math.cos(q[0] + q[1])]
+        expected = [
+            P["L1"] * math.sin(q[0]) + P["L2"] * math.sin(q[0] + q[1]),
+            -P["L1"] * math.cos(q[0]) - P["L2"] * math.cos(q[0] + q[1]),
+        ]
         np.testing.assert_allclose(tip, expected, atol=1e-12)
     assert bridge.counters()["kkt"] == 0
 
@@ -219,8 +222,7 @@ def test_damping_is_computed_only_when_asked_and_dissipates():
     for x in random_states(5, seed=5):
         q, qd = x[:2], x[2:]
         rhs = -(coriolis(q, qd, **DEFAULTS) + gravity(q, **DEFAULTS)) - np.array([b1, b2]) * qd
-        np.testing.assert_allclose(f(0.0, x, None)[2:], np.linalg.solve(mass_matrix(q, **DEFAULTS), rhs),
-                                   atol=1e-11)
+        np.testing.assert_allclose(f(0.0, x, None)[2:], np.linalg.solve(mass_matrix(q, **DEFAULTS), rhs), atol=1e-11)
     damped.info["bridge"].reset_counters()
     ex = simulate(damped.system, x0, "unconstrained", 2.0, 1e-3, 1e-3)
     counts = damped.counters()
@@ -255,8 +257,9 @@ def test_by_default_the_stop_rests_in_the_constrained_mode_and_is_released_where
     assert flights[-1] <= window < min(flights[:-1]) and np.all(np.diff(flights) < 0)
     # the bounces before it are those of the plain run, and cost at most a fiftieth of its transitions
     plain = simulate(model.system, x0, "unconstrained", 2.5, h, eps, continuation=False)
-    np.testing.assert_allclose([tr.time for tr in bounces], [tr.time for tr in plain.transitions[:len(bounces)]],
-                               atol=1e-12)
+    np.testing.assert_allclose(
+        [tr.time for tr in bounces], [tr.time for tr in plain.transitions[: len(bounces)]], atol=1e-12
+    )
     assert len(plain.transitions) >= 50 * len(names)
 
 
@@ -265,8 +268,12 @@ def test_the_bounce_names_its_rest_which_is_taken_only_where_the_stop_pushes():
     (bounce,) = model.system.outgoing("unconstrained")
     (release,) = model.system.outgoing("constrained")
     rest = bounce.continuation
-    assert (bounce.name, rest.name, rest.target, release.name) == ("bounce_stop", "rest_stop", "constrained",
-                                                                   "release_stop")
+    assert (bounce.name, rest.name, rest.target, release.name) == (
+        "bounce_stop",
+        "rest_stop",
+        "constrained",
+        "release_stop",
+    )
     # the rest's reset is the plastic impact, eq. (30) with c = 0
     x = np.array([-0.6, -1e-6, 0.2, -0.05])
     np.testing.assert_allclose(rest.reset(x), eq30(x, 0.0, DEFAULTS), atol=1e-12)
@@ -316,6 +323,7 @@ def test_scene_refuses_an_initial_state_past_the_stop_by_more_than_eps():
     # The guard max(theta2 - pos, theta2d) counts theta2 = -1 at rest as inside the free mode, so
     # the run "finished" 1 rad past the stop; the bridge's initial check must name it.
     from legsim.scene import load_scene
+
     with pytest.raises(SceneError) as err:
         load_scene("double_pendulum_plastic", overrides=["initial.state.theta2=-1"])
     msg = str(err.value)
@@ -398,8 +406,10 @@ def test_controlled_run_balances_energy_with_the_control_and_damping_power():
     # step, while the controller's own work is near a joule, so a control applied with the wrong
     # sign, to the wrong joint or not at all breaks the balance by orders of magnitude.
     kp, kd, target, b1, b2 = 40.0, 3.0, 0.8, 0.3, 0.2
-    model = dp.make(P, effects={"stop": False, "controller": {"kp": kp, "kd": kd, "target": target},
-                                "damping": {"b1": b1, "b2": b2}})
+    model = dp.make(
+        P,
+        effects={"stop": False, "controller": {"kp": kp, "kd": kd, "target": target}, "damping": {"b1": b1, "b2": b2}},
+    )
     x0 = [model.initial_state[n] for n in dp.STATE_NAMES]
     ex = simulate(model.system, x0, "unconstrained", 3.0, 1e-3, 1e-3, "rk4", model.control)
     assert ex.status == "finished" and len(ex.segments) == 1
@@ -425,8 +435,14 @@ def test_pd_holds_the_shoulder_where_it_balances_the_hanging_pendulums_gravity()
     from scipy.optimize import brentq
 
     kp, kd, target = 60.0, 5.0, 0.8
-    model = dp.make(P, effects={"stop": False, "controller": {"kp": kp, "kd": kd, "target": target},
-                                "damping": {"b1": 1.0, "b2": 3.0}})
+    model = dp.make(
+        P,
+        effects={
+            "stop": False,
+            "controller": {"kp": kp, "kd": kd, "target": target},
+            "damping": {"b1": 1.0, "b2": 3.0},
+        },
+    )
     x0 = [model.initial_state[n] for n in dp.STATE_NAMES]
     ex = simulate(model.system, x0, "unconstrained", 25.0, 5e-3, 1e-3, "rk4", model.control)
     m1, m2, L1, g = P["m1"], P["m2"], P["L1"], P["g"]
@@ -456,20 +472,26 @@ def test_pd_scene_rests_on_the_stop_where_the_pd_balances_the_straight_pendulum(
     assert abs(ex.final_state[1]) < 1e-12 and np.abs(ex.final_state[2:]).max() < 1e-8
     assert ex.counters["actuation_evals"] > 0
     # the stop holds it there: its force is positive at rest
-    lam = scene.model.info["bridge"].constraint_forces("constrained", ex.final_state,
-                                                       scene.model.control(0.0, ex.final_state))
+    lam = scene.model.info["bridge"].constraint_forces(
+        "constrained", ex.final_state, scene.model.control(0.0, ex.final_state)
+    )
     assert lam["stop"][0] > 0.0
 
 
-@pytest.mark.parametrize("override, message", [
-    ("effects.controller.kp=-1", "effects.controller.kp: -1.0 is out of range, allowed: float in [0, inf)"),
-    ("effects.controller.kd=-0.5", "effects.controller.kd: -0.5 is out of range, allowed: float in [0, inf)"),
-    ("effects.controller.target=4",
-     "effects.controller.target: 4.0 is out of range, allowed: float in [-3.14159, 3.14159]"),
-    ("effects.controller.kp=\"x\"", "effects.controller.kp: expected a number"),
-    ("effects.controller.kx=1", "effects.controller: unknown parameter(s) ['kx']; allowed: ['kd', 'kp', 'target']"),
-    ("effects.controller=1", "effects.controller: expected true, false or a table of parameters"),
-])
+@pytest.mark.parametrize(
+    "override, message",
+    [
+        ("effects.controller.kp=-1", "effects.controller.kp: -1.0 is out of range, allowed: float in [0, inf)"),
+        ("effects.controller.kd=-0.5", "effects.controller.kd: -0.5 is out of range, allowed: float in [0, inf)"),
+        (
+            "effects.controller.target=4",
+            "effects.controller.target: 4.0 is out of range, allowed: float in [-3.14159, 3.14159]",
+        ),
+        ('effects.controller.kp="x"', "effects.controller.kp: expected a number"),
+        ("effects.controller.kx=1", "effects.controller: unknown parameter(s) ['kx']; allowed: ['kd', 'kp', 'target']"),
+        ("effects.controller=1", "effects.controller: expected true, false or a table of parameters"),
+    ],
+)
 def test_bad_controller_parameters_are_scene_errors_naming_the_field(override, message):
     from legsim.scene import load_scene
 

@@ -19,6 +19,8 @@ def skip_unless_full(request):
     """Long sweeps run with LEGSIM_FULL=1 or -m slow; their short forms always run."""
     if not FULL and "slow" not in (request.config.getoption("markexpr") or ""):
         pytest.skip("long sweep: set LEGSIM_FULL=1 or select -m slow")
+
+
 PAPER = dict(m=1.0, I=1.0, k=30.0, l=1.0, d=1.0, g=9.81, psi=math.pi / 5)
 
 
@@ -67,14 +69,18 @@ def test_stance_fields_equal_newton_euler():
     for mode, legs in [("aerial", []), ("left", ["left"]), ("right", ["right"]), ("both", ["left", "right"])]:
         f = model.system.mode(mode).field
         for _ in range(5):
-            x = np.concatenate([[0.3, 0.8, rng.uniform(-0.6, 0.6)], rng.normal(size=3),
-                                0.3 + rng.uniform(-0.5, 0.5, len(legs))])
+            x = np.concatenate(
+                [[0.3, 0.8, rng.uniform(-0.6, 0.6)], rng.normal(size=3), 0.3 + rng.uniform(-0.5, 0.5, len(legs))]
+            )
             expected = np.concatenate([newton_euler(x, legs, params), np.zeros(len(legs))])
             np.testing.assert_allclose(f(0.0, x, None), expected, rtol=0, atol=1e-12)
     damped = pronk.make(params, {"damping": {"b": 0.7}})
     x = np.array([0.1, 0.7, 0.2, 1.0, -2.0, 0.5, 0.4, 1.1])
-    np.testing.assert_allclose(damped.system.mode("both").field(0.0, x, None)[:6],
-                               newton_euler(x, ["left", "right"], params, b=0.7), atol=1e-12)
+    np.testing.assert_allclose(
+        damped.system.mode("both").field(0.0, x, None)[:6],
+        newton_euler(x, ["left", "right"], params, b=0.7),
+        atol=1e-12,
+    )
 
 
 def test_flight_legs_and_guards_follow_the_paper_geometry():
@@ -107,8 +113,10 @@ def test_energy_is_conserved_through_touchdowns_and_liftoffs(case):
         assert abs(dE) <= 1e-2**2 * 1e-6
 
 
-@pytest.mark.parametrize("method,order,hs", [("euler", 1, (1e-3, 5e-4, 2.5e-4)), ("rk2", 2, (4e-3, 2e-3, 1e-3)),
-                                             ("rk4", 4, (1.6e-2, 8e-3, 4e-3))])
+@pytest.mark.parametrize(
+    "method,order,hs",
+    [("euler", 1, (1e-3, 5e-4, 2.5e-4)), ("rk2", 2, (4e-3, 2e-3, 1e-3)), ("rk4", 4, (1.6e-2, 8e-3, 4e-3))],
+)
 @pytest.mark.parametrize("case", ["symmetric", "pitched"])
 def test_energy_drift_shrinks_at_the_method_order(case, method, order, hs):
     state, t_final = CASES[case]
@@ -218,7 +226,8 @@ def test_a_runner_that_falls_ends_the_run_instead_of_flying_through_the_ground()
     assert bridge.foot_positions(ex.final_mode, ex.final_state)["left"][1] < -0.2
     for tr in ex.transitions:
         assert model.system.energy(tr.target, tr.state_after) == pytest.approx(
-            model.system.energy(tr.source, tr.state_before), abs=1e-10)
+            model.system.energy(tr.source, tr.state_before), abs=1e-10
+        )
     # the guard: a buried foot is in flight while it rises, past by its depth once it descends
     guard = next(tr.guard for tr in model.system.outgoing("aerial") if tr.name == "touchdown_left")
     buried = math.cos(math.pi / 5) - 0.1

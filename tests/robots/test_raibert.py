@@ -49,8 +49,9 @@ def test_leg_kinematics_match_the_parsed_urdf():
         for length, angle in ((0.42, 0.0), (0.3, 0.4), (0.45, -0.3)):
             hip, knee = raibert.leg_angles(leg, length, angle)
             assert math.copysign(1.0, knee) == leg.bend
-            np.testing.assert_allclose(raibert.leg_point(leg, hip, knee),
-                                       [length * math.sin(angle), -length * math.cos(angle)], atol=1e-14)
+            np.testing.assert_allclose(
+                raibert.leg_point(leg, hip, knee), [length * math.sin(angle), -length * math.cos(angle)], atol=1e-14
+            )
 
 
 def test_symmetric_pronk_lands_both_feet_in_one_joint_impact_with_zero_pitch():

@@ -49,8 +49,10 @@ def test_energy_drift_shrinks_at_the_method_order(method, order, hs):
         assert [tr.name for tr in ex.transitions] == ["touchdown_leg", "liftoff_leg"] * 2
         errs.append(max(abs(model.system.energy(s.mode, x) - E0) for s in ex.segments for x in s.x))
         for tr in ex.transitions:  # continuous through every transition (bound O(eps^2))
-            assert abs(model.system.energy(tr.target, tr.state_after)
-                       - model.system.energy(tr.source, tr.state_before)) < 1e-2**2 * 1e-6
+            assert (
+                abs(model.system.energy(tr.target, tr.state_after) - model.system.energy(tr.source, tr.state_before))
+                < 1e-2**2 * 1e-6
+            )
     slope = np.polyfit(np.log(hs), np.log(errs), 1)[0]
     assert slope > order - 0.25, (errs, slope)
 

@@ -29,8 +29,9 @@ def test_without_control_the_hopper_is_the_bridge_slip():
     for a, b in zip(mine.transitions, theirs.transitions, strict=True):
         assert a.time == pytest.approx(b.time, abs=1e-9)
     np.testing.assert_allclose(mine.transitions[0].state_after, theirs.transitions[0].state_after, atol=1e-9)
-    np.testing.assert_allclose(mine.transitions[1].state_after[[0, 1, 3, 4]], theirs.transitions[1].state_after,
-                               atol=1e-9)
+    np.testing.assert_allclose(
+        mine.transitions[1].state_after[[0, 1, 3, 4]], theirs.transitions[1].state_after, atol=1e-9
+    )
 
 
 def test_raibert_slip_tracks_the_commanded_speed_over_100_hops():
@@ -67,9 +68,18 @@ def test_raibert_slip_gait_is_a_stable_periodic_orbit():
     ex = scene.simulate()
     controller = scene.controller
     touchdowns = [tr for tr in ex.transitions if tr.name == "touchdown"]
-    problem = OrbitProblem(scene.model.system, Section.level("flight", "zd", 0.0, direction=-1), 1e-3, 1e-4, "rk4",
-                           t_max=2.0, control=lambda t, x: controller("flight", t, x), cyclic=["x"],
-                           energy=scene.model.system.energy("flight", scene.initial_state), trivial_multipliers=1)
+    problem = OrbitProblem(
+        scene.model.system,
+        Section.level("flight", "zd", 0.0, direction=-1),
+        1e-3,
+        1e-4,
+        "rk4",
+        t_max=2.0,
+        control=lambda t, x: controller("flight", t, x),
+        cyclic=["x"],
+        energy=scene.model.system.energy("flight", scene.initial_state),
+        trivial_multipliers=1,
+    )
     orbit = find_orbit(problem, {"x": 0.0, "z": 1.2, "psi": 0.1, "xd": 1.4, "zd": 0.0})
     assert orbit.converged and orbit.stable
     assert orbit.fixed_point[3] == pytest.approx(touchdowns[-1].state_before[3], abs=1e-6)

@@ -118,6 +118,7 @@ def test_heel_strike_matches_pinocchio_impulse_dynamics():
 
 # -- whole runs: the compiled path against the Python path -------------------------------------
 
+
 def run(monkeypatch, scene, python, overrides=()):
     """The scene's execution with the twins (python=False) or without, and how many mode visits
     the kernel ran."""
@@ -148,18 +149,44 @@ def assert_same_run(a, b, tol=1e-9):
 
 SCENES = [
     ("compass_gait", ()),
-    ("compass_gait", ("integrator.method=\"dopri5\"", "integrator.rtol=1e-8", "integrator.atol=1e-8",
-                      "integrator.h=0.1", "integrator.landing=\"aim\"")),
+    (
+        "compass_gait",
+        (
+            'integrator.method="dopri5"',
+            "integrator.rtol=1e-8",
+            "integrator.atol=1e-8",
+            "integrator.h=0.1",
+            'integrator.landing="aim"',
+        ),
+    ),
     ("rimless_wheel", ()),
-    ("rimless_wheel", ("integrator.method=\"dop853\"", "integrator.rtol=1e-9", "integrator.atol=1e-9",
-                       "integrator.h=0.1", "integrator.landing=\"aim\"")),
+    (
+        "rimless_wheel",
+        (
+            'integrator.method="dop853"',
+            "integrator.rtol=1e-9",
+            "integrator.atol=1e-9",
+            "integrator.h=0.1",
+            'integrator.landing="aim"',
+        ),
+    ),
     ("double_pendulum_plastic", ("integrator.t_final=4.0",)),
-    ("double_pendulum_zeno", ("effects.zeno=false", "integrator.t_final=2.0", "integrator.method=\"rk4\"",
-                              "integrator.eps=1e-3")),
+    (
+        "double_pendulum_zeno",
+        ("effects.zeno=false", "integrator.t_final=2.0", 'integrator.method="rk4"', "integrator.eps=1e-3"),
+    ),
     ("pronk", ()),
     ("pronk_pitched", ()),
-    ("pronk_pitched", ("integrator.method=\"dopri5\"", "integrator.rtol=1e-7", "integrator.atol=1e-7",
-                       "integrator.h=0.1", "integrator.landing=\"aim\"")),
+    (
+        "pronk_pitched",
+        (
+            'integrator.method="dopri5"',
+            "integrator.rtol=1e-7",
+            "integrator.atol=1e-7",
+            "integrator.h=0.1",
+            'integrator.landing="aim"',
+        ),
+    ),
 ]
 
 
@@ -168,7 +195,7 @@ SCENES = [
 MODE_CHANGES = [
     ("pronk", (), False),
     ("double_pendulum_plastic", (), False),
-    ("double_pendulum_zeno", ("integrator.t_final=12.0", "integrator.method=\"rk4\"", "integrator.eps=1e-3"), False),
+    ("double_pendulum_zeno", ("integrator.t_final=12.0", 'integrator.method="rk4"', "integrator.eps=1e-3"), False),
     ("double_pendulum_zeno", ("integrator.t_final=2.0", "integrator.continuation=false", "integrator.eps=1e-3"), False),
     ("rod", (), True),
 ]
@@ -232,7 +259,8 @@ def test_without_the_native_library_robots_run_in_python_and_say_so_once(tmp_pat
         "    ex = scene.simulate()\n"
         "    out[name] = [ex.status, ex.final_state.tolist(), scene.model.system.modes and\n"
         "                 any(m.compiled is not None for m in scene.model.system.modes.values())]\n"
-        "print(json.dumps(out))\n")
+        "print(json.dumps(out))\n"
+    )
     env = {**os.environ, "LEGSIM_NATIVE": "0", "LEGSIM_CACHE_DIR": str(tmp_path)}
     done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=env, timeout=300)
     assert done.returncode == 0, done.stderr

@@ -14,8 +14,10 @@ from legsim.errors import ModelError, SceneError
 from legsim.scene import load_scene
 
 QUADRUPED = urdf.bundled("quadruped.urdf")
-CONTACTS = [{"name": "hind", "frame": "hind_foot", "friction": 0.8},
-            {"name": "front", "frame": "front_foot", "friction": 0.8}]
+CONTACTS = [
+    {"name": "hind", "frame": "hind_foot", "friction": 0.8},
+    {"name": "front", "frame": "front_foot", "friction": 0.8},
+]
 
 
 def hand_built_quadruped() -> pin.Model:
@@ -27,11 +29,13 @@ def hand_built_quadruped() -> pin.Model:
     model.appendBodyToJoint(body, pin.Inertia(5.0, np.zeros(3), np.diag([0.02, 0.45, 0.45])), pin.SE3.Identity())
     for side, x in (("front", 0.3), ("hind", -0.3)):
         hip = model.addJoint(body, pin.JointModelRY(), pin.SE3(np.eye(3), np.array([x, 0, 0])), f"{side}_hip")
-        model.appendBodyToJoint(hip, pin.Inertia(0.4, np.array([0, 0, -0.125]), np.diag([0.0021, 0.0021, 0.0001])),
-                                pin.SE3.Identity())
+        model.appendBodyToJoint(
+            hip, pin.Inertia(0.4, np.array([0, 0, -0.125]), np.diag([0.0021, 0.0021, 0.0001])), pin.SE3.Identity()
+        )
         knee = model.addJoint(hip, pin.JointModelRY(), pin.SE3(np.eye(3), np.array([0, 0, -0.25])), f"{side}_knee")
-        model.appendBodyToJoint(knee, pin.Inertia(0.15, np.array([0, 0, -0.125]), np.diag([0.0008, 0.0008, 0.00002])),
-                                pin.SE3.Identity())
+        model.appendBodyToJoint(
+            knee, pin.Inertia(0.15, np.array([0, 0, -0.125]), np.diag([0.0008, 0.0008, 0.00002])), pin.SE3.Identity()
+        )
     return model
 
 
@@ -47,8 +51,9 @@ def test_the_parsed_quadruped_has_the_hand_built_mass_matrix_and_gravity():
         np.testing.assert_allclose(pin.crba(parsed, pd, q), pin.crba(reference, rd, q), atol=1e-14)
         g = np.array([0, 0, -9.81, 0, 0, 0])
         reference.gravity = pin.Motion(g)
-        np.testing.assert_allclose(pin.computeGeneralizedGravity(parsed, pd, q),
-                                   pin.computeGeneralizedGravity(reference, rd, q), atol=1e-12)
+        np.testing.assert_allclose(
+            pin.computeGeneralizedGravity(parsed, pd, q), pin.computeGeneralizedGravity(reference, rd, q), atol=1e-12
+        )
 
 
 def test_the_urdf_robots_field_is_the_mass_matrix_solve_of_the_parsed_model():
@@ -98,13 +103,17 @@ def test_the_scene_declares_contacts_and_stops_with_a_file_relative_to_it():
 
 def test_bad_urdfs_and_tables_are_named(tmp_path):
     continuous = tmp_path / "wheel.urdf"
-    continuous.write_text(QUADRUPED.read_text().replace('name="hind_knee" type="revolute"',
-                                                        'name="hind_knee" type="continuous"'))
+    continuous.write_text(
+        QUADRUPED.read_text().replace('name="hind_knee" type="revolute"', 'name="hind_knee" type="continuous"')
+    )
     with pytest.raises(ModelError, match=r"joint 'hind_knee'.*nq = 2, nv = 1"):
         urdf.load_model(continuous)
     tilted = tmp_path / "tilted.urdf"
-    tilted.write_text(QUADRUPED.read_text().replace('<axis xyz="0 1 0"/>\n    <limit lower="0.0"',
-                                                    '<axis xyz="1 0 0"/>\n    <limit lower="0.0"'))
+    tilted.write_text(
+        QUADRUPED.read_text().replace(
+            '<axis xyz="0 1 0"/>\n    <limit lower="0.0"', '<axis xyz="1 0 0"/>\n    <limit lower="0.0"'
+        )
+    )
     with pytest.raises(ModelError, match=r"joint 'hind_knee'.*does not move in the \(x, z\) plane"):
         urdf.load_model(tilted)
     with pytest.raises(ModelError, match="could not read the URDF"):
@@ -114,8 +123,7 @@ def test_bad_urdfs_and_tables_are_named(tmp_path):
     with pytest.raises(SceneError, match=r"stops\[0\].position: expected a float"):
         urdf.make({"file": str(QUADRUPED), "stops": [{"name": "s", "joint": "hind_knee", "position": "high"}]})
     scene = tmp_path / "robot.toml"
-    text = urdf.bundled("quadruped_stand.toml").read_text().replace('file = "quadruped.urdf"',
-                                                                   'file = "nowhere.urdf"')
+    text = urdf.bundled("quadruped_stand.toml").read_text().replace('file = "quadruped.urdf"', 'file = "nowhere.urdf"')
     scene.write_text(text)
     with pytest.raises(SceneError, match=r"robot.parameters.file: no such file 'nowhere.urdf'"):
         load_scene(str(scene))

@@ -124,11 +124,16 @@ def test_reference_energy_balance_over_flights(ref1):
     # dE/dt = u xd - 2 a m xd^2 between impacts; E drops by (1 - c^2) m v^2 / 2 at each impact.
     E = EX1
     times = ref1.impact_times(30.0)
-    energy = lambda s: 0.5 * E["mass"] * (s[1] ** 2 + E["omega"] ** 2 * s[0] ** 2)  # noqa: E731
-    power = lambda t: (
-        E["amplitude"] * math.cos(E["frequency"] * t) * ref1.velocity(t)  # noqa: E731
-        - 2 * E["a"] * E["mass"] * ref1.velocity(t) ** 2
-    )
+
+    def energy(s):
+        return 0.5 * E["mass"] * (s[1] ** 2 + E["omega"] ** 2 * s[0] ** 2)
+
+    def power(t):
+        return (
+            E["amplitude"] * math.cos(E["frequency"] * t) * ref1.velocity(t)
+            - 2 * E["a"] * E["mass"] * ref1.velocity(t) ** 2
+        )
+
     for t1, t2 in itertools.pairwise(times):
         work, _ = quad(power, t1, t2, epsabs=1e-11, epsrel=1e-11, limit=200)
         before = ref1.state(t2 - 1e-12 * (t2 - t1))
