@@ -39,6 +39,7 @@ scenes (``legsim.scenarios``, the repository's ``scenarios/`` folder).
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import math
 import os
@@ -157,9 +158,11 @@ class Scene:
 
     @property
     def control(self) -> Any:
-        """What the run is controlled by: the ``[controller]`` section's controller, else the
-        model's own control (None without either)."""
-        return self.controller if self.controller is not None else self.model.control
+        """What a run is controlled by: a fresh copy of the ``[controller]`` section's controller
+        (a controller keeps state across transitions, so every run starts from the one the
+        scene made, never from where an earlier run left it), else the model's own control
+        (None without either)."""
+        return copy.deepcopy(self.controller) if self.controller is not None else self.model.control
 
     @property
     def state_names(self) -> tuple[str, ...]:
