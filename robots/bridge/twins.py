@@ -362,7 +362,11 @@ def bridge_resets(x, p, e):
     n_guards = int(p[P_NGUARD])
     g = int(p[P_GUARD]) + GUARD_SIZE * (e % n_guards)
     kind = int(p[g + G_KIND])
-    if e >= n_guards:  # the continuation of a bounce: its impact, plastic, into the resting mode
+    continued = e >= n_guards
+    if continued or kind in (K_GAP, K_PLASTIC):
+        # An impact; the continuation of a bounce is the same impact made plastic (its
+        # restitution row of zeros), into the resting mode.
+        coefficients = G_ROW if continued else G_COEFF
         out = x.copy()
         count(p, C_IMPACTS)
         lsn_impact(
@@ -371,20 +375,7 @@ def bridge_resets(x, p, e):
             _ptr(x, n),
             np.int64(p[g + G_NIMPACT]),
             _ptr(p, int(p[g + G_IMPACT])),
-            _ptr(p, int(p[g + G_ROW])),
-            _ptr(out, n),
-        )
-        return out
-    if kind in (K_GAP, K_PLASTIC):
-        out = x.copy()
-        count(p, C_IMPACTS)
-        lsn_impact(
-            np.int64(p[P_HANDLE]),
-            x.ctypes.data,
-            _ptr(x, n),
-            np.int64(p[g + G_NIMPACT]),
-            _ptr(p, int(p[g + G_IMPACT])),
-            _ptr(p, int(p[g + G_COEFF])),
+            _ptr(p, int(p[g + coefficients])),
             _ptr(out, n),
         )
         return out
