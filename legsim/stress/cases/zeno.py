@@ -486,19 +486,7 @@ def _oscillator_ex2(result: CaseResult, quick: bool, continued: bool) -> None:
     T = 4.0 * math.pi
     model = oscillator_ex2()
     ref = model.reference
-    start = time.perf_counter()
-    ex = simulate(
-        model.system,
-        [EX2["x_max"], 0.0],
-        "free",
-        T,
-        h,
-        eps,
-        control=model.control,
-        max_transitions=10**6,
-        continuation=continued,
-    )
-    cost = time.perf_counter() - start
+    ex, cost = _timed_ex2(model, T, h, eps, continued)
     result.main_run(ex)
     sequence = oscillator_stick_sequence(ref, T, h + eps)
     bound, why = (
@@ -532,6 +520,24 @@ def _oscillator_ex2(result: CaseResult, quick: bool, continued: bool) -> None:
         errs.append(rho_hat(run, ref))
     result.add(check_order("rho_hat -> 0", [lv[1] for lv in levels], errs, 0.5, 1.2, "eps (h = 1e-2)"))
     result.outcome = f"{ex.status}; {len(ex.transitions)} transitions, rho_hat = {rho:.2g} m, {cost:.2g} s"
+
+
+def _timed_ex2(model: Model, T: float, h: float, eps: float, continued: bool) -> tuple[Execution, float]:
+    """Example 2 from rest on the stop to T (s), with or without the continuation, and its wall
+    time (s)."""
+    start = time.perf_counter()
+    ex = simulate(
+        model.system,
+        [EX2["x_max"], 0.0],
+        "free",
+        T,
+        h,
+        eps,
+        control=model.control,
+        max_transitions=10**6,
+        continuation=continued,
+    )
+    return ex, time.perf_counter() - start
 
 
 def _plain_bound(ex: Execution, T: float, h: float, eps: float) -> tuple[float, str]:
@@ -631,19 +637,7 @@ def _compare_with_plain(
 ) -> None:
     """The continued run is as accurate as the plain one (rho_hat at most twice) with at most a
     tenth of its transitions; adds that check and the plain run's numbers."""
-    start = time.perf_counter()
-    plain = simulate(
-        model.system,
-        [EX2["x_max"], 0.0],
-        "free",
-        T,
-        h,
-        eps,
-        control=model.control,
-        max_transitions=10**6,
-        continuation=False,
-    )
-    plain_cost = time.perf_counter() - start
+    plain, plain_cost = _timed_ex2(model, T, h, eps, False)
     rho_plain = rho_hat(plain, model.reference)
     ok = rho <= 2.0 * rho_plain and 10 * len(ex.transitions) <= len(plain.transitions)
     result.add(
