@@ -39,8 +39,8 @@ scenes (``legsim.scenarios``, the repository's ``scenarios/`` folder).
 
 from __future__ import annotations
 
-import copy
 import dataclasses
+import functools
 import math
 import os
 from collections.abc import Callable, Mapping, Sequence
@@ -155,14 +155,16 @@ class Scene:
     data: dict[str, Any] = field(repr=False)
     overrides: list[str] = field(default_factory=list)
     controller: Any = None
+    #: Makes the ``[controller]`` section's controller anew (from its registry entry, as
+    #: ``controller`` was made: attached to the model where the controller attaches itself).
+    make_controller: Callable[[], Any] | None = field(default=None, repr=False, compare=False)
 
     @property
     def control(self) -> Any:
-        """What a run is controlled by: a fresh copy of the ``[controller]`` section's controller
-        (a controller keeps state across transitions, so every run starts from the one the
-        scene made, never from where an earlier run left it), else the model's own control
-        (None without either)."""
-        return copy.deepcopy(self.controller) if self.controller is not None else self.model.control
+        """What a run is controlled by: a newly made ``[controller]`` (a controller keeps state
+        across transitions, so every run starts from the one the section describes, never from
+        where an earlier run left it), else the model's own control (None without either)."""
+        return self.make_controller() if self.make_controller is not None else self.model.control
 
     @property
     def state_names(self) -> tuple[str, ...]:
@@ -360,7 +362,8 @@ def _validate(path: Path, data: dict[str, Any], overrides: list[str]) -> Scene:
     if not isinstance(model, Model):
         raise ModelError(f"{where}: builder '{robot}' returned {type(model).__name__}, expected legsim.builders.Model")
 
-    controller = scene_controller(path, table_at(path, data, "controller"), model)
+    controller_table = table_at(path, data, "controller")
+    controller = scene_controller(path, controller_table, model)
     initial_mode, initial_state = _initial(
         path, model, table_at(path, data, "initial"), integrator["eps"], integrator["t0"], controller
     )
@@ -382,6 +385,9 @@ def _validate(path: Path, data: dict[str, Any], overrides: list[str]) -> Scene:
         data=data,
         overrides=overrides,
         controller=controller,
+        make_controller=None
+        if controller is None
+        else functools.partial(scene_controller, path, controller_table, model),
     )
 
 
