@@ -29,8 +29,8 @@ PAPER = [name for name in NAMES if name.endswith("_paper")]
 #: path at milliseconds per step).
 SLOW = {"double_pendulum_pd", "oscillator_ex1", "two_tanks", "slip_raibert", "quadruped_stand", "quadruped_pronk"}
 #: Scenes whose final state the method cannot vouch for to the bound, and why; their description
-#: says so. The quadruped's 184 transitions in 20 s change with the refinement (the refined run
-#: takes another transition sequence), so its final state after 20 s is estimated 9e-3 off.
+#: says so. The quadruped's 139 transitions in 20 s change with the refinement (the refined run
+#: takes another transition sequence), so its final state after 20 s is estimated 3e-2 off.
 UNABLE = {"quadruped_pronk": "the refined run's transitions differ"}
 DEFAULTS = [
     pytest.param(name, marks=pytest.mark.slow) if name in SLOW else name
