@@ -13,6 +13,14 @@ call, where the Python loop counts one per guard it calls (the same count for on
 
 from .generate import cache_dir, get_kernel, plan_for
 from .twin import CompiledMode, without_compiled
-from .visit import run_visit_compiled
+from .visit import enter_compiled, run_visit_compiled
 
-__all__ = ["CompiledMode", "cache_dir", "get_kernel", "plan_for", "run_visit_compiled", "without_compiled"]
+__all__ = [
+    "CompiledMode",
+    "cache_dir",
+    "enter_compiled",
+    "get_kernel",
+    "plan_for",
+    "run_visit_compiled",
+    "without_compiled",
+]

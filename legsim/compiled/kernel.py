@@ -49,6 +49,8 @@ from ..relaxed.rules import (
 )
 from .transit import (  # noqa: F401
     CONTINUE,
+    CROSS,
+    I_ENTER,
     I_MODE,
     I_XLEN,
     MI_DIM,
@@ -297,7 +299,17 @@ def _k_step_loop(
     iv[I_STEPS] = iv[I_HALVINGS] = iv[I_REJECTIONS] = iv[I_FIELD] = iv[I_GUARD] = iv[I_RECORDS] = 0
     cnt[N_FIELD] = cnt[N_GUARD] = cnt[N_RESET] = 0
     s_stages = c.shape[0]
-    while True:
+    code = CONTINUE
+    if iv[I_ENTER] != CROSS:  # Python hands over the entry of mode iv[I_MODE] from (t, xw)
+        t = fs[F_T]
+        code, m, t, size, n_rec, h_prop = transit(
+            P, mi, ti, hist, xw, Kw, workw, qw, raw, T, X, DX, iv, cf, ci, cnt, r_i, r_f, r_q, r_after,
+            iv[I_MODE], -1, t, t, 0.0, t, iv[I_SIZE], 0, fs[F_HPROP], iv[I_ENTER],
+        )  # fmt: skip
+        iv[I_ENTER] = CROSS
+        fs[F_T], fs[F_HPROP] = t, h_prop
+        iv[I_SIZE], iv[I_RECORDS], iv[I_MODE] = size, n_rec, m
+    while code == CONTINUE:
         fid, _n, n_guards, p, x, K, XS, x_new, k1, work, q, dq = _k_views(
             P, mi, iv[I_MODE], s_stages, xw, Kw, XSw, x_neww, k1w, workw, qw, dqw
         )
@@ -343,8 +355,6 @@ def _k_step_loop(
             r_q,
             r_after,
         )
-        if code != CONTINUE:
-            break
     iv[I_FIELD] += cnt[N_FIELD]
     iv[I_GUARD] += cnt[N_GUARD]
     iv[I_RESETS] = cnt[N_RESET]
@@ -576,6 +586,7 @@ def _k_mode_loop(
             size,
             n_rec,
             h_prop,
+            CROSS,
         )
         break  # CONTINUE: the caller goes on in mode m
     fs[F_T], fs[F_HPROP] = t, h_prop

@@ -11,11 +11,14 @@ untouched, so that the Python loop takes it as it always does:
 * a crossing past the transition budget or whose strip outlasts the run;
 * a reset or a continuation image that is not finite, a continuation into a mode outside the
   table, or one whose target's guards are nan there (the Python model decides);
-* the entry of a mode outside the table (first visits, modes without twins), or of a state
-  the entry's special cases handle (a non-finite field or guard, a state past a strip).
+* the entry of a mode outside the table (modes without twins) or not yet ready (its twin not
+  yet checked against the Python callables, which Python does at its first entry before it
+  hands the entry back: ``ENTER``), or of a state the entry's special cases handle (a
+  non-finite field or guard, a state past a strip).
 
 The mode table: ``mi`` (one row per mode: function set, dimension, guard count, span of its
-parameters in ``P``, first transition slot, whether its twin has resets), ``ti`` (one row per
+parameters in ``P``, first transition slot, whether its twin has resets, whether it is
+ready), ``ti`` (one row per
 transition slot: target, continuation target, whether the twin computes the continuation's
 reset, joint group, self-transition, Zeno history row), ``hist`` (per history row: whether the
 transition was crossed since the run began or its last continuation, when that crossing left
@@ -45,9 +48,12 @@ CONTINUE = -1
 TRANSITION = 1
 NEXT = 7
 
-# Positions in iv of the current mode and the length of the state handed back (the kernel's
-# others: ``kernel``).
-I_MODE, I_XLEN = 10, 11
+# Positions in iv of the current mode, the length of the state handed back, and the entry that
+# Python hands to the kernel (``CROSS``: none) (the kernel's others: ``kernel``).
+I_MODE, I_XLEN, I_ENTER = 10, 11, 12
+# What ``transit`` starts with: the crossing of a strip, or the entry of mode m from (t, xw)
+# that Python hands over, continuing the flow of the mode before or starting a new one.
+CROSS, ENTER, ENTER_NEW_FLOW = 0, 1, 2
 # cf: t_final, h_max, eps, rtol, atol, step exponent, Zeno window.
 CF_T_FINAL, CF_H_MAX, CF_EPS, CF_RTOL, CF_ATOL, CF_EXPONENT, CF_WINDOW = range(7)
 # ci: adaptive, aim, max_halvings, max_steps, transition budget, method id, continuation, joint.
@@ -55,7 +61,7 @@ CI_ADAPTIVE, CI_AIM, CI_MAX_HALVINGS, CI_MAX_STEPS, CI_BUDGET, CI_METHOD, CI_CON
 # cnt: evaluations made by transitions.
 N_FIELD, N_GUARD, N_RESET = range(3)
 # Columns of mi, ti, hist and of the records' integers.
-MI_FID, MI_DIM, MI_NG, MI_P0, MI_P1, MI_SLOT, MI_RESETS = range(7)
+MI_FID, MI_DIM, MI_NG, MI_P0, MI_P1, MI_SLOT, MI_RESETS, MI_READY = range(8)
 TI_TARGET, TI_CONT, TI_CONT_OK, TI_GROUP, TI_SELF, TI_HIST = range(6)
 #: The joint group of a transition whose twin declares none (``CompiledMode.joint_groups``).
 UNKNOWN_GROUP = -2
@@ -294,60 +300,68 @@ def transit(
     size,
     n_rec,
     h_prop,
+    start,
 ):
     """relaxed.strip.cross of transition e of mode m, located at (tc, q = qw[:n]) by a step
     from t that landed at t_land at depth tau; then relaxed.entry.enter_mode of its target, and
     of every target whose strip an entered state lies in (crossed at once, q = the state), until
-    a mode's flow starts. Returns (code, mode, t, buffer size, records, h_prop): CONTINUE (the
-    step loop goes on from (t, xw, Kw)), TRANSITION (Python crosses this first crossing; nothing
-    was done), or NEXT (Python enters mode `mode` at t from xw[:iv[I_XLEN]]; the crossings
-    before are recorded)."""
+    a mode's flow starts. With ``start`` ENTER or ENTER_NEW_FLOW it begins with the entry of
+    mode m from (t, xw) instead (Python took the crossing before, or it is the run's start).
+    Returns (code, mode, t, buffer size, records, h_prop): CONTINUE (the step loop goes on from
+    (t, xw, Kw)), TRANSITION (Python crosses this first crossing; nothing was done), or NEXT
+    (Python enters mode `mode` at t from xw[:iv[I_XLEN]]; the crossings before are recorded)."""
     t_final, eps = cf[CF_T_FINAL], cf[CF_EPS]
     limit = min(ci[CI_BUDGET], r_i.shape[0])
-    first = True
+    first = start == CROSS
+    entering = not first
+    # Where the flow before came from: a new flow restarts the step size (relaxed.entry).
+    source = NO_MODE if start == ENTER_NEW_FLOW else m
     while True:
-        n = mi[m, MI_DIM]
-        exit_time = strip_exit_time(t_land, eps, tau)
-        handover = TRANSITION if first else NEXT
-        if n_rec >= limit or exit_time >= t_final or mi[m, MI_RESETS] == 0 or size >= T.shape[0]:
-            return handover, m, t, size, n_rec, h_prop
-        target, continued, length, resets, guards = _k_decide(P, mi, ti, hist, qw[:n], raw, cf, ci, m, e, tc)
-        if target == NO_MODE:
-            return handover, m, t, size, n_rec, h_prop
-        if not first:  # the state entered in the strip: its own one-point segment, its evaluations
-            size = _k_store(T, X, DX, size, tc, xw[:n], Kw[:n])
-            cnt[N_FIELD] += 1
-            cnt[N_GUARD] += mi[m, MI_NG]
-        _k_record(
-            r_i,
-            r_f,
-            r_q,
-            r_after,
-            n_rec,
-            m,
-            e,
-            target,
-            continued,
-            size,
-            tc,
-            t_land,
-            exit_time,
-            tau,
-            qw[:n],
-            raw,
-            length,
-        )
-        _k_remember(hist, ti[mi[m, MI_SLOT] + e, TI_HIST], continued, tc, exit_time)
-        cnt[N_GUARD] += guards
-        cnt[N_RESET] += resets
-        n_rec += 1
-        t = exit_time
-        first = False
-        source = m
-        m = target
-        _k_copy(raw[:length], xw)
-        iv[I_XLEN] = length
-        if m >= mi.shape[0]:
+        if entering:  # the entry Python handed over: no crossing before it here
+            entering = False
+        else:
+            n = mi[m, MI_DIM]
+            exit_time = strip_exit_time(t_land, eps, tau)
+            handover = TRANSITION if first else NEXT
+            if n_rec >= limit or exit_time >= t_final or mi[m, MI_RESETS] == 0 or size >= T.shape[0]:
+                return handover, m, t, size, n_rec, h_prop
+            target, continued, length, resets, guards = _k_decide(P, mi, ti, hist, qw[:n], raw, cf, ci, m, e, tc)
+            if target == NO_MODE:
+                return handover, m, t, size, n_rec, h_prop
+            if not first:  # the state entered in the strip: its own one-point segment, its evaluations
+                size = _k_store(T, X, DX, size, tc, xw[:n], Kw[:n])
+                cnt[N_FIELD] += 1
+                cnt[N_GUARD] += mi[m, MI_NG]
+            _k_record(
+                r_i,
+                r_f,
+                r_q,
+                r_after,
+                n_rec,
+                m,
+                e,
+                target,
+                continued,
+                size,
+                tc,
+                t_land,
+                exit_time,
+                tau,
+                qw[:n],
+                raw,
+                length,
+            )
+            _k_remember(hist, ti[mi[m, MI_SLOT] + e, TI_HIST], continued, tc, exit_time)
+            cnt[N_GUARD] += guards
+            cnt[N_RESET] += resets
+            n_rec += 1
+            t = exit_time
+            first = False
+            source = m
+            m = target
+            _k_copy(raw[:length], xw)
+            iv[I_XLEN] = length
+        if m >= mi.shape[0] or mi[m, MI_READY] == 0:
             return NEXT, m, t, size, n_rec, h_prop
         code, e, tau = _k_entry(P, mi, m, t, xw, Kw, cf)
         if code == NEXT:

@@ -3,9 +3,13 @@ of the system's modes it may enter (``Table``), turn the transitions it crossed 
 pieces in batches, and its return code into the same outcome the Python loop reaches
 (``relaxed.integrate.run_visit``), with the same messages.
 
-A mode enters the table once Python has entered it (and checked its twin and field there);
-from then on the kernel crosses the strips into it, resets and enters it itself. The kernel
-keeps the points of every mode in one buffer as wide as the table's widest state."""
+The table of a mode lists the modes the kernel can run that its transitions and continuations
+reach. The kernel enters a mode itself once the mode is *ready*: its field's output and its twin
+checked against the Python callables at its first entry in the process, which Python makes
+before it hands that entry to the kernel (``enter_compiled``). Every entry of a ready mode is
+thus the kernel's arithmetic, so a run gives the same result whether it is the first of its
+system in the process or not. The kernel keeps the points of every mode in one buffer as wide
+as the table's widest state."""
 
 from __future__ import annotations
 
@@ -15,10 +19,11 @@ from typing import Any
 
 import numpy as np
 
+from ..errors import LegsimError, ModelBreakdown
 from ..execution import Segment, SegmentBuffer, Status, Strip, TransitionRecord
-from ..hybrid import ModeData
+from ..hybrid import ModeData, check_field_output
 from ..relaxed import messages
-from ..relaxed.integrate import out_of_steps
+from ..relaxed.integrate import out_of_steps, runs_compiled
 from ..relaxed.outcomes import Ended, Entered, Outcome
 from ..relaxed.run import ModeVisit, Run
 from ..relaxed.strip import cross
@@ -32,26 +37,30 @@ RECORD_CHUNK = 4096
 #: Steps per kernel call when a progress callback wants reports (about 1 ms of work).
 PROGRESS_CHUNK = 8192
 _NO_LIMIT = 1 << 62
-#: The modes (a system's ModeData, by id) whose twin was checked against the Python callables
-#: at its first visit in this process: the check costs as much as a short run, and its answer
-#: does not change from one run to the next.
-_VERIFIED: weakref.WeakValueDictionary[int, ModeData] = weakref.WeakValueDictionary()
+#: The ready modes (a system's ModeData, by id): their field's output and twin were checked
+#: against the Python callables at their first entry in this process. The check costs as much
+#: as a short run, and its answer does not change from one run to the next.
+_READY: weakref.WeakValueDictionary[int, ModeData] = weakref.WeakValueDictionary()
 
 
-#: system -> (its table's modes -> Table), kept while the system lives.
-_TABLES: weakref.WeakKeyDictionary[Any, dict[tuple[str, ...], Table]] = weakref.WeakKeyDictionary()
+#: system -> (a mode -> the table of the modes it reaches), kept while the system lives.
+_TABLES: weakref.WeakKeyDictionary[Any, dict[str, Table]] = weakref.WeakKeyDictionary()
+
+
+def is_ready(data: ModeData) -> bool:
+    """Whether the mode's field and twin were checked in this process (``_READY``)."""
+    return _READY.get(id(data)) is data
 
 
 class Table:
-    """The modes the kernel may run and enter: those whose twin was checked at their first
-    visit, entered once in Python (so their field's output was checked), whose guards take x
-    alone. ``names`` lists them first (indices 0 .. len(mi) - 1), then the other modes
-    their transitions lead to (indices past the table: the kernel hands their entry to Python).
-    Arrays as ``transit`` describes them; ``keys`` the (mode, transition) of each history row."""
+    """The modes the kernel may run and enter (``reachable``), the first one's visit first
+    (indices 0 .. len(mi) - 1), then the other modes their transitions lead to (indices past
+    the table: the kernel hands their entry to Python). Arrays as ``transit`` describes them;
+    ``keys`` the (mode, transition) of each history row."""
 
-    def __init__(self, run: Run, modes: list[str]) -> None:
-        system = run.system
+    def __init__(self, system: Any, modes: list[str]) -> None:
         self.names = list(modes)
+        self.datas = [system.mode_data(name) for name in modes]
         index = {name: i for i, name in enumerate(self.names)}
 
         def number(name: str) -> int:
@@ -68,8 +77,7 @@ class Table:
         self.keys: list[tuple[str, str]] = []
         self.twins: list[tuple[CompiledMode, int]] = []
         offset = 0
-        for name in modes:
-            data = system.mode_data(name)
+        for name, data in zip(modes, self.datas, strict=True):
             twin = data.mode.compiled
             functions = (twin.field, twin.guards, no_resets if twin.resets is None else twin.resets)
             if functions not in sets:
@@ -83,6 +91,7 @@ class Table:
                     offset + twin.params.size,
                     len(ti),
                     twin.resets is not None,
+                    False,
                 )
             )
             params.append(twin.params)
@@ -103,17 +112,19 @@ class Table:
                 self.keys.append((name, tr.name))
         self.sets = tuple(sets)
         self.P = np.concatenate(params) if params else np.zeros(0)
-        self.mi = np.array(mi, dtype=np.int64).reshape(-1, 7)
+        self.mi = np.array(mi, dtype=np.int64).reshape(-1, 8)
         self.ti = np.array(ti, dtype=np.int64).reshape(-1, 6)
         self.hist = np.zeros((max(1, len(self.keys)), 3))
         #: The widest state of the table's modes: the kernel's buffers hold any of them.
         self.width = int(self.mi[:, 1].max()) if len(mi) else 0
 
     def load(self, run: Run) -> None:
-        """The twins' parameters into P, and the Zeno histories of the table's transitions from
-        the run's ZenoWatch."""
+        """The twins' parameters into P, which modes are ready, and the Zeno histories of the
+        table's transitions from the run's ZenoWatch."""
         for twin, offset in self.twins:
             self.P[offset : offset + twin.params.size] = twin.params
+        for i, data in enumerate(self.datas):
+            self.mi[i, kt.MI_READY] = is_ready(data)
         for row, (mode, name) in enumerate(self.keys):
             history = run.zeno.history(mode, name)
             self.hist[row] = (0.0, 0.0, 0.0) if history is None else (1.0, history[0], history[1])
@@ -134,7 +145,7 @@ class Workspace:
         self.q, self.dq, self.raw = np.zeros(width), np.zeros(width), np.zeros(width)
         self.gv = np.zeros(max(1, n_guards))
         self.fs = np.zeros(8)
-        self.iv = np.zeros(12, dtype=np.int64)
+        self.iv = np.zeros(13, dtype=np.int64)
         self.cf = np.zeros(7)
         self.ci = np.zeros(8, dtype=np.int64)
         self.cnt = np.zeros(3, dtype=np.int64)
@@ -145,26 +156,61 @@ class Workspace:
 
 
 def run_visit_compiled(run: Run, visit: ModeVisit) -> Outcome:
-    """The step loop from a mode visit, compiled: through the transitions the kernel takes
-    (``transit``), possibly into other modes of the table, until the run ends or Python must
-    take a crossing or an entry."""
-    checked = run.scratch.setdefault("compiled_checked", set())
-    if visit.name not in checked:
-        if _VERIFIED.get(id(visit.data)) is not visit.data:
-            check_twin(run.system.name, visit.data, visit.t, visit.x, visit.k0)
-            _VERIFIED[id(visit.data)] = visit.data
-        checked.add(visit.name)
-    table = _table(run, visit)
+    """The step loop from a mode visit Python entered, compiled: through the transitions the
+    kernel takes (``transit``), possibly into other modes of the table, until the run ends or
+    Python must take a crossing or an entry."""
+    if not is_ready(visit.data):
+        check_twin(run.system.name, visit.data, visit.t, visit.x, visit.k0)
+        _READY[id(visit.data)] = visit.data
+    return _drive(run, visit, kt.CROSS)
+
+
+def enter_compiled(run: Run, mode: str, x: np.ndarray, t: float) -> Outcome:
+    """The entry of ``mode`` at (t, x) taken by the kernel (``relaxed.entry.enter_mode``'s
+    decisions, on the twin), and the step loop from there; Python first checks the mode at its
+    first entry in the process. An entry Python must take (a field or guard that is not finite
+    there) comes back as ``Entered(..., python_entry=True)``."""
+    data = run.system.mode_data(mode)
+    run.state_names.setdefault(mode, data.mode.names)
+    run.state_units.setdefault(mode, data.mode.units)
+    if not is_ready(data) and not _check_first_entry(run, data, t, x):
+        return Entered(mode, x, t, python_entry=True)
+    visit = ModeVisit(data, run.guard_fns(data), t, x)
+    # As relaxed.entry.enter_mode: a new flow restarts the step size, not a self-transition.
+    new_flow = run.step_size.adaptive and bool(run.transitions) and run.transitions[-1].source != mode
+    return _drive(run, visit, kt.ENTER_NEW_FLOW if new_flow else kt.ENTER)
+
+
+def _check_first_entry(run: Run, data: ModeData, t: float, x: np.ndarray) -> bool:
+    """Check the mode's field output and twin at its first entry in the process, where the
+    Python callables are finite (else False: Python's entry says what is not)."""
+    k0 = check_field_output(run.system.name, data.name, data.mode, t, x, None)
+    try:
+        guards = [float(guard(x)) for guard in data.guards]
+    except ModelBreakdown:
+        return False
+    if not (np.all(np.isfinite(k0)) and all(map(np.isfinite, guards))):
+        return False
+    check_twin(run.system.name, data, t, x, k0)
+    _READY[id(data)] = data
+    return True
+
+
+def _drive(run: Run, visit: ModeVisit, start: int) -> Outcome:
+    """Run the kernel from the visit: its steps from (visit.t, visit.x, visit.k0) with ``start``
+    CROSS, or first the entry of its mode from (visit.t, visit.x) (ENTER, ENTER_NEW_FLOW)."""
+    table = _table(run, visit.name)
     kernel = get_kernel(table.sets)
     plan = plan_for(run.tableau)
     ws = _workspace(run, table)
     visit.buf = _with_width(visit.buf, table.width)
     n = visit.data.mode.dim
     ws.x[:n] = visit.x
-    ws.K[:n] = visit.k0
+    if start == kt.CROSS:
+        ws.K[:n] = visit.k0
     _settings(run, ws, plan)
     ws.fs[k.F_T], ws.fs[k.F_HPROP] = visit.t, run.step_size.h_prop
-    ws.iv[kt.I_MODE] = 0
+    ws.iv[kt.I_MODE], ws.iv[kt.I_ENTER], ws.iv[kt.I_XLEN] = 0, start, n
     while True:
         ws.ci[kt.CI_MAX_STEPS] = min(PROGRESS_CHUNK if run.has_progress else _NO_LIMIT, run.max_steps - run.steps)
         ws.ci[kt.CI_BUDGET] = max(0, run.max_transitions - len(run.transitions))
@@ -225,10 +271,12 @@ def run_visit_compiled(run: Run, visit: ModeVisit) -> Outcome:
         else:
             break
     if code == kt.NEXT:
-        # The kernel reached a mode whose entry Python takes (outside the table, or a state
-        # for the entry's special cases): the segments before it are committed with their
-        # transitions, nothing of the next one is stored yet.
-        return Entered(table.names[int(ws.iv[kt.I_MODE])], ws.x[: int(ws.iv[kt.I_XLEN])].copy(), visit.t)
+        # The kernel reached a mode it does not enter (outside the table, or not ready yet), or
+        # a state for the entry's special cases, which Python's entry takes: the segments before
+        # it are committed with their transitions, nothing of the next one is stored yet.
+        m = int(ws.iv[kt.I_MODE])
+        special = m < len(table.datas) and is_ready(table.datas[m])
+        return Entered(table.names[m], ws.x[: int(ws.iv[kt.I_XLEN])].copy(), visit.t, python_entry=special)
     visit.x = ws.x[: visit.data.mode.dim].copy()
     visit.buf = _with_width(visit.buf, visit.data.mode.dim)
     if code == k.GUARD_NAN and visit.data.mode.compiled.fallback:
@@ -246,22 +294,34 @@ def _python_rest(run: Run, visit: ModeVisit, ws: Workspace) -> Outcome:
     return run_visit(run, visit, python=True)
 
 
-def _table(run: Run, visit: ModeVisit) -> Table:
-    """The table over the modes eligible now, the visit's first (rebuilt as more modes become
-    eligible)."""
-    system = run.system
-    checked = run.scratch["compiled_checked"]
-    # A bridge robot builds its modes as they are first reached: the table lists those known.
-    modes = [name for name in list(system.modes) if name in checked and name in run.checked_modes]
-    modes.remove(visit.name)
-    modes.insert(0, visit.name)
-    # A table depends on the system and the modes listed only: made once, used by every run.
-    tables = _TABLES.setdefault(system, {})
-    key = tuple(modes)
-    table = tables.get(key)
+def _table(run: Run, mode: str) -> Table:
+    """The table of the modes ``mode`` reaches (made once per system and mode, used by every run)."""
+    tables = _TABLES.setdefault(run.system, {})
+    table = tables.get(mode)
     if table is None:
-        table = tables[key] = Table(run, modes)
+        table = tables[mode] = Table(run.system, reachable(run, mode))
     return table
+
+
+def reachable(run: Run, mode: str) -> list[str]:
+    """The modes the kernel can run (``runs_compiled``) that ``mode``'s transitions and their
+    continuations reach through such modes, ``mode`` first. A lazily built system builds them
+    here; a mode whose building fails is left to Python, which says so if a run reaches it."""
+    system = run.system
+    order, seen = [mode], {mode}
+    for name in order:
+        data = system.mode_data(name)
+        nexts = [*data.targets, *(tr.continuation.target for tr in data.transitions if tr.continuation)]
+        for target in nexts:
+            if target in seen:
+                continue
+            seen.add(target)
+            try:
+                if runs_compiled(run, system.mode_data(target)):
+                    order.append(target)
+            except LegsimError:
+                continue
+    return order
 
 
 def _workspace(run: Run, table: Table) -> Workspace:
@@ -381,6 +441,11 @@ def _commit_records(run: Run, visit: ModeVisit, table: Table, ws: Workspace, n_r
     finally:
         if gc_was_enabled:
             gc.enable()
+    for target in set(ws.r_i[:n_rec, kt.R_TARGET].tolist()):  # modes the kernel entered
+        if target < len(table.datas):
+            data = table.datas[target]
+            run.state_names.setdefault(data.name, data.mode.names)
+            run.state_units.setdefault(data.name, data.mode.units)
     mode = table.names[int(ws.iv[kt.I_MODE])]
     if mode != visit.name:
         data = run.system.mode_data(mode)

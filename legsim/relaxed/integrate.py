@@ -29,6 +29,7 @@ import numpy as np
 
 from ..errors import ContractError, LegsimError, ModelBreakdown, ModelError
 from ..execution import Execution, Status
+from ..hybrid import ModeData
 from ..methods.stepper import field_value
 from . import messages
 from .entry import enter_mode
@@ -44,6 +45,11 @@ def integrate(run: Run, mode: str, x: np.ndarray, t: float) -> Execution:
     while isinstance(outcome, Entered):
         mode, x, t = outcome.mode, outcome.x, outcome.t
         try:
+            if not outcome.python_entry and runs_compiled(run, run.system.mode_data(mode)):
+                from ..compiled import enter_compiled  # numba is imported only by systems that use it
+
+                outcome = enter_compiled(run, mode, x, t)
+                continue
             visit = enter_mode(run, mode, x, t)
             outcome = visit if not isinstance(visit, ModeVisit) else run_visit(run, visit)
         except ModelBreakdown as exc:  # raised while entering a mode or crossing a strip
@@ -53,16 +59,22 @@ def integrate(run: Run, mode: str, x: np.ndarray, t: float) -> Execution:
     return run.execution(outcome)
 
 
+def runs_compiled(run: Run, data: ModeData) -> bool:
+    """Whether the compiled kernel runs this run's visits of the mode: the mode has a twin whose
+    guards take x alone, and the run has no control and no dense landing (which the kernel does
+    not evaluate). Its entries are then the kernel's too (``compiled.enter_compiled``)."""
+    return (
+        data.mode.compiled is not None
+        and run.control is None
+        and not run.landing.lands_on_extension
+        and all(tr.guard_args == "x" for tr in data.transitions)
+    )
+
+
 def run_visit(run: Run, visit: ModeVisit, *, python: bool = False) -> Outcome:
     """Step through one mode visit until a transition or the end of the run (with ``python``,
     in this loop even when the mode has a compiled twin)."""
-    if (
-        not python
-        and visit.data.mode.compiled is not None
-        and run.control is None
-        and not run.landing.lands_on_extension
-        and all(tr.guard_args == "x" for tr in visit.data.transitions)
-    ):
+    if not python and runs_compiled(run, visit.data):
         from ..compiled import run_visit_compiled  # numba is imported only by systems that use it
 
         return run_visit_compiled(run, visit)

@@ -30,11 +30,15 @@ class Ended:
 
 @dataclass(frozen=True, slots=True)
 class Entered:
-    """A transition was crossed: the run continues in ``mode`` from state ``x`` at time ``t``."""
+    """A transition was crossed: the run continues in ``mode`` from state ``x`` at time ``t``.
+    ``python_entry``: the compiled kernel hands this entry back for Python's ``enter_mode`` to
+    take (a special case of the entry), rather than for the kernel to take once Python has
+    checked the mode."""
 
     mode: str
     x: np.ndarray
     t: float
+    python_entry: bool = False
 
 
 Outcome = Ended | Entered

@@ -123,13 +123,13 @@ def test_long_free_flight_grows_the_buffer_and_matches_the_closed_form():
 
 def test_compiled_path_is_taken_only_without_control(monkeypatch):
     calls = []
-    real = compiled.run_visit_compiled
+    real = compiled.enter_compiled
 
-    def spy(*args):
-        calls.append(args[1].name)
-        return real(*args)
+    def spy(run, mode, x, t):
+        calls.append(mode)
+        return real(run, mode, x, t)
 
-    monkeypatch.setattr(compiled, "run_visit_compiled", spy)
+    monkeypatch.setattr(compiled, "enter_compiled", spy)
     system = make_bouncing_ball()
     simulate(system, [1.0, 0.0], "flight", 0.3, 1e-2, 1e-4)  # before the first impact: one visit
     assert calls == ["flight"]

@@ -120,12 +120,13 @@ def test_heel_strike_matches_pinocchio_impulse_dynamics():
 
 
 def run(monkeypatch, scene, python, overrides=()):
-    """The scene's execution with the twins (python=False) or without, and how many mode visits
-    the kernel ran."""
+    """The scene's execution with the twins (python=False) or without, and how many times the
+    kernel was called from Python (for a mode visit Python entered, or an entry it hands over)."""
     calls = []
-    real = compiled.run_visit_compiled
+    real_visit, real_entry = compiled.run_visit_compiled, compiled.enter_compiled
     with monkeypatch.context() as m:
-        m.setattr(compiled, "run_visit_compiled", lambda *a: calls.append(1) or real(*a))
+        m.setattr(compiled, "run_visit_compiled", lambda *a: calls.append(1) or real_visit(*a))
+        m.setattr(compiled, "enter_compiled", lambda *a: calls.append(1) or real_entry(*a))
         if python:
             m.setattr(twins, "AVAILABLE", False)
         ex = load_scene(scene, list(overrides)).simulate()
@@ -203,10 +204,10 @@ MODE_CHANGES = [
 
 @pytest.mark.parametrize("scene,overrides,joint", MODE_CHANGES)
 def test_mode_changes_are_crossed_in_the_kernel_as_in_python(monkeypatch, scene, overrides, joint):
-    # Each mode's first entry goes through Python (which checks its twin and its field there);
-    # from then on the kernel crosses the run's transitions itself, mode changes and the
-    # continuations into modes already entered included, and returns only for what Python
-    # decides: a joint impact of two rigid contacts (the rod's two ends).
+    # Each mode's first entry in the process returns to Python (which checks its twin and its
+    # field there, then hands the entry back); from then on the kernel crosses the run's
+    # transitions itself, mode changes and Zeno continuations included, and returns only for
+    # what Python decides: a joint impact of two rigid contacts (the rod's two ends).
     fast, n_kernel = run(monkeypatch, scene, False, overrides)
     slow, _ = run(monkeypatch, scene, True, overrides)
     assert fast.status == "finished"
@@ -270,3 +271,29 @@ def test_without_the_native_library_robots_run_in_python_and_say_so_once(tmp_pat
         assert status == "finished" and not any_twin
         reference = load_scene(name, ["integrator.t_final=1.0"]).simulate()  # with the twins, in this process
         close(final, reference.final_state, 1e-9)
+
+
+@pytest.mark.parametrize("scene,overrides,joint", MODE_CHANGES)
+def test_a_later_run_enters_every_mode_in_the_kernel_and_repeats_the_first(monkeypatch, scene, overrides, joint):
+    # The first run of a system returns to Python at each mode's first entry; a second run of
+    # the same system does not (its modes are checked), yet gives the same execution to the
+    # bit: both runs enter every mode with the kernel's arithmetic (the twin's field, guards and
+    # starting step), never the Python callables', which differ from the twin's by rounding.
+    model = load_scene(scene, list(overrides))
+    calls = []
+    real_visit, real_entry = compiled.run_visit_compiled, compiled.enter_compiled
+    monkeypatch.setattr(compiled, "run_visit_compiled", lambda *a: calls.append(1) or real_visit(*a))
+    monkeypatch.setattr(compiled, "enter_compiled", lambda *a: calls.append(1) or real_entry(*a))
+    first = model.simulate()
+    n_first = len(calls)
+    second = model.simulate()
+    n_second = len(calls) - n_first
+    assert first.status == "finished"
+    assert_same_run(first, second, tol=0.0)
+    for a, b in zip(first.segments, second.segments, strict=True):
+        assert a.mode == b.mode and np.array_equal(a.t, b.t) and np.array_equal(a.x, b.x)
+    modes = {s.mode for s in first.segments}
+    if joint:  # the joint impacts return to Python in every run
+        assert n_second <= 1 + sum("+" in t.name for t in second.transitions)
+    else:
+        assert n_first == len(modes) and n_second == 1
