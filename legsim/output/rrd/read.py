@@ -137,7 +137,7 @@ def _read_meta(path: Path, columns: Columns) -> dict[str, Any]:
 def checked_meta(meta: dict[str, Any]) -> dict[str, Any]:
     """``meta`` when every key ``read_rrd`` and ``legsim replay`` use has its type (strings in
     the lists, numbers finite); ValueError naming the key otherwise."""
-    check_object(meta, META_KEYS, "legsim/meta")
+    check_object(meta, META_KEYS, "legsim/meta", optional={"urdf": (dict, type(None))})
     for key in ("modes", "parts", "point_parts", "scenery"):
         check_list(meta[key], (str,), f"legsim/meta.{key}")
     for key in ("state_names", "state_units"):

@@ -27,6 +27,7 @@ from ..files import write_atomic
 from ..summary import run_summary
 from ..trace import RecordingError, Trace, _draw, execution_trace, resolve_model, scenery_only, trace_series
 from .bodies import BodyLogger
+from .urdf import UrdfLogger, urdf_source
 from .layout import (
     APPLICATION_ID,
     FORMAT,
@@ -196,7 +197,7 @@ def record(rec: Any, content: Content) -> None:
     log.blueprint(entities, bodies, scenery)
 
 
-def _meta(content: Content, bodies: BodyLogger | None, scenery: dict[str, np.ndarray]) -> dict[str, Any]:
+def _meta(content: Content, bodies: BodyLogger | UrdfLogger | None, scenery: dict[str, np.ndarray]) -> dict[str, Any]:
     """The ``legsim/meta`` document: what reading the recording back needs besides the rows."""
     ex = content.execution
     return {
@@ -208,10 +209,11 @@ def _meta(content: Content, bodies: BodyLogger | None, scenery: dict[str, np.nda
         "modes": _mode_list(ex),
         "t0": float(ex.t0),
         "t_end": float(ex.t_end),
-        "parts": [] if bodies is None else list(bodies.parts),
-        "point_parts": [] if bodies is None else bodies.point_parts,
+        "parts": list(bodies.parts) if isinstance(bodies, BodyLogger) else [],
+        "point_parts": bodies.point_parts if isinstance(bodies, BodyLogger) else [],
+        "urdf": bodies.entities() if isinstance(bodies, UrdfLogger) else None,
         "scenery": list(scenery),
-        "has_geometry": bodies is not None,
+        "has_geometry": isinstance(bodies, BodyLogger),
         "rate": content.rate,
         "computed_samples": content.computed_samples,
     }
@@ -294,7 +296,7 @@ class _Logger:
             self.rec.flush()
             self.unwritten = 0
 
-    def header(self, meta: dict[str, Any], bodies: BodyLogger | None, scenery: dict[str, np.ndarray]) -> None:
+    def header(self, meta: dict[str, Any], bodies: BodyLogger | UrdfLogger | None, scenery: dict[str, np.ndarray]) -> None:
         """``legsim/meta`` and the markdown ``summary``."""
         rr, rec = self.rr, self.rec
         meta = {**meta, "samples": len(self.trace.times)}
@@ -392,11 +394,15 @@ class _Logger:
                 ],
             )
 
-    def robot(self) -> BodyLogger | None:
-        """``world/robot/<part>``: the parts drawn at every sample, a block at a time."""
+    def robot(self) -> BodyLogger | UrdfLogger | None:
+        """``world/robot/...``: a URDF robot through Rerun's loader (``legsim.output.rrd.urdf``),
+        any other the parts drawn at every sample, a block at a time."""
         model, trace = self.content.model, self.trace
         if model is None or model.geometry is None:
             return None
+        source = urdf_source(model)
+        if source is not None:
+            return self.urdf_robot(source)
         bodies = BodyLogger(self.rr, self.rec, self.indexes)
         state_at = _state_lookup(trace)
         for start in range(0, len(trace.times), BLOCK):
@@ -409,6 +415,19 @@ class _Logger:
             self.drain(len(rows) * len(bodies.tracks))
         bodies.finish()
         return bodies
+
+    def urdf_robot(self, source: dict[str, Any]) -> UrdfLogger:
+        """The URDF once, then its joints' and root's transforms, a block at a time."""
+        trace, ex = self.trace, self.content.execution
+        robot = UrdfLogger(self.rr, self.rec, self.indexes, source["file"], source["root"])
+        robot.start()
+        for mode, (rows, states) in trace.blocks.items():
+            names = ex.state_names[mode]
+            for start in range(0, len(rows), BLOCK):
+                piece = slice(start, start + BLOCK)
+                robot.add(rows[piece], names, states[piece])
+                self.drain(len(rows[piece]) * (len(robot.joints) + 1))
+        return robot
 
     def scenery(self) -> dict[str, np.ndarray]:
         """``world/scenery/<part>``, static."""
@@ -423,7 +442,7 @@ class _Logger:
             )
         return scenery
 
-    def blueprint(self, entities: dict[str, str], bodies: BodyLogger | None, scenery: dict[str, np.ndarray]) -> None:
+    def blueprint(self, entities: dict[str, str], bodies: BodyLogger | UrdfLogger | None, scenery: dict[str, np.ndarray]) -> None:
         """The viewer's layout (``legsim.output.rrd.views``), sent with the recording."""
         import rerun.blueprint as rrb
 
