@@ -167,7 +167,8 @@ def _assemble(columns: Columns, meta: dict[str, Any]) -> dict[str, Any]:
     _ordered_times(np.column_stack([t_start, t_end]).ravel() if len(t_start) == len(t_end) else t_start, "mode")
     strips = _strips(columns, len(times))
     scenery = _scenery(columns, meta)
-    robot, robot_rows = frames(columns, meta, times, strips, scenery) if meta.get("has_geometry") else (None, None)
+    drawn = meta.get("has_geometry") or meta.get("urdf")
+    robot, robot_rows = frames(columns, meta, times, strips, scenery) if drawn else (None, None)
     return {
         "summary": meta["summary"],
         "meta": meta,

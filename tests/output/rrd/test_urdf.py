@@ -11,7 +11,7 @@ import pytest
 from rerun.chunk import RrdReader
 from rerun.urdf import UrdfTree
 
-from legsim.output.rrd import write_rrd
+from legsim.output.rrd import read_rrd, write_rrd
 from legsim.output.trace import execution_trace
 from legsim.robots.urdf import load_model
 from legsim.scene import load_scene
@@ -22,7 +22,7 @@ WORLD_FRAME = "tf#/world"
 
 @pytest.fixture(scope="module")
 def quadruped(tmp_path_factory):
-    """(scene, execution, {(entity, static): {column: values}}) of the pronking quadruped
+    """(scene, execution, {(entity, static): {column: values}}, file) of the pronking quadruped
     dropped pitched by 0.3 rad, over 0.12 s: its flight and first landing, the joints moving."""
     scene = load_scene("quadruped_pronk", overrides=["integrator.t_final=0.12", "initial.state.pitch=0.3"])
     ex = scene.simulate()
@@ -35,7 +35,7 @@ def quadruped(tmp_path_factory):
         for name in batch.schema.names:
             if name != "sim_time":  # nanoseconds, which pyarrow will not turn into timedeltas
                 found.setdefault(name, []).extend(batch.column(name).to_pylist())
-    return scene, ex, chunks
+    return scene, ex, chunks, path
 
 
 def _urdf(scene):
@@ -43,7 +43,7 @@ def _urdf(scene):
 
 
 def test_every_link_with_visuals_has_the_loaders_static_geometry(quadruped):
-    scene, _, chunks = quadruped
+    scene, _, chunks, _ = quadruped
     tree = UrdfTree.from_file_path(_urdf(scene))
     links = [tree.root_link().name] + [joint.child_link for joint in tree.joints()]
     for link in links:
@@ -57,7 +57,7 @@ def test_every_link_with_visuals_has_the_loaders_static_geometry(quadruped):
 
 
 def test_every_movable_joint_and_the_root_have_a_transform_per_sample(quadruped):
-    scene, ex, chunks = quadruped
+    scene, ex, chunks, _ = quadruped
     model, _ = load_model(_urdf(scene))
     tree = UrdfTree.from_file_path(_urdf(scene))
     samples = len(execution_trace(ex).times)
@@ -104,7 +104,7 @@ def _world_position(edges, frame: str) -> np.ndarray:
 
 
 def test_feet_composed_from_the_recorded_transforms_are_where_pinocchio_puts_them(quadruped):
-    scene, ex, chunks = quadruped
+    scene, ex, chunks, _ = quadruped
     model, names = load_model(_urdf(scene))
     data = model.createData()
     trace = execution_trace(ex)
@@ -126,3 +126,23 @@ def test_feet_composed_from_the_recorded_transforms_are_where_pinocchio_puts_the
             np.testing.assert_allclose(_world_position(edges, foot), expected, atol=1e-6, err_msg=f"{foot}@{sample}")
             checked += 1
     assert checked == 14
+
+
+def test_replay_draws_each_link_from_its_frame_to_its_joints_where_pinocchio_puts_them(quadruped):
+    scene, ex, _, path = quadruped
+    model, names = load_model(_urdf(scene))
+    data = model.createData()
+    recording = read_rrd(path)
+    robot = recording["frames"]
+    assert robot is not None and len(robot) >= 2
+    assert sorted(robot.parts) == sorted(frame.name for frame in model.frames if frame.type == pin.FrameType.BODY)
+    for i, row in enumerate(recording["frame_rows"].tolist()):
+        mode = recording["modes"][row]
+        state = [recording["series"][name][1][np.searchsorted(recording["series_rows"][name], row)] for name in names]
+        pin.forwardKinematics(model, data, np.array(state))
+        pin.updateFramePlacements(model, data)
+        for link in ("body", "hind_thigh", "hind_foot", "front_shank"):
+            origin = data.oMf[model.getFrameId(link)].translation[[0, 2]]
+            np.testing.assert_allclose(robot.parts[link][i][0], origin, atol=1e-6, err_msg=f"{link}@{row} in {mode}")
+        hind_knee = data.oMi[model.getJointId("hind_knee")].translation[[0, 2]]
+        np.testing.assert_allclose(robot.parts["hind_thigh"][i][1], hind_knee, atol=1e-6)
