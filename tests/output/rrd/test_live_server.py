@@ -1,10 +1,11 @@
-"""``legsim run --connect`` against a real Rerun server: the ``rerun`` command, headless, hosts
-a gRPC server and saves what it receives to a file, which holds the entities and samples that
-``--rrd`` writes for the same run (a URDF robot, whose geometry Rerun's loader makes on the
-sending side)."""
+"""``legsim run --connect`` and ``--spawn`` against a real Rerun server: the ``rerun`` command,
+headless, hosts a gRPC server and saves what it receives to a file, which holds the entities and
+samples that ``--rrd`` writes for the same run (a URDF robot, whose geometry Rerun's loader makes
+on the sending side)."""
 
 from __future__ import annotations
 
+import os
 import shutil
 import signal
 import socket
@@ -95,3 +96,62 @@ def test_connect_sends_what_rrd_writes_to_a_real_rerun_server(rerun_server, tmp_
     np.testing.assert_array_equal(received["times"], expected["times"])
     assert _entities(saved) == _entities(written)
     assert any(path.startswith("/world/robot/quadruped/visual_geometries/") for path, _ in _entities(saved))
+
+
+#: The port ``rr.spawn`` starts its viewer on and connects to (legsim passes no other).
+SPAWN_PORT = 9876
+
+
+def _processes_saving_to(saved: Path) -> list[int]:
+    """The ids of the processes whose command line names ``saved`` (a file in this test's
+    tmp_path: only the server this test had spawned)."""
+    pids = []
+    for entry in Path("/proc").iterdir():
+        if entry.name.isdigit():
+            try:
+                if str(saved).encode() in (entry / "cmdline").read_bytes():
+                    pids.append(int(entry.name))
+            except OSError:
+                continue
+    return pids
+
+
+def _answers(port: int) -> bool:
+    try:
+        socket.create_connection(("127.0.0.1", port), timeout=0.5).close()
+        return True
+    except OSError:
+        return False
+
+
+@pytest.mark.filterwarnings("ignore:RRD file has no footer")
+def test_spawn_starts_rerun_and_sends_it_what_rrd_writes(tmp_path, monkeypatch):
+    # rr.spawn starts the `rerun` found on PATH with viewer options: a `rerun` first on PATH that
+    # adds --save makes it the headless server, which needs no display (legsim's check does).
+    binary = _rerun_binary()
+    if binary is None:
+        pytest.skip("the rerun command (rerun-sdk's CLI) is not installed here")
+    if not Path("/proc").is_dir():
+        pytest.skip("finding the spawned server to stop it needs /proc")
+    if _answers(SPAWN_PORT):
+        pytest.skip(f"something already listens on port {SPAWN_PORT}, where --spawn would send the run")
+    saved, written, bin_dir = tmp_path / "spawned.rrd", tmp_path / "written.rrd", tmp_path / "bin"
+    bin_dir.mkdir()
+    wrapper = bin_dir / "rerun"
+    wrapper.write_text(f'#!/bin/sh\nexec "{binary}" --save "{saved}" "$@"\n')
+    wrapper.chmod(0o755)
+    monkeypatch.setenv("PATH", f"{bin_dir}{os.pathsep}{os.environ.get('PATH', '')}")
+    monkeypatch.setenv("DISPLAY", ":0")
+    try:
+        assert main(["run", *RUN, "--rrd", str(written), "--spawn"]) == 0
+    finally:
+        for pid in _processes_saving_to(saved):
+            os.kill(pid, signal.SIGINT)
+        deadline = time.monotonic() + 30
+        while _processes_saving_to(saved) and time.monotonic() < deadline:
+            time.sleep(0.2)
+        for pid in _processes_saving_to(saved):
+            os.kill(pid, signal.SIGKILL)
+    received, expected = read_rrd(saved), read_rrd(written)
+    np.testing.assert_array_equal(received["times"], expected["times"])
+    assert _entities(saved) == _entities(written)
