@@ -129,7 +129,9 @@ def _urdf_parts(columns: Columns, rows: np.ndarray) -> dict[str, list[np.ndarray
             (child, *_), (parent, *_) = (columns.strings(path, f"Transform3D:{k}_frame") for k in ("child", "parent"))
             translation = _latest(columns, path, "Transform3D:translation", 3, rows)
             edges[child] = (parent, translation, _latest(columns, path, "Transform3D:quaternion", 4, rows))
-    placed: dict[str, tuple[np.ndarray, np.ndarray]] = {WORLD_FRAME: (np.tile(np.eye(3), (len(rows), 1, 1)), np.zeros((len(rows), 3)))}
+    placed: dict[str, tuple[np.ndarray, np.ndarray]] = {
+        WORLD_FRAME: (np.tile(np.eye(3), (len(rows), 1, 1)), np.zeros((len(rows), 3)))
+    }
 
     def place(frame: str) -> tuple[np.ndarray, np.ndarray]:
         """(rotations (F, 3, 3), origins (F, 3)) of ``frame`` in the world's."""

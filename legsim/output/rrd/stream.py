@@ -124,7 +124,11 @@ def chunks(execution: Execution, rate: float | None, size: int = CHUNK) -> Itera
     buffer, previous_bin = _Buffer(0), np.nan
     for kind, k in pieces:
         (buffer.strip_samples if kind == "strip" else buffer.segment_starts).append(buffer.first + buffer.count)
-        times, states, mode = _piece_times(execution, kind, k), _piece_states(execution, kind, k), _piece(execution, kind, k).mode
+        times, states, mode = (
+            _piece_times(execution, kind, k),
+            _piece_states(execution, kind, k),
+            _piece(execution, kind, k).mode,
+        )
         for start in range(0, len(times), size):
             t, x = times[start : start + size], states[start : start + size]
             keep = np.ones(len(t), dtype=bool)

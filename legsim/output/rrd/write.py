@@ -27,8 +27,6 @@ from ..files import write_atomic
 from ..summary import run_summary
 from ..trace import RecordingError, _draw, resolve_model, scenery_only, trace_series
 from .bodies import BodyLogger
-from .stream import CHUNK, Chunk, chunks, sample_count
-from .urdf import UrdfLogger, urdf_source
 from .layout import (
     APPLICATION_ID,
     FORMAT,
@@ -49,6 +47,8 @@ from .layout import (
     WORLD,
     entity,
 )
+from .stream import CHUNK, Chunk, chunks, sample_count
+from .urdf import UrdfLogger, urdf_source
 from .views import blueprint, coordinate_units, series_label, unit_groups
 
 #: Rows sent to Rerun between waits for its pipeline to write them (``drain``): Rerun queues
@@ -249,7 +249,9 @@ class _Logger:
         """The times (s) of sample ``rows``: of the chunk being logged, or noted by ``note``."""
         rows = np.asarray(rows, dtype=np.int64)
         chunk = self.chunk
-        if chunk is not None and (not len(rows) or (rows.min() >= chunk.first and rows.max() < chunk.first + len(chunk.times))):
+        if chunk is not None and (
+            not len(rows) or (rows.min() >= chunk.first and rows.max() < chunk.first + len(chunk.times))
+        ):
             return chunk.times[rows - chunk.first]
         return np.array([self.row_times[row] for row in rows.tolist()], dtype=float)
 
@@ -300,7 +302,9 @@ class _Logger:
             self.rec.flush()
             self.unwritten = 0
 
-    def header(self, meta: dict[str, Any], bodies: BodyLogger | UrdfLogger | None, scenery: dict[str, np.ndarray]) -> None:
+    def header(
+        self, meta: dict[str, Any], bodies: BodyLogger | UrdfLogger | None, scenery: dict[str, np.ndarray]
+    ) -> None:
         """``legsim/meta`` and the markdown ``summary``."""
         rr, rec = self.rr, self.rec
         meta = {**meta, "samples": self.count}
@@ -422,7 +426,9 @@ class _Logger:
             drawn = []
             for row in chunk.rows.tolist():
                 mode, state = state_at(row)
-                drawn.append(_draw(model.geometry, model.system.name, mode, state, float(chunk.times[row - chunk.first])))
+                drawn.append(
+                    _draw(model.geometry, model.system.name, mode, state, float(chunk.times[row - chunk.first]))
+                )
             bodies.add(chunk.rows, drawn)
             self.drain(len(chunk.times) * len(bodies.tracks))
 
@@ -439,7 +445,9 @@ class _Logger:
             )
         return scenery
 
-    def blueprint(self, entities: dict[str, str], bodies: BodyLogger | UrdfLogger | None, scenery: dict[str, np.ndarray]) -> None:
+    def blueprint(
+        self, entities: dict[str, str], bodies: BodyLogger | UrdfLogger | None, scenery: dict[str, np.ndarray]
+    ) -> None:
         """The viewer's layout (``legsim.output.rrd.views``), sent with the recording."""
         import rerun.blueprint as rrb
 

@@ -49,6 +49,19 @@ def _wait_for(port: int, server: subprocess.Popen, seconds: float = 30.0) -> Non
     raise AssertionError(f"the Rerun server on port {port} did not start within {seconds} s")
 
 
+def _settle(saved: Path, quiet: float = 1.0, seconds: float = 30.0) -> None:
+    """Wait until the server has stopped writing to ``saved`` for ``quiet`` s: what the client
+    sent last may still be on its way when the client returns, and a stopped server drops it."""
+    deadline, size, since = time.monotonic() + seconds, -1, time.monotonic()
+    while time.monotonic() < deadline:
+        now = saved.stat().st_size if saved.exists() else -1
+        if now != size:
+            size, since = now, time.monotonic()
+        elif size > 0 and time.monotonic() - since >= quiet:
+            return
+        time.sleep(0.1)
+
+
 def _stop(server: subprocess.Popen) -> None:
     """Ctrl-C, which makes the server finish its file; killed if it does not stop."""
     if server.poll() is None:
@@ -90,6 +103,7 @@ def test_connect_sends_what_rrd_writes_to_a_real_rerun_server(rerun_server, tmp_
     port, saved, server = rerun_server
     written = tmp_path / "written.rrd"
     assert main(["run", *RUN, "--rrd", str(written), "--connect", f"rerun+http://127.0.0.1:{port}/proxy"]) == 0
+    _settle(saved)
     _stop(server)
     received, expected = read_rrd(saved), read_rrd(written)
     assert len(received["times"]) == len(expected["times"]) == expected["meta"]["computed_samples"]
@@ -144,6 +158,7 @@ def test_spawn_starts_rerun_and_sends_it_what_rrd_writes(tmp_path, monkeypatch):
     monkeypatch.setenv("DISPLAY", ":0")
     try:
         assert main(["run", *RUN, "--rrd", str(written), "--spawn"]) == 0
+        _settle(saved)
     finally:
         for pid in _processes_saving_to(saved):
             os.kill(pid, signal.SIGINT)

@@ -8,12 +8,12 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 import pytest
+from legsim.robots.urdf import load_model
 from rerun.chunk import RrdReader
 from rerun.urdf import UrdfTree
 
 from legsim.output.rrd import read_rrd, write_rrd
 from legsim.output.trace import execution_trace
-from legsim.robots.urdf import load_model
 from legsim.scene import load_scene
 
 GEOMETRY = ("Boxes3D:half_sizes", "Cylinders3D:radii", "Ellipsoids3D:half_sizes", "Mesh3D:vertex_positions")
@@ -83,7 +83,9 @@ def _edges(chunks, sample: int) -> dict[str, tuple[str, np.ndarray, np.ndarray]]
     for columns, at in logged:
         if "Transform3D:child_frame" not in columns:
             continue
-        for i, (child, parent) in enumerate(zip(columns["Transform3D:child_frame"], columns["Transform3D:parent_frame"])):
+        for i, (child, parent) in enumerate(
+            zip(columns["Transform3D:child_frame"], columns["Transform3D:parent_frame"], strict=True)
+        ):
             if at is not None and columns["sample"][i] != at:
                 continue
             translation = np.array(columns["Transform3D:translation"][i][0], dtype=float)
@@ -112,7 +114,7 @@ def test_feet_composed_from_the_recorded_transforms_are_where_pinocchio_puts_the
     checked = 0
     for sample in np.linspace(0, len(trace.times) - 1, 7).astype(int).tolist():
         mode = trace.mode_names[trace.mode_index[sample]]
-        rows, states = trace.blocks[mode]
+        _, states = trace.blocks[mode]
         state = states[int(np.searchsorted(rows_of[mode], sample))]
         coordinates = list(ex.state_names[mode])
         q = np.array([state[coordinates.index(name)] for name in names])
@@ -129,7 +131,7 @@ def test_feet_composed_from_the_recorded_transforms_are_where_pinocchio_puts_the
 
 
 def test_replay_draws_each_link_from_its_frame_to_its_joints_where_pinocchio_puts_them(quadruped):
-    scene, ex, _, path = quadruped
+    scene, _, _, path = quadruped
     model, names = load_model(_urdf(scene))
     data = model.createData()
     recording = read_rrd(path)
