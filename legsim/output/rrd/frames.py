@@ -149,8 +149,8 @@ def _urdf_parts(columns: Columns, rows: np.ndarray) -> dict[str, list[np.ndarray
     for link in edges:
         points = [place(link)[1]] + [place(child)[1] for child in children.get(link, [])]
         # origin, child, origin, child, ...: one polyline through every joint of the link.
-        path = [points[0]] if len(points) == 1 else [p for child in points[1:] for p in (points[0], child)]
-        stacked = np.stack(path, axis=1)[:, :, [0, 2]]
+        line = [points[0]] if len(points) == 1 else [p for child in points[1:] for p in (points[0], child)]
+        stacked = np.stack(line, axis=1)[:, :, [0, 2]]
         parts[link] = list(stacked)
     return parts
 

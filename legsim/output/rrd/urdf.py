@@ -20,7 +20,6 @@ relative, which is what the viewer shows.
 
 from __future__ import annotations
 
-import warnings
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
@@ -72,9 +71,7 @@ class UrdfLogger:
             self._root(rows, x, z, pitch)
         for joint in self.joints:
             # The scene's stops, not the URDF's limits, bound the motion: record the state as it is.
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore")
-                columns = joint.compute_transform_columns(states[:, column[joint.name]], clamp=False)
+            columns = joint.compute_transform_columns(states[:, column[joint.name]].tolist(), clamp=False)
             self.rec.send_columns(entity(JOINTS, joint.name), indexes=self.indexes(rows), columns=columns)
 
     def _root(self, rows: np.ndarray, x: np.ndarray, z: np.ndarray, pitch: np.ndarray) -> None:
