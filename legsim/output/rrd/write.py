@@ -1,9 +1,10 @@
 """Writing a run to a Rerun recording (``write_rrd``) headlessly, or streaming it to a viewer
 (``legsim.output.rrd.live``): the entities of ``legsim.output.rrd.layout``.
 
-The recording streams to its file while it is made: series and events go to Rerun as columns
-(``send_columns``), the robot block by block, so the memory it takes beyond the execution's own
-does not grow with the length of the run. rerun (and pyarrow, which it brings) is imported
+The recording streams to its file while it is made: the samples come a chunk at a time
+(``legsim.output.rrd.stream``), and each chunk's times, series and robot go to Rerun as columns
+(``send_columns``) before the next is made, so the memory the writer takes beyond the
+execution's own does not grow with the length of the run. rerun (and pyarrow, which it brings) is imported
 inside the functions only, so that importing this module costs nothing.
 """
 
