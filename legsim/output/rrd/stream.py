@@ -3,7 +3,7 @@ without ever holding all of them.
 
 The samples are those of ``legsim.output.trace.execution_trace`` (every computed point of
 every segment, each strip's held point at its entry and exit), numbered in order after the
-thinning. ``chunks`` walks the execution's pieces and yields ``Chunk``s of about ``size``
+thinning. ``chunks`` walks the execution's pieces and yields ``Chunk``s of ``size``
 samples, so that what the writer holds beyond the execution's own arrays is one chunk, plus a
 few numbers per piece (segment or strip).
 """
@@ -117,7 +117,7 @@ class _Buffer:
 
 def chunks(execution: Execution, rate: float | None, size: int = CHUNK) -> Iterator[Chunk]:
     """The recorded samples of ``execution``, thinned to ``rate`` (``kept_samples``), in chunks
-    of about ``size`` samples (a chunk ends where a piece makes it reach ``size``)."""
+    of ``size`` samples (the last one fewer)."""
     _, pieces = execution._pieces()
     t0, t_last = _time_span(execution, pieces)
     thinning = thins(rate, sample_count(execution), t0, t_last)
@@ -129,19 +129,23 @@ def chunks(execution: Execution, rate: float | None, size: int = CHUNK) -> Itera
             _piece_states(execution, kind, k),
             _piece(execution, kind, k).mode,
         )
-        for start in range(0, len(times), size):
-            t, x = times[start : start + size], states[start : start + size]
+        start = 0
+        while start < len(times):
+            # A long piece is cut where the chunk is full, so that no chunk exceeds ``size``.
+            stop = min(len(times), start + size - buffer.count)
+            t, x = times[start:stop], states[start:stop]
             keep = np.ones(len(t), dtype=bool)
             if thinning:
                 assert rate is not None
                 keep = keep_mask(t, previous_bin, t0, rate)
                 previous_bin = float(np.floor((t[-1] - t0) * rate))
                 keep[0] |= start == 0
-                keep[-1] |= start + size >= len(times)
+                keep[-1] |= stop == len(times)
             buffer.add(mode, t[keep], x[keep])
             if buffer.count >= size:
                 yield buffer.chunk()
                 buffer = _Buffer(buffer.first + buffer.count)
+            start = stop
     if buffer.count or buffer.segment_starts or buffer.strip_samples:
         yield buffer.chunk()
 

@@ -273,8 +273,10 @@ class _Logger:
 
     def note(self, chunk: Chunk) -> None:
         """Keep the rows of the chunk that the modes and events are logged at, and their times."""
-        self.segment_starts.append(chunk.segment_starts)
-        self.strip_samples.append(chunk.strip_samples)
+        if len(chunk.segment_starts):
+            self.segment_starts.append(chunk.segment_starts)
+        if len(chunk.strip_samples):
+            self.strip_samples.append(chunk.strip_samples)
         for row in np.concatenate([chunk.segment_starts, chunk.strip_samples]).tolist():
             if row - chunk.first < len(chunk.times):
                 self.row_times[row] = float(chunk.times[row - chunk.first])
@@ -338,7 +340,7 @@ class _Logger:
         segs = ex.segments
         self.send(
             MODE,
-            np.concatenate(self.segment_starts),
+            _joined(self.segment_starts),
             [
                 *rr.StateChange.columns(state=[s.mode for s in segs]),
                 *typed_columns(
@@ -348,7 +350,7 @@ class _Logger:
                 ),
             ],
         )
-        entries = np.concatenate(self.strip_samples)
+        entries = _joined(self.strip_samples)
         resets = entries[entries + 2 < self.count] + 2
         rows = np.concatenate([entries, resets])
         states = [s.name for s in ex.strips] + [""] * len(resets)
@@ -360,7 +362,7 @@ class _Logger:
         """``events/strips``, ``events/transitions`` and ``events/warnings`` (text with fields)."""
         rr, ex = self.rr, self.content.execution
         strips, trs = ex.strips, ex.transitions
-        rows = np.concatenate(self.strip_samples)
+        rows = _joined(self.strip_samples)
         if len(rows):
             self.send(
                 STRIPS,
@@ -459,6 +461,11 @@ class _Logger:
             allp = np.concatenate(list(scenery.values()))
             box = (allp.min(axis=0), allp.max(axis=0))
         self.rec.send_blueprint(blueprint(rrb, groups, box))
+
+
+def _joined(rows: list[np.ndarray]) -> np.ndarray:
+    """The rows of every chunk, in order (none: an empty int64 array)."""
+    return np.concatenate(rows) if rows else np.empty(0, dtype=np.int64)
 
 
 def _state_lookup(chunk: Chunk) -> Callable[[int], tuple[str, np.ndarray]]:
