@@ -271,6 +271,8 @@ def _build(params: dict[str, Any], effects: dict[str, dict[str, Any]]) -> Model:
         "initial_check": bridge.initial_check(),
         "parameters": dict(params),
         "outlines": outlines,
+        # What a recording needs to log the robot through Rerun's own URDF loader.
+        "urdf": {"file": str(params["file"]), "root": params["root"]},
     }
     counters = bridge.counters
     return Model(

@@ -5,6 +5,8 @@ reads it back with Rerun's own reader.
 * ``write``: ``write_rrd``, the logging of each entity, and the thinning to a rate.
 * ``bodies``: each body's shape logged once and a Transform3D per sample; ``poses`` the
   fitting of a shape's pose to each polyline the model draws.
+* ``urdf``: a URDF robot through Rerun's own URDF loader, moved by joint and root transforms.
+* ``stream``: the run's samples a chunk at a time, thinned to a rate, for the writer.
 * ``views``: the plot views grouped by unit and the blueprint the viewer opens on.
 * ``live``: ``stream_rrd`` to a spawned or running viewer (``legsim run --spawn/--connect``).
 * ``read``: ``read_rrd``, which assembles the recorded rows into numbers; ``columns`` the

@@ -18,6 +18,8 @@ from .columns import Columns
 from .layout import ROBOT, entity
 from .poses import apply_poses
 
+#: Where Rerun's URDF loader logs the joints' frames at joint value 0.
+TF_STATIC = "/tf_static"
 IDENTITY = {"translation": np.zeros(3), "quaternion": np.array([0.0, 0.0, 0.0, 1.0]), "scale": np.ones(3)}
 
 
@@ -47,7 +49,10 @@ def frames(
     """The robot's polylines at ``frame_rows`` (None where a part is absent), and those rows."""
     rows = frame_rows(times, [s["row"] for s in strips])
     modes = _modes_at(columns, rows)
-    parts = {part: _part_lines(columns, entity(ROBOT, part), rows) for part in meta.get("parts", [])}
+    if meta.get("urdf"):
+        parts = _urdf_parts(columns, rows)
+    else:
+        parts = {part: _part_lines(columns, entity(ROBOT, part), rows) for part in meta.get("parts", [])}
     return Frames(times[rows], modes, parts, scenery), rows
 
 
@@ -102,3 +107,63 @@ def _latest(columns: Columns, path: str, component: str, width: int, rows: np.nd
     out = np.tile(IDENTITY[key], (len(rows), 1))
     out[at >= 0] = values[at[at >= 0]]
     return out
+
+
+# -- URDF robots: links composed from the recorded frames -------------------------------------
+def _urdf_parts(columns: Columns, rows: np.ndarray) -> dict[str, list[np.ndarray | None]]:
+    """Each link of a URDF recording (``legsim.output.rrd.urdf``) at ``rows`` as the polyline
+    from its frame's origin to its child joints' origins (a point for a link without children),
+    in the world's (x, z): the frames composed from the loader's static joint frames and the
+    joints' and root's transforms recorded at or before each row."""
+    from .urdf import JOINTS, WORLD_FRAME
+
+    edges: dict[str, tuple[str, np.ndarray, np.ndarray]] = {}
+    static_children = columns.strings(TF_STATIC, "Transform3D:child_frame")
+    static_parents = columns.strings(TF_STATIC, "Transform3D:parent_frame")
+    _, static_t = columns.matrix(TF_STATIC, "Transform3D:translation", 3)
+    _, static_q = columns.matrix(TF_STATIC, "Transform3D:quaternion", 4)
+    for i, (child, parent) in enumerate(zip(static_children, static_parents, strict=True)):
+        edges[child] = (parent, np.tile(static_t[i], (len(rows), 1)), np.tile(static_q[i], (len(rows), 1)))
+    for path in columns.entities():
+        if path.startswith(f"{JOINTS}/"):
+            (child, *_), (parent, *_) = (columns.strings(path, f"Transform3D:{k}_frame") for k in ("child", "parent"))
+            translation = _latest(columns, path, "Transform3D:translation", 3, rows)
+            edges[child] = (parent, translation, _latest(columns, path, "Transform3D:quaternion", 4, rows))
+    placed: dict[str, tuple[np.ndarray, np.ndarray]] = {
+        WORLD_FRAME: (np.tile(np.eye(3), (len(rows), 1, 1)), np.zeros((len(rows), 3)))
+    }
+
+    def place(frame: str) -> tuple[np.ndarray, np.ndarray]:
+        """(rotations (F, 3, 3), origins (F, 3)) of ``frame`` in the world's."""
+        if frame not in placed:
+            parent, translation, quaternion = edges[frame]
+            rotation, origin = place(parent)
+            own = _rotations(quaternion)
+            placed[frame] = (rotation @ own, origin + np.einsum("fij,fj->fi", rotation, translation))
+        return placed[frame]
+
+    children: dict[str, list[str]] = {}
+    for child, (parent, _, _) in edges.items():
+        children.setdefault(parent, []).append(child)
+    parts: dict[str, list[np.ndarray | None]] = {}
+    for link in edges:
+        points = [place(link)[1]] + [place(child)[1] for child in children.get(link, [])]
+        # origin, child, origin, child, ...: one polyline through every joint of the link.
+        line = [points[0]] if len(points) == 1 else [p for child in points[1:] for p in (points[0], child)]
+        stacked = np.stack(line, axis=1)[:, :, [0, 2]]
+        parts[link] = list(stacked)
+    return parts
+
+
+def _rotations(quaternion: np.ndarray) -> np.ndarray:
+    """Rotation matrices (F, 3, 3) of unit quaternions (F, 4), xyzw."""
+    q = quaternion / np.linalg.norm(quaternion, axis=1, keepdims=True)
+    x, y, z, w = q.T
+    return np.stack(
+        [
+            np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], axis=-1),
+            np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], axis=-1),
+            np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], axis=-1),
+        ],
+        axis=1,
+    )

@@ -15,6 +15,10 @@ Entity tree::
       /robot/<part>              each body's shape in its own frame, logged once (static):
                                  LineStrips3D, or Points3D for a one-point part; moved by a
                                  Transform3D per sample (translation, rotation about y, scale)
+      /robot/<robot>/...         a URDF robot instead: Rerun's URDF loader's static geometry,
+      /robot/joints/<joint>      moved by a Transform3D per sample per movable joint and for
+      /robot/joints/root         the root link in tf#/world (``legsim.output.rrd.urdf``)
+    /tf_static                   a URDF robot's joint frames at joint value 0 (the loader's)
     /state/<coordinate>          Scalars per sample in the modes that have the coordinate;
                                  SeriesLines names it with its unit ("x (m)")
     /mode                        StateChange (the mode's name) at each segment's first sample,

@@ -137,7 +137,7 @@ def _read_meta(path: Path, columns: Columns) -> dict[str, Any]:
 def checked_meta(meta: dict[str, Any]) -> dict[str, Any]:
     """``meta`` when every key ``read_rrd`` and ``legsim replay`` use has its type (strings in
     the lists, numbers finite); ValueError naming the key otherwise."""
-    check_object(meta, META_KEYS, "legsim/meta")
+    check_object(meta, META_KEYS, "legsim/meta", optional={"urdf": (dict, type(None))})
     for key in ("modes", "parts", "point_parts", "scenery"):
         check_list(meta[key], (str,), f"legsim/meta.{key}")
     for key in ("state_names", "state_units"):
@@ -167,7 +167,8 @@ def _assemble(columns: Columns, meta: dict[str, Any]) -> dict[str, Any]:
     _ordered_times(np.column_stack([t_start, t_end]).ravel() if len(t_start) == len(t_end) else t_start, "mode")
     strips = _strips(columns, len(times))
     scenery = _scenery(columns, meta)
-    robot, robot_rows = frames(columns, meta, times, strips, scenery) if meta.get("has_geometry") else (None, None)
+    drawn = meta.get("has_geometry") or meta.get("urdf")
+    robot, robot_rows = frames(columns, meta, times, strips, scenery) if drawn else (None, None)
     return {
         "summary": meta["summary"],
         "meta": meta,

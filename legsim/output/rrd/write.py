@@ -1,9 +1,10 @@
 """Writing a run to a Rerun recording (``write_rrd``) headlessly, or streaming it to a viewer
 (``legsim.output.rrd.live``): the entities of ``legsim.output.rrd.layout``.
 
-The recording streams to its file while it is made: series and events go to Rerun as columns
-(``send_columns``), the robot block by block, so the memory it takes beyond the execution's own
-does not grow with the length of the run. rerun (and pyarrow, which it brings) is imported
+The recording streams to its file while it is made: the samples come a chunk at a time
+(``legsim.output.rrd.stream``), and each chunk's times, series and robot go to Rerun as columns
+(``send_columns``) before the next is made, so the memory the writer takes beyond the
+execution's own does not grow with the length of the run. rerun (and pyarrow, which it brings) is imported
 inside the functions only, so that importing this module costs nothing.
 """
 
@@ -25,7 +26,7 @@ from ...errors import LegsimError, OutputError
 from ...execution import Execution
 from ..files import write_atomic
 from ..summary import run_summary
-from ..trace import RecordingError, Trace, _draw, execution_trace, resolve_model, scenery_only, trace_series
+from ..trace import RecordingError, _draw, resolve_model, scenery_only, trace_series
 from .bodies import BodyLogger
 from .layout import (
     APPLICATION_ID,
@@ -47,10 +48,10 @@ from .layout import (
     WORLD,
     entity,
 )
+from .stream import CHUNK, Chunk, chunks, sample_count
+from .urdf import UrdfLogger, urdf_source
 from .views import blueprint, coordinate_units, series_label, unit_groups
 
-#: Samples whose robot geometry is drawn and sent at a time.
-BLOCK = 4096
 #: Rows sent to Rerun between waits for its pipeline to write them (``drain``): Rerun queues
 #: what it is sent, some 150 bytes a row, until its file sink has written it.
 DRAIN_ROWS = 65536
@@ -68,7 +69,7 @@ def write_rrd(
 
     ``scene`` is a ``legsim.scene.Scene`` (its model gives geometry, scenery and energy) or
     None with ``model=`` a ``legsim.builders.Model`` (or neither: states and events only).
-    ``rate`` (per simulated second) thins the samples: see ``kept_samples``. The file is written
+    ``rate`` (per simulated second) thins the samples: see ``stream.kept_samples``. The file is written
     to a temporary name, streamed there, and renamed when complete (``legsim.output.files``).
     Returns the path; raises RecordingError naming the file.
     """
@@ -95,13 +96,12 @@ def write_rrd(
 
 @dataclass
 class Content:
-    """What a recording holds: the execution, its model (or None), the samples to record and
-    the run summary."""
+    """What a recording holds: the execution, its model (or None), the rate its samples are
+    thinned to (per s, or None), how many samples the run computed, and the run summary."""
 
     execution: Execution
     scene: Any
     model: Model | None
-    trace: Trace
     computed_samples: int
     rate: float | None
     summary: dict[str, Any]
@@ -117,47 +117,7 @@ def prepare(execution: Execution, scene: Any, model: Model | None, rate: float |
         except LegsimError as exc:
             raise RecordingError(f"{where}: {exc}") from None
     model = resolve_model(scene, model, "write_rrd")
-    trace = execution_trace(execution)
-    computed = len(trace.times)
-    trace = thin_trace(trace, kept_samples(trace, rate))
-    return Content(execution, scene, model, trace, computed, rate, run_summary(execution, scene, model))
-
-
-def kept_samples(trace: Trace, rate: float | None) -> np.ndarray:
-    """The rows of ``trace`` to record: all of them without a rate; with one, the first sample
-    in each interval of 1/rate s from the start, and the first and last sample of every piece
-    (segment or strip), so that each transition's state before and after its reset is kept."""
-    n = len(trace.times)
-    if rate is None or n == 0 or rate * float(trace.times[-1] - trace.times[0]) >= n:
-        return np.arange(n)
-    starts = np.sort(np.concatenate([trace.segment_starts, trace.strip_samples])).astype(np.int64)
-    ends = np.concatenate([starts[1:] - 1, [n - 1]])
-    bins = np.floor((trace.times - trace.times[0]) * rate)
-    keep = np.concatenate([[True], bins[1:] != bins[:-1]])
-    keep[starts] = True
-    keep[ends] = True
-    return np.flatnonzero(keep)
-
-
-def thin_trace(trace: Trace, keep: np.ndarray) -> Trace:
-    """``trace`` restricted to the rows ``keep`` (sorted), renumbered 0, 1, ..."""
-    if len(keep) == len(trace.times):
-        return trace
-    renumber = np.full(len(trace.times), -1, dtype=np.int64)
-    renumber[keep] = np.arange(len(keep))
-    blocks = {}
-    for mode, (rows, states) in trace.blocks.items():
-        new = renumber[rows]
-        blocks[mode] = (new[new >= 0], states[new >= 0])
-    return Trace(
-        times=trace.times[keep],
-        mode_names=trace.mode_names,
-        mode_index=trace.mode_index[keep],
-        in_strip=trace.in_strip[keep],
-        blocks=blocks,
-        segment_starts=renumber[trace.segment_starts],
-        strip_samples=renumber[trace.strip_samples],
-    )
+    return Content(execution, scene, model, sample_count(execution), rate, run_summary(execution, scene, model))
 
 
 class recording_stream:
@@ -186,17 +146,15 @@ def record(rec: Any, content: Content) -> None:
 
     log = _Logger(rr, rec, content)
     rec.log(WORLD, rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
-    log.samples()
-    entities = log.series()
+    bodies = log.stream()
     log.modes()
     log.events()
-    bodies = log.robot()
     scenery = log.scenery()
     log.header(_meta(content, bodies, scenery), bodies, scenery)
-    log.blueprint(entities, bodies, scenery)
+    log.blueprint(log.entities, bodies, scenery)
 
 
-def _meta(content: Content, bodies: BodyLogger | None, scenery: dict[str, np.ndarray]) -> dict[str, Any]:
+def _meta(content: Content, bodies: BodyLogger | UrdfLogger | None, scenery: dict[str, np.ndarray]) -> dict[str, Any]:
     """The ``legsim/meta`` document: what reading the recording back needs besides the rows."""
     ex = content.execution
     return {
@@ -208,10 +166,11 @@ def _meta(content: Content, bodies: BodyLogger | None, scenery: dict[str, np.nda
         "modes": _mode_list(ex),
         "t0": float(ex.t0),
         "t_end": float(ex.t_end),
-        "parts": [] if bodies is None else list(bodies.parts),
-        "point_parts": [] if bodies is None else bodies.point_parts,
+        "parts": list(bodies.parts) if isinstance(bodies, BodyLogger) else [],
+        "point_parts": bodies.point_parts if isinstance(bodies, BodyLogger) else [],
+        "urdf": bodies.entities() if isinstance(bodies, UrdfLogger) else None,
         "scenery": list(scenery),
-        "has_geometry": bodies is not None,
+        "has_geometry": isinstance(bodies, BodyLogger),
         "rate": content.rate,
         "computed_samples": content.computed_samples,
     }
@@ -263,16 +222,68 @@ class _Logger:
     """Logs the parts of a recording to the stream ``rec`` (``rr`` is the rerun module)."""
 
     def __init__(self, rr: Any, rec: Any, content: Content) -> None:
-        self.rr, self.rec, self.content, self.trace = rr, rec, content, content.trace
+        self.rr, self.rec, self.content = rr, rec, content
+        ex = content.execution
+        self.units = coordinate_units(ex.state_names, ex.state_units)
         self.unwritten = 0
+        #: The chunk being logged; the samples logged before it; coordinate -> entity path.
+        self.chunk: Chunk | None = None
+        self.count = 0
+        self.entities: dict[str, str] = {}
+        # What the modes and events, logged after the samples, need of them: the rows where
+        # the pieces start, the row at or before each warning, and the times of those rows.
+        self.segment_starts: list[np.ndarray] = []
+        self.strip_samples: list[np.ndarray] = []
+        self.warning_times = np.array([w.time for w in ex.warnings], dtype=float)
+        self.warning_rows = np.zeros(len(ex.warnings), dtype=np.int64)
+        self.row_times: dict[int, float] = {}
 
     def indexes(self, rows: np.ndarray) -> list:
         """The ``sample`` and ``sim_time`` index columns of the sample rows ``rows``."""
         rr = self.rr
         return [
             rr.TimeColumn(SAMPLE_TIMELINE, sequence=np.asarray(rows, dtype=np.int64)),
-            rr.TimeColumn(TIMELINE, duration=self.trace.times[rows]),
+            rr.TimeColumn(TIMELINE, duration=self.times_of(rows)),
         ]
+
+    def times_of(self, rows: np.ndarray) -> np.ndarray:
+        """The times (s) of sample ``rows``: of the chunk being logged, or noted by ``note``."""
+        rows = np.asarray(rows, dtype=np.int64)
+        chunk = self.chunk
+        if chunk is not None and (
+            not len(rows) or (rows.min() >= chunk.first and rows.max() < chunk.first + len(chunk.times))
+        ):
+            return chunk.times[rows - chunk.first]
+        return np.array([self.row_times[row] for row in rows.tolist()], dtype=float)
+
+    def stream(self) -> BodyLogger | UrdfLogger | None:
+        """The samples, series and robot, a chunk at a time; returns what logged the robot."""
+        bodies = self.start_robot()
+        for chunk in chunks(self.content.execution, self.content.rate, CHUNK):
+            self.chunk = chunk
+            self.samples(chunk)
+            self.series(chunk)
+            self.robot(chunk, bodies)
+            self.note(chunk)
+            self.count += len(chunk.times)
+        self.chunk = None
+        if isinstance(bodies, BodyLogger):
+            bodies.finish()
+        return bodies
+
+    def note(self, chunk: Chunk) -> None:
+        """Keep the rows of the chunk that the modes and events are logged at, and their times."""
+        if len(chunk.segment_starts):
+            self.segment_starts.append(chunk.segment_starts)
+        if len(chunk.strip_samples):
+            self.strip_samples.append(chunk.strip_samples)
+        for row in np.concatenate([chunk.segment_starts, chunk.strip_samples]).tolist():
+            if row - chunk.first < len(chunk.times):
+                self.row_times[row] = float(chunk.times[row - chunk.first])
+        at = np.searchsorted(chunk.times, self.warning_times, side="right") - 1
+        for i in np.flatnonzero(at >= 0).tolist():
+            self.warning_rows[i] = chunk.first + at[i]
+            self.row_times[int(self.warning_rows[i])] = float(chunk.times[at[i]])
 
     def send(self, path: str, rows: np.ndarray, columns: list) -> None:
         self.rec.send_columns(path, indexes=self.indexes(rows), columns=columns)
@@ -294,33 +305,32 @@ class _Logger:
             self.rec.flush()
             self.unwritten = 0
 
-    def header(self, meta: dict[str, Any], bodies: BodyLogger | None, scenery: dict[str, np.ndarray]) -> None:
+    def header(
+        self, meta: dict[str, Any], bodies: BodyLogger | UrdfLogger | None, scenery: dict[str, np.ndarray]
+    ) -> None:
         """``legsim/meta`` and the markdown ``summary``."""
         rr, rec = self.rr, self.rec
-        meta = {**meta, "samples": len(self.trace.times)}
+        meta = {**meta, "samples": self.count}
         rec.log(META, rr.TextDocument(json.dumps(meta), media_type="text/plain"), static=True)
         rec.log(SUMMARY, rr.TextDocument(_summary_markdown(meta), media_type="text/markdown"), static=True)
 
-    def samples(self) -> None:
-        """``legsim/samples``: the exact time of every sample."""
-        rows = np.arange(len(self.trace.times))
-        self.send_values(SAMPLES, rows, self.trace.times, lambda t: typed_columns(self.rr, t=t))
+    def samples(self, chunk: Chunk) -> None:
+        """``legsim/samples``: the exact time of every sample of ``chunk``."""
+        self.send_values(SAMPLES, chunk.rows, chunk.times, lambda t: typed_columns(self.rr, t=t))
 
-    def series(self) -> dict[str, str]:
-        """``state/<name>``, each named with its unit; returns coordinate name -> entity path."""
+    def series(self, chunk: Chunk) -> None:
+        """``state/<name>`` over ``chunk``, each named with its unit when it first appears."""
         rr, ex = self.rr, self.content.execution
-        units = coordinate_units(ex.state_names, ex.state_units)
-        entities = {}
-        for name, (rows, values) in trace_series(ex, self.trace).items():
-            path = entities[name] = entity(STATE, name)
-            self.rec.log(path, rr.SeriesLines(names=[series_label(name, units.get(name, ""))]), static=True)
-            self.send_values(path, rows, values, lambda v: rr.Scalars.columns(scalars=v))
-        return entities
+        for name, (rows, values) in trace_series(ex, chunk).items():  # type: ignore[arg-type]
+            if name not in self.entities:
+                path = self.entities[name] = entity(STATE, name)
+                self.rec.log(path, rr.SeriesLines(names=[series_label(name, self.units.get(name, ""))]), static=True)
+            self.send_values(self.entities[name], rows, values, lambda v: rr.Scalars.columns(scalars=v))
 
     def modes(self) -> None:
         """``mode`` (a state change per segment, with its times) and ``strip`` (the band of
         the strips: the transition's name from a strip's entry, reset after its exit)."""
-        rr, trace, ex = self.rr, self.trace, self.content.execution
+        rr, ex = self.rr, self.content.execution
         modes = _mode_list(ex)
         self.rec.log(
             MODE,
@@ -330,7 +340,7 @@ class _Logger:
         segs = ex.segments
         self.send(
             MODE,
-            trace.segment_starts,
+            _joined(self.segment_starts),
             [
                 *rr.StateChange.columns(state=[s.mode for s in segs]),
                 *typed_columns(
@@ -340,8 +350,8 @@ class _Logger:
                 ),
             ],
         )
-        entries = np.asarray(trace.strip_samples, dtype=np.int64)
-        resets = entries[entries + 2 < len(trace.times)] + 2
+        entries = _joined(self.strip_samples)
+        resets = entries[entries + 2 < self.count] + 2
         rows = np.concatenate([entries, resets])
         states = [s.name for s in ex.strips] + [""] * len(resets)
         order = np.argsort(rows, kind="stable")
@@ -350,9 +360,9 @@ class _Logger:
 
     def events(self) -> None:
         """``events/strips``, ``events/transitions`` and ``events/warnings`` (text with fields)."""
-        rr, trace, ex = self.rr, self.trace, self.content.execution
+        rr, ex = self.rr, self.content.execution
         strips, trs = ex.strips, ex.transitions
-        rows = np.asarray(trace.strip_samples, dtype=np.int64)
+        rows = _joined(self.strip_samples)
         if len(rows):
             self.send(
                 STRIPS,
@@ -378,10 +388,9 @@ class _Logger:
             # in order, except a final strip cut short by t_final or the transition budget.
             self.send(TRANSITIONS, rows[: len(trs)], _transition_columns(rr, trs))
         if ex.warnings:
-            at = np.searchsorted(trace.times, [w.time for w in ex.warnings], side="right") - 1
             self.send(
                 WARNINGS,
-                np.clip(at, 0, len(trace.times) - 1),
+                self.warning_rows,
                 [
                     *rr.TextLog.columns(text=[w.message for w in ex.warnings], level=["WARN"] * len(ex.warnings)),
                     *typed_columns(
@@ -392,23 +401,39 @@ class _Logger:
                 ],
             )
 
-    def robot(self) -> BodyLogger | None:
-        """``world/robot/<part>``: the parts drawn at every sample, a block at a time."""
-        model, trace = self.content.model, self.trace
+    def start_robot(self) -> BodyLogger | UrdfLogger | None:
+        """What logs ``world/robot/...``: a URDF robot through Rerun's loader (logged now:
+        ``legsim.output.rrd.urdf``), any other robot by the parts it draws; None without one."""
+        model = self.content.model
         if model is None or model.geometry is None:
             return None
-        bodies = BodyLogger(self.rr, self.rec, self.indexes)
-        state_at = _state_lookup(trace)
-        for start in range(0, len(trace.times), BLOCK):
-            rows = np.arange(start, min(start + BLOCK, len(trace.times)))
+        source = urdf_source(model)
+        if source is None:
+            return BodyLogger(self.rr, self.rec, self.indexes)
+        robot = UrdfLogger(self.rr, self.rec, self.indexes, source["file"], source["root"])
+        robot.start()
+        return robot
+
+    def robot(self, chunk: Chunk, bodies: BodyLogger | UrdfLogger | None) -> None:
+        """The robot at the samples of ``chunk``: a URDF robot's joint and root transforms, or
+        the parts the model draws."""
+        ex = self.content.execution
+        if isinstance(bodies, UrdfLogger):
+            for mode, (rows, states) in chunk.blocks.items():
+                bodies.add(rows, ex.state_names[mode], states)
+                self.drain(len(rows) * (len(bodies.joints) + 1))
+        elif isinstance(bodies, BodyLogger):
+            model = self.content.model
+            assert model is not None and model.geometry is not None
+            state_at = _state_lookup(chunk)
             drawn = []
-            for row in rows.tolist():
+            for row in chunk.rows.tolist():
                 mode, state = state_at(row)
-                drawn.append(_draw(model.geometry, model.system.name, mode, state, float(trace.times[row])))
-            bodies.add(rows, drawn)
-            self.drain(len(rows) * len(bodies.tracks))
-        bodies.finish()
-        return bodies
+                drawn.append(
+                    _draw(model.geometry, model.system.name, mode, state, float(chunk.times[row - chunk.first]))
+                )
+            bodies.add(chunk.rows, drawn)
+            self.drain(len(chunk.times) * len(bodies.tracks))
 
     def scenery(self) -> dict[str, np.ndarray]:
         """``world/scenery/<part>``, static."""
@@ -423,7 +448,9 @@ class _Logger:
             )
         return scenery
 
-    def blueprint(self, entities: dict[str, str], bodies: BodyLogger | None, scenery: dict[str, np.ndarray]) -> None:
+    def blueprint(
+        self, entities: dict[str, str], bodies: BodyLogger | UrdfLogger | None, scenery: dict[str, np.ndarray]
+    ) -> None:
         """The viewer's layout (``legsim.output.rrd.views``), sent with the recording."""
         import rerun.blueprint as rrb
 
@@ -436,15 +463,20 @@ class _Logger:
         self.rec.send_blueprint(blueprint(rrb, groups, box))
 
 
-def _state_lookup(trace: Trace) -> Callable[[int], tuple[str, np.ndarray]]:
-    """row -> (mode, state) of a sample of ``trace``."""
-    position = np.zeros(len(trace.times), dtype=np.int64)
-    for rows, _ in trace.blocks.values():
-        position[rows] = np.arange(len(rows))
+def _joined(rows: list[np.ndarray]) -> np.ndarray:
+    """The rows of every chunk, in order (none: an empty int64 array)."""
+    return np.concatenate(rows) if rows else np.empty(0, dtype=np.int64)
+
+
+def _state_lookup(chunk: Chunk) -> Callable[[int], tuple[str, np.ndarray]]:
+    """row -> (mode, state) of a sample of ``chunk``."""
+    position = np.zeros(len(chunk.times), dtype=np.int64)
+    for rows, _ in chunk.blocks.values():
+        position[rows - chunk.first] = np.arange(len(rows))
 
     def state_at(row: int) -> tuple[str, np.ndarray]:
-        mode = trace.mode_names[trace.mode_index[row]]
-        return mode, trace.blocks[mode][1][position[row]]
+        mode = chunk.mode_names[chunk.mode_index[row - chunk.first]]
+        return mode, chunk.blocks[mode][1][position[row - chunk.first]]
 
     return state_at
 

@@ -9,7 +9,7 @@ import pytest
 
 from legsim.cli import main
 from legsim.output.rrd import read_rrd
-from legsim.output.rrd.write import kept_samples
+from legsim.output.rrd.stream import kept_samples
 from legsim.output.trace import execution_trace
 from legsim.scene import load_scene
 
