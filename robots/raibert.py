@@ -4,10 +4,12 @@ foot placement, hopping height by thrust, body attitude by hip torque in stance.
 Each leg is controlled on its own, from the mode the run is in (the controller is told it) and
 the state:
 
-* **flight**: the foot is placed ahead of the hip by ``x_f = xd T_s / 2 + k_x (xd - xd*)`` (m):
-  half the distance the body travels during the last stance of that leg (the neutral point,
-  which keeps the speed) plus a correction proportional to the speed error; the leg is held at
-  its touchdown length;
+* **flight**: the foot is placed ahead of the hip by ``x_f = xd T_s / 2 + k_x (xd - xd*) + b``
+  (m): half the distance the body travels during the last stance of that leg (the neutral
+  point, which keeps the speed) plus a correction proportional to the speed error, plus a bias
+  ``b`` that integrates the error: at each touchdown it grows by ``k_i`` times the error of the
+  body's mean speed over the stride since the leg's last touchdown (the proportional term
+  alone leaves a steady error); the leg is held at its touchdown length;
 * **stance**: the leg pushes along itself like a spring of stiffness k and rest length l, with
   a thrust that lengthens the spring during extension by ``delta`` (m), adapted hop by hop to
   the apex height error; the hip adds ``k_p (theta - theta*) + k_d dtheta/dt`` (N m) to keep
@@ -151,7 +153,8 @@ class Gains:
 class RunnerRaibert(Controller):
     """Raibert's controller for articulated legs (module docstring); ``attitude``: the stance
     hips servo the pitch (a pronk), or leave it free (a bound, where each leg pair hops on its
-    own: with the body's pitch inertia near m (d/2)^2 the hips move as two separate hoppers)."""
+    own: with the body's pitch inertia near m (d/2)^2 the hips move as two separate hoppers, so
+    each leg's thrust and swing follow its own hip's height)."""
 
     def __init__(self, bridge: Any, legs: list[Leg], gains: Gains, attitude: bool) -> None:
         self.bridge, self.legs, self.gains, self.attitude = bridge, legs, gains, attitude

@@ -135,3 +135,24 @@ def test_forward_pronk_tracks_the_commanded_speed_for_twenty_seconds():
     error = np.abs(stride_speeds(touchdowns[19:]) / 0.6 - 1.0)
     assert np.max(error) < 0.05
     assert np.max(error) < 0.01
+
+
+def test_bound_legs_hop_their_own_hips_height():
+    """In a bound each leg's hopping height is its hip's (Pinocchio's joint placement and
+    velocity), in a pronk the body's centre."""
+    rng = np.random.default_rng(5)
+    for gait in ("bound", "pronk"):
+        scene = pronk(0.1, f"controller.parameters.gait={gait}")
+        controller, bridge = scene.controller, scene.model.info["bridge"]
+        model, data = bridge.model, bridge.model.createData()
+        for _ in range(3):
+            x = scene.initial_state.copy()
+            x[2], x[bridge.n + 1 : bridge.n + 3] = rng.uniform(-0.4, 0.4), rng.uniform(-2.0, 2.0, 2)
+            q, v = x[: bridge.n], x[bridge.n : 2 * bridge.n]
+            pin.forwardKinematics(model, data, q, v)
+            for leg in controller.legs:
+                hip = next(j for j in range(model.njoints) if model.joints[j].idx_v == leg.hip)
+                velocity = pin.getVelocity(model, data, hip, pin.LOCAL_WORLD_ALIGNED)
+                z, zd = data.oMi[hip].translation[2], velocity.linear[2]
+                expected = (z, zd) if gait == "bound" else (x[1], x[bridge.n + 1])
+                np.testing.assert_allclose(controller._height(leg, x), expected, atol=1e-12)
