@@ -66,23 +66,24 @@ class Leg:
     bias: float = 0.0
 
 
+def leg_terms(leg: Leg, q_hip: float, q_knee: float) -> tuple[float, float, float, float, float, float]:
+    """The foot relative to the hip in the body frame, (x, z) (m), and its Jacobian's entries
+    d(x, z)/d(q_hip, q_knee) row by row (m/rad), as floats (the stance law runs at every guard
+    evaluation, where small numpy arrays cost more than the arithmetic)."""
+    a, b = q_hip, q_hip + q_knee
+    sa, ca, sb, cb = math.sin(a), math.cos(a), math.sin(b), math.cos(b)
+    l1, l2 = leg.thigh, leg.shank
+    return -l1 * sa - l2 * sb, -l1 * ca - l2 * cb, -l1 * ca - l2 * cb, -l2 * cb, l1 * sa + l2 * sb, l2 * sb
+
+
 def leg_point(leg: Leg, q_hip: float, q_knee: float) -> np.ndarray:
     """Foot relative to the hip in the body frame (x, z) (m)."""
-    a, b = q_hip, q_hip + q_knee
-    return np.array(
-        (-leg.thigh * math.sin(a) - leg.shank * math.sin(b), -leg.thigh * math.cos(a) - leg.shank * math.cos(b))
-    )
+    return np.array(leg_terms(leg, q_hip, q_knee)[:2])
 
 
 def leg_jacobian(leg: Leg, q_hip: float, q_knee: float) -> np.ndarray:
     """d(foot - hip)/d(q_hip, q_knee) in the body frame (2, 2)."""
-    a, b = q_hip, q_hip + q_knee
-    return np.array(
-        (
-            (-leg.thigh * math.cos(a) - leg.shank * math.cos(b), -leg.shank * math.cos(b)),
-            (leg.thigh * math.sin(a) + leg.shank * math.sin(b), leg.shank * math.sin(b)),
-        )
-    )
+    return np.array(leg_terms(leg, q_hip, q_knee)[2:]).reshape(2, 2)
 
 
 def leg_angles(leg: Leg, length: float, angle: float) -> tuple[float, float]:
@@ -246,14 +247,9 @@ class RunnerRaibert(Controller):
         and the hip's share of the attitude torque. Past its rest length the leg pulls its foot up
         (at most ``UNLOAD`` N), so that it lifts off rather than dragging; the attitude torque is
         kept below ``ATTITUDE_SHARE`` of the leg force times its length, so that the foot's force
-        stays well inside the friction cone. (``leg_point`` and ``leg_jacobian`` written out in
-        scalars: this runs at every guard evaluation.)"""
+        stays well inside the friction cone."""
         g = self.gains
-        a, b = float(q[leg.hip]), float(q[leg.hip] + q[leg.knee])
-        sa, ca, sb, cb = math.sin(a), math.cos(a), math.sin(b), math.cos(b)
-        px, pz = -leg.thigh * sa - leg.shank * sb, -leg.thigh * ca - leg.shank * cb
-        j00, j01 = -leg.thigh * ca - leg.shank * cb, -leg.shank * cb
-        j10, j11 = leg.thigh * sa + leg.shank * sb, leg.shank * sb
+        px, pz, j00, j01, j10, j11 = leg_terms(leg, float(q[leg.hip]), float(q[leg.knee]))
         va, vb = float(v[leg.hip]), float(v[leg.knee])
         r = math.hypot(px, pz)
         rdot = (px * (j00 * va + j01 * vb) + pz * (j10 * va + j11 * vb)) / r
