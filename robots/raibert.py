@@ -4,10 +4,12 @@ foot placement, hopping height by thrust, body attitude by hip torque in stance.
 Each leg is controlled on its own, from the mode the run is in (the controller is told it) and
 the state:
 
-* **flight**: the foot is placed ahead of the hip by ``x_f = xd T_s / 2 + k_x (xd - xd*)`` (m):
-  half the distance the body travels during the last stance of that leg (the neutral point,
-  which keeps the speed) plus a correction proportional to the speed error; the leg is held at
-  its touchdown length;
+* **flight**: the foot is placed ahead of the hip by ``x_f = xd T_s / 2 + k_x (xd - xd*) + b``
+  (m): half the distance the body travels during the last stance of that leg (the neutral
+  point, which keeps the speed) plus a correction proportional to the speed error, plus a bias
+  ``b`` that integrates the error: at each touchdown it grows by ``k_i`` times the error of the
+  body's mean speed over the stride since the leg's last touchdown (the proportional term
+  alone leaves a steady error); the leg is held at its touchdown length;
 * **stance**: the leg pushes along itself like a spring of stiffness k and rest length l, with
   a thrust that lengthens the spring during extension by ``delta`` (m), adapted hop by hop to
   the apex height error; the hip adds ``k_p (theta - theta*) + k_d dtheta/dt`` (N m) to keep
@@ -60,25 +62,28 @@ class Leg:
     thrust: float = 0.0
     in_stance: bool = False
     apex: float = field(default=float("nan"))
+    touchdown_x: float = field(default=float("nan"))
+    bias: float = 0.0
+
+
+def leg_terms(leg: Leg, q_hip: float, q_knee: float) -> tuple[float, float, float, float, float, float]:
+    """The foot relative to the hip in the body frame, (x, z) (m), and its Jacobian's entries
+    d(x, z)/d(q_hip, q_knee) row by row (m/rad), as floats (the stance law runs at every guard
+    evaluation, where small numpy arrays cost more than the arithmetic)."""
+    a, b = q_hip, q_hip + q_knee
+    sa, ca, sb, cb = math.sin(a), math.cos(a), math.sin(b), math.cos(b)
+    l1, l2 = leg.thigh, leg.shank
+    return -l1 * sa - l2 * sb, -l1 * ca - l2 * cb, -l1 * ca - l2 * cb, -l2 * cb, l1 * sa + l2 * sb, l2 * sb
 
 
 def leg_point(leg: Leg, q_hip: float, q_knee: float) -> np.ndarray:
     """Foot relative to the hip in the body frame (x, z) (m)."""
-    a, b = q_hip, q_hip + q_knee
-    return np.array(
-        (-leg.thigh * math.sin(a) - leg.shank * math.sin(b), -leg.thigh * math.cos(a) - leg.shank * math.cos(b))
-    )
+    return np.array(leg_terms(leg, q_hip, q_knee)[:2])
 
 
 def leg_jacobian(leg: Leg, q_hip: float, q_knee: float) -> np.ndarray:
     """d(foot - hip)/d(q_hip, q_knee) in the body frame (2, 2)."""
-    a, b = q_hip, q_hip + q_knee
-    return np.array(
-        (
-            (-leg.thigh * math.cos(a) - leg.shank * math.cos(b), -leg.shank * math.cos(b)),
-            (leg.thigh * math.sin(a) + leg.shank * math.sin(b), leg.shank * math.sin(b)),
-        )
-    )
+    return np.array(leg_terms(leg, q_hip, q_knee)[2:]).reshape(2, 2)
 
 
 def leg_angles(leg: Leg, length: float, angle: float) -> tuple[float, float]:
@@ -134,6 +139,7 @@ class Gains:
     speed: float
     height: float
     k_x: float
+    k_i: float
     leg_length: float
     stiffness: float
     damping: float
@@ -148,13 +154,15 @@ class Gains:
 class RunnerRaibert(Controller):
     """Raibert's controller for articulated legs (module docstring); ``attitude``: the stance
     hips servo the pitch (a pronk), or leave it free (a bound, where each leg pair hops on its
-    own: with the body's pitch inertia near m (d/2)^2 the hips move as two separate hoppers)."""
+    own: with the body's pitch inertia near m (d/2)^2 the hips move as two separate hoppers, so
+    each leg's thrust and swing follow its own hip's height)."""
 
     def __init__(self, bridge: Any, legs: list[Leg], gains: Gains, attitude: bool) -> None:
         self.bridge, self.legs, self.gains, self.attitude = bridge, legs, gains, attitude
         self.n = bridge.n
         self.count = len(bridge.actuated_dofs)
         self._data = bridge.model.createData()
+        self._modes: dict[str, frozenset[str]] = {}
         bridge.attach_control(self.preview)
 
     def preview(self, mode: str, t: float, x: np.ndarray) -> np.ndarray:
@@ -170,46 +178,81 @@ class RunnerRaibert(Controller):
         for leg in self.legs:
             stance = leg.contact in active
             if stance and not leg.in_stance:
+                self._adapt_placement(leg, t, x)
                 leg.touchdown = t
             elif leg.in_stance and not stance:
                 leg.stance_time = min(max(t - leg.touchdown, 0.02), 0.5)
                 self._adapt_thrust(leg, x)
             leg.in_stance = stance
 
+    def _adapt_placement(self, leg: Leg, t: float, x: np.ndarray) -> None:
+        """At touchdown: the body's mean speed over the stride since the leg's last touchdown
+        (Raibert's measure) moves the foot placement by ``k_i`` times its error, so that the
+        placement's bias integrates the speed error away."""
+        if t > leg.touchdown and math.isfinite(leg.touchdown_x):
+            stride_speed = (x[0] - leg.touchdown_x) / (t - leg.touchdown)
+            leg.bias += self.gains.k_i * (stride_speed - self.gains.speed)
+        leg.touchdown_x = x[0]
+
     def _adapt_thrust(self, leg: Leg, x: np.ndarray) -> None:
         """At liftoff: the apex the body's centre will reach, against the commanded height."""
         g = self.gains
-        z, zd = x[1], x[self.n + 1]
+        z, zd = self._height(leg, x)
         leg.apex = z + max(zd, 0.0) ** 2 / (2 * 9.81)
         leg.thrust = min(max(leg.thrust + g.k_height * (g.height - leg.apex), 0.0), g.max_thrust)
+
+    def _height(self, leg: Leg, x: np.ndarray) -> tuple[float, float]:
+        """Height (m) and vertical speed (m/s) the leg hops: the body's centre in a pronk; in a
+        bound, where each leg pair hops on its own, the leg's hip (``offset sin(pitch)`` below
+        the centre)."""
+        n = self.n
+        if self.attitude:
+            return float(x[1]), float(x[n + 1])
+        pitch, rate = x[2], x[n + 2]
+        return float(x[1] - leg.offset * math.sin(pitch)), float(x[n + 1] - leg.offset * math.cos(pitch) * rate)
+
+    def _active(self, mode: str) -> frozenset[str]:
+        """The contacts active in ``mode`` (cached: the controller is called at every guard
+        evaluation, and parsing the mode's name would cost more than the control law)."""
+        active = self._modes.get(mode)
+        if active is None:
+            active = self._modes[mode] = frozenset(self.bridge.active_contacts(mode))
+        return active
 
     def __call__(self, mode: str, t: float, x: np.ndarray) -> np.ndarray:
         n, g = self.n, self.gains
         q, v = x[:n], x[n : 2 * n]
-        active = set(self.bridge.active_contacts(mode))
+        active = self._active(mode)
         u = np.zeros(self.count)
         stance_legs = [leg for leg in self.legs if leg.contact in active]
         attitude = g.kp_attitude * q[2] + g.kd_attitude * v[2] if self.attitude else 0.0
         # A pronk lifts off together: once a leg has left, the others unload while they extend.
         together = self.attitude and len(stance_legs) < len(self.legs)
+        gravity = None
         for leg in self.legs:
             if leg.contact in active:
-                u[[leg.u_hip, leg.u_knee]] += self._stance(leg, q, v, attitude / len(stance_legs), together)
+                torque = self._stance(leg, q, v, attitude / len(stance_legs), together)
             else:
-                u[[leg.u_hip, leg.u_knee]] += self._flight(leg, q, v)
+                if gravity is None:
+                    gravity = pin.computeGeneralizedGravity(self.bridge.model, self._data, q)
+                torque = self._flight(leg, q, v, self._height(leg, x)[1] < 0.0, gravity)
+            u[leg.u_hip] += torque[0]
+            u[leg.u_knee] += torque[1]
         return u
 
-    def _stance(self, leg: Leg, q: np.ndarray, v: np.ndarray, attitude: float, unload: bool = False) -> np.ndarray:
+    def _stance(
+        self, leg: Leg, q: np.ndarray, v: np.ndarray, attitude: float, unload: bool = False
+    ) -> tuple[float, float]:
         """Hip and knee torques (N m) of the leg's spring along itself, with thrust while extending,
         and the hip's share of the attitude torque. Past its rest length the leg pulls its foot up
         (at most ``UNLOAD`` N), so that it lifts off rather than dragging; the attitude torque is
         kept below ``ATTITUDE_SHARE`` of the leg force times its length, so that the foot's force
         stays well inside the friction cone."""
         g = self.gains
-        p = leg_point(leg, q[leg.hip], q[leg.knee])
-        J = leg_jacobian(leg, q[leg.hip], q[leg.knee])
-        r = float(np.linalg.norm(p))
-        rdot = float(p @ (J @ v[[leg.hip, leg.knee]])) / r
+        px, pz, j00, j01, j10, j11 = leg_terms(leg, float(q[leg.hip]), float(q[leg.knee]))
+        va, vb = float(v[leg.hip]), float(v[leg.knee])
+        r = math.hypot(px, pz)
+        rdot = (px * (j00 * va + j01 * vb) + pz * (j10 * va + j11 * vb)) / r
         # the thrust comes in with the extension rate (not at once at the bottom of the stance, so
         # that the contact forces, and the guards on them, stay continuous)
         rest = g.leg_length + leg.thrust * min(max(rdot / THRUST_RATE, 0.0), 1.0)
@@ -217,26 +260,25 @@ class RunnerRaibert(Controller):
         if unload and rdot > 0.0:
             force = -UNLOAD
         limit = ATTITUDE_SHARE * max(force, 0.0) * r
-        torque = J.T @ (force * p / r)
-        torque[0] += max(-limit, min(limit, attitude))
-        return torque
+        fx, fz = force * px / r, force * pz / r
+        return j00 * fx + j10 * fz + max(-limit, min(limit, attitude)), j01 * fx + j11 * fz
 
-    def _flight(self, leg: Leg, q: np.ndarray, v: np.ndarray) -> np.ndarray:
-        """Hip and knee torques (N m) servoing the foot to its touchdown placement. In a pronk
-        the legs' lengths make up for the pitch, so that the feet hang at one height and land
-        together (the stance hips then level the body)."""
+    def _flight(self, leg: Leg, q: np.ndarray, v: np.ndarray, falling: bool, gravity: np.ndarray) -> np.ndarray:
+        """Hip and knee torques (N m) servoing the foot to its touchdown placement, with the
+        generalized ``gravity`` (N m, shape (nv,)) compensated. In a pronk the legs' lengths make
+        up for the pitch, so that the feet hang at one height and land together (the stance hips
+        then level the body)."""
         g = self.gains
         xd = v[0]
-        ahead = xd * leg.stance_time / 2 + g.k_x * (xd - g.speed)
+        ahead = xd * leg.stance_time / 2 + g.k_x * (xd - g.speed) + leg.bias
         world = math.asin(max(-0.9, min(0.9, ahead / g.leg_length)))
         angle = world + q[2]
-        length = g.leg_length if v[1] < 0.0 else SWING_SHARE * g.leg_length
+        length = g.leg_length if falling else SWING_SHARE * g.leg_length
         if self.attitude:  # the hip is -offset sin(pitch) above the body's centre
             length -= leg.offset * math.sin(q[2]) / math.cos(world)
         hip, knee = leg_angles(leg, length, angle)
         dofs = [leg.hip, leg.knee]
-        gravity = pin.computeGeneralizedGravity(self.bridge.model, self._data, q)[dofs]
-        return g.kp_joint * (np.array((hip, knee)) - q[dofs]) - g.kd_joint * v[dofs] + gravity
+        return g.kp_joint * (np.array((hip, knee)) - q[dofs]) - g.kd_joint * v[dofs] + gravity[dofs]
 
 
 RUNNER_PARAMETERS = {
@@ -246,6 +288,9 @@ RUNNER_PARAMETERS = {
     "speed": Param(1.0, "commanded forward speed xd*", "m/s"),
     "height": Param(0.55, "commanded apex height of the body's centre", "m", low=0.0, low_open=True),
     "k_x": Param(0.05, "foot placement gain (m per m/s of speed error)", "s", low=0.0),
+    "k_i": Param(
+        0.0, "foot placement's integral gain: its bias grows by k_i per m/s of each stride's speed error", "s", low=0.0
+    ),
     "leg_length": Param(
         0.42, "leg length at touchdown, and the stance spring's rest length", "m", low=0.0, low_open=True
     ),
