@@ -260,11 +260,14 @@ def format_orbit(payload: dict[str, Any], name: str) -> str:
     if "integrator" in payload:
         lines.append(f"integrator: {describe_integrator(payload['integrator'])}")
     lines.append(f"section: {payload['section']} (mode {payload['mode']})")
-    width = max(len(n) for n in list(payload["state_names"]) + list(payload["free"]))
+    memory = payload.get("memory", {})
+    width = max(len(n) for n in list(payload["state_names"]) + list(payload["free"]) + list(memory))
     for n, v in zip(payload["state_names"], payload["fixed_point"], strict=False):
         lines.append(f"  {n.ljust(width)} = {v: .10g}")
     for n in payload["free"]:
         lines.append(f"  {n.ljust(width)} = {payload['parameters'][n]: .10g}  (free parameter)")
+    for n, v in memory.items():
+        lines.append(f"  {n.ljust(width)} = {v: .10g} {payload['memory_units'][n]}  (controller memory)")
     if payload["status"] != "converged":
         return "\n".join(lines)
     period = f"period {payload['period']:.10g} s (relaxed return time {payload['return_time']:.10g} s)"
