@@ -208,13 +208,14 @@ class OrbitProblem:
         self.free = tuple(self.free)
         self.fixed = tuple(self.fixed)
         self.cyclic = tuple(self.cyclic)
-        self._built = self.system  # what a controller is made for (a Model from a scene)
-        self.system, self.control = _system_and_control(self.system, self.control)
-        self.is_factory = not isinstance(self.system, HybridSystem)
-        if self.is_factory and not callable(self.system):
+        # ``system`` stays as given (a Model, which a controller is made for, survives
+        # ``dataclasses.replace``); the HybridSystem and control it holds are kept apart.
+        self._fixed, self._fixed_control = _system_and_control(self.system, self.control)
+        self.is_factory = not isinstance(self._fixed, HybridSystem)
+        if self.is_factory and not callable(self._fixed):
             raise OrbitError(
                 f"orbit problem: system must be a HybridSystem, a Model or a factory "
-                f"system(parameters), got {type(self.system).__name__}"
+                f"system(parameters), got {type(self._fixed).__name__}"
             )
         missing = [p for p in self.free if p not in self.parameters]
         if missing:
@@ -349,7 +350,7 @@ class OrbitProblem:
         set); OrbitError when it is not a ``legsim.control.Controller``."""
         assert self.controller is not None
         self.instantiate(parameters)
-        made = self.controller(self._built if not self.is_factory else self._cached(parameters)[2])
+        made = self.controller(self.system if not self.is_factory else self._cached(parameters)[2])
         if not isinstance(made, Controller):
             raise OrbitError(
                 f"orbit problem: controller(model) made {type(made).__name__}, expected a legsim.control.Controller",
@@ -381,7 +382,7 @@ class OrbitProblem:
         """(system, control) for these parameter values (cached); the fixed system and control
         when the problem has no factory."""
         if not self.is_factory:
-            return self.system, self.control
+            return self._fixed, self._fixed_control
         system, control, _ = self._cached(parameters)
         return system, control
 
@@ -404,7 +405,7 @@ class OrbitProblem:
         """Call the factory; its failures become ``simulation_failed`` errors (a parameter value
         the model refuses ends a continuation like a failed simulation does)."""
         try:
-            built = self.system(params)
+            built = self._fixed(params)
         except OrbitError:
             raise
         except LegsimError as exc:
