@@ -532,13 +532,7 @@ class _NewtonSearch:
         return self._result(status, message, x_now, params_now, iterations, memory_now)
 
     def _result(
-        self,
-        status: str,
-        message: str,
-        x: np.ndarray,
-        params: Mapping[str, float],
-        iterations: int,
-        memory: np.ndarray,
+        self, status: str, message: str, x: np.ndarray, params: Mapping[str, float], iterations: int, memory: np.ndarray
     ) -> OrbitResult:
         p = self.p
         result = OrbitResult(

@@ -358,9 +358,7 @@ class OrbitProblem:
             )
         return made
 
-    def restored_controller(
-        self, parameters: Mapping[str, float] | None, memory: np.ndarray | None
-    ) -> Controller:
+    def restored_controller(self, parameters: Mapping[str, float] | None, memory: np.ndarray | None) -> Controller:
         """A fresh controller restored to ``memory`` (default ``memory_guess``) at the section's
         mode: what one return runs with."""
         made = self.make_controller(parameters)

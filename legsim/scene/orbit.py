@@ -285,9 +285,7 @@ def _guess(scene: Any, table: Mapping[str, Any], problem: OrbitProblem) -> tuple
     for key, value in guess.items():
         if key not in problem.names and key not in problem.memory_names:
             memory_note = f"; controller memory: {list(problem.memory_names)}" if problem.memory_names else ""
-            raise _fail(
-                scene, "guess", f"unknown coordinate '{key}'; coordinates: {list(problem.names)}{memory_note}"
-            )
+            raise _fail(scene, "guess", f"unknown coordinate '{key}'; coordinates: {list(problem.names)}{memory_note}")
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
             raise _fail(scene, f"guess.{key}", f"expected a finite number, got {describe(value)}")
         if key in problem.names:

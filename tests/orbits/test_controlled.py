@@ -102,7 +102,7 @@ def test_the_leading_multiplier_is_the_runs_contraction_rate(orbit, run_apexes):
     # |mu_1|, up to the second multiplier's share (|mu_2 / mu_1|)^k < 0.7% from the third hop on.
     apexes, _ = run_apexes
     errors = np.max(np.abs(apexes - as_row(orbit)), axis=1)
-    linear = [k for k in range(2, len(errors) - 1) if 1e-7 < errors[k + 1] and errors[k] < 3e-3]
+    linear = [k for k in range(2, len(errors) - 1) if errors[k + 1] > 1e-7 and errors[k] < 3e-3]
     assert len(linear) >= 5
     ratios = errors[[k + 1 for k in linear]] / errors[linear]
     assert np.max(np.abs(ratios / orbit.spectral_radius - 1.0)) < 0.01
@@ -169,3 +169,13 @@ def test_a_controller_without_declared_memory_is_refused(scene):
     with pytest.raises(OrbitError, match="controller Integrator does not declare its memory") as info:
         OrbitProblem(system=scene.model, section=APEX, h=1e-3, eps=1e-7, controller=lambda model: Integrator())
     assert info.value.key == "controller"
+
+
+def test_a_stateless_controller_adds_no_unknowns():
+    # joint_pd declares an empty memory: the search runs it as it is, on the state alone.
+    scene = load_scene("quadruped_stand")
+    section = Section.level(scene.initial_mode, "zd", 0.0, "decreasing")
+    plain = OrbitProblem(system=scene.model, section=section, h=1e-3, eps=1e-4, cyclic=("x",))
+    controlled = replace(plain, controller=lambda model: scene.make_controller())
+    assert controlled.memory_names == () and controlled.memory_guess.shape == (0,)
+    assert controlled.unknown_names == plain.unknown_names

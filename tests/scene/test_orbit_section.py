@@ -9,7 +9,7 @@ import pytest
 
 import legsim.orbits
 from legsim.errors import SceneError
-from legsim.scene import bundled_dir, load_scene
+from legsim.scene import load_scene
 from legsim.scene.orbit import ORBIT_KEYS, OrbitSettings, problem_from_scene
 
 
