@@ -290,10 +290,12 @@ def format_orbit(payload: dict[str, Any], name: str) -> str:
 
 def format_header(param: str, problem: OrbitProblem) -> tuple[str, tuple[list[str], list[int]]]:
     """The table header of ``--continue`` and its columns: the parameter, the unknown
-    coordinates, the free parameters, period, step length, largest |multiplier|, verdict."""
+    coordinates, the controller's memory, the free parameters, period, step length, largest
+    |multiplier|, verdict."""
     cols = (
         [param]
         + [problem.names[i] for i in problem.unknown_idx]
+        + list(problem.memory_names)
         + list(problem.free)
         + ["period", "step", "max|mu|", "stable"]
     )
@@ -313,6 +315,8 @@ def format_row(param: str, value: float, payload: dict[str, Any], layout: tuple[
             v: Any = value
         elif col in state:
             v = state[col]
+        elif col in payload.get("memory", {}):
+            v = payload["memory"][col]
         elif col in payload["parameters"] and col not in ("period", "step", "max|mu|", "stable"):
             v = payload["parameters"][col]
         elif col == "period":

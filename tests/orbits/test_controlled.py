@@ -13,6 +13,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from legsim.commands.orbit import format_orbit
 from legsim.control import Controller
 from legsim.orbits import OrbitError, OrbitProblem, Section, find_orbit, jacobian_fd, jacobian_saltation
 from legsim.orbits.returns import ReturnMap, first_crossing
@@ -69,6 +70,12 @@ def test_the_gait_reports_the_stance_time_with_its_unit(orbit):
     # z, psi, xd and T_s: four multipliers, one of them the energy's 1.
     assert len(orbit.multipliers) == 4
     assert abs(orbit.multipliers[0] - 1.0) < 1e-6 and orbit.stable
+
+
+def test_the_report_names_the_memory_with_its_unit(orbit):
+    text = format_orbit(orbit.to_json(), "slip_raibert")
+    assert f"  T_s =  {orbit.memory[0]:.10g} s  (controller memory)" in text
+    assert "(fd Jacobian," in text
 
 
 def test_the_memory_at_the_return_is_the_stance_the_return_took(settings, orbit):
