@@ -176,24 +176,32 @@ class _Equations:
     """The orbit equations F(z) = 0 in the unknowns z = (free coordinates, controller memory,
     free parameters)."""
 
-    def __init__(self, problem: OrbitProblem, x_template: np.ndarray, rmap: ReturnMap) -> None:
+    def __init__(
+        self, problem: OrbitProblem, x_template: np.ndarray, memory_template: np.ndarray, rmap: ReturnMap
+    ) -> None:
         self.p = problem
-        self.template = x_template.copy()  # the state whose fixed coordinates z leaves as they are
+        # the state and memory whose fixed values z leaves as they are
+        self.template = x_template.copy()
+        self.memory_template = np.asarray(memory_template, dtype=float).copy()
         self.rmap = rmap
         self.n_x = len(problem.unknown_idx)
-        self.n_xm = self.n_x + problem.n_memory
+        self.n_xm = self.n_x + len(problem.unknown_memory_idx)
 
     def unpack(self, z: np.ndarray) -> tuple[np.ndarray, dict[str, float], np.ndarray]:
         """(state, all parameter values, controller memory) of the unknowns z."""
         x = self.template.copy()
         x[self.p.unknown_idx] = z[: self.n_x]
+        memory = self.memory_template.copy()
+        memory[self.p.unknown_memory_idx] = z[self.n_x : self.n_xm]
         params = dict(self.p.parameters)
         params.update({name: float(v) for name, v in zip(self.p.free, z[self.n_xm :], strict=True)})
-        return x, params, np.asarray(z[self.n_x : self.n_xm], dtype=float)
+        return x, params, memory
 
     def pack(self, x: np.ndarray, params: Mapping[str, float], memory: np.ndarray) -> np.ndarray:
         """The unknowns z of a state, parameter values and controller memory."""
-        return np.concatenate([x[self.p.unknown_idx], memory, [params[name] for name in self.p.free]])
+        return np.concatenate(
+            [x[self.p.unknown_idx], memory[self.p.unknown_memory_idx], [params[name] for name in self.p.free]]
+        )
 
     def extra(self, x: np.ndarray, params: Mapping[str, float]) -> np.ndarray:
         """Rows that do not need a simulation: section function, constraints, energy."""
@@ -359,7 +367,7 @@ class _NewtonSearch:
         self.singular_tol = singular_tol
         self.max_backtracks = max_backtracks
         self.rmap = ReturnMap(problem)
-        self.eq = _Equations(problem, x0, self.rmap)
+        self.eq = _Equations(problem, x0, memory0, self.rmap)
         self.z = self.eq.pack(x0, problem.parameters, memory0)
         self.history: list[float] = []
         self.ret: Return | None = None

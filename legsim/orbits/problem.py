@@ -67,8 +67,9 @@ class OrbitProblem:
         (``memory_names``) must be declared. It replaces any control, as in ``legsim run``.
     parameters: parameter values passed to the factory (initial guesses for the free ones).
     free: names of parameters solved for (unknowns besides the state).
-    fixed: coordinates held at their initial values (e.g. the apex height). The coordinate of a
-        coordinate section is always fixed.
+    fixed: coordinates held at their initial values (e.g. the apex height), or controller memory
+        values held at their guesses (where the controller conserves a combination of them). The
+        coordinate of a coordinate section is always fixed.
     cyclic: coordinates along a symmetry (a horizontal position): fixed, left out of the
         periodicity equations, their increment over a return is the step length.
     constraints: extra equations ``(name, c(x, parameters) -> float)`` asked to be 0.
@@ -129,8 +130,8 @@ class OrbitProblem:
         self._resolve_system()
         self._cache: dict[tuple, tuple[HybridSystem, Any, Any]] = {}
         system, _ = self.instantiate(self.parameters)
-        self._bind(system)
         self._check_controller()
+        self._bind(system)
         self._check_equations(system)
 
     # -- checks, in the order a reader fixes them: settings, system, coordinates, equations --
@@ -234,7 +235,8 @@ class OrbitProblem:
         self.bound = bind_section(self.section, system)
         names = self.bound.names
         for label, group in (("fixed", self.fixed), ("cyclic", self.cyclic)):
-            unknown = [c for c in group if c not in names]
+            held_memory = self.memory_names if label == "fixed" else ()
+            unknown = [c for c in group if c not in names and c not in held_memory]
             if unknown:
                 raise OrbitError(
                     f"orbit problem: {label} coordinate(s) {unknown} are not coordinates of mode "
@@ -288,7 +290,7 @@ class OrbitProblem:
 
     def _check_equations(self, system: HybridSystem) -> None:
         n_rows = len(self.periodic_idx) + self.extra_rows + self.n_memory
-        n_unknowns = len(self.unknown_idx) + len(self.free) + self.n_memory
+        n_unknowns = len(self.unknown_idx) + len(self.free) + len(self.unknown_memory_idx)
         if n_unknowns == 0:
             raise OrbitError(
                 "orbit problem: nothing to solve for: every coordinate is fixed and no parameter is free", key="fixed"
@@ -329,15 +331,21 @@ class OrbitProblem:
         return len(self.memory_names)
 
     @property
+    def unknown_memory_idx(self) -> list[int]:
+        """Indices in the memory of the values solved for (those not ``fixed``)."""
+        return [i for i, name in enumerate(self.memory_names) if name not in self.fixed]
+
+    @property
     def unknown_names(self) -> list[str]:
         """Names of the unknowns: free coordinates, the controller's memory, free parameters."""
-        return [self.names[i] for i in self.unknown_idx] + list(self.memory_names) + list(self.free)
+        memory = [self.memory_names[i] for i in self.unknown_memory_idx]
+        return [self.names[i] for i in self.unknown_idx] + memory + list(self.free)
 
     @property
     def augmented_unknown_idx(self) -> list[int]:
-        """Indices of the unknown coordinates and memory values in the augmented state (x, memory),
-        shape (n + m,)."""
-        return list(self.unknown_idx) + [self.dim + i for i in range(self.n_memory)]
+        """Indices of the unknown coordinates and memory values in the augmented state (x,
+        memory)."""
+        return list(self.unknown_idx) + [self.dim + i for i in self.unknown_memory_idx]
 
     @property
     def augmented_periodic_idx(self) -> list[int]:

@@ -186,3 +186,15 @@ def test_a_stateless_controller_adds_no_unknowns():
     controlled = replace(plain, controller=lambda model: scene.make_controller())
     assert controlled.memory_names == () and controlled.memory_guess.shape == (0,)
     assert controlled.unknown_names == plain.unknown_names
+
+
+def test_a_fixed_memory_value_is_held_at_its_guess(settings, orbit):
+    # Fixing T_s at its value on the gait leaves the same gait to find, with T_s no unknown (its
+    # periodicity row stays: an overdetermined, consistent system).
+    held = replace(settings.problem, fixed=("T_s",))
+    assert held.unknown_names == ["z", "psi", "xd"]
+    result = find_orbit(held, orbit.fixed_point + 1e-3 * np.r_[0, 1, 0, 1, 0], memory=orbit.memory, jacobian="fd")
+    assert result.raise_for_status().memory.tolist() == orbit.memory.tolist()
+    assert result.fixed_point == pytest.approx(orbit.fixed_point, abs=1e-8)
+    with pytest.raises(OrbitError, match=r"fixed coordinate\(s\) \['T_x'\] are not coordinates"):
+        replace(settings.problem, fixed=("T_x",))
