@@ -40,7 +40,8 @@ from .fields import check_keys, describe, field_error, table_at
 ORBIT_KEYS = {
     "section": "{ after = TRANSITION } or { mode = MODE, coordinate = NAME, value = 0.0, direction = "
     "'decreasing' | 'increasing' | 'either' }",
-    "fixed": "coordinates held at their initial values (list of names)",
+    "fixed": "coordinates held at their initial values, or controller memory values held at their guesses "
+    "(list of names)",
     "cyclic": "coordinates along a symmetry, left out of periodicity; their increment is the step length",
     "free": "parameters solved for: robot parameter names or EFFECT.PARAM",
     "energy": "energy level of the orbit (J), when the system defines an energy",
