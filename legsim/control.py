@@ -11,6 +11,18 @@ A plain ``control(t, x) -> u`` still works wherever a control is taken. A ``Cont
   the method's order); True holds u(t_k) over the step from t_k, a zero-order hold as the papers'
   digital controllers (paper 000 Fig. 1).
 
+A controller whose state influences the future declares it as its *memory*, so that ``legsim
+orbit`` can search the closed loop (``legsim.orbits``: the return map acts on the section state
+and the memory together):
+
+* ``memory_names`` and ``memory_units``: one name and unit per value (``("T_s",)``, ``("s",)``);
+  ``None`` (the default) leaves the memory undeclared, and the orbit search refuses the
+  controller; a stateless controller declares ``()``;
+* ``memory() -> np.ndarray``: the values now, shape (len(memory_names),);
+* ``restore(mode, memory)``: set them before a run that starts in ``mode``. Everything else the
+  controller keeps must be set by the run itself before it is used (a touchdown time is written
+  when the stance is entered), and the memory may change only in ``reset``, at mode entries.
+
 Scenes name controllers by a registry (the ``legsim.controllers`` entry-point group, like
 robots): a ``ControllerSpec`` names its parameters and makes a ``Controller`` for a model.
 """
@@ -36,9 +48,19 @@ class Controller:
     and, when they keep state, ``reset``."""
 
     hold: bool = False
+    #: Names and units of the values ``memory()`` returns (module docstring); None: undeclared.
+    memory_names: tuple[str, ...] | None = None
+    memory_units: tuple[str, ...] = ()
 
     def reset(self, mode: str, t: float, x: np.ndarray) -> None:
         """Entering ``mode`` at (t, x): update internal state (nothing by default)."""
+
+    def memory(self) -> np.ndarray:
+        """The values of ``memory_names`` now, shape (len(memory_names),) (none by default)."""
+        return np.empty(0)
+
+    def restore(self, mode: str, memory: np.ndarray) -> None:
+        """Set the memory to ``memory`` (shape as ``memory()``) before a run starting in ``mode``."""
 
     def __call__(self, mode: str, t: float, x: np.ndarray) -> Any:
         raise NotImplementedError

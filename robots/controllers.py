@@ -32,6 +32,8 @@ def bridge_of(model: Model, controller: str) -> Any:
 class JointPD(Controller):
     """``u = kp (q* - q) - kd dq/dt + g(q)`` on the actuated joints (module docstring)."""
 
+    memory_names = ()  # stateless: the orbit search runs it as it is
+
     def __init__(self, bridge: Any, kp: float, kd: float, targets: np.ndarray, gravity: bool) -> None:
         self.bridge = bridge
         self.dofs = bridge.actuated_dofs

@@ -185,6 +185,33 @@ class RunnerRaibert(Controller):
                 self._adapt_thrust(leg, x)
             leg.in_stance = stance
 
+    @property
+    def memory_names(self) -> tuple[str, ...] | None:  # type: ignore[override]
+        """Each leg's thrust (m) and last stance duration T_s (s), by the leg's contact name.
+        Undeclared (None) with the integral term (k_i > 0): its bias and the stride it measures
+        from the last touchdown's time and place would be memory too, which ``restore`` cannot
+        set without the section's time and state."""
+        if self.gains.k_i > 0.0:
+            return None
+        return tuple(f"{kind}_{leg.contact}" for leg in self.legs for kind in ("thrust", "T_s"))
+
+    @property
+    def memory_units(self) -> tuple[str, ...]:  # type: ignore[override]
+        return ("m", "s") * len(self.legs)
+
+    def memory(self) -> np.ndarray:
+        """(thrust (m), T_s (s)) of each leg in turn, shape (2 * legs,): what the next hops use.
+        The touchdown times are written at each touchdown and the apex at each liftoff before
+        they are read, so they are not memory."""
+        return np.array([value for leg in self.legs for value in (leg.thrust, leg.stance_time)])
+
+    def restore(self, mode: str, memory: np.ndarray) -> None:
+        """Set each leg's thrust and T_s; a leg in stance in ``mode`` counts its stance from the
+        start of the run (a section in stance must be the one right after the touchdown)."""
+        values = np.asarray(memory, dtype=float).reshape(len(self.legs), 2)
+        for leg, (thrust, stance_time) in zip(self.legs, values, strict=True):
+            leg.thrust, leg.stance_time, leg.in_stance = float(thrust), float(stance_time), False
+
     def _adapt_placement(self, leg: Leg, t: float, x: np.ndarray) -> None:
         """At touchdown: the body's mean speed over the stride since the leg's last touchdown
         (Raibert's measure) moves the foot placement by ``k_i`` times its error, so that the
@@ -345,6 +372,19 @@ class SlipRaibert(Controller):
         elif mode == "flight" and self.in_stance:
             self.stance_time = t - self.touchdown
         self.in_stance = mode == "stance"
+
+    memory_names = ("T_s",)
+    memory_units = ("s",)
+
+    def memory(self) -> np.ndarray:
+        """The last stance's duration T_s (s), shape (1,): the foot placement of the next flight
+        uses it; the touchdown time is written at each touchdown before it is read."""
+        return np.array([self.stance_time])
+
+    def restore(self, mode: str, memory: np.ndarray) -> None:
+        """Set T_s; a run starting in stance counts its stance from its start (a section in stance
+        must be the one right after the touchdown)."""
+        self.stance_time, self.in_stance = float(np.asarray(memory, dtype=float).reshape(1)[0]), False
 
     def target_angle(self, xd: float) -> float:
         """The touchdown leg angle psi* (rad) at forward speed xd (m/s)."""

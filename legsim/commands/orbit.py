@@ -260,11 +260,14 @@ def format_orbit(payload: dict[str, Any], name: str) -> str:
     if "integrator" in payload:
         lines.append(f"integrator: {describe_integrator(payload['integrator'])}")
     lines.append(f"section: {payload['section']} (mode {payload['mode']})")
-    width = max(len(n) for n in list(payload["state_names"]) + list(payload["free"]))
+    memory = payload.get("memory", {})
+    width = max(len(n) for n in list(payload["state_names"]) + list(payload["free"]) + list(memory))
     for n, v in zip(payload["state_names"], payload["fixed_point"], strict=False):
         lines.append(f"  {n.ljust(width)} = {v: .10g}")
     for n in payload["free"]:
         lines.append(f"  {n.ljust(width)} = {payload['parameters'][n]: .10g}  (free parameter)")
+    for n, v in memory.items():
+        lines.append(f"  {n.ljust(width)} = {v: .10g} {payload['memory_units'][n]}  (controller memory)")
     if payload["status"] != "converged":
         return "\n".join(lines)
     period = f"period {payload['period']:.10g} s (relaxed return time {payload['return_time']:.10g} s)"
@@ -287,10 +290,12 @@ def format_orbit(payload: dict[str, Any], name: str) -> str:
 
 def format_header(param: str, problem: OrbitProblem) -> tuple[str, tuple[list[str], list[int]]]:
     """The table header of ``--continue`` and its columns: the parameter, the unknown
-    coordinates, the free parameters, period, step length, largest |multiplier|, verdict."""
+    coordinates, the controller's memory, the free parameters, period, step length, largest
+    |multiplier|, verdict."""
     cols = (
         [param]
         + [problem.names[i] for i in problem.unknown_idx]
+        + list(problem.memory_names)
         + list(problem.free)
         + ["period", "step", "max|mu|", "stable"]
     )
@@ -310,6 +315,8 @@ def format_row(param: str, value: float, payload: dict[str, Any], layout: tuple[
             v: Any = value
         elif col in state:
             v = state[col]
+        elif col in payload.get("memory", {}):
+            v = payload["memory"][col]
         elif col in payload["parameters"] and col not in ("period", "step", "max|mu|", "stable"):
             v = payload["parameters"][col]
         elif col == "period":

@@ -227,7 +227,13 @@ def jacobian_saltation(problem: OrbitProblem, ret: Return, newton: bool = False)
     """The n x n Jacobian of the return map at ``ret.x_start``, through the variational equation
     on the relaxed execution and the saltation matrix of each transition (module docstring):
     to about 1e-10 relative, or with ``newton`` to the accuracy a Newton step needs (~1e-6) at
-    a fraction of the cost."""
+    a fraction of the cost. Not for a problem with a controller (its memory changes at
+    transitions, which saltation matrices do not follow): OrbitError, use ``jacobian_fd``."""
+    if problem.controller is not None:
+        raise OrbitError(
+            "the saltation Jacobian does not follow a controller's memory across transitions: use jacobian='fd'",
+            key="jacobian",
+        )
     system, control = problem.instantiate(ret.parameters)
     ex = ret.execution
     crossing = problem.section.kind == "crossing"
@@ -312,34 +318,43 @@ def jacobian_fd(
     step: float | None = None,
     columns: Sequence[int] | None = None,
     rmap: ReturnMap | None = None,
+    memory: np.ndarray | None = None,
 ) -> np.ndarray:
-    """The n x n Jacobian of the return map at x by central differences (columns of cyclic
-    coordinates are e_c by symmetry; one-sided where one side's simulation fails). ``step``:
-    relative step, default ``default_fd_step`` (module docstring); ``columns``: only these
-    columns (the others are left 0); ``rmap``: the return map to evaluate (a new one by
-    default)."""
+    """The Jacobian of the return map at x by central differences (columns of cyclic
+    coordinates are e_c by symmetry; one-sided where one side's simulation fails), n x n, or
+    with a controller the (n + m) x (n + m) Jacobian of the augmented map on (x, memory) from
+    ``memory`` (default the problem's guess). ``step``: relative step, default
+    ``default_fd_step`` (module docstring); ``columns``: only these columns of the augmented
+    state (the others are left 0); ``rmap``: the return map to evaluate (a new one by default)."""
     rmap = rmap or ReturnMap(problem)
     step = default_fd_step(problem) if step is None else check_fd_step(step)
     n = problem.dim
-    J = np.zeros((n, n))
+    start = np.concatenate([x, problem.memory_guess if memory is None else memory])
+    size = len(start)
+    names = list(problem.names) + list(problem.memory_names)
+    J = np.zeros((size, size))
     cache: list[np.ndarray] = []
+
+    def at(z: np.ndarray) -> np.ndarray:
+        return rmap(z[:n], parameters, z[n:]).end
 
     def base() -> np.ndarray:
         if not cache:
-            cache.append(rmap(x, parameters).x_end)
+            cache.append(at(start))
         return cache[0]
 
-    for j in range(n) if columns is None else columns:
+    for j in range(size) if columns is None else columns:
         if j in problem.cyclic_idx:
             J[j, j] = 1.0
             continue
 
         def shifted(delta: float, j=j) -> np.ndarray:
-            y = x.copy()
-            y[j] += delta
-            return rmap(y, parameters).x_end
+            z = start.copy()
+            z[j] += delta
+            return at(z)
 
-        J[:, j] = difference(shifted, step * max(1.0, abs(x[j])), base, f"coordinate {problem.names[j]}")
+        kind = "coordinate" if j < n else "controller memory"
+        J[:, j] = difference(shifted, step * max(1.0, abs(start[j])), base, f"{kind} {names[j]}")
     return J
 
 

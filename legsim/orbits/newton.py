@@ -10,6 +10,13 @@ Failures are never answers: ``find_orbit`` returns an ``OrbitResult`` whose ``st
 it stopped (``no_return``, ``simulation_failed``, ``singular_jacobian``, ``diverged``,
 ``stalled``, ``max_iterations``) with a message; ``result.raise_for_status()`` turns it into an
 ``OrbitError``.
+
+With a controller (``OrbitProblem.controller``) the unknowns gain its memory values after the
+free coordinates, the equations ``memory' - memory = 0`` after the periodicity rows, and the
+Jacobian is the finite-difference one of the augmented map on (x, memory): the saltation
+Jacobian follows the state through each transition, not a controller's memory, which changes
+at transitions as a function of the whole stance (a measured stance time), so a search asked for
+``jacobian="saltation"`` uses ``"fd"`` and says so in its message.
 """
 
 from __future__ import annotations
@@ -64,6 +71,10 @@ class OrbitResult:
     history: residual max-norm after each iteration.
     transitions: names of the transitions of one period.
     evaluations: simulations run.
+    memory, memory_names, memory_units: the controller's memory on the orbit (its value at the
+        section), shape (m,), with names and units (empty without a controller). The
+        multipliers are then those of the augmented map on (x, memory): n - 1 - #cyclic + m of
+        them, the state's directions and the controller's together.
     """
 
     status: str
@@ -87,6 +98,9 @@ class OrbitResult:
     jacobian_method: str = "saltation"
     section: str = ""
     free: tuple[str, ...] = ()
+    memory: np.ndarray = field(default_factory=lambda: np.empty(0))
+    memory_names: tuple[str, ...] = ()
+    memory_units: tuple[str, ...] = ()
 
     @property
     def converged(self) -> bool:
@@ -153,29 +167,41 @@ class OrbitResult:
             "transitions": list(self.transitions),
             "evaluations": self.evaluations,
             "jacobian": self.jacobian_method,
+            "memory": {name: num(v) for name, v in zip(self.memory_names, self.memory, strict=True)},
+            "memory_units": dict(zip(self.memory_names, self.memory_units, strict=True)),
         }
 
 
 class _Equations:
-    """The orbit equations F(z) = 0 in the unknowns z = (free coordinates, free parameters)."""
+    """The orbit equations F(z) = 0 in the unknowns z = (free coordinates, controller memory,
+    free parameters)."""
 
-    def __init__(self, problem: OrbitProblem, x_template: np.ndarray, rmap: ReturnMap) -> None:
+    def __init__(
+        self, problem: OrbitProblem, x_template: np.ndarray, memory_template: np.ndarray, rmap: ReturnMap
+    ) -> None:
         self.p = problem
-        self.template = x_template.copy()  # the state whose fixed coordinates z leaves as they are
+        # the state and memory whose fixed values z leaves as they are
+        self.template = x_template.copy()
+        self.memory_template = np.asarray(memory_template, dtype=float).copy()
         self.rmap = rmap
         self.n_x = len(problem.unknown_idx)
+        self.n_xm = self.n_x + len(problem.unknown_memory_idx)
 
-    def unpack(self, z: np.ndarray) -> tuple[np.ndarray, dict[str, float]]:
-        """(state, all parameter values) of the unknowns z."""
+    def unpack(self, z: np.ndarray) -> tuple[np.ndarray, dict[str, float], np.ndarray]:
+        """(state, all parameter values, controller memory) of the unknowns z."""
         x = self.template.copy()
         x[self.p.unknown_idx] = z[: self.n_x]
+        memory = self.memory_template.copy()
+        memory[self.p.unknown_memory_idx] = z[self.n_x : self.n_xm]
         params = dict(self.p.parameters)
-        params.update({name: float(v) for name, v in zip(self.p.free, z[self.n_x :], strict=True)})
-        return x, params
+        params.update({name: float(v) for name, v in zip(self.p.free, z[self.n_xm :], strict=True)})
+        return x, params, memory
 
-    def pack(self, x: np.ndarray, params: Mapping[str, float]) -> np.ndarray:
-        """The unknowns z of a state and parameter values."""
-        return np.concatenate([x[self.p.unknown_idx], [params[name] for name in self.p.free]])
+    def pack(self, x: np.ndarray, params: Mapping[str, float], memory: np.ndarray) -> np.ndarray:
+        """The unknowns z of a state, parameter values and controller memory."""
+        return np.concatenate(
+            [x[self.p.unknown_idx], memory[self.p.unknown_memory_idx], [params[name] for name in self.p.free]]
+        )
 
     def extra(self, x: np.ndarray, params: Mapping[str, float]) -> np.ndarray:
         """Rows that do not need a simulation: section function, constraints, energy."""
@@ -196,40 +222,41 @@ class _Equations:
         return np.array(rows, dtype=float)
 
     def residual(self, ret: Return) -> np.ndarray:
-        """F at a return's start: periodicity rows, then the extra rows."""
-        idx = self.p.periodic_idx
-        return np.concatenate([ret.x_end[idx] - ret.x_start[idx], self.extra(ret.x_start, ret.parameters)])
+        """F at a return's start: periodicity rows (state, then memory), then the extra rows."""
+        idx = self.p.augmented_periodic_idx
+        return np.concatenate([ret.end[idx] - ret.start[idx], self.extra(ret.x_start, ret.parameters)])
 
     def evaluate(self, z: np.ndarray) -> tuple[Return, np.ndarray]:
         """(the return from z, F(z)); OrbitError when there is no return."""
-        x, params = self.unpack(z)
-        ret = self.rmap(x, params)
+        x, params, memory = self.unpack(z)
+        ret = self.rmap(x, params, memory)
         return ret, self.residual(ret)
 
     def jacobian(
         self, z: np.ndarray, ret: Return, method: str, fd_step: float | None, newton: bool = True
     ) -> tuple[np.ndarray, np.ndarray]:
         """(dF/dz, full DP at x): DP by ``method`` ("saltation" or "fd"; the saltation one with
-        ``newton`` to the accuracy a Newton step needs, see ``jacobian_saltation``), parameter
-        columns by differences of the return map."""
+        ``newton`` to the accuracy a Newton step needs, see ``jacobian_saltation``), on (x,
+        memory) with a controller; parameter columns by differences of the return map."""
         p = self.p
-        x, params = self.unpack(z)
+        x, params, memory = self.unpack(z)
         if method == "saltation":
             DP = jacobian_saltation(p, ret, newton=newton)
         else:
-            DP = jacobian_fd(p, x, params, fd_step, columns=p.unknown_idx, rmap=self.rmap)
-        idx = p.periodic_idx
+            DP = jacobian_fd(p, x, params, fd_step, columns=p.augmented_unknown_idx, rmap=self.rmap, memory=memory)
+        idx = p.augmented_periodic_idx
         cols = []
-        for j in p.unknown_idx:
+        for j in p.augmented_unknown_idx:
             col_periodic = DP[idx, j] - (np.array(idx) == j).astype(float)
-            cols.append(np.concatenate([col_periodic, self._extra_column(x, params, coord=j)]))
+            extra = self._extra_column(x, params, coord=j) if j < p.dim else np.zeros(p.extra_rows)
+            cols.append(np.concatenate([col_periodic, extra]))
         step = default_fd_step(p) if fd_step is None else fd_step
         for name in p.free:
 
             def shifted(delta: float, name=name) -> np.ndarray:
                 q = dict(params)
                 q[name] += delta
-                return self.residual(self.rmap(x, q))
+                return self.residual(self.rmap(x, q, memory))
 
             d = step * max(1.0, abs(params[name]))
             cols.append(difference(shifted, d, lambda: self.residual(ret), f"parameter {name}"))
@@ -258,6 +285,7 @@ def find_orbit(
     fd_step: float | None = None,
     singular_tol: float = 1e-9,
     max_backtracks: int = 8,
+    memory: Sequence[float] | np.ndarray | None = None,
 ) -> OrbitResult:
     """Find a periodic orbit: a fixed point of the return map (P^returns) with Gauss-Newton.
 
@@ -274,6 +302,9 @@ def find_orbit(
     singular_tol: the Jacobian counts as singular when its smallest singular value is below
         singular_tol times its largest.
     max_backtracks: step halvings tried when a full Newton step does not reduce the residual.
+    memory: initial guess of the controller's memory, shape (m,) (default
+        ``problem.memory_guess``, a fresh controller's); with a controller the Jacobian is
+        always ``"fd"`` (module docstring).
 
     Returns
     -------
@@ -288,8 +319,31 @@ def find_orbit(
         raise OrbitError(f"max_iterations must be an integer >= 0, got {max_iterations!r}")
     if fd_step is not None:
         fd_step = check_fd_step(fd_step)
-    search = _NewtonSearch(problem, problem.state_vector(guess), tol, jacobian, fd_step, singular_tol, max_backtracks)
-    return search.run(max_iterations)
+    memory0 = _memory_guess(problem, memory)
+    fallback = problem.controller is not None and jacobian == "saltation"
+    if fallback:
+        jacobian = "fd"
+    search = _NewtonSearch(
+        problem, problem.state_vector(guess), memory0, tol, jacobian, fd_step, singular_tol, max_backtracks
+    )
+    result = search.run(max_iterations)
+    if fallback:
+        result.message += "; finite-difference Jacobian: the saltation Jacobian does not follow the controller's memory"
+    return result
+
+
+def _memory_guess(problem: OrbitProblem, memory: Sequence[float] | np.ndarray | None) -> np.ndarray:
+    """The memory guess, shape (m,): ``memory`` checked, or the problem's."""
+    if memory is None:
+        return problem.memory_guess.copy()
+    values = np.asarray(memory, dtype=float).reshape(-1)
+    if values.shape != (problem.n_memory,) or not np.all(np.isfinite(values)):
+        raise OrbitError(
+            f"memory guess must be {problem.n_memory} finite number(s) ({list(problem.memory_names)}), "
+            f"got {np.asarray(memory).tolist()}",
+            key="guess",
+        )
+    return values
 
 
 class _NewtonSearch:
@@ -299,6 +353,7 @@ class _NewtonSearch:
         self,
         problem: OrbitProblem,
         x0: np.ndarray,
+        memory0: np.ndarray,
         tol: float,
         method: str,
         fd_step: float | None,
@@ -312,8 +367,8 @@ class _NewtonSearch:
         self.singular_tol = singular_tol
         self.max_backtracks = max_backtracks
         self.rmap = ReturnMap(problem)
-        self.eq = _Equations(problem, x0, self.rmap)
-        self.z = self.eq.pack(x0, problem.parameters)
+        self.eq = _Equations(problem, x0, memory0, self.rmap)
+        self.z = self.eq.pack(x0, problem.parameters, memory0)
         self.history: list[float] = []
         self.ret: Return | None = None
         self.F = np.empty(0)
@@ -403,7 +458,7 @@ class _NewtonSearch:
     def _flat(self, it: int) -> OrbitResult:
         """``diverged`` for a Jacobian that is zero far from an orbit: no unknown moves the
         residual to first order, so no Newton step exists and no orbit is near the iterate."""
-        x_now, params_now = self.eq.unpack(self.z)
+        x_now, params_now, _ = self.eq.unpack(self.z)
         return self.fail(
             "diverged",
             f"iteration {it + 1}: no Newton step reduces the residual {self.res:.3g}: the orbit equations "
@@ -446,7 +501,7 @@ class _NewtonSearch:
                 f"the residual: raise tol",
                 it,
             )
-        x_now, params_now = self.eq.unpack(self.z)
+        x_now, params_now, _ = self.eq.unpack(self.z)
         return self.fail(
             "diverged",
             f"iteration {it + 1}: no Newton step (lengths 1 .. 1/{2**self.max_backtracks}) reduces the "
@@ -463,7 +518,9 @@ class _NewtonSearch:
             DP = (
                 jacobian_saltation(self.p, ret)
                 if self.method == "saltation"
-                else jacobian_fd(self.p, ret.x_start, ret.parameters, self.fd_step, rmap=self.rmap)
+                else jacobian_fd(
+                    self.p, ret.x_start, ret.parameters, self.fd_step, rmap=self.rmap, memory=ret.memory_start
+                )
             )
         except OrbitError as exc:
             return self.fail(exc.status, f"converged (residual {self.res:.3g}) but the Jacobian failed: {exc}", it)
@@ -473,16 +530,17 @@ class _NewtonSearch:
             ret.x_start,
             ret.parameters,
             it,
+            ret.memory_start,
         )
         return _add_multipliers(result, self.p, ret, DP)
 
     def fail(self, status: str, message: str, iterations: int) -> OrbitResult:
         """A result that is not converged, at the current iterate."""
-        x_now, params_now = self.eq.unpack(self.z)
-        return self._result(status, message, x_now, params_now, iterations)
+        x_now, params_now, memory_now = self.eq.unpack(self.z)
+        return self._result(status, message, x_now, params_now, iterations, memory_now)
 
     def _result(
-        self, status: str, message: str, x: np.ndarray, params: Mapping[str, float], iterations: int
+        self, status: str, message: str, x: np.ndarray, params: Mapping[str, float], iterations: int, memory: np.ndarray
     ) -> OrbitResult:
         p = self.p
         result = OrbitResult(
@@ -500,6 +558,9 @@ class _NewtonSearch:
             jacobian_method=self.method,
             section=p.section.label,
             free=tuple(p.free),
+            memory=np.asarray(memory, dtype=float).copy(),
+            memory_names=p.memory_names,
+            memory_units=p.memory_units,
         )
         if self.ret is not None:
             result.period = self.ret.flow_time
@@ -512,8 +573,7 @@ class _NewtonSearch:
 def _add_multipliers(result: OrbitResult, problem: OrbitProblem, ret: Return, DP: np.ndarray) -> OrbitResult:
     """Fill in the Jacobian, its restriction to the section and the multipliers; a field that
     vanishes at the fixed point (an equilibrium) turns the result into that failure."""
-    system, control = problem.instantiate(ret.parameters)
-    f = field_at(system.mode(problem.bound.mode), control, 0.0, ret.x_start)
+    f = _closed_loop_field(problem, ret)
     try:
         mu, M = floquet_multipliers(DP, f, problem.cyclic_idx)
     except OrbitError as exc:
@@ -523,3 +583,17 @@ def _add_multipliers(result: OrbitResult, problem: OrbitProblem, ret: Return, DP
     result.section_jacobian = M
     result.multipliers = mu
     return result
+
+
+def _closed_loop_field(problem: OrbitProblem, ret: Return) -> np.ndarray:
+    """The field at the fixed point, shape (n + m,): with a controller, the closed loop's with
+    the controller restored to the orbit's memory, which stays constant along the flow (zeros)."""
+    system, control = problem.instantiate(ret.parameters)
+    mode = problem.bound.mode
+    if problem.controller is None:
+        return field_at(system.mode(mode), control, 0.0, ret.x_start)
+    controller = problem.restored_controller(ret.parameters, ret.memory_start)
+    controller.reset(mode, 0.0, ret.x_start)
+    u = controller(mode, 0.0, ret.x_start)
+    f = np.asarray(system.mode(mode).field(0.0, ret.x_start, u), dtype=float)
+    return np.concatenate([f, np.zeros(problem.n_memory)])

@@ -6,6 +6,13 @@ section's own coordinate, then the free parameters; the equations (``legsim.orbi
 are periodicity on the non-cyclic coordinates other than the section's, s(x) = 0 for a section
 given as a function, the constraints and the energy level. A problem with fewer equations than
 unknowns is refused here, before any simulation.
+
+A problem with a ``controller`` (a ``legsim.control.Controller`` with memory, such as a Raibert
+hopper's last stance duration) searches the return map of the closed loop on the section state
+*and* the controller's memory: every return starts with a fresh controller restored to the
+memory guess and reads the memory back at the return. The memory values join the unknowns
+(after the free coordinates) and ``memory' - memory = 0`` the periodicity equations; the
+multipliers are those of this augmented map.
 """
 
 from __future__ import annotations
@@ -18,6 +25,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..arguments import count
+from ..control import Controller
 from ..errors import LegsimError, SimulationError
 from ..hybrid import HybridSystem
 from ..methods import Tableau, get_method
@@ -54,10 +62,14 @@ class OrbitProblem:
     h, eps, method: the relaxed integrator's step (s), strip width (guard units) and method.
     t_max: time limit of one return (s); no return within it is a ``no_return`` failure.
     control: ``control(t, x) -> u`` for a fixed system (a factory returns its own).
+    controller: ``controller(model) -> legsim.control.Controller``, a fresh controller for the
+        object the system (or the factory) gives, a ``builders.Model`` from a scene; its memory
+        (``memory_names``) must be declared. It replaces any control, as in ``legsim run``.
     parameters: parameter values passed to the factory (initial guesses for the free ones).
     free: names of parameters solved for (unknowns besides the state).
-    fixed: coordinates held at their initial values (e.g. the apex height). The coordinate of a
-        coordinate section is always fixed.
+    fixed: coordinates held at their initial values (e.g. the apex height), or controller memory
+        values held at their guesses (where the controller conserves a combination of them). The
+        coordinate of a coordinate section is always fixed.
     cyclic: coordinates along a symmetry (a horizontal position): fixed, left out of the
         periodicity equations, their increment over a return is the step length.
     constraints: extra equations ``(name, c(x, parameters) -> float)`` asked to be 0.
@@ -82,7 +94,9 @@ class OrbitProblem:
     Attributes set from these: ``tableau``, ``integrator_settings`` (what every return runs
     with, tolerances as ``simulate`` completes them), ``is_factory``, ``bound`` (the bound section),
     ``names`` and ``dim`` (the section mode's coordinates), ``cyclic_idx``, ``unknown_idx``
-    (coordinates solved for) and ``periodic_idx`` (coordinates asked to return to themselves).
+    (coordinates solved for) and ``periodic_idx`` (coordinates asked to return to themselves);
+    ``memory_names``, ``memory_units`` and ``memory_guess`` (a fresh controller's memory, shape
+    (m,); m = 0 without a controller).
     """
 
     system: SystemLike
@@ -92,6 +106,7 @@ class OrbitProblem:
     method: str | Tableau = "rk4"
     t_max: float = 10.0
     control: Callable[[float, np.ndarray], Any] | None = None
+    controller: Callable[[Any], Controller] | None = None
     parameters: Mapping[str, float] = field(default_factory=dict)
     free: Sequence[str] = ()
     fixed: Sequence[str] = ()
@@ -113,8 +128,9 @@ class OrbitProblem:
     def __post_init__(self) -> None:
         self._check_settings()
         self._resolve_system()
-        self._cache: dict[tuple, tuple[HybridSystem, Any]] = {}
+        self._cache: dict[tuple, tuple[HybridSystem, Any, Any]] = {}
         system, _ = self.instantiate(self.parameters)
+        self._check_controller()
         self._bind(system)
         self._check_equations(system)
 
@@ -193,12 +209,14 @@ class OrbitProblem:
         self.free = tuple(self.free)
         self.fixed = tuple(self.fixed)
         self.cyclic = tuple(self.cyclic)
-        self.system, self.control = _system_and_control(self.system, self.control)
-        self.is_factory = not isinstance(self.system, HybridSystem)
-        if self.is_factory and not callable(self.system):
+        # ``system`` stays as given (a Model, which a controller is made for, survives
+        # ``dataclasses.replace``); the HybridSystem and control it holds are kept apart.
+        self._fixed, self._fixed_control = _system_and_control(self.system, self.control)
+        self.is_factory = not isinstance(self._fixed, HybridSystem)
+        if self.is_factory and not callable(self._fixed):
             raise OrbitError(
                 f"orbit problem: system must be a HybridSystem, a Model or a factory "
-                f"system(parameters), got {type(self.system).__name__}"
+                f"system(parameters), got {type(self._fixed).__name__}"
             )
         missing = [p for p in self.free if p not in self.parameters]
         if missing:
@@ -217,7 +235,8 @@ class OrbitProblem:
         self.bound = bind_section(self.section, system)
         names = self.bound.names
         for label, group in (("fixed", self.fixed), ("cyclic", self.cyclic)):
-            unknown = [c for c in group if c not in names]
+            held_memory = self.memory_names if label == "fixed" else ()
+            unknown = [c for c in group if c not in names and c not in held_memory]
             if unknown:
                 raise OrbitError(
                     f"orbit problem: {label} coordinate(s) {unknown} are not coordinates of mode "
@@ -235,9 +254,43 @@ class OrbitProblem:
             i for i, c in enumerate(names) if i not in self.cyclic_idx and c != self.section.coordinate
         ]
 
+    def _check_controller(self) -> None:
+        """Make one controller and read its memory's names, units and values (the guess)."""
+        self.memory_names: tuple[str, ...] = ()
+        self.memory_units: tuple[str, ...] = ()
+        self.memory_guess = np.empty(0)
+        if self.controller is None:
+            return
+        made = self.make_controller(self.parameters)
+        if made.memory_names is None:
+            raise OrbitError(
+                f"orbit problem: controller {type(made).__name__} does not declare its memory, so the "
+                f"return map of the closed loop is not known to be a function of the section state: "
+                f"give it memory_names, memory_units, memory() and restore(mode, memory) "
+                f"(legsim.control.Controller), or memory_names = () if it keeps no state",
+                key="controller",
+            )
+        self.memory_names = tuple(made.memory_names)
+        self.memory_units = tuple(made.memory_units)
+        self.memory_guess = self._memory_of(made)
+
+    def _memory_of(self, controller: Controller) -> np.ndarray:
+        """``controller.memory()`` checked against its names: finite, shape (m,)."""
+        memory = np.asarray(controller.memory(), dtype=float).reshape(-1)
+        if memory.shape != (len(self.memory_names),) or len(self.memory_units) != len(self.memory_names):
+            raise OrbitError(
+                f"orbit problem: controller {type(controller).__name__} has memory_names "
+                f"{list(self.memory_names)} and units {list(self.memory_units)} but memory() "
+                f"returned {memory.size} values",
+                key="controller",
+            )
+        if not np.all(np.isfinite(memory)):
+            raise OrbitError(f"orbit problem: the controller's memory is not finite: {memory.tolist()}")
+        return memory
+
     def _check_equations(self, system: HybridSystem) -> None:
-        n_rows = len(self.periodic_idx) + self.extra_rows
-        n_unknowns = len(self.unknown_idx) + len(self.free)
+        n_rows = len(self.periodic_idx) + self.extra_rows + self.n_memory
+        n_unknowns = len(self.unknown_idx) + len(self.free) + len(self.unknown_memory_idx)
         if n_unknowns == 0:
             raise OrbitError(
                 "orbit problem: nothing to solve for: every coordinate is fixed and no parameter is free", key="fixed"
@@ -252,8 +305,9 @@ class OrbitProblem:
             raise OrbitError(
                 f"orbit problem: an energy level is asked for but {system.name} defines no energy", key="energy"
             )
-        # Multipliers live on the section without the cyclic coordinates: n - 1 - #cyclic of them.
-        n_multipliers = self.dim - 1 - len(self.cyclic_idx)
+        # Multipliers live on the section without the cyclic coordinates, with the memory:
+        # n - 1 - #cyclic + m of them.
+        n_multipliers = self.dim - 1 - len(self.cyclic_idx) + self.n_memory
         trivial = self.trivial_multipliers
         if (
             isinstance(trivial, bool)
@@ -272,9 +326,52 @@ class OrbitProblem:
 
     # -- what the solver reads ----------------------------------------------------------------
     @property
+    def n_memory(self) -> int:
+        """m, the number of the controller's memory values (0 without a controller)."""
+        return len(self.memory_names)
+
+    @property
+    def unknown_memory_idx(self) -> list[int]:
+        """Indices in the memory of the values solved for (those not ``fixed``)."""
+        return [i for i, name in enumerate(self.memory_names) if name not in self.fixed]
+
+    @property
     def unknown_names(self) -> list[str]:
-        """Names of the unknowns: free coordinates, then free parameters."""
-        return [self.names[i] for i in self.unknown_idx] + list(self.free)
+        """Names of the unknowns: free coordinates, the controller's memory, free parameters."""
+        memory = [self.memory_names[i] for i in self.unknown_memory_idx]
+        return [self.names[i] for i in self.unknown_idx] + memory + list(self.free)
+
+    @property
+    def augmented_unknown_idx(self) -> list[int]:
+        """Indices of the unknown coordinates and memory values in the augmented state (x,
+        memory)."""
+        return list(self.unknown_idx) + [self.dim + i for i in self.unknown_memory_idx]
+
+    @property
+    def augmented_periodic_idx(self) -> list[int]:
+        """Indices in (x, memory) asked to return to themselves: the periodic coordinates and
+        every memory value."""
+        return list(self.periodic_idx) + [self.dim + i for i in range(self.n_memory)]
+
+    def make_controller(self, parameters: Mapping[str, float] | None = None) -> Controller:
+        """A fresh controller for the system at these parameter values (``controller`` must be
+        set); OrbitError when it is not a ``legsim.control.Controller``."""
+        assert self.controller is not None
+        self.instantiate(parameters)
+        made = self.controller(self.system if not self.is_factory else self._cached(parameters)[2])
+        if not isinstance(made, Controller):
+            raise OrbitError(
+                f"orbit problem: controller(model) made {type(made).__name__}, expected a legsim.control.Controller",
+                key="controller",
+            )
+        return made
+
+    def restored_controller(self, parameters: Mapping[str, float] | None, memory: np.ndarray | None) -> Controller:
+        """A fresh controller restored to ``memory`` (default ``memory_guess``) at the section's
+        mode: what one return runs with."""
+        made = self.make_controller(parameters)
+        made.restore(self.bound.mode, self.memory_guess if memory is None else np.asarray(memory, dtype=float))
+        return made
 
     @property
     def has_section_row(self) -> bool:
@@ -291,7 +388,12 @@ class OrbitProblem:
         """(system, control) for these parameter values (cached); the fixed system and control
         when the problem has no factory."""
         if not self.is_factory:
-            return self.system, self.control
+            return self._fixed, self._fixed_control
+        system, control, _ = self._cached(parameters)
+        return system, control
+
+    def _cached(self, parameters: Mapping[str, float] | None) -> tuple[HybridSystem, Any, Any]:
+        """(system, control, what the factory returned) for these parameter values."""
         params = dict(self.parameters)
         if parameters:
             params.update({k: float(v) for k, v in parameters.items()})
@@ -305,11 +407,11 @@ class OrbitProblem:
         self._cache[key] = built
         return built
 
-    def _build(self, params: dict[str, float]) -> tuple[HybridSystem, Any]:
+    def _build(self, params: dict[str, float]) -> tuple[HybridSystem, Any, Any]:
         """Call the factory; its failures become ``simulation_failed`` errors (a parameter value
         the model refuses ends a continuation like a failed simulation does)."""
         try:
-            built = self.system(params)
+            built = self._fixed(params)
         except OrbitError:
             raise
         except LegsimError as exc:
@@ -325,7 +427,7 @@ class OrbitProblem:
                 f"orbit problem: the system factory returned {type(built).__name__}, expected a "
                 f"HybridSystem, (HybridSystem, control) or a builders.Model"
             )
-        return system, control
+        return system, control, built
 
     def state_vector(self, guess: Mapping[str, float] | Sequence[float] | np.ndarray) -> np.ndarray:
         """A full state of the section's mode, shape (n,), from a vector or a {coordinate: value}

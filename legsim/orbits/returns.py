@@ -18,6 +18,13 @@ A crossing of a function section counts only after at least ``min_transitions`` 
 Newton trials make) does not "return" to the section it has just left. Crossings are looked for
 inside continuous flow of the section's mode; a reset that jumps across s = 0 is not a crossing.
 
+Controllers
+-----------
+A problem with a ``controller`` starts each return with a fresh one restored to the memory
+guess, and reads the memory back at the return: the controller changes its memory only at mode
+entries (``legsim.control``), so the memory at the return is the one after the last mode entry
+before it, recorded as the run enters each mode.
+
 Period
 ------
 The relaxed integrator holds the state at the guard point q for ``eps - tau`` plus the rest of
@@ -29,12 +36,13 @@ in strips, which converges at the method's order; ``Return.time`` is the relaxed
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 from scipy.optimize import brentq
 
+from ..control import Controller
 from ..errors import LegsimError
 from ..execution import Execution, Segment, TransitionRecord
 from ..hybrid import HybridSystem
@@ -60,6 +68,8 @@ class Return:
         segment before the returning transition.
     parameters: the parameter values used.
     step_length: the distance covered (m), when the problem defines one.
+    memory_start, memory_end: the controller's memory at the start and at the return, shape (m,)
+        (empty without a controller).
     """
 
     x_start: np.ndarray
@@ -73,13 +83,44 @@ class Return:
     segment: int
     parameters: dict[str, float]
     step_length: float | None = None
+    memory_start: np.ndarray = field(default_factory=lambda: np.empty(0))
+    memory_end: np.ndarray = field(default_factory=lambda: np.empty(0))
+
+    @property
+    def start(self) -> np.ndarray:
+        """The augmented start (x_start, memory_start), shape (n + m,)."""
+        return np.concatenate([self.x_start, self.memory_start])
+
+    @property
+    def end(self) -> np.ndarray:
+        """The augmented return (x_end, memory_end), shape (n + m,)."""
+        return np.concatenate([self.x_end, self.memory_end])
+
+
+class MemoryLog(Controller):
+    """A controller run as it is, its memory recorded after every mode entry (``entries[k]``:
+    after the k-th entry, entry 0 the start of the run)."""
+
+    def __init__(self, controller: Controller) -> None:
+        self.controller = controller
+        self.hold = controller.hold
+        self.entries: list[np.ndarray] = []
+
+    def reset(self, mode: str, t: float, x: np.ndarray) -> None:
+        self.controller.reset(mode, t, x)
+        self.entries.append(np.asarray(self.controller.memory(), dtype=float).reshape(-1).copy())
+
+    def __call__(self, mode: str, t: float, x: np.ndarray) -> Any:
+        return self.controller(mode, t, x)
 
 
 class ReturnMap:
     """The return map of a problem's section, with an adaptive simulation horizon.
 
-    ``rmap(x, parameters=None) -> Return``; raises ``OrbitError`` (status ``no_return`` or
-    ``simulation_failed``) when there is no return. ``evaluations`` counts the simulations run.
+    ``rmap(x, parameters=None, memory=None) -> Return``; ``memory``: the controller's memory at
+    the start (default the problem's ``memory_guess``). Raises ``OrbitError`` (status
+    ``no_return`` or ``simulation_failed``) when there is no return. ``evaluations`` counts the
+    simulations run.
     """
 
     def __init__(self, problem: OrbitProblem) -> None:
@@ -87,19 +128,25 @@ class ReturnMap:
         self.evaluations = 0
         self._hint: float | None = None  # the last return time (s): where the next one is looked for
 
-    def __call__(self, x: np.ndarray, parameters: Mapping[str, float] | None = None) -> Return:
+    def __call__(
+        self, x: np.ndarray, parameters: Mapping[str, float] | None = None, memory: np.ndarray | None = None
+    ) -> Return:
         p = self.problem
         x = np.asarray(x, dtype=float).copy()
         params = dict(p.parameters)
         if parameters:
             params.update({k: float(v) for k, v in parameters.items()})
         system, control = p.instantiate(params)
+        memory = p.memory_guess if memory is None else np.asarray(memory, dtype=float).reshape(-1)
         last_error: OrbitError | None = None
         for horizon in self._horizons():
-            ex = self._simulate(system, control, x, horizon)
+            log = None if p.controller is None else MemoryLog(p.restored_controller(params, memory))
+            ex = self._simulate(system, control if log is None else log, x, horizon)
             found = self._locate(ex, x, params)
             if found is not None:
                 self._hint = found.time
+                if log is not None:
+                    self._read_memory(found, memory, log)
                 return found
             if ex.status != "finished":
                 raise OrbitError(
@@ -116,6 +163,19 @@ class ReturnMap:
             )
         assert last_error is not None
         raise last_error
+
+    def _read_memory(self, found: Return, memory: np.ndarray, log: MemoryLog) -> None:
+        """The memory at the start and at the return: after the entry of the return's segment
+        (after the returning transition for a section after a transition)."""
+        entry = found.segment + (1 if self.problem.section.kind == "transition" else 0)
+        if entry >= len(log.entries):
+            raise OrbitError(
+                f"return map: the controller was reset {len(log.entries)} times but the return lies "
+                f"after mode entry {entry}: its memory at the return is unknown",
+                "simulation_failed",
+            )
+        found.memory_start = memory.copy()
+        found.memory_end = log.entries[entry]
 
     def _horizons(self) -> list[float]:
         """Growing simulation horizons (s): the last return time and a half (plus 20 steps), or
@@ -272,7 +332,11 @@ def _abbreviate(names: list[str], limit: int = 8) -> str:
 
 
 def return_map(
-    problem: OrbitProblem, x: Sequence[float] | np.ndarray, parameters: Mapping[str, float] | None = None
+    problem: OrbitProblem,
+    x: Sequence[float] | np.ndarray,
+    parameters: Mapping[str, float] | None = None,
+    memory: Sequence[float] | np.ndarray | None = None,
 ) -> Return:
-    """One evaluation of ``problem``'s return map from the state ``x`` (section's mode)."""
-    return ReturnMap(problem)(problem.state_vector(x), parameters)
+    """One evaluation of ``problem``'s return map from the state ``x`` (section's mode) and, with
+    a controller, its memory (default ``problem.memory_guess``)."""
+    return ReturnMap(problem)(problem.state_vector(x), parameters, None if memory is None else np.asarray(memory))

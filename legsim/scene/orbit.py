@@ -13,11 +13,16 @@ The keys and what they hold are ``ORBIT_KEYS``. The integrator settings (``INTEG
 method, h, eps, rtol, atol, landing, max_halvings) come from ``[integrator]``, so that a return
 is computed as ``legsim run`` computes a run; the initial guess comes from ``[initial]`` (whose
 mode must be the section's).
+A scene with a ``[controller]`` is searched in closed loop: each return runs a controller made
+anew from the section, restored to the memory guess (``legsim.orbits.problem``); the memory
+values join the unknowns and can be guessed by name in ``orbit.guess``. A controller that does
+not declare its memory is refused, naming the ``controller`` field.
 Every error is a ``SceneError`` naming the file and the ``orbit.KEY`` at fault.
 """
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
@@ -28,20 +33,23 @@ import numpy as np
 from ..builders import Param, resolve_parameters
 from ..errors import SceneError
 from ..orbits import MAX_FD_STEP, OrbitError, OrbitProblem, Section
+from .controller import scene_controller
 from .fields import check_keys, describe, field_error, table_at
 
 #: Keys of a scene's ``[orbit]`` section and what they hold.
 ORBIT_KEYS = {
     "section": "{ after = TRANSITION } or { mode = MODE, coordinate = NAME, value = 0.0, direction = "
     "'decreasing' | 'increasing' | 'either' }",
-    "fixed": "coordinates held at their initial values (list of names)",
+    "fixed": "coordinates held at their initial values, or controller memory values held at their guesses "
+    "(list of names)",
     "cyclic": "coordinates along a symmetry, left out of periodicity; their increment is the step length",
     "free": "parameters solved for: robot parameter names or EFFECT.PARAM",
     "energy": "energy level of the orbit (J), when the system defines an energy",
-    "guess": "initial guess by coordinate (default: the scene's [initial] state)",
+    "guess": "initial guess by coordinate or controller memory name (default: the scene's [initial] "
+    "state and a fresh controller's memory)",
     "tol": "convergence tolerance on the orbit equations (state units), default 1e-9",
     "max_iterations": "Newton iterations, default 30",
-    "jacobian": "'saltation' (default) or 'fd'",
+    "jacobian": "'saltation' (default) or 'fd'; a scene with a [controller] always uses 'fd'",
     "fd_step": "relative finite-difference step in (0, 0.1], default 1e-6 (see legsim.orbits)",
     "singular_tol": "relative singular value below which the Jacobian is singular, default 1e-9",
     "t_max": "time limit of one return (s), default the scene's integrator.t_final",
@@ -95,8 +103,11 @@ def problem_from_scene(scene: Any, *, extra_parameters: Sequence[str] = ()) -> O
             f"the section lies in mode '{problem.bound.mode}' but the scene starts "
             f"in '{scene.initial_mode}': set [initial] mode = \"{problem.bound.mode}\"",
         )
-    x0 = _guess(scene, table, problem)
-    return OrbitSettings(problem, problem.state_vector(x0), _solver(scene, table, jacobian), scene)
+    x0, memory = _guess(scene, table, problem)
+    solver = _solver(scene, table, jacobian)
+    if problem.controller is not None:
+        solver["memory"] = memory
+    return OrbitSettings(problem, problem.state_vector(x0), solver, scene)
 
 
 def _fail(scene: Any, key: str, message: str) -> SceneError:
@@ -230,18 +241,6 @@ def _problem(
 ) -> OrbitProblem:
     integ = scene.integrator
     energy = _number(scene, table, "energy", None)
-    if getattr(scene, "controller", None) is not None:
-        # A scene controller keeps memory across transitions (a Raibert hopper's measured stance
-        # time), so a return from the section is not a function of the section state alone:
-        # refused rather than searched without the controller, which would be another system.
-        raise field_error(
-            scene.path,
-            "controller",
-            "the orbit search does not run a scene's [controller] (it "
-            "keeps state across transitions, so the return map is not a function of the section "
-            "state); search the closed loop from Python with OrbitProblem(control=...) as "
-            "docs/robots.md shows, holding the controller's state fixed",
-        )
     try:
         return OrbitProblem(
             system=factory if params else scene.model,
@@ -258,26 +257,43 @@ def _problem(
             min_time=_number(scene, table, "min_time", 0.0, low=0.0),
             max_transitions=_number(scene, table, "max_transitions", 10_000, int, 1),
             trivial_multipliers=_number(scene, table, "trivial_multipliers", 0, int, 0),
+            controller=_controller_maker(scene),
         )
     except OrbitError as exc:
-        if exc.key in INTEGRATOR_KEYS:
-            raise field_error(scene.path, f"integrator.{exc.key}", str(exc)) from None
+        if exc.key in INTEGRATOR_KEYS or exc.key == "controller":
+            where = "controller" if exc.key == "controller" else f"integrator.{exc.key}"
+            raise field_error(scene.path, where, str(exc)) from None
         raise _fail(scene, exc.key or "section", str(exc)) from None
 
 
-def _guess(scene: Any, table: Mapping[str, Any], problem: OrbitProblem) -> np.ndarray:
-    """The scene's initial state with ``orbit.guess`` applied, shape (n,)."""
+def _controller_maker(scene: Any) -> Callable[[Any], Any] | None:
+    """``controller(model)``: the scene's ``[controller]`` made anew for a model (the scene's, or
+    one the factory built for other parameter values); None without the section."""
+    if getattr(scene, "make_controller", None) is None:
+        return None
+    table = table_at(scene.path, scene.data, "controller")
+    return functools.partial(scene_controller, scene.path, table)
+
+
+def _guess(scene: Any, table: Mapping[str, Any], problem: OrbitProblem) -> tuple[np.ndarray, np.ndarray]:
+    """The scene's initial state and the controller's memory (shapes (n,), (m,)) with
+    ``orbit.guess`` applied: a coordinate or a memory value by name."""
     x0 = np.asarray(scene.initial_state, dtype=float).copy()
+    memory = problem.memory_guess.copy()
     guess = table.get("guess", {})
     if not isinstance(guess, dict):
         raise _fail(scene, "guess", f"expected a table of coordinate = number, got {describe(guess)}")
     for key, value in guess.items():
-        if key not in problem.names:
-            raise _fail(scene, "guess", f"unknown coordinate '{key}'; coordinates: {list(problem.names)}")
+        if key not in problem.names and key not in problem.memory_names:
+            memory_note = f"; controller memory: {list(problem.memory_names)}" if problem.memory_names else ""
+            raise _fail(scene, "guess", f"unknown coordinate '{key}'; coordinates: {list(problem.names)}{memory_note}")
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
             raise _fail(scene, f"guess.{key}", f"expected a finite number, got {describe(value)}")
-        x0[problem.names.index(key)] = float(value)
-    return x0
+        if key in problem.names:
+            x0[problem.names.index(key)] = float(value)
+        else:
+            memory[problem.memory_names.index(key)] = float(value)
+    return x0, memory
 
 
 def _solver(scene: Any, table: Mapping[str, Any], jacobian: str) -> dict[str, Any]:

@@ -156,3 +156,56 @@ def test_bound_legs_hop_their_own_hips_height():
                 z, zd = data.oMi[hip].translation[2], velocity.linear[2]
                 expected = (z, zd) if gait == "bound" else (x[1], x[bridge.n + 1])
                 np.testing.assert_allclose(controller._height(leg, x), expected, atol=1e-12)
+
+
+def test_the_runner_declares_each_legs_thrust_and_stance_time_as_memory():
+    scene = pronk(0.1)
+    controller = scene.control
+    assert controller.memory_names == ("thrust_hind", "T_s_hind", "thrust_front", "T_s_front")
+    assert controller.memory_units == ("m", "s", "m", "s")
+    values = np.array([0.011, 0.13, 0.012, 0.14])
+    controller.restore("flight", values)
+    assert controller.memory().tolist() == values.tolist()
+    assert not any(leg.in_stance for leg in controller.legs)
+
+
+def test_restoring_the_runners_memory_continues_its_run():
+    """The memory is all the state the controller carries from hop to hop: a return from an
+    apex of the run with a fresh controller restored to the run's memory there reaches the run's
+    next apex (up to the different step grid: the return's steps start at the apex), and without
+    the memory (a fresh controller's thrust and T_s) it does not."""
+    from legsim.orbits.returns import MemoryLog, ReturnMap, first_crossing
+    from legsim.relaxed import simulate
+    from legsim.scene.orbit import problem_from_scene
+
+    scene = pronk(1.0, 'orbit.section={ mode = "flight", coordinate = "zd", value = 0.0, direction = "decreasing" }')
+    problem = problem_from_scene(scene).problem
+    log = MemoryLog(scene.control)
+    s = scene.integrator
+    ex = simulate(scene.model.system, scene.initial_state, "flight", 1.0, s["h"], s["eps"], s["method"], log)
+    apexes = []
+    for k, seg in enumerate(ex.segments):
+        hit = first_crossing(seg, problem.bound.s, -1, seg.t[0]) if k and seg.mode == "flight" else None
+        if hit is not None:
+            apexes.append((hit[1], log.entries[k]))
+    (x1, memory1), (x2, memory2) = apexes[:2]
+    restored = ReturnMap(problem)(x1, memory=memory1)
+    fresh = ReturnMap(problem)(x1)
+    # The run and the return differ in their step grids (the return's steps start at the apex),
+    # and so in where steps land in the strips: the positions by O(eps) (eps = 1e-4), the
+    # mode entries that time a stance by up to a step (h = 1e-3 s); the thrust follows the apex.
+    config = slice(0, 7)  # positions (the stiff flight servo amplifies the rates' differences)
+    error = np.max(np.abs(restored.x_end[config] - x2[config]))
+    assert error < s["eps"]
+    thrust = [0, 2]
+    assert np.max(np.abs(restored.memory_end[thrust] - memory2[thrust])) < 1e-5
+    assert np.max(np.abs(restored.memory_end[[1, 3]] - memory2[[1, 3]])) < s["h"]
+    # without the run's memory (a fresh controller's thrust 0.02 m for the adapted 0.014 m)
+    assert np.max(np.abs(fresh.x_end[config] - x2[config])) > 100 * error
+
+
+def test_the_runner_with_an_integral_term_leaves_its_memory_undeclared():
+    # The integral term's bias and its stride origin (the last touchdown's time and place)
+    # would be memory that restore() cannot set, so the orbit search must refuse the scene.
+    controller = load_scene("quadruped_run").control
+    assert controller.gains.k_i > 0.0 and controller.memory_names is None

@@ -9,7 +9,7 @@ import pytest
 
 import legsim.orbits
 from legsim.errors import SceneError
-from legsim.scene import bundled_dir, load_scene
+from legsim.scene import load_scene
 from legsim.scene.orbit import ORBIT_KEYS, OrbitSettings, problem_from_scene
 
 
@@ -104,12 +104,27 @@ def test_bad_values_are_named_by_their_key(override, message):
     assert message in str(info.value)
 
 
-def test_a_scene_with_a_controller_is_refused_rather_than_searched_without_it(tmp_path):
-    # Searching without the controller would be another system (the uncontrolled hop in place).
-    text = (bundled_dir() / "slip_raibert.toml").read_text() + (
-        '\n[orbit]\nsection = { mode = "flight", coordinate = "zd", value = 0.0, direction = "decreasing" }\n'
-    )
-    path = tmp_path / "controlled.toml"
-    path.write_text(text)
-    with pytest.raises(SceneError, match=r"controlled\.toml: controller: the orbit search does not run"):
-        problem_from_scene(load_scene(path))
+def test_a_controller_that_does_not_declare_its_memory_is_refused(tmp_path, monkeypatch):
+    # A controller keeping state the search cannot restore would make the return map depend on
+    # where an earlier return left it: refused, naming the field and what to implement.
+    from legsim.robots.raibert import SlipRaibert
+
+    monkeypatch.setattr(SlipRaibert, "memory_names", None)
+    expected = r"slip_raibert\.toml: controller: orbit problem: controller SlipRaibert does not declare its memory"
+    with pytest.raises(SceneError, match=expected) as info:
+        problem_from_scene(load_scene("slip_raibert"))
+    assert "memory_names, memory_units, memory() and restore(mode, memory)" in str(info.value)
+
+
+def test_a_scene_with_a_controller_searches_its_memory_too():
+    settings = problem_from_scene(load_scene("slip_raibert", overrides=["orbit.guess={ T_s = 0.2 }"]))
+    problem = settings.problem
+    assert problem.memory_names == ("T_s",) and problem.memory_units == ("s",)
+    assert problem.unknown_names == ["z", "psi", "xd", "T_s"]
+    assert settings.solver["memory"].tolist() == [0.2]
+
+
+def test_an_unknown_guess_name_lists_the_controller_memory():
+    scene = load_scene("slip_raibert", overrides=["orbit.guess={ T_x = 0.2 }"])
+    with pytest.raises(SceneError, match=r"orbit\.guess: unknown coordinate 'T_x'.*controller memory: \['T_s'\]"):
+        problem_from_scene(scene)
