@@ -257,6 +257,7 @@ class RunnerRaibert(Controller):
         together = self.attitude and len(stance_legs) < len(self.legs)
         gravity = None
         for leg in self.legs:
+            torque: tuple[float, float] | np.ndarray  # (hip, knee) N m
             if leg.contact in active:
                 torque = self._stance(leg, q, v, attitude / len(stance_legs), together)
             else:
