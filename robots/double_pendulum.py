@@ -185,13 +185,7 @@ def build(params: dict[str, Any], effects: dict[str, dict[str, Any]]) -> Model:
     if "controller" in effects:
         pd = effects["controller"]
         control = pd_control(pd["kp"], pd["kd"], pd["target"])
-    info = {
-        "guard_units": bridge.guard_units(),
-        "parameters": dict(params),
-        "effects": dict(effects),
-        "bridge": bridge,
-        "initial_check": bridge.initial_check(),
-    }
+    info = bridge.model_info(parameters=dict(params), effects=dict(effects))
     if "zeno" in effects:
         info[ZENO_WINDOW] = effects["zeno"]["window"]
     return Model(

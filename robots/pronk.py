@@ -128,13 +128,7 @@ def build(params: dict[str, Any], effects: dict[str, dict[str, Any]]) -> Model:
         parts.update(leg_geometry(bridge, mode, x, hips))
         return parts
 
-    info = {
-        "guard_units": bridge.guard_units(),
-        "parameters": dict(params),
-        "effects": dict(effects),
-        "bridge": bridge,
-        "initial_check": bridge.initial_check(),
-    }
+    info = bridge.model_info(parameters=dict(params), effects=dict(effects))
     return Model(
         system=system,
         initial_mode=initial_mode,

@@ -67,7 +67,7 @@ def _build(params: dict[str, Any], effects: dict[str, dict[str, Any]]) -> Model:
         dx, dz = half * math.cos(x[2]), -half * math.sin(x[2])
         return {"rod": np.array([[x[0] - dx, x[1] - dz], [x[0] + dx, x[1] + dz]])}
 
-    info = {"guard_units": bridge.guard_units(), "bridge": bridge, "initial_check": bridge.initial_check()}
+    info = bridge.model_info()
     return Model(
         system=system,
         initial_mode="air",

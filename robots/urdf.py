@@ -265,15 +265,12 @@ def _build(params: dict[str, Any], effects: dict[str, dict[str, Any]]) -> Model:
     def geometry(mode: str, x: np.ndarray) -> dict[str, np.ndarray]:
         return outlines(np.asarray(x, dtype=float)[:n])
 
-    info = {
-        "guard_units": bridge.guard_units(),
-        "bridge": bridge,
-        "initial_check": bridge.initial_check(),
-        "parameters": dict(params),
-        "outlines": outlines,
+    info = bridge.model_info(
+        parameters=dict(params),
+        outlines=outlines,
         # What a recording needs to log the robot through Rerun's own URDF loader.
-        "urdf": {"file": str(params["file"]), "root": params["root"]},
-    }
+        urdf={"file": str(params["file"]), "root": params["root"]},
+    )
     counters = bridge.counters
     return Model(
         system=system,

@@ -171,8 +171,7 @@ def enter_compiled(run: Run, mode: str, x: np.ndarray, t: float) -> Outcome:
     first entry in the process. An entry Python must take (a field or guard that is not finite
     there) comes back as ``Entered(..., python_entry=True)``."""
     data = run.system.mode_data(mode)
-    run.state_names.setdefault(mode, data.mode.names)
-    run.state_units.setdefault(mode, data.mode.units)
+    run.note_mode(data)
     if not is_ready(data) and not _check_first_entry(run, data, t, x):
         return Entered(mode, x, t, python_entry=True)
     visit = ModeVisit(data, run.guard_fns(data), t, x)
@@ -443,9 +442,7 @@ def _commit_records(run: Run, visit: ModeVisit, table: Table, ws: Workspace, n_r
             gc.enable()
     for target in set(ws.r_i[:n_rec, kt.R_TARGET].tolist()):  # modes the kernel entered
         if target < len(table.datas):
-            data = table.datas[target]
-            run.state_names.setdefault(data.name, data.mode.names)
-            run.state_units.setdefault(data.name, data.mode.units)
+            run.note_mode(table.datas[target])
     mode = table.names[int(ws.iv[kt.I_MODE])]
     if mode != visit.name:
         data = run.system.mode_data(mode)

@@ -33,8 +33,7 @@ def enter_mode(run: Run, mode: str, x: np.ndarray, t: float) -> ModeVisit | Outc
     if isinstance(run.control, Bound):
         run.control.enter(mode, t, x)
     visit = ModeVisit(data, run.guard_fns(data), t, x)
-    run.state_names.setdefault(mode, data.mode.names)
-    run.state_units.setdefault(mode, data.mode.units)
+    run.note_mode(data)
     if mode not in run.checked_modes:
         control = run.control
         check_field_output(run.system.name, mode, data.mode, t, x, None if control is None else control(t, x))

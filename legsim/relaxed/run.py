@@ -114,6 +114,11 @@ class Run:
         self._progress = progress
         self._wall0 = self._last_report = time.perf_counter()
 
+    def note_mode(self, data: ModeData) -> None:
+        """The run enters ``data``'s mode: its coordinates' names and units join the execution's."""
+        self.state_names.setdefault(data.name, data.mode.names)
+        self.state_units.setdefault(data.name, data.mode.units)
+
     # -- evaluations ---------------------------------------------------------------------------
     def f(self, field: Callable[..., np.ndarray], t: float, x: np.ndarray) -> np.ndarray:
         """The field at (t, x) with the control there, counted and checked to have x's shape."""

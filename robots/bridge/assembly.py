@@ -185,6 +185,11 @@ class ContactBridge:
         by more than eps (rad or m), else None."""
         return guards.initial_check(self._model, self._data, lambda mode: self._modes.spec(mode).active)
 
+    def model_info(self, **entries: Any) -> dict[str, Any]:
+        """``Model.info`` of a robot built on this bridge: the entries the core and the tools read
+        (``guard_units``, ``bridge``, ``initial_check``), then the builder's own ``entries``."""
+        return {"guard_units": self.guard_units(), "bridge": self, "initial_check": self.initial_check(), **entries}
+
     def guard_units(self) -> dict[str, str]:
         """Unit of each kind of guard by transition name prefix (eps is measured in these)."""
         return guards.guard_units(self._model)

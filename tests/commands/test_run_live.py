@@ -3,15 +3,13 @@ Rerun viewer is the one ``--rrd`` writes, and every bad use is refused before th
 
 from __future__ import annotations
 
-import signal
-import socket
 import subprocess
 import sys
-import time
 
 import numpy as np
 import pytest
 
+from helpers.rerun_server import free_port, settle, stop, wait_for
 from legsim.cli import main
 from legsim.errors import LegsimError
 from legsim.output.rrd import read_rrd
@@ -20,26 +18,9 @@ from legsim.output.rrd.live import viewer_url
 SHORT = ["bouncing_ball", "--set", "integrator.t_final=1.0", "--quiet"]
 
 
-def _free_port() -> int:
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return sock.getsockname()[1]
-
-
-def _wait_for(port: int, seconds: float = 30.0) -> None:
-    deadline = time.monotonic() + seconds
-    while time.monotonic() < deadline:
-        try:
-            socket.create_connection(("127.0.0.1", port), timeout=0.5).close()
-            return
-        except OSError:
-            time.sleep(0.1)
-    raise AssertionError(f"the Rerun server on port {port} did not start")
-
-
 def test_connect_streams_the_recording_rrd_writes(tmp_path):
     # Rerun's own server stands in for a viewer: it saves what it receives to a file.
-    port = _free_port()
+    port = free_port()
     saved, written = tmp_path / "received.rrd", tmp_path / "written.rrd"
     server = subprocess.Popen(
         [sys.executable, "-m", "rerun_cli", "--save", str(saved), "--port", str(port)],
@@ -47,11 +28,11 @@ def test_connect_streams_the_recording_rrd_writes(tmp_path):
         stderr=subprocess.DEVNULL,
     )
     try:
-        _wait_for(port)
+        wait_for(port, server)
         assert main(["run", *SHORT, "--rrd", str(written), "--connect", str(port), "--rrd-rate", "50"]) == 0
+        settle(saved)
     finally:
-        server.send_signal(signal.SIGINT)
-        server.wait(timeout=30)
+        stop(server)
     received, expected = read_rrd(saved), read_rrd(written)
     assert received["meta"]["rate"] == expected["meta"]["rate"] == 50
     np.testing.assert_array_equal(received["times"], expected["times"])
@@ -63,7 +44,7 @@ def test_connect_streams_the_recording_rrd_writes(tmp_path):
 
 def test_connect_to_an_address_nobody_answers_is_refused_before_the_run(tmp_path, capsys):
     out = tmp_path / "x.rrd"
-    port = _free_port()
+    port = free_port()
     assert main(["run", *SHORT, "--rrd", str(out), "--connect", str(port)]) == 2
     err = capsys.readouterr().err
     assert f"--connect {port}: no Rerun viewer answers at 127.0.0.1:{port}" in err

@@ -18,6 +18,7 @@ import numpy as np
 import pytest
 from rerun.chunk import RrdReader
 
+from helpers.rerun_server import free_port, settle, stop, wait_for
 from legsim.cli import main
 from legsim.output.rrd import read_rrd
 
@@ -28,49 +29,6 @@ def _rerun_binary() -> str | None:
     """The ``rerun`` command of this environment (next to its python), or on PATH."""
     local = Path(sys.executable).with_name("rerun")
     return str(local) if local.is_file() else shutil.which("rerun")
-
-
-def _free_port() -> int:
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return sock.getsockname()[1]
-
-
-def _wait_for(port: int, server: subprocess.Popen, seconds: float = 30.0) -> None:
-    deadline = time.monotonic() + seconds
-    while time.monotonic() < deadline:
-        if server.poll() is not None:
-            raise AssertionError(f"the Rerun server exited with {server.returncode} before listening")
-        try:
-            socket.create_connection(("127.0.0.1", port), timeout=0.5).close()
-            return
-        except OSError:
-            time.sleep(0.1)
-    raise AssertionError(f"the Rerun server on port {port} did not start within {seconds} s")
-
-
-def _settle(saved: Path, quiet: float = 1.0, seconds: float = 30.0) -> None:
-    """Wait until the server has stopped writing to ``saved`` for ``quiet`` s: what the client
-    sent last may still be on its way when the client returns, and a stopped server drops it."""
-    deadline, size, since = time.monotonic() + seconds, -1, time.monotonic()
-    while time.monotonic() < deadline:
-        now = saved.stat().st_size if saved.exists() else -1
-        if now != size:
-            size, since = now, time.monotonic()
-        elif size > 0 and time.monotonic() - since >= quiet:
-            return
-        time.sleep(0.1)
-
-
-def _stop(server: subprocess.Popen) -> None:
-    """Ctrl-C, which makes the server finish its file; killed if it does not stop."""
-    if server.poll() is None:
-        server.send_signal(signal.SIGINT)
-        try:
-            server.wait(timeout=30)
-        except subprocess.TimeoutExpired:
-            server.kill()
-            server.wait()
 
 
 def _entities(path: Path) -> set[tuple[str, bool]]:
@@ -84,17 +42,17 @@ def rerun_server(tmp_path):
     binary = _rerun_binary()
     if binary is None:
         pytest.skip("the rerun command (rerun-sdk's CLI) is not installed here")
-    port, saved = _free_port(), tmp_path / "received.rrd"
+    port, saved = free_port(), tmp_path / "received.rrd"
     server = subprocess.Popen(
         [binary, "--serve-grpc", "--port", str(port), "--save", str(saved)],
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,
     )
     try:
-        _wait_for(port, server)
+        wait_for(port, server)
         yield port, saved, server
     finally:
-        _stop(server)
+        stop(server)
 
 
 # The server's --save file ends without the footer a finished recording file has.
@@ -103,8 +61,8 @@ def test_connect_sends_what_rrd_writes_to_a_real_rerun_server(rerun_server, tmp_
     port, saved, server = rerun_server
     written = tmp_path / "written.rrd"
     assert main(["run", *RUN, "--rrd", str(written), "--connect", f"rerun+http://127.0.0.1:{port}/proxy"]) == 0
-    _settle(saved)
-    _stop(server)
+    settle(saved)
+    stop(server)
     received, expected = read_rrd(saved), read_rrd(written)
     assert len(received["times"]) == len(expected["times"]) == expected["meta"]["computed_samples"]
     np.testing.assert_array_equal(received["times"], expected["times"])
@@ -158,7 +116,7 @@ def test_spawn_starts_rerun_and_sends_it_what_rrd_writes(tmp_path, monkeypatch):
     monkeypatch.setenv("DISPLAY", ":0")
     try:
         assert main(["run", *RUN, "--rrd", str(written), "--spawn"]) == 0
-        _settle(saved)
+        settle(saved)
     finally:
         for pid in _processes_saving_to(saved):
             os.kill(pid, signal.SIGINT)
