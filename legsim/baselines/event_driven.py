@@ -52,7 +52,7 @@ class _GuardEvent:
     direction = -1
 
     def __init__(
-        self, transition: Transition, control: Callable[[float, np.ndarray], Any] | None, counts: dict[str, int]
+        self, transition: Transition, control: Any, counts: dict[str, int]
     ) -> None:
         self.transition, self.control, self.counts = transition, control, counts
 
