@@ -51,9 +51,7 @@ class _GuardEvent:
     terminal = True
     direction = -1
 
-    def __init__(
-        self, transition: Transition, control: Any, counts: dict[str, int]
-    ) -> None:
+    def __init__(self, transition: Transition, control: Any, counts: dict[str, int]) -> None:
         self.transition, self.control, self.counts = transition, control, counts
 
     def __call__(self, tt: float, y: np.ndarray) -> float:
