@@ -167,5 +167,5 @@ def test_event_driven_refuses_a_held_controller():
         def __call__(self, mode, t, x):
             return 0.0
 
-    with pytest.raises(SimulationError, match="hold=True.*solve_ivp cannot run"):
+    with pytest.raises(SimulationError, match=r"hold=True.*solve_ivp cannot run"):
         simulate_events(ball(0.5), [1.0, 0.0], "flight", 1.0, control=Held())
