@@ -13,7 +13,11 @@ made as good as it reasonably gets so that comparisons against it mean something
   ``max_transitions`` rather than looping forever; a self-transition whose reset leaves the state
   unchanged (a graze at zero speed) is not fired again on that same state,
 * a trial step that leaves the model's range (``ModelBreakdown`` from a field or guard) ends the
-  run with status ``model_breakdown``.
+  run with status ``model_breakdown``,
+* a ``legsim.control.Controller`` runs as in the relaxed integrator (``legsim.control.bind``): told
+  the mode, reset at the start and at every mode entry (each transition of a chain), evaluated
+  wherever the field or a guard is. A held controller (``hold=True``) is refused: its value is
+  sampled at the start of each step, and solve_ivp's steps are not the integrator's to sample.
 
 It returns a ``legsim.Execution`` so that the same metric and error code apply to it.
 """
@@ -28,6 +32,7 @@ from typing import Any, Literal, cast
 import numpy as np
 from scipy.integrate import solve_ivp
 
+from ..control import Bound, Controller, bind
 from ..errors import ModelBreakdown, SimulationError
 from ..execution import Execution, Segment, Strip, TransitionRecord
 from ..hybrid import HybridSystem, Transition
@@ -46,9 +51,7 @@ class _GuardEvent:
     terminal = True
     direction = -1
 
-    def __init__(
-        self, transition: Transition, control: Callable[[float, np.ndarray], Any] | None, counts: dict[str, int]
-    ) -> None:
+    def __init__(self, transition: Transition, control: Any, counts: dict[str, int]) -> None:
         self.transition, self.control, self.counts = transition, control, counts
 
     def __call__(self, tt: float, y: np.ndarray) -> float:
@@ -68,7 +71,7 @@ def simulate_events(
     method: str = "RK45",
     rtol: float = 1e-6,
     atol: float = 1e-9,
-    control: Callable[[float, np.ndarray], Any] | None = None,
+    control: Controller | Callable[[float, np.ndarray], Any] | None = None,
     t0: float = 0.0,
     max_transitions: int = 10_000,
     max_step: float = math.inf,
@@ -80,7 +83,9 @@ def simulate_events(
     Parameters
     ----------
     method, rtol, atol, max_step: passed to ``scipy.integrate.solve_ivp``.
-    control: optional ``control(t, x) -> u`` passed to fields as their third argument.
+    control: optional ``control(t, x) -> u`` passed to fields as their third argument, or a
+        ``legsim.control.Controller`` (told the mode, ``reset`` at the start and at every mode
+        entry); a Controller with ``hold=True`` raises SimulationError.
     max_transitions: transition cap; reaching it ends the run with status ``max_transitions``.
     event_tol: a guard within this of zero at a reset image, and decreasing along the flow,
         fires immediately (simultaneous events).
@@ -103,16 +108,16 @@ def simulate_events(
             raise SimulationError(f"{label} must be finite and > 0, got {value!r}")
     if not (isinstance(t_final, (int, float)) and math.isfinite(t_final) and t_final > t0):
         raise SimulationError(f"t_final must be finite and > t0 = {t0}, got {t_final!r}")
-    x = system.check_state(
-        mode, x0, t=t0, u=None if control is None else control(t0, np.asarray(x0, float)), label="x0"
-    )
+    control = _bound_control(control)
+    x = system.check_state(mode, x0, t=t0, u=_initial_control(control, mode, t0, x0), label="x0")
     counts = {"field_evals": 0, "guard_evals": 0, "reset_evals": 0, "steps": 0}
-    pieces: list[tuple[str, np.ndarray, np.ndarray]] = []
+    pieces = _Segments(system, control)
     dense: list[Any] = []
     transitions: list[TransitionRecord] = []
     status, message = "finished", ""
     t = float(t0)
     wall0 = _time.perf_counter()
+    _enter(control, mode, t, x)
     while True:
         trs = system.outgoing(mode)
         field = system.mode(mode).field
@@ -142,12 +147,12 @@ def simulate_events(
             # A trial step of solve_ivp left the model's range (e.g. a runner's body through the
             # ground): the solver cannot shorten a step on such grounds, so the run ends here.
             status, message = "model_breakdown", f"{exc} (solve_ivp in mode '{mode}' after t={t:.17g})"
-            pieces.append((mode, np.array([t]), np.asarray(x, dtype=float).reshape(1, -1).copy()))
+            pieces.add(mode, np.array([t]), np.asarray(x, dtype=float).reshape(1, -1).copy())
             dense.append(None)
             break
         counts["field_evals"] += sol.nfev
         counts["steps"] += max(len(sol.t) - 1, 0)
-        pieces.append((mode, sol.t.copy(), sol.y.T.copy()))
+        pieces.add(mode, sol.t.copy(), sol.y.T.copy())
         dense.append(sol.sol)
         if sol.status == -1:
             status, message = "non_finite", f"solve_ivp failed in mode '{mode}' at t={sol.t[-1]:.17g}: {sol.message}"
@@ -177,6 +182,7 @@ def simulate_events(
             )
             fixed_point = tr.target == mode and np.array_equal(after, q)
             mode, x, t = tr.target, after, t_event
+            _enter(control, mode, t, x)
             trs = system.outgoing(mode)
             nxt = _firing_at_entry(system, mode, x, t, control, event_tol, counts)
             if nxt is None or (fixed_point and trs[nxt] is tr):
@@ -185,16 +191,16 @@ def simulate_events(
                 break
             e, q = nxt, x.copy()
             # A zero-length segment keeps the execution's segment/strip alternation.
-            pieces.append((mode, np.array([t]), x.reshape(1, -1).copy()))
+            pieces.add(mode, np.array([t]), x.reshape(1, -1).copy())
             dense.append(None)
         if status != "finished" or not np.all(np.isfinite(x)):
             if status == "finished":
                 status, message = "non_finite", f"reset gave a non-finite state at t={t:.17g}: {x.tolist()}"
             break
-    wall = _time.perf_counter() - wall0
+    wall = _time.perf_counter() - wall0 - pieces.seconds
     return _assemble(
         system,
-        pieces,
+        pieces.segments,
         transitions,
         status,
         message,
@@ -204,9 +210,41 @@ def simulate_events(
         counts,
         wall,
         {"method": f"solve_ivp-{method}", "rtol": rtol, "atol": atol},
-        control,
         dense if dense_output else None,
     )
+
+
+def _bound_control(control: Any) -> Any:
+    """What the loop calls as ``u(t, x)``: the control itself, or a Controller bound to the mode;
+    SimulationError for anything else and for a held Controller."""
+    if control is not None and not callable(control):
+        raise SimulationError(
+            f"control must be callable control(t, x) -> u or None, got {type(control).__name__}; "
+            f"a legsim.control.Controller also does"
+        )
+    bound = bind(control)
+    if isinstance(bound, Bound) and bound.hold:
+        raise SimulationError(
+            f"controller {type(control).__name__} has hold=True (a zero-order hold sampled at each "
+            f"step's start), which solve_ivp cannot run: its steps are its own and a held value "
+            f"would change the field inside them; run it with legsim.relaxed.simulate, or set hold=False"
+        )
+    return bound
+
+
+def _initial_control(control: Any, mode: str, t0: float, x0: Any) -> Any:
+    """The control at the start, for checking x0: a Controller is not entered yet (the run
+    enters the mode when it starts), so it is asked directly."""
+    x = np.asarray(x0, dtype=float)
+    if isinstance(control, Bound):
+        return control.controller(mode, t0, x)
+    return None if control is None else control(t0, x)
+
+
+def _enter(control: Any, mode: str, t: float, x: np.ndarray) -> None:
+    """The run enters ``mode`` at (t, x): a Controller is reset and told the mode."""
+    if isinstance(control, Bound):
+        control.enter(mode, t, x)
 
 
 def _firing_at_entry(system, mode, x, t, control, tol, counts) -> int | None:
@@ -254,20 +292,32 @@ class DenseExecution(Execution):
         return samples
 
 
-def _assemble(
-    system, pieces, transitions, status, message, t0, t_end, t_final, counts, wall, settings, control, dense=None
-):
-    segments = []
-    for mode, ts, xs in pieces:
-        field = system.mode(mode).field
+class _Segments:
+    """The run's segments, each with its derivatives evaluated when it is added, while a
+    Controller is still in that segment's mode and memory; ``seconds`` is the time spent on
+    them, which the run's reported wall time leaves out (it is the Execution's assembly)."""
+
+    def __init__(self, system: HybridSystem, control: Any) -> None:
+        self.system, self.control = system, control
+        self.segments: list[Segment] = []
+        self.seconds = 0.0
+
+    def add(self, mode: str, ts: np.ndarray, xs: np.ndarray) -> None:
+        """A segment of ``mode``: times ts (k,), states xs (k, n)."""
+        start = _time.perf_counter()
+        field, control = self.system.mode(mode).field, self.control
         dx = np.array(
             [field(tt, xx, None if control is None else control(tt, xx)) for tt, xx in zip(ts, xs, strict=True)],
             dtype=float,
         ).reshape(xs.shape)
-        segments.append(Segment(mode, ts, xs, dx))
+        self.segments.append(Segment(mode, ts, xs, dx))
+        self.seconds += _time.perf_counter() - start
+
+
+def _assemble(system, segments, transitions, status, message, t0, t_end, t_final, counts, wall, settings, dense=None):
     strips = [Strip(tr.source, tr.name, tr.time, tr.exit_time, tr.state_before, tr.time, 0.0) for tr in transitions]
     counters = dict(counts, transitions=len(transitions), halvings=0, strip_time=0.0, wall_time_s=wall)
-    names = {m: system.state_names(m) for m, _, _ in pieces}
+    names = {seg.mode: system.state_names(seg.mode) for seg in segments}
     fields = dict(
         status=status,
         message=message,
