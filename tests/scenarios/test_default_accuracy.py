@@ -25,13 +25,14 @@ NAMES = sorted(p.stem for p in bundled_dir().glob("*.toml"))
 PAPER = [name for name in NAMES if name.endswith("_paper")]
 #: The check of these takes a second or more (the PD pendulum's controller and Example 1's
 #: 49 impacts run 10^4 steps each; the two tanks chatter 10^3 times past their Zeno time; the
-#: controlled SLIP hopper runs 100 hops and the URDF quadruped's controlled runs take the Python
+#: controlled SLIP and pronk hoppers run 100 hops and the URDF quadruped's controlled runs take the Python
 #: path at milliseconds per step).
 SLOW = {
     "double_pendulum_pd",
     "oscillator_ex1",
     "two_tanks",
     "slip_raibert",
+    "pronk_raibert",
     "quadruped_stand",
     "quadruped_pronk",
     "quadruped_run",

@@ -1,0 +1,112 @@
+"""Raibert's controller for the pronk hopper (``robots/pronk_hopper.py``), ``raibert_pronk``.
+
+Each leg is placed by its own neutral point: in flight it swings at ``k_swing (psi* - psi)``
+(rad/s) to the body-relative angle ``psi* = phi* + theta`` whose world angle from the vertical is
+``phi* = asin((xd T_s / 2 + k_x (xd - xd*)) / l)``, T_s the leg's last stance duration (s),
+measured at its liftoff. In stance the hips servo the pitch: the stance legs share the torque
+``-(kp_attitude theta + kd_attitude thetad)`` (N m). The springs are passive, so (as for the
+SLIP hopper) the hopping height trades with the speed and needs no thrust; with the pitch at 0,
+the servo does no work and the energy is conserved.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from legsim.builders import Model, Param
+from legsim.control import Controller, ControllerSpec
+from legsim.errors import SceneError
+
+from .pronk_hopper import LEGS, MODES, PronkHopper, state_names
+
+
+class PronkRaibert(Controller):
+    """Raibert's foot placement and stance attitude servo for the pronk hopper (module docstring).
+
+    Memory: each leg's last stance duration, ``T_s_left, T_s_right`` (s); the touchdown times it
+    measures from are written at each touchdown before they are read.
+    """
+
+    memory_names = ("T_s_left", "T_s_right")
+    memory_units = ("s", "s")
+
+    def __init__(self, hopper: PronkHopper, gains: dict[str, float]) -> None:
+        self.l = hopper.l
+        self.speed, self.k_x, self.k_swing = gains["speed"], gains["k_x"], gains["k_swing"]
+        self.kp, self.kd = gains["kp_attitude"], gains["kd_attitude"]
+        self.stance_time = dict.fromkeys(LEGS, gains["stance_time"])
+        self.touchdown = dict.fromkeys(LEGS, 0.0)
+        self.in_stance: tuple[str, ...] = ()
+
+    def reset(self, mode: str, t: float, x: np.ndarray) -> None:
+        stance = MODES[mode]
+        for leg in LEGS:
+            if leg in stance and leg not in self.in_stance:
+                self.touchdown[leg] = t
+            elif leg in self.in_stance and leg not in stance:
+                self.stance_time[leg] = t - self.touchdown[leg]
+        self.in_stance = stance
+
+    def memory(self) -> np.ndarray:
+        return np.array([self.stance_time[leg] for leg in LEGS])
+
+    def restore(self, mode: str, memory: np.ndarray) -> None:
+        """Set each leg's T_s; a run starting with a leg in stance counts that stance from its
+        start (a section in stance must be right after the touchdown)."""
+        values = np.asarray(memory, dtype=float).reshape(len(LEGS))
+        self.stance_time = {leg: float(value) for leg, value in zip(LEGS, values, strict=True)}
+        self.in_stance = ()
+
+    def target_angle(self, leg: str, theta: float, xd: float) -> float:
+        """The leg's touchdown angle psi* (rad, from the body's downward normal) at pitch theta
+        (rad) and forward speed xd (m/s)."""
+        ahead = xd * self.stance_time[leg] / 2 + self.k_x * (xd - self.speed)
+        return math.asin(max(-0.9, min(0.9, ahead / self.l))) + theta
+
+    def __call__(self, mode: str, t: float, x: np.ndarray) -> np.ndarray:
+        """``(swing_left, swing_right, torque_left, torque_right)``, rad/s and N m."""
+        stance = MODES[mode]
+        names = state_names(stance)
+        u = np.zeros(4)
+        for i, leg in enumerate(LEGS):
+            if leg in stance:
+                u[2 + i] = -(self.kp * x[2] + self.kd * x[5]) / len(stance)
+            else:
+                psi = x[names.index(f"psi_{leg}")]
+                u[i] = self.k_swing * (self.target_angle(leg, x[2], x[3]) - psi)
+        return u
+
+
+def _make(model: Model, params: dict[str, Any]) -> PronkRaibert:
+    hopper = model.info.get("pronk_hopper") if isinstance(model.info, dict) else None
+    if not isinstance(hopper, PronkHopper):
+        raise SceneError(
+            f"controller 'raibert_pronk' drives the pronk hopper (robot 'pronk_hopper'); {model.system.name} is not one"
+        )
+    gains = dict(params)
+    # Two legs share the body in stance: half the spring-mass period of the body on both springs.
+    gains["stance_time"] = params["stance_time"] or math.pi * math.sqrt(hopper.m / (2 * hopper.k))
+    return PronkRaibert(hopper, gains)
+
+
+PRONK = ControllerSpec(
+    "raibert_pronk",
+    "Raibert's foot placement (each flying leg's swing rate) and stance attitude servo for the pronk hopper",
+    {
+        "speed": Param(1.0, "commanded forward speed xd*", "m/s"),
+        "k_x": Param(0.05, "foot placement gain (m per m/s of speed error)", "s", low=0.0),
+        "k_swing": Param(20.0, "leg swing servo gain", "1/s", low=0.0, low_open=True),
+        "kp_attitude": Param(900.0, "stance pitch servo stiffness", "N m/rad", low=0.0),
+        "kd_attitude": Param(60.0, "stance pitch servo damping", "N m s/rad", low=0.0),
+        "stance_time": Param(
+            0.0,
+            "stance duration assumed before a leg's first liftoff; 0: pi sqrt(m / 2k), the body on both springs",
+            "s",
+            low=0.0,
+        ),
+    },
+    _make,
+)

@@ -1,0 +1,128 @@
+"""The pronk hopper (robots/pronk_hopper.py) and Raibert's control of it (robots/raibert_pronk.py):
+uncontrolled it is the bridge's pronk; its hip torques obey the angular momentum and power
+balances of a massless leg; controlled it runs 100 hops at a commanded speed, the SLIP hopper's
+gait when its pitch is 0, and its stance hips bring a pitched body back to level."""
+
+import math
+
+import numpy as np
+import pytest
+from legsim.robots import pronk, pronk_hopper
+
+from legsim import simulate
+from legsim.errors import SceneError
+from legsim.scene import load_scene
+
+HOPPER = pronk_hopper.PronkHopper(m=1.0, I=1.0, k=30.0, l=1.0, d=1.0, g=9.81)
+
+
+def test_without_control_the_hopper_is_the_bridge_pronk():
+    """Legs at the pronk's psi, no control, a pitched start (the legs land and leave one at a
+    time): the same four transitions at the same times and body states as the bridge pronk,
+    built independently with Pinocchio. The run ends after both liftoffs: the pronk then swings
+    its legs back to psi, the uncontrolled hopper leaves them at their stance angles, and from
+    this start both runs soon end with the body low (the pitched pronk is not a gait)."""
+    psi = math.pi / 5
+    start = {**pronk_hopper.INITIAL_STATE, "theta": 0.1, "psi_left": psi, "psi_right": psi}
+    x0 = np.array([start[name] for name in pronk_hopper.state_names(())])
+    mine = simulate(HOPPER.system(), x0, "aerial", 0.62, 1e-3, 1e-6)
+    theirs = simulate(pronk.make().system, pronk.state({"theta": 0.1}), "aerial", 0.62, 1e-3, 1e-6)
+    assert mine.status == theirs.status == "finished"
+    names = ["touchdown_right", "touchdown_left", "liftoff_right", "liftoff_left"]
+    assert [tr.name for tr in mine.transitions] == [tr.name for tr in theirs.transitions] == names
+    for a, b in zip(mine.transitions, theirs.transitions, strict=True):
+        assert a.source == b.source and a.target == b.target
+        assert a.time == pytest.approx(b.time, abs=1e-9)
+        np.testing.assert_allclose(a.state_after[:6], b.state_after[:6], atol=1e-9)
+
+
+def random_single_stance(rng: np.random.Generator) -> np.ndarray:
+    """A state of mode ``left``: (x, z, theta, xd, zd, thetad, psi_right, left_foot_x)."""
+    return np.array([*rng.uniform(-0.3, 0.3, 1), 0.8, *rng.uniform(-0.4, 0.4, 5), rng.uniform(-0.5, 0.5)])
+
+
+def test_hip_torques_keep_the_massless_legs_balances():
+    """In single stance with any hip torques and swing rates: the angular momentum about the foot
+    changes by gravity's moment alone (the massless leg passes the ground force through the
+    foot), and the energy changes by the hip torque's power on body and leg, torque times
+    (thetad + the leg's forward swing rate) (closed forms)."""
+    rng = np.random.default_rng(3)
+    field = HOPPER.field(("left",))
+    for _ in range(20):
+        x, u = random_single_stance(rng), rng.uniform(-5.0, 5.0, 4)
+        dx = field(0.0, x, u)
+        from_foot = x[:2] - np.array([x[7], 0.0])
+        # d/dt [I thetad + m (r x v)_y] with (a x b)_y = a_z b_x - a_x b_z
+        momentum_rate = HOPPER.I * dx[5] + HOPPER.m * (from_foot[1] * dx[3] - from_foot[0] * dx[4])
+        gravity_moment = from_foot[0] * HOPPER.m * HOPPER.g
+        assert momentum_rate == pytest.approx(gravity_moment, abs=1e-12)
+        hip, hip_velocity = HOPPER.hip("left", x)
+        along = hip - np.array([x[7], 0.0])
+        # The leg's world angle from the downward vertical, forward: atan2(foot_x - hip_x, hip_z).
+        swing = (along[0] * hip_velocity[1] - along[1] * hip_velocity[0]) / float(along @ along)
+        energy_rate = np.gradient([HOPPER.energy("left", x + s * dx) for s in (-1e-6, 0.0, 1e-6)], 1e-6)[1]
+        assert energy_rate == pytest.approx(u[2] * (x[5] + swing), abs=1e-6)
+
+
+@pytest.fixture(scope="module")
+def raibert_run():
+    scene = load_scene("pronk_raibert")
+    return scene, scene.simulate()
+
+
+def hops(execution) -> list:
+    """Each flight's end: the first touchdown out of ``aerial``."""
+    return [tr for tr in execution.transitions if tr.source == "aerial"]
+
+
+def test_raibert_pronk_tracks_the_commanded_speed_over_100_hops(raibert_run):
+    """The scene: from 1 m/s to the commanded 1.5 m/s; from the 20th hop on every flight's speed
+    within 5% of it, the pitch 0 to rounding, the energy conserved (the servo does no work at
+    pitch 0). Level, the pronk is a SLIP on both legs' springs (2 x 250 N/m = the SLIP
+    hopper's 500 N/m, same mass, start and gains): it settles at the SLIP hopper's speed."""
+    scene, ex = raibert_run
+    assert ex.status == "finished" and not ex.warnings
+    touchdowns = hops(ex)
+    assert len(touchdowns) >= 100
+    speeds = np.array([tr.state_before[3] for tr in touchdowns])
+    assert abs(speeds[0] - 1.5) > 0.3 * 1.5 and np.all(np.abs(speeds[20:] / 1.5 - 1.0) < 0.05)
+    assert max(float(np.max(np.abs(seg.x[:, 2]))) for seg in ex.segments) < 1e-7
+    energy = scene.model.system.energy
+    initial = energy("aerial", scene.initial_state)
+    assert max(abs(energy("aerial", tr.state_before) - initial) for tr in touchdowns) < 1e-6 * initial
+    slip = load_scene("slip_raibert", ["integrator.t_final=15"]).simulate()
+    slip_speed = [tr.state_before[3] for tr in slip.transitions if tr.name == "touchdown"][-1]
+    assert speeds[-1] == pytest.approx(slip_speed, abs=1e-6)
+
+
+def test_raibert_pronk_measures_each_legs_stance(raibert_run):
+    """Each leg's memory T_s is its last stance's duration, liftoff minus touchdown. The
+    controller is told at the mode's entry, which follows the transition's guard crossing by the
+    strip's hold (below eps / guard rate, ~1e-7 s here): the tolerance."""
+    scene, _ = raibert_run
+    controller = scene.control
+    ex = simulate(scene.model.system, scene.initial_state.copy(), "aerial", 3.0, 1e-3, 1e-7, "rk4", controller)
+    for i, leg in enumerate(pronk_hopper.LEGS):
+        times = [(tr.name, tr.time) for tr in ex.transitions if tr.name.endswith(leg)]
+        last = max(j for j, (name, _) in enumerate(times) if name.startswith("liftoff"))
+        assert controller.memory()[i] == pytest.approx(times[last][1] - times[last - 1][1], abs=1e-6)
+
+
+def pitch_at_touchdowns(*overrides: str) -> np.ndarray:
+    ex = load_scene("pronk_raibert", ["integrator.t_final=4", "initial.state.theta=0.01", *overrides]).simulate()
+    assert ex.status == "finished" and not ex.warnings
+    return np.array([abs(tr.state_before[2]) for tr in hops(ex)])
+
+
+def test_stance_hips_level_a_pitched_body():
+    """From a pitch of 0.01 rad the stance hips' servo shrinks the pitch at each touchdown by
+    more than half a hop; without it the pitch grows past 0.1 rad within 4 s."""
+    servoed = pitch_at_touchdowns()
+    assert np.all(servoed[1:] < 0.5 * servoed[:-1])
+    free = pitch_at_touchdowns("controller.parameters.kp_attitude=0", "controller.parameters.kd_attitude=0")
+    assert np.max(free) > 0.1
+
+
+def test_raibert_pronk_drives_only_the_pronk_hopper():
+    with pytest.raises(SceneError, match=r"raibert_pronk.*pronk_hopper"):
+        load_scene("pronk_raibert", ["robot.name=pronk"])
