@@ -11,7 +11,9 @@ from legsim.robots import pronk, pronk_hopper
 
 from legsim import simulate
 from legsim.errors import SceneError
+from legsim.orbits import find_orbit
 from legsim.scene import load_scene
+from legsim.scene.orbit import problem_from_scene
 
 HOPPER = pronk_hopper.PronkHopper(m=1.0, I=1.0, k=30.0, l=1.0, d=1.0, g=9.81)
 
@@ -126,3 +128,32 @@ def test_stance_hips_level_a_pitched_body():
 def test_raibert_pronk_drives_only_the_pronk_hopper():
     with pytest.raises(SceneError, match=r"raibert_pronk.*pronk_hopper"):
         load_scene("pronk_raibert", ["robot.name=pronk"])
+
+
+def scene_orbit(name: str):
+    settings = problem_from_scene(load_scene(name))
+    return find_orbit(settings.problem, settings.guess, **settings.solver).raise_for_status()
+
+
+def test_raibert_pronk_gait_is_the_slip_hoppers_with_a_stable_pitch():
+    """``legsim orbit pronk_raibert``: the level gait is the SLIP hopper's (independent model,
+    ``slip_raibert``): the same apex and period, and the SLIP's multipliers are among the
+    pronk's; the pronk's others (pitch, legs, the memory's difference) are inside the unit
+    circle, and the run from a pitched start shrinks its pitch hop by hop at about their rate
+    (within 1.3 times the spectral radius: the first hops carry the speed's transient)."""
+    pronk_gait, slip_gait = scene_orbit("pronk_raibert"), scene_orbit("slip_raibert")
+    names = pronk_gait.state_names
+    # Both at eps = 1e-7: the pronk crosses four strips a hop, the SLIP two, and each crossing
+    # moves the return by O(eps), so the two gaits agree to a few eps.
+    for name in ("z", "xd"):
+        assert pronk_gait.fixed_point[names.index(name)] == pytest.approx(
+            slip_gait.fixed_point[slip_gait.state_names.index(name)], abs=1e-6
+        )
+    assert pronk_gait.period == pytest.approx(slip_gait.period, abs=1e-6)
+    assert pronk_gait.stable and pronk_gait.spectral_radius < 0.3
+    pronk_mu, slip_mu = np.asarray(pronk_gait.multipliers), np.asarray(slip_gait.multipliers)
+    for mu in slip_mu[np.abs(slip_mu) > 1e-3]:
+        assert np.min(np.abs(pronk_mu - mu)) < 1e-5
+    ex = load_scene("pronk_raibert", ["integrator.t_final=6", "initial.state.theta=0.01"]).simulate()
+    pitches = np.array([tr.state_before[2] for tr in hops(ex)])
+    assert np.all(np.abs(pitches[1:] / pitches[:-1]) < pronk_gait.spectral_radius * 1.3)
