@@ -32,6 +32,14 @@ Two ways, compared in the tests:
   the step sequence itself changes with x, eta ~ the tolerance, and the default becomes
   tolerance^(1/3). ``docs/orbits.md`` has the measurements.
 
+  The Jacobian whose multipliers are reported (``jacobian_fd_checked``) is also checked for
+  differentiability: each column's forward and backward differences must agree to what the
+  map's curvature explains (``legsim.orbits.kinks``; one more return per column, at half the
+  step). Where they do not, a kink of the return map lies inside the stencil (transitions that
+  switch order there) and the central difference is an average of two slopes: the result
+  reports both sides' multipliers and no stability verdict. Newton's iterations use the
+  unchecked ``jacobian_fd``.
+
 Derivatives with respect to free parameters are always central differences of the return map
 (the system is rebuilt for each value). Where the simulation on one side of a difference fails
 (a model that refuses states on one side, such as a runner whose flight foot would start below

@@ -608,7 +608,7 @@ def _add_multipliers(
     at the fixed point (an equilibrium) turns the result into that failure."""
     f = _closed_loop_field(problem, ret)
     checked = DP if isinstance(DP, CheckedJacobian) else None
-    J = checked.central if checked is not None else DP
+    J = DP.central if isinstance(DP, CheckedJacobian) else DP
     try:
         mu, M = floquet_multipliers(J, f, problem.cyclic_idx)
     except OrbitError as exc:
