@@ -221,13 +221,8 @@ def _stability_changes(points: list[FamilyPoint]) -> list[StabilityChange]:
     changes = []
     for a, b in pairwise(points):
         ra, rb = a.result.spectral_radius, b.result.spectral_radius
-        if (
-            ra is None
-            or rb is None
-            or a.result.stable is None
-            or b.result.stable is None
-            or a.result.stable == b.result.stable
-        ):
+        verdicts = (a.result.stable, b.result.stable)  # None: no multipliers, or a kinked return map
+        if ra is None or rb is None or None in verdicts or verdicts[0] == verdicts[1]:
             continue
         at = a.value + (1.0 - ra) * (b.value - a.value) / (rb - ra)
         unstable = a.result if ra >= 1.0 else b.result

@@ -607,8 +607,7 @@ def _add_multipliers(
     checked finite-difference Jacobian, its verdict on differentiability); a field that vanishes
     at the fixed point (an equilibrium) turns the result into that failure."""
     f = _closed_loop_field(problem, ret)
-    checked = DP if isinstance(DP, CheckedJacobian) else None
-    J = DP.central if isinstance(DP, CheckedJacobian) else DP
+    checked, J = (DP, DP.central) if isinstance(DP, CheckedJacobian) else (None, DP)
     try:
         mu, M = floquet_multipliers(J, f, problem.cyclic_idx)
     except OrbitError as exc:
