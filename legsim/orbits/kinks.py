@@ -12,10 +12,10 @@ evaluations, plus P(x)) and at h = +d/2 (one more evaluation). For a smooth map
 ``S(d) - S(-d) ~ d P''`` is predicted by the forward side alone, ``4 (S(d) - S(d/2)) ~ d P''``;
 their difference (the defect) is ``d^2 P'''/2`` plus the map's noise over d. At a kink with
 slopes a and b either side the gap is O(|a - b|) whatever the step, and the defect with it:
-a kink at x (or in [x - d, x)) gives a defect (a - b) (1 - fraction of the way to x - d), one in
-(x, x + d) a defect that vanishes only for a kink about 0.2 d from x (the one blind spot of
-four points: a piecewise-linear map with its kink there fits them; ``KINK_RATIO`` makes it a band
-of about 0.12 d .. 0.28 d).
+a kink at x - s d (0 <= s < 1) gives the defect (1 - s) (b - a), one at x + s d (0 < s < 1) the
+defect (1 - 5 s) (b - a) for s < 1/2 and 3 (1 - s) (a - b) beyond: it vanishes only for a kink
+0.2 d from x (the one blind spot of four points: a piecewise-linear map with its kink there
+fits them), and with ``KINK_RATIO`` = 0.5 the kinks between d/9 and d/3 right of x go unflagged.
 
 A column is *kinked* when its defect (max-norm over the rows) exceeds ``KINK_RATIO`` times the
 larger of the gap and its prediction (so curvature cannot explain it) and ``KINK_FLOOR`` times
