@@ -278,10 +278,12 @@ def _onto_section(problem: OrbitProblem, system: HybridSystem, control: Control,
     return np.eye(problem.dim) - np.outer(f, grad) / rate
 
 
-def _sides(fn: Callable[[float], np.ndarray], d: float) -> tuple[np.ndarray | None, np.ndarray | None, list]:
+def _sides(
+    fn: Callable[[float], np.ndarray], d: float
+) -> tuple[np.ndarray | None, np.ndarray | None, list[OrbitError]]:
     """(fn(d), fn(-d), the OrbitErrors raised), None for a side whose simulation failed."""
     values: list[np.ndarray | None] = []
-    errors = []
+    errors: list[OrbitError] = []
     for delta in (d, -d):
         try:
             values.append(fn(delta))
@@ -294,7 +296,7 @@ def _sides(fn: Callable[[float], np.ndarray], d: float) -> tuple[np.ndarray | No
 def _from_sides(
     plus: np.ndarray | None,
     minus: np.ndarray | None,
-    errors: list,
+    errors: list[OrbitError],
     d: float,
     base: Callable[[], np.ndarray],
     label: str,
