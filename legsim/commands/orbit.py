@@ -274,18 +274,31 @@ def format_orbit(payload: dict[str, Any], name: str) -> str:
     if payload["step_length"] is not None:
         period += f", step length {payload['step_length']:.10g} m"
     lines.append(period)
-    mus = []
-    for re, im in payload["multipliers"] or []:
-        text = f"{re:.6g}" if im == 0 else f"{re:.6g}{im:+.6g}j"
-        mus.append(f"{text} (|mu| {math.hypot(re, im):.6g})")
-    lines.append("Floquet multipliers: " + (", ".join(mus) if mus else "none"))
-    verdict = "stable" if payload["stable"] else "unstable"
+    lines.append("Floquet multipliers: " + _multipliers_text(payload["multipliers"]))
     trivial = (
         f", {payload['trivial_multipliers']} trivial multiplier(s) 1 left out" if payload["trivial_multipliers"] else ""
     )
-    lines.append(f"{verdict}: spectral radius {payload['spectral_radius']:.6g}{trivial}")
+    lines.append(f"{_verdict(payload['stable'])}: spectral radius {payload['spectral_radius']:.6g}{trivial}")
+    if payload.get("differentiable") is False:
+        for side in ("forward", "backward"):
+            lines.append(f"  {side}-difference multipliers: " + _multipliers_text(payload[f"multipliers_{side}"]))
+    lines.extend(f"warning: {text}" for text in payload.get("warnings", []))
     lines.append("transitions per period: " + ", ".join(payload["transitions"]))
     return "\n".join(lines)
+
+
+def _multipliers_text(pairs: list[list[float]] | None) -> str:
+    """Multipliers given as [re, im] pairs, each with its modulus."""
+    mus = []
+    for re, im in pairs or []:
+        text = f"{re:.6g}" if im == 0 else f"{re:.6g}{im:+.6g}j"
+        mus.append(f"{text} (|mu| {math.hypot(re, im):.6g})")
+    return ", ".join(mus) if mus else "none"
+
+
+def _verdict(stable: bool | None) -> str:
+    """The stability verdict's word: "unresolved" when the multipliers cannot decide it."""
+    return "unresolved" if stable is None else "stable" if stable else "unstable"
 
 
 def format_header(param: str, problem: OrbitProblem) -> tuple[str, tuple[list[str], list[int]]]:
@@ -326,7 +339,7 @@ def format_row(param: str, value: float, payload: dict[str, Any], layout: tuple[
         elif col == "max|mu|":
             v = payload["spectral_radius"]
         else:
-            cells.append(("yes" if payload["stable"] else "no").rjust(width))
+            cells.append({True: "yes", False: "no", None: "unresolved"}[payload["stable"]].rjust(width))
             continue
         cells.append(_fmt(v, width))
     return "".join(cells)

@@ -14,6 +14,9 @@ Modules, in the order a computation uses them:
   comes back to the section, and the period without the strips' holds.
 * ``jacobians``: the return map's Jacobian by saltation matrices or finite differences, and the
   Floquet multipliers.
+* ``kinks``: whether a finite-difference Jacobian's columns are derivatives at all (forward and
+  backward differences that agree); a return map with a kink at the orbit gets no stability
+  verdict.
 * ``newton``: ``find_orbit`` (Gauss-Newton on the orbit equations) and ``OrbitResult``.
 * ``continuation``: ``continue_family`` and the stability changes along a family.
 
@@ -33,10 +36,12 @@ from .jacobians import (
     default_fd_step,
     floquet_multipliers,
     jacobian_fd,
+    jacobian_fd_checked,
     jacobian_saltation,
     reset_on_guard_jacobian,
     saltation_matrix,
 )
+from .kinks import CheckedJacobian
 from .newton import STATUSES, OrbitResult, find_orbit
 from .problem import MAX_STEPS_PER_RETURN, OrbitProblem
 from .returns import Return, ReturnMap, return_map
@@ -46,6 +51,7 @@ __all__ = [
     "MAX_FD_STEP",
     "MAX_STEPS_PER_RETURN",
     "STATUSES",
+    "CheckedJacobian",
     "Family",
     "FamilyPoint",
     "OrbitError",
@@ -61,6 +67,7 @@ __all__ = [
     "find_orbit",
     "floquet_multipliers",
     "jacobian_fd",
+    "jacobian_fd_checked",
     "jacobian_saltation",
     "problem_from_scene",
     "reset_on_guard_jacobian",

@@ -216,11 +216,13 @@ def _locate_change(
 
 
 def _stability_changes(points: list[FamilyPoint]) -> list[StabilityChange]:
-    """The changes between consecutive points whose spectral radii lie on either side of 1."""
+    """The changes between consecutive points whose spectral radii lie on either side of 1 (both
+    resolved: an orbit whose return map is not differentiable has no verdict to change)."""
     changes = []
     for a, b in pairwise(points):
         ra, rb = a.result.spectral_radius, b.result.spectral_radius
-        if ra is None or rb is None or (ra < 1.0) == (rb < 1.0):
+        verdicts = (a.result.stable, b.result.stable)  # None: no multipliers, or a kinked return map
+        if ra is None or rb is None or None in verdicts or verdicts[0] == verdicts[1]:
             continue
         at = a.value + (1.0 - ra) * (b.value - a.value) / (rb - ra)
         unstable = a.result if ra >= 1.0 else b.result

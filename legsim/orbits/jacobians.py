@@ -32,6 +32,14 @@ Two ways, compared in the tests:
   the step sequence itself changes with x, eta ~ the tolerance, and the default becomes
   tolerance^(1/3). ``docs/orbits.md`` has the measurements.
 
+  The Jacobian whose multipliers are reported (``jacobian_fd_checked``) is also checked for
+  differentiability: each column's forward and backward differences must agree to what the
+  map's curvature explains (``legsim.orbits.kinks``; one more return per column, at half the
+  step). Where they do not, a kink of the return map lies inside the stencil (transitions that
+  switch order there) and the central difference is an average of two slopes: the result
+  reports both sides' multipliers and no stability verdict. Newton's iterations use the
+  unchecked ``jacobian_fd``.
+
 Derivatives with respect to free parameters are always central differences of the return map
 (the system is rebuilt for each value). Where the simulation on one side of a difference fails
 (a model that refuses states on one side, such as a runner whose flight foot would start below
@@ -62,6 +70,7 @@ from ..execution import Segment
 from ..hybrid import HybridSystem, Mode, Transition
 from ..methods import Tableau
 from .errors import OrbitError
+from .kinks import CheckedJacobian, ColumnStencil, kinked_columns
 from .problem import OrbitProblem
 from .returns import Return, ReturnMap
 from .variational import compiled_sensitivity
@@ -269,22 +278,30 @@ def _onto_section(problem: OrbitProblem, system: HybridSystem, control: Control,
     return np.eye(problem.dim) - np.outer(f, grad) / rate
 
 
-def difference(fn: Callable[[float], np.ndarray], d: float, base: Callable[[], np.ndarray], label: str) -> np.ndarray:
-    """Central difference (fn(d) - fn(-d)) / 2d of a map that runs simulations; when the
-    simulation on one side fails (a model that refuses states on one side, e.g. a runner whose
-    flight foot would start below the ground), the one-sided difference against ``base()`` on
-    the other side, accurate to O(d) instead of O(d^2). ``label`` names the variable in the
-    error raised when both sides fail."""
-    plus = minus = None
-    errors = []
-    try:
-        plus = fn(d)
-    except OrbitError as exc:
-        errors.append(exc)
-    try:
-        minus = fn(-d)
-    except OrbitError as exc:
-        errors.append(exc)
+def _sides(
+    fn: Callable[[float], np.ndarray], d: float
+) -> tuple[np.ndarray | None, np.ndarray | None, list[OrbitError]]:
+    """(fn(d), fn(-d), the OrbitErrors raised), None for a side whose simulation failed."""
+    values: list[np.ndarray | None] = []
+    errors: list[OrbitError] = []
+    for delta in (d, -d):
+        try:
+            values.append(fn(delta))
+        except OrbitError as exc:
+            values.append(None)
+            errors.append(exc)
+    return values[0], values[1], errors
+
+
+def _from_sides(
+    plus: np.ndarray | None,
+    minus: np.ndarray | None,
+    errors: list[OrbitError],
+    d: float,
+    base: Callable[[], np.ndarray],
+    label: str,
+) -> np.ndarray:
+    """The central difference of two sides, or the one-sided one where a side failed (``difference``)."""
     if plus is not None and minus is not None:
         return (plus - minus) / (2 * d)
     if plus is None and minus is None:
@@ -294,6 +311,16 @@ def difference(fn: Callable[[float], np.ndarray], d: float, base: Callable[[], n
     if plus is not None:
         return (plus - base()) / d
     return (base() - minus) / d
+
+
+def difference(fn: Callable[[float], np.ndarray], d: float, base: Callable[[], np.ndarray], label: str) -> np.ndarray:
+    """Central difference (fn(d) - fn(-d)) / 2d of a map that runs simulations; when the
+    simulation on one side fails (a model that refuses states on one side, e.g. a runner whose
+    flight foot would start below the ground), the one-sided difference against ``base()`` on
+    the other side, accurate to O(d) instead of O(d^2). ``label`` names the variable in the
+    error raised when both sides fail."""
+    plus, minus, errors = _sides(fn, d)
+    return _from_sides(plus, minus, errors, d, base, label)
 
 
 def check_fd_step(step: Any) -> float:
@@ -326,36 +353,98 @@ def jacobian_fd(
     ``memory`` (default the problem's guess). ``step``: relative step, default
     ``default_fd_step`` (module docstring); ``columns``: only these columns of the augmented
     state (the others are left 0); ``rmap``: the return map to evaluate (a new one by default)."""
-    rmap = rmap or ReturnMap(problem)
-    step = default_fd_step(problem) if step is None else check_fd_step(step)
-    n = problem.dim
-    start = np.concatenate([x, problem.memory_guess if memory is None else memory])
-    size = len(start)
-    names = list(problem.names) + list(problem.memory_names)
-    J = np.zeros((size, size))
-    cache: list[np.ndarray] = []
+    return _FiniteDifferences(problem, x, parameters, step, rmap, memory).jacobian(columns, check=False).central
 
-    def at(z: np.ndarray) -> np.ndarray:
-        return rmap(z[:n], parameters, z[n:]).end
 
-    def base() -> np.ndarray:
-        if not cache:
-            cache.append(at(start))
-        return cache[0]
+def jacobian_fd_checked(
+    problem: OrbitProblem,
+    x: np.ndarray,
+    parameters: Mapping[str, float] | None = None,
+    step: float | None = None,
+    rmap: ReturnMap | None = None,
+    memory: np.ndarray | None = None,
+    base: np.ndarray | None = None,
+) -> CheckedJacobian:
+    """``jacobian_fd`` (every column) with its differentiability check (``legsim.orbits.kinks``):
+    the central Jacobian, identical to ``jacobian_fd``'s, and the forward and backward ones, and
+    the columns whose one-sided differences disagree (a kink of the return map inside the
+    stencil). Costs one more return per checked column (at half the step) and P(x) itself
+    unless ``base`` (the augmented return from x, shape (n + m,)) is given."""
+    return _FiniteDifferences(problem, x, parameters, step, rmap, memory, base).jacobian(None, check=True)
 
-    for j in range(size) if columns is None else columns:
-        if j in problem.cyclic_idx:
-            J[j, j] = 1.0
-            continue
 
-        def shifted(delta: float, j=j) -> np.ndarray:
-            z = start.copy()
+class _FiniteDifferences:
+    """The return map's evaluations around one point of the augmented state (x, memory)."""
+
+    def __init__(
+        self,
+        problem: OrbitProblem,
+        x: np.ndarray,
+        parameters: Mapping[str, float] | None,
+        step: float | None,
+        rmap: ReturnMap | None,
+        memory: np.ndarray | None,
+        base: np.ndarray | None = None,
+    ) -> None:
+        self.p = problem
+        self.parameters = parameters
+        self.rmap = rmap or ReturnMap(problem)
+        self.step = default_fd_step(problem) if step is None else check_fd_step(step)
+        self.start = np.concatenate([x, problem.memory_guess if memory is None else memory])
+        self.names = list(problem.names) + list(problem.memory_names)
+        self._base = None if base is None else np.asarray(base, dtype=float)
+
+    def at(self, z: np.ndarray) -> np.ndarray:
+        """The augmented return from the augmented state z, shape (n + m,)."""
+        n = self.p.dim
+        return self.rmap(z[:n], self.parameters, z[n:]).end
+
+    def base(self) -> np.ndarray:
+        """P at the point itself, evaluated once."""
+        if self._base is None:
+            self._base = self.at(self.start)
+        return self._base
+
+    def shifted(self, j: int) -> Callable[[float], np.ndarray]:
+        """delta -> P(start + delta e_j)."""
+
+        def along(delta: float) -> np.ndarray:
+            z = self.start.copy()
             z[j] += delta
-            return at(z)
+            return self.at(z)
 
-        kind = "coordinate" if j < n else "controller memory"
-        J[:, j] = difference(shifted, step * max(1.0, abs(start[j])), base, f"{kind} {names[j]}")
-    return J
+        return along
+
+    def jacobian(self, columns: Sequence[int] | None, check: bool) -> CheckedJacobian:
+        """The central (and, with ``check``, one-sided) Jacobians in ``columns`` (all by default)."""
+        size = len(self.start)
+        J = np.zeros((size, size))
+        forward, backward = J.copy(), J.copy()
+        stencils: dict[int, ColumnStencil] = {}
+        for j in range(size) if columns is None else columns:
+            if j in self.p.cyclic_idx:
+                J[j, j] = forward[j, j] = backward[j, j] = 1.0
+                continue
+            d = self.step * max(1.0, abs(self.start[j]))
+            kind = "coordinate" if j < self.p.dim else "controller memory"
+            plus, minus, errors = _sides(self.shifted(j), d)
+            J[:, j] = forward[:, j] = backward[:, j] = _from_sides(
+                plus, minus, errors, d, self.base, f"{kind} {self.names[j]}"
+            )
+            if check and plus is not None and minus is not None:
+                stencil = self._stencil(j, d, plus, minus)
+                if stencil is not None:
+                    stencils[j] = stencil
+                    forward[:, j], backward[:, j] = stencil.forward, stencil.backward
+        return CheckedJacobian(J, forward, backward, tuple(sorted(stencils)), kinked_columns(stencils, J))
+
+    def _stencil(self, j: int, d: float, plus: np.ndarray, minus: np.ndarray) -> ColumnStencil | None:
+        """The column's stencil with its half step, None when that simulation fails (unchecked)."""
+        try:
+            half = self.shifted(j)(0.5 * d)
+        except OrbitError:
+            return None
+        return ColumnStencil(self.base(), plus, minus, half, d)
 
 
 def floquet_multipliers(DP: np.ndarray, f: np.ndarray, cyclic: Sequence[int] = ()) -> tuple[np.ndarray, np.ndarray]:

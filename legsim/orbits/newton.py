@@ -22,8 +22,8 @@ at transitions as a function of the whole stance (a measured stance time), so a 
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -37,8 +37,10 @@ from .jacobians import (
     field_at,
     floquet_multipliers,
     jacobian_fd,
+    jacobian_fd_checked,
     jacobian_saltation,
 )
+from .kinks import CheckedJacobian
 from .problem import OrbitProblem
 from .returns import Return, ReturnMap
 
@@ -64,7 +66,14 @@ class OrbitResult:
     period: flow time of one return (s), strips excluded; return_time: relaxed return time (s).
     step_length: the distance covered in one period (m), when defined.
     multipliers: Floquet multipliers (complex, by decreasing modulus), shape (n - 1 - #cyclic,).
-    stable: True when every multiplier but the trivial ones has modulus < 1.
+    stable: True when every multiplier but the trivial ones has modulus < 1; None when there are
+        no multipliers or the return map is not differentiable at the orbit (``differentiable``).
+    differentiable: with the finite-difference Jacobian, whether each column's forward and
+        backward differences agree (``legsim.orbits.kinks``); None when not checked (saltation
+        Jacobian). When False, ``kinked_coordinates`` names the columns that disagree,
+        ``multipliers_forward`` and ``multipliers_backward`` are those of the forward- and
+        backward-difference Jacobians (the spread the central ``multipliers`` cannot vouch
+        for), and ``warnings`` says so.
     jacobian: the full return-map Jacobian at the fixed point (n, n); section_jacobian: its
         restriction M to the section.
     residual: max-norm of the orbit equations at fixed_point; iterations: Newton iterations.
@@ -101,6 +110,11 @@ class OrbitResult:
     memory: np.ndarray = field(default_factory=lambda: np.empty(0))
     memory_names: tuple[str, ...] = ()
     memory_units: tuple[str, ...] = ()
+    differentiable: bool | None = None
+    kinked_coordinates: tuple[str, ...] = ()
+    multipliers_forward: np.ndarray | None = None
+    multipliers_backward: np.ndarray | None = None
+    warnings: list[str] = field(default_factory=list)
 
     @property
     def converged(self) -> bool:
@@ -128,7 +142,7 @@ class OrbitResult:
     @property
     def stable(self) -> bool | None:
         rho = self.spectral_radius
-        return None if rho is None else rho < 1.0
+        return None if rho is None or self.differentiable is False else rho < 1.0
 
     def raise_for_status(self) -> OrbitResult:
         """Raise ``OrbitError`` with the message unless the search converged."""
@@ -157,7 +171,7 @@ class OrbitResult:
             "period": num(self.period),
             "return_time": num(self.return_time),
             "step_length": num(self.step_length),
-            "multipliers": None if self.multipliers is None else [[num(m.real), num(m.imag)] for m in self.multipliers],
+            "multipliers": _pairs(self.multipliers, num),
             "spectral_radius": num(self.spectral_radius),
             "stable": self.stable,
             "trivial_multipliers": self.trivial_multipliers,
@@ -169,7 +183,17 @@ class OrbitResult:
             "jacobian": self.jacobian_method,
             "memory": {name: num(v) for name, v in zip(self.memory_names, self.memory, strict=True)},
             "memory_units": dict(zip(self.memory_names, self.memory_units, strict=True)),
+            "differentiable": self.differentiable,
+            "kinked_coordinates": list(self.kinked_coordinates),
+            "multipliers_forward": _pairs(self.multipliers_forward, num),
+            "multipliers_backward": _pairs(self.multipliers_backward, num),
+            "warnings": list(self.warnings),
         }
+
+
+def _pairs(mu: np.ndarray | None, num: Callable[[Any], float | None]) -> list[list[float | None]] | None:
+    """Complex multipliers as JSON [re, im] pairs."""
+    return None if mu is None else [[num(m.real), num(m.imag)] for m in mu]
 
 
 class _Equations:
@@ -515,11 +539,17 @@ class _NewtonSearch:
         ret = self.ret
         assert ret is not None
         try:
-            DP = (
+            DP: np.ndarray | CheckedJacobian = (
                 jacobian_saltation(self.p, ret)
                 if self.method == "saltation"
-                else jacobian_fd(
-                    self.p, ret.x_start, ret.parameters, self.fd_step, rmap=self.rmap, memory=ret.memory_start
+                else jacobian_fd_checked(
+                    self.p,
+                    ret.x_start,
+                    ret.parameters,
+                    self.fd_step,
+                    rmap=self.rmap,
+                    memory=ret.memory_start,
+                    base=ret.end,
                 )
             )
         except OrbitError as exc:
@@ -570,19 +600,52 @@ class _NewtonSearch:
         return result
 
 
-def _add_multipliers(result: OrbitResult, problem: OrbitProblem, ret: Return, DP: np.ndarray) -> OrbitResult:
-    """Fill in the Jacobian, its restriction to the section and the multipliers; a field that
-    vanishes at the fixed point (an equilibrium) turns the result into that failure."""
+def _add_multipliers(
+    result: OrbitResult, problem: OrbitProblem, ret: Return, DP: np.ndarray | CheckedJacobian
+) -> OrbitResult:
+    """Fill in the Jacobian, its restriction to the section and the multipliers (and, for a
+    checked finite-difference Jacobian, its verdict on differentiability); a field that vanishes
+    at the fixed point (an equilibrium) turns the result into that failure."""
     f = _closed_loop_field(problem, ret)
+    checked, J = (DP, DP.central) if isinstance(DP, CheckedJacobian) else (None, DP)
     try:
-        mu, M = floquet_multipliers(DP, f, problem.cyclic_idx)
+        mu, M = floquet_multipliers(J, f, problem.cyclic_idx)
     except OrbitError as exc:
         result.status, result.message = exc.status, f"{result.message}; but {exc}"
         return result
-    result.jacobian = DP
+    result.jacobian = J
     result.section_jacobian = M
     result.multipliers = mu
+    if checked is not None:
+        _add_differentiability(result, problem, checked, f)
     return result
+
+
+def _add_differentiability(result: OrbitResult, problem: OrbitProblem, checked: CheckedJacobian, f: np.ndarray) -> None:
+    """The check's verdict; when a column is kinked, each side's multipliers and a warning."""
+    result.differentiable = checked.differentiable
+    if checked.differentiable:
+        return
+    names = checked.kinked_names(list(problem.names) + list(problem.memory_names))
+    result.kinked_coordinates = names
+    result.multipliers_forward = floquet_multipliers(checked.forward, f, problem.cyclic_idx)[0]
+    result.multipliers_backward = floquet_multipliers(checked.backward, f, problem.cyclic_idx)[0]
+    radius = {side: _radius(result, side) for side in ("forward", "backward")}
+    result.warnings.append(
+        f"the return map is not differentiable at the orbit: the forward and backward differences of "
+        f"its Jacobian disagree in the column(s) of {', '.join(names)} (a kink, e.g. transitions that "
+        f"switch order there), so the multipliers are not resolved and stability is unknown: spectral "
+        f"radius {result.spectral_radius:.4g} (central), {radius['forward']:.4g} (forward), "
+        f"{radius['backward']:.4g} (backward differences)"
+    )
+
+
+def _radius(result: OrbitResult, side: str) -> float:
+    """The spectral radius of one side's multipliers, without the trivial ones."""
+    one_sided = replace(result, multipliers=getattr(result, f"multipliers_{side}"))
+    radius = one_sided.spectral_radius
+    assert radius is not None  # its multipliers were just set
+    return radius
 
 
 def _closed_loop_field(problem: OrbitProblem, ret: Return) -> np.ndarray:

@@ -72,6 +72,16 @@ def test_the_gait_reports_the_stance_time_with_its_unit(orbit):
     assert abs(orbit.multipliers[0] - 1.0) < 1e-6 and orbit.stable
 
 
+def test_the_gaits_return_map_is_differentiable_and_its_jacobian_unchanged(settings, orbit):
+    # No false positive of the kink check on a smooth map (its columns' defects are 3e-6 .. 3e-5
+    # of the floor), and the reported Jacobian is the plain central-difference one, bit for bit.
+    assert orbit.differentiable is True and orbit.kinked_coordinates == () and orbit.warnings == []
+    assert orbit.multipliers_forward is None and orbit.stable is True
+    step = settings.solver.get("fd_step")
+    plain = jacobian_fd(settings.problem, orbit.fixed_point, orbit.parameters, step, memory=orbit.memory)
+    assert np.array_equal(orbit.jacobian, plain)
+
+
 def test_the_report_names_the_memory_with_its_unit(orbit):
     text = format_orbit(orbit.to_json(), "slip_raibert")
     assert f"  T_s =  {orbit.memory[0]:.10g} s  (controller memory)" in text
