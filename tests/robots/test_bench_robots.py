@@ -1,6 +1,7 @@
 """``legsim bench robots`` (legsim/bench/robots.py): its cases, error measure and level table."""
 
 import csv
+import itertools
 import math
 
 import numpy as np
@@ -87,7 +88,7 @@ def test_slip_raibert_case_runs_on_the_python_path_and_its_error_falls_with_the_
     # 6e-10 at 1e-4 ... 1e-10).
     dense = sorted((r for r in rows if r.method == "relaxed-dop853-dense"), key=lambda r: -r.tol)
     errors = [r.error for r in dense]
-    assert len(errors) == 4 and all(b < a / 10 for a, b in zip(errors, errors[1:], strict=False))
+    assert len(errors) == 4 and all(b < a / 10 for a, b in itertools.pairwise(errors))
     assert errors[-1] < 1e-8
 
 
