@@ -184,9 +184,31 @@ def _walker(name: str, quick: bool) -> tuple[Any, np.ndarray, float, str]:
     return model.system, x0, 10.0 if quick else 40.0, "rimless wheel, Drake's parameters (8 spokes, slope 0.08 rad)"
 
 
+def _reference(name: str, system: Any, x0: np.ndarray, mode: str, t_final: float, control: Any) -> Any:
+    """The reference run of case ``name``: solve_ivp DOP853 with events at ``REFERENCE_TOL``
+    (largest step 0.02 s), under ``control`` (a fresh controller, or None); BenchError when it
+    does not finish."""
+    from ..baselines import simulate_events
+
+    reference = simulate_events(
+        system,
+        x0,
+        mode,
+        t_final,
+        method="DOP853",
+        rtol=REFERENCE_TOL,
+        atol=REFERENCE_TOL,
+        control=control,
+        max_step=0.02,
+        max_transitions=100_000,
+    )
+    if reference.status != "finished":
+        raise BenchError(f"case {name}: the reference run did not finish ({reference.status}: {reference.message})")
+    return reference
+
+
 def _controlled_case(name: str, quick: bool) -> RobotCase:
     """A controlled runner: its scene's robot, start and controller, and its reference run."""
-    from ..baselines import simulate_events
     from ..scene import load_scene
 
     knobs = CONTROLLED_SWEEPS[name]
@@ -196,20 +218,7 @@ def _controlled_case(name: str, quick: bool) -> RobotCase:
         raise BenchError(f"case {name}: scene {knobs.scene} cannot be loaded ({exc})") from exc
     system, mode, x0 = scene.model.system, scene.initial_mode, scene.initial_state.copy()
     t_final = knobs.t_quick if quick else knobs.t_final
-    reference = simulate_events(
-        system,
-        x0,
-        mode,
-        t_final,
-        method="DOP853",
-        rtol=REFERENCE_TOL,
-        atol=REFERENCE_TOL,
-        control=scene.control,
-        max_step=0.02,
-        max_transitions=100_000,
-    )
-    if reference.status != "finished":
-        raise BenchError(f"case {name}: the reference run did not finish ({reference.status}: {reference.message})")
+    reference = _reference(name, system, x0, mode, t_final, scene.control)
     controller = scene.data["controller"]["name"]
     description = f"scene {knobs.scene} under its controller {controller}, t in [0, {t_final:g}] s"
 
@@ -221,8 +230,6 @@ def _controlled_case(name: str, quick: bool) -> RobotCase:
 
 def make_robot_case(name: str, quick: bool = False) -> RobotCase:
     """The case called ``name`` (one of ``ALL_CASES``) with its reference run."""
-    from ..baselines import simulate_events
-
     if name in CONTROLLED:
         return _controlled_case(name, quick)
     if name in ("compass-gait", "rimless-wheel"):
@@ -240,19 +247,7 @@ def make_robot_case(name: str, quick: bool = False) -> RobotCase:
         raise BenchError(f"unknown robot case {name!r}; choose one of {', '.join(ALL_CASES)}")
     if name in ("pronk", "double-pendulum"):
         x0 = np.array([model.initial_state[n] for n in system.state_names(mode)])
-    reference = simulate_events(
-        system,
-        x0,
-        mode,
-        t_final,
-        method="DOP853",
-        rtol=REFERENCE_TOL,
-        atol=REFERENCE_TOL,
-        max_step=0.02,
-        max_transitions=100_000,
-    )
-    if reference.status != "finished":
-        raise BenchError(f"case {name}: the reference run did not finish ({reference.status}: {reference.message})")
+    reference = _reference(name, system, x0, mode, t_final, None)
     return RobotCase(name, f"{description}, t in [0, {t_final:g}] s", system, mode, x0, t_final, reference)
 
 
