@@ -44,8 +44,8 @@ from .cases import BenchError, RunSpec
 from .work_precision import Row, _timed, format_table, mark_pareto, plot_rows, write_csv
 
 CASES = ("compass-gait", "rimless-wheel", "pronk", "double-pendulum")
-#: The controlled runners: opt-in by name, since with them the default run would take about
-#: twice as long (the quadruped's Python-path runs take 0.3-1.5 s each).
+#: The controlled runners: opt-in by name, since they would add 30-45 s (measured at load 5-7)
+#: to the default's 1.5 min, past the 2 min it aims at.
 CONTROLLED = ("slip-raibert", "quadruped-run")
 ALL_CASES = CASES + CONTROLLED
 LEVELS = (1e-4, 1e-6, 1e-8)
@@ -313,7 +313,7 @@ def run_one(case: RobotCase, spec: RunSpec, repeats: int) -> Row:
     from ..baselines import simulate_events
     from ..relaxed import simulate
 
-    making_s = [0.0]  # the last controller's construction time (s), left out of the run's
+    making_s = [0.0]  # the last controller's construction time (s), left out of the run's time
 
     def control() -> Any:
         start = time.perf_counter()
