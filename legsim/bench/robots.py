@@ -16,12 +16,20 @@ fastest run of each family below it is compared; ratios are measured in one run,
 on a shared machine to within its noise. ``cost_report`` gives the limit: a compiled field
 evaluation all-in against a bare C++ ``aba`` on the same model, and the share of a run spent
 outside it.
+
+The controlled runners (``CONTROLLED``, run only when named: ``--case slip-raibert --case
+quadruped-run``) are the bundled scenes' robots under their scenes' controllers (``raibert_slip``,
+``raibert_runner``). The compiled twins take no control input, so a controlled run takes legsim's
+Python path: these cases have no compiled family, and compare ``relaxed-python`` (DOP853 with
+dense landing and dopri5 with aimed landing over tolerances, rk4 over steps) with ``solve_ivp``
+(RK45, DOP853 and LSODA), every run with a controller made anew from the scene.
 """
 
 from __future__ import annotations
 
 import math
 import os
+import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -36,6 +44,10 @@ from .cases import BenchError, RunSpec
 from .work_precision import Row, _timed, format_table, mark_pareto, plot_rows, write_csv
 
 CASES = ("compass-gait", "rimless-wheel", "pronk", "double-pendulum")
+#: The controlled runners: opt-in by name, since they would add 30-45 s (measured at load 5-7)
+#: to the default's 1.5 min, past the 2 min it aims at.
+CONTROLLED = ("slip-raibert", "quadruped-run")
+ALL_CASES = CASES + CONTROLLED
 LEVELS = (1e-4, 1e-6, 1e-8)
 #: solve_ivp tolerance of the reference runs.
 REFERENCE_TOL = 1e-12
@@ -44,9 +56,53 @@ DRAKE_COMPASS_SLOPE = 0.0525
 DRAKE_RIMLESS = {"spokes": 8, "slope": 0.08}
 
 
+@dataclass(frozen=True)
+class ControlledSweep:
+    """The knobs of a controlled case's sweep.
+
+    scene: the bundled scene; t_final, t_quick: horizons (s) of the full and ``--quick`` runs;
+    tols: rtol = atol of the error-controlled runs; h_largest: their initial and largest step
+    (s); eps_floor: the narrowest strip of the adaptive runs (guard units; their strip is
+    ``max(eps_floor, min(1e-6, 1e-2 tol))``); rk4_eps: the strip of the rk4 runs; rk4_steps:
+    the fixed steps (s); max_repeats: a cap on the timed repeats (None: ``--repeats``).
+    """
+
+    scene: str
+    t_final: float
+    t_quick: float
+    tols: tuple[float, ...]
+    h_largest: float
+    eps_floor: float
+    rk4_eps: float
+    rk4_steps: tuple[float, ...]
+    max_repeats: int | None = None
+
+
+#: The quadruped's flight law switches the swing legs' target length at the apex (falling = the
+#: body's vertical speed < 0), and the legs' reaction then pushes the body up on the falling side
+#: (about +114 m/s^2 against -9.8 m/s^2 on the rising side): the flow slides along zd = 0 for
+#: about 17 ms at every apex. No error-controlled integrator crosses that (relaxed and solve_ivp
+#: alike take steps near 1e-9 s there), so the case ends before the first apex, at 0.45 s: one
+#: hop's touchdown, stance and liftoff. Its reset images sit past the force guards by up to 1e-9
+#: N of rounding (a strip of 1e-10 is crossed, 1e-9 holds them); the error is then about 2 eps.
+CONTROLLED_SWEEPS = {
+    "slip-raibert": ControlledSweep(
+        "slip_raibert", 5.0, 1.0, (1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10), 0.1, 0.0, 1e-10, (1e-2, 5e-3, 2e-3, 1e-3)
+    ),
+    "quadruped-run": ControlledSweep(
+        "quadruped_run", 0.45, 0.2, (1e-4, 1e-6, 1e-8, 1e-10), 0.02, 1e-9, 1e-8, (1e-3, 5e-4), max_repeats=1
+    ),
+}
+
+
 @dataclass
 class RobotCase:
-    """A robot, its start and horizon, and the reference its runs are measured against."""
+    """A robot, its start and horizon, and the reference its runs are measured against.
+
+    new_control: makes the case's controller anew (a controller keeps state across
+    transitions, so every run gets a fresh one); None for an uncontrolled case, whose runs take
+    the compiled path. controlled: the ``ControlledSweep`` of a controlled case.
+    """
 
     name: str
     description: str
@@ -55,6 +111,8 @@ class RobotCase:
     x0: np.ndarray
     t_final: float
     reference: Any
+    new_control: Callable[[], Any] | None = None
+    controlled: ControlledSweep | None = None
 
     def error(self, execution: Any) -> float:
         """Largest difference of event times (s) and post-event states to the reference's (inf
@@ -126,10 +184,54 @@ def _walker(name: str, quick: bool) -> tuple[Any, np.ndarray, float, str]:
     return model.system, x0, 10.0 if quick else 40.0, "rimless wheel, Drake's parameters (8 spokes, slope 0.08 rad)"
 
 
-def make_robot_case(name: str, quick: bool = False) -> RobotCase:
-    """The case called ``name`` (one of ``CASES``) with its reference run."""
+def _reference(name: str, system: Any, x0: np.ndarray, mode: str, t_final: float, control: Any) -> Any:
+    """The reference run of case ``name``: solve_ivp DOP853 with events at ``REFERENCE_TOL``
+    (largest step 0.02 s), under ``control`` (a fresh controller, or None); BenchError when it
+    does not finish."""
     from ..baselines import simulate_events
 
+    reference = simulate_events(
+        system,
+        x0,
+        mode,
+        t_final,
+        method="DOP853",
+        rtol=REFERENCE_TOL,
+        atol=REFERENCE_TOL,
+        control=control,
+        max_step=0.02,
+        max_transitions=100_000,
+    )
+    if reference.status != "finished":
+        raise BenchError(f"case {name}: the reference run did not finish ({reference.status}: {reference.message})")
+    return reference
+
+
+def _controlled_case(name: str, quick: bool) -> RobotCase:
+    """A controlled runner: its scene's robot, start and controller, and its reference run."""
+    from ..scene import load_scene
+
+    knobs = CONTROLLED_SWEEPS[name]
+    try:
+        scene = load_scene(knobs.scene)
+    except LegsimError as exc:
+        raise BenchError(f"case {name}: scene {knobs.scene} cannot be loaded ({exc})") from exc
+    system, mode, x0 = scene.model.system, scene.initial_mode, scene.initial_state.copy()
+    t_final = knobs.t_quick if quick else knobs.t_final
+    reference = _reference(name, system, x0, mode, t_final, scene.control)
+    controller = scene.data["controller"]["name"]
+    description = f"scene {knobs.scene} under its controller {controller}, t in [0, {t_final:g}] s"
+
+    def new_control() -> Any:
+        return scene.control
+
+    return RobotCase(name, description, system, mode, x0, t_final, reference, new_control, knobs)
+
+
+def make_robot_case(name: str, quick: bool = False) -> RobotCase:
+    """The case called ``name`` (one of ``ALL_CASES``) with its reference run."""
+    if name in CONTROLLED:
+        return _controlled_case(name, quick)
     if name in ("compass-gait", "rimless-wheel"):
         system, x0, t_final, description = _walker(name, quick)
         mode = "stance"
@@ -142,22 +244,10 @@ def make_robot_case(name: str, quick: bool = False) -> RobotCase:
         system, mode, t_final = model.system, model.initial_mode, 1.0 if quick else 5.0
         description = "double pendulum with a plastic stop, paper 003 Fig. 2b"
     else:
-        raise BenchError(f"unknown robot case {name!r}; choose one of {', '.join(CASES)}")
+        raise BenchError(f"unknown robot case {name!r}; choose one of {', '.join(ALL_CASES)}")
     if name in ("pronk", "double-pendulum"):
         x0 = np.array([model.initial_state[n] for n in system.state_names(mode)])
-    reference = simulate_events(
-        system,
-        x0,
-        mode,
-        t_final,
-        method="DOP853",
-        rtol=REFERENCE_TOL,
-        atol=REFERENCE_TOL,
-        max_step=0.02,
-        max_transitions=100_000,
-    )
-    if reference.status != "finished":
-        raise BenchError(f"case {name}: the reference run did not finish ({reference.status}: {reference.message})")
+    reference = _reference(name, system, x0, mode, t_final, None)
     return RobotCase(name, f"{description}, t in [0, {t_final:g}] s", system, mode, x0, t_final, reference)
 
 
@@ -184,20 +274,52 @@ def sweep(quick: bool) -> list[RunSpec]:
     return runs
 
 
+def controlled_sweep(knobs: ControlledSweep, quick: bool) -> list[RunSpec]:
+    """The runs of a controlled case, all on the Python path: DOP853 with dense landing and
+    dopri5 with aimed landing over tolerances, rk4 over steps (the scenes' own method), and
+    solve_ivp RK45, DOP853 and LSODA over the same tolerances; ``--quick`` keeps every other
+    tolerance and the largest rk4 step."""
+    tols = knobs.tols[::2] if quick else knobs.tols
+
+    def eps(tol: float) -> float:
+        return max(knobs.eps_floor, min(1e-6, 1e-2 * tol))
+
+    runs = [
+        RunSpec("relaxed-python", "relaxed-rk4", h, knobs.rk4_eps, landing="aim")
+        for h in knobs.rk4_steps[: 1 if quick else None]
+    ]
+    for method, landing in (("dop853", "dense"), ("dopri5", "aim")):
+        name = f"relaxed-{method}-dense" if landing == "dense" else f"relaxed-{method}"
+        runs += [RunSpec("relaxed-python", name, knobs.h_largest, eps(tol), tol, landing) for tol in tols]
+    runs += [
+        RunSpec("solve_ivp", f"solve_ivp-{m}", tol=tol, landing="") for m in ("RK45", "DOP853", "LSODA") for tol in tols
+    ]
+    return runs
+
+
+def case_sweep(case: RobotCase, quick: bool) -> list[RunSpec]:
+    """The runs of ``case``: ``controlled_sweep`` for a controlled case, else ``sweep``."""
+    return controlled_sweep(case.controlled, quick) if case.controlled is not None else sweep(quick)
+
+
 def _reported_wall(result: Any, measured_s: float) -> float:
     """The integration time solve_ivp reports (s): it leaves out the assembly of legsim's Execution."""
     return float(result.counters["wall_time_s"])
 
 
-def _measured_wall(result: Any, measured_s: float) -> float:
-    """The wall time measured around the call (s)."""
-    return measured_s
-
-
 def run_one(case: RobotCase, spec: RunSpec, repeats: int) -> Row:
-    """One run of ``case`` timed (median of repeats) and measured."""
+    """One run of ``case`` timed (median of repeats, at most the case's ``max_repeats``) and
+    measured. A controlled case's controller is made anew for every run, outside the time."""
     from ..baselines import simulate_events
     from ..relaxed import simulate
+
+    making_s = [0.0]  # the last controller's construction time (s), left out of the run's time
+
+    def control() -> Any:
+        start = time.perf_counter()
+        made = None if case.new_control is None else case.new_control()
+        making_s[0] = time.perf_counter() - start
+        return made
 
     if spec.kind == "solve_ivp":
 
@@ -210,13 +332,14 @@ def run_one(case: RobotCase, spec: RunSpec, repeats: int) -> Row:
                 method=spec.method[10:],
                 rtol=spec.tol,
                 atol=spec.tol,
+                control=control(),
                 max_step=spec.max_step,
                 max_transitions=100_000,
             )
 
         wall_of: Callable[[Any, float], float] = _reported_wall
     else:
-        # The same system on both relaxed families: dense landing runs the Python loop.
+        # The same system on both relaxed families: dense landing, and any control, run the Python loop.
         system = case.system
         tol = None if math.isnan(spec.tol) else spec.tol
 
@@ -229,13 +352,18 @@ def run_one(case: RobotCase, spec: RunSpec, repeats: int) -> Row:
                 spec.h,
                 spec.eps,
                 spec.method.split("-")[1],
+                control(),
                 landing=spec.landing,
                 max_transitions=100_000,
                 rtol=tol,
                 atol=tol,
             )
 
-        wall_of = _measured_wall
+        def wall_of(result: Any, measured_s: float) -> float:
+            return measured_s - making_s[0]
+
+    if case.controlled is not None and case.controlled.max_repeats is not None:
+        repeats = min(repeats, case.controlled.max_repeats)
     ex, wall, n = _timed(call, repeats, wall_of)
     c = ex.counters
     return Row(
@@ -274,11 +402,12 @@ class LevelResult:
 
 
 def at_levels(rows: list[Row], levels: tuple[float, ...] = LEVELS) -> list[LevelResult]:
-    """Each level's fastest run per family."""
+    """Each level's fastest run per family that ran (a controlled case has no ``relaxed``)."""
+    families = [f for f in ("relaxed", "relaxed-python", "solve_ivp") if any(r.kind == f for r in rows)]
     out = []
     for level in levels:
         best: dict[str, Row | None] = {}
-        for family in ("relaxed", "relaxed-python", "solve_ivp"):
+        for family in families:
             ok = [r for r in rows if r.kind == family and r.error <= level]
             best[family] = min(ok, key=lambda r: r.wall_s) if ok else None
         out.append(LevelResult(level, best))
@@ -302,6 +431,7 @@ def format_levels(results: list[LevelResult]) -> str:
             for name, r in (
                 ("solve_ivp/relaxed", res.ratio("solve_ivp")),
                 ("python/compiled", res.ratio("relaxed-python")),
+                ("solve_ivp/python", None if "relaxed" in res.best else res.ratio("solve_ivp", "relaxed-python")),
             )
             if r is not None
         ]
@@ -318,7 +448,7 @@ def cost_report(case: RobotCase, rows: list[Row]) -> dict[str, float]:
     from .overhead import compiled_costs, python_costs
 
     twin = case.system.mode_data(case.mode).mode.compiled
-    if twin is None:
+    if twin is None or case.controlled is not None:
         return {}
     n = int(case.system.mode_data(case.mode).mode.dim)
     x = np.ascontiguousarray(case.x0, dtype=float)
@@ -354,6 +484,12 @@ def format_costs(costs: dict[str, float]) -> str:
     return text
 
 
+PYTHON_PATH_NOTE = (
+    "controlled: every relaxed run takes legsim's Python path (the compiled twins take no control "
+    "input), so there is no compiled family; ratios are solve_ivp / Python path"
+)
+
+
 def run_case(
     name: str,
     *,
@@ -366,7 +502,7 @@ def run_case(
     """Sweep one case; write OUT/robots-NAME.csv (and .png)."""
     case = make_robot_case(name, quick)
     rows = []
-    specs = sweep(quick)
+    specs = case_sweep(case, quick)
     with counting(len(specs), name, enabled=log is not None) as advance:
         for spec in specs:
             run_one(case, spec, 1)  # warm: kernels loaded, caches filled
@@ -400,9 +536,12 @@ def main(
     for name in cases:
         case, rows, csv_path, fig_path = run_case(name, quick=quick, out=out, repeats=repeats, figure=figure, log=log)
         print(f"# {case.name}: {case.description}")
+        if case.controlled is not None:
+            print(PYTHON_PATH_NOTE)
         print(format_table(rows))
         print(format_levels(at_levels(rows)))
-        print(format_costs(cost_report(case, rows)))
+        if case.controlled is None:
+            print(format_costs(cost_report(case, rows)))
         print(f"wrote {csv_path}" + (f" and {fig_path}" if fig_path else ""))
         print()
     return 0

@@ -175,7 +175,24 @@ def frictional_impact(
 ) -> ImpactResult:
     """The impact of the ``engaged`` contacts under the friction cone (module docstring); their
     statuses are updated in place. ``ModelBreakdown`` when the active set finds no consistent
-    outcome (every change it asks for leads back to a set of statuses already tried)."""
+    outcome (every change it asks for leads back to a set of statuses already tried), and when
+    its arithmetic overflows: a guard asks for the outcome at a trial stage far outside any
+    motion (an adaptive step too long for a stiff controller reaches speeds above 1e150), which
+    the integrator then shortens, rather than deciding on a NaN."""
+    try:
+        with np.errstate(over="raise", invalid="raise"):
+            return _active_set_impact(model, data, engaged, q, v)
+    except FloatingPointError as exc:
+        raise ModelBreakdown(
+            f"{model.name}: the impact of {[e.name for e in engaged]} overflows ({exc}) at "
+            f"q={q.tolist()}, v={v.tolist()}: a state outside the model's range"
+        ) from exc
+
+
+def _active_set_impact(
+    model: BridgeModel, data: BridgeData, engaged: list[Engaged], q: np.ndarray, v: np.ndarray
+) -> ImpactResult:
+    """``frictional_impact``'s active-set iteration, with numpy's floating-point errors raised."""
     data.counts["impacts"] += 1
     rows = {e.name: _rows(model, data, e.rigid, q) for e in engaged}
     Minv = pin.computeMinverse(model.pin_model, data.pin_data, q)

@@ -1,6 +1,7 @@
 """``legsim bench robots`` (legsim/bench/robots.py): its cases, error measure and level table."""
 
 import csv
+import itertools
 import math
 
 import numpy as np
@@ -69,3 +70,48 @@ def test_zero_time_chains_of_transitions_count_as_one_event():
     ]
     merged = robots.events(T(transitions=chain))
     assert [t for t, _ in merged] == [1.0, 2.0] and [x[0] for _, x in merged] == [3.0, 4.0]
+
+
+def test_slip_raibert_case_runs_on_the_python_path_and_its_error_falls_with_the_tolerance(tmp_path, capsys):
+    from legsim.bench.work_precision import read_rows
+
+    assert robots.main(["slip-raibert"], quick=True, out=str(tmp_path), repeats=1, figure=False, log=None) == 0
+    out = capsys.readouterr().out
+    # Controlled runs take the Python path: the output says so, and has no compiled family.
+    assert robots.PYTHON_PATH_NOTE in out and "solve_ivp/python" in out and "relaxed:" not in out
+    rows = read_rows(tmp_path / "robots-slip-raibert.csv")
+    assert {r.kind for r in rows} == {"relaxed-python", "solve_ivp"}
+    assert {"relaxed-rk4", "relaxed-dop853-dense", "relaxed-dopri5", "solve_ivp-LSODA"} <= {r.method for r in rows}
+    # Two independent integrators of the closed loop (relaxed DOP853 with strips of 1e-2 tol,
+    # solve_ivp DOP853 at 1e-12) agree ever better as the tolerance falls: each hundredfold
+    # tighter tolerance gains at least tenfold, down to below 1e-8 (measured: 3e-4, 5e-7, 2e-8,
+    # 6e-10 at 1e-4 ... 1e-10).
+    dense = sorted((r for r in rows if r.method == "relaxed-dop853-dense"), key=lambda r: -r.tol)
+    errors = [r.error for r in dense]
+    assert len(errors) == 4 and all(b < a / 10 for a, b in itertools.pairwise(errors))
+    assert errors[-1] < 1e-8
+
+
+def test_every_controlled_run_gets_a_fresh_controller():
+    case = robots.make_robot_case("slip-raibert", quick=True)
+    # Raibert's controller remembers the last stance's duration: a controller carried over
+    # from an earlier run would place the first foot elsewhere, and the error would change.
+    assert len(robots.events(case.reference)) >= 3 and case.error(case.reference) == 0.0
+    spec = robots.RunSpec("relaxed-python", "relaxed-dop853-dense", 0.1, 1e-10, 1e-8, "dense")
+    first, again = robots.run_one(case, spec, 1), robots.run_one(case, spec, 2)
+    assert first.error == again.error < 1e-7
+
+
+def test_quadruped_run_case_error_falls_with_the_tolerance():
+    case = robots.make_robot_case("quadruped-run", quick=True)
+    assert case.controlled is not None and case.t_final == case.controlled.t_quick
+    ref_events = robots.events(case.reference)
+    assert len(ref_events) >= 1 and ref_events[0][0] == pytest.approx(0.1628, abs=1e-3)  # the landing
+    errors = []
+    for tol in (1e-4, 1e-8):
+        spec = robots.RunSpec("relaxed-python", "relaxed-dop853-dense", 0.02, 1e-9, tol, "dense")
+        row_ = robots.run_one(case, spec, 1)
+        assert row_.status == "finished"
+        errors.append(row_.error)
+    # Measured: 1.6e-5 and 1.8e-10 (the error of the later events is about 2 eps).
+    assert errors[1] < errors[0] / 100 and errors[1] < 1e-8

@@ -255,3 +255,18 @@ def test_a_slip_without_consistent_forces_is_stopped_by_a_tangential_impulse():
     np.testing.assert_allclose(J[[0, 2]] @ v, 0.0, atol=1e-12)  # the end stopped
     M = pin.crba(bridge.model, bridge.data, q)
     assert v @ M @ v <= x[3:] @ M @ x[3:]
+
+
+def test_an_impact_at_a_state_far_outside_any_motion_is_a_model_breakdown_not_a_nan():
+    """An adaptive step too long for a stiff controller evaluates the guards, and with them the
+    impact law, at stage states with speeds above 1e150 (the quadruped's first DOP853 trial at
+    h = 0.02 s): there its kinetic energy overflows, and the outcome it chose would rest on
+    NaN comparisons. It reports ModelBreakdown, which the integrator meets by shortening the
+    step; a state of ordinary size keeps its result."""
+    bridge = rod(mu=0.5)
+    model, data = bridge._model, bridge._data
+    q = np.array([0.1, 0.4, 0.3])
+    with pytest.raises(ModelBreakdown, match=r"overflows.*outside the model's range"):
+        frictional_impact(model, data, [Engaged(model.rigid["foot"], 0.0, "stick")], q, np.array([0.2, -1e200, 0.4]))
+    result = frictional_impact(model, data, [Engaged(model.rigid["foot"], 0.0, "stick")], q, np.array([0.2, -1.5, 0.4]))
+    assert np.all(np.isfinite(result.v_plus))
