@@ -175,6 +175,12 @@ def format_summary(s: dict[str, Any]) -> str:
     ):
         if s.get(column):
             lines.append(f"{label}: " + ", ".join(f"{k} {v}" for k, v in sorted(s[column].items())))
+    warned = {column: count for column, count in s.get("warned", {}).items() if count}
+    if warned:
+        lines.append(
+            "with warnings (see the column): "
+            + ", ".join(f"{count} rows in {column}" for column, count in warned.items())
+        )
     if s["results"]:
         lines.append(f"wrote {s['results']}")
     for kind, path in s["figures"].items():

@@ -64,6 +64,11 @@ class SweepResult:
         for column in ("status", "outcome", "orbit_status", "orbit_stable"):
             if column in self.table.column_names:
                 out[column] = {str(k): v for k, v in self.counts(column).items()}
+        out["warned"] = {
+            column: sum(1 for texts in self.table.column(column).to_pylist() if texts)
+            for column in ("warnings", "orbit_warnings")
+            if column in self.table.column_names
+        }
         return out
 
 

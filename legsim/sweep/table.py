@@ -40,11 +40,13 @@ _STR: pa.DataType = pa.string()
 _BOOL: pa.DataType = pa.bool_()
 # Lists named as Parquet names them ("element"), so a table read back has this same schema.
 _VECTOR: pa.DataType = pa.list_(pa.field("element", pa.float64()))
+_TEXTS: pa.DataType = pa.list_(pa.field("element", pa.string()))
 
 BASE_COLUMNS: dict[str, pa.DataType] = {"task_status": _STR, "error": _STR}
 
 #: The run's summary (``legsim.output.summary.run_summary`` keys; ``t_end`` is its ``t_final``,
-#: the time reached) and ``fell`` (the model broke down: status ``model_breakdown``).
+#: the time reached), ``fell`` (the model broke down: status ``model_breakdown``) and
+#: ``warnings`` (each of the run's warnings as "kind: message"; empty when it has none).
 RUN_COLUMNS: dict[str, pa.DataType] = {
     "status": _STR,
     "message": _STR,
@@ -60,6 +62,7 @@ RUN_COLUMNS: dict[str, pa.DataType] = {
     "energy_initial": _F64,
     "energy_final": _F64,
     "fell": _BOOL,
+    "warnings": _TEXTS,
 }
 
 #: A walk's verdict (``legsim.sweep.walk``).
@@ -72,7 +75,8 @@ WALK_COLUMNS: dict[str, pa.DataType] = {
 }
 
 #: The variation's periodic orbit (``legsim.orbits.find_orbit``): multipliers by decreasing
-#: modulus as real and imaginary parts.
+#: modulus as real and imaginary parts; ``orbit_stable`` is null where the return map is not
+#: differentiable (``orbit_differentiable`` false), and ``orbit_warnings`` says why.
 ORBIT_COLUMNS: dict[str, pa.DataType] = {
     "orbit_status": _STR,
     "orbit_message": _STR,
@@ -83,6 +87,8 @@ ORBIT_COLUMNS: dict[str, pa.DataType] = {
     "orbit_multipliers_im": _VECTOR,
     "orbit_spectral_radius": _F64,
     "orbit_stable": _BOOL,
+    "orbit_differentiable": _BOOL,
+    "orbit_warnings": _TEXTS,
     "orbit_residual": _F64,
     "orbit_iterations": _I64,
 }

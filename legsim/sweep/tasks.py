@@ -107,6 +107,8 @@ def run_columns(scene: Any, deadline: Deadline) -> dict[str, Any]:
         )
     }
     out["t_end"] = summary["t_final"]
+    # A run the method cannot vouch for (held in strips, an accumulation, ...) says so in its row.
+    out["warnings"] = [f"{w['kind']}: {w['message']}" for w in summary["warnings"]]
     out["fell"] = summary["status"] == "model_breakdown"
     return out
 
@@ -199,6 +201,8 @@ def orbit_columns(scene: Any, deadline: Deadline) -> dict[str, Any]:
         "orbit_multipliers_im": [m[1] for m in multipliers] if data["multipliers"] is not None else None,
         "orbit_spectral_radius": data["spectral_radius"],
         "orbit_stable": data["stable"],
+        "orbit_differentiable": data["differentiable"],
+        "orbit_warnings": list(data["warnings"]),
         "orbit_residual": data["residual"],
         "orbit_iterations": data["iterations"],
     }

@@ -54,6 +54,23 @@ def test_rows_hold_each_variations_run_against_the_closed_form(tmp_path):
     assert json.loads((tmp_path / "s" / "sweep.json").read_text())["scene"] == "bouncing_ball"
 
 
+def test_a_run_the_method_cannot_vouch_for_says_so_in_its_row(tmp_path, capsys):
+    """The paper's pronk holds its state in strips at eps = 1e-2 for 3% of its run: that row
+    carries the run's own warnings (as ``legsim run`` reports them), the finer run's row none,
+    and the report counts the rows with warnings."""
+    from legsim.commands.sweep import format_summary
+    from legsim.scene import load_scene
+
+    result = legsim.sweep("pronk_paper", grid={"integrator.eps": [1e-2, 1e-6]}, out=tmp_path / "s", in_process=True)
+    coarse, fine = result.table.to_pylist()
+    expected = load_scene("pronk_paper").simulate().warnings
+    assert [w.kind for w in expected] == ["strip_hold"]
+    assert coarse["warnings"] == [f"{w.kind}: {w.message}" for w in expected]
+    assert coarse["status"] == fine["status"] == "finished" and fine["warnings"] == []
+    assert result.summary()["warned"] == {"warnings": 1}
+    assert "with warnings (see the column): 1 rows in warnings" in format_summary(result.summary())
+
+
 def test_a_failing_or_timed_out_variation_is_a_row_with_its_error_and_the_sweep_goes_on(tmp_path):
     # Without its floor the ball falls freely: a long run is all flow, where the deadline is
     # checked a few times a second.
