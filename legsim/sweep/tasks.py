@@ -149,6 +149,7 @@ def walk_row(scene: Any, spec: SweepSpec, values: dict[str, Any], deadline: Dead
         "energy_initial": _energy(scene, scene.initial_mode, scene.initial_state),
         "energy_final": _energy(scene, result.mode, result.state),
         "fell": result.outcome == "falls",
+        "warnings": result.warnings,
     }
     out.update(walk_columns(result))
     return out

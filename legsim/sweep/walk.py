@@ -78,7 +78,8 @@ class WalkResult:
     gait (converges only); distance: the last return's distance to the gait (None without a
     return or a gait); period: the gait's period in returns (1 when it converges, p for another
     gait); mode, state, t_end: where the walk ended (s); transitions: transitions taken;
-    counters: the runs' counters added up (``COUNTERS``).
+    counters: the runs' counters added up (``COUNTERS``); warnings: the runs' warnings, each
+    "kind: message" once.
     """
 
     outcome: str
@@ -93,6 +94,7 @@ class WalkResult:
     distance: float | None = None
     period: int | None = None
     counters: dict[str, float] = field(default_factory=dict)
+    warnings: list[str] = field(default_factory=list)
 
 
 class _Walker:
@@ -119,6 +121,7 @@ class _Walker:
         self.transitions = 0
         self.since_event = 0  # transitions since the last section event
         self.counters: defaultdict[str, float] = defaultdict(int)
+        self.warnings: dict[str, None] = {}  # insertion-ordered set
 
     def run(self, mode: str, x: np.ndarray, t: float) -> WalkResult:
         p = self.problem
@@ -186,6 +189,7 @@ class _Walker:
         )
         for key in COUNTERS:
             self.counters[key] += ex.counters.get(key, 0)
+        self.warnings.update(dict.fromkeys(f"{w.kind}: {w.message}" for w in ex.warnings))
         return ex
 
     def crossings(self, ex: Execution, last_return: float) -> list[tuple[float, np.ndarray]]:
@@ -293,6 +297,7 @@ class _Walker:
             distance=self.distance,
             period=self.period,
             counters=dict(self.counters),
+            warnings=list(self.warnings),
         )
 
 

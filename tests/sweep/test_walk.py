@@ -118,3 +118,26 @@ def test_a_compass_gait_started_on_its_gait_converges_at_once():
     result = walk(settings.problem, gait.fixed_point, 0.0, gait.fixed_point, tol=1e-6)
     assert result.outcome == "converges" and result.steps_to_gait == 1 and result.distance < 1e-8
     assert result.t_end == pytest.approx(gait.return_time, rel=1e-9)
+
+
+def test_a_walk_keeps_each_warning_of_its_runs_once(monkeypatch):
+    """A walk is many runs, one per transition: each run's warning reaches the walk's result,
+    once however many runs repeat it (here every run is made to carry one)."""
+    import dataclasses
+
+    import legsim.sweep.walk as walk_module
+    from legsim.execution import RunWarning
+
+    real = walk_module.simulate
+    warned = RunWarning("strip_hold", "held in strips", 0.0)
+
+    def simulate_with_a_warning(*args, **kwargs):
+        ex = real(*args, **kwargs)
+        return dataclasses.replace(ex, warnings=[*ex.warnings, warned])
+
+    monkeypatch.setattr(walk_module, "simulate", simulate_with_a_warning)
+    scene = load_scene("rimless_wheel", ["initial.state.thetad=2.6"])
+    fixed = np.array([-ALPHA, omega_star(), 0.0])
+    result = walk(problem_from_scene(scene).problem, scene.initial_state, 0.0, fixed, max_steps=40, tol=1e-3)
+    assert result.outcome == "converges" and result.steps > 1
+    assert result.warnings == ["strip_hold: held in strips"]
