@@ -367,10 +367,11 @@ class RunnerRaibert(Controller):
 
     def _retract(self, leg: Leg, q: np.ndarray, v: np.ndarray, gravity: np.ndarray) -> np.ndarray:
         """Hip and knee torques (N m) shortening a rising leg to ``SWING_SHARE`` of its length by
-        a spring along itself (through J^T, as the stance spring: at liftoff the force along
-        the leg goes on pulling the foot up, where a joint servo's first push may point it
-        down onto the ground it just left), and holding its liftoff angle in the world (a swing
-        towards the vertical would lower the foot)."""
+        a spring along itself (through J^T, as the stance spring), with the generalized
+        ``gravity`` compensated, the hip holding the leg's liftoff angle in the world (a swing
+        towards the vertical would lower the foot onto the ground it just left). The joint PD
+        to the same posture also bounds, but its gait settles about three times slower
+        (docs/robots.md, "The quadruped's bound")."""
         g = self.gains
         px, pz, j00, j01, j10, j11 = leg_terms(leg, float(q[leg.hip]), float(q[leg.knee]))
         va, vb = float(v[leg.hip]), float(v[leg.knee])
