@@ -13,7 +13,11 @@ the state:
 * **stance**: the leg pushes along itself like a spring of stiffness k and rest length l, with
   a thrust that lengthens the spring during extension by ``delta`` (m), adapted hop by hop to
   the apex height error; the hip adds ``k_p (theta - theta*) + k_d dtheta/dt`` (N m) to keep
-  the body level (the body gets the opposite torque).
+  the body level (the body gets the opposite torque);
+* **bound** (``gait = "bound"``): the pitch is left free and each leg pair hops as a hopper on
+  its own hip (height, thrust and foot placement from its hip's motion); a rising leg retracts
+  holding its liftoff angle and swings only once its hip falls; a phase term moves each pair's
+  apex target by how far its touchdown is off half a stride after the other pair's.
 
 ``RunnerRaibert`` drives articulated legs (a hip and a knee per leg, a point foot): the flight
 posture by a joint PD with gravity compensation on the inverse kinematics of the foot placement,
@@ -167,7 +171,8 @@ class RunnerRaibert(Controller):
     """Raibert's controller for articulated legs (module docstring); ``attitude``: the stance
     hips servo the pitch (a pronk), or leave it free (a bound, where each leg pair hops on its
     own: with the body's pitch inertia near m (d/2)^2 the hips move as two separate hoppers, so
-    each leg's thrust and swing follow its own hip's height)."""
+    each leg's thrust and swing follow its own hip's height, and a phase term keeps the two
+    hoppers half a stride apart)."""
 
     def __init__(self, bridge: Any, legs: list[Leg], gains: Gains, attitude: bool) -> None:
         self.bridge, self.legs, self.gains, self.attitude = bridge, legs, gains, attitude
@@ -411,10 +416,7 @@ RUNNER_PARAMETERS = {
     "kp_attitude": Param(60.0, "stance hip torque per radian of pitch", "N m/rad", low=0.0),
     "kd_attitude": Param(6.0, "stance hip torque per rad/s of pitch rate", "N m s/rad", low=0.0),
     "k_phase": Param(
-        0.1,
-        "bound: apex target change (m) per share of a period a leg pair's touchdown is off antiphase",
-        "m",
-        low=0.0,
+        0.1, "bound: apex target change (m) per share of a period a leg pair's touchdown is off antiphase", "m", low=0.0
     ),
     "kp_joint": Param(60.0, "flight joint stiffness", "N m/rad", low=0.0),
     "kd_joint": Param(2.0, "flight joint damping", "N m s/rad", low=0.0),

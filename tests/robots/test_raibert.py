@@ -3,6 +3,7 @@ parsed URDF model, its registration, and the bundled quadruped's pronk under it 
 symmetric start both feet land in one impact of the joint law and the pitch stays 0 to
 rounding; from a pitched start the run tends to the symmetric one as the pitch goes to 0."""
 
+import itertools
 import math
 
 import numpy as np
@@ -237,7 +238,7 @@ def antiphase_shares(touchdowns) -> np.ndarray:
     pair lands: 0.5 in antiphase."""
     t = np.array([tr.time for tr in touchdowns])
     hind = [k for k, tr in enumerate(touchdowns) if pair_of(tr) == "hind"]
-    return np.array([(t[a + 1] - t[a]) / (t[b] - t[a]) for a, b in zip(hind, hind[1:], strict=False)])
+    return np.array([(t[a + 1] - t[a]) / (t[b] - t[a]) for a, b in itertools.pairwise(hind)])
 
 
 def hip_apexes(ex, leg) -> np.ndarray:
@@ -288,7 +289,7 @@ def test_bound_on_its_gait_alternates_in_antiphase():
     touchdowns = hops(ex)
     pairs = [pair_of(tr) for tr in touchdowns]
     assert len(pairs) >= 17 and pairs[0] == "hind"
-    assert all(a != b for a, b in zip(pairs, pairs[1:], strict=False))
+    assert all(a != b for a, b in itertools.pairwise(pairs))
     assert {mode.rstrip("<>") for mode in ex.mode_sequence} == {"flight", "hind", "front"}
     assert np.max(np.abs(antiphase_shares(touchdowns) - 0.5)) < 0.01
     controller = load_scene(BOUND, ["integrator.t_final=0.1"]).control
@@ -309,7 +310,7 @@ def test_bound_settles_from_a_rough_start_in_twenty_seconds():
     assert ex.status == "finished" and ex.t_end == 20.0 and not ex.warnings
     touchdowns = hops(ex)
     pairs = [pair_of(tr) for tr in touchdowns]
-    assert len(pairs) >= 90 and all(a != b for a, b in zip(pairs, pairs[1:], strict=False))
+    assert len(pairs) >= 90 and all(a != b for a, b in itertools.pairwise(pairs))
     n = 7
     for pair in ("hind", "front"):
         own = [tr for tr in touchdowns if pair_of(tr) == pair][30:]
