@@ -13,7 +13,11 @@ the state:
 * **stance**: the leg pushes along itself like a spring of stiffness k and rest length l, with
   a thrust that lengthens the spring during extension by ``delta`` (m), adapted hop by hop to
   the apex height error; the hip adds ``k_p (theta - theta*) + k_d dtheta/dt`` (N m) to keep
-  the body level (the body gets the opposite torque).
+  the body level (the body gets the opposite torque);
+* **bound** (``gait = "bound"``): the pitch is left free and each leg pair hops as a hopper on
+  its own hip (height, thrust and foot placement from its hip's motion); a rising leg retracts
+  holding its liftoff angle and swings only once its hip falls; a phase term moves each pair's
+  apex target by how far its touchdown is off half a stride after the other pair's.
 
 ``RunnerRaibert`` drives articulated legs (a hip and a knee per leg, a point foot): the flight
 posture by a joint PD with gravity compensation on the inverse kinematics of the foot placement,
@@ -64,6 +68,9 @@ class Leg:
     apex: float = field(default=float("nan"))
     touchdown_x: float = field(default=float("nan"))
     bias: float = 0.0
+    liftoff_angle: float = 0.0
+    liftoff_time: float = -math.inf
+    phase_height: float = 0.0
 
 
 def leg_terms(leg: Leg, q_hip: float, q_knee: float) -> tuple[float, float, float, float, float, float]:
@@ -130,6 +137,14 @@ ATTITUDE_SHARE = 0.5
 #: the touchdown length) while the body rises, so that the foot clears the ground.
 THRUST_RATE = 0.2
 SWING_SHARE = 0.75
+#: Stiffness (N/m) and damping (N s/m) along a bound's rising leg retracting after liftoff.
+RETRACT_STIFFNESS = 500.0
+RETRACT_DAMPING = 20.0
+#: How long (s) after its liftoff a bound's leg that touches the ground again pulls its foot up
+#: (at most ``UNLOAD``) instead of pushing: it lifted off where its contact force passed 0, so
+#: at once after the liftoff that force's sign is a matter of rounding, and a foot put back in
+#: stance by it would lift off again and again (an accumulation).
+REFRACTORY = 0.01
 
 
 @dataclass
@@ -149,13 +164,15 @@ class Gains:
     kp_joint: float
     kd_joint: float
     max_thrust: float
+    k_phase: float
 
 
 class RunnerRaibert(Controller):
     """Raibert's controller for articulated legs (module docstring); ``attitude``: the stance
     hips servo the pitch (a pronk), or leave it free (a bound, where each leg pair hops on its
     own: with the body's pitch inertia near m (d/2)^2 the hips move as two separate hoppers, so
-    each leg's thrust and swing follow its own hip's height)."""
+    each leg's thrust and swing follow its own hip's height, and a phase term keeps the two
+    hoppers half a stride apart)."""
 
     def __init__(self, bridge: Any, legs: list[Leg], gains: Gains, attitude: bool) -> None:
         self.bridge, self.legs, self.gains, self.attitude = bridge, legs, gains, attitude
@@ -178,11 +195,16 @@ class RunnerRaibert(Controller):
         for leg in self.legs:
             stance = leg.contact in active
             if stance and not leg.in_stance:
+                if not self.attitude:
+                    self._adapt_phase(leg, t)
                 self._adapt_placement(leg, t, x)
                 leg.touchdown = t
             elif leg.in_stance and not stance:
                 leg.stance_time = min(max(t - leg.touchdown, 0.02), 0.5)
                 self._adapt_thrust(leg, x)
+                if not self.attitude:
+                    leg.liftoff_angle = self._world_angle(leg, x)
+                    leg.liftoff_time = t
             leg.in_stance = stance
 
     @property
@@ -190,8 +212,9 @@ class RunnerRaibert(Controller):
         """Each leg's thrust (m) and last stance duration T_s (s), by the leg's contact name.
         Undeclared (None) with the integral term (k_i > 0): its bias and the stride it measures
         from the last touchdown's time and place would be memory too, which ``restore`` cannot
-        set without the section's time and state."""
-        if self.gains.k_i > 0.0:
+        set without the section's time and state; likewise in a bound, whose phase term measures
+        from both legs' last touchdowns."""
+        if self.gains.k_i > 0.0 or not self.attitude:
             return None
         return tuple(f"{kind}_{leg.contact}" for leg in self.legs for kind in ("thrust", "T_s"))
 
@@ -226,7 +249,23 @@ class RunnerRaibert(Controller):
         g = self.gains
         z, zd = self._height(leg, x)
         leg.apex = z + max(zd, 0.0) ** 2 / (2 * 9.81)
-        leg.thrust = min(max(leg.thrust + g.k_height * (g.height - leg.apex), 0.0), g.max_thrust)
+        target = g.height + leg.phase_height
+        leg.thrust = min(max(leg.thrust + g.k_height * (target - leg.apex), 0.0), g.max_thrust)
+
+    def _adapt_phase(self, leg: Leg, t: float) -> None:
+        """Bound, at the leg's touchdown: its lag behind the other pair's last touchdown as a
+        share of its own period, against the half period of antiphase, moves its apex target
+        (a late leg hops lower, so that its next flight is shorter)."""
+        other = next(o for o in self.legs if o is not leg)
+        if not (math.isfinite(leg.touchdown_x) and math.isfinite(other.touchdown_x)) or t <= leg.touchdown:
+            return
+        share = ((t - other.touchdown) / (t - leg.touchdown)) % 1.0
+        leg.phase_height = -self.gains.k_phase * (share - 0.5)
+
+    def _world_angle(self, leg: Leg, x: np.ndarray) -> float:
+        """The leg's angle (rad) from the world's -z axis towards +x."""
+        px, pz = leg_terms(leg, float(x[leg.hip]), float(x[leg.knee]))[:2]
+        return math.atan2(px, -pz) - float(x[2])
 
     def _height(self, leg: Leg, x: np.ndarray) -> tuple[float, float]:
         """Height (m) and vertical speed (m/s) the leg hops: the body's centre in a pronk; in a
@@ -259,7 +298,8 @@ class RunnerRaibert(Controller):
         for leg in self.legs:
             torque: tuple[float, float] | np.ndarray  # (hip, knee) N m
             if leg.contact in active:
-                torque = self._stance(leg, q, v, attitude / len(stance_legs), together)
+                refractory = not self.attitude and t - leg.liftoff_time < REFRACTORY
+                torque = self._stance(leg, q, v, attitude / len(stance_legs), together or refractory)
             else:
                 if gravity is None:
                     gravity = pin.computeGeneralizedGravity(self.bridge.model, self._data, q)
@@ -297,16 +337,60 @@ class RunnerRaibert(Controller):
         up for the pitch, so that the feet hang at one height and land together (the stance hips
         then level the body)."""
         g = self.gains
-        xd = v[0]
-        ahead = xd * leg.stance_time / 2 + g.k_x * (xd - g.speed) + leg.bias
-        world = math.asin(max(-0.9, min(0.9, ahead / g.leg_length)))
-        angle = world + q[2]
+        if not self.attitude:
+            return self._bound_flight(leg, q, v, falling, gravity)
+        world = self._placement(leg, v[0])
         length = g.leg_length if falling else SWING_SHARE * g.leg_length
-        if self.attitude:  # the hip is -offset sin(pitch) above the body's centre
-            length -= leg.offset * math.sin(q[2]) / math.cos(world)
+        # the hip is -offset sin(pitch) above the body's centre
+        length -= leg.offset * math.sin(q[2]) / math.cos(world)
+        return self._servo(leg, q, v, length, world + q[2], gravity)
+
+    def _placement(self, leg: Leg, xd: float) -> float:
+        """The leg's touchdown angle (rad, from the world's -z axis towards +x) at forward
+        speed xd (m/s): the neutral point, the speed correction and the integral term's bias."""
+        g = self.gains
+        ahead = xd * leg.stance_time / 2 + g.k_x * (xd - g.speed) + leg.bias
+        return math.asin(max(-0.9, min(0.9, ahead / g.leg_length)))
+
+    def _servo(
+        self, leg: Leg, q: np.ndarray, v: np.ndarray, length: float, angle: float, gravity: np.ndarray
+    ) -> np.ndarray:
+        """Hip and knee torques (N m) of the joint PD to the foot at ``length`` (m) and ``angle``
+        (rad, from the body's -z axis), with the generalized ``gravity`` compensated."""
+        g = self.gains
         hip, knee = leg_angles(leg, length, angle)
         dofs = [leg.hip, leg.knee]
         return g.kp_joint * (np.array((hip, knee)) - q[dofs]) - g.kd_joint * v[dofs] + gravity[dofs]
+
+    def _bound_flight(self, leg: Leg, q: np.ndarray, v: np.ndarray, falling: bool, gravity: np.ndarray) -> np.ndarray:
+        """Bound: once the leg's hip falls the leg swings to the placement of its own hip's
+        horizontal speed at full length (joint PD); while the hip rises the leg retracts."""
+        if not falling:
+            return self._retract(leg, q, v, gravity)
+        world = self._placement(leg, v[0] - leg.offset * math.sin(q[2]) * v[2])
+        return self._servo(leg, q, v, self.gains.leg_length, world + q[2], gravity)
+
+    def _retract(self, leg: Leg, q: np.ndarray, v: np.ndarray, gravity: np.ndarray) -> np.ndarray:
+        """Hip and knee torques (N m) shortening a rising leg to ``SWING_SHARE`` of its length by
+        a spring along itself (through J^T, as the stance spring), with the generalized
+        ``gravity`` compensated, the hip holding the leg's liftoff angle in the world (a swing
+        towards the vertical would lower the foot onto the ground it just left). The joint PD
+        to the same posture also bounds, but its gait settles about three times slower
+        (docs/robots.md, "The quadruped's bound")."""
+        g = self.gains
+        px, pz, j00, j01, j10, j11 = leg_terms(leg, float(q[leg.hip]), float(q[leg.knee]))
+        va, vb = float(v[leg.hip]), float(v[leg.knee])
+        pxd, pzd = j00 * va + j01 * vb, j10 * va + j11 * vb
+        r = math.hypot(px, pz)
+        rdot = (px * pxd + pz * pzd) / r
+        force = RETRACT_STIFFNESS * (SWING_SHARE * g.leg_length - r) - RETRACT_DAMPING * rdot
+        fx, fz = force * px / r, force * pz / r
+        world = math.atan2(px, -pz) - float(q[2])
+        world_rate = (-pz * pxd + px * pzd) / r**2 - float(v[2])
+        # the foot's angle from the body's -z axis falls as the hip angle grows
+        swing = -(g.kp_joint * (leg.liftoff_angle - world) - g.kd_joint * world_rate)
+        dofs = [leg.hip, leg.knee]
+        return np.array((j00 * fx + j10 * fz + swing, j01 * fx + j11 * fz)) + gravity[dofs]
 
 
 RUNNER_PARAMETERS = {
@@ -331,6 +415,9 @@ RUNNER_PARAMETERS = {
     "max_thrust": Param(0.1, "largest thrust", "m", low=0.0),
     "kp_attitude": Param(60.0, "stance hip torque per radian of pitch", "N m/rad", low=0.0),
     "kd_attitude": Param(6.0, "stance hip torque per rad/s of pitch rate", "N m s/rad", low=0.0),
+    "k_phase": Param(
+        0.1, "bound: apex target change (m) per share of a period a leg pair's touchdown is off antiphase", "m", low=0.0
+    ),
     "kp_joint": Param(60.0, "flight joint stiffness", "N m/rad", low=0.0),
     "kd_joint": Param(2.0, "flight joint damping", "N m s/rad", low=0.0),
 }

@@ -3,6 +3,7 @@ parsed URDF model, its registration, and the bundled quadruped's pronk under it 
 symmetric start both feet land in one impact of the joint law and the pitch stays 0 to
 rounding; from a pitched start the run tends to the symmetric one as the pitch goes to 0."""
 
+import itertools
 import math
 
 import numpy as np
@@ -209,3 +210,123 @@ def test_the_runner_with_an_integral_term_leaves_its_memory_undeclared():
     # would be memory that restore() cannot set, so the orbit search must refuse the scene.
     controller = load_scene("quadruped_run").control
     assert controller.gains.k_i > 0.0 and controller.memory_names is None
+
+
+# -- the bound ------------------------------------------------------------------------------------
+BOUND = "quadruped_bound"
+#: A flight state of ``quadruped_bound`` on its settled gait, 30 ms before a hind touchdown (its
+#: 20 s run at t = 18.864 s, x moved to 0), and both legs' thrust there (m).
+GAIT_START = (
+    "initial.state={z = 0.4718, pitch = -0.0572, front_hip = 1.0731, front_knee = -1.6551, hind_hip = -0.6746, "
+    "hind_knee = 1.1687, xd = 0.1682, zd = -0.2161, pitchd = -3.6118, front_hipd = 6.099, front_kneed = -3.317, "
+    "hind_hipd = 2.6888, hind_kneed = -0.6297}"
+)
+GAIT_THRUST = "controller.parameters.thrust=0.0167"
+
+
+def bound(t_final: float, *overrides: str):
+    return load_scene(BOUND, [f"integrator.t_final={t_final}", *overrides]).simulate()
+
+
+def pair_of(transition) -> str:
+    """The leg pair a touchdown lands: ``touchdown_hind@hind>`` -> ``hind``."""
+    return transition.name.split("@")[0].removeprefix("touchdown_")
+
+
+def antiphase_shares(touchdowns) -> np.ndarray:
+    """For each hind stride (touchdown to touchdown), the share of it after which the front
+    pair lands: 0.5 in antiphase."""
+    t = np.array([tr.time for tr in touchdowns])
+    hind = [k for k, tr in enumerate(touchdowns) if pair_of(tr) == "hind"]
+    return np.array([(t[a + 1] - t[a]) / (t[b] - t[a]) for a, b in itertools.pairwise(hind)])
+
+
+def hip_apexes(ex, leg) -> np.ndarray:
+    """The highest height (m) of the leg's hip, ``z - offset sin(pitch)``, in each of its
+    flights from a liftoff to its next touchdown, read from the run's steps."""
+    t = np.concatenate([seg.t for seg in ex.segments])
+    x = np.concatenate([seg.x[:, :3] for seg in ex.segments])
+    height = x[:, 1] - leg.offset * np.sin(x[:, 2])
+    liftoffs = [tr.time for tr in ex.transitions if tr.name == f"liftoff_{leg.contact}"]
+    landings = [tr.time for tr in hops(ex) if pair_of(tr) == leg.contact]
+    apexes = []
+    for up in liftoffs:
+        down = next((d for d in landings if d > up), None)
+        if down is None:
+            break
+        apexes.append(height[(t > up) & (t < down)].max())
+    return np.array(apexes)
+
+
+def test_bound_phase_term_lowers_the_apex_target_of_a_late_pair():
+    """At a touchdown the pair's lag behind the other pair's last touchdown, as a share of its
+    own stride, moves its apex target by ``-k_phase (share - 0.5)``: down when it lands late
+    (share > 0.5), up when early, not at all in antiphase; the share wraps around a stride."""
+    scene = load_scene(BOUND, ["integrator.t_final=0.1"])
+    controller = scene.control
+    k_phase = controller.gains.k_phase
+    hind, front = sorted(controller.legs, key=lambda leg: leg.contact != "hind")
+    for lag, share in ((0.3, 0.75), (0.1, 0.25), (0.2, 0.5), (0.5, 0.25)):
+        for leg in (hind, front):
+            leg.touchdown_x, leg.in_stance = 0.0, False
+        hind.touchdown, front.touchdown = 1.0, 1.4 - lag
+        controller.reset("hind", 1.4, scene.initial_state)  # the hind pair lands, stride 0.4 s
+        assert hind.phase_height == pytest.approx(-k_phase * (share - 0.5), abs=1e-12)
+    assert front.phase_height == 0.0
+
+
+def test_the_bound_leaves_its_memory_undeclared():
+    # The phase term measures from both pairs' last touchdowns: memory restore() cannot set.
+    assert load_scene(BOUND, ["integrator.t_final=0.1"]).control.memory_names is None
+
+
+def test_bound_on_its_gait_alternates_in_antiphase():
+    """Four seconds from a state of the settled bound: no warning, the pairs land one at a
+    time, hind and front in turn (every mode a single stance or flight), the front pair half a
+    stride after the hind one (within 1%), and each hip's apex the same hop after hop (0.5 mm)."""
+    ex = bound(4.0, GAIT_START, GAIT_THRUST)
+    assert ex.status == "finished" and not ex.warnings
+    touchdowns = hops(ex)
+    pairs = [pair_of(tr) for tr in touchdowns]
+    assert len(pairs) >= 17 and pairs[0] == "hind"
+    assert all(a != b for a, b in itertools.pairwise(pairs))
+    assert {mode.rstrip("<>") for mode in ex.mode_sequence} == {"flight", "hind", "front"}
+    assert np.max(np.abs(antiphase_shares(touchdowns) - 0.5)) < 0.01
+    controller = load_scene(BOUND, ["integrator.t_final=0.1"]).control
+    for leg in controller.legs:
+        apexes = hip_apexes(ex, leg)
+        assert len(apexes) >= 7 and np.ptp(apexes) < 0.01 * np.mean(apexes)
+
+
+@pytest.mark.slow
+def test_bound_settles_from_a_rough_start_in_twenty_seconds():
+    """``quadruped_bound`` (its hand-set start, far from the gait: the front pair lands at 0.44
+    of the first stride): 20 s without a warning, hind and front touchdowns alternating; from
+    the 30th hop of each pair the gait has settled: successive touchdown states of the body
+    within 2e-3 in height (m) and pitch (rad) and within 2e-2 in the velocities (m/s, rad/s; the
+    pitch rate at touchdown is 3.6 rad/s), strides within 1 ms, the front pair at half a stride
+    within 0.5%, each hip's apex within 1 mm."""
+    ex = load_scene(BOUND).simulate()
+    assert ex.status == "finished" and ex.t_end == 20.0 and not ex.warnings
+    touchdowns = hops(ex)
+    pairs = [pair_of(tr) for tr in touchdowns]
+    assert len(pairs) >= 90 and all(a != b for a, b in itertools.pairwise(pairs))
+    n = 7
+    for pair in ("hind", "front"):
+        own = [tr for tr in touchdowns if pair_of(tr) == pair][30:]
+        changes = np.abs(np.diff([tr.state_before[[1, 2, n, n + 1, n + 2]] for tr in own], axis=0))
+        assert np.max(changes[:, :2]) < 2e-3 and np.max(changes[:, 2:]) < 2e-2
+        assert np.ptp(np.diff([tr.time for tr in own])) < 1e-3
+    assert np.max(np.abs(antiphase_shares(touchdowns)[30:] - 0.5)) < 5e-3
+    assert abs(antiphase_shares(touchdowns)[0] - 0.5) > 0.05
+    for leg in load_scene(BOUND, ["integrator.t_final=0.1"]).control.legs:
+        assert np.ptp(hip_apexes(ex, leg)[30:]) < 1e-3
+
+
+@pytest.mark.slow
+def test_without_the_phase_term_the_bound_drifts_out_of_antiphase():
+    """The same start with ``k_phase = 0``: the pairs hop on, but nothing holds them half a
+    stride apart, and by 7 s the front pair lands more than 5% of a stride off antiphase."""
+    ex = bound(7.0, "controller.parameters.k_phase=0.0")
+    shares = antiphase_shares(hops(ex))
+    assert np.max(np.abs(shares[-3:] - 0.5)) > 0.05
