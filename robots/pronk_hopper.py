@@ -20,6 +20,11 @@ Guards (m), as the pronk's: touchdown ``max(foot height, foot vertical velocity)
 velocity carried by the body, the leg's swing not included); liftoff ``max(l - r, -dr/dt)``.
 Resets: a touchdown pins the foot where it is, a liftoff leaves the leg at its stance angle.
 Energy (kinetic, gravity, springs) is conserved by the uncontrolled flow and by every reset.
+The stance foot is pinned (no slip, and the liftoff is the spring's, as the pronk's): the
+ground's normal force ``k (l - r) n_z + (torque / r) n_x`` (n the unit vector foot -> hip) is a
+controller's to keep positive (``raibert_pronk`` limits its torque so). A touchdown whose foot
+is below the ground (a flying leg swung down while the body rose, which the guard's rate does
+not see) is a ModelBreakdown, not a foothold pinned with its spring compressed.
 """
 
 from __future__ import annotations
@@ -30,6 +35,7 @@ from typing import Any
 import numpy as np
 
 from legsim.builders import Builder, Model
+from legsim.errors import ModelBreakdown
 from legsim.hybrid import HybridSystem, Mode, Transition
 
 from .pronk import PARAMETERS as PRONK_PARAMETERS
@@ -48,6 +54,8 @@ INITIAL_STATE = {
     "psi_right": math.pi / 5,
 }
 PARAMETERS = {name: PRONK_PARAMETERS[name] for name in ("m", "I", "k", "l", "d", "g")}
+#: A landing foot lower than this (m) went through the ground before its guard saw it.
+BELOW_GROUND = 1e-6
 
 
 def state_names(stance: tuple[str, ...]) -> tuple[str, ...]:
@@ -152,8 +160,11 @@ class PronkHopper:
             return max(foot[1], rate)
 
         def reset(x: np.ndarray) -> np.ndarray:
+            foot = self.foot_in_flight(leg, x, x[psi_index])[0]
+            if foot[1] < -BELOW_GROUND:
+                raise ModelBreakdown(f"the {leg} foot is {-foot[1]:.3g} m below the ground at its touchdown")
             values = dict(zip(names_before, x, strict=True))
-            values[f"{leg}_foot_x"] = self.foot_in_flight(leg, x, x[psi_index])[0][0]
+            values[f"{leg}_foot_x"] = foot[0]
             return np.array([values[name] for name in names_after])
 
         return Transition(source, target, guard, reset, name=f"touchdown_{leg}")
@@ -198,6 +209,7 @@ def build(params: dict[str, Any], effects: dict[str, dict[str, Any]]) -> Model:
     hopper = PronkHopper(*(params[name] for name in ("m", "I", "k", "l", "d", "g")))
 
     def geometry(mode: str, x: np.ndarray) -> dict[str, np.ndarray]:
+        """Polylines (m) of the body, the legs (hip -> foot) and the feet, for pictures."""
         x = np.asarray(x, dtype=float)
         stance = MODES[mode]
         names = state_names(stance)

@@ -431,6 +431,11 @@ def _make_runner(model: Model, params: dict[str, Any]) -> RunnerRaibert:
             "controller 'raibert_runner' found no articulated leg: a point contact on a frame below "
             "two actuated revolute joints (hip, knee)"
         )
+    if params["gait"] == "bound" and len(legs) != 2:
+        raise SceneError(
+            f"controller.parameters.gait = 'bound' needs two leg pairs (hind and front), the robot has "
+            f"{len(legs)} articulated leg(s): {', '.join(leg.contact for leg in legs)}"
+        )
     gains = Gains(**{k: params[k] for k in Gains.__dataclass_fields__})
     for leg in legs:
         leg.thrust = params["thrust"]

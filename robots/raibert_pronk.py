@@ -4,7 +4,9 @@ Each leg is placed by its own neutral point: in flight it swings at ``k_swing (p
 (rad/s) to the body-relative angle ``psi* = phi* + theta`` whose world angle from the vertical is
 ``phi* = asin((xd T_s / 2 + k_x (xd - xd*)) / l)``, T_s the leg's last stance duration (s),
 measured at its liftoff. In stance the hips servo the pitch: the stance legs share the torque
-``-(kp_attitude theta + kd_attitude thetad)`` (N m). The springs are passive, so (as for the
+``-(kp_attitude theta + kd_attitude thetad)`` (N m), each leg's share limited so that it takes
+at most half the spring's push off the ground's normal force (the foot is pinned, and a hip
+torque alone could make the ground pull on it). The springs are passive, so (as for the
 SLIP hopper) the hopping height trades with the speed and needs no thrust; with the pitch at 0,
 the servo does no work and the energy is conserved.
 """
@@ -22,6 +24,9 @@ from legsim.errors import SceneError
 
 from .pronk_hopper import LEGS, MODES, PronkHopper, state_names
 
+#: The share of a stance leg's spring push on the ground that its hip torque may take off.
+NORMAL_SHARE = 0.5
+
 
 class PronkRaibert(Controller):
     """Raibert's foot placement and stance attitude servo for the pronk hopper (module docstring).
@@ -34,7 +39,8 @@ class PronkRaibert(Controller):
     memory_units = ("s", "s")
 
     def __init__(self, hopper: PronkHopper, gains: dict[str, float]) -> None:
-        self.l = hopper.l
+        """``gains``: the ``PRONK`` parameters by name, ``stance_time`` resolved (s)."""
+        self.hopper, self.l = hopper, hopper.l
         self.speed, self.k_x, self.k_swing = gains["speed"], gains["k_x"], gains["k_swing"]
         self.kp, self.kd = gains["kp_attitude"], gains["kd_attitude"]
         self.stance_time = dict.fromkeys(LEGS, gains["stance_time"])
@@ -42,6 +48,7 @@ class PronkRaibert(Controller):
         self.in_stance: tuple[str, ...] = ()
 
     def reset(self, mode: str, t: float, x: np.ndarray) -> None:
+        """Entering ``mode`` at t (s): a leg that lands notes the time, one that leaves its T_s."""
         stance = MODES[mode]
         for leg in LEGS:
             if leg in stance and leg not in self.in_stance:
@@ -51,11 +58,17 @@ class PronkRaibert(Controller):
         self.in_stance = stance
 
     def memory(self) -> np.ndarray:
+        """Each leg's last stance duration (s), shape (2,), in ``LEGS`` order."""
         return np.array([self.stance_time[leg] for leg in LEGS])
 
     def restore(self, mode: str, memory: np.ndarray) -> None:
-        """Set each leg's T_s; a run starting with a leg in stance counts that stance from its
-        start (a section in stance must be right after the touchdown)."""
+        """Set each leg's T_s for a run starting in flight: in stance the touchdown a T_s is
+        measured from would be memory too, so a section there is refused."""
+        if MODES[mode]:
+            raise SceneError(
+                f"controller 'raibert_pronk' restores its memory at a section in flight ('aerial'), not in "
+                f"'{mode}': a leg in stance measures its stance from a touchdown before the section"
+            )
         values = np.asarray(memory, dtype=float).reshape(len(LEGS))
         self.stance_time = {leg: float(value) for leg, value in zip(LEGS, values, strict=True)}
         self.in_stance = ()
@@ -73,14 +86,26 @@ class PronkRaibert(Controller):
         u = np.zeros(4)
         for i, leg in enumerate(LEGS):
             if leg in stance:
-                u[2 + i] = -(self.kp * x[2] + self.kd * x[5]) / len(stance)
+                share = -(self.kp * x[2] + self.kd * x[5]) / len(stance)
+                limit = self.torque_limit(leg, x[names.index(f"{leg}_foot_x")], x)
+                u[2 + i] = max(-limit, min(limit, share))
             else:
                 psi = x[names.index(f"psi_{leg}")]
                 u[i] = self.k_swing * (self.target_angle(leg, x[2], x[3]) - psi)
         return u
 
+    def torque_limit(self, leg: str, foot_x: float, x: np.ndarray) -> float:
+        """The largest hip torque (N m) the leg may apply with its foot at foot_x (m): the
+        ground's normal force is ``k (l - r) n_z + (torque / r) n_x`` (pronk_hopper), so a torque
+        below ``NORMAL_SHARE k (l - r) r n_z / |n_x|`` keeps it at least half the spring's push."""
+        n, r, _ = self.hopper.leg_in_stance(leg, x, foot_x)
+        push = self.hopper.k * max(self.l - r, 0.0) * n[1]
+        return NORMAL_SHARE * push * r / max(abs(n[0]), 1e-12)
+
 
 def _make(model: Model, params: dict[str, Any]) -> PronkRaibert:
+    """The controller for a pronk hopper model (SceneError for any other robot)."""
+
     hopper = model.info.get("pronk_hopper") if isinstance(model.info, dict) else None
     if not isinstance(hopper, PronkHopper):
         raise SceneError(

@@ -13,6 +13,7 @@ from legsim.robots import raibert
 
 from legsim.control import available, get_controller
 from legsim.derivatives import jacobian
+from legsim.errors import SceneError
 from legsim.scene import load_scene
 
 SCENE = "quadruped_pronk"
@@ -330,3 +331,11 @@ def test_without_the_phase_term_the_bound_drifts_out_of_antiphase():
     ex = bound(7.0, "controller.parameters.k_phase=0.0")
     shares = antiphase_shares(hops(ex))
     assert np.max(np.abs(shares[-3:] - 0.5)) > 0.05
+
+
+def test_a_bound_needs_two_leg_pairs():
+    """The bound's phase term measures each pair against the other: a robot with one leg is
+    refused, naming the legs it has."""
+    one_leg = '[{ name = "hind", frame = "hind_foot", restitution = 0.0, friction = 0.8 }]'
+    with pytest.raises(SceneError, match=r"two leg pairs.*1 articulated leg\(s\): hind"):
+        load_scene("quadruped_bound", [f"robot.parameters.contacts={one_leg}"])
