@@ -436,7 +436,8 @@ class _FiniteDifferences:
                 if stencil is not None:
                     stencils[j] = stencil
                     forward[:, j], backward[:, j] = stencil.forward, stencil.backward
-        return CheckedJacobian(J, forward, backward, tuple(sorted(stencils)), kinked_columns(stencils, J))
+        unchecked = tuple(j for j in range(J.shape[1]) if check and j not in stencils and j not in self.p.cyclic_idx)
+        return CheckedJacobian(J, forward, backward, tuple(sorted(stencils)), kinked_columns(stencils, J), unchecked)
 
     def _stencil(self, j: int, d: float, plus: np.ndarray, minus: np.ndarray) -> ColumnStencil | None:
         """The column's stencil with its half step, None when that simulation fails (unchecked)."""

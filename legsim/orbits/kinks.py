@@ -92,7 +92,9 @@ class CheckedJacobian:
     central, forward, backward: the Jacobians of central, forward and backward differences,
         shape (size, size) (equal in the columns that were not checked: cyclic ones, e_c, and
         those where one side's simulation failed, one-sided).
-    checked: the columns compared; kinked: those whose one-sided differences disagree.
+    checked: the columns compared; kinked: those whose one-sided differences disagree;
+    unchecked: the non-cyclic columns that could not be compared (a simulation of the stencil
+    failed: where a map stops being smooth, that is likely).
     """
 
     central: np.ndarray
@@ -100,11 +102,19 @@ class CheckedJacobian:
     backward: np.ndarray
     checked: tuple[int, ...]
     kinked: tuple[int, ...]
+    unchecked: tuple[int, ...] = ()
 
     @property
-    def differentiable(self) -> bool:
-        """Whether no checked column is kinked."""
-        return not self.kinked
+    def differentiable(self) -> bool | None:
+        """False when a checked column is kinked, None when none is but some column could not be
+        checked, True when every column was checked and none is kinked."""
+        if self.kinked:
+            return False
+        return None if self.unchecked else True
+
+    def unchecked_names(self, names: Sequence[str]) -> tuple[str, ...]:
+        """The coordinates (``names`` of the augmented state) of the unchecked columns."""
+        return tuple(names[j] for j in self.unchecked)
 
     def kinked_names(self, names: Sequence[str]) -> tuple[str, ...]:
         """The coordinates (``names`` of the augmented state) of the kinked columns."""

@@ -70,7 +70,8 @@ class OrbitResult:
         no multipliers or the return map is not differentiable at the orbit (``differentiable``).
     differentiable: with the finite-difference Jacobian, whether each column's forward and
         backward differences agree (``legsim.orbits.kinks``); None when not checked (saltation
-        Jacobian). When False, ``kinked_coordinates`` names the columns that disagree,
+        Jacobian) or when some column could not be (a simulation of its stencil failed; a
+        warning names it). When False, ``kinked_coordinates`` names the columns that disagree,
         ``multipliers_forward`` and ``multipliers_backward`` are those of the forward- and
         backward-difference Jacobians (the spread the central ``multipliers`` cannot vouch
         for), and ``warnings`` says so.
@@ -624,9 +625,16 @@ def _add_multipliers(
 def _add_differentiability(result: OrbitResult, problem: OrbitProblem, checked: CheckedJacobian, f: np.ndarray) -> None:
     """The check's verdict; when a column is kinked, each side's multipliers and a warning."""
     result.differentiable = checked.differentiable
-    if checked.differentiable:
+    all_names = list(problem.names) + list(problem.memory_names)
+    if checked.differentiable is None:
+        result.warnings.append(
+            f"the differentiability check could not compare the one-sided differences in the column(s) of "
+            f"{', '.join(checked.unchecked_names(all_names))} (a simulation of its stencil failed there): "
+            f"their Jacobian columns are one-sided or unchecked, and a kink there would not be seen"
+        )
+    if checked.differentiable is not False:
         return
-    names = checked.kinked_names(list(problem.names) + list(problem.memory_names))
+    names = checked.kinked_names(all_names)
     result.kinked_coordinates = names
     result.multipliers_forward = floquet_multipliers(checked.forward, f, problem.cyclic_idx)[0]
     result.multipliers_backward = floquet_multipliers(checked.backward, f, problem.cyclic_idx)[0]

@@ -18,6 +18,7 @@ import pytest
 from helpers.orbit_systems import hopf_closed_form, hopf_reset
 from legsim import HybridSystem, Mode, Transition
 from legsim.commands.orbit import format_orbit, format_row
+from legsim.errors import ModelBreakdown
 from legsim.orbits import OrbitProblem, Section, continue_family, find_orbit
 from legsim.orbits.kinks import KINK_RATIO, ColumnStencil, kinked_columns
 
@@ -206,3 +207,39 @@ def test_the_quadruped_pronk_is_reported_unresolved(capsys):
         radius[side] = float(np.max(np.abs(mu)))
     # the spread the central multipliers cannot vouch for: far above the map's noise (~1e-3)
     assert abs(radius["forward"] - radius["backward"]) > 0.01
+
+
+def test_a_column_whose_stencil_cannot_be_simulated_is_not_called_differentiable():
+    """The lap's reset past y < 0 is outside its model's range (a ModelBreakdown): the y column's
+    backward difference cannot be taken, so the column is one-sided and unchecked, the verdict
+    is not "differentiable" but unknown (None), and a warning names the column."""
+
+    def lap_ending_below_zero(params):
+        system = kinked_lap(params)
+
+        def reset(x):
+            if x[0] < 0:
+                raise ModelBreakdown("y below 0: outside this lap's range")
+            return np.array([params["a"] * x[0], 0.0])
+
+        return HybridSystem(
+            system.modes,
+            [Transition("lap", "lap", guard=lambda x: T - x[1], reset=reset, name="restart")],
+            name="lap ending below 0",
+        )
+
+    problem = lap_problem(A_SIDE, B_SIDE)
+    problem = OrbitProblem(
+        lap_ending_below_zero,
+        problem.section,
+        h=problem.h,
+        eps=problem.eps,
+        t_max=problem.t_max,
+        parameters={"a": A_SIDE, "b": B_SIDE},
+    )
+    result = find_orbit(problem, [0.4, T / 2], jacobian="fd")
+    assert result.converged and abs(result.fixed_point[0]) < 1e-9
+    assert result.differentiable is None and result.kinked_coordinates == ()
+    assert any("could not compare" in w and "of y" in w for w in result.warnings)
+    # The one-sided (forward) difference is the stable side's slope a rho: the multiplier reported.
+    assert result.multipliers[0].real == pytest.approx(A_SIDE * RHO, abs=1e-6)

@@ -284,7 +284,8 @@ def test_the_bound_leaves_its_memory_undeclared():
 def test_bound_on_its_gait_alternates_in_antiphase():
     """Four seconds from a state of the settled bound: no warning, the pairs land one at a
     time, hind and front in turn (every mode a single stance or flight), the front pair half a
-    stride after the hind one (within 1%), and each hip's apex the same hop after hop (0.5 mm)."""
+    stride after the hind one (within 1%), and each hip's apex the same hop after hop within 1%
+    (over these 4 s the apexes still settle by 2-5 mm; the 20 s test checks 1 mm)."""
     ex = bound(4.0, GAIT_START, GAIT_THRUST)
     assert ex.status == "finished" and not ex.warnings
     touchdowns = hops(ex)
