@@ -104,6 +104,15 @@ def leg_angles(leg: Leg, length: float, angle: float) -> tuple[float, float]:
     return -angle - phi, knee
 
 
+def touchdown_angle(xd: float, stance_time: float, k_x: float, speed: float, length: float, bias: float = 0.0) -> float:
+    """Raibert's foot placement as a leg angle (rad, from the vertical, forward): the foot
+    ``xd T_s / 2 + k_x (xd - xd*) + bias`` (m) ahead of the hip, the neutral point plus the speed
+    correction, for forward speed xd and commanded speed (m/s), stance time T_s (s), gain k_x (s)
+    and a leg of ``length`` (m); the reach is capped at 0.9 of the length."""
+    ahead = xd * stance_time / 2 + k_x * (xd - speed) + bias
+    return math.asin(max(-0.9, min(0.9, ahead / length)))
+
+
 def find_legs(bridge: Any) -> list[Leg]:
     """The articulated legs of a bridge robot: each point contact whose frame hangs below two
     actuated revolute joints (hip, then knee)."""
@@ -349,8 +358,7 @@ class RunnerRaibert(Controller):
         """The leg's touchdown angle (rad, from the world's -z axis towards +x) at forward
         speed xd (m/s): the neutral point, the speed correction and the integral term's bias."""
         g = self.gains
-        ahead = xd * leg.stance_time / 2 + g.k_x * (xd - g.speed) + leg.bias
-        return math.asin(max(-0.9, min(0.9, ahead / g.leg_length)))
+        return touchdown_angle(xd, leg.stance_time, g.k_x, g.speed, g.leg_length, leg.bias)
 
     def _servo(
         self, leg: Leg, q: np.ndarray, v: np.ndarray, length: float, angle: float, gravity: np.ndarray
@@ -481,8 +489,7 @@ class SlipRaibert(Controller):
 
     def target_angle(self, xd: float) -> float:
         """The touchdown leg angle psi* (rad) at forward speed xd (m/s)."""
-        ahead = xd * self.stance_time / 2 + self.k_x * (xd - self.speed)
-        return math.asin(max(-0.9, min(0.9, ahead / self.l)))
+        return touchdown_angle(xd, self.stance_time, self.k_x, self.speed, self.l)
 
     def __call__(self, mode: str, t: float, x: np.ndarray) -> np.ndarray:
         if mode != "flight":

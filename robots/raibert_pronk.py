@@ -23,6 +23,7 @@ from legsim.control import Controller, ControllerSpec
 from legsim.errors import SceneError
 
 from .pronk_hopper import LEGS, MODES, PronkHopper, state_names
+from .raibert import touchdown_angle
 
 #: The share of a stance leg's spring push on the ground that its hip torque may take off.
 NORMAL_SHARE = 0.5
@@ -76,8 +77,7 @@ class PronkRaibert(Controller):
     def target_angle(self, leg: str, theta: float, xd: float) -> float:
         """The leg's touchdown angle psi* (rad, from the body's downward normal) at pitch theta
         (rad) and forward speed xd (m/s)."""
-        ahead = xd * self.stance_time[leg] / 2 + self.k_x * (xd - self.speed)
-        return math.asin(max(-0.9, min(0.9, ahead / self.l))) + theta
+        return touchdown_angle(xd, self.stance_time[leg], self.k_x, self.speed, self.l) + theta
 
     def __call__(self, mode: str, t: float, x: np.ndarray) -> np.ndarray:
         """``(swing_left, swing_right, torque_left, torque_right)``, rad/s and N m."""
