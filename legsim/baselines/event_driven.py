@@ -101,6 +101,34 @@ def simulate_events(
         ``counters["wall_time_s"]`` covers the integration only, not the assembly of the
         returned arrays.
     """
+    _check_arguments(method, rtol, atol, t0, t_final)
+    control = _bound_control(control)
+    x = system.check_state(mode, x0, t=t0, u=_initial_control(control, mode, t0, x0), label="x0")
+    solver = {"method": cast(IvpMethod, method), "rtol": rtol, "atol": atol, "max_step": max_step}
+    run = _EventRun(system, control, solver, dense_output, event_tol, max_transitions)
+    wall0 = _time.perf_counter()
+    run.start(mode, x, float(t0))
+    while run.status == "finished" and run.flow(t_final):
+        run.chain()
+    wall = _time.perf_counter() - wall0 - run.pieces.seconds
+    return _assemble(
+        system,
+        run.pieces.segments,
+        run.transitions,
+        run.status,
+        run.message,
+        t0,
+        run.t,
+        t_final,
+        run.counts,
+        wall,
+        {"method": f"solve_ivp-{method}", "rtol": rtol, "atol": atol},
+        run.dense if dense_output else None,
+    )
+
+
+def _check_arguments(method: str, rtol: float, atol: float, t0: float, t_final: float) -> None:
+    """SimulationError naming the first bad argument of ``simulate_events``."""
     if method not in METHODS:
         raise SimulationError(f"unknown solve_ivp method {method!r}; choose one of {list(METHODS)}")
     for label, value in (("rtol", rtol), ("atol", atol)):
@@ -108,110 +136,113 @@ def simulate_events(
             raise SimulationError(f"{label} must be finite and > 0, got {value!r}")
     if not (isinstance(t_final, (int, float)) and math.isfinite(t_final) and t_final > t0):
         raise SimulationError(f"t_final must be finite and > t0 = {t0}, got {t_final!r}")
-    control = _bound_control(control)
-    x = system.check_state(mode, x0, t=t0, u=_initial_control(control, mode, t0, x0), label="x0")
-    counts = {"field_evals": 0, "guard_evals": 0, "reset_evals": 0, "steps": 0}
-    pieces = _Segments(system, control)
-    dense: list[Any] = []
-    transitions: list[TransitionRecord] = []
-    status, message = "finished", ""
-    t = float(t0)
-    wall0 = _time.perf_counter()
-    _enter(control, mode, t, x)
-    while True:
-        trs = system.outgoing(mode)
-        field = system.mode(mode).field
-        if control is None:
 
-            def fun(tt, y, field=field):
-                return field(tt, y, None)
-        else:
 
-            def fun(tt, y, field=field):
-                return field(tt, y, control(tt, y))
+class _EventRun:
+    """One event-driven run: where it is (mode, x, t), what it has recorded, and how it ended
+    (``status`` stays "finished" while it goes on)."""
 
-        events = [_GuardEvent(tr, control, counts) for tr in trs]
+    def __init__(
+        self,
+        system: HybridSystem,
+        control: Any,
+        solver: dict[str, Any],
+        dense_output: bool,
+        event_tol: float,
+        max_transitions: int,
+    ) -> None:
+        self.system, self.control, self.solver, self.dense_output = system, control, solver, dense_output
+        self.event_tol, self.max_transitions = event_tol, max_transitions
+        self.counts = {"field_evals": 0, "guard_evals": 0, "reset_evals": 0, "steps": 0}
+        self.pieces = _Segments(system, control)
+        self.dense: list[Any] = []
+        self.transitions: list[TransitionRecord] = []
+        self.status, self.message = "finished", ""
+        self.mode, self.x, self.t = "", np.empty(0), 0.0
+        self.event: tuple[float, int, np.ndarray] | None = None
+
+    def start(self, mode: str, x: np.ndarray, t: float) -> None:
+        """Enter ``mode`` at (t, x): a Controller is reset and told the mode."""
+        self.mode, self.x, self.t = mode, x, t
+        _enter(self.control, mode, t, x)
+
+    def flow(self, t_final: float) -> bool:
+        """Integrate the current mode until its first guard event or t_final; True when an event
+        ended it (``event``: its time, transition index and located state)."""
+        mode, field, control = self.mode, self.system.mode(self.mode).field, self.control
+
+        def fun(tt: float, y: np.ndarray) -> np.ndarray:
+            return field(tt, y, None if control is None else control(tt, y))
+
+        events = [_GuardEvent(tr, control, self.counts) for tr in self.system.outgoing(mode)]
         try:
             sol = solve_ivp(
-                fun,
-                (t, t_final),
-                x,
-                method=cast(IvpMethod, method),
-                rtol=rtol,
-                atol=atol,
-                events=events or None,
-                max_step=max_step,
-                dense_output=dense_output,
+                fun, (self.t, t_final), self.x, events=events or None, dense_output=self.dense_output, **self.solver
             )
         except ModelBreakdown as exc:
             # A trial step of solve_ivp left the model's range (e.g. a runner's body through the
             # ground): the solver cannot shorten a step on such grounds, so the run ends here.
-            status, message = "model_breakdown", f"{exc} (solve_ivp in mode '{mode}' after t={t:.17g})"
-            pieces.add(mode, np.array([t]), np.asarray(x, dtype=float).reshape(1, -1).copy())
-            dense.append(None)
-            break
-        counts["field_evals"] += sol.nfev
-        counts["steps"] += max(len(sol.t) - 1, 0)
-        pieces.add(mode, sol.t.copy(), sol.y.T.copy())
-        dense.append(sol.sol)
+            self.status, self.message = "model_breakdown", f"{exc} (solve_ivp in mode '{mode}' after t={self.t:.17g})"
+            self.add_point()
+            return False
+        self.counts["field_evals"] += sol.nfev
+        self.counts["steps"] += max(len(sol.t) - 1, 0)
+        self.pieces.add(mode, sol.t.copy(), sol.y.T.copy())
+        self.dense.append(sol.sol)
         if sol.status == -1:
-            status, message = "non_finite", f"solve_ivp failed in mode '{mode}' at t={sol.t[-1]:.17g}: {sol.message}"
-            break
+            self.status = "non_finite"
+            self.message = f"solve_ivp failed in mode '{mode}' at t={sol.t[-1]:.17g}: {sol.message}"
+            return False
         if sol.status == 0:
-            t = float(sol.t[-1])
-            break
-        t_events, y_events = sol.t_events, sol.y_events
-        assert t_events is not None and y_events is not None  # status 1: a terminal event fired
-        fired = [(float(te[0]), i) for i, te in enumerate(t_events) if len(te)]
-        t_event, e = min(fired)
-        q = np.asarray(y_events[e][0], dtype=np.float64)
-        # Chain transitions at this instant while reset images sit on further guards.
+            self.t = float(sol.t[-1])
+            return False
+        assert sol.t_events is not None and sol.y_events is not None  # status 1: a terminal event fired
+        t_event, e = min((float(te[0]), i) for i, te in enumerate(sol.t_events) if len(te))
+        self.event = (t_event, e, np.asarray(sol.y_events[e][0], dtype=np.float64))
+        return True
+
+    def chain(self) -> None:
+        """Take the event's transition, and the further ones whose guards the reset images sit
+        on at the same instant."""
+        assert self.event is not None
+        t_event, e, q = self.event
         while True:
-            if len(transitions) >= max_transitions:
-                status = "max_transitions"
-                message = (
-                    f"transition cap max_transitions={max_transitions} reached at t={t_event:.17g} "
+            if len(self.transitions) >= self.max_transitions:
+                self.status = "max_transitions"
+                self.message = (
+                    f"transition cap max_transitions={self.max_transitions} reached at t={t_event:.17g} "
                     f"(events accumulate: Zeno)"
                 )
-                break
-            tr = trs[e]
-            counts["reset_evals"] += 1
+                return
+            tr = self.system.outgoing(self.mode)[e]
+            self.counts["reset_evals"] += 1
             after = np.asarray(tr.reset(q) if tr.reset is not None else q.copy(), dtype=float)
-            transitions.append(
-                TransitionRecord(tr.name, mode, tr.target, e, t_event, t_event, t_event, q.copy(), after.copy(), 0.0)
+            self.transitions.append(
+                TransitionRecord(
+                    tr.name, self.mode, tr.target, e, t_event, t_event, t_event, q.copy(), after.copy(), 0.0
+                )
             )
-            fixed_point = tr.target == mode and np.array_equal(after, q)
-            mode, x, t = tr.target, after, t_event
-            _enter(control, mode, t, x)
-            trs = system.outgoing(mode)
-            nxt = _firing_at_entry(system, mode, x, t, control, event_tol, counts)
-            if nxt is None or (fixed_point and trs[nxt] is tr):
+            fixed_point = tr.target == self.mode and np.array_equal(after, q)
+            self.start(tr.target, after, t_event)
+            if not np.all(np.isfinite(after)):
+                self.status, self.message = (
+                    "non_finite",
+                    f"reset gave a non-finite state at t={t_event:.17g}: {after.tolist()}",
+                )
+                return
+            nxt = _firing_at_entry(self.system, self.mode, after, t_event, self.control, self.event_tol, self.counts)
+            if nxt is None or (fixed_point and self.system.outgoing(self.mode)[nxt] is tr):
                 # A self-transition whose reset left the state unchanged would fire again on the
                 # same state forever (a graze at zero speed): firing it once is all it can do.
-                break
-            e, q = nxt, x.copy()
+                return
+            e, q = nxt, after.copy()
             # A zero-length segment keeps the execution's segment/strip alternation.
-            pieces.add(mode, np.array([t]), x.reshape(1, -1).copy())
-            dense.append(None)
-        if status != "finished" or not np.all(np.isfinite(x)):
-            if status == "finished":
-                status, message = "non_finite", f"reset gave a non-finite state at t={t:.17g}: {x.tolist()}"
-            break
-    wall = _time.perf_counter() - wall0 - pieces.seconds
-    return _assemble(
-        system,
-        pieces.segments,
-        transitions,
-        status,
-        message,
-        t0,
-        t,
-        t_final,
-        counts,
-        wall,
-        {"method": f"solve_ivp-{method}", "rtol": rtol, "atol": atol},
-        dense if dense_output else None,
-    )
+            self.add_point()
+
+    def add_point(self) -> None:
+        """A zero-length segment at the current state (no interpolant)."""
+        self.pieces.add(self.mode, np.array([self.t]), np.asarray(self.x, dtype=float).reshape(1, -1).copy())
+        self.dense.append(None)
 
 
 def _bound_control(control: Any) -> Any:
