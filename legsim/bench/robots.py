@@ -310,82 +310,100 @@ def _reported_wall(result: Any, measured_s: float) -> float:
 def run_one(case: RobotCase, spec: RunSpec, repeats: int) -> Row:
     """One run of ``case`` timed (median of repeats, at most the case's ``max_repeats``) and
     measured. A controlled case's controller is made anew for every run, outside the time."""
-    from ..baselines import simulate_events
-    from ..relaxed import simulate
-
-    making_s = [0.0]  # the last controller's construction time (s), left out of the run's time
-
-    def control() -> Any:
-        start = time.perf_counter()
-        made = None if case.new_control is None else case.new_control()
-        making_s[0] = time.perf_counter() - start
-        return made
-
+    controller = _ControllerMaker(case)
     if spec.kind == "solve_ivp":
-
-        def call() -> Any:
-            return simulate_events(
-                case.system,
-                case.x0,
-                case.mode,
-                case.t_final,
-                method=spec.method[10:],
-                rtol=spec.tol,
-                atol=spec.tol,
-                control=control(),
-                max_step=spec.max_step,
-                max_transitions=100_000,
-            )
-
-        wall_of: Callable[[Any, float], float] = _reported_wall
+        call, wall_of = _solve_ivp_call(case, spec, controller), _reported_wall
     else:
-        # The same system on both relaxed families: dense landing, and any control, run the Python loop.
-        system = case.system
-        tol = None if math.isnan(spec.tol) else spec.tol
-
-        def call() -> Any:
-            return simulate(
-                system,
-                case.x0,
-                case.mode,
-                case.t_final,
-                spec.h,
-                spec.eps,
-                spec.method.split("-")[1],
-                control(),
-                landing=spec.landing,
-                max_transitions=100_000,
-                rtol=tol,
-                atol=tol,
-            )
+        call = _relaxed_call(case, spec, controller)
 
         def wall_of(result: Any, measured_s: float) -> float:
-            return measured_s - making_s[0]
+            return measured_s - controller.seconds
 
     if case.controlled is not None and case.controlled.max_repeats is not None:
         repeats = min(repeats, case.controlled.max_repeats)
     ex, wall, n = _timed(call, repeats, wall_of)
     c = ex.counters
     return Row(
-        case.name,
-        spec.method,
-        spec.kind,
-        spec.h,
-        spec.eps,
-        spec.tol,
-        spec.max_step,
-        spec.landing,
-        case.error(ex),
-        math.nan,
-        wall,
-        n,
-        int(c["steps"]),
-        int(c.get("halvings", 0)),
-        int(c["field_evals"]),
-        int(c["guard_evals"]),
-        int(c["transitions"]),
-        str(ex.status),
+        case=case.name,
+        method=spec.method,
+        kind=spec.kind,
+        h=spec.h,
+        eps=spec.eps,
+        tol=spec.tol,
+        max_step=spec.max_step,
+        landing=spec.landing,
+        error=case.error(ex),
+        rho=math.nan,
+        wall_s=wall,
+        repeats=n,
+        steps=int(c["steps"]),
+        halvings=int(c.get("halvings", 0)),
+        field_evals=int(c["field_evals"]),
+        guard_evals=int(c["guard_evals"]),
+        transitions=int(c["transitions"]),
+        status=str(ex.status),
     )
+
+
+class _ControllerMaker:
+    """Makes the case's controller for each run (None for an uncontrolled case) and keeps the
+    last one's construction time (s), which the run's time leaves out."""
+
+    def __init__(self, case: RobotCase) -> None:
+        self.case, self.seconds = case, 0.0
+
+    def __call__(self) -> Any:
+        start = time.perf_counter()
+        made = None if self.case.new_control is None else self.case.new_control()
+        self.seconds = time.perf_counter() - start
+        return made
+
+
+def _solve_ivp_call(case: RobotCase, spec: RunSpec, controller: _ControllerMaker) -> Callable[[], Any]:
+    """The event-driven baseline's run of the case at the spec's method and tolerance."""
+    from ..baselines import simulate_events
+
+    def call() -> Any:
+        return simulate_events(
+            case.system,
+            case.x0,
+            case.mode,
+            case.t_final,
+            method=spec.method[10:],
+            rtol=spec.tol,
+            atol=spec.tol,
+            control=controller(),
+            max_step=spec.max_step,
+            max_transitions=100_000,
+        )
+
+    return call
+
+
+def _relaxed_call(case: RobotCase, spec: RunSpec, controller: _ControllerMaker) -> Callable[[], Any]:
+    """The relaxed run of the case at the spec's settings; the same system on both relaxed
+    families: dense landing, and any control, run the Python loop."""
+    from ..relaxed import simulate
+
+    tol = None if math.isnan(spec.tol) else spec.tol
+
+    def call() -> Any:
+        return simulate(
+            case.system,
+            case.x0,
+            case.mode,
+            case.t_final,
+            spec.h,
+            spec.eps,
+            spec.method.split("-")[1],
+            controller(),
+            landing=spec.landing,
+            max_transitions=100_000,
+            rtol=tol,
+            atol=tol,
+        )
+
+    return call
 
 
 @dataclass
