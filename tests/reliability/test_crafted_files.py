@@ -197,6 +197,14 @@ META_DAMAGE = {
     "modes not names": (lambda m: json.dumps({**m, "modes": [1, 2]}), r"legsim/meta.modes\[0\] is an integer"),
     "a NaN": (lambda m: json.dumps({**m, "t0": "NAN"}).replace('"NAN"', "NaN"), "NaN is not a JSON"),
     "an integer beyond float range": (_summary(lambda s: s.update(steps=10**400)), "summary.steps is an integer"),
+    "a strip hold as a list": (
+        _summary(lambda s: s.update(strip_time=0.1, longest_strip_hold=[])),
+        "summary.longest_strip_hold is an array",
+    ),
+    "a warning without its message": (
+        _summary(lambda s: s.update(warnings=[{"kind": "strip_hold"}])),
+        r"summary.warnings\[0\] lacks",
+    ),
 }
 
 

@@ -102,6 +102,8 @@ SUMMARY_OPTIONAL = {
     "energy_initial": MAYBE_NUMBER,
     "energy_final": MAYBE_NUMBER,
     "outputs": (dict,),
+    "longest_strip_hold": MAYBE_NUMBER,
+    "warnings": (list,),
 }
 
 
@@ -147,6 +149,8 @@ def checked_meta(meta: dict[str, Any]) -> dict[str, Any]:
     for key in ("state_names", "mode_sequence"):
         check_list(summary[key], (str,), f"summary.{key}")
     check_list(summary["final_state"], MAYBE_NUMBER, "summary.final_state")
+    for k, warning in enumerate(summary.get("warnings", [])):
+        check_object(warning, {"message": (str,)}, f"summary.warnings[{k}]")
     for key, value in summary.items():
         # Other keys are the model's counters, printed as numbers when they are numbers.
         if key not in SUMMARY_KEYS and key not in SUMMARY_OPTIONAL and isinstance(value, (int, float)):
