@@ -43,7 +43,9 @@ def test_oscillator_keeps_the_invariants_and_its_first_impact(
     omega, damping, c, x_max, gap, xd0, amplitude, frequency, h, eps
 ):
     a = damping * omega  # sub-critical, as the reference needs
-    assume(not (a == 0.0 and abs(frequency - omega) < 1e-3))  # no undamped resonance
+    # No (near-)undamped resonance: the reference's closed form would cancel a particular
+    # amplitude of amplitude / (2 a Omega) against its homogeneous part (it refuses beyond 1e8).
+    assume(not (a < 1e-6 and abs(frequency - omega) < 1e-3))
     x0 = x_max - gap
     system = make_system(omega, a, x_max, c)
     control = forcing(amplitude, frequency)

@@ -198,6 +198,16 @@ def test_reference_refuses_what_eq_28_does_not_cover():
         OscillatorReference(omega=1.0, a=1.5)
     with pytest.raises(ModelError, match=r"^oscillator reference: undamped resonance"):
         OscillatorReference(omega=2.0, a=0.0, amplitude=1.0, frequency=2.0)
+    # A subnormal damping at resonance: the particular amplitude U / (2 a Omega) overflows.
+    with pytest.raises(ModelError, match=r"^oscillator reference: forcing at 2 rad/s .* resonance"):
+        OscillatorReference(omega=2.0, a=2.225073858507203e-309, amplitude=1.0, frequency=2.0)
+    # 1e-9 damping at resonance amplifies the static deflection 1 / omega^2 by omega / (2 a) = 1e9.
+    with pytest.raises(ModelError, match=r"within 1e\+08 amplification of resonance"):
+        OscillatorReference(omega=2.0, a=1e-9, amplitude=1.0, frequency=2.0)
+    # Detuned by 1e-3 it is amplified omega^2 / (omega^2 - Omega^2) = 1000-fold: a closed form.
+    assert OscillatorReference(
+        omega=2.0, a=0.0, amplitude=1.0, frequency=2.0 * math.sqrt(0.999)
+    ).p_amp == pytest.approx(1000 / 4)
     with pytest.raises(ModelError, match=r"^oscillator reference: x0 = 2.0 lies beyond the stop x_max = 1.0"):
         OscillatorReference(x_max=1.0, x0=2.0)
 

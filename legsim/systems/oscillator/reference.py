@@ -19,6 +19,10 @@ from ...execution import Samples
 from .._reference import as_times, make_samples
 from .model import EXAMPLES, MODE
 
+#: The largest amplification of the forcing (particular amplitude / static deflection) whose
+#: closed form keeps 1e-8 of precision after the homogeneous part cancels it.
+RESONANCE_GAIN = 1e8
+
 
 @dataclass(frozen=True)
 class _Phase:
@@ -112,6 +116,15 @@ class OscillatorReference:
             P, Q = ubar.real, -ubar.imag
         self.P, self.Q = P, Q
         self.p_amp = math.hypot(P, Q)
+        # Near an undamped resonance the particular solution's amplitude is huge, and the
+        # homogeneous part cancels it: the closed form keeps only 1e-16 of that amplitude.
+        static = f_amp / self.omega**2
+        if not math.isfinite(self.p_amp) or self.p_amp > RESONANCE_GAIN * static:
+            raise ModelError(
+                f"oscillator reference: forcing at {self.frequency:g} rad/s with damping a = {self.a:g} "
+                f"is within {RESONANCE_GAIN:.0e} amplification of resonance (omega = {self.omega:g}): "
+                f"the closed form would lose its precision"
+            )
         # Spacing of the impact search grid: a small fraction of the fastest period.
         self.grid = 0.05 / max(self.omega, self.frequency)
         self.min_interval = 1e-13
