@@ -89,13 +89,15 @@ class PronkHopper:
     def __init__(self, m: float, I: float, k: float, l: float, d: float, g: float) -> None:  # noqa: E741 -- the paper's symbols, also the scene's parameter names
         self.m, self.I, self.k, self.l, self.d, self.g = m, I, k, l, d, g
 
+    def hip_arm(self, leg: str, theta: float) -> np.ndarray:
+        """The hip's position relative to the centre of mass (m), shape (2,), at pitch theta."""
+        side = 0.5 * self.d * (-1.0 if leg == "left" else 1.0)
+        return np.array([side * math.cos(theta), -side * math.sin(theta)])
+
     def hip(self, leg: str, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The hip's position (m) and velocity (m/s), each shape (2,), of state x."""
-        side = 0.5 * self.d * (-1.0 if leg == "left" else 1.0)
-        c, s = math.cos(x[2]), math.sin(x[2])
-        position = np.array([x[0] + side * c, x[1] - side * s])
-        velocity = np.array([x[3] - side * s * x[5], x[4] - side * c * x[5]])
-        return position, velocity
+        arm = self.hip_arm(leg, x[2])
+        return x[:2] + arm, x[3:5] + x[5] * np.array([arm[1], -arm[0]])
 
     def leg_in_stance(self, leg: str, x: np.ndarray, foot_x: float) -> tuple[np.ndarray, float, float]:
         """Unit vector foot -> hip, the leg's length r (m) and its extension rate dr/dt (m/s)."""
@@ -125,7 +127,7 @@ class PronkHopper:
                 n, r, _ = self.leg_in_stance(leg, x, x[6 + n_fly + i])
                 across = np.array([n[1], -n[0]])
                 on_body = self.k * (self.l - r) * n - hip_torque / r * across
-                arm = self.hip(leg, x)[0] - x[:2]
+                arm = self.hip_arm(leg, x[2])
                 force += on_body
                 torque += hip_torque + arm[1] * on_body[0] - arm[0] * on_body[1]
             dx = np.zeros(8)
