@@ -17,6 +17,8 @@ from legsim.builders import Model, Param
 from legsim.control import Controller, ControllerSpec
 from legsim.errors import SceneError
 
+from .bridge.twins import CTRL_JOINT_PD
+
 
 def bridge_of(model: Model, controller: str) -> Any:
     """The ``ContactBridge`` of a model (``Model.info["bridge"]``), or SceneError."""
@@ -48,6 +50,29 @@ class JointPD(Controller):
         if self.gravity:
             u += pin.computeGeneralizedGravity(self.bridge.model, self._data, q)[self.dofs]
         return u
+
+    def compiled_record(self, pin_model: Any) -> list[float] | None:
+        """The control record of the robot's compiled twin (``robots.bridge.twins.CONTROL_KINDS``:
+        ``joint_pd``) when this controller drives ``pin_model``; None with gravity
+        compensation (the twin has no generalised gravity) or for another robot."""
+        if pin_model is not self.bridge.model or self.gravity:
+            return None
+        return [float(CTRL_JOINT_PD), self.kp, self.kd, 0.0, *map(float, self.targets)]
+
+
+class PlainControl:
+    """A stateless controller as a plain control ``u(t, x)`` (a robot effect's ``Model.control``)
+    that keeps its compiled record (``compiled_record``), so the robot's twin still computes it."""
+
+    def __init__(self, controller: JointPD) -> None:
+        self.controller = controller
+
+    def __call__(self, t: float, x: np.ndarray) -> np.ndarray:
+        return self.controller("", t, x)
+
+    def compiled_record(self, pin_model: Any) -> list[float] | None:
+        """The controller's record (``JointPD.compiled_record``)."""
+        return self.controller.compiled_record(pin_model)
 
 
 def _make_joint_pd(model: Model, params: dict[str, Any]) -> JointPD:

@@ -26,13 +26,13 @@ Effect ``controller`` (off by default): a PD controller on the shoulder joint ``
 ``u = kp (target - theta1) - kd dtheta1/dt`` (N m), the generalised torque of that joint in both
 modes. Only with it is the joint actuated: then the bridge adds u to the shoulder torque, the
 stop's force-dependent guards are evaluated with the control (``t,x,u``), and the ``Model``
-carries ``control``; without it no actuation term exists (``actuation_evals`` stays 0).
+carries the control (``controllers.JointPD`` without gravity compensation, which the compiled
+twins compute too); without it no actuation term exists (``actuation_evals`` stays 0).
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -41,6 +41,7 @@ import pinocchio as pin
 from legsim.builders import ZENO_EFFECT, ZENO_WINDOW, Builder, Effect, Model, Param
 
 from .bridge import ContactBridge, JointStop, add_point_frame
+from .controllers import JointPD, PlainControl
 
 COORDINATES = ("theta1", "theta2")
 #: The joint the ``controller`` effect drives: the Pinocchio joint name of theta1 (the shoulder).
@@ -139,23 +140,6 @@ def make_bridge(params: dict[str, Any], effects: dict[str, dict[str, Any]]) -> C
     )
 
 
-def pd_control(kp: float, kd: float, target: float) -> Callable[[float, np.ndarray], np.ndarray]:
-    """``control(t, x) -> u``: the PD shoulder torque ``[kp (target - theta1) - kd theta1d]`` (N m),
-    one entry (the one actuated joint). kp in N m/rad, kd in N m s/rad, target in rad.
-
-    Both modes' states start with (theta1, theta2, theta1d, theta2d) (the constrained mode keeps
-    theta2 and its rate, at the stop), so the same indices serve in either mode. A fresh array
-    each call: the bridge's dynamics cache compares the control by identity.
-    """
-    i_q = COORDINATES.index(SHOULDER)
-    i_v = STATE_NAMES.index(VELOCITIES[i_q])
-
-    def control(t: float, x: np.ndarray) -> np.ndarray:
-        return np.array((kp * (target - x[i_q]) - kd * x[i_v],))
-
-    return control
-
-
 def build(params: dict[str, Any], effects: dict[str, dict[str, Any]]) -> Model:
     """Builder callback: the double pendulum with only the effects named."""
     bridge = make_bridge(params, effects)
@@ -183,8 +167,10 @@ def build(params: dict[str, Any], effects: dict[str, dict[str, Any]]) -> Model:
     reach = 1.1 * (L1 + L2)
     control = None
     if "controller" in effects:
+        # The shoulder's PD as the bundled joint-space one without gravity compensation: a
+        # controller whose torque the robot's compiled twin computes too.
         pd = effects["controller"]
-        control = pd_control(pd["kp"], pd["kd"], pd["target"])
+        control = PlainControl(JointPD(bridge, pd["kp"], pd["kd"], np.array([pd["target"]]), gravity=False))
     info = bridge.model_info(parameters=dict(params), effects=dict(effects))
     if "zeno" in effects:
         info[ZENO_WINDOW] = effects["zeno"]["window"]

@@ -32,7 +32,10 @@ from ..systems.fast import make_bouncing_ball, make_oscillator, make_oscillator_
 from ..tables import render_table
 
 
-@numba.njit(cache=True)
+# The loops that take a twin's functions as arguments are compiled in each process, not cached:
+# numba's cache keys them by the argument functions' types, and an entry made for a function
+# whose source later changed cannot be loaded again ("underlying object has vanished").
+@numba.njit
 def _loop_field(field, p, x, n):
     acc = 0.0
     t = 0.0
@@ -42,7 +45,7 @@ def _loop_field(field, p, x, n):
     return acc
 
 
-@numba.njit(cache=True)
+@numba.njit
 def _loop_guards(guards, p, x, n):
     acc = 0.0
     for _ in range(n):
@@ -51,7 +54,7 @@ def _loop_guards(guards, p, x, n):
     return acc
 
 
-@numba.njit(cache=True)
+@numba.njit
 def _loop_resets(resets, p, x, n):
     acc = 0.0
     for _ in range(n):

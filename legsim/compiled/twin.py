@@ -11,11 +11,18 @@ else.
 with ``p`` a float64 parameter array. Parameters travel as data rather than as closure constants
 so that one compilation of the kernel serves every parameter set of a model (numba treats
 closure variables as constants and would compile the kernel again for each).
+
+A twin may compute a controller's input itself (``controls``): the controller's values (gains,
+and what its ``reset`` decided: a planned foot placement, a measured stance time) travel in p
+too, written by Python at every entry of the mode after the controller's reset. Such a run
+hands every transition back to Python (``visit.Table``), so that each entry resets the
+controller as on the Python path; the steps between transitions stay compiled.
 """
 
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -31,7 +38,7 @@ class CompiledMode:
 
     Attributes
     ----------
-    field: numba-jitted ``field(t, x, p) -> (n,)``, no control.
+    field: numba-jitted ``field(t, x, p) -> (n,)`` (the control, if any, computed from p).
     guards: numba-jitted ``guards(x, p) -> (n_guards,)``, ordered like the mode's outgoing
         transitions, >= 0 inside the domain (same values as the Python guards).
     n_guards: number of guards (the mode's outgoing transitions).
@@ -53,6 +60,15 @@ class CompiledMode:
         the rest of the visit from the kernel's last accepted point, shortening that step as it
         does for a breakdown, and says what happened. False: a nan guard ends the run as on the
         Python path.
+    controls: optional ``controls(controller) -> write | None``, for a twin that computes a
+        controller's input itself. ``controller`` is the run's ``legsim.control.Controller``
+        (evaluated at every stage) or control function, or None for a run without control. It returns
+        ``write(p)``, which puts the controller's values now into p (called at every entry of
+        the mode, after the controller's reset), or None when the twin cannot compute that
+        controller (the run then takes the Python path). The field evaluates the control at each
+        stage and the guards at their state, from (x, p): guards take no t, so the twin must
+        not accept a controller whose input depends on t. Without ``controls`` a twin runs
+        only runs without control.
     """
 
     field: Any
@@ -63,6 +79,7 @@ class CompiledMode:
     fallback: bool = False
     continued: bool = False
     joint_groups: tuple[int, ...] | None = None
+    controls: Any = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "params", np.ascontiguousarray(self.params, dtype=np.float64).reshape(-1))
@@ -76,10 +93,13 @@ class CompiledMode:
             object.__setattr__(self, "joint_groups", groups)
 
 
-def check_twin(system_name: str, data: ModeData, t: float, x: np.ndarray, k0: np.ndarray) -> None:
+def check_twin(
+    system_name: str, data: ModeData, t: float, x: np.ndarray, k0: np.ndarray, guards: Sequence[float] | None = None
+) -> None:
     """The twin of ``data``'s mode must return the Python callables' shapes and values at
-    (t, x), where the Python field is k0: field, guards, and the resets (and continuation
-    resets) it computes. Raises ModelError naming what disagrees."""
+    (t, x), where the Python field is k0 and the Python guards ``guards`` (default: the mode's
+    guards of x alone): field, guards, and the resets (and continuation resets) it computes.
+    Raises ModelError naming what disagrees."""
     twin = data.mode.compiled
     if not isinstance(twin, CompiledMode):
         raise ModelError(
@@ -97,7 +117,7 @@ def check_twin(system_name: str, data: ModeData, t: float, x: np.ndarray, k0: np
             f"{system_name}: compiled twin of mode '{data.name}' returned field shape {f.shape} and "
             f"guards shape {g.shape}, expected ({data.mode.dim},) and ({twin.n_guards},)"
         )
-    g_py = np.array([float(guard(x)) for guard in data.guards])
+    g_py = np.array([float(guard(x)) for guard in data.guards] if guards is None else guards, dtype=float)
     if not (np.all(np.abs(f - k0) <= 1e-9 * (1.0 + np.abs(k0))) and np.allclose(g, g_py, rtol=1e-9, atol=1e-12)):
         raise ModelError(
             f"{system_name}: compiled twin of mode '{data.name}' disagrees with the Python callables at "

@@ -23,7 +23,7 @@ from ..errors import LegsimError, ModelBreakdown
 from ..execution import Segment, SegmentBuffer, Status, Strip, TransitionRecord
 from ..hybrid import ModeData, check_field_output
 from ..relaxed import messages
-from ..relaxed.integrate import out_of_steps, runs_compiled
+from ..relaxed.integrate import control_writer, out_of_steps, runs_compiled
 from ..relaxed.outcomes import Ended, Entered, Outcome
 from ..relaxed.run import ModeVisit, Run
 from ..relaxed.strip import cross
@@ -43,8 +43,9 @@ _NO_LIMIT = 1 << 62
 _READY: weakref.WeakValueDictionary[int, ModeData] = weakref.WeakValueDictionary()
 
 
-#: system -> (a mode -> the table of the modes it reaches), kept while the system lives.
-_TABLES: weakref.WeakKeyDictionary[Any, dict[str, Table]] = weakref.WeakKeyDictionary()
+#: system -> ((a mode, whether the run is controlled) -> the table of the modes it reaches),
+#: kept while the system lives.
+_TABLES: weakref.WeakKeyDictionary[Any, dict[tuple[str, bool], Table]] = weakref.WeakKeyDictionary()
 
 
 def is_ready(data: ModeData) -> bool:
@@ -55,13 +56,15 @@ def is_ready(data: ModeData) -> bool:
 class Table:
     """The modes the kernel may run and enter (``reachable``), the first one's visit first
     (indices 0 .. len(mi) - 1), then the other modes their transitions lead to (indices past
-    the table: the kernel hands their entry to Python). Arrays as ``transit`` describes them;
+    the table: the kernel hands their entry to Python). With ``hand_back`` every target is
+    numbered past the table, the mode itself too, so that Python takes every entry (a
+    controlled run: each entry resets the controller). Arrays as ``transit`` describes them;
     ``keys`` the (mode, transition) of each history row."""
 
-    def __init__(self, system: Any, modes: list[str]) -> None:
+    def __init__(self, system: Any, modes: list[str], hand_back: bool = False) -> None:
         self.names = list(modes)
         self.datas = [system.mode_data(name) for name in modes]
-        index = {name: i for i, name in enumerate(self.names)}
+        index = {} if hand_back else {name: i for i, name in enumerate(self.names)}
 
         def number(name: str) -> int:
             if name not in index:
@@ -158,9 +161,16 @@ class Workspace:
 def run_visit_compiled(run: Run, visit: ModeVisit) -> Outcome:
     """The step loop from a mode visit Python entered, compiled: through the transitions the
     kernel takes (``transit``), possibly into other modes of the table, until the run ends or
-    Python must take a crossing or an entry."""
+    Python must take a crossing or an entry. A twin that computes the run's control first gets
+    the controller's values as its reset at this entry left them."""
+    twin = visit.data.mode.compiled
+    write = control_writer(run, twin)
+    if write is None:  # pragma: no cover -- runs_compiled said the twin computes this control
+        raise RuntimeError(f"mode '{visit.name}': its twin cannot compute the run's control")
+    write(twin.params)
     if not is_ready(visit.data):
-        check_twin(run.system.name, visit.data, visit.t, visit.x, visit.k0)
+        guards = visit.guard_values(visit.t, visit.x)
+        check_twin(run.system.name, visit.data, visit.t, visit.x, visit.k0, guards)
         _READY[id(visit.data)] = visit.data
     return _drive(run, visit, kt.CROSS)
 
@@ -185,12 +195,12 @@ def _check_first_entry(run: Run, data: ModeData, t: float, x: np.ndarray) -> boo
     Python callables are finite (else False: Python's entry says what is not)."""
     k0 = check_field_output(run.system.name, data.name, data.mode, t, x, None)
     try:
-        guards = [float(guard(x)) for guard in data.guards]
+        guards = [float(guard(t, x)) for guard in run.guard_fns(data)]
     except ModelBreakdown:
         return False
     if not (np.all(np.isfinite(k0)) and all(map(np.isfinite, guards))):
         return False
-    check_twin(run.system.name, data, t, x, k0)
+    check_twin(run.system.name, data, t, x, k0, guards)
     _READY[id(data)] = data
     return True
 
@@ -294,19 +304,24 @@ def _python_rest(run: Run, visit: ModeVisit, ws: Workspace) -> Outcome:
 
 
 def _table(run: Run, mode: str) -> Table:
-    """The table of the modes ``mode`` reaches (made once per system and mode, used by every run)."""
+    """The table of the modes ``mode`` reaches (made once per system, mode and whether the run
+    is controlled, used by every run)."""
     tables = _TABLES.setdefault(run.system, {})
-    table = tables.get(mode)
+    controlled = run.control is not None
+    table = tables.get((mode, controlled))
     if table is None:
-        table = tables[mode] = Table(run.system, reachable(run, mode))
+        table = tables[(mode, controlled)] = Table(run.system, reachable(run, mode), hand_back=controlled)
     return table
 
 
 def reachable(run: Run, mode: str) -> list[str]:
     """The modes the kernel can run (``runs_compiled``) that ``mode``'s transitions and their
-    continuations reach through such modes, ``mode`` first. A lazily built system builds them
-    here; a mode whose building fails is left to Python, which says so if a run reaches it."""
+    continuations reach through such modes, ``mode`` first; ``mode`` alone in a controlled run,
+    whose entries Python takes. A lazily built system builds them here; a mode whose building
+    fails is left to Python, which says so if a run reaches it."""
     system = run.system
+    if run.control is not None:
+        return [mode]
     order, seen = [mode], {mode}
     for name in order:
         data = system.mode_data(name)

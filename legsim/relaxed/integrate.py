@@ -23,10 +23,13 @@ functions of ``rules``.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from math import isfinite
+from typing import Any
 
 import numpy as np
 
+from ..control import Bound
 from ..errors import ContractError, LegsimError, ModelBreakdown, ModelError
 from ..execution import Execution, Status
 from ..hybrid import ModeData
@@ -45,7 +48,7 @@ def integrate(run: Run, mode: str, x: np.ndarray, t: float) -> Execution:
     while isinstance(outcome, Entered):
         mode, x, t = outcome.mode, outcome.x, outcome.t
         try:
-            if not outcome.python_entry and runs_compiled(run, run.system.mode_data(mode)):
+            if not outcome.python_entry and run.control is None and runs_compiled(run, run.system.mode_data(mode)):
                 from ..compiled import enter_compiled  # numba is imported only by systems that use it
 
                 outcome = enter_compiled(run, mode, x, t)
@@ -60,15 +63,33 @@ def integrate(run: Run, mode: str, x: np.ndarray, t: float) -> Execution:
 
 
 def runs_compiled(run: Run, data: ModeData) -> bool:
-    """Whether the compiled kernel runs this run's visits of the mode: the mode has a twin whose
-    guards take x alone, and the run has no control and no dense landing (which the kernel does
-    not evaluate). Its entries are then the kernel's too (``compiled.enter_compiled``)."""
-    return (
-        data.mode.compiled is not None
-        and run.control is None
-        and not run.landing.lands_on_extension
-        and all(tr.guard_args == "x" for tr in data.transitions)
-    )
+    """Whether the compiled kernel runs this run's visits of the mode: the mode has a twin that
+    computes the run's control (``control_writer``) and whose guards take x alone (or compute
+    the control themselves), and the run lands without a dense extension (which the kernel
+    does not evaluate). Without control its entries are the kernel's too
+    (``compiled.enter_compiled``); with one, Python enters every mode, resetting the controller."""
+    twin = data.mode.compiled
+    if twin is None or run.landing.lands_on_extension or control_writer(run, twin) is None:
+        return False
+    return twin.controls is not None or all(tr.guard_args == "x" for tr in data.transitions)
+
+
+def control_writer(run: Run, twin: Any) -> Callable[[np.ndarray], None] | None:
+    """How the twin gets the run's control (``CompiledMode.controls``): a function that writes
+    the control's values into the twin's parameters at each entry (doing nothing for a run
+    without control and a twin without controls), or None when the twin cannot compute the
+    run's control: a held controller (sampled once per step, which the kernel does not do), or
+    a controller or control function the twin does not know."""
+    control = run.control
+    if control is None:
+        return _write_nothing if twin.controls is None else twin.controls(None)
+    if twin.controls is None or (isinstance(control, Bound) and control.hold):
+        return None
+    return twin.controls(control.controller if isinstance(control, Bound) else control)
+
+
+def _write_nothing(params: np.ndarray) -> None:
+    """The twin of a run without control has nothing to write."""
 
 
 def run_visit(run: Run, visit: ModeVisit, *, python: bool = False) -> Outcome:

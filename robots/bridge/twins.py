@@ -9,8 +9,15 @@ liftoff) and the resets of those transitions and of their Zeno continuations (im
 releases, footholds mapped; a bounce's continuation is its impact made plastic), so the compiled
 kernel crosses a gait's mode changes itself. The Python bridge stays the reference: the relaxed
 loop checks each twin against it at the first visit of its mode, and a mode whose structure the
-twin does not know (armed contacts, actuation, a transition it does not recognise) gets no twin
-and runs in Python.
+twin does not know (armed contacts, a transition it does not recognise) gets no twin and runs in
+Python.
+
+An actuated robot's twin computes its controller's torques itself (``CompiledMode.controls``)
+when the controller gives a *control record* (``compiled_record(pin_model)``, see
+``CONTROL_KINDS``): the record travels in p, written at every entry, and the torques are added
+after the springs and damping, as ``dynamics.applied_forces`` adds them. A guard's control is
+the one at its state, as the Python guards take it (a plastic impact's post-impact force too).
+A controller without a record runs on the Python path.
 
 Everything a twin needs travels in its parameter array p (float64; layout: the ``P_*`` header
 positions and the ``G_*`` fields of each guard record). A state past the model's range (a hip
@@ -58,8 +65,11 @@ _F8 = 8  # bytes per float64, for pointer offsets
     P_NFRAME,
     P_FRAME,
     P_ROWS,
-) = range(14)
-HEADER = 16
+    P_NACT,
+    P_ACT,
+    P_CTRL,
+) = range(17)
+HEADER = 17
 SPRING_SIZE = 5  # hip frame, stiffness (N/m), rest length (m), damping (N s/m), ground (m)
 # Guard kinds.
 K_GAP, K_PLASTIC, K_RELEASE, K_LEG_TOUCH, K_LEG_LIFT = range(5)
@@ -70,10 +80,18 @@ K_GAP, K_PLASTIC, K_RELEASE, K_LEG_TOUCH, K_LEG_LIFT = range(5)
 G_KIND, G_GAP_KIND, G_A, G_B, G_C, G_IMPACT, G_NIMPACT, G_COEFF, G_SIDE, G_STICK, G_NSTICK, G_ROW = range(12)
 GUARD_SIZE = 12
 
+#: Control records (at p[P_CTRL]): the kind, then its values. ``CTRL_NONE``: no control (a run
+#: without one; no torque). ``CTRL_JOINT_PD``: ``(kind, kp, kd, 0, target of each actuated
+#: joint)``, u = kp (target - q) - kd dq/dt on the actuated joints (N m or N; kp in N m/rad,
+#: kd in N m s/rad).
+CONTROL_KINDS = ("none", "joint_pd")
+CTRL_NONE, CTRL_JOINT_PD = range(len(CONTROL_KINDS))
+CONTROL_HEAD = 4  # kind and three values before the per-joint entries
+
 #: Model counters (``BridgeData.counts`` names) a twin keeps in the last len(COUNTED) entries of
 #: its p, so that a robot's counters stay true on the compiled path (``add_counts``).
-COUNTED = ("aba", "kkt", "jacobians", "kinematics", "spring_forces", "damping_evals", "impacts")
-C_ABA, C_KKT, C_JACOBIANS, C_KINEMATICS, C_SPRINGS, C_DAMPING, C_IMPACTS = range(len(COUNTED))
+COUNTED = ("aba", "kkt", "jacobians", "kinematics", "spring_forces", "damping_evals", "impacts", "actuation_evals")
+C_ABA, C_KKT, C_JACOBIANS, C_KINEMATICS, C_SPRINGS, C_DAMPING, C_IMPACTS, C_ACTUATION = range(len(COUNTED))
 
 _HANDLES: dict[int, tuple[Any, int]] = {}
 _JOINT_CODES = {
@@ -159,8 +177,25 @@ def count(p, counter, amount=1.0):
 
 
 @_jit
-def _applied_forces(x, p, n):
-    """tau (n,) of dynamics.applied_forces: stance springs (with damping), joint damping."""
+def _control(x, p, n):
+    """The control u (one entry per actuated joint) of the record at p[P_CTRL] at state x, or
+    an empty array when the run has none (``CONTROL_KINDS``)."""
+    nact = int(p[P_NACT])
+    at = int(p[P_CTRL])
+    if nact == 0 or int(p[at]) == CTRL_NONE:
+        return np.empty(0)
+    kp, kd = p[at + 1], p[at + 2]
+    u = np.empty(nact)
+    for i in range(nact):
+        k = int(p[int(p[P_ACT]) + i])
+        u[i] = kp * (p[at + CONTROL_HEAD + i] - x[k]) - kd * x[n + k]
+    return u
+
+
+@_jit
+def _applied_forces(x, p, n, u):
+    """tau (n,) of dynamics.applied_forces: stance springs (with damping), joint damping, the
+    actuated joints' control u (none when u is empty)."""
     tau = np.zeros(n)
     h = np.int64(p[P_HANDLE])
     jac = np.empty(2 + 2 * n)
@@ -194,14 +229,20 @@ def _applied_forces(x, p, n):
     for i in range(int(p[P_NDAMP])):
         k = int(p[base + 2 * i])
         tau[k] -= p[base + 2 * i + 1] * x[n + k]
+    if u.shape[0] > 0:
+        count(p, C_ACTUATION)
+        for i in range(u.shape[0]):
+            k = int(p[int(p[P_ACT]) + i])
+            tau[k] += u[i]
     return tau
 
 
 @_jit
-def _accelerate(x, p, n, nrigid, rigid_at, rows, a, lam):
+def _accelerate(x, p, n, nrigid, rigid_at, rows, a, lam, u):
     """The acceleration into a (n,) and the constraint forces into lam (rows,) of
-    dynamics.dynamics for the rigid blocks at p[rigid_at:] (ABA when there are none)."""
-    tau = _applied_forces(x, p, n)
+    dynamics.dynamics under control u for the rigid blocks at p[rigid_at:] (ABA when there
+    are none)."""
+    tau = _applied_forces(x, p, n, u)
     h = np.int64(p[P_HANDLE])
     count(p, C_ABA)
     if nrigid == 0:
@@ -227,7 +268,7 @@ def bridge_field(t, x, p):
     out = np.zeros(int(p[P_DIM]))
     a = np.empty(n)
     lam = np.empty(max(1, int(p[P_ROWS])))
-    _accelerate(x, p, n, int(p[P_NRIGID]), int(p[P_RIGID]), int(p[P_ROWS]), a, lam)
+    _accelerate(x, p, n, int(p[P_NRIGID]), int(p[P_RIGID]), int(p[P_ROWS]), a, lam, _control(x, p, n))
     for j in range(n):
         out[j] = x[n + j]
         out[n + j] = a[j]
@@ -249,9 +290,9 @@ def _gap(x, p, g, kin, n):
 
 
 @_jit
-def _post_impact_force(x, p, g, n):
+def _post_impact_force(x, p, g, n, u):
     """lambda+ of a plastic impact (impacts.plastic_guard): the contact's normal force in the
-    stick mode right after the impact."""
+    stick mode right after the impact, under the control u at the state before it."""
     h = np.int64(p[P_HANDLE])
     after = x.copy()
     count(p, C_IMPACTS)
@@ -267,7 +308,7 @@ def _post_impact_force(x, p, g, n):
     nstick = int(p[g + G_NSTICK])
     a = np.empty(n)
     lam = np.empty(int(p[g + G_ROW]) + 1 + 2 * nstick)
-    _accelerate(after, p, n, nstick, int(p[g + G_STICK]), 0, a, lam)
+    _accelerate(after, p, n, nstick, int(p[g + G_STICK]), 0, a, lam, u)
     return lam[int(p[g + G_ROW])]
 
 
@@ -322,6 +363,7 @@ def bridge_guards(x, p):
         )
     lam = np.empty(max(1, int(p[P_ROWS])))
     solved = False
+    u = _control(x, p, n)
     for e in range(n_guards):
         g = int(p[P_GUARD]) + GUARD_SIZE * e
         kind = int(p[g + G_KIND])
@@ -332,13 +374,13 @@ def bridge_guards(x, p):
             if base >= 0.0:
                 out[e] = base
             else:
-                lam_plus = _post_impact_force(x, p, g, n)
+                lam_plus = _post_impact_force(x, p, g, n, u)
                 other = -p[g + G_SIDE] * lam_plus
                 out[e] = base if base > other else other
         elif kind == K_RELEASE:
             if not solved:
                 a = np.empty(n)
-                _accelerate(x, p, n, int(p[P_NRIGID]), int(p[P_RIGID]), int(p[P_ROWS]), a, lam)
+                _accelerate(x, p, n, int(p[P_NRIGID]), int(p[P_RIGID]), int(p[P_ROWS]), a, lam, u)
                 solved = True
             out[e] = lam[int(p[g + G_A])]
         elif kind == K_LEG_TOUCH:
@@ -533,7 +575,7 @@ def bridge_twin(
     if not native_ready():
         return None
     handle = handle_for(model.pin_model)
-    if handle is None or model.actuated_idx.size:
+    if handle is None:
         return None
     pp = _Params()
     records = _records(model, modes, spec, pp)
@@ -557,6 +599,9 @@ def bridge_twin(
     header[P_GUARD] = pp.append([v for _, record in records for v in record])
     header[P_NFRAME] = len(pp.frames)
     header[P_FRAME] = pp.append(pp.frames)
+    nact = len(model.actuated_idx)
+    header[P_NACT], header[P_ACT] = nact, pp.append(model.actuated_idx.tolist())
+    header[P_CTRL] = pp.append([0.0] * (CONTROL_HEAD + nact))
     pp.append([0.0] * len(COUNTED))
     return CompiledMode(
         bridge_field,
@@ -567,7 +612,31 @@ def bridge_twin(
         fallback=True,
         continued=True,
         joint_groups=tuple(_joint_group(model, name) for name, _ in records),
+        controls=_controls(model, int(header[P_CTRL])) if nact else None,
     )
+
+
+def _controls(model: BridgeModel, at: int) -> Any:
+    """``CompiledMode.controls`` of an actuated robot's twin whose control record is at p[at:]:
+    a run without control writes ``CTRL_NONE``; a controller writes its
+    ``compiled_record(pin_model)`` (None: it has none for this robot, the run takes Python)."""
+    size = CONTROL_HEAD + len(model.actuated_idx)
+
+    def controls(controller: Any) -> Any:
+        if controller is None:
+            return lambda p: _write_record(p, at, size, [float(CTRL_NONE)])
+        make = getattr(controller, "compiled_record", None)
+        if make is None or (record := make(model.pin_model)) is None or len(record) != size:
+            return None
+        return lambda p: _write_record(p, at, size, make(model.pin_model))
+
+    return controls
+
+
+def _write_record(p: np.ndarray, at: int, size: int, record: Sequence[float]) -> None:
+    """The control record ``record`` into p[at : at + size] (zeros past its end)."""
+    p[at : at + size] = 0.0
+    p[at : at + len(record)] = record
 
 
 def _joint_group(model: BridgeModel, name: str) -> int:

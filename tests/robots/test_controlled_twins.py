@@ -1,0 +1,149 @@
+"""Controlled robots on the compiled path: an actuated robot's twin computes its controller's
+torques itself (``robots.bridge.twins``: control records), Python enters every mode (resetting
+the controller) and writes the record into the twin, and the kernel takes the steps between.
+
+The reference is the Python path: the same controller evaluated by Python at every stage. Both
+paths do the same arithmetic (the PD law element by element, Pinocchio's algorithms in C++), so
+runs agree to rounding amplified over the run (1e-9, as the uncontrolled parity tests).
+"""
+
+import math
+
+import numpy as np
+import pytest
+from legsim.robots import double_pendulum
+from legsim.robots.bridge import twins
+from legsim.robots.controllers import JointPD
+from scipy.optimize import brentq
+
+import legsim.compiled as compiled
+from legsim import _native
+from legsim.compiled import without_compiled
+from legsim.relaxed import simulate
+
+from .test_twins import assert_same_run, close, run
+
+pytestmark = pytest.mark.skipif(not _native.load(), reason=f"native library: {_native.status()}")
+
+RNG = np.random.default_rng(25)
+KP, KD, TARGET, G = 100.0, 20.0, 1.0, 9.81  # the double_pendulum_pd scene's controller (N m/rad, N m s/rad, rad)
+
+
+def pendulum():
+    return double_pendulum.make(
+        effects={"gravity": {}, "stop": {"restitution": 0.0}, "controller": {"kp": KP, "kd": KD, "target": TARGET}}
+    )
+
+
+def kernel_calls(monkeypatch, system, control, t_final=4.0):
+    """The run of ``system`` under ``control`` from the scene's start, and the kernel's calls."""
+    calls = []
+    real_visit, real_entry = compiled.run_visit_compiled, compiled.enter_compiled
+    with monkeypatch.context() as m:
+        m.setattr(compiled, "run_visit_compiled", lambda *a: calls.append(1) or real_visit(*a))
+        m.setattr(compiled, "enter_compiled", lambda *a: calls.append(1) or real_entry(*a))
+        x0 = np.array([math.radians(30.0), math.radians(25.0), 0.0, 0.0])
+        ex = simulate(system, x0, "unconstrained", t_final, 1e-3, 1e-3, "rk4", control)
+    return ex, len(calls)
+
+
+@pytest.mark.parametrize("mode", ["unconstrained", "constrained"])
+def test_actuated_twin_computes_the_controllers_torque_as_the_bridge(mode):
+    model = pendulum()
+    data = model.system.mode_data(mode)
+    twin = data.mode.compiled
+    twin.controls(model.control)(twin.params)  # the record, as Python writes it at an entry
+    for a, b, c, d in RNG.uniform(-1.0, 1.0, (12, 4)):
+        x = np.array([a, 0.0 if mode == "constrained" else b, c, 0.0 if mode == "constrained" else d])
+        u = model.control(0.0, x)
+        close(twin.field(0.0, x, twin.params), data.mode.field(0.0, x, u))
+        close(twin.guards(x, twin.params), [tr.guard(0.0, x, u) for tr in data.transitions])
+    # Past the stop (theta2 < 0), the plastic impact's guard takes the post-impact force under
+    # the control at the state before the impact: the torque, not only the gap, decides it.
+    x = np.array([0.4, -1e-4, 0.3, -0.8])
+    if mode == "unconstrained":
+        u = model.control(0.0, x)
+        close(twin.guards(x, twin.params), [tr.guard(0.0, x, u) for tr in data.transitions])
+
+
+def test_double_pendulum_pd_runs_compiled_and_rests_where_the_pd_balances_gravity(monkeypatch):
+    fast, n_kernel = run(monkeypatch, "double_pendulum_pd", False)
+    slow, n_python = run(monkeypatch, "double_pendulum_pd", True)
+    assert n_python == 0 and n_kernel == len(fast.segments)  # every visit's steps in the kernel
+    assert fast.status == "finished" and fast.transitions[-1].name == "impact_stop"
+    assert_same_run(fast, slow)
+    assert fast.counters["actuation_evals"] >= fast.counters["field_evals"]  # the twin's torques are counted
+    # At rest on the stop the shoulder's PD balances the straight pendulum's gravity torque:
+    # kp (target - theta1) = (m1 + m2) g L1 sin theta1 + m2 g L2 sin theta1 = 3 g sin theta1.
+    rest = brentq(lambda th: KP * (TARGET - th) - 3 * G * math.sin(th), 0.0, 1.0)
+    assert abs(fast.final_state[0] - rest) < 1e-6 and abs(fast.final_state[1]) < 1e-9
+
+
+class SwitchingPD(JointPD):
+    """A PD whose target the controller's reset changes at every mode entry (a stateful
+    controller): the twin must get the new target at each entry to follow Python."""
+
+    def __init__(self, bridge, targets):
+        super().__init__(bridge, KP, KD, np.array([targets[0]]), gravity=False)
+        self.choices, self.entries = targets, []
+
+    def reset(self, mode, t, x):
+        self.entries.append((mode, t))
+        self.targets = np.array([self.choices[len(self.entries) % 2]])
+
+
+def test_a_controller_reset_at_every_entry_gives_the_same_run_on_both_paths(monkeypatch):
+    model = pendulum()
+    system, bridge = model.system, model.info["bridge"]
+    runs = []
+    for sys_ in (system, without_compiled(system)):
+        controller = SwitchingPD(bridge, (1.0, -0.5))
+        ex, n_kernel = kernel_calls(monkeypatch, sys_, controller)
+        runs.append((ex, n_kernel, controller.entries))
+    (fast, n_fast, entries_fast), (slow, n_slow, entries_slow) = runs
+    assert n_fast > 0 and n_slow == 0
+    assert len(fast.transitions) >= 3  # the target flips make the pendulum hit and leave the stop
+    assert_same_run(fast, slow)
+    assert [m for m, _ in entries_fast] == [m for m, _ in entries_slow] == [s.mode for s in fast.segments]
+    close([t for _, t in entries_fast], [t for _, t in entries_slow], 1e-9)
+
+
+class NoRecord(JointPD):
+    def compiled_record(self, pin_model):
+        return None
+
+
+@pytest.mark.parametrize(
+    "make",
+    [
+        pytest.param(lambda b: _held(JointPD(b, KP, KD, np.array([TARGET]), gravity=False)), id="held"),
+        pytest.param(lambda b: JointPD(b, KP, KD, np.array([TARGET]), gravity=True), id="gravity"),
+        pytest.param(lambda b: NoRecord(b, KP, KD, np.array([TARGET]), gravity=False), id="no-record"),
+        pytest.param(lambda b: lambda t, x: np.array([KP * (TARGET - x[0]) - KD * x[2]]), id="plain-function"),
+    ],
+)
+def test_a_control_the_twin_cannot_compute_runs_on_the_python_path(monkeypatch, make):
+    # A held controller is sampled once per step (the kernel samples none), the twin has no
+    # generalised gravity, and it computes only controls that give it a record.
+    model = pendulum()
+    control = make(model.info["bridge"])
+    fast, n_kernel = kernel_calls(monkeypatch, model.system, control, t_final=1.0)
+    slow, _ = kernel_calls(monkeypatch, without_compiled(model.system), make(model.info["bridge"]), t_final=1.0)
+    assert n_kernel == 0 and fast.status == "finished"
+    assert_same_run(fast, slow, tol=0.0)
+
+
+def _held(controller):
+    controller.hold = True
+    return controller
+
+
+def test_an_actuated_robot_without_control_runs_compiled_with_no_torque(monkeypatch):
+    # The same robot, no control: the twin's record says so and adds no torque (Python: u = None).
+    model = pendulum()
+    fast, n_kernel = kernel_calls(monkeypatch, model.system, None)
+    slow, _ = kernel_calls(monkeypatch, without_compiled(model.system), None)
+    assert n_kernel > 0
+    assert_same_run(fast, slow)
+    twin = model.system.mode_data("unconstrained").mode.compiled
+    assert twins.CONTROL_KINDS[int(twin.params[int(twin.params[twins.P_CTRL])])] == "none"
