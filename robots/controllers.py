@@ -53,11 +53,10 @@ class JointPD(Controller):
 
     def compiled_record(self, pin_model: Any) -> list[float] | None:
         """The control record of the robot's compiled twin (``robots.bridge.twins.CONTROL_KINDS``:
-        ``joint_pd``) when this controller drives ``pin_model``; None with gravity
-        compensation (the twin has no generalised gravity) or for another robot."""
-        if pin_model is not self.bridge.model or self.gravity:
+        ``joint_pd``) when this controller drives ``pin_model``, else None."""
+        if pin_model is not self.bridge.model:
             return None
-        return [float(CTRL_JOINT_PD), self.kp, self.kd, 0.0, *map(float, self.targets)]
+        return [float(CTRL_JOINT_PD), self.kp, self.kd, float(self.gravity), *map(float, self.targets)]
 
 
 class PlainControl:

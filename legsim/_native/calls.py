@@ -25,3 +25,5 @@ lsn_impact = types.ExternalFunction("lsn_impact", types.void(_h, _p, _p, types.i
 lsn_momentum_about = types.ExternalFunction("lsn_momentum_about", types.void(_h, _p, _p, types.int64, _p))
 #: lsn_crba(h, q, out): the joint-space inertia matrix M (nv, nv), row-major.
 lsn_crba = types.ExternalFunction("lsn_crba", types.void(_h, _p, _p))
+#: lsn_gravity(h, q, out): the generalised gravity g(q) (nv,).
+lsn_gravity = types.ExternalFunction("lsn_gravity", types.void(_h, _p, _p))

@@ -21,6 +21,7 @@
 #include <pinocchio/algorithm/frames.hpp>
 #include <pinocchio/algorithm/jacobian.hpp>
 #include <pinocchio/algorithm/kinematics.hpp>
+#include <pinocchio/algorithm/rnea.hpp>
 #include <pinocchio/multibody.hpp>
 
 #include <chrono>
@@ -69,7 +70,7 @@ using Mat = Eigen::MatrixXd;
 using ConstMap = Eigen::Map<const Vec>;
 using OutMap = Eigen::Map<Vec>;
 
-constexpr int kVersion = 1;
+constexpr int kVersion = 2;
 
 // Joint type codes of the model description (see lsn_create).
 enum JointCode { RX = 0, RY = 1, RZ = 2, PX = 3, PY = 4, PZ = 5 };
@@ -309,6 +310,13 @@ void lsn_momentum_about(long h, const double* q, const double* v, long frame, do
   out[0] = rb.data.hg.angular()(1) + (r(2) * p(0) - r(0) * p(2));
   out[1] = tip(0);
   out[2] = tip(2);
+}
+
+// The generalised gravity g(q) (nv): the joint forces that hold the robot still against gravity.
+void lsn_gravity(long h, const double* q, double* out) {
+  Robot& rb = robot(h);
+  const long n = rb.model.nv;
+  OutMap(out, n) = pinocchio::computeGeneralizedGravity(rb.model, rb.data, ConstMap(q, n));
 }
 
 // The joint-space inertia matrix M(q) (nv, nv), row-major, both triangles filled.

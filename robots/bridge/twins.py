@@ -35,7 +35,7 @@ import numba
 import numpy as np
 
 from legsim import _native
-from legsim._native.calls import lsn_aba, lsn_constrained, lsn_frame_jacobian, lsn_frames, lsn_impact
+from legsim._native.calls import lsn_aba, lsn_constrained, lsn_frame_jacobian, lsn_frames, lsn_gravity, lsn_impact
 from legsim.compiled import CompiledMode
 
 from .contacts import JointStop, PointContact, RigidContact, SpringLeg
@@ -81,9 +81,9 @@ G_KIND, G_GAP_KIND, G_A, G_B, G_C, G_IMPACT, G_NIMPACT, G_COEFF, G_SIDE, G_STICK
 GUARD_SIZE = 12
 
 #: Control records (at p[P_CTRL]): the kind, then its values. ``CTRL_NONE``: no control (a run
-#: without one; no torque). ``CTRL_JOINT_PD``: ``(kind, kp, kd, 0, target of each actuated
-#: joint)``, u = kp (target - q) - kd dq/dt on the actuated joints (N m or N; kp in N m/rad,
-#: kd in N m s/rad).
+#: without one; no torque). ``CTRL_JOINT_PD``: ``(kind, kp, kd, gravity, target of each
+#: actuated joint)``, u = kp (target - q) - kd dq/dt (+ the actuated joints' generalised gravity
+#: g(q) when gravity is 1) on the actuated joints (N m or N; kp in N m/rad, kd in N m s/rad).
 CONTROL_KINDS = ("none", "joint_pd")
 CTRL_NONE, CTRL_JOINT_PD = range(len(CONTROL_KINDS))
 CONTROL_HEAD = 4  # kind and three values before the per-joint entries
@@ -189,6 +189,11 @@ def _control(x, p, n):
     for i in range(nact):
         k = int(p[int(p[P_ACT]) + i])
         u[i] = kp * (p[at + CONTROL_HEAD + i] - x[k]) - kd * x[n + k]
+    if p[at + 3] != 0.0:
+        gravity = np.empty(n)
+        lsn_gravity(np.int64(p[P_HANDLE]), x.ctypes.data, gravity.ctypes.data)
+        for i in range(nact):
+            u[i] += gravity[int(p[int(p[P_ACT]) + i])]
     return u
 
 
