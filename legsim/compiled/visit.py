@@ -122,9 +122,13 @@ class Table:
         self.width = int(self.mi[:, 1].max()) if len(mi) else 0
 
     def load(self, run: Run) -> None:
-        """The twins' parameters into P, which modes are ready, and the Zeno histories of the
-        table's transitions from the run's ZenoWatch."""
+        """The twins' parameters into P, with the run's control written into them (a twin's
+        parameters may hold another run's controller), which modes are ready, and the Zeno
+        histories of the table's transitions from the run's ZenoWatch."""
         for twin, offset in self.twins:
+            write = control_writer(run, twin)
+            if write is not None:  # runs_compiled admitted every mode of the table: never None
+                write(twin.params)
             self.P[offset : offset + twin.params.size] = twin.params
         for i, data in enumerate(self.datas):
             self.mi[i, kt.MI_READY] = is_ready(data)

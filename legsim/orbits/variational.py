@@ -199,6 +199,8 @@ def compiled_sensitivity(
     twin = mode.compiled
     if twin is None:
         return None
+    if twin.controls is not None:  # a run without control: the twin's record says so
+        twin.controls(None)(twin.params)
     module = _module_for(twin.field)
     if module is None:
         return None

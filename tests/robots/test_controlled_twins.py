@@ -168,3 +168,14 @@ def test_an_actuated_robot_without_control_runs_compiled_with_no_torque(monkeypa
     assert_same_run(fast, slow)
     twin = model.system.mode_data("unconstrained").mode.compiled
     assert twins.CONTROL_KINDS[int(twin.params[int(twin.params[twins.P_CTRL])])] == "none"
+
+
+def test_a_run_after_a_controlled_one_does_not_inherit_its_controller(monkeypatch):
+    # The twins' parameters hold the last controller's record: a run without control on the
+    # same system, whose entries the kernel takes itself, must write its own (no torque).
+    model = pendulum()
+    kernel_calls(monkeypatch, model.system, model.control)
+    after, n_kernel = kernel_calls(monkeypatch, model.system, None)
+    slow, _ = kernel_calls(monkeypatch, without_compiled(model.system), None)
+    assert n_kernel > 0
+    assert_same_run(after, slow)
