@@ -15,10 +15,11 @@ computes u as ``PronkRaibert.__call__`` does, through the same scalar rules comp
 Python source (``touchdown_angle``, ``stance_torque``), not copies of them.
 
 Past the model's range -- a flying foot more than ``BELOW_GROUND`` under the ground while its
-touchdown guard is negative, whose touchdown Python refuses as a ModelBreakdown -- every guard is
-nan and the twin is declared with ``fallback``, so that the Python loop takes that step and ends
-the run as the Python path does; a touchdown reset there is nan too, which the kernel hands back
-to Python's reset.
+touchdown guard turns negative by its rate (the foot swung through the ground unseen), whose
+touchdown Python refuses as a ModelBreakdown -- every guard is nan and the twin is declared with
+``fallback``, so that the Python loop takes that step and ends the run as the Python path does.
+A step's ordinary overshoot (the guard negative by the height, the rate below it) stays with the
+kernel; a touchdown reset below the ground is nan, which the kernel hands back to Python's reset.
 """
 
 from __future__ import annotations
@@ -98,7 +99,7 @@ def _leg_in_stance(x, p, leg, foot_x):
 def _foot_in_flight(x, p, leg, psi):
     """``PronkHopper.foot_in_flight``: the foot's position (m) and vertical velocity carried by
     the body (m/s)."""
-    _, _, px, pz, vx, vz = _hip(x, p, leg)
+    _, _, px, pz, _, vz = _hip(x, p, leg)
     angle = psi - x[2]
     length = p[P_L]
     return px + length * math.sin(angle), pz + length * -math.cos(angle), vz - length * math.sin(angle) * x[5]
@@ -161,14 +162,15 @@ def pronk_hopper_field(t, x, p):
 @_jit
 def pronk_hopper_guards(x, p):
     """Per leg in ``LEGS`` order: touchdown max(foot height, its rate) of a flying leg, liftoff
-    max(l - r, -dr/dt) of a standing one (m); all nan past the model's range (a flying foot
-    below the ground with its guard negative: Python's touchdown there is a ModelBreakdown)."""
+    max(l - r, -dr/dt) of a standing one (m); all nan past the model's range: a touchdown guard
+    negative by its rate, the foot below the ground, where Python's touchdown would be a
+    ModelBreakdown (a step's ordinary overshoot is negative by the height, its rate lower)."""
     out = np.empty(2)
     for leg in range(2):
         at, _ = _layout(p, leg)
         if p[P_STANCE + leg] == 0.0:
             _, height, rate = _foot_in_flight(x, p, leg, x[at])
-            if height < -BELOW_GROUND and rate < 0.0:
+            if height < -BELOW_GROUND and height < rate < 0.0:
                 out[:] = math.nan
                 return out
             out[leg] = rate if rate > height else height
