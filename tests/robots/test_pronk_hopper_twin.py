@@ -7,6 +7,7 @@ paths, the controller's scalar rules compiled from their Python source), so thei
 equal to the bit, and so are whole runs: the tests compare exactly (tolerance 0).
 """
 
+import contextlib
 import math
 
 import numpy as np
@@ -117,13 +118,21 @@ def test_compiled_record_carries_the_controllers_values_now():
     assert controller.compiled_record(other) is None  # hips spaced otherwise: the twin's geometry differs
 
 
-def kernel_run(monkeypatch, system, control, x0, mode="aerial", t_final=T_FINAL, h=1e-3, eps=1e-7):
-    """The run (rk4, aimed landing: the scene's settings) and how often the kernel was called."""
+@contextlib.contextmanager
+def kernel_calls(monkeypatch):
+    """A list that gets an entry at every call of the kernel from Python (a visit Python entered,
+    or an entry it hands over)."""
     calls = []
     real_visit, real_entry = compiled.run_visit_compiled, compiled.enter_compiled
     with monkeypatch.context() as m:
         m.setattr(compiled, "run_visit_compiled", lambda *a: calls.append(1) or real_visit(*a))
         m.setattr(compiled, "enter_compiled", lambda *a: calls.append(1) or real_entry(*a))
+        yield calls
+
+
+def kernel_run(monkeypatch, system, control, x0, mode="aerial", t_final=T_FINAL, h=1e-3, eps=1e-7):
+    """The run (rk4, aimed landing: the scene's settings) and how often the kernel was called."""
+    with kernel_calls(monkeypatch) as calls:
         ex = simulate(system, x0.copy(), mode, t_final, h, eps, "rk4", control, landing="aim")
     return ex, len(calls)
 
@@ -239,3 +248,27 @@ def test_a_controller_of_another_stiffness_is_computed_with_its_own(monkeypatch)
     assert_same_run(fast, slow, tol=0.0)
     own, _ = kernel_run(monkeypatch, system, scene.control, scene.initial_state, t_final=1.0)
     assert np.max(np.abs(own.final_state - fast.final_state)) > 1e-6  # the stiffness in the record counts
+
+
+def test_bench_case_times_the_same_runs_on_both_paths(monkeypatch):
+    # `legsim bench robots --case pronk-raibert`: its compiled family runs in the kernel, its
+    # Python family without the twins, and the two take the same run (the same error and work).
+    from legsim.bench import robots
+
+    case = robots.make_robot_case("pronk-raibert", quick=True)
+    specs = robots.case_sweep(case, quick=True)
+    assert {spec.kind for spec in specs} == {"relaxed", "relaxed-python", "solve_ivp"}
+    rows = {}
+    for kind, method in (("relaxed", "relaxed-dopri5"), ("relaxed-python", "relaxed-dopri5-python")):
+        spec = robots.RunSpec(kind, method, 0.1, 1e-10, 1e-8, "aim")
+        with kernel_calls(monkeypatch) as calls:
+            rows[kind] = (robots.run_one(case, spec, 1), len(calls))
+    (fast, n_fast), (slow, n_slow) = rows["relaxed"], rows["relaxed-python"]
+    assert n_fast > 0 and n_slow == 0
+    assert (fast.error, fast.steps, fast.field_evals, fast.transitions) == (
+        slow.error,
+        slow.steps,
+        slow.field_evals,
+        slow.transitions,
+    )
+    assert fast.status == "finished" and fast.error < 1e-6  # measured 1.05e-7 against solve_ivp at 1e-12
