@@ -239,7 +239,9 @@ def _controls(hopper: PronkHopper) -> Any:
         if controller is None:
             return lambda p: _write_record(p, [CTRL_NONE])
         make = getattr(controller, "compiled_record", None)
-        record = None if make is None else make(hopper)
+        if make is None:
+            return None
+        record = make(hopper)
         if record is None or len(record) != RECORD_SIZE or record[0] != RECORD_KIND:
             return None
         return lambda p: _write_record(p, make(hopper))
