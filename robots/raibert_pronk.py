@@ -9,6 +9,10 @@ at most half the spring's push off the ground's normal force (the foot is pinned
 torque alone could make the ground pull on it). The springs are passive, so (as for the
 SLIP hopper) the hopping height trades with the speed and needs no thrust; with the pitch at 0,
 the servo does no work and the energy is conserved.
+
+On the compiled path the pronk hopper's twins compute this law (``robots/pronk_hopper_twin.py``)
+from its record (``compiled_record``), written at every mode entry after ``reset``, with the
+same scalar rules compiled (``touchdown_angle``, ``stance_torque``).
 """
 
 from __future__ import annotations
