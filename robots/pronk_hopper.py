@@ -103,9 +103,11 @@ class PronkHopper:
         """Unit vector foot -> hip, the leg's length r (m) and its extension rate dr/dt (m/s)."""
         position, velocity = self.hip(leg, x)
         along = position - np.array([foot_x, 0.0])
-        r = math.hypot(along[0], along[1])
+        # sqrt of the sum and a written-out dot: the compiled twin does the same operations
+        # (math.hypot and a BLAS dot round differently in numba), so both paths agree to the bit
+        r = math.sqrt(along[0] * along[0] + along[1] * along[1])
         n = along / r
-        return n, r, float(n @ velocity)
+        return n, r, float(n[0] * velocity[0] + n[1] * velocity[1])
 
     def foot_in_flight(self, leg: str, x: np.ndarray, psi: float) -> tuple[np.ndarray, float]:
         """The foot's position (m), shape (2,), and its vertical velocity carried by the body (m/s)."""
@@ -192,9 +194,18 @@ class PronkHopper:
         return Transition(source, target, guard, reset, name=f"liftoff_{leg}")
 
     def system(self) -> HybridSystem:
-        """The hybrid system: four modes, a touchdown and a liftoff per leg from each."""
+        """The hybrid system: four modes, a touchdown and a liftoff per leg from each; each mode
+        carries its compiled twin (``robots/pronk_hopper_twin.py``)."""
+        from .pronk_hopper_twin import pronk_hopper_twin  # the twins compile the controller, built on this model
+
         modes = {
-            name: Mode(8, self.field(stance), state_names(stance), units=state_units(stance))
+            name: Mode(
+                8,
+                self.field(stance),
+                state_names(stance),
+                units=state_units(stance),
+                compiled=pronk_hopper_twin(self, name),
+            )
             for name, stance in MODES.items()
         }
         transitions = [

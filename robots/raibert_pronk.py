@@ -9,6 +9,10 @@ at most half the spring's push off the ground's normal force (the foot is pinned
 torque alone could make the ground pull on it). The springs are passive, so (as for the
 SLIP hopper) the hopping height trades with the speed and needs no thrust; with the pitch at 0,
 the servo does no work and the energy is conserved.
+
+On the compiled path the pronk hopper's twins compute this law (``robots/pronk_hopper_twin.py``)
+from its record (``compiled_record``), written at every mode entry after ``reset``, with the
+same scalar rules compiled (``touchdown_angle``, ``stance_torque``).
 """
 
 from __future__ import annotations
@@ -27,6 +31,22 @@ from .raibert import touchdown_angle
 
 #: The share of a stance leg's spring push on the ground that its hip torque may take off.
 NORMAL_SHARE = 0.5
+#: ``PronkRaibert.compiled_record``'s layout, which the pronk hopper's compiled twin reads
+#: (``robots/pronk_hopper_twin.py``): its kind, then the controller's values now.
+RECORD_NAMES = ("kind", "k_swing", "kp_attitude", "kd_attitude", "speed", "k_x", "l", "k", "T_s_left", "T_s_right")
+#: The kind of ``compiled_record`` (0.0 is the twin's record of a run without control).
+RECORD_KIND = 1.0
+
+
+def stance_torque(share: float, k: float, l: float, r: float, n_x: float, n_z: float) -> float:  # noqa: E741 -- the paper's symbol
+    """The hip torque (N m) of a stance leg asked for ``share`` (N m): the leg of length r (m),
+    stiffness k (N/m) and rest length l (m), its unit vector foot -> hip (n_x, n_z). The
+    ground's normal force is ``k (l - r) n_z + (torque / r) n_x`` (pronk_hopper), so a torque
+    within ``NORMAL_SHARE k (l - r) r n_z / |n_x|`` keeps it at least half the spring's push.
+    Plain scalar code: the compiled twin compiles this same function."""
+    push = k * max(l - r, 0.0) * n_z
+    limit = NORMAL_SHARE * push * r / max(abs(n_x), 1e-12)
+    return max(-limit, min(limit, share))
 
 
 class PronkRaibert(Controller):
@@ -87,20 +107,22 @@ class PronkRaibert(Controller):
         for i, leg in enumerate(LEGS):
             if leg in stance:
                 share = -(self.kp * x[2] + self.kd * x[5]) / len(stance)
-                limit = self.torque_limit(leg, x[names.index(f"{leg}_foot_x")], x)
-                u[2 + i] = max(-limit, min(limit, share))
+                n, r, _ = self.hopper.leg_in_stance(leg, x, x[names.index(f"{leg}_foot_x")])
+                u[2 + i] = stance_torque(share, self.hopper.k, self.l, r, n[0], n[1])
             else:
                 psi = x[names.index(f"psi_{leg}")]
                 u[i] = self.k_swing * (self.target_angle(leg, x[2], x[3]) - psi)
         return u
 
-    def torque_limit(self, leg: str, foot_x: float, x: np.ndarray) -> float:
-        """The largest hip torque (N m) the leg may apply with its foot at foot_x (m): the
-        ground's normal force is ``k (l - r) n_z + (torque / r) n_x`` (pronk_hopper), so a torque
-        below ``NORMAL_SHARE k (l - r) r n_z / |n_x|`` keeps it at least half the spring's push."""
-        n, r, _ = self.hopper.leg_in_stance(leg, x, foot_x)
-        push = self.hopper.k * max(self.l - r, 0.0) * n[1]
-        return NORMAL_SHARE * push * r / max(abs(n[0]), 1e-12)
+    def compiled_record(self, hopper: Any) -> list[float] | None:
+        """The control record (``RECORD_NAMES``) of ``hopper``'s compiled twin: the gains, each
+        leg's T_s now (s), and the leg length l (m) and stiffness k (N/m) the law uses; None for
+        another robot, or a pronk hopper whose hips are spaced otherwise (the twin takes the
+        legs' geometry from its own hopper)."""
+        if not isinstance(hopper, PronkHopper) or hopper.d != self.hopper.d:
+            return None
+        gains = [self.k_swing, self.kp, self.kd, self.speed, self.k_x, self.l, self.hopper.k]
+        return [RECORD_KIND, *map(float, gains), *map(float, self.memory())]
 
 
 def _make(model: Model, params: dict[str, Any]) -> PronkRaibert:

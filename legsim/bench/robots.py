@@ -22,7 +22,9 @@ quadruped-run``) are the bundled scenes' robots under their scenes' controllers 
 ``raibert_runner``). The compiled twins take no control input, so a controlled run takes legsim's
 Python path: these cases have no compiled family, and compare ``relaxed-python`` (DOP853 with
 dense landing and dopri5 with aimed landing over tolerances, rk4 over steps) with ``solve_ivp``
-(RK45, DOP853 and LSODA), every run with a controller made anew from the scene.
+(RK45, DOP853 and LSODA), every run with a controller made anew from the scene. The pronk
+hopper's twins compute its controller (``--case pronk-raibert``, ``raibert_pronk``): its case
+also times the aimed runs on the compiled path (``relaxed``), the Python family without twins.
 """
 
 from __future__ import annotations
@@ -31,7 +33,7 @@ import math
 import os
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -46,7 +48,7 @@ from .work_precision import Row, _timed, format_table, mark_pareto, plot_rows, w
 CASES = ("compass-gait", "rimless-wheel", "pronk", "double-pendulum")
 #: The controlled runners: opt-in by name, since they would add 30-45 s (measured at load 5-7)
 #: to the default's 1.5 min, past the 2 min it aims at.
-CONTROLLED = ("slip-raibert", "quadruped-run")
+CONTROLLED = ("slip-raibert", "quadruped-run", "pronk-raibert")
 ALL_CASES = CASES + CONTROLLED
 LEVELS = (1e-4, 1e-6, 1e-8)
 #: solve_ivp tolerance of the reference runs.
@@ -64,7 +66,9 @@ class ControlledSweep:
     tols: rtol = atol of the error-controlled runs; h_largest: their initial and largest step
     (s); eps_floor: the narrowest strip of the adaptive runs (guard units; their strip is
     ``max(eps_floor, min(1e-6, 1e-2 tol))``); rk4_eps: the strip of the rk4 runs; rk4_steps:
-    the fixed steps (s); max_repeats: a cap on the timed repeats (None: ``--repeats``).
+    the fixed steps (s); max_repeats: a cap on the timed repeats (None: ``--repeats``);
+    compiled: the robot's twins compute its controller, so the aimed runs are also timed on the
+    compiled path (family ``relaxed``) and ``relaxed-python`` runs with the twins removed.
     """
 
     scene: str
@@ -76,6 +80,7 @@ class ControlledSweep:
     rk4_eps: float
     rk4_steps: tuple[float, ...]
     max_repeats: int | None = None
+    compiled: bool = False
 
 
 #: The quadruped's flight law switches the swing legs' target length at the apex (falling = the
@@ -92,6 +97,18 @@ CONTROLLED_SWEEPS = {
     "quadruped-run": ControlledSweep(
         "quadruped_run", 0.45, 0.2, (1e-4, 1e-6, 1e-8, 1e-10), 0.02, 1e-9, 1e-8, (1e-3, 5e-4), max_repeats=1
     ),
+    # The pronk hopper's twins compute raibert_pronk (robots/pronk_hopper_twin.py): 5 s, 16 hops.
+    "pronk-raibert": ControlledSweep(
+        "pronk_raibert",
+        5.0,
+        1.0,
+        (1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10),
+        0.1,
+        0.0,
+        1e-10,
+        (1e-2, 5e-3, 2e-3, 1e-3),
+        compiled=True,
+    ),
 }
 
 
@@ -101,7 +118,9 @@ class RobotCase:
 
     new_control: makes the case's controller anew (a controller keeps state across
     transitions, so every run gets a fresh one); None for an uncontrolled case, whose runs take
-    the compiled path. controlled: the ``ControlledSweep`` of a controlled case.
+    the compiled path. controlled: the ``ControlledSweep`` of a controlled case. python_system:
+    the system ``relaxed-python`` runs (None: ``system``; a case whose twins compute its control
+    runs it with them removed).
     """
 
     name: str
@@ -113,6 +132,7 @@ class RobotCase:
     reference: Any
     new_control: Callable[[], Any] | None = None
     controlled: ControlledSweep | None = None
+    python_system: Any = None
 
     def error(self, execution: Any) -> float:
         """Largest difference of event times (s) and post-event states to the reference's (inf
@@ -209,6 +229,7 @@ def _reference(name: str, system: Any, x0: np.ndarray, mode: str, t_final: float
 
 def _controlled_case(name: str, quick: bool) -> RobotCase:
     """A controlled runner: its scene's robot, start and controller, and its reference run."""
+    from ..compiled import without_compiled
     from ..scene import load_scene
 
     knobs = CONTROLLED_SWEEPS[name]
@@ -225,7 +246,8 @@ def _controlled_case(name: str, quick: bool) -> RobotCase:
     def new_control() -> Any:
         return scene.control
 
-    return RobotCase(name, description, system, mode, x0, t_final, reference, new_control, knobs)
+    python = without_compiled(system) if knobs.compiled else None
+    return RobotCase(name, description, system, mode, x0, t_final, reference, new_control, knobs, python)
 
 
 def make_robot_case(name: str, quick: bool = False) -> RobotCase:
@@ -275,10 +297,11 @@ def sweep(quick: bool) -> list[RunSpec]:
 
 
 def controlled_sweep(knobs: ControlledSweep, quick: bool) -> list[RunSpec]:
-    """The runs of a controlled case, all on the Python path: DOP853 with dense landing and
-    dopri5 with aimed landing over tolerances, rk4 over steps (the scenes' own method), and
-    solve_ivp RK45, DOP853 and LSODA over the same tolerances; ``--quick`` keeps every other
-    tolerance and the largest rk4 step."""
+    """The runs of a controlled case on the Python path: DOP853 with dense landing and dopri5
+    with aimed landing over tolerances, rk4 over steps (the scenes' own method), and solve_ivp
+    RK45, DOP853 and LSODA over the same tolerances; ``--quick`` keeps every other tolerance
+    and the largest rk4 step. A ``compiled`` case also takes its aimed runs, and DOP853 aimed,
+    on the compiled path (their Python-path names end in ``-python``)."""
     tols = knobs.tols[::2] if quick else knobs.tols
 
     def eps(tol: float) -> float:
@@ -291,6 +314,11 @@ def controlled_sweep(knobs: ControlledSweep, quick: bool) -> list[RunSpec]:
     for method, landing in (("dop853", "dense"), ("dopri5", "aim")):
         name = f"relaxed-{method}-dense" if landing == "dense" else f"relaxed-{method}"
         runs += [RunSpec("relaxed-python", name, knobs.h_largest, eps(tol), tol, landing) for tol in tols]
+    if knobs.compiled:  # the aimed runs on both paths, the Python path's named so
+        aimed = [run for run in runs if run.landing == "aim"]
+        runs = [replace(run, method=f"{run.method}-python") if run.landing == "aim" else run for run in runs]
+        runs += [replace(run, kind="relaxed") for run in aimed]
+        runs += [RunSpec("relaxed", "relaxed-dop853", knobs.h_largest, eps(tol), tol, "aim") for tol in tols]
     runs += [
         RunSpec("solve_ivp", f"solve_ivp-{m}", tol=tol, landing="") for m in ("RK45", "DOP853", "LSODA") for tol in tols
     ]
@@ -386,10 +414,12 @@ def _relaxed_call(case: RobotCase, spec: RunSpec, controller: _ControllerMaker) 
     from ..relaxed import simulate
 
     tol = None if math.isnan(spec.tol) else spec.tol
+    python = spec.kind == "relaxed-python" and case.python_system is not None
+    system = case.python_system if python else case.system
 
     def call() -> Any:
         return simulate(
-            case.system,
+            system,
             case.x0,
             case.mode,
             case.t_final,
@@ -554,7 +584,7 @@ def main(
     for name in cases:
         case, rows, csv_path, fig_path = run_case(name, quick=quick, out=out, repeats=repeats, figure=figure, log=log)
         print(f"# {case.name}: {case.description}")
-        if case.controlled is not None:
+        if case.controlled is not None and not case.controlled.compiled:
             print(PYTHON_PATH_NOTE)
         print(format_table(rows))
         print(format_levels(at_levels(rows)))
