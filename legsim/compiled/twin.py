@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import ModelError
+from ..errors import ModelBreakdown, ModelError
 from ..hybrid import HybridSystem, ModeData
 
 
@@ -125,7 +125,12 @@ def check_twin(
             f"{g_py.tolist()}"
         )
     for name, reset, image in images:
-        expected = np.asarray(reset(x.copy()), dtype=float)
+        try:
+            expected = np.asarray(reset(x.copy()), dtype=float)
+        except ModelBreakdown:
+            # The reset is past its model's range at this state (a foot below the ground), where
+            # no run applies it: nothing to compare, and no reason to end the run.
+            continue
         if image.shape != expected.shape or not np.allclose(image, expected, rtol=1e-9, atol=1e-12, equal_nan=True):
             raise ModelError(
                 f"{system_name}: compiled reset of {name} of mode '{data.name}' disagrees with its Python "

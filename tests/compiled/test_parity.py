@@ -16,6 +16,7 @@ import legsim.relaxed.run as run_module
 from legsim import HybridSystem, Mode, ModelError, Transition, simulate
 from legsim.compiled import CompiledMode, plan_for, without_compiled
 from legsim.compiled.generate import importable
+from legsim.errors import ModelBreakdown
 from legsim.methods import METHODS, get_method
 from legsim.systems.fast import make_bouncing_ball, make_oscillator, make_oscillator_example
 from legsim.systems.oscillator import OscillatorReference
@@ -186,7 +187,7 @@ def probe_resets(x, p, e):
     return out
 
 
-def probe_system(p, n_guards=1, guard_py=None):
+def probe_system(p, n_guards=1, guard_py=None, reset_py=None):
     p = np.asarray(list(p) + [0.0] * (6 - len(p)), dtype=float)
 
     def field(t, x, u):
@@ -202,7 +203,7 @@ def probe_system(p, n_guards=1, guard_py=None):
     twin = CompiledMode(probe_field, probe_guards, n_guards, p, probe_resets)
     return HybridSystem(
         {"m": Mode(2, field, compiled=twin)},
-        [Transition("m", "m", guard_py or guard, lambda x: np.array([p[5], x[1]]), name="wrap")],
+        [Transition("m", "m", guard_py or guard, reset_py or (lambda x: np.array([p[5], x[1]])), name="wrap")],
     )
 
 
@@ -244,6 +245,30 @@ def test_twin_that_disagrees_with_the_python_model_is_refused():
     system = probe_system([0.0, 1.0, 1.0, 0.0, 0.5], guard_py=lambda x: 0.6 - x[0])
     with pytest.raises(ModelError, match="compiled twin of mode 'm' disagrees with the Python callables"):
         simulate(system, [0.0, 0.0], "m", 1.0, 1e-2, 1e-3)
+
+
+def test_a_reset_past_its_models_range_at_the_first_visit_does_not_end_the_run():
+    # The check at a mode's first visit compares the resets there too. A Python reset that
+    # raises a ModelBreakdown at that state (where no run applies it) is skipped: the Python
+    # path never calls it there, and both paths run on to the guard and wrap.
+    p = [0.0, 1.0, 1.0, 0.0, 0.5, 0.2]
+
+    def wrap(x):
+        if x[0] < 0.1:
+            raise ModelBreakdown("wrapped before x0 = 0.1")
+        return np.array([p[5], x[1]])
+
+    probe = probe_system(p)
+    system = HybridSystem(
+        {"a": Mode(2, lambda t, x, u: np.array([x[1], 1.0])), "m": probe.modes["m"]},
+        [
+            Transition("a", "m", lambda x: 0.05 - x[0], None, name="enter"),
+            Transition("m", "m", lambda x: p[4] - x[0], wrap, name="wrap"),
+        ],
+    )
+    fast, slow = both_paths(system, [0.0, 0.0], "a", 1.5, 1e-2, 1e-3, "rk4")
+    assert fast.status == "finished" and [t.name for t in fast.transitions][:2] == ["enter", "wrap"]
+    assert_same_execution(fast, slow)
 
 
 def test_twin_with_the_wrong_guard_count_is_refused():
