@@ -19,10 +19,11 @@ outside it.
 
 The controlled runners (``CONTROLLED``, run only when named: ``--case slip-raibert --case
 quadruped-run``) are the bundled scenes' robots under their scenes' controllers (``raibert_slip``,
-``raibert_runner``). The compiled twins take no control input, so a controlled run takes legsim's
-Python path: these cases have no compiled family, and compare ``relaxed-python`` (DOP853 with
-dense landing and dopri5 with aimed landing over tolerances, rk4 over steps) with ``solve_ivp``
-(RK45, DOP853 and LSODA), every run with a controller made anew from the scene.
+``raibert_runner``), every run with a controller made anew from the scene. A case whose twins
+compute its controller (``ControlledSweep.compiled``: the SLIP hopper's, ``raibert_slip``) has
+the three families of the uncontrolled cases; the others take legsim's Python path, with no
+compiled family, and compare ``relaxed-python`` (DOP853 with dense landing and dopri5 with
+aimed landing over tolerances, rk4 over steps) with ``solve_ivp`` (RK45, DOP853 and LSODA).
 """
 
 from __future__ import annotations
@@ -64,7 +65,9 @@ class ControlledSweep:
     tols: rtol = atol of the error-controlled runs; h_largest: their initial and largest step
     (s); eps_floor: the narrowest strip of the adaptive runs (guard units; their strip is
     ``max(eps_floor, min(1e-6, 1e-2 tol))``); rk4_eps: the strip of the rk4 runs; rk4_steps:
-    the fixed steps (s); max_repeats: a cap on the timed repeats (None: ``--repeats``).
+    the fixed steps (s); max_repeats: a cap on the timed repeats (None: ``--repeats``);
+    compiled: the robot's twins compute the scene's controller, so the rk4 and aimed runs take
+    the compiled path (family ``relaxed``) and DOP853 with dense landing is the Python path's.
     """
 
     scene: str
@@ -76,6 +79,7 @@ class ControlledSweep:
     rk4_eps: float
     rk4_steps: tuple[float, ...]
     max_repeats: int | None = None
+    compiled: bool = False
 
 
 #: The quadruped's flight law switches the swing legs' target length at the apex (falling = the
@@ -87,7 +91,15 @@ class ControlledSweep:
 #: N of rounding (a strip of 1e-10 is crossed, 1e-9 holds them); the error is then about 2 eps.
 CONTROLLED_SWEEPS = {
     "slip-raibert": ControlledSweep(
-        "slip_raibert", 5.0, 1.0, (1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10), 0.1, 0.0, 1e-10, (1e-2, 5e-3, 2e-3, 1e-3)
+        "slip_raibert",
+        5.0,
+        1.0,
+        (1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10),
+        0.1,
+        0.0,
+        1e-10,
+        (1e-2, 5e-3, 2e-3, 1e-3),
+        compiled=True,
     ),
     "quadruped-run": ControlledSweep(
         "quadruped_run", 0.45, 0.2, (1e-4, 1e-6, 1e-8, 1e-10), 0.02, 1e-9, 1e-8, (1e-3, 5e-4), max_repeats=1
@@ -225,7 +237,22 @@ def _controlled_case(name: str, quick: bool) -> RobotCase:
     def new_control() -> Any:
         return scene.control
 
+    if knobs.compiled and not takes_compiled_path(system, new_control()):
+        raise BenchError(
+            f"case {name}: the twins of {system.name} do not compute controller {controller} (its runs would "
+            f"take the Python path)"
+        )
     return RobotCase(name, description, system, mode, x0, t_final, reference, new_control, knobs)
+
+
+def takes_compiled_path(system: Any, control: Any) -> bool:
+    """Whether runs of ``system`` under ``control`` (a Controller, evaluated at every stage)
+    take the compiled path: every mode built so far (a robot's bridge builds its modes as runs
+    reach them) has a twin that computes that controller."""
+    if getattr(control, "hold", False):
+        return False
+    twins = [system.mode_data(mode).mode.compiled for mode in list(system.modes)]
+    return all(twin is not None and twin.controls is not None and twin.controls(control) is not None for twin in twins)
 
 
 def make_robot_case(name: str, quick: bool = False) -> RobotCase:
@@ -275,22 +302,24 @@ def sweep(quick: bool) -> list[RunSpec]:
 
 
 def controlled_sweep(knobs: ControlledSweep, quick: bool) -> list[RunSpec]:
-    """The runs of a controlled case, all on the Python path: DOP853 with dense landing and
-    dopri5 with aimed landing over tolerances, rk4 over steps (the scenes' own method), and
-    solve_ivp RK45, DOP853 and LSODA over the same tolerances; ``--quick`` keeps every other
-    tolerance and the largest rk4 step."""
+    """The runs of a controlled case: DOP853 with dense landing (the Python path) and dopri5
+    with aimed landing over tolerances, rk4 over steps (the scenes' own method) -- the last two
+    on the compiled path (family ``relaxed``) when ``knobs.compiled``, with dop853 aimed too,
+    else on the Python path -- and solve_ivp RK45, DOP853 and LSODA over the same tolerances;
+    ``--quick`` keeps every other tolerance and the largest rk4 step."""
     tols = knobs.tols[::2] if quick else knobs.tols
+    family = "relaxed" if knobs.compiled else "relaxed-python"
 
     def eps(tol: float) -> float:
         return max(knobs.eps_floor, min(1e-6, 1e-2 * tol))
 
     runs = [
-        RunSpec("relaxed-python", "relaxed-rk4", h, knobs.rk4_eps, landing="aim")
-        for h in knobs.rk4_steps[: 1 if quick else None]
+        RunSpec(family, "relaxed-rk4", h, knobs.rk4_eps, landing="aim") for h in knobs.rk4_steps[: 1 if quick else None]
     ]
-    for method, landing in (("dop853", "dense"), ("dopri5", "aim")):
+    aimed = ("dopri5", "dop853") if knobs.compiled else ("dopri5",)
+    for method, landing, kind in [("dop853", "dense", "relaxed-python")] + [(m, "aim", family) for m in aimed]:
         name = f"relaxed-{method}-dense" if landing == "dense" else f"relaxed-{method}"
-        runs += [RunSpec("relaxed-python", name, knobs.h_largest, eps(tol), tol, landing) for tol in tols]
+        runs += [RunSpec(kind, name, knobs.h_largest, eps(tol), tol, landing) for tol in tols]
     runs += [
         RunSpec("solve_ivp", f"solve_ivp-{m}", tol=tol, landing="") for m in ("RK45", "DOP853", "LSODA") for tol in tols
     ]
@@ -382,7 +411,7 @@ def _solve_ivp_call(case: RobotCase, spec: RunSpec, controller: _ControllerMaker
 
 def _relaxed_call(case: RobotCase, spec: RunSpec, controller: _ControllerMaker) -> Callable[[], Any]:
     """The relaxed run of the case at the spec's settings; the same system on both relaxed
-    families: dense landing, and any control, run the Python loop."""
+    families: dense landing, and a control the twins do not compute, run the Python loop."""
     from ..relaxed import simulate
 
     tol = None if math.isnan(spec.tol) else spec.tol
@@ -503,8 +532,12 @@ def format_costs(costs: dict[str, float]) -> str:
 
 
 PYTHON_PATH_NOTE = (
-    "controlled: every relaxed run takes legsim's Python path (the compiled twins take no control "
-    "input), so there is no compiled family; ratios are solve_ivp / Python path"
+    "controlled: every relaxed run takes legsim's Python path (the robot's twins do not compute its "
+    "controller), so there is no compiled family; ratios are solve_ivp / Python path"
+)
+COMPILED_PATH_NOTE = (
+    "controlled, compiled path: the robot's twins compute its controller, so the relaxed family (rk4 and aimed "
+    "landing) runs in the compiled kernel; relaxed-python is DOP853 with dense landing on the Python path"
 )
 
 
@@ -555,7 +588,7 @@ def main(
         case, rows, csv_path, fig_path = run_case(name, quick=quick, out=out, repeats=repeats, figure=figure, log=log)
         print(f"# {case.name}: {case.description}")
         if case.controlled is not None:
-            print(PYTHON_PATH_NOTE)
+            print(COMPILED_PATH_NOTE if case.controlled.compiled else PYTHON_PATH_NOTE)
         print(format_table(rows))
         print(format_levels(at_levels(rows)))
         if case.controlled is None:
