@@ -149,9 +149,21 @@ def controls(controller: Any) -> Callable[[np.ndarray], None] | None:
     changed, runs on the Python path (None)."""
     if controller is None:
         return lambda p: write_record(p, [float(CTRL_NONE)])
-    if not isinstance(controller, SlipRaibert) or controller.compiled_record() is None:
+    if not computes(controller):
         return None
     return lambda p: write_record(p, [float(CTRL_SLIP_RAIBERT), *controller.compiled_record()])
+
+
+def computes(controller: Any) -> bool:
+    """Whether the twin computes ``controller``'s law: a ``SlipRaibert`` whose class, if a
+    subclass, keeps its ``__call__`` and ``target_angle`` (a subclass may change ``reset``,
+    whose values reach the twin through the record)."""
+    law = type(controller)
+    return (
+        isinstance(controller, SlipRaibert)
+        and law.__call__ is SlipRaibert.__call__
+        and law.target_angle is SlipRaibert.target_angle
+    )
 
 
 def write_record(p: np.ndarray, record: Sequence[float]) -> None:
