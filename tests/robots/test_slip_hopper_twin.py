@@ -21,6 +21,7 @@ from legsim.compiled import without_compiled
 from legsim.relaxed import simulate
 from legsim.scene import load_scene
 
+from .test_slip_hopper import assert_tracks_the_commanded_speed
 from .test_twins import assert_same_run, close
 
 RNG = np.random.default_rng(18)
@@ -92,16 +93,7 @@ def test_slip_raibert_runs_compiled_as_on_the_python_path_and_reaches_the_comman
     # A controlled run: Python enters every mode (resetting the controller), the kernel steps.
     assert n_python == 0 and n_kernel == len(fast.segments) == len(fast.transitions) + 1
     assert_same_run(fast, slow)
-    # As tests/robots/test_slip_hopper.py asks of the scene: 100 hops, from 1 m/s to within 5%
-    # of the commanded 1.5 m/s from the 20th on, energy conserved.
-    touchdowns = [tr for tr in fast.transitions if tr.name == "touchdown"]
-    assert fast.status == "finished" and not fast.warnings and len(touchdowns) >= 100
-    speed = scene.controller.speed
-    errors = np.array([abs(tr.state_before[3] - speed) / speed for tr in touchdowns])
-    assert errors[0] > 0.3 and np.all(errors[20:] < 0.05)
-    energy = scene.model.system.energy
-    initial = energy("flight", scene.initial_state)
-    assert max(abs(energy("flight", tr.state_before) - initial) for tr in touchdowns) < 1e-6 * initial
+    assert_tracks_the_commanded_speed(scene, fast)
 
 
 def stance_times(execution):
