@@ -33,7 +33,7 @@ import numpy as np
 from legsim.compiled import CompiledMode
 
 from .pronk_hopper import BELOW_GROUND, LEGS, MODES, PronkHopper
-from .raibert import touchdown_angle
+from .raibert import touchdown_angle_compiled
 from .raibert_pronk import RECORD_KIND, RECORD_NAMES, stance_torque
 
 _jit = numba.njit(cache=True, fastmath=False, nogil=True)
@@ -50,7 +50,7 @@ R_K_SWING, R_KP, R_KD, R_SPEED, R_K_X, R_L, R_K, R_T_S = (
 RECORD_SIZE = len(RECORD_NAMES)
 
 #: The controller's scalar rules, compiled from their Python source (one rule each).
-_touchdown_angle = _jit(touchdown_angle)
+_touchdown_angle = touchdown_angle_compiled
 _stance_torque = _jit(stance_torque)
 
 

@@ -35,6 +35,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
+import numba
 import numpy as np
 import pinocchio as pin
 
@@ -111,6 +112,11 @@ def touchdown_angle(xd: float, stance_time: float, k_x: float, speed: float, len
     and a leg of ``length`` (m); the reach is capped at 0.9 of the length."""
     ahead = xd * stance_time / 2 + k_x * (xd - speed) + bias
     return math.asin(max(-0.9, min(0.9, ahead / length)))
+
+
+#: ``touchdown_angle`` compiled from its Python source, for compiled twins that compute a
+#: Raibert controller (``robots.slip_hopper_twin``): one rule on both paths.
+touchdown_angle_compiled = numba.njit(cache=True, fastmath=False, nogil=True)(touchdown_angle)
 
 
 def find_legs(bridge: Any) -> list[Leg]:
@@ -495,6 +501,13 @@ class SlipRaibert(Controller):
         if mode != "flight":
             return np.zeros(1)
         return np.array([self.k_swing * (self.target_angle(x[3]) - x[2])])
+
+    def compiled_record(self) -> list[float]:
+        """The values now of the SLIP hopper twin's control record (``robots.slip_hopper_twin``,
+        ``CTRL_SLIP_RAIBERT``): ``(k_swing (1/s), T_s (s), k_x (s), speed (m/s), l (m))``, T_s as
+        the last ``reset`` left it, l the controller's own leg length (its foot placement's, as on
+        the Python path)."""
+        return [self.k_swing, self.stance_time, self.k_x, self.speed, self.l]
 
 
 def _make_slip(model: Model, params: dict[str, Any]) -> SlipRaibert:

@@ -16,6 +16,9 @@ descends (guard: the foot's height, or ``max(height, zd)`` while the mass rises,
 (guard ``max(l - r, -dr/dt)``, m), reset ``psi = asin((foot_x - x) / l)`` (the leg leaves at
 its stance angle). Energy ``m (xd^2 + zd^2) / 2 + m g z (+ k (l - r)^2 / 2 in stance)`` is
 conserved by both modes and both resets.
+
+Both modes carry compiled twins (``robots.slip_hopper_twin``), so a run without control or
+under ``raibert_slip`` takes the compiled step loop.
 """
 
 from __future__ import annotations
@@ -27,6 +30,8 @@ import numpy as np
 
 from legsim.builders import Builder, Model, Param
 from legsim.hybrid import HybridSystem, Mode, Transition
+
+from .slip_hopper_twin import hopper_twins
 
 FLIGHT_NAMES = ("x", "z", "psi", "xd", "zd")
 STANCE_NAMES = ("x", "z", "xd", "zd", "foot_x")
@@ -81,7 +86,11 @@ def make_system(m: float, k: float, l: float, g: float) -> HybridSystem:  # noqa
         r = math.hypot(x[0] - x[4], x[1])
         return m * (0.5 * (x[2] ** 2 + x[3] ** 2) + g * x[1]) + 0.5 * k * (l - r) ** 2
 
-    modes = {"flight": Mode(5, flight, FLIGHT_NAMES), "stance": Mode(5, stance, STANCE_NAMES)}
+    twins = hopper_twins(m, k, l, g)
+    modes = {
+        "flight": Mode(5, flight, FLIGHT_NAMES, compiled=twins["flight"]),
+        "stance": Mode(5, stance, STANCE_NAMES, compiled=twins["stance"]),
+    }
     transitions = [
         Transition("flight", "stance", touchdown_guard, land, name="touchdown"),
         Transition("stance", "flight", liftoff_guard, leave, name="liftoff"),

@@ -18,13 +18,13 @@ evaluation all-in against a bare C++ ``aba`` on the same model, and the share of
 outside it.
 
 The controlled runners (``CONTROLLED``, run only when named: ``--case slip-raibert --case
-quadruped-run``) are the bundled scenes' robots under their scenes' controllers (``raibert_slip``,
-``raibert_runner``). The compiled twins take no control input, so a controlled run takes legsim's
-Python path: these cases have no compiled family, and compare ``relaxed-python`` (DOP853 with
-dense landing and dopri5 with aimed landing over tolerances, rk4 over steps) with ``solve_ivp``
-(RK45, DOP853 and LSODA), every run with a controller made anew from the scene. The pronk
-hopper's twins compute its controller (``--case pronk-raibert``, ``raibert_pronk``): its case
-also times the aimed runs on the compiled path (``relaxed``), the Python family without twins.
+pronk-raibert --case double-pendulum-pd --case quadruped-run``) are the bundled scenes' robots
+under their scenes' controllers (``raibert_slip``, ``raibert_pronk``, the double pendulum's PD,
+``raibert_runner``), every run with a controller made anew from the scene. A case whose twins
+compute its controller (``ControlledSweep.compiled``: all but the quadruped's) has the three
+families of the uncontrolled cases; the quadruped takes legsim's Python path, with no compiled
+family, and compares ``relaxed-python`` (DOP853 with dense landing and dopri5 with aimed
+landing over tolerances, rk4 over steps) with ``solve_ivp`` (RK45, DOP853 and LSODA).
 """
 
 from __future__ import annotations
@@ -33,7 +33,7 @@ import math
 import os
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -48,7 +48,7 @@ from .work_precision import Row, _timed, format_table, mark_pareto, plot_rows, w
 CASES = ("compass-gait", "rimless-wheel", "pronk", "double-pendulum")
 #: The controlled runners: opt-in by name, since they would add 30-45 s (measured at load 5-7)
 #: to the default's 1.5 min, past the 2 min it aims at.
-CONTROLLED = ("slip-raibert", "quadruped-run", "pronk-raibert")
+CONTROLLED = ("slip-raibert", "pronk-raibert", "double-pendulum-pd", "quadruped-run")
 ALL_CASES = CASES + CONTROLLED
 LEVELS = (1e-4, 1e-6, 1e-8)
 #: solve_ivp tolerance of the reference runs.
@@ -67,8 +67,8 @@ class ControlledSweep:
     (s); eps_floor: the narrowest strip of the adaptive runs (guard units; their strip is
     ``max(eps_floor, min(1e-6, 1e-2 tol))``); rk4_eps: the strip of the rk4 runs; rk4_steps:
     the fixed steps (s); max_repeats: a cap on the timed repeats (None: ``--repeats``);
-    compiled: the robot's twins compute its controller, so the aimed runs are also timed on the
-    compiled path (family ``relaxed``) and ``relaxed-python`` runs with the twins removed.
+    compiled: the robot's twins compute the scene's controller, so the rk4 and aimed runs take
+    the compiled path (family ``relaxed``) and DOP853 with dense landing is the Python path's.
     """
 
     scene: str
@@ -92,10 +92,15 @@ class ControlledSweep:
 #: N of rounding (a strip of 1e-10 is crossed, 1e-9 holds them); the error is then about 2 eps.
 CONTROLLED_SWEEPS = {
     "slip-raibert": ControlledSweep(
-        "slip_raibert", 5.0, 1.0, (1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10), 0.1, 0.0, 1e-10, (1e-2, 5e-3, 2e-3, 1e-3)
-    ),
-    "quadruped-run": ControlledSweep(
-        "quadruped_run", 0.45, 0.2, (1e-4, 1e-6, 1e-8, 1e-10), 0.02, 1e-9, 1e-8, (1e-3, 5e-4), max_repeats=1
+        "slip_raibert",
+        5.0,
+        1.0,
+        (1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10),
+        0.1,
+        0.0,
+        1e-10,
+        (1e-2, 5e-3, 2e-3, 1e-3),
+        compiled=True,
     ),
     # The pronk hopper's twins compute raibert_pronk (robots/pronk_hopper_twin.py): 5 s, 16 hops.
     "pronk-raibert": ControlledSweep(
@@ -109,6 +114,22 @@ CONTROLLED_SWEEPS = {
         (1e-2, 5e-3, 2e-3, 1e-3),
         compiled=True,
     ),
+    # The double pendulum's twins compute its shoulder PD (joint_pd): it lands on the stop
+    # (a graze, then the impact that holds) and rests there.
+    "double-pendulum-pd": ControlledSweep(
+        "double_pendulum_pd",
+        5.0,
+        1.0,
+        (1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10),
+        0.1,
+        0.0,
+        1e-10,
+        (1e-2, 5e-3, 2e-3, 1e-3),
+        compiled=True,
+    ),
+    "quadruped-run": ControlledSweep(
+        "quadruped_run", 0.45, 0.2, (1e-4, 1e-6, 1e-8, 1e-10), 0.02, 1e-9, 1e-8, (1e-3, 5e-4), max_repeats=1
+    ),
 }
 
 
@@ -118,9 +139,7 @@ class RobotCase:
 
     new_control: makes the case's controller anew (a controller keeps state across
     transitions, so every run gets a fresh one); None for an uncontrolled case, whose runs take
-    the compiled path. controlled: the ``ControlledSweep`` of a controlled case. python_system:
-    the system ``relaxed-python`` runs (None: ``system``; a case whose twins compute its control
-    runs it with them removed).
+    the compiled path. controlled: the ``ControlledSweep`` of a controlled case.
     """
 
     name: str
@@ -132,7 +151,6 @@ class RobotCase:
     reference: Any
     new_control: Callable[[], Any] | None = None
     controlled: ControlledSweep | None = None
-    python_system: Any = None
 
     def error(self, execution: Any) -> float:
         """Largest difference of event times (s) and post-event states to the reference's (inf
@@ -229,7 +247,6 @@ def _reference(name: str, system: Any, x0: np.ndarray, mode: str, t_final: float
 
 def _controlled_case(name: str, quick: bool) -> RobotCase:
     """A controlled runner: its scene's robot, start and controller, and its reference run."""
-    from ..compiled import without_compiled
     from ..scene import load_scene
 
     knobs = CONTROLLED_SWEEPS[name]
@@ -246,8 +263,22 @@ def _controlled_case(name: str, quick: bool) -> RobotCase:
     def new_control() -> Any:
         return scene.control
 
-    python = without_compiled(system) if knobs.compiled else None
-    return RobotCase(name, description, system, mode, x0, t_final, reference, new_control, knobs, python)
+    if knobs.compiled and not takes_compiled_path(system, new_control()):
+        raise BenchError(
+            f"case {name}: the twins of {system.name} do not compute controller {controller} (its runs would "
+            f"take the Python path)"
+        )
+    return RobotCase(name, description, system, mode, x0, t_final, reference, new_control, knobs)
+
+
+def takes_compiled_path(system: Any, control: Any) -> bool:
+    """Whether runs of ``system`` under ``control`` (a Controller, evaluated at every stage)
+    take the compiled path: every mode built so far (a robot's bridge builds its modes as runs
+    reach them) has a twin that computes that controller."""
+    if getattr(control, "hold", False):
+        return False
+    twins = [system.mode_data(mode).mode.compiled for mode in list(system.modes)]
+    return all(twin is not None and twin.controls is not None and twin.controls(control) is not None for twin in twins)
 
 
 def make_robot_case(name: str, quick: bool = False) -> RobotCase:
@@ -297,28 +328,24 @@ def sweep(quick: bool) -> list[RunSpec]:
 
 
 def controlled_sweep(knobs: ControlledSweep, quick: bool) -> list[RunSpec]:
-    """The runs of a controlled case on the Python path: DOP853 with dense landing and dopri5
-    with aimed landing over tolerances, rk4 over steps (the scenes' own method), and solve_ivp
-    RK45, DOP853 and LSODA over the same tolerances; ``--quick`` keeps every other tolerance
-    and the largest rk4 step. A ``compiled`` case also takes its aimed runs, and DOP853 aimed,
-    on the compiled path (their Python-path names end in ``-python``)."""
+    """The runs of a controlled case: DOP853 with dense landing (the Python path) and dopri5
+    with aimed landing over tolerances, rk4 over steps (the scenes' own method) -- the last two
+    on the compiled path (family ``relaxed``) when ``knobs.compiled``, with dop853 aimed too,
+    else on the Python path -- and solve_ivp RK45, DOP853 and LSODA over the same tolerances;
+    ``--quick`` keeps every other tolerance and the largest rk4 step."""
     tols = knobs.tols[::2] if quick else knobs.tols
+    family = "relaxed" if knobs.compiled else "relaxed-python"
 
     def eps(tol: float) -> float:
         return max(knobs.eps_floor, min(1e-6, 1e-2 * tol))
 
     runs = [
-        RunSpec("relaxed-python", "relaxed-rk4", h, knobs.rk4_eps, landing="aim")
-        for h in knobs.rk4_steps[: 1 if quick else None]
+        RunSpec(family, "relaxed-rk4", h, knobs.rk4_eps, landing="aim") for h in knobs.rk4_steps[: 1 if quick else None]
     ]
-    for method, landing in (("dop853", "dense"), ("dopri5", "aim")):
+    aimed = ("dopri5", "dop853") if knobs.compiled else ("dopri5",)
+    for method, landing, kind in [("dop853", "dense", "relaxed-python")] + [(m, "aim", family) for m in aimed]:
         name = f"relaxed-{method}-dense" if landing == "dense" else f"relaxed-{method}"
-        runs += [RunSpec("relaxed-python", name, knobs.h_largest, eps(tol), tol, landing) for tol in tols]
-    if knobs.compiled:  # the aimed runs on both paths, the Python path's named so
-        aimed = [run for run in runs if run.landing == "aim"]
-        runs = [replace(run, method=f"{run.method}-python") if run.landing == "aim" else run for run in runs]
-        runs += [replace(run, kind="relaxed") for run in aimed]
-        runs += [RunSpec("relaxed", "relaxed-dop853", knobs.h_largest, eps(tol), tol, "aim") for tol in tols]
+        runs += [RunSpec(kind, name, knobs.h_largest, eps(tol), tol, landing) for tol in tols]
     runs += [
         RunSpec("solve_ivp", f"solve_ivp-{m}", tol=tol, landing="") for m in ("RK45", "DOP853", "LSODA") for tol in tols
     ]
@@ -410,16 +437,14 @@ def _solve_ivp_call(case: RobotCase, spec: RunSpec, controller: _ControllerMaker
 
 def _relaxed_call(case: RobotCase, spec: RunSpec, controller: _ControllerMaker) -> Callable[[], Any]:
     """The relaxed run of the case at the spec's settings; the same system on both relaxed
-    families: dense landing, and any control, run the Python loop."""
+    families: dense landing, and a control the twins do not compute, run the Python loop."""
     from ..relaxed import simulate
 
     tol = None if math.isnan(spec.tol) else spec.tol
-    python = spec.kind == "relaxed-python" and case.python_system is not None
-    system = case.python_system if python else case.system
 
     def call() -> Any:
         return simulate(
-            system,
+            case.system,
             case.x0,
             case.mode,
             case.t_final,
@@ -533,8 +558,12 @@ def format_costs(costs: dict[str, float]) -> str:
 
 
 PYTHON_PATH_NOTE = (
-    "controlled: every relaxed run takes legsim's Python path (the compiled twins take no control "
-    "input), so there is no compiled family; ratios are solve_ivp / Python path"
+    "controlled: every relaxed run takes legsim's Python path (the robot's twins do not compute its "
+    "controller), so there is no compiled family; ratios are solve_ivp / Python path"
+)
+COMPILED_PATH_NOTE = (
+    "controlled, compiled path: the robot's twins compute its controller, so the relaxed family (rk4 and aimed "
+    "landing) runs in the compiled kernel; relaxed-python is DOP853 with dense landing on the Python path"
 )
 
 
@@ -584,8 +613,8 @@ def main(
     for name in cases:
         case, rows, csv_path, fig_path = run_case(name, quick=quick, out=out, repeats=repeats, figure=figure, log=log)
         print(f"# {case.name}: {case.description}")
-        if case.controlled is not None and not case.controlled.compiled:
-            print(PYTHON_PATH_NOTE)
+        if case.controlled is not None:
+            print(COMPILED_PATH_NOTE if case.controlled.compiled else PYTHON_PATH_NOTE)
         print(format_table(rows))
         print(format_levels(at_levels(rows)))
         if case.controlled is None:

@@ -72,16 +72,18 @@ def test_zero_time_chains_of_transitions_count_as_one_event():
     assert [t for t, _ in merged] == [1.0, 2.0] and [x[0] for _, x in merged] == [3.0, 4.0]
 
 
-def test_slip_raibert_case_runs_on_the_python_path_and_its_error_falls_with_the_tolerance(tmp_path, capsys):
+def test_slip_raibert_case_runs_on_the_compiled_path_and_its_error_falls_with_the_tolerance(tmp_path, capsys):
     from legsim.bench.work_precision import read_rows
 
     assert robots.main(["slip-raibert"], quick=True, out=str(tmp_path), repeats=1, figure=False, log=None) == 0
     out = capsys.readouterr().out
-    # Controlled runs take the Python path: the output says so, and has no compiled family.
-    assert robots.PYTHON_PATH_NOTE in out and "solve_ivp/python" in out and "relaxed:" not in out
+    # The hopper's twins compute raibert_slip: the output says so, and has a compiled family
+    # (rk4 and aimed landing) beside the Python path's dense DOP853.
+    assert robots.COMPILED_PATH_NOTE in out and "python/compiled" in out and "relaxed:" in out
     rows = read_rows(tmp_path / "robots-slip-raibert.csv")
-    assert {r.kind for r in rows} == {"relaxed-python", "solve_ivp"}
-    assert {"relaxed-rk4", "relaxed-dop853-dense", "relaxed-dopri5", "solve_ivp-LSODA"} <= {r.method for r in rows}
+    assert {r.kind for r in rows} == {"relaxed", "relaxed-python", "solve_ivp"}
+    assert {r.method for r in rows if r.kind == "relaxed-python"} == {"relaxed-dop853-dense"}
+    assert {"relaxed-rk4", "relaxed-dop853", "relaxed-dopri5", "solve_ivp-LSODA"} <= {r.method for r in rows}
     # Two independent integrators of the closed loop (relaxed DOP853 with strips of 1e-2 tol,
     # solve_ivp DOP853 at 1e-12) agree ever better as the tolerance falls: each hundredfold
     # tighter tolerance gains at least tenfold, down to below 1e-8 (measured: 3e-4, 5e-7, 2e-8,
@@ -105,6 +107,8 @@ def test_every_controlled_run_gets_a_fresh_controller():
 def test_quadruped_run_case_error_falls_with_the_tolerance():
     case = robots.make_robot_case("quadruped-run", quick=True)
     assert case.controlled is not None and case.t_final == case.controlled.t_quick
+    # Its twins do not compute raibert_runner: the case takes the Python path and says so.
+    assert not case.controlled.compiled and not robots.takes_compiled_path(case.system, case.new_control())
     ref_events = robots.events(case.reference)
     assert len(ref_events) >= 1 and ref_events[0][0] == pytest.approx(0.1628, abs=1e-3)  # the landing
     errors = []

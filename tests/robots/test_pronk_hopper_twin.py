@@ -250,25 +250,24 @@ def test_a_controller_of_another_stiffness_is_computed_with_its_own(monkeypatch)
     assert np.max(np.abs(own.final_state - fast.final_state)) > 1e-6  # the stiffness in the record counts
 
 
-def test_bench_case_times_the_same_runs_on_both_paths(monkeypatch):
-    # `legsim bench robots --case pronk-raibert`: its compiled family runs in the kernel, its
-    # Python family without the twins, and the two take the same run (the same error and work).
+def test_bench_case_runs_its_compiled_family_in_the_kernel(monkeypatch):
+    # `legsim bench robots --case pronk-raibert`: its compiled family runs in the kernel, the
+    # Python path's best (DOP853, dense landing) does not; both reach the reference.
     from legsim.bench import robots
 
     case = robots.make_robot_case("pronk-raibert", quick=True)
     specs = robots.case_sweep(case, quick=True)
     assert {spec.kind for spec in specs} == {"relaxed", "relaxed-python", "solve_ivp"}
     rows = {}
-    for kind, method in (("relaxed", "relaxed-dopri5"), ("relaxed-python", "relaxed-dopri5-python")):
-        spec = robots.RunSpec(kind, method, 0.1, 1e-10, 1e-8, "aim")
+    for kind, method, landing in (
+        ("relaxed", "relaxed-dopri5", "aim"),
+        ("relaxed-python", "relaxed-dop853-dense", "dense"),
+    ):
+        spec = robots.RunSpec(kind, method, 0.1, 1e-10, 1e-8, landing)
         with kernel_calls(monkeypatch) as calls:
             rows[kind] = (robots.run_one(case, spec, 1), len(calls))
     (fast, n_fast), (slow, n_slow) = rows["relaxed"], rows["relaxed-python"]
     assert n_fast > 0 and n_slow == 0
-    assert (fast.error, fast.steps, fast.field_evals, fast.transitions) == (
-        slow.error,
-        slow.steps,
-        slow.field_evals,
-        slow.transitions,
-    )
-    assert fast.status == "finished" and fast.error < 1e-6  # measured 1.05e-7 against solve_ivp at 1e-12
+    assert fast.transitions == slow.transitions
+    # measured 1.05e-7 (dopri5, aimed) against solve_ivp at 1e-12
+    assert fast.status == slow.status == "finished" and max(fast.error, slow.error) < 1e-6
