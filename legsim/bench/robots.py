@@ -257,7 +257,8 @@ def _controlled_case(name: str, quick: bool) -> RobotCase:
     system, mode, x0 = scene.model.system, scene.initial_mode, scene.initial_state.copy()
     t_final = knobs.t_quick if quick else knobs.t_final
     reference = _reference(name, system, x0, mode, t_final, scene.control)
-    controller = scene.data["controller"]["name"]
+    # A [controller] section's, or the robot's own control (an effect such as the double pendulum's PD).
+    controller = scene.data["controller"]["name"] if "controller" in scene.data else "(the robot's own)"
     description = f"scene {knobs.scene} under its controller {controller}, t in [0, {t_final:g}] s"
 
     def new_control() -> Any:

@@ -179,3 +179,19 @@ def test_a_run_after_a_controlled_one_does_not_inherit_its_controller(monkeypatc
     slow, _ = kernel_calls(monkeypatch, without_compiled(model.system), None)
     assert n_kernel > 0
     assert_same_run(after, slow)
+
+
+def test_bench_case_double_pendulum_pd_runs_compiled_to_its_reference(monkeypatch):
+    # `legsim bench robots --case double-pendulum-pd`: the scene's control is the robot's own (an
+    # effect, no [controller] section); its compiled family runs in the kernel and meets the
+    # solve_ivp reference (DOP853 at 1e-12) at the transitions.
+    from legsim.bench import robots
+
+    case = robots.make_robot_case("double-pendulum-pd", quick=True)
+    assert robots.takes_compiled_path(case.system, case.new_control())
+    calls = []
+    real = compiled.run_visit_compiled
+    monkeypatch.setattr(compiled, "run_visit_compiled", lambda *a: calls.append(1) or real(*a))
+    row = robots.run_one(case, robots.RunSpec("relaxed", "relaxed-dopri5", 0.1, 1e-10, 1e-8, "aim"), 1)
+    assert calls and row.status == "finished" and row.transitions == 2
+    assert row.error < 1e-6
