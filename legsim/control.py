@@ -65,6 +65,13 @@ class Controller:
     def __call__(self, mode: str, t: float, x: np.ndarray) -> Any:
         raise NotImplementedError
 
+    @property
+    def input_source(self) -> Controller:
+        """The controller whose input this one returns: itself, or for a wrapper that only
+        observes (``legsim.orbits``' memory log) the wrapped one. A compiled twin that computes
+        a controller's input (``CompiledMode.controls``) is asked about this one."""
+        return self
+
 
 class Bound:
     """A ``Controller`` as the integrator calls a control, ``u(t, x)``, bound to the mode the run

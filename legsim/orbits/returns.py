@@ -113,6 +113,11 @@ class MemoryLog(Controller):
     def __call__(self, mode: str, t: float, x: np.ndarray) -> Any:
         return self.controller(mode, t, x)
 
+    @property
+    def input_source(self) -> Controller:
+        """The wrapped controller's: this one only records its memory."""
+        return self.controller.input_source
+
 
 class ReturnMap:
     """The return map of a problem's section, with an adaptive simulation horizon.

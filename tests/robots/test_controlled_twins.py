@@ -195,3 +195,26 @@ def test_bench_case_double_pendulum_pd_runs_compiled_to_its_reference(monkeypatc
     row = robots.run_one(case, robots.RunSpec("relaxed", "relaxed-dopri5", 0.1, 1e-10, 1e-8, "aim"), 1)
     assert calls and row.status == "finished" and row.transitions == 2
     assert row.error < 1e-6
+
+
+def test_the_orbit_searchs_memory_log_runs_compiled_as_its_controller(monkeypatch):
+    # legsim orbit wraps the controller in a MemoryLog (it records the memory at every entry);
+    # the wrapper only observes, so the twins compute the wrapped controller's input and the
+    # run is the bare controller's, to the bit.
+    from legsim.orbits.returns import MemoryLog
+    from legsim.scene import load_scene
+
+    scene = load_scene("slip_raibert")
+    system, x0, mode = scene.model.system, scene.initial_state, scene.initial_mode
+    runs = []
+    real = compiled.run_visit_compiled
+    for control in (scene.control, MemoryLog(scene.control)):
+        calls = []
+        with monkeypatch.context() as m:
+            m.setattr(compiled, "run_visit_compiled", lambda *a, calls=calls: calls.append(1) or real(*a))
+            ex = simulate(system, x0.copy(), mode, 2.0, 1e-3, 1e-10, "rk4", control, landing="aim")
+        runs.append((ex, len(calls), control))
+    (bare, n_bare, _), (logged, n_logged, log) = runs
+    assert n_bare == n_logged == len(bare.segments) > 4
+    assert_same_run(bare, logged, tol=0.0)
+    assert len(log.entries) == len(logged.segments)
