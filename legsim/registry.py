@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import functools
 from importlib import metadata
 from typing import TypeVar
 
@@ -12,8 +13,15 @@ T = TypeVar("T")
 
 
 def registered(group: str) -> dict[str, metadata.EntryPoint]:
-    """The entry points of ``group`` by name (not yet imported)."""
-    return {ep.name: ep for ep in metadata.entry_points(group=group)}
+    """The entry points of ``group`` by name (not yet imported), as installed when the process
+    first asked: reading every distribution's metadata costs milliseconds, and a scene's
+    controller is made anew for every run (an orbit search makes dozens)."""
+    return {ep.name: ep for ep in _scan(group)}
+
+
+@functools.cache
+def _scan(group: str) -> tuple[metadata.EntryPoint, ...]:
+    return tuple(metadata.entry_points(group=group))
 
 
 def load_registered(found: dict[str, metadata.EntryPoint], name: str, kind: str, expected: type[T]) -> T:
