@@ -218,3 +218,28 @@ def test_the_orbit_searchs_memory_log_runs_compiled_as_its_controller(monkeypatc
     assert n_bare == n_logged == len(bare.segments) > 4
     assert_same_run(bare, logged, tol=0.0)
     assert len(log.entries) == len(logged.segments)
+
+
+class HalvedPD(JointPD):
+    """A law the twin does not know: the PD's torque halved in ``__call__`` (the record's gains
+    are the base class's)."""
+
+    def __call__(self, mode, t, x):
+        return 0.5 * super().__call__(mode, t, x)
+
+
+@pytest.mark.parametrize("checked", [False, True], ids=["first-visit", "after-a-checked-run"])
+def test_a_joint_pd_whose_subclass_changes_the_law_runs_on_the_python_path(monkeypatch, checked):
+    # The twin computes JointPD's law from the record: a subclass overriding __call__ must not
+    # get a record, else the kernel computes the base class's torque -- refused by the twin
+    # check at a mode's first visit, silently wrong once an earlier run has checked the mode.
+    model = pendulum()
+    bridge = model.info["bridge"]
+    if checked:
+        kernel_calls(monkeypatch, model.system, model.control, 1.0)
+    fast, n_kernel = kernel_calls(monkeypatch, model.system, HalvedPD(bridge, KP, KD, np.array([TARGET]), False), 1.0)
+    slow, _ = kernel_calls(
+        monkeypatch, without_compiled(model.system), HalvedPD(bridge, KP, KD, np.array([TARGET]), False), 1.0
+    )
+    assert n_kernel == 0 and fast.status == "finished"
+    assert_same_run(fast, slow, tol=0.0)
