@@ -85,7 +85,13 @@ def control_writer(run: Run, twin: Any) -> Callable[[np.ndarray], None] | None:
         return _write_nothing if twin.controls is None else twin.controls(None)
     if twin.controls is None or (isinstance(control, Bound) and control.hold):
         return None
-    return twin.controls(control.controller.input_source if isinstance(control, Bound) else control)
+    return twin.controls(control_source(control))
+
+
+def control_source(control: Any) -> Any:
+    """What a twin computes for the run's ``control``: the bound controller's input source
+    (``Controller.input_source``), or the plain control function itself."""
+    return control.controller.input_source if isinstance(control, Bound) else control
 
 
 def _write_nothing(params: np.ndarray) -> None:

@@ -19,6 +19,7 @@ from scipy.optimize import brentq
 import legsim.compiled as compiled
 from legsim import _native
 from legsim.compiled import without_compiled
+from legsim.errors import ModelError
 from legsim.relaxed import simulate
 
 from .test_twins import assert_same_run, close, run
@@ -243,3 +244,22 @@ def test_a_joint_pd_whose_subclass_changes_the_law_runs_on_the_python_path(monke
     )
     assert n_kernel == 0 and fast.status == "finished"
     assert_same_run(fast, slow, tol=0.0)
+
+
+class MisrecordedPD(JointPD):
+    """A record that does not say the law: twice the controller's kp (the twin's check at a
+    mode's first controlled visit is what finds such a record)."""
+
+    def compiled_record(self, pin_model):
+        record = super().compiled_record(pin_model)
+        return None if record is None else [record[0], 2.0 * record[1], *record[2:]]
+
+
+def test_the_twin_is_checked_under_control_after_a_run_without_one_checked_it(monkeypatch):
+    # A run without control checks each mode's twin without torque; the first controlled visit
+    # must check it again with the controller's record, not take the earlier check for it.
+    model = pendulum()
+    bridge = model.info["bridge"]
+    kernel_calls(monkeypatch, model.system, None, 1.0)
+    with pytest.raises(ModelError, match="compiled twin of mode 'unconstrained' disagrees"):
+        kernel_calls(monkeypatch, model.system, MisrecordedPD(bridge, KP, KD, np.array([TARGET]), False), 1.0)
