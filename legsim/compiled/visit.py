@@ -130,7 +130,7 @@ class Table:
         parameters may hold another run's controller), which modes are ready, and the Zeno
         histories of the table's transitions from the run's ZenoWatch."""
         for twin, offset in self.twins:
-            write = control_writer(run, twin)
+            write = control_writer(run.control, twin)
             if write is not None:  # runs_compiled admitted every mode of the table: never None
                 write(twin.params)
             self.P[offset : offset + twin.params.size] = twin.params
@@ -190,7 +190,7 @@ def _check_visit(run: Run, visit: ModeVisit) -> None:
 def _write_control(run: Run, data: ModeData) -> None:
     """The run's control into the parameters of ``data``'s twin, which may hold another run's."""
     twin = data.mode.compiled
-    write = control_writer(run, twin)
+    write = control_writer(run.control, twin)
     if write is None:  # pragma: no cover -- runs_compiled said the twin computes this control
         raise RuntimeError(f"mode '{data.name}': its twin cannot compute the run's control")
     write(twin.params)
