@@ -28,7 +28,7 @@ import numpy as np
 from legsim.compiled import CompiledMode
 from legsim.control import keeps_law
 
-from .raibert import SlipRaibert, touchdown_angle_compiled
+from .raibert import SLIP_TWIN, SlipRaibert, touchdown_angle_compiled
 
 _jit = numba.njit(cache=True, fastmath=False, nogil=True)
 
@@ -152,7 +152,7 @@ def controls(controller: Any) -> Callable[[np.ndarray], None] | None:
         return lambda p: write_record(p, [float(CTRL_NONE)])
     if not computes(controller):
         return None
-    return lambda p: write_record(p, [float(CTRL_SLIP_RAIBERT), *controller.compiled_record()])
+    return lambda p: write_record(p, [float(CTRL_SLIP_RAIBERT), *controller.compiled_record(SLIP_TWIN)])
 
 
 def computes(controller: Any) -> bool:

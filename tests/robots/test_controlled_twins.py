@@ -11,7 +11,7 @@ import math
 
 import numpy as np
 import pytest
-from legsim.robots import double_pendulum
+from legsim.robots import double_pendulum, raibert
 from legsim.robots.bridge import twins
 from legsim.robots.controllers import JointPD
 from scipy.optimize import brentq
@@ -142,6 +142,8 @@ class NoRecord(JointPD):
         pytest.param(lambda b: _held(JointPD(b, KP, KD, np.array([TARGET]), gravity=False)), id="held"),
         pytest.param(lambda b: NoRecord(b, KP, KD, np.array([TARGET]), gravity=False), id="no-record"),
         pytest.param(lambda b: lambda t, x: np.array([KP * (TARGET - x[0]) - KD * x[2]]), id="plain-function"),
+        # Another robot's controller with a record of its own (one input: it fits the pendulum).
+        pytest.param(lambda b: raibert.SlipRaibert(1.0, 1.5, 0.1, 20.0, 0.14), id="slip-raibert"),
     ],
 )
 def test_a_control_the_twin_cannot_compute_runs_on_the_python_path(monkeypatch, make):
