@@ -265,3 +265,23 @@ def test_the_twin_is_checked_under_control_after_a_run_without_one_checked_it(mo
     kernel_calls(monkeypatch, model.system, None, 1.0)
     with pytest.raises(ModelError, match="compiled twin of mode 'unconstrained' disagrees"):
         kernel_calls(monkeypatch, model.system, MisrecordedPD(bridge, KP, KD, np.array([TARGET]), False), 1.0)
+
+
+def test_a_zeno_continuation_in_a_controlled_run_is_the_python_paths(monkeypatch):
+    # A bouncing stop under the PD: the bounces accumulate and the run rests by the continuation
+    # (rest_stop). In a controlled run the kernel hands every crossing to Python, which decides
+    # the continuation as on the Python path.
+    def bouncing():
+        effects = {"gravity": {}, "stop": {"restitution": 0.6}, "zeno": {"window": 1e-3}}
+        model = double_pendulum.make(effects=effects | {"controller": {"kp": KP, "kd": 2.0, "target": TARGET}})
+        for mode in ("unconstrained", "constrained"):  # built before without_compiled copies the modes
+            model.system.mode_data(mode)
+        return model
+
+    model = bouncing()
+    fast, n_kernel = kernel_calls(monkeypatch, model.system, model.control, 3.0)
+    slow_model = bouncing()
+    slow, _ = kernel_calls(monkeypatch, without_compiled(slow_model.system), slow_model.control, 3.0)
+    assert n_kernel > 0 and fast.status == "finished"
+    assert [t.name for t in fast.transitions][-1] == "rest_stop" and len(fast.transitions) > 5
+    assert_same_run(fast, slow)
