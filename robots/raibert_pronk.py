@@ -125,7 +125,9 @@ class PronkRaibert(Controller):
         if not isinstance(hopper, PronkHopper) or hopper.d != self.hopper.d or not keeps_law(self, PronkRaibert, LAW):
             return None
         gains = [self.k_swing, self.kp, self.kd, self.speed, self.k_x, self.l, self.hopper.k]
-        return [RECORD_KIND, *map(float, gains), *map(float, self.memory())]
+        # Each leg's T_s as target_angle reads it (memory() is the orbit search's view, which a
+        # subclass may list otherwise).
+        return [RECORD_KIND, *map(float, gains), *(float(self.stance_time[leg]) for leg in LEGS)]
 
 
 def _make(model: Model, params: dict[str, Any]) -> PronkRaibert:

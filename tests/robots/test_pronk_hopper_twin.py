@@ -298,3 +298,24 @@ def test_a_subclass_that_changes_the_law_runs_on_the_python_path(monkeypatch, la
     slow, _ = kernel_run(monkeypatch, without_compiled(system), law(hopper, gains()), scene.initial_state, t_final=1.0)
     assert n_kernel == 0 and fast.status == "finished"
     assert_same_run(fast, slow, tol=0.0)
+
+
+class RightFirstMemory(PronkRaibert):
+    """The same law, its memory listed right leg first (``memory`` is the orbit search's view of
+    the controller, not what its law reads): the twin must still compute the law."""
+
+    def memory(self):
+        return super().memory()[::-1]
+
+    def restore(self, mode, memory):
+        super().restore(mode, np.asarray(memory)[::-1])
+
+
+def test_the_record_carries_each_legs_stance_time_as_the_law_reads_it(monkeypatch):
+    # Pitched, the legs' stances differ, so their T_s differ: a record taking them in the
+    # memory's order would swap the legs' foot placements.
+    scene, system, hopper = scene_parts("initial.state.theta=0.05")
+    fast, n_kernel = kernel_run(monkeypatch, system, RightFirstMemory(hopper, gains()), scene.initial_state)
+    slow, _ = kernel_run(monkeypatch, without_compiled(system), RightFirstMemory(hopper, gains()), scene.initial_state)
+    assert n_kernel > 0 and fast.status == "finished"
+    assert_same_run(fast, slow, tol=0.0)
