@@ -632,7 +632,9 @@ def _controls(model: BridgeModel, at: int) -> Any:
         if controller is None:
             return lambda p: _write_record(p, at, size, [float(CTRL_NONE)])
         make = getattr(controller, "compiled_record", None)
-        record = None if make is None else make(model.pin_model)
+        if make is None:
+            return None
+        record = make(model.pin_model)
         if record is None or len(record) != size or record[0] != CTRL_JOINT_PD:
             return None
         return lambda p: _write_record(p, at, size, make(model.pin_model))
