@@ -29,7 +29,7 @@ robots): a ``ControllerSpec`` names its parameters and makes a ``Controller`` fo
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from importlib import metadata
 from typing import Any
@@ -71,6 +71,15 @@ class Controller:
         observes (``legsim.orbits``' memory log) the wrapped one. A compiled twin that computes
         a controller's input (``CompiledMode.controls``) is asked about this one."""
         return self
+
+
+def keeps_law(controller: Any, base: type, methods: Sequence[str]) -> bool:
+    """Whether ``controller`` is a ``base`` whose class, if a subclass, keeps ``base``'s
+    ``methods`` (the ones its input is computed by): then a compiled twin that computes
+    ``base``'s law from a record (``CompiledMode.controls``) computes this controller's. A
+    subclass may change the others (``reset``: its values reach the twin through the record)."""
+    law = type(controller)
+    return isinstance(controller, base) and all(getattr(law, name) is getattr(base, name) for name in methods)
 
 
 class Bound:

@@ -14,7 +14,7 @@ import numpy as np
 import pinocchio as pin
 
 from legsim.builders import Model, Param
-from legsim.control import Controller, ControllerSpec
+from legsim.control import Controller, ControllerSpec, keeps_law
 from legsim.errors import SceneError
 
 from .bridge.twins import CTRL_JOINT_PD
@@ -53,8 +53,9 @@ class JointPD(Controller):
 
     def compiled_record(self, pin_model: Any) -> list[float] | None:
         """The control record of the robot's compiled twin (``robots.bridge.twins.CONTROL_KINDS``:
-        ``joint_pd``) when this controller drives ``pin_model``, else None."""
-        if pin_model is not self.bridge.model:
+        ``joint_pd``) when this controller drives ``pin_model``, else None (also for a subclass
+        that changes the law, ``__call__``, which the twin would not follow)."""
+        if pin_model is not self.bridge.model or not keeps_law(self, JointPD, ("__call__",)):
             return None
         return [float(CTRL_JOINT_PD), self.kp, self.kd, float(self.gravity), *map(float, self.targets)]
 

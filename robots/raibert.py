@@ -114,6 +114,8 @@ def touchdown_angle(xd: float, stance_time: float, k_x: float, speed: float, len
     return math.asin(max(-0.9, min(0.9, ahead / length)))
 
 
+#: What the SLIP hopper's twins pass to ``SlipRaibert.compiled_record`` (they have no robot object).
+SLIP_TWIN = "slip_hopper"
 #: ``touchdown_angle`` compiled from its Python source, for compiled twins that compute a
 #: Raibert controller (``robots.slip_hopper_twin``): one rule on both paths.
 touchdown_angle_compiled = numba.njit(cache=True, fastmath=False, nogil=True)(touchdown_angle)
@@ -502,11 +504,14 @@ class SlipRaibert(Controller):
             return np.zeros(1)
         return np.array([self.k_swing * (self.target_angle(x[3]) - x[2])])
 
-    def compiled_record(self) -> list[float]:
+    def compiled_record(self, robot: Any) -> list[float] | None:
         """The values now of the SLIP hopper twin's control record (``robots.slip_hopper_twin``,
-        ``CTRL_SLIP_RAIBERT``): ``(k_swing (1/s), T_s (s), k_x (s), speed (m/s), l (m))``, T_s as
-        the last ``reset`` left it, l the controller's own leg length (its foot placement's, as on
-        the Python path)."""
+        ``CTRL_SLIP_RAIBERT``) when ``robot`` is ``SLIP_TWIN`` (the twin asking), else None
+        (another robot's twin, which asks every controller with a record):
+        ``(k_swing (1/s), T_s (s), k_x (s), speed (m/s), l (m))``, T_s as the last ``reset`` left
+        it, l the controller's own leg length (its foot placement's, as on the Python path)."""
+        if robot != SLIP_TWIN:
+            return None
         return [self.k_swing, self.stance_time, self.k_x, self.speed, self.l]
 
 

@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 
 from legsim.builders import Model, Param
-from legsim.control import Controller, ControllerSpec
+from legsim.control import Controller, ControllerSpec, keeps_law
 from legsim.errors import SceneError
 
 from .pronk_hopper import LEGS, MODES, PronkHopper, state_names
@@ -34,6 +34,8 @@ NORMAL_SHARE = 0.5
 #: ``PronkRaibert.compiled_record``'s layout, which the pronk hopper's compiled twin reads
 #: (``robots/pronk_hopper_twin.py``): its kind, then the controller's values now.
 RECORD_NAMES = ("kind", "k_swing", "kp_attitude", "kd_attitude", "speed", "k_x", "l", "k", "T_s_left", "T_s_right")
+#: The methods that compute ``PronkRaibert``'s input, which its compiled twin computes from the record.
+LAW = ("__call__", "target_angle")
 #: The kind of ``compiled_record`` (0.0 is the twin's record of a run without control).
 RECORD_KIND = 1.0
 
@@ -118,11 +120,14 @@ class PronkRaibert(Controller):
         """The control record (``RECORD_NAMES``) of ``hopper``'s compiled twin: the gains, each
         leg's T_s now (s), and the leg length l (m) and stiffness k (N/m) the law uses; None for
         another robot, or a pronk hopper whose hips are spaced otherwise (the twin takes the
-        legs' geometry from its own hopper)."""
-        if not isinstance(hopper, PronkHopper) or hopper.d != self.hopper.d:
+        legs' geometry from its own hopper), or a subclass that changes the law (``__call__``,
+        ``target_angle``), which the twin would not follow."""
+        if not isinstance(hopper, PronkHopper) or hopper.d != self.hopper.d or not keeps_law(self, PronkRaibert, LAW):
             return None
         gains = [self.k_swing, self.kp, self.kd, self.speed, self.k_x, self.l, self.hopper.k]
-        return [RECORD_KIND, *map(float, gains), *map(float, self.memory())]
+        # Each leg's T_s as target_angle reads it (memory() is the orbit search's view, which a
+        # subclass may list otherwise).
+        return [RECORD_KIND, *map(float, gains), *(float(self.stance_time[leg]) for leg in LEGS)]
 
 
 def _make(model: Model, params: dict[str, Any]) -> PronkRaibert:

@@ -26,8 +26,9 @@ import numba
 import numpy as np
 
 from legsim.compiled import CompiledMode
+from legsim.control import keeps_law
 
-from .raibert import SlipRaibert, touchdown_angle_compiled
+from .raibert import SLIP_TWIN, SlipRaibert, touchdown_angle_compiled
 
 _jit = numba.njit(cache=True, fastmath=False, nogil=True)
 
@@ -151,19 +152,14 @@ def controls(controller: Any) -> Callable[[np.ndarray], None] | None:
         return lambda p: write_record(p, [float(CTRL_NONE)])
     if not computes(controller):
         return None
-    return lambda p: write_record(p, [float(CTRL_SLIP_RAIBERT), *controller.compiled_record()])
+    return lambda p: write_record(p, [float(CTRL_SLIP_RAIBERT), *controller.compiled_record(SLIP_TWIN)])
 
 
 def computes(controller: Any) -> bool:
     """Whether the twin computes ``controller``'s law: a ``SlipRaibert`` whose class, if a
     subclass, keeps its ``__call__`` and ``target_angle`` (a subclass may change ``reset``,
     whose values reach the twin through the record)."""
-    law = type(controller)
-    return (
-        isinstance(controller, SlipRaibert)
-        and law.__call__ is SlipRaibert.__call__
-        and law.target_angle is SlipRaibert.target_angle
-    )
+    return keeps_law(controller, SlipRaibert, ("__call__", "target_angle"))
 
 
 def write_record(p: np.ndarray, record: Sequence[float]) -> None:

@@ -83,6 +83,14 @@ class ControlledSweep:
     compiled: bool = False
 
 
+def _compiled_sweep(scene: str) -> ControlledSweep:
+    """The sweep of a robot whose twins compute its scene's controller: 5 s (1 s with
+    ``--quick``), tolerances 1e-4 .. 1e-10 with steps up to 0.1 s and strips min(1e-6, 1e-2 tol)
+    (no floor), rk4 at steps of 10 to 1 ms with a strip of 1e-10."""
+    tols = (1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10)
+    return ControlledSweep(scene, 5.0, 1.0, tols, 0.1, 0.0, 1e-10, (1e-2, 5e-3, 2e-3, 1e-3), compiled=True)
+
+
 #: The quadruped's flight law switches the swing legs' target length at the apex (falling = the
 #: body's vertical speed < 0), and the legs' reaction then pushes the body up on the falling side
 #: (about +114 m/s^2 against -9.8 m/s^2 on the rising side): the flow slides along zd = 0 for
@@ -91,42 +99,12 @@ class ControlledSweep:
 #: hop's touchdown, stance and liftoff. Its reset images sit past the force guards by up to 1e-9
 #: N of rounding (a strip of 1e-10 is crossed, 1e-9 holds them); the error is then about 2 eps.
 CONTROLLED_SWEEPS = {
-    "slip-raibert": ControlledSweep(
-        "slip_raibert",
-        5.0,
-        1.0,
-        (1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10),
-        0.1,
-        0.0,
-        1e-10,
-        (1e-2, 5e-3, 2e-3, 1e-3),
-        compiled=True,
-    ),
+    "slip-raibert": _compiled_sweep("slip_raibert"),
     # The pronk hopper's twins compute raibert_pronk (robots/pronk_hopper_twin.py): 5 s, 16 hops.
-    "pronk-raibert": ControlledSweep(
-        "pronk_raibert",
-        5.0,
-        1.0,
-        (1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10),
-        0.1,
-        0.0,
-        1e-10,
-        (1e-2, 5e-3, 2e-3, 1e-3),
-        compiled=True,
-    ),
+    "pronk-raibert": _compiled_sweep("pronk_raibert"),
     # The double pendulum's twins compute its shoulder PD (joint_pd): it lands on the stop
     # (a graze, then the impact that holds) and rests there.
-    "double-pendulum-pd": ControlledSweep(
-        "double_pendulum_pd",
-        5.0,
-        1.0,
-        (1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10),
-        0.1,
-        0.0,
-        1e-10,
-        (1e-2, 5e-3, 2e-3, 1e-3),
-        compiled=True,
-    ),
+    "double-pendulum-pd": _compiled_sweep("double_pendulum_pd"),
     "quadruped-run": ControlledSweep(
         "quadruped_run", 0.45, 0.2, (1e-4, 1e-6, 1e-8, 1e-10), 0.02, 1e-9, 1e-8, (1e-3, 5e-4), max_repeats=1
     ),
@@ -276,10 +254,14 @@ def takes_compiled_path(system: Any, control: Any) -> bool:
     """Whether runs of ``system`` under ``control`` (a Controller, evaluated at every stage)
     take the compiled path: every mode built so far (a robot's bridge builds its modes as runs
     reach them) has a twin that computes that controller."""
-    if getattr(control, "hold", False):
-        return False
+    from ..control import bind
+    from ..relaxed.integrate import control_writer
+
     twins = [system.mode_data(mode).mode.compiled for mode in list(system.modes)]
-    return all(twin is not None and twin.controls is not None and twin.controls(control) is not None for twin in twins)
+    bound = bind(control)
+    return all(
+        twin is not None and twin.controls is not None and control_writer(bound, twin) is not None for twin in twins
+    )
 
 
 def make_robot_case(name: str, quick: bool = False) -> RobotCase:

@@ -62,7 +62,8 @@ class CompiledMode:
         Python path.
     controls: optional ``controls(controller) -> write | None``, for a twin that computes a
         controller's input itself. ``controller`` is the run's ``legsim.control.Controller``
-        (evaluated at every stage) or control function, or None for a run without control. It returns
+        (evaluated at every stage; its ``input_source``) or control function, or None for a run
+        without control. It returns
         ``write(p)``, which puts the controller's values now into p (called at every entry of
         the mode, after the controller's reset), or None when the twin cannot compute that
         controller (the run then takes the Python path). The field evaluates the control at each

@@ -23,7 +23,7 @@ from ..errors import LegsimError, ModelBreakdown
 from ..execution import Segment, SegmentBuffer, Status, Strip, TransitionRecord
 from ..hybrid import ModeData, check_field_output
 from ..relaxed import messages
-from ..relaxed.integrate import control_writer, out_of_steps, runs_compiled
+from ..relaxed.integrate import control_source, control_writer, out_of_steps, runs_compiled
 from ..relaxed.outcomes import Ended, Entered, Outcome
 from ..relaxed.run import ModeVisit, Run
 from ..relaxed.strip import cross
@@ -41,6 +41,10 @@ _NO_LIMIT = 1 << 62
 #: against the Python callables at their first entry in this process. The check costs as much
 #: as a short run, and its answer does not change from one run to the next.
 _READY: weakref.WeakValueDictionary[int, ModeData] = weakref.WeakValueDictionary()
+#: The modes checked under control, by (id, the class of the controller the twin computes): a
+#: twin computes each controller's input by its own code, which a check without control (or
+#: under another controller) does not try.
+_READY_CONTROLLED: weakref.WeakValueDictionary[tuple[int, type], ModeData] = weakref.WeakValueDictionary()
 
 
 #: system -> ((a mode, whether the run is controlled) -> the table of the modes it reaches),
@@ -126,7 +130,7 @@ class Table:
         parameters may hold another run's controller), which modes are ready, and the Zeno
         histories of the table's transitions from the run's ZenoWatch."""
         for twin, offset in self.twins:
-            write = control_writer(run, twin)
+            write = control_writer(run.control, twin)
             if write is not None:  # runs_compiled admitted every mode of the table: never None
                 write(twin.params)
             self.P[offset : offset + twin.params.size] = twin.params
@@ -167,16 +171,34 @@ def run_visit_compiled(run: Run, visit: ModeVisit) -> Outcome:
     kernel takes (``transit``), possibly into other modes of the table, until the run ends or
     Python must take a crossing or an entry. A twin that computes the run's control first gets
     the controller's values as its reset at this entry left them."""
-    twin = visit.data.mode.compiled
-    write = control_writer(run, twin)
-    if write is None:  # pragma: no cover -- runs_compiled said the twin computes this control
-        raise RuntimeError(f"mode '{visit.name}': its twin cannot compute the run's control")
-    write(twin.params)
-    if not is_ready(visit.data):
-        guards = visit.guard_values(visit.t, visit.x)
-        check_twin(run.system.name, visit.data, visit.t, visit.x, visit.k0, guards)
+    _write_control(run, visit.data)
+    if run.control is None and not is_ready(visit.data):
+        _check_visit(run, visit)
         _READY[id(visit.data)] = visit.data
+    elif run.control is not None and _READY_CONTROLLED.get(key := _control_key(run, visit.data)) is not visit.data:
+        _check_visit(run, visit)
+        _READY_CONTROLLED[key] = visit.data
     return _drive(run, visit, kt.CROSS)
+
+
+def _check_visit(run: Run, visit: ModeVisit) -> None:
+    """The twin of the visit's mode against the Python callables at its start, under the run's control."""
+    guards = visit.guard_values(visit.t, visit.x)
+    check_twin(run.system.name, visit.data, visit.t, visit.x, visit.k0, guards)
+
+
+def _write_control(run: Run, data: ModeData) -> None:
+    """The run's control into the parameters of ``data``'s twin, which may hold another run's."""
+    twin = data.mode.compiled
+    write = control_writer(run.control, twin)
+    if write is None:  # pragma: no cover -- runs_compiled said the twin computes this control
+        raise RuntimeError(f"mode '{data.name}': its twin cannot compute the run's control")
+    write(twin.params)
+
+
+def _control_key(run: Run, data: ModeData) -> tuple[int, type]:
+    """The key of ``data``'s mode under the run's control in ``_READY_CONTROLLED``."""
+    return id(data), type(control_source(run.control))
 
 
 def enter_compiled(run: Run, mode: str, x: np.ndarray, t: float) -> Outcome:
@@ -204,6 +226,7 @@ def _check_first_entry(run: Run, data: ModeData, t: float, x: np.ndarray) -> boo
         return False
     if not (np.all(np.isfinite(k0)) and all(map(np.isfinite, guards))):
         return False
+    _write_control(run, data)
     check_twin(run.system.name, data, t, x, k0, guards)
     _READY[id(data)] = data
     return True

@@ -69,23 +69,29 @@ def runs_compiled(run: Run, data: ModeData) -> bool:
     does not evaluate). Without control its entries are the kernel's too
     (``compiled.enter_compiled``); with one, Python enters every mode, resetting the controller."""
     twin = data.mode.compiled
-    if twin is None or run.landing.lands_on_extension or control_writer(run, twin) is None:
+    if twin is None or run.landing.lands_on_extension or control_writer(run.control, twin) is None:
         return False
     return twin.controls is not None or all(tr.guard_args == "x" for tr in data.transitions)
 
 
-def control_writer(run: Run, twin: Any) -> Callable[[np.ndarray], None] | None:
-    """How the twin gets the run's control (``CompiledMode.controls``): a function that writes
+def control_writer(control: Any, twin: Any) -> Callable[[np.ndarray], None] | None:
+    """How the twin gets a run's ``control`` (as the run calls it: a ``Bound`` controller, a
+    control function, or None) (``CompiledMode.controls``): a function that writes
     the control's values into the twin's parameters at each entry (doing nothing for a run
     without control and a twin without controls), or None when the twin cannot compute the
     run's control: a held controller (sampled once per step, which the kernel does not do), or
     a controller or control function the twin does not know."""
-    control = run.control
     if control is None:
         return _write_nothing if twin.controls is None else twin.controls(None)
     if twin.controls is None or (isinstance(control, Bound) and control.hold):
         return None
-    return twin.controls(control.controller.input_source if isinstance(control, Bound) else control)
+    return twin.controls(control_source(control))
+
+
+def control_source(control: Any) -> Any:
+    """What a twin computes for the run's ``control``: the bound controller's input source
+    (``Controller.input_source``), or the plain control function itself."""
+    return control.controller.input_source if isinstance(control, Bound) else control
 
 
 def _write_nothing(params: np.ndarray) -> None:

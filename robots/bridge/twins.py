@@ -624,14 +624,18 @@ def bridge_twin(
 def _controls(model: BridgeModel, at: int) -> Any:
     """``CompiledMode.controls`` of an actuated robot's twin whose control record is at p[at:]:
     a run without control writes ``CTRL_NONE``; a controller writes its
-    ``compiled_record(pin_model)`` (None: it has none for this robot, the run takes Python)."""
+    ``compiled_record(pin_model)`` of kind ``joint_pd`` (None, or a record of another kind or
+    size: it has none for this robot, the run takes Python)."""
     size = CONTROL_HEAD + len(model.actuated_idx)
 
     def controls(controller: Any) -> Any:
         if controller is None:
             return lambda p: _write_record(p, at, size, [float(CTRL_NONE)])
         make = getattr(controller, "compiled_record", None)
-        if make is None or (record := make(model.pin_model)) is None or len(record) != size:
+        if make is None:
+            return None
+        record = make(model.pin_model)
+        if record is None or len(record) != size or record[0] != CTRL_JOINT_PD:
             return None
         return lambda p: _write_record(p, at, size, make(model.pin_model))
 

@@ -11,7 +11,7 @@ import math
 
 import numpy as np
 import pytest
-from legsim.robots import double_pendulum
+from legsim.robots import double_pendulum, raibert
 from legsim.robots.bridge import twins
 from legsim.robots.controllers import JointPD
 from scipy.optimize import brentq
@@ -19,6 +19,7 @@ from scipy.optimize import brentq
 import legsim.compiled as compiled
 from legsim import _native
 from legsim.compiled import without_compiled
+from legsim.errors import ModelError
 from legsim.relaxed import simulate
 
 from .test_twins import assert_same_run, close, run
@@ -141,6 +142,8 @@ class NoRecord(JointPD):
         pytest.param(lambda b: _held(JointPD(b, KP, KD, np.array([TARGET]), gravity=False)), id="held"),
         pytest.param(lambda b: NoRecord(b, KP, KD, np.array([TARGET]), gravity=False), id="no-record"),
         pytest.param(lambda b: lambda t, x: np.array([KP * (TARGET - x[0]) - KD * x[2]]), id="plain-function"),
+        # Another robot's controller with a record of its own (one input: it fits the pendulum).
+        pytest.param(lambda b: raibert.SlipRaibert(1.0, 1.5, 0.1, 20.0, 0.14), id="slip-raibert"),
     ],
 )
 def test_a_control_the_twin_cannot_compute_runs_on_the_python_path(monkeypatch, make):
@@ -218,3 +221,67 @@ def test_the_orbit_searchs_memory_log_runs_compiled_as_its_controller(monkeypatc
     assert n_bare == n_logged == len(bare.segments) > 4
     assert_same_run(bare, logged, tol=0.0)
     assert len(log.entries) == len(logged.segments)
+
+
+class HalvedPD(JointPD):
+    """A law the twin does not know: the PD's torque halved in ``__call__`` (the record's gains
+    are the base class's)."""
+
+    def __call__(self, mode, t, x):
+        return 0.5 * super().__call__(mode, t, x)
+
+
+@pytest.mark.parametrize("checked", [False, True], ids=["first-visit", "after-a-checked-run"])
+def test_a_joint_pd_whose_subclass_changes_the_law_runs_on_the_python_path(monkeypatch, checked):
+    # The twin computes JointPD's law from the record: a subclass overriding __call__ must not
+    # get a record, else the kernel computes the base class's torque -- refused by the twin
+    # check at a mode's first visit, silently wrong once an earlier run has checked the mode.
+    model = pendulum()
+    bridge = model.info["bridge"]
+    if checked:
+        kernel_calls(monkeypatch, model.system, model.control, 1.0)
+    fast, n_kernel = kernel_calls(monkeypatch, model.system, HalvedPD(bridge, KP, KD, np.array([TARGET]), False), 1.0)
+    slow, _ = kernel_calls(
+        monkeypatch, without_compiled(model.system), HalvedPD(bridge, KP, KD, np.array([TARGET]), False), 1.0
+    )
+    assert n_kernel == 0 and fast.status == "finished"
+    assert_same_run(fast, slow, tol=0.0)
+
+
+class MisrecordedPD(JointPD):
+    """A record that does not say the law: twice the controller's kp (the twin's check at a
+    mode's first controlled visit is what finds such a record)."""
+
+    def compiled_record(self, pin_model):
+        record = super().compiled_record(pin_model)
+        return None if record is None else [record[0], 2.0 * record[1], *record[2:]]
+
+
+def test_the_twin_is_checked_under_control_after_a_run_without_one_checked_it(monkeypatch):
+    # A run without control checks each mode's twin without torque; the first controlled visit
+    # must check it again with the controller's record, not take the earlier check for it.
+    model = pendulum()
+    bridge = model.info["bridge"]
+    kernel_calls(monkeypatch, model.system, None, 1.0)
+    with pytest.raises(ModelError, match="compiled twin of mode 'unconstrained' disagrees"):
+        kernel_calls(monkeypatch, model.system, MisrecordedPD(bridge, KP, KD, np.array([TARGET]), False), 1.0)
+
+
+def test_a_zeno_continuation_in_a_controlled_run_is_the_python_paths(monkeypatch):
+    # A bouncing stop under the PD: the bounces accumulate and the run rests by the continuation
+    # (rest_stop). In a controlled run the kernel hands every crossing to Python, which decides
+    # the continuation as on the Python path.
+    def bouncing():
+        effects = {"gravity": {}, "stop": {"restitution": 0.6}, "zeno": {"window": 1e-3}}
+        model = double_pendulum.make(effects=effects | {"controller": {"kp": KP, "kd": 2.0, "target": TARGET}})
+        for mode in ("unconstrained", "constrained"):  # built before without_compiled copies the modes
+            model.system.mode_data(mode)
+        return model
+
+    model = bouncing()
+    fast, n_kernel = kernel_calls(monkeypatch, model.system, model.control, 3.0)
+    slow_model = bouncing()
+    slow, _ = kernel_calls(monkeypatch, without_compiled(slow_model.system), slow_model.control, 3.0)
+    assert n_kernel > 0 and fast.status == "finished"
+    assert [t.name for t in fast.transitions][-1] == "rest_stop" and len(fast.transitions) > 5
+    assert_same_run(fast, slow)

@@ -271,3 +271,51 @@ def test_bench_case_runs_its_compiled_family_in_the_kernel(monkeypatch):
     assert fast.transitions == slow.transitions
     # measured 1.05e-7 (dopri5, aimed) against solve_ivp at 1e-12
     assert fast.status == slow.status == "finished" and max(fast.error, slow.error) < 1e-6
+
+
+class SoftAttitude(PronkRaibert):
+    """A law the twin does not know: the stance torques halved in ``__call__``."""
+
+    def __call__(self, mode, t, x):
+        u = super().__call__(mode, t, x)
+        u[2:] *= 0.5
+        return u
+
+
+class ShiftedPlacement(PronkRaibert):
+    """A law the twin does not know: every touchdown angle 0.05 rad further forward."""
+
+    def target_angle(self, leg, theta, xd):
+        return super().target_angle(leg, theta, xd) + 0.05
+
+
+@pytest.mark.parametrize("law", [SoftAttitude, ShiftedPlacement])
+def test_a_subclass_that_changes_the_law_runs_on_the_python_path(monkeypatch, law):
+    # The twin computes PronkRaibert's law from its record: a subclass overriding __call__ or
+    # target_angle must not get a record, else the kernel silently runs the base class's law.
+    scene, system, hopper = scene_parts("initial.state.theta=0.05")
+    fast, n_kernel = kernel_run(monkeypatch, system, law(hopper, gains()), scene.initial_state, t_final=1.0)
+    slow, _ = kernel_run(monkeypatch, without_compiled(system), law(hopper, gains()), scene.initial_state, t_final=1.0)
+    assert n_kernel == 0 and fast.status == "finished"
+    assert_same_run(fast, slow, tol=0.0)
+
+
+class RightFirstMemory(PronkRaibert):
+    """The same law, its memory listed right leg first (``memory`` is the orbit search's view of
+    the controller, not what its law reads): the twin must still compute the law."""
+
+    def memory(self):
+        return super().memory()[::-1]
+
+    def restore(self, mode, memory):
+        super().restore(mode, np.asarray(memory)[::-1])
+
+
+def test_the_record_carries_each_legs_stance_time_as_the_law_reads_it(monkeypatch):
+    # Pitched, the legs' stances differ, so their T_s differ: a record taking them in the
+    # memory's order would swap the legs' foot placements.
+    scene, system, hopper = scene_parts("initial.state.theta=0.05")
+    fast, n_kernel = kernel_run(monkeypatch, system, RightFirstMemory(hopper, gains()), scene.initial_state)
+    slow, _ = kernel_run(monkeypatch, without_compiled(system), RightFirstMemory(hopper, gains()), scene.initial_state)
+    assert n_kernel > 0 and fast.status == "finished"
+    assert_same_run(fast, slow, tol=0.0)
