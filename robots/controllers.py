@@ -18,6 +18,7 @@ from legsim.control import Controller, ControllerSpec, keeps_law
 from legsim.errors import SceneError
 
 from .bridge.twins import CTRL_JOINT_PD
+from .control_laws import pd_torque
 
 
 def bridge_of(model: Model, controller: str) -> Any:
@@ -46,7 +47,7 @@ class JointPD(Controller):
     def __call__(self, mode: str, t: float, x: np.ndarray) -> np.ndarray:
         n = self.bridge.n
         q, v = x[:n], x[n : 2 * n]
-        u = self.kp * (self.targets - q[self.dofs]) - self.kd * v[self.dofs]
+        u = np.array([pd_torque(self.kp, self.kd, r, q[k], v[k]) for r, k in zip(self.targets, self.dofs, strict=True)])
         if self.gravity:
             u += pin.computeGeneralizedGravity(self.bridge.model, self._data, q)[self.dofs]
         return u
@@ -55,7 +56,11 @@ class JointPD(Controller):
         """The control record of the robot's compiled twin (``robots.bridge.twins.CONTROL_KINDS``:
         ``joint_pd``) when this controller drives ``pin_model``, else None (also for a subclass
         that changes the law, ``__call__``, which the twin would not follow)."""
-        if pin_model is not self.bridge.model or not keeps_law(self, JointPD, ("__call__",)):
+        if (
+            pin_model is not self.bridge.model
+            or not keeps_law(self, JointPD, ("__call__",))
+            or not np.array_equal(self.dofs, self.bridge.actuated_dofs)  # the twin's joint order
+        ):
             return None
         return [float(CTRL_JOINT_PD), self.kp, self.kd, float(self.gravity), *map(float, self.targets)]
 

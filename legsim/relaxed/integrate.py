@@ -85,7 +85,15 @@ def control_writer(control: Any, twin: Any) -> Callable[[np.ndarray], None] | No
         return _write_nothing if twin.controls is None else twin.controls(None)
     if twin.controls is None or (isinstance(control, Bound) and control.hold):
         return None
-    return twin.controls(control_source(control))
+    source = control_source(control)
+    try:
+        return twin.controls(source)
+    except LegsimError:
+        raise
+    except Exception as exc:  # a controller's compiled_record failed: name it, not a traceback
+        raise ModelError(
+            f"the compiled twin could not take the control {type(source).__name__}: {type(exc).__name__}: {exc}"
+        ) from exc
 
 
 def control_source(control: Any) -> Any:

@@ -38,6 +38,7 @@ from legsim import _native
 from legsim._native.calls import lsn_aba, lsn_constrained, lsn_frame_jacobian, lsn_frames, lsn_gravity, lsn_impact
 from legsim.compiled import CompiledMode
 
+from ..control_laws import pd_torque
 from .contacts import JointStop, PointContact, RigidContact, SpringLeg
 from .joint import striking_contacts
 from .model import BridgeModel
@@ -176,6 +177,9 @@ def count(p, counter, amount=1.0):
     p[p.shape[0] - len(COUNTED) + counter] += amount
 
 
+_pd_torque = _jit(pd_torque)
+
+
 @_jit
 def _control(x, p, n):
     """The control u (one entry per actuated joint) of the record at p[P_CTRL] at state x, or
@@ -188,7 +192,7 @@ def _control(x, p, n):
     u = np.empty(nact)
     for i in range(nact):
         k = int(p[int(p[P_ACT]) + i])
-        u[i] = kp * (p[at + CONTROL_HEAD + i] - x[k]) - kd * x[n + k]
+        u[i] = _pd_torque(kp, kd, p[at + CONTROL_HEAD + i], x[k], x[n + k])
     if p[at + 3] != 0.0:
         gravity = np.empty(n)
         lsn_gravity(np.int64(p[P_HANDLE]), x.ctypes.data, gravity.ctypes.data)

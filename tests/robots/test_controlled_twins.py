@@ -285,3 +285,25 @@ def test_a_zeno_continuation_in_a_controlled_run_is_the_python_paths(monkeypatch
     assert n_kernel > 0 and fast.status == "finished"
     assert [t.name for t in fast.transitions][-1] == "rest_stop" and len(fast.transitions) > 5
     assert_same_run(fast, slow)
+
+
+def test_a_failing_compiled_record_is_a_model_error_naming_the_controller():
+    class Broken(JointPD):
+        def compiled_record(self, pin_model):
+            raise ValueError("no record today")
+
+    model = pendulum()
+    x0 = np.array([0.5, 0.4, 0.0, 0.0])
+    control = Broken(model.info["bridge"], KP, KD, np.array([TARGET]), gravity=False)
+    with pytest.raises(ModelError, match="could not take the control Broken: ValueError: no record today"):
+        simulate(model.system, x0, "unconstrained", 0.1, 1e-3, 1e-3, "rk4", control)
+
+
+def test_a_joint_pd_whose_joints_are_reordered_runs_on_the_python_path(monkeypatch):
+    # The record lists targets in the robot's actuated order; a controller driving other joints
+    # (or the same ones in another order) has none, and its runs take the Python path.
+    model = pendulum()
+    pd = JointPD(model.info["bridge"], KP, KD, np.array([TARGET]), gravity=False)
+    assert pd.compiled_record(model.info["bridge"].model) is not None
+    pd.dofs = np.array([1])  # the elbow, not the actuated shoulder
+    assert pd.compiled_record(model.info["bridge"].model) is None
