@@ -32,6 +32,7 @@ import numpy as np
 
 from legsim.compiled import CompiledMode
 
+from .control_laws import attitude_share, swing_rate
 from .pronk_hopper import BELOW_GROUND, LEGS, MODES, PronkHopper
 from .raibert import touchdown_angle_compiled
 from .raibert_pronk import RECORD_KIND, RECORD_NAMES, stance_torque
@@ -52,6 +53,8 @@ RECORD_SIZE = len(RECORD_NAMES)
 #: The controller's scalar rules, compiled from their Python source (one rule each).
 _touchdown_angle = touchdown_angle_compiled
 _stance_torque = _jit(stance_torque)
+_swing_rate = _jit(swing_rate)
+_attitude_share = _jit(attitude_share)
 
 
 @_jit
@@ -117,12 +120,12 @@ def _control(x, p):
     for leg in range(2):
         at, _ = _layout(p, leg)
         if p[P_STANCE + leg] != 0.0:
-            share = -(p[c + R_KP] * x[2] + p[c + R_KD] * x[5]) / n_stance
+            share = _attitude_share(p[c + R_KP], p[c + R_KD], x[2], x[5], n_stance)
             n0, n1, r, _ = _leg_in_stance(x, p, leg, x[at])
             u[2 + leg] = _stance_torque(share, p[c + R_K], p[c + R_L], r, n0, n1)
         else:
             target = _touchdown_angle(x[3], p[c + R_T_S + leg], p[c + R_K_X], p[c + R_SPEED], p[c + R_L]) + x[2]
-            u[leg] = p[c + R_K_SWING] * (target - x[at])
+            u[leg] = _swing_rate(p[c + R_K_SWING], target, x[at])
     return u
 
 

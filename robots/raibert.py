@@ -43,6 +43,7 @@ from legsim.builders import Model, Param
 from legsim.control import Controller, ControllerSpec
 from legsim.errors import SceneError
 
+from .control_laws import swing_rate
 from .controllers import bridge_of
 
 
@@ -502,7 +503,7 @@ class SlipRaibert(Controller):
     def __call__(self, mode: str, t: float, x: np.ndarray) -> np.ndarray:
         if mode != "flight":
             return np.zeros(1)
-        return np.array([self.k_swing * (self.target_angle(x[3]) - x[2])])
+        return np.array([swing_rate(self.k_swing, self.target_angle(x[3]), x[2])])
 
     def compiled_record(self, robot: Any) -> list[float] | None:
         """The values now of the SLIP hopper twin's control record (``robots.slip_hopper_twin``,

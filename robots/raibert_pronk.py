@@ -26,6 +26,7 @@ from legsim.builders import Model, Param
 from legsim.control import Controller, ControllerSpec, keeps_law
 from legsim.errors import SceneError
 
+from .control_laws import attitude_share, swing_rate
 from .pronk_hopper import LEGS, MODES, PronkHopper, state_names
 from .raibert import touchdown_angle
 
@@ -108,12 +109,12 @@ class PronkRaibert(Controller):
         u = np.zeros(4)
         for i, leg in enumerate(LEGS):
             if leg in stance:
-                share = -(self.kp * x[2] + self.kd * x[5]) / len(stance)
+                share = attitude_share(self.kp, self.kd, x[2], x[5], len(stance))
                 n, r, _ = self.hopper.leg_in_stance(leg, x, x[names.index(f"{leg}_foot_x")])
                 u[2 + i] = stance_torque(share, self.hopper.k, self.l, r, n[0], n[1])
             else:
                 psi = x[names.index(f"psi_{leg}")]
-                u[i] = self.k_swing * (self.target_angle(leg, x[2], x[3]) - psi)
+                u[i] = swing_rate(self.k_swing, self.target_angle(leg, x[2], x[3]), psi)
         return u
 
     def compiled_record(self, hopper: Any) -> list[float] | None:

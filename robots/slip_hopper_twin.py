@@ -28,9 +28,11 @@ import numpy as np
 from legsim.compiled import CompiledMode
 from legsim.control import keeps_law
 
+from .control_laws import swing_rate
 from .raibert import SLIP_TWIN, SlipRaibert, touchdown_angle_compiled
 
 _jit = numba.njit(cache=True, fastmath=False, nogil=True)
+_swing_rate = _jit(swing_rate)
 
 # p: the hopper (mass kg, stiffness N/m, rest length m, gravity m/s^2), then the control record.
 P_M, P_K, P_L, P_G, P_CTRL = range(5)
@@ -51,7 +53,7 @@ def swing_control(x, p):
     if int(p[at + R_KIND]) == CTRL_NONE:
         return 0.0
     target = touchdown_angle_compiled(x[3], p[at + R_STANCE_TIME], p[at + R_K_X], p[at + R_SPEED], p[at + R_L])
-    return p[at + R_SWING] * (target - x[2])
+    return _swing_rate(p[at + R_SWING], target, x[2])
 
 
 @_jit
