@@ -125,14 +125,16 @@ class Table:
         #: The widest state of the table's modes: the kernel's buffers hold any of them.
         self.width = int(self.mi[:, 1].max()) if len(mi) else 0
 
+    def write_control(self, run: Run) -> None:
+        """The run's control into every twin's parameters, which may hold another run's
+        controller (once per kernel run: the control changes only at entries, in Python)."""
+        for data in self.datas:
+            _write_control(run, data)
+
     def load(self, run: Run) -> None:
-        """The twins' parameters into P, with the run's control written into them (a twin's
-        parameters may hold another run's controller), which modes are ready, and the Zeno
-        histories of the table's transitions from the run's ZenoWatch."""
+        """The twins' parameters into P, which modes are ready, and the Zeno histories of the
+        table's transitions from the run's ZenoWatch."""
         for twin, offset in self.twins:
-            write = control_writer(run.control, twin)
-            if write is not None:  # runs_compiled admitted every mode of the table: never None
-                write(twin.params)
             self.P[offset : offset + twin.params.size] = twin.params
         for i, data in enumerate(self.datas):
             self.mi[i, kt.MI_READY] = is_ready(data)
@@ -171,7 +173,6 @@ def run_visit_compiled(run: Run, visit: ModeVisit) -> Outcome:
     kernel takes (``transit``), possibly into other modes of the table, until the run ends or
     Python must take a crossing or an entry. A twin that computes the run's control first gets
     the controller's values as its reset at this entry left them."""
-    _write_control(run, visit.data)
     if run.control is None and not is_ready(visit.data):
         _check_visit(run, visit)
         _READY[id(visit.data)] = visit.data
@@ -183,6 +184,7 @@ def run_visit_compiled(run: Run, visit: ModeVisit) -> Outcome:
 
 def _check_visit(run: Run, visit: ModeVisit) -> None:
     """The twin of the visit's mode against the Python callables at its start, under the run's control."""
+    _write_control(run, visit.data)
     guards = visit.guard_values(visit.t, visit.x)
     check_twin(run.system.name, visit.data, visit.t, visit.x, visit.k0, guards)
 
@@ -247,6 +249,7 @@ def _drive(run: Run, visit: ModeVisit, start: int) -> Outcome:
     _settings(run, ws, plan)
     ws.fs[k.F_T], ws.fs[k.F_HPROP] = visit.t, run.step_size.h_prop
     ws.iv[kt.I_MODE], ws.iv[kt.I_ENTER], ws.iv[kt.I_XLEN] = 0, start, n
+    table.write_control(run)
     while True:
         ws.ci[kt.CI_MAX_STEPS] = min(PROGRESS_CHUNK if run.has_progress else _NO_LIMIT, run.max_steps - run.steps)
         ws.ci[kt.CI_BUDGET] = max(0, run.max_transitions - len(run.transitions))
