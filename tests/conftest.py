@@ -7,8 +7,15 @@ them with ``-m slow`` runs the long sweeps too.
 import os
 import tempfile
 
-import pytest
-from hypothesis.configuration import set_hypothesis_home_dir
+# Compiled code (legsim's generated kernels, numba's caches of jitted functions) goes to a folder
+# of the system's temporary directory, not to ~/.cache or the source tree: kept between test runs,
+# so that a run does not compile every kernel again. Set before numba is imported.
+_COMPILED = os.path.join(tempfile.gettempdir(), "legsim-test-compiled")
+os.environ.setdefault("LEGSIM_CACHE_DIR", os.path.join(_COMPILED, "kernels"))
+os.environ.setdefault("NUMBA_CACHE_DIR", os.path.join(_COMPILED, "numba"))
+
+import pytest  # noqa: E402 -- after the cache folders are set
+from hypothesis.configuration import set_hypothesis_home_dir  # noqa: E402
 
 # Hypothesis keeps caches (``.hypothesis/``: constants, unicode tables, examples) in the working
 # folder; tests write only in temporary folders.
