@@ -85,8 +85,9 @@ GUARD_SIZE = 12
 #: without one; no torque). ``CTRL_JOINT_PD``: ``(kind, kp, kd, gravity, target of each
 #: actuated joint)``, u = kp (target - q) - kd dq/dt (+ the actuated joints' generalised gravity
 #: g(q) when gravity is 1) on the actuated joints (N m or N; kp in N m/rad, kd in N m s/rad).
-CONTROL_KINDS = ("none", "joint_pd")
-CTRL_NONE, CTRL_JOINT_PD = range(len(CONTROL_KINDS))
+#: ``CTRL_RUNNER``: Raibert's runner for articulated legs (``robots.runner_twin``).
+CONTROL_KINDS = ("none", "joint_pd", "raibert_runner")
+CTRL_NONE, CTRL_JOINT_PD, CTRL_RUNNER = range(len(CONTROL_KINDS))
 CONTROL_HEAD = 4  # kind and three values before the per-joint entries
 
 #: Model counters (``BridgeData.counts`` names) a twin keeps in the last len(COUNTED) entries of
