@@ -27,3 +27,5 @@ lsn_momentum_about = types.ExternalFunction("lsn_momentum_about", types.void(_h,
 lsn_crba = types.ExternalFunction("lsn_crba", types.void(_h, _p, _p))
 #: lsn_gravity(h, q, out): the generalised gravity g(q) (nv,).
 lsn_gravity = types.ExternalFunction("lsn_gravity", types.void(_h, _p, _p))
+#: lsn_frame_motion(h, q, v, a, frame, out): a frame's (vx, vz, ax, az) at (q, v, a), out (4,).
+lsn_frame_motion = types.ExternalFunction("lsn_frame_motion", types.void(_h, _p, _p, _p, types.int64, _p))

@@ -25,6 +25,8 @@
 #include <pinocchio/multibody.hpp>
 
 #include <chrono>
+#include <cmath>
+#include <limits>
 #include <memory>
 #include <mutex>
 #include <vector>
@@ -47,8 +49,10 @@ struct PlanarJointsTpl {
   typedef pinocchio::JointModelPrismaticTpl<S, O, 2> JointModelPZ;
   // Pinocchio's model and data look for mimic joints by type: the variant must name them.
   typedef pinocchio::JointModelMimicTpl<S, O, PlanarJointsTpl> JointModelMimic;
+  // A floating planar base (x, z, pitch) composes PX, PZ and RY into one joint.
+  typedef pinocchio::JointModelCompositeTpl<S, O, PlanarJointsTpl> JointModelComposite;
   typedef boost::variant<JointModelRX, JointModelRY, JointModelRZ, JointModelPX, JointModelPY, JointModelPZ,
-                         boost::recursive_wrapper<JointModelMimic>>
+                         boost::recursive_wrapper<JointModelMimic>, boost::recursive_wrapper<JointModelComposite>>
       JointModelVariant;
   typedef pinocchio::JointDataRevoluteTpl<S, O, 0> JointDataRX;
   typedef pinocchio::JointDataRevoluteTpl<S, O, 1> JointDataRY;
@@ -57,8 +61,9 @@ struct PlanarJointsTpl {
   typedef pinocchio::JointDataPrismaticTpl<S, O, 1> JointDataPY;
   typedef pinocchio::JointDataPrismaticTpl<S, O, 2> JointDataPZ;
   typedef pinocchio::JointDataMimicTpl<S, O, PlanarJointsTpl> JointDataMimic;
+  typedef pinocchio::JointDataCompositeTpl<S, O, PlanarJointsTpl> JointDataComposite;
   typedef boost::variant<JointDataRX, JointDataRY, JointDataRZ, JointDataPX, JointDataPY, JointDataPZ,
-                         boost::recursive_wrapper<JointDataMimic>>
+                         boost::recursive_wrapper<JointDataMimic>, boost::recursive_wrapper<JointDataComposite>>
       JointDataVariant;
 };
 
@@ -70,17 +75,23 @@ using Mat = Eigen::MatrixXd;
 using ConstMap = Eigen::Map<const Vec>;
 using OutMap = Eigen::Map<Vec>;
 
-constexpr int kVersion = 2;
+constexpr int kVersion = 3;
 
 // Joint type codes of the model description (see lsn_create).
-enum JointCode { RX = 0, RY = 1, RZ = 2, PX = 3, PY = 4, PZ = 5 };
+enum JointCode { RX = 0, RY = 1, RZ = 2, PX = 3, PY = 4, PZ = 5, COMPOSITE = 6 };
+using Joints = PlanarJointsTpl<double, 0>;
+using JointModel = pinocchio::JointModelTpl<double, 0, PlanarJointsTpl>;
 
-// A constraint row block: a joint stop (one row selecting a signed dof) or a point contact
-// (rows x and z of the frame's world-aligned Jacobian, or z only); the normal row is the last.
+// A constraint row block: a joint stop (one row selecting a signed dof), a point contact
+// (rows x and z of the frame's world-aligned Jacobian, or z only) or a slipping point (row z;
+// its force acts along W = J_z - s mu J_x, the friction force -s mu lambda_n joining the
+// normal force); the normal row is the last.
+enum RigidKind { STOP = 0, POINT = 1, SLIPPING_POINT = 2 };
+
 struct Rigid {
-  int kind;  // 0 stop, 1 point
-  int id;    // stop: velocity index; point: frame id
-  double sign;
+  int kind;     // RigidKind
+  int id;       // stop: velocity index; point: frame id
+  double sign;  // stop: the side (+-1); slipping point: s mu
   int rows;
 };
 
@@ -102,17 +113,36 @@ pinocchio::SE3 read_placement(const double* d) {
   return pinocchio::SE3(R, Eigen::Vector3d(d[9], d[10], d[11]));
 }
 
-bool add_joint(Model& model, int code, int parent, const pinocchio::SE3& placement, int index) {
-  const std::string name = "j" + std::to_string(index);
+// The joint of a simple code (RX .. PZ); false for another code.
+bool simple_joint(int code, JointModel& out) {
   switch (code) {
-    case RX: model.addJoint(parent, PlanarJointsTpl<double, 0>::JointModelRX(), placement, name); return true;
-    case RY: model.addJoint(parent, PlanarJointsTpl<double, 0>::JointModelRY(), placement, name); return true;
-    case RZ: model.addJoint(parent, PlanarJointsTpl<double, 0>::JointModelRZ(), placement, name); return true;
-    case PX: model.addJoint(parent, PlanarJointsTpl<double, 0>::JointModelPX(), placement, name); return true;
-    case PY: model.addJoint(parent, PlanarJointsTpl<double, 0>::JointModelPY(), placement, name); return true;
-    case PZ: model.addJoint(parent, PlanarJointsTpl<double, 0>::JointModelPZ(), placement, name); return true;
+    case RX: out = Joints::JointModelRX(); return true;
+    case RY: out = Joints::JointModelRY(); return true;
+    case RZ: out = Joints::JointModelRZ(); return true;
+    case PX: out = Joints::JointModelPX(); return true;
+    case PY: out = Joints::JointModelPY(); return true;
+    case PZ: out = Joints::JointModelPZ(); return true;
     default: return false;
   }
+}
+
+// The joint at desc[k] (its code, then for a composite its count and each part's code and
+// placement[12]), k moved past it; false for a bad description.
+bool read_joint(const double* desc, long size, long& k, JointModel& out) {
+  if (k + 1 > size) return false;
+  const int code = static_cast<int>(desc[k++]);
+  if (code != COMPOSITE) return simple_joint(code, out);
+  if (k + 1 > size) return false;
+  const long parts = static_cast<long>(desc[k++]);
+  if (parts < 1 || k + 13 * parts > size) return false;
+  Joints::JointModelComposite composite;
+  for (long i = 0; i < parts; ++i, k += 13) {
+    JointModel part;
+    if (!simple_joint(static_cast<int>(desc[k]), part)) return false;
+    composite.addJoint(part, read_placement(desc + k + 1));
+  }
+  out = composite;
+  return true;
 }
 
 std::vector<Rigid> read_rigid(long n, const double* desc) {
@@ -130,16 +160,18 @@ int total_rows(const std::vector<Rigid>& rigid) {
 }
 
 // The stacked constraint Jacobian (rows, nv); with drift also dJ/dt v (the classical
-// acceleration of each point at zero joint acceleration). Kinematics at (q, v, 0) first.
+// acceleration of each point at zero joint acceleration), and the force directions W (J but on
+// slipping points' rows). Kinematics at (q, v, 0) first.
 void constraint_rows(Robot& rb, const ConstMap& q, const ConstMap& v, const std::vector<Rigid>& rigid, bool drift,
-                     Mat& J, Vec& gamma) {
+                     Mat& J, Vec& gamma, Mat& W) {
   const Model& model = rb.model;
   Data& data = rb.data;
   const int rows = total_rows(rigid);
   J.setZero(rows, model.nv);
+  W.setZero(rows, model.nv);
   gamma.setZero(rows);
   bool points = false;
-  for (const Rigid& r : rigid) points = points || r.kind == 1;
+  for (const Rigid& r : rigid) points = points || r.kind != STOP;
   if (points) {
     pinocchio::forwardKinematics(model, data, q, v, Vec::Zero(model.nv));
     pinocchio::computeJointJacobians(model, data, q);
@@ -147,8 +179,9 @@ void constraint_rows(Robot& rb, const ConstMap& q, const ConstMap& v, const std:
   Mat Jf(6, model.nv);
   int i = 0;
   for (const Rigid& r : rigid) {
-    if (r.kind == 0) {
+    if (r.kind == STOP) {
       J(i, r.id) = r.sign;
+      W(i, r.id) = r.sign;
     } else {
       Jf.setZero();
       pinocchio::getFrameJacobian(model, data, static_cast<pinocchio::FrameIndex>(r.id), pinocchio::LOCAL_WORLD_ALIGNED,
@@ -159,6 +192,8 @@ void constraint_rows(Robot& rb, const ConstMap& q, const ConstMap& v, const std:
       } else {
         J.row(i) = Jf.row(2);
       }
+      W.middleRows(i, r.rows) = J.middleRows(i, r.rows);
+      if (r.kind == SLIPPING_POINT) W.row(i) -= r.sign * Jf.row(0);
       if (drift) {
         const Eigen::Vector3d acc = pinocchio::getFrameClassicalAcceleration(
                              model, data, static_cast<pinocchio::FrameIndex>(r.id), pinocchio::LOCAL_WORLD_ALIGNED)
@@ -197,6 +232,21 @@ Vec solve_small(const Mat& A, const Vec& b) {
   return A.partialPivLu().solve(b);
 }
 
+bool slipping(const std::vector<Rigid>& rigid) {
+  for (const Rigid& r : rigid)
+    if (r.kind == SLIPPING_POINT) return true;
+  return false;
+}
+
+// Whether the Delassus matrix of a mode with slipping contacts gives unique contact forces, by
+// the test of robots/bridge/dynamics.check_consistent (no diagonal entry <= 0, not singular):
+// where it fails (the Painleve paradox) the Python mode raises ModelBreakdown.
+bool consistent(const Mat& A) {
+  const double scale = A.cwiseAbs().maxCoeff();
+  if ((A.diagonal().array() <= 1e-12 * scale).any()) return false;
+  return std::abs(A.determinant()) > 1e-12 * std::pow(scale, static_cast<double>(A.rows()));
+}
+
 }  // namespace
 
 extern "C" {
@@ -205,8 +255,9 @@ extern "C" {
 long lsn_version() { return kVersion; }
 
 // Build a model from a flat description and return its handle (>= 0), or -1 on a bad
-// description. Layout: [njoints-1, then per joint (code, parent, placement[12],
-// mass, lever[3], inertia about the centre of mass[9]), nframes-1, then per frame
+// description. Layout: [njoints-1, then per joint (code, [a composite's part count, then per
+// part (code, placement[12])], parent, placement[12], mass, lever[3], inertia about the centre
+// of mass[9]), nframes-1, then per frame
 // (parent joint, placement[12]), gravity linear[3]]. A placement is R row-major then p.
 // Frames are added in order after the universe frame, so frame ids are the Python model's.
 long lsn_create(const double* desc, long size) {
@@ -216,17 +267,18 @@ long lsn_create(const double* desc, long size) {
   if (!need(1)) return -1;
   const long joints = static_cast<long>(desc[k++]);
   for (long j = 0; j < joints; ++j) {
-    if (!need(28)) return -1;
-    const int code = static_cast<int>(desc[k]);
-    const int parent = static_cast<int>(desc[k + 1]);
-    const pinocchio::SE3 placement = read_placement(desc + k + 2);
-    const double mass = desc[k + 14];
-    const Eigen::Vector3d lever(desc[k + 15], desc[k + 16], desc[k + 17]);
+    JointModel joint;
+    if (!read_joint(desc, size, k, joint) || !need(26)) return -1;
+    const int parent = static_cast<int>(desc[k]);
+    const pinocchio::SE3 placement = read_placement(desc + k + 1);
+    const double mass = desc[k + 13];
+    const Eigen::Vector3d lever(desc[k + 14], desc[k + 15], desc[k + 16]);
     Eigen::Matrix3d I;
     for (int a = 0; a < 3; ++a)
-      for (int b = 0; b < 3; ++b) I(a, b) = desc[k + 18 + 3 * a + b];
-    k += 27;
-    if (parent < 0 || parent > j || !add_joint(model, code, parent, placement, static_cast<int>(j + 1))) return -1;
+      for (int b = 0; b < 3; ++b) I(a, b) = desc[k + 17 + 3 * a + b];
+    k += 26;
+    if (parent < 0 || parent > j) return -1;
+    model.addJoint(static_cast<pinocchio::JointIndex>(parent), joint, placement, "j" + std::to_string(j + 1));
     model.appendBodyToJoint(static_cast<pinocchio::JointIndex>(j + 1), pinocchio::Inertia(mass, lever, I),
                             pinocchio::SE3::Identity());
   }
@@ -312,6 +364,23 @@ void lsn_momentum_about(long h, const double* q, const double* v, long frame, do
   out[2] = tip(2);
 }
 
+// A frame's world-aligned linear velocity and classical acceleration at (q, v, a):
+// out = (vx, vz, ax, az) (m/s, m/s^2).
+void lsn_frame_motion(long h, const double* q, const double* v, const double* a, long frame, double* out) {
+  Robot& rb = robot(h);
+  const long n = rb.model.nv;
+  const auto id = static_cast<pinocchio::FrameIndex>(frame);
+  pinocchio::forwardKinematics(rb.model, rb.data, ConstMap(q, n), ConstMap(v, n), ConstMap(a, n));
+  pinocchio::updateFramePlacement(rb.model, rb.data, id);
+  const Eigen::Vector3d w = pinocchio::getFrameVelocity(rb.model, rb.data, id, pinocchio::LOCAL_WORLD_ALIGNED).linear();
+  const Eigen::Vector3d acc =
+      pinocchio::getFrameClassicalAcceleration(rb.model, rb.data, id, pinocchio::LOCAL_WORLD_ALIGNED).linear();
+  out[0] = w(0);
+  out[1] = w(2);
+  out[2] = acc(0);
+  out[3] = acc(2);
+}
+
 // The generalised gravity g(q) (nv): the joint forces that hold the robot still against gravity.
 void lsn_gravity(long h, const double* q, double* out) {
   Robot& rb = robot(h);
@@ -341,12 +410,18 @@ void lsn_constrained(long h, const double* q, const double* v, const double* tau
   Vec acc = pinocchio::aba(rb.model, rb.data, qm, vm, ConstMap(tau, n));
   const std::vector<Rigid> blocks = read_rigid(count, rigid);
   const Mat Minv = minverse(rb, qm);
-  Mat J;
+  Mat J, W;
   Vec gamma;
-  constraint_rows(rb, qm, vm, blocks, true, J, gamma);
-  const Mat MJt = Minv * J.transpose();
-  const Vec l = solve_small(J * MJt, -(J * acc + gamma));
-  acc += MJt * l;
+  constraint_rows(rb, qm, vm, blocks, true, J, gamma, W);
+  const Mat MWt = Minv * W.transpose();
+  const Mat A = J * MWt;
+  if (slipping(blocks) && !consistent(A)) {
+    OutMap(a, n).setConstant(std::numeric_limits<double>::quiet_NaN());
+    OutMap(lam, A.rows()).setConstant(std::numeric_limits<double>::quiet_NaN());
+    return;
+  }
+  const Vec l = solve_small(A, -(J * acc + gamma));
+  acc += MWt * l;
   OutMap(a, n) = acc;
   OutMap(lam, l.size()) = l;
 }
@@ -359,9 +434,9 @@ void lsn_impact(long h, const double* q, const double* v, long count, const doub
   const long n = rb.model.nv;
   const ConstMap qm(q, n), vm(v, n);
   const std::vector<Rigid> blocks = read_rigid(count, rigid);
-  Mat J;
+  Mat J, W;
   Vec gamma;
-  constraint_rows(rb, qm, vm, blocks, false, J, gamma);
+  constraint_rows(rb, qm, vm, blocks, false, J, gamma, W);
   Vec c(J.rows());
   int i = 0;
   for (long b = 0; b < count; ++b)

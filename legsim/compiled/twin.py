@@ -119,7 +119,11 @@ def check_twin(
             f"guards shape {g.shape}, expected ({data.mode.dim},) and ({twin.n_guards},)"
         )
     g_py = np.array([float(guard(x)) for guard in data.guards] if guards is None else guards, dtype=float)
-    if not (np.all(np.abs(f - k0) <= 1e-9 * (1.0 + np.abs(k0))) and np.allclose(g, g_py, rtol=1e-9, atol=1e-12)):
+    # A fallback twin's nan guards hand their step to the Python loop: nothing of theirs is used.
+    used = ~np.isnan(g) if twin.fallback else np.ones(g.shape, dtype=bool)
+    if not (
+        np.all(np.abs(f - k0) <= 1e-9 * (1.0 + np.abs(k0))) and np.allclose(g[used], g_py[used], rtol=1e-9, atol=1e-12)
+    ):
         raise ModelError(
             f"{system_name}: compiled twin of mode '{data.name}' disagrees with the Python callables at "
             f"t={t}, x={x.tolist()}: field {f.tolist()} vs {k0.tolist()}, guards {g.tolist()} vs "

@@ -234,9 +234,12 @@ class ContactBridge:
         """``HybridSystem`` expand callback: the mode and its outgoing transitions."""
         spec = self._modes.spec(mode)
         transitions = outgoing(self._model, self._data, self._modes, spec)
-        from .twins import bridge_twin  # numba and the native library load with the first mode
-
-        twin = bridge_twin(self._model, self._modes, spec, transitions)
+        # numba and the native library load with the first mode
+        if self._model.coulomb:
+            from .friction_twins import coulomb_twin as make_twin
+        else:
+            from .twins import bridge_twin as make_twin
+        twin = make_twin(self._model, self._modes, spec, transitions)
         self.count_twin(twin)
         return dataclasses.replace(self.mode(mode), compiled=twin), transitions
 

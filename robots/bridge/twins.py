@@ -104,6 +104,7 @@ _JOINT_CODES = {
     "JointModelPY": 4,
     "JointModelPZ": 5,
 }
+COMPOSITE = 6
 
 
 def describe(model: Any) -> np.ndarray | None:
@@ -111,11 +112,11 @@ def describe(model: Any) -> np.ndarray | None:
     when it has a joint the library does not take or a gravity with an angular part."""
     out: list[float] = [model.njoints - 1]
     for j in range(1, model.njoints):
-        code = _JOINT_CODES.get(model.joints[j].shortname())
-        if code is None:
+        joint = _joint_description(model.joints[j])
+        if joint is None:
             return None
         placement, inertia = model.jointPlacements[j], model.inertias[j]
-        out += [code, model.parents[j], *placement.rotation.reshape(-1), *placement.translation]
+        out += [*joint, model.parents[j], *placement.rotation.reshape(-1), *placement.translation]
         out += [inertia.mass, *inertia.lever, *inertia.inertia.reshape(-1)]
     out.append(len(model.frames) - 1)
     for frame in list(model.frames)[1:]:
@@ -124,6 +125,23 @@ def describe(model: Any) -> np.ndarray | None:
         return None
     out += list(model.gravity.linear)
     return np.array(out, dtype=float)
+
+
+def _joint_description(joint: Any) -> list[float] | None:
+    """A joint's code, and for a composite (the planar root: PX, PZ, RY) its parts' codes and
+    placements; None for a joint the library does not take."""
+    kind = joint.shortname()
+    if kind != "JointModelComposite":
+        code = _JOINT_CODES.get(kind)
+        return None if code is None else [code]
+    composite = joint.extract()
+    out: list[float] = [COMPOSITE, len(composite.joints)]
+    for part, placement in zip(composite.joints, composite.jointPlacements, strict=True):
+        code = _JOINT_CODES.get(part.shortname())
+        if code is None:
+            return None
+        out += [code, *placement.rotation.reshape(-1), *placement.translation]
+    return out
 
 
 def native_ready() -> bool:
@@ -167,7 +185,7 @@ def handle_for(model: Any) -> int | None:
 
 
 @_jit
-def _ptr(a, i):
+def ptr(a, i):
     """Address of a[i] of a contiguous float64 array."""
     return a.ctypes.data + _F8 * i
 
@@ -182,7 +200,7 @@ _pd_torque = _jit(pd_torque)
 
 
 @_jit
-def _control(x, p, n):
+def control_input(x, p, n):
     """The control u (one entry per actuated joint) of the record at p[P_CTRL] at state x, or
     an empty array when the run has none (``CONTROL_KINDS``)."""
     nact = int(p[P_NACT])
@@ -248,7 +266,7 @@ def _applied_forces(x, p, n, u):
 
 
 @_jit
-def _accelerate(x, p, n, nrigid, rigid_at, rows, a, lam, u):
+def accelerate(x, p, n, nrigid, rigid_at, rows, a, lam, u):
     """The acceleration into a (n,) and the constraint forces into lam (rows,) of
     dynamics.dynamics under control u for the rigid blocks at p[rigid_at:] (ABA when there
     are none)."""
@@ -256,16 +274,16 @@ def _accelerate(x, p, n, nrigid, rigid_at, rows, a, lam, u):
     h = np.int64(p[P_HANDLE])
     count(p, C_ABA)
     if nrigid == 0:
-        lsn_aba(h, x.ctypes.data, _ptr(x, n), tau.ctypes.data, a.ctypes.data)
+        lsn_aba(h, x.ctypes.data, ptr(x, n), tau.ctypes.data, a.ctypes.data)
     else:
         count(p, C_KKT)
         lsn_constrained(
             h,
             x.ctypes.data,
-            _ptr(x, n),
+            ptr(x, n),
             tau.ctypes.data,
             np.int64(nrigid),
-            _ptr(p, rigid_at),
+            ptr(p, rigid_at),
             a.ctypes.data,
             lam.ctypes.data,
         )
@@ -278,7 +296,7 @@ def bridge_field(t, x, p):
     out = np.zeros(int(p[P_DIM]))
     a = np.empty(n)
     lam = np.empty(max(1, int(p[P_ROWS])))
-    _accelerate(x, p, n, int(p[P_NRIGID]), int(p[P_RIGID]), int(p[P_ROWS]), a, lam, _control(x, p, n))
+    accelerate(x, p, n, int(p[P_NRIGID]), int(p[P_RIGID]), int(p[P_ROWS]), a, lam, control_input(x, p, n))
     for j in range(n):
         out[j] = x[n + j]
         out[n + j] = a[j]
@@ -286,7 +304,7 @@ def bridge_field(t, x, p):
 
 
 @_jit
-def _gap(x, p, g, kin, n):
+def gap_value(x, p, g, kin, n):
     """Gap guard of an inactive stop or point (guards._touch_guard), from record g."""
     if p[g + G_GAP_KIND] == 0.0:
         dof, sign = int(p[g + G_A]), p[g + G_B]
@@ -309,16 +327,16 @@ def _post_impact_force(x, p, g, n, u):
     lsn_impact(
         h,
         x.ctypes.data,
-        _ptr(x, n),
+        ptr(x, n),
         np.int64(p[g + G_NIMPACT]),
-        _ptr(p, int(p[g + G_IMPACT])),
-        _ptr(p, int(p[g + G_COEFF])),
-        _ptr(after, n),
+        ptr(p, int(p[g + G_IMPACT])),
+        ptr(p, int(p[g + G_COEFF])),
+        ptr(after, n),
     )
     nstick = int(p[g + G_NSTICK])
     a = np.empty(n)
     lam = np.empty(int(p[g + G_ROW]) + 1 + 2 * nstick)
-    _accelerate(after, p, n, nstick, int(p[g + G_STICK]), 0, a, lam, u)
+    accelerate(after, p, n, nstick, int(p[g + G_STICK]), 0, a, lam, u)
     return lam[int(p[g + G_ROW])]
 
 
@@ -364,23 +382,18 @@ def bridge_guards(x, p):
     if nframe > 0:
         count(p, C_KINEMATICS)
         lsn_frames(
-            np.int64(p[P_HANDLE]),
-            x.ctypes.data,
-            _ptr(x, n),
-            np.int64(nframe),
-            _ptr(p, int(p[P_FRAME])),
-            kin.ctypes.data,
+            np.int64(p[P_HANDLE]), x.ctypes.data, ptr(x, n), np.int64(nframe), ptr(p, int(p[P_FRAME])), kin.ctypes.data
         )
     lam = np.empty(max(1, int(p[P_ROWS])))
     solved = False
-    u = _control(x, p, n)
+    u = control_input(x, p, n)
     for e in range(n_guards):
         g = int(p[P_GUARD]) + GUARD_SIZE * e
         kind = int(p[g + G_KIND])
         if kind == K_GAP:
-            out[e] = _gap(x, p, g, kin, n)
+            out[e] = gap_value(x, p, g, kin, n)
         elif kind == K_PLASTIC:
-            base = _gap(x, p, g, kin, n)
+            base = gap_value(x, p, g, kin, n)
             if base >= 0.0:
                 out[e] = base
             else:
@@ -390,7 +403,7 @@ def bridge_guards(x, p):
         elif kind == K_RELEASE:
             if not solved:
                 a = np.empty(n)
-                _accelerate(x, p, n, int(p[P_NRIGID]), int(p[P_RIGID]), int(p[P_ROWS]), a, lam, u)
+                accelerate(x, p, n, int(p[P_NRIGID]), int(p[P_RIGID]), int(p[P_ROWS]), a, lam, u)
                 solved = True
             out[e] = lam[int(p[g + G_A])]
         elif kind == K_LEG_TOUCH:
@@ -424,11 +437,11 @@ def bridge_resets(x, p, e):
         lsn_impact(
             np.int64(p[P_HANDLE]),
             x.ctypes.data,
-            _ptr(x, n),
+            ptr(x, n),
             np.int64(p[g + G_NIMPACT]),
-            _ptr(p, int(p[g + G_IMPACT])),
-            _ptr(p, int(p[g + coefficients])),
-            _ptr(out, n),
+            ptr(p, int(p[g + G_IMPACT])),
+            ptr(p, int(p[g + coefficients])),
+            ptr(out, n),
         )
         return out
     if kind == K_RELEASE:
@@ -446,9 +459,7 @@ def bridge_resets(x, p, e):
             kin = np.empty(4)
             frame = np.empty(1)
             frame[0] = p[int(p[P_FRAME]) + int(p[g + G_A])]
-            lsn_frames(
-                np.int64(p[P_HANDLE]), x.ctypes.data, _ptr(x, n), np.int64(1), frame.ctypes.data, kin.ctypes.data
-            )
+            lsn_frames(np.int64(p[P_HANDLE]), x.ctypes.data, ptr(x, n), np.int64(1), frame.ctypes.data, kin.ctypes.data)
             out[2 * n + i] = kin[0]
     return out
 
@@ -456,7 +467,7 @@ def bridge_resets(x, p, e):
 # -- building a mode's parameter array ---------------------------------------------------------
 
 
-class _Params:
+class Params:
     """p under construction: the header, then sections appended as they are described."""
 
     def __init__(self) -> None:
@@ -476,13 +487,20 @@ class _Params:
 
 
 def _rigid_blocks(blocks: Sequence[RigidContact]) -> list[float]:
+    """The native library's rigid blocks (pinlegsim.cpp, ``Rigid``): (kind, dof or frame, sign or
+    a slipping point's s mu, rows)."""
     out: list[float] = []
     for r in blocks:
-        out += [0.0 if r.kind == "stop" else 1.0, r.dof if r.kind == "stop" else r.frame_id, r.sign, r.rows]
+        if r.kind == "stop":
+            out += [0.0, r.dof, r.sign, r.rows]
+        elif r.slip:
+            out += [2.0, r.frame_id, r.slip_mu, r.rows]
+        else:
+            out += [1.0, r.frame_id, r.sign, r.rows]
     return out
 
 
-def _gap_fields(r: RigidContact, pp: _Params) -> list[float]:
+def gap_fields(r: RigidContact, pp: Params) -> list[float]:
     """Fields G_GAP_KIND, G_A, G_B, G_C of a stop's or point's gap."""
     c = r.contact
     if isinstance(c, JointStop):
@@ -491,7 +509,7 @@ def _gap_fields(r: RigidContact, pp: _Params) -> list[float]:
 
 
 def _strike_records(
-    model: BridgeModel, modes: ModeCatalog, spec: ModeSpec, cname: str, pp: _Params
+    model: BridgeModel, modes: ModeCatalog, spec: ModeSpec, cname: str, pp: Params
 ) -> list[tuple[str, list[float]]] | None:
     """(transition name, guard record) of the impacts of the inactive rigid contact ``cname``
     (as transitions._strike_transitions builds them), or None when the twin cannot follow."""
@@ -502,7 +520,7 @@ def _strike_records(
     kept = [r for r in model.contacts if r in staying and r in model.rigid]
     rows = [model.rigid[r] for r in [*kept, cname]]
     impact_at = pp.append(_rigid_blocks(rows))
-    gap = _gap_fields(model.rigid[cname], pp)
+    gap = gap_fields(model.rigid[cname], pp)
     if c.restitution > 0.0:
         coeff_at = pp.append([0.0] * len(kept) + [c.restitution])
         rest_at = pp.append([0.0] * len(rows))  # the continuation's: the same impact, plastic
@@ -527,7 +545,7 @@ def _foothold_map(src: ModeSpec, dst: ModeSpec) -> list[float]:
 
 
 def _records(
-    model: BridgeModel, modes: ModeCatalog, spec: ModeSpec, pp: _Params
+    model: BridgeModel, modes: ModeCatalog, spec: ModeSpec, pp: Params
 ) -> list[tuple[str, list[float]]] | None:
     """The guard records of the mode's outgoing transitions, in transitions.outgoing's order."""
     out: list[tuple[str, list[float]]] = []
@@ -587,10 +605,31 @@ def bridge_twin(
     handle = handle_for(model.pin_model)
     if handle is None:
         return None
-    pp = _Params()
+    pp = Params()
     records = _records(model, modes, spec, pp)
     if records is None or [name for name, _ in records] != [tr.name for tr in transitions]:
         return None
+    guards_at = pp.append([v for _, record in records for v in record])
+    p = mode_params(model, spec, pp, handle, len(records), guards_at)
+    return CompiledMode(
+        bridge_field,
+        bridge_guards,
+        len(records),
+        p,
+        bridge_resets,
+        fallback=True,
+        continued=True,
+        joint_groups=tuple(_joint_group(model, name) for name, _ in records),
+        controls=controls_of(model, int(p[P_CTRL])) if model.actuated_idx.size else None,
+    )
+
+
+def mode_params(
+    model: BridgeModel, spec: ModeSpec, pp: Params, handle: int, n_guards: int, guards_at: int
+) -> np.ndarray:
+    """The twin's p: the header and the mode's sections (rigid blocks, springs, damping, frames,
+    actuated joints, control record, counters) after the guard records already in ``pp``
+    (``n_guards`` transitions, their records at ``guards_at``)."""
     header = pp.p
     header[P_HANDLE], header[P_N], header[P_DIM] = handle, model.n, spec.dim
     header[P_NRIGID], header[P_ROWS] = len(spec.rigid), sum(r.rows for r in spec.rigid)
@@ -605,28 +644,17 @@ def bridge_twin(
     )
     header[P_NDAMP] = len(model.damping_idx)
     header[P_DAMP] = pp.append([v for k, b in zip(model.damping_idx, model.damping_b, strict=True) for v in (k, b)])
-    header[P_NGUARD] = len(records)
-    header[P_GUARD] = pp.append([v for _, record in records for v in record])
+    header[P_NGUARD], header[P_GUARD] = n_guards, guards_at
     header[P_NFRAME] = len(pp.frames)
     header[P_FRAME] = pp.append(pp.frames)
     nact = len(model.actuated_idx)
     header[P_NACT], header[P_ACT] = nact, pp.append(model.actuated_idx.tolist())
     header[P_CTRL] = pp.append([0.0] * (CONTROL_HEAD + nact))
     pp.append([0.0] * len(COUNTED))
-    return CompiledMode(
-        bridge_field,
-        bridge_guards,
-        len(records),
-        np.array(pp.p),
-        bridge_resets,
-        fallback=True,
-        continued=True,
-        joint_groups=tuple(_joint_group(model, name) for name, _ in records),
-        controls=_controls(model, int(header[P_CTRL])) if nact else None,
-    )
+    return np.array(pp.p)
 
 
-def _controls(model: BridgeModel, at: int) -> Any:
+def controls_of(model: BridgeModel, at: int) -> Any:
     """``CompiledMode.controls`` of an actuated robot's twin whose control record is at p[at:]:
     a run without control writes ``CTRL_NONE``; a controller writes its
     ``compiled_record(pin_model)`` of kind ``joint_pd`` (None, or a record of another kind or

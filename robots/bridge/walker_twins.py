@@ -16,7 +16,7 @@ import numpy as np
 from legsim._native.calls import lsn_aba, lsn_crba, lsn_frames, lsn_impact, lsn_momentum_about
 from legsim.compiled import CompiledMode
 
-from .twins import C_ABA, C_IMPACTS, C_KINEMATICS, _jit, _ptr, count, handle_for, native_ready, with_counters
+from .twins import C_ABA, C_IMPACTS, C_KINEMATICS, _jit, count, handle_for, native_ready, ptr, with_counters
 
 # Compass gait p: stance model handle, impact model handle, leg length l (m), the stance
 # model's swing-foot frame, the impact block (point, foot2's frame, sign, 2 rows) and its
@@ -32,7 +32,7 @@ def _passive_field(x, p, handle, nv):
     for j in range(nv):
         out[j] = x[nv + j]
     count(p, C_ABA)
-    lsn_aba(np.int64(handle), x.ctypes.data, _ptr(x, nv), tau.ctypes.data, _ptr(out, nv))
+    lsn_aba(np.int64(handle), x.ctypes.data, ptr(x, nv), tau.ctypes.data, ptr(out, nv))
     return out
 
 
@@ -47,7 +47,7 @@ def _swing_foot(x, p):
     """(x, z, vx, vz) of the swing foot relative to the stance foot (m, m/s)."""
     kin = np.empty(4)
     count(p, C_KINEMATICS)
-    lsn_frames(np.int64(p[CG_STANCE]), x.ctypes.data, _ptr(x, 2), np.int64(1), _ptr(p, CG_FOOT), kin.ctypes.data)
+    lsn_frames(np.int64(p[CG_STANCE]), x.ctypes.data, ptr(x, 2), np.int64(1), ptr(p, CG_FOOT), kin.ctypes.data)
     return kin
 
 
@@ -80,8 +80,8 @@ def compass_resets(x, p, e):
         qf.ctypes.data,
         vf.ctypes.data,
         np.int64(1),
-        _ptr(p, CG_BLOCK),
-        _ptr(p, CG_COEFF),
+        ptr(p, CG_BLOCK),
+        ptr(p, CG_COEFF),
         v_plus.ctypes.data,
     )
     kin = _swing_foot(x, p)
@@ -140,7 +140,7 @@ def rimless_resets(x, p, e):
     shift = -2.0 * p[RW_ALPHA] if e == 0 else 2.0 * p[RW_ALPHA]
     momentum = np.empty(3)
     count(p, C_IMPACTS)
-    lsn_momentum_about(h, x.ctypes.data, _ptr(x, 1), np.int64(frame), momentum.ctypes.data)
+    lsn_momentum_about(h, x.ctypes.data, ptr(x, 1), np.int64(frame), momentum.ctypes.data)
     new = np.array([x[0] + shift])
     inertia = np.empty(1)
     lsn_crba(h, new.ctypes.data, inertia.ctypes.data)

@@ -133,15 +133,22 @@ def run(monkeypatch, scene, python, overrides=()):
     return ex, len(calls)
 
 
-def assert_same_run(a, b, tol=1e-9):
+def assert_same_run(a, b, tol=1e-9, handed_back=False):
+    """Run a (compiled) is run b (Python) to ``tol``. ``handed_back``: a's twins hand steps to
+    the Python loop (nan guards), which retakes each from its start, so a evaluated its field
+    more often (the kernel's trial of those steps) than b."""
     assert a.status == b.status and a.message == b.message
     assert [t.name for t in a.transitions] == [t.name for t in b.transitions]
     for ta, tb in zip(a.transitions, b.transitions, strict=True):
         assert abs(ta.time - tb.time) <= tol and abs(ta.exit_time - tb.exit_time) <= tol
         close(ta.state_before, tb.state_before, tol)
         close(ta.state_after, tb.state_after, tol)
-    for key in ("steps", "halvings", "error_rejections", "field_evals", "transitions"):
+    for key in ("steps", "halvings", "error_rejections", "transitions"):
         assert a.counters[key] == b.counters[key], key
+    if handed_back:
+        assert a.counters["field_evals"] >= b.counters["field_evals"]
+    else:
+        assert a.counters["field_evals"] == b.counters["field_evals"]
     close(a.final_state, b.final_state, tol)
     assert [(s.mode, s.name) for s in a.strips] == [(s.mode, s.name) for s in b.strips]
     assert abs(a.counters["strip_time"] - b.counters["strip_time"]) <= tol * max(1, len(a.strips))
