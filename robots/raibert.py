@@ -322,7 +322,15 @@ class RunnerRaibert(Controller):
         extending, and the hip's share of the attitude torque (``runner_laws.stance_torques``)."""
         g = self.gains
         return laws.stance_torques(
-            leg.thigh, leg.shank, *self._joints(leg, s), g.leg_length, leg.thrust, g.stiffness, g.damping, attitude, unload
+            leg.thigh,
+            leg.shank,
+            *self._joints(leg, s),
+            g.leg_length,
+            leg.thrust,
+            g.stiffness,
+            g.damping,
+            attitude,
+            unload,
         )
 
     def _flight(self, leg: Leg, s: list[float], falling: bool, gravity: list[float]) -> tuple[float, float]:
@@ -361,15 +369,38 @@ class RunnerRaibert(Controller):
         g_hip, g_knee = gravity[leg.hip], gravity[leg.knee]
         if not falling:
             return laws.retract_torques(
-                leg.thigh, leg.shank, q_hip, q_knee, v_hip, v_knee, s[2], s[n + 2], leg.liftoff_angle, g.leg_length,
-                g.kp_joint, g.kd_joint, g_hip, g_knee,
-            )  # fmt: skip
+                leg.thigh,
+                leg.shank,
+                q_hip,
+                q_knee,
+                v_hip,
+                v_knee,
+                s[2],
+                s[n + 2],
+                leg.liftoff_angle,
+                g.leg_length,
+                g.kp_joint,
+                g.kd_joint,
+                g_hip,
+                g_knee,
+            )
         hip_speed = s[n] - leg.offset * math.sin(s[2]) * s[n + 2]
         world = touchdown_angle(hip_speed, leg.stance_time, g.k_x, g.speed, g.leg_length, leg.bias)
         return laws.servo_torques(
-            leg.thigh, leg.shank, leg.bend, q_hip, q_knee, v_hip, v_knee, g.leg_length, world + s[2],
-            g.kp_joint, g.kd_joint, g_hip, g_knee,
-        )  # fmt: skip
+            leg.thigh,
+            leg.shank,
+            leg.bend,
+            q_hip,
+            q_knee,
+            v_hip,
+            v_knee,
+            g.leg_length,
+            world + s[2],
+            g.kp_joint,
+            g.kd_joint,
+            g_hip,
+            g_knee,
+        )
 
 
 RUNNER_PARAMETERS = {

@@ -59,9 +59,7 @@ def joint_angles(thigh: float, shank: float, bend: float, length: float, angle: 
 
 
 @register_jitable
-def touchdown_angle(
-    xd: float, stance_time: float, k_x: float, speed: float, length: float, bias: float = 0.0
-) -> float:
+def touchdown_angle(xd: float, stance_time: float, k_x: float, speed: float, length: float, bias: float = 0.0) -> float:
     """Raibert's foot placement as a leg angle (rad, from the vertical, forward): the foot
     ``xd T_s / 2 + k_x (xd - xd*) + bias`` (m) ahead of the hip, the neutral point plus the speed
     correction, for forward speed xd and commanded speed (m/s), stance time T_s (s), gain k_x (s)

@@ -68,20 +68,9 @@ LEG_FIELDS = (
     H_KP_JOINT,
     H_KD_JOINT,
 ) = range(len(HEAD_FIELDS))
-(
-    L_HIP,
-    L_KNEE,
-    L_U_HIP,
-    L_U_KNEE,
-    L_THIGH,
-    L_SHANK,
-    L_BEND,
-    L_OFFSET,
-    L_STANCE_TIME,
-    L_THRUST,
-    L_BIAS,
-    L_FRAME,
-) = range(len(LEG_FIELDS))
+(L_HIP, L_KNEE, L_U_HIP, L_U_KNEE, L_THIGH, L_SHANK, L_BEND, L_OFFSET, L_STANCE_TIME, L_THRUST, L_BIAS, L_FRAME) = (
+    range(len(LEG_FIELDS))
+)
 RUNNER_HEAD = len(HEAD_FIELDS)
 RUNNER_LEG = len(LEG_FIELDS)
 

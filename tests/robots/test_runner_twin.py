@@ -109,7 +109,8 @@ def test_runner_control_gives_the_controllers_torques_along_the_run(run):
     stances = [stance_of(run.controller, c.mode).sum() for c in run.calls]
     falling = [c.x[n + 1] < 0.0 for c in run.calls]
     assert {0.0, 1.0, 2.0} <= set(stances)
-    assert any(s == 0.0 and f for s, f in zip(stances, falling)) and any(s == 0.0 and not f for s, f in zip(stances, falling))
+    flight_falling = {f for s, f in zip(stances, falling, strict=True) if s == 0.0}
+    assert flight_falling == {True, False}
     assert len(run.calls) > 1000
 
 
@@ -138,7 +139,7 @@ def test_each_memory_value_of_the_record_reaches_the_torques(run):
         changed = [c for c in run.calls if leg_entries(c.record, name) != stale_values]
         assert changed, f"the run's resets never changed {name}"
         stale = [twin_torques(run.controller, c, with_entries(c.record, name, stale_values)) for c in changed]
-        assert max(relative_error(u, c.u) for u, c in zip(stale, changed)) > 1e-6, name
+        assert max(relative_error(u, c.u) for u, c in zip(stale, changed, strict=True)) > 1e-6, name
 
 
 def test_the_record_lays_out_the_gains_and_legs_where_the_twin_reads_them():
