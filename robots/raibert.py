@@ -40,11 +40,14 @@ import numpy as np
 import pinocchio as pin
 
 from legsim.builders import Model, Param
-from legsim.control import Controller, ControllerSpec
+from legsim.control import Controller, ControllerSpec, keeps_law
 from legsim.errors import SceneError
 
+from . import runner_laws as laws
 from .control_laws import swing_rate
 from .controllers import bridge_of
+from .runner_laws import touchdown_angle
+from .runner_twin import pack_record
 
 
 @dataclass
@@ -75,44 +78,20 @@ class Leg:
     phase_height: float = 0.0
 
 
-def leg_terms(leg: Leg, q_hip: float, q_knee: float) -> tuple[float, float, float, float, float, float]:
-    """The foot relative to the hip in the body frame, (x, z) (m), and its Jacobian's entries
-    d(x, z)/d(q_hip, q_knee) row by row (m/rad), as floats (the stance law runs at every guard
-    evaluation, where small numpy arrays cost more than the arithmetic)."""
-    a, b = q_hip, q_hip + q_knee
-    sa, ca, sb, cb = math.sin(a), math.cos(a), math.sin(b), math.cos(b)
-    l1, l2 = leg.thigh, leg.shank
-    return -l1 * sa - l2 * sb, -l1 * ca - l2 * cb, -l1 * ca - l2 * cb, -l2 * cb, l1 * sa + l2 * sb, l2 * sb
-
-
 def leg_point(leg: Leg, q_hip: float, q_knee: float) -> np.ndarray:
     """Foot relative to the hip in the body frame (x, z) (m)."""
-    return np.array(leg_terms(leg, q_hip, q_knee)[:2])
+    return np.array(laws.foot_terms(leg.thigh, leg.shank, q_hip, q_knee)[:2])
 
 
 def leg_jacobian(leg: Leg, q_hip: float, q_knee: float) -> np.ndarray:
     """d(foot - hip)/d(q_hip, q_knee) in the body frame (2, 2)."""
-    return np.array(leg_terms(leg, q_hip, q_knee)[2:]).reshape(2, 2)
+    return np.array(laws.foot_terms(leg.thigh, leg.shank, q_hip, q_knee)[2:]).reshape(2, 2)
 
 
 def leg_angles(leg: Leg, length: float, angle: float) -> tuple[float, float]:
     """(q_hip, q_knee) putting the foot at ``length`` (m) from the hip, ``angle`` (rad) from the
     body's -z axis towards +x (the knee bent by its sign)."""
-    l1, l2 = leg.thigh, leg.shank
-    c = (length**2 - l1**2 - l2**2) / (2 * l1 * l2)
-    knee = leg.bend * math.acos(max(-1.0, min(1.0, c)))
-    # the foot's direction is u(q_hip + phi) with phi the angle the shank adds to the thigh's
-    phi = math.atan2(l2 * math.sin(knee), l1 + l2 * math.cos(knee))
-    return -angle - phi, knee
-
-
-def touchdown_angle(xd: float, stance_time: float, k_x: float, speed: float, length: float, bias: float = 0.0) -> float:
-    """Raibert's foot placement as a leg angle (rad, from the vertical, forward): the foot
-    ``xd T_s / 2 + k_x (xd - xd*) + bias`` (m) ahead of the hip, the neutral point plus the speed
-    correction, for forward speed xd and commanded speed (m/s), stance time T_s (s), gain k_x (s)
-    and a leg of ``length`` (m); the reach is capped at 0.9 of the length."""
-    ahead = xd * stance_time / 2 + k_x * (xd - speed) + bias
-    return math.asin(max(-0.9, min(0.9, ahead / length)))
+    return laws.joint_angles(leg.thigh, leg.shank, leg.bend, length, angle)
 
 
 #: What the SLIP hopper's twins pass to ``SlipRaibert.compiled_record`` (they have no robot object).
@@ -147,17 +126,8 @@ def find_legs(bridge: Any) -> list[Leg]:
     return legs
 
 
-#: Most force (N) a stance leg past its rest length pulls its foot up with, and the largest
-#: share of the leg's force times its length the stance hip's attitude torque may take.
-UNLOAD = 5.0
-ATTITUDE_SHARE = 0.5
-#: Extension rate (m/s) at which the stance thrust is fully on; the swing's leg length (share of
-#: the touchdown length) while the body rises, so that the foot clears the ground.
-THRUST_RATE = 0.2
-SWING_SHARE = 0.75
-#: Stiffness (N/m) and damping (N s/m) along a bound's rising leg retracting after liftoff.
-RETRACT_STIFFNESS = 500.0
-RETRACT_DAMPING = 20.0
+#: The laws' constants (``UNLOAD``, ``ATTITUDE_SHARE``, ``THRUST_RATE``, ``SWING_SHARE``,
+#: ``RETRACT_STIFFNESS``, ``RETRACT_DAMPING``) are in ``robots.runner_laws``.
 #: How long (s) after its liftoff a bound's leg that touches the ground again pulls its foot up
 #: (at most ``UNLOAD``) instead of pushing: it lifted off where its contact force passed 0, so
 #: at once after the liftoff that force's sign is a matter of rounding, and a foot put back in
@@ -183,6 +153,11 @@ class Gains:
     kd_joint: float
     max_thrust: float
     k_phase: float
+
+
+#: The methods that compute ``RunnerRaibert``'s torques, which its compiled twin computes from
+#: the record (a subclass may change the others: ``reset``'s values reach the twin through it).
+RUNNER_LAW = ("__call__", "_active", "_height", "_joints", "_stance", "_flight")
 
 
 class RunnerRaibert(Controller):
@@ -224,6 +199,17 @@ class RunnerRaibert(Controller):
                     leg.liftoff_angle = self._world_angle(leg, x)
                     leg.liftoff_time = t
             leg.in_stance = stance
+
+    def compiled_record(self, pin_model: Any) -> list[float] | None:
+        """The control record of the robot's compiled twin (``robots.runner_twin``, kind
+        ``CTRL_RUNNER``) when this controller drives ``pin_model``, with each leg's memory as
+        the last ``reset`` left it; None for the bound gait (its refractory term reads the
+        time, which a twin's guards do not take), for another robot's model, and for a
+        subclass that changes the law (``RUNNER_LAW``), which the twin would not follow."""
+        if not self.attitude or pin_model is not self.bridge.model or not keeps_law(self, RunnerRaibert, RUNNER_LAW):
+            return None
+        frames = {contact.name: contact.frame for contact in self.bridge.contacts if hasattr(contact, "frame")}
+        return pack_record(self.gains, self.legs, [pin_model.getFrameId(frames[leg.contact]) for leg in self.legs])
 
     @property
     def memory_names(self) -> tuple[str, ...] | None:  # type: ignore[override]
@@ -282,7 +268,7 @@ class RunnerRaibert(Controller):
 
     def _world_angle(self, leg: Leg, x: np.ndarray) -> float:
         """The leg's angle (rad) from the world's -z axis towards +x."""
-        px, pz = leg_terms(leg, float(x[leg.hip]), float(x[leg.knee]))[:2]
+        px, pz = laws.foot_terms(leg.thigh, leg.shank, float(x[leg.hip]), float(x[leg.knee]))[:2]
         return math.atan2(px, -pz) - float(x[2])
 
     def _height(self, leg: Leg, x: np.ndarray) -> tuple[float, float]:
@@ -303,111 +289,118 @@ class RunnerRaibert(Controller):
             active = self._modes[mode] = frozenset(self.bridge.active_contacts(mode))
         return active
 
+    def _joints(self, leg: Leg, s: list[float]) -> tuple[float, float, float, float]:
+        """The leg's hip and knee angles (rad) and rates (rad/s) in the state s (a list)."""
+        n = self.n
+        return s[leg.hip], s[leg.knee], s[n + leg.hip], s[n + leg.knee]
+
     def __call__(self, mode: str, t: float, x: np.ndarray) -> np.ndarray:
         n, g = self.n, self.gains
-        q, v = x[:n], x[n : 2 * n]
+        # floats, not numpy scalars: the law runs at every guard evaluation (the same values)
+        s = x.tolist()
         active = self._active(mode)
         u = np.zeros(self.count)
-        stance_legs = [leg for leg in self.legs if leg.contact in active]
-        attitude = g.kp_attitude * q[2] + g.kd_attitude * v[2] if self.attitude else 0.0
+        stance_count = sum(leg.contact in active for leg in self.legs)
+        attitude = g.kp_attitude * s[2] + g.kd_attitude * s[n + 2] if self.attitude else 0.0
         # A pronk lifts off together: once a leg has left, the others unload while they extend.
-        together = self.attitude and len(stance_legs) < len(self.legs)
+        together = self.attitude and stance_count < len(self.legs)
         gravity = None
         for leg in self.legs:
-            torque: tuple[float, float] | np.ndarray  # (hip, knee) N m
             if leg.contact in active:
                 refractory = not self.attitude and t - leg.liftoff_time < REFRACTORY
-                torque = self._stance(leg, q, v, attitude / len(stance_legs), together or refractory)
+                hip, knee = self._stance(leg, s, attitude / stance_count, together or refractory)
             else:
                 if gravity is None:
-                    gravity = pin.computeGeneralizedGravity(self.bridge.model, self._data, q)
-                torque = self._flight(leg, q, v, self._height(leg, x)[1] < 0.0, gravity)
-            u[leg.u_hip] += torque[0]
-            u[leg.u_knee] += torque[1]
+                    gravity = pin.computeGeneralizedGravity(self.bridge.model, self._data, x[:n]).tolist()
+                hip, knee = self._flight(leg, s, self._height(leg, x)[1] < 0.0, gravity)
+            u[leg.u_hip] += hip
+            u[leg.u_knee] += knee
         return u
 
-    def _stance(
-        self, leg: Leg, q: np.ndarray, v: np.ndarray, attitude: float, unload: bool = False
-    ) -> tuple[float, float]:
-        """Hip and knee torques (N m) of the leg's spring along itself, with thrust while extending,
-        and the hip's share of the attitude torque. Past its rest length the leg pulls its foot up
-        (at most ``UNLOAD`` N), so that it lifts off rather than dragging; the attitude torque is
-        kept below ``ATTITUDE_SHARE`` of the leg force times its length, so that the foot's force
-        stays well inside the friction cone."""
+    def _stance(self, leg: Leg, s: list[float], attitude: float, unload: bool = False) -> tuple[float, float]:
+        """Hip and knee torques (N m) of the leg's spring along itself, with thrust while
+        extending, and the hip's share of the attitude torque (``runner_laws.stance_torques``)."""
         g = self.gains
-        px, pz, j00, j01, j10, j11 = leg_terms(leg, float(q[leg.hip]), float(q[leg.knee]))
-        va, vb = float(v[leg.hip]), float(v[leg.knee])
-        r = math.hypot(px, pz)
-        rdot = (px * (j00 * va + j01 * vb) + pz * (j10 * va + j11 * vb)) / r
-        # the thrust comes in with the extension rate (not at once at the bottom of the stance, so
-        # that the contact forces, and the guards on them, stay continuous)
-        rest = g.leg_length + leg.thrust * min(max(rdot / THRUST_RATE, 0.0), 1.0)
-        force = max(g.stiffness * (rest - r) - g.damping * rdot, -UNLOAD)
-        if unload and rdot > 0.0:
-            force = -UNLOAD
-        limit = ATTITUDE_SHARE * max(force, 0.0) * r
-        fx, fz = force * px / r, force * pz / r
-        return j00 * fx + j10 * fz + max(-limit, min(limit, attitude)), j01 * fx + j11 * fz
+        return laws.stance_torques(
+            leg.thigh,
+            leg.shank,
+            *self._joints(leg, s),
+            g.leg_length,
+            leg.thrust,
+            g.stiffness,
+            g.damping,
+            attitude,
+            unload,
+        )
 
-    def _flight(self, leg: Leg, q: np.ndarray, v: np.ndarray, falling: bool, gravity: np.ndarray) -> np.ndarray:
+    def _flight(self, leg: Leg, s: list[float], falling: bool, gravity: list[float]) -> tuple[float, float]:
         """Hip and knee torques (N m) servoing the foot to its touchdown placement, with the
-        generalized ``gravity`` (N m, shape (nv,)) compensated. In a pronk the legs' lengths make
-        up for the pitch, so that the feet hang at one height and land together (the stance hips
-        then level the body)."""
+        generalized ``gravity`` (N m, one per velocity) compensated
+        (``runner_laws.pronk_flight_torques``; a bound's: ``_bound_flight``)."""
         g = self.gains
         if not self.attitude:
-            return self._bound_flight(leg, q, v, falling, gravity)
-        world = self._placement(leg, v[0])
-        length = g.leg_length if falling else SWING_SHARE * g.leg_length
-        # the hip is -offset sin(pitch) above the body's centre
-        length -= leg.offset * math.sin(q[2]) / math.cos(world)
-        return self._servo(leg, q, v, length, world + q[2], gravity)
+            return self._bound_flight(leg, s, falling, gravity)
+        return laws.pronk_flight_torques(
+            leg.thigh,
+            leg.shank,
+            leg.bend,
+            leg.offset,
+            *self._joints(leg, s),
+            s[2],
+            s[self.n],
+            falling,
+            leg.stance_time,
+            leg.bias,
+            g.speed,
+            g.k_x,
+            g.leg_length,
+            g.kp_joint,
+            g.kd_joint,
+            gravity[leg.hip],
+            gravity[leg.knee],
+        )
 
-    def _placement(self, leg: Leg, xd: float) -> float:
-        """The leg's touchdown angle (rad, from the world's -z axis towards +x) at forward
-        speed xd (m/s): the neutral point, the speed correction and the integral term's bias."""
-        g = self.gains
-        return touchdown_angle(xd, leg.stance_time, g.k_x, g.speed, g.leg_length, leg.bias)
-
-    def _servo(
-        self, leg: Leg, q: np.ndarray, v: np.ndarray, length: float, angle: float, gravity: np.ndarray
-    ) -> np.ndarray:
-        """Hip and knee torques (N m) of the joint PD to the foot at ``length`` (m) and ``angle``
-        (rad, from the body's -z axis), with the generalized ``gravity`` compensated."""
-        g = self.gains
-        hip, knee = leg_angles(leg, length, angle)
-        dofs = [leg.hip, leg.knee]
-        return g.kp_joint * (np.array((hip, knee)) - q[dofs]) - g.kd_joint * v[dofs] + gravity[dofs]
-
-    def _bound_flight(self, leg: Leg, q: np.ndarray, v: np.ndarray, falling: bool, gravity: np.ndarray) -> np.ndarray:
+    def _bound_flight(self, leg: Leg, s: list[float], falling: bool, gravity: list[float]) -> tuple[float, float]:
         """Bound: once the leg's hip falls the leg swings to the placement of its own hip's
-        horizontal speed at full length (joint PD); while the hip rises the leg retracts."""
+        horizontal speed at full length (joint PD); while the hip rises the leg retracts
+        holding its liftoff angle (``runner_laws.retract_torques``)."""
+        g, n = self.gains, self.n
+        q_hip, q_knee, v_hip, v_knee = self._joints(leg, s)
+        g_hip, g_knee = gravity[leg.hip], gravity[leg.knee]
         if not falling:
-            return self._retract(leg, q, v, gravity)
-        world = self._placement(leg, v[0] - leg.offset * math.sin(q[2]) * v[2])
-        return self._servo(leg, q, v, self.gains.leg_length, world + q[2], gravity)
-
-    def _retract(self, leg: Leg, q: np.ndarray, v: np.ndarray, gravity: np.ndarray) -> np.ndarray:
-        """Hip and knee torques (N m) shortening a rising leg to ``SWING_SHARE`` of its length by
-        a spring along itself (through J^T, as the stance spring), with the generalized
-        ``gravity`` compensated, the hip holding the leg's liftoff angle in the world (a swing
-        towards the vertical would lower the foot onto the ground it just left). The joint PD
-        to the same posture also bounds, but its gait settles about three times slower
-        (docs/robots.md, "The quadruped's bound")."""
-        g = self.gains
-        px, pz, j00, j01, j10, j11 = leg_terms(leg, float(q[leg.hip]), float(q[leg.knee]))
-        va, vb = float(v[leg.hip]), float(v[leg.knee])
-        pxd, pzd = j00 * va + j01 * vb, j10 * va + j11 * vb
-        r = math.hypot(px, pz)
-        rdot = (px * pxd + pz * pzd) / r
-        force = RETRACT_STIFFNESS * (SWING_SHARE * g.leg_length - r) - RETRACT_DAMPING * rdot
-        fx, fz = force * px / r, force * pz / r
-        world = math.atan2(px, -pz) - float(q[2])
-        world_rate = (-pz * pxd + px * pzd) / r**2 - float(v[2])
-        # the foot's angle from the body's -z axis falls as the hip angle grows
-        swing = -(g.kp_joint * (leg.liftoff_angle - world) - g.kd_joint * world_rate)
-        dofs = [leg.hip, leg.knee]
-        return np.array((j00 * fx + j10 * fz + swing, j01 * fx + j11 * fz)) + gravity[dofs]
+            return laws.retract_torques(
+                leg.thigh,
+                leg.shank,
+                q_hip,
+                q_knee,
+                v_hip,
+                v_knee,
+                s[2],
+                s[n + 2],
+                leg.liftoff_angle,
+                g.leg_length,
+                g.kp_joint,
+                g.kd_joint,
+                g_hip,
+                g_knee,
+            )
+        hip_speed = s[n] - leg.offset * math.sin(s[2]) * s[n + 2]
+        world = touchdown_angle(hip_speed, leg.stance_time, g.k_x, g.speed, g.leg_length, leg.bias)
+        return laws.servo_torques(
+            leg.thigh,
+            leg.shank,
+            leg.bend,
+            q_hip,
+            q_knee,
+            v_hip,
+            v_knee,
+            g.leg_length,
+            world + s[2],
+            g.kp_joint,
+            g.kd_joint,
+            g_hip,
+            g_knee,
+        )
 
 
 RUNNER_PARAMETERS = {
