@@ -17,7 +17,7 @@ from legsim.builders import Model, Param
 from legsim.control import Controller, ControllerSpec, keeps_law
 from legsim.errors import SceneError
 
-from .bridge.twins import CTRL_JOINT_PD
+from .bridge.control_records import CTRL_JOINT_PD
 from .control_laws import pd_torque
 
 
@@ -53,7 +53,7 @@ class JointPD(Controller):
         return u
 
     def compiled_record(self, pin_model: Any) -> list[float] | None:
-        """The control record of the robot's compiled twin (``robots.bridge.twins.CONTROL_KINDS``:
+        """The control record of the robot's compiled twin (``robots.bridge.control_records.CONTROL_KINDS``:
         ``joint_pd``) when this controller drives ``pin_model``, else None (also for a subclass
         that changes the law, ``__call__``, which the twin would not follow)."""
         if (

@@ -3,7 +3,7 @@ its control record and ``runner_control``, the torques ``RunnerRaibert.__call__`
 through the same scalar laws (``robots.runner_laws``) compiled from their Python source.
 
 The record (``RunnerRaibert.compiled_record``, kind ``CTRL_RUNNER`` of
-``robots.bridge.twins.CONTROL_KINDS``) is a head of ``RUNNER_HEAD`` values (``HEAD_FIELDS``:
+``robots.bridge.control_records.CONTROL_KINDS``) is a head of ``RUNNER_HEAD`` values (``HEAD_FIELDS``:
 the kind, the number of legs, then the gains of ``raibert.Gains`` that the pronk's torques
 read) and ``RUNNER_LEG`` values per leg (``LEG_FIELDS``: the leg's hip and knee velocity indices
 in the state, their positions in u, its geometry, what the controller remembers of it --
@@ -23,7 +23,7 @@ from typing import Any
 import numba
 import numpy as np
 
-from .bridge.twins import CTRL_RUNNER
+from .bridge.control_records import CTRL_RUNNER
 from .runner_laws import pronk_flight_torques, stance_torques
 
 #: The record's head and each leg's entries, in order; each leg's entries after the kind and the

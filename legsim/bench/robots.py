@@ -20,11 +20,10 @@ outside it.
 The controlled runners (``CONTROLLED``, run only when named: ``--case slip-raibert --case
 pronk-raibert --case double-pendulum-pd --case quadruped-run``) are the bundled scenes' robots
 under their scenes' controllers (``raibert_slip``, ``raibert_pronk``, the double pendulum's PD,
-``raibert_runner``), every run with a controller made anew from the scene. A case whose twins
-compute its controller (``ControlledSweep.compiled``: all but the quadruped's) has the three
-families of the uncontrolled cases; the quadruped takes legsim's Python path, with no compiled
-family, and compares ``relaxed-python`` (DOP853 with dense landing and dopri5 with aimed
-landing over tolerances, rk4 over steps) with ``solve_ivp`` (RK45, DOP853 and LSODA).
+``raibert_runner``), every run with a controller made anew from the scene. Their twins compute
+the controller (``ControlledSweep.compiled``), so each case has the three families of the
+uncontrolled cases. The quadruped's twins hand every event's step to the Python loop (its
+friction law chooses the outcome: ``robots.bridge.friction_twins``).
 """
 
 from __future__ import annotations
@@ -106,7 +105,16 @@ CONTROLLED_SWEEPS = {
     # (a graze, then the impact that holds) and rests there.
     "double-pendulum-pd": _compiled_sweep("double_pendulum_pd"),
     "quadruped-run": ControlledSweep(
-        "quadruped_run", 0.45, 0.2, (1e-4, 1e-6, 1e-8, 1e-10), 0.02, 1e-9, 1e-8, (1e-3, 5e-4), max_repeats=1
+        "quadruped_run",
+        0.45,
+        0.2,
+        (1e-4, 1e-6, 1e-8, 1e-10),
+        0.02,
+        1e-9,
+        1e-8,
+        (1e-3, 5e-4),
+        max_repeats=1,
+        compiled=True,
     ),
 }
 

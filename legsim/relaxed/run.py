@@ -25,6 +25,17 @@ Control = Callable[[float, np.ndarray], Any]
 #: A mode's guard as the run calls it, ``guard(t, x)``: >= 0 inside the domain.
 GuardAt = Callable[[float, np.ndarray], Any]
 
+_EVALUATE = object()  # a guard's control not given: evaluate it
+
+
+class Guards(tuple):
+    """A mode's guards as the run calls them (``GuardAt`` each), and ``values(t, x)``, all of
+    them at once: the control there evaluated once for every guard that takes it (a mode with
+    friction has one guard per outcome of each event, each on the same control)."""
+
+    values: Callable[[float, np.ndarray], list[float]]
+
+
 #: Wall-clock seconds between progress reports.
 PROGRESS_INTERVAL = 0.2
 #: Accepted steps between looks at the clock (a power of 2).
@@ -38,7 +49,7 @@ class ModeVisit:
 
     __slots__ = ("buf", "data", "field", "g_entry", "g_last", "guards", "k0", "name", "single_guard", "t", "x")
 
-    def __init__(self, data: ModeData, guards: tuple[GuardAt, ...], t: float, x: np.ndarray) -> None:
+    def __init__(self, data: ModeData, guards: Guards, t: float, x: np.ndarray) -> None:
         self.data = data
         self.name = data.name
         self.field = data.mode.field
@@ -58,7 +69,7 @@ class ModeVisit:
 
     def guard_values(self, t: float, x: np.ndarray) -> list[float]:
         """Every guard at (t, x), in the mode's transition order."""
-        return [float(g(t, x)) for g in self.guards]
+        return self.guards.values(t, x)
 
 
 class Run:
@@ -108,7 +119,7 @@ class Run:
         self.state_names: dict[str, tuple[str, ...]] = {}
         self.state_units: dict[str, tuple[str, ...]] = {}
         self.checked_modes: set[str] = set()
-        self._guard_cache: dict[str, tuple] = {}
+        self._guard_cache: dict[str, Guards] = {}
         #: Per-run caches of parts that keep state per mode (the compiled path's workspaces).
         self.scratch: dict[str, Any] = {}
         self._progress = progress
@@ -126,17 +137,23 @@ class Run:
         control = self.control
         return field_value(field(t, x, None if control is None else control(t, x)), x)
 
-    def guard_fns(self, data: ModeData) -> tuple[Callable[[float, np.ndarray], Any], ...]:
+    def guard_fns(self, data: ModeData) -> Guards:
         """The mode's guards as g(t, x), with the control evaluated for ``t,x,u`` guards; built
         once per mode and run."""
         fns = self._guard_cache.get(data.name)
         if fns is None:
-            fns = self._guard_cache[data.name] = tuple(self._guard_fn(tr) for tr in data.transitions)
+            fns = self._guard_cache[data.name] = Guards(self._guard_fn(tr) for tr in data.transitions)
+            control = self.control
+            if control is None or all(tr.guard_args == "x" for tr in data.transitions):
+                fns.values = lambda t, x: [float(g(t, x)) for g in fns]
+            else:
+                fns.values = lambda t, x: [float(g(t, x, u)) for u in (control(t, x),) for g in fns]
         return fns
 
-    def _guard_fn(self, transition) -> Callable[[float, np.ndarray], float]:
+    def _guard_fn(self, transition) -> Callable[..., float]:
         """g(t, x) of ``transition``, its value checked to be a real number at every call (the
-        check costs an isinstance on the common path of a float)."""
+        check costs an isinstance on the common path of a float); g(t, x, u) takes the control
+        u at (t, x) already evaluated (``Guards.values``)."""
         g, control, name = transition.guard, self.control, transition.name
 
         def number(value: Any) -> float:
@@ -146,10 +163,15 @@ class Run:
             return out
 
         if transition.guard_args == "x":
-            return lambda t, x: v if isinstance(v := g(x), float) else number(v)
+            return lambda t, x, u=None: v if isinstance(v := g(x), float) else number(v)
         if control is None:
-            return lambda t, x: v if isinstance(v := g(t, x, None), float) else number(v)
-        return lambda t, x: v if isinstance(v := g(t, x, control(t, x)), float) else number(v)
+            return lambda t, x, u=None: v if isinstance(v := g(t, x, None), float) else number(v)
+
+        def guard(t: float, x: np.ndarray, u: Any = _EVALUATE) -> float:
+            v = g(t, x, control(t, x) if u is _EVALUATE else u)
+            return v if isinstance(v, float) else number(v)
+
+        return guard
 
     # -- bookkeeping ---------------------------------------------------------------------------
     def end_visit(self, visit: ModeVisit, ended: Ended) -> Ended:

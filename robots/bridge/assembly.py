@@ -238,7 +238,7 @@ class ContactBridge:
         if self._model.coulomb:
             from .friction_twins import coulomb_twin as make_twin
         else:
-            from .twins import bridge_twin as make_twin
+            from .twin_build import bridge_twin as make_twin
         twin = make_twin(self._model, self._modes, spec, transitions)
         self.count_twin(twin)
         return dataclasses.replace(self.mode(mode), compiled=twin), transitions

@@ -14,10 +14,14 @@ Python.
 
 An actuated robot's twin computes its controller's torques itself (``CompiledMode.controls``)
 when the controller gives a *control record* (``compiled_record(pin_model)``, see
-``CONTROL_KINDS``): the record travels in p, written at every entry, and the torques are added
+``control_records``): the record travels in p, written at every entry, and the torques are added
 after the springs and damping, as ``dynamics.applied_forces`` adds them. A guard's control is
 the one at its state, as the Python guards take it (a plastic impact's post-impact force too).
 A controller without a record runs on the Python path.
+
+The functions of every bridge twin (friction modes' too: ``coulomb_guards``) are in this one
+file, as numba's disk cache checks only the file of the function it loads: a function calling a
+changed function of another file would load stale. ``twin_build`` builds the parameter arrays.
 
 Everything a twin needs travels in its parameter array p (float64; layout: the ``P_*`` header
 positions and the ``G_*`` fields of each guard record). A state past the model's range (a hip
@@ -35,14 +39,20 @@ import numba
 import numpy as np
 
 from legsim import _native
-from legsim._native.calls import lsn_aba, lsn_constrained, lsn_frame_jacobian, lsn_frames, lsn_gravity, lsn_impact
+from legsim._native.calls import (
+    lsn_aba,
+    lsn_constrained,
+    lsn_frame_jacobian,
+    lsn_frame_motion,
+    lsn_frames,
+    lsn_gravity,
+    lsn_impact,
+)
 from legsim.compiled import CompiledMode
 
 from ..control_laws import pd_torque
-from .contacts import JointStop, PointContact, RigidContact, SpringLeg
-from .joint import striking_contacts
-from .model import BridgeModel
-from .modes import ModeCatalog, ModeSpec
+from ..runner_twin import L_FRAME, RUNNER_HEAD, RUNNER_LEG, runner_control
+from .control_records import CONTROL_HEAD, CTRL_NONE, CTRL_RUNNER
 
 #: Whether the native library is loaded (it must be, before any twin function compiles).
 AVAILABLE = _native.load()
@@ -81,14 +91,6 @@ K_GAP, K_PLASTIC, K_RELEASE, K_LEG_TOUCH, K_LEG_LIFT = range(5)
 G_KIND, G_GAP_KIND, G_A, G_B, G_C, G_IMPACT, G_NIMPACT, G_COEFF, G_SIDE, G_STICK, G_NSTICK, G_ROW = range(12)
 GUARD_SIZE = 12
 
-#: Control records (at p[P_CTRL]): the kind, then its values. ``CTRL_NONE``: no control (a run
-#: without one; no torque). ``CTRL_JOINT_PD``: ``(kind, kp, kd, gravity, target of each
-#: actuated joint)``, u = kp (target - q) - kd dq/dt (+ the actuated joints' generalised gravity
-#: g(q) when gravity is 1) on the actuated joints (N m or N; kp in N m/rad, kd in N m s/rad).
-#: ``CTRL_RUNNER``: Raibert's runner for articulated legs (``robots.runner_twin``).
-CONTROL_KINDS = ("none", "joint_pd", "raibert_runner")
-CTRL_NONE, CTRL_JOINT_PD, CTRL_RUNNER = range(len(CONTROL_KINDS))
-CONTROL_HEAD = 4  # kind and three values before the per-joint entries
 
 #: Model counters (``BridgeData.counts`` names) a twin keeps in the last len(COUNTED) entries of
 #: its p, so that a robot's counters stay true on the compiled path (``add_counts``).
@@ -202,11 +204,13 @@ _pd_torque = _jit(pd_torque)
 @_jit
 def control_input(x, p, n):
     """The control u (one entry per actuated joint) of the record at p[P_CTRL] at state x, or
-    an empty array when the run has none (``CONTROL_KINDS``)."""
+    an empty array when the run has none (``control_records``)."""
     nact = int(p[P_NACT])
     at = int(p[P_CTRL])
     if nact == 0 or int(p[at]) == CTRL_NONE:
         return np.empty(0)
+    if int(p[at]) == CTRL_RUNNER:
+        return _runner_input(x, p, n, at, nact)
     kp, kd = p[at + 1], p[at + 2]
     u = np.empty(nact)
     for i in range(nact):
@@ -217,6 +221,35 @@ def control_input(x, p, n):
         lsn_gravity(np.int64(p[P_HANDLE]), x.ctypes.data, gravity.ctypes.data)
         for i in range(nact):
             u[i] += gravity[int(p[int(p[P_ACT]) + i])]
+    return u
+
+
+@_jit
+def _in_mode(p, frame):
+    """Whether the contact at Pinocchio frame ``frame`` is active in the twin's mode (one of its
+    rigid point blocks)."""
+    at = int(p[P_RIGID])
+    for b in range(int(p[P_NRIGID])):  # noqa: SIM110 -- a loop numba compiles, not a generator
+        if p[at + 4 * b] != 0.0 and p[at + 4 * b + 1] == frame:
+            return True
+    return False
+
+
+@_jit
+def _runner_input(x, p, n, at, nact):
+    """u of Raibert's runner (``robots.runner_twin``) whose record is at p[at:]: a leg is in
+    stance where its foot's contact is active in the mode."""
+    legs = int(p[at + 1])
+    stance = np.empty(legs)
+    flying = False
+    for i in range(legs):
+        stance[i] = 1.0 if _in_mode(p, p[at + RUNNER_HEAD + RUNNER_LEG * i + L_FRAME]) else 0.0
+        flying = flying or stance[i] == 0.0
+    gravity = np.zeros(n)
+    if flying:
+        lsn_gravity(np.int64(p[P_HANDLE]), x.ctypes.data, gravity.ctypes.data)
+    u = np.empty(nact)
+    runner_control(x, n, p, at, stance, gravity, u)
     return u
 
 
@@ -464,225 +497,69 @@ def bridge_resets(x, p, e):
     return out
 
 
-# -- building a mode's parameter array ---------------------------------------------------------
+# -- modes with Coulomb friction (friction_twins builds their p) -----------------------------
+
+# Event kinds: a strike's gap, a contact's normal force (liftoff, release), a stuck contact's
+# distance to the cone's edge towards s, a slipping contact's slip rate against s.
+E_GAP, E_FORCE, E_SLIP, E_STICK = range(4)
+# Fields of an event record: kind; the gap's fields at twins' G_GAP_KIND, G_A, G_B, G_C (so
+# that ``gap_value`` reads them), which the other kinds use as (normal row, mu, s) for E_FORCE
+# and E_SLIP and (frame id, s) for E_STICK; how many transitions (outcomes) the event has.
+E_KIND, E_GAP_KIND, E_A, E_B, E_C, E_COPIES = range(6)
+EVENT_SIZE = 6
 
 
-class Params:
-    """p under construction: the header, then sections appended as they are described."""
+@_jit
+def _base(x, p, e, kin, n, a, lam):
+    """The base guard of the event record at p[e:], with the mode's acceleration a (n,) and
+    constraint forces lam already solved."""
+    kind = int(p[e + E_KIND])
+    if kind == E_GAP:
+        return gap_value(x, p, e, kin, n)
+    row = int(p[e + E_A])
+    if kind == E_FORCE:
+        return lam[row]
+    if kind == E_SLIP:
+        return p[e + E_B] * lam[row] + p[e + E_C] * lam[row - 1]
+    motion = np.empty(4)
+    lsn_frame_motion(np.int64(p[P_HANDLE]), x.ctypes.data, ptr(x, n), a.ctypes.data, np.int64(row), motion.ctypes.data)
+    s = p[e + E_B]
+    return max(s * motion[0], s * motion[2])
 
-    def __init__(self) -> None:
-        self.p: list[float] = [0.0] * HEADER
-        self.frames: list[int] = []
 
-    def append(self, values: Sequence[float]) -> int:
-        at = len(self.p)
-        self.p.extend(float(v) for v in values)
-        return at
-
-    def slot(self, frame: int) -> int:
-        """Index of a frame in the kinematics list (added on first use)."""
-        if frame not in self.frames:
-            self.frames.append(frame)
-        return self.frames.index(frame)
-
-
-def _rigid_blocks(blocks: Sequence[RigidContact]) -> list[float]:
-    """The native library's rigid blocks (pinlegsim.cpp, ``Rigid``): (kind, dof or frame, sign or
-    a slipping point's s mu, rows)."""
-    out: list[float] = []
-    for r in blocks:
-        if r.kind == "stop":
-            out += [0.0, r.dof, r.sign, r.rows]
-        elif r.slip:
-            out += [2.0, r.frame_id, r.slip_mu, r.rows]
-        else:
-            out += [1.0, r.frame_id, r.sign, r.rows]
+@_jit
+def coulomb_guards(x, p):
+    """Every outcome transition's guard, in the mode's transition order, shape (n_guards,): the
+    event's base where it is >= 0; all nan once one event's base is < 0 (module docstring)."""
+    n = int(p[P_N])
+    events_at = int(p[P_GUARD])
+    n_events = int(p[events_at])
+    nframe = int(p[P_NFRAME])
+    kin = np.empty(4 * max(1, nframe))
+    if nframe > 0:
+        count(p, C_KINEMATICS)
+        lsn_frames(
+            np.int64(p[P_HANDLE]), x.ctypes.data, ptr(x, n), np.int64(nframe), ptr(p, int(p[P_FRAME])), kin.ctypes.data
+        )
+    a = np.empty(n)
+    lam = np.empty(max(1, int(p[P_ROWS])))
+    total = 0
+    dynamic = False  # some event reads the mode's forces or accelerations (flight's strikes do not)
+    for k in range(n_events):
+        e = events_at + 1 + EVENT_SIZE * k
+        total += int(p[e + E_COPIES])
+        dynamic = dynamic or int(p[e + E_KIND]) != E_GAP
+    if dynamic:
+        accelerate(x, p, n, int(p[P_NRIGID]), int(p[P_RIGID]), int(p[P_ROWS]), a, lam, control_input(x, p, n))
+    out = np.empty(total)
+    filled = 0
+    for k in range(n_events):
+        e = events_at + 1 + EVENT_SIZE * k
+        value = _base(x, p, e, kin, n, a, lam)
+        if not value >= 0.0:  # the event happens in this step (or the state is past the model's range)
+            out[:] = math.nan
+            return out
+        for _ in range(int(p[e + E_COPIES])):
+            out[filled] = value
+            filled += 1
     return out
-
-
-def gap_fields(r: RigidContact, pp: Params) -> list[float]:
-    """Fields G_GAP_KIND, G_A, G_B, G_C of a stop's or point's gap."""
-    c = r.contact
-    if isinstance(c, JointStop):
-        return [0.0, r.dof, r.sign, c.position]
-    return [1.0, pp.slot(r.frame_id), c.ground, 0.0]
-
-
-def _strike_records(
-    model: BridgeModel, modes: ModeCatalog, spec: ModeSpec, cname: str, pp: Params
-) -> list[tuple[str, list[float]]] | None:
-    """(transition name, guard record) of the impacts of the inactive rigid contact ``cname``
-    (as transitions._strike_transitions builds them), or None when the twin cannot follow."""
-    c = model.rigid[cname].contact
-    if getattr(c, "armed", None) is not None:
-        return None
-    staying = set(spec.active) - set(getattr(c, "releases", ()))
-    kept = [r for r in model.contacts if r in staying and r in model.rigid]
-    rows = [model.rigid[r] for r in [*kept, cname]]
-    impact_at = pp.append(_rigid_blocks(rows))
-    gap = gap_fields(model.rigid[cname], pp)
-    if c.restitution > 0.0:
-        coeff_at = pp.append([0.0] * len(kept) + [c.restitution])
-        rest_at = pp.append([0.0] * len(rows))  # the continuation's: the same impact, plastic
-        return [(f"bounce_{cname}", [K_GAP, *gap, impact_at, len(rows), coeff_at, 0.0, 0.0, 0.0, rest_at])]
-    coeff_at = pp.append([0.0] * len(rows))
-    stick = modes.spec(modes.name_of(staying | {cname}))
-    stick_at = pp.append(_rigid_blocks(stick.rigid))
-    kind = "impact" if isinstance(c, JointStop) else "touchdown"
-    common = [impact_at, len(rows), coeff_at]
-    tail = [stick_at, len(stick.rigid), stick.normal_row(cname)]
-    return [
-        (f"{kind}_{cname}", [K_PLASTIC, *gap, *common, 1.0, *tail]),
-        (f"graze_{cname}", [K_PLASTIC, *gap, *common, -1.0, *tail]),
-    ]
-
-
-def _foothold_map(src: ModeSpec, dst: ModeSpec) -> list[float]:
-    """Where each foothold of ``dst`` comes from (modes.map_state): its index in ``src``'s
-    footholds, or -1 for a leg touching down (its foot's x)."""
-    index = {lg.leg.name: i for i, lg in enumerate(src.springs)}
-    return [float(index.get(lg.leg.name, -1)) for lg in dst.springs]
-
-
-def _records(
-    model: BridgeModel, modes: ModeCatalog, spec: ModeSpec, pp: Params
-) -> list[tuple[str, list[float]]] | None:
-    """The guard records of the mode's outgoing transitions, in transitions.outgoing's order."""
-    out: list[tuple[str, list[float]]] = []
-    stance = {lg.leg.name: i for i, lg in enumerate(spec.springs)}
-    for cname, c in model.contacts.items():
-        if isinstance(c, SpringLeg):
-            lg = model.legs[cname]
-            foot, hip = pp.slot(lg.foot_id), pp.slot(lg.hip_id)
-            dst = modes.spec(modes.name_of(set(spec.active) ^ {cname}))
-            at = pp.append(_foothold_map(spec, dst))
-            if cname in stance:
-                out.append(
-                    (
-                        f"liftoff_{cname}",
-                        [
-                            K_LEG_LIFT,
-                            0.0,
-                            foot,
-                            hip,
-                            c.ground,
-                            c.rest_length,
-                            0.0,
-                            0.0,
-                            0.0,
-                            at,
-                            len(dst.springs),
-                            stance[cname],
-                        ],
-                    )
-                )
-            else:
-                out.append(
-                    (
-                        f"touchdown_{cname}",
-                        [K_LEG_TOUCH, 0.0, foot, hip, c.ground, 0.0, 0.0, 0.0, 0.0, at, len(dst.springs), 0.0],
-                    )
-                )
-        elif cname in spec.active:
-            kind = "release" if isinstance(c, JointStop) else "liftoff"
-            out.append((f"{kind}_{cname}", [K_RELEASE, 0.0, spec.normal_row(cname)] + [0.0] * 9))
-        elif isinstance(c, (JointStop, PointContact)):
-            strikes = _strike_records(model, modes, spec, cname, pp)
-            if strikes is None:
-                return None
-            out += strikes
-    return out
-
-
-def bridge_twin(
-    model: BridgeModel, modes: ModeCatalog, spec: ModeSpec, transitions: Sequence[Any]
-) -> CompiledMode | None:
-    """The compiled twin of mode ``spec`` whose outgoing transitions are ``transitions``, or
-    None when the native library is unavailable or the mode has something the twin does not
-    compute (then the mode runs in Python)."""
-    if not native_ready():
-        return None
-    handle = handle_for(model.pin_model)
-    if handle is None:
-        return None
-    pp = Params()
-    records = _records(model, modes, spec, pp)
-    if records is None or [name for name, _ in records] != [tr.name for tr in transitions]:
-        return None
-    guards_at = pp.append([v for _, record in records for v in record])
-    p = mode_params(model, spec, pp, handle, len(records), guards_at)
-    return CompiledMode(
-        bridge_field,
-        bridge_guards,
-        len(records),
-        p,
-        bridge_resets,
-        fallback=True,
-        continued=True,
-        joint_groups=tuple(_joint_group(model, name) for name, _ in records),
-        controls=controls_of(model, int(p[P_CTRL])) if model.actuated_idx.size else None,
-    )
-
-
-def mode_params(
-    model: BridgeModel, spec: ModeSpec, pp: Params, handle: int, n_guards: int, guards_at: int
-) -> np.ndarray:
-    """The twin's p: the header and the mode's sections (rigid blocks, springs, damping, frames,
-    actuated joints, control record, counters) after the guard records already in ``pp``
-    (``n_guards`` transitions, their records at ``guards_at``)."""
-    header = pp.p
-    header[P_HANDLE], header[P_N], header[P_DIM] = handle, model.n, spec.dim
-    header[P_NRIGID], header[P_ROWS] = len(spec.rigid), sum(r.rows for r in spec.rigid)
-    header[P_RIGID] = pp.append(_rigid_blocks(spec.rigid))
-    header[P_NSPRING] = len(spec.springs)
-    header[P_SPRING] = pp.append(
-        [
-            v
-            for lg in spec.springs
-            for v in (lg.hip_id, lg.leg.stiffness, lg.leg.rest_length, lg.leg.damping, lg.leg.ground)
-        ]
-    )
-    header[P_NDAMP] = len(model.damping_idx)
-    header[P_DAMP] = pp.append([v for k, b in zip(model.damping_idx, model.damping_b, strict=True) for v in (k, b)])
-    header[P_NGUARD], header[P_GUARD] = n_guards, guards_at
-    header[P_NFRAME] = len(pp.frames)
-    header[P_FRAME] = pp.append(pp.frames)
-    nact = len(model.actuated_idx)
-    header[P_NACT], header[P_ACT] = nact, pp.append(model.actuated_idx.tolist())
-    header[P_CTRL] = pp.append([0.0] * (CONTROL_HEAD + nact))
-    pp.append([0.0] * len(COUNTED))
-    return np.array(pp.p)
-
-
-def controls_of(model: BridgeModel, at: int) -> Any:
-    """``CompiledMode.controls`` of an actuated robot's twin whose control record is at p[at:]:
-    a run without control writes ``CTRL_NONE``; a controller writes its
-    ``compiled_record(pin_model)`` of kind ``joint_pd`` (None, or a record of another kind or
-    size: it has none for this robot, the run takes Python)."""
-    size = CONTROL_HEAD + len(model.actuated_idx)
-
-    def controls(controller: Any) -> Any:
-        if controller is None:
-            return lambda p: _write_record(p, at, size, [float(CTRL_NONE)])
-        make = getattr(controller, "compiled_record", None)
-        if make is None:
-            return None
-        record = make(model.pin_model)
-        if record is None or len(record) != size or record[0] != CTRL_JOINT_PD:
-            return None
-        return lambda p: _write_record(p, at, size, make(model.pin_model))
-
-    return controls
-
-
-def _write_record(p: np.ndarray, at: int, size: int, record: Sequence[float]) -> None:
-    """The control record ``record`` into p[at : at + size] (zeros past its end)."""
-    p[at : at + size] = 0.0
-    p[at : at + len(record)] = record
-
-
-def _joint_group(model: BridgeModel, name: str) -> int:
-    """The joint group of transition ``name``: the index of the rigid contact it strikes, which
-    joint.resolve resolves with the strikes of other contacts, or -1 (not a strike)."""
-    struck = striking_contacts(model, (name,))
-    return -1 if not struck else list(model.rigid).index(struck[0])

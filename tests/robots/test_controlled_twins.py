@@ -12,7 +12,7 @@ import math
 import numpy as np
 import pytest
 from legsim.robots import double_pendulum, raibert
-from legsim.robots.bridge import twins
+from legsim.robots.bridge import control_records, twins
 from legsim.robots.controllers import JointPD
 from scipy.optimize import brentq
 
@@ -170,7 +170,7 @@ def test_an_actuated_robot_without_control_runs_compiled_with_no_torque(monkeypa
     assert n_kernel > 0
     assert_same_run(fast, slow)
     twin = model.system.mode_data("unconstrained").mode.compiled
-    assert twins.CONTROL_KINDS[int(twin.params[int(twin.params[twins.P_CTRL])])] == "none"
+    assert control_records.CONTROL_KINDS[int(twin.params[int(twin.params[twins.P_CTRL])])] == "none"
 
 
 def test_a_run_after_a_controlled_one_does_not_inherit_its_controller(monkeypatch):

@@ -133,3 +133,61 @@ def test_the_quadruped_standing_up_is_the_same_run_on_both_paths(monkeypatch):
     python_ex, _ = counted_run(monkeypatch, stand, python=True)
     assert calls > 0 and compiled_ex.transitions
     assert_same_run(compiled_ex, python_ex, handed_back=True)
+
+
+def spread(a, b):
+    """Per transition, the larger of the time and post-transition state differences of two runs,
+    and the final state's difference."""
+    steps = [
+        max(abs(ta.time - tb.time), float(np.max(np.abs(ta.state_after - tb.state_after))))
+        for ta, tb in zip(a.transitions, b.transitions, strict=True)
+    ]
+    return np.array(steps), float(np.max(np.abs(a.final_state - b.final_state)))
+
+
+def assert_same_events(a, b):
+    """The same statuses and events: each the same kind into the same mode (the steps the
+    relaxed rule shortens to land in a strip may differ by a few as the events drift). The symmetric pronk
+    lifts both feet off (or slips them) at one instant, and which of the two guards a landing
+    finds first is decided by rounding on either path."""
+    assert a.status == b.status and a.message == b.message
+    assert len(a.transitions) == len(b.transitions)
+    for ta, tb in zip(a.transitions, b.transitions, strict=True):
+        assert ta.target == tb.target
+        assert ta.name == tb.name or ta.name.split("_")[0] == tb.name.split("_")[0]
+    assert a.counters["transitions"] == b.counters["transitions"]
+
+
+@pytest.mark.parametrize("scene", ["quadruped_pronk", "quadruped_run"])
+def test_the_quadruped_under_raiberts_controller_is_the_same_run_on_both_paths(monkeypatch, scene):
+    """The twins compute ``raibert_runner`` (its pronk gait: ``robots.runner_twin``) in modes with
+    friction; 3 s is 7 hops, 21 transitions or more. The gait amplifies rounding about 20-fold
+    per hop (its final state is not accurate to 1e-3, the scenes say), so the reference for "equal
+    to rounding" is the Python path's own response to rounding: its run from a start 1 ulp higher.
+    The compiled run stays within 10 times that spread at every transition (plus 1e-12 for the
+    first transitions, where both spreads are rounding itself)."""
+    overrides = ["integrator.t_final=3.0"]
+    z0 = float(load_scene(scene, overrides).initial_state[1])
+    ulp_higher = [*overrides, f"initial.state.z={float(np.nextafter(z0, 1.0))!r}"]
+
+    compiled_ex, calls = counted_run(monkeypatch, lambda: load_scene(scene, overrides).simulate(), python=False)
+    python_ex, _ = counted_run(monkeypatch, lambda: load_scene(scene, overrides).simulate(), python=True)
+    nudged_ex, _ = counted_run(monkeypatch, lambda: load_scene(scene, ulp_higher).simulate(), python=True)
+    assert calls > 0 and len(compiled_ex.transitions) >= 20
+    assert_same_events(compiled_ex, python_ex)
+    assert_same_events(nudged_ex, python_ex)
+    paths, paths_final = spread(compiled_ex, python_ex)
+    rounding, rounding_final = spread(nudged_ex, python_ex)
+    assert np.all(paths <= 10.0 * rounding + 1e-12), np.max(paths / (rounding + 1e-12))
+    assert paths_final <= 10.0 * rounding_final + 1e-12
+
+
+def test_the_bounding_quadruped_takes_the_python_path(monkeypatch):
+    """The bound's law reads the time since a leg's liftoff, which a twin's guards do not take:
+    it has no control record, and its runs stay in Python."""
+
+    def bound():
+        return load_scene("quadruped_bound", ["integrator.t_final=0.3"]).simulate()
+
+    ex, calls = counted_run(monkeypatch, bound, python=False)
+    assert calls == 0 and ex.status == "finished"

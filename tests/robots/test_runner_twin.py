@@ -13,7 +13,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 from legsim.robots import raibert, runner_laws, runner_twin
-from legsim.robots.bridge.twins import CTRL_RUNNER
+from legsim.robots.bridge.control_records import CTRL_RUNNER
 
 import legsim.compiled.visit as compiled_visit
 import legsim.relaxed.integrate as integrate
