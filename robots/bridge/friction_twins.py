@@ -30,7 +30,7 @@ from .contacts import SLIP_SUFFIX, JointStop, PointContact
 from .model import BridgeModel
 from .modes import ModeCatalog, ModeSpec
 from .twin_build import Params, controls_of, gap_fields, mode_params
-from .twins import E_FORCE, E_GAP, E_SLIP, E_STICK, P_CTRL, bridge_field, coulomb_guards, handle_for, native_ready
+from .twins import E_FORCE, E_GAP, E_SLIP, E_STICK, P_CTRL, bridge_field, coulomb_guards, native_handle
 
 _STRIKES = ("touchdown", "impact", "bounce", "graze")
 
@@ -80,9 +80,7 @@ def coulomb_twin(
     """The compiled twin of mode ``spec`` of a robot with Coulomb friction whose outgoing
     transitions are ``transitions`` (module docstring), or None when the native library is
     unavailable or the mode has something the twin does not compute."""
-    if not native_ready():
-        return None
-    handle = handle_for(model.pin_model)
+    handle = native_handle(model.pin_model)
     if handle is None:
         return None
     pp = Params()

@@ -46,8 +46,7 @@ from .twins import (
     bridge_field,
     bridge_guards,
     bridge_resets,
-    handle_for,
-    native_ready,
+    native_handle,
 )
 
 
@@ -184,9 +183,7 @@ def bridge_twin(
     """The compiled twin of mode ``spec`` whose outgoing transitions are ``transitions``, or
     None when the native library is unavailable or the mode has something the twin does not
     compute (then the mode runs in Python)."""
-    if not native_ready():
-        return None
-    handle = handle_for(model.pin_model)
+    handle = native_handle(model.pin_model)
     if handle is None:
         return None
     pp = Params()

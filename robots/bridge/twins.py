@@ -170,6 +170,12 @@ def add_counts(counts: dict[str, int], twin: CompiledMode | None, reset: bool = 
         counts[name] = counts.get(name, 0) + int(value)
 
 
+def native_handle(model: Any) -> int | None:
+    """The native handle of a Pinocchio model when twins can be built (``native_ready``), else
+    None."""
+    return handle_for(model) if native_ready() else None
+
+
 def handle_for(model: Any) -> int | None:
     """The native handle of a Pinocchio model (created once per model object), or None."""
     found = _HANDLES.get(id(model))
@@ -405,11 +411,9 @@ def _leg_lift(x, p, g, kin, n):
 
 
 @_jit
-def bridge_guards(x, p):
-    """The mode's guards in the order of its outgoing transitions, shape (n_guards,)."""
-    n = int(p[P_N])
-    n_guards = int(p[P_NGUARD])
-    out = np.empty(n_guards)
+def _frame_kinematics(x, p, n):
+    """(x, z, vx, vz) of each frame of the twin's kinematics list at (q, v), shape (4 frames,)
+    (at least 4 entries)."""
     nframe = int(p[P_NFRAME])
     kin = np.empty(4 * max(1, nframe))
     if nframe > 0:
@@ -417,6 +421,16 @@ def bridge_guards(x, p):
         lsn_frames(
             np.int64(p[P_HANDLE]), x.ctypes.data, ptr(x, n), np.int64(nframe), ptr(p, int(p[P_FRAME])), kin.ctypes.data
         )
+    return kin
+
+
+@_jit
+def bridge_guards(x, p):
+    """The mode's guards in the order of its outgoing transitions, shape (n_guards,)."""
+    n = int(p[P_N])
+    n_guards = int(p[P_NGUARD])
+    out = np.empty(n_guards)
+    kin = _frame_kinematics(x, p, n)
     lam = np.empty(max(1, int(p[P_ROWS])))
     solved = False
     u = control_input(x, p, n)
@@ -534,13 +548,7 @@ def coulomb_guards(x, p):
     n = int(p[P_N])
     events_at = int(p[P_GUARD])
     n_events = int(p[events_at])
-    nframe = int(p[P_NFRAME])
-    kin = np.empty(4 * max(1, nframe))
-    if nframe > 0:
-        count(p, C_KINEMATICS)
-        lsn_frames(
-            np.int64(p[P_HANDLE]), x.ctypes.data, ptr(x, n), np.int64(nframe), ptr(p, int(p[P_FRAME])), kin.ctypes.data
-        )
+    kin = _frame_kinematics(x, p, n)
     a = np.empty(n)
     lam = np.empty(max(1, int(p[P_ROWS])))
     total = 0

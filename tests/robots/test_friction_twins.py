@@ -12,15 +12,13 @@ import math
 
 import numpy as np
 import pytest
-from legsim.robots.bridge import twins
 
-import legsim.compiled as compiled
 from legsim import _native
 from legsim.relaxed import simulate
 from legsim.scene import load_scene
 
 from .test_bridge_friction import block, rod
-from .test_twins import assert_same_run, close
+from .test_twins import assert_same_run, close, counted_run
 
 pytestmark = pytest.mark.skipif(not _native.load(), reason=f"native library: {_native.status()}")
 
@@ -31,20 +29,6 @@ DROPS = [
     (0.3, [0.0, 1.0, 0.4, 1.0, 0.0, -1.0]),
     (0.6, [0.0, 0.7, 0.3, 2.0, 0.0, -2.0]),
 ]
-
-
-def counted_run(monkeypatch, make_run, python):
-    """``make_run()``'s execution on the Python path (python=True) or with the twins, and how
-    many times the kernel was called."""
-    calls = []
-    real_visit, real_entry = compiled.run_visit_compiled, compiled.enter_compiled
-    with monkeypatch.context() as m:
-        m.setattr(compiled, "run_visit_compiled", lambda *a: calls.append(1) or real_visit(*a))
-        m.setattr(compiled, "enter_compiled", lambda *a: calls.append(1) or real_entry(*a))
-        if python:
-            m.setattr(twins, "AVAILABLE", False)
-        ex = make_run()
-    return ex, len(calls)
 
 
 def drop(mu, x0):

@@ -119,9 +119,10 @@ def test_heel_strike_matches_pinocchio_impulse_dynamics():
 # -- whole runs: the compiled path against the Python path -------------------------------------
 
 
-def run(monkeypatch, scene, python, overrides=()):
-    """The scene's execution with the twins (python=False) or without, and how many times the
-    kernel was called from Python (for a mode visit Python entered, or an entry it hands over)."""
+def counted_run(monkeypatch, make_run, python):
+    """``make_run()``'s execution with the twins (python=False) or without, and how many times
+    the kernel was called from Python (for a mode visit Python entered, or an entry it hands
+    over)."""
     calls = []
     real_visit, real_entry = compiled.run_visit_compiled, compiled.enter_compiled
     with monkeypatch.context() as m:
@@ -129,8 +130,13 @@ def run(monkeypatch, scene, python, overrides=()):
         m.setattr(compiled, "enter_compiled", lambda *a: calls.append(1) or real_entry(*a))
         if python:
             m.setattr(twins, "AVAILABLE", False)
-        ex = load_scene(scene, list(overrides)).simulate()
+        ex = make_run()
     return ex, len(calls)
+
+
+def run(monkeypatch, scene, python, overrides=()):
+    """The scene's execution with the twins (python=False) or without, and the kernel's calls."""
+    return counted_run(monkeypatch, lambda: load_scene(scene, list(overrides)).simulate(), python)
 
 
 def assert_same_run(a, b, tol=1e-9, handed_back=False):
