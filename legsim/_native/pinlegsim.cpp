@@ -133,8 +133,11 @@ bool read_joint(const double* desc, long size, long& k, JointModel& out) {
   const int code = static_cast<int>(desc[k++]);
   if (code != COMPOSITE) return simple_joint(code, out);
   if (k + 1 > size) return false;
-  const long parts = static_cast<long>(desc[k++]);
-  if (parts < 1 || k + 13 * parts > size) return false;
+  // The count is checked as a double: casting a huge or nan one to long is undefined, and
+  // k + 13 * parts could overflow past the bound.
+  const double count = desc[k++];
+  if (!(count >= 1.0 && count <= static_cast<double>(size - k) / 13.0)) return false;
+  const long parts = static_cast<long>(count);
   Joints::JointModelComposite composite;
   for (long i = 0; i < parts; ++i, k += 13) {
     JointModel part;

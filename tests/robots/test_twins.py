@@ -11,6 +11,7 @@ constrained dynamics and the impact law are also checked against Pinocchio's own
 
 import math
 
+import numba
 import numpy as np
 import pinocchio as pin
 import pytest
@@ -19,6 +20,7 @@ from legsim.robots.bridge import twins, walker_twins
 
 import legsim.compiled as compiled
 from legsim import _native
+from legsim._native.calls import lsn_aba, lsn_frame_motion
 from legsim.scene import load_scene
 
 pytestmark = pytest.mark.skipif(not _native.load(), reason=f"native library: {_native.status()}")
@@ -310,3 +312,65 @@ def test_a_later_run_enters_every_mode_in_the_kernel_and_repeats_the_first(monke
         assert n_second <= 1 + sum("+" in t.name for t in second.transitions)
     else:
         assert n_first == len(modes) and n_second == 1
+
+
+@numba.njit
+def _native_aba_and_motion(h, q, v, tau, frame, a, motion):
+    """The library's ABA into a (nv,), then the frame's (vx, vz, ax, az) at (q, v, a) into motion."""
+    lsn_aba(h, q.ctypes.data, v.ctypes.data, tau.ctypes.data, a.ctypes.data)
+    lsn_frame_motion(h, q.ctypes.data, v.ctypes.data, a.ctypes.data, frame, motion.ctypes.data)
+
+
+def composite_root_model():
+    """A planar body on a composite root (PX, PZ, RY) whose parts are placed off the identity
+    (rotated, offset), a knee (RY) below it and a foot frame on the shank."""
+    model = pin.Model()
+    root = pin.JointModelComposite()
+    root.addJoint(pin.JointModelPX(), pin.SE3(pin.utils.rpyToMatrix(0.0, 0.3, 0.0), np.array([0.1, 0.0, 0.2])))
+    root.addJoint(pin.JointModelPZ(), pin.SE3(np.eye(3), np.array([0.0, 0.0, -0.3])))
+    root.addJoint(pin.JointModelRY(), pin.SE3(pin.utils.rpyToMatrix(0.0, -0.2, 0.0), np.array([0.05, 0.0, 0.0])))
+    body = model.addJoint(0, root, pin.SE3(np.eye(3), np.array([0.0, 0.0, 0.5])), "root")
+    body_inertia = pin.Inertia(2.0, np.array([0.1, 0.0, 0.05]), np.diag([0.1, 0.2, 0.3]))
+    model.appendBodyToJoint(body, body_inertia, pin.SE3.Identity())
+    knee = model.addJoint(body, pin.JointModelRY(), pin.SE3(np.eye(3), np.array([0.2, 0.0, -0.1])), "knee")
+    shank_inertia = pin.Inertia(0.5, np.array([0.0, 0.0, -0.2]), np.diag([0.01, 0.02, 0.01]))
+    model.appendBodyToJoint(knee, shank_inertia, pin.SE3.Identity())
+    foot = pin.SE3(np.eye(3), np.array([0.0, 0.0, -0.4]))
+    model.addFrame(pin.Frame("foot", knee, foot, pin.FrameType.OP_FRAME), False)
+    return model
+
+
+def test_a_composite_root_with_offset_parts_moves_as_in_pinocchio():
+    # Each part's placement is relative to the previous part: the library must compose them as
+    # Pinocchio does, or every acceleration and foot motion of such a robot differs.
+    model = composite_root_model()
+    data = model.createData()
+    handle = twins.handle_for(model)
+    assert handle is not None
+    foot = model.getFrameId("foot")
+    for _ in range(5):
+        q, v, tau = RNG.normal(size=(3, model.nv))
+        a, motion = np.empty(model.nv), np.empty(4)
+        _native_aba_and_motion(np.int64(handle), q, v, tau, np.int64(foot), a, motion)
+        close(a, pin.aba(model, data, q, v, tau), 1e-10)
+        pin.forwardKinematics(model, data, q, v, a)
+        pin.updateFramePlacement(model, data, foot)
+        vel = pin.getFrameVelocity(model, data, foot, pin.LOCAL_WORLD_ALIGNED).linear
+        acc = pin.getFrameClassicalAcceleration(model, data, foot, pin.LOCAL_WORLD_ALIGNED).linear
+        close(motion, [vel[0], vel[2], acc[0], acc[2]], 1e-10)
+
+
+@pytest.mark.parametrize("parts", [0.0, -1.0, math.nan, 1e300, 2.0**60, 4.0])
+def test_the_library_refuses_a_composite_whose_part_count_its_description_cannot_hold(parts):
+    # One composite joint of `parts` parts followed by 3 parts' worth of zeros (RX parts at the
+    # identity would need 13 values each): every count here is refused, never read past the end
+    # (2**60 parts overflow 13 * parts in long arithmetic: the bound must be divided, not multiplied).
+    description = np.array([1.0, float(twins.COMPOSITE), parts] + [0.0] * 39)
+    with pytest.raises(ValueError, match="refused"):
+        _native.create_model(description)
+
+
+def test_the_library_refuses_a_composite_of_composites():
+    part = [float(twins.COMPOSITE)] + [0.0] * 12
+    with pytest.raises(ValueError, match="refused"):
+        _native.create_model(np.array([1.0, float(twins.COMPOSITE), 1.0, *part] + [0.0] * 60))
