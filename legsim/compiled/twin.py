@@ -96,11 +96,12 @@ class CompiledMode:
 
 def check_twin(
     system_name: str, data: ModeData, t: float, x: np.ndarray, k0: np.ndarray, guards: Sequence[float] | None = None
-) -> None:
+) -> bool:
     """The twin of ``data``'s mode must return the Python callables' shapes and values at
     (t, x), where the Python field is k0 and the Python guards ``guards`` (default: the mode's
     guards of x alone): field, guards, and the resets (and continuation resets) it computes.
-    Raises ModelError naming what disagrees."""
+    Raises ModelError naming what disagrees. Returns whether every guard was compared (False
+    where a fallback twin's nan guards hand the step to Python: check again at another state)."""
     twin = data.mode.compiled
     if not isinstance(twin, CompiledMode):
         raise ModelError(
@@ -141,6 +142,7 @@ def check_twin(
                 f"{system_name}: compiled reset of {name} of mode '{data.name}' disagrees with its Python "
                 f"reset at x={x.tolist()}: {image.tolist()} vs {expected.tolist()}"
             )
+    return bool(np.all(used))
 
 
 def _evaluate(

@@ -173,20 +173,20 @@ def run_visit_compiled(run: Run, visit: ModeVisit) -> Outcome:
     kernel takes (``transit``), possibly into other modes of the table, until the run ends or
     Python must take a crossing or an entry. A twin that computes the run's control first gets
     the controller's values as its reset at this entry left them."""
-    if run.control is None and not is_ready(visit.data):
-        _check_visit(run, visit)
-        _READY[id(visit.data)] = visit.data
-    elif run.control is not None and _READY_CONTROLLED.get(key := _control_key(run, visit.data)) is not visit.data:
-        _check_visit(run, visit)
+    if run.control is None:
+        if not is_ready(visit.data) and _check_visit(run, visit):
+            _READY[id(visit.data)] = visit.data
+    elif _READY_CONTROLLED.get(key := _control_key(run, visit.data)) is not visit.data and _check_visit(run, visit):
         _READY_CONTROLLED[key] = visit.data
     return _drive(run, visit, kt.CROSS)
 
 
-def _check_visit(run: Run, visit: ModeVisit) -> None:
-    """The twin of the visit's mode against the Python callables at its start, under the run's control."""
+def _check_visit(run: Run, visit: ModeVisit) -> bool:
+    """The twin of the visit's mode against the Python callables at its start, under the run's
+    control; whether every guard was compared (``check_twin``)."""
     _write_control(run, visit.data)
     guards = visit.guard_values(visit.t, visit.x)
-    check_twin(run.system.name, visit.data, visit.t, visit.x, visit.k0, guards)
+    return check_twin(run.system.name, visit.data, visit.t, visit.x, visit.k0, guards)
 
 
 def _write_control(run: Run, data: ModeData) -> None:
@@ -220,7 +220,8 @@ def enter_compiled(run: Run, mode: str, x: np.ndarray, t: float) -> Outcome:
 
 def _check_first_entry(run: Run, data: ModeData, t: float, x: np.ndarray) -> bool:
     """Check the mode's field output and twin at its first entry in the process, where the
-    Python callables are finite (else False: Python's entry says what is not)."""
+    Python callables are finite (else False: Python's entry says what is not, or takes an
+    entry where the twin's guards are nan)."""
     k0 = check_field_output(run.system.name, data.name, data.mode, t, x, None)
     try:
         guards = [float(guard(t, x)) for guard in run.guard_fns(data)]
@@ -229,7 +230,8 @@ def _check_first_entry(run: Run, data: ModeData, t: float, x: np.ndarray) -> boo
     if not (np.all(np.isfinite(k0)) and all(map(np.isfinite, guards))):
         return False
     _write_control(run, data)
-    check_twin(run.system.name, data, t, x, k0, guards)
+    if not check_twin(run.system.name, data, t, x, k0, guards):
+        return False  # nan guards compared nothing: Python takes this entry, a later one checks
     _READY[id(data)] = data
     return True
 

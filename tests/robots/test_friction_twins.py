@@ -175,3 +175,18 @@ def test_the_bounding_quadruped_takes_the_python_path(monkeypatch):
 
     ex, calls = counted_run(monkeypatch, bound, python=False)
     assert calls == 0 and ex.status == "finished"
+
+
+def test_a_twin_check_that_meets_nan_guards_says_its_guards_were_not_compared():
+    """check_twin compares no guard of a fallback twin at a state where its guards are nan (the
+    step goes to Python), and says so, so that the mode is checked again at its next visit."""
+    from legsim.compiled.twin import check_twin
+
+    system = rod(0.6).system("foot")
+    data = system.mode_data("foot")
+    standing = np.array([0.0, 0.5, 0.0, 0.0, 0.0, 0.0])  # upright on its end, at rest: pushing
+    pulled = np.array([0.0, 0.5, 0.0, 0.0, 0.0, 20.0])  # spinning fast: the end lifts (force < 0)
+    for x, compared in ((standing, True), (pulled, False)):
+        g_twin = data.mode.compiled.guards(x, data.mode.compiled.params)
+        assert bool(np.all(np.isfinite(g_twin))) == compared
+        assert check_twin("rod", data, 0.0, x, data.mode.field(0.0, x, None)) == compared
