@@ -147,7 +147,12 @@ class Run:
             if control is None or all(tr.guard_args == "x" for tr in data.transitions):
                 fns.values = lambda t, x: [float(g(t, x)) for g in fns]
             else:
-                fns.values = lambda t, x: [float(g(t, x, u)) for u in (control(t, x),) for g in fns]
+
+                def values(t: float, x: np.ndarray) -> list[float]:
+                    u = control(t, x)
+                    return [float(g(t, x, u)) for g in fns]
+
+                fns.values = values
         return fns
 
     def _guard_fn(self, transition) -> Callable[..., float]:
