@@ -551,15 +551,12 @@ def coulomb_guards(x, p):
     kin = _frame_kinematics(x, p, n)
     a = np.empty(n)
     lam = np.empty(max(1, int(p[P_ROWS])))
-    total = 0
     dynamic = False  # some event reads the mode's forces or accelerations (flight's strikes do not)
     for k in range(n_events):
-        e = events_at + 1 + EVENT_SIZE * k
-        total += int(p[e + E_COPIES])
-        dynamic = dynamic or int(p[e + E_KIND]) != E_GAP
+        dynamic = dynamic or int(p[events_at + 1 + EVENT_SIZE * k + E_KIND]) != E_GAP
     if dynamic:
         accelerate(x, p, n, int(p[P_NRIGID]), int(p[P_RIGID]), int(p[P_ROWS]), a, lam, control_input(x, p, n))
-    out = np.empty(total)
+    out = np.empty(int(p[P_NGUARD]))
     filled = 0
     for k in range(n_events):
         e = events_at + 1 + EVENT_SIZE * k
