@@ -22,14 +22,16 @@ callback, for models whose contact subsets are too many to enumerate up front.
 from __future__ import annotations
 
 import math
+import weakref
 from collections.abc import Callable, Iterable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from types import MappingProxyType
 from typing import Any
 
 import numpy as np
 
 from .errors import ModelError
+from .model import GuardOf, ModeFunctions, ResetOf, evaluate_field
 
 FieldFn = Callable[[float, np.ndarray, Any], np.ndarray]
 #: ``guard(x) -> float``, or ``guard(t, x, u) -> float`` for a transition declared with
@@ -61,6 +63,11 @@ class Mode:
     units:
         Optional unit of each coordinate (``"m"``, ``"rad"``, ``"m/s"``, ...; ``""`` for none),
         for plots and recordings; default all ``""``.
+    functions:
+        The mode written as model functions (``legsim.model.ModeFunctions``): its field, guards
+        and resets as functions over arrays, which every path evaluates. ``field`` may then be
+        omitted (it is made from them), and the mode's outgoing transitions take their guards
+        and resets from them, in their order, unless they give their own.
     """
 
     dim: int
@@ -69,21 +76,27 @@ class Mode:
     jacobian: Callable[[float, np.ndarray, Any], np.ndarray] | None
     compiled: Any
     units: tuple[str, ...]
+    functions: ModeFunctions | None
 
     # A hand-written __init__ (the dataclass still gives eq, hash, repr and replace): names and
     # units may be omitted, but once built a mode always has both, so the fields are typed so.
     def __init__(
         self,
         dim: int,
-        field: FieldFn,
+        field: FieldFn | None = None,
         names: Iterable[str] | None = None,
         jacobian: Callable[[float, np.ndarray, Any], np.ndarray] | None = None,
         compiled: Any = None,
         units: Iterable[str] | None = None,
+        functions: ModeFunctions | None = None,
     ) -> None:
         if isinstance(dim, bool) or not isinstance(dim, (int, np.integer)) or dim < 1:
             raise ModelError(f"Mode dim must be a positive integer, got {dim!r}")
         dim = int(dim)
+        if functions is not None and not isinstance(functions, ModeFunctions):
+            raise ModelError(f"Mode functions must be a legsim.ModeFunctions, got {type(functions).__name__}")
+        if field is None and functions is not None:
+            field = _FieldOf(functions, dim)
         if not callable(field):
             raise ModelError(f"Mode field must be callable f(t, x, u), got {type(field).__name__}")
         if jacobian is not None and not callable(jacobian):
@@ -103,8 +116,34 @@ class Mode:
             ("jacobian", jacobian),
             ("compiled", compiled),
             ("units", unit_tuple),
+            ("functions", functions),
         ):
             object.__setattr__(self, key, value)
+
+
+class _TargetDim:
+    """The dimension of a system's mode, asked when first needed (``ResetOf``): a lazily
+    expanded target is built then. Holds the system weakly (the system holds its transitions)."""
+
+    def __init__(self, system: HybridSystem, mode: str) -> None:
+        self._system = weakref.ref(system)
+        self._mode = mode
+
+    def __call__(self) -> int:
+        system = self._system()
+        assert system is not None, "a transition outlived its system"
+        return system.mode(self._mode).dim
+
+
+@dataclass(frozen=True)
+class _FieldOf:
+    """The field of a mode written as model functions, as ``field(t, x, u)``."""
+
+    functions: ModeFunctions
+    dim: int
+
+    def __call__(self, t: float, x: np.ndarray, u: Any) -> np.ndarray:
+        return evaluate_field(self.functions, self.dim, t, x, u)
 
 
 def _identity(x: np.ndarray) -> np.ndarray:
@@ -146,7 +185,9 @@ class Transition:
         Mode names; ``source == target`` is a self-transition (e.g. an impact with bounce).
     guard:
         ``guard(x) -> float``: >= 0 inside the source domain, < 0 past the guard, in units of
-        the transverse coordinate (the strip width eps is measured in these units).
+        the transverse coordinate (the strip width eps is measured in these units). None for a
+        transition of a mode written as model functions: its guard is then the mode's, at this
+        transition's place among the mode's outgoing transitions (and so is its reset).
     reset:
         ``reset(x) -> x'`` from the source's state space to the target's; identity if None
         (allowed only when the dimensions agree).
@@ -167,7 +208,7 @@ class Transition:
 
     source: str
     target: str
-    guard: GuardFn
+    guard: GuardFn | None = None
     reset: ResetFn | None = None
     name: str = ""
     guard_gradient: Callable[[np.ndarray], np.ndarray] | None = None
@@ -182,7 +223,7 @@ class Transition:
             raise ModelError(f"transition {label}: guard_args must be 'x' or 't,x,u', got {self.guard_args!r}")
         if not isinstance(self.source, str) or not isinstance(self.target, str):
             raise ModelError(f"transition {label}: source and target must be mode names (str)")
-        if not callable(self.guard):
+        if self.guard is not None and not callable(self.guard):
             raise ModelError(f"transition {label}: guard must be callable guard(x) -> float")
         if self.reset is not None and not callable(self.reset):
             raise ModelError(f"transition {label}: reset must be callable reset(x) -> x' or None")
@@ -323,6 +364,8 @@ class HybridSystem:
                         f"{name}: continuation {tr.continuation.name} of transition {tr.name} targets unknown mode "
                         f"'{tr.continuation.target}' (modes: {sorted(self._modes)})"
                     )
+        for key in self._modes:
+            self._bind_functions(key)
         self._compiled: dict[str, ModeData] = {}
         self._continued: dict[tuple[str, int], Transition] = {}
         if initial is not None:
@@ -337,8 +380,15 @@ class HybridSystem:
             raise ModelError(
                 f"{self._name}: transition {tr.name} leaves unknown mode '{tr.source}' (modes: {sorted(self._modes)})"
             )
+        functions = self._modes[tr.source].functions
+        if tr.guard is None and functions is None:
+            raise ModelError(
+                f"{self._name}: transition {tr.name} has no guard, and its mode '{tr.source}' is not written as "
+                f"model functions (Mode(functions=...)) to give it one"
+            )
         if (
             tr.reset is None
+            and (functions is None or functions.reset is None)
             and self._expand is None
             and tr.target in self._modes
             and self._modes[tr.source].dim != self._modes[tr.target].dim
@@ -370,6 +420,39 @@ class HybridSystem:
             if tr.source != mode:
                 raise ModelError(f"{self._name}: expand('{mode}') returned transition {tr.name} from '{tr.source}'")
             self._add_transition(tr)
+        self._bind_functions(mode)
+
+    def _bind_functions(self, mode: str) -> None:
+        """Give the transitions of a mode written as model functions their guards and resets
+        from those functions, each at its place among the mode's outgoing transitions."""
+        functions = self._modes[mode].functions
+        outgoing = self._outgoing[mode]
+        if functions is None or not outgoing:
+            return
+        if functions.guards is None:
+            raise ModelError(
+                f"{self._name}: mode '{mode}' has {len(outgoing)} outgoing transitions but its functions no guards"
+            )
+        count = len(outgoing)
+        bound = [self._bound(functions, e, count, tr) for e, tr in enumerate(outgoing)]
+        self._outgoing[mode] = bound
+        replaced = {id(old): new for old, new in zip(outgoing, bound, strict=True)}
+        self._transitions = [replaced.get(id(tr), tr) for tr in self._transitions]
+
+    def _bound(self, functions: ModeFunctions, e: int, count: int, tr: Transition) -> Transition:
+        """Transition ``tr`` (the e-th of ``count``) with the mode's guard and resets."""
+        guard, args = (tr.guard, tr.guard_args) if tr.guard is not None else (GuardOf(functions, e, count), "t,x,u")
+        reset, continuation = tr.reset, tr.continuation
+        if functions.reset is not None:
+            if reset is None:
+                reset = ResetOf(functions, e, _TargetDim(self, tr.target))
+            if continuation is not None and continuation.reset is None:
+                continuation = Continuation(
+                    continuation.target,
+                    ResetOf(functions, count + e, _TargetDim(self, continuation.target)),
+                    continuation.name,
+                )
+        return replace(tr, guard=guard, reset=reset, guard_args=args, continuation=continuation)
 
     # -- public read-only view ------------------------------------------------------------
     @property

@@ -14,11 +14,10 @@ from ..execution import Execution
 from ..hybrid import HybridSystem
 from ..methods import Tableau, get_method
 from ..methods.builtin import ADAPTIVE_DEFAULTS, SCIPY_NAMES
-from .integrate import integrate
-from .landing import Halve, landing_rule
-from .run import Control, ProgressFn, Run
+from .driver import Options, drive
+from .landing import Aim, Dense, Halve, landing_rule
+from .run import Control, ProgressFn
 from .step_size import ErrorControl, FixedStep
-from .zeno import ZenoWatch
 
 #: Landing rules of ``simulate(landing=...)``.
 LANDINGS = ("halve", "aim", "dense")
@@ -132,29 +131,30 @@ def simulate(
     max_transitions, max_halvings = count("max_transitions", max_transitions, 0), count("max_halvings", max_halvings, 1)
     max_steps = _check_step_budget(max_steps, t0, t_final, h)
     x = _initial_state(system, mode, x0, t0, eps, control)
-    rule = step_size if step_size is not None else step_size_rule(tableau, h, rtol, atol)
+    rule = _step_size_part(step_size, tableau, h) if step_size is not None else step_size_rule(tableau, h, rtol, atol)
     parts = _landing_part(landing, tableau)
     window = h + eps if zeno_window is None else positive("zeno_window", zeno_window)
     if not isinstance(continuation, (bool, np.bool_)):
         raise SimulationError(f"continuation must be True or False, got {type(continuation).__name__} {continuation!r}")
-    run = Run(
-        system,
-        tableau,
-        rule,
-        parts,
-        eps,
-        control,
+    options = Options(
+        tableau=tableau,
+        h=h,
+        eps=eps,
+        landing=parts,
+        rtol=rule[0],
+        atol=rule[1],
+        t0=t0,
+        t_final=t_final,
         max_transitions=max_transitions,
         max_halvings=max_halvings,
         max_steps=max_steps,
+        continuation=bool(continuation),
+        zeno_window=window,
+        hold=isinstance(control, Bound) and control.hold,
         progress=progress,
-        t0=t0,
-        t_final=t_final,
-        zeno=ZenoWatch(window, bool(continuation)),
     )
-    run.checked_modes.add(mode)  # _initial_state's check already evaluated this mode's field
     times = _eval_times(t_eval, t0, t_final)
-    execution = integrate(run, mode, x, t0)
+    execution = drive(system, mode, x, control, None, options)
     if times is not None:
         execution.evaluated = execution.sample(times[times <= execution.t_end])
     return execution
@@ -170,28 +170,58 @@ def _bound_control(control: Any) -> Any:
     return bind(control)
 
 
-def _landing_part(landing: str | Halve, tableau: Tableau) -> Halve:
-    """The landing rule named by ``landing`` (or the rule object given)."""
-    if isinstance(landing, str) and landing not in LANDINGS:
-        raise SimulationError(f"landing must be one of {', '.join(map(repr, LANDINGS))}, got {landing!r}")
-    return landing_rule(landing, tableau) if isinstance(landing, str) else landing
+def _landing_part(landing: Any, tableau: Tableau) -> str:
+    """The name of the landing rule ``landing`` names (or of the built-in rule object given);
+    the loop runs the built-in rules only, so any other object is refused by name."""
+    if isinstance(landing, str):
+        if landing not in LANDINGS:
+            raise SimulationError(f"landing must be one of {', '.join(map(repr, LANDINGS))}, got {landing!r}")
+        name = landing
+    elif type(landing) in (Halve, Aim, Dense):
+        name = landing.name
+    else:
+        raise SimulationError(
+            f"landing {type(landing).__name__} is not one of the loop's landing rules: give 'halve', 'aim' or "
+            f"'dense' (or legsim.relaxed.landing's Halve, Aim, Dense); the loop runs no other rule"
+        )
+    if name == "dense":
+        landing_rule(name, tableau)  # refuses a method without a continuous extension
+    return name
 
 
-def step_size_rule(tableau: Tableau, h: float, rtol: float | None, atol: float | None) -> FixedStep | ErrorControl:
-    """Fixed steps of h, or error control when rtol or atol is given (the other then a
-    thousandth of it)."""
+def _step_size_part(rule: Any, tableau: Tableau, h: float) -> tuple[float | None, float | None]:
+    """(rtol, atol) of a built-in step-size rule object ((None, None): fixed steps); any other
+    object is refused by name."""
+    if type(rule) is FixedStep:
+        return None, None
+    if type(rule) is ErrorControl:
+        return step_size_rule(tableau, h, rule.rtol, rule.atol)
+    raise SimulationError(
+        f"step_size {type(rule).__name__} is not one of the loop's step-size rules: give h (fixed steps) or "
+        f"rtol/atol (error control), or legsim.relaxed.step_size's FixedStep or ErrorControl"
+    )
+
+
+def step_size_rule(tableau: Tableau, h: float, rtol: float | None, atol: float | None) -> tuple[float | None, float | None]:
+    """(rtol, atol) of error control when rtol or atol is given (the other then a thousandth of
+    it); (None, None): fixed steps of h."""
     if rtol is None and atol is None:
-        return FixedStep(h)
+        return None, None
     if not tableau.embedded:
         raise SimulationError(
             f"rtol/atol need a method with an embedded error estimate (bs32, dopri5, dop853), got '{tableau.name}'"
         )
+    if tableau.error_order is None:
+        raise SimulationError(
+            f"method '{tableau.name}' has an embedded error estimate but no error_order: "
+            f"error control needs it for its step exponent"
+        )
     if rtol is None:  # atol given
         atol = positive("atol", atol)
-        return ErrorControl(tableau, h, 1e-3 * atol, atol)
+        return 1e-3 * atol, atol
     rtol = positive("rtol", rtol)
     atol = 1e-3 * rtol if atol is None else positive("atol", atol)
-    return ErrorControl(tableau, h, rtol, atol)
+    return rtol, atol
 
 
 def _number(value: Any) -> bool:

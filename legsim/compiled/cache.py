@@ -1,0 +1,149 @@
+"""Where legsim's compiled code is kept, and when it is stale.
+
+numba caches a function's machine code beside its source and trusts it while that one file is
+unchanged; a function that calls compiled functions of other files (the step loop calls the
+rules, a robot's model functions call the native library's helpers) would load stale code after
+those change. legsim's own functions are therefore cached by a locator of their own, installed
+in front of numba's: in ``cache_dir()`` (per legsim version, in the user's cache folder), with a
+stamp that is the digest of the function's file and of every legsim module it imports, directly
+or not. A user's model functions (outside the package) keep numba's own caching.
+
+``LEGSIM_CACHE_DIR`` overrides the folder (the tests put it in a temporary folder).
+"""
+
+from __future__ import annotations
+
+import ast
+import hashlib
+import os
+import shutil
+from functools import cache
+from pathlib import Path
+from typing import Any
+
+from numba.core import caching
+
+from .. import __version__
+
+#: The installed package's root: legsim/, whose parent holds its siblings (robots/, viz/ are
+#: installed inside it; in a source checkout they sit beside it).
+PACKAGE_ROOT = Path(__file__).resolve().parent.parent
+_ROOTS = (PACKAGE_ROOT, PACKAGE_ROOT.parent / "robots", PACKAGE_ROOT.parent / "viz")
+
+
+def cache_dir() -> Path:
+    """The folder of legsim's compiled code: ``$LEGSIM_CACHE_DIR``, else
+    ``$XDG_CACHE_HOME/legsim/kernels/<version>`` (``~/.cache/legsim/kernels/<version>``)."""
+    env = os.environ.get("LEGSIM_CACHE_DIR")
+    if env:
+        return Path(env) / __version__
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    return Path(base) / "legsim" / "kernels" / __version__
+
+
+def clear() -> tuple[Path, int]:
+    """Remove legsim's compiled code (every version's): (the folder, the files removed)."""
+    folder = cache_dir().parent
+    count = sum(1 for entry in folder.rglob("*") if entry.is_file()) if folder.exists() else 0
+    if folder.exists():
+        shutil.rmtree(folder)
+    return folder, count
+
+
+def _owned(path: Path) -> bool:
+    return any(root in path.parents for root in _ROOTS)
+
+
+@cache
+def _imports(path: Path) -> tuple[Path, ...]:
+    """The legsim source files ``path`` imports (relative imports and ``legsim.*``)."""
+    try:
+        tree = ast.parse(path.read_text())
+    except (OSError, SyntaxError):
+        return ()
+    found: list[Path] = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom):
+            base = _resolve(path, node.module, node.level)
+            if base is not None:
+                found += [p for p in (_module_file(base), *(_module_file(base / a.name) for a in node.names)) if p]
+        elif isinstance(node, ast.Import):
+            for alias in node.names:
+                if alias.name.startswith("legsim."):
+                    target = _module_file(PACKAGE_ROOT.parent.joinpath(*alias.name.split(".")))
+                    if target is not None:
+                        found.append(target)
+    return tuple(dict.fromkeys(found))
+
+
+def _resolve(path: Path, module: str | None, level: int) -> Path | None:
+    if level == 0:
+        if module is None or not module.startswith("legsim"):
+            return None
+        parts = module.split(".")[1:]
+        return PACKAGE_ROOT.joinpath(*parts)
+    base = path.parent
+    for _ in range(level - 1):
+        base = base.parent
+    return base.joinpath(*module.split(".")) if module else base
+
+
+def _module_file(base: Path) -> Path | None:
+    for candidate in (base.with_suffix(".py"), base / "__init__.py"):
+        if candidate.is_file():
+            return candidate.resolve()
+    return None
+
+
+@cache
+def source_digest(path: Path) -> str:
+    """The digest of ``path`` and of every legsim module it imports, directly or not."""
+    seen: dict[Path, None] = {}
+    todo = [path.resolve()]
+    while todo:
+        current = todo.pop()
+        if current in seen:
+            continue
+        seen[current] = None
+        todo.extend(_imports(current))
+    digest = hashlib.sha256()
+    for entry in sorted(seen):
+        digest.update(str(entry.name).encode())
+        digest.update(entry.read_bytes())
+    return digest.hexdigest()[:24]
+
+
+class LegsimCacheLocator(caching._CacheLocator):
+    """numba's cache locator for legsim's own functions (module docstring)."""
+
+    def __init__(self, py_func: Any, py_file: str) -> None:
+        self._py_file = Path(py_file).resolve()
+        self._lineno = py_func.__code__.co_firstlineno
+        self._cache_path = str(cache_dir() / self.get_suitable_cache_subpath(py_file))
+
+    def get_cache_path(self) -> str:
+        return self._cache_path
+
+    def get_source_stamp(self) -> str:
+        return source_digest(self._py_file)
+
+    def get_disambiguator(self) -> str:
+        return str(self._lineno)
+
+    @classmethod
+    def from_function(cls, py_func: Any, py_file: str) -> LegsimCacheLocator | None:
+        if not py_file or not os.path.exists(py_file) or not _owned(Path(py_file).resolve()):
+            return None
+        self = cls(py_func, py_file)
+        try:
+            self.ensure_cache_path()
+        except OSError:
+            return None
+        return self
+
+
+def install() -> None:
+    """Put legsim's locator in front of numba's (once)."""
+    locators = caching.CacheImpl._locator_classes
+    if LegsimCacheLocator not in locators:
+        locators.insert(0, LegsimCacheLocator)

@@ -1,0 +1,103 @@
+"""The step loop compiled: ``legsim.relaxed``'s loop functions made jittable, its model calls
+given numba implementations that call compiled model functions by address, and one cached
+compilation of the loop's entry that serves every model.
+
+Importing this module registers the kernel with the relaxed driver (``relaxed.driver.KERNEL``):
+the core never imports the compiled path.
+"""
+
+from __future__ import annotations
+
+import types as pytypes
+from typing import Any
+
+import numba
+import numpy as np
+from numba.core.extending import overload, register_jitable
+
+from ..relaxed import calls, crossing, curve, driver, entering, evaluate, loop, rules, stages, stepping
+from . import cache
+from .native import SIGNATURES, call_indexed_at, call_joint_at, call_state_at
+
+#: The loop's modules, whose functions the kernel compiles from their source.
+LOOP_MODULES = (rules, stages, evaluate, curve, stepping, crossing, entering, loop)
+#: Options of every compiled function of legsim: no fast-math (the Python loop's arithmetic,
+#: to the bit), numpy's float error model (a division by zero gives inf, never an exception).
+JIT_OPTIONS = {"cache": True, "fastmath": False, "nogil": True, "error_model": "numpy"}
+
+
+def _register_loop() -> None:
+    """Make every function of the loop's modules callable from compiled code."""
+    for module in LOOP_MODULES:
+        for value in vars(module).values():
+            if isinstance(value, pytypes.FunctionType) and value.__module__ == module.__name__:
+                register_jitable(**{k: v for k, v in JIT_OPTIONS.items() if k != "cache"})(value)
+
+
+@overload(calls.call_state, jit_options={"error_model": "numpy"})
+def _call_state(functions, i, t, a, b, c, out):  # noqa: ANN001, ANN202 -- numba's overload protocol
+    def impl(functions, i, t, a, b, c, out):  # noqa: ANN001, ANN202
+        call_state_at(functions[i], t, a, b, c, out)
+
+    return impl
+
+
+@overload(calls.call_indexed, jit_options={"error_model": "numpy"})
+def _call_indexed(functions, i, e, t, a, b, c, out):  # noqa: ANN001, ANN202
+    def impl(functions, i, e, t, a, b, c, out):  # noqa: ANN001, ANN202
+        call_indexed_at(functions[i], e, t, a, b, c, out)
+
+    return impl
+
+
+@overload(calls.call_joint, jit_options={"error_model": "numpy"})
+def _call_joint(functions, i, rest, t, q, u, p, crossed, out):  # noqa: ANN001, ANN202
+    def impl(functions, i, rest, t, q, u, p, crossed, out):  # noqa: ANN001, ANN202
+        return call_joint_at(functions[i], rest, t, q, u, p, crossed, out)
+
+    return impl
+
+
+cache.install()
+_register_loop()
+#: The loop's entry, compiled once per machine and legsim version (cached on disk).
+_run = numba.njit(**JIT_OPTIONS)(loop.run)
+
+_ADDRESSES: dict[tuple[int, str], tuple[Any, int]] = {}
+
+
+def address(function: Any, kind: str) -> int:
+    """The address of ``function`` (a numba-compiled model function) compiled for the call
+    shape ``kind`` (``native.SIGNATURES``); compiled (or loaded from its cache) on first use."""
+    key = (id(function), kind)
+    found = _ADDRESSES.get(key)
+    if found is not None and found[0] is function:
+        return found[1]
+    signature = SIGNATURES[kind]
+    function.compile(signature)
+    result = function.overloads[signature.args]
+    pointer = int(result.library.get_pointer_to_function(result.fndesc.llvm_func_name))
+    _ADDRESSES[key] = (function, pointer)  # holding the function keeps its code and id alive
+    return pointer
+
+
+def compiles(function: Any) -> bool:
+    """Whether the kernel can call ``function``: a numba dispatcher."""
+    return isinstance(function, numba.core.registry.CPUDispatcher)
+
+
+class Kernel:
+    """What the relaxed driver calls: ``run(tables, ws, method)`` and ``addresses``."""
+
+    @staticmethod
+    def run(tables: Any, ws: Any, method: Any) -> int:
+        return int(_run(tables, ws, method))
+
+    @staticmethod
+    def addresses(functions: list[Any], kinds: list[str]) -> np.ndarray:
+        return np.array([address(fn, kind) for fn, kind in zip(functions, kinds, strict=True)], dtype=np.int64)
+
+    compiles = staticmethod(compiles)
+
+
+driver.KERNEL = Kernel

@@ -1,0 +1,79 @@
+"""Calls from compiled code to a compiled model function by its address.
+
+The step loop is compiled once (``legsim.compiled.kernel``) and calls every model's functions
+through the run's function table, an array of addresses: the address of a numba-compiled
+function's machine code for one signature, called with numba's own calling convention (the
+arguments as numba passes them between its functions). A kernel compiled this way knows no
+model, so one cached compilation serves every system, and a call costs an indirect call (a few
+nanoseconds), where numba's first-class function values cost ~70 ns through a function boundary.
+
+Three call shapes cover every kind of model function (``legsim.model``,
+``legsim.relaxed.calls``): ``(t, a, b, c, out)``, ``(e, t, a, b, c, out)`` and the joint
+resolution ``(rest, t, q, u, p, crossed, out) -> int``; every array is float64, one-dimensional
+and contiguous.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from numba import types
+from numba.core.extending import intrinsic
+
+#: The arrays of every call: float64, 1-d, contiguous.
+ARRAY = types.Array(types.float64, 1, "C")
+#: The signatures a model function is compiled for, by call shape.
+STATE_SIGNATURE = types.void(types.float64, ARRAY, ARRAY, ARRAY, ARRAY)
+INDEXED_SIGNATURE = types.void(types.int64, types.float64, ARRAY, ARRAY, ARRAY, ARRAY)
+JOINT_SIGNATURE = types.int64(types.int64, types.float64, ARRAY, ARRAY, ARRAY, ARRAY, ARRAY)
+SIGNATURES = {"state": STATE_SIGNATURE, "indexed": INDEXED_SIGNATURE, "joint": JOINT_SIGNATURE}
+
+
+def _codegen(signature: Any):  # noqa: ANN202 -- numba's lowering protocol
+    """The lowering of a call to the function at an address compiled for ``signature``: the
+    arguments cast to its scalar types (arrays of any 1-d float64 layout share one data model)."""
+    callee_args = signature.args
+
+    def codegen(context, builder, sig, llargs):  # noqa: ANN001, ANN202
+        values = []
+        for value, given, wanted in zip(llargs[1:], sig.args[1:], callee_args, strict=True):
+            values.append(value if isinstance(wanted, types.Array) else context.cast(builder, value, given, wanted))
+        fnty = context.call_conv.get_function_type(signature.return_type, callee_args)
+        pointer = builder.inttoptr(llargs[0], fnty.as_pointer())
+        _, result = context.call_conv.call_function(builder, pointer, signature.return_type, callee_args, values)
+        if signature.return_type == types.void:
+            return context.get_dummy_value()
+        return result
+
+    return codegen
+
+
+def _typed(signature: Any, address: Any, args: tuple[Any, ...]) -> Any:
+    """The intrinsic's signature for these argument types, or None when they do not fit."""
+    if not isinstance(address, types.Integer):
+        return None
+    for given, wanted in zip(args, signature.args, strict=True):
+        if isinstance(wanted, types.Array):
+            if not (isinstance(given, types.Array) and given.dtype == types.float64 and given.ndim == 1):
+                return None
+        elif not isinstance(given, (types.Integer, types.Float, types.Boolean)):
+            return None
+    return signature.return_type(address, *args)
+
+
+@intrinsic
+def call_state_at(typingctx, address, t, a, b, c, out):  # noqa: ANN001, ANN201
+    """``fn(t, a, b, c, out)`` for the function at ``address``."""
+    return _typed(STATE_SIGNATURE, address, (t, a, b, c, out)), _codegen(STATE_SIGNATURE)
+
+
+@intrinsic
+def call_indexed_at(typingctx, address, e, t, a, b, c, out):  # noqa: ANN001, ANN201
+    """``fn(e, t, a, b, c, out)`` for the function at ``address``."""
+    return _typed(INDEXED_SIGNATURE, address, (e, t, a, b, c, out)), _codegen(INDEXED_SIGNATURE)
+
+
+@intrinsic
+def call_joint_at(typingctx, address, rest, t, q, u, p, crossed, out):  # noqa: ANN001, ANN201
+    """``fn(rest, t, q, u, p, crossed, out) -> int`` for the function at ``address``."""
+    return _typed(JOINT_SIGNATURE, address, (rest, t, q, u, p, crossed, out)), _codegen(JOINT_SIGNATURE)

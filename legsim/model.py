@@ -1,0 +1,156 @@
+"""Models written once: a mode's field, guards and resets as functions over plain arrays, which
+the Python loop and the compiled kernel both evaluate.
+
+A mode written this way carries ``ModeFunctions``; its ``Mode.field`` and its transitions'
+``guard`` and ``reset`` callables are made from the same functions (``legsim.hybrid``), so every
+tool that reads a ``HybridSystem`` (orbits, metric, bounds, recordings) sees the one source.
+Decorated with ``legsim.model_function`` (numba's ``njit``), the functions are compiled, and a
+run whose modes and controller are all written so runs in the compiled kernel; undecorated, they
+run in Python. The signatures (float64 arrays, one-dimensional and contiguous; each function
+writes its result into its last argument and returns nothing, except ``joint``):
+
+* ``field(t, x, u, p, dx)``: dx/dt at (t, x) under the input u; x and dx of the mode's dim;
+* ``guards(t, x, u, p, g)``: every outgoing transition's guard, in their order (>= 0 inside the
+  domain, < 0 past the guard, in the guard's own units: the strip width eps is in them);
+* ``reset(e, t, x, u, p, x_new)``: the image of outgoing transition e at the guard point x, of
+  the target's dim; for ``e >= len(g)`` the continuation of transition ``e - len(g)``;
+* ``joint(rest, t, q, u, p, crossed, x_new) -> k``: for a mode whose model resolves transitions
+  crossed in the same step together (simultaneous impacts): ``crossed[e] > 0`` for each one
+  crossed (1 for the first on the step's curve, 2, 3, ... for the others), ``rest`` 1 when these
+  joint crossings accumulate (their continuation: every impact plastic); returns the index of
+  the outcome in ``ModeFunctions.joint_outcomes`` with the image in x_new, or -1 to cross them
+  one after the other.
+
+``p`` is the mode's parameter array (``ModeFunctions.params``): parameters travel as data, so
+that one compilation serves every parameter set. A model function signals a state past the
+model's range (a robot's hip below the ground) by writing nan, and declares ``nan_breaks``: the
+step there is shortened, as for a Python model's ``ModelBreakdown``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from .errors import ModelError
+
+
+@dataclass(frozen=True)
+class ModeFunctions:
+    """A mode written as model functions (module docstring).
+
+    Attributes
+    ----------
+    field, guards, reset, joint: the functions (guards None: no outgoing transition; reset None:
+        every transition keeps the state; joint None: crossings one after the other).
+    params: the parameter array p, float64 (any length).
+    inputs: the number of entries of the input u the field expects (0: none).
+    joint_outcomes: (name, target mode) of each outcome ``joint`` may return, by index.
+    nan_breaks: a nan from these functions means the state is past the model's range.
+    """
+
+    field: Any
+    guards: Any = None
+    reset: Any = None
+    joint: Any = None
+    params: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    inputs: int = 0
+    joint_outcomes: tuple[tuple[str, str], ...] = ()
+    nan_breaks: bool = False
+
+    def __post_init__(self) -> None:
+        for name in ("field", "guards", "reset", "joint"):
+            value = getattr(self, name)
+            if value is not None and not callable(value):
+                raise ModelError(f"ModeFunctions.{name} must be a function, got {type(value).__name__}")
+        if not callable(self.field):
+            raise ModelError("ModeFunctions.field is required")
+        try:
+            params = np.ascontiguousarray(self.params, dtype=np.float64).reshape(-1)
+        except (TypeError, ValueError) as exc:
+            raise ModelError(f"ModeFunctions.params must be numbers: {exc}") from exc
+        params.flags.writeable = False
+        object.__setattr__(self, "params", params)
+        if isinstance(self.inputs, bool) or not isinstance(self.inputs, (int, np.integer)) or self.inputs < 0:
+            raise ModelError(f"ModeFunctions.inputs must be an integer >= 0, got {self.inputs!r}")
+        outcomes = tuple((str(name), str(target)) for name, target in self.joint_outcomes)
+        object.__setattr__(self, "joint_outcomes", outcomes)
+
+    @property
+    def compiled(self) -> bool:
+        """Whether every function is compiled (numba), so the kernel can call them."""
+        return all(
+            fn is None or hasattr(fn, "py_func") for fn in (self.field, self.guards, self.reset, self.joint)
+        )
+
+
+def as_input(u: Any, inputs: int) -> np.ndarray:
+    """A control value as the float64 input array of ``inputs`` entries a model function takes
+    (an empty array for None)."""
+    if u is None:
+        return np.zeros(inputs)
+    arr = np.ascontiguousarray(u, dtype=np.float64).reshape(-1)
+    return arr
+
+
+def evaluate_field(functions: ModeFunctions, dim: int, t: float, x: np.ndarray, u: Any) -> np.ndarray:
+    """The mode's field at (t, x) under u, shape (dim,)."""
+    out = np.empty(dim)
+    functions.field(float(t), np.ascontiguousarray(x, dtype=np.float64), as_input(u, functions.inputs),
+                    functions.params, out)  # fmt: skip
+    return out
+
+
+def evaluate_guards(functions: ModeFunctions, count: int, t: float, x: np.ndarray, u: Any) -> np.ndarray:
+    """Every guard of the mode at (t, x) under u, shape (count,)."""
+    out = np.empty(count)
+    if count:
+        functions.guards(float(t), np.ascontiguousarray(x, dtype=np.float64), as_input(u, functions.inputs),
+                         functions.params, out)  # fmt: skip
+    return out
+
+
+def evaluate_reset(
+    functions: ModeFunctions, e: int, target_dim: int, x: np.ndarray, t: float = 0.0, u: Any = None
+) -> np.ndarray:
+    """The image of transition e (or a continuation, ``e >= guards``) at x, shape (target_dim,)."""
+    out = np.empty(target_dim)
+    functions.reset(int(e), float(t), np.ascontiguousarray(x, dtype=np.float64), as_input(u, functions.inputs),
+                    functions.params, out)  # fmt: skip
+    return out
+
+
+@dataclass(frozen=True)
+class GuardOf:
+    """Transition e's guard of a mode written as model functions, as ``guard(t, x, u)``."""
+
+    functions: ModeFunctions
+    index: int
+    count: int
+
+    def __call__(self, t: float, x: np.ndarray, u: Any = None) -> float:
+        return float(evaluate_guards(self.functions, self.count, t, x, u)[self.index])
+
+
+@dataclass(frozen=True)
+class ResetOf:
+    """Transition e's reset (or continuation's, e >= guard count) of a mode written as model
+    functions, as ``reset(x)``; ``target_dim()`` gives the target's dimension (a lazily built
+    target is built when first asked)."""
+
+    functions: ModeFunctions
+    index: int
+    target_dim: Callable[[], int]
+
+    def __call__(self, x: np.ndarray) -> np.ndarray:
+        return evaluate_reset(self.functions, self.index, self.target_dim(), x)
+
+
+def check_outcomes(outcomes: Sequence[tuple[str, str]], modes: Sequence[str], where: str) -> None:
+    """Every joint outcome's target must be a mode (of those given, for an eager system)."""
+    for name, target in outcomes:
+        if modes and target not in modes:
+            raise ModelError(f"{where}: joint outcome {name} targets unknown mode '{target}'")

@@ -1,0 +1,331 @@
+"""The execution from the loop's buffers: segments from its visits and points, strips and
+transitions from its crossing records, the run's end as a status and a message naming mode,
+time and state, and the warnings a run owes its reader (accumulations, order-dependent
+simultaneous crossings, time held in strips)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from ..execution import Execution, Segment, Status, Strip, TransitionRecord
+from . import messages
+from .layout import (
+    COUNTERS,
+    END_BROKE_DOWN,
+    END_FIELD_AT_ENTRY,
+    END_FINISHED,
+    END_GUARD_AT_ENTRY,
+    END_GUARD_NAN,
+    END_HALVING_EXHAUSTED,
+    END_MAX_STEPS,
+    END_MAX_TRANSITIONS,
+    END_NON_FINITE_STEP,
+    END_RESET_BROKE_DOWN,
+    END_RESET_NON_FINITE,
+    END_RESET_OUTSIDE,
+    F_H_TRIED,
+    F_STRIP_TIME,
+    F_T,
+    I_END,
+    I_END_COUNT,
+    I_END_INDEX,
+    I_MODE,
+    I_PHASE,
+    I_POINTS,
+    I_RECORDS,
+    I_TRANSITIONS,
+    I_VISITS,
+    KIND_CONTINUED,
+    KIND_CUT,
+    KIND_JOINT,
+    M_DIM,
+    M_J0,
+    M_T0,
+    PHASE_STEP,
+    R_ACCUMULATES,
+    R_DEPTH,
+    R_DIM_AFTER,
+    R_DIM_BEFORE,
+    R_EXIT,
+    R_HAS_CONTINUATION,
+    R_INDEX,
+    R_JOINT,
+    R_KIND,
+    R_LANDING,
+    R_ORDER_A,
+    R_ORDER_B,
+    R_SOURCE,
+    R_TARGET,
+    R_TIME,
+    V_FIRST,
+    V_MODE,
+)
+from .simultaneous import OrderWatch
+from .zeno import ZenoWatch, strip_hold_warning
+
+
+class Assembly:
+    """The pieces of an execution, gathered from the loop's buffers as they fill."""
+
+    def __init__(self, system: Any, tables: Any, options: Any) -> None:
+        self.system, self.tables, self.options = system, tables, options
+        self.segments: list[Segment] = []
+        self.strips: list[Strip] = []
+        self.transitions: list[TransitionRecord] = []
+        self.crossings: list[tuple[Any, ...]] = []
+        self.in_strip = False
+        self._open: tuple[int, list[np.ndarray], list[np.ndarray], list[np.ndarray]] | None = None
+
+    # -- draining ---------------------------------------------------------------------------
+    def drain(self, ws: Any, final: bool) -> None:
+        """Turn the buffers' contents into pieces and empty them; an open visit's last point
+        stays (a crossing may yet move it onto q)."""
+        n_points, n_visits = int(ws.iv[I_POINTS]), int(ws.iv[I_VISITS])
+        open_visit = not final and ws.iv[I_PHASE] == PHASE_STEP and n_visits > 0
+        self._records(ws)
+        for v in range(n_visits):
+            first = int(ws.visits[v, V_FIRST])
+            last = int(ws.visits[v + 1, V_FIRST]) if v + 1 < n_visits else n_points
+            mode = int(ws.visits[v, V_MODE])
+            if v + 1 == n_visits and open_visit:
+                self._extend(ws, mode, first, last - 1)
+                break
+            self._extend(ws, mode, first, last)
+            self._close()
+        if open_visit:
+            mode = int(ws.visits[n_visits - 1, V_MODE])
+            n = self._width(mode)
+            ws.T[0] = ws.T[n_points - 1]
+            ws.X[0, :n] = ws.X[n_points - 1, :n]
+            ws.DX[0, :n] = ws.DX[n_points - 1, :n]
+            ws.visits[0, V_MODE], ws.visits[0, V_FIRST] = mode, 0
+            ws.iv[I_POINTS], ws.iv[I_VISITS] = 1, 1
+        else:
+            ws.iv[I_POINTS], ws.iv[I_VISITS] = 0, 0
+        ws.iv[I_RECORDS] = 0
+
+    def _width(self, mode: int) -> int:
+        return int(self.tables.modes[mode, M_DIM]) + self.tables.memory
+
+    def _extend(self, ws: Any, mode: int, first: int, last: int) -> None:
+        if self._open is None or self._open[0] != mode:
+            self._close()
+            self._open = (mode, [], [], [])
+        n = self._width(mode)
+        _, ts, xs, dxs = self._open
+        ts.append(ws.T[first:last].copy())
+        xs.append(ws.X[first:last, :n].copy())
+        dxs.append(ws.DX[first:last, :n].copy())
+
+    def _close(self) -> None:
+        if self._open is None:
+            return
+        mode, ts, xs, dxs = self._open
+        self._open = None
+        self.segments.append(Segment(self.tables.names[mode], np.concatenate(ts), np.concatenate(xs),
+                                     np.concatenate(dxs)))  # fmt: skip
+
+    def _records(self, ws: Any) -> None:
+        for r in range(int(ws.iv[I_RECORDS])):
+            self._record(ws, r)
+
+    def _record(self, ws: Any, r: int) -> None:
+        tables = self.tables
+        f, i = ws.rec_f[r], ws.rec_i[r]
+        source, e, kind = int(i[R_SOURCE]), int(i[R_INDEX]), int(i[R_KIND])
+        row = int(tables.modes[source, M_T0]) + e
+        if kind == KIND_JOINT:
+            name = tables.joint_names[int(tables.modes[source, M_J0]) + int(i[R_JOINT])]
+        elif kind == KIND_CONTINUED:
+            name = tables.continuation_names[row]
+        else:
+            name = tables.transition_names[row]
+        source_name = tables.names[source]
+        q = ws.rec_q[r, : int(i[R_DIM_BEFORE])].copy()
+        tc, t_land, exit_time, tau = float(f[R_TIME]), float(f[R_LANDING]), float(f[R_EXIT]), float(f[R_DEPTH])
+        self.strips.append(Strip(source_name, name, tc, exit_time, q, t_land, tau))
+        if kind == KIND_CUT:
+            self.in_strip = True
+            self.cut_name = name
+            return
+        target = tables.names[int(i[R_TARGET])]
+        image = ws.rec_x[r, : int(i[R_DIM_AFTER])].copy()
+        self.transitions.append(TransitionRecord(name, source_name, target, e, tc, t_land, exit_time, q, image, tau))
+        order = (int(i[R_ORDER_A]), int(i[R_ORDER_B]))
+        self.crossings.append(
+            (source_name, name, tc, exit_time, bool(i[R_ACCUMULATES]), kind == KIND_CONTINUED,
+             bool(i[R_HAS_CONTINUATION]), kind, order, q, source)
+        )  # fmt: skip
+
+    # -- the execution ------------------------------------------------------------------------
+    def execution(self, ws: Any, steps: list[int], wall: float, python_reason: str) -> Execution:
+        """The execution, with its status, message, counters, settings and warnings; ``steps``
+        the steps taken by the compiled kernel and by the Python loop."""
+        self._close()
+        status, message = self.ending(ws)
+        t_end = float(ws.fs[F_T])
+        counters: dict[str, float] = {name: int(ws.iv[slot]) for name, slot in COUNTERS}
+        counters.update(
+            transitions=int(ws.iv[I_TRANSITIONS]),
+            strip_time=float(ws.fs[F_STRIP_TIME]),
+            compiled_steps=steps[0],
+            python_steps=steps[1],
+            wall_time_s=wall,
+        )
+        compiled = steps[1] == 0
+        options = self.options
+        run_settings = {
+            "h": options.h,
+            "eps": options.eps,
+            "method": options.tableau.name,
+            "rtol": options.rtol,
+            "atol": options.atol,
+            "landing": options.landing,
+            "max_transitions": options.max_transitions,
+            "control": self.tables.control is not None or self.tables.law is not None,
+            "continuation": options.continuation,
+            "zeno_window": options.zeno_window,
+            "path": "compiled" if compiled else "python",
+        }
+        if not compiled:
+            run_settings["python_reason"] = python_reason or "the run asked for the Python loop"
+        warnings = self.warnings(t_end)
+        names, units = self.state_names()
+        return Execution(
+            status=status,
+            message=message,
+            segments=self.segments,
+            strips=self.strips,
+            transitions=self.transitions,
+            t0=options.t0,
+            t_end=t_end,
+            t_final=options.t_final,
+            counters=counters,
+            settings=run_settings,
+            state_names=names,
+            system_name=self.system.name,
+            final_in_strip=self.in_strip,
+            warnings=warnings,
+            state_units=units,
+        )
+
+    def state_names(self) -> tuple[dict[str, tuple[str, ...]], dict[str, tuple[str, ...]]]:
+        """The coordinate names and units of every mode visited (the memory's last)."""
+        law, control = self.tables.law, self.tables.control
+        if law is not None:
+            extra_names, extra_units = tuple(law.memory_names), tuple(law.memory_units)
+        elif control is not None and self.tables.memory:
+            controller = control.controller
+            extra_names = tuple(controller.memory_names)
+            extra_units = tuple(controller.memory_units) or ("",) * len(extra_names)
+        else:
+            extra_names = extra_units = ()
+        names: dict[str, tuple[str, ...]] = {}
+        units: dict[str, tuple[str, ...]] = {}
+        for seg in self.segments:
+            if seg.mode not in names:
+                mode = self.system.mode(seg.mode)
+                names[seg.mode] = mode.names + extra_names
+                units[seg.mode] = mode.units + extra_units
+        return names, units
+
+    def warnings(self, t_end: float) -> list[Any]:
+        """Accumulations without continuation, order-dependent simultaneous crossings, and time
+        held in strips (replayed from the crossings in order)."""
+        zeno = ZenoWatch(self.options.zeno_window, self.options.continuation)
+        order = OrderWatch()
+        replay = _Replay()
+        for source, name, tc, exit_time, accumulates, continued, has_cont, kind, pair, q, row in self.crossings:
+            replay.transitions.append(None)
+            replay.strip_time += exit_time - tc
+            if pair[0] >= 0 and pair[1] >= 0:
+                order.check(self.system.mode_data(source), list(pair), q[: self.system.mode(source).dim], tc)
+            zeno.crossed(replay, source, name, tc, exit_time, accumulates, continued, has_cont)
+        strip_time = sum(s.exit_time - s.time for s in self.strips)
+        replay.strip_time = strip_time
+        out = zeno.warnings(replay, t_end) + order.warnings()
+        held = strip_hold_warning(strip_time, self.options.t0, t_end, out)
+        return out + ([held] if held is not None else [])
+
+    # -- the end --------------------------------------------------------------------------------
+    def ending(self, ws: Any) -> tuple[Status, str]:
+        """How the run ended, and the message naming mode, time and state."""
+        reason, index = int(ws.iv[I_END]), int(ws.iv[I_END_INDEX])
+        tables = self.tables
+        mode = int(ws.iv[I_MODE])
+        name = tables.names[mode]
+        n = self._width(mode)
+        t, x = float(ws.fs[F_T]), ws.x[:n].copy()
+        transition = self._transition_name(mode, index)
+        breakdown = tables.breakdowns.last
+        if reason == END_FINISHED:
+            return Status.FINISHED, ""
+        if reason == END_MAX_TRANSITIONS:
+            return Status.MAX_TRANSITIONS, (
+                f"transition budget max_transitions={self.options.max_transitions} used up at t={t:.17g} "
+                f"(next transition {transition} from mode '{name}')"
+            )
+        if reason == END_MAX_STEPS:
+            return Status.MAX_STEPS, (
+                f"step budget max_steps={self.options.max_steps} used up at t={t:.17g} in mode '{name}' "
+                f"(x={x.tolist()})"
+            )
+        if reason == END_HALVING_EXHAUSTED:
+            count = int(ws.iv[I_END_COUNT]) - 1
+            return Status.HALVING_EXHAUSTED, messages.halving_exhausted(
+                name, t, x, count, transition, self.options.eps
+            )
+        if reason == END_NON_FINITE_STEP:
+            return Status.NON_FINITE, messages.non_finite_step(name, t, x, float(ws.fs[F_H_TRIED]))
+        if reason == END_BROKE_DOWN:
+            why = breakdown if breakdown is not None else self.model_range(name)
+            return Status.MODEL_BREAKDOWN, messages.model_breakdown(why, name, t, float(ws.fs[F_H_TRIED]))
+        if reason == END_GUARD_NAN:
+            x1 = ws.x1[:n].copy()
+            return Status.NON_FINITE, messages.nan_guard(name, t + float(ws.fs[F_H_TRIED]), x1, transition)
+        return self._entry_ending(ws, reason, name, transition, t, x, breakdown)
+
+    def _entry_ending(self, ws: Any, reason: int, name: str, transition: str, t: float, x: np.ndarray,
+                      breakdown: Any) -> tuple[Status, str]:  # fmt: skip
+        if breakdown is not None and reason in (END_FIELD_AT_ENTRY, END_GUARD_AT_ENTRY):
+            return Status.MODEL_BREAKDOWN, f"{breakdown} (mode '{name}', t={t:.17g})"
+        if reason == END_FIELD_AT_ENTRY:
+            return Status.NON_FINITE, messages.non_finite_field(name, t, x, ws.K[0, : x.shape[0]].copy())
+        if reason == END_GUARD_AT_ENTRY:
+            value = float(ws.g_here[int(ws.iv[I_END_INDEX])])
+            return Status.NON_FINITE, messages.non_finite_guard(name, t, x, transition, value)
+        if reason == END_RESET_OUTSIDE:
+            g = float(ws.g_here[int(ws.iv[I_END_INDEX])])
+            return Status.RESET_OUTSIDE_DOMAIN, (
+                f"state entering mode '{name}' at t={t:.17g} lies past the guard of transition {transition} by "
+                f"{-g:.3g} > eps={self.options.eps:g}: x={x.tolist()}"
+            )
+        last = self.transitions[-1] if self.transitions else None
+        if reason == END_RESET_NON_FINITE and last is not None:
+            return Status.NON_FINITE, (
+                f"reset of transition {last.name} at t={last.exit_time:.17g} gives a non-finite state "
+                f"{last.state_after.tolist()} from q={last.state_before.tolist()}"
+            )
+        assert reason == END_RESET_BROKE_DOWN, f"every END_* is handled ({reason})"
+        why = breakdown if breakdown is not None else self.model_range(name)
+        return Status.MODEL_BREAKDOWN, f"{why} (reset of transition {transition} from mode '{name}', t={t:.17g})"
+
+    def _transition_name(self, mode: int, index: int) -> str:
+        tables = self.tables
+        if index < 0 or tables.datas[mode] is None or index >= len(tables.datas[mode].transitions):
+            return "?"
+        return tables.datas[mode].transitions[index].name
+
+    def model_range(self, mode: str) -> str:
+        """Why a model function's nan ends the run, in words."""
+        return f"{self.system.name}: the state leaves the model's range of validity in mode '{mode}'"
+
+
+class _Replay:
+    """What ``ZenoWatch`` reads of a run while the crossings are replayed."""
+
+    def __init__(self) -> None:
+        self.transitions: list[None] = []
+        self.strip_time = 0.0

@@ -1,0 +1,258 @@
+"""The loop's driver: builds a run's tables and workspace, runs the loop (compiled when the
+kernel can take the run, else interpreted), serves what it hands back (a mode to make ready,
+full buffers, progress) and assembles the execution.
+
+The compiled kernel registers itself here (``KERNEL``) when ``legsim.compiled`` is imported:
+the core never imports the compiled path.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ..errors import ContractError, LegsimError, ModelError, SimulationError
+from ..execution import Execution
+from ..hybrid import HybridSystem
+from ..methods import Tableau
+from . import loop
+from .assemble import Assembly
+from .evaluate import enter_controller, visit_of
+from .layout import (
+    F_H_PROP,
+    F_T,
+    I_MODE,
+    I_PHASE,
+    I_POINTS,
+    I_RECORDS,
+    I_STEPS,
+    I_VISITS,
+    LAND_AIM,
+    LAND_DENSE,
+    LAND_HALVE,
+    PHASE_ENTER,
+    RETURN_ENDED,
+    RETURN_FULL,
+    RETURN_NEED_MODE,
+    RETURN_PROGRESS,
+    S_ADAPTIVE,
+    S_ATOL,
+    S_CONTINUES,
+    S_EPS,
+    S_EXPONENT,
+    S_H_MAX,
+    S_HOLD,
+    S_LANDING,
+    S_MAX_HALVINGS,
+    S_MAX_STEPS,
+    S_MAX_TRANSITIONS,
+    S_MEMORY,
+    S_PROGRESS_STEPS,
+    S_RTOL,
+    S_T0,
+    S_T_FINAL,
+    S_WINDOW,
+)
+from .stages import INFO_EXTRA, INFO_STAGES, method_arrays
+from .tables import RunTables
+from .workspace import Workspace, allocate, resized
+
+#: The compiled kernel, set by ``legsim.compiled``: ``KERNEL.run(tables, ws, method)`` and
+#: ``KERNEL.addresses(functions)``; None runs every run interpreted.
+KERNEL: Any = None
+#: Accepted steps between looks at the clock, interpreted and compiled.
+PROGRESS_STEPS_PYTHON, PROGRESS_STEPS_COMPILED = 64, 16384
+#: Wall-clock seconds between progress reports.
+PROGRESS_INTERVAL = 0.2
+LANDINGS = {"halve": LAND_HALVE, "aim": LAND_AIM, "dense": LAND_DENSE}
+
+
+@dataclass(frozen=True)
+class Options:
+    """A run's settings, checked by ``simulate``."""
+
+    tableau: Tableau
+    h: float
+    eps: float
+    landing: str
+    rtol: float | None
+    atol: float | None
+    t0: float
+    t_final: float
+    max_transitions: int
+    max_halvings: int
+    max_steps: int
+    continuation: bool
+    zeno_window: float
+    hold: bool
+    progress: Callable[[float, float, float], None] | None
+    python: bool = False
+
+
+def drive(system: HybridSystem, mode: str, x0: np.ndarray, control: Any, law: Any, options: Options) -> Execution:
+    """Run ``system`` from (mode, x0) at options.t0 (x0 the plant's state; the controller's
+    memory starts from ``law.initial_memory`` or the Python controller's ``memory()``)."""
+    wall0 = time.perf_counter()
+    tables = RunTables(system, control, law)
+    row = tables.register(mode)
+    tables.prepare(row)
+    method = method_arrays(options.tableau)
+    stages = method.info[INFO_STAGES] + max(method.info[INFO_EXTRA], 0)
+    ws = allocate(tables.widest, tables.most_guards, stages, tables.inputs, tables.memory, tables.n_transitions)
+    settings(ws, options, tables)
+    start(tables, ws, row, x0, options)
+    compiled = KERNEL is not None and not options.python
+    if KERNEL is None and tables.compiled:
+        tables.python_reason = "the compiled kernel is not loaded (legsim.compiled was not imported)"
+    elif options.python:
+        tables.python_reason = "the run asked for the Python loop"
+    assembly = Assembly(system, tables, options)
+    run = Runner(tables, ws, method, compiled, options, assembly)
+    run.go()
+    return assembly.execution(run.ws, run.steps, time.perf_counter() - wall0, tables.python_reason)
+
+
+def settings(ws: Workspace, options: Options, tables: RunTables) -> None:
+    """Write the run's settings into ws.cf and ws.ci."""
+    adaptive = options.rtol is not None
+    cf, ci = ws.cf, ws.ci
+    cf[S_T_FINAL], cf[S_T0], cf[S_H_MAX], cf[S_EPS] = options.t_final, options.t0, options.h, options.eps
+    cf[S_WINDOW] = options.zeno_window
+    if adaptive:
+        tableau = options.tableau
+        assert options.atol is not None and tableau.error_order is not None
+        cf[S_RTOL], cf[S_ATOL] = options.rtol, options.atol
+        cf[S_EXPONENT] = -1.0 / (min(tableau.order, tableau.error_order) + 1)
+    ci[S_ADAPTIVE] = int(adaptive)
+    ci[S_LANDING] = LANDINGS[options.landing]
+    ci[S_MAX_HALVINGS], ci[S_MAX_STEPS] = options.max_halvings, options.max_steps
+    ci[S_MAX_TRANSITIONS] = options.max_transitions
+    ci[S_CONTINUES], ci[S_HOLD], ci[S_MEMORY] = int(options.continuation), int(options.hold), tables.memory
+
+
+def start(tables: RunTables, ws: Workspace, row: int, x0: np.ndarray, options: Options) -> None:
+    """The run's first point: the plant's state, the controller's initial memory and its entry
+    into the first mode."""
+    dim = int(tables.modes[row, 0])
+    ws.x[:dim] = x0
+    if tables.memory:
+        ws.x[dim : dim + tables.memory] = initial_memory(tables)
+    ws.iv[I_MODE] = row
+    ws.iv[I_PHASE] = PHASE_ENTER
+    ws.fs[F_T] = options.t0
+    ws.fs[F_H_PROP] = options.h
+    vis = visit_of(tables.tables(tables.functions), tables.memory, row)
+    enter_controller(tables.tables(tables.functions), vis, ws, options.t0, ws.x)
+
+
+def initial_memory(tables: RunTables) -> np.ndarray:
+    """The memory a run starts with."""
+    if tables.law is not None:
+        return np.asarray(tables.law.initial_memory, dtype=float)
+    return np.asarray(tables.control.controller.memory(), dtype=float).reshape(-1)
+
+
+class Runner:
+    """Runs the loop until the run ends, serving what it hands back."""
+
+    def __init__(self, tables: RunTables, ws: Workspace, method: Any, compiled: bool, options: Options,
+                 assembly: Any) -> None:  # fmt: skip
+        self.tables, self.ws, self.method, self.compiled = tables, ws, method, compiled
+        self.options, self.assembly = options, assembly
+        #: Steps taken by each path: (compiled, python).
+        self.steps = [0, 0]
+        self._addresses = np.zeros(0, dtype=np.int64)
+        self.ws.ci[S_PROGRESS_STEPS] = (
+            0 if options.progress is None else PROGRESS_STEPS_COMPILED if compiled else PROGRESS_STEPS_PYTHON
+        )
+        self.last_report = time.perf_counter()
+        tables.breakdowns.ws = ws
+
+    def go(self) -> None:
+        while True:
+            code = self.call()
+            if code == RETURN_ENDED:
+                self.assembly.drain(self.ws, final=True)
+                return
+            if code == RETURN_NEED_MODE:
+                self.tables.prepare(int(self.ws.iv[I_MODE]))
+                self.fit()
+            elif code == RETURN_FULL:
+                self.assembly.drain(self.ws, final=False)
+                self.tick()
+            elif code == RETURN_PROGRESS:
+                self.tick()
+
+    def call(self) -> int:
+        tables, ws = self.tables, self.ws
+        compiled = self.compiled and tables.compiled
+        before = int(ws.iv[I_STEPS])
+        try:
+            if compiled:
+                return int(KERNEL.run(tables.tables(self.addresses()), ws, self.method))
+            return int(loop.run(tables.tables(tables.functions), ws, self.method))
+        except ContractError as exc:
+            raise ModelError(f"{tables.system.name}: {exc} {self.where()}") from exc
+        except LegsimError:
+            raise
+        except Exception as exc:
+            raise ModelError(
+                f"{tables.system.name}: evaluating mode '{self.mode_name()}' failed {self.where()}: "
+                f"{type(exc).__name__}: {exc}"
+            ) from exc
+        finally:
+            self.steps[0 if compiled else 1] += int(self.ws.iv[I_STEPS]) - before
+
+    def addresses(self) -> np.ndarray:
+        """The function table's addresses (those of functions added since, computed now)."""
+        known = self._addresses.shape[0]
+        functions = self.tables.functions
+        if known < len(functions):
+            more = KERNEL.addresses(functions[known:], self.tables.kinds[known:])
+            self._addresses = np.concatenate([self._addresses, more])
+        return self._addresses
+
+    def mode_name(self) -> str:
+        return self.tables.names[int(self.ws.iv[I_MODE])]
+
+    def where(self) -> str:
+        ws = self.ws
+        n = int(self.tables.modes[int(ws.iv[I_MODE]), 0]) + self.tables.memory
+        return f"in the step from t={ws.fs[F_T]:.17g} in mode '{self.mode_name()}' (x={ws.x[:n].tolist()})"
+
+    def fit(self) -> None:
+        """Widen the workspace for the modes registered so far."""
+        tables = self.tables
+        self.ws = resized(self.ws, tables.widest, tables.most_guards, tables.inputs, tables.n_transitions)
+        tables.breakdowns.ws = self.ws
+
+    def tick(self) -> None:
+        progress = self.options.progress
+        if progress is None:
+            return
+        now = time.perf_counter()
+        if now - self.last_report <= PROGRESS_INTERVAL:
+            return
+        self.last_report = now
+        try:
+            progress(float(self.ws.fs[F_T]), self.options.t0, self.options.t_final)
+        except LegsimError:
+            raise
+        except Exception as exc:
+            raise SimulationError(
+                f"the progress callback failed at t={self.ws.fs[F_T]:.17g}: {type(exc).__name__}: {exc}"
+            ) from exc
+
+
+def buffer_counts(ws: Workspace) -> tuple[int, int, int]:
+    """(points, records, visits) stored in the output buffers."""
+    return int(ws.iv[I_POINTS]), int(ws.iv[I_RECORDS]), int(ws.iv[I_VISITS])
+
+
+def finite(value: float) -> bool:
+    return math.isfinite(value)

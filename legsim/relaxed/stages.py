@@ -1,0 +1,198 @@
+"""A Runge-Kutta step from a method's arrays: its stages, its error estimate and its continuous
+extension, written once for every path that steps a field (the step loop, interpreted or
+compiled, and the variational equations of ``legsim.orbits``).
+
+A method is data (``MethodArrays``, from a ``legsim.methods.Tableau``): nodes c (s,), the stage
+matrix A (s, s), weights b (s,), the error weights b_err (s,) and the blended lower-order ones
+(DOP853), and, for a method with a continuous extension, the polynomial weights P (s + m,
+degree) over its s stages and m extra stages (nodes c_extra (m,), rows A_extra (m, s + m)).
+Stages are rows of K (s + m, n); the caller fills K[0] with f(t, x). The field is the closed
+loop's in the mode of ``vis`` (``legsim.relaxed.evaluate.field_at``).
+
+Units: t and h in s; x in the model's units, K in those units per second.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import namedtuple
+
+import numpy as np
+
+from .evaluate import Tables, Visit, field_at
+
+#: A method as the step loop's arrays (``method_arrays``); ``info`` holds the integers
+#: ``INFO_*``.
+MethodArrays = namedtuple("MethodArrays", "c A b b_err b_err_low P c_extra A_extra info")
+#: Stages s; 1 when the last stage is f at the new point (FSAL); 1 when the method has an error
+#: estimate; 1 when its norm blends a lower-order estimate (DOP853); the extra stages m of its
+#: continuous extension (-1: none); the degree of the extension's polynomials.
+INFO_STAGES, INFO_FSAL, INFO_EMBEDDED, INFO_BLENDED, INFO_EXTRA, INFO_DEGREE = range(6)
+
+
+def method_arrays(tableau) -> MethodArrays:  # noqa: ANN001 -- a legsim.methods.Tableau
+    """The tableau as ``MethodArrays`` (contiguous float64 and int64 arrays)."""
+    s = tableau.stages
+    b_err = np.zeros(s) if tableau.b_err is None else np.asarray(tableau.b_err, dtype=float)
+    b_low = np.zeros(s) if tableau.b_err_low is None else np.asarray(tableau.b_err_low, dtype=float)
+    dense = tableau.dense
+    if dense is None:
+        P, c_extra, A_extra, extra, degree = np.zeros((s, 1)), np.zeros(0), np.zeros((0, s)), -1, 0
+    else:
+        P, degree = np.asarray(dense.P, dtype=float), dense.P.shape[1]
+        c_extra = np.asarray(dense.c_extra, dtype=float)
+        extra = c_extra.shape[0]
+        A_extra = np.zeros((extra, s + extra))
+        if extra:
+            A_extra[:, : dense.A_extra.shape[1]] = dense.A_extra
+    info = np.array(
+        [s, int(tableau.fsal), int(tableau.b_err is not None), int(tableau.b_err_low is not None), extra, degree],
+        dtype=np.int64,
+    )
+    return MethodArrays(
+        np.ascontiguousarray(tableau.c, dtype=float),
+        np.ascontiguousarray(tableau.A, dtype=float),
+        np.ascontiguousarray(tableau.b, dtype=float),
+        np.ascontiguousarray(b_err),
+        np.ascontiguousarray(b_low),
+        np.ascontiguousarray(P),
+        np.ascontiguousarray(c_extra),
+        np.ascontiguousarray(A_extra),
+        info,
+    )
+
+
+def combine(x: np.ndarray, K: np.ndarray, weights: np.ndarray, count: int, h: float, out: np.ndarray) -> None:
+    """out = x + h * sum_{j < count} weights[j] K[j], over the state's n = len(x) coordinates."""
+    for d in range(x.shape[0]):
+        acc = 0.0
+        for j in range(count):
+            w = weights[j]
+            if w != 0.0:
+                acc += w * K[j, d]
+        out[d] = x[d] + h * acc
+
+
+def stages(tab: Tables, vis: Visit, ws, method: MethodArrays, t: float, x: np.ndarray, h: float, K: np.ndarray,
+           XS: np.ndarray, x_new: np.ndarray) -> None:  # fmt: skip
+    """The step of size h from (t, x): the stages K[1:s] (K[0] = f(t, x) given) and the new
+    point x_new; XS is scratch of x's length. With FSAL the last stage is f(t + h, x_new)."""
+    s = method.info[INFO_STAGES]
+    n = x.shape[0]
+    for i in range(1, s):
+        combine(x, K, method.A[i], i, h, XS)
+        field_at(tab, vis, ws, t + method.c[i] * h, XS, K[i, :n])
+    if method.info[INFO_FSAL] == 1:
+        for d in range(n):
+            x_new[d] = XS[d]
+    else:
+        combine(x, K, method.b, s, h, x_new)
+
+
+def error_norm(method: MethodArrays, K: np.ndarray, h: float, x: np.ndarray, x_new: np.ndarray, rtol: float,
+               atol: float) -> float:  # fmt: skip
+    """Hairer's (and scipy's) RMS norm of the step's local error estimate h sum_j b_err_j K_j,
+    each coordinate scaled by atol + rtol max(|x|, |x_new|); for a blended pair (DOP853) the
+    fifth-order estimate damped where the third-order one is much larger."""
+    s = method.info[INFO_STAGES]
+    blended = method.info[INFO_BLENDED] == 1
+    n = x.shape[0]
+    high = 0.0
+    low = 0.0
+    for d in range(n):
+        scale = atol + rtol * max(abs(x[d]), abs(x_new[d]))
+        err = 0.0
+        err_low = 0.0
+        for j in range(s):
+            err += method.b_err[j] * K[j, d]
+            if blended:
+                err_low += method.b_err_low[j] * K[j, d]
+        r = h * err / scale
+        high += r * r
+        if blended:
+            r_low = h * err_low / scale
+            low += r_low * r_low
+    if not blended:
+        return math.sqrt(high / n)
+    if high == 0.0 and low == 0.0:
+        return 0.0
+    return high / math.sqrt((high + 0.01 * low) * n)
+
+
+def extend(tab: Tables, vis: Visit, ws, method: MethodArrays, t: float, x: np.ndarray, h: float, K: np.ndarray,
+           XS: np.ndarray) -> int:  # fmt: skip
+    """The extra stages of the method's continuous extension into K[s:s + m]; returns m, the
+    field evaluations they cost."""
+    s = method.info[INFO_STAGES]
+    m = method.info[INFO_EXTRA]
+    n = x.shape[0]
+    for i in range(m):
+        combine(x, K, method.A_extra[i], s + i, h, XS)
+        field_at(tab, vis, ws, t + method.c_extra[i] * h, XS, K[s + i, :n])
+    return m
+
+
+def dense_point(method: MethodArrays, x: np.ndarray, h: float, K: np.ndarray, theta: float, out: np.ndarray) -> None:
+    """x at t + theta h on the step's continuous extension (K holding its s + m stages)."""
+    rows = method.info[INFO_STAGES] + max(method.info[INFO_EXTRA], 0)
+    degree = method.info[INFO_DEGREE]
+    for d in range(x.shape[0]):
+        acc = 0.0
+        for i in range(rows):
+            w = 0.0
+            power = theta
+            for j in range(degree):
+                w += method.P[i, j] * power
+                power *= theta
+            acc += w * K[i, d]
+        out[d] = x[d] + h * acc
+
+
+def dense_slope(method: MethodArrays, K: np.ndarray, theta: float, out: np.ndarray) -> None:
+    """dx/dt at t + theta h on the step's continuous extension."""
+    rows = method.info[INFO_STAGES] + max(method.info[INFO_EXTRA], 0)
+    degree = method.info[INFO_DEGREE]
+    for d in range(out.shape[0]):
+        acc = 0.0
+        for i in range(rows):
+            w = 0.0
+            power = 1.0
+            for j in range(degree):
+                w += (j + 1) * method.P[i, j] * power
+                power *= theta
+            acc += w * K[i, d]
+        out[d] = acc
+
+
+def hermite_point(x0: np.ndarray, d0: np.ndarray, x1: np.ndarray, d1: np.ndarray, dt: float, s: float,
+                  out: np.ndarray) -> None:  # fmt: skip
+    """The cubic Hermite interpolant of a step of length dt (ends x0, x1, slopes d0, d1) at
+    fraction s, into out."""
+    s2 = s * s
+    s3 = s2 * s
+    w0 = 2.0 * s3 - 3.0 * s2 + 1.0
+    w1 = (s3 - 2.0 * s2 + s) * dt
+    w2 = -2.0 * s3 + 3.0 * s2
+    w3 = (s3 - s2) * dt
+    for d in range(out.shape[0]):
+        out[d] = w0 * x0[d] + w1 * d0[d] + w2 * x1[d] + w3 * d1[d]
+
+
+def hermite_slope(x0: np.ndarray, d0: np.ndarray, x1: np.ndarray, d1: np.ndarray, dt: float, s: float,
+                  out: np.ndarray) -> None:  # fmt: skip
+    """d/dt of ``hermite_point`` at fraction s, into out."""
+    s2 = s * s
+    v0 = (6.0 * s2 - 6.0 * s) / dt
+    v1 = 3.0 * s2 - 4.0 * s + 1.0
+    v2 = (-6.0 * s2 + 6.0 * s) / dt
+    v3 = 3.0 * s2 - 2.0 * s
+    for d in range(out.shape[0]):
+        out[d] = v0 * x0[d] + v1 * d0[d] + v2 * x1[d] + v3 * d1[d]
+
+
+def all_finite(x: np.ndarray) -> bool:
+    """Whether every entry of x is finite."""
+    for d in range(x.shape[0]):
+        if not math.isfinite(x[d]):
+            return False
+    return True
