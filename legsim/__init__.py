@@ -6,14 +6,18 @@ Public API::
     legsim.sweep(scene, grid=..., walk=..., orbit=..., out=...)   # many variations on Dask
 """
 
-from . import sweep  # callable: legsim.sweep(...) runs a sweep (Dask is imported only then)
+__version__ = "0.1.0"
+
+from . import sweep  # noqa: E402, I001 -- callable: legsim.sweep(...) runs a sweep (Dask is imported only then)
 from .errors import LegsimError, ModelError, SceneError, SimulationError
 from .execution import Execution, Samples, Segment, Strip, TransitionRecord
 from .hybrid import Continuation, HybridSystem, Mode, Transition
 from .methods import METHODS, Tableau, get_method
 from .relaxed import simulate
 
-__version__ = "0.1.0"
+from . import compiled  # noqa: E402, I001 -- registers the compiled loop with the relaxed driver
+from .compiled import model_function  # noqa: E402
+from .model import ModeFunctions  # noqa: E402
 
 __all__ = [
     "METHODS",
@@ -22,6 +26,7 @@ __all__ = [
     "HybridSystem",
     "LegsimError",
     "Mode",
+    "ModeFunctions",
     "ModelError",
     "Samples",
     "SceneError",
@@ -33,6 +38,7 @@ __all__ = [
     "TransitionRecord",
     "__version__",
     "get_method",
+    "model_function",
     "simulate",
     "sweep",
 ]

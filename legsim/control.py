@@ -37,7 +37,7 @@ from typing import Any
 import numpy as np
 
 from .builders import Model, Param, resolve_parameters
-from .errors import SceneError
+from .errors import ModelError, SceneError
 from .registry import load_registered, registered
 
 ENTRY_POINT_GROUP = "legsim.controllers"
@@ -82,6 +82,68 @@ def keeps_law(controller: Any, base: type, methods: Sequence[str]) -> bool:
     return isinstance(controller, base) and all(getattr(law, name) is getattr(base, name) for name in methods)
 
 
+@dataclass(frozen=True)
+class ControlLaw:
+    """A controller written once, as functions over arrays that the Python loop and the compiled
+    kernel both call (``legsim.model``'s conventions):
+
+    * ``control(t, x, m, p, u)``: the input into u (``inputs`` entries) at the plant's state x in
+      the current mode, from the memory m and the mode's parameters p;
+    * ``enter(t, x, m, p, m_new)``: entering a mode (at the start and after every transition),
+      the new memory into m_new from the old one (a hopper measures its stance time); None: the
+      memory never changes.
+
+    The memory is part of the run's hybrid state: the state of every mode is the plant's followed
+    by the memory's ``memory_names`` (units ``memory_units``), which executions, recordings, orbit
+    searches and sweeps see; ``initial_memory`` is where a run starts it unless its initial
+    state gives it. ``params(mode)`` gives the controller's parameter array in each mode (gains,
+    which legs are in stance there; float64). ``hold``: sample the input once per step (a
+    zero-order hold, a digital controller) instead of at every stage.
+    """
+
+    name: str
+    control: Callable[..., None]
+    inputs: int
+    params: Callable[[str], Any]
+    enter: Callable[..., None] | None = None
+    memory_names: tuple[str, ...] = ()
+    memory_units: tuple[str, ...] = ()
+    initial_memory: tuple[float, ...] = ()
+    hold: bool = False
+
+    def __post_init__(self) -> None:
+        where = f"controller {self.name}"
+        if not callable(self.control) or (self.enter is not None and not callable(self.enter)):
+            raise ModelError(f"{where}: control and enter must be functions")
+        if not callable(self.params):
+            raise ModelError(f"{where}: params must be a function params(mode) -> parameter array")
+        names = tuple(str(n) for n in self.memory_names)
+        units = tuple(str(u) for u in self.memory_units) or ("",) * len(names)
+        initial = tuple(float(v) for v in self.initial_memory) or (0.0,) * len(names)
+        if len(units) != len(names) or len(initial) != len(names) or len(set(names)) != len(names):
+            raise ModelError(
+                f"{where}: memory_names {names}, memory_units {units} and initial_memory {initial} must have "
+                f"one unique name, a unit and a value per memory entry"
+            )
+        if names and self.enter is None:
+            raise ModelError(f"{where}: a controller with memory {names} needs an enter function to change it")
+        object.__setattr__(self, "memory_names", names)
+        object.__setattr__(self, "memory_units", units)
+        object.__setattr__(self, "initial_memory", initial)
+
+    def params_for(self, mode: str, system: Any = None) -> np.ndarray:
+        """The parameter array in mode ``mode`` (float64)."""
+        try:
+            return np.ascontiguousarray(self.params(mode), dtype=np.float64).reshape(-1)
+        except (TypeError, ValueError) as exc:
+            raise ModelError(f"controller {self.name}: params('{mode}') is not an array of numbers: {exc}") from exc
+
+    @property
+    def compiled(self) -> bool:
+        """Whether its functions are compiled (numba), so the kernel can call them."""
+        return hasattr(self.control, "py_func") and (self.enter is None or hasattr(self.enter, "py_func"))
+
+
 class Bound:
     """A ``Controller`` as the integrator calls a control, ``u(t, x)``, bound to the mode the run
     is in, with the held value of a zero-order hold."""
@@ -120,14 +182,16 @@ class ControllerSpec:
     name: str
     description: str
     parameters: Mapping[str, Param]
-    make: Callable[[Model, dict[str, Any]], Controller]
+    make: Callable[[Model, dict[str, Any]], Controller | ControlLaw]
 
-    def build(self, model: Model, parameters: Mapping[str, Any] | None = None, where: str = "") -> Controller:
+    def build(
+        self, model: Model, parameters: Mapping[str, Any] | None = None, where: str = ""
+    ) -> Controller | ControlLaw:
         """Check ``parameters`` and make the controller for ``model``."""
         prefix = f"{where}: " if where else ""
         params = resolve_parameters(self.parameters, parameters or {}, f"{prefix}controller.parameters")
         controller = self.make(model, params)
-        if not isinstance(controller, Controller):
+        if not isinstance(controller, (Controller, ControlLaw)):
             raise SceneError(
                 f"{prefix}controller '{self.name}' made {type(controller).__name__}, expected a "
                 f"legsim.control.Controller"

@@ -11,6 +11,8 @@ A kernel evaluates all guards of a mode at once and counts ``n_guards`` guard ev
 call, where the Python loop counts one per guard it calls (the same count for one guard).
 """
 
+from . import jit as _jit  # registers the compiled loop with legsim.relaxed
+from .jit import model_function
 from .generate import cache_dir, get_kernel, plan_for
 from .twin import CompiledMode, without_compiled
 from .visit import enter_compiled, run_visit_compiled
@@ -22,5 +24,6 @@ __all__ = [
     "get_kernel",
     "plan_for",
     "run_visit_compiled",
+    "model_function",
     "without_compiled",
 ]

@@ -104,6 +104,12 @@ def append_point(ws, t: float, x: np.ndarray, dx: np.ndarray) -> None:
     ws.iv[I_POINTS] = i + 1
 
 
+def zero(values: np.ndarray) -> None:
+    """Set values to zeros (the slope stored with a point whose field is not finite)."""
+    for d in range(values.shape[0]):
+        values[d] = 0.0
+
+
 def start_visit(ws, mode: int) -> None:
     """Start the visit of mode row ``mode``: its points follow."""
     v = ws.iv[I_VISITS]
@@ -217,7 +223,8 @@ def cross(
     crossed_history(ws, row, tc, exit_time, False)
     if not all_finite(ws.w[: target.n]):
         start_visit(ws, target.mode)
-        append_point(ws, exit_time, ws.w[: target.n], ws.w[: target.n] * 0.0)
+        zero(ws.k1[: target.n])
+        append_point(ws, exit_time, ws.w[: target.n], ws.k1[: target.n])
         return end_crossing(ws, END_RESET_NON_FINITE, e, exit_time)
     return enter_next(ws, target.mode, exit_time, target.n)
 

@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from ..control import Bound
 from ..errors import ContractError, LegsimError, ModelError, SimulationError
 from ..execution import Execution
 from ..hybrid import HybridSystem
@@ -94,9 +95,18 @@ class Options:
     python: bool = False
 
 
-def drive(system: HybridSystem, mode: str, x0: np.ndarray, control: Any, law: Any, options: Options) -> Execution:
-    """Run ``system`` from (mode, x0) at options.t0 (x0 the plant's state; the controller's
-    memory starts from ``law.initial_memory`` or the Python controller's ``memory()``)."""
+def drive(
+    system: HybridSystem,
+    mode: str,
+    x0: np.ndarray,
+    control: Any,
+    law: Any,
+    options: Options,
+    memory: np.ndarray | None = None,
+) -> Execution:
+    """Run ``system`` from (mode, x0) at options.t0 under a Python ``control`` or a ``law``
+    (``legsim.control.ControlLaw``): x0 the plant's state; the controller's memory starts from
+    ``memory``, else ``law.initial_memory`` or the Python controller's ``memory()``."""
     wall0 = time.perf_counter()
     tables = RunTables(system, control, law)
     row = tables.register(mode)
@@ -105,7 +115,7 @@ def drive(system: HybridSystem, mode: str, x0: np.ndarray, control: Any, law: An
     stages = method.info[INFO_STAGES] + max(method.info[INFO_EXTRA], 0)
     ws = allocate(tables.widest, tables.most_guards, stages, tables.inputs, tables.memory, tables.n_transitions)
     settings(ws, options, tables)
-    start(tables, ws, row, x0, options)
+    start(tables, ws, row, x0, memory, options)
     compiled = KERNEL is not None and not options.python
     if KERNEL is None and tables.compiled:
         tables.python_reason = "the compiled kernel is not loaded (legsim.compiled was not imported)"
@@ -135,13 +145,19 @@ def settings(ws: Workspace, options: Options, tables: RunTables) -> None:
     ci[S_CONTINUES], ci[S_HOLD], ci[S_MEMORY] = int(options.continuation), int(options.hold), tables.memory
 
 
-def start(tables: RunTables, ws: Workspace, row: int, x0: np.ndarray, options: Options) -> None:
-    """The run's first point: the plant's state, the controller's initial memory and its entry
-    into the first mode."""
+def start(
+    tables: RunTables, ws: Workspace, row: int, x0: np.ndarray, memory: np.ndarray | None, options: Options
+) -> None:
+    """The run's first point: the plant's state, the controller's memory and its entry into the
+    first mode."""
     dim = int(tables.modes[row, 0])
     ws.x[:dim] = x0
     if tables.memory:
-        ws.x[dim : dim + tables.memory] = initial_memory(tables)
+        if memory is None:
+            memory = initial_memory(tables)
+        elif isinstance(tables.control, Bound):
+            tables.control.controller.restore(tables.names[row], np.asarray(memory, dtype=float))
+        ws.x[dim : dim + tables.memory] = memory
     ws.iv[I_MODE] = row
     ws.iv[I_PHASE] = PHASE_ENTER
     ws.fs[F_T] = options.t0

@@ -15,7 +15,7 @@ import math
 
 import numpy as np
 
-from .crossing import CROSSED, append_point, cross, cross_landing, start_visit
+from .crossing import CROSSED, append_point, cross, cross_landing, start_visit, zero
 from .curve import set_hermite
 from .evaluate import Tables, Visit, argleast, field_at, guards_at, hold_control, visit_of
 from .layout import (
@@ -78,7 +78,8 @@ def enter(tab: Tables, ws, method) -> int:
     hold_control(tab, vis, ws, t, x)
     field_at(tab, vis, ws, t, x, ws.K[0])
     if not all_finite(ws.K[0, :n]):
-        append_point(ws, t, x, ws.K[0, :n] * 0.0)
+        zero(ws.k1[:n])
+        append_point(ws, t, x, ws.k1[:n])
         return end_entry(ws, END_FIELD_AT_ENTRY, -1)
     append_point(ws, t, x, ws.K[0, :n])
     gmin = guards_at(tab, vis, ws, t, x, ws.g_here)

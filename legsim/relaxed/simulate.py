@@ -8,7 +8,7 @@ from typing import Any
 import numpy as np
 
 from ..arguments import count, positive
-from ..control import Bound, bind
+from ..control import Bound, ControlLaw, bind
 from ..errors import LegsimError, ModelError, SimulationError
 from ..execution import Execution
 from ..hybrid import HybridSystem
@@ -127,10 +127,11 @@ def simulate(
     tableau = get_method(method)
     if method in SCIPY_NAMES and rtol is None and atol is None and step_size is None:
         rtol, atol = ADAPTIVE_DEFAULTS
-    control = _bound_control(control)
+    law = control if isinstance(control, ControlLaw) else None
+    control = None if law is not None else _bound_control(control)
     max_transitions, max_halvings = count("max_transitions", max_transitions, 0), count("max_halvings", max_halvings, 1)
     max_steps = _check_step_budget(max_steps, t0, t_final, h)
-    x = _initial_state(system, mode, x0, t0, eps, control)
+    x, memory = _initial_state(system, mode, x0, t0, eps, control, law)
     rule = _step_size_part(step_size, tableau, h) if step_size is not None else step_size_rule(tableau, h, rtol, atol)
     parts = _landing_part(landing, tableau)
     window = h + eps if zeno_window is None else positive("zeno_window", zeno_window)
@@ -150,11 +151,11 @@ def simulate(
         max_steps=max_steps,
         continuation=bool(continuation),
         zeno_window=window,
-        hold=isinstance(control, Bound) and control.hold,
+        hold=law.hold if law is not None else isinstance(control, Bound) and control.hold,
         progress=progress,
     )
     times = _eval_times(t_eval, t0, t_final)
-    execution = drive(system, mode, x, control, None, options)
+    execution = drive(system, mode, x, control, law, options, memory)
     if times is not None:
         execution.evaluated = execution.sample(times[times <= execution.t_end])
     return execution
@@ -272,33 +273,30 @@ def _check_step_budget(max_steps: Any, t0: float, t_final: float, h: float) -> i
 
 
 def _initial_state(
-    system: HybridSystem, mode: Any, x0: Any, t0: float, eps: float, control: Control | None
-) -> np.ndarray:
-    """x0 as a float64 vector of the mode's dimension, finite and in the relaxed domain, with
-    the mode's field, guards and resets evaluated once on it."""
+    system: HybridSystem, mode: Any, x0: Any, t0: float, eps: float, control: Control | None, law: ControlLaw | None
+) -> tuple[np.ndarray, np.ndarray | None]:
+    """(the plant's state, the controller's memory or None for its initial one) from x0: the
+    plant's state, or with a controller that keeps memory the plant's state followed by the
+    memory. The plant's state is checked finite and in the relaxed domain, with the mode's field,
+    guards and resets evaluated once on it."""
     if not isinstance(mode, str) or not _is_mode(system, mode):
         raise SimulationError(f"unknown initial mode {mode!r}; modes: {sorted(system.modes)}")
     dim = system.mode(mode).dim
+    memory_names = _memory_names(control, law)
     try:
         x = np.array(x0, dtype=float).reshape(-1) if np.ndim(x0) <= 1 else None
     except (TypeError, ValueError) as exc:
         raise SimulationError(f"x0 must be a numeric vector of length {dim} for mode '{mode}': {exc}") from exc
-    if x is None or x.shape != (dim,):
+    if x is None or x.shape not in ((dim,), (dim + len(memory_names),)):
+        extra = f", or ({dim + len(memory_names)},) with the controller's memory {memory_names}" if memory_names else ""
         raise SimulationError(
-            f"x0 has shape {np.shape(x0)}, expected ({dim},) for mode '{mode}' "
+            f"x0 has shape {np.shape(x0)}, expected ({dim},){extra} for mode '{mode}' "
             f"with coordinates {system.state_names(mode)}"
         )
     if not np.all(np.isfinite(x)):
         raise SimulationError(f"x0 must be finite, got {x} in mode '{mode}'")
-    try:
-        if isinstance(control, Bound):  # not entered yet: the run enters the mode when it starts
-            u0 = control.controller(mode, t0, x)
-        else:
-            u0 = None if control is None else control(t0, x)
-    except LegsimError:
-        raise
-    except Exception as exc:
-        raise SimulationError(f"control(t0, x0) failed at t0={t0}: {type(exc).__name__}: {exc}") from exc
+    x, memory = (x[:dim], x[dim:]) if x.shape[0] > dim else (x, None)
+    u0 = _initial_input(system, mode, t0, x, control, law, memory)
     system.check_state(mode, x, t=t0, u=u0, label="x0")
     gvals = system.guard_values(mode, x, t0, u0)
     if gvals.size and gvals.min() < -eps:
@@ -307,7 +305,41 @@ def _initial_state(
             f"x0 lies past the guard of transition {system.outgoing(mode)[worst].name} by "
             f"{-gvals[worst]:.3g} > eps = {eps:g} (guard units); start inside the domain of '{mode}'"
         )
-    return x
+    return x, memory
+
+
+def _memory_names(control: Control | None, law: ControlLaw | None) -> tuple[str, ...]:
+    if law is not None:
+        return law.memory_names
+    if isinstance(control, Bound):
+        return tuple(control.controller.memory_names or ())
+    return ()
+
+
+def _initial_input(
+    system: HybridSystem,
+    mode: str,
+    t0: float,
+    x: np.ndarray,
+    control: Control | None,
+    law: ControlLaw | None,
+    memory: np.ndarray | None,
+) -> Any:
+    """The control at (t0, x0), before the controller enters the mode (the run enters it when it
+    starts)."""
+    try:
+        if law is not None:
+            m = np.asarray(law.initial_memory if memory is None else memory, dtype=float)
+            u = np.zeros(law.inputs)
+            law.control(float(t0), x, m, law.params_for(mode, system), u)
+            return u
+        if isinstance(control, Bound):
+            return control.controller(mode, t0, x)
+        return None if control is None else control(t0, x)
+    except LegsimError:
+        raise
+    except Exception as exc:
+        raise SimulationError(f"control(t0, x0) failed at t0={t0}: {type(exc).__name__}: {exc}") from exc
 
 
 def _is_mode(system: HybridSystem, mode: str) -> bool:

@@ -1,6 +1,6 @@
 """The bouncing ball: free fall onto a floor with restitution c, and its closed-form Zeno execution.
 
-One mode ``flight`` with state ``(z, zd)``: z the height of the ball's lowest point above the
+Written once as model functions (``legsim.model``), compiled. One mode ``flight`` with state ``(z, zd)``: z the height of the ball's lowest point above the
 floor (m), zd its vertical velocity (m/s). Field ``(zd, -g)``. One transition ``bounce``
 (``flight -> flight``) with guard ``max(z, zd)`` and reset ``(z, -c zd)``: the ball is past the
 guard when it is below the floor *and* falling, so the guard's value near an impact is the
@@ -21,15 +21,44 @@ from typing import Any
 import numpy as np
 
 from ..builders import ZENO_EFFECT, ZENO_WINDOW, Builder, Effect, Model, Param
+from ..compiled import model_function
 from ..errors import ModelError
 from ..execution import Samples
 from ..hybrid import Continuation, HybridSystem, Mode, Transition
+from ..model import ModeFunctions
 from ._reference import as_times, box, make_samples, segment
 
 MODE = "flight"
 REST = "rest"  # on the floor at rest: where accumulating bounces continue
 NAMES = ("z", "zd")
 UNITS = ("m", "m/s")
+
+
+@model_function
+def free_fall(t: float, x: np.ndarray, u: np.ndarray, p: np.ndarray, dx: np.ndarray) -> None:
+    """Free fall (zd, -g); p = (g, c)."""
+    dx[0] = x[1]
+    dx[1] = -p[0]
+
+
+@model_function
+def floor_guard(t: float, x: np.ndarray, u: np.ndarray, p: np.ndarray, g: np.ndarray) -> None:
+    """The floor's guard max(z, zd) (m): past only below the floor *and* falling."""
+    g[0] = x[0] if x[0] > x[1] else x[1]
+
+
+@model_function
+def bounce(e: int, t: float, x: np.ndarray, u: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
+    """The bounce (z, -c zd) (e = 0), or its continuation, the plastic impact (z, 0) (e = 1)."""
+    out[0] = x[0]
+    out[1] = -p[1] * x[1] if e == 0 else 0.0
+
+
+@model_function
+def at_rest(t: float, x: np.ndarray, u: np.ndarray, p: np.ndarray, dx: np.ndarray) -> None:
+    """On the floor at rest, for good: nothing moves."""
+    dx[0] = 0.0
+    dx[1] = 0.0
 
 
 def make_system(g: float = 9.81, restitution: float = 0.5, floor: bool = True, mass: float = 1.0) -> HybridSystem:
@@ -54,43 +83,33 @@ def make_system(g: float = 9.81, restitution: float = 0.5, floor: bool = True, m
     if not (mass > 0 and math.isfinite(mass)):
         raise ModelError(f"bouncing ball: mass must be finite and > 0, got {mass}")
 
-    def field(t: float, x: np.ndarray, u: Any) -> np.ndarray:
-        return np.array([x[1], -g])
-
     def jacobian(t: float, x: np.ndarray, u: Any) -> np.ndarray:
         return np.array([[0.0, 1.0], [0.0, 0.0]])
 
-    def guard(x: np.ndarray) -> float:
-        return x[0] if x[0] > x[1] else x[1]
-
     def guard_gradient(x: np.ndarray) -> np.ndarray:
         return np.array([1.0, 0.0]) if x[0] > x[1] else np.array([0.0, 1.0])
-
-    def reset(x: np.ndarray) -> np.ndarray:
-        return np.array([x[0], -c * x[1]])
 
     def energy(mode: str, x: np.ndarray) -> float:
         # zd * zd, not zd ** 2: a float power raises OverflowError where a product gives inf.
         zd = float(x[1])
         return mass * (g * float(x[0]) + 0.5 * zd * zd)
 
-    modes = {MODE: Mode(2, field, NAMES, jacobian, units=UNITS)}
+    functions = ModeFunctions(free_fall, floor_guard if floor else None, bounce, params=[g, c])
+    modes = {MODE: Mode(2, names=NAMES, jacobian=jacobian, units=UNITS, functions=functions)}
     transitions = []
     if floor:
-        rest = Continuation(REST, lambda x: np.array([x[0], 0.0]), name="rest")
         transitions.append(
             Transition(
                 MODE,
                 MODE,
-                guard,
-                reset,
                 name="bounce",
                 guard_gradient=guard_gradient,
                 reset_jacobian=lambda x: np.diag([1.0, -c]),
-                continuation=rest,
+                continuation=Continuation(REST, name="rest"),
             )
         )
-        modes[REST] = Mode(2, lambda t, x, u: np.zeros(2), NAMES, lambda t, x, u: np.zeros((2, 2)), units=UNITS)
+        rest = ModeFunctions(at_rest)
+        modes[REST] = Mode(2, names=NAMES, jacobian=lambda t, x, u: np.zeros((2, 2)), units=UNITS, functions=rest)
     return HybridSystem(modes, transitions, name="bouncing ball", energy=energy, initial=(MODE, np.array([1.0, 0.0])))
 
 
