@@ -50,7 +50,7 @@ FLOAT_STATE = 8
 #: transition (-1 before the first); 1 when a model function said the state is past the model's
 #: range (a Python model's ModelBreakdown); the landing step's curve (``CURVE_*``), the guard
 #: whose crossing the landing rule located (-1: not located) and whether that search converged;
-#: the halvings a step that ended the run took.
+#: the halvings a step that ended the run took; the transition counter at the last progress report.
 (
     I_PHASE,
     I_MODE,
@@ -73,8 +73,9 @@ FLOAT_STATE = 8
     I_LAND_E,
     I_LAND_CONVERGED,
     I_END_COUNT,
-) = range(21)
-INT_STATE = 21
+    I_REPORTED_TRANSITIONS,
+) = range(22)
+INT_STATE = 22
 #: The curve of a landing step: the cubic Hermite interpolant of its ends, or the method's
 #: continuous extension (``F_LAND_THETA`` of the step); ``I_LAND_E`` >= 0 when q is located.
 CURVE_HERMITE, CURVE_DENSE = range(2)

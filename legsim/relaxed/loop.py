@@ -40,7 +40,9 @@ from .layout import (
     I_POINTS,
     I_RECORDS,
     I_REPORTED,
+    I_REPORTED_TRANSITIONS,
     I_STEPS,
+    I_TRANSITIONS,
     I_VISITS,
     PHASE_ENDED,
     PHASE_ENTER,
@@ -110,13 +112,22 @@ def step_once(tab: Tables, ws, method: MethodArrays) -> int:
         return RETURN_ENDED
     if least(ws.g1, vis.guards) >= 0.0:
         advance(tab, vis, ws, method)
-        every = ws.ci[S_PROGRESS_STEPS]
-        if every > 0 and ws.iv[I_STEPS] - ws.iv[I_REPORTED] >= every:
-            ws.iv[I_REPORTED] = ws.iv[I_STEPS]
-            return RETURN_PROGRESS
-        return GOING
-    cross_landing(tab, vis, ws, method)
-    return GOING
+    else:
+        cross_landing(tab, vis, ws, method)
+    return GOING if not report_due(ws) else RETURN_PROGRESS
+
+
+def report_due(ws) -> bool:
+    """Whether a progress report is due: every ``S_PROGRESS_STEPS`` steps or transitions (a Zeno
+    run may cross many strips per step)."""
+    every = ws.ci[S_PROGRESS_STEPS]
+    if every <= 0:
+        return False
+    if ws.iv[I_STEPS] - ws.iv[I_REPORTED] >= every or ws.iv[I_TRANSITIONS] - ws.iv[I_REPORTED_TRANSITIONS] >= every:
+        ws.iv[I_REPORTED] = ws.iv[I_STEPS]
+        ws.iv[I_REPORTED_TRANSITIONS] = ws.iv[I_TRANSITIONS]
+        return True
+    return False
 
 
 def end_loop(ws, reason: int) -> int:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -15,9 +16,7 @@ from ..hybrid import HybridSystem
 from ..methods import Tableau, get_method
 from ..methods.builtin import ADAPTIVE_DEFAULTS, SCIPY_NAMES
 from .driver import Options, drive
-from .landing import Aim, Dense, Halve, landing_rule
-from .run import Control, ProgressFn
-from .step_size import ErrorControl, FixedStep
+from .parts import Aim, Dense, ErrorControl, FixedStep, Halve
 
 #: Landing rules of ``simulate(landing=...)``.
 LANDINGS = ("halve", "aim", "dense")
@@ -36,15 +35,15 @@ def simulate(
     h: float,
     eps: float,
     method: str | Tableau = "rk4",
-    control: Control | None = None,
+    control: Any = None,
     *,
     t0: float = 0.0,
     max_transitions: int = 100_000,
     max_halvings: int = 64,
-    progress: ProgressFn | None = None,
+    progress: Callable[[float, float, float], None] | None = None,
     rtol: float | None = None,
     atol: float | None = None,
-    landing: str | Halve = "halve",
+    landing: str | Halve | Aim | Dense = "halve",
     step_size: FixedStep | ErrorControl | None = None,
     max_steps: int = MAX_STEPS,
     continuation: bool = True,
@@ -87,10 +86,11 @@ def simulate(
         step's own interpolant reaches the middle of the strip (at most three aims, then
         halving); or ``"dense"`` (methods with a continuous extension: bs32, dopri5, dop853, a
         ``Tableau`` with ``dense``), which lands on the failed step's own dense output once it
-        passes the error test, so no step is retried (aiming as a fallback). Or a landing rule
-        object (``legsim.relaxed.landing``).
-    step_size: a step-size rule object (``legsim.relaxed.step_size.FixedStep`` or
-        ``ErrorControl``) instead of h's fixed steps or rtol/atol; h still gives the largest step.
+        passes the error test, so no step is retried (aiming as a fallback). Or the rule as an
+        object (``legsim.relaxed.Halve()``, ``Aim()``, ``Dense()``); any other is refused by name.
+    step_size: a step-size rule object (``legsim.relaxed.FixedStep()`` or
+        ``ErrorControl(rtol, atol)``) instead of h's fixed steps or rtol/atol; h still gives the
+        largest step. Any other object is refused by name.
     max_steps: step budget (default ``MAX_STEPS``, 1e7): a run whose nominal steps
         (t_final - t0) / h exceed it is refused before it starts, and one that takes that many
         accepted steps (error control may take more than nominal) ends with status ``max_steps``.
@@ -183,10 +183,13 @@ def _landing_part(landing: Any, tableau: Tableau) -> str:
     else:
         raise SimulationError(
             f"landing {type(landing).__name__} is not one of the loop's landing rules: give 'halve', 'aim' or "
-            f"'dense' (or legsim.relaxed.landing's Halve, Aim, Dense); the loop runs no other rule"
+            f"'dense' (or legsim.relaxed.Halve(), Aim(), Dense()); the loop runs no other rule"
         )
-    if name == "dense":
-        landing_rule(name, tableau)  # refuses a method without a continuous extension
+    if name == "dense" and tableau.dense is None:
+        raise SimulationError(
+            f"landing 'dense' needs a method with a continuous extension (bs32, dopri5, dop853, or a Tableau with "
+            f"dense output); method '{tableau.name}' has none: use landing 'aim'"
+        )
     return name
 
 
@@ -199,7 +202,7 @@ def _step_size_part(rule: Any, tableau: Tableau, h: float) -> tuple[float | None
         return step_size_rule(tableau, h, rule.rtol, rule.atol)
     raise SimulationError(
         f"step_size {type(rule).__name__} is not one of the loop's step-size rules: give h (fixed steps) or "
-        f"rtol/atol (error control), or legsim.relaxed.step_size's FixedStep or ErrorControl"
+        f"rtol/atol (error control), or legsim.relaxed.FixedStep() or ErrorControl(rtol, atol)"
     )
 
 
@@ -273,7 +276,7 @@ def _check_step_budget(max_steps: Any, t0: float, t_final: float, h: float) -> i
 
 
 def _initial_state(
-    system: HybridSystem, mode: Any, x0: Any, t0: float, eps: float, control: Control | None, law: ControlLaw | None
+    system: HybridSystem, mode: Any, x0: Any, t0: float, eps: float, control: Any, law: ControlLaw | None
 ) -> tuple[np.ndarray, np.ndarray | None]:
     """(the plant's state, the controller's memory or None for its initial one) from x0: the
     plant's state, or with a controller that keeps memory the plant's state followed by the
@@ -308,7 +311,7 @@ def _initial_state(
     return x, memory
 
 
-def _memory_names(control: Control | None, law: ControlLaw | None) -> tuple[str, ...]:
+def _memory_names(control: Any, law: ControlLaw | None) -> tuple[str, ...]:
     if law is not None:
         return law.memory_names
     if isinstance(control, Bound):
@@ -321,7 +324,7 @@ def _initial_input(
     mode: str,
     t0: float,
     x: np.ndarray,
-    control: Control | None,
+    control: Any,
     law: ControlLaw | None,
     memory: np.ndarray | None,
 ) -> Any:

@@ -249,7 +249,7 @@ def test_an_error_controlled_run_ends_when_it_has_taken_its_step_budget(ball):
 def test_progress_is_reported_across_transitions_when_no_step_is_taken(monkeypatch):
     # A Zeno ball past its accumulation point crosses strip after strip; progress must keep
     # coming by wall-clock time, not only every 64 steps of one mode visit.
-    import legsim.relaxed.run as run_module
+    import legsim.relaxed.driver as run_module
     from legsim.systems import bouncing_ball as bb
 
     clock = iter(range(10**7))
@@ -270,7 +270,7 @@ def test_progress_is_reported_across_transitions_when_no_step_is_taken(monkeypat
 
 
 def test_a_failing_progress_callback_is_named_as_the_callers_not_the_models(ball, monkeypatch):
-    import legsim.relaxed.run as run_module
+    import legsim.relaxed.driver as run_module
 
     def progress(t, t0, t1):
         raise RuntimeError("terminal closed")
@@ -284,7 +284,7 @@ def test_a_failing_progress_callback_is_named_as_the_callers_not_the_models(ball
 def test_a_progress_callback_stops_the_run_with_its_own_legsim_error(ball, monkeypatch):
     # A deadline (the sweep's --timeout) stops a run by raising its own LegsimError from the
     # callback: the caller must receive that error, not a SimulationError wrapping it.
-    import legsim.relaxed.run as run_module
+    import legsim.relaxed.driver as run_module
     from legsim.errors import LegsimError
 
     class Deadline(LegsimError):
