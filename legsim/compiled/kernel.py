@@ -10,10 +10,12 @@ from __future__ import annotations
 
 import sys
 import types as pytypes
+from collections.abc import Callable
 from typing import Any
 
 import numba
 import numpy as np
+from numba.core import event
 from numba.core.extending import overload, register_jitable
 
 from ..relaxed import calls, crossing, curve, driver, entering, evaluate, loop, rules, stages, stepping
@@ -62,29 +64,60 @@ def tool(fn: Any) -> Any:
 
 
 @overload(calls.call_state, jit_options={"error_model": "numpy", "_nrt": False})
-def _call_state(functions, i, t, a, b, c, out):  # noqa: ANN001, ANN202 -- numba's overload protocol
-    def impl(functions, i, t, a, b, c, out):  # noqa: ANN001, ANN202
+def _call_state(functions, i, t, a, b, c, out):
+    def impl(functions, i, t, a, b, c, out):
         call_state_at(functions[i], t, a, b, c, out)
 
     return impl
 
 
 @overload(calls.call_indexed, jit_options={"error_model": "numpy", "_nrt": False})
-def _call_indexed(functions, i, e, t, a, b, c, out):  # noqa: ANN001, ANN202
-    def impl(functions, i, e, t, a, b, c, out):  # noqa: ANN001, ANN202
+def _call_indexed(functions, i, e, t, a, b, c, out):
+    def impl(functions, i, e, t, a, b, c, out):
         call_indexed_at(functions[i], e, t, a, b, c, out)
 
     return impl
 
 
 @overload(calls.call_joint, jit_options={"error_model": "numpy", "_nrt": False})
-def _call_joint(functions, i, rest, t, q, u, p, crossed, out):  # noqa: ANN001, ANN202
-    def impl(functions, i, rest, t, q, u, p, crossed, out):  # noqa: ANN001, ANN202
+def _call_joint(functions, i, rest, t, q, u, p, crossed, out):
+    def impl(functions, i, rest, t, q, u, p, crossed, out):
         return call_joint_at(functions[i], rest, t, q, u, p, crossed, out)
 
     return impl
 
 
+#: Called once per process with a one-line message when legsim compiles code for this machine
+#: (a cache miss: the first run after installing, or after a change of legsim or numba); the
+#: command line prints it on stderr. None: silent.
+on_compile: Callable[[str], None] | None = None
+
+
+class _FirstCompile(event.Listener):
+    """Tells ``on_compile`` when the first of legsim's functions (or a model function) starts
+    compiling in this process."""
+
+    said = False
+
+    def on_start(self, ev: event.Event) -> None:
+        if _FirstCompile.said or on_compile is None:
+            return
+        dispatcher = ev.data.get("dispatcher")
+        py_func = getattr(dispatcher, "py_func", None)
+        if py_func is None:
+            return
+        what = "the step loop" if py_func is loop.run else f"{py_func.__module__}.{py_func.__qualname__}"
+        _FirstCompile.said = True
+        on_compile(
+            f"legsim: compiling {what} and what it calls for this machine (once: later runs load it from "
+            f"{cache.cache_dir()})"
+        )
+
+    def on_end(self, ev: event.Event) -> None:
+        pass
+
+
+event.register("numba:compile", _FirstCompile())
 cache.install()
 _register_loop()
 #: The loop's entry, compiled once per machine and legsim version (cached on disk).

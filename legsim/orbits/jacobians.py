@@ -67,10 +67,10 @@ import numpy as np
 
 from ..control import ControlLaw, bind
 from ..derivatives import gradient, jacobian
-from ..relaxed.driver import Evaluator
 from ..execution import Segment
 from ..hybrid import HybridSystem, Mode, Transition
 from ..methods import Tableau
+from ..relaxed.driver import Evaluator
 from .errors import OrbitError
 from .kinks import CheckedJacobian, ColumnStencil, kinked_columns
 from .problem import OrbitProblem

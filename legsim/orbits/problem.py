@@ -29,9 +29,7 @@ from ..control import Controller
 from ..errors import LegsimError, SimulationError
 from ..hybrid import HybridSystem
 from ..methods import Tableau, get_method
-from ..relaxed.landing import landing_rule
-from ..relaxed.simulate import step_size_rule
-from ..relaxed.step_size import ErrorControl
+from ..relaxed.simulate import landing_part, step_size_rule
 from .errors import OrbitError
 from .sections import Section, bind_section
 
@@ -171,7 +169,7 @@ class OrbitProblem:
                 "rtol" if self.rtol is not None else "atol",
                 lambda: step_size_rule(self.tableau, self.h, self.rtol, self.atol),
             ),
-            ("landing", lambda: landing_rule(self.landing, self.tableau)),
+            ("landing", lambda: landing_part(self.landing, self.tableau)),
             ("max_halvings", lambda: count("max_halvings", self.max_halvings, 1)),
         )
         rules = []
@@ -180,8 +178,7 @@ class OrbitProblem:
                 rules.append(check())
             except SimulationError as exc:
                 raise OrbitError(f"orbit problem: {exc}", key=key) from None
-        steps = rules[0]  # FixedStep, or ErrorControl with the tolerances simulate will use
-        self._tolerances = (steps.rtol, steps.atol) if isinstance(steps, ErrorControl) else (None, None)
+        self._tolerances = rules[0]  # (rtol, atol) as simulate will use them, (None, None) for fixed steps
 
     @property
     def integrator_settings(self) -> dict[str, Any]:

@@ -55,6 +55,14 @@ def field_jacobian(tab: Tables, vis: Visit, ws: Any, t: float, x: np.ndarray, ce
         minus[j] = x[j]
 
 
+def copy_into(source: np.ndarray, target: np.ndarray) -> None:
+    """target[:, :] = source, for square matrices (element by element: compiled without numba's
+    reference counting, as the loop is, an array assignment is not available)."""
+    for i in range(source.shape[0]):
+        for j in range(source.shape[1]):
+            target[i, j] = source[i, j]
+
+
 def product(A: np.ndarray, B: np.ndarray, out: np.ndarray) -> None:
     """out = A @ B for small square matrices (numba's @ calls BLAS, slower at n ~ 5)."""
     n = A.shape[0]
@@ -90,7 +98,7 @@ def stages_exact(tab: Tables, vis: Visit, ws: Any, method: MethodArrays, t0: flo
         field_at(tab, vis, ws, tj, work.X[:n], work.K[j])
         field_jacobian(tab, vis, ws, tj, work.X[:n], central, work)
         product(work.J, work.dX, work.out)
-        work.dK[j, :, :] = work.out
+        copy_into(work.out, work.dK[j])
 
 
 def stages_interpolated(method: MethodArrays, h: float, full: float, work: Any) -> None:
@@ -104,7 +112,7 @@ def stages_interpolated(method: MethodArrays, h: float, full: float, work: Any) 
             for e in range(n):
                 work.J[d, e] = (1.0 - theta) * work.J0[d, e] + theta * work.J1[d, e]
         product(work.J, work.dX, work.out)
-        work.dK[j, :, :] = work.out
+        copy_into(work.out, work.dK[j])
 
 
 def slowly_varying(J0: np.ndarray, J1: np.ndarray) -> bool:
@@ -135,14 +143,14 @@ def sensitivity(tab: Tables, vis: Visit, ws: Any, method: MethodArrays, ts: np.n
     its stored start point, the last cut at t_stop (module docstring for ``newton``)."""
     if newton:
         field_jacobian(tab, vis, ws, ts[0], xs[0], False, work)
-        work.J0[:, :] = work.J
+        copy_into(work.J, work.J0)
     for i in range(count):
         t0 = ts[i]
         if t0 >= t_stop:
             break
         if newton:
             field_jacobian(tab, vis, ws, ts[i + 1], xs[i + 1], False, work)
-            work.J1[:, :] = work.J
+            copy_into(work.J, work.J1)
         t1 = min(ts[i + 1], t_stop)
         h = t1 - t0
         if h > 0.0:
@@ -152,9 +160,9 @@ def sensitivity(tab: Tables, vis: Visit, ws: Any, method: MethodArrays, ts: np.n
                 stages_exact(tab, vis, ws, method, t0, xs[i], h, not newton, work)
             step_derivative(method, h, work)
             product(work.S, work.Phi, work.out)
-            work.Phi[:, :] = work.out
+            copy_into(work.out, work.Phi)
         if newton:
-            work.J0[:, :] = work.J1
+            copy_into(work.J1, work.J0)
 
 
 #: The work arrays of ``sensitivity``: stages K (s, n) and their derivatives dK (s, n, n), a

@@ -15,5 +15,17 @@
 from .parts import Aim, Dense, ErrorControl, FixedStep, Halve
 from .rules import crossing_on_step
 from .simulate import LANDINGS, simulate
+from .single import hermite, hermite_derivative
 
-__all__ = ["LANDINGS", "Aim", "Dense", "ErrorControl", "FixedStep", "Halve", "crossing_on_step", "simulate"]
+__all__ = [
+    "LANDINGS",
+    "Aim",
+    "Dense",
+    "ErrorControl",
+    "FixedStep",
+    "Halve",
+    "crossing_on_step",
+    "hermite",
+    "hermite_derivative",
+    "simulate",
+]

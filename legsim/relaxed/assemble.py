@@ -156,7 +156,7 @@ class Assembly:
         order = (int(i[R_ORDER_A]), int(i[R_ORDER_B]))
         self.crossings.append(
             (source_name, name, tc, exit_time, bool(i[R_ACCUMULATES]), kind == KIND_CONTINUED,
-             bool(i[R_HAS_CONTINUATION]), kind, order, q, source)
+             bool(i[R_HAS_CONTINUATION]), order, q)
         )  # fmt: skip
 
     # -- the execution ------------------------------------------------------------------------
@@ -237,7 +237,7 @@ class Assembly:
         zeno = ZenoWatch(self.options.zeno_window, self.options.continuation)
         order = OrderWatch()
         replay = _Replay()
-        for source, name, tc, exit_time, accumulates, continued, has_cont, kind, pair, q, row in self.crossings:
+        for source, name, tc, exit_time, accumulates, continued, has_cont, pair, q in self.crossings:
             replay.transitions.append(None)
             replay.strip_time += exit_time - tc
             if pair[0] >= 0 and pair[1] >= 0:
@@ -274,9 +274,7 @@ class Assembly:
             )
         if reason == END_HALVING_EXHAUSTED:
             count = int(ws.iv[I_END_COUNT]) - 1
-            return Status.HALVING_EXHAUSTED, messages.halving_exhausted(
-                name, t, x, count, transition, self.options.eps
-            )
+            return Status.HALVING_EXHAUSTED, messages.halving_exhausted(name, t, x, count, transition, self.options.eps)
         if reason == END_NON_FINITE_STEP:
             return Status.NON_FINITE, messages.non_finite_step(name, t, x, float(ws.fs[F_H_TRIED]))
         if reason == END_BROKE_DOWN:

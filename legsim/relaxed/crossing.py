@@ -22,7 +22,7 @@ import numpy as np
 
 from .calls import call_joint
 from .curve import crossing_on_landing, landing_point, landing_slope
-from .evaluate import Tables, Visit, control_now, closed_reset, enter_controller, guards_at, visit_of
+from .evaluate import Tables, Visit, closed_reset, control_now, enter_controller, guards_at, visit_of
 from .layout import (
     END_FINISHED,
     END_MAX_TRANSITIONS,
@@ -38,7 +38,6 @@ from .layout import (
     I_BREAKDOWN,
     I_END,
     I_END_INDEX,
-    I_LAND_CONVERGED,
     I_LAND_E,
     I_LAST_SOURCE,
     I_MODE,

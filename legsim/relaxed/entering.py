@@ -29,7 +29,6 @@ from .layout import (
     I_LAST_SOURCE,
     I_MODE,
     I_PHASE,
-    I_POINTS,
     I_STEPS,
     I_TRANSITIONS,
     LAND_DENSE,
@@ -48,14 +47,7 @@ from .layout import (
     S_T_FINAL,
     T_TARGET,
 )
-from .rules import (
-    entered_in_strip,
-    past_strip,
-    restarted_step,
-    scaled_rms,
-    starting_guess,
-    starting_step,
-)
+from .rules import entered_in_strip, past_strip, restarted_step, scaled_rms, starting_guess, starting_step
 from .stages import all_finite
 
 #: What entering a mode leads to: the mode's steps; a crossing at once (another entry, or the

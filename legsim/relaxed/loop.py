@@ -26,7 +26,7 @@ resumes it where it stopped.
 from __future__ import annotations
 
 from .crossing import append_point, cross_landing
-from .entering import ENTERED, NOT_READY, enter
+from .entering import NOT_READY, enter
 from .evaluate import Tables, Visit, field_at, hold_control, least, visit_of
 from .layout import (
     END_FINISHED,

@@ -281,7 +281,7 @@ def strip_exit_time(t_land: float, eps: float, tau: float) -> float:
     return t_land + (eps - tau)
 
 
-def crossing_on_step(guard_at, g0: float, g1: float, tol: float):  # noqa: ANN001, ANN201 -- a Python helper
+def crossing_on_step(guard_at, g0: float, g1: float, tol: float):
     """Where ``guard_at(s)`` (g0 at s = 0, g1 < 0 at s = 1) crosses zero, by the search above:
     (s, guard evaluations, converged). For tools that search along their own curves; the loop
     drives the search itself (``curve.crossing_on_landing``)."""

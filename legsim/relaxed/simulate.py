@@ -133,7 +133,7 @@ def simulate(
     max_steps = _check_step_budget(max_steps, t0, t_final, h)
     x, memory = _initial_state(system, mode, x0, t0, eps, control, law)
     rule = _step_size_part(step_size, tableau, h) if step_size is not None else step_size_rule(tableau, h, rtol, atol)
-    parts = _landing_part(landing, tableau)
+    parts = landing_part(landing, tableau)
     window = h + eps if zeno_window is None else positive("zeno_window", zeno_window)
     if not isinstance(continuation, (bool, np.bool_)):
         raise SimulationError(f"continuation must be True or False, got {type(continuation).__name__} {continuation!r}")
@@ -171,7 +171,7 @@ def _bound_control(control: Any) -> Any:
     return bind(control)
 
 
-def _landing_part(landing: Any, tableau: Tableau) -> str:
+def landing_part(landing: Any, tableau: Tableau) -> str:
     """The name of the landing rule ``landing`` names (or of the built-in rule object given);
     the loop runs the built-in rules only, so any other object is refused by name."""
     if isinstance(landing, str):
@@ -206,7 +206,9 @@ def _step_size_part(rule: Any, tableau: Tableau, h: float) -> tuple[float | None
     )
 
 
-def step_size_rule(tableau: Tableau, h: float, rtol: float | None, atol: float | None) -> tuple[float | None, float | None]:
+def step_size_rule(
+    tableau: Tableau, h: float, rtol: float | None, atol: float | None
+) -> tuple[float | None, float | None]:
     """(rtol, atol) of error control when rtol or atol is given (the other then a thousandth of
     it); (None, None): fixed steps of h."""
     if rtol is None and atol is None:

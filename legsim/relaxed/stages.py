@@ -30,7 +30,7 @@ MethodArrays = namedtuple("MethodArrays", "c A b b_err b_err_low P c_extra A_ext
 INFO_STAGES, INFO_FSAL, INFO_EMBEDDED, INFO_BLENDED, INFO_EXTRA, INFO_DEGREE = range(6)
 
 
-def method_arrays(tableau) -> MethodArrays:  # noqa: ANN001 -- a legsim.methods.Tableau
+def method_arrays(tableau) -> MethodArrays:
     """The tableau as ``MethodArrays`` (contiguous float64 and int64 arrays)."""
     s = tableau.stages
     b_err = np.zeros(s) if tableau.b_err is None else np.asarray(tableau.b_err, dtype=float)
@@ -89,29 +89,33 @@ def stages(tab: Tables, vis: Visit, ws, method: MethodArrays, t: float, x: np.nd
         combine(x, K, method.b, s, h, x_new)
 
 
+def estimate(method: MethodArrays, K: np.ndarray, h: float, d: int) -> tuple[float, float]:
+    """The step's local error estimates of coordinate d: h sum_j b_err_j K[j, d] and the blended
+    lower-order one (0 for a method without)."""
+    err = 0.0
+    err_low = 0.0
+    for j in range(method.info[INFO_STAGES]):
+        err += method.b_err[j] * K[j, d]
+        err_low += method.b_err_low[j] * K[j, d]
+    return h * err, h * err_low
+
+
 def error_norm(method: MethodArrays, K: np.ndarray, h: float, x: np.ndarray, x_new: np.ndarray, rtol: float,
                atol: float) -> float:  # fmt: skip
-    """Hairer's (and scipy's) RMS norm of the step's local error estimate h sum_j b_err_j K_j,
-    each coordinate scaled by atol + rtol max(|x|, |x_new|); for a blended pair (DOP853) the
-    fifth-order estimate damped where the third-order one is much larger."""
-    s = method.info[INFO_STAGES]
+    """Hairer's (and scipy's) RMS norm of the step's local error estimate, each coordinate
+    scaled by atol + rtol max(|x|, |x_new|); for a blended pair (DOP853) the fifth-order
+    estimate damped where the third-order one is much larger."""
     blended = method.info[INFO_BLENDED] == 1
     n = x.shape[0]
     high = 0.0
     low = 0.0
     for d in range(n):
         scale = atol + rtol * max(abs(x[d]), abs(x_new[d]))
-        err = 0.0
-        err_low = 0.0
-        for j in range(s):
-            err += method.b_err[j] * K[j, d]
-            if blended:
-                err_low += method.b_err_low[j] * K[j, d]
-        r = h * err / scale
+        err, err_low = estimate(method, K, h, d)
+        r = err / scale
         high += r * r
-        if blended:
-            r_low = h * err_low / scale
-            low += r_low * r_low
+        r_low = err_low / scale
+        low += r_low * r_low
     if not blended:
         return math.sqrt(high / n)
     if high == 0.0 and low == 0.0:
@@ -192,7 +196,7 @@ def hermite_slope(x0: np.ndarray, d0: np.ndarray, x1: np.ndarray, d1: np.ndarray
 
 def all_finite(x: np.ndarray) -> bool:
     """Whether every entry of x is finite."""
-    for d in range(x.shape[0]):
+    for d in range(x.shape[0]):  # noqa: SIM110 -- a loop numba compiles, not a generator
         if not math.isfinite(x[d]):
             return False
     return True

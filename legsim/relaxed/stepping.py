@@ -50,15 +50,7 @@ from .layout import (
     S_RTOL,
     S_T_FINAL,
 )
-from .rules import (
-    MAX_AIMS,
-    aimed_step,
-    kept_proposal,
-    proposed_step,
-    rejected_step,
-    shortening_exhausted,
-    trial_length,
-)
+from .rules import MAX_AIMS, aimed_step, kept_proposal, proposed_step, rejected_step, shortening_exhausted, trial_length
 from .stages import INFO_FSAL, INFO_STAGES, MethodArrays, all_finite, dense_point, error_norm, extend, stages
 
 #: How a trial step went: evaluated; its state not finite; its model past its range.

@@ -322,9 +322,7 @@ def _own_resets(data: ModeData, functions: ModeFunctions) -> bool:
             return reset is None
         return isinstance(reset, ResetOf) and reset.functions is functions
 
-    return all(
-        own(tr.reset) and (tr.continuation is None or own(tr.continuation.reset)) for tr in data.transitions
-    )
+    return all(own(tr.reset) and (tr.continuation is None or own(tr.continuation.reset)) for tr in data.transitions)
 
 
 def _grown(arr: np.ndarray, rows: int) -> np.ndarray:
