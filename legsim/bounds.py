@@ -47,8 +47,7 @@ from .errors import ModelBreakdown, SimulationError
 from .execution import Execution
 from .hybrid import HybridSystem, Mode, Transition
 from .methods import Tableau, get_method
-from .relaxed import hermite
-from .relaxed.single import Stepper
+from .relaxed.single import Stepper, hermite
 
 ControlFn = Callable[[float, np.ndarray], Any]
 

@@ -8,6 +8,7 @@ the core never imports the compiled path.
 
 from __future__ import annotations
 
+import os
 import sys
 import types as pytypes
 from collections.abc import Callable
@@ -171,6 +172,13 @@ def model_function(fn: Any = None, /, **options: Any) -> Any:
     Python the same function is called as it is. ``options`` are numba's ``njit`` options on
     top of legsim's (``JIT_OPTIONS``: cached, no fast-math, numpy's error model).
 
-    Usable as ``@model_function`` or ``@model_function(inline="always")``."""
-    jit = numba.njit(**{**JIT_OPTIONS, **options})
-    return jit if fn is None else jit(fn)
+    Usable as ``@model_function`` or ``@model_function(inline="always")``. A function defined
+    where numba cannot cache it (a notebook, an interactive session) is compiled in the process
+    only."""
+
+    def compile_one(function: Any) -> Any:
+        where = getattr(getattr(function, "__code__", None), "co_filename", "")
+        cachable = bool(where) and os.path.isfile(where)
+        return numba.njit(**{**JIT_OPTIONS, "cache": cachable, **options})(function)
+
+    return compile_one if fn is None else compile_one(fn)

@@ -213,15 +213,9 @@ class Assembly:
 
     def state_names(self) -> tuple[dict[str, tuple[str, ...]], dict[str, tuple[str, ...]]]:
         """The coordinate names and units of every mode visited (the memory's last)."""
-        law, control = self.tables.law, self.tables.control
-        if law is not None:
-            extra_names, extra_units = tuple(law.memory_names), tuple(law.memory_units)
-        elif control is not None and self.tables.memory:
-            controller = control.controller
-            extra_names = tuple(controller.memory_names)
-            extra_units = tuple(controller.memory_units) or ("",) * len(extra_names)
-        else:
-            extra_names = extra_units = ()
+        law = self.tables.law
+        extra_names = () if law is None else tuple(law.memory_names)
+        extra_units = () if law is None else tuple(law.memory_units)
         names: dict[str, tuple[str, ...]] = {}
         units: dict[str, tuple[str, ...]] = {}
         for seg in self.segments:

@@ -16,7 +16,6 @@ from typing import Any
 
 import numpy as np
 
-from ..control import Bound
 from ..errors import ContractError, LegsimError, ModelError, SimulationError
 from ..execution import Execution
 from ..hybrid import HybridSystem
@@ -124,7 +123,7 @@ def drive(
     if KERNEL is None and tables.compiled:
         tables.python_reason = "the compiled kernel is not loaded (legsim.compiled was not imported)"
     elif options.python:
-        tables.python_reason = "the run asked for the Python loop"
+        tables.python_reason = "the run asked for plain Python (simulate(python=True))"
     assembly = Assembly(system, tables, options)
     run = Runner(tables, ws, method, compiled, options, assembly)
     run.go()
@@ -157,24 +156,13 @@ def start(
     dim = int(tables.modes[row, 0])
     ws.x[:dim] = x0
     if tables.memory:
-        if memory is None:
-            memory = initial_memory(tables)
-        elif isinstance(tables.control, Bound):
-            tables.control.controller.restore(tables.names[row], np.asarray(memory, dtype=float))
-        ws.x[dim : dim + tables.memory] = memory
+        ws.x[dim : dim + tables.memory] = tables.law.initial_memory if memory is None else memory
     ws.iv[I_MODE] = row
     ws.iv[I_PHASE] = PHASE_ENTER
     ws.fs[F_T] = options.t0
     ws.fs[F_H_PROP] = options.h
     vis = visit_of(tables.tables(tables.functions), tables.memory, row)
     enter_controller(tables.tables(tables.functions), vis, ws, options.t0, ws.x)
-
-
-def initial_memory(tables: RunTables) -> np.ndarray:
-    """The memory a run starts with."""
-    if tables.law is not None:
-        return np.asarray(tables.law.initial_memory, dtype=float)
-    return np.asarray(tables.control.controller.memory(), dtype=float).reshape(-1)
 
 
 class Runner:
@@ -214,7 +202,8 @@ class Runner:
         try:
             if compiled:
                 return int(KERNEL.run(tables.tables(self.addresses()), ws, self.method))
-            return int(loop.run(tables.tables(tables.functions), ws, self.method))
+            functions = tables.plain_functions() if self.options.python else tables.functions
+            return int(loop.run(tables.tables(functions), ws, self.method))
         except ContractError as exc:
             raise ModelError(f"{tables.system.name}: {exc} {self.where()}") from exc
         except LegsimError:

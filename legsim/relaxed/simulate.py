@@ -49,6 +49,7 @@ def simulate(
     continuation: bool = True,
     zeno_window: float | None = None,
     t_eval: Any = None,
+    python: bool = False,
 ) -> Execution:
     """Simulate ``system`` from ``(mode, x0)`` at time ``t0`` to ``t_final`` with the relaxed
     hybrid integrator.
@@ -101,6 +102,9 @@ def simulate(
         ``Execution.warnings``.
     zeno_window: flights (s) between crossings of one transition shorter than this, and shrinking,
         count as accumulating (``legsim.relaxed.zeno``); default h + eps.
+    python: run the loop as plain Python, the model's and controller's compiled functions too
+        (their ``py_func``), instead of the compiled kernel: the same source step by step, to
+        read or debug (slower). A model calling the native library needs its compiled functions.
     t_eval: optional times (s), increasing, in [t0, t_final]: the execution's mode and state
         there, in ``Execution.evaluated`` (a ``Samples``; the cubic Hermite interpolant of the
         steps, the held point inside strips). Times past the end of a run that stopped early are
@@ -129,30 +133,27 @@ def simulate(
         rtol, atol = ADAPTIVE_DEFAULTS
     law = control if isinstance(control, ControlLaw) else None
     control = None if law is not None else _bound_control(control)
-    max_transitions, max_halvings = count("max_transitions", max_transitions, 0), count("max_halvings", max_halvings, 1)
-    max_steps = _check_step_budget(max_steps, t0, t_final, h)
     x, memory = _initial_state(system, mode, x0, t0, eps, control, law)
     rule = _step_size_part(step_size, tableau, h) if step_size is not None else step_size_rule(tableau, h, rtol, atol)
-    parts = landing_part(landing, tableau)
-    window = h + eps if zeno_window is None else positive("zeno_window", zeno_window)
     if not isinstance(continuation, (bool, np.bool_)):
         raise SimulationError(f"continuation must be True or False, got {type(continuation).__name__} {continuation!r}")
     options = Options(
         tableau=tableau,
         h=h,
         eps=eps,
-        landing=parts,
+        landing=landing_part(landing, tableau),
         rtol=rule[0],
         atol=rule[1],
         t0=t0,
         t_final=t_final,
-        max_transitions=max_transitions,
-        max_halvings=max_halvings,
-        max_steps=max_steps,
+        max_transitions=count("max_transitions", max_transitions, 0),
+        max_halvings=count("max_halvings", max_halvings, 1),
+        max_steps=_check_step_budget(max_steps, t0, t_final, h),
         continuation=bool(continuation),
-        zeno_window=window,
+        zeno_window=h + eps if zeno_window is None else positive("zeno_window", zeno_window),
         hold=law.hold if law is not None else isinstance(control, Bound) and control.hold,
         progress=progress,
+        python=bool(python),
     )
     times = _eval_times(t_eval, t0, t_final)
     execution = drive(system, mode, x, control, law, options, memory)
@@ -314,11 +315,8 @@ def _initial_state(
 
 
 def _memory_names(control: Any, law: ControlLaw | None) -> tuple[str, ...]:
-    if law is not None:
-        return law.memory_names
-    if isinstance(control, Bound):
-        return tuple(control.controller.memory_names or ())
-    return ()
+    """The memory entries a run's state ends with: a ``ControlLaw``'s."""
+    return () if law is None else law.memory_names
 
 
 def _initial_input(
