@@ -25,6 +25,7 @@ from .layout import (
     END_RESET_BROKE_DOWN,
     END_RESET_NON_FINITE,
     END_RESET_OUTSIDE,
+    END_STALLED,
     F_H_TRIED,
     F_STRIP_TIME,
     F_T,
@@ -62,6 +63,7 @@ from .layout import (
     V_FIRST,
     V_MODE,
 )
+from .loop import STALL_FRACTION, STALL_WINDOW
 from .simultaneous import OrderWatch
 from .zeno import ZenoWatch, strip_hold_warning
 
@@ -266,6 +268,8 @@ class Assembly:
                 f"step budget max_steps={self.options.max_steps} used up at t={t:.17g} in mode '{name}' "
                 f"(x={x.tolist()})"
             )
+        if reason == END_STALLED:
+            return Status.STALLED, self._stalled(ws, name, t, x)
         if reason == END_HALVING_EXHAUSTED:
             count = int(ws.iv[I_END_COUNT]) - 1
             return Status.HALVING_EXHAUSTED, messages.halving_exhausted(name, t, x, count, transition, self.options.eps)
@@ -303,6 +307,18 @@ class Assembly:
         assert reason == END_RESET_BROKE_DOWN, f"every END_* is handled ({reason})"
         why = breakdown if breakdown is not None else self.model_range(name)
         return Status.MODEL_BREAKDOWN, f"{why} (reset of transition {transition} from mode '{name}', t={t:.17g})"
+
+    def _stalled(self, ws: Any, name: str, t: float, x: np.ndarray) -> str:
+        data = self.tables.datas[int(ws.iv[I_MODE])]
+        nearest = ""
+        if data is not None and data.transitions:
+            e = int(np.argmin(ws.g_here[: len(data.transitions)]))
+            nearest = f" next to the guard of transition {data.transitions[e].name} ({ws.g_here[e]:.3g})"
+        return (
+            f"the run stopped advancing in mode '{name}'{nearest}: its last {STALL_WINDOW} steps and crossings "
+            f"moved time by less than {STALL_FRACTION:g} of h = {self.options.h:g} s, to t={t:.17g} "
+            f"(x={x.tolist()}); a thicker strip (eps) or a shorter h lets steps land"
+        )
 
     def _transition_name(self, mode: int, index: int) -> str:
         tables = self.tables

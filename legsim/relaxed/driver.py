@@ -25,6 +25,7 @@ from .assemble import Assembly
 from .evaluate import enter_controller, visit_of
 from .layout import (
     F_H_PROP,
+    F_STALL_T,
     F_T,
     I_MODE,
     I_PHASE,
@@ -159,7 +160,7 @@ def start(
         ws.x[dim : dim + tables.memory] = tables.law.initial_memory if memory is None else memory
     ws.iv[I_MODE] = row
     ws.iv[I_PHASE] = PHASE_ENTER
-    ws.fs[F_T] = options.t0
+    ws.fs[F_T] = ws.fs[F_STALL_T] = options.t0
     ws.fs[F_H_PROP] = options.h
     vis = visit_of(tables.tables(tables.functions), tables.memory, row)
     enter_controller(tables.tables(tables.functions), vis, ws, options.t0, ws.x)

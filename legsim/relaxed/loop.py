@@ -31,6 +31,8 @@ from .evaluate import Tables, Visit, field_at, hold_control, least, visit_of
 from .layout import (
     END_FINISHED,
     END_MAX_STEPS,
+    END_STALLED,
+    F_STALL_T,
     F_LAND_T1,
     F_T,
     I_END,
@@ -41,6 +43,7 @@ from .layout import (
     I_RECORDS,
     I_REPORTED,
     I_REPORTED_TRANSITIONS,
+    I_STALL_COUNT,
     I_STEPS,
     I_TRANSITIONS,
     I_VISITS,
@@ -50,6 +53,7 @@ from .layout import (
     RETURN_FULL,
     RETURN_NEED_MODE,
     RETURN_PROGRESS,
+    S_H_MAX,
     S_HOLD,
     S_MAX_STEPS,
     S_MEMORY,
@@ -65,6 +69,10 @@ from .stepping import STEP_ENDED, take_step
 ROOM_POINTS, ROOM_RECORDS, ROOM_VISITS = 4, 2, 2
 #: ``run`` goes on.
 GOING = -1
+#: A run whose last ``STALL_WINDOW`` steps and crossings moved time by less than
+#: ``STALL_FRACTION`` of h has stopped advancing (an eps too thin to land in, a model that
+#: traps the step at a guard): it ends, rather than crawl on.
+STALL_WINDOW, STALL_FRACTION = 1000, 1e-6
 
 
 def run(tab: Tables, ws, method: MethodArrays) -> int:
@@ -77,11 +85,13 @@ def run(tab: Tables, ws, method: MethodArrays) -> int:
         if not has_room(ws):
             return RETURN_FULL
         if phase == PHASE_ENTER:
-            entered = enter(tab, ws, method)
-            if entered == NOT_READY:
+            if enter(tab, ws, method) == NOT_READY:
                 return RETURN_NEED_MODE
-            continue
-        code = step_once(tab, ws, method)
+            code = GOING
+        else:
+            code = step_once(tab, ws, method)
+        if code == GOING and ws.iv[I_PHASE] != PHASE_ENDED and stalled(ws):
+            return end_loop(ws, END_STALLED)
         if code != GOING:
             return code
 
@@ -115,6 +125,19 @@ def step_once(tab: Tables, ws, method: MethodArrays) -> int:
     else:
         cross_landing(tab, vis, ws, method)
     return GOING if not report_due(ws) else RETURN_PROGRESS
+
+
+def stalled(ws) -> bool:
+    """Whether the run has stopped advancing time: its last ``STALL_WINDOW`` entries, steps and
+    crossings moved it by less than ``STALL_FRACTION`` of h."""
+    ws.iv[I_STALL_COUNT] += 1
+    if ws.iv[I_STALL_COUNT] < STALL_WINDOW:
+        return False
+    if ws.fs[F_T] - ws.fs[F_STALL_T] < STALL_FRACTION * ws.cf[S_H_MAX]:
+        return True
+    ws.iv[I_STALL_COUNT] = 0
+    ws.fs[F_STALL_T] = ws.fs[F_T]
+    return False
 
 
 def report_due(ws) -> bool:

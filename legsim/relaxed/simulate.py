@@ -134,6 +134,7 @@ def simulate(
     law = control if isinstance(control, ControlLaw) else None
     control = None if law is not None else _bound_control(control)
     x, memory = _initial_state(system, mode, x0, t0, eps, control, law)
+    _check_resolution(eps, x, mode)
     rule = _step_size_part(step_size, tableau, h) if step_size is not None else step_size_rule(tableau, h, rtol, atol)
     if not isinstance(continuation, (bool, np.bool_)):
         raise SimulationError(f"continuation must be True or False, got {type(continuation).__name__} {continuation!r}")
@@ -312,6 +313,23 @@ def _initial_state(
             f"{-gvals[worst]:.3g} > eps = {eps:g} (guard units); start inside the domain of '{mode}'"
         )
     return x, memory
+
+
+#: A strip must hold this many float64 spacings of the state's scale for a step to land in it.
+RESOLVED_SPACINGS = 16.0
+
+
+def _check_resolution(eps: float, x: np.ndarray, mode: str) -> None:
+    """Refuse a strip thinner than float64 can resolve at the initial state's scale: no step
+    could land in it, and the run would only crawl towards the first guard."""
+    scale = 1.0 + float(np.max(np.abs(x))) if x.size else 1.0
+    spacing = float(np.spacing(scale))
+    if eps < RESOLVED_SPACINGS * spacing:
+        raise SimulationError(
+            f"eps = {eps:g} is thinner than float64 resolves at the scale of the initial state in mode '{mode}' "
+            f"(|x| up to {scale - 1.0:.3g}, values {spacing:.3g} apart there): no step could land in a strip; "
+            f"give eps >= {RESOLVED_SPACINGS * spacing:.3g} in guard units"
+        )
 
 
 def _memory_names(control: Any, law: ControlLaw | None) -> tuple[str, ...]:

@@ -223,10 +223,25 @@ def test_a_step_below_the_time_resolution_is_refused(ball):
         simulate(ball, [1.0, 0.0], "flight", 1e15 + 2.0, 1e-3, 1e-4, t0=1e15)
 
 
-def test_an_eps_below_float_resolution_says_so(ball):
-    ex = simulate(ball, [1.0, 0.0], "flight", 1.0, 1e-3, 1e-300)
-    assert ex.status == "halving_exhausted"
-    assert "eps = 1e-300 is thinner than float64 can resolve near this state" in ex.message
+def test_an_eps_below_float_resolution_is_refused_before_the_run(ball):
+    with pytest.raises(SimulationError, match=r"^eps = 1e-300 is thinner than float64 resolves .* mode 'flight'"):
+        simulate(ball, [1.0, 0.0], "flight", 1.0, 1e-3, 1e-300)
+    # 16 spacings of float64 at the state's scale is the thinnest strip a step can land in.
+    assert simulate(ball, [1.0, 0.0], "flight", 1.0, 1e-3, 1e-14).status == "finished"
+
+
+def test_a_run_that_stops_advancing_ends_stalled_naming_mode_guard_and_time():
+    # The reset puts its image at the strip's far edge (g = -eps): the next entry crosses at
+    # once with depth tau = eps, so its strip lasts eps - tau = 0 s, and so on without end.
+    eps = 1e-6
+    system = HybridSystem(
+        {"a": Mode(1, lambda t, x, u: np.array([1.0]))},
+        [Transition("a", "a", lambda x: 1.0 - x[0], lambda x: np.array([1.0 + eps]), name="wall")],
+    )
+    ex = simulate(system, [0.0], "a", 10.0, 0.1, eps)
+    assert ex.status == "stalled", ex.message
+    assert "mode 'a'" in ex.message and "transition wall" in ex.message and f"t={ex.t_end:.17g}" in ex.message
+    assert len(ex.transitions) < 2000 < 100_000  # ended by the stall rule, not the transition budget
 
 
 def test_a_step_budget_refuses_a_run_too_long_for_it(ball):
