@@ -25,7 +25,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..arguments import count
-from ..control import Controller
+from ..control import ControlLaw, Controller
 from ..errors import LegsimError, SimulationError
 from ..hybrid import HybridSystem
 from ..methods import Tableau, get_method
@@ -259,6 +259,11 @@ class OrbitProblem:
         if self.controller is None:
             return
         made = self.make_controller(self.parameters)
+        if isinstance(made, ControlLaw):
+            self.memory_names = made.memory_names
+            self.memory_units = made.memory_units
+            self.memory_guess = np.asarray(made.initial_memory, dtype=float)
+            return
         if made.memory_names is None:
             raise OrbitError(
                 f"orbit problem: controller {type(made).__name__} does not declare its memory, so the "
@@ -350,24 +355,30 @@ class OrbitProblem:
         every memory value."""
         return list(self.periodic_idx) + [self.dim + i for i in range(self.n_memory)]
 
-    def make_controller(self, parameters: Mapping[str, float] | None = None) -> Controller:
+    def make_controller(self, parameters: Mapping[str, float] | None = None) -> Controller | ControlLaw:
         """A fresh controller for the system at these parameter values (``controller`` must be
-        set); OrbitError when it is not a ``legsim.control.Controller``."""
+        set); OrbitError when it is neither a ``legsim.control.ControlLaw`` (whose memory is part
+        of the run's state) nor a ``legsim.control.Controller``."""
         assert self.controller is not None
         self.instantiate(parameters)
         made = self.controller(self.system if not self.is_factory else self._cached(parameters)[2])
-        if not isinstance(made, Controller):
+        if not isinstance(made, (Controller, ControlLaw)):
             raise OrbitError(
-                f"orbit problem: controller(model) made {type(made).__name__}, expected a legsim.control.Controller",
+                f"orbit problem: controller(model) made {type(made).__name__}, expected a legsim.control.ControlLaw "
+                f"or Controller",
                 key="controller",
             )
         return made
 
-    def restored_controller(self, parameters: Mapping[str, float] | None, memory: np.ndarray | None) -> Controller:
+    def restored_controller(
+        self, parameters: Mapping[str, float] | None, memory: np.ndarray | None
+    ) -> Controller | ControlLaw:
         """A fresh controller restored to ``memory`` (default ``memory_guess``) at the section's
-        mode: what one return runs with."""
+        mode: what one return runs with (a ``ControlLaw`` takes its memory from the run's initial
+        state instead)."""
         made = self.make_controller(parameters)
-        made.restore(self.bound.mode, self.memory_guess if memory is None else np.asarray(memory, dtype=float))
+        if isinstance(made, Controller):
+            made.restore(self.bound.mode, self.memory_guess if memory is None else np.asarray(memory, dtype=float))
         return made
 
     @property
