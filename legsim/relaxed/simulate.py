@@ -350,10 +350,7 @@ def _initial_input(
     starts)."""
     try:
         if law is not None:
-            m = np.asarray(law.initial_memory if memory is None else memory, dtype=float)
-            u = np.zeros(law.inputs)
-            law.control(float(t0), x, m, law.params_for(mode, system), u)
-            return u
+            return law.input_at(mode, t0, x, memory)
         if isinstance(control, Bound):
             return control.controller(mode, t0, x)
         return None if control is None else control(t0, x)

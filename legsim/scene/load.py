@@ -52,6 +52,7 @@ import numpy as np
 
 from .. import builders
 from ..builders import ZENO_WINDOW, Builder, Model, Param, resolve_parameters
+from ..control import ControlLaw
 from ..errors import LegsimError, ModelError, SceneError
 from ..execution import Execution
 from ..output.summary import run_summary
@@ -561,7 +562,9 @@ def _initial(
         values.append(value)
     x0 = np.array(values, dtype=float)
     try:
-        if controller is not None:
+        if isinstance(controller, ControlLaw):
+            u0 = controller.input_at(mode, t0, x0)
+        elif controller is not None:
             u0 = controller(mode, t0, x0)
         else:
             u0 = None if model.control is None else model.control(t0, x0)
