@@ -23,7 +23,8 @@ import numpy as np
 from ..derivatives import CENTRAL_STEP, FORWARD_STEP
 from ..execution import Segment
 from ..relaxed.evaluate import Tables, Visit, field_at
-from ..relaxed.stages import MethodArrays, combine
+from ..relaxed.stages import INFO_IMPLICIT, MethodArrays, combine
+from .errors import OrbitError
 
 #: Largest relative change of the field Jacobian over a step (max norms) for which a Newton
 #: Jacobian interpolates it between the step's ends: the interpolation's error is then about
@@ -185,6 +186,12 @@ def segment_sensitivity(run: Any, seg: Segment, t_stop: float | None, newton: bo
     """d x(end) / d x(start) along ``seg`` (the last step cut at ``t_stop``, s), shape (n, n),
     on the run's tables (``legsim.relaxed.driver.Evaluator``), compiled when they are; None
     when the product is not finite (a perturbed stage past the model's range)."""
+    if run.method.info[INFO_IMPLICIT] == 1:
+        raise OrbitError(
+            "the saltation Jacobian steps the variational equation of explicit Runge-Kutta steps; for a linearly "
+            "implicit method use jacobian='fd'",
+            "singular_jacobian",
+        )
     n = seg.x.shape[1]
     work = scratch(n, run.method.info[0])
     stop = math.inf if t_stop is None else float(t_stop)

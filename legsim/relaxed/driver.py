@@ -204,7 +204,10 @@ class Runner:
             if compiled:
                 return int(KERNEL.run(tables.tables(self.addresses()), ws, self.method))
             functions = tables.plain_functions() if self.options.python else tables.functions
-            return int(loop.run(tables.tables(functions), ws, self.method))
+            # The loop checks every value it computes for finiteness itself; numpy's warnings on
+            # an overflow in its scalar arithmetic would only repeat that (the kernel has none).
+            with np.errstate(all="ignore"):
+                return int(loop.run(tables.tables(functions), ws, self.method))
         except ContractError as exc:
             raise ModelError(f"{tables.system.name}: {exc} {self.where()}") from exc
         except LegsimError:

@@ -26,6 +26,7 @@ from .layout import (
     F_T,
     I_END,
     I_END_INDEX,
+    I_JACOBIAN_AGE,
     I_LAST_SOURCE,
     I_MODE,
     I_PHASE,
@@ -65,6 +66,7 @@ def enter(tab: Tables, ws, method) -> int:
         return NOT_READY
     vis = visit_of(tab, ws.ci[S_MEMORY], mode)
     t, n = ws.fs[F_T], vis.n
+    ws.iv[I_JACOBIAN_AGE] = -1  # a new mode's field: a linearly implicit method needs its Jacobian
     x = ws.x[:n]
     start_visit(ws, mode)
     hold_control(tab, vis, ws, t, x)

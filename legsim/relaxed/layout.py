@@ -52,7 +52,8 @@ FLOAT_STATE = 9
 #: range (a Python model's ModelBreakdown); the landing step's curve (``CURVE_*``), the guard
 #: whose crossing the landing rule located (-1: not located) and whether that search converged;
 #: the halvings a step that ended the run took; the transition counter at the last progress report;
-#: the steps and crossings in the current stall window.
+#: the steps and crossings in the current stall window; the accepted steps since a linearly implicit
+#: method's Jacobian was evaluated (-1: it must be evaluated before the next step).
 (
     I_PHASE,
     I_MODE,
@@ -77,8 +78,9 @@ FLOAT_STATE = 9
     I_END_COUNT,
     I_REPORTED_TRANSITIONS,
     I_STALL_COUNT,
-) = range(23)
-INT_STATE = 23
+    I_JACOBIAN_AGE,
+) = range(24)
+INT_STATE = 24
 #: The curve of a landing step: the cubic Hermite interpolant of its ends, or the method's
 #: continuous extension (``F_LAND_THETA`` of the step); ``I_LAND_E`` >= 0 when q is located.
 CURVE_HERMITE, CURVE_DENSE = range(2)

@@ -14,6 +14,7 @@ from .evaluate import Tables, visit_of
 from .layout import M_CONTROL, M_DIM, M_ENTER, M_FIELD, MODE_FIELDS, S_HOLD, S_MEMORY
 from .stages import (
     INFO_EXTRA,
+    INFO_IMPLICIT,
     INFO_STAGES,
     dense_point,
     dense_slope,
@@ -22,6 +23,7 @@ from .stages import (
     extend,
     hermite_point,
     hermite_slope,
+    jacobian,
     method_arrays,
     stages,
 )
@@ -55,6 +57,8 @@ class Stepper:
         self._current = (field, control)
         try:
             ws.K[0, :n] = k0
+            if self.method.info[INFO_IMPLICIT] == 1:
+                jacobian(tab, visit_of(tab, 0, 0), ws, t, np.asarray(x, dtype=float), ws.K[0, :n])
             x_new = np.empty(n)
             stages(tab, visit_of(tab, 0, 0), ws, self.method, t, np.asarray(x, dtype=float), h, ws.K, ws.XS, x_new)
         finally:

@@ -41,6 +41,8 @@ RULES = [
     ("dopri5", "dense", {"rtol": 1e-8}),
     ("dop853", "aim", {"rtol": 1e-9}),
     ("dop853", "dense", {"rtol": 1e-9}),
+    ("ros34pw2", "halve", {}),
+    ("ros34pw2", "aim", {"rtol": 1e-7}),
 ]
 
 
