@@ -134,7 +134,6 @@ def simulate(
     law = control if isinstance(control, ControlLaw) else None
     control = None if law is not None else _bound_control(control)
     x, memory = _initial_state(system, mode, x0, t0, eps, control, law)
-    _check_resolution(eps, x, mode)
     rule = _step_size_part(step_size, tableau, h) if step_size is not None else step_size_rule(tableau, h, rtol, atol)
     if not isinstance(continuation, (bool, np.bool_)):
         raise SimulationError(f"continuation must be True or False, got {type(continuation).__name__} {continuation!r}")
@@ -303,6 +302,7 @@ def _initial_state(
     if not np.all(np.isfinite(x)):
         raise SimulationError(f"x0 must be finite, got {x} in mode '{mode}'")
     x, memory = (x[:dim], x[dim:]) if x.shape[0] > dim else (x, None)
+    _check_resolution(eps, x, mode)
     u0 = _initial_input(system, mode, t0, x, control, law, memory)
     system.check_state(mode, x, t=t0, u=u0, label="x0")
     gvals = system.guard_values(mode, x, t0, u0)
