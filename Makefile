@@ -11,7 +11,10 @@ $(STAMP): pyproject.toml setup.py legsim/_native/pinlegsim.cpp
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
 	$(BIN)/pip install --quiet -e ".[test]"
-	@$(BIN)/python -c "import legsim._native as n; print('legsim: compiled robot twins:', n.status())"
+	@$(BIN)/python -c "import legsim._native as n; print('legsim: native robot library:', n.status())"
+	@# The step loop and the bundled models compiled ahead of time (about two minutes, once), so
+	@# that a first run loads them instead of compiling.
+	$(BIN)/python -m legsim.compiled.prebuild
 	touch $(STAMP)
 
 install: $(STAMP)

@@ -9,6 +9,16 @@ stamp that is the digest of the function's file and of every legsim module it im
 or not. A user's model functions (outside the package) keep numba's own caching.
 
 ``LEGSIM_CACHE_DIR`` overrides the folder (the tests put it in a temporary folder).
+
+**Prebuilt code.** A first run compiles the step loop and the bundled models' functions for
+about a minute. So an install compiles them ahead of time (``legsim.compiled.prebuild``, run by
+``make install`` and by a wheel's build) for the generic x86-64 processor, into the package's own
+folder ``_prebuilt/<version>`` (``PREBUILT_DIR``). Such code runs on any x86-64 processor; numba
+would not load it on another (its cache entries name the processor they were compiled for), so
+legsim's functions get a cache (``LegsimCache``) that looks in the user's cache first, then among
+the prebuilt entries under the generic processor's name. Code compiled at run time is for this
+machine's processor and stays in the user's cache only. Entries are found by the module's path
+inside the package, not by where the package is installed.
 """
 
 from __future__ import annotations
@@ -50,8 +60,26 @@ def clear() -> tuple[Path, int]:
     return folder, count
 
 
+#: The package's own folder of prebuilt code, portable across x86-64 processors.
+PREBUILT_DIR = PACKAGE_ROOT / "_prebuilt" / __version__
+#: The processor prebuilt code is compiled for (numba's ``NUMBA_CPU_NAME``).
+PREBUILT_CPU = "generic"
+
+
 def _owned(path: Path) -> bool:
     return any(root in path.parents for root in _ROOTS)
+
+
+def package_subpath(py_file: str | Path) -> str:
+    """The folder of a legsim source file inside the package (``relaxed``, ``robots/bridge``),
+    the same in a source checkout and in an installed package."""
+    path = Path(py_file).resolve()
+    folder = path.parent
+    for root in (PACKAGE_ROOT, PACKAGE_ROOT.parent):
+        if root == folder or root in folder.parents:
+            relative = folder.relative_to(root).as_posix()
+            return relative or "."
+    return folder.name
 
 
 @cache
@@ -116,10 +144,14 @@ def source_digest(path: Path) -> str:
 class LegsimCacheLocator(caching._CacheLocator):
     """numba's cache locator for legsim's own functions (module docstring)."""
 
+    #: The folder holding the entries (the user's cache; the prebuilt one in ``PrebuiltLocator``).
+    root: Path | None = None
+
     def __init__(self, py_func: Any, py_file: str) -> None:
         self._py_file = Path(py_file).resolve()
         self._lineno = py_func.__code__.co_firstlineno
-        self._cache_path = str(cache_dir() / self.get_suitable_cache_subpath(py_file))
+        base = cache_dir() if self.root is None else self.root
+        self._cache_path = str(base / package_subpath(py_file))
 
     def get_cache_path(self) -> str:
         return self._cache_path
@@ -140,6 +172,59 @@ class LegsimCacheLocator(caching._CacheLocator):
         except OSError:
             return None
         return self
+
+
+class PrebuiltLocator(LegsimCacheLocator):
+    """The locator of the package's prebuilt entries (read only)."""
+
+    root = PREBUILT_DIR
+
+    def ensure_cache_path(self) -> None:
+        if not os.path.isdir(self._cache_path):
+            raise OSError(f"no prebuilt code in {self._cache_path}")
+
+
+class _PrebuiltImpl(caching.CompileResultCacheImpl):
+    _locator_classes = [PrebuiltLocator]
+
+
+class PrebuiltCache(caching.FunctionCache):
+    """The prebuilt entries of a function, found under the generic processor's name."""
+
+    _impl_class = _PrebuiltImpl
+
+    def _index_key(self, sig: Any, codegen: Any) -> Any:
+        key = super()._index_key(sig, codegen)
+        return (key[0], (key[1][0], PREBUILT_CPU, ""), key[2])
+
+    def save_overload(self, sig: Any, data: Any) -> None:
+        """Prebuilt entries are written by the prebuild only (as the user cache's, under
+        ``NUMBA_CPU_NAME=generic``), never at run time."""
+
+
+class LegsimCache(caching.FunctionCache):
+    """The cache of legsim's own compiled functions: the user's, then the prebuilt entries."""
+
+    def __init__(self, py_func: Any) -> None:
+        super().__init__(py_func)
+        try:
+            self._prebuilt: PrebuiltCache | None = PrebuiltCache(py_func)
+        except RuntimeError:  # no prebuilt folder for this function (not prebuilt, or a new module)
+            self._prebuilt = None
+
+    def load_overload(self, sig: Any, target_context: Any) -> Any:
+        found = super().load_overload(sig, target_context)
+        if found is None and self._prebuilt is not None:
+            found = self._prebuilt.load_overload(sig, target_context)
+        return found
+
+
+def use_legsim_cache(dispatcher: Any) -> Any:
+    """Give a dispatcher of legsim's own code the cache with prebuilt entries; returns it."""
+    py_file = getattr(getattr(dispatcher, "py_func", None), "__code__", None)
+    if py_file is not None and _owned(Path(py_file.co_filename).resolve()):
+        dispatcher._cache = LegsimCache(dispatcher.py_func)
+    return dispatcher
 
 
 def install() -> None:

@@ -60,7 +60,7 @@ def tool(fn: Any) -> Any:
     if compiled is None:
         module = sys.modules[fn.__module__]
         _register(module)
-        compiled = _TOOLS[fn] = numba.njit(**LOOP_OPTIONS)(fn)
+        compiled = _TOOLS[fn] = cache.use_legsim_cache(numba.njit(**LOOP_OPTIONS)(fn))
     return compiled
 
 
@@ -122,7 +122,7 @@ event.register("numba:compile", _FirstCompile())
 cache.install()
 _register_loop()
 #: The loop's entry, compiled once per machine and legsim version (cached on disk).
-_run = numba.njit(**LOOP_OPTIONS)(loop.run)
+_run = cache.use_legsim_cache(numba.njit(**LOOP_OPTIONS)(loop.run))
 
 _ADDRESSES: dict[tuple[int, str], tuple[Any, int]] = {}
 
@@ -179,6 +179,6 @@ def model_function(fn: Any = None, /, **options: Any) -> Any:
     def compile_one(function: Any) -> Any:
         where = getattr(getattr(function, "__code__", None), "co_filename", "")
         cachable = bool(where) and os.path.isfile(where)
-        return numba.njit(**{**JIT_OPTIONS, "cache": cachable, **options})(function)
+        return cache.use_legsim_cache(numba.njit(**{**JIT_OPTIONS, "cache": cachable, **options})(function))
 
     return compile_one if fn is None else compile_one(fn)
