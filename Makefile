@@ -14,7 +14,7 @@ $(STAMP): pyproject.toml setup.py legsim/_native/pinlegsim.cpp
 	@$(BIN)/python -c "import legsim._native as n; print('legsim: native robot library:', n.status())"
 	@# The step loop and the bundled models compiled ahead of time (about two minutes, once), so
 	@# that a first run loads them instead of compiling.
-	$(BIN)/python -m legsim.compiled.prebuild
+	$(BIN)/python -m legsim.prebuild
 	touch $(STAMP)
 
 install: $(STAMP)

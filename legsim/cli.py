@@ -63,7 +63,7 @@ def discover_commands() -> tuple[dict[str, ModuleType], dict[str, str]]:
 
 
 def _version() -> str:
-    from . import __version__
+    from .version import __version__
 
     return __version__
 

@@ -11,7 +11,7 @@ or not. A user's model functions (outside the package) keep numba's own caching.
 ``LEGSIM_CACHE_DIR`` overrides the folder (the tests put it in a temporary folder).
 
 **Prebuilt code.** A first run compiles the step loop and the bundled models' functions for
-about a minute. So an install compiles them ahead of time (``legsim.compiled.prebuild``, run by
+about a minute. So an install compiles them ahead of time (``legsim.prebuild``, run by
 ``make install`` and by a wheel's build) for the generic x86-64 processor, into the package's own
 folder ``_prebuilt/<version>`` (``PREBUILT_DIR``). Such code runs on any x86-64 processor; numba
 would not load it on another (its cache entries name the processor they were compiled for), so
@@ -29,11 +29,11 @@ import os
 import shutil
 from functools import cache
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 from numba.core import caching
 
-from .. import __version__
+from ..version import __version__
 
 #: The installed package's root: legsim/, whose parent holds its siblings (robots/, viz/ are
 #: installed inside it; in a source checkout they sit beside it).
@@ -185,7 +185,7 @@ class PrebuiltLocator(LegsimCacheLocator):
 
 
 class _PrebuiltImpl(caching.CompileResultCacheImpl):
-    _locator_classes = [PrebuiltLocator]
+    _locator_classes: ClassVar[list[type]] = [PrebuiltLocator]
 
 
 class PrebuiltCache(caching.FunctionCache):

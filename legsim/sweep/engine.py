@@ -249,7 +249,7 @@ def _connect(scheduler: str | None, workers: int | None) -> tuple[Client, LocalC
 
 def _check_workers(client: Any, scheduler: str) -> None:
     """The scheduler's workers must run this version of legsim."""
-    from .. import __version__
+    from ..version import __version__
 
     try:
         versions = client.run(_legsim_version)
@@ -267,6 +267,6 @@ def _check_workers(client: Any, scheduler: str) -> None:
 
 
 def _legsim_version() -> str:
-    from .. import __version__
+    from ..version import __version__
 
     return __version__

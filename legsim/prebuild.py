@@ -1,10 +1,10 @@
-"""Compile legsim's code ahead of time: ``python -m legsim.compiled.prebuild [--out FOLDER]``.
+"""Compile legsim's code ahead of time: ``python -m legsim.prebuild [--out FOLDER]``.
 
 Runs every bundled scene for a moment in a child process whose numba compiles for the generic
 x86-64 processor, with legsim's cache pointed at the package's prebuilt folder
-(``cache.PREBUILT_DIR``): the step loop, the variational equations and every bundled model's and
+(``legsim.compiled.cache.PREBUILT_DIR``): the step loop, the variational equations and every bundled model's and
 controller's functions land there, portable to any x86-64 machine, and a first run loads them
-instead of compiling for a minute (``cache.LegsimCache``). ``make install`` runs it, and so does
+instead of compiling for a minute (``legsim.compiled.cache.LegsimCache``). ``make install`` runs it, and so does
 a wheel's build (setup.py), so that the wheel ships them.
 """
 
@@ -17,14 +17,14 @@ import sys
 import time
 from pathlib import Path
 
-from .cache import PREBUILT_CPU, PREBUILT_DIR
+from .compiled.cache import PREBUILT_CPU, PREBUILT_DIR
 
 #: Simulated seconds each scene runs for: enough to reach its modes' first transitions.
 WARM_TIME = 0.3
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m legsim.compiled.prebuild", description=__doc__)
+    parser = argparse.ArgumentParser(prog="python -m legsim.prebuild", description=__doc__)
     parser.add_argument("--out", type=Path, default=PREBUILT_DIR.parent, help="the prebuilt folder's parent")
     parser.add_argument("--child", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
@@ -32,18 +32,18 @@ def main(argv: list[str] | None = None) -> int:
         return warm()
     environment = {**os.environ, "NUMBA_CPU_NAME": PREBUILT_CPU, "LEGSIM_CACHE_DIR": str(args.out)}
     started = time.perf_counter()
-    code = subprocess.call([sys.executable, "-m", "legsim.compiled.prebuild", "--child"], env=environment)
+    code = subprocess.call([sys.executable, "-m", "legsim.prebuild", "--child"], env=environment)
     print(f"legsim: prebuilt compiled code in {args.out} ({time.perf_counter() - started:.0f} s)", file=sys.stderr)
     return code
 
 
 def warm() -> int:
     """Run every bundled scene briefly (in the child): each run compiles what it needs."""
-    from .. import compiled  # noqa: F401 -- registers the kernel
-    from ..methods import get_method
-    from ..orbits import variational
-    from ..relaxed.driver import Evaluator
-    from ..scene import bundled_dir, load_scene
+    from . import compiled  # noqa: F401 -- registers the kernel
+    from .methods import get_method
+    from .orbits import variational
+    from .relaxed.driver import Evaluator
+    from .scene import bundled_dir, load_scene
 
     failures = 0
     for path in sorted(bundled_dir().glob("*.toml")):

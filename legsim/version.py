@@ -1,0 +1,3 @@
+"""legsim's version."""
+
+__version__ = "0.1.0"
