@@ -30,7 +30,7 @@ import numpy as np
 from ..output.files import write_atomic
 from ..progress import counting
 from ..relaxed.simulate import MAX_STEPS
-from ..tables import render_table
+from ..tables import Table
 from .cases import BenchError, Case, RunSpec, make_case, relaxed_method
 
 if TYPE_CHECKING:
@@ -466,9 +466,9 @@ def plot_rows(all_rows: Sequence[Row], path: Path, title: str, ylabel: str) -> P
         plt.close(fig)
 
 
-def format_table(rows: Sequence[Row], width: int | None = None) -> str:
-    """The rows as a text table (``legsim.tables``, at most ``width`` characters wide), sorted
-    by method then error."""
+def rows_table(rows: Sequence[Row]) -> Table:
+    """The rows as a table (``legsim.tables``), sorted by method then error; the method names
+    and numbers never wrap, the status wraps at spaces."""
     head = (
         "method",
         "h",
@@ -505,7 +505,13 @@ def format_table(rows: Sequence[Row], width: int | None = None) -> str:
                 "*" if r.pareto else "",
             )
         )
-    return render_table(head, body, right=range(1, 12), whole=range(0, 12), width=width)
+    return Table.of(head, body, right=range(1, 12), whole=(*range(0, 12), 13), title="runs")
+
+
+def format_table(rows: Sequence[Row], width: int | None = None) -> str:
+    """The rows as a text table (``rows_table``) within ``width`` characters where its words
+    allow (None: one line per row)."""
+    return rows_table(rows).text(width)
 
 
 def _g(v: float) -> str:

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import argparse
 
+from ..tables import add_format_argument
+
 NAME = "bench"
 HELP = "benchmarks: work-precision against Paoli-Schatzman and solve_ivp, robots, orbit search, integrator overhead"
 
@@ -44,6 +46,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     wp.add_argument("--no-figure", action="store_true", help="write the CSV only")
     wp.add_argument("--quiet", action="store_true", help="print only the table and the targets")
+    add_format_argument(wp)
     tg = sub.add_parser(
         "targets",
         help="the table and the targets again, from a CSV written before",
@@ -51,6 +54,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     tg.add_argument("--case", required=True, help="the case name")
     tg.add_argument("--out", default="bench-out", help="folder holding CASE.csv (default: bench-out)")
+    add_format_argument(tg)
     rb = sub.add_parser(
         "robots",
         help="the robots on the compiled path against solve_ivp, and the cost limit",
@@ -74,6 +78,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     rb.add_argument("--repeats", type=int, default=5, help="timed repeats per run, median kept (default 5)")
     rb.add_argument("--no-figure", action="store_true", help="write the CSV files only")
     rb.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
+    add_format_argument(rb)
     ob = sub.add_parser(
         "orbit",
         help="legsim orbit against a scipy Newton iteration at the same accuracy",
@@ -95,6 +100,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     ov.add_argument("--quick", action="store_true", help="shorter runs")
     ov.add_argument("--json", action="store_true", help="print the measurements as JSON")
+    add_format_argument(ov)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -105,7 +111,7 @@ def run(args: argparse.Namespace) -> int:
     if args.bench == "overhead":
         from ..bench import overhead
 
-        return overhead.main(quick=args.quick, as_json=args.json)
+        return overhead.main(quick=args.quick, as_json=args.json, fmt=args.format)
     if args.bench == "orbit":
         from ..bench import orbit
 
@@ -126,10 +132,17 @@ def run(args: argparse.Namespace) -> int:
             )
         log = None if args.quiet else (lambda s: print(s, file=sys.stderr, flush=True))
         return robots.main(
-            cases, quick=args.quick, out=args.out, repeats=args.repeats, figure=not args.no_figure, log=log
+            cases,
+            quick=args.quick,
+            out=args.out,
+            repeats=args.repeats,
+            figure=not args.no_figure,
+            log=log,
+            fmt=args.format,
         )
     from ..bench.targets import evaluate_targets, format_targets
-    from ..bench.work_precision import format_table, read_rows, run_case
+    from ..bench.work_precision import read_rows, rows_table, run_case
+    from ..tables import print_report
 
     if args.bench == "targets":
         from pathlib import Path
@@ -138,10 +151,8 @@ def run(args: argparse.Namespace) -> int:
 
         targets = targets_for(args.case)
         rows = read_rows(Path(args.out) / f"{args.case}.csv")
-        print(format_table(rows))
-        print()
-        print("targets:")
-        print(format_targets(evaluate_targets(rows, targets)) or "- none for this case")
+        verdicts = format_targets(evaluate_targets(rows, targets)) or "- none for this case"
+        print_report([rows_table(rows), "", "targets:", verdicts], args.format)
         return 0
 
     if args.repeats is not None and args.repeats < 1:
@@ -165,12 +176,17 @@ def run(args: argparse.Namespace) -> int:
     )
     if not result.rows:
         raise BenchError(f"no run of case {args.case} matches --methods {args.methods}")
-    print(f"# {result.case.name}: {result.case.description}")
-    print(f"# reference: {result.case.reference_note}")
-    print(format_table(result.rows))
-    print()
-    print("targets:")
-    print(format_targets(result.targets) or "- none for this case")
-    print()
-    print(f"wrote {result.csv_path}" + (f" and {result.figure_path}" if result.figure_path else ""))
+    print_report(
+        [
+            f"# {result.case.name}: {result.case.description}",
+            f"# reference: {result.case.reference_note}",
+            rows_table(result.rows),
+            "",
+            "targets:",
+            format_targets(result.targets) or "- none for this case",
+            "",
+            f"wrote {result.csv_path}" + (f" and {result.figure_path}" if result.figure_path else ""),
+        ],
+        args.format,
+    )
     return 0
