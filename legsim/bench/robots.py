@@ -43,12 +43,11 @@ from ..errors import LegsimError
 from ..progress import counting
 from ..tables import Table
 from .cases import BenchError, RunSpec
+from .names import ROBOT_CASES, ROBOT_CONTROLLED
 from .work_precision import Row, _timed, mark_pareto, plot_rows, rows_table, write_csv
 
-CASES = ("compass-gait", "rimless-wheel", "pronk", "double-pendulum")
-#: The controlled runners: opt-in by name, since they would add 30-45 s (measured at load 5-7)
-#: to the default's 1.5 min, past the 2 min it aims at.
-CONTROLLED = ("slip-raibert", "pronk-raibert", "double-pendulum-pd", "quadruped-run")
+CASES = ROBOT_CASES
+CONTROLLED = ROBOT_CONTROLLED
 ALL_CASES = CASES + CONTROLLED
 LEVELS = (1e-4, 1e-6, 1e-8)
 #: solve_ivp tolerance of the reference runs.
