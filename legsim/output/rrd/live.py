@@ -26,6 +26,7 @@ from urllib.parse import urlsplit
 from ...builders import Model
 from ...errors import LegsimError
 from ...execution import Execution
+from ...hybrid import HybridSystem
 from .write import prepare, record, recording_stream
 
 #: Rerun's default port for a viewer or proxy; ``--connect`` without a port uses it.
@@ -147,7 +148,7 @@ def stream_rrd(
     *,
     spawn: bool = False,
     connect: str | None = None,
-    model: Model | None = None,
+    model: Model | HybridSystem | None = None,
     rate: float | None = None,
 ) -> None:
     """Send the recording of ``execution`` (as ``write_rrd`` would write it, with the same
