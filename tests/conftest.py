@@ -42,9 +42,23 @@ def _rerun_analytics_off(env: dict[str, str]) -> None:
         )
 
 
+def _user_pip_config() -> str | None:
+    """The user's own pip configuration file (the package index a build may need), read where
+    pip reads it before the home folder moves; None when there is none."""
+    config = os.environ.get("XDG_CONFIG_HOME") or os.path.join(os.path.expanduser("~"), ".config")
+    for path in (os.path.join(config, "pip", "pip.conf"), os.path.join(os.path.expanduser("~"), ".pip", "pip.conf")):
+        if os.path.isfile(path):
+            return path
+    return None
+
+
 def _own_home() -> None:
     home = os.environ.get("LEGSIM_TEST_HOME")
     if not home or os.environ.get("HOME") != home:
+        # The packaging tests run pip; it keeps reading the user's configuration, read-only.
+        pip_config = _user_pip_config()
+        if pip_config is not None:
+            os.environ.setdefault("PIP_CONFIG_FILE", pip_config)
         home = tempfile.mkdtemp(prefix="legsim-test-home-")
         atexit.register(shutil.rmtree, home, ignore_errors=True)
         os.environ["LEGSIM_TEST_HOME"] = os.environ["HOME"] = home
