@@ -429,7 +429,7 @@ def test_zeno_run_rejected_on_a_case_without_the_variant():
 def test_bench_rejects_bad_input(capsys):
     assert main(["bench", "work-precision", "--case", "nope", "--quick"]) == 2
     err = capsys.readouterr().err
-    assert "unknown case 'nope'" in err and "oscillator-ex1" in err and "double-pendulum" in err
+    assert "argument --case: invalid choice: 'nope'" in err and "oscillator-ex1" in err and "double-pendulum" in err
     assert main(["bench", "work-precision", "--case", "bouncing-ball", "--repeats", "0"]) == 2
     assert "--repeats must be >= 1" in capsys.readouterr().err
     assert main(["bench", "work-precision", "--case", "bouncing-ball", "--extend-budget", "-1"]) == 2

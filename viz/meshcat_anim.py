@@ -42,6 +42,7 @@ import numpy as np
 from legsim.builders import Model
 from legsim.errors import OutputError
 from legsim.execution import Execution
+from legsim.hybrid import HybridSystem
 from legsim.output.files import write_atomic
 from legsim.output.trace import Frames, frame_times, geometry_frames, resolve_model
 
@@ -79,7 +80,7 @@ def html_frames(
     execution: Execution | None,
     scene: Any = None,
     *,
-    model: Model | None = None,
+    model: Model | HybridSystem | None = None,
     recording: dict[str, Any] | None = None,
     fps: float = HTML_FPS,
     max_frames: int = HTML_MAX_FRAMES,
@@ -95,7 +96,7 @@ def _frames_and_cut(
     execution: Execution | None,
     scene: Any = None,
     *,
-    model: Model | None = None,
+    model: Model | HybridSystem | None = None,
     recording: dict[str, Any] | None = None,
     fps: float = HTML_FPS,
     max_frames: int = HTML_MAX_FRAMES,
@@ -625,7 +626,7 @@ def write_html(
     scene: Any = None,
     path: str | os.PathLike | None = None,
     *,
-    model: Model | None = None,
+    model: Model | HybridSystem | None = None,
     recording: dict[str, Any] | None = None,
     fps: float = HTML_FPS,
     max_frames: int = HTML_MAX_FRAMES,
@@ -634,7 +635,8 @@ def write_html(
 ) -> Path:
     """Write a self-contained meshcat animation of the run to ``path`` (the ``--html`` output).
 
-    ``scene`` is a ``legsim.scene.Scene`` or None with ``model=`` a ``legsim.builders.Model``;
+    ``scene`` is a ``legsim.scene.Scene`` or None with ``model=`` a ``legsim.builders.Model``
+    (a plain ``HybridSystem`` has no geometry to draw);
     ``recording=`` takes ``legsim.record.read_rrd`` output instead of an execution (its page
     has no contact markers: a recording does not say where the contacts are). Plays in real
     time (``speed`` > 1 faster) and loops; ``camera`` is "fixed" (the whole run in view, the

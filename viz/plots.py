@@ -26,6 +26,7 @@ import numpy as np
 from legsim.builders import Model
 from legsim.errors import OutputError
 from legsim.execution import Execution
+from legsim.hybrid import HybridSystem
 from legsim.output.files import write_atomic
 from legsim.output.trace import resolve_model
 
@@ -74,7 +75,7 @@ def plot_data(
     execution: Execution | None = None,
     scene: Any = None,
     *,
-    model: Model | None = None,
+    model: Model | HybridSystem | None = None,
     recording: dict[str, Any] | None = None,
 ) -> PlotData:
     """What ``write_plot`` draws, from an execution or from ``legsim.record.read_rrd`` output."""
@@ -304,15 +305,16 @@ def write_plot(
     scene: Any = None,
     path: str | os.PathLike | None = None,
     *,
-    model: Model | None = None,
+    model: Model | HybridSystem | None = None,
     recording: dict[str, Any] | None = None,
     coordinates: Sequence[str] | None = None,
 ) -> Path:
     """Write the state-against-time figure of a run (the ``--plot`` output) to ``path``.
 
-    ``scene`` is a ``legsim.scene.Scene`` or None (then ``model=`` may name the model, which a
-    plot does not need); ``recording=`` takes ``legsim.record.read_rrd`` output instead of an
-    execution. The format follows the suffix (.png, .pdf, .svg, .jpg). Atomic write.
+    ``scene`` is a ``legsim.scene.Scene`` or None (then ``model=`` may name the model, a
+    ``legsim.builders.Model`` or a ``HybridSystem``, which a plot does not need);
+    ``recording=`` takes ``legsim.record.read_rrd`` output instead of an execution. The format
+    follows the suffix (.png, .pdf, .svg, .jpg). Atomic write.
     """
     if path is None:
         raise OutputError("write_plot needs a path to write to")

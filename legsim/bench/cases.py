@@ -19,8 +19,7 @@ import numpy as np
 from ..builders import get_builder
 from ..errors import LegsimError
 from ..hybrid import HybridSystem
-
-CASE_NAMES = ("oscillator-ex1", "oscillator-ex2", "bouncing-ball", "pronk", "double-pendulum")
+from .names import CASE_NAMES
 
 #: solve_ivp methods in the sweeps (explicit pairs: these models are not stiff).
 IVP_METHODS = ("RK45", "DOP853")

@@ -29,7 +29,7 @@ import numpy as np
 from ..compiled import without_compiled
 from ..relaxed import simulate
 from ..systems.fast import make_bouncing_ball, make_oscillator, make_oscillator_example
-from ..tables import render_table
+from ..tables import Table, print_report, render_report
 
 
 # The loops that take a twin's functions as arguments are compiled in each process, not cached:
@@ -300,8 +300,14 @@ def collect(quick: bool = False) -> dict[str, Any]:
 
 
 def format_report(r: dict[str, Any], width: int | None = None) -> str:
-    """The measurements as text; the table at most ``width`` characters wide (``legsim.tables``)."""
-    lines = [f"# integrator overhead: {r['case']}"]
+    """The measurements as text; the tables within ``width`` characters where their words allow
+    (``legsim.tables``; None: one line per row)."""
+    return render_report(report(r), "text", width)[0]
+
+
+def report(r: dict[str, Any]) -> list[str | Table]:
+    """The measurements as a report (``legsim.tables.render_report``): lines and three tables."""
+    lines: list[str | Table] = [f"# integrator overhead: {r['case']}"]
     cc, cp = r["cost_compiled_s"], r["cost_python_s"]
     lines.append("costs of one evaluation measured alongside each run, the least disturbed of the repeats kept")
     lines.append(
@@ -328,19 +334,19 @@ def format_report(r: dict[str, Any], width: int | None = None) -> str:
         for label, key in (("compiled", "compiled"), ("compiled, no stop", "compiled_no_stop"), ("python", "python"))
         for m in r[key]
     ]
-    lines.append(render_table(head, rows, right=range(2, 9), whole=range(9), width=width))
+    lines.append(Table.of(head, rows, right=range(2, 9), whole=range(9), title="cost per step"))
     lines.append("")
     lines.append(
         "landing in a strip, per transition (rk4): trial steps, extra field evaluations, guard "
         "evaluations beyond one per step"
     )
-    lines.append(_landing_table(r["landing"], width))
+    lines.append(_landing_table(r["landing"], "landing, rk4"))
     lines.append("")
     lines.append(
         "landing in a strip, per transition (dopri5, rtol = atol = 1e-8): the same, aimed retry against "
         "the failed step's dense output"
     )
-    lines.append(_landing_table(r.get("landing_pairs", {}), width))
+    lines.append(_landing_table(r.get("landing_pairs", {}), "landing, dopri5"))
     rk4 = next(m for m in r["compiled"] if m["method"] == "rk4")
     lines.append("")
     lines.append(
@@ -355,10 +361,10 @@ def format_report(r: dict[str, Any], width: int | None = None) -> str:
         f"target: integrator overhead per step <= 2 field evaluations (compiled rk4, with the stop): "
         f"{target:.2f}: {'MET' if target <= 2 else 'MISSED'}"
     )
-    return "\n".join(lines)
+    return lines
 
 
-def _landing_table(costs: dict[str, dict[str, dict[str, Any]]], width: int | None) -> str:
+def _landing_table(costs: dict[str, dict[str, dict[str, Any]]], title: str) -> Table:
     """case -> landing -> its costs per transition, as a table."""
     head = ("case", "landing", "trial steps", "extra field evals", "guard evals", "transitions")
     rows = [
@@ -373,10 +379,15 @@ def _landing_table(costs: dict[str, dict[str, dict[str, Any]]], width: int | Non
         for case, d in costs.items()
         for landing, v in d.items()
     ]
-    return render_table(head, rows, right=range(2, 6), whole=range(1, 6), width=width)
+    return Table.of(head, rows, right=range(2, 6), whole=range(1, 6), title=title)
 
 
-def main(quick: bool = False, as_json: bool = False) -> int:
+def main(quick: bool = False, as_json: bool = False, fmt: str = "text") -> int:
+    """``legsim bench overhead``: measure, then print the JSON of the measurements or their
+    report in the format ``fmt`` (``legsim.tables.FORMATS``)."""
     r = collect(quick)
-    print(json.dumps(r, indent=1) if as_json else format_report(r))
+    if as_json:
+        print(json.dumps(r, indent=1))
+    else:
+        print_report(report(r), fmt)
     return 0

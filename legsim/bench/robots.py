@@ -32,7 +32,7 @@ import math
 import os
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -41,13 +41,13 @@ import numpy as np
 from ..builders import get_builder
 from ..errors import LegsimError
 from ..progress import counting
+from ..tables import Table
 from .cases import BenchError, RunSpec
-from .work_precision import Row, _timed, format_table, mark_pareto, plot_rows, write_csv
+from .names import ROBOT_CASES, ROBOT_CONTROLLED
+from .work_precision import Row, _timed, mark_pareto, plot_rows, rows_table, write_csv
 
-CASES = ("compass-gait", "rimless-wheel", "pronk", "double-pendulum")
-#: The controlled runners: opt-in by name, since they would add 30-45 s (measured at load 5-7)
-#: to the default's 1.5 min, past the 2 min it aims at.
-CONTROLLED = ("slip-raibert", "pronk-raibert", "double-pendulum-pd", "quadruped-run")
+CASES = ROBOT_CASES
+CONTROLLED = ROBOT_CONTROLLED
 ALL_CASES = CASES + CONTROLLED
 LEVELS = (1e-4, 1e-6, 1e-8)
 #: solve_ivp tolerance of the reference runs.
@@ -595,21 +595,31 @@ def run_case(
 
 
 def main(
-    cases: list[str], *, quick: bool, out: str, repeats: int, figure: bool, log: Callable[[str], None] | None
+    cases: list[str],
+    *,
+    quick: bool,
+    out: str,
+    repeats: int,
+    figure: bool,
+    log: Callable[[str], None] | None,
+    fmt: str = "text",
 ) -> int:
-    """The command: every case's table, levels and costs."""
+    """The command: every case's table, levels and costs, printed in the format ``fmt``
+    (``legsim.tables.FORMATS``)."""
     from .. import _native
+    from ..tables import print_report
 
-    print(f"# native library: {_native.status()}")
+    report: list[str | Table] = [f"# native library: {_native.status()}"]
     for name in cases:
         case, rows, csv_path, fig_path = run_case(name, quick=quick, out=out, repeats=repeats, figure=figure, log=log)
-        print(f"# {case.name}: {case.description}")
+        report.append(f"# {case.name}: {case.description}")
         if case.controlled is not None:
-            print(COMPILED_PATH_NOTE if case.controlled.compiled else PYTHON_PATH_NOTE)
-        print(format_table(rows))
-        print(format_levels(at_levels(rows)))
+            report.append(COMPILED_PATH_NOTE if case.controlled.compiled else PYTHON_PATH_NOTE)
+        report.append(replace(rows_table(rows), title=case.name))
+        report.append(format_levels(at_levels(rows)))
         if case.controlled is None:
-            print(format_costs(cost_report(case, rows)))
-        print(f"wrote {csv_path}" + (f" and {fig_path}" if fig_path else ""))
-        print()
+            report.append(format_costs(cost_report(case, rows)))
+        report.append(f"wrote {csv_path}" + (f" and {fig_path}" if fig_path else ""))
+        report.append("")
+    print_report(report, fmt)
     return 0

@@ -30,11 +30,16 @@ import numpy as np
 from ..output.files import write_atomic
 from ..progress import counting
 from ..relaxed.simulate import MAX_STEPS
-from ..tables import render_table
+from ..tables import Table
 from .cases import BenchError, Case, RunSpec, make_case, relaxed_method
 
 if TYPE_CHECKING:
     from .targets import Extension, TargetResult
+
+#: Timed repeats of each run (the median is kept), and with ``quick``.
+REPEATS, REPEATS_QUICK = 3, 1
+#: Times of the rho grid where the case sets none, and with ``quick``.
+RHO_POINTS, RHO_POINTS_QUICK = 400, 40
 
 #: CSV columns, in order.
 COLUMNS = (
@@ -466,9 +471,9 @@ def plot_rows(all_rows: Sequence[Row], path: Path, title: str, ylabel: str) -> P
         plt.close(fig)
 
 
-def format_table(rows: Sequence[Row], width: int | None = None) -> str:
-    """The rows as a text table (``legsim.tables``, at most ``width`` characters wide), sorted
-    by method then error."""
+def rows_table(rows: Sequence[Row]) -> Table:
+    """The rows as a table (``legsim.tables``), sorted by method then error; the method names
+    and numbers never wrap, the status wraps at spaces."""
     head = (
         "method",
         "h",
@@ -505,7 +510,13 @@ def format_table(rows: Sequence[Row], width: int | None = None) -> str:
                 "*" if r.pareto else "",
             )
         )
-    return render_table(head, body, right=range(1, 12), whole=range(0, 12), width=width)
+    return Table.of(head, body, right=range(1, 12), whole=(*range(0, 12), 13), title="runs")
+
+
+def format_table(rows: Sequence[Row], width: int | None = None) -> str:
+    """The rows as a text table (``rows_table``) within ``width`` characters where its words
+    allow (None: one line per row)."""
+    return rows_table(rows).text(width)
 
 
 def _g(v: float) -> str:
@@ -536,8 +547,9 @@ def run_case(
     ``out/name.csv`` (every run, extensions included) and ``out/name.png`` when ``out`` is given.
 
     quick: a short run and a small sweep (seconds), for CI. repeats: timed repeats per run
-    (median; default 3, 1 when quick). rho_points: times of the rho grid (default 400, 40 when
-    quick; 0 skips rho). methods: keep only the runs of these CSV method names.
+    (median; default ``REPEATS``, ``REPEATS_QUICK`` when quick). rho_points: times of the rho
+    grid (default the case's, else ``RHO_POINTS``, ``RHO_POINTS_QUICK`` when quick; 0 skips
+    rho). methods: keep only the runs of these CSV method names.
     extension_budget: wall time (s) the extensions may take (default ``EXTENSION_BUDGET``, or
     ``EXTENSION_BUDGET_QUICK`` when quick; 0 extends nothing).
     """
@@ -545,9 +557,9 @@ def run_case(
 
     say = log or (lambda s: None)
     case = make_case(name, quick)
-    repeats = (1 if quick else 3) if repeats is None else int(repeats)
+    repeats = (REPEATS_QUICK if quick else REPEATS) if repeats is None else int(repeats)
     if rho_points is None:
-        rho_points = case.rho_points if case.rho_points is not None else (40 if quick else 400)
+        rho_points = case.rho_points if case.rho_points is not None else (RHO_POINTS_QUICK if quick else RHO_POINTS)
     rho_points = int(rho_points)
     if extension_budget is None:
         extension_budget = EXTENSION_BUDGET_QUICK if quick else EXTENSION_BUDGET

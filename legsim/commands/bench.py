@@ -4,6 +4,9 @@ from __future__ import annotations
 
 import argparse
 
+from ..bench.names import CASE_NAMES, ROBOT_CASES, ROBOT_CONTROLLED
+from ..tables import add_format_argument
+
 NAME = "bench"
 HELP = "benchmarks: work-precision against Paoli-Schatzman and solve_ivp, robots, orbit search, integrator overhead"
 
@@ -12,21 +15,32 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     sub = parser.add_subparsers(dest="bench", metavar="BENCH", required=True)
     wp = sub.add_parser(
         "work-precision",
-        help="error against wall time for every method on one case",
+        help="error against wall time for every method on one case (or every case's short form)",
         description="Sweep h, eps, tolerances and methods on one case, measure the error against "
         "the reference and the wall time, write CASE.csv and CASE.png, print a table "
         "and the speed targets: MET or MISSED by the ratio measured at the target's "
         "error, NOT COMPARABLE where the baseline never reaches it (its sweep is "
-        "extended first, within --extend-budget).",
+        "extended first, within --extend-budget). With --quick and no --case: every case's "
+        "short form, one after the other.",
     )
     wp.add_argument(
-        "--case", required=True, help="oscillator-ex1, oscillator-ex2, bouncing-ball, pronk or double-pendulum"
+        "--case",
+        choices=CASE_NAMES,
+        default=None,
+        help="the case (required without --quick: a full sweep takes minutes per case)",
     )
     wp.add_argument("--out", default=None, help="folder for CASE.csv and CASE.png (default: bench-out)")
-    wp.add_argument("--quick", action="store_true", help="short run, small sweep (seconds; for CI)")
-    wp.add_argument("--repeats", type=int, default=None, help="timed repeats per run, median kept (default 3)")
     wp.add_argument(
-        "--rho-points", type=int, default=None, help="times of the rho grid (default 400, 40 with --quick; 0 skips rho)"
+        "--quick", action="store_true", help="short run, small sweep (seconds; for CI); without --case, every case"
+    )
+    wp.add_argument(
+        "--repeats", type=int, default=None, help="timed repeats per run, median kept (default 3, 1 with --quick)"
+    )
+    wp.add_argument(
+        "--rho-points",
+        type=int,
+        default=None,
+        help="times of the rho grid (default 400, 40 with --quick, 0 for pronk and double-pendulum; 0 skips rho)",
     )
     wp.add_argument(
         "--methods",
@@ -40,17 +54,19 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=None,
         metavar="SECONDS",
         help="wall time the bench may spend refining a baseline's sweep (PS's step, solve_ivp's "
-        "tolerance) towards a target level it never reached (default 60, 5 with --quick; 0: none)",
+        "tolerance) towards a target level it never reached (default 60, 3 with --quick; 0: none)",
     )
     wp.add_argument("--no-figure", action="store_true", help="write the CSV only")
     wp.add_argument("--quiet", action="store_true", help="print only the table and the targets")
+    add_format_argument(wp)
     tg = sub.add_parser(
         "targets",
         help="the table and the targets again, from a CSV written before",
         description="Read OUT/CASE.csv and print its table and the speed targets (no run).",
     )
-    tg.add_argument("--case", required=True, help="the case name")
+    tg.add_argument("--case", required=True, choices=CASE_NAMES, help="the case whose CSV to read")
     tg.add_argument("--out", default="bench-out", help="folder holding CASE.csv (default: bench-out)")
+    add_format_argument(tg)
     rb = sub.add_parser(
         "robots",
         help="the robots on the compiled path against solve_ivp, and the cost limit",
@@ -65,15 +81,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     rb.add_argument(
         "--case",
         action="append",
+        choices=ROBOT_CASES + ROBOT_CONTROLLED,
         default=None,
-        help="compass-gait, rimless-wheel, pronk, double-pendulum, or the controlled slip-raibert or "
-        "quadruped-run (repeatable; default: the four uncontrolled cases)",
+        help=f"a robot case (repeatable; default: the uncontrolled {', '.join(ROBOT_CASES)}; "
+        f"the controlled {', '.join(ROBOT_CONTROLLED)} run only when named)",
     )
     rb.add_argument("--out", default="bench-out", help="folder for the CSV files and figures (default: bench-out)")
     rb.add_argument("--quick", action="store_true", help="short runs, small sweep (for CI)")
     rb.add_argument("--repeats", type=int, default=5, help="timed repeats per run, median kept (default 5)")
     rb.add_argument("--no-figure", action="store_true", help="write the CSV files only")
     rb.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
+    add_format_argument(rb)
     ob = sub.add_parser(
         "orbit",
         help="legsim orbit against a scipy Newton iteration at the same accuracy",
@@ -95,6 +113,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     ov.add_argument("--quick", action="store_true", help="shorter runs")
     ov.add_argument("--json", action="store_true", help="print the measurements as JSON")
+    add_format_argument(ov)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -105,7 +124,7 @@ def run(args: argparse.Namespace) -> int:
     if args.bench == "overhead":
         from ..bench import overhead
 
-        return overhead.main(quick=args.quick, as_json=args.json)
+        return overhead.main(quick=args.quick, as_json=args.json, fmt=args.format)
     if args.bench == "orbit":
         from ..bench import orbit
 
@@ -126,10 +145,19 @@ def run(args: argparse.Namespace) -> int:
             )
         log = None if args.quiet else (lambda s: print(s, file=sys.stderr, flush=True))
         return robots.main(
-            cases, quick=args.quick, out=args.out, repeats=args.repeats, figure=not args.no_figure, log=log
+            cases,
+            quick=args.quick,
+            out=args.out,
+            repeats=args.repeats,
+            figure=not args.no_figure,
+            log=log,
+            fmt=args.format,
         )
+    from dataclasses import replace
+
     from ..bench.targets import evaluate_targets, format_targets
-    from ..bench.work_precision import format_table, read_rows, run_case
+    from ..bench.work_precision import read_rows, rows_table, run_case
+    from ..tables import Table, print_report
 
     if args.bench == "targets":
         from pathlib import Path
@@ -138,10 +166,8 @@ def run(args: argparse.Namespace) -> int:
 
         targets = targets_for(args.case)
         rows = read_rows(Path(args.out) / f"{args.case}.csv")
-        print(format_table(rows))
-        print()
-        print("targets:")
-        print(format_targets(evaluate_targets(rows, targets)) or "- none for this case")
+        verdicts = format_targets(evaluate_targets(rows, targets)) or "- none for this case"
+        print_report([replace(rows_table(rows), title=args.case), "", "targets:", verdicts], args.format)
         return 0
 
     if args.repeats is not None and args.repeats < 1:
@@ -150,27 +176,41 @@ def run(args: argparse.Namespace) -> int:
         raise BenchError(f"--rho-points must be >= 0, got {args.rho_points}")
     if args.extend_budget is not None and not 0 <= args.extend_budget < float("inf"):
         raise BenchError(f"--extend-budget must be a finite number of seconds >= 0, got {args.extend_budget}")
+    if args.case is None and not args.quick:
+        raise BenchError(
+            f"bench work-precision needs --case CASE ({', '.join(CASE_NAMES)}): a full sweep takes minutes "
+            f"per case; --quick without --case runs every case's short form"
+        )
     methods = None if args.methods is None else [m.strip() for m in args.methods.split(",") if m.strip()]
     log = None if args.quiet else (lambda s: print(s, file=sys.stderr, flush=True))
-    result = run_case(
-        args.case,
-        quick=args.quick,
-        out=args.out or "bench-out",
-        repeats=args.repeats,
-        rho_points=args.rho_points,
-        figure=not args.no_figure,
-        log=log,
-        methods=methods,
-        extension_budget=args.extend_budget,
-    )
-    if not result.rows:
-        raise BenchError(f"no run of case {args.case} matches --methods {args.methods}")
-    print(f"# {result.case.name}: {result.case.description}")
-    print(f"# reference: {result.case.reference_note}")
-    print(format_table(result.rows))
-    print()
-    print("targets:")
-    print(format_targets(result.targets) or "- none for this case")
-    print()
-    print(f"wrote {result.csv_path}" + (f" and {result.figure_path}" if result.figure_path else ""))
+    cases = [args.case] if args.case is not None else list(CASE_NAMES)
+    report: list[str | Table] = []
+    for name in cases:
+        result = run_case(
+            name,
+            quick=args.quick,
+            out=args.out or "bench-out",
+            repeats=args.repeats,
+            rho_points=args.rho_points,
+            figure=not args.no_figure,
+            log=log,
+            methods=methods,
+            extension_budget=args.extend_budget,
+        )
+        if not result.rows:
+            continue
+        report += [
+            *([""] if report else []),
+            f"# {result.case.name}: {result.case.description}",
+            f"# reference: {result.case.reference_note}",
+            replace(rows_table(result.rows), title=result.case.name),
+            "",
+            "targets:",
+            format_targets(result.targets) or "- none for this case",
+            "",
+            f"wrote {result.csv_path}" + (f" and {result.figure_path}" if result.figure_path else ""),
+        ]
+    if not report:
+        raise BenchError(f"no run of case {' or '.join(cases)} matches --methods {args.methods}")
+    print_report(report, args.format)
     return 0

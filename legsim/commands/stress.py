@@ -3,7 +3,8 @@
 Each case runs one of the hard cases of hybrid simulation (Zeno, grazing, simultaneous guards,
 resting contact, extremes) and checks invariants that can fail. ``--quick`` runs the short form
 (the one CI runs); without it the full form runs longer horizons and more refinements.
-``--json`` prints a list of objects with at least ``name`` and ``passed``.
+``--json`` prints a list of objects with at least ``name`` and ``passed``; ``--format`` prints
+the table as text, CSV, Markdown or JSON (``legsim.tables``).
 
 Exit codes: 0 when every selected case passes, 1 when one fails (the table says which check
 and why), 2 for a usage error (no case matches the selection).
@@ -15,6 +16,8 @@ import argparse
 import json
 import sys
 
+from ..tables import add_format_argument
+
 NAME = "stress"
 HELP = "run the stress suite (Zeno, grazing, simultaneous guards, resting contact, extremes) and check its invariants"
 
@@ -22,6 +25,7 @@ HELP = "run the stress suite (Zeno, grazing, simultaneous guards, resting contac
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--quick", action="store_true", help="the short form of every case (the one CI runs)")
     parser.add_argument("--json", action="store_true", help="print a JSON list of results (name, passed, checks, ...)")
+    add_format_argument(parser)
     parser.add_argument(
         "--case",
         dest="cases",
@@ -37,7 +41,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from ..errors import LegsimError
     from ..progress import counting
-    from ..stress import CASES, format_table, run_suite, select
+    from ..stress import CASES, report, run_suite, select
+    from ..tables import output_width, print_report
 
     chosen = select(args.cases)
     if not chosen:
@@ -61,6 +66,6 @@ def run(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps([r.to_dict() for r in results], allow_nan=False))
     else:
-        print(f"legsim stress ({'quick' if args.quick else 'full'} form, {len(results)} cases)")
-        print(format_table(results))
+        title = f"legsim stress ({'quick' if args.quick else 'full'} form, {len(results)} cases)"
+        print_report([title, *report(results, output_width(sys.stdout))], args.format)
     return 0 if all(r.passed for r in results) else 1

@@ -23,6 +23,8 @@ from typing import Any
 
 NAME = "sweep"
 HELP = "run variations of a scene (grids, random draws) on Dask: basins of attraction, stability maps"
+#: Random draws of a --random field when --samples is not given.
+RANDOM_SAMPLES = 100
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -43,7 +45,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=[],
         help="uniform random draws of a scene field in [LO, HI) (with --samples, --seed)",
     )
-    axes.add_argument("--samples", type=int, default=None, metavar="N", help="random draws (default 100)")
+    axes.add_argument("--samples", type=int, default=None, metavar="N", help=f"random draws (default {RANDOM_SAMPLES})")
     axes.add_argument("--seed", type=int, default=0, metavar="S", help="seed of the random draws (default 0)")
     axes.add_argument(
         "--set",
@@ -111,7 +113,7 @@ def run(args: argparse.Namespace) -> int:
     from ..sweep.spec import SweepError, SweepSpec, parse_grid, parse_random, scene_reference
 
     if args.random and args.samples is None:
-        args.samples = 100
+        args.samples = RANDOM_SAMPLES
     if args.samples is not None and not args.random:
         raise SweepError("--samples needs a --random field to draw")
     if args.walk and args.no_run:

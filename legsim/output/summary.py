@@ -28,6 +28,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..errors import ModelError
+from ..hybrid import HybridSystem
 
 if TYPE_CHECKING:
     from ..builders import Model
@@ -41,24 +42,26 @@ EnergyFn = Callable[[str, np.ndarray], float]
 def run_summary(
     execution: Execution,
     scene: Scene | None = None,
-    model: Model | None = None,
+    model: Model | HybridSystem | None = None,
     *,
     outputs: Mapping[str, str | Path] | None = None,
 ) -> dict[str, Any]:
     """The JSON-ready summary of ``execution`` (keys: see the module docstring).
 
     ``scene`` (a ``legsim.scene.Scene``) adds its name, robot and file; its model, or else
-    ``model=``, gives the energies at the start and the end of the run. ``outputs`` (kind ->
-    path) is added as ``outputs`` by commands that wrote files.
+    ``model=`` (a ``legsim.builders.Model`` or a ``HybridSystem``), gives the energies at the
+    start and the end of the run. ``outputs`` (kind -> path) is added as ``outputs`` by
+    commands that wrote files.
     """
     if scene is not None:
         model = scene.model
+    system = model if isinstance(model, HybridSystem) else None if model is None else model.system
     out = _execution_keys(execution)
     if scene is not None:
         out["scene"] = scene.name
         out["robot"] = scene.robot
-    if model is not None and model.system.energy is not None and execution.segments:
-        out.update(_energies(execution, model.system.energy, model.system.name))
+    if system is not None and system.energy is not None and execution.segments:
+        out.update(_energies(execution, system.energy, system.name))
     for key, value in execution.counters.items():
         out.setdefault(key, value)
     if scene is not None and getattr(scene, "path", None) is not None:

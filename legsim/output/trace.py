@@ -21,6 +21,7 @@ import numpy as np
 from ..builders import Model
 from ..errors import LegsimError, ModelError, OutputError
 from ..execution import Execution
+from ..hybrid import HybridSystem
 
 #: Default frame rate of geometry frames (per simulated second) and their most.
 DEFAULT_FPS = 60.0
@@ -257,11 +258,16 @@ def scenery_only(model: Model | None) -> dict[str, np.ndarray]:
     return {} if model is None else _scenery(model, 0.0)
 
 
-def resolve_model(scene: Any, model: Model | None, what: str) -> Model | None:
-    """The model of ``scene`` or the ``model=`` keyword of a writer (not both); ``what`` names
-    the writer in the error."""
+def resolve_model(scene: Any, model: Model | HybridSystem | None, what: str) -> Model | None:
+    """The model of ``scene`` or the ``model=`` keyword of a writer (not both): a ``Model``, or
+    a plain ``HybridSystem``, which is taken as a model without geometry or scenery (its
+    energy, when it defines one, is reported). ``what`` names the writer in the errors."""
     if scene is not None:
-        if model is not None and model is not scene.model:
+        if model is not None and model is not scene.model and model is not scene.model.system:
             raise OutputError(f"{what}: give either a scene or model=, not both")
         return scene.model
+    if isinstance(model, HybridSystem):
+        return Model(model, initial_mode=next(iter(model.modes), ""), initial_state={})
+    if model is not None and not isinstance(model, Model):
+        raise OutputError(f"{what}: model= takes a legsim.builders.Model or a HybridSystem, got {type(model).__name__}")
     return model

@@ -34,7 +34,7 @@ module                  responsibility
 ``invariants``          the execution invariants every case checks, ``step_floor`` and
                         ``transition_floor`` (transition bounds), ``check_order`` (convergence),
                         ``check_accumulation`` (the run's accumulation warnings)
-``report``              ``format_table``, the table ``legsim stress`` prints
+``report``              ``report`` and ``format_table``, the table ``legsim stress`` prints
 ``models``              the models the cases run (``build``, ``model_state``, ``lifted_ball``,
                         ``curved_floor_ball``)
 ``reference_checks``    checks against closed forms shared by several families (ball, tanks)
@@ -82,7 +82,7 @@ from .reference_checks import (
     tank_level_rate,
     tank_switch_checks,
 )
-from .report import format_table, invariant_summary
+from .report import format_table, invariant_summary, report
 
 #: ``model_state`` under the name tests/test_property_runner.py calls it by.
 _state = model_state
@@ -127,6 +127,7 @@ __all__ = [
     "oscillator_stick_sequence",
     "pair_checks",
     "pressing_impact_bound",
+    "report",
     "rho_hat",
     "run_suite",
     "select",

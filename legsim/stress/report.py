@@ -7,14 +7,21 @@ import re
 import textwrap
 from collections.abc import Sequence
 
-from ..tables import output_width, render_table
+from ..tables import Table, render_report
 from .framework import CaseResult, Check
 from .invariants import GENERIC
 
 
 def format_table(results: Sequence[CaseResult], width: int | None = None) -> str:
-    """The table ``legsim stress`` prints: one row per case (long cells wrap within ``width``
-    characters, default ``legsim.tables.output_width()``), then the failures spelled out."""
+    """The table ``legsim stress`` prints, as text: long cells wrap within ``width`` characters
+    where their words allow (None: one line per row), then the failures spelled out."""
+    return render_report(report(results, width), "text", width)[0]
+
+
+def report(results: Sequence[CaseResult], width: int | None = None) -> list[str | Table]:
+    """``legsim stress``'s report (``legsim.tables.render_report``): one row per case with its
+    outcome, cost and invariants, then notes: the invariants' letters, the count passed and
+    every failed check, each note wrapped to ``width`` characters (None: not wrapped)."""
     header = ("case", "outcome", "trans.", "steps", "wall s", "invariants checked", "verdict")
     rows = [
         (
@@ -28,7 +35,6 @@ def format_table(results: Sequence[CaseResult], width: int | None = None) -> str
         )
         for r in results
     ]
-    width = width or output_width()
     failed = [r for r in results if not r.passed]
     notes = [
         "invariants: "
@@ -37,8 +43,13 @@ def format_table(results: Sequence[CaseResult], width: int | None = None) -> str
         f"{len(results) - len(failed)} of {len(results)} cases passed",
     ]
     notes += [f"FAIL {r.name}: {f}" for r in failed for f in r.failures]
-    wrapped = [textwrap.fill(note, width, subsequent_indent="    ", break_on_hyphens=False) for note in notes]
-    return "\n".join([render_table(header, rows, right=(2, 3, 4), whole=(0, 2, 3, 4, 6), width=width), "", *wrapped])
+    if width is not None:
+        notes = [
+            textwrap.fill(note, width, subsequent_indent="    ", break_on_hyphens=False, break_long_words=False)
+            for note in notes
+        ]
+    table = Table.of(header, rows, right=(2, 3, 4), whole=(0, 2, 3, 4, 6), title="stress cases")
+    return [table, "", *notes]
 
 
 def invariant_summary(checks: Sequence[Check]) -> str:

@@ -1,7 +1,7 @@
 """The wheel as a user installs it: only the ``legsim`` name in site-packages, the bundled
 scenes found from any directory, and a local folder called ``robots/`` shadowing nothing.
 
-The wheel is built from this checkout and installed with ``pip --target`` into a temporary
+The wheel is built from a copy of this checkout and installed with ``pip --target`` into a temporary
 folder. It runs with ``python -S`` (no site processing, so the checkout's editable install is
 not seen), its dependencies taken from this environment's site-packages minus everything of
 legsim's own."""
@@ -18,6 +18,8 @@ from pathlib import Path
 
 import pytest
 
+from helpers.packaging import source_copy
+
 ROOT = Path(__file__).resolve().parents[2]
 SITE = Path(sysconfig.get_paths()["purelib"])
 
@@ -32,9 +34,10 @@ runpy.run_module("legsim", run_name="__main__")
 @pytest.fixture(scope="module")
 def installed(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("wheel")
+    source = source_copy(tmp / "legsim")
     # The layout is what is tested here: the native extension's compilation is left out.
     subprocess.run(
-        [sys.executable, "-m", "pip", "wheel", "--quiet", "--no-deps", "-w", str(tmp / "dist"), str(ROOT)],
+        [sys.executable, "-m", "pip", "wheel", "--quiet", "--no-deps", "-w", str(tmp / "dist"), str(source)],
         check=True,
         capture_output=True,
         env={**os.environ, "LEGSIM_BUILD_NATIVE": "0"},

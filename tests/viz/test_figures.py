@@ -1,5 +1,6 @@
 """The figure scripts of scenarios/ (paper 003 Fig. 2b/2c, paper 000 Fig. 14b/c and 17) write
-their figure and a recording of each scene they draw, and what they draw is that run."""
+their figure and a recording of each scene they draw, and what they draw is that run; what
+they print is what docs/recording.md shows."""
 
 from __future__ import annotations
 
@@ -9,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from helpers.doc_blocks import session
 from legsim.record import read_rrd
 
 SCENARIOS = Path(__file__).resolve().parents[2] / "scenarios"
@@ -24,17 +26,24 @@ def _script(name: str):
     return module
 
 
+def _as_documented(name: str, printed: str) -> None:
+    """The lines the script ``name`` printed are those docs/recording.md shows under it."""
+    shown = dict(session("docs/recording.md", "## Figures of the papers"))
+    assert printed.splitlines() == shown[f".venv/bin/python scenarios/{name}.py out"]
+
+
 def _needs(*scenes: str) -> None:
     missing = [s for s in scenes if not (SCENARIOS / f"{s}.toml").exists()]
     if missing:
         pytest.skip(f"scene file(s) not written yet: {missing}")
 
 
-def test_double_pendulum_figure_and_recordings(tmp_path):
+def test_double_pendulum_figure_and_recordings(tmp_path, capsys):
     from matplotlib.image import imread
 
     _needs("double_pendulum_plastic_paper", "double_pendulum_zeno_paper")
     assert _script("fig_double_pendulum").main([str(tmp_path)]) == 0
+    _as_documented("fig_double_pendulum", capsys.readouterr().out)
     img = imread(tmp_path / "fig_double_pendulum.png")
     assert img.shape[:2] == (round(8.0 * 130), round(12.0 * 130))
     plastic = read_rrd(tmp_path / "double_pendulum_plastic_paper.rrd")
@@ -58,6 +67,7 @@ def test_oscillator_figure_matches_the_analytical_solution(tmp_path, capsys):
     assert _script("fig_oscillator").main([str(tmp_path)]) == 0
     assert (tmp_path / "fig_oscillator.png").stat().st_size > 10_000
     printed = capsys.readouterr().out
+    _as_documented("fig_oscillator", printed)
     from legsim.systems.oscillator import OscillatorReference
 
     # rho-hat of eq. (30) recomputed from the recording against the closed form (not read
@@ -77,9 +87,10 @@ def test_oscillator_figure_matches_the_analytical_solution(tmp_path, capsys):
         assert float(line.rsplit("=", 1)[1].split()[0]) < bound
 
 
-def test_pronk_snapshot_figure_and_recordings(tmp_path):
+def test_pronk_snapshot_figure_and_recordings(tmp_path, capsys):
     _needs("pronk_paper", "pronk_pitched_paper")
     assert _script("fig_pronk_snapshots").main([str(tmp_path)]) == 0
+    _as_documented("fig_pronk_snapshots", capsys.readouterr().out)
     assert (tmp_path / "fig_pronk_snapshots.png").exists()
     level = read_rrd(tmp_path / "pronk_paper.rrd")
     pitched = read_rrd(tmp_path / "pronk_pitched_paper.rrd")

@@ -4,6 +4,13 @@
 The checks run before any work: ``--spawn`` needs a display, and ``--connect`` an address that
 accepts a connection now, since Rerun's own client only logs, and drops the data, when nothing
 listens there.
+
+Rerun's viewer collects usage analytics unless they are turned off, and a viewer's first run on
+a machine writes a setting that turns them on for every later one. legsim never decides that
+for its user: before it starts a viewer on a machine where Rerun has no analytics setting yet,
+it runs Rerun's documented opt-out, ``rerun analytics disable`` (``viewer_analytics_off``); a
+setting the user made (``rerun analytics enable`` or ``disable``) or ``FORCE_RERUN_ANALYTICS``
+is left alone. Sending to a viewer the user started (``--connect``) starts none.
 """
 
 from __future__ import annotations
@@ -19,12 +26,18 @@ from urllib.parse import urlsplit
 from ...builders import Model
 from ...errors import LegsimError
 from ...execution import Execution
+from ...hybrid import HybridSystem
 from .write import prepare, record, recording_stream
 
 #: Rerun's default port for a viewer or proxy; ``--connect`` without a port uses it.
 DEFAULT_PORT = 9876
 #: Seconds to wait for the viewer's address to accept a connection, and for the sent data.
 CONNECT_TIMEOUT = 5.0
+#: Rerun's environment variable that turns its analytics on whatever the setting: the user's
+#: to set; legsim reads it and never sets it.
+FORCE_ANALYTICS = "FORCE_RERUN_ANALYTICS"
+#: Seconds ``rerun analytics disable`` may take.
+ANALYTICS_TIMEOUT = 60.0
 
 
 def has_display() -> bool:
@@ -40,6 +53,52 @@ def check_display(flag: str, instead: str) -> None:
         raise LegsimError(
             f"{flag} needs a display, and there is none here (DISPLAY and WAYLAND_DISPLAY are unset); {instead}"
         )
+
+
+def rerun_analytics_setting() -> Path:
+    """The file holding Rerun's analytics setting (what ``rerun analytics config`` shows): its
+    ``analytics.json`` in Rerun's configuration folder, found as Rerun finds it (the
+    ``directories`` crate's project folder ``rerun``: XDG on Linux)."""
+    if sys.platform == "darwin":
+        folder = Path.home() / "Library" / "Application Support" / "rerun"
+    elif sys.platform == "win32":
+        folder = Path(os.environ.get("APPDATA") or Path.home() / "AppData" / "Roaming") / "rerun" / "config"
+    else:
+        xdg = os.environ.get("XDG_CONFIG_HOME", "")
+        folder = (Path(xdg) if os.path.isabs(xdg) else Path.home() / ".config") / "rerun"
+    return folder / "analytics.json"
+
+
+def viewer_analytics_off() -> None:
+    """Before legsim starts a Rerun viewer: when Rerun has no analytics setting here yet (its
+    first run would write one that turns them on) and ``FORCE_RERUN_ANALYTICS`` is not set, run
+    Rerun's opt-out ``rerun analytics disable`` and say so on stderr. LegsimError when that
+    fails: the viewer is then not started."""
+    # The values Rerun reads as true (re_log::env_var_flag); any other leaves its setting in charge.
+    forced = os.environ.get(FORCE_ANALYTICS, "").strip().lower() in ("1", "true", "yes", "on")
+    setting = rerun_analytics_setting()
+    if forced or setting.exists():
+        return
+    command = [sys.executable, "-m", "rerun_cli", "analytics", "disable"]
+    try:
+        done = subprocess.run(
+            command, stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=ANALYTICS_TIMEOUT, check=False
+        )
+        reason = f"exit code {done.returncode}: {done.stderr.strip()[-300:]}"
+    except (OSError, subprocess.SubprocessError) as exc:
+        done, reason = None, f"{type(exc).__name__}: {exc}"
+    if done is None or done.returncode != 0 or not setting.exists():
+        raise LegsimError(
+            f"Rerun has no analytics setting here ({setting}), and `rerun analytics disable` failed "
+            f"({reason}); run `rerun analytics disable` (or `rerun analytics enable`) yourself before "
+            f"starting a viewer from legsim"
+        )
+    print(
+        f"legsim: Rerun had no analytics setting here; turned its usage analytics off with "
+        f"`rerun analytics disable` before starting its viewer (setting in {setting}; "
+        f"`rerun analytics enable` turns them on)",
+        file=sys.stderr,
+    )
 
 
 def viewer_url(address: str) -> str:
@@ -89,7 +148,7 @@ def stream_rrd(
     *,
     spawn: bool = False,
     connect: str | None = None,
-    model: Model | None = None,
+    model: Model | HybridSystem | None = None,
     rate: float | None = None,
 ) -> None:
     """Send the recording of ``execution`` (as ``write_rrd`` would write it, with the same
@@ -101,6 +160,8 @@ def stream_rrd(
     if url is not None:
         check_reachable(str(connect), url)
     content = prepare(execution, scene, model, rate, f"--connect {connect}" if connect else "--spawn")
+    if spawn:
+        viewer_analytics_off()
     with recording_stream() as rec:
         if url is not None:
             rec.connect_grpc(url)
@@ -112,6 +173,7 @@ def stream_rrd(
 def open_in_viewer(path: Path) -> None:
     """Open the recording file ``path`` in Rerun's bundled viewer, detached so that the viewer
     outlives this command."""
+    viewer_analytics_off()
     # rerun-sdk runs its bundled viewer as `python -m rerun_cli FILE`.
     subprocess.Popen(
         [sys.executable, "-m", "rerun_cli", str(path)],

@@ -24,6 +24,7 @@ from ...arguments import positive
 from ...builders import Model
 from ...errors import LegsimError, OutputError
 from ...execution import Execution
+from ...hybrid import HybridSystem
 from ..files import write_atomic
 from ..summary import run_summary
 from ..trace import RecordingError, _draw, resolve_model, scenery_only, trace_series
@@ -62,13 +63,14 @@ def write_rrd(
     scene: Any = None,
     path: str | os.PathLike | None = None,
     *,
-    model: Model | None = None,
+    model: Model | HybridSystem | None = None,
     rate: float | None = None,
 ) -> Path:
     """Record ``execution`` to the Rerun file ``path`` headlessly (no viewer, no network).
 
     ``scene`` is a ``legsim.scene.Scene`` (its model gives geometry, scenery and energy) or
-    None with ``model=`` a ``legsim.builders.Model`` (or neither: states and events only).
+    None with ``model=`` a ``legsim.builders.Model`` or a plain ``HybridSystem`` (or neither:
+    states and events only).
     ``rate`` (per simulated second) thins the samples: see ``stream.kept_samples``. The file is written
     to a temporary name, streamed there, and renamed when complete (``legsim.output.files``).
     Returns the path; raises RecordingError naming the file.
@@ -107,7 +109,9 @@ class Content:
     summary: dict[str, Any]
 
 
-def prepare(execution: Execution, scene: Any, model: Model | None, rate: float | None, where: str) -> Content:
+def prepare(
+    execution: Execution, scene: Any, model: Model | HybridSystem | None, rate: float | None, where: str
+) -> Content:
     """The content of a recording, its arguments checked (RecordingError naming ``where``)."""
     if not isinstance(execution, Execution):
         raise RecordingError(f"{where}: write_rrd needs a legsim Execution, got {type(execution).__name__}")

@@ -5,6 +5,7 @@ on the sending side)."""
 
 from __future__ import annotations
 
+import json
 import os
 import shutil
 import signal
@@ -114,6 +115,10 @@ def test_spawn_starts_rerun_and_sends_it_what_rrd_writes(tmp_path, monkeypatch):
     wrapper.chmod(0o755)
     monkeypatch.setenv("PATH", f"{bin_dir}{os.pathsep}{os.environ.get('PATH', '')}")
     monkeypatch.setenv("DISPLAY", ":0")
+    # A machine where Rerun never ran: the viewer legsim starts must not turn its analytics on.
+    monkeypatch.setenv("XDG_CONFIG_HOME", str(tmp_path / "config"))
+    monkeypatch.setenv("XDG_DATA_HOME", str(tmp_path / "data"))
+    monkeypatch.delenv("FORCE_RERUN_ANALYTICS", raising=False)
     try:
         assert main(["run", *RUN, "--rrd", str(written), "--spawn"]) == 0
         settle(saved)
@@ -128,3 +133,5 @@ def test_spawn_starts_rerun_and_sends_it_what_rrd_writes(tmp_path, monkeypatch):
     received, expected = read_rrd(saved), read_rrd(written)
     np.testing.assert_array_equal(received["times"], expected["times"])
     assert _entities(saved) == _entities(written)
+    setting = json.loads((tmp_path / "config" / "rerun" / "analytics.json").read_text())
+    assert setting["analytics_enabled"] is False
