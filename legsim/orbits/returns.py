@@ -23,7 +23,8 @@ Controllers
 A problem with a ``controller`` starts each return with a fresh one restored to the memory
 guess, and reads the memory back at the return: the controller changes its memory only at mode
 entries (``legsim.control``), so the memory at the return is the one after the last mode entry
-before it, recorded as the run enters each mode.
+before it, recorded as the run enters each mode. A ``ControlLaw``'s memory is part of the run's
+state: the return starts from (x, memory) and reads both off the execution.
 
 Period
 ------
@@ -42,7 +43,7 @@ from typing import Any
 import numpy as np
 from scipy.optimize import brentq
 
-from ..control import Controller
+from ..control import ControlLaw, Controller
 from ..errors import LegsimError
 from ..execution import Execution, Segment, TransitionRecord
 from ..hybrid import HybridSystem
@@ -145,13 +146,20 @@ class ReturnMap:
         memory = p.memory_guess if memory is None else np.asarray(memory, dtype=float).reshape(-1)
         last_error: OrbitError | None = None
         for horizon in self._horizons():
-            log = None if p.controller is None else MemoryLog(p.restored_controller(params, memory))
-            ex = self._simulate(system, control if log is None else log, x, horizon)
+            made = None if p.controller is None else p.restored_controller(params, memory)
+            if isinstance(made, ControlLaw):
+                ex = self._simulate(system, made, np.concatenate([x, memory]), horizon)
+                log = None
+            else:
+                log = None if made is None else MemoryLog(made)
+                ex = self._simulate(system, control if log is None else log, x, horizon)
             found = self._locate(ex, x, params)
             if found is not None:
                 self._hint = found.time
                 if log is not None:
                     self._read_memory(found, memory, log)
+                elif made is not None:
+                    found.memory_start = memory.copy()
                 return found
             if ex.status != "finished":
                 raise OrbitError(
@@ -278,9 +286,12 @@ class ReturnMap:
     ) -> Return:
         p = self.problem
         in_strips = sum(s.exit_time - s.time for s in ex.strips if s.exit_time <= t_ret + 1e-12 * max(1.0, t_ret))
+        # A ControlLaw's memory follows the plant's state in the execution's.
+        x_end = np.asarray(x_end, dtype=float)
         ret = Return(
             x_start=x0.copy(),
-            x_end=np.asarray(x_end, dtype=float),
+            x_end=x_end[: p.dim].copy(),
+            memory_end=x_end[p.dim :].copy(),
             mode=p.bound.mode,
             time=t_ret - ex.t0,
             flow_time=t_ret - ex.t0 - in_strips,
