@@ -130,6 +130,68 @@ def python_costs(system: HybridSystem, law: ControlLaw, x: np.ndarray, n: int = 
     return cost
 
 
+@numba.njit
+def _loop_twin_field(field, p, x, n):
+    acc = 0.0
+    t = 0.0
+    for _ in range(n):
+        acc += field(t, x, p)[1]
+        t += 1e-9
+    return acc
+
+
+@numba.njit
+def _loop_twin_guards(guards, p, x, n):
+    acc = 0.0
+    for _ in range(n):
+        acc += guards(x, p)[0]
+        x[1] += 1e-300
+    return acc
+
+
+@numba.njit
+def _loop_twin_resets(resets, p, x, n):
+    acc = 0.0
+    for _ in range(n):
+        acc += resets(x, p, 0)[1]
+        x[1] += 1e-300
+    return acc
+
+
+def twin_costs(twin: Any, x: np.ndarray, n: int = 2_000_000) -> dict[str, float]:
+    """Seconds per call of a ``CompiledMode`` twin's field, guards and resets, called from
+    compiled code (the models still carrying a twin beside their Python callables)."""
+    x = np.array(x, dtype=float)
+    p = twin.params
+    _loop_twin_field(twin.field, p, x.copy(), 10)
+    _loop_twin_guards(twin.guards, p, x.copy(), 10)
+    _loop_empty(p, x.copy(), 10)
+    empty = _best(lambda: _loop_empty(p, x.copy(), n))
+    out = {
+        "field": (_best(lambda: _loop_twin_field(twin.field, p, x.copy(), n)) - empty) / n,
+        "guards": (_best(lambda: _loop_twin_guards(twin.guards, p, x.copy(), n)) - empty) / n,
+        "reset": math.nan,
+    }
+    if twin.resets is not None:
+        _loop_twin_resets(twin.resets, p, x.copy(), 10)
+        out["reset"] = (_best(lambda: _loop_twin_resets(twin.resets, p, x.copy(), n)) - empty) / n
+    return out
+
+
+def callable_costs(system: HybridSystem, mode: str, x: np.ndarray, n: int = 50_000) -> dict[str, float]:
+    """Seconds per call of a mode's Python field, first guard and first reset, from Python."""
+    x = np.array(x, dtype=float)
+    field = system.mode(mode).field
+    tr = system.outgoing(mode)[0] if system.outgoing(mode) else None
+    clock = time.process_time
+    cost = {"field": min(timeit.repeat(lambda: field(0.0, x, None), number=n, repeat=3, timer=clock)) / n}
+    cost["guards"] = cost["reset"] = 0.0
+    if tr is not None:
+        cost["guards"] = min(timeit.repeat(lambda: tr.guard_value(x), number=n, repeat=3, timer=clock)) / n
+        cost["reset"] = min(timeit.repeat(lambda: tr.reset(x), number=n, repeat=3, timer=clock)) / n
+    return cost
+
+
 def interpreted(run: Callable[..., Any]) -> Callable[..., Any]:
     """``run`` with the relaxed loop interpreted (the compiled kernel set aside while it runs)."""
 
