@@ -13,8 +13,9 @@ Resets are the identity. Both modes are written once as compiled model functions
 (``legsim.model``), their flows and watched tank as parameters. When
 ``max(v1, v2) < w < v1 + v2`` the total excess volume ``(x1 - r1) + (x2 - r2)`` falls at the
 constant rate ``v1 + v2 - w`` while every mode visit is a fixed fraction of the previous one,
-so the execution is Zeno: infinitely many switches before ``t_zeno = t0 + excess / (v1 + v2 - w)``. ``TwoTankReference`` gives the switching
-times in closed form.
+so the execution is Zeno: infinitely many switches before
+``t_zeno = t0 + excess / (v1 + v2 - w)``. ``TwoTankReference`` gives the switching times in
+closed form.
 
 Default parameters (w = 0.75, v1 = v2 = 0.5, r1 = r2 = 0) are the usual textbook values; every
 visit then lasts half the previous one after the first two.
