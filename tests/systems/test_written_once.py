@@ -6,6 +6,9 @@ Both paths run one loop source over the same compiled functions, so their arithm
 same operations in the same order: the executions agree to the last bit here, 1e-12 is the
 bound asserted."""
 
+import ast
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -80,3 +83,16 @@ def test_the_grazing_circle_stays_inside_on_the_rotation():
     assert ex.mode_sequence == ["inside"]
     exact = scene.reference.state(scene.initial_state, ex.t_end)
     np.testing.assert_allclose(ex.final_state, exact, atol=1e-5)
+
+
+#: The controllers' modules and the laws they share: a plant's module imports none of them (a
+#: controller is composed with its plant where the run is assembled).
+CONTROLLER_MODULES = {"raibert", "raibert_pronk", "controllers", "hopper_laws", "control_laws", "runner_laws"}
+
+
+@pytest.mark.parametrize("plant", ["slip_hopper.py", "pronk_hopper.py"])
+def test_a_plants_module_imports_no_controller(plant):
+    tree = ast.parse((Path(__file__).resolve().parents[2] / "robots" / plant).read_text())
+    imported = {node.module or "" for node in ast.walk(tree) if isinstance(node, ast.ImportFrom)}
+    imported |= {alias.name for node in ast.walk(tree) if isinstance(node, ast.Import) for alias in node.names}
+    assert {name.rsplit(".", 1)[-1] for name in imported} & CONTROLLER_MODULES == set()
