@@ -21,10 +21,11 @@ the state:
 
 ``RunnerRaibert`` drives articulated legs (a hip and a knee per leg, a point foot): the flight
 posture by a joint PD with gravity compensation on the inverse kinematics of the foot placement,
-the stance spring through the leg Jacobian (tau = J^T f). ``SlipRaibert`` drives the SLIP
-hopper (``robots/slip_hopper.py``): its control is the massless leg's swing rate in flight, a
-servo to the foot placement's leg angle; its spring is passive and the SLIP conserves energy,
-so its hopping height needs no thrust (it trades with the speed).
+the stance spring through the leg Jacobian (tau = J^T f). ``raibert_slip`` (``slip_law``, a
+``ControlLaw`` written once as compiled functions) drives the SLIP hopper
+(``robots/slip_hopper.py``): its input is the massless leg's swing rate in flight, a servo to the
+foot placement's leg angle; its spring is passive and the SLIP conserves energy, so its hopping
+height needs no thrust (it trades with the speed).
 """
 
 from __future__ import annotations
@@ -35,17 +36,17 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
-import numba
 import numpy as np
 import pinocchio as pin
 
 from legsim.builders import Model, Param
-from legsim.control import Controller, ControllerSpec, keeps_law
+from legsim.compiled import model_function
+from legsim.control import ControlLaw, Controller, ControllerSpec, keeps_law
 from legsim.errors import SceneError
 
 from . import runner_laws as laws
-from .control_laws import swing_rate
 from .controllers import bridge_of
+from .hopper_laws import swing_rate_compiled
 from .runner_laws import touchdown_angle
 from .runner_twin import pack_record
 
@@ -92,13 +93,6 @@ def leg_angles(leg: Leg, length: float, angle: float) -> tuple[float, float]:
     """(q_hip, q_knee) putting the foot at ``length`` (m) from the hip, ``angle`` (rad) from the
     body's -z axis towards +x (the knee bent by its sign)."""
     return laws.joint_angles(leg.thigh, leg.shank, leg.bend, length, angle)
-
-
-#: What the SLIP hopper's twins pass to ``SlipRaibert.compiled_record`` (they have no robot object).
-SLIP_TWIN = "slip_hopper"
-#: ``touchdown_angle`` compiled from its Python source, for compiled twins that compute a
-#: Raibert controller (``robots.slip_hopper_twin``): one rule on both paths.
-touchdown_angle_compiled = numba.njit(cache=True, fastmath=False, nogil=True)(touchdown_angle)
 
 
 def find_legs(bridge: Any) -> list[Leg]:
@@ -460,63 +454,68 @@ RUNNER = ControllerSpec(
 )
 
 
-class SlipRaibert(Controller):
-    """Raibert's foot placement for the SLIP hopper: in flight the leg swings at
-    ``k_swing (psi* - psi)`` (rad/s) to ``psi* = asin((xd T_s / 2 + k_x (xd - xd*)) / l)``, T_s the
-    last stance's duration (s), measured at each liftoff (``reset``); 0 in stance."""
-
-    def __init__(self, l: float, speed: float, k_x: float, k_swing: float, stance_time: float) -> None:  # noqa: E741 -- the paper's symbols, also the scene's parameter names
-        self.l, self.speed, self.k_x, self.k_swing = l, speed, k_x, k_swing
-        self.stance_time, self.touchdown, self.in_stance = stance_time, 0.0, False
-
-    def reset(self, mode: str, t: float, x: np.ndarray) -> None:
-        if mode == "stance" and not self.in_stance:
-            self.touchdown = t
-        elif mode == "flight" and self.in_stance:
-            self.stance_time = t - self.touchdown
-        self.in_stance = mode == "stance"
-
-    memory_names = ("T_s",)
-    memory_units = ("s",)
-
-    def memory(self) -> np.ndarray:
-        """The last stance's duration T_s (s), shape (1,): the foot placement of the next flight
-        uses it; the touchdown time is written at each touchdown before it is read."""
-        return np.array([self.stance_time])
-
-    def restore(self, mode: str, memory: np.ndarray) -> None:
-        """Set T_s; a run starting in stance counts its stance from its start (a section in stance
-        must be the one right after the touchdown)."""
-        self.stance_time, self.in_stance = float(np.asarray(memory, dtype=float).reshape(1)[0]), False
-
-    def target_angle(self, xd: float) -> float:
-        """The touchdown leg angle psi* (rad) at forward speed xd (m/s)."""
-        return touchdown_angle(xd, self.stance_time, self.k_x, self.speed, self.l)
-
-    def __call__(self, mode: str, t: float, x: np.ndarray) -> np.ndarray:
-        if mode != "flight":
-            return np.zeros(1)
-        return np.array([swing_rate(self.k_swing, self.target_angle(x[3]), x[2])])
-
-    def compiled_record(self, robot: Any) -> list[float] | None:
-        """The values now of the SLIP hopper twin's control record (``robots.slip_hopper_twin``,
-        ``CTRL_SLIP_RAIBERT``) when ``robot`` is ``SLIP_TWIN`` (the twin asking), else None
-        (another robot's twin, which asks every controller with a record):
-        ``(k_swing (1/s), T_s (s), k_x (s), speed (m/s), l (m))``, T_s as the last ``reset`` left
-        it, l the controller's own leg length (its foot placement's, as on the Python path)."""
-        if robot != SLIP_TWIN:
-            return None
-        return [self.k_swing, self.stance_time, self.k_x, self.speed, self.l]
+#: ``raibert_slip``'s memory: the last stance's duration T_s (s), which the flight law reads;
+#: in stance the time of its touchdown (s), from which the next T_s is measured (0 in flight: a
+#: gait's memory at a flight section is then periodic whatever the time the return starts at);
+#: and 1 while the hopper stands (0 in flight), so that a run's first entry into flight keeps the
+#: T_s it starts with (an entry function is told the mode entered, not the one left).
+SLIP_MEMORY = ("T_s", "t_touchdown", "stance")
+SLIP_MEMORY_UNITS = ("s", "s", "")
+M_STANCE_TIME, M_TOUCHDOWN, M_STANCE = range(len(SLIP_MEMORY))
+#: ``raibert_slip``'s parameters in each mode: swing gain (1/s), placement gain (s), commanded
+#: speed (m/s), the leg length its placement uses (m), and 1 in stance (0 in flight).
+C_K_SWING, C_K_X, C_SPEED, C_LENGTH, C_STANCE = range(5)
 
 
-def _make_slip(model: Model, params: dict[str, Any]) -> SlipRaibert:
+@model_function
+def slip_placement(t: float, x: np.ndarray, m: np.ndarray, p: np.ndarray, u: np.ndarray) -> None:
+    """``raibert_slip``'s input: in flight the swing rate ``k_swing (psi* - psi)`` (rad/s) to
+    ``psi* = asin((xd T_s / 2 + k_x (xd - xd*)) / l)`` (``runner_laws.touchdown_angle``), T_s the
+    memory's last stance duration; 0 in stance (the stance takes no input)."""
+    if p[C_STANCE] != 0.0:
+        u[0] = 0.0
+        return
+    target = touchdown_angle(x[3], m[M_STANCE_TIME], p[C_K_X], p[C_SPEED], p[C_LENGTH])
+    u[0] = swing_rate_compiled(p[C_K_SWING], target, x[2])
+
+
+@model_function
+def slip_stance_clock(t: float, x: np.ndarray, m: np.ndarray, p: np.ndarray, m_new: np.ndarray) -> None:
+    """``raibert_slip`` entering a mode at t (s): a touchdown notes its time, a liftoff sets T_s to
+    the stance's duration and the touchdown time to 0 (``SLIP_MEMORY``)."""
+    landing = p[C_STANCE] != 0.0
+    standing = m[M_STANCE] > 0.5
+    m_new[M_STANCE_TIME] = t - m[M_TOUCHDOWN] if standing and not landing else m[M_STANCE_TIME]
+    m_new[M_TOUCHDOWN] = (t if not standing else m[M_TOUCHDOWN]) if landing else 0.0
+    m_new[M_STANCE] = 1.0 if landing else 0.0
+
+
+def slip_law(length: float, speed: float, k_x: float, k_swing: float, stance_time: float) -> ControlLaw:
+    """Raibert's foot placement for the SLIP hopper (``slip_placement``, ``slip_stance_clock``):
+    its leg of ``length`` (m), commanded ``speed`` (m/s), gains ``k_x`` (s) and ``k_swing`` (1/s),
+    and the stance duration ``stance_time`` (s) assumed before the first liftoff."""
+    gains = [k_swing, k_x, speed, length]
+    params = {"flight": np.array([*gains, 0.0]), "stance": np.array([*gains, 1.0])}
+    return ControlLaw(
+        "raibert_slip",
+        slip_placement,
+        1,
+        params.__getitem__,
+        slip_stance_clock,
+        SLIP_MEMORY,
+        SLIP_MEMORY_UNITS,
+        (stance_time, 0.0, 0.0),
+    )
+
+
+def _make_slip(model: Model, params: dict[str, Any]) -> ControlLaw:
     hopper = model.info.get("slip_hopper") if isinstance(model.info, dict) else None
     if hopper is None:
         raise SceneError(
             f"controller 'raibert_slip' drives the SLIP hopper (robot 'slip_hopper'); {model.system.name} is not one"
         )
     stance_time = params["stance_time"] or math.pi * math.sqrt(hopper["m"] / hopper["k"])
-    return SlipRaibert(hopper["l"], params["speed"], params["k_x"], params["k_swing"], stance_time)
+    return slip_law(hopper["l"], params["speed"], params["k_x"], params["k_swing"], stance_time)
 
 
 SLIP = ControllerSpec(

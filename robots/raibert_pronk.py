@@ -10,9 +10,9 @@ torque alone could make the ground pull on it). The springs are passive, so (as 
 SLIP hopper) the hopping height trades with the speed and needs no thrust; with the pitch at 0,
 the servo does no work and the energy is conserved.
 
-On the compiled path the pronk hopper's twins compute this law (``robots/pronk_hopper_twin.py``)
-from its record (``compiled_record``), written at every mode entry after ``reset``, with the
-same scalar rules compiled (``touchdown_angle``, ``stance_torque``).
+Written once as a ``ControlLaw`` of compiled functions (``raibert_pronk_input``,
+``raibert_pronk_clock``), with the hopper's own geometry helpers: the compiled kernel and the
+Python loop evaluate the same law. Its memory (``MEMORY``) is part of the run's state.
 """
 
 from __future__ import annotations
@@ -23,117 +23,92 @@ from typing import Any
 import numpy as np
 
 from legsim.builders import Model, Param
-from legsim.control import Controller, ControllerSpec, keeps_law
+from legsim.compiled import model_function
+from legsim.control import ControlLaw, ControllerSpec
 from legsim.errors import SceneError
 
-from .control_laws import attitude_share, swing_rate
-from .pronk_hopper import LEGS, MODES, PronkHopper, state_names
-from .raibert import touchdown_angle
+from .hopper_laws import attitude_share_compiled, swing_rate_compiled
+from .pronk_hopper import LEGS, MODES, PronkHopper, leg_coordinate, leg_in_stance
+from .runner_laws import touchdown_angle
 
 #: The share of a stance leg's spring push on the ground that its hip torque may take off.
 NORMAL_SHARE = 0.5
-#: ``PronkRaibert.compiled_record``'s layout, which the pronk hopper's compiled twin reads
-#: (``robots/pronk_hopper_twin.py``): its kind, then the controller's values now.
-RECORD_NAMES = ("kind", "k_swing", "kp_attitude", "kd_attitude", "speed", "k_x", "l", "k", "T_s_left", "T_s_right")
-#: The methods that compute ``PronkRaibert``'s input, which its compiled twin computes from the record.
-LAW = ("__call__", "target_angle")
-#: The kind of ``compiled_record`` (0.0 is the twin's record of a run without control).
-RECORD_KIND = 1.0
+#: The memory, per leg in ``LEGS`` order: the last stance's duration T_s (s), which the leg's
+#: flight law reads; while it stands, the time of its touchdown (s), from which the next T_s is
+#: measured (0 in flight: a gait's memory at a flight section is then periodic whatever the time
+#: the return starts at); and 1 while it stands (0 in flight), so that a run's first entry keeps
+#: the T_s it starts with (an entry function is told the mode entered, not the one left).
+MEMORY = ("T_s_left", "T_s_right", "t_touchdown_left", "t_touchdown_right", "stance_left", "stance_right")
+MEMORY_UNITS = ("s", "s", "s", "s", "", "")
+M_STANCE_TIME, M_TOUCHDOWN, M_STANCE = 0, 2, 4
+#: The parameters in each mode: gains, commanded speed, the hopper's leg length l (m), stiffness
+#: k (N/m) and hip spacing d (m) the law uses, then 1.0 for each leg standing there (LEGS order).
+C_K_SWING, C_KP, C_KD, C_SPEED, C_K_X, C_L, C_K, C_D, C_LEFT, C_RIGHT = range(10)
 
 
+@model_function
 def stance_torque(share: float, k: float, l: float, r: float, n_x: float, n_z: float) -> float:  # noqa: E741 -- the paper's symbol
     """The hip torque (N m) of a stance leg asked for ``share`` (N m): the leg of length r (m),
     stiffness k (N/m) and rest length l (m), its unit vector foot -> hip (n_x, n_z). The
     ground's normal force is ``k (l - r) n_z + (torque / r) n_x`` (pronk_hopper), so a torque
-    within ``NORMAL_SHARE k (l - r) r n_z / |n_x|`` keeps it at least half the spring's push.
-    Plain scalar code: the compiled twin compiles this same function."""
+    within ``NORMAL_SHARE k (l - r) r n_z / |n_x|`` keeps it at least half the spring's push."""
     push = k * max(l - r, 0.0) * n_z
     limit = NORMAL_SHARE * push * r / max(abs(n_x), 1e-12)
     return max(-limit, min(limit, share))
 
 
-class PronkRaibert(Controller):
-    """Raibert's foot placement and stance attitude servo for the pronk hopper (module docstring).
-
-    Memory: each leg's last stance duration, ``T_s_left, T_s_right`` (s); the touchdown times it
-    measures from are written at each touchdown before they are read.
-    """
-
-    memory_names = ("T_s_left", "T_s_right")
-    memory_units = ("s", "s")
-
-    def __init__(self, hopper: PronkHopper, gains: dict[str, float]) -> None:
-        """``gains``: the ``PRONK`` parameters by name, ``stance_time`` resolved (s)."""
-        self.hopper, self.l = hopper, hopper.l
-        self.speed, self.k_x, self.k_swing = gains["speed"], gains["k_x"], gains["k_swing"]
-        self.kp, self.kd = gains["kp_attitude"], gains["kd_attitude"]
-        self.stance_time = dict.fromkeys(LEGS, gains["stance_time"])
-        self.touchdown = dict.fromkeys(LEGS, 0.0)
-        self.in_stance: tuple[str, ...] = ()
-
-    def reset(self, mode: str, t: float, x: np.ndarray) -> None:
-        """Entering ``mode`` at t (s): a leg that lands notes the time, one that leaves its T_s."""
-        stance = MODES[mode]
-        for leg in LEGS:
-            if leg in stance and leg not in self.in_stance:
-                self.touchdown[leg] = t
-            elif leg in self.in_stance and leg not in stance:
-                self.stance_time[leg] = t - self.touchdown[leg]
-        self.in_stance = stance
-
-    def memory(self) -> np.ndarray:
-        """Each leg's last stance duration (s), shape (2,), in ``LEGS`` order."""
-        return np.array([self.stance_time[leg] for leg in LEGS])
-
-    def restore(self, mode: str, memory: np.ndarray) -> None:
-        """Set each leg's T_s for a run starting in flight: in stance the touchdown a T_s is
-        measured from would be memory too, so a section there is refused."""
-        if MODES[mode]:
-            raise SceneError(
-                f"controller 'raibert_pronk' restores its memory at a section in flight ('aerial'), not in "
-                f"'{mode}': a leg in stance measures its stance from a touchdown before the section"
-            )
-        values = np.asarray(memory, dtype=float).reshape(len(LEGS))
-        self.stance_time = {leg: float(value) for leg, value in zip(LEGS, values, strict=True)}
-        self.in_stance = ()
-
-    def target_angle(self, leg: str, theta: float, xd: float) -> float:
-        """The leg's touchdown angle psi* (rad, from the body's downward normal) at pitch theta
-        (rad) and forward speed xd (m/s)."""
-        return touchdown_angle(xd, self.stance_time[leg], self.k_x, self.speed, self.l) + theta
-
-    def __call__(self, mode: str, t: float, x: np.ndarray) -> np.ndarray:
-        """``(swing_left, swing_right, torque_left, torque_right)``, rad/s and N m."""
-        stance = MODES[mode]
-        names = state_names(stance)
-        u = np.zeros(4)
-        for i, leg in enumerate(LEGS):
-            if leg in stance:
-                share = attitude_share(self.kp, self.kd, x[2], x[5], len(stance))
-                n, r, _ = self.hopper.leg_in_stance(leg, x, x[names.index(f"{leg}_foot_x")])
-                u[2 + i] = stance_torque(share, self.hopper.k, self.l, r, n[0], n[1])
-            else:
-                psi = x[names.index(f"psi_{leg}")]
-                u[i] = swing_rate(self.k_swing, self.target_angle(leg, x[2], x[3]), psi)
-        return u
-
-    def compiled_record(self, hopper: Any) -> list[float] | None:
-        """The control record (``RECORD_NAMES``) of ``hopper``'s compiled twin: the gains, each
-        leg's T_s now (s), and the leg length l (m) and stiffness k (N/m) the law uses; None for
-        another robot, or a pronk hopper whose hips are spaced otherwise (the twin takes the
-        legs' geometry from its own hopper), or a subclass that changes the law (``__call__``,
-        ``target_angle``), which the twin would not follow."""
-        if not isinstance(hopper, PronkHopper) or hopper.d != self.hopper.d or not keeps_law(self, PronkRaibert, LAW):
-            return None
-        gains = [self.k_swing, self.kp, self.kd, self.speed, self.k_x, self.l, self.hopper.k]
-        # Each leg's T_s as target_angle reads it (memory() is the orbit search's view, which a
-        # subclass may list otherwise).
-        return [RECORD_KIND, *map(float, gains), *(float(self.stance_time[leg]) for leg in LEGS)]
+@model_function
+def raibert_pronk_input(t: float, x: np.ndarray, m: np.ndarray, p: np.ndarray, u: np.ndarray) -> None:
+    """``u = (swing_left, swing_right, torque_left, torque_right)`` (rad/s, N m) at the plant's
+    state x in the mode whose standing legs p names (module docstring)."""
+    left, right = p[C_LEFT], p[C_RIGHT]
+    for leg in range(2):
+        at = leg_coordinate(left, right, leg)
+        if (left if leg == 0 else right) != 0.0:
+            share = attitude_share_compiled(p[C_KP], p[C_KD], x[2], x[5], left + right)
+            n0, n1, r, _ = leg_in_stance(x, p[C_D], leg, x[at])
+            u[2 + leg] = stance_torque(share, p[C_K], p[C_L], r, n0, n1)
+            u[leg] = 0.0
+        else:
+            target = touchdown_angle(x[3], m[M_STANCE_TIME + leg], p[C_K_X], p[C_SPEED], p[C_L]) + x[2]
+            u[leg] = swing_rate_compiled(p[C_K_SWING], target, x[at])
+            u[2 + leg] = 0.0
 
 
-def _make(model: Model, params: dict[str, Any]) -> PronkRaibert:
+@model_function
+def raibert_pronk_clock(t: float, x: np.ndarray, m: np.ndarray, p: np.ndarray, m_new: np.ndarray) -> None:
+    """Entering a mode at t (s): a leg that lands notes the time, a leg that leaves sets its T_s to
+    its stance's duration and its touchdown time to 0 (``MEMORY``)."""
+    for leg in range(2):
+        landing = (p[C_LEFT] if leg == 0 else p[C_RIGHT]) != 0.0
+        standing = m[M_STANCE + leg] > 0.5
+        stance_time, touchdown = m[M_STANCE_TIME + leg], m[M_TOUCHDOWN + leg]
+        m_new[M_STANCE_TIME + leg] = t - touchdown if standing and not landing else stance_time
+        m_new[M_TOUCHDOWN + leg] = (t if not standing else touchdown) if landing else 0.0
+        m_new[M_STANCE + leg] = 1.0 if landing else 0.0
+
+
+def pronk_law(hopper: PronkHopper, gains: dict[str, float]) -> ControlLaw:
+    """Raibert's pronk controller for ``hopper``; ``gains``: the ``PRONK`` parameters by name,
+    ``stance_time`` (s) resolved: the T_s of both legs before their first liftoff."""
+    values = [gains[name] for name in ("k_swing", "kp_attitude", "kd_attitude", "speed", "k_x")]
+    values += [hopper.l, hopper.k, hopper.d]
+    params = {mode: np.array([*values, *(float(leg in stance) for leg in LEGS)]) for mode, stance in MODES.items()}
+    stance_time = float(gains["stance_time"])
+    return ControlLaw(
+        "raibert_pronk",
+        raibert_pronk_input,
+        4,
+        params.__getitem__,
+        raibert_pronk_clock,
+        MEMORY,
+        MEMORY_UNITS,
+        (stance_time, stance_time, 0.0, 0.0, 0.0, 0.0),
+    )
+
+
+def _make(model: Model, params: dict[str, Any]) -> ControlLaw:
     """The controller for a pronk hopper model (SceneError for any other robot)."""
-
     hopper = model.info.get("pronk_hopper") if isinstance(model.info, dict) else None
     if not isinstance(hopper, PronkHopper):
         raise SceneError(
@@ -142,7 +117,7 @@ def _make(model: Model, params: dict[str, Any]) -> PronkRaibert:
     gains = dict(params)
     # Two legs share the body in stance: half the spring-mass period of the body on both springs.
     gains["stance_time"] = params["stance_time"] or math.pi * math.sqrt(hopper.m / (2 * hopper.k))
-    return PronkRaibert(hopper, gains)
+    return pronk_law(hopper, gains)
 
 
 PRONK = ControllerSpec(

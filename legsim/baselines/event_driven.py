@@ -14,10 +14,11 @@ made as good as it reasonably gets so that comparisons against it mean something
   unchanged (a graze at zero speed) is not fired again on that same state,
 * a trial step that leaves the model's range (``ModelBreakdown`` from a field or guard) ends the
   run with status ``model_breakdown``,
-* a ``legsim.control.Controller`` runs as in the relaxed integrator (``legsim.control.bind``): told
-  the mode, reset at the start and at every mode entry (each transition of a chain), evaluated
-  wherever the field or a guard is. A held controller (``hold=True``) is refused: its value is
-  sampled at the start of each step, and solve_ivp's steps are not the integrator's to sample.
+* a ``legsim.control.Controller`` (or a ``ControlLaw``, run as one: ``LawController``) runs as
+  in the relaxed integrator (``legsim.control.bind``): told the mode, reset at the start and at
+  every mode entry (each transition of a chain), evaluated wherever the field or a guard is. A
+  held controller (``hold=True``) is refused: its value is sampled at the start of each step,
+  and solve_ivp's steps are not the integrator's to sample.
 
 It returns a ``legsim.Execution`` so that the same metric and error code apply to it.
 """
@@ -32,7 +33,7 @@ from typing import Any, Literal, cast
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from ..control import Bound, Controller, bind
+from ..control import Bound, ControlLaw, Controller, bind
 from ..errors import ModelBreakdown, SimulationError
 from ..execution import Execution, Segment, Strip, TransitionRecord
 from ..hybrid import HybridSystem, Transition
@@ -245,9 +246,41 @@ class _EventRun:
         self.dense.append(None)
 
 
+class LawController(Controller):
+    """A ``ControlLaw`` run as a Python ``Controller``: its functions evaluated from Python on a
+    memory kept here (shape (len(memory_names),)), which its entry function updates at every
+    mode entry, as the relaxed loop does."""
+
+    def __init__(self, law: ControlLaw) -> None:
+        self.law, self.hold = law, law.hold
+        self.memory_names, self.memory_units = law.memory_names, law.memory_units
+        self.values = np.array(law.initial_memory, dtype=float)
+
+    def reset(self, mode: str, t: float, x: np.ndarray) -> None:
+        if self.law.enter is not None:
+            entered = np.empty_like(self.values)
+            state = np.ascontiguousarray(x, dtype=float)
+            self.law.enter(float(t), state, self.values, self.law.params_for(mode), entered)
+            self.values = entered
+
+    def memory(self) -> np.ndarray:
+        return self.values.copy()
+
+    def restore(self, mode: str, memory: np.ndarray) -> None:
+        self.values = np.array(memory, dtype=float).reshape(self.values.shape)
+
+    def __call__(self, mode: str, t: float, x: np.ndarray) -> np.ndarray:
+        u = np.zeros(self.law.inputs)
+        state = np.ascontiguousarray(x, dtype=float)
+        self.law.control(float(t), state, self.values, self.law.params_for(mode), u)
+        return u
+
+
 def _bound_control(control: Any) -> Any:
-    """What the loop calls as ``u(t, x)``: the control itself, or a Controller bound to the mode;
-    SimulationError for anything else and for a held Controller."""
+    """What the loop calls as ``u(t, x)``: the control itself, or a Controller (a ControlLaw run
+    as one) bound to the mode; SimulationError for anything else and for a held Controller."""
+    if isinstance(control, ControlLaw):
+        control = LawController(control)
     if control is not None and not callable(control):
         raise SimulationError(
             f"control must be callable control(t, x) -> u or None, got {type(control).__name__}; "

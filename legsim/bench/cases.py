@@ -101,6 +101,9 @@ class Case:
     info: dict[str, Any] = field(default_factory=dict)
     # (system, control) of the runs with continuation (RunSpec.zeno); None: the case has none.
     zeno_system: tuple[HybridSystem, Any] | None = None
+    # The control of every run (the oscillator's forcing law, also callable as u(t, x) for
+    # solve_ivp); None: none.
+    control: Any = None
 
 
 # ----------------------------------------------------------------------------------------------
@@ -201,11 +204,12 @@ def targets_for(name: str, quick: bool = False) -> list[Target]:
 # The cases
 # ----------------------------------------------------------------------------------------------
 def _oscillator(example: str, quick: bool) -> Case:
-    from ..systems.fast import make_oscillator_example
-    from ..systems.oscillator import EXAMPLES, OscillatorReference
+    from ..systems.oscillator import EXAMPLES, OscillatorReference, forcing, make_system
 
-    system, x0, t_max = make_oscillator_example(example)
     p = EXAMPLES[example]
+    system = make_system(p["omega"], p["a"], p["x_max"], p["c"], p["mass"])
+    control = forcing(p["amplitude"], p["frequency"])
+    x0, t_max = np.array([p["x0"], p["xd0"]]), float(p["t_max"])
     ref = OscillatorReference.example(example)
     ps = {
         "a": p["a"],
@@ -280,18 +284,18 @@ def _oscillator(example: str, quick: bool) -> Case:
         targets=targets,
         ps=ps,
         reference_execution=ref,
-        # The compiled twin names the stop's continuation too (stick, release at the forcing's
-        # sign change): the -zeno runs step in the kernel and cross in Python.
-        zeno_system=(system, None) if example == "ex2" else None,
+        # The model names the stop's continuation too (stick, release at the forcing's sign
+        # change), compiled as the rest of it.
+        zeno_system=(system, control) if example == "ex2" else None,
+        control=control,
     )
 
 
 def _bouncing_ball(quick: bool) -> Case:
-    from ..systems.bouncing_ball import BouncingBallReference
-    from ..systems.fast import make_bouncing_ball
+    from ..systems.bouncing_ball import BouncingBallReference, make_system
 
     g, c = 9.81, 0.8
-    system = make_bouncing_ball(g, c)
+    system = make_system(g, c)
     ref = BouncingBallReference(g, c, 1.0, 0.0)
     # Before the Zeno time (4.06 s): the event-driven baseline cannot pass it.
     t_final = 1.0 if quick else 3.0

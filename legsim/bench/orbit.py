@@ -80,7 +80,8 @@ class StepMap:
     def _mode_pieces(self, mode: str) -> tuple[Callable, list, list]:
         field = self.system.mode(mode).field
         transitions = self.system.outgoing(mode)
-        events = [_GuardEvent(tr.guard) for tr in transitions]
+        # guard_value: a mode's model functions give guards of (t, x, u)
+        events = [_GuardEvent(lambda y, tr=tr: tr.guard_value(y)) for tr in transitions]
         return (lambda t, y: field(t, y, None)), transitions, events
 
     def __call__(self, x: np.ndarray) -> np.ndarray:

@@ -7,7 +7,8 @@ Times are CPU times of this process (``time.process_time``), not wall-clock time
 machine shared with other jobs the wall clock also counts the time this process waits for a
 core, which can double a short measurement; CPU time counts the work. Evaluations are the
 run's own counters; one evaluation's cost is timed in a loop of the same kind as the caller's
-(a numba loop for the compiled path, a Python loop for the Python path), so the overhead is
+(a numba loop for the compiled kernel, a Python loop for the interpreted loop, which calls
+the same compiled model functions from Python), so the overhead is
 what the integrator adds around the model.
 """
 
@@ -15,50 +16,56 @@ from __future__ import annotations
 
 import json
 import math
-import statistics
 import time
 import timeit
 from collections.abc import Callable
-from functools import partial
 from typing import Any
-from unittest.mock import patch
 
 import numba
 import numpy as np
 
-from ..compiled import without_compiled
-from ..relaxed import simulate
-from ..systems.fast import make_bouncing_ball, make_oscillator, make_oscillator_example
-from ..tables import Table, print_report, render_report
+from ..control import ControlLaw
+from ..hybrid import HybridSystem
+from ..relaxed import driver, simulate
+from ..systems import bouncing_ball
+from ..systems import oscillator as osc
+from ..tables import render_table
 
 
-# The loops that take a twin's functions as arguments are compiled in each process, not cached:
+# The loops that take model functions as arguments are compiled in each process, not cached:
 # numba's cache keys them by the argument functions' types, and an entry made for a function
 # whose source later changed cannot be loaded again ("underlying object has vanished").
 @numba.njit
-def _loop_field(field, p, x, n):
+def _loop_field(control, pc, field, p, x, n):
+    u, m, dx = np.zeros(1), np.zeros(0), np.empty(x.shape[0])
     acc = 0.0
     t = 0.0
     for _ in range(n):
-        acc += field(t, x, p)[1]
+        control(t, x, m, pc, u)
+        field(t, x, u, p, dx)
+        acc += dx[1]
         t += 1e-9
     return acc
 
 
 @numba.njit
 def _loop_guards(guards, p, x, n):
+    u, g = np.zeros(1), np.empty(1)
     acc = 0.0
     for _ in range(n):
-        acc += guards(x, p)[0]
+        guards(0.0, x, u, p, g)
+        acc += g[0]
         x[1] += 1e-300
     return acc
 
 
 @numba.njit
-def _loop_resets(resets, p, x, n):
+def _loop_resets(reset, p, x, n):
+    u, out = np.zeros(1), np.empty(x.shape[0])
     acc = 0.0
     for _ in range(n):
-        acc += resets(x, p, 0)[1]
+        reset(0, 0.0, x, u, p, out)
+        acc += out[1]
         x[1] += 1e-300
     return acc
 
@@ -82,41 +89,127 @@ def _best(fn: Callable[[], Any], repeats: int = 3) -> float:
     return min(times)
 
 
-def compiled_costs(twin, x: np.ndarray, n: int = 2_000_000) -> dict[str, float]:
-    """Seconds per call of the twin's field, guards and resets, called from compiled code."""
+def compiled_costs(system: HybridSystem, law: ControlLaw, x: np.ndarray, n: int = 2_000_000) -> dict[str, float]:
+    """Seconds per call of mode ``free``'s field (with the forcing law evaluated before it, as the
+    loop does), guards and reset, called from compiled code."""
     x = np.array(x, dtype=float)
-    p = twin.params
+    functions = system.mode(osc.MODE).functions
+    p, pc = functions.params, law.params_for(osc.MODE)
     # compile each loop before it is timed
-    _loop_field(twin.field, p, x.copy(), 10)
-    _loop_guards(twin.guards, p, x.copy(), 10)
+    _loop_field(law.control, pc, functions.field, p, x.copy(), 10)
     _loop_empty(p, x.copy(), 10)
     empty = _best(lambda: _loop_empty(p, x.copy(), n))
-    out = {
-        "field": (_best(lambda: _loop_field(twin.field, p, x.copy(), n)) - empty) / n,
-        "guards": (_best(lambda: _loop_guards(twin.guards, p, x.copy(), n)) - empty) / n,
-    }
-    if twin.resets is not None:
-        _loop_resets(twin.resets, p, x.copy(), 10)
-        out["reset"] = (_best(lambda: _loop_resets(twin.resets, p, x.copy(), n)) - empty) / n
+    out = {"field": (_best(lambda: _loop_field(law.control, pc, functions.field, p, x.copy(), n)) - empty) / n}
+    if functions.guards is not None:
+        _loop_guards(functions.guards, p, x.copy(), 10)
+        out["guards"] = (_best(lambda: _loop_guards(functions.guards, p, x.copy(), n)) - empty) / n
+        _loop_resets(functions.reset, p, x.copy(), 10)
+        out["reset"] = (_best(lambda: _loop_resets(functions.reset, p, x.copy(), n)) - empty) / n
     else:
-        out["reset"] = math.nan
+        out["guards"], out["reset"] = 0.0, math.nan
     return out
 
 
-def python_costs(system, mode: str, x: np.ndarray, n: int = 50_000) -> dict[str, float]:
-    """Seconds per call of the Python field, first guard and first reset, from a Python loop."""
+def python_costs(system: HybridSystem, law: ControlLaw, x: np.ndarray, n: int = 50_000) -> dict[str, float]:
+    """Seconds per call of mode ``free``'s field (with the forcing law), guards and reset as the
+    interpreted loop calls them: the same compiled functions, from Python."""
+    x = np.array(x, dtype=float)
+    functions = system.mode(osc.MODE).functions
+    p, pc = functions.params, law.params_for(osc.MODE)
+    u, m, dx, g, out = np.zeros(1), np.zeros(0), np.empty(2), np.empty(1), np.empty(2)
+
+    def field() -> None:
+        law.control(0.0, x, m, pc, u)
+        functions.field(0.0, x, u, p, dx)
+
+    clock = time.process_time
+    cost = {"field": min(timeit.repeat(field, number=n, repeat=3, timer=clock)) / n}
+    guards, reset = functions.guards, functions.reset
+    cost["guards"] = min(timeit.repeat(lambda: guards(0.0, x, u, p, g), number=n, repeat=3, timer=clock)) / n
+    cost["reset"] = min(timeit.repeat(lambda: reset(0, 0.0, x, u, p, out), number=n, repeat=3, timer=clock)) / n
+    return cost
+
+
+@numba.njit
+def _loop_twin_field(field, p, x, n):
+    acc = 0.0
+    t = 0.0
+    for _ in range(n):
+        acc += field(t, x, p)[1]
+        t += 1e-9
+    return acc
+
+
+@numba.njit
+def _loop_twin_guards(guards, p, x, n):
+    acc = 0.0
+    for _ in range(n):
+        acc += guards(x, p)[0]
+        x[1] += 1e-300
+    return acc
+
+
+@numba.njit
+def _loop_twin_resets(resets, p, x, n):
+    acc = 0.0
+    for _ in range(n):
+        acc += resets(x, p, 0)[1]
+        x[1] += 1e-300
+    return acc
+
+
+def twin_costs(twin: Any, x: np.ndarray, n: int = 2_000_000) -> dict[str, float]:
+    """Seconds per call of a ``CompiledMode`` twin's field, guards and resets, called from
+    compiled code (the models still carrying a twin beside their Python callables)."""
+    x = np.array(x, dtype=float)
+    p = twin.params
+    _loop_twin_field(twin.field, p, x.copy(), 10)
+    _loop_twin_guards(twin.guards, p, x.copy(), 10)
+    _loop_empty(p, x.copy(), 10)
+    empty = _best(lambda: _loop_empty(p, x.copy(), n))
+    out = {
+        "field": (_best(lambda: _loop_twin_field(twin.field, p, x.copy(), n)) - empty) / n,
+        "guards": (_best(lambda: _loop_twin_guards(twin.guards, p, x.copy(), n)) - empty) / n,
+        "reset": math.nan,
+    }
+    if twin.resets is not None:
+        _loop_twin_resets(twin.resets, p, x.copy(), 10)
+        out["reset"] = (_best(lambda: _loop_twin_resets(twin.resets, p, x.copy(), n)) - empty) / n
+    return out
+
+
+def callable_costs(system: HybridSystem, mode: str, x: np.ndarray, n: int = 50_000) -> dict[str, float]:
+    """Seconds per call of a mode's Python field, first guard and first reset, from Python."""
     x = np.array(x, dtype=float)
     field = system.mode(mode).field
     tr = system.outgoing(mode)[0] if system.outgoing(mode) else None
-    number = n
     clock = time.process_time
-    cost = {"field": min(timeit.repeat(lambda: field(0.0, x, None), number=number, repeat=3, timer=clock)) / number}
+    cost = {"field": min(timeit.repeat(lambda: field(0.0, x, None), number=n, repeat=3, timer=clock)) / n}
+    cost["guards"] = cost["reset"] = 0.0
     if tr is not None:
-        cost["guards"] = min(timeit.repeat(lambda: tr.guard(x), number=number, repeat=3, timer=clock)) / number
-        cost["reset"] = min(timeit.repeat(lambda: tr.reset(x), number=number, repeat=3, timer=clock)) / number
-    else:
-        cost["guards"] = cost["reset"] = 0.0
+        cost["guards"] = min(timeit.repeat(lambda: tr.guard_value(x), number=n, repeat=3, timer=clock)) / n
+        cost["reset"] = min(timeit.repeat(lambda: tr.reset(x), number=n, repeat=3, timer=clock)) / n
     return cost
+
+
+def interpreted(run: Callable[..., Any]) -> Callable[..., Any]:
+    """``run`` with the relaxed loop interpreted (the compiled kernel set aside while it runs)."""
+
+    def wrapped(*args: Any, **kw: Any) -> Any:
+        kernel, driver.KERNEL = driver.KERNEL, None
+        try:
+            return run(*args, **kw)
+        finally:
+            driver.KERNEL = kernel
+
+    return wrapped
+
+
+def example(name: str) -> tuple[HybridSystem, ControlLaw, np.ndarray, float]:
+    """Table I example ``ex1`` or ``ex2``: (system, forcing law, initial state, t_max)."""
+    p = osc.EXAMPLES[name]
+    system = osc.make_system(p["omega"], p["a"], p["x_max"], p["c"], p["mass"])
+    return system, osc.forcing(p["amplitude"], p["frequency"]), np.array([p["x0"], p["xd0"]]), float(p["t_max"])
 
 
 def measure_run(
@@ -129,13 +222,15 @@ def measure_run(
     method: str,
     costs: dict[str, float] | Callable[[], dict[str, float]],
     repeats: int = 3,
+    run: Callable[..., Any] = simulate,
     **kw,
 ) -> dict[str, Any]:
-    """Time one run and split its time. ``costs`` (seconds per evaluation) may be a function
-    that measures them: it is then called before every repeat, and for each quantity the
-    smallest time over the repeats is kept, run and evaluations alike, so that a burst of other
-    load on the machine disturbs neither side of the difference."""
-    simulate(system, x0, mode, min(t_final, 0.1), h, eps, method, **kw)
+    """Time one run (``run``: ``simulate``, or ``interpreted(simulate)``) and split its time.
+    ``costs`` (seconds per evaluation) may be a function that measures them: it is then called
+    before every repeat, and for each quantity the smallest time over the repeats is kept, run
+    and evaluations alike, so that a burst of other load on the machine disturbs neither side of
+    the difference."""
+    run(system, x0, mode, min(t_final, 0.1), h, eps, method, **kw)
     walls = []
     measured: list[dict[str, float]] = []
     ex = None
@@ -143,7 +238,7 @@ def measure_run(
         if callable(costs):
             measured.append(costs())
         start = time.process_time()
-        ex = simulate(system, x0, mode, t_final, h, eps, method, **kw)
+        ex = run(system, x0, mode, t_final, h, eps, method, **kw)
         walls.append(time.process_time() - start)
     if callable(costs):
         costs = {k: min(m[k] for m in measured) for k in measured[0]}
@@ -179,10 +274,19 @@ def measure_run(
 
 
 def landing_costs(
-    system, x0, mode, t_final, h, eps, method="rk4", landings=("halve", "aim"), tol: float | None = None
+    system,
+    x0,
+    mode,
+    t_final,
+    h,
+    eps,
+    method="rk4",
+    landings=("halve", "aim"),
+    tol: float | None = None,
+    control: Any = None,
 ) -> dict[str, dict[str, float]]:
     """Per transition: extra trial steps and evaluations spent landing in the strips, for each
-    landing rule (error-controlled with rtol = atol = ``tol`` when given). Extra field evaluations
+    landing rule (error-controlled with rtol = atol = ``tol`` when given), under ``control``. Extra field evaluations
     are those beyond the accepted steps' own (error rejections included)."""
     from ..methods import get_method
 
@@ -191,7 +295,18 @@ def landing_costs(
     out = {}
     for landing in landings:
         ex = simulate(
-            system, x0, mode, t_final, h, eps, method, landing=landing, max_transitions=1_000_000, rtol=tol, atol=tol
+            system,
+            x0,
+            mode,
+            t_final,
+            h,
+            eps,
+            method,
+            control,
+            landing=landing,
+            max_transitions=1_000_000,
+            rtol=tol,
+            atol=tol,
         )
         c = ex.counters
         n = max(int(c["transitions"]), 1)
@@ -204,51 +319,18 @@ def landing_costs(
     return out
 
 
-def _unchecked_guard(run: Any, transition: Any) -> Callable[[float, np.ndarray], Any]:
-    g, control = transition.guard, run.control
-    if transition.guard_args == "x":
-        return lambda t, x: g(x)
-    return lambda t, x: g(t, x, None if control is None else control(t, x))
-
-
-def contract_cost(system, x0: np.ndarray, t_final: float, method: str, repeats: int) -> float:
-    """Median ratio of run times with the model-contract checks every evaluation runs (each
-    stage's shape, each guard's type) to the same runs with them left out, interleaved pairs on
-    the Python path (``system`` without compiled twins: the cheapest fields, where the checks'
-    share is largest)."""
-    import legsim.relaxed.run as run_module
-
-    from ..methods.stepper import make_stepper
-
-    def once() -> float:
-        start = time.perf_counter()
-        simulate(system, x0, "free", t_final, 1e-3, 1e-6, method, continuation=False)
-        return time.perf_counter() - start
-
-    def unchecked() -> float:
-        with (
-            patch.object(run_module.Run, "_guard_fn", _unchecked_guard),
-            patch.object(run_module, "make_stepper", partial(make_stepper, checked=False)),
-        ):
-            return once()
-
-    once(), unchecked()  # both steppers generated before anything is timed
-    return statistics.median([once() / unchecked() for _ in range(repeats)])
-
-
 def collect(quick: bool = False) -> dict[str, Any]:
     """All measurements: the oscillator of Example 1 at h = 1e-3, eps = 1e-6 (paper 000 Table I),
-    compiled and Python paths, euler/rk2/rk4; and landing costs on three cases."""
-    system, x0, t_max = make_oscillator_example("ex1")
+    compiled and interpreted loop over the same model functions, euler/rk2/rk4; and landing costs
+    on three cases."""
+    system, law, x0, t_max = example("ex1")
     t_final = t_max / (4 if quick else 1)  # long runs: the fixed cost of a call (~0.5 ms) must not count per step
-    twin = system.mode("free").compiled
     probe = np.array([1.0, 2.0])
     n_c, n_p = (100_000, 2_000) if quick else (300_000, 20_000)
-    python_system = without_compiled(system)
-    free = make_oscillator(2.5, 0.05, None, 0.9, 1.0, 20.0, 2.5)
-    compiled_cost = lambda: compiled_costs(twin, probe, n_c)  # noqa: E731
-    free_cost = lambda: dict(compiled_costs(twin, probe, n_c), guards=0.0)  # noqa: E731
-    python_cost = lambda: python_costs(python_system, "free", probe, n_p)  # noqa: E731
+    free = osc.make_system(2.5, 0.05, None, 0.9, 1.0)
+    compiled_cost = lambda: compiled_costs(system, law, probe, n_c)  # noqa: E731
+    free_cost = lambda: compiled_costs(free, law, probe, n_c)  # noqa: E731
+    python_cost = lambda: python_costs(system, law, probe, n_p)  # noqa: E731
     result: dict[str, Any] = {
         "case": f"oscillator Ex.1, t in [0, {t_final:.4g}] s, h = 1e-3, eps = 1e-6",
         "cost_compiled_s": compiled_cost(),
@@ -258,56 +340,45 @@ def collect(quick: bool = False) -> dict[str, Any]:
         "python": [],
     }
     repeats = 3 if quick else 9
+    python_repeats = max(3, repeats // 3)
     for method in ("euler", "rk2", "rk4"):
-        result["compiled"].append(measure_run(system, x0, "free", t_final, 1e-3, 1e-6, method, compiled_cost, repeats))
-        result["compiled_no_stop"].append(
-            measure_run(free, x0, "free", t_final, 1e-3, 1e-6, method, free_cost, repeats)
-        )
+        args = (x0, "free", t_final, 1e-3, 1e-6, method)
+        result["compiled"].append(measure_run(system, *args, compiled_cost, repeats, control=law))
+        result["compiled_no_stop"].append(measure_run(free, *args, free_cost, repeats, control=law))
         result["python"].append(
-            measure_run(python_system, x0, "free", t_final, 1e-3, 1e-6, method, python_cost, max(3, repeats // 3))
+            measure_run(system, *args, python_cost, python_repeats, interpreted(simulate), control=law)
         )
-    result["contract"] = {
-        method: contract_cost(python_system, x0, t_final / (4 if quick else 2), method, repeats)
-        for method in ("euler", "rk4")
-    }
-    ex2, x2, t2 = make_oscillator_example("ex2")
+    ex2, law2, x2, t2 = example("ex2")
+    ball = bouncing_ball.make_system(9.81, 0.8)
     result["landing"] = {
-        "oscillator Ex.1 (h=1e-2, eps=1e-6)": landing_costs(system, x0, "free", t_final, 1e-2, 1e-6),
-        "oscillator Ex.2 (h=1e-2, eps=1e-6)": landing_costs(ex2, x2, "free", t2 / (4 if quick else 1), 1e-2, 1e-6),
+        "oscillator Ex.1 (h=1e-2, eps=1e-6)": landing_costs(system, x0, "free", t_final, 1e-2, 1e-6, control=law),
+        "oscillator Ex.2 (h=1e-2, eps=1e-6)": landing_costs(
+            ex2, x2, "free", t2 / (4 if quick else 1), 1e-2, 1e-6, control=law2
+        ),
         "bouncing ball c=0.8 (h=1e-2, eps=1e-6, 3 s)": landing_costs(
-            make_bouncing_ball(9.81, 0.8), np.array([1.0, 0.0]), "flight", 3.0, 1e-2, 1e-6
+            ball, np.array([1.0, 0.0]), "flight", 3.0, 1e-2, 1e-6
         ),
     }
     # Error-controlled pairs: a retried step at the aim, or the landing on the failed step's own
-    # dense output (no retried step). The dense landing runs the Python loop (the kernel aims).
+    # dense output (no retried step).
     result["landing_pairs"] = {
         "oscillator Ex.1 (h=0.1, eps=1e-6)": landing_costs(
-            system, x0, "free", t_final, 0.1, 1e-6, "dopri5", ("aim", "dense"), 1e-8
+            system, x0, "free", t_final, 0.1, 1e-6, "dopri5", ("aim", "dense"), 1e-8, law
         ),
         "bouncing ball c=0.8 (h=0.1, eps=1e-6, 3 s)": landing_costs(
-            make_bouncing_ball(9.81, 0.8),
-            np.array([1.0, 0.0]),
-            "flight",
-            3.0,
-            0.1,
-            1e-6,
-            "dopri5",
-            ("aim", "dense"),
-            1e-8,
+            ball, np.array([1.0, 0.0]), "flight", 3.0, 0.1, 1e-6, "dopri5", ("aim", "dense"), 1e-8
         ),
     }
     return result
 
 
+#: The report's rows: (label, key of the measurements).
+PATHS = (("compiled", "compiled"), ("compiled, no stop", "compiled_no_stop"), ("interpreted", "python"))
+
+
 def format_report(r: dict[str, Any], width: int | None = None) -> str:
-    """The measurements as text; the tables within ``width`` characters where their words allow
-    (``legsim.tables``; None: one line per row)."""
-    return render_report(report(r), "text", width)[0]
-
-
-def report(r: dict[str, Any]) -> list[str | Table]:
-    """The measurements as a report (``legsim.tables.render_report``): lines and three tables."""
-    lines: list[str | Table] = [f"# integrator overhead: {r['case']}"]
+    """The measurements as text; the table at most ``width`` characters wide (``legsim.tables``)."""
+    lines = [f"# integrator overhead: {r['case']}"]
     cc, cp = r["cost_compiled_s"], r["cost_python_s"]
     lines.append("costs of one evaluation measured alongside each run, the least disturbed of the repeats kept")
     lines.append(
@@ -315,7 +386,7 @@ def report(r: dict[str, Any]) -> list[str | Table]:
         f"{cc['guards'] * 1e9:.1f} ns, reset {cc['reset'] * 1e9:.1f} ns"
     )
     lines.append(
-        f"one evaluation, Python (from Python): field {cp['field'] * 1e9:.0f} ns, guard "
+        f"one evaluation, interpreted loop (the same functions from Python): field {cp['field'] * 1e9:.0f} ns, guard "
         f"{cp['guards'] * 1e9:.0f} ns, reset {cp['reset'] * 1e9:.0f} ns"
     )
     head = ("path", "method", "steps/s", "ns/step", "field", "guard", "reset", "overhead/step", "trans")
@@ -331,40 +402,33 @@ def report(r: dict[str, Any]) -> list[str | Table]:
             f"{m['overhead_per_step_in_fields']:.2f} f-ev",
             str(m["transitions"]),
         )
-        for label, key in (("compiled", "compiled"), ("compiled, no stop", "compiled_no_stop"), ("python", "python"))
+        for label, key in PATHS
         for m in r[key]
     ]
-    lines.append(Table.of(head, rows, right=range(2, 9), whole=range(9), title="cost per step"))
+    lines.append(render_table(head, rows, right=range(2, 9), whole=range(9), width=width))
     lines.append("")
     lines.append(
         "landing in a strip, per transition (rk4): trial steps, extra field evaluations, guard "
         "evaluations beyond one per step"
     )
-    lines.append(_landing_table(r["landing"], "landing, rk4"))
+    lines.append(_landing_table(r["landing"], width))
     lines.append("")
     lines.append(
         "landing in a strip, per transition (dopri5, rtol = atol = 1e-8): the same, aimed retry against "
         "the failed step's dense output"
     )
-    lines.append(_landing_table(r.get("landing_pairs", {}), "landing, dopri5"))
+    lines.append(_landing_table(r.get("landing_pairs", {}), width))
     rk4 = next(m for m in r["compiled"] if m["method"] == "rk4")
-    lines.append("")
-    lines.append(
-        "model-contract checks (each stage's shape, each guard's type) on the Python path: run time with "
-        "/ without them, median of interleaved pairs: "
-        + ", ".join(f"{method} {ratio:.3f}" for method, ratio in r["contract"].items())
-        + f" (target <= 1.05: {'MET' if max(r['contract'].values()) <= 1.05 else 'MISSED'})"
-    )
     target = rk4["overhead_per_step_in_fields"]
     lines.append("")
     lines.append(
         f"target: integrator overhead per step <= 2 field evaluations (compiled rk4, with the stop): "
         f"{target:.2f}: {'MET' if target <= 2 else 'MISSED'}"
     )
-    return lines
+    return "\n".join(lines)
 
 
-def _landing_table(costs: dict[str, dict[str, dict[str, Any]]], title: str) -> Table:
+def _landing_table(costs: dict[str, dict[str, dict[str, Any]]], width: int | None) -> str:
     """case -> landing -> its costs per transition, as a table."""
     head = ("case", "landing", "trial steps", "extra field evals", "guard evals", "transitions")
     rows = [
@@ -379,15 +443,10 @@ def _landing_table(costs: dict[str, dict[str, dict[str, Any]]], title: str) -> T
         for case, d in costs.items()
         for landing, v in d.items()
     ]
-    return Table.of(head, rows, right=range(2, 6), whole=range(1, 6), title=title)
+    return render_table(head, rows, right=range(2, 6), whole=range(1, 6), width=width)
 
 
-def main(quick: bool = False, as_json: bool = False, fmt: str = "text") -> int:
-    """``legsim bench overhead``: measure, then print the JSON of the measurements or their
-    report in the format ``fmt`` (``legsim.tables.FORMATS``)."""
+def main(quick: bool = False, as_json: bool = False) -> int:
     r = collect(quick)
-    if as_json:
-        print(json.dumps(r, indent=1))
-    else:
-        print_report(report(r), fmt)
+    print(json.dumps(r, indent=1) if as_json else format_report(r))
     return 0

@@ -18,12 +18,13 @@ evaluation all-in against a bare C++ ``aba`` on the same model, and the share of
 outside it.
 
 The controlled runners (``CONTROLLED``, run only when named: ``--case slip-raibert --case
-pronk-raibert --case double-pendulum-pd --case quadruped-run``) are the bundled scenes' robots
-under their scenes' controllers (``raibert_slip``, ``raibert_pronk``, the double pendulum's PD,
-``raibert_runner``), every run with a controller made anew from the scene. Their twins compute
-the controller (``ControlledSweep.compiled``), so each case has the three families of the
-uncontrolled cases. The quadruped's twins hand every event's step to the Python loop (its
-friction law chooses the outcome: ``robots.bridge.friction_twins``).
+pronk-raibert --case double-pendulum-pd --case quadruped-run``) are the bundled scenes' robots under
+their scenes' controllers (``raibert_slip``, ``raibert_pronk``, the double pendulum's PD,
+``raibert_runner``), every run with a controller made anew from the scene. The hoppers and their
+controllers are compiled model functions, the others' twins compute the controller
+(``ControlledSweep.compiled``), so each case has the three families of the uncontrolled cases.
+The quadruped's twins hand every event's step to the Python loop (its friction law chooses the
+outcome: ``robots.bridge.friction_twins``).
 """
 
 from __future__ import annotations
@@ -99,7 +100,7 @@ def _compiled_sweep(scene: str) -> ControlledSweep:
 #: N of rounding (a strip of 1e-10 is crossed, 1e-9 holds them); the error is then about 2 eps.
 CONTROLLED_SWEEPS = {
     "slip-raibert": _compiled_sweep("slip_raibert"),
-    # The pronk hopper's twins compute raibert_pronk (robots/pronk_hopper_twin.py): 5 s, 16 hops.
+    # The pronk hopper and raibert_pronk are compiled model functions: 5 s, 16 hops.
     "pronk-raibert": _compiled_sweep("pronk_raibert"),
     # The double pendulum's twins compute its shoulder PD (joint_pd): it lands on the stop
     # (a graze, then the impact that holds) and rests there.
@@ -143,7 +144,7 @@ class RobotCase:
         when the runs have different numbers of events or a state of another size)."""
         if execution.status != "finished":
             return math.inf
-        ours, ref = events(execution), events(self.reference)
+        ours, ref = events(execution, self.system), events(self.reference, self.system)
         if len(ours) != len(ref):
             return math.inf
         worst = 0.0
@@ -160,13 +161,17 @@ class RobotCase:
 EVENT_GAP = 1e-3
 
 
-def events(execution: Any) -> list[tuple[float, np.ndarray]]:
+def events(execution: Any, system: Any = None) -> list[tuple[float, np.ndarray]]:
     """The execution's events: its transitions with the chains of simultaneous ones merged
-    (``EVENT_GAP``), each as (time of its first transition, state after its last)."""
+    (``EVENT_GAP``), each as (time of its first transition, state after its last); with
+    ``system``, the plant's state only (a controller's memory, which follows it in a relaxed
+    run's states, left out)."""
     out: list[tuple[float, np.ndarray]] = []
     last = -math.inf
     for tr in execution.transitions:
         state = np.asarray(tr.state_after, dtype=float)
+        if system is not None:
+            state = state[: system.mode(tr.target).dim]
         if out and tr.time - last < EVENT_GAP:
             out[-1] = (out[-1][0], state)
         else:
@@ -252,24 +257,22 @@ def _controlled_case(name: str, quick: bool) -> RobotCase:
 
     if knobs.compiled and not takes_compiled_path(system, new_control()):
         raise BenchError(
-            f"case {name}: the twins of {system.name} do not compute controller {controller} (its runs would "
-            f"take the Python path)"
+            f"case {name}: {system.name} under controller {controller} is not all compiled model functions (its "
+            f"runs would take the Python path)"
         )
     return RobotCase(name, description, system, mode, x0, t_final, reference, new_control, knobs)
 
 
 def takes_compiled_path(system: Any, control: Any) -> bool:
-    """Whether runs of ``system`` under ``control`` (a Controller, evaluated at every stage)
-    take the compiled path: every mode built so far (a robot's bridge builds its modes as runs
-    reach them) has a twin that computes that controller."""
-    from ..control import bind
-    from ..relaxed.integrate import control_writer
+    """Whether runs of ``system`` under ``control`` take the compiled path: every mode built so
+    far (a robot's bridge builds its modes as runs reach them) is written as compiled model
+    functions, and the control is None or a compiled ``ControlLaw``."""
+    from ..control import ControlLaw
 
-    twins = [system.mode_data(mode).mode.compiled for mode in list(system.modes)]
-    bound = bind(control)
-    return all(
-        twin is not None and twin.controls is not None and control_writer(bound, twin) is not None for twin in twins
-    )
+    if control is not None and not (isinstance(control, ControlLaw) and control.compiled):
+        return False
+    modes = [system.mode(name) for name in list(system.modes)]
+    return all(mode.functions is not None and mode.functions.compiled for mode in modes)
 
 
 def make_robot_case(name: str, quick: bool = False) -> RobotCase:
@@ -509,7 +512,7 @@ def cost_report(case: RobotCase, rows: list[Row]) -> dict[str, float]:
     compiled run below 1e-6, the share of its wall time outside ABA (1 - field evaluations x
     bare ABA / wall time)."""
     from .. import _native
-    from .overhead import compiled_costs, python_costs
+    from .overhead import callable_costs, twin_costs
 
     twin = case.system.mode_data(case.mode).mode.compiled
     if twin is None or case.controlled is not None:
@@ -518,8 +521,8 @@ def cost_report(case: RobotCase, rows: list[Row]) -> dict[str, float]:
     x = np.ascontiguousarray(case.x0, dtype=float)
     nv = (n - 1) // 2 if case.name in ("compass-gait", "rimless-wheel") else n // 2
     aba = _native.time_aba(int(twin.params[0]), x[:nv], x[nv : 2 * nv], np.zeros(nv), 200_000)
-    compiled = compiled_costs(twin, x, 200_000)
-    python = python_costs(case.system, case.mode, x, 20_000)
+    compiled = twin_costs(twin, x, 200_000)
+    python = callable_costs(case.system, case.mode, x, 20_000)
     out = {
         "aba_s": aba,
         "field_s": compiled["field"],
@@ -553,7 +556,7 @@ PYTHON_PATH_NOTE = (
     "controller), so there is no compiled family; ratios are solve_ivp / Python path"
 )
 COMPILED_PATH_NOTE = (
-    "controlled, compiled path: the robot's twins compute its controller, so the relaxed family (rk4 and aimed "
+    "controlled, compiled path: the robot and its controller are compiled, so the relaxed family (rk4 and aimed "
     "landing) runs in the compiled kernel; relaxed-python is DOP853 with dense landing on the Python path"
 )
 

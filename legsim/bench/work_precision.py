@@ -168,7 +168,7 @@ def run_one(case: Case, spec: RunSpec, repeats: int = 3, rho_points: int = 0) ->
     if spec.kind == "relaxed":
         method = relaxed_method(spec.method[len("relaxed-") :])
         tols = {} if math.isnan(spec.tol) else {"rtol": spec.tol, "atol": spec.tol}
-        system, control = case.system, None
+        system, control = case.system, case.control
         if spec.zeno:
             if case.zeno_system is None:
                 raise BenchError(f"case {case.name} has no Zeno continuation variant (oscillator-ex2 only)")
@@ -238,6 +238,7 @@ def run_one(case: Case, spec: RunSpec, repeats: int = 3, rho_points: int = 0) ->
                 atol=spec.tol,
                 max_transitions=10_000,
                 max_step=spec.max_step,
+                control=case.control,
             )
 
         ex, wall, n = _timed(call, repeats, lambda r, dt: float(r.counters["wall_time_s"]))

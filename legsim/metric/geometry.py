@@ -136,7 +136,7 @@ class Geometry:
     def _coordinate_shape(self, tr: Transition, dim: int) -> CoordinateGuard | None:
         key = id(tr)
         if key not in self._coordinate:
-            self._coordinate[key] = detect_coordinate_guard(tr.guard, dim, np.zeros(dim))
+            self._coordinate[key] = detect_coordinate_guard(state_guard(tr), dim, np.zeros(dim))
         return self._coordinate[key]
 
     def _build(self, modes: list[str]) -> None:
@@ -190,9 +190,17 @@ def _domain_without(
         elif shape is not None:
             grad = _coordinate_gradient(shape)
         else:
-            grad = finite_difference_gradient(other.guard)
-        ineqs.append((_as_float_fn(other.guard), grad))
+            grad = finite_difference_gradient(state_guard(other))
+        ineqs.append((_as_float_fn(state_guard(other)), grad))
     return lb, ub, tuple(ineqs)
+
+
+def state_guard(tr: Transition) -> Callable[[np.ndarray], float]:
+    """The transition's guard as a function of the state alone: a guard of (t, x, u) (a mode's
+    model functions) at t = 0 without input, where the quotient space's geometry is taken."""
+    if tr.guard_args == "x" and tr.guard is not None:
+        return tr.guard
+    return lambda x: tr.guard_value(x)
 
 
 def _guard_pieces(
@@ -205,8 +213,8 @@ def _guard_pieces(
     """The guard set of ``tr`` inside the domain: one box per term of a coordinate guard (that
     term's coordinate fixed, the other terms <= 0), else one piece with the equality g = 0."""
     if shape is None:
-        grad = tr.guard_gradient or finite_difference_gradient(tr.guard)
-        return [Piece(lb0, ub0, (_as_float_fn(tr.guard), grad), ineqs)]
+        grad = tr.guard_gradient or finite_difference_gradient(state_guard(tr))
+        return [Piece(lb0, ub0, (_as_float_fn(state_guard(tr)), grad), ineqs)]
     pieces = []
     for i, _, c in shape.terms:
         lb, ub = lb0.copy(), ub0.copy()

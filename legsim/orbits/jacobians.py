@@ -85,6 +85,11 @@ Control = Callable[[float, np.ndarray], Any] | None
 
 
 # -- the variational equation along the relaxed execution ---------------------------------------
+def _input(control: Control, t: float, x: np.ndarray) -> Any:
+    """The control's input at (t, x), None without control."""
+    return None if control is None else control(t, x)
+
+
 def field_at(mode: Mode, control: Control, t: float, x: np.ndarray) -> np.ndarray:
     """The closed-loop field f(t, x, u(t, x)) of ``mode``, shape (n,)."""
     return np.asarray(mode.field(t, x, None if control is None else control(t, x)), dtype=float)
@@ -150,7 +155,8 @@ def _transition_pieces(
     if transition.guard_gradient is not None:
         grad = np.asarray(transition.guard_gradient(q), dtype=float).reshape(src.dim)
     else:
-        grad = gradient(transition.guard, q)
+        # guard_value: a guard of (t, x, u) (a mode's model functions) needs the time and input too
+        grad = gradient(lambda x: transition.guard_value(x, t_minus, _input(control, t_minus, x)), q)
     f_minus = field_at(src, control, t_minus, q)
     f_plus = field_at(tgt, control, t_plus, x_plus)
     rate = float(grad @ f_minus)

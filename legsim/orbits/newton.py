@@ -666,10 +666,24 @@ def _closed_loop_field(problem: OrbitProblem, ret: Return) -> np.ndarray:
         return field_at(system.mode(mode), control, 0.0, ret.x_start)
     controller = problem.restored_controller(ret.parameters, ret.memory_start)
     if isinstance(controller, ControlLaw):
-        u = np.zeros(controller.inputs)
-        controller.control(0.0, ret.x_start, ret.memory_start, controller.params_for(mode, system), u)
+        u = law_input(controller, mode, 0.0, ret.x_start, ret.memory_start)
     else:
         controller.reset(mode, 0.0, ret.x_start)
         u = controller(mode, 0.0, ret.x_start)
     f = np.asarray(system.mode(mode).field(0.0, ret.x_start, u), dtype=float)
     return np.concatenate([f, np.zeros(problem.n_memory)])
+
+
+def law_input(law: ControlLaw, mode: str, t: float, x: np.ndarray, memory: np.ndarray) -> np.ndarray:
+    """A ``ControlLaw``'s input (shape (inputs,)) entering ``mode`` at (t, x) with ``memory``:
+    its entry function first, then its control, as a run does."""
+    p = law.params_for(mode)
+    x = np.ascontiguousarray(x, dtype=float)
+    memory = np.ascontiguousarray(memory, dtype=float)
+    if law.enter is not None:
+        entered = np.empty_like(memory)
+        law.enter(float(t), x, memory, p, entered)
+        memory = entered
+    u = np.zeros(law.inputs)
+    law.control(float(t), x, memory, p, u)
+    return u

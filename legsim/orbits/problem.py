@@ -7,10 +7,11 @@ are periodicity on the non-cyclic coordinates other than the section's, s(x) = 0
 given as a function, the constraints and the energy level. A problem with fewer equations than
 unknowns is refused here, before any simulation.
 
-A problem with a ``controller`` (a ``legsim.control.Controller`` with memory, such as a Raibert
-hopper's last stance duration) searches the return map of the closed loop on the section state
-*and* the controller's memory: every return starts with a fresh controller restored to the
-memory guess and reads the memory back at the return. The memory values join the unknowns
+A problem with a ``controller`` (a ``legsim.control.Controller`` with memory, or a
+``legsim.control.ControlLaw``, such as a Raibert hopper's with its last stance duration)
+searches the return map of the closed loop on the section state *and* the controller's memory:
+every return starts with a fresh controller restored to the memory guess (a law's memory starts
+the run's state) and reads the memory back at the return. The memory values join the unknowns
 (after the free coordinates) and ``memory' - memory = 0`` the periodicity equations; the
 multipliers are those of this augmented map.
 """
@@ -259,11 +260,6 @@ class OrbitProblem:
         if self.controller is None:
             return
         made = self.make_controller(self.parameters)
-        if isinstance(made, ControlLaw):
-            self.memory_names = made.memory_names
-            self.memory_units = made.memory_units
-            self.memory_guess = np.asarray(made.initial_memory, dtype=float)
-            return
         if made.memory_names is None:
             raise OrbitError(
                 f"orbit problem: controller {type(made).__name__} does not declare its memory, so the "
@@ -276,9 +272,13 @@ class OrbitProblem:
         self.memory_units = tuple(made.memory_units)
         self.memory_guess = self._memory_of(made)
 
-    def _memory_of(self, controller: Controller) -> np.ndarray:
-        """``controller.memory()`` checked against its names: finite, shape (m,)."""
-        memory = np.asarray(controller.memory(), dtype=float).reshape(-1)
+    def _memory_of(self, controller: Controller | ControlLaw) -> np.ndarray:
+        """``controller.memory()`` (a law's initial memory) checked against its names: finite,
+        shape (m,)."""
+        if isinstance(controller, ControlLaw):
+            memory = np.asarray(controller.initial_memory, dtype=float)
+        else:
+            memory = np.asarray(controller.memory(), dtype=float).reshape(-1)
         if memory.shape != (len(self.memory_names),) or len(self.memory_units) != len(self.memory_names):
             raise OrbitError(
                 f"orbit problem: controller {type(controller).__name__} has memory_names "
@@ -357,15 +357,14 @@ class OrbitProblem:
 
     def make_controller(self, parameters: Mapping[str, float] | None = None) -> Controller | ControlLaw:
         """A fresh controller for the system at these parameter values (``controller`` must be
-        set); OrbitError when it is neither a ``legsim.control.ControlLaw`` (whose memory is part
-        of the run's state) nor a ``legsim.control.Controller``."""
+        set); OrbitError when it is neither a ``legsim.control.Controller`` nor a ``ControlLaw``."""
         assert self.controller is not None
         self.instantiate(parameters)
         made = self.controller(self.system if not self.is_factory else self._cached(parameters)[2])
         if not isinstance(made, (Controller, ControlLaw)):
             raise OrbitError(
-                f"orbit problem: controller(model) made {type(made).__name__}, expected a legsim.control.ControlLaw "
-                f"or Controller",
+                f"orbit problem: controller(model) made {type(made).__name__}, expected a legsim.control.Controller "
+                f"or ControlLaw",
                 key="controller",
             )
         return made
@@ -374,11 +373,12 @@ class OrbitProblem:
         self, parameters: Mapping[str, float] | None, memory: np.ndarray | None
     ) -> Controller | ControlLaw:
         """A fresh controller restored to ``memory`` (default ``memory_guess``) at the section's
-        mode: what one return runs with (a ``ControlLaw`` takes its memory from the run's initial
-        state instead)."""
+        mode: what one return runs with (a ``ControlLaw`` as it is: its memory starts the run's
+        state)."""
         made = self.make_controller(parameters)
-        if isinstance(made, Controller):
-            made.restore(self.bound.mode, self.memory_guess if memory is None else np.asarray(memory, dtype=float))
+        if isinstance(made, ControlLaw):
+            return made
+        made.restore(self.bound.mode, self.memory_guess if memory is None else np.asarray(memory, dtype=float))
         return made
 
     @property

@@ -23,7 +23,8 @@ Controllers
 A problem with a ``controller`` starts each return with a fresh one restored to the memory
 guess, and reads the memory back at the return: the controller changes its memory only at mode
 entries (``legsim.control``), so the memory at the return is the one after the last mode entry
-before it, recorded as the run enters each mode.
+before it, recorded as the run enters each mode. A ``ControlLaw``'s memory is part of the run's
+state: the return starts from (x, memory) and reads both off the execution.
 
 Period
 ------
@@ -35,7 +36,6 @@ in strips, which converges at the method's order; ``Return.time`` is the relaxed
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -98,38 +98,6 @@ class Return:
         return np.concatenate([self.x_end, self.memory_end])
 
 
-def plant_execution(ex: Execution, memory: int) -> Execution:
-    """The execution of a run under a ``ControlLaw`` without the controller's memory: states of
-    the plant alone, as the section and the orbit's coordinates are."""
-    if memory == 0:
-        return ex
-
-    def trim(x: np.ndarray) -> np.ndarray:
-        return x[..., : x.shape[-1] - memory]
-
-    return dataclasses.replace(
-        ex,
-        segments=[Segment(seg.mode, seg.t, trim(seg.x), trim(seg.dx)) for seg in ex.segments],
-        strips=[dataclasses.replace(strip, state=trim(strip.state)) for strip in ex.strips],
-        transitions=[
-            dataclasses.replace(tr, state_before=trim(tr.state_before), state_after=trim(tr.state_after))
-            for tr in ex.transitions
-        ],
-        state_names={mode: names[: len(names) - memory] for mode, names in ex.state_names.items()},
-        state_units={mode: units[: len(units) - memory] for mode, units in ex.state_units.items()},
-    )
-
-
-def memory_at(closed: Execution, found: Return, problem: OrbitProblem, memory: int) -> np.ndarray:
-    """The controller's memory at a return, from the run's own states: after the returning
-    transition for a section after a transition, in the return's segment for a crossing."""
-    if problem.section.kind == "transition":
-        state = closed.transitions[len(found.transitions) - 1].state_after
-    else:
-        state = closed.segments[found.segment].x[0]
-    return np.asarray(state[state.shape[0] - memory :], dtype=float).copy()
-
-
 class MemoryLog(Controller):
     """A controller run as it is, its memory recorded after every mode entry (``entries[k]``:
     after the k-th entry, entry 0 the start of the run)."""
@@ -178,21 +146,20 @@ class ReturnMap:
         memory = p.memory_guess if memory is None else np.asarray(memory, dtype=float).reshape(-1)
         last_error: OrbitError | None = None
         for horizon in self._horizons():
-            controller = None if p.controller is None else p.restored_controller(params, memory)
-            if isinstance(controller, ControlLaw):
-                closed = self._simulate(system, controller, np.concatenate([x, memory]), horizon)
-                ex = plant_execution(closed, len(memory))
-                found = self._locate(ex, x, params)
-                if found is not None:
-                    found.memory_start, found.memory_end = memory.copy(), memory_at(closed, found, p, len(memory))
+            made = None if p.controller is None else p.restored_controller(params, memory)
+            if isinstance(made, ControlLaw):
+                ex = self._simulate(system, made, np.concatenate([x, memory]), horizon)
+                log = None
             else:
-                log = None if controller is None else MemoryLog(controller)
+                log = None if made is None else MemoryLog(made)
                 ex = self._simulate(system, control if log is None else log, x, horizon)
-                found = self._locate(ex, x, params)
-                if found is not None and log is not None:
-                    self._read_memory(found, memory, log)
+            found = self._locate(ex, x, params)
             if found is not None:
                 self._hint = found.time
+                if log is not None:
+                    self._read_memory(found, memory, log)
+                elif made is not None:
+                    found.memory_start = memory.copy()
                 return found
             if ex.status != "finished":
                 raise OrbitError(
@@ -319,9 +286,12 @@ class ReturnMap:
     ) -> Return:
         p = self.problem
         in_strips = sum(s.exit_time - s.time for s in ex.strips if s.exit_time <= t_ret + 1e-12 * max(1.0, t_ret))
+        # A ControlLaw's memory follows the plant's state in the execution's.
+        x_end = np.asarray(x_end, dtype=float)
         ret = Return(
             x_start=x0.copy(),
-            x_end=np.asarray(x_end, dtype=float),
+            x_end=x_end[: p.dim].copy(),
+            memory_end=x_end[p.dim :].copy(),
             mode=p.bound.mode,
             time=t_ret - ex.t0,
             flow_time=t_ret - ex.t0 - in_strips,

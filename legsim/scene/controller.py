@@ -27,7 +27,8 @@ CONTROLLER_KEYS = {
 
 
 def scene_controller(path: Path, table: dict[str, Any], model: Model) -> Controller | ControlLaw | None:
-    """The controller the section asks for, made for ``model``; None without the section."""
+    """The controller the section asks for, made for ``model`` (a ``Controller``, or a
+    ``ControlLaw`` written as model functions); None without the section."""
     if not table:
         return None
     check_keys(path, table, CONTROLLER_KEYS, "controller")
@@ -53,8 +54,7 @@ def scene_controller(path: Path, table: dict[str, Any], model: Model) -> Control
     if hold is not None:
         if not isinstance(hold, bool):
             raise field_error(path, "controller.hold", f"expected true or false, got {describe(hold)}")
-        if isinstance(controller, ControlLaw):
-            controller = dataclasses.replace(controller, hold=hold)
-        else:
-            controller.hold = hold
+        if isinstance(controller, ControlLaw):  # immutable: the same law, held or not
+            return dataclasses.replace(controller, hold=hold)
+        controller.hold = hold
     return controller

@@ -10,7 +10,8 @@ origin: x1' = omega x2, x2' = -omega x1. The plane x1 = wall only relabels the s
 Resets are the identity, so the true execution is the circle through the initial state and
 switches only when the circle's radius exceeds the wall. From the default state (0, wall) the
 circle has radius wall and touches the plane at t = pi / (2 omega) without crossing it: the
-grazing of paper 004 Fig. 1. The exact solution is a rotation (``CircularReference``).
+grazing of paper 004 Fig. 1. The exact solution is a rotation (``CircularReference``). Both
+modes are written once as compiled model functions (``legsim.model``).
 """
 
 from __future__ import annotations
@@ -21,12 +22,15 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..builders import Builder, Model, Param
+from ..compiled import model_function
 from ..errors import ModelError
 from ..execution import Samples
 from ..hybrid import HybridSystem, Mode, Transition
+from ..model import ModeFunctions
 from ._reference import as_times, box, make_samples, segment
 
 NAMES = ("x1", "x2")
+P_OMEGA, P_WALL, P_SIDE = range(3)
 
 
 @dataclass(frozen=True)
@@ -80,25 +84,36 @@ class CircularReference:
         return t0 + (theta - theta0) / self.omega
 
 
-def make_system(omega: float = 1.0, wall: float = 1.0) -> HybridSystem:
-    """The circular flow with the switching plane x1 = wall (modes ``inside``, ``outside``)."""
-    A = np.array([[0.0, omega], [-omega, 0.0]])
+@model_function
+def rotation(t: float, x: np.ndarray, u: np.ndarray, p: np.ndarray, dx: np.ndarray) -> None:
+    """The clockwise rotation (omega x2, -omega x1) for p[0] = omega (rad/s)."""
+    dx[0] = p[P_OMEGA] * x[1]
+    dx[1] = -p[P_OMEGA] * x[0]
 
-    def field(t, x, u):
-        return A @ x
+
+@model_function
+def wall_guard(t: float, x: np.ndarray, u: np.ndarray, p: np.ndarray, g: np.ndarray) -> None:
+    """side * (wall - x1) (units of x1): side +1 inside (x1 <= wall), -1 outside."""
+    g[0] = p[P_SIDE] * (p[P_WALL] - x[0])
+
+
+def make_system(omega: float = 1.0, wall: float = 1.0) -> HybridSystem:
+    """The circular flow with the switching plane x1 = wall (modes ``inside``, ``outside``),
+    written once as model functions with parameters ``(omega (rad/s), wall, side)``."""
+    A = np.array([[0.0, omega], [-omega, 0.0]])
 
     def jacobian(t, x, u):
         return A.copy()
 
-    modes = {
-        "inside": Mode(2, field, names=NAMES, jacobian=jacobian),
-        "outside": Mode(2, field, names=NAMES, jacobian=jacobian),
-    }
+    def mode(side: float) -> Mode:
+        functions = ModeFunctions(rotation, wall_guard, params=[omega, wall, side])
+        return Mode(2, names=NAMES, jacobian=jacobian, functions=functions)
+
+    modes = {"inside": mode(1.0), "outside": mode(-1.0)}
     transitions = [
         Transition(
             "inside",
             "outside",
-            guard=lambda x: wall - x[0],
             name="cross",
             guard_gradient=lambda x: np.array([-1.0, 0.0]),
             reset_jacobian=lambda x: np.eye(2),
@@ -106,7 +121,6 @@ def make_system(omega: float = 1.0, wall: float = 1.0) -> HybridSystem:
         Transition(
             "outside",
             "inside",
-            guard=lambda x: x[0] - wall,
             name="return",
             guard_gradient=lambda x: np.array([1.0, 0.0]),
             reset_jacobian=lambda x: np.eye(2),

@@ -31,7 +31,9 @@ quantity's set-point depends only on its own threshold. From ``nominal_initial_s
 = (-1, -1) both quantities reach zero together at t = ln(2) / rate, the simultaneous crossing of
 the paper's nominal execution x; ``y_delta`` and ``z_delta`` (start shifted by -delta in one
 coordinate) take the paths 0 -> 2 -> 3 and 0 -> 1 -> 3. ``DigitalControlReference`` is the
-exact execution (exponentials and logarithms only).
+exact execution (exponentials and logarithms only). The modes are written once as compiled
+model functions (``legsim.model``): one field and one guard function, the set-points and watched
+quantities as each mode's parameters.
 """
 
 from __future__ import annotations
@@ -43,12 +45,15 @@ from typing import Any
 import numpy as np
 
 from ..builders import Builder, Effect, Model, Param
+from ..compiled import model_function
 from ..errors import ModelError
 from ..execution import Samples
 from ..hybrid import HybridSystem, Mode, Transition
+from ..model import ModeFunctions
 from ._reference import as_times, box, make_samples, segment
 
 NAMES = ("xi1", "xi2")
+P_RATE, P_SET1, P_SET2, P_WATCHED = range(4)
 MODES = ("0", "1", "2", "3")
 #: For each mode, the transitions out of it: (name, target mode, index of the quantity whose
 #: threshold it watches).
@@ -84,8 +89,24 @@ def _check(rate: float, target: float, hold: float, boost: float) -> None:
         raise ModelError(f"digital control: rate must be > 0, got {rate}")
 
 
+@model_function
+def relaxation(t: float, x: np.ndarray, u: np.ndarray, p: np.ndarray, dx: np.ndarray) -> None:
+    """rate (setpoint - xi), shape (2,), for p = (rate (1/s), setpoint of xi1, setpoint of xi2, ...)."""
+    dx[0] = p[P_RATE] * (p[P_SET1] - x[0])
+    dx[1] = p[P_RATE] * (p[P_SET2] - x[1])
+
+
+@model_function
+def thresholds(t: float, x: np.ndarray, u: np.ndarray, p: np.ndarray, g: np.ndarray) -> None:
+    """-xi of each quantity the mode's transitions watch, in their order (indices from p[3] on)."""
+    for k in range(g.shape[0]):
+        g[k] = -x[int(p[P_WATCHED + k])]
+
+
 def make_system(rate: float = 1.0, target: float = 1.0, hold: float = 0.5, boost: float = 2.0) -> HybridSystem:
-    """The digital control system of paper 000 Fig. 1 as a hybrid system of modes "0".."3".
+    """The digital control system of paper 000 Fig. 1 as a hybrid system of modes "0".."3",
+    written once as model functions; each mode's parameters are ``(rate, its set-points, the
+    index of the quantity each outgoing transition watches)``.
 
     Parameters
     ----------
@@ -100,32 +121,21 @@ def make_system(rate: float = 1.0, target: float = 1.0, hold: float = 0.5, boost
     sp = setpoints(target, hold, boost)
     jac = -rate * np.eye(2)
 
-    def make_field(point: np.ndarray):
-        p0, p1 = float(point[0]), float(point[1])
+    def functions(mode: str) -> ModeFunctions:
+        watched = [float(i) for _, _, i in EDGES[mode]]
+        return ModeFunctions(relaxation, thresholds if watched else None, params=[rate, *sp[mode], *watched])
 
-        def field(t: float, x: np.ndarray, u: Any) -> np.ndarray:
-            return np.array([rate * (p0 - x[0]), rate * (p1 - x[1])])
-
-        return field
-
-    def make_guard(i: int):
-        def guard(x: np.ndarray) -> float:
-            return -x[i]
-
+    def gradient(i: int):
         grad = np.zeros(2)
         grad[i] = -1.0
-        return guard, (lambda x: grad.copy())
+        return lambda x: grad.copy()
 
-    modes = {m: Mode(2, make_field(sp[m]), NAMES, lambda t, x, u: jac.copy()) for m in MODES}
-    transitions = []
-    for source, edges in EDGES.items():
-        for name, target_mode, i in edges:
-            guard, grad = make_guard(i)
-            transitions.append(
-                Transition(
-                    source, target_mode, guard, None, name=name, guard_gradient=grad, reset_jacobian=lambda x: np.eye(2)
-                )
-            )
+    modes = {m: Mode(2, names=NAMES, jacobian=lambda t, x, u: jac.copy(), functions=functions(m)) for m in MODES}
+    transitions = [
+        Transition(source, target_mode, name=name, guard_gradient=gradient(i), reset_jacobian=lambda x: np.eye(2))
+        for source, edges in EDGES.items()
+        for name, target_mode, i in edges
+    ]
     return HybridSystem(modes, transitions, name="digital control", initial=("0", nominal_initial_state()))
 
 

@@ -9,11 +9,13 @@ moved to a tank when its level falls to its threshold:
 * ``q2``: x1' = -v1, x2' = w - v2; leaves through ``q2->q1`` when x1 reaches r1
   (guard ``x1 - r1``).
 
-Resets are the identity. When ``max(v1, v2) < w < v1 + v2`` the total excess volume
-``(x1 - r1) + (x2 - r2)`` falls at the constant rate ``v1 + v2 - w`` while every mode visit
-is a fixed fraction of the previous one, so the execution is Zeno: infinitely many switches
-before ``t_zeno = t0 + excess / (v1 + v2 - w)``. ``TwoTankReference`` gives the switching
-times in closed form.
+Resets are the identity. Both modes are written once as compiled model functions
+(``legsim.model``), their flows and watched tank as parameters. When
+``max(v1, v2) < w < v1 + v2`` the total excess volume ``(x1 - r1) + (x2 - r2)`` falls at the
+constant rate ``v1 + v2 - w`` while every mode visit is a fixed fraction of the previous one,
+so the execution is Zeno: infinitely many switches before
+``t_zeno = t0 + excess / (v1 + v2 - w)``. ``TwoTankReference`` gives the switching times in
+closed form.
 
 Default parameters (w = 0.75, v1 = v2 = 0.5, r1 = r2 = 0) are the usual textbook values; every
 visit then lasts half the previous one after the first two.
@@ -27,13 +29,16 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..builders import Builder, Model, Param
+from ..compiled import model_function
 from ..errors import ModelError, SimulationError
 from ..execution import Samples
 from ..hybrid import HybridSystem, Mode, Transition
+from ..model import ModeFunctions
 from ._reference import as_times, box, make_samples, segment
 
 NAMES = ("x1", "x2")
 UNITS = ("m", "m")  # water levels
+P_RATE1, P_RATE2, P_WATCHED, P_THRESHOLD = range(4)
 
 
 @dataclass(frozen=True)
@@ -133,34 +138,40 @@ class TwoTankReference:
         return np.array(times), modes
 
 
+@model_function
+def constant_flow(t: float, x: np.ndarray, u: np.ndarray, p: np.ndarray, dx: np.ndarray) -> None:
+    """The mode's constant net flows (x1', x2') = (p[0], p[1]) (m/s)."""
+    dx[0] = p[P_RATE1]
+    dx[1] = p[P_RATE2]
+
+
+@model_function
+def threshold_guard(t: float, x: np.ndarray, u: np.ndarray, p: np.ndarray, g: np.ndarray) -> None:
+    """The level of the watched tank (index p[2]) above its threshold p[3] (m)."""
+    g[0] = x[int(p[P_WATCHED])] - p[P_THRESHOLD]
+
+
 def make_system(w: float = 0.75, v1: float = 0.5, v2: float = 0.5, r1: float = 0.0, r2: float = 0.0) -> HybridSystem:
-    """The two-tank hybrid system (modes ``q1``, ``q2``; coordinates x1, x2 in m)."""
-    f1 = np.array([w - v1, -v2])
-    f2 = np.array([-v1, w - v2])
+    """The two-tank hybrid system (modes ``q1``, ``q2``; coordinates x1, x2 in m), written once
+    as model functions: both modes share them, each with its parameters
+    ``(x1' (m/s), x2' (m/s), watched tank (0 or 1), its threshold (m))``."""
     zero = np.zeros((2, 2))
+    flows = {"q1": [w - v1, -v2, 1.0, r2], "q2": [-v1, w - v2, 0.0, r1]}
     modes = {
-        "q1": Mode(2, lambda t, x, u: f1.copy(), names=NAMES, jacobian=lambda t, x, u: zero.copy(), units=UNITS),
-        "q2": Mode(2, lambda t, x, u: f2.copy(), names=NAMES, jacobian=lambda t, x, u: zero.copy(), units=UNITS),
+        name: Mode(
+            2,
+            names=NAMES,
+            jacobian=lambda t, x, u: zero.copy(),
+            units=UNITS,
+            functions=ModeFunctions(constant_flow, threshold_guard, params=params),
+        )
+        for name, params in flows.items()
     }
     e1 = np.array([1.0, 0.0])
     e2 = np.array([0.0, 1.0])
     transitions = [
-        Transition(
-            "q1",
-            "q2",
-            guard=lambda x: x[1] - r2,
-            name="q1->q2",
-            guard_gradient=lambda x: e2.copy(),
-            reset_jacobian=lambda x: np.eye(2),
-        ),
-        Transition(
-            "q2",
-            "q1",
-            guard=lambda x: x[0] - r1,
-            name="q2->q1",
-            guard_gradient=lambda x: e1.copy(),
-            reset_jacobian=lambda x: np.eye(2),
-        ),
+        Transition("q1", "q2", name="q1->q2", guard_gradient=lambda x: e2.copy(), reset_jacobian=lambda x: np.eye(2)),
+        Transition("q2", "q1", name="q2->q1", guard_gradient=lambda x: e1.copy(), reset_jacobian=lambda x: np.eye(2)),
     ]
     return HybridSystem(modes, transitions, name="two tanks")
 

@@ -1,8 +1,9 @@
 """Orbits of controlled scenes: the return map on (section state, controller memory).
 
-The SLIP hopper under Raibert's foot placement (``slip_raibert``) keeps one value across
-transitions, the last stance's duration T_s. Its gait is searched with T_s among the unknowns
-and checked against independent evidence: the scene's own closed-loop run (100 hops), which must
+The SLIP hopper under Raibert's foot placement (``slip_raibert``, a ``ControlLaw``) keeps three
+values across transitions: the last stance's duration T_s, the stance's touchdown time and a
+stance flag (both 0 in flight, where the section lies). Its gait is searched with them among
+the unknowns and checked against independent evidence: the scene's own closed-loop run (100 hops), which must
 settle on the orbit at the rate its leading multiplier predicts, and the Python-API search with
 T_s held at its value on the gait (docs/robots.md), whose multipliers are those of the augmented
 map's state block.
@@ -60,16 +61,33 @@ def run_apexes(scene, settings):
 
 def as_row(result):
     """(z, psi, xd, T_s) of an orbit."""
-    return np.r_[result.fixed_point[1:4], result.memory]
+    return np.r_[result.fixed_point[1:4], result.memory[:1]]
+
+
+def held_stance_time(law, stance_time):
+    """A plain control ``u(t, x)``: the law's flight input with T_s held at ``stance_time`` (s),
+    its compiled function evaluated from Python."""
+    p = law.params_for("flight")
+    memory = np.array([stance_time, 0.0, 0.0])
+
+    def control(t, x):
+        u = np.zeros(1)
+        law.control(float(t), np.ascontiguousarray(x[:5], dtype=float), memory, p, u)
+        return u
+
+    return control
 
 
 def test_the_gait_reports_the_stance_time_with_its_unit(orbit):
     payload = orbit.to_json()
-    assert payload["memory_units"] == {"T_s": "s"}
+    assert payload["memory_units"] == {"T_s": "s", "t_touchdown": "s", "stance": ""}
     assert orbit.jacobian_method == "fd" and "does not follow the controller's memory" in orbit.message
-    # z, psi, xd and T_s: four multipliers, one of them the energy's 1.
-    assert len(orbit.multipliers) == 4
+    # z, psi, xd and the memory: six multipliers, one of them the energy's 1; the touchdown time
+    # and the stance flag are set at the stance's entry before they are read (0 at the section
+    # whatever they start at): their multipliers are exactly 0.
+    assert len(orbit.multipliers) == 6
     assert abs(orbit.multipliers[0] - 1.0) < 1e-6 and orbit.stable
+    assert orbit.memory[1:].tolist() == [0.0, 0.0] and sorted(np.abs(orbit.multipliers))[:2] == [0.0, 0.0]
 
 
 def test_the_gaits_return_map_is_differentiable_and_its_jacobian_unchanged(settings, orbit):
@@ -84,7 +102,8 @@ def test_the_gaits_return_map_is_differentiable_and_its_jacobian_unchanged(setti
 
 def test_the_report_names_the_memory_with_its_unit(orbit):
     text = format_orbit(orbit.to_json(), "slip_raibert")
-    assert f"  T_s =  {orbit.memory[0]:.10g} s  (controller memory)" in text
+    # names padded to the longest, t_touchdown
+    assert f"  T_s         =  {orbit.memory[0]:.10g} s  (controller memory)" in text
     assert "(fd Jacobian," in text
 
 
@@ -128,8 +147,6 @@ def test_the_leading_multiplier_is_the_runs_contraction_rate(orbit, run_apexes):
 def test_holding_the_stance_time_gives_the_same_gait_but_other_multipliers(scene, settings, orbit, run_apexes):
     # The Python-API search of docs/robots.md: the controller's flight law with T_s held at
     # its value on the gait in every flight, Jacobian by saltation matrices.
-    controller = scene.control
-    controller.stance_time = float(orbit.memory[0])
     held = OrbitProblem(
         system=scene.model.system,
         section=APEX,
@@ -137,7 +154,7 @@ def test_holding_the_stance_time_gives_the_same_gait_but_other_multipliers(scene
         eps=1e-7,
         landing="aim",
         t_max=3.0,
-        control=lambda t, x: controller("flight", t, x),
+        control=held_stance_time(scene.control, float(orbit.memory[0])),
         cyclic=("x",),
         energy=13.253,
         trivial_multipliers=1,
@@ -161,11 +178,13 @@ def test_the_saltation_jacobian_refuses_a_controller(settings, orbit):
     with pytest.raises(OrbitError, match="does not follow a controller's memory"):
         jacobian_saltation(settings.problem, ret)
     DP = jacobian_fd(settings.problem, orbit.fixed_point, memory=orbit.memory)
-    assert DP.shape == (settings.problem.dim + 1,) * 2
+    assert DP.shape == (settings.problem.dim + 3,) * 2
 
 
 def test_a_memory_guess_of_the_wrong_size_is_refused(settings):
-    with pytest.raises(OrbitError, match=r"memory guess must be 1 finite number\(s\) \(\['T_s'\]\)"):
+    with pytest.raises(
+        OrbitError, match=r"memory guess must be 3 finite number\(s\) \(\['T_s', 't_touchdown', 'stance'\]\)"
+    ):
         find_orbit(settings.problem, settings.guess, memory=[0.1, 0.2])
 
 
@@ -202,7 +221,7 @@ def test_a_fixed_memory_value_is_held_at_its_guess(settings, orbit):
     # Fixing T_s at its value on the gait leaves the same gait to find, with T_s no unknown (its
     # periodicity row stays: an overdetermined, consistent system).
     held = replace(settings.problem, fixed=("T_s",))
-    assert held.unknown_names == ["z", "psi", "xd"]
+    assert held.unknown_names == ["z", "psi", "xd", "t_touchdown", "stance"]
     result = find_orbit(held, orbit.fixed_point + 1e-3 * np.r_[0, 1, 0, 1, 0], memory=orbit.memory, jacobian="fd")
     assert result.raise_for_status().memory.tolist() == orbit.memory.tolist()
     assert result.fixed_point == pytest.approx(orbit.fixed_point, abs=1e-8)

@@ -243,9 +243,9 @@ def test_dense_landing_aims_at_the_strips_middle_through_a_kinked_guard():
     # 1e6 transitions for 3 ms of sticking. Landing in the strip's middle half keeps dense
     # landing's transition count with the aimed retry's. (The plain relaxed semantics: with its
     # continuation the mass would stick instead.)
-    from legsim.systems.fast import make_oscillator_example
+    from legsim.bench.overhead import example
 
-    system, x0, _ = make_oscillator_example("ex2")
+    system, law, x0, _ = example("ex2")
     eps = 1e-7
     runs = {
         landing: simulate(
@@ -256,6 +256,7 @@ def test_dense_landing_aims_at_the_strips_middle_through_a_kinked_guard():
             0.1,
             eps,
             method="dopri5",
+            control=law,
             rtol=1e-8,
             atol=1e-8,
             landing=landing,

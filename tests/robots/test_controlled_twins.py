@@ -11,7 +11,7 @@ import math
 
 import numpy as np
 import pytest
-from legsim.robots import double_pendulum, raibert
+from legsim.robots import double_pendulum
 from legsim.robots.bridge import control_records, twins
 from legsim.robots.controllers import JointPD
 from scipy.optimize import brentq
@@ -142,8 +142,6 @@ class NoRecord(JointPD):
         pytest.param(lambda b: _held(JointPD(b, KP, KD, np.array([TARGET]), gravity=False)), id="held"),
         pytest.param(lambda b: NoRecord(b, KP, KD, np.array([TARGET]), gravity=False), id="no-record"),
         pytest.param(lambda b: lambda t, x: np.array([KP * (TARGET - x[0]) - KD * x[2]]), id="plain-function"),
-        # Another robot's controller with a record of its own (one input: it fits the pendulum).
-        pytest.param(lambda b: raibert.SlipRaibert(1.0, 1.5, 0.1, 20.0, 0.14), id="slip-raibert"),
     ],
 )
 def test_a_control_the_twin_cannot_compute_runs_on_the_python_path(monkeypatch, make):
@@ -198,29 +196,6 @@ def test_bench_case_double_pendulum_pd_runs_compiled_to_its_reference(monkeypatc
     row = robots.run_one(case, robots.RunSpec("relaxed", "relaxed-dopri5", 0.1, 1e-10, 1e-8, "aim"), 1)
     assert calls and row.status == "finished" and row.transitions == 2
     assert row.error < 1e-6
-
-
-def test_the_orbit_searchs_memory_log_runs_compiled_as_its_controller(monkeypatch):
-    # legsim orbit wraps the controller in a MemoryLog (it records the memory at every entry);
-    # the wrapper only observes, so the twins compute the wrapped controller's input and the
-    # run is the bare controller's, to the bit.
-    from legsim.orbits.returns import MemoryLog
-    from legsim.scene import load_scene
-
-    scene = load_scene("slip_raibert")
-    system, x0, mode = scene.model.system, scene.initial_state, scene.initial_mode
-    runs = []
-    real = compiled.run_visit_compiled
-    for control in (scene.control, MemoryLog(scene.control)):
-        calls = []
-        with monkeypatch.context() as m:
-            m.setattr(compiled, "run_visit_compiled", lambda *a, calls=calls: calls.append(1) or real(*a))
-            ex = simulate(system, x0.copy(), mode, 2.0, 1e-3, 1e-10, "rk4", control, landing="aim")
-        runs.append((ex, len(calls), control))
-    (bare, n_bare, _), (logged, n_logged, log) = runs
-    assert n_bare == n_logged == len(bare.segments) > 4
-    assert_same_run(bare, logged, tol=0.0)
-    assert len(log.entries) == len(logged.segments)
 
 
 class HalvedPD(JointPD):

@@ -7,10 +7,10 @@ import math
 
 import numpy as np
 import pytest
-from legsim.robots import pronk, pronk_hopper
+from legsim.robots import pronk, pronk_hopper, raibert_pronk
 
 from legsim import simulate
-from legsim.errors import ModelBreakdown, SceneError
+from legsim.errors import SceneError
 from legsim.orbits import find_orbit
 from legsim.scene import load_scene
 from legsim.scene.orbit import problem_from_scene
@@ -49,7 +49,7 @@ def test_hip_torques_keep_the_massless_legs_balances():
     foot), and the energy changes by the hip torque's power on body and leg, torque times
     (thetad + the leg's forward swing rate) (closed forms)."""
     rng = np.random.default_rng(3)
-    field = HOPPER.field(("left",))
+    field = HOPPER.system().mode("left").field
     for _ in range(20):
         x, u = random_single_stance(rng), rng.uniform(-5.0, 5.0, 4)
         dx = field(0.0, x, u)
@@ -84,6 +84,7 @@ def test_raibert_pronk_tracks_the_commanded_speed_over_100_hops(raibert_run):
     hopper's 500 N/m, same mass, start and gains): it settles at the SLIP hopper's speed."""
     scene, ex = raibert_run
     assert ex.status == "finished" and not ex.warnings
+    assert ex.counters["python_steps"] == 0 and ex.counters["compiled_steps"] == ex.counters["steps"]
     touchdowns = hops(ex)
     assert len(touchdowns) >= 100
     speeds = np.array([tr.state_before[3] for tr in touchdowns])
@@ -91,23 +92,37 @@ def test_raibert_pronk_tracks_the_commanded_speed_over_100_hops(raibert_run):
     assert max(float(np.max(np.abs(seg.x[:, 2]))) for seg in ex.segments) < 1e-7
     energy = scene.model.system.energy
     initial = energy("aerial", scene.initial_state)
-    assert max(abs(energy("aerial", tr.state_before) - initial) for tr in touchdowns) < 1e-6 * initial
+    assert max(abs(energy("aerial", tr.state_before[:8]) - initial) for tr in touchdowns) < 1e-6 * initial
     slip = load_scene("slip_raibert", ["integrator.t_final=15"]).simulate()
     slip_speed = [tr.state_before[3] for tr in slip.transitions if tr.name == "touchdown"][-1]
     assert speeds[-1] == pytest.approx(slip_speed, abs=1e-6)
 
 
 def test_raibert_pronk_measures_each_legs_stance(raibert_run):
-    """Each leg's memory T_s is its last stance's duration, liftoff minus touchdown. The
-    controller is told at the mode's entry, which follows the transition's guard crossing by the
-    strip's hold (below eps / guard rate, ~1e-7 s here): the tolerance."""
-    scene, _ = raibert_run
-    controller = scene.control
-    ex = simulate(scene.model.system, scene.initial_state.copy(), "aerial", 3.0, 1e-3, 1e-7, "rk4", controller)
+    """Each leg's memory follows the run's state: its touchdown notes the time it enters the
+    stance, its liftoff sets its T_s to that stance's duration, the difference of the two entry
+    times to the last bit, and clears the touchdown time; the leg's memory changes at its own
+    transitions only."""
+    _, ex = raibert_run
+    assert ex.state_names["both"][8:] == raibert_pronk.MEMORY
     for i, leg in enumerate(pronk_hopper.LEGS):
-        times = [(tr.name, tr.time) for tr in ex.transitions if tr.name.endswith(leg)]
-        last = max(j for j, (name, _) in enumerate(times) if name.startswith("liftoff"))
-        assert controller.memory()[i] == pytest.approx(times[last][1] - times[last - 1][1], abs=1e-6)
+        touchdown = None
+        for tr in ex.transitions[:40]:
+            memory_before, memory_after = tr.state_before[8:], tr.state_after[8:]
+            if tr.name == f"touchdown_{leg}":
+                touchdown = tr
+                assert memory_after[[2 + i, 4 + i]].tolist() == [tr.exit_time, 1.0]
+            elif tr.name == f"liftoff_{leg}":
+                assert memory_after[[i, 2 + i, 4 + i]].tolist() == [tr.exit_time - touchdown.exit_time, 0.0, 0.0]
+            else:
+                assert memory_after[[i, 2 + i, 4 + i]].tolist() == memory_before[[i, 2 + i, 4 + i]].tolist()
+
+
+def law_input(law, mode, t, x):
+    """The law's input in ``mode`` at a stored state x (the plant's 8 coordinates, then the memory)."""
+    u = np.zeros(law.inputs)
+    law.control(float(t), np.ascontiguousarray(x[:8]), np.ascontiguousarray(x[8:]), law.params_for(mode), u)
+    return u
 
 
 def pitch_at_touchdowns(*overrides: str) -> np.ndarray:
@@ -186,13 +201,13 @@ def test_the_pitch_servo_never_makes_the_ground_pull_on_a_foot():
     (at touchdown and liftoff): each leg's normal force k (l - r) n_z + (torque / r) n_x stays at
     least half the spring's push k (l - r) n_z, at every stored state of every stance."""
     scene = load_scene("pronk_raibert", ["integrator.t_final=4", "initial.state.theta=0.01"])
-    ex, controller, hopper = scene.simulate(), scene.control, scene.model.info["pronk_hopper"]
+    ex, law, hopper = scene.simulate(), scene.control, scene.model.info["pronk_hopper"]
     checked = 0
     for seg in ex.segments:
         stance = pronk_hopper.MODES[seg.mode]
         names = pronk_hopper.state_names(stance)
         for t, x in zip(seg.t, seg.x, strict=True):
-            u = controller(seg.mode, t, x)
+            u = law_input(law, seg.mode, t, x)
             for leg in stance:
                 n, r, _ = hopper.leg_in_stance(leg, x, x[names.index(f"{leg}_foot_x")])
                 push = hopper.k * (hopper.l - r) * n[1]
@@ -204,16 +219,13 @@ def test_the_pitch_servo_never_makes_the_ground_pull_on_a_foot():
 
 def test_a_foot_landing_below_the_ground_is_a_model_breakdown():
     """A touchdown whose foot is already below the ground (the guard's rate leaves the leg's
-    swing out) is refused rather than pinned with its spring compressed."""
-    transition = next(tr for tr in HOPPER.system().transitions if tr.name == "touchdown_left" and tr.source == "aerial")
+    swing out) is refused rather than pinned with its spring compressed: its image is nan, past
+    the model's range, and a run that reaches it ends in a model breakdown there."""
+    system = HOPPER.system()
+    transition = next(tr for tr in system.transitions if tr.name == "touchdown_left" and tr.source == "aerial")
     x = np.array([0.0, 0.7, 0.0, 1.0, -1.0, 0.0, 0.3, 0.3])  # the foot 0.7 - cos(0.3) = -0.255 m
-    with pytest.raises(ModelBreakdown, match=r"left foot is 0\.255 m below the ground"):
-        transition.reset(x)
-
-
-def test_raibert_pronk_restores_its_memory_only_in_flight():
-    controller = load_scene("pronk_raibert").control
-    controller.restore("aerial", np.array([0.15, 0.16]))
-    np.testing.assert_array_equal(controller.memory(), [0.15, 0.16])
-    with pytest.raises(SceneError, match=r"in flight.*not in 'both'"):
-        controller.restore("both", np.array([0.15, 0.16]))
+    assert np.isnan(transition.reset(x)).any() and system.mode("aerial").functions.nan_breaks
+    # Rising with both feet 0.255 m under the ground: at the apex the feet's rate turns negative.
+    rising = np.array([0.0, 0.7, 0.0, 0.0, 1.0, 0.0, 0.3, 0.3])
+    ex = simulate(system, rising, "aerial", 1.0, 1e-3, 1e-6)
+    assert ex.status == "model_breakdown" and "reset of transition touchdown_" in ex.message and ex.t_end < 0.2

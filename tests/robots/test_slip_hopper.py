@@ -1,6 +1,6 @@
 """The SLIP hopper (robots/slip_hopper.py) and Raibert's foot placement for it
-(raibert.SlipRaibert): uncontrolled it is the bridge's SLIP; controlled it runs 100 hops and
-tracks the commanded speed, conserving energy, on a stable periodic gait."""
+(``raibert_slip``, raibert.slip_law): uncontrolled it is the bridge's SLIP; controlled it runs 100
+hops and tracks the commanded speed, conserving energy, on a stable periodic gait."""
 
 import math
 
@@ -34,34 +34,60 @@ def test_without_control_the_hopper_is_the_bridge_slip():
     )
 
 
+def flight_input(law, stance_time):
+    """A plain control ``u(t, x)``: the law's flight input with its stance time held at
+    ``stance_time`` (s), the compiled function evaluated from Python."""
+    p = law.params_for("flight")
+    memory = np.array([stance_time, 0.0, 0.0])
+
+    def control(t, x):
+        u = np.zeros(1)
+        law.control(float(t), np.ascontiguousarray(x[:5], dtype=float), memory, p, u)
+        return u
+
+    return control
+
+
 def assert_tracks_the_commanded_speed(scene, ex):
     """The slip_raibert scene's run ``ex``: 100 hops or more, from 1 m/s to within 5% of the
     commanded speed from the 20th hop on, energy conserved to 1e-6."""
     assert ex.status == "finished" and not ex.warnings
     touchdowns = [tr for tr in ex.transitions if tr.name == "touchdown"]
     assert len(touchdowns) >= 100
-    speed = scene.controller.speed
+    speed = scene.controller.params_for("flight")[raibert.C_SPEED]
     errors = np.array([abs(tr.state_before[3] - speed) / speed for tr in touchdowns])
     assert errors[0] > 0.3 and np.all(errors[20:] < 0.05)
     energy = scene.model.system.energy
     initial = energy("flight", scene.initial_state)
-    assert max(abs(energy("flight", tr.state_before) - initial) for tr in touchdowns) < 1e-6 * initial
+    assert max(abs(energy("flight", tr.state_before[:5]) - initial) for tr in touchdowns) < 1e-6 * initial
 
 
 def test_raibert_slip_tracks_the_commanded_speed_over_100_hops():
     """The scene: from 1 m/s to the commanded 1.5 m/s; from the 20th hop on every flight's speed
-    within 5% of it (proportional foot placement leaves a steady error), energy conserved."""
+    within 5% of it (proportional foot placement leaves a steady error), energy conserved; every
+    step compiled."""
     scene = load_scene("slip_raibert")
-    assert_tracks_the_commanded_speed(scene, scene.simulate())
-    # Each run starts from the scene's controller as made: the run leaves it as it was.
-    assert scene.controller.stance_time == load_scene("slip_raibert").controller.stance_time
-    # The controller measures each stance's duration at its liftoff.
-    controller = scene.control
-    short = simulate(scene.model.system, scene.initial_state.copy(), "flight", 3.0, 1e-3, 1e-6, "rk4", controller)
-    stances = [tr for tr in short.transitions if tr.name in ("touchdown", "liftoff")]
-    last_liftoff = max(i for i, tr in enumerate(stances) if tr.name == "liftoff")
-    touchdown, liftoff = stances[last_liftoff - 1], stances[last_liftoff]
-    assert controller.stance_time == pytest.approx(liftoff.time - touchdown.time, abs=2e-3)
+    ex = scene.simulate()
+    assert_tracks_the_commanded_speed(scene, ex)
+    assert ex.counters["python_steps"] == 0 and ex.counters["compiled_steps"] == ex.counters["steps"] > 60_000
+
+
+def test_raibert_slip_measures_each_stance_in_its_memory():
+    """The memory (T_s, t_touchdown, stance) follows the run's state: each touchdown's image notes
+    the time it enters the stance; each liftoff's sets T_s to that stance's duration, the
+    difference of the two entry times to the last bit, and clears the touchdown time; the first
+    flight keeps the initial T_s."""
+    scene = load_scene("slip_raibert", ["integrator.t_final=3"])
+    ex = scene.simulate()
+    assert ex.state_names["flight"][-3:] == raibert.SLIP_MEMORY and ex.state_units["flight"][-3:] == ("s", "s", "")
+    initial = scene.controller.initial_memory[0]
+    assert initial == pytest.approx(math.pi * math.sqrt(1.0 / 500.0)) and ex.segments[0].x[-1, 5] == initial
+    pairs = list(zip(ex.transitions[0::2], ex.transitions[1::2], strict=False))
+    assert len(pairs) >= 4
+    for touchdown, liftoff in pairs:
+        assert (touchdown.name, liftoff.name) == ("touchdown", "liftoff")
+        assert touchdown.state_after[5:].tolist() == [touchdown.state_before[5], touchdown.exit_time, 1.0]
+        assert liftoff.state_after[5:].tolist() == [liftoff.exit_time - touchdown.exit_time, 0.0, 0.0]
 
 
 def test_raibert_slip_needs_the_hopper():
@@ -79,9 +105,8 @@ def test_raibert_slip_gait_is_a_stable_periodic_orbit():
     ex = scene.simulate()
     touchdowns = [tr for tr in ex.transitions if tr.name == "touchdown"]
     liftoffs = [tr for tr in ex.transitions if tr.name == "liftoff"]
-    # Every run starts from the scene's controller as made; the gait's T_s is the run's last stance.
-    controller = scene.control
-    controller.stance_time = liftoffs[-1].exit_time - touchdowns[-1].exit_time
+    # The gait's T_s is the run's last stance.
+    stance_time = liftoffs[-1].exit_time - touchdowns[-1].exit_time
     problem = OrbitProblem(
         scene.model.system,
         Section.level("flight", "zd", 0.0, direction=-1),
@@ -89,7 +114,7 @@ def test_raibert_slip_gait_is_a_stable_periodic_orbit():
         1e-4,
         "rk4",
         t_max=2.0,
-        control=lambda t, x: controller("flight", t, x),
+        control=flight_input(scene.controller, stance_time),
         cyclic=["x"],
         energy=scene.model.system.energy("flight", scene.initial_state),
         trivial_multipliers=1,

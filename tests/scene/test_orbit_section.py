@@ -105,11 +105,19 @@ def test_bad_values_are_named_by_their_key(override, message):
 
 def test_a_controller_that_does_not_declare_its_memory_is_refused(tmp_path, monkeypatch):
     # A controller keeping state the search cannot restore would make the return map depend on
-    # where an earlier return left it: refused, naming the field and what to implement.
-    from legsim.robots.raibert import SlipRaibert
+    # where an earlier return left it: refused, naming the field and what to implement. (A
+    # ControlLaw always declares its memory: a Python Controller stands in for the scene's.)
+    from legsim.robots import raibert
 
-    monkeypatch.setattr(SlipRaibert, "memory_names", None)
-    expected = r"slip_raibert\.toml: controller: orbit problem: controller SlipRaibert does not declare its memory"
+    from legsim.control import Controller, ControllerSpec
+
+    class Undeclared(Controller):
+        def __call__(self, mode, t, x):
+            return np.zeros(1)
+
+    spec = ControllerSpec("raibert_slip", "", raibert.SLIP.parameters, lambda model, params: Undeclared())
+    monkeypatch.setattr("legsim.scene.controller.get_controller", lambda name: spec)
+    expected = r"slip_raibert\.toml: controller: orbit problem: controller Undeclared does not declare its memory"
     with pytest.raises(SceneError, match=expected) as info:
         problem_from_scene(load_scene("slip_raibert"))
     assert "memory_names, memory_units, memory() and restore(mode, memory)" in str(info.value)
@@ -118,12 +126,15 @@ def test_a_controller_that_does_not_declare_its_memory_is_refused(tmp_path, monk
 def test_a_scene_with_a_controller_searches_its_memory_too():
     settings = problem_from_scene(load_scene("slip_raibert", overrides=["orbit.guess={ T_s = 0.2 }"]))
     problem = settings.problem
-    assert problem.memory_names == ("T_s",) and problem.memory_units == ("s",)
-    assert problem.unknown_names == ["z", "psi", "xd", "T_s"]
-    assert settings.solver["memory"].tolist() == [0.2]
+    assert problem.memory_names == ("T_s", "t_touchdown", "stance") and problem.memory_units == ("s", "s", "")
+    assert problem.unknown_names == ["z", "psi", "xd", "T_s", "t_touchdown", "stance"]
+    assert settings.solver["memory"].tolist() == [0.2, 0.0, 0.0]
 
 
 def test_an_unknown_guess_name_lists_the_controller_memory():
     scene = load_scene("slip_raibert", overrides=["orbit.guess={ T_x = 0.2 }"])
-    with pytest.raises(SceneError, match=r"orbit\.guess: unknown coordinate 'T_x'.*controller memory: \['T_s'\]"):
+    with pytest.raises(
+        SceneError,
+        match=r"orbit\.guess: unknown coordinate 'T_x'.*controller memory: \['T_s', 't_touchdown', 'stance'\]",
+    ):
         problem_from_scene(scene)

@@ -10,8 +10,9 @@ One mode ``free`` with state ``(x, xd)`` (m, m/s). With the stop there is one tr
 ``impact`` (``free -> free``) with guard ``max(x_max - x, -xd)``: past the guard means beyond
 the stop *and* moving into it, so near an impact the guard's value is the distance to the stop
 and eps is measured in metres. Without the stop there is no transition. The forcing is the
-model's *control* ``u(t, x) = U cos(Omega t)``, so that it travels the integrator's control
-path (sampled at every Runge-Kutta stage).
+model's *control* ``u(t, x) = U cos(Omega t)``, a ``legsim.control.ControlLaw`` sampled at every
+Runge-Kutta stage. Modes, guards, resets and the forcing are written once as compiled model
+functions (``legsim.model``), so a run steps in the compiled kernel.
 
 With the effect ``zeno = { window = h + eps }`` (Zeno continuation, off by default) an impact
 whose next flight would be shorter than the window sticks instead of chattering: transition
@@ -35,7 +36,7 @@ stop, and Zeno accumulations summed in closed form (see its docstring for the er
 =================  ===========================================================================
 module             responsibility
 =================  ===========================================================================
-``model``          ``make_system`` (the hybrid system), the forcing control, ``EXAMPLES``
+``model``          ``make_system`` (the hybrid system), the forcing law, ``EXAMPLES``
 ``reference``      ``OscillatorReference``, the exact execution
 ``builder``        ``BUILDER`` for scenes: effects, picture, the run's reference
 =================  ===========================================================================

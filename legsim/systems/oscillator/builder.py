@@ -16,18 +16,18 @@ from .reference import OscillatorReference
 
 
 def _build(params: dict[str, Any], effects: dict[str, dict[str, Any]]) -> Model:
-    """The model a scene names: the effects that are on, the forcing as the control, and the
-    exact reference from the scene's initial state (None, with the reason in ``info``, where
-    eq. (28) does not apply)."""
+    """The model a scene names: only the effects that are on (no damping: a field without a
+    damping term; no forcing: no control), the forcing as its control law, and the exact
+    reference from the scene's initial state (None, with the reason in ``info``, where eq. (28)
+    does not apply)."""
     stop = effects.get("stop")
     damping = effects.get("damping")
     force = effects.get("forcing")
     x_max = None if stop is None else stop["position"]
     c = 0.0 if stop is None else stop["restitution"]
     a = 0.0 if damping is None else damping["a"]
-    counts = {"damping_evals": 0, "forcing_evals": 0}
-    system = make_system(params["omega"], a, x_max, c, params["mass"], counters=counts)
-    control = None if force is None else forcing(force["amplitude"], force["frequency"], counts)
+    system = make_system(params["omega"], a, x_max, c, params["mass"])
+    control = None if force is None else forcing(force["amplitude"], force["frequency"])
     amplitude = 0.0 if force is None else force["amplitude"]
     frequency = 0.0 if force is None else force["frequency"]
     size = params["size"]
@@ -67,7 +67,6 @@ def _build(params: dict[str, Any], effects: dict[str, dict[str, Any]]) -> Model:
         geometry,
         _scenery(params["x0"], x_max, size),
         reference,
-        counters=lambda: dict(counts),
         info=info,
     )
 
@@ -123,7 +122,7 @@ BUILDER = Builder(
             parameters={"a": Param(0.05, "damping rate mu / (2 m)", "1/s", low=0.0)},
         ),
         "forcing": Effect(
-            "external force u(t) = amplitude cos(frequency t), passed as the control",
+            "external force u(t) = amplitude cos(frequency t), the model's control law",
             default_on=True,
             parameters={
                 "amplitude": Param(20.0, "force amplitude", "N"),

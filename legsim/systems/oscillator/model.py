@@ -1,21 +1,30 @@
-"""The forced oscillator with a stop as a hybrid system: ``make_system``, its forcing control
-``forcing``, and Table I of paper 000 (``EXAMPLES``)."""
+"""The forced oscillator with a stop as a hybrid system written once as model functions
+(``legsim.model``): ``make_system``, its forcing ``forcing`` (a ``ControlLaw``), and Table I of
+paper 000 (``EXAMPLES``).
+
+Every mode's parameter array is ``p = (2 a, omega^2, 1 / m, x_max, c)`` (1/s, rad^2/s^2, 1/kg,
+m, -); the input is ``u = (force,)`` (N), zero without forcing. A run under ``forcing`` with
+these compiled functions steps in the compiled kernel.
+"""
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 from typing import Any
 
 import numpy as np
 
+from ...compiled import model_function
+from ...control import ControlLaw
 from ...errors import ModelError
 from ...hybrid import Continuation, HybridSystem, Mode, Transition
+from ...model import ModeFunctions
 
 MODE = "free"
 STUCK = "stuck"  # at rest on the stop: where accumulating impacts continue
 NAMES = ("x", "xd")
 UNITS = ("m", "m/s")
+P_TWO_A, P_W2, P_INV_M, P_X_MAX, P_C = range(5)
 
 #: Table I of paper 000, as keyword arguments of ``make_system``/``OscillatorReference`` plus the
 #: initial state and the end time.
@@ -46,51 +55,98 @@ EXAMPLES: dict[str, dict[str, float]] = {
     },
 }
 
-Field = Callable[[float, np.ndarray, Any], np.ndarray]
+
+@model_function
+def damped_field(t: float, x: np.ndarray, u: np.ndarray, p: np.ndarray, dx: np.ndarray) -> None:
+    """(xd, u/m - 2 a xd - omega^2 x), shape (2,)."""
+    dx[0] = x[1]
+    dx[1] = u[0] * p[P_INV_M] - p[P_TWO_A] * x[1] - p[P_W2] * x[0]
 
 
-def forcing(
-    amplitude: float, frequency: float, counters: dict[str, int] | None = None
-) -> Callable[[float, np.ndarray], float]:
-    """The control ``u(t, x) = amplitude * cos(frequency * t)`` (N; frequency in rad/s).
+@model_function
+def undamped_field(t: float, x: np.ndarray, u: np.ndarray, p: np.ndarray, dx: np.ndarray) -> None:
+    """(xd, u/m - omega^2 x), shape (2,): a scene without damping computes no damping term."""
+    dx[0] = x[1]
+    dx[1] = u[0] * p[P_INV_M] - p[P_W2] * x[0]
 
-    ``counters``, when given, counts the evaluations under ``forcing_evals``.
-    """
+
+@model_function
+def stop_guard(t: float, x: np.ndarray, u: np.ndarray, p: np.ndarray, g: np.ndarray) -> None:
+    """The stop's guard max(x_max - x, -xd) (m): past only beyond the stop *and* moving into it."""
+    d = p[P_X_MAX] - x[0]
+    g[0] = d if d > -x[1] else -x[1]
+
+
+@model_function
+def stop_impact(e: int, t: float, x: np.ndarray, u: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
+    """The impact (x, -c xd) (e = 0), or its continuation ``stick``, the plastic impact (x, 0) (e = 1)."""
+    out[0] = x[0]
+    out[1] = -p[P_C] * x[1] if e == 0 else 0.0
+
+
+@model_function
+def held(t: float, x: np.ndarray, u: np.ndarray, p: np.ndarray, dx: np.ndarray) -> None:
+    """At rest on the stop: nothing moves."""
+    dx[0] = 0.0
+    dx[1] = 0.0
+
+
+@model_function
+def release_guard(t: float, x: np.ndarray, u: np.ndarray, p: np.ndarray, g: np.ndarray) -> None:
+    """``release``: the free acceleration at rest on the stop, F = u/m - omega^2 x (m/s^2); the stop
+    pushes while F >= 0."""
+    g[0] = u[0] * p[P_INV_M] - p[P_W2] * x[0]
+
+
+@model_function
+def cosine_force(t: float, x: np.ndarray, m: np.ndarray, p: np.ndarray, u: np.ndarray) -> None:
+    """u = (U cos(Omega t),) (N) for p = (U (N), Omega (rad/s))."""
+    u[0] = p[0] * math.cos(p[1] * t)
+
+
+class SameInEveryMode:
+    """``params(mode)`` of a control law whose parameters do not depend on the mode."""
+
+    def __init__(self, values: Any) -> None:
+        self.values = np.asarray(values, dtype=float)
+
+    def __call__(self, mode: str) -> np.ndarray:
+        return self.values
+
+
+class Forcing(ControlLaw):
+    """The forcing ``u(t) = U cos(Omega t)`` as a control law (no memory, evaluated at every
+    stage). Also callable as a plain control ``u(t, x) -> force`` (N), for the tools that take
+    one (error bounds, certificates, the event-driven baseline)."""
+
+    def __call__(self, t: float, x: Any = None) -> float:
+        u = np.zeros(1)
+        state = np.zeros(2) if x is None else np.ascontiguousarray(x, dtype=float)
+        self.control(float(t), state, np.zeros(0), self.params_for(MODE), u)
+        return float(u[0])
+
+
+def forcing(amplitude: float, frequency: float) -> Forcing:
+    """The control ``u(t, x) = amplitude * cos(frequency * t)`` (N; frequency in rad/s), written
+    once (``cosine_force``): the compiled kernel and the Python loop both evaluate it."""
     amplitude, frequency = float(amplitude), float(frequency)
-
-    if counters is None:
-
-        def u(t: float, x: np.ndarray) -> float:
-            return amplitude * math.cos(frequency * t)
-    else:
-        counters.setdefault("forcing_evals", 0)
-
-        def u(t: float, x: np.ndarray) -> float:
-            counters["forcing_evals"] += 1
-            return amplitude * math.cos(frequency * t)
-
-    return u
+    if not (math.isfinite(amplitude) and math.isfinite(frequency)):
+        raise ModelError(f"oscillator: forcing amplitude and frequency must be finite, got {amplitude}, {frequency}")
+    return Forcing("forcing", cosine_force, 1, SameInEveryMode([amplitude, frequency]))
 
 
 def make_system(
-    omega: float = 2.5,
-    a: float = 0.05,
-    x_max: float | None = 14.0,
-    c: float = 0.9,
-    mass: float = 1.0,
-    counters: dict[str, int] | None = None,
+    omega: float = 2.5, a: float = 0.05, x_max: float | None = 14.0, c: float = 0.9, mass: float = 1.0
 ) -> HybridSystem:
     """The oscillator as a hybrid system; pass ``x_max=None`` for no stop (no guard).
 
     Parameters
     ----------
     omega: natural frequency sqrt(k / m) (rad/s), > 0.
-    a: damping rate mu / (2 m) (1/s), >= 0.
+    a: damping rate mu / (2 m) (1/s), >= 0; a = 0 builds the field without a damping term.
     x_max: position of the stop (m), or None.
     c: coefficient of restitution at the stop, in [0, 1].
-    mass: m (kg), > 0; the control u is a force (N), the field uses u / m (None means u = 0).
-    counters: when given, ``damping_evals`` counts the evaluations of the damping term (none
-        at all when a = 0: the field then has no such term).
+    mass: m (kg), > 0; the input u is a force (N), the field uses u / m (no input: u = 0).
 
     With a stop, the impact's continuation (taken when impacts accumulate, ``legsim.relaxed.zeno``)
     is ``stick``: the mass rests on the stop in mode ``stuck`` (x, xd held) and leaves it through
@@ -98,7 +154,11 @@ def make_system(
     """
     omega, a, c, mass = float(omega), float(a), float(c), float(mass)
     _check_parameters(omega, a, c, mass)
-    w2, two_a, inv_m = omega * omega, 2.0 * a, 1.0 / mass
+    w2, two_a = omega * omega, 2.0 * a
+    stop = math.nan if x_max is None else float(x_max)
+    if x_max is not None and not math.isfinite(stop):
+        raise ModelError(f"oscillator: stop position x_max must be finite, got {x_max}")
+    params = [two_a, w2, 1.0 / mass, stop, c]
 
     def jacobian(t: float, x: np.ndarray, u: Any) -> np.ndarray:
         return np.array([[0.0, 1.0], [-w2, -two_a]])
@@ -108,23 +168,22 @@ def make_system(
         q, qd = float(x[0]), float(x[1])
         return 0.5 * mass * (qd * qd + w2 * q * q)
 
+    field = undamped_field if two_a == 0.0 else damped_field
+    guards = None if x_max is None else stop_guard
+    free = ModeFunctions(field, guards, stop_impact if guards else None, params=params, inputs=1)
+    modes = {MODE: Mode(2, names=NAMES, jacobian=jacobian, units=UNITS, functions=free)}
     transitions: list[Transition] = []
-    x0 = 0.0
     if x_max is not None:
-        stop = float(x_max)
-        if not math.isfinite(stop):
-            raise ModelError(f"oscillator: stop position x_max must be finite, got {x_max}")
-        x0 = min(0.0, stop)
-        transitions = _stop_transitions(stop, c, w2, inv_m)
-    modes = {MODE: Mode(2, _field(w2, two_a, inv_m, counters), NAMES, jacobian, units=UNITS)}
-    if transitions:
-        modes[STUCK] = Mode(2, lambda t, x, u: np.zeros(2), NAMES, lambda t, x, u: np.zeros((2, 2)), units=UNITS)
+        stuck = ModeFunctions(held, release_guard, params=params, inputs=1)
+        zero = lambda t, x, u: np.zeros((2, 2))  # noqa: E731
+        modes[STUCK] = Mode(2, names=NAMES, jacobian=zero, units=UNITS, functions=stuck)
+        transitions = _stop_transitions(stop, c)
     return HybridSystem(
         modes,
         transitions,
         name="oscillator with stop" if transitions else "oscillator",
         energy=energy,
-        initial=(MODE, np.array([x0, 0.0])),
+        initial=(MODE, np.array([0.0 if x_max is None else min(0.0, stop), 0.0])),
     )
 
 
@@ -145,63 +204,22 @@ def _check_parameters(omega: float, a: float, c: float, mass: float) -> None:
             raise ModelError(f"oscillator: {label} overflows (omega = {omega:g}, a = {a:g}, mass = {mass:g})")
 
 
-def _field(w2: float, two_a: float, inv_m: float, counters: dict[str, int] | None) -> Field:
-    """The field (xd, u/m - 2 a xd - omega^2 x) of mode ``free``. Undamped, it has no damping
-    term at all, so that ``damping_evals`` shows a scene without damping computes none."""
-    if two_a == 0.0:
-
-        def field(t: float, x: np.ndarray, u: Any) -> np.ndarray:
-            force = 0.0 if u is None else u
-            return np.array([x[1], force * inv_m - w2 * x[0]])
-    elif counters is None:
-
-        def field(t: float, x: np.ndarray, u: Any) -> np.ndarray:
-            force = 0.0 if u is None else u
-            return np.array([x[1], force * inv_m - two_a * x[1] - w2 * x[0]])
-    else:
-        counters.setdefault("damping_evals", 0)
-
-        def field(t: float, x: np.ndarray, u: Any) -> np.ndarray:
-            counters["damping_evals"] += 1
-            force = 0.0 if u is None else u
-            return np.array([x[1], force * inv_m - two_a * x[1] - w2 * x[0]])
-
-    return field
-
-
-def _stop_transitions(stop: float, c: float, w2: float, inv_m: float) -> list[Transition]:
+def _stop_transitions(stop: float, c: float) -> list[Transition]:
     """The stop at ``x = stop`` (m): ``impact`` from ``free``, continued by ``stick`` into
-    ``stuck``, and ``release`` from ``stuck``.
-
-    The impact's guard ``max(x_max - x, -xd)`` is past only beyond the stop *and* moving into it,
-    so near an impact its value is the distance to the stop and eps is measured in metres.
-    ``release``: the free acceleration at rest on the stop, ``F = u/m - omega^2 x`` (m/s^2), the
-    stop pushing while F >= 0; it depends on the forcing, so it is declared on (t, x, u)."""
-
-    def guard(x: np.ndarray) -> float:
-        d = stop - x[0]
-        return d if d > -x[1] else -x[1]
+    ``stuck``, and ``release`` from ``stuck``; guards and resets are the modes' functions, in
+    this order."""
 
     def guard_gradient(x: np.ndarray) -> np.ndarray:
         return np.array([-1.0, 0.0]) if stop - x[0] > -x[1] else np.array([0.0, -1.0])
 
-    def reset(x: np.ndarray) -> np.ndarray:
-        return np.array([x[0], -c * x[1]])
-
-    def pressing(t: float, x: np.ndarray, u: Any) -> float:
-        return (0.0 if u is None else u) * inv_m - w2 * x[0]
-
-    stick = Continuation(STUCK, lambda x: np.array([x[0], 0.0]), name="stick")
     return [
         Transition(
             MODE,
             MODE,
-            guard,
-            reset,
             name="impact",
             guard_gradient=guard_gradient,
             reset_jacobian=lambda x: np.diag([1.0, -c]),
-            continuation=stick,
+            continuation=Continuation(STUCK, name="stick"),
         ),
-        Transition(STUCK, MODE, pressing, name="release", guard_args="t,x,u"),
+        Transition(STUCK, MODE, name="release"),
     ]
