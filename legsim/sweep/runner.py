@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import time
 from collections import Counter
 from collections.abc import Callable
@@ -84,15 +85,41 @@ def run_sweep(
     progress: bool = False,
     figures: bool = True,
     log: Callable[[str], None] | None = None,
+    connect_timeout: float | None = None,
 ) -> SweepResult:
     """Run every variation of ``spec`` not done yet (see ``legsim.sweep.sweep`` for the arguments)."""
     fixed_point = check_sweep(spec)
     store = ResultStore(out, spec) if out is not None else None
+    with store.claim() if store is not None else contextlib.nullcontext():
+        return _run_claimed(
+            spec,
+            store,
+            fixed_point,
+            resume,
+            figures,
+            log,
+            progress,
+            Engine(workers, scheduler, in_process, batch_size, connect_timeout=connect_timeout),
+        )
+
+
+def _run_claimed(
+    spec: SweepSpec,
+    store: ResultStore | None,
+    fixed_point: dict[str, float] | None,
+    resume: bool,
+    figures: bool,
+    log: Callable[[str], None] | None,
+    progress: bool,
+    engine: Engine,
+) -> SweepResult:
+    """``run_sweep`` once its folder (if any) is claimed."""
     done = store.prepare(resume) if store is not None else set()
     todo = [i for i in range(len(spec)) if i not in done]
     rows: list[dict[str, Any]] = []
     start = time.perf_counter()
-    engine = Engine(workers=workers, scheduler=scheduler, in_process=in_process or not todo, batch_size=batch_size)
+    if not todo:
+        engine = Engine(in_process=True)
     with engine:
         startup = time.perf_counter() - start
         start = time.perf_counter()
