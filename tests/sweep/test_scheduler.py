@@ -133,7 +133,8 @@ def test_an_unreachable_scheduler_is_an_error_naming_it(tmp_path, capsys, monkey
 
 def test_a_scheduler_that_accepts_and_never_answers_is_given_up_at_the_deadline(tmp_path, capsys):
     # Dask's handshake waited for its answer forever, whatever the client's timeout.
-    with silent_peer() as port, watchdog(60):
+    with silent_peer() as peer, watchdog(60):
+        port = peer.port
         began = time.monotonic()
         code = main(
             [*SWEEP, "--out", str(tmp_path / "x"), "--scheduler", f"tcp://127.0.0.1:{port}", "--connect-timeout", "1"]

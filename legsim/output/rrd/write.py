@@ -50,7 +50,7 @@ from .layout import (
 )
 from .stream import CHUNK, Chunk, chunks, sample_count
 from .urdf import UrdfLogger, urdf_source
-from .views import blueprint, coordinate_units, series_label, unit_groups
+from .views import UnitGroup, blueprint, coordinate_units, series_label, unit_groups
 
 #: Rows sent to Rerun between waits for its pipeline to write them (``drain``): Rerun queues
 #: what it is sent, some 150 bytes a row, until its file sink has written it.
@@ -140,8 +140,9 @@ class recording_stream:
             self.rec.disconnect()
 
 
-def record(rec: Any, content: Content) -> None:
-    """Log the whole recording of ``content`` to the stream ``rec``."""
+def record(rec: Any, content: Content) -> Layout:
+    """Log the whole recording of ``content`` to the stream ``rec``; the layout its blueprint was
+    made from (``legsim.output.rrd.views.blueprint``'s arguments)."""
     import rerun as rr
 
     log = _Logger(rr, rec, content)
@@ -151,7 +152,11 @@ def record(rec: Any, content: Content) -> None:
     log.events()
     scenery = log.scenery()
     log.header(_meta(content, bodies, scenery), bodies, scenery)
-    log.blueprint(log.entities, bodies, scenery)
+    return log.blueprint(log.entities, bodies, scenery)
+
+
+#: A blueprint's arguments: the plot views by unit, and the (x, z) corners of what is drawn or None.
+Layout = tuple[list[UnitGroup], tuple[np.ndarray, np.ndarray] | None]
 
 
 def _meta(content: Content, bodies: BodyLogger | UrdfLogger | None, scenery: dict[str, np.ndarray]) -> dict[str, Any]:
@@ -450,8 +455,8 @@ class _Logger:
 
     def blueprint(
         self, entities: dict[str, str], bodies: BodyLogger | UrdfLogger | None, scenery: dict[str, np.ndarray]
-    ) -> None:
-        """The viewer's layout (``legsim.output.rrd.views``), sent with the recording."""
+    ) -> Layout:
+        """The viewer's layout (``legsim.output.rrd.views``), sent with the recording; its arguments."""
         import rerun.blueprint as rrb
 
         ex = self.content.execution
@@ -461,6 +466,7 @@ class _Logger:
             allp = np.concatenate(list(scenery.values()))
             box = (allp.min(axis=0), allp.max(axis=0))
         self.rec.send_blueprint(blueprint(rrb, groups, box))
+        return groups, box
 
 
 def _joined(rows: list[np.ndarray]) -> np.ndarray:
