@@ -232,8 +232,9 @@ def _stream_live(args: argparse.Namespace, execution: Any, scene: Any, options: 
     from ..output.rrd.live import stream_rrd
 
     try:
-        timeout = {"timeout": connect_timeout(args)} if args.connect is not None else {}
-        stream_rrd(execution, scene, spawn=args.spawn, connect=args.connect, **options, **timeout)
+        if args.connect is not None:
+            options = {**options, "timeout": connect_timeout(args)}
+        stream_rrd(execution, scene, spawn=args.spawn, connect=args.connect, **options)
     except LegsimError as exc:
         if execution.status == "finished":
             raise

@@ -46,7 +46,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     url, file, layout = list(sys.argv[1:] if argv is None else argv)
     data = json.loads(layout)
     groups = [UnitGroup(unit, title, tuple(entities)) for unit, title, entities in data["groups"]]
-    box = None if data["box"] is None else tuple(np.array(corner, dtype=float) for corner in data["box"])
+    corners = data["box"]
+    box = None if corners is None else (np.array(corners[0], dtype=float), np.array(corners[1], dtype=float))
     rec = rr.RecordingStream(APPLICATION_ID, recording_id=uuid.uuid4())
     rec.connect_grpc(url)
     rec.send_chunks(RrdReader(file).stream())

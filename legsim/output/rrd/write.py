@@ -28,8 +28,11 @@ from ..files import write_atomic
 from ..summary import run_summary
 from ..trace import RecordingError, _draw, resolve_model, scenery_only, trace_series
 from .bodies import BodyLogger
+from .digest import Digest, DigestingStream, seal
 from .layout import (
     APPLICATION_ID,
+    DIGEST,
+    FILE_DIGEST,
     FORMAT,
     META,
     MODE,
@@ -82,6 +85,7 @@ def write_rrd(
         with recording_stream() as rec:
             rec.save(tmp)
             record(rec, content)
+            seal(rec, tmp, FILE_DIGEST)
 
     try:
         write_atomic(path, write, what="recording")
@@ -145,14 +149,19 @@ def record(rec: Any, content: Content) -> Layout:
     made from (``legsim.output.rrd.views.blueprint``'s arguments)."""
     import rerun as rr
 
-    log = _Logger(rr, rec, content)
-    rec.log(WORLD, rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
+    digest = Digest()
+    digested = DigestingStream(rec, digest, SAMPLE_TIMELINE)
+    log = _Logger(rr, digested, content)
+    digested.log(WORLD, rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
     bodies = log.stream()
     log.modes()
     log.events()
     scenery = log.scenery()
     log.header(_meta(content, bodies, scenery), bodies, scenery)
-    return log.blueprint(log.entities, bodies, scenery)
+    layout = log.blueprint(log.entities, bodies, scenery)
+    # Last, and not digested itself: the digest of everything logged above.
+    rec.log(DIGEST, rr.TextDocument(json.dumps(digest.document()), media_type="text/plain"), static=True)
+    return layout
 
 
 #: A blueprint's arguments: the plot views by unit, and the (x, z) corners of what is drawn or None.
