@@ -236,8 +236,10 @@ class Builder:
     ) -> Model:
         """Validate ``parameters`` and ``effects`` (as a scene would give them) and build."""
         prefix = f"{where}: " if where else ""
-        params = resolve_parameters(self.parameters, parameters or {}, f"{prefix}robot.parameters")
-        chosen = resolve_effects(self.effects, effects or {}, f"{prefix}effects")
+        params = resolve_parameters(
+            self.parameters, {} if parameters is None else parameters, f"{prefix}robot.parameters"
+        )
+        chosen = resolve_effects(self.effects, {} if effects is None else effects, f"{prefix}effects")
         model = self.build(params, chosen)
         if not isinstance(model, Model):
             raise ModelError(f"builder '{self.name}' returned {type(model).__name__}, expected legsim.builders.Model")

@@ -152,7 +152,9 @@ class ControllerSpec:
         does) and make the controller for ``model``. A ``make`` that raises anything but a
         legsim error is a ``SceneError`` naming the controller and the failure."""
         prefix = f"{where}: " if where else ""
-        params = resolve_parameters(self.parameters, parameters or {}, f"{prefix}controller.parameters")
+        params = resolve_parameters(
+            self.parameters, {} if parameters is None else parameters, f"{prefix}controller.parameters"
+        )
         if files is not None:
             files(self.parameters, params)
         try:

@@ -15,7 +15,7 @@ import pyarrow as pa
 from ..progress import counting
 from .engine import Engine
 from .spec import SweepError, SweepSpec, corners, variation_overrides
-from .table import ResultStore, schema, to_table
+from .table import ResultStore, schema, to_table, with_rows_digest
 from .tasks import run_batch
 
 #: Names of the figure writers in the ``legsim.writers`` entry points, and their files.
@@ -142,7 +142,11 @@ def _run_claimed(
                 engine.run(run_batch, spec, list(spec.items(todo)), on_done)
             finally:
                 # Interrupted or not, the rows finished so far make the table.
-                table = store.assemble() if store is not None else to_table(sorted(rows, key=_index), schema(spec))
+                table = (
+                    store.assemble()
+                    if store is not None
+                    else with_rows_digest(to_table(sorted(rows, key=_index), schema(spec)))
+                )
     result = SweepResult(
         spec,
         table,

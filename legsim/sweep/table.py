@@ -31,6 +31,7 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+from ..output.arrow_digest import table_digest
 from ..output.files import file_kind, write_atomic
 from ..output.untrusted import check_object, load_json
 from .spec import MAX_VARIATIONS, SweepError, SweepSpec
@@ -39,6 +40,8 @@ RESULTS = "results.parquet"
 PARTS = "results.parts"
 MANIFEST = "sweep.json"
 LOCK = ".sweep.lock"
+#: The schema metadata keys of a table: the sweep's digest, and the digest of the rows in it.
+SWEEP_KEY, ROWS_KEY = b"legsim.sweep", b"legsim.rows"
 #: The manifest's format, which ``--resume`` checks first.
 MANIFEST_FORMAT = "legsim-sweep-1"
 #: Largest manifest read (bytes): a grid of ``MAX_VARIATIONS`` values written out takes some 250 MB.
@@ -145,7 +148,7 @@ def to_table(rows: Iterable[dict[str, Any]], table_schema: pa.Schema) -> pa.Tabl
 def write_table(path: Path, table: pa.Table, what: str) -> Path:
     """Write ``table`` to ``path`` atomically, with fixed settings and as one chunk per column,
     so that the same rows give the same bytes however they were batched."""
-    table = table.combine_chunks()
+    table = with_rows_digest(table.combine_chunks())
 
     def write(tmp: Path) -> None:
         # Page checksums: a flipped byte in a page is found when --resume reads it back.
@@ -160,7 +163,7 @@ def read_table(path: Path, columns: list[str] | None = None, table_schema: pa.Sc
     try:
         return pq.read_table(path, columns=columns, schema=table_schema, page_checksum_verification=True)
     except (pa.ArrowException, OSError, ValueError) as exc:
-        raise SweepError(f"--resume: {path} is damaged or no Parquet table: {exc}") from None
+        raise SweepError(f"--resume: {path} is damaged or no Parquet table: {_one_line(exc)}") from None
 
 
 class ResultStore:
@@ -315,8 +318,8 @@ class ResultStore:
         try:
             found = pq.read_schema(path)
         except (pa.ArrowException, OSError, ValueError) as exc:
-            raise SweepError(f"--resume: {path} is damaged or no Parquet table: {exc}") from None
-        fingerprint = (found.metadata or {}).get(b"legsim.sweep", b"").decode("ascii", "replace")
+            raise SweepError(f"--resume: {path} is damaged or no Parquet table: {_one_line(exc)}") from None
+        fingerprint = (found.metadata or {}).get(SWEEP_KEY, b"").decode("ascii", "replace")
         if fingerprint != self.spec.fingerprint():
             raise SweepError(
                 f"--resume: {path} was not written by this sweep (its sweep digest is {fingerprint[:16] or 'absent'!r})"
@@ -335,6 +338,10 @@ class ResultStore:
         unique, counts = np.unique(values, return_counts=True)
         if np.any(counts > 1):
             raise SweepError(f"--resume: {path} repeats row {int(unique[counts > 1][0])}")
+        if (found.metadata or {}).get(ROWS_KEY, b"").decode("ascii", "replace") != rows_digest(table):
+            raise SweepError(
+                f"--resume: {path} was changed after this sweep wrote it: its rows do not match their digest"
+            )
         return set(values.tolist())
 
     def add(self, rows: list[dict[str, Any]]) -> Path:
@@ -351,13 +358,32 @@ class ResultStore:
             for p in ([self.results] if self.results.exists() else []) + self.part_files()
         ]
         table = pa.concat_tables(tables) if tables else self.schema.empty_table()
-        table = _first_of_each_index(table.sort_by("index"))
+        table = with_rows_digest(_first_of_each_index(table.sort_by("index")).combine_chunks())
         write_table(self.results, table, "--out results")
         for path in self.part_files():
             path.unlink()
         if self.parts.is_dir() and not any(self.parts.iterdir()):
             self.parts.rmdir()
         return table
+
+
+def with_rows_digest(table: pa.Table) -> pa.Table:
+    """``table`` with the digest of its rows in its metadata: --resume takes only rows as this
+    sweep wrote them, and a table in memory is the table on disk, metadata included."""
+    return table.replace_schema_metadata(
+        {**(table.schema.metadata or {}), ROWS_KEY: rows_digest(table).encode("ascii")}
+    )
+
+
+def rows_digest(table: pa.Table) -> str:
+    """The SHA-256 of a table's rows but for their timing columns, which two runs of one sweep do
+    not share (``TIMING_COLUMNS``): the same rows have the same digest wherever they ran."""
+    return table_digest(table.drop_columns([c for c in TIMING_COLUMNS if c in table.column_names]))
+
+
+def _one_line(exc: BaseException) -> str:
+    """pyarrow's message on one line (it may end in, or hold, line breaks)."""
+    return " ".join(str(exc).split())
 
 
 def _first_of_each_index(table: pa.Table) -> pa.Table:

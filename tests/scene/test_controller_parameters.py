@@ -53,6 +53,13 @@ def test_joint_pd_targets_of_the_wrong_type_shape_or_range_are_refused_by_name(v
     assert re.search(message, err), err
 
 
+def test_parameters_that_are_no_table_are_refused():
+    # A false-like value (0, "", []) was taken for no parameters at all (found by the fuzzer).
+    for value in ("0", '""', "[]", "false"):
+        with pytest.raises(SceneError, match=r"controller.parameters: expected a table of parameters, got"):
+            load_scene("quadruped_stand", [f"controller.parameters={value}"])
+
+
 def test_a_number_inside_a_table_of_a_list_parameter_must_be_finite():
     contacts = '[{ name = "hind", frame = "hind_foot", friction = nan }]'
     with pytest.raises(SceneError, match=r"robot.parameters.contacts\[0\].friction: must be finite, got nan"):

@@ -40,6 +40,8 @@ from typing import Any
 
 import numpy as np
 
+from ..arrow_digest import _feed, component_digest, feed_values
+
 #: The document's format, and the hash it uses.
 DIGEST_FORMAT = "legsim-rrd-digest-1"
 #: The seal's text, as ``check_file`` finds it in the raw file: nonce, bytes covered, SHA-256 (hex).
@@ -48,50 +50,6 @@ _SEAL = re.compile(rb"qz([0-9a-f]{8})z([0-9a-f]{1,16})z([0-9a-f]{64})zq")
 SEAL_ATTEMPTS = 4
 #: Bytes read at a time while hashing or searching a file.
 _BLOCK = 1 << 16
-
-
-def _feed(streams: dict[str, Any], name: str, data: bytes) -> None:
-    if name not in streams:
-        streams[name] = hashlib.sha256()
-    streams[name].update(data)
-
-
-def feed_values(streams: dict[str, Any], array: Any, name: str = "values") -> None:
-    """Add an arrow array's values to ``streams`` (stream name -> hash): lengths of lists per
-    nesting level, then numbers or text, whatever arrow types carry them."""
-    import pyarrow as pa
-    import pyarrow.compute as pc
-
-    kind = array.type
-    if pa.types.is_dictionary(kind):
-        array, kind = array.dictionary_decode(), array.type.value_type
-    if pa.types.is_list(kind) or pa.types.is_large_list(kind):
-        lengths = np.asarray(pc.fill_null(pc.list_value_length(array), 0).to_numpy(zero_copy_only=False), np.int64)
-        _feed(streams, f"{name}/lengths", lengths.tobytes())
-        feed_values(streams, array.flatten(), f"{name}/items")
-    elif pa.types.is_fixed_size_list(kind):
-        feed_values(streams, array.flatten(), f"{name}/items")
-    elif pa.types.is_struct(kind):
-        for k, field in enumerate(kind):
-            feed_values(streams, array.field(k), f"{name}.{field.name}")
-    elif pa.types.is_floating(kind):
-        values = np.asarray(array.to_numpy(zero_copy_only=False), dtype=np.float64)
-        _feed(streams, name, values.tobytes())
-    elif pa.types.is_integer(kind) or pa.types.is_boolean(kind):
-        values = np.asarray(pc.fill_null(array, 0).to_numpy(zero_copy_only=False), dtype=np.int64)
-        _feed(streams, name, values.tobytes())
-    elif pa.types.is_string(kind) or pa.types.is_large_string(kind) or pa.types.is_binary(kind):
-        texts = [b"" if v is None else (v.encode("utf-8") if isinstance(v, str) else v) for v in array.to_pylist()]
-        _feed(streams, f"{name}/lengths", np.array([len(t) for t in texts], dtype=np.int64).tobytes())
-        _feed(streams, name, b"".join(texts))
-    elif not pa.types.is_null(kind):
-        _feed(streams, name, json.dumps(array.to_pylist(), default=str).encode("utf-8"))
-
-
-def component_digest(streams: dict[str, Any]) -> str:
-    """The SHA-256 (hex) of one (entity, component)'s streams."""
-    joined = "".join(f"{name}={h.hexdigest()};" for name, h in sorted(streams.items()))
-    return hashlib.sha256(joined.encode("utf-8")).hexdigest()
 
 
 def list_digest(entities: dict[str, dict[str, str]]) -> str:
