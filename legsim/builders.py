@@ -11,10 +11,13 @@ declares ``[project.entry-points."legsim.builders"] myrobot = "mypkg.myrobot:BUI
 
 from __future__ import annotations
 
+import contextlib
 import math
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping
+from contextvars import ContextVar
 from dataclasses import dataclass, field
 from importlib import metadata
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -24,6 +27,29 @@ from .hybrid import HybridSystem
 from .registry import load_registered, registered
 
 ENTRY_POINT_GROUP = "legsim.builders"
+
+#: Most items of a list parameter: the bundled robots and controllers take a dozen at most.
+MAX_LIST_ITEMS = 4096
+
+#: The folder of the scene whose model or controller is being made (``reading_inside``).
+_INPUT_FOLDER: ContextVar[Path | None] = ContextVar("legsim_input_folder", default=None)
+
+
+def input_folder() -> Path | None:
+    """The folder every file a builder reads must lie in while a scene is being built (the
+    scene's own: a URDF's meshes are held to the rule its ``[output]`` paths are held to); None
+    when a builder is called from Python, outside a scene."""
+    return _INPUT_FOLDER.get()
+
+
+@contextlib.contextmanager
+def reading_inside(folder: Path) -> Iterator[None]:
+    """Within the block, ``input_folder()`` is ``folder``."""
+    token = _INPUT_FOLDER.set(folder)
+    try:
+        yield
+    finally:
+        _INPUT_FOLDER.reset(token)
 
 
 @dataclass(frozen=True)
@@ -89,8 +115,46 @@ class Param:
         if expected in (list, tuple):
             if not isinstance(value, (list, tuple)):
                 raise SceneError(f"{where}: expected a list, got {value!r}")
-            return list(value)
+            return check_items(list(value), self.default, where)
         return value
+
+
+def _kind(value: Any) -> str:
+    """What a scene value is, as a message names it."""
+    if isinstance(value, bool):
+        return "booleans"
+    if isinstance(value, (int, float)):
+        return "numbers"
+    if isinstance(value, str):
+        return "strings"
+    if isinstance(value, (list, tuple)):
+        return "lists"
+    if isinstance(value, Mapping):
+        return "tables"
+    return type(value).__name__
+
+
+def check_items(items: list[Any], default: Any, where: str) -> list[Any]:
+    """A list parameter's items, checked whatever the builder does with them: at most
+    ``MAX_LIST_ITEMS``, all of one kind (that of the default's items when it has some), and every
+    number in them, nested tables and lists included, finite. SceneError naming the item."""
+    if len(items) > MAX_LIST_ITEMS:
+        raise SceneError(f"{where}: {len(items)} items, more than the {MAX_LIST_ITEMS} a parameter may hold")
+    kinds = sorted({_kind(item) for item in items})
+    wanted = sorted({_kind(item) for item in default}) if isinstance(default, (list, tuple)) and default else kinds
+    if len(kinds) > 1 or (kinds and len(wanted) == 1 and kinds != wanted):
+        expected = f"a list of {wanted[0]}" if len(wanted) == 1 and default else "a list of one kind"
+        raise SceneError(f"{where}: expected {expected}, got {', '.join(kinds)}: {items!r:.200}")
+    pending: list[tuple[str, Any]] = [(f"{where}[{k}]", item) for k, item in enumerate(items)]
+    while pending:
+        name, value = pending.pop()
+        if isinstance(value, float) and not math.isfinite(value):
+            raise SceneError(f"{name}: must be finite, got {value!r}")
+        if isinstance(value, (list, tuple)):
+            pending.extend((f"{name}[{k}]", item) for k, item in enumerate(value))
+        elif isinstance(value, Mapping):
+            pending.extend((f"{name}.{key}", item) for key, item in value.items())
+    return items
 
 
 @dataclass(frozen=True)
@@ -172,8 +236,10 @@ class Builder:
     ) -> Model:
         """Validate ``parameters`` and ``effects`` (as a scene would give them) and build."""
         prefix = f"{where}: " if where else ""
-        params = resolve_parameters(self.parameters, parameters or {}, f"{prefix}robot.parameters")
-        chosen = resolve_effects(self.effects, effects or {}, f"{prefix}effects")
+        params = resolve_parameters(
+            self.parameters, {} if parameters is None else parameters, f"{prefix}robot.parameters"
+        )
+        chosen = resolve_effects(self.effects, {} if effects is None else effects, f"{prefix}effects")
         model = self.build(params, chosen)
         if not isinstance(model, Model):
             raise ModelError(f"builder '{self.name}' returned {type(model).__name__}, expected legsim.builders.Model")

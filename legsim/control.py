@@ -37,7 +37,7 @@ from typing import Any
 import numpy as np
 
 from .builders import Model, Param, resolve_parameters
-from .errors import ModelError, SceneError
+from .errors import LegsimError, ModelError, SceneError
 from .registry import load_registered, registered
 
 ENTRY_POINT_GROUP = "legsim.controllers"
@@ -165,16 +165,35 @@ class Bound:
     def enter(self, mode: str, t: float, x: np.ndarray) -> None:
         """The run enters ``mode`` at (t, x): reset the controller, and hold its value there."""
         self.mode = mode
-        self.controller.reset(mode, t, x)
+        try:
+            self.controller.reset(mode, t, x)
+        except LegsimError:
+            raise
+        except Exception as exc:  # a plug-in's own bug: name it and where, not a traceback
+            raise ModelError(self._failed("reset", t, exc)) from exc
         self.step_from(t, x)
 
     def step_from(self, t: float, x: np.ndarray) -> None:
         """A step starts at (t, x): a held controller is sampled there."""
         if self.hold:
-            self._held = self.controller(self.mode, t, x)
+            self._held = self._evaluate(t, x)
 
     def __call__(self, t: float, x: np.ndarray) -> Any:
-        return self._held if self.hold else self.controller(self.mode, t, x)
+        return self._held if self.hold else self._evaluate(t, x)
+
+    def _evaluate(self, t: float, x: np.ndarray) -> Any:
+        try:
+            return self.controller(self.mode, t, x)
+        except LegsimError:
+            raise
+        except Exception as exc:
+            raise ModelError(self._failed("its input", t, exc)) from exc
+
+    def _failed(self, what: str, t: float, exc: Exception) -> str:
+        return (
+            f"controller {type(self.controller).__name__}: {what} in mode '{self.mode}' at t={t:.17g} failed: "
+            f"{type(exc).__name__}: {exc}"
+        )
 
 
 def bind(control: Controller | Callable[[float, np.ndarray], Any] | None) -> Any:
@@ -193,12 +212,30 @@ class ControllerSpec:
     make: Callable[[Model, dict[str, Any]], Controller | ControlLaw]
 
     def build(
-        self, model: Model, parameters: Mapping[str, Any] | None = None, where: str = ""
+        self,
+        model: Model,
+        parameters: Mapping[str, Any] | None = None,
+        where: str = "",
+        files: Callable[[Mapping[str, Param], dict[str, Any]], None] | None = None,
     ) -> Controller | ControlLaw:
-        """Check ``parameters`` and make the controller for ``model``."""
+        """Check ``parameters`` (``files`` resolves their file parameters in place, as a scene
+        does) and make the controller for ``model``. A ``make`` that raises anything but a
+        legsim error is a ``SceneError`` naming the controller and the failure."""
         prefix = f"{where}: " if where else ""
-        params = resolve_parameters(self.parameters, parameters or {}, f"{prefix}controller.parameters")
-        controller = self.make(model, params)
+        params = resolve_parameters(
+            self.parameters, {} if parameters is None else parameters, f"{prefix}controller.parameters"
+        )
+        if files is not None:
+            files(self.parameters, params)
+        try:
+            controller = self.make(model, params)
+        except LegsimError:
+            raise
+        except Exception as exc:  # a plug-in's own failure on parameters it accepted
+            raise SceneError(
+                f"{prefix}controller '{self.name}' could not be made from its parameters {params!r:.300}: "
+                f"{type(exc).__name__}: {exc}"
+            ) from exc
         if not isinstance(controller, (Controller, ControlLaw)):
             raise SceneError(
                 f"{prefix}controller '{self.name}' made {type(controller).__name__}, expected a "

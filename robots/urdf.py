@@ -36,6 +36,7 @@ from legsim.builders import Builder, Model, Param
 from legsim.errors import ModelError, SceneError
 
 from .bridge import ContactBridge, JointStop, PointContact
+from .urdf_checks import check_urdf, parser_messages
 
 PLANAR_ROOT = ("x", "z", "pitch")
 #: Points sampled on a round visual shape's outline.
@@ -58,11 +59,15 @@ def load_model(file: str | Path, root: str = "planar", g: float = 9.81) -> tuple
     joint's name). ``ModelError`` naming the file and joint for anything the bridge cannot
     simulate."""
     file = Path(file)
+    check_urdf(file)
     try:
-        if root == "planar":
-            model = pin.buildModelFromUrdf(str(file), planar_root(), "root")
-        else:
-            model = pin.buildModelFromUrdf(str(file))
+        with parser_messages(file):
+            if root == "planar":
+                model = pin.buildModelFromUrdf(str(file), planar_root(), "root")
+            else:
+                model = pin.buildModelFromUrdf(str(file))
+    except ModelError:
+        raise
     except Exception as exc:  # Pinocchio's parser raises RuntimeError or ValueError with its reason
         raise ModelError(f"{file}: Pinocchio could not read the URDF: {type(exc).__name__}: {exc}") from exc
     first = 2 if root == "planar" else 1
@@ -111,7 +116,12 @@ class Outlines:
     def __init__(self, model: pin.Model, file: str | Path) -> None:
         file = Path(file)
         try:
-            visual = pin.buildGeomFromUrdf(model, str(file), pin.GeometryType.VISUAL, package_dirs=[str(file.parent)])
+            with parser_messages(file):
+                visual = pin.buildGeomFromUrdf(
+                    model, str(file), pin.GeometryType.VISUAL, package_dirs=[str(file.parent)]
+                )
+        except ModelError:
+            raise
         except Exception as exc:
             raise ModelError(f"{file}: the visual geometry could not be read: {type(exc).__name__}: {exc}") from exc
         self._model = model

@@ -84,6 +84,14 @@ def run(args: argparse.Namespace) -> int:
     wanted = {kind: (Path(target), f"--{kind}") for kind in ("html", "plot") if (target := getattr(args, kind))}
     plan, writers = plan_outputs(wanted, inputs=[path])
     data = read_rrd(path)
+    if not data["verified"]:
+        print(
+            printable(
+                f"legsim: warning: {path} holds no digest of its data (written by an earlier legsim): "
+                f"a damaged file cannot be told from a sound one"
+            ),
+            file=sys.stderr,
+        )
     options = html_options(args)
     outputs = {
         kind: str(write_output(plan, kind, writers[kind], None, None, recording=data, **options.get(kind, {})))

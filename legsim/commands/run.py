@@ -94,6 +94,13 @@ def add_live_arguments(parser: argparse.ArgumentParser) -> None:
         help="stream the recording to the Rerun viewer at ADDRESS (a port, HOST:PORT or rerun+http://HOST:PORT/proxy)",
     )
     parser.add_argument(
+        "--connect-timeout",
+        metavar="S",
+        type=float,
+        help="seconds --connect waits at each step: the viewer's connection, its first answer, and its "
+        "taking the recording after the run (default 10)",
+    )
+    parser.add_argument(
         "--rrd-rate",
         metavar="HZ",
         type=float,
@@ -195,13 +202,26 @@ def _check_live(args: argparse.Namespace, records: bool) -> dict[str, Any]:
 
     if args.spawn:
         check_display("--spawn", "write the recording with --rrd FILE and open it with `rerun FILE` elsewhere")
+    timeout = connect_timeout(args)
     if args.connect is not None:
-        check_reachable(args.connect, viewer_url(args.connect))
+        check_reachable(args.connect, viewer_url(args.connect), timeout)
     if args.rrd_rate is None:
         return {}
     if not (records or args.spawn or args.connect is not None):
         raise LegsimError("--rrd-rate thins a recording: give --rrd FILE, --spawn or --connect ADDRESS with it")
     return {"rate": positive("--rrd-rate", args.rrd_rate)}
+
+
+def connect_timeout(args: argparse.Namespace) -> float:
+    """The seconds each wait of ``--connect`` may take: ``--connect-timeout``, checked, or the default."""
+    from ..arguments import positive
+    from ..output.rrd.live import CONNECT_TIMEOUT
+
+    if args.connect_timeout is None:
+        return CONNECT_TIMEOUT
+    if args.connect is None:
+        raise LegsimError("--connect-timeout bounds the waits of --connect: give --connect ADDRESS with it")
+    return positive("--connect-timeout", args.connect_timeout)
 
 
 def _stream_live(args: argparse.Namespace, execution: Any, scene: Any, options: dict[str, Any]) -> list[LegsimError]:
@@ -212,6 +232,8 @@ def _stream_live(args: argparse.Namespace, execution: Any, scene: Any, options: 
     from ..output.rrd.live import stream_rrd
 
     try:
+        if args.connect is not None:
+            options = {**options, "timeout": connect_timeout(args)}
         stream_rrd(execution, scene, spawn=args.spawn, connect=args.connect, **options)
     except LegsimError as exc:
         if execution.status == "finished":

@@ -67,6 +67,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="ADDRESS",
         help="draw them on a running Dask scheduler (default: $DASK_SCHEDULER_ADDRESS)",
     )
+    parser.add_argument(
+        "--connect-timeout",
+        type=float,
+        default=None,
+        metavar="S",
+        help="seconds to wait at each step of reaching --scheduler: connection, first answer, first worker "
+        "(default 20)",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
@@ -127,7 +135,7 @@ def _on_engine(args: argparse.Namespace, scene: Any, settings: dict[str, Any], c
     from ..sweep.spec import scene_reference
     from ..sweep.stochastic import ensemble_on_engine
 
-    with Engine(workers=args.workers, scheduler=args.scheduler) as engine:
+    with Engine(workers=args.workers, scheduler=args.scheduler, connect_timeout=args.connect_timeout) as engine:
         return ensemble_on_engine(scene, scene_reference(args.scene), settings, engine, progress=counter)
 
 

@@ -100,6 +100,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="ADDRESS",
         help="a running Dask scheduler, e.g. tcp://127.0.0.1:8786 (default: $DASK_SCHEDULER_ADDRESS)",
     )
+    engine.add_argument(
+        "--connect-timeout",
+        type=float,
+        default=None,
+        metavar="S",
+        help="seconds to wait at each step of reaching --scheduler: connection, first answer, first worker "
+        "(default 20)",
+    )
     engine.add_argument("--in-process", action="store_true", help="no Dask: run the variations in this process")
     engine.add_argument(
         "--batch", type=int, default=None, metavar="N", help="variations per task (default: sized to about 2 s of work)"
@@ -110,7 +118,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from ..sweep.runner import run_sweep
-    from ..sweep.spec import SweepError, SweepSpec, parse_grid, parse_random, scene_reference
+    from ..sweep.spec import SweepError, SweepSpec, check_count, grid_size, parse_grid, parse_random, scene_reference
 
     if args.random and args.samples is None:
         args.samples = RANDOM_SAMPLES
@@ -118,6 +126,8 @@ def run(args: argparse.Namespace) -> int:
         raise SweepError("--samples needs a --random field to draw")
     if args.walk and args.no_run:
         raise SweepError("--walk and --no-run exclude each other (a walk is the run)")
+    # Counted before any grid's values are made: a grid of 10^9 values is refused at once.
+    check_count([grid_size(g) for g in args.grid], args.samples or 1)
     spec = SweepSpec(
         scene=scene_reference(args.scene),
         overrides=tuple(args.overrides),
@@ -142,6 +152,7 @@ def run(args: argparse.Namespace) -> int:
         batch_size=args.batch,
         progress=not (args.quiet or args.json),
         log=log,
+        connect_timeout=args.connect_timeout,
     )
     summary = result.summary()
     if args.json:

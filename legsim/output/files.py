@@ -193,11 +193,14 @@ def write_atomic(
     check_folder(path, what)
     remove_stale_temporaries(path)
     tmp = temporary_name(path)
+    # The name is this process's and random: once the folder exists, a file of that name can
+    # only be ours, so it is removed on any failure. Marking it before it is created leaves no
+    # line between its creation and the mark where a signal would leave it behind.
     created = False
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        open(tmp, "xb").close()
         created = True
+        open(tmp, "xb").close()
         write(tmp)
         if not tmp.exists():
             raise OutputError(f"{what} {path}: the writer returned without writing the file")

@@ -11,13 +11,15 @@ its parameters, for the scene's model::
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from ..builders import Model
+from ..builders import Model, Param, reading_inside
 from ..control import ControlLaw, Controller, available, get_controller
 from ..errors import LegsimError, SceneError
 from .fields import check_keys, describe, field_error
+from .files import scene_relative_files
 
 CONTROLLER_KEYS = {
     "name": "a registered controller's name",
@@ -44,11 +46,18 @@ def scene_controller(path: Path, table: dict[str, Any], model: Model) -> Control
     except SceneError as exc:
         raise field_error(path, "controller.name", str(exc)) from None
     parameters = table.get("parameters", {})
+
+    def files(schema: Mapping[str, Param], params: dict[str, Any]) -> None:
+        scene_relative_files(path, schema, params, "controller.parameters")
+
     try:
-        controller = spec.build(model, parameters, str(path))
-    except SceneError:
-        raise
+        with reading_inside(path.parent):
+            controller = spec.build(model, parameters, str(path), files)
     except LegsimError as exc:
+        if str(exc).startswith(str(path)):
+            raise
+        if isinstance(exc, SceneError):  # a plug-in's own check, which cannot know the file
+            raise SceneError(f"{path}: {exc}") from exc
         raise field_error(path, "controller", str(exc)) from exc
     hold = table.get("hold")
     if hold is not None:

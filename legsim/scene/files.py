@@ -6,13 +6,17 @@ from __future__ import annotations
 import os
 import stat
 import tomllib
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from importlib import resources
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from ..errors import SceneError
+from ..errors import LegsimError, SceneError
 from ..output.files import file_kind
+from .fields import field_error
+
+if TYPE_CHECKING:
+    from ..builders import Param
 
 SCENE_PATH_ENV = "LEGSIM_SCENE_PATH"
 
@@ -140,24 +144,74 @@ def read_toml(path: Path) -> dict[str, Any]:
 
 def _read_bounded(path: Path) -> bytes:
     """The bytes of the regular file ``path``, at most ``MAX_SCENE_BYTES`` of them."""
+    return read_input_file(path, MAX_SCENE_BYTES, "scene file", SceneError)
+
+
+def read_input_file(path: Path, max_bytes: int, what: str, error: type[LegsimError] = SceneError) -> bytes:
+    """The bytes of ``path``, a file a run reads (a scene, a URDF, a mesh): ``error`` naming the
+    file and ``what`` it should be when it is missing, no regular file (a folder, a FIFO or a
+    device: reading /dev/zero would never end, opening a FIFO would wait for a writer), unreadable
+    or larger than ``max_bytes`` (bytes)."""
     try:
         # O_NONBLOCK: opening a FIFO must not wait for a writer before fstat can refuse it.
         fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
     except FileNotFoundError:
-        raise SceneError(f"{path}: no such scene file") from None
+        raise error(f"{path}: no such {what}") from None
     except OSError as exc:
-        raise SceneError(f"{path}: cannot read: {exc.strerror or exc}") from exc
+        raise error(f"{path}: cannot read the {what}: {exc.strerror or exc}") from None
     with os.fdopen(fd, "rb") as fh:
         mode = os.fstat(fd).st_mode
         if not stat.S_ISREG(mode):
-            raise SceneError(f"{path}: not a scene file (it is {file_kind(mode)})")
+            raise error(f"{path}: not a {what} (it is {file_kind(mode)})")
         try:
-            raw = fh.read(MAX_SCENE_BYTES + 1)
+            raw = fh.read(max_bytes + 1)
         except OSError as exc:
-            raise SceneError(f"{path}: cannot read: {exc.strerror or exc}") from exc
-    if len(raw) > MAX_SCENE_BYTES:
-        raise SceneError(f"{path}: larger than {MAX_SCENE_BYTES} bytes, which no scene needs")
+            raise error(f"{path}: cannot read the {what}: {exc.strerror or exc}") from None
+    if len(raw) > max_bytes:
+        raise error(f"{path}: larger than {max_bytes} bytes, the most a {what} may hold")
     return raw
+
+
+def inside_folder(folder: Path, value: str) -> Path | None:
+    """The file ``value`` names (relative to ``folder``, or absolute), links resolved, when it
+    lies inside ``folder`` (links resolved too); None when it leads out of it."""
+    real_folder = os.path.realpath(folder)
+    real = os.path.realpath(os.path.join(folder, value))
+    if os.path.commonpath([real_folder, real]) != real_folder:
+        return None
+    return Path(real)
+
+
+def scene_relative_files(path: Path, schema: Mapping[str, Param], params: dict[str, Any], where: str) -> None:
+    """File parameters (``Param(path=True)``) resolved against the scene's folder, in place.
+    A scene may come from someone else: the file must lie inside that folder (links resolved,
+    as for its ``[output]`` paths), and be a regular file. SceneError naming the field otherwise."""
+    for name, param in schema.items():
+        value = params.get(name)
+        if not param.path or not isinstance(value, str) or not value:
+            continue
+        field = f"{where}.{name}"
+        if "\x00" in value:
+            raise field_error(path, field, f"{value!r} contains a NUL character")
+        file = inside_folder(path.parent, os.path.expanduser(value))
+        if file is None:
+            raise field_error(
+                path,
+                field,
+                f"{value!r} lies outside the scene's folder {path.parent}; a scene reads files only "
+                f"from its own folder (links resolved)",
+            )
+        try:
+            mode = os.stat(file).st_mode
+        except FileNotFoundError:
+            raise field_error(
+                path, field, f"no such file {value!r} (a relative path is read from the scene's folder {path.parent})"
+            ) from None
+        except OSError as exc:
+            raise field_error(path, field, f"{value!r} cannot be read: {exc.strerror or exc}") from None
+        if not stat.S_ISREG(mode):
+            raise field_error(path, field, f"{value!r} is not a file: it is {file_kind(mode)}")
+        params[name] = str(file)
 
 
 def checked_depth(path: Path, data: dict[str, Any]) -> dict[str, Any]:

@@ -59,7 +59,7 @@ from ..output.summary import run_summary
 from ..relaxed.simulate import MAX_STEPS as SIMULATE_MAX_STEPS
 from .controller import scene_controller
 from .fields import check_keys, describe, field_error, table_at
-from .files import apply_overrides, checked_depth, read_toml, resolve_scene_path
+from .files import apply_overrides, checked_depth, read_toml, resolve_scene_path, scene_relative_files
 
 CORE_SECTIONS = ("scene", "robot", "effects", "initial", "integrator", "output", "controller")
 TOOL_SECTIONS = ("orbit", "certify", "stochastic", "zeno", "stress", "bench")
@@ -349,10 +349,11 @@ def _validate(path: Path, data: dict[str, Any], overrides: list[str]) -> Scene:
     # Builder.make would do these two steps too; they are done here so that the scene keeps the
     # resolved values (for recordings and tools) and the builder runs once.
     resolved_params = resolve_parameters(builder.parameters, parameters, f"{where}: robot.parameters")
-    _scene_relative_files(path, builder, resolved_params)
+    scene_relative_files(path, builder.parameters, resolved_params, "robot.parameters")
     chosen = builders.resolve_effects(builder.effects, effects_t, f"{where}: effects")
     try:
-        model = builder.build(resolved_params, chosen)
+        with builders.reading_inside(path.parent):
+            model = builder.build(resolved_params, chosen)
     except SceneError as exc:
         if str(exc).startswith(where):
             raise
@@ -390,24 +391,6 @@ def _validate(path: Path, data: dict[str, Any], overrides: list[str]) -> Scene:
         if controller is None
         else functools.partial(scene_controller, path, controller_table, model),
     )
-
-
-def _scene_relative_files(path: Path, builder: Builder, params: dict[str, Any]) -> None:
-    """File parameters (``Param(path=True)``) resolved against the scene's folder, in place;
-    a missing file is an error naming the field."""
-    for name, param in builder.parameters.items():
-        value = params.get(name)
-        if not param.path or not isinstance(value, str) or not value:
-            continue
-        file = Path(value).expanduser()
-        file = file if file.is_absolute() else path.parent / file
-        if not file.is_file():
-            raise field_error(
-                path,
-                f"robot.parameters.{name}",
-                f"no such file {value!r} (a relative path is read from the scene's folder {path.parent})",
-            )
-        params[name] = str(file)
 
 
 def _integrator(path: Path, table: dict[str, Any]) -> dict[str, Any]:

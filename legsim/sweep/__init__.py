@@ -57,6 +57,7 @@ def sweep(
     batch_size: int | None = None,
     progress: bool = False,
     figures: bool = True,
+    connect_timeout: float | None = None,
 ) -> Any:
     """Run variations of a scene and return a ``SweepResult`` (its ``table`` has one row each).
 
@@ -84,10 +85,13 @@ def sweep(
     progress: draw a progress bar (done / total, ETA) on stderr when it is a terminal.
     figures: with ``out`` and a two-field grid, draw the basin map (walks) and the stability
         map (orbits) into ``out``.
+    connect_timeout: seconds to wait at each step of reaching ``scheduler`` (default 20).
     """
     from .runner import run_sweep
-    from .spec import Axis, SweepSpec, parse_grid, scene_reference
+    from .spec import Axis, SweepSpec, check_count, parse_grid, scene_reference
 
+    # Counted before any grid's values are made: a grid of 10^9 values is refused at once.
+    check_count([_grid_length(value) for value in (grid or {}).values()], samples if random else 1)
     axes = tuple(_grid_axis(key, value, parse_grid, Axis) for key, value in (grid or {}).items())
     draws = tuple(Axis(key, (), float(lo), float(hi)) for key, (lo, hi) in (random or {}).items())
     kind = "walk" if walk else ("scene" if run else "none")
@@ -114,7 +118,16 @@ def sweep(
         batch_size=batch_size,
         progress=progress,
         figures=figures,
+        connect_timeout=connect_timeout,
     )
+
+
+def _grid_length(value: Any) -> int:
+    """How many values a ``grid`` entry names (``_grid_axis`` refuses what is no grid)."""
+    if isinstance(value, tuple) and len(value) == 3 and all(isinstance(v, (int, float)) for v in value):
+        n = value[2]
+        return int(n) if isinstance(n, (int, float)) and not isinstance(n, bool) and 1 <= n < 2**62 else 1
+    return len(value) if isinstance(value, (list, tuple)) and value else 1
 
 
 def _grid_axis(key: str, value: Any, parse: Any, axis: Any) -> Any:

@@ -10,6 +10,19 @@ process.
 * ``in_process=True``: no Dask at all, the batches run one after another here (the reference
   the engine's overhead is measured against).
 
+Deadlines. Reaching a running scheduler waits at most ``connect_timeout`` seconds (default
+``CONNECT_TIMEOUT``, ``--connect-timeout``) at each step: the TCP connection (a closed port is
+refused at once, not after Dask's retries), the scheduler's first answer (Dask's own handshake
+waits for it without a deadline: a peer that accepts and never answers would hang the sweep),
+the client's registration, the first worker and the workers' version check. Each ends in an
+``EngineError`` naming the address and the step.
+
+Interrupts. The embedded cluster's worker processes ignore SIGINT and SIGTERM (``worker_setup``,
+preloaded): Ctrl-C at a terminal reaches every process of its group, and the workers would each
+print a KeyboardInterrupt traceback. The client alone stops the sweep: it cancels what is
+queued and closes the cluster's nannies, which give each worker ``STOP_SECONDS`` to stop before
+they kill it (a busy worker would otherwise finish its batch first).
+
 Batches. A task is a batch of items, so the engine's cost per task (scheduling, pickling, a
 round trip: about a millisecond) is paid once per batch: ``BatchSizer`` sizes each batch to
 ``target_seconds`` of work from the cost per item measured so far, smaller towards the end so
@@ -21,13 +34,17 @@ over with the exception, and the sweep goes on.
 
 from __future__ import annotations
 
+import asyncio
 import contextlib
 import logging
 import math
 import os
+import socket
+import threading
 import time
 from collections.abc import Callable, Iterator, Sequence
 from typing import TYPE_CHECKING, Any
+from urllib.parse import urlsplit
 
 from ..errors import LegsimError
 
@@ -37,8 +54,14 @@ if TYPE_CHECKING:
 
 SCHEDULER_ENV = "DASK_SCHEDULER_ADDRESS"
 
-#: Seconds to wait for a scheduler to answer, and for its first worker.
+#: Seconds to wait at each step of reaching a scheduler (module docstring), unless told otherwise.
 CONNECT_TIMEOUT = 20.0
+#: The address schemes of a scheduler legsim reaches (Dask's default for a bare HOST:PORT is tcp).
+SCHEMES = ("tcp", "tls")
+#: Seconds an interrupted sweep gives its workers to stop before their nannies end them.
+STOP_SECONDS = 0.5
+#: The module the embedded cluster's workers preload (they ignore SIGINT: module docstring).
+WORKER_SETUP = "legsim.sweep.worker_setup"
 
 BatchFn = Callable[[Any, list], list]
 OnDone = Callable[[list, "list | BaseException"], None]
@@ -103,6 +126,7 @@ class Engine:
         in_process: bool = False,
         batch_size: int | None = None,
         target_seconds: float = 2.0,
+        connect_timeout: float | None = None,
     ) -> None:
         if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
             raise EngineError(f"--workers must be an integer >= 1, got {workers!r}")
@@ -112,7 +136,16 @@ class Engine:
             raise EngineError(f"--batch must be an integer >= 1, got {batch_size!r}")
         if in_process and scheduler:
             raise EngineError("--in-process and --scheduler exclude each other")
+        if connect_timeout is None:
+            connect_timeout = CONNECT_TIMEOUT
+        if isinstance(connect_timeout, bool) or not (
+            isinstance(connect_timeout, (int, float)) and math.isfinite(connect_timeout) and connect_timeout > 0
+        ):
+            raise EngineError(f"--connect-timeout must be a number of seconds > 0, got {connect_timeout!r}")
+        self.connect_timeout = float(connect_timeout)
         self.scheduler = None if in_process else (scheduler or os.environ.get(SCHEDULER_ENV) or None)
+        if self.scheduler:
+            scheduler_endpoint(self.scheduler)
         if self.scheduler and workers is not None:
             raise EngineError(
                 f"--workers sets the size of the embedded cluster; with a scheduler "
@@ -136,12 +169,17 @@ class Engine:
 
     def __enter__(self) -> Engine:
         if not self.in_process:
-            client, self.cluster = _connect(self.scheduler, self.requested)
+            client, self.cluster = _connect(self.scheduler, self.requested, self.connect_timeout)
             self.client = client
             self.workers = max(1, len(client.scheduler_info().get("workers", {})))
         return self
 
     def __exit__(self, *exc: Any) -> None:
+        if exc[0] is not None and self.cluster is not None:
+            # Interrupted: a busy worker would finish its batch before closing (seconds); its
+            # nanny, told to close first, stops it after STOP_SECONDS and starts no other.
+            with contextlib.suppress(Exception):
+                self.cluster.sync(_stop_workers, self.cluster)
         for part in (self.client, self.cluster):
             # Closing a cluster that is already going away may raise anything.
             if part is not None:
@@ -204,6 +242,12 @@ class Engine:
             raise
 
 
+async def _stop_workers(cluster: Any) -> None:
+    """Close the embedded cluster's nannies, each stopping its worker within ``STOP_SECONDS``."""
+    nannies = [nanny for nanny in list(cluster.workers.values()) if hasattr(nanny, "close")]
+    await asyncio.gather(*(nanny.close(timeout=STOP_SECONDS) for nanny in nannies), return_exceptions=True)
+
+
 def _batches(items: list, sizer: BatchSizer) -> Iterator[list]:
     start = 0
     while start < len(items):
@@ -212,7 +256,26 @@ def _batches(items: list, sizer: BatchSizer) -> Iterator[list]:
         start += size
 
 
-def _connect(scheduler: str | None, workers: int | None) -> tuple[Client, LocalCluster | None]:
+def scheduler_endpoint(address: str) -> tuple[str, int]:
+    """(host, port) of a Dask scheduler address (``tcp://HOST:PORT``, ``tls://HOST:PORT`` or
+    ``HOST:PORT``); EngineError naming it otherwise."""
+    text = address.strip() if isinstance(address, str) else ""
+    try:
+        parts = urlsplit(text if "://" in text else f"tcp://{text}")
+        port = parts.port
+    except ValueError:
+        parts, port = None, None
+    if parts is None or parts.scheme not in SCHEMES or not parts.hostname or port is None or not 0 < port < 65536:
+        raise EngineError(
+            f"--scheduler {address!r}: not a Dask scheduler address; give tcp://HOST:PORT (or tls://HOST:PORT, "
+            f"or HOST:PORT), e.g. tcp://127.0.0.1:8786"
+        )
+    if parts.path not in ("", "/") or parts.query or parts.fragment:
+        raise EngineError(f"--scheduler {address!r}: a scheduler address has no path, e.g. tcp://127.0.0.1:8786")
+    return parts.hostname, port
+
+
+def _connect(scheduler: str | None, workers: int | None, timeout: float) -> tuple[Client, LocalCluster | None]:
     """(client, cluster): a client of the scheduler, or of a new embedded cluster (its cluster)."""
     try:
         from distributed import Client, LocalCluster
@@ -222,37 +285,101 @@ def _connect(scheduler: str | None, workers: int | None) -> tuple[Client, LocalC
             f"pip install 'dask[distributed]', or run with --in-process"
         ) from exc
     if scheduler:
-        try:
-            client = Client(scheduler, timeout=CONNECT_TIMEOUT)
-        except (OSError, TimeoutError) as exc:
-            raise EngineError(f"cannot reach the Dask scheduler at {scheduler}: {exc}") from exc
-        try:
-            client.wait_for_workers(1, timeout=CONNECT_TIMEOUT)
-            _check_workers(client, scheduler)
-        except (OSError, TimeoutError) as exc:
-            client.close()
-            raise EngineError(
-                f"the Dask scheduler at {scheduler} has no worker (none joined within "
-                f"{CONNECT_TIMEOUT:g} s): start one with `dask worker {scheduler}`"
-            ) from exc
-        except BaseException:
-            client.close()
-            raise
-        return client, None
+        return _client_of(scheduler, timeout), None
     n = workers or default_workers()
     # The dashboard on a free port: the default 8787 may be another cluster's on a shared machine.
+    # Logs only at CRITICAL: a worker whose scheduler went first (an interrupted sweep) logs its
+    # lost heartbeat as an error with a traceback; what fails in a batch is that batch's rows.
     cluster = LocalCluster(
-        n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0", silence_logs=logging.ERROR
+        n_workers=n,
+        threads_per_worker=1,
+        processes=True,
+        dashboard_address=":0",
+        silence_logs=logging.CRITICAL,
+        preload=[WORKER_SETUP],
     )
     return Client(cluster), cluster
 
 
-def _check_workers(client: Any, scheduler: str) -> None:
-    """The scheduler's workers must run this version of legsim."""
+def _client_of(scheduler: str, timeout: float) -> Client:
+    """A client of the running scheduler at ``scheduler``, each step of reaching it bounded by
+    ``timeout`` seconds (module docstring)."""
+    from distributed import Client
+
+    host, port = scheduler_endpoint(scheduler)
+    late = f"(--connect-timeout {timeout:g} s)"
+    try:
+        socket.create_connection((host, port), timeout=timeout).close()
+    except OSError as exc:
+        reason = "no answer" if isinstance(exc, TimeoutError) else (exc.strerror or str(exc))
+        raise EngineError(f"cannot reach the Dask scheduler at {scheduler}: {host}:{port}: {reason} {late}") from None
+    _handshake(scheduler, timeout)
+    try:
+        client = Client(scheduler, timeout=timeout)
+    except (OSError, TimeoutError) as exc:
+        raise EngineError(f"cannot reach the Dask scheduler at {scheduler}: {exc} {late}") from exc
+    except Exception as exc:  # Dask's own errors for a peer that is no scheduler
+        raise EngineError(f"the Dask scheduler at {scheduler} could not be used: {type(exc).__name__}: {exc}") from exc
+    try:
+        client.wait_for_workers(1, timeout=timeout)
+        _check_workers(client, scheduler, timeout)
+    except (OSError, TimeoutError) as exc:
+        client.close()
+        raise EngineError(
+            f"the Dask scheduler at {scheduler} has no worker (none joined within "
+            f"{timeout:g} s, --connect-timeout): start one with `dask worker {scheduler}`"
+        ) from exc
+    except BaseException:
+        client.close()
+        raise
+    return client
+
+
+def _handshake(scheduler: str, timeout: float) -> None:
+    """EngineError unless the scheduler answers Dask's handshake within ``timeout`` seconds.
+    Dask waits for that answer without a deadline; here it runs on its own thread and event
+    loop (the caller's thread may run one already), waited for in short slices so that Ctrl-C
+    and SIGTERM are handled at once."""
+    from distributed.comm import connect
+
+    failure: list[BaseException] = []
+
+    async def probe() -> None:
+        comm = await asyncio.wait_for(connect(scheduler, timeout=timeout), timeout)
+        await comm.close()
+
+    def run() -> None:
+        try:
+            asyncio.run(probe())
+        except BaseException as exc:  # handed to the waiting thread
+            failure.append(exc)
+
+    thread = threading.Thread(target=run, name="legsim-scheduler-probe", daemon=True)
+    thread.start()
+    deadline = time.monotonic() + timeout + 1.0
+    while thread.is_alive() and time.monotonic() < deadline:
+        thread.join(0.1)
+    if thread.is_alive() or (failure and isinstance(failure[0], (TimeoutError, asyncio.TimeoutError))):
+        raise EngineError(
+            f"the Dask scheduler at {scheduler} accepted the connection but did not answer within {timeout:g} s "
+            f"(--connect-timeout): is it a Dask scheduler, and is it running?"
+        )
+    if failure:
+        exc = failure[0]
+        raise EngineError(
+            f"the Dask scheduler at {scheduler} could not be reached: {type(exc).__name__}: {exc}"
+        ) from exc
+
+
+def _check_workers(client: Any, scheduler: str, timeout: float) -> None:
+    """The scheduler's workers must run this version of legsim (their answer bounded by
+    ``timeout`` seconds)."""
     from ..version import __version__
 
     try:
-        versions = client.run(_legsim_version)
+        versions = client.run(_legsim_version, callback_timeout=timeout)
+    except (OSError, TimeoutError):
+        raise
     except Exception as exc:
         raise EngineError(
             f"the workers of the Dask scheduler at {scheduler} cannot run legsim "

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import time
 from collections import Counter
 from collections.abc import Callable
@@ -14,7 +15,7 @@ import pyarrow as pa
 from ..progress import counting
 from .engine import Engine
 from .spec import SweepError, SweepSpec, corners, variation_overrides
-from .table import ResultStore, schema, to_table
+from .table import ResultStore, schema, to_table, with_rows_digest
 from .tasks import run_batch
 
 #: Names of the figure writers in the ``legsim.writers`` entry points, and their files.
@@ -84,15 +85,41 @@ def run_sweep(
     progress: bool = False,
     figures: bool = True,
     log: Callable[[str], None] | None = None,
+    connect_timeout: float | None = None,
 ) -> SweepResult:
     """Run every variation of ``spec`` not done yet (see ``legsim.sweep.sweep`` for the arguments)."""
     fixed_point = check_sweep(spec)
     store = ResultStore(out, spec) if out is not None else None
+    with store.claim() if store is not None else contextlib.nullcontext():
+        return _run_claimed(
+            spec,
+            store,
+            fixed_point,
+            resume,
+            figures,
+            log,
+            progress,
+            Engine(workers, scheduler, in_process, batch_size, connect_timeout=connect_timeout),
+        )
+
+
+def _run_claimed(
+    spec: SweepSpec,
+    store: ResultStore | None,
+    fixed_point: dict[str, float] | None,
+    resume: bool,
+    figures: bool,
+    log: Callable[[str], None] | None,
+    progress: bool,
+    engine: Engine,
+) -> SweepResult:
+    """``run_sweep`` once its folder (if any) is claimed."""
     done = store.prepare(resume) if store is not None else set()
     todo = [i for i in range(len(spec)) if i not in done]
     rows: list[dict[str, Any]] = []
     start = time.perf_counter()
-    engine = Engine(workers=workers, scheduler=scheduler, in_process=in_process or not todo, batch_size=batch_size)
+    if not todo:
+        engine = Engine(in_process=True)
     with engine:
         startup = time.perf_counter() - start
         start = time.perf_counter()
@@ -115,7 +142,11 @@ def run_sweep(
                 engine.run(run_batch, spec, list(spec.items(todo)), on_done)
             finally:
                 # Interrupted or not, the rows finished so far make the table.
-                table = store.assemble() if store is not None else to_table(sorted(rows, key=_index), schema(spec))
+                table = (
+                    store.assemble()
+                    if store is not None
+                    else with_rows_digest(to_table(sorted(rows, key=_index), schema(spec)))
+                )
     result = SweepResult(
         spec,
         table,

@@ -31,6 +31,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import LegsimError
+from ..output.untrusted import check_list, check_object
 
 #: Most variations of one sweep: each is a row held in memory while the table is assembled.
 MAX_VARIATIONS = 10_000_000
@@ -128,22 +129,65 @@ class SweepSpec:
 
     # -- persistence --------------------------------------------------------------------------
     def to_json(self) -> dict[str, Any]:
+        """The sweep as a JSON document (tuples as lists), which ``from_json`` reads back."""
         out = asdict(self)
         out.pop("_draws")
-        return out
+        result: dict[str, Any] = json.loads(json.dumps(out, allow_nan=False))
+        return result
 
     @classmethod
-    def from_json(cls, data: dict[str, Any]) -> SweepSpec:
-        axes = {
-            k: tuple(Axis(a["key"], tuple(a["values"]), a["low"], a["high"]) for a in data[k])
-            for k in ("grid", "random")
-        }
+    def from_json(cls, data: Any) -> SweepSpec:
+        """The sweep of a ``to_json`` document read back (a manifest, which may be damaged or
+        foreign): ValueError naming the key for anything of the wrong type, SweepError for an
+        inconsistent sweep."""
+        check_object(data, SPEC_KEYS, "spec", optional={"timeout": (int, float, type(None))})
+        unknown = sorted(set(data) - set(SPEC_KEYS) - {"timeout"})
+        if unknown:
+            raise ValueError(f"spec has unknown keys {unknown}")
+        check_list(data["overrides"], (str,), "spec.overrides")
+        axes = {}
+        for kind in ("grid", "random"):
+            axes[kind] = tuple(_axis_from_json(a, f"spec.{kind}[{k}]") for k, a in enumerate(data[kind]))
+        if any(a.is_random for a in axes["grid"]) or not all(a.is_random for a in axes["random"]):
+            raise ValueError("spec: a grid axis has an interval, or a random axis has none")
         return cls(**{**data, **axes, "overrides": tuple(data["overrides"])})
 
     def fingerprint(self) -> str:
-        """A hash of everything the rows depend on (``--resume`` continues only the same sweep)."""
-        text = json.dumps(self.to_json(), sort_keys=True, allow_nan=True)
-        return hashlib.sha256(text.encode()).hexdigest()[:16]
+        """The SHA-256 (hex) of everything the rows depend on: ``--resume`` continues only the
+        sweep whose manifest and table carry it."""
+        text = json.dumps(self.to_json(), sort_keys=True, allow_nan=False)
+        return hashlib.sha256(text.encode()).hexdigest()
+
+
+#: The keys of a sweep's ``to_json`` document and their JSON types.
+SPEC_KEYS: dict[str, tuple[type, ...]] = {
+    "scene": (str,),
+    "overrides": (list,),
+    "grid": (list,),
+    "random": (list,),
+    "samples": (int,),
+    "seed": (int,),
+    "run": (str,),
+    "orbit": (bool,),
+    "max_steps": (int,),
+    "tol": (int, float),
+}
+AXIS_KEYS: dict[str, tuple[type, ...]] = {
+    "key": (str,),
+    "values": (list,),
+    "low": (int, float, type(None)),
+    "high": (int, float, type(None)),
+}
+
+
+def _axis_from_json(data: Any, where: str) -> Axis:
+    check_object(data, AXIS_KEYS, where)
+    if sorted(data) != sorted(AXIS_KEYS):
+        raise ValueError(f"{where} has keys {sorted(data)}, expected {sorted(AXIS_KEYS)}")
+    values = check_list(data["values"], (bool, int, float, str), f"{where}.values")
+    if (data["low"] is None) != (data["high"] is None) or (data["low"] is None and not values):
+        raise ValueError(f"{where}: an axis has values, or an interval low..high")
+    return Axis(data["key"], tuple(values), data["low"], data["high"])
 
 
 def check_spec(spec: SweepSpec) -> None:
@@ -166,23 +210,61 @@ def check_spec(spec: SweepSpec) -> None:
         raise SweepError(f"--tol must be a finite number > 0, got {spec.tol!r}")
     if spec.timeout is not None and not (isinstance(spec.timeout, (int, float)) and spec.timeout > 0):
         raise SweepError(f"--timeout must be a number of seconds > 0, got {spec.timeout!r}")
-    if len(spec) > MAX_VARIATIONS:
-        raise SweepError(f"{len(spec)} variations, more than the limit {MAX_VARIATIONS:.0e}: check the grid sizes")
+    for axis in spec.grid:
+        for value in axis.values:
+            if not isinstance(value, (bool, int, float, str)) or (
+                isinstance(value, float) and not math.isfinite(value)
+            ):
+                raise SweepError(f"--grid {axis.key}: {value!r} is not a finite number, a string or a boolean")
+            if isinstance(value, int) and not isinstance(value, bool) and abs(value) >= 2**63:
+                raise SweepError(f"--grid {axis.key}: {value!r} is beyond the 64-bit integers of the table")
+    for axis in spec.random:
+        if not (axis.low is not None and axis.high is not None and math.isfinite(axis.low) and axis.high > axis.low):
+            raise SweepError(f"--random {axis.key}: LO and HI must be finite numbers with HI > LO")
+        if not math.isfinite(axis.high):
+            raise SweepError(f"--random {axis.key}: LO and HI must be finite numbers with HI > LO")
+    check_count([len(a.values) for a in spec.grid], spec.samples if spec.random else 1)
+
+
+def check_count(sizes: Sequence[int], samples: int = 1) -> int:
+    """The number of variations of grids of ``sizes`` values with ``samples`` draws each, or
+    SweepError past ``MAX_VARIATIONS``: counted before any value is made, so that an absurd grid
+    is refused at once, without the memory its values would take."""
+    count = max(1, samples)
+    for size in sizes:
+        count *= size
+        if count > MAX_VARIATIONS:
+            break
+    if count > MAX_VARIATIONS or any(size < 1 for size in sizes):
+        shape = " x ".join(str(n) for n in [*sizes, *([samples] if samples > 1 else [])])
+        raise SweepError(f"{shape} variations, more than the limit {MAX_VARIATIONS:.0e}: check the grid sizes")
+    return count
+
+
+def grid_size(text: str) -> int:
+    """How many values ``--grid TEXT`` names, read without making them (``KEY=LO:HI:N``: N;
+    ``KEY=V1,V2,...``: the count of the list)."""
+    _, raw = _split(text, "--grid", "KEY=LO:HI:N or KEY=V1,V2,...")
+    if ":" not in raw:
+        return raw.count(",") + 1
+    parts = raw.split(":")
+    if len(parts) != 3:
+        raise SweepError(f"--grid {text!r}: expected KEY=LO:HI:N, e.g. initial.state.thetad=-2:2:101")
+    n = _number(parts[2], text, "--grid")
+    if not float(n).is_integer() or n < 1:
+        raise SweepError(f"--grid {text!r}: N must be an integer >= 1, got {parts[2]}")
+    return int(n)
 
 
 # -- parsing the command line's axes ----------------------------------------------------------
 def parse_grid(text: str) -> Axis:
     """``KEY=LO:HI:N`` or ``KEY=V1,V2,...`` into an Axis (values in scene units)."""
     key, raw = _split(text, "--grid", "KEY=LO:HI:N or KEY=V1,V2,...")
+    n = check_count([grid_size(text)])
     if ":" in raw:
         parts = raw.split(":")
-        if len(parts) != 3:
-            raise SweepError(f"--grid {text!r}: expected KEY=LO:HI:N, e.g. initial.state.thetad=-2:2:101")
         low, high = (_number(p, text, "--grid") for p in parts[:2])
-        n = _number(parts[2], text, "--grid")
-        if not float(n).is_integer() or n < 1:
-            raise SweepError(f"--grid {text!r}: N must be an integer >= 1, got {parts[2]}")
-        grid = np.linspace(low, high, int(n)) if n > 1 else np.array([low])
+        grid = np.linspace(low, high, n) if n > 1 else np.array([low])
         if isinstance(low, int) and isinstance(high, int) and np.all(grid == np.round(grid)):
             return Axis(key, tuple(int(v) for v in grid))
         return Axis(key, tuple(float(v) for v in grid))

@@ -16,20 +16,36 @@ ran and however they were batched, give the same table up to that column.
 
 from __future__ import annotations
 
+import contextlib
+import errno
+import fcntl
+import json
+import os
+import stat
 import uuid
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from pathlib import Path
-from typing import Any, cast
+from typing import Any
 
+import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from ..output.files import write_atomic
-from .spec import SweepError, SweepSpec
+from ..output.arrow_digest import table_digest
+from ..output.files import file_kind, write_atomic
+from ..output.untrusted import check_object, load_json
+from .spec import MAX_VARIATIONS, SweepError, SweepSpec
 
 RESULTS = "results.parquet"
 PARTS = "results.parts"
 MANIFEST = "sweep.json"
+LOCK = ".sweep.lock"
+#: The schema metadata keys of a table: the sweep's digest, and the digest of the rows in it.
+SWEEP_KEY, ROWS_KEY = b"legsim.sweep", b"legsim.rows"
+#: The manifest's format, which ``--resume`` checks first.
+MANIFEST_FORMAT = "legsim-sweep-1"
+#: Largest manifest read (bytes): a grid of ``MAX_VARIATIONS`` values written out takes some 250 MB.
+MAX_MANIFEST_BYTES = 64 * MAX_VARIATIONS
 
 #: Columns that two runs of the same sweep do not share.
 TIMING_COLUMNS = ("wall_time_s",)
@@ -132,12 +148,26 @@ def to_table(rows: Iterable[dict[str, Any]], table_schema: pa.Schema) -> pa.Tabl
 def write_table(path: Path, table: pa.Table, what: str) -> Path:
     """Write ``table`` to ``path`` atomically, with fixed settings and as one chunk per column,
     so that the same rows give the same bytes however they were batched."""
-    table = table.combine_chunks()
-    return write_atomic(path, lambda tmp: pq.write_table(table, tmp, compression="zstd"), what=what)
+    table = with_rows_digest(table.combine_chunks())
+
+    def write(tmp: Path) -> None:
+        # Page checksums: a flipped byte in a page is found when --resume reads it back.
+        pq.write_table(table, tmp, compression="zstd", write_page_checksum=True)
+
+    return write_atomic(path, write, what=what)
+
+
+def read_table(path: Path, columns: list[str] | None = None, table_schema: pa.Schema | None = None) -> pa.Table:
+    """A table or part, its page checksums verified; SweepError naming the file when pyarrow
+    cannot read it."""
+    try:
+        return pq.read_table(path, columns=columns, schema=table_schema, page_checksum_verification=True)
+    except (pa.ArrowException, OSError, ValueError) as exc:
+        raise SweepError(f"--resume: {path} is damaged or no Parquet table: {_one_line(exc)}") from None
 
 
 class ResultStore:
-    """A sweep's folder: the manifest, the parts written as batches finish, the final table."""
+    """A sweep's folder: the lock, the manifest, the parts written as batches finish, the final table."""
 
     def __init__(self, folder: str | Path, spec: SweepSpec) -> None:
         self.folder = Path(folder)
@@ -146,43 +176,109 @@ class ResultStore:
         self.results = self.folder / RESULTS
         self.parts = self.folder / PARTS
         self.manifest = self.folder / MANIFEST
+        self.lock = self.folder / LOCK
+
+    @contextlib.contextmanager
+    def claim(self) -> Iterator[None]:
+        """Hold the folder for this sweep (module docstring): SweepError at once when another
+        sweep holds it. The folder is made if need be, and removed again, with the lock file,
+        when the sweep ends having written nothing there (its engine could not start)."""
+        if self.folder.exists() and not self.folder.is_dir():
+            raise SweepError(f"--out {self.folder}: is {file_kind(self.folder.stat().st_mode)}, not a folder")
+        made = [p for p in (self.folder, *self.folder.parents) if not p.exists()]
+        try:
+            self.folder.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise SweepError(f"--out {self.folder}: cannot make the folder: {exc.strerror or exc}") from None
+        fd = self._lock()
+        try:
+            yield
+        finally:
+            with contextlib.suppress(OSError):
+                self.lock.unlink()
+            os.close(fd)  # releases the lock, after the unlink (module docstring of _lock)
+            for folder in made:
+                with contextlib.suppress(OSError):
+                    folder.rmdir()  # only when empty: the sweep wrote nothing there
+
+    def _lock(self) -> int:
+        """The descriptor of the lock file, locked. Its holder removes it before releasing the
+        lock, so a sweep that waited on the removed file finds, once it holds the lock, that the
+        name now leads elsewhere or nowhere, and tries again on the file there now."""
+        for _ in range(20):
+            try:
+                fd = os.open(self.lock, os.O_RDWR | os.O_CREAT | getattr(os, "O_CLOEXEC", 0), 0o666)
+            except OSError as exc:
+                raise SweepError(
+                    f"--out {self.folder}: cannot make the lock file {LOCK}: {exc.strerror or exc}"
+                ) from None
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except OSError as exc:
+                holder = os.pread(fd, 64, 0).decode("ascii", "replace").strip()
+                os.close(fd)
+                if exc.errno not in (errno.EWOULDBLOCK, errno.EAGAIN, errno.EACCES):
+                    raise SweepError(f"--out {self.folder}: cannot lock {LOCK}: {exc.strerror or exc}") from None
+                raise SweepError(
+                    f"--out {self.folder}: another sweep is running in this folder"
+                    + (f" (process {holder})" if holder.isdigit() else "")
+                    + "; wait for it to end, or choose another --out"
+                ) from None
+            try:
+                same = os.path.samestat(os.fstat(fd), os.stat(self.lock))
+            except FileNotFoundError:
+                same = False
+            if same:
+                os.ftruncate(fd, 0)
+                os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
+                return fd
+            os.close(fd)
+        raise SweepError(f"--out {self.folder}: the lock file {LOCK} keeps being replaced; is a sweep looping on it?")
 
     def prepare(self, resume: bool) -> set[int]:
-        """Check the folder (nothing is written yet); the indices already done when resuming."""
+        """Check the folder (nothing is written yet; the folder is claimed); the indices
+        already done when resuming."""
         existing = self.results.exists() or self.manifest.exists() or self.parts.exists()
         if existing and not resume:
             raise SweepError(
                 f"--out {self.folder}: already holds a sweep ({MANIFEST}, {RESULTS} or {PARTS}/); "
                 f"continue it with --resume, or choose another folder"
             )
-        if self.folder.exists() and not self.folder.is_dir():
-            raise SweepError(f"--out {self.folder}: is a file, not a folder")
         if not existing:
             return set()
         self._check_manifest()
         return self.done_indices()
 
     def start(self) -> None:
-        """Write the manifest (the sweep's specification) when the folder has none yet."""
-        import json
-
+        """Write the manifest (the sweep's specification and its SHA-256) when the folder has none yet."""
         if not self.manifest.exists():
-            text = json.dumps(self.spec.to_json(), indent=2, sort_keys=True, allow_nan=True) + "\n"
+            document = {"format": MANIFEST_FORMAT, "digest": self.spec.fingerprint(), "spec": self.spec.to_json()}
+            text = json.dumps(document, indent=2, sort_keys=True, allow_nan=False) + "\n"
             write_atomic(self.manifest, lambda tmp: tmp.write_text(text), what="--out manifest")
 
     def _check_manifest(self) -> None:
-        import json
-
-        from .spec import SweepSpec
+        from ..scene.files import read_input_file
 
         try:
-            stored = SweepSpec.from_json(json.loads(self.manifest.read_text()))
-        except FileNotFoundError:
+            raw = read_input_file(self.manifest, MAX_MANIFEST_BYTES, "sweep manifest", SweepError)
+        except SweepError as exc:
             raise SweepError(
-                f"--resume: {self.manifest} is missing, so the results in {self.folder} cannot be matched to this sweep"
+                f"--resume: {exc}; without it the results in {self.folder} cannot be matched to this sweep"
             ) from None
-        except (ValueError, KeyError, TypeError) as exc:
-            raise SweepError(f"--resume: {self.manifest} is not a sweep manifest: {exc}") from exc
+        try:
+            document = check_object(
+                load_json(raw.decode("utf-8")), {"format": (str,), "digest": (str,), "spec": (dict,)}, MANIFEST
+            )
+            if document["format"] != MANIFEST_FORMAT:
+                raise ValueError(f"its format is {document['format']!r:.40}, not {MANIFEST_FORMAT}")
+            stored = SweepSpec.from_json(document["spec"])
+        except (ValueError, SweepError) as exc:  # UnicodeDecodeError is a ValueError
+            raise SweepError(f"--resume: {self.manifest} is not a sweep manifest of this legsim: {exc}") from None
+        if stored.fingerprint() != document["digest"]:
+            raise SweepError(
+                f"--resume: {self.manifest} is damaged: its specification does not match its digest "
+                f"{document['digest']!r:.80}"
+            )
         if stored.fingerprint() != self.spec.fingerprint():
             changed = sorted(k for k, v in stored.to_json().items() if self.spec.to_json().get(k) != v)
             raise SweepError(
@@ -194,12 +290,59 @@ class ResultStore:
         return sorted(self.parts.glob("part-*.parquet")) if self.parts.is_dir() else []
 
     def done_indices(self) -> set[int]:
-        """Indices of the rows already on disk (final table and parts)."""
+        """Indices of the rows already on disk (final table and parts), each file checked to
+        be this sweep's (module docstring)."""
+        if self.parts.exists() and not self.parts.is_dir():
+            raise SweepError(f"--resume: {self.parts} is {file_kind(self.parts.stat().st_mode)}, not a folder")
         done: set[int] = set()
+        from_parts: set[int] = set()
         for path in ([self.results] if self.results.exists() else []) + self.part_files():
-            # The index column is not nullable (``schema``): its values are ints.
-            done.update(cast(list[int], pq.read_table(path, columns=["index"]).column("index").to_pylist()))
+            indices = self._checked_indices(path)
+            if path != self.results:
+                # Parts never overlap; the final table may share rows with parts that a sweep
+                # stopped between writing it and removing them left behind (the same rows).
+                overlap = from_parts & indices
+                if overlap:
+                    raise SweepError(f"--resume: {path} repeats row {min(overlap)} of another part")
+                from_parts |= indices
+            done |= indices
         return done
+
+    def _checked_indices(self, path: Path) -> set[int]:
+        """The indices of a table or part of this sweep; SweepError naming the file when it is
+        no regular file, unreadable, of another schema or sweep, or its indices are out of range,
+        null or repeated."""
+        mode = path.lstat().st_mode
+        if not stat.S_ISREG(mode):
+            raise SweepError(f"--resume: {path} is {file_kind(mode)}, not a table this sweep wrote")
+        try:
+            found = pq.read_schema(path)
+        except (pa.ArrowException, OSError, ValueError) as exc:
+            raise SweepError(f"--resume: {path} is damaged or no Parquet table: {_one_line(exc)}") from None
+        fingerprint = (found.metadata or {}).get(SWEEP_KEY, b"").decode("ascii", "replace")
+        if fingerprint != self.spec.fingerprint():
+            raise SweepError(
+                f"--resume: {path} was not written by this sweep (its sweep digest is {fingerprint[:16] or 'absent'!r})"
+            )
+        if not found.remove_metadata().equals(self.schema.remove_metadata()):
+            wrong = [f.name for f in self.schema if found.get_field_index(f.name) < 0 or found.field(f.name) != f]
+            raise SweepError(f"--resume: {path} lacks or changes this sweep's columns {wrong[:5] or found.names[:5]}")
+        table = read_table(path, table_schema=self.schema)
+        index = table.column("index")
+        if index.null_count:
+            raise SweepError(f"--resume: {path} has rows without an index")
+        values = np.asarray(index.to_numpy(), dtype=np.int64)
+        bad = values[(values < 0) | (values >= len(self.spec))]
+        if len(bad):
+            raise SweepError(f"--resume: {path} has row index {int(bad[0])}, outside 0..{len(self.spec) - 1}")
+        unique, counts = np.unique(values, return_counts=True)
+        if np.any(counts > 1):
+            raise SweepError(f"--resume: {path} repeats row {int(unique[counts > 1][0])}")
+        if (found.metadata or {}).get(ROWS_KEY, b"").decode("ascii", "replace") != rows_digest(table):
+            raise SweepError(
+                f"--resume: {path} was changed after this sweep wrote it: its rows do not match their digest"
+            )
+        return set(values.tolist())
 
     def add(self, rows: list[dict[str, Any]]) -> Path:
         """Write one finished batch's rows as a part file."""
@@ -211,11 +354,11 @@ class ResultStore:
         """Merge the final table and the parts into ``results.parquet`` (sorted by index), remove
         the parts; the table."""
         tables = [
-            pq.read_table(p, schema=self.schema)
+            read_table(p, table_schema=self.schema)
             for p in ([self.results] if self.results.exists() else []) + self.part_files()
         ]
         table = pa.concat_tables(tables) if tables else self.schema.empty_table()
-        table = _first_of_each_index(table.sort_by("index"))
+        table = with_rows_digest(_first_of_each_index(table.sort_by("index")).combine_chunks())
         write_table(self.results, table, "--out results")
         for path in self.part_files():
             path.unlink()
@@ -224,11 +367,28 @@ class ResultStore:
         return table
 
 
+def with_rows_digest(table: pa.Table) -> pa.Table:
+    """``table`` with the digest of its rows in its metadata: --resume takes only rows as this
+    sweep wrote them, and a table in memory is the table on disk, metadata included."""
+    return table.replace_schema_metadata(
+        {**(table.schema.metadata or {}), ROWS_KEY: rows_digest(table).encode("ascii")}
+    )
+
+
+def rows_digest(table: pa.Table) -> str:
+    """The SHA-256 of a table's rows but for their timing columns, which two runs of one sweep do
+    not share (``TIMING_COLUMNS``): the same rows have the same digest wherever they ran."""
+    return table_digest(table.drop_columns([c for c in TIMING_COLUMNS if c in table.column_names]))
+
+
+def _one_line(exc: BaseException) -> str:
+    """pyarrow's message on one line (it may end in, or hold, line breaks)."""
+    return " ".join(str(exc).split())
+
+
 def _first_of_each_index(table: pa.Table) -> pa.Table:
     """One row per index (a sweep stopped between writing the table and removing the parts it
     merged leaves both on disk; their rows are the same)."""
-    import numpy as np
-
     index = table.column("index").to_numpy()
     keep = np.ones(len(index), dtype=bool)
     keep[1:] = index[1:] != index[:-1]

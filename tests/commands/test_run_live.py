@@ -3,12 +3,16 @@ Rerun viewer is the one ``--rrd`` writes, and every bad use is refused before th
 
 from __future__ import annotations
 
+import os
+import signal
 import subprocess
 import sys
+import time
 
 import numpy as np
 import pytest
 
+from helpers.peers import HTTP2_SETTINGS, closed_port, silent_peer
 from helpers.rerun_server import free_port, settle, stop, wait_for
 from legsim.cli import main
 from legsim.errors import LegsimError
@@ -94,3 +98,77 @@ def test_viewer_addresses(address, url):
 def test_a_bad_viewer_address_is_named(address):
     with pytest.raises(LegsimError, match=r"--connect .*: not a Rerun viewer address"):
         viewer_url(address)
+
+
+def run_connect(port: int, *argv: str, timeout: float = 60) -> tuple[subprocess.CompletedProcess, float]:
+    """``legsim run`` of the short ball with ``--connect PORT`` in a new process (a hang must end
+    this test, not the test run), and the seconds it took."""
+    began = time.monotonic()
+    done = subprocess.run(
+        [sys.executable, "-m", "legsim.cli", "run", *SHORT, "--connect", str(port), *argv],
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+    )
+    return done, time.monotonic() - began
+
+
+def test_connect_to_a_peer_that_accepts_and_never_answers_ends_at_the_deadline(tmp_path):
+    # It waited forever (Rerun's client flushes without a deadline), ignoring SIGTERM.
+    with silent_peer() as peer:
+        done, seconds = run_connect(peer.port, "--connect-timeout", "1", "--rrd", str(tmp_path / "x.rrd"))
+    assert done.returncode == 2 and seconds < 10
+    assert done.stderr == (
+        f"legsim: error: --connect {peer.port}: 127.0.0.1:{peer.port} accepted the connection but did not answer "
+        f"within 1 s (--connect-timeout); is a Rerun viewer running there?\n"
+    )
+    assert not (tmp_path / "x.rrd").exists()  # refused before the run
+
+
+def test_connect_to_a_viewer_that_answers_and_then_stalls_ends_at_the_deadline():
+    with silent_peer(first=HTTP2_SETTINGS) as peer:
+        done, seconds = run_connect(peer.port, "--connect-timeout", "1")
+        time.sleep(0.3)
+        # The probe's connection, and the killed sender's (Rerun's client may have opened more).
+        assert peer.accepted >= 2 and peer.closed == peer.accepted
+    assert done.returncode == 2 and seconds < 10
+    assert done.stderr == (
+        f"legsim: error: --connect {peer.port}: the viewer at 127.0.0.1:{peer.port} did not take the recording "
+        f"within 1 s (--connect-timeout); is it still running?\n"
+    )
+
+
+def test_a_closed_viewer_port_is_refused_at_once():
+    done, seconds = run_connect(closed_port())
+    assert done.returncode == 2 and "(Connection refused)" in done.stderr and seconds < 10
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT])
+def test_a_signal_ends_a_live_recording_within_2_s(tmp_path, sig):
+    with silent_peer(first=HTTP2_SETTINGS) as peer:
+        proc = subprocess.Popen(
+            [sys.executable, "-m", "legsim.cli", "run", *SHORT, "--connect", str(peer.port), "--connect-timeout", "60"],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+            env={**os.environ, "TMPDIR": str(tmp_path)},
+        )
+        deadline = time.monotonic() + 60
+        while peer.accepted < 2 and time.monotonic() < deadline:  # the sender is waiting for the viewer
+            time.sleep(0.02)
+        sent = time.monotonic()
+        proc.send_signal(sig)
+        _, err = proc.communicate(timeout=30)
+        elapsed = time.monotonic() - sent
+        time.sleep(0.3)
+        assert peer.closed == peer.accepted  # the sending process was killed with its command
+    assert proc.returncode == (143 if sig == signal.SIGTERM else 130) and elapsed < 2.0
+    assert err == ("legsim: terminated\n" if sig == signal.SIGTERM else "legsim: interrupted\n")
+    assert list(tmp_path.iterdir()) == []  # the temporary recording is gone
+
+
+def test_connect_timeout_is_checked_and_needs_connect(capsys):
+    assert main(["run", *SHORT, "--connect-timeout", "0", "--connect", "9"]) == 2
+    assert "--connect-timeout must be finite and > 0" in capsys.readouterr().err
+    assert main(["run", *SHORT, "--connect-timeout", "3"]) == 2
+    assert "--connect-timeout bounds the waits of --connect: give --connect ADDRESS" in capsys.readouterr().err

@@ -126,3 +126,48 @@ def test_a_live_writers_temporary_is_left_alone(tmp_path):
         sleeper.kill()
         sleeper.wait()
     assert remove_stale_temporaries(target) == [theirs] and ours.exists()
+
+
+class Signalled(KeyboardInterrupt):
+    """What a signal handler raises, landing at one line of ``write_atomic``."""
+
+
+def test_a_signal_at_any_line_of_write_atomic_leaves_no_temporary(tmp_path):
+    """A Ctrl-C (or SIGTERM turned into one) can land between any two lines. A trace function
+    raises it at the k-th line event of ``write_atomic`` (and of what it calls in its module),
+    for every k up to the end of the write: no case may leave a temporary file, and the target
+    holds the older content or the whole newer one."""
+    import legsim.output.files as files
+
+    target = tmp_path / "out.txt"
+    target.write_text("older")
+    module = files.__file__
+    k = 0
+    while True:
+        seen = 0
+
+        def trace(frame, event, arg, k=k):
+            nonlocal seen
+            if frame.f_code.co_filename != module:
+                return None
+            if event == "line":
+                if seen == k:
+                    raise Signalled(f"line {frame.f_lineno}")
+                seen += 1
+            return trace
+
+        sys.settrace(trace)
+        try:
+            files.write_atomic(target, lambda tmp: tmp.write_text("newer"))
+        except Signalled:
+            interrupted = True
+        else:
+            interrupted = False
+        finally:
+            sys.settrace(None)
+        assert temporaries(tmp_path) == [], f"a signal at line event {k} left a temporary file"
+        if not interrupted:
+            break
+        assert target.read_text() in ("older", "newer"), f"a signal at line event {k} damaged the file"
+        k += 1
+    assert target.read_text() == "newer" and k > 10

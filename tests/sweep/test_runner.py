@@ -51,7 +51,8 @@ def test_rows_hold_each_variations_run_against_the_closed_form(tmp_path):
             assert row["final_state"][1] == pytest.approx(-G * 0.3, abs=1e-12)
         assert row["energy_initial"] == pytest.approx(G * z0)
         assert row["wall_time_s"] > 0
-    assert json.loads((tmp_path / "s" / "sweep.json").read_text())["scene"] == "bouncing_ball"
+    manifest = json.loads((tmp_path / "s" / "sweep.json").read_text())
+    assert manifest["spec"]["scene"] == "bouncing_ball" and manifest["digest"] == result.spec.fingerprint()
 
 
 def test_a_run_the_method_cannot_vouch_for_says_so_in_its_row(tmp_path, capsys):

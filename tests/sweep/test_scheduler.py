@@ -6,7 +6,9 @@ from __future__ import annotations
 
 import io
 import json
+import os
 import shutil
+import signal
 import subprocess
 import sys
 import time
@@ -15,6 +17,8 @@ from pathlib import Path
 import pyarrow.parquet as pq
 import pytest
 
+from helpers.peers import closed_port, silent_peer
+from helpers.reliability import watchdog
 from legsim.cli import main
 from legsim.sweep.table import TIMING_COLUMNS
 
@@ -125,3 +129,82 @@ def test_an_unreachable_scheduler_is_an_error_naming_it(tmp_path, capsys, monkey
     assert main([*SWEEP, "--out", str(tmp_path / "x"), "--scheduler", "tcp://127.0.0.1:9"]) == 2
     assert "cannot reach the Dask scheduler at tcp://127.0.0.1:9" in capsys.readouterr().err
     assert not (tmp_path / "x").exists()
+
+
+def test_a_scheduler_that_accepts_and_never_answers_is_given_up_at_the_deadline(tmp_path, capsys):
+    # Dask's handshake waited for its answer forever, whatever the client's timeout.
+    with silent_peer() as peer, watchdog(60):
+        port = peer.port
+        began = time.monotonic()
+        code = main(
+            [*SWEEP, "--out", str(tmp_path / "x"), "--scheduler", f"tcp://127.0.0.1:{port}", "--connect-timeout", "1"]
+        )
+        elapsed = time.monotonic() - began
+    assert code == 2 and elapsed < 5
+    assert (
+        f"the Dask scheduler at tcp://127.0.0.1:{port} accepted the connection but did not answer within 1 s "
+        f"(--connect-timeout)" in capsys.readouterr().err
+    )
+    assert not (tmp_path / "x").exists()
+
+
+def test_a_closed_scheduler_port_is_refused_at_once(tmp_path, capsys):
+    # Dask retried the refused connection until its timeout: 21 s.
+    port = closed_port()
+    began = time.monotonic()
+    assert main([*SWEEP, "--out", str(tmp_path / "x"), "--scheduler", f"127.0.0.1:{port}"]) == 2
+    assert time.monotonic() - began < 3
+    err = capsys.readouterr().err
+    assert f"cannot reach the Dask scheduler at 127.0.0.1:{port}: 127.0.0.1:{port}: Connection refused" in err
+
+
+@pytest.mark.parametrize(
+    "address", ["tcp://127.0.0.1:8786:9", "::::", "http://127.0.0.1:8786", "scheduler", "tcp://h:0"]
+)
+def test_a_malformed_scheduler_address_is_named(address, tmp_path, capsys):
+    # Some were internal errors from Dask's address parser.
+    assert main([*SWEEP, "--out", str(tmp_path / "x"), "--scheduler", address]) == 2
+    assert f"--scheduler {address!r}: not a Dask scheduler address; give tcp://HOST:PORT" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_an_interrupted_dask_sweep_ends_within_2_s_without_worker_tracebacks(tmp_path, sig):
+    """The signal goes to the whole process group, as Ctrl-C at a terminal does: the workers
+    printed a 30-line KeyboardInterrupt traceback each."""
+    out = tmp_path / "s"
+    proc = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "legsim.cli",
+            "sweep",
+            "bouncing_ball",
+            "--grid",
+            "initial.state.z=0.5:2:4000",
+            "--set",
+            "integrator.t_final=2",
+            "--workers",
+            "2",
+            "--batch",
+            "20",
+            "--out",
+            str(out),
+            "--quiet",
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+    )
+    deadline = time.monotonic() + 120
+    while not list((out / "results.parts").glob("part-*.parquet")) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    sent = time.monotonic()
+    os.killpg(proc.pid, sig)
+    _, err = proc.communicate(timeout=60)
+    elapsed = time.monotonic() - sent
+    assert proc.returncode == (130 if sig == signal.SIGINT else 143)
+    assert err == ("legsim: interrupted\n" if sig == signal.SIGINT else "legsim: terminated\n")
+    assert elapsed < 2.0, f"the sweep ended {elapsed:.2f} s after the signal"
+    table = pq.read_table(out / "results.parquet")
+    assert 0 < table.num_rows < 4000 and set(table.column("task_status").to_pylist()) == {"done"}

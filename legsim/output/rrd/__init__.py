@@ -9,6 +9,8 @@ reads it back with Rerun's own reader.
 * ``stream``: the run's samples a chunk at a time, thinned to a rate, for the writer.
 * ``views``: the plot views grouped by unit and the blueprint the viewer opens on.
 * ``live``: ``stream_rrd`` to a spawned or running viewer (``legsim run --spawn/--connect``).
+* ``send``: the child process ``--connect`` sends a recording file through, with a deadline.
+* ``digest``: the digest of what legsim logged and the seal of a file, verified by ``read_rrd``.
 * ``read``: ``read_rrd``, which assembles the recorded rows into numbers; ``columns`` the
   reader of the recorded components per entity; ``frames`` the robot back as polylines.
 

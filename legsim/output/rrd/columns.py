@@ -22,18 +22,47 @@ class Columns:
     """The recorded components, per entity, as arrow arrays with their row index (the
     ``sample`` timeline; -1 for static rows), converted only when asked for."""
 
+    #: Rerun's id of each row, in the order the rows were logged.
+    ROW_ID = "rerun.controls.RowId"
     #: Index and bookkeeping columns of a chunk, which are no component.
-    SKIP = ("rerun.controls.RowId", TIMELINE, SAMPLE_TIMELINE, "log_time", "log_tick")
+    SKIP = (ROW_ID, TIMELINE, SAMPLE_TIMELINE, "log_time", "log_tick")
 
     def __init__(self) -> None:
         self.data: dict[str, dict[str, list[tuple[np.ndarray, Any]]]] = {}
+        self.row_ids: dict[str, dict[str, list[Any]]] = {}
 
     def add(self, entity: str, index: np.ndarray, batch: Any) -> None:
         """Keep the components of an arrow record batch whose rows have the indices ``index``."""
         comps = self.data.setdefault(entity, {})
+        ids = self.row_ids.setdefault(entity, {})
+        row_id = batch.column(self.ROW_ID) if self.ROW_ID in batch.schema.names else None
         for name in batch.schema.names:
             if name not in self.SKIP:
                 comps.setdefault(name, []).append((index, batch.column(name)))
+                ids.setdefault(name, []).append(row_id)
+
+    def logged(self, entity: str, component: str) -> tuple[np.ndarray, Any] | None:
+        """(sample indices, rows as an arrow list array) of a component in the order they were
+        logged (by Rerun's row ids), null rows left out; None when a chunk has no row ids."""
+        import pyarrow as pa
+
+        indices, rows, keys = [], [], []
+        pieces = self.data.get(entity, {}).get(component, [])
+        for (index, column), row_id in zip(pieces, self.row_ids.get(entity, {}).get(component, []), strict=True):
+            if row_id is None:
+                return None
+            valid = column.is_valid()
+            keep = np.asarray(valid.to_numpy(zero_copy_only=False), dtype=bool)
+            indices.append(index[keep])
+            rows.append(column.filter(valid))
+            keys.append(_row_id_bytes(row_id)[keep])
+        if not rows:
+            return np.empty(0, dtype=np.int64), pa.array([], type=pa.list_(pa.null()))
+        key = np.concatenate(keys)
+        # Row ids are 16 bytes, most significant first: sorted by both halves as big-endian integers.
+        order = np.lexsort((key[:, 8:].copy().view(">u8").ravel(), key[:, :8].copy().view(">u8").ravel()))
+        joined = pa.concat_arrays([r.cast(rows[0].type) for r in rows]) if len(rows) > 1 else rows[0]
+        return np.concatenate(indices)[order], joined.take(pa.array(order))
 
     def entities(self) -> list[str]:
         return list(self.data)
@@ -126,6 +155,12 @@ class Columns:
     def values(self, entity: str, component: str) -> list:
         """Each row's Python list of values, sorted by row (small entities only)."""
         return [r[1] for r in self.rows(entity, component)]
+
+
+def _row_id_bytes(row_id: Any) -> np.ndarray:
+    """A fixed-size-binary(16) arrow array of row ids as bytes (n, 16)."""
+    data = np.frombuffer(row_id.buffers()[1], dtype=np.uint8)
+    return data[row_id.offset * 16 : (row_id.offset + len(row_id)) * 16].reshape(-1, 16)
 
 
 def read_columns(path: Path) -> Columns:

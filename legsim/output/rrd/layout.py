@@ -33,6 +33,9 @@ Entity tree::
     /legsim/samples              the exact time of each sample (float64; sim_time keeps ns)
     /legsim/meta                 JSON: format, run summary (keys of ``legsim run --json``),
                                  names and units per mode, the coordinate -> entity map, parts
+    /legsim/digest               JSON: the SHA-256 of every component logged above, per entity,
+                                 logged last (``legsim.output.rrd.digest``)
+    /legsim/file_digest          JSON: the SHA-256 of the file's bytes before it (files only)
     /summary                     the run summary as markdown
 
 A part whose shape is not a moved, rotated or stretched copy of its first shape in some sample
@@ -59,6 +62,8 @@ STRIPS = "/events/strips"
 WARNINGS = "/events/warnings"
 SAMPLES = "/legsim/samples"
 META = "/legsim/meta"
+DIGEST = "/legsim/digest"
+FILE_DIGEST = "/legsim/file_digest"
 SUMMARY = "/summary"
 
 # Colours (RGB) of robot parts and modes in the viewer, in order; scenery is grey.

@@ -2,8 +2,15 @@
 ``--connect ADDRESS``) and a recording file opened (``legsim replay --spawn``).
 
 The checks run before any work: ``--spawn`` needs a display, and ``--connect`` an address that
-accepts a connection now, since Rerun's own client only logs, and drops the data, when nothing
-listens there.
+accepts a connection and answers now, since Rerun's own client only logs, and drops the data,
+when nothing listens there, and waits without a deadline for a peer that accepts and never
+answers. Every wait of ``--connect`` has a deadline, ``timeout`` (``--connect-timeout``,
+default ``CONNECT_TIMEOUT``): the TCP connection (a closed port is refused at once), the
+viewer's first answer (the HTTP/2 settings a gRPC server sends on a new connection; for
+``rerun+https``, the TLS handshake), and, after the run, the viewer taking the recording: the
+recording is written to a temporary file and sent by a child process (``send``), which is
+killed when the deadline passes or the run is interrupted (Ctrl-C and SIGTERM end it within a
+fraction of a second).
 
 Rerun's viewer collects usage analytics unless they are turned off, and a viewer's first run on
 a machine writes a setting that turns them on for every later one. legsim never decides that
@@ -15,10 +22,14 @@ is left alone. Sending to a viewer the user started (``--connect``) starts none.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import socket
+import ssl
 import subprocess
 import sys
+import tempfile
+import time
 from pathlib import Path
 from typing import Any
 from urllib.parse import urlsplit
@@ -27,12 +38,19 @@ from ...builders import Model
 from ...errors import LegsimError
 from ...execution import Execution
 from ...hybrid import HybridSystem
+from ..untrusted import printable
+from .send import layout_json
 from .write import prepare, record, recording_stream
 
 #: Rerun's default port for a viewer or proxy; ``--connect`` without a port uses it.
 DEFAULT_PORT = 9876
-#: Seconds to wait for the viewer's address to accept a connection, and for the sent data.
-CONNECT_TIMEOUT = 5.0
+#: Seconds each step of ``--connect`` may take (module docstring), unless told otherwise.
+CONNECT_TIMEOUT = 10.0
+#: An HTTP/2 client's opening: the connection preface and an empty SETTINGS frame. A gRPC
+#: server answers it with its own SETTINGS frame (type 4).
+HTTP2_PREFACE = b"PRI * HTTP/2.0\r\n\r\nSM\r\n\r\n" + bytes([0, 0, 0, 4, 0, 0, 0, 0, 0])
+#: Seconds between two looks at the sending process (how soon a signal is handled).
+POLL_SECONDS = 0.05
 #: Rerun's environment variable that turns its analytics on whatever the setting: the user's
 #: to set; legsim reads it and never sets it.
 FORCE_ANALYTICS = "FORCE_RERUN_ANALYTICS"
@@ -128,18 +146,51 @@ def viewer_url(address: str) -> str:
     return text
 
 
-def check_reachable(address: str, url: str) -> None:
-    """LegsimError naming ``address`` when nothing accepts a connection at ``url``."""
+def check_reachable(address: str, url: str, timeout: float = CONNECT_TIMEOUT) -> None:
+    """LegsimError naming ``address`` when nothing accepts a connection at ``url``, or what does
+    does not answer as a gRPC server within ``timeout`` seconds (module docstring)."""
     parts = urlsplit(url)
-    port = parts.port or DEFAULT_PORT
+    host, port = parts.hostname or "", parts.port or DEFAULT_PORT
+    late = f"within {timeout:g} s (--connect-timeout)"
     try:
-        socket.create_connection((parts.hostname, port), timeout=CONNECT_TIMEOUT).close()
+        sock = socket.create_connection((host, port), timeout=timeout)
     except OSError as exc:
+        reason = f"no answer {late}" if isinstance(exc, TimeoutError) else (exc.strerror or str(exc))
         raise LegsimError(
-            f"--connect {address}: no Rerun viewer answers at {parts.hostname}:{port} "
-            f"({exc.strerror or exc}); start one with `rerun` (or `rerun --serve-grpc`) "
-            f"there first"
+            f"--connect {address}: no Rerun viewer answers at {host}:{port} ({reason}); start one with `rerun` "
+            f"(or `rerun --serve-grpc`) there first"
         ) from None
+    try:
+        with sock:
+            sock.settimeout(timeout)
+            answer = _first_answer(sock, host, parts.scheme == "rerun+https")
+    except TimeoutError:
+        raise LegsimError(
+            f"--connect {address}: {host}:{port} accepted the connection but did not answer {late}; is a Rerun "
+            f"viewer running there?"
+        ) from None
+    except (OSError, ssl.SSLError) as exc:
+        raise LegsimError(f"--connect {address}: {host}:{port} broke the connection: {exc}") from None
+    if answer is not None and (len(answer) < 4 or answer[3] != 4):
+        raise LegsimError(
+            f"--connect {address}: {host}:{port} answered {printable(answer[:24])!r}, not as a Rerun viewer "
+            f"(a gRPC server) does"
+        )
+
+
+def _first_answer(sock: socket.socket, host: str, tls: bool) -> bytes | None:
+    """The first bytes the server sends after an HTTP/2 client's opening (None for TLS, whose
+    finished handshake is the answer)."""
+    if tls:
+        context = ssl.create_default_context()
+        context.set_alpn_protocols(["h2"])
+        with context.wrap_socket(sock, server_hostname=host):
+            return None
+    sock.sendall(HTTP2_PREFACE)
+    answer = sock.recv(64)
+    if not answer:
+        raise ConnectionError("it closed the connection without answering")
+    return answer
 
 
 def stream_rrd(
@@ -150,24 +201,65 @@ def stream_rrd(
     connect: str | None = None,
     model: Model | HybridSystem | None = None,
     rate: float | None = None,
+    timeout: float = CONNECT_TIMEOUT,
 ) -> None:
     """Send the recording of ``execution`` (as ``write_rrd`` would write it, with the same
     ``scene``, ``model`` and ``rate``) to a new viewer (``spawn``) or to the viewer at
-    ``connect`` (an address for ``viewer_url``)."""
+    ``connect`` (an address for ``viewer_url``), each wait of the latter bounded by ``timeout``
+    seconds (module docstring)."""
     if spawn == (connect is not None):
         raise LegsimError("stream_rrd needs one of spawn=True or connect=ADDRESS")
-    url = viewer_url(connect) if connect is not None else None
-    if url is not None:
-        check_reachable(str(connect), url)
     content = prepare(execution, scene, model, rate, f"--connect {connect}" if connect else "--spawn")
-    if spawn:
+    if connect is None:
         viewer_analytics_off()
-    with recording_stream() as rec:
-        if url is not None:
-            rec.connect_grpc(url)
-        else:
+        with recording_stream() as rec:
             rec.spawn(connect=True)
-        record(rec, content)
+            record(rec, content)
+        return
+    url = viewer_url(connect)
+    check_reachable(connect, url, timeout)
+    with tempfile.TemporaryDirectory(prefix="legsim-connect-") as folder:
+        file = Path(folder) / "recording.rrd"
+        with recording_stream() as rec:
+            rec.save(file)
+            layout = record(rec, content)
+        _send(connect, url, file, layout_json(layout), timeout)
+
+
+def _send(address: str, url: str, file: Path, layout: str, timeout: float) -> None:
+    """Run ``send`` on ``file``, waiting at most ``timeout`` seconds; LegsimError naming
+    ``address`` when it fails or the deadline passes. On any exception (Ctrl-C, SIGTERM) the
+    child is killed before it propagates."""
+    with tempfile.TemporaryFile() as said:
+        child = subprocess.Popen(
+            [sys.executable, "-m", "legsim.output.rrd.send", url, str(file), layout],
+            stdin=subprocess.DEVNULL,
+            stdout=subprocess.DEVNULL,
+            stderr=said,
+            start_new_session=True,  # Ctrl-C at the terminal is the parent's to handle
+        )
+        try:
+            deadline = time.monotonic() + timeout
+            while child.poll() is None and time.monotonic() < deadline:
+                time.sleep(POLL_SECONDS)
+        finally:
+            if child.poll() is None:
+                child.kill()
+            with contextlib.suppress(subprocess.TimeoutExpired):
+                child.wait(timeout=5)
+        said.seek(0)
+        lines = [line for line in said.read(65536).decode("utf-8", "replace").splitlines() if line.strip()]
+    host = urlsplit(url).netloc
+    if child.returncode in (-9, None):
+        raise LegsimError(
+            f"--connect {address}: the viewer at {host} did not take the recording within {timeout:g} s "
+            f"(--connect-timeout); is it still running?"
+        )
+    if child.returncode != 0:
+        raise LegsimError(
+            f"--connect {address}: sending the recording to {host} failed: "
+            f"{printable(lines[-1] if lines else f'exit {child.returncode}', newlines=False)}"
+        )
 
 
 def open_in_viewer(path: Path) -> None:

@@ -12,8 +12,9 @@ import numpy as np
 from ..trace import RecordingError
 from ..untrusted import check_list, check_object, load_json
 from .columns import Columns, read_columns
+from .digest import check_file, verify
 from .frames import frames
-from .layout import FORMAT, META, MODE, OLD_FORMATS, SAMPLES, SCENERY, STATE, STRIPS, TRANSITIONS, entity
+from .layout import DIGEST, FORMAT, META, MODE, OLD_FORMATS, SAMPLES, SCENERY, STATE, STRIPS, TRANSITIONS, entity
 
 
 def read_rrd(path: str | os.PathLike) -> dict[str, Any]:
@@ -37,18 +38,48 @@ def read_rrd(path: str | os.PathLike) -> dict[str, Any]:
       ``legsim.output.rrd.frames``) or None, ``frame_rows`` the samples they show (or None);
       ``scenery``: part -> (k, 2).
 
+    * ``verified``: True when the recording holds the digest of what legsim logged
+      (``legsim.output.rrd.digest``) and every component matches it; False for a recording
+      without one (written before legsim stored it).
+
     Raises RecordingError naming the file when it is missing, not a Rerun file, not written
-    by legsim, or written in an earlier layout (naming it).
+    by legsim, written in an earlier layout (naming it), or damaged: a component that no longer
+    matches the digest written with it.
     """
     path = Path(path)
     if not path.is_file():
         raise RecordingError(f"{path}: no such recording file")
+    try:
+        # Before Rerun decodes anything: its reader aborts the process on some damaged files.
+        check_file(path)
+    except ValueError as exc:
+        raise RecordingError(f"{path}: damaged legsim recording: {exc}") from None
+    except OSError as exc:
+        raise RecordingError(f"{path}: cannot read the recording: {exc.strerror or exc}") from None
     columns = read_columns(path)
+    verified = _verify(path, columns)
     meta = _read_meta(path, columns)
     try:
-        return _assemble(columns, meta)
+        return {**_assemble(columns, meta), "verified": verified}
     except (KeyError, IndexError, ValueError, TypeError) as exc:
         raise RecordingError(f"{path}: incomplete or damaged legsim recording ({type(exc).__name__}: {exc})") from exc
+
+
+def _verify(path: Path, columns: Columns) -> bool:
+    """Whether the recording's components match the digest stored with them (False without a
+    digest); RecordingError naming the first one that does not."""
+    rows = columns.values(DIGEST, "TextDocument:text")
+    if not rows:
+        return False
+    try:
+        problem = verify(columns, rows[0][0] if rows[0] else None)
+    except (ValueError, TypeError) as exc:
+        raise RecordingError(f"{path}: damaged legsim recording: its digest is unreadable: {exc}") from None
+    if problem is not None:
+        raise RecordingError(
+            f"{path}: damaged legsim recording: {problem} (the digest legsim stored with the data no longer matches)"
+        )
+    return True
 
 
 #: The keys of ``legsim/meta`` and their JSON types (None: null).

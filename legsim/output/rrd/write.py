@@ -29,8 +29,11 @@ from ..files import write_atomic
 from ..summary import run_summary
 from ..trace import RecordingError, _draw, resolve_model, scenery_only, trace_series
 from .bodies import BodyLogger
+from .digest import Digest, DigestingStream, seal
 from .layout import (
     APPLICATION_ID,
+    DIGEST,
+    FILE_DIGEST,
     FORMAT,
     META,
     MODE,
@@ -51,7 +54,7 @@ from .layout import (
 )
 from .stream import CHUNK, Chunk, chunks, sample_count
 from .urdf import UrdfLogger, urdf_source
-from .views import blueprint, coordinate_units, series_label, unit_groups
+from .views import UnitGroup, blueprint, coordinate_units, series_label, unit_groups
 
 #: Rows sent to Rerun between waits for its pipeline to write them (``drain``): Rerun queues
 #: what it is sent, some 150 bytes a row, until its file sink has written it.
@@ -84,6 +87,7 @@ def write_rrd(
         with recording_stream() as rec:
             rec.save(tmp)
             record(rec, content)
+            seal(rec, tmp, FILE_DIGEST)
 
     try:
         write_atomic(path, write, what="recording")
@@ -144,18 +148,28 @@ class recording_stream:
             self.rec.disconnect()
 
 
-def record(rec: Any, content: Content) -> None:
-    """Log the whole recording of ``content`` to the stream ``rec``."""
+def record(rec: Any, content: Content) -> Layout:
+    """Log the whole recording of ``content`` to the stream ``rec``; the layout its blueprint was
+    made from (``legsim.output.rrd.views.blueprint``'s arguments)."""
     import rerun as rr
 
-    log = _Logger(rr, rec, content)
-    rec.log(WORLD, rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
+    digest = Digest()
+    digested = DigestingStream(rec, digest, SAMPLE_TIMELINE)
+    log = _Logger(rr, digested, content)
+    digested.log(WORLD, rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
     bodies = log.stream()
     log.modes()
     log.events()
     scenery = log.scenery()
     log.header(_meta(content, bodies, scenery), bodies, scenery)
-    log.blueprint(log.entities, bodies, scenery)
+    layout = log.blueprint(log.entities, bodies, scenery)
+    # Last, and not digested itself: the digest of everything logged above.
+    rec.log(DIGEST, rr.TextDocument(json.dumps(digest.document()), media_type="text/plain"), static=True)
+    return layout
+
+
+#: A blueprint's arguments: the plot views by unit, and the (x, z) corners of what is drawn or None.
+Layout = tuple[list[UnitGroup], tuple[np.ndarray, np.ndarray] | None]
 
 
 def _meta(content: Content, bodies: BodyLogger | UrdfLogger | None, scenery: dict[str, np.ndarray]) -> dict[str, Any]:
@@ -454,8 +468,8 @@ class _Logger:
 
     def blueprint(
         self, entities: dict[str, str], bodies: BodyLogger | UrdfLogger | None, scenery: dict[str, np.ndarray]
-    ) -> None:
-        """The viewer's layout (``legsim.output.rrd.views``), sent with the recording."""
+    ) -> Layout:
+        """The viewer's layout (``legsim.output.rrd.views``), sent with the recording; its arguments."""
         import rerun.blueprint as rrb
 
         ex = self.content.execution
@@ -465,6 +479,7 @@ class _Logger:
             allp = np.concatenate(list(scenery.values()))
             box = (allp.min(axis=0), allp.max(axis=0))
         self.rec.send_blueprint(blueprint(rrb, groups, box))
+        return groups, box
 
 
 def _joined(rows: list[np.ndarray]) -> np.ndarray:

@@ -22,6 +22,7 @@ from rerun.chunk import RrdReader
 from helpers.rerun_server import free_port, settle, stop, wait_for
 from legsim.cli import main
 from legsim.output.rrd import read_rrd
+from legsim.output.rrd.layout import FILE_DIGEST
 
 RUN = ["quadruped_pronk", "--set", "integrator.t_final=0.12", "--quiet"]
 
@@ -33,8 +34,13 @@ def _rerun_binary() -> str | None:
 
 
 def _entities(path: Path) -> set[tuple[str, bool]]:
-    """(entity path, static) of every chunk of the recording, Rerun's bookkeeping aside."""
-    return {(c.entity_path, c.is_static) for c in RrdReader(path).stream() if not c.entity_path.startswith("/__")}
+    """(entity path, static) of every chunk of the recording, Rerun's bookkeeping aside, and the
+    seal of a written file (the SHA-256 of its own bytes: a viewer saves bytes of its own)."""
+    return {
+        (c.entity_path, c.is_static)
+        for c in RrdReader(path).stream()
+        if not c.entity_path.startswith("/__") and c.entity_path != FILE_DIGEST
+    }
 
 
 @pytest.fixture

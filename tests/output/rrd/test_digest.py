@@ -1,0 +1,150 @@
+"""A recording carries the digest of what legsim logged (legsim.output.rrd.digest), and
+``legsim replay`` refuses a recording that no longer matches it: a flipped byte gave other
+samples, exit 0."""
+
+from __future__ import annotations
+
+import json
+import random
+
+import numpy as np
+import pytest
+
+from helpers.reliability import run_cli
+from legsim.errors import LegsimError
+from legsim.output.rrd import read_rrd, write_rrd
+from legsim.output.rrd import write as rrd_write
+from legsim.output.rrd.digest import Digest, feed_values
+from legsim.output.trace import RecordingError
+from legsim.scene import load_scene
+
+
+@pytest.fixture(scope="module")
+def ball(tmp_path_factory):
+    """The bouncing ball's recording over 0.5 s, and what reading it gives."""
+    scene = load_scene("bouncing_ball", ["integrator.t_final=0.5"])
+    path = tmp_path_factory.mktemp("ball") / "ball.rrd"
+    write_rrd(scene.simulate(), scene, path)
+    return path, read_rrd(path)
+
+
+def flipped(path, tmp_path, position: int, bit: int = 0x40):
+    damaged = tmp_path / "damaged.rrd"
+    data = bytearray(path.read_bytes())
+    data[position] ^= bit
+    damaged.write_bytes(bytes(data))
+    return damaged
+
+
+def test_a_recording_written_by_legsim_is_verified(ball):
+    _, data = ball
+    assert data["verified"] is True
+
+
+def flip_in_z(path, data, tmp_path):
+    """``path`` with a bit flipped in the exponent of z at sample 100 (Rerun stores the numbers as
+    they are, so the flip lands there)."""
+    z = data["series"]["z"][1]
+    position = path.read_bytes().find(np.float64(z[100]).tobytes())
+    assert position > 0
+    return flipped(path, tmp_path, position + 7)
+
+
+def test_a_flipped_byte_in_a_sample_is_refused_before_rerun_reads_the_file(ball, tmp_path):
+    path, data = ball
+    damaged = flip_in_z(path, data, tmp_path)
+    code, out, err = run_cli("replay", damaged)
+    assert code == 2 and out == ""
+    assert err.startswith(f"legsim: error: {damaged}: damaged legsim recording: its first ")
+    assert err.endswith(" bytes no longer match the SHA-256 stored with them\n")
+
+
+def test_without_the_files_seal_the_components_digest_names_what_differs(tmp_path, monkeypatch):
+    # A recording a viewer received and saved holds no seal: the components' digest still holds.
+    monkeypatch.setattr(rrd_write, "seal", lambda rec, path, entity: False)
+    scene = load_scene("bouncing_ball", ["integrator.t_final=0.5"])
+    path = write_rrd(scene.simulate(), scene, tmp_path / "unsealed.rrd")
+    damaged = flip_in_z(path, read_rrd(path), tmp_path)
+    code, _, err = run_cli("replay", damaged)
+    assert code == 2
+    assert err == (
+        f"legsim: error: {damaged}: damaged legsim recording: /state/z:Scalars:scalars differs from what was logged "
+        f"(the digest legsim stored with the data no longer matches)\n"
+    )
+
+
+def test_no_single_flipped_bit_gives_other_data_with_exit_0(ball, tmp_path):
+    """200 flips at random positions: each recording is refused, or reads back exactly as the
+    sound one (a flip in what legsim reads nothing of: Rerun's bookkeeping, the blueprint)."""
+    path, sound = ball
+    raw = path.read_bytes()
+    rng = random.Random(7)
+    refused = same = 0
+    for _ in range(200):
+        damaged = flipped(path, tmp_path, rng.randrange(len(raw)), 1 << rng.randrange(8))
+        try:
+            data = read_rrd(damaged)
+        except LegsimError:
+            refused += 1
+            continue
+        assert np.array_equal(data["times"], sound["times"]) and data["modes"] == sound["modes"]
+        for name, (_, values) in sound["series"].items():
+            assert np.array_equal(data["series"][name][1], values)
+        assert data["meta"] == sound["meta"] and data["transitions"][0]["time"] == sound["transitions"][0]["time"]
+        same += 1
+    assert refused > 100 and refused + same == 200
+
+
+def test_a_recording_without_a_digest_is_read_with_a_warning(tmp_path, monkeypatch):
+    scene = load_scene("bouncing_ball", ["integrator.t_final=0.2"])
+    monkeypatch.setattr(rrd_write, "DIGEST", "/legsim/not_a_digest")  # as an earlier legsim wrote it
+    path = write_rrd(scene.simulate(), scene, tmp_path / "old.rrd")
+    monkeypatch.undo()
+    assert read_rrd(path)["verified"] is False
+    code, _, err = run_cli("replay", path)
+    assert code == 0
+    assert err == (
+        f"legsim: warning: {path} holds no digest of its data (written by an earlier legsim): a damaged file "
+        f"cannot be told from a sound one\n"
+    )
+
+
+def test_a_digest_that_is_no_digest_is_refused(tmp_path, monkeypatch):
+    scene = load_scene("bouncing_ball", ["integrator.t_final=0.2"])
+    real = Digest.document
+    monkeypatch.setattr(Digest, "document", lambda self: {**real(self), "digest": "0" * 64})
+    path = write_rrd(scene.simulate(), scene, tmp_path / "x.rrd")
+    with pytest.raises(RecordingError, match=r"the digest document does not match its own digest"):
+        read_rrd(path)
+    monkeypatch.setattr(Digest, "document", lambda self: [1, 2])
+    path = write_rrd(scene.simulate(), scene, tmp_path / "y.rrd")
+    with pytest.raises(RecordingError, match=r"its digest is unreadable: legsim/digest is an array"):
+        read_rrd(path)
+
+
+def test_the_streams_do_not_depend_on_how_rows_are_grouped():
+    import pyarrow as pa
+
+    rows = pa.array([[1.0, 2.0], [3.0], [], [4.0, 5.0, 6.0]], type=pa.list_(pa.float64()))
+    whole, pieces = {}, {}
+    feed_values(whole, rows)
+    feed_values(pieces, rows.slice(0, 1))
+    feed_values(pieces, rows.slice(1, 3).cast(pa.list_(pa.float32())))  # float32 holds these exactly
+    assert {k: h.hexdigest() for k, h in whole.items()} == {k: h.hexdigest() for k, h in pieces.items()}
+    other = {}
+    feed_values(other, pa.array([[1.0], [2.0, 3.0], [], [4.0, 5.0, 6.0]], type=pa.list_(pa.float64())))
+    assert other["values/lengths"].hexdigest() != whole["values/lengths"].hexdigest()
+
+
+def test_the_digest_document_lists_every_entity_legsim_logged(ball):
+    path, _ = ball
+    from legsim.output.rrd.columns import read_columns
+
+    document = json.loads(read_columns(path).values("/legsim/digest", "TextDocument:text")[0][0])
+    assert {"/legsim/meta", "/legsim/samples", "/state/z", "/state/zd", "/mode", "/events/transitions"} <= set(
+        document["entities"]
+    )
+    assert document["entities"]["/state/z"] == {
+        "Scalars:scalars": document["entities"]["/state/z"]["Scalars:scalars"],
+        "SeriesLines:names": document["entities"]["/state/z"]["SeriesLines:names"],
+    }
