@@ -164,14 +164,19 @@ class Bound:
 
     def enter(self, mode: str, t: float, x: np.ndarray) -> None:
         """The run enters ``mode`` at (t, x): reset the controller, and hold its value there."""
+        self.reset_in(mode, t, x)
+        self.step_from(t, x)
+
+    def reset_in(self, mode: str, t: float, x: np.ndarray) -> None:
+        """The controller's ``reset`` on entering ``mode`` at (t, x), which becomes the mode it
+        is asked in; its failure is a ModelError naming it, the mode and t."""
         self.mode = mode
         try:
             self.controller.reset(mode, t, x)
         except LegsimError:
             raise
         except Exception as exc:  # a plug-in's own bug: name it and where, not a traceback
-            raise ModelError(self._failed("reset", t, exc)) from exc
-        self.step_from(t, x)
+            raise ModelError(self._failed("reset", mode, t, exc)) from exc
 
     def step_from(self, t: float, x: np.ndarray) -> None:
         """A step starts at (t, x): a held controller is sampled there."""
@@ -182,16 +187,21 @@ class Bound:
         return self._held if self.hold else self._evaluate(t, x)
 
     def _evaluate(self, t: float, x: np.ndarray) -> Any:
+        return self.input_in(self.mode, t, x)
+
+    def input_in(self, mode: str, t: float, x: np.ndarray) -> Any:
+        """The controller's input in ``mode`` at (t, x); its failure is a ModelError naming it,
+        the mode and t."""
         try:
-            return self.controller(self.mode, t, x)
+            return self.controller(mode, t, x)
         except LegsimError:
             raise
         except Exception as exc:
-            raise ModelError(self._failed("its input", t, exc)) from exc
+            raise ModelError(self._failed("its input", mode, t, exc)) from exc
 
-    def _failed(self, what: str, t: float, exc: Exception) -> str:
+    def _failed(self, what: str, mode: str, t: float, exc: Exception) -> str:
         return (
-            f"controller {type(self.controller).__name__}: {what} in mode '{self.mode}' at t={t:.17g} failed: "
+            f"controller {type(self.controller).__name__}: {what} in mode '{mode}' at t={t:.17g} failed: "
             f"{type(exc).__name__}: {exc}"
         )
 

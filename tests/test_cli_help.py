@@ -45,9 +45,11 @@ def _resolved_defaults() -> dict[tuple[str, ...], list[float]]:
     from legsim.bench import targets, work_precision
     from legsim.bench.cases import make_case
     from legsim.commands import sweep
+    from legsim.output.rrd.live import CONNECT_TIMEOUT
     from legsim.scene import load_scene
     from legsim.scene.certify import section_schema as certify_schema
     from legsim.scene.stochastic import section_schema as stochastic_schema
+    from legsim.sweep import engine
     from legsim.sweep.engine import Engine
 
     scene = load_scene("two_tanks")
@@ -61,6 +63,9 @@ def _resolved_defaults() -> dict[tuple[str, ...], list[float]]:
         ("certify", "--max-refinements"): [certify_schema(scene)["max_refinements"].default],
         ("stochastic", "--samples"): [stochastic_schema(scene)["samples"].default],
         ("stochastic", "--seed"): [stochastic_schema(scene)["seed"].default],
+        ("run", "--connect-timeout"): [CONNECT_TIMEOUT],
+        ("stochastic", "--connect-timeout"): [engine.CONNECT_TIMEOUT],
+        ("sweep", "--connect-timeout"): [engine.CONNECT_TIMEOUT],
         ("sweep", "--samples"): [sweep.RANDOM_SAMPLES],
         ("sweep", "--batch"): [inspect.signature(Engine).parameters["target_seconds"].default],
     }

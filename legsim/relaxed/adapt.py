@@ -173,10 +173,9 @@ def control_adapter(control: Any, mode: str, cell: InputCell) -> Callable[..., N
     in that mode, or a plain ``control(t, x)``; the value kept in ``cell`` (and, when the loop's
     input array has entries, written there for compiled plant functions)."""
     if isinstance(control, Bound):
-        controller = control.controller
 
         def evaluate(t: float, x: np.ndarray) -> Any:
-            return controller(mode, t, x)
+            return control.input_in(mode, t, x)
     else:
         evaluate = control
 
@@ -192,13 +191,10 @@ def control_adapter(control: Any, mode: str, cell: InputCell) -> Callable[..., N
 def enter_adapter(control: Bound, mode: str) -> Callable[..., None]:
     """``enter(t, x, m, p, m_new)`` of a Python ``Controller`` entering ``mode``: its ``reset``,
     then its memory as the state's memory entries."""
-    controller = control.controller
-
     def adapted(t: float, x: np.ndarray, m: np.ndarray, p: np.ndarray, m_new: np.ndarray) -> None:
-        control.mode = mode
-        controller.reset(mode, t, x.copy())
+        control.reset_in(mode, t, x.copy())
         if m_new.shape[0]:
-            m_new[:] = np.asarray(controller.memory(), dtype=float).reshape(-1)
+            m_new[:] = np.asarray(control.controller.memory(), dtype=float).reshape(-1)
 
     return adapted
 

@@ -33,6 +33,7 @@ def built(tmp_path_factory):
         [sys.executable, "-m", "build", "--outdir", str(tmp / "dist"), str(source)],
         capture_output=True,
         text=True,
+        cwd=tmp,  # a `build` folder where the test runs would shadow the build module
         env={**os.environ, "LEGSIM_BUILD_NATIVE": "0"},
         timeout=1200,
     )
@@ -46,7 +47,8 @@ def package_files() -> dict[str, Path]:
     for folder, target in FOLDERS.items():
         for path in sorted((ROOT / folder).rglob("*")):
             source = path.suffix in (".py", ".toml", ".urdf") or path.name == "py.typed"
-            if path.is_file() and source and "__pycache__" not in path.parts:
+            made = "__pycache__" in path.parts or "_prebuilt" in path.parts
+            if path.is_file() and source and not made:
                 found[f"{target}/{path.relative_to(ROOT / folder).as_posix()}"] = path
     return found
 
