@@ -191,6 +191,7 @@ def control_adapter(control: Any, mode: str, cell: InputCell) -> Callable[..., N
 def enter_adapter(control: Bound, mode: str) -> Callable[..., None]:
     """``enter(t, x, m, p, m_new)`` of a Python ``Controller`` entering ``mode``: its ``reset``,
     then its memory as the state's memory entries."""
+
     def adapted(t: float, x: np.ndarray, m: np.ndarray, p: np.ndarray, m_new: np.ndarray) -> None:
         control.reset_in(mode, t, x.copy())
         if m_new.shape[0]:

@@ -8,7 +8,19 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
 #: Made by a build, a run or `legsim.prebuild`, not sources.
-NOT_SOURCES = (".venv", ".git", "build", "dist", "out", "bench-out", "__pycache__", "*.egg-info", "*.so", ".*_cache", "_prebuilt")
+NOT_SOURCES = (
+    ".venv",
+    ".git",
+    "build",
+    "dist",
+    "out",
+    "bench-out",
+    "__pycache__",
+    "*.egg-info",
+    "*.so",
+    ".*_cache",
+    "_prebuilt",
+)
 
 
 def source_copy(target: Path) -> Path:
