@@ -3,10 +3,10 @@
 Public API::
 
     from legsim import HybridSystem, Mode, Transition, simulate, Execution
+    legsim.save_execution(execution, "run.npz"); legsim.load_execution("run.npz")
+    legsim.run_summary(execution)                                  # the JSON of `legsim run --json`
     legsim.sweep(scene, grid=..., walk=..., orbit=..., out=...)   # many variations on Dask
 """
-
-__version__ = "0.1.0"
 
 from . import sweep  # noqa: I001 -- callable: legsim.sweep(...) runs a sweep (Dask is imported only then)
 from .errors import LegsimError, ModelError, SceneError, SimulationError
@@ -15,6 +15,9 @@ from .hybrid import Continuation, HybridSystem, Mode, Transition
 from .methods import METHODS, Tableau, get_method
 from .relaxed import simulate
 from .model import ModeFunctions
+from .output.execution_file import load_execution, save_execution
+from .output.summary import run_summary
+from .version import __version__
 
 
 def __getattr__(name: str) -> object:
@@ -46,7 +49,10 @@ __all__ = [
     "TransitionRecord",
     "__version__",
     "get_method",
+    "load_execution",
     "model_function",
+    "run_summary",
+    "save_execution",
     "simulate",
     "sweep",
 ]

@@ -12,11 +12,9 @@ interpolation of paper 000 Fig. 12 step 9, which would limit any off-grid compar
 
 from __future__ import annotations
 
-import os
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from enum import StrEnum
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -296,13 +294,6 @@ class Execution:
             raise SimulationError(f"simulation stopped with status '{self.status}': {self.message}")
         return self
 
-    def summary(self) -> dict[str, Any]:
-        """JSON-ready summary (the keys of ``legsim run --json`` that the execution alone
-        gives; see ``legsim.output.summary.run_summary``, which builds it)."""
-        from .output.summary import run_summary  # here: legsim.output imports this module
-
-        return run_summary(self)
-
     # -- sampling --------------------------------------------------------------------------
     def _pieces(self) -> tuple[np.ndarray, list[tuple[str, int]]]:
         # An execution alternates segment, strip, segment, strip, ... by construction (a
@@ -367,21 +358,3 @@ class Execution:
     def step_times(self) -> np.ndarray:
         """All computed time points (segment points), in order."""
         return np.concatenate([s.t for s in self.segments])
-
-    # -- persistence -----------------------------------------------------------------------
-    def save(self, path: str | os.PathLike[str]) -> Path:
-        """Write the execution to a ``.npz`` file, completely or not at all (OutputError
-        naming the file when it cannot be written or does not end in ``.npz``)."""
-        from .output.execution_file import save_execution  # here: legsim.output imports this module
-
-        return save_execution(self, path)
-
-    @classmethod
-    def load(cls, path: str | os.PathLike[str], max_bytes: int | None = None) -> Execution:
-        """Read an execution written by ``save``, checking everything in the file: its arrays'
-        sizes against the file's before they are allocated (``max_bytes`` overrides the bound),
-        dtypes, shapes, index ranges, finite and ordered times, and that the pieces fit
-        together. SimulationError naming the file and what is wrong otherwise."""
-        from .output.execution_file import load_execution
-
-        return load_execution(path, max_bytes)

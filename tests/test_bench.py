@@ -25,8 +25,9 @@ from legsim.bench import (
     mark_pareto,
 )
 from legsim.bench.cases import BenchError
+from legsim.bench.rows import time_to_reach
 from legsim.bench.targets import MAX_PS_POINTS, MIN_IVP_TOL
-from legsim.bench.work_precision import own_points, position_error, run_one, time_to_reach, write_csv
+from legsim.bench.work_precision import own_points, position_error, run_one, write_csv
 from legsim.cli import main
 
 METHOD_NAME = re.compile(

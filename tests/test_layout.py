@@ -70,3 +70,86 @@ def test_the_core_imports_neither_robots_nor_pictures_nor_their_libraries():
         if bad:
             found[str(rel)] = bad
     assert found == {}
+
+
+#: The layers of the package, lowest first: a module imports only from its own layer or those
+#: below (imports inside functions included). The core knows nothing of files, scenes, Rerun,
+#: Pinocchio or the compiled path; the compiled path registers itself with the core; outputs
+#: (files, recordings, summaries) sit on both; the tools above them; robots and pictures on top.
+LAYERS = {
+    "core": (
+        "errors",
+        "model",
+        "hybrid",
+        "execution",
+        "methods",
+        "relaxed",
+        "control",
+        "derivatives",
+        "arguments",
+        "builders",
+        "registry",
+        "version",
+    ),
+    "compiled": ("compiled",),
+    "outputs": ("output",),
+}
+RANK = {"core": 0, "compiled": 1, "outputs": 2, "tools": 3, "robots": 4, "viz": 4}
+
+
+def layer_of(module: str) -> str | None:
+    """The layer of a legsim module name (``legsim.relaxed.loop``), None for other packages."""
+    parts = module.split(".")
+    if parts[0] != "legsim" or len(parts) < 2:
+        return None
+    top = parts[1]
+    if top in ("robots", "viz"):
+        return top
+    for layer, tops in LAYERS.items():
+        if top in tops:
+            return layer
+    return "tools"
+
+
+def package_modules() -> dict[str, Path]:
+    """Every module of the installed package by its dotted name (robots/ and viz/ as
+    legsim.robots and legsim.viz)."""
+    out = {}
+    for folder, package in (("legsim", "legsim"), ("robots", "legsim.robots"), ("viz", "legsim.viz")):
+        for path in sorted((ROOT / folder).rglob("*.py")):
+            rel = path.relative_to(ROOT / folder).with_suffix("").parts
+            rel = rel[:-1] if rel[-1] == "__init__" else rel
+            out[".".join((package, *rel))] = path
+    return out
+
+
+def test_imports_point_down_the_layers_inside_functions_too():
+    upward = {}
+    for name, path in package_modules().items():
+        own = layer_of(name)
+        if own is None or name in ("legsim", "legsim.cli", "legsim.__main__"):
+            continue
+        for module in imported_modules_named(path, name):
+            target = layer_of(module)
+            if target is not None and RANK[target] > RANK[own]:
+                upward.setdefault(name, []).append(module)
+    assert upward == {}
+
+
+def imported_modules_named(path: Path, name: str) -> set[str]:
+    """The modules ``path`` (module ``name``) imports, relative imports resolved."""
+    is_package = path.name == "__init__.py"
+    package = name.split(".") if is_package else name.split(".")[:-1]
+    found = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            found |= {alias.name for alias in node.names}
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = package[: len(package) - node.level + 1]
+                module = ".".join([*base, *([node.module] if node.module else [])])
+            else:
+                module = node.module or ""
+            found.add(module)
+            found |= {f"{module}.{alias.name}" for alias in node.names}
+    return found

@@ -7,7 +7,8 @@ import math
 import pytest
 
 from helpers.tables import read_cells
-from legsim.bench.work_precision import Row, format_table
+from legsim.bench.rows import Row
+from legsim.bench.work_precision import format_table
 from legsim.tables import Table, output_width, render_report, render_table
 
 

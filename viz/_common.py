@@ -10,6 +10,7 @@ import numpy as np
 
 from legsim.builders import Model
 from legsim.execution import Execution
+from legsim.output.summary import run_summary
 from legsim.output.trace import execution_trace, trace_series
 
 #: Largest magnitude a plot draws. matplotlib's tick and transform arithmetic overflows on
@@ -198,4 +199,4 @@ def _title(name: str, summary: dict[str, Any]) -> str:
 def run_title(execution: Execution, scene: Any = None, model: Model | None = None) -> str:
     """A figure title naming the scene (or system) and the integrator settings."""
     name = getattr(scene, "name", None) or (model.system.name if model is not None else execution.system_name)
-    return _title(name or "run", execution.summary())
+    return _title(name or "run", run_summary(execution))

@@ -14,8 +14,9 @@ from typing import TYPE_CHECKING, Any
 if TYPE_CHECKING:
     from .cases import BenchError, Case, RunSpec, Target, make_case
     from .names import CASE_NAMES
+    from .rows import COLUMNS, Row
     from .targets import MET, MISSED, NOT_COMPARABLE, TargetResult, evaluate_targets, extend_baselines, format_targets
-    from .work_precision import COLUMNS, BenchResult, Row, mark_pareto, run_case
+    from .work_precision import BenchResult, mark_pareto, run_case
 
 # Each name is imported from its module on first use: the command line imports
 # ``legsim.bench.names`` at every start, which would otherwise import every bench with it.
@@ -26,7 +27,8 @@ _HOMES = {
         ("MET", "MISSED", "NOT_COMPARABLE", "TargetResult", "evaluate_targets", "extend_baselines", "format_targets"),
         ".targets",
     ),
-    **dict.fromkeys(("COLUMNS", "BenchResult", "Row", "mark_pareto", "run_case"), ".work_precision"),
+    **dict.fromkeys(("COLUMNS", "Row"), ".rows"),
+    **dict.fromkeys(("BenchResult", "mark_pareto", "run_case"), ".work_precision"),
 }
 
 

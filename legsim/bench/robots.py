@@ -45,7 +45,8 @@ from ..progress import counting
 from ..tables import Table
 from .cases import BenchError, RunSpec
 from .names import ROBOT_CASES, ROBOT_CONTROLLED
-from .work_precision import Row, _timed, mark_pareto, plot_rows, rows_table, write_csv
+from .rows import Row
+from .work_precision import _timed, mark_pareto, plot_rows, rows_table, write_csv
 
 CASES = ROBOT_CASES
 CONTROLLED = ROBOT_CONTROLLED

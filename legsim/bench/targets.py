@@ -29,7 +29,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from .cases import RunSpec, Target
-from .work_precision import Row, run_label, time_to_reach
+from .rows import Row, run_label, time_to_reach
 
 if TYPE_CHECKING:
     from .cases import Case

@@ -22,12 +22,12 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-from collections.abc import Callable
 from itertools import groupby
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from ..errors import LegsimError
+from ..output.writers import Writer, find_writer
 
 if TYPE_CHECKING:
     from ..output.files import OutputPlan
@@ -36,11 +36,8 @@ NAME = "run"
 HELP = "run a scene (a TOML file or a bundled scene name) and print its summary"
 
 OUTPUT_KINDS = ("rrd", "html", "plot")
-WRITER_GROUP = "legsim.writers"
 #: The file types of each kind of output, unless its writer declares its own (``suffixes``).
 KIND_SUFFIXES = {"rrd": (".rrd",), "html": (".html", ".htm")}
-
-Writer = Callable[[Any, Any, Path], Any]
 
 
 def add_output_arguments(parser: argparse.ArgumentParser) -> None:
@@ -311,41 +308,6 @@ def requested_outputs(
         elif scene_outputs and scene_outputs.get(kind):
             out[kind] = (Path(scene_outputs[kind]), f"output.{kind} of the scene")
     return out
-
-
-def find_writer(kind: str, source: str = "") -> Writer:
-    """The writer for ``kind`` (rrd, html, plot); LegsimError naming ``source`` when it is missing."""
-    label = source or f"--{kind}"
-    if kind == "rrd":
-        import importlib
-
-        try:
-            module = importlib.import_module("legsim.record")
-        except ModuleNotFoundError as exc:
-            if exc.name != "legsim.record":
-                raise LegsimError(
-                    f"{label}: the Rerun recorder needs {exc.name!r}, which is not installed (pip install rerun-sdk)"
-                ) from exc
-            raise LegsimError(f"{label}: Rerun recordings are not available: legsim.record is missing") from exc
-        writer = getattr(module, "write_rrd", None)
-        if not callable(writer):
-            raise LegsimError(f"{label}: legsim.record has no write_rrd(execution, scene, path)")
-        return writer
-    from importlib import metadata
-
-    eps = metadata.entry_points(group=WRITER_GROUP, name=kind)
-    if not eps:
-        raise LegsimError(f"{label}: no '{kind}' writer is registered in the {WRITER_GROUP} entry points")
-    ep = next(iter(eps))
-    try:
-        writer = ep.load()
-    except Exception as exc:
-        raise LegsimError(
-            f"{label}: the '{kind}' writer {ep.value} could not be loaded: {type(exc).__name__}: {exc}"
-        ) from exc
-    if not callable(writer):
-        raise LegsimError(f"{label}: the '{kind}' writer {ep.value} is not callable")
-    return writer
 
 
 def write_output(plan: OutputPlan, kind: str, writer: Writer, execution: Any, scene: Any, **extra: Any) -> Path:

@@ -145,7 +145,7 @@ def _histogram_writer(path: str | None, scene_path: Path | None) -> Any:
     if path is None:
         return None
     from ..output.files import OutputPlan
-    from .run import find_writer
+    from ..output.writers import find_writer
 
     writer = find_writer("switching_histograms", "--plot")
     plan = OutputPlan([scene_path] if scene_path is not None else [])

@@ -40,8 +40,8 @@ from .jacobians import (
 )
 from .kinks import CheckedJacobian
 from .newton import STATUSES, OrbitResult, find_orbit
-from .problem import MAX_STEPS_PER_RETURN, OrbitProblem
-from .returns import Return, ReturnMap, return_map
+from .problem import MAX_STEPS_PER_RETURN, OrbitProblem, Return
+from .returns import ReturnMap, return_map
 from .sections import Section
 
 __all__ = [

@@ -73,8 +73,8 @@ from ..methods import Tableau
 from ..relaxed.driver import Evaluator
 from .errors import OrbitError
 from .kinks import CheckedJacobian, ColumnStencil, kinked_columns
-from .problem import OrbitProblem
-from .returns import Return, ReturnMap
+from .problem import OrbitProblem, Return
+from .returns import ReturnMap
 from .variational import segment_sensitivity
 
 #: Largest relative finite-difference step: beyond it a difference is no derivative at all

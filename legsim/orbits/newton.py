@@ -28,8 +28,8 @@ from typing import Any
 
 import numpy as np
 
-from .. import derivatives
 from ..control import ControlLaw
+from ..derivatives import jacobian
 from .errors import OrbitError
 from .jacobians import (
     check_fd_step,
@@ -42,8 +42,8 @@ from .jacobians import (
     jacobian_saltation,
 )
 from .kinks import CheckedJacobian
-from .problem import OrbitProblem
-from .returns import Return, ReturnMap
+from .problem import OrbitProblem, Return
+from .returns import ReturnMap
 
 #: Ends of an orbit search.
 #: Relative smallest singular value below which a Newton iteration recomputes the saltation
@@ -298,7 +298,7 @@ class _Equations:
             y[coord] = value[0]
             return self.extra(y, params)
 
-        return derivatives.jacobian(along, x[coord : coord + 1])[:, 0]
+        return jacobian(along, x[coord : coord + 1])[:, 0]
 
 
 def find_orbit(

@@ -37,7 +37,6 @@ in strips, which converges at the method's order; ``Return.time`` is the relaxed
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -49,53 +48,7 @@ from ..execution import Execution, Segment, TransitionRecord
 from ..hybrid import HybridSystem
 from ..relaxed import simulate
 from .errors import OrbitError
-from .problem import OrbitProblem
-
-
-@dataclass
-class Return:
-    """One evaluation of the return map.
-
-    Attributes
-    ----------
-    x_start, x_end: the start and the returned state (section mode), shape (n,).
-    mode: the section's mode.
-    time: relaxed return time (s), strips included; flow_time: the same without the time spent
-        in strips (the hybrid system's period to the integrator's order).
-    transitions: the transition records of the return, in order.
-    execution: the simulation the return was read from (it may run past the return).
-    t_return: absolute time of the return in the execution (s).
-    segment: index of the segment holding the return (crossing sections) or of the last
-        segment before the returning transition.
-    parameters: the parameter values used.
-    step_length: the distance covered (m), when the problem defines one.
-    memory_start, memory_end: the controller's memory at the start and at the return, shape (m,)
-        (empty without a controller).
-    """
-
-    x_start: np.ndarray
-    x_end: np.ndarray
-    mode: str
-    time: float
-    flow_time: float
-    transitions: list[TransitionRecord]
-    execution: Execution
-    t_return: float
-    segment: int
-    parameters: dict[str, float]
-    step_length: float | None = None
-    memory_start: np.ndarray = field(default_factory=lambda: np.empty(0))
-    memory_end: np.ndarray = field(default_factory=lambda: np.empty(0))
-
-    @property
-    def start(self) -> np.ndarray:
-        """The augmented start (x_start, memory_start), shape (n + m,)."""
-        return np.concatenate([self.x_start, self.memory_start])
-
-    @property
-    def end(self) -> np.ndarray:
-        """The augmented return (x_end, memory_end), shape (n + m,)."""
-        return np.concatenate([self.x_end, self.memory_end])
+from .problem import OrbitProblem, Return
 
 
 class MemoryLog(Controller):

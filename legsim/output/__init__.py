@@ -3,7 +3,7 @@
 * ``files``: every output file is written atomically (complete or absent) through
   ``write_atomic`` / ``write_bytes_atomic``, never over an input, a device or another output
   of the run (``OutputPlan``).
-* ``execution_file``: ``Execution.save`` and ``Execution.load`` (a checked ``.npz``).
+* ``execution_file``: ``save_execution`` and ``load_execution`` (a checked ``.npz``).
 * ``untrusted``: JSON read with bounded depth, strings printed with control characters escaped.
 * ``summary``: ``run_summary``, the one JSON object describing a run (``legsim run --json``).
 * ``trace``: the renderer-neutral view of a run: its samples (``Trace``) and the robot's

@@ -1,4 +1,4 @@
-"""An execution saved to a ``.npz`` file (``Execution.save``) and read back (``Execution.load``).
+"""An execution saved to a ``.npz`` file (``save_execution``) and read back (``load_execution``).
 
 The file is a zip of numpy arrays (never pickles) and one JSON document ``meta``. A file may
 come from someone else, so loading trusts nothing in it: before any array is allocated its
@@ -233,7 +233,7 @@ def _read_arrays(path: Path, limit: int) -> dict[str, np.ndarray]:
         if declared > limit:
             raise DamagedFile(
                 f"its arrays would take {declared} bytes decompressed, more than the {limit} allowed "
-                f"for a file of {path.stat().st_size} bytes (Execution.load(path, max_bytes=...) "
+                f"for a file of {path.stat().st_size} bytes (load_execution(path, max_bytes=...) "
                 f"raises the bound)"
             )
         return {name: _read_member(archive, info, name) for name, info in members.items()}

@@ -1,7 +1,7 @@
 """The run summary: the one JSON object that describes a run.
 
 ``legsim run --json`` prints it, a Rerun recording stores it (``legsim replay --json`` prints
-it back), ``Execution.summary()`` and ``Scene.summary()`` return it. Its keys are public:
+it back), ``run_summary(execution)`` and ``Scene.summary()`` return it. Its keys are public:
 
 * from the execution: ``system``, ``status``, ``message``, ``t_final`` (the time reached, s),
   ``final_mode``, ``final_state``, ``state_names`` (of the final mode), ``final_in_strip``,
@@ -23,7 +23,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Mapping
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
@@ -33,7 +33,21 @@ from ..hybrid import HybridSystem
 if TYPE_CHECKING:
     from ..builders import Model
     from ..execution import Execution
-    from ..scene import Scene
+
+
+class SceneLike(Protocol):
+    """What the summary reads of a scene (a ``legsim.scene.Scene``): its name, robot, model
+    and the file it was read from (None for a scene made in code)."""
+
+    @property
+    def name(self) -> str: ...
+    @property
+    def robot(self) -> str: ...
+    @property
+    def model(self) -> Model: ...
+    @property
+    def path(self) -> Path | None: ...
+
 
 #: ``energy(mode, x) -> float`` (J), as ``HybridSystem.energy``.
 EnergyFn = Callable[[str, np.ndarray], float]
@@ -41,7 +55,7 @@ EnergyFn = Callable[[str, np.ndarray], float]
 
 def run_summary(
     execution: Execution,
-    scene: Scene | None = None,
+    scene: SceneLike | None = None,
     model: Model | HybridSystem | None = None,
     *,
     outputs: Mapping[str, str | Path] | None = None,
@@ -64,7 +78,7 @@ def run_summary(
         out.update(_energies(execution, system.energy, system.name))
     for key, value in execution.counters.items():
         out.setdefault(key, value)
-    if scene is not None and getattr(scene, "path", None) is not None:
+    if scene is not None and scene.path is not None:
         out["scene_file"] = str(scene.path)
     if outputs is not None:
         out["outputs"] = {kind: str(path) for kind, path in outputs.items()}

@@ -50,8 +50,17 @@ from typing import Any
 
 import numpy as np
 
-from .. import builders
-from ..builders import ZENO_WINDOW, Builder, Model, Param, resolve_parameters
+from ..builders import (
+    ZENO_WINDOW,
+    Builder,
+    Model,
+    Param,
+    available,
+    get_builder,
+    reading_inside,
+    resolve_effects,
+    resolve_parameters,
+)
 from ..control import ControlLaw, Controller
 from ..errors import LegsimError, ModelError, SceneError
 from ..execution import Execution
@@ -325,13 +334,11 @@ def _validate(path: Path, data: dict[str, Any], overrides: list[str]) -> Scene:
     robot_t = table_at(path, data, "robot")
     check_keys(path, robot_t, ROBOT_KEYS, "robot")
     if "name" not in robot_t:
-        raise field_error(path, "robot.name", f"missing; available robots: {sorted(builders.available())}")
+        raise field_error(path, "robot.name", f"missing; available robots: {sorted(available())}")
     robot = robot_t["name"]
     if not isinstance(robot, str):
         raise field_error(
-            path,
-            "robot.name",
-            f"expected a string, got {describe(robot)}; available robots: {sorted(builders.available())}",
+            path, "robot.name", f"expected a string, got {describe(robot)}; available robots: {sorted(available())}"
         )
     parameters = table_at(path, robot_t, "parameters", "robot.parameters")
     effects_t = table_at(path, data, "effects")
@@ -342,7 +349,7 @@ def _validate(path: Path, data: dict[str, Any], overrides: list[str]) -> Scene:
     sections = {key: data[key] for key in TOOL_SECTIONS if key in data}
 
     try:
-        builder = builders.get_builder(robot)
+        builder = get_builder(robot)
     except SceneError as exc:
         raise field_error(path, "robot.name", str(exc)) from None
     where = str(path)
@@ -350,9 +357,9 @@ def _validate(path: Path, data: dict[str, Any], overrides: list[str]) -> Scene:
     # resolved values (for recordings and tools) and the builder runs once.
     resolved_params = resolve_parameters(builder.parameters, parameters, f"{where}: robot.parameters")
     scene_relative_files(path, builder.parameters, resolved_params, "robot.parameters")
-    chosen = builders.resolve_effects(builder.effects, effects_t, f"{where}: effects")
+    chosen = resolve_effects(builder.effects, effects_t, f"{where}: effects")
     try:
-        with builders.reading_inside(path.parent):
+        with reading_inside(path.parent):
             model = builder.build(resolved_params, chosen)
     except SceneError as exc:
         if str(exc).startswith(where):

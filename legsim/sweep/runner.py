@@ -208,8 +208,8 @@ def write_figures(result: SweepResult, folder: Path, fixed_point: dict[str, floa
     spec = result.spec
     if len(spec.grid) != 2 or spec.random:
         return {}
-    from ..commands.run import find_writer
     from ..output.files import write_atomic
+    from ..output.writers import find_writer
 
     wanted = [
         kind

@@ -11,7 +11,8 @@ import os
 import subprocess
 import sys
 
-from legsim.bench.work_precision import Row, rows_table, write_csv
+from legsim.bench.rows import Row
+from legsim.bench.work_precision import rows_table, write_csv
 
 
 def _legsim(*argv: str) -> subprocess.CompletedProcess:

@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 
 from helpers.metric_systems import C, ball, two_mode
-from legsim import Execution, simulate
+from legsim import load_execution, save_execution, simulate
 from legsim.errors import LegsimError
 from legsim.execution import Samples
 from legsim.metric import MetricError, distance, distances, position_error, rho, trajectory_space_distance
@@ -92,8 +92,8 @@ def test_rho_is_the_largest_sampled_distance_and_zero_against_itself(run, tmp_pa
     ref = BallReference()
     times = np.linspace(0.0, ex.t_end, 301)
     assert rho(system, ex, ref, times, eps) == pytest.approx(distances(system, ex, ref, times, eps).max(), abs=0)
-    path = ex.save(tmp_path / "ball.npz")
-    assert rho(system, ex, Execution.load(path), times, eps) == 0.0
+    path = save_execution(ex, tmp_path / "ball.npz")
+    assert rho(system, ex, load_execution(path), times, eps) == 0.0
 
 
 def test_relaxation_error_is_order_eps(run):

@@ -14,7 +14,7 @@ from legsim.output.summary import run_summary
 def test_summary_round_trips_with_energies(hopper_run):
     model, ex, _, data = hopper_run
     s = data["summary"]
-    base = ex.summary()
+    base = run_summary(ex)
     for key, value in base.items():
         assert s[key] == value, key
     e = model.system.energy
@@ -27,7 +27,7 @@ def test_summary_round_trips_with_energies(hopper_run):
 
 def test_execution_summary_is_the_run_summary(hopper_run):
     _, ex, _, _ = hopper_run
-    s = ex.summary()
+    s = run_summary(ex)
     assert s == run_summary(ex)
     assert s["transitions"] == len(ex.transitions) and s["mode_sequence"] == ex.mode_sequence
     assert "energy_initial" not in s and "scene" not in s and "outputs" not in s

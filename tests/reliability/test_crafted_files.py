@@ -19,7 +19,7 @@ import pytest
 
 from helpers.recordings import run_hopper
 from helpers.reliability import npz_arrays, recording_with_meta, run_cli, write_ball, write_npz
-from legsim import Execution
+from legsim import load_execution, save_execution
 from legsim.errors import SimulationError
 
 DEEP_JSON = "[" * 100_000 + "]" * 100_000
@@ -33,7 +33,7 @@ def hopper():
 
 @pytest.fixture(scope="module")
 def saved(hopper, tmp_path_factory):
-    path = hopper[1].save(tmp_path_factory.mktemp("saved") / "hopper.npz")
+    path = save_execution(hopper[1], tmp_path_factory.mktemp("saved") / "hopper.npz")
     return path, npz_arrays(path)
 
 
@@ -59,7 +59,7 @@ def _meta(update):
     return change
 
 
-# -- 6. Execution.load -------------------------------------------------------------------------------
+# -- 6. load_execution -------------------------------------------------------------------------------
 DAMAGE = {
     "an array missing": (lambda a: a.pop("seg_x") is None, r"arrays missing \['seg_x'\]"),
     "meta without modes": (_meta(lambda m: m.pop("modes")), r"meta lacks \['modes'\]"),
@@ -98,7 +98,7 @@ def test_a_damaged_execution_file_is_refused_by_name(saved, tmp_path, case):
     copy, text = damaged(arrays, change)
     path = write_npz(tmp_path / "damaged.npz", copy, text)
     with pytest.raises(SimulationError, match=rf"^{path}: damaged legsim execution file: .*({message})"):
-        Execution.load(path)
+        load_execution(path)
 
 
 def test_the_undamaged_copy_loads_and_samples(saved, hopper, tmp_path):
@@ -106,7 +106,7 @@ def test_the_undamaged_copy_loads_and_samples(saved, hopper, tmp_path):
     # the execution did.
     _, arrays = saved
     copy, _ = damaged(arrays, lambda a: None)
-    loaded = Execution.load(write_npz(tmp_path / "same.npz", copy))
+    loaded = load_execution(write_npz(tmp_path / "same.npz", copy))
     times = np.linspace(loaded.t0, loaded.t_end, 97)
     got, want = loaded.sample(times), hopper[1].sample(times)
     assert got.modes == want.modes and all(np.array_equal(a, b) for a, b in zip(got.states, want.states, strict=True))
@@ -118,7 +118,7 @@ def test_a_pickled_array_is_refused_without_unpickling(saved, tmp_path):
     copy["seg_t"] = np.array([object()] * 3, dtype=object)  # numpy pickles object arrays
     path = write_npz(tmp_path / "pickled.npz", copy)
     with pytest.raises(SimulationError, match="seg_t has dtype object"):
-        Execution.load(path)
+        load_execution(path)
 
 
 def zip_bomb(path, arrays, member: str, values: int):
@@ -153,7 +153,7 @@ def test_an_array_header_with_a_negative_length_is_refused(saved, tmp_path):
                 else:
                     npy.write_array(fh, np.array(json.dumps(value)) if name == "meta" else value)
     with pytest.raises(SimulationError, match=r"seg_t has shape \(-5,\), expected \('N',\)"):
-        Execution.load(path)
+        load_execution(path)
 
 
 def test_a_small_file_that_inflates_a_thousandfold_is_refused_before_allocating(saved, tmp_path):
@@ -163,7 +163,7 @@ def test_a_small_file_that_inflates_a_thousandfold_is_refused_before_allocating(
     tracemalloc.start()
     try:
         with pytest.raises(SimulationError, match=r"would take \d+ bytes decompressed, more than the \d+ allowed"):
-            Execution.load(bomb)
+            load_execution(bomb)
         peak = tracemalloc.get_traced_memory()[1]
     finally:
         tracemalloc.stop()

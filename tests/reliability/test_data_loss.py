@@ -15,6 +15,7 @@ from pathlib import Path
 import pytest
 
 from helpers.reliability import run_cli, snapshot, temporaries, write_ball
+from legsim import save_execution
 
 
 # -- 1. an output never overwrites the scene --------------------------------------------------------
@@ -143,7 +144,7 @@ def test_every_output_honours_the_umask(tmp_path):
         code, _, _ = run_cli(
             "run", scene, "--rrd", tmp_path / "a.rrd", "--html", tmp_path / "a.html", "--plot", tmp_path / "a.png", "-q"
         )
-        load_scene(scene).simulate().save(tmp_path / "a.npz")
+        save_execution(load_scene(scene).simulate(), tmp_path / "a.npz")
         write_csv([], tmp_path / "a.csv")
     finally:
         os.umask(old)

@@ -1,10 +1,10 @@
-"""Fuzzing the readers of legsim's own files: saved executions (``Execution.load``) and
+"""Fuzzing the readers of legsim's own files: saved executions (``load_execution``) and
 recordings (``legsim replay``), mutated after writing.
 
 Execution files: a saved run with one of its arrays changed (an element set to nan, inf, a
 negative or huge value; another dtype or shape; cut short; removed; an array added), its meta
 document changed (any key removed or given a value of another type, nested deep, NaN), or its
-bytes flipped or cut. ``Execution.load`` must raise SimulationError naming the file (the
+bytes flipped or cut. ``load_execution`` must raise SimulationError naming the file (the
 library's "exit 2") or return an execution that ``sample``, ``summary`` and ``final_state``
 serve without an exception (anything else is a "silent wrong result"); nothing else.
 
@@ -29,7 +29,7 @@ from hypothesis import strategies as st
 
 from helpers.recordings import run_hopper
 from helpers.reliability import FULL, Hang, npz_arrays, record, run_cli, temporaries, watchdog, write_npz
-from legsim import Execution
+from legsim import load_execution, run_summary, save_execution
 from legsim.errors import SimulationError
 from legsim.scene import load_scene
 
@@ -100,7 +100,9 @@ def saved_runs(tmp_path_factory):
         "ball cut in a strip": load_scene("bouncing_ball", ["integrator.max_transitions=6"]).simulate(),
         "digital control": load_scene("digital_control").simulate(),
     }
-    return Saved({name: npz_arrays(ex.save(folder / f"{k}.npz")) for k, (name, ex) in enumerate(runs.items())})
+    return Saved(
+        {name: npz_arrays(save_execution(ex, folder / f"{k}.npz")) for k, (name, ex) in enumerate(runs.items())}
+    )
 
 
 class Saved(dict):
@@ -174,10 +176,10 @@ def write_damaged(path: Path, arrays: dict, text: str | None, edits: list) -> No
 
 
 def load_outcome(path: Path) -> tuple[str, str]:
-    """(outcome, detail) of ``Execution.load`` on ``path``, then of using what it returned."""
+    """(outcome, detail) of ``load_execution`` on ``path``, then of using what it returned."""
     try:
         with watchdog(60):
-            ex = Execution.load(path)
+            ex = load_execution(path)
     except Hang as exc:
         return "hangs", str(exc)
     except SimulationError as exc:
@@ -191,7 +193,7 @@ def load_outcome(path: Path) -> tuple[str, str]:
         for mode, state in zip(sampled.modes, sampled.states, strict=True):
             assert len(state) == len(ex.state_names[mode])
         assert len(ex.final_state) == len(ex.state_names[ex.final_mode])
-        json.dumps(ex.summary(), allow_nan=False)
+        json.dumps(run_summary(ex), allow_nan=False)
     except Exception as exc:
         return "silent wrong results", f"loaded, then {type(exc).__name__}: {exc}"
     return "ran (exit 0 or 3)", ""
@@ -210,7 +212,7 @@ def test_fuzzed_execution_files_load_or_are_refused(saved_runs):
                 outcome = "files lost or changed"
             if temporaries(Path(folder)):
                 outcome = "temporaries left"
-        record("execution files (Execution.load)", outcome)
+        record("execution files (load_execution)", outcome)
         assert outcome in ("ran (exit 0 or 3)", "clear errors (exit 2)"), detail
 
     check()

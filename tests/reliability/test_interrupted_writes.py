@@ -16,6 +16,7 @@ import textwrap
 import pytest
 
 from helpers.reliability import temporaries, write_ball
+from legsim import load_execution
 
 # A `legsim run` whose --plot writer writes half a file, sends itself SIGNAL, then finishes.
 RUN_WITH_SIGNAL = textwrap.dedent("""
@@ -37,10 +38,11 @@ RUN_WITH_SIGNAL = textwrap.dedent("""
     sys.exit(main(sys.argv[2:]))
 """)
 
-# Execution.save whose numpy writer writes half the archive, then the process is killed.
+# save_execution whose numpy writer writes half the archive, then the process is killed.
 SAVE_WITH_SIGNAL = textwrap.dedent("""
     import os, signal, sys
     import numpy as np
+    from legsim import save_execution
     from legsim.scene import load_scene
 
     execution = load_scene(sys.argv[2]).simulate()
@@ -52,7 +54,7 @@ SAVE_WITH_SIGNAL = textwrap.dedent("""
         real(fh, **arrays)
     if sys.argv[1] != "none":
         np.savez_compressed = half_then_signal
-    execution.save(sys.argv[3])
+    save_execution(execution, sys.argv[3])
 """)
 
 
@@ -97,7 +99,6 @@ def test_the_temporary_of_a_killed_run_is_removed_by_the_next_write(tmp_path):
 
 @pytest.mark.parametrize("sig", ["SIGTERM", "SIGKILL"])
 def test_a_killed_save_leaves_nothing_after_the_next_save(tmp_path, sig):
-    from legsim import Execution
 
     scene = write_ball(tmp_path)
     target = tmp_path / "run.npz"
@@ -107,7 +108,7 @@ def test_a_killed_save_leaves_nothing_after_the_next_save(tmp_path, sig):
     # once): what it leaves is removed by the next save of that file.
     done = run(SAVE_WITH_SIGNAL, "none", scene, target, cwd=tmp_path)
     assert done.returncode == 0, done.stderr
-    assert temporaries(tmp_path) == [] and Execution.load(target).status == "finished"
+    assert temporaries(tmp_path) == [] and load_execution(target).status == "finished"
 
 
 def test_a_live_writers_temporary_is_left_alone(tmp_path):

@@ -1,5 +1,5 @@
 """Issue 16, misleading messages (the ones outside the integrator): a device or FIFO given as
-the scene, Execution.save's raw OS errors, a read-only file system called "permission denied",
+the scene, save_execution's raw OS errors, a read-only file system called "permission denied",
 and terminal escape sequences from a scene printed raw."""
 
 from __future__ import annotations
@@ -10,6 +10,7 @@ import os
 import pytest
 
 from helpers.reliability import run_cli, write_ball
+from legsim import save_execution
 from legsim.errors import OutputError
 
 
@@ -42,7 +43,7 @@ def test_execution_save_reports_what_is_wrong_as_an_output_error(execution, tmp_
     }
     for target, reason in cases.items():
         with pytest.raises(OutputError, match=r"^execution file .*: ") as caught:
-            execution.save(target)
+            save_execution(execution, target)
         assert reason in str(caught.value), str(caught.value)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["afile"]
 
@@ -62,7 +63,7 @@ def test_a_read_only_file_system_is_not_called_permission_denied(tmp_path, monke
     code, _, err = run_cli("run", scene, "--plot", tmp_path / "ro" / "ball.png")
     assert code == 2 and "Read-only file system" in err and "ermission denied" not in err
     with pytest.raises(OutputError, match="Read-only file system"):
-        execution.save(tmp_path / "ro" / "run.npz")
+        save_execution(execution, tmp_path / "ro" / "run.npz")
 
 
 ESCAPES = {

@@ -9,7 +9,7 @@ import pytest
 
 from legsim import _native
 from legsim.bench import robots
-from legsim.bench.work_precision import Row
+from legsim.bench.rows import Row
 
 
 def row(kind, method, error, wall):

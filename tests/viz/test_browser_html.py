@@ -22,6 +22,7 @@ import pytest
 from legsim.viz.meshcat_anim import animation_html, write_html
 
 from helpers.models import hopper_model
+from legsim import run_summary
 from legsim.output.files import write_atomic
 from legsim.record import Frames, frame_times, geometry_frames, read_rrd, write_rrd
 from legsim.relaxed import simulate
@@ -155,7 +156,7 @@ def test_page_of_a_bundled_robot_shows_it(chromium, name, tmp_path):
     t_final, side = BUNDLED[name]
     scene = load_scene(name, overrides=[f"integrator.t_final={t_final}"])
     ex = scene.simulate()
-    assert ex.status == "finished", ex.summary()["message"]
+    assert ex.status == "finished", run_summary(ex)["message"]
     page = write_html(ex, scene, tmp_path / f"{name}.html")
     html = page.read_text()
     # Offline: everything is inline, nothing is fetched from elsewhere.
