@@ -18,8 +18,9 @@ lsn_frames = types.ExternalFunction("lsn_frames", types.void(_h, _p, _p, types.i
 lsn_frame_jacobian = types.ExternalFunction("lsn_frame_jacobian", types.void(_h, _p, types.int64, _p))
 #: lsn_constrained(h, q, v, tau, count, rigid, a_out, lam_out): KKT dynamics of rigid blocks.
 lsn_constrained = types.ExternalFunction("lsn_constrained", types.void(_h, _p, _p, _p, types.int64, _p, _p, _p))
-#: lsn_impact(h, q, v, count, rigid, coeff, v_out): generalised Newton impact.
-lsn_impact = types.ExternalFunction("lsn_impact", types.void(_h, _p, _p, types.int64, _p, _p, _p))
+#: lsn_impact(h, q, v, count, rigid, coeff, v_out, impulse_out): generalised Newton impact, and
+#: its impulses (one per row) unless impulse_out is 0.
+lsn_impact = types.ExternalFunction("lsn_impact", types.void(_h, _p, _p, types.int64, _p, _p, _p, _p))
 #: lsn_momentum_about(h, q, v, frame, out): (angular momentum about the frame's origin along y,
 #: the frame's x, z) at (q, v).
 lsn_momentum_about = types.ExternalFunction("lsn_momentum_about", types.void(_h, _p, _p, types.int64, _p))
@@ -29,3 +30,7 @@ lsn_crba = types.ExternalFunction("lsn_crba", types.void(_h, _p, _p))
 lsn_gravity = types.ExternalFunction("lsn_gravity", types.void(_h, _p, _p))
 #: lsn_frame_motion(h, q, v, a, frame, out): a frame's (vx, vz, ax, az) at (q, v, a), out (4,).
 lsn_frame_motion = types.ExternalFunction("lsn_frame_motion", types.void(_h, _p, _p, _p, types.int64, _p))
+#: lsn_minverse(h, q, out): the inverse inertia matrix M^-1 (nv, nv), row-major.
+lsn_minverse = types.ExternalFunction("lsn_minverse", types.void(_h, _p, _p))
+#: lsn_tally(h, slot, amount): add amount to the robot's counter slot.
+lsn_tally = types.ExternalFunction("lsn_tally", types.void(_h, types.int64, types.float64))

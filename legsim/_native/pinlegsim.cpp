@@ -1,13 +1,15 @@
-// Pinocchio's rigid-body algorithms behind a plain C ABI, for the numba-compiled twins of the
-// robots' modes (legsim.robots.bridge.twins). Every function takes a model handle and raw
-// float64 pointers; numba calls them by symbol name (numba.types.ExternalFunction), so a
-// compiled kernel that calls them caches on disk like any other.
+// Pinocchio's rigid-body algorithms behind a plain C ABI, for the robots' model functions
+// (legsim.robots.bridge: numba-compiled functions that the Python loop and the compiled kernel
+// both call). Every function takes a model handle and raw float64 pointers; numba calls them by
+// symbol name (numba.types.ExternalFunction), so a compiled function that calls them caches on
+// disk like any other.
 //
-// The algorithms are those the Python bridge calls through Pinocchio's Python bindings
-// (robots/bridge/dynamics.py and impacts.py), in the same order, so both paths agree to
-// rounding: ABA with applied forces; the KKT contact dynamics through the Schur complement of
-// ABA (a0 = aba(q, v, tau), lambda = (J M^-1 J^T)^-1 (-(J a0 + dJ/dt v)), a = a0 + M^-1 J^T lambda);
-// the generalised Newton impact; frame positions and velocities in the world's axes.
+// The algorithms: ABA with applied forces; the KKT contact dynamics through the Schur complement
+// of ABA (a0 = aba(q, v, tau), lambda = (J M^-1 J^T)^-1 (-(J a0 + dJ/dt v)), a = a0 + M^-1 J^T
+// lambda); the generalised Newton impact; M and M^-1; frame positions, velocities and Jacobians
+// in the world's axes. Each robot counts the algorithms it ran (lsn_counts), and the model
+// functions add their own counts (lsn_tally), so a robot's evaluations are known whichever path
+// ran them.
 //
 // Pinocchio is used header-only (no PINOCCHIO_ENABLE_TEMPLATE_INSTANTIATION): the library
 // needs no libpinocchio at run time and no ABI match with the installed Python bindings.
@@ -24,6 +26,7 @@
 #include <pinocchio/algorithm/rnea.hpp>
 #include <pinocchio/multibody.hpp>
 
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <limits>
@@ -75,7 +78,7 @@ using Mat = Eigen::MatrixXd;
 using ConstMap = Eigen::Map<const Vec>;
 using OutMap = Eigen::Map<Vec>;
 
-constexpr int kVersion = 3;
+constexpr int kVersion = 4;
 
 // Joint type codes of the model description (see lsn_create).
 enum JointCode { RX = 0, RY = 1, RZ = 2, PX = 3, PY = 4, PZ = 5, COMPOSITE = 6 };
@@ -95,9 +98,14 @@ struct Rigid {
   int rows;
 };
 
+// Evaluation counters of a robot, by slot (legsim.robots.bridge.native.COUNTERS names them):
+// the first ones are counted here, the others by the model functions through lsn_tally.
+enum Counter { ABA = 0, KKT = 1, JACOBIANS = 2, KINEMATICS = 3, IMPACTS = 4, COUNTERS = 16 };
+
 struct Robot {
   Model model;
   Data data;
+  std::array<double, COUNTERS> counts{};
   explicit Robot(Model m) : model(std::move(m)), data(model) {}
 };
 
@@ -313,6 +321,7 @@ long lsn_nv(long h) { return robot(h).model.nv; }
 void lsn_aba(long h, const double* q, const double* v, const double* tau, double* a) {
   Robot& rb = robot(h);
   const long n = rb.model.nv;
+  rb.counts[ABA] += 1;
   OutMap(a, n) = pinocchio::aba(rb.model, rb.data, ConstMap(q, n), ConstMap(v, n), ConstMap(tau, n));
 }
 
@@ -321,6 +330,7 @@ void lsn_aba(long h, const double* q, const double* v, const double* tau, double
 void lsn_frames(long h, const double* q, const double* v, long count, const double* frames, double* out) {
   Robot& rb = robot(h);
   const long n = rb.model.nv;
+  rb.counts[KINEMATICS] += 1;
   pinocchio::forwardKinematics(rb.model, rb.data, ConstMap(q, n), ConstMap(v, n));
   for (long i = 0; i < count; ++i) {
     const auto id = static_cast<pinocchio::FrameIndex>(frames[i]);
@@ -338,6 +348,7 @@ void lsn_frame_jacobian(long h, const double* q, long frame, double* out) {
   Robot& rb = robot(h);
   const long n = rb.model.nv;
   const auto id = static_cast<pinocchio::FrameIndex>(frame);
+  rb.counts[JACOBIANS] += 1;
   Mat Jf = Mat::Zero(6, n);
   pinocchio::computeFrameJacobian(rb.model, rb.data, ConstMap(q, n), id, pinocchio::LOCAL_WORLD_ALIGNED, Jf);
   const Eigen::Vector3d p = rb.data.oMf[id].translation();
@@ -373,6 +384,7 @@ void lsn_frame_motion(long h, const double* q, const double* v, const double* a,
   Robot& rb = robot(h);
   const long n = rb.model.nv;
   const auto id = static_cast<pinocchio::FrameIndex>(frame);
+  rb.counts[KINEMATICS] += 1;
   pinocchio::forwardKinematics(rb.model, rb.data, ConstMap(q, n), ConstMap(v, n), ConstMap(a, n));
   pinocchio::updateFramePlacement(rb.model, rb.data, id);
   const Eigen::Vector3d w = pinocchio::getFrameVelocity(rb.model, rb.data, id, pinocchio::LOCAL_WORLD_ALIGNED).linear();
@@ -410,6 +422,8 @@ void lsn_constrained(long h, const double* q, const double* v, const double* tau
   Robot& rb = robot(h);
   const long n = rb.model.nv;
   const ConstMap qm(q, n), vm(v, n);
+  rb.counts[ABA] += 1;
+  rb.counts[KKT] += 1;
   Vec acc = pinocchio::aba(rb.model, rb.data, qm, vm, ConstMap(tau, n));
   const std::vector<Rigid> blocks = read_rigid(count, rigid);
   const Mat Minv = minverse(rb, qm);
@@ -429,14 +443,16 @@ void lsn_constrained(long h, const double* q, const double* v, const double* tau
   OutMap(lam, l.size()) = l;
 }
 
-// The generalised Newton impact: v+ = v + M^-1 J^T (J M^-1 J^T)^-1 (-(1 + c) J v), with the
-// restitution c of each block (coeff, one per block) on its rows.
+// The generalised Newton impact: v+ = v + M^-1 J^T Lambda, Lambda = (J M^-1 J^T)^-1 (-(1 + c) J v),
+// with the restitution c of each block (coeff, one per block) on its rows; the impulses Lambda
+// (one per row, N s or N m s) into impulse_out unless it is null.
 void lsn_impact(long h, const double* q, const double* v, long count, const double* rigid, const double* coeff,
-                double* v_out) {
+                double* v_out, double* impulse_out) {
   Robot& rb = robot(h);
   const long n = rb.model.nv;
   const ConstMap qm(q, n), vm(v, n);
   const std::vector<Rigid> blocks = read_rigid(count, rigid);
+  rb.counts[IMPACTS] += 1;
   Mat J, W;
   Vec gamma;
   constraint_rows(rb, qm, vm, blocks, false, J, gamma, W);
@@ -448,7 +464,31 @@ void lsn_impact(long h, const double* q, const double* v, long count, const doub
   const Mat MJt = Minv * J.transpose();
   const Vec Jv = J * vm;
   const Vec rhs = -((Vec::Ones(c.size()) + c).cwiseProduct(Jv));
-  OutMap(v_out, n) = vm + MJt * solve_small(J * MJt, rhs);
+  const Vec impulse = solve_small(J * MJt, rhs);
+  OutMap(v_out, n) = vm + MJt * impulse;
+  if (impulse_out != nullptr) OutMap(impulse_out, impulse.size()) = impulse;
+}
+
+// The inverse of the joint-space inertia matrix M(q)^-1 (nv, nv), row-major, both triangles filled.
+void lsn_minverse(long h, const double* q, double* out) {
+  Robot& rb = robot(h);
+  const long n = rb.model.nv;
+  const Mat Minv = minverse(rb, ConstMap(q, n));
+  for (long i = 0; i < n; ++i)
+    for (long j = 0; j < n; ++j) out[n * i + j] = Minv(i, j);
+}
+
+// Add `amount` to the robot's counter `slot` (a count the model functions keep: springs,
+// damping, actuation, ...); out-of-range slots are ignored.
+void lsn_tally(long h, long slot, double amount) {
+  if (slot >= 0 && slot < COUNTERS) robot(h).counts[static_cast<size_t>(slot)] += amount;
+}
+
+// The robot's counters into out (COUNTERS values); with reset != 0 they restart from 0.
+void lsn_counts(long h, double* out, long reset) {
+  Robot& rb = robot(h);
+  for (size_t i = 0; i < COUNTERS; ++i) out[i] = rb.counts[i];
+  if (reset != 0) rb.counts.fill(0.0);
 }
 
 // Seconds per call of bare ABA at (q, v, tau), over reps calls: the cost floor a compiled field

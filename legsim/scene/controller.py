@@ -10,11 +10,12 @@ its parameters, for the scene's model::
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 from typing import Any
 
 from ..builders import Model
-from ..control import Controller, available, get_controller
+from ..control import ControlLaw, Controller, available, get_controller
 from ..errors import LegsimError, SceneError
 from .fields import check_keys, describe, field_error
 
@@ -25,7 +26,7 @@ CONTROLLER_KEYS = {
 }
 
 
-def scene_controller(path: Path, table: dict[str, Any], model: Model) -> Controller | None:
+def scene_controller(path: Path, table: dict[str, Any], model: Model) -> Controller | ControlLaw | None:
     """The controller the section asks for, made for ``model``; None without the section."""
     if not table:
         return None
@@ -52,5 +53,8 @@ def scene_controller(path: Path, table: dict[str, Any], model: Model) -> Control
     if hold is not None:
         if not isinstance(hold, bool):
             raise field_error(path, "controller.hold", f"expected true or false, got {describe(hold)}")
-        controller.hold = hold
+        if isinstance(controller, ControlLaw):
+            controller = dataclasses.replace(controller, hold=hold)
+        else:
+            controller.hold = hold
     return controller
