@@ -27,7 +27,7 @@ from .layout import (
 
 Workspace = namedtuple(
     "Workspace",
-    "cf ci fs iv x K XS x1 k1 q w g_here g1 g_w crossed u m_new history T X DX visits rec_f rec_i rec_q rec_x",
+    "cf ci fs iv x K XS x1 k1 q w g_here g1 g_w crossed u u_after m_new history T X DX visits rec_f rec_i rec_q rec_x",
 )
 
 #: Capacity of the output buffers: points (about 2 MB at W = 16), crossing records and visits.
@@ -54,6 +54,7 @@ def allocate(width: int, guards: int, stages: int, inputs: int, memory: int, his
         np.zeros(G),
         np.zeros(G),
         np.zeros(G),
+        np.zeros(inputs),
         np.zeros(inputs),
         np.zeros(memory),
         np.zeros((max(1, histories), HISTORY_FIELDS)),
