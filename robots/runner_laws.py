@@ -339,10 +339,11 @@ def runner_control(t, x, m, p, u):
     for i in range(legs):
         leg, mem = leg_at(p, i), LEG_MEMORY * i
         if p[leg + RL_STANCE] != 0.0:
-            refractory = not pronk and t - m[mem + M_LIFTOFF] < REFRACTORY
-            hip, knee = stance_torques(p[leg + RL_THIGH], p[leg + RL_SHANK], *leg_joints(p, leg, x, n),
+            unload = together or (not pronk and t - m[mem + M_LIFTOFF] < REFRACTORY)
+            q_hip, q_knee, v_hip, v_knee = leg_joints(p, leg, x, n)
+            hip, knee = stance_torques(p[leg + RL_THIGH], p[leg + RL_SHANK], q_hip, q_knee, v_hip, v_knee,
                                        p[R_LEG_LENGTH], m[mem + M_THRUST], p[R_STIFFNESS], p[R_DAMPING],
-                                       attitude / stance_count, together or refractory)  # fmt: skip
+                                       attitude / stance_count, unload)  # fmt: skip
         else:
             hip, knee = flight_torques(t, x, m, p, leg, mem, n, gravity)
         u[int(p[leg + RL_U_HIP])] += hip
@@ -380,8 +381,9 @@ def runner_enter(t, x, m, p, m_new):
             thrust = m_new[mem + M_THRUST] + p[R_K_HEIGHT] * (target - apex)
             m_new[mem + M_THRUST] = min(max(thrust, 0.0), p[R_MAX_THRUST])
             if p[R_PRONK] == 0.0:
-                px, pz = foot_terms(p[leg + RL_THIGH], p[leg + RL_SHANK], *leg_joints(p, leg, x, n)[:2])[:2]
-                m_new[mem + M_LIFTOFF_ANGLE] = math.atan2(px, -pz) - x[2]
+                q_hip, q_knee = x[int(p[leg + RL_HIP])], x[int(p[leg + RL_KNEE])]
+                foot = foot_terms(p[leg + RL_THIGH], p[leg + RL_SHANK], q_hip, q_knee)
+                m_new[mem + M_LIFTOFF_ANGLE] = math.atan2(foot[0], -foot[1]) - x[2]
                 m_new[mem + M_LIFTOFF] = t
         m_new[mem + M_STANCE] = 1.0 if stance else 0.0
 

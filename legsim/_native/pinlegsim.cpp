@@ -134,25 +134,37 @@ bool simple_joint(int code, JointModel& out) {
   }
 }
 
-// The joint at desc[k] (its code, then for a composite its count and each part's code and
-// placement[12]), k moved past it; false for a bad description.
-bool read_joint(const double* desc, long size, long& k, JointModel& out) {
+// A joint of the description as the library builds it: one simple joint, or a composite's
+// parts (the planar root PX, PZ, RY) each a joint of its own, the first placed by the part's
+// placement after the composite's, the others by their own. The chain is the composite's
+// kinematics and, with the bodies between the parts massless, its dynamics; Pinocchio's
+// algorithms run it several times faster than its composite joint, which builds its parts'
+// motion subspaces anew at every pass.
+struct Part {
+  JointModel joint;
+  pinocchio::SE3 placement;
+};
+
+// The parts of the joint at desc[k] (its code, then for a composite its count and each part's
+// code and placement[12]), k moved past it; false for a bad description.
+bool read_joint(const double* desc, long size, long& k, std::vector<Part>& out) {
+  out.clear();
   if (k + 1 > size) return false;
   const int code = static_cast<int>(desc[k++]);
-  if (code != COMPOSITE) return simple_joint(code, out);
+  if (code != COMPOSITE) {
+    out.push_back(Part{JointModel(), pinocchio::SE3::Identity()});
+    return simple_joint(code, out.back().joint);
+  }
   if (k + 1 > size) return false;
   // The count is checked as a double: casting a huge or nan one to long is undefined, and
   // k + 13 * parts could overflow past the bound.
   const double count = desc[k++];
   if (!(count >= 1.0 && count <= static_cast<double>(size - k) / 13.0)) return false;
   const long parts = static_cast<long>(count);
-  Joints::JointModelComposite composite;
   for (long i = 0; i < parts; ++i, k += 13) {
-    JointModel part;
-    if (!simple_joint(static_cast<int>(desc[k]), part)) return false;
-    composite.addJoint(part, read_placement(desc + k + 1));
+    out.push_back(Part{JointModel(), read_placement(desc + k + 1)});
+    if (!simple_joint(static_cast<int>(desc[k]), out.back().joint)) return false;
   }
-  out = composite;
   return true;
 }
 
@@ -277,9 +289,11 @@ long lsn_create(const double* desc, long size) {
   auto need = [&](long n) { return k + n <= size; };
   if (!need(1)) return -1;
   const long joints = static_cast<long>(desc[k++]);
+  // The library's index of each description joint (a composite's: its last part's).
+  std::vector<pinocchio::JointIndex> index_of(1, 0);
+  std::vector<Part> parts;
   for (long j = 0; j < joints; ++j) {
-    JointModel joint;
-    if (!read_joint(desc, size, k, joint) || !need(26)) return -1;
+    if (!read_joint(desc, size, k, parts) || !need(26)) return -1;
     const int parent = static_cast<int>(desc[k]);
     const pinocchio::SE3 placement = read_placement(desc + k + 1);
     const double mass = desc[k + 13];
@@ -289,9 +303,13 @@ long lsn_create(const double* desc, long size) {
       for (int b = 0; b < 3; ++b) I(a, b) = desc[k + 17 + 3 * a + b];
     k += 26;
     if (parent < 0 || parent > j) return -1;
-    model.addJoint(static_cast<pinocchio::JointIndex>(parent), joint, placement, "j" + std::to_string(j + 1));
-    model.appendBodyToJoint(static_cast<pinocchio::JointIndex>(j + 1), pinocchio::Inertia(mass, lever, I),
-                            pinocchio::SE3::Identity());
+    pinocchio::JointIndex last = index_of[static_cast<size_t>(parent)];
+    for (size_t i = 0; i < parts.size(); ++i) {
+      const pinocchio::SE3 at = i == 0 ? placement * parts[i].placement : parts[i].placement;
+      last = model.addJoint(last, parts[i].joint, at, "j" + std::to_string(j + 1) + "_" + std::to_string(i));
+    }
+    model.appendBodyToJoint(last, pinocchio::Inertia(mass, lever, I), pinocchio::SE3::Identity());
+    index_of.push_back(last);
   }
   if (!need(1)) return -1;
   const long frames = static_cast<long>(desc[k++]);
@@ -301,8 +319,8 @@ long lsn_create(const double* desc, long size) {
   for (long f = 0; f < frames; ++f) {
     if (!need(13)) return -1;
     const int parent = static_cast<int>(desc[k]);
-    if (parent < 0 || parent >= model.njoints) return -1;
-    model.addFrame(Model::Frame("f" + std::to_string(f + 1), static_cast<pinocchio::JointIndex>(parent), 0,
+    if (parent < 0 || parent > joints) return -1;
+    model.addFrame(Model::Frame("f" + std::to_string(f + 1), index_of[static_cast<size_t>(parent)], 0,
                                     read_placement(desc + k + 1), pinocchio::OP_FRAME),
                    false);
     k += 13;

@@ -179,6 +179,9 @@ class ContactBridge:
             inputs=len(self._model.actuated_idx),
             joint_outcomes=tuple(out.joint_outcomes),
             nan_breaks=True,
+            # With friction an event's outcome is the mode whose forces are consistent under the
+            # input applied after it, which the controller gives there.
+            previewed=self._model.coulomb,
         )
         return Mode(spec.dim, names=spec.names, units=spec.units, functions=functions), out.transitions
 
