@@ -46,8 +46,8 @@ from .derivatives import gradient, jacobian
 from .errors import ModelBreakdown, SimulationError
 from .execution import Execution
 from .hybrid import HybridSystem, Mode, Transition
-from .methods import Tableau, error_estimate, get_method, make_stepper
-from .relaxed import hermite
+from .methods import Tableau, get_method
+from .relaxed.single import Stepper, hermite
 
 ControlFn = Callable[[float, np.ndarray], Any]
 
@@ -190,8 +190,9 @@ class LocalErrorEstimator:
             raise SimulationError(f"error floor must be finite and >= 0, got {floor}")
         self.floor = floor
         self.same = self.pair is self.method
-        self._pair_step = make_stepper(self.pair)
-        self._method_step = self._pair_step if self.same else make_stepper(self.method)
+        self._pair = Stepper(self.pair)
+        self._pair_step = self._pair.step
+        self._method_step = self._pair_step if self.same else Stepper(self.method).step
         self._power = self.method.order + 1
 
     def step(
@@ -199,7 +200,7 @@ class LocalErrorEstimator:
     ) -> tuple[np.ndarray, float]:
         """One step of the computing method from (t, x) and the estimate of its local error."""
         x_hi, stages = self._pair_step(field, t, x, h, k0, control)
-        le = _norm(error_estimate(self.pair, h, stages))
+        le = _norm(self._pair.error_estimate(h, stages))
         if self.same:
             x_new = x_hi
         else:
@@ -225,7 +226,7 @@ class LocalErrorEstimator:
     ) -> float:
         """Local error estimate of a given step (t, x) -> (t + h, x_next)."""
         x_hi, stages = self._pair_step(field, t, x, h, k0, control)
-        le = _norm(error_estimate(self.pair, h, stages))
+        le = _norm(self._pair.error_estimate(h, stages))
         le += _norm(x_next - x_hi)
         return le + self.floor * h**self._power
 

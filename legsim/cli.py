@@ -139,7 +139,17 @@ def _dispatch(argv: list[str]) -> int:
     if getattr(args, "_run", None) is None:
         parser.print_help(sys.stderr)
         return EXIT_ERROR
+    _say_compiles()
     return int(args._run(args) or 0)
+
+
+def _say_compiles() -> None:
+    """Have the compiled path say on stderr, in one line, when it compiles for this machine
+    (the first run after installing takes that time once)."""
+    from .compiled import kernel
+    from .output.untrusted import printable
+
+    kernel.on_compile = lambda message: print(printable(message), file=sys.stderr, flush=True)
 
 
 @contextmanager

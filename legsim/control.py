@@ -138,6 +138,14 @@ class ControlLaw:
         except (TypeError, ValueError) as exc:
             raise ModelError(f"controller {self.name}: params('{mode}') is not an array of numbers: {exc}") from exc
 
+    def input_at(self, mode: str, t: float, x: np.ndarray, memory: Any = None) -> np.ndarray:
+        """The input u (``inputs`` entries) in ``mode`` at the plant's state x, from ``memory``
+        (default the initial memory): the same function the runs call."""
+        m = np.asarray(self.initial_memory if memory is None else memory, dtype=float).reshape(-1)
+        u = np.zeros(self.inputs)
+        self.control(float(t), np.ascontiguousarray(x, dtype=float), m, self.params_for(mode), u)
+        return u
+
     @property
     def compiled(self) -> bool:
         """Whether its functions are compiled (numba), so the kernel can call them."""

@@ -35,6 +35,7 @@ class Status(StrEnum):
     RESET_OUTSIDE_DOMAIN = "reset_outside_domain"  # a reset image lies past a guard of its target by more than eps
     MODEL_BREAKDOWN = "model_breakdown"  # the model raised ModelBreakdown (left its range of validity)
     MAX_STEPS = "max_steps"  # the step budget was used up (every step is stored: it bounds memory)
+    STALLED = "stalled"  # time stopped advancing (a thousand steps moved it by less than a millionth of h)
 
 
 #: The statuses' strings, in the order above.

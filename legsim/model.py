@@ -94,9 +94,7 @@ class ModeFunctions:
     @property
     def compiled(self) -> bool:
         """Whether every function is compiled (numba), so the kernel can call them."""
-        return all(
-            fn is None or hasattr(fn, "py_func") for fn in (self.field, self.guards, self.reset, self.joint)
-        )
+        return all(fn is None or hasattr(fn, "py_func") for fn in (self.field, self.guards, self.reset, self.joint))
 
 
 def as_input(u: Any, inputs: int) -> np.ndarray:

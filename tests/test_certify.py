@@ -77,9 +77,11 @@ def test_guard_intersection_is_refused_and_a_nearby_crossing_certified_after_ref
     assert tr.reason == "intersecting_guards"
     assert sorted(tr.guards_met) == ["wall_x1", "wall_x2"]
     assert len(exact.levels) == 4
-    # Offset by 1e-7 the flow reaches x2 = 1 first: the first levels see both guards in the
-    # cone, a refined one separates them (Algorithm 1: h := h / alpha until J_h is a singleton).
-    near = certify(corner(), "box", [0.0, 1e-7], 2.0, 0.1, "rk4", max_refinements=4)
+    # Offset by 3e-8 the flow reaches x2 = 1 first, 2.5e-8 from x1 = 1: at h = 0.1 the bound
+    # (4e-8) keeps both guards in the cone, the refined h = 0.05 (bound 4.5e-9) separates them
+    # (Algorithm 1: h := h / alpha until J_h is a singleton). The offset keeps both decisions
+    # far from their thresholds, so the bound's rounding cannot move them.
+    near = certify(corner(), "box", [0.0, 3e-8], 2.0, 0.1, "rk4", max_refinements=4)
     (tr,) = near.transitions
     assert tr.certified and tr.name == "wall_x2"
     assert near.levels[0].failure == "intersecting_guards" and len(near.levels) > 1

@@ -30,9 +30,11 @@ def test_no_module_is_longer_than_700_lines():
 
 
 def test_the_integrators_loop_fits_in_one_file_and_its_functions_on_one_screen():
-    assert len((ROOT / "legsim/relaxed/integrate.py").read_text().splitlines()) <= 300
+    # The loop of paper 000 Fig. 12 reads whole in one file; every function of the loop and of
+    # the kernel that compiles it fits on one screen.
+    assert len((ROOT / "legsim/relaxed/loop.py").read_text().splitlines()) <= 300
     long = {}
-    for path in sorted((ROOT / "legsim/relaxed").glob("*.py")):
+    for path in sorted([*(ROOT / "legsim/relaxed").glob("*.py"), *(ROOT / "legsim/compiled").glob("*.py")]):
         for node in ast.walk(ast.parse(path.read_text())):
             if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)) and code_lines(node) > 60:
                 long[f"{path.name}:{node.name}"] = code_lines(node)

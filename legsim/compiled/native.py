@@ -29,12 +29,12 @@ JOINT_SIGNATURE = types.int64(types.int64, types.float64, ARRAY, ARRAY, ARRAY, A
 SIGNATURES = {"state": STATE_SIGNATURE, "indexed": INDEXED_SIGNATURE, "joint": JOINT_SIGNATURE}
 
 
-def _codegen(signature: Any):  # noqa: ANN202 -- numba's lowering protocol
+def _codegen(signature: Any):
     """The lowering of a call to the function at an address compiled for ``signature``: the
     arguments cast to its scalar types (arrays of any 1-d float64 layout share one data model)."""
     callee_args = signature.args
 
-    def codegen(context, builder, sig, llargs):  # noqa: ANN001, ANN202
+    def codegen(context, builder, sig, llargs):
         values = []
         for value, given, wanted in zip(llargs[1:], sig.args[1:], callee_args, strict=True):
             values.append(value if isinstance(wanted, types.Array) else context.cast(builder, value, given, wanted))
@@ -62,18 +62,18 @@ def _typed(signature: Any, address: Any, args: tuple[Any, ...]) -> Any:
 
 
 @intrinsic
-def call_state_at(typingctx, address, t, a, b, c, out):  # noqa: ANN001, ANN201
+def call_state_at(typingctx, address, t, a, b, c, out):
     """``fn(t, a, b, c, out)`` for the function at ``address``."""
     return _typed(STATE_SIGNATURE, address, (t, a, b, c, out)), _codegen(STATE_SIGNATURE)
 
 
 @intrinsic
-def call_indexed_at(typingctx, address, e, t, a, b, c, out):  # noqa: ANN001, ANN201
+def call_indexed_at(typingctx, address, e, t, a, b, c, out):
     """``fn(e, t, a, b, c, out)`` for the function at ``address``."""
     return _typed(INDEXED_SIGNATURE, address, (e, t, a, b, c, out)), _codegen(INDEXED_SIGNATURE)
 
 
 @intrinsic
-def call_joint_at(typingctx, address, rest, t, q, u, p, crossed, out):  # noqa: ANN001, ANN201
+def call_joint_at(typingctx, address, rest, t, q, u, p, crossed, out):
     """``fn(rest, t, q, u, p, crossed, out) -> int`` for the function at ``address``."""
     return _typed(JOINT_SIGNATURE, address, (rest, t, q, u, p, crossed, out)), _codegen(JOINT_SIGNATURE)

@@ -1,5 +1,6 @@
-"""Explicit Runge-Kutta methods as data (``tableau``, ``builtin``), the one step routine and
-error norm they share (``stepper``), and their continuous extensions (``dense``)."""
+"""Explicit Runge-Kutta methods as data: Butcher tableaux and their continuous extensions
+(``tableau``), the built-in methods by name (``builtin``). The one routine that steps them is the
+loop's (``legsim.relaxed.stages``)."""
 
 from .builtin import (
     ALIASES,
@@ -14,8 +15,6 @@ from .builtin import (
     dense_output,
     get_method,
 )
-from .dense import ContinuousStep
-from .stepper import error_estimate, error_estimator, error_norm, make_error_norm, make_stepper, stage_groups
 from .tableau import DenseOutput, Tableau, tableau
 
 __all__ = [
@@ -28,16 +27,9 @@ __all__ = [
     "METHODS",
     "MIDPOINT",
     "RK4",
-    "ContinuousStep",
     "DenseOutput",
     "Tableau",
     "dense_output",
-    "error_estimate",
-    "error_estimator",
-    "error_norm",
     "get_method",
-    "make_error_norm",
-    "make_stepper",
-    "stage_groups",
     "tableau",
 ]

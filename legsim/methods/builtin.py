@@ -121,8 +121,68 @@ def _dop853() -> Tableau:
 
 DOP853 = _dop853()
 
+
+def _rosenbrock(
+    name: str,
+    order: int,
+    error_order: int,
+    gamma: float,
+    alpha: list[list[float]],
+    Gamma: list[list[float]],
+    b: list[float],
+    b_hat: list[float],
+) -> Tableau:
+    """A Rosenbrock W-method from its published coefficients (Hairer and Wanner II, Sec. IV.7:
+    k_i = h f(x + sum alpha_ij k_j) + h J sum gamma_ij k_j, x_new = x + sum b_i k_i, Gamma with
+    gamma on its diagonal) in the form of ``Tableau``, without products by J: with
+    Gamma^-1 written out (HW's transformed stages), A = gamma alpha Gamma^-1,
+    G = gamma (diag(1/gamma) - Gamma^-1), b = gamma b Gamma^-1, and the row sums of Gamma for the
+    time derivative of a non-autonomous field (``time_weights``)."""
+    s = len(b)
+    G_full = np.array(Gamma, dtype=float) + gamma * np.eye(s)
+    inv = np.linalg.inv(G_full)
+    weights = gamma * (np.array(b) @ inv)
+    embedded = gamma * (np.array(b_hat) @ inv)
+    return Tableau(
+        name,
+        order,
+        np.array(alpha, dtype=float).sum(axis=1),
+        np.tril(gamma * (np.array(alpha, dtype=float) @ inv), -1),
+        weights,
+        b_err=weights - embedded,
+        error_order=error_order,
+        gamma=gamma,
+        G=np.tril(gamma * (np.eye(s) / gamma - inv), -1),
+        time_weights=G_full.sum(axis=1),
+    )
+
+
+#: ROS34PW2 (Rang and Angermann, BIT 45, 2005): a four-stage Rosenbrock W-method of order 3 with
+#: an embedded order-2 solution, L-stable, and of order 3 with any Jacobian approximation to
+#: order 2, so a Jacobian can serve many steps.
+ROS34PW2 = _rosenbrock(
+    "ros34pw2",
+    3,
+    2,
+    4.3586652150845900e-01,
+    [
+        [0.0, 0.0, 0.0, 0.0],
+        [8.7173304301691801e-01, 0.0, 0.0, 0.0],
+        [8.4457060015369423e-01, -1.1299064236484185e-01, 0.0, 0.0],
+        [0.0, 0.0, 1.0, 0.0],
+    ],
+    [
+        [0.0, 0.0, 0.0, 0.0],
+        [-8.7173304301691801e-01, 0.0, 0.0, 0.0],
+        [-9.0338057013044082e-01, 5.4180672388095326e-02, 0.0, 0.0],
+        [2.4212380706095346e-01, -1.2232505839045147e00, 5.4526025533510214e-01, 0.0],
+    ],
+    [2.4212380706095346e-01, -1.2232505839045147e00, 1.5452602553351020e00, 4.3586652150845900e-01],
+    [3.7810903145819369e-01, -9.6042292212423178e-02, 0.5, 2.1793326075422950e-01],
+)
+
 METHODS: dict[str, Tableau] = {
-    t.name: t for t in (EULER, MIDPOINT, HEUN, RK4, BOGACKI_SHAMPINE, DORMAND_PRINCE, DOP853)
+    t.name: t for t in (EULER, MIDPOINT, HEUN, RK4, BOGACKI_SHAMPINE, DORMAND_PRINCE, DOP853, ROS34PW2)
 }
 ALIASES = {"midpoint": "rk2", "rk45": "dopri5", "dp54": "dopri5", "rk23": "bs32"}
 

@@ -35,7 +35,13 @@ class DenseOutput:
 
 @dataclass(frozen=True)
 class Tableau:
-    """Butcher tableau of an explicit Runge-Kutta method.
+    """Butcher tableau of a Runge-Kutta method: explicit, or linearly implicit (a Rosenbrock
+    W-method, ``gamma > 0``), whose stages k_i solve
+
+        (I - gamma h J) k_i = f(t + c_i h, x + h sum_{j<i} A_ij k_j) + sum_{j<i} G_ij k_j + g_i h df/dt
+
+    with J an approximation of df/dx (a W-method keeps its order for any J, so J may be reused
+    over many steps); x_new = x + h sum b_i k_i either way.
 
     Attributes
     ----------
@@ -51,6 +57,10 @@ class Tableau:
     dense: the method's continuous extension, when it has one (``landing="dense"``).
     b_err_low: a second, lower-order error estimate that the error norm blends with b_err as
         Hairer's DOP853 does (``err5^2 / sqrt(err5^2 + 0.01 err3^2)``), or None.
+    gamma: the diagonal of a linearly implicit method (0: explicit).
+    G: the stage coupling G (s, s) of a linearly implicit method, or None.
+    time_weights: a linearly implicit method's weights g_i of df/dt in its stages (a
+        non-autonomous field: the right-hand side of stage i gains g_i h df/dt), or None.
     """
 
     name: str
@@ -63,6 +73,14 @@ class Tableau:
     fsal: bool = False
     dense: DenseOutput | None = None
     b_err_low: np.ndarray | None = None
+    gamma: float = 0.0
+    G: np.ndarray | None = None
+    time_weights: np.ndarray | None = None
+
+    @property
+    def implicit(self) -> bool:
+        """Whether the method is linearly implicit (its stages solve with I - gamma h J)."""
+        return self.gamma > 0.0
 
     @property
     def stages(self) -> int:

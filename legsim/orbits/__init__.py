@@ -20,14 +20,11 @@ Modules, in the order a computation uses them:
 * ``newton``: ``find_orbit`` (Gauss-Newton on the orbit equations) and ``OrbitResult``.
 * ``continuation``: ``continue_family`` and the stability changes along a family.
 
-A scene's ``[orbit]`` section is read by ``legsim.scene.orbit`` (``problem_from_scene``); those
-names are importable from here too, loaded on first use so that the orbit modules do not depend
-on the scene layer.
+A scene's ``[orbit]`` section is read by ``legsim.scene.orbit`` (``problem_from_scene``), on the
+scene layer above this one.
 """
 
 from __future__ import annotations
-
-from typing import Any
 
 from .continuation import Family, FamilyPoint, StabilityChange, continue_family
 from .errors import OrbitError
@@ -57,7 +54,6 @@ __all__ = [
     "OrbitError",
     "OrbitProblem",
     "OrbitResult",
-    "OrbitSettings",
     "Return",
     "ReturnMap",
     "Section",
@@ -69,19 +65,7 @@ __all__ = [
     "jacobian_fd",
     "jacobian_fd_checked",
     "jacobian_saltation",
-    "problem_from_scene",
     "reset_on_guard_jacobian",
     "return_map",
     "saltation_matrix",
 ]
-
-#: Names of the scene layer's ``[orbit]`` reader that this package re-exports.
-_SCENE_NAMES = ("ORBIT_KEYS", "OrbitSettings", "problem_from_scene")
-
-
-def __getattr__(name: str) -> Any:
-    if name in _SCENE_NAMES:
-        from ..scene import orbit
-
-        return getattr(orbit, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

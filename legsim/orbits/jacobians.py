@@ -65,15 +65,17 @@ from typing import Any
 
 import numpy as np
 
-from ..derivatives import Scheme, gradient, jacobian
+from ..control import ControlLaw, bind
+from ..derivatives import gradient, jacobian
 from ..execution import Segment
 from ..hybrid import HybridSystem, Mode, Transition
 from ..methods import Tableau
+from ..relaxed.driver import Evaluator
 from .errors import OrbitError
 from .kinks import CheckedJacobian, ColumnStencil, kinked_columns
 from .problem import OrbitProblem
 from .returns import Return, ReturnMap
-from .variational import compiled_sensitivity
+from .variational import segment_sensitivity
 
 #: Largest relative finite-difference step: beyond it a difference is no derivative at all
 #: (the default is 1e-6, see ``default_fd_step``).
@@ -88,66 +90,38 @@ def field_at(mode: Mode, control: Control, t: float, x: np.ndarray) -> np.ndarra
     return np.asarray(mode.field(t, x, None if control is None else control(t, x)), dtype=float)
 
 
-def _field_jacobian(
-    mode: Mode, control: Control, t: float, x: np.ndarray, fx: np.ndarray, scheme: Scheme
-) -> np.ndarray:
-    """df/dx at (t, x), given fx = f(t, x). ``Mode.jacobian`` when the mode has one (and there
-    is no control: with one, the closed-loop field x -> f(t, x, u(t, x)) is differentiated, since
-    Mode.jacobian holds u fixed); otherwise ``scheme`` differences (module docstring)."""
-    if mode.jacobian is not None and control is None:
-        return np.asarray(mode.jacobian(t, x, None), dtype=float)
-    return jacobian(lambda y: field_at(mode, control, t, y), x, scheme=scheme, f0=fx if scheme == "forward" else None)
+#: Evaluators of the variational equations by (system, control, tableau): a run's tables.
+_EVALUATORS: dict[tuple[int, int, int], tuple[Any, Any, Any, Evaluator]] = {}
 
 
-def _step_derivative(
-    mode: Mode, control: Control, tableau: Tableau, t: float, x: np.ndarray, h: float, scheme: Scheme
-) -> np.ndarray:
-    """Derivative of one explicit Runge-Kutta step x -> x + h sum b_j k_j with respect to x:
-    dk_j = J(X_j) (I + h sum_l A_jl dk_l), the variational equation stepped by the same method."""
-    n = len(x)
-    A, c, b = tableau.A, tableau.c, tableau.b
-    ks: list[np.ndarray] = []
-    dks: list[np.ndarray] = []
-    eye = np.eye(n)
-    for j in range(tableau.stages):
-        Xj = x.copy()
-        dXj = eye.copy()
-        for i in range(j):
-            if A[j, i] != 0.0:
-                Xj = Xj + h * A[j, i] * ks[i]
-                dXj = dXj + h * A[j, i] * dks[i]
-        tj = t + c[j] * h
-        ks.append(field_at(mode, control, tj, Xj))
-        dks.append(_field_jacobian(mode, control, tj, Xj, ks[-1], scheme) @ dXj)
-    S = eye.copy()
-    for j in range(tableau.stages):
-        if b[j] != 0.0:
-            S = S + h * b[j] * dks[j]
-    return S
+def _evaluator(system: HybridSystem, control: Control, tableau: Tableau) -> Evaluator:
+    """The evaluator of ``system``'s modes under ``control`` (kept for the system's life: the
+    tables are built once)."""
+    key = (id(system), id(control), id(tableau))
+    found = _EVALUATORS.get(key)
+    if found is None or found[0] is not system or found[1] is not control or found[2] is not tableau:
+        if len(_EVALUATORS) > 16:
+            _EVALUATORS.clear()
+        law = control if isinstance(control, ControlLaw) else None
+        evaluator = Evaluator(system, tableau, None if law is not None else bind(control), law)
+        found = _EVALUATORS[key] = (system, control, tableau, evaluator)
+    return found[3]
 
 
 def _segment_sensitivity(
     system: HybridSystem, control: Control, tableau: Tableau, seg: Segment, t_stop: float | None, newton: bool
 ) -> np.ndarray:
     """d x(end) / d x(start) along one stored segment, stepping the variational equation on the
-    segment's own steps (each from its stored start point); ``t_stop`` cuts the last step. In
-    compiled code when the mode has a compiled twin and there is no control (``variational``);
-    ``newton``: to the accuracy of a Newton step (module docstring)."""
-    mode = system.mode(seg.mode)
-    if control is None:
-        compiled = compiled_sensitivity(mode, tableau, seg, t_stop, newton)
-        if compiled is not None:
-            return compiled
-    scheme: Scheme = "forward" if newton else "central"
-    Phi = np.eye(seg.x.shape[1])
-    for i in range(len(seg.t) - 1):
-        t0 = seg.t[i]
-        if t_stop is not None and t0 >= t_stop:
-            break
-        t1 = seg.t[i + 1] if t_stop is None else min(seg.t[i + 1], t_stop)
-        if t1 <= t0:
-            continue
-        Phi = _step_derivative(mode, control, tableau, t0, seg.x[i], t1 - t0, scheme) @ Phi
+    segment's own steps (each from its stored start point); ``t_stop`` cuts the last step;
+    ``newton``: to the accuracy of a Newton step (module docstring). Compiled when the mode's
+    functions are (``variational``)."""
+    Phi = segment_sensitivity(_evaluator(system, control, tableau), seg, t_stop, newton)
+    if Phi is None:
+        raise OrbitError(
+            f"the variational equation along mode '{seg.mode}' from t={seg.t[0]:.6g} s is not finite: a "
+            f"perturbed stage left the model's range",
+            "singular_jacobian",
+        )
     return Phi
 
 

@@ -29,6 +29,7 @@ from typing import Any
 import numpy as np
 
 from .. import derivatives
+from ..control import ControlLaw
 from .errors import OrbitError
 from .jacobians import (
     check_fd_step,
@@ -664,7 +665,11 @@ def _closed_loop_field(problem: OrbitProblem, ret: Return) -> np.ndarray:
     if problem.controller is None:
         return field_at(system.mode(mode), control, 0.0, ret.x_start)
     controller = problem.restored_controller(ret.parameters, ret.memory_start)
-    controller.reset(mode, 0.0, ret.x_start)
-    u = controller(mode, 0.0, ret.x_start)
+    if isinstance(controller, ControlLaw):
+        u = np.zeros(controller.inputs)
+        controller.control(0.0, ret.x_start, ret.memory_start, controller.params_for(mode, system), u)
+    else:
+        controller.reset(mode, 0.0, ret.x_start)
+        u = controller(mode, 0.0, ret.x_start)
     f = np.asarray(system.mode(mode).field(0.0, ret.x_start, u), dtype=float)
     return np.concatenate([f, np.zeros(problem.n_memory)])

@@ -25,13 +25,11 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..arguments import count
-from ..control import Controller
+from ..control import ControlLaw, Controller
 from ..errors import LegsimError, SimulationError
 from ..hybrid import HybridSystem
 from ..methods import Tableau, get_method
-from ..relaxed.landing import landing_rule
-from ..relaxed.simulate import step_size_rule
-from ..relaxed.step_size import ErrorControl
+from ..relaxed.simulate import landing_part, step_size_rule
 from .errors import OrbitError
 from .sections import Section, bind_section
 
@@ -171,7 +169,7 @@ class OrbitProblem:
                 "rtol" if self.rtol is not None else "atol",
                 lambda: step_size_rule(self.tableau, self.h, self.rtol, self.atol),
             ),
-            ("landing", lambda: landing_rule(self.landing, self.tableau)),
+            ("landing", lambda: landing_part(self.landing, self.tableau)),
             ("max_halvings", lambda: count("max_halvings", self.max_halvings, 1)),
         )
         rules = []
@@ -180,8 +178,7 @@ class OrbitProblem:
                 rules.append(check())
             except SimulationError as exc:
                 raise OrbitError(f"orbit problem: {exc}", key=key) from None
-        steps = rules[0]  # FixedStep, or ErrorControl with the tolerances simulate will use
-        self._tolerances = (steps.rtol, steps.atol) if isinstance(steps, ErrorControl) else (None, None)
+        self._tolerances = rules[0]  # (rtol, atol) as simulate will use them, (None, None) for fixed steps
 
     @property
     def integrator_settings(self) -> dict[str, Any]:
@@ -262,6 +259,11 @@ class OrbitProblem:
         if self.controller is None:
             return
         made = self.make_controller(self.parameters)
+        if isinstance(made, ControlLaw):
+            self.memory_names = made.memory_names
+            self.memory_units = made.memory_units
+            self.memory_guess = np.asarray(made.initial_memory, dtype=float)
+            return
         if made.memory_names is None:
             raise OrbitError(
                 f"orbit problem: controller {type(made).__name__} does not declare its memory, so the "
@@ -353,24 +355,30 @@ class OrbitProblem:
         every memory value."""
         return list(self.periodic_idx) + [self.dim + i for i in range(self.n_memory)]
 
-    def make_controller(self, parameters: Mapping[str, float] | None = None) -> Controller:
+    def make_controller(self, parameters: Mapping[str, float] | None = None) -> Controller | ControlLaw:
         """A fresh controller for the system at these parameter values (``controller`` must be
-        set); OrbitError when it is not a ``legsim.control.Controller``."""
+        set); OrbitError when it is neither a ``legsim.control.ControlLaw`` (whose memory is part
+        of the run's state) nor a ``legsim.control.Controller``."""
         assert self.controller is not None
         self.instantiate(parameters)
         made = self.controller(self.system if not self.is_factory else self._cached(parameters)[2])
-        if not isinstance(made, Controller):
+        if not isinstance(made, (Controller, ControlLaw)):
             raise OrbitError(
-                f"orbit problem: controller(model) made {type(made).__name__}, expected a legsim.control.Controller",
+                f"orbit problem: controller(model) made {type(made).__name__}, expected a legsim.control.ControlLaw "
+                f"or Controller",
                 key="controller",
             )
         return made
 
-    def restored_controller(self, parameters: Mapping[str, float] | None, memory: np.ndarray | None) -> Controller:
+    def restored_controller(
+        self, parameters: Mapping[str, float] | None, memory: np.ndarray | None
+    ) -> Controller | ControlLaw:
         """A fresh controller restored to ``memory`` (default ``memory_guess``) at the section's
-        mode: what one return runs with."""
+        mode: what one return runs with (a ``ControlLaw`` takes its memory from the run's initial
+        state instead)."""
         made = self.make_controller(parameters)
-        made.restore(self.bound.mode, self.memory_guess if memory is None else np.asarray(memory, dtype=float))
+        if isinstance(made, Controller):
+            made.restore(self.bound.mode, self.memory_guess if memory is None else np.asarray(memory, dtype=float))
         return made
 
     @property

@@ -35,6 +35,7 @@ in strips, which converges at the method's order; ``Return.time`` is the relaxed
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -42,7 +43,7 @@ from typing import Any
 import numpy as np
 from scipy.optimize import brentq
 
-from ..control import Controller
+from ..control import ControlLaw, Controller
 from ..errors import LegsimError
 from ..execution import Execution, Segment, TransitionRecord
 from ..hybrid import HybridSystem
@@ -97,6 +98,38 @@ class Return:
         return np.concatenate([self.x_end, self.memory_end])
 
 
+def plant_execution(ex: Execution, memory: int) -> Execution:
+    """The execution of a run under a ``ControlLaw`` without the controller's memory: states of
+    the plant alone, as the section and the orbit's coordinates are."""
+    if memory == 0:
+        return ex
+
+    def trim(x: np.ndarray) -> np.ndarray:
+        return x[..., : x.shape[-1] - memory]
+
+    return dataclasses.replace(
+        ex,
+        segments=[Segment(seg.mode, seg.t, trim(seg.x), trim(seg.dx)) for seg in ex.segments],
+        strips=[dataclasses.replace(strip, state=trim(strip.state)) for strip in ex.strips],
+        transitions=[
+            dataclasses.replace(tr, state_before=trim(tr.state_before), state_after=trim(tr.state_after))
+            for tr in ex.transitions
+        ],
+        state_names={mode: names[: len(names) - memory] for mode, names in ex.state_names.items()},
+        state_units={mode: units[: len(units) - memory] for mode, units in ex.state_units.items()},
+    )
+
+
+def memory_at(closed: Execution, found: Return, problem: OrbitProblem, memory: int) -> np.ndarray:
+    """The controller's memory at a return, from the run's own states: after the returning
+    transition for a section after a transition, in the return's segment for a crossing."""
+    if problem.section.kind == "transition":
+        state = closed.transitions[len(found.transitions) - 1].state_after
+    else:
+        state = closed.segments[found.segment].x[0]
+    return np.asarray(state[state.shape[0] - memory :], dtype=float).copy()
+
+
 class MemoryLog(Controller):
     """A controller run as it is, its memory recorded after every mode entry (``entries[k]``:
     after the k-th entry, entry 0 the start of the run)."""
@@ -145,13 +178,21 @@ class ReturnMap:
         memory = p.memory_guess if memory is None else np.asarray(memory, dtype=float).reshape(-1)
         last_error: OrbitError | None = None
         for horizon in self._horizons():
-            log = None if p.controller is None else MemoryLog(p.restored_controller(params, memory))
-            ex = self._simulate(system, control if log is None else log, x, horizon)
-            found = self._locate(ex, x, params)
+            controller = None if p.controller is None else p.restored_controller(params, memory)
+            if isinstance(controller, ControlLaw):
+                closed = self._simulate(system, controller, np.concatenate([x, memory]), horizon)
+                ex = plant_execution(closed, len(memory))
+                found = self._locate(ex, x, params)
+                if found is not None:
+                    found.memory_start, found.memory_end = memory.copy(), memory_at(closed, found, p, len(memory))
+            else:
+                log = None if controller is None else MemoryLog(controller)
+                ex = self._simulate(system, control if log is None else log, x, horizon)
+                found = self._locate(ex, x, params)
+                if found is not None and log is not None:
+                    self._read_memory(found, memory, log)
             if found is not None:
                 self._hint = found.time
-                if log is not None:
-                    self._read_memory(found, memory, log)
                 return found
             if ex.status != "finished":
                 raise OrbitError(

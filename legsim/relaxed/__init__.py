@@ -1,22 +1,21 @@
-"""The relaxed hybrid integrator (paper 000, Fig. 12), composed of parts.
+"""The relaxed hybrid integrator (paper 000, Fig. 12): one loop, written once.
 
-* ``simulate``: the public entry point; checks its arguments and builds the parts.
-* ``integrate``: the loop of Fig. 12, nothing else.
-* ``step_size``: fixed h, or error control by an embedded pair (``FixedStep``, ``ErrorControl``).
-* ``landing``: how a step past a strip is shortened (``Halve``, ``Aim``, ``Dense``).
-* ``strip``: locating q on a step's interpolant, holding it for eps - tau, the reset at q.
-* ``entry``: entering a mode (a state already in a strip, the starting step, the short step to a
-  simultaneous strip).
-* ``rules``: the numeric decisions, plain functions the Python loop calls and the compiled
-  kernel compiles from the same source.
-* ``run``, ``outcomes``, ``messages``: the run's workspace, what the parts return, the messages
-  of a run's ends.
+* ``simulate``: the public entry point; checks its arguments and runs the loop.
+* ``loop``: the loop of Fig. 12, over the functions of ``entering`` (a mode's entry), ``stepping``
+  (a step, error control, the landing rules), ``crossing`` (locating q, holding it for eps - tau,
+  the reset at q, continuations, joint crossings), ``curve`` (a step's interpolant and where a
+  guard meets it), ``stages`` (the Runge-Kutta step from a method's arrays) and ``evaluate`` (the
+  closed loop's field, guards and resets); ``rules`` holds the scalar decisions. All are plain
+  Python over the arrays ``layout`` names, run interpreted or compiled (``legsim.compiled``).
+* ``driver``, ``tables``, ``workspace``, ``assemble``, ``adapt``: the Python around it (a run's
+  tables and arrays, Python models' adapters, the execution).
+* ``parts``: the step-size and landing rules as data.
 """
 
-from .landing import Aim, Dense, Halve
+from .parts import Aim, Dense, ErrorControl, FixedStep, Halve
+from .rules import crossing_on_step
 from .simulate import LANDINGS, simulate
-from .step_size import ErrorControl, FixedStep
-from .strip import crossing_on_step, hermite, hermite_slope
+from .single import hermite, hermite_derivative
 
 __all__ = [
     "LANDINGS",
@@ -27,6 +26,6 @@ __all__ = [
     "Halve",
     "crossing_on_step",
     "hermite",
-    "hermite_slope",
+    "hermite_derivative",
     "simulate",
 ]

@@ -24,8 +24,16 @@ import numpy as np
 from ..control import Bound
 from ..errors import ContractError, LegsimError, ModelBreakdown, ModelError
 from ..hybrid import JointCrossing, Mode, ModeData, not_a_number, real_number
-from ..methods.stepper import field_value
 from .layout import I_BREAKDOWN
+
+
+def field_value(k: Any, x: np.ndarray) -> np.ndarray:
+    """A field's output k at a state x, checked to be an array of x's shape (a field that returns
+    another shape would be broadcast silently into the step)."""
+    value = k if isinstance(k, np.ndarray) else np.asarray(k, dtype=float)
+    if value.shape != x.shape:
+        raise ContractError(f"field returned shape {value.shape}, expected {x.shape}")
+    return value
 
 
 class InputCell:

@@ -25,6 +25,7 @@ from .layout import (
     END_RESET_BROKE_DOWN,
     END_RESET_NON_FINITE,
     END_RESET_OUTSIDE,
+    END_STALLED,
     F_H_TRIED,
     F_STRIP_TIME,
     F_T,
@@ -62,6 +63,7 @@ from .layout import (
     V_FIRST,
     V_MODE,
 )
+from .loop import STALL_FRACTION, STALL_WINDOW
 from .simultaneous import OrderWatch
 from .zeno import ZenoWatch, strip_hold_warning
 
@@ -156,7 +158,7 @@ class Assembly:
         order = (int(i[R_ORDER_A]), int(i[R_ORDER_B]))
         self.crossings.append(
             (source_name, name, tc, exit_time, bool(i[R_ACCUMULATES]), kind == KIND_CONTINUED,
-             bool(i[R_HAS_CONTINUATION]), kind, order, q, source)
+             bool(i[R_HAS_CONTINUATION]), order, q)
         )  # fmt: skip
 
     # -- the execution ------------------------------------------------------------------------
@@ -213,15 +215,9 @@ class Assembly:
 
     def state_names(self) -> tuple[dict[str, tuple[str, ...]], dict[str, tuple[str, ...]]]:
         """The coordinate names and units of every mode visited (the memory's last)."""
-        law, control = self.tables.law, self.tables.control
-        if law is not None:
-            extra_names, extra_units = tuple(law.memory_names), tuple(law.memory_units)
-        elif control is not None and self.tables.memory:
-            controller = control.controller
-            extra_names = tuple(controller.memory_names)
-            extra_units = tuple(controller.memory_units) or ("",) * len(extra_names)
-        else:
-            extra_names = extra_units = ()
+        law = self.tables.law
+        extra_names = () if law is None else tuple(law.memory_names)
+        extra_units = () if law is None else tuple(law.memory_units)
         names: dict[str, tuple[str, ...]] = {}
         units: dict[str, tuple[str, ...]] = {}
         for seg in self.segments:
@@ -237,7 +233,7 @@ class Assembly:
         zeno = ZenoWatch(self.options.zeno_window, self.options.continuation)
         order = OrderWatch()
         replay = _Replay()
-        for source, name, tc, exit_time, accumulates, continued, has_cont, kind, pair, q, row in self.crossings:
+        for source, name, tc, exit_time, accumulates, continued, has_cont, pair, q in self.crossings:
             replay.transitions.append(None)
             replay.strip_time += exit_time - tc
             if pair[0] >= 0 and pair[1] >= 0:
@@ -272,11 +268,11 @@ class Assembly:
                 f"step budget max_steps={self.options.max_steps} used up at t={t:.17g} in mode '{name}' "
                 f"(x={x.tolist()})"
             )
+        if reason == END_STALLED:
+            return Status.STALLED, self._stalled(ws, name, t, x)
         if reason == END_HALVING_EXHAUSTED:
             count = int(ws.iv[I_END_COUNT]) - 1
-            return Status.HALVING_EXHAUSTED, messages.halving_exhausted(
-                name, t, x, count, transition, self.options.eps
-            )
+            return Status.HALVING_EXHAUSTED, messages.halving_exhausted(name, t, x, count, transition, self.options.eps)
         if reason == END_NON_FINITE_STEP:
             return Status.NON_FINITE, messages.non_finite_step(name, t, x, float(ws.fs[F_H_TRIED]))
         if reason == END_BROKE_DOWN:
@@ -311,6 +307,18 @@ class Assembly:
         assert reason == END_RESET_BROKE_DOWN, f"every END_* is handled ({reason})"
         why = breakdown if breakdown is not None else self.model_range(name)
         return Status.MODEL_BREAKDOWN, f"{why} (reset of transition {transition} from mode '{name}', t={t:.17g})"
+
+    def _stalled(self, ws: Any, name: str, t: float, x: np.ndarray) -> str:
+        data = self.tables.datas[int(ws.iv[I_MODE])]
+        nearest = ""
+        if data is not None and data.transitions:
+            e = int(np.argmin(ws.g_here[: len(data.transitions)]))
+            nearest = f" next to the guard of transition {data.transitions[e].name} ({ws.g_here[e]:.3g})"
+        return (
+            f"the run stopped advancing in mode '{name}'{nearest}: its last {STALL_WINDOW} steps and crossings "
+            f"moved time by less than {STALL_FRACTION:g} of h = {self.options.h:g} s, to t={t:.17g} "
+            f"(x={x.tolist()}); a thicker strip (eps) or a shorter h lets steps land"
+        )
 
     def _transition_name(self, mode: int, index: int) -> str:
         tables = self.tables

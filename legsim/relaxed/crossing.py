@@ -56,7 +56,6 @@ from .layout import (
     I_BREAKDOWN,
     I_END,
     I_END_INDEX,
-    I_LAND_CONVERGED,
     I_LAND_E,
     I_LAST_SOURCE,
     I_MODE,

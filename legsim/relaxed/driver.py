@@ -16,7 +16,6 @@ from typing import Any
 
 import numpy as np
 
-from ..control import Bound
 from ..errors import ContractError, LegsimError, ModelError, SimulationError
 from ..execution import Execution
 from ..hybrid import HybridSystem
@@ -26,16 +25,19 @@ from .assemble import Assembly
 from .evaluate import enter_controller, visit_of
 from .layout import (
     F_H_PROP,
+    F_STALL_T,
     F_T,
     I_MODE,
     I_PHASE,
     I_POINTS,
     I_RECORDS,
     I_STEPS,
+    I_TRANSITIONS,
     I_VISITS,
     LAND_AIM,
     LAND_DENSE,
     LAND_HALVE,
+    M_READY,
     PHASE_ENTER,
     RETURN_ENDED,
     RETURN_FULL,
@@ -66,8 +68,10 @@ from .workspace import Workspace, allocate, resized
 #: The compiled kernel, set by ``legsim.compiled``: ``KERNEL.run(tables, ws, method)`` and
 #: ``KERNEL.addresses(functions)``; None runs every run interpreted.
 KERNEL: Any = None
-#: Accepted steps between looks at the clock, interpreted and compiled.
-PROGRESS_STEPS_PYTHON, PROGRESS_STEPS_COMPILED = 64, 16384
+#: Steps (or transitions) between looks at the clock: at first, and at least; the loop then hands
+#: back about every ``LOOK_INTERVAL`` of wall time, by the rate measured so far.
+PROGRESS_STEPS_FIRST, PROGRESS_STEPS_MOST = 64, 1 << 20
+LOOK_INTERVAL = 0.02
 #: Wall-clock seconds between progress reports.
 PROGRESS_INTERVAL = 0.2
 LANDINGS = {"halve": LAND_HALVE, "aim": LAND_AIM, "dense": LAND_DENSE}
@@ -120,7 +124,7 @@ def drive(
     if KERNEL is None and tables.compiled:
         tables.python_reason = "the compiled kernel is not loaded (legsim.compiled was not imported)"
     elif options.python:
-        tables.python_reason = "the run asked for the Python loop"
+        tables.python_reason = "the run asked for plain Python (simulate(python=True))"
     assembly = Assembly(system, tables, options)
     run = Runner(tables, ws, method, compiled, options, assembly)
     run.go()
@@ -153,24 +157,13 @@ def start(
     dim = int(tables.modes[row, 0])
     ws.x[:dim] = x0
     if tables.memory:
-        if memory is None:
-            memory = initial_memory(tables)
-        elif isinstance(tables.control, Bound):
-            tables.control.controller.restore(tables.names[row], np.asarray(memory, dtype=float))
-        ws.x[dim : dim + tables.memory] = memory
+        ws.x[dim : dim + tables.memory] = tables.law.initial_memory if memory is None else memory
     ws.iv[I_MODE] = row
     ws.iv[I_PHASE] = PHASE_ENTER
-    ws.fs[F_T] = options.t0
+    ws.fs[F_T] = ws.fs[F_STALL_T] = options.t0
     ws.fs[F_H_PROP] = options.h
     vis = visit_of(tables.tables(tables.functions), tables.memory, row)
     enter_controller(tables.tables(tables.functions), vis, ws, options.t0, ws.x)
-
-
-def initial_memory(tables: RunTables) -> np.ndarray:
-    """The memory a run starts with."""
-    if tables.law is not None:
-        return np.asarray(tables.law.initial_memory, dtype=float)
-    return np.asarray(tables.control.controller.memory(), dtype=float).reshape(-1)
 
 
 class Runner:
@@ -183,10 +176,9 @@ class Runner:
         #: Steps taken by each path: (compiled, python).
         self.steps = [0, 0]
         self._addresses = np.zeros(0, dtype=np.int64)
-        self.ws.ci[S_PROGRESS_STEPS] = (
-            0 if options.progress is None else PROGRESS_STEPS_COMPILED if compiled else PROGRESS_STEPS_PYTHON
-        )
-        self.last_report = time.perf_counter()
+        self.ws.ci[S_PROGRESS_STEPS] = 0 if options.progress is None else PROGRESS_STEPS_FIRST
+        self.last_report = self.last_look = time.perf_counter()
+        self.work_at_look = 0
         tables.breakdowns.ws = ws
 
     def go(self) -> None:
@@ -211,7 +203,11 @@ class Runner:
         try:
             if compiled:
                 return int(KERNEL.run(tables.tables(self.addresses()), ws, self.method))
-            return int(loop.run(tables.tables(tables.functions), ws, self.method))
+            functions = tables.plain_functions() if self.options.python else tables.functions
+            # The loop checks every value it computes for finiteness itself; numpy's warnings on
+            # an overflow in its scalar arithmetic would only repeat that (the kernel has none).
+            with np.errstate(all="ignore"):
+                return int(loop.run(tables.tables(functions), ws, self.method))
         except ContractError as exc:
             raise ModelError(f"{tables.system.name}: {exc} {self.where()}") from exc
         except LegsimError:
@@ -241,6 +237,17 @@ class Runner:
         n = int(self.tables.modes[int(ws.iv[I_MODE]), 0]) + self.tables.memory
         return f"in the step from t={ws.fs[F_T]:.17g} in mode '{self.mode_name()}' (x={ws.x[:n].tolist()})"
 
+    def pace(self, now: float) -> None:
+        """Set how many steps the loop takes before it looks at the clock again: about
+        ``LOOK_INTERVAL`` at the rate of the last stretch."""
+        work = _work(self.ws)
+        elapsed = now - self.last_look
+        if elapsed > 0.0 and work > self.work_at_look:
+            rate = (work - self.work_at_look) / elapsed
+            steps = min(max(int(rate * LOOK_INTERVAL), PROGRESS_STEPS_FIRST), PROGRESS_STEPS_MOST)
+            self.ws.ci[S_PROGRESS_STEPS] = steps
+        self.last_look, self.work_at_look = now, work
+
     def fit(self) -> None:
         """Widen the workspace for the modes registered so far."""
         tables = self.tables
@@ -252,6 +259,7 @@ class Runner:
         if progress is None:
             return
         now = time.perf_counter()
+        self.pace(now)
         if now - self.last_report <= PROGRESS_INTERVAL:
             return
         self.last_report = now
@@ -263,6 +271,44 @@ class Runner:
             raise SimulationError(
                 f"the progress callback failed at t={self.ws.fs[F_T]:.17g}: {type(exc).__name__}: {exc}"
             ) from exc
+
+
+class Evaluator:
+    """A system's modes as the loop evaluates them, for tools that step the same fields outside a
+    run (the variational equations of ``legsim.orbits``): ``call(fn, mode, *args)`` calls
+    ``fn(tables, visit, ws, method, *args)``, a function written like the loop's, compiled by the
+    kernel when the mode's functions and the controller's are (``KERNEL.tool``), else
+    interpreted."""
+
+    def __init__(self, system: HybridSystem, tableau: Tableau, control: Any = None, law: Any = None) -> None:
+        self.tables = RunTables(system, control, law)
+        self.method = method_arrays(tableau)
+        self.ws: Workspace | None = None
+
+    def call(self, fn: Callable[..., Any], mode: str, *args: Any) -> Any:
+        tables = self.tables
+        row = tables.register(mode)
+        if tables.modes[row, M_READY] == 0:
+            tables.prepare(row)
+        stages = self.method.info[INFO_STAGES] + max(self.method.info[INFO_EXTRA], 0)
+        if self.ws is None:
+            self.ws = allocate(tables.widest, tables.most_guards, stages, tables.inputs, tables.memory, 1)
+        else:
+            self.ws = resized(self.ws, tables.widest, tables.most_guards, tables.inputs, 1)
+        ws = self.ws
+        ws.ci[S_MEMORY] = tables.memory
+        ws.ci[S_HOLD] = 0
+        tables.breakdowns.ws = ws
+        if KERNEL is not None and tables.compiled:
+            addresses = KERNEL.addresses(tables.functions, tables.kinds)
+            tab = tables.tables(addresses)
+            return KERNEL.tool(fn)(tab, visit_of(tab, tables.memory, row), ws, self.method, *args)
+        tab = tables.tables(tables.functions)
+        return fn(tab, visit_of(tab, tables.memory, row), ws, self.method, *args)
+
+
+def _work(ws: Workspace) -> int:
+    return int(ws.iv[I_STEPS]) + int(ws.iv[I_TRANSITIONS])
 
 
 def buffer_counts(ws: Workspace) -> tuple[int, int, int]:

@@ -26,10 +26,10 @@ from .layout import (
     F_T,
     I_END,
     I_END_INDEX,
+    I_JACOBIAN_AGE,
     I_LAST_SOURCE,
     I_MODE,
     I_PHASE,
-    I_POINTS,
     I_STEPS,
     I_TRANSITIONS,
     LAND_DENSE,
@@ -48,14 +48,7 @@ from .layout import (
     S_T_FINAL,
     T_TARGET,
 )
-from .rules import (
-    entered_in_strip,
-    past_strip,
-    restarted_step,
-    scaled_rms,
-    starting_guess,
-    starting_step,
-)
+from .rules import entered_in_strip, past_strip, restarted_step, scaled_rms, starting_guess, starting_step
 from .stages import all_finite
 
 #: What entering a mode leads to: the mode's steps; a crossing at once (another entry, or the
@@ -73,6 +66,7 @@ def enter(tab: Tables, ws, method) -> int:
         return NOT_READY
     vis = visit_of(tab, ws.ci[S_MEMORY], mode)
     t, n = ws.fs[F_T], vis.n
+    ws.iv[I_JACOBIAN_AGE] = -1  # a new mode's field: a linearly implicit method needs its Jacobian
     x = ws.x[:n]
     start_visit(ws, mode)
     hold_control(tab, vis, ws, t, x)

@@ -40,9 +40,10 @@ LAND_HALVE, LAND_AIM, LAND_DENSE = range(3)
 #: The time of the current point (s); the step proposal carried to the next step (s); the time
 #: held in strips so far (s); the length of the last trial step (s); the landing step's end (s),
 #: its length (s) and, for a landing on a dense output, the fraction of the step it ends at; the
-#: fraction s of q on the landing's curve when the landing rule located it.
-F_T, F_H_PROP, F_STRIP_TIME, F_H_TRIED, F_LAND_T1, F_LAND_H, F_LAND_THETA, F_LAND_S = range(8)
-FLOAT_STATE = 8
+#: fraction s of q on the landing's curve when the landing rule located it; the time at the start of
+#: the current stall window (``loop.STALL_WINDOW``).
+F_T, F_H_PROP, F_STRIP_TIME, F_H_TRIED, F_LAND_T1, F_LAND_H, F_LAND_THETA, F_LAND_S, F_STALL_T = range(9)
+FLOAT_STATE = 9
 #: What the loop does next (``PHASE_*``); the current mode (a row of the mode table); the
 #: counters (``COUNTERS`` names them for the execution); the points, transitions and visits
 #: stored in the output buffers so far; the step counter at the last progress report; why the
@@ -50,7 +51,9 @@ FLOAT_STATE = 8
 #: transition (-1 before the first); 1 when a model function said the state is past the model's
 #: range (a Python model's ModelBreakdown); the landing step's curve (``CURVE_*``), the guard
 #: whose crossing the landing rule located (-1: not located) and whether that search converged;
-#: the halvings a step that ended the run took.
+#: the halvings a step that ended the run took; the transition counter at the last progress report;
+#: the steps and crossings in the current stall window; the accepted steps since a linearly implicit
+#: method's Jacobian was evaluated (-1: it must be evaluated before the next step).
 (
     I_PHASE,
     I_MODE,
@@ -73,8 +76,11 @@ FLOAT_STATE = 8
     I_LAND_E,
     I_LAND_CONVERGED,
     I_END_COUNT,
-) = range(21)
-INT_STATE = 21
+    I_REPORTED_TRANSITIONS,
+    I_STALL_COUNT,
+    I_JACOBIAN_AGE,
+) = range(24)
+INT_STATE = 24
 #: The curve of a landing step: the cubic Hermite interpolant of its ends, or the method's
 #: continuous extension (``F_LAND_THETA`` of the step); ``I_LAND_E`` >= 0 when q is located.
 CURVE_HERMITE, CURVE_DENSE = range(2)
@@ -109,7 +115,8 @@ RETURN_ENDED, RETURN_NEED_MODE, RETURN_FULL, RETURN_PROGRESS = range(4)
     END_RESET_OUTSIDE,
     END_RESET_NON_FINITE,
     END_RESET_BROKE_DOWN,
-) = range(12)
+    END_STALLED,
+) = range(13)
 
 # -- the mode table (``Tables.modes``, integers, one row per mode) ------------------------------
 #: The plant's state dimension; the number of outgoing transitions (guards); the model functions

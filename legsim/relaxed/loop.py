@@ -26,12 +26,14 @@ resumes it where it stopped.
 from __future__ import annotations
 
 from .crossing import append_point, cross_landing
-from .entering import ENTERED, NOT_READY, enter
+from .entering import NOT_READY, enter
 from .evaluate import Tables, Visit, field_at, hold_control, least, visit_of
 from .layout import (
     END_FINISHED,
     END_MAX_STEPS,
+    END_STALLED,
     F_LAND_T1,
+    F_STALL_T,
     F_T,
     I_END,
     I_END_INDEX,
@@ -40,7 +42,10 @@ from .layout import (
     I_POINTS,
     I_RECORDS,
     I_REPORTED,
+    I_REPORTED_TRANSITIONS,
+    I_STALL_COUNT,
     I_STEPS,
+    I_TRANSITIONS,
     I_VISITS,
     PHASE_ENDED,
     PHASE_ENTER,
@@ -48,6 +53,7 @@ from .layout import (
     RETURN_FULL,
     RETURN_NEED_MODE,
     RETURN_PROGRESS,
+    S_H_MAX,
     S_HOLD,
     S_MAX_STEPS,
     S_MEMORY,
@@ -63,6 +69,10 @@ from .stepping import STEP_ENDED, take_step
 ROOM_POINTS, ROOM_RECORDS, ROOM_VISITS = 4, 2, 2
 #: ``run`` goes on.
 GOING = -1
+#: A run whose last ``STALL_WINDOW`` steps and crossings moved time by less than
+#: ``STALL_FRACTION`` of h has stopped advancing (an eps too thin to land in, a model that
+#: traps the step at a guard): it ends, rather than crawl on.
+STALL_WINDOW, STALL_FRACTION = 1000, 1e-6
 
 
 def run(tab: Tables, ws, method: MethodArrays) -> int:
@@ -75,11 +85,13 @@ def run(tab: Tables, ws, method: MethodArrays) -> int:
         if not has_room(ws):
             return RETURN_FULL
         if phase == PHASE_ENTER:
-            entered = enter(tab, ws, method)
-            if entered == NOT_READY:
+            if enter(tab, ws, method) == NOT_READY:
                 return RETURN_NEED_MODE
-            continue
-        code = step_once(tab, ws, method)
+            code = GOING
+        else:
+            code = step_once(tab, ws, method)
+        if code == GOING and ws.iv[I_PHASE] != PHASE_ENDED and stalled(ws):
+            return end_loop(ws, END_STALLED)
         if code != GOING:
             return code
 
@@ -110,13 +122,35 @@ def step_once(tab: Tables, ws, method: MethodArrays) -> int:
         return RETURN_ENDED
     if least(ws.g1, vis.guards) >= 0.0:
         advance(tab, vis, ws, method)
-        every = ws.ci[S_PROGRESS_STEPS]
-        if every > 0 and ws.iv[I_STEPS] - ws.iv[I_REPORTED] >= every:
-            ws.iv[I_REPORTED] = ws.iv[I_STEPS]
-            return RETURN_PROGRESS
-        return GOING
-    cross_landing(tab, vis, ws, method)
-    return GOING
+    else:
+        cross_landing(tab, vis, ws, method)
+    return GOING if not report_due(ws) else RETURN_PROGRESS
+
+
+def stalled(ws) -> bool:
+    """Whether the run has stopped advancing time: its last ``STALL_WINDOW`` entries, steps and
+    crossings moved it by less than ``STALL_FRACTION`` of h."""
+    ws.iv[I_STALL_COUNT] += 1
+    if ws.iv[I_STALL_COUNT] < STALL_WINDOW:
+        return False
+    if ws.fs[F_T] - ws.fs[F_STALL_T] < STALL_FRACTION * ws.cf[S_H_MAX]:
+        return True
+    ws.iv[I_STALL_COUNT] = 0
+    ws.fs[F_STALL_T] = ws.fs[F_T]
+    return False
+
+
+def report_due(ws) -> bool:
+    """Whether a progress report is due: every ``S_PROGRESS_STEPS`` steps or transitions (a Zeno
+    run may cross many strips per step)."""
+    every = ws.ci[S_PROGRESS_STEPS]
+    if every <= 0:
+        return False
+    if ws.iv[I_STEPS] - ws.iv[I_REPORTED] >= every or ws.iv[I_TRANSITIONS] - ws.iv[I_REPORTED_TRANSITIONS] >= every:
+        ws.iv[I_REPORTED] = ws.iv[I_STEPS]
+        ws.iv[I_REPORTED_TRANSITIONS] = ws.iv[I_TRANSITIONS]
+        return True
+    return False
 
 
 def end_loop(ws, reason: int) -> int:

@@ -279,3 +279,16 @@ def strip_exit_time(t_land: float, eps: float, tau: float) -> float:
     """When the held state leaves the strip (paper 000 Fig. 12, step 12): the landing step
     ended at depth tau inside it, and the strip coordinate grows at unit rate to eps."""
     return t_land + (eps - tau)
+
+
+def crossing_on_step(guard_at, g0: float, g1: float, tol: float):
+    """Where ``guard_at(s)`` (g0 at s = 0, g1 < 0 at s = 1) crosses zero, by the search above:
+    (s, guard evaluations, converged). For tools that search along their own curves; the loop
+    drives the search itself (``curve.crossing_on_landing``)."""
+    state = crossing_start(g0, g1, tol)
+    evals = 0
+    while state[STATUS] == SEARCHING:
+        s = crossing_point(state)
+        state = crossing_update(state, s, float(guard_at(s)))
+        evals += 1
+    return state[RESULT], evals, state[STATUS] == CONVERGED

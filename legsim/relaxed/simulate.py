@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -15,9 +16,7 @@ from ..hybrid import HybridSystem
 from ..methods import Tableau, get_method
 from ..methods.builtin import ADAPTIVE_DEFAULTS, SCIPY_NAMES
 from .driver import Options, drive
-from .landing import Aim, Dense, Halve, landing_rule
-from .run import Control, ProgressFn
-from .step_size import ErrorControl, FixedStep
+from .parts import Aim, Dense, ErrorControl, FixedStep, Halve
 
 #: Landing rules of ``simulate(landing=...)``.
 LANDINGS = ("halve", "aim", "dense")
@@ -36,20 +35,21 @@ def simulate(
     h: float,
     eps: float,
     method: str | Tableau = "rk4",
-    control: Control | None = None,
+    control: Any = None,
     *,
     t0: float = 0.0,
     max_transitions: int = 100_000,
     max_halvings: int = 64,
-    progress: ProgressFn | None = None,
+    progress: Callable[[float, float, float], None] | None = None,
     rtol: float | None = None,
     atol: float | None = None,
-    landing: str | Halve = "halve",
+    landing: str | Halve | Aim | Dense = "halve",
     step_size: FixedStep | ErrorControl | None = None,
     max_steps: int = MAX_STEPS,
     continuation: bool = True,
     zeno_window: float | None = None,
     t_eval: Any = None,
+    python: bool = False,
 ) -> Execution:
     """Simulate ``system`` from ``(mode, x0)`` at time ``t0`` to ``t_final`` with the relaxed
     hybrid integrator.
@@ -87,10 +87,11 @@ def simulate(
         step's own interpolant reaches the middle of the strip (at most three aims, then
         halving); or ``"dense"`` (methods with a continuous extension: bs32, dopri5, dop853, a
         ``Tableau`` with ``dense``), which lands on the failed step's own dense output once it
-        passes the error test, so no step is retried (aiming as a fallback). Or a landing rule
-        object (``legsim.relaxed.landing``).
-    step_size: a step-size rule object (``legsim.relaxed.step_size.FixedStep`` or
-        ``ErrorControl``) instead of h's fixed steps or rtol/atol; h still gives the largest step.
+        passes the error test, so no step is retried (aiming as a fallback). Or the rule as an
+        object (``legsim.relaxed.Halve()``, ``Aim()``, ``Dense()``); any other is refused by name.
+    step_size: a step-size rule object (``legsim.relaxed.FixedStep()`` or
+        ``ErrorControl(rtol, atol)``) instead of h's fixed steps or rtol/atol; h still gives the
+        largest step. Any other object is refused by name.
     max_steps: step budget (default ``MAX_STEPS``, 1e7): a run whose nominal steps
         (t_final - t0) / h exceed it is refused before it starts, and one that takes that many
         accepted steps (error control may take more than nominal) ends with status ``max_steps``.
@@ -101,6 +102,9 @@ def simulate(
         ``Execution.warnings``.
     zeno_window: flights (s) between crossings of one transition shorter than this, and shrinking,
         count as accumulating (``legsim.relaxed.zeno``); default h + eps.
+    python: run the loop as plain Python, the model's and controller's compiled functions too
+        (their ``py_func``), instead of the compiled kernel: the same source step by step, to
+        read or debug (slower). A model calling the native library needs its compiled functions.
     t_eval: optional times (s), increasing, in [t0, t_final]: the execution's mode and state
         there, in ``Execution.evaluated`` (a ``Samples``; the cubic Hermite interpolant of the
         steps, the held point inside strips). Times past the end of a run that stopped early are
@@ -129,30 +133,27 @@ def simulate(
         rtol, atol = ADAPTIVE_DEFAULTS
     law = control if isinstance(control, ControlLaw) else None
     control = None if law is not None else _bound_control(control)
-    max_transitions, max_halvings = count("max_transitions", max_transitions, 0), count("max_halvings", max_halvings, 1)
-    max_steps = _check_step_budget(max_steps, t0, t_final, h)
     x, memory = _initial_state(system, mode, x0, t0, eps, control, law)
     rule = _step_size_part(step_size, tableau, h) if step_size is not None else step_size_rule(tableau, h, rtol, atol)
-    parts = _landing_part(landing, tableau)
-    window = h + eps if zeno_window is None else positive("zeno_window", zeno_window)
     if not isinstance(continuation, (bool, np.bool_)):
         raise SimulationError(f"continuation must be True or False, got {type(continuation).__name__} {continuation!r}")
     options = Options(
         tableau=tableau,
         h=h,
         eps=eps,
-        landing=parts,
+        landing=landing_part(landing, tableau),
         rtol=rule[0],
         atol=rule[1],
         t0=t0,
         t_final=t_final,
-        max_transitions=max_transitions,
-        max_halvings=max_halvings,
-        max_steps=max_steps,
+        max_transitions=count("max_transitions", max_transitions, 0),
+        max_halvings=count("max_halvings", max_halvings, 1),
+        max_steps=_check_step_budget(max_steps, t0, t_final, h),
         continuation=bool(continuation),
-        zeno_window=window,
+        zeno_window=h + eps if zeno_window is None else positive("zeno_window", zeno_window),
         hold=law.hold if law is not None else isinstance(control, Bound) and control.hold,
         progress=progress,
+        python=bool(python),
     )
     times = _eval_times(t_eval, t0, t_final)
     execution = drive(system, mode, x, control, law, options, memory)
@@ -171,7 +172,7 @@ def _bound_control(control: Any) -> Any:
     return bind(control)
 
 
-def _landing_part(landing: Any, tableau: Tableau) -> str:
+def landing_part(landing: Any, tableau: Tableau) -> str:
     """The name of the landing rule ``landing`` names (or of the built-in rule object given);
     the loop runs the built-in rules only, so any other object is refused by name."""
     if isinstance(landing, str):
@@ -183,10 +184,13 @@ def _landing_part(landing: Any, tableau: Tableau) -> str:
     else:
         raise SimulationError(
             f"landing {type(landing).__name__} is not one of the loop's landing rules: give 'halve', 'aim' or "
-            f"'dense' (or legsim.relaxed.landing's Halve, Aim, Dense); the loop runs no other rule"
+            f"'dense' (or legsim.relaxed.Halve(), Aim(), Dense()); the loop runs no other rule"
         )
-    if name == "dense":
-        landing_rule(name, tableau)  # refuses a method without a continuous extension
+    if name == "dense" and tableau.dense is None:
+        raise SimulationError(
+            f"landing 'dense' needs a method with a continuous extension (bs32, dopri5, dop853, or a Tableau with "
+            f"dense output); method '{tableau.name}' has none: use landing 'aim'"
+        )
     return name
 
 
@@ -199,11 +203,13 @@ def _step_size_part(rule: Any, tableau: Tableau, h: float) -> tuple[float | None
         return step_size_rule(tableau, h, rule.rtol, rule.atol)
     raise SimulationError(
         f"step_size {type(rule).__name__} is not one of the loop's step-size rules: give h (fixed steps) or "
-        f"rtol/atol (error control), or legsim.relaxed.step_size's FixedStep or ErrorControl"
+        f"rtol/atol (error control), or legsim.relaxed.FixedStep() or ErrorControl(rtol, atol)"
     )
 
 
-def step_size_rule(tableau: Tableau, h: float, rtol: float | None, atol: float | None) -> tuple[float | None, float | None]:
+def step_size_rule(
+    tableau: Tableau, h: float, rtol: float | None, atol: float | None
+) -> tuple[float | None, float | None]:
     """(rtol, atol) of error control when rtol or atol is given (the other then a thousandth of
     it); (None, None): fixed steps of h."""
     if rtol is None and atol is None:
@@ -273,7 +279,7 @@ def _check_step_budget(max_steps: Any, t0: float, t_final: float, h: float) -> i
 
 
 def _initial_state(
-    system: HybridSystem, mode: Any, x0: Any, t0: float, eps: float, control: Control | None, law: ControlLaw | None
+    system: HybridSystem, mode: Any, x0: Any, t0: float, eps: float, control: Any, law: ControlLaw | None
 ) -> tuple[np.ndarray, np.ndarray | None]:
     """(the plant's state, the controller's memory or None for its initial one) from x0: the
     plant's state, or with a controller that keeps memory the plant's state followed by the
@@ -296,6 +302,7 @@ def _initial_state(
     if not np.all(np.isfinite(x)):
         raise SimulationError(f"x0 must be finite, got {x} in mode '{mode}'")
     x, memory = (x[:dim], x[dim:]) if x.shape[0] > dim else (x, None)
+    _check_resolution(eps, x, mode)
     u0 = _initial_input(system, mode, t0, x, control, law, memory)
     system.check_state(mode, x, t=t0, u=u0, label="x0")
     gvals = system.guard_values(mode, x, t0, u0)
@@ -308,12 +315,26 @@ def _initial_state(
     return x, memory
 
 
-def _memory_names(control: Control | None, law: ControlLaw | None) -> tuple[str, ...]:
-    if law is not None:
-        return law.memory_names
-    if isinstance(control, Bound):
-        return tuple(control.controller.memory_names or ())
-    return ()
+#: A strip must hold this many float64 spacings of the state's scale for a step to land in it.
+RESOLVED_SPACINGS = 16.0
+
+
+def _check_resolution(eps: float, x: np.ndarray, mode: str) -> None:
+    """Refuse a strip thinner than float64 can resolve at the initial state's scale: no step
+    could land in it, and the run would only crawl towards the first guard."""
+    scale = 1.0 + float(np.max(np.abs(x))) if x.size else 1.0
+    spacing = float(np.spacing(scale))
+    if eps < RESOLVED_SPACINGS * spacing:
+        raise SimulationError(
+            f"eps = {eps:g} is thinner than float64 resolves at the scale of the initial state in mode '{mode}' "
+            f"(|x| up to {scale - 1.0:.3g}, values {spacing:.3g} apart there): no step could land in a strip; "
+            f"give eps >= {RESOLVED_SPACINGS * spacing:.3g} in guard units"
+        )
+
+
+def _memory_names(control: Any, law: ControlLaw | None) -> tuple[str, ...]:
+    """The memory entries a run's state ends with: a ``ControlLaw``'s."""
+    return () if law is None else law.memory_names
 
 
 def _initial_input(
@@ -321,7 +342,7 @@ def _initial_input(
     mode: str,
     t0: float,
     x: np.ndarray,
-    control: Control | None,
+    control: Any,
     law: ControlLaw | None,
     memory: np.ndarray | None,
 ) -> Any:
@@ -329,10 +350,7 @@ def _initial_input(
     starts)."""
     try:
         if law is not None:
-            m = np.asarray(law.initial_memory if memory is None else memory, dtype=float)
-            u = np.zeros(law.inputs)
-            law.control(float(t0), x, m, law.params_for(mode, system), u)
-            return u
+            return law.input_at(mode, t0, x, memory)
         if isinstance(control, Bound):
             return control.controller(mode, t0, x)
         return None if control is None else control(t0, x)

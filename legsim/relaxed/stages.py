@@ -22,16 +22,24 @@ import numpy as np
 from .evaluate import Tables, Visit, field_at
 
 #: A method as the step loop's arrays (``method_arrays``); ``info`` holds the integers
-#: ``INFO_*``.
-MethodArrays = namedtuple("MethodArrays", "c A b b_err b_err_low P c_extra A_extra info")
-#: Stages s; 1 when the last stage is f at the new point (FSAL); 1 when the method has an error
-#: estimate; 1 when its norm blends a lower-order estimate (DOP853); the extra stages m of its
-#: continuous extension (-1: none); the degree of the extension's polynomials.
-INFO_STAGES, INFO_FSAL, INFO_EMBEDDED, INFO_BLENDED, INFO_EXTRA, INFO_DEGREE = range(6)
+#: ``INFO_*``; a linearly implicit method's coupling G (s, s), gamma (in ``gamma[0]``) and the
+#: weights of df/dt in its stages (s,).
+MethodArrays = namedtuple("MethodArrays", "c A b b_err b_err_low P c_extra A_extra info G gamma time_weights")
+#: Stage rows s; 1 when the last stage is f at the new point (FSAL); 1 when the method has an
+#: error estimate; 1 when its norm blends a lower-order estimate (DOP853); the extra stages m of
+#: its continuous extension (-1: none); the degree of the extension's polynomials; 1 for a
+#: linearly implicit method, whose stages are rows 1..s of K, row 0 holding f(t, x).
+INFO_STAGES, INFO_FSAL, INFO_EMBEDDED, INFO_BLENDED, INFO_EXTRA, INFO_DEGREE, INFO_IMPLICIT = range(7)
+#: Accepted steps a linearly implicit method's Jacobian serves before it is evaluated again (a
+#: W-method keeps its order with an old Jacobian; it is also evaluated at every mode entry and
+#: after every rejected step).
+JACOBIAN_REUSE = 50
 
 
-def method_arrays(tableau) -> MethodArrays:  # noqa: ANN001 -- a legsim.methods.Tableau
+def method_arrays(tableau) -> MethodArrays:
     """The tableau as ``MethodArrays`` (contiguous float64 and int64 arrays)."""
+    if tableau.implicit:
+        return _implicit_arrays(tableau)
     s = tableau.stages
     b_err = np.zeros(s) if tableau.b_err is None else np.asarray(tableau.b_err, dtype=float)
     b_low = np.zeros(s) if tableau.b_err_low is None else np.asarray(tableau.b_err_low, dtype=float)
@@ -46,7 +54,7 @@ def method_arrays(tableau) -> MethodArrays:  # noqa: ANN001 -- a legsim.methods.
         if extra:
             A_extra[:, : dense.A_extra.shape[1]] = dense.A_extra
     info = np.array(
-        [s, int(tableau.fsal), int(tableau.b_err is not None), int(tableau.b_err_low is not None), extra, degree],
+        [s, int(tableau.fsal), int(tableau.b_err is not None), int(tableau.b_err_low is not None), extra, degree, 0],
         dtype=np.int64,
     )
     return MethodArrays(
@@ -59,6 +67,36 @@ def method_arrays(tableau) -> MethodArrays:  # noqa: ANN001 -- a legsim.methods.
         np.ascontiguousarray(c_extra),
         np.ascontiguousarray(A_extra),
         info,
+        np.zeros((s, s)),
+        np.zeros(1),
+        np.zeros(s),
+    )
+
+
+def _implicit_arrays(tableau) -> MethodArrays:
+    """A linearly implicit method's arrays, its stages shifted to rows 1..s (row 0: f(t, x))."""
+    s = tableau.stages + 1
+
+    def shifted(values, shape):
+        out = np.zeros(shape)
+        out[(slice(1, None),) * len(shape)] = values
+        return out
+
+    b_err = np.zeros(s - 1) if tableau.b_err is None else np.asarray(tableau.b_err, dtype=float)
+    info = np.array([s, 0, int(tableau.b_err is not None), 0, -1, 0, 1], dtype=np.int64)
+    return MethodArrays(
+        shifted(tableau.c, (s,)),
+        shifted(tableau.A, (s, s)),
+        shifted(tableau.b, (s,)),
+        shifted(b_err, (s,)),
+        np.zeros(s),
+        np.zeros((s, 1)),
+        np.zeros(0),
+        np.zeros((0, s)),
+        info,
+        shifted(tableau.G, (s, s)),
+        np.array([float(tableau.gamma)]),
+        shifted(np.zeros(s - 1) if tableau.time_weights is None else tableau.time_weights, (s,)),
     )
 
 
@@ -77,6 +115,9 @@ def stages(tab: Tables, vis: Visit, ws, method: MethodArrays, t: float, x: np.nd
            XS: np.ndarray, x_new: np.ndarray) -> None:  # fmt: skip
     """The step of size h from (t, x): the stages K[1:s] (K[0] = f(t, x) given) and the new
     point x_new; XS is scratch of x's length. With FSAL the last stage is f(t + h, x_new)."""
+    if method.info[INFO_IMPLICIT] == 1:
+        implicit_stages(tab, vis, ws, method, t, x, h, K, XS, x_new)
+        return
     s = method.info[INFO_STAGES]
     n = x.shape[0]
     for i in range(1, s):
@@ -89,29 +130,116 @@ def stages(tab: Tables, vis: Visit, ws, method: MethodArrays, t: float, x: np.nd
         combine(x, K, method.b, s, h, x_new)
 
 
+def implicit_stages(tab: Tables, vis: Visit, ws, method: MethodArrays, t: float, x: np.ndarray, h: float,
+                    K: np.ndarray, XS: np.ndarray, x_new: np.ndarray) -> None:  # fmt: skip
+    """A linearly implicit (Rosenbrock W) step: each stage k_i (row i of K) solves
+    (I - gamma h J) k_i = f(t + c_i h, x + h sum_{j<i} A_ij k_j) + sum_{j<i} G_ij k_j
+    + g_i h df/dt, with the Jacobian ws.J and df/dt ws.ft evaluated before (``jacobian``);
+    x_new = x + h sum_i b_i k_i."""
+    n = x.shape[0]
+    rows = method.info[INFO_STAGES]
+    factor(ws.J, ws.LU, ws.piv, method.gamma[0] * h, n)
+    for i in range(1, rows):
+        combine(x, K, method.A[i], i, h, XS)
+        field_at(tab, vis, ws, t + method.c[i] * h, XS[:n], K[i, :n])
+        for j in range(1, i):
+            weight = method.G[i, j]
+            if weight != 0.0:
+                for d in range(n):
+                    K[i, d] += weight * K[j, d]
+        drift = method.time_weights[i] * h
+        for d in range(n):
+            K[i, d] += drift * ws.ft[d]
+        solve(ws.LU, ws.piv, K[i, :n], n)
+    combine(x, K, method.b, rows, h, x_new)
+
+
+def jacobian(tab: Tables, vis: Visit, ws, t: float, x: np.ndarray, f0: np.ndarray) -> None:
+    """df/dx at (t, x) into ws.J (n, n) and df/dt into ws.ft by forward differences, f0 = f(t, x)
+    given; the steps are sqrt(machine eps) scaled by max(1, |x_j|) (max(1, |t|) for t), the step
+    actually taken divided by."""
+    n = x.shape[0]
+    for d in range(n):
+        ws.XS[d] = x[d]
+    dt = (t + 1.4901161193847656e-08 * max(1.0, abs(t))) - t
+    field_at(tab, vis, ws, t + dt, ws.XS[:n], ws.w)
+    for d in range(n):
+        ws.ft[d] = (ws.w[d] - f0[d]) / dt
+    for j in range(n):
+        step = 1.4901161193847656e-08 * max(1.0, abs(x[j]))
+        ws.XS[j] = x[j] + step
+        field_at(tab, vis, ws, t, ws.XS[:n], ws.w)
+        width = ws.XS[j] - x[j]
+        for i in range(n):
+            ws.J[i, j] = (ws.w[i] - f0[i]) / width
+        ws.XS[j] = x[j]
+
+
+def factor(J: np.ndarray, LU: np.ndarray, piv: np.ndarray, gh: float, n: int) -> None:
+    """LU of I - gh J with partial pivoting, in place in LU (rows swapped, their order in piv);
+    a zero pivot is left for ``solve`` to turn into non-finite stages."""
+    for i in range(n):
+        for j in range(n):
+            LU[i, j] = (1.0 if i == j else 0.0) - gh * J[i, j]
+    for k in range(n):
+        p = k
+        for i in range(k + 1, n):
+            if abs(LU[i, k]) > abs(LU[p, k]):
+                p = i
+        piv[k] = p
+        if p != k:
+            for j in range(n):
+                LU[k, j], LU[p, j] = LU[p, j], LU[k, j]
+        if LU[k, k] == 0.0:
+            continue
+        for i in range(k + 1, n):
+            LU[i, k] /= LU[k, k]
+            for j in range(k + 1, n):
+                LU[i, j] -= LU[i, k] * LU[k, j]
+
+
+def solve(LU: np.ndarray, piv: np.ndarray, b: np.ndarray, n: int) -> None:
+    """Solve (LU) y = b in place, with the row swaps of ``factor``."""
+    for k in range(n):
+        p = piv[k]
+        if p != k:
+            b[k], b[p] = b[p], b[k]
+    for i in range(n):
+        for j in range(i):
+            b[i] -= LU[i, j] * b[j]
+    for i in range(n - 1, -1, -1):
+        for j in range(i + 1, n):
+            b[i] -= LU[i, j] * b[j]
+        b[i] /= LU[i, i]
+
+
+def estimate(method: MethodArrays, K: np.ndarray, h: float, d: int) -> tuple[float, float]:
+    """The step's local error estimates of coordinate d: h sum_j b_err_j K[j, d] and the blended
+    lower-order one (0 for a method without)."""
+    err = 0.0
+    err_low = 0.0
+    for j in range(method.info[INFO_STAGES]):
+        err += method.b_err[j] * K[j, d]
+        err_low += method.b_err_low[j] * K[j, d]
+    return h * err, h * err_low
+
+
 def error_norm(method: MethodArrays, K: np.ndarray, h: float, x: np.ndarray, x_new: np.ndarray, rtol: float,
                atol: float) -> float:  # fmt: skip
-    """Hairer's (and scipy's) RMS norm of the step's local error estimate h sum_j b_err_j K_j,
-    each coordinate scaled by atol + rtol max(|x|, |x_new|); for a blended pair (DOP853) the
-    fifth-order estimate damped where the third-order one is much larger."""
-    s = method.info[INFO_STAGES]
+    """Hairer's (and scipy's) RMS norm of the step's local error estimate, each coordinate
+    scaled by atol + rtol max(|x|, |x_new|); for a blended pair (DOP853) the fifth-order
+    estimate damped where the third-order one is much larger."""
     blended = method.info[INFO_BLENDED] == 1
     n = x.shape[0]
     high = 0.0
     low = 0.0
     for d in range(n):
         scale = atol + rtol * max(abs(x[d]), abs(x_new[d]))
-        err = 0.0
-        err_low = 0.0
-        for j in range(s):
-            err += method.b_err[j] * K[j, d]
-            if blended:
-                err_low += method.b_err_low[j] * K[j, d]
-        r = h * err / scale
+        err, err_low = estimate(method, K, h, d)
+        r = err / scale
         high += r * r
-        if blended:
-            r_low = h * err_low / scale
-            low += r_low * r_low
+        r_low = err_low / scale
+        low += r_low * r_low
     if not blended:
         return math.sqrt(high / n)
     if high == 0.0 and low == 0.0:
@@ -192,7 +320,7 @@ def hermite_slope(x0: np.ndarray, d0: np.ndarray, x1: np.ndarray, d1: np.ndarray
 
 def all_finite(x: np.ndarray) -> bool:
     """Whether every entry of x is finite."""
-    for d in range(x.shape[0]):
+    for d in range(x.shape[0]):  # noqa: SIM110 -- a loop numba compiles, not a generator
         if not math.isfinite(x[d]):
             return False
     return True

@@ -34,6 +34,7 @@ from .layout import (
     I_END_COUNT,
     I_END_INDEX,
     I_HALVINGS,
+    I_JACOBIAN_AGE,
     I_LAND_CONVERGED,
     I_LAND_E,
     I_REJECTIONS,
@@ -50,16 +51,20 @@ from .layout import (
     S_RTOL,
     S_T_FINAL,
 )
-from .rules import (
-    MAX_AIMS,
-    aimed_step,
-    kept_proposal,
-    proposed_step,
-    rejected_step,
-    shortening_exhausted,
-    trial_length,
+from .rules import MAX_AIMS, aimed_step, kept_proposal, proposed_step, rejected_step, shortening_exhausted, trial_length
+from .stages import (
+    INFO_FSAL,
+    INFO_IMPLICIT,
+    INFO_STAGES,
+    JACOBIAN_REUSE,
+    MethodArrays,
+    all_finite,
+    dense_point,
+    error_norm,
+    extend,
+    jacobian,
+    stages,
 )
-from .stages import INFO_FSAL, INFO_STAGES, MethodArrays, all_finite, dense_point, error_norm, extend, stages
 
 #: How a trial step went: evaluated; its state not finite; its model past its range.
 TRIAL_OK, TRIAL_NON_FINITE, TRIAL_BROKE = range(3)
@@ -75,6 +80,9 @@ def trial(tab: Tables, vis: Visit, ws, method: MethodArrays, hk: float, t1: floa
     went (``TRIAL_*``), the least guard there)."""
     n = vis.n
     ws.iv[I_BREAKDOWN] = 0
+    if method.info[INFO_IMPLICIT] == 1 and not 0 <= ws.iv[I_JACOBIAN_AGE] < JACOBIAN_REUSE:
+        jacobian(tab, vis, ws, ws.fs[F_T], ws.x[:n], ws.K[0, :n])
+        ws.iv[I_JACOBIAN_AGE] = 0
     stages(tab, vis, ws, method, ws.fs[F_T], ws.x[:n], hk, ws.K, ws.XS, ws.x1)
     broke = ws.iv[I_BREAKDOWN] == 1
     if not all_finite(ws.x1[:n]):
@@ -102,6 +110,7 @@ def keep(ws, proposal: float, shortened: int, rejected: bool, halvings: int) -> 
         ws.fs[F_H_PROP] = kept_proposal(ws.fs[F_H_PROP], proposal, shortened > 0, rejected)
     ws.iv[I_HALVINGS] += halvings
     ws.iv[I_STEPS] += 1
+    ws.iv[I_JACOBIAN_AGE] += 1
 
 
 def end_slope(tab: Tables, vis: Visit, ws, method: MethodArrays, t1: float) -> None:
@@ -141,6 +150,7 @@ def take_step(tab: Tables, vis: Visit, ws, method: MethodArrays, remaining: floa
                 passed, proposal = judge(ws, method, vis.n, hk, rejected)
                 if not passed:
                     ws.iv[I_REJECTIONS] += 1
+                    ws.iv[I_JACOBIAN_AGE] = -1  # an old Jacobian may be why: a new one for the retry
                     rejected, hk, last = True, proposal, False
                     continue
                 if inside:

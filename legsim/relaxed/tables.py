@@ -212,11 +212,9 @@ class RunTables:
                 self.modes[row, M_ENTER] = self.function(adapt.enter_adapter(self.control, name))
 
     def _memory(self) -> int:
-        if self.law is not None:
-            return len(self.law.memory_names)
-        if isinstance(self.control, Bound):
-            return len(self.control.controller.memory_names or ())
-        return 0
+        """The memory entries of the state: a ``ControlLaw``'s (a Python ``Controller`` keeps its
+        state in itself, and the orbit search reads it through ``memory()``)."""
+        return 0 if self.law is None else len(self.law.memory_names)
 
     def _python(self, reason: str) -> None:
         if self.compiled:
@@ -266,6 +264,11 @@ class RunTables:
         self.kinds.append(kind)
         self._function_ids[key] = len(self.functions) - 1
         return len(self.functions) - 1
+
+    def plain_functions(self) -> list[Any]:
+        """The function table with each compiled function as its plain Python source
+        (``py_func``): the whole run in Python, to read or debug."""
+        return [getattr(fn, "py_func", fn) for fn in self.functions]
 
     def params(self, values: Any) -> tuple[int, int]:
         """Store a parameter array in P: its span (start, end)."""
@@ -325,9 +328,7 @@ def _own_resets(data: ModeData, functions: ModeFunctions) -> bool:
             return reset is None
         return isinstance(reset, ResetOf) and reset.functions is functions
 
-    return all(
-        own(tr.reset) and (tr.continuation is None or own(tr.continuation.reset)) for tr in data.transitions
-    )
+    return all(own(tr.reset) and (tr.continuation is None or own(tr.continuation.reset)) for tr in data.transitions)
 
 
 def _grown(arr: np.ndarray, rows: int) -> np.ndarray:

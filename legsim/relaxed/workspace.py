@@ -1,10 +1,11 @@
 """The arrays one run's loop works in (``Workspace``), allocated once and grown by the driver.
 
 Every array is named by ``layout``: settings (``cf``, ``ci``), the run's state and counters
-(``fs``, ``iv``), the current point and the step's scratch, the guards, the controller's input and
-memory, the Zeno histories, and the output buffers the driver drains into the execution: points
+(``fs``, ``iv``), the current point and the step's scratch, the guards, the controller's input (and
+the input previewed after a crossing, ``u_after``) and memory, the Zeno histories, and the output buffers the driver drains into the execution: points
 (T, X, DX), visits, and crossing records (``rec_f``, ``rec_i``, q in ``rec_q``, the image in
-``rec_x``). Widths: W the longest state of the run's modes (memory included), G the most guards,
+``rec_x``); for a linearly implicit method the Jacobian J, the factors LU of I - gamma h J,
+their row pivots and df/dt (ft). Widths: W the longest state of the run's modes (memory included), G the most guards,
 S the method's stages and extra stages, U the input's entries, M the memory's.
 """
 
@@ -18,6 +19,7 @@ from .layout import (
     FLOAT_SETTINGS,
     FLOAT_STATE,
     HISTORY_FIELDS,
+    I_JACOBIAN_AGE,
     INT_SETTINGS,
     INT_STATE,
     RECORD_FLOATS,
@@ -27,7 +29,8 @@ from .layout import (
 
 Workspace = namedtuple(
     "Workspace",
-    "cf ci fs iv x K XS x1 k1 q w g_here g1 g_w crossed u u_after m_new history T X DX visits rec_f rec_i rec_q rec_x",
+    "cf ci fs iv x K XS x1 k1 q w g_here g1 g_w crossed u u_after m_new history T X DX visits rec_f rec_i rec_q rec_x "
+    "J LU piv ft",
 )
 
 #: Capacity of the output buffers: points (about 2 MB at W = 16), crossing records and visits.
@@ -38,7 +41,7 @@ def allocate(width: int, guards: int, stages: int, inputs: int, memory: int, his
     """A workspace for states of up to ``width`` entries, ``guards`` guards, ``stages`` stage
     rows, an input of ``inputs`` entries, ``memory`` memory values and ``histories`` rows."""
     W, G = max(1, width), max(1, guards)
-    return Workspace(
+    ws = Workspace(
         np.zeros(FLOAT_SETTINGS),
         np.zeros(INT_SETTINGS, dtype=np.int64),
         np.zeros(FLOAT_STATE),
@@ -66,7 +69,13 @@ def allocate(width: int, guards: int, stages: int, inputs: int, memory: int, his
         np.zeros((RECORDS, RECORD_INTS), dtype=np.int64),
         np.zeros((RECORDS, W)),
         np.zeros((RECORDS, W)),
+        np.zeros((W, W)),
+        np.zeros((W, W)),
+        np.zeros(W, dtype=np.int64),
+        np.zeros(W),
     )
+    ws.iv[I_JACOBIAN_AGE] = -1
+    return ws
 
 
 def resized(ws: Workspace, width: int, guards: int, inputs: int, histories: int) -> Workspace:

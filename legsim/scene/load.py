@@ -52,7 +52,7 @@ import numpy as np
 
 from .. import builders
 from ..builders import ZENO_WINDOW, Builder, Model, Param, resolve_parameters
-from ..control import ControlLaw, Controller
+from ..control import ControlLaw
 from ..errors import LegsimError, ModelError, SceneError
 from ..execution import Execution
 from ..output.summary import run_summary
@@ -519,20 +519,6 @@ def _known_modes(model: Model) -> list[str]:
         return sorted(model.system.modes)
 
 
-def _initial_input(control: Any, mode: str, t0: float, x0: np.ndarray) -> Any:
-    """The input at the initial state: a ``ControlLaw``'s from its initial memory, a
-    ``Controller``'s in ``mode``, a plain control's (None without one)."""
-    if control is None:
-        return None
-    if isinstance(control, ControlLaw):
-        u = np.zeros(control.inputs)
-        control.control(float(t0), x0, np.asarray(control.initial_memory, dtype=float), control.params_for(mode), u)
-        return u
-    if isinstance(control, Controller):
-        return control(mode, t0, x0)
-    return control(t0, x0)
-
-
 def _initial(
     path: Path, model: Model, table: dict[str, Any], eps: float, t0: float, controller: Any = None
 ) -> tuple[str, np.ndarray]:
@@ -576,7 +562,13 @@ def _initial(
         values.append(value)
     x0 = np.array(values, dtype=float)
     try:
-        u0 = _initial_input(controller if controller is not None else model.control, mode, t0, x0)
+        control = controller if controller is not None else model.control
+        if isinstance(control, ControlLaw):
+            u0 = control.input_at(mode, t0, x0)
+        elif controller is not None:
+            u0 = controller(mode, t0, x0)
+        else:
+            u0 = None if model.control is None else model.control(t0, x0)
     except Exception as exc:
         raise ModelError(
             f"{path}: the control of robot model '{system.name}' failed on the initial state "

@@ -1,6 +1,7 @@
 """The bouncing ball: free fall onto a floor with restitution c, and its closed-form Zeno execution.
 
-Written once as model functions (``legsim.model``), compiled. One mode ``flight`` with state ``(z, zd)``: z the height of the ball's lowest point above the
+Written once as model functions (``legsim.model``), compiled. One mode ``flight`` with state
+``(z, zd)``: z the height of the ball's lowest point above the
 floor (m), zd its vertical velocity (m/s). Field ``(zd, -g)``. One transition ``bounce``
 (``flight -> flight``) with guard ``max(z, zd)`` and reset ``(z, -c zd)``: the ball is past the
 guard when it is below the floor *and* falling, so the guard's value near an impact is the

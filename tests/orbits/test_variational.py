@@ -1,80 +1,60 @@
-"""The compiled variational equation against the Python path's analytic field Jacobians."""
+"""The variational equation along a stored segment: against the flow's exact Jacobian, and the
+compiled evaluation against the interpreted one of the same source."""
 
 import numpy as np
 import pytest
-from legsim.robots import compass_gait
 
-from helpers.orbit_systems import hopf_reset
-from legsim.orbits import OrbitProblem, Section, jacobian_saltation, jacobians, return_map, variational
-from legsim.orbits.variational import compiled_sensitivity
+from legsim import simulate
+from legsim.methods import get_method
+from legsim.orbits import variational
+from legsim.relaxed import driver
+from legsim.systems import bouncing_ball
+from legsim.systems.oscillator import make_system as oscillator
+
+
+def sensitivity(system, seg, newton=False, t_stop=None):
+    return variational.segment_sensitivity(driver.Evaluator(system, get_method("rk4")), seg, t_stop, newton)
 
 
 @pytest.fixture(scope="module")
-def compass_return():
-    model = compass_gait.make({})
-    assert all(model.system.mode(name).compiled is not None for name in model.system.modes)
-    prob = OrbitProblem(model.system, Section.after("heel_strike"), h=2e-3, eps=1e-6, t_max=3.0, cyclic=["foot_x"])
-    ret = return_map(prob, np.array([-0.27, 0.54, 1.09, -0.72, 0.0]))
-    return prob, ret
+def flight():
+    system = bouncing_ball.make_system(restitution=0.9)
+    ex = simulate(system, [2.0, 1.0], "flight", 0.5, 1e-2, 1e-6)
+    return system, ex.segments[0]
 
 
-def python_path_jacobian(prob, ret, monkeypatch):
-    """The saltation Jacobian with every segment on the Python path: the compass gait's modes
-    carry an analytic ``Mode.jacobian``, so this reference has no finite differences inside."""
-    with monkeypatch.context() as m:
-        m.setattr(jacobians, "compiled_sensitivity", lambda *args, **kwargs: None)
-        return jacobian_saltation(prob, ret)
+def test_the_free_fall_segment_has_the_exact_flow_jacobian(flight):
+    # z'' = -g: d(z, zd)(t) / d(z, zd)(0) = [[1, t], [0, 1]], which RK4's steps reproduce exactly.
+    system, seg = flight
+    duration = seg.t[-1] - seg.t[0]
+    np.testing.assert_allclose(sensitivity(system, seg), [[1.0, duration], [0.0, 1.0]], rtol=0, atol=1e-9)
 
 
-def test_compiled_saltation_jacobian_matches_the_analytic_python_path(compass_return, monkeypatch):
-    prob, ret = compass_return
-    reference = python_path_jacobian(prob, ret, monkeypatch)
-    scale = np.max(np.abs(reference))
-    # Central differences of the twin's field, relative ~1e-10 per stage (measured 1e-11 over
-    # the whole return).
-    assert np.max(np.abs(jacobian_saltation(prob, ret) - reference)) < 1e-9 * scale
+def test_a_segment_cut_inside_a_step_ends_at_the_cut(flight):
+    system, seg = flight
+    t_stop = 0.5 * (seg.t[10] + seg.t[11])
+    np.testing.assert_allclose(
+        sensitivity(system, seg, t_stop=t_stop), [[1.0, t_stop - seg.t[0]], [0.0, 1.0]], rtol=0, atol=1e-9
+    )
 
 
-def test_newton_jacobian_is_accurate_enough_for_a_newton_step(compass_return, monkeypatch):
-    prob, ret = compass_return
-    reference = python_path_jacobian(prob, ret, monkeypatch)
-    error = np.max(np.abs(jacobian_saltation(prob, ret, newton=True) - reference)) / np.max(np.abs(reference))
-    # Forward differences and interpolated field Jacobians: ~1e-6 relative (measured 1.5e-6),
-    # so a Newton step from a residual r leaves ~1e-6 r; not the converged orbit's Jacobian.
-    assert 1e-9 < error < 1e-5
+def test_the_damped_oscillator_matches_its_matrix_exponential():
+    # x'' = -2 a x' - w^2 x over the segment: Phi = expm(A T), to RK4's and the differences' accuracy.
+    from scipy.linalg import expm
+
+    system = oscillator(omega=2.0, a=0.1, x_max=None)
+    ex = simulate(system, [1.0, 0.0], "free", 1.0, 1e-3, 1e-6)
+    seg = ex.segments[0]
+    A = np.array([[0.0, 1.0], [-4.0, -0.2]])
+    exact = expm(A * (seg.t[-1] - seg.t[0]))
+    np.testing.assert_allclose(sensitivity(system, seg), exact, rtol=0, atol=1e-8)
+    # Newton's Jacobian (forward differences, interpolated where the field Jacobian is constant):
+    # ~1e-6 relative is all a Newton step needs.
+    assert np.max(np.abs(sensitivity(system, seg, newton=True) - exact)) < 1e-5
 
 
-def test_a_segment_cut_inside_a_step_matches_the_python_product(compass_return, monkeypatch):
-    # A crossing section cuts the last segment's last step at t_stop: the cut step's derivative.
-    prob, ret = compass_return
-    system, _ = prob.instantiate(ret.parameters)
-    seg = ret.execution.segments[0]
-    t_stop = 0.5 * (seg.t[len(seg.t) // 2] + seg.t[len(seg.t) // 2 + 1])
-    compiled = compiled_sensitivity(system.mode(seg.mode), prob.tableau, seg, t_stop)
-    monkeypatch.setattr(jacobians, "compiled_sensitivity", lambda *args, **kwargs: None)
-    python = jacobians._segment_sensitivity(system, None, prob.tableau, seg, t_stop, False)
-    assert compiled is not None
-    assert np.max(np.abs(compiled - python)) < 1e-9 * np.max(np.abs(python))
-
-
-def test_a_mode_without_a_compiled_twin_is_left_to_the_python_path():
-    prob = OrbitProblem(hopf_reset(), Section.after("jump"), h=2e-3, eps=1e-4, t_max=2.0)
-    ret = return_map(prob, np.array([-0.35, -0.55]))
-    seg = ret.execution.segments[0]
-    mode = prob.system.mode(seg.mode)
-    assert mode.compiled is None
-    assert compiled_sensitivity(mode, prob.tableau, seg) is None
-
-
-def test_an_unwritable_kernel_cache_leaves_the_product_to_the_python_path(compass_return, monkeypatch, tmp_path):
-    prob, ret = compass_return
-    reference = python_path_jacobian(prob, ret, monkeypatch)
-    blocker = tmp_path / "not_a_folder"
-    blocker.write_text("")
-    monkeypatch.setenv("LEGSIM_CACHE_DIR", str(blocker / "kernels"))
-    monkeypatch.setattr(variational, "_MODULES", {})
-    system, _ = prob.instantiate(ret.parameters)
-    seg = ret.execution.segments[0]
-    assert compiled_sensitivity(system.mode(seg.mode), prob.tableau, seg) is None
-    # The Python path (analytic field Jacobians) gives the same Jacobian, bit for bit.
-    assert np.array_equal(jacobian_saltation(prob, ret), reference)
+def test_compiled_and_interpreted_evaluations_agree_to_the_bit(flight, monkeypatch):
+    system, seg = flight
+    compiled = sensitivity(system, seg)
+    monkeypatch.setattr(driver, "KERNEL", None)
+    assert np.array_equal(sensitivity(system, seg), compiled)

@@ -223,10 +223,25 @@ def test_a_step_below_the_time_resolution_is_refused(ball):
         simulate(ball, [1.0, 0.0], "flight", 1e15 + 2.0, 1e-3, 1e-4, t0=1e15)
 
 
-def test_an_eps_below_float_resolution_says_so(ball):
-    ex = simulate(ball, [1.0, 0.0], "flight", 1.0, 1e-3, 1e-300)
-    assert ex.status == "halving_exhausted"
-    assert "eps = 1e-300 is thinner than float64 can resolve near this state" in ex.message
+def test_an_eps_below_float_resolution_is_refused_before_the_run(ball):
+    with pytest.raises(SimulationError, match=r"^eps = 1e-300 is thinner than float64 resolves .* mode 'flight'"):
+        simulate(ball, [1.0, 0.0], "flight", 1.0, 1e-3, 1e-300)
+    # 16 spacings of float64 at the state's scale is the thinnest strip a step can land in.
+    assert simulate(ball, [1.0, 0.0], "flight", 1.0, 1e-3, 1e-14).status == "finished"
+
+
+def test_a_run_that_stops_advancing_ends_stalled_naming_mode_guard_and_time():
+    # The reset puts its image at the strip's far edge (g = -eps): the next entry crosses at
+    # once with depth tau = eps, so its strip lasts eps - tau = 0 s, and so on without end.
+    eps = 1e-6
+    system = HybridSystem(
+        {"a": Mode(1, lambda t, x, u: np.array([1.0]))},
+        [Transition("a", "a", lambda x: 1.0 - x[0], lambda x: np.array([1.0 + eps]), name="wall")],
+    )
+    ex = simulate(system, [0.0], "a", 10.0, 0.1, eps)
+    assert ex.status == "stalled", ex.message
+    assert "mode 'a'" in ex.message and "transition wall" in ex.message and f"t={ex.t_end:.17g}" in ex.message
+    assert len(ex.transitions) < 2000 < 100_000  # ended by the stall rule, not the transition budget
 
 
 def test_a_step_budget_refuses_a_run_too_long_for_it(ball):
@@ -249,7 +264,7 @@ def test_an_error_controlled_run_ends_when_it_has_taken_its_step_budget(ball):
 def test_progress_is_reported_across_transitions_when_no_step_is_taken(monkeypatch):
     # A Zeno ball past its accumulation point crosses strip after strip; progress must keep
     # coming by wall-clock time, not only every 64 steps of one mode visit.
-    import legsim.relaxed.run as run_module
+    import legsim.relaxed.driver as run_module
     from legsim.systems import bouncing_ball as bb
 
     clock = iter(range(10**7))
@@ -270,7 +285,7 @@ def test_progress_is_reported_across_transitions_when_no_step_is_taken(monkeypat
 
 
 def test_a_failing_progress_callback_is_named_as_the_callers_not_the_models(ball, monkeypatch):
-    import legsim.relaxed.run as run_module
+    import legsim.relaxed.driver as run_module
 
     def progress(t, t0, t1):
         raise RuntimeError("terminal closed")
@@ -284,7 +299,7 @@ def test_a_failing_progress_callback_is_named_as_the_callers_not_the_models(ball
 def test_a_progress_callback_stops_the_run_with_its_own_legsim_error(ball, monkeypatch):
     # A deadline (the sweep's --timeout) stops a run by raising its own LegsimError from the
     # callback: the caller must receive that error, not a SimulationError wrapping it.
-    import legsim.relaxed.run as run_module
+    import legsim.relaxed.driver as run_module
     from legsim.errors import LegsimError
 
     class Deadline(LegsimError):

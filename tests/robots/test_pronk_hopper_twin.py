@@ -10,6 +10,7 @@ equal to the bit, and so are whole runs: the tests compare exactly (tolerance 0)
 import contextlib
 import math
 
+import legsim.compiled.visit as visit
 import numpy as np
 import pytest
 from legsim.robots import pronk_hopper, pronk_hopper_twin
@@ -17,7 +18,6 @@ from legsim.robots.pronk_hopper import BELOW_GROUND, LEGS, MODES, PronkHopper, s
 from legsim.robots.raibert_pronk import RECORD_NAMES, PronkRaibert
 
 import legsim.compiled as compiled
-import legsim.compiled.visit as visit
 from legsim.compiled import without_compiled
 from legsim.errors import ModelBreakdown
 from legsim.relaxed import simulate

@@ -9,14 +9,14 @@ from __future__ import annotations
 
 import dataclasses
 
+import legsim.compiled.visit as compiled_visit
+import legsim.relaxed.integrate as integrate
 import numpy as np
 import pinocchio as pin
 import pytest
 from legsim.robots import raibert, runner_laws, runner_twin
 from legsim.robots.bridge.control_records import CTRL_RUNNER
 
-import legsim.compiled.visit as compiled_visit
-import legsim.relaxed.integrate as integrate
 from legsim.scene import load_scene
 
 SCENES = ("quadruped_pronk", "quadruped_run")

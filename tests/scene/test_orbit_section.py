@@ -10,7 +10,7 @@ import pytest
 import legsim.orbits
 from legsim.errors import SceneError
 from legsim.scene import load_scene
-from legsim.scene.orbit import ORBIT_KEYS, OrbitSettings, problem_from_scene
+from legsim.scene.orbit import OrbitSettings, problem_from_scene
 
 
 def test_the_rimless_wheel_section_becomes_a_problem_with_solver_settings_and_guess():
@@ -74,9 +74,8 @@ def test_an_integrator_setting_the_problem_refuses_is_named_as_an_integrator_fie
     ) and "got 'rk4'" in str(info.value)
 
 
-def test_the_orbit_package_re_exports_the_reader():
-    assert legsim.orbits.problem_from_scene is problem_from_scene
-    assert legsim.orbits.ORBIT_KEYS is ORBIT_KEYS and legsim.orbits.OrbitSettings is OrbitSettings
+def test_the_orbit_package_does_not_reach_up_to_the_scene_layer():
+    assert not hasattr(legsim.orbits, "problem_from_scene") and not hasattr(legsim.orbits, "ORBIT_KEYS")
 
 
 def test_the_algorithms_do_not_load_the_scene_layer():

@@ -1,0 +1,32 @@
+"""``legsim cache``: where legsim keeps its compiled code, and clearing it.
+
+legsim compiles its step loop and each model's functions once per machine and legsim version
+(with numba) and loads them from its cache afterwards (``legsim.compiled.cache``). ``legsim
+cache`` prints the folder and its size; ``legsim cache clear`` removes it (every version's),
+so the next run compiles again.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+NAME = "cache"
+HELP = "show or clear legsim's cache of compiled code"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("action", nargs="?", choices=("show", "clear"), default="show", help="show (default) or clear")
+
+
+def run(args: argparse.Namespace) -> int:
+    from ..compiled import cache
+
+    if args.action == "clear":
+        folder, count = cache.clear()
+        print(f"removed {count} files of compiled code from {folder}")
+        return 0
+    folder = cache.cache_dir()
+    files = [p for p in folder.rglob("*") if p.is_file()] if folder.exists() else []
+    size = sum(p.stat().st_size for p in files)
+    print(f"{folder}: {len(files)} files, {size / 1e6:.1f} MB of compiled code (legsim cache clear removes them)")
+    return 0
