@@ -59,7 +59,7 @@ def joint_angles(thigh: float, shank: float, bend: float, length: float, angle: 
     """(q_hip, q_knee) (rad) putting the foot at ``length`` (m) from the hip, ``angle`` (rad)
     from the body's -z axis towards +x, the knee bent by its sign ``bend``."""
     l1, l2 = thigh, shank
-    c = (length**2 - l1**2 - l2**2) / (2 * l1 * l2)
+    c = (length * length - l1 * l1 - l2 * l2) / (2 * l1 * l2)
     knee = bend * math.acos(max(-1.0, min(1.0, c)))
     # the foot's direction is u(q_hip + phi) with phi the angle the shank adds to the thigh's
     phi = math.atan2(l2 * math.sin(knee), l1 + l2 * math.cos(knee))
@@ -98,7 +98,7 @@ def stance_torques(
     dragging; the attitude torque is kept below ``ATTITUDE_SHARE`` of the leg force times its
     length, so that the foot's force stays well inside the friction cone."""
     px, pz, j00, j01, j10, j11 = foot_terms(thigh, shank, q_hip, q_knee)
-    r = math.hypot(px, pz)
+    r = math.sqrt(px * px + pz * pz)  # not hypot: numba's and Python's differ in the last bit
     rdot = (px * (j00 * v_hip + j01 * v_knee) + pz * (j10 * v_hip + j11 * v_knee)) / r
     # the thrust comes in with the extension rate (not at once at the bottom of the stance, so
     # that the contact forces, and the guards on them, stay continuous)
@@ -198,12 +198,12 @@ def retract_torques(
     quadruped's bound")."""
     px, pz, j00, j01, j10, j11 = foot_terms(thigh, shank, q_hip, q_knee)
     pxd, pzd = j00 * v_hip + j01 * v_knee, j10 * v_hip + j11 * v_knee
-    r = math.hypot(px, pz)
+    r = math.sqrt(px * px + pz * pz)  # not hypot: numba's and Python's differ in the last bit
     rdot = (px * pxd + pz * pzd) / r
     force = RETRACT_STIFFNESS * (SWING_SHARE * leg_length - r) - RETRACT_DAMPING * rdot
     fx, fz = force * px / r, force * pz / r
     world = math.atan2(px, -pz) - pitch
-    world_rate = (-pz * pxd + px * pzd) / r**2 - pitch_rate
+    world_rate = (-pz * pxd + px * pzd) / (r * r) - pitch_rate
     # the foot's angle from the body's -z axis falls as the hip angle grows
     swing = -(kp * (liftoff_angle - world) - kd * world_rate)
     return j00 * fx + j10 * fz + swing + gravity_hip, j01 * fx + j11 * fz + gravity_knee
@@ -376,7 +376,8 @@ def runner_enter(t, x, m, p, m_new):
         elif was and not stance:
             m_new[mem + M_T_S] = min(max(t - m_new[mem + M_TOUCHDOWN], 0.02), 0.5)
             z, zd = hop_height(p, leg, x, n)
-            apex = z + max(zd, 0.0) ** 2 / (2 * G)
+            rise = max(zd, 0.0)
+            apex = z + rise * rise / (2 * G)
             target = p[R_HEIGHT] + m_new[mem + M_PHASE]
             thrust = m_new[mem + M_THRUST] + p[R_K_HEIGHT] * (target - apex)
             m_new[mem + M_THRUST] = min(max(thrust, 0.0), p[R_MAX_THRUST])

@@ -78,6 +78,13 @@ def load() -> bool:
     return True
 
 
+def library() -> ctypes.CDLL:
+    """The loaded library, for calls from Python (``calls``); RuntimeError when unavailable."""
+    if not load():
+        raise RuntimeError(f"native library unavailable: {_state['reason']}")
+    return cast(ctypes.CDLL, _state["lib"])
+
+
 def status() -> str:
     """'available', or why the native path is not."""
     return "available" if load() else str(_state["reason"])
