@@ -152,6 +152,34 @@ class ControlLaw:
         return hasattr(self.control, "py_func") and (self.enter is None or hasattr(self.enter, "py_func"))
 
 
+class LawController(Controller):
+    """A ``ControlLaw`` run as a ``Controller`` (its memory kept here, changed by ``enter`` at
+    every mode entry), for tools that drive a plant by Python controllers (the event-driven
+    baseline, ``legsim.baselines``): the same functions, hence the same input."""
+
+    def __init__(self, law: ControlLaw) -> None:
+        self.law = law
+        self.hold = law.hold
+        self.memory_names = law.memory_names
+        self.memory_units = law.memory_units
+        self._memory = np.asarray(law.initial_memory, dtype=float).copy()
+
+    def reset(self, mode: str, t: float, x: np.ndarray) -> None:
+        if self.law.enter is not None:
+            new = np.empty_like(self._memory)
+            self.law.enter(float(t), np.ascontiguousarray(x, dtype=float), self._memory, self.law.params_for(mode), new)
+            self._memory = new
+
+    def memory(self) -> np.ndarray:
+        return self._memory.copy()
+
+    def restore(self, mode: str, memory: np.ndarray) -> None:
+        self._memory = np.asarray(memory, dtype=float).reshape(-1).copy()
+
+    def __call__(self, mode: str, t: float, x: np.ndarray) -> np.ndarray:
+        return self.law.input_at(mode, t, x, self._memory)
+
+
 class Bound:
     """A ``Controller`` as the integrator calls a control, ``u(t, x)``, bound to the mode the run
     is in, with the held value of a zero-order hold."""

@@ -32,7 +32,7 @@ from typing import Any, Literal, cast
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from ..control import Bound, Controller, bind
+from ..control import Bound, ControlLaw, Controller, LawController, bind
 from ..errors import ModelBreakdown, SimulationError
 from ..execution import Execution, Segment, Strip, TransitionRecord
 from ..hybrid import HybridSystem, Transition
@@ -247,7 +247,10 @@ class _EventRun:
 
 def _bound_control(control: Any) -> Any:
     """What the loop calls as ``u(t, x)``: the control itself, or a Controller bound to the mode;
-    SimulationError for anything else and for a held Controller."""
+    SimulationError for anything else and for a held Controller. A ``ControlLaw`` runs as a
+    ``LawController``."""
+    if isinstance(control, ControlLaw):
+        control = LawController(control)
     if control is not None and not callable(control):
         raise SimulationError(
             f"control must be callable control(t, x) -> u or None, got {type(control).__name__}; "

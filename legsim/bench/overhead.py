@@ -112,7 +112,7 @@ def python_costs(system, mode: str, x: np.ndarray, n: int = 50_000) -> dict[str,
     clock = time.process_time
     cost = {"field": min(timeit.repeat(lambda: field(0.0, x, None), number=number, repeat=3, timer=clock)) / number}
     if tr is not None:
-        cost["guards"] = min(timeit.repeat(lambda: tr.guard(x), number=number, repeat=3, timer=clock)) / number
+        cost["guards"] = min(timeit.repeat(lambda: tr.guard_value(x), number=number, repeat=3, timer=clock)) / number
         cost["reset"] = min(timeit.repeat(lambda: tr.reset(x), number=number, repeat=3, timer=clock)) / number
     else:
         cost["guards"] = cost["reset"] = 0.0

@@ -39,6 +39,7 @@ from typing import Any
 import numpy as np
 
 from ..builders import get_builder
+from ..control import ControlLaw
 from ..errors import LegsimError
 from ..progress import counting
 from .cases import BenchError, RunSpec
@@ -148,6 +149,7 @@ class RobotCase:
             return math.inf
         worst = 0.0
         for (ta, xa), (tb, xb) in zip(ours, ref, strict=True):
+            xa = xa[: xb.shape[0]]  # a ControlLaw's memory follows the plant's state in a relaxed run
             if xa.shape != xb.shape:
                 return math.inf
             worst = max(worst, abs(ta - tb), float(np.max(np.abs(xa - xb))))
@@ -259,17 +261,12 @@ def _controlled_case(name: str, quick: bool) -> RobotCase:
 
 
 def takes_compiled_path(system: Any, control: Any) -> bool:
-    """Whether runs of ``system`` under ``control`` (a Controller, evaluated at every stage)
-    take the compiled path: every mode built so far (a robot's bridge builds its modes as runs
-    reach them) has a twin that computes that controller."""
-    from ..control import bind
-    from ..relaxed.integrate import control_writer
-
-    twins = [system.mode_data(mode).mode.compiled for mode in list(system.modes)]
-    bound = bind(control)
-    return all(
-        twin is not None and twin.controls is not None and control_writer(bound, twin) is not None for twin in twins
-    )
+    """Whether runs of ``system`` under ``control`` take the compiled path: every mode built so
+    far (a robot's bridge builds its modes as runs reach them) is written as compiled model
+    functions, and the control is none or a compiled ``ControlLaw``."""
+    functions = [system.mode(mode).functions for mode in list(system.modes)]
+    law = control is None or (isinstance(control, ControlLaw) and control.compiled)
+    return law and all(f is not None and f.compiled for f in functions)
 
 
 def make_robot_case(name: str, quick: bool = False) -> RobotCase:
@@ -504,34 +501,69 @@ def format_levels(results: list[LevelResult]) -> str:
 
 
 def cost_report(case: RobotCase, rows: list[Row]) -> dict[str, float]:
-    """The limit: seconds per call of a bare C++ ABA on the case's model, of the compiled
-    field all-in (called from compiled code) and of the Python field; and, for the fastest
-    compiled run below 1e-6, the share of its wall time outside ABA (1 - field evaluations x
-    bare ABA / wall time)."""
+    """The limit: seconds per call of a bare C++ ABA on the case's model, of the mode's compiled
+    field, guards and first reset called from compiled code, and of its field called from
+    Python; and, for the fastest compiled run below 1e-6, the share of its wall time outside ABA
+    (1 - field evaluations x bare ABA / wall time)."""
     from .. import _native
-    from .overhead import compiled_costs, python_costs
+    from .overhead import python_costs
 
-    twin = case.system.mode_data(case.mode).mode.compiled
-    if twin is None or case.controlled is not None:
+    mode = case.system.mode(case.mode)
+    functions = mode.functions
+    if functions is None or not functions.compiled or case.controlled is not None:
         return {}
-    n = int(case.system.mode_data(case.mode).mode.dim)
     x = np.ascontiguousarray(case.x0, dtype=float)
-    nv = (n - 1) // 2 if case.name in ("compass-gait", "rimless-wheel") else n // 2
-    aba = _native.time_aba(int(twin.params[0]), x[:nv], x[nv : 2 * nv], np.zeros(nv), 200_000)
-    compiled = compiled_costs(twin, x, 200_000)
+    nv = (mode.dim - 1) // 2 if case.name in ("compass-gait", "rimless-wheel") else mode.dim // 2
+    handle = int(functions.params[0])  # every robot's parameter array starts with its native handle
+    aba = _native.time_aba(handle, x[:nv], x[nv : 2 * nv], np.zeros(nv), 200_000)
+    costs = model_function_costs(functions, mode.dim, len(case.system.outgoing(case.mode)), x, 200_000)
     python = python_costs(case.system, case.mode, x, 20_000)
     out = {
         "aba_s": aba,
-        "field_s": compiled["field"],
-        "guards_s": compiled["guards"],
-        "reset_s": compiled["reset"],
+        "field_s": costs["field"],
+        "guards_s": costs["guards"],
+        "reset_s": costs["reset"],
         "python_field_s": python["field"],
-        "field_over_aba": compiled["field"] / aba,
+        "field_over_aba": costs["field"] / aba,
     }
     best = at_levels(rows, (1e-6,))[0].best["relaxed"]
     if best is not None:
         out["outside_aba_share"] = 1.0 - best.field_evals * aba / best.wall_s
     return out
+
+
+def model_function_costs(functions: Any, dim: int, guards: int, x: np.ndarray, n: int) -> dict[str, float]:
+    """Seconds per call of a mode's compiled field, guards and first reset at x (the best of 3
+    batches of n calls), each called from a compiled loop."""
+    import numba
+
+    @numba.njit
+    def loop_state(fn, n, x, u, p, out):  # noqa: ANN001, ANN202 -- numba's calling convention
+        for _ in range(n):
+            fn(0.0, x, u, p, out)
+
+    @numba.njit
+    def loop_reset(fn, n, x, u, p, out):  # noqa: ANN001, ANN202
+        for _ in range(n):
+            fn(0, 0.0, x, u, p, out)
+
+    p, u = np.array(functions.params), np.zeros(functions.inputs)
+    out = np.empty(max(dim, guards, 1) + 16)
+    timed = {"field": (loop_state, functions.field), "guards": (loop_state, functions.guards),
+             "reset": (loop_reset, functions.reset)}  # fmt: skip
+    costs = {}
+    for name, (loop, fn) in timed.items():
+        if fn is None or (name == "guards" and guards == 0):
+            costs[name] = math.nan
+            continue
+        loop(fn, 1, x, u, p, out)
+        best = math.inf
+        for _ in range(3):
+            start = time.perf_counter()
+            loop(fn, n, x, u, p, out)
+            best = min(best, time.perf_counter() - start)
+        costs[name] = best / n
+    return costs
 
 
 def format_costs(costs: dict[str, float]) -> str:

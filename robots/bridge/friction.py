@@ -201,13 +201,16 @@ def velocities(T, N, tangential, v_plus, vt, vn):
 @model_function
 def energy_checked(x, p, engaged, mu, T, N, tangential, Minv, v_plus, lt, ln, vt, vn):
     """Keep v_plus, or where it adds kinetic energy solve the impact again with every
-    restitution 0, and should that too, with the sliding contacts stuck."""
+    restitution 0, and should that too, with the sliding contacts stuck; False where the kinetic
+    energy overflows (a state past the model's range)."""
     n = int(p[P_N])
     v = x[n : 2 * n]
     M = np.empty(n * n)
     lsn_crba(handle(p), x.ctypes.data, M.ctypes.data)
-    before = kinetic(M, v, n)
-    if not kinetic(M, v_plus, n) > before * (1.0 + ENERGY_TOL) + 1e-300:
+    before, after = kinetic(M, v, n), kinetic(M, v_plus, n)
+    if not (math.isfinite(before) and math.isfinite(after)):
+        return False  # speeds no motion of the model reaches: its energy overflows
+    if not after > before * (1.0 + ENERGY_TOL) + 1e-300:
         return True
     engaged[:, 1] = 0.0
     if not impulse_solve(engaged, mu, T, N, Minv, v, v_plus, lt, ln):

@@ -12,7 +12,8 @@ An outcome is named ``joint_<strikers>`` (``rest_<strikers>`` for the continuati
 strikers in declared order joined by ``+``; its index among the mode's
 ``ModeFunctions.joint_outcomes`` is found by (strikers, rest, target) in p's joint records.
 Transitions crossed together that are not all strikes of rigid contacts (a liftoff, a spring
-leg) or fewer than two contacts are crossed one after the other (-1), as are, with friction,
+leg), fewer than two contacts, or a set larger than the mode declares outcomes for
+(``transitions._joint_outcomes``) are crossed one after the other (-1), as are, with friction,
 strikers none of which approaches the ground and an impact without an outcome (its transitions
 then say so).
 """

@@ -65,9 +65,9 @@ from .model import BridgeModel
 from .modes import ModeCatalog, ModeSpec
 from .params import Builder, blocks, code_of
 
-#: Most modes one event, or the simultaneous strikes of one mode, may lead to.
+#: Most modes one event may lead to; most joint outcomes of one mode (``_joint_outcomes``).
 MAX_OUTCOMES = 256
-MAX_JOINT_OUTCOMES = 4096
+MAX_JOINT_OUTCOMES = 1024
 
 
 @dataclass
@@ -293,22 +293,37 @@ def _coulomb_strike(model: BridgeModel, modes: ModeCatalog, spec: ModeSpec, cont
 
 def _joint_outcomes(model: BridgeModel, modes: ModeCatalog, spec: ModeSpec, out: Outgoing) -> None:
     """The outcomes of every set of two or more strikes of the mode (``joint``), each with its
-    record (strikers' mask, rest, target code)."""
+    record (strikers' mask, rest, target code): sets by increasing size while their outcomes stay
+    within ``MAX_JOINT_OUTCOMES`` (a robot with many contacts resolves pairs together, and larger
+    sets one contact after the other)."""
     strikable = [c for c in model.rigid if c not in spec.active]
     for size in range(2, len(strikable) + 1):
-        for strikers in itertools.combinations(strikable, size):
+        sets = list(itertools.combinations(strikable, size))
+        count = sum(_joint_count(model, spec, strikers, rest) for strikers in sets for rest in (False, True))
+        if len(out.joint_outcomes) + count > MAX_JOINT_OUTCOMES:
+            return
+        for strikers in sets:
             mask = sum(1 << model.index(c) for c in strikers)
             for rest in (0, 1):
                 name = f"{'rest' if rest else 'joint'}_{'+'.join(strikers)}"
                 for target in _joint_targets(model, modes, spec, strikers, bool(rest)):
                     out.joint_outcomes.append((name, target))
                     out.joint_records.append([mask, rest, code_of(modes.spec(target).status)])
-    if len(out.joint_outcomes) > MAX_JOINT_OUTCOMES:
-        raise ModelError(
-            f"{model.name}: the simultaneous strikes of mode '{spec.name}' could lead to "
-            f"{len(out.joint_outcomes)} outcomes (at most {MAX_JOINT_OUTCOMES} are supported): declare "
-            f"fewer contacts"
-        )
+
+
+def _joint_count(model: BridgeModel, spec: ModeSpec, strikers: Sequence[str], rest: bool) -> int:
+    """At most how many modes ``_joint_targets`` gives (without building them)."""
+    released = {o for c in strikers for o in getattr(model.contacts[c], "releases", ()) if o in spec.active}
+    count = 1
+    if model.coulomb:
+        kept = [r.contact.name for r in spec.rigid if r.contact.name not in released]
+        for c in [*kept, *strikers]:
+            bouncing = not rest and c in strikers and model.rigid[c].contact.restitution > 0.0
+            count *= 1 if bouncing else 4 if model.rigid[c].mu is not None else 2
+        return count
+    for c in strikers:
+        count *= 2 if rest or model.rigid[c].contact.restitution == 0.0 else 1
+    return count
 
 
 def _joint_targets(model: BridgeModel, modes: ModeCatalog, spec: ModeSpec, strikers: Sequence[str], rest: bool) -> list[str]:
