@@ -204,6 +204,19 @@ class CompassGait:
         J[2:4, 2:4] = self._der_data.ddq_dv
         return J
 
+    def swing_foot(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Swing foot position (x, z) relative to the stance foot (m) and velocity (m/s), by
+        Pinocchio's kinematics (for pictures and checks; the guard reads the same frame)."""
+        q, v = np.asarray(x[:2], dtype=float), np.asarray(x[2:4], dtype=float)
+        pin.forwardKinematics(self._kin_model, self._kin_data, q, v)
+        p = pin.updateFramePlacement(self._kin_model, self._kin_data, self._foot_id).translation
+        w = pin.getFrameVelocity(self._kin_model, self._kin_data, self._foot_id, pin.LOCAL_WORLD_ALIGNED).linear
+        return np.array([p[0], p[2]]), np.array([w[0], w[2]])
+
+    def step_length(self, x: np.ndarray) -> float:
+        """Distance (m) from the stance foot to the swing foot along the slope."""
+        return float(self.swing_foot(x)[0][0])
+
     def energy(self, mode: str, x: np.ndarray) -> float:
         """Kinetic plus gravitational energy (J), the stance foot at height 0 along the slope."""
         q, v = np.asarray(x[:2], dtype=float), np.asarray(x[2:4], dtype=float)

@@ -150,7 +150,7 @@ def _transition_pieces(
     if transition.guard_gradient is not None:
         grad = np.asarray(transition.guard_gradient(q), dtype=float).reshape(src.dim)
     else:
-        grad = gradient(transition.guard, q)
+        grad = gradient(transition.guard_value, q)  # guard(x) or, from model functions, guard(t, x, u)
     f_minus = field_at(src, control, t_minus, q)
     f_plus = field_at(tgt, control, t_plus, x_plus)
     rate = float(grad @ f_minus)
