@@ -28,6 +28,8 @@
 
 #include <array>
 #include <chrono>
+#include <cstring>
+#include <initializer_list>
 #include <cmath>
 #include <limits>
 #include <memory>
@@ -78,7 +80,7 @@ using Mat = Eigen::MatrixXd;
 using ConstMap = Eigen::Map<const Vec>;
 using OutMap = Eigen::Map<Vec>;
 
-constexpr int kVersion = 4;
+constexpr int kVersion = 5;
 
 // Joint type codes of the model description (see lsn_create).
 enum JointCode { RX = 0, RY = 1, RZ = 2, PX = 3, PY = 4, PZ = 5, COMPOSITE = 6 };
@@ -100,12 +102,33 @@ struct Rigid {
 
 // Evaluation counters of a robot, by slot (legsim.robots.bridge.native.COUNTERS names them):
 // the first ones are counted here, the others by the model functions through lsn_tally.
-enum Counter { ABA = 0, KKT = 1, JACOBIANS = 2, KINEMATICS = 3, IMPACTS = 4, COUNTERS = 16 };
+enum Counter { ABA = 0, KKT = 1, JACOBIANS = 2, KINEMATICS = 3, IMPACTS = 4, CACHE_HITS = 9, COUNTERS = 16 };
+
+// The last solve of one algorithm, by its inputs: a mode's guards at a step's end and its field
+// at the next step's first stage share one solve (same state, same input), as do the
+// controller's and the field's gravity terms. Inputs are compared bit for bit.
+struct SolveCache {
+  std::vector<double> key, probe, first, second;
+  // Whether the inputs (their parts concatenated) are the last solve's; the probe keeps them
+  // for store().
+  bool hit(std::initializer_list<std::pair<const double*, long>> parts) {
+    probe.clear();
+    for (const auto& part : parts) probe.insert(probe.end(), part.first, part.first + part.second);
+    return !key.empty() && probe.size() == key.size() &&
+           std::memcmp(probe.data(), key.data(), probe.size() * sizeof(double)) == 0;
+  }
+  void store(const double* a, long na, const double* b, long nb) {
+    key.swap(probe);
+    first.assign(a, a + na);
+    second.assign(b, b + nb);
+  }
+};
 
 struct Robot {
   Model model;
   Data data;
   std::array<double, COUNTERS> counts{};
+  SolveCache aba, kkt, gravity;
   explicit Robot(Model m) : model(std::move(m)), data(model) {}
 };
 
@@ -234,6 +257,15 @@ void constraint_rows(Robot& rb, const ConstMap& q, const ConstMap& v, const std:
 }
 
 // M^-1 as a full symmetric matrix (Pinocchio fills its upper triangle).
+// M^-1 from the articulated-body pass of the last aba(..., Convention::WORLD) (Pinocchio's
+// computeMinverse without q reuses it: no second forward pass).
+Mat minverse_after_aba(Robot& rb) {
+  pinocchio::computeMinverse(rb.model, rb.data);
+  Mat Minv = rb.data.Minv;
+  Minv.triangularView<Eigen::StrictlyLower>() = Minv.transpose().triangularView<Eigen::StrictlyLower>();
+  return Minv;
+}
+
 Mat minverse(Robot& rb, const ConstMap& q) {
   pinocchio::computeMinverse(rb.model, rb.data, q);
   Mat Minv = rb.data.Minv;
@@ -339,8 +371,14 @@ long lsn_nv(long h) { return robot(h).model.nv; }
 void lsn_aba(long h, const double* q, const double* v, const double* tau, double* a) {
   Robot& rb = robot(h);
   const long n = rb.model.nv;
+  if (rb.aba.hit({{q, n}, {v, n}, {tau, n}})) {
+    rb.counts[CACHE_HITS] += 1;
+    std::copy(rb.aba.first.begin(), rb.aba.first.end(), a);
+    return;
+  }
   rb.counts[ABA] += 1;
   OutMap(a, n) = pinocchio::aba(rb.model, rb.data, ConstMap(q, n), ConstMap(v, n), ConstMap(tau, n));
+  rb.aba.store(a, n, a, 0);
 }
 
 // Positions and world-aligned linear velocities of frames: out[4 i .. 4 i + 3] = (x, z, vx, vz)
@@ -418,7 +456,13 @@ void lsn_frame_motion(long h, const double* q, const double* v, const double* a,
 void lsn_gravity(long h, const double* q, double* out) {
   Robot& rb = robot(h);
   const long n = rb.model.nv;
+  if (rb.gravity.hit({{q, n}})) {
+    rb.counts[CACHE_HITS] += 1;
+    std::copy(rb.gravity.first.begin(), rb.gravity.first.end(), out);
+    return;
+  }
   OutMap(out, n) = pinocchio::computeGeneralizedGravity(rb.model, rb.data, ConstMap(q, n));
+  rb.gravity.store(out, n, out, 0);
 }
 
 // The joint-space inertia matrix M(q) (nv, nv), row-major, both triangles filled.
@@ -439,12 +483,18 @@ void lsn_constrained(long h, const double* q, const double* v, const double* tau
                      double* a, double* lam) {
   Robot& rb = robot(h);
   const long n = rb.model.nv;
+  const std::vector<Rigid> blocks = read_rigid(count, rigid);
+  if (rb.kkt.hit({{q, n}, {v, n}, {tau, n}, {rigid, 4 * count}})) {
+    rb.counts[CACHE_HITS] += 1;
+    std::copy(rb.kkt.first.begin(), rb.kkt.first.end(), a);
+    std::copy(rb.kkt.second.begin(), rb.kkt.second.end(), lam);
+    return;
+  }
   const ConstMap qm(q, n), vm(v, n);
   rb.counts[ABA] += 1;
   rb.counts[KKT] += 1;
-  Vec acc = pinocchio::aba(rb.model, rb.data, qm, vm, ConstMap(tau, n));
-  const std::vector<Rigid> blocks = read_rigid(count, rigid);
-  const Mat Minv = minverse(rb, qm);
+  Vec acc = pinocchio::aba(rb.model, rb.data, qm, vm, ConstMap(tau, n), pinocchio::Convention::WORLD);
+  const Mat Minv = minverse_after_aba(rb);
   Mat J, W;
   Vec gamma;
   constraint_rows(rb, qm, vm, blocks, true, J, gamma, W);
@@ -453,12 +503,13 @@ void lsn_constrained(long h, const double* q, const double* v, const double* tau
   if (slipping(blocks) && !consistent(A)) {
     OutMap(a, n).setConstant(std::numeric_limits<double>::quiet_NaN());
     OutMap(lam, A.rows()).setConstant(std::numeric_limits<double>::quiet_NaN());
-    return;
+  } else {
+    const Vec l = solve_small(A, -(J * acc + gamma));
+    acc += MWt * l;
+    OutMap(a, n) = acc;
+    OutMap(lam, l.size()) = l;
   }
-  const Vec l = solve_small(A, -(J * acc + gamma));
-  acc += MWt * l;
-  OutMap(a, n) = acc;
-  OutMap(lam, l.size()) = l;
+  rb.kkt.store(a, n, lam, A.rows());
 }
 
 // The generalised Newton impact: v+ = v + M^-1 J^T Lambda, Lambda = (J M^-1 J^T)^-1 (-(1 + c) J v),

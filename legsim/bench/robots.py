@@ -534,18 +534,26 @@ def cost_report(case: RobotCase, rows: list[Row]) -> dict[str, float]:
 
 def model_function_costs(functions: Any, dim: int, guards: int, x: np.ndarray, n: int) -> dict[str, float]:
     """Seconds per call of a mode's compiled field, guards and first reset at x (the best of 3
-    batches of n calls), each called from a compiled loop."""
+    batches of n calls), each called from a compiled loop; successive calls alternate between x
+    and x with its first coordinate moved by 1e-9, so that none is served by the native
+    library's one-solve cache."""
     import numba
 
     @numba.njit
     def loop_state(fn, n, x, u, p, out):  # noqa: ANN001, ANN202 -- numba's calling convention
-        for _ in range(n):
+        first = x[0]
+        for i in range(n):
+            x[0] = first + 1e-9 * (i & 1)
             fn(0.0, x, u, p, out)
+        x[0] = first
 
     @numba.njit
     def loop_reset(fn, n, x, u, p, out):  # noqa: ANN001, ANN202
-        for _ in range(n):
+        first = x[0]
+        for i in range(n):
+            x[0] = first + 1e-9 * (i & 1)
             fn(0, 0.0, x, u, p, out)
+        x[0] = first
 
     p, u = np.array(functions.params), np.zeros(functions.inputs)
     out = np.empty(max(dim, guards, 1) + 16)

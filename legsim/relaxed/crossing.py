@@ -39,6 +39,7 @@ from .evaluate import (
     guards_at,
     guards_under,
     input_after,
+    reset_under,
     visit_of,
 )
 from .layout import (
@@ -219,7 +220,8 @@ def cross(
         return end_crossing(ws, END_FINISHED, e, t_final)
     if count > 1 and vis.joint >= 0 and cross_jointly(tab, vis, ws, e, tc, t_land, tau, exit_time):
         return CROSSED
-    if vis.previewed and vis.control >= 0:
+    previewed = vis.previewed and vis.control >= 0
+    if previewed:
         e = previewed_choice(tab, vis, ws, e, tc, exit_time)
     row = tab.modes[vis.mode, M_T0] + e
     accumulates = crossings_accumulate(ws, row, tc)
@@ -234,7 +236,10 @@ def cross(
             return enter_next(ws, continuation, exit_time, target.n)
     target = visit_of(tab, ws.ci[S_MEMORY], tab.transitions[row, T_TARGET])
     ws.iv[I_BREAKDOWN] = 0
-    closed_reset(tab, vis, target, ws, e, tc, exit_time, ws.q[: vis.n], ws.w)
+    if previewed:  # the image under the input its outcome was chosen under
+        reset_under(tab, vis, target, ws, e, tc, exit_time, ws.q[: vis.n], ws.u_after, ws.w)
+    else:
+        closed_reset(tab, vis, target, ws, e, tc, exit_time, ws.q[: vis.n], ws.w)
     if ws.iv[I_BREAKDOWN] == 1 or (vis.nan_breaks and not all_finite(ws.w[: target.n])):
         return end_crossing(ws, END_RESET_BROKE_DOWN, e, tc)
     record(tab, vis, ws, e, KIND_PLAIN, -1, target.mode, tc, t_land, exit_time, tau, target.n)
@@ -330,14 +335,17 @@ def previewed_choice(tab: Tables, vis: Visit, ws, e: int, tc: float, t_enter: fl
     them: from transition e, found under the input at q, the image in its target under that
     input, the controller's input there after its entry, and the least of the mode's guards at q
     under it, while that one is past and another than the last (``PREVIEW_ROUNDS`` at most).
-    The image is scratch in ws.w; the crossing computes it again for the transition returned."""
+    Leaves in ws.u_after the input the returned transition was chosen under (its image must be
+    taken under it too); ws.u and ws.w are scratch."""
     control_now(tab, vis, ws, tc, ws.q[: vis.n])
     for d in range(ws.u.shape[0]):
         ws.u_after[d] = ws.u[d]
     for _ in range(PREVIEW_ROUNDS):
         target = visit_of(tab, ws.ci[S_MEMORY], tab.transitions[tab.modes[vis.mode, M_T0] + e, T_TARGET])
+        for d in range(ws.u.shape[0]):
+            ws.u[d] = ws.u_after[d]  # the input e was chosen under
         if vis.reset >= 0:
-            call_indexed(tab.functions, vis.reset, e, tc, ws.q[: vis.dim], ws.u_after, vis.p, ws.w[: target.dim])
+            call_indexed(tab.functions, vis.reset, e, tc, ws.q[: vis.dim], ws.u, vis.p, ws.w[: target.dim])
         else:
             for d in range(target.dim):
                 ws.w[d] = ws.q[d]
@@ -345,9 +353,13 @@ def previewed_choice(tab: Tables, vis: Visit, ws, e: int, tc: float, t_enter: fl
         input_after(tab, target, ws, t_enter, ws.w[: target.n], ws.u_after)
         guards_under(tab, vis, ws, tc, ws.q[: vis.n], ws.u_after, ws.g_w)
         f = argleast(ws.g_w, vis.guards)
-        if f == e or not ws.g_w[f] < 0.0:
-            break
+        if f == e:
+            return e  # chosen again under the input after it
+        if not ws.g_w[f] < 0.0:
+            break  # nothing crosses under it: e stands, under the input it was chosen under
         e = f
+    for d in range(ws.u.shape[0]):
+        ws.u_after[d] = ws.u[d]
     return e
 
 

@@ -149,8 +149,17 @@ def closed_reset(
     into out[target.dim:target.n]."""
     if ws.ci[S_HOLD] == 0:
         control_now(tab, vis, ws, t, q)
+    reset_under(tab, vis, target, ws, e, t, t_enter, q, ws.u, out)
+
+
+def reset_under(
+    tab: Tables, vis: Visit, target: Visit, ws, e: int, t: float, t_enter: float, q: np.ndarray, u: np.ndarray,
+    out: np.ndarray,
+) -> None:  # fmt: skip
+    """``closed_reset`` with the plant's reset under the given input u (a previewed crossing's:
+    the input its outcome was chosen under)."""
     if vis.reset >= 0:
-        call_indexed(tab.functions, vis.reset, e, t, q[: vis.dim], ws.u, vis.p, out[: target.dim])
+        call_indexed(tab.functions, vis.reset, e, t, q[: vis.dim], u, vis.p, out[: target.dim])
     else:
         for d in range(target.dim):
             out[d] = q[d]

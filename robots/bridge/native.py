@@ -16,7 +16,8 @@ from legsim import _native
 from legsim.errors import ModelError
 
 #: The robot's counters, by slot of the library's counter array (``lsn_counts``): the first five
-#: are counted by the library's algorithms, the others by the model functions (``lsn_tally``).
+#: and ``cache_hits`` (a solve served by the last one with the same inputs) are counted by the
+#: library's algorithms, the others by the model functions (``lsn_tally``).
 COUNTERS = (
     "aba",
     "kkt",
@@ -27,6 +28,7 @@ COUNTERS = (
     "damping_evals",
     "actuation_evals",
     "painleve_sticks",
+    "cache_hits",
 )
 C_SPRINGS, C_DAMPING, C_ACTUATION, C_PAINLEVE = 5, 6, 7, 8
 
