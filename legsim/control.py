@@ -29,7 +29,7 @@ robots): a ``ControllerSpec`` names its parameters and makes a ``Controller`` fo
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from importlib import metadata
 from typing import Any
@@ -68,18 +68,8 @@ class Controller:
     @property
     def input_source(self) -> Controller:
         """The controller whose input this one returns: itself, or for a wrapper that only
-        observes (``legsim.orbits``' memory log) the wrapped one. A compiled twin that computes
-        a controller's input (``CompiledMode.controls``) is asked about this one."""
+        observes (``legsim.orbits``' memory log) the wrapped one."""
         return self
-
-
-def keeps_law(controller: Any, base: type, methods: Sequence[str]) -> bool:
-    """Whether ``controller`` is a ``base`` whose class, if a subclass, keeps ``base``'s
-    ``methods`` (the ones its input is computed by): then a compiled twin that computes
-    ``base``'s law from a record (``CompiledMode.controls``) computes this controller's. A
-    subclass may change the others (``reset``: its values reach the twin through the record)."""
-    law = type(controller)
-    return isinstance(controller, base) and all(getattr(law, name) is getattr(base, name) for name in methods)
 
 
 @dataclass(frozen=True)
@@ -150,6 +140,34 @@ class ControlLaw:
     def compiled(self) -> bool:
         """Whether its functions are compiled (numba), so the kernel can call them."""
         return hasattr(self.control, "py_func") and (self.enter is None or hasattr(self.enter, "py_func"))
+
+
+class LawController(Controller):
+    """A ``ControlLaw`` run as a ``Controller`` (its memory kept here, changed by ``enter`` at
+    every mode entry), for tools that drive a plant by Python controllers (the event-driven
+    baseline, ``legsim.baselines``): the same functions, hence the same input."""
+
+    def __init__(self, law: ControlLaw) -> None:
+        self.law = law
+        self.hold = law.hold
+        self.memory_names = law.memory_names
+        self.memory_units = law.memory_units
+        self._memory = np.asarray(law.initial_memory, dtype=float).copy()
+
+    def reset(self, mode: str, t: float, x: np.ndarray) -> None:
+        if self.law.enter is not None:
+            new = np.empty_like(self._memory)
+            self.law.enter(float(t), np.ascontiguousarray(x, dtype=float), self._memory, self.law.params_for(mode), new)
+            self._memory = new
+
+    def memory(self) -> np.ndarray:
+        return self._memory.copy()
+
+    def restore(self, mode: str, memory: np.ndarray) -> None:
+        self._memory = np.asarray(memory, dtype=float).reshape(-1).copy()
+
+    def __call__(self, mode: str, t: float, x: np.ndarray) -> np.ndarray:
+        return self.law.input_at(mode, t, x, self._memory)
 
 
 class Bound:

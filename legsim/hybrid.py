@@ -55,11 +55,6 @@ class Mode:
     jacobian:
         Optional ``jacobian(t, x, u) -> df/dx`` of shape (n_j, n_j); finite differences
         are used where it is missing (error bounds, periodic orbits).
-    compiled:
-        Optional compiled twin of the mode (see ``legsim.compiled``): numba-compiled field and
-        guards that let the step loop inside this mode run compiled. It must compute the same
-        field and the same guards (in the order of the mode's outgoing transitions) as the
-        Python callables, which remain the reference and serve everything else.
     units:
         Optional unit of each coordinate (``"m"``, ``"rad"``, ``"m/s"``, ...; ``""`` for none),
         for plots and recordings; default all ``""``.
@@ -74,7 +69,6 @@ class Mode:
     field: FieldFn
     names: tuple[str, ...]
     jacobian: Callable[[float, np.ndarray, Any], np.ndarray] | None
-    compiled: Any
     units: tuple[str, ...]
     functions: ModeFunctions | None
 
@@ -86,7 +80,6 @@ class Mode:
         field: FieldFn | None = None,
         names: Iterable[str] | None = None,
         jacobian: Callable[[float, np.ndarray, Any], np.ndarray] | None = None,
-        compiled: Any = None,
         units: Iterable[str] | None = None,
         functions: ModeFunctions | None = None,
     ) -> None:
@@ -114,7 +107,6 @@ class Mode:
             ("field", field),
             ("names", name_tuple),
             ("jacobian", jacobian),
-            ("compiled", compiled),
             ("units", unit_tuple),
             ("functions", functions),
         ):

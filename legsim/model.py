@@ -25,6 +25,15 @@ writes its result into its last argument and returns nothing, except ``joint``):
 that one compilation serves every parameter set. A model function signals a state past the
 model's range (a robot's hip below the ground) by writing nan, and declares ``nan_breaks``: the
 step there is shortened, as for a Python model's ``ModelBreakdown``.
+
+A mode whose functions choose a crossing's outcome by the contact forces after it (a robot's
+impact with friction: stuck, slipping or lifted off) needs the input the controller applies
+*there*, in the outcome's mode at its image, which the functions cannot evaluate; it declares
+``previewed``: the loop then resolves each crossing of the mode with that input
+(``legsim.relaxed.crossing.previewed_choice``): it takes the outcome chosen under the input
+before the crossing, evaluates the controller in its target at its image (entered on a copy of
+the memory), and asks the mode's guards (or its joint function) again under that input, until
+the choice repeats.
 """
 
 from __future__ import annotations
@@ -50,6 +59,8 @@ class ModeFunctions:
     inputs: the number of entries of the input u the field expects (0: none).
     joint_outcomes: (name, target mode) of each outcome ``joint`` may return, by index.
     nan_breaks: a nan from these functions means the state is past the model's range.
+    previewed: the functions choose a crossing's outcome under the input applied after it
+        (module docstring).
     """
 
     field: Any
@@ -60,6 +71,7 @@ class ModeFunctions:
     inputs: int = 0
     joint_outcomes: tuple[tuple[str, str], ...] = ()
     nan_breaks: bool = False
+    previewed: bool = False
 
     def __post_init__(self) -> None:
         for name in ("field", "guards", "reset", "joint"):

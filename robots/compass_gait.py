@@ -19,10 +19,11 @@ Goswami et al. measure the angles from the true vertical, positive backwards: th
 non-support angles are ``theta_s = -stance - slope`` and ``theta_ns = -(stance + hip) - slope``
 (slope in rad), with rates ``-stanced`` and ``-(stanced + hipd)``.
 
-Dynamics (Pinocchio through ``legsim.robots.bridge.ContactBridge``): the stance phase is the chain
-``stance foot -RY- stance leg -RY- swing leg`` rooted at the stance foot, integrated with
-``pinocchio.aba``. The swing foot passes through the ground around mid-stance (the model has no
-knees; the standard analysis ignores this scuffing), so heel strike is
+Dynamics (Pinocchio's C++ algorithms through the native library, as model functions that the Python
+loop and the compiled kernel both evaluate): the stance phase is the chain ``stance foot -RY- stance
+leg -RY- swing leg`` rooted at the stance foot, integrated with ABA. The swing foot passes through
+the ground around mid-stance (the model has no knees; the standard analysis ignores this scuffing),
+so heel strike is
 
     guard = max(z_swing, dz_swing/dt, -(x_swing - x_stance))      [m]
 
@@ -32,8 +33,8 @@ interest; at the crossing both terms z and x are 0). eps is in metres of foot de
 
 Heel strike is a plastic impact of the swing foot, the stance foot leaving the ground without
 impulse: on a second Pinocchio model with a planar floating base at the hip and both feet as
-point contacts, ``ContactBridge.impact_velocity`` gives the post-impact velocity with the new
-foot pinned, ``v+ = v - M^-1 J^T (J M^-1 J^T)^-1 J v``. The legs then exchange roles:
+point contacts, the generalised Newton impact gives the post-impact velocity with the new foot
+pinned, ``v+ = v - M^-1 J^T (J M^-1 J^T)^-1 J v``. The legs then exchange roles:
 ``(stance, hip) -> (stance + hip, -hip)`` and the rates likewise; ``foot_x`` advances by the step.
 The stance foot is assumed to stay on the ground (its normal force is not checked). A hip below
 the slope ends a run (status ``model_breakdown``): the walker fell.
@@ -48,11 +49,15 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
+from legsim import model_function
+from legsim._native.calls import lsn_aba, lsn_frames, lsn_impact
 from legsim.builders import Builder, Model, Param
-from legsim.errors import ModelBreakdown
 from legsim.hybrid import HybridSystem, Mode, Transition
+from legsim.model import ModeFunctions
 
-from .bridge import ContactBridge, PointContact, add_point_frame, planar_floating_base
+from .bridge import add_point_frame, native, planar_floating_base
+from .bridge.dynamics import ptr
+from .bridge.native import handle_for
 
 STATE_NAMES = ("stance", "hip", "stanced", "hipd", "foot_x")
 STATE_UNITS = ("rad", "rad", "rad/s", "rad/s", "m")
@@ -112,41 +117,83 @@ def floating_model(m: float, mH: float, a: float, b: float, g: float, slope: flo
     return model
 
 
+#: The compass gait's parameter array p: the stance and impact models' native handles, the leg
+#: length l (m), the stance model's swing-foot frame id, the impact's constraint block (the
+#: swing foot ``foot2`` pinned in x and z: point, frame, sign, 2 rows) and its restitution 0.
+CG_STANCE, CG_IMPACT, CG_L, CG_FOOT, CG_BLOCK, CG_COEFF = 0, 1, 2, 3, 4, 8
+
+
+@model_function
+def stance_field(t, x, u, p, dx):
+    """(stanced, hipd, ABA accelerations of the stance chain, 0 for foot_x), shape (5,)."""
+    tau = np.zeros(2)
+    dx[0], dx[1], dx[4] = x[2], x[3], 0.0
+    lsn_aba(np.int64(p[CG_STANCE]), x.ctypes.data, ptr(x, 2), tau.ctypes.data, ptr(dx, 2))
+
+
+@model_function
+def swing_foot_motion(x, p):
+    """(x, z, vx, vz) of the swing foot relative to the stance foot (m, m/s)."""
+    kin = np.empty(4)
+    lsn_frames(np.int64(p[CG_STANCE]), x.ctypes.data, ptr(x, 2), np.int64(1), ptr(p, CG_FOOT), kin.ctypes.data)
+    return kin
+
+
+@model_function
+def heel_strike_guard(t, x, u, p, g):
+    """Heel strike ``max(swing foot height, its vertical velocity, -its lead)`` (m); nan once the
+    hip is below the slope: the walker fell (the model has no body-ground contact, and a leg
+    hanging under its pinned foot would swing on as a pendulum, a "gait" of legs through the
+    ground)."""
+    if p[CG_L] * math.cos(x[0]) < 0.0:
+        g[0] = math.nan
+        return
+    kin = swing_foot_motion(x, p)
+    g[0] = max(kin[1], kin[3], -kin[0])
+
+
+@model_function
+def heel_strike(e, t, x, u, p, out):
+    """Plastic impact of the swing foot on the floating-base model (the stance foot leaving
+    without impulse), then the legs exchange roles and foot_x advances by the step."""
+    th, phi, thd, phid = x[0], x[1], x[2], x[3]
+    leg = p[CG_L]
+    qf = np.array([leg * math.sin(th), leg * math.cos(th), th, phi])
+    vf = np.array([leg * thd * math.cos(th), -leg * thd * math.sin(th), thd, phid])
+    v_plus = np.empty(4)
+    lsn_impact(np.int64(p[CG_IMPACT]), qf.ctypes.data, vf.ctypes.data, np.int64(1), ptr(p, CG_BLOCK),
+               ptr(p, CG_COEFF), v_plus.ctypes.data, np.int64(0))  # fmt: skip
+    step = swing_foot_motion(x, p)[0]
+    out[0], out[1] = th + phi, -phi
+    out[2], out[3] = v_plus[2] + v_plus[3], -v_plus[3]
+    out[4] = x[4] + step
+
+
 class CompassGait:
-    """The compass gait's pieces: field, heel-strike guard and reset, energy, kinematics."""
+    """The compass gait: its Pinocchio models, its mode written as model functions (field,
+    heel-strike guard and reset), energy, Jacobian and pictures."""
 
     def __init__(
         self, m: float = 5.0, mH: float = 10.0, a: float = 0.5, b: float = 0.5, g: float = 9.81, slope: float = 3.0
     ) -> None:
         self.m, self.mH, self.a, self.b, self.g, self.slope = m, mH, a, b, g, slope
         self.l = a + b
-        self.stance_bridge = ContactBridge(
-            stance_model(m, mH, a, b, g, slope),
-            (),
-            coordinate_names=("stance", "hip"),
-            velocity_names=("stanced", "hipd"),
-            mode_names={(): "stance"},
-            name="compass_gait",
-        )
-        self.impact_bridge = ContactBridge(
-            floating_model(m, mH, a, b, g, slope),
-            (PointContact("foot1", "foot1"), PointContact("foot2", "foot2", releases=("foot1",))),
-            coordinate_names=("hip_x", "hip_z", "leg1", "hip"),
-            name="compass_gait_impact",
-        )
-        self._mode4 = self.stance_bridge.mode("stance")
-        # Own kinematics buffer for guards and pictures (the bridge's Data serves the field).
-        self._kin_model = self.stance_bridge.model
+        self._kin_model = stance_model(m, mH, a, b, g, slope)
+        self._impact_model = floating_model(m, mH, a, b, g, slope)
         self._kin_data = self._kin_model.createData()
         self._der_data = self._kin_model.createData()
         self._foot_id = self._kin_model.getFrameId("swing_foot")
         self._hip_id = self._kin_model.getFrameId("hip_point")
-
-    # -- continuous dynamics ---------------------------------------------------------------
-    def field(self, t: float, x: np.ndarray, u: Any = None) -> np.ndarray:
-        out = np.zeros(5)
-        out[:4] = self._mode4.field(t, x[:4], u)
-        return out
+        self.handle = handle_for(self._kin_model, "compass_gait")
+        impact = handle_for(self._impact_model, "compass_gait")
+        foot2 = self._impact_model.getFrameId("foot2")
+        self.functions = ModeFunctions(
+            stance_field,
+            heel_strike_guard,
+            heel_strike,
+            params=[self.handle, impact, self.l, self._foot_id, 1.0, foot2, 1.0, 2.0, 0.0],
+            nan_breaks=True,
+        )
 
     def jacobian(self, t: float, x: np.ndarray, u: Any = None) -> np.ndarray:
         """df/dx (5, 5) from ``pinocchio.computeABADerivatives`` (for saltation Jacobians)."""
@@ -158,63 +205,32 @@ class CompassGait:
         J[2:4, 2:4] = self._der_data.ddq_dv
         return J
 
-    # -- kinematics ------------------------------------------------------------------------
     def swing_foot(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Swing foot position (x, z) relative to the stance foot (m) and velocity (m/s)."""
+        """Swing foot position (x, z) relative to the stance foot (m) and velocity (m/s), by
+        Pinocchio's kinematics (for pictures and checks; the guard reads the same frame)."""
         q, v = np.asarray(x[:2], dtype=float), np.asarray(x[2:4], dtype=float)
         pin.forwardKinematics(self._kin_model, self._kin_data, q, v)
         p = pin.updateFramePlacement(self._kin_model, self._kin_data, self._foot_id).translation
-        w = pin.getFrameVelocity(
-            self._kin_model, self._kin_data, self._foot_id, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
-        ).linear
+        w = pin.getFrameVelocity(self._kin_model, self._kin_data, self._foot_id, pin.LOCAL_WORLD_ALIGNED).linear
         return np.array([p[0], p[2]]), np.array([w[0], w[2]])
-
-    def heel_strike_guard(self, x: np.ndarray) -> float:
-        """max(swing foot height, its vertical velocity, -(its lead over the stance foot)) [m].
-
-        Raises ModelBreakdown once the hip is below the slope: the walker has fallen (the model
-        has no body-ground contact, and a leg hanging under its pinned foot would swing on as a
-        pendulum, a "gait" of legs through the ground)."""
-        hip_z = self.l * math.cos(float(x[0]))
-        if hip_z < 0.0:
-            raise ModelBreakdown(
-                f"compass_gait: the hip is {-hip_z:.3g} m below the slope (stance leg at "
-                f"{float(x[0]):.3g} rad from the normal): the walker fell"
-            )
-        p, w = self.swing_foot(x)
-        return max(p[1], w[1], -p[0])
 
     def step_length(self, x: np.ndarray) -> float:
         """Distance (m) from the stance foot to the swing foot along the slope."""
         return float(self.swing_foot(x)[0][0])
 
-    # -- heel strike -------------------------------------------------------------------------
-    def heel_strike(self, x: np.ndarray) -> np.ndarray:
-        """Plastic impact of the swing foot, then the legs exchange roles."""
-        th, phi, thd, phid = (float(v) for v in x[:4])
-        leg_length = self.l
-        q_f = np.array([leg_length * math.sin(th), leg_length * math.cos(th), th, phi])
-        v_f = np.array([leg_length * thd * math.cos(th), -leg_length * thd * math.sin(th), thd, phid])
-        v_plus = self.impact_bridge.impact_velocity([("foot2", 0.0)], q_f, v_f)
-        new_stance_rate = v_plus[2] + v_plus[3]
-        return np.array([th + phi, -phi, new_stance_rate, -v_plus[3], x[4] + self.step_length(x)])
-
     def energy(self, mode: str, x: np.ndarray) -> float:
         """Kinetic plus gravitational energy (J), the stance foot at height 0 along the slope."""
-        return self.stance_bridge.energy("stance", np.asarray(x, dtype=float)[:4])
+        q, v = np.asarray(x[:2], dtype=float), np.asarray(x[2:4], dtype=float)
+        model, data = self._kin_model, self._kin_data
+        return float(pin.computeKineticEnergy(model, data, q, v) + pin.computePotentialEnergy(model, data, q))
+
+    def counters(self) -> dict[str, int]:
+        """The stance model's evaluation counters (``ContactBridge.counters``)."""
+        return native.counts(self.handle)
 
     def system(self, x0: Sequence[float] | np.ndarray | None = None) -> HybridSystem:
-        from .bridge.walker_twins import compass_gait_twin
-
-        mode = Mode(
-            5,
-            self.field,
-            names=STATE_NAMES,
-            jacobian=self.jacobian,
-            compiled=compass_gait_twin(self),
-            units=STATE_UNITS,
-        )
-        heel = Transition("stance", "stance", guard=self.heel_strike_guard, reset=self.heel_strike, name="heel_strike")
+        mode = Mode(5, names=STATE_NAMES, jacobian=self.jacobian, units=STATE_UNITS, functions=self.functions)
+        heel = Transition("stance", "stance", name="heel_strike")
         return HybridSystem(
             {"stance": mode},
             [heel],
@@ -267,7 +283,7 @@ def build(params: dict[str, Any], effects: dict[str, dict[str, Any]]) -> Model:
         initial_state=dict(INITIAL_STATE),
         geometry=cg.geometry,
         scenery={"ground": ground},
-        counters=cg.stance_bridge.counters,
+        counters=cg.counters,
         info=info,
     )
 

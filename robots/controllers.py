@@ -2,8 +2,9 @@
 
 * ``joint_pd``: a joint-space PD with feed-forward gravity compensation on the actuated joints of
   any bridge robot, ``u = kp (q* - q) - kd dq/dt + g(q)`` (N m or N), g the generalised gravity
-  of the actuated joints (``pinocchio.computeGeneralizedGravity``: exact for a fixed base, the
-  legs' own weight for a floating one).
+  of the actuated joints (Pinocchio's, through the native library: exact for a fixed base, the
+  legs' own weight for a floating one). Written once, as a ``legsim.control.ControlLaw`` that the
+  Python loop and the compiled kernel both evaluate; it keeps no memory.
 """
 
 from __future__ import annotations
@@ -11,14 +12,33 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
-import pinocchio as pin
 
+from legsim import model_function
+from legsim._native.calls import lsn_gravity
 from legsim.builders import Model, Param
-from legsim.control import Controller, ControllerSpec, keeps_law
+from legsim.control import ControlLaw, ControllerSpec
 from legsim.errors import SceneError
 
-from .bridge.control_records import CTRL_JOINT_PD
 from .control_laws import pd_torque
+
+#: The joint PD's parameter array: the robot's native handle, nv, whether g(q) is added (1.0),
+#: kp (N m/rad), kd (N m s/rad), the number of actuated joints, then per joint (in the input's
+#: order) its velocity index and its target (rad or m).
+PD_HANDLE, PD_N, PD_GRAVITY, PD_KP, PD_KD, PD_COUNT = range(6)
+PD_HEAD = 6
+
+
+@model_function
+def joint_pd_control(t, x, m, p, u):
+    """The joint PD's input into u (one entry per actuated joint) at the plant's state x
+    (module docstring)."""
+    n = int(p[PD_N])
+    gravity = np.zeros(n)
+    if p[PD_GRAVITY] != 0.0:
+        lsn_gravity(np.int64(p[PD_HANDLE]), x.ctypes.data, gravity.ctypes.data)
+    for i in range(int(p[PD_COUNT])):
+        k = int(p[PD_HEAD + 2 * i])
+        u[i] = pd_torque(p[PD_KP], p[PD_KD], p[PD_HEAD + 2 * i + 1], x[k], x[n + k]) + gravity[k]
 
 
 def bridge_of(model: Model, controller: str) -> Any:
@@ -32,55 +52,32 @@ def bridge_of(model: Model, controller: str) -> Any:
     return bridge
 
 
-class JointPD(Controller):
-    """``u = kp (q* - q) - kd dq/dt + g(q)`` on the actuated joints (module docstring)."""
-
-    memory_names = ()  # stateless: the orbit search runs it as it is
-
-    def __init__(self, bridge: Any, kp: float, kd: float, targets: np.ndarray, gravity: bool) -> None:
-        self.bridge = bridge
-        self.dofs = bridge.actuated_dofs
-        self.kp, self.kd, self.targets, self.gravity = kp, kd, targets, gravity
-        self._data = bridge.model.createData()
-        bridge.attach_control(self)
-
-    def __call__(self, mode: str, t: float, x: np.ndarray) -> np.ndarray:
-        n = self.bridge.n
-        q, v = x[:n], x[n : 2 * n]
-        u = np.array([pd_torque(self.kp, self.kd, r, q[k], v[k]) for r, k in zip(self.targets, self.dofs, strict=True)])
-        if self.gravity:
-            u += pin.computeGeneralizedGravity(self.bridge.model, self._data, q)[self.dofs]
-        return u
-
-    def compiled_record(self, pin_model: Any) -> list[float] | None:
-        """The control record of the robot's compiled twin (``robots.bridge.control_records.CONTROL_KINDS``:
-        ``joint_pd``) when this controller drives ``pin_model``, else None (also for a subclass
-        that changes the law, ``__call__``, which the twin would not follow)."""
-        if (
-            pin_model is not self.bridge.model
-            or not keeps_law(self, JointPD, ("__call__",))
-            or not np.array_equal(self.dofs, self.bridge.actuated_dofs)  # the twin's joint order
-        ):
-            return None
-        return [float(CTRL_JOINT_PD), self.kp, self.kd, float(self.gravity), *map(float, self.targets)]
+def joint_pd(bridge: Any, kp: float, kd: float, targets: Any, gravity: bool, hold: bool = False) -> ControlLaw:
+    """The joint PD on ``bridge``'s actuated joints (module docstring): gains kp (N m/rad) and kd
+    (N m s/rad), one target per actuated joint (rad or m), g(q) added with ``gravity``."""
+    dofs = bridge.actuated_dofs
+    targets = np.asarray(targets, dtype=float).reshape(-1)
+    if targets.shape != dofs.shape:
+        raise SceneError(f"joint_pd: {dofs.size} actuated joints but {targets.size} targets")
+    params = np.array(
+        [bridge.handle, bridge.n, float(gravity), kp, kd, dofs.size]
+        + [v for k, target in zip(dofs, targets, strict=True) for v in (k, target)],
+        dtype=float,
+    )
+    return ControlLaw("joint_pd", joint_pd_control, int(dofs.size), SameParams(params), hold=hold)
 
 
-class PlainControl:
-    """A stateless controller as a plain control ``u(t, x)`` (a robot effect's ``Model.control``)
-    that keeps its compiled record (``compiled_record``), so the robot's twin still computes it."""
+class SameParams:
+    """A controller's ``params(mode)`` that is the same array in every mode."""
 
-    def __init__(self, controller: JointPD) -> None:
-        self.controller = controller
+    def __init__(self, params: np.ndarray) -> None:
+        self.params = params
 
-    def __call__(self, t: float, x: np.ndarray) -> np.ndarray:
-        return self.controller("", t, x)
-
-    def compiled_record(self, pin_model: Any) -> list[float] | None:
-        """The controller's record (``JointPD.compiled_record``)."""
-        return self.controller.compiled_record(pin_model)
+    def __call__(self, mode: str) -> np.ndarray:
+        return self.params
 
 
-def _make_joint_pd(model: Model, params: dict[str, Any]) -> JointPD:
+def _make_joint_pd(model: Model, params: dict[str, Any]) -> ControlLaw:
     bridge = bridge_of(model, "joint_pd")
     count = len(bridge.actuated_dofs)
     if not count:
@@ -91,7 +88,7 @@ def _make_joint_pd(model: Model, params: dict[str, Any]) -> JointPD:
             f"controller.parameters.targets: expected {count} numbers (one per actuated joint), "
             f"got {params['targets']!r}"
         )
-    return JointPD(bridge, params["kp"], params["kd"], targets, params["gravity"])
+    return joint_pd(bridge, params["kp"], params["kd"], targets, params["gravity"])
 
 
 JOINT_PD = ControllerSpec(

@@ -25,9 +25,9 @@ Without the stop effect the system has one mode and no guard.
 Effect ``controller`` (off by default): a PD controller on the shoulder joint ``theta1``,
 ``u = kp (target - theta1) - kd dtheta1/dt`` (N m), the generalised torque of that joint in both
 modes. Only with it is the joint actuated: then the bridge adds u to the shoulder torque, the
-stop's force-dependent guards are evaluated with the control (``t,x,u``), and the ``Model``
-carries the control (``controllers.JointPD`` without gravity compensation, which the compiled
-twins compute too); without it no actuation term exists (``actuation_evals`` stays 0).
+stop's force-dependent guards are evaluated under it, and the ``Model`` carries the control (the
+bundled ``joint_pd`` law without gravity compensation, ``controllers.joint_pd``); without it no
+actuation term exists (``actuation_evals`` stays 0).
 """
 
 from __future__ import annotations
@@ -41,7 +41,7 @@ import pinocchio as pin
 from legsim.builders import ZENO_EFFECT, ZENO_WINDOW, Builder, Effect, Model, Param
 
 from .bridge import ContactBridge, JointStop, add_point_frame
-from .controllers import JointPD, PlainControl
+from .controllers import joint_pd
 
 COORDINATES = ("theta1", "theta2")
 #: The joint the ``controller`` effect drives: the Pinocchio joint name of theta1 (the shoulder).
@@ -167,10 +167,9 @@ def build(params: dict[str, Any], effects: dict[str, dict[str, Any]]) -> Model:
     reach = 1.1 * (L1 + L2)
     control = None
     if "controller" in effects:
-        # The shoulder's PD as the bundled joint-space one without gravity compensation: a
-        # controller whose torque the robot's compiled twin computes too.
+        # The shoulder's PD as the bundled joint-space one without gravity compensation.
         pd = effects["controller"]
-        control = PlainControl(JointPD(bridge, pd["kp"], pd["kd"], np.array([pd["target"]]), gravity=False))
+        control = joint_pd(bridge, pd["kp"], pd["kd"], [pd["target"]], gravity=False)
     info = bridge.model_info(parameters=dict(params), effects=dict(effects))
     if "zeno" in effects:
         info[ZENO_WINDOW] = effects["zeno"]["window"]

@@ -19,44 +19,40 @@ the state:
   holding its liftoff angle and swings only once its hip falls; a phase term moves each pair's
   apex target by how far its touchdown is off half a stride after the other pair's.
 
-``RunnerRaibert`` drives articulated legs (a hip and a knee per leg, a point foot): the flight
-posture by a joint PD with gravity compensation on the inverse kinematics of the foot placement,
-the stance spring through the leg Jacobian (tau = J^T f). ``raibert_slip`` (``slip_law``, a
-``ControlLaw`` written once as compiled functions) drives the SLIP hopper
-(``robots/slip_hopper.py``): its input is the massless leg's swing rate in flight, a servo to the
-foot placement's leg angle; its spring is passive and the SLIP conserves energy, so its hopping
-height needs no thrust (it trades with the speed).
+``raibert_runner`` (``RunnerLaw``, written once in ``robots.runner_laws``) drives articulated legs
+(a hip and a knee per leg, a point foot): the flight posture by a joint PD with gravity compensation
+on the inverse kinematics of the foot placement, the stance spring through the leg Jacobian (tau =
+J^T f); what it carries from hop to hop (each leg's stance times, thrust, the placement's integral)
+is its declared memory. ``raibert_slip`` (``slip_law``, a ``ControlLaw`` written once as compiled
+functions) drives the SLIP hopper (``robots/slip_hopper.py``): its input is the massless leg's swing
+rate in flight, a servo to the foot placement's leg angle; its spring is passive and the SLIP
+conserves energy, so its hopping height needs no thrust (it trades with the speed).
 """
 
 from __future__ import annotations
 
-import copy
-import dataclasses
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-import pinocchio as pin
 
 from legsim.builders import Model, Param
 from legsim.compiled import model_function
-from legsim.control import ControlLaw, Controller, ControllerSpec, keeps_law
+from legsim.control import ControlLaw, ControllerSpec
 from legsim.errors import SceneError
 
 from . import runner_laws as laws
 from .controllers import bridge_of
 from .hopper_laws import swing_rate_compiled
 from .runner_laws import touchdown_angle
-from .runner_twin import pack_record
 
 
-@dataclass
+@dataclass(frozen=True)
 class Leg:
     """An articulated leg: hip and knee velocity indices and positions in u, segment lengths
-    (m), the knee's bending sign (+1: positive knee angles), the hip's x in the body frame (m),
-    the foot's contact name, and what
-    the controller remembers of it (touchdown time, last stance duration (s), thrust (m))."""
+    (m), the knee's bending sign (+1: positive knee angles), the hip's x in the body frame (m) and
+    the foot's contact name."""
 
     contact: str
     hip: int
@@ -67,16 +63,6 @@ class Leg:
     shank: float
     bend: float
     offset: float = 0.0
-    touchdown: float = 0.0
-    stance_time: float = 0.12
-    thrust: float = 0.0
-    in_stance: bool = False
-    apex: float = field(default=float("nan"))
-    touchdown_x: float = field(default=float("nan"))
-    bias: float = 0.0
-    liftoff_angle: float = 0.0
-    liftoff_time: float = -math.inf
-    phase_height: float = 0.0
 
 
 def leg_point(leg: Leg, q_hip: float, q_knee: float) -> np.ndarray:
@@ -120,15 +106,6 @@ def find_legs(bridge: Any) -> list[Leg]:
     return legs
 
 
-#: The laws' constants (``UNLOAD``, ``ATTITUDE_SHARE``, ``THRUST_RATE``, ``SWING_SHARE``,
-#: ``RETRACT_STIFFNESS``, ``RETRACT_DAMPING``) are in ``robots.runner_laws``.
-#: How long (s) after its liftoff a bound's leg that touches the ground again pulls its foot up
-#: (at most ``UNLOAD``) instead of pushing: it lifted off where its contact force passed 0, so
-#: at once after the liftoff that force's sign is a matter of rounding, and a foot put back in
-#: stance by it would lift off again and again (an accumulation).
-REFRACTORY = 0.01
-
-
 @dataclass
 class Gains:
     """The Raibert controller's settings (units in ``RUNNER_PARAMETERS``)."""
@@ -149,252 +126,84 @@ class Gains:
     k_phase: float
 
 
-#: The methods that compute ``RunnerRaibert``'s torques, which its compiled twin computes from
-#: the record (a subclass may change the others: ``reset``'s values reach the twin through it).
-RUNNER_LAW = ("__call__", "_active", "_height", "_joints", "_stance", "_flight")
+@dataclass(frozen=True)
+class RunnerLaw(ControlLaw):
+    """Raibert's controller for articulated legs (module docstring), a ``ControlLaw`` whose
+    functions are ``runner_laws.runner_control`` and ``runner_enter``; ``legs`` and ``gains``
+    are what its parameters were made from. ``pronk``: the stance hips servo the pitch (a pronk),
+    or leave it free (a bound, where each leg pair hops on its own: with the body's pitch inertia
+    near m (d/2)^2 the hips move as two separate hoppers, so each leg's thrust and swing follow
+    its own hip's height, and a phase term keeps the two hoppers half a stride apart)."""
+
+    legs: tuple[Leg, ...] = ()
+    gains: Gains | None = None
+    pronk: bool = True
 
 
-class RunnerRaibert(Controller):
-    """Raibert's controller for articulated legs (module docstring); ``attitude``: the stance
-    hips servo the pitch (a pronk), or leave it free (a bound, where each leg pair hops on its
-    own: with the body's pitch inertia near m (d/2)^2 the hips move as two separate hoppers, so
-    each leg's thrust and swing follow its own hip's height, and a phase term keeps the two
-    hoppers half a stride apart)."""
+class RunnerParams:
+    """``RunnerLaw.params``: the controller's parameter array in a mode (``runner_laws.R_*``,
+    ``RL_*``), each leg in stance where its foot's contact is active; built once per mode."""
 
-    def __init__(self, bridge: Any, legs: list[Leg], gains: Gains, attitude: bool) -> None:
-        self.bridge, self.legs, self.gains, self.attitude = bridge, legs, gains, attitude
-        self.n = bridge.n
-        self.count = len(bridge.actuated_dofs)
-        self._data = bridge.model.createData()
-        self._modes: dict[str, frozenset[str]] = {}
-        bridge.attach_control(self.preview)
+    def __init__(self, bridge: Any, legs: tuple[Leg, ...], gains: Gains, pronk: bool) -> None:
+        self.bridge = bridge
+        head = [bridge.handle, bridge.n, len(legs), float(pronk)]
+        head += [getattr(gains, name) for name in GAIN_ORDER]
+        self.head = [float(v) for v in head]
+        self.legs = legs
+        self._made: dict[str, np.ndarray] = {}
 
-    def preview(self, mode: str, t: float, x: np.ndarray) -> np.ndarray:
-        """The control on entering ``mode`` at (t, x), the controller's own state left as it is
-        (the bridge chooses the mode after an impact with it)."""
-        clone = copy.copy(self)
-        clone.legs = [dataclasses.replace(leg) for leg in self.legs]
-        clone.reset(mode, t, x)
-        return clone(mode, t, x)
+    def __call__(self, mode: str) -> np.ndarray:
+        made = self._made.get(mode)
+        if made is None:
+            active = set(self.bridge.active_contacts(mode))
+            values = list(self.head)
+            for leg in self.legs:
+                values += [leg.hip, leg.knee, leg.u_hip, leg.u_knee, leg.thigh, leg.shank, leg.bend, leg.offset]
+                values.append(1.0 if leg.contact in active else 0.0)
+            made = self._made[mode] = np.array(values, dtype=float)
+        return made
 
-    def reset(self, mode: str, t: float, x: np.ndarray) -> None:
-        active = set(self.bridge.active_contacts(mode))
-        for leg in self.legs:
-            stance = leg.contact in active
-            if stance and not leg.in_stance:
-                if not self.attitude:
-                    self._adapt_phase(leg, t)
-                self._adapt_placement(leg, t, x)
-                leg.touchdown = t
-            elif leg.in_stance and not stance:
-                leg.stance_time = min(max(t - leg.touchdown, 0.02), 0.5)
-                self._adapt_thrust(leg, x)
-                if not self.attitude:
-                    leg.liftoff_angle = self._world_angle(leg, x)
-                    leg.liftoff_time = t
-            leg.in_stance = stance
 
-    def compiled_record(self, pin_model: Any) -> list[float] | None:
-        """The control record of the robot's compiled twin (``robots.runner_twin``, kind
-        ``CTRL_RUNNER``) when this controller drives ``pin_model``, with each leg's memory as
-        the last ``reset`` left it; None for the bound gait (its refractory term reads the
-        time, which a twin's guards do not take), for another robot's model, and for a
-        subclass that changes the law (``RUNNER_LAW``), which the twin would not follow."""
-        if not self.attitude or pin_model is not self.bridge.model or not keeps_law(self, RunnerRaibert, RUNNER_LAW):
-            return None
-        frames = {contact.name: contact.frame for contact in self.bridge.contacts if hasattr(contact, "frame")}
-        return pack_record(self.gains, self.legs, [pin_model.getFrameId(frames[leg.contact]) for leg in self.legs])
+#: The gains in the order of the parameter array's head after ``R_PRONK`` (``runner_laws``).
+GAIN_ORDER = (
+    "speed",
+    "height",
+    "k_x",
+    "k_i",
+    "leg_length",
+    "stiffness",
+    "damping",
+    "k_height",
+    "kp_attitude",
+    "kd_attitude",
+    "kp_joint",
+    "kd_joint",
+    "max_thrust",
+    "k_phase",
+)
 
-    @property
-    def memory_names(self) -> tuple[str, ...] | None:  # type: ignore[override]
-        """Each leg's thrust (m) and last stance duration T_s (s), by the leg's contact name.
-        Undeclared (None) with the integral term (k_i > 0): its bias and the stride it measures
-        from the last touchdown's time and place would be memory too, which ``restore`` cannot
-        set without the section's time and state; likewise in a bound, whose phase term measures
-        from both legs' last touchdowns."""
-        if self.gains.k_i > 0.0 or not self.attitude:
-            return None
-        return tuple(f"{kind}_{leg.contact}" for leg in self.legs for kind in ("thrust", "T_s"))
 
-    @property
-    def memory_units(self) -> tuple[str, ...]:  # type: ignore[override]
-        return ("m", "s") * len(self.legs)
-
-    def memory(self) -> np.ndarray:
-        """(thrust (m), T_s (s)) of each leg in turn, shape (2 * legs,): what the next hops use.
-        The touchdown times are written at each touchdown and the apex at each liftoff before
-        they are read, so they are not memory."""
-        return np.array([value for leg in self.legs for value in (leg.thrust, leg.stance_time)])
-
-    def restore(self, mode: str, memory: np.ndarray) -> None:
-        """Set each leg's thrust and T_s; a leg in stance in ``mode`` counts its stance from the
-        start of the run (a section in stance must be the one right after the touchdown)."""
-        values = np.asarray(memory, dtype=float).reshape(len(self.legs), 2)
-        for leg, (thrust, stance_time) in zip(self.legs, values, strict=True):
-            leg.thrust, leg.stance_time, leg.in_stance = float(thrust), float(stance_time), False
-
-    def _adapt_placement(self, leg: Leg, t: float, x: np.ndarray) -> None:
-        """At touchdown: the body's mean speed over the stride since the leg's last touchdown
-        (Raibert's measure) moves the foot placement by ``k_i`` times its error, so that the
-        placement's bias integrates the speed error away."""
-        if t > leg.touchdown and math.isfinite(leg.touchdown_x):
-            stride_speed = (x[0] - leg.touchdown_x) / (t - leg.touchdown)
-            leg.bias += self.gains.k_i * (stride_speed - self.gains.speed)
-        leg.touchdown_x = x[0]
-
-    def _adapt_thrust(self, leg: Leg, x: np.ndarray) -> None:
-        """At liftoff: the apex the body's centre will reach, against the commanded height."""
-        g = self.gains
-        z, zd = self._height(leg, x)
-        leg.apex = z + max(zd, 0.0) ** 2 / (2 * 9.81)
-        target = g.height + leg.phase_height
-        leg.thrust = min(max(leg.thrust + g.k_height * (target - leg.apex), 0.0), g.max_thrust)
-
-    def _adapt_phase(self, leg: Leg, t: float) -> None:
-        """Bound, at the leg's touchdown: its lag behind the other pair's last touchdown as a
-        share of its own period, against the half period of antiphase, moves its apex target
-        (a late leg hops lower, so that its next flight is shorter)."""
-        other = next(o for o in self.legs if o is not leg)
-        if not (math.isfinite(leg.touchdown_x) and math.isfinite(other.touchdown_x)) or t <= leg.touchdown:
-            return
-        share = ((t - other.touchdown) / (t - leg.touchdown)) % 1.0
-        leg.phase_height = -self.gains.k_phase * (share - 0.5)
-
-    def _world_angle(self, leg: Leg, x: np.ndarray) -> float:
-        """The leg's angle (rad) from the world's -z axis towards +x."""
-        px, pz = laws.foot_terms(leg.thigh, leg.shank, float(x[leg.hip]), float(x[leg.knee]))[:2]
-        return math.atan2(px, -pz) - float(x[2])
-
-    def _height(self, leg: Leg, x: np.ndarray) -> tuple[float, float]:
-        """Height (m) and vertical speed (m/s) the leg hops: the body's centre in a pronk; in a
-        bound, where each leg pair hops on its own, the leg's hip (``offset sin(pitch)`` below
-        the centre)."""
-        n = self.n
-        if self.attitude:
-            return float(x[1]), float(x[n + 1])
-        pitch, rate = x[2], x[n + 2]
-        return float(x[1] - leg.offset * math.sin(pitch)), float(x[n + 1] - leg.offset * math.cos(pitch) * rate)
-
-    def _active(self, mode: str) -> frozenset[str]:
-        """The contacts active in ``mode`` (cached: the controller is called at every guard
-        evaluation, and parsing the mode's name would cost more than the control law)."""
-        active = self._modes.get(mode)
-        if active is None:
-            active = self._modes[mode] = frozenset(self.bridge.active_contacts(mode))
-        return active
-
-    def _joints(self, leg: Leg, s: list[float]) -> tuple[float, float, float, float]:
-        """The leg's hip and knee angles (rad) and rates (rad/s) in the state s (a list)."""
-        n = self.n
-        return s[leg.hip], s[leg.knee], s[n + leg.hip], s[n + leg.knee]
-
-    def __call__(self, mode: str, t: float, x: np.ndarray) -> np.ndarray:
-        n, g = self.n, self.gains
-        # floats, not numpy scalars: the law runs at every guard evaluation (the same values)
-        s = x.tolist()
-        active = self._active(mode)
-        u = np.zeros(self.count)
-        stance_count = sum(leg.contact in active for leg in self.legs)
-        attitude = g.kp_attitude * s[2] + g.kd_attitude * s[n + 2] if self.attitude else 0.0
-        # A pronk lifts off together: once a leg has left, the others unload while they extend.
-        together = self.attitude and stance_count < len(self.legs)
-        gravity = None
-        for leg in self.legs:
-            if leg.contact in active:
-                refractory = not self.attitude and t - leg.liftoff_time < REFRACTORY
-                hip, knee = self._stance(leg, s, attitude / stance_count, together or refractory)
-            else:
-                if gravity is None:
-                    gravity = pin.computeGeneralizedGravity(self.bridge.model, self._data, x[:n]).tolist()
-                hip, knee = self._flight(leg, s, self._height(leg, x)[1] < 0.0, gravity)
-            u[leg.u_hip] += hip
-            u[leg.u_knee] += knee
-        return u
-
-    def _stance(self, leg: Leg, s: list[float], attitude: float, unload: bool = False) -> tuple[float, float]:
-        """Hip and knee torques (N m) of the leg's spring along itself, with thrust while
-        extending, and the hip's share of the attitude torque (``runner_laws.stance_torques``)."""
-        g = self.gains
-        return laws.stance_torques(
-            leg.thigh,
-            leg.shank,
-            *self._joints(leg, s),
-            g.leg_length,
-            leg.thrust,
-            g.stiffness,
-            g.damping,
-            attitude,
-            unload,
-        )
-
-    def _flight(self, leg: Leg, s: list[float], falling: bool, gravity: list[float]) -> tuple[float, float]:
-        """Hip and knee torques (N m) servoing the foot to its touchdown placement, with the
-        generalized ``gravity`` (N m, one per velocity) compensated
-        (``runner_laws.pronk_flight_torques``; a bound's: ``_bound_flight``)."""
-        g = self.gains
-        if not self.attitude:
-            return self._bound_flight(leg, s, falling, gravity)
-        return laws.pronk_flight_torques(
-            leg.thigh,
-            leg.shank,
-            leg.bend,
-            leg.offset,
-            *self._joints(leg, s),
-            s[2],
-            s[self.n],
-            falling,
-            leg.stance_time,
-            leg.bias,
-            g.speed,
-            g.k_x,
-            g.leg_length,
-            g.kp_joint,
-            g.kd_joint,
-            gravity[leg.hip],
-            gravity[leg.knee],
-        )
-
-    def _bound_flight(self, leg: Leg, s: list[float], falling: bool, gravity: list[float]) -> tuple[float, float]:
-        """Bound: once the leg's hip falls the leg swings to the placement of its own hip's
-        horizontal speed at full length (joint PD); while the hip rises the leg retracts
-        holding its liftoff angle (``runner_laws.retract_torques``)."""
-        g, n = self.gains, self.n
-        q_hip, q_knee, v_hip, v_knee = self._joints(leg, s)
-        g_hip, g_knee = gravity[leg.hip], gravity[leg.knee]
-        if not falling:
-            return laws.retract_torques(
-                leg.thigh,
-                leg.shank,
-                q_hip,
-                q_knee,
-                v_hip,
-                v_knee,
-                s[2],
-                s[n + 2],
-                leg.liftoff_angle,
-                g.leg_length,
-                g.kp_joint,
-                g.kd_joint,
-                g_hip,
-                g_knee,
-            )
-        hip_speed = s[n] - leg.offset * math.sin(s[2]) * s[n + 2]
-        world = touchdown_angle(hip_speed, leg.stance_time, g.k_x, g.speed, g.leg_length, leg.bias)
-        return laws.servo_torques(
-            leg.thigh,
-            leg.shank,
-            leg.bend,
-            q_hip,
-            q_knee,
-            v_hip,
-            v_knee,
-            g.leg_length,
-            world + s[2],
-            g.kp_joint,
-            g.kd_joint,
-            g_hip,
-            g_knee,
-        )
+def runner_law(bridge: Any, legs: list[Leg], gains: Gains, pronk: bool, thrust: float) -> RunnerLaw:
+    """Raibert's runner for ``bridge``'s articulated ``legs``, each starting with ``thrust`` (m),
+    a stance time of 0.12 s and no touchdown yet; its memory is ``runner_laws.MEMORY_FIELDS`` of
+    each leg in turn, named ``<field>_<contact>``."""
+    names = tuple(f"{field}_{leg.contact}" for leg in legs for field, _ in laws.MEMORY_FIELDS)
+    units = tuple(unit for _ in legs for _, unit in laws.MEMORY_FIELDS)
+    initial = {"T_s": 0.12, "thrust": thrust, "liftoff": laws.LONG_AGO}
+    memory = tuple(initial.get(field, 0.0) for _ in legs for field, _ in laws.MEMORY_FIELDS)
+    return RunnerLaw(
+        "raibert_runner",
+        laws.runner_control,
+        len(bridge.actuated_dofs),
+        RunnerParams(bridge, tuple(legs), gains, pronk),
+        laws.runner_enter,
+        names,
+        units,
+        memory,
+        legs=tuple(legs),
+        gains=gains,
+        pronk=pronk,
+    )
 
 
 RUNNER_PARAMETERS = {
@@ -427,7 +236,7 @@ RUNNER_PARAMETERS = {
 }
 
 
-def _make_runner(model: Model, params: dict[str, Any]) -> RunnerRaibert:
+def _make_runner(model: Model, params: dict[str, Any]) -> RunnerLaw:
     bridge = bridge_of(model, "raibert_runner")
     legs = find_legs(bridge)
     if not legs:
@@ -441,9 +250,7 @@ def _make_runner(model: Model, params: dict[str, Any]) -> RunnerRaibert:
             f"{len(legs)} articulated leg(s): {', '.join(leg.contact for leg in legs)}"
         )
     gains = Gains(**{k: params[k] for k in Gains.__dataclass_fields__})
-    for leg in legs:
-        leg.thrust = params["thrust"]
-    return RunnerRaibert(bridge, legs, gains, attitude=params["gait"] == "pronk")
+    return runner_law(bridge, legs, gains, params["gait"] == "pronk", params["thrust"])
 
 
 RUNNER = ControllerSpec(

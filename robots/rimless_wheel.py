@@ -12,11 +12,12 @@ Coordinates (mode ``stance``):
 * ``thetad``: its rate (rad/s);
 * ``foot_x``: position of the contact along the slope (m), a cyclic coordinate.
 
-Transitions (Pinocchio through ``legsim.robots.bridge``: the stance phase is one RY joint at the
-contact integrated by ``pinocchio.aba``; an impact conserves the angular momentum about the
-striking spoke's tip, computed by ``pinocchio.computeCentroidalMomentum`` plus the moment of the
-linear momentum, and divides it by the rotational inertia about the new contact from
-``pinocchio.crba``; a floating-base impact would be singular for the point-mass wheel, I = 0):
+Transitions (Pinocchio's C++ algorithms through the native library, as model functions that the
+Python loop and the compiled kernel both evaluate: the stance phase is one RY joint at the
+contact integrated by ABA; an impact conserves the angular momentum about the striking spoke's
+tip, computed from the centroidal momentum plus the moment of the linear momentum, and divides it
+by the rotational inertia about the new contact from CRBA; a floating-base impact would be
+singular for the point-mass wheel, I = 0):
 
 * ``impact``: the leading spoke strikes, ``theta`` reaching alpha while increasing; guard
   ``max(alpha - theta, -thetad)`` [rad]. Plastic impact on the new spoke, the old one leaving
@@ -40,10 +41,15 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
+from legsim import model_function
+from legsim._native.calls import lsn_aba, lsn_crba, lsn_momentum_about
 from legsim.builders import Builder, Model, Param
 from legsim.hybrid import HybridSystem, Mode, Transition
+from legsim.model import ModeFunctions
 
-from .bridge import ContactBridge, add_point_frame
+from .bridge import add_point_frame, native
+from .bridge.dynamics import ptr
+from .bridge.native import handle_for
 
 STATE_NAMES = ("theta", "thetad", "foot_x")
 STATE_UNITS = ("rad", "rad/s", "m")
@@ -70,8 +76,48 @@ def _hub_inertia(m: float, inertia: float, com: np.ndarray) -> pin.Inertia:
     return pin.Inertia(m, com, np.diag([inertia, inertia, inertia]))
 
 
+#: The rimless wheel's parameter array p: the stance model's native handle, alpha (rad), the
+#: front and back spoke tips' frame ids.
+RW_HANDLE, RW_ALPHA, RW_FRONT, RW_BACK = 0, 1, 2, 3
+
+
+@model_function
+def stance_field(t, x, u, p, dx):
+    """(thetad, ABA acceleration about the stance tip, 0 for foot_x), shape (3,)."""
+    tau = np.zeros(1)
+    dx[0], dx[2] = x[1], 0.0
+    lsn_aba(np.int64(p[RW_HANDLE]), x.ctypes.data, ptr(x, 1), tau.ctypes.data, ptr(dx, 1))
+
+
+@model_function
+def spoke_guards(t, x, u, p, g):
+    """``max(alpha - theta, -thetad)`` (the front spoke, rolling forward) and ``max(theta +
+    alpha, thetad)`` (the back spoke, rolling back) (rad)."""
+    g[0] = max(p[RW_ALPHA] - x[0], -x[1])
+    g[1] = max(x[0] + p[RW_ALPHA], x[1])
+
+
+@model_function
+def spoke_impact(e, t, x, u, p, out):
+    """Plastic impact of the front (e = 0) or back (e = 1) spoke: the angular momentum about the
+    striking tip P, ``H_P = (spin about the centre of mass) + (c - P) x m v_c``, is conserved, and
+    after it the wheel turns about P with ``H_P = M(theta') thetad'``."""
+    h = np.int64(p[RW_HANDLE])
+    frame = p[RW_FRONT] if e == 0 else p[RW_BACK]
+    shift = -2.0 * p[RW_ALPHA] if e == 0 else 2.0 * p[RW_ALPHA]
+    momentum = np.empty(3)
+    lsn_momentum_about(h, x.ctypes.data, ptr(x, 1), np.int64(frame), momentum.ctypes.data)
+    new = np.array([x[0] + shift])
+    inertia = np.empty(1)
+    lsn_crba(h, new.ctypes.data, inertia.ctypes.data)
+    out[0] = new[0]
+    out[1] = momentum[0] / inertia[0]
+    out[2] = x[2] + momentum[1]
+
+
 class RimlessWheel:
-    """The rimless wheel's pieces: field, guards, impact resets, energy and pictures."""
+    """The rimless wheel: its Pinocchio model, its mode written as model functions (field, the
+    two spokes' guards and impacts), energy and pictures."""
 
     def __init__(
         self,
@@ -92,70 +138,32 @@ class RimlessWheel:
         # The neighbouring spoke tips in the stance joint's frame (the hub at (0, 0, l)).
         add_point_frame(chain, "front_tip", j, (l * math.sin(a2), 0.0, l - l * math.cos(a2)))
         add_point_frame(chain, "back_tip", j, (-l * math.sin(a2), 0.0, l - l * math.cos(a2)))
-        self._tip_ids = {"front": chain.getFrameId("front_tip"), "back": chain.getFrameId("back_tip")}
         chain.gravity = _gravity(g, slope)
-        self.stance_bridge = ContactBridge(
-            chain,
-            (),
-            coordinate_names=("theta",),
-            velocity_names=("thetad",),
-            mode_names={(): "stance"},
-            name="rimless_wheel",
+        self._model = chain
+        self._data = chain.createData()
+        self.handle = handle_for(chain, "rimless_wheel")
+        front, back = chain.getFrameId("front_tip"), chain.getFrameId("back_tip")
+        self.functions = ModeFunctions(
+            stance_field, spoke_guards, spoke_impact, params=[self.handle, self.alpha, front, back]
         )
-        self._mode2 = self.stance_bridge.mode("stance")
-        self._model = self.stance_bridge.model
-        self._data = self._model.createData()
-
-    def field(self, t: float, x: np.ndarray, u: Any = None) -> np.ndarray:
-        out = np.zeros(3)
-        out[:2] = self._mode2.field(t, x[:2], u)
-        return out
-
-    def impact_guard(self, x: np.ndarray) -> float:
-        """max(alpha - theta, -thetad) [rad]: past once theta > alpha while rolling forward."""
-        return max(self.alpha - x[0], -x[1])
-
-    def back_guard(self, x: np.ndarray) -> float:
-        """max(theta + alpha, thetad) [rad]: past once theta < -alpha while rolling back."""
-        return max(x[0] + self.alpha, x[1])
-
-    def _impact(self, x: np.ndarray, contact: str, shift: float) -> np.ndarray:
-        """Plastic impact of spoke ``contact``: the angular momentum about its tip P is conserved,
-        H_P = (spin about the centre of mass) + (c - P) x m v_c, and after the impact the wheel
-        turns about P with H_P = M(theta') thetad'."""
-        model, data = self._model, self._data
-        q, v = np.array([float(x[0])]), np.array([float(x[1])])
-        pin.computeCentroidalMomentum(model, data, q, v)
-        pin.centerOfMass(model, data, q, v)
-        pin.forwardKinematics(model, data, q)
-        tip = pin.updateFramePlacement(model, data, self._tip_ids[contact]).translation
-        r = data.com[0] - tip
-        p = data.mass[0] * data.vcom[0]
-        # y components: rotation about +y turns +z towards +x, the sense in which theta grows.
-        h_tip = float(data.hg.angular[1]) + (r[2] * p[0] - r[0] * p[2])
-        new = float(x[0]) + shift
-        inertia = float(pin.crba(model, data, np.array([new]))[0, 0])
-        return np.array([new, h_tip / inertia, x[2] + tip[0]])
-
-    def impact(self, x: np.ndarray) -> np.ndarray:
-        """The leading spoke strikes: theta -> theta - 2 alpha, plastic impact."""
-        return self._impact(x, "front", -2 * self.alpha)
-
-    def back_impact(self, x: np.ndarray) -> np.ndarray:
-        """The trailing spoke strikes: theta -> theta + 2 alpha, plastic impact."""
-        return self._impact(x, "back", 2 * self.alpha)
 
     def energy(self, mode: str, x: np.ndarray) -> float:
         """Kinetic plus gravitational energy (J), the contact at height 0 along the slope."""
-        return self.stance_bridge.energy("stance", np.asarray(x, dtype=float)[:2])
+        q, v = np.array([float(x[0])]), np.array([float(x[1])])
+        return float(
+            pin.computeKineticEnergy(self._model, self._data, q, v)
+            + pin.computePotentialEnergy(self._model, self._data, q)
+        )
+
+    def counters(self) -> dict[str, int]:
+        """The model's evaluation counters (``ContactBridge.counters``)."""
+        return native.counts(self.handle)
 
     def system(self, x0: Sequence[float] | np.ndarray | None = None) -> HybridSystem:
-        from .bridge.walker_twins import rimless_wheel_twin
-
-        mode = Mode(3, self.field, names=STATE_NAMES, compiled=rimless_wheel_twin(self), units=STATE_UNITS)
+        mode = Mode(3, names=STATE_NAMES, units=STATE_UNITS, functions=self.functions)
         transitions = [
-            Transition("stance", "stance", guard=self.impact_guard, reset=self.impact, name="impact"),
-            Transition("stance", "stance", guard=self.back_guard, reset=self.back_impact, name="back_impact"),
+            Transition("stance", "stance", name="impact"),
+            Transition("stance", "stance", name="back_impact"),
         ]
         return HybridSystem(
             {"stance": mode},
@@ -210,7 +218,7 @@ def build(params: dict[str, Any], effects: dict[str, dict[str, Any]]) -> Model:
         initial_state=initial,
         geometry=rw.geometry,
         scenery={"ground": ground},
-        counters=rw.stance_bridge.counters,
+        counters=rw.counters,
         info=info,
     )
 

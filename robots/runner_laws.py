@@ -1,24 +1,32 @@
-"""Scalar laws of Raibert's runner for articulated legs (``robots.raibert.RunnerRaibert``), shared
-by the Python controller and the compiled twins that compute it (``robots.runner_twin``).
+"""Raibert's runner for articulated legs (``robots.raibert``), written once: its scalar laws and
+the controller's functions (``runner_control``, ``runner_enter``: a ``legsim.control.ControlLaw``
+that the Python loop and the compiled kernel both evaluate).
 
-Each law takes and returns floats only (no arrays, no objects), so that one source serves both
-paths: Python calls these functions as they are; numba compiles them from this source when a
-jitted function calls them (``register_jitable``). A leg is a hip and a knee joint (angles q
-in rad, rates v in rad/s), a thigh and a shank (m) and a knee bending sign (+1: positive knee
-angles); angles of the foot are from the body's -z axis towards +x.
+The scalar laws take and return floats only (``register_jitable``: numba compiles them into the
+controller's functions). A leg is a hip and a knee joint (angles q in rad, rates v in rad/s), a
+thigh and a shank (m) and a knee bending sign (+1: positive knee angles); angles of the foot are
+from the body's -z axis towards +x.
 
-numba's cache tracks only the file of the jitted function itself: after editing this file, a
-cached caller compiled elsewhere keeps the old law until its own file changes (tests put their
-cache in a temporary folder, ``tests/conftest.py``).
+The controller's parameter array in a mode (``R_*`` head, then ``RL_*`` per leg) holds the gains,
+each leg's geometry and whether the leg is in stance in that mode; its memory (``M_*`` per leg,
+``MEMORY_FIELDS`` names them) is what it carries from hop to hop.
 """
 
 from __future__ import annotations
 
 import math
 
+import numpy as np
 from numba.extending import register_jitable
 
+from legsim import _native, model_function
+from legsim._native.calls import lsn_gravity
+
 from .control_laws import pd_torque
+
+#: The controller's functions call the native library: load it before they compile (numba
+#: resolves its symbols in the process).
+_native.load()
 
 #: Most force (N) a stance leg past its rest length pulls its foot up with, and the largest
 #: share of the leg's force times its length the stance hip's attitude torque may take.
@@ -51,7 +59,7 @@ def joint_angles(thigh: float, shank: float, bend: float, length: float, angle: 
     """(q_hip, q_knee) (rad) putting the foot at ``length`` (m) from the hip, ``angle`` (rad)
     from the body's -z axis towards +x, the knee bent by its sign ``bend``."""
     l1, l2 = thigh, shank
-    c = (length**2 - l1**2 - l2**2) / (2 * l1 * l2)
+    c = (length * length - l1 * l1 - l2 * l2) / (2 * l1 * l2)
     knee = bend * math.acos(max(-1.0, min(1.0, c)))
     # the foot's direction is u(q_hip + phi) with phi the angle the shank adds to the thigh's
     phi = math.atan2(l2 * math.sin(knee), l1 + l2 * math.cos(knee))
@@ -90,7 +98,7 @@ def stance_torques(
     dragging; the attitude torque is kept below ``ATTITUDE_SHARE`` of the leg force times its
     length, so that the foot's force stays well inside the friction cone."""
     px, pz, j00, j01, j10, j11 = foot_terms(thigh, shank, q_hip, q_knee)
-    r = math.hypot(px, pz)
+    r = math.sqrt(px * px + pz * pz)  # not hypot: numba's and Python's differ in the last bit
     rdot = (px * (j00 * v_hip + j01 * v_knee) + pz * (j10 * v_hip + j11 * v_knee)) / r
     # the thrust comes in with the extension rate (not at once at the bottom of the stance, so
     # that the contact forces, and the guards on them, stay continuous)
@@ -190,12 +198,204 @@ def retract_torques(
     quadruped's bound")."""
     px, pz, j00, j01, j10, j11 = foot_terms(thigh, shank, q_hip, q_knee)
     pxd, pzd = j00 * v_hip + j01 * v_knee, j10 * v_hip + j11 * v_knee
-    r = math.hypot(px, pz)
+    r = math.sqrt(px * px + pz * pz)  # not hypot: numba's and Python's differ in the last bit
     rdot = (px * pxd + pz * pzd) / r
     force = RETRACT_STIFFNESS * (SWING_SHARE * leg_length - r) - RETRACT_DAMPING * rdot
     fx, fz = force * px / r, force * pz / r
     world = math.atan2(px, -pz) - pitch
-    world_rate = (-pz * pxd + px * pzd) / r**2 - pitch_rate
+    world_rate = (-pz * pxd + px * pzd) / (r * r) - pitch_rate
     # the foot's angle from the body's -z axis falls as the hip angle grows
     swing = -(kp * (liftoff_angle - world) - kd * world_rate)
     return j00 * fx + j10 * fz + swing + gravity_hip, j01 * fx + j11 * fz + gravity_knee
+
+
+# -- the controller: its parameters, memory and functions ----------------------------------------
+
+#: The head of the controller's parameter array: the robot's native handle, nv, the number of
+#: legs, 1.0 for a pronk (the stance hips level the body) and 0.0 for a bound, then the gains
+#: (``raibert.Gains``, units in ``raibert.RUNNER_PARAMETERS``).
+(
+    R_HANDLE,
+    R_N,
+    R_LEGS,
+    R_PRONK,
+    R_SPEED,
+    R_HEIGHT,
+    R_K_X,
+    R_K_I,
+    R_LEG_LENGTH,
+    R_STIFFNESS,
+    R_DAMPING,
+    R_K_HEIGHT,
+    R_KP_ATTITUDE,
+    R_KD_ATTITUDE,
+    R_KP_JOINT,
+    R_KD_JOINT,
+    R_MAX_THRUST,
+    R_K_PHASE,
+) = range(18)
+RUNNER_HEAD = 18
+#: Each leg's entries: its hip's and knee's velocity indices and positions in u, thigh and shank
+#: (m), knee bending sign, the hip's x in the body frame (m), and 1.0 when the leg is in stance
+#: in the mode.
+RL_HIP, RL_KNEE, RL_U_HIP, RL_U_KNEE, RL_THIGH, RL_SHANK, RL_BEND, RL_OFFSET, RL_STANCE = range(9)
+RUNNER_LEG = 9
+
+#: Each leg's memory, by name and unit: in stance at the last mode entry (1.0); its last
+#: touchdown's time (s); its last stance's duration T_s (s); its thrust (m); 1.0 once it has
+#: landed (its touchdown time and place are then set); the body's x at its last touchdown (m);
+#: the foot placement's bias (m); its angle from the world's -z axis at its last liftoff (rad);
+#: that liftoff's time (s); a bound's apex target change (m).
+MEMORY_FIELDS = (
+    ("stance", ""),
+    ("touchdown", "s"),
+    ("T_s", "s"),
+    ("thrust", "m"),
+    ("landed", ""),
+    ("touchdown_x", "m"),
+    ("bias", "m"),
+    ("liftoff_angle", "rad"),
+    ("liftoff", "s"),
+    ("phase_height", "m"),
+)
+(M_STANCE, M_TOUCHDOWN, M_T_S, M_THRUST, M_LANDED, M_TOUCHDOWN_X, M_BIAS, M_LIFTOFF_ANGLE, M_LIFTOFF, M_PHASE) = range(
+    len(MEMORY_FIELDS)
+)
+LEG_MEMORY = len(MEMORY_FIELDS)
+#: Before its first liftoff a leg's liftoff time is this long ago (s).
+LONG_AGO = -1.0e9
+#: How long (s) after its liftoff a bound's leg that touches the ground again pulls its foot up
+#: (at most ``UNLOAD``) instead of pushing: it lifted off where its contact force passed 0, so at
+#: once after the liftoff that force's sign is a matter of rounding, and a foot put back in
+#: stance by it would lift off again and again (an accumulation).
+REFRACTORY = 0.01
+G = 9.81
+
+
+@register_jitable
+def leg_at(p, i):
+    """Offset of leg i's entries in the parameter array p."""
+    return RUNNER_HEAD + RUNNER_LEG * i
+
+
+@register_jitable
+def hop_height(p, leg, x, n):
+    """Height (m) and vertical speed (m/s) the leg hops: the body's centre in a pronk; in a bound,
+    where each leg pair hops on its own, the leg's hip (``offset sin(pitch)`` below the centre)."""
+    if p[R_PRONK] != 0.0:
+        return x[1], x[n + 1]
+    offset, pitch, rate = p[leg + RL_OFFSET], x[2], x[n + 2]
+    return x[1] - offset * math.sin(pitch), x[n + 1] - offset * math.cos(pitch) * rate
+
+
+@register_jitable
+def leg_joints(p, leg, x, n):
+    """The leg's hip and knee angles (rad) and rates (rad/s) at x."""
+    hip, knee = int(p[leg + RL_HIP]), int(p[leg + RL_KNEE])
+    return x[hip], x[knee], x[n + hip], x[n + knee]
+
+
+@register_jitable
+def flight_torques(t, x, m, p, leg, mem, n, gravity):
+    """Hip and knee torques (N m) of a flight leg: a pronk's foot placement servo
+    (``pronk_flight_torques``); a bound's leg retracts holding its liftoff angle while its hip
+    rises (``retract_torques``) and swings to the placement of its own hip's speed at full length
+    once the hip falls (``servo_torques``)."""
+    q_hip, q_knee, v_hip, v_knee = leg_joints(p, leg, x, n)
+    g_hip, g_knee = gravity[int(p[leg + RL_HIP])], gravity[int(p[leg + RL_KNEE])]
+    thigh, shank, bend, offset = p[leg + RL_THIGH], p[leg + RL_SHANK], p[leg + RL_BEND], p[leg + RL_OFFSET]
+    falling = hop_height(p, leg, x, n)[1] < 0.0
+    length, kp, kd = p[R_LEG_LENGTH], p[R_KP_JOINT], p[R_KD_JOINT]
+    if p[R_PRONK] != 0.0:
+        return pronk_flight_torques(thigh, shank, bend, offset, q_hip, q_knee, v_hip, v_knee, x[2], x[n], falling,
+                                    m[mem + M_T_S], m[mem + M_BIAS], p[R_SPEED], p[R_K_X], length, kp, kd, g_hip,
+                                    g_knee)  # fmt: skip
+    if not falling:
+        return retract_torques(thigh, shank, q_hip, q_knee, v_hip, v_knee, x[2], x[n + 2], m[mem + M_LIFTOFF_ANGLE],
+                               length, kp, kd, g_hip, g_knee)  # fmt: skip
+    hip_speed = x[n] - offset * math.sin(x[2]) * x[n + 2]
+    world = touchdown_angle(hip_speed, m[mem + M_T_S], p[R_K_X], p[R_SPEED], length, m[mem + M_BIAS])
+    return servo_torques(thigh, shank, bend, q_hip, q_knee, v_hip, v_knee, length, world + x[2], kp, kd, g_hip, g_knee)
+
+
+@model_function
+def runner_control(t, x, m, p, u):
+    """The runner's torques into u (N m, one per actuated joint) at (t, x) in the mode of p, from
+    the memory m: each stance leg's spring along itself with thrust and its share of the attitude
+    torque (a pronk); each flight leg's servo (``flight_torques``) with the generalised gravity
+    compensated."""
+    n, legs = int(p[R_N]), int(p[R_LEGS])
+    u[:] = 0.0
+    stance_count = 0
+    for i in range(legs):
+        stance_count += 1 if p[leg_at(p, i) + RL_STANCE] != 0.0 else 0
+    gravity = np.zeros(n)
+    if stance_count < legs:
+        lsn_gravity(np.int64(p[R_HANDLE]), x.ctypes.data, gravity.ctypes.data)
+    pronk = p[R_PRONK] != 0.0
+    attitude = p[R_KP_ATTITUDE] * x[2] + p[R_KD_ATTITUDE] * x[n + 2] if pronk else 0.0
+    # A pronk lifts off together: once a leg has left, the others unload while they extend.
+    together = pronk and stance_count < legs
+    for i in range(legs):
+        leg, mem = leg_at(p, i), LEG_MEMORY * i
+        if p[leg + RL_STANCE] != 0.0:
+            unload = together or (not pronk and t - m[mem + M_LIFTOFF] < REFRACTORY)
+            q_hip, q_knee, v_hip, v_knee = leg_joints(p, leg, x, n)
+            hip, knee = stance_torques(p[leg + RL_THIGH], p[leg + RL_SHANK], q_hip, q_knee, v_hip, v_knee,
+                                       p[R_LEG_LENGTH], m[mem + M_THRUST], p[R_STIFFNESS], p[R_DAMPING],
+                                       attitude / stance_count, unload)  # fmt: skip
+        else:
+            hip, knee = flight_torques(t, x, m, p, leg, mem, n, gravity)
+        u[int(p[leg + RL_U_HIP])] += hip
+        u[int(p[leg + RL_U_KNEE])] += knee
+
+
+@model_function
+def runner_enter(t, x, m, p, m_new):
+    """Entering the mode of p at (t, x): the new memory from m into m_new, leg by leg (a leg reads
+    the other's as this entry has already changed it). A leg touching down measures its stride
+    (the integral term's speed error moves its placement's bias; a bound's phase term its apex
+    target) and notes its touchdown; a leg lifting off notes its stance's duration T_s (clipped
+    to [0.02, 0.5] s), adapts its thrust to the apex the body will reach, and in a bound notes
+    its liftoff angle and time."""
+    m_new[:] = m
+    n = int(p[R_N])
+    for i in range(int(p[R_LEGS])):
+        leg, mem = leg_at(p, i), LEG_MEMORY * i
+        stance = p[leg + RL_STANCE] != 0.0
+        was = m_new[mem + M_STANCE] != 0.0
+        if stance and not was:
+            if p[R_PRONK] == 0.0:
+                adapt_phase(t, p, m_new, i)
+            if t > m_new[mem + M_TOUCHDOWN] and m_new[mem + M_LANDED] != 0.0:
+                stride_speed = (x[0] - m_new[mem + M_TOUCHDOWN_X]) / (t - m_new[mem + M_TOUCHDOWN])
+                m_new[mem + M_BIAS] += p[R_K_I] * (stride_speed - p[R_SPEED])
+            m_new[mem + M_TOUCHDOWN_X] = x[0]
+            m_new[mem + M_TOUCHDOWN] = t
+            m_new[mem + M_LANDED] = 1.0
+        elif was and not stance:
+            m_new[mem + M_T_S] = min(max(t - m_new[mem + M_TOUCHDOWN], 0.02), 0.5)
+            z, zd = hop_height(p, leg, x, n)
+            rise = max(zd, 0.0)
+            apex = z + rise * rise / (2 * G)
+            target = p[R_HEIGHT] + m_new[mem + M_PHASE]
+            thrust = m_new[mem + M_THRUST] + p[R_K_HEIGHT] * (target - apex)
+            m_new[mem + M_THRUST] = min(max(thrust, 0.0), p[R_MAX_THRUST])
+            if p[R_PRONK] == 0.0:
+                q_hip, q_knee = x[int(p[leg + RL_HIP])], x[int(p[leg + RL_KNEE])]
+                foot = foot_terms(p[leg + RL_THIGH], p[leg + RL_SHANK], q_hip, q_knee)
+                m_new[mem + M_LIFTOFF_ANGLE] = math.atan2(foot[0], -foot[1]) - x[2]
+                m_new[mem + M_LIFTOFF] = t
+        m_new[mem + M_STANCE] = 1.0 if stance else 0.0
+
+
+@register_jitable
+def adapt_phase(t, p, m, i):
+    """Bound, at leg i's touchdown: its lag behind the other pair's last touchdown as a share of
+    its own stride, against the half stride of antiphase, moves its apex target (a late leg hops
+    lower, so that its next flight is shorter)."""
+    mem, other = LEG_MEMORY * i, LEG_MEMORY * (1 - i)
+    if m[mem + M_LANDED] == 0.0 or m[other + M_LANDED] == 0.0 or t <= m[mem + M_TOUCHDOWN]:
+        return
+    share = ((t - m[other + M_TOUCHDOWN]) / (t - m[mem + M_TOUCHDOWN])) % 1.0
+    m[mem + M_PHASE] = -p[R_K_PHASE] * (share - 0.5)

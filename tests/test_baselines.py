@@ -5,8 +5,7 @@ import pytest
 
 from legsim import HybridSystem, Mode, SimulationError, Transition
 from legsim.baselines import paoli_schatzman, simulate_events
-from legsim.baselines.event_driven import LawController
-from legsim.control import Controller
+from legsim.control import Controller, LawController
 
 G = 9.81
 

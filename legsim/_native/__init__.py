@@ -21,7 +21,7 @@ from typing import cast
 import numpy as np
 
 #: The C interface version this module speaks (``lsn_version()`` of the library).
-INTERFACE_VERSION = 3
+INTERFACE_VERSION = 5
 #: Environment variable that switches the native path off when set to 0.
 SWITCH = "LEGSIM_NATIVE"
 
@@ -72,8 +72,17 @@ def load() -> bool:
     lib.lsn_create.argtypes = [ctypes.POINTER(ctypes.c_double), ctypes.c_long]
     lib.lsn_time_aba.restype = ctypes.c_double
     lib.lsn_time_aba.argtypes = [ctypes.c_long] + [ctypes.POINTER(ctypes.c_double)] * 3 + [ctypes.c_long]
+    lib.lsn_counts.restype = None
+    lib.lsn_counts.argtypes = [ctypes.c_long, ctypes.POINTER(ctypes.c_double), ctypes.c_long]
     _state["lib"], _state["loaded"] = lib, True
     return True
+
+
+def library() -> ctypes.CDLL:
+    """The loaded library, for calls from Python (``calls``); RuntimeError when unavailable."""
+    if not load():
+        raise RuntimeError(f"native library unavailable: {_state['reason']}")
+    return cast(ctypes.CDLL, _state["lib"])
 
 
 def status() -> str:
@@ -104,6 +113,21 @@ def create_model(description: np.ndarray) -> int:
     if handle < 0:
         raise ValueError("the native library refused the model description")
     return handle
+
+
+#: How many counters each robot of the library keeps (``lsn_counts``).
+COUNTER_SLOTS = 16
+
+
+def counts(handle: int, reset: bool = False) -> np.ndarray:
+    """The evaluation counters of the library's model ``handle`` (``COUNTER_SLOTS`` values; the
+    robots name them), set back to 0 afterwards with ``reset``."""
+    if not load():
+        raise RuntimeError(f"native library unavailable: {_state['reason']}")
+    out = np.zeros(COUNTER_SLOTS)
+    lib = cast(ctypes.CDLL, _state["lib"])  # load() succeeded
+    lib.lsn_counts(int(handle), out.ctypes.data_as(ctypes.POINTER(ctypes.c_double)), int(reset))
+    return out
 
 
 def time_aba(handle: int, q: np.ndarray, v: np.ndarray, tau: np.ndarray, reps: int) -> float:

@@ -1,13 +1,15 @@
-// Pinocchio's rigid-body algorithms behind a plain C ABI, for the numba-compiled twins of the
-// robots' modes (legsim.robots.bridge.twins). Every function takes a model handle and raw
-// float64 pointers; numba calls them by symbol name (numba.types.ExternalFunction), so a
-// compiled kernel that calls them caches on disk like any other.
+// Pinocchio's rigid-body algorithms behind a plain C ABI, for the robots' model functions
+// (legsim.robots.bridge: numba-compiled functions that the Python loop and the compiled kernel
+// both call). Every function takes a model handle and raw float64 pointers; numba calls them by
+// symbol name (numba.types.ExternalFunction), so a compiled function that calls them caches on
+// disk like any other.
 //
-// The algorithms are those the Python bridge calls through Pinocchio's Python bindings
-// (robots/bridge/dynamics.py and impacts.py), in the same order, so both paths agree to
-// rounding: ABA with applied forces; the KKT contact dynamics through the Schur complement of
-// ABA (a0 = aba(q, v, tau), lambda = (J M^-1 J^T)^-1 (-(J a0 + dJ/dt v)), a = a0 + M^-1 J^T lambda);
-// the generalised Newton impact; frame positions and velocities in the world's axes.
+// The algorithms: ABA with applied forces; the KKT contact dynamics through the Schur complement
+// of ABA (a0 = aba(q, v, tau), lambda = (J M^-1 J^T)^-1 (-(J a0 + dJ/dt v)), a = a0 + M^-1 J^T
+// lambda); the generalised Newton impact; M and M^-1; frame positions, velocities and Jacobians
+// in the world's axes. Each robot counts the algorithms it ran (lsn_counts), and the model
+// functions add their own counts (lsn_tally), so a robot's evaluations are known whichever path
+// ran them.
 //
 // Pinocchio is used header-only (no PINOCCHIO_ENABLE_TEMPLATE_INSTANTIATION): the library
 // needs no libpinocchio at run time and no ABI match with the installed Python bindings.
@@ -24,7 +26,10 @@
 #include <pinocchio/algorithm/rnea.hpp>
 #include <pinocchio/multibody.hpp>
 
+#include <array>
 #include <chrono>
+#include <cstring>
+#include <initializer_list>
 #include <cmath>
 #include <limits>
 #include <memory>
@@ -75,7 +80,7 @@ using Mat = Eigen::MatrixXd;
 using ConstMap = Eigen::Map<const Vec>;
 using OutMap = Eigen::Map<Vec>;
 
-constexpr int kVersion = 3;
+constexpr int kVersion = 5;
 
 // Joint type codes of the model description (see lsn_create).
 enum JointCode { RX = 0, RY = 1, RZ = 2, PX = 3, PY = 4, PZ = 5, COMPOSITE = 6 };
@@ -95,9 +100,35 @@ struct Rigid {
   int rows;
 };
 
+// Evaluation counters of a robot, by slot (legsim.robots.bridge.native.COUNTERS names them):
+// the first ones are counted here, the others by the model functions through lsn_tally.
+enum Counter { ABA = 0, KKT = 1, JACOBIANS = 2, KINEMATICS = 3, IMPACTS = 4, CACHE_HITS = 9, COUNTERS = 16 };
+
+// The last solve of one algorithm, by its inputs: a mode's guards at a step's end and its field
+// at the next step's first stage share one solve (same state, same input), as do the
+// controller's and the field's gravity terms. Inputs are compared bit for bit.
+struct SolveCache {
+  std::vector<double> key, probe, first, second;
+  // Whether the inputs (their parts concatenated) are the last solve's; the probe keeps them
+  // for store().
+  bool hit(std::initializer_list<std::pair<const double*, long>> parts) {
+    probe.clear();
+    for (const auto& part : parts) probe.insert(probe.end(), part.first, part.first + part.second);
+    return !key.empty() && probe.size() == key.size() &&
+           std::memcmp(probe.data(), key.data(), probe.size() * sizeof(double)) == 0;
+  }
+  void store(const double* a, long na, const double* b, long nb) {
+    key.swap(probe);
+    first.assign(a, a + na);
+    second.assign(b, b + nb);
+  }
+};
+
 struct Robot {
   Model model;
   Data data;
+  std::array<double, COUNTERS> counts{};
+  SolveCache aba, kkt, gravity;
   explicit Robot(Model m) : model(std::move(m)), data(model) {}
 };
 
@@ -126,25 +157,37 @@ bool simple_joint(int code, JointModel& out) {
   }
 }
 
-// The joint at desc[k] (its code, then for a composite its count and each part's code and
-// placement[12]), k moved past it; false for a bad description.
-bool read_joint(const double* desc, long size, long& k, JointModel& out) {
+// A joint of the description as the library builds it: one simple joint, or a composite's
+// parts (the planar root PX, PZ, RY) each a joint of its own, the first placed by the part's
+// placement after the composite's, the others by their own. The chain is the composite's
+// kinematics and, with the bodies between the parts massless, its dynamics; Pinocchio's
+// algorithms run it several times faster than its composite joint, which builds its parts'
+// motion subspaces anew at every pass.
+struct Part {
+  JointModel joint;
+  pinocchio::SE3 placement;
+};
+
+// The parts of the joint at desc[k] (its code, then for a composite its count and each part's
+// code and placement[12]), k moved past it; false for a bad description.
+bool read_joint(const double* desc, long size, long& k, std::vector<Part>& out) {
+  out.clear();
   if (k + 1 > size) return false;
   const int code = static_cast<int>(desc[k++]);
-  if (code != COMPOSITE) return simple_joint(code, out);
+  if (code != COMPOSITE) {
+    out.push_back(Part{JointModel(), pinocchio::SE3::Identity()});
+    return simple_joint(code, out.back().joint);
+  }
   if (k + 1 > size) return false;
   // The count is checked as a double: casting a huge or nan one to long is undefined, and
   // k + 13 * parts could overflow past the bound.
   const double count = desc[k++];
   if (!(count >= 1.0 && count <= static_cast<double>(size - k) / 13.0)) return false;
   const long parts = static_cast<long>(count);
-  Joints::JointModelComposite composite;
   for (long i = 0; i < parts; ++i, k += 13) {
-    JointModel part;
-    if (!simple_joint(static_cast<int>(desc[k]), part)) return false;
-    composite.addJoint(part, read_placement(desc + k + 1));
+    out.push_back(Part{JointModel(), read_placement(desc + k + 1)});
+    if (!simple_joint(static_cast<int>(desc[k]), out.back().joint)) return false;
   }
-  out = composite;
   return true;
 }
 
@@ -214,6 +257,15 @@ void constraint_rows(Robot& rb, const ConstMap& q, const ConstMap& v, const std:
 }
 
 // M^-1 as a full symmetric matrix (Pinocchio fills its upper triangle).
+// M^-1 from the articulated-body pass of the last aba(..., Convention::WORLD) (Pinocchio's
+// computeMinverse without q reuses it: no second forward pass).
+Mat minverse_after_aba(Robot& rb) {
+  pinocchio::computeMinverse(rb.model, rb.data);
+  Mat Minv = rb.data.Minv;
+  Minv.triangularView<Eigen::StrictlyLower>() = Minv.transpose().triangularView<Eigen::StrictlyLower>();
+  return Minv;
+}
+
 Mat minverse(Robot& rb, const ConstMap& q) {
   pinocchio::computeMinverse(rb.model, rb.data, q);
   Mat Minv = rb.data.Minv;
@@ -269,9 +321,11 @@ long lsn_create(const double* desc, long size) {
   auto need = [&](long n) { return k + n <= size; };
   if (!need(1)) return -1;
   const long joints = static_cast<long>(desc[k++]);
+  // The library's index of each description joint (a composite's: its last part's).
+  std::vector<pinocchio::JointIndex> index_of(1, 0);
+  std::vector<Part> parts;
   for (long j = 0; j < joints; ++j) {
-    JointModel joint;
-    if (!read_joint(desc, size, k, joint) || !need(26)) return -1;
+    if (!read_joint(desc, size, k, parts) || !need(26)) return -1;
     const int parent = static_cast<int>(desc[k]);
     const pinocchio::SE3 placement = read_placement(desc + k + 1);
     const double mass = desc[k + 13];
@@ -281,9 +335,13 @@ long lsn_create(const double* desc, long size) {
       for (int b = 0; b < 3; ++b) I(a, b) = desc[k + 17 + 3 * a + b];
     k += 26;
     if (parent < 0 || parent > j) return -1;
-    model.addJoint(static_cast<pinocchio::JointIndex>(parent), joint, placement, "j" + std::to_string(j + 1));
-    model.appendBodyToJoint(static_cast<pinocchio::JointIndex>(j + 1), pinocchio::Inertia(mass, lever, I),
-                            pinocchio::SE3::Identity());
+    pinocchio::JointIndex last = index_of[static_cast<size_t>(parent)];
+    for (size_t i = 0; i < parts.size(); ++i) {
+      const pinocchio::SE3 at = i == 0 ? placement * parts[i].placement : parts[i].placement;
+      last = model.addJoint(last, parts[i].joint, at, "j" + std::to_string(j + 1) + "_" + std::to_string(i));
+    }
+    model.appendBodyToJoint(last, pinocchio::Inertia(mass, lever, I), pinocchio::SE3::Identity());
+    index_of.push_back(last);
   }
   if (!need(1)) return -1;
   const long frames = static_cast<long>(desc[k++]);
@@ -293,8 +351,8 @@ long lsn_create(const double* desc, long size) {
   for (long f = 0; f < frames; ++f) {
     if (!need(13)) return -1;
     const int parent = static_cast<int>(desc[k]);
-    if (parent < 0 || parent >= model.njoints) return -1;
-    model.addFrame(Model::Frame("f" + std::to_string(f + 1), static_cast<pinocchio::JointIndex>(parent), 0,
+    if (parent < 0 || parent > joints) return -1;
+    model.addFrame(Model::Frame("f" + std::to_string(f + 1), index_of[static_cast<size_t>(parent)], 0,
                                     read_placement(desc + k + 1), pinocchio::OP_FRAME),
                    false);
     k += 13;
@@ -313,7 +371,14 @@ long lsn_nv(long h) { return robot(h).model.nv; }
 void lsn_aba(long h, const double* q, const double* v, const double* tau, double* a) {
   Robot& rb = robot(h);
   const long n = rb.model.nv;
+  if (rb.aba.hit({{q, n}, {v, n}, {tau, n}})) {
+    rb.counts[CACHE_HITS] += 1;
+    std::copy(rb.aba.first.begin(), rb.aba.first.end(), a);
+    return;
+  }
+  rb.counts[ABA] += 1;
   OutMap(a, n) = pinocchio::aba(rb.model, rb.data, ConstMap(q, n), ConstMap(v, n), ConstMap(tau, n));
+  rb.aba.store(a, n, a, 0);
 }
 
 // Positions and world-aligned linear velocities of frames: out[4 i .. 4 i + 3] = (x, z, vx, vz)
@@ -321,6 +386,7 @@ void lsn_aba(long h, const double* q, const double* v, const double* tau, double
 void lsn_frames(long h, const double* q, const double* v, long count, const double* frames, double* out) {
   Robot& rb = robot(h);
   const long n = rb.model.nv;
+  rb.counts[KINEMATICS] += 1;
   pinocchio::forwardKinematics(rb.model, rb.data, ConstMap(q, n), ConstMap(v, n));
   for (long i = 0; i < count; ++i) {
     const auto id = static_cast<pinocchio::FrameIndex>(frames[i]);
@@ -338,6 +404,7 @@ void lsn_frame_jacobian(long h, const double* q, long frame, double* out) {
   Robot& rb = robot(h);
   const long n = rb.model.nv;
   const auto id = static_cast<pinocchio::FrameIndex>(frame);
+  rb.counts[JACOBIANS] += 1;
   Mat Jf = Mat::Zero(6, n);
   pinocchio::computeFrameJacobian(rb.model, rb.data, ConstMap(q, n), id, pinocchio::LOCAL_WORLD_ALIGNED, Jf);
   const Eigen::Vector3d p = rb.data.oMf[id].translation();
@@ -373,6 +440,7 @@ void lsn_frame_motion(long h, const double* q, const double* v, const double* a,
   Robot& rb = robot(h);
   const long n = rb.model.nv;
   const auto id = static_cast<pinocchio::FrameIndex>(frame);
+  rb.counts[KINEMATICS] += 1;
   pinocchio::forwardKinematics(rb.model, rb.data, ConstMap(q, n), ConstMap(v, n), ConstMap(a, n));
   pinocchio::updateFramePlacement(rb.model, rb.data, id);
   const Eigen::Vector3d w = pinocchio::getFrameVelocity(rb.model, rb.data, id, pinocchio::LOCAL_WORLD_ALIGNED).linear();
@@ -388,7 +456,13 @@ void lsn_frame_motion(long h, const double* q, const double* v, const double* a,
 void lsn_gravity(long h, const double* q, double* out) {
   Robot& rb = robot(h);
   const long n = rb.model.nv;
+  if (rb.gravity.hit({{q, n}})) {
+    rb.counts[CACHE_HITS] += 1;
+    std::copy(rb.gravity.first.begin(), rb.gravity.first.end(), out);
+    return;
+  }
   OutMap(out, n) = pinocchio::computeGeneralizedGravity(rb.model, rb.data, ConstMap(q, n));
+  rb.gravity.store(out, n, out, 0);
 }
 
 // The joint-space inertia matrix M(q) (nv, nv), row-major, both triangles filled.
@@ -409,10 +483,18 @@ void lsn_constrained(long h, const double* q, const double* v, const double* tau
                      double* a, double* lam) {
   Robot& rb = robot(h);
   const long n = rb.model.nv;
-  const ConstMap qm(q, n), vm(v, n);
-  Vec acc = pinocchio::aba(rb.model, rb.data, qm, vm, ConstMap(tau, n));
   const std::vector<Rigid> blocks = read_rigid(count, rigid);
-  const Mat Minv = minverse(rb, qm);
+  if (rb.kkt.hit({{q, n}, {v, n}, {tau, n}, {rigid, 4 * count}})) {
+    rb.counts[CACHE_HITS] += 1;
+    std::copy(rb.kkt.first.begin(), rb.kkt.first.end(), a);
+    std::copy(rb.kkt.second.begin(), rb.kkt.second.end(), lam);
+    return;
+  }
+  const ConstMap qm(q, n), vm(v, n);
+  rb.counts[ABA] += 1;
+  rb.counts[KKT] += 1;
+  Vec acc = pinocchio::aba(rb.model, rb.data, qm, vm, ConstMap(tau, n), pinocchio::Convention::WORLD);
+  const Mat Minv = minverse_after_aba(rb);
   Mat J, W;
   Vec gamma;
   constraint_rows(rb, qm, vm, blocks, true, J, gamma, W);
@@ -421,22 +503,25 @@ void lsn_constrained(long h, const double* q, const double* v, const double* tau
   if (slipping(blocks) && !consistent(A)) {
     OutMap(a, n).setConstant(std::numeric_limits<double>::quiet_NaN());
     OutMap(lam, A.rows()).setConstant(std::numeric_limits<double>::quiet_NaN());
-    return;
+  } else {
+    const Vec l = solve_small(A, -(J * acc + gamma));
+    acc += MWt * l;
+    OutMap(a, n) = acc;
+    OutMap(lam, l.size()) = l;
   }
-  const Vec l = solve_small(A, -(J * acc + gamma));
-  acc += MWt * l;
-  OutMap(a, n) = acc;
-  OutMap(lam, l.size()) = l;
+  rb.kkt.store(a, n, lam, A.rows());
 }
 
-// The generalised Newton impact: v+ = v + M^-1 J^T (J M^-1 J^T)^-1 (-(1 + c) J v), with the
-// restitution c of each block (coeff, one per block) on its rows.
+// The generalised Newton impact: v+ = v + M^-1 J^T Lambda, Lambda = (J M^-1 J^T)^-1 (-(1 + c) J v),
+// with the restitution c of each block (coeff, one per block) on its rows; the impulses Lambda
+// (one per row, N s or N m s) into impulse_out unless it is null.
 void lsn_impact(long h, const double* q, const double* v, long count, const double* rigid, const double* coeff,
-                double* v_out) {
+                double* v_out, double* impulse_out) {
   Robot& rb = robot(h);
   const long n = rb.model.nv;
   const ConstMap qm(q, n), vm(v, n);
   const std::vector<Rigid> blocks = read_rigid(count, rigid);
+  rb.counts[IMPACTS] += 1;
   Mat J, W;
   Vec gamma;
   constraint_rows(rb, qm, vm, blocks, false, J, gamma, W);
@@ -448,7 +533,31 @@ void lsn_impact(long h, const double* q, const double* v, long count, const doub
   const Mat MJt = Minv * J.transpose();
   const Vec Jv = J * vm;
   const Vec rhs = -((Vec::Ones(c.size()) + c).cwiseProduct(Jv));
-  OutMap(v_out, n) = vm + MJt * solve_small(J * MJt, rhs);
+  const Vec impulse = solve_small(J * MJt, rhs);
+  OutMap(v_out, n) = vm + MJt * impulse;
+  if (impulse_out != nullptr) OutMap(impulse_out, impulse.size()) = impulse;
+}
+
+// The inverse of the joint-space inertia matrix M(q)^-1 (nv, nv), row-major, both triangles filled.
+void lsn_minverse(long h, const double* q, double* out) {
+  Robot& rb = robot(h);
+  const long n = rb.model.nv;
+  const Mat Minv = minverse(rb, ConstMap(q, n));
+  for (long i = 0; i < n; ++i)
+    for (long j = 0; j < n; ++j) out[n * i + j] = Minv(i, j);
+}
+
+// Add `amount` to the robot's counter `slot` (a count the model functions keep: springs,
+// damping, actuation, ...); out-of-range slots are ignored.
+void lsn_tally(long h, long slot, double amount) {
+  if (slot >= 0 && slot < COUNTERS) robot(h).counts[static_cast<size_t>(slot)] += amount;
+}
+
+// The robot's counters into out (COUNTERS values); with reset != 0 they restart from 0.
+void lsn_counts(long h, double* out, long reset) {
+  Robot& rb = robot(h);
+  for (size_t i = 0; i < COUNTERS; ++i) out[i] = rb.counts[i];
+  if (reset != 0) rb.counts.fill(0.0);
 }
 
 // Seconds per call of bare ABA at (q, v, tau), over reps calls: the cost floor a compiled field

@@ -33,7 +33,7 @@ from typing import Any, Literal, cast
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from ..control import Bound, ControlLaw, Controller, bind
+from ..control import Bound, ControlLaw, Controller, LawController, bind
 from ..errors import ModelBreakdown, SimulationError
 from ..execution import Execution, Segment, Strip, TransitionRecord
 from ..hybrid import HybridSystem, Transition
@@ -246,39 +246,10 @@ class _EventRun:
         self.dense.append(None)
 
 
-class LawController(Controller):
-    """A ``ControlLaw`` run as a Python ``Controller``: its functions evaluated from Python on a
-    memory kept here (shape (len(memory_names),)), which its entry function updates at every
-    mode entry, as the relaxed loop does."""
-
-    def __init__(self, law: ControlLaw) -> None:
-        self.law, self.hold = law, law.hold
-        self.memory_names, self.memory_units = law.memory_names, law.memory_units
-        self.values = np.array(law.initial_memory, dtype=float)
-
-    def reset(self, mode: str, t: float, x: np.ndarray) -> None:
-        if self.law.enter is not None:
-            entered = np.empty_like(self.values)
-            state = np.ascontiguousarray(x, dtype=float)
-            self.law.enter(float(t), state, self.values, self.law.params_for(mode), entered)
-            self.values = entered
-
-    def memory(self) -> np.ndarray:
-        return self.values.copy()
-
-    def restore(self, mode: str, memory: np.ndarray) -> None:
-        self.values = np.array(memory, dtype=float).reshape(self.values.shape)
-
-    def __call__(self, mode: str, t: float, x: np.ndarray) -> np.ndarray:
-        u = np.zeros(self.law.inputs)
-        state = np.ascontiguousarray(x, dtype=float)
-        self.law.control(float(t), state, self.values, self.law.params_for(mode), u)
-        return u
-
-
 def _bound_control(control: Any) -> Any:
-    """What the loop calls as ``u(t, x)``: the control itself, or a Controller (a ControlLaw run
-    as one) bound to the mode; SimulationError for anything else and for a held Controller."""
+    """What the loop calls as ``u(t, x)``: the control itself, or a Controller bound to the mode;
+    SimulationError for anything else and for a held Controller. A ``ControlLaw`` runs as a
+    ``LawController``."""
     if isinstance(control, ControlLaw):
         control = LawController(control)
     if control is not None and not callable(control):

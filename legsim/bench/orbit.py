@@ -46,16 +46,16 @@ MAX_ITERATIONS = 30
 
 
 class _GuardEvent:
-    """A solve_ivp event: the guard ``guard(x)`` crossing zero from above, which ends the solve."""
+    """A solve_ivp event: a transition's guard crossing zero from above, which ends the solve."""
 
     terminal = True
     direction = -1.0
 
-    def __init__(self, guard: Callable[[np.ndarray], float]) -> None:
-        self.guard = guard
+    def __init__(self, transition: Any) -> None:
+        self.transition = transition
 
     def __call__(self, t: float, y: np.ndarray) -> float:
-        return self.guard(y)
+        return self.transition.guard_value(y, t)
 
 
 class StepMap:
@@ -80,8 +80,7 @@ class StepMap:
     def _mode_pieces(self, mode: str) -> tuple[Callable, list, list]:
         field = self.system.mode(mode).field
         transitions = self.system.outgoing(mode)
-        # guard_value: a mode's model functions give guards of (t, x, u)
-        events = [_GuardEvent(lambda y, tr=tr: tr.guard_value(y)) for tr in transitions]
+        events = [_GuardEvent(tr) for tr in transitions]
         return (lambda t, y: field(t, y, None)), transitions, events
 
     def __call__(self, x: np.ndarray) -> np.ndarray:

@@ -130,54 +130,6 @@ def python_costs(system: HybridSystem, law: ControlLaw, x: np.ndarray, n: int = 
     return cost
 
 
-@numba.njit
-def _loop_twin_field(field, p, x, n):
-    acc = 0.0
-    t = 0.0
-    for _ in range(n):
-        acc += field(t, x, p)[1]
-        t += 1e-9
-    return acc
-
-
-@numba.njit
-def _loop_twin_guards(guards, p, x, n):
-    acc = 0.0
-    for _ in range(n):
-        acc += guards(x, p)[0]
-        x[1] += 1e-300
-    return acc
-
-
-@numba.njit
-def _loop_twin_resets(resets, p, x, n):
-    acc = 0.0
-    for _ in range(n):
-        acc += resets(x, p, 0)[1]
-        x[1] += 1e-300
-    return acc
-
-
-def twin_costs(twin: Any, x: np.ndarray, n: int = 2_000_000) -> dict[str, float]:
-    """Seconds per call of a ``CompiledMode`` twin's field, guards and resets, called from
-    compiled code (the models still carrying a twin beside their Python callables)."""
-    x = np.array(x, dtype=float)
-    p = twin.params
-    _loop_twin_field(twin.field, p, x.copy(), 10)
-    _loop_twin_guards(twin.guards, p, x.copy(), 10)
-    _loop_empty(p, x.copy(), 10)
-    empty = _best(lambda: _loop_empty(p, x.copy(), n))
-    out = {
-        "field": (_best(lambda: _loop_twin_field(twin.field, p, x.copy(), n)) - empty) / n,
-        "guards": (_best(lambda: _loop_twin_guards(twin.guards, p, x.copy(), n)) - empty) / n,
-        "reset": math.nan,
-    }
-    if twin.resets is not None:
-        _loop_twin_resets(twin.resets, p, x.copy(), 10)
-        out["reset"] = (_best(lambda: _loop_twin_resets(twin.resets, p, x.copy(), n)) - empty) / n
-    return out
-
-
 def callable_costs(system: HybridSystem, mode: str, x: np.ndarray, n: int = 50_000) -> dict[str, float]:
     """Seconds per call of a mode's Python field, first guard and first reset, from Python."""
     x = np.array(x, dtype=float)

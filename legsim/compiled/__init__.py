@@ -10,6 +10,5 @@ execution says so (``counters["python_steps"]``, ``settings["python_reason"]``).
 
 from .cache import cache_dir, clear
 from .kernel import model_function
-from .twin import CompiledMode, without_compiled
 
-__all__ = ["CompiledMode", "cache_dir", "clear", "model_function", "without_compiled"]
+__all__ = ["cache_dir", "clear", "model_function"]

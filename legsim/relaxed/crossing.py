@@ -10,6 +10,12 @@ lands in several strips at once (simultaneous guards), the transition whose cros
 on the curve is taken, unless the model resolves them together (its joint function: one impact
 law for every contact that closes); the next mode then sees its own guard already crossed.
 
+A mode that chooses its crossings' outcomes under the input applied after them
+(``ModeFunctions.previewed``) has each crossing resolved with that input (``previewed_choice``,
+``cross_jointly``): the outcome found under the input before the crossing is followed by the
+controller into its target at its image, and the mode asked again under the input there, until
+the choice repeats.
+
 Accumulating crossings (a Zeno point ahead, ``rules.accumulating``) take the transition's
 continuation when it has one and the run asks for it (paper 000, Thm. 26: past the accumulation
 the relaxed execution holds the state instead of moving it). Each transition keeps a history row
@@ -20,9 +26,21 @@ from __future__ import annotations
 
 import numpy as np
 
-from .calls import call_joint
+from .calls import call_indexed, call_joint
 from .curve import crossing_on_landing, landing_point, landing_slope
-from .evaluate import Tables, Visit, closed_reset, control_now, enter_controller, guards_at, visit_of
+from .evaluate import (
+    Tables,
+    Visit,
+    argleast,
+    closed_reset,
+    control_now,
+    enter_controller,
+    guards_at,
+    guards_under,
+    input_after,
+    reset_under,
+    visit_of,
+)
 from .layout import (
     END_FINISHED,
     END_MAX_TRANSITIONS,
@@ -201,6 +219,9 @@ def cross(
         return end_crossing(ws, END_FINISHED, e, t_final)
     if count > 1 and vis.joint >= 0 and cross_jointly(tab, vis, ws, e, tc, t_land, tau, exit_time):
         return CROSSED
+    previewed = vis.previewed and vis.control >= 0
+    if previewed:
+        e = previewed_choice(tab, vis, ws, e, tc, exit_time)
     row = tab.modes[vis.mode, M_T0] + e
     accumulates = crossings_accumulate(ws, row, tc)
     continuation = tab.transitions[row, T_CONTINUATION]
@@ -214,7 +235,10 @@ def cross(
             return enter_next(ws, continuation, exit_time, target.n)
     target = visit_of(tab, ws.ci[S_MEMORY], tab.transitions[row, T_TARGET])
     ws.iv[I_BREAKDOWN] = 0
-    closed_reset(tab, vis, target, ws, e, tc, exit_time, ws.q[: vis.n], ws.w)
+    if previewed:  # the image under the input its outcome was chosen under
+        reset_under(tab, vis, target, ws, e, tc, exit_time, ws.q[: vis.n], ws.u_after, ws.w)
+    else:
+        closed_reset(tab, vis, target, ws, e, tc, exit_time, ws.q[: vis.n], ws.w)
     if ws.iv[I_BREAKDOWN] == 1 or (vis.nan_breaks and not all_finite(ws.w[: target.n])):
         return end_crossing(ws, END_RESET_BROKE_DOWN, e, tc)
     record(tab, vis, ws, e, KIND_PLAIN, -1, target.mode, tc, t_land, exit_time, tau, target.n)
@@ -269,6 +293,17 @@ def cross_jointly(tab: Tables, vis: Visit, ws, e: int, tc: float, t_land: float,
     outcome = call_joint(
         tab.functions, vis.joint, 1 if rest else 0, tc, ws.q[: vis.dim], ws.u, vis.p, ws.crossed[: vis.guards], ws.w
     )
+    for _ in range(PREVIEW_ROUNDS if vis.previewed and vis.control >= 0 else 0):
+        if outcome < 0:
+            break
+        target = visit_of(tab, ws.ci[S_MEMORY], tab.joints[tab.modes[vis.mode, M_J0] + outcome, J_TARGET])
+        after_entry(ws, vis, target)
+        input_after(tab, target, ws, exit_time, ws.w[: target.n], ws.u_after)
+        again = call_joint(tab.functions, vis.joint, 1 if rest else 0, tc, ws.q[: vis.dim], ws.u_after, vis.p,
+                           ws.crossed[: vis.guards], ws.w)  # fmt: skip
+        if again == outcome or again < 0:
+            break
+        outcome = again
     if outcome < 0:
         return False
     ws.iv[I_RESET_EVALS] += 1
@@ -281,6 +316,50 @@ def cross_jointly(tab: Tables, vis: Visit, ws, e: int, tc: float, t_land: float,
     crossed_history(ws, row, tc, exit_time, rest)
     enter_next(ws, target.mode, exit_time, target.n)
     return True
+
+
+#: Most times a previewed crossing's choice is asked again (a choice that does not repeat by then
+#: is taken as it stands).
+PREVIEW_ROUNDS = 4
+
+
+def after_entry(ws, vis: Visit, target: Visit) -> None:
+    """The memory before the crossing (ws.q's) after the target's state in ws.w."""
+    for d in range(ws.ci[S_MEMORY]):
+        ws.w[target.dim + d] = ws.q[vis.dim + d]
+
+
+def previewed_choice(tab: Tables, vis: Visit, ws, e: int, tc: float, t_enter: float) -> int:
+    """The transition crossed at q (ws.q) by a mode that chooses outcomes under the input after
+    them: from transition e, found under the input at q, the image in its target under that
+    input, the controller's input there after its entry, and the least of the mode's guards at q
+    under it, while that one is past and another than the last (``PREVIEW_ROUNDS`` at most).
+    Leaves in ws.u_after the input the returned transition was chosen under (its image must be
+    taken under it too); ws.u and ws.w are scratch."""
+    control_now(tab, vis, ws, tc, ws.q[: vis.n])
+    for d in range(ws.u.shape[0]):
+        ws.u_after[d] = ws.u[d]
+    for _ in range(PREVIEW_ROUNDS):
+        target = visit_of(tab, ws.ci[S_MEMORY], tab.transitions[tab.modes[vis.mode, M_T0] + e, T_TARGET])
+        for d in range(ws.u.shape[0]):
+            ws.u[d] = ws.u_after[d]  # the input e was chosen under
+        if vis.reset >= 0:
+            call_indexed(tab.functions, vis.reset, e, tc, ws.q[: vis.dim], ws.u, vis.p, ws.w[: target.dim])
+        else:
+            for d in range(target.dim):
+                ws.w[d] = ws.q[d]
+        after_entry(ws, vis, target)
+        input_after(tab, target, ws, t_enter, ws.w[: target.n], ws.u_after)
+        guards_under(tab, vis, ws, tc, ws.q[: vis.n], ws.u_after, ws.g_w)
+        f = argleast(ws.g_w, vis.guards)
+        if f == e:
+            return e  # chosen again under the input after it
+        if not ws.g_w[f] < 0.0:
+            break  # nothing crosses under it: e stands, under the input it was chosen under
+        e = f
+    for d in range(ws.u.shape[0]):
+        ws.u_after[d] = ws.u[d]
+    return e
 
 
 def crossings_accumulate(ws, row: int, tc: float) -> bool:

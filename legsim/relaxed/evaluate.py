@@ -32,6 +32,7 @@ from .layout import (
     M_NAN_BREAKS,
     M_P0,
     M_P1,
+    M_PREVIEWED,
     M_RESET,
     S_HOLD,
     S_MEMORY,
@@ -42,8 +43,9 @@ from .layout import (
 Tables = namedtuple("Tables", "functions modes transitions joints P")
 #: One mode as the loop evaluates it: its row, the state length n (plant dim + memory), the
 #: plant's dim, its guard count, its functions' indices (-1: none), its parameters p and the
-#: controller's pc there, and whether a nan from its functions means "past the model's range".
-Visit = namedtuple("Visit", "mode n dim guards field guard_fn reset joint control enter p pc nan_breaks")
+#: controller's pc there, whether a nan from its functions means "past the model's range", and
+#: whether its crossings are resolved with the input applied after them.
+Visit = namedtuple("Visit", "mode n dim guards field guard_fn reset joint control enter p pc nan_breaks previewed")
 
 
 def visit_of(tab: Tables, memory: int, mode: int) -> Visit:
@@ -64,6 +66,7 @@ def visit_of(tab: Tables, memory: int, mode: int) -> Visit:
         tab.P[row[M_P0] : row[M_P1]],
         tab.P[row[M_C0] : row[M_C1]],
         row[M_NAN_BREAKS] == 1,
+        row[M_PREVIEWED] == 1,
     )
 
 
@@ -101,6 +104,21 @@ def guards_at(tab: Tables, vis: Visit, ws, t: float, x: np.ndarray, out: np.ndar
     return least(out, vis.guards)
 
 
+def guards_under(tab: Tables, vis: Visit, ws, t: float, x: np.ndarray, u: np.ndarray, out: np.ndarray) -> None:
+    """Every guard of the mode at (t, x) under the given input u (not the controller's there)
+    into out[:guards]."""
+    if vis.guards > 0:
+        call_state(tab.functions, vis.guard_fn, t, x[: vis.dim], u, vis.p, out[: vis.guards])
+        ws.iv[I_GUARD_EVALS] += vis.guards
+
+
+def input_after(tab: Tables, target: Visit, ws, t: float, x: np.ndarray, u: np.ndarray) -> None:
+    """The controller's input in ``target``'s mode at (t, x) into u, x the target's state whose
+    memory x[dim:n] the controller's entry updates in place (a preview: x is scratch)."""
+    enter_controller(tab, target, ws, t, x)
+    call_state(tab.functions, target.control, t, x[: target.dim], x[target.dim : target.n], target.pc, u)
+
+
 def least(values: np.ndarray, count: int) -> float:
     """The least of values[:count], nan when one of them is nan."""
     low = np.inf
@@ -131,8 +149,17 @@ def closed_reset(
     into out[target.dim:target.n]."""
     if ws.ci[S_HOLD] == 0:
         control_now(tab, vis, ws, t, q)
+    reset_under(tab, vis, target, ws, e, t, t_enter, q, ws.u, out)
+
+
+def reset_under(
+    tab: Tables, vis: Visit, target: Visit, ws, e: int, t: float, t_enter: float, q: np.ndarray, u: np.ndarray,
+    out: np.ndarray,
+) -> None:  # fmt: skip
+    """``closed_reset`` with the plant's reset under the given input u (a previewed crossing's:
+    the input its outcome was chosen under)."""
     if vis.reset >= 0:
-        call_indexed(tab.functions, vis.reset, e, t, q[: vis.dim], ws.u, vis.p, out[: target.dim])
+        call_indexed(tab.functions, vis.reset, e, t, q[: vis.dim], u, vis.p, out[: target.dim])
     else:
         for d in range(target.dim):
             out[d] = q[d]

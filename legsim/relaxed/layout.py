@@ -126,7 +126,8 @@ RETURN_ENDED, RETURN_NEED_MODE, RETURN_FULL, RETURN_PROGRESS = range(4)
 #: transitions' targets have rows (1) or the driver must build them first (0); the row of the
 #: Zeno history of its joint crossings; whether a nan from its functions means the state is past
 #: the model's range (1: the step is shortened, as for a Python model's ModelBreakdown) or is
-#: an error (0: a nan guard ends the run).
+#: an error (0: a nan guard ends the run); whether its crossings are resolved with the input
+#: applied after them (``ModeFunctions.previewed``).
 (
     M_DIM,
     M_GUARDS,
@@ -146,8 +147,9 @@ RETURN_ENDED, RETURN_NEED_MODE, RETURN_FULL, RETURN_PROGRESS = range(4)
     M_READY,
     M_JOINT_HISTORY,
     M_NAN_BREAKS,
-) = range(18)
-MODE_FIELDS = 18
+    M_PREVIEWED,
+) = range(19)
+MODE_FIELDS = 19
 
 # -- the transition table (``Tables.transitions``, integers, one row per transition) -------------
 #: The target mode's row; the continuation's target row (``NO_CONTINUATION`` when there is none).

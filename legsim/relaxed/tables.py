@@ -42,6 +42,7 @@ from .layout import (
     M_NJ,
     M_P0,
     M_P1,
+    M_PREVIEWED,
     M_READY,
     M_RESET,
     M_T0,
@@ -113,11 +114,13 @@ class RunTables:
         out[M_READY] = 0
         out[M_T0] = out[M_GUARDS] = out[M_NJ] = out[M_J0] = 0
         out[M_FIELD] = out[M_GUARD_FN] = out[M_RESET] = out[M_JOINT] = -1
+        out[M_PREVIEWED] = 0
         functions = mode.functions
         if functions is not None:
             out[M_FIELD] = self.function(functions.field)
             out[M_P0], out[M_P1] = self.params(functions.params)
             out[M_NAN_BREAKS] = int(functions.nan_breaks)
+            out[M_PREVIEWED] = int(functions.previewed)
             self.inputs = max(self.inputs, functions.inputs)
             if not functions.compiled:
                 self._python(f"mode '{name}' has Python model functions")

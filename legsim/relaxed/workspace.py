@@ -1,12 +1,13 @@
 """The arrays one run's loop works in (``Workspace``), allocated once and grown by the driver.
 
-Every array is named by ``layout``: settings (``cf``, ``ci``), the run's state and counters
-(``fs``, ``iv``), the current point and the step's scratch, the guards, the controller's input and
-memory, the Zeno histories, and the output buffers the driver drains into the execution: points
-(T, X, DX), visits, and crossing records (``rec_f``, ``rec_i``, q in ``rec_q``, the image in
-``rec_x``); for a linearly implicit method the Jacobian J, the factors LU of I - gamma h J,
-their row pivots and df/dt (ft). Widths: W the longest state of the run's modes (memory included), G the most guards,
-S the method's stages and extra stages, U the input's entries, M the memory's.
+Every array is named by ``layout``: settings (``cf``, ``ci``), the run's state and counters (``fs``,
+``iv``), the current point and the step's scratch, the guards, the controller's input (and the input
+previewed after a crossing, ``u_after``) and memory, the Zeno histories, and the output buffers the
+driver drains into the execution: points (T, X, DX), visits, and crossing records (``rec_f``,
+``rec_i``, q in ``rec_q``, the image in ``rec_x``); for a linearly implicit method the Jacobian J,
+the factors LU of I - gamma h J, their row pivots and df/dt (ft). Widths: W the longest state of the
+run's modes (memory included), G the most guards, S the method's stages and extra stages, U the
+input's entries, M the memory's.
 """
 
 from __future__ import annotations
@@ -29,7 +30,7 @@ from .layout import (
 
 Workspace = namedtuple(
     "Workspace",
-    "cf ci fs iv x K XS x1 k1 q w g_here g1 g_w crossed u m_new history T X DX visits rec_f rec_i rec_q rec_x "
+    "cf ci fs iv x K XS x1 k1 q w g_here g1 g_w crossed u u_after m_new history T X DX visits rec_f rec_i rec_q rec_x "
     "J LU piv ft",
 )
 
@@ -57,6 +58,7 @@ def allocate(width: int, guards: int, stages: int, inputs: int, memory: int, his
         np.zeros(G),
         np.zeros(G),
         np.zeros(G),
+        np.zeros(inputs),
         np.zeros(inputs),
         np.zeros(memory),
         np.zeros((max(1, histories), HISTORY_FIELDS)),

@@ -513,10 +513,7 @@ def _initial_input(control: Any, mode: str, t0: float, x0: np.ndarray) -> Any:
     """The input at the initial state, before the run enters its mode: a ``ControlLaw``'s from its
     initial memory, a ``Controller``'s asked in ``mode``, a plain control's, or None."""
     if isinstance(control, ControlLaw):
-        u = np.zeros(control.inputs)
-        memory = np.asarray(control.initial_memory, dtype=float)
-        control.control(float(t0), x0, memory, control.params_for(mode), u)
-        return u
+        return control.input_at(mode, t0, x0)
     if isinstance(control, Controller):
         return control(mode, t0, x0)
     return None if control is None else control(t0, x0)

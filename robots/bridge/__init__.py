@@ -8,7 +8,8 @@ A *mode* is the set of active contacts. Three kinds of contact are supported:
     ``z``, or ``z`` only when ``tangential=False``) with a release guard on the normal force.
     It may name contacts it ``releases`` when it strikes (a walker's stance foot at heel strike:
     they are dropped before the impact is solved), and be ``armed`` only in part of the
-    configuration space.
+    configuration space (``Armed``: where a coordinate or its lead over a frame passes a
+    threshold).
 ``JointStop``
     a one-dof joint meets a stop at ``position`` (``side="lower"``: domain ``q >= position``,
     ``"upper"``: ``q <= position``). Inactive: an impact guard; active: the joint is held at
@@ -28,26 +29,31 @@ mode with the contact active (or grazes off when the contact would pull); c > 0 
 the same mode (possibly Zeno). Modes are built lazily (``HybridSystem(expand=...)``): only those a
 transition reaches are ever constructed.
 
-Modules, in Pinocchio's style (a fixed model, a scratch data, free-function algorithms):
+Every mode is written once, as model functions over its parameter array (``legsim.model``),
+calling Pinocchio's C++ algorithms through the native library: the Python loop and the compiled
+kernel evaluate the same functions. Modules:
 
 * ``contacts``: the declarations, their validation and resolution; ``planar_floating_base``,
   ``add_point_frame``;
-* ``model``: ``BridgeModel`` (the resolved robot) and ``BridgeData`` (Pinocchio data, counters,
-  per-mode caches);
-* ``modes``: mode names, ``ModeSpec`` (active contacts, state layout), state maps between modes;
-* ``dynamics``: applied forces, ABA and the KKT solve, constraint and leg forces, energy;
-* ``guards``: position guards, release guards, falls, guard units, the initial-state check;
-* ``impacts``: the generalised Newton impact, resets, the plastic/graze guard pair;
-* ``transitions``: the outgoing transitions of a mode (a bouncing contact's continuation: its rest);
+* ``model``: ``BridgeModel`` (the resolved robot and its native handle); ``native``: the handle
+  and the robot's evaluation counters;
+* ``modes``: mode names, ``ModeSpec`` (active contacts, statuses, state layout);
+* ``layout``: the slots of a mode's parameter array; ``params``: building it;
+* ``transitions``: the outgoing transitions of a mode, their records, its joint outcomes;
+* model functions: ``dynamics`` (applied forces, ABA and the KKT solve: the field),
+  ``events`` (guards and resets), ``impacts`` (Newton's impact, simultaneous strikes, the
+  frictional impact), ``friction`` (the mode after an event), ``joint`` (simultaneous strikes);
+* ``guards``: the initial-state check and the guards' units;
 * ``assembly``: ``ContactBridge``, the facade composing them.
 
-The bridge owns one ``pinocchio.Data``: a system built from it is not thread-safe.
+A robot's native model has one Pinocchio data: a system built on it is not thread-safe.
 """
 
 from .assembly import ContactBridge
-from .contacts import Contact, JointStop, PointContact, SpringLeg, add_point_frame, planar_floating_base
+from .contacts import Armed, Contact, JointStop, PointContact, SpringLeg, add_point_frame, planar_floating_base
 
 __all__ = [
+    "Armed",
     "Contact",
     "ContactBridge",
     "JointStop",

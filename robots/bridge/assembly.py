@@ -1,26 +1,35 @@
 """``ContactBridge``: the facade that composes the bridge's modules into a ``legsim.HybridSystem``.
 
-It owns a ``BridgeModel`` (fixed), a ``BridgeData`` (scratch) and the ``ModeCatalog``; every
-method resolves the mode and hands over to the free functions of ``dynamics``, ``guards``,
-``impacts`` and ``transitions``.
+It owns a ``BridgeModel`` (fixed) and the ``ModeCatalog``; a mode is built once, on first use:
+its parameter array (``params``, ``transitions``) and its ``legsim.Mode`` written as the model
+functions of ``dynamics``, ``events`` and ``joint``, which the Python loop and the compiled
+kernel both evaluate. What the outputs need besides the flow (constraint forces, energies,
+positions of frames and feet) comes from the same compiled functions or from Pinocchio's
+kinematics.
 """
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from typing import Any
 
 import numpy as np
 import pinocchio as pin
 
-from legsim.hybrid import HybridSystem, JointCrossing, Mode, Transition
+from legsim.errors import ModelError
+from legsim.hybrid import HybridSystem, Mode, Transition
+from legsim.model import ModeFunctions, as_input
 
-from . import dynamics, guards, impacts
+from . import guards, native
 from .contacts import Contact, frame_id
-from .joint import resolve
-from .model import BridgeData, build_model
+from .dynamics import bridge_field, bridge_forces, bridge_spring_forces
+from .events import bridge_guards, bridge_reset
+from .impacts import newton_impact
+from .joint import bridge_joint
+from .layout import P_EVENT, P_GUARD, P_JOINT, P_NEVENT, P_NGUARD, P_NJOINT
+from .model import build_model
 from .modes import ModeCatalog, SubsetKey
+from .params import start
 from .transitions import outgoing
 
 
@@ -44,17 +53,16 @@ class ContactBridge:
     joint_damping:
         Optional viscous damping per joint name (N m s/rad or N s/m): ``tau -= b v``.
     actuated:
-        Joint names driven by the control ``u`` (one entry of u per joint, N m or N). With any,
-        the guards that depend on constraint forces (releases, plastic impacts) are declared
-        ``guard_args="t,x,u"`` so that the integrator evaluates them with the control at the
-        interpolated crossing time.
+        Joint names driven by the input ``u`` (one entry of u per joint, N m or N): the modes'
+        functions take ``inputs = len(actuated)``, and the guards on constraint forces
+        (releases, plastic impacts, friction events) are evaluated under u.
     name:
         Name of the system.
 
     Raises
     ------
     ModelError
-        naming the contact, frame or joint at fault.
+        naming the contact, frame or joint at fault, or when the native library is unavailable.
     """
 
     def __init__(
@@ -78,9 +86,9 @@ class ContactBridge:
             actuated=actuated,
             name=name,
         )
-        self._data = BridgeData.create(self._model)
+        self._data = self._model.pin_model.createData()  # kinematics for pictures and checks
         self._modes = ModeCatalog(self._model, mode_names)
-        self._twins: list[Any] = []  # compiled twins, whose evaluations counters() adds
+        self._built: dict[str, tuple[Mode, list[Transition]]] = {}
 
     # -- the robot ------------------------------------------------------------------------
     @property
@@ -95,8 +103,13 @@ class ContactBridge:
 
     @property
     def data(self) -> pin.Data:
-        """The one Pinocchio data every evaluation writes (a system built on it is not thread-safe)."""
-        return self._data.pin_data
+        """A Pinocchio data of the model, for kinematics outside the model functions."""
+        return self._data
+
+    @property
+    def handle(self) -> int:
+        """The model's handle in the native library (the model functions' Pinocchio)."""
+        return self._model.handle
 
     @property
     def n(self) -> int:
@@ -114,13 +127,8 @@ class ContactBridge:
         return self._model.velocity_names
 
     @property
-    def _act_idx(self) -> np.ndarray:
-        """Velocity index of each entry of the control u (the robots' tests check the mapping)."""
-        return self._model.actuated_idx
-
-    @property
     def actuated_dofs(self) -> np.ndarray:
-        """Velocity index of each actuated joint, in the order of the control's entries."""
+        """Velocity index of each actuated joint, in the order of the input's entries."""
         return self._model.actuated_idx.copy()
 
     @property
@@ -141,49 +149,111 @@ class ContactBridge:
         """Coordinate names of mode ``mode``: q, v, then one foothold (m) per active spring leg."""
         return self._modes.spec(mode).names
 
-    # -- dynamics -------------------------------------------------------------------------
-    def field(self, mode: str) -> Callable[[float, np.ndarray, Any], np.ndarray]:
-        """The vector field ``f(t, x, u) = (v, a)`` of mode ``mode``; the footholds are constant."""
+    def mode(self, mode: str) -> Mode:
+        """The legsim ``Mode`` of contact mode ``mode``, written as the bridge's model functions."""
+        return self.expand(mode)[0]
+
+    def expand(self, mode: str) -> tuple[Mode, list[Transition]]:
+        """``HybridSystem`` expand callback: the mode and its outgoing transitions (built once)."""
+        built = self._built.get(mode)
+        if built is None:
+            built = self._built[mode] = self._build(mode)
+        return built
+
+    def _build(self, mode: str) -> tuple[Mode, list[Transition]]:
         spec = self._modes.spec(mode)
-        model, data = self._model, self._data
-        n, dim = model.n, spec.dim
+        b = start(self._model, spec)
+        out = outgoing(self._model, self._modes, spec, b)
+        b.set(P_NGUARD, len(out.records))
+        b.set(P_GUARD, b.append(v for rec in out.records for v in rec))
+        b.set(P_NEVENT, len(out.events))
+        b.set(P_EVENT, b.append(v for rec in out.events for v in rec))
+        b.set(P_NJOINT, len(out.joint_records))
+        b.set(P_JOINT, b.append(v for rec in out.joint_records for v in rec))
+        functions = ModeFunctions(
+            bridge_field,
+            bridge_guards if out.transitions else None,
+            bridge_reset,
+            bridge_joint if out.joint_outcomes else None,
+            params=b.array(),
+            inputs=len(self._model.actuated_idx),
+            joint_outcomes=tuple(out.joint_outcomes),
+            nan_breaks=True,
+            # With friction an event's outcome is the mode whose forces are consistent under the
+            # input applied after it, which the controller gives there.
+            previewed=self._model.coulomb,
+        )
+        return Mode(spec.dim, names=spec.names, units=spec.units, functions=functions), out.transitions
 
-        def f(t: float, x: np.ndarray, u: Any = None) -> np.ndarray:
-            a, _ = dynamics.dynamics(model, data, spec, x, u)
-            out = np.zeros(dim)
-            out[:n] = x[n : 2 * n]
-            out[n : 2 * n] = a
-            return out
+    def system(self, initial_mode: str | None = None, x0: Any = None, *, energy: bool = True) -> HybridSystem:
+        """A lazily expanded ``HybridSystem`` of this robot (modes appear as transitions reach
+        them). With ``x0`` the initial mode is built and checked at once."""
+        initial = None
+        if initial_mode is not None:
+            self.active_contacts(initial_mode)
+            if x0 is not None:
+                initial = (initial_mode, x0)
+        return HybridSystem(
+            {}, (), name=self.name, expand=self.expand, energy=self.energy if energy else None, initial=initial
+        )
 
-        return f
+    # -- what the outputs read --------------------------------------------------------------
+    def field(self, mode: str) -> Callable[[float, np.ndarray, Any], np.ndarray]:
+        """The vector field ``f(t, x, u) = (v, a, 0 for the footholds)`` of mode ``mode``."""
+        return self.mode(mode).field
+
+    def _params(self, mode: str) -> np.ndarray:
+        functions = self.mode(mode).functions
+        assert functions is not None
+        return functions.params
 
     def constraint_forces(self, mode: str, x: np.ndarray, u: Any = None) -> dict[str, np.ndarray]:
-        """Constraint forces of the active rigid contacts at state x: ``{name: lambda}`` with
-        ``lambda = (f_x, f_z)`` (N) for a sticking point contact, ``(f_z,)`` for a frictionless
-        one and ``(tau,)`` (N m or N) for a joint stop; the last entry is the normal force, >= 0
-        when the contact pushes the robot into its domain."""
+        """Constraint forces of the active rigid contacts at state x under the input u (the
+        field's solve): ``{name: lambda}`` with ``lambda = (f_x, f_z)`` (N) for a sticking or
+        slipping point contact (slipping: f_x is the friction force ``-s mu f_z``), ``(f_z,)`` for
+        a frictionless one and ``(tau,)`` (N m or N) for a joint stop; the last entry is the
+        normal force, >= 0 when the contact pushes the robot into its domain."""
         spec = self._modes.spec(mode)
-        return dynamics.constraint_forces(self._model, self._data, spec, np.asarray(x, dtype=float), u)
+        lam = np.empty(max(1, spec.rows))
+        x = np.ascontiguousarray(x, dtype=np.float64)
+        bridge_forces(0.0, x, as_input(u, len(self._model.actuated_idx)), self._params(mode), lam)
+        out, i = {}, 0
+        for r, slip in zip(spec.rigid, spec.slips, strict=True):
+            rows = spec.rows_of(r, slip)
+            out[r.contact.name] = lam[i : i + rows].copy()
+            if slip:  # the friction force joins the normal force: (f_x, f_z)
+                assert r.mu is not None
+                out[r.contact.name] = np.array((-slip * r.mu * lam[i], lam[i]))
+            i += rows
+        return out
 
     def leg_forces(self, mode: str, x: np.ndarray) -> dict[str, float]:
-        """Axial force (N, > 0 pushing the hip away from the foot) of each active spring leg."""
-        return dynamics.leg_forces(self._model, self._data, self._modes.spec(mode), x)
+        """Axial force (N, > 0 pushing the hip away from the foot) of each stance spring leg."""
+        spec = self._modes.spec(mode)
+        out = np.empty(len(spec.springs))
+        x = np.ascontiguousarray(x, dtype=np.float64)
+        bridge_spring_forces(0.0, x, np.zeros(len(self._model.actuated_idx)), self._params(mode), out)
+        return {lg.leg.name: float(f) for lg, f in zip(spec.springs, out, strict=True)}
 
     def impact_velocity(self, rows: Sequence[tuple[str, float]], q: np.ndarray, v: np.ndarray) -> np.ndarray:
-        """Post-impact velocity (nv,) of the generalised Newton impact.
+        """Post-impact velocity (nv,) of the generalised Newton impact of the contacts ``rows``
+        (``(contact name, restitution)``): each contact's rows J_i get ``J_i v+ = -c_i J_i v``
+        (``impacts.newton_impact``)."""
+        for name, _ in rows:
+            if name not in self._model.rigid:
+                raise ModelError(f"{self.name}: impact_velocity: unknown rigid contact {name!r}")
+        x = np.concatenate([np.asarray(q, dtype=float), np.asarray(v, dtype=float)])
+        contacts = np.array([self._model.index(name) for name, _ in rows], dtype=np.int64)
+        coeff = np.array([c for _, c in rows], dtype=float)
+        v_plus, normal = np.empty(self.n), np.empty(len(rows))
+        newton_impact(x, self._params(self._modes.name_of(())), contacts, coeff, len(rows), v_plus, normal)
+        return v_plus
 
-        ``rows``: ``(contact name, restitution)`` of the contacts constrained at the impact;
-        each contact's Jacobian rows J_i get ``J_i v+ = -c_i J_i v``.
-        ``v+ = v + M^-1 J^T (J M^-1 J^T)^-1 (w - J v)``, ``w = -c J v`` row-wise.
-        """
-        return impacts.impact_velocity(self._model, self._data, rows, q, v)
-
-    # -- guards ---------------------------------------------------------------------------
     def initial_check(self) -> Callable[[str, np.ndarray, float], str | None]:
         """The scene's initial-state check (``Model.info["initial_check"]``): ``check(mode, x,
         eps)`` names the first inactive joint stop or point contact whose position lies past it
         by more than eps (rad or m), else None."""
-        return guards.initial_check(self._model, self._data, lambda mode: self._modes.spec(mode).active)
+        return guards.initial_check(self._model, self._data, self._modes.active_contacts)
 
     def model_info(self, **entries: Any) -> dict[str, Any]:
         """``Model.info`` of a robot built on this bridge: the entries the core and the tools read
@@ -194,15 +264,23 @@ class ContactBridge:
         """Unit of each kind of guard by transition name prefix (eps is measured in these)."""
         return guards.guard_units(self._model)
 
-    # -- energy and kinematics for pictures -----------------------------------------------
     def energy(self, mode: str, x: np.ndarray) -> float:
-        """Total mechanical energy (J): kinetic + gravity (``model.gravity``) + leg springs."""
+        """Total mechanical energy (J): kinetic + gravity (``model.gravity``) + stance leg springs."""
         spec = self._modes.spec(mode)
-        return dynamics.energy(self._model, self._data, spec, np.asarray(x, dtype=float))
+        x = np.asarray(x, dtype=float)
+        pm, pd, n = self._model.pin_model, self._data, self.n
+        q, v = x[:n], x[n : 2 * n]
+        e = pin.computeKineticEnergy(pm, pd, q, v) + pin.computePotentialEnergy(pm, pd, q)
+        pin.forwardKinematics(pm, pd, q)
+        for i, lg in enumerate(spec.springs):
+            hip = pin.updateFramePlacement(pm, pd, lg.hip_id).translation
+            r = float(np.hypot(hip[0] - x[2 * n + i], hip[2] - lg.leg.ground))
+            e += 0.5 * lg.leg.stiffness * (lg.leg.rest_length - r) ** 2
+        return float(e)
 
     def frame_positions(self, q: np.ndarray, frames: Iterable[str]) -> dict[str, np.ndarray]:
         """World (x, z) positions (m) of the named frames at configuration q."""
-        pm, pd = self._model.pin_model, self._data.pin_data
+        pm, pd = self._model.pin_model, self._data
         pin.forwardKinematics(pm, pd, np.asarray(q, dtype=float))
         out = {}
         for fname in frames:
@@ -224,78 +302,13 @@ class ContactBridge:
                 out[lg.leg.name] = pos[f"{lg.leg.name}_foot"]
         return out
 
-    # -- the hybrid system ----------------------------------------------------------------
-    def mode(self, mode: str) -> Mode:
-        """The legsim ``Mode`` of contact mode ``mode``."""
-        spec = self._modes.spec(mode)
-        return Mode(spec.dim, self.field(mode), names=spec.names, units=spec.units)
-
-    def expand(self, mode: str) -> tuple[Mode, list[Transition]]:
-        """``HybridSystem`` expand callback: the mode and its outgoing transitions."""
-        spec = self._modes.spec(mode)
-        transitions = outgoing(self._model, self._data, self._modes, spec)
-        # numba and the native library load with the first mode
-        if self._model.coulomb:
-            from .friction_twins import coulomb_twin as make_twin
-        else:
-            from .twin_build import bridge_twin as make_twin
-        twin = make_twin(self._model, self._modes, spec, transitions)
-        self.count_twin(twin)
-        return dataclasses.replace(self.mode(mode), compiled=twin), transitions
-
-    def count_twin(self, twin: Any) -> None:
-        """Report a compiled twin's evaluations (its own counters) in ``counters()``."""
-        if twin is not None:
-            self._twins.append(twin)
-
-    def system(self, initial_mode: str | None = None, x0: Any = None, *, energy: bool = True) -> HybridSystem:
-        """A lazily expanded ``HybridSystem`` of this robot (modes appear as transitions reach
-        them). With ``x0`` the initial mode is built and checked at once."""
-        initial = None
-        if initial_mode is not None:
-            self.active_contacts(initial_mode)
-            if x0 is not None:
-                initial = (initial_mode, x0)
-        return HybridSystem(
-            {},
-            (),
-            name=self.name,
-            expand=self.expand,
-            energy=self.energy if energy else None,
-            initial=initial,
-            joint=self.joint,
-        )
-
-    def joint(self, mode: str, names: tuple[str, ...], x: np.ndarray, rest: bool = False) -> JointCrossing | None:
-        """The contacts struck by the transitions ``names`` (crossed in one landing step) at x,
-        resolved under one impact law (``joint``; ``rest``: all plastic, their bounces having
-        accumulated), or None to take them one after the other."""
-        return resolve(self._model, self._data, self._modes, mode, names, x, rest)
-
-    def attach_control(self, preview: Callable[[str, float, np.ndarray], Any] | None) -> None:
-        """Tell the bridge the control each mode will get: ``preview(mode, t, x) -> u`` (without
-        changing the controller's state). After an impact the bridge then chooses the mode whose
-        contact forces are consistent under that control (a controller whose output depends on
-        the mode, or on velocities an impact changes, needs this); without it they are taken
-        under the control the impact guard was evaluated with."""
-        self._data.preview = preview
-
     def counters(self) -> dict[str, int]:
-        """Model-side evaluation counts since construction (or the last ``reset_counters``):
-        aba, kkt (constrained solves), jacobians, kinematics (guard passes), spring_forces,
-        damping_evals, actuation_evals, impacts, energy_evals, cache_hits."""
-        from .twins import add_counts
-
-        counts = dict(self._data.counts)
-        for twin in self._twins:  # evaluations on the compiled path
-            add_counts(counts, twin)
-        return counts
+        """Model-side evaluation counts since construction (or the last ``reset_counters``), of
+        every path (the native library counts them): aba, kkt (constrained solves), jacobians,
+        kinematics (guard passes), impacts, spring_forces, damping_evals, actuation_evals,
+        painleve_sticks. Robots built on one Pinocchio model object share them."""
+        return native.counts(self._model.handle)
 
     def reset_counters(self) -> None:
         """Set every counter to zero."""
-        from .twins import add_counts
-
-        for k in self._data.counts:
-            self._data.counts[k] = 0
-        for twin in self._twins:
-            add_counts({}, twin, reset=True)
+        native.counts(self._model.handle, reset=True)

@@ -9,7 +9,7 @@ planar models with: ``planar_floating_base`` and ``add_point_frame``.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any, Literal
 
@@ -40,11 +40,8 @@ class PointContact:
         point, s the slip direction); see ``legsim.robots.bridge.friction``. Needs
         ``tangential=True``.
     releases: names of contacts that become inactive when this one strikes.
-    armed: optional ``armed(q, v) -> float``: the touchdown only counts where it is > 0 (for a
-        compass gait's swing foot, how far it is ahead of the stance foot, m, so that the scuff
-        at mid-swing is not a heel strike); the touchdown guard becomes
-        ``max(height, vertical velocity, -armed)``. The point must be above the ground when it
-        becomes armed, or the guard jumps past its strip.
+    armed: optional ``Armed``: where the touchdown counts (a walker's swing foot lands only
+        ahead of its stance foot, so that the scuff at mid-swing is not a heel strike).
     """
 
     name: str
@@ -53,8 +50,22 @@ class PointContact:
     ground: float = 0.0
     tangential: bool = True
     releases: tuple[str, ...] = ()
-    armed: Callable[[np.ndarray, np.ndarray], float] | None = None
+    armed: Armed | None = None
     friction: float | None = None
+
+
+@dataclass(frozen=True)
+class Armed:
+    """Where a point contact's touchdown counts, as data its guard evaluates: where the
+    configuration coordinate ``coordinate`` (by name) exceeds ``beyond`` (rad or m), or where the
+    point lies ahead of frame ``ahead_of`` along x by more than ``beyond`` (m); exactly one of the
+    two is given. With ``armed = coordinate - beyond`` (or the lead minus ``beyond``) the
+    touchdown guard becomes ``max(height, vertical velocity, -armed)``. The point must be above
+    the ground when it becomes armed, or the guard jumps past its strip."""
+
+    coordinate: str = ""
+    ahead_of: str = ""
+    beyond: float = 0.0
 
 
 #: Suffixes of a Coulomb contact's slipping modes: ``<name>>`` slips towards +x, ``<name><``
@@ -121,8 +132,7 @@ class RigidContact:
     dof: velocity index of a stop's joint (-1 for a point contact).
     sign: +1 for a lower stop, -1 for an upper one: ``sign * (q - position) >= 0`` inside.
     rows: constraint Jacobian rows (2 for a sticking point, else 1); the normal row is the last.
-    slip: in a mode where a Coulomb contact slips, the slip direction s (+1: towards +x, -1:
-        towards -x), and then one row (the normal); 0 otherwise.
+    armed_frame: the frame id a point is armed ahead of (``Armed.ahead_of``), else -1.
     """
 
     contact: PointContact | JointStop
@@ -131,19 +141,12 @@ class RigidContact:
     dof: int = -1
     sign: float = 1.0
     rows: int = 1
-    slip: float = 0.0
+    armed_frame: int = -1
 
     @property
     def mu(self) -> float | None:
         """The Coulomb friction coefficient of a point contact, or None (no friction limit)."""
         return getattr(self.contact, "friction", None)
-
-    @property
-    def slip_mu(self) -> float:
-        """slip * mu of a slipping contact: minus its friction force per unit normal force."""
-        mu = self.mu
-        assert mu is not None, f"'{self.contact.name}' slips, so it has a friction coefficient"
-        return self.slip * mu
 
     @property
     def point(self) -> PointContact:
@@ -258,8 +261,7 @@ def _resolve_point(model: pin.Model, c: PointContact, robot: str, where: str, de
     fid = frame_id(model, c.frame, where, robot)
     if isinstance(c.releases, str) or not all(isinstance(o, str) for o in c.releases):
         raise ModelError(f"{robot}: {where}: releases must be a tuple of contact names, got {c.releases!r}")
-    if c.armed is not None and not callable(c.armed):
-        raise ModelError(f"{robot}: {where}: armed must be callable armed(q, v) -> float or None")
+    armed_frame = _resolve_armed(model, c.armed, robot, where)
     for other in c.releases:
         if other not in declared or other == c.name:
             raise ModelError(f"{robot}: {where}: releases unknown contact {other!r} (contacts: {list(declared)})")
@@ -270,7 +272,20 @@ def _resolve_point(model: pin.Model, c: PointContact, robot: str, where: str, de
                 f"{robot}: {where}: friction {c.friction!r} needs tangential=True (a contact with "
                 f"tangential=False is frictionless)"
             )
-    return RigidContact(c, "point", frame_id=fid, rows=2 if c.tangential else 1)
+    return RigidContact(c, "point", frame_id=fid, rows=2 if c.tangential else 1, armed_frame=armed_frame)
+
+
+def _resolve_armed(model: pin.Model, armed: Any, robot: str, where: str) -> int:
+    """The frame id an ``Armed`` point is armed ahead of (-1: none, or armed by a coordinate,
+    which ``model.build_model`` resolves with the coordinate names)."""
+    if armed is None:
+        return -1
+    if not isinstance(armed, Armed):
+        raise ModelError(f"{robot}: {where}: armed must be a legsim.robots.bridge.Armed or None, got {armed!r}")
+    finite_number(armed.beyond, f"{robot}: {where}: armed.beyond")
+    if bool(armed.coordinate) == bool(armed.ahead_of):
+        raise ModelError(f"{robot}: {where}: armed names exactly one of coordinate and ahead_of, got {armed!r}")
+    return frame_id(model, armed.ahead_of, f"{where}: armed.ahead_of", robot) if armed.ahead_of else -1
 
 
 def _resolve_stop(model: pin.Model, c: JointStop, robot: str, where: str) -> RigidContact:

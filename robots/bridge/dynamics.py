@@ -1,269 +1,237 @@
-"""Dynamics of a mode: applied forces, unconstrained ABA and the constrained KKT solve.
+"""The flow of a bridge mode, as model functions (``legsim.model``) over the mode's parameter
+array p (``layout``), calling Pinocchio's C++ algorithms through the native library.
 
-Modes without rigid constraints use the articulated-body algorithm ``pinocchio.aba`` with the
-applied generalised forces (spring legs through their hip Jacobians, joint damping, actuation).
-Modes with rigid constraints solve the KKT contact dynamics
-``M a + b = tau + J^T lambda, J a + dJ/dt v = 0`` through the Schur complement of ABA:
-``a0 = aba(q, v, tau)``, ``lambda = (J M^-1 J^T)^-1 (-(J a0 + dJ/dt v))``,
-``a = a0 + M^-1 J^T lambda`` (``M^-1`` by ``pinocchio.computeMinverse``). Nothing a mode does not
-need is computed: no contact Jacobian without rigid constraints, no spring force without an
-active leg, no damping term without damping. Each kind of evaluation is counted in
-``data.counts``.
+Applied generalised forces tau: stance spring legs through their hips' Jacobians, joint damping
+and the actuated joints' input u. Without active rigid contacts the acceleration is
+``aba(q, v, tau)``; with them, the KKT contact dynamics ``M a + b = tau + W^T lambda,
+J a + dJ/dt v = 0`` through the Schur complement of ABA (``lsn_constrained``; W = J except on a
+slipping point's normal row, ``J_z - s mu J_x``). Where slipping contacts have no unique forces
+(the Painleve paradox) the acceleration is nan: a state past the model's range.
+
+The state is ``x = (q, v, footholds)``: q and v of size nv, then the foothold x (m) of each
+stance leg in declared order, which the flow keeps.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
-from typing import Any
 
 import numpy as np
-import pinocchio as pin
 
-from legsim.errors import ModelBreakdown, ModelError
+from legsim import _native, model_function
+from legsim._native.calls import lsn_aba, lsn_constrained, lsn_frame_jacobian, lsn_frames, lsn_tally
 
-from .contacts import LegFrames, RigidContact
-from .model import LWA, BridgeData, BridgeModel
-from .modes import ModeSpec
+from .layout import (
+    B_POINT,
+    B_SLIPPING,
+    B_STOP,
+    BLOCK_SIZE,
+    C_ID,
+    C_KIND,
+    C_MU,
+    C_ROWS,
+    C_SIGN,
+    CONTACT_SIZE,
+    KIND_STOP,
+    L_DAMPING,
+    L_FOOTHOLD,
+    L_GROUND,
+    L_HIP_FRAME,
+    L_REST,
+    L_STIFFNESS,
+    LEG_SIZE,
+    P_ACT,
+    P_CONTACT,
+    P_DAMP,
+    P_DIM,
+    P_FRAME,
+    P_HANDLE,
+    P_LEG,
+    P_N,
+    P_NACT,
+    P_NCONTACT,
+    P_NDAMP,
+    P_NFRAME,
+    P_NLEG,
+    P_NRIGID,
+    P_RIGID,
+    P_ROWS,
+    S_ABSENT,
+    S_SLIP_POS,
+    STATUS_BASE,
+)
+from .native import C_ACTUATION, C_DAMPING, C_SPRINGS
 
+#: Load the library before any function below is compiled or loaded from its cache: numba
+#: resolves the ``lsn_*`` symbols in the process.
+_native.load()
 
-def control_key(u: Any) -> bytes:
-    """Bytes identifying a control value, for caches keyed by state and control."""
-    if u is None:
-        return b""
-    return np.asarray(u, dtype=float).tobytes()
-
-
-def control_vector(model: BridgeModel, u: Any) -> np.ndarray:
-    """The control u as a vector with one entry (N m or N) per actuated joint."""
-    arr = np.asarray(u, dtype=float).reshape(-1)
-    if arr.shape != model.actuated_idx.shape:
-        raise ModelError(
-            f"{model.name}: control u has {arr.size} entries, the robot has {model.actuated_idx.size} actuated joints"
-        )
-    return arr
-
-
-def applied_forces(
-    model: BridgeModel, data: BridgeData, spec: ModeSpec, q: np.ndarray, v: np.ndarray, x: np.ndarray, u: Any
-) -> np.ndarray:
-    """Generalised applied force tau (nv,): stance spring legs, joint damping, actuation."""
-    tau = np.zeros(model.n)
-    pm, pd, counts = model.pin_model, data.pin_data, data.counts
-    for i, lg in enumerate(spec.springs):
-        J = pin.computeFrameJacobian(pm, pd, q, lg.hip_id, LWA)[:3:2]  # rows x and z
-        counts["jacobians"] += 1
-        counts["spring_forces"] += 1
-        p = pd.oMf[lg.hip_id].translation
-        d = np.array((p[0] - x[2 * model.n + i], p[2] - lg.leg.ground))
-        r = math.hypot(d[0], d[1])
-        d /= r
-        f = lg.leg.stiffness * (lg.leg.rest_length - r)
-        if lg.leg.damping > 0.0:
-            counts["damping_evals"] += 1
-            f -= lg.leg.damping * (d @ (J @ v))
-        tau += (f * d) @ J
-    if model.damping_idx.size:
-        counts["damping_evals"] += 1
-        tau[model.damping_idx] -= model.damping_b * v[model.damping_idx]
-    if u is not None:
-        tau[model.actuated_idx] += control_vector(model, u)
-        counts["actuation_evals"] += 1
-    return tau
+_F8 = 8  # bytes per float64, for pointer offsets
 
 
-def constraint_rows(
-    model: BridgeModel, data: BridgeData, rigid: Sequence[RigidContact], q: np.ndarray, v: np.ndarray, drift: bool
-) -> tuple[np.ndarray, np.ndarray]:
-    """Stacked constraint Jacobian (rows, nv) and, with ``drift``, dJ/dt v (rows,) (else zeros);
-    the normal row of each contact is its last row and points into the domain (gap increasing).
-    Computing a point's Jacobian also updates its frame placement in ``data.pin_data.oMf``."""
-    J, gamma, _ = constraint_system(model, data, rigid, q, v, drift)
-    return J, gamma
+@model_function
+def ptr(a, i):
+    """Address of a[i] of a contiguous float64 array."""
+    return a.ctypes.data + _F8 * i
 
 
-def constraint_system(
-    model: BridgeModel, data: BridgeData, rigid: Sequence[RigidContact], q: np.ndarray, v: np.ndarray, drift: bool
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``constraint_rows`` and the directions W (rows, nv) along which the constraint forces act,
-    ``tau_c = W^T lambda``: W = J, except on the normal row of a slipping contact, where the
-    friction force ``-s mu lambda_n`` along x joins the normal force: ``W = J_z - s mu J_x``."""
-    rows = sum(r.rows for r in rigid)
-    J = np.zeros((rows, model.n))
-    gamma = np.zeros(rows)
-    pm, pd = model.pin_model, data.pin_data
-    i = 0
-    has_points = False
-    friction_rows: list[tuple[int, np.ndarray]] = []
-    for r in rigid:
-        if r.kind == "stop":
-            J[i, r.dof] = r.sign
-        else:
-            Jf = pin.computeFrameJacobian(pm, pd, q, r.frame_id, LWA)
-            data.counts["jacobians"] += 1
-            if r.rows == 2:
-                J[i] = Jf[0]
-                J[i + 1] = Jf[2]
-            else:
-                J[i] = Jf[2]
-                if r.slip:
-                    friction_rows.append((i, -r.slip_mu * Jf[0]))
-            has_points = True
-        i += r.rows
-    if drift and has_points:  # a stop's row is constant: no drift
-        pin.forwardKinematics(pm, pd, q, v, np.zeros(model.n))
-        i = 0
-        for r in rigid:
-            if r.kind == "point":
-                acc = pin.getFrameClassicalAcceleration(pm, pd, r.frame_id, LWA).linear
-                if r.rows == 2:
-                    gamma[i], gamma[i + 1] = acc[0], acc[2]
-                else:
-                    gamma[i] = acc[2]
-            i += r.rows
-    if not friction_rows:
-        return J, gamma, J
-    W = J.copy()
-    for row, friction in friction_rows:
-        W[row] += friction
-    return J, gamma, W
+@model_function
+def handle(p):
+    """The native model handle of p."""
+    return np.int64(p[P_HANDLE])
 
 
-def solve_small(A: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Solve A y = b for the small symmetric positive definite Delassus matrix A; one and two
-    rows (a stop, a foot) in closed form, where LAPACK's call overhead would dominate."""
-    if A.shape[0] == 1:
-        return b / A[0, 0]
-    if A.shape[0] == 2:
-        det = A[0, 0] * A[1, 1] - A[0, 1] * A[1, 0]
-        return np.array(((A[1, 1] * b[0] - A[0, 1] * b[1]) / det, (A[0, 0] * b[1] - A[1, 0] * b[0]) / det))
-    return np.linalg.solve(A, b)
+@model_function
+def frame_kinematics(x, p, kin):
+    """(x, z, vx, vz) (m, m/s) of each frame of p's kinematics list at (q, v) into kin
+    (4 per frame, in the list's order; a record's slot s reads kin[4 s : 4 s + 4])."""
+    count = int(p[P_NFRAME])
+    if count > 0:
+        lsn_frames(handle(p), x.ctypes.data, ptr(x, int(p[P_N])), np.int64(count), ptr(p, int(p[P_FRAME])),
+                   kin.ctypes.data)  # fmt: skip
 
 
-def dynamics(
-    model: BridgeModel, data: BridgeData, spec: ModeSpec, x: np.ndarray, u: Any
-) -> tuple[np.ndarray, np.ndarray]:
-    """(acceleration (nv,), constraint forces (rows,)) of mode ``spec`` at x under control u,
-    cached for the last state and control (counted in ``cache_hits``)."""
-    # Keyed by the control's value, not its identity: a controller returns a new array at each
-    # call, and the guard at a state and the field at the same state must share one solve.
-    key = x.tobytes() + control_key(u)
-    scratch = data.scratch(spec.name)
-    if scratch.dyn_val is not None and key == scratch.dyn_key:
-        data.counts["cache_hits"] += 1
-        return scratch.dyn_val
-    n = model.n
-    q = x[:n]
-    v = x[n : 2 * n]
-    if u is not None:
-        data.last_control = u
-    tau = applied_forces(model, data, spec, q, v, x, u)
-    a = pin.aba(model.pin_model, data.pin_data, q, v, tau).copy()
-    data.counts["aba"] += 1
-    lam = _constrain(model, data, spec, q, v, a) if spec.rigid else np.zeros(0)
-    scratch.dyn_key, scratch.dyn_val = key, (a, lam)
-    return a, lam
+@model_function
+def spring_force(x, p, n, leg, jac):
+    """(f, d_x, d_z) of stance leg record ``leg`` at x: its axial force f (N, > 0 pushing the hip
+    away from the foot; k (l - r) - b dr/dt) and the unit vector d from the foothold to the hip;
+    the hip frame's position and Jacobian rows x and z are left in jac (2 + 2 nv)."""
+    lsn_frame_jacobian(handle(p), x.ctypes.data, np.int64(p[leg + L_HIP_FRAME]), jac.ctypes.data)
+    lsn_tally(handle(p), C_SPRINGS, 1.0)
+    d0 = jac[0] - x[2 * n + int(p[leg + L_FOOTHOLD])]
+    d1 = jac[1] - p[leg + L_GROUND]
+    r = math.hypot(d0, d1)
+    d0 /= r
+    d1 /= r
+    f = p[leg + L_STIFFNESS] * (p[leg + L_REST] - r)
+    if p[leg + L_DAMPING] > 0.0:
+        lsn_tally(handle(p), C_DAMPING, 1.0)
+        rate = 0.0
+        for j in range(n):
+            rate += (d0 * jac[2 + j] + d1 * jac[2 + n + j]) * x[n + j]
+        f -= p[leg + L_DAMPING] * rate
+    return f, d0, d1
 
 
-def _constrain(
-    model: BridgeModel, data: BridgeData, spec: ModeSpec, q: np.ndarray, v: np.ndarray, a: np.ndarray
-) -> np.ndarray:
-    """Turn the unconstrained acceleration ``a`` (changed in place) into the constrained one;
-    returns the constraint forces (rows,)."""
-    data.counts["kkt"] += 1
-    Minv = pin.computeMinverse(model.pin_model, data.pin_data, q)
-    if spec.stop_dofs is not None and len(spec.stop_dofs[0]) == 1:
-        # one joint stop: J = s e_k, the Delassus "matrix" is (M^-1)_kk
-        k, s = int(spec.stop_dofs[0][0]), float(spec.stop_dofs[1][0])
-        col = Minv[:, k]
-        lam = np.array((-s * a[k] / col[k],))
-        a -= col * (a[k] / col[k])
-        return lam
-    if spec.stop_dofs is not None:
-        # joint stops only: J selects (signed) dofs, no Jacobian, no drift
-        idx, sign = spec.stop_dofs
-        MJt = Minv[:, idx] * sign
-        A = MJt[idx] * sign[:, None]
-        rhs = -a[idx] * sign
+@model_function
+def applied_forces(x, u, p, n, tau):
+    """tau (nv,): stance spring legs, joint damping, the actuated joints' input u (N m or N)."""
+    for j in range(n):
+        tau[j] = 0.0
+    legs = int(p[P_NLEG])
+    jac = np.empty(2 + 2 * n if legs > 0 else 0)
+    for i in range(legs):
+        leg = int(p[P_LEG]) + LEG_SIZE * i
+        if p[leg + L_FOOTHOLD] < 0.0:
+            continue
+        f, d0, d1 = spring_force(x, p, n, leg, jac)
+        for j in range(n):
+            tau[j] += f * d0 * jac[2 + j] + f * d1 * jac[2 + n + j]
+    damped = int(p[P_NDAMP])
+    if damped > 0:
+        lsn_tally(handle(p), C_DAMPING, 1.0)
+    for i in range(damped):
+        k = int(p[int(p[P_DAMP]) + 2 * i])
+        tau[k] -= p[int(p[P_DAMP]) + 2 * i + 1] * x[n + k]
+    actuated = min(int(p[P_NACT]), u.shape[0])
+    if actuated > 0:
+        lsn_tally(handle(p), C_ACTUATION, 1.0)
+    for i in range(actuated):
+        tau[int(p[int(p[P_ACT]) + i])] += u[i]
+
+
+@model_function
+def accelerate(x, u, p, blocks, blocks_at, a, lam):
+    """The acceleration (nv,) into a and the constraint forces into lam (one per constraint row,
+    each block's normal force last) of the constraint blocks ``blocks`` at address ``blocks_at``
+    (``layout.BLOCK_SIZE`` values each) under the input u; ABA without blocks."""
+    n = int(p[P_N])
+    tau = np.empty(n)
+    applied_forces(x, u, p, n, tau)
+    if blocks == 0:
+        lsn_aba(handle(p), x.ctypes.data, ptr(x, n), tau.ctypes.data, a.ctypes.data)
     else:
-        J, gamma, W = constraint_system(model, data, spec.rigid, q, v, drift=True)
-        MJt = Minv @ W.T
-        A = J @ MJt
-        rhs = -(J @ a + gamma)
-        if spec.slipping:
-            check_consistent(model, spec, A)
-    lam = solve_small(A, rhs)
-    a += MJt @ lam
-    return lam
+        lsn_constrained(handle(p), x.ctypes.data, ptr(x, n), tau.ctypes.data, np.int64(blocks), blocks_at,
+                        a.ctypes.data, lam.ctypes.data)  # fmt: skip
 
 
-def check_consistent(model: BridgeModel, spec: ModeSpec, A: np.ndarray) -> None:
-    """``ModelBreakdown`` when a mode with slipping contacts has no unique contact forces: a
-    diagonal entry of its Delassus matrix (normal rows against the normal-plus-friction force
-    directions) <= 0, where pushing on the contact would drive it into the ground (the Painleve
-    paradox), or a singular matrix. (With several slipping contacts a matrix that is not a
-    P-matrix may admit other consistent modes too; this mode's forces are then one of them.)"""
-    diagonal = np.diag(A)
-    scale = float(np.max(np.abs(A)))
-    if np.any(diagonal <= 1e-12 * scale) or abs(np.linalg.det(A)) <= 1e-12 * scale ** len(A):
-        raise ModelBreakdown(
-            f"{model.name}: mode '{spec.name}': with its slipping contacts the rigid contact "
-            f"problem has no unique solution (Delassus matrix {np.round(A, 6).tolist()}: the "
-            f"Painleve paradox); lower the friction coefficient"
-        )
+@model_function
+def mode_accelerate(x, u, p, a, lam):
+    """``accelerate`` with the mode's own constraint blocks."""
+    accelerate(x, u, p, int(p[P_NRIGID]), ptr(p, int(p[P_RIGID])), a, lam)
 
 
-def constraint_forces(
-    model: BridgeModel, data: BridgeData, spec: ModeSpec, x: np.ndarray, u: Any
-) -> dict[str, np.ndarray]:
-    """Constraint forces of the mode's active rigid contacts at x: ``{name: lambda}`` with
-    ``lambda = (f_x, f_z)`` (N) for a sticking or slipping point contact (slipping: f_x is the
-    friction force ``-s mu f_z``), ``(f_z,)`` for a frictionless one
-    and ``(tau,)`` (N m or N) for a joint stop; the last entry is the normal force, >= 0 when the
-    contact pushes the robot into its domain."""
-    _, lam = dynamics(model, data, spec, x, u)
-    out, i = {}, 0
-    for r in spec.rigid:
-        out[r.contact.name] = lam[i : i + r.rows].copy()
-        if r.slip:  # the friction force joins the normal force: (f_x, f_z)
-            out[r.contact.name] = np.array((-r.slip_mu * lam[i], lam[i]))
-        i += r.rows
-    return out
+@model_function
+def bridge_field(t, x, u, p, dx):
+    """f(t, x, u) = (v, a, 0 for the footholds) of the mode, shape (dim,) (module docstring)."""
+    n = int(p[P_N])
+    a = np.empty(n)
+    lam = np.empty(max(1, int(p[P_ROWS])))
+    mode_accelerate(x, u, p, a, lam)
+    for j in range(n):
+        dx[j] = x[n + j]
+        dx[n + j] = a[j]
+    for j in range(2 * n, int(p[P_DIM])):
+        dx[j] = 0.0
 
 
-def leg_length(model: BridgeModel, data: BridgeData, leg: LegFrames, x: np.ndarray, i: int) -> tuple[float, float]:
-    """(length r (m), its rate dr/dt (m/s)) of the stance leg whose foothold is ``x[2 nv + i]``."""
-    n = model.n
-    pm, pd = model.pin_model, data.pin_data
-    pin.forwardKinematics(pm, pd, x[:n], x[n : 2 * n])
-    p = pin.updateFramePlacement(pm, pd, leg.hip_id).translation
-    vel = pin.getFrameVelocity(pm, pd, leg.hip_id, LWA).linear
-    dx = p[0] - x[2 * n + i]
-    dz = p[2] - leg.leg.ground
-    r = math.hypot(dx, dz)
-    return r, (dx * vel[0] + dz * vel[2]) / r
+@model_function
+def bridge_forces(t, x, u, p, lam):
+    """The constraint forces of the mode's active rigid contacts at (t, x) under u, one per
+    constraint row (N, or N m for a stop), each contact's normal force last: the outputs'
+    contact forces, from the same solve as the field."""
+    a = np.empty(int(p[P_N]))
+    mode_accelerate(x, u, p, a, lam)
 
 
-def leg_forces(model: BridgeModel, data: BridgeData, spec: ModeSpec, x: np.ndarray) -> dict[str, float]:
-    """Axial force (N, > 0 pushing the hip away from the foot) of each active spring leg."""
-    out = {}
-    for i, lg in enumerate(spec.springs):
-        r, rdot = leg_length(model, data, lg, x, i)
-        f = lg.leg.stiffness * (lg.leg.rest_length - r)
-        if lg.leg.damping > 0.0:
-            f -= lg.leg.damping * rdot
-        out[lg.leg.name] = f
-    return out
+@model_function
+def bridge_spring_forces(t, x, u, p, out):
+    """The axial force (N, > 0 pushing the hip away from the foot) of each stance leg, in
+    declared order, into out."""
+    n = int(p[P_N])
+    jac = np.empty(2 + 2 * n)
+    k = 0
+    for i in range(int(p[P_NLEG])):
+        leg = int(p[P_LEG]) + LEG_SIZE * i
+        if p[leg + L_FOOTHOLD] >= 0.0:
+            out[k] = spring_force(x, p, n, leg, jac)[0]
+            k += 1
 
 
-def energy(model: BridgeModel, data: BridgeData, spec: ModeSpec, x: np.ndarray) -> float:
-    """Total mechanical energy (J): kinetic + gravity (``model.gravity``) + stance leg springs."""
-    n = model.n
-    pm, pd = model.pin_model, data.pin_data
-    data.counts["energy_evals"] += 1
-    q, v = x[:n], x[n : 2 * n]
-    e = pin.computeKineticEnergy(pm, pd, q, v) + pin.computePotentialEnergy(pm, pd, q)
-    for i, lg in enumerate(spec.springs):
-        r, _ = leg_length(model, data, lg, x, i)
-        e += 0.5 * lg.leg.stiffness * (lg.leg.rest_length - r) ** 2
-    return float(e)
+# -- modes as statuses ------------------------------------------------------------------------
+
+
+@model_function
+def status_code(status, count):
+    """The code ``sum status_i 4^i`` of the statuses status[:count] (``layout``)."""
+    code = 0.0
+    scale = 1.0
+    for i in range(count):
+        code += status[i] * scale
+        scale *= STATUS_BASE
+    return code
+
+
+@model_function
+def blocks_of(p, status, blocks):
+    """The constraint blocks of the rigid contacts active in ``status`` (declared order) into
+    blocks; returns (their count, their rows)."""
+    count = 0
+    rows = 0
+    for i in range(int(p[P_NCONTACT])):
+        s = status[i]
+        if s == S_ABSENT:
+            continue
+        c = int(p[P_CONTACT]) + CONTACT_SIZE * i
+        b = BLOCK_SIZE * count
+        blocks[b + 1] = p[c + C_ID]
+        if p[c + C_KIND] == KIND_STOP:
+            blocks[b], blocks[b + 2], blocks[b + 3] = B_STOP, p[c + C_SIGN], 1.0
+        elif s == S_SLIP_POS or s == S_SLIP_POS + 1:
+            slip = 1.0 if s == S_SLIP_POS else -1.0
+            blocks[b], blocks[b + 2], blocks[b + 3] = B_SLIPPING, slip * p[c + C_MU], 1.0
+        else:
+            blocks[b], blocks[b + 2], blocks[b + 3] = B_POINT, 1.0, p[c + C_ROWS]
+        rows += int(blocks[b + 3])
+        count += 1
+    return count, rows

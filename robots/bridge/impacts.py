@@ -1,92 +1,229 @@
-"""Resets, and the guards of plastic impacts.
+"""Impact laws of the bridge, as compiled helpers of its model functions (``events``, ``joint``).
 
-Impact of rigid contacts with restitution c (generalised Newton impact): with ``J`` the Jacobian
-rows of the contacts constrained at the impact, ``v+ = v + M^-1 J^T (J M^-1 J^T)^-1 (w - J v)``
-where ``w = -c J v`` row-wise (c = 0 for the contacts that stay active, the striking contact's
-own c on its rows); for a joint stop alone this is paper 003 eq. (30). A plastic impact
-(c = 0) after which the contact would pull (normal force lambda+ < 0 at the post-impact state)
-separates at once: it is a second transition ``graze_<name>`` into the mode without the contact,
-with guard ``max(gap guard, lambda+)`` against ``max(gap guard, -lambda+)`` for the sticking one.
-Liftoff and release keep q and v and drop what leaves the state; a spring leg's touchdown
-appends its foothold.
+**Generalised Newton impact** (``newton_impact``): with J the constraint rows of the contacts
+held through the impact, ``v+ = v + M^-1 J^T (J M^-1 J^T)^-1 (w - J v)``, ``w = -c J v`` row-wise
+(c = 0 for the contacts that stay active, the striking contact's own c on its rows; for a joint
+stop alone this is paper 003 eq. (30)); Pinocchio's impulse dynamics with one coefficient per
+contact (``lsn_impact``).
+
+**Simultaneous strikes without friction** (``joint_impact``): only approaching contacts strike;
+one whose impulse would pull is dropped; one left out that the impact drives into the ground
+joins plastically (complementarity, as an active set); and should per-contact coefficients add
+kinetic energy, the impact is solved again with the least coefficient for all (which never does).
+
+**Impacts with the friction cone** (``frictional_impact``): the engaged contacts (the striking
+ones with their restitution, the active ones held plastically) first keep their statuses
+(stuck: x and z constrained; normal: z only (frictionless, a joint stop); sliding: z
+constrained, the friction impulse ``sigma mu Lambda_n`` along x; free: no impulse), ``J v+ = w``
+with ``w_n = -c J_n v`` on normal rows and 0 on tangential ones. Then, one change at a time: a
+contact whose normal impulse would pull is freed; a stuck contact whose tangential impulse
+leaves the cone slides in its direction; a sliding contact whose slip the friction would
+reverse sticks; a free contact the impact drives into the ground joins plastically. Should the
+result add kinetic energy, the impact is solved again plastically, and should that too, with
+every contact stuck (a projection in the mass metric, which never adds energy).
+
+Each engaged contact is a row of small arrays: its rigid contact index, restitution, status
+(``FREE``, ``STICK``, ``NORMAL``, ``SLIDE``), slide direction sigma and whether it is *held*
+(kept in its status whatever its impulse: a slipping contact coming to rest).
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
-from typing import Any
+import math
 
 import numpy as np
-import pinocchio as pin
 
-from .dynamics import constraint_forces, constraint_rows, control_key, solve_small
-from .guards import kinematic_guards, state_guard
-from .model import BridgeData, BridgeModel
-from .modes import ModeSpec, map_state
+from legsim import model_function
+from legsim._native.calls import lsn_crba, lsn_frame_jacobian, lsn_impact
 
-Reset = Callable[[np.ndarray], np.ndarray]
+from .dynamics import handle, ptr
+from .layout import B_POINT, B_STOP, BLOCK_SIZE, C_ID, C_KIND, C_ROWS, C_SIGN, CONTACT_SIZE, KIND_STOP, P_CONTACT, P_N
 
-
-def impact_velocity(
-    model: BridgeModel, data: BridgeData, rows: Sequence[tuple[str, float]], q: np.ndarray, v: np.ndarray
-) -> np.ndarray:
-    """Post-impact velocity (nv,) of the generalised Newton impact.
-
-    ``rows``: ``(contact name, restitution)`` of the contacts constrained at the impact;
-    each contact's Jacobian rows J_i get ``J_i v+ = -c_i J_i v``.
-    ``v+ = v + M^-1 J^T (J M^-1 J^T)^-1 (w - J v)``, ``w = -c J v`` row-wise.
-    """
-    data.counts["impacts"] += 1
-    rigid = [model.rigid[name] for name, _ in rows]
-    J, _ = constraint_rows(model, data, rigid, q, v, drift=False)
-    coeff = np.concatenate([np.full(r.rows, c) for r, (_, c) in zip(rigid, rows, strict=True)])
-    Minv = pin.computeMinverse(model.pin_model, data.pin_data, q)
-    MJt = Minv @ J.T
-    Jv = J @ v
-    return v + MJt @ solve_small(J @ MJt, -(1.0 + coeff) * Jv)
+FREE, STICK, NORMAL, SLIDE = range(4)
+#: Relative tolerance of the cone and sign tests (rounding of the impulses and forces).
+TOL = 1e-10
+#: Kinetic energy an impact may gain to rounding (relative).
+ENERGY_TOL = 1e-12
+#: Most sets of statuses the active set tries before it gives up (the state is then past the
+#: model's range).
+MAX_TRIES = 64
 
 
-def impact_reset(
-    model: BridgeModel, data: BridgeData, src: ModeSpec, dst: ModeSpec, rows: Sequence[tuple[str, float]]
-) -> Reset:
-    """Reset of an impact from mode ``src`` into ``dst`` (``rows`` as in ``impact_velocity``)."""
-    n = model.n
+@model_function
+def contact_rows(x, p, contact, t_row, n_row):
+    """Contact ``contact``'s constraint rows at q into t_row (tangential, x) and n_row (normal:
+    z, or a stop's signed dof); returns whether it has a tangential row (a point pinned in x)."""
+    n = int(p[P_N])
+    c = int(p[P_CONTACT]) + CONTACT_SIZE * contact
+    if p[c + C_KIND] == KIND_STOP:
+        for j in range(n):
+            t_row[j] = 0.0
+            n_row[j] = 0.0
+        n_row[int(p[c + C_ID])] = p[c + C_SIGN]
+        return False
+    jac = np.empty(2 + 2 * n)
+    lsn_frame_jacobian(handle(p), x.ctypes.data, np.int64(p[c + C_ID]), jac.ctypes.data)
+    for j in range(n):
+        t_row[j] = jac[2 + j]
+        n_row[j] = jac[2 + n + j]
+    return p[c + C_ROWS] == 2.0
 
-    def reset(x: np.ndarray) -> np.ndarray:
-        v_new = impact_velocity(model, data, rows, x[:n], x[n : 2 * n])
-        return map_state(model, data, src, dst, x, v_new)
 
-    return reset
-
-
-def plain_reset(model: BridgeModel, data: BridgeData, src: ModeSpec, dst: ModeSpec) -> Reset | None:
-    """Reset of a transition that keeps q and v: None (the identity) when both modes have the
-    same stance legs, else the map that drops or appends footholds."""
-    if src.springs == dst.springs:
-        return None
-    return lambda x: map_state(model, data, src, dst, x, None)
+@model_function
+def dot(a, b, n):
+    """sum a[j] b[j] over j < n."""
+    total = 0.0
+    for j in range(n):
+        total += a[j] * b[j]
+    return total
 
 
-def plastic_guard(
-    model: BridgeModel, data: BridgeData, spec: ModeSpec, contact: str, stick: ModeSpec, stick_reset: Reset, sign: float
-) -> Callable[..., float]:
-    """``max(gap guard, -sign * lambda+)`` of a plastic impact of ``contact`` from mode ``spec``
-    (sign +1: the sticking transition into ``stick``; -1: the grazing one). lambda+ is the
-    contact's normal force right after the impact, computed only once the gap guard is past
-    (then cached per state and control). Declared with ``model.guard_args``."""
+@model_function
+def kinetic(M, v, n):
+    """v^T M v (twice the kinetic energy, J) of M (nv * nv, row-major)."""
+    total = 0.0
+    for i in range(n):
+        total += v[i] * dot(M[n * i : n * i + n], v, n)
+    return total
 
-    def value(x: np.ndarray, u: Any) -> float:
-        base = kinematic_guards(model, data, spec, x)[contact]
-        if base >= 0.0:
-            return base
-        key = x.tobytes() + control_key(u)
-        post = data.scratch(spec.name).post
-        cached = post.get(contact)
-        if cached is not None and cached[0] == key:
-            lam = cached[1]
+
+@model_function
+def solve_small(A, b, m):
+    """Solve A y = b (A (m, m), changed) in place of b by Gaussian elimination with partial
+    pivoting; returns False (b unusable) when A is singular or not finite."""
+    for k in range(m):
+        pivot = k
+        for i in range(k + 1, m):
+            if abs(A[i, k]) > abs(A[pivot, k]):
+                pivot = i
+        if not abs(A[pivot, k]) > 0.0 or not math.isfinite(A[pivot, k]):
+            return False
+        if pivot != k:
+            for j in range(m):
+                A[k, j], A[pivot, j] = A[pivot, j], A[k, j]
+            b[k], b[pivot] = b[pivot], b[k]
+        for i in range(k + 1, m):
+            factor = A[i, k] / A[k, k]
+            for j in range(k, m):
+                A[i, j] -= factor * A[k, j]
+            b[i] -= factor * b[k]
+    for k in range(m - 1, -1, -1):
+        total = b[k]
+        for j in range(k + 1, m):
+            total -= A[k, j] * b[j]
+        b[k] = total / A[k, k]
+    return True
+
+
+# -- the generalised Newton impact (contacts without friction) ---------------------------------
+
+
+@model_function
+def contact_blocks(p, contacts, count, blocks):
+    """The constraint blocks of ``contacts[:count]`` (rigid contact indices), each stuck (a point
+    pinned as declared, a stop held), into blocks; returns their rows."""
+    rows = 0
+    for k in range(count):
+        c = int(p[P_CONTACT]) + CONTACT_SIZE * contacts[k]
+        b = BLOCK_SIZE * k
+        blocks[b + 1] = p[c + C_ID]
+        if p[c + C_KIND] == KIND_STOP:
+            blocks[b], blocks[b + 2], blocks[b + 3] = B_STOP, p[c + C_SIGN], 1.0
         else:
-            lam = float(constraint_forces(model, data, stick, stick_reset(x), u)[contact][-1])
-            post[contact] = (key, lam)
-        return max(base, -sign * lam)
+            blocks[b], blocks[b + 2], blocks[b + 3] = B_POINT, 1.0, p[c + C_ROWS]
+        rows += int(blocks[b + 3])
+    return rows
 
-    return state_guard(model, value)[0]
+
+@model_function
+def newton_impact(x, p, contacts, coeff, count, v_plus, normal):
+    """The generalised Newton impact of ``contacts[:count]`` (restitutions coeff[:count]) at x:
+    the post-impact velocity into v_plus (nv,) and each contact's normal impulse (N s or N m s)
+    into normal[:count]."""
+    n = int(p[P_N])
+    blocks = np.empty(BLOCK_SIZE * max(1, count))
+    rows = contact_blocks(p, contacts, count, blocks)
+    impulse = np.empty(max(1, rows))
+    lsn_impact(handle(p), x.ctypes.data, ptr(x, n), np.int64(count), blocks.ctypes.data, coeff.ctypes.data,
+               v_plus.ctypes.data, impulse.ctypes.data)  # fmt: skip
+    row = 0
+    for k in range(count):
+        row += int(blocks[BLOCK_SIZE * k + 3])
+        normal[k] = impulse[row - 1]
+
+
+@model_function
+def joint_impact(x, p, kept, n_kept, strikers, n_strikers, restitution, v_plus, taking):
+    """The post-impact velocity (into v_plus) of the rigid contacts ``strikers[:n_strikers]``
+    (restitutions restitution[:n_strikers]) striking together at x, the ``kept[:n_kept]`` held
+    plastically (module docstring); taking[k] is set to 1.0 for each striker that takes part
+    (0.0 otherwise). Returns whether any takes part."""
+    n = int(p[P_N])
+    v = x[n : 2 * n]
+    t_row, rows = np.empty(n), np.empty((n_strikers, n))
+    plastic = np.zeros(n_strikers)
+    for k in range(n_strikers):
+        contact_rows(x, p, strikers[k], t_row, rows[k])
+        taking[k] = 1.0 if dot(rows[k], v, n) < 0.0 else 0.0
+    if taking[:n_strikers].sum() == 0.0:
+        v_plus[:] = v
+        return False
+    for _ in range(4 * n_strikers + 1):
+        engaged_impact(x, p, kept, n_kept, strikers, n_strikers, taking, plastic, restitution, -1.0, v_plus)
+        if not joins(v_plus, rows, n, strikers, n_strikers, taking, plastic, np.abs(v).max()):
+            break
+    M = np.empty(n * n)
+    lsn_crba(handle(p), x.ctypes.data, M.ctypes.data)
+    if kinetic(M, v_plus, n) > kinetic(M, v, n) * (1.0 + ENERGY_TOL) + 1e-300:
+        least = math.inf
+        for k in range(n_strikers):
+            if taking[k] == 1.0:
+                least = min(least, 0.0 if plastic[k] == 1.0 else restitution[k])
+        engaged_impact(x, p, kept, n_kept, strikers, n_strikers, taking, plastic, restitution, least, v_plus)
+    return True
+
+
+@model_function
+def engaged_impact(x, p, kept, n_kept, strikers, n_strikers, taking, plastic, restitution, common, v_plus):
+    """The Newton impact of the kept contacts (plastic) and the taking strikers (plastic ones at
+    0, the others at their restitution, or all at ``common`` when it is >= 0) into v_plus; a
+    striker whose impulse would pull, when others take part, is dropped (taking[k] = 0) and the
+    impact solved again."""
+    contacts = np.empty(n_kept + n_strikers, dtype=np.int64)
+    coeff = np.empty(n_kept + n_strikers)
+    normal = np.empty(n_kept + n_strikers)
+    while True:
+        count = 0
+        for k in range(n_kept):
+            contacts[count], coeff[count] = kept[k], 0.0
+            count += 1
+        for k in range(n_strikers):
+            if taking[k] == 1.0:
+                c = 0.0 if plastic[k] == 1.0 else restitution[k]
+                contacts[count], coeff[count] = strikers[k], common if common >= 0.0 else c
+                count += 1
+        newton_impact(x, p, contacts, coeff, count, v_plus, normal)
+        adhesive, least, taking_count, i = -1, 0.0, 0, n_kept
+        for k in range(n_strikers):
+            if taking[k] == 1.0:
+                if adhesive < 0 or normal[i] < least:
+                    adhesive, least = k, normal[i]
+                taking_count += 1
+                i += 1
+        if common >= 0.0 or not (adhesive >= 0 and least < 0.0 and taking_count > 1):
+            return
+        taking[adhesive] = 0.0
+
+
+@model_function
+def joins(v_plus, rows, n, strikers, n_strikers, taking, plastic, speed):
+    """Strikers left out that the impact drives into the ground join it plastically; returns
+    whether any joined."""
+    scale = 1e-12 * (1.0 + speed)
+    joined = False
+    for k in range(n_strikers):
+        if taking[k] == 0.0 and dot(rows[k], v_plus, n) < -scale:
+            taking[k] = 1.0
+            plastic[k] = 1.0
+            joined = True
+    return joined

@@ -1,16 +1,12 @@
-"""The robot as the bridge's algorithms see it, and their scratch space.
-
-In Pinocchio's style: a ``BridgeModel`` is fixed once built (the Pinocchio model with the spring
-legs' foot frames, the resolved contacts, names, damping and actuation) and a ``BridgeData``
-holds everything the algorithms write (the Pinocchio data, the evaluation counters and the
-per-mode caches). The algorithms are free functions ``f(model, data, ...)`` in the sibling
-modules.
+"""The robot as the bridge's model functions see it: a ``BridgeModel`` is fixed once built (the
+Pinocchio model with the spring legs' foot frames, the resolved contacts, names, damping,
+actuation, its native handle and the rows of its parameter arrays every mode shares).
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable, Mapping, Sequence
-from dataclasses import dataclass, field
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -19,24 +15,7 @@ import pinocchio as pin
 from legsim.errors import ModelError
 
 from .contacts import Contact, LegFrames, RigidContact, declared_contacts, finite_number, joint_id, resolve_contact
-
-# Jacobians and frame velocities in the world's axes at the frame's origin: rows 0 and 2 are
-# the world x and z of the (x, z) plane the robots move in.
-LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
-
-COUNTERS = (
-    "aba",
-    "kkt",
-    "jacobians",
-    "kinematics",
-    "spring_forces",
-    "damping_evals",
-    "actuation_evals",
-    "impacts",
-    "energy_evals",
-    "cache_hits",
-    "painleve_sticks",
-)
+from .native import handle_for
 
 
 @dataclass(frozen=True, eq=False)
@@ -54,6 +33,9 @@ class BridgeModel:
     coordinate_names, velocity_names: the n names of q and of v.
     damping_idx, damping_b: velocity indices with joint damping and their coefficients (N m s/rad or N s/m).
     actuated_idx: velocity index of each entry of the control u.
+    handle: the model's handle in the native library.
+    frames: the frames whose kinematics the guards read (frame ids; a contact's or leg's *slot*
+        is its index here).
     """
 
     name: str
@@ -67,6 +49,8 @@ class BridgeModel:
     damping_idx: np.ndarray
     damping_b: np.ndarray
     actuated_idx: np.ndarray
+    handle: int
+    frames: tuple[int, ...]
 
     @property
     def order(self) -> list[str]:
@@ -75,83 +59,17 @@ class BridgeModel:
 
     @property
     def coulomb(self) -> bool:
-        """Whether some contact has Coulomb friction (its strikes then choose stuck or slipping
+        """Whether some contact has Coulomb friction (its events then choose stuck or slipping
         outcomes, ``friction``)."""
         return any(r.mu is not None for r in self.rigid.values())
 
-    @property
-    def timed(self) -> bool:
-        """Whether constraint forces depend on the control: they do only through actuated joints."""
-        return bool(self.actuated_idx.size)
+    def index(self, contact: str) -> int:
+        """The index of a rigid contact among the rigid ones (declared order)."""
+        return list(self.rigid).index(contact)
 
-    @property
-    def guard_args(self) -> str:
-        """``guard_args`` of the guards on constraint forces: on (t, x, u) when the robot is
-        actuated, so that the crossing search evaluates them with the control at each
-        interpolated time."""
-        return "t,x,u" if self.timed else "x"
-
-
-@dataclass(eq=False)
-class ModeScratch:
-    """One mode's one-entry caches, each keyed by the bytes of the state (and control).
-
-    Attributes
-    ----------
-    dyn_key, dyn_val: the last (acceleration (nv,), constraint forces (rows,)).
-    kin_key, kin_val: the last position-level guard values by contact name.
-    post: per contact, the last normal force previewed after a plastic impact (key, N or N m).
-    """
-
-    dyn_key: bytes = b""
-    dyn_val: tuple[np.ndarray, np.ndarray] | None = None
-    kin_key: bytes = b""
-    kin_val: dict[str, float] = field(default_factory=dict)
-    post: dict[str, tuple[bytes, float]] = field(default_factory=dict)
-
-
-@dataclass(eq=False)
-class BridgeData:
-    """What the bridge's algorithms write: one Pinocchio data (so a system built on it is not
-    thread-safe), the evaluation counters and the per-mode caches."""
-
-    pin_data: pin.Data
-    counts: dict[str, int]
-    modes: dict[str, ModeScratch] = field(default_factory=dict)
-    #: The control of the last dynamics evaluation, and the controls the strike guards were
-    #: last evaluated with, by state: a joint impact is resolved by the integrator without a
-    #: control, at a state whose guards were evaluated with it (``control_at``).
-    last_control: Any = None
-    recent_controls: dict[bytes, Any] = field(default_factory=dict)
-    #: ``preview(mode, t, x) -> u``: the control a mode will get at a state, given by the
-    #: controller driving the robot (``ContactBridge.attach_control``); the mode after an impact
-    #: is chosen with the contact forces under it. ``last_time``: the time of the last strike
-    #: guard evaluated past its guard (s).
-    preview: Callable[[str, float, np.ndarray], Any] | None = None
-    last_time: float = 0.0
-
-    def remember_control(self, x: np.ndarray, u: Any) -> None:
-        """Remember the control u a guard was evaluated with at x (the last few states)."""
-        if u is None:
-            return
-        if len(self.recent_controls) >= 16:
-            self.recent_controls.pop(next(iter(self.recent_controls)))
-        self.recent_controls[x.tobytes()] = u
-
-    def control_at(self, x: np.ndarray) -> Any:
-        """The control a guard was evaluated with at x, else that of the last dynamics evaluation."""
-        return self.recent_controls.get(x.tobytes(), self.last_control)
-
-    @classmethod
-    def create(cls, model: BridgeModel) -> BridgeData:
-        return cls(model.pin_model.createData(), dict.fromkeys(COUNTERS, 0))
-
-    def scratch(self, mode: str) -> ModeScratch:
-        """The caches of mode ``mode`` (created empty on first use)."""
-        out = self.modes.get(mode)
-        if out is None:
-            out = self.modes[mode] = ModeScratch()
-        return out
+    def slot(self, frame: int) -> int:
+        """The kinematics slot of a frame (its index in ``frames``)."""
+        return self.frames.index(frame)
 
 
 def build_model(
@@ -184,7 +102,32 @@ def build_model(
         raise ModelError(f"{name}: coordinate and velocity names overlap: {sorted(set(coords) & set(vels))}")
     damping_idx, damping_b = _joint_damping(own, joint_damping, name)
     actuated_idx = _actuated_dofs(own, actuated, name)
-    return BridgeModel(name, own, n, declared, rigid, legs, coords, vels, damping_idx, damping_b, actuated_idx)
+    for c in rigid.values():
+        armed = getattr(c.contact, "armed", None)
+        if armed is not None and armed.coordinate and armed.coordinate not in coords:
+            raise ModelError(
+                f"{name}: contact '{c.contact.name}': armed.coordinate {armed.coordinate!r} "
+                f"is not a coordinate: {coords}"
+            )
+    return BridgeModel(
+        name, own, n, declared, rigid, legs, coords, vels, damping_idx, damping_b, actuated_idx,
+        handle_for(own, name), _kinematics_frames(rigid, legs),
+    )  # fmt: skip
+
+
+def _kinematics_frames(rigid: Mapping[str, RigidContact], legs: Mapping[str, LegFrames]) -> tuple[int, ...]:
+    """The frames the guards read: each point contact's (and the frame it is armed ahead of),
+    each leg's hip and flight foot, once each."""
+    frames: list[int] = []
+    for r in rigid.values():
+        for frame in (r.frame_id, r.armed_frame):
+            if frame >= 0 and frame not in frames:
+                frames.append(frame)
+    for lg in legs.values():
+        for frame in (lg.hip_id, lg.foot_id):
+            if frame not in frames:
+                frames.append(frame)
+    return tuple(frames)
 
 
 def _check_pin_model(model: Any, name: str) -> None:

@@ -1,5 +1,4 @@
-"""Contact modes: which contacts are active, the mode's name and state layout, and the state map
-between two modes.
+"""Contact modes: which contacts are active, the mode's name and its state layout.
 
 A mode is a set of active contacts, each an *entry*: the contact's name, or for a contact with
 Coulomb friction that slips, its name with the slip direction's suffix (``front>`` slips towards
@@ -13,16 +12,16 @@ contacts never enumerates the 2^n subsets.
 from __future__ import annotations
 
 from collections.abc import Iterable, Mapping
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import TypeVar
 
-import numpy as np
 import pinocchio as pin
 
 from legsim.errors import ModelError
 
 from .contacts import SLIP_SUFFIX, LegFrames, RigidContact
-from .model import BridgeData, BridgeModel
+from .layout import S_ABSENT, S_ACTIVE, S_SLIP_NEG, S_SLIP_POS
+from .model import BridgeModel
 
 #: A key of ``mode_names``: a subset of contacts (a tuple, a set, ...) or one contact's name.
 #: A type variable, not a union: a mapping's key type is invariant, and each caller's dict has its own.
@@ -31,48 +30,58 @@ SubsetKey = TypeVar("SubsetKey", bound=Iterable[str])
 
 @dataclass(frozen=True, eq=False)
 class ModeSpec:
-    """Everything about one mode the fast paths need, resolved once.
+    """Everything about one mode its parameters are built from, resolved once.
 
     Attributes
     ----------
     name: the mode's name.
     active: its active contacts, in declared order.
-    rigid: the active point contacts and joint stops, in declared order (a slipping contact with
-        one row and its slip direction, ``RigidContact.slip``).
+    rigid: the active point contacts and joint stops, in declared order.
+    slips: the slip direction of each active rigid contact (0: stuck or without friction), in
+        the order of ``rigid``.
     springs: the active (stance) spring legs, in declared order: their footholds are the state's tail.
     flight_legs: the inactive spring legs.
     dim: state dimension, 2 nv + len(springs).
-    names: the state's coordinate names.
-    need_fk: some guard needs frame positions and velocities (one kinematics pass per guard evaluation).
-    stop_dofs: (dofs, signs) when only joint stops are active: their constraint rows select dofs.
+    names, units: the state's coordinate names and units.
+    entries: its entries (an active contact's name, with a slipping one's suffix), declared order.
+    status: each rigid contact's status (``layout.S_*``), in the model's declared order.
     """
 
     name: str
     active: tuple[str, ...]
     rigid: tuple[RigidContact, ...]
+    slips: tuple[float, ...]
     springs: tuple[LegFrames, ...]
     flight_legs: tuple[LegFrames, ...]
     dim: int
     names: tuple[str, ...]
-    need_fk: bool = False
-    units: tuple[str, ...] = ()
-    stop_dofs: tuple[np.ndarray, np.ndarray] | None = None
-    entries: tuple[str, ...] = ()
+    units: tuple[str, ...]
+    entries: tuple[str, ...]
+    status: tuple[float, ...]
 
     @property
     def slipping(self) -> bool:
         """Whether some contact of the mode slips (its constraint forces then include friction)."""
-        return any(r.slip for r in self.rigid)
+        return any(self.slips)
 
-    def rigid_of(self, contact: str) -> RigidContact:
-        """The active rigid contact ``contact`` as this mode holds it."""
-        return next(r for r in self.rigid if r.contact.name == contact)
+    def slip_of(self, contact: str) -> float:
+        """The slip direction of the active rigid contact ``contact`` (0: stuck)."""
+        return next(s for r, s in zip(self.rigid, self.slips, strict=True) if r.contact.name == contact)
+
+    def rows_of(self, r: RigidContact, slip: float) -> int:
+        """Constraint rows of an active rigid contact in this mode (a slipping point: 1)."""
+        return 1 if slip else r.rows
+
+    @property
+    def rows(self) -> int:
+        """The mode's constraint rows."""
+        return sum(self.rows_of(r, s) for r, s in zip(self.rigid, self.slips, strict=True))
 
     def normal_row(self, contact: str) -> int:
         """Index of the active rigid contact's normal row in the stacked constraint rows (its last row)."""
         row, i = -1, 0
-        for r in self.rigid:
-            i += r.rows
+        for r, s in zip(self.rigid, self.slips, strict=True):
+            i += self.rows_of(r, s)
             if r.contact.name == contact:
                 row = i - 1
         return row
@@ -182,35 +191,36 @@ def build_spec(
     """The ``ModeSpec`` of mode ``mode`` with active contacts ``active`` (declared order);
     ``slips``: the slip direction of each slipping contact (absent or 0: stuck)."""
     slips = slips or {}
-    rigid = tuple(
-        replace(model.rigid[c], rows=1, slip=slips[c]) if slips.get(c) else model.rigid[c]
-        for c in active
-        if c in model.rigid
-    )
+    rigid = tuple(model.rigid[c] for c in active if c in model.rigid)
     springs = tuple(model.legs[c] for c in active if c in model.legs)
     flight = tuple(lg for c, lg in model.legs.items() if c not in active)
     names = model.coordinate_names + model.velocity_names + tuple(f"{lg.leg.name}_foot_x" for lg in springs)
-    # Frame kinematics serve the guards of legs (flight or stance) and of inactive points.
-    need_fk = bool(
-        springs or flight or any(r.kind == "point" and r.contact.name not in active for r in model.rigid.values())
-    )
-    stop_dofs = None
-    if rigid and all(r.kind == "stop" for r in rigid):
-        stop_dofs = (np.array([r.dof for r in rigid]), np.array([r.sign for r in rigid]))
     positions = dof_units(model.pin_model)
     units = positions + tuple(f"{u}/s" for u in positions) + ("m",) * len(springs)
+    status = tuple(
+        float(
+            S_ABSENT
+            if c not in active
+            else S_ACTIVE
+            if not slips.get(c)
+            else S_SLIP_POS
+            if slips[c] > 0
+            else S_SLIP_NEG
+        )
+        for c in model.rigid
+    )
     return ModeSpec(
         mode,
         active,
         rigid,
+        tuple(float(slips.get(r.contact.name, 0.0)) for r in rigid),
         springs,
         flight,
         2 * model.n + len(springs),
         names,
-        need_fk=need_fk,
-        stop_dofs=stop_dofs,
-        units=units,
-        entries=active if entries is None else entries,
+        units,
+        active if entries is None else entries,
+        status,
     )
 
 
@@ -226,25 +236,3 @@ def dof_units(pin_model: pin.Model) -> tuple[str, ...]:
         return [unit] * joint.nv
 
     return tuple(u for joint in pin_model.joints[1:] for u in of(joint))
-
-
-def flight_foot_x(model: BridgeModel, data: BridgeData, leg: LegFrames, q: np.ndarray) -> float:
-    """x (m) of the flight foot at q: where a touching-down foot is pinned."""
-    pin.forwardKinematics(model.pin_model, data.pin_data, q)
-    return float(pin.updateFramePlacement(model.pin_model, data.pin_data, leg.foot_id).translation[0])
-
-
-def map_state(
-    model: BridgeModel, data: BridgeData, src: ModeSpec, dst: ModeSpec, x: np.ndarray, v_new: np.ndarray | None
-) -> np.ndarray:
-    """State x of mode ``src`` in mode ``dst``'s layout: q kept, v kept or replaced by ``v_new``,
-    footholds of legs staying in stance kept, those of legs touching down appended."""
-    n = model.n
-    out = np.empty(dst.dim)
-    out[:n] = x[:n]
-    out[n : 2 * n] = x[n : 2 * n] if v_new is None else v_new
-    src_index = {lg.leg.name: i for i, lg in enumerate(src.springs)}
-    for i, lg in enumerate(dst.springs):
-        j = src_index.get(lg.leg.name)
-        out[2 * n + i] = flight_foot_x(model, data, lg, x[:n]) if j is None else x[2 * n + j]
-    return out

@@ -1,12 +1,12 @@
-"""Guards of the bridge: a release under a time-varying control located exactly, an armed
-contact, the initial-state check."""
+"""Guards of the bridge: a release under a time-varying control located exactly, armed contacts
+(by a coordinate, and ahead of another frame), the initial-state check."""
 
 import math
 
 import numpy as np
 import pinocchio as pin
 import pytest
-from legsim.robots.bridge import ContactBridge, JointStop, PointContact
+from legsim.robots.bridge import Armed, ContactBridge, JointStop, PointContact, add_point_frame
 
 from helpers.bridge_models import G, ball_model, rod_model
 from legsim import ModelError, simulate
@@ -32,14 +32,25 @@ def test_an_armed_contact_lands_only_where_it_is_armed():
     armed, the guard is 0.5 (inside the domain)."""
     model, _ = ball_model()
     model.gravity = pin.Motion(np.array([0, 0, -G, 0, 0, 0]))
-    floor = PointContact("floor", "ball", restitution=0.5, tangential=False, armed=lambda q, v: q[0] - 1.0)
+    floor = PointContact("floor", "ball", restitution=0.5, tangential=False, armed=Armed(coordinate="x", beyond=1.0))
     bridge = ContactBridge(model, [floor])
     x0 = [0.0, 0.0, 2.0, 3.0]  # flight time 2 * 3 / g = 0.61 s, landing at x = 1.22 m
     ex = simulate(bridge.system("free", x0), x0, "free", 0.7, 1e-3, 1e-3)
     assert ex.transitions[0].time == pytest.approx(2 * 3.0 / G, abs=1e-12)
     np.testing.assert_allclose(bridge.system().guard_values("free", np.array([0.5, -0.1, 2.0, -1.0])), [0.5])
-    with pytest.raises(ModelError, match="armed must be callable"):
+    # the same floor armed where the ball is 1 m ahead of a frame at the origin
+    post = add_point_frame(model, "post", 0, (0.0, 0.0, 0.0))
+    assert post > 0
+    ahead = PointContact("floor", "ball", restitution=0.5, tangential=False, armed=Armed(ahead_of="post", beyond=1.0))
+    np.testing.assert_allclose(
+        ContactBridge(model, [ahead]).system().guard_values("free", np.array([0.5, -0.1, 2.0, -1.0])), [0.5]
+    )
+    with pytest.raises(ModelError, match=r"armed must be a legsim\.robots\.bridge\.Armed"):
         ContactBridge(model, [PointContact("floor", "ball", armed=1.0)])
+    with pytest.raises(ModelError, match="exactly one of coordinate and ahead_of"):
+        ContactBridge(model, [PointContact("floor", "ball", armed=Armed())])
+    with pytest.raises(ModelError, match=r"armed\.coordinate 'w' is not a coordinate"):
+        ContactBridge(model, [PointContact("floor", "ball", armed=Armed(coordinate="w"))])
 
 
 def test_initial_check_measures_a_point_below_the_ground_and_a_stop_from_its_side():

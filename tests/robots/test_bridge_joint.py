@@ -1,4 +1,4 @@
-"""Simultaneous impacts resolved under one impact law (robots/bridge/joint.py), on the rod dropped
+"""Simultaneous impacts resolved under one impact law (robots/bridge/joint.py, impacts.py), on the rod dropped
 on its two ends: it bounces flat, loses the closed-form energy, and its outcome is continuous in
 the initial tilt; the law against Pinocchio's impulse dynamics; complementarity and energy."""
 
@@ -6,7 +6,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 from legsim.robots import rod
-from legsim.robots.bridge.joint import joint_impact, newton_impact
+from legsim.robots.bridge import impacts
 
 from legsim import simulate
 
@@ -17,6 +17,32 @@ def drop(theta0: float, t_final: float = 1.2, eps: float = 1e-3):
     model = rod.make({"restitution": C})
     x0 = np.array([0.0, 1.0, theta0, 0.0, 0.0, 0.0])
     return model, simulate(model.system, x0, "air", t_final, 1e-3, eps, "rk4")
+
+
+def params(bridge):
+    """A mode's parameter array of the bridge (every mode holds the contacts' records)."""
+    return np.array(bridge.mode(bridge.mode_name(())).functions.params)
+
+
+def newton_impact(bridge, rows, q, v):
+    """(v+, each contact's normal impulse) of the Newton impact of rows ((name, restitution))."""
+    names = [c.name for c in bridge.contacts]
+    contacts = np.array([names.index(name) for name, _ in rows], dtype=np.int64)
+    coeff = np.array([c for _, c in rows])
+    v_plus, normal = np.empty(len(v)), np.empty(len(rows))
+    impacts.newton_impact(np.concatenate([q, v]), params(bridge), contacts, coeff, len(rows), v_plus, normal)
+    return v_plus, dict(zip([name for name, _ in rows], normal, strict=True))
+
+
+def joint_impact(bridge, strikers, q, v, restitution):
+    """(v+, the strikers that take part) of their joint impact, no contact held."""
+    names = [c.name for c in bridge.contacts]
+    index = np.array([names.index(name) for name in strikers], dtype=np.int64)
+    coeff = np.array([restitution[name] for name in strikers])
+    v_plus, taking = np.empty(len(v)), np.zeros(len(strikers))
+    x = np.concatenate([q, v])
+    impacts.joint_impact(x, params(bridge), np.zeros(0, dtype=np.int64), 0, index, len(strikers), coeff, v_plus, taking)
+    return v_plus, [name for name, k in zip(strikers, taking, strict=True) if k == 1.0]
 
 
 def kinetic(bridge, x):
@@ -52,16 +78,15 @@ def test_the_outcome_is_continuous_in_the_initial_tilt_inside_the_landing_window
 
 def test_the_joint_law_is_pinocchios_impulse_dynamics_for_one_restitution():
     bridge = rod.make_bridge({"mass": 1.3, "length": 0.8, "restitution": C, "g": G})
-    model, data = bridge._model, bridge._data
     q = np.array([0.2, 0.0, 0.0])
     v = np.array([0.4, -2.0, 0.7])
-    v_plus, normal = newton_impact(model, data, [("a", C), ("b", C)], q, v)
+    v_plus, normal = newton_impact(bridge, [("a", C), ("b", C)], q, v)
     J = np.vstack(
         [
             pin.computeFrameJacobian(
-                bridge.model, bridge.data, q, model.rigid[n].frame_id, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+                bridge.model, bridge.data, q, bridge.model.getFrameId(f), pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
             )[2]
-            for n in ("a", "b")
+            for f in ("end_a", "end_b")
         ]
     )
     expected = pin.impulseDynamics(bridge.model, bridge.data, q, v, J, C, 0.0)
@@ -90,18 +115,17 @@ def two_points_on_one_side(c: float):
 
 def test_an_adhesive_contact_is_dropped_and_the_impact_solved_again():
     bridge = two_points_on_one_side(0.9)
-    model, data = bridge._model, bridge._data
     q, v = np.zeros(3), np.array([0.0, 0.0284, 0.5467])  # both ends approaching (-0.245, -0.136 m/s)
     normal_rows = {
         n: pin.computeFrameJacobian(
-            bridge.model, bridge.data, q, model.rigid[n].frame_id, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+            bridge.model, bridge.data, q, bridge.model.getFrameId(f"p{n}"), pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
         )[2]
         for n in "ab"
     }
     assert normal_rows["a"] @ v < 0 and normal_rows["b"] @ v < 0
-    _, both = newton_impact(model, data, [("a", 0.9), ("b", 0.9)], q, v)
+    _, both = newton_impact(bridge, [("a", 0.9), ("b", 0.9)], q, v)
     assert both["b"] < 0  # one law on both would pull b onto the floor
-    v_plus, taking = joint_impact(model, data, [], ["a", "b"], q, v, {"a": 0.9, "b": 0.9})
+    v_plus, taking = joint_impact(bridge, ["a", "b"], q, v, {"a": 0.9, "b": 0.9})
     assert taking == ["a"]
     assert normal_rows["a"] @ v_plus == pytest.approx(-0.9 * (normal_rows["a"] @ v), rel=1e-12)
     assert normal_rows["b"] @ v_plus >= 0.0  # b leaves the floor by itself
@@ -111,9 +135,8 @@ def test_a_contact_the_impact_drives_into_the_floor_joins_it():
     # Only end a approaches; the impulse it takes spins the rod and drives end b down: b joins
     # the impact plastically (no penetration), and both impulses push.
     bridge = rod.make_bridge({"mass": 1.0, "length": 1.0, "restitution": C, "g": G})
-    model, data = bridge._model, bridge._data
     q, v = np.zeros(3), np.array([0.0, -1.0, 3.0])  # end a at -2.5 m/s, end b rising at +0.5 m/s
-    v_plus, taking = joint_impact(model, data, [], ["a", "b"], q, v, {"a": C, "b": C})
+    v_plus, taking = joint_impact(bridge, ["a", "b"], q, v, {"a": C, "b": C})
     assert taking == ["a", "b"]
     end_b = v_plus[1] + 0.5 * v_plus[2]
     assert abs(end_b) < 1e-12 and v_plus[1] - 0.5 * v_plus[2] == pytest.approx(C * 2.5, rel=1e-12)
@@ -121,11 +144,10 @@ def test_a_contact_the_impact_drives_into_the_floor_joins_it():
 
 def test_different_restitutions_never_add_kinetic_energy():
     bridge = rod.make_bridge({"mass": 1.0, "length": 1.0, "restitution": C, "g": G})
-    model, data = bridge._model, bridge._data
     rng = np.random.default_rng(7)
     M = pin.crba(bridge.model, bridge.data, np.zeros(3))
     for _ in range(200):
         v = rng.normal(size=3)
         c_a, c_b = rng.uniform(0.0, 1.0, size=2)
-        v_plus, _ = joint_impact(model, data, [], ["a", "b"], np.zeros(3), v, {"a": c_a, "b": c_b})
+        v_plus, _ = joint_impact(bridge, ["a", "b"], np.zeros(3), v, {"a": c_a, "b": c_b})
         assert v_plus @ M @ v_plus <= v @ M @ v * (1 + 1e-12) + 1e-15

@@ -280,9 +280,9 @@ def test_the_bounce_names_its_rest_which_is_taken_only_where_the_stop_pushes():
     # The core takes it only where its image lies in the constrained mode's domain, where the
     # release guard (the stop's force) is >= 0: at theta1 = -0.6 eq. (31) pushes link 2 onto the
     # stop, at theta1 = +0.6 it would pull it off, and an accumulating impact bounces instead.
-    assert eq31(rest.reset(x), DEFAULTS) < 0 and release.guard(rest.reset(x)) > 0
+    assert eq31(rest.reset(x), DEFAULTS) < 0 and release.guard_value(rest.reset(x)) > 0
     y = np.array([0.6, -1e-6, 0.2, -0.05])
-    assert eq31(rest.reset(y), DEFAULTS) > 0 and release.guard(rest.reset(y)) < 0
+    assert eq31(rest.reset(y), DEFAULTS) > 0 and release.guard_value(rest.reset(y)) < 0
     # the `zeno` effect sets the window of the accumulation rule, which scenes pass to simulate
     windowed = dp.make(effects={"stop": {"restitution": 0.5}, "zeno": {"window": 5e-3}})
     assert windowed.info["zeno_window"] == 5e-3 and "zeno_window" not in model.info
@@ -345,23 +345,22 @@ def pd_torque(x, kp, kd, target):
 
 
 def test_controller_effect_actuates_the_shoulder_only_when_asked():
-    # Off (the default): no control, no actuated joint, force guards on x alone, no actuation term.
+    # Off (the default): no control, no actuated joint, no input, no actuation term.
     plain = dp.make(effects={"stop": {"restitution": 0.0}})
     assert plain.control is None
-    assert {tr.guard_args for tr in plain.system.outgoing("unconstrained")} == {"x"}
+    assert plain.system.mode("unconstrained").functions.inputs == 0
     x0 = [plain.initial_state[n] for n in dp.STATE_NAMES]
     simulate(plain.system, x0, "unconstrained", 1.0, 1e-3, 1e-3, "rk4", plain.control)
     assert plain.counters()["actuation_evals"] == 0 and plain.counters()["aba"] > 0
 
-    # On: control(t, x) is the PD torque, one entry; the stop's force guards see the control.
+    # On: the control is the PD torque, one entry; the modes take that input.
     kp, kd, target = 35.0, 4.0, 0.7
     pd = dp.make(effects={"stop": {"restitution": 0.0}, "controller": {"kp": kp, "kd": kd, "target": target}})
-    assert pd.info["bridge"]._act_idx.tolist() == [0]  # theta1's velocity index
+    assert pd.info["bridge"].actuated_dofs.tolist() == [0]  # theta1's velocity index
     for x in random_states(4, seed=11):
-        u = pd.control(0.3, x)
+        u = pd.control.input_at("unconstrained", 0.3, x)
         assert np.shape(u) == (1,) and u[0] == pytest.approx(pd_torque(x, kp, kd, target), abs=1e-12)
-    assert {tr.guard_args for tr in pd.system.outgoing("unconstrained")} == {"t,x,u"}
-    assert [tr.guard_args for tr in pd.system.outgoing("constrained")] == ["t,x,u"]
+    assert pd.system.mode("unconstrained").functions.inputs == pd.system.mode("constrained").functions.inputs == 1
     pd.info["bridge"].reset_counters()  # building checked the initial field once, without control
     ex = simulate(pd.system, x0, "unconstrained", 1.0, 1e-3, 1e-3, "rk4", pd.control)
     counts = pd.counters()
@@ -383,18 +382,20 @@ def test_controlled_field_and_stop_force_equal_the_closed_form_with_the_shoulder
         q, qd = x[:2], x[2:]
         tau = np.array([pd_torque(x, kp, kd, target), 0.0])
         qdd = np.linalg.solve(mass_matrix(q, **P), tau - coriolis(q, qd, **P) - gravity(q, **P))
-        np.testing.assert_allclose(f(0.0, x, model.control(0.0, x))[2:], qdd, rtol=1e-10, atol=1e-10)
+        np.testing.assert_allclose(
+            f(0.0, x, model.control.input_at("unconstrained", 0.0, x))[2:], qdd, rtol=1e-10, atol=1e-10
+        )
     for x in random_states(6, seed=13, at_stop=True):
         x[3] = 0.0
         q, qd = x[:2], x[2:]
         tau = np.array([pd_torque(x, kp, kd, target), 0.0])
         Minv = np.linalg.inv(mass_matrix(q, **P))
         lam = -(Minv[1] @ (tau - coriolis(q, qd, **P) - gravity(q, **P))) / Minv[1, 1]
-        forces = bridge.constraint_forces("constrained", x, model.control(0.0, x))
+        forces = bridge.constraint_forces("constrained", x, model.control.input_at("constrained", 0.0, x))
         assert forces["stop"][0] == pytest.approx(lam, abs=1e-9)
         # the constrained field keeps link 2 at the stop and turns the straight pendulum (inertia
         # M_11 at theta2 = 0) under the shoulder torque and gravity
-        a = model.system.mode("constrained").field(0.0, x, model.control(0.0, x))
+        a = model.system.mode("constrained").field(0.0, x, model.control.input_at("constrained", 0.0, x))
         assert abs(a[3]) < 1e-10
         assert a[2] == pytest.approx((tau[0] - gravity(q, **P)[0]) / mass_matrix(q, **P)[0, 0], rel=1e-10)
 
@@ -473,7 +474,7 @@ def test_pd_scene_rests_on_the_stop_where_the_pd_balances_the_straight_pendulum(
     assert ex.counters["actuation_evals"] > 0
     # the stop holds it there: its force is positive at rest
     lam = scene.model.info["bridge"].constraint_forces(
-        "constrained", ex.final_state, scene.model.control(0.0, ex.final_state)
+        "constrained", ex.final_state, scene.model.control.input_at("constrained", 0.0, ex.final_state)
     )
     assert lam["stop"][0] > 0.0
 

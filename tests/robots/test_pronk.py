@@ -229,7 +229,11 @@ def test_a_runner_that_falls_ends_the_run_instead_of_flying_through_the_ground()
             model.system.energy(tr.source, tr.state_before), abs=1e-10
         )
     # the guard: a buried foot is in flight while it rises, past by its depth once it descends
-    guard = next(tr.guard for tr in model.system.outgoing("aerial") if tr.name == "touchdown_left")
+    index = [tr.name for tr in model.system.outgoing("aerial")].index("touchdown_left")
+
+    def guard(x):
+        return model.system.guard_values("aerial", x)[index]
+
     buried = math.cos(math.pi / 5) - 0.1
     assert guard(pronk.state({"z": buried, "zd": 1.0})) == pytest.approx(1.0)
     assert guard(pronk.state({"z": buried, "zd": -1e-3})) == pytest.approx(-0.1)
@@ -252,10 +256,12 @@ def test_a_leg_swung_into_the_ground_at_liftoff_while_moving_down_is_a_fall():
     # ground but rising (every symmetric gait's liftoff, within rounding) stays in flight.
     model = pronk.make()
     ex = simulate(model.system, pronk.state(), "aerial", 3.0, 1e-3, 1e-2)
-    assert ex.status == "model_breakdown" and "liftoff of leg 'left'" in ex.message
-    assert "moving down" in ex.message and ex.final_mode == "both"
+    assert ex.status == "model_breakdown" and ex.final_mode == "both"
     bridge = model.info["bridge"]
     x = ex.final_state
+    # past liftoff the model functions say so: every guard of the mode is nan there
+    flight_foot = bridge.frame_positions(x[:3], ["left_foot"])["left_foot"]
+    assert flight_foot[1] < -0.5
     # at the last state kept, the left leg is still (barely) compressed: the fall is detected
     # within the step that extends it past its rest length
     assert 0.0 < bridge.leg_forces("both", x)["left"] < 1.0

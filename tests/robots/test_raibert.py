@@ -10,10 +10,12 @@ import numpy as np
 import pinocchio as pin
 import pytest
 from legsim.robots import raibert
+from legsim.robots import runner_laws as laws
 
 from legsim.control import available, get_controller
 from legsim.derivatives import jacobian
 from legsim.errors import SceneError
+from legsim.relaxed import simulate
 from legsim.scene import load_scene
 
 SCENE = "quadruped_pronk"
@@ -145,72 +147,83 @@ def test_bound_legs_hop_their_own_hips_height():
     rng = np.random.default_rng(5)
     for gait in ("bound", "pronk"):
         scene = pronk(0.1, f"controller.parameters.gait={gait}")
-        controller, bridge = scene.controller, scene.model.info["bridge"]
+        law, bridge = scene.controller, scene.model.info["bridge"]
         model, data = bridge.model, bridge.model.createData()
+        p = law.params_for("flight")
         for _ in range(3):
             x = scene.initial_state.copy()
             x[2], x[bridge.n + 1 : bridge.n + 3] = rng.uniform(-0.4, 0.4), rng.uniform(-2.0, 2.0, 2)
             q, v = x[: bridge.n], x[bridge.n : 2 * bridge.n]
             pin.forwardKinematics(model, data, q, v)
-            for leg in controller.legs:
+            for i, leg in enumerate(law.legs):
                 hip = next(j for j in range(model.njoints) if model.joints[j].idx_v == leg.hip)
                 velocity = pin.getVelocity(model, data, hip, pin.LOCAL_WORLD_ALIGNED)
                 z, zd = data.oMi[hip].translation[2], velocity.linear[2]
                 expected = (z, zd) if gait == "bound" else (x[1], x[bridge.n + 1])
-                np.testing.assert_allclose(controller._height(leg, x), expected, atol=1e-12)
+                np.testing.assert_allclose(laws.hop_height(p, laws.leg_at(p, i), x, bridge.n), expected, atol=1e-12)
 
 
-def test_the_runner_declares_each_legs_thrust_and_stance_time_as_memory():
-    scene = pronk(0.1)
-    controller = scene.control
-    assert controller.memory_names == ("thrust_hind", "T_s_hind", "thrust_front", "T_s_front")
-    assert controller.memory_units == ("m", "s", "m", "s")
-    values = np.array([0.011, 0.13, 0.012, 0.14])
-    controller.restore("flight", values)
-    assert controller.memory().tolist() == values.tolist()
-    assert not any(leg.in_stance for leg in controller.legs)
+def memory_of(law, name: str, field: str, memory: np.ndarray) -> float:
+    """One memory value of a leg (``runner_laws.MEMORY_FIELDS``) from the controller's memory."""
+    return float(memory[law.memory_names.index(f"{field}_{name}")])
 
 
-def test_restoring_the_runners_memory_continues_its_run():
-    """The memory is all the state the controller carries from hop to hop: a return from an
-    apex of the run with a fresh controller restored to the run's memory there reaches the run's
-    next apex (up to the different step grid: the return's steps start at the apex), and without
-    the memory (a fresh controller's thrust and T_s) it does not."""
-    from legsim.orbits.returns import MemoryLog, ReturnMap, first_crossing
-    from legsim.relaxed import simulate
-    from legsim.scene.orbit import problem_from_scene
+def test_the_runner_declares_its_memory_and_the_run_carries_it_in_the_state():
+    """Each leg's stance flag, touchdown time, stance duration, thrust, stride origin, placement
+    bias and liftoff angle and time, named and with units; a run's states end with them, and
+    at each liftoff the leg's T_s is the stance just ended and its thrust the adapted one."""
+    scene = pronk(0.5)
+    law = scene.control
+    fields = [f for f, _ in laws.MEMORY_FIELDS]
+    assert law.memory_names == tuple(f"{f}_{leg}" for leg in ("hind", "front") for f in fields)
+    assert law.memory_units[:4] == ("", "s", "s", "m")
+    ex = scene.simulate()
+    assert ex.status == "finished" and ex.state_names["flight"][-len(law.memory_names) :] == law.memory_names
+    n = len(ex.state_names["flight"]) - len(law.memory_names)
+    touchdowns = {leg: [] for leg in ("hind", "front")}
+    for tr in ex.transitions:
+        after = tr.state_after[len(tr.state_after) - len(law.memory_names) :]
+        for leg in ("hind", "front"):
+            if memory_of(law, leg, "stance", after) and tr.source == "flight":
+                touchdowns[leg].append(tr.time)
+                assert memory_of(law, leg, "touchdown", after) == tr.exit_time  # entered at the strip's exit
+            if tr.target == "flight" and leg in tr.source:
+                assert memory_of(law, leg, "T_s", after) == pytest.approx(tr.exit_time - touchdowns[leg][-1], abs=2e-4)
+    assert n == 14 and all(touchdowns.values())
 
-    scene = pronk(1.0, 'orbit.section={ mode = "flight", coordinate = "zd", value = 0.0, direction = "decreasing" }')
-    problem = problem_from_scene(scene).problem
-    log = MemoryLog(scene.control)
+
+def test_a_run_from_a_state_with_its_memory_continues_the_run():
+    """The memory is all the state the controller carries from hop to hop: a run started at an
+    apex of a run, at its time, with the state and memory there, reaches the run's next apex
+    (up to the different step grid: its steps start at the apex); with a fresh controller's
+    memory (thrust 0.02 m for the adapted 0.014 m, T_s 0.12 s) it does not."""
+    scene = pronk(1.0)
     s = scene.integrator
-    ex = simulate(scene.model.system, scene.initial_state, "flight", 1.0, s["h"], s["eps"], s["method"], log)
+    ex = scene.simulate()
     apexes = []
-    for k, seg in enumerate(ex.segments):
-        hit = first_crossing(seg, problem.bound.s, -1, seg.t[0]) if k and seg.mode == "flight" else None
-        if hit is not None:
-            apexes.append((hit[1], log.entries[k]))
-    (x1, memory1), (x2, memory2) = apexes[:2]
-    restored = ReturnMap(problem)(x1, memory=memory1)
-    fresh = ReturnMap(problem)(x1)
-    # The run and the return differ in their step grids (the return's steps start at the apex),
-    # and so in where steps land in the strips: the positions by O(eps) (eps = 1e-4), the
-    # mode entries that time a stance by up to a step (h = 1e-3 s); the thrust follows the apex.
+    for seg in ex.segments[1:]:
+        if seg.mode == "flight":
+            k = int(np.argmax(seg.x[:, 1]))
+            if 0 < k < len(seg.t) - 1:
+                apexes.append((seg.t[k], seg.x[k]))
+    (t1, x1), (t2, x2) = apexes[:2]
+    law = scene.control
+    m = len(law.memory_names)
+    resumed = simulate(scene.model.system, x1, "flight", t2, s["h"], s["eps"], s["method"], law, t0=t1)
+    fresh_state = np.concatenate([x1[:-m], law.initial_memory])
+    fresh = simulate(scene.model.system, fresh_state, "flight", t2, s["h"], s["eps"], s["method"], law, t0=t1)
     config = slice(0, 7)  # positions (the stiff flight servo amplifies the rates' differences)
-    error = np.max(np.abs(restored.x_end[config] - x2[config]))
-    assert error < s["eps"]
-    thrust = [0, 2]
-    assert np.max(np.abs(restored.memory_end[thrust] - memory2[thrust])) < 1e-5
-    assert np.max(np.abs(restored.memory_end[[1, 3]] - memory2[[1, 3]])) < s["h"]
-    # without the run's memory (a fresh controller's thrust 0.02 m for the adapted 0.014 m)
-    assert np.max(np.abs(fresh.x_end[config] - x2[config])) > 100 * error
+    error = np.max(np.abs(resumed.final_state[config] - x2[config]))
+    assert resumed.status == "finished" and error < s["eps"]
+    assert np.max(np.abs(fresh.final_state[config] - x2[config])) > 100 * error
 
 
-def test_the_runner_with_an_integral_term_leaves_its_memory_undeclared():
-    # The integral term's bias and its stride origin (the last touchdown's time and place)
-    # would be memory that restore() cannot set, so the orbit search must refuse the scene.
-    controller = load_scene("quadruped_run").control
-    assert controller.gains.k_i > 0.0 and controller.memory_names is None
+def test_the_runner_with_an_integral_term_declares_its_stride_origin():
+    # The integral term's bias and the stride it measures from the last touchdown's time and
+    # place are memory, declared like the rest.
+    law = load_scene("quadruped_run", ["integrator.t_final=1.0"]).control
+    assert law.gains.k_i > 0.0
+    assert {"bias_hind", "touchdown_x_hind", "touchdown_hind", "landed_hind"} <= set(law.memory_names)
 
 
 # -- the bound ------------------------------------------------------------------------------------
@@ -264,21 +277,24 @@ def test_bound_phase_term_lowers_the_apex_target_of_a_late_pair():
     own stride, moves its apex target by ``-k_phase (share - 0.5)``: down when it lands late
     (share > 0.5), up when early, not at all in antiphase; the share wraps around a stride."""
     scene = load_scene(BOUND, ["integrator.t_final=0.1"])
-    controller = scene.control
-    k_phase = controller.gains.k_phase
-    hind, front = sorted(controller.legs, key=lambda leg: leg.contact != "hind")
+    law = scene.control
+    k_phase = law.gains.k_phase
+    x = scene.initial_state[:14]
     for lag, share in ((0.3, 0.75), (0.1, 0.25), (0.2, 0.5), (0.5, 0.25)):
-        for leg in (hind, front):
-            leg.touchdown_x, leg.in_stance = 0.0, False
-        hind.touchdown, front.touchdown = 1.0, 1.4 - lag
-        controller.reset("hind", 1.4, scene.initial_state)  # the hind pair lands, stride 0.4 s
-        assert hind.phase_height == pytest.approx(-k_phase * (share - 0.5), abs=1e-12)
-    assert front.phase_height == 0.0
+        memory = np.array(law.initial_memory)
+        for leg, touchdown in (("hind", 1.0), ("front", 1.4 - lag)):
+            memory[law.memory_names.index(f"landed_{leg}")] = 1.0
+            memory[law.memory_names.index(f"touchdown_{leg}")] = touchdown
+        after = np.empty_like(memory)
+        law.enter(1.4, x, memory, law.params_for("hind"), after)  # the hind pair lands, stride 0.4 s
+        assert memory_of(law, "hind", "phase_height", after) == pytest.approx(-k_phase * (share - 0.5), abs=1e-12)
+        assert memory_of(law, "front", "phase_height", after) == 0.0
 
 
-def test_the_bound_leaves_its_memory_undeclared():
-    # The phase term measures from both pairs' last touchdowns: memory restore() cannot set.
-    assert load_scene(BOUND, ["integrator.t_final=0.1"]).control.memory_names is None
+def test_the_bound_declares_its_memory_too():
+    # The phase term measures from both pairs' last touchdowns: declared memory as the rest.
+    law = load_scene(BOUND, ["integrator.t_final=0.1"]).control
+    assert {"phase_height_hind", "liftoff_front", "liftoff_angle_front"} <= set(law.memory_names)
 
 
 def test_bound_on_its_gait_alternates_in_antiphase():
@@ -294,8 +310,7 @@ def test_bound_on_its_gait_alternates_in_antiphase():
     assert all(a != b for a, b in itertools.pairwise(pairs))
     assert {mode.rstrip("<>") for mode in ex.mode_sequence} == {"flight", "hind", "front"}
     assert np.max(np.abs(antiphase_shares(touchdowns) - 0.5)) < 0.01
-    controller = load_scene(BOUND, ["integrator.t_final=0.1"]).control
-    for leg in controller.legs:
+    for leg in load_scene(BOUND, ["integrator.t_final=0.1"]).control.legs:
         apexes = hip_apexes(ex, leg)
         assert len(apexes) >= 7 and np.ptp(apexes) < 0.01 * np.mean(apexes)
 

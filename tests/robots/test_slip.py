@@ -76,6 +76,6 @@ def test_a_runner_whose_hip_reaches_the_ground_ends_with_model_breakdown():
     # keeping the execution up to the last step with the hip above the ground.
     model = slip.make({"k": 5.0})
     ex = simulate(model.system, slip.state(), "flight", 3.0, 1e-3, 1e-3)
-    assert ex.status == "model_breakdown" and "hip of leg 'leg'" in ex.message and "fell" in ex.message
+    assert ex.status == "model_breakdown" and "range" in ex.message
     assert ex.mode_sequence == ["flight", "stance"]
     assert 0.0 <= ex.final_state[1] < 0.01 and ex.final_state[3] < 0

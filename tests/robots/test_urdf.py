@@ -94,7 +94,7 @@ def test_the_scene_declares_contacts_and_stops_with_a_file_relative_to_it():
     assert bridge.contacts[0].friction == 0.8 and bridge.contacts[3].side == "upper"
     ex = scene.simulate()
     assert ex.status == "finished" and [tr.name for tr in ex.transitions] == ["joint_hind+front"]
-    u = scene.controller(ex.final_mode, ex.t_end, ex.final_state)
+    u = scene.controller.input_at(ex.final_mode, ex.t_end, ex.final_state)
     forces = bridge.constraint_forces(ex.final_mode, ex.final_state, u)
     total = pin.computeTotalMass(bridge.model) * 9.81
     assert forces["hind"][1] + forces["front"][1] == pytest.approx(total, rel=1e-6)  # standing still

@@ -1,0 +1,106 @@
+"""A Pinocchio model in the native library (``legsim._native``): its flat description, its handle
+(created once per model object) and the robot's evaluation counters.
+
+The bridge's model functions call Pinocchio's C++ algorithms through the library by a model
+handle that travels in their parameter arrays; without the library a bridge robot cannot be
+built (``ModelError`` says why).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from legsim import _native
+from legsim.errors import ModelError
+
+#: The robot's counters, by slot of the library's counter array (``lsn_counts``): the first five
+#: and ``cache_hits`` (a solve served by the last one with the same inputs) are counted by the
+#: library's algorithms, the others by the model functions (``lsn_tally``).
+COUNTERS = (
+    "aba",
+    "kkt",
+    "jacobians",
+    "kinematics",
+    "impacts",
+    "spring_forces",
+    "damping_evals",
+    "actuation_evals",
+    "painleve_sticks",
+    "cache_hits",
+)
+C_SPRINGS, C_DAMPING, C_ACTUATION, C_PAINLEVE = 5, 6, 7, 8
+
+_HANDLES: dict[int, tuple[Any, int]] = {}
+_JOINT_CODES = {
+    "JointModelRX": 0,
+    "JointModelRY": 1,
+    "JointModelRZ": 2,
+    "JointModelPX": 3,
+    "JointModelPY": 4,
+    "JointModelPZ": 5,
+}
+COMPOSITE = 6
+
+
+def describe(model: Any) -> np.ndarray | None:
+    """The flat description of a Pinocchio model for ``lsn_create`` (pinlegsim.cpp), or None
+    when it has a joint the library does not take or a gravity with an angular part."""
+    out: list[float] = [model.njoints - 1]
+    for j in range(1, model.njoints):
+        joint = _joint_description(model.joints[j])
+        if joint is None:
+            return None
+        placement, inertia = model.jointPlacements[j], model.inertias[j]
+        out += [*joint, model.parents[j], *placement.rotation.reshape(-1), *placement.translation]
+        out += [inertia.mass, *inertia.lever, *inertia.inertia.reshape(-1)]
+    out.append(len(model.frames) - 1)
+    for frame in list(model.frames)[1:]:
+        out += [frame.parentJoint, *frame.placement.rotation.reshape(-1), *frame.placement.translation]
+    if np.any(model.gravity.angular != 0.0):
+        return None
+    out += list(model.gravity.linear)
+    return np.array(out, dtype=float)
+
+
+def _joint_description(joint: Any) -> list[float] | None:
+    """A joint's code, and for a composite (the planar root: PX, PZ, RY) its parts' codes and
+    placements; None for a joint the library does not take."""
+    kind = joint.shortname()
+    if kind != "JointModelComposite":
+        code = _JOINT_CODES.get(kind)
+        return None if code is None else [code]
+    composite = joint.extract()
+    out: list[float] = [COMPOSITE, len(composite.joints)]
+    for part, placement in zip(composite.joints, composite.jointPlacements, strict=True):
+        code = _JOINT_CODES.get(part.shortname())
+        if code is None:
+            return None
+        out += [code, *placement.rotation.reshape(-1), *placement.translation]
+    return out
+
+
+def handle_for(model: Any, robot: str) -> int:
+    """The native handle of a Pinocchio model (created once per model object); ``ModelError``
+    naming ``robot`` when the library is unavailable or cannot take the model."""
+    found = _HANDLES.get(id(model))
+    if found is not None and found[0] is model:
+        return found[1]
+    if not _native.load():
+        raise ModelError(f"{robot}: the native Pinocchio library is unavailable: {_native.status()}")
+    desc = describe(model)
+    if desc is None:
+        raise ModelError(
+            f"{robot}: the native library takes revolute and prismatic joints about or along x, y, z "
+            f"(and their composites) and a gravity without angular part; this model has others"
+        )
+    handle = _native.create_model(desc)
+    _HANDLES[id(model)] = (model, handle)  # holding the model keeps its id from being reused
+    return handle
+
+
+def counts(handle: int, reset: bool = False) -> dict[str, int]:
+    """The robot's evaluation counters by name (``COUNTERS``), zeroed afterwards with ``reset``."""
+    values = _native.counts(handle, reset)
+    return {name: int(values[i]) for i, name in enumerate(COUNTERS)}

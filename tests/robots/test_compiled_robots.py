@@ -1,0 +1,205 @@
+"""Robots written once: every bundled scene of a robot runs its steps in the compiled kernel, the
+same source run as plain Python gives the same execution to the bit, and the model functions
+(Pinocchio's C++ algorithms through the native library) agree with independent formulations:
+Pinocchio's own ``forwardDynamics`` and ``impulseDynamics`` through its Python bindings, and the
+closed form of a PD holding a pendulum against gravity."""
+
+import functools
+import math
+
+import numba
+import numpy as np
+import pinocchio as pin
+import pytest
+from legsim.robots import compass_gait, double_pendulum
+from legsim.robots.bridge import native
+from legsim.robots.bridge.dynamics import bridge_field
+from scipy.optimize import brentq
+
+from legsim import _native, relaxed
+from legsim._native.calls import lsn_aba, lsn_frame_motion
+from legsim.model import evaluate_field, evaluate_guards, evaluate_reset
+from legsim.scene import load_scene
+
+RNG = np.random.default_rng(18)
+#: Every bundled scene of a robot, with a shorter run where the scene's own is long.
+ROBOT_SCENES = [
+    ("compass_gait", None),
+    ("rimless_wheel", None),
+    ("double_pendulum_pd", "2.0"),
+    ("double_pendulum_plastic", "3.0"),
+    ("double_pendulum_plastic_paper", "3.0"),
+    ("double_pendulum_zeno", "3.0"),
+    ("double_pendulum_zeno_paper", "3.0"),
+    ("rod", None),
+    ("pronk", None),
+    ("pronk_paper", None),
+    ("pronk_pitched", None),
+    ("pronk_pitched_paper", None),
+    ("slip", None),
+    ("quadruped_stand", None),
+    ("quadruped_pronk", "2.0"),
+    ("quadruped_run", "2.0"),
+    ("quadruped_bound", "2.0"),
+]
+
+
+def close(a, b, rel=1e-12):
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    assert a.shape == b.shape
+    assert np.all(np.abs(a - b) <= rel * (1.0 + np.abs(b))), (a, b)
+
+
+def scene_of(name, t_final):
+    return load_scene(name, [f"integrator.t_final={t_final}"] if t_final else [])
+
+
+@pytest.mark.parametrize("name,t_final", ROBOT_SCENES)
+def test_every_robot_scene_runs_every_step_in_the_kernel(name, t_final):
+    scene = scene_of(name, t_final)
+    ex = scene.simulate()
+    assert ex.status == "finished" and ex.counters["python_steps"] == 0
+    assert ex.counters["compiled_steps"] == ex.counters["steps"] > 0
+
+
+@pytest.mark.parametrize(
+    "name,t_final", [("double_pendulum_zeno", "3.0"), ("rod", None), ("slip", None), ("quadruped_bound", "0.5")]
+)
+def test_the_python_loop_runs_the_same_functions_to_the_bit(monkeypatch, name, t_final):
+    """Stops, Zeno continuations, joint impacts, spring legs, friction events under a controller
+    with memory: one source, two paths, one execution."""
+    scene = scene_of(name, t_final)
+    fast = scene.simulate()
+    monkeypatch.setattr(relaxed, "simulate", functools.partial(relaxed.simulate, python=True))
+    slow = scene.simulate()
+    assert slow.counters["compiled_steps"] == 0 and slow.counters["python_steps"] == fast.counters["steps"]
+    assert [tr.name for tr in slow.transitions] == [tr.name for tr in fast.transitions]
+    assert [tr.time for tr in slow.transitions] == [tr.time for tr in fast.transitions]
+    assert np.array_equal(slow.final_state, fast.final_state)
+
+
+def test_a_pd_holds_the_pendulum_where_its_torque_balances_gravity():
+    """double_pendulum_pd comes to rest on its stop where kp (target - theta1) equals the straight
+    pendulum's gravity torque (m1 + m2) g L1 sin theta1 + m2 g L2 sin theta1 = 3 g sin theta1."""
+    scene = load_scene("double_pendulum_pd")
+    ex = scene.simulate()
+    pd = scene.effects["controller"]
+    kp, target = pd["kp"], pd["target"]
+    rest = brentq(lambda th: kp * (target - th) - 3 * 9.81 * math.sin(th), 0.0, 1.0)
+    assert ex.status == "finished" and ex.final_mode == "constrained"
+    assert abs(ex.final_state[0] - rest) < 1e-6 and abs(ex.final_state[1]) < 1e-9
+    assert ex.counters["actuation_evals"] >= ex.counters["field_evals"]  # the torque at every evaluation
+
+
+def test_constrained_dynamics_match_pinocchio_forward_dynamics():
+    # The double pendulum held at its stop: J = e_2 (theta2 >= 0), no drift. Pinocchio's own
+    # forwardDynamics solves the same KKT system by a different factorisation.
+    system = double_pendulum.make(effects={"stop": {"restitution": 0.0}}).system
+    functions = system.mode("constrained").functions
+    pm = double_pendulum.pinocchio_model()
+    pd = pm.createData()
+    for q1, v1 in RNG.uniform(-1.0, 1.0, (10, 2)):
+        x = np.array([q1, 0.0, v1, 0.0])
+        a = evaluate_field(functions, 4, 0.0, x, None)[2:]
+        expected = pin.forwardDynamics(pm, pd, x[:2], x[2:], np.zeros(2), np.array([[0.0, 1.0]]), np.zeros(1))
+        close(a, expected, 1e-10)
+        # The release guard is the stop's force, Pinocchio's multiplier (M a = tau + J^T lambda).
+        assert evaluate_guards(functions, 1, 0.0, x, None)[0] == pytest.approx(pd.lambda_c[0], rel=1e-10, abs=1e-12)
+
+
+def test_heel_strike_matches_pinocchio_impulse_dynamics():
+    walker = compass_gait.CompassGait()
+    model = compass_gait.floating_model(walker.m, walker.mH, walker.a, walker.b, walker.g, walker.slope)
+    data = model.createData()
+    foot2 = model.getFrameId("foot2")
+    for th, ph, thd, phd in RNG.uniform(-0.4, 0.4, (10, 4)):
+        x = np.array([th, ph, thd, phd, 0.0])
+        after = evaluate_reset(walker.functions, 0, 5, x)
+        leg = walker.l
+        q = np.array([leg * math.sin(th), leg * math.cos(th), th, ph])
+        v = np.array([leg * thd * math.cos(th), -leg * thd * math.sin(th), thd, phd])
+        J = pin.computeFrameJacobian(model, data, q, foot2, pin.LOCAL_WORLD_ALIGNED)[[0, 2]]
+        v_plus = pin.impulseDynamics(model, data, q, v, J, 0.0, 0.0)
+        close(after[2:4], [v_plus[2] + v_plus[3], -v_plus[3]], 1e-10)
+        close(after[:2], [th + ph, -ph])
+
+
+def test_a_walker_thrown_backwards_falls_with_its_hip_below_the_slope():
+    # The heel strike's guard is nan once the hip is below the slope: the step is shortened
+    # there and the run ends as a model breakdown, on either path.
+    scene = load_scene("compass_gait", ["initial.state.stanced=-3.0", "integrator.t_final=3.0"])
+    ex = scene.simulate()
+    assert ex.status == "model_breakdown" and ex.counters["python_steps"] == 0
+    hip = ex.final_state[0]
+    assert math.cos(hip) < 1e-3  # the stance leg lies (nearly) along the slope: the hip at the ground
+
+
+@numba.njit
+def _native_aba_and_motion(handle, q, v, tau, frame, a, motion):
+    lsn_aba(handle, q.ctypes.data, v.ctypes.data, tau.ctypes.data, a.ctypes.data)
+    lsn_frame_motion(handle, q.ctypes.data, v.ctypes.data, a.ctypes.data, frame, motion.ctypes.data)
+
+
+def composite_root_model():
+    """A body on a composite root (PX, PZ, RY) whose parts have non-trivial placements, and a
+    leg below it, with a foot frame."""
+    model = pin.Model()
+    root = pin.JointModelComposite()
+    root.addJoint(pin.JointModelPX(), pin.SE3(pin.utils.rpyToMatrix(0.0, 0.3, 0.0), np.array([0.1, 0.0, 0.2])))
+    root.addJoint(pin.JointModelPZ(), pin.SE3(np.eye(3), np.array([0.0, 0.0, -0.3])))
+    root.addJoint(pin.JointModelRY(), pin.SE3(pin.utils.rpyToMatrix(0.0, -0.2, 0.0), np.array([0.05, 0.0, 0.0])))
+    body = model.addJoint(0, root, pin.SE3(np.eye(3), np.array([0.0, 0.0, 0.5])), "root")
+    body_inertia = pin.Inertia(2.0, np.array([0.1, 0.0, 0.05]), np.diag([0.1, 0.2, 0.3]))
+    model.appendBodyToJoint(body, body_inertia, pin.SE3.Identity())
+    knee = model.addJoint(body, pin.JointModelRY(), pin.SE3(np.eye(3), np.array([0.2, 0.0, -0.1])), "knee")
+    shank_inertia = pin.Inertia(0.5, np.array([0.0, 0.0, -0.2]), np.diag([0.01, 0.02, 0.01]))
+    model.appendBodyToJoint(knee, shank_inertia, pin.SE3.Identity())
+    foot = pin.SE3(np.eye(3), np.array([0.0, 0.0, -0.4]))
+    model.addFrame(pin.Frame("foot", knee, foot, pin.FrameType.OP_FRAME), False)
+    return model
+
+
+def test_a_composite_root_moves_as_in_pinocchio():
+    # The library builds a composite joint as the chain of its parts, each placed after the
+    # previous one, with massless bodies between: Pinocchio's composite joint moves the same.
+    model = composite_root_model()
+    data = model.createData()
+    handle = native.handle_for(model, "composite")
+    foot = model.getFrameId("foot")
+    for _ in range(5):
+        q, v, tau = RNG.normal(size=(3, model.nv))
+        a, motion = np.empty(model.nv), np.empty(4)
+        _native_aba_and_motion(np.int64(handle), q, v, tau, np.int64(foot), a, motion)
+        close(a, pin.aba(model, data, q, v, tau), 1e-10)
+        pin.forwardKinematics(model, data, q, v, a)
+        pin.updateFramePlacement(model, data, foot)
+        vel = pin.getFrameVelocity(model, data, foot, pin.LOCAL_WORLD_ALIGNED).linear
+        acc = pin.getFrameClassicalAcceleration(model, data, foot, pin.LOCAL_WORLD_ALIGNED).linear
+        close(motion, [vel[0], vel[2], acc[0], acc[2]], 1e-10)
+
+
+@pytest.mark.parametrize("parts", [0.0, -1.0, math.nan, 1e300, 2.0**60, 4.0])
+def test_the_library_refuses_a_composite_whose_part_count_its_description_cannot_hold(parts):
+    # One composite joint of `parts` parts followed by 3 parts' worth of zeros (RX parts at the
+    # identity would need 13 values each): every count here is refused, never read past the end
+    # (2**60 parts overflow 13 * parts in long arithmetic: the bound must be divided, not multiplied).
+    description = np.array([1.0, float(native.COMPOSITE), parts] + [0.0] * 39)
+    with pytest.raises(ValueError, match="refused"):
+        _native.create_model(description)
+
+
+def test_the_library_refuses_a_composite_of_composites():
+    part = [float(native.COMPOSITE)] + [0.0] * 12
+    with pytest.raises(ValueError, match="refused"):
+        _native.create_model(np.array([1.0, float(native.COMPOSITE), 1.0, *part] + [0.0] * 60))
+
+
+def test_a_robots_evaluations_are_counted_whichever_path_ran_them():
+    model = double_pendulum.make(effects={"gravity": {}, "stop": {"restitution": 0.0}, "damping": {}})
+    bridge = model.info["bridge"]
+    bridge.reset_counters()
+    p = np.array(model.system.mode("unconstrained").functions.params)
+    dx, x = np.empty(4), np.array([0.3, 0.2, 0.0, 0.1])
+    bridge_field(0.0, x, np.zeros(0), p, dx)
+    counts = bridge.counters()
+    assert counts["aba"] == 1 and counts["kkt"] == 0 and counts["damping_evals"] == 1
