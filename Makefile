@@ -7,11 +7,11 @@ STAMP := $(VENV)/.installed
 .PHONY: demo test test-full test-browser install lint clean
 
 # setup.py and the C++ source: the optional native extension is built by the install.
-$(STAMP): pyproject.toml setup.py legsim/_native/pinlegsim.cpp
+$(STAMP): pyproject.toml setup.py robots/_native/pinlegsim.cpp
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
 	$(BIN)/pip install --quiet -e ".[test]"
-	@$(BIN)/python -c "import legsim._native as n; print('legsim: native robot library:', n.status())"
+	@$(BIN)/python -c "import legsim.robots._native as n; print('legsim: native robot library:', n.status())"
 	@# The step loop and the bundled models compiled ahead of time (about two minutes, once), so
 	@# that a first run loads them instead of compiling.
 	$(BIN)/python -m legsim.prebuild

@@ -5,11 +5,11 @@ but install as ``legsim.robots``, ``legsim.viz`` and ``legsim.scenarios`` so tha
 top-level name reaches site-packages (a user's own ``robots/`` folder shadows nothing). The
 rest of the configuration is in pyproject.toml.
 
-One optional C++ extension, ``legsim._native._pinlegsim``: Pinocchio's algorithms behind a
-plain C ABI for the compiled robot twins (legsim/_native/). It is built from the Pinocchio and
+One optional C++ extension, ``legsim.robots._native._pinlegsim``: Pinocchio's algorithms behind a
+plain C ABI for the robots' model functions (robots/_native/). It is built from the Pinocchio and
 Eigen headers of the build environment (the ``libpinocchio`` and ``cmeel-eigen`` wheels named in
 pyproject.toml's build requirements); without a C++ compiler or those headers the build skips it
-and legsim runs its robots on the Python path (``legsim._native.status()`` says why);
+and legsim's robots cannot be built (``legsim.robots._native.status()`` says why);
 ``LEGSIM_BUILD_NATIVE=0`` skips it on purpose.
 """
 
@@ -41,11 +41,11 @@ def cmeel_include() -> Path | None:
 
 def native_extensions() -> list[Extension]:
     if os.environ.get("LEGSIM_BUILD_NATIVE", "1") == "0":
-        print("legsim: LEGSIM_BUILD_NATIVE=0: building without the native robot twins", file=sys.stderr)
+        print("legsim: LEGSIM_BUILD_NATIVE=0: building without the native library", file=sys.stderr)
         return []
     include = cmeel_include()
     if include is None:
-        print("legsim: Pinocchio or Eigen headers not found: building without the native robot twins", file=sys.stderr)
+        print("legsim: Pinocchio or Eigen headers not found: building without the native library", file=sys.stderr)
         return []
     # Pinocchio's own compile definitions (from its CMake config), header-only use.
     defines = [
@@ -57,8 +57,8 @@ def native_extensions() -> list[Extension]:
     ]
     return [
         Extension(
-            "legsim._native._pinlegsim",
-            ["legsim/_native/pinlegsim.cpp"],
+            "legsim.robots._native._pinlegsim",
+            ["robots/_native/pinlegsim.cpp"],
             language="c++",
             include_dirs=[str(include), str(include / "eigen3")],
             define_macros=defines,

@@ -6,7 +6,7 @@ model, and each robot scene's run time.
 Part 1 runs each scene, keeps up to 64 states of each mode, and times the mode's compiled model
 functions (``Mode.functions``: the field, every guard at once) called from a compiled loop over
 those states (cycled, so the native library's one-solve cache never serves them), against a
-bare C++ ABA on the robot's model (``legsim._native.time_aba``, no numba, no wrapper), the floor
+bare C++ ABA on the robot's model (``legsim.robots._native.time_aba``, no numba, no wrapper), the floor
 a field can go to. A field with constraints adds the KKT solve (M^-1, the contact Jacobians);
 the quadruped's runner law adds the generalised gravity in flight.
 
@@ -24,8 +24,8 @@ import time
 
 import numba
 import numpy as np
+from legsim.robots import _native
 
-from legsim import _native
 from legsim.scene import load_scene
 
 SCENES = ("double_pendulum_plastic", "pronk", "slip", "compass_gait", "rimless_wheel", "rod", "quadruped_pronk")

@@ -48,16 +48,16 @@ from typing import Any
 
 import numpy as np
 import pinocchio as pin
+from legsim.robots._native.calls import lsn_aba, lsn_frames, lsn_impact
 
 from legsim import model_function
-from legsim._native.calls import lsn_aba, lsn_frames, lsn_impact
 from legsim.builders import Builder, Model, Param
 from legsim.hybrid import HybridSystem, Mode, Transition
 from legsim.model import ModeFunctions
 
 from .bridge import add_point_frame, native, planar_floating_base
 from .bridge.dynamics import ptr
-from .bridge.native import handle_for
+from .bridge.native import bare_aba, handle_for
 
 STATE_NAMES = ("stance", "hip", "stanced", "hipd", "foot_x")
 STATE_UNITS = ("rad", "rad", "rad/s", "rad/s", "m")
@@ -274,6 +274,7 @@ def build(params: dict[str, Any], effects: dict[str, dict[str, Any]]) -> Model:
         "guard_units": {"heel_strike": "m (swing foot depth below the slope, in front and descending)"},
         "parameters": dict(params),
         "compass_gait": cg,
+        "bare_aba": bare_aba(cg.handle),
         # the stance foot, the one contact (legsim.viz.contacts)
         "contact_points": lambda mode, x: {"stance_foot": cg.geometry(mode, x)["stance_leg"][0]},
     }

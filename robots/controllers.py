@@ -12,9 +12,9 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
+from legsim.robots._native.calls import lsn_gravity
 
 from legsim import model_function
-from legsim._native.calls import lsn_gravity
 from legsim.builders import Model, Param
 from legsim.control import ControlLaw, ControllerSpec
 from legsim.errors import SceneError

@@ -40,16 +40,16 @@ from typing import Any
 
 import numpy as np
 import pinocchio as pin
+from legsim.robots._native.calls import lsn_aba, lsn_crba, lsn_momentum_about
 
 from legsim import model_function
-from legsim._native.calls import lsn_aba, lsn_crba, lsn_momentum_about
 from legsim.builders import Builder, Model, Param
 from legsim.hybrid import HybridSystem, Mode, Transition
 from legsim.model import ModeFunctions
 
 from .bridge import add_point_frame, native
 from .bridge.dynamics import ptr
-from .bridge.native import handle_for
+from .bridge.native import bare_aba, handle_for
 
 STATE_NAMES = ("theta", "thetad", "foot_x")
 STATE_UNITS = ("rad", "rad/s", "m")
@@ -209,6 +209,7 @@ def build(params: dict[str, Any], effects: dict[str, dict[str, Any]]) -> Model:
         },
         "parameters": dict(params),
         "rimless_wheel": rw,
+        "bare_aba": bare_aba(rw.handle),
         # the stance spoke's tip, the one contact (legsim.viz.contacts)
         "contact_points": lambda mode, x: {"stance_spoke": rot @ np.array([float(x[2]), 0.0])},
     }

@@ -17,10 +17,11 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from legsim.robots import _native
+from legsim.robots._native.calls import lsn_gravity
 from numba.extending import register_jitable
 
-from legsim import _native, model_function
-from legsim._native.calls import lsn_gravity
+from legsim import model_function
 
 from .control_laws import pd_torque
 

@@ -140,6 +140,9 @@ class RobotCase:
     reference: Any
     new_control: Callable[[], Any] | None = None
     controlled: ControlledSweep | None = None
+    #: ``bare_aba(q, v, tau, reps)``: seconds per bare C++ ABA call on the robot's model (its
+    #: ``Model.info["bare_aba"]``), the floor of a field's cost; None when the robot gives none.
+    bare_aba: Callable[..., float] | None = None
 
     def error(self, execution: Any) -> float:
         """Largest difference of event times (s) and post-event states to the reference's (inf
@@ -202,18 +205,20 @@ def _on_limit_cycle(system: Any, x: np.ndarray, t: float) -> np.ndarray:
 
 
 def _walker(name: str, quick: bool) -> tuple[Any, np.ndarray, float, str]:
+    """The walker's model (``legsim.builders.Model``), its state on the limit cycle, the horizon
+    (s) and a description."""
     if name == "compass-gait":
         model = _builder("compass_gait").make({"slope": math.degrees(DRAKE_COMPASS_SLOPE)}, {})
         x0 = np.array([model.initial_state[n] for n in model.system.state_names("stance")])
         x0 = _on_limit_cycle(model.system, x0, 30.0)
-        return model.system, x0, 10.0 if quick else 40.0, "compass gait, Drake's parameters (slope 0.0525 rad)"
+        return model, x0, 10.0 if quick else 40.0, "compass gait, Drake's parameters (slope 0.0525 rad)"
     params = {"spokes": DRAKE_RIMLESS["spokes"], "slope": math.degrees(DRAKE_RIMLESS["slope"])}
     model = _builder("rimless_wheel").make(params, {})
     alpha = math.pi / params["spokes"]
     c = math.cos(2 * alpha)  # point mass: thetad+ = c thetad-
     k = 4 * 9.81 * math.sin(alpha) * math.sin(DRAKE_RIMLESS["slope"])
     x0 = np.array([-alpha, math.sqrt(c * c * k / (1 - c * c)), 0.0])  # the closed-form rolling cycle
-    return model.system, x0, 10.0 if quick else 40.0, "rimless wheel, Drake's parameters (8 spokes, slope 0.08 rad)"
+    return model, x0, 10.0 if quick else 40.0, "rimless wheel, Drake's parameters (8 spokes, slope 0.08 rad)"
 
 
 def _reference(name: str, system: Any, x0: np.ndarray, mode: str, t_final: float, control: Any) -> Any:
@@ -282,8 +287,8 @@ def make_robot_case(name: str, quick: bool = False) -> RobotCase:
     if name in CONTROLLED:
         return _controlled_case(name, quick)
     if name in ("compass-gait", "rimless-wheel"):
-        system, x0, t_final, description = _walker(name, quick)
-        mode = "stance"
+        model, x0, t_final, description = _walker(name, quick)
+        system, mode = model.system, "stance"
     elif name == "pronk":
         model = _builder("pronk").make()
         system, mode, t_final = model.system, model.initial_mode, 0.5 if quick else 2.0
@@ -297,7 +302,10 @@ def make_robot_case(name: str, quick: bool = False) -> RobotCase:
     if name in ("pronk", "double-pendulum"):
         x0 = np.array([model.initial_state[n] for n in system.state_names(mode)])
     reference = _reference(name, system, x0, mode, t_final, None)
-    return RobotCase(name, f"{description}, t in [0, {t_final:g}] s", system, mode, x0, t_final, reference)
+    bare_aba = model.info.get("bare_aba")
+    return RobotCase(
+        name, f"{description}, t in [0, {t_final:g}] s", system, mode, x0, t_final, reference, bare_aba=bare_aba
+    )
 
 
 def sweep(quick: bool) -> list[RunSpec]:
@@ -513,17 +521,15 @@ def cost_report(case: RobotCase, rows: list[Row]) -> dict[str, float]:
     field, guards and first reset called from compiled code, and of its field called from
     Python; and, for the fastest compiled run below 1e-6, the share of its wall time outside ABA
     (1 - field evaluations x bare ABA / wall time)."""
-    from .. import _native
     from .overhead import callable_costs
 
     mode = case.system.mode(case.mode)
     functions = mode.functions
-    if functions is None or not functions.compiled or case.controlled is not None:
+    if functions is None or not functions.compiled or case.controlled is not None or case.bare_aba is None:
         return {}
     x = np.ascontiguousarray(case.x0, dtype=float)
     nv = (mode.dim - 1) // 2 if case.name in ("compass-gait", "rimless-wheel") else mode.dim // 2
-    handle = int(functions.params[0])  # every robot's parameter array starts with its native handle
-    aba = _native.time_aba(handle, x[:nv], x[nv : 2 * nv], np.zeros(nv), 200_000)
+    aba = case.bare_aba(x[:nv], x[nv : 2 * nv], np.zeros(nv), 200_000)
     costs = model_function_costs(functions, mode.dim, len(case.system.outgoing(case.mode)), x, 200_000)
     python = callable_costs(case.system, case.mode, x, 20_000)
     out = {
@@ -654,10 +660,9 @@ def main(
 ) -> int:
     """The command: every case's table, levels and costs, printed in the format ``fmt``
     (``legsim.tables.FORMATS``)."""
-    from .. import _native
     from ..tables import print_report
 
-    report: list[str | Table] = [f"# native library: {_native.status()}"]
+    report: list[str | Table] = []
     for name in cases:
         case, rows, csv_path, fig_path = run_case(name, quick=quick, out=out, repeats=repeats, figure=figure, log=log)
         report.append(f"# {case.name}: {case.description}")

@@ -258,7 +258,13 @@ class ContactBridge:
     def model_info(self, **entries: Any) -> dict[str, Any]:
         """``Model.info`` of a robot built on this bridge: the entries the core and the tools read
         (``guard_units``, ``bridge``, ``initial_check``), then the builder's own ``entries``."""
-        return {"guard_units": self.guard_units(), "bridge": self, "initial_check": self.initial_check(), **entries}
+        return {
+            "guard_units": self.guard_units(),
+            "bridge": self,
+            "initial_check": self.initial_check(),
+            "bare_aba": native.bare_aba(self.handle),
+            **entries,
+        }
 
     def guard_units(self) -> dict[str, str]:
         """Unit of each kind of guard by transition name prefix (eps is measured in these)."""

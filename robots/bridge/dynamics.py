@@ -17,9 +17,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from legsim.robots import _native
+from legsim.robots._native.calls import lsn_aba, lsn_constrained, lsn_frame_jacobian, lsn_frames, lsn_tally
 
-from legsim import _native, model_function
-from legsim._native.calls import lsn_aba, lsn_constrained, lsn_frame_jacobian, lsn_frames, lsn_tally
+from legsim import model_function
 
 from .layout import (
     B_POINT,

@@ -33,9 +33,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from legsim.robots._native.calls import lsn_frame_motion, lsn_frames, lsn_impact
 
 from legsim import model_function
-from legsim._native.calls import lsn_frame_motion, lsn_frames, lsn_impact
 
 from .dynamics import accelerate, frame_kinematics, handle, mode_accelerate, ptr, status_code
 from .friction import event_outcome, mode_change

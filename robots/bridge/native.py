@@ -1,4 +1,4 @@
-"""A Pinocchio model in the native library (``legsim._native``): its flat description, its handle
+"""A Pinocchio model in the native library (``legsim.robots._native``): its flat description, its handle
 (created once per model object) and the robot's evaluation counters.
 
 The bridge's model functions call Pinocchio's C++ algorithms through the library by a model
@@ -8,12 +8,15 @@ built (``ModelError`` says why).
 
 from __future__ import annotations
 
+import functools
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
 
-from legsim import _native
 from legsim.errors import ModelError
+
+from .. import _native
 
 #: The robot's counters, by slot of the library's counter array (``lsn_counts``): the first five
 #: and ``cache_hits`` (a solve served by the last one with the same inputs) are counted by the
@@ -98,6 +101,13 @@ def handle_for(model: Any, robot: str) -> int:
     handle = _native.create_model(desc)
     _HANDLES[id(model)] = (model, handle)  # holding the model keeps its id from being reused
     return handle
+
+
+def bare_aba(handle: int) -> Callable[[np.ndarray, np.ndarray, np.ndarray, int], float]:
+    """``time(q, v, tau, reps)``: seconds per bare C++ ABA call on the model ``handle``, timed inside
+    the library (``_native.time_aba``), for ``Model.info["bare_aba"]``: the floor a field's cost
+    is measured against (``legsim bench robots``)."""
+    return functools.partial(_native.time_aba, handle)
 
 
 def counts(handle: int, reset: bool = False) -> dict[str, int]:

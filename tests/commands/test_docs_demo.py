@@ -13,7 +13,7 @@ from legsim.cli import main
 
 
 def test_the_recording_demo_prints_what_the_docs_show(tmp_path, monkeypatch, capsys):
-    from legsim import _native
+    from legsim.robots import _native
 
     if _native.status() != "available":
         pytest.skip(f"the demo shows the compiled path's counters; native library: {_native.status()}")

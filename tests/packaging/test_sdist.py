@@ -68,6 +68,6 @@ def test_the_sdist_holds_the_build_files_and_no_checkout_clutter(built):
     sdist, _ = built
     with tarfile.open(sdist) as archive:
         names = {name.split("/", 1)[1] for name in archive.getnames() if "/" in name}
-    needed = {"pyproject.toml", "setup.py", "README.md", "LICENSE", "legsim/_native/pinlegsim.cpp"}
+    needed = {"pyproject.toml", "setup.py", "README.md", "LICENSE", "robots/_native/pinlegsim.cpp"}
     assert needed <= names
     assert not {name for name in names if name.split("/")[0] in (".venv", ".git", "out", "dist", "build")}

@@ -90,8 +90,17 @@ def test_an_installed_legsim_lists_and_runs_the_bundled_scenes_from_any_director
     assert listing.returncode == 0, listing.stderr
     for name in (p.stem for p in (ROOT / "scenarios").glob("*.toml")):
         assert name in listing.stdout
-    result = run(installed, "run", "pronk", "--json")
+    result = run(installed, "run", "bouncing_ball", "--json")
     assert result.returncode == 0, result.stderr
     summary = json.loads(result.stdout)
-    assert summary["status"] == "finished" and summary["scene"] == "pronk"
+    assert summary["status"] == "finished" and summary["scene"] == "bouncing_ball"
     assert str(installed[1] / "site") in summary["scene_file"]
+
+
+def test_a_robot_scene_without_the_native_extension_says_what_is_missing(installed):
+    # This wheel was built without the native extension (LEGSIM_BUILD_NATIVE=0): a robot scene
+    # stops before running, naming the scene, the robot and how to get the extension.
+    result = run(installed, "run", "pronk")
+    assert result.returncode == 2 and "Traceback" not in result.stderr
+    assert "pronk.toml" in result.stderr and "robot 'pronk' could not be built" in result.stderr
+    assert "legsim.robots._native._pinlegsim was not built" in result.stderr and "compiler" in result.stderr

@@ -6,8 +6,8 @@ import math
 
 import numpy as np
 import pytest
+from legsim.robots import _native
 
-from legsim import _native
 from legsim.bench import robots
 from legsim.bench.rows import Row
 

@@ -11,13 +11,13 @@ import numba
 import numpy as np
 import pinocchio as pin
 import pytest
-from legsim.robots import compass_gait, double_pendulum
+from legsim.robots import _native, compass_gait, double_pendulum
+from legsim.robots._native.calls import lsn_aba, lsn_frame_motion
 from legsim.robots.bridge import native
 from legsim.robots.bridge.dynamics import bridge_field
 from scipy.optimize import brentq
 
-from legsim import _native, relaxed
-from legsim._native.calls import lsn_aba, lsn_frame_motion
+from legsim import relaxed
 from legsim.model import evaluate_field, evaluate_guards, evaluate_reset
 from legsim.scene import load_scene
 

@@ -1,7 +1,7 @@
 """The native library's functions as numba sees them: external symbols resolved by name once
-``legsim._native.load()`` has loaded the library (call it before compiling or loading any
+``legsim.robots._native.load()`` has loaded the library (call it before compiling or loading any
 function that calls these). Pointers are ``array.ctypes.data`` of contiguous float64 arrays;
-the model handle comes from ``legsim._native.create_model``. Signatures and units: pinlegsim.cpp.
+the model handle comes from ``legsim.robots._native.create_model``. Signatures and units: pinlegsim.cpp.
 
 Each is also callable from Python (through ctypes, with the same arguments), so that a model
 function calling them runs as plain Python too (``simulate(python=True)`` runs their sources).

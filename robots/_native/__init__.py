@@ -1,12 +1,13 @@
 """The native library: Pinocchio's rigid-body algorithms behind a plain C ABI (``pinlegsim.cpp``),
-built at install time as the optional extension ``legsim._native._pinlegsim``.
+built at install time as the optional extension ``legsim.robots._native._pinlegsim``.
 
 numba-compiled code calls its functions by symbol name (``CALLS``: ``numba.types.ExternalFunction``
 declarations), which the process resolves once ``load()`` has loaded the library; compiled
 functions that call them cache on disk like any other. Python calls ``create_model`` through
 ctypes. Without the library (no C++ compiler at install time, or ``LEGSIM_NATIVE=0``), ``load()``
-returns False and ``status()`` says why; the robots then run on the Python path, and
-``warn_unavailable()`` says so once per process.
+returns False and ``status()`` says why: every robot's model functions call this library, so a
+robot cannot be built without it (``robots.bridge.native.handle_for`` raises a ``ModelError``
+naming the robot and the reason); the analytic systems need none of it.
 """
 
 from __future__ import annotations
@@ -14,7 +15,6 @@ from __future__ import annotations
 import ctypes
 import importlib.machinery
 import os
-import warnings
 from pathlib import Path
 from typing import cast
 
@@ -25,11 +25,7 @@ INTERFACE_VERSION = 5
 #: Environment variable that switches the native path off when set to 0.
 SWITCH = "LEGSIM_NATIVE"
 
-_state: dict[str, object] = {"loaded": None, "reason": "", "lib": None, "warned": False}
-
-
-class NativeUnavailable(UserWarning):
-    """The native robot twins are unavailable: robots run on the (slower) Python path."""
+_state: dict[str, object] = {"loaded": None, "reason": "", "lib": None}
 
 
 def library_path() -> Path | None:
@@ -53,7 +49,7 @@ def load() -> bool:
     path = library_path()
     if path is None:
         _state["reason"] = (
-            "the extension legsim._native._pinlegsim was not built at install time (no C++ "
+            "the extension legsim.robots._native._pinlegsim was not built at install time (no C++ "
             "compiler, or no Pinocchio/Eigen headers); reinstall with a compiler to build it"
         )
         return False
@@ -88,18 +84,6 @@ def library() -> ctypes.CDLL:
 def status() -> str:
     """'available', or why the native path is not."""
     return "available" if load() else str(_state["reason"])
-
-
-def warn_unavailable() -> None:
-    """Say once per process that robots run on the Python path, and why."""
-    if _state["warned"] or load():
-        return
-    _state["warned"] = True
-    warnings.warn(
-        f"legsim: compiled robot twins unavailable ({_state['reason']}); robots run on the Python path",
-        NativeUnavailable,
-        stacklevel=3,
-    )
 
 
 def create_model(description: np.ndarray) -> int:
