@@ -1,7 +1,7 @@
-"""The writers of pictures and recordings, found by name: ``legsim.record.write_rrd`` for
-``rrd``, and for every other kind (``html``, ``plot``, the sweep's maps) the entry point of that
-name in the ``legsim.writers`` group, which the pictures package (``legsim.viz``) registers: the
-core and the commands never import the pictures, only ask for them."""
+"""The writers of pictures and recordings, found by name: ``legsim.output.rrd.write_rrd`` (public as
+``legsim.record.write_rrd``) for ``rrd``, and for every other kind (``html``, ``plot``, the sweep's
+maps) the entry point of that name in the ``legsim.writers`` group, which the pictures package
+(``legsim.viz``) registers: the core and the commands never import the pictures, only ask for them."""
 
 from __future__ import annotations
 
@@ -21,20 +21,13 @@ def find_writer(kind: str, source: str = "") -> Writer:
     """The writer for ``kind`` (rrd, html, plot); LegsimError naming ``source`` when it is missing."""
     label = source or f"--{kind}"
     if kind == "rrd":
-        import importlib
-
         try:
-            module = importlib.import_module("legsim.record")
-        except ModuleNotFoundError as exc:
-            if exc.name != "legsim.record":
-                raise LegsimError(
-                    f"{label}: the Rerun recorder needs {exc.name!r}, which is not installed (pip install rerun-sdk)"
-                ) from exc
-            raise LegsimError(f"{label}: Rerun recordings are not available: legsim.record is missing") from exc
-        writer = getattr(module, "write_rrd", None)
-        if not callable(writer):
-            raise LegsimError(f"{label}: legsim.record has no write_rrd(execution, scene, path)")
-        return writer
+            from .rrd import write_rrd
+        except ModuleNotFoundError as exc:  # rerun-sdk, imported by the recorder only
+            raise LegsimError(
+                f"{label}: the Rerun recorder needs {exc.name!r}, which is not installed (pip install rerun-sdk)"
+            ) from exc
+        return write_rrd
     from importlib import metadata
 
     eps = metadata.entry_points(group=WRITER_GROUP, name=kind)
