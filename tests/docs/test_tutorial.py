@@ -71,6 +71,7 @@ def test_the_readme_shows_what_make_demo_runs():
     command = next(line.strip() for line in recipe.splitlines() if "legsim run" in line)
     shown = [code for kind, code, _ in steps("README.md") if kind == "console"]
     assert shown == [command.replace("$(BIN)/", "")]
+    assert "rerun out/pronk.rrd" in recipe and "out/pronk.html in a browser" in recipe  # how to look
 
 
 @pytest.mark.parametrize("document", DOCUMENTS)
