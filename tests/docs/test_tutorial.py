@@ -12,6 +12,7 @@ from __future__ import annotations
 import os
 import re
 import shlex
+import tempfile
 from pathlib import Path
 
 import pytest
@@ -81,6 +82,7 @@ def test_every_block_runs_and_prints_what_is_shown(document, tmp_path, monkeypat
     if document != "docs/howto-compiled.md" and _native.status() != "available":
         pytest.skip(f"{document} shows the compiled robots' path and counters; native library: {_native.status()}")
     monkeypatch.chdir(tmp_path)  # a block that writes files writes them here
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))  # and its temporary folders too
     namespace: dict[str, object] = {"__name__": f"doc_{Path(document).stem.replace('-', '_')}"}
     for number, (kind, code, shown) in enumerate(steps(document), start=1):
         where = f"{document} step {number}"
@@ -94,6 +96,8 @@ def test_every_block_runs_and_prints_what_is_shown(document, tmp_path, monkeypat
         if shown is not None:
             assert matches(printed, shown), f"{where}: printed\n" + "\n".join(printed)
     assert os.getcwd() == str(tmp_path)
+    if document == "docs/tutorial.md":
+        assert namespace["folder"].parent == tmp_path  # the stool's folder was made in tmp_path
 
 
 def test_the_readme_lists_every_command_and_links_the_guides():
