@@ -22,6 +22,7 @@ install: $(STAMP)
 demo: $(STAMP)
 	mkdir -p out
 	$(BIN)/legsim run pronk --rrd out/pronk.rrd --html out/pronk.html --plot out/pronk.png
+	@echo "to look at them: $(BIN)/rerun out/pronk.rrd (the Rerun viewer); out/pronk.html in a browser; out/pronk.png"
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q -n 2

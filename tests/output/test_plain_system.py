@@ -1,5 +1,5 @@
 """The writers take a plain ``HybridSystem`` as ``model=``, as docs/recording.md says: the
-recording, the plot and the summary of a run of the README's ball without a scene or a
+recording, the plot and the summary of a run of docs/method.md's ball without a scene or a
 ``Model``; the animation, which needs geometry, says that it has none."""
 
 from __future__ import annotations

@@ -280,7 +280,7 @@ def test_a_walk_sweep_draws_the_basin_and_an_orbit_sweep_the_stability_map(tmp_p
 
 def test_orbit_rows_place_the_compass_gaits_period_doubling_where_continuation_does():
     # `legsim orbit compass_gait --continue slope 3 6` locates the period doubling at
-    # slope 4.3909 (README): the sweep's independent orbit searches on either side agree.
+    # slope 4.3909 (docs/orbits.md): the sweep's independent orbit searches on either side agree.
     result = legsim.sweep(
         "compass_gait", grid={"robot.parameters.slope": [4.2, 4.6]}, run=False, orbit=True, in_process=True
     )
