@@ -30,11 +30,24 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.child:
         return warm()
+    removed = remove_entries(args.out)
     environment = {**os.environ, "NUMBA_CPU_NAME": PREBUILT_CPU, "LEGSIM_CACHE_DIR": str(args.out)}
     started = time.perf_counter()
     code = subprocess.call([sys.executable, "-m", "legsim.prebuild", "--child"], env=environment)
-    print(f"legsim: prebuilt compiled code in {args.out} ({time.perf_counter() - started:.0f} s)", file=sys.stderr)
+    seconds = time.perf_counter() - started
+    done = f"legsim: prebuilt compiled code in {args.out} ({seconds:.0f} s, {removed} old entries removed)"
+    print(done, file=sys.stderr)
     return code
+
+
+def remove_entries(folder: Path) -> int:
+    """Remove the compiled entries (numba's ``.nbi`` index and ``.nbc`` code files) an earlier
+    prebuild left in ``folder``: entries of sources since changed are never read again, and a
+    wheel would ship them. Other files are left alone."""
+    entries = [p for p in folder.rglob("*") if p.suffix in (".nbi", ".nbc") and p.is_file()]
+    for path in entries:
+        path.unlink()
+    return len(entries)
 
 
 def warm() -> int:

@@ -50,8 +50,8 @@ import numpy as np
 import pinocchio as pin
 from legsim.robots._native.calls import lsn_aba, lsn_frames, lsn_impact
 
-from legsim import model_function
 from legsim.builders import Builder, Model, Param
+from legsim.compiled.functions import model_function
 from legsim.hybrid import HybridSystem, Mode, Transition
 from legsim.model import ModeFunctions
 

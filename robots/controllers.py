@@ -14,8 +14,8 @@ from typing import Any
 import numpy as np
 from legsim.robots._native.calls import lsn_gravity
 
-from legsim import model_function
 from legsim.builders import Model, Param
+from legsim.compiled.functions import model_function
 from legsim.control import ControlLaw, ControllerSpec
 from legsim.errors import SceneError
 

@@ -4,7 +4,7 @@ source once here: the same law on every path, not a copy of it."""
 
 from __future__ import annotations
 
-from legsim.compiled import model_function
+from legsim.compiled.functions import model_function
 
 from .control_laws import attitude_share, swing_rate
 

@@ -41,7 +41,7 @@ from typing import Any
 import numpy as np
 
 from legsim.builders import Builder, Model
-from legsim.compiled import model_function
+from legsim.compiled.functions import model_function
 from legsim.hybrid import HybridSystem, Mode, Transition
 from legsim.model import ModeFunctions
 

@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 
 from legsim.builders import Model, Param
-from legsim.compiled import model_function
+from legsim.compiled.functions import model_function
 from legsim.control import ControlLaw, ControllerSpec
 from legsim.errors import SceneError
 

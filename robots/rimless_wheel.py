@@ -42,8 +42,8 @@ import numpy as np
 import pinocchio as pin
 from legsim.robots._native.calls import lsn_aba, lsn_crba, lsn_momentum_about
 
-from legsim import model_function
 from legsim.builders import Builder, Model, Param
+from legsim.compiled.functions import model_function
 from legsim.hybrid import HybridSystem, Mode, Transition
 from legsim.model import ModeFunctions
 

@@ -21,7 +21,7 @@ from legsim.robots import _native
 from legsim.robots._native.calls import lsn_gravity
 from numba.extending import register_jitable
 
-from legsim import model_function
+from legsim.compiled.functions import model_function
 
 from .control_laws import pd_torque
 

@@ -8,7 +8,8 @@ A run whose modes and controller are all written as compiled model functions
 execution says so (``counters["python_steps"]``, ``settings["python_reason"]``).
 """
 
+from . import kernel  # noqa: F401 -- importing it registers the kernel with the relaxed driver
 from .cache import cache_dir, clear
-from .kernel import model_function
+from .functions import model_function
 
 __all__ = ["cache_dir", "clear", "model_function"]

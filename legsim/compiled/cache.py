@@ -98,7 +98,7 @@ def _imports(path: Path) -> tuple[Path, ...]:
         elif isinstance(node, ast.Import):
             for alias in node.names:
                 if alias.name.startswith("legsim."):
-                    target = _module_file(PACKAGE_ROOT.parent.joinpath(*alias.name.split(".")))
+                    target = _module_file(_package_path(alias.name.split(".")[1:]))
                     if target is not None:
                         found.append(target)
     return tuple(dict.fromkeys(found))
@@ -108,12 +108,20 @@ def _resolve(path: Path, module: str | None, level: int) -> Path | None:
     if level == 0:
         if module is None or not module.startswith("legsim"):
             return None
-        parts = module.split(".")[1:]
-        return PACKAGE_ROOT.joinpath(*parts)
+        return _package_path(module.split(".")[1:])
     base = path.parent
     for _ in range(level - 1):
         base = base.parent
     return base.joinpath(*module.split(".")) if module else base
+
+
+def _package_path(parts: list[str]) -> Path:
+    """The path of ``legsim.<parts>``: inside the package, or for ``robots`` and ``viz`` in a
+    source checkout, their folders beside it (setup.py installs them as legsim.robots, legsim.viz)."""
+    inside = PACKAGE_ROOT.joinpath(*parts)
+    if parts and parts[0] in ("robots", "viz") and not (PACKAGE_ROOT / parts[0]).exists():
+        return PACKAGE_ROOT.parent.joinpath(*parts)
+    return inside
 
 
 def _module_file(base: Path) -> Path | None:

@@ -8,7 +8,6 @@ the core never imports the compiled path.
 
 from __future__ import annotations
 
-import os
 import sys
 import types as pytypes
 from collections.abc import Callable
@@ -21,13 +20,11 @@ from numba.core.extending import overload, register_jitable
 
 from ..relaxed import calls, crossing, curve, driver, entering, evaluate, loop, rules, stages, stepping
 from . import cache
+from .functions import JIT_OPTIONS
 from .native import SIGNATURES, call_indexed_at, call_joint_at, call_state_at
 
 #: The loop's modules, whose functions the kernel compiles from their source.
 LOOP_MODULES = (rules, stages, evaluate, curve, stepping, crossing, entering, loop)
-#: Options of every compiled function of legsim: no fast-math (the Python loop's arithmetic,
-#: to the bit), numpy's float error model (a division by zero gives inf, never an exception).
-JIT_OPTIONS = {"cache": True, "fastmath": False, "nogil": True, "error_model": "numpy"}
 #: The loop's options: without numba's reference counting (``_nrt``). The loop allocates nothing
 #: and its arrays are owned by the driver for the whole call, while counting the references of
 #: every array a function receives costs two calls each at every call (~1 us a field
@@ -163,22 +160,3 @@ class Kernel:
 
 
 driver.KERNEL = Kernel
-
-
-def model_function(fn: Any = None, /, **options: Any) -> Any:
-    """Compile a model function (``legsim.model``) or a helper it calls, with numba: plain
-    Python over arrays and scalars, in the subset numba compiles. A mode whose functions are all
-    compiled, under a controller whose functions are too, runs in the compiled kernel; from
-    Python the same function is called as it is. ``options`` are numba's ``njit`` options on
-    top of legsim's (``JIT_OPTIONS``: cached, no fast-math, numpy's error model).
-
-    Usable as ``@model_function`` or ``@model_function(inline="always")``. A function defined
-    where numba cannot cache it (a notebook, an interactive session) is compiled in the process
-    only."""
-
-    def compile_one(function: Any) -> Any:
-        where = getattr(getattr(function, "__code__", None), "co_filename", "")
-        cachable = bool(where) and os.path.isfile(where)
-        return cache.use_legsim_cache(numba.njit(**{**JIT_OPTIONS, "cache": cachable, **options})(function))
-
-    return compile_one if fn is None else compile_one(fn)

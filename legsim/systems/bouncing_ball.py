@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 
 from ..builders import ZENO_EFFECT, ZENO_WINDOW, Builder, Effect, Model, Param
-from ..compiled import model_function
+from ..compiled.functions import model_function
 from ..errors import ModelError
 from ..execution import Samples
 from ..hybrid import Continuation, HybridSystem, Mode, Transition

@@ -45,7 +45,7 @@ from typing import Any
 import numpy as np
 
 from ..builders import Builder, Effect, Model, Param
-from ..compiled import model_function
+from ..compiled.functions import model_function
 from ..errors import ModelError
 from ..execution import Samples
 from ..hybrid import HybridSystem, Mode, Transition

@@ -29,7 +29,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..builders import Builder, Model, Param
-from ..compiled import model_function
+from ..compiled.functions import model_function
 from ..errors import ModelError, SimulationError
 from ..execution import Samples
 from ..hybrid import HybridSystem, Mode, Transition

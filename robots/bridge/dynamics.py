@@ -20,7 +20,7 @@ import numpy as np
 from legsim.robots import _native
 from legsim.robots._native.calls import lsn_aba, lsn_constrained, lsn_frame_jacobian, lsn_frames, lsn_tally
 
-from legsim import model_function
+from legsim.compiled.functions import model_function
 
 from .layout import (
     B_POINT,

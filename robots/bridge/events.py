@@ -35,7 +35,7 @@ import math
 import numpy as np
 from legsim.robots._native.calls import lsn_frame_motion, lsn_frames, lsn_impact
 
-from legsim import model_function
+from legsim.compiled.functions import model_function
 
 from .dynamics import accelerate, frame_kinematics, handle, mode_accelerate, ptr, status_code
 from .friction import event_outcome, mode_change

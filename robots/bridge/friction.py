@@ -28,7 +28,7 @@ import math
 import numpy as np
 from legsim.robots._native.calls import lsn_crba, lsn_minverse, lsn_tally
 
-from legsim import model_function
+from legsim.compiled.functions import model_function
 
 from .dynamics import accelerate, blocks_of, handle
 from .impacts import ENERGY_TOL, FREE, MAX_TRIES, NORMAL, SLIDE, STICK, TOL, contact_rows, dot, kinetic, solve_small

@@ -34,7 +34,7 @@ import math
 import numpy as np
 from legsim.robots._native.calls import lsn_crba, lsn_frame_jacobian, lsn_impact
 
-from legsim import model_function
+from legsim.compiled.functions import model_function
 
 from .dynamics import handle, ptr
 from .layout import B_POINT, B_STOP, BLOCK_SIZE, C_ID, C_KIND, C_ROWS, C_SIGN, CONTACT_SIZE, KIND_STOP, P_CONTACT, P_N

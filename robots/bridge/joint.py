@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from legsim import model_function
+from legsim.compiled.functions import model_function
 
 from .dynamics import accelerate, blocks_of, status_code
 from .events import record

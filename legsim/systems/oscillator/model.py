@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from ...compiled import model_function
+from ...compiled.functions import model_function
 from ...control import ControlLaw
 from ...errors import ModelError
 from ...hybrid import Continuation, HybridSystem, Mode, Transition
