@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test test-full test-browser install lint clean
+.PHONY: demo test test-full test-browser install lint clean wheel
 
 # setup.py and the C++ source: the optional native extension is built by the install.
 $(STAMP): pyproject.toml setup.py robots/_native/pinlegsim.cpp
@@ -18,6 +18,12 @@ $(STAMP): pyproject.toml setup.py robots/_native/pinlegsim.cpp
 	touch $(STAMP)
 
 install: $(STAMP)
+
+# A wheel that ships the prebuilt compiled code of this checkout's sources (legsim/_prebuilt,
+# made anew first), so that a first run after `pip install` loads instead of compiling.
+wheel: $(STAMP)
+	$(BIN)/python -m legsim.prebuild
+	$(BIN)/python -m build --wheel --outdir dist .
 
 demo: $(STAMP)
 	mkdir -p out
