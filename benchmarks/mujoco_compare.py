@@ -235,18 +235,21 @@ class MujocoSide:
                 samples.append(qpos.tolist())
             else:
                 walls.append(time.perf_counter() - start)
-        return {"wall": min(walls) if walls else math.nan, "q": samples, "finite": bool(np.all(np.isfinite(samples)))}
+        # MuJoCo resets a run whose accelerations blow up to its initial state and goes on: such a run diverged.
+        unstable = int(sum(d.warning[w].number for w in (mj.mjtWarning.mjWARN_BADQACC, mj.mjtWarning.mjWARN_BADQVEL)))
+        return {"wall": min(walls) if walls else math.nan, "q": samples, "unstable": unstable > 0}
 
 
 def serve() -> int:
+    import mujoco
+
+    mujoco.set_mju_user_warning(lambda text: None)  # a diverged run is reported in the reply ("unstable")
     side = None
     for line in sys.stdin:
         request = json.loads(line)
         kind = request.pop("cmd")
         if kind == "load":
             side = MujocoSide(**request)
-            import mujoco
-
             reply = {"names": side.names(), "compile_s": side.compile_s, "version": mujoco.__version__}
         elif kind == "dynamics":
             reply = side.dynamics(request["q"])
@@ -331,9 +334,9 @@ class LegsimSide:
 
     def robot(self) -> dict:
         """What the MJCF needs: the scene's URDF, coordinate order, feet, PD and stops."""
-        from legsim.scene import bundled_dir
-
         import tomllib
+
+        from legsim.scene import bundled_dir
 
         bridge = self.scene.model.info["bridge"]
         with open(bundled_dir() / f"{SCENE}.toml", "rb") as f:
@@ -382,13 +385,16 @@ def error(q, ref) -> float:
 
 
 def legsim_configs(quick: bool) -> list[tuple]:
-    epss = (1e-3, 1e-4, 1e-5) if quick else (1e-3, 1e-4, 1e-5, 1e-6)
-    configs = [("rk4", h, e, None) for h in (1e-3, 5e-4) + (() if quick else (2.5e-4,)) for e in epss]
-    configs += [("ros34pw2", h, e, None) for h in (4e-3, 2e-3, 1e-3) for e in epss]
-    rtols = (1e-2, 1e-3, 1e-4) if quick else (1e-2, 1e-3, 1e-4, 1e-5, 1e-6)
-    configs += [("ros34pw2", 1e-2, e, r) for r in rtols for e in epss]
+    """(method, h, eps, rtol): rk4 and ros34pw2 with fixed steps h, ros34pw2 and dopri5 with
+    error control (rtol = atol, h = 20 ms the largest step), each at several strip widths eps (m, N, m/s)."""
+    fixed_eps = (1e-3, 1e-4, 1e-5) if quick else (1e-3, 1e-4, 1e-5, 1e-6)
+    control_eps = (1e-2, 1e-3, 1e-4, 1e-5) if quick else (1e-2, 1e-3, 1e-4, 1e-5, 1e-6)
+    configs = [("rk4", h, e, None) for h in ((1e-3,) if quick else (1e-3, 5e-4, 2.5e-4)) for e in fixed_eps]
+    configs += [("ros34pw2", h, e, None) for h in (8e-3, 4e-3, 2e-3, 1e-3) for e in fixed_eps]
+    rtols = (1e-1, 1e-2, 1e-3, 1e-4) if quick else (1e-1, 1e-2, 1e-3, 1e-4, 1e-5, 1e-6)
+    configs += [("ros34pw2", 2e-2, e, r) for r in rtols for e in control_eps]
     rtols = (1e-3, 1e-5) if quick else (1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8)
-    configs += [("dopri5", 1e-2, e, r) for r in rtols for e in epss]
+    configs += [("dopri5", 2e-2, e, r) for r in rtols for e in control_eps]
     return configs
 
 
@@ -451,7 +457,7 @@ def mujoco_positions(worker: Worker, config: tuple, t_final: float, repeat: int 
         repeat=repeat,
         gravity=gravity,
     )
-    reply["q"] = np.array(reply["q"])
+    reply["q"] = np.full((1, 1), np.nan) if reply["unstable"] else np.array(reply["q"])
     return reply
 
 
@@ -467,7 +473,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.worker:
         return serve()
     print(f"uptime: {subprocess.run(['uptime'], capture_output=True, text=True).stdout.strip()}")
-    legsim, worker, robot, loaded = start(args.mujoco_python, args.t_final)
+    legsim, worker, _robot, loaded = start(args.mujoco_python, args.t_final)
     print(
         f"MuJoCo {loaded['version']}; model compile {1e3 * loaded['compile_s']:.3g} ms; legsim scene load "
         f"{legsim.load_s:.3g} s, first run (rk4 h=1e-3, kernels from the cache) {legsim.first_run_s:.3g} s"
@@ -526,7 +532,7 @@ def main(argv: list[str] | None = None) -> int:
     )
     for k, (c, e) in enumerate(zip(m_configs, m_err, strict=True)):
         print(f"  {c}: {e:.2g}, {1e3 * min(t[k] for t in m_times):.3g} ms; {1e3 * alone[k]:.3g} ms")
-    print(f"\nerror level | legsim best (ms per simulated s, config) | MuJoCo best | legsim / MuJoCo median (rounds)")
+    print("\nerror level | legsim best (ms per simulated s, config) | MuJoCo best | legsim / MuJoCo median (rounds)")
     for lv in LEVELS:
         rows = per_level[lv]
         lbest = [r[0] for r in rows if r[0] is not None]
