@@ -14,7 +14,8 @@ joints; point feet with friction 0.8; dropped from z = 0.6 m, both feet land at 
 it stands). The MuJoCo model is written by this script from the URDF (``mjcf``): the same links,
 inertials and joints in legsim's coordinate order, the root as slide x, slide z, hinge y; each
 foot a sphere of radius ``FOOT_RADIUS`` over a floor lowered by that radius, so a foot touches
-the floor where legsim's point foot does; friction 0.8, MuJoCo's default (soft) contact model
+the floor where legsim's point foot does; friction 0.8 (the feet's: the floor's is 0, MuJoCo takes
+the larger of the two), MuJoCo's default (soft) contact model
 otherwise; the PD's spring and damper as an affine actuator bias, continuous inside MuJoCo's
 step (and implicit in ``implicitfast``), ``kp q* + g(q)`` set as the control before every step,
 with g(q) MuJoCo's own (``mj_rne`` at the step's position, zero velocity). The knee stops of the
@@ -162,7 +163,7 @@ def mjcf(
     return (
         f'<mujoco model="{root_el.get("name")}"><compiler angle="radian" inertiafromgeom="false" '
         f'autolimits="true"/><option timestep="{dt!r}" integrator="{integrator}" gravity="0 0 -9.81"/>'
-        f'<worldbody><geom name="floor" type="plane" size="0 0 1" pos="0 0 {-radius!r}" friction="1 0 0"/>'
+        f'<worldbody><geom name="floor" type="plane" size="0 0 1" pos="0 0 {-radius!r}" friction="0 0 0"/>'
         f'<body name="{root_link}"><joint name="x" type="slide" axis="1 0 0"/>'
         f'<joint name="z" type="slide" axis="0 0 1"/><joint name="pitch" type="hinge" axis="0 1 0"/>'
         f"{body_content(root_link, [0.0, 0.0, 0.0])}</body></worldbody><actuator>{actuators}</actuator></mujoco>"

@@ -44,6 +44,8 @@ def test_mjcf_has_legsim_order_point_feet_and_the_pd(bench):
     assert float(feet["hind_foot"].get("size")) == bench.FOOT_RADIUS
     floor = next(g for g in root.iter("geom") if g.get("type") == "plane")
     assert float(floor.get("pos").split()[2]) == -bench.FOOT_RADIUS  # a foot touches where legsim's point does
+    # MuJoCo takes the larger friction of the two geoms: the floor's must not exceed the feet's 0.8.
+    assert float(floor.get("friction").split()[0]) <= 0.8 == float(feet["hind_foot"].get("friction").split()[0])
     masses = [float(i.get("mass")) for i in root.iter("inertial")]
     assert sum(masses) == pytest.approx(5.0 + 2 * (0.4 + 0.15))
     actuators = list(root.iter("general"))
