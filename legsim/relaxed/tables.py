@@ -332,6 +332,8 @@ def _own_resets(data: ModeData, functions: ModeFunctions) -> bool:
 
 
 def _grown(arr: np.ndarray, rows: int) -> np.ndarray:
-    out = np.zeros((rows, *arr.shape[1:]), dtype=arr.dtype)
+    """``arr`` with at least ``rows`` rows (new ones zero), at least doubled: registering many
+    modes (a robot's friction outcomes) copies each table a few times, not once a mode."""
+    out = np.zeros((max(rows, 2 * arr.shape[0]), *arr.shape[1:]), dtype=arr.dtype)
     out[: arr.shape[0]] = arr
     return out
