@@ -21,6 +21,9 @@ from .layout import (
     FLOAT_STATE,
     HISTORY_FIELDS,
     I_JACOBIAN_AGE,
+    I_POINTS,
+    I_RECORDS,
+    I_VISITS,
     INT_SETTINGS,
     INT_STATE,
     RECORD_FLOATS,
@@ -89,7 +92,25 @@ def resized(ws: Workspace, width: int, guards: int, inputs: int, histories: int)
     bigger = allocate(
         max(width, W), max(guards, G), ws.K.shape[0], max(inputs, U), ws.m_new.shape[0], max(histories, 2 * H)
     )
+    used = _used_rows(ws)
     for name in Workspace._fields:
         old, new = getattr(ws, name), getattr(bigger, name)
-        new[tuple(slice(0, k) for k in old.shape)] = old
+        rows = used.get(name, old.shape[0])
+        new[(slice(0, rows), *(slice(0, k) for k in old.shape[1:]))] = old[:rows]
     return bigger
+
+
+def _used_rows(ws: Workspace) -> dict[str, int]:
+    """The rows of the output buffers that hold data (the rest is never read): a resize copies
+    those, not the buffers' whole capacity."""
+    points, records, visits = int(ws.iv[I_POINTS]), int(ws.iv[I_RECORDS]), int(ws.iv[I_VISITS])
+    return {
+        "T": points,
+        "X": points,
+        "DX": points,
+        "visits": visits + 1,
+        "rec_f": records,
+        "rec_i": records,
+        "rec_q": records,
+        "rec_x": records,
+    }
