@@ -77,7 +77,7 @@ def test_the_readme_shows_what_make_demo_runs():
 
 @pytest.mark.parametrize("document", DOCUMENTS)
 def test_every_block_runs_and_prints_what_is_shown(document, tmp_path, monkeypatch, capsys):
-    from legsim import _native
+    from legsim.robots import _native
 
     if document != "docs/howto-compiled.md" and _native.status() != "available":
         pytest.skip(f"{document} shows the compiled robots' path and counters; native library: {_native.status()}")
