@@ -239,9 +239,55 @@ PARAMETERS = {
     "stops": Param(
         [], "joint stops: tables {name, joint, position (rad or m), side = 'lower' | 'upper', restitution = 0}"
     ),
+    "effort_limits": Param(
+        {},
+        "bounds on |u| per actuated joint (N m or N, > 0), overriding the URDF's <limit effort>; "
+        "a joint given 'off' is not limited",
+    ),
+    "saturate": Param(
+        True, "saturate each actuated joint's input at its effort limit (false: no limit, the URDF's nor the table's)"
+    ),
+    "below_ground": Param(
+        "warn",
+        "a link without a contact below the ground: 'warn' (a warning naming link, time and depth) or "
+        "'strict' (the run stops with status model_breakdown)",
+        choices=("warn", "strict"),
+    ),
     "g": Param(9.81, "gravitational acceleration", "m/s^2", low=0.0),
     "flight_mode": Param("flight", "name of the mode without active contacts"),
 }
+
+
+def effort_limits(model: pin.Model, actuated: Sequence[str], params: Mapping[str, Any]) -> dict[str, float]:
+    """The effort limit (N m or N) of each actuated joint that has one: the URDF's ``<limit
+    effort>`` (Pinocchio's ``effortLimit``; 0, which urdfdom also reads for a missing
+    attribute, is no limit), overridden by ``params["effort_limits"]`` (a number > 0, or "off");
+    none at all with ``saturate = false``. SceneError naming the field for a bad entry."""
+    table = params.get("effort_limits") or {}
+    where = "robot.parameters.effort_limits"
+    if not isinstance(table, Mapping):
+        raise SceneError(f"{where}: expected a table {{joint = limit (N m or N) | 'off'}}, got {table!r}")
+    unknown = sorted(set(table) - set(actuated))
+    if unknown:
+        raise SceneError(f"{where}: unknown joint(s) {unknown}; actuated joints: {list(actuated)}")
+    if not params.get("saturate", True):
+        if table:
+            raise SceneError(f"{where}: given with saturate = false, which turns every limit off; drop one of them")
+        return {}
+    out: dict[str, float] = {}
+    for jname in actuated:
+        j = model.getJointId(jname)
+        urdf = float(model.effortLimit[model.joints[j].idx_v])
+        value: Any = table.get(jname, urdf)
+        if value == "off":
+            continue
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+            raise SceneError(f"{where}.{jname}: expected a number > 0 (N m or N) or 'off', got {value!r}")
+        if jname in table and value <= 0.0:
+            raise SceneError(f"{where}.{jname}: {value!r} is out of range, allowed: float in (0, inf) or 'off'")
+        if value > 0.0:
+            out[jname] = float(value)
+    return out
 
 
 def make_bridge(params: Mapping[str, Any]) -> tuple[ContactBridge, Outlines]:
@@ -253,6 +299,7 @@ def make_bridge(params: Mapping[str, Any]) -> tuple[ContactBridge, Outlines]:
     joints = [model.names[j] for j in range(first, model.njoints)]
     actuated = joints if list(params["actuated"]) == ["all"] else list(params["actuated"])
     contacts = scene_contacts(params["contacts"], params["stops"])
+    limits = effort_limits(model, actuated, params)
     bridge = ContactBridge(
         model,
         contacts,
@@ -261,6 +308,7 @@ def make_bridge(params: Mapping[str, Any]) -> tuple[ContactBridge, Outlines]:
         mode_names={(): params["flight_mode"]},
         actuated=actuated,
         name=Path(params["file"]).stem,
+        effort_limits=limits,
     )
     return bridge, Outlines(bridge.model, params["file"])
 

@@ -97,6 +97,8 @@ class Options:
     hold: bool
     progress: Callable[[float, float, float], None] | None
     python: bool = False
+    #: Conditions on the stored points (``watches.Watch``): stops, warnings, measured times.
+    watches: tuple[Any, ...] = ()
 
 
 def drive(
@@ -192,6 +194,9 @@ class Runner:
                 self.fit()
             elif code == RETURN_FULL:
                 self.assembly.drain(self.ws, final=False)
+                if self.assembly.check_stops():  # a stop watch held: the run ends there
+                    self.assembly.drain(self.ws, final=True)
+                    return
                 self.tick()
             elif code == RETURN_PROGRESS:
                 self.tick()
