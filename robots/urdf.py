@@ -37,6 +37,7 @@ from legsim.errors import ModelError, SceneError
 
 from .bridge import ContactBridge, JointStop, PointContact
 from .urdf_checks import check_urdf, parser_messages
+from .watches import LinkHeights, below_ground_watch, saturation_watches
 
 PLANAR_ROOT = ("x", "z", "pitch")
 #: Points sampled on a round visual shape's outline.
@@ -313,6 +314,28 @@ def make_bridge(params: Mapping[str, Any]) -> tuple[ContactBridge, Outlines]:
     return bridge, Outlines(bridge.model, params["file"])
 
 
+def link_heights(bridge: ContactBridge, outlines: Outlines) -> LinkHeights:
+    """The links without a point contact, each with its points: its visual outlines (in its
+    joint's frame), or its joint's origin when it has no visual."""
+    model = bridge.model
+    touching = {
+        int(model.frames[model.getFrameId(c.frame)].parentJoint) for c in bridge.contacts if isinstance(c, PointContact)
+    }
+    links: dict[str, tuple[int, np.ndarray]] = {}
+    for j in range(1, model.njoints):
+        if j in touching:
+            continue
+        bodies = [f.name for f in model.frames if f.type == pin.FrameType.BODY and int(f.parentJoint) == j]
+        polygons = [poly for joint, poly in outlines.parts.values() if joint == j]
+        if polygons:
+            flat = np.vstack(polygons)
+            points = np.column_stack([flat[:, 0], np.zeros(len(flat)), flat[:, 1]])
+        else:
+            points = np.zeros((1, 3))
+        links[bodies[0] if bodies else model.names[j]] = (j, points)
+    return LinkHeights(model, links, bridge.n)
+
+
 def _build(params: dict[str, Any], effects: dict[str, dict[str, Any]]) -> Model:
     bridge, outlines = make_bridge(params)
     n = bridge.n
@@ -323,9 +346,19 @@ def _build(params: dict[str, Any], effects: dict[str, dict[str, Any]]) -> Model:
     def geometry(mode: str, x: np.ndarray) -> dict[str, np.ndarray]:
         return outlines(np.asarray(x, dtype=float)[:n])
 
+    heights = link_heights(bridge, outlines)
+    ground = min((float(c.ground) for c in bridge.contacts if isinstance(c, PointContact)), default=0.0)
+    below = below_ground_watch(heights, ground, params["below_ground"] == "strict") if heights.links else None
+    names, limits = bridge.actuated_names, bridge.effort_limits
+
+    def watches(control: Any) -> list[Any]:
+        dims = lambda mode: system.mode(mode).dim  # noqa: E731
+        return ([below] if below is not None else []) + saturation_watches(control, names, limits, dims)
+
     info = bridge.model_info(
         parameters=dict(params),
         outlines=outlines,
+        watches=watches,
         # What a recording needs to log the robot through Rerun's own URDF loader.
         urdf={"file": str(params["file"]), "root": params["root"]},
     )

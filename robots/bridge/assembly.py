@@ -273,8 +273,17 @@ class ContactBridge:
 
     def model_info(self, **entries: Any) -> dict[str, Any]:
         """``Model.info`` of a robot built on this bridge: the entries the core and the tools read
-        (``guard_units``, ``bridge``, ``initial_check``), then the builder's own ``entries``."""
-        return {"guard_units": self.guard_units(), "bridge": self, "initial_check": self.initial_check(), **entries}
+        (``guard_units``, ``bridge``, ``initial_check``, ``contact_names``, ``active_contacts``),
+        then the builder's own ``entries``."""
+        return {
+            "guard_units": self.guard_units(),
+            "bridge": self,
+            "initial_check": self.initial_check(),
+            # what a scene's [fall] contacts are checked against (legsim.scene.falls)
+            "contact_names": tuple(c.name for c in self.contacts),
+            "active_contacts": self.active_contacts,
+            **entries,
+        }
 
     def guard_units(self) -> dict[str, str]:
         """Unit of each kind of guard by transition name prefix (eps is measured in these)."""
