@@ -279,6 +279,11 @@ def effort_limits(model: pin.Model, actuated: Sequence[str], params: Mapping[str
     for jname in actuated:
         j = model.getJointId(jname)
         urdf = float(model.effortLimit[model.joints[j].idx_v])
+        if urdf < 0.0 and jname not in table:
+            raise SceneError(
+                f"{params['file']}: joint '{jname}': <limit effort='{urdf:g}'> is negative; give "
+                f"{where}.{jname} (a limit > 0 or 'off')"
+            )
         value: Any = table.get(jname, urdf)
         if value == "off":
             continue

@@ -140,8 +140,7 @@ def simulate(
     control = None if law is not None else _bound_control(control)
     x, memory = _initial_state(system, mode, x0, t0, eps, control, law)
     rule = _step_size_part(step_size, tableau, h) if step_size is not None else step_size_rule(tableau, h, rtol, atol)
-    if not isinstance(continuation, (bool, np.bool_)):
-        raise SimulationError(f"continuation must be True or False, got {type(continuation).__name__} {continuation!r}")
+    _check_continuation(continuation)
     options = Options(
         tableau=tableau,
         h=h,
@@ -161,11 +160,15 @@ def simulate(
         python=bool(python),
         watches=check_watches(watches),
     )
-    times = _eval_times(t_eval, t0, t_final)
-    execution = drive(system, mode, x, control, law, options, memory)
+    times, execution = _eval_times(t_eval, t0, t_final), drive(system, mode, x, control, law, options, memory)
     if times is not None:
         execution.evaluated = execution.sample(times[times <= execution.t_end])
     return execution
+
+
+def _check_continuation(continuation: Any) -> None:
+    if not isinstance(continuation, (bool, np.bool_)):
+        raise SimulationError(f"continuation must be True or False, got {type(continuation).__name__} {continuation!r}")
 
 
 def _bound_control(control: Any) -> Any:

@@ -45,7 +45,7 @@ def test_a_pd_holding_a_load_beyond_its_effort_limit_sags_as_the_closed_form(tmp
     assert np.allclose(ex.final_state, saturated_state(limit, T_FINAL), atol=5e-6)
     for t in (0.5 * ts, ts + 0.5 * (T_FINAL - ts)):
         expected = saturated_state(limit, t) if t > ts else [-(G / W**2) * (1 - math.cos(W * t))]
-        assert ex.sample([t]).x[0][: len(expected)] == pytest.approx(expected, abs=5e-6)
+        assert ex.sample([t]).states[0][: len(expected)] == pytest.approx(expected, abs=5e-6)
 
 
 def test_the_python_loop_saturates_as_the_kernel(tmp_path):
@@ -66,13 +66,13 @@ def test_without_a_limit_the_pd_is_a_spring_and_nothing_is_counted(tmp_path, ove
     ex = load_scene(slider(tmp_path), overrides).simulate()
     assert "saturated_lift_s" not in ex.counters
     t = np.linspace(0.0, T_FINAL, 11)
-    assert np.allclose(ex.sample(t).x[:, 0], -(G / W**2) * (1 - np.cos(W * t)), atol=1e-9)
+    assert np.allclose(ex.sample(t).stack()[:, 0], -(G / W**2) * (1 - np.cos(W * t)), atol=1e-9)
 
 
 def test_a_limit_the_load_never_reaches_counts_no_time(tmp_path):
     ex = load_scene(slider(tmp_path), ["robot.parameters.effort_limits={lift = 50.0}"]).simulate()
     assert ex.counters["saturated_lift_s"] == 0.0
-    assert ex.sample([T_FINAL]).x[0, 0] == pytest.approx(-(G / W**2) * (1 - math.cos(W * T_FINAL)), abs=1e-9)
+    assert ex.sample([T_FINAL]).states[0][0] == pytest.approx(-(G / W**2) * (1 - math.cos(W * T_FINAL)), abs=1e-9)
 
 
 def test_the_summary_shows_the_time_at_the_limit(tmp_path):

@@ -26,7 +26,7 @@ def first_crossing(ex, fn):
         if below.size:
             k = int(below[0])
             assert k > 0, "the crossing falls at a visit's start"
-            return brentq(lambda t: fn(ex.sample([t]).x[0]), seg.t[k - 1], seg.t[k], xtol=1e-14, rtol=1e-15)
+            return brentq(lambda t: fn(ex.sample([t]).states[0]), seg.t[k - 1], seg.t[k], xtol=1e-14, rtol=1e-15)
     raise AssertionError("never crossed")
 
 
@@ -60,7 +60,7 @@ def test_a_tipping_monoped_falls_where_its_condition_first_holds(free, tmp_path,
     assert ex.t_end == pytest.approx(expected, abs=1e-9)
     assert condition(ex.final_state) == pytest.approx(0.0, abs=1e-9)
     # the run up to the fall is the free run's
-    assert np.allclose(ex.final_state, ex_free.sample([ex.t_end]).x[0], atol=1e-9)
+    assert np.allclose(ex.final_state, ex_free.sample([ex.t_end]).states[0], atol=1e-9)
     assert ex.counters["python_steps"] == 0 and ex.settings["path"] == "compiled"
     # it stopped soon after (the driver scans every 256 steps), not at t_final
     assert ex.counters["steps"] < ex_free.counters["steps"]
