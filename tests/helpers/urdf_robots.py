@@ -74,7 +74,8 @@ SLIDER_URDF = f"""<?xml version="1.0"?>
     <limit lower="-10" upper="10" effort="{SLIDER_EFFORT}" velocity="100"/>
   </joint>
   <link name="load">
-    <inertial><mass value="{SLIDER_MASS}"/><inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial>
+    <inertial><mass value="{SLIDER_MASS}"/>
+      <inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial>
   </link>
 </robot>
 """

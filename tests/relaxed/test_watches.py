@@ -84,7 +84,7 @@ def test_bad_watches_are_refused_by_name():
         Watch("w", below(0), "time")
     with pytest.raises(SimulationError, match="'nope' is not a run status"):
         Watch("w", below(0), "stop", said, "nope")
-    with pytest.raises(SimulationError, match="must be legsim.relaxed.Watch"):
+    with pytest.raises(SimulationError, match=r"must be legsim\.relaxed\.Watch"):
         run([lambda mode, t, x: x])
     with pytest.raises(SimulationError, match="watch 'w' gave 1 values for"):
         run([Watch("w", lambda mode, t, x: np.zeros(1), "stop", said)])

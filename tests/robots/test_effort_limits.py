@@ -15,7 +15,7 @@ import pytest
 from legsim import simulate
 from legsim.errors import SceneError
 from legsim.scene import load_scene
-from tests.helpers.urdf_robots import G, SLIDER_EFFORT, SLIDER_KP, SLIDER_MASS, slider
+from tests.helpers.urdf_robots import SLIDER_EFFORT, SLIDER_KP, SLIDER_MASS, G, slider
 
 T_FINAL = 1.0
 W = math.sqrt(SLIDER_KP / SLIDER_MASS)
@@ -33,7 +33,11 @@ def saturated_state(limit, t):
     return np.array([zs + vs * (t - ts) + 0.5 * a * (t - ts) ** 2, vs + a * (t - ts)])
 
 
-@pytest.mark.parametrize(("overrides", "limit"), [([], SLIDER_EFFORT), (["robot.parameters.effort_limits={lift = 3.0}"], 3.0)])
+THREE = "robot.parameters.effort_limits={lift = 3.0}"
+OFF = "robot.parameters.effort_limits={lift = 'off'}"
+
+
+@pytest.mark.parametrize(("overrides", "limit"), [([], SLIDER_EFFORT), ([THREE], 3.0)])
 def test_a_pd_holding_a_load_beyond_its_effort_limit_sags_as_the_closed_form(tmp_path, overrides, limit):
     assert limit < SLIDER_MASS * G  # the limit cannot hold the load
     scene = load_scene(slider(tmp_path), overrides)
@@ -61,7 +65,7 @@ def test_the_python_loop_saturates_as_the_kernel(tmp_path):
     assert runs[0].counters["saturated_lift_s"] == runs[1].counters["saturated_lift_s"] > 0.5
 
 
-@pytest.mark.parametrize("overrides", [["robot.parameters.saturate=false"], ["robot.parameters.effort_limits={lift = 'off'}"]])
+@pytest.mark.parametrize("overrides", [["robot.parameters.saturate=false"], [OFF]])
 def test_without_a_limit_the_pd_is_a_spring_and_nothing_is_counted(tmp_path, overrides):
     ex = load_scene(slider(tmp_path), overrides).simulate()
     assert "saturated_lift_s" not in ex.counters
@@ -88,10 +92,12 @@ def test_the_summary_shows_the_time_at_the_limit(tmp_path):
 @pytest.mark.parametrize(
     ("overrides", "match"),
     [
-        (["robot.parameters.effort_limits={hip = 3.0}"], r"effort_limits: unknown joint\(s\) \['hip'\]; actuated joints: \['lift'\]"),
+        (["robot.parameters.effort_limits={hip = 3.0}"],
+         r"effort_limits: unknown joint\(s\) \['hip'\]; actuated joints: \['lift'\]"),
         (["robot.parameters.effort_limits={lift = -3.0}"], r"effort_limits.lift: -3.0 is out of range"),
-        (["robot.parameters.effort_limits={lift = 'none'}"], r"effort_limits.lift: expected a number > 0 \(N m or N\) or 'off'"),
-        (["robot.parameters.effort_limits={lift = 3.0}", "robot.parameters.saturate=false"], r"given with saturate = false"),
+        (["robot.parameters.effort_limits={lift = 'none'}"],
+         r"effort_limits.lift: expected a number > 0 \(N m or N\) or 'off'"),
+        ([THREE, "robot.parameters.saturate=false"], r"given with saturate = false"),
     ],
 )  # fmt: skip
 def test_bad_effort_limits_are_named(tmp_path, overrides, match):

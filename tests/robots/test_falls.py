@@ -52,7 +52,7 @@ def free(tmp_path_factory):
     ],
 )
 def test_a_tipping_monoped_falls_where_its_condition_first_holds(free, tmp_path, section, name, condition):
-    folder, ex_free = free
+    _, ex_free = free
     ex = load_scene(monoped(tmp_path, f"[fall]\n{section}\n")).simulate()
     expected = first_crossing(ex_free, condition)
     assert ex.status == "fell"
