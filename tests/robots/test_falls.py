@@ -1,7 +1,8 @@
 """Falls as a status (a scene's [fall] section) and links without a contact passing below the
-ground, on a monoped written in the test's folder: a 10 kg box trunk on a prismatic leg, landing
-pitched on its point foot and tipping over. Every time is checked against a root found
-independently on the run without the condition (its samples, the trunk's corners in closed form)."""
+ground, on a monoped written in the test's folder (a 10 kg box trunk on a prismatic leg, landing
+pitched on its point foot and tipping over) and on the bundled quadruped dropped pitched. Every
+time is checked against a root found independently on the run without the condition (its
+samples, the trunk's corners in closed form)."""
 
 import math
 import subprocess
@@ -152,3 +153,24 @@ def test_the_fall_section_is_checked_before_anything_runs(tmp_path, section, mat
 def test_fall_contacts_need_a_robot_that_names_its_contacts():
     with pytest.raises(SceneError, match=r"fall.contacts: robot 'bouncing ball' names no contacts"):
         load_scene("bouncing_ball", ['fall.contacts=["floor"]'])
+
+
+TUMBLE = ["integrator.t_final=1.5", "initial.state.pitch=0.6", "initial.state.z=0.7"]
+
+
+def test_the_bundled_quadruped_dropped_pitched_tumbles_and_falls_at_its_pitch_bound():
+    free = load_scene("quadruped_stand", TUMBLE).simulate()
+    assert free.status == "finished"  # without [fall] it tumbles on, its body through the ground
+    (warning,) = [w for w in free.warnings if w.kind == "below_ground"]
+    assert "'body'" in warning.message
+    ex = load_scene("quadruped_stand", [*TUMBLE, "fall.pitch_max=1.2"]).simulate()
+    assert ex.status == "fell" and "pitch_max" in ex.message
+    assert ex.t_end == pytest.approx(first_crossing(free, lambda x: 1.2 - abs(x[2])), abs=1e-9)
+    assert abs(ex.final_state[2]) == pytest.approx(1.2, abs=1e-9)
+    assert ex.counters["python_steps"] == 0
+
+
+def test_the_bundled_quadruped_standing_does_not_fall():
+    ex = load_scene("quadruped_stand", ["fall.pitch_max=0.3", "fall.height_min=0.3"]).simulate()
+    assert ex.status == "finished" and ex.t_end == 2.0
+    assert not [w for w in ex.warnings if w.kind == "below_ground"]
