@@ -76,14 +76,30 @@ class LinkHeights:
     def __init__(self, model: pin.Model, links: Mapping[str, tuple[int, np.ndarray]], n: int) -> None:
         self.model, self.data, self.n = model, model.createData(), n
         self.links = dict(links)
+        self.names = list(self.links)
+        self.joints = [joint for joint, _ in self.links.values()]
+        # every link's points in one array, with the index of the link each belongs to
+        self.points = np.vstack([points for _, points in self.links.values()]) if self.links else np.zeros((0, 3))
+        self.owner = np.concatenate([np.full(len(p), k) for k, (_, p) in enumerate(self.links.values())]).astype(int)
+
+    def heights(self, q: np.ndarray) -> np.ndarray:
+        """The world height (m) of every link point at configuration q."""
+        pin.forwardKinematics(self.model, self.data, np.asarray(q[: self.n], dtype=float))
+        rows = np.empty((len(self.joints), 3))
+        shift = np.empty(len(self.joints))
+        for k, joint in enumerate(self.joints):
+            placement = self.data.oMi[joint]
+            rows[k], shift[k] = placement.rotation[2], placement.translation[2]
+        return np.einsum("ij,ij->i", self.points, rows[self.owner]) + shift[self.owner]
+
+    def lowest(self, q: np.ndarray) -> float:
+        """The lowest point of all the links (m)."""
+        return float(np.min(self.heights(q)))
 
     def __call__(self, q: np.ndarray) -> dict[str, float]:
-        pin.forwardKinematics(self.model, self.data, np.asarray(q[: self.n], dtype=float))
-        out = {}
-        for name, (joint, points) in self.links.items():
-            placement = self.data.oMi[joint]
-            out[name] = float(np.min(points @ placement.rotation[2] + placement.translation[2]))
-        return out
+        """Each link's lowest point (m)."""
+        z = self.heights(q)
+        return {name: float(np.min(z[self.owner == k])) for k, name in enumerate(self.names)}
 
 
 def below_ground_watch(heights: LinkHeights, ground: float, strict: bool) -> Watch:
@@ -96,7 +112,7 @@ def below_ground_watch(heights: LinkHeights, ground: float, strict: bool) -> Wat
         return name, h[name] - ground
 
     def value(mode: str, t: np.ndarray, x: np.ndarray) -> np.ndarray:
-        return np.array([lowest(row)[1] for row in x])
+        return np.array([heights.lowest(row) for row in x]) - ground
 
     def message(t: float, mode: str, x: np.ndarray) -> str:
         h = heights(x)

@@ -276,13 +276,14 @@ class Assembly:
                 continue
             first = least = None
             for _, mode, t, x, dx in self._visits(0):
-                if first is None and (hit := watches.first_hold(w, mode, t, x, dx)) is not None:
+                v = w.values(mode, t, x)
+                if first is None and (hit := watches.first_hold(w, mode, t, x, dx, values=v)) is not None:
                     k, when = hit
                     state = x[0] if k == 0 else watches.point(t, x, dx, k, when)[0]
                     first = (when, mode, state)
-                k, v = watches.least(w, mode, t, x)
-                if least is None or v < least[0]:
-                    least = (v, float(t[k]), mode, x[k].copy())
+                k, low = watches.least_of(v)
+                if least is None or low < least[0]:
+                    least = (low, float(t[k]), mode, x[k].copy())
             if first is None or least is None:
                 continue
             message = w.message(*first)

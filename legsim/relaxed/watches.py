@@ -118,13 +118,13 @@ def locate(watch: Watch, mode: str, t: np.ndarray, x: np.ndarray, dx: np.ndarray
 
 
 def first_hold(
-    watch: Watch, mode: str, t: np.ndarray, x: np.ndarray, dx: np.ndarray, start: int = 0
+    watch: Watch, mode: str, t: np.ndarray, x: np.ndarray, dx: np.ndarray, start: int = 0, values: Any = None
 ) -> tuple[int, float] | None:
     """(k, time) where the condition first holds among points start.. of one visit (k the point
-    at or after it), or None."""
+    at or after it), or None; ``values``: v at the points start.. when known."""
     if start >= t.shape[0]:
         return None
-    v = watch.values(mode, t[start:], x[start:])
+    v = watch.values(mode, t[start:], x[start:]) if values is None else values
     below = np.flatnonzero(v < 0.0)
     if below.size == 0:
         return None
@@ -150,9 +150,8 @@ def time_held(watch: Watch, mode: str, t: np.ndarray, x: np.ndarray, dx: np.ndar
     return total
 
 
-def least(watch: Watch, mode: str, t: np.ndarray, x: np.ndarray) -> tuple[int, float]:
-    """The stored point of least v in one visit and v there (nan values left out)."""
-    v = watch.values(mode, t, x)
+def least_of(v: np.ndarray) -> tuple[int, float]:
+    """The index of the least of the values v and that value (nan values left out)."""
     v = np.where(np.isnan(v), np.inf, v)
     k = int(np.argmin(v))
     return k, float(v[k])

@@ -28,6 +28,9 @@ the integrator settings and the outputs::
     [output]
     rrd = "out/ball.rrd"
 
+An optional ``[fall]`` section says when a run has failed (``legsim.scene.falls``: such a run
+ends with status ``fell``).
+
 Tool sections (``[orbit]``, ``[certify]``, ...) must be tables; the tool that reads one
 validates its content. Every error is a ``SceneError`` whose message starts with the file and
 names the field (as a dotted path) and what is allowed.
