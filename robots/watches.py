@@ -80,7 +80,8 @@ class LinkHeights:
         self.joints = [joint for joint, _ in self.links.values()]
         # every link's points in one array, with the index of the link each belongs to
         self.points = np.vstack([points for _, points in self.links.values()]) if self.links else np.zeros((0, 3))
-        self.owner = np.concatenate([np.full(len(p), k) for k, (_, p) in enumerate(self.links.values())]).astype(int)
+        owners = [np.full(len(p), k, dtype=int) for k, (_, p) in enumerate(self.links.values())]
+        self.owner = np.concatenate(owners) if owners else np.zeros(0, dtype=int)
 
     def heights(self, q: np.ndarray) -> np.ndarray:
         """The world height (m) of every link point at configuration q."""
