@@ -34,6 +34,7 @@ class Status(StrEnum):
     MODEL_BREAKDOWN = "model_breakdown"  # the model raised ModelBreakdown (left its range of validity)
     MAX_STEPS = "max_steps"  # the step budget was used up (every step is stored: it bounds memory)
     STALLED = "stalled"  # time stopped advancing (a thousand steps moved it by less than a millionth of h)
+    FELL = "fell"  # a fall condition held (legsim.relaxed.Watch; a scene's [fall] section)
 
 
 #: The statuses' strings, in the order above.

@@ -37,6 +37,7 @@ from legsim.errors import ModelError, SceneError
 
 from .bridge import ContactBridge, JointStop, PointContact
 from .urdf_checks import check_urdf, parser_messages
+from .watches import LinkHeights, below_ground_watch, saturation_watches
 
 PLANAR_ROOT = ("x", "z", "pitch")
 #: Points sampled on a round visual shape's outline.
@@ -239,9 +240,60 @@ PARAMETERS = {
     "stops": Param(
         [], "joint stops: tables {name, joint, position (rad or m), side = 'lower' | 'upper', restitution = 0}"
     ),
+    "effort_limits": Param(
+        {},
+        "bounds on |u| per actuated joint (N m or N, > 0), overriding the URDF's <limit effort>; "
+        "a joint given 'off' is not limited",
+    ),
+    "saturate": Param(
+        True, "saturate each actuated joint's input at its effort limit (false: no limit, the URDF's nor the table's)"
+    ),
+    "below_ground": Param(
+        "warn",
+        "a link without a contact below the ground: 'warn' (a warning naming link, time and depth) or "
+        "'strict' (the run stops with status model_breakdown)",
+        choices=("warn", "strict"),
+    ),
     "g": Param(9.81, "gravitational acceleration", "m/s^2", low=0.0),
     "flight_mode": Param("flight", "name of the mode without active contacts"),
 }
+
+
+def effort_limits(model: pin.Model, actuated: Sequence[str], params: Mapping[str, Any]) -> dict[str, float]:
+    """The effort limit (N m or N) of each actuated joint that has one: the URDF's ``<limit
+    effort>`` (Pinocchio's ``effortLimit``; 0, which urdfdom also reads for a missing
+    attribute, is no limit), overridden by ``params["effort_limits"]`` (a number > 0, or "off");
+    none at all with ``saturate = false``. SceneError naming the field for a bad entry."""
+    table = params.get("effort_limits") or {}
+    where = "robot.parameters.effort_limits"
+    if not isinstance(table, Mapping):
+        raise SceneError(f"{where}: expected a table {{joint = limit (N m or N) | 'off'}}, got {table!r}")
+    unknown = sorted(set(table) - set(actuated))
+    if unknown:
+        raise SceneError(f"{where}: unknown joint(s) {unknown}; actuated joints: {list(actuated)}")
+    if not params.get("saturate", True):
+        if table:
+            raise SceneError(f"{where}: given with saturate = false, which turns every limit off; drop one of them")
+        return {}
+    out: dict[str, float] = {}
+    for jname in actuated:
+        j = model.getJointId(jname)
+        urdf = float(model.effortLimit[model.joints[j].idx_v])
+        if urdf < 0.0 and jname not in table:
+            raise SceneError(
+                f"{params['file']}: joint '{jname}': <limit effort='{urdf:g}'> is negative; give "
+                f"{where}.{jname} (a limit > 0 or 'off')"
+            )
+        value: Any = table.get(jname, urdf)
+        if value == "off":
+            continue
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+            raise SceneError(f"{where}.{jname}: expected a number > 0 (N m or N) or 'off', got {value!r}")
+        if jname in table and value <= 0.0:
+            raise SceneError(f"{where}.{jname}: {value!r} is out of range, allowed: float in (0, inf) or 'off'")
+        if value > 0.0:
+            out[jname] = float(value)
+    return out
 
 
 def make_bridge(params: Mapping[str, Any]) -> tuple[ContactBridge, Outlines]:
@@ -253,6 +305,7 @@ def make_bridge(params: Mapping[str, Any]) -> tuple[ContactBridge, Outlines]:
     joints = [model.names[j] for j in range(first, model.njoints)]
     actuated = joints if list(params["actuated"]) == ["all"] else list(params["actuated"])
     contacts = scene_contacts(params["contacts"], params["stops"])
+    limits = effort_limits(model, actuated, params)
     bridge = ContactBridge(
         model,
         contacts,
@@ -261,8 +314,31 @@ def make_bridge(params: Mapping[str, Any]) -> tuple[ContactBridge, Outlines]:
         mode_names={(): params["flight_mode"]},
         actuated=actuated,
         name=Path(params["file"]).stem,
+        effort_limits=limits,
     )
     return bridge, Outlines(bridge.model, params["file"])
+
+
+def link_heights(bridge: ContactBridge, outlines: Outlines) -> LinkHeights:
+    """The links without a point contact, each with its points: its visual outlines (in its
+    joint's frame), or its joint's origin when it has no visual."""
+    model = bridge.model
+    touching = {
+        int(model.frames[model.getFrameId(c.frame)].parentJoint) for c in bridge.contacts if isinstance(c, PointContact)
+    }
+    links: dict[str, tuple[int, np.ndarray]] = {}
+    for j in range(1, model.njoints):
+        if j in touching:
+            continue
+        bodies = [f.name for f in model.frames if f.type == pin.FrameType.BODY and int(f.parentJoint) == j]
+        polygons = [poly for joint, poly in outlines.parts.values() if joint == j]
+        if polygons:
+            flat = np.vstack(polygons)
+            points = np.column_stack([flat[:, 0], np.zeros(len(flat)), flat[:, 1]])
+        else:
+            points = np.zeros((1, 3))
+        links[bodies[0] if bodies else model.names[j]] = (j, points)
+    return LinkHeights(model, links, bridge.n)
 
 
 def _build(params: dict[str, Any], effects: dict[str, dict[str, Any]]) -> Model:
@@ -275,9 +351,19 @@ def _build(params: dict[str, Any], effects: dict[str, dict[str, Any]]) -> Model:
     def geometry(mode: str, x: np.ndarray) -> dict[str, np.ndarray]:
         return outlines(np.asarray(x, dtype=float)[:n])
 
+    heights = link_heights(bridge, outlines)
+    ground = min((float(c.ground) for c in bridge.contacts if isinstance(c, PointContact)), default=0.0)
+    below = below_ground_watch(heights, ground, params["below_ground"] == "strict") if heights.links else None
+    names, limits = bridge.actuated_names, bridge.effort_limits
+
+    def watches(control: Any) -> list[Any]:
+        dims = lambda mode: system.mode(mode).dim  # noqa: E731
+        return ([below] if below is not None else []) + saturation_watches(control, names, limits, dims)
+
     info = bridge.model_info(
         parameters=dict(params),
         outlines=outlines,
+        watches=watches,
         # What a recording needs to log the robot through Rerun's own URDF loader.
         urdf={"file": str(params["file"]), "root": params["root"]},
     )

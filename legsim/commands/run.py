@@ -401,6 +401,13 @@ def format_summary(summary: dict[str, Any]) -> str:
             f"{_num(summary.get('longest_strip_hold'))} s"
         )
     extra = {k: v for k, v in summary.items() if k not in CORE_KEYS and isinstance(v, (int, float))}
+    # The time each actuated joint spent at its effort limit (robots' saturated_<joint>_s counters).
+    saturated = {k: extra.pop(k) for k in list(extra) if k.startswith("saturated_") and k.endswith("_s")}
+    if saturated:
+        lines.append(
+            "time at the effort limit: "
+            + ", ".join(f"{k[len('saturated_') : -2]} {_num(v)} s" for k, v in saturated.items())
+        )
     if extra:
         lines.append("other counters: " + ", ".join(f"{k} {v}" for k, v in extra.items()))
     if "energy_initial" in summary:

@@ -10,12 +10,15 @@
 * ``driver``, ``tables``, ``workspace``, ``assemble``, ``adapt``: the Python around it (a run's
   tables and arrays, Python models' adapters, the execution).
 * ``parts``: the step-size and landing rules as data.
+* ``watches``: conditions checked on the stored points (a fall, a state to report, a time to
+  measure), by the driver.
 """
 
 from .parts import Aim, Dense, ErrorControl, FixedStep, Halve
 from .rules import crossing_on_step
 from .simulate import LANDINGS, simulate
 from .single import hermite, hermite_derivative
+from .watches import Watch
 
 __all__ = [
     "LANDINGS",
@@ -24,6 +27,7 @@ __all__ = [
     "ErrorControl",
     "FixedStep",
     "Halve",
+    "Watch",
     "crossing_on_step",
     "hermite",
     "hermite_derivative",

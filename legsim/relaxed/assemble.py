@@ -9,8 +9,8 @@ from typing import Any
 
 import numpy as np
 
-from ..execution import Execution, Segment, Status, Strip, TransitionRecord
-from . import messages
+from ..execution import Execution, RunWarning, Segment, Status, Strip, TransitionRecord
+from . import messages, watches
 from .layout import (
     COUNTERS,
     END_BROKE_DOWN,
@@ -79,6 +79,10 @@ class Assembly:
         self.crossings: list[tuple[Any, ...]] = []
         self.in_strip = False
         self._open: tuple[int, list[np.ndarray], list[np.ndarray], list[np.ndarray]] | None = None
+        #: The stop watches' scan: visits scanned whole, points of the next one scanned, and where
+        #: one first held (visit index, point index, time, watch).
+        self._scanned = (0, 0)
+        self.stopped: tuple[int, int, float, Any] | None = None
 
     # -- draining ---------------------------------------------------------------------------
     def drain(self, ws: Any, final: bool) -> None:
@@ -166,8 +170,12 @@ class Assembly:
         """The execution, with its status, message, counters, settings and warnings; ``steps``
         the steps taken by the compiled kernel and by the Python loop."""
         self._close()
-        status, message = self.ending(ws)
-        t_end = float(ws.fs[F_T])
+        self.check_stops()
+        if self.stopped is not None:
+            status, message, t_end = self._cut()
+        else:
+            status, message = self.ending(ws)
+            t_end = float(ws.fs[F_T])
         counters: dict[str, float] = {name: int(ws.iv[slot]) for name, slot in COUNTERS}
         counters.update(
             transitions=int(ws.iv[I_TRANSITIONS]),
@@ -193,7 +201,8 @@ class Assembly:
         }
         if not compiled:
             run_settings["python_reason"] = python_reason or "the run asked for the Python loop"
-        warnings = self.warnings(t_end)
+        warnings = [w for w in self.warnings(t_end) if w.time <= t_end] + self._watch_warnings()
+        counters.update(self._watch_times())
         names, units = self.state_names()
         return Execution(
             status=status,
@@ -212,6 +221,84 @@ class Assembly:
             warnings=warnings,
             state_units=units,
         )
+
+    # -- watches (``watches``) -------------------------------------------------------------------
+    def _visits(self, first: int) -> list[tuple[int, str, np.ndarray, np.ndarray, np.ndarray]]:
+        """(index, mode, t, x, dx) of the visits from ``first`` on, the open one included."""
+        out = [(i, s.mode, s.t, s.x, s.dx) for i, s in enumerate(self.segments) if i >= first]
+        if self._open is not None and self._open[1]:
+            mode, ts, xs, dxs = self._open
+            out.append((len(self.segments), self.tables.names[mode], np.concatenate(ts), np.concatenate(xs),
+                        np.concatenate(dxs)))  # fmt: skip
+        return out
+
+    def check_stops(self) -> bool:
+        """Scan the points stored since the last scan for the stop watches; True once one held
+        (``stopped``: the earliest)."""
+        stops = [w for w in self.options.watches if w.action == "stop"]
+        if self.stopped is not None or not stops:
+            return self.stopped is not None
+        done, points = self._scanned
+        for i, mode, t, x, dx in self._visits(done):
+            start = max(points - 1, 0) if i == done else 0
+            found = [(hit[1], hit[0], w) for w in stops if (hit := watches.first_hold(w, mode, t, x, dx, start))]
+            if found:
+                when, k, watch = min(found, key=lambda item: item[0])
+                self.stopped = (i, k, when, watch)
+                return True
+            self._scanned = (i, t.shape[0])
+        return False
+
+    def _cut(self) -> tuple[Status, str, float]:
+        """Cut the execution where a stop watch first held: its status, message and time."""
+        assert self.stopped is not None
+        i, k, when, watch = self.stopped
+        seg = self.segments[i]
+        if k == 0:
+            t, x, dx = seg.t[:1], seg.x[:1], seg.dx[:1]
+        else:
+            xk, dxk = watches.point(seg.t, seg.x, seg.dx, k, when)
+            t = np.append(seg.t[:k], when)
+            x, dx = np.vstack([seg.x[:k], xk]), np.vstack([seg.dx[:k], dxk])
+        self.segments[i + 1 :] = []
+        self.segments[i] = Segment(seg.mode, t, x, dx)
+        self.strips = [s for s in self.strips if s.exit_time <= when]
+        self.transitions = [tr for tr in self.transitions if tr.exit_time <= when]
+        self.crossings = [c for c in self.crossings if c[3] <= when]
+        self.in_strip = False
+        return Status(watch.status), watch.message(when, seg.mode, x[-1].copy()), when
+
+    def _watch_warnings(self) -> list[RunWarning]:
+        """A warning for each warn watch that held: where it first did, and its least value."""
+        out = []
+        for w in self.options.watches:
+            if w.action != "warn":
+                continue
+            first = least = None
+            for _, mode, t, x, dx in self._visits(0):
+                v = w.values(mode, t, x)
+                if first is None and (hit := watches.first_hold(w, mode, t, x, dx, values=v)) is not None:
+                    k, when = hit
+                    state = x[0] if k == 0 else watches.point(t, x, dx, k, when)[0]
+                    first = (when, mode, state)
+                k, low = watches.least_of(v)
+                if least is None or low < least[0]:
+                    least = (low, float(t[k]), mode, x[k].copy())
+            if first is None or least is None:
+                continue
+            message = w.message(*first)
+            if least[1] != first[0]:
+                message += f"; the most at t={least[1]:.17g}: {w.message(least[1], least[2], least[3])}"
+            out.append(RunWarning(w.name, message, first[0], {"least_value": least[0], "least_time": least[1]}))
+        return out
+
+    def _watch_times(self) -> dict[str, float]:
+        """The time each time watch's condition held along the flow (s)."""
+        return {
+            w.counter: sum(watches.time_held(w, mode, t, x, dx) for _, mode, t, x, dx in self._visits(0))
+            for w in self.options.watches
+            if w.action == "time"
+        }
 
     def state_names(self) -> tuple[dict[str, tuple[str, ...]], dict[str, tuple[str, ...]]]:
         """The coordinate names and units of every mode visited (the memory's last)."""

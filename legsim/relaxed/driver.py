@@ -74,6 +74,9 @@ PROGRESS_STEPS_FIRST, PROGRESS_STEPS_MOST = 64, 1 << 20
 LOOK_INTERVAL = 0.02
 #: Wall-clock seconds between progress reports.
 PROGRESS_INTERVAL = 0.2
+#: With stop watches, the most steps (or transitions) before the loop hands back and the driver
+#: scans the new points: a run that fell goes on for at most this many steps.
+STOP_CHECK_STEPS = 256
 LANDINGS = {"halve": LAND_HALVE, "aim": LAND_AIM, "dense": LAND_DENSE}
 
 
@@ -97,6 +100,8 @@ class Options:
     hold: bool
     progress: Callable[[float, float, float], None] | None
     python: bool = False
+    #: Conditions on the stored points (``watches.Watch``): stops, warnings, measured times.
+    watches: tuple[Any, ...] = ()
 
 
 def drive(
@@ -176,7 +181,12 @@ class Runner:
         #: Steps taken by each path: (compiled, python).
         self.steps = [0, 0]
         self._addresses = np.zeros(0, dtype=np.int64)
+        self.stops = any(w.action == "stop" for w in options.watches)
         self.ws.ci[S_PROGRESS_STEPS] = 0 if options.progress is None else PROGRESS_STEPS_FIRST
+        if self.stops:
+            self.ws.ci[S_PROGRESS_STEPS] = (
+                min(PROGRESS_STEPS_FIRST, STOP_CHECK_STEPS) if options.progress else STOP_CHECK_STEPS
+            )
         self.last_report = self.last_look = time.perf_counter()
         self.work_at_look = 0
         tables.breakdowns.ws = ws
@@ -190,8 +200,11 @@ class Runner:
             if code == RETURN_NEED_MODE:
                 self.tables.prepare(int(self.ws.iv[I_MODE]))
                 self.fit()
-            elif code == RETURN_FULL:
+            elif code == RETURN_FULL or (code == RETURN_PROGRESS and self.stops):
                 self.assembly.drain(self.ws, final=False)
+                if self.assembly.check_stops():  # a stop watch held: the run ends there
+                    self.assembly.drain(self.ws, final=True)
+                    return
                 self.tick()
             elif code == RETURN_PROGRESS:
                 self.tick()
@@ -245,7 +258,7 @@ class Runner:
         if elapsed > 0.0 and work > self.work_at_look:
             rate = (work - self.work_at_look) / elapsed
             steps = min(max(int(rate * LOOK_INTERVAL), PROGRESS_STEPS_FIRST), PROGRESS_STEPS_MOST)
-            self.ws.ci[S_PROGRESS_STEPS] = steps
+            self.ws.ci[S_PROGRESS_STEPS] = min(steps, STOP_CHECK_STEPS) if self.stops else steps
         self.last_look, self.work_at_look = now, work
 
     def fit(self) -> None:

@@ -17,6 +17,7 @@ from ..methods import Tableau, get_method
 from ..methods.builtin import ADAPTIVE_DEFAULTS, SCIPY_NAMES
 from .driver import Options, drive
 from .parts import Aim, Dense, ErrorControl, FixedStep, Halve
+from .watches import check as check_watches
 
 #: Landing rules of ``simulate(landing=...)``.
 LANDINGS = ("halve", "aim", "dense")
@@ -50,6 +51,7 @@ def simulate(
     zeno_window: float | None = None,
     t_eval: Any = None,
     python: bool = False,
+    watches: Any = (),
 ) -> Execution:
     """Simulate ``system`` from ``(mode, x0)`` at time ``t0`` to ``t_final`` with the relaxed
     hybrid integrator.
@@ -109,13 +111,16 @@ def simulate(
         there, in ``Execution.evaluated`` (a ``Samples``; the cubic Hermite interpolant of the
         steps, the held point inside strips). Times past the end of a run that stopped early are
         left out.
+    watches: conditions on the run's stored points (``legsim.relaxed.Watch``): a fall that ends
+        the run (status ``fell``), a state reported by a warning, a time measured into a
+        counter (``legsim.relaxed.watches``).
 
     Returns
     -------
     Execution
         with ``status`` one of ``finished``, ``max_transitions``, ``max_steps``,
-        ``halving_exhausted``, ``non_finite``, ``reset_outside_domain``, ``model_breakdown`` and a
-        message naming mode, time and state.
+        ``halving_exhausted``, ``non_finite``, ``reset_outside_domain``, ``model_breakdown``,
+        ``stalled``, ``fell`` (a stop watch) and a message naming mode, time and state.
 
     Raises
     ------
@@ -135,8 +140,7 @@ def simulate(
     control = None if law is not None else _bound_control(control)
     x, memory = _initial_state(system, mode, x0, t0, eps, control, law)
     rule = _step_size_part(step_size, tableau, h) if step_size is not None else step_size_rule(tableau, h, rtol, atol)
-    if not isinstance(continuation, (bool, np.bool_)):
-        raise SimulationError(f"continuation must be True or False, got {type(continuation).__name__} {continuation!r}")
+    _check_continuation(continuation)
     options = Options(
         tableau=tableau,
         h=h,
@@ -154,12 +158,17 @@ def simulate(
         hold=law.hold if law is not None else isinstance(control, Bound) and control.hold,
         progress=progress,
         python=bool(python),
+        watches=check_watches(watches),
     )
-    times = _eval_times(t_eval, t0, t_final)
-    execution = drive(system, mode, x, control, law, options, memory)
+    times, execution = _eval_times(t_eval, t0, t_final), drive(system, mode, x, control, law, options, memory)
     if times is not None:
         execution.evaluated = execution.sample(times[times <= execution.t_end])
     return execution
+
+
+def _check_continuation(continuation: Any) -> None:
+    if not isinstance(continuation, (bool, np.bool_)):
+        raise SimulationError(f"continuation must be True or False, got {type(continuation).__name__} {continuation!r}")
 
 
 def _bound_control(control: Any) -> Any:

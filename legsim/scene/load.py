@@ -28,6 +28,9 @@ the integrator settings and the outputs::
     [output]
     rrd = "out/ball.rrd"
 
+An optional ``[fall]`` section says when a run has failed (``legsim.scene.falls``: such a run
+ends with status ``fell``).
+
 Tool sections (``[orbit]``, ``[certify]``, ...) must be tables; the tool that reads one
 validates its content. Every error is a ``SceneError`` whose message starts with the file and
 names the field (as a dotted path) and what is allowed.
@@ -67,10 +70,11 @@ from ..execution import Execution
 from ..output.summary import run_summary
 from ..relaxed.simulate import MAX_STEPS as SIMULATE_MAX_STEPS
 from .controller import scene_controller
+from .falls import fall_watches
 from .fields import check_keys, describe, field_error, table_at
 from .files import apply_overrides, checked_depth, read_toml, resolve_scene_path, scene_relative_files
 
-CORE_SECTIONS = ("scene", "robot", "effects", "initial", "integrator", "output", "controller")
+CORE_SECTIONS = ("scene", "robot", "effects", "initial", "integrator", "output", "controller", "fall")
 TOOL_SECTIONS = ("orbit", "certify", "stochastic", "zeno", "stress", "bench")
 ALLOWED_SECTIONS = CORE_SECTIONS + TOOL_SECTIONS
 
@@ -83,6 +87,10 @@ OUTPUT_KEYS = ("rrd", "html", "plot")
 #: reason an initial state is impossible for the model although it is inside the relaxed domain
 #: (None when it is fine). ``load_scene`` calls it and reports the reason at ``initial.state``.
 INITIAL_CHECK = "initial_check"
+#: Key of ``Model.info`` under which a builder may put ``watches(control) -> [Watch, ...]``: the
+#: conditions its runs are checked for (``legsim.relaxed.Watch``; a link below the ground, the
+#: time an actuator spends at its effort limit), given what the run is controlled by.
+WATCHES = "watches"
 
 # Integrator settings as Params, so their messages say what is allowed exactly as the
 # builders' do. t_final, h and eps have no default: their right values depend on the model
@@ -168,6 +176,14 @@ class Scene:
     #: Makes the ``[controller]`` section's controller anew (from its registry entry, as
     #: ``controller`` was made: attached to the model where the controller attaches itself).
     make_controller: Callable[[], Any] | None = field(default=None, repr=False, compare=False)
+    #: The ``[fall]`` section's conditions (``legsim.scene.falls``), stop watches.
+    falls: tuple[Any, ...] = ()
+
+    def watches(self, control: Any) -> tuple[Any, ...]:
+        """The conditions a run under ``control`` is checked for: the ``[fall]`` section's and
+        the model's own (``Model.info["watches"]``)."""
+        own = self.model.info.get(WATCHES) if isinstance(self.model.info, Mapping) else None
+        return self.falls + (tuple(own(control)) if callable(own) else ())
 
     @property
     def control(self) -> Any:
@@ -225,6 +241,7 @@ class Scene:
 
         s = self.integrator
         before = _model_counters(self.model)
+        control = self.control
         execution = simulate(
             self.model.system,
             self.initial_state.copy(),
@@ -233,7 +250,7 @@ class Scene:
             s["h"],
             s["eps"],
             s["method"],
-            self.control,
+            control,
             t0=s["t0"],
             max_transitions=s["max_transitions"],
             max_halvings=s["max_halvings"],
@@ -244,6 +261,7 @@ class Scene:
             max_steps=s["max_steps"],
             continuation=s["continuation"],
             zeno_window=s["zeno_window"] or self.model.info.get(ZENO_WINDOW),
+            watches=self.watches(control),
         )
         after = _model_counters(self.model)
         for key, value in after.items():
@@ -376,6 +394,7 @@ def _validate(path: Path, data: dict[str, Any], overrides: list[str]) -> Scene:
     initial_mode, initial_state = _initial(
         path, model, table_at(path, data, "initial"), integrator["eps"], integrator["t0"], controller
     )
+    falls = fall_watches(path, table_at(path, data, "fall"), model, initial_mode)
 
     return Scene(
         path=path,
@@ -397,6 +416,7 @@ def _validate(path: Path, data: dict[str, Any], overrides: list[str]) -> Scene:
         make_controller=None
         if controller is None
         else functools.partial(scene_controller, path, controller_table, model),
+        falls=falls,
     )
 
 

@@ -61,7 +61,8 @@ _TEXTS: pa.DataType = pa.list_(pa.field("element", pa.string()))
 BASE_COLUMNS: dict[str, pa.DataType] = {"task_status": _STR, "error": _STR}
 
 #: The run's summary (``legsim.output.summary.run_summary`` keys; ``t_end`` is its ``t_final``,
-#: the time reached), ``fell`` (the model broke down: status ``model_breakdown``) and
+#: the time reached), ``fell`` (status ``fell``: a condition of the scene's ``[fall]`` held; or
+#: ``model_breakdown``: the model broke down) and
 #: ``warnings`` (each of the run's warnings as "kind: message"; empty when it has none).
 RUN_COLUMNS: dict[str, pa.DataType] = {
     "status": _STR,

@@ -109,7 +109,9 @@ def run_columns(scene: Any, deadline: Deadline) -> dict[str, Any]:
     out["t_end"] = summary["t_final"]
     # A run the method cannot vouch for (held in strips, an accumulation, ...) says so in its row.
     out["warnings"] = [f"{w['kind']}: {w['message']}" for w in summary["warnings"]]
-    out["fell"] = summary["status"] == "model_breakdown"
+    # A fall the scene declares ([fall]: status fell), or a model that says it left its range
+    # (a compass gait's hip below the slope, a link through the ground under below_ground = "strict").
+    out["fell"] = summary["status"] in ("fell", "model_breakdown")
     return out
 
 
@@ -134,6 +136,7 @@ def walk_row(scene: Any, spec: SweepSpec, values: dict[str, Any], deadline: Dead
         max_steps=spec.max_steps,
         tol=spec.tol,
         progress=deadline.progress,
+        watches=scene.falls,
     )
     out = {
         "status": result.status,

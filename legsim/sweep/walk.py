@@ -20,7 +20,7 @@ Outcomes (``OUTCOMES``):
   gait (within ``tol`` and ``REPEAT_SHARE`` of their distance to it, so that a slow approach to
   the gait is not taken for a gait of its own): e.g. a period-two gait past a period doubling;
 * ``falls``: the model broke down (a compass gait's hip below the slope: status
-  ``model_breakdown``);
+  ``model_breakdown``), or a condition of the scene's ``[fall]`` held (status ``fell``);
 * ``stops``: no return within the section's ``t_max`` of the last one, more than
   ``MAX_TRANSITIONS_WITHOUT_RETURN`` transitions without one (a rimless wheel rocking to rest),
   or ``CHATTER_RETURNS`` returns in a row less than ``MIN_RETURN_STEPS`` steps apart (a compass
@@ -112,6 +112,7 @@ class _Walker:
         self.system, self.control = problem.instantiate()
         self.fixed_point = fixed_point
         self.max_steps, self.tol, self.progress = max_steps, tol, progress
+        self.watches: tuple[Any, ...] = ()
         self.periodic = np.array(problem.periodic_idx, dtype=int)
         self.returns: list[np.ndarray] = []
         self.return_times: list[float] = []
@@ -162,7 +163,7 @@ class _Walker:
                     ex.t_end,
                 )
             else:
-                outcome = "falls" if ex.status == Status.MODEL_BREAKDOWN else "failed"
+                outcome = "falls" if ex.status in (Status.MODEL_BREAKDOWN, Status.FELL) else "failed"
                 return self.end((outcome, ex.message), ex, ex.final_mode, ex.final_state, ex.t_end)
 
     def flow(self, mode: str, x: np.ndarray, t: float, t_final: float) -> Execution:
@@ -186,6 +187,7 @@ class _Walker:
             progress=self.progress,
             landing=p.landing,
             max_halvings=p.max_halvings,
+            watches=self.watches,
         )
         for key in COUNTERS:
             self.counters[key] += ex.counters.get(key, 0)
@@ -310,13 +312,16 @@ def walk(
     max_steps: int = 20,
     tol: float = 1e-3,
     progress: Callable[[float, float, float], None] | None = None,
+    watches: tuple[Any, ...] = (),
 ) -> WalkResult:
     """Walk from ``x0`` (a state of the section's mode at time ``t0``, s) until the walk has an
     outcome (``OUTCOMES``), at most ``max_steps`` returns.
 
     ``fixed_point``: the reference gait's state on the section, shape (n,), or None (then no
     walk ``converges``; one that settles is ``other_gait`` with period 1). ``tol``: in state
-    units. ``progress``: passed to every ``simulate`` (a deadline raises from it).
+    units. ``progress``: passed to every ``simulate`` (a deadline raises from it). ``watches``:
+    passed to every ``simulate`` too (a scene's ``[fall]`` conditions: a run that ends ``fell``
+    is a walk that ``falls``).
     """
     x0 = np.asarray(x0, dtype=float)
     if x0.shape != (problem.dim,):
@@ -329,6 +334,7 @@ def walk(
     walker = _Walker(
         problem, None if fixed_point is None else np.asarray(fixed_point, dtype=float), max_steps, tol, progress
     )
+    walker.watches = tuple(watches)
     return walker.run(problem.bound.mode, x0.copy(), float(t0))
 
 

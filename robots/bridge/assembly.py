@@ -56,6 +56,10 @@ class ContactBridge:
         Joint names driven by the input ``u`` (one entry of u per joint, N m or N): the modes'
         functions take ``inputs = len(actuated)``, and the guards on constraint forces
         (releases, plastic impacts, friction events) are evaluated under u.
+    effort_limits:
+        Optional bound on |u| per actuated joint name (N m or N, > 0): the model functions
+        saturate each entry of u there (field, guards and resets alike); joints not named are
+        not limited.
     name:
         Name of the system.
 
@@ -76,6 +80,7 @@ class ContactBridge:
         joint_damping: Mapping[str, float] | None = None,
         actuated: Sequence[str] = (),
         name: str = "robot",
+        effort_limits: Mapping[str, float] | None = None,
     ) -> None:
         self._model = build_model(
             model,
@@ -85,6 +90,7 @@ class ContactBridge:
             joint_damping=joint_damping,
             actuated=actuated,
             name=name,
+            effort_limits=effort_limits,
         )
         self._data = self._model.pin_model.createData()  # kinematics for pictures and checks
         self._modes = ModeCatalog(self._model, mode_names)
@@ -130,6 +136,16 @@ class ContactBridge:
     def actuated_dofs(self) -> np.ndarray:
         """Velocity index of each actuated joint, in the order of the input's entries."""
         return self._model.actuated_idx.copy()
+
+    @property
+    def effort_limits(self) -> np.ndarray:
+        """The bound on |u_i| of each entry of the input (N m or N; inf: none)."""
+        return self._model.effort_limits.copy()
+
+    @property
+    def actuated_names(self) -> tuple[str, ...]:
+        """The actuated joints' coordinate names, in the order of the input's entries."""
+        return tuple(self._model.coordinate_names[int(k)] for k in self._model.actuated_idx)
 
     @property
     def contacts(self) -> tuple[Contact, ...]:
@@ -257,12 +273,16 @@ class ContactBridge:
 
     def model_info(self, **entries: Any) -> dict[str, Any]:
         """``Model.info`` of a robot built on this bridge: the entries the core and the tools read
-        (``guard_units``, ``bridge``, ``initial_check``), then the builder's own ``entries``."""
+        (``guard_units``, ``bridge``, ``initial_check``, ``bare_aba``, ``contact_names``,
+        ``active_contacts``), then the builder's own ``entries``."""
         return {
             "guard_units": self.guard_units(),
             "bridge": self,
             "initial_check": self.initial_check(),
             "bare_aba": native.bare_aba(self.handle),
+            # what a scene's [fall] contacts are checked against (legsim.scene.falls)
+            "contact_names": tuple(c.name for c in self.contacts),
+            "active_contacts": self.active_contacts,
             **entries,
         }
 

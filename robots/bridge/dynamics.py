@@ -116,7 +116,8 @@ def spring_force(x, p, n, leg, jac):
 
 @model_function
 def applied_forces(x, u, p, n, tau):
-    """tau (nv,): stance spring legs, joint damping, the actuated joints' input u (N m or N)."""
+    """tau (nv,): stance spring legs, joint damping, the actuated joints' input u (N m or N),
+    each entry saturated at its joint's effort limit (inf: none)."""
     for j in range(n):
         tau[j] = 0.0
     legs = int(p[P_NLEG])
@@ -137,8 +138,15 @@ def applied_forces(x, u, p, n, tau):
     actuated = min(int(p[P_NACT]), u.shape[0])
     if actuated > 0:
         lsn_tally(handle(p), C_ACTUATION, 1.0)
+    act = int(p[P_ACT])
     for i in range(actuated):
-        tau[int(p[int(p[P_ACT]) + i])] += u[i]
+        limit = p[act + 2 * i + 1]
+        ui = u[i]
+        if ui > limit:
+            ui = limit
+        elif ui < -limit:
+            ui = -limit
+        tau[int(p[act + 2 * i])] += ui
 
 
 @model_function

@@ -18,7 +18,8 @@ from __future__ import annotations
 
 # -- the header -------------------------------------------------------------------------------
 #: The native model handle; nv; the mode's state dimension (2 nv + stance footholds).
-#: Actuated dofs (count, offset: one velocity index per entry of u); joint damping (count,
+#: Actuated dofs (count, offset: (velocity index, effort limit) per entry of u, the limit in N m
+#: or N, inf without one); joint damping (count,
 #: offset: (dof, b) pairs); the frames whose kinematics the guards read (count, offset: frame
 #: ids; a record's *slot* is an index into this list) and whether the mode's guards need them.
 #: The robot's rigid contacts (count, offset of their records) and this mode's status of each

@@ -33,6 +33,8 @@ class BridgeModel:
     coordinate_names, velocity_names: the n names of q and of v.
     damping_idx, damping_b: velocity indices with joint damping and their coefficients (N m s/rad or N s/m).
     actuated_idx: velocity index of each entry of the control u.
+    effort_limits: the bound on |u_i| of each entry of u (N m or N; inf: none): the input is
+        saturated there inside the model functions.
     handle: the model's handle in the native library.
     frames: the frames whose kinematics the guards read (frame ids; a contact's or leg's *slot*
         is its index here).
@@ -49,6 +51,7 @@ class BridgeModel:
     damping_idx: np.ndarray
     damping_b: np.ndarray
     actuated_idx: np.ndarray
+    effort_limits: np.ndarray
     handle: int
     frames: tuple[int, ...]
 
@@ -81,6 +84,7 @@ def build_model(
     joint_damping: Mapping[str, float] | None,
     actuated: Sequence[str],
     name: str,
+    effort_limits: Mapping[str, float] | None = None,
 ) -> BridgeModel:
     """Check and resolve the ``ContactBridge`` arguments (see there); ``ModelError`` names the
     contact, frame or joint at fault."""
@@ -102,6 +106,7 @@ def build_model(
         raise ModelError(f"{name}: coordinate and velocity names overlap: {sorted(set(coords) & set(vels))}")
     damping_idx, damping_b = _joint_damping(own, joint_damping, name)
     actuated_idx = _actuated_dofs(own, actuated, name)
+    limits = _effort_limits(actuated, effort_limits, name)
     for c in rigid.values():
         armed = getattr(c.contact, "armed", None)
         if armed is not None and armed.coordinate and armed.coordinate not in coords:
@@ -110,7 +115,7 @@ def build_model(
                 f"is not a coordinate: {coords}"
             )
     return BridgeModel(
-        name, own, n, declared, rigid, legs, coords, vels, damping_idx, damping_b, actuated_idx,
+        name, own, n, declared, rigid, legs, coords, vels, damping_idx, damping_b, actuated_idx, limits,
         handle_for(own, name), _kinematics_frames(rigid, legs),
     )  # fmt: skip
 
@@ -185,3 +190,22 @@ def _actuated_dofs(model: pin.Model, actuated: Sequence[str], robot: str) -> np.
             raise ModelError(f"{robot}: actuated joint '{jname}' must have one dof, has {j.nv}")
         dofs.append(j.idx_v)
     return np.array(dofs, dtype=int)
+
+
+def _effort_limits(actuated: Sequence[str], limits: Mapping[str, float] | None, robot: str) -> np.ndarray:
+    """The bound on |u_i| of each actuated joint (inf where ``limits`` gives none); ModelError
+    for a limit on a joint that is not actuated, or one that is not a number > 0."""
+    limits = dict(limits or {})
+    unknown = sorted(set(limits) - set(actuated))
+    if unknown:
+        raise ModelError(
+            f"{robot}: effort_limits names joint(s) {unknown} that are not actuated; actuated: {list(actuated)}"
+        )
+    out = np.full(len(actuated), np.inf)
+    for i, jname in enumerate(actuated):
+        if jname in limits:
+            value = limits[jname]
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not float(value) > 0.0:
+                raise ModelError(f"{robot}: effort_limits['{jname}']: expected a number > 0 (N m or N), got {value!r}")
+            out[i] = float(value)
+    return out

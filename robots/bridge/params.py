@@ -142,7 +142,7 @@ def start(model: BridgeModel, spec: ModeSpec) -> Builder:
     b.set(P_N, model.n)
     b.set(P_DIM, spec.dim)
     b.set(P_NACT, len(model.actuated_idx))
-    b.set(P_ACT, b.append(model.actuated_idx.tolist()))
+    b.set(P_ACT, b.append(v for k, lim in zip(model.actuated_idx, model.effort_limits, strict=True) for v in (k, lim)))
     b.set(P_NDAMP, len(model.damping_idx))
     b.set(P_DAMP, b.append(v for k, d in zip(model.damping_idx, model.damping_b, strict=True) for v in (k, d)))
     b.set(P_NFRAME, len(model.frames))

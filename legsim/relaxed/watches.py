@@ -1,0 +1,157 @@
+"""Conditions on a run's states checked at every stored point (``Watch``): a fall that ends the
+run, a state the model cannot vouch for that is reported, an interval that is measured.
+
+A watch is ``value(mode, t, x) -> v``, vectorised over the points of one mode visit (t of shape
+(N,), x of shape (N, n), the run's state: the plant's, then the controller's memory), and its
+condition *holds* where v < 0. The driver checks the points as the loop hands its buffers back
+(every ``workspace.POINTS`` points at most, and at the end), so the loop itself, compiled or
+not, is unchanged. Where a condition first holds between two stored points, the time is located
+by bisection on the points' cubic Hermite interpolant (the one ``Execution.sample`` uses: O(h^4)
+between steps), to float64 resolution; where it holds at a visit's first point (a mode entered),
+the time is that entry's. A condition met during a crossing's step, before the guard point q, is
+found at the visit after the crossing.
+
+Actions:
+
+* ``"stop"``: the run ends at that time with ``status`` (``fell``, ``model_breakdown``) and the
+  watch's message; the execution is cut there (its last point the located one, later strips and
+  transitions dropped). The loop may have run on to the next hand-back: the counters count every
+  step it took.
+* ``"warn"``: a ``RunWarning`` of kind ``name`` naming where the condition first held and where
+  v was least (the stored point), with v there in ``details["least_value"]``.
+* ``"time"``: the time the condition held along the flow (s, located at both ends), in the
+  execution's counters under ``counter``. Strip holds are not flow and are not counted.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ..errors import SimulationError
+from ..execution import Status
+from .single import hermite, hermite_derivative
+
+ACTIONS = ("stop", "warn", "time")
+#: Bisection steps locating a time (enough to reach float64's resolution of any step).
+BISECTIONS = 64
+
+
+@dataclass(frozen=True)
+class Watch:
+    """A condition on the run's states (module docstring).
+
+    Attributes
+    ----------
+    name: the condition's name (a warning's kind).
+    value: ``value(mode, t, x) -> v`` (N,), vectorised over one visit's points; < 0: it holds.
+    action: ``"stop"``, ``"warn"`` or ``"time"``.
+    message: ``message(t, mode, x) -> str`` at a point where it holds (stop, warn).
+    status: the status a stop ends the run with (a ``Status`` value).
+    counter: the counter a ``"time"`` watch fills (s).
+    """
+
+    name: str
+    value: Callable[[str, np.ndarray, np.ndarray], np.ndarray]
+    action: str = "stop"
+    message: Callable[[float, str, np.ndarray], str] | None = None
+    status: str = Status.FELL.value
+    counter: str = ""
+
+    def __post_init__(self) -> None:
+        if self.action not in ACTIONS:
+            raise SimulationError(f"watch {self.name!r}: action must be one of {list(ACTIONS)}, got {self.action!r}")
+        if not callable(self.value):
+            raise SimulationError(f"watch {self.name!r}: value must be a function value(mode, t, x)")
+        if self.action in ("stop", "warn") and not callable(self.message):
+            raise SimulationError(f"watch {self.name!r}: a {self.action} watch needs message(t, mode, x)")
+        if self.action == "stop" and self.status not in {s.value for s in Status}:
+            raise SimulationError(f"watch {self.name!r}: status {self.status!r} is not a run status")
+        if self.action == "time" and not self.counter:
+            raise SimulationError(f"watch {self.name!r}: a time watch needs a counter name")
+
+    def values(self, mode: str, t: np.ndarray, x: np.ndarray) -> np.ndarray:
+        """v at the points (N,), float64; SimulationError naming the watch if it is no such array."""
+        try:
+            v = np.asarray(self.value(mode, t, x), dtype=float).reshape(-1)
+        except Exception as exc:
+            raise SimulationError(f"watch {self.name!r} failed in mode '{mode}': {type(exc).__name__}: {exc}") from exc
+        if v.shape[0] != t.shape[0]:
+            raise SimulationError(f"watch {self.name!r} gave {v.shape[0]} values for {t.shape[0]} points")
+        return v
+
+
+def check(watches: Any) -> tuple[Watch, ...]:
+    """The watches as a tuple, each a ``Watch`` (SimulationError otherwise)."""
+    out = tuple(watches or ())
+    for w in out:
+        if not isinstance(w, Watch):
+            raise SimulationError(f"watches must be legsim.relaxed.Watch objects, got {type(w).__name__}")
+    return out
+
+
+def point(t: np.ndarray, x: np.ndarray, dx: np.ndarray, k: int, tau: float) -> tuple[np.ndarray, np.ndarray]:
+    """The interpolated state and its slope at time tau in the step from point k - 1 to k."""
+    dt = float(t[k] - t[k - 1])
+    s = (tau - float(t[k - 1])) / dt
+    return hermite(x[k - 1], dx[k - 1], x[k], dx[k], dt, s), hermite_derivative(x[k - 1], dx[k - 1], x[k], dx[k], dt, s)
+
+
+def locate(watch: Watch, mode: str, t: np.ndarray, x: np.ndarray, dx: np.ndarray, k: int, holds: bool) -> float:
+    """The time in (t[k-1], t[k]] where the condition starts (``holds``) or stops holding: the
+    bisection's end on the side where the new state is reached."""
+    lo, hi = float(t[k - 1]), float(t[k])
+    for _ in range(BISECTIONS):
+        mid = 0.5 * (lo + hi)
+        if not lo < mid < hi:
+            break
+        xm, _ = point(t, x, dx, k, mid)
+        v = float(watch.values(mode, np.array([mid]), xm[None, :])[0])
+        if (v < 0.0) == holds:
+            hi = mid
+        else:
+            lo = mid
+    return hi
+
+
+def first_hold(
+    watch: Watch, mode: str, t: np.ndarray, x: np.ndarray, dx: np.ndarray, start: int = 0, values: Any = None
+) -> tuple[int, float] | None:
+    """(k, time) where the condition first holds among points start.. of one visit (k the point
+    at or after it), or None; ``values``: v at the points start.. when known."""
+    if start >= t.shape[0]:
+        return None
+    v = watch.values(mode, t[start:], x[start:]) if values is None else values
+    below = np.flatnonzero(v < 0.0)
+    if below.size == 0:
+        return None
+    k = start + int(below[0])
+    if k == 0:
+        return 0, float(t[0])
+    return k, locate(watch, mode, t, x, dx, k, True)
+
+
+def time_held(watch: Watch, mode: str, t: np.ndarray, x: np.ndarray, dx: np.ndarray) -> float:
+    """The time (s) the condition holds along one visit's flow, the ends of each interval
+    located."""
+    if t.shape[0] < 2:
+        return 0.0
+    neg = watch.values(mode, t, x) < 0.0
+    total = float(np.sum(np.diff(t)[neg[:-1] & neg[1:]]))
+    for k in np.flatnonzero(neg[:-1] != neg[1:]) + 1:
+        k = int(k)
+        if neg[k]:  # starts holding inside the step
+            total += float(t[k]) - locate(watch, mode, t, x, dx, k, True)
+        else:  # stops holding inside it
+            total += locate(watch, mode, t, x, dx, k, False) - float(t[k - 1])
+    return total
+
+
+def least_of(v: np.ndarray) -> tuple[int, float]:
+    """The index of the least of the values v and that value (nan values left out)."""
+    v = np.where(np.isnan(v), np.inf, v)
+    k = int(np.argmin(v))
+    return k, float(v[k])

@@ -1,0 +1,90 @@
+"""Watches (legsim.relaxed.watches): conditions on a run's stored points, on a ball falling freely
+from z0 = 1 m (no floor): z(t) = z0 - g t^2 / 2, so z reaches b at t = sqrt(2 (z0 - b) / g)."""
+
+import math
+
+import numpy as np
+import pytest
+
+import legsim.compiled  # noqa: F401 -- the kernel, so that runs are compiled
+from legsim.errors import SimulationError
+from legsim.relaxed import Watch, simulate
+from legsim.systems import bouncing_ball
+
+G = 9.81
+
+
+def reach(b):
+    return math.sqrt(2 * (1.0 - b) / G)
+
+
+def below(b):
+    return lambda mode, t, x: x[:, 0] - b
+
+
+def said(t, mode, x):
+    return f"z = {x[0]:.6g} at t={t:.17g}"
+
+
+def run(watches, t_final=2.0, h=1e-2, python=False):
+    system = bouncing_ball.make_system(floor=False)
+    return simulate(system, [1.0, 0.0], "flight", t_final, h, 1e-3, watches=watches, python=python)
+
+
+@pytest.mark.parametrize("python", [False, True])
+def test_a_stop_ends_the_run_where_its_condition_first_holds(python):
+    ex = run([Watch("low", below(0.5), "stop", said)], python=python)
+    assert ex.status == "fell"
+    assert ex.t_end == pytest.approx(reach(0.5), abs=1e-12)
+    assert ex.final_state[0] == pytest.approx(0.5, abs=1e-12)
+    assert ex.final_state[1] == pytest.approx(-G * reach(0.5), abs=1e-12)
+    assert ex.message == said(ex.t_end, "flight", ex.final_state)
+    assert ex.segments[-1].t[-1] == ex.t_end and np.all(np.diff(ex.segments[-1].t) > 0)
+    assert ex.counters["python_steps" if not python else "compiled_steps"] == 0
+
+
+def test_the_earliest_stop_wins_and_names_its_status():
+    ex = run([Watch("late", below(0.2), "stop", said), Watch("early", below(0.6), "stop", said, "model_breakdown")])
+    assert ex.status == "model_breakdown" and ex.t_end == pytest.approx(reach(0.6), abs=1e-12)
+
+
+def test_a_long_run_stops_within_the_driver_s_scan_interval():
+    from legsim.relaxed.driver import STOP_CHECK_STEPS
+
+    h = 1e-5
+    ex = run([Watch("low", below(0.5), "stop", said)], t_final=2.0, h=h)
+    assert ex.t_end == pytest.approx(reach(0.5), abs=1e-12)
+    assert reach(0.5) / h <= ex.counters["steps"] <= reach(0.5) / h + STOP_CHECK_STEPS + 1
+
+
+def test_a_time_watch_measures_the_time_its_condition_holds():
+    # z < 0.8 from reach(0.8) on, and z > -2 until reach(-2): the time in between
+    ex = run([Watch("band", lambda mode, t, x: np.minimum(0.8 - x[:, 0], x[:, 0] + 2.0), "time", counter="band_s")])
+    assert ex.status == "finished"
+    inside = [reach(0.8), reach(-2.0)]
+    outside = ex.t_end - (inside[1] - inside[0])
+    assert ex.counters["band_s"] == pytest.approx(outside, abs=1e-12)
+
+
+def test_a_warning_watch_says_where_its_condition_first_held_and_most():
+    ex = run([Watch("low", below(0.9), "warn", said)], t_final=1.0)
+    assert ex.status == "finished"
+    (warning,) = ex.warnings
+    assert warning.kind == "low" and warning.time == pytest.approx(reach(0.9), abs=1e-12)
+    assert warning.details["least_time"] == 1.0
+    assert warning.details["least_value"] == pytest.approx((1.0 - G / 2) - 0.9, abs=1e-12)
+
+
+def test_bad_watches_are_refused_by_name():
+    with pytest.raises(SimulationError, match="action must be one of"):
+        Watch("w", below(0), "explode", said)
+    with pytest.raises(SimulationError, match="needs message"):
+        Watch("w", below(0), "stop")
+    with pytest.raises(SimulationError, match="needs a counter"):
+        Watch("w", below(0), "time")
+    with pytest.raises(SimulationError, match="'nope' is not a run status"):
+        Watch("w", below(0), "stop", said, "nope")
+    with pytest.raises(SimulationError, match=r"must be legsim\.relaxed\.Watch"):
+        run([lambda mode, t, x: x])
+    with pytest.raises(SimulationError, match="watch 'w' gave 1 values for"):
+        run([Watch("w", lambda mode, t, x: np.zeros(1), "stop", said)])
