@@ -319,9 +319,10 @@ def test_missing_writers_fail_for_their_flag_only(tmp_path, capsys, monkeypatch)
     import legsim.commands.run as run_module
 
     path = write_scene(tmp_path)
-    monkeypatch.setitem(sys.modules, "legsim.record", None)  # import legsim.record now fails
+    monkeypatch.delattr("legsim.output.rrd.write_rrd")  # a recorder without its writer
     code, _, err = run_cli(capsys, "run", str(path), "--rrd", str(tmp_path / "a.rrd"))
-    assert code == 2 and err.startswith("legsim: error: --rrd: ") and "legsim.record" in err
+    assert code == 2 and err.startswith("legsim: error: --rrd: Rerun recordings are not available: ")
+    assert "write_rrd" in err
     monkeypatch.setattr(metadata, "entry_points", lambda **kw: [])
     code, _, err = run_cli(capsys, "run", str(path), "--html", str(tmp_path / "a.html"))
     assert code == 2 and err == (
@@ -333,16 +334,14 @@ def test_missing_writers_fail_for_their_flag_only(tmp_path, capsys, monkeypatch)
     assert run_module.requested_outputs(types.SimpleNamespace(rrd=None, html=None, plot=None), {}) == {}
 
 
-def test_rrd_uses_legsim_record_write_rrd(tmp_path, capsys, monkeypatch):
+def test_rrd_uses_the_recorders_write_rrd(tmp_path, capsys, monkeypatch):
     calls = []
-    fake = types.ModuleType("legsim.record")
 
     def write_rrd(execution, scene, path):
         calls.append(Path(path))
         Path(path).write_bytes(b"RRF2")
 
-    fake.write_rrd = write_rrd
-    monkeypatch.setitem(sys.modules, "legsim.record", fake)
+    monkeypatch.setattr("legsim.output.rrd.write_rrd", write_rrd)
     code, out, _ = run_cli(capsys, "run", str(write_scene(tmp_path)), "--rrd", str(tmp_path / "x.rrd"))
     assert code == 0 and (tmp_path / "x.rrd").read_bytes() == b"RRF2" and len(calls) == 1
     assert f"wrote {tmp_path / 'x.rrd'} (rrd)" in out

@@ -23,10 +23,14 @@ def find_writer(kind: str, source: str = "") -> Writer:
     if kind == "rrd":
         try:
             from .rrd import write_rrd
-        except ModuleNotFoundError as exc:  # rerun-sdk, imported by the recorder only
-            raise LegsimError(
-                f"{label}: the Rerun recorder needs {exc.name!r}, which is not installed (pip install rerun-sdk)"
-            ) from exc
+        except ModuleNotFoundError as exc:
+            if exc.name and not exc.name.startswith("legsim"):
+                raise LegsimError(
+                    f"{label}: the Rerun recorder needs {exc.name!r}, which is not installed (pip install rerun-sdk)"
+                ) from exc
+            raise LegsimError(f"{label}: Rerun recordings are not available: {exc}") from exc
+        except ImportError as exc:  # a broken or partial install
+            raise LegsimError(f"{label}: Rerun recordings are not available: {exc}") from exc
         return write_rrd
     from importlib import metadata
 
