@@ -197,7 +197,8 @@ class Model:
     system: the hybrid system, with only the modes, guards and terms of the effects named.
     initial_mode: default initial mode.
     initial_state: default initial state by coordinate name (of ``initial_mode``).
-    control: optional control(t, x) -> u, passed to ``simulate``.
+    control: optional control passed to ``simulate``: a ``control(t, x) -> u``, a ``Controller``
+        or a ``legsim.control.ControlLaw``.
     geometry: optional ``geometry(mode, x) -> {part: array (k, 2)}``: polylines in the
         sagittal (x, z) plane in metres, for recordings and animations.
     scenery: static polylines (ground, stops) in the same form.
@@ -209,7 +210,7 @@ class Model:
     system: HybridSystem
     initial_mode: str
     initial_state: dict[str, float]
-    control: Callable[[float, np.ndarray], Any] | None = None
+    control: Any = None  # a control(t, x) -> u, a Controller or a legsim.control.ControlLaw
     geometry: Callable[[str, np.ndarray], dict[str, np.ndarray]] | None = None
     scenery: dict[str, np.ndarray] = field(default_factory=dict)
     reference: Any = None

@@ -237,11 +237,19 @@ class Transition:
         """The (source, target) pair."""
         return (self.source, self.target)
 
+    def guard_fn(self) -> GuardFn:
+        """The guard callable; ModelError for a transition whose guard its mode's model
+        functions give only once it is part of a ``HybridSystem``."""
+        if self.guard is None:
+            raise ModelError(f"transition {self.name}: no guard (a mode's functions give it in a HybridSystem)")
+        return self.guard
+
     def guard_value(self, x: np.ndarray, t: float = 0.0, u: Any = None) -> float:
         """The guard at x (and t, u for a ``guard_args="t,x,u"`` guard), as a float."""
+        guard = self.guard_fn()
         if self.guard_args == "x":
-            return float(self.guard(x))
-        return float(self.guard(t, x, u))
+            return float(guard(x))
+        return float(guard(t, x, u))
 
 
 @dataclass(frozen=True)
@@ -500,7 +508,7 @@ class HybridSystem:
                 name=name,
                 mode=mode,
                 transitions=trs,
-                guards=tuple(tr.guard for tr in trs),
+                guards=tuple(tr.guard_fn() for tr in trs),
                 resets=tuple(tr.reset if tr.reset is not None else _identity for tr in trs),
                 targets=tuple(tr.target for tr in trs),
                 continuations=tuple(tr.continuation for tr in trs),
@@ -613,7 +621,7 @@ def not_a_number(value: Any) -> str:
 def check_guard_output(system: str, tr: Transition, x: np.ndarray, t: float = 0.0, u: Any = None) -> float:
     """Evaluate a guard once and check that it returns a real number, not nan."""
     try:
-        value = tr.guard(x) if tr.guard_args == "x" else tr.guard(t, x, u)
+        value = tr.guard_fn()(x) if tr.guard_args == "x" else tr.guard_fn()(t, x, u)
     except Exception as exc:
         raise ModelError(f"{system}: guard of transition {tr.name} failed: {type(exc).__name__}: {exc}") from exc
     out = real_number(value)

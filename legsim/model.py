@@ -55,7 +55,8 @@ class ModeFunctions:
     ----------
     field, guards, reset, joint: the functions (guards None: no outgoing transition; reset None:
         every transition keeps the state; joint None: crossings one after the other).
-    params: the parameter array p, float64 (any length).
+    params: the parameter array p (any length): numbers, stored as a read-only float64 array
+        (typed ``Any`` because it is given as any sequence of numbers and kept as an ndarray).
     inputs: the number of entries of the input u the field expects (0: none).
     joint_outcomes: (name, target mode) of each outcome ``joint`` may return, by index.
     nan_breaks: a nan from these functions means the state is past the model's range.
@@ -67,7 +68,7 @@ class ModeFunctions:
     guards: Any = None
     reset: Any = None
     joint: Any = None
-    params: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    params: Any = field(default_factory=lambda: np.zeros(0))
     inputs: int = 0
     joint_outcomes: tuple[tuple[str, str], ...] = ()
     nan_breaks: bool = False

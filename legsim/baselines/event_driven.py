@@ -59,7 +59,7 @@ class _GuardEvent:
         self.counts["guard_evals"] += 1
         tr = self.transition
         if tr.guard_args == "x":
-            return tr.guard(y)
+            return tr.guard_fn()(y)
         return tr.guard_value(y, tt, None if self.control is None else self.control(tt, y))
 
 

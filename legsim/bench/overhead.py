@@ -26,10 +26,12 @@ import numpy as np
 
 from ..control import ControlLaw
 from ..hybrid import HybridSystem
+from ..model import ModeFunctions
 from ..relaxed import driver, simulate
 from ..systems import bouncing_ball
 from ..systems import oscillator as osc
 from ..tables import render_table
+from .cases import BenchError
 
 
 # The loops that take model functions as arguments are compiled in each process, not cached:
@@ -93,7 +95,7 @@ def compiled_costs(system: HybridSystem, law: ControlLaw, x: np.ndarray, n: int 
     """Seconds per call of mode ``free``'s field (with the forcing law evaluated before it, as the
     loop does), guards and reset, called from compiled code."""
     x = np.array(x, dtype=float)
-    functions = system.mode(osc.MODE).functions
+    functions = _functions(system)
     p, pc = functions.params, law.params_for(osc.MODE)
     # compile each loop before it is timed
     _loop_field(law.control, pc, functions.field, p, x.copy(), 10)
@@ -110,11 +112,19 @@ def compiled_costs(system: HybridSystem, law: ControlLaw, x: np.ndarray, n: int 
     return out
 
 
+def _functions(system: HybridSystem) -> ModeFunctions:
+    """The model functions of the oscillator's mode (BenchError when it has none)."""
+    functions = system.mode(osc.MODE).functions
+    if functions is None:
+        raise BenchError(f"{system.name}: mode {osc.MODE!r} is not written as model functions")
+    return functions
+
+
 def python_costs(system: HybridSystem, law: ControlLaw, x: np.ndarray, n: int = 50_000) -> dict[str, float]:
     """Seconds per call of mode ``free``'s field (with the forcing law), guards and reset as the
     interpreted loop calls them: the same compiled functions, from Python."""
     x = np.array(x, dtype=float)
-    functions = system.mode(osc.MODE).functions
+    functions = _functions(system)
     p, pc = functions.params, law.params_for(osc.MODE)
     u, m, dx, g, out = np.zeros(1), np.zeros(0), np.empty(2), np.empty(1), np.empty(2)
 
@@ -125,6 +135,8 @@ def python_costs(system: HybridSystem, law: ControlLaw, x: np.ndarray, n: int = 
     clock = time.process_time
     cost = {"field": min(timeit.repeat(field, number=n, repeat=3, timer=clock)) / n}
     guards, reset = functions.guards, functions.reset
+    if guards is None or reset is None:
+        raise BenchError(f"{system.name}: mode {osc.MODE!r} has no compiled guards and reset to time")
     cost["guards"] = min(timeit.repeat(lambda: guards(0.0, x, u, p, g), number=n, repeat=3, timer=clock)) / n
     cost["reset"] = min(timeit.repeat(lambda: reset(0, 0.0, x, u, p, out), number=n, repeat=3, timer=clock)) / n
     return cost
@@ -140,7 +152,8 @@ def callable_costs(system: HybridSystem, mode: str, x: np.ndarray, n: int = 50_0
     cost["guards"] = cost["reset"] = 0.0
     if tr is not None:
         cost["guards"] = min(timeit.repeat(lambda: tr.guard_value(x), number=n, repeat=3, timer=clock)) / n
-        cost["reset"] = min(timeit.repeat(lambda: tr.reset(x), number=n, repeat=3, timer=clock)) / n
+        reset = tr.reset if tr.reset is not None else np.copy
+        cost["reset"] = min(timeit.repeat(lambda: reset(x), number=n, repeat=3, timer=clock)) / n
     return cost
 
 
@@ -398,7 +411,11 @@ def _landing_table(costs: dict[str, dict[str, dict[str, Any]]], width: int | Non
     return render_table(head, rows, right=range(2, 6), whole=range(1, 6), width=width)
 
 
-def main(quick: bool = False, as_json: bool = False) -> int:
+def main(quick: bool = False, as_json: bool = False, fmt: str = "text") -> int:
+    """``legsim bench overhead``: the report as text, or as JSON (``--json`` or ``--format
+    json``); BenchError for a format this report has no form in (csv, markdown)."""
+    if fmt not in ("text", "json"):
+        raise BenchError(f"legsim bench overhead prints text or json, not {fmt!r} (--format text|json)")
     r = collect(quick)
-    print(json.dumps(r, indent=1) if as_json else format_report(r))
+    print(json.dumps(r, indent=1) if as_json or fmt == "json" else format_report(r))
     return 0

@@ -29,7 +29,7 @@ import os
 import shutil
 from functools import cache
 from pathlib import Path
-from typing import Any, ClassVar
+from typing import Any
 
 from numba.core import caching
 
@@ -193,7 +193,7 @@ class PrebuiltLocator(LegsimCacheLocator):
 
 
 class _PrebuiltImpl(caching.CompileResultCacheImpl):
-    _locator_classes: ClassVar[list[type]] = [PrebuiltLocator]
+    _locator_classes = [PrebuiltLocator]  # noqa: RUF012 -- numba reads this class attribute
 
 
 class PrebuiltCache(caching.FunctionCache):

@@ -14,7 +14,7 @@ from .cache import use_legsim_cache
 
 #: numba options of every compiled function of legsim's: cached on disk, no fast-math (results
 #: equal to the interpreted loop's to the bit), numpy's error model (nan, not exceptions).
-JIT_OPTIONS = {"cache": True, "fastmath": False, "nogil": True, "error_model": "numpy"}
+JIT_OPTIONS: dict[str, Any] = {"cache": True, "fastmath": False, "nogil": True, "error_model": "numpy"}
 
 
 def model_function(fn: Any = None, /, **options: Any) -> Any:

@@ -29,7 +29,9 @@ LOOP_MODULES = (rules, stages, evaluate, curve, stepping, crossing, entering, lo
 #: and its arrays are owned by the driver for the whole call, while counting the references of
 #: every array a function receives costs two calls each at every call (~1 us a field
 #: evaluation, against ~10 ns without).
-LOOP_OPTIONS = {**JIT_OPTIONS, "_nrt": False}
+LOOP_OPTIONS: dict[str, Any] = {**JIT_OPTIONS, "_nrt": False}
+#: The options of the calls into the function table (inlined into the loop, no reference counting).
+CALL_OPTIONS: Any = {"error_model": "numpy", "_nrt": False}
 
 
 def _register(module: pytypes.ModuleType) -> None:
@@ -61,7 +63,7 @@ def tool(fn: Any) -> Any:
     return compiled
 
 
-@overload(calls.call_state, jit_options={"error_model": "numpy", "_nrt": False})
+@overload(calls.call_state, jit_options=CALL_OPTIONS)
 def _call_state(functions, i, t, a, b, c, out):
     def impl(functions, i, t, a, b, c, out):
         call_state_at(functions[i], t, a, b, c, out)
@@ -69,7 +71,7 @@ def _call_state(functions, i, t, a, b, c, out):
     return impl
 
 
-@overload(calls.call_indexed, jit_options={"error_model": "numpy", "_nrt": False})
+@overload(calls.call_indexed, jit_options=CALL_OPTIONS)
 def _call_indexed(functions, i, e, t, a, b, c, out):
     def impl(functions, i, e, t, a, b, c, out):
         call_indexed_at(functions[i], e, t, a, b, c, out)
@@ -77,7 +79,7 @@ def _call_indexed(functions, i, e, t, a, b, c, out):
     return impl
 
 
-@overload(calls.call_joint, jit_options={"error_model": "numpy", "_nrt": False})
+@overload(calls.call_joint, jit_options=CALL_OPTIONS)
 def _call_joint(functions, i, rest, t, q, u, p, crossed, out):
     def impl(functions, i, rest, t, q, u, p, crossed, out):
         return call_joint_at(functions[i], rest, t, q, u, p, crossed, out)

@@ -77,7 +77,7 @@ def feasible(pieces: list[Piece], sequence: tuple[int, ...]) -> bool:
     c[-1] = -1.0
     A_ub = np.hstack([-G, np.ones((G.shape[0], 1))])
     result = linprog(c, A_ub=A_ub, b_ub=np.zeros(G.shape[0]), bounds=[(-1.0, 1.0)] * n + [(None, 1.0)])
-    return bool(result.status == 0 and -result.fun > MARGIN)
+    return bool(result.status == 0 and result.fun is not None and -result.fun > MARGIN)
 
 
 def product_of(pieces: list[Piece], sequence: tuple[int, ...]) -> np.ndarray:

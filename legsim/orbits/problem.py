@@ -223,7 +223,7 @@ class OrbitProblem:
                 rules.append(check())
             except SimulationError as exc:
                 raise OrbitError(f"orbit problem: {exc}", key=key) from None
-        self._tolerances = rules[0]  # (rtol, atol) as simulate will use them, (None, None) for fixed steps
+        self._tolerances: tuple[float | None, float | None] = rules[0]  # type: ignore[assignment]  # (rtol, atol) as simulate will use them, (None, None) for fixed steps
 
     @property
     def integrator_settings(self) -> dict[str, Any]:

@@ -81,7 +81,7 @@ def field_adapter(mode: Mode, cell: InputCell, breakdowns: Breakdowns) -> Callab
 def guards_adapter(data: ModeData, cell: InputCell, breakdowns: Breakdowns) -> Callable[..., None]:
     """``guards(t, x, u, p, g)`` of a Python mode: each transition's guard, checked to be a real
     number."""
-    calls = [(tr.guard, tr.guard_args == "x", tr.name) for tr in data.transitions]
+    calls = [(tr.guard_fn(), tr.guard_args == "x", tr.name) for tr in data.transitions]
 
     def adapted(t: float, x: np.ndarray, u: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
         try:
@@ -107,6 +107,7 @@ def reset_adapter(system: Any, data: ModeData, breakdowns: Breakdowns) -> Callab
 
     def adapted(e: int, t: float, x: np.ndarray, u: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
         tr = data.transitions[e % count]
+        reset: Callable[[np.ndarray], np.ndarray] | None
         if e < count:
             reset, name, target = data.resets[e], tr.name, tr.target
         else:

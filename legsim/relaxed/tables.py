@@ -14,6 +14,7 @@ register a new outcome; the driver grows them between calls.
 
 from __future__ import annotations
 
+import functools
 from typing import Any
 
 import numpy as np
@@ -191,7 +192,7 @@ class RunTables:
             self.modes[row, M_J0] = self._reserve_joints(PYTHON_JOINT_OUTCOMES)
             self.modes[row, M_NJ] = 0
             self.modes[row, M_JOINT] = self.function(
-                adapt.joint_adapter(system, data, lambda n, t, r=row: self._joint(r, n, t)), "joint"
+                adapt.joint_adapter(system, data, functools.partial(self._joint, row)), "joint"
             )
             self._python(f"the system's joint function is Python (mode '{data.name}')")
 

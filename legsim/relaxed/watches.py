@@ -141,8 +141,8 @@ def time_held(watch: Watch, mode: str, t: np.ndarray, x: np.ndarray, dx: np.ndar
         return 0.0
     neg = watch.values(mode, t, x) < 0.0
     total = float(np.sum(np.diff(t)[neg[:-1] & neg[1:]]))
-    for k in np.flatnonzero(neg[:-1] != neg[1:]) + 1:
-        k = int(k)
+    for crossing in np.flatnonzero(neg[:-1] != neg[1:]) + 1:
+        k = int(crossing)
         if neg[k]:  # starts holding inside the step
             total += float(t[k]) - locate(watch, mode, t, x, dx, k, True)
         else:  # stops holding inside it
