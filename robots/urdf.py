@@ -304,6 +304,9 @@ def make_bridge(params: Mapping[str, Any]) -> tuple[ContactBridge, Outlines]:
     first = 2 if params["root"] == "planar" else 1
     joints = [model.names[j] for j in range(first, model.njoints)]
     actuated = joints if list(params["actuated"]) == ["all"] else list(params["actuated"])
+    repeated = sorted({name for name in actuated if actuated.count(name) > 1})
+    if repeated:
+        raise SceneError(f"robot.parameters.actuated: joint(s) {repeated} listed more than once: {actuated}")
     contacts = scene_contacts(params["contacts"], params["stops"])
     limits = effort_limits(model, actuated, params)
     bridge = ContactBridge(

@@ -120,6 +120,8 @@ def test_bad_urdfs_and_tables_are_named(tmp_path):
         urdf.load_model(tmp_path / "missing.urdf")
     with pytest.raises(SceneError, match=r"contacts\[1\]: unknown key\(s\) \['mu'\]"):
         urdf.make({"file": str(QUADRUPED), "contacts": [CONTACTS[0], {"name": "f", "frame": "front_foot", "mu": 1.0}]})
+    with pytest.raises(SceneError, match=r"actuated: joint\(s\) \['hind_hip'\] listed more than once"):
+        urdf.make({"file": str(QUADRUPED), "actuated": ["hind_hip", "hind_knee", "hind_hip"]})
     with pytest.raises(SceneError, match=r"stops\[0\].position: expected a float"):
         urdf.make({"file": str(QUADRUPED), "stops": [{"name": "s", "joint": "hind_knee", "position": "high"}]})
     scene = tmp_path / "robot.toml"
