@@ -48,7 +48,7 @@ from .layout import (
     S_SLIP_NEG,
     S_SLIP_POS,
 )
-from .native import C_PAINLEVE
+from .native import C_IMPACTS, C_PAINLEVE
 
 #: What ``force_change`` asks: nothing; drop a pulling contact; let a stuck one slip; the forces
 #: are not finite.
@@ -163,6 +163,7 @@ def frictional_impact(x, p, engaged, held, v_plus, vt, vn):
         mu[i] = p[contact_record(p, int(engaged[i, 0])) + C_MU]
     Minv = np.empty((n, n))
     lsn_minverse(handle(p), x.ctypes.data, Minv.ctypes.data)
+    lsn_tally(handle(p), C_IMPACTS, 1.0)
     lt, ln = np.empty(k), np.empty(k)
     scale = 1.0 + np.abs(v).max()
     tried = np.empty(MAX_TRIES)

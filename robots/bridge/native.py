@@ -33,6 +33,9 @@ COUNTERS = (
     "painleve_sticks",
     "cache_hits",
 )
+#: Slots the model functions tally (lsn_tally); C_IMPACTS is the library's own impact slot, which
+#: the impacts solved with friction (robots.bridge.friction) count too.
+C_IMPACTS = 4
 C_SPRINGS, C_DAMPING, C_ACTUATION, C_PAINLEVE = 5, 6, 7, 8
 
 _HANDLES: dict[int, tuple[Any, int]] = {}
