@@ -109,7 +109,7 @@ def test_every_controlled_run_gets_a_fresh_controller():
     reason=(
         "known defect: the relaxed runs differ from the event-driven reference by 1.4e-3 at every "
         "tolerance (cause not yet found); "
-        "docs/targets.md, 'What is left'"
+        "docs/targets.md, 'Known defects'"
     ),
 )
 def test_quadruped_run_case_error_falls_with_the_tolerance():
