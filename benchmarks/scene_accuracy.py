@@ -47,7 +47,7 @@ def settings_text(integrator: dict[str, Any]) -> str:
 def measure(name: str, repeat: int) -> dict[str, Any]:
     """One row: settings, wall time (s), estimated and measured relative final-state error."""
     scene = load_scene(name)
-    scene.simulate()  # loads the compiled twins and warms the caches
+    scene.simulate()  # loads the compiled code and warms the caches
     walls, run = [], None
     for _ in range(repeat):
         start = time.perf_counter()

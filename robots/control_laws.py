@@ -1,6 +1,5 @@
-"""Scalar control laws shared by the controllers (Python, ``robots/controllers.py``) and the
-compiled twins that compute them (``robots/bridge/twins.py`` compiles these functions from this
-source with numba), so that each law is written once. ``pd_torque`` is also callable from
+"""Scalar control laws of the controllers (``robots/controllers.py``, ``robots/runner_laws.py``),
+written once and compiled with numba where a ``ControlLaw`` calls them. ``pd_torque`` is also callable from
 jitted code as it is (``register_jitable``), for laws built on it (``robots.runner_laws``)."""
 
 from __future__ import annotations

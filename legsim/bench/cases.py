@@ -1,6 +1,6 @@
 """The work-precision cases: a system, its reference, and the sweep of each method's knobs.
 
-A case names the system legsim simulates (with compiled twins where the model has them), the
+A case names the system legsim simulates (as compiled model functions where it has them), the
 system the event-driven baseline runs on, the position coordinates of the error of paper 000
 eq. (30), the reference, and the runs of the sweep. References are closed forms where they
 exist (oscillator, bouncing ball); otherwise a converged event-driven run (DOP853 at tolerance

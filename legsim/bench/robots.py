@@ -9,8 +9,8 @@ state's units) to a reference run (``solve_ivp`` DOP853 with events at rtol = at
 transitions at the same instant count as one event (``events``), and a run with another number
 of events has error inf.
 
-The families: ``relaxed`` runs with the robots' compiled twins (aimed landing, the compiled
-path), ``relaxed-python`` the Python path's best configuration (DOP853, dense landing), and
+The families: ``relaxed`` runs on the compiled path (the robots' model functions in the kernel,
+aimed landing), ``relaxed-python`` the Python path's best configuration (DOP853, dense landing), and
 ``solve_ivp`` (RK45 and DOP853 over tolerances and largest steps). For each error level the
 fastest run of each family below it is compared; ratios are measured in one run, so they hold
 on a shared machine to within its noise. ``cost_report`` gives the limit: a compiled field
@@ -20,11 +20,9 @@ outside it.
 The controlled runners (``CONTROLLED``, run only when named: ``--case slip-raibert --case
 pronk-raibert --case double-pendulum-pd --case quadruped-run``) are the bundled scenes' robots under
 their scenes' controllers (``raibert_slip``, ``raibert_pronk``, the double pendulum's PD,
-``raibert_runner``), every run with a controller made anew from the scene. The hoppers and their
-controllers are compiled model functions, the others' twins compute the controller
+``raibert_runner``), every run with a controller made anew from the scene. Every robot and
+controller is written as compiled model functions and ``ControlLaw``s
 (``ControlledSweep.compiled``), so each case has the three families of the uncontrolled cases.
-The quadruped's twins hand every event's step to the Python loop (its friction law chooses the
-outcome: ``robots.bridge.friction_twins``).
 """
 
 from __future__ import annotations
@@ -69,7 +67,7 @@ class ControlledSweep:
     (s); eps_floor: the narrowest strip of the adaptive runs (guard units; their strip is
     ``max(eps_floor, min(1e-6, 1e-2 tol))``); rk4_eps: the strip of the rk4 runs; rk4_steps:
     the fixed steps (s); max_repeats: a cap on the timed repeats (None: ``--repeats``);
-    compiled: the robot's twins compute the scene's controller, so the rk4 and aimed runs take
+    compiled: the scene's controller is a compiled ``ControlLaw``, so the rk4 and aimed runs take
     the compiled path (family ``relaxed``) and DOP853 with dense landing is the Python path's.
     """
 
@@ -86,7 +84,7 @@ class ControlledSweep:
 
 
 def _compiled_sweep(scene: str) -> ControlledSweep:
-    """The sweep of a robot whose twins compute its scene's controller: 5 s (1 s with
+    """The sweep of a robot under a compiled scene controller: 5 s (1 s with
     ``--quick``), tolerances 1e-4 .. 1e-10 with steps up to 0.1 s and strips min(1e-6, 1e-2 tol)
     (no floor), rk4 at steps of 10 to 1 ms with a strip of 1e-10."""
     tols = (1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10)
@@ -104,7 +102,7 @@ CONTROLLED_SWEEPS = {
     "slip-raibert": _compiled_sweep("slip_raibert"),
     # The pronk hopper and raibert_pronk are compiled model functions: 5 s, 16 hops.
     "pronk-raibert": _compiled_sweep("pronk_raibert"),
-    # The double pendulum's twins compute its shoulder PD (joint_pd): it lands on the stop
+    # The double pendulum's shoulder PD (joint_pd, a ControlLaw): it lands on the stop
     # (a graze, then the impact that holds) and rests there.
     "double-pendulum-pd": _compiled_sweep("double_pendulum_pd"),
     "quadruped-run": ControlledSweep(
@@ -441,7 +439,8 @@ def _solve_ivp_call(case: RobotCase, spec: RunSpec, controller: _ControllerMaker
 
 def _relaxed_call(case: RobotCase, spec: RunSpec, controller: _ControllerMaker) -> Callable[[], Any]:
     """The relaxed run of the case at the spec's settings; the same system on both relaxed
-    families: dense landing, and a control the twins do not compute, run the Python loop."""
+    families: dense landing, and a control that is not a compiled ``ControlLaw``, run the Python
+    loop."""
     from ..relaxed import simulate
 
     tol = None if math.isnan(spec.tol) else spec.tol
@@ -590,7 +589,7 @@ def model_function_costs(functions: Any, dim: int, guards: int, x: np.ndarray, n
 
 def format_costs(costs: dict[str, float]) -> str:
     if not costs:
-        return "cost: the model has no compiled twin (native library unavailable)"
+        return "cost: the mode is not written as compiled model functions, or the robot gives no bare ABA timer"
     text = (
         f"cost per call: bare C++ aba {1e6 * costs['aba_s']:.3g} us; compiled field all-in "
         f"{1e6 * costs['field_s']:.3g} us ({costs['field_over_aba']:.2f}x aba); "
@@ -603,8 +602,8 @@ def format_costs(costs: dict[str, float]) -> str:
 
 
 PYTHON_PATH_NOTE = (
-    "controlled: every relaxed run takes legsim's Python path (the robot's twins do not compute its "
-    "controller), so there is no compiled family; ratios are solve_ivp / Python path"
+    "controlled: every relaxed run takes legsim's Python path (the scene's controller is not a compiled "
+    "ControlLaw), so there is no compiled family; ratios are solve_ivp / Python path"
 )
 COMPILED_PATH_NOTE = (
     "controlled, compiled path: the robot and its controller are compiled, so the relaxed family (rk4 and aimed "

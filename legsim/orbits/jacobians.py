@@ -7,7 +7,7 @@ Two ways, compared in the tests:
 * ``jacobian="saltation"`` (default): along the relaxed execution, the derivative of each
   Runge-Kutta step (the variational equation integrated with the same tableau on the same
   steps, with the field's Jacobian from ``Mode.jacobian`` or central differences, ~1e-10
-  relative; on a mode with a compiled twin and no control in compiled code, from the twin's
+  relative; on a mode written as compiled model functions, in compiled code from the mode's
   field, ``variational``) and, at each
   transition with guard point q, the saltation matrix
   ``Xi = DR + (f+ - DR f-) grad_g^T / (grad_g . f-)`` from the reset Jacobian DR(q), the guard

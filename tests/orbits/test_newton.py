@@ -155,8 +155,8 @@ def test_divergence_when_there_is_no_orbit():
 
 
 def test_a_newton_jacobians_error_does_not_hide_a_singular_jacobian(monkeypatch):
-    # Inside the iterations the saltation Jacobian may carry ~1e-6 relative error (compiled
-    # twins, ``newton=True``); singularity must still be decided on the accurate one.
+    # Inside the iterations the saltation Jacobian may carry ~1e-6 relative error (the cheaper
+    # ``newton=True`` Jacobian); singularity must still be decided on the accurate one.
     accurate = newton_module.jacobian_saltation
 
     def noisy(problem, ret, newton=False):

@@ -3,8 +3,7 @@ robot parameters its controller reads (``actuated``) replaced by values of any t
 range, run with ``legsim run`` in-process (0.02 s of simulated time, a watchdog for hangs).
 
 Allowed: exit 0, 2 or 3 with no traceback, 2 with one ``legsim: error:`` line (those found at
-loading name the scene file; a joint listed twice in ``actuated`` is refused later, when the
-robot's compiled twin and its Python model disagree). A run that went ahead (exit 0 or 3) must
+loading name the scene file, a joint listed twice in ``actuated`` included). A run that went ahead (exit 0 or 3) must
 have had parameters ``joint_pd`` can use: ``kp`` and ``kd`` finite numbers >= 0, ``targets``
 empty or one finite number per actuated joint, ``gravity`` a boolean, ``hold`` a boolean, no
 other key (else a "silent wrong result": a nan target ran until the field was not finite, text

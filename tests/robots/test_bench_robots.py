@@ -77,7 +77,7 @@ def test_slip_raibert_case_runs_on_the_compiled_path_and_its_error_falls_with_th
 
     assert robots.main(["slip-raibert"], quick=True, out=str(tmp_path), repeats=1, figure=False, log=None) == 0
     out = capsys.readouterr().out
-    # The hopper's twins compute raibert_slip: the output says so, and has a compiled family
+    # raibert_slip is a compiled ControlLaw: the output says so, and has a compiled family
     # (rk4 and aimed landing) beside the Python path's dense DOP853.
     assert robots.COMPILED_PATH_NOTE in out and "python/compiled" in out and "relaxed:" in out
     rows = read_rows(tmp_path / "robots-slip-raibert.csv")
