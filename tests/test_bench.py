@@ -450,3 +450,13 @@ def test_aiming_lands_with_fewer_trial_steps_than_halving():
     assert costs["halve"]["trial_steps_per_transition"] > 10
     assert costs["aim"]["trial_steps_per_transition"] < 2
     assert costs["aim"]["extra_field_evals_per_transition"] < costs["halve"]["extra_field_evals_per_transition"]
+
+
+def test_the_overhead_report_refuses_a_format_it_has_no_form_in(capsys):
+    # The overhead report prints text or JSON; csv and markdown are named as unsupported before
+    # anything is measured (exit 2, one error line).
+    from legsim.cli import main
+
+    assert main(["bench", "overhead", "--format", "csv"]) == 2
+    err = capsys.readouterr().err
+    assert err == "legsim: error: legsim bench overhead prints text or json, not 'csv' (--format text|json)\n"
