@@ -237,6 +237,9 @@ def _send(address: str, url: str, file: Path, layout: str, timeout: float) -> No
             stdout=subprocess.DEVNULL,
             stderr=said,
             start_new_session=True,  # Ctrl-C at the terminal is the parent's to handle
+            # Python's first use of its temporary folder writes a probe file there; a child
+            # killed at that moment would leave it behind, so the child's folder is ours to remove.
+            env={**os.environ, "TMPDIR": str(file.parent)},
         )
         try:
             deadline = time.monotonic() + timeout
