@@ -125,10 +125,12 @@ def check_urdf(file: str | os.PathLike[str], folder: Path | None = None) -> None
     scene = input_folder()
     allowed = folder or scene or path.parent
     where = "the URDF's folder" if folder is None and scene is None else "the scene's folder"
-    for element in root.iter():
-        name = element.get("filename")
-        if name is not None:
-            _check_file_reference(path, element.tag, name, allowed, where)
+    for top in root:
+        owner = f"{top.tag} {top.get('name')!r}"
+        for element in top.iter():
+            name = element.get("filename")
+            if name is not None:
+                _check_file_reference(path, owner, element.tag, name, allowed, where)
 
 
 def _parse(path: Path, raw: bytes) -> ET.Element:
@@ -207,10 +209,11 @@ def _check_inertial(path: Path, where: str, inertial: ET.Element) -> None:
         )
 
 
-def _check_file_reference(path: Path, tag: str, name: str, folder: Path, where: str) -> None:
-    """A file the URDF names (``<mesh filename>``, ``<texture filename>``) lies inside ``folder``,
-    is a regular file of at most ``MAX_MESH_BYTES``, and a mesh is of a format in ``MESH_SUFFIXES``."""
-    shown = f"<{tag} filename={printable(name, newlines=False)[:200]!r}>"
+def _check_file_reference(path: Path, owner: str, tag: str, name: str, folder: Path, where: str) -> None:
+    """A file the URDF names (``<mesh filename>``, ``<texture filename>``) in its top-level
+    element ``owner`` (``link 'body'``) lies inside ``folder``, is a regular file of at most
+    ``MAX_MESH_BYTES``, and a mesh is of a format in ``MESH_SUFFIXES``."""
+    shown = f"{owner}: <{tag} filename={printable(name, newlines=False)[:200]!r}>"
     parts = urlsplit(name)
     if parts.scheme == "package":
         raise ModelError(

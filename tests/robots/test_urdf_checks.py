@@ -197,7 +197,7 @@ def test_a_mesh_outside_the_scenes_folder_never_reaches_an_output(tmp_path, kind
     scene = scene_folder(tmp_path, QUADRUPED.replace('<box size="0.8 0.2 0.1"/>', f'<mesh filename="{name}"/>'))
     code, _, err = run_cli("run", scene, "--rrd", folder / "out.rrd", "--html", folder / "out.html")
     assert code == 2, err
-    assert "quadruped.urdf: <mesh filename=" in err and name in err
+    assert "quadruped.urdf: link 'body': <mesh filename=" in err and name in err
     assert sorted(p.name for p in folder.iterdir()) == ["link.stl", "quadruped.urdf", "stand.toml"]
 
 
