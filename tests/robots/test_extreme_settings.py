@@ -6,10 +6,14 @@ of simulated time every 5 s of wall time."""
 
 from __future__ import annotations
 
+import re
+import sys
+
 import pytest
 
 from helpers.reliability import run_cli
 from legsim.errors import SimulationError
+from legsim.relaxed.loop import STALL_WINDOW
 from legsim.relaxed.resolution import thinnest_strip
 from legsim.scene import load_scene
 
@@ -39,3 +43,17 @@ def test_the_quadruped_at_the_thinnest_eps_it_takes_finishes_in_its_nominal_step
     # few. A crawl at the touchdown took thousands of steps for no time.
     nominal = 0.5 / scene.integrator["h"]
     assert ex.steps <= 1.1 * nominal, ex.steps
+
+
+def test_past_the_refusal_the_driver_ends_the_quadruped_at_eps_1e_300_stalled_at_the_touchdown(monkeypatch):
+    # The refusal before the run is the first defence; the loop's stall rule is the second, for a
+    # strip that becomes too thin during the run. Switched off, the first lets the run reach the
+    # touchdown, where no step lands in a strip of 1e-300 m: the rule ends it there.
+    monkeypatch.setattr(sys.modules["legsim.relaxed.simulate"], "_check_resolution", lambda eps, x, mode: None)
+    ex = load_scene("quadruped_stand", [SHORT, "integrator.eps=1e-300"]).simulate()
+    assert ex.status == "stalled", ex.message
+    assert re.match(r"the run stopped advancing in mode 'flight' next to the guard of transition graze_", ex.message)
+    assert f"to t={ex.t_end:.17g}" in ex.message
+    assert 0.1 < ex.t_end < 0.3  # the feet reach the ground near 0.2 s
+    # 0.18 s of ordinary steps, then one stall window: not a crawl of millions of steps.
+    assert ex.steps <= ex.t_end / 1e-3 + 2 * STALL_WINDOW
