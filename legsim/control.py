@@ -250,15 +250,18 @@ class ControllerSpec:
         does) and make the controller for ``model``. A ``make`` that raises anything but a
         legsim error is a ``SceneError`` naming the controller and the failure."""
         prefix = f"{where}: " if where else ""
-        params = resolve_parameters(
-            self.parameters, {} if parameters is None else parameters, f"{prefix}controller.parameters"
-        )
-        if files is not None:
-            files(self.parameters, params)
         try:
+            params = resolve_parameters(
+                self.parameters, {} if parameters is None else parameters, f"{prefix}controller.parameters"
+            )
+            if files is not None:
+                files(self.parameters, params)
             controller = self.make(model, params)
-        except LegsimError:
-            raise
+        except LegsimError as exc:
+            named = self._naming(exc)
+            if named is exc:
+                raise
+            raise named from None
         except Exception as exc:  # a plug-in's own failure on parameters it accepted
             raise SceneError(
                 f"{prefix}controller '{self.name}' could not be made from its parameters {params!r:.300}: "
@@ -270,6 +273,14 @@ class ControllerSpec:
                 f"legsim.control.Controller"
             )
         return controller
+
+    def _naming(self, exc: LegsimError) -> LegsimError:
+        """``exc`` with the controller's name added, unless its message already names it (a
+        field such as ``controller.parameters.kp`` does not say which controller reads it)."""
+        named = f"controller '{self.name}'"
+        if named in str(exc) or type(exc) not in (SceneError, ModelError):
+            return exc
+        return type(exc)(f"{exc} ({named})")
 
 
 def available() -> dict[str, metadata.EntryPoint]:

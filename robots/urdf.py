@@ -304,6 +304,14 @@ def make_bridge(params: Mapping[str, Any]) -> tuple[ContactBridge, Outlines]:
     first = 2 if params["root"] == "planar" else 1
     joints = [model.names[j] for j in range(first, model.njoints)]
     actuated = joints if list(params["actuated"]) == ["all"] else list(params["actuated"])
+    if not all(isinstance(name, str) for name in actuated):
+        raise SceneError(
+            f"robot.parameters.actuated: expected joint names (strings) or ['all'], got {params['actuated']!r:.200}; "
+            f"joints: {joints}"
+        )
+    unknown = [name for name in actuated if name not in joints]
+    if unknown:
+        raise SceneError(f"robot.parameters.actuated: unknown joint(s) {unknown!r:.200}; joints: {joints}")
     repeated = sorted({name for name in actuated if actuated.count(name) > 1})
     if repeated:
         raise SceneError(f"robot.parameters.actuated: joint(s) {repeated} listed more than once: {actuated}")

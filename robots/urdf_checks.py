@@ -16,7 +16,8 @@ the file, the element and the value:
 * a number that is not one finite decimal (``nan``, ``inf``, ``1e400``, text, a missing value)
   in the elements the model is built from: origins, masses, inertias, axes, limits, dynamics,
   geometry sizes, mesh scales; a mass that is not positive; an inertia matrix that is not
-  symmetric positive definite; a zero axis;
+  symmetric positive definite, or whose largest principal moment exceeds the sum of the two
+  others (no rigid body has it); a zero axis;
 * a file named by a ``filename`` attribute (meshes, textures) that does not lie inside the
   scene's folder (``legsim.builders.input_folder``; outside a scene, the URDF's own folder),
   links resolved, or that is no regular file or larger than ``MAX_MESH_BYTES``. ``package://``
@@ -60,6 +61,9 @@ MAX_JOINTS = 64
 MAX_LINKS = MAX_JOINTS + 1
 #: Deepest nesting of XML elements: a URDF's model nests five (robot, link, visual, geometry, mesh).
 MAX_DEPTH = 32
+#: Relative slack of the triangle inequality of principal moments (a flat body meets it with
+#: equality, which decimals rounded to a few digits may miss by a little).
+TRIANGLE_SLACK = 1e-3
 #: Mesh formats whose references to other files legsim follows.
 MESH_SUFFIXES = (".stl", ".obj")
 
@@ -121,10 +125,12 @@ def check_urdf(file: str | os.PathLike[str], folder: Path | None = None) -> None
     scene = input_folder()
     allowed = folder or scene or path.parent
     where = "the URDF's folder" if folder is None and scene is None else "the scene's folder"
-    for element in root.iter():
-        name = element.get("filename")
-        if name is not None:
-            _check_file_reference(path, element.tag, name, allowed, where)
+    for top in root:
+        owner = f"{top.tag} {top.get('name')!r}"
+        for element in top.iter():
+            name = element.get("filename")
+            if name is not None:
+                _check_file_reference(path, owner, element.tag, name, allowed, where)
 
 
 def _parse(path: Path, raw: bytes) -> ET.Element:
@@ -186,19 +192,28 @@ def _check_inertial(path: Path, where: str, inertial: ET.Element) -> None:
     matrix = np.array(
         [[i["ixx"], i["ixy"], i["ixz"]], [i["ixy"], i["iyy"], i["iyz"]], [i["ixz"], i["iyz"], i["izz"]]], dtype=float
     )
-    smallest = float(np.linalg.eigvalsh(matrix).min())
-    if not smallest > 0.0:
-        shown = " ".join(f"{k}={inertia.get(k)}" for k in REQUIRED["inertia"])
+    moments = np.linalg.eigvalsh(matrix)  # ascending principal moments (kg m^2)
+    shown = " ".join(f"{k}={inertia.get(k)}" for k in REQUIRED["inertia"])
+    if not moments[0] > 0.0:
         raise ModelError(
             f"{path}: {where}: <inertia {shown}> is not positive definite (smallest principal moment "
-            f"{smallest:.3g} kg m^2): no rigid body has this inertia"
+            f"{moments[0]:.3g} kg m^2): no rigid body has this inertia"
+        )
+    # Each principal moment is an integral of the squared distance to its axis, so no moment
+    # exceeds the sum of the two others; equality is a flat body, reached by rounded decimals
+    # of a thin plate or rod, hence the relative slack.
+    if moments[0] + moments[1] < moments[2] * (1.0 - TRIANGLE_SLACK):
+        raise ModelError(
+            f"{path}: {where}: <inertia {shown}> has principal moments {moments[0]:.4g}, {moments[1]:.4g} and "
+            f"{moments[2]:.4g} kg m^2: the largest exceeds the sum of the two others, which no rigid body has"
         )
 
 
-def _check_file_reference(path: Path, tag: str, name: str, folder: Path, where: str) -> None:
-    """A file the URDF names (``<mesh filename>``, ``<texture filename>``) lies inside ``folder``,
-    is a regular file of at most ``MAX_MESH_BYTES``, and a mesh is of a format in ``MESH_SUFFIXES``."""
-    shown = f"<{tag} filename={printable(name, newlines=False)[:200]!r}>"
+def _check_file_reference(path: Path, owner: str, tag: str, name: str, folder: Path, where: str) -> None:
+    """A file the URDF names (``<mesh filename>``, ``<texture filename>``) in its top-level
+    element ``owner`` (``link 'body'``) lies inside ``folder``, is a regular file of at most
+    ``MAX_MESH_BYTES``, and a mesh is of a format in ``MESH_SUFFIXES``."""
+    shown = f"{owner}: <{tag} filename={printable(name, newlines=False)[:200]!r}>"
     parts = urlsplit(name)
     if parts.scheme == "package":
         raise ModelError(

@@ -7,11 +7,14 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from .resolution import state_scale, thinnest_strip
+
 
 def _resolution_hint(eps: float, x: np.ndarray) -> str:
-    """A second explanation when eps is too thin for float64 near x: no step can land inside it."""
-    spacing = float(np.spacing(1.0 + float(np.max(np.abs(x)))))
-    if eps < 1e3 * spacing:
+    """A second explanation when eps is thinner than float64 resolves at x's scale (the state
+    grew since the run began): no step can land inside the strip."""
+    if eps < thinnest_strip(x):
+        spacing = float(np.spacing(state_scale(x)))
         return (
             f"; or eps = {eps:g} is thinner than float64 can resolve near this state (spacing {spacing:.3g}): raise eps"
         )

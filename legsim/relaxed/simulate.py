@@ -17,6 +17,7 @@ from ..methods import Tableau, get_method
 from ..methods.builtin import ADAPTIVE_DEFAULTS, SCIPY_NAMES
 from .driver import Options, drive
 from .parts import Aim, Dense, ErrorControl, FixedStep, Halve
+from .resolution import state_scale, thinnest_strip
 from .watches import check as check_watches
 
 #: Landing rules of ``simulate(landing=...)``.
@@ -324,20 +325,16 @@ def _initial_state(
     return x, memory
 
 
-#: A strip must hold this many float64 spacings of the state's scale for a step to land in it.
-RESOLVED_SPACINGS = 16.0
-
-
 def _check_resolution(eps: float, x: np.ndarray, mode: str) -> None:
     """Refuse a strip thinner than float64 can resolve at the initial state's scale: no step
     could land in it, and the run would only crawl towards the first guard."""
-    scale = 1.0 + float(np.max(np.abs(x))) if x.size else 1.0
-    spacing = float(np.spacing(scale))
-    if eps < RESOLVED_SPACINGS * spacing:
+    thinnest = thinnest_strip(x)
+    if eps < thinnest:
+        scale = state_scale(x)
         raise SimulationError(
             f"eps = {eps:g} is thinner than float64 resolves at the scale of the initial state in mode '{mode}' "
-            f"(|x| up to {scale - 1.0:.3g}, values {spacing:.3g} apart there): no step could land in a strip; "
-            f"give eps >= {RESOLVED_SPACINGS * spacing:.3g} in guard units"
+            f"(|x| up to {scale - 1.0:.3g}, values {float(np.spacing(scale)):.3g} apart there): no step could land "
+            f"in a strip; give eps >= {thinnest:.3g} in guard units"
         )
 
 

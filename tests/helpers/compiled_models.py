@@ -6,6 +6,8 @@ of the loop on both paths (tests/relaxed/test_paths.py).
 * ``two_balls``: two balls falling side by side onto one floor; equal heights make their
   impacts simultaneous, which the model resolves together (a joint function), and each ball's
   bounces accumulate into its rest (continuations).
+* ``wall``: a point drifting at 1 m/s into a wall that puts it back at the far edge of the
+  wall's strip, so that every entry crosses at once and time stops advancing (the stall rule).
 """
 
 from __future__ import annotations
@@ -119,3 +121,28 @@ def two_balls(c: float = 0.6) -> HybridSystem:
         Transition("falling", "falling", name="bounce_2", continuation=Continuation("resting", name="rest_2")),
     ]
     return HybridSystem({"falling": falling, "resting": resting}, transitions, name="two balls")
+
+
+@model_function
+def unit_drift(t, x, u, p, dx):
+    dx[0] = 1.0
+
+
+@model_function
+def before_wall(t, x, u, p, g):
+    g[0] = p[0] - x[0]
+
+
+@model_function
+def onto_strip_edge(e, t, x, u, p, out):
+    out[0] = p[0] + p[1]
+
+
+def wall(eps: float) -> HybridSystem:
+    """The point x (m) drifting into the wall at x = 1 m, put back at 1 + eps: the image lies on
+    the strip's far edge (g = -eps), so the next entry crosses with depth eps at once and its
+    strip lasts eps - eps = 0 s, without end."""
+    functions = ModeFunctions(unit_drift, before_wall, onto_strip_edge, params=[1.0, eps])
+    return HybridSystem(
+        {"a": Mode(1, names=("x",), functions=functions)}, [Transition("a", "a", name="wall")], name="wall"
+    )

@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from helpers.compiled_models import paddle, two_balls
+from helpers.compiled_models import paddle, two_balls, wall
 from legsim import simulate
 from legsim.relaxed import driver
 
@@ -106,3 +106,12 @@ def test_t_eval_samples_the_compiled_execution(monkeypatch):
     assert_same(compiled, interpreted)
     assert np.array_equal(compiled.evaluated.times, times)
     assert np.array_equal(compiled.evaluated.stack(), interpreted.evaluated.stack())
+
+
+def test_a_run_that_stops_advancing_ends_stalled_on_both_paths(monkeypatch):
+    # The stall rule is part of the loop, so the kernel ends the run where the Python loop does.
+    compiled, interpreted = both_paths(monkeypatch, wall(1e-6), [0.0], "a", 10.0, 0.1, 1e-6)
+    assert_same(compiled, interpreted)
+    assert compiled.status == "stalled"
+    assert "mode 'a'" in compiled.message and "transition wall" in compiled.message
+    assert len(compiled.transitions) < 2000  # the stall window (1000), not the transition budget (100000)

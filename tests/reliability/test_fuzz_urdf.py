@@ -15,7 +15,8 @@ Allowed: exit 0, 2 or 3 with no traceback (a crash ends the test run: that is th
 nothing outside ``root/scene`` created, changed or removed; no temporary file; the secret
 mesh's bytes in no output ("files outside read"); and a run that went ahead (exit 0 or 3) built
 a robot whose mass is the sum of the URDF's link masses as the test reads them itself (urdfdom
-kept a link whose mass it could not read massless: a "silent wrong result").
+kept a link whose mass it could not read massless: a "silent wrong result"), every inertia one a
+rigid body can have (positive definite, no principal moment above the sum of the two others).
 
 The short form runs in CI; the ``slow``-marked long form draws new inputs (``-m slow`` or
 ``LEGSIM_FULL=1``). Run without xdist to print the outcome counts (docs/reliability.md).
@@ -30,6 +31,7 @@ import tempfile
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
+import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
@@ -166,6 +168,20 @@ def urdf_mass(path: Path) -> float | None:
         return None
 
 
+def unphysical_inertia(path: Path) -> str | None:
+    """The first link whose inertia no rigid body has (not symmetric positive definite, or a
+    principal moment above the sum of the two others beyond 1e-3), read by this test."""
+    root = ET.parse(path).getroot()
+    for link in root.iter("link"):
+        for inertia in link.iterfind("inertial/inertia"):
+            i = {key: float(inertia.get(key)) for key in ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")}
+            matrix = [[i["ixx"], i["ixy"], i["ixz"]], [i["ixy"], i["iyy"], i["iyz"]], [i["ixz"], i["iyz"], i["izz"]]]
+            moments = np.linalg.eigvalsh(np.array(matrix))
+            if not moments[0] > 0.0 or moments[0] + moments[1] < moments[2] * (1.0 - 1e-3):
+                return f"link {link.get('name')!r}: principal moments {moments.tolist()} kg m^2"
+    return None
+
+
 def outcome_of(root: Path, scene: Path) -> tuple[str, str]:
     guarded = {k: v for k, v in snapshot(root).items() if not k.startswith("scene")}
     out_rrd, out_html = scene.parent / "out.rrd", scene.parent / "out.html"
@@ -193,6 +209,9 @@ def outcome_of(root: Path, scene: Path) -> tuple[str, str]:
     expected = urdf_mass(scene.parent / "quadruped.urdf")
     if expected is None or abs(mass - expected) > 1e-9 * max(1.0, expected):
         return "silent wrong results", f"the robot weighs {mass} kg, its URDF's links {expected} kg"
+    unphysical = unphysical_inertia(scene.parent / "quadruped.urdf")
+    if unphysical is not None:
+        return "silent wrong results", f"the run went ahead with {unphysical}"
     if json.loads(out)["status"] == "finished" and code != 0:
         return "silent wrong results", f"exit {code} for a finished run"
     return "ran (exit 0 or 3)", ""

@@ -122,6 +122,15 @@ def test_bad_urdfs_and_tables_are_named(tmp_path):
         urdf.make({"file": str(QUADRUPED), "contacts": [CONTACTS[0], {"name": "f", "frame": "front_foot", "mu": 1.0}]})
     with pytest.raises(SceneError, match=r"actuated: joint\(s\) \['hind_hip'\] listed more than once"):
         urdf.make({"file": str(QUADRUPED), "actuated": ["hind_hip", "hind_knee", "hind_hip"]})
+    # An index or an unknown name reached Pinocchio's getJointId: an ArgumentError over five
+    # lines, or an IndexError naming nothing (found by the controller parameters' fuzzer).
+    for actuated, message in (
+        ([0], r"actuated: expected joint names \(strings\) or \['all'\], got \[0\]; joints: \['front_hip'"),
+        (["nope"], r"actuated: unknown joint\(s\) \['nope'\]; joints: \['front_hip'"),
+        (["root"], r"actuated: unknown joint\(s\) \['root'\]"),
+    ):
+        with pytest.raises(SceneError, match=message):
+            urdf.make({"file": str(QUADRUPED), "actuated": actuated})
     with pytest.raises(SceneError, match=r"stops\[0\].position: expected a float"):
         urdf.make({"file": str(QUADRUPED), "stops": [{"name": "s", "joint": "hind_knee", "position": "high"}]})
     scene = tmp_path / "robot.toml"

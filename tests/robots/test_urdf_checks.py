@@ -59,6 +59,11 @@ def test_a_mass_that_is_no_mass_is_refused_naming_file_link_and_value(tmp_path, 
     [
         ('iyy="0.45"', 'iyy="-0.45"', r"<inertia ixx=0.02 .* iyy=-0.45 .*> is not positive definite"),
         ('ixy="0"', 'ixy="0.5"', r"<inertia ixx=0.02 ixy=0.5 .*> is not positive definite"),
+        (
+            'izz="0.45"',
+            'izz="0.9"',
+            r"<inertia ixx=0.02 .* izz=0.9> has principal moments 0.02, 0.45 and 0.9 kg m\^2: the largest exceeds",
+        ),
         ('<inertia ixx="0.02" ', "<inertia ", r"<inertia> has no ixx"),
         ('<mass value="5.0"/>', "", r"<inertial> has no <mass>"),
     ],
@@ -68,6 +73,16 @@ def test_an_inertia_that_no_rigid_body_has_is_refused(tmp_path, old, new, messag
     file.write_text(QUADRUPED.replace(old, new, 1))
     with pytest.raises(ModelError, match=rf"^{file}: link 'body': {message}"):
         urdf.load_model(file)
+
+
+@pytest.mark.parametrize("izz", ["0.47", "0.4704"])
+def test_a_flat_body_meets_the_triangle_inequality_with_equality_and_is_kept(tmp_path, izz):
+    # A flat plate in the (x, y) plane has izz = ixx + iyy exactly (0.47 here); 0.4704 is that sum
+    # rounded up in its fourth digit, within TRIANGLE_SLACK.
+    file = tmp_path / "q.urdf"
+    file.write_text(QUADRUPED.replace('izz="0.45"', f'izz="{izz}"', 1))
+    model, _ = urdf.load_model(file)
+    assert model.inertias[1].inertia[2, 2] == pytest.approx(float(izz))
 
 
 def test_a_scene_with_a_massless_body_is_refused_before_the_run(tmp_path):
@@ -182,7 +197,7 @@ def test_a_mesh_outside_the_scenes_folder_never_reaches_an_output(tmp_path, kind
     scene = scene_folder(tmp_path, QUADRUPED.replace('<box size="0.8 0.2 0.1"/>', f'<mesh filename="{name}"/>'))
     code, _, err = run_cli("run", scene, "--rrd", folder / "out.rrd", "--html", folder / "out.html")
     assert code == 2, err
-    assert "quadruped.urdf: <mesh filename=" in err and name in err
+    assert "quadruped.urdf: link 'body': <mesh filename=" in err and name in err
     assert sorted(p.name for p in folder.iterdir()) == ["link.stl", "quadruped.urdf", "stand.toml"]
 
 

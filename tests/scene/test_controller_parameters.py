@@ -51,6 +51,7 @@ def test_joint_pd_targets_of_the_wrong_type_shape_or_range_are_refused_by_name(v
     assert err.startswith(f"legsim: error: {path}: ")
     assert len(err.splitlines()) == 1
     assert re.search(message, err), err
+    assert "(controller 'joint_pd')" in err  # the field alone does not say which controller reads it
 
 
 def test_parameters_that_are_no_table_are_refused():
