@@ -143,7 +143,9 @@ def source_digest(path: Path) -> str:
         seen[current] = None
         todo.extend(_imports(current))
     digest = hashlib.sha256()
-    for entry in sorted(seen):
+    # Ordered by the path inside the package, the same whether robots/ sits beside legsim/ (a
+    # checkout) or inside it (an install): prebuilt entries are found in both.
+    for entry in sorted(seen, key=lambda found: (package_subpath(found), found.name)):
         digest.update(str(entry.name).encode())
         digest.update(entry.read_bytes())
     return digest.hexdigest()[:24]

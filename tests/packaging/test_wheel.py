@@ -104,3 +104,29 @@ def test_a_robot_scene_without_the_native_extension_says_what_is_missing(install
     assert result.returncode == 2 and "Traceback" not in result.stderr
     assert "pronk.toml" in result.stderr and "robot 'pronk' could not be built" in result.stderr
     assert "legsim.robots._native._pinlegsim was not built" in result.stderr and "compiler" in result.stderr
+
+
+DIGESTS = """
+import json
+from legsim.compiled.cache import PACKAGE_ROOT, source_digest
+files = sorted((PACKAGE_ROOT / "robots").rglob("*.py"))
+print(json.dumps({path.relative_to(PACKAGE_ROOT).as_posix(): source_digest(path) for path in files}))
+"""
+
+
+def test_compiled_code_is_stamped_alike_installed_and_in_a_checkout(installed):
+    # The prebuilt code a wheel ships is made in a checkout, where robots/ sits beside legsim/;
+    # installed, it sits inside. A stamp depending on that layout would make every first run
+    # after `pip install` compile for minutes.
+    from legsim.compiled.cache import source_digest
+
+    _, tmp, work = installed
+    (tmp / "digests.py").write_text(DIGESTS)
+    env = {**os.environ, "PYTHONPATH": f"{tmp / 'site'}{os.pathsep}{tmp / 'deps'}"}
+    done = subprocess.run(
+        [sys.executable, "-S", str(tmp / "digests.py")], cwd=work, env=env, capture_output=True, text=True, timeout=120
+    )
+    assert done.returncode == 0, done.stderr
+    installed_digests = json.loads(done.stdout)
+    assert len(installed_digests) > 20
+    assert installed_digests == {name: source_digest(ROOT / name) for name in installed_digests}
