@@ -150,8 +150,8 @@ def test_an_unknown_guess_name_lists_the_controller_memory():
         ),
         (
             '{ after = "touchdown_left", mode = "right" }',
-            "orbit.section.mode: section after "
-            "touchdown_left into right: no transition 'touchdown_left' leads to mode 'right'; it leads to ['both', 'left']",
+            "orbit.section.mode: section after touchdown_left into right: "
+            "no transition 'touchdown_left' leads to mode 'right'; it leads to ['both', 'left']",
         ),
         ('{ after = "touchdown_left", mode = 3 }', "orbit.section.mode: expected a mode name, got integer 3"),
         ('{ after = "touchdown_left", value = 3 }', "orbit.section: 'after' takes only 'mode' besides"),
