@@ -280,10 +280,16 @@ def format_orbit(payload: dict[str, Any], name: str) -> str:
     trivial = (
         f", {payload['trivial_multipliers']} trivial multiplier(s) 1 left out" if payload["trivial_multipliers"] else ""
     )
-    lines.append(f"{_verdict(payload['stable'])}: spectral radius {payload['spectral_radius']:.6g}{trivial}")
+    radius = f"spectral radius {payload['spectral_radius']:.6g}{trivial}"
+    if payload.get("differentiable") is False:
+        radius = f"by the piecewise-linear derivative (central differences' {radius})"
+    lines.append(f"{_verdict(payload['stable'])}: {radius}")
     if payload.get("differentiable") is False:
         for side in ("forward", "backward"):
             lines.append(f"  {side}-difference multipliers: " + _multipliers_text(payload[f"multipliers_{side}"]))
+    if payload.get("piecewise"):
+        piecewise = payload["piecewise"]
+        lines.append(f"piecewise-linear derivative: {piecewise['verdict']}: {piecewise['reason']}")
     lines.extend(f"warning: {text}" for text in payload.get("warnings", []))
     lines.append("transitions per period: " + ", ".join(payload["transitions"]))
     return "\n".join(lines)

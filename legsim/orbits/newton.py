@@ -52,6 +52,7 @@ from .jacobians import (
     jacobian_saltation,
 )
 from .kinks import CheckedJacobian
+from .piecewise import Verdict, piecewise_verdict
 from .problem import OrbitProblem, Return
 from .returns import ReturnMap
 
@@ -99,6 +100,8 @@ class OrbitResult:
         restriction M to the section.
     residual: max-norm of the orbit equations at fixed_point; iterations: Newton iterations.
     history: residual max-norm after each iteration.
+    piecewise: where the map is not differentiable, the stability verdict of its piecewise-linear
+        derivative (``legsim.orbits.piecewise``), which ``stable`` then reports.
     map_accuracy: what the return map resolves at the first iterate within tol (noise,
         resolved residual, change at refined settings; ``legsim.orbits.accuracy``); None when
         no iterate came within tol.
@@ -140,6 +143,7 @@ class OrbitResult:
     multipliers_backward: np.ndarray | None = None
     warnings: list[str] = field(default_factory=list)
     map_accuracy: MapAccuracy | None = None
+    piecewise: Verdict | None = None
 
     @property
     def converged(self) -> bool:
@@ -166,8 +170,12 @@ class OrbitResult:
 
     @property
     def stable(self) -> bool | None:
+        """From the multipliers; where the map is not differentiable, the piecewise-linear
+        verdict's (None when unresolved)."""
+        if self.differentiable is False:
+            return None if self.piecewise is None else self.piecewise.stable
         rho = self.spectral_radius
-        return None if rho is None or self.differentiable is False else rho < 1.0
+        return None if rho is None else rho < 1.0
 
     def raise_for_status(self) -> OrbitResult:
         """Raise ``OrbitError`` with the message unless the search converged."""
@@ -214,6 +222,7 @@ class OrbitResult:
             "multipliers_backward": _pairs(self.multipliers_backward, num),
             "warnings": list(self.warnings),
             "map_accuracy": None if self.map_accuracy is None else self.map_accuracy.to_json(),
+            "piecewise": None if self.piecewise is None else self.piecewise.to_json(),
         }
 
 
@@ -749,12 +758,22 @@ def _add_differentiability(result: OrbitResult, problem: OrbitProblem, checked: 
     result.multipliers_forward = floquet_multipliers(checked.forward, f, problem.cyclic_idx)[0]
     result.multipliers_backward = floquet_multipliers(checked.backward, f, problem.cyclic_idx)[0]
     radius = {side: _radius(result, side) for side in ("forward", "backward")}
+    result.piecewise = piecewise_verdict(
+        checked.forward,
+        checked.backward,
+        checked.central,
+        checked.orders,
+        f,
+        problem.cyclic_idx,
+        problem.trivial_multipliers,
+    )
     result.warnings.append(
         f"the return map is not differentiable at the orbit: the forward and backward differences of "
         f"its Jacobian disagree in the column(s) of {', '.join(names)} (a kink, e.g. transitions that "
-        f"switch order there), so the multipliers are not resolved and stability is unknown: spectral "
+        f"switch order there), so the multipliers do not decide stability: spectral "
         f"radius {result.spectral_radius:.4g} (central), {radius['forward']:.4g} (forward), "
-        f"{radius['backward']:.4g} (backward differences)"
+        f"{radius['backward']:.4g} (backward differences); piecewise-linear verdict: "
+        f"{result.piecewise.kind} ({result.piecewise.reason})"
     )
 
 

@@ -139,7 +139,11 @@ def test_json_and_text_say_unresolved(kinked):
     assert payload["multipliers_forward"][0] == [kinked.multipliers_forward[0].real, 0.0]
     assert payload["multipliers_backward"][0] == [kinked.multipliers_backward[0].real, 0.0]
     text = format_orbit(payload, "kinked lap")
-    assert "\nunresolved: spectral radius 0.89" in text
+    assert "\nunresolved: by the piecewise-linear derivative (central differences' spectral radius 0.89" in text
+    # The lap's kink is a reset that depends on y's sign, not an order of events: every return
+    # takes the one transition, so there are no event orders to tell the pieces apart.
+    assert payload["piecewise"]["verdict"] == "unresolved"
+    assert "1 transition order(s) among the stencil's returns (restart)" in payload["piecewise"]["reason"]
     lines = {line.split(":")[0].strip(): line.split(":")[1] for line in text.splitlines() if ":" in line}
     assert float(lines["backward-difference multipliers"].split()[0]) == pytest.approx(1.6, abs=1e-4)
     assert float(lines["forward-difference multipliers"].split()[0]) == pytest.approx(A_SIDE * RHO, abs=1e-4)
