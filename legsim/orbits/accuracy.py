@@ -15,7 +15,9 @@ the search's last point z (``estimate_accuracy``):
   ~ 1e-11 (1 + |z|) |jump|: what is left is the noise (rounding, and the integrator's discrete
   choices where they change within the probe), and a jump of the map at z. Probes this small
   rarely cross the places where the integrator's choices change, so the estimate is the noise
-  at the point, not over the distance Newton's steps cover.
+  at the point, not over the distance Newton's steps cover: where a Newton step fails to lower a
+  residual within tol, the noise is measured again with probes the size of that step
+  (``legsim.orbits.newton``).
 * **refinement**: the max-norm change of F at z when the map is computed at h/2 and eps/2 (and
   rtol, atol / 16 when the steps are error-controlled): the residual a finer integrator would
   report at the same point, a measure of how far the computed map's orbit is from the hybrid
@@ -73,11 +75,12 @@ class MapAccuracy:
     refined: str
     noisiest: str = ""
     note: str = ""
+    probe: str = f"{NOISE_STEP:g} (relative)"
 
     def describe(self) -> str:
         """The noise in words: its size, the probe step and the equation it is largest in."""
         where = f" (largest in the row of {self.noisiest})" if self.noisiest else ""
-        text = f"perturbations of {NOISE_STEP:g} (relative) change the orbit equations by up to {self.noise:.3g}{where}"
+        text = f"perturbations of {self.probe} change the orbit equations by up to {self.noise:.3g}{where}"
         return text + (f"; {self.note}" if self.note else "")
 
     def warnings(self, tol: float) -> list[str]:
@@ -105,6 +108,7 @@ class MapAccuracy:
             "refined": self.refined,
             "noisiest": self.noisiest,
             "note": self.note,
+            "probe": self.probe,
         }
 
 
@@ -112,12 +116,12 @@ def _finite(value: float | None) -> float | None:
     return None if value is None or not math.isfinite(value) else float(value)
 
 
-def probe_directions(z: np.ndarray) -> list[np.ndarray]:
+def probe_directions(z: np.ndarray, scale: np.ndarray | None = None) -> list[np.ndarray]:
     """The noise estimate's perturbations, shape (len(z),) each: fixed pseudo-random signs and
-    sizes in [0.5, 1] of ``NOISE_STEP (1 + |z_i|)`` (the same at every call, so a search's report
-    is reproducible)."""
+    sizes in [0.5, 1] of ``scale`` (default ``NOISE_STEP (1 + |z_i|)``; the same at every call,
+    so a search's report is reproducible)."""
     rng = np.random.default_rng(20261128)
-    scale = NOISE_STEP * (1.0 + np.abs(z))
+    scale = NOISE_STEP * (1.0 + np.abs(z)) if scale is None else np.asarray(scale, dtype=float)
     return [
         scale * rng.choice((-1.0, 1.0), size=z.size) * rng.uniform(0.5, 1.0, size=z.size)
         for _ in range(NOISE_DIRECTIONS)
@@ -144,6 +148,7 @@ def estimate_accuracy(
     evaluate_refined: Callable[[np.ndarray], np.ndarray] | None,
     refined: str,
     row_names: Sequence[str] = (),
+    scale: np.ndarray | None = None,
 ) -> MapAccuracy:
     """The map's noise and refinement at the unknowns z (module docstring).
 
@@ -153,7 +158,7 @@ def estimate_accuracy(
     ``OrbitError`` when the map has no return there; a failed probe counts as infinite noise
     (the map is not even defined next to z)."""
     noise, noisiest, notes, probed = 0.0, "", [], 0
-    for d in probe_directions(z):
+    for d in probe_directions(z, scale):
         try:
             second = 0.5 * np.abs(evaluate(z + d) + evaluate(z - d) - 2.0 * F)
         except OrbitError as exc:
@@ -177,4 +182,5 @@ def estimate_accuracy(
         except OrbitError as exc:
             notes.append(f"the refined map ({refined}) has no return ({exc.status})")
     resolved = floor if math.isnan(noise) else max(RESOLVED_FACTOR * noise, floor)
-    return MapAccuracy(noise, resolved, refinement, refined, noisiest, "; ".join(notes))
+    probe = f"{NOISE_STEP:g} (relative)" if scale is None else f"up to {float(np.max(np.abs(scale))):.3g}"
+    return MapAccuracy(noise, resolved, refinement, refined, noisiest, "; ".join(notes), probe)

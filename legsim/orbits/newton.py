@@ -443,6 +443,7 @@ class _NewtonSearch:
         self.F = np.empty(0)
         self.res = math.inf
         self.accuracy: MapAccuracy | None = None
+        self.last_step: np.ndarray | None = None
 
     def run(self, max_iterations: int) -> OrbitResult:
         """Iterate from the initial guess until converged, failed, or ``max_iterations`` steps."""
@@ -481,14 +482,33 @@ class _NewtonSearch:
             max_iterations,
         )
 
-    def _estimate_accuracy(self) -> MapAccuracy:
-        """What the map resolves at the current iterate (``legsim.orbits.accuracy``)."""
+    def _estimate_accuracy(self, scale: np.ndarray | None = None) -> MapAccuracy:
+        """What the map resolves at the current iterate (``legsim.orbits.accuracy``), probed at
+        ``scale`` (default the module's tiny probes; the refined map is evaluated only then)."""
         refined, words = refined_problem(self.p)
         x, _, memory = self.eq.unpack(self.z)
         fine = _Equations(refined, x, memory, ReturnMap(refined))
         return estimate_accuracy(
-            self.z, self.F, lambda z: self.eq.evaluate(z)[1], lambda z: fine.evaluate(z)[1], words, self.eq.row_names
+            self.z,
+            self.F,
+            lambda z: self.eq.evaluate(z)[1],
+            None if scale is not None else (lambda z: fine.evaluate(z)[1]),
+            words,
+            self.eq.row_names,
+            scale,
         )
+
+    def _resolved_at_step_scale(self) -> MapAccuracy | None:
+        """The map's noise measured with probes as large as the Newton step that failed, when
+        that noise accounts for the residual (the map resolves no better at the scale of the
+        correction the residual calls for); None otherwise."""
+        if self.last_step is None or self.accuracy is None:
+            return None
+        coarse = self._estimate_accuracy(np.abs(self.last_step))
+        if self.res > coarse.resolved:
+            return None
+        coarse.refinement, coarse.refined = self.accuracy.refinement, self.accuracy.refined
+        return coarse
 
     def _unresolved(self, it: int) -> OrbitResult:
         """``map_unresolved``: the residual is within tol but the map's noise is not."""
@@ -525,6 +545,16 @@ class _NewtonSearch:
         acc = self.accuracy
         if acc is None or failure.residual > self.tol:
             return failure
+        coarse = None if failure.status == "stalled" else self._resolved_at_step_scale()
+        if coarse is not None:
+            self.accuracy = coarse
+            result = self.converged(failure.iterations)
+            result.message = (
+                f"residual {self.res:.3g} <= tol {self.tol:g} after {failure.iterations} iteration(s); no Newton "
+                f"step lowers it, and at the scale of that step the return map resolves only {coarse.resolved:.3g} "
+                f"({coarse.describe()})"
+            )
+            return result
         if failure.status == "stalled":
             result = self.converged(failure.iterations)
             result.message = (
@@ -561,6 +591,7 @@ class _NewtonSearch:
         if sv[-1] <= self.singular_tol * sv[0]:
             return self.fail("singular_jacobian", self._singular_message(it, sv, Vt[-1]), it)
         dz = -(Vt.T @ ((U.T @ self.F) / sv))
+        self.last_step = dz
         trial = self._line_search(dz)
         if trial is None:
             return self._no_step(it, dz, z_scale)
