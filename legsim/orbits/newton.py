@@ -519,7 +519,8 @@ class _NewtonSearch:
             f"the residual {self.res:.3g} is within tol {self.tol:g} after {it} iteration(s), but the return map "
             f"does not resolve tol here: {acc.describe()}; no residual below that noise vouches for an orbit "
             f"(a jump of the return map at this point, e.g. transitions whose order rounding decides and "
-            f"that change the return by that much)",
+            f"that change the return by that much), and a map with a jump has no multipliers and no "
+            f"piecewise-linear derivative to give a stability verdict",
             it,
         )
 
