@@ -259,6 +259,8 @@ def format_orbit(payload: dict[str, Any], name: str) -> str:
         lines.append("last iterate:")
     if "integrator" in payload:
         lines.append(f"integrator: {describe_integrator(payload['integrator'])}")
+    if payload.get("map_accuracy"):
+        lines.append(_accuracy_text(payload["map_accuracy"]))
     lines.append(f"section: {payload['section']} (mode {payload['mode']})")
     memory = payload.get("memory", {})
     width = max(len(n) for n in list(payload["state_names"]) + list(payload["free"]) + list(memory))
@@ -278,13 +280,33 @@ def format_orbit(payload: dict[str, Any], name: str) -> str:
     trivial = (
         f", {payload['trivial_multipliers']} trivial multiplier(s) 1 left out" if payload["trivial_multipliers"] else ""
     )
-    lines.append(f"{_verdict(payload['stable'])}: spectral radius {payload['spectral_radius']:.6g}{trivial}")
+    radius = f"spectral radius {payload['spectral_radius']:.6g}{trivial}"
+    if payload.get("differentiable") is False:
+        radius = f"by the piecewise-linear derivative (central differences' {radius})"
+    lines.append(f"{_verdict(payload['stable'])}: {radius}")
     if payload.get("differentiable") is False:
         for side in ("forward", "backward"):
             lines.append(f"  {side}-difference multipliers: " + _multipliers_text(payload[f"multipliers_{side}"]))
+    if payload.get("piecewise"):
+        piecewise = payload["piecewise"]
+        lines.append(f"piecewise-linear derivative: {piecewise['verdict']}: {piecewise['reason']}")
     lines.extend(f"warning: {text}" for text in payload.get("warnings", []))
     lines.append("transitions per period: " + ", ".join(payload["transitions"]))
     return "\n".join(lines)
+
+
+def _accuracy_text(acc: dict[str, Any]) -> str:
+    """The map accuracy line: noise, resolved residual, change at refined settings."""
+    noise = "unknown" if acc["noise"] is None else f"{acc['noise']:.3g}"
+    where = f" (row {acc['noisiest']})" if acc.get("noisiest") else ""
+    text = (
+        f"return map resolves: {acc['resolved']:.3g} (noise {noise}{where})"
+        if acc["resolved"] is not None
+        else (f"return map resolves: unknown (noise {noise})")
+    )
+    if acc["refinement"] is not None:
+        text += f"; at {acc['refined']} the equations change by {acc['refinement']:.3g}"
+    return text + (f"; {acc['note']}" if acc.get("note") else "")
 
 
 def _multipliers_text(pairs: list[list[float]] | None) -> str:

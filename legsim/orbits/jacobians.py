@@ -373,11 +373,16 @@ class _FiniteDifferences:
         self.start = np.concatenate([x, problem.memory_guess if memory is None else memory])
         self.names = list(problem.names) + list(problem.memory_names)
         self._base = None if base is None else np.asarray(base, dtype=float)
+        # The transitions each evaluation took, by the step from the point (0.0: the point).
+        self.orders: dict[tuple[int, float], tuple[str, ...]] = {}
 
-    def at(self, z: np.ndarray) -> np.ndarray:
-        """The augmented return from the augmented state z, shape (n + m,)."""
+    def at(self, z: np.ndarray, key: tuple[int, float] = (-1, 0.0)) -> np.ndarray:
+        """The augmented return from the augmented state z, shape (n + m,); the transitions it
+        took are kept under ``key`` (column, step)."""
         n = self.p.dim
-        return self.rmap(z[:n], self.parameters, z[n:]).end
+        ret = self.rmap(z[:n], self.parameters, z[n:])
+        self.orders[key] = tuple(tr.name for tr in ret.transitions)
+        return ret.end
 
     def base(self) -> np.ndarray:
         """P at the point itself, evaluated once."""
@@ -391,7 +396,7 @@ class _FiniteDifferences:
         def along(delta: float) -> np.ndarray:
             z = self.start.copy()
             z[j] += delta
-            return self.at(z)
+            return self.at(z, (j, delta))
 
         return along
 
@@ -401,6 +406,7 @@ class _FiniteDifferences:
         J = np.zeros((size, size))
         forward, backward = J.copy(), J.copy()
         stencils: dict[int, ColumnStencil] = {}
+        orders: dict[int, tuple[tuple[str, ...], tuple[str, ...]]] = {}
         for j in range(size) if columns is None else columns:
             if j in self.p.cyclic_idx:
                 J[j, j] = forward[j, j] = backward[j, j] = 1.0
@@ -416,8 +422,11 @@ class _FiniteDifferences:
                 if stencil is not None:
                     stencils[j] = stencil
                     forward[:, j], backward[:, j] = stencil.forward, stencil.backward
+                    orders[j] = (self.orders[(j, d)], self.orders[(j, -d)])
         unchecked = tuple(j for j in range(J.shape[1]) if check and j not in stencils and j not in self.p.cyclic_idx)
-        return CheckedJacobian(J, forward, backward, tuple(sorted(stencils)), kinked_columns(stencils, J), unchecked)
+        return CheckedJacobian(
+            J, forward, backward, tuple(sorted(stencils)), kinked_columns(stencils, J), unchecked, orders
+        )
 
     def _stencil(self, j: int, d: float, plus: np.ndarray, minus: np.ndarray) -> ColumnStencil | None:
         """The column's stencil with its half step, None when that simulation fails (unchecked)."""

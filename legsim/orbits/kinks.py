@@ -28,7 +28,7 @@ central one cannot vouch for.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -95,6 +95,8 @@ class CheckedJacobian:
     checked: the columns compared; kinked: those whose one-sided differences disagree;
     unchecked: the non-cyclic columns that could not be compared (a simulation of the stencil
     failed: where a map stops being smooth, that is likely).
+    orders: for each checked column, the transitions (names, in order) of the returns from
+    x + d e_j and x - d e_j: which event order each side of the stencil produced.
     """
 
     central: np.ndarray
@@ -103,6 +105,7 @@ class CheckedJacobian:
     checked: tuple[int, ...]
     kinked: tuple[int, ...]
     unchecked: tuple[int, ...] = ()
+    orders: dict[int, tuple[tuple[str, ...], tuple[str, ...]]] = field(default_factory=dict)
 
     @property
     def differentiable(self) -> bool | None:

@@ -8,8 +8,17 @@ does not reduce the max-norm residual.
 
 Failures are never answers: ``find_orbit`` returns an ``OrbitResult`` whose ``status`` says why
 it stopped (``no_return``, ``simulation_failed``, ``singular_jacobian``, ``diverged``,
-``stalled``, ``max_iterations``) with a message; ``result.raise_for_status()`` turns it into an
-``OrbitError``.
+``stalled``, ``max_iterations``, ``map_unresolved``) with a message; ``result.raise_for_status()``
+turns it into an ``OrbitError``.
+
+"Converged" needs more than a residual <= tol: at the first point within tol the search
+measures what the return map resolves (``legsim.orbits.accuracy``: its noise under tiny
+perturbations, and its change at h/2, eps/2) and reports it as ``map_accuracy``. A residual
+within tol but above what the map resolves is refined by further Newton steps (the tolerance
+was looser than the map allows); if none lowers it to that level the search ends ``stalled``.
+Where the map's noise itself exceeds tol (a jump of the map at the point: no residual below the
+noise means anything) the search ends ``map_unresolved``. A tol between the noise and the
+resolved level, or a refined map that moves the residual beyond tol, is a warning.
 
 With a controller (``OrbitProblem.controller``) the unknowns gain its memory values after the
 free coordinates, the equations ``memory' - memory = 0`` after the periodicity rows, and the
@@ -30,6 +39,7 @@ import numpy as np
 
 from ..control import ControlLaw
 from ..derivatives import jacobian
+from .accuracy import MapAccuracy, estimate_accuracy, refined_problem
 from .errors import OrbitError
 from .jacobians import (
     check_fd_step,
@@ -42,6 +52,7 @@ from .jacobians import (
     jacobian_saltation,
 )
 from .kinks import CheckedJacobian
+from .piecewise import Verdict, piecewise_verdict
 from .problem import OrbitProblem, Return
 from .returns import ReturnMap
 
@@ -51,7 +62,16 @@ from .returns import ReturnMap
 #: own error (~1e-6 relative), so that error cannot decide it.
 NEAR_SINGULAR = 1e-4
 
-STATUSES = ("converged", "no_return", "simulation_failed", "singular_jacobian", "diverged", "stalled", "max_iterations")
+STATUSES = (
+    "converged",
+    "no_return",
+    "simulation_failed",
+    "singular_jacobian",
+    "diverged",
+    "stalled",
+    "max_iterations",
+    "map_unresolved",
+)
 
 
 @dataclass
@@ -80,6 +100,11 @@ class OrbitResult:
         restriction M to the section.
     residual: max-norm of the orbit equations at fixed_point; iterations: Newton iterations.
     history: residual max-norm after each iteration.
+    piecewise: where the map is not differentiable, the stability verdict of its piecewise-linear
+        derivative (``legsim.orbits.piecewise``), which ``stable`` then reports.
+    map_accuracy: what the return map resolves at the first iterate within tol (noise,
+        resolved residual, change at refined settings; ``legsim.orbits.accuracy``); None when
+        no iterate came within tol.
     transitions: names of the transitions of one period.
     evaluations: simulations run.
     memory, memory_names, memory_units: the controller's memory on the orbit (its value at the
@@ -117,6 +142,8 @@ class OrbitResult:
     multipliers_forward: np.ndarray | None = None
     multipliers_backward: np.ndarray | None = None
     warnings: list[str] = field(default_factory=list)
+    map_accuracy: MapAccuracy | None = None
+    piecewise: Verdict | None = None
 
     @property
     def converged(self) -> bool:
@@ -143,8 +170,12 @@ class OrbitResult:
 
     @property
     def stable(self) -> bool | None:
+        """From the multipliers; where the map is not differentiable, the piecewise-linear
+        verdict's (None when unresolved)."""
+        if self.differentiable is False:
+            return None if self.piecewise is None else self.piecewise.stable
         rho = self.spectral_radius
-        return None if rho is None or self.differentiable is False else rho < 1.0
+        return None if rho is None else rho < 1.0
 
     def raise_for_status(self) -> OrbitResult:
         """Raise ``OrbitError`` with the message unless the search converged."""
@@ -190,6 +221,8 @@ class OrbitResult:
             "multipliers_forward": _pairs(self.multipliers_forward, num),
             "multipliers_backward": _pairs(self.multipliers_backward, num),
             "warnings": list(self.warnings),
+            "map_accuracy": None if self.map_accuracy is None else self.map_accuracy.to_json(),
+            "piecewise": None if self.piecewise is None else self.piecewise.to_json(),
         }
 
 
@@ -212,6 +245,16 @@ class _Equations:
         self.rmap = rmap
         self.n_x = len(problem.unknown_idx)
         self.n_xm = self.n_x + len(problem.unknown_memory_idx)
+
+    @property
+    def row_names(self) -> list[str]:
+        """What each row of F says: the coordinate or memory value asked to return to itself,
+        then "section", the constraints' names and "energy"."""
+        p = self.p
+        names = list(p.names) + list(p.memory_names)
+        rows = [names[i] for i in p.augmented_periodic_idx]
+        rows += ["section"] * int(p.has_section_row) + [name for name, _ in p.constraints]
+        return rows + ["energy"] * int(p.energy is not None)
 
     def unpack(self, z: np.ndarray) -> tuple[np.ndarray, dict[str, float], np.ndarray]:
         """(state, all parameter values, controller memory) of the unknowns z."""
@@ -399,6 +442,8 @@ class _NewtonSearch:
         self.ret: Return | None = None
         self.F = np.empty(0)
         self.res = math.inf
+        self.accuracy: MapAccuracy | None = None
+        self.last_step: np.ndarray | None = None
 
     def run(self, max_iterations: int) -> OrbitResult:
         """Iterate from the initial guess until converged, failed, or ``max_iterations`` steps."""
@@ -411,24 +456,124 @@ class _NewtonSearch:
         z_scale = 1.0 + float(np.max(np.abs(self.z)))
         for it in range(max_iterations + 1):
             if self.res <= self.tol:
-                return self.converged(it)
+                if self.accuracy is None:
+                    self.accuracy = self._estimate_accuracy()
+                if self.accuracy.noise > self.tol:
+                    return self._unresolved(it)
+                if self.res <= self.accuracy.resolved:
+                    return self.converged(it)
             if it == max_iterations:
                 break
             failure = self.iterate(it, z_scale)
             if failure is not None:
-                return failure
+                return self._above_resolution(self._stalled_above_tol(failure))
             if float(np.max(np.abs(self.z))) > 1e8 * z_scale:
                 return self.fail(
                     "diverged",
                     f"iteration {it + 1}: the iterates run away (|z| = {np.max(np.abs(self.z)):.3g})",
                     it + 1,
                 )
+        if self.res <= self.tol:
+            return self._above_resolution(self.fail("max_iterations", "", max_iterations))
         return self.fail(
             "max_iterations",
             f"no convergence in {max_iterations} iterations: residual {self.res:.3g} "
             f"> tol {self.tol:g} (history {[float(f'{v:.3g}') for v in self.history]})",
             max_iterations,
         )
+
+    def _estimate_accuracy(self, scale: np.ndarray | None = None) -> MapAccuracy:
+        """What the map resolves at the current iterate (``legsim.orbits.accuracy``), probed at
+        ``scale`` (default the module's tiny probes; the refined map is evaluated only then)."""
+        refined, words = refined_problem(self.p)
+        x, _, memory = self.eq.unpack(self.z)
+        fine = _Equations(refined, x, memory, ReturnMap(refined))
+        return estimate_accuracy(
+            self.z,
+            self.F,
+            lambda z: self.eq.evaluate(z)[1],
+            None if scale is not None else (lambda z: fine.evaluate(z)[1]),
+            words,
+            self.eq.row_names,
+            scale,
+        )
+
+    def _resolved_at_step_scale(self) -> MapAccuracy | None:
+        """The map's noise measured with probes as large as the Newton step that failed, when
+        that noise accounts for the residual (the map resolves no better at the scale of the
+        correction the residual calls for); None otherwise."""
+        if self.last_step is None or self.accuracy is None:
+            return None
+        coarse = self._estimate_accuracy(np.abs(self.last_step))
+        if self.res > coarse.resolved:
+            return None
+        coarse.refinement, coarse.refined = self.accuracy.refinement, self.accuracy.refined
+        return coarse
+
+    def _unresolved(self, it: int) -> OrbitResult:
+        """``map_unresolved``: the residual is within tol but the map's noise is not."""
+        acc = self.accuracy
+        assert acc is not None
+        return self.fail(
+            "map_unresolved",
+            f"the residual {self.res:.3g} is within tol {self.tol:g} after {it} iteration(s), but the return map "
+            f"does not resolve tol here: {acc.describe()}; no residual below that noise vouches for an orbit "
+            f"(a jump of the return map at this point, e.g. transitions whose order rounding decides and "
+            f"that change the return by that much), and a map with a jump has no multipliers and no "
+            f"piecewise-linear derivative to give a stability verdict",
+            it,
+        )
+
+    def _stalled_above_tol(self, failure: OrbitResult) -> OrbitResult:
+        """A search stalled above tol says what the map resolves there: whether tol is tighter
+        than the map can resolve."""
+        if failure.status != "stalled" or self.accuracy is not None:
+            return failure
+        self.accuracy = failure.map_accuracy = self._estimate_accuracy()
+        if self.tol < self.accuracy.resolved:
+            failure.message += (
+                f"; tol {self.tol:g} is tighter than the return map resolves here "
+                f"({self.accuracy.resolved:.3g}: {self.accuracy.describe()})"
+            )
+        return failure
+
+    def _above_resolution(self, failure: OrbitResult) -> OrbitResult:
+        """A failed refinement of an iterate within tol but above what the map resolves:
+        converged when the Newton step is below rounding (the point solves the linearised
+        equations in the least-squares sense, and the residual is their inconsistency, e.g. a
+        conserved quantity the integrator conserves only to its error), else ``stalled`` at that
+        iterate, saying so; other failures stand as they are."""
+        acc = self.accuracy
+        if acc is None or failure.residual > self.tol:
+            return failure
+        coarse = None if failure.status == "stalled" else self._resolved_at_step_scale()
+        if coarse is not None:
+            self.accuracy = coarse
+            result = self.converged(failure.iterations)
+            result.message = (
+                f"residual {self.res:.3g} <= tol {self.tol:g} after {failure.iterations} iteration(s); no Newton "
+                f"step lowers it, and at the scale of that step the return map resolves only {coarse.resolved:.3g} "
+                f"({coarse.describe()})"
+            )
+            return result
+        if failure.status == "stalled":
+            result = self.converged(failure.iterations)
+            result.message = (
+                f"residual {self.res:.3g} <= tol {self.tol:g} after {failure.iterations} iteration(s); above what "
+                f"the return map resolves ({acc.resolved:.3g}), but the Newton step is below rounding: the orbit "
+                f"equations are consistent only to {self.res:.3g} (overdetermined, e.g. a conserved quantity the "
+                f"integrator keeps to its own error)"
+            )
+            return result
+        failure.status = "stalled"
+        failure.message = (
+            f"the residual {self.res:.3g} is within tol {self.tol:g} but above what the return map resolves "
+            f"({acc.resolved:.3g}; {acc.describe()}), and Newton's method did not lower it to that "
+            f"level" + (f" ({failure.message})" if failure.message else "") + ": the point is not an orbit "
+            "to the map's accuracy (tol is looser than the map allows; a kink of the map at the orbit can "
+            "also stop Newton's method)"
+        )
+        return failure
 
     def iterate(self, it: int, z_scale: float) -> OrbitResult | None:
         """One Newton step with backtracking; the failed result when there is none."""
@@ -447,6 +592,7 @@ class _NewtonSearch:
         if sv[-1] <= self.singular_tol * sv[0]:
             return self.fail("singular_jacobian", self._singular_message(it, sv, Vt[-1]), it)
         dz = -(Vt.T @ ((U.T @ self.F) / sv))
+        self.last_step = dz
         trial = self._line_search(dz)
         if trial is None:
             return self._no_step(it, dz, z_scale)
@@ -558,7 +704,8 @@ class _NewtonSearch:
             return self.fail(exc.status, f"converged (residual {self.res:.3g}) but the Jacobian failed: {exc}", it)
         result = self._result(
             "converged",
-            f"residual {self.res:.3g} <= tol {self.tol:g} after {it} iteration(s)",
+            f"residual {self.res:.3g} <= tol {self.tol:g} and within what the return map resolves after "
+            f"{it} iteration(s)",
             ret.x_start,
             ret.parameters,
             it,
@@ -593,7 +740,10 @@ class _NewtonSearch:
             memory=np.asarray(memory, dtype=float).copy(),
             memory_names=p.memory_names,
             memory_units=p.memory_units,
+            map_accuracy=self.accuracy,
         )
+        if self.accuracy is not None and status == "converged":
+            result.warnings.extend(self.accuracy.warnings(self.tol))
         if self.ret is not None:
             result.period = self.ret.flow_time
             result.return_time = self.ret.time
@@ -640,12 +790,22 @@ def _add_differentiability(result: OrbitResult, problem: OrbitProblem, checked: 
     result.multipliers_forward = floquet_multipliers(checked.forward, f, problem.cyclic_idx)[0]
     result.multipliers_backward = floquet_multipliers(checked.backward, f, problem.cyclic_idx)[0]
     radius = {side: _radius(result, side) for side in ("forward", "backward")}
+    result.piecewise = piecewise_verdict(
+        checked.forward,
+        checked.backward,
+        checked.central,
+        checked.orders,
+        f,
+        problem.cyclic_idx,
+        problem.trivial_multipliers,
+    )
     result.warnings.append(
         f"the return map is not differentiable at the orbit: the forward and backward differences of "
         f"its Jacobian disagree in the column(s) of {', '.join(names)} (a kink, e.g. transitions that "
-        f"switch order there), so the multipliers are not resolved and stability is unknown: spectral "
+        f"switch order there), so the multipliers do not decide stability: spectral "
         f"radius {result.spectral_radius:.4g} (central), {radius['forward']:.4g} (forward), "
-        f"{radius['backward']:.4g} (backward differences)"
+        f"{radius['backward']:.4g} (backward differences); piecewise-linear verdict: "
+        f"{result.piecewise.kind} ({result.piecewise.reason})"
     )
 
 

@@ -192,11 +192,11 @@ class ReturnMap:
         return self._locate_crossing(ex, x0, params)
 
     def _locate_after_transition(self, ex: Execution, x0: np.ndarray, params: dict[str, float]) -> Return | None:
-        """The ``returns``-th time the section's transition is taken."""
+        """The ``returns``-th time the section's transition is taken into the section's mode."""
         p = self.problem
         count = 0
         for k, rec in enumerate(ex.transitions):
-            if rec.name == p.section.transition:
+            if rec.name == p.section.transition and rec.target == p.bound.mode:
                 count += 1
                 if count == p.returns:
                     return self._make_return(

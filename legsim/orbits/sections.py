@@ -4,7 +4,10 @@
 one mode, crossed in a given direction (e.g. the apex ``zd = 0`` while zd decreases in flight);
 ``Section.level(mode, name, value, direction)`` is the common case s = x[name] - value;
 ``Section.after(transition)`` is the set of states just after a transition (e.g. the state after
-heel strike), whose return is the next time that transition is taken.
+heel strike), whose return is the next time that transition is taken; where transitions of that
+name lead to several modes (a foot's touchdown from flight, or while the other foot stands),
+``Section.after(transition, mode)`` names the target mode, and only the transitions of that name
+into that mode count.
 
 A ``Section`` names modes, coordinates and transitions; ``bind_section`` resolves those names
 against a system once, into a ``BoundSection`` that evaluates s(x) and its gradient.
@@ -32,7 +35,8 @@ class Section:
 
     Attributes
     ----------
-    mode: the mode the section lies in (for ``after``, filled in from the transition's target).
+    mode: the mode the section lies in (for ``after``, the target mode given, or filled in from the
+        transition's target when it has only one).
     function: ``s(x) -> float`` for a crossing section; the section is s = 0.
     direction: -1 when s decreases through 0 (from > 0 to <= 0), +1 when it increases, 0 both.
     gradient: optional ``grad s(x)`` of shape (n,); central differences otherwise.
@@ -83,11 +87,16 @@ class Section:
         )
 
     @classmethod
-    def after(cls, transition: str) -> Section:
-        """The states just after ``transition`` (its reset images), in its target mode."""
+    def after(cls, transition: str, mode: str | None = None) -> Section:
+        """The states just after ``transition`` (its reset images), in its target mode; ``mode``
+        names that target, needed when transitions of that name lead to several modes (only
+        those into ``mode`` then count)."""
         if not isinstance(transition, str) or not transition:
             raise OrbitError(f"Section.after: transition must be a transition name, got {transition!r}")
-        return cls(None, None, 0, None, transition, None, 0.0, f"after {transition}")
+        if mode is not None and (not isinstance(mode, str) or not mode):
+            raise OrbitError(f"Section.after: mode must be a mode name, got {mode!r}")
+        label = f"after {transition}" if mode is None else f"after {transition} into {mode}"
+        return cls(mode, None, 0, None, transition, None, 0.0, label)
 
     @property
     def kind(self) -> str:
@@ -167,7 +176,8 @@ def bind_section(section: Section, system: HybridSystem) -> BoundSection:
 
 
 def _bind_after(section: Section, system: HybridSystem) -> BoundSection:
-    """A section after a transition lies in the transition's target mode, which must be one."""
+    """A section after a transition lies in the transition's target mode: the one named, which
+    a transition of that name must lead to, or the only one they lead to."""
     matches = [tr for tr in system.transitions if tr.name == section.transition]
     if not matches:
         known = sorted({tr.name for tr in system.transitions})
@@ -175,10 +185,21 @@ def _bind_after(section: Section, system: HybridSystem) -> BoundSection:
             f"section after '{section.transition}': no transition of that name in {system.name}; transitions: {known}"
         )
     targets = sorted({tr.target for tr in matches})
-    if len(targets) > 1:
+    if section.mode is not None:
+        if section.mode not in targets:
+            raise OrbitError(
+                f"section {section.label}: no transition '{section.transition}' leads to mode "
+                f"'{section.mode}'; it leads to {targets}",
+                key="section.mode",
+            )
+        mode = section.mode
+    elif len(targets) > 1:
         raise OrbitError(
-            f"section after '{section.transition}': transitions of that name lead to "
-            f"several modes {targets}; name them apart"
+            f"section after '{section.transition}': transitions of that name lead to several modes "
+            f"{targets}; name the target mode (Section.after(transition, mode), or in a scene "
+            f'section = {{ after = "{section.transition}", mode = "{targets[0]}" }})',
+            key="section.mode",
         )
-    mode = targets[0]
+    else:
+        mode = targets[0]
     return BoundSection(replace(section, mode=mode), mode, tuple(system.state_names(mode)), None)

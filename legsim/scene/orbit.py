@@ -5,6 +5,7 @@ initial guess that ``legsim.orbits.find_orbit`` and ``continue_family`` take.
 
     [orbit]
     section = { after = "heel_strike" }     # or { mode = ..., coordinate = ..., value = ..., direction = ... }
+                                            # or { after = "touchdown_front", mode = "hind+front" }
     cyclic = ["foot_x"]
     free = ["psi"]                          # robot parameters, or EFFECT.PARAM
     tol = 1e-10
@@ -38,7 +39,8 @@ from .fields import check_keys, describe, field_error, table_at
 
 #: Keys of a scene's ``[orbit]`` section and what they hold.
 ORBIT_KEYS = {
-    "section": "{ after = TRANSITION } or { mode = MODE, coordinate = NAME, value = 0.0, direction = "
+    "section": "{ after = TRANSITION } (with mode = MODE where transitions of that name lead to several modes) "
+    "or { mode = MODE, coordinate = NAME, value = 0.0, direction = "
     "'decreasing' | 'increasing' | 'either' }",
     "fixed": "coordinates held at their initial values, or controller memory values held at their guesses "
     "(list of names)",
@@ -135,9 +137,7 @@ def _section(scene: Any, table: Mapping[str, Any]) -> Section:
     sec = table_at(scene.path, table, "section", "orbit.section")
     try:
         if "after" in sec:
-            if set(sec) != {"after"}:
-                raise _fail(scene, "section", f"'after' takes no other keys, got {sorted(sec)}")
-            return Section.after(sec["after"])
+            return _after_section(scene, sec)
         if set(sec) - set(LEVEL_SECTION_KEYS) or "coordinate" not in sec:
             raise _fail(scene, "section", f"expected {ORBIT_KEYS['section']}, got keys {sorted(sec)}")
         value = sec.get("value", 0.0)
@@ -148,6 +148,22 @@ def _section(scene: Any, table: Mapping[str, Any]) -> Section:
         )
     except OrbitError as exc:
         raise _fail(scene, "section", str(exc)) from None
+
+
+def _after_section(scene: Any, sec: Mapping[str, Any]) -> Section:
+    """``{ after = TRANSITION }``, or ``{ after = TRANSITION, mode = MODE }`` for transitions of
+    that name that lead to several modes; the names are checked against the model when the
+    problem is built."""
+    if set(sec) - {"after", "mode"}:
+        raise _fail(scene, "section", f"'after' takes only 'mode' besides, got {sorted(sec)}")
+    for key in sec:
+        if not isinstance(sec[key], str) or not sec[key]:
+            raise _fail(
+                scene,
+                f"section.{key}",
+                f"expected a {'transition' if key == 'after' else 'mode'} name, got {describe(sec[key])}",
+            )
+    return Section.after(sec["after"], sec.get("mode"))
 
 
 def _names(scene: Any, table: Mapping[str, Any], key: str) -> tuple[str, ...]:

@@ -158,10 +158,13 @@ def leading(multipliers: np.ndarray) -> complex:
 def test_raibert_pronk_gait_is_the_slip_hoppers_with_a_contracting_pitch():
     """``legsim orbit pronk_raibert``: the level gait is the SLIP hopper's (independent model,
     ``slip_raibert``): the same apex and period, and the SLIP's multipliers are among the
-    pronk's. In the pitch the return map has a small kink, from the servo's torque limit (a
-    clip that engages near touchdown and liftoff once the body pitches), so the search reports
-    its stability unresolved; both sides' leading pitch multipliers agree within 1% and are far
-    inside the unit circle, and a run started on the gait with a pitch sheds it at that rate."""
+    pronk's. In the pitch the return map has a small kink: the stencil's returns on either side
+    of it land the left or the right foot first (and the servo's torque limit clips near
+    touchdown and liftoff once the body pitches), so the multipliers do not decide stability;
+    the piecewise-linear derivative's two pieces (one per touchdown order) do: stable, by a
+    common quadratic Lyapunov function. Both sides' leading pitch multipliers agree within 1%
+    and are far inside the unit circle, and a run started on the gait with a pitch sheds it at
+    that rate."""
     pronk_gait, slip_gait = scene_orbit("pronk_raibert"), scene_orbit("slip_raibert")
     names = pronk_gait.state_names
     # Both at eps = 1e-7: the pronk crosses four strips a hop, the SLIP two, and each crossing
@@ -175,7 +178,10 @@ def test_raibert_pronk_gait_is_the_slip_hoppers_with_a_contracting_pitch():
     for mu in slip_mu[np.abs(slip_mu) > 1e-3]:
         assert np.min(np.abs(pronk_mu - mu)) < 1e-5
     assert pronk_gait.differentiable is False and "theta" in pronk_gait.kinked_coordinates
-    assert pronk_gait.stable is None
+    verdict = pronk_gait.piecewise
+    assert pronk_gait.stable is True and verdict.kind == "stable" and verdict.details["length"] == 1
+    assert verdict.details["orders"][0][:2] == ["touchdown_left", "touchdown_right"]
+    assert max(verdict.details["piece_radii"]) < 0.3
     forward, backward = leading(pronk_gait.multipliers_forward), leading(pronk_gait.multipliers_backward)
     assert forward.real < 0 and backward.real < 0 and abs(forward) < 0.3 and abs(backward) < 0.3
     assert forward.real == pytest.approx(backward.real, rel=0.01)

@@ -138,3 +138,40 @@ def test_an_unknown_guess_name_lists_the_controller_memory():
         match=r"orbit\.guess: unknown coordinate 'T_x'.*controller memory: \['T_s', 't_touchdown', 'stance'\]",
     ):
         problem_from_scene(scene)
+
+
+@pytest.mark.parametrize(
+    "section, message",
+    [
+        (
+            '{ after = "touchdown_left" }',
+            "orbit.section.mode: section after 'touchdown_left': "
+            "transitions of that name lead to several modes ['both', 'left']; name the target mode",
+        ),
+        (
+            '{ after = "touchdown_left", mode = "right" }',
+            "orbit.section.mode: section after touchdown_left into right: "
+            "no transition 'touchdown_left' leads to mode 'right'; it leads to ['both', 'left']",
+        ),
+        ('{ after = "touchdown_left", mode = 3 }', "orbit.section.mode: expected a mode name, got integer 3"),
+        ('{ after = "touchdown_left", value = 3 }', "orbit.section: 'after' takes only 'mode' besides"),
+    ],
+)
+def test_a_section_after_a_transition_into_several_modes_names_its_target(section, message):
+    scene = load_scene("pronk_orbit", overrides=[f"orbit.section={section}"])
+    with pytest.raises(SceneError, match=r"pronk_orbit\.toml: ") as info:
+        problem_from_scene(scene)
+    assert message in str(info.value)
+
+
+def test_a_section_after_a_transition_takes_its_target_mode():
+    scene = load_scene(
+        "pronk_orbit",
+        overrides=[
+            'orbit.section={ after = "touchdown_left", mode = "both" }',
+            'initial.mode="both"',
+            "initial.state={ z = 1.0, left_foot_x = -0.5, right_foot_x = 0.5 }",
+        ],
+    )
+    problem = problem_from_scene(scene).problem
+    assert problem.bound.mode == "both" and problem.section.label == "after touchdown_left into both"
