@@ -161,8 +161,9 @@ def heel_strike(e, t, x, u, p, out):
     qf = np.array([leg * math.sin(th), leg * math.cos(th), th, phi])
     vf = np.array([leg * thd * math.cos(th), -leg * thd * math.sin(th), thd, phid])
     v_plus = np.empty(4)
+    level = np.zeros(2)  # the floor z = 0 of the model's tilted frame
     lsn_impact(np.int64(p[CG_IMPACT]), qf.ctypes.data, vf.ctypes.data, np.int64(1), ptr(p, CG_BLOCK),
-               ptr(p, CG_COEFF), v_plus.ctypes.data, np.int64(0))  # fmt: skip
+               level.ctypes.data, ptr(p, CG_COEFF), v_plus.ctypes.data, np.int64(0))  # fmt: skip
     step = swing_foot_motion(x, p)[0]
     out[0], out[1] = th + phi, -phi
     out[2], out[3] = v_plus[2] + v_plus[3], -v_plus[3]
