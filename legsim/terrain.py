@@ -137,15 +137,17 @@ class Terrain:
 
     def polyline(self, x_low: float, x_high: float, samples: int = 400) -> np.ndarray:
         """(k, 2) points (x, h(x)) over [x_low, x_high] (m) for drawing: a profile's breakpoints
-        inside the range, a sine sampled ``samples`` times, a line's two ends."""
+        inside the range, a sine sampled ``samples`` times (more for a short wavelength), a line's
+        two ends."""
         kind = self.array[0]
         if kind == PROFILE:
             n = int(self.array[1])
             xs = self.array[2 : 2 + n]
             inner = xs[(xs > x_low) & (xs < x_high)]
             grid = np.concatenate([[x_low], inner, [x_high]])
-        elif kind == SINE:
-            grid = np.linspace(x_low, x_high, samples)
+        elif kind == SINE:  # at least 32 points a wavelength, at most 20000 in all
+            per_wave = 32.0 * (x_high - x_low) * self.array[3] / (2.0 * math.pi)
+            grid = np.linspace(x_low, x_high, int(min(20_000, max(samples, per_wave))))
         else:
             grid = np.array([x_low, x_high])
         return np.column_stack([grid, self.height(grid)])
@@ -188,6 +190,27 @@ def sine_terrain(amplitude: float, wavelength: float, phase: float = 0.0, z0: fl
         np.array([SINE, float(z0), float(amplitude), 2.0 * math.pi / float(wavelength), float(phase)]),
         f"sine of amplitude {amplitude:g} m, wavelength {wavelength:g} m, phase {phase:g} rad about z = {z0:g} m",
     )
+
+
+def downhill_degrees(terrain: Terrain, robot: str, low: float, high: float) -> float:
+    """The angle (degrees) a terrain descends by towards +x, for a robot whose slope is built in
+    (the compass gait's and rimless wheel's tilted frame): the terrain must be a ``slope``
+    through the origin, descending by an angle in [low, high]; ``SceneError`` naming
+    ``terrain`` otherwise."""
+    a = terrain.array
+    if a[0] != SLOPE:
+        raise SceneError(
+            f"terrain: robot '{robot}' walks on a uniform slope: give kind = 'slope', got {terrain.description}"
+        )
+    if a[3] != a[1] * a[2]:  # h(0) = z0 - g x0 must be 0: the walker's frame starts at the origin
+        raise SceneError(f"terrain.through: robot '{robot}' needs the slope through (0, 0), got {terrain.description}")
+    degrees = -math.degrees(math.atan(a[1]))
+    if not low <= degrees <= high:
+        raise SceneError(
+            f"terrain.angle: robot '{robot}' walks down slopes of {low:g} to {high:g} degrees (angle "
+            f"{-high:g} to {-low:g}: falling towards +x), got {terrain.description}"
+        )
+    return degrees
 
 
 # -- a scene's [terrain] table -------------------------------------------------------------------

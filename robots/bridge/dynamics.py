@@ -154,6 +154,13 @@ def applied_forces(x, u, p, n, tau):
 
 
 @model_function
+def keep(a):
+    """Read a[0]: called after a native call that took a's address, it keeps the array alive
+    until then (compiled code frees an array after its last use, which its address is not)."""
+    return a[0]
+
+
+@model_function
 def on_terrain(p):
     """Whether the robot's ground is a terrain (``legsim.terrain``) rather than a level one."""
     return p[P_TERRAIN] >= 0.0
@@ -164,6 +171,7 @@ def point_slope(x, p, frame):
     """(dh/dx, sqrt(1 + (dh/dx)^2)) of the terrain under Pinocchio frame ``frame`` at q."""
     kin, ids = np.empty(4), np.full(1, float(frame))
     lsn_frames(handle(p), x.ctypes.data, ptr(x, int(p[P_N])), np.int64(1), ids.ctypes.data, kin.ctypes.data)
+    keep(ids)
     grade = slope(p, int(p[P_TERRAIN]), kin[0])
     return grade, math.sqrt(1.0 + grade * grade)
 
@@ -181,6 +189,7 @@ def terrain_slopes(x, p, count, src, at):
         ids[k] = src[at + BLOCK_SIZE * k + 1]
     kin = np.empty(4 * max(1, count))
     lsn_frames(handle(p), x.ctypes.data, ptr(x, int(p[P_N])), np.int64(count), ids.ctypes.data, kin.ctypes.data)
+    keep(ids)
     terrain = int(p[P_TERRAIN])
     for k in range(count):
         if src[at + BLOCK_SIZE * k] != B_STOP:
@@ -204,6 +213,7 @@ def accelerate(x, u, p, blocks, src, at, a, lam):
         slopes = terrain_slopes(x, p, blocks, src, at)
         lsn_constrained(handle(p), x.ctypes.data, ptr(x, n), tau.ctypes.data, np.int64(blocks), ptr(src, at),
                         slopes.ctypes.data, a.ctypes.data, lam.ctypes.data)  # fmt: skip
+        keep(slopes)
 
 
 @model_function

@@ -43,6 +43,7 @@ from .dynamics import (
     accelerate,
     frame_kinematics,
     handle,
+    keep,
     mode_accelerate,
     on_terrain,
     point_slope,
@@ -193,6 +194,7 @@ def impact(x, p, tr, coefficients, out):
     slopes = terrain_slopes(x, p, count, p, at)
     lsn_impact(handle(p), x.ctypes.data, ptr(x, n), np.int64(count), ptr(p, at), slopes.ctypes.data,
                ptr(p, coefficients), ptr(out, n), np.int64(0))  # fmt: skip
+    keep(slopes)
 
 
 @model_function

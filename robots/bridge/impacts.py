@@ -37,7 +37,7 @@ from legsim.robots._native.calls import lsn_crba, lsn_frame_jacobian, lsn_impact
 from legsim.compiled.functions import model_function
 from legsim.terrain import slope
 
-from .dynamics import handle, on_terrain, ptr, terrain_slopes
+from .dynamics import handle, keep, on_terrain, ptr, terrain_slopes
 from .layout import (
     B_POINT,
     B_STOP,
@@ -171,6 +171,7 @@ def newton_impact(x, p, contacts, coeff, count, v_plus, normal):
     slopes = terrain_slopes(x, p, count, blocks, 0)
     lsn_impact(handle(p), x.ctypes.data, ptr(x, n), np.int64(count), blocks.ctypes.data, slopes.ctypes.data,
                coeff.ctypes.data, v_plus.ctypes.data, impulse.ctypes.data)  # fmt: skip
+    keep(slopes)
     row = 0
     for k in range(count):
         row += int(blocks[BLOCK_SIZE * k + 3])

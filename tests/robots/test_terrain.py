@@ -4,6 +4,7 @@ closed-form Coulomb acceleration g (sin a - mu cos a) or held by static friction
 giving the same run bit for bit as the contacts' ground, and the [terrain] section's errors."""
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -135,7 +136,7 @@ def reference_impacts(x0: float, z0: float, vx: float, vz: float, count: int) ->
             return z0 + vz * s - 0.5 * G * s * s - AMPLITUDE * math.sin(k * (x0 + vx * s) + PHASE)
 
         grid = np.linspace(1e-9, 5.0, 200_001)
-        values = np.array([gap(s) for s in grid[:: 100]])
+        values = np.array([gap(s) for s in grid[::100]])
         coarse = int(np.nonzero(values < 0)[0][0])
         fine = grid[(coarse - 1) * 100 : coarse * 100 + 1]
         i = int(np.nonzero(np.array([gap(s) for s in fine]) < 0)[0][0])
@@ -152,9 +153,7 @@ def reference_impacts(x0: float, z0: float, vx: float, vz: float, count: int) ->
 
 def test_a_ball_on_a_sine_profile_strikes_at_the_root_found_times(tmp_path):
     contact = f'{{ name = "ball", frame = "ball", restitution = {RESTITUTION}, tangential = false }}'
-    terrain = (
-        f'[terrain]\nkind = "sine"\namplitude = {AMPLITUDE}\nwavelength = {WAVELENGTH}\nphase = {PHASE}'
-    )
+    terrain = f'[terrain]\nkind = "sine"\namplitude = {AMPLITUDE}\nwavelength = {WAVELENGTH}\nphase = {PHASE}'
     initial = 'mode = "flight"\nstate = { x = 0.1, z = 0.8, xd = 0.7, zd = 0.5 }'
     run = load_scene(scene(tmp_path, contact, terrain, initial, t_final=2.2)).simulate()
     assert run.status.value == "finished"
@@ -171,35 +170,34 @@ def test_a_ball_on_a_sine_profile_strikes_at_the_root_found_times(tmp_path):
 ANGLE = 20.0
 
 
-def incline_run(tmp_path, mu: float, t_final: float):
+def incline_run(tmp_path, mu: float, t_final: float, mode: str):
     a = math.radians(ANGLE)
     contact = f'{{ name = "foot", frame = "ball", friction = {mu} }}'
     terrain = f'[terrain]\nkind = "slope"\nangle = {ANGLE}\nthrough = [0.0, 0.0]'
-    initial = f'mode = "foot"\nstate = {{ x = 1.0, z = {math.tan(a)!r} }}'
+    initial = f'mode = "{mode}"\nstate = {{ x = 1.0, z = {math.tan(a)!r} }}'
     return load_scene(scene(tmp_path, contact, terrain, initial, t_final=t_final, eps=1e-9)).simulate()
 
 
 def test_a_block_slides_down_the_incline_with_the_coulomb_acceleration(tmp_path):
     mu, t_final = 0.2, 1.0
-    run = incline_run(tmp_path, mu, t_final)
+    # at rest, slipping towards -t (down the slope rising towards +x): the stuck mode's force
+    # lies outside the cone (tan 20 deg = 0.364 > mu), which the scene's initial check refuses
+    run = incline_run(tmp_path, mu, t_final, "foot<")
     assert run.status.value == "finished"
-    assert run.final_mode == "foot<"  # slipping towards -t: down the slope rising towards +x
+    assert run.final_mode == "foot<" and not run.transitions
     a = math.radians(ANGLE)
     accel = G * (math.sin(a) - mu * math.cos(a))
-    t_slip = run.transitions[0].time
     x = run.final_state
     travelled = math.hypot(x[0] - 1.0, x[1] - math.tan(a))
-    expected = 0.5 * accel * (t_final - t_slip) ** 2
-    assert t_slip < 1e-6  # the stuck contact's force starts outside the cone
-    assert travelled == pytest.approx(expected, rel=1e-9)
-    speed = math.hypot(x[3], x[4])
-    assert speed == pytest.approx(accel * (t_final - t_slip), rel=1e-9)
+    assert x[0] < 1.0  # downhill
+    assert travelled == pytest.approx(0.5 * accel * t_final**2, rel=1e-9)
+    assert math.hypot(x[3], x[4]) == pytest.approx(accel * t_final, rel=1e-9)
     # the point stays on the incline: z - h(x) held by the constraint, to rounding
     assert x[1] - math.tan(a) * x[0] == pytest.approx(0.0, abs=1e-12)
 
 
 def test_a_block_on_an_incline_steeper_than_its_friction_cone_holds_with_mg_cos_a(tmp_path):
-    run = incline_run(tmp_path, 0.5, 0.5)  # tan 20 deg = 0.364 < 0.5: it sticks
+    run = incline_run(tmp_path, 0.5, 0.5, "foot")  # tan 20 deg = 0.364 < 0.5: it sticks
     assert run.status.value == "finished" and run.final_mode == "foot" and not run.transitions
     scene_ = load_scene(tmp_path / "point.toml")
     bridge = scene_.model.info["bridge"]
@@ -214,7 +212,14 @@ def test_a_block_on_an_incline_steeper_than_its_friction_cone_holds_with_mg_cos_
 
 def test_a_flat_terrain_at_h0_runs_bit_for_bit_as_the_contacts_ground_h0(tmp_path):
     initial = 'mode = "flight"\nstate = { x = 0.1, z = 0.8, xd = 0.7, zd = 0.5, pitchd = 1.0 }'
-    own = scene(tmp_path, '{ name = "ball", frame = "ball", restitution = 0.6, friction = 0.4, ground = 0.3 }', "", initial, 2.0, 1e-6)
+    own = scene(
+        tmp_path,
+        '{ name = "ball", frame = "ball", restitution = 0.6, friction = 0.4, ground = 0.3 }',
+        "",
+        initial,
+        2.0,
+        1e-6,
+    )
     own_run = load_scene(own).simulate()
     flat = tmp_path / "flat"
     flat.mkdir()
@@ -227,3 +232,41 @@ def test_a_flat_terrain_at_h0_runs_bit_for_bit_as_the_contacts_ground_h0(tmp_pat
         assert (a.name, a.time) == (b.name, b.time)
         assert np.array_equal(a.state_after, b.state_after)
     assert np.array_equal(own_run.final_state, flat_run.final_state)
+
+
+# -- the walkers' built-in slopes as a terrain ----------------------------------------------------
+
+
+@pytest.mark.parametrize(("name", "degrees"), [("compass_gait", 3.0), ("rimless_wheel", 5.0)])
+def test_a_walker_on_a_terrain_slope_finds_the_orbit_of_its_built_in_slope(tmp_path, name, degrees):
+    from legsim.orbits import find_orbit
+    from legsim.scene.orbit import problem_from_scene
+
+    built_in = load_scene(name)
+    text = (Path(str(built_in.path))).read_text().replace(f"slope = {degrees}", "")
+    # the terrain rises by -degrees towards +x: the walker goes down it
+    text += f'\n[terrain]\nkind = "slope"\nangle = {-degrees}\n'
+    path = tmp_path / f"{name}.toml"
+    path.write_text(text)
+    on_terrain = load_scene(path)
+    # tan then atan round the angle: the same walker to rounding, not bit for bit
+    assert on_terrain.model.info["parameters"]["slope"] == pytest.approx(degrees, rel=1e-15)
+    orbits = []
+    for scene_ in (built_in, on_terrain):
+        settings = problem_from_scene(scene_)
+        result = find_orbit(settings.problem, settings.guess, **settings.solver)
+        assert result.converged
+        orbits.append(result.fixed_point)
+    np.testing.assert_allclose(orbits[1], orbits[0], rtol=0, atol=1e-10)
+
+
+def test_a_walker_refuses_a_terrain_that_is_no_slope_through_the_origin(tmp_path):
+    text = load_scene("compass_gait").path.read_text()
+    for terrain, message in (
+        ('kind = "sine"\namplitude = 0.1\nwavelength = 1.0', "walks on a uniform slope"),
+        ('kind = "slope"\nangle = -3.0\nthrough = [0.0, 1.0]', "terrain.through"),
+    ):
+        path = tmp_path / "walker.toml"
+        path.write_text(text.replace("slope = 3.0", "") + f"\n[terrain]\n{terrain}\n")
+        with pytest.raises(SceneError, match=message):
+            load_scene(path)
