@@ -11,11 +11,11 @@ Kinds (``Terrain.array``, float64; the first entry is the kind code):
              ramp of run ``riser`` (``steps_profile``).
 ``sine``     ``[SINE, z0, a, k, phase]``: h = z0 + a sin(k x + phase), k = 2 pi / wavelength.
 
-``height``, ``slope`` and ``curvature`` give h, dh/dx and d2h/dx2 at x (m, 1, 1/m) from the
-array and the offset ``at`` of its first entry (the terrain sits in a model's parameter
-array). At a profile's breakpoint the slope is the right segment's; a profile's curvature is 0
-(a corner is where the slope jumps: a point resting on the profile that slides across one
-leaves the model's range, see ``docs/scenes.md``).
+``height``, ``slope`` and ``curvature`` (model functions, ``legsim.heights``) give h, dh/dx and
+d2h/dx2 at x (m, 1, 1/m) from the array and the offset ``at`` of its first entry (the terrain
+sits in a model's parameter array). At a profile's breakpoint the slope is the right segment's;
+a profile's curvature is 0 (a corner is where the slope jumps: a point resting on the profile
+that slides across one is not resolved there, see ``docs/scenes.md``).
 
 ``parse_terrain`` validates a scene's ``[terrain]`` table into a ``Terrain``.
 """
@@ -33,83 +33,16 @@ from typing import Any
 
 import numpy as np
 
-from .compiled.functions import model_function
 from .errors import SceneError
+from .heights import FLAT, PROFILE, SINE, SLOPE, curvature, height, slope
 
-FLAT, SLOPE, PROFILE, SINE = 0.0, 1.0, 2.0, 3.0
+__all__ = ["FLAT", "PROFILE", "SINE", "SLOPE", "Terrain", "curvature", "height", "parse_terrain", "slope"]
 #: The kinds a ``[terrain]`` table may name.
 KINDS = ("flat", "slope", "steps", "profile", "sine")
 #: Most breakpoints of a profile (points inline or from a CSV file, or twice the steps).
 MAX_POINTS = 100_000
 #: Largest profile CSV file read (bytes).
 MAX_CSV_BYTES = 8 << 20
-
-
-@model_function
-def _segment(p, at, x):
-    """Index i of the profile segment [x_i, x_{i+1}) holding x (bisection); -1 left of x_0, n - 1
-    at or right of x_{n-1}."""
-    n = int(p[at + 1])
-    xs = at + 2
-    if x < p[xs]:
-        return -1
-    if x >= p[xs + n - 1]:
-        return n - 1
-    lo, hi = 0, n - 1
-    while hi - lo > 1:
-        mid = (lo + hi) // 2
-        if p[xs + mid] <= x:
-            lo = mid
-        else:
-            hi = mid
-    return lo
-
-
-@model_function
-def height(p, at, x):
-    """h(x) (m) of the terrain encoded at p[at:]."""
-    kind = p[at]
-    if kind == FLAT:
-        return p[at + 1]
-    if kind == SLOPE:
-        return p[at + 3] + p[at + 1] * (x - p[at + 2])
-    if kind == SINE:
-        return p[at + 1] + p[at + 2] * math.sin(p[at + 3] * x + p[at + 4])
-    n = int(p[at + 1])
-    xs, zs = at + 2, at + 2 + n
-    i = _segment(p, at, x)
-    if i < 0:
-        return p[zs]
-    if i >= n - 1:
-        return p[zs + n - 1]
-    w = (x - p[xs + i]) / (p[xs + i + 1] - p[xs + i])
-    return p[zs + i] + w * (p[zs + i + 1] - p[zs + i])
-
-
-@model_function
-def slope(p, at, x):
-    """dh/dx at x of the terrain encoded at p[at:] (the right segment's at a breakpoint)."""
-    kind = p[at]
-    if kind == FLAT:
-        return 0.0
-    if kind == SLOPE:
-        return p[at + 1]
-    if kind == SINE:
-        return p[at + 2] * p[at + 3] * math.cos(p[at + 3] * x + p[at + 4])
-    n = int(p[at + 1])
-    xs, zs = at + 2, at + 2 + n
-    i = _segment(p, at, x)
-    if i < 0 or i >= n - 1:
-        return 0.0
-    return (p[zs + i + 1] - p[zs + i]) / (p[xs + i + 1] - p[xs + i])
-
-
-@model_function
-def curvature(p, at, x):
-    """d2h/dx2 (1/m) at x of the terrain encoded at p[at:] (0 but on a sine)."""
-    if p[at] == SINE:
-        return -p[at + 2] * p[at + 3] * p[at + 3] * math.sin(p[at + 3] * x + p[at + 4])
-    return 0.0
 
 
 @dataclass(frozen=True)
@@ -147,7 +80,7 @@ class Terrain:
             grid = np.concatenate([[x_low], inner, [x_high]])
         elif kind == SINE:  # at least 32 points a wavelength, at most 20000 in all
             per_wave = 32.0 * (x_high - x_low) * self.array[3] / (2.0 * math.pi)
-            grid = np.linspace(x_low, x_high, int(min(20_000, max(samples, per_wave))))
+            grid = np.linspace(x_low, x_high, int(min(20_000, max(samples, math.ceil(per_wave) + 1))))
         else:
             grid = np.array([x_low, x_high])
         return np.column_stack([grid, self.height(grid)])

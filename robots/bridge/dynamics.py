@@ -23,7 +23,7 @@ from legsim.robots import _native
 from legsim.robots._native.calls import lsn_aba, lsn_constrained, lsn_frame_jacobian, lsn_frames, lsn_tally
 
 from legsim.compiled.functions import model_function
-from legsim.terrain import curvature, slope
+from legsim.heights import curvature, slope
 
 from .layout import (
     B_POINT,

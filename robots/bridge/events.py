@@ -37,7 +37,7 @@ import numpy as np
 from legsim.robots._native.calls import lsn_frame_motion, lsn_frames, lsn_impact
 
 from legsim.compiled.functions import model_function
-from legsim.terrain import height, slope
+from legsim.heights import height, slope
 
 from .dynamics import (
     accelerate,

@@ -9,7 +9,7 @@ from collections.abc import Callable
 import numpy as np
 import pinocchio as pin
 
-from legsim.terrain import height as terrain_height
+from legsim.heights import height as terrain_height
 
 from .contacts import SLIP_SUFFIX, PointContact, RigidContact, SpringLeg, joint_id
 from .model import BridgeModel

@@ -35,7 +35,7 @@ import numpy as np
 from legsim.robots._native.calls import lsn_crba, lsn_frame_jacobian, lsn_impact
 
 from legsim.compiled.functions import model_function
-from legsim.terrain import slope
+from legsim.heights import slope
 
 from .dynamics import handle, keep, on_terrain, ptr, terrain_slopes
 from .layout import (

@@ -155,7 +155,13 @@ def test_a_ball_on_a_sine_profile_strikes_at_the_root_found_times(tmp_path):
     contact = f'{{ name = "ball", frame = "ball", restitution = {RESTITUTION}, tangential = false }}'
     terrain = f'[terrain]\nkind = "sine"\namplitude = {AMPLITUDE}\nwavelength = {WAVELENGTH}\nphase = {PHASE}'
     initial = 'mode = "flight"\nstate = { x = 0.1, z = 0.8, xd = 0.7, zd = 0.5 }'
-    run = load_scene(scene(tmp_path, contact, terrain, initial, t_final=2.2)).simulate()
+    loaded = load_scene(scene(tmp_path, contact, terrain, initial, t_final=2.2))
+    # the ground drawn (recordings, pages) is the profile, sampled 32 times a wavelength at least
+    ground = loaded.model.scenery["ground"]
+    k = 2 * math.pi / WAVELENGTH
+    np.testing.assert_allclose(ground[:, 1], AMPLITUDE * np.sin(k * ground[:, 0] + PHASE), atol=1e-15)
+    assert np.max(np.diff(ground[:, 0])) <= WAVELENGTH / 32
+    run = loaded.simulate()
     assert run.status.value == "finished"
     times = [tr.time for tr in run.transitions if tr.name.startswith("bounce_")]
     expected = reference_impacts(0.1, 0.8, 0.7, 0.5, 4)
