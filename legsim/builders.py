@@ -18,13 +18,16 @@ from contextvars import ContextVar
 from dataclasses import dataclass, field
 from importlib import metadata
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from .errors import ModelError, SceneError
 from .hybrid import HybridSystem
 from .registry import load_registered, registered
+
+if TYPE_CHECKING:
+    from .terrain import Terrain
 
 ENTRY_POINT_GROUP = "legsim.builders"
 
@@ -223,28 +226,51 @@ class Builder:
     """A named system or robot that scenes can ask for.
 
     ``build(parameters, effects)`` receives every parameter (defaults filled in, validated)
-    and only the effects that are switched on, each with its validated parameters.
+    and only the effects that are switched on, each with its validated parameters; a builder
+    with ``terrain = True`` takes a scene's ``[terrain]`` too: ``build(parameters, effects,
+    terrain)``, terrain a ``legsim.terrain.Terrain`` or None.
     """
 
     name: str
     description: str
     parameters: Mapping[str, Param]
     effects: Mapping[str, Effect]
-    build: Callable[[dict[str, Any], dict[str, dict[str, Any]]], Model]
+    build: Callable[..., Model]
+    terrain: bool = False
 
     def make(
-        self, parameters: Mapping[str, Any] | None = None, effects: Mapping[str, Any] | None = None, where: str = ""
+        self,
+        parameters: Mapping[str, Any] | None = None,
+        effects: Mapping[str, Any] | None = None,
+        where: str = "",
+        terrain: Terrain | None = None,
     ) -> Model:
-        """Validate ``parameters`` and ``effects`` (as a scene would give them) and build."""
+        """Validate ``parameters`` and ``effects`` (as a scene would give them) and build (on
+        ``terrain``, for a builder that takes one)."""
         prefix = f"{where}: " if where else ""
         params = resolve_parameters(
             self.parameters, {} if parameters is None else parameters, f"{prefix}robot.parameters"
         )
         chosen = resolve_effects(self.effects, {} if effects is None else effects, f"{prefix}effects")
-        model = self.build(params, chosen)
+        model = self.run(params, chosen, terrain, where)
         if not isinstance(model, Model):
             raise ModelError(f"builder '{self.name}' returned {type(model).__name__}, expected legsim.builders.Model")
         return model
+
+    def run(
+        self, params: dict[str, Any], effects: dict[str, dict[str, Any]], terrain: Terrain | None, where: str = ""
+    ) -> Model:
+        """``build`` with resolved parameters and effects, and the terrain when the builder takes
+        one; SceneError naming ``terrain`` for a terrain given to a robot whose ground is its own."""
+        if self.terrain:
+            return self.build(params, effects, terrain)
+        if terrain is not None:
+            prefix = f"{where}: " if where else ""
+            raise SceneError(
+                f"{prefix}terrain: robot '{self.name}' has its ground built in and takes no [terrain] "
+                f"(the robots from a URDF, 'urdf', do)"
+            )
+        return self.build(params, effects)
 
 
 def resolve_parameters(schema: Mapping[str, Param], given: Mapping[str, Any], where: str) -> dict[str, Any]:

@@ -52,11 +52,13 @@ from legsim.robots._native.calls import lsn_aba, lsn_frames, lsn_impact
 
 from legsim.builders import Builder, Model, Param
 from legsim.compiled.functions import model_function
+from legsim.errors import SceneError
 from legsim.hybrid import HybridSystem, Mode, Transition
 from legsim.model import ModeFunctions
+from legsim.terrain import Terrain, downhill_degrees
 
 from .bridge import add_point_frame, native, planar_floating_base
-from .bridge.dynamics import ptr
+from .bridge.dynamics import keep, ptr
 from .bridge.native import bare_aba, handle_for
 
 STATE_NAMES = ("stance", "hip", "stanced", "hipd", "foot_x")
@@ -161,8 +163,10 @@ def heel_strike(e, t, x, u, p, out):
     qf = np.array([leg * math.sin(th), leg * math.cos(th), th, phi])
     vf = np.array([leg * thd * math.cos(th), -leg * thd * math.sin(th), thd, phid])
     v_plus = np.empty(4)
+    level = np.zeros(2)  # the floor z = 0 of the model's tilted frame
     lsn_impact(np.int64(p[CG_IMPACT]), qf.ctypes.data, vf.ctypes.data, np.int64(1), ptr(p, CG_BLOCK),
-               ptr(p, CG_COEFF), v_plus.ctypes.data, np.int64(0))  # fmt: skip
+               level.ctypes.data, ptr(p, CG_COEFF), v_plus.ctypes.data, np.int64(0))  # fmt: skip
+    keep(level)
     step = swing_foot_motion(x, p)[0]
     out[0], out[1] = th + phi, -phi
     out[2], out[3] = v_plus[2] + v_plus[3], -v_plus[3]
@@ -263,8 +267,13 @@ def _slope_rotation(slope_deg: float) -> np.ndarray:
     return np.array([[math.cos(s), math.sin(s)], [-math.sin(s), math.cos(s)]])
 
 
-def build(params: dict[str, Any], effects: dict[str, dict[str, Any]]) -> Model:
-    """Builder callback: the compass gait with the given parameters."""
+def build(params: dict[str, Any], effects: dict[str, dict[str, Any]], terrain: Terrain | None = None) -> Model:
+    """Builder callback: the compass gait with the given parameters; a scene's ``[terrain]``
+    slope (through the origin, falling towards +x) replaces its ``slope`` parameter."""
+    if terrain is not None:
+        if params["slope"] != PARAMETERS["slope"].default:
+            raise SceneError("robot.parameters.slope: given besides a [terrain]: give the slope one way")
+        params = {**params, "slope": downhill_degrees(terrain, "compass_gait", -30.0, 30.0)}
     cg = CompassGait(params["m"], params["mH"], params["a"], params["b"], params["g"], params["slope"])
     x0 = np.array([INITIAL_STATE[n] for n in STATE_NAMES])
     system = cg.system(x0)
@@ -297,6 +306,7 @@ BUILDER = Builder(
     parameters=PARAMETERS,
     effects={},
     build=build,
+    terrain=True,
 )
 
 

@@ -44,8 +44,10 @@ from legsim.robots._native.calls import lsn_aba, lsn_crba, lsn_momentum_about
 
 from legsim.builders import Builder, Model, Param
 from legsim.compiled.functions import model_function
+from legsim.errors import SceneError
 from legsim.hybrid import HybridSystem, Mode, Transition
 from legsim.model import ModeFunctions
+from legsim.terrain import Terrain, downhill_degrees
 
 from .bridge import add_point_frame, native
 from .bridge.dynamics import ptr
@@ -193,8 +195,13 @@ def _slope_rotation(slope_deg: float) -> np.ndarray:
     return np.array([[math.cos(s), math.sin(s)], [-math.sin(s), math.cos(s)]])
 
 
-def build(params: dict[str, Any], effects: dict[str, dict[str, Any]]) -> Model:
-    """Builder callback: the rimless wheel with the given parameters."""
+def build(params: dict[str, Any], effects: dict[str, dict[str, Any]], terrain: Terrain | None = None) -> Model:
+    """Builder callback: the rimless wheel with the given parameters; a scene's ``[terrain]``
+    slope (through the origin, falling towards +x) replaces its ``slope`` parameter."""
+    if terrain is not None:
+        if params["slope"] != PARAMETERS["slope"].default:
+            raise SceneError("robot.parameters.slope: given besides a [terrain]: give the slope one way")
+        params = {**params, "slope": downhill_degrees(terrain, "rimless_wheel", -45.0, 45.0)}
     rw = RimlessWheel(params["m"], params["I"], params["l"], params["spokes"], params["g"], params["slope"])
     initial = dict(INITIAL_STATE)
     initial["theta"] = -rw.alpha
@@ -230,6 +237,7 @@ BUILDER = Builder(
     parameters=PARAMETERS,
     effects={},
     build=build,
+    terrain=True,
 )
 
 

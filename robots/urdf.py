@@ -34,6 +34,7 @@ from scipy.spatial import ConvexHull
 
 from legsim.builders import Builder, Model, Param
 from legsim.errors import ModelError, SceneError
+from legsim.terrain import Terrain
 
 from .bridge import ContactBridge, JointStop, PointContact
 from .urdf_checks import check_urdf, parser_messages
@@ -296,8 +297,9 @@ def effort_limits(model: pin.Model, actuated: Sequence[str], params: Mapping[str
     return out
 
 
-def make_bridge(params: Mapping[str, Any]) -> tuple[ContactBridge, Outlines]:
-    """The bridge of a URDF robot from the builder's parameters, and its outlines."""
+def make_bridge(params: Mapping[str, Any], terrain: Terrain | None = None) -> tuple[ContactBridge, Outlines]:
+    """The bridge of a URDF robot from the builder's parameters (on ``terrain``, the scene's
+    ``[terrain]``), and its outlines."""
     if not params["file"]:
         raise SceneError("robot.parameters.file: give the URDF file (a path relative to the scene)")
     model, names = load_model(params["file"], params["root"], params["g"])
@@ -326,13 +328,15 @@ def make_bridge(params: Mapping[str, Any]) -> tuple[ContactBridge, Outlines]:
         actuated=actuated,
         name=Path(params["file"]).stem,
         effort_limits=limits,
+        terrain=terrain,
     )
     return bridge, Outlines(bridge.model, params["file"])
 
 
-def link_heights(bridge: ContactBridge, outlines: Outlines) -> LinkHeights:
+def link_heights(bridge: ContactBridge, outlines: Outlines, terrain: Terrain | None = None) -> LinkHeights:
     """The links without a point contact, each with its points: its visual outlines (in its
-    joint's frame), or its joint's origin when it has no visual."""
+    joint's frame), or its joint's origin when it has no visual; heights above ``terrain``
+    when given."""
     model = bridge.model
     touching = {
         int(model.frames[model.getFrameId(c.frame)].parentJoint) for c in bridge.contacts if isinstance(c, PointContact)
@@ -349,11 +353,11 @@ def link_heights(bridge: ContactBridge, outlines: Outlines) -> LinkHeights:
         else:
             points = np.zeros((1, 3))
         links[bodies[0] if bodies else model.names[j]] = (j, points)
-    return LinkHeights(model, links, bridge.n)
+    return LinkHeights(model, links, bridge.n, terrain)
 
 
-def _build(params: dict[str, Any], effects: dict[str, dict[str, Any]]) -> Model:
-    bridge, outlines = make_bridge(params)
+def _build(params: dict[str, Any], effects: dict[str, dict[str, Any]], terrain: Terrain | None = None) -> Model:
+    bridge, outlines = make_bridge(params, terrain)
     n = bridge.n
     flight = params["flight_mode"]
     initial = dict.fromkeys(bridge.state_names(flight), 0.0)
@@ -362,8 +366,10 @@ def _build(params: dict[str, Any], effects: dict[str, dict[str, Any]]) -> Model:
     def geometry(mode: str, x: np.ndarray) -> dict[str, np.ndarray]:
         return outlines(np.asarray(x, dtype=float)[:n])
 
-    heights = link_heights(bridge, outlines)
+    heights = link_heights(bridge, outlines, terrain)
     ground = min((float(c.ground) for c in bridge.contacts if isinstance(c, PointContact)), default=0.0)
+    if terrain is not None:  # heights are then measured above the terrain under each point
+        ground = 0.0
     below = below_ground_watch(heights, ground, params["below_ground"] == "strict") if heights.links else None
     names, limits = bridge.actuated_names, bridge.effort_limits
 
@@ -384,14 +390,19 @@ def _build(params: dict[str, Any], effects: dict[str, dict[str, Any]]) -> Model:
         initial_mode=flight,
         initial_state=initial,
         geometry=geometry,
-        scenery={"ground": np.array([[-2.0, 0.0], [60.0, 0.0]])},
+        scenery={"ground": np.array([[-2.0, 0.0], [60.0, 0.0]]) if terrain is None else terrain.polyline(-2.0, 60.0)},
         counters=counters,
         info=info,
     )
 
 
 BUILDER = Builder(
-    "urdf", "a planar robot from a URDF file, with the contacts and stops the scene declares", PARAMETERS, {}, _build
+    "urdf",
+    "a planar robot from a URDF file, with the contacts and stops the scene declares",
+    PARAMETERS,
+    {},
+    _build,
+    terrain=True,
 )
 
 

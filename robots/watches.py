@@ -15,6 +15,7 @@ import pinocchio as pin
 from legsim.control import ControlLaw
 from legsim.execution import Status
 from legsim.relaxed import Watch
+from legsim.terrain import Terrain
 
 
 def saturation_counter(joint: str) -> str:
@@ -71,10 +72,14 @@ def saturation_watches(
 
 class LinkHeights:
     """The lowest point (m) of each link without a contact at configuration q: its points (in its
-    joint's frame, (k, 3)) placed by Pinocchio's forward kinematics."""
+    joint's frame, (k, 3)) placed by Pinocchio's forward kinematics; with a terrain, each point's
+    height above the terrain under it."""
 
-    def __init__(self, model: pin.Model, links: Mapping[str, tuple[int, np.ndarray]], n: int) -> None:
+    def __init__(
+        self, model: pin.Model, links: Mapping[str, tuple[int, np.ndarray]], n: int, terrain: Terrain | None = None
+    ) -> None:
         self.model, self.data, self.n = model, model.createData(), n
+        self.terrain = terrain
         self.links = dict(links)
         self.names = list(self.links)
         self.joints = [joint for joint, _ in self.links.values()]
@@ -86,12 +91,16 @@ class LinkHeights:
     def heights(self, q: np.ndarray) -> np.ndarray:
         """The world height (m) of every link point at configuration q."""
         pin.forwardKinematics(self.model, self.data, np.asarray(q[: self.n], dtype=float))
-        rows = np.empty((len(self.joints), 3))
-        shift = np.empty(len(self.joints))
+        rows = np.empty((len(self.joints), 2, 3))
+        shift = np.empty((len(self.joints), 2))
         for k, joint in enumerate(self.joints):
             placement = self.data.oMi[joint]
-            rows[k], shift[k] = placement.rotation[2], placement.translation[2]
-        return np.einsum("ij,ij->i", self.points, rows[self.owner]) + shift[self.owner]
+            rows[k], shift[k] = placement.rotation[[0, 2]], placement.translation[[0, 2]]
+        z = np.einsum("ij,ij->i", self.points, rows[self.owner, 1]) + shift[self.owner, 1]
+        if self.terrain is None:
+            return z
+        x = np.einsum("ij,ij->i", self.points, rows[self.owner, 0]) + shift[self.owner, 0]
+        return z - self.terrain.height(x)
 
     def lowest(self, q: np.ndarray) -> float:
         """The lowest point of all the links (m)."""

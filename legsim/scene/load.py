@@ -29,7 +29,8 @@ the integrator settings and the outputs::
     rrd = "out/ball.rrd"
 
 An optional ``[fall]`` section says when a run has failed (``legsim.scene.falls``: such a run
-ends with status ``fell``).
+ends with status ``fell``); an optional ``[terrain]`` section gives the ground under a robot
+that takes one (``legsim.terrain``: flat, slope, steps, profile, sine).
 
 Tool sections (``[orbit]``, ``[certify]``, ...) must be tables; the tool that reads one
 validates its content. Every error is a ``SceneError`` whose message starts with the file and
@@ -69,12 +70,13 @@ from ..errors import LegsimError, ModelError, SceneError
 from ..execution import Execution
 from ..output.summary import run_summary
 from ..relaxed.simulate import MAX_STEPS as SIMULATE_MAX_STEPS
+from ..terrain import Terrain, parse_terrain
 from .controller import scene_controller
 from .falls import fall_watches
 from .fields import check_keys, describe, field_error, table_at
 from .files import apply_overrides, checked_depth, read_toml, resolve_scene_path, scene_relative_files
 
-CORE_SECTIONS = ("scene", "robot", "effects", "initial", "integrator", "output", "controller", "fall")
+CORE_SECTIONS = ("scene", "robot", "effects", "initial", "integrator", "output", "controller", "fall", "terrain")
 TOOL_SECTIONS = ("orbit", "certify", "stochastic", "zeno", "stress", "bench")
 ALLOWED_SECTIONS = CORE_SECTIONS + TOOL_SECTIONS
 
@@ -178,6 +180,8 @@ class Scene:
     make_controller: Callable[[], Any] | None = field(default=None, repr=False, compare=False)
     #: The ``[fall]`` section's conditions (``legsim.scene.falls``), stop watches.
     falls: tuple[Any, ...] = ()
+    #: The ``[terrain]`` section's ground (``legsim.terrain``), None without one.
+    terrain: Terrain | None = None
 
     def watches(self, control: Any) -> tuple[Any, ...]:
         """The conditions a run under ``control`` is checked for: the ``[fall]`` section's and
@@ -364,6 +368,7 @@ def _validate(path: Path, data: dict[str, Any], overrides: list[str]) -> Scene:
     # them is reported without paying for (possibly slow) model construction.
     integrator = _integrator(path, table_at(path, data, "integrator"))
     output = _output(path, table_at(path, data, "output"))
+    terrain = parse_terrain(path, data["terrain"]) if "terrain" in data else None
     sections = {key: data[key] for key in TOOL_SECTIONS if key in data}
 
     try:
@@ -378,7 +383,7 @@ def _validate(path: Path, data: dict[str, Any], overrides: list[str]) -> Scene:
     chosen = resolve_effects(builder.effects, effects_t, f"{where}: effects")
     try:
         with reading_inside(path.parent):
-            model = builder.build(resolved_params, chosen)
+            model = builder.run(resolved_params, chosen, terrain, where)
     except SceneError as exc:
         if str(exc).startswith(where):
             raise
@@ -417,6 +422,7 @@ def _validate(path: Path, data: dict[str, Any], overrides: list[str]) -> Scene:
         if controller is None
         else functools.partial(scene_controller, path, controller_table, model),
         falls=falls,
+        terrain=terrain,
     )
 
 

@@ -41,11 +41,12 @@ lsn_aba = NativeFunction("lsn_aba", types.void(_h, _p, _p, _p, _p))
 lsn_frames = NativeFunction("lsn_frames", types.void(_h, _p, _p, types.int64, _p, _p))
 #: lsn_frame_jacobian(h, q, frame, out): (x, z, J row x (nv), J row z (nv)) of a frame at q.
 lsn_frame_jacobian = NativeFunction("lsn_frame_jacobian", types.void(_h, _p, types.int64, _p))
-#: lsn_constrained(h, q, v, tau, count, rigid, a_out, lam_out): KKT dynamics of rigid blocks.
-lsn_constrained = NativeFunction("lsn_constrained", types.void(_h, _p, _p, _p, types.int64, _p, _p, _p))
-#: lsn_impact(h, q, v, count, rigid, coeff, v_out, impulse_out): generalised Newton impact, and
-#: its impulses (one per row) unless impulse_out is 0.
-lsn_impact = NativeFunction("lsn_impact", types.void(_h, _p, _p, types.int64, _p, _p, _p, _p))
+#: lsn_constrained(h, q, v, tau, count, rigid, slopes, a_out, lam_out): KKT dynamics of rigid
+#: blocks; slopes: the terrain's (dh/dx, d2h/dx2) under each block (zeros: level ground, rows x, z).
+lsn_constrained = NativeFunction("lsn_constrained", types.void(_h, _p, _p, _p, types.int64, _p, _p, _p, _p))
+#: lsn_impact(h, q, v, count, rigid, slopes, coeff, v_out, impulse_out): generalised Newton
+#: impact, and its impulses (one per row) unless impulse_out is 0; slopes as for lsn_constrained.
+lsn_impact = NativeFunction("lsn_impact", types.void(_h, _p, _p, types.int64, _p, _p, _p, _p, _p))
 #: lsn_momentum_about(h, q, v, frame, out): (angular momentum about the frame's origin along y,
 #: the frame's x, z) at (q, v).
 lsn_momentum_about = NativeFunction("lsn_momentum_about", types.void(_h, _p, _p, types.int64, _p))

@@ -80,7 +80,7 @@ using Mat = Eigen::MatrixXd;
 using ConstMap = Eigen::Map<const Vec>;
 using OutMap = Eigen::Map<Vec>;
 
-constexpr int kVersion = 5;
+constexpr int kVersion = 6;
 
 // Joint type codes of the model description (see lsn_create).
 enum JointCode { RX = 0, RY = 1, RZ = 2, PX = 3, PY = 4, PZ = 5, COMPOSITE = 6 };
@@ -207,9 +207,13 @@ int total_rows(const std::vector<Rigid>& rigid) {
 
 // The stacked constraint Jacobian (rows, nv); with drift also dJ/dt v (the classical
 // acceleration of each point at zero joint acceleration), and the force directions W (J but on
-// slipping points' rows). Kinematics at (q, v, 0) first.
-void constraint_rows(Robot& rb, const ConstMap& q, const ConstMap& v, const std::vector<Rigid>& rigid, bool drift,
-                     Mat& J, Vec& gamma, Mat& W) {
+// slipping points' rows). Kinematics at (q, v, 0) first. slopes: null (the ground is level
+// under every point), or (h', h'') per block: the terrain's slope dh/dx and curvature d2h/dx2
+// under the point, whose rows are then along the terrain's tangent t = (1, h') / s and normal
+// n = (-h', 1) / s, s = sqrt(1 + h'^2) (a point on a level ground takes the rows x and z as
+// before, bit for bit).
+void constraint_rows(Robot& rb, const ConstMap& q, const ConstMap& v, const std::vector<Rigid>& rigid,
+                     const double* slopes, bool drift, Mat& J, Vec& gamma, Mat& W) {
   const Model& model = rb.model;
   Data& data = rb.data;
   const int rows = total_rows(rigid);
@@ -224,33 +228,51 @@ void constraint_rows(Robot& rb, const ConstMap& q, const ConstMap& v, const std:
   }
   Mat Jf(6, model.nv);
   int i = 0;
-  for (const Rigid& r : rigid) {
+  for (size_t b = 0; b < rigid.size(); ++b) {
+    const Rigid& r = rigid[b];
     if (r.kind == STOP) {
       J(i, r.id) = r.sign;
       W(i, r.id) = r.sign;
-    } else {
-      Jf.setZero();
-      pinocchio::getFrameJacobian(model, data, static_cast<pinocchio::FrameIndex>(r.id), pinocchio::LOCAL_WORLD_ALIGNED,
-                                  Jf);
+      i += r.rows;
+      continue;
+    }
+    const auto frame = static_cast<pinocchio::FrameIndex>(r.id);
+    Jf.setZero();
+    pinocchio::getFrameJacobian(model, data, frame, pinocchio::LOCAL_WORLD_ALIGNED, Jf);
+    const double slope = slopes == nullptr ? 0.0 : slopes[2 * b];
+    const double curvature = slopes == nullptr ? 0.0 : slopes[2 * b + 1];
+    Eigen::Vector3d acc = Eigen::Vector3d::Zero();
+    if (drift)
+      acc = pinocchio::getFrameClassicalAcceleration(model, data, frame, pinocchio::LOCAL_WORLD_ALIGNED).linear();
+    if (slope == 0.0 && curvature == 0.0) {
       if (r.rows == 2) {
         J.row(i) = Jf.row(0);
         J.row(i + 1) = Jf.row(2);
+        gamma(i) = acc(0);
+        gamma(i + 1) = acc(2);
       } else {
         J.row(i) = Jf.row(2);
+        gamma(i) = acc(2);
       }
       W.middleRows(i, r.rows) = J.middleRows(i, r.rows);
       if (r.kind == SLIPPING_POINT) W.row(i) -= r.sign * Jf.row(0);
-      if (drift) {
-        const Eigen::Vector3d acc = pinocchio::getFrameClassicalAcceleration(
-                             model, data, static_cast<pinocchio::FrameIndex>(r.id), pinocchio::LOCAL_WORLD_ALIGNED)
-                             .linear();
-        if (r.rows == 2) {
-          gamma(i) = acc(0);
-          gamma(i + 1) = acc(2);
-        } else {
-          gamma(i) = acc(2);
-        }
+    } else {
+      const double s = std::sqrt(1.0 + slope * slope);
+      const Eigen::RowVectorXd tangent = (Jf.row(0) + slope * Jf.row(2)) / s;
+      const Eigen::RowVectorXd normal = (Jf.row(2) - slope * Jf.row(0)) / s;
+      if (r.rows == 2) {  // a pinned point: its acceleration is 0, in any axes
+        J.row(i) = tangent;
+        J.row(i + 1) = normal;
+        gamma(i) = (acc(0) + slope * acc(2)) / s;
+        gamma(i + 1) = (acc(2) - slope * acc(0)) / s;
+      } else {  // z - h(x) = 0 held: its second derivative has the curvature term -h'' vx^2
+        J.row(i) = normal;
+        double vx = 0.0;
+        if (drift) vx = pinocchio::getFrameVelocity(model, data, frame, pinocchio::LOCAL_WORLD_ALIGNED).linear()(0);
+        gamma(i) = (acc(2) - slope * acc(0) - curvature * vx * vx) / s;
       }
+      W.middleRows(i, r.rows) = J.middleRows(i, r.rows);
+      if (r.kind == SLIPPING_POINT) W.row(i) -= r.sign * tangent;
     }
     i += r.rows;
   }
@@ -478,13 +500,14 @@ void lsn_crba(long h, const double* q, double* out) {
 
 // The constrained (KKT) dynamics of the rigid contacts `rigid` (count blocks of
 // (kind, id, sign, rows)) under applied forces tau: acceleration a (nv) and the constraint
-// forces lam (rows), the normal force of each block last and >= 0 when it pushes.
+// forces lam (rows), the normal force of each block last and >= 0 when it pushes. slopes: null
+// on level ground, else the terrain's (slope, curvature) under each block (constraint_rows).
 void lsn_constrained(long h, const double* q, const double* v, const double* tau, long count, const double* rigid,
-                     double* a, double* lam) {
+                     const double* slopes, double* a, double* lam) {
   Robot& rb = robot(h);
   const long n = rb.model.nv;
   const std::vector<Rigid> blocks = read_rigid(count, rigid);
-  if (rb.kkt.hit({{q, n}, {v, n}, {tau, n}, {rigid, 4 * count}})) {
+  if (rb.kkt.hit({{q, n}, {v, n}, {tau, n}, {rigid, 4 * count}, {slopes, slopes == nullptr ? 0 : 2 * count}})) {
     rb.counts[CACHE_HITS] += 1;
     std::copy(rb.kkt.first.begin(), rb.kkt.first.end(), a);
     std::copy(rb.kkt.second.begin(), rb.kkt.second.end(), lam);
@@ -497,7 +520,7 @@ void lsn_constrained(long h, const double* q, const double* v, const double* tau
   const Mat Minv = minverse_after_aba(rb);
   Mat J, W;
   Vec gamma;
-  constraint_rows(rb, qm, vm, blocks, true, J, gamma, W);
+  constraint_rows(rb, qm, vm, blocks, slopes, true, J, gamma, W);
   const Mat MWt = Minv * W.transpose();
   const Mat A = J * MWt;
   if (slipping(blocks) && !consistent(A)) {
@@ -514,9 +537,9 @@ void lsn_constrained(long h, const double* q, const double* v, const double* tau
 
 // The generalised Newton impact: v+ = v + M^-1 J^T Lambda, Lambda = (J M^-1 J^T)^-1 (-(1 + c) J v),
 // with the restitution c of each block (coeff, one per block) on its rows; the impulses Lambda
-// (one per row, N s or N m s) into impulse_out unless it is null.
-void lsn_impact(long h, const double* q, const double* v, long count, const double* rigid, const double* coeff,
-                double* v_out, double* impulse_out) {
+// (one per row, N s or N m s) into impulse_out unless it is null; slopes as for lsn_constrained.
+void lsn_impact(long h, const double* q, const double* v, long count, const double* rigid, const double* slopes,
+                const double* coeff, double* v_out, double* impulse_out) {
   Robot& rb = robot(h);
   const long n = rb.model.nv;
   const ConstMap qm(q, n), vm(v, n);
@@ -524,7 +547,7 @@ void lsn_impact(long h, const double* q, const double* v, long count, const doub
   rb.counts[IMPACTS] += 1;
   Mat J, W;
   Vec gamma;
-  constraint_rows(rb, qm, vm, blocks, false, J, gamma, W);
+  constraint_rows(rb, qm, vm, blocks, slopes, false, J, gamma, W);
   Vec c(J.rows());
   int i = 0;
   for (long b = 0; b < count; ++b)

@@ -19,6 +19,7 @@ import pinocchio as pin
 from legsim.errors import ModelError
 from legsim.hybrid import HybridSystem, Mode, Transition
 from legsim.model import ModeFunctions, as_input
+from legsim.terrain import Terrain
 
 from . import guards, native
 from .contacts import Contact, frame_id
@@ -62,6 +63,11 @@ class ContactBridge:
         not limited.
     name:
         Name of the system.
+    terrain:
+        Optional ``legsim.terrain.Terrain``: the ground under every point contact (their own
+        ``ground`` then stays 0). A flat one is the contacts' ground height; on the others the
+        guards read the height under each point and its constraint rows, impacts and friction
+        lie along the terrain's local tangent and normal (spring legs need level ground).
 
     Raises
     ------
@@ -81,6 +87,7 @@ class ContactBridge:
         actuated: Sequence[str] = (),
         name: str = "robot",
         effort_limits: Mapping[str, float] | None = None,
+        terrain: Terrain | None = None,
     ) -> None:
         self._model = build_model(
             model,
@@ -91,6 +98,7 @@ class ContactBridge:
             actuated=actuated,
             name=name,
             effort_limits=effort_limits,
+            terrain=terrain,
         )
         self._data = self._model.pin_model.createData()  # kinematics for pictures and checks
         self._modes = ModeCatalog(self._model, mode_names)
@@ -146,6 +154,12 @@ class ContactBridge:
     def actuated_names(self) -> tuple[str, ...]:
         """The actuated joints' coordinate names, in the order of the input's entries."""
         return tuple(self._model.coordinate_names[int(k)] for k in self._model.actuated_idx)
+
+    @property
+    def terrain(self) -> np.ndarray | None:
+        """The encoding of the terrain under the contacts (``legsim.terrain``), or None on level
+        ground (each contact's ``ground``)."""
+        return None if self._model.terrain is None else self._model.terrain.copy()
 
     @property
     def contacts(self) -> tuple[Contact, ...]:
@@ -228,7 +242,8 @@ class ContactBridge:
         field's solve): ``{name: lambda}`` with ``lambda = (f_x, f_z)`` (N) for a sticking or
         slipping point contact (slipping: f_x is the friction force ``-s mu f_z``), ``(f_z,)`` for
         a frictionless one and ``(tau,)`` (N m or N) for a joint stop; the last entry is the
-        normal force, >= 0 when the contact pushes the robot into its domain."""
+        normal force, >= 0 when the contact pushes the robot into its domain. On a terrain that
+        is not level, x and z are the terrain's tangent and normal under the point."""
         spec = self._modes.spec(mode)
         lam = np.empty(max(1, spec.rows))
         x = np.ascontiguousarray(x, dtype=np.float64)

@@ -5,7 +5,9 @@ Applied generalised forces tau: stance spring legs through their hips' Jacobians
 and the actuated joints' input u. Without active rigid contacts the acceleration is
 ``aba(q, v, tau)``; with them, the KKT contact dynamics ``M a + b = tau + W^T lambda,
 J a + dJ/dt v = 0`` through the Schur complement of ABA (``lsn_constrained``; W = J except on a
-slipping point's normal row, ``J_z - s mu J_x``). Where slipping contacts have no unique forces
+slipping point's normal row, ``J_n - s mu J_t``). A point's rows are x and z on level ground, the
+terrain's tangent t and normal n under it on a terrain (``legsim.terrain``; a sliding point
+keeps ``z - h(x) = 0``, whose drift has the curvature term). Where slipping contacts have no unique forces
 (the Painleve paradox) the acceleration is nan: a state past the model's range.
 
 The state is ``x = (q, v, footholds)``: q and v of size nv, then the foothold x (m) of each
@@ -21,6 +23,7 @@ from legsim.robots import _native
 from legsim.robots._native.calls import lsn_aba, lsn_constrained, lsn_frame_jacobian, lsn_frames, lsn_tally
 
 from legsim.compiled.functions import model_function
+from legsim.heights import curvature, slope
 
 from .layout import (
     B_POINT,
@@ -57,6 +60,7 @@ from .layout import (
     P_NRIGID,
     P_RIGID,
     P_ROWS,
+    P_TERRAIN,
     S_ABSENT,
     S_SLIP_POS,
     STATUS_BASE,
@@ -150,24 +154,72 @@ def applied_forces(x, u, p, n, tau):
 
 
 @model_function
-def accelerate(x, u, p, blocks, blocks_at, a, lam):
+def keep(a):
+    """Read a[0]: called after a native call that took a's address, it keeps the array alive
+    until then (compiled code frees an array after its last use, which its address is not)."""
+    return a[0]
+
+
+@model_function
+def on_terrain(p):
+    """Whether the robot's ground is a terrain (``legsim.terrain``) rather than a level one."""
+    return p[P_TERRAIN] >= 0.0
+
+
+@model_function
+def point_slope(x, p, frame):
+    """(dh/dx, sqrt(1 + (dh/dx)^2)) of the terrain under Pinocchio frame ``frame`` at q."""
+    kin, ids = np.empty(4), np.full(1, float(frame))
+    lsn_frames(handle(p), x.ctypes.data, ptr(x, int(p[P_N])), np.int64(1), ids.ctypes.data, kin.ctypes.data)
+    keep(ids)
+    grade = slope(p, int(p[P_TERRAIN]), kin[0])
+    return grade, math.sqrt(1.0 + grade * grade)
+
+
+@model_function
+def terrain_slopes(x, p, count, src, at):
+    """The terrain's (slope, curvature) (1, 1/m) under each of the ``count`` constraint blocks
+    src[at:] at q, 2 per block, as the native library takes them: zeros for joint stops and on
+    level ground (whose rows stay x and z)."""
+    slopes = np.zeros(2 * max(1, count))
+    if not on_terrain(p):
+        return slopes
+    ids = np.empty(max(1, count))
+    for k in range(count):
+        ids[k] = src[at + BLOCK_SIZE * k + 1]
+    kin = np.empty(4 * max(1, count))
+    lsn_frames(handle(p), x.ctypes.data, ptr(x, int(p[P_N])), np.int64(count), ids.ctypes.data, kin.ctypes.data)
+    keep(ids)
+    terrain = int(p[P_TERRAIN])
+    for k in range(count):
+        if src[at + BLOCK_SIZE * k] != B_STOP:
+            slopes[2 * k] = slope(p, terrain, kin[4 * k])
+            slopes[2 * k + 1] = curvature(p, terrain, kin[4 * k])
+    return slopes
+
+
+@model_function
+def accelerate(x, u, p, blocks, src, at, a, lam):
     """The acceleration (nv,) into a and the constraint forces into lam (one per constraint row,
-    each block's normal force last) of the constraint blocks ``blocks`` at address ``blocks_at``
-    (``layout.BLOCK_SIZE`` values each) under the input u; ABA without blocks."""
+    each block's normal force last; along the terrain's tangent and normal on a terrain) of the
+    ``blocks`` constraint blocks src[at:] (``layout.BLOCK_SIZE`` values each) under the input u;
+    ABA without blocks."""
     n = int(p[P_N])
     tau = np.empty(n)
     applied_forces(x, u, p, n, tau)
     if blocks == 0:
         lsn_aba(handle(p), x.ctypes.data, ptr(x, n), tau.ctypes.data, a.ctypes.data)
     else:
-        lsn_constrained(handle(p), x.ctypes.data, ptr(x, n), tau.ctypes.data, np.int64(blocks), blocks_at,
-                        a.ctypes.data, lam.ctypes.data)  # fmt: skip
+        slopes = terrain_slopes(x, p, blocks, src, at)
+        lsn_constrained(handle(p), x.ctypes.data, ptr(x, n), tau.ctypes.data, np.int64(blocks), ptr(src, at),
+                        slopes.ctypes.data, a.ctypes.data, lam.ctypes.data)  # fmt: skip
+        keep(slopes)
 
 
 @model_function
 def mode_accelerate(x, u, p, a, lam):
     """``accelerate`` with the mode's own constraint blocks."""
-    accelerate(x, u, p, int(p[P_NRIGID]), ptr(p, int(p[P_RIGID])), a, lam)
+    accelerate(x, u, p, int(p[P_NRIGID]), p, int(p[P_RIGID]), a, lam)
 
 
 @model_function

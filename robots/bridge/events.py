@@ -4,9 +4,10 @@ parameter array p (``layout``).
 Guards (``>= 0`` inside the domain; their units are eps's):
 
 * an inactive rigid contact's gap: a point's ``max(z - ground, dz/dt)`` (m), past only while it
-  closes; a stop's ``max(s (q_j - position), s dq_j/dt)`` (rad or m), s = +1 for a lower stop
-  and -1 for an upper one; an *armed* point also takes ``-armed`` (``contacts.Armed``), so that
-  it lands only where it is armed;
+  closes (on a terrain ``max(z - h(x), dz/dt - h'(x) dx/dt)``: the height above the terrain under
+  the point, which is continuous across a profile's corners); a stop's ``max(s (q_j - position),
+  s dq_j/dt)`` (rad or m), s = +1 for a lower stop and -1 for an upper one; an *armed* point
+  also takes ``-armed`` (``contacts.Armed``), so that it lands only where it is armed;
 * a plastic impact (c = 0) is two transitions with the gap's guard, which the post-impact
   normal force lambda+ (in the mode with the contact active, under u) splits: ``max(gap,
   -lambda+)`` sticks (``touchdown_<c>``, ``impact_<c>``) and ``max(gap, lambda+)`` separates at
@@ -36,8 +37,20 @@ import numpy as np
 from legsim.robots._native.calls import lsn_frame_motion, lsn_frames, lsn_impact
 
 from legsim.compiled.functions import model_function
+from legsim.heights import height, slope
 
-from .dynamics import accelerate, frame_kinematics, handle, mode_accelerate, ptr, status_code
+from .dynamics import (
+    accelerate,
+    frame_kinematics,
+    handle,
+    keep,
+    mode_accelerate,
+    on_terrain,
+    point_slope,
+    ptr,
+    status_code,
+    terrain_slopes,
+)
 from .friction import event_outcome, mode_change
 from .layout import (
     ARMED_AHEAD,
@@ -89,6 +102,7 @@ from .layout import (
     P_NFRAME,
     P_NGUARD,
     P_ROWS,
+    P_TERRAIN,
     TR_COEFF,
     TR_CONTACT,
     TR_EVENT,
@@ -123,7 +137,11 @@ def gap(x, p, contact, kin):
         dof, sign = int(p[c + C_ID]), p[c + C_SIGN]
         return max(sign * (x[dof] - p[c + C_PLACE]), sign * x[n + dof])
     slot = 4 * int(p[c + C_SLOT])
-    value = max(kin[slot + 1] - p[c + C_PLACE], kin[slot + 3])
+    if on_terrain(p):
+        terrain, px = int(p[P_TERRAIN]), kin[slot]
+        value = max(kin[slot + 1] - height(p, terrain, px), kin[slot + 3] - slope(p, terrain, px) * kin[slot + 2])
+    else:
+        value = max(kin[slot + 1] - p[c + C_PLACE], kin[slot + 3])
     armed = p[c + C_ARMED]
     if armed == ARMED_COORDINATE:
         value = max(value, -(x[int(p[c + C_ARMED_REF])] - p[c + C_ARMED_BEYOND]))
@@ -172,8 +190,11 @@ def impact(x, p, tr, coefficients, out):
     p[coefficients]) at x into out: x with the post-impact velocity."""
     n = int(p[P_N])
     out[: x.shape[0]] = x
-    lsn_impact(handle(p), x.ctypes.data, ptr(x, n), np.int64(p[tr + TR_NIMPACT]), ptr(p, int(p[tr + TR_IMPACT])),
+    count, at = int(p[tr + TR_NIMPACT]), int(p[tr + TR_IMPACT])
+    slopes = terrain_slopes(x, p, count, p, at)
+    lsn_impact(handle(p), x.ctypes.data, ptr(x, n), np.int64(count), ptr(p, at), slopes.ctypes.data,
                ptr(p, coefficients), ptr(out, n), np.int64(0))  # fmt: skip
+    keep(slopes)
 
 
 @model_function
@@ -185,7 +206,7 @@ def post_impact_force(x, u, p, tr):
     impact(x, p, tr, int(p[tr + TR_COEFF]), after)
     a = np.empty(n)
     lam = np.empty(int(p[tr + TR_ROW]) + 1 + 2 * int(p[tr + TR_NSTICK]))
-    accelerate(after, u, p, int(p[tr + TR_NSTICK]), ptr(p, int(p[tr + TR_STICK])), a, lam)
+    accelerate(after, u, p, int(p[tr + TR_NSTICK]), p, int(p[tr + TR_STICK]), a, lam)
     return lam[int(p[tr + TR_ROW])]
 
 
@@ -303,6 +324,9 @@ def event_base(x, p, ev, kin, a, lam):
     n = int(p[P_N])
     motion = np.empty(4)
     lsn_frame_motion(handle(p), x.ctypes.data, ptr(x, n), a.ctypes.data, np.int64(p[c + C_ID]), motion.ctypes.data)
+    if on_terrain(p):  # the slip velocity and acceleration along the terrain's tangent
+        grade, norm = point_slope(x, p, int(p[c + C_ID]))
+        return max(s * (motion[0] + grade * motion[1]) / norm, s * (motion[2] + grade * motion[3]) / norm)
     return max(s * motion[0], s * motion[2])
 
 

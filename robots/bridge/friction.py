@@ -319,7 +319,7 @@ def force_change(image, u, p, status, order, slip, count):
     blocks = np.empty(BLOCK_SIZE * contacts)
     n_blocks, rows = blocks_of(p, status, blocks)
     a, lam = np.empty(int(p[P_N])), np.empty(max(1, rows))
-    accelerate(image, u, p, n_blocks, blocks.ctypes.data, a, lam)
+    accelerate(image, u, p, n_blocks, blocks, 0, a, lam)
     if not (np.all(np.isfinite(lam[:rows])) and np.all(np.isfinite(a))):
         return NOT_FINITE, -1, 0.0
     normal, tangent = np.zeros(contacts), np.zeros(contacts)

@@ -9,6 +9,8 @@ from collections.abc import Callable
 import numpy as np
 import pinocchio as pin
 
+from legsim.heights import height as terrain_height
+
 from .contacts import SLIP_SUFFIX, PointContact, RigidContact, SpringLeg, joint_id
 from .model import BridgeModel
 
@@ -57,15 +59,17 @@ def _past_stop(model: BridgeModel, r: RigidContact, q: np.ndarray, eps: float, m
 def _below_ground(
     model: BridgeModel, data: pin.Data, r: RigidContact, q: np.ndarray, eps: float, mode: str
 ) -> str | None:
-    """A message if the inactive contact point lies below the ground at q by more than eps (m), else None."""
+    """A message if the inactive contact point lies below the ground (the terrain under it) at q by
+    more than eps (m), else None."""
     c = r.point
     pin.forwardKinematics(model.pin_model, data, q)
-    z = pin.updateFramePlacement(model.pin_model, data, r.frame_id).translation[2]
-    depth = c.ground - z
+    x, _, z = pin.updateFramePlacement(model.pin_model, data, r.frame_id).translation
+    ground = c.ground if model.terrain is None else terrain_height(model.terrain, 0, float(x))
+    depth = ground - z
     if depth > eps:
         return (
             f"contact point '{c.name}' (frame '{c.frame}') at height {z:g} m lies below the "
-            f"ground {c.ground:g} m by {depth:.3g} > eps = {eps:g} in mode '{mode}' where "
+            f"ground {ground:g} m under it by {depth:.3g} > eps = {eps:g} in mode '{mode}' where "
             f"the contact is inactive"
         )
     return None

@@ -35,9 +35,23 @@ import numpy as np
 from legsim.robots._native.calls import lsn_crba, lsn_frame_jacobian, lsn_impact
 
 from legsim.compiled.functions import model_function
+from legsim.heights import slope
 
-from .dynamics import handle, ptr
-from .layout import B_POINT, B_STOP, BLOCK_SIZE, C_ID, C_KIND, C_ROWS, C_SIGN, CONTACT_SIZE, KIND_STOP, P_CONTACT, P_N
+from .dynamics import handle, keep, on_terrain, ptr, terrain_slopes
+from .layout import (
+    B_POINT,
+    B_STOP,
+    BLOCK_SIZE,
+    C_ID,
+    C_KIND,
+    C_ROWS,
+    C_SIGN,
+    CONTACT_SIZE,
+    KIND_STOP,
+    P_CONTACT,
+    P_N,
+    P_TERRAIN,
+)
 
 FREE, STICK, NORMAL, SLIDE = range(4)
 #: Relative tolerance of the cone and sign tests (rounding of the impulses and forces).
@@ -51,8 +65,9 @@ MAX_TRIES = 64
 
 @model_function
 def contact_rows(x, p, contact, t_row, n_row):
-    """Contact ``contact``'s constraint rows at q into t_row (tangential, x) and n_row (normal:
-    z, or a stop's signed dof); returns whether it has a tangential row (a point pinned in x)."""
+    """Contact ``contact``'s constraint rows at q into t_row (tangential: x, or the terrain's
+    tangent under the point) and n_row (normal: z or the terrain's normal, or a stop's signed
+    dof); returns whether it has a tangential row (a pinned point)."""
     n = int(p[P_N])
     c = int(p[P_CONTACT]) + CONTACT_SIZE * contact
     if p[c + C_KIND] == KIND_STOP:
@@ -63,9 +78,18 @@ def contact_rows(x, p, contact, t_row, n_row):
         return False
     jac = np.empty(2 + 2 * n)
     lsn_frame_jacobian(handle(p), x.ctypes.data, np.int64(p[c + C_ID]), jac.ctypes.data)
-    for j in range(n):
-        t_row[j] = jac[2 + j]
-        n_row[j] = jac[2 + n + j]
+    grade, norm = 0.0, 1.0
+    if on_terrain(p):
+        grade = slope(p, int(p[P_TERRAIN]), jac[0])
+        norm = math.sqrt(1.0 + grade * grade)
+    if grade == 0.0:
+        for j in range(n):
+            t_row[j] = jac[2 + j]
+            n_row[j] = jac[2 + n + j]
+    else:  # along the terrain's tangent (1, h') / s and normal (-h', 1) / s
+        for j in range(n):
+            t_row[j] = (jac[2 + j] + grade * jac[2 + n + j]) / norm
+            n_row[j] = (jac[2 + n + j] - grade * jac[2 + j]) / norm
     return p[c + C_ROWS] == 2.0
 
 
@@ -144,8 +168,10 @@ def newton_impact(x, p, contacts, coeff, count, v_plus, normal):
     blocks = np.empty(BLOCK_SIZE * max(1, count))
     rows = contact_blocks(p, contacts, count, blocks)
     impulse = np.empty(max(1, rows))
-    lsn_impact(handle(p), x.ctypes.data, ptr(x, n), np.int64(count), blocks.ctypes.data, coeff.ctypes.data,
-               v_plus.ctypes.data, impulse.ctypes.data)  # fmt: skip
+    slopes = terrain_slopes(x, p, count, blocks, 0)
+    lsn_impact(handle(p), x.ctypes.data, ptr(x, n), np.int64(count), blocks.ctypes.data, slopes.ctypes.data,
+               coeff.ctypes.data, v_plus.ctypes.data, impulse.ctypes.data)  # fmt: skip
+    keep(slopes)
     row = 0
     for k in range(count):
         row += int(blocks[BLOCK_SIZE * k + 3])

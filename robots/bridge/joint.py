@@ -140,7 +140,7 @@ def drop_pulling(image, u, p, status, strikers, n_strikers):
             return
         n_blocks, rows = blocks_of(p, status, blocks)
         lam = np.empty(max(1, rows))
-        accelerate(image, u, p, n_blocks, blocks.ctypes.data, np.empty(int(p[P_N])), lam)
+        accelerate(image, u, p, n_blocks, blocks, 0, np.empty(int(p[P_N])), lam)
         contact_forces(p, status, lam, normal, tangent)
         pulling = False
         for k in range(n_strikers):

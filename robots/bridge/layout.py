@@ -26,7 +26,9 @@ from __future__ import annotations
 #: (offset), its code; the constraint blocks of the mode's active contacts (count, offset, their
 #: rows). The spring legs (count, offset of their records) and this mode's stance legs (count).
 #: The outgoing transitions (count, offset of their records); whether the robot has Coulomb
-#: friction; its events (count, offset); its joint outcomes (count, offset).
+#: friction; its events (count, offset); its joint outcomes (count, offset). The terrain's
+#: encoding (offset; ``legsim.terrain``), or -1 when the ground is level under each contact at its
+#: own height (``C_PLACE``, ``L_GROUND``).
 (
     P_HANDLE,
     P_N,
@@ -55,8 +57,9 @@ from __future__ import annotations
     P_EVENT,
     P_NJOINT,
     P_JOINT,
-) = range(27)
-HEADER = 27
+    P_TERRAIN,
+) = range(28)
+HEADER = 28
 
 # -- statuses of a rigid contact in a mode --------------------------------------------------------
 #: Absent (inactive); active (a stuck point, a frictionless point, a held stop); a point with
@@ -67,13 +70,15 @@ STATUS_BASE = 4.0
 
 # -- a constraint block (the native library's ``Rigid``: kind, id, sign, rows) -------------------
 #: A joint stop (id: its dof; sign: +1 lower, -1 upper); a stuck or frictionless point (id: its
-#: frame); a slipping point (sign: s mu, its friction force -s mu lambda_n along x).
+#: frame); a slipping point (sign: s mu, its friction force -s mu lambda_n along the ground's
+#: tangent). On a terrain the native library takes the slope and curvature under each block
+#: besides (``dynamics.terrain_slopes``).
 B_STOP, B_POINT, B_SLIPPING = range(3)
 BLOCK_SIZE = 4
 
 # -- a rigid contact (``P_CONTACT`` records) -------------------------------------------------------
 #: Kind (``KIND_STOP``, ``KIND_POINT``); its dof (stop) or frame id (point); a stop's side sign;
-#: the stop's position (rad or m) or the ground's height (m); restitution c; friction mu (< 0:
+#: the stop's position (rad or m) or the ground's height (m; unused on a terrain); restitution c; friction mu (< 0:
 #: none); rows when stuck (2: pinned in x and z, 1: normal only); its frame's kinematics slot
 #: (-1 for a stop); the contacts it releases when it strikes (a bit mask of their indices); how
 #: it is armed (``ARMED_*``), the coordinate index or frame slot it is armed by and the threshold

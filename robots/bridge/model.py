@@ -6,15 +6,26 @@ actuation, its native handle and the rows of its parameter arrays every mode sha
 from __future__ import annotations
 
 from collections.abc import Iterable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 import pinocchio as pin
 
 from legsim.errors import ModelError
+from legsim.terrain import Terrain
 
-from .contacts import Contact, LegFrames, RigidContact, declared_contacts, finite_number, joint_id, resolve_contact
+from .contacts import (
+    Contact,
+    LegFrames,
+    PointContact,
+    RigidContact,
+    SpringLeg,
+    declared_contacts,
+    finite_number,
+    joint_id,
+    resolve_contact,
+)
 from .native import handle_for
 
 
@@ -38,6 +49,8 @@ class BridgeModel:
     handle: the model's handle in the native library.
     frames: the frames whose kinematics the guards read (frame ids; a contact's or leg's *slot*
         is its index here).
+    terrain: the encoding of a terrain that is not level (``legsim.terrain``), or None: each
+        contact's ground is level at its own height (a flat terrain sets those heights).
     """
 
     name: str
@@ -54,6 +67,7 @@ class BridgeModel:
     effort_limits: np.ndarray
     handle: int
     frames: tuple[int, ...]
+    terrain: np.ndarray | None = None
 
     @property
     def order(self) -> list[str]:
@@ -85,12 +99,13 @@ def build_model(
     actuated: Sequence[str],
     name: str,
     effort_limits: Mapping[str, float] | None = None,
+    terrain: Terrain | None = None,
 ) -> BridgeModel:
     """Check and resolve the ``ContactBridge`` arguments (see there); ``ModelError`` names the
     contact, frame or joint at fault."""
     _check_pin_model(model, name)
     own = pin.Model(model)  # private copy: foot frames are added to it
-    declared = declared_contacts(contacts, name)
+    declared = _on_terrain(declared_contacts(contacts, name), terrain, name)
     rigid: dict[str, RigidContact] = {}
     legs: dict[str, LegFrames] = {}
     for contact in declared.values():
@@ -117,7 +132,37 @@ def build_model(
     return BridgeModel(
         name, own, n, declared, rigid, legs, coords, vels, damping_idx, damping_b, actuated_idx, limits,
         handle_for(own, name), _kinematics_frames(rigid, legs),
+        None if terrain is None or terrain.flat else terrain.array.copy(),
     )  # fmt: skip
+
+
+def _on_terrain(declared: dict[str, Contact], terrain: Terrain | None, name: str) -> dict[str, Contact]:
+    """The contacts on ``terrain``: a flat one is each contact's ground height (so that it runs
+    exactly as ``ground = h0`` does); the others replace the grounds. A contact that gives its
+    own ground besides a terrain, or a spring leg on a terrain that is not level, is refused."""
+    if terrain is None:
+        return declared
+    if not isinstance(terrain, Terrain):
+        raise ModelError(f"{name}: terrain must be a legsim.terrain.Terrain or None, got {type(terrain).__name__}")
+    grounded = [c for c in declared.values() if isinstance(c, (PointContact, SpringLeg))]
+    for c in grounded:
+        if c.ground != 0.0:
+            raise ModelError(
+                f"{name}: contact '{c.name}' gives its own ground = {c.ground:g} m besides the terrain "
+                f"({terrain.description}); give the ground one way"
+            )
+    if terrain.flat:
+        h0 = float(terrain.array[1])
+        return {
+            k: replace(c, ground=h0) if isinstance(c, (PointContact, SpringLeg)) else c for k, c in declared.items()
+        }
+    legs = [c.name for c in grounded if isinstance(c, SpringLeg)]
+    if legs:
+        raise ModelError(
+            f"{name}: spring legs {legs} stand only on level ground; the terrain {terrain.description} "
+            f"is not (use a flat terrain)"
+        )
+    return declared
 
 
 def _kinematics_frames(rigid: Mapping[str, RigidContact], legs: Mapping[str, LegFrames]) -> tuple[int, ...]:

@@ -42,6 +42,7 @@ from .layout import (
     P_RIGID,
     P_ROWS,
     P_STATUS,
+    P_TERRAIN,
     S_ABSENT,
     STATUS_BASE,
 )
@@ -159,6 +160,7 @@ def start(model: BridgeModel, spec: ModeSpec) -> Builder:
     b.set(P_LEG, b.append(v for name in model.legs for v in leg_record(model, spec, name)))
     b.set(P_NSPRING, len(spec.springs))
     b.set(P_COULOMB, float(model.coulomb))
+    b.set(P_TERRAIN, -1.0 if model.terrain is None else b.append(model.terrain))
     return b
 
 
