@@ -246,7 +246,9 @@ RUNNER_LEG = 9
 #: touchdown's time (s); its last stance's duration T_s (s); its thrust (m); 1.0 once it has
 #: landed (its touchdown time and place are then set); the body's x at its last touchdown (m);
 #: the foot placement's bias (m); its angle from the world's -z axis at its last liftoff (rad);
-#: that liftoff's time (s); a bound's apex target change (m).
+#: that liftoff's time (s); a bound's apex target change (m); its length at its last touchdown if
+#: another leg stood then (m, else 0: ``late_landing_length``), below which its stance spring's
+#: rest length does not go.
 MEMORY_FIELDS = (
     ("stance", ""),
     ("touchdown", "s"),
@@ -258,10 +260,21 @@ MEMORY_FIELDS = (
     ("liftoff_angle", "rad"),
     ("liftoff", "s"),
     ("phase_height", "m"),
+    ("touchdown_length", "m"),
 )
-(M_STANCE, M_TOUCHDOWN, M_T_S, M_THRUST, M_LANDED, M_TOUCHDOWN_X, M_BIAS, M_LIFTOFF_ANGLE, M_LIFTOFF, M_PHASE) = range(
-    len(MEMORY_FIELDS)
-)
+(
+    M_STANCE,
+    M_TOUCHDOWN,
+    M_T_S,
+    M_THRUST,
+    M_LANDED,
+    M_TOUCHDOWN_X,
+    M_BIAS,
+    M_LIFTOFF_ANGLE,
+    M_LIFTOFF,
+    M_PHASE,
+    M_TOUCHDOWN_LENGTH,
+) = range(len(MEMORY_FIELDS))
 LEG_MEMORY = len(MEMORY_FIELDS)
 #: Before its first liftoff a leg's liftoff time is this long ago (s).
 LONG_AGO = -1.0e9
@@ -343,7 +356,8 @@ def runner_control(t, x, m, p, u):
             unload = together or (not pronk and t - m[mem + M_LIFTOFF] < REFRACTORY)
             q_hip, q_knee, v_hip, v_knee = leg_joints(p, leg, x, n)
             hip, knee = stance_torques(p[leg + RL_THIGH], p[leg + RL_SHANK], q_hip, q_knee, v_hip, v_knee,
-                                       p[R_LEG_LENGTH], m[mem + M_THRUST], p[R_STIFFNESS], p[R_DAMPING],
+                                       max(p[R_LEG_LENGTH], m[mem + M_TOUCHDOWN_LENGTH]), m[mem + M_THRUST],
+                                       p[R_STIFFNESS], p[R_DAMPING],
                                        attitude / stance_count, unload)  # fmt: skip
         else:
             hip, knee = flight_torques(t, x, m, p, leg, mem, n, gravity)
@@ -373,6 +387,7 @@ def runner_enter(t, x, m, p, m_new):
                 m_new[mem + M_BIAS] += p[R_K_I] * (stride_speed - p[R_SPEED])
             m_new[mem + M_TOUCHDOWN_X] = x[0]
             m_new[mem + M_TOUCHDOWN] = t
+            m_new[mem + M_TOUCHDOWN_LENGTH] = late_landing_length(p, leg, x, m)
             m_new[mem + M_LANDED] = 1.0
         elif was and not stance:
             m_new[mem + M_T_S] = min(max(t - m_new[mem + M_TOUCHDOWN], 0.02), 0.5)
@@ -388,6 +403,20 @@ def runner_enter(t, x, m, p, m_new):
                 m_new[mem + M_LIFTOFF_ANGLE] = math.atan2(foot[0], -foot[1]) - x[2]
                 m_new[mem + M_LIFTOFF] = t
         m_new[mem + M_STANCE] = 1.0 if stance else 0.0
+
+
+@register_jitable
+def late_landing_length(p, leg, x, m):
+    """The length (m) of a leg touching down at x while another leg already stands (its stance
+    spring's rest length is then at least this, so that it does not pull its foot up at once: a
+    pronk's pitch in flight lands one foot first, the other's leg stretched by its hip's height);
+    0 when it lands alone or with the others (m: the memory before this entry)."""
+    for j in range(int(p[R_LEGS])):
+        if j != (leg - RUNNER_HEAD) // RUNNER_LEG and m[LEG_MEMORY * j + M_STANCE] != 0.0:
+            q_hip, q_knee = x[int(p[leg + RL_HIP])], x[int(p[leg + RL_KNEE])]
+            px, pz = foot_terms(p[leg + RL_THIGH], p[leg + RL_SHANK], q_hip, q_knee)[:2]
+            return math.sqrt(px * px + pz * pz)
+    return 0.0
 
 
 @register_jitable

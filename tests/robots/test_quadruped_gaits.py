@@ -1,0 +1,75 @@
+"""The planar quadruped's gaits forward at commanded speeds (robots/raibert.py, robots/runner_laws.py):
+the bundled scenes ``quadruped_pronk_forward`` and ``quadruped_bound_forward`` run at a commanded
+speed; after 5 s their mean forward speed is within 5% of the command (the speed error is
+integrated away by the foot placement's integral term: the measured error is below 1%), the pitch
+stays bounded and the run ends where it was asked to, without a warning. CI runs 0.5 m/s; the
+1.0 m/s runs are marked slow (``LEGSIM_FULL=1`` or ``-m slow``)."""
+
+import numpy as np
+import pytest
+
+from legsim.scene import load_scene
+
+#: The issue's yardstick: the mean forward speed over t in [SETTLE, t_final] within 5% of the command.
+SETTLE = 5.0
+SPEED_TOLERANCE = 0.05
+#: The pitch bound of each gait (rad): a pronk's stance hips level the body (measured below 0.05
+#: rad at 1.0 m/s); a bound leaves the pitch free and it swings by design (measured 0.41 rad at
+#: 0.5 m/s and 0.44 rad at 1.0 m/s, the in-place bound's 0.31 rad plus the forward motion's).
+PITCH_BOUND = {"pronk": 0.06, "bound": 0.5}
+
+
+def run_gait(gait: str, speed: float, t_final: float = 10.0):
+    """The bundled scene of ``gait`` at a commanded ``speed`` (m/s) for ``t_final`` (s):
+    (execution, times (s), body x (m), body pitch (rad)) over all its segments."""
+    scene = load_scene(
+        f"quadruped_{gait}_forward", [f"controller.parameters.speed={speed}", f"integrator.t_final={t_final}"]
+    )
+    ex = scene.simulate()
+    t = np.concatenate([seg.t for seg in ex.segments])
+    x = np.concatenate([seg.x[:, 0] for seg in ex.segments])
+    pitch = np.concatenate([seg.x[:, 2] for seg in ex.segments])
+    return ex, t, x, pitch
+
+
+def mean_speed_after(t: np.ndarray, x: np.ndarray, start: float) -> float:
+    """Mean forward speed (m/s) from the first sample at or after ``start`` (s) to the last."""
+    k = int(np.searchsorted(t, start))
+    return float((x[-1] - x[k]) / (t[-1] - t[k]))
+
+
+def check_gait(gait: str, speed: float) -> None:
+    ex, t, x, pitch = run_gait(gait, speed)
+    assert ex.status == "finished" and ex.t_end == 10.0 and not ex.warnings
+    achieved = mean_speed_after(t, x, SETTLE)
+    assert abs(achieved / speed - 1.0) < SPEED_TOLERANCE, achieved
+    assert np.max(np.abs(pitch)) < PITCH_BOUND[gait]
+
+
+@pytest.mark.parametrize("gait", ["pronk", "bound"])
+def test_gait_keeps_half_a_metre_a_second(gait):
+    check_gait(gait, 0.5)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("gait", ["pronk", "bound"])
+def test_gait_keeps_a_metre_a_second(gait):
+    check_gait(gait, 1.0)
+
+
+def test_the_integral_term_removes_the_bounds_speed_error():
+    """Without the placement's integral term (k_i = 0) the forward bound settles more than 5%
+    below a commanded 0.5 m/s (measured 0.41 m/s: the proportional term alone leaves a steady
+    error); with it, within 1% (measured 0.496 m/s)."""
+    speeds = {}
+    for k_i in (0.0, 0.03):
+        scene = load_scene(
+            "quadruped_bound_forward", ["controller.parameters.speed=0.5", f"controller.parameters.k_i={k_i}"]
+        )
+        ex = scene.simulate()
+        assert ex.status == "finished"
+        t = np.concatenate([seg.t for seg in ex.segments])
+        x = np.concatenate([seg.x[:, 0] for seg in ex.segments])
+        speeds[k_i] = mean_speed_after(t, x, SETTLE)
+    assert speeds[0.0] < 0.95 * 0.5
+    assert abs(speeds[0.03] / 0.5 - 1.0) < 0.01
