@@ -124,6 +124,7 @@ class Gains:
     kd_joint: float
     max_thrust: float
     k_phase: float
+    late_rest: bool
 
 
 @dataclass(frozen=True)
@@ -144,12 +145,16 @@ class RunnerParams:
     """``RunnerLaw.params``: the controller's parameter array in a mode (``runner_laws.R_*``,
     ``RL_*``), each leg in stance where its foot's contact is active; built once per mode."""
 
-    def __init__(self, bridge: Any, legs: tuple[Leg, ...], gains: Gains, pronk: bool) -> None:
+    def __init__(
+        self, bridge: Any, legs: tuple[Leg, ...], gains: Gains, pronk: bool, schedule: tuple[tuple[float, float], ...]
+    ) -> None:
         self.bridge = bridge
         head = [bridge.handle, bridge.n, len(legs), float(pronk)]
         head += [getattr(gains, name) for name in GAIN_ORDER]
+        head.append(len(schedule))
         self.head = [float(v) for v in head]
         self.legs = legs
+        self.schedule = [float(v) for entry in schedule for v in entry]
         self._made: dict[str, np.ndarray] = {}
 
     def __call__(self, mode: str) -> np.ndarray:
@@ -160,6 +165,7 @@ class RunnerParams:
             for leg in self.legs:
                 values += [leg.hip, leg.knee, leg.u_hip, leg.u_knee, leg.thigh, leg.shank, leg.bend, leg.offset]
                 values.append(1.0 if leg.contact in active else 0.0)
+            values += self.schedule
             made = self._made[mode] = np.array(values, dtype=float)
         return made
 
@@ -180,13 +186,22 @@ GAIN_ORDER = (
     "kd_joint",
     "max_thrust",
     "k_phase",
+    "late_rest",
 )
 
 
-def runner_law(bridge: Any, legs: list[Leg], gains: Gains, pronk: bool, thrust: float) -> RunnerLaw:
+def runner_law(
+    bridge: Any,
+    legs: list[Leg],
+    gains: Gains,
+    pronk: bool,
+    thrust: float,
+    schedule: tuple[tuple[float, float], ...] = (),
+) -> RunnerLaw:
     """Raibert's runner for ``bridge``'s articulated ``legs``, each starting with ``thrust`` (m),
     a stance time of 0.12 s and no touchdown yet; its memory is ``runner_laws.MEMORY_FIELDS`` of
-    each leg in turn, named ``<field>_<contact>``."""
+    each leg in turn, named ``<field>_<contact>``. ``schedule``: (t (s), speed (m/s)) pairs in
+    increasing time, each commanding its speed from its t on (``gains.speed`` before the first)."""
     names = tuple(f"{field}_{leg.contact}" for leg in legs for field, _ in laws.MEMORY_FIELDS)
     units = tuple(unit for _ in legs for _, unit in laws.MEMORY_FIELDS)
     initial = {"T_s": 0.12, "thrust": thrust, "liftoff": laws.LONG_AGO}
@@ -195,7 +210,7 @@ def runner_law(bridge: Any, legs: list[Leg], gains: Gains, pronk: bool, thrust: 
         "raibert_runner",
         laws.runner_control,
         len(bridge.actuated_dofs),
-        RunnerParams(bridge, tuple(legs), gains, pronk),
+        RunnerParams(bridge, tuple(legs), gains, pronk, schedule),
         laws.runner_enter,
         names,
         units,
@@ -231,6 +246,16 @@ RUNNER_PARAMETERS = {
     "k_phase": Param(
         0.1, "bound: apex target change (m) per share of a period a leg pair's touchdown is off antiphase", "m", low=0.0
     ),
+    "schedule": Param(
+        [],
+        "speed changes during the run: tables {t = s, speed = m/s} in increasing t, each commanding its speed "
+        "from its t on (before the first: speed)",
+    ),
+    "late_rest": Param(
+        False,
+        "a leg landing while another stands keeps its touchdown length as its stance spring's rest length where "
+        "that is longer (else it pulls its foot up at once: the forward pronk at 1 m/s lands its feet apart)",
+    ),
     "kp_joint": Param(60.0, "flight joint stiffness", "N m/rad", low=0.0),
     "kd_joint": Param(2.0, "flight joint damping", "N m s/rad", low=0.0),
 }
@@ -250,7 +275,31 @@ def _make_runner(model: Model, params: dict[str, Any]) -> RunnerLaw:
             f"{len(legs)} articulated leg(s): {', '.join(leg.contact for leg in legs)}"
         )
     gains = Gains(**{k: params[k] for k in Gains.__dataclass_fields__})
-    return runner_law(bridge, legs, gains, params["gait"] == "pronk", params["thrust"])
+    schedule = speed_schedule(params["schedule"])
+    return runner_law(bridge, legs, gains, params["gait"] == "pronk", params["thrust"], schedule)
+
+
+#: A speed schedule entry's keys.
+SCHEDULE_KEYS = ("t", "speed")
+
+
+def speed_schedule(entries: list[Any]) -> tuple[tuple[float, float], ...]:
+    """``controller.parameters.schedule`` as (t (s), speed (m/s)) pairs, or SceneError naming the
+    entry: each a table of exactly a time t >= 0 and a speed (numbers), the times increasing."""
+    schedule: list[tuple[float, float]] = []
+    for k, entry in enumerate(entries):
+        where = f"controller.parameters.schedule[{k}]"
+        if not isinstance(entry, dict) or set(entry) != set(SCHEDULE_KEYS):
+            raise SceneError(f"{where}: expected a table {{t = <s>, speed = <m/s>}}, got {entry!r:.200}")
+        t, speed = (entry[key] for key in SCHEDULE_KEYS)
+        for key, value in (("t", t), ("speed", speed)):
+            if isinstance(value, bool) or not isinstance(value, (int, float)):
+                raise SceneError(f"{where}.{key}: expected a number, got {value!r}")
+        if t < 0.0 or (schedule and t <= schedule[-1][0]):
+            after = f" after the previous entry's {schedule[-1][0]:g} s" if schedule else ""
+            raise SceneError(f"{where}.t: {t!r} s must be >= 0 and increasing{after}")
+        schedule.append((float(t), float(speed)))
+    return tuple(schedule)
 
 
 RUNNER = ControllerSpec(

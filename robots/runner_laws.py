@@ -214,7 +214,8 @@ def retract_torques(
 
 #: The head of the controller's parameter array: the robot's native handle, nv, the number of
 #: legs, 1.0 for a pronk (the stance hips level the body) and 0.0 for a bound, then the gains
-#: (``raibert.Gains``, units in ``raibert.RUNNER_PARAMETERS``).
+#: (``raibert.Gains``, units in ``raibert.RUNNER_PARAMETERS``), then the number of the speed
+#: schedule's entries, which follow the legs' entries as (t (s), speed (m/s)) pairs.
 (
     R_HANDLE,
     R_N,
@@ -234,8 +235,10 @@ def retract_torques(
     R_KD_JOINT,
     R_MAX_THRUST,
     R_K_PHASE,
-) = range(18)
-RUNNER_HEAD = 18
+    R_LATE_REST,
+    R_SCHEDULE,
+) = range(20)
+RUNNER_HEAD = 20
 #: Each leg's entries: its hip's and knee's velocity indices and positions in u, thigh and shank
 #: (m), knee bending sign, the hip's x in the body frame (m), and 1.0 when the leg is in stance
 #: in the mode.
@@ -293,6 +296,18 @@ def leg_at(p, i):
 
 
 @register_jitable
+def commanded_speed(p, t):
+    """The forward speed (m/s) commanded at time t (s): the schedule's last entry at or before t,
+    or ``speed`` before its first (a schedule's entries are in increasing time)."""
+    speed = p[R_SPEED]
+    start = RUNNER_HEAD + RUNNER_LEG * int(p[R_LEGS])
+    for k in range(int(p[R_SCHEDULE])):
+        if t >= p[start + 2 * k]:
+            speed = p[start + 2 * k + 1]
+    return speed
+
+
+@register_jitable
 def hop_height(p, leg, x, n):
     """Height (m) and vertical speed (m/s) the leg hops: the body's centre in a pronk; in a bound,
     where each leg pair hops on its own, the leg's hip (``offset sin(pitch)`` below the centre)."""
@@ -322,13 +337,13 @@ def flight_torques(t, x, m, p, leg, mem, n, gravity):
     length, kp, kd = p[R_LEG_LENGTH], p[R_KP_JOINT], p[R_KD_JOINT]
     if p[R_PRONK] != 0.0:
         return pronk_flight_torques(thigh, shank, bend, offset, q_hip, q_knee, v_hip, v_knee, x[2], x[n], falling,
-                                    m[mem + M_T_S], m[mem + M_BIAS], p[R_SPEED], p[R_K_X], length, kp, kd, g_hip,
+                                    m[mem + M_T_S], m[mem + M_BIAS], commanded_speed(p, t), p[R_K_X], length, kp, kd, g_hip,
                                     g_knee)  # fmt: skip
     if not falling:
         return retract_torques(thigh, shank, q_hip, q_knee, v_hip, v_knee, x[2], x[n + 2], m[mem + M_LIFTOFF_ANGLE],
                                length, kp, kd, g_hip, g_knee)  # fmt: skip
     hip_speed = x[n] - offset * math.sin(x[2]) * x[n + 2]
-    world = touchdown_angle(hip_speed, m[mem + M_T_S], p[R_K_X], p[R_SPEED], length, m[mem + M_BIAS])
+    world = touchdown_angle(hip_speed, m[mem + M_T_S], p[R_K_X], commanded_speed(p, t), length, m[mem + M_BIAS])
     return servo_torques(thigh, shank, bend, q_hip, q_knee, v_hip, v_knee, length, world + x[2], kp, kd, g_hip, g_knee)
 
 
@@ -384,10 +399,11 @@ def runner_enter(t, x, m, p, m_new):
                 adapt_phase(t, p, m_new, i)
             if t > m_new[mem + M_TOUCHDOWN] and m_new[mem + M_LANDED] != 0.0:
                 stride_speed = (x[0] - m_new[mem + M_TOUCHDOWN_X]) / (t - m_new[mem + M_TOUCHDOWN])
-                m_new[mem + M_BIAS] += p[R_K_I] * (stride_speed - p[R_SPEED])
+                m_new[mem + M_BIAS] += p[R_K_I] * (stride_speed - commanded_speed(p, t))
             m_new[mem + M_TOUCHDOWN_X] = x[0]
             m_new[mem + M_TOUCHDOWN] = t
-            m_new[mem + M_TOUCHDOWN_LENGTH] = late_landing_length(p, leg, x, m)
+            if p[R_LATE_REST] != 0.0:
+                m_new[mem + M_TOUCHDOWN_LENGTH] = late_landing_length(p, leg, x, m)
             m_new[mem + M_LANDED] = 1.0
         elif was and not stance:
             m_new[mem + M_T_S] = min(max(t - m_new[mem + M_TOUCHDOWN], 0.02), 0.5)

@@ -8,6 +8,7 @@ stays bounded and the run ends where it was asked to, without a warning. CI runs
 import numpy as np
 import pytest
 
+from legsim.errors import SceneError
 from legsim.scene import load_scene
 
 #: The issue's yardstick: the mean forward speed over t in [SETTLE, t_final] within 5% of the command.
@@ -73,3 +74,40 @@ def test_the_integral_term_removes_the_bounds_speed_error():
         speeds[k_i] = mean_speed_after(t, x, SETTLE)
     assert speeds[0.0] < 0.95 * 0.5
     assert abs(speeds[0.03] / 0.5 - 1.0) < 0.01
+
+
+def test_a_speed_schedule_changes_the_commanded_speed_during_the_run():
+    """``schedule = [{t = 7, speed = 1.0}]`` on the forward bound commanded 0.5 m/s: over t in
+    [3, 7] s the mean speed is within 5% of 0.5 m/s (measured 0.502), over [10, 15] s within 5%
+    of 1.0 m/s (measured 0.998); the controller reads the schedule from its parameter array."""
+    scene = load_scene(
+        "quadruped_bound_forward",
+        [
+            "controller.parameters.speed=0.5",
+            "controller.parameters.schedule=[{t = 7, speed = 1.0}]",
+            "integrator.t_final=15",
+        ],
+    )
+    ex = scene.simulate()
+    assert ex.status == "finished" and ex.t_end == 15.0 and not ex.warnings
+    t = np.concatenate([seg.t for seg in ex.segments])
+    x = np.concatenate([seg.x[:, 0] for seg in ex.segments])
+    k = int(np.searchsorted(t, 7.0))
+    before = mean_speed_after(t[:k], x[:k], 3.0)
+    after = mean_speed_after(t, x, 10.0)
+    assert abs(before / 0.5 - 1.0) < SPEED_TOLERANCE and abs(after / 1.0 - 1.0) < SPEED_TOLERANCE
+
+
+@pytest.mark.parametrize(
+    "schedule,message",
+    [
+        ("[{t = 2, speed = 1.0}, {t = 1, speed = 0.5}]", "schedule[1].t: 1 s must be >= 0 and increasing"),
+        ("[{t = 1, v = 1.0}]", "schedule[0]: expected a table {t = <s>, speed = <m/s>}"),
+        ("[{t = 1, speed = 'fast'}]", "schedule[0].speed: expected a number, got 'fast'"),
+        ("[{t = -1, speed = 1.0}]", "schedule[0].t: -1 s must be >= 0"),
+    ],
+)
+def test_a_bad_schedule_is_named_in_the_error(schedule, message):
+    with pytest.raises(SceneError) as caught:
+        load_scene("quadruped_pronk_forward", [f"controller.parameters.schedule={schedule}"])
+    assert "quadruped_pronk_forward.toml" in str(caught.value) and message in str(caught.value)
