@@ -336,8 +336,9 @@ def flight_torques(t, x, m, p, leg, mem, n, gravity):
     falling = hop_height(p, leg, x, n)[1] < 0.0
     length, kp, kd = p[R_LEG_LENGTH], p[R_KP_JOINT], p[R_KD_JOINT]
     if p[R_PRONK] != 0.0:
+        speed = commanded_speed(p, t)
         return pronk_flight_torques(thigh, shank, bend, offset, q_hip, q_knee, v_hip, v_knee, x[2], x[n], falling,
-                                    m[mem + M_T_S], m[mem + M_BIAS], commanded_speed(p, t), p[R_K_X], length, kp, kd, g_hip,
+                                    m[mem + M_T_S], m[mem + M_BIAS], speed, p[R_K_X], length, kp, kd, g_hip,
                                     g_knee)  # fmt: skip
     if not falling:
         return retract_torques(thigh, shank, q_hip, q_knee, v_hip, v_knee, x[2], x[n + 2], m[mem + M_LIFTOFF_ANGLE],
