@@ -94,15 +94,71 @@ def find_legs(bridge: Any) -> list[Leg]:
         fid = model.getFrameId(frame)
         knee = model.frames[fid].parentJoint
         hip = model.parents[knee]
-        kv, hv = model.joints[knee].idx_v, model.joints[hip].idx_v
-        if kv not in dofs or hv not in dofs:
-            continue
-        thigh = float(np.linalg.norm(model.jointPlacements[knee].translation))
-        shank = float(np.linalg.norm(model.frames[fid].placement.translation))
-        knee_q = model.joints[knee].idx_q
-        bend = 1.0 if model.upperPositionLimit[knee_q] > -model.lowerPositionLimit[knee_q] else -1.0
-        offset = float(model.jointPlacements[hip].translation[0])
-        legs.append(Leg(contact.name, hv, kv, dofs.index(hv), dofs.index(kv), thigh, shank, bend, offset))
+        if model.joints[knee].idx_v in dofs and model.joints[hip].idx_v in dofs:
+            legs.append(leg_of(bridge, contact.name, fid, hip, knee))
+    return legs
+
+
+def leg_of(bridge: Any, contact: str, fid: int, hip: int, knee: int) -> Leg:
+    """The leg of ``contact`` (its foot frame fid) on the joints hip and knee (Pinocchio joint
+    ids, the knee the frame's parent and the hip the knee's): its segments from the model's
+    placements, its knee's bending sign from the knee's limits (+1 where they allow more
+    positive than negative bending)."""
+    model = bridge.model
+    dofs = list(bridge.actuated_dofs)
+    kv, hv = model.joints[knee].idx_v, model.joints[hip].idx_v
+    thigh = float(np.linalg.norm(model.jointPlacements[knee].translation))
+    shank = float(np.linalg.norm(model.frames[fid].placement.translation))
+    knee_q = model.joints[knee].idx_q
+    bend = 1.0 if model.upperPositionLimit[knee_q] > -model.lowerPositionLimit[knee_q] else -1.0
+    offset = float(model.jointPlacements[hip].translation[0])
+    return Leg(contact, hv, kv, dofs.index(hv), dofs.index(kv), thigh, shank, bend, offset)
+
+
+#: A declared leg's keys (``controller.parameters.legs``).
+LEG_KEYS = ("contact", "hip", "knee")
+
+
+def declared_legs(bridge: Any, entries: list[Any]) -> list[Leg]:
+    """The legs a scene declares (``controller.parameters.legs``: tables of a point contact's
+    name and its leg's hip and knee joint names), or SceneError naming the entry and field: the
+    contact must be a declared point contact, the joints actuated joints of the model, the knee
+    the parent joint of the contact's frame, the hip the knee's parent and hung from the trunk
+    (the leg's kinematics are the two-link chain of ``runner_laws.foot_terms`` from the trunk)."""
+    model = bridge.model
+    contacts = {c.name: c for c in bridge.contacts if getattr(c, "frame", None) and hasattr(c, "tangential")}
+    dofs = list(bridge.actuated_dofs)
+    legs = []
+    for k, entry in enumerate(entries):
+        where = f"controller.parameters.legs[{k}]"
+        if not isinstance(entry, dict) or set(entry) != set(LEG_KEYS):
+            raise SceneError(
+                f"{where}: expected a table {{contact = <name>, hip = <joint>, knee = <joint>}}, got {entry!r:.200}"
+            )
+        for key in LEG_KEYS:
+            if not isinstance(entry[key], str):
+                raise SceneError(f"{where}.{key}: expected a name, got {entry[key]!r}")
+        contact = contacts.get(entry["contact"])
+        if contact is None:
+            known = sorted(contacts)
+            raise SceneError(f"{where}.contact: {entry['contact']!r} is not a point contact of the robot: {known}")
+        joints = {}
+        for key in ("hip", "knee"):
+            name = entry[key]
+            jid = model.getJointId(name) if model.existJointName(name) else model.njoints
+            if jid >= model.njoints or model.joints[jid].idx_v not in dofs:
+                raise SceneError(
+                    f"{where}.{key}: {name!r} is not an actuated joint of the robot (robot.parameters.actuated)"
+                )
+            joints[key] = jid
+        fid = model.getFrameId(contact.frame)
+        if model.frames[fid].parentJoint != joints["knee"]:
+            raise SceneError(f"{where}.knee: {entry['knee']!r} does not carry the contact's frame {contact.frame!r}")
+        if model.parents[joints["knee"]] != joints["hip"]:
+            raise SceneError(f"{where}.hip: {entry['hip']!r} is not the parent joint of the knee {entry['knee']!r}")
+        if model.joints[model.parents[joints["hip"]]].idx_v in dofs:
+            raise SceneError(f"{where}.hip: {entry['hip']!r} hangs below another actuated joint, not from the trunk")
+        legs.append(leg_of(bridge, contact.name, fid, joints["hip"], joints["knee"]))
     return legs
 
 
@@ -246,6 +302,11 @@ RUNNER_PARAMETERS = {
     "k_phase": Param(
         0.1, "bound: apex target change (m) per share of a period a leg pair's touchdown is off antiphase", "m", low=0.0
     ),
+    "legs": Param(
+        [],
+        "the legs: tables {contact = <point contact>, hip = <joint>, knee = <joint>}, the foot's contact and its "
+        "leg's actuated hip and knee; empty: every point contact whose frame hangs below two actuated revolute joints",
+    ),
     "schedule": Param(
         [],
         "speed changes during the run: tables {t = s, speed = m/s} in increasing t, each commanding its speed "
@@ -263,7 +324,7 @@ RUNNER_PARAMETERS = {
 
 def _make_runner(model: Model, params: dict[str, Any]) -> RunnerLaw:
     bridge = bridge_of(model, "raibert_runner")
-    legs = find_legs(bridge)
+    legs = declared_legs(bridge, params["legs"]) if params["legs"] else find_legs(bridge)
     if not legs:
         raise SceneError(
             "controller 'raibert_runner' found no articulated leg: a point contact on a frame below "

@@ -5,11 +5,13 @@ integrated away by the foot placement's integral term: the measured error is bel
 stays bounded and the run ends where it was asked to, without a warning. CI runs 0.5 m/s; the
 1.0 m/s runs are marked slow (``LEGSIM_FULL=1`` or ``-m slow``)."""
 
+import re
+
 import numpy as np
 import pytest
 
 from legsim.errors import SceneError
-from legsim.scene import load_scene
+from legsim.scene import bundled_dir, load_scene
 
 #: The issue's yardstick: the mean forward speed over t in [SETTLE, t_final] within 5% of the command.
 SETTLE = 5.0
@@ -110,4 +112,65 @@ def test_a_speed_schedule_changes_the_commanded_speed_during_the_run():
 def test_a_bad_schedule_is_named_in_the_error(schedule, message):
     with pytest.raises(SceneError) as caught:
         load_scene("quadruped_pronk_forward", [f"controller.parameters.schedule={schedule}"])
+    assert "quadruped_pronk_forward.toml" in str(caught.value) and message in str(caught.value)
+
+
+# -- legs declared by the scene -------------------------------------------------------------------
+#: The bundled URDF's names and those of a renamed copy: nothing in the controller may depend on them.
+RENAMED = {
+    "hind_hip": "rear_shoulder",
+    "hind_knee": "rear_elbow",
+    "hind_foot": "rear_toe",
+    "front_hip": "fore_shoulder",
+    "front_knee": "fore_elbow",
+    "front_foot": "fore_toe",
+}
+LEGS = (
+    "[{contact = 'hind', hip = 'hind_hip', knee = 'hind_knee'}, "
+    "{contact = 'front', hip = 'front_hip', knee = 'front_knee'}]"
+)
+SHORT = "integrator.t_final=1.5"
+
+
+def renamed_scene(folder):
+    """``quadruped_pronk_forward`` on a copy of the bundled URDF whose joints and foot frames are
+    renamed (``RENAMED``), with its legs declared under the new names, written in ``folder``."""
+    urdf = (bundled_dir() / "quadruped.urdf").read_text()
+    scene = (bundled_dir() / "quadruped_pronk_forward.toml").read_text()
+    scene = scene.replace("[controller.parameters]", f"[controller.parameters]\nlegs = {LEGS}")
+    for old, new in RENAMED.items():
+        urdf = urdf.replace(f'"{old}"', f'"{new}"')
+        scene = re.sub(rf"\b{old}\b", new, scene)
+    (folder / "quadruped.urdf").write_text(urdf)
+    (folder / "renamed.toml").write_text(scene)
+    return folder / "renamed.toml"
+
+
+def test_declared_legs_run_as_the_legs_found_and_names_do_not_matter(tmp_path):
+    """The forward pronk with its legs declared runs the same execution as with its legs found
+    in the model (to the bit), and so does a copy of the robot whose joints and feet carry other
+    names, its legs declared under them."""
+    found = load_scene("quadruped_pronk_forward", [SHORT]).simulate()
+    declared = load_scene("quadruped_pronk_forward", [SHORT, f"controller.parameters.legs={LEGS}"]).simulate()
+    renamed = load_scene(renamed_scene(tmp_path), [SHORT]).simulate()
+    assert found.status == "finished" and len(found.transitions) > 5
+    for other in (declared, renamed):
+        assert [tr.name for tr in other.transitions] == [tr.name for tr in found.transitions]
+        np.testing.assert_array_equal(other.final_state, found.final_state)
+
+
+@pytest.mark.parametrize(
+    "legs,message",
+    [
+        ("[{contact = 'paw', hip = 'hind_hip', knee = 'hind_knee'}]", "legs[0].contact: 'paw' is not a point contact"),
+        ("[{contact = 'hind', hip = 'hip', knee = 'hind_knee'}]", "legs[0].hip: 'hip' is not an actuated joint"),
+        ("[{contact = 'hind', hip = 'hind_knee', knee = 'hind_hip'}]", "legs[0].knee: 'hind_hip' does not carry"),
+        ("[{contact = 'hind', hip = 'front_hip', knee = 'hind_knee'}]", "legs[0].hip: 'front_hip' is not the parent"),
+        ("[{contact = 'hind', hip = 'hind_hip'}]", "legs[0]: expected a table {contact = <name>"),
+        ("[{contact = 'hind', hip = 'hind_hip', knee = 1}]", "legs[0].knee: expected a name, got 1"),
+    ],
+)
+def test_a_bad_leg_declaration_is_named_in_the_error(legs, message):
+    with pytest.raises(SceneError) as caught:
+        load_scene("quadruped_pronk_forward", [f"controller.parameters.legs={legs}"])
     assert "quadruped_pronk_forward.toml" in str(caught.value) and message in str(caught.value)
