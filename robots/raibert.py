@@ -202,7 +202,12 @@ class RunnerParams:
     ``RL_*``), each leg in stance where its foot's contact is active; built once per mode."""
 
     def __init__(
-        self, bridge: Any, legs: tuple[Leg, ...], gains: Gains, pronk: bool, schedule: tuple[tuple[float, float], ...]
+        self,
+        bridge: Any,
+        legs: tuple[Leg, ...],
+        gains: Gains,
+        pronk: bool,
+        schedule: tuple[tuple[float, float, float], ...],
     ) -> None:
         self.bridge = bridge
         head = [bridge.handle, bridge.n, len(legs), float(pronk)]
@@ -252,12 +257,13 @@ def runner_law(
     gains: Gains,
     pronk: bool,
     thrust: float,
-    schedule: tuple[tuple[float, float], ...] = (),
+    schedule: tuple[tuple[float, float, float], ...] = (),
 ) -> RunnerLaw:
     """Raibert's runner for ``bridge``'s articulated ``legs``, each starting with ``thrust`` (m),
     a stance time of 0.12 s and no touchdown yet; its memory is ``runner_laws.MEMORY_FIELDS`` of
-    each leg in turn, named ``<field>_<contact>``. ``schedule``: (t (s), speed (m/s)) pairs in
-    increasing time, each commanding its speed from its t on (``gains.speed`` before the first)."""
+    each leg in turn, named ``<field>_<contact>``. ``schedule``: (t (s), speed (m/s), 1.0 for a
+    pronk or 0.0 for a bound) in increasing time, each commanding its speed and gait from its t on
+    (``gains.speed`` and ``pronk`` before the first)."""
     names = tuple(f"{field}_{leg.contact}" for leg in legs for field, _ in laws.MEMORY_FIELDS)
     units = tuple(unit for _ in legs for _, unit in laws.MEMORY_FIELDS)
     initial = {"T_s": 0.12, "thrust": thrust, "liftoff": laws.LONG_AGO}
@@ -309,8 +315,9 @@ RUNNER_PARAMETERS = {
     ),
     "schedule": Param(
         [],
-        "speed changes during the run: tables {t = s, speed = m/s} in increasing t, each commanding its speed "
-        "from its t on (before the first: speed)",
+        "speed and gait changes during the run: tables {t = s, speed = m/s, gait = 'pronk' or 'bound'} in "
+        "increasing t, each commanding its speed and gait from its t on (one left out: the one before; before the "
+        "first entry: speed and gait)",
     ),
     "late_rest": Param(
         False,
@@ -330,36 +337,49 @@ def _make_runner(model: Model, params: dict[str, Any]) -> RunnerLaw:
             "controller 'raibert_runner' found no articulated leg: a point contact on a frame below "
             "two actuated revolute joints (hip, knee)"
         )
-    if params["gait"] == "bound" and len(legs) != 2:
+    schedule = command_schedule(params["schedule"], params["speed"], params["gait"])
+    bounds = params["gait"] == "bound" or any(entry[2] == 0.0 for entry in schedule)
+    if bounds and len(legs) != 2:
         raise SceneError(
-            f"controller.parameters.gait = 'bound' needs two leg pairs (hind and front), the robot has "
-            f"{len(legs)} articulated leg(s): {', '.join(leg.contact for leg in legs)}"
+            f"controller.parameters.gait = 'bound' (or a schedule's) needs two leg pairs (hind and front), the "
+            f"robot has {len(legs)} articulated leg(s): {', '.join(leg.contact for leg in legs)}"
         )
     gains = Gains(**{k: params[k] for k in Gains.__dataclass_fields__})
-    schedule = speed_schedule(params["schedule"])
     return runner_law(bridge, legs, gains, params["gait"] == "pronk", params["thrust"], schedule)
 
 
-#: A speed schedule entry's keys.
-SCHEDULE_KEYS = ("t", "speed")
+#: A schedule entry's keys: its time, and the speed or the gait (or both) it commands from then on.
+SCHEDULE_KEYS = ("t", "speed", "gait")
+GAITS = ("pronk", "bound")
 
 
-def speed_schedule(entries: list[Any]) -> tuple[tuple[float, float], ...]:
-    """``controller.parameters.schedule`` as (t (s), speed (m/s)) pairs, or SceneError naming the
-    entry: each a table of exactly a time t >= 0 and a speed (numbers), the times increasing."""
-    schedule: list[tuple[float, float]] = []
+def command_schedule(entries: list[Any], speed: float, gait: str) -> tuple[tuple[float, float, float], ...]:
+    """``controller.parameters.schedule`` as (t (s), speed (m/s), 1.0 for a pronk or 0.0 for a
+    bound) triples, an entry without a speed or gait keeping the one before it (the scene's
+    ``speed`` and ``gait`` before the first); or SceneError naming the entry: each a table of a
+    time t >= 0 and a speed (a number) or a gait (``GAITS``) or both, the times increasing."""
+    schedule: list[tuple[float, float, float]] = []
+    pronk = gait == "pronk"
     for k, entry in enumerate(entries):
         where = f"controller.parameters.schedule[{k}]"
-        if not isinstance(entry, dict) or set(entry) != set(SCHEDULE_KEYS):
-            raise SceneError(f"{where}: expected a table {{t = <s>, speed = <m/s>}}, got {entry!r:.200}")
-        t, speed = (entry[key] for key in SCHEDULE_KEYS)
-        for key, value in (("t", t), ("speed", speed)):
+        if not isinstance(entry, dict) or "t" not in entry or len(entry) < 2 or not set(entry) <= set(SCHEDULE_KEYS):
+            raise SceneError(
+                f"{where}: expected a table {{t = <s>, speed = <m/s>, gait = 'pronk' or 'bound'}} with a "
+                f"speed or a gait or both, got {entry!r:.200}"
+            )
+        for key in ("t", "speed"):
+            value = entry.get(key, 0.0)
             if isinstance(value, bool) or not isinstance(value, (int, float)):
                 raise SceneError(f"{where}.{key}: expected a number, got {value!r}")
+        if "gait" in entry and entry["gait"] not in GAITS:
+            raise SceneError(f"{where}.gait: {entry['gait']!r} is not allowed, choose one of {list(GAITS)}")
+        t = entry["t"]
         if t < 0.0 or (schedule and t <= schedule[-1][0]):
             after = f" after the previous entry's {schedule[-1][0]:g} s" if schedule else ""
             raise SceneError(f"{where}.t: {t!r} s must be >= 0 and increasing{after}")
-        schedule.append((float(t), float(speed)))
+        speed = float(entry.get("speed", speed))
+        pronk = entry["gait"] == "pronk" if "gait" in entry else pronk
+        schedule.append((float(t), speed, float(pronk)))
     return tuple(schedule)
 
 

@@ -100,11 +100,39 @@ def test_a_speed_schedule_changes_the_commanded_speed_during_the_run():
     assert abs(before / 0.5 - 1.0) < SPEED_TOLERANCE and abs(after / 1.0 - 1.0) < SPEED_TOLERANCE
 
 
+def test_a_schedule_entry_at_the_start_runs_as_the_scene_it_commands():
+    """The controller reads the commanded speed and gait from the schedule in its parameter
+    array: an entry at t = 0 commanding the bound at 0.5 m/s runs the forward pronk's scene,
+    to the bit, as the same scene with ``gait = "bound"`` and ``speed = 0.5``."""
+    short = "integrator.t_final=1.5"
+    scheduled = load_scene(
+        "quadruped_pronk_forward", [short, "controller.parameters.schedule=[{t = 0, speed = 0.5, gait = 'bound'}]"]
+    ).simulate()
+    direct = load_scene(
+        "quadruped_pronk_forward", [short, "controller.parameters.speed=0.5", "controller.parameters.gait=bound"]
+    ).simulate()
+    pronk = load_scene("quadruped_pronk_forward", [short]).simulate()
+    assert [tr.name for tr in scheduled.transitions] == [tr.name for tr in direct.transitions]
+    np.testing.assert_array_equal(scheduled.final_state, direct.final_state)
+    assert np.max(np.abs(scheduled.final_state[:7] - pronk.final_state[:7])) > 1e-2
+
+
+def test_a_one_legged_robot_cannot_be_scheduled_to_bound():
+    one_leg = '[{ name = "hind", frame = "hind_foot", restitution = 0.0, friction = 0.8 }]'
+    with pytest.raises(SceneError, match=r"a schedule's\) needs two leg pairs.*1 articulated leg\(s\): hind"):
+        load_scene(
+            "quadruped_pronk_forward",
+            [f"robot.parameters.contacts={one_leg}", "controller.parameters.schedule=[{t = 3, gait = 'bound'}]"],
+        )
+
+
 @pytest.mark.parametrize(
     "schedule,message",
     [
+        ("[{t = 1, gait = 'gallop'}]", "schedule[0].gait: 'gallop' is not allowed, choose one of ['pronk', 'bound']"),
+        ("[{t = 1}]", "schedule[0]: expected a table {t = <s>, speed = <m/s>, gait"),
         ("[{t = 2, speed = 1.0}, {t = 1, speed = 0.5}]", "schedule[1].t: 1 s must be >= 0 and increasing"),
-        ("[{t = 1, v = 1.0}]", "schedule[0]: expected a table {t = <s>, speed = <m/s>}"),
+        ("[{t = 1, v = 1.0}]", "schedule[0]: expected a table {t = <s>, speed = <m/s>, gait"),
         ("[{t = 1, speed = 'fast'}]", "schedule[0].speed: expected a number, got 'fast'"),
         ("[{t = -1, speed = 1.0}]", "schedule[0].t: -1 s must be >= 0"),
     ],
