@@ -94,15 +94,71 @@ def find_legs(bridge: Any) -> list[Leg]:
         fid = model.getFrameId(frame)
         knee = model.frames[fid].parentJoint
         hip = model.parents[knee]
-        kv, hv = model.joints[knee].idx_v, model.joints[hip].idx_v
-        if kv not in dofs or hv not in dofs:
-            continue
-        thigh = float(np.linalg.norm(model.jointPlacements[knee].translation))
-        shank = float(np.linalg.norm(model.frames[fid].placement.translation))
-        knee_q = model.joints[knee].idx_q
-        bend = 1.0 if model.upperPositionLimit[knee_q] > -model.lowerPositionLimit[knee_q] else -1.0
-        offset = float(model.jointPlacements[hip].translation[0])
-        legs.append(Leg(contact.name, hv, kv, dofs.index(hv), dofs.index(kv), thigh, shank, bend, offset))
+        if model.joints[knee].idx_v in dofs and model.joints[hip].idx_v in dofs:
+            legs.append(leg_of(bridge, contact.name, fid, hip, knee))
+    return legs
+
+
+def leg_of(bridge: Any, contact: str, fid: int, hip: int, knee: int) -> Leg:
+    """The leg of ``contact`` (its foot frame fid) on the joints hip and knee (Pinocchio joint
+    ids, the knee the frame's parent and the hip the knee's): its segments from the model's
+    placements, its knee's bending sign from the knee's limits (+1 where they allow more
+    positive than negative bending)."""
+    model = bridge.model
+    dofs = list(bridge.actuated_dofs)
+    kv, hv = model.joints[knee].idx_v, model.joints[hip].idx_v
+    thigh = float(np.linalg.norm(model.jointPlacements[knee].translation))
+    shank = float(np.linalg.norm(model.frames[fid].placement.translation))
+    knee_q = model.joints[knee].idx_q
+    bend = 1.0 if model.upperPositionLimit[knee_q] > -model.lowerPositionLimit[knee_q] else -1.0
+    offset = float(model.jointPlacements[hip].translation[0])
+    return Leg(contact, hv, kv, dofs.index(hv), dofs.index(kv), thigh, shank, bend, offset)
+
+
+#: A declared leg's keys (``controller.parameters.legs``).
+LEG_KEYS = ("contact", "hip", "knee")
+
+
+def declared_legs(bridge: Any, entries: list[Any]) -> list[Leg]:
+    """The legs a scene declares (``controller.parameters.legs``: tables of a point contact's
+    name and its leg's hip and knee joint names), or SceneError naming the entry and field: the
+    contact must be a declared point contact, the joints actuated joints of the model, the knee
+    the parent joint of the contact's frame, the hip the knee's parent and hung from the trunk
+    (the leg's kinematics are the two-link chain of ``runner_laws.foot_terms`` from the trunk)."""
+    model = bridge.model
+    contacts = {c.name: c for c in bridge.contacts if getattr(c, "frame", None) and hasattr(c, "tangential")}
+    dofs = list(bridge.actuated_dofs)
+    legs = []
+    for k, entry in enumerate(entries):
+        where = f"controller.parameters.legs[{k}]"
+        if not isinstance(entry, dict) or set(entry) != set(LEG_KEYS):
+            raise SceneError(
+                f"{where}: expected a table {{contact = <name>, hip = <joint>, knee = <joint>}}, got {entry!r:.200}"
+            )
+        for key in LEG_KEYS:
+            if not isinstance(entry[key], str):
+                raise SceneError(f"{where}.{key}: expected a name, got {entry[key]!r}")
+        contact = contacts.get(entry["contact"])
+        if contact is None:
+            known = sorted(contacts)
+            raise SceneError(f"{where}.contact: {entry['contact']!r} is not a point contact of the robot: {known}")
+        joints = {}
+        for key in ("hip", "knee"):
+            name = entry[key]
+            jid = model.getJointId(name) if model.existJointName(name) else model.njoints
+            if jid >= model.njoints or model.joints[jid].idx_v not in dofs:
+                raise SceneError(
+                    f"{where}.{key}: {name!r} is not an actuated joint of the robot (robot.parameters.actuated)"
+                )
+            joints[key] = jid
+        fid = model.getFrameId(contact.frame)
+        if model.frames[fid].parentJoint != joints["knee"]:
+            raise SceneError(f"{where}.knee: {entry['knee']!r} does not carry the contact's frame {contact.frame!r}")
+        if model.parents[joints["knee"]] != joints["hip"]:
+            raise SceneError(f"{where}.hip: {entry['hip']!r} is not the parent joint of the knee {entry['knee']!r}")
+        if model.joints[model.parents[joints["hip"]]].idx_v in dofs:
+            raise SceneError(f"{where}.hip: {entry['hip']!r} hangs below another actuated joint, not from the trunk")
+        legs.append(leg_of(bridge, contact.name, fid, joints["hip"], joints["knee"]))
     return legs
 
 
@@ -124,6 +180,7 @@ class Gains:
     kd_joint: float
     max_thrust: float
     k_phase: float
+    late_rest: bool
 
 
 @dataclass(frozen=True)
@@ -144,12 +201,21 @@ class RunnerParams:
     """``RunnerLaw.params``: the controller's parameter array in a mode (``runner_laws.R_*``,
     ``RL_*``), each leg in stance where its foot's contact is active; built once per mode."""
 
-    def __init__(self, bridge: Any, legs: tuple[Leg, ...], gains: Gains, pronk: bool) -> None:
+    def __init__(
+        self,
+        bridge: Any,
+        legs: tuple[Leg, ...],
+        gains: Gains,
+        pronk: bool,
+        schedule: tuple[tuple[float, float, float], ...],
+    ) -> None:
         self.bridge = bridge
         head = [bridge.handle, bridge.n, len(legs), float(pronk)]
         head += [getattr(gains, name) for name in GAIN_ORDER]
+        head.append(len(schedule))
         self.head = [float(v) for v in head]
         self.legs = legs
+        self.schedule = [float(v) for entry in schedule for v in entry]
         self._made: dict[str, np.ndarray] = {}
 
     def __call__(self, mode: str) -> np.ndarray:
@@ -160,6 +226,7 @@ class RunnerParams:
             for leg in self.legs:
                 values += [leg.hip, leg.knee, leg.u_hip, leg.u_knee, leg.thigh, leg.shank, leg.bend, leg.offset]
                 values.append(1.0 if leg.contact in active else 0.0)
+            values += self.schedule
             made = self._made[mode] = np.array(values, dtype=float)
         return made
 
@@ -180,13 +247,23 @@ GAIN_ORDER = (
     "kd_joint",
     "max_thrust",
     "k_phase",
+    "late_rest",
 )
 
 
-def runner_law(bridge: Any, legs: list[Leg], gains: Gains, pronk: bool, thrust: float) -> RunnerLaw:
+def runner_law(
+    bridge: Any,
+    legs: list[Leg],
+    gains: Gains,
+    pronk: bool,
+    thrust: float,
+    schedule: tuple[tuple[float, float, float], ...] = (),
+) -> RunnerLaw:
     """Raibert's runner for ``bridge``'s articulated ``legs``, each starting with ``thrust`` (m),
     a stance time of 0.12 s and no touchdown yet; its memory is ``runner_laws.MEMORY_FIELDS`` of
-    each leg in turn, named ``<field>_<contact>``."""
+    each leg in turn, named ``<field>_<contact>``. ``schedule``: (t (s), speed (m/s), 1.0 for a
+    pronk or 0.0 for a bound) in increasing time, each commanding its speed and gait from its t on
+    (``gains.speed`` and ``pronk`` before the first)."""
     names = tuple(f"{field}_{leg.contact}" for leg in legs for field, _ in laws.MEMORY_FIELDS)
     units = tuple(unit for _ in legs for _, unit in laws.MEMORY_FIELDS)
     initial = {"T_s": 0.12, "thrust": thrust, "liftoff": laws.LONG_AGO}
@@ -195,7 +272,7 @@ def runner_law(bridge: Any, legs: list[Leg], gains: Gains, pronk: bool, thrust: 
         "raibert_runner",
         laws.runner_control,
         len(bridge.actuated_dofs),
-        RunnerParams(bridge, tuple(legs), gains, pronk),
+        RunnerParams(bridge, tuple(legs), gains, pronk, schedule),
         laws.runner_enter,
         names,
         units,
@@ -231,6 +308,22 @@ RUNNER_PARAMETERS = {
     "k_phase": Param(
         0.1, "bound: apex target change (m) per share of a period a leg pair's touchdown is off antiphase", "m", low=0.0
     ),
+    "legs": Param(
+        [],
+        "the legs: tables {contact = <point contact>, hip = <joint>, knee = <joint>}, the foot's contact and its "
+        "leg's actuated hip and knee; empty: every point contact whose frame hangs below two actuated revolute joints",
+    ),
+    "schedule": Param(
+        [],
+        "speed and gait changes during the run: tables {t = s, speed = m/s, gait = 'pronk' or 'bound'} in "
+        "increasing t, each commanding its speed and gait from its t on (one left out: the one before; before the "
+        "first entry: speed and gait)",
+    ),
+    "late_rest": Param(
+        False,
+        "a leg landing while another stands keeps its touchdown length as its stance spring's rest length where "
+        "that is longer (else it pulls its foot up at once: the forward pronk at 1 m/s lands its feet apart)",
+    ),
     "kp_joint": Param(60.0, "flight joint stiffness", "N m/rad", low=0.0),
     "kd_joint": Param(2.0, "flight joint damping", "N m s/rad", low=0.0),
 }
@@ -238,19 +331,56 @@ RUNNER_PARAMETERS = {
 
 def _make_runner(model: Model, params: dict[str, Any]) -> RunnerLaw:
     bridge = bridge_of(model, "raibert_runner")
-    legs = find_legs(bridge)
+    legs = declared_legs(bridge, params["legs"]) if params["legs"] else find_legs(bridge)
     if not legs:
         raise SceneError(
             "controller 'raibert_runner' found no articulated leg: a point contact on a frame below "
             "two actuated revolute joints (hip, knee)"
         )
-    if params["gait"] == "bound" and len(legs) != 2:
+    schedule = command_schedule(params["schedule"], params["speed"], params["gait"])
+    bounds = params["gait"] == "bound" or any(entry[2] == 0.0 for entry in schedule)
+    if bounds and len(legs) != 2:
         raise SceneError(
-            f"controller.parameters.gait = 'bound' needs two leg pairs (hind and front), the robot has "
-            f"{len(legs)} articulated leg(s): {', '.join(leg.contact for leg in legs)}"
+            f"controller.parameters.gait = 'bound' (or a schedule's) needs two leg pairs (hind and front), the "
+            f"robot has {len(legs)} articulated leg(s): {', '.join(leg.contact for leg in legs)}"
         )
     gains = Gains(**{k: params[k] for k in Gains.__dataclass_fields__})
-    return runner_law(bridge, legs, gains, params["gait"] == "pronk", params["thrust"])
+    return runner_law(bridge, legs, gains, params["gait"] == "pronk", params["thrust"], schedule)
+
+
+#: A schedule entry's keys: its time, and the speed or the gait (or both) it commands from then on.
+SCHEDULE_KEYS = ("t", "speed", "gait")
+GAITS = ("pronk", "bound")
+
+
+def command_schedule(entries: list[Any], speed: float, gait: str) -> tuple[tuple[float, float, float], ...]:
+    """``controller.parameters.schedule`` as (t (s), speed (m/s), 1.0 for a pronk or 0.0 for a
+    bound) triples, an entry without a speed or gait keeping the one before it (the scene's
+    ``speed`` and ``gait`` before the first); or SceneError naming the entry: each a table of a
+    time t >= 0 and a speed (a number) or a gait (``GAITS``) or both, the times increasing."""
+    schedule: list[tuple[float, float, float]] = []
+    pronk = gait == "pronk"
+    for k, entry in enumerate(entries):
+        where = f"controller.parameters.schedule[{k}]"
+        if not isinstance(entry, dict) or "t" not in entry or len(entry) < 2 or not set(entry) <= set(SCHEDULE_KEYS):
+            raise SceneError(
+                f"{where}: expected a table {{t = <s>, speed = <m/s>, gait = 'pronk' or 'bound'}} with a "
+                f"speed or a gait or both, got {entry!r:.200}"
+            )
+        for key in ("t", "speed"):
+            value = entry.get(key, 0.0)
+            if isinstance(value, bool) or not isinstance(value, (int, float)):
+                raise SceneError(f"{where}.{key}: expected a number, got {value!r}")
+        if "gait" in entry and entry["gait"] not in GAITS:
+            raise SceneError(f"{where}.gait: {entry['gait']!r} is not allowed, choose one of {list(GAITS)}")
+        t = entry["t"]
+        if t < 0.0 or (schedule and t <= schedule[-1][0]):
+            after = f" after the previous entry's {schedule[-1][0]:g} s" if schedule else ""
+            raise SceneError(f"{where}.t: {t!r} s must be >= 0 and increasing{after}")
+        speed = float(entry.get("speed", speed))
+        pronk = entry["gait"] == "pronk" if "gait" in entry else pronk
+        schedule.append((float(t), speed, float(pronk)))
+    return tuple(schedule)
 
 
 RUNNER = ControllerSpec(

@@ -214,7 +214,9 @@ def retract_torques(
 
 #: The head of the controller's parameter array: the robot's native handle, nv, the number of
 #: legs, 1.0 for a pronk (the stance hips level the body) and 0.0 for a bound, then the gains
-#: (``raibert.Gains``, units in ``raibert.RUNNER_PARAMETERS``).
+#: (``raibert.Gains``, units in ``raibert.RUNNER_PARAMETERS``), then the number of the
+#: schedule's entries, which follow the legs' entries as (t (s), speed (m/s), 1.0 for a pronk and
+#: 0.0 for a bound) triples.
 (
     R_HANDLE,
     R_N,
@@ -234,8 +236,10 @@ def retract_torques(
     R_KD_JOINT,
     R_MAX_THRUST,
     R_K_PHASE,
-) = range(18)
-RUNNER_HEAD = 18
+    R_LATE_REST,
+    R_SCHEDULE,
+) = range(20)
+RUNNER_HEAD = 20
 #: Each leg's entries: its hip's and knee's velocity indices and positions in u, thigh and shank
 #: (m), knee bending sign, the hip's x in the body frame (m), and 1.0 when the leg is in stance
 #: in the mode.
@@ -246,7 +250,9 @@ RUNNER_LEG = 9
 #: touchdown's time (s); its last stance's duration T_s (s); its thrust (m); 1.0 once it has
 #: landed (its touchdown time and place are then set); the body's x at its last touchdown (m);
 #: the foot placement's bias (m); its angle from the world's -z axis at its last liftoff (rad);
-#: that liftoff's time (s); a bound's apex target change (m).
+#: that liftoff's time (s); a bound's apex target change (m); its length at its last touchdown if
+#: another leg stood then (m, else 0: ``late_landing_length``), below which its stance spring's
+#: rest length does not go.
 MEMORY_FIELDS = (
     ("stance", ""),
     ("touchdown", "s"),
@@ -258,10 +264,21 @@ MEMORY_FIELDS = (
     ("liftoff_angle", "rad"),
     ("liftoff", "s"),
     ("phase_height", "m"),
+    ("touchdown_length", "m"),
 )
-(M_STANCE, M_TOUCHDOWN, M_T_S, M_THRUST, M_LANDED, M_TOUCHDOWN_X, M_BIAS, M_LIFTOFF_ANGLE, M_LIFTOFF, M_PHASE) = range(
-    len(MEMORY_FIELDS)
-)
+(
+    M_STANCE,
+    M_TOUCHDOWN,
+    M_T_S,
+    M_THRUST,
+    M_LANDED,
+    M_TOUCHDOWN_X,
+    M_BIAS,
+    M_LIFTOFF_ANGLE,
+    M_LIFTOFF,
+    M_PHASE,
+    M_TOUCHDOWN_LENGTH,
+) = range(len(MEMORY_FIELDS))
 LEG_MEMORY = len(MEMORY_FIELDS)
 #: Before its first liftoff a leg's liftoff time is this long ago (s).
 LONG_AGO = -1.0e9
@@ -279,11 +296,35 @@ def leg_at(p, i):
     return RUNNER_HEAD + RUNNER_LEG * i
 
 
+#: Entries of one schedule entry in the parameter array.
+SCHEDULE_ENTRY = 3
+
+
+@register_jitable
+def commanded(p, t):
+    """The forward speed (m/s) and gait (True: a pronk) commanded at time t (s): the schedule's
+    last entry at or before t, or the scene's ``speed`` and ``gait`` before its first (a
+    schedule's entries are in increasing time)."""
+    speed, pronk = p[R_SPEED], p[R_PRONK] != 0.0
+    start = RUNNER_HEAD + RUNNER_LEG * int(p[R_LEGS])
+    for k in range(int(p[R_SCHEDULE])):
+        entry = start + SCHEDULE_ENTRY * k
+        if t >= p[entry]:
+            speed, pronk = p[entry + 1], p[entry + 2] != 0.0
+    return speed, pronk
+
+
 @register_jitable
 def hop_height(p, leg, x, n):
+    """``gait_hop_height`` in the scene's gait (``gait``, before any schedule entry)."""
+    return gait_hop_height(p[R_PRONK] != 0.0, p, leg, x, n)
+
+
+@register_jitable
+def gait_hop_height(pronk, p, leg, x, n):
     """Height (m) and vertical speed (m/s) the leg hops: the body's centre in a pronk; in a bound,
     where each leg pair hops on its own, the leg's hip (``offset sin(pitch)`` below the centre)."""
-    if p[R_PRONK] != 0.0:
+    if pronk:
         return x[1], x[n + 1]
     offset, pitch, rate = p[leg + RL_OFFSET], x[2], x[n + 2]
     return x[1] - offset * math.sin(pitch), x[n + 1] - offset * math.cos(pitch) * rate
@@ -305,17 +346,18 @@ def flight_torques(t, x, m, p, leg, mem, n, gravity):
     q_hip, q_knee, v_hip, v_knee = leg_joints(p, leg, x, n)
     g_hip, g_knee = gravity[int(p[leg + RL_HIP])], gravity[int(p[leg + RL_KNEE])]
     thigh, shank, bend, offset = p[leg + RL_THIGH], p[leg + RL_SHANK], p[leg + RL_BEND], p[leg + RL_OFFSET]
-    falling = hop_height(p, leg, x, n)[1] < 0.0
+    speed, pronk = commanded(p, t)
+    falling = gait_hop_height(pronk, p, leg, x, n)[1] < 0.0
     length, kp, kd = p[R_LEG_LENGTH], p[R_KP_JOINT], p[R_KD_JOINT]
-    if p[R_PRONK] != 0.0:
+    if pronk:
         return pronk_flight_torques(thigh, shank, bend, offset, q_hip, q_knee, v_hip, v_knee, x[2], x[n], falling,
-                                    m[mem + M_T_S], m[mem + M_BIAS], p[R_SPEED], p[R_K_X], length, kp, kd, g_hip,
+                                    m[mem + M_T_S], m[mem + M_BIAS], speed, p[R_K_X], length, kp, kd, g_hip,
                                     g_knee)  # fmt: skip
     if not falling:
         return retract_torques(thigh, shank, q_hip, q_knee, v_hip, v_knee, x[2], x[n + 2], m[mem + M_LIFTOFF_ANGLE],
                                length, kp, kd, g_hip, g_knee)  # fmt: skip
     hip_speed = x[n] - offset * math.sin(x[2]) * x[n + 2]
-    world = touchdown_angle(hip_speed, m[mem + M_T_S], p[R_K_X], p[R_SPEED], length, m[mem + M_BIAS])
+    world = touchdown_angle(hip_speed, m[mem + M_T_S], p[R_K_X], speed, length, m[mem + M_BIAS])
     return servo_torques(thigh, shank, bend, q_hip, q_knee, v_hip, v_knee, length, world + x[2], kp, kd, g_hip, g_knee)
 
 
@@ -333,7 +375,7 @@ def runner_control(t, x, m, p, u):
     gravity = np.zeros(n)
     if stance_count < legs:
         lsn_gravity(np.int64(p[R_HANDLE]), x.ctypes.data, gravity.ctypes.data)
-    pronk = p[R_PRONK] != 0.0
+    pronk = commanded(p, t)[1]
     attitude = p[R_KP_ATTITUDE] * x[2] + p[R_KD_ATTITUDE] * x[n + 2] if pronk else 0.0
     # A pronk lifts off together: once a leg has left, the others unload while they extend.
     together = pronk and stance_count < legs
@@ -343,7 +385,8 @@ def runner_control(t, x, m, p, u):
             unload = together or (not pronk and t - m[mem + M_LIFTOFF] < REFRACTORY)
             q_hip, q_knee, v_hip, v_knee = leg_joints(p, leg, x, n)
             hip, knee = stance_torques(p[leg + RL_THIGH], p[leg + RL_SHANK], q_hip, q_knee, v_hip, v_knee,
-                                       p[R_LEG_LENGTH], m[mem + M_THRUST], p[R_STIFFNESS], p[R_DAMPING],
+                                       max(p[R_LEG_LENGTH], m[mem + M_TOUCHDOWN_LENGTH]), m[mem + M_THRUST],
+                                       p[R_STIFFNESS], p[R_DAMPING],
                                        attitude / stance_count, unload)  # fmt: skip
         else:
             hip, knee = flight_torques(t, x, m, p, leg, mem, n, gravity)
@@ -361,33 +404,50 @@ def runner_enter(t, x, m, p, m_new):
     its liftoff angle and time."""
     m_new[:] = m
     n = int(p[R_N])
+    speed, pronk = commanded(p, t)
     for i in range(int(p[R_LEGS])):
         leg, mem = leg_at(p, i), LEG_MEMORY * i
         stance = p[leg + RL_STANCE] != 0.0
         was = m_new[mem + M_STANCE] != 0.0
         if stance and not was:
-            if p[R_PRONK] == 0.0:
+            if not pronk:
                 adapt_phase(t, p, m_new, i)
             if t > m_new[mem + M_TOUCHDOWN] and m_new[mem + M_LANDED] != 0.0:
                 stride_speed = (x[0] - m_new[mem + M_TOUCHDOWN_X]) / (t - m_new[mem + M_TOUCHDOWN])
-                m_new[mem + M_BIAS] += p[R_K_I] * (stride_speed - p[R_SPEED])
+                m_new[mem + M_BIAS] += p[R_K_I] * (stride_speed - speed)
             m_new[mem + M_TOUCHDOWN_X] = x[0]
             m_new[mem + M_TOUCHDOWN] = t
+            if p[R_LATE_REST] != 0.0:
+                m_new[mem + M_TOUCHDOWN_LENGTH] = late_landing_length(p, leg, x, m)
             m_new[mem + M_LANDED] = 1.0
         elif was and not stance:
             m_new[mem + M_T_S] = min(max(t - m_new[mem + M_TOUCHDOWN], 0.02), 0.5)
-            z, zd = hop_height(p, leg, x, n)
+            z, zd = gait_hop_height(pronk, p, leg, x, n)
             rise = max(zd, 0.0)
             apex = z + rise * rise / (2 * G)
             target = p[R_HEIGHT] + m_new[mem + M_PHASE]
             thrust = m_new[mem + M_THRUST] + p[R_K_HEIGHT] * (target - apex)
             m_new[mem + M_THRUST] = min(max(thrust, 0.0), p[R_MAX_THRUST])
-            if p[R_PRONK] == 0.0:
+            if not pronk:
                 q_hip, q_knee = x[int(p[leg + RL_HIP])], x[int(p[leg + RL_KNEE])]
                 foot = foot_terms(p[leg + RL_THIGH], p[leg + RL_SHANK], q_hip, q_knee)
                 m_new[mem + M_LIFTOFF_ANGLE] = math.atan2(foot[0], -foot[1]) - x[2]
                 m_new[mem + M_LIFTOFF] = t
         m_new[mem + M_STANCE] = 1.0 if stance else 0.0
+
+
+@register_jitable
+def late_landing_length(p, leg, x, m):
+    """The length (m) of a leg touching down at x while another leg already stands (its stance
+    spring's rest length is then at least this, so that it does not pull its foot up at once: a
+    pronk's pitch in flight lands one foot first, the other's leg stretched by its hip's height);
+    0 when it lands alone or with the others (m: the memory before this entry)."""
+    for j in range(int(p[R_LEGS])):
+        if j != (leg - RUNNER_HEAD) // RUNNER_LEG and m[LEG_MEMORY * j + M_STANCE] != 0.0:
+            q_hip, q_knee = x[int(p[leg + RL_HIP])], x[int(p[leg + RL_KNEE])]
+            px, pz = foot_terms(p[leg + RL_THIGH], p[leg + RL_SHANK], q_hip, q_knee)[:2]
+            return math.sqrt(px * px + pz * pz)
+    return 0.0
 
 
 @register_jitable

@@ -41,6 +41,8 @@ ROBOT_SCENES = [
     ("quadruped_pronk", "2.0"),
     ("quadruped_run", "2.0"),
     ("quadruped_bound", "2.0"),
+    ("quadruped_pronk_forward", "2.0"),
+    ("quadruped_bound_forward", "2.0"),
 ]
 
 
