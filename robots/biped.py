@@ -136,11 +136,13 @@ BIPED_PARAMETERS = {
     "swing_share": Param(
         0.6, "the retracted leg's length as a share of leg_length", "", low=0.0, low_open=True, high=1.0
     ),
-    "swing_stiffness": Param(3000.0, "stiffness along a leg off the ground (to its length)", "N/m", low=0.0, low_open=True),
+    "swing_stiffness": Param(
+        3000.0, "stiffness along a leg off the ground (to its length)", "N/m", low=0.0, low_open=True
+    ),
     "swing_damping": Param(50.0, "damping along a leg off the ground", "N s/m", low=0.0),
     "preload": Param(
         0.01,
-        "the landing leg is held this much shorter than leg_length, so that the stance spring pushes from the touchdown",
+        "the landing leg is held this much shorter than leg_length: the stance spring pushes from the touchdown on",
         "m",
         low=0.0,
     ),

@@ -25,8 +25,6 @@ from numba.extending import register_jitable
 from legsim.compiled.functions import model_function
 
 from .runner_laws import (
-    G,
-    RL_BEND,
     RL_HIP,
     RL_KNEE,
     RL_SHANK,
@@ -35,6 +33,7 @@ from .runner_laws import (
     RL_U_HIP,
     RL_U_KNEE,
     RUNNER_LEG,
+    G,
     foot_terms,
     stance_torques,
     touchdown_angle,
@@ -105,20 +104,8 @@ LONG_AGO = -1.0e9
 #: of pushing: it lifted off where its contact force passed 0, so at once after the liftoff that
 #: force's sign is a matter of rounding (the runner's bound has the same rule).
 REFRACTORY = 0.01
-#: How long (s) before its predicted touchdown the landing leg sweeps back at the body's speed.
-RETRACT_TIME = 0.08
 #: Bounds (s) of a measured stance duration.
 SHORTEST_STANCE, LONGEST_STANCE = 0.02, 0.5
-
-
-@register_jitable
-def time_to_land(z, zd, height):
-    """Time (s) until a body at height z (m) rising at zd (m/s) falls ballistically to
-    ``height`` (m); 0 once it is below."""
-    drop = z - height
-    if drop <= 0.0:
-        return 0.0
-    return (zd + math.sqrt(zd * zd + 2 * G * drop)) / G
 
 
 @register_jitable
@@ -141,9 +128,8 @@ def servo_leg(p, leg, x, n, gravity, length, angle, rate):
     """Hip and knee torques (N m) holding the leg's foot at ``length`` (m) by a spring along the
     leg (``swing_stiffness``, ``swing_damping``, through J^T as the stance spring), and at
     ``angle`` (rad, from the body's -z axis) moving at ``rate`` (rad/s) by a hip PD
-    (``kp_joint``, ``kd_joint``), with the joints' generalised gravity added. A leg landing
-    under it pushes along itself as the stance spring does, so that the touchdown's outcome
-    (stance or graze) is the same under the flight's input and the stance's."""
+    (``kp_joint``, ``kd_joint``), with the joints' generalised gravity added: a landing leg
+    pushes along itself under the flight's input as under the stance's."""
     hip, knee = int(p[leg + RL_HIP]), int(p[leg + RL_KNEE])
     px, pz, j00, j01, j10, j11 = foot_terms(p[leg + RL_THIGH], p[leg + RL_SHANK], x[hip], x[knee])
     pxd, pzd = j00 * x[n + hip] + j01 * x[n + knee], j10 * x[n + hip] + j11 * x[n + knee]
@@ -173,8 +159,9 @@ def flight_leg(t, x, m, p, i, n, gravity, other_stance):
     """Hip and knee torques (N m) of leg i off the ground. The active leg in a flight phase is
     placed by Raibert's ``touchdown_angle`` (the neutral point of the last stance's duration, the
     speed correction and the integral's bias), and lengthens from the swing share of its length
-    at the other leg's liftoff to its full length at the apex predicted then (a time, not the
-    sign of the vertical speed: a switch on a state holds the body at the apex, a sliding mode).
+    at the other leg's liftoff to ``leg_length - preload`` at the apex predicted then (a time,
+    not the sign of the vertical speed: a switch on a state holds the body at the apex, a
+    sliding mode). The preload makes the stance spring push from the touchdown on.
     Otherwise (the idle leg, or the active leg while the other stands) the leg is held short at
     the mirror image of the other leg in the body frame, angle and rate, so that the two swing
     in opposite ways and their reactions on the trunk cancel."""
@@ -185,14 +172,7 @@ def flight_leg(t, x, m, p, i, n, gravity, other_stance):
         world = touchdown_angle(x[n], m[M_T_S], p[B_K_X], p[B_SPEED], length, m[M_BIAS])
         liftoff, apex = m[M_LIFTOFF + 1 - i], m[M_APEX]
         share = min(max((t - liftoff) / (apex - liftoff), 0.0), 1.0) if apex > liftoff else 1.0
-        # ground speed matching over the last RETRACT_TIME before the predicted touchdown: the
-        # foot sweeps back at the body's speed, so that it lands with little speed along the
-        # ground and the impact stops it along the leg
-        sweep = -x[n] / (length * math.cos(world))
-        left = min(time_to_land(x[1], x[n + 1], length * math.cos(world)), RETRACT_TIME)
-        rate = sweep if left < RETRACT_TIME else 0.0
-        return servo_leg(p, leg, x, n, gravity, short + share * (length - short), world - sweep * left + x[2],
-                         rate + x[n + 2])  # fmt: skip
+        return servo_leg(p, leg, x, n, gravity, short + share * (length - short), world + x[2], 0.0)
     angle, rate = body_angle(p, leg_offset(1 - i), x, n)
     return servo_leg(p, leg, x, n, gravity, short, -angle, -rate)
 
