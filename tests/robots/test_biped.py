@@ -16,6 +16,7 @@ from legsim.robots import biped
 
 from legsim.control import available, get_controller
 from legsim.errors import SceneError
+from legsim.relaxed import simulate
 from legsim.scene import bundled_dir, load_scene
 
 SCENE = "biped_run"
@@ -90,6 +91,33 @@ def test_a_biped_needs_two_legs(tmp_path):
     (tmp_path / "one.toml").write_text(one_leg)
     with pytest.raises(SceneError, match=r"'raibert_biped' needs two articulated legs.*found 1: left"):
         load_scene(tmp_path / "one.toml")
+
+
+def test_a_run_from_a_state_with_its_memory_continues_the_run():
+    """The memory is all the state the controller carries from step to step: a run started at
+    an apex of a run, at its time, with the state and memory there, reaches the run's next apex
+    (measured: to rounding, its steps fall on the run's); with a fresh controller's memory (the
+    first leg to land next, T_s 0.12 s, thrust 0.02 m, no apex time) the wrong leg lands."""
+    scene = load_scene(SCENE, ["integrator.t_final=2.5"])
+    s = scene.integrator
+    ex = scene.simulate()
+    apexes = []
+    for seg in ex.segments[1:]:
+        if seg.mode == "flight":
+            k = int(np.argmax(seg.x[:, 1]))
+            if 0 < k < len(seg.t) - 1:
+                apexes.append((seg.t[k], seg.x[k]))
+    (t1, x1), (t2, x2) = apexes[2:4]
+    law = scene.control
+    m = len(law.memory_names)
+    assert x1[-m] == 1.0  # the right leg lands next there: the fresh memory says the left one
+    resumed = simulate(scene.model.system, x1, "flight", t2, s["h"], s["eps"], s["method"], law, t0=t1)
+    fresh_state = np.concatenate([x1[:-m], law.initial_memory])
+    fresh = simulate(scene.model.system, fresh_state, "flight", t2, s["h"], s["eps"], s["method"], law, t0=t1)
+    config = slice(0, 7)  # positions
+    error = np.max(np.abs(resumed.final_state[config] - x2[config]))
+    assert resumed.status == "finished" and error < s["eps"]
+    assert np.max(np.abs(fresh.final_state[config] - x2[config])) > 100 * error
 
 
 @pytest.mark.parametrize("speed", [1.0, 2.0])
