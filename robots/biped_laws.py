@@ -183,9 +183,8 @@ def biped_control(t, x, m, p, u):
     the memory m (module docstring). A leg alone in stance is the spring with the thrust and the
     whole attitude torque ``kp pitch + kd pitch_rate`` (N m); of two legs in stance the one
     behind pulls its foot up while it extends, so that it lifts off, and the other is the
-    spring. Legs off the ground by ``flight_leg``. In a stance mode the torques do not read the
-    memory that the mode's entry changes (which leg lands next): a mode change with friction is
-    chosen under the input of the mode it leads to, which must be the one the run then applies."""
+    spring (which leg is behind is read from the legs' angles, not from the memory). Legs off
+    the ground by ``flight_leg``."""
     n = int(p[B_N])
     u[:] = 0.0
     # In a flight phase the whole robot falls freely: its joints feel no gravity to compensate.
