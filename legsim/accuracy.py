@@ -6,6 +6,12 @@ the transition times and the sampled trajectory, per coordinate. The relaxed exe
 at O(eps) + O(h^order) (paper 000), so the refined run is several times closer to the true one,
 and the difference estimates the original run's error (its error times 1 - 1/ratio, within a
 factor of about 2 of it for ratios of 2 and more).
+
+A gait's final state at a fixed time is the wrong yardstick: a small timing error moves the state
+along the orbit, and at a symmetric gait the order of simultaneous events may switch without
+changing the motion. So the two runs are also compared *along the orbit*: the states at their
+k-th entries into a section mode (the run's initial mode, e.g. a runner's flight), matched by
+count whatever their times (phase-aligned), and the times apart reported as the phase error.
 """
 
 from __future__ import annotations
@@ -46,6 +52,8 @@ class ErrorEstimate:
     trajectory: per coordinate, max |x(t) - x_refined(t)| over ``SAMPLES`` times where both runs
         are in the same mode; ``mode_mismatch``: the share of those times where they are not.
     refined: the refined run's settings (h, eps, rtol, atol).
+    along_orbit: the comparison at matching section crossings (``AlongOrbit``), None when the
+        run never re-enters a mode.
     """
 
     final_state: dict[str, float]
@@ -56,6 +64,7 @@ class ErrorEstimate:
     trajectory: dict[str, float]
     mode_mismatch: float
     refined: dict[str, Any] = field(default_factory=dict)
+    along_orbit: AlongOrbit | None = None
 
     def as_dict(self) -> dict[str, Any]:
         """The JSON form (``legsim run --check-accuracy --json``: key ``error_estimate``)."""
@@ -68,6 +77,39 @@ class ErrorEstimate:
             "trajectory": self.trajectory,
             "mode_mismatch": self.mode_mismatch,
             "refined": self.refined,
+            "along_orbit": None if self.along_orbit is None else self.along_orbit.as_dict(),
+        }
+
+
+@dataclass(frozen=True)
+class AlongOrbit:
+    """A run against its refined repetition at the same section crossings.
+
+    Attributes
+    ----------
+    section: the mode whose entries are the crossings (the run's initial mode, or the mode it
+        enters most often when it never re-enters that one).
+    crossings: how many entries both runs make (compared in order: the k-th with the k-th).
+    phase: max |t_k - t_k refined| (s) over those entries.
+    state: per coordinate, max |x_k - x_k refined| over those entries (the states just after each
+        entry's reset, in the coordinate's units).
+    relative: max over coordinates of that error over the coordinate's size along the refined run
+        (coordinates at zero to rounding left out, as for ``final_state_relative``).
+    """
+
+    section: str
+    crossings: int
+    phase: float
+    state: dict[str, float]
+    relative: float | None
+
+    def as_dict(self) -> dict[str, Any]:
+        return {
+            "section": self.section,
+            "crossings": self.crossings,
+            "phase": self.phase,
+            "state": self.state,
+            "relative": self.relative,
         }
 
 
@@ -89,7 +131,44 @@ def compare(run: Execution, fine: Execution) -> ErrorEstimate:
     times, matched, differ = _transition_times(run, fine)
     trajectory, mismatch = _trajectory(run, fine)
     settings = {key: fine.settings.get(key) for key in ("h", "eps", "rtol", "atol")}
-    return ErrorEstimate(final, relative, times, matched, differ, trajectory, mismatch, settings)
+    orbit = along_orbit(run, fine)
+    return ErrorEstimate(final, relative, times, matched, differ, trajectory, mismatch, settings, orbit)
+
+
+def along_orbit(run: Execution, fine: Execution, section: str | None = None) -> AlongOrbit | None:
+    """``run`` against ``fine`` at their entries into mode ``section`` (default: the run's
+    initial mode, else the mode it enters most often); None without an entry in both."""
+    if section is None:
+        section = _section_mode(run)
+        if section is None:
+            return None
+    a, b = _entries(run, section), _entries(fine, section)
+    count = min(len(a), len(b))
+    if count == 0:
+        return None
+    names = run.state_names[section]
+    apart = np.array([np.abs(a[k][1] - b[k][1]) for k in range(count)]).max(axis=0)
+    state = {name: float(value) for name, value in zip(names, apart, strict=True) if math.isfinite(value)}
+    phase = max(abs(a[k][0] - b[k][0]) for k in range(count))
+    sizes = _sizes(fine)
+    floor = ZERO_SIZE * max(sizes.values(), default=0.0)
+    ratios = [value / sizes[name] for name, value in state.items() if sizes.get(name, 0.0) > floor]
+    return AlongOrbit(section, count, phase, state, max(ratios) if ratios else None)
+
+
+def _section_mode(run: Execution) -> str | None:
+    entered: dict[str, int] = {}
+    for seg in run.segments[1:]:
+        entered[seg.mode] = entered.get(seg.mode, 0) + 1
+    if not entered:
+        return None
+    first = run.segments[0].mode
+    return first if first in entered else max(entered, key=entered.__getitem__)
+
+
+def _entries(execution: Execution, mode: str) -> list[tuple[float, np.ndarray]]:
+    """(time, state) at each entry into ``mode`` after the start: a segment's first point."""
+    return [(float(seg.t[0]), seg.x[0]) for seg in execution.segments[1:] if seg.mode == mode and len(seg.t)]
 
 
 def check_accuracy(

@@ -6,7 +6,7 @@ import json
 import numpy as np
 import pytest
 
-from legsim.accuracy import check_accuracy, refined
+from legsim.accuracy import along_orbit, check_accuracy, refined
 from legsim.cli import main
 from legsim.scene import load_scene
 from legsim.systems.bouncing_ball import BouncingBallReference, make_system
@@ -57,3 +57,39 @@ def test_run_check_accuracy_reports_the_estimate_in_json_and_text(capsys):
     assert main(["run", "bouncing_ball", "--check-accuracy"]) == 0
     text = capsys.readouterr().out
     assert "estimated error (against eps/10, h/2):" in text and "transition times:" in text
+    assert estimate["along_orbit"]["section"] == "flight" and estimate["along_orbit"]["crossings"] > 3
+    assert "along the orbit (states at " in text and "entries into 'flight', phase-aligned)" in text
+
+
+def test_along_the_orbit_a_run_late_by_a_constant_time_has_no_error_but_its_phase():
+    # The same bounce started 0.1 s later: at any fixed time its state is far off, but it is the
+    # same execution shifted in time, so at matching entries the states agree to rounding and
+    # the entry times are 0.1 s apart.
+    from legsim import simulate
+
+    system = make_system(9.81, 0.8)
+    early = simulate(system, [1.0, 0.0], "flight", 2.0, 1e-3, 1e-4, "rk4")
+    late = simulate(system, [1.0, 0.0], "flight", 2.1, 1e-3, 1e-4, "rk4", t0=0.1)
+    assert np.abs(early.sample([2.0]).states[0] - late.sample([2.0]).states[0]).max() > 0.1
+    orbit = along_orbit(early, late)
+    assert orbit.section == "flight" and orbit.crossings == len(early.transitions) >= 3
+    assert orbit.relative < 1e-12
+    assert orbit.phase == pytest.approx(0.1, abs=1e-12)
+
+
+def test_along_the_orbit_the_balls_error_is_in_its_timing_not_its_rebounds():
+    # Free fall is a cubic, which RK4 integrates exactly, and each impact is reset at the guard
+    # point: the k-th rebound leaves the floor at exactly c^k sqrt(2 g z0). The run's error is
+    # all in its timing (the strip holds), and the along-the-orbit estimate separates the two.
+    g, c, z0 = 9.81, 0.8, 1.0
+    run, estimate = check_accuracy(make_system(g, c), [z0, 0.0], "flight", 2.5, 1e-3, 1e-3, "rk4")
+    orbit = estimate.along_orbit
+    rebounds = np.array([seg.x[0, 1] for seg in run.segments[1:]])
+    exact = c ** np.arange(1, len(rebounds) + 1) * np.sqrt(2 * g * z0)
+    assert len(rebounds) >= 3 and np.abs(rebounds - exact).max() < 1e-12
+    assert orbit.crossings == estimate.transitions_matched == len(rebounds)
+    assert orbit.relative < 1e-12
+    # entries are strip exits, a hold after each guard crossing: their lag is the crossings' and
+    # the holds' together
+    assert estimate.transition_times / 3 <= orbit.phase <= 3 * estimate.transition_times
+    assert along_orbit(run, run).relative == 0.0

@@ -292,6 +292,15 @@ def format_estimate(estimate: Any) -> str:
     lines.append(
         f"  trajectory (max over {100 * (1 - estimate.mode_mismatch):.0f}% of the run in the same mode): {trajectory}"
     )
+    orbit = estimate.along_orbit
+    if orbit is not None:
+        largest = max(orbit.state, key=orbit.state.__getitem__, default=None)
+        worst = "" if largest is None else f"; largest {largest} {orbit.state[largest]:.3g}"
+        relative = "n/a" if orbit.relative is None else f"{orbit.relative:.3g}"
+        lines.append(
+            f"  along the orbit (states at {orbit.crossings} entries into '{orbit.section}', phase-aligned): "
+            f"relative {relative}{worst}; entry times {orbit.phase:.3g} s apart"
+        )
     return "\n".join(lines)
 
 
