@@ -145,7 +145,8 @@ class Engine:
         self.connect_timeout = float(connect_timeout)
         self.scheduler = None if in_process else (scheduler or os.environ.get(SCHEDULER_ENV) or None)
         if self.scheduler:
-            scheduler_endpoint(self.scheduler)
+            # Named where the user gave it: an address from the environment is no option typed.
+            scheduler_endpoint(self.scheduler, "--scheduler" if scheduler else f"${SCHEDULER_ENV}")
         if self.scheduler and workers is not None:
             raise EngineError(
                 f"--workers sets the size of the embedded cluster; with a scheduler "
@@ -256,9 +257,9 @@ def _batches(items: list, sizer: BatchSizer) -> Iterator[list]:
         start += size
 
 
-def scheduler_endpoint(address: str) -> tuple[str, int]:
+def scheduler_endpoint(address: str, source: str = "--scheduler") -> tuple[str, int]:
     """(host, port) of a Dask scheduler address (``tcp://HOST:PORT``, ``tls://HOST:PORT`` or
-    ``HOST:PORT``); EngineError naming it otherwise."""
+    ``HOST:PORT``); EngineError naming it and its ``source`` (the option or variable) otherwise."""
     text = address.strip() if isinstance(address, str) else ""
     try:
         parts = urlsplit(text if "://" in text else f"tcp://{text}")
@@ -267,11 +268,11 @@ def scheduler_endpoint(address: str) -> tuple[str, int]:
         parts, port = None, None
     if parts is None or parts.scheme not in SCHEMES or not parts.hostname or port is None or not 0 < port < 65536:
         raise EngineError(
-            f"--scheduler {address!r}: not a Dask scheduler address; give tcp://HOST:PORT (or tls://HOST:PORT, "
+            f"{source} {address!r}: not a Dask scheduler address; give tcp://HOST:PORT (or tls://HOST:PORT, "
             f"or HOST:PORT), e.g. tcp://127.0.0.1:8786"
         )
     if parts.path not in ("", "/") or parts.query or parts.fragment:
-        raise EngineError(f"--scheduler {address!r}: a scheduler address has no path, e.g. tcp://127.0.0.1:8786")
+        raise EngineError(f"{source} {address!r}: a scheduler address has no path, e.g. tcp://127.0.0.1:8786")
     return parts.hostname, port
 
 

@@ -167,6 +167,14 @@ def test_a_malformed_scheduler_address_is_named(address, tmp_path, capsys):
     assert f"--scheduler {address!r}: not a Dask scheduler address; give tcp://HOST:PORT" in capsys.readouterr().err
 
 
+def test_a_malformed_address_from_the_environment_is_named_as_such(tmp_path, capsys, monkeypatch):
+    # The message named --scheduler, an option the user had not given.
+    monkeypatch.setenv("DASK_SCHEDULER_ADDRESS", "nonsense:::")
+    assert main([*SWEEP, "--out", str(tmp_path / "x")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("legsim: error: $DASK_SCHEDULER_ADDRESS 'nonsense:::': not a Dask scheduler address")
+
+
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
 def test_an_interrupted_dask_sweep_ends_within_2_s_without_worker_tracebacks(tmp_path, sig):
     """The signal goes to the whole process group, as Ctrl-C at a terminal does: the workers
