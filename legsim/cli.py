@@ -24,8 +24,9 @@ import sys
 import threading
 import traceback
 from collections.abc import Iterator, Sequence
-from contextlib import contextmanager
+from contextlib import contextmanager, suppress
 from types import ModuleType
+from typing import NoReturn
 
 from .errors import LegsimError, Terminated
 
@@ -192,5 +193,20 @@ def _broken_pipe() -> int:
     return EXIT_OK
 
 
+def entry() -> NoReturn:
+    """The ``legsim`` program (``python -m legsim.cli``, ``python -m legsim``): ``main``, its exit
+    code the process's. An interrupted command has done its clean-up inside ``main`` (temporary
+    files removed, the sweep's rows merged, its workers stopped); it then leaves without the
+    interpreter's teardown, which takes a second or more once Dask, numba and Rerun are loaded,
+    so that Ctrl-C and SIGTERM end a sweep or a live recording within 2 s."""
+    code = main()
+    if code in (EXIT_INTERRUPTED, EXIT_TERMINATED):
+        for stream in (sys.stdout, sys.stderr):
+            with suppress(Exception):  # a closed or broken stream has nothing left to say
+                stream.flush()
+        os._exit(code)
+    sys.exit(code)
+
+
 if __name__ == "__main__":
-    sys.exit(main())
+    entry()

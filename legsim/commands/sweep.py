@@ -105,8 +105,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         type=float,
         default=None,
         metavar="S",
-        help="seconds to wait at each step of reaching --scheduler: connection, first answer, first worker "
-        "(default 20)",
+        help="seconds to wait at each step of reaching --scheduler: connection, first answer, first worker; "
+        "during the sweep, without a finished batch before its answer is asked for (default 20)",
     )
     engine.add_argument("--in-process", action="store_true", help="no Dask: run the variations in this process")
     engine.add_argument(

@@ -15,7 +15,10 @@ Deadlines. Reaching a running scheduler waits at most ``connect_timeout`` second
 refused at once, not after Dask's retries), the scheduler's first answer (Dask's own handshake
 waits for it without a deadline: a peer that accepts and never answers would hang the sweep),
 the client's registration, the first worker and the workers' version check. Each ends in an
-``EngineError`` naming the address and the step.
+``EngineError`` naming the address and the step. During the sweep, when no batch has finished
+or come back for ``connect_timeout`` seconds, the scheduler is asked for its identity: one that does not
+answer within ``connect_timeout`` more (a host gone, a stopped process: the client would wait
+for its futures forever) ends the sweep the same way, the rows finished so far kept.
 
 Interrupts. The embedded cluster's worker processes ignore SIGINT and SIGTERM (``worker_setup``,
 preloaded): Ctrl-C at a terminal reaches every process of its group, and the workers would each
@@ -145,7 +148,8 @@ class Engine:
         self.connect_timeout = float(connect_timeout)
         self.scheduler = None if in_process else (scheduler or os.environ.get(SCHEDULER_ENV) or None)
         if self.scheduler:
-            scheduler_endpoint(self.scheduler)
+            # Named where the user gave it: an address from the environment is no option typed.
+            scheduler_endpoint(self.scheduler, "--scheduler" if scheduler else f"${SCHEDULER_ENV}")
         if self.scheduler and workers is not None:
             raise EngineError(
                 f"--workers sets the size of the embedded cluster; with a scheduler "
@@ -180,11 +184,14 @@ class Engine:
             # nanny, told to close first, stops it after STOP_SECONDS and starts no other.
             with contextlib.suppress(Exception):
                 self.cluster.sync(_stop_workers, self.cluster)
-        for part in (self.client, self.cluster):
+        if self.client is not None:
+            # Bounded: Dask waits twice its connection timeout for a scheduler that went silent.
+            with contextlib.suppress(Exception):
+                self.client.close(timeout=min(self.connect_timeout, STOP_SECONDS) if exc[0] else self.connect_timeout)
+        if self.cluster is not None:
             # Closing a cluster that is already going away may raise anything.
-            if part is not None:
-                with contextlib.suppress(Exception):
-                    part.close()
+            with contextlib.suppress(Exception):
+                self.cluster.close()
         self.client = self.cluster = None
 
     def run(self, fn: BatchFn, common: Any, items: Sequence[Any], on_done: OnDone) -> None:
@@ -207,39 +214,74 @@ class Engine:
     def _run_on_dask(
         self, fn: BatchFn, common: Any, batches: Iterator[list], sizer: BatchSizer, on_done: OnDone
     ) -> None:
-        from distributed import as_completed
+        from distributed import wait
 
         client = self.client
         if client is None:
             raise EngineError("the Dask engine runs batches only inside its `with` block (not connected)")
         window = 2 * self.workers
         in_flight: dict[Key, tuple[Any, list[Any]]] = {}
-        queue = as_completed()
 
         def submit() -> None:
             batch = next(batches, None)
             if batch is not None:
                 future = client.submit(timed, fn, common, batch, pure=False)
                 in_flight[future.key] = (future, batch)
-                queue.add(future)
 
         for _ in range(window):
             submit()
         try:
-            for future in queue:
-                _, batch = in_flight.pop(future.key)
+            while in_flight:
                 try:
-                    seconds, results = future.result()
-                except Exception as exc:
-                    on_done(batch, exc)
-                else:
-                    sizer.record(seconds, len(batch))
-                    on_done(batch, results)
-                future.release()
-                submit()
-        except BaseException:  # Ctrl-C or a failing on_done: stop what is still queued
-            client.cancel([future for future, _ in in_flight.values()])
+                    # Waiting on the futures is local: a scheduler that stops answering (a host
+                    # gone, a stopped process) leaves them pending forever without an error.
+                    done = wait([f for f, _ in in_flight.values()], self.connect_timeout, "FIRST_COMPLETED").done
+                except TimeoutError:
+                    if self.scheduler:
+                        self._check_answers(client)
+                    continue
+                for future in sorted(done, key=lambda f: str(f.key)):
+                    _, batch = in_flight.pop(future.key)
+                    try:
+                        seconds, results = self._result(client, future)
+                    except EngineError:  # the scheduler is gone: no row of this batch is known
+                        raise
+                    except Exception as exc:
+                        on_done(batch, exc)
+                    else:
+                        sizer.record(seconds, len(batch))
+                        on_done(batch, results)
+                    future.release()
+                    submit()
+        except BaseException:  # Ctrl-C, a failing on_done, a silent scheduler: stop what is queued
+            client.cancel([future for future, _ in in_flight.values()])  # a message, not waited on
             raise
+
+    def _result(self, client: Any, future: Any) -> Any:
+        """A finished future's result, fetched from its worker through the scheduler: each wait
+        bounded by ``connect_timeout`` seconds, the scheduler asked whether it still answers
+        after each that passes. A failed task's exception is held here, raised at once."""
+        if future.status == "error":
+            return future.result()
+        while True:
+            try:
+                return future.result(timeout=self.connect_timeout)
+            except TimeoutError:
+                if self.scheduler:
+                    self._check_answers(client)
+
+    def _check_answers(self, client: Any) -> None:
+        """EngineError unless the running scheduler answers within ``connect_timeout`` seconds
+        (asked when no batch has finished for that long: batches may take long, a scheduler
+        that stopped answering would keep the sweep waiting forever)."""
+        try:
+            client.sync(client.scheduler.identity, callback_timeout=self.connect_timeout)
+        except Exception as exc:  # a timeout, a closed connection: the scheduler is gone either way
+            raise EngineError(
+                f"the Dask scheduler at {self.scheduler} stopped answering during the sweep (no batch came back "
+                f"and no answer within {self.connect_timeout:g} s each, --connect-timeout; "
+                f"{type(exc).__name__}); the rows finished so far are kept: continue with --resume"
+            ) from None
 
 
 async def _stop_workers(cluster: Any) -> None:
@@ -256,9 +298,9 @@ def _batches(items: list, sizer: BatchSizer) -> Iterator[list]:
         start += size
 
 
-def scheduler_endpoint(address: str) -> tuple[str, int]:
+def scheduler_endpoint(address: str, source: str = "--scheduler") -> tuple[str, int]:
     """(host, port) of a Dask scheduler address (``tcp://HOST:PORT``, ``tls://HOST:PORT`` or
-    ``HOST:PORT``); EngineError naming it otherwise."""
+    ``HOST:PORT``); EngineError naming it and its ``source`` (the option or variable) otherwise."""
     text = address.strip() if isinstance(address, str) else ""
     try:
         parts = urlsplit(text if "://" in text else f"tcp://{text}")
@@ -267,11 +309,11 @@ def scheduler_endpoint(address: str) -> tuple[str, int]:
         parts, port = None, None
     if parts is None or parts.scheme not in SCHEMES or not parts.hostname or port is None or not 0 < port < 65536:
         raise EngineError(
-            f"--scheduler {address!r}: not a Dask scheduler address; give tcp://HOST:PORT (or tls://HOST:PORT, "
+            f"{source} {address!r}: not a Dask scheduler address; give tcp://HOST:PORT (or tls://HOST:PORT, "
             f"or HOST:PORT), e.g. tcp://127.0.0.1:8786"
         )
     if parts.path not in ("", "/") or parts.query or parts.fragment:
-        raise EngineError(f"--scheduler {address!r}: a scheduler address has no path, e.g. tcp://127.0.0.1:8786")
+        raise EngineError(f"{source} {address!r}: a scheduler address has no path, e.g. tcp://127.0.0.1:8786")
     return parts.hostname, port
 
 

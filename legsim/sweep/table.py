@@ -34,7 +34,7 @@ import pyarrow.parquet as pq
 from ..output.arrow_digest import table_digest
 from ..output.files import file_kind, write_atomic
 from ..output.untrusted import check_object, load_json
-from .spec import MAX_VARIATIONS, SweepError, SweepSpec
+from .spec import SweepError, SweepSpec
 
 RESULTS = "results.parquet"
 PARTS = "results.parts"
@@ -44,8 +44,15 @@ LOCK = ".sweep.lock"
 SWEEP_KEY, ROWS_KEY = b"legsim.sweep", b"legsim.rows"
 #: The manifest's format, which ``--resume`` checks first.
 MANIFEST_FORMAT = "legsim-sweep-1"
-#: Largest manifest read (bytes): a grid of ``MAX_VARIATIONS`` values written out takes some 250 MB.
-MAX_MANIFEST_BYTES = 64 * MAX_VARIATIONS
+#: Largest manifest read (bytes), as a multiple of the manifest this sweep would write (at least
+#: ``MIN_MANIFEST_BYTES``): a manifest of this sweep is that text, byte for byte; one a few times
+#: larger is still read, to name what differs from another sweep; a larger one is no manifest of
+#: a sweep like this one, and parsing it (a list of 10^8 numbers) would take gigabytes.
+MANIFEST_SIZE_FACTOR = 4
+MIN_MANIFEST_BYTES = 1 << 16
+#: Most bytes one row of a table may take once decompressed (a row holds a few numbers, a
+#: state, messages and warnings: a few kilobytes).
+MAX_ROW_BYTES = 1 << 20
 
 #: Columns that two runs of the same sweep do not share.
 TIMING_COLUMNS = ("wall_time_s",)
@@ -253,19 +260,22 @@ class ResultStore:
     def start(self) -> None:
         """Write the manifest (the sweep's specification and its SHA-256) when the folder has none yet."""
         if not self.manifest.exists():
-            document = {"format": MANIFEST_FORMAT, "digest": self.spec.fingerprint(), "spec": self.spec.to_json()}
-            text = json.dumps(document, indent=2, sort_keys=True, allow_nan=False) + "\n"
-            write_atomic(self.manifest, lambda tmp: tmp.write_text(text), what="--out manifest")
+            text = manifest_text(self.spec)
+            write_atomic(self.manifest, lambda tmp: tmp.write_bytes(text), what="--out manifest")
 
     def _check_manifest(self) -> None:
         from ..scene.files import read_input_file
 
+        expected = manifest_text(self.spec)
+        bound = max(MIN_MANIFEST_BYTES, MANIFEST_SIZE_FACTOR * len(expected))
         try:
-            raw = read_input_file(self.manifest, MAX_MANIFEST_BYTES, "sweep manifest", SweepError)
+            raw = read_input_file(self.manifest, bound, "manifest of this sweep", SweepError)
         except SweepError as exc:
             raise SweepError(
                 f"--resume: {exc}; without it the results in {self.folder} cannot be matched to this sweep"
             ) from None
+        if raw == expected:  # this sweep's manifest as this legsim writes it: nothing to parse
+            return
         try:
             document = check_object(
                 load_json(raw.decode("utf-8")), {"format": (str,), "digest": (str,), "spec": (dict,)}, MANIFEST
@@ -317,9 +327,11 @@ class ResultStore:
         if not stat.S_ISREG(mode):
             raise SweepError(f"--resume: {path} is {file_kind(mode)}, not a table this sweep wrote")
         try:
-            found = pq.read_schema(path)
+            metadata = pq.read_metadata(path)
+            found = metadata.schema.to_arrow_schema()
         except (pa.ArrowException, OSError, ValueError) as exc:
             raise SweepError(f"--resume: {path} is damaged or no Parquet table: {_one_line(exc)}") from None
+        self._check_size(path, metadata)
         fingerprint = (found.metadata or {}).get(SWEEP_KEY, b"").decode("ascii", "replace")
         if fingerprint != self.spec.fingerprint():
             raise SweepError(
@@ -345,6 +357,21 @@ class ResultStore:
             )
         return set(values.tolist())
 
+    def _check_size(self, path: Path, metadata: pq.FileMetaData) -> None:
+        """SweepError unless the file's rows, as its footer counts them, fit this sweep: at most
+        one per variation and ``MAX_ROW_BYTES`` each once decompressed. Checked before the rows
+        are read: a crafted file of a few kilobytes may unpack to gigabytes."""
+        if metadata.num_rows > len(self.spec):
+            raise SweepError(
+                f"--resume: {path} holds {metadata.num_rows} rows, more than this sweep's {len(self.spec)} variations"
+            )
+        unpacked = sum(metadata.row_group(k).total_byte_size for k in range(metadata.num_row_groups))
+        if unpacked > MAX_ROW_BYTES * max(1, metadata.num_rows):
+            raise SweepError(
+                f"--resume: {path} unpacks to {unpacked} bytes for {metadata.num_rows} rows, more than the "
+                f"{MAX_ROW_BYTES} bytes a row of a sweep holds"
+            )
+
     def add(self, rows: list[dict[str, Any]]) -> Path:
         """Write one finished batch's rows as a part file."""
         first = min(row["index"] for row in rows)
@@ -366,6 +393,12 @@ class ResultStore:
         if self.parts.is_dir() and not any(self.parts.iterdir()):
             self.parts.rmdir()
         return table
+
+
+def manifest_text(spec: SweepSpec) -> bytes:
+    """The manifest of ``spec`` (UTF-8 JSON): its format, its specification and their SHA-256."""
+    document = {"format": MANIFEST_FORMAT, "digest": spec.fingerprint(), "spec": spec.to_json()}
+    return (json.dumps(document, indent=2, sort_keys=True, allow_nan=False) + "\n").encode("utf-8")
 
 
 def with_rows_digest(table: pa.Table) -> pa.Table:

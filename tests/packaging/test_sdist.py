@@ -59,7 +59,7 @@ def test_the_wheel_built_from_the_sdist_holds_the_package_as_checked_out(built):
     with zipfile.ZipFile(wheel) as archive:
         held = {name: archive.read(name) for name in archive.namelist() if ".dist-info/" not in name}
         entry_points = next(n for n in archive.namelist() if n.endswith(".dist-info/entry_points.txt"))
-        assert "legsim = legsim.cli:main" in archive.read(entry_points).decode()
+        assert "legsim = legsim.cli:entry" in archive.read(entry_points).decode()
     assert sorted(held) == sorted(expected)
     assert [name for name, data in held.items() if data != expected[name].read_bytes()] == []
 

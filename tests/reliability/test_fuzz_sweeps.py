@@ -244,7 +244,7 @@ def damage(draw):
     """A function that damages a finished sweep's folder (drawn now, applied to a copy)."""
     target = draw(st.sampled_from(["manifest", "manifest", "table", "table", "table", "parts", "lock"]))
     if target == "manifest":
-        how = draw(st.sampled_from(["edit", "edit", "nest", "cut", "flip", "text"]))
+        how = draw(st.sampled_from(["edit", "edit", "nest", "cut", "flip", "text", "inflate"]))
         seed = draw(st.integers(0, 2**32 - 1))
         where, value, remove = draw(st.sampled_from(MANIFEST_PATHS)), draw(VALUES), draw(st.booleans())
 
@@ -262,14 +262,17 @@ def damage(draw):
                 data = bytearray(raw)
                 data[int(rng.integers(0, len(data)))] ^= 1 << int(rng.integers(0, 8))
                 path.write_bytes(bytes(data))
+            elif how == "inflate":  # a grid of 10 to 10^6 values: a manifest of up to 2 MB
+                document = json.loads(raw)
+                document["spec"]["grid"][0]["values"] *= int(10 ** rng.uniform(0, 5))
+                path.write_text(json.dumps(document))
             else:
                 path.write_text("\x1b[2J not json")
 
         return f"manifest {how} {seed}", apply
     if target == "table":
-        how = draw(
-            st.sampled_from(["flip", "cut", "drop", "rename", "retype", "index", "rows", "meta", "fifo", "empty"])
-        )
+        kinds = ["flip", "cut", "drop", "rename", "retype", "index", "rows", "meta", "fifo", "empty"]
+        how = draw(st.sampled_from([*kinds, "inflate", "bloat"]))
         seed = draw(st.integers(0, 2**32 - 1))
 
         def apply(out: Path) -> None:
@@ -300,6 +303,13 @@ def damage(draw):
             elif how == "rows":
                 keep = sorted(rng.choice(len(table), size=int(rng.integers(0, len(table))), replace=False).tolist())
                 rewrite(path, table.take(pa.array(keep, pa.int64())))
+            elif how == "inflate":  # 2 to 10^5 copies of the rows, the sweep's metadata kept
+                rewrite(path, pa.concat_tables([table] * int(10 ** rng.uniform(0.3, 5))))
+            elif how == "bloat":  # one text of 1 to 16 MiB, a few kilobytes once compressed
+                error = table.column("error").to_pylist()
+                error[int(rng.integers(0, len(error)))] = "x" * int(2 ** rng.uniform(20, 24))
+                k = table.column_names.index("error")
+                rewrite(path, table.set_column(k, table.schema.field(k), pa.array(error, pa.string())))
             elif how == "meta":
                 rewrite(path, table.replace_schema_metadata({"legsim.sweep": str(rng.integers(0, 10**9))}))
             elif how == "fifo":

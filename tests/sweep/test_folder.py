@@ -14,6 +14,7 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
@@ -202,7 +203,8 @@ def test_a_table_with_a_flipped_bit_is_refused_or_read_unchanged(finished, tmp_p
 @pytest.mark.parametrize(
     "text, message",
     [
-        ("[" * 100_000 + "]" * 100_000, "nested more than 64 levels deep"),
+        # 10,000 deep is past Python's recursion limit, and within the bound on a manifest's size.
+        ("[" * 10_000 + "]" * 10_000, "nested more than 64 levels deep"),
         ('{"scene": "bouncing_ball"}', "lacks ['format', 'digest', 'spec']"),
         ("not json", "Expecting value"),
         ('{"format": "legsim-sweep-0", "digest": "", "spec": {}}', "its format is 'legsim-sweep-0'"),
@@ -222,6 +224,46 @@ def test_resume_refuses_a_manifest_whose_content_does_not_match_its_digest(finis
     (finished / "sweep.json").write_text(json.dumps(manifest))
     code, err = resume(finished)
     assert code == 2 and "sweep.json is damaged: its specification does not match its digest" in err
+
+
+def test_a_manifest_far_larger_than_this_sweeps_is_refused_unread(finished):
+    # A 300 MB manifest holding a list of 150 million numbers was parsed before its grid was
+    # counted: 2.9 GB resident and 4 min 45 s to the error. This one is 30 MB.
+    manifest = json.loads((finished / "sweep.json").read_text())
+    manifest["spec"]["grid"][0]["values"] = "VALUES"
+    numbers = ",".join(["0"] * 15_000_000)
+    (finished / "sweep.json").write_text(json.dumps(manifest).replace('"VALUES"', f"[{numbers}]"))
+    assert (finished / "sweep.json").stat().st_size > 30_000_000
+    began = time.monotonic()
+    code, err = resume(finished)
+    assert code == 2 and f"--resume: {finished / 'sweep.json'}: larger than 65536 bytes" in err, err
+    assert time.monotonic() - began < 10
+
+
+def sweep_table_like(finished: Path, columns: dict[str, pa.Array]) -> pa.Table:
+    """A table of the finished sweep's schema and digest whose columns are ``columns`` (the
+    others null): what a crafted file may claim to be."""
+    own = pq.read_table(finished / "results.parquet")
+    rows = len(next(iter(columns.values())))
+    arrays = [columns.get(f.name, pa.nulls(rows, f.type)) for f in own.schema]
+    return pa.Table.from_arrays(arrays, schema=own.schema)
+
+
+def test_a_table_of_more_rows_than_variations_is_refused_before_its_rows_are_read(finished):
+    # A file of a few kilobytes may hold 10^9 repeated indices (8 GB once read).
+    crafted = sweep_table_like(finished, {"index": pa.array(np.zeros(1_000_000, np.int64))})
+    pq.write_table(crafted, finished / "results.parquet")
+    code, err = resume(finished)
+    assert code == 2 and "results.parquet holds 1000000 rows, more than this sweep's 240 variations" in err, err
+
+
+def test_a_table_whose_rows_unpack_to_more_than_a_rows_bytes_is_refused(finished):
+    huge = pa.array(["x" * (8 << 20)], pa.string())
+    crafted = sweep_table_like(finished, {"index": pa.array([0], pa.int64()), "error": huge})
+    pq.write_table(crafted, finished / "results.parquet", compression="zstd")
+    assert (finished / "results.parquet").stat().st_size < 100_000
+    code, err = resume(finished)
+    assert code == 2 and "results.parquet unpacks to" in err and "more than the 1048576 bytes a row" in err, err
 
 
 def test_resume_refuses_a_table_that_is_a_folder_or_fifo(finished):

@@ -4,6 +4,7 @@ writes, byte for byte but for the wall-time column."""
 
 from __future__ import annotations
 
+import contextlib
 import io
 import json
 import os
@@ -12,6 +13,7 @@ import signal
 import subprocess
 import sys
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
 import pyarrow.parquet as pq
@@ -56,9 +58,10 @@ def without_timing(path: Path) -> bytes:
     return sink.getvalue()
 
 
-@pytest.fixture
-def cluster(tmp_path):
-    """A scheduler and one worker (two processes, one thread each) on localhost; their address."""
+@contextlib.contextmanager
+def hand_started_cluster(tmp_path: Path) -> Iterator[tuple[str, subprocess.Popen]]:
+    """A scheduler and one worker (two processes, one thread each) on localhost: the scheduler's
+    address and process."""
     scheduler_file = tmp_path / "scheduler.json"
     with open(tmp_path / "scheduler.log", "wb") as scheduler_log, open(tmp_path / "worker.log", "wb") as worker_log:
         common = {"cwd": tmp_path, "stderr": subprocess.STDOUT}
@@ -101,9 +104,10 @@ def cluster(tmp_path):
                     **common,
                 )
             )
-            yield address
+            yield address, scheduler
         finally:
             for proc in reversed(processes):
+                proc.send_signal(signal.SIGCONT)  # a test may have stopped it
                 proc.terminate()
             for proc in reversed(processes):
                 try:
@@ -111,6 +115,13 @@ def cluster(tmp_path):
                 except subprocess.TimeoutExpired:
                     proc.kill()
                     proc.wait()
+
+
+@pytest.fixture
+def cluster(tmp_path):
+    """A hand-started cluster's address (``hand_started_cluster``)."""
+    with hand_started_cluster(tmp_path) as (address, _):
+        yield address
 
 
 def test_a_hand_started_scheduler_gives_the_embedded_clusters_table(cluster, tmp_path, capsys):
@@ -167,6 +178,14 @@ def test_a_malformed_scheduler_address_is_named(address, tmp_path, capsys):
     assert f"--scheduler {address!r}: not a Dask scheduler address; give tcp://HOST:PORT" in capsys.readouterr().err
 
 
+def test_a_malformed_address_from_the_environment_is_named_as_such(tmp_path, capsys, monkeypatch):
+    # The message named --scheduler, an option the user had not given.
+    monkeypatch.setenv("DASK_SCHEDULER_ADDRESS", "nonsense:::")
+    assert main([*SWEEP, "--out", str(tmp_path / "x")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("legsim: error: $DASK_SCHEDULER_ADDRESS 'nonsense:::': not a Dask scheduler address")
+
+
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
 def test_an_interrupted_dask_sweep_ends_within_2_s_without_worker_tracebacks(tmp_path, sig):
     """The signal goes to the whole process group, as Ctrl-C at a terminal does: the workers
@@ -208,3 +227,37 @@ def test_an_interrupted_dask_sweep_ends_within_2_s_without_worker_tracebacks(tmp
     assert elapsed < 2.0, f"the sweep ended {elapsed:.2f} s after the signal"
     table = pq.read_table(out / "results.parquet")
     assert 0 < table.num_rows < 4000 and set(table.column("task_status").to_pylist()) == {"done"}
+
+
+def test_a_scheduler_that_stops_answering_during_the_sweep_ends_it_with_the_rows_so_far(tmp_path):
+    # The sweep waited forever for batches a stopped scheduler would never report (Ctrl-C
+    # alone ended it).
+    out = tmp_path / "s"
+    with hand_started_cluster(tmp_path) as (address, scheduler):
+        proc = subprocess.Popen(
+            [sys.executable, "-m", "legsim.cli", "sweep", "bouncing_ball", "--grid", "initial.state.z=0.5:2:400",
+             "--set", "integrator.t_final=2", "--batch", "5", "--out", str(out), "--quiet",
+             "--scheduler", address, "--connect-timeout", "2"],
+            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        )  # fmt: skip
+        deadline = time.monotonic() + 120
+        while not list((out / "results.parts").glob("part-*.parquet")) and time.monotonic() < deadline:
+            time.sleep(0.05)
+        scheduler.send_signal(signal.SIGSTOP)
+        stopped = time.monotonic()
+        try:
+            _, err = proc.communicate(timeout=60)
+        finally:
+            proc.kill()  # a hang fails the test, and leaves no sweep behind
+            proc.wait()
+        elapsed = time.monotonic() - stopped
+    # At most 2 s without a finished batch, 2 s for the scheduler's answer, then the client's
+    # close (bounded by Dask at twice the timeout); the margin is for a loaded machine.
+    assert proc.returncode == 2 and elapsed < 15, (elapsed, err)
+    assert err == (
+        f"legsim: error: the Dask scheduler at {address} stopped answering during the sweep (no batch came back "
+        f"and no answer within 2 s each, --connect-timeout; TimeoutError); the rows finished so far are kept: "
+        f"continue with --resume\n"
+    )
+    table = pq.read_table(out / "results.parquet")
+    assert 0 < table.num_rows < 400 and set(table.column("task_status").to_pylist()) == {"done"}
