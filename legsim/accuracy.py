@@ -89,7 +89,9 @@ class AlongOrbit:
     ----------
     section: the mode whose entries are the crossings (the run's initial mode, or the mode it
         enters most often when it never re-enters that one).
-    crossings: how many entries both runs make (compared in order: the k-th with the k-th).
+    crossings: how many entries of the two runs are matched: each with the other run's entry
+        nearest in time, in order (``_matched``).
+    unmatched: entries of either run left without a match (an extra graze of one run).
     phase: max |t_k - t_k refined| (s) over those entries.
     state: per coordinate, max |x_k - x_k refined| over those entries (the states just after each
         entry's reset, in the coordinate's units).
@@ -99,6 +101,7 @@ class AlongOrbit:
 
     section: str
     crossings: int
+    unmatched: int
     phase: float
     state: dict[str, float]
     relative: float | None
@@ -107,6 +110,7 @@ class AlongOrbit:
         return {
             "section": self.section,
             "crossings": self.crossings,
+            "unmatched": self.unmatched,
             "phase": self.phase,
             "state": self.state,
             "relative": self.relative,
@@ -143,17 +147,36 @@ def along_orbit(run: Execution, fine: Execution, section: str | None = None) -> 
         if section is None:
             return None
     a, b = _entries(run, section), _entries(fine, section)
-    count = min(len(a), len(b))
-    if count == 0:
+    pairs = _matched(a, b)
+    if not pairs:
         return None
     names = run.state_names[section]
-    apart = np.array([np.abs(a[k][1] - b[k][1]) for k in range(count)]).max(axis=0)
+    apart = np.array([np.abs(a[i][1] - b[j][1]) for i, j in pairs]).max(axis=0)
     state = {name: float(value) for name, value in zip(names, apart, strict=True) if math.isfinite(value)}
-    phase = max(abs(a[k][0] - b[k][0]) for k in range(count))
+    phase = max(abs(a[i][0] - b[j][0]) for i, j in pairs)
     sizes = _sizes(fine)
     floor = ZERO_SIZE * max(sizes.values(), default=0.0)
     ratios = [value / sizes[name] for name, value in state.items() if sizes.get(name, 0.0) > floor]
-    return AlongOrbit(section, count, phase, state, max(ratios) if ratios else None)
+    unmatched = len(a) + len(b) - 2 * len(pairs)
+    return AlongOrbit(section, len(pairs), unmatched, phase, state, max(ratios) if ratios else None)
+
+
+def _matched(a: list[tuple[float, np.ndarray]], b: list[tuple[float, np.ndarray]]) -> list[tuple[int, int]]:
+    """Pairs (i, j) of entries a[i], b[j] nearest in time, in order: an entry one run makes and
+    the other does not (a graze one of them takes) is left out rather than shifting every later
+    pair by one. Each a[i] takes the nearest b[j] after the last one taken when that b[j] has
+    no nearer a[i'] itself."""
+    pairs: list[tuple[int, int]] = []
+    j = 0
+    for i, (t, _) in enumerate(a):
+        while j + 1 < len(b) and abs(b[j + 1][0] - t) <= abs(b[j][0] - t):
+            j += 1
+        if j >= len(b):
+            break
+        nearest_a = min(range(len(a)), key=lambda k: abs(a[k][0] - b[j][0]))
+        if nearest_a == i and (not pairs or pairs[-1][1] < j):
+            pairs.append((i, j))
+    return pairs
 
 
 def _section_mode(run: Execution) -> str | None:
