@@ -116,7 +116,8 @@ def build_model(
             )
     return BridgeModel(
         name, own, n, declared, rigid, legs, coords, vels, damping_idx, damping_b, actuated_idx, limits,
-        handle_for(own, name), _kinematics_frames(rigid, legs),
+        handle_for(own, name, {r.frame_id: r.radius for r in rigid.values() if r.radius > 0.0}),
+        _kinematics_frames(rigid, legs),
     )  # fmt: skip
 
 
