@@ -3,10 +3,9 @@
 
 Each shape becomes the contacts through which it can touch the ground:
 
-* a sphere, a cylinder whose axis is along y (a disc in the plane) and a capsule whose axis is
-  along y: one round contact (``PointContact`` with ``radius``) at its centre: it touches the
-  ground at its lowest point, centre - r z, which rolls over the body;
-* a capsule whose axis lies in the plane: two round contacts, at the centres of its caps;
+* a sphere, and a cylinder whose axis is along y (a disc in the plane): one round contact
+  (``PointContact`` with ``radius``) at its centre: it touches the ground at its lowest point,
+  centre - r z, which rolls over the body;
 * a box, and a cylinder whose axis lies in the plane: a contact at each corner of its outline in
   the plane (the convex hull of its projection; 4 corners for a box turned about y only), fixed
   in the body. A polygon on a flat ground touches it first at a corner, so the corners are all
@@ -42,7 +41,7 @@ from .urdf_checks import parser_messages
 #: Tolerance on a shape's axis being along y or in the (x, z) plane (a unit vector's y component).
 PLANAR_TOL = 1e-9
 #: What a contact from a collision shape takes from the scene, with its allowed values.
-SETTINGS = {"restitution": "float in [0, 1]", "friction": "float in [0, inf) (mu)"}
+SETTINGS = {"restitution": "float in [0, 1]", "friction": "float in [0, inf) (mu)", "tangential": "true or false"}
 WHERE = "robot.parameters.collision_contacts"
 
 
@@ -64,7 +63,9 @@ def collision_points(model: pin.Model, file: str | Path) -> list[ShapePoint]:
     file = Path(file)
     try:
         with parser_messages(file):
-            geometry = pin.buildGeomFromUrdf(model, str(file), pin.GeometryType.COLLISION, package_dirs=[str(file.parent)])
+            geometry = pin.buildGeomFromUrdf(
+                model, str(file), pin.GeometryType.COLLISION, package_dirs=[str(file.parent)]
+            )
     except ModelError:
         raise
     except Exception as exc:  # Pinocchio's parser raises RuntimeError or ValueError with its reason
@@ -81,15 +82,12 @@ def _shape_contacts(shape: Any, placement: pin.SE3, where: str) -> list[tuple[np
     """(position in the joint's frame (3,), radius) of each contact of one shape placed at ``placement``."""
     kind = type(shape).__name__
     rotation, centre = placement.rotation, placement.translation
-    axis = rotation[:, 2]  # a cylinder's and a capsule's axis (their local z)
+    axis = rotation[:, 2]  # a cylinder's axis (its local z)
     along_y, in_plane = abs(abs(axis[1]) - 1.0) < PLANAR_TOL, abs(axis[1]) < PLANAR_TOL
     if kind == "Sphere":
         return [(centre.copy(), float(shape.radius))]
-    if kind in ("Cylinder", "Capsule") and along_y:
+    if kind == "Cylinder" and along_y:
         return [(centre.copy(), float(shape.radius))]
-    if kind == "Capsule" and in_plane:
-        h = float(shape.halfLength)
-        return [(centre + h * axis, float(shape.radius)), (centre - h * axis, float(shape.radius))]
     if kind == "Box" and abs(abs(rotation[1, 1]) - 1.0) < PLANAR_TOL:
         half = np.asarray(shape.halfSide, dtype=float)
         corners = np.array([[sx, 0.0, sz] for sx in (-1, 1) for sz in (-1, 1)]) * half
@@ -99,9 +97,10 @@ def _shape_contacts(shape: Any, placement: pin.SE3, where: str) -> list[tuple[np
         across = np.cross(np.array([0.0, 1.0, 0.0]), axis)  # in the plane, normal to the axis
         corners = np.array([centre + sa * h * axis + sr * r * across for sa in (-1, 1) for sr in (-1, 1)])
         return [(p, 0.0) for p in _corners(corners)]
+    tilted = " tilted out of the (x, z) plane" if kind in ("Box", "Cylinder") else ""
     raise ModelError(
-        f"{where} is a {kind}{'' if kind not in ('Box', 'Cylinder', 'Capsule') else ' tilted out of the (x, z) plane'}; "
-        f"contacts come from spheres, boxes turned about y, and cylinders and capsules whose axis is along y "
+        f"{where} is a {kind}{tilted}; "
+        f"contacts come from spheres, boxes turned about y, and cylinders whose axis is along y "
         f"or in the (x, z) plane: set robot.parameters.collision_contacts.links.<link> = 'off' and list "
         f"the link's contacts in robot.parameters.contacts"
     )
@@ -113,12 +112,15 @@ def _corners(points: np.ndarray) -> list[np.ndarray]:
     flat = points[:, [0, 2]]
     vertices = flat[ConvexHull(flat).vertices]
     y = float(np.mean(points[:, 1]))
-    return [np.array([x, y, z]) for x, z in sorted(map(tuple, vertices))]
+    # rounded for the order only, so that a corner at x = 1e-17 and one at x = -1e-17 keep theirs
+    ordered = sorted(vertices.tolist(), key=lambda xz: (round(xz[0], 12), round(xz[1], 12)))
+    return [np.array([x, y, z]) for x, z in ordered]
 
 
 def collision_contacts(model: pin.Model, file: str | Path, settings: Any) -> list[PointContact]:
     """The point contacts of the URDF's collision shapes, under the scene's ``settings`` (the
-    ``collision_contacts`` table: ``restitution``, ``friction``, ``ground``, ``links``). Adds a
+    ``collision_contacts`` table: ``restitution``, ``friction``, ``tangential`` (false: the
+    contact constrains the normal only, frictionless), ``ground``, ``links``). Adds a
     frame ``collision_<contact>`` per contact to ``model``. ``SceneError`` naming the field for a
     bad setting, ``ModelError`` naming the file for a shape it cannot take."""
     defaults, links = _settings(settings)
@@ -133,7 +135,7 @@ def collision_contacts(model: pin.Model, file: str | Path, settings: Any) -> lis
             per_link.setdefault(p.link, []).append(p)
     out = []
     for link, shapes in per_link.items():
-        options = {**defaults, **links.get(link, {})}
+        options = _options(defaults, links.get(link, {}), f"{WHERE}.links.{link}")
         for k, p in enumerate(shapes):
             name = link if len(shapes) == 1 else f"{link}_{k}"
             frame = f"collision_{name}"
@@ -150,12 +152,26 @@ def collision_contacts(model: pin.Model, file: str | Path, settings: Any) -> lis
     return out
 
 
+def _options(defaults: Mapping[str, Any], own: Mapping[str, Any], where: str) -> dict[str, Any]:
+    """A link's contact options: its own over the defaults; a frictionless one (tangential
+    false) drops the default friction, and may not give its own."""
+    if own.get("tangential", defaults.get("tangential", True)) is False:
+        if "friction" in own or ("tangential" not in own and "friction" in defaults):
+            source = where if "friction" in own else WHERE
+            raise SceneError(f"{source}.friction: given with tangential = false (a frictionless contact); drop one")
+        return {key: value for key, value in {**defaults, **own}.items() if key != "friction"}
+    return {**defaults, **own}
+
+
 def _settings(settings: Any) -> tuple[dict[str, Any], dict[str, Any]]:
-    """The defaults (restitution, friction, ground) and the per-link overrides (a table of
-    restitution and friction, or "off") of the ``collision_contacts`` table, checked."""
+    """The defaults (restitution, friction, tangential, ground) and the per-link overrides (a
+    table of restitution, friction and tangential, or "off") of the ``collision_contacts``
+    table, checked."""
     if not isinstance(settings, Mapping):
-        raise SceneError(f"{WHERE}: expected a table {{restitution, friction, ground, links}}, got {settings!r}")
-    allowed = {**SETTINGS, "ground": "float (m)", "links": "table {link = {restitution, friction} | 'off'}"}
+        raise SceneError(
+            f"{WHERE}: expected a table {{restitution, friction, tangential, ground, links}}, got {settings!r}"
+        )
+    allowed = {**SETTINGS, "ground": "float (m)", "links": "table {link = {restitution, friction, tangential} | 'off'}"}
     unknown = sorted(set(settings) - set(allowed))
     if unknown:
         raise SceneError(f"{WHERE}: unknown key(s) {unknown}; allowed: {list(allowed)}")
@@ -164,7 +180,9 @@ def _settings(settings: Any) -> tuple[dict[str, Any], dict[str, Any]]:
         defaults["ground"] = _number(settings["ground"], f"{WHERE}.ground", "ground")
     links = settings.get("links", {})
     if not isinstance(links, Mapping):
-        raise SceneError(f"{WHERE}.links: expected a table {{link = {{restitution, friction}} | 'off'}}, got {links!r}")
+        raise SceneError(
+            f"{WHERE}.links: expected a table {{link = {{restitution, friction, tangential}} | 'off'}}, got {links!r}"
+        )
     out: dict[str, Any] = {}
     for link, table in links.items():
         where = f"{WHERE}.links.{link}"
@@ -172,7 +190,7 @@ def _settings(settings: Any) -> tuple[dict[str, Any], dict[str, Any]]:
             out[link] = "off"
             continue
         if not isinstance(table, Mapping):
-            raise SceneError(f"{where}: expected a table {{restitution, friction}} or 'off', got {table!r}")
+            raise SceneError(f"{where}: expected a table {{restitution, friction, tangential}} or 'off', got {table!r}")
         extra = sorted(set(table) - set(SETTINGS))
         if extra:
             raise SceneError(f"{where}: unknown key(s) {extra}; allowed: {list(SETTINGS)}")
@@ -180,9 +198,13 @@ def _settings(settings: Any) -> tuple[dict[str, Any], dict[str, Any]]:
     return defaults, out
 
 
-def _number(value: Any, where: str, key: str) -> float:
+def _number(value: Any, where: str, key: str) -> Any:
     """A setting's value checked against its range: SceneError naming ``where`` and the allowed values."""
     allowed = {**SETTINGS, "ground": "float (m)"}[key]
+    if key == "tangential":
+        if not isinstance(value, bool):
+            raise SceneError(f"{where}: expected {allowed}, got {value!r}")
+        return value
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
         raise SceneError(f"{where}: expected a finite number ({allowed}), got {value!r}")
     value = float(value)

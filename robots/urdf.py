@@ -240,7 +240,7 @@ PARAMETERS = {
     ),
     "collisions": Param(
         False,
-        "also take contacts from the URDF's <collision> shapes (spheres, boxes, cylinders, capsules: robots/collisions.py)",
+        "also take contacts from the URDF's <collision> shapes (spheres, boxes, cylinders: robots/collisions.py)",
     ),
     "collision_contacts": Param(
         {},
