@@ -239,8 +239,7 @@ PARAMETERS = {
         "ground = 0 (m), tangential = true}",
     ),
     "collisions": Param(
-        False,
-        "also take contacts from the URDF's <collision> shapes (spheres, boxes, cylinders: robots/collisions.py)",
+        False, "also take contacts from the URDF's <collision> shapes (spheres, boxes, cylinders: robots/collisions.py)"
     ),
     "collision_contacts": Param(
         {},
