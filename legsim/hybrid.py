@@ -350,6 +350,9 @@ class HybridSystem:
         self._energy = energy
         self._joint = joint
         self._transitions: list[Transition] = []
+        # each transition's place in _transitions (by id), so that binding a mode's transitions
+        # replaces them in place rather than rebuilding the list for every mode built
+        self._place: dict[int, int] = {}
         for tr in transitions:
             self._add_transition(tr)
         if expand is None:
@@ -397,6 +400,7 @@ class HybridSystem:
                 f"{self._name}: transition {tr.name} has no reset but changes dimension "
                 f"{self._modes[tr.source].dim} -> {self._modes[tr.target].dim}"
             )
+        self._place[id(tr)] = len(self._transitions)
         self._transitions.append(tr)
         self._outgoing[tr.source].append(tr)
 
@@ -436,8 +440,10 @@ class HybridSystem:
         count = len(outgoing)
         bound = [self._bound(functions, e, count, tr) for e, tr in enumerate(outgoing)]
         self._outgoing[mode] = bound
-        replaced = {id(old): new for old, new in zip(outgoing, bound, strict=True)}
-        self._transitions = [replaced.get(id(tr), tr) for tr in self._transitions]
+        for old, new in zip(outgoing, bound, strict=True):
+            place = self._place.pop(id(old))
+            self._transitions[place] = new
+            self._place[id(new)] = place
 
     def _bound(self, functions: ModeFunctions, e: int, count: int, tr: Transition) -> Transition:
         """Transition ``tr`` (the e-th of ``count``) with the mode's guard and resets."""

@@ -37,6 +37,7 @@ from legsim.errors import ModelError, SceneError
 from legsim.terrain import Terrain
 
 from .bridge import ContactBridge, JointStop, PointContact
+from .collisions import collision_contacts
 from .urdf_checks import check_urdf, parser_messages
 from .watches import LinkHeights, below_ground_watch, saturation_watches
 
@@ -238,6 +239,14 @@ PARAMETERS = {
         "point contacts: tables {name, frame, restitution = 0, friction (mu; none: no limit), "
         "ground = 0 (m), tangential = true}",
     ),
+    "collisions": Param(
+        False, "also take contacts from the URDF's <collision> shapes (spheres, boxes, cylinders: robots/collisions.py)"
+    ),
+    "collision_contacts": Param(
+        {},
+        "settings of the contacts from <collision> shapes: {restitution = 0, friction (mu; none: no limit), "
+        "ground = 0 (m), links = {link = {restitution, friction} | 'off'}}",
+    ),
     "stops": Param(
         [], "joint stops: tables {name, joint, position (rad or m), side = 'lower' | 'upper', restitution = 0}"
     ),
@@ -318,6 +327,12 @@ def make_bridge(params: Mapping[str, Any], terrain: Terrain | None = None) -> tu
     if repeated:
         raise SceneError(f"robot.parameters.actuated: joint(s) {repeated} listed more than once: {actuated}")
     contacts = scene_contacts(params["contacts"], params["stops"])
+    if params["collisions"]:
+        contacts += collision_contacts(model, params["file"], params["collision_contacts"])
+    elif params["collision_contacts"]:
+        raise SceneError(
+            "robot.parameters.collision_contacts: given with collisions = false; set collisions = true or drop it"
+        )
     limits = effort_limits(model, actuated, params)
     bridge = ContactBridge(
         model,
@@ -398,7 +413,7 @@ def _build(params: dict[str, Any], effects: dict[str, dict[str, Any]], terrain: 
 
 BUILDER = Builder(
     "urdf",
-    "a planar robot from a URDF file, with the contacts and stops the scene declares",
+    "a planar robot from a URDF file, with the contacts and stops the scene declares or its <collision> shapes",
     PARAMETERS,
     {},
     _build,

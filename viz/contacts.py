@@ -42,7 +42,8 @@ def contact_points_of(model: Model | None) -> ContactPoints | None:
 
 def bridge_contact_points(bridge: Any, mode: str, x: np.ndarray) -> dict[str, np.ndarray]:
     """World (x, z) points (m) of the contacts active in ``mode`` of a contact bridge: spring
-    legs' footholds, point contacts' frame origins (joint stops have no point)."""
+    legs' footholds, point contacts' frame origins (a round one's lowest point; joint stops have
+    no point)."""
     active = bridge.active_contacts(mode)
     if not active:
         return {}
@@ -56,7 +57,9 @@ def bridge_contact_points(bridge: Any, mode: str, x: np.ndarray) -> dict[str, np
     }
     if frames:
         positions = bridge.frame_positions(np.asarray(x, dtype=float)[: bridge.n], list(frames.values()))
-        points.update({name: positions[frame] for name, frame in frames.items()})
+        # a round contact touches at its lowest point, its radius below the frame's origin
+        lowest = {name: np.array([0.0, float(getattr(contacts[name], "radius", 0.0))]) for name in frames}
+        points.update({name: positions[frame] - lowest[name] for name, frame in frames.items()})
     return points
 
 

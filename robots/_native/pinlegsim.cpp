@@ -80,7 +80,7 @@ using Mat = Eigen::MatrixXd;
 using ConstMap = Eigen::Map<const Vec>;
 using OutMap = Eigen::Map<Vec>;
 
-constexpr int kVersion = 6;
+constexpr int kVersion = 7;
 
 // Joint type codes of the model description (see lsn_create).
 enum JointCode { RX = 0, RY = 1, RZ = 2, PX = 3, PY = 4, PZ = 5, COMPOSITE = 6 };
@@ -129,8 +129,27 @@ struct Robot {
   Data data;
   std::array<double, COUNTERS> counts{};
   SolveCache aba, kkt, gravity;
-  explicit Robot(Model m) : model(std::move(m)), data(model) {}
+  // The radius (m) of each frame: 0 for a point; r > 0 for a round frame (a sphere or a disc
+  // about the frame's origin), whose kinematics are those of its contact point (round_offset).
+  std::vector<double> radius;
+  explicit Robot(Model m) : model(std::move(m)), data(model), radius(model.frames.size(), 0.0) {}
 };
+
+// A round frame's contact point with the ground (normal +z) is its lowest point, origin + d with
+// d = (0, 0, -r) in the world's axes. It is not fixed in the body: the functions below give its
+// position, the velocity v + w x d of the body's material point there (the slip velocity along
+// x, the origin's vertical velocity along z), the derivative a + dw/dt x d of that velocity (d
+// is constant in the world; no centripetal term), and the Jacobian of that velocity.
+Eigen::Vector3d round_offset(const Robot& rb, pinocchio::FrameIndex id) {
+  return Eigen::Vector3d(0.0, 0.0, -rb.radius[id]);
+}
+
+// Shift a world-aligned frame Jacobian (6, nv) to a round frame's contact point.
+void shift_to_contact(const Robot& rb, pinocchio::FrameIndex id, Mat& Jf) {
+  if (rb.radius[id] == 0.0) return;
+  const Eigen::Vector3d d = round_offset(rb, id);
+  for (long j = 0; j < Jf.cols(); ++j) Jf.block<3, 1>(0, j) += Eigen::Vector3d(Jf.block<3, 1>(3, j)).cross(d);
+}
 
 std::vector<std::unique_ptr<Robot>> robots;
 std::mutex robots_mutex;
@@ -239,11 +258,15 @@ void constraint_rows(Robot& rb, const ConstMap& q, const ConstMap& v, const std:
     const auto frame = static_cast<pinocchio::FrameIndex>(r.id);
     Jf.setZero();
     pinocchio::getFrameJacobian(model, data, frame, pinocchio::LOCAL_WORLD_ALIGNED, Jf);
+    shift_to_contact(rb, frame, Jf);
     const double slope = slopes == nullptr ? 0.0 : slopes[2 * b];
     const double curvature = slopes == nullptr ? 0.0 : slopes[2 * b + 1];
     Eigen::Vector3d acc = Eigen::Vector3d::Zero();
-    if (drift)
-      acc = pinocchio::getFrameClassicalAcceleration(model, data, frame, pinocchio::LOCAL_WORLD_ALIGNED).linear();
+    if (drift) {
+      const pinocchio::Motion motion =
+          pinocchio::getFrameClassicalAcceleration(model, data, frame, pinocchio::LOCAL_WORLD_ALIGNED);
+      acc = motion.linear() + motion.angular().cross(round_offset(rb, frame));
+    }
     if (slope == 0.0 && curvature == 0.0) {
       if (r.rows == 2) {
         J.row(i) = Jf.row(0);
@@ -335,7 +358,8 @@ long lsn_version() { return kVersion; }
 // description. Layout: [njoints-1, then per joint (code, [a composite's part count, then per
 // part (code, placement[12])], parent, placement[12], mass, lever[3], inertia about the centre
 // of mass[9]), nframes-1, then per frame
-// (parent joint, placement[12]), gravity linear[3]]. A placement is R row-major then p.
+// (parent joint, placement[12]), gravity linear[3], the count of round frames, then per round
+// frame (frame id, radius)]. A placement is R row-major then p.
 // Frames are added in order after the universe frame, so frame ids are the Python model's.
 long lsn_create(const double* desc, long size) {
   Model model;
@@ -379,11 +403,21 @@ long lsn_create(const double* desc, long size) {
                    false);
     k += 13;
   }
-  if (!need(3)) return -1;
+  if (!need(4)) return -1;
   model.gravity.linear(Eigen::Vector3d(desc[k], desc[k + 1], desc[k + 2]));
   model.gravity.angular(Eigen::Vector3d::Zero());
+  k += 3;
+  // The round frames: count, then (frame id, radius > 0) pairs; checked as doubles (see above).
+  const double rounds = desc[k++];
+  if (!(rounds >= 0.0 && rounds <= static_cast<double>(size - k) / 2.0)) return -1;
+  auto rb = std::make_unique<Robot>(std::move(model));
+  for (long i = 0; i < static_cast<long>(rounds); ++i, k += 2) {
+    const double frame = desc[k], r = desc[k + 1];
+    if (!(frame >= 1.0 && frame <= static_cast<double>(frames) && r > 0.0 && std::isfinite(r))) return -1;
+    rb->radius[static_cast<size_t>(frame)] = r;
+  }
   std::lock_guard<std::mutex> lock(robots_mutex);
-  robots.push_back(std::make_unique<Robot>(std::move(model)));
+  robots.push_back(std::move(rb));
   return static_cast<long>(robots.size() - 1);
 }
 
@@ -412,8 +446,10 @@ void lsn_frames(long h, const double* q, const double* v, long count, const doub
   pinocchio::forwardKinematics(rb.model, rb.data, ConstMap(q, n), ConstMap(v, n));
   for (long i = 0; i < count; ++i) {
     const auto id = static_cast<pinocchio::FrameIndex>(frames[i]);
-    const Eigen::Vector3d p = pinocchio::updateFramePlacement(rb.model, rb.data, id).translation();
-    const Eigen::Vector3d w = pinocchio::getFrameVelocity(rb.model, rb.data, id, pinocchio::LOCAL_WORLD_ALIGNED).linear();
+    const Eigen::Vector3d d = round_offset(rb, id);
+    const Eigen::Vector3d p = pinocchio::updateFramePlacement(rb.model, rb.data, id).translation() + d;
+    const pinocchio::Motion motion = pinocchio::getFrameVelocity(rb.model, rb.data, id, pinocchio::LOCAL_WORLD_ALIGNED);
+    const Eigen::Vector3d w = motion.linear() + motion.angular().cross(d);
     out[4 * i] = p(0);
     out[4 * i + 1] = p(2);
     out[4 * i + 2] = w(0);
@@ -429,7 +465,8 @@ void lsn_frame_jacobian(long h, const double* q, long frame, double* out) {
   rb.counts[JACOBIANS] += 1;
   Mat Jf = Mat::Zero(6, n);
   pinocchio::computeFrameJacobian(rb.model, rb.data, ConstMap(q, n), id, pinocchio::LOCAL_WORLD_ALIGNED, Jf);
-  const Eigen::Vector3d p = rb.data.oMf[id].translation();
+  shift_to_contact(rb, id, Jf);
+  const Eigen::Vector3d p = rb.data.oMf[id].translation() + round_offset(rb, id);
   out[0] = p(0);
   out[1] = p(2);
   for (long j = 0; j < n; ++j) {
@@ -465,9 +502,11 @@ void lsn_frame_motion(long h, const double* q, const double* v, const double* a,
   rb.counts[KINEMATICS] += 1;
   pinocchio::forwardKinematics(rb.model, rb.data, ConstMap(q, n), ConstMap(v, n), ConstMap(a, n));
   pinocchio::updateFramePlacement(rb.model, rb.data, id);
-  const Eigen::Vector3d w = pinocchio::getFrameVelocity(rb.model, rb.data, id, pinocchio::LOCAL_WORLD_ALIGNED).linear();
-  const Eigen::Vector3d acc =
-      pinocchio::getFrameClassicalAcceleration(rb.model, rb.data, id, pinocchio::LOCAL_WORLD_ALIGNED).linear();
+  const Eigen::Vector3d d = round_offset(rb, id);
+  const pinocchio::Motion velocity = pinocchio::getFrameVelocity(rb.model, rb.data, id, pinocchio::LOCAL_WORLD_ALIGNED);
+  const pinocchio::Motion accel = pinocchio::getFrameClassicalAcceleration(rb.model, rb.data, id, pinocchio::LOCAL_WORLD_ALIGNED);
+  const Eigen::Vector3d w = velocity.linear() + velocity.angular().cross(d);
+  const Eigen::Vector3d acc = accel.linear() + accel.angular().cross(d);
   out[0] = w(0);
   out[1] = w(2);
   out[2] = acc(0);

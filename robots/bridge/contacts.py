@@ -42,6 +42,12 @@ class PointContact:
     releases: names of contacts that become inactive when this one strikes.
     armed: optional ``Armed``: where the touchdown counts (a walker's swing foot lands only
         ahead of its stance foot, so that the scuff at mid-swing is not a heel strike).
+    radius: 0 (m) for a point; r > 0 makes the contact round (a sphere, or a disc in the
+        plane, of radius r about the frame's origin): it touches the ground at its lowest
+        point, origin - r z, which is not fixed in the body. The gap is the origin's height
+        minus r; the constraint rows, impacts and friction act at that point (its velocity
+        v + w x (-r z): the slip velocity is the rolling one). The bridge gives the contact a
+        frame of its own, ``<name>_round``, which the native library knows as round.
     """
 
     name: str
@@ -52,6 +58,7 @@ class PointContact:
     releases: tuple[str, ...] = ()
     armed: Armed | None = None
     friction: float | None = None
+    radius: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -128,7 +135,8 @@ class RigidContact:
     ----------
     contact: the declaration.
     kind: ``"point"`` or ``"stop"``.
-    frame_id: Pinocchio frame id of a point contact (-1 for a stop).
+    frame_id: Pinocchio frame id of a point contact (-1 for a stop); for a round one, its own
+        frame (``<name>_round``), whose kinematics the native library gives at its lowest point.
     dof: velocity index of a stop's joint (-1 for a point contact).
     sign: +1 for a lower stop, -1 for an upper one: ``sign * (q - position) >= 0`` inside.
     rows: constraint Jacobian rows (2 for a sticking point, else 1); the normal row is the last.
@@ -147,6 +155,11 @@ class RigidContact:
     def mu(self) -> float | None:
         """The Coulomb friction coefficient of a point contact, or None (no friction limit)."""
         return getattr(self.contact, "friction", None)
+
+    @property
+    def radius(self) -> float:
+        """The radius (m) of a round point contact, 0 for a point or a stop."""
+        return float(getattr(self.contact, "radius", 0.0))
 
     @property
     def point(self) -> PointContact:
@@ -259,6 +272,8 @@ def _resolve_leg(model: pin.Model, leg: SpringLeg, robot: str, where: str) -> Le
 def _resolve_point(model: pin.Model, c: PointContact, robot: str, where: str, declared: Sequence[str]) -> RigidContact:
     finite_number(c.ground, f"{robot}: {where}: ground")
     fid = frame_id(model, c.frame, where, robot)
+    if finite_number(c.radius, f"{robot}: {where}: radius", low=0.0) > 0.0:
+        fid = _round_frame(model, c, fid, robot, where)
     if isinstance(c.releases, str) or not all(isinstance(o, str) for o in c.releases):
         raise ModelError(f"{robot}: {where}: releases must be a tuple of contact names, got {c.releases!r}")
     armed_frame = _resolve_armed(model, c.armed, robot, where)
@@ -273,6 +288,16 @@ def _resolve_point(model: pin.Model, c: PointContact, robot: str, where: str, de
                 f"tangential=False is frictionless)"
             )
     return RigidContact(c, "point", frame_id=fid, rows=2 if c.tangential else 1, armed_frame=armed_frame)
+
+
+def _round_frame(model: pin.Model, c: PointContact, fid: int, robot: str, where: str) -> int:
+    """A round contact's own frame ``<name>_round``, at frame ``fid``'s placement: the native
+    library gives its kinematics at its lowest point, which no other user of the frame wants."""
+    name = f"{c.name}_round"
+    if model.existFrame(name):
+        raise ModelError(f"{robot}: {where}: the model already has a frame '{name}'")
+    frame = model.frames[fid]
+    return int(model.addFrame(pin.Frame(name, frame.parentJoint, frame.placement, pin.FrameType.OP_FRAME), False))
 
 
 def _resolve_armed(model: pin.Model, armed: Any, robot: str, where: str) -> int:

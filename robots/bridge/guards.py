@@ -59,16 +59,18 @@ def _past_stop(model: BridgeModel, r: RigidContact, q: np.ndarray, eps: float, m
 def _below_ground(
     model: BridgeModel, data: pin.Data, r: RigidContact, q: np.ndarray, eps: float, mode: str
 ) -> str | None:
-    """A message if the inactive contact point lies below the ground (the terrain under it) at q by
-    more than eps (m), else None."""
+    """A message if the inactive contact point (a round one's lowest point) lies below the ground
+    (the terrain under it) at q by more than eps (m), else None."""
     c = r.point
     pin.forwardKinematics(model.pin_model, data, q)
     x, _, z = pin.updateFramePlacement(model.pin_model, data, r.frame_id).translation
+    z -= r.radius
     ground = c.ground if model.terrain is None else terrain_height(model.terrain, 0, float(x))
     depth = ground - z
     if depth > eps:
+        shape = f", radius {r.radius:g} m: its lowest point" if r.radius > 0.0 else ""
         return (
-            f"contact point '{c.name}' (frame '{c.frame}') at height {z:g} m lies below the "
+            f"contact point '{c.name}' (frame '{c.frame}'{shape}) at height {z:g} m lies below the "
             f"ground {ground:g} m under it by {depth:.3g} > eps = {eps:g} in mode '{mode}' where "
             f"the contact is inactive"
         )
@@ -84,7 +86,8 @@ def guard_units(model: BridgeModel) -> dict[str, str]:
             units[f"liftoff_{cname}"] = "m (rest length minus leg length, while extending)"
         elif isinstance(c, PointContact):
             kind = "touchdown" if c.restitution == 0.0 else "bounce"
-            units[f"{kind}_{cname}"] = "m (height of the point, while descending)"
+            point = "the round contact's lowest point" if c.radius > 0.0 else "the point"
+            units[f"{kind}_{cname}"] = f"m (height of {point}, while descending)"
             if c.restitution == 0.0:
                 units[f"graze_{cname}"] = units[f"{kind}_{cname}"]
                 units[f"liftoff_{cname}"] = "N (normal contact force)"

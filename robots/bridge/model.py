@@ -131,7 +131,8 @@ def build_model(
             )
     return BridgeModel(
         name, own, n, declared, rigid, legs, coords, vels, damping_idx, damping_b, actuated_idx, limits,
-        handle_for(own, name), _kinematics_frames(rigid, legs),
+        handle_for(own, name, {r.frame_id: r.radius for r in rigid.values() if r.radius > 0.0}),
+        _kinematics_frames(rigid, legs),
         None if terrain is None or terrain.flat else terrain.array.copy(),
     )  # fmt: skip
 
@@ -139,7 +140,8 @@ def build_model(
 def _on_terrain(declared: dict[str, Contact], terrain: Terrain | None, name: str) -> dict[str, Contact]:
     """The contacts on ``terrain``: a flat one is each contact's ground height (so that it runs
     exactly as ``ground = h0`` does); the others replace the grounds. A contact that gives its
-    own ground besides a terrain, or a spring leg on a terrain that is not level, is refused."""
+    own ground besides a terrain, or a spring leg or round contact on a terrain that is not level,
+    is refused."""
     if terrain is None:
         return declared
     if not isinstance(terrain, Terrain):
@@ -161,6 +163,14 @@ def _on_terrain(declared: dict[str, Contact], terrain: Terrain | None, name: str
         raise ModelError(
             f"{name}: spring legs {legs} stand only on level ground; the terrain {terrain.description} "
             f"is not (use a flat terrain)"
+        )
+    # A round contact touches a sloped ground along its normal, off the lowest point the
+    # native library tracks: not modelled, so refused rather than answered wrongly.
+    round_contacts = [c.name for c in grounded if isinstance(c, PointContact) and c.radius > 0.0]
+    if round_contacts:
+        raise ModelError(
+            f"{name}: round contacts {round_contacts} (collision spheres and cylinders) stand only on level "
+            f"ground; the terrain {terrain.description} is not (use a flat terrain, or boxes)"
         )
     return declared
 

@@ -99,6 +99,10 @@ class ModeCatalog:
         self._names: dict[frozenset[str], str] = {}
         self._sets: dict[str, frozenset[str]] = {}
         self._specs: dict[str, ModeSpec] = {}
+        # a mode's entries by name and an entry's parse, once each: a robot with many contacts
+        # names its modes' targets hundreds of thousands of times while building them
+        self._entries: dict[str, tuple[str, ...]] = {}
+        self._parsed: dict[str, tuple[str, float] | None] = {}
         for key, mname in (mode_names or {}).items():
             subset: frozenset[str] = frozenset([key]) if isinstance(key, str) else frozenset(key)
             unknown = sorted(e for e in subset if self._parse(e) is None)
@@ -114,6 +118,11 @@ class ModeCatalog:
     def _parse(self, entry: str) -> tuple[str, float] | None:
         """(contact, slip direction) of an entry, or None when it names no contact (or a slip of a
         contact without friction)."""
+        if entry not in self._parsed:
+            self._parsed[entry] = self._parse_entry(entry)
+        return self._parsed[entry]
+
+    def _parse_entry(self, entry: str) -> tuple[str, float] | None:
         contacts = self._model.contacts
         if entry in contacts:
             return entry, 0.0
@@ -150,6 +159,11 @@ class ModeCatalog:
     def entries(self, mode: str) -> tuple[str, ...]:
         """The active entries of mode ``mode``, in declared order; ``ModelError`` if ``mode``
         names no mode or a mode by another name than its own."""
+        if mode not in self._entries:
+            self._entries[mode] = self._entries_of(mode)
+        return self._entries[mode]
+
+    def _entries_of(self, mode: str) -> tuple[str, ...]:
         model = self._model
         if mode in self._sets:
             subset = self._sets[mode]

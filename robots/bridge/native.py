@@ -9,7 +9,7 @@ built (``ModelError`` says why).
 from __future__ import annotations
 
 import functools
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from typing import Any
 
 import numpy as np
@@ -50,9 +50,11 @@ _JOINT_CODES = {
 COMPOSITE = 6
 
 
-def describe(model: Any) -> np.ndarray | None:
+def describe(model: Any, radii: Mapping[int, float] | None = None) -> np.ndarray | None:
     """The flat description of a Pinocchio model for ``lsn_create`` (pinlegsim.cpp), or None
-    when it has a joint the library does not take or a gravity with an angular part."""
+    when it has a joint the library does not take or a gravity with an angular part. ``radii``:
+    the round frames (frame id -> radius in m, > 0), whose kinematics the library gives at their
+    lowest point (a sphere's or disc's contact point with the ground)."""
     out: list[float] = [model.njoints - 1]
     for j in range(1, model.njoints):
         joint = _joint_description(model.joints[j])
@@ -67,6 +69,9 @@ def describe(model: Any) -> np.ndarray | None:
     if np.any(model.gravity.angular != 0.0):
         return None
     out += list(model.gravity.linear)
+    rounds = sorted((radii or {}).items())
+    out.append(len(rounds))
+    out += [v for frame, r in rounds for v in (frame, r)]
     return np.array(out, dtype=float)
 
 
@@ -87,15 +92,16 @@ def _joint_description(joint: Any) -> list[float] | None:
     return out
 
 
-def handle_for(model: Any, robot: str) -> int:
-    """The native handle of a Pinocchio model (created once per model object); ``ModelError``
-    naming ``robot`` when the library is unavailable or cannot take the model."""
+def handle_for(model: Any, robot: str, radii: Mapping[int, float] | None = None) -> int:
+    """The native handle of a Pinocchio model (created once per model object, with its round
+    frames ``radii``: see ``describe``); ``ModelError`` naming ``robot`` when the library is
+    unavailable or cannot take the model."""
     found = _HANDLES.get(id(model))
     if found is not None and found[0] is model:
         return found[1]
     if not _native.load():
         raise ModelError(f"{robot}: the native Pinocchio library is unavailable: {_native.status()}")
-    desc = describe(model)
+    desc = describe(model, radii)
     if desc is None:
         raise ModelError(
             f"{robot}: the native library takes revolute and prismatic joints about or along x, y, z "
