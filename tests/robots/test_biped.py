@@ -145,11 +145,11 @@ def other_leg(side: str) -> str:
   <joint name="{side}_hip_joint" type="revolute"><parent link="torso"/><child link="{side}_upper"/>
     <origin xyz="0 0 0"/><axis xyz="0 1 0"/><limit lower="-1.6" upper="1.6" effort="150" velocity="30"/></joint>
   <link name="{side}_upper"><inertial><origin xyz="0 0 {-THIGH / 2}"/><mass value="0.7"/>
-    <inertia ixx="0.005" ixy="0" ixz="0" iyy="0.00525" iyz="0" izz="0.0002"/></inertial></link>
+    <inertia ixx="0.005" ixy="0" ixz="0" iyy="0.00525" iyz="0" izz="0.0003"/></inertial></link>
   <joint name="{side}_knee_joint" type="revolute"><parent link="{side}_upper"/><child link="{side}_lower"/>
     <origin xyz="0 0 {-THIGH}"/><axis xyz="0 1 0"/><limit lower="-2.8" upper="0.0" effort="150" velocity="30"/></joint>
   <link name="{side}_lower"><inertial><origin xyz="0 0 {-SHANK / 2}"/><mass value="0.25"/>
-    <inertia ixx="0.002" ixy="0" ixz="0" iyy="0.0016" iyz="0" izz="0.0001"/></inertial></link>
+    <inertia ixx="0.002" ixy="0" ixz="0" iyy="0.0016" iyz="0" izz="0.0005"/></inertial></link>
   <joint name="{side}_sole_joint" type="fixed"><parent link="{side}_lower"/><child link="{side}_sole"/>
     <origin xyz="0 0 {-SHANK}"/></joint>
   <link name="{side}_sole"/>
