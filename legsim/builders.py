@@ -18,7 +18,7 @@ from contextvars import ContextVar
 from dataclasses import dataclass, field
 from importlib import metadata
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
@@ -26,8 +26,9 @@ from .errors import ModelError, SceneError
 from .hybrid import HybridSystem
 from .registry import load_registered, registered
 
-if TYPE_CHECKING:
-    from .terrain import Terrain
+#: A scene's ground as a builder receives it: a ``legsim.terrain.Terrain`` (made by the scene
+#: layer, which reads its files), passed through untouched by the core.
+Terrain = Any
 
 ENTRY_POINT_GROUP = "legsim.builders"
 

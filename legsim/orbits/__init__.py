@@ -39,8 +39,9 @@ from .jacobians import (
     saltation_matrix,
 )
 from .kinks import CheckedJacobian
-from .newton import STATUSES, OrbitResult, find_orbit
+from .newton import find_orbit
 from .problem import MAX_STEPS_PER_RETURN, OrbitProblem, Return
+from .result import STATUSES, OrbitResult
 from .returns import ReturnMap, return_map
 from .sections import Section
 

@@ -12,8 +12,9 @@ from typing import Any
 import numpy as np
 
 from .errors import OrbitError
-from .newton import OrbitResult, find_orbit
+from .newton import find_orbit
 from .problem import OrbitProblem
+from .result import OrbitResult
 
 
 @dataclass
