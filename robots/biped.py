@@ -9,7 +9,7 @@ contacts: the first lands first.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -20,7 +20,7 @@ from legsim.errors import SceneError
 
 from . import biped_laws as laws
 from .controllers import bridge_of
-from .raibert import Leg, find_legs
+from .raibert import RUNNER_PARAMETERS, Leg, find_legs
 
 
 @dataclass(frozen=True)
@@ -112,25 +112,26 @@ def biped_law(bridge: Any, legs: list[Leg], gains: Gains, thrust: float, stance_
     )
 
 
+#: The runner family's gains, at the biped's defaults (a stiffer stance spring, firmer
+#: attitude servo, one step's speed error feeding the integral), then the biped's own.
 BIPED_PARAMETERS = {
-    "speed": Param(1.0, "commanded forward speed xd*", "m/s"),
-    "height": Param(0.5, "commanded apex height of the trunk's centre (the hips)", "m", low=0.0, low_open=True),
-    "k_x": Param(0.05, "foot placement gain (m per m/s of speed error)", "s", low=0.0),
-    "k_i": Param(
-        0.03, "foot placement's integral gain: its bias grows by k_i per m/s of each step's speed error", "s", low=0.0
-    ),
-    "leg_length": Param(
-        0.42, "leg length at touchdown, and the stance spring's rest length", "m", low=0.0, low_open=True
-    ),
-    "stiffness": Param(5000.0, "stance spring stiffness along the leg", "N/m", low=0.0, low_open=True),
-    "damping": Param(10.0, "stance damping along the leg", "N s/m", low=0.0),
-    "thrust": Param(
-        0.02, "initial thrust: the stance spring's rest-length extension while the leg extends", "m", low=0.0
-    ),
-    "k_height": Param(0.2, "thrust adaptation per metre of apex height error", "", low=0.0),
-    "max_thrust": Param(0.1, "largest thrust", "m", low=0.0),
-    "kp_attitude": Param(100.0, "stance hip torque per radian of trunk pitch", "N m/rad", low=0.0),
-    "kd_attitude": Param(20.0, "stance hip torque per rad/s of trunk pitch rate", "N m s/rad", low=0.0),
+    **{
+        name: replace(RUNNER_PARAMETERS[name], default=default)
+        for name, default in (
+            ("speed", 1.0),
+            ("height", 0.5),
+            ("k_x", 0.05),
+            ("k_i", 0.03),
+            ("leg_length", 0.42),
+            ("stiffness", 5000.0),
+            ("damping", 10.0),
+            ("thrust", 0.02),
+            ("k_height", 0.2),
+            ("max_thrust", 0.1),
+            ("kp_attitude", 100.0),
+            ("kd_attitude", 20.0),
+        )
+    },
     "kp_joint": Param(30.0, "hip stiffness on the angle of a leg off the ground", "N m/rad", low=0.0),
     "kd_joint": Param(1.5, "hip damping on the angle rate of a leg off the ground", "N m s/rad", low=0.0),
     "swing_share": Param(

@@ -36,7 +36,7 @@ from scipy.spatial import ConvexHull
 from legsim.errors import ModelError, SceneError
 
 from .bridge import PointContact
-from .urdf_checks import parser_messages
+from .urdf_checks import read_geometry
 
 #: Tolerance on a shape's axis being along y or in the (x, z) plane (a unit vector's y component).
 PLANAR_TOL = 1e-9
@@ -61,15 +61,7 @@ def collision_points(model: pin.Model, file: str | Path) -> list[ShapePoint]:
     model), in the URDF's order; ``ModelError`` naming the file and shape for one the planar
     contacts cannot take."""
     file = Path(file)
-    try:
-        with parser_messages(file):
-            geometry = pin.buildGeomFromUrdf(
-                model, str(file), pin.GeometryType.COLLISION, package_dirs=[str(file.parent)]
-            )
-    except ModelError:
-        raise
-    except Exception as exc:  # Pinocchio's parser raises RuntimeError or ValueError with its reason
-        raise ModelError(f"{file}: the collision geometry could not be read: {type(exc).__name__}: {exc}") from exc
+    geometry = read_geometry(model, file, "collision")
     out = []
     for obj in geometry.geometryObjects:
         link = model.frames[obj.parentFrame].name

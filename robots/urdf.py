@@ -38,7 +38,7 @@ from legsim.terrain import Terrain
 
 from .bridge import ContactBridge, JointStop, PointContact
 from .collisions import collision_contacts
-from .urdf_checks import check_urdf, parser_messages
+from .urdf_checks import check_urdf, parser_messages, read_geometry
 from .watches import LinkHeights, below_ground_watch, saturation_watches
 
 PLANAR_ROOT = ("x", "z", "pitch")
@@ -118,15 +118,7 @@ class Outlines:
 
     def __init__(self, model: pin.Model, file: str | Path) -> None:
         file = Path(file)
-        try:
-            with parser_messages(file):
-                visual = pin.buildGeomFromUrdf(
-                    model, str(file), pin.GeometryType.VISUAL, package_dirs=[str(file.parent)]
-                )
-        except ModelError:
-            raise
-        except Exception as exc:
-            raise ModelError(f"{file}: the visual geometry could not be read: {type(exc).__name__}: {exc}") from exc
+        visual = read_geometry(model, file, "visual")
         self._model = model
         self._data = model.createData()
         self.parts: dict[str, tuple[int, np.ndarray]] = {}

@@ -41,6 +41,7 @@ import threading
 import xml.etree.ElementTree as ET
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 from urllib.parse import unquote, urlsplit
 
 import numpy as np
@@ -308,3 +309,20 @@ def parser_messages(file: str | os.PathLike[str]) -> Iterator[None]:
         raise ModelError(f"{file}: the URDF parser reported: {printable(lines, newlines=False)}") from failure
     if failure is not None:
         raise failure
+
+
+def read_geometry(model: Any, file: str | os.PathLike[str], kind: str) -> Any:
+    """The ``kind`` ("visual" or "collision") geometry of the URDF ``file`` for its Pinocchio
+    ``model`` (a ``pinocchio.GeometryModel``), meshes looked up beside the file; ``ModelError``
+    naming the file with what the parser said or raised."""
+    import pinocchio as pin
+
+    path = Path(file)
+    geometry_type = pin.GeometryType.VISUAL if kind == "visual" else pin.GeometryType.COLLISION
+    try:
+        with parser_messages(path):
+            return pin.buildGeomFromUrdf(model, str(path), geometry_type, package_dirs=[str(path.parent)])
+    except ModelError:
+        raise
+    except Exception as exc:  # Pinocchio's parser raises RuntimeError or ValueError with its reason
+        raise ModelError(f"{path}: the {kind} geometry could not be read: {type(exc).__name__}: {exc}") from exc
