@@ -341,3 +341,17 @@ def test_cylinders_and_boxes_become_corners_or_round_contacts(tmp_path, geometry
     assert len(got) == len(expected)
     for (xz, r), (xz_ref, r_ref) in zip(got, expected, strict=True):
         assert xz == pytest.approx(xz_ref, abs=1e-12) and r == r_ref
+
+
+@pytest.mark.parametrize(
+    "terrain", ['kind = "slope"\nangle = 5.0', 'kind = "sine"\namplitude = 0.02\nwavelength = 1.0']
+)
+def test_a_round_contact_on_a_terrain_that_is_not_level_is_refused_naming_it(tmp_path, terrain):
+    # A sphere meets a sloped ground along the ground's normal, not at its lowest point, which is
+    # the point the native library tracks: refused rather than answered wrongly.
+    with pytest.raises((ModelError, SceneError), match=r"round contacts \['ball.*stand only on level ground"):
+        load_scene(ball(tmp_path, f"[terrain]\n{terrain}\n"))
+    flat = tmp_path / "flat"
+    flat.mkdir()
+    level = ball(flat, '[initial]\nstate = { z = 0.5 }\n[terrain]\nkind = "flat"\nheight = 0.1\n')
+    assert load_scene(level).simulate().status.value == "finished"
