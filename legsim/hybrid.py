@@ -297,6 +297,9 @@ class HybridSystem:
     expand:
         Optional ``expand(mode_name) -> (Mode, [Transition, ...])`` producing a mode and its
         outgoing transitions on first use, for models with many reachable modes.
+    dims:
+        Optional ``dims(mode_name) -> int``: the state dimension of a mode without expanding it
+        (a run registers every mode a transition may reach, and expands only those it enters).
     energy:
         Optional ``energy(mode_name, x) -> float`` (J), reported in run summaries of
         mechanical systems.
@@ -324,6 +327,7 @@ class HybridSystem:
         *,
         name: str = "hybrid system",
         expand: Callable[[str], tuple[Mode, Sequence[Transition]]] | None = None,
+        dims: Callable[[str], int] | None = None,
         energy: Callable[[str, np.ndarray], float] | None = None,
         initial: tuple[str, Any] | None = None,
         joint: JointFn | None = None,
@@ -339,6 +343,8 @@ class HybridSystem:
                 raise ModelError(f"{name}: mode '{key}' must be a legsim.Mode, got {type(mode).__name__}")
         if expand is not None and not callable(expand):
             raise ModelError(f"{name}: expand must be callable expand(mode_name) -> (Mode, transitions)")
+        if dims is not None and not callable(dims):
+            raise ModelError(f"{name}: dims must be callable dims(mode_name) -> int")
         if joint is not None and not callable(joint):
             raise ModelError(f"{name}: joint must be callable joint(mode, names, q, rest) -> JointCrossing | None")
         if energy is not None and not callable(energy):
@@ -347,6 +353,7 @@ class HybridSystem:
         self._modes: dict[str, Mode] = dict(modes)
         self._outgoing: dict[str, list[Transition]] = {key: [] for key in self._modes}
         self._expand = expand
+        self._dims = dims
         self._energy = energy
         self._joint = joint
         self._transitions: list[Transition] = []
@@ -491,6 +498,13 @@ class HybridSystem:
         self._ensure(name)
         return self._modes[name]
 
+    def dim(self, name: str) -> int:
+        """The state dimension of mode ``name``, without expanding it where the system knows it
+        (``dims``)."""
+        if name in self._modes or self._dims is None:
+            return self.mode(name).dim
+        return int(self._dims(name))
+
     def outgoing(self, name: str) -> tuple[Transition, ...]:
         """The transitions leaving mode ``name``; its domain is where all their guards are >= 0."""
         self._ensure(name)
@@ -523,11 +537,11 @@ class HybridSystem:
         return data
 
     def _check_target(self, mode: Mode, name: str | None, target: str, reset: ResetFn | None) -> None:
-        self._ensure(target)
-        if reset is None and self._modes[target].dim != mode.dim:
+        """The target exists, and a transition without reset keeps the dimension."""
+        dim = self.dim(target)
+        if reset is None and dim != mode.dim:
             raise ModelError(
-                f"{self._name}: transition {name} has no reset but changes dimension "
-                f"{mode.dim} -> {self._modes[target].dim}"
+                f"{self._name}: transition {name} has no reset but changes dimension {mode.dim} -> {dim}"
             )
 
     def taken(self, source: str, index: int, name: str) -> Transition:

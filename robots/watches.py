@@ -12,10 +12,14 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
+from legsim.compiled.rows import at_rows
 from legsim.control import ControlLaw
 from legsim.execution import Status
 from legsim.relaxed import Watch
 from legsim.terrain import Terrain
+
+from .bridge.native import handle_for
+from .frame_points import frame_positions
 
 
 def saturation_counter(joint: str) -> str:
@@ -40,11 +44,9 @@ class Inputs:
         p = self._params.get(mode)
         if p is None:
             p = self._params[mode] = self.law.params_for(mode)
-        dim = self.dims(mode)
+        states = np.ascontiguousarray(x, dtype=float)
         out = np.zeros((t.shape[0], self.law.inputs))
-        for k in range(t.shape[0]):
-            row = np.ascontiguousarray(x[k], dtype=float)
-            self.law.control(float(t[k]), row[:dim], row[dim:], p, out[k])
+        at_rows(self.law.control, np.ascontiguousarray(t, dtype=float), states, self.dims(mode), p, out)
         self._last = (key, out)
         return out
 
@@ -71,45 +73,48 @@ def saturation_watches(
 
 
 class LinkHeights:
-    """The lowest point (m) of each link without a contact at configuration q: its points (in its
-    joint's frame, (k, 3)) placed by Pinocchio's forward kinematics; with a terrain, each point's
-    height above the terrain under it."""
+    """The lowest point (m) of each link without a contact: its points (in its joint's frame,
+    (k, 3)) placed by Pinocchio's forward kinematics in the native library, many states in one
+    compiled call; with a terrain, each point's height above the terrain under it."""
 
     def __init__(
         self, model: pin.Model, links: Mapping[str, tuple[int, np.ndarray]], n: int, terrain: Terrain | None = None
     ) -> None:
-        self.model, self.data, self.n = model, model.createData(), n
-        self.terrain = terrain
+        self.n, self.terrain = n, terrain
         self.links = dict(links)
         self.names = list(self.links)
-        self.joints = [joint for joint, _ in self.links.values()]
-        # every link's points in one array, with the index of the link each belongs to
-        self.points = np.vstack([points for _, points in self.links.values()]) if self.links else np.zeros((0, 3))
         owners = [np.full(len(p), k, dtype=int) for k, (_, p) in enumerate(self.links.values())]
         self.owner = np.concatenate(owners) if owners else np.zeros(0, dtype=int)
+        self._handle, self._frames = _point_frames(model, self.links)
 
-    def heights(self, q: np.ndarray) -> np.ndarray:
-        """The world height (m) of every link point at configuration q."""
-        pin.forwardKinematics(self.model, self.data, np.asarray(q[: self.n], dtype=float))
-        rows = np.empty((len(self.joints), 2, 3))
-        shift = np.empty((len(self.joints), 2))
-        for k, joint in enumerate(self.joints):
-            placement = self.data.oMi[joint]
-            rows[k], shift[k] = placement.rotation[[0, 2]], placement.translation[[0, 2]]
-        z = np.einsum("ij,ij->i", self.points, rows[self.owner, 1]) + shift[self.owner, 1]
+    def heights_at(self, states: np.ndarray) -> np.ndarray:
+        """The height (m) of every link point at each state, (rows, points): states (rows, >= 2 n)."""
+        states = np.ascontiguousarray(np.atleast_2d(states), dtype=float)
+        out = np.empty((states.shape[0], self._frames.shape[0], 2))
+        frame_positions(self._handle, states, self.n, self._frames, out)
         if self.terrain is None:
-            return z
-        x = np.einsum("ij,ij->i", self.points, rows[self.owner, 0]) + shift[self.owner, 0]
-        return z - self.terrain.height(x)
+            return out[:, :, 1]
+        return out[:, :, 1] - self.terrain.height(out[:, :, 0].reshape(-1)).reshape(out.shape[:2])
 
-    def lowest(self, q: np.ndarray) -> float:
-        """The lowest point of all the links (m)."""
-        return float(np.min(self.heights(q)))
+    def lowest_at(self, states: np.ndarray) -> np.ndarray:
+        """The lowest point of all the links (m) at each state, (rows,)."""
+        return np.min(self.heights_at(states), axis=1)
 
-    def __call__(self, q: np.ndarray) -> dict[str, float]:
-        """Each link's lowest point (m)."""
-        z = self.heights(q)
+    def __call__(self, x: np.ndarray) -> dict[str, float]:
+        """Each link's lowest point (m) at one state x."""
+        z = self.heights_at(x)[0]
         return {name: float(np.min(z[self.owner == k])) for k, name in enumerate(self.names)}
+
+
+def _point_frames(model: pin.Model, links: Mapping[str, tuple[int, np.ndarray]]) -> tuple[int, np.ndarray]:
+    """A native model of ``model`` with one frame at each link point, and those frames' ids."""
+    marked = pin.Model(model)
+    frames = [
+        marked.addFrame(pin.Frame(f"point {i} of {name}", joint, pin.SE3(np.eye(3), point), pin.FrameType.OP_FRAME))
+        for name, (joint, points) in links.items()
+        for i, point in enumerate(np.asarray(points, dtype=float))
+    ]
+    return handle_for(marked, model.name or "urdf"), np.array(frames, dtype=float)
 
 
 def below_ground_watch(heights: LinkHeights, ground: float, strict: bool) -> Watch:
@@ -122,7 +127,7 @@ def below_ground_watch(heights: LinkHeights, ground: float, strict: bool) -> Wat
         return name, h[name] - ground
 
     def value(mode: str, t: np.ndarray, x: np.ndarray) -> np.ndarray:
-        return np.array([heights.lowest(row) for row in x]) - ground
+        return heights.lowest_at(x) - ground
 
     def message(t: float, mode: str, x: np.ndarray) -> str:
         h = heights(x)

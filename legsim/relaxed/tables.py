@@ -1,10 +1,10 @@
 """A run's tables: the modes it may enter, their transitions, functions and parameters, as the
 step loop reads them (``layout.M_*``, ``T_*``, ``J_*``).
 
-Modes get rows as the run reaches them: a mode's row is *registered* (its dimension, functions
-and parameters) when some ready mode may lead to it, and *ready* (its transitions' targets
-registered in turn) when the loop first enters it (``RETURN_NEED_MODE``), which is also when a
-lazily built system expands it. A mode written as model functions (``Mode.functions``) brings
+Modes get rows as the run reaches them: a mode's row is *registered* (its dimension and its
+controller, enough to reset into it) when some ready mode may lead to it, and *ready* (its
+functions and parameters, its transitions' targets registered in turn) when the loop first
+enters it (``RETURN_NEED_MODE``), which is also when a lazily built system expands it. A mode written as model functions (``Mode.functions``) brings
 its own functions; a mode of Python callables gets adapters (``legsim.relaxed.adapt``). The
 controller adds its control and entry functions and, per mode, its parameters.
 
@@ -100,22 +100,32 @@ class RunTables:
 
     # -- registration -------------------------------------------------------------------------
     def register(self, name: str) -> int:
-        """The row of mode ``name``, registered (not yet ready) on first use."""
+        """The row of mode ``name``, registered on first use: its dimension and controller, enough
+        to reset into it. Its own functions come when it is prepared (``describe``), so that the
+        many modes a transition may reach are not built until the run enters one."""
         row = self.rows.get(name)
         if row is not None:
             return row
-        mode = self.system.mode(name)
+        dim = self.system.dim(name)
         row = len(self.names)
         self._grow_modes(row + 1)
         self.names.append(name)
         self.rows[name] = row
         self.datas.append(None)  # type: ignore[arg-type]  # the ModeData comes when it is ready
         out = self.modes[row]
-        out[M_DIM] = mode.dim
+        out[M_DIM] = dim
         out[M_READY] = 0
         out[M_T0] = out[M_GUARDS] = out[M_NJ] = out[M_J0] = 0
         out[M_FIELD] = out[M_GUARD_FN] = out[M_RESET] = out[M_JOINT] = -1
-        out[M_PREVIEWED] = 0
+        out[M_P0] = out[M_P1] = out[M_NAN_BREAKS] = out[M_PREVIEWED] = 0
+        self._register_control(row, name)
+        return row
+
+    def describe(self, row: int) -> None:
+        """Mode ``row``'s field, parameters and flags in the table."""
+        name = self.names[row]
+        mode = self.system.mode(name)
+        out = self.modes[row]
         functions = mode.functions
         if functions is not None:
             out[M_FIELD] = self.function(functions.field)
@@ -127,15 +137,13 @@ class RunTables:
                 self._python(f"mode '{name}' has Python model functions")
         else:
             out[M_FIELD] = self.function(adapt.field_adapter(mode, self.cell, self.breakdowns))
-            out[M_P0] = out[M_P1] = 0
             self._python(f"mode '{name}' is written as Python callables")
-        self._register_control(row, name)
-        return row
 
     def prepare(self, row: int) -> None:
         """Make mode ``row`` ready: its transitions' and continuations' targets registered, its
         guards, resets and joint function in the table."""
         name = self.names[row]
+        self.describe(row)
         data = self.system.mode_data(name)
         self.datas[row] = data
         count = len(data.transitions)

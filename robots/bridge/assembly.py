@@ -224,7 +224,13 @@ class ContactBridge:
             if x0 is not None:
                 initial = (initial_mode, x0)
         return HybridSystem(
-            {}, (), name=self.name, expand=self.expand, energy=self.energy if energy else None, initial=initial
+            {},
+            (),
+            name=self.name,
+            expand=self.expand,
+            dims=lambda mode: self._modes.spec(mode).dim,
+            energy=self.energy if energy else None,
+            initial=initial,
         )
 
     # -- what the outputs read --------------------------------------------------------------
