@@ -10,7 +10,8 @@ transitions at the same instant count as one event (``events``), and a run with 
 of events has error inf.
 
 The families: ``relaxed`` runs on the compiled path (the robots' model functions in the kernel;
-rk4 with aimed landing, dopri5 and dop853 with dense landing), ``relaxed-python`` the Python path's best configuration (DOP853, dense landing), and
+rk4 with aimed landing, dopri5 and dop853 with dense landing), ``relaxed-python`` the Python
+path's best configuration before the kernel took dense landing (DOP853, dense landing), and
 ``solve_ivp`` (RK45 and DOP853 over tolerances and largest steps). For each error level the
 fastest run of each family below it is compared; ratios are measured in one run, so they hold
 on a shared machine to within its noise. ``cost_report`` gives the limit: a compiled field
