@@ -130,36 +130,37 @@ class Assembly:
             return
         mode, ts, xs, dxs = self._open
         self._open = None
-        self.segments.append(Segment(self.tables.names[mode], np.concatenate(ts), np.concatenate(xs),
-                                     np.concatenate(dxs)))  # fmt: skip
+        self.segments.append(Segment(self.tables.names[mode], _joined(ts), _joined(xs), _joined(dxs)))
 
     def _records(self, ws: Any) -> None:
-        for r in range(int(ws.iv[I_RECORDS])):
-            self._record(ws, r)
+        # As Python numbers at once: indexing numpy rows field by field costs more than the records.
+        count = int(ws.iv[I_RECORDS])
+        floats, ints = ws.rec_f[:count].tolist(), ws.rec_i[:count].tolist()
+        for r in range(count):
+            self._record(ws, r, floats[r], ints[r])
 
-    def _record(self, ws: Any, r: int) -> None:
+    def _record(self, ws: Any, r: int, f: list[float], i: list[int]) -> None:
         tables = self.tables
-        f, i = ws.rec_f[r], ws.rec_i[r]
-        source, e, kind = int(i[R_SOURCE]), int(i[R_INDEX]), int(i[R_KIND])
+        source, e, kind = i[R_SOURCE], i[R_INDEX], i[R_KIND]
         row = int(tables.modes[source, M_T0]) + e
         if kind == KIND_JOINT:
-            name = tables.joint_names[int(tables.modes[source, M_J0]) + int(i[R_JOINT])]
+            name = tables.joint_names[int(tables.modes[source, M_J0]) + i[R_JOINT]]
         elif kind == KIND_CONTINUED:
             name = tables.continuation_names[row]
         else:
             name = tables.transition_names[row]
         source_name = tables.names[source]
-        q = ws.rec_q[r, : int(i[R_DIM_BEFORE])].copy()
-        tc, t_land, exit_time, tau = float(f[R_TIME]), float(f[R_LANDING]), float(f[R_EXIT]), float(f[R_DEPTH])
+        q = ws.rec_q[r, : i[R_DIM_BEFORE]].copy()
+        tc, t_land, exit_time, tau = f[R_TIME], f[R_LANDING], f[R_EXIT], f[R_DEPTH]
         self.strips.append(Strip(source_name, name, tc, exit_time, q, t_land, tau))
         if kind == KIND_CUT:
             self.in_strip = True
             self.cut_name = name
             return
-        target = tables.names[int(i[R_TARGET])]
-        image = ws.rec_x[r, : int(i[R_DIM_AFTER])].copy()
+        target = tables.names[i[R_TARGET]]
+        image = ws.rec_x[r, : i[R_DIM_AFTER]].copy()
         self.transitions.append(TransitionRecord(name, source_name, target, e, tc, t_land, exit_time, q, image, tau))
-        order = (int(i[R_ORDER_A]), int(i[R_ORDER_B]))
+        order = (i[R_ORDER_A], i[R_ORDER_B])
         self.crossings.append(
             (source_name, name, tc, exit_time, bool(i[R_ACCUMULATES]), kind == KIND_CONTINUED,
              bool(i[R_HAS_CONTINUATION]), order, q)
@@ -424,3 +425,9 @@ class _Replay:
     def __init__(self) -> None:
         self.transitions: list[None] = []
         self.strip_time = 0.0
+
+
+def _joined(pieces: list[np.ndarray]) -> np.ndarray:
+    """The pieces (copies of buffer rows) end to end: the piece itself when it is the only one
+    (a visit drained at once), which spares a second copy of every point."""
+    return pieces[0] if len(pieces) == 1 else np.concatenate(pieces)

@@ -63,7 +63,7 @@ from .layout import (
 )
 from .stages import INFO_EXTRA, INFO_STAGES, method_arrays
 from .tables import RunTables
-from .workspace import Workspace, allocate, resized
+from .workspace import Workspace, allocate, resized, with_longer_buffers
 
 #: The compiled kernel, set by ``legsim.compiled``: ``KERNEL.run(tables, ws, method)`` and
 #: ``KERNEL.addresses(functions)``; None runs every run interpreted.
@@ -122,7 +122,9 @@ def drive(
     tables.prepare(row)
     method = method_arrays(options.tableau)
     stages = method.info[INFO_STAGES] + max(method.info[INFO_EXTRA], 0)
-    ws = allocate(tables.widest, tables.most_guards, stages, tables.inputs, tables.memory, tables.n_transitions)
+    # As wide as the widest mode built so far: reaching a wider mode later would copy the buffers.
+    width = max(tables.widest, max((m.dim for m in system.modes.values()), default=0) + tables.memory)
+    ws = allocate(width, tables.most_guards, stages, tables.inputs, tables.memory, tables.n_transitions)
     settings(ws, options, tables)
     start(tables, ws, row, x0, memory, options)
     compiled = KERNEL is not None and not options.python
@@ -202,6 +204,9 @@ class Runner:
                 self.fit()
             elif code == RETURN_FULL or (code == RETURN_PROGRESS and self.stops):
                 self.assembly.drain(self.ws, final=False)
+                if code == RETURN_FULL:
+                    self.ws = with_longer_buffers(self.ws)
+                    self.tables.breakdowns.ws = self.ws
                 if self.assembly.check_stops():  # a stop watch held: the run ends there
                     self.assembly.drain(self.ws, final=True)
                     return

@@ -37,67 +37,110 @@ Workspace = namedtuple(
     "J LU piv ft",
 )
 
-#: Capacity of the output buffers: points (about 2 MB at W = 16), crossing records and visits.
+#: Capacity of the output buffers at most: points (about 2 MB at W = 16), crossing records and
+#: visits. They start at ``FIRST_SHARE`` of that and grow by ``GROWTH`` each time they fill: a
+#: short run (a few hundred steps) would spend more time mapping and faulting in 2 MB of zeros
+#: (about 0.3 ms) than stepping, while a long one drains full buffers into its execution anyway.
 POINTS, RECORDS, VISITS = 8192, 1024, 1024
+FIRST_SHARE, GROWTH = 16, 4
+#: Guards and history rows a workspace has room for at least: a run that reaches a mode with more
+#: guards or transitions resizes the workspace (a few microseconds per array), while this room
+#: costs a few hundred bytes.
+LEAST_GUARDS, LEAST_HISTORIES = 8, 32
+
+
+def shapes(
+    width: int, guards: int, stages: int, inputs: int, memory: int, histories: int, share: int = 0
+) -> dict[str, tuple]:
+    """Each array's (shape, dtype) for states of up to ``width`` entries, ``guards`` guards,
+    ``stages`` stage rows, an input of ``inputs`` entries, ``memory`` memory values and
+    ``histories`` history rows; output buffers of 1/``share`` of their largest capacity (0: of
+    ``FIRST_SHARE``)."""
+    W, G, S = max(1, width), max(LEAST_GUARDS, guards), max(1, stages)
+    H = max(LEAST_HISTORIES, histories)
+    points, records, visits = _capacities(share or FIRST_SHARE)
+    f, i = np.float64, np.int64
+    return {
+        "cf": ((FLOAT_SETTINGS,), f),
+        "ci": ((INT_SETTINGS,), i),
+        "fs": ((FLOAT_STATE,), f),
+        "iv": ((INT_STATE,), i),
+        **{name: ((W,), f) for name in ("x", "XS", "x1", "k1", "q", "w", "ft")},
+        "K": ((S, W), f),
+        **{name: ((G,), f) for name in ("g_here", "g1", "g_w", "crossed")},
+        "u": ((inputs,), f),
+        "u_after": ((inputs,), f),
+        "m_new": ((memory,), f),
+        "history": ((H, HISTORY_FIELDS), f),
+        "T": ((points,), f),
+        "X": ((points, W), f),
+        "DX": ((points, W), f),
+        "visits": ((visits, VISIT_FIELDS), i),
+        "rec_f": ((records, RECORD_FLOATS), f),
+        "rec_i": ((records, RECORD_INTS), i),
+        "rec_q": ((records, W), f),
+        "rec_x": ((records, W), f),
+        "J": ((W, W), f),
+        "LU": ((W, W), f),
+        "piv": ((W,), i),
+    }
 
 
 def allocate(width: int, guards: int, stages: int, inputs: int, memory: int, histories: int) -> Workspace:
     """A workspace for states of up to ``width`` entries, ``guards`` guards, ``stages`` stage
     rows, an input of ``inputs`` entries, ``memory`` memory values and ``histories`` rows."""
-    W, G = max(1, width), max(1, guards)
-    ws = Workspace(
-        np.zeros(FLOAT_SETTINGS),
-        np.zeros(INT_SETTINGS, dtype=np.int64),
-        np.zeros(FLOAT_STATE),
-        np.zeros(INT_STATE, dtype=np.int64),
-        np.zeros(W),
-        np.zeros((max(1, stages), W)),
-        np.zeros(W),
-        np.zeros(W),
-        np.zeros(W),
-        np.zeros(W),
-        np.zeros(W),
-        np.zeros(G),
-        np.zeros(G),
-        np.zeros(G),
-        np.zeros(G),
-        np.zeros(inputs),
-        np.zeros(inputs),
-        np.zeros(memory),
-        np.zeros((max(1, histories), HISTORY_FIELDS)),
-        np.zeros(POINTS),
-        np.zeros((POINTS, W)),
-        np.zeros((POINTS, W)),
-        np.zeros((VISITS, VISIT_FIELDS), dtype=np.int64),
-        np.zeros((RECORDS, RECORD_FLOATS)),
-        np.zeros((RECORDS, RECORD_INTS), dtype=np.int64),
-        np.zeros((RECORDS, W)),
-        np.zeros((RECORDS, W)),
-        np.zeros((W, W)),
-        np.zeros((W, W)),
-        np.zeros(W, dtype=np.int64),
-        np.zeros(W),
-    )
+    arrays = shapes(width, guards, stages, inputs, memory, histories)
+    ws = Workspace(**{name: np.zeros(shape, dtype) for name, (shape, dtype) in arrays.items()})
     ws.iv[I_JACOBIAN_AGE] = -1
     return ws
 
 
+def _capacities(share: int) -> tuple[int, int, int]:
+    """(points, records, visits) the output buffers hold at 1/share of their largest capacity."""
+    return POINTS // share, RECORDS // share, VISITS // share
+
+
+def _share(ws: Workspace) -> int:
+    return POINTS // ws.T.shape[0]
+
+
 def resized(ws: Workspace, width: int, guards: int, inputs: int, histories: int) -> Workspace:
     """``ws`` with room for wider states, more guards, inputs or history rows (its contents
-    kept), or ``ws`` itself when it has room."""
+    kept), or ``ws`` itself when it has room. Only the arrays whose shape grows are new: the
+    output buffers, the largest, stay as they are unless the state widens."""
     W, G = ws.x.shape[0], ws.g1.shape[0]
     H, U = ws.history.shape[0], ws.u.shape[0]
     if width <= W and guards <= G and histories <= H and inputs <= U:
         return ws
-    bigger = allocate(
-        max(width, W), max(guards, G), ws.K.shape[0], max(inputs, U), ws.m_new.shape[0], max(histories, 2 * H)
-    )
+    sizes = (max(width, W), max(guards, G), ws.K.shape[0], max(inputs, U), ws.m_new.shape[0], max(histories, 2 * H))
+    return _regrown(ws, shapes(*sizes, share=_share(ws)))
+
+
+def with_longer_buffers(ws: Workspace) -> Workspace:
+    """``ws`` with output buffers ``GROWTH`` times longer (their rows in use kept), or ``ws``
+    itself when they are as long as they get."""
+    share = _share(ws)
+    if share <= 1:
+        return ws
+    W, G, S = ws.x.shape[0], ws.g1.shape[0], ws.K.shape[0]
+    sizes = (W, G, S, ws.u.shape[0], ws.m_new.shape[0], ws.history.shape[0])
+    return _regrown(ws, shapes(*sizes, share=max(1, share // GROWTH)))
+
+
+def _regrown(ws: Workspace, arrays: dict[str, tuple]) -> Workspace:
+    """``ws`` with the arrays whose shape differs from ``arrays``' made anew, their contents (the
+    output buffers' rows in use) copied."""
     used = _used_rows(ws)
-    for name in Workspace._fields:
-        old, new = getattr(ws, name), getattr(bigger, name)
+    grown = {}
+    for name, (shape, dtype) in arrays.items():
+        old = getattr(ws, name)
+        if old.shape == shape:
+            continue
+        new = np.zeros(shape, dtype)
         rows = used.get(name, old.shape[0])
         new[(slice(0, rows), *(slice(0, k) for k in old.shape[1:]))] = old[:rows]
-    return bigger
+        grown[name] = new
+    return ws._replace(**grown)
 
 
 def _used_rows(ws: Workspace) -> dict[str, int]:
