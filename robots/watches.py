@@ -29,25 +29,26 @@ def saturation_counter(joint: str) -> str:
 
 class Inputs:
     """The controller's input at stored points: ``law.control`` at each point's plant state and
-    memory, the mode's parameters built once; the last batch kept, since every joint's watch
-    asks for the same points."""
+    memory, the mode's parameters built once; each batch kept, since every joint's watch asks
+    for the same points."""
 
     def __init__(self, law: ControlLaw, dims: Callable[[str], int]) -> None:
         self.law, self.dims = law, dims
         self._params: dict[str, np.ndarray] = {}
-        self._last: tuple[Any, np.ndarray] | None = None
+        self._batches: dict[tuple[str, bytes, bytes], np.ndarray] = {}
 
     def __call__(self, mode: str, t: np.ndarray, x: np.ndarray) -> np.ndarray:
-        key = (mode, t.shape[0], t.tobytes(), x.tobytes())
-        if self._last is not None and self._last[0] == key:
-            return self._last[1]
+        key = (mode, t.tobytes(), x.tobytes())
+        found = self._batches.get(key)
+        if found is not None:
+            return found
         p = self._params.get(mode)
         if p is None:
             p = self._params[mode] = self.law.params_for(mode)
         states = np.ascontiguousarray(x, dtype=float)
         out = np.zeros((t.shape[0], self.law.inputs))
         at_rows(self.law.control, np.ascontiguousarray(t, dtype=float), states, self.dims(mode), p, out)
-        self._last = (key, out)
+        self._batches[key] = out
         return out
 
 
