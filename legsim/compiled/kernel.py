@@ -21,7 +21,7 @@ from numba.core.extending import overload, register_jitable
 from ..relaxed import calls, crossing, curve, driver, entering, evaluate, loop, rules, stages, stepping
 from . import cache
 from .functions import JIT_OPTIONS
-from .native import SIGNATURES, call_indexed_at, call_joint_at, call_state_at
+from .native import address, call_indexed_at, call_joint_at, call_state_at, compiles
 
 #: The loop's modules, whose functions the kernel compiles from their source.
 LOOP_MODULES = (rules, stages, evaluate, curve, stepping, crossing, entering, loop)
@@ -122,28 +122,6 @@ cache.install()
 _register_loop()
 #: The loop's entry, compiled once per machine and legsim version (cached on disk).
 _run = cache.use_legsim_cache(numba.njit(**LOOP_OPTIONS)(loop.run))
-
-_ADDRESSES: dict[tuple[int, str], tuple[Any, int]] = {}
-
-
-def address(function: Any, kind: str) -> int:
-    """The address of ``function`` (a numba-compiled model function) compiled for the call
-    shape ``kind`` (``native.SIGNATURES``); compiled (or loaded from its cache) on first use."""
-    key = (id(function), kind)
-    found = _ADDRESSES.get(key)
-    if found is not None and found[0] is function:
-        return found[1]
-    signature = SIGNATURES[kind]
-    function.compile(signature)
-    result = function.overloads[signature.args]
-    pointer = int(result.library.get_pointer_to_function(result.fndesc.llvm_func_name))
-    _ADDRESSES[key] = (function, pointer)  # holding the function keeps its code and id alive
-    return pointer
-
-
-def compiles(function: Any) -> bool:
-    """Whether the kernel can call ``function``: a numba dispatcher."""
-    return isinstance(function, numba.core.registry.CPUDispatcher)
 
 
 class Kernel:

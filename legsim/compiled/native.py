@@ -1,4 +1,5 @@
-"""Calls from compiled code to a compiled model function by its address.
+"""Calls from compiled code to a compiled model function by its address, and the addresses
+themselves (``address``).
 
 The step loop is compiled once (``legsim.compiled.kernel``) and calls every model's functions
 through the run's function table, an array of addresses: the address of a numba-compiled
@@ -17,6 +18,7 @@ from __future__ import annotations
 
 from typing import Any
 
+import numba
 from numba import types
 from numba.core.extending import intrinsic
 
@@ -77,3 +79,26 @@ def call_indexed_at(typingctx, address, e, t, a, b, c, out):
 def call_joint_at(typingctx, address, rest, t, q, u, p, crossed, out):
     """``fn(rest, t, q, u, p, crossed, out) -> int`` for the function at ``address``."""
     return _typed(JOINT_SIGNATURE, address, (rest, t, q, u, p, crossed, out)), _codegen(JOINT_SIGNATURE)
+
+
+_ADDRESSES: dict[tuple[int, str], tuple[Any, int]] = {}
+
+
+def address(function: Any, kind: str) -> int:
+    """The address of ``function`` (a numba-compiled model function) compiled for the call
+    shape ``kind`` (``native.SIGNATURES``); compiled (or loaded from its cache) on first use."""
+    key = (id(function), kind)
+    found = _ADDRESSES.get(key)
+    if found is not None and found[0] is function:
+        return found[1]
+    signature = SIGNATURES[kind]
+    function.compile(signature)
+    result = function.overloads[signature.args]
+    pointer = int(result.library.get_pointer_to_function(result.fndesc.llvm_func_name))
+    _ADDRESSES[key] = (function, pointer)  # holding the function keeps its code and id alive
+    return pointer
+
+
+def compiles(function: Any) -> bool:
+    """Whether the kernel can call ``function``: a numba dispatcher."""
+    return isinstance(function, numba.core.registry.CPUDispatcher)

@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 
 from .functions import model_function
-from .native import call_state_at
+from .native import address, call_state_at, compiles
 
 
 @model_function
@@ -24,8 +24,6 @@ def at_rows(function: Any, t: np.ndarray, states: np.ndarray, split: int, c: np.
 
     t (rows,) in s; states (rows, width) and out (rows, outputs), float64, C-contiguous; c the
     function's parameter array."""
-    from .kernel import address, compiles
-
     if compiles(function):
         _at_rows(address(function, "state"), t, states, split, c, out)
         return

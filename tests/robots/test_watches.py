@@ -70,7 +70,9 @@ def test_the_controllers_input_at_many_points_is_its_input_point_by_point(quadru
         p = law.params_for(seg.mode)
         for k in range(len(seg.t)):
             u = np.zeros(law.inputs)
-            law.control(float(seg.t[k]), np.ascontiguousarray(seg.x[k][:dim]), np.ascontiguousarray(seg.x[k][dim:]), p, u)
+            law.control(
+                float(seg.t[k]), np.ascontiguousarray(seg.x[k][:dim]), np.ascontiguousarray(seg.x[k][dim:]), p, u
+            )
             assert np.array_equal(batch[k], u)
 
 
