@@ -451,8 +451,7 @@ def _solve_ivp_call(case: RobotCase, spec: RunSpec, controller: _ControllerMaker
 
 def _relaxed_call(case: RobotCase, spec: RunSpec, controller: _ControllerMaker) -> Callable[[], Any]:
     """The relaxed run of the case at the spec's settings; the same system on both relaxed
-    families: dense landing, and a control that is not a compiled ``ControlLaw``, run the Python
-    loop."""
+    families, the ``relaxed-python`` one asking for the Python loop (``simulate(python=True)``)."""
     from ..relaxed import simulate
 
     tol = None if math.isnan(spec.tol) else spec.tol
@@ -471,6 +470,7 @@ def _relaxed_call(case: RobotCase, spec: RunSpec, controller: _ControllerMaker) 
             max_transitions=100_000,
             rtol=tol,
             atol=tol,
+            python=spec.kind == "relaxed-python",
         )
 
     return call

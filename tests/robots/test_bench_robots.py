@@ -127,3 +127,13 @@ def test_quadruped_run_case_error_falls_with_the_tolerance():
         errors.append(row_.error)
     # Measured: 1.6e-5 and 1.8e-10 (the error of the later events is about 2 eps).
     assert errors[1] < errors[0] / 100 and errors[1] < 1e-8
+
+
+def test_each_relaxed_family_runs_on_the_path_it_is_named_for():
+    # The families' ratio ("python/compiled") compares the two paths: the same settings, one
+    # run by the compiled kernel, the other by the Python loop.
+    case = robots.make_robot_case("slip-raibert", quick=True)
+    for kind, path in (("relaxed", "compiled_steps"), ("relaxed-python", "python_steps")):
+        spec = robots.RunSpec(kind, "relaxed-dop853-dense", 0.1, 1e-8, 1e-6, "dense")
+        counters = robots._relaxed_call(case, spec, robots._ControllerMaker(case))().counters
+        assert counters[path] == counters["steps"] > 0
