@@ -315,7 +315,7 @@ RUNNER_PARAMETERS = {
         0.1, "bound: apex target change (m) per share of a period a leg pair's touchdown is off antiphase", "m", low=0.0
     ),
     "gallop_phase": Param(
-        0.4,
+        0.45,
         "gallop: share of a stride from a hind touchdown to the next front touchdown that the phase term holds",
         "",
         low=0.0,
@@ -356,8 +356,8 @@ def _make_runner(model: Model, params: dict[str, Any]) -> RunnerLaw:
     pairs = params["gait"] != "pronk" or any(entry[2] != GAIT_CODES["pronk"] for entry in schedule)
     if pairs and len(legs) != 2:
         raise SceneError(
-            f"controller.parameters.gait = {params['gait']!r} (or a schedule's) needs two leg pairs (hind and front), the "
-            f"robot has {len(legs)} articulated leg(s): {', '.join(leg.contact for leg in legs)}"
+            f"controller.parameters.gait = {params['gait']!r} (or a schedule's) needs two leg pairs (hind and "
+            f"front), the robot has {len(legs)} articulated leg(s): {', '.join(leg.contact for leg in legs)}"
         )
     gains = Gains(**{k: params[k] for k in Gains.__dataclass_fields__})
     return runner_law(bridge, legs, gains, params["gait"], params["thrust"], schedule)
@@ -371,8 +371,9 @@ GAIT_CODES = {"pronk": laws.GAIT_PRONK, "bound": laws.GAIT_BOUND, "gallop": laws
 
 
 def command_schedule(entries: list[Any], speed: float, gait: str) -> tuple[tuple[float, float, float], ...]:
-    """``controller.parameters.schedule`` as (t (s), speed (m/s), gait code ``GAIT_CODES``) triples, an entry without a speed or gait keeping the one before it (the scene's
-    ``speed`` and ``gait`` before the first); or SceneError naming the entry: each a table of a
+    """``controller.parameters.schedule`` as (t (s), speed (m/s), gait code ``GAIT_CODES``)
+    triples, an entry without a speed or gait keeping the one before it (the scene's ``speed``
+    and ``gait`` before the first); or SceneError naming the entry: each a table of a
     time t >= 0 and a speed (a number) or a gait (``GAITS``) or both, the times increasing."""
     schedule: list[tuple[float, float, float]] = []
     code = GAIT_CODES[gait]

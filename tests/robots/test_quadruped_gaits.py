@@ -7,6 +7,7 @@ without a warning; each stride of the gallop has two flight phases. CI runs 0.5 
 and the bound and a short gallop; the other runs are marked slow (``LEGSIM_FULL=1`` or
 ``-m slow``)."""
 
+import itertools
 import re
 
 import numpy as np
@@ -72,7 +73,7 @@ def strides(ex, start: float) -> list[list[frozenset[str]]]:
         if tr.time >= start and (not phases or feet_down(tr.target) != phases[-1]):
             phases.append(feet_down(tr.target))
     cuts = [k for k in range(1, len(phases)) if "hind" in phases[k] and "hind" not in phases[k - 1]]
-    return [phases[a:b] for a, b in zip(cuts, cuts[1:])]
+    return [phases[a:b] for a, b in itertools.pairwise(cuts)]
 
 
 #: A planar gallop's stride: hind stance, extended flight, front stance, gathered flight.
