@@ -181,6 +181,7 @@ class Gains:
     max_thrust: float
     k_phase: float
     late_rest: bool
+    gallop_phase: float
 
 
 @dataclass(frozen=True)
@@ -188,9 +189,10 @@ class RunnerLaw(ControlLaw):
     """Raibert's controller for articulated legs (module docstring), a ``ControlLaw`` whose
     functions are ``runner_laws.runner_control`` and ``runner_enter``; ``legs`` and ``gains``
     are what its parameters were made from. ``pronk``: the stance hips servo the pitch (a pronk),
-    or leave it free (a bound, where each leg pair hops on its own: with the body's pitch inertia
-    near m (d/2)^2 the hips move as two separate hoppers, so each leg's thrust and swing follow
-    its own hip's height, and a phase term keeps the two hoppers half a stride apart)."""
+    or leave it free (a bound or a gallop, where each leg pair hops on its own: with the body's
+    pitch inertia near m (d/2)^2 the hips move as two separate hoppers, so each leg's thrust and
+    swing follow its own hip's height, and a phase term keeps the two hoppers half a stride apart
+    in a bound, ``gallop_phase`` of a stride in a gallop)."""
 
     legs: tuple[Leg, ...] = ()
     gains: Gains | None = None
@@ -206,11 +208,11 @@ class RunnerParams:
         bridge: Any,
         legs: tuple[Leg, ...],
         gains: Gains,
-        pronk: bool,
+        gait: str,
         schedule: tuple[tuple[float, float, float], ...],
     ) -> None:
         self.bridge = bridge
-        head = [bridge.handle, bridge.n, len(legs), float(pronk)]
+        head = [bridge.handle, bridge.n, len(legs), GAIT_CODES[gait]]
         head += [getattr(gains, name) for name in GAIN_ORDER]
         head.append(len(schedule))
         self.head = [float(v) for v in head]
@@ -231,7 +233,7 @@ class RunnerParams:
         return made
 
 
-#: The gains in the order of the parameter array's head after ``R_PRONK`` (``runner_laws``).
+#: The gains in the order of the parameter array's head after ``R_GAIT`` (``runner_laws``).
 GAIN_ORDER = (
     "speed",
     "height",
@@ -248,6 +250,7 @@ GAIN_ORDER = (
     "max_thrust",
     "k_phase",
     "late_rest",
+    "gallop_phase",
 )
 
 
@@ -255,15 +258,15 @@ def runner_law(
     bridge: Any,
     legs: list[Leg],
     gains: Gains,
-    pronk: bool,
+    gait: str,
     thrust: float,
     schedule: tuple[tuple[float, float, float], ...] = (),
 ) -> RunnerLaw:
     """Raibert's runner for ``bridge``'s articulated ``legs``, each starting with ``thrust`` (m),
-    a stance time of 0.12 s and no touchdown yet; its memory is ``runner_laws.MEMORY_FIELDS`` of
-    each leg in turn, named ``<field>_<contact>``. ``schedule``: (t (s), speed (m/s), 1.0 for a
-    pronk or 0.0 for a bound) in increasing time, each commanding its speed and gait from its t on
-    (``gains.speed`` and ``pronk`` before the first)."""
+    a stance time of 0.12 s and no touchdown yet, in ``gait`` (``GAITS``); its memory is
+    ``runner_laws.MEMORY_FIELDS`` of each leg in turn, named ``<field>_<contact>``. ``schedule``:
+    (t (s), speed (m/s), gait code ``GAIT_CODES``) in increasing time, each commanding its speed
+    and gait from its t on (``gains.speed`` and ``gait`` before the first)."""
     names = tuple(f"{field}_{leg.contact}" for leg in legs for field, _ in laws.MEMORY_FIELDS)
     units = tuple(unit for _ in legs for _, unit in laws.MEMORY_FIELDS)
     initial = {"T_s": 0.12, "thrust": thrust, "liftoff": laws.LONG_AGO}
@@ -272,20 +275,23 @@ def runner_law(
         "raibert_runner",
         laws.runner_control,
         len(bridge.actuated_dofs),
-        RunnerParams(bridge, tuple(legs), gains, pronk, schedule),
+        RunnerParams(bridge, tuple(legs), gains, gait, schedule),
         laws.runner_enter,
         names,
         units,
         memory,
         legs=tuple(legs),
         gains=gains,
-        pronk=pronk,
+        pronk=gait == "pronk",
     )
 
 
 RUNNER_PARAMETERS = {
     "gait": Param(
-        "pronk", "pronk: the stance hips keep the body level; bound: the pitch is left free", choices=("pronk", "bound")
+        "pronk",
+        "pronk: the stance hips keep the body level; bound: the pitch is left free, the leg pairs half a stride "
+        "apart; gallop: as a bound, the front pair gallop_phase of a stride after the hind pair",
+        choices=("pronk", "bound", "gallop"),
     ),
     "speed": Param(1.0, "commanded forward speed xd*", "m/s"),
     "height": Param(0.55, "commanded apex height of the body's centre", "m", low=0.0, low_open=True),
@@ -308,6 +314,15 @@ RUNNER_PARAMETERS = {
     "k_phase": Param(
         0.1, "bound: apex target change (m) per share of a period a leg pair's touchdown is off antiphase", "m", low=0.0
     ),
+    "gallop_phase": Param(
+        0.45,
+        "gallop: share of a stride from a hind touchdown to the next front touchdown that the phase term holds",
+        "",
+        low=0.0,
+        low_open=True,
+        high=1.0,
+        high_open=True,
+    ),
     "legs": Param(
         [],
         "the legs: tables {contact = <point contact>, hip = <joint>, knee = <joint>}, the foot's contact and its "
@@ -315,7 +330,7 @@ RUNNER_PARAMETERS = {
     ),
     "schedule": Param(
         [],
-        "speed and gait changes during the run: tables {t = s, speed = m/s, gait = 'pronk' or 'bound'} in "
+        "speed and gait changes during the run: tables {t = s, speed = m/s, gait = 'pronk', 'bound' or 'gallop'} in "
         "increasing t, each commanding its speed and gait from its t on (one left out: the one before; before the "
         "first entry: speed and gait)",
     ),
@@ -338,33 +353,35 @@ def _make_runner(model: Model, params: dict[str, Any]) -> RunnerLaw:
             "two actuated revolute joints (hip, knee)"
         )
     schedule = command_schedule(params["schedule"], params["speed"], params["gait"])
-    bounds = params["gait"] == "bound" or any(entry[2] == 0.0 for entry in schedule)
-    if bounds and len(legs) != 2:
+    pairs = params["gait"] != "pronk" or any(entry[2] != GAIT_CODES["pronk"] for entry in schedule)
+    if pairs and len(legs) != 2:
         raise SceneError(
-            f"controller.parameters.gait = 'bound' (or a schedule's) needs two leg pairs (hind and front), the "
-            f"robot has {len(legs)} articulated leg(s): {', '.join(leg.contact for leg in legs)}"
+            f"controller.parameters.gait = {params['gait']!r} (or a schedule's) needs two leg pairs (hind and "
+            f"front), the robot has {len(legs)} articulated leg(s): {', '.join(leg.contact for leg in legs)}"
         )
     gains = Gains(**{k: params[k] for k in Gains.__dataclass_fields__})
-    return runner_law(bridge, legs, gains, params["gait"] == "pronk", params["thrust"], schedule)
+    return runner_law(bridge, legs, gains, params["gait"], params["thrust"], schedule)
 
 
 #: A schedule entry's keys: its time, and the speed or the gait (or both) it commands from then on.
 SCHEDULE_KEYS = ("t", "speed", "gait")
-GAITS = ("pronk", "bound")
+GAITS = ("pronk", "bound", "gallop")
+#: Each gait's code in the parameter array (``runner_laws.GAIT_*``).
+GAIT_CODES = {"pronk": laws.GAIT_PRONK, "bound": laws.GAIT_BOUND, "gallop": laws.GAIT_GALLOP}
 
 
 def command_schedule(entries: list[Any], speed: float, gait: str) -> tuple[tuple[float, float, float], ...]:
-    """``controller.parameters.schedule`` as (t (s), speed (m/s), 1.0 for a pronk or 0.0 for a
-    bound) triples, an entry without a speed or gait keeping the one before it (the scene's
-    ``speed`` and ``gait`` before the first); or SceneError naming the entry: each a table of a
+    """``controller.parameters.schedule`` as (t (s), speed (m/s), gait code ``GAIT_CODES``)
+    triples, an entry without a speed or gait keeping the one before it (the scene's ``speed``
+    and ``gait`` before the first); or SceneError naming the entry: each a table of a
     time t >= 0 and a speed (a number) or a gait (``GAITS``) or both, the times increasing."""
     schedule: list[tuple[float, float, float]] = []
-    pronk = gait == "pronk"
+    code = GAIT_CODES[gait]
     for k, entry in enumerate(entries):
         where = f"controller.parameters.schedule[{k}]"
         if not isinstance(entry, dict) or "t" not in entry or len(entry) < 2 or not set(entry) <= set(SCHEDULE_KEYS):
             raise SceneError(
-                f"{where}: expected a table {{t = <s>, speed = <m/s>, gait = 'pronk' or 'bound'}} with a "
+                f"{where}: expected a table {{t = <s>, speed = <m/s>, gait = 'pronk', 'bound' or 'gallop'}} with a "
                 f"speed or a gait or both, got {entry!r:.200}"
             )
         for key in ("t", "speed"):
@@ -378,8 +395,8 @@ def command_schedule(entries: list[Any], speed: float, gait: str) -> tuple[tuple
             after = f" after the previous entry's {schedule[-1][0]:g} s" if schedule else ""
             raise SceneError(f"{where}.t: {t!r} s must be >= 0 and increasing{after}")
         speed = float(entry.get("speed", speed))
-        pronk = entry["gait"] == "pronk" if "gait" in entry else pronk
-        schedule.append((float(t), speed, float(pronk)))
+        code = GAIT_CODES[entry["gait"]] if "gait" in entry else code
+        schedule.append((float(t), speed, code))
     return tuple(schedule)
 
 

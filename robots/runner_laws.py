@@ -212,16 +212,19 @@ def retract_torques(
 
 # -- the controller: its parameters, memory and functions ----------------------------------------
 
+#: The gaits' codes in the parameter array: a pronk (the stance hips level the body), a bound and
+#: a gallop (the pitch free, each leg pair a hopper on its own hip; the pairs half a stride apart
+#: in a bound, the front pair ``gallop_phase`` of a stride after the hind pair in a gallop).
+GAIT_BOUND, GAIT_PRONK, GAIT_GALLOP = 0.0, 1.0, 2.0
 #: The head of the controller's parameter array: the robot's native handle, nv, the number of
-#: legs, 1.0 for a pronk (the stance hips level the body) and 0.0 for a bound, then the gains
-#: (``raibert.Gains``, units in ``raibert.RUNNER_PARAMETERS``), then the number of the
-#: schedule's entries, which follow the legs' entries as (t (s), speed (m/s), 1.0 for a pronk and
-#: 0.0 for a bound) triples.
+#: legs, the gait's code, then the gains (``raibert.Gains``, units in
+#: ``raibert.RUNNER_PARAMETERS``), then the number of the schedule's entries, which follow the
+#: legs' entries as (t (s), speed (m/s), gait code) triples.
 (
     R_HANDLE,
     R_N,
     R_LEGS,
-    R_PRONK,
+    R_GAIT,
     R_SPEED,
     R_HEIGHT,
     R_K_X,
@@ -237,9 +240,10 @@ def retract_torques(
     R_MAX_THRUST,
     R_K_PHASE,
     R_LATE_REST,
+    R_GALLOP_PHASE,
     R_SCHEDULE,
-) = range(20)
-RUNNER_HEAD = 20
+) = range(21)
+RUNNER_HEAD = 21
 #: Each leg's entries: its hip's and knee's velocity indices and positions in u, thigh and shank
 #: (m), knee bending sign, the hip's x in the body frame (m), and 1.0 when the leg is in stance
 #: in the mode.
@@ -301,23 +305,31 @@ SCHEDULE_ENTRY = 3
 
 
 @register_jitable
-def commanded(p, t):
-    """The forward speed (m/s) and gait (True: a pronk) commanded at time t (s): the schedule's
-    last entry at or before t, or the scene's ``speed`` and ``gait`` before its first (a
-    schedule's entries are in increasing time)."""
-    speed, pronk = p[R_SPEED], p[R_PRONK] != 0.0
+def commanded_gait(p, t):
+    """The forward speed (m/s) and gait's code (``GAIT_*``) commanded at time t (s): the
+    schedule's last entry at or before t, or the scene's ``speed`` and ``gait`` before its first
+    (a schedule's entries are in increasing time)."""
+    speed, gait = p[R_SPEED], p[R_GAIT]
     start = RUNNER_HEAD + RUNNER_LEG * int(p[R_LEGS])
     for k in range(int(p[R_SCHEDULE])):
         entry = start + SCHEDULE_ENTRY * k
         if t >= p[entry]:
-            speed, pronk = p[entry + 1], p[entry + 2] != 0.0
-    return speed, pronk
+            speed, gait = p[entry + 1], p[entry + 2]
+    return speed, gait
+
+
+@register_jitable
+def commanded(p, t):
+    """The forward speed (m/s) and gait (True: a pronk) commanded at time t (s)
+    (``commanded_gait``)."""
+    speed, gait = commanded_gait(p, t)
+    return speed, gait == GAIT_PRONK
 
 
 @register_jitable
 def hop_height(p, leg, x, n):
     """``gait_hop_height`` in the scene's gait (``gait``, before any schedule entry)."""
-    return gait_hop_height(p[R_PRONK] != 0.0, p, leg, x, n)
+    return gait_hop_height(p[R_GAIT] == GAIT_PRONK, p, leg, x, n)
 
 
 @register_jitable
@@ -411,7 +423,7 @@ def runner_enter(t, x, m, p, m_new):
         was = m_new[mem + M_STANCE] != 0.0
         if stance and not was:
             if not pronk:
-                adapt_phase(t, p, m_new, i)
+                adapt_phase(t, p, m_new, i, phase_target(p, i, commanded_gait(p, t)[1]))
             if t > m_new[mem + M_TOUCHDOWN] and m_new[mem + M_LANDED] != 0.0:
                 stride_speed = (x[0] - m_new[mem + M_TOUCHDOWN_X]) / (t - m_new[mem + M_TOUCHDOWN])
                 m_new[mem + M_BIAS] += p[R_K_I] * (stride_speed - speed)
@@ -451,12 +463,23 @@ def late_landing_length(p, leg, x, m):
 
 
 @register_jitable
-def adapt_phase(t, p, m, i):
-    """Bound, at leg i's touchdown: its lag behind the other pair's last touchdown as a share of
-    its own stride, against the half stride of antiphase, moves its apex target (a late leg hops
-    lower, so that its next flight is shorter)."""
+def phase_target(p, i, gait):
+    """The share of a stride (0 to 1) by which leg i's touchdowns should follow the other pair's:
+    half a stride in a bound; in a gallop ``gallop_phase`` for the front pair (the leg whose hip
+    is ahead of the other's) and the rest of the stride for the hind pair."""
+    if gait != GAIT_GALLOP:
+        return 0.5
+    ahead = p[leg_at(p, i) + RL_OFFSET] > p[leg_at(p, 1 - i) + RL_OFFSET]
+    return p[R_GALLOP_PHASE] if ahead else 1.0 - p[R_GALLOP_PHASE]
+
+
+@register_jitable
+def adapt_phase(t, p, m, i, target):
+    """Bound or gallop, at leg i's touchdown: its lag behind the other pair's last touchdown as a
+    share of its own stride, against the ``target`` share (``phase_target``), moves its apex
+    target (a late leg hops lower, so that its next flight is shorter)."""
     mem, other = LEG_MEMORY * i, LEG_MEMORY * (1 - i)
     if m[mem + M_LANDED] == 0.0 or m[other + M_LANDED] == 0.0 or t <= m[mem + M_TOUCHDOWN]:
         return
     share = ((t - m[other + M_TOUCHDOWN]) / (t - m[mem + M_TOUCHDOWN])) % 1.0
-    m[mem + M_PHASE] = -p[R_K_PHASE] * (share - 0.5)
+    m[mem + M_PHASE] = -p[R_K_PHASE] * (share - target)

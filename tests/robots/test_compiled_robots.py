@@ -43,6 +43,7 @@ ROBOT_SCENES = [
     ("quadruped_bound", "2.0"),
     ("quadruped_pronk_forward", "2.0"),
     ("quadruped_bound_forward", "2.0"),
+    ("quadruped_gallop", "2.0"),
     ("biped_run", "2.0"),
 ]
 
@@ -67,11 +68,19 @@ def test_every_robot_scene_runs_every_step_in_the_kernel(name, t_final):
 
 @pytest.mark.parametrize(
     "name,t_final",
-    [("double_pendulum_zeno", "3.0"), ("rod", None), ("slip", None), ("quadruped_bound", "0.5"), ("biped_run", "0.5")],
+    [
+        ("double_pendulum_zeno", "3.0"),
+        ("rod", None),
+        ("slip", None),
+        ("quadruped_bound", "0.5"),
+        ("quadruped_gallop", "1.0"),
+        ("biped_run", "0.5"),
+    ],
 )
 def test_the_python_loop_runs_the_same_functions_to_the_bit(monkeypatch, name, t_final):
     """Stops, Zeno continuations, joint impacts, spring legs, friction events under a controller
-    with memory: one source, two paths, one execution."""
+    with memory (the gallop's phase term from its second touchdowns on): one source, two paths,
+    one execution."""
     scene = scene_of(name, t_final)
     fast = scene.simulate()
     monkeypatch.setattr(relaxed, "simulate", functools.partial(relaxed.simulate, python=True))
