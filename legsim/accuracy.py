@@ -12,6 +12,9 @@ along the orbit, and at a symmetric gait the order of simultaneous events may sw
 changing the motion. So the two runs are also compared *along the orbit*: the states at their
 k-th entries into a section mode (the run's initial mode, e.g. a runner's flight), matched by
 count whatever their times (phase-aligned), and the times apart reported as the phase error.
+And they are compared in paper 000's relaxed quotient metric (``legsim.metric``): the distance
+in M^eps between their plant states at the same times, which holds across different transition
+sequences; a controller's memory is compared entry by entry (``legsim.metric.closed_loop``).
 """
 
 from __future__ import annotations
@@ -26,6 +29,8 @@ import numpy as np
 from .execution import Execution
 from .hybrid import HybridSystem
 from .methods import Tableau
+from .metric import MetricError
+from .metric.closed_loop import RunDistance, run_distance
 
 #: Times at which the two trajectories are compared.
 SAMPLES = 2001
@@ -54,6 +59,10 @@ class ErrorEstimate:
     refined: the refined run's settings (h, eps, rtol, atol).
     along_orbit: the comparison at matching section crossings (``AlongOrbit``), None when the
         run never re-enters a mode.
+    quotient_distance: the two runs' distance in paper 000's relaxed quotient metric
+        (``legsim.metric.closed_loop.RunDistance``: the plant states in M^eps at the run's eps,
+        the controller's memory per entry); None when it is not defined for them, and then
+        ``quotient_distance_note`` says why.
     """
 
     final_state: dict[str, float]
@@ -65,6 +74,8 @@ class ErrorEstimate:
     mode_mismatch: float
     refined: dict[str, Any] = field(default_factory=dict)
     along_orbit: AlongOrbit | None = None
+    quotient_distance: RunDistance | None = None
+    quotient_distance_note: str | None = None
 
     def as_dict(self) -> dict[str, Any]:
         """The JSON form (``legsim run --check-accuracy --json``: key ``error_estimate``)."""
@@ -78,6 +89,8 @@ class ErrorEstimate:
             "mode_mismatch": self.mode_mismatch,
             "refined": self.refined,
             "along_orbit": None if self.along_orbit is None else self.along_orbit.as_dict(),
+            "quotient_distance": None if self.quotient_distance is None else self.quotient_distance.as_dict(),
+            "quotient_distance_note": self.quotient_distance_note,
         }
 
 
@@ -129,14 +142,32 @@ def refined(settings: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
-def compare(run: Execution, fine: Execution) -> ErrorEstimate:
-    """The error estimate of ``run`` against its refined repetition ``fine``."""
+def compare(run: Execution, fine: Execution, system: HybridSystem | None = None) -> ErrorEstimate:
+    """The error estimate of ``run`` against its refined repetition ``fine``; the quotient
+    distance needs the ``system`` both ran."""
     final, relative = _final_state(run, fine)
     times, matched, differ = _transition_times(run, fine)
     trajectory, mismatch = _trajectory(run, fine)
     settings = {key: fine.settings.get(key) for key in ("h", "eps", "rtol", "atol")}
     orbit = along_orbit(run, fine)
-    return ErrorEstimate(final, relative, times, matched, differ, trajectory, mismatch, settings, orbit)
+    distance, note = quotient_distance(system, run, fine)
+    return ErrorEstimate(final, relative, times, matched, differ, trajectory, mismatch, settings, orbit, distance, note)
+
+
+def quotient_distance(
+    system: HybridSystem | None, run: Execution, fine: Execution
+) -> tuple[RunDistance | None, str | None]:
+    """(the runs' distance in the relaxed quotient metric at the run's eps, None) or (None, why
+    it is not defined for them)."""
+    if system is None:
+        return None, "not computed: the hybrid system the runs simulate was not given"
+    eps = run.settings.get("eps")
+    if not isinstance(eps, (int, float)) or not eps >= 0:
+        return None, f"not defined: the run's strip width eps is {eps!r}"
+    try:
+        return run_distance(system, run, fine, float(eps)), None
+    except MetricError as exc:
+        return None, f"not defined: {exc}"
 
 
 def along_orbit(run: Execution, fine: Execution, section: str | None = None) -> AlongOrbit | None:
@@ -215,7 +246,7 @@ def check_accuracy(
     fine = simulate(
         system, x0, mode, t_final, fine_settings["h"], fine_settings["eps"], method, control, **fine_options
     )
-    return run, compare(run, fine)
+    return run, compare(run, fine, system)
 
 
 def _final_state(run: Execution, fine: Execution) -> tuple[dict[str, float], float | None]:

@@ -301,7 +301,21 @@ def format_estimate(estimate: Any) -> str:
             f"  along the orbit (states at {orbit.crossings} entries into '{orbit.section}', phase-aligned): "
             f"relative {relative}{worst}; entry times {orbit.phase:.3g} s apart"
         )
+    lines.append(format_quotient_distance(estimate))
     return "\n".join(lines)
+
+
+def format_quotient_distance(estimate: Any) -> str:
+    """The line of the error estimate on the relaxed quotient distance, or why there is none."""
+    q = getattr(estimate, "quotient_distance", None)
+    if q is None:
+        return f"  quotient distance (paper 000): {estimate.quotient_distance_note or 'not computed'}"
+    memory = ", ".join(f"{name} {value:.3g}" for name, value in q.memory.items())
+    memory = f"; memory apart (in the same mode): {memory}" if memory else ""
+    return (
+        f"  quotient distance (paper 000, plant states in M^eps, eps = {q.eps:.3g}): {q.value:.3g} "
+        f"at t = {q.time:.6g} s, max over {q.samples} times ({q.searched} across modes or in strips){memory}"
+    )
 
 
 def requested_outputs(

@@ -35,6 +35,16 @@ class _Episode:
     strip_time_before: float
     estimate: float
     remedy: str
+    #: When the latest member crossing left its strip, and the run's transitions (that one
+    #: included) and strip time then: where the episode ends when the run leaves it.
+    last_exit: float = 0.0
+    transitions_at_last: int = 0
+    strip_time_at_last: float = 0.0
+
+    def member_crossed(self, run, exit_time: float) -> None:
+        self.last_exit = exit_time
+        self.transitions_at_last = len(run.transitions)
+        self.strip_time_at_last = run.strip_time
 
 
 @dataclass
@@ -55,8 +65,10 @@ class ZenoWatch:
     happens between: the cycle of a Zeno execution through several modes (two tanks filled in
     turn) accumulates like a single bouncing contact, and is one episode. An episode without
     continuation lasts until a flight of one of its transitions is longer than the window again
-    (the execution left the accumulation: a released mass, a ball kicked up) or one of them
-    takes its continuation."""
+    (the execution left the accumulation: a released mass, a ball kicked up), one of them
+    takes its continuation, or the run goes on for longer than the window without any of them
+    (another transition crosses then, or the run ends): it then ends at its last crossing, so a
+    graze repeated a few times and never again is not counted to the end of the run."""
 
     def __init__(self, window: float, continues: bool) -> None:
         self.window = window
@@ -91,6 +103,8 @@ class ZenoWatch:
         episode = self._open
         if episode is not None and key in episode.members and (continued or flight > self.window):
             self._close(run, tc, ending=True)
+        elif episode is not None and key not in episode.members and tc - episode.last_exit > self.window:
+            self._close_at_last()
         if continued:  # the model took over: a later crossing starts a new sequence
             self._histories.pop(key, None)
             return
@@ -101,6 +115,8 @@ class ZenoWatch:
                 self._open = _open(run, key, tc, exit_time, flight, history.flight, has_continuation)
             elif key not in self._open.members:
                 self._open.members.append(key)
+        if self._open is not None and key in self._open.members:
+            self._open.member_crossed(run, exit_time)
         history.last_exit, history.flight = exit_time, flight
 
     def history(self, mode: str, name: str) -> tuple[float, float] | None:
@@ -117,8 +133,20 @@ class ZenoWatch:
         self.episodes.append((episode, counted, run.strip_time - episode.strip_time_before, t))
         self._open = None
 
+    def _close_at_last(self) -> None:
+        """End the open episode at its last member crossing: the run left the accumulation."""
+        episode = self._open
+        assert episode is not None
+        counted = episode.transitions_at_last - episode.transitions_before
+        self.episodes.append(
+            (episode, counted, episode.strip_time_at_last - episode.strip_time_before, episode.last_exit)
+        )
+        self._open = None
+
     def warnings(self, run, t_end: float) -> list[RunWarning]:
         """One warning per accumulation that no continuation resolved, in the order they began."""
+        if self._open is not None and t_end - self._open.last_exit > self.window:
+            self._close_at_last()
         if self._open is not None:
             self._close(run, t_end, ending=False)
         return [_accumulation_warning(*entry) for entry in self.episodes]
@@ -147,7 +175,8 @@ def _accumulation_warning(episode: _Episode, transitions: int, strip_time: float
     subject = f"transition {which} accumulates" if len(episode.members) == 1 else f"transitions {which} accumulate"
     message = (
         f"{subject} from t={episode.start:.6g} s (a Zeno point near t={episode.estimate:.6g} s): "
-        f"{transitions} transitions and {strip_time:.3g} s held in strips until t={until:.6g} s. Past an "
+        f"{transitions} transition{'' if transitions == 1 else 's'} and {strip_time:.3g} s held in strips "
+        f"until t={until:.6g} s. Past an "
         f"accumulation point the relaxed execution holds the state in the strip instead of moving it "
         f"(paper 000, Thm. 26), so the result there is not the hybrid system's. Remedy: {episode.remedy}, "
         f"or end the run before t={episode.estimate:.6g} s."

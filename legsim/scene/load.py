@@ -283,7 +283,7 @@ class Scene:
 
         run = self.simulate(progress)
         fine = dataclasses.replace(self, integrator=refined(self.integrator)).simulate(progress)
-        return run, compare(run, fine)
+        return run, compare(run, fine, self.model.system)
 
     def energy(self, mode: str, x: np.ndarray) -> float | None:
         """The system's energy (J) at (mode, x), or None when it defines none."""

@@ -215,3 +215,34 @@ def test_a_continuation_is_checked_by_name():
     )
     with pytest.raises(ModelError, match=r"transition bounce_continued has no reset but changes dimension 2 -> 1"):
         simulate(shrink, [1.0, 0.0], "fly", 1.0, 1e-3, 1e-4)
+
+
+def test_an_accumulation_the_run_leaves_ends_at_its_last_crossing_not_at_the_runs_end():
+    # A graze crossed three times within 0.1 ms (flights 4e-5 and 2e-5 s, inside the window
+    # 1.1e-3 s and shrinking) and never again, then ten touchdowns a second apart: the
+    # episode counts the grazes from the one that opened it, and ends where the grazes did.
+    from legsim.relaxed.assemble import _Replay
+    from legsim.relaxed.zeno import ZenoWatch
+
+    window, hold = 1.1e-3, 1e-5
+    watch, replay = ZenoWatch(window, continues=False), _Replay()
+    graze_times = [1.0, 1.0 + hold + 4e-5, 1.0 + 2 * hold + 6e-5]
+    crossings = [("flight", "graze", t) for t in graze_times] + [("flight", "touchdown", 2.0 + k) for k in range(10)]
+    for mode, name, tc in crossings:
+        replay.transitions.append(None)
+        replay.strip_time += hold
+        watch.crossed(replay, mode, name, tc, tc + hold, watch.crossing(mode, name, tc), continued=False)
+    (warning,) = watch.warnings(replay, t_end=12.0)
+    # The second graze's flight (4e-5 s) is the first within the window after an infinite one.
+    assert warning.time == graze_times[1]
+    assert warning.details["transitions_since"] == 2  # the second and third grazes
+    assert warning.details["strip_time_since"] == pytest.approx(2 * hold, rel=1e-12)
+    assert f"until t={graze_times[2] + hold:.6g} s" in warning.message
+    # Without a later crossing the run's end closes it at the last graze too.
+    watch, replay = ZenoWatch(window, continues=False), _Replay()
+    for mode, name, tc in crossings[:3]:
+        replay.transitions.append(None)
+        replay.strip_time += hold
+        watch.crossed(replay, mode, name, tc, tc + hold, watch.crossing(mode, name, tc), continued=False)
+    (warning,) = watch.warnings(replay, t_end=12.0)
+    assert warning.details["transitions_since"] == 2 and f"until t={graze_times[2] + hold:.6g} s" in warning.message
