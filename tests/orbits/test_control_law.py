@@ -8,6 +8,7 @@ import pytest
 
 from legsim import HybridSystem, Mode, ModeFunctions, Transition, model_function
 from legsim.control import ControlLaw
+from legsim.errors import ModelError
 from legsim.orbits import OrbitError, OrbitProblem, Section, find_orbit
 
 
@@ -140,4 +141,12 @@ def test_a_memory_frame_that_is_no_coordinate_is_refused():
         OrbitProblem(
             travelling_ball(), Section.level("flight", "zd", 0.0, "decreasing"), h=1e-3, eps=1e-9, t_max=5.0,
             controller=bounce_log(("t", "", "y", "")), cyclic=("x",),
+        )  # fmt: skip
+
+
+def test_a_law_with_a_frame_missing_is_refused_by_name():
+    with pytest.raises(ModelError, match=r"controller bounce log: memory_frames \('t',\) must have one entry per"):
+        ControlLaw(
+            "bounce log", no_input, 1, lambda mode: np.zeros(1), note_bounce, ("last", "interval"), ("s", "s"),
+            memory_frames=("t",),
         )  # fmt: skip
