@@ -51,6 +51,8 @@ class Controller:
     #: Names and units of the values ``memory()`` returns (module docstring); None: undeclared.
     memory_names: tuple[str, ...] | None = None
     memory_units: tuple[str, ...] = ()
+    #: What each memory value is measured from ("", "t" or a coordinate: ``ControlLaw``); () all "".
+    memory_frames: tuple[str, ...] = ()
 
     def reset(self, mode: str, t: float, x: np.ndarray) -> None:
         """Entering ``mode`` at (t, x): update internal state (nothing by default)."""
@@ -88,7 +90,11 @@ class ControlLaw:
     searches and sweeps see; ``initial_memory`` is where a run starts it unless its initial
     state gives it. ``params(mode)`` gives the controller's parameter array in each mode (gains,
     which legs are in stance there; float64). ``hold``: sample the input once per step (a
-    zero-order hold, a digital controller) instead of at every stage.
+    zero-order hold, a digital controller) instead of at every stage. ``memory_frames``: what
+    each memory entry is measured from, "" (nothing: a gain, a duration, a flag; the default),
+    "t" (an epoch on the run's clock, such as a touchdown time) or a plant coordinate's name (a
+    position along it, such as the body's x at a touchdown); an orbit search expresses such
+    entries in each return's own clock and place (``legsim.orbits.returns``).
     """
 
     name: str
@@ -100,6 +106,7 @@ class ControlLaw:
     memory_units: tuple[str, ...] = ()
     initial_memory: tuple[float, ...] = ()
     hold: bool = False
+    memory_frames: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         where = f"controller {self.name}"
@@ -120,6 +127,10 @@ class ControlLaw:
         object.__setattr__(self, "memory_names", names)
         object.__setattr__(self, "memory_units", units)
         object.__setattr__(self, "initial_memory", initial)
+        frames = tuple(str(f) for f in self.memory_frames) or ("",) * len(names)
+        if len(frames) != len(names):
+            raise ModelError(f"{where}: memory_frames {frames} must have one entry per memory entry {names}")
+        object.__setattr__(self, "memory_frames", frames)
 
     def params_for(self, mode: str, system: Any = None) -> np.ndarray:
         """The parameter array in mode ``mode`` (float64)."""
@@ -152,6 +163,7 @@ class LawController(Controller):
         self.hold = law.hold
         self.memory_names = law.memory_names
         self.memory_units = law.memory_units
+        self.memory_frames = law.memory_frames
         self._memory = np.asarray(law.initial_memory, dtype=float).copy()
 
     def reset(self, mode: str, t: float, x: np.ndarray) -> None:

@@ -107,6 +107,7 @@ def biped_law(bridge: Any, legs: list[Leg], gains: Gains, thrust: float, stance_
         names,
         units,
         memory,
+        memory_frames=tuple(laws.MEMORY_FRAMES.get(field, "") for field, _ in laws.MEMORY_FIELDS),
         legs=tuple(legs),
         gains=gains,
     )

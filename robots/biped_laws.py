@@ -98,6 +98,9 @@ MEMORY_FIELDS = (
     M_LIFTOFF,
     _M_LIFTOFF_1,
 ) = range(len(MEMORY_FIELDS))
+#: What memory fields are measured from (``ControlLaw.memory_frames``): the touchdown, apex and
+#: liftoff times are epochs on the run's clock, the touchdown place a position along x.
+MEMORY_FRAMES = {"touchdown": "t", "apex": "t", "liftoff_0": "t", "liftoff_1": "t", "touchdown_x": "x"}
 #: Before the first liftoff the apex and the liftoffs were this long ago (s).
 LONG_AGO = -1.0e9
 #: How long (s) after its liftoff a leg that touches the ground again pulls its foot up instead

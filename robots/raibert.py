@@ -280,6 +280,7 @@ def runner_law(
         names,
         units,
         memory,
+        memory_frames=tuple(laws.MEMORY_FRAMES.get(field, "") for _ in legs for field, _ in laws.MEMORY_FIELDS),
         legs=tuple(legs),
         gains=gains,
         pronk=gait == "pronk",

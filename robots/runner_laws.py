@@ -284,6 +284,9 @@ MEMORY_FIELDS = (
     M_TOUCHDOWN_LENGTH,
 ) = range(len(MEMORY_FIELDS))
 LEG_MEMORY = len(MEMORY_FIELDS)
+#: What memory fields are measured from (``ControlLaw.memory_frames``): the touchdown and
+#: liftoff times are epochs on the run's clock, the touchdown place a position along x.
+MEMORY_FRAMES = {"touchdown": "t", "liftoff": "t", "touchdown_x": "x"}
 #: Before its first liftoff a leg's liftoff time is this long ago (s).
 LONG_AGO = -1.0e9
 #: How long (s) after its liftoff a bound's leg that touches the ground again pulls its foot up

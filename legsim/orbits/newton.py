@@ -297,7 +297,7 @@ class _NewtonSearch:
                 break
             failure = self.iterate(it, z_scale)
             if failure is not None:
-                return self._above_resolution(self._stalled_above_tol(failure))
+                return self._above_resolution(self._stalled_above_tol(self._stuck_on_a_jump(failure)))
             if float(np.max(np.abs(self.z))) > 1e8 * z_scale:
                 return self.fail(
                     "diverged",
@@ -354,6 +354,36 @@ class _NewtonSearch:
             f"piecewise-linear derivative to give a stability verdict",
             it,
         )
+
+    def _stuck_on_a_jump(self, failure: OrbitResult) -> OrbitResult:
+        """A search that no Newton step advances (``diverged`` by ``_no_step``) above tol, where
+        the return map's noise accounts for the residual: ``map_unresolved``, since the map
+        jumps there (e.g. an event order or a graze that rounding decides) and no smaller residual
+        would vouch for an orbit. The noise is probed with the tiny probes, then with probes as
+        large as the shortest step tried: there a smooth map's second difference is 4^-backtracks
+        of the curvature term that stopped the full step (~ the residual), a jump's is half the
+        jump whatever the probe. Other failures stand as they are."""
+        if failure.status != "diverged" or self.last_step is None or self.res <= self.tol:
+            return failure
+        tiny = self._estimate_accuracy()
+        acc = tiny
+        if self.res > tiny.resolved:
+            coarse = self._estimate_accuracy(np.abs(self.last_step) / 2**self.max_backtracks)
+            coarse.refinement, coarse.refined = tiny.refinement, tiny.refined
+            acc = coarse
+        if self.res > acc.resolved:
+            return failure
+        self.accuracy = acc
+        result = self.fail(
+            "map_unresolved",
+            f"no Newton step lowers the residual {self.res:.3g} (> tol {self.tol:g}) after {failure.iterations} "
+            f"iteration(s), and the return map does not resolve it here: {acc.describe()}; no residual below that "
+            f"noise vouches for an orbit (a jump of the return map at this point, e.g. transitions whose order or "
+            f"occurrence rounding decides and that change the return by that much), and a map with a jump has no "
+            f"multipliers and no piecewise-linear derivative to give a stability verdict",
+            failure.iterations,
+        )
+        return result
 
     def _stalled_above_tol(self, failure: OrbitResult) -> OrbitResult:
         """A search stalled above tol says what the map resolves there: whether tol is tighter

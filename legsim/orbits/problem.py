@@ -64,7 +64,8 @@ class Return:
         segment before the returning transition.
     parameters: the parameter values used.
     step_length: the distance covered (m), when the problem defines one.
-    memory_start, memory_end: the controller's memory at the start and at the return, shape (m,)
+    memory_start, memory_end: the controller's memory at the start and at the return (epochs and
+        positions in the start's frame, ``ReturnMap._to_start_frame``), shape (m,)
         (empty without a controller).
     """
 
@@ -287,6 +288,7 @@ class OrbitProblem:
                 )
         self.names = names
         self.dim = len(names)
+        self._check_frames()
         self.cyclic_idx = [names.index(c) for c in self.cyclic]
         held = set(self.fixed) | set(self.cyclic)
         if self.section.coordinate is not None:
@@ -300,6 +302,7 @@ class OrbitProblem:
         """Make one controller and read its memory's names, units and values (the guess)."""
         self.memory_names: tuple[str, ...] = ()
         self.memory_units: tuple[str, ...] = ()
+        self.memory_frames: tuple[str, ...] = ()
         self.memory_guess = np.empty(0)
         if self.controller is None:
             return
@@ -314,7 +317,25 @@ class OrbitProblem:
             )
         self.memory_names = tuple(made.memory_names)
         self.memory_units = tuple(made.memory_units)
+        self.memory_frames = self._frames_of(made)
         self.memory_guess = self._memory_of(made)
+
+    def _frames_of(self, controller: Controller | ControlLaw) -> tuple[str, ...]:
+        """What each memory value is measured from (``ControlLaw.memory_frames``): "" nothing, "t"
+        the clock, or a coordinate; () from a controller means all "" (checked in ``_bind``)."""
+        frames = tuple(str(f) for f in (getattr(controller, "memory_frames", ()) or ()))
+        return frames or ("",) * len(self.memory_names)
+
+    def _check_frames(self) -> None:
+        """Each memory frame is "", "t" or a coordinate of the section's mode, one per value."""
+        unknown = [f for f in self.memory_frames if f not in ("", "t") and f not in self.names]
+        if len(self.memory_frames) != len(self.memory_names) or unknown:
+            raise OrbitError(
+                f"orbit problem: the controller's memory_frames {list(self.memory_frames)}: expected one of "
+                f"'', 't' or a coordinate of mode '{self.bound.mode}' ({list(self.names)}) per memory value "
+                f"{list(self.memory_names)}",
+                key="controller",
+            )
 
     def _memory_of(self, controller: Controller | ControlLaw) -> np.ndarray:
         """``controller.memory()`` (a law's initial memory) checked against its names: finite,

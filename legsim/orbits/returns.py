@@ -24,7 +24,10 @@ A problem with a ``controller`` starts each return with a fresh one restored to 
 guess, and reads the memory back at the return: the controller changes its memory only at mode
 entries (``legsim.control``), so the memory at the return is the one after the last mode entry
 before it, recorded as the run enters each mode. A ``ControlLaw``'s memory is part of the run's
-state: the return starts from (x, memory) and reads both off the execution.
+state: the return starts from (x, memory) and reads both off the execution. Memory that is an
+epoch on the run's clock or a position along a cyclic coordinate (``ControlLaw.memory_frames``:
+a runner's last touchdown time and place) is read back in the return's own frame, shifted by
+the return time and the coordinate's increment, since every return restarts both.
 
 Period
 ------
@@ -49,6 +52,9 @@ from ..hybrid import HybridSystem
 from ..relaxed import simulate
 from .errors import OrbitError
 from .problem import OrbitProblem, Return
+
+#: Relative change of a memory value over a return below which it is unchanged (rounding).
+MEMORY_ROUNDING = 1e-12
 
 
 class MemoryLog(Controller):
@@ -113,6 +119,8 @@ class ReturnMap:
                     self._read_memory(found, memory, log)
                 elif made is not None:
                     found.memory_start = memory.copy()
+                if made is not None:
+                    self._to_start_frame(found)
                 return found
             if ex.status != "finished":
                 raise OrbitError(
@@ -142,6 +150,29 @@ class ReturnMap:
             )
         found.memory_start = memory.copy()
         found.memory_end = log.entries[entry]
+
+    def _to_start_frame(self, found: Return) -> None:
+        """The memory at the return expressed as the next return will see it: an epoch (frame
+        "t") noted during this return less the return time, a position along a cyclic coordinate
+        noted during it less that coordinate's increment. The next return restarts the clock and
+        the cyclic coordinates, so a gait's touchdown times and places repeat only in these
+        frames. An entry the return did not change keeps its value: on a periodic orbit every
+        return notes the same entries, and one never noted holds a marker (a law's "no liftoff
+        yet" time) that has no frame. Unchanged means within rounding, and is read back exactly:
+        the integrator's arithmetic on the run's state moves a memory value by rounding (that
+        marker, -1e9 s, by 1e-7 s), which would otherwise stay in the orbit equations."""
+        p = self.problem
+        found.memory_end = found.memory_end.copy()
+        noted = np.abs(found.memory_end - found.memory_start) > MEMORY_ROUNDING * (1.0 + np.abs(found.memory_start))
+        found.memory_end[~noted] = found.memory_start[~noted]
+        for i, frame in enumerate(p.memory_frames):
+            if not noted[i] or not frame:
+                continue
+            if frame == "t":
+                found.memory_end[i] -= found.time
+            elif p.names.index(frame) in p.cyclic_idx:
+                c = p.names.index(frame)
+                found.memory_end[i] -= found.x_end[c] - found.x_start[c]
 
     def _horizons(self) -> list[float]:
         """Growing simulation horizons (s): the last return time and a half (plus 20 steps), or

@@ -40,12 +40,13 @@ def test_a_tol_tighter_than_the_map_resolves_is_a_warning():
     assert result.map_accuracy is not None and result.map_accuracy.resolved >= floor
 
 
-def jump_lap(jump):
-    """y decays over a lap of time 1 (y' = -y / 2) and resets to 0.3 y, plus ``jump`` when y < 0: a
-    return map with its fixed point y* = 0 at a jump of size ``jump`` (the + side's)."""
+def jump_lap(jump, offset=0.0):
+    """y decays over a lap of time 1 (y' = -y / 2) and resets to 0.3 y + ``offset``, plus ``jump``
+    when y < 0: a return map with its fixed point y* = 0 at a jump of size ``jump`` (the + side's)
+    for offset 0."""
 
     def reset(x):
-        return np.array([0.3 * x[0] + (jump if x[0] < 0 else 0.0), 0.0])
+        return np.array([0.3 * x[0] + offset + (jump if x[0] < 0 else 0.0), 0.0])
 
     return HybridSystem(
         {"lap": Mode(2, lambda t, x, u: np.array([-0.5 * x[0], 1.0]), names=("y", "theta"))},
@@ -68,6 +69,28 @@ def test_a_map_that_jumps_at_the_orbit_is_unresolved_whatever_the_residual():
     # without the jump the same point is an orbit
     smooth = OrbitProblem(jump_lap(0.0), problem.section, h=1e-2, eps=1e-6, t_max=3.0)
     assert find_orbit(smooth, [0.0, 0.5], tol=1e-3, jacobian="fd").converged
+
+
+def test_a_search_stuck_at_a_jump_above_tol_is_unresolved_not_diverged():
+    # offset -1e-4, jump 3e-4: the orbit equation is k (offset + jump) - (1 - 0.3 k^2) y > 0 for
+    # y < 0 and k offset - (1 - 0.3 k^2) y < 0 for y >= 0 (k = exp(-1/4), the flow's decay from
+    # the section to the reset and back): no fixed point, and Newton's method ends at y = 0 with
+    # the residual k 1e-4 that no step lowers. That is the map's jump, not a search gone astray.
+    k = math.exp(-0.25)
+    problem = OrbitProblem(
+        jump_lap(3e-4, offset=-1e-4), Section.level("lap", "theta", 0.5, "increasing"), h=1e-2, eps=1e-6, t_max=3.0
+    )
+    result = find_orbit(problem, [1.0, 0.5], tol=1e-9, jacobian="fd")
+    assert result.status == "map_unresolved" and result.residual > 1e-9
+    assert result.residual == pytest.approx(k * 1e-4, rel=1e-3)
+    assert result.map_accuracy.noise == pytest.approx(0.5 * 3e-4 * k, rel=1e-3)
+    assert "no Newton step lowers the residual" in result.message and result.multipliers is None
+    # the same lap without the jump has its orbit where the equation's one piece vanishes
+    smooth = find_orbit(
+        OrbitProblem(jump_lap(0.0, offset=-1e-4), problem.section, h=1e-2, eps=1e-6, t_max=3.0), [1.0, 0.5],
+        tol=1e-9, jacobian="fd",
+    )  # fmt: skip
+    assert smooth.converged and smooth.fixed_point[0] == pytest.approx(-1e-4 * k / (1 - 0.3 * k * k), rel=1e-6)
 
 
 def test_the_noise_probe_is_small_enough_for_kinks():

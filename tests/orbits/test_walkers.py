@@ -265,7 +265,10 @@ def test_rimless_wheel_too_slow_to_vault_comes_to_rest_and_no_orbit_is_reported(
     assert abs(first.x_end[1] - ref["c"] ** 2 * 0.5) < 1e-9
     res = find_orbit(prob, [-ref["alpha"], 0.5, 0.0])
     assert not res.converged and res.multipliers is None
-    assert res.status in ("diverged", "no_return", "max_iterations"), res.message
+    # Newton's method drives w towards rest, where the map is not resolved (its noise is 5.7e-6
+    # under 1e-11 probes, above the residual's 7.7e-7): the search ends map_unresolved rather
+    # than diverged; either way no orbit.
+    assert res.status in ("diverged", "no_return", "max_iterations", "map_unresolved"), res.message
     # Too short a time limit gives the no-return report instead.
     short = OrbitProblem(model.system, Section.after("impact"), h=2e-3, eps=1e-6, t_max=0.2, cyclic=["foot_x"])
     res = find_orbit(short, [-ref["alpha"], 0.5, 0.0])
