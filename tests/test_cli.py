@@ -585,3 +585,27 @@ def test_html_of_a_model_without_geometry_fails_before_the_run(tmp_path, capsys)
         f"legsim: error: --html {tmp_path / 'a.html'}: this output draws the robot, and tinyball defines "
         f"no geometry (Model.geometry is None); use --plot or --rrd for it\n"
     )
+
+
+def test_the_first_compile_of_a_run_says_so_in_one_line_on_stderr(tmp_path, capsys, monkeypatch):
+    # Without prebuilt or cached code a first run compiles for tens of seconds: the command line
+    # says so once, in one line, whatever else compiles after it in the process.
+    import numba
+
+    from legsim.compiled import kernel
+
+    monkeypatch.setattr(kernel, "on_compile", None)
+    monkeypatch.setattr(kernel._FirstCompile, "said", False)
+    code, _, err = run_cli(capsys, "run", str(write_scene(tmp_path)))
+    assert code == 0 and err == ""  # the tiny scene compiles nothing
+
+    def first(x):
+        return x + 1.0
+
+    def second(x):
+        return x * 2.0
+
+    assert numba.njit(first)(1.0) == 2.0 and numba.njit(second)(1.0) == 2.0
+    lines = capsys.readouterr().err.splitlines()
+    assert len(lines) == 1 and lines[0].startswith("legsim: compiling ")
+    assert f"{first.__module__}.{first.__qualname__}" in lines[0] and "for this machine" in lines[0]
