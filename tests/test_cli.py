@@ -299,9 +299,14 @@ def test_diverged_run_writes_its_outputs_quietly_and_exits_3(tmp_path):
         timeout=120,
     )
     assert done.returncode == 3, done.stderr
-    assert "Warning" not in done.stderr and "error" not in done.stderr, done.stderr
-    assert done.stderr.startswith("legsim: run stopped early (non_finite): ")
-    assert len(done.stderr.splitlines()) == 1 and done.stdout == ""
+    # The undamped field is in no bundled scene's modes, so not prebuilt: where no earlier run
+    # cached it, the run first says, in its one line, that it compiles it.
+    lines = [line for line in done.stderr.splitlines() if not line.startswith("legsim: compiling ")]
+    assert len(done.stderr.splitlines()) - len(lines) <= 1
+    stderr = "\n".join(lines)
+    assert "Warning" not in stderr and "error" not in stderr, done.stderr
+    assert stderr.startswith("legsim: run stopped early (non_finite): ")
+    assert len(lines) == 1 and done.stdout == ""
     # Complete files only, no temporaries left behind.
     assert sorted(p.name for p in out_dir.iterdir()) == ["div.html", "div.png", "div.rrd"]
     img = imread(out_dir / "div.png")
