@@ -10,7 +10,12 @@ STAMP := $(VENV)/.installed
 $(STAMP): pyproject.toml setup.py robots/_native/pinlegsim.cpp
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
-	$(BIN)/pip install --quiet -e ".[test]"
+	@# The build requirements go into the venv and legsim builds there, without isolation: an
+	@# isolated build would install Pinocchio's 400 MB of headers and libraries into a throwaway
+	@# environment, besides the same libpinocchio that the `pin` dependency brings.
+	$(BIN)/python -c 'import tomllib; print(*tomllib.load(open("pyproject.toml", "rb"))["build-system"]["requires"], sep="\n")' > $(VENV)/build-requirements.txt
+	$(BIN)/pip install --quiet -r $(VENV)/build-requirements.txt
+	$(BIN)/pip install --quiet --no-build-isolation -e ".[test]"
 	@$(BIN)/python -c "import legsim.robots._native as n; print('legsim: native robot library:', n.status())"
 	@# The step loop and the bundled models compiled ahead of time (about two minutes, once), so
 	@# that a first run loads them instead of compiling.

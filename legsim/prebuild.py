@@ -41,17 +41,31 @@ def main(argv: list[str] | None = None) -> int:
     def child(part: str) -> subprocess.Popen[bytes]:
         return subprocess.Popen([sys.executable, "-m", "legsim.prebuild", "--child", part], env=environment)
 
-    side_by_side = [child("loop"), child("models")]
-    codes = [process.wait() for process in side_by_side]
+    side_by_side = {part: child(part) for part in ("loop", "models")}
+    finished = wait_all(side_by_side)
     both = time.perf_counter() - started
-    code = max([child("scenes").wait(), *codes])
+    code = max([child("scenes").wait(), *(code for code, _ in finished.values())])
     seconds = time.perf_counter() - started
+    parts = ", ".join(f"{part} {at - started:.0f} s" for part, (_, at) in finished.items())
     done = (
-        f"legsim: prebuilt compiled code in {args.out} ({seconds:.0f} s: loop and models {both:.0f} s, "
+        f"legsim: prebuilt compiled code in {args.out} ({seconds:.0f} s: {parts} side by side, "
         f"scenes {seconds - both:.0f} s; {removed} old entries removed)"
     )
     print(done, file=sys.stderr)
     return code
+
+
+def wait_all(processes: dict[str, subprocess.Popen[bytes]]) -> dict[str, tuple[int, float]]:
+    """Wait for every process: {name: (exit code, ``time.perf_counter()`` when it was seen done)}.
+    The times show which part of the side-by-side compilation the other waits for."""
+    finished: dict[str, tuple[int, float]] = {}
+    while len(finished) < len(processes):
+        for name, process in processes.items():
+            code = process.poll()
+            if name not in finished and code is not None:
+                finished[name] = (code, time.perf_counter())
+        time.sleep(0.2)
+    return finished
 
 
 def remove_entries(folder: Path) -> int:

@@ -23,9 +23,9 @@ inside the package, not by where the package is installed.
 
 from __future__ import annotations
 
-import ast
 import hashlib
 import os
+import re
 import shutil
 from functools import cache
 from pathlib import Path
@@ -70,6 +70,7 @@ def _owned(path: Path) -> bool:
     return any(root in path.parents for root in _ROOTS)
 
 
+@cache
 def package_subpath(py_file: str | Path) -> str:
     """The folder of a legsim source file inside the package (``relaxed``, ``robots/bridge``),
     the same in a source checkout and in an installed package."""
@@ -82,26 +83,55 @@ def package_subpath(py_file: str | Path) -> str:
     return folder.name
 
 
+#: ``from <dots><module> import <names>``; names either in parentheses (over several lines) or
+#: up to the end of the line, a comment or a semicolon.
+_FROM_IMPORT = re.compile(r"(?:^|;)[ \t]*from[ \t]+(\.*)([\w.]*)[ \t]+import[ \t]+(\([^)]*\)|[^\n#;]*)", re.MULTILINE)
+#: ``import <module> [as <name>][, ...]``.
+_PLAIN_IMPORT = re.compile(r"(?:^|;)[ \t]*import[ \t]+([^\n#;]+)", re.MULTILINE)
+#: Triple-quoted strings: docstrings show imports in examples.
+_LONG_STRING = re.compile(r'"""[\s\S]*?"""|\'\'\'[\s\S]*?\'\'\'')
+
+#: One import of a source file: (dots of a relative import, module or None, the name imported
+#: from it or None for a plain ``import <module>``).
+ImportStatement = tuple[int, str | None, str | None]
+
+
+def import_statements(source: str) -> set[ImportStatement]:
+    """The imports written in ``source``, at any depth (inside functions and ``if`` blocks too).
+
+    A scan of the text, not Python's parser: parsing every module a run's compiled code depends
+    on took about half a second of each first run. It reads the forms ruff's formatting writes
+    (no backslash continuations); ``tests/packaging/test_compiled_stamps.py`` checks it finds what
+    Python's parser finds in every file of the package."""
+    found: set[ImportStatement] = set()
+    source = _LONG_STRING.sub("", source)
+    for dots, module, names in _FROM_IMPORT.findall(source):
+        lines = (line.split("#")[0] for line in names.strip().strip("()").splitlines())
+        for alias in " ".join(lines).split(","):
+            if alias.split():
+                found.add((len(dots), module or None, alias.split()[0]))
+    for names in _PLAIN_IMPORT.findall(source):
+        found.update((0, alias.split()[0], None) for alias in names.split(",") if alias.split())
+    return found
+
+
 @cache
 def _imports(path: Path) -> tuple[Path, ...]:
     """The legsim source files ``path`` imports (relative imports and ``legsim.*``)."""
     try:
-        tree = ast.parse(path.read_text())
-    except (OSError, SyntaxError):
+        source = path.read_text()
+    except OSError:
         return ()
-    found: list[Path] = []
-    for node in ast.walk(tree):
-        if isinstance(node, ast.ImportFrom):
-            base = _resolve(path, node.module, node.level)
-            if base is not None:
-                found += [p for p in (_module_file(base), *(_module_file(base / a.name) for a in node.names)) if p]
-        elif isinstance(node, ast.Import):
-            for alias in node.names:
-                if alias.name.startswith("legsim."):
-                    target = _module_file(_package_path(alias.name.split(".")[1:]))
-                    if target is not None:
-                        found.append(target)
-    return tuple(dict.fromkeys(found))
+    found: list[Path | None] = []
+    for level, module, name in sorted(import_statements(source), key=str):
+        if name is None:
+            if module is not None and module.startswith("legsim."):
+                found.append(_module_file(_package_path(module.split(".")[1:])))
+            continue
+        base = _resolve(path, module, level)
+        if base is not None:
+            found += [_module_file(base), _module_file(base / name) if name != "*" else None]
+    return tuple(dict.fromkeys(p for p in found if p is not None))
 
 
 def _resolve(path: Path, module: str | None, level: int) -> Path | None:
@@ -124,6 +154,7 @@ def _package_path(parts: list[str]) -> Path:
     return inside
 
 
+@cache
 def _module_file(base: Path) -> Path | None:
     for candidate in (base.with_suffix(".py"), base / "__init__.py"):
         if candidate.is_file():

@@ -4,13 +4,14 @@ the package as the checkout has it, byte for byte, and nothing else.
 
 The build runs on a copy of the checkout in a temporary folder (setuptools writes its
 ``*.egg-info`` and ``build/`` next to the sources), without the native extension's compilation
-(its source is checked to be in the sdist)."""
+(its source is checked to be in the sdist), in one fresh environment holding the build
+requirements instead of the two isolated ones ``python -m build`` makes
+(``helpers.packaging.build_environment``)."""
 
 from __future__ import annotations
 
 import os
 import subprocess
-import sys
 import tarfile
 import zipfile
 from pathlib import Path
@@ -25,12 +26,15 @@ FOLDERS = {"legsim": "legsim", "robots": "legsim/robots", "viz": "legsim/viz", "
 
 
 @pytest.fixture(scope="module")
-def built(tmp_path_factory):
-    """(sdist, wheel) made by ``python -m build`` from a copy of the checkout."""
+def built(tmp_path_factory, build_python):
+    """(sdist, wheel) made by ``python -m build`` from a copy of the checkout, in a fresh
+    environment holding the build requirements but the headers the native extension reads
+    (helpers.packaging.HEADER_REQUIREMENTS): the dependency check is skipped for them."""
     tmp = tmp_path_factory.mktemp("build")
     source = source_copy(tmp / "legsim")
+    build = [str(build_python), "-m", "build", "--no-isolation", "--skip-dependency-check"]
     result = subprocess.run(
-        [sys.executable, "-m", "build", "--outdir", str(tmp / "dist"), str(source)],
+        [*build, "--outdir", str(tmp / "dist"), str(source)],
         capture_output=True,
         text=True,
         cwd=tmp,  # a `build` folder where the test runs would shadow the build module

@@ -233,11 +233,15 @@ def test_a_flat_terrain_at_h0_runs_bit_for_bit_as_the_contacts_ground_h0(tmp_pat
     flat_run = load_scene(
         scene(flat, '{ name = "ball", frame = "ball", restitution = 0.6, friction = 0.4 }', terrain, initial, 2.0, 1e-6)
     ).simulate()
-    assert len(own_run.transitions) == len(flat_run.transitions) > 3
+    # This test once failed in a full `-n 2` run only; the counters (which path took the steps,
+    # the evaluations) of both runs go with any failure. Compiled code for this processor and
+    # prebuilt generic code gave the same bits here, so that is not the cause.
+    counters = {"ground": own_run.counters, "terrain": flat_run.counters}
+    assert len(own_run.transitions) == len(flat_run.transitions) > 3, counters
     for a, b in zip(own_run.transitions, flat_run.transitions, strict=True):
-        assert (a.name, a.time) == (b.name, b.time)
-        assert np.array_equal(a.state_after, b.state_after)
-    assert np.array_equal(own_run.final_state, flat_run.final_state)
+        assert (a.name, a.time) == (b.name, b.time), counters
+        assert np.array_equal(a.state_after, b.state_after), counters
+    assert np.array_equal(own_run.final_state, flat_run.final_state), counters
 
 
 # -- the walkers' built-in slopes as a terrain ----------------------------------------------------
