@@ -21,7 +21,7 @@ from legsim.viz._figures import finish, new_figure, parse_out
 
 import legsim
 
-RISES = [round(v, 3) for v in np.linspace(-0.1, 0.1, 21)]  # m
+RISES = [round(float(v), 3) for v in np.linspace(-0.1, 0.1, 21)]  # m
 SETTLE = 4.0  # s
 COLOURS = {"finished": "tab:green", "fell": "tab:red"}
 OTHER = "0.3"  # any other status: the run could not go on

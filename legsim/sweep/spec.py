@@ -343,7 +343,12 @@ def override(key: str, value: Any) -> str:
     if isinstance(value, bool):
         return f"{key}={'true' if value else 'false'}"
     if isinstance(value, float):
-        text = repr(value) if math.isfinite(value) else ("nan" if value != value else ("inf" if value > 0 else "-inf"))
+        # float(): a numpy scalar (a float subclass) would otherwise give "np.float64(0.5)".
+        text = (
+            repr(float(value))
+            if math.isfinite(value)
+            else ("nan" if value != value else ("inf" if value > 0 else "-inf"))
+        )
         return f"{key}={text}"
     if isinstance(value, int):
         return f"{key}={value}"

@@ -92,7 +92,8 @@ def test_a_sweep_without_the_new_options_keeps_its_manifest():
 def test_an_orbit_guess_from_the_run_finds_the_scenes_orbit(tmp_path):
     """The compass gait walks onto its stable gait in 5 s: the search from its run's last heel
     strike converges to the fixed point the search from the scene's guess finds (to 1e-9: both
-    within tol 1e-10 of the same orbit, whose multipliers are at most 0.58)."""
+    within tol 1e-10 of the same orbit, whose multipliers are at most 0.58), but for the cyclic
+    foot position, which keeps its guess: where the run's last step put the foot."""
     rows = {}
     for guess in ("scene", "run"):
         result = legsim.sweep(
@@ -105,5 +106,7 @@ def test_an_orbit_guess_from_the_run_finds_the_scenes_orbit(tmp_path):
         )
         rows[guess] = result.table.to_pylist()[0]
     assert rows["scene"]["orbit_status"] == rows["run"]["orbit_status"] == "converged"
-    assert np.allclose(rows["run"]["orbit_fixed_point"], rows["scene"]["orbit_fixed_point"], rtol=0, atol=1e-9)
+    run, scene = rows["run"]["orbit_fixed_point"], rows["scene"]["orbit_fixed_point"]
+    assert np.allclose(run[:4], scene[:4], rtol=0, atol=1e-9)  # stance, hip and their rates
+    assert scene[4] == 0.0 and run[4] > 2.0  # foot_x (m): the scene's guess; the run's last foothold
     assert rows["run"]["orbit_stable"] is True
