@@ -8,10 +8,11 @@ Kinds (``KINDS``):
 * ``max_abs``: the largest |c| over the stored points in [FROM, t_end]: of ``pitch``, how far
   the body pitched. Column ``max_abs_COORD``.
 
-One measure per kind and coordinate (its column's name). FROM defaults to the scene's t0. The value at FROM is interpolated linearly between the stored
-points around it (points h apart, so its error is O(h^2) times the coordinate's second
-derivative). A run that ended at or before FROM (a fall, a failure) has no window: its value is
-null, never a number from a shorter window.
+One measure per kind and coordinate (its column's name). FROM defaults to the scene's t0. The
+value at FROM is interpolated linearly between the stored points around it (points h apart, so
+its error is O(h^2) times the coordinate's second derivative). A run that ended at or before
+FROM (a fall, a failure) has no window: its value is null, never a number from a shorter
+window.
 """
 
 from __future__ import annotations
