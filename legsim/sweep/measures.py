@@ -11,8 +11,8 @@ Kinds (``KINDS``):
 One measure per kind and coordinate (its column's name). FROM defaults to the scene's t0. The
 value at FROM is interpolated linearly between the stored points around it (points h apart, so
 its error is O(h^2) times the coordinate's second derivative). A run that ended at or before
-FROM (a fall, a failure) has no window: its value is null, never a number from a shorter
-window.
+FROM (a fall, a failure) has no window: its value is null. A run that ended after FROM but
+before t_final is measured over [FROM, t_end]; its status says it ended early.
 """
 
 from __future__ import annotations
