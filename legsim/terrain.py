@@ -158,7 +158,9 @@ KEYS: dict[str, dict[str, str]] = {
     },
     "steps": {
         "positions": "an array of finite x (m), strictly increasing: where each step begins",
-        "heights": "an array of finite z (m), one per position: each step's tread height",
+        "heights": "an array of finite z (m), one per position: each step's tread height (or give rise)",
+        "rise": "a finite number (m): each tread this much above the one before, the first above base "
+        "(or give heights)",
         "base": "a finite number (m): the ground left of the first step, default 0",
         "riser": "a finite number (m) > 0: the run of each riser ramp, default 0.001, below the shortest tread",
     },
@@ -264,7 +266,13 @@ def _sine(f: _Fields) -> Terrain:
 
 
 def _steps(f: _Fields) -> Terrain:
-    positions, heights = f.numbers("positions"), f.numbers("heights")
+    positions = f.numbers("positions")
+    if ("heights" in f.table) == ("rise" in f.table):
+        raise f.error("heights", "give exactly one of heights and rise")
+    base = f.number("base", 0.0)
+    # A staircase of equal risers is one number, ``rise``, so that a sweep can vary the step height.
+    rise = f.number("rise") if "rise" in f.table else None
+    heights = f.numbers("heights") if rise is None else base + rise * np.arange(1, len(positions) + 1)
     if len(heights) != len(positions):
         raise f.error("heights", f"{len(heights)} heights for {len(positions)} positions")
     if np.any(np.diff(positions) <= 0.0):
@@ -273,7 +281,7 @@ def _steps(f: _Fields) -> Terrain:
     shortest = float(np.min(np.diff(positions))) if len(positions) > 1 else math.inf
     if not 0.0 < riser < shortest:
         raise f.error("riser", f"{riser:g} is out of range (the shortest tread is {shortest:g} m)")
-    xs, zs = steps_profile(positions, heights, f.number("base", 0.0), riser)
+    xs, zs = steps_profile(positions, heights, base, riser)
     terrain = profile_terrain(xs, zs, "steps")
     return Terrain(terrain.array, f"{len(positions)} steps from x = {positions[0]:g} m (risers {riser:g} m wide)")
 

@@ -76,6 +76,22 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     measures.add_argument("--no-run", action="store_true", help="no run to t_final (with --orbit: orbits only)")
     measures.add_argument(
+        "--orbit-guess",
+        choices=["scene", "run"],
+        default="scene",
+        help="the orbit search's initial guess: the scene's [initial] state and orbit.guess (default), "
+        "or the state and controller memory at the last crossing of the section in the variation's run",
+    )
+    measures.add_argument(
+        "--measure",
+        dest="measures",
+        metavar="KIND:COORD[:FROM]",
+        action="append",
+        default=[],
+        help="a column measured on each run over [FROM, t_end] (FROM default t0): mean_rate (e.g. "
+        "mean_rate:x:5, the mean forward speed after 5 s) or max_abs (e.g. max_abs:pitch); repeatable",
+    )
+    measures.add_argument(
         "--timeout",
         type=float,
         default=None,
@@ -140,6 +156,8 @@ def run(args: argparse.Namespace) -> int:
         max_steps=args.max_steps,
         tol=args.tol,
         timeout=args.timeout,
+        measures=tuple(args.measures),
+        orbit_guess=args.orbit_guess,
     )
     log = None if (args.quiet or args.json) else (lambda line: print(f"legsim sweep: {line}", file=sys.stderr))
     result = run_sweep(

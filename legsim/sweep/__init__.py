@@ -49,6 +49,8 @@ def sweep(
     max_steps: int = 20,
     tol: float = 1e-3,
     timeout: float | None = None,
+    measures: Sequence[str] = (),
+    orbit_guess: str = "scene",
     out: str | Path | None = None,
     resume: bool = False,
     workers: int | None = None,
@@ -75,6 +77,11 @@ def sweep(
         section), at most ``max_steps`` steps, converged within ``tol`` (state units);
         ``orbit``: also search each variation's periodic orbit (multipliers, stability).
     timeout: seconds one variation may take; past it its row says ``timeout``.
+    measures: ``"KIND:COORD[:FROM]"`` strings (``--measure``), each a float column of the runs:
+        ``mean_rate:x:5`` the mean rate of x over [5 s, t_end], ``max_abs:pitch`` the largest
+        |pitch| (``legsim.sweep.measures``).
+    orbit_guess: ``"scene"`` (the scene's ``[initial]`` state and ``orbit.guess``) or ``"run"``
+        (the state and controller memory at the last crossing of the section in the run).
     out: folder for ``results.parquet`` (streamed as batches finish) and the maps; None keeps
         the table in memory only. ``resume``: continue the sweep already in ``out``, running
         only the variations it has no row for.
@@ -107,6 +114,8 @@ def sweep(
         max_steps=max_steps,
         tol=tol,
         timeout=timeout,
+        measures=tuple(measures),
+        orbit_guess=orbit_guess,
     )
     return run_sweep(
         spec,

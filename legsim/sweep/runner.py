@@ -188,6 +188,10 @@ def check_sweep(spec: SweepSpec) -> dict[str, float] | None:
         load_scene(spec.scene, list(spec.overrides) + variation_overrides(values))
     if spec.run == "walk" or spec.orbit:
         problem_from_scene(base)  # the [orbit] section is there and valid
+    if spec.measures:
+        from .measures import check_coordinates, check_measures
+
+        check_coordinates(check_measures(spec.measures), base.model.system, base.path)
     if spec.run != "walk" or any(not k.startswith("initial.") for k in spec.keys):
         return None
     from .tasks import reference_gait

@@ -38,6 +38,8 @@ MAX_VARIATIONS = 10_000_000
 
 #: What a row's run is: the scene to its t_final, a walk until it falls or converges, or none.
 RUN_KINDS = ("scene", "walk", "none")
+#: Where an orbit search's initial guess comes from: the scene, or the variation's run.
+ORBIT_GUESSES = ("scene", "run")
 
 
 class SweepError(LegsimError):
@@ -67,7 +69,10 @@ class SweepSpec:
     to every variation first; grid, random: the axes; samples, seed: the random draws;
     run: one of ``RUN_KINDS``; orbit: search each variation's periodic orbit; max_steps and
     tol: a walk's step budget and its convergence tolerance (state units); timeout: seconds
-    one variation may take (None: no limit).
+    one variation may take (None: no limit); measures: ``KIND:COORD[:FROM]`` strings, each a
+    column of the run (``legsim.sweep.measures``); orbit_guess: one of ``ORBIT_GUESSES``, the
+    orbit search's guess: the scene's (``[initial]`` and ``orbit.guess``) or the last crossing of
+    the section in the variation's run.
     """
 
     scene: str
@@ -81,6 +86,8 @@ class SweepSpec:
     max_steps: int = 20
     tol: float = 1e-3
     timeout: float | None = None
+    measures: tuple[str, ...] = ()
+    orbit_guess: str = "scene"
     _draws: Any = field(default=None, init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
@@ -132,6 +139,11 @@ class SweepSpec:
         """The sweep as a JSON document (tuples as lists), which ``from_json`` reads back."""
         out = asdict(self)
         out.pop("_draws")
+        # A sweep without these keeps the manifest and digest it had before they existed.
+        if not out["measures"]:
+            out.pop("measures")
+        if out["orbit_guess"] == "scene":
+            out.pop("orbit_guess")
         result: dict[str, Any] = json.loads(json.dumps(out, allow_nan=False))
         return result
 
@@ -140,8 +152,8 @@ class SweepSpec:
         """The sweep of a ``to_json`` document read back (a manifest, which may be damaged or
         foreign): ValueError naming the key for anything of the wrong type, SweepError for an
         inconsistent sweep."""
-        check_object(data, SPEC_KEYS, "spec", optional={"timeout": (int, float, type(None))})
-        unknown = sorted(set(data) - set(SPEC_KEYS) - {"timeout"})
+        check_object(data, SPEC_KEYS, "spec", optional=OPTIONAL_SPEC_KEYS)
+        unknown = sorted(set(data) - set(SPEC_KEYS) - set(OPTIONAL_SPEC_KEYS))
         if unknown:
             raise ValueError(f"spec has unknown keys {unknown}")
         check_list(data["overrides"], (str,), "spec.overrides")
@@ -150,7 +162,8 @@ class SweepSpec:
             axes[kind] = tuple(_axis_from_json(a, f"spec.{kind}[{k}]") for k, a in enumerate(data[kind]))
         if any(a.is_random for a in axes["grid"]) or not all(a.is_random for a in axes["random"]):
             raise ValueError("spec: a grid axis has an interval, or a random axis has none")
-        return cls(**{**data, **axes, "overrides": tuple(data["overrides"])})
+        measures = tuple(check_list(data.get("measures", []), (str,), "spec.measures"))
+        return cls(**{**data, **axes, "overrides": tuple(data["overrides"]), "measures": measures})
 
     def fingerprint(self) -> str:
         """The SHA-256 (hex) of everything the rows depend on: ``--resume`` continues only the
@@ -171,6 +184,11 @@ SPEC_KEYS: dict[str, tuple[type, ...]] = {
     "orbit": (bool,),
     "max_steps": (int,),
     "tol": (int, float),
+}
+OPTIONAL_SPEC_KEYS: dict[str, tuple[type, ...]] = {
+    "timeout": (int, float, type(None)),
+    "measures": (list,),
+    "orbit_guess": (str,),
 }
 AXIS_KEYS: dict[str, tuple[type, ...]] = {
     "key": (str,),
@@ -196,6 +214,16 @@ def check_spec(spec: SweepSpec) -> None:
         raise SweepError(f"run must be one of {list(RUN_KINDS)}, got {spec.run!r}")
     if spec.run == "none" and not spec.orbit:
         raise SweepError("nothing to measure: the run is 'none' (--no-run) and no --orbit is asked for")
+    if spec.orbit_guess not in ORBIT_GUESSES:
+        raise SweepError(f"--orbit-guess must be one of {list(ORBIT_GUESSES)}, got {spec.orbit_guess!r}")
+    if spec.orbit_guess == "run" and not (spec.orbit and spec.run == "scene"):
+        raise SweepError("--orbit-guess run needs --orbit and runs to t_final (not with --walk or --no-run)")
+    if spec.measures:
+        from .measures import check_measures
+
+        if spec.run != "scene":
+            raise SweepError("--measure needs runs to t_final (not with --walk or --no-run)")
+        check_measures(spec.measures)
     keys = [a.key for a in spec.grid + spec.random]
     repeated = sorted({k for k in keys if keys.count(k) > 1})
     if repeated:
@@ -315,7 +343,12 @@ def override(key: str, value: Any) -> str:
     if isinstance(value, bool):
         return f"{key}={'true' if value else 'false'}"
     if isinstance(value, float):
-        text = repr(value) if math.isfinite(value) else ("nan" if value != value else ("inf" if value > 0 else "-inf"))
+        # float(): a numpy scalar (a float subclass) would otherwise give "np.float64(0.5)".
+        text = (
+            repr(float(value))
+            if math.isfinite(value)
+            else ("nan" if value != value else ("inf" if value > 0 else "-inf"))
+        )
         return f"{key}={text}"
     if isinstance(value, int):
         return f"{key}={value}"

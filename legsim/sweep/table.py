@@ -8,7 +8,8 @@ indices already in either and runs only the others.
 
 Columns (``schema``): ``index``, one column per varied field (named by its dotted path), then
 ``task_status`` (``done``, ``error``, ``timeout``) and ``error`` (the message, null when done),
-the measures' columns (``RUN_COLUMNS``, ``WALK_COLUMNS``, ``ORBIT_COLUMNS``, as asked) and
+the measures' columns (``RUN_COLUMNS``, one float column per ``--measure``, ``WALK_COLUMNS``,
+``ORBIT_COLUMNS``, as asked) and
 ``wall_time_s`` (the variation's wall time on its worker, s). Every column but
 ``wall_time_s`` depends only on the sweep's specification: two runs of one sweep, wherever they
 ran and however they were batched, give the same table up to that column.
@@ -138,6 +139,10 @@ def schema(spec: SweepSpec) -> pa.Schema:
     columns = dict(BASE_COLUMNS)
     if spec.run != "none":
         columns.update(RUN_COLUMNS)
+    if spec.measures:
+        from .measures import check_measures
+
+        columns.update({m.column: _F64 for m in check_measures(spec.measures)})
     if spec.run == "walk":
         columns.update(WALK_COLUMNS)
     if spec.orbit:

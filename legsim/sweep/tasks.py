@@ -66,12 +66,14 @@ def run_variation(spec: SweepSpec, index: int, values: dict[str, Any]) -> dict[s
     deadline = Deadline(spec.timeout)
     try:
         scene = load_scene(spec.scene, list(spec.overrides) + variation_overrides(values))
+        execution = None
         if spec.run == "scene":
-            row.update(run_columns(scene, deadline))
+            execution = scene.simulate(progress=deadline.progress)
+            row.update(run_columns(scene, execution, spec.measures))
         elif spec.run == "walk":
             row.update(walk_row(scene, spec, values, deadline))
         if spec.orbit:
-            row.update(orbit_columns(scene, deadline))
+            row.update(orbit_columns(scene, deadline, execution if spec.orbit_guess == "run" else None))
         deadline.check()
         row.update(task_status="done", error=None)
     except TaskTimeout as exc:
@@ -84,11 +86,13 @@ def run_variation(spec: SweepSpec, index: int, values: dict[str, Any]) -> dict[s
     return row
 
 
-def run_columns(scene: Any, deadline: Deadline) -> dict[str, Any]:
-    """The scene run to its t_final: the run summary's columns and ``fell``."""
+def run_columns(scene: Any, execution: Any, measures: tuple[str, ...] = ()) -> dict[str, Any]:
+    """The scene's run to its t_final: the run summary's columns, ``fell`` and the ``measures``'
+    columns (``legsim.sweep.measures``)."""
     from ..output.summary import run_summary
+    from .measures import check_measures, measure_columns
 
-    summary = run_summary(scene.simulate(progress=deadline.progress), scene)
+    summary = run_summary(execution, scene)
     out = {
         key: summary.get(key)
         for key in (
@@ -112,6 +116,7 @@ def run_columns(scene: Any, deadline: Deadline) -> dict[str, Any]:
     # A fall the scene declares ([fall]: status fell), or a model that says it left its range
     # (a compass gait's hip below the slope, a link through the ground under below_ground = "strict").
     out["fell"] = summary["status"] in ("fell", "model_breakdown")
+    out.update(measure_columns(check_measures(measures), execution, scene.model.system))
     return out
 
 
@@ -184,14 +189,27 @@ def reference_gait(spec: SweepSpec, values: dict[str, Any]) -> Any:
     return _gaits[key]
 
 
-def orbit_columns(scene: Any, deadline: Deadline) -> dict[str, Any]:
-    """The variation's periodic orbit, from its scene's ``[orbit]`` section and initial state."""
+def orbit_columns(scene: Any, deadline: Deadline, execution: Any = None) -> dict[str, Any]:
+    """The variation's periodic orbit, from its scene's ``[orbit]`` section and initial state,
+    or with ``execution`` (``--orbit-guess run``) from the last crossing of the section in it."""
     from ..orbits import find_orbit
     from ..scene.orbit import problem_from_scene
 
     settings = problem_from_scene(scene)
     settings.problem.progress = deadline.progress
-    result = find_orbit(settings.problem, settings.guess, **settings.solver)
+    guess, solver = settings.guess, dict(settings.solver)
+    if execution is not None:
+        crossing = last_crossing(settings.problem, execution)
+        if crossing is None:
+            return {
+                "orbit_status": "no_guess",
+                "orbit_message": f"no guess: the run never crossed the section {settings.problem.section.label}",
+                "orbit_warnings": [],
+            }
+        guess = crossing[: settings.problem.dim].copy()
+        if settings.problem.controller is not None:
+            solver["memory"] = crossing[settings.problem.dim :].copy()
+    result = find_orbit(settings.problem, guess, **solver)
     deadline.check()  # a search cut short by the deadline reports a failed simulation: say why
     data = result.to_json()
     multipliers = data["multipliers"] or []
@@ -210,3 +228,25 @@ def orbit_columns(scene: Any, deadline: Deadline) -> dict[str, Any]:
         "orbit_residual": data["residual"],
         "orbit_iterations": data["iterations"],
     }
+
+
+def last_crossing(problem: Any, execution: Any) -> np.ndarray | None:
+    """The state at the last crossing of ``problem``'s section in a run (after its last taking
+    of a transition section), a ``ControlLaw``'s memory after the plant's coordinates; None
+    without one. The run's memory is taken as it is: memory that holds absolute times or
+    positions (not periodic along a gait) makes the search fail, and its row says so."""
+    from ..orbits.returns import first_crossing
+
+    bound, section = problem.bound, problem.section
+    if section.kind == "transition":
+        taken = [r for r in execution.transitions if r.name == section.transition and r.target == bound.mode]
+        return None if not taken else np.asarray(taken[-1].state_after, dtype=float).copy()
+    last = None
+    for seg in execution.segments:
+        if seg.mode != bound.mode or len(seg.t) < 2:
+            continue
+        hit = first_crossing(seg, bound.s, section.direction, seg.t[0])
+        while hit is not None:
+            last = hit[1]
+            hit = first_crossing(seg, bound.s, section.direction, hit[0])
+    return None if last is None else np.asarray(last, dtype=float).copy()

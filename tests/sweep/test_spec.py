@@ -136,3 +136,14 @@ def test_bundled_scenes_travel_by_name_and_files_by_absolute_path(tmp_path, monk
     own.write_text((load_scene("compass_gait").path).read_text())
     monkeypatch.chdir(tmp_path)
     assert scene_reference("mine.toml") == str(own.resolve())
+
+
+def test_a_numpy_float_in_a_grid_reaches_the_scene_as_its_number():
+    """A grid listing numpy floats (a float subclass, as ``np.linspace`` gives) is set as the
+    number: ``repr`` would give ``np.float64(0.5)``, which the scene refuses."""
+    import numpy as np
+
+    from legsim.sweep.spec import override
+
+    assert override("terrain.rise", np.float64(-0.1)) == "terrain.rise=-0.1"
+    assert override("terrain.rise", 0.1 + 0.2) == "terrain.rise=0.30000000000000004"
