@@ -540,9 +540,7 @@ class HybridSystem:
         """The target exists, and a transition without reset keeps the dimension."""
         dim = self.dim(target)
         if reset is None and dim != mode.dim:
-            raise ModelError(
-                f"{self._name}: transition {name} has no reset but changes dimension {mode.dim} -> {dim}"
-            )
+            raise ModelError(f"{self._name}: transition {name} has no reset but changes dimension {mode.dim} -> {dim}")
 
     def taken(self, source: str, index: int, name: str) -> Transition:
         """The transition a ``TransitionRecord`` (source, index, name) took: outgoing transition

@@ -16,7 +16,8 @@ from .native import address, call_state_at, compiles
 @model_function
 def _at_rows(address: int, t: np.ndarray, states: np.ndarray, split: int, c: np.ndarray, out: np.ndarray) -> None:
     for k in range(states.shape[0]):
-        call_state_at(address, t[k], states[k, :split], states[k, split:], c, out[k])
+        # An intrinsic's typing context is numba's to pass: compiled code calls it without one.
+        call_state_at(address, t[k], states[k, :split], states[k, split:], c, out[k])  # type: ignore[call-arg]
 
 
 def at_rows(function: Any, t: np.ndarray, states: np.ndarray, split: int, c: np.ndarray, out: np.ndarray) -> None:

@@ -4,9 +4,10 @@ step loop reads them (``layout.M_*``, ``T_*``, ``J_*``).
 Modes get rows as the run reaches them: a mode's row is *registered* (its dimension and its
 controller, enough to reset into it) when some ready mode may lead to it, and *ready* (its
 functions and parameters, its transitions' targets registered in turn) when the loop first
-enters it (``RETURN_NEED_MODE``), which is also when a lazily built system expands it. A mode written as model functions (``Mode.functions``) brings
-its own functions; a mode of Python callables gets adapters (``legsim.relaxed.adapt``). The
-controller adds its control and entry functions and, per mode, its parameters.
+enters it (``RETURN_NEED_MODE``), which is also when a lazily built system expands it. A mode
+written as model functions (``Mode.functions``) brings its own functions; a mode of Python
+callables gets adapters (``legsim.relaxed.adapt``). The controller adds its control and entry
+functions and, per mode, its parameters.
 
 The arrays keep spare rows (``SPARE``) so that a Python joint function met inside a loop call can
 register a new outcome; the driver grows them between calls.
