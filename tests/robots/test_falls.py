@@ -14,7 +14,7 @@ from scipy.optimize import brentq
 
 from legsim.errors import SceneError
 from legsim.scene import load_scene
-from legsim.sweep.tasks import Deadline, run_columns
+from legsim.sweep.tasks import run_columns
 from tests.helpers.urdf_robots import TRUNK_HALF_X, TRUNK_HALF_Z, monoped
 
 
@@ -115,9 +115,10 @@ def test_with_strict_a_trunk_through_the_ground_ends_the_run_as_a_model_breakdow
 
 def test_a_sweep_row_says_fell_from_the_status(tmp_path):
     scene = load_scene(monoped(tmp_path, "[fall]\npitch_max = 1.0\n"))
-    row = run_columns(scene, Deadline(None))
+    row = run_columns(scene, scene.simulate())
     assert row["status"] == "fell" and row["fell"] is True
-    upright = run_columns(load_scene(scene.path, ["initial.state.pitch=0.0"]), Deadline(None))
+    upright_scene = load_scene(scene.path, ["initial.state.pitch=0.0"])
+    upright = run_columns(upright_scene, upright_scene.simulate())
     assert upright["status"] == "finished" and upright["fell"] is False
 
 
