@@ -17,35 +17,13 @@ from legsim.robots.bridge import native
 from legsim.robots.bridge.dynamics import bridge_field
 from scipy.optimize import brentq
 
+from helpers.compiled_scenes import ROBOT_SCENES, SYSTEM_SCENES
 from legsim import relaxed
 from legsim.model import evaluate_field, evaluate_guards, evaluate_reset
+from legsim.prebuild import bundled_scenes
 from legsim.scene import load_scene
 
 RNG = np.random.default_rng(18)
-#: Every bundled scene of a robot, with a shorter run where the scene's own is long.
-ROBOT_SCENES = [
-    ("compass_gait", None),
-    ("rimless_wheel", None),
-    ("double_pendulum_pd", "2.0"),
-    ("double_pendulum_plastic", "3.0"),
-    ("double_pendulum_plastic_paper", "3.0"),
-    ("double_pendulum_zeno", "3.0"),
-    ("double_pendulum_zeno_paper", "3.0"),
-    ("rod", None),
-    ("pronk", None),
-    ("pronk_paper", None),
-    ("pronk_pitched", None),
-    ("pronk_pitched_paper", None),
-    ("slip", None),
-    ("quadruped_stand", None),
-    ("quadruped_pronk", "2.0"),
-    ("quadruped_run", "2.0"),
-    ("quadruped_bound", "2.0"),
-    ("quadruped_pronk_forward", "2.0"),
-    ("quadruped_bound_forward", "2.0"),
-    ("quadruped_gallop", "2.0"),
-    ("biped_run", "2.0"),
-]
 
 
 def close(a, b, rel=1e-12):
@@ -56,6 +34,13 @@ def close(a, b, rel=1e-12):
 
 def scene_of(name, t_final):
     return load_scene(name, [f"integrator.t_final={t_final}"] if t_final else [])
+
+
+def test_every_bundled_scene_is_checked_on_the_compiled_path():
+    # A scene added without its compiled-path test would go unchecked: every bundled scene is in
+    # the robots' list or the systems'.
+    listed = {name for name, _ in ROBOT_SCENES} | set(SYSTEM_SCENES)
+    assert {path.stem for path in bundled_scenes()} == listed
 
 
 @pytest.mark.parametrize("name,t_final", ROBOT_SCENES)

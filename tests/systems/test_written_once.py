@@ -12,21 +12,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from helpers.compiled_scenes import SYSTEM_SCENES
 from legsim.relaxed import driver
 from legsim.scene import load_scene
-
-#: The bundled scenes of the systems written once, and an end time for the interpreted runs
-#: (None: the scene's own), long enough for several transitions of each.
-SCENES = {
-    "bouncing_ball": None,
-    "oscillator_ex1": 20.0,
-    "oscillator_ex2": None,
-    "two_tanks": None,
-    "digital_control": None,
-    "grazing": None,
-    "slip_raibert": 3.0,
-    "pronk_raibert": 3.0,
-}
 
 
 def run(name: str, t_final: float | None = None):
@@ -34,7 +22,7 @@ def run(name: str, t_final: float | None = None):
     return load_scene(name, overrides).simulate()
 
 
-@pytest.mark.parametrize("name", list(SCENES))
+@pytest.mark.parametrize("name", list(SYSTEM_SCENES))
 def test_every_step_of_the_scene_is_compiled(name):
     ex = run(name)
     assert ex.counters["python_steps"] == 0 and ex.settings["path"] == "compiled"
@@ -43,11 +31,11 @@ def test_every_step_of_the_scene_is_compiled(name):
     assert ex.transitions or name == "grazing"
 
 
-@pytest.mark.parametrize("name", list(SCENES))
+@pytest.mark.parametrize("name", list(SYSTEM_SCENES))
 def test_the_interpreted_loop_gives_the_compiled_execution(monkeypatch, name):
-    compiled = run(name, SCENES[name])
+    compiled = run(name, SYSTEM_SCENES[name])
     monkeypatch.setattr(driver, "KERNEL", None)
-    interpreted = run(name, SCENES[name])
+    interpreted = run(name, SYSTEM_SCENES[name])
     assert interpreted.counters["compiled_steps"] == 0 and interpreted.settings["path"] == "python"
     assert interpreted.status == compiled.status and interpreted.t_end == compiled.t_end
     counted = ("steps", "halvings", "field_evals", "guard_evals", "reset_evals", "transitions")
