@@ -146,6 +146,23 @@ def downhill_degrees(terrain: Terrain, robot: str, low: float, high: float) -> f
     return degrees
 
 
+def walker_slope(slope: float, default: float, terrain: Terrain | None, robot: str, low: float, high: float) -> float:
+    """The slope (degrees) of a walker whose slope is built in: its ``slope`` parameter, or a
+    scene's ``[terrain]`` slope (``downhill_degrees``) in its place; ``SceneError`` when both
+    are given."""
+    if terrain is None:
+        return slope
+    if slope != default:
+        raise SceneError("robot.parameters.slope: given besides a [terrain]: give the slope one way")
+    return downhill_degrees(terrain, robot, low, high)
+
+
+def slope_frame(slope_deg: float) -> np.ndarray:
+    """The rotation (2, 2) from a slope's coordinates (x downhill, z normal) to the world's (z up)."""
+    s = math.radians(slope_deg)
+    return np.array([[math.cos(s), math.sin(s)], [-math.sin(s), math.cos(s)]])
+
+
 # -- a scene's [terrain] table -------------------------------------------------------------------
 
 #: The keys each kind takes, with what they allow (the error messages quote these).

@@ -20,7 +20,7 @@ from legsim.errors import SceneError
 
 from . import biped_laws as laws
 from .controllers import bridge_of
-from .raibert import RUNNER_PARAMETERS, Leg, find_legs
+from .raibert import RUNNER_PARAMETERS, Leg, find_legs, leg_entries
 
 
 @dataclass(frozen=True)
@@ -70,11 +70,7 @@ class BipedParams:
     def __call__(self, mode: str) -> np.ndarray:
         made = self._made.get(mode)
         if made is None:
-            active = set(self.bridge.active_contacts(mode))
-            values = list(self.head)
-            for leg in self.legs:
-                values += [leg.hip, leg.knee, leg.u_hip, leg.u_knee, leg.thigh, leg.shank, leg.bend, leg.offset]
-                values.append(1.0 if leg.contact in active else 0.0)
+            values = self.head + leg_entries(self.legs, self.bridge.active_contacts(mode))
             made = self._made[mode] = np.array(values, dtype=float)
         return made
 

@@ -52,10 +52,9 @@ from legsim.robots._native.calls import lsn_aba, lsn_frames, lsn_impact
 
 from legsim.builders import Builder, Model, Param
 from legsim.compiled.functions import model_function
-from legsim.errors import SceneError
 from legsim.hybrid import HybridSystem, Mode, Transition
 from legsim.model import ModeFunctions
-from legsim.terrain import Terrain, downhill_degrees
+from legsim.terrain import Terrain, slope_frame, walker_slope
 
 from .bridge import add_point_frame, native, planar_floating_base
 from .bridge.dynamics import keep, ptr
@@ -251,7 +250,7 @@ class CompassGait:
         hip = pin.updateFramePlacement(self._kin_model, self._kin_data, self._hip_id).translation[[0, 2]]
         foot = pin.updateFramePlacement(self._kin_model, self._kin_data, self._foot_id).translation[[0, 2]]
         origin = np.array([x[4], 0.0])
-        rot = _slope_rotation(self.slope)
+        rot = slope_frame(self.slope)
         pts = {"stance_foot": origin, "hip": origin + hip, "swing_foot": origin + foot}
         world = {k: rot @ v for k, v in pts.items()}
         return {
@@ -261,23 +260,15 @@ class CompassGait:
         }
 
 
-def _slope_rotation(slope_deg: float) -> np.ndarray:
-    s = math.radians(slope_deg)
-    # Slope coordinates (x downhill, z normal) to world coordinates (z up).
-    return np.array([[math.cos(s), math.sin(s)], [-math.sin(s), math.cos(s)]])
-
-
 def build(params: dict[str, Any], effects: dict[str, dict[str, Any]], terrain: Terrain | None = None) -> Model:
     """Builder callback: the compass gait with the given parameters; a scene's ``[terrain]``
     slope (through the origin, falling towards +x) replaces its ``slope`` parameter."""
-    if terrain is not None:
-        if params["slope"] != PARAMETERS["slope"].default:
-            raise SceneError("robot.parameters.slope: given besides a [terrain]: give the slope one way")
-        params = {**params, "slope": downhill_degrees(terrain, "compass_gait", -30.0, 30.0)}
+    slope = walker_slope(params["slope"], PARAMETERS["slope"].default, terrain, "compass_gait", -30.0, 30.0)
+    params = {**params, "slope": slope}
     cg = CompassGait(params["m"], params["mH"], params["a"], params["b"], params["g"], params["slope"])
     x0 = np.array([INITIAL_STATE[n] for n in STATE_NAMES])
     system = cg.system(x0)
-    rot = _slope_rotation(params["slope"])
+    rot = slope_frame(params["slope"])
     ground = np.array([rot @ np.array([-1.0, 0.0]), rot @ np.array([8.0, 0.0])])
     info = {
         "guard_units": {"heel_strike": "m (swing foot depth below the slope, in front and descending)"},

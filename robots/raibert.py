@@ -32,6 +32,7 @@ conserves energy, so its hopping height needs no thrust (it trades with the spee
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -199,6 +200,16 @@ class RunnerLaw(ControlLaw):
     pronk: bool = True
 
 
+def leg_entries(legs: tuple[Leg, ...], active: Sequence[str]) -> list[float]:
+    """Each leg's ``runner_laws.RL_*`` entries of the controller's parameter array, in stance
+    (1.0) where its foot's contact is ``active``."""
+    values: list[float] = []
+    for leg in legs:
+        values += [leg.hip, leg.knee, leg.u_hip, leg.u_knee, leg.thigh, leg.shank, leg.bend, leg.offset]
+        values.append(1.0 if leg.contact in active else 0.0)
+    return values
+
+
 class RunnerParams:
     """``RunnerLaw.params``: the controller's parameter array in a mode (``runner_laws.R_*``,
     ``RL_*``), each leg in stance where its foot's contact is active; built once per mode."""
@@ -223,12 +234,7 @@ class RunnerParams:
     def __call__(self, mode: str) -> np.ndarray:
         made = self._made.get(mode)
         if made is None:
-            active = set(self.bridge.active_contacts(mode))
-            values = list(self.head)
-            for leg in self.legs:
-                values += [leg.hip, leg.knee, leg.u_hip, leg.u_knee, leg.thigh, leg.shank, leg.bend, leg.offset]
-                values.append(1.0 if leg.contact in active else 0.0)
-            values += self.schedule
+            values = self.head + leg_entries(self.legs, self.bridge.active_contacts(mode)) + self.schedule
             made = self._made[mode] = np.array(values, dtype=float)
         return made
 

@@ -44,10 +44,9 @@ from legsim.robots._native.calls import lsn_aba, lsn_crba, lsn_momentum_about
 
 from legsim.builders import Builder, Model, Param
 from legsim.compiled.functions import model_function
-from legsim.errors import SceneError
 from legsim.hybrid import HybridSystem, Mode, Transition
 from legsim.model import ModeFunctions
-from legsim.terrain import Terrain, downhill_degrees
+from legsim.terrain import Terrain, slope_frame, walker_slope
 
 from .bridge import add_point_frame, native
 from .bridge.dynamics import ptr
@@ -180,7 +179,7 @@ class RimlessWheel:
         th, foot = float(x[0]), float(x[2])
         spoke_length = self.l
         hub = np.array([foot + spoke_length * math.sin(th), spoke_length * math.cos(th)])
-        rot = _slope_rotation(self.slope)
+        rot = slope_frame(self.slope)
         spokes = []
         for k in range(self.spokes):
             ang = th + 2 * self.alpha * k
@@ -190,24 +189,17 @@ class RimlessWheel:
         return {"spokes": np.array(spokes), "hub": (rot @ hub)[None, :]}
 
 
-def _slope_rotation(slope_deg: float) -> np.ndarray:
-    s = math.radians(slope_deg)
-    return np.array([[math.cos(s), math.sin(s)], [-math.sin(s), math.cos(s)]])
-
-
 def build(params: dict[str, Any], effects: dict[str, dict[str, Any]], terrain: Terrain | None = None) -> Model:
     """Builder callback: the rimless wheel with the given parameters; a scene's ``[terrain]``
     slope (through the origin, falling towards +x) replaces its ``slope`` parameter."""
-    if terrain is not None:
-        if params["slope"] != PARAMETERS["slope"].default:
-            raise SceneError("robot.parameters.slope: given besides a [terrain]: give the slope one way")
-        params = {**params, "slope": downhill_degrees(terrain, "rimless_wheel", -45.0, 45.0)}
+    slope = walker_slope(params["slope"], PARAMETERS["slope"].default, terrain, "rimless_wheel", -45.0, 45.0)
+    params = {**params, "slope": slope}
     rw = RimlessWheel(params["m"], params["I"], params["l"], params["spokes"], params["g"], params["slope"])
     initial = dict(INITIAL_STATE)
     initial["theta"] = -rw.alpha
     x0 = np.array([initial[n] for n in STATE_NAMES])
     system = rw.system(x0)
-    rot = _slope_rotation(params["slope"])
+    rot = slope_frame(params["slope"])
     ground = np.array([rot @ np.array([-1.0, 0.0]), rot @ np.array([12.0, 0.0])])
     info = {
         "guard_units": {
