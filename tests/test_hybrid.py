@@ -201,3 +201,8 @@ def test_domain_views():
     assert [tr.name for tr in system.outgoing("a")] == ["up", "side"]
     assert system.outgoing("b") == ()
     assert reachable_modes(system, "a") == ["a", "b"]
+
+
+def test_dims_that_is_no_function_is_refused_naming_it():
+    with pytest.raises(ModelError, match="dims must be callable"):
+        HybridSystem({}, expand=lambda name: None, dims=3)
