@@ -4,7 +4,11 @@ chunk size, and the writer's Python memory does not grow with the run's length."
 
 from __future__ import annotations
 
-import tracemalloc
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -14,7 +18,8 @@ from helpers.recordings import run_hopper
 from legsim.output.rrd import read_rrd, write_rrd
 from legsim.output.rrd.stream import chunks, kept_samples
 from legsim.output.trace import execution_trace
-from legsim.scene import load_scene
+
+TESTS = Path(__file__).resolve().parents[2]
 
 
 @pytest.mark.parametrize("rate", [None, 40.0, 3.0])
@@ -70,32 +75,17 @@ def test_the_recording_is_the_same_in_small_chunks_as_in_one(rate, tmp_path, mon
     _same_recording(whole, chunked)
 
 
-def _writer_peak(h: float, path, drawn: bool) -> tuple[int, float]:
-    """(samples, peak bytes the writer allocates in Python) of Example 1 over 2 s at step h,
-    with its drawn robot (``drawn``) or its states only."""
-    scene = load_scene("oscillator_ex1", overrides=[f"integrator.h={h}", "integrator.t_final=2.0"])
-    ex = scene.simulate()
-    tracemalloc.start()
-    try:
-        write_rrd(ex, scene if drawn else None, path)
-        return sum(len(seg.t) for seg in ex.segments), tracemalloc.get_traced_memory()[1]
-    finally:
-        tracemalloc.stop()
-
-
 # Every chunk holds 512 samples, so its transient (its columns; with the robot, the samples'
 # drawn parts, some 1.6 MB) is the same in a short and a long run to some 0.03 MB. A writer
 # holding any array over the whole run grows by at least 8 bytes per number: the time, row and
 # two state values alone of the 38 000 (states only) or 14 000 (with the robot) more samples
 # are 1.2 MB and 0.45 MB; the writer that held the whole trace grew by 4.9 MB and 7 MB here.
 @pytest.mark.parametrize(("drawn", "h_long", "bound"), [(False, 5e-5, 0.1e6), (True, 1.25e-4, 0.2e6)])
-def test_the_writers_memory_does_not_grow_with_the_run(drawn, h_long, bound, tmp_path, monkeypatch):
-    monkeypatch.setattr(writer, "CHUNK", 512)
-    # Rerun may keep the arrays it is sent until its sink has written them, which the writer
-    # waits for every DRAIN_ROWS rows: a smaller wait keeps that share small and the test sharp.
-    monkeypatch.setattr(writer, "DRAIN_ROWS", 2048)
-    _writer_peak(1e-2, tmp_path / "warm.rrd", drawn)  # rerun's and pyarrow's imports and first-use caches
-    short, short_peak = _writer_peak(1e-3, tmp_path / "short.rrd", drawn)
-    long, long_peak = _writer_peak(h_long, tmp_path / "long.rrd", drawn)
+def test_the_writers_memory_does_not_grow_with_the_run(drawn, h_long, bound, tmp_path):
+    command = [sys.executable, "-m", "helpers.writer_memory", "drawn" if drawn else "states", str(h_long), str(tmp_path)]
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(TESTS), os.environ.get("PYTHONPATH", "")])}
+    out = subprocess.run(command, capture_output=True, text=True, env=env, timeout=300)
+    assert out.returncode == 0, out.stderr
+    (_, _), (short, short_peak), (long, long_peak) = json.loads(out.stdout)
     assert long >= 7.5 * short > 7.5 * 3 * 512
     assert long_peak - short_peak < bound, (short_peak, long_peak)
