@@ -42,7 +42,8 @@ def main(drawn: bool, h_long: float, folder: Path) -> list[tuple[int, int]]:
     writer.CHUNK = CHUNK
     writer.DRAIN_ROWS = DRAIN_ROWS
     # The warm-up pays rerun's and pyarrow's imports and first-use caches, and the first flush.
-    return [writer_peak(h, folder / f"{name}.rrd", drawn) for name, h in (("warm", 5e-4), ("short", 1e-3), ("long", h_long))]
+    steps = {"warm": 5e-4, "short": 1e-3, "long": h_long}
+    return [writer_peak(h, folder / f"{name}.rrd", drawn) for name, h in steps.items()]
 
 
 if __name__ == "__main__":

@@ -82,7 +82,8 @@ def test_the_recording_is_the_same_in_small_chunks_as_in_one(rate, tmp_path, mon
 # are 1.2 MB and 0.45 MB; the writer that held the whole trace grew by 4.9 MB and 7 MB here.
 @pytest.mark.parametrize(("drawn", "h_long", "bound"), [(False, 5e-5, 0.1e6), (True, 1.25e-4, 0.2e6)])
 def test_the_writers_memory_does_not_grow_with_the_run(drawn, h_long, bound, tmp_path):
-    command = [sys.executable, "-m", "helpers.writer_memory", "drawn" if drawn else "states", str(h_long), str(tmp_path)]
+    what = "drawn" if drawn else "states"
+    command = [sys.executable, "-m", "helpers.writer_memory", what, str(h_long), str(tmp_path)]
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(TESTS), os.environ.get("PYTHONPATH", "")])}
     out = subprocess.run(command, capture_output=True, text=True, env=env, timeout=300)
     assert out.returncode == 0, out.stderr
