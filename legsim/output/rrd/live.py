@@ -217,6 +217,9 @@ def stream_rrd(
             record(rec, content)
         return
     url = viewer_url(connect)
+    # Python's first use of its temporary folder writes and removes a probe file there: done
+    # before the first wait, a Ctrl-C or SIGTERM during the waits cannot land inside it.
+    tempfile.gettempdir()
     check_reachable(connect, url, timeout)
     with tempfile.TemporaryDirectory(prefix="legsim-connect-") as folder:
         file = Path(folder) / "recording.rrd"
