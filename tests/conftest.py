@@ -9,6 +9,7 @@ import atexit
 import contextlib
 import os
 import shutil
+import signal
 import subprocess
 import sys
 import tempfile
@@ -68,6 +69,11 @@ def _own_home() -> None:
 
 
 _own_home()
+
+# A shell starts a background job with SIGINT ignored, and every command a test starts would
+# inherit that: the tests of Ctrl-C need the signal's default, whoever started the suite.
+if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+    signal.signal(signal.SIGINT, signal.default_int_handler)
 
 # Compiled code (legsim's generated kernels, numba's caches of jitted functions) goes to a folder
 # of the system's temporary directory, not to the test home or the source tree: kept between
