@@ -22,6 +22,7 @@ callback, for models whose contact subsets are too many to enumerate up front.
 from __future__ import annotations
 
 import math
+import threading
 import weakref
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, replace
@@ -377,6 +378,11 @@ class HybridSystem:
         for key in self._modes:
             self._bind_functions(key)
         self._compiled: dict[str, ModeData] = {}
+        #: The integrator's scratch between runs of this system, never part of its definition:
+        #: the tables of a finished run, its modes ready, for the next run under the same law
+        #: (``legsim.relaxed.tables.kept_tables``).
+        self.run_scratch: dict[Any, Any] = {}
+        self._turn = threading.RLock()
         self._continued: dict[tuple[str, int], Transition] = {}
         if initial is not None:
             mode0, x0 = initial
@@ -492,6 +498,13 @@ class HybridSystem:
     def energy(self) -> Callable[[str, np.ndarray], float] | None:
         """``energy(mode, x)`` in J, or None when the model does not define one."""
         return self._energy
+
+    def turn(self) -> threading.RLock:
+        """The lock that runs of this system take turns with (``with system.turn(): ...``): its
+        model functions may keep scratch of their own (a robot's Pinocchio data) that two runs
+        at once would share. Re-entrant, for a run started from inside another's callback;
+        systems built apart run at once."""
+        return self._turn
 
     def mode(self, name: str) -> Mode:
         """The mode called ``name`` (expanded on first use for lazy systems)."""

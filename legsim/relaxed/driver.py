@@ -62,7 +62,7 @@ from .layout import (
     S_WINDOW,
 )
 from .stages import INFO_EXTRA, INFO_STAGES, method_arrays
-from .tables import RunTables
+from .tables import RunTables, kept_tables
 from .workspace import Workspace, allocate, resized, with_longer_buffers
 
 #: The compiled kernel, set by ``legsim.compiled``: ``KERNEL.run(tables, ws, method)`` and
@@ -117,25 +117,26 @@ def drive(
     (``legsim.control.ControlLaw``): x0 the plant's state; the controller's memory starts from
     ``memory``, else ``law.initial_memory`` or the Python controller's ``memory()``."""
     wall0 = time.perf_counter()
-    tables = RunTables(system, control, law)
-    row = tables.register(mode)
-    tables.prepare(row)
-    method = method_arrays(options.tableau)
-    stages = method.info[INFO_STAGES] + max(method.info[INFO_EXTRA], 0)
-    # As wide as the widest mode built so far: reaching a wider mode later would copy the buffers.
-    width = max(tables.widest, max((m.dim for m in system.modes.values()), default=0) + tables.memory)
-    ws = allocate(width, tables.most_guards, stages, tables.inputs, tables.memory, tables.n_transitions)
-    settings(ws, options, tables)
-    start(tables, ws, row, x0, memory, options)
-    compiled = KERNEL is not None and not options.python
-    if KERNEL is None and tables.compiled:
-        tables.python_reason = "the compiled kernel is not loaded (legsim.compiled was not imported)"
-    elif options.python:
-        tables.python_reason = "the run asked for plain Python (simulate(python=True))"
-    assembly = Assembly(system, tables, options)
-    run = Runner(tables, ws, method, compiled, options, assembly)
-    run.go()
-    return assembly.execution(run.ws, run.steps, time.perf_counter() - wall0, tables.python_reason)
+    with kept_tables(system, control, law) as tables:
+        row = tables.register(mode)
+        tables.make_ready(row)
+        method = method_arrays(options.tableau)
+        stages = method.info[INFO_STAGES] + max(method.info[INFO_EXTRA], 0)
+        # As wide as the widest mode built so far: reaching a wider mode later would copy the buffers.
+        width = max(tables.widest, max((m.dim for m in system.modes.values()), default=0) + tables.memory)
+        ws = allocate(width, tables.most_guards, stages, tables.inputs, tables.memory, tables.n_transitions)
+        settings(ws, options, tables)
+        start(tables, ws, row, x0, memory, options)
+        compiled = KERNEL is not None and not options.python
+        python_reason = tables.python_reason
+        if KERNEL is None and tables.compiled:
+            python_reason = "the compiled kernel is not loaded (legsim.compiled was not imported)"
+        elif options.python:
+            python_reason = "the run asked for plain Python (simulate(python=True))"
+        assembly = Assembly(system, tables, options)
+        run = Runner(tables, ws, method, compiled, options, assembly)
+        run.go()
+        return assembly.execution(run.ws, run.steps, time.perf_counter() - wall0, python_reason)
 
 
 def settings(ws: Workspace, options: Options, tables: RunTables) -> None:

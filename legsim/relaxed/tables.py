@@ -15,7 +15,9 @@ register a new outcome; the driver grows them between calls.
 
 from __future__ import annotations
 
+import contextlib
 import functools
+from collections.abc import Iterator
 from typing import Any
 
 import numpy as np
@@ -59,6 +61,27 @@ from .layout import (
 SPARE = 64
 #: Joint outcomes a mode with a Python joint function may register.
 PYTHON_JOINT_OUTCOMES = 64
+
+
+@contextlib.contextmanager
+def kept_tables(system: HybridSystem, control: Any, law: Any) -> Iterator[RunTables]:
+    """The tables for a run of ``system`` under ``law`` (a ``ControlLaw``, or None): those the
+    system's last finished run under the same law left, its modes already ready, so that a
+    system's modes are built once however many runs it makes (an orbit search, a benchmark, a
+    scene run again). A Python ``control`` gets new tables (its adapters belong to its run), and
+    so does a run started inside another (from its callback). Tables are kept again only when
+    the run ends without an exception: a mode half-prepared by a failing model is not reused.
+    The caller holds the system's turn (``HybridSystem.turn``)."""
+    if control is not None:
+        yield RunTables(system, control, law)
+        return
+    key = ("tables", id(law))
+    tables = system.run_scratch.pop(key, None)
+    if tables is None or tables.law is not law:
+        tables = RunTables(system, None, law)
+    tables.breakdowns.last = None
+    yield tables
+    system.run_scratch[key] = tables
 
 
 class RunTables:
@@ -139,6 +162,11 @@ class RunTables:
         else:
             out[M_FIELD] = self.function(adapt.field_adapter(mode, self.cell, self.breakdowns))
             self._python(f"mode '{name}' is written as Python callables")
+
+    def make_ready(self, row: int) -> None:
+        """Prepare mode ``row`` unless an earlier run of these tables has."""
+        if self.modes[row, M_READY] == 0:
+            self.prepare(row)
 
     def prepare(self, row: int) -> None:
         """Make mode ``row`` ready: its transitions' and continuations' targets registered, its

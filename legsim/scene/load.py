@@ -243,37 +243,39 @@ class Scene:
         """
         from ..relaxed import simulate
 
-        s = self.integrator
-        before = _model_counters(self.model)
-        control = self.control
-        execution = simulate(
-            self.model.system,
-            self.initial_state.copy(),
-            self.initial_mode,
-            s["t_final"],
-            s["h"],
-            s["eps"],
-            s["method"],
-            control,
-            t0=s["t0"],
-            max_transitions=s["max_transitions"],
-            max_halvings=s["max_halvings"],
-            progress=progress,
-            rtol=s["rtol"],
-            atol=s["atol"],
-            landing=s["landing"],
-            max_steps=s["max_steps"],
-            continuation=s["continuation"],
-            zeno_window=s["zeno_window"] or self.model.info.get(ZENO_WINDOW),
-            watches=self.watches(control),
-        )
-        after = _model_counters(self.model)
-        for key, value in after.items():
-            # Report this run's count: the builder may have evaluated terms while being checked.
-            delta = value - before.get(key, 0) if isinstance(value, (int, float)) else value
-            name = key if key not in execution.counters else f"model_{key}"
-            execution.counters[name] = delta
-        return execution
+        # The run's own model counters: other runs of the system wait for their turn.
+        with self.model.system.turn():
+            s = self.integrator
+            before = _model_counters(self.model)
+            control = self.control
+            execution = simulate(
+                self.model.system,
+                self.initial_state.copy(),
+                self.initial_mode,
+                s["t_final"],
+                s["h"],
+                s["eps"],
+                s["method"],
+                control,
+                t0=s["t0"],
+                max_transitions=s["max_transitions"],
+                max_halvings=s["max_halvings"],
+                progress=progress,
+                rtol=s["rtol"],
+                atol=s["atol"],
+                landing=s["landing"],
+                max_steps=s["max_steps"],
+                continuation=s["continuation"],
+                zeno_window=s["zeno_window"] or self.model.info.get(ZENO_WINDOW),
+                watches=self.watches(control),
+            )
+            after = _model_counters(self.model)
+            for key, value in after.items():
+                # Report this run's count: the builder may have evaluated terms while being checked.
+                delta = value - before.get(key, 0) if isinstance(value, (int, float)) else value
+                name = key if key not in execution.counters else f"model_{key}"
+                execution.counters[name] = delta
+            return execution
 
     def check_accuracy(self, progress: Callable[[float, float, float], None] | None = None) -> tuple[Execution, Any]:
         """The scene's run and the estimate of its error (``legsim.accuracy``): the run repeated

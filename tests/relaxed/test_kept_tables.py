@@ -1,0 +1,114 @@
+"""A system's modes are built once: a run keeps its tables (the modes it made ready, their
+transitions and functions) on the system for the next run under the same law
+(``legsim.relaxed.tables.kept_tables``). A later run prepares no mode again and gives the same
+execution to the bit as a run on tables of its own; runs of one system in several threads take
+turns, and a run after a failing one builds tables of its own."""
+
+from __future__ import annotations
+
+import threading
+
+import numpy as np
+import pytest
+
+from legsim import HybridSystem, Mode, ModelError, Transition, simulate
+from legsim.relaxed import tables as run_tables
+from legsim.scene import load_scene
+
+
+def _same(a, b) -> None:
+    assert (a.status, a.final_mode, a.t_end) == (b.status, b.final_mode, b.t_end)
+    assert [(tr.name, tr.time) for tr in a.transitions] == [(tr.name, tr.time) for tr in b.transitions]
+    assert np.array_equal(a.final_state, b.final_state)
+    assert a.counters["field_evals"] == b.counters["field_evals"]
+
+
+@pytest.fixture
+def prepared(monkeypatch):
+    """The modes each run makes ready, by name, one list per run (appended as they happen)."""
+    runs: list[list[str]] = []
+    original = run_tables.RunTables.prepare
+
+    def counting(self, row):
+        runs[-1].append(self.names[row])
+        return original(self, row)
+
+    monkeypatch.setattr(run_tables.RunTables, "prepare", counting)
+    return runs
+
+
+def test_a_second_run_prepares_no_mode_and_gives_the_same_execution(prepared):
+    scene = load_scene("pronk", ["integrator.t_final=1.0"])
+    prepared.append([])
+    first = scene.simulate()
+    prepared.append([])
+    second = scene.simulate()
+    # the hopper lands on either leg or both: every mode it entered was built by the first run
+    assert len(prepared[0]) >= 3 and prepared[1] == []
+    assert first.counters["python_steps"] == second.counters["python_steps"] == 0
+    _same(first, second)
+    # and the same as a run on tables of its own (a fresh system)
+    prepared.append([])
+    _same(second, load_scene("pronk", ["integrator.t_final=1.0"]).simulate())
+    assert len(prepared[2]) == len(prepared[0])
+
+
+def test_the_python_loop_after_a_compiled_run_says_so_and_the_next_compiled_run_does_not():
+    scene = load_scene("pronk", ["integrator.t_final=0.5"])
+    system, x0 = scene.model.system, scene.initial_state
+
+    def run(python: bool):
+        return simulate(system, x0, scene.initial_mode, 0.5, 1e-3, 1e-4, python=python)
+
+    compiled, plain, again = run(False), run(True), run(False)
+    assert compiled.counters["python_steps"] == 0 and "python_reason" not in compiled.settings
+    assert plain.counters["compiled_steps"] == 0
+    assert plain.settings["python_reason"] == "the run asked for plain Python (simulate(python=True))"
+    assert again.counters["python_steps"] == 0 and "python_reason" not in again.settings
+    _same(compiled, again)
+
+
+def test_runs_of_one_robot_in_threads_at_once_each_give_the_execution_of_a_run_alone():
+    # The robot's native model keeps one scratch (Pinocchio's data): runs at once corrupted the
+    # heap and crashed the process; they take turns now.
+    scene = load_scene("pronk", ["integrator.t_final=1.0"])
+    alone = scene.simulate()
+    results: list = [None] * 4
+
+    def run(k: int) -> None:
+        results[k] = scene.simulate()
+
+    threads = [threading.Thread(target=run, args=(k,)) for k in range(len(results))]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    assert len(alone.transitions) > 3
+    for result in results:
+        _same(alone, result)
+
+
+def _ladder(fail_at: str | None = None) -> HybridSystem:
+    """A point rising at 1/s through rungs at x = 1, 2, ...: mode k's guard is x - (k + 1)
+    crossing into mode k + 1 (expanded on first use); expanding ``fail_at`` raises."""
+
+    def expand(name: str):
+        if name == fail_at:
+            raise RuntimeError(f"no rung {name}")
+        k = int(name)
+        mode = Mode(1, lambda t, x, u: np.array([1.0]), names=("x",))
+        return mode, [Transition(name, str(k + 1), lambda x, k=k: k + 1 - x[0], name=f"rung{k}")]
+
+    return HybridSystem({}, expand=expand, dims=lambda name: 1, name="ladder")
+
+
+def test_a_run_that_fails_building_a_mode_keeps_no_tables_and_the_next_run_builds_its_own(prepared):
+    system = _ladder(fail_at="3")
+    prepared.append([])
+    with pytest.raises(ModelError, match=r"no rung 3"):
+        simulate(system, [0.5], "0", 5.0, 1e-2, 1e-4)
+    assert not [key for key in system.run_scratch if key != "turn"]  # no tables kept
+    prepared.append([])
+    short = simulate(system, [0.5], "0", 2.2, 1e-2, 1e-4)  # stops before the broken rung
+    assert [tr.target for tr in short.transitions] == ["1", "2"]
+    assert prepared[1] == ["0", "1", "2"]  # built anew, none taken from the failed run
