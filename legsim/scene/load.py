@@ -193,7 +193,11 @@ class Scene:
     def control(self) -> Any:
         """What a run is controlled by: a newly made ``[controller]`` (a controller keeps state
         across transitions, so every run starts from the one the section describes, never from
-        where an earlier run left it), else the model's own control (None without either)."""
+        where an earlier run left it), else the model's own control (None without either). A
+        ``ControlLaw`` keeps nothing in itself (its memory is the run's state): every run shares
+        the scene's one, and with it the tables an earlier run built (``legsim.relaxed.tables``)."""
+        if isinstance(self.controller, ControlLaw):
+            return self.controller
         return self.make_controller() if self.make_controller is not None else self.model.control
 
     @property
