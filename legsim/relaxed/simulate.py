@@ -132,43 +132,50 @@ def simulate(
     """
     if not isinstance(system, HybridSystem):
         raise SimulationError(f"system must be a legsim.HybridSystem, got {type(system).__name__}")
-    # The model may keep scratch of its own (a robot's Pinocchio data): runs of one system take turns.
+    h, eps = positive("h", h), positive("eps", eps)
+    t0, t_final = _times(t0, t_final, h)
+    tableau = get_method(method)
+    if method in SCIPY_NAMES and rtol is None and atol is None and step_size is None:
+        rtol, atol = ADAPTIVE_DEFAULTS
+    law = control if isinstance(control, ControlLaw) else None
+    control = None if law is not None else _bound_control(control)
+    rule = _step_size_part(step_size, tableau, h) if step_size is not None else step_size_rule(tableau, h, rtol, atol)
+    _check_continuation(continuation)
+    options = Options(
+        tableau=tableau,
+        h=h,
+        eps=eps,
+        landing=landing_part(landing, tableau),
+        rtol=rule[0],
+        atol=rule[1],
+        t0=t0,
+        t_final=t_final,
+        max_transitions=count("max_transitions", max_transitions, 0),
+        max_halvings=count("max_halvings", max_halvings, 1),
+        max_steps=_check_step_budget(max_steps, t0, t_final, h),
+        continuation=bool(continuation),
+        zeno_window=h + eps if zeno_window is None else positive("zeno_window", zeno_window),
+        hold=law.hold if law is not None else isinstance(control, Bound) and control.hold,
+        progress=progress,
+        python=bool(python),
+        watches=check_watches(watches),
+    )
+    return _run(system, mode, x0, control, law, options, _eval_times(t_eval, t0, t_final))
+
+
+def _run(
+    system: HybridSystem, mode: str, x0: Any, control: Any, law: ControlLaw | None, options: Options,
+    times: np.ndarray | None,
+) -> Execution:  # fmt: skip
+    """The run of checked arguments from (mode, x0), sampled at ``times`` (s) when given. It
+    holds the system's turn: the model may keep scratch of its own (a robot's Pinocchio data),
+    so runs of one system take turns."""
     with system.turn():
-        h, eps = positive("h", h), positive("eps", eps)
-        t0, t_final = _times(t0, t_final, h)
-        tableau = get_method(method)
-        if method in SCIPY_NAMES and rtol is None and atol is None and step_size is None:
-            rtol, atol = ADAPTIVE_DEFAULTS
-        law = control if isinstance(control, ControlLaw) else None
-        control = None if law is not None else _bound_control(control)
-        x, memory = _initial_state(system, mode, x0, t0, eps, control, law)
-        rule = (
-            _step_size_part(step_size, tableau, h) if step_size is not None else step_size_rule(tableau, h, rtol, atol)
-        )
-        _check_continuation(continuation)
-        options = Options(
-            tableau=tableau,
-            h=h,
-            eps=eps,
-            landing=landing_part(landing, tableau),
-            rtol=rule[0],
-            atol=rule[1],
-            t0=t0,
-            t_final=t_final,
-            max_transitions=count("max_transitions", max_transitions, 0),
-            max_halvings=count("max_halvings", max_halvings, 1),
-            max_steps=_check_step_budget(max_steps, t0, t_final, h),
-            continuation=bool(continuation),
-            zeno_window=h + eps if zeno_window is None else positive("zeno_window", zeno_window),
-            hold=law.hold if law is not None else isinstance(control, Bound) and control.hold,
-            progress=progress,
-            python=bool(python),
-            watches=check_watches(watches),
-        )
-        times, execution = _eval_times(t_eval, t0, t_final), drive(system, mode, x, control, law, options, memory)
-        if times is not None:
-            execution.evaluated = execution.sample(times[times <= execution.t_end])
-        return execution
+        x, memory = _initial_state(system, mode, x0, options.t0, options.eps, control, law)
+        execution = drive(system, mode, x, control, law, options, memory)
+    if times is not None:
+        execution.evaluated = execution.sample(times[times <= execution.t_end])
+    return execution
 
 
 def _check_continuation(continuation: Any) -> None:
