@@ -66,22 +66,22 @@ PYTHON_JOINT_OUTCOMES = 64
 @contextlib.contextmanager
 def kept_tables(system: HybridSystem, control: Any, law: Any) -> Iterator[RunTables]:
     """The tables for a run of ``system`` under ``law`` (a ``ControlLaw``, or None): those the
-    system's last finished run under the same law left, its modes already ready, so that a
-    system's modes are built once however many runs it makes (an orbit search, a benchmark, a
-    scene run again). A Python ``control`` gets new tables (its adapters belong to its run), and
-    so does a run started inside another (from its callback). Tables are kept again only when
-    the run ends without an exception: a mode half-prepared by a failing model is not reused.
-    The caller holds the system's turn (``HybridSystem.turn``)."""
+    system's last finished run left when it ran under the same law, its modes already ready, so
+    that a system's modes are built once however many runs it makes (an orbit search, a
+    benchmark, a scene run again). The system keeps one set, its last run's, whatever law that
+    was. A Python ``control`` gets new tables (its adapters belong to its run), and so does a run
+    started inside another (from its callback). Tables are kept only when the run ends without
+    an exception: a mode half-prepared by a failing model is not reused. The caller holds the
+    system's turn (``HybridSystem.turn``)."""
     if control is not None:
         yield RunTables(system, control, law)
         return
-    key = ("tables", id(law))
-    tables = system.run_scratch.pop(key, None)
+    tables = system.run_scratch.pop("tables", None)
     if tables is None or tables.law is not law:
         tables = RunTables(system, None, law)
     tables.breakdowns.last = None
     yield tables
-    system.run_scratch[key] = tables
+    system.run_scratch["tables"] = tables
 
 
 class RunTables:
