@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from .spec import SweepError
+from .errors import SweepError
 
 #: The measures' kinds, with what they compute (the error messages quote these).
 KINDS = {

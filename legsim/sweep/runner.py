@@ -14,6 +14,7 @@ import pyarrow as pa
 
 from ..progress import counting
 from .engine import Engine
+from .measures import check_coordinates, check_measures
 from .spec import SweepError, SweepSpec, corners, variation_overrides
 from .table import ResultStore, schema, to_table, with_rows_digest
 from .tasks import run_batch
@@ -189,8 +190,6 @@ def check_sweep(spec: SweepSpec) -> dict[str, float] | None:
     if spec.run == "walk" or spec.orbit:
         problem_from_scene(base)  # the [orbit] section is there and valid
     if spec.measures:
-        from .measures import check_coordinates, check_measures
-
         check_coordinates(check_measures(spec.measures), base.model.system, base.path)
     if spec.run != "walk" or any(not k.startswith("initial.") for k in spec.keys):
         return None

@@ -30,8 +30,9 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import LegsimError
 from ..output.untrusted import check_list, check_object
+from .errors import SweepError
+from .measures import check_measures
 
 #: Most variations of one sweep: each is a row held in memory while the table is assembled.
 MAX_VARIATIONS = 10_000_000
@@ -40,10 +41,6 @@ MAX_VARIATIONS = 10_000_000
 RUN_KINDS = ("scene", "walk", "none")
 #: Where an orbit search's initial guess comes from: the scene, or the variation's run.
 ORBIT_GUESSES = ("scene", "run")
-
-
-class SweepError(LegsimError):
-    """A sweep is misdescribed (axes, measures, output folder); the message names the option."""
 
 
 @dataclass(frozen=True)
@@ -219,8 +216,6 @@ def check_spec(spec: SweepSpec) -> None:
     if spec.orbit_guess == "run" and not (spec.orbit and spec.run == "scene"):
         raise SweepError("--orbit-guess run needs --orbit and runs to t_final (not with --walk or --no-run)")
     if spec.measures:
-        from .measures import check_measures
-
         if spec.run != "scene":
             raise SweepError("--measure needs runs to t_final (not with --walk or --no-run)")
         check_measures(spec.measures)

@@ -35,6 +35,7 @@ import pyarrow.parquet as pq
 from ..output.arrow_digest import table_digest
 from ..output.files import file_kind, write_atomic
 from ..output.untrusted import check_object, load_json
+from .measures import check_measures
 from .spec import SweepError, SweepSpec
 
 RESULTS = "results.parquet"
@@ -140,8 +141,6 @@ def schema(spec: SweepSpec) -> pa.Schema:
     if spec.run != "none":
         columns.update(RUN_COLUMNS)
     if spec.measures:
-        from .measures import check_measures
-
         columns.update({m.column: _F64 for m in check_measures(spec.measures)})
     if spec.run == "walk":
         columns.update(WALK_COLUMNS)

@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import LegsimError, ModelError
+from .measures import check_measures, measure_columns
 from .spec import SweepError, SweepSpec, variation_overrides
 
 #: Reference gaits a worker keeps (scene variants: different robot parameters or settings).
@@ -90,7 +91,6 @@ def run_columns(scene: Any, execution: Any, measures: tuple[str, ...] = ()) -> d
     """The scene's run to its t_final: the run summary's columns, ``fell`` and the ``measures``'
     columns (``legsim.sweep.measures``)."""
     from ..output.summary import run_summary
-    from .measures import check_measures, measure_columns
 
     summary = run_summary(execution, scene)
     out = {
