@@ -1,9 +1,9 @@
 """Tests leave the home folder alone: a slice of the suite run with a fresh, empty ``HOME`` (and
 no XDG folders set, so that every library's default location is under it) leaves it empty.
 
-The slice holds the tests that reach for the home folder: a real Rerun server and a viewer
-started by ``--spawn`` (Rerun's analytics config and queued events), plots (matplotlib's font
-cache), a Dask sweep writing Parquet, and compiled kernels (legsim's and numba's caches).
+The slice holds tests that reach for the home folder, one kind each: a real Rerun server and a
+viewer started by ``--spawn`` (Rerun's analytics config and queued events), plots (matplotlib's
+font cache), a Dask sweep writing Parquet, and compiled kernels (legsim's and numba's caches).
 ``.ci/run`` makes the same check around the whole suite.
 """
 
@@ -17,11 +17,13 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 
+# One test file or test per way of reaching the home folder; `legsim run --connect`
+# (tests/commands/test_run_live.py) reaches it through the same Rerun client as the server tests.
 SLICE = (
     "tests/output/rrd/test_live_server.py",
-    "tests/commands/test_run_live.py",
     "tests/viz/test_plots.py",
-    "tests/sweep/test_runner.py",
+    "tests/sweep/test_runner.py::test_a_local_dask_cluster_gives_the_table_of_this_process",
+    "tests/sweep/test_runner.py::test_a_walk_sweep_draws_the_basin_and_an_orbit_sweep_the_stability_map",
     "tests/relaxed/test_paths.py",
 )
 
