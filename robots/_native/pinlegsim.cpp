@@ -26,6 +26,7 @@
 #include <pinocchio/algorithm/rnea.hpp>
 #include <pinocchio/multibody.hpp>
 
+#include <algorithm>
 #include <array>
 #include <chrono>
 #include <cstring>
@@ -106,19 +107,34 @@ enum Counter { ABA = 0, KKT = 1, JACOBIANS = 2, KINEMATICS = 3, IMPACTS = 4, CAC
 
 // The last solve of one algorithm, by its inputs: a mode's guards at a step's end and its field
 // at the next step's first stage share one solve (same state, same input), as do the
-// controller's and the field's gravity terms. Inputs are compared bit for bit.
+// controller's and the field's gravity terms. Inputs are compared bit for bit, in place: a solve
+// that misses (most do) copies its inputs once, into storage sized at the first solve, so that
+// a call allocates nothing.
 struct SolveCache {
-  std::vector<double> key, probe, first, second;
-  // Whether the inputs (their parts concatenated) are the last solve's; the probe keeps them
-  // for store().
+  std::vector<double> key, pending, first, second;
+  // Whether the inputs (their parts end to end) are the last solve's; on a miss, pending keeps
+  // them for store() (the outputs may overwrite an input).
   bool hit(std::initializer_list<std::pair<const double*, long>> parts) {
-    probe.clear();
-    for (const auto& part : parts) probe.insert(probe.end(), part.first, part.first + part.second);
-    return !key.empty() && probe.size() == key.size() &&
-           std::memcmp(probe.data(), key.data(), probe.size() * sizeof(double)) == 0;
+    size_t size = 0;
+    for (const auto& part : parts) size += static_cast<size_t>(part.second);
+    bool same = !key.empty() && size == key.size();
+    size_t at = 0;
+    for (const auto& part : parts) {
+      if (!same) break;
+      if (part.second > 0) same = std::memcmp(key.data() + at, part.first, part.second * sizeof(double)) == 0;
+      at += static_cast<size_t>(part.second);
+    }
+    if (same) return true;
+    pending.resize(size);
+    at = 0;
+    for (const auto& part : parts) {
+      if (part.second > 0) std::copy(part.first, part.first + part.second, pending.data() + at);
+      at += static_cast<size_t>(part.second);
+    }
+    return false;
   }
   void store(const double* a, long na, const double* b, long nb) {
-    key.swap(probe);
+    key.swap(pending);
     first.assign(a, a + na);
     second.assign(b, b + nb);
   }
