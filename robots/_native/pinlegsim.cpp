@@ -365,6 +365,10 @@ bool consistent(const Mat& A) {
 
 }  // namespace
 
+// The C interface is the library's only export: everything else (Pinocchio's template code
+// above) is compiled with hidden visibility (setup.py), so that its calls bind inside the
+// library, without the procedure linkage table, and the compiler may inline them.
+#pragma GCC visibility push(default)
 extern "C" {
 
 // Version of this C interface (bumped when a signature changes).
@@ -652,3 +656,4 @@ double lsn_time_aba(long h, const double* q, const double* v, const double* tau,
 }
 
 }  // extern "C"
+#pragma GCC visibility pop
