@@ -62,7 +62,10 @@ def native_extensions() -> list[Extension]:
             language="c++",
             include_dirs=[str(include), str(include / "eigen3")],
             define_macros=defines,
-            extra_compile_args=["-std=c++17", "-O2", "-g0", "-w"],
+            # -O3 inlines Pinocchio's small spatial-algebra functions (about 30% off a field evaluation);
+            # hidden visibility: only the C interface is exported (pinlegsim.cpp), and Pinocchio's
+            # functions are called directly inside the library (a little faster, same arithmetic).
+            extra_compile_args=["-std=c++17", "-O3", "-g0", "-w", "-fvisibility=hidden", "-fvisibility-inlines-hidden"],
             optional=True,
         )
     ]

@@ -120,16 +120,17 @@ def floating_model(m: float, mH: float, a: float, b: float, g: float, slope: flo
 
 #: The compass gait's parameter array p: the stance and impact models' native handles, the leg
 #: length l (m), the stance model's swing-foot frame id, the impact's constraint block (the
-#: swing foot ``foot2`` pinned in x and z: point, frame, sign, 2 rows) and its restitution 0.
-CG_STANCE, CG_IMPACT, CG_L, CG_FOOT, CG_BLOCK, CG_COEFF = 0, 1, 2, 3, 4, 8
+#: swing foot ``foot2`` pinned in x and z: point, frame, sign, 2 rows), its restitution 0, and
+#: the joint torques of the passive walker (N m, both 0), which the field hands to ABA as they
+#: are rather than allocating a zero array at every evaluation.
+CG_STANCE, CG_IMPACT, CG_L, CG_FOOT, CG_BLOCK, CG_COEFF, CG_TAU = 0, 1, 2, 3, 4, 8, 9
 
 
 @model_function
 def stance_field(t, x, u, p, dx):
     """(stanced, hipd, ABA accelerations of the stance chain, 0 for foot_x), shape (5,)."""
-    tau = np.zeros(2)
     dx[0], dx[1], dx[4] = x[2], x[3], 0.0
-    lsn_aba(np.int64(p[CG_STANCE]), x.ctypes.data, ptr(x, 2), tau.ctypes.data, ptr(dx, 2))
+    lsn_aba(np.int64(p[CG_STANCE]), x.ctypes.data, ptr(x, 2), ptr(p, CG_TAU), ptr(dx, 2))
 
 
 @model_function
@@ -194,7 +195,7 @@ class CompassGait:
             stance_field,
             heel_strike_guard,
             heel_strike,
-            params=[self.handle, impact, self.l, self._foot_id, 1.0, foot2, 1.0, 2.0, 0.0],
+            params=[self.handle, impact, self.l, self._foot_id, 1.0, foot2, 1.0, 2.0, 0.0, 0.0, 0.0],
             nan_breaks=True,
         )
 

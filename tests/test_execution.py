@@ -160,3 +160,26 @@ def test_summary_counts(ball_run):
     assert summary["reset_evals"] == len(ball_run.transitions)
     assert summary["final_in_strip"] == ball_run.final_in_strip
     assert summary["strip_time"] == pytest.approx(sum(s.exit_time - s.time for s in ball_run.strips))
+
+
+def test_filled_records_equal_the_records_their_constructors_make(ball_run):
+    # The drain builds segments, strips and transitions with ``filled`` (every field at once);
+    # each must equal, field for field, the record its dataclass constructor makes, and stay
+    # frozen. The ball's run has all three kinds.
+    from dataclasses import FrozenInstanceError, asdict, fields
+
+    from legsim.execution import Segment, Strip, TransitionRecord, filled
+
+    for records, cls in (
+        (ball_run.segments, Segment),
+        (ball_run.strips, Strip),
+        (ball_run.transitions, TransitionRecord),
+    ):
+        assert records, f"the run has no {cls.__name__}"
+        for record in records[:3]:
+            values = {f.name: getattr(record, f.name) for f in fields(cls)}
+            made, constructed = filled(cls, **values), cls(**values)
+            assert type(made) is cls
+            assert {k: repr(v) for k, v in asdict(made).items()} == {k: repr(v) for k, v in asdict(constructed).items()}
+            with pytest.raises(FrozenInstanceError):
+                made.time = 0.0  # type: ignore[misc]

@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from ..execution import Execution, RunWarning, Segment, Status, Strip, TransitionRecord
+from ..execution import Execution, RunWarning, Segment, Status, Strip, TransitionRecord, filled
 from . import messages, watches
 from .layout import (
     COUNTERS,
@@ -91,15 +91,23 @@ class Assembly:
         n_points, n_visits = int(ws.iv[I_POINTS]), int(ws.iv[I_VISITS])
         open_visit = not final and ws.iv[I_PHASE] == PHASE_STEP and n_visits > 0
         self._records(ws)
+        # The visits' rows as Python numbers at once (as the records'), the last one's end n_points.
+        modes = ws.visits[:n_visits, V_MODE].tolist()
+        ends = [*ws.visits[1:n_visits, V_FIRST].tolist(), n_points]
+        first = int(ws.visits[0, V_FIRST]) if n_visits else 0
+        # One copy of the stored points, whose rows the visits stored whole take as their own.
+        stored = (ws.T[:n_points].copy(), ws.X[:n_points].copy(), ws.DX[:n_points].copy())
         for v in range(n_visits):
-            first = int(ws.visits[v, V_FIRST])
-            last = int(ws.visits[v + 1, V_FIRST]) if v + 1 < n_visits else n_points
-            mode = int(ws.visits[v, V_MODE])
+            mode, last = modes[v], ends[v]
             if v + 1 == n_visits and open_visit:
                 self._extend(ws, mode, first, last - 1)
                 break
-            self._extend(ws, mode, first, last)
-            self._close()
+            if self._open is None:  # a visit stored whole: its segment at once
+                self._whole(ws, stored, mode, first, last)
+            else:
+                self._extend(ws, mode, first, last)
+                self._close()
+            first = last
         if open_visit:
             mode = int(ws.visits[n_visits - 1, V_MODE])
             n = self._width(mode)
@@ -125,41 +133,67 @@ class Assembly:
         xs.append(ws.X[first:last, :n].copy())
         dxs.append(ws.DX[first:last, :n].copy())
 
+    def _whole(self, ws: Any, stored: tuple[np.ndarray, ...], mode: int, first: int, last: int) -> None:
+        """The segment of a visit whose points are all in the buffers (``_extend`` then ``_close``
+        without the pieces' lists): rows of the drain's copy of the points (``stored``: t, x, dx),
+        contiguous when the mode's state fills the buffers' width, else copied."""
+        n = self._width(mode)
+        t, x, dx = stored
+        if n == x.shape[1]:
+            x, dx = x[first:last], dx[first:last]
+        else:
+            x, dx = x[first:last, :n].copy(), dx[first:last, :n].copy()
+        self.segments.append(filled(Segment, mode=self.tables.names[mode], t=t[first:last], x=x, dx=dx))
+
     def _close(self) -> None:
         if self._open is None:
             return
         mode, ts, xs, dxs = self._open
         self._open = None
-        self.segments.append(Segment(self.tables.names[mode], _joined(ts), _joined(xs), _joined(dxs)))
+        self.segments.append(
+            filled(Segment, mode=self.tables.names[mode], t=_joined(ts), x=_joined(xs), dx=_joined(dxs))
+        )
 
     def _records(self, ws: Any) -> None:
         # As Python numbers at once: indexing numpy rows field by field costs more than the records.
         count = int(ws.iv[I_RECORDS])
+        if count == 0:
+            return
         floats, ints = ws.rec_f[:count].tolist(), ws.rec_i[:count].tolist()
+        rows = self.tables.modes[:, [M_T0, M_J0]].tolist()
+        # One copy of the records' guard points and images, each record's state a row of it.
+        states = (ws.rec_q[:count].copy(), ws.rec_x[:count].copy())
         for r in range(count):
-            self._record(ws, r, floats[r], ints[r])
+            self._record(states, r, floats[r], ints[r], rows)
 
-    def _record(self, ws: Any, r: int, f: list[float], i: list[int]) -> None:
+    def _record(self, states: tuple[np.ndarray, np.ndarray], r: int, f: list[float], i: list[int],
+                rows: list[list[int]]) -> None:  # fmt: skip
+        """Record r; ``states`` the records' guard points and images, ``rows`` the first
+        transition and joint rows of each mode (``M_T0``, ``M_J0``)."""
         tables = self.tables
         source, e, kind = i[R_SOURCE], i[R_INDEX], i[R_KIND]
-        row = int(tables.modes[source, M_T0]) + e
+        row = rows[source][0] + e
         if kind == KIND_JOINT:
-            name = tables.joint_names[int(tables.modes[source, M_J0]) + i[R_JOINT]]
+            name = tables.joint_names[rows[source][1] + i[R_JOINT]]
         elif kind == KIND_CONTINUED:
             name = tables.continuation_names[row]
         else:
             name = tables.transition_names[row]
         source_name = tables.names[source]
-        q = ws.rec_q[r, : i[R_DIM_BEFORE]].copy()
+        q = states[0][r, : i[R_DIM_BEFORE]]
         tc, t_land, exit_time, tau = f[R_TIME], f[R_LANDING], f[R_EXIT], f[R_DEPTH]
-        self.strips.append(Strip(source_name, name, tc, exit_time, q, t_land, tau))
+        self.strips.append(filled(Strip, mode=source_name, name=name, time=tc, exit_time=exit_time, state=q,
+                                  landing_time=t_land, depth=tau))  # fmt: skip
         if kind == KIND_CUT:
             self.in_strip = True
             self.cut_name = name
             return
         target = tables.names[i[R_TARGET]]
-        image = ws.rec_x[r, : i[R_DIM_AFTER]].copy()
-        self.transitions.append(TransitionRecord(name, source_name, target, e, tc, t_land, exit_time, q, image, tau))
+        image = states[1][r, : i[R_DIM_AFTER]]
+        self.transitions.append(
+            filled(TransitionRecord, name=name, source=source_name, target=target, index=e, time=tc,
+                   landing_time=t_land, exit_time=exit_time, state_before=q, state_after=image, depth=tau)
+        )  # fmt: skip
         order = (i[R_ORDER_A], i[R_ORDER_B])
         self.crossings.append(
             (source_name, name, tc, exit_time, bool(i[R_ACCUMULATES]), kind == KIND_CONTINUED,

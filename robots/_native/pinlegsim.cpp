@@ -26,6 +26,7 @@
 #include <pinocchio/algorithm/rnea.hpp>
 #include <pinocchio/multibody.hpp>
 
+#include <algorithm>
 #include <array>
 #include <chrono>
 #include <cstring>
@@ -106,22 +107,46 @@ enum Counter { ABA = 0, KKT = 1, JACOBIANS = 2, KINEMATICS = 3, IMPACTS = 4, CAC
 
 // The last solve of one algorithm, by its inputs: a mode's guards at a step's end and its field
 // at the next step's first stage share one solve (same state, same input), as do the
-// controller's and the field's gravity terms. Inputs are compared bit for bit.
+// controller's and the field's gravity terms. Inputs are compared bit for bit, in place: a solve
+// that misses (most do) copies its inputs once, into storage sized at the first solve, so that
+// a call allocates nothing.
 struct SolveCache {
-  std::vector<double> key, probe, first, second;
-  // Whether the inputs (their parts concatenated) are the last solve's; the probe keeps them
-  // for store().
+  std::vector<double> key, pending, first, second;
+  // Whether the inputs (their parts end to end) are the last solve's; on a miss, pending keeps
+  // them for store() (the outputs may overwrite an input).
   bool hit(std::initializer_list<std::pair<const double*, long>> parts) {
-    probe.clear();
-    for (const auto& part : parts) probe.insert(probe.end(), part.first, part.first + part.second);
-    return !key.empty() && probe.size() == key.size() &&
-           std::memcmp(probe.data(), key.data(), probe.size() * sizeof(double)) == 0;
+    size_t size = 0;
+    for (const auto& part : parts) size += static_cast<size_t>(part.second);
+    bool same = !key.empty() && size == key.size();
+    size_t at = 0;
+    for (const auto& part : parts) {
+      if (!same) break;
+      if (part.second > 0) same = std::memcmp(key.data() + at, part.first, part.second * sizeof(double)) == 0;
+      at += static_cast<size_t>(part.second);
+    }
+    if (same) return true;
+    pending.resize(size);
+    at = 0;
+    for (const auto& part : parts) {
+      if (part.second > 0) std::copy(part.first, part.first + part.second, pending.data() + at);
+      at += static_cast<size_t>(part.second);
+    }
+    return false;
   }
   void store(const double* a, long na, const double* b, long nb) {
-    key.swap(probe);
+    key.swap(pending);
     first.assign(a, a + na);
     second.assign(b, b + nb);
   }
+};
+
+// The working storage of the constrained solves, like Pinocchio's Data: sized by a robot's first
+// solve of each row count and reused, so that a field evaluation in contact allocates nothing.
+struct Scratch {
+  std::vector<Rigid> blocks;
+  Mat J, W, frame_jacobian, MWt, A;
+  Vec gamma, acc, rhs, lambda, zero;
+  Eigen::PartialPivLU<Mat> lu;
 };
 
 struct Robot {
@@ -129,10 +154,14 @@ struct Robot {
   Data data;
   std::array<double, COUNTERS> counts{};
   SolveCache aba, kkt, gravity;
+  Scratch scratch;
   // The radius (m) of each frame: 0 for a point; r > 0 for a round frame (a sphere or a disc
   // about the frame's origin), whose kinematics are those of its contact point (round_offset).
   std::vector<double> radius;
-  explicit Robot(Model m) : model(std::move(m)), data(model), radius(model.frames.size(), 0.0) {}
+  explicit Robot(Model m) : model(std::move(m)), data(model), radius(model.frames.size(), 0.0) {
+    scratch.frame_jacobian.setZero(6, model.nv);
+    scratch.zero.setZero(model.nv);
+  }
 };
 
 // A round frame's contact point with the ground (normal +z) is its lowest point, origin + d with
@@ -210,12 +239,12 @@ bool read_joint(const double* desc, long size, long& k, std::vector<Part>& out) 
   return true;
 }
 
-std::vector<Rigid> read_rigid(long n, const double* desc) {
-  std::vector<Rigid> out(static_cast<size_t>(n));
+// The n blocks of desc (kind, id, sign, rows) into out, whose storage is reused.
+void read_rigid(long n, const double* desc, std::vector<Rigid>& out) {
+  out.resize(static_cast<size_t>(n));
   for (long i = 0; i < n; ++i)
     out[i] = Rigid{static_cast<int>(desc[4 * i]), static_cast<int>(desc[4 * i + 1]), desc[4 * i + 2],
                    static_cast<int>(desc[4 * i + 3])};
-  return out;
 }
 
 int total_rows(const std::vector<Rigid>& rigid) {
@@ -230,9 +259,10 @@ int total_rows(const std::vector<Rigid>& rigid) {
 // under every point), or (h', h'') per block: the terrain's slope dh/dx and curvature d2h/dx2
 // under the point, whose rows are then along the terrain's tangent t = (1, h') / s and normal
 // n = (-h', 1) / s, s = sqrt(1 + h'^2) (a point on a level ground takes the rows x and z as
-// before, bit for bit).
+// before, bit for bit). jacobians_ready: data.J already holds the joint Jacobians at q (an
+// aba in the WORLD convention fills them), which spares a second kinematics pass.
 void constraint_rows(Robot& rb, const ConstMap& q, const ConstMap& v, const std::vector<Rigid>& rigid,
-                     const double* slopes, bool drift, Mat& J, Vec& gamma, Mat& W) {
+                     const double* slopes, bool drift, bool jacobians_ready, Mat& J, Vec& gamma, Mat& W) {
   const Model& model = rb.model;
   Data& data = rb.data;
   const int rows = total_rows(rigid);
@@ -242,10 +272,10 @@ void constraint_rows(Robot& rb, const ConstMap& q, const ConstMap& v, const std:
   bool points = false;
   for (const Rigid& r : rigid) points = points || r.kind != STOP;
   if (points) {
-    pinocchio::forwardKinematics(model, data, q, v, Vec::Zero(model.nv));
-    pinocchio::computeJointJacobians(model, data, q);
+    pinocchio::forwardKinematics(model, data, q, v, rb.scratch.zero);
+    if (!jacobians_ready) pinocchio::computeJointJacobians(model, data, q);
   }
-  Mat Jf(6, model.nv);
+  Mat& Jf = rb.scratch.frame_jacobian;
   int i = 0;
   for (size_t b = 0; b < rigid.size(); ++b) {
     const Rigid& r = rigid[b];
@@ -302,15 +332,6 @@ void constraint_rows(Robot& rb, const ConstMap& q, const ConstMap& v, const std:
 }
 
 // M^-1 as a full symmetric matrix (Pinocchio fills its upper triangle).
-// M^-1 from the articulated-body pass of the last aba(..., Convention::WORLD) (Pinocchio's
-// computeMinverse without q reuses it: no second forward pass).
-Mat minverse_after_aba(Robot& rb) {
-  pinocchio::computeMinverse(rb.model, rb.data);
-  Mat Minv = rb.data.Minv;
-  Minv.triangularView<Eigen::StrictlyLower>() = Minv.transpose().triangularView<Eigen::StrictlyLower>();
-  return Minv;
-}
-
 Mat minverse(Robot& rb, const ConstMap& q) {
   pinocchio::computeMinverse(rb.model, rb.data, q);
   Mat Minv = rb.data.Minv;
@@ -319,17 +340,19 @@ Mat minverse(Robot& rb, const ConstMap& q) {
 }
 
 // Solve A y = b for the small SPD Delassus matrix; one and two rows in closed form as
-// robots/bridge/dynamics.solve_small does.
-Vec solve_small(const Mat& A, const Vec& b) {
-  if (A.rows() == 1) return Vec::Constant(1, b(0) / A(0, 0));
-  if (A.rows() == 2) {
+// robots/bridge/dynamics.solve_small does; lu is the reused factorisation of larger ones.
+void solve_small(const Mat& A, const Vec& b, Eigen::PartialPivLU<Mat>& lu, Vec& y) {
+  y.resize(A.rows());
+  if (A.rows() == 1) {
+    y(0) = b(0) / A(0, 0);
+  } else if (A.rows() == 2) {
     const double det = A(0, 0) * A(1, 1) - A(0, 1) * A(1, 0);
-    Vec y(2);
     y(0) = (A(1, 1) * b(0) - A(0, 1) * b(1)) / det;
     y(1) = (A(0, 0) * b(1) - A(1, 0) * b(0)) / det;
-    return y;
+  } else {
+    lu.compute(A);
+    y = lu.solve(b);
   }
-  return A.partialPivLu().solve(b);
 }
 
 bool slipping(const std::vector<Rigid>& rigid) {
@@ -349,6 +372,10 @@ bool consistent(const Mat& A) {
 
 }  // namespace
 
+// The C interface is the library's only export: everything else (Pinocchio's template code
+// above) is compiled with hidden visibility (setup.py), so that its calls bind inside the
+// library, without the procedure linkage table, and the compiler may inline them.
+#pragma GCC visibility push(default)
 extern "C" {
 
 // Version of this C interface (bumped when a signature changes).
@@ -545,33 +572,36 @@ void lsn_constrained(long h, const double* q, const double* v, const double* tau
                      const double* slopes, double* a, double* lam) {
   Robot& rb = robot(h);
   const long n = rb.model.nv;
-  const std::vector<Rigid> blocks = read_rigid(count, rigid);
   if (rb.kkt.hit({{q, n}, {v, n}, {tau, n}, {rigid, 4 * count}, {slopes, slopes == nullptr ? 0 : 2 * count}})) {
     rb.counts[CACHE_HITS] += 1;
     std::copy(rb.kkt.first.begin(), rb.kkt.first.end(), a);
     std::copy(rb.kkt.second.begin(), rb.kkt.second.end(), lam);
     return;
   }
+  Scratch& s = rb.scratch;
+  read_rigid(count, rigid, s.blocks);
   const ConstMap qm(q, n), vm(v, n);
   rb.counts[ABA] += 1;
   rb.counts[KKT] += 1;
-  Vec acc = pinocchio::aba(rb.model, rb.data, qm, vm, ConstMap(tau, n), pinocchio::Convention::WORLD);
-  const Mat Minv = minverse_after_aba(rb);
-  Mat J, W;
-  Vec gamma;
-  constraint_rows(rb, qm, vm, blocks, slopes, true, J, gamma, W);
-  const Mat MWt = Minv * W.transpose();
-  const Mat A = J * MWt;
-  if (slipping(blocks) && !consistent(A)) {
+  s.acc = pinocchio::aba(rb.model, rb.data, qm, vm, ConstMap(tau, n), pinocchio::Convention::WORLD);
+  // M^-1 (its upper triangle) from the articulated-body pass of that aba: computeMinverse
+  // without q reuses it, and the aba's joint Jacobians serve the constraint rows.
+  pinocchio::computeMinverse(rb.model, rb.data);
+  constraint_rows(rb, qm, vm, s.blocks, slopes, true, true, s.J, s.gamma, s.W);
+  s.MWt.noalias() = rb.data.Minv.selfadjointView<Eigen::Upper>() * s.W.transpose();
+  s.A.noalias() = s.J * s.MWt;
+  if (slipping(s.blocks) && !consistent(s.A)) {
     OutMap(a, n).setConstant(std::numeric_limits<double>::quiet_NaN());
-    OutMap(lam, A.rows()).setConstant(std::numeric_limits<double>::quiet_NaN());
+    OutMap(lam, s.A.rows()).setConstant(std::numeric_limits<double>::quiet_NaN());
   } else {
-    const Vec l = solve_small(A, -(J * acc + gamma));
-    acc += MWt * l;
-    OutMap(a, n) = acc;
-    OutMap(lam, l.size()) = l;
+    s.rhs.noalias() = s.J * s.acc;
+    s.rhs = -(s.rhs + s.gamma);
+    solve_small(s.A, s.rhs, s.lu, s.lambda);
+    s.acc.noalias() += s.MWt * s.lambda;
+    OutMap(a, n) = s.acc;
+    OutMap(lam, s.lambda.size()) = s.lambda;
   }
-  rb.kkt.store(a, n, lam, A.rows());
+  rb.kkt.store(a, n, lam, s.A.rows());
 }
 
 // The generalised Newton impact: v+ = v + M^-1 J^T Lambda, Lambda = (J M^-1 J^T)^-1 (-(1 + c) J v),
@@ -582,11 +612,12 @@ void lsn_impact(long h, const double* q, const double* v, long count, const doub
   Robot& rb = robot(h);
   const long n = rb.model.nv;
   const ConstMap qm(q, n), vm(v, n);
-  const std::vector<Rigid> blocks = read_rigid(count, rigid);
+  std::vector<Rigid> blocks;
+  read_rigid(count, rigid, blocks);
   rb.counts[IMPACTS] += 1;
   Mat J, W;
   Vec gamma;
-  constraint_rows(rb, qm, vm, blocks, slopes, false, J, gamma, W);
+  constraint_rows(rb, qm, vm, blocks, slopes, false, false, J, gamma, W);
   Vec c(J.rows());
   int i = 0;
   for (long b = 0; b < count; ++b)
@@ -595,7 +626,9 @@ void lsn_impact(long h, const double* q, const double* v, long count, const doub
   const Mat MJt = Minv * J.transpose();
   const Vec Jv = J * vm;
   const Vec rhs = -((Vec::Ones(c.size()) + c).cwiseProduct(Jv));
-  const Vec impulse = solve_small(J * MJt, rhs);
+  Vec impulse;
+  Eigen::PartialPivLU<Mat> lu;
+  solve_small(J * MJt, rhs, lu, impulse);
   OutMap(v_out, n) = vm + MJt * impulse;
   if (impulse_out != nullptr) OutMap(impulse_out, impulse.size()) = impulse;
 }
@@ -636,3 +669,4 @@ double lsn_time_aba(long h, const double* q, const double* v, const double* tau,
 }
 
 }  // extern "C"
+#pragma GCC visibility pop
