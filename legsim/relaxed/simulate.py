@@ -325,7 +325,7 @@ def _initial_state(
     x, memory = (x[:dim], x[dim:]) if x.shape[0] > dim else (x, None)
     _check_resolution(eps, x, mode)
     u0 = _initial_input(system, mode, t0, x, control, law, memory)
-    system.check_state(mode, x, t=t0, u=u0, label="x0")
+    _check_outputs_once(system, mode, x, t0, u0, control)
     gvals = system.guard_values(mode, x, t0, u0)
     if gvals.size and gvals.min() < -eps:
         worst = int(np.argmin(gvals))
@@ -334,6 +334,19 @@ def _initial_state(
             f"{-gvals[worst]:.3g} > eps = {eps:g} (guard units); start inside the domain of '{mode}'"
         )
     return x, memory
+
+
+def _check_outputs_once(system: HybridSystem, mode: str, x: np.ndarray, t0: float, u0: Any, control: Any) -> None:
+    """``system.check_state`` on the initial state: the mode's field, guards and resets evaluated
+    once, so that a model's type and shape errors name their mode or transition before the run.
+    Done on the first run of a system in a mode under a controller, whose functions do not
+    change; every later run's state is still checked finite, of the mode's shape and in its
+    domain (``_initial_state``)."""
+    checked: dict[str, Any] = system.run_scratch.setdefault("outputs_checked", {})
+    if mode in checked and checked[mode] is control:
+        return
+    system.check_state(mode, x, t=t0, u=u0, label="x0")
+    checked[mode] = control
 
 
 def _check_resolution(eps: float, x: np.ndarray, mode: str) -> None:

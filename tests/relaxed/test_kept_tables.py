@@ -11,7 +11,7 @@ import threading
 import numpy as np
 import pytest
 
-from legsim import HybridSystem, Mode, ModelError, Transition, simulate
+from legsim import HybridSystem, Mode, ModelError, SimulationError, Transition, simulate
 from legsim.relaxed import tables as run_tables
 from legsim.scene import load_scene
 
@@ -112,3 +112,40 @@ def test_a_run_that_fails_building_a_mode_keeps_no_tables_and_the_next_run_build
     short = simulate(system, [0.5], "0", 2.2, 1e-2, 1e-4)  # stops before the broken rung
     assert [tr.target for tr in short.transitions] == ["1", "2"]
     assert prepared[1] == ["0", "1", "2"]  # built anew, none taken from the failed run
+
+
+def _counted_ball(calls: dict[str, int]) -> HybridSystem:
+    """A ball falling onto a floor whose bounce counts its reset's calls; a transition from
+    'held' whose guard returns a vector, an error ``check_state`` names."""
+
+    def bounce(x):
+        calls["reset"] += 1
+        return np.array([x[0], -0.8 * x[1]])
+
+    fall = Mode(2, lambda t, x, u: np.array([x[1], -9.81]), names=("z", "zd"))
+    modes = {"fall": fall, "held": Mode(2, lambda t, x, u: np.zeros(2), names=("z", "zd"))}
+    transitions = [
+        Transition("fall", "fall", lambda x: x[0], bounce, name="bounce"),
+        Transition("held", "fall", lambda x: np.array([1.0, 1.0]), name="release"),
+    ]
+    return HybridSystem(modes, transitions, name="counted ball")
+
+
+def test_a_systems_outputs_are_checked_on_its_first_run_in_a_mode_not_on_every_run():
+    # check_state evaluates the field, every guard and every reset once on the initial state; a
+    # robot's resets are costly in Python, and the functions do not change between runs.
+    calls = {"reset": 0}
+    system = _counted_ball(calls)
+    first = simulate(system, [1.0, 0.0], "fall", 0.2, 1e-3, 1e-4)
+    assert calls["reset"] == 1 and not first.transitions  # the check's call, no bounce yet
+    second = simulate(system, [0.5, 0.0], "fall", 0.2, 1e-3, 1e-4)
+    assert calls["reset"] == 1
+    assert second.final_state[0] == pytest.approx(0.5 - 9.81 * 0.2**2 / 2, rel=1e-9)
+    # another mode is checked on its first run, and its error named
+    with pytest.raises(ModelError, match=r"guard of transition release"):
+        simulate(system, [1.0, 0.0], "held", 0.2, 1e-3, 1e-4)
+    # every run still checks the state itself and its domain
+    with pytest.raises(SimulationError, match=r"finite"):
+        simulate(system, [np.nan, 0.0], "fall", 0.2, 1e-3, 1e-4)
+    with pytest.raises(SimulationError, match=r"past the guard of transition bounce"):
+        simulate(system, [-1.0, 0.0], "fall", 0.2, 1e-3, 1e-4)
