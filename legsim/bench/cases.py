@@ -192,9 +192,10 @@ def targets_for(name: str, quick: bool = False) -> list[Target]:
     if name == "bouncing-ball":
         return [Target("ball error <= 1e-6: time(best solve_ivp) / time(relaxed)", 1e-6, "solve_ivp", 1.0)]
     if name in ("pronk", "double-pendulum"):
+        # The compiled kernel's design target (docs/targets.md): ten times the best solve_ivp.
         levels = (1e-3,) if quick else (1e-3, 1e-5, 1e-7)
         return [
-            Target(f"{name} error <= {lv:g}: time(best solve_ivp) / time(relaxed)", lv, "solve_ivp", 1.0)
+            Target(f"{name} error <= {lv:g}: time(best solve_ivp) / time(relaxed)", lv, "solve_ivp", 10.0)
             for lv in levels
         ]
     raise BenchError(f"unknown case {name!r}; choose one of {', '.join(CASE_NAMES)}")
