@@ -62,6 +62,7 @@ class ModeFunctions:
     nan_breaks: a nan from these functions means the state is past the model's range.
     previewed: the functions choose a crossing's outcome under the input applied after it
         (module docstring).
+    call_params: params as a writable array, for the calls from Python (set, not given).
     """
 
     field: Any
@@ -73,6 +74,8 @@ class ModeFunctions:
     joint_outcomes: tuple[tuple[str, str], ...] = ()
     nan_breaks: bool = False
     previewed: bool = False
+    #: A writable copy of params, which the Python path passes to the functions (__post_init__).
+    call_params: Any = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         for name in ("field", "guards", "reset", "joint"):
@@ -87,6 +90,10 @@ class ModeFunctions:
             raise ModelError(f"ModeFunctions.params must be numbers: {exc}") from exc
         params.flags.writeable = False
         object.__setattr__(self, "params", params)
+        # The functions are compiled for writable arrays, as the kernel passes them; a call with
+        # the read-only params would make numba compile each function and all it calls a second
+        # time, for a read-only p (tens of seconds for a robot's model).
+        object.__setattr__(self, "call_params", params.copy())
         if isinstance(self.inputs, bool) or not isinstance(self.inputs, (int, np.integer)) or self.inputs < 0:
             raise ModelError(f"ModeFunctions.inputs must be an integer >= 0, got {self.inputs!r}")
         outcomes = tuple((str(name), str(target)) for name, target in self.joint_outcomes)
@@ -99,19 +106,29 @@ class ModeFunctions:
 
 
 def as_input(u: Any, inputs: int) -> np.ndarray:
-    """A control value as the float64 input array of ``inputs`` entries a model function takes
-    (an empty array for None)."""
+    """A control value as the writable float64 input array of ``inputs`` entries a model
+    function takes (an empty array for None; writable for the reason of ``call_params``)."""
     if u is None:
         return np.zeros(inputs)
-    arr = np.ascontiguousarray(u, dtype=np.float64).reshape(-1)
-    return arr
+    return _writable(np.ascontiguousarray(u, dtype=np.float64).reshape(-1))
+
+
+def as_state(x: Any) -> np.ndarray:
+    """A state as the writable float64 array a model function takes (see ``call_params``)."""
+    return _writable(np.ascontiguousarray(x, dtype=np.float64))
+
+
+def _writable(arr: np.ndarray) -> np.ndarray:
+    """arr, or a copy of it where it is read-only (a model's functions are compiled for
+    writable arrays: ``ModeFunctions.call_params``)."""
+    return arr if arr.flags.writeable else arr.copy()
 
 
 def evaluate_field(functions: ModeFunctions, dim: int, t: float, x: np.ndarray, u: Any) -> np.ndarray:
     """The mode's field at (t, x) under u, shape (dim,)."""
     out = np.empty(dim)
-    functions.field(float(t), np.ascontiguousarray(x, dtype=np.float64), as_input(u, functions.inputs),
-                    functions.params, out)  # fmt: skip
+    functions.field(float(t), as_state(x), as_input(u, functions.inputs),
+                    functions.call_params, out)  # fmt: skip
     return out
 
 
@@ -119,8 +136,8 @@ def evaluate_guards(functions: ModeFunctions, count: int, t: float, x: np.ndarra
     """Every guard of the mode at (t, x) under u, shape (count,)."""
     out = np.empty(count)
     if count:
-        functions.guards(float(t), np.ascontiguousarray(x, dtype=np.float64), as_input(u, functions.inputs),
-                         functions.params, out)  # fmt: skip
+        functions.guards(float(t), as_state(x), as_input(u, functions.inputs),
+                         functions.call_params, out)  # fmt: skip
     return out
 
 
@@ -129,8 +146,8 @@ def evaluate_reset(
 ) -> np.ndarray:
     """The image of transition e (or a continuation, ``e >= guards``) at x, shape (target_dim,)."""
     out = np.empty(target_dim)
-    functions.reset(int(e), float(t), np.ascontiguousarray(x, dtype=np.float64), as_input(u, functions.inputs),
-                    functions.params, out)  # fmt: skip
+    functions.reset(int(e), float(t), as_state(x), as_input(u, functions.inputs),
+                    functions.call_params, out)  # fmt: skip
     return out
 
 

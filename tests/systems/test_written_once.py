@@ -13,6 +13,9 @@ import numpy as np
 import pytest
 
 from helpers.compiled_scenes import SYSTEM_SCENES
+from legsim import ModeFunctions, model_function
+from legsim.compiled import native
+from legsim.model import evaluate_field
 from legsim.relaxed import driver
 from legsim.scene import load_scene
 
@@ -84,3 +87,22 @@ def test_a_plants_module_imports_no_controller(plant):
     imported = {node.module or "" for node in ast.walk(tree) if isinstance(node, ast.ImportFrom)}
     imported |= {alias.name for node in ast.walk(tree) if isinstance(node, ast.Import) for alias in node.names}
     assert {name.rsplit(".", 1)[-1] for name in imported} & CONTROLLER_MODULES == set()
+
+
+@model_function
+def _falling(t, x, u, p, dx):
+    dx[0] = x[1]
+    dx[1] = -p[0]
+
+
+def test_calls_from_python_and_from_the_kernel_share_one_compiled_specialisation():
+    # ModeFunctions keeps its params read-only. Handed to the function as they are, they would
+    # make numba compile it, and everything it calls, a second time for a read-only p: tens of
+    # seconds for a robot's bridge functions. A read-only state is copied for the same reason.
+    functions = ModeFunctions(_falling, params=[9.81])
+    assert not functions.params.flags.writeable
+    x = np.array([1.0, 0.5])
+    x.flags.writeable = False
+    assert evaluate_field(functions, 2, 0.0, x, None).tolist() == [0.5, -9.81]
+    native.address(_falling, "state")
+    assert list(_falling.overloads) == [native.STATE_SIGNATURE.args]
