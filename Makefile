@@ -17,7 +17,7 @@ $(STAMP): pyproject.toml setup.py robots/_native/pinlegsim.cpp
 	$(BIN)/pip install --quiet -r $(VENV)/build-requirements.txt
 	$(BIN)/pip install --quiet --no-build-isolation -e ".[test]"
 	@$(BIN)/python -c "import legsim.robots._native as n; print('legsim: native robot library:', n.status())"
-	@# The step loop and the bundled models compiled ahead of time (about two minutes, once), so
+	@# The step loop and the bundled models compiled ahead of time (about a minute and a half, once), so
 	@# that a first run loads them instead of compiling.
 	$(BIN)/python -m legsim.prebuild
 	touch $(STAMP)
