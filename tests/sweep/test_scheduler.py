@@ -106,10 +106,12 @@ def hand_started_cluster(tmp_path: Path) -> Iterator[tuple[str, subprocess.Popen
             )
             yield address, scheduler
         finally:
-            for proc in reversed(processes):
+            for proc in processes:
                 proc.send_signal(signal.SIGCONT)  # a test may have stopped it
-                proc.terminate()
+            # The worker first, while its scheduler still answers: a worker whose scheduler is
+            # gone waits out its reconnection timeouts before it exits.
             for proc in reversed(processes):
+                proc.terminate()
                 try:
                     proc.wait(timeout=30)
                 except subprocess.TimeoutExpired:
