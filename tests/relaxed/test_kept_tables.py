@@ -69,8 +69,8 @@ def test_the_python_loop_after_a_compiled_run_says_so_and_the_next_compiled_run_
 
 
 def test_runs_of_one_robot_in_threads_at_once_each_give_the_execution_of_a_run_alone():
-    # The robot's native model keeps one scratch (Pinocchio's data): runs at once corrupted the
-    # heap and crashed the process; they take turns now.
+    # The robot's native model keeps one scratch (Pinocchio's data): two runs at once would
+    # share it and corrupt the heap, so runs of one system take turns.
     scene = load_scene("pronk", ["integrator.t_final=1.0"])
     alone = scene.simulate()
     results: list = [None] * 4
