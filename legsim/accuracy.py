@@ -10,8 +10,12 @@ factor of about 2 of it for ratios of 2 and more).
 A gait's final state at a fixed time is the wrong yardstick: a small timing error moves the state
 along the orbit, and at a symmetric gait the order of simultaneous events may switch without
 changing the motion. So the two runs are also compared *along the orbit*: the states at their
-k-th entries into a section mode (the run's initial mode, e.g. a runner's flight), matched by
-count whatever their times (phase-aligned), and the times apart reported as the phase error.
+crossings of a Poincare section (a scene's ``[orbit]`` section, e.g. a runner's apex, given as an
+``OrbitSection``), else at their entries into a section mode (the run's initial mode, e.g. a
+runner's flight), matched in order each with the other run's nearest in time (phase-aligned),
+and the times apart reported as the phase error. A section crossed once a stride is the better
+yardstick: a brief flight or graze that one run makes and the other does not adds a mode entry,
+never a crossing of the apex.
 And they are compared in paper 000's relaxed quotient metric (``legsim.metric``): the distance
 in M^eps between their plant states at the same times, which holds across different transition
 sequences; a controller's memory is compared entry by entry (``legsim.metric.closed_loop``).
@@ -26,6 +30,7 @@ from typing import Any
 
 import numpy as np
 
+from .crossings import Crossing, returns, takings
 from .execution import Execution
 from .hybrid import HybridSystem
 from .methods import Tableau
@@ -95,19 +100,40 @@ class ErrorEstimate:
 
 
 @dataclass(frozen=True)
+class OrbitSection:
+    """A Poincare section for the along-the-orbit comparison: the crossings of
+    ``function(x) = 0`` in ``direction`` (-1: decreasing, +1: increasing, 0: either) in mode
+    ``mode``, or, with ``transition``, the takings of that transition into ``mode``. ``label``
+    names it in reports (e.g. "zd = 0 (decreasing) in flight"). Crossings count as a return map
+    counts them (``legsim.crossings.returns``): ``min_transitions`` segments and ``min_time``
+    (s) after the last one, one a segment. A scene's is its ``[orbit]`` section, with that
+    section's counting (``legsim.scene.orbit.accuracy_section``)."""
+
+    mode: str
+    label: str
+    function: Callable[[np.ndarray], float] | None = None
+    direction: int = -1
+    transition: str | None = None
+    min_transitions: int = 1
+    min_time: float = 0.0
+
+
+@dataclass(frozen=True)
 class AlongOrbit:
     """A run against its refined repetition at the same section crossings.
 
     Attributes
     ----------
-    section: the mode whose entries are the crossings (the run's initial mode, or the mode it
-        enters most often when it never re-enters that one).
-    crossings: how many entries of the two runs are matched: each with the other run's entry
+    section: the mode the section lies in (a mode whose entries are the crossings: the run's
+        initial mode, or the mode it enters most often when it never re-enters that one).
+    where: what the crossings are: ``"entries into 'flight'"``, ``"crossings of zd = 0
+        (decreasing) in flight"`` or ``"takings of heel_strike into stance"``.
+    crossings: how many crossings of the two runs are matched: each with the other run's
         nearest in time, in order (``_matched``).
-    unmatched: entries of either run left without a match (an extra graze of one run).
-    phase: max |t_k - t_k refined| (s) over those entries.
-    state: per coordinate, max |x_k - x_k refined| over those entries (the states just after each
-        entry's reset, in the coordinate's units).
+    unmatched: crossings of either run left without a match (an extra graze of one run).
+    phase: max |t_k - t_k refined| (s) over those crossings.
+    state: per coordinate, max |x_k - x_k refined| over those crossings (for entries and
+        takings, the states just after the reset; in the coordinate's units).
     relative: max over coordinates of that error over the coordinate's size along the refined run
         (coordinates at zero to rounding left out, as for ``final_state_relative``).
     """
@@ -118,10 +144,12 @@ class AlongOrbit:
     phase: float
     state: dict[str, float]
     relative: float | None
+    where: str = ""
 
     def as_dict(self) -> dict[str, Any]:
         return {
             "section": self.section,
+            "where": self.where,
             "crossings": self.crossings,
             "unmatched": self.unmatched,
             "phase": self.phase,
@@ -142,14 +170,17 @@ def refined(settings: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
-def compare(run: Execution, fine: Execution, system: HybridSystem | None = None) -> ErrorEstimate:
+def compare(
+    run: Execution, fine: Execution, system: HybridSystem | None = None, section: str | OrbitSection | None = None
+) -> ErrorEstimate:
     """The error estimate of ``run`` against its refined repetition ``fine``; the quotient
-    distance needs the ``system`` both ran."""
+    distance needs the ``system`` both ran; ``section`` is where the two are compared along the
+    orbit (``along_orbit``)."""
     final, relative = _final_state(run, fine)
     times, matched, differ = _transition_times(run, fine)
     trajectory, mismatch = _trajectory(run, fine)
     settings = {key: fine.settings.get(key) for key in ("h", "eps", "rtol", "atol")}
-    orbit = along_orbit(run, fine)
+    orbit = along_orbit(run, fine, section)
     distance, note = quotient_distance(system, run, fine)
     return ErrorEstimate(final, relative, times, matched, differ, trajectory, mismatch, settings, orbit, distance, note)
 
@@ -170,18 +201,20 @@ def quotient_distance(
         return None, f"not defined: {exc}"
 
 
-def along_orbit(run: Execution, fine: Execution, section: str | None = None) -> AlongOrbit | None:
-    """``run`` against ``fine`` at their entries into mode ``section`` (default: the run's
-    initial mode, else the mode it enters most often); None without an entry in both."""
+def along_orbit(run: Execution, fine: Execution, section: str | OrbitSection | None = None) -> AlongOrbit | None:
+    """``run`` against ``fine`` at their crossings of ``section``: an ``OrbitSection``, or the
+    name of a mode whose entries are the crossings (default: the run's initial mode, else the
+    mode it enters most often); None without a crossing in both."""
     if section is None:
         section = _section_mode(run)
         if section is None:
             return None
-    a, b = _entries(run, section), _entries(fine, section)
+    mode = section if isinstance(section, str) else section.mode
+    a, b = _crossings(run, section), _crossings(fine, section)
     pairs = _matched(a, b)
     if not pairs:
         return None
-    names = run.state_names[section]
+    names = run.state_names[mode]
     apart = np.array([np.abs(a[i][1] - b[j][1]) for i, j in pairs]).max(axis=0)
     state = {name: float(value) for name, value in zip(names, apart, strict=True) if math.isfinite(value)}
     phase = max(abs(a[i][0] - b[j][0]) for i, j in pairs)
@@ -189,7 +222,28 @@ def along_orbit(run: Execution, fine: Execution, section: str | None = None) -> 
     floor = ZERO_SIZE * max(sizes.values(), default=0.0)
     ratios = [value / sizes[name] for name, value in state.items() if sizes.get(name, 0.0) > floor]
     unmatched = len(a) + len(b) - 2 * len(pairs)
-    return AlongOrbit(section, len(pairs), unmatched, phase, state, max(ratios) if ratios else None)
+    relative = max(ratios) if ratios else None
+    return AlongOrbit(mode, len(pairs), unmatched, phase, state, relative, _where(section))
+
+
+def _crossings(execution: Execution, section: str | OrbitSection) -> list[Crossing]:
+    if isinstance(section, str):
+        return _entries(execution, section)
+    if section.transition is not None:
+        return takings(execution, section.transition, section.mode)
+    assert section.function is not None, "an OrbitSection needs a function or a transition"
+    found = returns(
+        execution, section.mode, section.function, section.direction, section.min_transitions, section.min_time
+    )
+    return [(t, x) for _, t, x in found]
+
+
+def _where(section: str | OrbitSection) -> str:
+    if isinstance(section, str):
+        return f"entries into '{section}'"
+    if section.transition is not None:
+        return f"takings of {section.transition} into '{section.mode}'"
+    return f"crossings of {section.label}"
 
 
 def _matched(a: list[tuple[float, np.ndarray]], b: list[tuple[float, np.ndarray]]) -> list[tuple[int, int]]:
@@ -234,10 +288,13 @@ def check_accuracy(
     eps: float,
     method: str | Tableau = "rk4",
     control: Callable[[float, np.ndarray], Any] | None = None,
+    *,
+    section: str | OrbitSection | None = None,
     **options: Any,
 ) -> tuple[Execution, ErrorEstimate]:
     """``simulate`` with these arguments, and the estimate of its error from a refined run (see
-    ``refined``). Returns (the execution, its ``ErrorEstimate``)."""
+    ``refined``); ``section``: where the two are compared along the orbit (``along_orbit``).
+    Returns (the execution, its ``ErrorEstimate``)."""
     from .relaxed import simulate
 
     run = simulate(system, x0, mode, t_final, h, eps, method, control, **options)
@@ -246,7 +303,7 @@ def check_accuracy(
     fine = simulate(
         system, x0, mode, t_final, fine_settings["h"], fine_settings["eps"], method, control, **fine_options
     )
-    return run, compare(run, fine, system)
+    return run, compare(run, fine, system, section)
 
 
 def _final_state(run: Execution, fine: Execution) -> tuple[dict[str, float], float | None]:

@@ -8,7 +8,7 @@ import pytest
 
 from legsim.accuracy import along_orbit, check_accuracy, refined
 from legsim.cli import main
-from legsim.scene import load_scene
+from legsim.scene import bundled_dir, load_scene
 from legsim.systems.bouncing_ball import BouncingBallReference, make_system
 
 
@@ -93,3 +93,60 @@ def test_along_the_orbit_the_balls_error_is_in_its_timing_not_its_rebounds():
     # the holds' together
     assert estimate.transition_times / 3 <= orbit.phase <= 3 * estimate.transition_times
     assert along_orbit(run, run).relative == 0.0
+
+
+def test_along_the_orbit_at_the_balls_apexes_the_states_are_exact_and_only_the_times_differ():
+    # At each apex the ball is at c^(2k) z0 with zd = 0 exactly in both runs (free fall is exact
+    # under RK4 and the stored flow's Hermite interpolant): compared there, the runs agree to
+    # rounding, and the apexes' times lag as the rebounds' do.
+    from legsim.accuracy import OrbitSection
+
+    g, c, z0 = 9.81, 0.8, 1.0
+    apex = OrbitSection("flight", "zd = 0 (decreasing) in flight", lambda x: x[1], -1)
+    run, estimate = check_accuracy(make_system(g, c), [z0, 0.0], "flight", 2.5, 1e-3, 1e-3, "rk4", section=apex)
+    orbit = estimate.along_orbit
+    assert orbit.where == "crossings of zd = 0 (decreasing) in flight" and orbit.section == "flight"
+    assert orbit.crossings == len(run.transitions) >= 3 and orbit.unmatched == 0
+    assert orbit.state["z"] < 1e-12 and orbit.state["zd"] < 1e-12
+    assert orbit.phase == pytest.approx(estimate.along_orbit.phase) and orbit.phase > 1e-6
+
+
+BALL_TO_1_S = ["integrator.t_final=1.0"]
+
+
+def ball_scene(tmp_path, accuracy: str):
+    text = (bundled_dir() / "bouncing_ball.toml").read_text() + "\n[accuracy]\n" + accuracy + "\n"
+    path = tmp_path / "ball.toml"
+    path.write_text(text)
+    return path
+
+
+def test_a_scenes_accuracy_section_chooses_where_the_runs_are_compared_along_the_orbit(tmp_path, capsys):
+    path = ball_scene(tmp_path, 'along = { mode = "flight", coordinate = "zd", value = 0.0, direction = "decreasing" }')
+    _, estimate = load_scene(path, BALL_TO_1_S).check_accuracy()
+    assert estimate.along_orbit.where == "crossings of zd = 0 (decreasing) in flight"
+    assert main(["run", str(path), "--check-accuracy", *(f"--set={o}" for o in BALL_TO_1_S)]) == 0
+    assert "crossings of zd = 0 (decreasing) in flight, phase-aligned)" in capsys.readouterr().out
+    entries = ball_scene(tmp_path, 'along = "entries"')
+    _, estimate = load_scene(entries, BALL_TO_1_S).check_accuracy()
+    assert estimate.along_orbit.where == "entries into 'flight'"
+
+
+@pytest.mark.parametrize(
+    ("accuracy", "field", "message"),
+    [
+        ('along = "apex"', "accuracy.along", "expected 'entries', 'orbit' or a section table"),
+        ('along = "orbit"', "accuracy.along", "the scene has none"),
+        ('along = "entries"\nmin_time = 0.1', "accuracy.min_time", "along = 'entries' has none"),
+        ('along = { mode = "flight", coordinate = "zdd" }', "accuracy.along", "no coordinate 'zdd'"),
+        ('along = { mode = "flight", coordinate = "zd" }\nmin_transitions = -1', "accuracy.min_transitions", ">= 0"),
+        ('alongside = "entries"', "accuracy: unknown key(s) ['alongside']", "allowed: ['along', "),
+    ],
+)
+def test_a_bad_accuracy_section_is_named_before_anything_runs(tmp_path, accuracy, field, message):
+    from legsim import SceneError
+
+    scene = load_scene(ball_scene(tmp_path, accuracy), BALL_TO_1_S)
+    with pytest.raises(SceneError) as caught:
+        scene.check_accuracy()
+    assert "ball.toml" in str(caught.value) and field in str(caught.value) and message in str(caught.value)

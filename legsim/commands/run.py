@@ -298,8 +298,8 @@ def format_estimate(estimate: Any) -> str:
         worst = "" if largest is None else f"; largest {largest} {orbit.state[largest]:.3g}"
         relative = "n/a" if orbit.relative is None else f"{orbit.relative:.3g}"
         lines.append(
-            f"  along the orbit (states at {orbit.crossings} entries into '{orbit.section}', phase-aligned): "
-            f"relative {relative}{worst}; entry times {orbit.phase:.3g} s apart"
+            f"  along the orbit (states at {orbit.crossings} {orbit.where}, phase-aligned): "
+            f"relative {relative}{worst}; their times {orbit.phase:.3g} s apart"
         )
     lines.append(format_quotient_distance(estimate))
     return "\n".join(lines)

@@ -39,15 +39,15 @@ in strips, which converges at the method's order; ``Return.time`` is the relaxed
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
-from scipy.optimize import brentq
 
 from ..control import ControlLaw, Controller
+from ..crossings import returns
 from ..errors import LegsimError
-from ..execution import Execution, Segment, TransitionRecord
+from ..execution import Execution, TransitionRecord
 from ..hybrid import HybridSystem
 from ..relaxed import simulate
 from .errors import OrbitError
@@ -239,23 +239,10 @@ class ReturnMap:
         """The ``returns``-th crossing, scanning the segments of the section's mode in time
         order. Segment k follows transitions[k-1], so k transitions precede it."""
         p = self.problem
-        bound = p.bound
-        direction = p.section.direction
-        count = 0
-        last_k, last_t = 0, ex.t0
-        for k, seg in enumerate(ex.segments):
-            if seg.mode != bound.mode or len(seg.t) < 2 or k - last_k < p.min_transitions:
-                continue
-            hit = first_crossing(seg, bound.s, direction, last_t + p.min_time)
-            while hit is not None:
-                t_hit, x_hit = hit
-                count += 1
-                if count == p.returns:
-                    return self._make_return(ex, x0, x_hit, t_hit, k, ex.transitions[:k], params)
-                last_k, last_t = k, t_hit
-                if p.min_transitions > 0:
-                    break
-                hit = first_crossing(seg, bound.s, direction, last_t + p.min_time)
+        found = returns(ex, p.bound.mode, p.bound.s, p.section.direction, p.min_transitions, p.min_time)
+        for count, (k, t_hit, x_hit) in enumerate(found, start=1):
+            if count == p.returns:
+                return self._make_return(ex, x0, x_hit, t_hit, k, ex.transitions[:k], params)
         return None
 
     def _make_return(
@@ -291,36 +278,6 @@ class ReturnMap:
             c = p.cyclic_idx[0]
             ret.step_length = float(ret.x_end[c] - ret.x_start[c])
         return ret
-
-
-def first_crossing(
-    seg: Segment, s: Callable[[np.ndarray], float], direction: int, not_before: float
-) -> tuple[float, np.ndarray] | None:
-    """First crossing (t, x) of s = 0 in ``direction`` on a segment's dense output after
-    ``not_before`` (s), or None."""
-    start = max(int(np.searchsorted(seg.t, not_before, side="right")) - 1, 0)
-    s1 = s(seg.x[start])
-    for i in range(start, len(seg.t) - 1):
-        s0, s1 = s1, s(seg.x[i + 1])
-        down = s0 > 0.0 >= s1
-        up = s0 < 0.0 <= s1
-        if not ((direction <= 0 and down) or (direction >= 0 and up)):
-            continue
-        tc = seg.t[i + 1] if s1 == 0.0 else _crossing_time(seg, s, seg.t[i], seg.t[i + 1])
-        if tc <= not_before:
-            continue
-        return tc, seg.interpolate(np.array([tc]))[0]
-    return None
-
-
-def _crossing_time(seg: Segment, s: Callable[[np.ndarray], float], t0: float, t1: float) -> float:
-    """The root of s along the interpolant between two stored points with a sign change; the
-    interpolant's ends are the stored points, so the bracket holds."""
-
-    def along(t: float) -> float:
-        return s(seg.interpolate(np.array([t]))[0])
-
-    return brentq(along, t0, t1, xtol=1e-15 * max(1.0, abs(t1)), rtol=4 * np.finfo(float).eps)
 
 
 def _abbreviate(names: list[str], limit: int = 8) -> str:

@@ -77,7 +77,7 @@ from .fields import check_keys, describe, field_error, table_at
 from .files import apply_overrides, checked_depth, read_toml, resolve_scene_path, scene_relative_files
 
 CORE_SECTIONS = ("scene", "robot", "effects", "initial", "integrator", "output", "controller", "fall", "terrain")
-TOOL_SECTIONS = ("orbit", "certify", "stochastic", "zeno", "stress", "bench")
+TOOL_SECTIONS = ("orbit", "certify", "stochastic", "zeno", "stress", "bench", "accuracy")
 ALLOWED_SECTIONS = CORE_SECTIONS + TOOL_SECTIONS
 
 SCENE_KEYS = {"description": "a one-line string"}
@@ -286,10 +286,12 @@ class Scene:
         with eps / 10 and h / 2 (tolerances / 10 under error control). Returns (the execution,
         its ``ErrorEstimate``)."""
         from ..accuracy import compare, refined
+        from .orbit import accuracy_section
 
+        section = accuracy_section(self)
         run = self.simulate(progress)
         fine = dataclasses.replace(self, integrator=refined(self.integrator)).simulate(progress)
-        return run, compare(run, fine, self.model.system)
+        return run, compare(run, fine, self.model.system, section)
 
     def energy(self, mode: str, x: np.ndarray) -> float | None:
         """The system's energy (J) at (mode, x), or None when it defines none."""

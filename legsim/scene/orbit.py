@@ -31,9 +31,11 @@ from typing import Any
 
 import numpy as np
 
+from ..accuracy import OrbitSection
 from ..builders import Param, resolve_parameters
 from ..errors import SceneError
 from ..orbits import MAX_FD_STEP, OrbitError, OrbitProblem, Section
+from ..orbits.sections import bind_section
 from .controller import scene_controller
 from .fields import check_keys, describe, field_error, table_at
 
@@ -60,6 +62,15 @@ ORBIT_KEYS = {
     "min_time": "time (s) before a crossing section counts, default 0",
     "max_transitions": "transition budget of one return, default 10000",
     "trivial_multipliers": "multipliers equal to 1 by a conserved quantity, left out of the stability verdict",
+}
+
+#: Keys of a scene's ``[accuracy]`` section: where ``--check-accuracy`` compares a run and its
+#: refinement along the orbit (``legsim.accuracy.along_orbit``).
+ACCURACY_KEYS = {
+    "along": "'entries' (the run's entries into its initial mode; the default), 'orbit' (the crossings of "
+    "the [orbit] section, counted as its return map counts them) or a section table as orbit.section's",
+    "min_transitions": "for a section table: transitions before a crossing counts, default 1",
+    "min_time": "for a section table: time (s) before a crossing counts, default 0",
 }
 
 #: The ``[integrator]`` settings every return of the orbit search runs with, as in ``legsim run``
@@ -112,8 +123,53 @@ def problem_from_scene(scene: Any, *, extra_parameters: Sequence[str] = ()) -> O
     return OrbitSettings(problem, problem.state_vector(x0), solver, scene)
 
 
-def _fail(scene: Any, key: str, message: str) -> SceneError:
-    return field_error(scene.path, f"orbit.{key}", message)
+def accuracy_section(scene: Any) -> OrbitSection | None:
+    """Where ``--check-accuracy`` compares the scene's run and its refinement along the orbit
+    (``legsim.accuracy.along_orbit``), from its ``[accuracy]`` section (``ACCURACY_KEYS``); None
+    for the default, the run's entries into its initial mode. Raises SceneError naming the field
+    for a bad section."""
+    table = scene.sections.get("accuracy")
+    if table is None:
+        return None
+    check_keys(scene.path, table, sorted(ACCURACY_KEYS), "accuracy")
+    along = table.get("along", "entries")
+    counts = sorted(set(table) & {"min_transitions", "min_time"})
+    if along == "entries":
+        if counts:
+            raise _fail(scene, counts[0], "counts crossings of a section; along = 'entries' has none", "accuracy")
+        return None
+    if along == "orbit":
+        if scene.sections.get("orbit") is None:
+            raise _fail(scene, "along", "'orbit' compares at the [orbit] section; the scene has none", "accuracy")
+        if counts:
+            raise _fail(scene, counts[0], "with along = 'orbit' the [orbit] section's own counts apply", "accuracy")
+        orbit = _orbit_table(scene)
+        return _bound_section(scene, _section(scene, orbit), orbit, "orbit", "section")
+    if isinstance(along, dict):
+        return _bound_section(scene, _section(scene, table, "accuracy", "along"), table, "accuracy", "along")
+    raise _fail(scene, "along", f"expected 'entries', 'orbit' or a section table, got {describe(along)}", "accuracy")
+
+
+def _bound_section(scene: Any, section: Section, table: Mapping[str, Any], where: str, key: str) -> OrbitSection:
+    """``section`` resolved against the scene's model, with the counts of ``table``."""
+    try:
+        bound = bind_section(section, scene.model.system)
+    except OrbitError as exc:
+        raise _fail(scene, key, str(exc), where) from None
+    if section.transition is not None:
+        return OrbitSection(bound.mode, section.label, transition=section.transition)
+    return OrbitSection(
+        bound.mode,
+        section.label,
+        bound.s,
+        section.direction,
+        min_transitions=_number(scene, table, "min_transitions", 1, int, 0, where),
+        min_time=_number(scene, table, "min_time", 0.0, low=0.0, where=where),
+    )
+
+
+def _fail(scene: Any, key: str, message: str, where: str = "orbit") -> SceneError:
+    return field_error(scene.path, f"{where}.{key}", message)
 
 
 def _orbit_table(scene: Any) -> dict[str, Any]:
@@ -131,37 +187,39 @@ def _orbit_table(scene: Any) -> dict[str, Any]:
     return table
 
 
-def _section(scene: Any, table: Mapping[str, Any]) -> Section:
-    if "section" not in table:
-        raise _fail(scene, "section", f"missing; expected {ORBIT_KEYS['section']}")
-    sec = table_at(scene.path, table, "section", "orbit.section")
+def _section(scene: Any, table: Mapping[str, Any], where: str = "orbit", key: str = "section") -> Section:
+    """The section at ``[where].key``: ``{ after = ... }`` or a level crossing."""
+    if key not in table:
+        raise _fail(scene, key, f"missing; expected {ORBIT_KEYS['section']}", where)
+    sec = table_at(scene.path, table, key, f"{where}.{key}")
     try:
         if "after" in sec:
-            return _after_section(scene, sec)
+            return _after_section(scene, sec, where, key)
         if set(sec) - set(LEVEL_SECTION_KEYS) or "coordinate" not in sec:
-            raise _fail(scene, "section", f"expected {ORBIT_KEYS['section']}, got keys {sorted(sec)}")
+            raise _fail(scene, key, f"expected {ORBIT_KEYS['section']}, got keys {sorted(sec)}", where)
         value = sec.get("value", 0.0)
         if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise _fail(scene, "section.value", f"expected a number, got {describe(value)}")
+            raise _fail(scene, f"{key}.value", f"expected a number, got {describe(value)}", where)
         return Section.level(
             sec.get("mode", scene.initial_mode), sec["coordinate"], value, sec.get("direction", "decreasing")
         )
     except OrbitError as exc:
-        raise _fail(scene, "section", str(exc)) from None
+        raise _fail(scene, key, str(exc), where) from None
 
 
-def _after_section(scene: Any, sec: Mapping[str, Any]) -> Section:
+def _after_section(scene: Any, sec: Mapping[str, Any], where: str, key: str) -> Section:
     """``{ after = TRANSITION }``, or ``{ after = TRANSITION, mode = MODE }`` for transitions of
     that name that lead to several modes; the names are checked against the model when the
     problem is built."""
     if set(sec) - {"after", "mode"}:
-        raise _fail(scene, "section", f"'after' takes only 'mode' besides, got {sorted(sec)}")
-    for key in sec:
-        if not isinstance(sec[key], str) or not sec[key]:
+        raise _fail(scene, key, f"'after' takes only 'mode' besides, got {sorted(sec)}", where)
+    for name in sec:
+        if not isinstance(sec[name], str) or not sec[name]:
             raise _fail(
                 scene,
-                f"section.{key}",
-                f"expected a {'transition' if key == 'after' else 'mode'} name, got {describe(sec[key])}",
+                f"{key}.{name}",
+                f"expected a {'transition' if name == 'after' else 'mode'} name, got {describe(sec[name])}",
+                where,
             )
     return Section.after(sec["after"], sec.get("mode"))
 
@@ -174,16 +232,22 @@ def _names(scene: Any, table: Mapping[str, Any], key: str) -> tuple[str, ...]:
 
 
 def _number(
-    scene: Any, table: Mapping[str, Any], key: str, default: Any, kind: type = float, low: float | None = None
+    scene: Any,
+    table: Mapping[str, Any],
+    key: str,
+    default: Any,
+    kind: type = float,
+    low: float | None = None,
+    where: str = "orbit",
 ) -> Any:
     """``table[key]`` (or ``default``) as a ``kind``, finite and >= ``low``; None stays None."""
     value = table.get(key, default)
     if value is None:
         return None
     if isinstance(value, bool) or not isinstance(value, (int, float)) or (kind is int and not isinstance(value, int)):
-        raise _fail(scene, key, f"expected {'an integer' if kind is int else 'a number'}, got {describe(value)}")
+        raise _fail(scene, key, f"expected {'an integer' if kind is int else 'a number'}, got {describe(value)}", where)
     if not math.isfinite(value) or (low is not None and value < low):
-        raise _fail(scene, key, f"must be finite{'' if low is None else f' and >= {low}'}, got {value!r}")
+        raise _fail(scene, key, f"must be finite{'' if low is None else f' and >= {low}'}, got {value!r}", where)
     return kind(value)
 
 

@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from ..crossings import returns, takings
 from ..errors import LegsimError, ModelError
 from .measures import check_measures, measure_columns
 from .spec import SweepError, SweepSpec, variation_overrides
@@ -235,18 +236,9 @@ def last_crossing(problem: Any, execution: Any) -> np.ndarray | None:
     of a transition section), a ``ControlLaw``'s memory after the plant's coordinates; None
     without one. The run's memory is taken as it is: memory that holds absolute times or
     positions (not periodic along a gait) makes the search fail, and its row says so."""
-    from ..orbits.returns import first_crossing
-
     bound, section = problem.bound, problem.section
     if section.kind == "transition":
-        taken = [r for r in execution.transitions if r.name == section.transition and r.target == bound.mode]
-        return None if not taken else np.asarray(taken[-1].state_after, dtype=float).copy()
-    last = None
-    for seg in execution.segments:
-        if seg.mode != bound.mode or len(seg.t) < 2:
-            continue
-        hit = first_crossing(seg, bound.s, section.direction, seg.t[0])
-        while hit is not None:
-            last = hit[1]
-            hit = first_crossing(seg, bound.s, section.direction, hit[0])
-    return None if last is None else np.asarray(last, dtype=float).copy()
+        found = takings(execution, section.transition, bound.mode)
+    else:
+        found = [(t, x) for _, t, x in returns(execution, bound.mode, bound.s, section.direction, 0, 0.0)]
+    return None if not found else np.asarray(found[-1][1], dtype=float).copy()

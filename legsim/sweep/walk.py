@@ -40,10 +40,10 @@ from typing import Any
 
 import numpy as np
 
+from ..crossings import first_crossing
 from ..errors import ModelBreakdown, ModelError, SimulationError
 from ..execution import Execution, Status, Strip
 from ..orbits import OrbitProblem
-from ..orbits.returns import first_crossing
 from ..relaxed import simulate
 from ..relaxed.rules import strip_exit_time
 

@@ -16,8 +16,9 @@ import pytest
 
 from legsim.commands.orbit import format_orbit
 from legsim.control import Controller
+from legsim.crossings import first_crossing
 from legsim.orbits import OrbitError, OrbitProblem, Section, find_orbit, jacobian_fd, jacobian_saltation
-from legsim.orbits.returns import ReturnMap, first_crossing
+from legsim.orbits.returns import ReturnMap
 from legsim.scene import load_scene
 from legsim.scene.orbit import problem_from_scene
 
