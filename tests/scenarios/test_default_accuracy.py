@@ -19,6 +19,7 @@ import pytest
 
 from legsim.accuracy import along_orbit, compare, refined
 from legsim.scene import bundled_dir, load_scene
+from legsim.scene.orbit import accuracy_section
 
 BOUND = 1e-3
 NAMES = sorted(p.stem for p in bundled_dir().glob("*.toml"))
@@ -143,16 +144,13 @@ def test_a_scene_that_cannot_reach_the_bound_says_so(name):
 
 #: The runners, whose gait the final state at a fixed time measures badly (module docstring of
 #: legsim.accuracy): their accuracy is stated along the orbit, at matching section crossings.
-RUNNERS = ["quadruped_pronk", "pronk_raibert", "slip_raibert"]
+RUNNERS = ["quadruped_pronk", "pronk_raibert", "slip_raibert", "quadruped_run", "quadruped_pronk_forward", "biped_run"]
 #: Runners not yet within the bound along the orbit (estimate, then against the finest run, both
 #: relative): kept as strict expected failures so that reaching it shows.
 RUNNERS_ABOVE = {
-    "quadruped_run": "1.0e-3, 1.2e-3",
     "quadruped_bound": "1.4e-2, 1.8e-2",
-    "quadruped_pronk_forward": "5.7e-3, 5.9e-3",
     "quadruped_bound_forward": "0.11, 0.15",
     "quadruped_gallop": "1.3 (estimate): its pairs' phase wanders from stride to stride",
-    "biped_run": "1.1e-3, 1.0e-3",
 }
 
 
@@ -169,5 +167,5 @@ def test_a_runner_is_accurate_along_its_orbit(name):
     assert orbit is not None and orbit.crossings >= 10
     assert orbit.relative < BOUND
     # Confirmed against a run ten times finer again: the error the estimate stands for.
-    confirmed = along_orbit(run, finest(scene).simulate())
+    confirmed = along_orbit(run, finest(scene).simulate(), accuracy_section(scene))
     assert confirmed.crossings >= orbit.crossings - 2 and confirmed.relative < BOUND
