@@ -361,6 +361,13 @@ class _NewtonSearch:
             coarse.refinement, coarse.refined = tiny.refinement, tiny.refined
             acc = coarse
         if self.res > acc.resolved:
+            # Said either way: a map that does resolve the residual leaves the divergence to the
+            # iterate, not to noise of the map.
+            self.accuracy = failure.map_accuracy = acc
+            failure.message += (
+                f"; the return map resolves {acc.resolved:.3g} here ({acc.describe()}), below the residual, so "
+                f"the map's noise does not explain it"
+            )
             return failure
         self.accuracy = acc
         result = self.fail(

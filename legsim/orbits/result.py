@@ -55,8 +55,9 @@ class OrbitResult:
     piecewise: where the map is not differentiable, the stability verdict of its piecewise-linear
         derivative (``legsim.orbits.piecewise``), which ``stable`` then reports.
     map_accuracy: what the return map resolves at the first iterate within tol (noise,
-        resolved residual, change at refined settings; ``legsim.orbits.accuracy``); None when
-        no iterate came within tol.
+        resolved residual, change at refined settings; ``legsim.orbits.accuracy``), or at the
+        last iterate of a search that no Newton step advanced (``map_unresolved`` when it
+        explains the residual, ``diverged`` when not); None otherwise.
     transitions: names of the transitions of one period.
     evaluations: simulations run.
     memory, memory_names, memory_units: the controller's memory on the orbit (its value at the

@@ -152,6 +152,10 @@ def test_divergence_when_there_is_no_orbit():
     assert res.status == "diverged", res.message
     assert "no Newton step" in res.message and "no periodic orbit" in res.message
     assert not res.converged and res.multipliers is None
+    # The map is smooth: what it resolves there is far below the residual, and the search says so.
+    acc = res.map_accuracy
+    assert acc is not None and acc.resolved < 1e-3 * res.residual
+    assert "below the residual, so the map's noise does not explain it" in res.message
 
 
 def test_a_newton_jacobians_error_does_not_hide_a_singular_jacobian(monkeypatch):
