@@ -35,7 +35,7 @@ from .execution import Execution
 from .hybrid import HybridSystem
 from .methods import Tableau
 from .metric import MetricError
-from .metric.closed_loop import RunDistance, run_distance
+from .metric.closed_loop import RunDistance, crossing_distances, run_distance
 
 #: Times at which the two trajectories are compared.
 SAMPLES = 2001
@@ -136,6 +136,10 @@ class AlongOrbit:
         takings, the states just after the reset; in the coordinate's units).
     relative: max over coordinates of that error over the coordinate's size along the refined run
         (coordinates at zero to rounding left out, as for ``final_state_relative``).
+    quotient: max over those crossings of paper 000's relaxed quotient distance (at the run's
+        eps) between the two runs' plant states there, phase-aligned (``legsim.metric.
+        closed_loop.crossing_distances``: an explicit path, an upper bound); None without the
+        system, or where the metric is not defined (``quotient_note`` says why).
     """
 
     section: str
@@ -145,6 +149,8 @@ class AlongOrbit:
     state: dict[str, float]
     relative: float | None
     where: str = ""
+    quotient: float | None = None
+    quotient_note: str | None = None
 
     def as_dict(self) -> dict[str, Any]:
         return {
@@ -155,6 +161,8 @@ class AlongOrbit:
             "phase": self.phase,
             "state": self.state,
             "relative": self.relative,
+            "quotient": self.quotient,
+            "quotient_note": self.quotient_note,
         }
 
 
@@ -180,7 +188,7 @@ def compare(
     times, matched, differ = _transition_times(run, fine)
     trajectory, mismatch = _trajectory(run, fine)
     settings = {key: fine.settings.get(key) for key in ("h", "eps", "rtol", "atol")}
-    orbit = along_orbit(run, fine, section)
+    orbit = along_orbit(run, fine, section, system)
     distance, note = quotient_distance(system, run, fine)
     return ErrorEstimate(final, relative, times, matched, differ, trajectory, mismatch, settings, orbit, distance, note)
 
@@ -201,10 +209,13 @@ def quotient_distance(
         return None, f"not defined: {exc}"
 
 
-def along_orbit(run: Execution, fine: Execution, section: str | OrbitSection | None = None) -> AlongOrbit | None:
+def along_orbit(
+    run: Execution, fine: Execution, section: str | OrbitSection | None = None, system: HybridSystem | None = None
+) -> AlongOrbit | None:
     """``run`` against ``fine`` at their crossings of ``section``: an ``OrbitSection``, or the
     name of a mode whose entries are the crossings (default: the run's initial mode, else the
-    mode it enters most often); None without a crossing in both."""
+    mode it enters most often); None without a crossing in both. With the ``system`` both ran,
+    the quotient distance at those crossings too."""
     if section is None:
         section = _section_mode(run)
         if section is None:
@@ -223,7 +234,24 @@ def along_orbit(run: Execution, fine: Execution, section: str | OrbitSection | N
     ratios = [value / sizes[name] for name, value in state.items() if sizes.get(name, 0.0) > floor]
     unmatched = len(a) + len(b) - 2 * len(pairs)
     relative = max(ratios) if ratios else None
-    return AlongOrbit(mode, len(pairs), unmatched, phase, state, relative, _where(section))
+    matched = [(mode, a[i][1], a[i][0], b[j][1], b[j][0]) for i, j in pairs]
+    quotient, note = _quotient_at_crossings(system, run, fine, matched)
+    return AlongOrbit(mode, len(pairs), unmatched, phase, state, relative, _where(section), quotient, note)
+
+
+def _quotient_at_crossings(
+    system: HybridSystem | None, run: Execution, fine: Execution, matched: list[Any]
+) -> tuple[float | None, str | None]:
+    """(max quotient distance over the matched crossings, None) or (None, why there is none)."""
+    if system is None:
+        return None, "not computed: the hybrid system the runs simulate was not given"
+    eps = run.settings.get("eps")
+    if not isinstance(eps, (int, float)) or not eps >= 0:
+        return None, f"not defined: the run's strip width eps is {eps!r}"
+    try:
+        return float(crossing_distances(system, run, fine, matched, float(eps)).max()), None
+    except MetricError as exc:
+        return None, f"not defined: {exc}"
 
 
 def _crossings(execution: Execution, section: str | OrbitSection) -> list[Crossing]:

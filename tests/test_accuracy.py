@@ -2,6 +2,7 @@
 against closed-form errors, its refinement rule, and its JSON."""
 
 import json
+import math
 
 import numpy as np
 import pytest
@@ -150,3 +151,33 @@ def test_a_bad_accuracy_section_is_named_before_anything_runs(tmp_path, accuracy
     with pytest.raises(SceneError) as caught:
         scene.check_accuracy()
     assert "ball.toml" in str(caught.value) and field in str(caught.value) and message in str(caught.value)
+
+
+def test_the_quotient_distance_at_matched_crossings_is_the_rebound_speeds_difference_in_closed_form():
+    # Two balls dropped from 1 m and 1.0001 m: their k-th rebounds leave the floor at exactly
+    # c^k sqrt(2 g z0), so at matched entries the plant states differ by c^k sqrt(2 g) times
+    # the difference of the square roots, largest at the first rebound; shorter than eps, that
+    # chord is the quotient distance (every other path crosses a strip, of length eps).
+    from legsim import simulate
+
+    g, c, eps = 9.81, 0.8, 1e-3
+    system = make_system(g, c)
+    low = simulate(system, [1.0, 0.0], "flight", 2.5, 1e-3, eps, "rk4")
+    high = simulate(system, [1.0001, 0.0], "flight", 2.5, 1e-3, eps, "rk4")
+    orbit = along_orbit(low, high, system=system)
+    first = c * math.sqrt(2 * g) * (math.sqrt(1.0001) - 1.0)
+    assert orbit.crossings >= 3 and first < eps
+    assert orbit.quotient == pytest.approx(first, rel=1e-9)
+    assert along_orbit(low, high).quotient is None
+
+
+def test_phase_aligned_the_quotient_distance_sees_no_timing_error():
+    # The same bounce started 0.1 s later: far apart at equal times, the same at matched entries.
+    from legsim import simulate
+
+    system = make_system(9.81, 0.8)
+    early = simulate(system, [1.0, 0.0], "flight", 2.0, 1e-3, 1e-4, "rk4")
+    late = simulate(system, [1.0, 0.0], "flight", 2.1, 1e-3, 1e-4, "rk4", t0=0.1)
+    assert along_orbit(early, late, system=system).quotient < 1e-12
+    _, estimate = check_accuracy(system, [1.0, 0.0], "flight", 2.0, 1e-3, 1e-3, "rk4")
+    assert estimate.along_orbit.quotient < 1e-3 * estimate.quotient_distance.value

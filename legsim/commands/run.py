@@ -297,9 +297,10 @@ def format_estimate(estimate: Any) -> str:
         largest = max(orbit.state, key=orbit.state.__getitem__, default=None)
         worst = "" if largest is None else f"; largest {largest} {orbit.state[largest]:.3g}"
         relative = "n/a" if orbit.relative is None else f"{orbit.relative:.3g}"
+        quotient = "" if orbit.quotient is None else f"; quotient distance (paper 000) {orbit.quotient:.3g}"
         lines.append(
             f"  along the orbit (states at {orbit.crossings} {orbit.where}, phase-aligned): "
-            f"relative {relative}{worst}; their times {orbit.phase:.3g} s apart"
+            f"relative {relative}{worst}{quotient}; their times {orbit.phase:.3g} s apart"
         )
     lines.append(format_quotient_distance(estimate))
     return "\n".join(lines)

@@ -162,6 +162,29 @@ def run_distance(
     )
 
 
+def crossing_distances(system: HybridSystem, run: Any, other: Any, pairs: Any, eps: float) -> np.ndarray:
+    """The relaxed quotient distance between the plant states of two runs at matched section
+    crossings, shape (len(pairs),): ``pairs`` holds (mode, x_run, t_run, x_other, t_other), each
+    state the run's at its crossing (plant coordinates first, the memory after them is left
+    out). Phase-aligned: the two runs are compared where each crosses, not at one time, so a
+    timing error alone adds nothing. Each distance is the shortest explicit path (the chord,
+    or chords joined at the crossings either run made near those times, a strip of width eps
+    each), an upper bound of the distance; a ``MetricError`` for a state that is not finite."""
+    eps = check_eps(eps)
+    view_a, view_b = plant_view(system, run, "run"), plant_view(system, other, "other run")
+    crossings = [Crossed(view_a), Crossed(view_b)]
+    out = np.empty(len(pairs))
+    for k, (mode, xa, ta, xb, tb) in enumerate(pairs):
+        a = np.asarray(xa, dtype=float)[: view_a.dims[mode]]
+        b = np.asarray(xb, dtype=float)[: view_b.dims[mode]]
+        _require_finite(a, mode, float(ta))
+        _require_finite(b, mode, float(tb))
+        # Each run's own crossings near its own time: the union joins the two points either way.
+        near = [*crossings[0].near(float(ta)), *crossings[1].near(float(tb))]
+        out[k] = _through_crossings([(mode, a, 0.0)], [(mode, b, 0.0)], near, eps)
+    return out
+
+
 def _distances_at(
     system: HybridSystem,
     view_a: PlantView,
@@ -186,7 +209,8 @@ def _distances_at(
                 continue
         # The chord where the modes agree, or a shorter path through crossings (a self-transition
         # such as a ball's bounce joins two far points of one mode).
-        d[i] = _through_crossings(ends_a[i], ends_b[i], crossings, float(t), eps)
+        near = [c for run in crossings for c in run.near(float(t))]
+        d[i] = _through_crossings(ends_a[i], ends_b[i], near, eps)
         if not math.isfinite(d[i]):
             d[i] = distances(system, view_a, view_b, full_a.times[i : i + 1], eps, max_hops=max_hops)[0]
     return d, same
@@ -228,14 +252,13 @@ def _require_finite(x: np.ndarray, mode: str, t: float) -> None:
 
 
 def _through_crossings(
-    ends_a: list[Anchor], ends_b: list[Anchor], crossings: list[Crossed], t: float, eps: float
+    ends_a: list[Anchor], ends_b: list[Anchor], near: list[tuple[str, str, np.ndarray, np.ndarray]], eps: float
 ) -> float:
     """The shortest path between two samples' anchors made of chords inside modes joined at
-    the crossings the runs made near ``t`` (the ``NEAREST`` of each run on either side, each
-    usable either way: a crossing's guard point q and its reset image R(q) are joined in M^eps
-    by a strip of width eps), by Dijkstra's algorithm over those crossings. An explicit
+    the crossings ``near`` (source, target, guard point q, reset image R(q)): those the runs
+    made near the samples' times (``Crossed.near``), each usable either way (q and R(q) are
+    joined in M^eps by a strip of width eps), by Dijkstra's algorithm over them. An explicit
     connected path, so an upper bound of the distance; ``inf`` when no such path joins them."""
-    near = [c for run in crossings for c in run.near(t)]
     # Each crossing both ways: (from mode, entry point, to mode, exit point).
     hops = [(s, q, d, r) for s, d, q, r in near] + [(d, r, s, q) for s, d, q, r in near]
     best = math.inf

@@ -106,5 +106,5 @@ def test_check_accuracy_prints_the_quotient_distance_in_text_and_json(capsys):
     assert estimate["quotient_distance"]["value"] == pytest.approx(expected.value, rel=1e-9)
     assert estimate["quotient_distance_note"] is None
     assert main(args) == 0
-    line = next(x for x in capsys.readouterr().out.splitlines() if "quotient distance" in x)
+    line = next(x for x in capsys.readouterr().out.splitlines() if "quotient distance (paper 000, plant" in x)
     assert f"{expected.value:.3g} at t = " in line and "memory apart" in line
