@@ -31,6 +31,7 @@ from typing import Any
 import numpy as np
 
 from .crossings import Crossing, returns, takings
+from .errors import SimulationError
 from .execution import Execution
 from .hybrid import HybridSystem
 from .methods import Tableau
@@ -116,6 +117,19 @@ class OrbitSection:
     transition: str | None = None
     min_transitions: int = 1
     min_time: float = 0.0
+
+    def __post_init__(self) -> None:
+        if (self.function is None) == (self.transition is None):
+            raise SimulationError(f"OrbitSection {self.label!r}: give a function or a transition, not both or neither")
+        if self.function is not None and not callable(self.function):
+            raise SimulationError(f"OrbitSection {self.label!r}: function must be callable s(x) -> float")
+        if self.direction not in (-1, 0, 1):
+            raise SimulationError(f"OrbitSection {self.label!r}: direction must be -1, 0 or +1, got {self.direction!r}")
+        if self.min_transitions < 0 or not self.min_time >= 0.0:
+            raise SimulationError(
+                f"OrbitSection {self.label!r}: min_transitions and min_time must be >= 0, got "
+                f"{self.min_transitions!r} and {self.min_time!r}"
+            )
 
 
 @dataclass(frozen=True)
@@ -259,7 +273,7 @@ def _crossings(execution: Execution, section: str | OrbitSection) -> list[Crossi
         return _entries(execution, section)
     if section.transition is not None:
         return takings(execution, section.transition, section.mode)
-    assert section.function is not None, "an OrbitSection needs a function or a transition"
+    assert section.function is not None  # OrbitSection holds one of the two
     found = returns(
         execution, section.mode, section.function, section.direction, section.min_transitions, section.min_time
     )

@@ -181,3 +181,22 @@ def test_phase_aligned_the_quotient_distance_sees_no_timing_error():
     assert along_orbit(early, late, system=system).quotient < 1e-12
     _, estimate = check_accuracy(system, [1.0, 0.0], "flight", 2.0, 1e-3, 1e-3, "rk4")
     assert estimate.along_orbit.quotient < 1e-3 * estimate.quotient_distance.value
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        ({}, "give a function or a transition"),
+        ({"function": lambda x: x[1], "transition": "bounce"}, "give a function or a transition"),
+        ({"function": 1.0}, "must be callable"),
+        ({"function": lambda x: x[1], "direction": 2}, r"direction must be -1, 0 or \+1"),
+        ({"function": lambda x: x[1], "min_time": -1.0}, "must be >= 0"),
+    ],
+)
+def test_a_bad_orbit_section_is_refused_by_name(kwargs, message):
+    from legsim import SimulationError
+    from legsim.accuracy import OrbitSection
+
+    with pytest.raises(SimulationError, match=message) as caught:
+        OrbitSection("flight", "apex", **kwargs)
+    assert "'apex'" in str(caught.value)
