@@ -26,6 +26,8 @@
 #include <pinocchio/algorithm/rnea.hpp>
 #include <pinocchio/multibody.hpp>
 
+#include <Eigen/Eigenvalues>
+
 #include <algorithm>
 #include <array>
 #include <chrono>
@@ -339,9 +341,16 @@ Mat minverse(Robot& rb, const ConstMap& q) {
   return Minv;
 }
 
+// A pivot or eigenvalue below this share of the largest is zero (robots/bridge/impacts.SINGULAR).
+constexpr double kSingular = 1e-12;
+
 // Solve A y = b for the small SPD Delassus matrix; one and two rows in closed form as
 // robots/bridge/dynamics.solve_small does; lu is the reused factorisation of larger ones.
-void solve_small(const Mat& A, const Vec& b, Eigen::PartialPivLU<Mat>& lu, Vec& y) {
+// With least_norm, a singular A (two stuck points of one rigid body: four rows on its three
+// degrees of freedom, a statically indeterminate support) takes the least-norm solution, as
+// robots/bridge/impacts.solve_min_norm does for impulses: the forces are not unique there, and
+// the smallest are an equal share at a symmetric support.
+void solve_small(const Mat& A, const Vec& b, Eigen::PartialPivLU<Mat>& lu, Vec& y, bool least_norm = false) {
   y.resize(A.rows());
   if (A.rows() == 1) {
     y(0) = b(0) / A(0, 0);
@@ -351,6 +360,15 @@ void solve_small(const Mat& A, const Vec& b, Eigen::PartialPivLU<Mat>& lu, Vec& 
     y(1) = (A(0, 0) * b(1) - A(1, 0) * b(0)) / det;
   } else {
     lu.compute(A);
+    if (least_norm && !(lu.rcond() >= kSingular)) {  // a zero pivot makes the estimate nan
+      Eigen::SelfAdjointEigenSolver<Mat> eigen(A);
+      const Vec& values = eigen.eigenvalues();
+      const double cut = kSingular * values.cwiseAbs().maxCoeff();
+      y.setZero();
+      for (long i = 0; i < values.size(); ++i)
+        if (values(i) > cut) y += (eigen.eigenvectors().col(i).dot(b) / values(i)) * eigen.eigenvectors().col(i);
+      return;
+    }
     y = lu.solve(b);
   }
 }
@@ -596,7 +614,7 @@ void lsn_constrained(long h, const double* q, const double* v, const double* tau
   } else {
     s.rhs.noalias() = s.J * s.acc;
     s.rhs = -(s.rhs + s.gamma);
-    solve_small(s.A, s.rhs, s.lu, s.lambda);
+    solve_small(s.A, s.rhs, s.lu, s.lambda, !slipping(s.blocks));
     s.acc.noalias() += s.MWt * s.lambda;
     OutMap(a, n) = s.acc;
     OutMap(lam, s.lambda.size()) = s.lambda;
@@ -628,7 +646,7 @@ void lsn_impact(long h, const double* q, const double* v, long count, const doub
   const Vec rhs = -((Vec::Ones(c.size()) + c).cwiseProduct(Jv));
   Vec impulse;
   Eigen::PartialPivLU<Mat> lu;
-  solve_small(J * MJt, rhs, lu, impulse);
+  solve_small(J * MJt, rhs, lu, impulse, !slipping(blocks));
   OutMap(v_out, n) = vm + MJt * impulse;
   if (impulse_out != nullptr) OutMap(impulse_out, impulse.size()) = impulse;
 }

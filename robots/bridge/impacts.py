@@ -58,6 +58,11 @@ FREE, STICK, NORMAL, SLIDE = range(4)
 TOL = 1e-10
 #: Kinetic energy an impact may gain to rounding (relative).
 ENERGY_TOL = 1e-12
+#: A pivot or eigenvalue below this share of the matrix's largest entry is zero: the matrix is
+#: singular to rounding.
+SINGULAR = 1e-12
+#: The largest residual (relative) of a least-norm solve whose right-hand side is in the range.
+CONSISTENT = 1e-8
 #: Most sets of statuses the active set tries before it gives up (the state is then past the
 #: model's range).
 MAX_TRIES = 64
@@ -114,13 +119,15 @@ def kinetic(M, v, n):
 @model_function
 def solve_small(A, b, m):
     """Solve A y = b (A (m, m), changed) in place of b by Gaussian elimination with partial
-    pivoting; returns False (b unusable) when A is singular or not finite."""
+    pivoting; returns False (b unusable) when A is singular (a pivot below ``SINGULAR`` of its
+    largest entry) or not finite."""
+    largest = np.abs(A[:m, :m]).max() if m > 0 else 0.0
     for k in range(m):
         pivot = k
         for i in range(k + 1, m):
             if abs(A[i, k]) > abs(A[pivot, k]):
                 pivot = i
-        if not abs(A[pivot, k]) > 0.0 or not math.isfinite(A[pivot, k]):
+        if not abs(A[pivot, k]) > SINGULAR * largest or not math.isfinite(A[pivot, k]):
             return False
         if pivot != k:
             for j in range(m):
@@ -136,6 +143,32 @@ def solve_small(A, b, m):
         for j in range(k + 1, m):
             total -= A[k, j] * b[j]
         b[k] = total / A[k, k]
+    return True
+
+
+@model_function
+def solve_min_norm(A, b, m):
+    """The least-norm solution of A y = b for a symmetric positive semidefinite A (m, m) into b:
+    y = sum over the eigenvalues above ``SINGULAR`` of the largest of (v . b / lambda) v. Where
+    A is singular, as for two stuck points of one rigid body (four rows on its three degrees of
+    freedom: a statically indeterminate support), the impulses or forces are not unique, and
+    this rule picks the smallest (an equal share at a symmetric support). Returns False when A
+    or b is not finite, or b is not in A's range (then no impulse meets the rows)."""
+    if not (np.all(np.isfinite(A[:m, :m])) and np.all(np.isfinite(b[:m]))):
+        return False
+    values, vectors = np.linalg.eigh(A[:m, :m])
+    cut = SINGULAR * max(np.abs(values).max(), 1e-300)
+    y = np.zeros(m)
+    for i in range(m):
+        if values[i] > cut:
+            column = vectors[:, i].copy()
+            y += (dot(column, b, m) / values[i]) * column
+    worst = 0.0
+    for i in range(m):
+        worst = max(worst, abs(dot(A[i], y, m) - b[i]))
+    if worst > CONSISTENT * (1.0 + np.abs(b[:m]).max()):
+        return False
+    b[:m] = y
     return True
 
 

@@ -55,3 +55,25 @@ def test_a_rod_landing_on_a_frictionless_floor_ends_lying_with_its_weight_shared
     assert system.energy("a+b", x) == pytest.approx(0.5 * m * xd**2, abs=1e-9)
     # the constraint is kept at the acceleration level; the ends stay on the floor to RK4 accuracy
     assert abs(x[1]) < 1e-9 and abs(x[2]) < 1e-9
+
+
+def test_a_singular_support_takes_the_least_norm_impulses_and_an_inconsistent_one_none():
+    # A = B B^T with B (4, 3): four rows on three degrees of freedom (two stuck points of one
+    # body), rank 3. Elimination refuses it; the least-norm solve gives the pseudo-inverse's
+    # solution, and refuses a right-hand side with a part outside A's range.
+    from legsim.robots.bridge.impacts import solve_min_norm, solve_small
+
+    rng = np.random.default_rng(3)
+    B = rng.normal(size=(4, 3))
+    A = B @ B.T
+    b = A @ rng.normal(size=4)
+    assert not solve_small(A.copy(), b.copy(), 4)
+    y = b.copy()
+    assert solve_min_norm(A.copy(), y, 4)
+    assert np.allclose(y, np.linalg.pinv(A) @ b, rtol=0.0, atol=1e-10 * np.abs(y).max())
+    null = np.linalg.svd(A)[0][:, -1]
+    assert not solve_min_norm(A.copy(), b + 1e-3 * np.abs(b).max() * null, 4)
+    # a regular system is solved by elimination as before
+    regular = A + np.eye(4)
+    x = b.copy()
+    assert solve_small(regular.copy(), x, 4) and np.allclose(regular @ x, b, rtol=1e-12, atol=0.0)
