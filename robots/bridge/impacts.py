@@ -63,6 +63,9 @@ ENERGY_TOL = 1e-12
 SINGULAR = 1e-12
 #: The largest residual (relative) of a least-norm solve whose right-hand side is in the range.
 CONSISTENT = 1e-8
+#: Jacobi sweeps of ``symmetric_eigen``: each squares the off-diagonal part, so a few reach
+#: rounding; the bound only guards against a matrix that is not finite.
+JACOBI_SWEEPS = 50
 #: Most sets of statuses the active set tries before it gives up (the state is then past the
 #: model's range).
 MAX_TRIES = 64
@@ -156,7 +159,8 @@ def solve_min_norm(A, b, m):
     or b is not finite, or b is not in A's range (then no impulse meets the rows)."""
     if not (np.all(np.isfinite(A[:m, :m])) and np.all(np.isfinite(b[:m]))):
         return False
-    values, vectors = np.linalg.eigh(A[:m, :m])
+    values, vectors = np.empty(m), np.empty((m, m))
+    symmetric_eigen(A, m, values, vectors)
     cut = SINGULAR * max(np.abs(values).max(), 1e-300)
     y = np.zeros(m)
     for i in range(m):
@@ -170,6 +174,49 @@ def solve_min_norm(A, b, m):
         return False
     b[:m] = y
     return True
+
+
+@model_function
+def symmetric_eigen(A, m, values, vectors):
+    """The eigenvalues (into values) and orthonormal eigenvectors (the columns of vectors) of the
+    symmetric A[:m, :m], by cyclic Jacobi rotations to rounding: for the few rows of a contact
+    solve, plain loops compile in a fraction of the time of LAPACK's bindings."""
+    a = A[:m, :m].copy()
+    for i in range(m):
+        for j in range(m):
+            vectors[i, j] = 1.0 if i == j else 0.0
+    size = 0.0
+    for i in range(m):
+        for j in range(m):
+            size += a[i, j] * a[i, j]
+    for _ in range(JACOBI_SWEEPS):
+        off = 0.0
+        for i in range(m):
+            for j in range(i + 1, m):
+                off += a[i, j] * a[i, j]
+        if off <= 1e-32 * size:
+            break
+        for p in range(m - 1):
+            for q in range(p + 1, m):
+                if a[p, q] == 0.0:
+                    continue
+                theta = (a[q, q] - a[p, p]) / (2.0 * a[p, q])
+                t = 1.0 / (abs(theta) + math.sqrt(theta * theta + 1.0))
+                if theta < 0.0:
+                    t = -t
+                c = 1.0 / math.sqrt(t * t + 1.0)
+                s = t * c
+                for k in range(m):  # A J, then J^T (A J), then V J: a[p, q] becomes 0
+                    akp, akq = a[k, p], a[k, q]
+                    a[k, p], a[k, q] = c * akp - s * akq, s * akp + c * akq
+                for k in range(m):
+                    apk, aqk = a[p, k], a[q, k]
+                    a[p, k], a[q, k] = c * apk - s * aqk, s * apk + c * aqk
+                for k in range(m):
+                    vkp, vkq = vectors[k, p], vectors[k, q]
+                    vectors[k, p], vectors[k, q] = c * vkp - s * vkq, s * vkp + c * vkq
+    for i in range(m):
+        values[i] = a[i, i]
 
 
 # -- the generalised Newton impact (contacts without friction) ---------------------------------

@@ -77,3 +77,18 @@ def test_a_singular_support_takes_the_least_norm_impulses_and_an_inconsistent_on
     regular = A + np.eye(4)
     x = b.copy()
     assert solve_small(regular.copy(), x, 4) and np.allclose(regular @ x, b, rtol=1e-12, atol=0.0)
+
+
+def test_the_contact_solves_eigenvalues_are_numpys_to_rounding():
+    from legsim.robots.bridge.impacts import symmetric_eigen
+
+    rng = np.random.default_rng(5)
+    for m in (1, 2, 4, 6):
+        B = rng.normal(size=(m, max(1, m - 1)))
+        A = B @ B.T + np.diag(rng.uniform(0.0, 1e-3, size=m))
+        values, vectors = np.empty(m), np.empty((m, m))
+        symmetric_eigen(A.copy(), m, values, vectors)
+        order = np.argsort(values)
+        assert np.allclose(values[order], np.linalg.eigvalsh(A), rtol=0.0, atol=1e-12 * np.abs(A).max())
+        assert np.allclose(vectors.T @ vectors, np.eye(m), rtol=0.0, atol=1e-12)
+        assert np.allclose(A @ vectors, vectors * values, rtol=0.0, atol=1e-11 * np.abs(A).max())
