@@ -212,13 +212,21 @@ def quotient_distance(
 ) -> tuple[RunDistance | None, str | None]:
     """(the runs' distance in the relaxed quotient metric at the run's eps, None) or (None, why
     it is not defined for them)."""
+    return _in_quotient(system, run, lambda system, eps: run_distance(system, run, fine, eps))
+
+
+def _in_quotient(
+    system: HybridSystem | None, run: Execution, measure: Callable[[HybridSystem, float], Any]
+) -> tuple[Any, str | None]:
+    """(measure(system, eps) at the run's strip width eps, None), or (None, why the quotient
+    metric is not defined for the runs: no system, no eps, or the metric's refusal)."""
     if system is None:
         return None, "not computed: the hybrid system the runs simulate was not given"
     eps = run.settings.get("eps")
     if not isinstance(eps, (int, float)) or not eps >= 0:
         return None, f"not defined: the run's strip width eps is {eps!r}"
     try:
-        return run_distance(system, run, fine, float(eps)), None
+        return measure(system, float(eps)), None
     except MetricError as exc:
         return None, f"not defined: {exc}"
 
@@ -249,23 +257,10 @@ def along_orbit(
     unmatched = len(a) + len(b) - 2 * len(pairs)
     relative = max(ratios) if ratios else None
     matched = [(mode, a[i][1], a[i][0], b[j][1], b[j][0]) for i, j in pairs]
-    quotient, note = _quotient_at_crossings(system, run, fine, matched)
+    quotient, note = _in_quotient(
+        system, run, lambda system, eps: float(crossing_distances(system, run, fine, matched, eps).max())
+    )
     return AlongOrbit(mode, len(pairs), unmatched, phase, state, relative, _where(section), quotient, note)
-
-
-def _quotient_at_crossings(
-    system: HybridSystem | None, run: Execution, fine: Execution, matched: list[Any]
-) -> tuple[float | None, str | None]:
-    """(max quotient distance over the matched crossings, None) or (None, why there is none)."""
-    if system is None:
-        return None, "not computed: the hybrid system the runs simulate was not given"
-    eps = run.settings.get("eps")
-    if not isinstance(eps, (int, float)) or not eps >= 0:
-        return None, f"not defined: the run's strip width eps is {eps!r}"
-    try:
-        return float(crossing_distances(system, run, fine, matched, float(eps)).max()), None
-    except MetricError as exc:
-        return None, f"not defined: {exc}"
 
 
 def _crossings(execution: Execution, section: str | OrbitSection) -> list[Crossing]:
