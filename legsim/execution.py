@@ -128,10 +128,12 @@ class TransitionRecord:
         transition among the source mode's outgoing transitions.
     time: strip entry, the time at which the step's interpolant meets the guard (s).
     landing_time: end of the step that landed in the strip (s).
-    exit_time: strip exit, ``landing_time + eps - depth``, when the reset was applied (s).
+    exit_time: strip exit, ``landing_time + eps - depth`` (``landing_time`` for a guard that jumped
+        past its strip), when the reset was applied (s).
     state_before: the guard point q the reset was applied to (source dimension).
     state_after: the reset image R(q) (target dimension).
-    depth: tau = -guard at the landing point, in guard units (0 <= tau <= eps).
+    depth: tau = -guard at the landing point, in guard units (0 <= tau <= eps; > eps where the
+        guard jumped past its strip, ``ModeFunctions.crosses_jumps``).
     """
 
     name: str

@@ -34,6 +34,16 @@ impact with friction: stuck, slipping or lifted off) needs the input the control
 before the crossing, evaluates the controller in its target at its image (entered on a copy of
 the memory), and asks the mode's guards (or its joint function) again under that input, until
 the choice repeats.
+
+A mode whose guards may jump, discontinuous in the state by design (a robot's contact forces and
+slip velocities where a sliding point passes a corner of the terrain, or where the controller
+switches), declares ``crosses_jumps``: where a guard jumps past its strip between a time and the
+next float, so that no step can land in the strip, the loop crosses it there
+(``legsim.relaxed.stepping.land_at_jump``), from the point just past the jump, located to
+rounding (closer than any strip), and counts it (``Execution.counters["guard_jumps"]``, present
+where the run crossed one). Without
+it such a run ends with ``halving_exhausted``: a guard that should be continuous and is not is a
+model's error, which the run must not step over.
 """
 
 from __future__ import annotations
@@ -62,6 +72,8 @@ class ModeFunctions:
     nan_breaks: a nan from these functions means the state is past the model's range.
     previewed: the functions choose a crossing's outcome under the input applied after it
         (module docstring).
+    crosses_jumps: a guard that jumps past its strip is crossed where it jumps (module
+        docstring).
     call_params: params as a writable array, for the calls from Python (set, not given).
     """
 
@@ -74,6 +86,7 @@ class ModeFunctions:
     joint_outcomes: tuple[tuple[str, str], ...] = ()
     nan_breaks: bool = False
     previewed: bool = False
+    crosses_jumps: bool = False
     #: A writable copy of params, which the Python path passes to the functions (__post_init__).
     call_params: Any = field(init=False, repr=False, compare=False)
 

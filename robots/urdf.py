@@ -252,9 +252,10 @@ PARAMETERS = {
     ),
     "below_ground": Param(
         "warn",
-        "a link without a contact below the ground: 'warn' (a warning naming link, time and depth) or "
-        "'strict' (the run stops with status model_breakdown)",
-        choices=("warn", "strict"),
+        "a link without a contact below the ground: 'warn' (a warning naming link, time and depth), "
+        "'strict' (the run stops with status model_breakdown: past the model) or 'fall' (the run stops "
+        "with status fell: the robot crashed, as a [fall] condition)",
+        choices=("warn", "strict", "fall"),
     ),
     "g": Param(9.81, "gravitational acceleration", "m/s^2", low=0.0),
     "flight_mode": Param("flight", "name of the mode without active contacts"),
@@ -377,7 +378,7 @@ def _build(params: dict[str, Any], effects: dict[str, dict[str, Any]], terrain: 
     ground = min((float(c.ground) for c in bridge.contacts if isinstance(c, PointContact)), default=0.0)
     if terrain is not None:  # heights are then measured above the terrain under each point
         ground = 0.0
-    below = below_ground_watch(heights, ground, params["below_ground"] == "strict") if heights.links else None
+    below = below_ground_watch(heights, ground, params["below_ground"]) if heights.links else None
     names, limits = bridge.actuated_names, bridge.effort_limits
 
     def watches(control: Any) -> list[Any]:

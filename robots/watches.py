@@ -118,9 +118,11 @@ def _point_frames(model: pin.Model, links: Mapping[str, tuple[int, np.ndarray]])
     return handle_for(marked, model.name or "urdf"), np.array(frames, dtype=float)
 
 
-def below_ground_watch(heights: LinkHeights, ground: float, strict: bool) -> Watch:
-    """A link without a contact below the ground z = ``ground``: a warning naming the link, the
-    time and the depth, or with ``strict`` a stop with status ``model_breakdown``."""
+def below_ground_watch(heights: LinkHeights, ground: float, action: str = "warn") -> Watch:
+    """A link without a contact below the ground z = ``ground``: with ``action`` "warn" a
+    warning naming the link, the time and the depth; "strict" a stop with status
+    ``model_breakdown`` (the model has no contact there); "fall" a stop with status ``fell``
+    (the robot crashed into the ground, a scene's fall condition)."""
 
     def lowest(x: np.ndarray) -> tuple[str, float]:
         h = heights(x)
@@ -139,6 +141,9 @@ def below_ground_watch(heights: LinkHeights, ground: float, strict: bool) -> Wat
             f"(declare a contact on the link, or it passes through the ground)"
         )
 
-    if strict:
+    if action == "strict":
         return Watch("below_ground", value, "stop", message, status=Status.MODEL_BREAKDOWN.value)
+    if action == "fall":
+        return Watch("below_ground", value, "stop", lambda t, mode, x: f"fell: below_ground: {message(t, mode, x)}",
+                     status=Status.FELL.value)  # fmt: skip
     return Watch("below_ground", value, "warn", message)

@@ -219,6 +219,9 @@ class Assembly:
             python_steps=steps[1],
             wall_time_s=wall,
         )
+        jumps = len(self._jumps())
+        if jumps:  # only where a model crosses its guards' jumps (ModeFunctions.crosses_jumps)
+            counters["guard_jumps"] = jumps
         compiled = steps[1] == 0
         options = self.options
         run_settings = {
@@ -366,6 +369,10 @@ class Assembly:
         out = zeno.warnings(replay, t_end) + order.warnings()
         held = strip_hold_warning(strip_time, self.options.t0, t_end, out)
         return out + ([held] if held is not None else [])
+
+    def _jumps(self) -> list[TransitionRecord]:
+        """The transitions crossed where their guard jumped past its strip (depth beyond eps)."""
+        return [tr for tr in self.transitions if tr.depth > self.options.eps]
 
     # -- the end --------------------------------------------------------------------------------
     def ending(self, ws: Any) -> tuple[Status, str]:

@@ -31,13 +31,13 @@ from .curve import crossing_on_landing, landing_point, landing_slope
 from .evaluate import (
     Tables,
     Visit,
-    argleast,
     closed_reset,
     control_now,
     enter_controller,
     guards_at,
     guards_under,
     input_after,
+    least,
     reset_under,
     visit_of,
 )
@@ -72,6 +72,7 @@ from .layout import (
     KIND_PLAIN,
     M_J0,
     M_JOINT_HISTORY,
+    M_READY,
     M_T0,
     NO_CONTINUATION,
     PHASE_ENDED,
@@ -102,7 +103,7 @@ from .layout import (
     V_FIRST,
     V_MODE,
 )
-from .rules import accumulating, entered_in_strip, flight_since, strip_exit_time
+from .rules import accumulating, entered_in_strip, flight_since, past_strip, strip_exit_time
 from .stages import MethodArrays, all_finite
 from .stepping import CROSSING_TOL
 
@@ -221,7 +222,7 @@ def cross(
         return CROSSED
     previewed = vis.previewed and vis.control >= 0
     if previewed:
-        e = previewed_choice(tab, vis, ws, e, tc, exit_time)
+        e = previewed_choice(tab, vis, ws, e, tc, t_land, exit_time)
     row = tab.modes[vis.mode, M_T0] + e
     accumulates = crossings_accumulate(ws, row, tc)
     continuation = tab.transitions[row, T_CONTINUATION]
@@ -329,20 +330,28 @@ def after_entry(ws, vis: Visit, target: Visit) -> None:
         ws.w[target.dim + d] = ws.q[vis.dim + d]
 
 
-def previewed_choice(tab: Tables, vis: Visit, ws, e: int, tc: float, t_enter: float) -> int:
+def previewed_choice(tab: Tables, vis: Visit, ws, e: int, tc: float, t_land: float, t_enter: float) -> int:
     """The transition crossed at q (ws.q) by a mode that chooses outcomes under the input after
-    them: from transition e, found under the input at q, the image in its target under that
-    input, the controller's input there after its entry, and the least of the mode's guards at q
-    under it, while that one is past and another than the last (``PREVIEW_ROUNDS`` at most).
-    Leaves in ws.u_after the input the returned transition was chosen under (its image must be
-    taken under it too); ws.u and ws.w are scratch."""
+    them. From transition e, found past at the landing point ws.x1 (time t_land): its image of q
+    under the input it is asked under, the controller's input there after its entry, and the
+    mode's guards at the landing point again under that input. e is taken when they choose it
+    again and its image lies in its target's relaxed domain under that input (or its target is
+    not built yet); while they choose it again, it is asked again under the new input;
+    otherwise the deepest guard that became past (one not past under the input before the
+    crossing, ws.g1) is asked next, at most ``PREVIEW_ROUNDS`` times. When none is taken (the
+    controller's inputs before and after disagree about the outcome), the first asked whose
+    image lies in its target's domain under the input there is taken; failing that, the first
+    transition stands and its entry ends the run (reset_outside_domain). The guards are asked at
+    the landing point, not at q: q lies on the guard to within rounding, where the crossing's
+    outcome is not decided.
+    Leaves in ws.u_after the input the returned transition's image is taken under; ws.u, ws.w
+    and ws.u_kept are scratch."""
+    first, kept = e, -1
     control_now(tab, vis, ws, tc, ws.q[: vis.n])
-    for d in range(ws.u.shape[0]):
-        ws.u_after[d] = ws.u[d]
+    copy_input(ws.u, ws.u_after)
     for _ in range(PREVIEW_ROUNDS):
         target = visit_of(tab, ws.ci[S_MEMORY], tab.transitions[tab.modes[vis.mode, M_T0] + e, T_TARGET])
-        for d in range(ws.u.shape[0]):
-            ws.u[d] = ws.u_after[d]  # the input e was chosen under
+        copy_input(ws.u_after, ws.u)  # the input e is asked under
         if vis.reset >= 0:
             call_indexed(tab.functions, vis.reset, e, tc, ws.q[: vis.dim], ws.u, vis.p, ws.w[: target.dim])
         else:
@@ -350,16 +359,49 @@ def previewed_choice(tab: Tables, vis: Visit, ws, e: int, tc: float, t_enter: fl
                 ws.w[d] = ws.q[d]
         after_entry(ws, vis, target)
         input_after(tab, target, ws, t_enter, ws.w[: target.n], ws.u_after)
-        guards_under(tab, vis, ws, tc, ws.q[: vis.n], ws.u_after, ws.g_w)
-        f = argleast(ws.g_w, vis.guards)
-        if f == e:
-            return e  # chosen again under the input after it
-        if not ws.g_w[f] < 0.0:
-            break  # nothing crosses under it: e stands, under the input it was chosen under
-        e = f
-    for d in range(ws.u.shape[0]):
-        ws.u_after[d] = ws.u[d]
-    return e
+        built = tab.modes[target.mode, M_READY] == 1
+        inside = built and enters_inside(tab, target, ws, t_enter)
+        if inside and kept < 0:
+            kept = e
+            copy_input(ws.u, ws.u_kept)
+        guards_under(tab, vis, ws, t_land, ws.x1[: vis.n], ws.u_after, ws.g_w)
+        if ws.g_w[e] < 0.0:
+            if inside or not built:
+                return e  # chosen again under the input after it, its image taken under that
+            continue
+        e = newly_past(ws.g_w, ws.g1, vis.guards)
+        if e < 0:
+            break
+    if kept >= 0:
+        copy_input(ws.u_kept, ws.u_after)
+        return kept
+    control_now(tab, vis, ws, tc, ws.q[: vis.n])
+    copy_input(ws.u, ws.u_after)
+    return first
+
+
+def copy_input(source: np.ndarray, out: np.ndarray) -> None:
+    """out[:] = source[:] (inputs of equal length)."""
+    for d in range(source.shape[0]):
+        out[d] = source[d]
+
+
+def enters_inside(tab: Tables, target: Visit, ws, t_enter: float) -> bool:
+    """Whether the image in ws.w lies in ``target``'s relaxed domain under the input in
+    ws.u_after (its entry would not end the run)."""
+    guards_under(tab, target, ws, t_enter, ws.w[: target.n], ws.u_after, ws.g_w)
+    entered = least(ws.g_w, target.guards)
+    return entered == entered and not past_strip(entered, ws.cf[S_EPS])
+
+
+def newly_past(values: np.ndarray, before: np.ndarray, count: int) -> int:
+    """Index of the deepest of values[:count] that is past (< 0) where before[:count] was not;
+    -1 when there is none."""
+    best = -1
+    for f in range(count):
+        if values[f] < 0.0 and not before[f] < 0.0 and (best < 0 or values[f] < values[best]):
+            best = f
+    return best
 
 
 def crossings_accumulate(ws, row: int, tc: float) -> bool:

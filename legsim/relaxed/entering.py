@@ -109,15 +109,18 @@ def first_nonfinite(values: np.ndarray, count: int) -> int:
 
 def cross_at_once(tab: Tables, vis: Visit, ws) -> int:
     """The entering state lies in a strip: cross it at once with q = x (or end the run when it
-    lies past the strip)."""
+    lies past the strip, unless the mode crosses its guards where they jump: a state entering
+    past a strip has met a jump of that guard at its entry)."""
     e = argleast(ws.g_here, vis.guards)
     t = ws.fs[F_T]
-    if past_strip(ws.g_here[e], ws.cf[S_EPS]):
+    if past_strip(ws.g_here[e], ws.cf[S_EPS]) and not vis.crosses_jumps:
         return end_entry(ws, END_RESET_OUTSIDE, e)
     for d in range(vis.n):
         ws.q[d] = ws.x[d]
+        ws.x1[d] = ws.x[d]  # the landing point too, where a previewed crossing is asked again
     for f in range(vis.guards):
         ws.crossed[f] = 1.0 if f == e else 0.0
+        ws.g1[f] = ws.g_here[f]
     outcome = cross(tab, vis, ws, e, t, t, -ws.g_here[e], 1, -1, -1)
     return CROSSED_AT_ONCE if outcome == CROSSED else ENTRY_ENDED
 

@@ -23,6 +23,7 @@ from .layout import (
     M_C0,
     M_C1,
     M_CONTROL,
+    M_CROSSES_JUMPS,
     M_DIM,
     M_ENTER,
     M_FIELD,
@@ -44,8 +45,11 @@ Tables = namedtuple("Tables", "functions modes transitions joints P")
 #: One mode as the loop evaluates it: its row, the state length n (plant dim + memory), the
 #: plant's dim, its guard count, its functions' indices (-1: none), its parameters p and the
 #: controller's pc there, whether a nan from its functions means "past the model's range", and
-#: whether its crossings are resolved with the input applied after them.
-Visit = namedtuple("Visit", "mode n dim guards field guard_fn reset joint control enter p pc nan_breaks previewed")
+#: whether its crossings are resolved with the input applied after them, and whether a guard
+#: that jumps past its strip is crossed where it jumps.
+Visit = namedtuple(
+    "Visit", "mode n dim guards field guard_fn reset joint control enter p pc nan_breaks previewed crosses_jumps"
+)
 
 
 def visit_of(tab: Tables, memory: int, mode: int) -> Visit:
@@ -67,6 +71,7 @@ def visit_of(tab: Tables, memory: int, mode: int) -> Visit:
         tab.P[row[M_C0] : row[M_C1]],
         row[M_NAN_BREAKS] == 1,
         row[M_PREVIEWED] == 1,
+        row[M_CROSSES_JUMPS] == 1,
     )
 
 

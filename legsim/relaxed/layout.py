@@ -127,7 +127,8 @@ RETURN_ENDED, RETURN_NEED_MODE, RETURN_FULL, RETURN_PROGRESS = range(4)
 #: Zeno history of its joint crossings; whether a nan from its functions means the state is past
 #: the model's range (1: the step is shortened, as for a Python model's ModelBreakdown) or is
 #: an error (0: a nan guard ends the run); whether its crossings are resolved with the input
-#: applied after them (``ModeFunctions.previewed``).
+#: applied after them (``ModeFunctions.previewed``); whether a guard that jumps past its strip
+#: is crossed where it jumps (``ModeFunctions.crosses_jumps``).
 (
     M_DIM,
     M_GUARDS,
@@ -148,8 +149,9 @@ RETURN_ENDED, RETURN_NEED_MODE, RETURN_FULL, RETURN_PROGRESS = range(4)
     M_JOINT_HISTORY,
     M_NAN_BREAKS,
     M_PREVIEWED,
-) = range(19)
-MODE_FIELDS = 19
+    M_CROSSES_JUMPS,
+) = range(20)
+MODE_FIELDS = 20
 
 # -- the transition table (``Tables.transitions``, integers, one row per transition) -------------
 #: The target mode's row; the continuation's target row (``NO_CONTINUATION`` when there is none).

@@ -106,6 +106,26 @@ def shortening_exhausted(shortened: int, max_halvings: int, t: float, hk: float,
     return shortened > max_halvings or t + hk <= t or broke > BREAKDOWN_HALVINGS
 
 
+#: Float spacings within which a trial step is no step: its length relative to t, its end
+#: relative to its start's largest entry. A guard past its strip over such a step has jumped,
+#: since a continuous one moves by less than eps there.
+ROUNDING_SPACINGS = 8.0
+
+
+def within_rounding(t: float, hk: float, x0, x1, n: int) -> bool:
+    """Whether the trial step of length hk from (t, x0[:n]) to x1[:n] moves t and x by
+    rounding only: hk within ``ROUNDING_SPACINGS`` float spacings of t, and every entry of x1
+    within as many spacings of the largest entry of either state."""
+    spacing = ROUNDING_SPACINGS * 2.220446049250313e-16
+    if hk > spacing * abs(t):
+        return False
+    largest, difference = 0.0, 0.0
+    for d in range(n):
+        largest = max(largest, abs(x0[d]), abs(x1[d]))
+        difference = max(difference, abs(x1[d] - x0[d]))
+    return difference <= spacing * largest
+
+
 #: Aimed retries of one step before falling back to halving.
 MAX_AIMS = 3
 
@@ -277,8 +297,9 @@ def past_strip(g: float, eps: float) -> bool:
 
 def strip_exit_time(t_land: float, eps: float, tau: float) -> float:
     """When the held state leaves the strip (paper 000 Fig. 12, step 12): the landing step
-    ended at depth tau inside it, and the strip coordinate grows at unit rate to eps."""
-    return t_land + (eps - tau)
+    ended at depth tau inside it, and the strip coordinate grows at unit rate to eps. A guard
+    that jumped past its strip (tau > eps) is left at once."""
+    return t_land + max(eps - tau, 0.0)
 
 
 def crossing_on_step(guard_at, g0: float, g1: float, tol: float):

@@ -51,7 +51,16 @@ from .layout import (
     S_RTOL,
     S_T_FINAL,
 )
-from .rules import MAX_AIMS, aimed_step, kept_proposal, proposed_step, rejected_step, shortening_exhausted, trial_length
+from .rules import (
+    MAX_AIMS,
+    aimed_step,
+    kept_proposal,
+    proposed_step,
+    rejected_step,
+    shortening_exhausted,
+    trial_length,
+    within_rounding,
+)
 from .stages import (
     INFO_FSAL,
     INFO_IMPLICIT,
@@ -165,6 +174,8 @@ def take_step(tab: Tables, vis: Visit, ws, method: MethodArrays, remaining: floa
                     return STEP_ACCEPTED
                 aims, shortened, hk, last = aims + 1, shortened + 1, fraction * hk, False
                 continue
+        if outcome == TRIAL_OK and vis.crosses_jumps and within_rounding(t, hk, ws.x, ws.x1, vis.n):
+            return land_at_jump(tab, vis, ws, method, shortened)
         shortened += 1
         broke += outcome == TRIAL_BROKE
         if outcome == TRIAL_OK and ws.ci[S_LANDING] != LAND_HALVE and aims < MAX_AIMS:
@@ -174,9 +185,27 @@ def take_step(tab: Tables, vis: Visit, ws, method: MethodArrays, remaining: floa
             hk *= 0.5
         last = False
         if shortening_exhausted(shortened, ws.ci[S_MAX_HALVINGS], t, hk, broke):
+            if outcome == TRIAL_OK and vis.crosses_jumps and t + hk <= t:
+                return land_at_jump(tab, vis, ws, method, shortened)
             ws.iv[I_HALVINGS] += shortened
             ws.iv[I_END_COUNT] = shortened
             return exhausted(ws, outcome, vis.guards)
+
+
+def land_at_jump(tab: Tables, vis: Visit, ws, method: MethodArrays, shortened: int) -> int:
+    """The landing of a mode that crosses jumps (``ModeFunctions.crosses_jumps``) whose guard
+    jumps past its strip within a rounding of the state (``rules.within_rounding``) or of the
+    time (the step no longer moves t): no step lands in the strip, so the trial's end, just
+    past the jump, is the landing and its deepest guard the one crossed there (its depth beyond
+    eps marks the crossing as a jump; ``rules.strip_exit_time`` leaves it at once)."""
+    t1 = ws.fs[F_LAND_T1]
+    keep(ws, ws.fs[F_H_PROP], shortened, False, shortened)
+    end_slope(tab, vis, ws, method, t1)
+    set_hermite(ws, t1)
+    ws.iv[I_LAND_E] = argleast(ws.g1, vis.guards)
+    ws.fs[F_LAND_S] = 1.0
+    ws.iv[I_LAND_CONVERGED] = 1
+    return STEP_ACCEPTED
 
 
 def end_run(ws, reason: int, index: int) -> int:

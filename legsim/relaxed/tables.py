@@ -34,6 +34,7 @@ from .layout import (
     M_C0,
     M_C1,
     M_CONTROL,
+    M_CROSSES_JUMPS,
     M_DIM,
     M_ENTER,
     M_FIELD,
@@ -141,7 +142,7 @@ class RunTables:
         out[M_READY] = 0
         out[M_T0] = out[M_GUARDS] = out[M_NJ] = out[M_J0] = 0
         out[M_FIELD] = out[M_GUARD_FN] = out[M_RESET] = out[M_JOINT] = -1
-        out[M_P0] = out[M_P1] = out[M_NAN_BREAKS] = out[M_PREVIEWED] = 0
+        out[M_P0] = out[M_P1] = out[M_NAN_BREAKS] = out[M_PREVIEWED] = out[M_CROSSES_JUMPS] = 0
         self._register_control(row, name)
         return row
 
@@ -156,6 +157,7 @@ class RunTables:
             out[M_P0], out[M_P1] = self.params(functions.params)
             out[M_NAN_BREAKS] = int(functions.nan_breaks)
             out[M_PREVIEWED] = int(functions.previewed)
+            out[M_CROSSES_JUMPS] = int(functions.crosses_jumps)
             self.inputs = max(self.inputs, functions.inputs)
             if not functions.compiled:
                 self._python(f"mode '{name}' has Python model functions")

@@ -2,12 +2,13 @@
 
 Every array is named by ``layout``: settings (``cf``, ``ci``), the run's state and counters (``fs``,
 ``iv``), the current point and the step's scratch, the guards, the controller's input (and the input
-previewed after a crossing, ``u_after``) and memory, the Zeno histories, and the output buffers the
-driver drains into the execution: points (T, X, DX), visits, and crossing records (``rec_f``,
-``rec_i``, q in ``rec_q``, the image in ``rec_x``); for a linearly implicit method the Jacobian J,
-the factors LU of I - gamma h J, their row pivots and df/dt (ft). Widths: W the longest state of the
-run's modes (memory included), G the most guards, S the method's stages and extra stages, U the
-input's entries, M the memory's.
+previewed after a crossing, ``u_after``, and the input of an outcome kept in reserve, ``u_kept``)
+and memory, the Zeno histories, and the output buffers the driver drains into the execution:
+points (T, X, DX), visits, and crossing records (``rec_f``, ``rec_i``, q in ``rec_q``, the image
+in ``rec_x``); for a linearly implicit method the Jacobian J, the factors LU of I - gamma h J,
+their row pivots and df/dt (ft). Widths: W the longest state of the run's modes (memory
+included), G the most guards, S the method's stages and extra stages, U the input's entries, M
+the memory's.
 """
 
 from __future__ import annotations
@@ -33,8 +34,8 @@ from .layout import (
 
 Workspace = namedtuple(
     "Workspace",
-    "cf ci fs iv x K XS x1 k1 q w g_here g1 g_w crossed u u_after m_new history T X DX visits rec_f rec_i rec_q rec_x "
-    "J LU piv ft",
+    "cf ci fs iv x K XS x1 k1 q w g_here g1 g_w crossed u u_after u_kept m_new history T X DX visits rec_f rec_i "
+    "rec_q rec_x J LU piv ft",
 )
 
 #: Capacity of the output buffers at most: points (about 2 MB at W = 16), crossing records and
@@ -70,6 +71,7 @@ def shapes(
         **{name: ((G,), f) for name in ("g_here", "g1", "g_w", "crossed")},
         "u": ((inputs,), f),
         "u_after": ((inputs,), f),
+        "u_kept": ((inputs,), f),
         "m_new": ((memory,), f),
         "history": ((H, HISTORY_FIELDS), f),
         "T": ((points,), f),

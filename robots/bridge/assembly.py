@@ -212,6 +212,11 @@ class ContactBridge:
             # With friction an event's outcome is the mode whose forces are consistent under the
             # input applied after it, which the controller gives there.
             previewed=self._model.coulomb,
+            # Contact forces and slip velocities jump where a sliding point passes a corner of
+            # the terrain, or where the controller switches: the event happens at the jump. A
+            # spring leg's touchdown guard jumps only where its foot never came out of the
+            # ground, which must end the run (``events.leg_touchdown``).
+            crosses_jumps=not self._model.legs,
         )
         return Mode(spec.dim, names=spec.names, units=spec.units, functions=functions), out.transitions
 

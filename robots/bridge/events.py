@@ -19,7 +19,8 @@ Guards (``>= 0`` inside the domain; their units are eps's):
   while it rises: a scuff); liftoff ``max(l - r, -dr/dt)`` (m).
 
 With Coulomb friction every event (a strike, a liftoff, a stuck contact's force reaching the
-cone's edge ``mu lambda_n + s lambda_t`` (N), a slipping contact's ``max(s v_t, s a_t)`` (m/s))
+cone's edge ``mu lambda_n + s lambda_t`` (N), a slipping contact's ``max(s v_t, s a_t)`` (m/s),
+on a terrain with corners a sliding point's ``corner_base`` (m/s))
 may lead to several modes (``friction``): it has one transition per possible target, whose
 guard is the event's *base* guard where the impact law chooses that target and its absolute
 value elsewhere, so only the chosen one is ever past.
@@ -65,6 +66,7 @@ from .layout import (
     C_SIGN,
     C_SLOT,
     CONTACT_SIZE,
+    E_CORNER,
     E_FORCE,
     E_GAP,
     E_SLIP,
@@ -319,6 +321,8 @@ def event_base(x, p, ev, kin, a, lam):
         return lam[row]
     s = p[ev + EV_SLIP]
     c = int(p[P_CONTACT]) + CONTACT_SIZE * contact
+    if kind == E_CORNER:
+        return corner_base(x, p, int(p[c + C_ID]))
     if kind == E_SLIP:
         return p[c + C_MU] * lam[row] + s * lam[row - 1]
     n = int(p[P_N])
@@ -330,13 +334,37 @@ def event_base(x, p, ev, kin, a, lam):
     return max(s * motion[0], s * motion[2])
 
 
+#: When an active point's velocity counts as leaving the face under it: its normal part beyond
+#: ``CORNER_SINE`` of its speed plus ``CORNER_FLOOR`` (m/s). Passing a corner of a profile turns
+#: the face by the corner's angle, so the normal part jumps to the speed times its sine; the
+#: constraint holds it at 0 on a face only to its drift (the forces keep the acceleration on the
+#: face, not the velocity: a few um/s over a stance). Corners of less than 0.6 degrees, or
+#: passed slower than 0.1 mm/s, are taken as smooth.
+CORNER_SINE, CORNER_FLOOR = 1e-2, 1e-4
+
+
+@model_function
+def corner_base(x, p, frame):
+    """The corner event's base guard of the active point at Pinocchio frame ``frame`` (m/s):
+    ``CORNER_SINE |v| + CORNER_FLOOR - |v_n|``, v_n its velocity along the normal of the face
+    under it. On a face the constraint keeps v_n near 0; past a corner of the profile the
+    face's normal turns and v_n jumps (into the new face at a concave corner, away from it at a
+    convex one): the loop crosses that jump (``ModeFunctions.crosses_jumps``)."""
+    kin, ids = np.empty(4), np.full(1, float(frame))
+    lsn_frames(handle(p), x.ctypes.data, ptr(x, int(p[P_N])), np.int64(1), ids.ctypes.data, kin.ctypes.data)
+    keep(ids)
+    grade = slope(p, int(p[P_TERRAIN]), kin[0])
+    normal_speed = (kin[3] - grade * kin[2]) / math.sqrt(1.0 + grade * grade)
+    return CORNER_SINE * math.hypot(kin[2], kin[3]) + CORNER_FLOOR - abs(normal_speed)
+
+
 @model_function
 def outcome(x, u, p, ev, rest, status, image):
     """The mode (status) and image after event record ev at x under u (``friction``); False
     where the law has no outcome."""
     kind = p[ev + EV_KIND]
     contact = int(p[ev + EV_CONTACT])
-    if kind == E_GAP:
+    if kind == E_GAP or kind == E_CORNER:  # noqa: SIM109 -- two float compares, no tuple in compiled code
         return event_outcome(x, u, p, 1 << contact, rest, -1, status, image)
     if kind == E_STICK:
         return event_outcome(x, u, p, 0, False, contact, status, image)
@@ -346,18 +374,27 @@ def outcome(x, u, p, ev, rest, status, image):
 @model_function
 def coulomb_guards(x, u, p, kin, g):
     """The guards of a mode of a robot with friction into g: each event's transitions from its
-    base and, where the base is past, its outcome (module docstring); the legs' as without."""
+    base and, where the base is past, its outcome (module docstring); the legs' as without.
+    A point past a corner takes precedence: the other events' bases, whose forces and slip
+    velocities jumped with the face's normal, count as not past until it has struck the new
+    face or left it."""
     n, contacts = int(p[P_N]), int(p[P_NCONTACT])
     a, lam = np.empty(n), np.empty(max(1, int(p[P_ROWS])))
     events = int(p[P_NEVENT])
     solved = False
-    status, image = np.empty(max(1, contacts)), np.empty(x.shape[0])
+    bases = np.empty(max(1, events))
+    cornered = False
     for k in range(events):
         ev = int(p[P_EVENT]) + EVENT_SIZE * k
         if p[ev + EV_KIND] != E_GAP and not solved:
             mode_accelerate(x, u, p, a, lam)
             solved = True
-        base = event_base(x, p, ev, kin, a, lam)
+        bases[k] = event_base(x, p, ev, kin, a, lam)
+        cornered = cornered or (p[ev + EV_KIND] == E_CORNER and bases[k] < 0.0)
+    status, image = np.empty(max(1, contacts)), np.empty(x.shape[0])
+    for k in range(events):
+        ev = int(p[P_EVENT]) + EVENT_SIZE * k
+        base = abs(bases[k]) if cornered and p[ev + EV_KIND] != E_CORNER else bases[k]
         first, copies = int(p[ev + EV_FIRST]), int(p[ev + EV_COUNT])
         chosen = math.nan
         if base < 0.0:

@@ -145,8 +145,9 @@ TRANSITION_SIZE = 15
 # -- an event of a robot with friction (``P_EVENT`` records) ---------------------------------------
 #: Kinds: an inactive contact's strike (its gap); an active one's normal force through 0
 #: (liftoff, release); a stuck one's force reaching the cone's edge towards s; a slipping one's
-#: slip velocity back through 0.
-E_GAP, E_FORCE, E_SLIP, E_STICK = range(4)
+#: slip velocity back through 0; an active point's velocity leaving the face under it (a corner
+#: of a profile passed: it strikes the new face, or leaves it).
+E_GAP, E_FORCE, E_SLIP, E_STICK, E_CORNER = range(5)
 #: Kind; the contact; s (E_SLIP, E_STICK); the contact's normal row in this mode; the first of
 #: its transitions and how many (one per target mode).
 EV_KIND, EV_CONTACT, EV_SLIP, EV_ROW, EV_FIRST, EV_COUNT = range(6)

@@ -13,6 +13,7 @@ import numpy as np
 import pinocchio as pin
 
 from legsim.errors import ModelError
+from legsim.heights import PROFILE
 from legsim.terrain import Terrain
 
 from .contacts import (
@@ -79,6 +80,12 @@ class BridgeModel:
         """Whether some contact has Coulomb friction (its events then choose stuck or slipping
         outcomes, ``friction``)."""
         return any(r.mu is not None for r in self.rigid.values())
+
+    @property
+    def cornered(self) -> bool:
+        """Whether the terrain has corners (a piecewise-linear profile), which a sliding point
+        passes as an event (``events.corner_base``)."""
+        return self.coulomb and self.terrain is not None and float(self.terrain[0]) == PROFILE
 
     def index(self, contact: str) -> int:
         """The index of a rigid contact among the rigid ones (declared order)."""

@@ -14,7 +14,8 @@ When some contact has Coulomb friction, every event may lead to any mode its con
 as they are (``touchdown_<c>``, ``graze_<c>``, ``bounce_<c>``) and ``<that name>@<target>``
 otherwise; a stuck contact with friction also has ``slip_<c>>`` / ``slip_<c><`` (its force
 reaching the cone's edge) and a slipping one ``stick_<c>`` (its slip velocity back through 0),
-with the same several outcomes.
+with the same several outcomes. On a terrain with corners a sliding point also has
+``corner_<c>``: it passed a corner, and strikes the new face or leaves it.
 
 Rigid contacts that strike in the same landing step are resolved together (``joint``): the
 outcomes ``joint_<strikers>`` and ``rest_<strikers>`` (their continuation) into each mode they
@@ -32,6 +33,7 @@ from legsim.hybrid import Continuation, Transition
 
 from .contacts import SLIP_SUFFIX, JointStop, SpringLeg
 from .layout import (
+    E_CORNER,
     E_FORCE,
     E_GAP,
     E_SLIP,
@@ -255,12 +257,16 @@ def _settled_changes(model: BridgeModel, modes: ModeCatalog, spec: ModeSpec, con
     """The events of an active rigid contact of a robot with friction, each leading to the mode
     whose forces are consistent: ``liftoff_<c>`` / ``release_<c>`` (its normal force through 0);
     for a stuck contact with friction ``slip_<c>>`` and ``slip_<c><`` (its force at the cone's
-    edge); for a slipping one ``stick_<c>`` (its slip velocity back through 0)."""
+    edge); for a slipping one ``stick_<c>`` (its slip velocity back through 0); for a sliding
+    point on a terrain with corners ``corner_<c>`` (``events.corner_base``)."""
     involved = [r.contact.name for r in spec.rigid]
     targets = candidate_targets(model, modes, spec, involved)
     kind = "release" if isinstance(model.contacts[contact], JointStop) else "liftoff"
     without = modes.name_of([e for e, c in zip(spec.entries, spec.active, strict=True) if c != contact])
     _event(model, modes, spec, out, E_FORCE, contact, targets, _labels(f"{kind}_{contact}", without))
+    sliding = model.rigid[contact].mu is None or spec.slip_of(contact)
+    if model.cornered and sliding and not isinstance(model.contacts[contact], JointStop):
+        _event(model, modes, spec, out, E_CORNER, contact, targets, _labels(f"corner_{contact}", spec.name))
     if model.rigid[contact].mu is None:
         return
     slip = spec.slip_of(contact)

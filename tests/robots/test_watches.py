@@ -92,7 +92,7 @@ def test_a_python_function_at_many_points_is_called_point_by_point():
 def test_a_run_builds_only_the_contact_modes_it_enters(quadruped):
     # Every mode a transition may reach gets a row, but a mode is built (its transitions made,
     # dozens of outcomes each) only when the run enters it.
-    scene = load_scene("quadruped_pronk", ["integrator.t_final=0.6"])
+    scene = load_scene("quadruped_pronk", ["integrator.t_final=0.8"])
     system = scene.model.system
     before = set(system.modes)
     execution = scene.simulate()
