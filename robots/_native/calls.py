@@ -58,5 +58,8 @@ lsn_gravity = NativeFunction("lsn_gravity", types.void(_h, _p, _p))
 lsn_frame_motion = NativeFunction("lsn_frame_motion", types.void(_h, _p, _p, _p, types.int64, _p))
 #: lsn_minverse(h, q, out): the inverse inertia matrix M^-1 (nv, nv), row-major.
 lsn_minverse = NativeFunction("lsn_minverse", types.void(_h, _p, _p))
+#: lsn_solve(m, A, b, least_norm, out): A y = b (A (m, m) row-major) into out[:m], out[m] = 1.0
+#: where solved (a singular A takes the least-norm y with least_norm != 0), 0.0 where not.
+lsn_solve = NativeFunction("lsn_solve", types.void(types.int64, _p, _p, types.int64, _p))
 #: lsn_tally(h, slot, amount): add amount to the robot's counter slot.
 lsn_tally = NativeFunction("lsn_tally", types.void(_h, types.int64, types.float64))

@@ -341,15 +341,28 @@ Mat minverse(Robot& rb, const ConstMap& q) {
   return Minv;
 }
 
-// A pivot or eigenvalue below this share of the largest is zero (robots/bridge/impacts.SINGULAR).
+// A pivot or eigenvalue below this share of the largest is zero: the matrix is singular to rounding.
 constexpr double kSingular = 1e-12;
+// The largest residual (relative to 1 + max |b|) of a least-norm solve whose b is in A's range.
+constexpr double kConsistent = 1e-8;
 
-// Solve A y = b for the small SPD Delassus matrix; one and two rows in closed form as
-// robots/bridge/dynamics.solve_small does; lu is the reused factorisation of larger ones.
-// With least_norm, a singular A (two stuck points of one rigid body: four rows on its three
-// degrees of freedom, a statically indeterminate support) takes the least-norm solution, as
-// robots/bridge/impacts.solve_min_norm does for impulses: the forces are not unique there, and
-// the smallest are an equal share at a symmetric support.
+// The least-norm solution of A y = b for a symmetric positive semidefinite A: the sum over the
+// eigenvalues above kSingular of the largest of (v . b / lambda) v. Where A is singular, as for
+// two stuck points of one rigid body (four rows on its three degrees of freedom: a statically
+// indeterminate support), the forces or impulses are not unique, and this picks the smallest
+// (an equal share at a symmetric support).
+void least_norm_solve(const Mat& A, const Vec& b, Vec& y) {
+  Eigen::SelfAdjointEigenSolver<Mat> eigen(A);
+  const Vec& values = eigen.eigenvalues();
+  const double cut = kSingular * values.cwiseAbs().maxCoeff();
+  y.setZero(A.rows());
+  for (long i = 0; i < values.size(); ++i)
+    if (values(i) > cut) y += (eigen.eigenvectors().col(i).dot(b) / values(i)) * eigen.eigenvectors().col(i);
+}
+
+// Solve A y = b for the small SPD Delassus matrix; one and two rows in closed form; lu is the
+// reused factorisation of larger ones. With least_norm, a singular A takes the least-norm
+// solution (least_norm_solve).
 void solve_small(const Mat& A, const Vec& b, Eigen::PartialPivLU<Mat>& lu, Vec& y, bool least_norm = false) {
   y.resize(A.rows());
   if (A.rows() == 1) {
@@ -361,12 +374,7 @@ void solve_small(const Mat& A, const Vec& b, Eigen::PartialPivLU<Mat>& lu, Vec& 
   } else {
     lu.compute(A);
     if (least_norm && !(lu.rcond() >= kSingular)) {  // a zero pivot makes the estimate nan
-      Eigen::SelfAdjointEigenSolver<Mat> eigen(A);
-      const Vec& values = eigen.eigenvalues();
-      const double cut = kSingular * values.cwiseAbs().maxCoeff();
-      y.setZero();
-      for (long i = 0; i < values.size(); ++i)
-        if (values(i) > cut) y += (eigen.eigenvectors().col(i).dot(b) / values(i)) * eigen.eigenvectors().col(i);
+      least_norm_solve(A, b, y);
       return;
     }
     y = lu.solve(b);
@@ -658,6 +666,31 @@ void lsn_minverse(long h, const double* q, double* out) {
   const Mat Minv = minverse(rb, ConstMap(q, n));
   for (long i = 0; i < n; ++i)
     for (long j = 0; j < n; ++j) out[n * i + j] = Minv(i, j);
+}
+
+// Solve the small system A y = b (m rows, A row-major) of the bridge's frictional impacts into
+// out[0 .. m-1], and out[m] = 1 where it is solved, 0 where not: A or b not finite; A singular
+// (its LU's reciprocal condition below kSingular) without least_norm; with least_norm (A
+// symmetric positive semidefinite) b not in A's range (the least-norm residual beyond
+// kConsistent), where no solution meets the rows.
+void lsn_solve(long m, const double* A, const double* b, long least_norm, double* out) {
+  const Mat a = Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(A, m, m);
+  const Vec rhs = ConstMap(b, m);
+  out[m] = 0.0;
+  if (!a.allFinite() || !rhs.allFinite()) return;
+  Vec y;
+  Eigen::PartialPivLU<Mat> lu(a);
+  if (lu.rcond() >= kSingular) {
+    y = lu.solve(rhs);
+  } else if (least_norm == 0) {
+    return;
+  } else {
+    least_norm_solve(a, rhs, y);
+    if ((a * y - rhs).cwiseAbs().maxCoeff() > kConsistent * (1.0 + rhs.cwiseAbs().maxCoeff())) return;
+  }
+  if (!y.allFinite()) return;
+  OutMap(out, m) = y;
+  out[m] = 1.0;
 }
 
 // Add `amount` to the robot's counter `slot` (a count the model functions keep: springs,

@@ -31,20 +31,7 @@ from legsim.robots._native.calls import lsn_crba, lsn_minverse, lsn_tally
 from legsim.compiled.functions import model_function
 
 from .dynamics import accelerate, blocks_of, handle
-from .impacts import (
-    ENERGY_TOL,
-    FREE,
-    MAX_TRIES,
-    NORMAL,
-    SLIDE,
-    STICK,
-    TOL,
-    contact_rows,
-    dot,
-    kinetic,
-    solve_min_norm,
-    solve_small,
-)
+from .impacts import ENERGY_TOL, FREE, MAX_TRIES, NORMAL, SLIDE, STICK, TOL, contact_rows, dot, kinetic, solve_rows
 from .layout import (
     BLOCK_SIZE,
     C_MU,
@@ -115,10 +102,7 @@ def impulse_solve(engaged, mu, T, N, Minv, v, v_plus, lt, ln):
     # Singular rows of stuck and frictionless contacts (two stuck points of one body) take the
     # least-norm impulses; with a sliding one, the matrix is not symmetric and its singularity
     # is the Painleve case, which has no impact here.
-    eliminated = rhs.copy()
-    if solve_small(A.copy(), eliminated, m):
-        rhs[:] = eliminated
-    elif not (np.all(engaged[:, 2] != SLIDE) and solve_min_norm(A, rhs, m)):
+    if not solve_rows(A, rhs, m, np.all(engaged[:, 2] != SLIDE)):
         return False
     for j in range(n):
         v_plus[j] = v[j] + dot(MWt[j], rhs, m)

@@ -32,7 +32,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from legsim.robots._native.calls import lsn_crba, lsn_frame_jacobian, lsn_impact
+from legsim.robots._native.calls import lsn_crba, lsn_frame_jacobian, lsn_impact, lsn_solve
 
 from legsim.compiled.functions import model_function
 from legsim.heights import slope
@@ -58,14 +58,6 @@ FREE, STICK, NORMAL, SLIDE = range(4)
 TOL = 1e-10
 #: Kinetic energy an impact may gain to rounding (relative).
 ENERGY_TOL = 1e-12
-#: A pivot or eigenvalue below this share of the matrix's largest entry is zero: the matrix is
-#: singular to rounding.
-SINGULAR = 1e-12
-#: The largest residual (relative) of a least-norm solve whose right-hand side is in the range.
-CONSISTENT = 1e-8
-#: Jacobi sweeps of ``symmetric_eigen``: each squares the off-diagonal part, so a few reach
-#: rounding; the bound only guards against a matrix that is not finite.
-JACOBI_SWEEPS = 50
 #: Most sets of statuses the active set tries before it gives up (the state is then past the
 #: model's range).
 MAX_TRIES = 64
@@ -120,103 +112,24 @@ def kinetic(M, v, n):
 
 
 @model_function
-def solve_small(A, b, m):
-    """Solve A y = b (A (m, m), changed) in place of b by Gaussian elimination with partial
-    pivoting; returns False (b unusable) when A is singular (a pivot below ``SINGULAR`` of its
-    largest entry) or not finite."""
-    largest = np.abs(A[:m, :m]).max() if m > 0 else 0.0
-    for k in range(m):
-        pivot = k
-        for i in range(k + 1, m):
-            if abs(A[i, k]) > abs(A[pivot, k]):
-                pivot = i
-        if not abs(A[pivot, k]) > SINGULAR * largest or not math.isfinite(A[pivot, k]):
-            return False
-        if pivot != k:
-            for j in range(m):
-                A[k, j], A[pivot, j] = A[pivot, j], A[k, j]
-            b[k], b[pivot] = b[pivot], b[k]
-        for i in range(k + 1, m):
-            factor = A[i, k] / A[k, k]
-            for j in range(k, m):
-                A[i, j] -= factor * A[k, j]
-            b[i] -= factor * b[k]
-    for k in range(m - 1, -1, -1):
-        total = b[k]
-        for j in range(k + 1, m):
-            total -= A[k, j] * b[j]
-        b[k] = total / A[k, k]
-    return True
-
-
-@model_function
-def solve_min_norm(A, b, m):
-    """The least-norm solution of A y = b for a symmetric positive semidefinite A (m, m) into b:
-    y = sum over the eigenvalues above ``SINGULAR`` of the largest of (v . b / lambda) v. Where
-    A is singular, as for two stuck points of one rigid body (four rows on its three degrees of
-    freedom: a statically indeterminate support), the impulses or forces are not unique, and
-    this rule picks the smallest (an equal share at a symmetric support). Returns False when A
-    or b is not finite, or b is not in A's range (then no impulse meets the rows)."""
-    if not (np.all(np.isfinite(A[:m, :m])) and np.all(np.isfinite(b[:m]))):
+def solve_rows(A, b, m, least_norm):
+    """Solve A y = b (A (m, m)) in place of b by the native library's small solve, the one its
+    constrained dynamics and impacts use (``lsn_solve``): LU where A is regular; where it is
+    singular (its reciprocal condition below 1e-12), with ``least_norm`` the least-norm y (A
+    symmetric positive semidefinite: two stuck points of one body, a statically indeterminate
+    support, whose impulses this makes an equal share at a symmetric support), else none.
+    Returns False (b unchanged) where there is no solution: A or b not finite, A singular
+    without ``least_norm``, or b outside A's range."""
+    a = np.ascontiguousarray(A[:m, :m])
+    rhs = np.ascontiguousarray(b[:m])
+    out = np.empty(m + 1)
+    lsn_solve(np.int64(m), a.ctypes.data, rhs.ctypes.data, np.int64(1 if least_norm else 0), out.ctypes.data)
+    keep(a)
+    keep(rhs)
+    if out[m] != 1.0:
         return False
-    values, vectors = np.empty(m), np.empty((m, m))
-    symmetric_eigen(A, m, values, vectors)
-    cut = SINGULAR * max(np.abs(values).max(), 1e-300)
-    y = np.zeros(m)
-    for i in range(m):
-        if values[i] > cut:
-            column = vectors[:, i].copy()
-            y += (dot(column, b, m) / values[i]) * column
-    worst = 0.0
-    for i in range(m):
-        worst = max(worst, abs(dot(A[i], y, m) - b[i]))
-    if worst > CONSISTENT * (1.0 + np.abs(b[:m]).max()):
-        return False
-    b[:m] = y
+    b[:m] = out[:m]
     return True
-
-
-@model_function
-def symmetric_eigen(A, m, values, vectors):
-    """The eigenvalues (into values) and orthonormal eigenvectors (the columns of vectors) of the
-    symmetric A[:m, :m], by cyclic Jacobi rotations to rounding: for the few rows of a contact
-    solve, plain loops compile in a fraction of the time of LAPACK's bindings."""
-    a = A[:m, :m].copy()
-    for i in range(m):
-        for j in range(m):
-            vectors[i, j] = 1.0 if i == j else 0.0
-    size = 0.0
-    for i in range(m):
-        for j in range(m):
-            size += a[i, j] * a[i, j]
-    for _ in range(JACOBI_SWEEPS):
-        off = 0.0
-        for i in range(m):
-            for j in range(i + 1, m):
-                off += a[i, j] * a[i, j]
-        if off <= 1e-32 * size:
-            break
-        for p in range(m - 1):
-            for q in range(p + 1, m):
-                if a[p, q] == 0.0:
-                    continue
-                theta = (a[q, q] - a[p, p]) / (2.0 * a[p, q])
-                t = 1.0 / (abs(theta) + math.sqrt(theta * theta + 1.0))
-                if theta < 0.0:
-                    t = -t
-                c = 1.0 / math.sqrt(t * t + 1.0)
-                s = t * c
-                for k in range(m):  # A J, then J^T (A J), then V J: a[p, q] becomes 0
-                    akp, akq = a[k, p], a[k, q]
-                    a[k, p], a[k, q] = c * akp - s * akq, s * akp + c * akq
-                for k in range(m):
-                    apk, aqk = a[p, k], a[q, k]
-                    a[p, k], a[q, k] = c * apk - s * aqk, s * apk + c * aqk
-                for k in range(m):
-                    vkp, vkq = vectors[k, p], vectors[k, q]
-                    vectors[k, p], vectors[k, q] = c * vkp - s * vkq, s * vkp + c * vkq
-    for i in range(m):
-        values[i] = a[i, i]
 
 
 # -- the generalised Newton impact (contacts without friction) ---------------------------------

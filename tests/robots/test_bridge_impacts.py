@@ -59,36 +59,26 @@ def test_a_rod_landing_on_a_frictionless_floor_ends_lying_with_its_weight_shared
 
 def test_a_singular_support_takes_the_least_norm_impulses_and_an_inconsistent_one_none():
     # A = B B^T with B (4, 3): four rows on three degrees of freedom (two stuck points of one
-    # body), rank 3. Elimination refuses it; the least-norm solve gives the pseudo-inverse's
-    # solution, and refuses a right-hand side with a part outside A's range.
-    from legsim.robots.bridge.impacts import solve_min_norm, solve_small
+    # body), rank 3. Without least_norm it is refused; with it, the solve (the native library's,
+    # which its own constrained solves use) gives the pseudo-inverse's solution, and refuses a
+    # right-hand side with a part outside A's range.
+    from legsim.robots.bridge.impacts import solve_rows
 
     rng = np.random.default_rng(3)
     B = rng.normal(size=(4, 3))
     A = B @ B.T
     b = A @ rng.normal(size=4)
-    assert not solve_small(A.copy(), b.copy(), 4)
+    refused = b.copy()
+    assert not solve_rows(A.copy(), refused, 4, False) and np.array_equal(refused, b)
     y = b.copy()
-    assert solve_min_norm(A.copy(), y, 4)
+    assert solve_rows(A.copy(), y, 4, True)
     assert np.allclose(y, np.linalg.pinv(A) @ b, rtol=0.0, atol=1e-10 * np.abs(y).max())
     null = np.linalg.svd(A)[0][:, -1]
-    assert not solve_min_norm(A.copy(), b + 1e-3 * np.abs(b).max() * null, 4)
-    # a regular system is solved by elimination as before
+    assert not solve_rows(A.copy(), b + 1e-3 * np.abs(b).max() * null, 4, True)
+    # a regular system is solved as it is, whichever the flag
     regular = A + np.eye(4)
-    x = b.copy()
-    assert solve_small(regular.copy(), x, 4) and np.allclose(regular @ x, b, rtol=1e-12, atol=0.0)
-
-
-def test_the_contact_solves_eigenvalues_are_numpys_to_rounding():
-    from legsim.robots.bridge.impacts import symmetric_eigen
-
-    rng = np.random.default_rng(5)
-    for m in (1, 2, 4, 6):
-        B = rng.normal(size=(m, max(1, m - 1)))
-        A = B @ B.T + np.diag(rng.uniform(0.0, 1e-3, size=m))
-        values, vectors = np.empty(m), np.empty((m, m))
-        symmetric_eigen(A.copy(), m, values, vectors)
-        order = np.argsort(values)
-        assert np.allclose(values[order], np.linalg.eigvalsh(A), rtol=0.0, atol=1e-12 * np.abs(A).max())
-        assert np.allclose(vectors.T @ vectors, np.eye(m), rtol=0.0, atol=1e-12)
-        assert np.allclose(A @ vectors, vectors * values, rtol=0.0, atol=1e-11 * np.abs(A).max())
+    for least_norm in (False, True):
+        x = b.copy()
+        assert solve_rows(regular.copy(), x, 4, least_norm)
+        assert np.allclose(regular @ x, b, rtol=1e-12, atol=0.0)
+    assert not solve_rows(np.full((2, 2), np.nan), np.ones(2), 2, True)

@@ -130,7 +130,7 @@ def test_a_brick_landing_flat_on_two_corners_takes_one_joint_impact_and_stays_sy
 def test_a_brick_landing_flat_with_friction_takes_one_joint_impact_and_shares_its_weight(tmp_path):
     # Both corners stuck pin x twice: four rows on three dofs, a statically indeterminate
     # support. The impulses and forces there are not unique; the bridge takes the least-norm ones
-    # (impacts.solve_min_norm, and the native library's constrained solve), an equal share at
+    # (the native library's least-norm rule, for impulses and forces alike), an equal share at
     # this symmetric support, so the brick lands in one joint impact and stays symmetric.
     path = brick(tmp_path, "[initial]\nstate = { z = 0.4 }\n")
     scene = load_scene(path, ["robot.parameters.collision_contacts={ friction = 0.8 }"])
