@@ -9,6 +9,8 @@ condition of the scene's ``[fall]`` held) and an orbit search from the last apex
 an orbit. A cell is drawn
 
 * red: the run fell (status ``fell`` or ``model_breakdown``); black: the run failed otherwise;
+* purple: it finished with warnings (an accumulation: past it the relaxed execution holds the
+  state in the strip, so the run is not one the method vouches for as a gait);
 * green / orange: it ran and the orbit search found a stable / unstable orbit;
 * grey: it ran and the search found no orbit: no multiplier, the search's status written in it.
 
@@ -34,7 +36,14 @@ SETTLE = 4.0  # s: the achieved speed is the mean over [SETTLE, t_end]
 #: x cyclic, the memory entries each gait keeps unchanged held fixed); the maps search it to a
 #: looser tolerance, from each cell's own run.
 ORBIT_SETTINGS = ["orbit.t_max=2.0", "orbit.tol=1e-6", "orbit.max_iterations=6"]
-COLOURS = {"stable": "tab:green", "unstable": "tab:orange", "no orbit": "0.75", "fell": "tab:red", "failed": "k"}
+COLOURS = {
+    "stable": "tab:green",
+    "unstable": "tab:orange",
+    "no orbit": "0.75",
+    "warnings": "tab:purple",
+    "fell": "tab:red",
+    "failed": "k",
+}
 
 
 def sweep_gait(gait: str, out):
@@ -56,11 +65,13 @@ def sweep_gait(gait: str, out):
 
 
 def verdict(row: dict) -> str:
-    """The cell's colour key: fell, failed, stable, unstable or no orbit."""
+    """The cell's colour key: fell, failed, warnings, stable, unstable or no orbit."""
     if row["fell"]:
         return "fell"
     if row["task_status"] != "done" or row["status"] != "finished":
         return "failed"
+    if row.get("warnings"):
+        return "warnings"
     if row["orbit_status"] == "converged" and row["orbit_stable"] is not None:
         return "stable" if row["orbit_stable"] else "unstable"
     return "no orbit"
@@ -79,13 +90,17 @@ def draw(ax, gait: str, rows: list[dict]) -> None:
             else str(row["orbit_status"] or row["status"])
         )
         text = f"{speed:.3f} m/s\n{orbit}" if speed is not None else f"{row['status']}\n{orbit}"
-        ax.text(i, j, text, ha="center", va="center", fontsize=7, color="w" if key in ("failed", "fell") else "k")
+        if key == "warnings":
+            text += "\nwarnings"
+        light = key in ("failed", "fell", "warnings")
+        ax.text(i, j, text, ha="center", va="center", fontsize=7, color="w" if light else "k")
         pitch = row["max_abs_pitch"]
         print(
             f"{gait}: speed {row['controller.parameters.speed']:g} k_x {row['controller.parameters.k_x']:g}: "
             f"{row['status']}, achieved {speed if speed is None else round(speed, 4)} m/s, "
             f"max |pitch| {pitch if pitch is None else round(pitch, 3)} rad, "
             f"orbit {row['orbit_status']}, spectral radius {row['orbit_spectral_radius']}"
+            f"{', with warnings' if row.get('warnings') else ''}"
         )
     ax.set_xticks(range(len(SPEEDS)), [f"{v:g}" for v in SPEEDS])
     ax.set_yticks(range(len(GAINS)), [f"{v:g}" for v in GAINS])
