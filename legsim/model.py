@@ -37,12 +37,13 @@ the choice repeats.
 
 A mode whose guards may jump, discontinuous in the state by design (a robot's contact forces and
 slip velocities where a sliding point passes a corner of the terrain, or where the controller
-switches), declares ``crosses_jumps``: where a guard jumps past its strip between a time and the
-next float, so that no step can land in the strip, the loop crosses it there
+switches), declares ``crosses_jumps``: where a guard jumps past its strip within a rounding of
+the state, so that no step can land in the strip, the loop crosses it there
 (``legsim.relaxed.stepping.land_at_jump``), from the point just past the jump, located to
 rounding (closer than any strip), and counts it (``Execution.counters["guard_jumps"]``, present
-where the run crossed one). Without
-it such a run ends with ``halving_exhausted``: a guard that should be continuous and is not is a
+where the run crossed one); a state entering such a mode past a guard by more than eps crosses
+it at once. Without the flag such a run ends with ``halving_exhausted``
+(``reset_outside_domain`` at an entry): a guard that should be continuous and is not is a
 model's error, which the run must not step over.
 """
 

@@ -341,7 +341,8 @@ def previewed_choice(tab: Tables, vis: Visit, ws, e: int, tc: float, t_land: flo
     crossing, ws.g1) is asked next, at most ``PREVIEW_ROUNDS`` times. When none is taken (the
     controller's inputs before and after disagree about the outcome), the first asked whose
     image lies in its target's domain under the input there is taken; failing that, the first
-    transition stands and its entry ends the run (reset_outside_domain). The guards are asked at
+    transition stands, and its entry ends the run (reset_outside_domain) or, in a mode that
+    crosses jumps, crosses the guard it lies past at once. The guards are asked at
     the landing point, not at q: q lies on the guard to within rounding, where the crossing's
     outcome is not decided.
     Leaves in ws.u_after the input the returned transition's image is taken under; ws.u, ws.w

@@ -79,6 +79,8 @@ def starting_step(h0: float, d1: float, d2: float, exponent: float) -> float:
 
 
 # -- the step's length ------------------------------------------------------------------------
+#: The float64 spacing at 1 (machine epsilon), written out: the rules compile without numpy.
+FLOAT_SPACING = 2.220446049250313e-16
 #: Finished once t_final is this many float spacings away (relative to |t_final|): an absolute
 #: test, since a relative one would call a run near t = 1e15 finished before its first step.
 FINISH_SPACINGS = 8.0
@@ -86,7 +88,7 @@ FINISH_SPACINGS = 8.0
 
 def finish_tolerance(t_final: float) -> float:
     """How close to t_final (s) a run counts as finished."""
-    return FINISH_SPACINGS * 2.220446049250313e-16 * abs(t_final)
+    return FINISH_SPACINGS * FLOAT_SPACING * abs(t_final)
 
 
 def trial_length(h_prop: float, h_max: float, remaining: float) -> float:
@@ -116,7 +118,7 @@ def within_rounding(t: float, hk: float, x0, x1, n: int) -> bool:
     """Whether the trial step of length hk from (t, x0[:n]) to x1[:n] moves t and x by
     rounding only: hk within ``ROUNDING_SPACINGS`` float spacings of t, and every entry of x1
     within as many spacings of the largest entry of either state."""
-    spacing = ROUNDING_SPACINGS * 2.220446049250313e-16
+    spacing = ROUNDING_SPACINGS * FLOAT_SPACING
     if hk > spacing * abs(t):
         return False
     largest, difference = 0.0, 0.0

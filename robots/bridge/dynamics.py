@@ -167,9 +167,10 @@ def on_terrain(p):
 
 
 @model_function
-def point_slope(x, p, frame):
-    """(dh/dx, sqrt(1 + (dh/dx)^2)) of the terrain under Pinocchio frame ``frame`` at q."""
-    kin, ids = np.empty(4), np.full(1, float(frame))
+def point_slope(x, p, frame, kin):
+    """(dh/dx, sqrt(1 + (dh/dx)^2)) of the terrain under Pinocchio frame ``frame`` at q; the
+    frame's (x, z, vx, vz) (m, m/s) into kin (4,)."""
+    ids = np.full(1, float(frame))
     lsn_frames(handle(p), x.ctypes.data, ptr(x, int(p[P_N])), np.int64(1), ids.ctypes.data, kin.ctypes.data)
     keep(ids)
     grade = slope(p, int(p[P_TERRAIN]), kin[0])

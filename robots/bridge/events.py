@@ -329,7 +329,7 @@ def event_base(x, p, ev, kin, a, lam):
     motion = np.empty(4)
     lsn_frame_motion(handle(p), x.ctypes.data, ptr(x, n), a.ctypes.data, np.int64(p[c + C_ID]), motion.ctypes.data)
     if on_terrain(p):  # the slip velocity and acceleration along the terrain's tangent
-        grade, norm = point_slope(x, p, int(p[c + C_ID]))
+        grade, norm = point_slope(x, p, int(p[c + C_ID]), np.empty(4))
         return max(s * (motion[0] + grade * motion[1]) / norm, s * (motion[2] + grade * motion[3]) / norm)
     return max(s * motion[0], s * motion[2])
 
@@ -350,11 +350,9 @@ def corner_base(x, p, frame):
     under it. On a face the constraint keeps v_n near 0; past a corner of the profile the
     face's normal turns and v_n jumps (into the new face at a concave corner, away from it at a
     convex one): the loop crosses that jump (``ModeFunctions.crosses_jumps``)."""
-    kin, ids = np.empty(4), np.full(1, float(frame))
-    lsn_frames(handle(p), x.ctypes.data, ptr(x, int(p[P_N])), np.int64(1), ids.ctypes.data, kin.ctypes.data)
-    keep(ids)
-    grade = slope(p, int(p[P_TERRAIN]), kin[0])
-    normal_speed = (kin[3] - grade * kin[2]) / math.sqrt(1.0 + grade * grade)
+    kin = np.empty(4)
+    grade, norm = point_slope(x, p, frame, kin)
+    normal_speed = (kin[3] - grade * kin[2]) / norm
     return CORNER_SINE * math.hypot(kin[2], kin[3]) + CORNER_FLOOR - abs(normal_speed)
 
 

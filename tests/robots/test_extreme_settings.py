@@ -1,8 +1,8 @@
 """No crawl at extreme settings on a robot scene: the standing quadruped (a URDF robot, its
 touchdown a joint impact with friction) at an eps below what float64 resolves is refused before
 the run, naming eps, the mode and the thinnest eps it could take; at that thinnest eps it runs
-its nominal steps and finishes. At eps = 1e-300 it used to crawl at the touchdown, some 1e-14 s
-of simulated time every 5 s of wall time."""
+its nominal steps and finishes; past the refusal, at eps = 1e-300, no step lands in the strip,
+and the touchdown is crossed where the steps reach rounding instead of crawling there."""
 
 from __future__ import annotations
 

@@ -1,8 +1,8 @@
 """An event's outcome with friction is chosen under the input the controller applies after it
 (``legsim.relaxed.crossing.previewed_choice``), asked at the step's landing point, where the
 event's guard is past and its outcome decided (at q, on the guard to within rounding, it is
-not). Two runs that stopped with ``reset_outside_domain`` when the outcome was asked at q: the
-entered mode's forces contradicted it under the controller's input there."""
+not). Asked at q, the choice could contradict the entered mode's forces under the controller's
+input there, and the run would stop with ``reset_outside_domain``."""
 
 from __future__ import annotations
 
