@@ -109,3 +109,11 @@ def test_the_documented_step_sweep(tmp_path):
         assert row["fell"] == (row["status"] == "fell")
         assert (row["status"] == "finished") == (row["t_end"] == 10.0)
         assert row["status"] == "finished" or row["message"].startswith("fell: ")
+
+
+def test_a_below_ground_action_not_known_is_named_with_the_allowed_ones():
+    with pytest.raises(
+        SceneError,
+        match=r"robot\.parameters\.below_ground: 'x' is not allowed, choose one of \['warn', 'strict', 'fall'\]",
+    ):
+        load_scene(SCENE, ['robot.parameters.below_ground="x"'])
