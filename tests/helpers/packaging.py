@@ -27,9 +27,12 @@ NOT_SOURCES = (
 )
 
 
-def source_copy(target: Path) -> Path:
-    """The checkout's sources copied to ``target`` (made here), which is returned."""
-    shutil.copytree(ROOT, target, ignore=shutil.ignore_patterns(*NOT_SOURCES), symlinks=True)
+def source_copy(target: Path, prebuilt: bool = False) -> Path:
+    """The checkout's sources copied to ``target`` (made here), which is returned; with
+    ``prebuilt``, also the compiled code `legsim.prebuild` left in ``legsim/_prebuilt``, as
+    `make wheel` ships it."""
+    skipped = [name for name in NOT_SOURCES if not (prebuilt and name == "_prebuilt")]
+    shutil.copytree(ROOT, target, ignore=shutil.ignore_patterns(*skipped), symlinks=True)
     return target
 
 
