@@ -300,7 +300,7 @@ def _firing_at_entry(system, mode, x, t, control, tol, counts) -> int | None:
             counts["guard_evals"] += 1
             # A difference of two guard values carries their rounding: a rate within it (a graze
             # at zero speed, as at a release) tells no direction, and firing on it would cycle.
-            rounding = 4.0 * np.finfo(float).eps * max(1.0, float(np.max(np.abs(x)))) / delta
+            rounding = 4.0 * np.finfo(float).eps * float(np.max(np.abs(x))) / delta
             if rate < -rounding and (best is None or g < best[0]):
                 best = (g, i)
     return None if best is None else best[1]
