@@ -46,6 +46,19 @@ def kept_proposal(h_prop: float, proposal: float, shortened: bool, rejected: boo
     return proposal
 
 
+def fixed_proposal(h_prop: float, h: float, hk: float, shortened: bool, landed: bool) -> float:
+    """Under fixed steps h, the first trial of the next step. After a step shortened (to hk) and
+    still short of every strip, hk: the flow is nearing a guard faster than its strip allows, and
+    a next trial of h would repeat the halvings that hk took (each approach step one more). After
+    a step that was not shortened, twice the proposal, up to h; after a landing in a strip, h.
+    Every step stays at most h, the step the method's bounds are stated in."""
+    if landed:
+        return h
+    if shortened:
+        return hk
+    return min(2.0 * h_prop, h)
+
+
 def restarted_step(h_prop: float, start: float) -> float:
     """The proposal carried into a newly entered mode: the smaller of the one carried and the
     new flow's starting step (``starting_step``)."""
@@ -97,15 +110,18 @@ def trial_length(h_prop: float, h_max: float, remaining: float) -> float:
     return remaining if hk >= remaining else hk
 
 
-#: Most shortenings of one trial step for leaving the model's range (ModelBreakdown) before the
-#: run ends: a long trial step through the ground needs a few; more means the boundary is at hand.
+#: A trial step that still leaves the model's range (ModelBreakdown) once shortened below
+#: h / 2**BREAKDOWN_HALVINGS ends the run: a long trial step through the ground needs a few
+#: halvings; a step that short still through it means the boundary is at hand.
 BREAKDOWN_HALVINGS = 10
 
 
-def shortening_exhausted(shortened: int, max_halvings: int, t: float, hk: float, broke: int) -> bool:
-    """True when a step shortened ``shortened`` times (``broke`` of them for leaving the
-    model's range) may not be shortened again: the budget is spent, or t + hk no longer moves."""
-    return shortened > max_halvings or t + hk <= t or broke > BREAKDOWN_HALVINGS
+def shortening_exhausted(shortened: int, max_halvings: int, t: float, hk: float, h: float, broke: bool) -> bool:
+    """True when a step shortened ``shortened`` times, now to hk, may not be shortened again: the
+    budget is spent, t + hk no longer moves, or its last trial (``broke``) left the model's
+    range at a length below h / 2**BREAKDOWN_HALVINGS (the length, not the count, since a step
+    may start shorter than h: ``fixed_proposal``)."""
+    return shortened > max_halvings or t + hk <= t or (broke and hk < h * 0.5**BREAKDOWN_HALVINGS)
 
 
 #: Float spacings within which a trial step is no step: its length relative to t, its end

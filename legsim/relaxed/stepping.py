@@ -54,6 +54,7 @@ from .layout import (
 from .rules import (
     MAX_AIMS,
     aimed_step,
+    fixed_proposal,
     kept_proposal,
     proposed_step,
     rejected_step,
@@ -113,10 +114,13 @@ def judge(ws, method: MethodArrays, n: int, hk: float, rejected: bool) -> tuple[
     return True, proposed_step(hk, err, ws.cf[S_EXPONENT], rejected)
 
 
-def keep(ws, proposal: float, shortened: int, rejected: bool, halvings: int) -> None:
-    """Accept the trial: carry the proposal to the next step and count the step."""
+def keep(ws, proposal: float, shortened: int, rejected: bool, halvings: int, landed: bool) -> None:
+    """Accept the trial (of length ws.fs[F_H_TRIED]; ``landed``: its end lies in a strip):
+    carry the proposal to the next step and count the step."""
     if ws.ci[S_ADAPTIVE] == 1:
         ws.fs[F_H_PROP] = kept_proposal(ws.fs[F_H_PROP], proposal, shortened > 0, rejected)
+    else:
+        ws.fs[F_H_PROP] = fixed_proposal(ws.fs[F_H_PROP], ws.cf[S_H_MAX], ws.fs[F_H_TRIED], shortened > 0, landed)
     ws.iv[I_HALVINGS] += halvings
     ws.iv[I_STEPS] += 1
     ws.iv[I_JACOBIAN_AGE] += 1
@@ -142,7 +146,6 @@ def take_step(tab: Tables, vis: Visit, ws, method: MethodArrays, remaining: floa
     last = hk == remaining
     shortened = 0
     aims = 0
-    broke = 0
     rejected = False
     dense = ws.ci[S_LANDING] == LAND_DENSE
     ws.iv[I_LAND_E] = -1
@@ -163,28 +166,27 @@ def take_step(tab: Tables, vis: Visit, ws, method: MethodArrays, remaining: floa
                     rejected, hk, last = True, proposal, False
                     continue
                 if inside:
-                    keep(ws, proposal, shortened, rejected, shortened)
+                    keep(ws, proposal, shortened, rejected, shortened, gmin < 0.0)
                     if gmin < 0.0:
                         end_slope(tab, vis, ws, method, t1)
                         set_hermite(ws, t1)
                     return STEP_ACCEPTED
                 landed, fraction = land_dense(tab, vis, ws, method, hk)
                 if landed:
-                    keep(ws, proposal, shortened, rejected, shortened + 1)
+                    keep(ws, proposal, shortened, rejected, shortened + 1, True)
                     return STEP_ACCEPTED
                 aims, shortened, hk, last = aims + 1, shortened + 1, fraction * hk, False
                 continue
         if outcome == TRIAL_OK and vis.crosses_jumps and within_rounding(t, hk, ws.x, ws.x1, vis.n):
             return land_at_jump(tab, vis, ws, method, shortened)
         shortened += 1
-        broke += outcome == TRIAL_BROKE
         if outcome == TRIAL_OK and ws.ci[S_LANDING] != LAND_HALVE and aims < MAX_AIMS:
             hk = aim(tab, vis, ws, method, hk, t1)
             aims += 1
         else:
             hk *= 0.5
         last = False
-        if shortening_exhausted(shortened, ws.ci[S_MAX_HALVINGS], t, hk, broke):
+        if shortening_exhausted(shortened, ws.ci[S_MAX_HALVINGS], t, hk, ws.cf[S_H_MAX], outcome == TRIAL_BROKE):
             if outcome == TRIAL_OK and vis.crosses_jumps and t + hk <= t:
                 return land_at_jump(tab, vis, ws, method, shortened)
             ws.iv[I_HALVINGS] += shortened
@@ -199,7 +201,7 @@ def land_at_jump(tab: Tables, vis: Visit, ws, method: MethodArrays, shortened: i
     past the jump, is the landing and its deepest guard the one crossed there (its depth beyond
     eps marks the crossing as a jump; ``rules.strip_exit_time`` leaves it at once)."""
     t1 = ws.fs[F_LAND_T1]
-    keep(ws, ws.fs[F_H_PROP], shortened, False, shortened)
+    keep(ws, ws.fs[F_H_PROP], shortened, False, shortened, True)
     end_slope(tab, vis, ws, method, t1)
     set_hermite(ws, t1)
     ws.iv[I_LAND_E] = argleast(ws.g1, vis.guards)
