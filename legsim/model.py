@@ -190,6 +190,11 @@ class ResetOf:
     def __call__(self, x: np.ndarray) -> np.ndarray:
         return evaluate_reset(self.functions, self.index, self.target_dim(), x)
 
+    def under(self, x: np.ndarray, t: float, u: Any) -> np.ndarray:
+        """The image at x at time t (s) under the input u (an impact law with friction chooses
+        its outcome by the forces after it, which the input changes); ``__call__`` takes u = 0."""
+        return evaluate_reset(self.functions, self.index, self.target_dim(), x, t, u)
+
 
 def check_outcomes(outcomes: Sequence[tuple[str, str]], modes: Sequence[str], where: str) -> None:
     """Every joint outcome's target must be a mode (of those given, for an eager system)."""
