@@ -107,8 +107,10 @@ def test_every_controlled_run_gets_a_fresh_controller():
 @pytest.mark.xfail(
     strict=True,
     reason=(
-        "known defect: the relaxed runs differ from the event-driven reference by 1.4e-3 at every "
-        "tolerance (cause not yet found); "
+        "known defect: the relaxed runs differ from the event-driven reference by 8e-3 at every "
+        "tolerance; the sequences part at a graze of the hind foot 0.25 ms after the front foot's "
+        "touchdown, which the relaxed run strikes again at once and the reference 17 us later "
+        "(choosing outcomes under the input before them instead does not change it); "
         "docs/targets.md, 'Known defects'"
     ),
 )
