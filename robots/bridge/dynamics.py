@@ -210,6 +210,9 @@ def accelerate(x, u, p, blocks, src, at, a, lam):
     applied_forces(x, u, p, n, tau)
     if blocks == 0:
         lsn_aba(handle(p), x.ctypes.data, ptr(x, n), tau.ctypes.data, a.ctypes.data)
+    elif not on_terrain(p):  # level ground: no slopes (a null pointer), and nothing allocated
+        lsn_constrained(handle(p), x.ctypes.data, ptr(x, n), tau.ctypes.data, np.int64(blocks), ptr(src, at),
+                        np.int64(0), a.ctypes.data, lam.ctypes.data)  # fmt: skip
     else:
         slopes = terrain_slopes(x, p, blocks, src, at)
         lsn_constrained(handle(p), x.ctypes.data, ptr(x, n), tau.ctypes.data, np.int64(blocks), ptr(src, at),
@@ -227,12 +230,10 @@ def mode_accelerate(x, u, p, a, lam):
 def bridge_field(t, x, u, p, dx):
     """f(t, x, u) = (v, a, 0 for the footholds) of the mode, shape (dim,) (module docstring)."""
     n = int(p[P_N])
-    a = np.empty(n)
     lam = np.empty(max(1, int(p[P_ROWS])))
-    mode_accelerate(x, u, p, a, lam)
+    mode_accelerate(x, u, p, dx[n : 2 * n], lam)  # the acceleration written in place
     for j in range(n):
         dx[j] = x[n + j]
-        dx[n + j] = a[j]
     for j in range(2 * n, int(p[P_DIM])):
         dx[j] = 0.0
 

@@ -389,13 +389,13 @@ def coulomb_guards(x, u, p, kin, g):
             solved = True
         bases[k] = event_base(x, p, ev, kin, a, lam)
         cornered = cornered or (p[ev + EV_KIND] == E_CORNER and bases[k] < 0.0)
-    status, image = np.empty(max(1, contacts)), np.empty(x.shape[0])
     for k in range(events):
         ev = int(p[P_EVENT]) + EVENT_SIZE * k
         base = abs(bases[k]) if cornered and p[ev + EV_KIND] != E_CORNER else bases[k]
         first, copies = int(p[ev + EV_FIRST]), int(p[ev + EV_COUNT])
         chosen = math.nan
-        if base < 0.0:
+        if base < 0.0:  # past: the outcome decides which copy (allocated only here, the rare case)
+            status, image = np.empty(max(1, contacts)), np.empty(x.shape[0])
             if not outcome(x, u, p, ev, False, status, image):
                 g[first] = math.nan
                 return
