@@ -99,6 +99,7 @@ def test_error_is_order_eps_with_halving(reference):
     ],
 )
 def test_error_falls_like_h_to_the_order_long(reference, method, order, hs):
-    errors = [final_error(reference, method, h, 1e-13) for h in hs]
+    # eps as thin as float64 resolves at this state (|x| up to 31.4): the strips add nothing.
+    errors = [final_error(reference, method, h, 2e-13) for h in hs]
     # The finest pairs alone: the asymptotic regime.
     assert slope(hs[-3:], errors[-3:]) == pytest.approx(order, abs=0.15)
