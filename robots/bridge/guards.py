@@ -4,12 +4,14 @@ guard's unit (the guards themselves are ``events``' model functions).
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 
 import numpy as np
 import pinocchio as pin
 
 from legsim.heights import height as terrain_height
+from legsim.heights import slope
 
 from .contacts import SLIP_SUFFIX, PointContact, RigidContact, SpringLeg, joint_id
 from .model import BridgeModel
@@ -64,7 +66,10 @@ def _below_ground(
     c = r.point
     pin.forwardKinematics(model.pin_model, data, q)
     x, _, z = pin.updateFramePlacement(model.pin_model, data, r.frame_id).translation
-    z -= r.radius
+    if r.radius > 0.0:  # its point nearest the ground: along the normal of a uniform slope
+        grade = 0.0 if model.terrain is None else float(slope(model.terrain, 0, float(x)))
+        norm = math.sqrt(1.0 + grade * grade)
+        x, z = x + r.radius * grade / norm, z - r.radius / norm
     ground = c.ground if model.terrain is None else terrain_height(model.terrain, 0, float(x))
     depth = ground - z
     if depth > eps:

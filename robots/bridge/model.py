@@ -13,7 +13,7 @@ import numpy as np
 import pinocchio as pin
 
 from legsim.errors import ModelError
-from legsim.heights import PROFILE
+from legsim.heights import PROFILE, SLOPE
 from legsim.terrain import Terrain
 
 from .contacts import (
@@ -136,9 +136,10 @@ def build_model(
                 f"{name}: contact '{c.contact.name}': armed.coordinate {armed.coordinate!r} "
                 f"is not a coordinate: {coords}"
             )
+    radii = {r.frame_id: r.radius for r in rigid.values() if r.radius > 0.0}
     return BridgeModel(
         name, own, n, declared, rigid, legs, coords, vels, damping_idx, damping_b, actuated_idx, limits,
-        handle_for(own, name, {r.frame_id: r.radius for r in rigid.values() if r.radius > 0.0}),
+        handle_for(own, name, radii, uniform_grade(terrain) or 0.0),
         _kinematics_frames(rigid, legs),
         None if terrain is None or terrain.flat else terrain.array.copy(),
     )  # fmt: skip
@@ -147,8 +148,8 @@ def build_model(
 def _on_terrain(declared: dict[str, Contact], terrain: Terrain | None, name: str) -> dict[str, Contact]:
     """The contacts on ``terrain``: a flat one is each contact's ground height (so that it runs
     exactly as ``ground = h0`` does); the others replace the grounds. A contact that gives its
-    own ground besides a terrain, or a spring leg or round contact on a terrain that is not level,
-    is refused."""
+    own ground besides a terrain, a spring leg on a terrain that is not level, or a round contact
+    on one that is neither level nor a uniform slope, is refused."""
     if terrain is None:
         return declared
     if not isinstance(terrain, Terrain):
@@ -171,15 +172,28 @@ def _on_terrain(declared: dict[str, Contact], terrain: Terrain | None, name: str
             f"{name}: spring legs {legs} stand only on level ground; the terrain {terrain.description} "
             f"is not (use a flat terrain)"
         )
-    # A round contact touches a sloped ground along its normal, off the lowest point the
-    # native library tracks: not modelled, so refused rather than answered wrongly.
+    # A round contact touches the ground at its point nearest it, along the ground's normal: the
+    # native library tracks that point where the normal is one for the whole robot (a uniform
+    # slope); where it turns under the contact (a profile's corners, a sine) it is not modelled,
+    # so refused rather than answered wrongly.
     round_contacts = [c.name for c in grounded if isinstance(c, PointContact) and c.radius > 0.0]
-    if round_contacts:
+    if round_contacts and uniform_grade(terrain) is None:
         raise ModelError(
             f"{name}: round contacts {round_contacts} (collision spheres and cylinders) stand only on level "
-            f"ground; the terrain {terrain.description} is not (use a flat terrain, or boxes)"
+            f"ground or a uniform slope; the terrain {terrain.description} is neither (use a flat or slope "
+            f"terrain, or boxes)"
         )
     return declared
+
+
+def uniform_grade(terrain: Terrain | None) -> float | None:
+    """The grade dh/dx of a ground whose normal is the same everywhere (0 for level ground or a
+    flat terrain, g for a slope), or None for a terrain whose normal turns."""
+    if terrain is None or terrain.flat:
+        return 0.0
+    if float(terrain.array[0]) == SLOPE:
+        return float(terrain.array[1])
+    return None
 
 
 def _kinematics_frames(rigid: Mapping[str, RigidContact], legs: Mapping[str, LegFrames]) -> tuple[int, ...]:

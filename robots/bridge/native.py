@@ -50,11 +50,12 @@ _JOINT_CODES = {
 COMPOSITE = 6
 
 
-def describe(model: Any, radii: Mapping[int, float] | None = None) -> np.ndarray | None:
+def describe(model: Any, radii: Mapping[int, float] | None = None, grade: float = 0.0) -> np.ndarray | None:
     """The flat description of a Pinocchio model for ``lsn_create`` (pinlegsim.cpp), or None
     when it has a joint the library does not take or a gravity with an angular part. ``radii``:
     the round frames (frame id -> radius in m, > 0), whose kinematics the library gives at their
-    lowest point (a sphere's or disc's contact point with the ground)."""
+    point nearest the ground (a sphere's or disc's contact point), on a ground of uniform
+    ``grade`` (dh/dx; 0: level, the lowest point)."""
     out: list[float] = [model.njoints - 1]
     for j in range(1, model.njoints):
         joint = _joint_description(model.joints[j])
@@ -71,7 +72,7 @@ def describe(model: Any, radii: Mapping[int, float] | None = None) -> np.ndarray
     out += list(model.gravity.linear)
     rounds = sorted((radii or {}).items())
     out.append(len(rounds))
-    out += [v for frame, r in rounds for v in (frame, r)]
+    out += [v for frame, r in rounds for v in (frame, r, grade)]
     return np.array(out, dtype=float)
 
 
@@ -92,16 +93,16 @@ def _joint_description(joint: Any) -> list[float] | None:
     return out
 
 
-def handle_for(model: Any, robot: str, radii: Mapping[int, float] | None = None) -> int:
+def handle_for(model: Any, robot: str, radii: Mapping[int, float] | None = None, grade: float = 0.0) -> int:
     """The native handle of a Pinocchio model (created once per model object, with its round
-    frames ``radii``: see ``describe``); ``ModelError`` naming ``robot`` when the library is
-    unavailable or cannot take the model."""
+    frames ``radii`` on a ground of ``grade``: see ``describe``); ``ModelError`` naming ``robot``
+    when the library is unavailable or cannot take the model."""
     found = _HANDLES.get(id(model))
     if found is not None and found[0] is model:
         return found[1]
     if not _native.load():
         raise ModelError(f"{robot}: the native Pinocchio library is unavailable: {_native.status()}")
-    desc = describe(model, radii)
+    desc = describe(model, radii, grade)
     if desc is None:
         raise ModelError(
             f"{robot}: the native library takes revolute and prismatic joints about or along x, y, z "

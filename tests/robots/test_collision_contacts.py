@@ -354,14 +354,52 @@ def test_cylinders_and_boxes_become_corners_or_round_contacts(tmp_path, geometry
 
 
 @pytest.mark.parametrize(
-    "terrain", ['kind = "slope"\nangle = 5.0', 'kind = "sine"\namplitude = 0.02\nwavelength = 1.0']
+    "terrain",
+    ['kind = "sine"\namplitude = 0.02\nwavelength = 1.0', 'kind = "steps"\nheights = [0.05]\npositions = [0.5]'],
 )
-def test_a_round_contact_on_a_terrain_that_is_not_level_is_refused_naming_it(tmp_path, terrain):
-    # A sphere meets a sloped ground along the ground's normal, not at its lowest point, which is
-    # the point the native library tracks: refused rather than answered wrongly.
-    with pytest.raises((ModelError, SceneError), match=r"round contacts \['ball.*stand only on level ground"):
+def test_a_round_contact_on_a_terrain_whose_normal_turns_is_refused_naming_it(tmp_path, terrain):
+    # A sphere meets the ground at its point nearest it, along the ground's normal: the native
+    # library tracks that point where the normal is one for the whole robot (level ground, a
+    # uniform slope), not where it turns under the contact: refused rather than answered wrongly.
+    with pytest.raises((ModelError, SceneError), match=r"round contacts \['ball.*level ground or a uniform slope"):
         load_scene(ball(tmp_path, f"[terrain]\n{terrain}\n"))
     flat = tmp_path / "flat"
     flat.mkdir()
     level = ball(flat, '[initial]\nstate = { z = 0.5 }\n[terrain]\nkind = "flat"\nheight = 0.1\n')
     assert load_scene(level).simulate().status.value == "finished"
+
+
+SLOPE_DEG = 10.0
+
+
+def test_a_ball_dropped_on_a_slope_lands_where_its_centre_is_r_from_the_plane(tmp_path):
+    # Falling straight down from z0 above the slope's origin, the centre is r from the plane
+    # z = tan(theta) x when z cos(theta) = r: at t = sqrt(2 (z0 - r / cos(theta)) / g).
+    theta, z0 = math.radians(SLOPE_DEG), 0.5
+    extra = f'[initial]\nstate = {{ z = {z0} }}\n[terrain]\nkind = "slope"\nangle = {SLOPE_DEG}\n'
+    ex = load_scene(ball(tmp_path, extra), ["integrator.t_final=0.35"]).simulate()
+    assert ex.status == "finished", ex.message
+    t_land = math.sqrt(2 * (z0 - BALL_R / math.cos(theta)) / G)
+    assert ex.transitions[0].exit_time == pytest.approx(t_land, abs=1e-6)
+    x, z = ex.final_state[:2]
+    # at rest on the plane or rolling down it: the centre stays r from the plane
+    assert (z - math.tan(theta) * x) * math.cos(theta) == pytest.approx(BALL_R, abs=1e-9)
+
+
+def test_a_ball_on_a_slope_rolls_down_at_five_sevenths_of_g_sin_theta(tmp_path):
+    # Resting on a slope of 10 degrees (friction 0.5 > 2/7 tan(theta): no slip), a solid sphere
+    # rolls down at a = 5/7 g sin(theta) along the slope, its contact point at rest: after t its
+    # centre has moved a t^2 / 2 down the slope and turns at a t / r. Tracking the lowest point
+    # instead of the point on the plane would leave the ball off the plane or sliding.
+    theta = math.radians(SLOPE_DEG)
+    z_touch = BALL_R / math.cos(theta)
+    extra = f'[initial]\nmode = "ball"\nstate = {{ z = {z_touch} }}\n[terrain]\nkind = "slope"\nangle = {SLOPE_DEG}\n'
+    ex = load_scene(ball(tmp_path, extra)).simulate()
+    assert ex.status == "finished" and not ex.transitions, ex.message
+    t = ex.t_end
+    a = 5 / 7 * G * math.sin(theta)
+    x, z, _, xd, zd, pitchd = ex.final_state
+    assert x == pytest.approx(-0.5 * a * t**2 * math.cos(theta), abs=1e-9)
+    assert z == pytest.approx(z_touch - 0.5 * a * t**2 * math.sin(theta), abs=1e-9)
+    assert math.hypot(xd, zd) == pytest.approx(a * t, abs=1e-9)
+    assert abs(pitchd) * BALL_R == pytest.approx(a * t, abs=1e-9)
