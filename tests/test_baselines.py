@@ -3,6 +3,7 @@
 import numpy as np
 import pytest
 
+from helpers.compiled_models import above_floor, pushed_fall
 from legsim import HybridSystem, Mode, ModeFunctions, SimulationError, Transition, model_function
 from legsim.baselines import paoli_schatzman, simulate_events
 from legsim.control import ControlLaw, Controller, LawController
@@ -170,17 +171,6 @@ def test_event_driven_refuses_a_held_controller():
 
 
 @model_function
-def _falling(t, x, u, p, dx):
-    dx[0] = x[1]
-    dx[1] = -p[0]
-
-
-@model_function
-def _above_floor(t, x, u, p, g):
-    g[0] = max(x[0], x[1])
-
-
-@model_function
 def _kicked_bounce(e, t, x, u, p, out):
     """A bounce with restitution p[1] that a paddle under the ball kicks up by u[0] (m/s)."""
     out[0] = x[0]
@@ -194,14 +184,15 @@ def _constant_kick(t, x, m, p, u):
 
 def test_event_driven_resets_take_the_controllers_input():
     # A reset written as model functions takes the input: the baseline must pass the
-    # controller's, as the relaxed integrator does, not zero. Dropped from 1 m, the ball meets
-    # the floor at sqrt(2 g) and leaves it at c sqrt(2 g) + kick.
+    # controller's, as the relaxed integrator does, not zero. The paddle ball's field adds the
+    # input to gravity: dropped from 1 m under a constant input k, the ball meets the floor at
+    # sqrt(2 (g - k)) and leaves it at c sqrt(2 (g - k)) + k.
     c, kick = 0.8, 0.5
-    flight = Mode(2, names=("z", "zd"), functions=ModeFunctions(_falling, _above_floor, _kicked_bounce,
+    flight = Mode(2, names=("z", "zd"), functions=ModeFunctions(pushed_fall, above_floor, _kicked_bounce,
                                                                 params=[G, c], inputs=1))  # fmt: skip
     system = HybridSystem({"flight": flight}, [Transition("flight", "flight", name="bounce")], name="kicked")
     law = ControlLaw("kick", _constant_kick, 1, lambda mode: np.array([kick]))
     ex = simulate_events(system, [1.0, 0.0], "flight", 0.5, rtol=1e-12, atol=1e-12, control=law)
     (bounce,) = ex.transitions
-    assert bounce.time == pytest.approx(np.sqrt(2 / G), abs=1e-9)
-    assert bounce.state_after[1] == pytest.approx(c * np.sqrt(2 * G) + kick, abs=1e-8)
+    assert bounce.time == pytest.approx(np.sqrt(2 / (G - kick)), abs=1e-9)
+    assert bounce.state_after[1] == pytest.approx(c * np.sqrt(2 * (G - kick)) + kick, abs=1e-8)
