@@ -111,17 +111,19 @@ def trial_length(h_prop: float, h_max: float, remaining: float) -> float:
 
 
 #: A trial step that still leaves the model's range (ModelBreakdown) once shortened below
-#: h / 2**BREAKDOWN_HALVINGS ends the run: a long trial step through the ground needs a few
-#: halvings; a step that short still through it means the boundary is at hand.
+#: 1 / 2**BREAKDOWN_HALVINGS of its step's reference length ends the run: a long trial step
+#: through the ground needs a few halvings; a step that short still through it means the
+#: boundary is at hand.
 BREAKDOWN_HALVINGS = 10
 
 
-def shortening_exhausted(shortened: int, max_halvings: int, t: float, hk: float, h: float, broke: bool) -> bool:
+def shortening_exhausted(shortened: int, max_halvings: int, t: float, hk: float, reference: float, broke: bool) -> bool:
     """True when a step shortened ``shortened`` times, now to hk, may not be shortened again: the
     budget is spent, t + hk no longer moves, or its last trial (``broke``) left the model's
-    range at a length below h / 2**BREAKDOWN_HALVINGS (the length, not the count, since a step
-    may start shorter than h: ``fixed_proposal``)."""
-    return shortened > max_halvings or t + hk <= t or (broke and hk < h * 0.5**BREAKDOWN_HALVINGS)
+    range at a length below reference / 2**BREAKDOWN_HALVINGS. The reference is h under fixed
+    steps, whose first trial may start shorter (``fixed_proposal``), and the step's first trial
+    under error control."""
+    return shortened > max_halvings or t + hk <= t or (broke and hk < reference * 0.5**BREAKDOWN_HALVINGS)
 
 
 #: Float spacings within which a trial step is no step: its length relative to t, its end

@@ -143,6 +143,7 @@ def take_step(tab: Tables, vis: Visit, ws, method: MethodArrays, remaining: floa
     the run ends (``layout.END_*`` in ws.iv[I_END])."""
     t = ws.fs[F_T]
     hk = trial_length(ws.fs[F_H_PROP], ws.cf[S_H_MAX], remaining)
+    reference = ws.cf[S_H_MAX] if ws.ci[S_ADAPTIVE] == 0 else hk  # for leaving the model's range
     last = hk == remaining
     shortened = 0
     aims = 0
@@ -186,7 +187,7 @@ def take_step(tab: Tables, vis: Visit, ws, method: MethodArrays, remaining: floa
         else:
             hk *= 0.5
         last = False
-        if shortening_exhausted(shortened, ws.ci[S_MAX_HALVINGS], t, hk, ws.cf[S_H_MAX], outcome == TRIAL_BROKE):
+        if shortening_exhausted(shortened, ws.ci[S_MAX_HALVINGS], t, hk, reference, outcome == TRIAL_BROKE):
             if outcome == TRIAL_OK and vis.crosses_jumps and t + hk <= t:
                 return land_at_jump(tab, vis, ws, method, shortened)
             ws.iv[I_HALVINGS] += shortened

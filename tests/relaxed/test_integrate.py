@@ -77,6 +77,24 @@ def test_a_model_breakdown_ends_the_run_with_its_message_and_keeps_the_execution
     assert ex.final_state[0] == pytest.approx(ex.t_end, abs=1e-12)
 
 
+def test_under_error_control_a_breakdown_is_bracketed_from_the_steps_own_length():
+    # The error control keeps steps near 1e-4 s (a fast wiggle) far below the largest step h = 1
+    # s: a step that runs into the model's range is halved from its own length, ten times, so
+    # the run stops within 1e-4 / 2^10 s of the boundary at t = 0.5, not at the first trial
+    # shorter than h / 2^10.
+    def field(t, x, u):
+        if x[0] > 0.5:
+            raise ModelBreakdown("past the boundary")
+        return np.array([1.0, math.cos(2000.0 * t)])
+
+    system = HybridSystem({"run": Mode(2, field)}, [])
+    ex = simulate(system, [0.0, 0.0], "run", 2.0, 1.0, 1e-3, "dopri5", rtol=1e-9, atol=1e-12)
+    assert ex.status == "model_breakdown"
+    steps = np.diff(ex.segments[0].t)
+    assert 1e-5 < np.median(steps) < 1e-3
+    assert 0.5 - 1e-6 < ex.t_end <= 0.5
+
+
 def test_a_nan_guard_after_the_first_ends_the_run_non_finite():
     # min([1.0, nan]) is 1.0 in Python: the second guard's nan must still be caught and named.
     system = HybridSystem(
