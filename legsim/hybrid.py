@@ -252,6 +252,16 @@ class Transition:
             return float(guard(x))
         return float(guard(t, x, u))
 
+    def image(self, x: np.ndarray, t: float = 0.0, u: Any = None) -> np.ndarray:
+        """The reset's image of x (a copy of x without a reset); a reset written as model
+        functions takes t (s) and the input u applied before the transition (an impact law
+        with friction chooses its outcome by the forces after it, which the input changes)."""
+        if self.reset is None:
+            return np.array(x, dtype=float)
+        if isinstance(self.reset, ResetOf):
+            return np.asarray(self.reset.under(x, t, u), dtype=float)
+        return np.asarray(self.reset(x), dtype=float)
+
 
 @dataclass(frozen=True)
 class JointCrossing:

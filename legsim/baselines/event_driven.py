@@ -38,7 +38,6 @@ from ..control import Bound, ControlLaw, Controller, LawController, bind
 from ..errors import ModelBreakdown, SimulationError
 from ..execution import Execution, Segment, Strip, TransitionRecord
 from ..hybrid import HybridSystem, Transition
-from ..model import ResetOf
 
 #: solve_ivp's explicit methods that make sense for these non-stiff models.
 METHODS = ("RK23", "RK45", "DOP853", "LSODA", "Radau", "BDF")
@@ -219,7 +218,7 @@ class _EventRun:
                 return
             tr = self.system.outgoing(self.mode)[e]
             self.counts["reset_evals"] += 1
-            after = _image(tr, q, t_event, None if self.control is None else self.control(t_event, q))
+            after = tr.image(q, t_event, None if self.control is None else self.control(t_event, q))
             self.transitions.append(
                 TransitionRecord(
                     tr.name, self.mode, tr.target, e, t_event, t_event, t_event, q.copy(), after.copy(), 0.0
@@ -246,16 +245,6 @@ class _EventRun:
         """A zero-length segment at the current state (no interpolant)."""
         self.pieces.add(self.mode, np.array([self.t]), np.asarray(self.x, dtype=float).reshape(1, -1).copy())
         self.dense.append(None)
-
-
-def _image(tr: Transition, q: np.ndarray, t: float, u: Any) -> np.ndarray:
-    """The image of q under transition tr at time t, under the input u applied before it, as the
-    relaxed integrator takes it for a mode that does not preview its outcomes."""
-    if tr.reset is None:
-        return q.copy()
-    if isinstance(tr.reset, ResetOf):
-        return np.asarray(tr.reset.under(q, t, u), dtype=float)
-    return np.asarray(tr.reset(q), dtype=float)
 
 
 def _bound_control(control: Any) -> Any:

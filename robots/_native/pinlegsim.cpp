@@ -83,7 +83,7 @@ using Mat = Eigen::MatrixXd;
 using ConstMap = Eigen::Map<const Vec>;
 using OutMap = Eigen::Map<Vec>;
 
-constexpr int kVersion = 8;
+constexpr int kVersion = 9;
 
 // Joint type codes of the model description (see lsn_create).
 enum JointCode { RX = 0, RY = 1, RZ = 2, PX = 3, PY = 4, PZ = 5, COMPOSITE = 6 };
@@ -157,30 +157,27 @@ struct Robot {
   std::array<double, COUNTERS> counts{};
   SolveCache aba, kkt, gravity;
   Scratch scratch;
-  // The radius (m) of each frame: 0 for a point; r > 0 for a round frame (a sphere or a disc
-  // about the frame's origin), whose kinematics are those of its contact point, offset from the
-  // origin by offset[frame] (round_offset).
-  std::vector<double> radius;
+  // The contact point of each frame, from its origin in the world's axes (m): 0 for a point; for
+  // a round frame (a sphere or a disc about the frame's origin) the offset to its point nearest
+  // the ground, whose kinematics the functions below give (round_offset).
   std::vector<Eigen::Vector3d> offset;
-  explicit Robot(Model m)
-      : model(std::move(m)), data(model), radius(model.frames.size(), 0.0),
-        offset(model.frames.size(), Eigen::Vector3d::Zero()) {
+  explicit Robot(Model m) : model(std::move(m)), data(model), offset(model.frames.size(), Eigen::Vector3d::Zero()) {
     scratch.frame_jacobian.setZero(6, model.nv);
     scratch.zero.setZero(model.nv);
   }
 };
 
-// A round frame's contact point with a ground of normal n (level: n = +z; a uniform slope of
-// grade s: n = (-s, 0, 1) / sqrt(1 + s^2)) is its point nearest the ground, origin + d with
-// d = -r n in the world's axes. It is not fixed in the body: the functions below give its
-// position, the velocity v + w x d of the body's material point there (w x d lies along the
-// ground: its normal part is the origin's), the derivative a + dw/dt x d of that velocity (d is
-// constant in the world; no centripetal term), and the Jacobian of that velocity.
+// A round frame's contact point with a ground of normal n is its point nearest the ground,
+// origin + d with d = -r n in the world's axes, which the model's description gives
+// (legsim.robots.bridge.contacts.round_offset). It is not fixed in the body: the functions below
+// give its position, the velocity v + w x d of the body's material point there (w x d lies
+// along the ground: its normal part is the origin's), the derivative a + dw/dt x d of that
+// velocity (d is constant in the world; no centripetal term), and the Jacobian of that velocity.
 Eigen::Vector3d round_offset(const Robot& rb, pinocchio::FrameIndex id) { return rb.offset[id]; }
 
 // Shift a world-aligned frame Jacobian (6, nv) to a round frame's contact point.
 void shift_to_contact(const Robot& rb, pinocchio::FrameIndex id, Mat& Jf) {
-  if (rb.radius[id] == 0.0) return;
+  if (rb.offset[id].isZero(0.0)) return;
   const Eigen::Vector3d d = round_offset(rb, id);
   for (long j = 0; j < Jf.cols(); ++j) Jf.block<3, 1>(0, j) += Eigen::Vector3d(Jf.block<3, 1>(3, j)).cross(d);
 }
@@ -415,7 +412,8 @@ long lsn_version() { return kVersion; }
 // part (code, placement[12])], parent, placement[12], mass, lever[3], inertia about the centre
 // of mass[9]), nframes-1, then per frame
 // (parent joint, placement[12]), gravity linear[3], the count of round frames, then per round
-// frame (frame id, radius, the grade of the ground under it)]. A placement is R row-major then p.
+// frame (frame id, the contact point's offset from its origin along x and z)]. A placement is R
+// row-major then p.
 // Frames are added in order after the universe frame, so frame ids are the Python model's.
 long lsn_create(const double* desc, long size) {
   Model model;
@@ -463,17 +461,16 @@ long lsn_create(const double* desc, long size) {
   model.gravity.linear(Eigen::Vector3d(desc[k], desc[k + 1], desc[k + 2]));
   model.gravity.angular(Eigen::Vector3d::Zero());
   k += 3;
-  // The round frames: count, then (frame id, radius > 0, grade) triples; checked as doubles (see above).
+  // The round frames: count, then (frame id, offset x, offset z) triples, the offset finite and
+  // not zero; checked as doubles (see above).
   const double rounds = desc[k++];
   if (!(rounds >= 0.0 && rounds <= static_cast<double>(size - k) / 3.0)) return -1;
   auto rb = std::make_unique<Robot>(std::move(model));
   for (long i = 0; i < static_cast<long>(rounds); ++i, k += 3) {
-    const double frame = desc[k], r = desc[k + 1], grade = desc[k + 2];
-    if (!(frame >= 1.0 && frame <= static_cast<double>(frames) && r > 0.0 && std::isfinite(r) && std::isfinite(grade)))
-      return -1;
-    const double norm = std::sqrt(1.0 + grade * grade);
-    rb->radius[static_cast<size_t>(frame)] = r;
-    rb->offset[static_cast<size_t>(frame)] = Eigen::Vector3d(r * grade / norm, 0.0, -r / norm);
+    const double frame = desc[k], dx = desc[k + 1], dz = desc[k + 2];
+    const bool valid = std::isfinite(dx) && std::isfinite(dz) && (dx != 0.0 || dz != 0.0);
+    if (!(frame >= 1.0 && frame <= static_cast<double>(frames) && valid)) return -1;
+    rb->offset[static_cast<size_t>(frame)] = Eigen::Vector3d(dx, 0.0, dz);
   }
   std::lock_guard<std::mutex> lock(robots_mutex);
   robots.push_back(std::move(rb));

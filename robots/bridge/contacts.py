@@ -183,6 +183,15 @@ class LegFrames:
     foot_id: int
 
 
+def round_offset(radius: float, grade: float) -> tuple[float, float]:
+    """(dx, dz) (m) from a round contact's centre to its point nearest a ground of uniform
+    ``grade`` dh/dx: -r n, n = (-grade, 1) / sqrt(1 + grade^2) the ground's normal (on level
+    ground (0, -r), the lowest point). The native library gives the kinematics of that point
+    (``pinlegsim.cpp``, ``round_offset``)."""
+    norm = math.sqrt(1.0 + grade * grade)
+    return radius * grade / norm, -radius / norm
+
+
 def finite_number(
     value: Any, where: str, *, low: float | None = None, high: float | None = None, low_open: bool = False
 ) -> float:

@@ -4,14 +4,12 @@ guard's unit (the guards themselves are ``events``' model functions).
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable
 
 import numpy as np
 import pinocchio as pin
 
 from legsim.heights import height as terrain_height
-from legsim.heights import slope
 
 from .contacts import SLIP_SUFFIX, PointContact, RigidContact, SpringLeg, joint_id
 from .model import BridgeModel
@@ -61,19 +59,17 @@ def _past_stop(model: BridgeModel, r: RigidContact, q: np.ndarray, eps: float, m
 def _below_ground(
     model: BridgeModel, data: pin.Data, r: RigidContact, q: np.ndarray, eps: float, mode: str
 ) -> str | None:
-    """A message if the inactive contact point (a round one's lowest point) lies below the ground
-    (the terrain under it) at q by more than eps (m), else None."""
+    """A message if the inactive contact point (a round one's point nearest the ground) lies below
+    the ground (the terrain under it) at q by more than eps (m), else None."""
     c = r.point
     pin.forwardKinematics(model.pin_model, data, q)
     x, _, z = pin.updateFramePlacement(model.pin_model, data, r.frame_id).translation
-    if r.radius > 0.0:  # its point nearest the ground: along the normal of a uniform slope
-        grade = 0.0 if model.terrain is None else float(slope(model.terrain, 0, float(x)))
-        norm = math.sqrt(1.0 + grade * grade)
-        x, z = x + r.radius * grade / norm, z - r.radius / norm
+    dx, dz = model.round_offsets.get(r.frame_id, (0.0, 0.0))  # a round contact's point nearest the ground
+    x, z = x + dx, z + dz
     ground = c.ground if model.terrain is None else terrain_height(model.terrain, 0, float(x))
     depth = ground - z
     if depth > eps:
-        shape = f", radius {r.radius:g} m: its lowest point" if r.radius > 0.0 else ""
+        shape = f", radius {r.radius:g} m: its point nearest the ground" if r.radius > 0.0 else ""
         return (
             f"contact point '{c.name}' (frame '{c.frame}'{shape}) at height {z:g} m lies below the "
             f"ground {ground:g} m under it by {depth:.3g} > eps = {eps:g} in mode '{mode}' where "

@@ -6,7 +6,7 @@ actuation, its native handle and the rows of its parameter arrays every mode sha
 from __future__ import annotations
 
 from collections.abc import Iterable, Mapping, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -26,6 +26,7 @@ from .contacts import (
     finite_number,
     joint_id,
     resolve_contact,
+    round_offset,
 )
 from .native import handle_for
 
@@ -52,6 +53,8 @@ class BridgeModel:
         is its index here).
     terrain: the encoding of a terrain that is not level (``legsim.terrain``), or None: each
         contact's ground is level at its own height (a flat terrain sets those heights).
+    round_offsets: each round contact's frame id -> (dx, dz) (m) from its centre to its point
+        nearest the ground (``contacts.round_offset``), as the native library has them.
     """
 
     name: str
@@ -69,6 +72,7 @@ class BridgeModel:
     handle: int
     frames: tuple[int, ...]
     terrain: np.ndarray | None = None
+    round_offsets: Mapping[int, tuple[float, float]] = field(default_factory=dict)
 
     @property
     def order(self) -> list[str]:
@@ -136,12 +140,15 @@ def build_model(
                 f"{name}: contact '{c.contact.name}': armed.coordinate {armed.coordinate!r} "
                 f"is not a coordinate: {coords}"
             )
-    radii = {r.frame_id: r.radius for r in rigid.values() if r.radius > 0.0}
+    # Round contacts stand only where the ground's grade is one (``_on_terrain``).
+    grade = uniform_grade(terrain) or 0.0
+    offsets = {r.frame_id: round_offset(r.radius, grade) for r in rigid.values() if r.radius > 0.0}
     return BridgeModel(
         name, own, n, declared, rigid, legs, coords, vels, damping_idx, damping_b, actuated_idx, limits,
-        handle_for(own, name, radii, uniform_grade(terrain) or 0.0),
+        handle_for(own, name, offsets),
         _kinematics_frames(rigid, legs),
         None if terrain is None or terrain.flat else terrain.array.copy(),
+        offsets,
     )  # fmt: skip
 
 

@@ -50,12 +50,11 @@ _JOINT_CODES = {
 COMPOSITE = 6
 
 
-def describe(model: Any, radii: Mapping[int, float] | None = None, grade: float = 0.0) -> np.ndarray | None:
+def describe(model: Any, offsets: Mapping[int, tuple[float, float]] | None = None) -> np.ndarray | None:
     """The flat description of a Pinocchio model for ``lsn_create`` (pinlegsim.cpp), or None
-    when it has a joint the library does not take or a gravity with an angular part. ``radii``:
-    the round frames (frame id -> radius in m, > 0), whose kinematics the library gives at their
-    point nearest the ground (a sphere's or disc's contact point), on a ground of uniform
-    ``grade`` (dh/dx; 0: level, the lowest point)."""
+    when it has a joint the library does not take or a gravity with an angular part. ``offsets``:
+    the round frames (frame id -> (dx, dz), m, ``contacts.round_offset``), whose kinematics the
+    library gives at their origin moved by that offset (a sphere's or disc's contact point)."""
     out: list[float] = [model.njoints - 1]
     for j in range(1, model.njoints):
         joint = _joint_description(model.joints[j])
@@ -70,9 +69,9 @@ def describe(model: Any, radii: Mapping[int, float] | None = None, grade: float 
     if np.any(model.gravity.angular != 0.0):
         return None
     out += list(model.gravity.linear)
-    rounds = sorted((radii or {}).items())
+    rounds = sorted((offsets or {}).items())
     out.append(len(rounds))
-    out += [v for frame, r in rounds for v in (frame, r, grade)]
+    out += [v for frame, (dx, dz) in rounds for v in (frame, dx, dz)]
     return np.array(out, dtype=float)
 
 
@@ -93,16 +92,16 @@ def _joint_description(joint: Any) -> list[float] | None:
     return out
 
 
-def handle_for(model: Any, robot: str, radii: Mapping[int, float] | None = None, grade: float = 0.0) -> int:
+def handle_for(model: Any, robot: str, offsets: Mapping[int, tuple[float, float]] | None = None) -> int:
     """The native handle of a Pinocchio model (created once per model object, with its round
-    frames ``radii`` on a ground of ``grade``: see ``describe``); ``ModelError`` naming ``robot``
-    when the library is unavailable or cannot take the model."""
+    frames' ``offsets``: see ``describe``); ``ModelError`` naming ``robot`` when the library is
+    unavailable or cannot take the model."""
     found = _HANDLES.get(id(model))
     if found is not None and found[0] is model:
         return found[1]
     if not _native.load():
         raise ModelError(f"{robot}: the native Pinocchio library is unavailable: {_native.status()}")
-    desc = describe(model, radii, grade)
+    desc = describe(model, offsets)
     if desc is None:
         raise ModelError(
             f"{robot}: the native library takes revolute and prismatic joints about or along x, y, z "
