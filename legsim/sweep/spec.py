@@ -231,8 +231,10 @@ def check_spec(spec: SweepSpec) -> None:
         raise SweepError(f"--max-steps must be an integer >= 1, got {spec.max_steps!r}")
     if not (isinstance(spec.tol, (int, float)) and math.isfinite(spec.tol) and spec.tol > 0):
         raise SweepError(f"--tol must be a finite number > 0, got {spec.tol!r}")
-    if spec.timeout is not None and not (isinstance(spec.timeout, (int, float)) and spec.timeout > 0):
-        raise SweepError(f"--timeout must be a number of seconds > 0, got {spec.timeout!r}")
+    if spec.timeout is not None and not (
+        isinstance(spec.timeout, (int, float)) and math.isfinite(spec.timeout) and spec.timeout > 0
+    ):
+        raise SweepError(f"--timeout must be a finite number of seconds > 0 (omit it for no limit), got {spec.timeout!r}")
     for axis in spec.grid:
         for value in axis.values:
             if not isinstance(value, (bool, int, float, str)) or (

@@ -109,6 +109,7 @@ def test_the_fingerprint_follows_every_field_and_survives_the_manifest():
         ({"max_steps": 0}, "--max-steps"),
         ({"tol": -1.0}, "--tol"),
         ({"timeout": 0}, "--timeout"),
+        ({"timeout": float("inf")}, "--timeout must be a finite number"),  # the summary is strict JSON
         ({"seed": -1}, "--seed"),
     ],
 )
