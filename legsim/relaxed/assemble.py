@@ -313,8 +313,9 @@ class Assembly:
             if w.action != "warn":
                 continue
             first = least = None
-            for _, mode, t, x, dx in self._visits(0):
-                v = w.values(mode, t, x)
+            visits = self._visits(0)
+            per_visit = watches.values_per_visit(w, [(mode, t, x) for _, mode, t, x, _ in visits])
+            for (_, mode, t, x, dx), v in zip(visits, per_visit, strict=True):
                 if first is None and (hit := watches.first_hold(w, mode, t, x, dx, values=v)) is not None:
                     k, when = hit
                     state = x[0] if k == 0 else watches.point(t, x, dx, k, when)[0]
@@ -332,11 +333,16 @@ class Assembly:
 
     def _watch_times(self) -> dict[str, float]:
         """The time each time watch's condition held along the flow (s)."""
-        return {
-            w.counter: sum(watches.time_held(w, mode, t, x, dx) for _, mode, t, x, dx in self._visits(0))
-            for w in self.options.watches
-            if w.action == "time"
-        }
+        visits = self._visits(0)
+        points = [(mode, t, x) for _, mode, t, x, _ in visits]
+        times = {}
+        for w in self.options.watches:
+            if w.action == "time":
+                per_visit = watches.values_per_visit(w, points)
+                times[w.counter] = sum(
+                    watches.time_held(w, mode, t, x, dx, v) for (_, mode, t, x, dx), v in zip(visits, per_visit, strict=True)
+                )
+        return times
 
     def state_names(self) -> tuple[dict[str, tuple[str, ...]], dict[str, tuple[str, ...]]]:
         """The coordinate names and units of every mode visited (the memory's last)."""

@@ -25,7 +25,7 @@ Actions:
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -134,12 +134,30 @@ def first_hold(
     return k, locate(watch, mode, t, x, dx, k, True)
 
 
-def time_held(watch: Watch, mode: str, t: np.ndarray, x: np.ndarray, dx: np.ndarray) -> float:
+def values_per_visit(watch: Watch, visits: Sequence[tuple[str, np.ndarray, np.ndarray]]) -> list[np.ndarray]:
+    """v at the points of each visit (mode, t, x), in order: one call of the watch per mode over
+    all its visits' points (a watch is vectorised, and a run visits few modes many times)."""
+    by_mode: dict[str, list[int]] = {}
+    for i, (mode, _, _) in enumerate(visits):
+        by_mode.setdefault(mode, []).append(i)
+    out: list[np.ndarray] = [np.empty(0)] * len(visits)
+    for mode, members in by_mode.items():
+        t = np.concatenate([visits[i][1] for i in members])
+        x = np.concatenate([visits[i][2] for i in members])
+        ends = np.cumsum([visits[i][1].shape[0] for i in members])[:-1]
+        for i, v in zip(members, np.split(watch.values(mode, t, x), ends), strict=True):
+            out[i] = v
+    return out
+
+
+def time_held(
+    watch: Watch, mode: str, t: np.ndarray, x: np.ndarray, dx: np.ndarray, values: np.ndarray | None = None
+) -> float:
     """The time (s) the condition holds along one visit's flow, the ends of each interval
-    located."""
+    located; ``values``: v at the visit's points when known."""
     if t.shape[0] < 2:
         return 0.0
-    neg = watch.values(mode, t, x) < 0.0
+    neg = (watch.values(mode, t, x) if values is None else values) < 0.0
     total = float(np.sum(np.diff(t)[neg[:-1] & neg[1:]]))
     for crossing in np.flatnonzero(neg[:-1] != neg[1:]) + 1:
         k = int(crossing)
