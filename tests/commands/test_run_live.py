@@ -164,7 +164,8 @@ def test_a_signal_ends_a_live_recording_within_2_s(tmp_path, sig):
         assert peer.closed == peer.accepted  # the sending process was killed with its command
     assert proc.returncode == (143 if sig == signal.SIGTERM else 130) and elapsed < 2.0
     assert err == ("legsim: terminated\n" if sig == signal.SIGTERM else "legsim: interrupted\n")
-    assert list(tmp_path.iterdir()) == []  # the temporary recording is gone
+    left = sorted(str(p.relative_to(tmp_path)) for p in tmp_path.rglob("*"))
+    assert left == [], f"the temporary recording is not gone: {left}"  # named: a rare failure to diagnose
 
 
 def test_connect_timeout_is_checked_and_needs_connect(capsys):
