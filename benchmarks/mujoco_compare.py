@@ -33,8 +33,9 @@ at the sample times are its execution's interpolant (``t_eval``); MuJoCo's are i
 (dt up to 4 ms divides 4 ms; a run at dt = 8 ms is compared at its own steps, every other
 sample). legsim's configurations: rk4 and ros34pw2 with fixed steps, dopri5 and ros34pw2 with
 error control (largest step 20 ms; ros34pw2 at loose tolerances also 50 and 100 ms), at several
-strip widths eps; MuJoCo's: Euler, implicitfast and RK4 at dt 0.5, 1, 2, 4 and 8 ms. Wall times are per simulated second, each the best of
-``--repeat`` runs, a legsim configuration and a MuJoCo one taken in turn; per error level the
+strip widths eps; MuJoCo's: Euler, implicitfast and RK4 at dt 0.5, 1, 2, 4 and 8 ms. Wall
+times are per simulated second, each the best of ``--repeat`` runs, a legsim configuration and a
+MuJoCo one taken in turn; per error level the
 fastest run of each side that reaches it is taken, per round, and the median over rounds of
 legsim / MuJoCo printed (< 1: legsim faster). legsim runs compiled (every run is checked to
 have taken no Python step) and warm: its first run in a fresh process (loading the kernels from

@@ -338,9 +338,10 @@ class Assembly:
         times = {}
         for w in self.options.watches:
             if w.action == "time":
-                per_visit = watches.values_per_visit(w, points)
+                values = watches.values_per_visit(w, points)
                 times[w.counter] = sum(
-                    watches.time_held(w, mode, t, x, dx, v) for (_, mode, t, x, dx), v in zip(visits, per_visit, strict=True)
+                    watches.time_held(w, mode, t, x, dx, v)
+                    for (_, mode, t, x, dx), v in zip(visits, values, strict=True)
                 )
         return times
 

@@ -234,7 +234,9 @@ def check_spec(spec: SweepSpec) -> None:
     if spec.timeout is not None and not (
         isinstance(spec.timeout, (int, float)) and math.isfinite(spec.timeout) and spec.timeout > 0
     ):
-        raise SweepError(f"--timeout must be a finite number of seconds > 0 (omit it for no limit), got {spec.timeout!r}")
+        raise SweepError(
+            f"--timeout must be a finite number of seconds > 0 (omit it for no limit), got {spec.timeout!r}"
+        )
     for axis in spec.grid:
         for value in axis.values:
             if not isinstance(value, (bool, int, float, str)) or (
