@@ -30,6 +30,7 @@ import contextlib
 import errno
 import os
 import re
+import shutil
 import stat
 import tempfile
 import uuid
@@ -212,6 +213,22 @@ def write_atomic(
             raise OutputError(f"{what} {path}: cannot write: {_write_reason(exc, path)}") from exc
         raise
     return path
+
+
+@contextlib.contextmanager
+def temporary_folder(prefix: str) -> Iterator[Path]:
+    """A new folder in the temporary folder, removed with its content on every exit, Ctrl-C and
+    SIGTERM included. Its name (``prefix``, this process's id, random) is chosen before it is
+    made, and it is made inside the ``try`` that removes it: a signal landing just after it is
+    made still removes it (``tempfile.TemporaryDirectory`` makes its folder before the block
+    that removes it is entered, and a signal between the two, followed by the command line's
+    fast exit, leaves it behind)."""
+    folder = Path(tempfile.gettempdir()) / f"{prefix}{os.getpid()}-{uuid.uuid4().hex[:12]}"
+    try:
+        folder.mkdir(mode=0o700)
+        yield folder
+    finally:
+        shutil.rmtree(folder, ignore_errors=True)
 
 
 def _remove(tmp: Path) -> None:

@@ -154,7 +154,9 @@ def test_a_signal_ends_a_live_recording_within_2_s(tmp_path, sig):
             env={**os.environ, "TMPDIR": str(tmp_path)},
         )
         deadline = time.monotonic() + 60
-        while peer.accepted < 2 and time.monotonic() < deadline:  # the sender is waiting for the viewer
+        # The second connection is the check just before the recording is made and sent (the first,
+        # before the run): the signal lands while the recording is made, its folder made, or sent.
+        while peer.accepted < 2 and time.monotonic() < deadline:
             time.sleep(0.02)
         sent = time.monotonic()
         proc.send_signal(sig)

@@ -2,11 +2,13 @@
 
 import os
 import stat
+import tempfile
+from pathlib import Path
 
 import pytest
 
 from legsim.errors import OutputError
-from legsim.output.files import write_atomic, write_bytes_atomic
+from legsim.output.files import temporary_folder, write_atomic, write_bytes_atomic
 
 
 def test_a_written_file_is_complete_and_honours_the_umask(tmp_path):
@@ -88,3 +90,22 @@ def test_a_folder_that_cannot_be_made_is_named_with_the_reason(tmp_path):
         check_folder(tmp_path / "dangling" / "b.png", "--plot")
     check_folder(tmp_path / "new" / "deeper" / "b.png", "--plot")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["afile", "dangling"]
+
+
+@pytest.mark.parametrize("moment", ["just after it is made", "inside the block"])
+def test_a_temporary_folder_is_removed_when_ctrl_c_lands_at_any_moment(tmp_path, monkeypatch, moment):
+    # A Ctrl-C right after the folder is made (before the block is entered) is the moment that
+    # tempfile.TemporaryDirectory misses; the command line then leaves without garbage collection.
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    made = Path.mkdir
+
+    def interrupted_after(self, *args, **kwargs):
+        made(self, *args, **kwargs)
+        if moment == "just after it is made":
+            raise KeyboardInterrupt
+
+    monkeypatch.setattr(Path, "mkdir", interrupted_after)
+    with pytest.raises(KeyboardInterrupt), temporary_folder("legsim-test-") as folder:
+        (folder / "recording.rrd").write_bytes(b"x")
+        raise KeyboardInterrupt
+    assert list(tmp_path.iterdir()) == []

@@ -38,6 +38,7 @@ from ...builders import Model
 from ...errors import LegsimError
 from ...execution import Execution
 from ...hybrid import HybridSystem
+from ..files import temporary_folder
 from ..untrusted import printable
 from .send import layout_json
 from .write import prepare, record, recording_stream
@@ -221,8 +222,8 @@ def stream_rrd(
     # before the first wait, a Ctrl-C or SIGTERM during the waits cannot land inside it.
     tempfile.gettempdir()
     check_reachable(connect, url, timeout)
-    with tempfile.TemporaryDirectory(prefix="legsim-connect-") as folder:
-        file = Path(folder) / "recording.rrd"
+    with temporary_folder("legsim-connect-") as folder:
+        file = folder / "recording.rrd"
         with recording_stream() as rec:
             rec.save(file)
             layout = record(rec, content)
