@@ -32,7 +32,7 @@ from typing import Any
 import numpy as np
 
 from .errors import ModelError
-from .model import GuardOf, ModeFunctions, ResetOf, evaluate_field, evaluate_guards
+from .model import GuardOf, ModeFunctions, ResetOf, evaluate_field, guard_values_of
 
 FieldFn = Callable[[float, np.ndarray, Any], np.ndarray]
 #: ``guard(x) -> float``, or ``guard(t, x, u) -> float`` for a transition declared with
@@ -583,12 +583,7 @@ class HybridSystem:
     def guard_values(self, mode: str, x: np.ndarray, t: float = 0.0, u: Any = None) -> np.ndarray:
         """All guard values of ``mode`` at ``x`` (shape (number of outgoing transitions,));
         t and u matter only for guards declared with ``guard_args="t,x,u"``."""
-        data = self.mode_data(mode)
-        shared = _shared_functions([tr.guard for tr in data.transitions])
-        if shared is not None:  # every guard from the mode's one guards function: a single call
-            functions, count, indices = shared
-            return evaluate_guards(functions, count, t, x, u)[indices]
-        return np.array([tr.guard_value(x, t, u) for tr in data.transitions], dtype=float)
+        return guard_values_of(self.mode_data(mode).transitions, t, x, u)
 
     def in_domain(self, mode: str, x: np.ndarray, eps: float = 0.0, t: float = 0.0, u: Any = None) -> bool:
         """True when every guard of ``mode`` is >= -eps at ``x`` (the relaxed domain for eps > 0)."""
@@ -702,15 +697,3 @@ def reachable_modes(system: HybridSystem, start: str | Iterable[str]) -> list[st
         seen.append(mode)
         queue.extend(tr.target for tr in system.outgoing(mode) if tr.target not in seen)
     return seen
-
-
-def _shared_functions(guards: Sequence[Any]) -> tuple[ModeFunctions, int, list[int]] | None:
-    """(functions, guard count, each guard's index) when every guard is a ``GuardOf`` of one
-    mode's model functions, so that one call of its guards function gives them all; else None."""
-    own = [g for g in guards if isinstance(g, GuardOf)]
-    if not own or len(own) != len(guards):
-        return None
-    first = own[0]
-    if any(g.functions is not first.functions or g.count != first.count for g in own):
-        return None
-    return first.functions, first.count, [g.index for g in own]

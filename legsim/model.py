@@ -177,6 +177,17 @@ class GuardOf:
         return float(evaluate_guards(self.functions, self.count, t, x, u)[self.index])
 
 
+def guard_values_of(transitions: Sequence[Any], t: float, x: np.ndarray, u: Any) -> np.ndarray:
+    """Each transition's guard at (t, x) under u (``Transition.guard_value``), shape
+    (len(transitions),): one call of the mode's guards function when every guard is a
+    ``GuardOf`` of that one mode's functions."""
+    own = [tr.guard for tr in transitions if isinstance(tr.guard, GuardOf)]
+    first = own[0] if own else None
+    if first is None or len(own) != len(transitions) or any(g.functions is not first.functions for g in own):
+        return np.array([tr.guard_value(x, t, u) for tr in transitions], dtype=float)
+    return evaluate_guards(first.functions, first.count, t, x, u)[[g.index for g in own]]
+
+
 @dataclass(frozen=True)
 class ResetOf:
     """Transition e's reset (or continuation's, e >= guard count) of a mode written as model
