@@ -1,9 +1,10 @@
 """Conditions on a run's states checked at every stored point (``Watch``): a fall that ends the
 run, a state the model cannot vouch for that is reported, an interval that is measured.
 
-A watch is ``value(mode, t, x) -> v``, vectorised over the points of one mode visit (t of shape
-(N,), x of shape (N, n), the run's state: the plant's, then the controller's memory), and its
-condition *holds* where v < 0. The driver checks the points as the loop hands its buffers back
+A watch is ``value(mode, t, x) -> v``, a function of each point alone, vectorised over points
+of one mode (t of shape (N,), x of shape (N, n), the run's state: the plant's, then the
+controller's memory; the points of one visit, or of all the mode's visits at once for the
+warnings and times made at the end), and its condition *holds* where v < 0. The driver checks the points as the loop hands its buffers back
 (every ``workspace.POINTS`` points at most, and at the end), so the loop itself, compiled or
 not, is unchanged. Where a condition first holds between two stored points, the time is located
 by bisection on the points' cubic Hermite interpolant (the one ``Execution.sample`` uses: O(h^4)
