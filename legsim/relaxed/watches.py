@@ -4,13 +4,14 @@ run, a state the model cannot vouch for that is reported, an interval that is me
 A watch is ``value(mode, t, x) -> v``, a function of each point alone, vectorised over points
 of one mode (t of shape (N,), x of shape (N, n), the run's state: the plant's, then the
 controller's memory; the points of one visit, or of all the mode's visits at once for the
-warnings and times made at the end), and its condition *holds* where v < 0. The driver checks the points as the loop hands its buffers back
-(every ``workspace.POINTS`` points at most, and at the end), so the loop itself, compiled or
-not, is unchanged. Where a condition first holds between two stored points, the time is located
-by bisection on the points' cubic Hermite interpolant (the one ``Execution.sample`` uses: O(h^4)
-between steps), to float64 resolution; where it holds at a visit's first point (a mode entered),
-the time is that entry's. A condition met during a crossing's step, before the guard point q, is
-found at the visit after the crossing.
+warnings and times made at the end), and its condition *holds* where v < 0. The driver checks
+the points as the loop hands its buffers back (every ``workspace.POINTS`` points at most, and
+at the end), so the loop itself, compiled or not, is unchanged. Where a condition first holds
+between two stored points, the time is located by bisection on the points' cubic Hermite
+interpolant (the one ``Execution.sample`` uses: O(h^4) between steps), to float64 resolution;
+where it holds at a visit's first point (a mode entered), the time is that entry's. A condition
+met during a crossing's step, before the guard point q, is found at the visit after the
+crossing.
 
 Actions:
 
