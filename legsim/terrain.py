@@ -63,6 +63,14 @@ class Terrain:
         """Whether the terrain is level everywhere (a ``flat`` one)."""
         return bool(self.array[0] == FLAT)
 
+    @property
+    def uniform_grade(self) -> float | None:
+        """The grade dh/dx where the ground's normal is the same everywhere (0 for a ``flat``
+        terrain, g for a ``slope``); None where it turns (steps, profiles, sines)."""
+        if self.flat:
+            return 0.0
+        return float(self.array[1]) if self.array[0] == SLOPE else None
+
     def height(self, x: Any) -> np.ndarray:
         """h at each x (m), shape of x."""
         xs = np.asarray(x, dtype=float)

@@ -13,7 +13,7 @@ import numpy as np
 import pinocchio as pin
 
 from legsim.errors import ModelError
-from legsim.heights import PROFILE, SLOPE
+from legsim.heights import PROFILE
 from legsim.terrain import Terrain
 
 from .contacts import (
@@ -141,7 +141,7 @@ def build_model(
                 f"is not a coordinate: {coords}"
             )
     # Round contacts stand only where the ground's grade is one (``_on_terrain``).
-    grade = uniform_grade(terrain) or 0.0
+    grade = 0.0 if terrain is None else terrain.uniform_grade or 0.0
     offsets = {r.frame_id: round_offset(r.radius, grade) for r in rigid.values() if r.radius > 0.0}
     return BridgeModel(
         name, own, n, declared, rigid, legs, coords, vels, damping_idx, damping_b, actuated_idx, limits,
@@ -184,23 +184,13 @@ def _on_terrain(declared: dict[str, Contact], terrain: Terrain | None, name: str
     # slope); where it turns under the contact (a profile's corners, a sine) it is not modelled,
     # so refused rather than answered wrongly.
     round_contacts = [c.name for c in grounded if isinstance(c, PointContact) and c.radius > 0.0]
-    if round_contacts and uniform_grade(terrain) is None:
+    if round_contacts and terrain.uniform_grade is None:
         raise ModelError(
             f"{name}: round contacts {round_contacts} (collision spheres and cylinders) stand only on level "
             f"ground or a uniform slope; the terrain {terrain.description} is neither (use a flat or slope "
             f"terrain, or boxes)"
         )
     return declared
-
-
-def uniform_grade(terrain: Terrain | None) -> float | None:
-    """The grade dh/dx of a ground whose normal is the same everywhere (0 for level ground or a
-    flat terrain, g for a slope), or None for a terrain whose normal turns."""
-    if terrain is None or terrain.flat:
-        return 0.0
-    if float(terrain.array[0]) == SLOPE:
-        return float(terrain.array[1])
-    return None
 
 
 def _kinematics_frames(rigid: Mapping[str, RigidContact], legs: Mapping[str, LegFrames]) -> tuple[int, ...]:

@@ -12,7 +12,16 @@ from scipy.optimize import brentq
 
 from legsim.errors import SceneError
 from legsim.scene import load_scene
-from legsim.terrain import curvature, height, parse_terrain, sine_terrain, slope
+from legsim.terrain import (
+    curvature,
+    flat_terrain,
+    height,
+    parse_terrain,
+    profile_terrain,
+    sine_terrain,
+    slope,
+    slope_terrain,
+)
 
 G = 9.81
 
@@ -76,6 +85,14 @@ def test_the_encoded_terrains_give_the_closed_form_height_slope_and_curvature(tm
     assert height(incline, 0, 3.0) == pytest.approx(2.0 + 2.0 * math.tan(math.radians(30.0)), abs=1e-15)
     steps = parse_terrain(path, {"kind": "steps", "positions": [1.0, 2.0], "heights": [0.1, 0.25], "riser": 0.01})
     assert [height(steps.array, 0, x) for x in (0.5, 0.995, 1.5, 2.5)] == pytest.approx([0.0, 0.05, 0.1, 0.25])
+
+
+def test_a_terrain_has_a_uniform_grade_only_where_its_normal_never_turns():
+    # The round contacts' point nearest the ground follows from it (robots.bridge.contacts.round_offset).
+    assert flat_terrain(0.3).uniform_grade == 0.0
+    assert slope_terrain(math.radians(10.0), 1.0, 2.0).uniform_grade == pytest.approx(math.tan(math.radians(10.0)))
+    assert sine_terrain(0.1, 2.0).uniform_grade is None
+    assert profile_terrain([0.0, 1.0], [0.0, 0.5]).uniform_grade is None
 
 
 @pytest.mark.parametrize(
