@@ -192,8 +192,11 @@ COLLAPSED = 4e-16
 #: Most guard evaluations of one search.
 MAX_ITERATIONS = 200.0
 #: The guard's own rounding, relative to its change over the step: a finer tolerance would only
-#: be met by collapsing the bracket by bisection.
-GUARD_ROUNDING = 1e-15
+#: be met by collapsing the bracket by bisection. A guard is a difference of terms larger than
+#: its change over one step (a foot's height: link lengths times cosines, of order 1 m, changing
+#: by 0.1 m), so its rounding is a few float spacings of those terms: about 1e-15 m, 1e-14 of
+#: the change. Below that the search only chases rounding noise, at 4-6 extra evaluations.
+GUARD_ROUNDING = 1e-13
 
 
 def crossing_start(g0: float, g1: float, tol: float):
@@ -277,23 +280,6 @@ def flight_since(has_history: bool, last_exit: float, tc: float) -> float:
     """The flight (s) of a transition crossed at tc since its previous crossing left its strip
     at ``last_exit``; infinite for its first crossing (or the first after a continuation)."""
     return tc - last_exit if has_history else math.inf
-
-
-# -- the step's cubic Hermite interpolant -------------------------------------------------------
-def hermite_weights(s, dt):
-    """Weights (w0, w1, w2, w3) of the cubic Hermite interpolant at fraction s of a step of
-    length dt: x(s) = w0 x0 + w1 d0 + w2 x1 + w3 d1 with d = dx/dt at the ends. s and dt may be
-    numbers or arrays of equal shape."""
-    s2 = s * s
-    s3 = s2 * s
-    return (2 * s3 - 3 * s2 + 1, (s3 - 2 * s2 + s) * dt, -2 * s3 + 3 * s2, (s3 - s2) * dt)
-
-
-def hermite_slope_weights(s):
-    """Weights (v0, v1, v2, v3) of the interpolant's derivative at fraction s:
-    dx/dt(s) = v0 x0 / dt + v1 d0 + v2 x1 / dt + v3 d1."""
-    s2 = s * s
-    return (6 * s2 - 6 * s, 3 * s2 - 4 * s + 1, -6 * s2 + 6 * s, 3 * s2 - 2 * s)
 
 
 # -- the strip -----------------------------------------------------------------------------------

@@ -261,41 +261,49 @@ def extend(tab: Tables, vis: Visit, ws, method: MethodArrays, t: float, x: np.nd
 
 
 def dense_point(method: MethodArrays, x: np.ndarray, h: float, K: np.ndarray, theta: float, out: np.ndarray) -> None:
-    """x at t + theta h on the step's continuous extension (K holding its s + m stages)."""
+    """x at t + theta h on the step's continuous extension (K holding its s + m stages); out
+    must not share memory with x. Each stage's weight is a polynomial in theta, evaluated once
+    for all components."""
     rows = method.info[INFO_STAGES] + max(method.info[INFO_EXTRA], 0)
     degree = method.info[INFO_DEGREE]
-    for d in range(x.shape[0]):
-        acc = 0.0
-        for i in range(rows):
-            w = 0.0
-            power = theta
-            for j in range(degree):
-                w += method.P[i, j] * power
-                power *= theta
-            acc += w * K[i, d]
-        out[d] = x[d] + h * acc
+    n = x.shape[0]
+    for d in range(n):
+        out[d] = 0.0
+    for i in range(rows):
+        w = 0.0
+        power = theta
+        for j in range(degree):
+            w += method.P[i, j] * power
+            power *= theta
+        for d in range(n):
+            out[d] += w * K[i, d]
+    for d in range(n):
+        out[d] = x[d] + h * out[d]
 
 
 def dense_slope(method: MethodArrays, K: np.ndarray, theta: float, out: np.ndarray) -> None:
     """dx/dt at t + theta h on the step's continuous extension."""
     rows = method.info[INFO_STAGES] + max(method.info[INFO_EXTRA], 0)
     degree = method.info[INFO_DEGREE]
-    for d in range(out.shape[0]):
-        acc = 0.0
-        for i in range(rows):
-            w = 0.0
-            power = 1.0
-            for j in range(degree):
-                w += (j + 1) * method.P[i, j] * power
-                power *= theta
-            acc += w * K[i, d]
-        out[d] = acc
+    n = out.shape[0]
+    for d in range(n):
+        out[d] = 0.0
+    for i in range(rows):
+        w = 0.0
+        power = 1.0
+        for j in range(degree):
+            w += (j + 1) * method.P[i, j] * power
+            power *= theta
+        for d in range(n):
+            out[d] += w * K[i, d]
 
 
 def hermite_point(x0: np.ndarray, d0: np.ndarray, x1: np.ndarray, d1: np.ndarray, dt: float, s: float,
                   out: np.ndarray) -> None:  # fmt: skip
     """The cubic Hermite interpolant of a step of length dt (ends x0, x1, slopes d0, d1) at
-    fraction s, into out."""
+    fraction s, into out. A coordinate held along the step (x1 = x0, zero slopes: a
+    controller's memory) keeps its value to the bit, which the weighted sum of its ends would
+    miss by a float spacing at some s."""
     s2 = s * s
     s3 = s2 * s
     w0 = 2.0 * s3 - 3.0 * s2 + 1.0
@@ -303,7 +311,10 @@ def hermite_point(x0: np.ndarray, d0: np.ndarray, x1: np.ndarray, d1: np.ndarray
     w2 = -2.0 * s3 + 3.0 * s2
     w3 = (s3 - s2) * dt
     for d in range(out.shape[0]):
-        out[d] = w0 * x0[d] + w1 * d0[d] + w2 * x1[d] + w3 * d1[d]
+        if x1[d] == x0[d] and d0[d] == 0.0 and d1[d] == 0.0:
+            out[d] = x0[d]
+        else:
+            out[d] = w0 * x0[d] + w1 * d0[d] + w2 * x1[d] + w3 * d1[d]
 
 
 def hermite_slope(x0: np.ndarray, d0: np.ndarray, x1: np.ndarray, d1: np.ndarray, dt: float, s: float,

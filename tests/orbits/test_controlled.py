@@ -96,10 +96,11 @@ def test_the_gaits_return_map_is_differentiable_and_its_jacobian_unchanged(setti
     # No false positive of the kink check on a smooth map (its columns' defects are 3e-6 .. 3e-5
     # of the floor), and the reported Jacobian is the plain central-difference one, bit for bit.
     assert orbit.differentiable is True and orbit.kinked_coordinates == ()
-    # The one warning is the map's refinement: the energy row moves by the integrator's error
-    # (3.6e-8 at h/2, eps/2) beyond tol 1e-9; no kink warning.
+    # The one warning is the map's refinement: the map moves by the integrator's error (3.6e-8
+    # at h/2, eps/2) beyond tol 1e-9, while its noise is rounding (which row is noisiest at that
+    # level is rounding's choice, not asserted); no kink warning.
     assert [w.split(" (")[0] for w in orbit.warnings] == ["at finer settings"]
-    assert orbit.map_accuracy.refinement > 1e-9 and orbit.map_accuracy.noisiest == "energy"
+    assert orbit.map_accuracy.refinement > 1e-9 and orbit.map_accuracy.noise < 1e-13
     assert orbit.multipliers_forward is None and orbit.stable is True
     step = settings.solver.get("fd_step")
     plain = jacobian_fd(settings.problem, orbit.fixed_point, orbit.parameters, step, memory=orbit.memory)

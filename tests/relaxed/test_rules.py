@@ -2,9 +2,11 @@
 
 import math
 
+import numpy as np
 import pytest
 
 from legsim.relaxed import crossing_on_step, rules
+from legsim.relaxed.stages import hermite_point, hermite_slope
 
 
 def test_the_crossing_of_a_smooth_guard_is_found_to_the_tolerance_past_the_guard():
@@ -59,15 +61,19 @@ def test_the_aim_falls_back_to_halving_outside_the_step():
     assert rules.aimed_step(0.2, 0.25, False) == 0.1
 
 
-def test_hermite_weights_reproduce_a_cubic_exactly():
-    # x(t) = t^3 on [1, 3]: ends 1, 27, slopes 3, 27.
-    for s in (0.0, 0.3, 0.5, 1.0):
-        w0, w1, w2, w3 = rules.hermite_weights(s, 2.0)
-        assert w0 * 1.0 + w1 * 3.0 + w2 * 27.0 + w3 * 27.0 == pytest.approx((1.0 + 2.0 * s) ** 3, rel=1e-14)
-        v0, v1, v2, v3 = rules.hermite_slope_weights(s)
-        assert v0 * 1.0 / 2.0 + v1 * 3.0 + v2 * 27.0 / 2.0 + v3 * 27.0 == pytest.approx(
-            3 * (1.0 + 2.0 * s) ** 2, rel=1e-14
-        )
+def test_the_hermite_interpolant_reproduces_a_cubic_and_holds_a_held_coordinate():
+    # x(t) = t^3 on [1, 3]: ends 1, 27, slopes 3, 27; a second coordinate held at 0.1 + 2e-17.
+    held = 0.1 + 2e-17
+    x0, d0, x1, d1 = np.array([1.0, held]), np.array([3.0, 0.0]), np.array([27.0, held]), np.array([27.0, 0.0])
+    point, slope = np.empty(2), np.empty(2)
+    # At s = 0.325, 0.4 or 0.65 the weighted sum of the ends, w0 x0 + w2 x1, misses the held value
+    # by a float spacing.
+    for s in (0.0, 0.3, 0.325, 0.4, 0.5, 0.65, 1.0):
+        hermite_point(x0, d0, x1, d1, 2.0, s, point)
+        hermite_slope(x0, d0, x1, d1, 2.0, s, slope)
+        assert point[0] == pytest.approx((1.0 + 2.0 * s) ** 3, rel=1e-14)
+        assert slope[0] == pytest.approx(3 * (1.0 + 2.0 * s) ** 2, rel=1e-14)
+        assert point[1] == held and slope[1] == 0.0
 
 
 def test_the_strip_is_left_after_eps_minus_tau():
