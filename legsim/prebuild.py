@@ -135,6 +135,8 @@ def warm(paths: list[Path] | None = None) -> int:
             if len(seg.t) > 2:
                 evaluator = Evaluator(scene.model.system, get_method(scene.integrator["method"]))
                 variational.segment_sensitivity(evaluator, seg, None, False)
+                if seg.x.shape[1] == scene.model.system.modes[seg.mode].dim:  # no controller memory
+                    variational.point_on_step(evaluator, seg, 0, 0.5 * float(seg.t[1] - seg.t[0]))
         except Exception as exc:  # one scene's failure leaves the others to compile
             failures += 1
             print(f"legsim: prebuild: scene {name}: {type(exc).__name__}: {exc}", file=sys.stderr)

@@ -65,16 +65,15 @@ from typing import Any
 
 import numpy as np
 
-from ..control import ControlLaw, bind
 from ..derivatives import gradient, jacobian
 from ..execution import Segment
 from ..hybrid import HybridSystem, Mode, Transition
 from ..methods import Tableau
-from ..relaxed.driver import Evaluator
 from .errors import OrbitError
 from .kinks import CheckedJacobian, ColumnStencil, kinked_columns
 from .problem import OrbitProblem, Return
 from .returns import ReturnMap
+from .section_points import evaluator
 from .variational import segment_sensitivity
 
 #: Largest relative finite-difference step: beyond it a difference is no derivative at all
@@ -95,24 +94,6 @@ def field_at(mode: Mode, control: Control, t: float, x: np.ndarray) -> np.ndarra
     return np.asarray(mode.field(t, x, None if control is None else control(t, x)), dtype=float)
 
 
-#: Evaluators of the variational equations by (system, control, tableau): a run's tables.
-_EVALUATORS: dict[tuple[int, int, int], tuple[Any, Any, Any, Evaluator]] = {}
-
-
-def _evaluator(system: HybridSystem, control: Control, tableau: Tableau) -> Evaluator:
-    """The evaluator of ``system``'s modes under ``control`` (kept for the system's life: the
-    tables are built once)."""
-    key = (id(system), id(control), id(tableau))
-    found = _EVALUATORS.get(key)
-    if found is None or found[0] is not system or found[1] is not control or found[2] is not tableau:
-        if len(_EVALUATORS) > 16:
-            _EVALUATORS.clear()
-        law = control if isinstance(control, ControlLaw) else None
-        evaluator = Evaluator(system, tableau, None if law is not None else bind(control), law)
-        found = _EVALUATORS[key] = (system, control, tableau, evaluator)
-    return found[3]
-
-
 def _segment_sensitivity(
     system: HybridSystem, control: Control, tableau: Tableau, seg: Segment, t_stop: float | None, newton: bool
 ) -> np.ndarray:
@@ -120,7 +101,7 @@ def _segment_sensitivity(
     segment's own steps (each from its stored start point); ``t_stop`` cuts the last step;
     ``newton``: to the accuracy of a Newton step (module docstring). Compiled when the mode's
     functions are (``variational``)."""
-    Phi = segment_sensitivity(_evaluator(system, control, tableau), seg, t_stop, newton)
+    Phi = segment_sensitivity(evaluator(system, control, tableau), seg, t_stop, newton)
     if Phi is None:
         raise OrbitError(
             f"the variational equation along mode '{seg.mode}' from t={seg.t[0]:.6g} s is not finite: a "
@@ -407,9 +388,12 @@ class _FiniteDifferences:
         forward, backward = J.copy(), J.copy()
         stencils: dict[int, ColumnStencil] = {}
         orders: dict[int, tuple[tuple[str, ...], tuple[str, ...]]] = {}
+        held = self.held_memory()
         for j in range(size) if columns is None else columns:
             if j in self.p.cyclic_idx:
                 J[j, j] = forward[j, j] = backward[j, j] = 1.0
+                continue
+            if j in held:
                 continue
             d = self.step * max(1.0, abs(self.start[j]))
             kind = "coordinate" if j < self.p.dim else "controller memory"
@@ -423,10 +407,18 @@ class _FiniteDifferences:
                     stencils[j] = stencil
                     forward[:, j], backward[:, j] = stencil.forward, stencil.backward
                     orders[j] = (self.orders[(j, d)], self.orders[(j, -d)])
-        unchecked = tuple(j for j in range(J.shape[1]) if check and j not in stencils and j not in self.p.cyclic_idx)
+        skipped = set(self.p.cyclic_idx) | held
+        unchecked = tuple(j for j in range(J.shape[1]) if check and j not in stencils and j not in skipped)
         return CheckedJacobian(
             J, forward, backward, tuple(sorted(stencils)), kinked_columns(stencils, J), unchecked, orders
         )
+
+    def held_memory(self) -> set[int]:
+        """Columns of the memory values the problem holds fixed: flags such as which leg lands
+        next, which no perturbation moves continuously (a flag read as nonzero jumps the return
+        at any step). Their columns stay zero and are not checked for kinks."""
+        p = self.p
+        return {p.dim + i for i, name in enumerate(p.memory_names) if name in p.fixed}
 
     def _stencil(self, j: int, d: float, plus: np.ndarray, minus: np.ndarray) -> ColumnStencil | None:
         """The column's stencil with its half step, None when that simulation fails (unchecked)."""

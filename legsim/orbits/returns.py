@@ -4,14 +4,15 @@ How the return is found
 -----------------------
 The return map simulates a bounded horizon with ``legsim.simulate`` and locates the crossing
 on the execution's dense output (the cubic Hermite interpolant of the step containing the sign
-change, solved with Brent's method); for a transition section it reads the reset image from the
-execution's transition record. We prefer this to adding the section as a guard of a wrapped
-system: an extra guard would change the computation being analysed (steps would be halved to
-land in the section's strip and the state held there), and starting on the section would fire
-that guard at once. The horizon grows: 1.5 times the last return time (plus 20 steps), or
-t_max / 8 at first, doubled until a return is found or t_max is reached. A return costs less
-than about twice its own time, and a model failure long after it (a runner that falls a few
-strides later) cannot hide it.
+change, solved with Brent's method), then again on the run's own step from the stored point
+before it (``section_points``: the interpolant's error would be noise in the map); for a
+transition section it reads the reset image from the execution's transition record. We prefer
+this to adding the section as a guard of a wrapped system: an extra guard would change the
+computation being analysed (steps would be halved to land in the section's strip and the state
+held there), and starting on the section would fire that guard at once. The horizon grows: 1.5
+times the last return time (plus 20 steps), or t_max / 8 at first, doubled until a return is
+found or t_max is reached. A return costs less than about twice its own time, and a model
+failure long after it (a runner that falls a few strides later) cannot hide it.
 
 A crossing of a function section counts only after at least ``min_transitions`` transitions
 (default 1) since the start, so that a start just off the section (as finite differences and
@@ -52,6 +53,7 @@ from ..hybrid import HybridSystem
 from ..relaxed import simulate
 from .errors import OrbitError
 from .problem import OrbitProblem, Return
+from .section_points import crossing_on_step, evaluator, steps_reproducible
 
 #: Relative change of a memory value over a return below which it is unchanged (rounding).
 MEMORY_ROUNDING = 1e-12
@@ -112,7 +114,8 @@ class ReturnMap:
             else:
                 log = None if made is None else MemoryLog(made)
                 ex = self._simulate(system, control if log is None else log, x, horizon)
-            found = self._locate(ex, x, params)
+            # What the run's input came from: the law, the Python controller, or the control.
+            found = self._locate(ex, x, params, system, control if made is None else made)
             if found is not None:
                 self._hint = found.time
                 if log is not None:
@@ -217,10 +220,12 @@ class ReturnMap:
         """A state of the section's mode as ``{name=value, ...}`` for messages."""
         return "{" + ", ".join(f"{n}={v:.6g}" for n, v in zip(self.problem.names, x, strict=False)) + "}"
 
-    def _locate(self, ex: Execution, x0: np.ndarray, params: dict[str, float]) -> Return | None:
+    def _locate(
+        self, ex: Execution, x0: np.ndarray, params: dict[str, float], system: HybridSystem, control: Any
+    ) -> Return | None:
         if self.problem.section.kind == "transition":
             return self._locate_after_transition(ex, x0, params)
-        return self._locate_crossing(ex, x0, params)
+        return self._locate_crossing(ex, x0, params, system, control)
 
     def _locate_after_transition(self, ex: Execution, x0: np.ndarray, params: dict[str, float]) -> Return | None:
         """The ``returns``-th time the section's transition is taken into the section's mode."""
@@ -235,13 +240,21 @@ class ReturnMap:
                     )
         return None
 
-    def _locate_crossing(self, ex: Execution, x0: np.ndarray, params: dict[str, float]) -> Return | None:
+    def _locate_crossing(
+        self, ex: Execution, x0: np.ndarray, params: dict[str, float], system: HybridSystem, control: Any
+    ) -> Return | None:
         """The ``returns``-th crossing, scanning the segments of the section's mode in time
-        order. Segment k follows transitions[k-1], so k transitions precede it."""
+        order, located again on the run's own step where that step can be retaken
+        (``section_points``). Segment k follows transitions[k-1], so k transitions precede it."""
         p = self.problem
         found = returns(ex, p.bound.mode, p.bound.s, p.section.direction, p.min_transitions, p.min_time)
         for count, (k, t_hit, x_hit) in enumerate(found, start=1):
             if count == p.returns:
+                if steps_reproducible(control, p.tableau, p.rtol is not None):
+                    run = evaluator(system, control, p.tableau)
+                    on_step = crossing_on_step(run, ex.segments[k], p.bound.s, p.section.direction, t_hit)
+                    if on_step is not None:
+                        t_hit, x_hit = on_step
                 return self._make_return(ex, x0, x_hit, t_hit, k, ex.transitions[:k], params)
         return None
 

@@ -23,7 +23,7 @@ import numpy as np
 from ..derivatives import CENTRAL_STEP, FORWARD_STEP
 from ..execution import Segment
 from ..relaxed.evaluate import Tables, Visit, field_at
-from ..relaxed.stages import INFO_IMPLICIT, MethodArrays, combine
+from ..relaxed.stages import INFO_IMPLICIT, MethodArrays, combine, stages
 from .errors import OrbitError
 
 #: Largest relative change of the field Jacobian over a step (max norms) for which a Newton
@@ -164,6 +164,36 @@ def sensitivity(tab: Tables, vis: Visit, ws: Any, method: MethodArrays, ts: np.n
             copy_into(work.out, work.Phi)
         if newton:
             copy_into(work.J1, work.J0)
+
+
+def step_from(tab: Tables, vis: Visit, ws: Any, method: MethodArrays, t0: float, x0: np.ndarray, h: float,
+              out: np.ndarray) -> bool:  # fmt: skip
+    """The method's step of length h (s) from the stored point (t0, x0) into out (x0's length):
+    the point a run's step of that length reaches, on the integrator's own step rather than an
+    interpolant of its stored points. False, and nothing computed, when x0 is wider than the
+    workspace's states (a stored state with a memory the evaluator's controller does not have)."""
+    n = x0.shape[0]
+    if n > ws.x.shape[0]:
+        return False
+    field_at(tab, vis, ws, t0, x0, ws.K[0, :n])
+    stages(tab, vis, ws, method, t0, x0, h, ws.K, ws.XS, out)
+    return True
+
+
+def point_on_step(run: Any, seg: Segment, i: int, h: float) -> np.ndarray:
+    """The point h (s) after the stored point i of ``seg`` on the step the run's method takes
+    from it, shape (n,), on the run's tables (``legsim.relaxed.driver.Evaluator``), compiled
+    when they are. Raises ``OrbitError`` when the evaluator's states are narrower than the
+    segment's (an evaluator without the run's controller)."""
+    x0 = np.ascontiguousarray(seg.x[i], dtype=float)
+    out = np.empty_like(x0)
+    if not run.call(step_from, seg.mode, float(seg.t[i]), x0, float(h), out):
+        raise OrbitError(
+            f"the stored state of mode '{seg.mode}' has {x0.shape[0]} entries, more than the evaluator's run "
+            "(build it with the run's controller)",
+            "simulation_failed",
+        )
+    return out
 
 
 #: The work arrays of ``sensitivity``: stages K (s, n) and their derivatives dK (s, n, n), a

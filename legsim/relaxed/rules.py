@@ -288,11 +288,15 @@ def flight_since(has_history: bool, last_exit: float, tc: float) -> float:
 #: identity reset between complementary guards). If the flow leaves, that step lands in the strip
 #: and the crossing is found at its start; if it goes inward, no spurious transition happens.
 ON_GUARD = 1e-9
+#: ... and never less than a guard's rounding (guard units): a foot's height at its liftoff is 0
+#: to about 1e-14 m, which a strip of eps = 1e-10 m would otherwise take as a strike at once (a
+#: graze decided by rounding, and a return map that jumps with it).
+ON_GUARD_FLOOR = 1e-12
 
 
 def entered_in_strip(gmin: float, eps: float) -> bool:
     """True when a state entering a mode with least guard value gmin must cross at once."""
-    return gmin < -ON_GUARD * eps
+    return gmin < -max(ON_GUARD * eps, ON_GUARD_FLOOR)
 
 
 def past_strip(g: float, eps: float) -> bool:

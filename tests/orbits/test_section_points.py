@@ -1,0 +1,72 @@
+"""A level section's return located on the run's own step (``legsim.orbits.section_points``):
+the biped runner's return map without the stored points' interpolation noise, and its gait found
+as an orbit to 1e-9 with a stability verdict."""
+
+import json
+
+import numpy as np
+import pytest
+
+from legsim.cli import main
+from legsim.crossings import returns
+from legsim.orbits.returns import ReturnMap
+from legsim.scene import load_scene
+from legsim.scene.orbit import problem_from_scene
+
+#: The integrator settings at which the biped's return map resolves 1e-8: dop853 at tolerance
+#: 1e-13, dense landing, strips of 1e-10 (docs/orbits.md, "The biped runner's gait").
+FINE = [
+    "integrator.method=dop853",
+    "integrator.rtol=1e-13",
+    "integrator.atol=1e-13",
+    "integrator.landing=dense",
+    "integrator.eps=1e-10",
+    "integrator.h=0.002",
+]
+
+
+def _require_native():
+    from legsim.robots import _native
+
+    if _native.status() != "available":
+        pytest.skip(f"the biped needs the native library: {_native.status()}")
+
+
+def test_the_returns_point_on_the_runs_step_removes_the_interpolants_noise():
+    """Starts 1e-11 apart (relative) return 1e-8 apart on the run's own step, while the cubic
+    Hermite interpolant of the same runs' stored points puts them up to 1e-5 apart (its error,
+    h^4 |x''''| / 384 in the knee rates under their servos, moves with the stored points)."""
+    _require_native()
+    settings = problem_from_scene(load_scene("biped_run", FINE))
+    problem, z, memory = settings.problem, settings.guess, settings.solver["memory"]
+    rmap = ReturnMap(problem)
+    rng = np.random.default_rng(0)
+    on_step, interpolated = [], []
+    for _ in range(6):
+        start = z + 1e-11 * rng.standard_normal(z.shape) * np.maximum(1.0, np.abs(z))
+        ret = rmap(start, memory=memory)
+        on_step.append(ret.x_end)
+        found = returns(ret.execution, problem.bound.mode, problem.bound.s, problem.section.direction,
+                        problem.min_transitions, problem.min_time)  # fmt: skip
+        k, _, x_hit = [hit for _, hit in zip(range(problem.returns), found, strict=False)][-1]
+        assert k == ret.segment
+        interpolated.append(x_hit[: problem.dim])
+    assert np.ptp(np.array(on_step), axis=0).max() < 1e-8
+    assert np.ptp(np.array(interpolated), axis=0).max() > 1e-7
+
+
+def test_the_biped_gait_is_found_to_1e_9_and_is_stable(capsys):
+    _require_native()
+    code = main(["orbit", "biped_run", *[a for s in FINE for a in ("--set", s)], "--json"])
+    out, _ = capsys.readouterr()
+    data = json.loads(out)
+    assert code == 0 and data["status"] == "converged", data["message"]
+    assert data["residual"] <= 1e-9
+    # Central, forward and backward differences agree on the multipliers (no kink: the memory
+    # flags the orbit holds fixed are not differentiated); the largest pair |mu| = 0.90.
+    assert data["differentiable"] is True and data["kinked_coordinates"] == []
+    assert data["stable"] is True and 0.5 < data["spectral_radius"] < 1.0
+    assert data["period"] == pytest.approx(0.775, abs=1e-3)
+    assert data["transitions"] == [
+        "touchdown_left", "slip_left>", "liftoff_left", "touchdown_right", "slip_right>", "liftoff_right",
+    ]  # fmt: skip
