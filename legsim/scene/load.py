@@ -374,7 +374,7 @@ def _validate(path: Path, data: dict[str, Any], overrides: list[str]) -> Scene:
     effects_t = table_at(path, data, "effects")
     # Integrator settings and outputs are checked before the model is built, so that a typo in
     # them is reported without paying for (possibly slow) model construction.
-    integrator = _integrator(path, table_at(path, data, "integrator"))
+    integrator = validated_integrator(path, table_at(path, data, "integrator"))
     output = _output(path, table_at(path, data, "output"))
     terrain = parse_terrain(path, data["terrain"]) if "terrain" in data else None
     sections = {key: data[key] for key in TOOL_SECTIONS if key in data}
@@ -434,17 +434,18 @@ def _validate(path: Path, data: dict[str, Any], overrides: list[str]) -> Scene:
     )
 
 
-def _integrator(path: Path, table: dict[str, Any]) -> dict[str, Any]:
+def validated_integrator(path: Path, table: dict[str, Any], where: str = "integrator") -> dict[str, Any]:
+    """The validated ``[integrator]`` table (``where``: the name its fields are reported by)."""
     schema = _integrator_schema()
     missing = [key for key in REQUIRED_INTEGRATOR if key not in table]
     if missing:
         raise field_error(
             path,
-            f"integrator.{missing[0]}",
+            f"{where}.{missing[0]}",
             f"missing; a scene must give {list(REQUIRED_INTEGRATOR)} "
             f"({', '.join(f'{k}: {schema[k].allowed()} {schema[k].unit}'.strip() for k in missing)})",
         )
-    out = resolve_parameters(schema, table, f"{path}: integrator")
+    out = resolve_parameters(schema, table, f"{path}: {where}")
     for key in OPTIONAL_INTEGRATOR:
         if key not in table:
             out[key] = None
@@ -455,7 +456,7 @@ def _integrator(path: Path, table: dict[str, Any]) -> dict[str, Any]:
             key = "rtol" if out["rtol"] is not None else "atol"
             raise field_error(
                 path,
-                f"integrator.{key}",
+                f"{where}.{key}",
                 f"error control needs a method with an embedded error "
                 f"estimate (method = 'bs32', 'dopri5' or 'dop853'), got "
                 f"method = '{out['method']}'",
@@ -466,21 +467,21 @@ def _integrator(path: Path, table: dict[str, Any]) -> dict[str, Any]:
         if dense_output(get_method(out["method"])) is None:
             raise field_error(
                 path,
-                "integrator.landing",
+                f"{where}.landing",
                 f"'dense' lands on the method's continuous extension, which "
                 f"method = '{out['method']}' has not (bs32, dopri5 and dop853 "
                 f"have one); use landing = 'aim'",
             )
     if out["t_final"] <= out["t0"]:
-        raise field_error(path, "integrator.t_final", f"{out['t_final']!r} must be > integrator.t0 = {out['t0']!r}")
+        raise field_error(path, f"{where}.t_final", f"{out['t_final']!r} must be > {where}.t0 = {out['t0']!r}")
     nominal = (out["t_final"] - out["t0"]) / out["h"]
     if nominal > out["max_steps"]:
         raise field_error(
             path,
-            "integrator.max_steps",
+            f"{where}.max_steps",
             f"t_final - t0 = {out['t_final'] - out['t0']:g} s at h = {out['h']:g} s is {nominal:.3g} steps, "
             f"more than max_steps = {out['max_steps']}; every step is stored, so check t_final and h, "
-            f"or raise integrator.max_steps if the run is meant to be that long",
+            f"or raise {where}.max_steps if the run is meant to be that long",
         )
     # Far from t = 0 the spacing of float64 times can exceed h: t + h == t, and the integrator
     # would make no progress (or no halving could land). Ask for h to be resolved to a
@@ -489,7 +490,7 @@ def _integrator(path: Path, table: dict[str, Any]) -> dict[str, Any]:
     if out["h"] < 2.0**20 * spacing:
         raise field_error(
             path,
-            "integrator.h",
+            f"{where}.h",
             f"{out['h']:g} s is too small for times near "
             f"{max(abs(out['t0']), abs(out['t_final'])):g} s, where float64 "
             f"times are {spacing:.3g} s apart; h must be >= {2.0**20 * spacing:.3g} s "

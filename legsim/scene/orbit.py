@@ -38,6 +38,7 @@ from ..orbits import MAX_FD_STEP, OrbitError, OrbitProblem, Section
 from ..orbits.sections import bind_section
 from .controller import scene_controller
 from .fields import check_keys, describe, field_error, table_at
+from .load import validated_integrator
 
 #: Keys of a scene's ``[orbit]`` section and what they hold.
 ORBIT_KEYS = {
@@ -62,6 +63,8 @@ ORBIT_KEYS = {
     "min_time": "time (s) before a crossing section counts, default 0",
     "max_transitions": "transition budget of one return, default 10000",
     "trivial_multipliers": "multipliers equal to 1 by a conserved quantity, left out of the stability verdict",
+    "integrator": "the search's own integrator settings where they differ from the run's: a table of "
+    "method, h, eps, rtol, atol, landing, max_halvings, over [integrator]",
 }
 
 #: Keys of a scene's ``[accuracy]`` section: where ``--check-accuracy`` compares a run and its
@@ -319,7 +322,7 @@ def _problem(
     params: dict[str, float],
     factory: Callable[[Mapping[str, float]], Any],
 ) -> OrbitProblem:
-    integ = scene.integrator
+    integ = _search_integrator(scene, table)
     energy = _number(scene, table, "energy", None)
     try:
         return OrbitProblem(
@@ -344,6 +347,30 @@ def _problem(
             where = "controller" if exc.key == "controller" else f"integrator.{exc.key}"
             raise field_error(scene.path, where, str(exc)) from None
         raise _fail(scene, exc.key or "section", str(exc)) from None
+
+
+def _search_integrator(scene: Any, table: Mapping[str, Any]) -> dict[str, Any]:
+    """The integrator settings of the search's returns: the scene's ``[integrator]``, with
+    ``[orbit.integrator]``'s keys (``INTEGRATOR_KEYS``) over it, validated as a whole (a return
+    map resolves what its integrator resolves: a gait's map may need finer settings than its
+    run), each error naming ``orbit.integrator.KEY``."""
+    override = table.get("integrator")
+    if override is None:
+        return dict(scene.integrator)
+    if not isinstance(override, Mapping):
+        raise field_error(
+            scene.path, "orbit.integrator", f"expected a table of {list(INTEGRATOR_KEYS)}, got {describe(override)}"
+        )
+    unknown = sorted(set(override) - set(INTEGRATOR_KEYS))
+    if unknown:
+        raise field_error(
+            scene.path,
+            f"orbit.integrator.{unknown[0]}",
+            f"not an integrator setting of the search; allowed: {list(INTEGRATOR_KEYS)}",
+        )
+    merged = {k: v for k, v in scene.integrator.items() if v is not None}
+    merged.update(override)
+    return validated_integrator(scene.path, merged, "orbit.integrator")
 
 
 def _controller_maker(scene: Any) -> Callable[[Any], Any] | None:

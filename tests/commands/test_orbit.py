@@ -251,6 +251,18 @@ def test_no_orbit_exits_3_with_the_reason(capsys):
             ["orbit", "compass_gait", "--set", 'integrator.landing="dense"'],
             "integrator.landing: 'dense' lands on the method's continuous extension",
         ),
+        # The search's own integrator settings ([orbit.integrator]), checked as [integrator]'s and
+        # named by their own path.
+        (
+            ["orbit", "compass_gait", "--set", "orbit.integrator.rtol=1e-10"],
+            "orbit.integrator.rtol: error control needs a method with an embedded error estimate",
+        ),
+        (["orbit", "compass_gait", "--set", 'orbit.integrator.method="rk9"'], "orbit.integrator.method"),
+        (
+            ["orbit", "compass_gait", "--set", "orbit.integrator.t_final=3"],
+            "orbit.integrator.t_final: not an integrator setting of the search; allowed: ['method', 'h', 'eps'",
+        ),
+        (["orbit", "compass_gait", "--set", "orbit.integrator=3"], "orbit.integrator: expected a table of"),
         (
             ["orbit", "rimless_wheel", "--set", "integrator.h=1e-9", "--set", "integrator.max_steps=100000000000"],
             "orbit.t_max: orbit problem: t_max / h = 3 s / 1e-09 s = 3e+09 steps per return, more than the limit",

@@ -50,7 +50,7 @@ def test_a_biped_whose_map_jumps_ends_diverged_above_what_its_map_resolves():
     # the search leaves the guess and stalls at a residual (5e-3, measured 2026-11-29) above
     # what the map resolves (3.5e-3): no orbit near the last iterate, said as `diverged` with the
     # map's accuracy, never as an orbit.
-    result = search("biped_run", ["integrator.h=1e-3", "integrator.eps=5e-5"])
+    result = search("biped_run", ['orbit.integrator={method="rk4", h=1e-3, eps=5e-5, landing="halve"}'])
     assert result.status == "diverged" and not result.converged
     acc = result.map_accuracy
     assert acc is not None and acc.noise > 1e-5 and result.residual > acc.resolved
@@ -59,12 +59,12 @@ def test_a_biped_whose_map_jumps_ends_diverged_above_what_its_map_resolves():
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("name", ["quadruped_run", "biped_run"])
-def test_a_runner_whose_map_jumps_is_not_reported_as_an_orbit_at_its_scenes_settings(name):
-    # At the scenes' own finer settings: no orbit either. quadruped_run's Newton iterate reaches
+def test_a_runner_whose_map_jumps_is_not_reported_as_an_orbit_at_its_scenes_settings():
+    # At the scene's own finer settings: no orbit either. quadruped_run's Newton iterate reaches
     # a point where the finite-difference Jacobian degenerates along the knees' rates (the jumps
-    # of the map between columns): `singular_jacobian`, which names those coordinates.
-    result = search(name)
+    # of the map between columns): `singular_jacobian`, which names those coordinates. (The
+    # biped's gait is found at its scene's search settings: tests/orbits/test_section_points.py.)
+    result = search("quadruped_run")
     assert not result.converged and result.residual > 1e-9
     assert result.status in ("map_unresolved", "diverged", "singular_jacobian"), result.message
     assert result.multipliers is None and result.stable is None

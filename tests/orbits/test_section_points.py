@@ -1,6 +1,6 @@
 """A level section's return located on the run's own step (``legsim.orbits.section_points``):
 the biped runner's return map without the stored points' interpolation noise, and its gait found
-as an orbit to 1e-9 with a stability verdict."""
+as an orbit to 1e-9 with a stability verdict at its scene's own search settings."""
 
 import json
 
@@ -12,17 +12,6 @@ from legsim.crossings import returns
 from legsim.orbits.returns import ReturnMap
 from legsim.scene import load_scene
 from legsim.scene.orbit import problem_from_scene
-
-#: The integrator settings at which the biped's return map resolves 1e-8: dop853 at tolerance
-#: 1e-13, dense landing, strips of 1e-10 (docs/orbits.md, "The biped runner's gait").
-FINE = [
-    "integrator.method=dop853",
-    "integrator.rtol=1e-13",
-    "integrator.atol=1e-13",
-    "integrator.landing=dense",
-    "integrator.eps=1e-10",
-    "integrator.h=0.002",
-]
 
 
 def _require_native():
@@ -37,7 +26,8 @@ def test_the_returns_point_on_the_runs_step_removes_the_interpolants_noise():
     Hermite interpolant of the same runs' stored points puts them up to 1e-5 apart (its error,
     h^4 |x''''| / 384 in the knee rates under their servos, moves with the stored points)."""
     _require_native()
-    settings = problem_from_scene(load_scene("biped_run", FINE))
+    # The scene's [orbit.integrator]: dop853 at 1e-13, dense landing, eps = 1e-10, h = 2e-3.
+    settings = problem_from_scene(load_scene("biped_run"))
     problem, z, memory = settings.problem, settings.guess, settings.solver["memory"]
     rmap = ReturnMap(problem)
     rng = np.random.default_rng(0)
@@ -57,7 +47,7 @@ def test_the_returns_point_on_the_runs_step_removes_the_interpolants_noise():
 
 def test_the_biped_gait_is_found_to_1e_9_and_is_stable(capsys):
     _require_native()
-    code = main(["orbit", "biped_run", *[a for s in FINE for a in ("--set", s)], "--json"])
+    code = main(["orbit", "biped_run", "--json"])
     out, _ = capsys.readouterr()
     data = json.loads(out)
     assert code == 0 and data["status"] == "converged", data["message"]
