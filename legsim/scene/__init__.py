@@ -31,7 +31,8 @@ from .files import (
     scene_info,
     search_dirs,
 )
-from .load import ALLOWED_SECTIONS, CORE_SECTIONS, INITIAL_CHECK, MAX_STEPS, TOOL_SECTIONS, Scene, load_scene
+from .integrator import MAX_STEPS
+from .load import ALLOWED_SECTIONS, CORE_SECTIONS, INITIAL_CHECK, TOOL_SECTIONS, Scene, load_scene
 
 __all__ = [
     "ALLOWED_SECTIONS",

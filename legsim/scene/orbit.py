@@ -38,7 +38,7 @@ from ..orbits import MAX_FD_STEP, OrbitError, OrbitProblem, Section
 from ..orbits.sections import bind_section
 from .controller import scene_controller
 from .fields import check_keys, describe, field_error, table_at
-from .load import validated_integrator
+from .integrator import validated_integrator
 
 #: Keys of a scene's ``[orbit]`` section and what they hold.
 ORBIT_KEYS = {
