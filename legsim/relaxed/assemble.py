@@ -67,6 +67,9 @@ from .loop import STALL_FRACTION, STALL_WINDOW
 from .simultaneous import OrderWatch
 from .zeno import ZenoWatch, strip_hold_warning
 
+#: A stall within this many strip widths of a guard is reported next to it.
+STALL_NEAR_STRIPS = 100.0
+
 
 class Assembly:
     """The pieces of an execution, gathered from the loop's buffers as they fill."""
@@ -447,14 +450,24 @@ class Assembly:
     def _stalled(self, ws: Any, name: str, t: float, x: np.ndarray) -> str:
         data = self.tables.datas[int(ws.iv[I_MODE])]
         nearest = ""
+        eps, h, tried = self.options.eps, self.options.h, float(ws.fs[F_H_TRIED])
         if data is not None and data.transitions:
             e = int(np.argmin(ws.g_here[: len(data.transitions)]))
-            nearest = f" next to the guard of transition {data.transitions[e].name} ({ws.g_here[e]:.3g})"
-        return (
+            if ws.g_here[e] <= STALL_NEAR_STRIPS * eps:
+                nearest = f" next to the guard of transition {data.transitions[e].name} ({ws.g_here[e]:.3g})"
+        head = (
             f"the run stopped advancing in mode '{name}'{nearest}: its last {STALL_WINDOW} steps and crossings "
-            f"moved time by less than {STALL_FRACTION:g} of h = {self.options.h:g} s, to t={t:.17g} "
-            f"(x={x.tolist()}); a thicker strip (eps) or a shorter h lets steps land"
+            f"moved time by less than {STALL_FRACTION:g} of h = {h:g} s, to t={t:.17g} (x={x.tolist()})"
         )
+        if self.options.rtol is not None and not nearest and tried < STALL_FRACTION * h:
+            # No guard near: the error control, not a strip, holds the run.
+            return (
+                f"{head}; error control took the step down to {tried:.3g} s with no guard near: the field "
+                f"jumps or switches at this state (a controller switching on the state can hold the flow on "
+                f"its switching surface, a sliding mode), which no step resolves; a switch on time, a field "
+                f"without the jump, or fixed steps run past it"
+            )
+        return f"{head}; a thicker strip (eps) or a shorter h lets steps land"
 
     def _transition_name(self, mode: int, index: int) -> str:
         tables = self.tables

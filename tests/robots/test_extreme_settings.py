@@ -58,3 +58,17 @@ def test_past_the_refusal_the_quadruped_at_eps_1e_300_crosses_its_touchdown_wher
     assert ex.counters["guard_jumps"] == 1
     # 0.18 s of ordinary steps and one halving sequence down to rounding: not a crawl.
     assert ex.steps <= nominal.steps + 64
+
+
+def test_a_stall_of_the_error_control_away_from_guards_says_so_and_not_strip_advice():
+    """The quadruped pronk under dop853 at rtol 1e-12: at its first apex the runner law's flight
+    legs switch on the trunk's vertical speed, a sliding mode of the field that error control
+    cannot step across. The run stops `stalled` there (t = 0.455 s, zd at rounding), saying the
+    error control took the step to rounding with no guard near, not that a thicker strip would
+    let steps land."""
+    fine = ["integrator.method=dop853", "integrator.rtol=1e-12", "integrator.atol=1e-12", "integrator.landing=dense"]
+    ex = load_scene("quadruped_pronk", [SHORT, "integrator.eps=1e-9", "integrator.h=2e-3", *fine]).simulate()
+    assert ex.status == "stalled" and 0.45 < ex.t_end < 0.46
+    assert abs(ex.final_state[ex.state_names["flight"].index("zd")]) < 1e-9
+    assert "error control took the step down to" in ex.message and "sliding mode" in ex.message
+    assert "next to the guard" not in ex.message and "thicker strip" not in ex.message
