@@ -407,6 +407,10 @@ class _FiniteDifferences:
                     stencils[j] = stencil
                     forward[:, j], backward[:, j] = stencil.forward, stencil.backward
                     orders[j] = (self.orders[(j, d)], self.orders[(j, -d)])
+        for j in self._parameter_columns(J, held) if columns is None else ():
+            J[:, j] = forward[:, j] = backward[:, j] = 0.0
+            stencils.pop(j, None)
+            held.add(j)
         skipped = set(self.p.cyclic_idx) | held
         unchecked = tuple(j for j in range(J.shape[1]) if check and j not in stencils and j not in skipped)
         return CheckedJacobian(
@@ -414,11 +418,35 @@ class _FiniteDifferences:
         )
 
     def held_memory(self) -> set[int]:
-        """Columns of the memory values the problem holds fixed: flags such as which leg lands
-        next, which no perturbation moves continuously (a flag read as nonzero jumps the return
-        at any step). Their columns stay zero and are not checked for kinks."""
+        """Columns of the memory values the problem holds fixed that are flags (no unit), such as
+        which leg lands next: no perturbation moves them continuously (a flag read as nonzero
+        jumps the return at any step), so their columns stay zero and are not checked for kinks.
+        A held value with a unit (a thrust or bias that picks one gait of a family) is a
+        quantity the map moves: its column is differentiated, as the multipliers of the whole
+        map (its family's 1 among them, ``trivial_multipliers``) need it."""
         p = self.p
-        return {p.dim + i for i, name in enumerate(p.memory_names) if name in p.fixed}
+        return {
+            p.dim + i
+            for i, (name, unit) in enumerate(zip(p.memory_names, p.memory_units, strict=True))
+            if name in p.fixed and not unit
+        }
+
+    def _parameter_columns(self, J: np.ndarray, held: set[int]) -> list[int]:
+        """Held memory values (with a unit) that the map never changes: their row of J is the
+        identity's (the return reads them back exactly, e.g. a bound's apex target change in a
+        pronk). Such a value acts as a parameter, not a state: its multiplier 1 is no motion of
+        the gait, so its column is left out like a flag's."""
+        p = self.p
+        columns = []
+        for i, name in enumerate(p.memory_names):
+            j = p.dim + i
+            if name in p.fixed and j not in held:
+                unit_row = np.zeros(J.shape[1])
+                unit_row[j] = 1.0
+                # the diagonal is a difference quotient of a value read back exactly: 1 to rounding
+                if np.allclose(J[j], unit_row, rtol=0.0, atol=1e-9):
+                    columns.append(j)
+        return columns
 
     def _stencil(self, j: int, d: float, plus: np.ndarray, minus: np.ndarray) -> ColumnStencil | None:
         """The column's stencil with its half step, None when that simulation fails (unchecked)."""
