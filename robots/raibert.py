@@ -275,7 +275,7 @@ def runner_law(
     and gait from its t on (``gains.speed`` and ``gait`` before the first)."""
     names = tuple(f"{field}_{leg.contact}" for leg in legs for field, _ in laws.MEMORY_FIELDS)
     units = tuple(unit for _ in legs for _, unit in laws.MEMORY_FIELDS)
-    initial = {"T_s": 0.12, "thrust": thrust, "liftoff": laws.LONG_AGO}
+    initial = {"T_s": 0.12, "thrust": thrust, "liftoff": laws.LONG_AGO, "apex": laws.LONG_AGO}
     memory = tuple(initial.get(field, 0.0) for _ in legs for field, _ in laws.MEMORY_FIELDS)
     return RunnerLaw(
         "raibert_runner",

@@ -37,6 +37,11 @@ ATTITUDE_SHARE = 0.5
 #: the touchdown length) while the body rises, so that the foot clears the ground.
 THRUST_RATE = 0.2
 SWING_SHARE = 0.75
+#: How long (s) a flight leg takes to turn from its rising law to its falling law after its hop's
+#: apex (``fall_share``): short against a flight of about 0.15 s (a bound turning over 10 ms
+#: instead keeps its antiphase less well and its front foot's slips accumulate at 1 m/s), long
+#: against the clock's rounding.
+FALL_TURN = 0.001
 #: Stiffness (N/m) and damping (N s/m) along a bound's rising leg retracting after liftoff.
 RETRACT_STIFFNESS = 500.0
 RETRACT_DAMPING = 20.0
@@ -147,7 +152,7 @@ def pronk_flight_torques(
     v_knee: float,
     pitch: float,
     xd: float,
-    falling: bool,
+    fall: float,
     stance_time: float,
     bias: float,
     speed: float,
@@ -160,12 +165,13 @@ def pronk_flight_torques(
 ) -> tuple[float, float]:
     """Hip and knee torques (N m) of a pronk's flight leg (hip ``offset`` m ahead of the body's
     centre along its x axis): the joint PD of ``servo_torques`` to the foot placement of
-    ``touchdown_angle`` at the body's forward speed xd (m/s), the leg at ``leg_length`` (m) while
-    the body falls, else at ``SWING_SHARE`` of it. The legs' lengths make up for the pitch (rad),
-    so that the feet hang at one height and land together (the stance hips then level the
+    ``touchdown_angle`` at the body's forward speed xd (m/s), the leg at ``SWING_SHARE`` of
+    ``leg_length`` (m) while the body rises and at the full length once it falls, ``fall`` (0 to
+    1, ``fall_share``) the share of the change made. The legs' lengths make up for the pitch
+    (rad), so that the feet hang at one height and land together (the stance hips then level the
     body)."""
     world = touchdown_angle(xd, stance_time, k_x, speed, leg_length, bias)
-    length = leg_length if falling else SWING_SHARE * leg_length
+    length = (SWING_SHARE + (1.0 - SWING_SHARE) * fall) * leg_length
     # the hip is -offset sin(pitch) above the body's centre
     length -= offset * math.sin(pitch) / math.cos(world)
     return servo_torques(
@@ -256,7 +262,8 @@ RUNNER_LEG = 9
 #: the foot placement's bias (m); its angle from the world's -z axis at its last liftoff (rad);
 #: that liftoff's time (s); a bound's apex target change (m); its length at its last touchdown if
 #: another leg stood then (m, else 0: ``late_landing_length``), below which its stance spring's
-#: rest length does not go.
+#: rest length does not go; the time (s) of the apex its hop reaches (``hop_apex_time``), at
+#: which its flight leg turns from rising to falling.
 MEMORY_FIELDS = (
     ("stance", ""),
     ("touchdown", "s"),
@@ -269,6 +276,7 @@ MEMORY_FIELDS = (
     ("liftoff", "s"),
     ("phase_height", "m"),
     ("touchdown_length", "m"),
+    ("apex", "s"),
 )
 (
     M_STANCE,
@@ -282,12 +290,13 @@ MEMORY_FIELDS = (
     M_LIFTOFF,
     M_PHASE,
     M_TOUCHDOWN_LENGTH,
+    M_APEX,
 ) = range(len(MEMORY_FIELDS))
 LEG_MEMORY = len(MEMORY_FIELDS)
 #: What memory fields are measured from (``ControlLaw.memory_frames``): the touchdown and
 #: liftoff times are epochs on the run's clock, the touchdown place a position along x.
-MEMORY_FRAMES = {"touchdown": "t", "liftoff": "t", "touchdown_x": "x"}
-#: Before its first liftoff a leg's liftoff time is this long ago (s).
+MEMORY_FRAMES = {"touchdown": "t", "liftoff": "t", "touchdown_x": "x", "apex": "t"}
+#: Before its first liftoff a leg's liftoff time and its hop's apex are this long ago (s).
 LONG_AGO = -1.0e9
 #: How long (s) after its liftoff a bound's leg that touches the ground again pulls its foot up
 #: (at most ``UNLOAD``) instead of pushing: it lifted off where its contact force passed 0, so at
@@ -353,27 +362,45 @@ def leg_joints(p, leg, x, n):
 
 
 @register_jitable
+def fall_share(t, apex):
+    """How far (0 to 1) a flight leg has turned from its rising law to its falling law at time t
+    (s), its hop's apex at ``apex`` (s): 0 before the apex, 1 from ``FALL_TURN`` s after it, a
+    smoothstep between. A turn on time, not on the sign of the vertical speed (a switch on the
+    state can hold the flow at the apex, a sliding mode: the swinging legs push the body back
+    across it); and a smooth one, as a torque that jumps at a time stops error control there
+    (a step across the jump is accurate only once it is shorter than the clock's rounding)."""
+    share = min(max((t - apex) / FALL_TURN, 0.0), 1.0)
+    return share * share * (3.0 - 2.0 * share)
+
+
+@register_jitable
 def flight_torques(t, x, m, p, leg, mem, n, gravity):
     """Hip and knee torques (N m) of a flight leg: a pronk's foot placement servo
     (``pronk_flight_torques``); a bound's leg retracts holding its liftoff angle while its hip
     rises (``retract_torques``) and swings to the placement of its own hip's speed at full length
-    once the hip falls (``servo_torques``)."""
+    once the hip falls (``servo_torques``). The leg turns from rising to falling over
+    ``FALL_TURN`` s after its hop's apex time (memory ``apex``, ``fall_share``)."""
     q_hip, q_knee, v_hip, v_knee = leg_joints(p, leg, x, n)
     g_hip, g_knee = gravity[int(p[leg + RL_HIP])], gravity[int(p[leg + RL_KNEE])]
     thigh, shank, bend, offset = p[leg + RL_THIGH], p[leg + RL_SHANK], p[leg + RL_BEND], p[leg + RL_OFFSET]
     speed, pronk = commanded(p, t)
-    falling = gait_hop_height(pronk, p, leg, x, n)[1] < 0.0
+    fall = fall_share(t, m[mem + M_APEX])
     length, kp, kd = p[R_LEG_LENGTH], p[R_KP_JOINT], p[R_KD_JOINT]
     if pronk:
-        return pronk_flight_torques(thigh, shank, bend, offset, q_hip, q_knee, v_hip, v_knee, x[2], x[n], falling,
+        return pronk_flight_torques(thigh, shank, bend, offset, q_hip, q_knee, v_hip, v_knee, x[2], x[n], fall,
                                     m[mem + M_T_S], m[mem + M_BIAS], speed, p[R_K_X], length, kp, kd, g_hip,
                                     g_knee)  # fmt: skip
-    if not falling:
-        return retract_torques(thigh, shank, q_hip, q_knee, v_hip, v_knee, x[2], x[n + 2], m[mem + M_LIFTOFF_ANGLE],
-                               length, kp, kd, g_hip, g_knee)  # fmt: skip
-    hip_speed = x[n] - offset * math.sin(x[2]) * x[n + 2]
-    world = touchdown_angle(hip_speed, m[mem + M_T_S], p[R_K_X], speed, length, m[mem + M_BIAS])
-    return servo_torques(thigh, shank, bend, q_hip, q_knee, v_hip, v_knee, length, world + x[2], kp, kd, g_hip, g_knee)
+    hip, knee = 0.0, 0.0
+    if fall < 1.0:
+        hip, knee = retract_torques(thigh, shank, q_hip, q_knee, v_hip, v_knee, x[2], x[n + 2],
+                                    m[mem + M_LIFTOFF_ANGLE], length, kp, kd, g_hip, g_knee)  # fmt: skip
+    if fall > 0.0:
+        hip_speed = x[n] - offset * math.sin(x[2]) * x[n + 2]
+        world = touchdown_angle(hip_speed, m[mem + M_T_S], p[R_K_X], speed, length, m[mem + M_BIAS])
+        swing = servo_torques(thigh, shank, bend, q_hip, q_knee, v_hip, v_knee, length, world + x[2], kp, kd, g_hip,
+                              g_knee)  # fmt: skip
+        hip, knee = (1.0 - fall) * hip + fall * swing[0], (1.0 - fall) * knee + fall * swing[1]
+    return hip, knee
 
 
 @model_function
@@ -415,8 +442,9 @@ def runner_enter(t, x, m, p, m_new):
     the other's as this entry has already changed it). A leg touching down measures its stride
     (the integral term's speed error moves its placement's bias; a bound's phase term its apex
     target) and notes its touchdown; a leg lifting off notes its stance's duration T_s (clipped
-    to [0.02, 0.5] s), adapts its thrust to the apex the body will reach, and in a bound notes
-    its liftoff angle and time."""
+    to [0.02, 0.5] s), adapts its thrust to the apex the body will reach, notes that apex's time
+    (``note_apex_time``; a leg in flight before any liftoff, at a run's start, takes its apex
+    from the state), and in a bound notes its liftoff angle and time."""
     m_new[:] = m
     n = int(p[R_N])
     speed, pronk = commanded(p, t)
@@ -443,12 +471,26 @@ def runner_enter(t, x, m, p, m_new):
             target = p[R_HEIGHT] + m_new[mem + M_PHASE]
             thrust = m_new[mem + M_THRUST] + p[R_K_HEIGHT] * (target - apex)
             m_new[mem + M_THRUST] = min(max(thrust, 0.0), p[R_MAX_THRUST])
+            note_apex_time(t + rise / G, pronk, p, m_new, i)
             if not pronk:
                 q_hip, q_knee = x[int(p[leg + RL_HIP])], x[int(p[leg + RL_KNEE])]
                 foot = foot_terms(p[leg + RL_THIGH], p[leg + RL_SHANK], q_hip, q_knee)
                 m_new[mem + M_LIFTOFF_ANGLE] = math.atan2(foot[0], -foot[1]) - x[2]
                 m_new[mem + M_LIFTOFF] = t
         m_new[mem + M_STANCE] = 1.0 if stance else 0.0
+        if not stance and m_new[mem + M_APEX] == LONG_AGO:
+            # in flight before any liftoff (a run's start): the hop's apex from the state
+            m_new[mem + M_APEX] = t + max(gait_hop_height(pronk, p, leg, x, n)[1], 0.0) / G
+
+
+@register_jitable
+def note_apex_time(apex, pronk, p, m, i):
+    """Leg i lifting off: the time (s) its hop's apex is predicted at (ballistic, from the
+    liftoff's vertical speed) into its memory m; in a pronk the body hops on all legs, so every
+    flight leg's apex time follows the latest liftoff's prediction."""
+    for j in range(int(p[R_LEGS])):
+        if j == i or (pronk and p[leg_at(p, j) + RL_STANCE] == 0.0):
+            m[LEG_MEMORY * j + M_APEX] = apex
 
 
 @register_jitable

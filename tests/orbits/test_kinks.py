@@ -189,19 +189,31 @@ def test_continuation_reports_no_stability_change_between_unresolved_orbits():
 
 
 @pytest.mark.slow
-def test_the_quadruped_pronk_is_reported_unresolved(capsys):
-    """`legsim orbit quadruped_pronk`: at the symmetric pronk the order of the legs' slip and
-    liftoff events switches, and the return map does not merely kink there, it jumps (by 0.73
-    rad/s in the apex knee rates): the search refuses the stored guess (exit 3,
-    ``map_unresolved``), with no multipliers and no verdict. Slow: about 10 s."""
-    import json
+def test_the_symmetric_pronks_event_order_switches_with_the_sign_of_an_asymmetry():
+    """Why `legsim orbit quadruped_pronk` finds no orbit: at its symmetric gait (front and hind
+    legs mirrored, pitch 0) a pitch of +1e-9 or -1e-9 rad switches which foot slips first and
+    which leg lifts off first, while a symmetric perturbation (the height) keeps the order. The
+    return map stays continuous (a 1e-9 perturbation moves the return by less than 1e-7) but has
+    one linear piece per order, and difference quotients across the switch give no Newton step
+    (tests/orbits/test_accuracy.py). Slow: about 10 s."""
+    from legsim.orbits.returns import ReturnMap
+    from legsim.scene import load_scene
+    from legsim.scene.orbit import problem_from_scene
 
-    from legsim.cli import main
+    settings = problem_from_scene(load_scene("quadruped_pronk"))
+    rmap, names = ReturnMap(settings.problem), list(settings.problem.names)
+    base = rmap(settings.guess)
 
-    code = main(["orbit", "quadruped_pronk", "--json", "--quiet"])
-    data = json.loads(capsys.readouterr().out)
-    assert code == 3 and data["status"] == "map_unresolved" and data["residual"] < 1e-3
-    assert data["map_accuracy"]["noise"] > 0.1 and data["multipliers"] is None and data["stable"] is None
+    def perturbed(name, delta):
+        x = settings.guess.copy()
+        x[names.index(name)] += delta
+        ret = rmap(x)
+        return [tr.name for tr in ret.transitions], float(np.max(np.abs(ret.x_end - base.x_end)))
+
+    (up, moved_up), (down, moved_down) = perturbed("pitch", 1e-9), perturbed("pitch", -1e-9)
+    assert up != down and {up[-1], down[-1]} == {"liftoff_front@flight", "liftoff_hind@flight"}
+    assert max(moved_up, moved_down) < 1e-7
+    assert perturbed("z", 1e-9)[0] == perturbed("z", -1e-9)[0]
 
 
 def test_a_column_whose_stencil_cannot_be_simulated_is_not_called_differentiable():

@@ -244,6 +244,22 @@ def test_a_run_that_stops_advancing_ends_stalled_naming_mode_guard_and_time():
     assert len(ex.transitions) < 2000 < 100_000  # ended by the stall rule, not the transition budget
 
 
+def test_a_stall_of_the_error_control_away_from_guards_says_so_and_not_strip_advice():
+    """A relay, x' = -sign(x): from x = 1 the flow reaches x = 0 at t = 1 s and slides there (a
+    field that switches on the state, as a controller can). Error control shrinks the steps at
+    the switch to rounding: the run stops ``stalled`` at t = 1 s, saying the field switches there
+    with no guard near (the only guard, x = 10, is far), not that a thicker strip would help."""
+    relay = HybridSystem(
+        {"a": Mode(1, lambda t, x, u: np.array([-1.0 if x[0] > 0.0 else 1.0]), names=("x",))},
+        [Transition("a", "a", lambda x: float(10.0 - x[0]), lambda x: np.zeros(1), name="wrap")],
+    )
+    ex = simulate(relay, [1.0], "a", 3.0, 0.1, 1e-6, "dop853", rtol=1e-12, atol=1e-12)
+    assert ex.status == "stalled" and ex.t_end == pytest.approx(1.0, abs=1e-6)
+    assert abs(ex.final_state[0]) < 1e-9
+    assert "error control took the step down to" in ex.message and "sliding mode" in ex.message
+    assert "next to the guard" not in ex.message and "thicker strip" not in ex.message
+
+
 def test_a_step_budget_refuses_a_run_too_long_for_it(ball):
     with pytest.raises(
         SimulationError,

@@ -71,17 +71,20 @@ def test_symmetric_pronk_lands_both_feet_in_one_joint_impact_with_zero_pitch():
 
 def test_pitched_start_tends_to_the_symmetric_run():
     """Continuity in the pitch: the configuration after the first stance from an initial pitch
-    p approaches the symmetric run's linearly as p -> 0, although the order of the stance's
-    events (which foot slips first, which lifts off) changes with p. (The velocities converge
-    too, but slower: a liftoff time moved by O(eps) is amplified by the stiff flight servo.)"""
+    p approaches the symmetric run's linearly as p -> 0 (one slope, 3.2, from p = 1e-3 to 1e-7),
+    although the order of the stance's events (which foot slips first, which lifts off) changes
+    with p. At eps = 1e-7, h = 5e-4 s: at the scene's eps = 1e-4 the integrator's own error
+    (liftoff times that move by 7e-5 s with p) hides the dependence below p = 1e-4. (The
+    velocities converge too, but slower: a liftoff time moved by O(eps) is amplified by the stiff
+    flight servo.)"""
+    fine = ["controller.parameters.speed=0.0", "integrator.eps=1e-7", "integrator.h=5e-4"]
     ends = {}
-    for p in (0.0, 1e-3, 1e-5):
-        ex = pronk(0.4, "controller.parameters.speed=0.0", f"initial.state.pitch={p}").simulate()
+    for p in (0.0, 1e-3, 1e-5, 1e-7):
+        ex = pronk(0.4, *fine, f"initial.state.pitch={p}").simulate()
         assert ex.status == "finished" and ex.mode_sequence[-1] == "flight"
         ends[p] = ex.segments[-1].x[-1][:7]
-    far, near = (np.linalg.norm(ends[p] - ends[0.0]) for p in (1e-3, 1e-5))
-    assert far < 10 * 1e-3 and near < 10 * 1e-5
-    assert near < 0.05 * far
+    slopes = [float(np.linalg.norm(ends[p] - ends[0.0])) / p for p in (1e-3, 1e-5, 1e-7)]
+    assert max(slopes) < 10 and max(slopes) < 1.1 * min(slopes), slopes
 
 
 @pytest.mark.slow
@@ -300,8 +303,10 @@ def test_the_bound_declares_its_memory_too():
 def test_bound_on_its_gait_alternates_in_antiphase():
     """Four seconds from a state of the settled bound: no warning, the pairs land one at a
     time, hind and front in turn (every mode a single stance or flight), the front pair half a
-    stride after the hind one (within 1%), and each hip's apex the same hop after hop within 1%
-    (over these 4 s the apexes still settle by 2-5 mm; the 20 s test checks 1 mm)."""
+    stride after the hind one (within 1% from the third stride; the controller starts from its
+    default memory, a stance time of 0.12 s against 0.129 s on the gait, so the first two strides
+    are off by up to 1.1%), and each hip's apex the same hop after hop within 1% (over these 4 s
+    the apexes still settle by 2-5 mm; the 20 s test checks 1 mm)."""
     ex = bound(4.0, GAIT_START, GAIT_THRUST)
     assert ex.status == "finished" and not ex.warnings
     touchdowns = hops(ex)
@@ -309,7 +314,8 @@ def test_bound_on_its_gait_alternates_in_antiphase():
     assert len(pairs) >= 17 and pairs[0] == "hind"
     assert all(a != b for a, b in itertools.pairwise(pairs))
     assert {mode.rstrip("<>") for mode in ex.mode_sequence} == {"flight", "hind", "front"}
-    assert np.max(np.abs(antiphase_shares(touchdowns) - 0.5)) < 0.01
+    shares = antiphase_shares(touchdowns)
+    assert np.max(np.abs(shares[2:] - 0.5)) < 0.01 and np.max(np.abs(shares - 0.5)) < 0.02
     for leg in load_scene(BOUND, ["integrator.t_final=0.1"]).control.legs:
         apexes = hip_apexes(ex, leg)
         assert len(apexes) >= 7 and np.ptp(apexes) < 0.01 * np.mean(apexes)
