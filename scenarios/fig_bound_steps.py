@@ -48,7 +48,7 @@ def main(argv=None) -> int:
     top, bottom = fig.subplots(2, 1, sharex=True, height_ratios=[1.0, 1.2])
     statuses = sorted({r["status"] for r in rows}, key=lambda s: (s not in COLOURS, s))
     others = [s for s in statuses if s not in COLOURS]
-    markers = dict(zip(others, "sxD^v", strict=False))
+    markers = dict(zip(others, "sXD^v", strict=False))  # filled shapes: a hollow one must show its edge
     for r in rows:
         rise, status = r["terrain.rise"], r["status"]
         colour = COLOURS.get(status, OTHER)

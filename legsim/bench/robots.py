@@ -92,13 +92,10 @@ def _compiled_sweep(scene: str) -> ControlledSweep:
     return ControlledSweep(scene, 5.0, 1.0, tols, 0.1, 0.0, 1e-10, (1e-2, 5e-3, 2e-3, 1e-3), compiled=True)
 
 
-#: The quadruped's flight law switches the swing legs' target length at the apex (falling = the
-#: body's vertical speed < 0), and the legs' reaction then pushes the body up on the falling side
-#: (about +114 m/s^2 against -9.8 m/s^2 on the rising side): the flow slides along zd = 0 for
-#: about 17 ms at every apex. No error-controlled integrator crosses that (relaxed and solve_ivp
-#: alike take steps near 1e-9 s there), so the case ends before the first apex, at 0.45 s: one
-#: hop's touchdown, stance and liftoff. Its reset images sit past the force guards by up to 1e-9
-#: N of rounding (a strip of 1e-10 is crossed, 1e-9 holds them); the error is then about 2 eps.
+#: The quadruped's case is one hop, to 0.45 s (touchdown, stance and liftoff, before the first
+#: apex: docs/bench.md, "Why the quadruped runs one hop"). Its reset images sit past the force
+#: guards by up to 1e-9 N of rounding (a strip of 1e-10 is crossed, 1e-9 holds them); the error
+#: is then about 2 eps.
 CONTROLLED_SWEEPS = {
     "slip-raibert": _compiled_sweep("slip_raibert"),
     # The pronk hopper and raibert_pronk are compiled model functions: 5 s, 16 hops.

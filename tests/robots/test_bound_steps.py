@@ -20,9 +20,14 @@ SCENE = "quadruped_bound_steps"
 def test_steps_of_no_rise_run_bit_for_bit_as_the_flat_forward_bound():
     """The profile of steps at rise 0 has height and slope 0.0 everywhere, so the guards,
     constraints and impacts compute what the flat ground computes: the same transitions and the
-    same final state to the bit (measured over 4 s, 79 transitions)."""
-    steps = load_scene(SCENE, ["terrain.rise=0.0", "integrator.t_final=4"]).simulate()
-    flat = load_scene("quadruped_bound_forward", ["controller.parameters.speed=0.5", "integrator.t_final=4"]).simulate()
+    same final state to the bit (measured over 4 s, 79 transitions), at the steps scene's
+    integrator settings."""
+    steps = load_scene(SCENE, ["terrain.rise=0.0", "integrator.t_final=4"])
+    settings = [f"integrator.{key}={steps.integrator[key]!r}" for key in ("h", "eps")]
+    flat = load_scene(
+        "quadruped_bound_forward", ["controller.parameters.speed=0.5", "integrator.t_final=4", *settings]
+    ).simulate()
+    steps = steps.simulate()
     assert steps.status == flat.status == "finished" and steps.t_end == 4.0
     assert [r.name for r in steps.transitions] == [r.name for r in flat.transitions]
     assert np.array_equal(steps.final_state, flat.final_state)

@@ -144,22 +144,21 @@ def test_a_scene_that_cannot_reach_the_bound_says_so(name):
 
 #: The runners, whose gait the final state at a fixed time measures badly (module docstring of
 #: legsim.accuracy): their accuracy is stated along the orbit, at matching section crossings.
-RUNNERS = ["quadruped_pronk", "pronk_raibert", "slip_raibert", "quadruped_run", "quadruped_pronk_forward", "biped_run"]
-#: Runners not yet within the bound along the orbit (estimate, then against the finest run, both
-#: relative): kept as strict expected failures so that reaching it shows.
-RUNNERS_ABOVE = {
-    "quadruped_bound": "1.4e-2, 1.8e-2",
-    "quadruped_bound_forward": "0.12, 0.15",
-    "quadruped_gallop": "2.9e-2, 3.2e-2: its pairs' phase wanders from stride to stride",
-}
+RUNNERS = [
+    "quadruped_pronk",
+    "pronk_raibert",
+    "slip_raibert",
+    "quadruped_run",
+    "quadruped_pronk_forward",
+    "biped_run",
+    "quadruped_bound",
+    "quadruped_bound_forward",
+    "quadruped_gallop",
+]
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize(
-    "name",
-    RUNNERS
-    + [pytest.param(name, marks=pytest.mark.xfail(strict=True, reason=why)) for name, why in RUNNERS_ABOVE.items()],
-)
+@pytest.mark.parametrize("name", RUNNERS)
 def test_a_runner_is_accurate_along_its_orbit(name):
     scene = load_scene(name)
     run, estimate = scene.check_accuracy()
