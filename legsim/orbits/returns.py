@@ -293,6 +293,21 @@ class ReturnMap:
         return ret
 
 
+def memory_at_crossing(problem: OrbitProblem, t: float, x: np.ndarray, memory: np.ndarray, t_start: float) -> np.ndarray:
+    """A run's controller memory at a crossing of the section at time t (s), state x (section
+    mode, shape (n,)), as a return started there sees it (``ReturnMap._to_start_frame``'s frames):
+    an epoch (frame "t") less t, a position along a cyclic coordinate less that coordinate at x.
+    An epoch before the run's start ``t_start`` (s) was never noted (a law's "no liftoff yet"
+    marker) and is kept as it is. Shape (m,), a copy."""
+    out = np.asarray(memory, dtype=float).copy()
+    for i, frame in enumerate(problem.memory_frames):
+        if frame == "t" and out[i] >= t_start:
+            out[i] -= t
+        elif frame and frame != "t" and problem.names.index(frame) in problem.cyclic_idx:
+            out[i] -= x[problem.names.index(frame)]
+    return out
+
+
 def _abbreviate(names: list[str], limit: int = 8) -> str:
     if not names:
         return "none"

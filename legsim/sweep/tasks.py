@@ -194,6 +194,7 @@ def orbit_columns(scene: Any, deadline: Deadline, execution: Any = None) -> dict
     """The variation's periodic orbit, from its scene's ``[orbit]`` section and initial state,
     or with ``execution`` (``--orbit-guess run``) from the last crossing of the section in it."""
     from ..orbits import find_orbit
+    from ..orbits.returns import memory_at_crossing
     from ..scene.orbit import problem_from_scene
 
     settings = problem_from_scene(scene)
@@ -207,9 +208,10 @@ def orbit_columns(scene: Any, deadline: Deadline, execution: Any = None) -> dict
                 "orbit_message": f"no guess: the run never crossed the section {settings.problem.section.label}",
                 "orbit_warnings": [],
             }
-        guess = crossing[: settings.problem.dim].copy()
+        t, state = crossing
+        guess = state[: settings.problem.dim].copy()
         if settings.problem.controller is not None:
-            solver["memory"] = crossing[settings.problem.dim :].copy()
+            solver["memory"] = memory_at_crossing(settings.problem, t, guess, state[settings.problem.dim :], execution.t0)
     result = find_orbit(settings.problem, guess, **solver)
     deadline.check()  # a search cut short by the deadline reports a failed simulation: say why
     data = result.to_json()
@@ -231,14 +233,13 @@ def orbit_columns(scene: Any, deadline: Deadline, execution: Any = None) -> dict
     }
 
 
-def last_crossing(problem: Any, execution: Any) -> np.ndarray | None:
-    """The state at the last crossing of ``problem``'s section in a run (after its last taking
-    of a transition section), a ``ControlLaw``'s memory after the plant's coordinates; None
-    without one. The run's memory is taken as it is: memory that holds absolute times or
-    positions (not periodic along a gait) makes the search fail, and its row says so."""
+def last_crossing(problem: Any, execution: Any) -> tuple[float, np.ndarray] | None:
+    """The time (s) and state at the last crossing of ``problem``'s section in a run (after its
+    last taking of a transition section), a ``ControlLaw``'s memory after the plant's
+    coordinates; None without one."""
     bound, section = problem.bound, problem.section
     if section.kind == "transition":
         found = takings(execution, section.transition, bound.mode)
     else:
         found = [(t, x) for _, t, x in returns(execution, bound.mode, bound.s, section.direction, 0, 0.0)]
-    return None if not found else np.asarray(found[-1][1], dtype=float).copy()
+    return None if not found else (float(found[-1][0]), np.asarray(found[-1][1], dtype=float).copy())
