@@ -293,7 +293,9 @@ class ReturnMap:
         return ret
 
 
-def memory_at_crossing(problem: OrbitProblem, t: float, x: np.ndarray, memory: np.ndarray, t_start: float) -> np.ndarray:
+def memory_at_crossing(
+    problem: OrbitProblem, t: float, x: np.ndarray, memory: np.ndarray, t_start: float
+) -> np.ndarray:
     """A run's controller memory at a crossing of the section at time t (s), state x (section
     mode, shape (n,)), as a return started there sees it (``ReturnMap._to_start_frame``'s frames):
     an epoch (frame "t") less t, a position along a cyclic coordinate less that coordinate at x.

@@ -133,4 +133,3 @@ def test_a_runs_memory_enters_the_search_in_the_returns_frames():
     assert seen["touchdown_hind"] == pytest.approx(-0.3) and seen["apex_hind"] == pytest.approx(0.1)
     assert seen["touchdown_x_hind"] == pytest.approx(-0.2)
     assert seen["liftoff_hind"] == -1e9 and seen["T_s_hind"] == 0.12
-
