@@ -33,7 +33,7 @@ from .runner_laws import (
     RL_U_HIP,
     RL_U_KNEE,
     RUNNER_LEG,
-    G,
+    ballistic_apex,
     foot_terms,
     stance_torques,
     touchdown_angle,
@@ -234,9 +234,7 @@ def biped_enter(t, x, m, p, m_new):
             m_new[M_LIFTOFF + i] = t
             if int(m[M_NEXT]) != i:
                 m_new[M_T_S] = min(max(t - m[M_TOUCHDOWN], SHORTEST_STANCE), LONGEST_STANCE)
-                rise = max(x[n + 1], 0.0)
-                m_new[M_APEX] = t + rise / G
-                apex = x[1] + rise * rise / (2 * G)
+                m_new[M_APEX], apex = ballistic_apex(t, x[1], x[n + 1])
                 thrust = m[M_THRUST] + p[B_K_HEIGHT] * (p[B_HEIGHT] - apex)
                 m_new[M_THRUST] = min(max(thrust, 0.0), p[B_MAX_THRUST])
         m_new[M_STANCE + i] = 1.0 if stance else 0.0

@@ -262,7 +262,7 @@ RUNNER_LEG = 9
 #: the foot placement's bias (m); its angle from the world's -z axis at its last liftoff (rad);
 #: that liftoff's time (s); a bound's apex target change (m); its length at its last touchdown if
 #: another leg stood then (m, else 0: ``late_landing_length``), below which its stance spring's
-#: rest length does not go; the time (s) of the apex its hop reaches (``hop_apex_time``), at
+#: rest length does not go; the time (s) of the apex its hop reaches (``note_apex_time``), at
 #: which its flight leg turns from rising to falling.
 MEMORY_FIELDS = (
     ("stance", ""),
@@ -293,8 +293,8 @@ MEMORY_FIELDS = (
     M_APEX,
 ) = range(len(MEMORY_FIELDS))
 LEG_MEMORY = len(MEMORY_FIELDS)
-#: What memory fields are measured from (``ControlLaw.memory_frames``): the touchdown and
-#: liftoff times are epochs on the run's clock, the touchdown place a position along x.
+#: What memory fields are measured from (``ControlLaw.memory_frames``): the touchdown, liftoff
+#: and apex times are epochs on the run's clock, the touchdown place a position along x.
 MEMORY_FRAMES = {"touchdown": "t", "liftoff": "t", "touchdown_x": "x", "apex": "t"}
 #: Before its first liftoff a leg's liftoff time and its hop's apex are this long ago (s).
 LONG_AGO = -1.0e9
@@ -466,12 +466,11 @@ def runner_enter(t, x, m, p, m_new):
         elif was and not stance:
             m_new[mem + M_T_S] = min(max(t - m_new[mem + M_TOUCHDOWN], 0.02), 0.5)
             z, zd = gait_hop_height(pronk, p, leg, x, n)
-            rise = max(zd, 0.0)
-            apex = z + rise * rise / (2 * G)
+            apex_time, apex = ballistic_apex(t, z, zd)
             target = p[R_HEIGHT] + m_new[mem + M_PHASE]
             thrust = m_new[mem + M_THRUST] + p[R_K_HEIGHT] * (target - apex)
             m_new[mem + M_THRUST] = min(max(thrust, 0.0), p[R_MAX_THRUST])
-            note_apex_time(t + rise / G, pronk, p, m_new, i)
+            note_apex_time(apex_time, pronk, p, m_new, i)
             if not pronk:
                 q_hip, q_knee = x[int(p[leg + RL_HIP])], x[int(p[leg + RL_KNEE])]
                 foot = foot_terms(p[leg + RL_THIGH], p[leg + RL_SHANK], q_hip, q_knee)
@@ -480,7 +479,16 @@ def runner_enter(t, x, m, p, m_new):
         m_new[mem + M_STANCE] = 1.0 if stance else 0.0
         if not stance and m_new[mem + M_APEX] == LONG_AGO:
             # in flight before any liftoff (a run's start): the hop's apex from the state
-            m_new[mem + M_APEX] = t + max(gait_hop_height(pronk, p, leg, x, n)[1], 0.0) / G
+            z, zd = gait_hop_height(pronk, p, leg, x, n)
+            m_new[mem + M_APEX] = ballistic_apex(t, z, zd)[0]
+
+
+@register_jitable
+def ballistic_apex(t, z, zd):
+    """The time (s) and height (m) of the apex that a body at height z (m) rising at zd (m/s) at
+    time t (s) reaches in free flight: t and z themselves when it is not rising."""
+    rise = max(zd, 0.0)
+    return t + rise / G, z + rise * rise / (2 * G)
 
 
 @register_jitable

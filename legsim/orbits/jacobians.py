@@ -382,18 +382,23 @@ class _FiniteDifferences:
         return along
 
     def jacobian(self, columns: Sequence[int] | None, check: bool) -> CheckedJacobian:
-        """The central (and, with ``check``, one-sided) Jacobians in ``columns`` (all by default)."""
+        """The central (and, with ``check``, one-sided) Jacobians in ``columns`` (all by default).
+        With all columns, the held values with a unit come last, so that a parameter among them
+        (``_is_parameter``) is known from the others' columns and not simulated."""
         size = len(self.start)
         J = np.zeros((size, size))
         forward, backward = J.copy(), J.copy()
         stencils: dict[int, ColumnStencil] = {}
         orders: dict[int, tuple[tuple[str, ...], tuple[str, ...]]] = {}
         held = self.held_memory()
-        for j in range(size) if columns is None else columns:
+        quantities = self.held_quantities() if columns is None else set()
+        asked = range(size) if columns is None else columns
+        for j in [j for j in asked if j not in quantities] + sorted(quantities):
             if j in self.p.cyclic_idx:
                 J[j, j] = forward[j, j] = backward[j, j] = 1.0
                 continue
-            if j in held:
+            if j in held or (j in quantities and self._is_parameter(J, j)):
+                held.add(j)
                 continue
             d = self.step * max(1.0, abs(self.start[j]))
             kind = "coordinate" if j < self.p.dim else "controller memory"
@@ -407,10 +412,6 @@ class _FiniteDifferences:
                     stencils[j] = stencil
                     forward[:, j], backward[:, j] = stencil.forward, stencil.backward
                     orders[j] = (self.orders[(j, d)], self.orders[(j, -d)])
-        for j in self._parameter_columns(J, held) if columns is None else ():
-            J[:, j] = forward[:, j] = backward[:, j] = 0.0
-            stencils.pop(j, None)
-            held.add(j)
         skipped = set(self.p.cyclic_idx) | held
         unchecked = tuple(j for j in range(J.shape[1]) if check and j not in stencils and j not in skipped)
         return CheckedJacobian(
@@ -420,10 +421,7 @@ class _FiniteDifferences:
     def held_memory(self) -> set[int]:
         """Columns of the memory values the problem holds fixed that are flags (no unit), such as
         which leg lands next: no perturbation moves them continuously (a flag read as nonzero
-        jumps the return at any step), so their columns stay zero and are not checked for kinks.
-        A held value with a unit (a thrust or bias that picks one gait of a family) is a
-        quantity the map moves: its column is differentiated, as the multipliers of the whole
-        map (its family's 1 among them, ``trivial_multipliers``) need it."""
+        jumps the return at any step), so their columns stay zero and are not checked for kinks."""
         p = self.p
         return {
             p.dim + i
@@ -431,22 +429,26 @@ class _FiniteDifferences:
             if name in p.fixed and not unit
         }
 
-    def _parameter_columns(self, J: np.ndarray, held: set[int]) -> list[int]:
-        """Held memory values (with a unit) that the map never changes: their row of J is the
-        identity's (the return reads them back exactly, e.g. a bound's apex target change in a
-        pronk). Such a value acts as a parameter, not a state: its multiplier 1 is no motion of
-        the gait, so its column is left out like a flag's."""
+    def held_quantities(self) -> set[int]:
+        """Columns of the held memory values with a unit, such as a thrust or bias that picks one
+        gait of a family: quantities the map moves, whose columns are differentiated, as the
+        multipliers of the whole map (its family's 1 among them, ``trivial_multipliers``) need
+        them."""
         p = self.p
-        columns = []
-        for i, name in enumerate(p.memory_names):
-            j = p.dim + i
-            if name in p.fixed and j not in held:
-                unit_row = np.zeros(J.shape[1])
-                unit_row[j] = 1.0
-                # the diagonal is a difference quotient of a value read back exactly: 1 to rounding
-                if np.allclose(J[j], unit_row, rtol=0.0, atol=1e-9):
-                    columns.append(j)
-        return columns
+        return {
+            p.dim + i
+            for i, (name, unit) in enumerate(zip(p.memory_names, p.memory_units, strict=True))
+            if name in p.fixed and unit
+        }
+
+    def _is_parameter(self, J: np.ndarray, j: int) -> bool:
+        """Whether held value j is one the map never changes (e.g. a bound's apex target change
+        in a pronk): the return reads it back exactly from the start and from every perturbed
+        start (its row of J, from the columns computed so far, is 0 off the diagonal). It then
+        acts as a parameter, not a state: its multiplier 1 is no motion of the gait, and its
+        column is left out like a flag's."""
+        off_diagonal = np.delete(J[j], j)
+        return bool(self.base()[j] == self.start[j] and not np.any(off_diagonal))
 
     def _stencil(self, j: int, d: float, plus: np.ndarray, minus: np.ndarray) -> ColumnStencil | None:
         """The column's stencil with its half step, None when that simulation fails (unchecked)."""

@@ -164,18 +164,10 @@ class ReturnMap:
         yet" time) that has no frame. Unchanged means within rounding, and is read back exactly:
         the integrator's arithmetic on the run's state moves a memory value by rounding (that
         marker, -1e9 s, by 1e-7 s), which would otherwise stay in the orbit equations."""
-        p = self.problem
         found.memory_end = found.memory_end.copy()
         noted = np.abs(found.memory_end - found.memory_start) > MEMORY_ROUNDING * (1.0 + np.abs(found.memory_start))
         found.memory_end[~noted] = found.memory_start[~noted]
-        for i, frame in enumerate(p.memory_frames):
-            if not noted[i] or not frame:
-                continue
-            if frame == "t":
-                found.memory_end[i] -= found.time
-            elif p.names.index(frame) in p.cyclic_idx:
-                c = p.names.index(frame)
-                found.memory_end[i] -= found.x_end[c] - found.x_start[c]
+        _shift_frames(self.problem, found.memory_end, noted, found.time, found.x_end - found.x_start)
 
     def _horizons(self) -> list[float]:
         """Growing simulation horizons (s): the last return time and a half (plus 20 steps), or
@@ -302,12 +294,24 @@ def memory_at_crossing(
     An epoch before the run's start ``t_start`` (s) was never noted (a law's "no liftoff yet"
     marker) and is kept as it is. Shape (m,), a copy."""
     out = np.asarray(memory, dtype=float).copy()
-    for i, frame in enumerate(problem.memory_frames):
-        if frame == "t" and out[i] >= t_start:
-            out[i] -= t
-        elif frame and frame != "t" and problem.names.index(frame) in problem.cyclic_idx:
-            out[i] -= x[problem.names.index(frame)]
+    noted = np.array(
+        [frame != "t" or value >= t_start for frame, value in zip(problem.memory_frames, out, strict=True)]
+    )
+    _shift_frames(problem, out, noted, t, np.asarray(x, dtype=float))
     return out
+
+
+def _shift_frames(problem: OrbitProblem, memory: np.ndarray, noted: np.ndarray, time: float, shift: np.ndarray) -> None:
+    """In place: each noted memory value measured from a frame, less the frame's shift: an epoch
+    (frame "t") less ``time`` (s), a position along a cyclic coordinate less that coordinate's
+    entry of ``shift`` (shape (n,))."""
+    for i, frame in enumerate(problem.memory_frames):
+        if not noted[i] or not frame:
+            continue
+        if frame == "t":
+            memory[i] -= time
+        elif problem.names.index(frame) in problem.cyclic_idx:
+            memory[i] -= shift[problem.names.index(frame)]
 
 
 def _abbreviate(names: list[str], limit: int = 8) -> str:
