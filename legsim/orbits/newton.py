@@ -49,6 +49,10 @@ from .stability import add_multipliers
 #: Jacobian accurately before deciding whether it is singular: far above the Newton Jacobian's
 #: own error (~1e-6 relative), so that error cannot decide it.
 NEAR_SINGULAR = 1e-4
+#: Full Newton steps the watchdog (``_NewtonSearch._watchdog``) takes before giving up, and how
+#: far above the current residual its iterates may go.
+WATCHDOG_STEPS = 4
+WATCHDOG_GROWTH = 100.0
 
 
 class _Equations:
@@ -264,6 +268,9 @@ class _NewtonSearch:
         self.res = math.inf
         self.accuracy: MapAccuracy | None = None
         self.last_step: np.ndarray | None = None
+        #: Newton steps taken, and those of them taken past a kink (``_watchdog``).
+        self.iterations = 0
+        self.relaxed = 0
 
     def run(self, max_iterations: int) -> OrbitResult:
         """Iterate from the initial guess until converged, failed, or ``max_iterations`` steps."""
@@ -274,7 +281,8 @@ class _NewtonSearch:
         self.res = float(np.max(np.abs(self.F))) if self.F.size else 0.0
         self.history.append(self.res)
         z_scale = 1.0 + float(np.max(np.abs(self.z)))
-        for it in range(max_iterations + 1):
+        while True:
+            it = self.iterations
             if self.res <= self.tol:
                 if self.accuracy is None:
                     self.accuracy = self._estimate_accuracy()
@@ -282,16 +290,16 @@ class _NewtonSearch:
                     return self._unresolved(it)
                 if self.res <= self.accuracy.resolved:
                     return self.converged(it)
-            if it == max_iterations:
+            if it >= max_iterations:
                 break
-            failure = self.iterate(it, z_scale)
+            failure = self.iterate(it, z_scale, max_iterations - it)
             if failure is not None:
                 return self._above_resolution(self._stalled_above_tol(self._stuck_on_a_jump(failure)))
             if float(np.max(np.abs(self.z))) > 1e8 * z_scale:
                 return self.fail(
                     "diverged",
-                    f"iteration {it + 1}: the iterates run away (|z| = {np.max(np.abs(self.z)):.3g})",
-                    it + 1,
+                    f"iteration {self.iterations}: the iterates run away (|z| = {np.max(np.abs(self.z)):.3g})",
+                    self.iterations,
                 )
         if self.res <= self.tol:
             return self._above_resolution(self.fail("max_iterations", "", max_iterations))
@@ -432,8 +440,27 @@ class _NewtonSearch:
         )
         return failure
 
-    def iterate(self, it: int, z_scale: float) -> OrbitResult | None:
-        """One Newton step with backtracking; the failed result when there is none."""
+    def iterate(self, it: int, z_scale: float, allowed: int) -> OrbitResult | None:
+        """One Newton step with backtracking, or where none lowers the residual, the watchdog's
+        steps (at most ``allowed`` in all); the failed result when neither advances."""
+        dz = self._newton_step(it)
+        if isinstance(dz, OrbitResult):
+            return dz
+        self.last_step = dz
+        trial = self._line_search(dz)
+        if trial is not None:
+            self.iterations += 1
+        elif float(np.max(np.abs(dz))) > 1e-12 * z_scale:  # a step below rounding stalls (_no_step)
+            trial = self._watchdog(dz, min(WATCHDOG_STEPS, allowed))
+        if trial is None:
+            return self._no_step(it, dz, z_scale)
+        self.z, self.ret, self.F, self.res = trial
+        self.history.append(self.res)
+        return None
+
+    def _newton_step(self, it: int) -> np.ndarray | OrbitResult:
+        """The Gauss-Newton step dz at the current iterate, or the failed result (a singular or
+        flat Jacobian, or one that cannot be computed)."""
         try:
             U, sv, Vt = self._decomposition(newton=True)
             if self.method == "saltation" and sv.size and np.all(np.isfinite(sv)) and sv[-1] <= NEAR_SINGULAR * sv[0]:
@@ -448,13 +475,43 @@ class _NewtonSearch:
             return self._flat(it)
         if sv[-1] <= self.singular_tol * sv[0]:
             return self.fail("singular_jacobian", self._singular_message(it, sv, Vt[-1]), it)
-        dz = -(Vt.T @ ((U.T @ self.F) / sv))
-        self.last_step = dz
-        trial = self._line_search(dz)
-        if trial is None:
-            return self._no_step(it, dz, z_scale)
-        self.z, self.ret, self.F, self.res = trial
-        self.history.append(self.res)
+        return -(Vt.T @ ((U.T @ self.F) / sv))
+
+    def _evaluated(self, z: np.ndarray) -> tuple[np.ndarray, Return, np.ndarray, float] | None:
+        """(z, its return, F(z), residual), or None where the return cannot be simulated."""
+        try:
+            ret, F = self.eq.evaluate(z)
+        except OrbitError:
+            return None
+        return z, ret, F, float(np.max(np.abs(F)))
+
+    def _watchdog(self, dz: np.ndarray, allowed: int) -> tuple[np.ndarray, Return, np.ndarray, float] | None:
+        """Full Newton steps that may raise the residual for a while (Chamberlain's watchdog),
+        tried where no halving of dz lowers it: the first iterate of z + dz and up to ``allowed``
+        - 1 further full steps whose residual is below the current one, or None (the search then
+        stays at the current iterate). Near an orbit where the map's event order switches (a
+        symmetric gait) the map is piecewise smooth: a difference Jacobian mixes its pieces, and
+        the step it gives can raise the residual although the steps after it converge, linearly,
+        to the orbit. Each iterate within ``WATCHDOG_GROWTH`` of the current residual counts."""
+        trial = self._evaluated(self.z + dz)
+        passed: list[float] = []
+        for taken in range(1, allowed + 1):
+            if trial is None or not trial[3] < WATCHDOG_GROWTH * self.res:
+                return None
+            if trial[3] < self.res:
+                self.iterations += taken
+                self.relaxed += taken
+                self.history.extend(passed)
+                return trial
+            if taken == allowed:
+                return None
+            passed.append(trial[3])
+            try:
+                J, _ = self.eq.jacobian(trial[0], trial[1], self.method, self.fd_step, newton=True)  # type: ignore[arg-type]
+            except OrbitError:
+                return None
+            step = np.linalg.lstsq(J, trial[2], rcond=self.singular_tol)[0]
+            trial = self._evaluated(trial[0] - step)
         return None
 
     def _decomposition(self, newton: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -533,8 +590,9 @@ class _NewtonSearch:
         x_now, params_now, _ = self.eq.unpack(self.z)
         return self.fail(
             "diverged",
-            f"iteration {it + 1}: no Newton step (lengths 1 .. 1/{2**self.max_backtracks}) reduces the "
-            f"residual {self.res:.3g}; there may be no periodic orbit near the last iterate "
+            f"iteration {it + 1}: no Newton step (lengths 1 .. 1/{2**self.max_backtracks}, nor up to "
+            f"{WATCHDOG_STEPS} full steps on from it) reduces the residual {self.res:.3g}; there may be no "
+            f"periodic orbit near the last iterate "
             f"{self.rmap.show_state(x_now)}" + (f" with parameters {params_now}" if self.p.free else ""),
             it,
         )
@@ -562,13 +620,22 @@ class _NewtonSearch:
         result = self._result(
             "converged",
             f"residual {self.res:.3g} <= tol {self.tol:g} and within what the return map resolves after "
-            f"{it} iteration(s)",
+            f"{it} iteration(s)" + self._relaxed_words(),
             ret.x_start,
             ret.parameters,
             it,
             ret.memory_start,
         )
         return add_multipliers(result, self.p, ret, DP)
+
+    def _relaxed_words(self) -> str:
+        """What the watchdog did, for a converged search's message ('' when it took no step)."""
+        if not self.relaxed:
+            return ""
+        return (
+            f" ({self.relaxed} of them full steps past a rise of the residual: the return map is not smooth near "
+            f"the orbit, e.g. an event order switching there, where Newton's method converges only linearly)"
+        )
 
     def fail(self, status: str, message: str, iterations: int) -> OrbitResult:
         """A result that is not converged, at the current iterate."""

@@ -151,6 +151,27 @@ def test_json_and_text_say_unresolved(kinked):
     assert "stable:" not in text
 
 
+@pytest.mark.parametrize("share", [0.1, 0.2, 0.3])
+def test_newton_steps_past_a_rise_of_the_residual_reach_the_orbit_at_a_kink(share, monkeypatch):
+    """A start within the difference stencil of the kink (y = share * d, d the step): the
+    central differences mix the sides' slopes a rho and b rho into one above 1 while the side
+    the start is on contracts, so the Newton step moves away and no halving of it lowers the
+    residual. The watchdog's full steps (``legsim.orbits.newton``) leave the stencil and reach
+    y* = 0 by the side's exact slope; without them the search stops there, ``diverged``."""
+    from legsim.orbits import newton
+    from legsim.orbits.jacobians import default_fd_step
+
+    problem = lap_problem(A_SIDE, B_SIDE)
+    start = [share * default_fd_step(problem), T / 2]
+    found = find_orbit(problem, start, jacobian="fd")
+    assert found.converged and abs(found.fixed_point[0]) < 1e-12
+    assert max(found.history) > found.history[0]  # the residual rose before it fell
+    assert "full steps past a rise of the residual" in found.message
+    monkeypatch.setattr(newton, "WATCHDOG_STEPS", 0)
+    stopped = find_orbit(problem, start, jacobian="fd")
+    assert stopped.status == "diverged" and "no Newton step" in stopped.message
+
+
 def test_equal_gains_are_smooth_and_not_flagged():
     # No false positive: the same lap with a = b is linear, multiplier a rho.
     result = find_orbit(lap_problem(0.8, 0.8), [0.4, T / 2], jacobian="fd")
@@ -190,12 +211,13 @@ def test_continuation_reports_no_stability_change_between_unresolved_orbits():
 
 @pytest.mark.slow
 def test_the_symmetric_pronks_event_order_switches_with_the_sign_of_an_asymmetry():
-    """Why `legsim orbit quadruped_pronk` finds no orbit: at its symmetric gait (front and hind
+    """Why `legsim orbit quadruped_pronk` needs the watchdog: at its symmetric gait (front and hind
     legs mirrored, pitch 0) a pitch of +1e-9 or -1e-9 rad switches which foot slips first and
     which leg lifts off first, while a symmetric perturbation (the height) keeps the order. The
     return map stays continuous (a 1e-9 perturbation moves the return by less than 1e-7) but has
-    one linear piece per order, and difference quotients across the switch give no Newton step
-    (tests/orbits/test_accuracy.py). Slow: about 10 s."""
+    one linear piece per order, and difference quotients across the switch give a Newton step
+    that raises the residual before the next ones lower it (tests/orbits/test_accuracy.py).
+    Slow: about 10 s."""
     from legsim.orbits.returns import ReturnMap
     from legsim.scene import load_scene
     from legsim.scene.orbit import problem_from_scene
