@@ -70,7 +70,7 @@ from ..execution import Segment
 from ..hybrid import HybridSystem, Mode, Transition
 from ..methods import Tableau
 from .errors import OrbitError
-from .kinks import CheckedJacobian, ColumnStencil, kinked_columns
+from .kinks import CheckedJacobian, ColumnStencil, Surroundings, kinked_columns
 from .problem import OrbitProblem, Return
 from .returns import ReturnMap
 from .section_points import evaluator
@@ -360,10 +360,8 @@ class _FiniteDifferences:
     def at(self, z: np.ndarray, key: tuple[int, float] = (-1, 0.0)) -> np.ndarray:
         """The augmented return from the augmented state z, shape (n + m,); the transitions it
         took are kept under ``key`` (column, step)."""
-        n = self.p.dim
-        ret = self.rmap(z[:n], self.parameters, z[n:])
-        self.orders[key] = tuple(tr.name for tr in ret.transitions)
-        return ret.end
+        end, self.orders[key] = self.order_at(z)
+        return end
 
     def base(self) -> np.ndarray:
         """P at the point itself, evaluated once."""
@@ -400,7 +398,7 @@ class _FiniteDifferences:
             if j in held or (j in quantities and self._is_parameter(J, j)):
                 held.add(j)
                 continue
-            d = self.step * max(1.0, abs(self.start[j]))
+            d = float(self.steps()[j])
             kind = "coordinate" if j < self.p.dim else "controller memory"
             plus, minus, errors = _sides(self.shifted(j), d)
             J[:, j] = forward[:, j] = backward[:, j] = _from_sides(
@@ -414,9 +412,20 @@ class _FiniteDifferences:
                     orders[j] = (self.orders[(j, d)], self.orders[(j, -d)])
         skipped = set(self.p.cyclic_idx) | held
         unchecked = tuple(j for j in range(J.shape[1]) if check and j not in stencils and j not in skipped)
+        around = Surroundings(self.order_at, self.start, self.base(), self.steps()) if check else None
         return CheckedJacobian(
-            J, forward, backward, tuple(sorted(stencils)), kinked_columns(stencils, J), unchecked, orders
+            J, forward, backward, tuple(sorted(stencils)), kinked_columns(stencils, J), unchecked, orders, around
         )
+
+    def steps(self) -> np.ndarray:
+        """Each column's difference step (state units), shape (N,)."""
+        return self.step * np.maximum(1.0, np.abs(self.start))
+
+    def order_at(self, z: np.ndarray) -> tuple[np.ndarray, tuple[str, ...]]:
+        """The augmented return from z, shape (N,), and the event order it took."""
+        n = self.p.dim
+        ret = self.rmap(z[:n], self.parameters, z[n:])
+        return ret.end, tuple(tr.name for tr in ret.transitions)
 
     def held_memory(self) -> set[int]:
         """Columns of the memory values the problem holds fixed that are flags (no unit), such as

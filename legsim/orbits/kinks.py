@@ -27,7 +27,7 @@ central one cannot vouch for.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -85,6 +85,19 @@ def kinked_columns(stencils: dict[int, ColumnStencil], jacobian: np.ndarray) -> 
     return tuple(kinked)
 
 
+@dataclass(frozen=True)
+class Surroundings:
+    """The return map around the point a Jacobian was taken at, for what needs more of it than
+    the stencil (``legsim.orbits.sampled_pieces``): ``evaluate`` maps an augmented state z,
+    shape (N,), to its augmented return and the event order it took; ``start`` is the point and
+    ``base`` its return, ``steps`` each column's difference step (N,, in the state's units)."""
+
+    evaluate: Callable[[np.ndarray], tuple[np.ndarray, tuple[str, ...]]]
+    start: np.ndarray
+    base: np.ndarray
+    steps: np.ndarray
+
+
 @dataclass
 class CheckedJacobian:
     """A finite-difference Jacobian of the return map with its differentiability check.
@@ -97,6 +110,7 @@ class CheckedJacobian:
     failed: where a map stops being smooth, that is likely).
     orders: for each checked column, the transitions (names, in order) of the returns from
     x + d e_j and x - d e_j: which event order each side of the stencil produced.
+    around: the return map around the point, where the check can evaluate it further.
     """
 
     central: np.ndarray
@@ -106,6 +120,7 @@ class CheckedJacobian:
     kinked: tuple[int, ...]
     unchecked: tuple[int, ...] = ()
     orders: dict[int, tuple[tuple[str, ...], tuple[str, ...]]] = field(default_factory=dict)
+    around: Surroundings | None = None
 
     @property
     def differentiable(self) -> bool | None:
@@ -114,6 +129,11 @@ class CheckedJacobian:
         if self.kinked:
             return False
         return None if self.unchecked else True
+
+    @property
+    def seen_orders(self) -> set[tuple[str, ...]]:
+        """The event orders the stencil's returns took."""
+        return {order for pair in self.orders.values() for order in pair}
 
     def unchecked_names(self, names: Sequence[str]) -> tuple[str, ...]:
         """The coordinates (``names`` of the augmented state) of the unchecked columns."""

@@ -507,7 +507,7 @@ class _NewtonSearch:
                 return None
             passed.append(trial[3])
             try:
-                J, _ = self.eq.jacobian(trial[0], trial[1], self.method, self.fd_step, newton=True)  # type: ignore[arg-type]
+                J, _ = self.eq.jacobian(trial[0], trial[1], self.method, self.fd_step, newton=True)
             except OrbitError:
                 return None
             step = np.linalg.lstsq(J, trial[2], rcond=self.singular_tol)[0]
@@ -626,7 +626,9 @@ class _NewtonSearch:
             it,
             ret.memory_start,
         )
-        return add_multipliers(result, self.p, ret, DP)
+        result = add_multipliers(result, self.p, ret, DP)
+        result.evaluations = self.rmap.evaluations  # a verdict on sampled pieces evaluates the map further
+        return result
 
     def _relaxed_words(self) -> str:
         """What the watchdog did, for a converged search's message ('' when it took no step)."""

@@ -65,6 +65,9 @@ MAX_DESCENT_DIMENSION = 6
 RANK_ONE = 0.05
 #: Relative size below which a common eigenvalue-1 direction of the pieces counts as one.
 TRIVIAL_TOL = 1e-4
+#: Where between the products' mean's spectral radius and 1 its scaled Lyapunov candidates put
+#: their bound (``_lyapunov_factors``).
+MEAN_MARGINS = (0.05, 0.25, 0.5)
 #: A perturbation counts as inside a region when every constraint holds to this margin (the
 #: feasibility problem normalises the perturbation's size to 1 in the max norm).
 MARGIN = 1e-9
@@ -147,8 +150,10 @@ def _lyapunov(M: np.ndarray) -> np.ndarray | None:
 
 def _lyapunov_factors(products: list[np.ndarray]) -> list[np.ndarray]:
     """Candidate factors L (P = L^T L): each contracting product's solution of
-    ``M^T P M - P = -I``, and that of their sum (a common Lyapunov function when one exists
-    near it)."""
+    ``M^T P M - P = -I``, that of their sum (a common Lyapunov function when one exists near
+    it), and the solutions for the products' mean scaled to a spectral radius just below 1
+    (``MEAN_MARGINS``: M/s contracts in its own P by sqrt(1 - 1/|P|), so M by less than s,
+    leaving the products' spread around their mean a margin of 1 - s to stay contracting)."""
     candidates, total = [], np.zeros_like(products[0])
     for M in products:
         if np.max(np.abs(np.linalg.eigvals(M))) >= 1.0:
@@ -160,6 +165,13 @@ def _lyapunov_factors(products: list[np.ndarray]) -> list[np.ndarray]:
         candidates.append(P)
     if candidates:
         candidates.append(total)
+    mean = np.mean(products, axis=0)
+    radius = float(np.max(np.abs(np.linalg.eigvals(mean))))
+    if radius < 1.0:
+        for share in MEAN_MARGINS:
+            P = _lyapunov(mean / (radius + share * (1.0 - radius)))
+            if P is not None:
+                candidates.append(P)
     factors = []
     for P in candidates:
         try:
@@ -325,33 +337,66 @@ def _orders_text(orders: Sequence[tuple[str, ...]]) -> str:
 def _on_section(
     matrices: list[np.ndarray], normal: np.ndarray, f: np.ndarray, cyclic: Sequence[int], trivial: int
 ) -> tuple[list[tuple[np.ndarray, np.ndarray]], dict[str, Any]] | tuple[str, dict[str, Any]]:
-    """The pieces (A_k, C_k) in coordinates of the section (``floquet_multipliers``' basis of
-    the flow's complement, cyclic coordinates out) with the trivial directions quotiented out;
-    or (reason, {})."""
+    """The two pieces (A_k, C_k) in coordinates of the section (``section_matrices``), the
+    region of the second the other side of the boundary's; or (reason, {})."""
+    keep = [i for i in range(len(f)) if i not in set(cyclic)]
+    fk = np.asarray(f, dtype=float)[keep]
+    if abs(float(normal[keep] @ fk)) > RANK_ONE * np.linalg.norm(normal[keep]) * np.linalg.norm(fk):
+        return "the flow direction crosses the boundary between the orders (the pieces do not share it)", {}
+    found = section_matrices(matrices, f, cyclic, trivial, normal)
+    if isinstance(found, str):
+        return found, {}
+    (first, second), c, dimension = found
+    return [(first, c), (second, -c)], {"quotient": trivial, "dimension": dimension}
+
+
+def section_matrices(
+    matrices: list[np.ndarray], f: np.ndarray, cyclic: Sequence[int], trivial: int, normal: np.ndarray | None = None
+) -> tuple[list[np.ndarray], np.ndarray, int] | str:
+    """The pieces' matrices in coordinates of the section (``floquet_multipliers``' basis of the
+    flow's complement, cyclic coordinates out) with the ``trivial`` multipliers 1 taken out, the
+    boundary ``normal`` in those coordinates (as a row, (1, k); empty without one) and their
+    dimension k; or the reason there are none. The multipliers 1 are taken out as directions
+    every piece fixes (on the boundary, with a normal); else, without a normal, as quantities
+    every piece conserves (r^T A_k = r^T: each A_k maps the level set r^T delta = 0 into itself,
+    and the pieces are restricted to it)."""
     keep = [i for i in range(len(f)) if i not in set(cyclic)]
     fk = np.asarray(f, dtype=float)[keep]
     Q, _ = np.linalg.qr(fk.reshape(-1, 1), mode="complete")
     B = Q[:, 1:]
-    if abs(float(normal[keep] @ fk)) > RANK_ONE * np.linalg.norm(normal[keep]) * np.linalg.norm(fk):
-        return "the flow direction crosses the boundary between the orders (the pieces do not share it)", {}
     Ms = [B.T @ A[np.ix_(keep, keep)] @ B for A in matrices]
-    c = B.T @ normal[keep]
-    W = np.eye(len(c))
+    c = np.zeros(B.shape[1]) if normal is None else B.T @ normal[keep]
+    W = np.eye(B.shape[1])
     if trivial:
-        stacked = np.vstack([M - np.eye(len(c)) for M in Ms])
-        _, sv, Vt = np.linalg.svd(stacked)
-        scale = max(1.0, float(np.max(np.abs(stacked))))
-        small = sv[-trivial:]
-        V = Vt[-trivial:].T
-        if np.any(small > TRIVIAL_TOL * scale) or np.any(np.abs(c @ V) > RANK_ONE * np.linalg.norm(c)):
+        fixed = _common_unit_directions(Ms, trivial, transpose=False)
+        conserved = _common_unit_directions(Ms, trivial, transpose=True) if normal is None else "not tried"
+        if isinstance(fixed, np.ndarray) and not np.any(np.abs(c @ fixed) > RANK_ONE * np.linalg.norm(c)):
+            W = np.linalg.svd(fixed, full_matrices=True)[0][:, trivial:]
+        elif isinstance(conserved, np.ndarray):
+            W = np.linalg.svd(conserved, full_matrices=True)[0][:, trivial:]
+        else:
+            where = "on their boundary " if normal is not None else ""
             return (
-                f"the {trivial} trivial multiplier(s) 1 do not belong to directions both pieces fix on their "
-                f"boundary (smallest singular values of [A_k - I]: {', '.join(f'{v:.3g}' for v in small)})",
-                {},
+                f"the {trivial} trivial multiplier(s) 1 belong neither to directions all pieces fix {where}nor to "
+                f"quantities all pieces conserve (smallest singular values of [A_k - I]: "
+                f"{fixed if isinstance(fixed, str) else 'fixed off the boundary'}; of [A_k^T - I]: "
+                f"{conserved if isinstance(conserved, str) else '-'})"
             )
-        W = np.linalg.svd(V, full_matrices=True)[0][:, trivial:]
-    pieces = [(W.T @ M @ W, (W.T @ c).reshape(1, -1)) for M in Ms]
-    return [pieces[0], (pieces[1][0], -pieces[1][1])], {"quotient": trivial, "dimension": int(W.shape[1])}
+    rows = np.empty((0, W.shape[1])) if normal is None else (W.T @ c).reshape(1, -1)
+    return [W.T @ M @ W for M in Ms], rows, int(W.shape[1])
+
+
+def _common_unit_directions(matrices: list[np.ndarray], count: int, transpose: bool) -> np.ndarray | str:
+    """``count`` orthonormal directions (columns, (k, count)) that every matrix fixes (or, with
+    ``transpose``, that every transposed matrix fixes: linear quantities every matrix conserves);
+    else the smallest singular values of the stacked [A_k - I] in words."""
+    stacked = np.vstack([(M.T if transpose else M) - np.eye(M.shape[0]) for M in matrices])
+    _, sv, Vt = np.linalg.svd(stacked)
+    scale = max(1.0, float(np.max(np.abs(stacked))))
+    small = sv[-count:]
+    if np.any(small > TRIVIAL_TOL * scale):
+        return ", ".join(f"{v:.3g}" for v in small)
+    return Vt[-count:].T
 
 
 def piecewise_verdict(

@@ -285,19 +285,18 @@ class ReturnMap:
         return ret
 
 
-def memory_at_crossing(
-    problem: OrbitProblem, t: float, x: np.ndarray, memory: np.ndarray, t_start: float
-) -> np.ndarray:
-    """A run's controller memory at a crossing of the section at time t (s), state x (section
-    mode, shape (n,)), as a return started there sees it (``ReturnMap._to_start_frame``'s frames):
-    an epoch (frame "t") less t, a position along a cyclic coordinate less that coordinate at x.
-    An epoch before the run's start ``t_start`` (s) was never noted (a law's "no liftoff yet"
-    marker) and is kept as it is. Shape (m,), a copy."""
+def memory_at_crossing(problem: OrbitProblem, t: float, memory: np.ndarray, t_start: float) -> np.ndarray:
+    """A run's controller memory at a crossing of the section at time t (s), as a return started
+    there, at the run's state, sees it (``ReturnMap._to_start_frame``'s frames): an epoch (frame
+    "t") less t, as each return restarts the clock; a position along a cyclic coordinate as it
+    is, as a return measures places in the frame of its start's coordinates, which are the run's
+    own. An epoch before the run's start ``t_start`` (s) was never noted (a law's "no liftoff
+    yet" marker) and is kept as it is. Shape (m,), a copy."""
     out = np.asarray(memory, dtype=float).copy()
     noted = np.array(
         [frame != "t" or value >= t_start for frame, value in zip(problem.memory_frames, out, strict=True)]
     )
-    _shift_frames(problem, out, noted, t, np.asarray(x, dtype=float))
+    _shift_frames(problem, out, noted, t, np.zeros(problem.dim))
     return out
 
 

@@ -13,10 +13,11 @@ import numpy as np
 from ..control import ControlLaw
 from .errors import OrbitError
 from .jacobians import field_at, floquet_multipliers
-from .kinks import CheckedJacobian
-from .piecewise import piecewise_verdict
+from .kinks import CheckedJacobian, Surroundings
+from .piecewise import Verdict, piecewise_verdict, section_matrices
 from .problem import OrbitProblem, Return
 from .result import OrbitResult
+from .sampled_pieces import PieceSampler, sampled_verdict
 
 
 def add_multipliers(
@@ -66,6 +67,8 @@ def _add_differentiability(result: OrbitResult, problem: OrbitProblem, checked: 
         problem.cyclic_idx,
         problem.trivial_multipliers,
     )
+    if len(checked.seen_orders) > 2 and checked.around is not None:
+        result.piecewise = _sampled_verdict(problem, checked, checked.around, f)
     result.warnings.append(
         f"the return map is not differentiable at the orbit: the forward and backward differences of "
         f"its Jacobian disagree in the column(s) of {', '.join(names)} (a kink, e.g. transitions that "
@@ -74,6 +77,18 @@ def _add_differentiability(result: OrbitResult, problem: OrbitProblem, checked: 
         f"{radius['backward']:.4g} (backward differences); piecewise-linear verdict: "
         f"{result.piecewise.kind} ({result.piecewise.reason})"
     )
+
+
+def _sampled_verdict(problem: OrbitProblem, checked: CheckedJacobian, around: Surroundings, f: np.ndarray) -> Verdict:
+    """The verdict on the pieces found by sampling (``sampled_pieces``), where more than two
+    event orders meet at the orbit."""
+    sampler = PieceSampler(around.evaluate, around.start, around.base, checked.checked, around.steps, checked.central)
+
+    def project(matrices: list[np.ndarray]) -> list[np.ndarray] | str:
+        found = section_matrices(matrices, f, problem.cyclic_idx, problem.trivial_multipliers)
+        return found if isinstance(found, str) else found[0]
+
+    return sampled_verdict(sampler, project)
 
 
 def _radius(result: OrbitResult, side: str) -> float:

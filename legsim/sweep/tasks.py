@@ -211,9 +211,7 @@ def orbit_columns(scene: Any, deadline: Deadline, execution: Any = None) -> dict
         t, state = crossing
         guess = state[: settings.problem.dim].copy()
         if settings.problem.controller is not None:
-            solver["memory"] = memory_at_crossing(
-                settings.problem, t, guess, state[settings.problem.dim :], execution.t0
-            )
+            solver["memory"] = memory_at_crossing(settings.problem, t, state[settings.problem.dim :], execution.t0)
     result = find_orbit(settings.problem, guess, **solver)
     deadline.check()  # a search cut short by the deadline reports a failed simulation: say why
     data = result.to_json()

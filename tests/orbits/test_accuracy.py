@@ -106,7 +106,8 @@ def test_the_quadruped_pronk_is_found_where_its_map_is_not_differentiable():
     # run, is 1.7e-7 from periodic. The first Newton step, from differences that mix the map's
     # pieces, raises the residual and no halving of it lowers it; the watchdog's full steps go
     # on and converge (linearly, as at a kink) within what the map resolves. The Jacobian there
-    # is reported kinked, never as the orbit's derivative (``docs/orbits.md``).
+    # is reported kinked, never as the orbit's derivative; the verdict comes from the pieces
+    # (``docs/orbits.md``).
     from legsim.scene import load_scene
     from legsim.scene.orbit import problem_from_scene
 
@@ -120,3 +121,8 @@ def test_the_quadruped_pronk_is_found_where_its_map_is_not_differentiable():
     # the gait in place: no forward speed or pitch beyond what the residual allows
     state = dict(zip(result.state_names, result.fixed_point, strict=True))
     assert abs(state["pitch"]) < 1e-7 and abs(state["xd"]) < 1e-5
+    # Three pairs of simultaneous events (touchdowns, slips, liftoffs): eight regions, each its
+    # piece (legsim.orbits.sampled_pieces), all contracting in one quadratic norm.
+    verdict = result.piecewise
+    assert verdict.kind == "stable" and result.stable is True, verdict.reason
+    assert len(verdict.details["samples"]) == 8 and verdict.details["factor"] < 1.0

@@ -115,9 +115,9 @@ def test_an_orbit_guess_from_the_run_finds_the_scenes_orbit(tmp_path):
 def test_a_runs_memory_enters_the_search_in_the_returns_frames():
     """A runner's memory at a crossing late in its run holds epochs and places on the run's clock
     and track; the search from there sees them as a return does (``ReturnMap``'s frames): an
-    epoch less the crossing's time, a place along the cyclic x less the crossing's x; a value
-    without a frame, and an epoch before the run's start (the law's "no liftoff yet" marker),
-    as they are."""
+    epoch less the crossing's time; a place along the cyclic x as it is (the search starts at
+    the run's x, and a return measures places from its start's); a value without a frame, and an
+    epoch before the run's start (the law's "no liftoff yet" marker), as they are."""
     from legsim.orbits.returns import memory_at_crossing
     from legsim.scene.orbit import problem_from_scene
 
@@ -127,9 +127,8 @@ def test_a_runs_memory_enters_the_search_in_the_returns_frames():
     values = {"touchdown_hind": 7.5, "touchdown_x_hind": 3.0, "liftoff_hind": -1e9, "T_s_hind": 0.12, "apex_hind": 7.9}
     for name, value in values.items():
         memory[names.index(name)] = value
-    x = np.zeros(problem.dim)
-    x[problem.names.index("x")] = 3.2
-    seen = dict(zip(names, memory_at_crossing(problem, 7.8, x, memory, 0.0), strict=True))
+    seen = dict(zip(names, memory_at_crossing(problem, 7.8, memory, 0.0), strict=True))
     assert seen["touchdown_hind"] == pytest.approx(-0.3) and seen["apex_hind"] == pytest.approx(0.1)
-    assert seen["touchdown_x_hind"] == pytest.approx(-0.2)
+    # the search starts at the run's x, the frame of the returns' places
+    assert seen["touchdown_x_hind"] == 3.0
     assert seen["liftoff_hind"] == -1e9 and seen["T_s_hind"] == 0.12
