@@ -4,9 +4,11 @@ For each gait (scenes ``quadruped_pronk_forward``, ``quadruped_bound_forward``) 
 over ``controller.parameters.speed`` and ``controller.parameters.k_x`` runs every cell for
 ``T_FINAL`` s and writes per cell the achieved mean speed over [``SETTLE``, t_end] (``--measure
 mean_rate:x:SETTLE``), the largest |pitch| (``max_abs:pitch``), the run's status (``fell`` when a
-condition of the scene's ``[fall]`` held) and an orbit search from the last apex of the cell's run
-(``--orbit --orbit-guess run``): its status, and the largest Floquet multiplier where it found
-an orbit. A cell is drawn
+condition of the scene's ``[fall]`` held) and an orbit search (``--orbit``): its status, and the
+largest Floquet multiplier where it found an orbit. The bound's searches start from the last apex
+of each cell's run (``--orbit-guess run``); the pronk's from its scene's guess, the one-hop orbit
+at 1.0 m/s (``--orbit-guess scene``): that orbit is a flip, and the runs settle on a two-hop gait,
+whose apexes are no guess for it. A cell is drawn
 
 * red: the run fell (status ``fell`` or ``model_breakdown``); black: the run failed otherwise;
 * purple: it finished with warnings (an accumulation: past it the relaxed execution holds the
@@ -35,7 +37,12 @@ SETTLE = 4.0  # s: the achieved speed is the mean over [SETTLE, t_end]
 #: The orbit problem of each gait is its scene's ``[orbit]`` section (a flight apex of the body,
 #: x cyclic, the memory entries each gait keeps unchanged held fixed); the maps search it to a
 #: looser tolerance, from each cell's own run.
-ORBIT_SETTINGS = ["orbit.t_max=2.0", "orbit.tol=1e-6", "orbit.max_iterations=6"]
+ORBIT_SETTINGS = ["orbit.t_max=2.0", "orbit.tol=1e-6", "orbit.max_iterations=10"]
+#: Wall time (s) a cell's run and search may take: past it the row says ``timeout`` (the
+#: bound's cell at 0.5 m/s and k_x 0.12 s searched on for over 10 min).
+TIMEOUT = 300.0
+#: Where each gait's searches start (module docstring).
+ORBIT_GUESS = {"pronk": "scene", "bound": "run"}
 COLOURS = {
     "stable": "tab:green",
     "unstable": "tab:orange",
@@ -55,10 +62,11 @@ def sweep_gait(gait: str, out):
         overrides=[f"integrator.t_final={T_FINAL}", *ORBIT_SETTINGS],
         measures=[f"mean_rate:x:{SETTLE}", f"max_abs:pitch:{SETTLE}"],
         orbit=True,
-        orbit_guess="run",
+        orbit_guess=ORBIT_GUESS[gait],
         out=folder,
         resume=(folder / "sweep.json").exists(),
         workers=2,
+        timeout=TIMEOUT,
         figures=False,
     )
     return pq.read_table(folder / "results.parquet")
@@ -85,7 +93,7 @@ def draw(ax, gait: str, rows: list[dict]) -> None:
         ax.add_patch(_cell(i, j, COLOURS[key]))
         speed = row["mean_rate_x"]
         orbit = (
-            f"rho {row['orbit_spectral_radius']:.3g}"
+            f"rho {row['orbit_spectral_radius']:.4g}"
             if row["orbit_spectral_radius"] is not None
             else str(row["orbit_status"] or row["status"])
         )
