@@ -4,7 +4,11 @@ The unknowns z are the problem's free coordinates and free parameters; the equat
 are periodicity ``P(x) - x`` on the non-cyclic coordinates other than the section's, s(x) = 0
 for a section given as a function, the constraints and the energy level. Each iteration solves
 the (possibly overdetermined, consistent) linear system by SVD and halves the step while it
-does not reduce the max-norm residual.
+does not reduce the max-norm residual. Where no halving does, a watchdog takes up to
+``WATCHDOG_STEPS`` full steps that may raise the residual for a while, and keeps them once one
+ends below it: at a kink of the return map (an event order switching at the orbit) difference
+Jacobians mix the map's pieces, and their first step can raise the residual although the next
+ones converge.
 
 Failures are never answers: ``find_orbit`` returns an ``OrbitResult`` whose ``status`` says why
 it stopped (``no_return``, ``simulation_failed``, ``singular_jacobian``, ``diverged``,
