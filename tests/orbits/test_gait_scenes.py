@@ -84,3 +84,36 @@ def test_the_quadrupeds_gaits_are_found_to_1e_9_on_a_map_resolved_there(name, sp
     assert result.spectral_radius == pytest.approx(radius, abs=2e-3) and result.stable is stable
     trivial = load_scene(name).data["orbit"].get("trivial_multipliers", 0)
     assert sum(abs(mu - 1.0) < 1e-6 for mu in result.multipliers) == trivial
+
+
+@pytest.mark.slow
+def test_the_forward_pronks_two_hop_motion_is_no_orbit_as_its_legs_biases_drift_apart():
+    """The forward pronk's run settles on a two-hop motion, not on its (unstable) one-hop orbit.
+    That motion has no periodic orbit: each leg's integral term adds its own stride speed error,
+    and over a two-hop cycle the legs' errors differ, so their placement biases drift apart
+    without end (measured -5.8e-5, -7.6e-5, -9.8e-5 m at 20, 30, 40 s: about -2e-6 m/s),
+    where a periodic motion would keep their difference. Read at the run's last apex, at the
+    scene's fine orbit settings (dop853, rtol 1e-13, dense landing, eps 1e-11). Slow: about 10 s."""
+    import numpy as np
+
+    from legsim.sweep.tasks import last_crossing
+
+    fine = [
+        "integrator.method=dop853",
+        "integrator.rtol=1e-13",
+        "integrator.atol=1e-13",
+        "integrator.landing=dense",
+        "integrator.eps=1e-11",
+    ]
+    problem = problem_from_scene(load_scene("quadruped_pronk_forward")).problem
+    names = list(problem.memory_names)
+    difference = []
+    for t_final in (20, 30, 40):
+        run = load_scene("quadruped_pronk_forward", [*fine, f"integrator.t_final={t_final}"]).simulate()
+        assert run.status == "finished" and not run.warnings
+        _, state = last_crossing(problem, run)
+        memory = state[problem.dim :]
+        difference.append(memory[names.index("bias_hind")] - memory[names.index("bias_front")])
+    steps = np.diff(difference)
+    # a steady drift of 1.8e-5 m every 10 s, each step within 25% of the other
+    assert np.all(steps < -1.2e-5) and abs(steps[0] / steps[1] - 1.0) < 0.25
