@@ -8,7 +8,7 @@ does not reduce the max-norm residual. Where no halving does, a watchdog takes u
 ``WATCHDOG_STEPS`` full steps that may raise the residual for a while, and keeps them once one
 ends below it: at a kink of the return map (an event order switching at the orbit) difference
 Jacobians mix the map's pieces, and their first step can raise the residual although the next
-ones converge.
+ones converge. They are kept once one halves the residual.
 
 Failures are never answers: ``find_orbit`` returns an ``OrbitResult`` whose ``status`` says why
 it stopped (``no_return``, ``simulation_failed``, ``singular_jacobian``, ``diverged``,
@@ -53,10 +53,12 @@ from .stability import add_multipliers
 #: Jacobian accurately before deciding whether it is singular: far above the Newton Jacobian's
 #: own error (~1e-6 relative), so that error cannot decide it.
 NEAR_SINGULAR = 1e-4
-#: Full Newton steps the watchdog (``_NewtonSearch._watchdog``) takes before giving up, and how
-#: far above the current residual its iterates may go.
+#: Full Newton steps the watchdog (``_NewtonSearch._watchdog``) takes before giving up, how far
+#: above the current residual its iterates may go, and the share of it they must end below to be
+#: kept (progress, not a residual that rounding or a drift moves in its third digit).
 WATCHDOG_STEPS = 4
 WATCHDOG_GROWTH = 100.0
+WATCHDOG_DECREASE = 0.5
 
 
 class _Equations:
@@ -492,8 +494,8 @@ class _NewtonSearch:
     def _watchdog(self, dz: np.ndarray, allowed: int) -> tuple[np.ndarray, Return, np.ndarray, float] | None:
         """Full Newton steps that may raise the residual for a while (Chamberlain's watchdog),
         tried where no halving of dz lowers it: the first iterate of z + dz and up to ``allowed``
-        - 1 further full steps whose residual is below the current one, or None (the search then
-        stays at the current iterate). Near an orbit where the map's event order switches (a
+        - 1 further full steps whose residual is below ``WATCHDOG_DECREASE`` of the current one,
+        or None (the search then stays at the current iterate). Near an orbit where the map's event order switches (a
         symmetric gait) the map is piecewise smooth: a difference Jacobian mixes its pieces, and
         the step it gives can raise the residual although the steps after it converge, linearly,
         to the orbit. Each iterate within ``WATCHDOG_GROWTH`` of the current residual counts."""
@@ -502,7 +504,7 @@ class _NewtonSearch:
         for taken in range(1, allowed + 1):
             if trial is None or not trial[3] < WATCHDOG_GROWTH * self.res:
                 return None
-            if trial[3] < self.res:
+            if trial[3] < WATCHDOG_DECREASE * self.res:
                 self.iterations += taken
                 self.relaxed += taken
                 self.history.extend(passed)
@@ -594,9 +596,9 @@ class _NewtonSearch:
         x_now, params_now, _ = self.eq.unpack(self.z)
         return self.fail(
             "diverged",
-            f"iteration {it + 1}: no Newton step (lengths 1 .. 1/{2**self.max_backtracks}, nor up to "
-            f"{WATCHDOG_STEPS} full steps on from it) reduces the residual {self.res:.3g}; there may be no "
-            f"periodic orbit near the last iterate "
+            f"iteration {it + 1}: no Newton step (lengths 1 .. 1/{2**self.max_backtracks}) reduces the "
+            f"residual {self.res:.3g}, nor do up to {WATCHDOG_STEPS} full steps on from it halve it; there may "
+            f"be no periodic orbit near the last iterate "
             f"{self.rmap.show_state(x_now)}" + (f" with parameters {params_now}" if self.p.free else ""),
             it,
         )
