@@ -18,8 +18,9 @@ and flushed, the SHA-256 of the file's bytes so far is logged at ``/legsim/file_
 short text of hex fields, ``qz<nonce>z<bytes>z<masked sha256>zq`` (the SHA-256 XOR the
 SHA-256 of the nonce). Rerun compresses each message with LZ4, which replaces a run of 4 or more
 bytes seen earlier in the message by a reference: the text is made without a repeated 4-byte run
-(a fresh nonce, which changes every field, until it has none), and the writer checks that it
-lies in the file verbatim, or logs another. ``check_file`` finds the last seal in
+where a nonce can make it so (a fresh nonce changes the nonce and the masked SHA-256, not the
+bytes field: ``seal_text``), and the writer checks that it lies in the file verbatim, or logs
+another. ``check_file`` finds the last seal in
 the raw file and hashes the bytes before it, before Rerun decodes anything: Rerun's reader aborts the whole
 process on some damaged files (an arrow offset flipped past its buffer panics in a thread of
 its own), so a damaged file must be refused before it gets there. This covers everything
@@ -34,7 +35,7 @@ import hashlib
 import json
 import os
 import re
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any
 
@@ -48,6 +49,9 @@ DIGEST_FORMAT = "legsim-rrd-digest-1"
 _SEAL = re.compile(rb"qz([0-9a-f]{8})z([0-9a-f]{1,16})z([0-9a-f]{64})zq")
 #: Seals tried before a file is left unsealed (each one fails only when LZ4 shortened its text).
 SEAL_ATTEMPTS = 4
+#: Nonces tried for one seal's text (a text's random fields repeat a 4-byte run with a
+#: chance of about 5%).
+NONCE_TRIES = 64
 #: Bytes read at a time while hashing or searching a file.
 _BLOCK = 1 << 16
 
@@ -158,17 +162,28 @@ def seal(rec: Any, path: Path, entity: str) -> bool:
     for _ in range(SEAL_ATTEMPTS):
         rec.flush()
         size = os.path.getsize(path)
-        digest = _file_hash(path, size)
-        while True:
-            nonce = secrets.token_hex(4)
-            text = f"qz{nonce}z{size:x}z{_masked(digest, nonce)}zq"
-            if len({text[k : k + 4] for k in range(len(text) - 3)}) == len(text) - 3:
-                break
+        text = seal_text(size, _file_hash(path, size), lambda: secrets.token_hex(4))
         rec.log(entity, rr.TextDocument(text, media_type="text/plain"), static=True)
         rec.flush()
         if _last_seal(path, os.path.getsize(path)) is not None:
             return True
     return False
+
+
+def seal_text(size: int, digest: str, new_nonce: Callable[[], str]) -> str:
+    """The seal of a file's first ``size`` bytes whose SHA-256 is ``digest`` (64 hex digits)
+    (module docstring): with the first of up to ``NONCE_TRIES`` nonces (8 hex digits each, from
+    ``new_nonce``) that leaves no 4-byte run repeated in it, else with the last. The bytes field
+    is the same for every nonce, and some sizes repeat a run in it (0x18a18a1: "18a1" twice), so
+    a search until no run repeats would never end; such a text may lose its run to LZ4, and the
+    writer then sees it is not verbatim in the file and logs another, at the file's new size."""
+    text = ""
+    for _ in range(NONCE_TRIES):
+        nonce = new_nonce()
+        text = f"qz{nonce}z{size:x}z{_masked(digest, nonce)}zq"
+        if len({text[k : k + 4] for k in range(len(text) - 3)}) == len(text) - 3:
+            break
+    return text
 
 
 def _masked(digest: str, nonce: str) -> str:

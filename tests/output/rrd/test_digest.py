@@ -148,3 +148,36 @@ def test_the_digest_document_lists_every_entity_legsim_logged(ball):
         "Scalars:scalars": document["entities"]["/state/z"]["Scalars:scalars"],
         "SeriesLines:names": document["entities"]["/state/z"]["SeriesLines:names"],
     }
+
+
+def test_a_seal_whose_size_repeats_a_run_is_made_in_bounded_time():
+    """The seal's bytes field is the same for every nonce. A size whose hex digits repeat a
+    4-byte run (0x18a18a1: "18a1" twice) left no nonce that makes the text free of repeats, and
+    the writer's search for one never ended (a recording test's subprocess spun for 300 s). The
+    text is now made from at most NONCE_TRIES nonces: it still decodes to its size and SHA-256,
+    and a size without a repeated run gets a text without one."""
+    import hashlib
+    import itertools
+    import re
+
+    from legsim.output.rrd import digest as rrd_digest
+
+    sha = hashlib.sha256(b"recording").hexdigest()
+    counter = itertools.count()
+    nonces = []
+
+    def new_nonce():
+        nonces.append(f"{next(counter):08x}")
+        return nonces[-1]
+
+    text = rrd_digest.seal_text(0x18A18A1, sha, new_nonce)
+    assert len(nonces) == rrd_digest.NONCE_TRIES
+    nonce, size, masked = re.fullmatch(rrd_digest._SEAL.pattern.decode(), text).groups()
+    assert int(size, 16) == 0x18A18A1 and rrd_digest._masked(masked, nonce) == sha
+
+    def repeats(text):
+        return len({text[k : k + 4] for k in range(len(text) - 3)}) < len(text) - 3
+
+    rng = random.Random(5)
+    clean = rrd_digest.seal_text(0x2B7C0, sha, lambda: f"{rng.getrandbits(32):08x}")
+    assert not repeats(clean)
