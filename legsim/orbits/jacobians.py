@@ -390,6 +390,7 @@ class _FiniteDifferences:
         orders: dict[int, tuple[tuple[str, ...], tuple[str, ...]]] = {}
         held = self.held_memory()
         quantities = self.held_quantities() if columns is None else set()
+        steps = self.steps()
         asked = range(size) if columns is None else columns
         for j in [j for j in asked if j not in quantities] + sorted(quantities):
             if j in self.p.cyclic_idx:
@@ -398,7 +399,7 @@ class _FiniteDifferences:
             if j in held or (j in quantities and self._is_parameter(J, j)):
                 held.add(j)
                 continue
-            d = float(self.steps()[j])
+            d = float(steps[j])
             kind = "coordinate" if j < self.p.dim else "controller memory"
             plus, minus, errors = _sides(self.shifted(j), d)
             J[:, j] = forward[:, j] = backward[:, j] = _from_sides(
@@ -412,7 +413,7 @@ class _FiniteDifferences:
                     orders[j] = (self.orders[(j, d)], self.orders[(j, -d)])
         skipped = set(self.p.cyclic_idx) | held
         unchecked = tuple(j for j in range(J.shape[1]) if check and j not in stencils and j not in skipped)
-        around = Surroundings(self.order_at, self.start, self.base(), self.steps()) if check else None
+        around = Surroundings(self.order_at, self.start, self.base(), steps) if check else None
         return CheckedJacobian(
             J, forward, backward, tuple(sorted(stencils)), kinked_columns(stencils, J), unchecked, orders, around
         )
@@ -431,23 +432,22 @@ class _FiniteDifferences:
         """Columns of the memory values the problem holds fixed that are flags (no unit), such as
         which leg lands next: no perturbation moves them continuously (a flag read as nonzero
         jumps the return at any step), so their columns stay zero and are not checked for kinks."""
-        p = self.p
-        return {
-            p.dim + i
-            for i, (name, unit) in enumerate(zip(p.memory_names, p.memory_units, strict=True))
-            if name in p.fixed and not unit
-        }
+        return self._held(with_unit=False)
 
     def held_quantities(self) -> set[int]:
         """Columns of the held memory values with a unit, such as a thrust or bias that picks one
         gait of a family: quantities the map moves, whose columns are differentiated, as the
         multipliers of the whole map (its family's 1 among them, ``trivial_multipliers``) need
         them."""
+        return self._held(with_unit=True)
+
+    def _held(self, with_unit: bool) -> set[int]:
+        """Columns of the held memory values with a unit (``with_unit``) or without."""
         p = self.p
         return {
             p.dim + i
             for i, (name, unit) in enumerate(zip(p.memory_names, p.memory_units, strict=True))
-            if name in p.fixed and unit
+            if name in p.fixed and bool(unit) == with_unit
         }
 
     def _is_parameter(self, J: np.ndarray, j: int) -> bool:

@@ -6,9 +6,9 @@ for a section given as a function, the constraints and the energy level. Each it
 the (possibly overdetermined, consistent) linear system by SVD and halves the step while it
 does not reduce the max-norm residual. Where no halving does, a watchdog takes up to
 ``WATCHDOG_STEPS`` full steps that may raise the residual for a while, and keeps them once one
-ends below it: at a kink of the return map (an event order switching at the orbit) difference
+halves it: at a kink of the return map (an event order switching at the orbit) difference
 Jacobians mix the map's pieces, and their first step can raise the residual although the next
-ones converge. They are kept once one halves the residual.
+ones converge.
 
 Failures are never answers: ``find_orbit`` returns an ``OrbitResult`` whose ``status`` says why
 it stopped (``no_return``, ``simulation_failed``, ``singular_jacobian``, ``diverged``,
@@ -59,6 +59,11 @@ NEAR_SINGULAR = 1e-4
 WATCHDOG_STEPS = 4
 WATCHDOG_GROWTH = 100.0
 WATCHDOG_DECREASE = 0.5
+
+
+def _step(U: np.ndarray, sv: np.ndarray, Vt: np.ndarray, F: np.ndarray) -> np.ndarray:
+    """The Gauss-Newton step -J^+ F from J's SVD (U, singular values sv, V^T)."""
+    return -(Vt.T @ ((U.T @ F) / sv))
 
 
 class _Equations:
@@ -481,7 +486,7 @@ class _NewtonSearch:
             return self._flat(it)
         if sv[-1] <= self.singular_tol * sv[0]:
             return self.fail("singular_jacobian", self._singular_message(it, sv, Vt[-1]), it)
-        return -(Vt.T @ ((U.T @ self.F) / sv))
+        return _step(U, sv, Vt, self.F)
 
     def _evaluated(self, z: np.ndarray) -> tuple[np.ndarray, Return, np.ndarray, float] | None:
         """(z, its return, F(z), residual), or None where the return cannot be simulated."""
@@ -495,10 +500,11 @@ class _NewtonSearch:
         """Full Newton steps that may raise the residual for a while (Chamberlain's watchdog),
         tried where no halving of dz lowers it: the first iterate of z + dz and up to ``allowed``
         - 1 further full steps whose residual is below ``WATCHDOG_DECREASE`` of the current one,
-        or None (the search then stays at the current iterate). Near an orbit where the map's event order switches (a
-        symmetric gait) the map is piecewise smooth: a difference Jacobian mixes its pieces, and
-        the step it gives can raise the residual although the steps after it converge, linearly,
-        to the orbit. Each iterate within ``WATCHDOG_GROWTH`` of the current residual counts."""
+        or None (the search then stays at the current iterate). Near an orbit where the map's
+        event order switches (a symmetric gait) the map is piecewise smooth: a difference Jacobian
+        mixes its pieces, and the step it gives can raise the residual although the steps after
+        it converge, linearly, to the orbit. Each iterate must stay within ``WATCHDOG_GROWTH`` of
+        the current residual."""
         trial = self._evaluated(self.z + dz)
         passed: list[float] = []
         for taken in range(1, allowed + 1):
@@ -513,17 +519,21 @@ class _NewtonSearch:
                 return None
             passed.append(trial[3])
             try:
-                J, _ = self.eq.jacobian(trial[0], trial[1], self.method, self.fd_step, newton=True)
+                U, sv, Vt = self._decomposition(True, trial[0], trial[1])
             except OrbitError:
                 return None
-            step = np.linalg.lstsq(J, trial[2], rcond=self.singular_tol)[0]
-            trial = self._evaluated(trial[0] - step)
+            if not (sv.size and np.all(np.isfinite(sv)) and sv[-1] > self.singular_tol * sv[0]):
+                return None
+            trial = self._evaluated(trial[0] + _step(U, sv, Vt, trial[2]))
         return None
 
-    def _decomposition(self, newton: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The SVD (U, singular values, V^T) of dF/dz at the current iterate; OrbitError when the
-        Jacobian cannot be computed."""
-        J, _ = self.eq.jacobian(self.z, self.ret, self.method, self.fd_step, newton=newton)  # type: ignore[arg-type]
+    def _decomposition(
+        self, newton: bool, z: np.ndarray | None = None, ret: Return | None = None
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The SVD (U, singular values, V^T) of dF/dz at z whose return is ret (default the
+        current iterate); OrbitError when the Jacobian cannot be computed."""
+        z, ret = (self.z, self.ret) if z is None else (z, ret)
+        J, _ = self.eq.jacobian(z, ret, self.method, self.fd_step, newton=newton)  # type: ignore[arg-type]
         U, sv, Vt = np.linalg.svd(J, full_matrices=False)
         return U, sv, Vt
 

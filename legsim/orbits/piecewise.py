@@ -368,20 +368,20 @@ def section_matrices(
     c = np.zeros(B.shape[1]) if normal is None else B.T @ normal[keep]
     W = np.eye(B.shape[1])
     if trivial:
-        fixed = _common_unit_directions(Ms, trivial, transpose=False)
-        conserved = _common_unit_directions(Ms, trivial, transpose=True) if normal is None else "not tried"
-        if isinstance(fixed, np.ndarray) and not np.any(np.abs(c @ fixed) > RANK_ONE * np.linalg.norm(c)):
-            W = np.linalg.svd(fixed, full_matrices=True)[0][:, trivial:]
-        elif isinstance(conserved, np.ndarray):
-            W = np.linalg.svd(conserved, full_matrices=True)[0][:, trivial:]
-        else:
-            where = "on their boundary " if normal is not None else ""
+        taken = _common_unit_directions(Ms, trivial, transpose=False)
+        if isinstance(taken, np.ndarray) and np.any(np.abs(c @ taken) > RANK_ONE * np.linalg.norm(c)):
+            taken = "fixed off the boundary"
+        if isinstance(taken, str) and normal is None:
+            # without a boundary, quantities every piece conserves may take the multipliers 1
+            conserved = _common_unit_directions(Ms, trivial, transpose=True)
+            taken = conserved if isinstance(conserved, np.ndarray) else f"{taken}; of [A_k^T - I]: {conserved}"
+        if isinstance(taken, str):
+            kind = "on their boundary" if normal is not None else "nor quantities all pieces conserve"
             return (
-                f"the {trivial} trivial multiplier(s) 1 belong neither to directions all pieces fix {where}nor to "
-                f"quantities all pieces conserve (smallest singular values of [A_k - I]: "
-                f"{fixed if isinstance(fixed, str) else 'fixed off the boundary'}; of [A_k^T - I]: "
-                f"{conserved if isinstance(conserved, str) else '-'})"
+                f"the {trivial} trivial multiplier(s) 1 are no directions all pieces fix {kind} (smallest "
+                f"singular values of [A_k - I]: {taken})"
             )
+        W = np.linalg.svd(taken, full_matrices=True)[0][:, trivial:]
     rows = np.empty((0, W.shape[1])) if normal is None else (W.T @ c).reshape(1, -1)
     return [W.T @ M @ W for M in Ms], rows, int(W.shape[1])
 

@@ -62,13 +62,11 @@ Evaluate = Callable[[np.ndarray], tuple[np.ndarray, tuple[str, ...]]]
 
 @dataclass(frozen=True)
 class SampledPiece:
-    """One region's piece: its event ``order``, the Jacobian ``A`` (N, N) of the augmented map
-    there, and the ``direction`` (N,) of the point inside the region it was taken at (a
-    perturbation of the orbit, in the state's units)."""
+    """One region's piece: its event ``order`` and the Jacobian ``A`` (N, N) of the augmented
+    map there."""
 
     order: tuple[str, ...]
     A: np.ndarray
-    direction: np.ndarray
 
 
 class PieceSampler:
@@ -115,23 +113,22 @@ class PieceSampler:
 
     def piece(self, order: tuple[str, ...], deltas: list[np.ndarray]) -> SampledPiece | str:
         """The piece of the region of ``order`` from its sampled perturbations, or why not."""
-        scaled = [d / np.max(np.abs(d[self.columns] / self.steps[self.columns])) for d in deltas]
-        inside = np.mean(scaled, axis=0)
+        # each sample reaches the box of the steps (``direction``); their mean is scaled back to it
+        inside = np.mean(deltas, axis=0)
         inside /= np.max(np.abs(inside[self.columns] / self.steps[self.columns]))
         point = self.start + inside
-        base, at = self.evaluate(point)
-        if at != order:
+        if self.evaluate(point)[1] != order:
             return f"the mean of the region's {len(deltas)} samples lies outside it"
         for share in INNER:
-            A = self._jacobian(point, base, order, share)
+            A = self._jacobian(point, order, share)
             if A is not None:
-                return SampledPiece(order, A, inside)
+                return SampledPiece(order, A)
         return (
             f"its difference stencils (steps {INNER[-1]:g} of the sampling scale) leave the region "
             f"({len(deltas)} samples): it is too thin to difference"
         )
 
-    def _jacobian(self, point: np.ndarray, base: np.ndarray, order: tuple[str, ...], share: float) -> np.ndarray | None:
+    def _jacobian(self, point: np.ndarray, order: tuple[str, ...], share: float) -> np.ndarray | None:
         """Central differences at ``point`` with steps ``share`` d_j, None when an evaluation
         leaves the region of ``order``."""
         A = self.central.copy()

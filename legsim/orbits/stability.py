@@ -13,7 +13,7 @@ import numpy as np
 from ..control import ControlLaw
 from .errors import OrbitError
 from .jacobians import field_at, floquet_multipliers
-from .kinks import CheckedJacobian, Surroundings
+from .kinks import CheckedJacobian
 from .piecewise import Verdict, piecewise_verdict, section_matrices
 from .problem import OrbitProblem, Return
 from .result import OrbitResult
@@ -68,7 +68,7 @@ def _add_differentiability(result: OrbitResult, problem: OrbitProblem, checked: 
         problem.trivial_multipliers,
     )
     if len(checked.seen_orders) > 2 and checked.around is not None:
-        result.piecewise = _sampled_verdict(problem, checked, checked.around, f)
+        result.piecewise = _sampled_verdict(problem, checked, f)
     result.warnings.append(
         f"the return map is not differentiable at the orbit: the forward and backward differences of "
         f"its Jacobian disagree in the column(s) of {', '.join(names)} (a kink, e.g. transitions that "
@@ -79,9 +79,11 @@ def _add_differentiability(result: OrbitResult, problem: OrbitProblem, checked: 
     )
 
 
-def _sampled_verdict(problem: OrbitProblem, checked: CheckedJacobian, around: Surroundings, f: np.ndarray) -> Verdict:
-    """The verdict on the pieces found by sampling (``sampled_pieces``), where more than two
-    event orders meet at the orbit."""
+def _sampled_verdict(problem: OrbitProblem, checked: CheckedJacobian, f: np.ndarray) -> Verdict:
+    """The verdict on the pieces found by sampling (``sampled_pieces``) around the checked
+    Jacobian's point, where more than two event orders meet at the orbit."""
+    around = checked.around
+    assert around is not None  # the caller checks
     sampler = PieceSampler(around.evaluate, around.start, around.base, checked.checked, around.steps, checked.central)
 
     def project(matrices: list[np.ndarray]) -> list[np.ndarray] | str:

@@ -152,10 +152,10 @@ def test_the_digest_document_lists_every_entity_legsim_logged(ball):
 
 def test_a_seal_whose_size_repeats_a_run_is_made_in_bounded_time():
     """The seal's bytes field is the same for every nonce. A size whose hex digits repeat a
-    4-byte run (0x18a18a1: "18a1" twice) left no nonce that makes the text free of repeats, and
-    the writer's search for one never ended (a recording test's subprocess spun for 300 s). The
-    text is now made from at most NONCE_TRIES nonces: it still decodes to its size and SHA-256,
-    and a size without a repeated run gets a text without one."""
+    4-byte run (0x18a18a1: "18a1" twice) leaves no nonce that makes the text free of repeats, so
+    the text is made from at most NONCE_TRIES nonces (a search until none repeats would never
+    end): it still decodes to its size and SHA-256, and a size without a repeated run gets a
+    text without one."""
     import hashlib
     import itertools
     import re
