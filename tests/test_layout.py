@@ -74,8 +74,10 @@ def test_the_core_imports_neither_robots_nor_pictures_nor_their_libraries():
 
 #: The layers of the package, lowest first: a module imports only from its own layer or those
 #: below (imports inside functions included). The core knows nothing of files, scenes, Rerun,
-#: Pinocchio or the compiled path; the compiled path registers itself with the core; outputs
-#: (files, recordings, summaries) sit on both; the tools above them; robots and pictures on top.
+#: Pinocchio or the compiled path; the compiled path registers itself with the core; the ground
+#: (terrain and its heights, which model functions read) sits on both and knows nothing of scene
+#: files; outputs (files, recordings, summaries) above it; the tools above them; robots and
+#: pictures on top.
 LAYERS = {
     "core": (
         "errors",
@@ -92,9 +94,10 @@ LAYERS = {
         "version",
     ),
     "compiled": ("compiled",),
+    "ground": ("heights", "terrain"),
     "outputs": ("output",),
 }
-RANK = {"core": 0, "compiled": 1, "outputs": 2, "tools": 3, "robots": 4, "viz": 4}
+RANK = {"core": 0, "compiled": 1, "ground": 2, "outputs": 3, "tools": 4, "robots": 5, "viz": 5}
 
 
 def layer_of(module: str) -> str | None:

@@ -68,12 +68,13 @@ from ..control import ControlLaw, Controller
 from ..errors import LegsimError, ModelError, SceneError
 from ..execution import Execution
 from ..output.summary import run_summary
-from ..terrain import Terrain, parse_terrain
+from ..terrain import Terrain
 from .controller import scene_controller
 from .falls import fall_watches
 from .fields import check_keys, describe, field_error, table_at
 from .files import apply_overrides, checked_depth, read_toml, resolve_scene_path, scene_relative_files
 from .integrator import validated_integrator
+from .terrain import parse_terrain
 
 CORE_SECTIONS = ("scene", "robot", "effects", "initial", "integrator", "output", "controller", "fall", "terrain")
 TOOL_SECTIONS = ("orbit", "certify", "stochastic", "zeno", "stress", "bench", "accuracy")

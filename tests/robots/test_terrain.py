@@ -12,16 +12,8 @@ from scipy.optimize import brentq
 
 from legsim.errors import SceneError
 from legsim.scene import load_scene
-from legsim.terrain import (
-    curvature,
-    flat_terrain,
-    height,
-    parse_terrain,
-    profile_terrain,
-    sine_terrain,
-    slope,
-    slope_terrain,
-)
+from legsim.scene.terrain import parse_terrain
+from legsim.terrain import curvature, flat_terrain, height, profile_terrain, sine_terrain, slope, slope_terrain
 
 G = 9.81
 
