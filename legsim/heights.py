@@ -11,6 +11,15 @@ import math
 from .compiled.functions import model_function
 
 FLAT, SLOPE, PROFILE, SINE = 0.0, 1.0, 2.0, 3.0
+#: How near a profile's breakpoint (m) a moving point takes the face it moves onto
+#: (``face_slope``): above the rounding to which the loop locates an event at a corner (the
+#: point's x then lies within an ulp or so of the breakpoint, on either side, 1e-13 m at a
+#: kilometre), and so small that the event it moves is not moved measurably.
+CORNER_RESOLUTION = 1e-12
+#: How near a concave breakpoint (m) a stuck point sits in its notch, held by both faces
+#: (``notch``): above the drift of a stuck point over a stance (about a micrometre), below the
+#: strips the method resolves.
+NOTCH_RESOLUTION = 1e-5
 
 
 @model_function
@@ -70,6 +79,69 @@ def slope(p, at, x):
     if i < 0 or i >= n - 1:
         return 0.0
     return (p[zs + i + 1] - p[zs + i]) / (p[xs + i + 1] - p[xs + i])
+
+
+@model_function
+def face_slope(p, at, x, vx):
+    """dh/dx of the face under a point at x moving at vx (m/s) along x: ``slope``, but within
+    ``CORNER_RESOLUTION`` of a profile's breakpoint the slope of the segment the point moves
+    onto (the right one when it does not move along x). An event at a corner is located where
+    the face changes, which rounding leaves on either side of the breakpoint: there the face
+    the point enters decides the impact and the guards, not the one it leaves."""
+    if p[at] != PROFILE or vx == 0.0:
+        return slope(p, at, x)
+    ahead = x + CORNER_RESOLUTION if vx > 0.0 else x - CORNER_RESOLUTION
+    i, j = _segment(p, at, x), _segment(p, at, ahead)
+    return slope(p, at, x) if i == j else slope(p, at, ahead)
+
+
+@model_function
+def _segment_slope(p, at, i):
+    """dh/dx of profile segment i (level left of the first point and right of the last)."""
+    n = int(p[at + 1])
+    if i < 0 or i >= n - 1:
+        return 0.0
+    xs, zs = at + 2, at + 2 + n
+    return (p[zs + i + 1] - p[zs + i]) / (p[xs + i + 1] - p[xs + i])
+
+
+@model_function
+def notch(p, at, x):
+    """(dh/dx of the bisector, half the angle between the faces' normals (rad)) of the concave
+    breakpoint of a profile within ``NOTCH_RESOLUTION`` of x; (0, -1) where there is none. A
+    point stuck there touches both faces: the ground can push it anywhere in the sum of their
+    friction cones, which is the cone about the bisector of half-angle ``half + atan(mu)``."""
+    if p[at] != PROFILE:
+        return 0.0, -1.0
+    n = int(p[at + 1])
+    xs = at + 2
+    i = _segment(p, at, x)
+    k = 0 if i < 0 else n - 1 if i >= n - 1 else i if x - p[xs + i] <= p[xs + i + 1] - x else i + 1
+    if abs(x - p[xs + k]) > NOTCH_RESOLUTION:
+        return 0.0, -1.0
+    left, right = _segment_slope(p, at, k - 1), _segment_slope(p, at, k)
+    if right <= left:  # level or convex
+        return 0.0, -1.0
+    sl, sr = math.sqrt(1.0 + left * left), math.sqrt(1.0 + right * right)
+    bx, bz = -left / sl - right / sr, 1.0 / sl + 1.0 / sr
+    cosine = min(1.0, (left * right + 1.0) / (sl * sr))
+    return -bx / bz, 0.5 * math.acos(cosine)
+
+
+#: The friction coefficient standing for a cone that is wider than a half-plane: a stuck point
+#: whose faces' cones together span more than 180 degrees never slips.
+UNBOUNDED_MU = 1e12
+
+
+@model_function
+def notch_mu(mu, half):
+    """The friction coefficient about a notch's bisector (``notch``) of a contact with
+    coefficient mu on each face: tan(half + atan(mu)), ``UNBOUNDED_MU`` past a half-plane; mu
+    itself for a frictionless contact (mu < 0)."""
+    if mu < 0.0:
+        return mu
+    angle = half + math.atan(mu)
+    return UNBOUNDED_MU if angle >= 0.5 * math.pi - 1e-12 else math.tan(angle)
 
 
 @model_function

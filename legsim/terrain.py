@@ -14,8 +14,8 @@ Kinds (``Terrain.array``, float64; the first entry is the kind code):
 ``height``, ``slope`` and ``curvature`` (model functions, ``legsim.heights``) give h, dh/dx and
 d2h/dx2 at x (m, 1, 1/m) from the array and the offset ``at`` of its first entry (the terrain
 sits in a model's parameter array). At a profile's breakpoint the slope is the right segment's;
-a profile's curvature is 0 (a corner is where the slope jumps: a point resting on the profile
-that slides across one is not resolved there, see ``docs/scenes.md``).
+a profile's curvature is 0 (a corner is where the slope jumps: a point at one takes the face it
+moves onto, ``face_slope``, and one stuck in a notch both faces, ``notch``; ``docs/scenes.md``).
 
 A scene's ``[terrain]`` table is validated into a ``Terrain`` by ``legsim.scene.terrain``.
 """

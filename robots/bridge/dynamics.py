@@ -7,8 +7,11 @@ and the actuated joints' input u. Without active rigid contacts the acceleration
 J a + dJ/dt v = 0`` through the Schur complement of ABA (``lsn_constrained``; W = J except on a
 slipping point's normal row, ``J_n - s mu J_t``). A point's rows are x and z on level ground, the
 terrain's tangent t and normal n under it on a terrain (``legsim.terrain``; a sliding point
-keeps ``z - h(x) = 0``, whose drift has the curvature term). Where slipping contacts have no unique forces
-(the Painleve paradox) the acceleration is nan: a state past the model's range.
+keeps ``z - h(x) = 0``, whose drift has the curvature term). At a profile's breakpoint a
+sliding point's face is the one it slides onto, and a stuck point in a notch (a concave
+breakpoint) is held by both faces: its rows are the bisector's tangent and normal
+(``legsim.heights.notch``). Where slipping contacts have no unique forces (the Painleve
+paradox) the acceleration is nan: a state past the model's range.
 
 The state is ``x = (q, v, footholds)``: q and v of size nv, then the foothold x (m) of each
 stance leg in declared order, which the flow keeps.
@@ -23,7 +26,7 @@ from legsim.robots import _native
 from legsim.robots._native.calls import lsn_aba, lsn_constrained, lsn_frame_jacobian, lsn_frames, lsn_tally
 
 from legsim.compiled.functions import model_function
-from legsim.heights import curvature, slope
+from legsim.heights import curvature, face_slope, notch, notch_mu
 
 from .layout import (
     B_POINT,
@@ -173,7 +176,7 @@ def point_slope(x, p, frame, kin):
     ids = np.full(1, float(frame))
     lsn_frames(handle(p), x.ctypes.data, ptr(x, int(p[P_N])), np.int64(1), ids.ctypes.data, kin.ctypes.data)
     keep(ids)
-    grade = slope(p, int(p[P_TERRAIN]), kin[0])
+    grade = face_slope(p, int(p[P_TERRAIN]), kin[0], kin[2])
     return grade, math.sqrt(1.0 + grade * grade)
 
 
@@ -193,10 +196,33 @@ def terrain_slopes(x, p, count, src, at):
     keep(ids)
     terrain = int(p[P_TERRAIN])
     for k in range(count):
-        if src[at + BLOCK_SIZE * k] != B_STOP:
-            slopes[2 * k] = slope(p, terrain, kin[4 * k])
-            slopes[2 * k + 1] = curvature(p, terrain, kin[4 * k])
+        block = at + BLOCK_SIZE * k
+        if src[block] == B_STOP:
+            continue
+        px = kin[4 * k]
+        if src[block] == B_SLIPPING:  # the face it slides onto: its direction is its status
+            slopes[2 * k] = face_slope(p, terrain, px, src[block + 2])
+        else:
+            bisector, half = notch(p, terrain, px)
+            slopes[2 * k] = bisector if half >= 0.0 else face_slope(p, terrain, px, kin[4 * k + 2])
+        slopes[2 * k + 1] = curvature(p, terrain, px)
     return slopes
+
+
+@model_function
+def stuck_mu(x, p, c):
+    """The friction coefficient of the stuck point contact at record c of p at q: its own, or
+    about the bisector where it sits in a notch (``legsim.heights.notch_mu``; its forces are
+    then those of that frame, ``terrain_slopes``)."""
+    mu = p[c + C_MU]
+    if not on_terrain(p):
+        return mu
+    kin = np.empty(4)
+    ids = np.full(1, p[c + C_ID])
+    lsn_frames(handle(p), x.ctypes.data, ptr(x, int(p[P_N])), np.int64(1), ids.ctypes.data, kin.ctypes.data)
+    keep(ids)
+    half = notch(p, int(p[P_TERRAIN]), kin[0])[1]
+    return notch_mu(mu, half) if half >= 0.0 else mu
 
 
 @model_function

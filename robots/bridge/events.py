@@ -38,7 +38,7 @@ import numpy as np
 from legsim.robots._native.calls import lsn_frame_motion, lsn_frames, lsn_impact
 
 from legsim.compiled.functions import model_function
-from legsim.heights import height, slope
+from legsim.heights import face_slope, height
 
 from .dynamics import (
     accelerate,
@@ -50,9 +50,10 @@ from .dynamics import (
     point_slope,
     ptr,
     status_code,
+    stuck_mu,
     terrain_slopes,
 )
-from .friction import event_outcome, mode_change
+from .friction import event_outcome, mode_change, realize
 from .layout import (
     ARMED_AHEAD,
     ARMED_COORDINATE,
@@ -61,7 +62,6 @@ from .layout import (
     C_ARMED_REF,
     C_ID,
     C_KIND,
-    C_MU,
     C_PLACE,
     C_SIGN,
     C_SLOT,
@@ -141,7 +141,8 @@ def gap(x, p, contact, kin):
     slot = 4 * int(p[c + C_SLOT])
     if on_terrain(p):
         terrain, px = int(p[P_TERRAIN]), kin[slot]
-        value = max(kin[slot + 1] - height(p, terrain, px), kin[slot + 3] - slope(p, terrain, px) * kin[slot + 2])
+        grade = face_slope(p, terrain, px, kin[slot + 2])
+        value = max(kin[slot + 1] - height(p, terrain, px), kin[slot + 3] - grade * kin[slot + 2])
     else:
         value = max(kin[slot + 1] - p[c + C_PLACE], kin[slot + 3])
     armed = p[c + C_ARMED]
@@ -324,7 +325,7 @@ def event_base(x, p, ev, kin, a, lam):
     if kind == E_CORNER:
         return corner_base(x, p, int(p[c + C_ID]))
     if kind == E_SLIP:
-        return p[c + C_MU] * lam[row] + s * lam[row - 1]
+        return stuck_mu(x, p, c) * lam[row] + s * lam[row - 1]
     n = int(p[P_N])
     motion = np.empty(4)
     lsn_frame_motion(handle(p), x.ctypes.data, ptr(x, n), a.ctypes.data, np.int64(p[c + C_ID]), motion.ctypes.data)
@@ -341,19 +342,26 @@ def event_base(x, p, ev, kin, a, lam):
 #: face, not the velocity: a few um/s over a stance). Corners of less than 0.6 degrees, or
 #: passed slower than 0.1 mm/s, are taken as smooth.
 CORNER_SINE, CORNER_FLOOR = 1e-2, 1e-4
+#: How far (m) an active point may lie below the face under it before it counts as having passed
+#: a concave corner: far above the drift of its height on a face, far below any step. A step
+#: that carries a sliding point over a face narrower than itself (a 1 mm riser) never lands
+#: where the normal speed has jumped, but it does land below the ground.
+CORNER_DEPTH = 1e-5
 
 
 @model_function
 def corner_base(x, p, frame):
-    """The corner event's base guard of the active point at Pinocchio frame ``frame`` (m/s):
-    ``CORNER_SINE |v| + CORNER_FLOOR - |v_n|``, v_n its velocity along the normal of the face
-    under it. On a face the constraint keeps v_n near 0; past a corner of the profile the
+    """The corner event's base guard of the active point at Pinocchio frame ``frame`` (m/s, or m
+    for its depth): ``CORNER_SINE |v| + CORNER_FLOOR - |v_n|``, v_n its velocity along the
+    normal of the face under it, and at most its height above that face plus ``CORNER_DEPTH``. On
+    a face the constraint keeps v_n and the height near 0; past a corner of the profile the
     face's normal turns and v_n jumps (into the new face at a concave corner, away from it at a
     convex one): the loop crosses that jump (``ModeFunctions.crosses_jumps``)."""
     kin = np.empty(4)
     grade, norm = point_slope(x, p, frame, kin)
     normal_speed = (kin[3] - grade * kin[2]) / norm
-    return CORNER_SINE * math.hypot(kin[2], kin[3]) + CORNER_FLOOR - abs(normal_speed)
+    turned = CORNER_SINE * math.hypot(kin[2], kin[3]) + CORNER_FLOOR - abs(normal_speed)
+    return min(turned, kin[1] - height(p, int(p[P_TERRAIN]), kin[0]) + CORNER_DEPTH)
 
 
 @model_function
@@ -413,8 +421,15 @@ def coulomb_guards(x, u, p, kin, g):
 @model_function
 def outcome_image(x, u, p, tr, continued, out):
     """The image of outcome transition record tr (its event's outcome at x), or of its
-    continuation (a bounce's rest: the strike made plastic) into out; nan without outcome."""
+    continuation (a bounce's rest: the strike made plastic) into out; nan without outcome. Where
+    the outcome at x is not tr's target (chosen where the step landed), the impact into that
+    target (``friction.realize``)."""
     ev = int(p[P_EVENT]) + EVENT_SIZE * int(p[tr + TR_EVENT])
-    status = np.empty(max(1, int(p[P_NCONTACT])))
-    if not outcome(x, u, p, ev, continued, status, out[: x.shape[0]]):
-        out[: x.shape[0]] = math.nan
+    contacts = int(p[P_NCONTACT])
+    status = np.empty(max(1, contacts))
+    image = out[: x.shape[0]]
+    found = outcome(x, u, p, ev, continued, status, image)
+    if found and not continued and status_code(status, contacts) != p[tr + TR_TARGET]:
+        found = realize(x, p, p[tr + TR_TARGET], image)
+    if not found:
+        image[:] = math.nan

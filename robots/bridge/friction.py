@@ -30,7 +30,7 @@ from legsim.robots._native.calls import lsn_crba, lsn_minverse, lsn_tally
 
 from legsim.compiled.functions import model_function
 
-from .dynamics import accelerate, blocks_of, handle
+from .dynamics import accelerate, blocks_of, handle, stuck_mu
 from .impacts import ENERGY_TOL, FREE, MAX_TRIES, NORMAL, SLIDE, STICK, TOL, contact_rows, dot, kinetic, solve_rows
 from .layout import (
     BLOCK_SIZE,
@@ -47,6 +47,7 @@ from .layout import (
     S_ACTIVE,
     S_SLIP_NEG,
     S_SLIP_POS,
+    STATUS_BASE,
 )
 from .native import C_IMPACTS, C_PAINLEVE
 
@@ -334,8 +335,8 @@ def force_change(image, u, p, status, order, slip, count):
     if worst >= 0:
         return DROP, worst, 0.0
     for j in range(count):
-        mu = p[contact_record(p, order[j]) + C_MU]
         ft, fn = tangent[order[j]], normal[order[j]]
+        mu = stuck_mu(image, p, contact_record(p, order[j])) if slip[j] == 0.0 else 0.0
         if mu >= 0.0 and slip[j] == 0.0 and abs(ft) > mu * fn * (1 + TOL) + TOL * scale:
             return SLIP, j, (-1.0 if ft > 0.0 else 1.0)
     return NO_CHANGE, -1, 0.0
@@ -441,3 +442,37 @@ def mode_change(x, u, p, contact, slip_to, drop, status_out, image):
         slip[count] = slip_to if i == contact else 1.0 if s == S_SLIP_POS else -1.0 if s == S_SLIP_NEG else 0.0
         count += 1
     return settle_slips(x, u, p, x[n : 2 * n], order, slip, count, status_out, image)
+
+
+@model_function
+def realize(x, p, code, image):
+    """The image at x of the impact that ends in the mode of status code ``code`` (``status_code``):
+    its active contacts held in their statuses through the impact (stuck, or sliding their way),
+    the others free. Returns False where that impact has no consistent impulses.
+
+    A crossing's outcome is chosen where its step landed, a little past the guard, and its image
+    is taken at the guard point: where the impact law's answer changes between the two (a
+    slipping contact whose forces become singular there, say), the image realizes the outcome
+    chosen, so that a contact entering stuck is at rest."""
+    contacts = int(p[P_NCONTACT])
+    engaged = np.zeros((contacts, 4))
+    k = 0
+    rest = code
+    for i in range(contacts):
+        s = rest % STATUS_BASE
+        rest = (rest - s) / STATUS_BASE
+        if s == S_ABSENT:
+            continue
+        engaged[k, 0] = i
+        if s == S_SLIP_POS or s == S_SLIP_NEG:  # noqa: SIM109 -- two float compares, no tuple in compiled code
+            engaged[k, 2], engaged[k, 3] = SLIDE, (-1.0 if s == S_SLIP_POS else 1.0)
+        else:
+            engaged[k, 2] = STICK if p[contact_record(p, i) + C_ROWS] == 2.0 else NORMAL
+        k += 1
+    n = int(p[P_N])
+    v_plus, vt, vn = np.empty(n), np.empty(k), np.empty(k)
+    if not frictional_impact(x, p, engaged[:k].copy(), np.ones(k), v_plus, vt, vn):
+        return False
+    image[:] = x
+    image[n : 2 * n] = v_plus
+    return True

@@ -35,7 +35,7 @@ import numpy as np
 from legsim.robots._native.calls import lsn_crba, lsn_frame_jacobian, lsn_impact, lsn_solve
 
 from legsim.compiled.functions import model_function
-from legsim.heights import slope
+from legsim.heights import face_slope
 
 from .dynamics import handle, keep, on_terrain, ptr, terrain_slopes
 from .layout import (
@@ -80,7 +80,10 @@ def contact_rows(x, p, contact, t_row, n_row):
     lsn_frame_jacobian(handle(p), x.ctypes.data, np.int64(p[c + C_ID]), jac.ctypes.data)
     grade, norm = 0.0, 1.0
     if on_terrain(p):
-        grade = slope(p, int(p[P_TERRAIN]), jac[0])
+        vx = 0.0
+        for j in range(n):
+            vx += jac[2 + j] * x[n + j]
+        grade = face_slope(p, int(p[P_TERRAIN]), jac[0], vx)
         norm = math.sqrt(1.0 + grade * grade)
     if grade == 0.0:
         for j in range(n):

@@ -43,6 +43,32 @@ def test_a_staircase_down_tips_the_bound_over_and_says_so():
     assert abs(abs(ex.final_state[2]) - 1.0) < 1e-6
 
 
+def test_a_foot_entering_a_stuck_mode_is_at_rest():
+    """Steps up 5 cm: every transition into a mode where a foot is stuck leaves that foot at rest
+    (its velocity 0 to 1e-9 m/s). Where the impact law's outcome at the landing point (stuck)
+    and at the guard point (sliding) differ, the image is the impact into the outcome chosen
+    (``friction.realize``): here a front foot's touchdown at 6.189 s, which otherwise entered
+    the stuck mode sliding at 0.83 m/s and slid 6 cm in it."""
+    import pinocchio as pin
+
+    scene = load_scene(SCENE, ["terrain.rise=0.05", "integrator.t_final=6.3"])
+    ex = scene.simulate()
+    assert ex.t_end == 6.3
+    bridge = scene.model.info["bridge"]
+    model = bridge.model
+    data = model.createData()
+    entered = 0
+    for tr in ex.transitions:
+        stuck = [part for part in tr.target.split("+") if part in ("hind", "front")]
+        q, v = tr.state_after[: model.nq], tr.state_after[model.nq : model.nq + model.nv]
+        pin.computeJointJacobians(model, data, q)
+        for foot in stuck:
+            jacobian = pin.getFrameJacobian(model, data, model.getFrameId(f"{foot}_foot"), pin.LOCAL_WORLD_ALIGNED)
+            assert np.abs(jacobian[[0, 2]] @ v).max() < 1e-9, (tr.time, tr.name, foot)
+            entered += 1
+    assert entered > 20
+
+
 def test_a_step_taller_than_the_leg_is_never_a_finished_run():
     """A 0.5 m step (the leg is 0.42 m long): the body, which has no contact, runs into the
     riser. The scene's ``below_ground = "fall"`` makes that a crash: the run ends there with
@@ -64,7 +90,7 @@ def test_rise_excludes_heights_naming_the_field():
 def test_the_steps_profile_of_a_rise_is_the_listed_staircase(tmp_path):
     """rise = 0.02 over 5 positions is heights [0.02, 0.04, ..., 0.1] (to 1e-15 m: the products
     0.02 k and the decimal literals differ in the last bit)."""
-    from legsim.terrain import parse_terrain
+    from legsim.scene.terrain import parse_terrain
 
     positions = [1.5, 2.1, 2.7, 3.3, 3.9]
     by_rise = parse_terrain(tmp_path / "s.toml", {"kind": "steps", "positions": positions, "rise": 0.02})
