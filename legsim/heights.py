@@ -115,7 +115,7 @@ def notch(p, at, x):
         return 0.0, -1.0
     n = int(p[at + 1])
     xs = at + 2
-    i = _segment(p, at, x)
+    i = _segment(p, at, x)  # the nearest breakpoint k: an end of segment i
     k = 0 if i < 0 else n - 1 if i >= n - 1 else i if x - p[xs + i] <= p[xs + i + 1] - x else i + 1
     if abs(x - p[xs + k]) > NOTCH_RESOLUTION:
         return 0.0, -1.0
