@@ -11,6 +11,7 @@ import pytest
 from scipy.optimize import brentq
 
 from legsim.errors import SceneError
+from legsim.heights import CORNER_RESOLUTION, NOTCH_RESOLUTION, UNBOUNDED_MU, face_slope, notch, notch_mu
 from legsim.scene import load_scene
 from legsim.scene.terrain import parse_terrain
 from legsim.terrain import curvature, flat_terrain, height, profile_terrain, sine_terrain, slope, slope_terrain
@@ -77,6 +78,43 @@ def test_the_encoded_terrains_give_the_closed_form_height_slope_and_curvature(tm
     assert height(incline, 0, 3.0) == pytest.approx(2.0 + 2.0 * math.tan(math.radians(30.0)), abs=1e-15)
     steps = parse_terrain(path, {"kind": "steps", "positions": [1.0, 2.0], "heights": [0.1, 0.25], "riser": 0.01})
     assert [height(steps.array, 0, x) for x in (0.5, 0.995, 1.5, 2.5)] == pytest.approx([0.0, 0.05, 0.1, 0.25])
+
+
+def test_a_point_at_a_breakpoint_takes_the_face_it_moves_onto():
+    """A tread at 0 then a riser of grade 50 from x = 1: within CORNER_RESOLUTION of the
+    breakpoint, on either side, a point moving towards +x is on the riser and one moving towards
+    -x on the tread; one not moving along x, and one farther away, on the face under it."""
+    steps = profile_terrain([0.0, 1.0, 1.02], [0.0, 0.0, 1.0]).array
+    below, above = np.nextafter(1.0, 0.0), np.nextafter(1.0, 2.0)
+    for x in (below, 1.0, above):
+        assert face_slope(steps, 0, x, 0.5) == pytest.approx(50.0, rel=1e-14)
+        assert face_slope(steps, 0, x, -0.5) == 0.0
+    assert face_slope(steps, 0, below, 0.0) == 0.0 and face_slope(steps, 0, above, 0.0) == pytest.approx(50.0)
+    far = 1.0 - 10 * CORNER_RESOLUTION
+    assert face_slope(steps, 0, far, 0.5) == 0.0 and face_slope(steps, 0, 1.01, -0.5) == pytest.approx(50.0)
+
+
+def test_a_notch_is_the_bisector_of_a_concave_breakpoint_and_the_sum_of_its_cones():
+    """A V of faces at -theta and +theta: the bisector is level and half the angle between the
+    normals is theta. A tread meeting a riser of grade g: the normals are atan(g) apart, so the
+    bisector's grade is tan(atan(g) / 2) and the half-angle atan(g) / 2. A convex breakpoint, or
+    one farther than NOTCH_RESOLUTION, is no notch. The cone about the bisector has half-angle
+    half + atan(mu): unbounded where that passes 90 degrees (a V at 60 degrees, mu = 0.8)."""
+    theta = math.radians(40.0)
+    v = profile_terrain([-1.0, 0.0, 1.0], [math.tan(theta), 0.0, math.tan(theta)]).array
+    grade, half = notch(v, 0, 0.5 * NOTCH_RESOLUTION)
+    assert grade == pytest.approx(0.0, abs=1e-15) and half == pytest.approx(theta, rel=1e-12)
+    steps = profile_terrain([0.0, 1.0, 1.02], [0.0, 0.0, 1.0]).array
+    grade, half = notch(steps, 0, 1.0)
+    assert grade == pytest.approx(math.tan(0.5 * math.atan(50.0)), rel=1e-12)
+    assert half == pytest.approx(0.5 * math.atan(50.0), rel=1e-12)
+    assert notch(steps, 0, 1.02)[1] == -1.0  # the riser's top: convex
+    assert notch(steps, 0, 1.0 + 2 * NOTCH_RESOLUTION)[1] == -1.0
+    assert notch_mu(0.3, theta) == pytest.approx(math.tan(theta + math.atan(0.3)), rel=1e-14)
+    riser_half = 0.5 * math.atan(50.0)
+    assert notch_mu(0.8, riser_half) == pytest.approx(math.tan(riser_half + math.atan(0.8)), rel=1e-14)
+    assert notch_mu(0.8, math.radians(60.0)) == UNBOUNDED_MU
+    assert notch_mu(-1.0, theta) == -1.0  # frictionless: no cone to widen
 
 
 def test_a_terrain_has_a_uniform_grade_only_where_its_normal_never_turns():
