@@ -73,12 +73,7 @@ def slope(p, at, x):
         return p[at + 1]
     if kind == SINE:
         return p[at + 2] * p[at + 3] * math.cos(p[at + 3] * x + p[at + 4])
-    n = int(p[at + 1])
-    xs, zs = at + 2, at + 2 + n
-    i = _segment(p, at, x)
-    if i < 0 or i >= n - 1:
-        return 0.0
-    return (p[zs + i + 1] - p[zs + i]) / (p[xs + i + 1] - p[xs + i])
+    return _segment_slope(p, at, _segment(p, at, x))
 
 
 @model_function
@@ -90,9 +85,8 @@ def face_slope(p, at, x, vx):
     the point enters decides the impact and the guards, not the one it leaves."""
     if p[at] != PROFILE or vx == 0.0:
         return slope(p, at, x)
-    ahead = x + CORNER_RESOLUTION if vx > 0.0 else x - CORNER_RESOLUTION
-    i, j = _segment(p, at, x), _segment(p, at, ahead)
-    return slope(p, at, x) if i == j else slope(p, at, ahead)
+    # a profile's slope is constant on each segment: a point a hair ahead is on the face moved onto
+    return slope(p, at, x + math.copysign(CORNER_RESOLUTION, vx))
 
 
 @model_function

@@ -26,7 +26,7 @@ from legsim.robots import _native
 from legsim.robots._native.calls import lsn_aba, lsn_constrained, lsn_frame_jacobian, lsn_frames, lsn_tally
 
 from legsim.compiled.functions import model_function
-from legsim.heights import curvature, face_slope, notch, notch_mu
+from legsim.heights import PROFILE, curvature, face_slope, notch, notch_mu
 
 from .layout import (
     B_POINT,
@@ -215,7 +215,7 @@ def stuck_mu(x, p, c):
     about the bisector where it sits in a notch (``legsim.heights.notch_mu``; its forces are
     then those of that frame, ``terrain_slopes``)."""
     mu = p[c + C_MU]
-    if not on_terrain(p):
+    if not on_terrain(p) or p[int(p[P_TERRAIN])] != PROFILE:  # only a profile has notches
         return mu
     kin = np.empty(4)
     ids = np.full(1, p[c + C_ID])

@@ -388,12 +388,7 @@ def event_outcome(x, u, p, strikers, rest, stopping, status_out, image):
         s = p[int(p[P_STATUS]) + i]
         if s == S_ABSENT or (released >> i) & 1 or (strikers >> i) & 1 or i == stopping:
             continue
-        rows = p[contact_record(p, i) + C_ROWS]
-        engaged[k, 0] = i
-        if s == S_SLIP_POS or s == S_SLIP_NEG:  # noqa: SIM109 -- two float compares, no tuple in compiled code
-            engaged[k, 2], engaged[k, 3] = SLIDE, (-1.0 if s == S_SLIP_POS else 1.0)
-        else:
-            engaged[k, 2] = STICK if rows == 2.0 else NORMAL
+        engage_active(p, i, s, engaged, k)
         k += 1
     k = engage_strikers(x, p, strikers, rest, engaged, k)
     if stopping >= 0:
@@ -405,6 +400,17 @@ def event_outcome(x, u, p, strikers, rest, stopping, status_out, image):
     if not frictional_impact(x, p, used, held[:k], v_plus, vt, vn):
         return False
     return settle(x, u, p, used, v_plus, vt, status_out, image)
+
+
+@model_function
+def engage_active(p, i, s, engaged, k):
+    """Contact i, active with status s, into engaged[k] for an impact that holds it: sliding its
+    way (its impulse opposing the slip) or stuck (normal only without friction rows)."""
+    engaged[k, 0] = i
+    if s == S_SLIP_POS or s == S_SLIP_NEG:  # noqa: SIM109 -- two float compares, no tuple in compiled code
+        engaged[k, 2], engaged[k, 3] = SLIDE, (-1.0 if s == S_SLIP_POS else 1.0)
+    else:
+        engaged[k, 2] = STICK if p[contact_record(p, i) + C_ROWS] == 2.0 else NORMAL
 
 
 @model_function
@@ -463,11 +469,7 @@ def realize(x, p, code, image):
         rest = (rest - s) / STATUS_BASE
         if s == S_ABSENT:
             continue
-        engaged[k, 0] = i
-        if s == S_SLIP_POS or s == S_SLIP_NEG:  # noqa: SIM109 -- two float compares, no tuple in compiled code
-            engaged[k, 2], engaged[k, 3] = SLIDE, (-1.0 if s == S_SLIP_POS else 1.0)
-        else:
-            engaged[k, 2] = STICK if p[contact_record(p, i) + C_ROWS] == 2.0 else NORMAL
+        engage_active(p, i, s, engaged, k)
         k += 1
     n = int(p[P_N])
     v_plus, vt, vn = np.empty(n), np.empty(k), np.empty(k)
