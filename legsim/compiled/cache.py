@@ -27,6 +27,7 @@ import hashlib
 import os
 import re
 import shutil
+from collections.abc import Iterable
 from functools import cache
 from pathlib import Path
 from typing import Any
@@ -182,6 +183,31 @@ def source_digest(path: Path) -> str:
     return digest.hexdigest()[:24]
 
 
+#: Files whose code shapes the machine code of other files' functions, by the latter: the
+#: kernel's module (its calls into the function table, what it inlines) for the loop's modules,
+#: whose functions are compiled only through it. Their digests join those functions' stamps.
+_COMPILED_UNDER: dict[Path, tuple[Path, ...]] = {}
+
+
+def compiled_under(sources: Iterable[str | Path], compilers: Iterable[str | Path]) -> None:
+    """Declare that the functions of the files ``sources`` are compiled under the code of the
+    files ``compilers``: a change of either makes their cached code stale."""
+    under = tuple(Path(c).resolve() for c in compilers)
+    for source in sources:
+        _COMPILED_UNDER[Path(source).resolve()] = under
+
+
+def stamp(path: Path) -> str:
+    """The stamp of the compiled functions of ``path``: its ``source_digest``, with those of the
+    files it is compiled under (``compiled_under``)."""
+    digest = source_digest(path)
+    under = _COMPILED_UNDER.get(path.resolve(), ())
+    if not under:
+        return digest
+    joined = digest + "".join(source_digest(c) for c in under)
+    return hashlib.sha256(joined.encode()).hexdigest()[:24]
+
+
 class LegsimCacheLocator(caching._CacheLocator):
     """numba's cache locator for legsim's own functions (module docstring)."""
 
@@ -198,7 +224,7 @@ class LegsimCacheLocator(caching._CacheLocator):
         return self._cache_path
 
     def get_source_stamp(self) -> str:
-        return source_digest(self._py_file)
+        return stamp(self._py_file)
 
     def get_disambiguator(self) -> str:
         return str(self._lineno)

@@ -34,16 +34,39 @@ LOOP_OPTIONS: dict[str, Any] = {**JIT_OPTIONS, "_nrt": False}
 CALL_OPTIONS: Any = {"error_model": "numpy", "_nrt": False}
 
 
+#: The loop's functions that numba inlines into their callers. A compiled call passes its tuple
+#: arguments flattened, by value: the workspace's arrays, the tables and the method are some 350
+#: machine words pushed at each call. The functions every step goes through (the loop's step, its
+#: trial, stages and error norm, and the move to its end) are therefore inlined: the step loop
+#: runs about 12% faster (a compass gait of 218 dop853 steps, 1.80 to 1.57 ms) for about 25 s more
+#: of its one compilation. Inlining more (crossings, mode entries) gained nothing measurable and
+#: doubled the compilation.
+INLINED = frozenset(
+    {
+        "legsim.relaxed.loop.step_once",
+        "legsim.relaxed.loop.advance",
+        "legsim.relaxed.stepping.take_step",
+        "legsim.relaxed.stepping.trial",
+        "legsim.relaxed.stages.stages",
+        "legsim.relaxed.stages.error_norm",
+    }
+)
+
+
 def _register(module: pytypes.ModuleType) -> None:
     """Make every function defined in ``module`` callable from compiled code (with the loop's
-    options)."""
+    options; those of ``INLINED`` inlined where they are called)."""
+    options = {k: v for k, v in LOOP_OPTIONS.items() if k != "cache"}
     for value in vars(module).values():
         if isinstance(value, pytypes.FunctionType) and value.__module__ == module.__name__:
-            register_jitable(**{k: v for k, v in LOOP_OPTIONS.items() if k != "cache"})(value)
+            inline = "always" if f"{module.__name__}.{value.__name__}" in INLINED else "never"
+            register_jitable(**options, inline=inline)(value)
 
 
 def _register_loop() -> None:
-    """Make every function of the loop's modules callable from compiled code."""
+    """Make every function of the loop's modules callable from compiled code, compiled under
+    this module (its calls and inlining are part of their code)."""
+    cache.compiled_under([module.__file__ for module in LOOP_MODULES], [__file__])
     for module in LOOP_MODULES:
         _register(module)
 
@@ -58,6 +81,7 @@ def tool(fn: Any) -> Any:
     compiled = _TOOLS.get(fn)
     if compiled is None:
         module = sys.modules[fn.__module__]
+        cache.compiled_under([module.__file__], [__file__])
         _register(module)
         compiled = _TOOLS[fn] = cache.use_legsim_cache(numba.njit(**LOOP_OPTIONS)(fn))
     return compiled

@@ -368,12 +368,16 @@ class Assembly:
         zeno = ZenoWatch(self.options.zeno_window, self.options.continuation)
         order = OrderWatch()
         replay = _Replay()
+        # The Zeno watch opens an episode only at an accumulating crossing: without one it has
+        # nothing to say, and most runs skip its replay.
+        replays_zeno = any(crossing[4] for crossing in self.crossings)
         for source, name, tc, exit_time, accumulates, continued, has_cont, pair, q in self.crossings:
-            replay.transitions.append(None)
-            replay.strip_time += exit_time - tc
             if pair[0] >= 0 and pair[1] >= 0:
                 order.check(self.system.mode_data(source), list(pair), q[: self.system.mode(source).dim], tc)
-            zeno.crossed(replay, source, name, tc, exit_time, accumulates, continued, has_cont)
+            if replays_zeno:
+                replay.transitions.append(None)
+                replay.strip_time += exit_time - tc
+                zeno.crossed(replay, source, name, tc, exit_time, accumulates, continued, has_cont)
         strip_time = sum(s.exit_time - s.time for s in self.strips)
         replay.strip_time = strip_time
         out = zeno.warnings(replay, t_end) + order.warnings()

@@ -4,10 +4,12 @@ that decides which sources a stamp covers, checked against Python's own parser."
 from __future__ import annotations
 
 import ast
+import importlib
 from pathlib import Path
 
 import pytest
 
+from legsim.compiled import cache
 from legsim.compiled.cache import import_statements
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -66,3 +68,35 @@ def test_the_import_scan_reads_every_form_ruff_leaves_and_skips_docstrings(sourc
     assert import_statements(source) == parsed_imports(source)
     assert (1, None, "functions") in import_statements(source)
     assert not any(module == "legsim" or name == "nothing" for _, module, name in import_statements(source))
+
+
+def test_a_file_compiled_under_another_is_stamped_with_it(tmp_path):
+    """The loop's modules are compiled under the kernel's module (its calls into the function
+    table, what it inlines): an edit of the kernel's module alone must make their cached code
+    stale, though they do not import it."""
+    source, compiler = tmp_path / "loop_like.py", tmp_path / "kernel_like.py"
+    source.write_text("def step():\n    return 1\n")
+    compiler.write_text('INLINED = frozenset({"step"})\n')
+    alone = cache.stamp(source)
+    cache.compiled_under([source], [compiler])
+    try:
+        under = cache.stamp(source)
+        compiler.write_text("INLINED = frozenset()\n")
+        cache.source_digest.cache_clear()
+        edited = cache.stamp(source)
+    finally:
+        cache._COMPILED_UNDER.pop(source.resolve(), None)
+        cache.source_digest.cache_clear()
+    assert len({alone, under, edited}) == 3
+    assert cache.stamp(source) == alone
+
+
+def test_the_kernel_inlines_functions_that_exist_and_stamps_the_loop_with_itself():
+    # An entry naming no function (a renamed one) would silently stop being inlined.
+    from legsim.compiled import kernel
+
+    for name in kernel.INLINED:
+        module, function = name.rsplit(".", 1)
+        assert callable(getattr(importlib.import_module(module), function, None)), name
+    kernel_file = Path(kernel.__file__).resolve()
+    assert all(cache._COMPILED_UNDER[Path(m.__file__).resolve()] == (kernel_file,) for m in kernel.LOOP_MODULES)
