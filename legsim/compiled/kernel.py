@@ -37,10 +37,9 @@ CALL_OPTIONS: Any = {"error_model": "numpy", "_nrt": False}
 #: The loop's functions that numba inlines into their callers. A compiled call passes its tuple
 #: arguments flattened, by value: the workspace's arrays, the tables and the method are some 350
 #: machine words pushed at each call. The functions every step goes through (the loop's step, its
-#: trial, stages and error norm, and the move to its end) are therefore inlined: the step loop
-#: runs about 12% faster (a compass gait of 218 dop853 steps, 1.80 to 1.57 ms) for about 25 s more
-#: of its one compilation. Inlining more (crossings, mode entries) gained nothing measurable and
-#: doubled the compilation.
+#: trial, stages and error norm, and the move to its end) are therefore inlined, for about 25 s
+#: more of the loop's one compilation; inlining more (crossings, mode entries) gained nothing
+#: measurable and doubled it (docs/architecture.md, "The loop").
 INLINED = frozenset(
     {
         "legsim.relaxed.loop.step_once",
