@@ -7,6 +7,8 @@ arrays only when asked for, sorted by row (the ``sample`` timeline; -1 for stati
 
 from __future__ import annotations
 
+import contextlib
+import tempfile
 import warnings
 from collections.abc import Iterator
 from pathlib import Path
@@ -16,6 +18,9 @@ import numpy as np
 
 from ..trace import RecordingError, concatenated_ranges
 from .layout import SAMPLE_TIMELINE, TIMELINE
+
+#: Bytes copied at a time when the sealed part of a recording is copied for Rerun's reader.
+COPY_BLOCK = 1 << 20
 
 
 class Columns:
@@ -163,18 +168,23 @@ def _row_id_bytes(row_id: Any) -> np.ndarray:
     return data[row_id.offset * 16 : (row_id.offset + len(row_id)) * 16].reshape(-1, 16)
 
 
-def read_columns(path: Path) -> Columns:
-    """Every chunk of the Rerun file ``path`` on the sample timeline, or static;
+def read_columns(path: Path, sealed: int | None = None) -> Columns:
+    """Every chunk of the Rerun file ``path`` on the sample timeline, or static, read from its
+    first ``sealed`` bytes only when given (those a seal vouches for: ``digest.check_file``);
     RecordingError naming the file when Rerun cannot read it."""
     try:
-        from rerun.chunk import RrdReader
-
-        with warnings.catch_warnings():
-            # A damaged file also draws a RerunWarning about a missing footer; our error says it.
-            warnings.simplefilter("ignore")
-            chunks = list(RrdReader(path).stream())
+        with _decodable(path, sealed) as readable:
+            return _columns(_chunks(readable))
     except Exception as exc:  # rerun raises its own error types for foreign or truncated files
         raise RecordingError(f"{path}: not a readable Rerun recording ({type(exc).__name__}: {exc})") from exc
+    except BaseException as exc:
+        # A panic in Rerun's decoder reaches Python as pyo3's PanicException, a BaseException.
+        if type(exc).__name__ != "PanicException":
+            raise
+        raise RecordingError(f"{path}: not a readable Rerun recording (its decoder failed: {exc})") from None
+
+
+def _columns(chunks: list[Any]) -> Columns:
     out = Columns()
     for chunk in chunks:
         batch = chunk.to_record_batch()
@@ -182,6 +192,37 @@ def read_columns(path: Path) -> Columns:
         if index is not None:
             out.add(chunk.entity_path, index, batch)
     return out
+
+
+def _chunks(path: Path) -> list[Any]:
+    from rerun.chunk import RrdReader
+
+    with warnings.catch_warnings():
+        # A file without Rerun's footer (a damaged one, or the sealed bytes alone) draws a
+        # warning about it; the sealed bytes hold all legsim reads.
+        warnings.simplefilter("ignore")
+        return list(RrdReader(path).stream())
+
+
+@contextlib.contextmanager
+def _decodable(path: Path, sealed: int | None) -> Iterator[Path]:
+    """``path`` itself, or a temporary copy of its first ``sealed`` bytes: what follows the seal
+    (its own message, the blueprint, Rerun's footer) is covered by no hash, and Rerun's decoder
+    aborts the whole process on some damaged arrow messages, so it never sees those bytes."""
+    if sealed is None or sealed >= path.stat().st_size:
+        yield path
+        return
+    with tempfile.TemporaryDirectory(prefix="legsim-read-") as folder:
+        copy = Path(folder) / path.name
+        with open(path, "rb") as source, open(copy, "wb") as target:
+            left = sealed
+            while left > 0:
+                block = source.read(min(COPY_BLOCK, left))
+                if not block:
+                    break
+                target.write(block)
+                left -= len(block)
+        yield copy
 
 
 def _row_index(chunk: Any, batch: Any) -> np.ndarray | None:

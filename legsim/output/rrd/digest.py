@@ -24,8 +24,9 @@ another. ``check_file`` finds the last seal in
 the raw file and hashes the bytes before it, before Rerun decodes anything: Rerun's reader aborts the whole
 process on some damaged files (an arrow offset flipped past its buffer panics in a thread of
 its own), so a damaged file must be refused before it gets there. This covers everything
-written before the seal, the URDF loader's data included; the seal's own message and Rerun's
-footer after it are not. A recording streamed to a viewer is not sealed (the viewer writes its
+written before the seal, the URDF loader's data included; the seal's own message and what Rerun
+writes after it (the blueprint, its footer) are not, so the reader hands Rerun the sealed bytes
+alone (``columns.read_columns``). A recording streamed to a viewer is not sealed (the viewer writes its
 own bytes); its components' digest still holds.
 """
 
@@ -205,11 +206,12 @@ def _file_hash(path: Path, size: int) -> str:
     return digest.hexdigest()
 
 
-def check_file(path: Path) -> str | None:
-    """Whether the sealed part of the recording file ``path`` is as it was written: "sealed"
-    when it is, None when the file holds no seal (written before legsim sealed recordings, or
-    by another writer); ValueError describing the damage otherwise. Reads the file in blocks:
-    its last occurrence of the seal first, from the end."""
+def check_file(path: Path) -> int | None:
+    """Whether the sealed part of the recording file ``path`` is as it was written: the number
+    of bytes the seal covers (from the file's start) when it is, None when the file holds no
+    seal (written before legsim sealed recordings, or by another writer); ValueError describing
+    the damage otherwise. Reads the file in blocks: its last occurrence of the seal first, from
+    the end."""
     size = os.path.getsize(path)
     found = _last_seal(path, size)
     if found is None:
@@ -219,7 +221,7 @@ def check_file(path: Path) -> str | None:
         raise ValueError(f"its seal covers {sealed} bytes, past where the seal itself lies ({position})")
     if _file_hash(path, sealed) != expected:
         raise ValueError(f"its first {sealed} bytes no longer match the SHA-256 stored with them")
-    return "sealed"
+    return sealed
 
 
 def _last_seal(path: Path, size: int) -> tuple[int, int, str] | None:

@@ -51,12 +51,12 @@ def read_rrd(path: str | os.PathLike) -> dict[str, Any]:
         raise RecordingError(f"{path}: no such recording file")
     try:
         # Before Rerun decodes anything: its reader aborts the process on some damaged files.
-        check_file(path)
+        sealed = check_file(path)
     except ValueError as exc:
         raise RecordingError(f"{path}: damaged legsim recording: {exc}") from None
     except OSError as exc:
         raise RecordingError(f"{path}: cannot read the recording: {exc.strerror or exc}") from None
-    columns = read_columns(path)
+    columns = read_columns(path, sealed)
     verified = _verify(path, columns)
     meta = _read_meta(path, columns)
     try:

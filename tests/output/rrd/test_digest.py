@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import random
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -14,7 +15,7 @@ from helpers.reliability import run_cli
 from legsim.errors import LegsimError
 from legsim.output.rrd import read_rrd, write_rrd
 from legsim.output.rrd import write as rrd_write
-from legsim.output.rrd.digest import Digest, feed_values
+from legsim.output.rrd.digest import Digest, check_file, feed_values
 from legsim.output.trace import RecordingError
 from legsim.scene import load_scene
 
@@ -93,6 +94,46 @@ def test_no_single_flipped_bit_gives_other_data_with_exit_0(ball, tmp_path):
         assert data["meta"] == sound["meta"] and data["transitions"][0]["time"] == sound["transitions"][0]["time"]
         same += 1
     assert refused > 100 and refused + same == 200
+
+
+def test_rerun_decodes_the_sealed_bytes_alone(ball, monkeypatch):
+    """What follows the seal (its own message, the blueprint, Rerun's footer) is covered by no
+    hash, and a flipped length there made Rerun's decoder abort the whole process (a panic in a
+    thread of its own: a pytest worker died with it). The reader hands Rerun only the bytes the
+    seal vouches for."""
+    import rerun.chunk
+
+    path, sound = ball
+    opened = []
+    real = rerun.chunk.RrdReader
+
+    def reader(file):
+        opened.append(Path(file).stat().st_size)
+        return real(file)
+
+    monkeypatch.setattr(rerun.chunk, "RrdReader", reader)
+    data = read_rrd(path)
+    assert opened == [check_file(path)] and opened[0] < path.stat().st_size
+    assert np.array_equal(data["times"], sound["times"]) and data["verified"] is True
+
+
+def test_a_flip_after_the_seal_reads_back_the_same_or_is_refused(ball, tmp_path):
+    """300 flips spread over the bytes after the sealed part (the seal's message first: one of
+    its flips aborted Rerun's decoder before): each reads back as the sound recording, or is
+    refused (a flip in the seal's text)."""
+    path, sound = ball
+    raw = path.read_bytes()
+    sealed = check_file(path)
+    positions = np.linspace(sealed, len(raw) - 1, 300).astype(int)
+    refused = 0
+    for k, position in enumerate(positions):
+        try:
+            data = read_rrd(flipped(path, tmp_path, int(position), 1 << (k % 8)))
+        except LegsimError:
+            refused += 1
+            continue
+        assert np.array_equal(data["times"], sound["times"]) and data["meta"] == sound["meta"]
+    assert refused < 10
 
 
 def test_a_recording_without_a_digest_is_read_with_a_warning(tmp_path, monkeypatch):
