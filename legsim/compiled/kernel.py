@@ -8,6 +8,7 @@ the core never imports the compiled path.
 
 from __future__ import annotations
 
+import inspect
 import sys
 import types as pytypes
 from collections.abc import Callable
@@ -65,7 +66,7 @@ def _register(module: pytypes.ModuleType) -> None:
 def _register_loop() -> None:
     """Make every function of the loop's modules callable from compiled code, compiled under
     this module (its calls and inlining are part of their code)."""
-    cache.compiled_under([module.__file__ for module in LOOP_MODULES], [__file__])
+    cache.compiled_under([inspect.getfile(module) for module in LOOP_MODULES], [__file__])
     for module in LOOP_MODULES:
         _register(module)
 
@@ -80,7 +81,7 @@ def tool(fn: Any) -> Any:
     compiled = _TOOLS.get(fn)
     if compiled is None:
         module = sys.modules[fn.__module__]
-        cache.compiled_under([module.__file__], [__file__])
+        cache.compiled_under([inspect.getfile(module)], [__file__])
         _register(module)
         compiled = _TOOLS[fn] = cache.use_legsim_cache(numba.njit(**LOOP_OPTIONS)(fn))
     return compiled

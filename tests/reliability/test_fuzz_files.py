@@ -274,7 +274,9 @@ def test_fuzzed_recordings_replay_or_are_refused(recording, monkeypatch):
     @given(damaged_recordings(meta))
     def check(case):
         text, column, mode = case
-        monkeypatch.setattr(reader, "read_columns", lambda p, sealed=None: Corrupted(real_read(p, sealed), text, column))
+        monkeypatch.setattr(
+            reader, "read_columns", lambda p, sealed=None: Corrupted(real_read(p, sealed), text, column)
+        )
         try:
             with watchdog(60):
                 code, out, err = run_cli("replay", path, *([mode] if mode == "--json" else []))
