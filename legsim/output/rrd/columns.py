@@ -17,10 +17,8 @@ from typing import Any
 import numpy as np
 
 from ..trace import RecordingError, concatenated_ranges
+from .digest import leading_blocks
 from .layout import SAMPLE_TIMELINE, TIMELINE
-
-#: Bytes copied at a time when the sealed part of a recording is copied for Rerun's reader.
-COPY_BLOCK = 1 << 20
 
 
 class Columns:
@@ -214,14 +212,9 @@ def _decodable(path: Path, sealed: int | None) -> Iterator[Path]:
         return
     with tempfile.TemporaryDirectory(prefix="legsim-read-") as folder:
         copy = Path(folder) / path.name
-        with open(path, "rb") as source, open(copy, "wb") as target:
-            left = sealed
-            while left > 0:
-                block = source.read(min(COPY_BLOCK, left))
-                if not block:
-                    break
+        with open(copy, "wb") as target:
+            for block in leading_blocks(path, sealed):
                 target.write(block)
-                left -= len(block)
         yield copy
 
 

@@ -36,7 +36,7 @@ import hashlib
 import json
 import os
 import re
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -195,15 +195,21 @@ def _masked(digest: str, nonce: str) -> str:
 
 def _file_hash(path: Path, size: int) -> str:
     digest = hashlib.sha256()
+    for block in leading_blocks(path, size):
+        digest.update(block)
+    return digest.hexdigest()
+
+
+def leading_blocks(path: Path, size: int) -> Iterator[bytes]:
+    """The first ``size`` bytes of the file ``path`` (all of it when shorter), in blocks."""
     with open(path, "rb") as fh:
         left = size
         while left > 0:
             block = fh.read(min(_BLOCK, left))
             if not block:
-                break
-            digest.update(block)
+                return
+            yield block
             left -= len(block)
-    return digest.hexdigest()
 
 
 def check_file(path: Path) -> int | None:
