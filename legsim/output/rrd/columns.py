@@ -173,6 +173,8 @@ def read_columns(path: Path, sealed: int | None = None) -> Columns:
     try:
         with _decodable(path, sealed) as readable:
             return _columns(_chunks(readable))
+    except RecordingError:
+        raise
     except Exception as exc:  # rerun raises its own error types for foreign or truncated files
         raise RecordingError(f"{path}: not a readable Rerun recording ({type(exc).__name__}: {exc})") from exc
     except BaseException as exc:
@@ -210,11 +212,18 @@ def _decodable(path: Path, sealed: int | None) -> Iterator[Path]:
     if sealed is None or sealed >= path.stat().st_size:
         yield path
         return
-    with tempfile.TemporaryDirectory(prefix="legsim-read-") as folder:
-        copy = Path(folder) / path.name
-        with open(copy, "wb") as target:
-            for block in leading_blocks(path, sealed):
-                target.write(block)
+    with contextlib.ExitStack() as stack:
+        try:
+            folder = stack.enter_context(tempfile.TemporaryDirectory(prefix="legsim-read-"))
+            copy = Path(folder) / path.name
+            with open(copy, "wb") as target:
+                for block in leading_blocks(path, sealed):
+                    target.write(block)
+        except OSError as exc:
+            raise RecordingError(
+                f"{path}: cannot copy its sealed part to a temporary folder for Rerun's reader "
+                f"({tempfile.gettempdir()}): {exc.strerror or exc}"
+            ) from None
         yield copy
 
 

@@ -117,6 +117,17 @@ def test_rerun_decodes_the_sealed_bytes_alone(ball, monkeypatch):
     assert np.array_equal(data["times"], sound["times"]) and data["verified"] is True
 
 
+def test_a_temporary_folder_that_cannot_be_made_is_named_in_the_error(ball, monkeypatch, tmp_path):
+    # The sealed bytes are copied for Rerun's reader: a temporary folder that cannot be made is
+    # the reason given, not a damaged recording.
+    import tempfile
+
+    path, _ = ball
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path / "missing" / "folder"))
+    with pytest.raises(RecordingError, match=r"cannot copy its sealed part to a temporary folder .*missing/folder"):
+        read_rrd(path)
+
+
 def test_a_flip_after_the_seal_reads_back_the_same_or_is_refused(ball, tmp_path):
     """300 flips spread over the bytes after the sealed part (the seal's message first: one of
     its flips aborted Rerun's decoder before): each reads back as the sound recording, or is
