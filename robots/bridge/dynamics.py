@@ -170,12 +170,19 @@ def on_terrain(p):
 
 
 @model_function
-def point_slope(x, p, frame, kin):
-    """(dh/dx, sqrt(1 + (dh/dx)^2)) of the terrain under Pinocchio frame ``frame`` at q; the
-    frame's (x, z, vx, vz) (m, m/s) into kin (4,)."""
+def one_frame_kinematics(x, p, frame, kin):
+    """(x, z, vx, vz) (m, m/s) of Pinocchio frame ``frame`` at (q, v) into kin (4,): one frame,
+    where ``frame_kinematics`` gives every frame of p's list."""
     ids = np.full(1, float(frame))
     lsn_frames(handle(p), x.ctypes.data, ptr(x, int(p[P_N])), np.int64(1), ids.ctypes.data, kin.ctypes.data)
     keep(ids)
+
+
+@model_function
+def point_slope(x, p, frame, kin):
+    """(dh/dx, sqrt(1 + (dh/dx)^2)) of the terrain under Pinocchio frame ``frame`` at q; the
+    frame's (x, z, vx, vz) (m, m/s) into kin (4,)."""
+    one_frame_kinematics(x, p, frame, kin)
     grade = face_slope(p, int(p[P_TERRAIN]), kin[0], kin[2])
     return grade, math.sqrt(1.0 + grade * grade)
 
@@ -218,9 +225,7 @@ def stuck_mu(x, p, c):
     if not on_terrain(p) or p[int(p[P_TERRAIN])] != PROFILE:  # only a profile has notches
         return mu
     kin = np.empty(4)
-    ids = np.full(1, p[c + C_ID])
-    lsn_frames(handle(p), x.ctypes.data, ptr(x, int(p[P_N])), np.int64(1), ids.ctypes.data, kin.ctypes.data)
-    keep(ids)
+    one_frame_kinematics(x, p, int(p[c + C_ID]), kin)
     half = notch(p, int(p[P_TERRAIN]), kin[0])[1]
     return notch_mu(mu, half) if half >= 0.0 else mu
 

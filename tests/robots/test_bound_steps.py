@@ -130,8 +130,8 @@ def test_the_documented_step_sweep(tmp_path):
     without a warning, -0.05 m falls, and every cell either ran to t_final or fell, its message
     naming why: the model takes every step height (a foot landing on a riser slips at once, a
     sliding foot passing a tread's edge leaves it or strikes the next face, a foot in the notch
-    at a riser's foot is held by both faces). No other way of stopping passes: before the notch
-    was held, three cells stopped ``stalled`` or ``max_transitions`` there."""
+    at a riser's foot is held by both faces). No other way of stopping passes: a foot in a notch
+    held by one face only stops a run ``stalled`` or ``max_transitions``."""
     rises = [round(v, 3) for v in np.linspace(-0.1, 0.1, 21)]
     rows = sweep_rows(tmp_path, rises)
     clean = (-0.03, -0.02, -0.01, 0.0, 0.01, 0.02)
