@@ -144,3 +144,66 @@ def curvature(p, at, x):
     if p[at] == SINE:
         return -p[at + 2] * p[at + 3] * p[at + 3] * math.sin(p[at + 3] * x + p[at + 4])
     return 0.0
+
+
+#: Samples per wavelength in the search for a sine's point nearest a centre (``nearest``), and
+#: the most samples a search takes. Where the centre lies within the terrain's least radius of
+#: curvature of it, its squared distance to the terrain has a single minimum in the samples'
+#: neighbourhood, which Newton's method then finds to rounding.
+NEAREST_SAMPLES, NEAREST_MOST = 16, 512
+NEWTON_STEPS = 12
+
+
+@model_function
+def _sine_foot(p, at, xc, zc):
+    """x (m) of the sine's point nearest (xc, zc): the least squared distance over samples
+    within the distance to the point (xc, h(xc)) above or below the centre, then Newton's method
+    on its derivative, each step kept within one sample spacing."""
+    reach = abs(zc - height(p, at, xc))
+    if reach == 0.0:
+        return xc
+    wavelengths = 2.0 * reach * p[at + 3] / (2.0 * math.pi)
+    count = int(min(NEAREST_MOST, math.ceil(NEAREST_SAMPLES * wavelengths) + 3))
+    spacing = 2.0 * reach / (count - 1)
+    best, least = xc, math.inf
+    for i in range(count):
+        s = xc - reach + i * spacing
+        dz = height(p, at, s) - zc
+        value = (s - xc) * (s - xc) + dz * dz
+        if value < least:
+            best, least = s, value
+    s = best
+    for _ in range(NEWTON_STEPS):
+        dz = height(p, at, s) - zc
+        g = slope(p, at, s)
+        first = (s - xc) + dz * g
+        second = 1.0 + g * g + dz * curvature(p, at, s)
+        step = first / second if second > 0.0 else first
+        step = max(-spacing, min(spacing, step))
+        s -= step
+        if abs(step) <= 1e-15 * (1.0 + abs(s)):
+            break
+    return s
+
+
+@model_function
+def nearest(p, at, xc, zc):
+    """(s, d, g, k): the terrain's point (s, h(s)) nearest the point (xc, zc) (m, a round
+    contact's centre), its signed distance d (m) along the terrain's normal n = (-g, 1) /
+    sqrt(1 + g^2) there (> 0 above the terrain), the slope g = h'(s), and the curvature k (1/m)
+    of the level set {distance = d} through the centre: -kappa / (1 - kappa d), kappa =
+    h''(s) / (1 + g^2)^1.5 (> 0 where the terrain bulges towards the centre, whose distance then
+    grows as k (t . v)^2 beyond its acceleration along n). Flat, slope and sine terrains; a
+    profile's point is not searched (all nan)."""
+    kind = p[at]
+    if kind == PROFILE:
+        return math.nan, math.nan, math.nan, math.nan
+    s = _sine_foot(p, at, xc, zc) if kind == SINE else xc
+    g = slope(p, at, s)
+    norm = math.sqrt(1.0 + g * g)
+    d = (zc - height(p, at, s) - g * (xc - s)) / norm
+    if kind == SLOPE:  # the foot of the perpendicular, which the loop over samples need not find
+        s = xc + g * d / norm
+        d = (zc - height(p, at, s) - g * (xc - s)) / norm
+    kappa = curvature(p, at, s) / (norm * norm * norm)
+    return s, d, g, -kappa / (1.0 - kappa * d)

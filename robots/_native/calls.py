@@ -61,5 +61,9 @@ lsn_minverse = NativeFunction("lsn_minverse", types.void(_h, _p, _p))
 #: lsn_solve(m, A, b, least_norm, out): A y = b (A (m, m) row-major) into out[:m], out[m] = 1.0
 #: where solved (a singular A takes the least-norm y with least_norm != 0), 0.0 where not.
 lsn_solve = NativeFunction("lsn_solve", types.void(types.int64, _p, _p, types.int64, _p))
+#: lsn_round_moving(h, frame): make a round frame moving: its offset is set per configuration.
+lsn_round_moving = NativeFunction("lsn_round_moving", types.void(_h, types.int64))
+#: lsn_round_place(h, q, frame, dx, dz): a moving round frame's offset -r n (m) at q.
+lsn_round_place = NativeFunction("lsn_round_place", types.void(_h, _p, types.int64, types.float64, types.float64))
 #: lsn_tally(h, slot, amount): add amount to the robot's counter slot.
 lsn_tally = NativeFunction("lsn_tally", types.void(_h, types.int64, types.float64))

@@ -83,7 +83,7 @@ using Mat = Eigen::MatrixXd;
 using ConstMap = Eigen::Map<const Vec>;
 using OutMap = Eigen::Map<Vec>;
 
-constexpr int kVersion = 9;
+constexpr int kVersion = 10;
 
 // Joint type codes of the model description (see lsn_create).
 enum JointCode { RX = 0, RY = 1, RZ = 2, PX = 3, PY = 4, PZ = 5, COMPOSITE = 6 };
@@ -161,7 +161,19 @@ struct Robot {
   // a round frame (a sphere or a disc about the frame's origin) the offset to its point nearest
   // the ground, whose kinematics the functions below give (round_offset).
   std::vector<Eigen::Vector3d> offset;
-  explicit Robot(Model m) : model(std::move(m)), data(model), offset(model.frames.size(), Eigen::Vector3d::Zero()) {
+  // A *moving* round frame stands on a terrain whose normal turns under it (a sine): its offset
+  // -r n follows the normal at the terrain's point nearest its centre, which the model functions
+  // find and set for each configuration (lsn_round_place). placed_at[id] is the q it was set at:
+  // a call at another q has no offset for it and answers nan, a breakdown the run reports,
+  // rather than the kinematics of a point the ball no longer touches with.
+  std::vector<char> moving;
+  std::vector<Vec> placed_at;
+  explicit Robot(Model m)
+      : model(std::move(m)),
+        data(model),
+        offset(model.frames.size(), Eigen::Vector3d::Zero()),
+        moving(model.frames.size(), 0),
+        placed_at(model.frames.size()) {
     scratch.frame_jacobian.setZero(6, model.nv);
     scratch.zero.setZero(model.nv);
   }
@@ -174,6 +186,21 @@ struct Robot {
 // along the ground: its normal part is the origin's), the derivative a + dw/dt x d of that
 // velocity (d is constant in the world; no centripetal term), and the Jacobian of that velocity.
 Eigen::Vector3d round_offset(const Robot& rb, pinocchio::FrameIndex id) { return rb.offset[id]; }
+
+// Whether frame id's contact point is known at q: always for a fixed one; for a moving round
+// frame, once lsn_round_place has placed it at this very q.
+bool placed(const Robot& rb, const double* q, pinocchio::FrameIndex id) {
+  if (!rb.moving[id]) return true;
+  const Vec& at = rb.placed_at[id];
+  return at.size() == rb.model.nq && std::equal(q, q + rb.model.nq, at.data());
+}
+
+// Whether every point block of `rigid` is placed at q (joint stops need no offset).
+bool blocks_placed(const Robot& rb, const double* q, const std::vector<Rigid>& rigid) {
+  for (const Rigid& r : rigid)
+    if (r.kind != STOP && !placed(rb, q, static_cast<pinocchio::FrameIndex>(r.id))) return false;
+  return true;
+}
 
 // Shift a world-aligned frame Jacobian (6, nv) to a round frame's contact point.
 void shift_to_contact(const Robot& rb, pinocchio::FrameIndex id, Mat& Jf) {
@@ -292,7 +319,11 @@ void constraint_rows(Robot& rb, const ConstMap& q, const ConstMap& v, const std:
     pinocchio::getFrameJacobian(model, data, frame, pinocchio::LOCAL_WORLD_ALIGNED, Jf);
     shift_to_contact(rb, frame, Jf);
     const double slope = slopes == nullptr ? 0.0 : slopes[2 * b];
+    // A point's d2h/dx2; a moving round frame's instead the curvature K (1/m) of the level set of
+    // its centre's distance to the terrain (the offset curve): rolling or sliding, the centre keeps
+    // that distance, whose second derivative has the term K (t . v_centre)^2.
     const double curvature = slopes == nullptr ? 0.0 : slopes[2 * b + 1];
+    const bool rolling = rb.moving[frame] != 0;
     Eigen::Vector3d acc = Eigen::Vector3d::Zero();
     if (drift) {
       const pinocchio::Motion motion =
@@ -315,16 +346,26 @@ void constraint_rows(Robot& rb, const ConstMap& q, const ConstMap& v, const std:
       const double s = std::sqrt(1.0 + slope * slope);
       const Eigen::RowVectorXd tangent = (Jf.row(0) + slope * Jf.row(2)) / s;
       const Eigen::RowVectorXd normal = (Jf.row(2) - slope * Jf.row(0)) / s;
+      const int n_row = i + r.rows - 1;
       if (r.rows == 2) {  // a pinned point: its acceleration is 0, in any axes
         J.row(i) = tangent;
         J.row(i + 1) = normal;
         gamma(i) = (acc(0) + slope * acc(2)) / s;
         gamma(i + 1) = (acc(2) - slope * acc(0)) / s;
+      } else if (rolling) {
+        J.row(i) = normal;
+        gamma(i) = (acc(2) - slope * acc(0)) / s;
       } else {  // z - h(x) = 0 held: its second derivative has the curvature term -h'' vx^2
         J.row(i) = normal;
         double vx = 0.0;
         if (drift) vx = pinocchio::getFrameVelocity(model, data, frame, pinocchio::LOCAL_WORLD_ALIGNED).linear()(0);
         gamma(i) = (acc(2) - slope * acc(0) - curvature * vx * vx) / s;
+      }
+      if (rolling && drift) {
+        const Eigen::Vector3d centre =
+            pinocchio::getFrameVelocity(model, data, frame, pinocchio::LOCAL_WORLD_ALIGNED).linear();
+        const double along = (centre(0) + slope * centre(2)) / s;
+        gamma(n_row) += curvature * along * along;
       }
       W.middleRows(i, r.rows) = J.middleRows(i, r.rows);
       if (r.kind == SLIPPING_POINT) W.row(i) -= r.sign * tangent;
@@ -502,6 +543,10 @@ void lsn_frames(long h, const double* q, const double* v, long count, const doub
   pinocchio::forwardKinematics(rb.model, rb.data, ConstMap(q, n), ConstMap(v, n));
   for (long i = 0; i < count; ++i) {
     const auto id = static_cast<pinocchio::FrameIndex>(frames[i]);
+    if (!placed(rb, q, id)) {
+      std::fill(out + 4 * i, out + 4 * i + 4, std::numeric_limits<double>::quiet_NaN());
+      continue;
+    }
     const Eigen::Vector3d d = round_offset(rb, id);
     const Eigen::Vector3d p = pinocchio::updateFramePlacement(rb.model, rb.data, id).translation() + d;
     const pinocchio::Motion motion = pinocchio::getFrameVelocity(rb.model, rb.data, id, pinocchio::LOCAL_WORLD_ALIGNED);
@@ -518,6 +563,10 @@ void lsn_frame_jacobian(long h, const double* q, long frame, double* out) {
   Robot& rb = robot(h);
   const long n = rb.model.nv;
   const auto id = static_cast<pinocchio::FrameIndex>(frame);
+  if (!placed(rb, q, id)) {
+    std::fill(out, out + 2 + 2 * n, std::numeric_limits<double>::quiet_NaN());
+    return;
+  }
   rb.counts[JACOBIANS] += 1;
   Mat Jf = Mat::Zero(6, n);
   pinocchio::computeFrameJacobian(rb.model, rb.data, ConstMap(q, n), id, pinocchio::LOCAL_WORLD_ALIGNED, Jf);
@@ -555,6 +604,10 @@ void lsn_frame_motion(long h, const double* q, const double* v, const double* a,
   Robot& rb = robot(h);
   const long n = rb.model.nv;
   const auto id = static_cast<pinocchio::FrameIndex>(frame);
+  if (!placed(rb, q, id)) {
+    std::fill(out, out + 4, std::numeric_limits<double>::quiet_NaN());
+    return;
+  }
   rb.counts[KINEMATICS] += 1;
   pinocchio::forwardKinematics(rb.model, rb.data, ConstMap(q, n), ConstMap(v, n), ConstMap(a, n));
   pinocchio::updateFramePlacement(rb.model, rb.data, id);
@@ -609,6 +662,11 @@ void lsn_constrained(long h, const double* q, const double* v, const double* tau
   }
   Scratch& s = rb.scratch;
   read_rigid(count, rigid, s.blocks);
+  if (!blocks_placed(rb, q, s.blocks)) {
+    OutMap(a, n).setConstant(std::numeric_limits<double>::quiet_NaN());
+    OutMap(lam, total_rows(s.blocks)).setConstant(std::numeric_limits<double>::quiet_NaN());
+    return;
+  }
   const ConstMap qm(q, n), vm(v, n);
   rb.counts[ABA] += 1;
   rb.counts[KKT] += 1;
@@ -643,6 +701,11 @@ void lsn_impact(long h, const double* q, const double* v, long count, const doub
   const ConstMap qm(q, n), vm(v, n);
   std::vector<Rigid> blocks;
   read_rigid(count, rigid, blocks);
+  if (!blocks_placed(rb, q, blocks)) {
+    OutMap(v_out, n).setConstant(std::numeric_limits<double>::quiet_NaN());
+    if (impulse_out != nullptr) OutMap(impulse_out, total_rows(blocks)).setConstant(std::numeric_limits<double>::quiet_NaN());
+    return;
+  }
   rb.counts[IMPACTS] += 1;
   Mat J, W;
   Vec gamma;
@@ -694,6 +757,26 @@ void lsn_solve(long m, const double* A, const double* b, long least_norm, double
   if (!y.allFinite()) return;
   OutMap(out, m) = y;
   out[m] = 1.0;
+}
+
+// Make round frame `frame` moving (see Robot::moving): from now on its offset is set for each
+// configuration by lsn_round_place, and calls at a q it was not placed at answer nan. A frame
+// that is not round, or out of range, is left as it is.
+void lsn_round_moving(long h, long frame) {
+  Robot& rb = robot(h);
+  if (frame <= 0 || frame >= static_cast<long>(rb.offset.size()) || rb.offset[frame].isZero(0.0)) return;
+  rb.moving[frame] = 1;
+  rb.placed_at[frame].resize(0);
+}
+
+// The offset (dx, dz) (m, world axes) of moving round frame `frame` at q: -r n, n the terrain's
+// normal at its point nearest the frame's centre (legsim.heights.nearest). Ignored for a frame
+// that is not moving.
+void lsn_round_place(long h, const double* q, long frame, double dx, double dz) {
+  Robot& rb = robot(h);
+  if (frame <= 0 || frame >= static_cast<long>(rb.offset.size()) || !rb.moving[frame]) return;
+  rb.offset[frame] = Eigen::Vector3d(dx, 0.0, dz);
+  rb.placed_at[frame] = ConstMap(q, rb.model.nq);
 }
 
 // Add `amount` to the robot's counter `slot` (a count the model functions keep: springs,

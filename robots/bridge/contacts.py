@@ -141,6 +141,8 @@ class RigidContact:
     sign: +1 for a lower stop, -1 for an upper one: ``sign * (q - position) >= 0`` inside.
     rows: constraint Jacobian rows (2 for a sticking point, else 1); the normal row is the last.
     armed_frame: the frame id a point is armed ahead of (``Armed.ahead_of``), else -1.
+    centre_id: the frame at a point contact's centre, whose origin is the declared frame's
+        (``frame_id`` itself for a point; -1 for a stop).
     """
 
     contact: PointContact | JointStop
@@ -150,6 +152,7 @@ class RigidContact:
     sign: float = 1.0
     rows: int = 1
     armed_frame: int = -1
+    centre_id: int = -1
 
     @property
     def mu(self) -> float | None:
@@ -280,7 +283,7 @@ def _resolve_leg(model: pin.Model, leg: SpringLeg, robot: str, where: str) -> Le
 
 def _resolve_point(model: pin.Model, c: PointContact, robot: str, where: str, declared: Sequence[str]) -> RigidContact:
     finite_number(c.ground, f"{robot}: {where}: ground")
-    fid = frame_id(model, c.frame, where, robot)
+    centre = fid = frame_id(model, c.frame, where, robot)
     if finite_number(c.radius, f"{robot}: {where}: radius", low=0.0) > 0.0:
         fid = _round_frame(model, c, fid, robot, where)
     if isinstance(c.releases, str) or not all(isinstance(o, str) for o in c.releases):
@@ -296,7 +299,8 @@ def _resolve_point(model: pin.Model, c: PointContact, robot: str, where: str, de
                 f"{robot}: {where}: friction {c.friction!r} needs tangential=True (a contact with "
                 f"tangential=False is frictionless)"
             )
-    return RigidContact(c, "point", frame_id=fid, rows=2 if c.tangential else 1, armed_frame=armed_frame)
+    rows = 2 if c.tangential else 1
+    return RigidContact(c, "point", frame_id=fid, rows=rows, armed_frame=armed_frame, centre_id=centre)
 
 
 def _round_frame(model: pin.Model, c: PointContact, fid: int, robot: str, where: str) -> int:

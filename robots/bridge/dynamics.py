@@ -23,19 +23,28 @@ import math
 
 import numpy as np
 from legsim.robots import _native
-from legsim.robots._native.calls import lsn_aba, lsn_constrained, lsn_frame_jacobian, lsn_frames, lsn_tally
+from legsim.robots._native.calls import (
+    lsn_aba,
+    lsn_constrained,
+    lsn_frame_jacobian,
+    lsn_frames,
+    lsn_round_place,
+    lsn_tally,
+)
 
 from legsim.compiled.functions import model_function
-from legsim.heights import PROFILE, curvature, face_slope, notch, notch_mu
+from legsim.heights import PROFILE, SINE, curvature, face_slope, nearest, notch, notch_mu
 
 from .layout import (
     B_POINT,
     B_SLIPPING,
     B_STOP,
     BLOCK_SIZE,
+    C_CENTER,
     C_ID,
     C_KIND,
     C_MU,
+    C_RADIUS,
     C_ROWS,
     C_SIGN,
     CONTACT_SIZE,
@@ -170,6 +179,49 @@ def on_terrain(p):
 
 
 @model_function
+def turning(p):
+    """Whether the terrain's normal turns smoothly under a round contact (a sine): each one's
+    point nearest the ground then moves on it with the configuration (``place_rounds``)."""
+    return on_terrain(p) and p[int(p[P_TERRAIN])] == SINE
+
+
+@model_function
+def round_record(p, frame):
+    """The record offset of the round contact whose own frame is ``frame``, or -1."""
+    for i in range(int(p[P_NCONTACT])):
+        c = int(p[P_CONTACT]) + CONTACT_SIZE * i
+        if p[c + C_RADIUS] > 0.0 and p[c + C_ID] == frame:
+            return c
+    return -1
+
+
+@model_function
+def round_centre(x, p, c, kin):
+    """The centre's (x, z, vx, vz) (m, m/s) of the round contact at record c into kin (4,), and
+    the terrain's point nearest it: (s, d, g, k) of ``legsim.heights.nearest``."""
+    one_frame_kinematics(x, p, int(p[c + C_CENTER]), kin)
+    return nearest(p, int(p[P_TERRAIN]), kin[0], kin[1])
+
+
+@model_function
+def place_rounds(x, p):
+    """On a terrain whose normal turns, tell the native library where each round contact's
+    point nearest the ground is at q: -r n from its centre, n the normal at the terrain's point
+    nearest the centre. Every model function of the bridge calls this first; a native call at a
+    q its round frames were not placed at answers nan (a breakdown the run reports)."""
+    if not turning(p):
+        return
+    kin = np.empty(4)
+    for i in range(int(p[P_NCONTACT])):
+        c = int(p[P_CONTACT]) + CONTACT_SIZE * i
+        r = p[c + C_RADIUS]
+        if r > 0.0:
+            g = round_centre(x, p, c, kin)[2]
+            norm = math.sqrt(1.0 + g * g)
+            lsn_round_place(handle(p), x.ctypes.data, np.int64(p[c + C_ID]), r * g / norm, -r / norm)
+
+
+@model_function
 def one_frame_kinematics(x, p, frame, kin):
     """(x, z, vx, vz) (m, m/s) of Pinocchio frame ``frame`` at (q, v) into kin (4,): one frame,
     where ``frame_kinematics`` gives every frame of p's list."""
@@ -205,6 +257,11 @@ def terrain_slopes(x, p, count, src, at):
     for k in range(count):
         block = at + BLOCK_SIZE * k
         if src[block] == B_STOP:
+            continue
+        c = round_record(p, src[block + 1]) if turning(p) else -1
+        if c >= 0:  # the normal at the point nearest its centre, and its offset curve's curvature
+            grade, level_curvature = round_centre(x, p, c, np.empty(4))[2:]
+            slopes[2 * k], slopes[2 * k + 1] = grade, level_curvature
             continue
         px = kin[4 * k]
         if src[block] == B_SLIPPING:  # the face it slides onto: its direction is its status
@@ -261,6 +318,7 @@ def mode_accelerate(x, u, p, a, lam):
 def bridge_field(t, x, u, p, dx):
     """f(t, x, u) = (v, a, 0 for the footholds) of the mode, shape (dim,) (module docstring)."""
     n = int(p[P_N])
+    place_rounds(x, p)
     lam = np.empty(max(1, int(p[P_ROWS])))
     mode_accelerate(x, u, p, dx[n : 2 * n], lam)  # the acceleration written in place
     for j in range(n):
@@ -274,6 +332,7 @@ def bridge_forces(t, x, u, p, lam):
     """The constraint forces of the mode's active rigid contacts at (t, x) under u, one per
     constraint row (N, or N m for a stop), each contact's normal force last: the outputs'
     contact forces, from the same solve as the field."""
+    place_rounds(x, p)
     a = np.empty(int(p[P_N]))
     mode_accelerate(x, u, p, a, lam)
 

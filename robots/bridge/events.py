@@ -38,7 +38,7 @@ import numpy as np
 from legsim.robots._native.calls import lsn_frame_motion, lsn_frames, lsn_impact
 
 from legsim.compiled.functions import model_function
-from legsim.heights import face_slope, height
+from legsim.heights import face_slope, height, nearest
 
 from .dynamics import (
     accelerate,
@@ -47,11 +47,14 @@ from .dynamics import (
     keep,
     mode_accelerate,
     on_terrain,
+    one_frame_kinematics,
+    place_rounds,
     point_slope,
     ptr,
     status_code,
     stuck_mu,
     terrain_slopes,
+    turning,
 )
 from .friction import event_outcome, mode_change, realize
 from .layout import (
@@ -60,9 +63,11 @@ from .layout import (
     C_ARMED,
     C_ARMED_BEYOND,
     C_ARMED_REF,
+    C_CENTER,
     C_ID,
     C_KIND,
     C_PLACE,
+    C_RADIUS,
     C_SIGN,
     C_SLOT,
     CONTACT_SIZE,
@@ -139,7 +144,9 @@ def gap(x, p, contact, kin):
         dof, sign = int(p[c + C_ID]), p[c + C_SIGN]
         return max(sign * (x[dof] - p[c + C_PLACE]), sign * x[n + dof])
     slot = 4 * int(p[c + C_SLOT])
-    if on_terrain(p):
+    if p[c + C_RADIUS] > 0.0 and turning(p):
+        value = round_gap(x, p, c)
+    elif on_terrain(p):
         terrain, px = int(p[P_TERRAIN]), kin[slot]
         grade = face_slope(p, terrain, px, kin[slot + 2])
         value = max(kin[slot + 1] - height(p, terrain, px), kin[slot + 3] - grade * kin[slot + 2])
@@ -151,6 +158,28 @@ def gap(x, p, contact, kin):
     elif armed == ARMED_AHEAD:
         value = max(value, -(kin[slot] - kin[4 * int(p[c + C_ARMED_REF])] - p[c + C_ARMED_BEYOND]))
     return value
+
+
+#: Heights of a round contact's centre above the terrain's crest, in radii, beyond which its gap
+#: is the height above the crest (a lower bound, positive) rather than the distance to the
+#: nearest point, which needs a search over the terrain under it.
+FAR_RADII = 2.0
+
+
+@model_function
+def round_gap(x, p, c):
+    """The gap guard of the inactive round contact at record c on a terrain whose normal turns:
+    ``max(d - r, dd/dt)`` (m, m/s), d the distance from its centre to the terrain (along the
+    normal at the terrain's point nearest it) and dd/dt = n . v_centre, past only while it closes."""
+    r = p[c + C_RADIUS]
+    terrain = int(p[P_TERRAIN])
+    kin = np.empty(4)
+    one_frame_kinematics(x, p, int(p[c + C_CENTER]), kin)
+    above = kin[1] - (p[terrain + 1] + abs(p[terrain + 2]))  # the centre's height over a sine's crest
+    if above > FAR_RADII * r:
+        return max(above - r, kin[3])
+    _, d, g, _ = nearest(p, terrain, kin[0], kin[1])
+    return max(d - r, (kin[3] - g * kin[2]) / math.sqrt(1.0 + g * g))
 
 
 @model_function
@@ -252,6 +281,7 @@ def leg_guard(x, p, tr, kin):
 def bridge_guards(t, x, u, p, g):
     """Every outgoing transition's guard of the mode at (t, x) under u, in their order, into g;
     all nan past the model's range (module docstring)."""
+    place_rounds(x, p)
     kin = kinematics_of(x, p)
     count = int(p[P_NGUARD])
     if p[P_COULOMB] != 0.0:
@@ -291,6 +321,7 @@ def bridge_reset(e, t, x, u, p, out):
     e >= the guard count, the continuation of transition e - count: an impact replaces v by the
     post-impact velocity (a bounce's continuation: the same impact, plastic); a release keeps
     x; a leg maps the footholds; an event's outcome is the impact law's (nan: no outcome)."""
+    place_rounds(x, p)
     count = int(p[P_NGUARD])
     continued = e >= count
     tr = record(p, e - count if continued else e)

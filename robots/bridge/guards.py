@@ -9,6 +9,7 @@ from collections.abc import Callable
 import numpy as np
 import pinocchio as pin
 
+from legsim.heights import SINE, nearest
 from legsim.heights import height as terrain_height
 
 from .contacts import SLIP_SUFFIX, PointContact, RigidContact, SpringLeg, joint_id
@@ -64,10 +65,16 @@ def _below_ground(
     c = r.point
     pin.forwardKinematics(model.pin_model, data, q)
     x, _, z = pin.updateFramePlacement(model.pin_model, data, r.frame_id).translation
-    dx, dz = model.round_offsets.get(r.frame_id, (0.0, 0.0))  # a round contact's point nearest the ground
-    x, z = x + dx, z + dz
-    ground = c.ground if model.terrain is None else terrain_height(model.terrain, 0, float(x))
-    depth = ground - z
+    if r.radius > 0.0 and model.terrain is not None and model.terrain[0] == SINE:
+        # the point nearest the terrain moves with the centre: its depth is r less the centre's distance
+        s, distance, grade, _ = nearest(model.terrain, 0, float(x), float(z))
+        ground, depth = terrain_height(model.terrain, 0, s), r.radius - distance
+        z = ground - depth / float(np.sqrt(1.0 + grade * grade))
+    else:
+        dx, dz = model.round_offsets.get(r.frame_id, (0.0, 0.0))  # a round contact's point nearest the ground
+        x, z = x + dx, z + dz
+        ground = c.ground if model.terrain is None else terrain_height(model.terrain, 0, float(x))
+        depth = ground - z
     if depth > eps:
         shape = f", radius {r.radius:g} m: its point nearest the ground" if r.radius > 0.0 else ""
         return (

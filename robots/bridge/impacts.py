@@ -37,7 +37,7 @@ from legsim.robots._native.calls import lsn_crba, lsn_frame_jacobian, lsn_impact
 from legsim.compiled.functions import model_function
 from legsim.heights import face_slope
 
-from .dynamics import handle, keep, on_terrain, ptr, terrain_slopes
+from .dynamics import handle, keep, on_terrain, place_rounds, ptr, terrain_slopes
 from .layout import (
     B_POINT,
     B_STOP,
@@ -160,6 +160,7 @@ def newton_impact(x, p, contacts, coeff, count, v_plus, normal):
     """The generalised Newton impact of ``contacts[:count]`` (restitutions coeff[:count]) at x:
     the post-impact velocity into v_plus (nv,) and each contact's normal impulse (N s or N m s)
     into normal[:count]."""
+    place_rounds(x, p)
     n = int(p[P_N])
     blocks = np.empty(BLOCK_SIZE * max(1, count))
     rows = contact_blocks(p, contacts, count, blocks)

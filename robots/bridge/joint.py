@@ -24,7 +24,7 @@ import numpy as np
 
 from legsim.compiled.functions import model_function
 
-from .dynamics import accelerate, blocks_of, status_code
+from .dynamics import accelerate, blocks_of, place_rounds, status_code
 from .events import record
 from .friction import contact_forces, contact_record, event_outcome
 from .impacts import joint_impact
@@ -83,6 +83,7 @@ def bridge_joint(rest, t, q, u, p, crossed, out):
     mask, count = strikers_of(p, crossed)
     if count < 2:
         return -1
+    place_rounds(q, p)
     contacts = int(p[P_NCONTACT])
     status = np.empty(contacts)
     if p[P_COULOMB] != 0.0:

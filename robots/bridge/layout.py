@@ -82,7 +82,8 @@ BLOCK_SIZE = 4
 #: none); rows when stuck (2: pinned in x and z, 1: normal only); its frame's kinematics slot
 #: (-1 for a stop); the contacts it releases when it strikes (a bit mask of their indices); how
 #: it is armed (``ARMED_*``), the coordinate index or frame slot it is armed by and the threshold
-#: (rad, m).
+#: (rad, m); a round contact's radius (m, 0 for a point or a stop) and the frame at its centre
+#: (its own frame's origin, without the offset to the point nearest the ground; -1 for a stop).
 (
     C_KIND,
     C_ID,
@@ -96,8 +97,10 @@ BLOCK_SIZE = 4
     C_ARMED,
     C_ARMED_REF,
     C_ARMED_BEYOND,
-) = range(12)
-CONTACT_SIZE = 12
+    C_RADIUS,
+    C_CENTER,
+) = range(14)
+CONTACT_SIZE = 14
 KIND_STOP, KIND_POINT = range(2)
 #: Always armed; armed where a coordinate exceeds the threshold; armed where the point is ahead
 #: (in x) of a frame by more than the threshold.

@@ -5,15 +5,17 @@ actuation, its native handle and the rows of its parameter arrays every mode sha
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
 import pinocchio as pin
+from legsim.robots._native.calls import lsn_round_moving
 
 from legsim.errors import ModelError
-from legsim.heights import PROFILE
+from legsim.heights import PROFILE, SINE
 from legsim.terrain import Terrain
 
 from .contacts import (
@@ -140,12 +142,17 @@ def build_model(
                 f"{name}: contact '{c.contact.name}': armed.coordinate {armed.coordinate!r} "
                 f"is not a coordinate: {coords}"
             )
-    # Round contacts stand only where the ground's grade is one (``_on_terrain``).
+    # Where the ground's grade is one a round contact's offset to its point nearest the ground is
+    # fixed; on a sine it moves with the configuration, which the model functions set (``_on_terrain``).
     grade = 0.0 if terrain is None else terrain.uniform_grade or 0.0
     offsets = {r.frame_id: round_offset(r.radius, grade) for r in rigid.values() if r.radius > 0.0}
+    handle = handle_for(own, name, offsets)
+    if terrain is not None and terrain.array[0] == SINE:
+        for frame in offsets:
+            lsn_round_moving(handle, frame)
     return BridgeModel(
         name, own, n, declared, rigid, legs, coords, vels, damping_idx, damping_b, actuated_idx, limits,
-        handle_for(own, name, offsets),
+        handle,
         _kinematics_frames(rigid, legs),
         None if terrain is None or terrain.flat else terrain.array.copy(),
         offsets,
@@ -179,17 +186,28 @@ def _on_terrain(declared: dict[str, Contact], terrain: Terrain | None, name: str
             f"{name}: spring legs {legs} stand only on level ground; the terrain {terrain.description} "
             f"is not (use a flat terrain)"
         )
-    # A round contact touches the ground at its point nearest it, along the ground's normal: the
-    # native library tracks that point where the normal is one for the whole robot (a uniform
-    # slope); where it turns under the contact (a profile's corners, a sine) it is not modelled,
-    # so refused rather than answered wrongly.
-    round_contacts = [c.name for c in grounded if isinstance(c, PointContact) and c.radius > 0.0]
-    if round_contacts and terrain.uniform_grade is None:
+    # A round contact touches the ground at its point nearest it, along the ground's normal there.
+    # On a sine that point moves smoothly with the centre, one point as long as the radius is below
+    # the sine's least radius of curvature; at a profile's concave corner a ball touches both faces
+    # at once, two contacts of one frame, which is not modelled: refused rather than answered wrongly.
+    rounds = [c for c in grounded if isinstance(c, PointContact) and c.radius > 0.0]
+    if rounds and terrain.array[0] == PROFILE:
         raise ModelError(
-            f"{name}: round contacts {round_contacts} (collision spheres and cylinders) stand only on level "
-            f"ground or a uniform slope; the terrain {terrain.description} is neither (use a flat or slope "
-            f"terrain, or boxes)"
+            f"{name}: round contacts {[c.name for c in rounds]} (collision spheres and cylinders) stand on level "
+            f"ground, slopes and sines; the terrain {terrain.description} has corners, where a ball touches two "
+            f"faces at once (use boxes, or point contacts)"
         )
+    if rounds and terrain.array[0] == SINE:
+        amplitude, wavenumber = abs(float(terrain.array[2])), float(terrain.array[3])
+        least = math.inf if amplitude == 0.0 else 1.0 / (amplitude * wavenumber**2)
+        too_big = [f"'{c.name}' (radius {c.radius:g} m)" for c in rounds if c.radius >= least]
+        if too_big:
+            raise ModelError(
+                f"{name}: a round contact must fit the troughs of the terrain {terrain.description} (their least "
+                f"radius of curvature is {least:.4g} m; a wider ball touches a trough at two points): "
+                f"{', '.join(too_big)} {'is' if len(too_big) == 1 else 'are'} wider; give smaller radii or a "
+                f"gentler sine"
+            )
     return declared
 
 

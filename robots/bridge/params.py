@@ -115,6 +115,8 @@ def contact_record(model: BridgeModel, r: RigidContact) -> list[float]:
         armed_kind,
         armed_ref,
         0.0 if armed is None else armed.beyond,
+        r.radius,
+        r.centre_id,
     ]
 
 
