@@ -505,6 +505,26 @@ def test_a_ball_on_a_slope_rolls_down_at_five_sevenths_of_g_sin_theta(tmp_path):
     assert abs(pitchd) * BALL_R == pytest.approx(a * t, abs=1e-9)
 
 
+def test_a_frictionless_ball_slides_in_a_sines_trough_keeping_its_energy_spin_and_distance(tmp_path):
+    # Without friction (the normal row alone: the sliding branch of the curvature term) the ball
+    # slides on the curve r from the sine: its spin never changes, the energy m v^2 / 2 + m g z
+    # is kept and the centre stays r from the curve.
+    from legsim.heights import nearest
+    from legsim.terrain import sine_terrain
+
+    x0, z0 = resting_in_the_trough(0.1)
+    extra = f'[initial]\nmode = "ball"\nstate = {{ x = {x0!r}, z = {z0!r}, pitchd = 3.0 }}\n{SINE_TERRAIN}'
+    frictionless = ["robot.parameters.collision_contacts={ tangential = false }", "integrator.t_final=3.0"]
+    ex = load_scene(ball(tmp_path, extra), [*frictionless, "integrator.h=2e-3"]).simulate()
+    assert ex.status == "finished" and not ex.transitions and ex.counters["python_steps"] == 0, ex.message
+    x = np.concatenate([s.x for s in ex.segments])
+    assert np.ptp(x[:, 0]) > 0.15 and np.all(x[:, 5] == 3.0)
+    energy = 0.5 * BALL_M * (x[:, 3] ** 2 + x[:, 4] ** 2) + BALL_M * G * x[:, 1]
+    assert np.ptp(energy) < 1e-9 * energy[0]
+    terrain = sine_terrain(SINE_A, SINE_WAVELENGTH).array
+    np.testing.assert_allclose([nearest(terrain, 0, a, b)[1] for a, b in x[:, :2]], BALL_R, atol=1e-10)
+
+
 def test_a_round_frame_on_a_sine_answers_nan_at_a_configuration_it_was_not_placed_at(tmp_path):
     # On a sine the offset from a ball's centre to its point nearest the ground moves with the
     # configuration, which the model functions place before each native call; a call at another
