@@ -203,6 +203,21 @@ def round_centre(x, p, c, kin):
     return nearest(p, int(p[P_TERRAIN]), kin[0], kin[1])
 
 
+#: Heights of a round contact's centre above a sine's crest, in radii, beyond which nothing of
+#: the ball is near the ground: its gap is then the height above the crest (a positive lower
+#: bound) and its point nearest the ground is placed as on level ground, both without the search
+#: over the terrain under it (``legsim.heights.nearest``).
+FAR_RADII = 2.0
+
+
+@model_function
+def above_crest(p, kin, r):
+    """How high (m) the centre at kin (x, z, ...) lies above the crest of the robot's sine less
+    ``FAR_RADII`` radii r: > 0 where the round contact is far from the ground."""
+    terrain = int(p[P_TERRAIN])
+    return kin[1] - (p[terrain + 1] + abs(p[terrain + 2])) - FAR_RADII * r
+
+
 @model_function
 def place_rounds(x, p):
     """On a terrain whose normal turns, tell the native library where each round contact's
@@ -215,10 +230,12 @@ def place_rounds(x, p):
     for i in range(int(p[P_NCONTACT])):
         c = int(p[P_CONTACT]) + CONTACT_SIZE * i
         r = p[c + C_RADIUS]
-        if r > 0.0:
-            g = round_centre(x, p, c, kin)[2]
-            norm = math.sqrt(1.0 + g * g)
-            lsn_round_place(handle(p), x.ctypes.data, np.int64(p[c + C_ID]), r * g / norm, -r / norm)
+        if r <= 0.0:
+            continue
+        one_frame_kinematics(x, p, int(p[c + C_CENTER]), kin)
+        g = 0.0 if above_crest(p, kin, r) > 0.0 else nearest(p, int(p[P_TERRAIN]), kin[0], kin[1])[2]
+        norm = math.sqrt(1.0 + g * g)
+        lsn_round_place(handle(p), x.ctypes.data, np.int64(p[c + C_ID]), r * g / norm, -r / norm)
 
 
 @model_function

@@ -41,6 +41,8 @@ from legsim.compiled.functions import model_function
 from legsim.heights import face_slope, height, nearest
 
 from .dynamics import (
+    FAR_RADII,
+    above_crest,
     accelerate,
     frame_kinematics,
     handle,
@@ -160,25 +162,18 @@ def gap(x, p, contact, kin):
     return value
 
 
-#: Heights of a round contact's centre above the terrain's crest, in radii, beyond which its gap
-#: is the height above the crest (a lower bound, positive) rather than the distance to the
-#: nearest point, which needs a search over the terrain under it.
-FAR_RADII = 2.0
-
-
 @model_function
 def round_gap(x, p, c):
     """The gap guard of the inactive round contact at record c on a terrain whose normal turns:
     ``max(d - r, dd/dt)`` (m, m/s), d the distance from its centre to the terrain (along the
     normal at the terrain's point nearest it) and dd/dt = n . v_centre, past only while it closes."""
     r = p[c + C_RADIUS]
-    terrain = int(p[P_TERRAIN])
     kin = np.empty(4)
     one_frame_kinematics(x, p, int(p[c + C_CENTER]), kin)
-    above = kin[1] - (p[terrain + 1] + abs(p[terrain + 2]))  # the centre's height over a sine's crest
-    if above > FAR_RADII * r:
-        return max(above - r, kin[3])
-    _, d, g, _ = nearest(p, terrain, kin[0], kin[1])
+    beyond = above_crest(p, kin, r)
+    if beyond > 0.0:  # the height above the crest, a lower bound of the distance
+        return max(beyond + (FAR_RADII - 1.0) * r, kin[3])
+    _, d, g, _ = nearest(p, int(p[P_TERRAIN]), kin[0], kin[1])
     return max(d - r, (kin[3] - g * kin[2]) / math.sqrt(1.0 + g * g))
 
 
