@@ -183,6 +183,7 @@ class Gains:
     k_phase: float
     late_rest: bool
     gallop_phase: float
+    bound_phase: float
 
 
 @dataclass(frozen=True)
@@ -192,8 +193,8 @@ class RunnerLaw(ControlLaw):
     are what its parameters were made from. ``pronk``: the stance hips servo the pitch (a pronk),
     or leave it free (a bound or a gallop, where each leg pair hops on its own: with the body's
     pitch inertia near m (d/2)^2 the hips move as two separate hoppers, so each leg's thrust and
-    swing follow its own hip's height, and a phase term keeps the two hoppers half a stride apart
-    in a bound, ``gallop_phase`` of a stride in a gallop)."""
+    swing follow its own hip's height, and a phase term keeps the front pair ``bound_phase`` of a
+    stride after the hind pair in a bound, ``gallop_phase`` in a gallop)."""
 
     legs: tuple[Leg, ...] = ()
     gains: Gains | None = None
@@ -257,6 +258,7 @@ GAIN_ORDER = (
     "k_phase",
     "late_rest",
     "gallop_phase",
+    "bound_phase",
 )
 
 
@@ -296,8 +298,8 @@ def runner_law(
 RUNNER_PARAMETERS = {
     "gait": Param(
         "pronk",
-        "pronk: the stance hips keep the body level; bound: the pitch is left free, the leg pairs half a stride "
-        "apart; gallop: as a bound, the front pair gallop_phase of a stride after the hind pair",
+        "pronk: the stance hips keep the body level; bound: the pitch is left free, the front pair bound_phase of "
+        "a stride after the hind pair; gallop: as a bound, the front pair gallop_phase of a stride after the hind",
         choices=("pronk", "bound", "gallop"),
     ),
     "speed": Param(1.0, "commanded forward speed xd*", "m/s"),
@@ -324,6 +326,16 @@ RUNNER_PARAMETERS = {
     "gallop_phase": Param(
         0.45,
         "gallop: share of a stride from a hind touchdown to the next front touchdown that the phase term holds",
+        "",
+        low=0.0,
+        low_open=True,
+        high=1.0,
+        high_open=True,
+    ),
+    "bound_phase": Param(
+        0.5,
+        "bound: share of a stride from a hind touchdown to the next front touchdown that the phase term holds "
+        "(below the hind pair's share of the stride in stance: one flight a stride)",
         "",
         low=0.0,
         low_open=True,

@@ -219,8 +219,8 @@ def retract_torques(
 # -- the controller: its parameters, memory and functions ----------------------------------------
 
 #: The gaits' codes in the parameter array: a pronk (the stance hips level the body), a bound and
-#: a gallop (the pitch free, each leg pair a hopper on its own hip; the pairs half a stride apart
-#: in a bound, the front pair ``gallop_phase`` of a stride after the hind pair in a gallop).
+#: a gallop (the pitch free, each leg pair a hopper on its own hip; the front pair ``bound_phase``
+#: of a stride after the hind pair in a bound, ``gallop_phase`` in a gallop).
 GAIT_BOUND, GAIT_PRONK, GAIT_GALLOP = 0.0, 1.0, 2.0
 #: The head of the controller's parameter array: the robot's native handle, nv, the number of
 #: legs, the gait's code, then the gains (``raibert.Gains``, units in
@@ -247,9 +247,10 @@ GAIT_BOUND, GAIT_PRONK, GAIT_GALLOP = 0.0, 1.0, 2.0
     R_K_PHASE,
     R_LATE_REST,
     R_GALLOP_PHASE,
+    R_BOUND_PHASE,
     R_SCHEDULE,
-) = range(21)
-RUNNER_HEAD = 21
+) = range(22)
+RUNNER_HEAD = 22
 #: Each leg's entries: its hip's and knee's velocity indices and positions in u, thigh and shank
 #: (m), knee bending sign, the hip's x in the body frame (m), and 1.0 when the leg is in stance
 #: in the mode.
@@ -518,12 +519,11 @@ def late_landing_length(p, leg, x, m):
 @register_jitable
 def phase_target(p, i, gait):
     """The share of a stride (0 to 1) by which leg i's touchdowns should follow the other pair's:
-    half a stride in a bound; in a gallop ``gallop_phase`` for the front pair (the leg whose hip
-    is ahead of the other's) and the rest of the stride for the hind pair."""
-    if gait != GAIT_GALLOP:
-        return 0.5
+    ``bound_phase`` in a bound, ``gallop_phase`` in a gallop, for the front pair (the leg whose
+    hip is ahead of the other's), and the rest of the stride for the hind pair."""
+    phase = p[R_GALLOP_PHASE] if gait == GAIT_GALLOP else p[R_BOUND_PHASE]
     ahead = p[leg_at(p, i) + RL_OFFSET] > p[leg_at(p, 1 - i) + RL_OFFSET]
-    return p[R_GALLOP_PHASE] if ahead else 1.0 - p[R_GALLOP_PHASE]
+    return phase if ahead else 1.0 - phase
 
 
 @register_jitable

@@ -25,6 +25,7 @@ ROBOT_SCENES = [
     ("quadruped_pronk_forward", "2.0"),
     ("quadruped_bound_forward", "2.0"),
     ("quadruped_gallop", "2.0"),
+    ("quadruped_bound_one_flight", "2.0"),
     ("quadruped_bound_steps", "2.0"),
     ("biped_run", "2.0"),
 ]

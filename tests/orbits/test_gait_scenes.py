@@ -66,6 +66,7 @@ QUADRUPED_GAITS = [
     ("quadruped_bound", 0.0, 0.8805, True),
     ("quadruped_bound_forward", 1.0, 0.9992, True),
     ("quadruped_gallop", 1.0, 1.1133, False),
+    ("quadruped_bound_one_flight", 1.0, 0.8915, True),
 ]
 
 
