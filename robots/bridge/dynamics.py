@@ -10,8 +10,11 @@ terrain's tangent t and normal n under it on a terrain (``legsim.terrain``; a sl
 keeps ``z - h(x) = 0``, whose drift has the curvature term). At a profile's breakpoint a
 sliding point's face is the one it slides onto, and a stuck point in a notch (a concave
 breakpoint) is held by both faces: its rows are the bisector's tangent and normal
-(``legsim.heights.notch``). Where slipping contacts have no unique forces (the Painleve
-paradox) the acceleration is nan: a state past the model's range.
+(``legsim.heights.notch``). A round contact on a sine touches at the terrain's point nearest
+its centre, which moves with the configuration (``place_rounds``); its rows are the tangent
+and normal there, and its normal row's drift has the term K (t . v_centre)^2 of the curve r
+from the terrain that its centre keeps to. Where slipping contacts have no unique forces (the
+Painleve paradox) the acceleration is nan: a state past the model's range.
 
 The state is ``x = (q, v, footholds)``: q and v of size nv, then the foothold x (m) of each
 stance leg in declared order, which the flow keeps.
