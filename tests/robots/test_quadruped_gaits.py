@@ -442,6 +442,8 @@ def test_a_bad_leg_declaration_is_named_in_the_error(legs, message):
     [
         ("gait=trot", "controller.parameters.gait: 'trot' is not allowed, choose one of ['pronk', 'bound', 'gallop']"),
         ("gallop_phase=1.2", "controller.parameters.gallop_phase: 1.2 is out of range, allowed: float in (0, 1)"),
+        ("bound_phase=0", "controller.parameters.bound_phase: 0.0 is out of range, allowed: float in (0, 1)"),
+        ("bound_phase='late'", "controller.parameters.bound_phase: expected a number"),
     ],
 )
 def test_a_bad_gait_setting_is_named_in_the_error(setting, message):
