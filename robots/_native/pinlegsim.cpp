@@ -147,7 +147,7 @@ struct SolveCache {
 struct Scratch {
   std::vector<Rigid> blocks;
   Mat J, W, frame_jacobian, MWt, A;
-  Vec gamma, acc, rhs, lambda, zero;
+  Vec gamma, acc, rhs, lambda, zero, centred;
   Eigen::PartialPivLU<Mat> lu;
 };
 
@@ -168,6 +168,12 @@ struct Robot {
   // rather than the kinematics of a point the ball no longer touches with.
   std::vector<char> moving;
   std::vector<Vec> placed_at;
+  // The coordinates that translate the whole robot (the prismatic joints hung from the world, one
+  // after the other: a planar root's x and z). The world-convention algorithms express every
+  // body's inertia at the world's origin, so their rounding grows with the square of the robot's
+  // distance from it; they run with these coordinates at 0 (centred), which moves no velocity,
+  // acceleration or force.
+  std::vector<long> translations;
   explicit Robot(Model m)
       : model(std::move(m)),
         data(model),
@@ -176,8 +182,25 @@ struct Robot {
         placed_at(model.frames.size()) {
     scratch.frame_jacobian.setZero(6, model.nv);
     scratch.zero.setZero(model.nv);
+    std::vector<char> translating(model.joints.size(), 0);
+    translating[0] = 1;
+    for (size_t j = 1; j < model.joints.size(); ++j) {
+      const std::string kind = model.joints[j].shortname();
+      if (translating[model.parents[j]] && kind.rfind("JointModelP", 0) == 0) {
+        translating[j] = 1;
+        translations.push_back(model.joints[j].idx_q());
+      }
+    }
   }
 };
+
+// q with the robot's translations at 0, in rb.scratch.centred (see Robot::translations).
+const Vec& centred(Robot& rb, const double* q) {
+  Vec& out = rb.scratch.centred;
+  out = ConstMap(q, rb.model.nq);
+  for (long i : rb.translations) out(i) = 0.0;
+  return out;
+}
 
 // A round frame's contact point with a ground of normal n is its point nearest the ground,
 // origin + d with d = -r n in the world's axes, which the model's description gives
@@ -667,7 +690,7 @@ void lsn_constrained(long h, const double* q, const double* v, const double* tau
     OutMap(lam, total_rows(s.blocks)).setConstant(std::numeric_limits<double>::quiet_NaN());
     return;
   }
-  const ConstMap qm(q, n), vm(v, n);
+  const ConstMap qm(centred(rb, q).data(), n), vm(v, n);
   rb.counts[ABA] += 1;
   rb.counts[KKT] += 1;
   s.acc = pinocchio::aba(rb.model, rb.data, qm, vm, ConstMap(tau, n), pinocchio::Convention::WORLD);
@@ -698,7 +721,7 @@ void lsn_impact(long h, const double* q, const double* v, long count, const doub
                 const double* coeff, double* v_out, double* impulse_out) {
   Robot& rb = robot(h);
   const long n = rb.model.nv;
-  const ConstMap qm(q, n), vm(v, n);
+  const ConstMap qm(centred(rb, q).data(), n), vm(v, n);
   std::vector<Rigid> blocks;
   read_rigid(count, rigid, blocks);
   if (!blocks_placed(rb, q, blocks)) {
