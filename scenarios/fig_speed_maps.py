@@ -1,12 +1,14 @@
-"""Speed maps of the planar quadruped's forward pronk and bound: commanded speed x foot-placement gain.
+"""Speed maps of the planar quadruped's gaits: commanded speed x foot-placement gain.
 
-For each gait (scenes ``quadruped_pronk_forward``, ``quadruped_bound_forward``) a ``legsim sweep``
+For each gait (scenes ``quadruped_pronk_forward``, ``quadruped_bound_forward`` (the bound with two
+flights a stride), ``quadruped_bound_one_flight`` (one flight a stride) and ``quadruped_gallop``)
+a ``legsim sweep``
 over ``controller.parameters.speed`` and ``controller.parameters.k_x`` runs every cell for
 ``T_FINAL`` s and writes per cell the achieved mean speed over [``SETTLE``, t_end] (``--measure
 mean_rate:x:SETTLE``), the largest |pitch| (``max_abs:pitch``), the run's status (``fell`` when a
 condition of the scene's ``[fall]`` held) and an orbit search (``--orbit``): its status, and the
-largest Floquet multiplier where it found an orbit. The bound's searches start from the last apex
-of each cell's run (``--orbit-guess run``); the pronk's from its scene's guess, the one-hop orbit
+largest Floquet multiplier where it found an orbit. The bounds' and the gallop's searches start
+from the last apex of each cell's run (``--orbit-guess run``); the pronk's from its scene's guess, the one-hop orbit
 at 1.0 m/s (``--orbit-guess scene``): that orbit is a flip, and the runs settle on a two-hop gait,
 whose apexes are no guess for it. A cell is drawn
 
@@ -17,7 +19,7 @@ whose apexes are no guess for it. A cell is drawn
 * grey: it ran and the search found no orbit: no multiplier, the search's status written in it.
 
 Each cell is annotated with its achieved speed (m/s) and the orbit's status or spectral radius.
-The sweeps' tables stay in ``<out>/speed_map_<gait>/results.parquet`` (a second call resumes
+The sweeps' tables stay in ``<out>/speed_map_<scene>/results.parquet`` (a second call resumes
 them). Writes ``<out>/fig_speed_maps.png``.
 Run: ``.venv/bin/python scenarios/fig_speed_maps.py [out]``
 """
@@ -29,7 +31,13 @@ from legsim.viz._figures import finish, new_figure, parse_out
 
 import legsim
 
-GAITS = ("pronk", "bound")
+#: Each map's scene, by the gait it runs.
+GAITS = {
+    "pronk": "quadruped_pronk_forward",
+    "bound, two flights": "quadruped_bound_forward",
+    "bound, one flight": "quadruped_bound_one_flight",
+    "gallop": "quadruped_gallop",
+}
 SPEEDS = [0.5, 0.75, 1.0]  # m/s (commanded)
 GAINS = [0.03, 0.06, 0.12]  # s (k_x: foot placement per m/s of speed error)
 T_FINAL = 8.0  # s
@@ -42,7 +50,7 @@ ORBIT_SETTINGS = ["orbit.t_max=2.0", "orbit.tol=1e-6", "orbit.max_iterations=10"
 #: bound's cell at 0.5 m/s and k_x 0.12 s searched on for over 10 min).
 TIMEOUT = 300.0
 #: Where each gait's searches start (module docstring).
-ORBIT_GUESS = {"pronk": "scene", "bound": "run"}
+ORBIT_GUESS = {"pronk": "scene", "bound, two flights": "run", "bound, one flight": "run", "gallop": "run"}
 COLOURS = {
     "stable": "tab:green",
     "unstable": "tab:orange",
@@ -55,9 +63,10 @@ COLOURS = {
 
 def sweep_gait(gait: str, out):
     """The sweep of one gait (resumed when its folder holds it), as a pyarrow table."""
-    folder = out / f"speed_map_{gait}"
+    scene = GAITS[gait]
+    folder = out / f"speed_map_{scene}"
     legsim.sweep(
-        f"quadruped_{gait}_forward",
+        scene,
         grid={"controller.parameters.speed": SPEEDS, "controller.parameters.k_x": GAINS},
         overrides=[f"integrator.t_final={T_FINAL}", *ORBIT_SETTINGS],
         measures=[f"mean_rate:x:{SETTLE}", f"max_abs:pitch:{SETTLE}"],
@@ -116,7 +125,7 @@ def draw(ax, gait: str, rows: list[dict]) -> None:
     ax.set_ylim(-0.5, len(GAINS) - 0.5)
     ax.set_xlabel("commanded speed (m/s)")
     ax.set_ylabel("foot placement gain k_x (s)")
-    ax.set_title(f"quadruped_{gait}_forward", fontsize=10)
+    ax.set_title(f"{gait}: {GAITS[gait]}", fontsize=10)
 
 
 def _cell(i: int, j: int, colour):
@@ -127,8 +136,8 @@ def _cell(i: int, j: int, colour):
 
 def main(argv=None) -> int:
     out = parse_out(__doc__.splitlines()[0], argv)
-    fig = new_figure(10.0, 4.4)
-    axes = fig.subplots(1, len(GAITS))
+    fig = new_figure(10.0, 8.8)
+    axes = fig.subplots(2, 2).ravel()
     for ax, gait in zip(axes, GAITS, strict=True):
         table = sweep_gait(gait, out)
         draw(ax, gait, table.to_pylist())
