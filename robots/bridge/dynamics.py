@@ -198,27 +198,24 @@ def round_record(p, frame):
     return -1
 
 
-@model_function
-def round_centre(x, p, c, kin):
-    """The centre's (x, z, vx, vz) (m, m/s) of the round contact at record c into kin (4,), and
-    the terrain's point nearest it: (s, d, g, k) of ``legsim.heights.nearest``."""
-    one_frame_kinematics(x, p, int(p[c + C_CENTER]), kin)
-    return nearest(p, int(p[P_TERRAIN]), kin[0], kin[1])
-
-
 #: Heights of a round contact's centre above a sine's crest, in radii, beyond which nothing of
-#: the ball is near the ground: its gap is then the height above the crest (a positive lower
-#: bound) and its point nearest the ground is placed as on level ground, both without the search
-#: over the terrain under it (``legsim.heights.nearest``).
+#: the ball is near the ground (``round_centre``).
 FAR_RADII = 2.0
 
 
 @model_function
-def above_crest(p, kin, r):
-    """How high (m) the centre at kin (x, z, ...) lies above the crest of the robot's sine less
-    ``FAR_RADII`` radii r: > 0 where the round contact is far from the ground."""
+def round_centre(x, p, c, kin):
+    """The centre's (x, z, vx, vz) (m, m/s) of the round contact at record c into kin (4,), and
+    the terrain's point nearest it: (s, d, g, k) of ``legsim.heights.nearest``. A centre more
+    than ``FAR_RADII`` radii above the sine's crest is far from the ground: then, without the
+    search over the terrain under it, (x, its height above the crest, 0, 0), the height a lower
+    bound of its distance and the normal taken as on level ground."""
+    one_frame_kinematics(x, p, int(p[c + C_CENTER]), kin)
     terrain = int(p[P_TERRAIN])
-    return kin[1] - (p[terrain + 1] + abs(p[terrain + 2])) - FAR_RADII * r
+    above = kin[1] - (p[terrain + 1] + abs(p[terrain + 2]))
+    if above > FAR_RADII * p[c + C_RADIUS]:
+        return kin[0], above, 0.0, 0.0
+    return nearest(p, terrain, kin[0], kin[1])
 
 
 @model_function
@@ -235,8 +232,7 @@ def place_rounds(x, p):
         r = p[c + C_RADIUS]
         if r <= 0.0:
             continue
-        one_frame_kinematics(x, p, int(p[c + C_CENTER]), kin)
-        g = 0.0 if above_crest(p, kin, r) > 0.0 else nearest(p, int(p[P_TERRAIN]), kin[0], kin[1])[2]
+        g = round_centre(x, p, c, kin)[2]
         norm = math.sqrt(1.0 + g * g)
         lsn_round_place(handle(p), x.ctypes.data, np.int64(p[c + C_ID]), r * g / norm, -r / norm)
 

@@ -38,21 +38,19 @@ import numpy as np
 from legsim.robots._native.calls import lsn_frame_motion, lsn_frames, lsn_impact
 
 from legsim.compiled.functions import model_function
-from legsim.heights import face_slope, height, nearest
+from legsim.heights import face_slope, height
 
 from .dynamics import (
-    FAR_RADII,
-    above_crest,
     accelerate,
     frame_kinematics,
     handle,
     keep,
     mode_accelerate,
     on_terrain,
-    one_frame_kinematics,
     place_rounds,
     point_slope,
     ptr,
+    round_centre,
     status_code,
     stuck_mu,
     terrain_slopes,
@@ -65,7 +63,6 @@ from .layout import (
     C_ARMED,
     C_ARMED_BEYOND,
     C_ARMED_REF,
-    C_CENTER,
     C_ID,
     C_KIND,
     C_PLACE,
@@ -167,14 +164,9 @@ def round_gap(x, p, c):
     """The gap guard of the inactive round contact at record c on a terrain whose normal turns:
     ``max(d - r, dd/dt)`` (m, m/s), d the distance from its centre to the terrain (along the
     normal at the terrain's point nearest it) and dd/dt = n . v_centre, past only while it closes."""
-    r = p[c + C_RADIUS]
     kin = np.empty(4)
-    one_frame_kinematics(x, p, int(p[c + C_CENTER]), kin)
-    beyond = above_crest(p, kin, r)
-    if beyond > 0.0:  # the height above the crest, a lower bound of the distance
-        return max(beyond + (FAR_RADII - 1.0) * r, kin[3])
-    _, d, g, _ = nearest(p, int(p[P_TERRAIN]), kin[0], kin[1])
-    return max(d - r, (kin[3] - g * kin[2]) / math.sqrt(1.0 + g * g))
+    _, d, g, _ = round_centre(x, p, c, kin)
+    return max(d - p[c + C_RADIUS], (kin[3] - g * kin[2]) / math.sqrt(1.0 + g * g))
 
 
 @model_function
