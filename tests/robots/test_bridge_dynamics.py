@@ -89,7 +89,7 @@ def test_contact_dynamics_do_not_depend_on_where_the_robot_is(tangential):
     """Moving the whole robot moves no acceleration, contact force or impact: the field, the
     constraint forces and the impact velocity at x + 1000 m are those at x, to the bit. (The
     constrained solve's articulated-body pass expresses every inertia at the world's origin, so
-    it runs with the robot's translations at 0: computed where the robot is, its rounding grew
+    it runs with the robot's translations at 0: computed where the robot is, its rounding grows
     with the square of the distance, 1e-8 of an acceleration of 50 m/s^2 at 1000 m.)"""
     model = rod_model()
     model.gravity = pin.Motion(np.array([0, 0, -G, 0, 0, 0]))

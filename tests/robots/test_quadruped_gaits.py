@@ -156,8 +156,8 @@ FAST_PRONK = (
 def test_the_pronk_keeps_two_metres_a_second_with_gains_for_that_speed():
     """The pronk commanded 1.0 m/s, then 0.05 m/s more every 1/12 s from 0.5 s to 2.0 m/s at
     2.17 s, with ``FAST_PRONK``: mean speed over [5, 10] s within 5% (measured 1.945 m/s), the
-    pitch within the pronk's 0.06 rad (0.038), no warning (nor at eps = 5e-6 or over 20 s, since
-    the contact dynamics no longer depend on where the robot is: docs/robots.md)."""
+    pitch within the pronk's 0.06 rad (0.038), no warning (nor at eps = 5e-6 or over 20 s:
+    docs/robots.md)."""
     ex, t, x, pitch = run_gait("pronk", 1.0, overrides=(*FAST_PRONK, ramp(1.0, 2.0, 0.05, 0.5, 1.0 / 12.0)))
     assert ex.status == "finished" and ex.t_end == 10.0 and not ex.warnings
     assert ex.counters["python_steps"] == 0
@@ -266,10 +266,9 @@ def test_the_one_flight_bound_keeps_every_speed_with_one_set_of_gains(speed):
 def test_the_fast_one_flight_bound_runs_twenty_seconds_wherever_it_starts(x0):
     """The same over 20 s, started at x = 0 and 1000 m: no warning, all 59 strides after 5 s the
     one-flight bound's, 2.0084 m/s. Where the robot is does not enter its contact dynamics
-    (``tests/robots/test_bridge_dynamics.py``): before they were computed with the robot at the
-    origin, the rounding of the constrained solve grew with x squared, and the first gains found
-    for this gait reported 25 slip accumulations at a front liftoff over 20 s from x = 20 m on
-    (152 started at x = 1000 m)."""
+    (``tests/robots/test_bridge_dynamics.py``): a constrained solve computed where the robot is
+    rounds in proportion to x squared, enough from about x = 20 m to make a front foot's liftoff
+    slip and stick again and again (an accumulation warning)."""
     ex, t, x, pitch = run_gait("bound_one_flight", 2.0, 20.0, (*ONE_FLIGHT_EVERY_SPEED, f"initial.state.x={x0}"))
     assert ex.status == "finished" and ex.t_end == 20.0 and not ex.warnings
     assert abs(mean_speed_after(t, x, SETTLE) / 2.0 - 1.0) < SPEED_TOLERANCE
@@ -355,9 +354,9 @@ def test_a_speed_schedule_changes_the_commanded_speed_during_the_run():
     """``schedule = [{t = 7, speed = 1.0}]`` on the forward bound commanded 0.5 m/s, at the
     scene's h and eps: over t in [3, 7] s the mean speed is within 5% of 0.5 m/s (measured
     0.5023), over [10, 15] s within 5% of 1.0 m/s (measured 0.9995), no warning; the controller
-    reads the schedule from its parameter array. (Before the contact dynamics were computed with
-    the robot's translations at 0, the front foot's slips after the change accumulated here from
-    t = 14.83 s: docs/targets.md, "Known defects".)"""
+    reads the schedule from its parameter array. The run reaches x = 7 m, where a constrained
+    solve computed where the robot is would round enough to make the front foot's slips after
+    the change accumulate (docs/targets.md, "Known defects")."""
     scene = load_scene(
         "quadruped_bound_forward",
         [
