@@ -22,7 +22,7 @@ import numpy as np
 from legsim.robots._native.calls import lsn_gravity
 from numba.extending import register_jitable
 
-from legsim.compiled.functions import model_function
+from legsim.compiled.functions import model_function, scratch
 
 from .runner_laws import (
     RL_HIP,
@@ -191,7 +191,8 @@ def biped_control(t, x, m, p, u):
     n = int(p[B_N])
     u[:] = 0.0
     # In a flight phase the whole robot falls freely: its joints feel no gravity to compensate.
-    gravity = np.zeros(n)
+    gravity = scratch(n)
+    gravity[:] = 0.0
     if p[leg_offset(0) + RL_STANCE] != 0.0 or p[leg_offset(1) + RL_STANCE] != 0.0:
         lsn_gravity(np.int64(p[B_HANDLE]), x.ctypes.data, gravity.ctypes.data)
     attitude = p[B_KP_ATTITUDE] * x[2] + p[B_KD_ATTITUDE] * x[n + 2]

@@ -15,7 +15,7 @@ import numpy as np
 from legsim.robots._native.calls import lsn_gravity
 
 from legsim.builders import Model, Param
-from legsim.compiled.functions import model_function
+from legsim.compiled.functions import model_function, scratch
 from legsim.control import ControlLaw, ControllerSpec
 from legsim.errors import SceneError
 
@@ -33,7 +33,8 @@ def joint_pd_control(t, x, m, p, u):
     """The joint PD's input into u (one entry per actuated joint) at the plant's state x
     (module docstring)."""
     n = int(p[PD_N])
-    gravity = np.zeros(n)
+    gravity = scratch(n)
+    gravity[:] = 0.0
     if p[PD_GRAVITY] != 0.0:
         lsn_gravity(np.int64(p[PD_HANDLE]), x.ctypes.data, gravity.ctypes.data)
     for i in range(int(p[PD_COUNT])):

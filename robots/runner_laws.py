@@ -21,7 +21,7 @@ from legsim.robots import _native
 from legsim.robots._native.calls import lsn_gravity
 from numba.extending import register_jitable
 
-from legsim.compiled.functions import model_function
+from legsim.compiled.functions import model_function, scratch
 
 from .control_laws import pd_torque
 
@@ -415,7 +415,8 @@ def runner_control(t, x, m, p, u):
     stance_count = 0
     for i in range(legs):
         stance_count += 1 if p[leg_at(p, i) + RL_STANCE] != 0.0 else 0
-    gravity = np.zeros(n)
+    gravity = scratch(n)
+    gravity[:] = 0.0
     if stance_count < legs:
         lsn_gravity(np.int64(p[R_HANDLE]), x.ctypes.data, gravity.ctypes.data)
     pronk = commanded(p, t)[1]

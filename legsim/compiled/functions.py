@@ -9,6 +9,9 @@ import os
 from typing import Any
 
 import numba
+import numpy as np
+from numba import types
+from numba.extending import intrinsic, overload
 
 from .cache import use_legsim_cache
 
@@ -34,3 +37,39 @@ def model_function(fn: Any = None, /, **options: Any) -> Any:
         return use_legsim_cache(numba.njit(**{**JIT_OPTIONS, "cache": cachable, **options})(function))
 
     return compile_one if fn is None else compile_one(fn)
+
+
+#: Bytes to which ``scratch`` aligns its arrays.
+STACK_ALIGNMENT = 64
+
+
+@intrinsic
+def _stack_floats(typingctx: Any, count: Any) -> Any:
+    """A pointer to ``count`` float64 values allocated on the stack of the function the call is
+    compiled into."""
+
+    def codegen(context: Any, builder: Any, signature: Any, args: Any) -> Any:
+        values = builder.alloca(context.get_value_type(types.float64), size=args[0])
+        # Aligned as a cache line, whatever the stack's depth: the native library's vectorised
+        # sums over such an array then add in one order on every path that calls it.
+        values.align = STACK_ALIGNMENT
+        return values
+
+    return types.CPointer(types.float64)(types.intp), codegen
+
+
+def scratch(count: int) -> np.ndarray:
+    """A float64 array of ``count`` uninitialised entries, for the small work arrays of a model
+    function called at every evaluation. Interpreted, ``np.empty(count)``; compiled, an array on
+    the calling function's stack: no allocation and no reference counting. It lives until that
+    function returns: never return it or keep it, and never take one inside a loop (compiled,
+    each call grows the stack until the function returns)."""
+    return np.empty(count)
+
+
+@overload(scratch, inline="always")
+def _compiled_scratch(count):  # numba compares the implementation's annotations with these: none
+    def on_the_stack(count):
+        return numba.carray(_stack_floats(count), count)
+
+    return on_the_stack

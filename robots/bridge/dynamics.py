@@ -35,7 +35,7 @@ from legsim.robots._native.calls import (
     lsn_tally,
 )
 
-from legsim.compiled.functions import model_function
+from legsim.compiled.functions import model_function, scratch
 from legsim.heights import PROFILE, SINE, curvature, face_slope, nearest, notch, notch_mu
 
 from .layout import (
@@ -140,7 +140,7 @@ def applied_forces(x, u, p, n, tau):
     for j in range(n):
         tau[j] = 0.0
     legs = int(p[P_NLEG])
-    jac = np.empty(2 + 2 * n if legs > 0 else 0)
+    jac = scratch(2 + 2 * n if legs > 0 else 0)
     for i in range(legs):
         leg = int(p[P_LEG]) + LEG_SIZE * i
         if p[leg + L_FOOTHOLD] < 0.0:
@@ -226,7 +226,7 @@ def place_rounds(x, p):
     q its round frames were not placed at answers nan (a breakdown the run reports)."""
     if not turning(p):
         return
-    kin = np.empty(4)
+    kin = scratch(4)
     for i in range(int(p[P_NCONTACT])):
         c = int(p[P_CONTACT]) + CONTACT_SIZE * i
         r = p[c + C_RADIUS]
@@ -241,9 +241,9 @@ def place_rounds(x, p):
 def one_frame_kinematics(x, p, frame, kin):
     """(x, z, vx, vz) (m, m/s) of Pinocchio frame ``frame`` at (q, v) into kin (4,): one frame,
     where ``frame_kinematics`` gives every frame of p's list."""
-    ids = np.full(1, float(frame))
+    ids = scratch(1)
+    ids[0] = float(frame)
     lsn_frames(handle(p), x.ctypes.data, ptr(x, int(p[P_N])), np.int64(1), ids.ctypes.data, kin.ctypes.data)
-    keep(ids)
 
 
 @model_function
@@ -256,19 +256,19 @@ def point_slope(x, p, frame, kin):
 
 
 @model_function
-def terrain_slopes(x, p, count, src, at):
+def terrain_slopes(x, p, count, src, at, slopes):
     """The terrain's (slope, curvature) (1, 1/m) under each of the ``count`` constraint blocks
-    src[at:] at q, 2 per block, as the native library takes them: zeros for joint stops and on
-    level ground (whose rows stay x and z)."""
-    slopes = np.zeros(2 * max(1, count))
+    src[at:] at q into slopes (2 per block, at least 2 entries), as the native library takes
+    them: zeros for joint stops and on level ground (whose rows stay x and z)."""
+    slopes[: 2 * max(1, count)] = 0.0
     if not on_terrain(p):
-        return slopes
-    ids = np.empty(max(1, count))
+        return
+    ids = scratch(max(1, count))
     for k in range(count):
         ids[k] = src[at + BLOCK_SIZE * k + 1]
-    kin = np.empty(4 * max(1, count))
+    kin = scratch(4 * max(1, count))
+    centre = scratch(4)
     lsn_frames(handle(p), x.ctypes.data, ptr(x, int(p[P_N])), np.int64(count), ids.ctypes.data, kin.ctypes.data)
-    keep(ids)
     terrain = int(p[P_TERRAIN])
     for k in range(count):
         block = at + BLOCK_SIZE * k
@@ -276,7 +276,7 @@ def terrain_slopes(x, p, count, src, at):
             continue
         c = round_record(p, src[block + 1]) if turning(p) else -1
         if c >= 0:  # the normal at the point nearest its centre, and its offset curve's curvature
-            grade, level_curvature = round_centre(x, p, c, np.empty(4))[2:]
+            grade, level_curvature = round_centre(x, p, c, centre)[2:]
             slopes[2 * k], slopes[2 * k + 1] = grade, level_curvature
             continue
         px = kin[4 * k]
@@ -286,7 +286,6 @@ def terrain_slopes(x, p, count, src, at):
             bisector, half = notch(p, terrain, px)
             slopes[2 * k] = bisector if half >= 0.0 else face_slope(p, terrain, px, kin[4 * k + 2])
         slopes[2 * k + 1] = curvature(p, terrain, px)
-    return slopes
 
 
 @model_function
@@ -297,7 +296,7 @@ def stuck_mu(x, p, c):
     mu = p[c + C_MU]
     if not on_terrain(p) or p[int(p[P_TERRAIN])] != PROFILE:  # only a profile has notches
         return mu
-    kin = np.empty(4)
+    kin = scratch(4)
     one_frame_kinematics(x, p, int(p[c + C_ID]), kin)
     half = notch(p, int(p[P_TERRAIN]), kin[0])[1]
     return notch_mu(mu, half) if half >= 0.0 else mu
@@ -310,7 +309,7 @@ def accelerate(x, u, p, blocks, src, at, a, lam):
     ``blocks`` constraint blocks src[at:] (``layout.BLOCK_SIZE`` values each) under the input u;
     ABA without blocks."""
     n = int(p[P_N])
-    tau = np.empty(n)
+    tau = scratch(n)
     applied_forces(x, u, p, n, tau)
     if blocks == 0:
         lsn_aba(handle(p), x.ctypes.data, ptr(x, n), tau.ctypes.data, a.ctypes.data)
@@ -318,10 +317,10 @@ def accelerate(x, u, p, blocks, src, at, a, lam):
         lsn_constrained(handle(p), x.ctypes.data, ptr(x, n), tau.ctypes.data, np.int64(blocks), ptr(src, at),
                         np.int64(0), a.ctypes.data, lam.ctypes.data)  # fmt: skip
     else:
-        slopes = terrain_slopes(x, p, blocks, src, at)
+        slopes = scratch(2 * blocks)
+        terrain_slopes(x, p, blocks, src, at, slopes)
         lsn_constrained(handle(p), x.ctypes.data, ptr(x, n), tau.ctypes.data, np.int64(blocks), ptr(src, at),
                         slopes.ctypes.data, a.ctypes.data, lam.ctypes.data)  # fmt: skip
-        keep(slopes)
 
 
 @model_function
@@ -335,7 +334,7 @@ def bridge_field(t, x, u, p, dx):
     """f(t, x, u) = (v, a, 0 for the footholds) of the mode, shape (dim,) (module docstring)."""
     n = int(p[P_N])
     place_rounds(x, p)
-    lam = np.empty(max(1, int(p[P_ROWS])))
+    lam = scratch(max(1, int(p[P_ROWS])))
     mode_accelerate(x, u, p, dx[n : 2 * n], lam)  # the acceleration written in place
     for j in range(n):
         dx[j] = x[n + j]
@@ -349,7 +348,7 @@ def bridge_forces(t, x, u, p, lam):
     constraint row (N, or N m for a stop), each contact's normal force last: the outputs'
     contact forces, from the same solve as the field."""
     place_rounds(x, p)
-    a = np.empty(int(p[P_N]))
+    a = scratch(int(p[P_N]))
     mode_accelerate(x, u, p, a, lam)
 
 
@@ -358,7 +357,7 @@ def bridge_spring_forces(t, x, u, p, out):
     """The axial force (N, > 0 pushing the hip away from the foot) of each stance leg, in
     declared order, into out."""
     n = int(p[P_N])
-    jac = np.empty(2 + 2 * n)
+    jac = scratch(2 + 2 * n)
     k = 0
     for i in range(int(p[P_NLEG])):
         leg = int(p[P_LEG]) + LEG_SIZE * i

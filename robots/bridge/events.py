@@ -37,14 +37,13 @@ import math
 import numpy as np
 from legsim.robots._native.calls import lsn_frame_motion, lsn_frames, lsn_impact
 
-from legsim.compiled.functions import model_function
+from legsim.compiled.functions import model_function, scratch
 from legsim.heights import face_slope, height
 
 from .dynamics import (
     accelerate,
     frame_kinematics,
     handle,
-    keep,
     mode_accelerate,
     on_terrain,
     place_rounds,
@@ -164,7 +163,7 @@ def round_gap(x, p, c):
     """The gap guard of the inactive round contact at record c on a terrain whose normal turns:
     ``max(d - r, dd/dt)`` (m, m/s), d the distance from its centre to the terrain (along the
     normal at the terrain's point nearest it) and dd/dt = n . v_centre, past only while it closes."""
-    kin = np.empty(4)
+    kin = scratch(4)
     _, d, g, _ = round_centre(x, p, c, kin)
     return max(d - p[c + C_RADIUS], (kin[3] - g * kin[2]) / math.sqrt(1.0 + g * g))
 
@@ -210,10 +209,10 @@ def impact(x, p, tr, coefficients, out):
     n = int(p[P_N])
     out[: x.shape[0]] = x
     count, at = int(p[tr + TR_NIMPACT]), int(p[tr + TR_IMPACT])
-    slopes = terrain_slopes(x, p, count, p, at)
+    slopes = scratch(2 * max(1, count))
+    terrain_slopes(x, p, count, p, at, slopes)
     lsn_impact(handle(p), x.ctypes.data, ptr(x, n), np.int64(count), ptr(p, at), slopes.ctypes.data,
                ptr(p, coefficients), ptr(out, n), np.int64(0))  # fmt: skip
-    keep(slopes)
 
 
 @model_function
@@ -221,21 +220,12 @@ def post_impact_force(x, u, p, tr):
     """lambda+ of a plastic impact: the striking contact's normal force (N or N m) in the mode
     with it active, right after the impact, under u."""
     n = int(p[P_N])
-    after = np.empty(x.shape[0])
+    after = scratch(x.shape[0])
     impact(x, p, tr, int(p[tr + TR_COEFF]), after)
-    a = np.empty(n)
-    lam = np.empty(int(p[tr + TR_ROW]) + 1 + 2 * int(p[tr + TR_NSTICK]))
+    a = scratch(n)
+    lam = scratch(int(p[tr + TR_ROW]) + 1 + 2 * int(p[tr + TR_NSTICK]))
     accelerate(after, u, p, int(p[tr + TR_NSTICK]), p, int(p[tr + TR_STICK]), a, lam)
     return lam[int(p[tr + TR_ROW])]
-
-
-@model_function
-def kinematics_of(x, p):
-    """The frames' kinematics when the mode's guards read them (``frame_kinematics``)."""
-    kin = np.empty(4 * max(1, int(p[P_NFRAME])))
-    if p[P_KINEMATICS] != 0.0:
-        frame_kinematics(x, p, kin)
-    return kin
 
 
 @model_function
@@ -251,7 +241,7 @@ def plain_guard(x, u, p, tr, kin, lam, solved):
         return base if base >= 0.0 else max(base, -p[tr + TR_SIDE] * post_impact_force(x, u, p, tr))
     if kind == K_RELEASE:
         if solved[0] == 0.0:
-            mode_accelerate(x, u, p, np.empty(int(p[P_N])), lam)
+            mode_accelerate(x, u, p, scratch(int(p[P_N])), lam)
             solved[0] = 1.0
         return lam[int(p[tr + TR_ROW])]
     return leg_guard(x, p, tr, kin)
@@ -269,13 +259,16 @@ def bridge_guards(t, x, u, p, g):
     """Every outgoing transition's guard of the mode at (t, x) under u, in their order, into g;
     all nan past the model's range (module docstring)."""
     place_rounds(x, p)
-    kin = kinematics_of(x, p)
+    kin = scratch(4 * max(1, int(p[P_NFRAME])))
+    if p[P_KINEMATICS] != 0.0:  # the frames' kinematics, when the mode's guards read them
+        frame_kinematics(x, p, kin)
     count = int(p[P_NGUARD])
     if p[P_COULOMB] != 0.0:
         coulomb_guards(x, u, p, kin, g)
     else:
-        lam = np.empty(max(1, int(p[P_ROWS])))
-        solved = np.zeros(1)
+        lam = scratch(max(1, int(p[P_ROWS])))
+        solved = scratch(1)
+        solved[0] = 0.0
         for e in range(count):
             g[e] = plain_guard(x, u, p, record(p, e), kin, lam, solved)
     for e in range(count):
@@ -291,13 +284,13 @@ def leg_reset(x, p, tr, out):
     n = int(p[P_N])
     out[: 2 * n] = x[: 2 * n]
     at = int(p[tr + TR_MAP])
+    kin = scratch(4)
     for i in range(int(p[tr + TR_NMAP])):
         j = int(p[at + i])
         if j >= 0:
             out[2 * n + i] = x[2 * n + j]
         else:
             leg = int(p[P_LEG]) + LEG_SIZE * int(p[tr + TR_CONTACT])
-            kin = np.empty(4)
             lsn_frames(handle(p), x.ctypes.data, ptr(x, n), np.int64(1), ptr(p, leg + L_FOOT_FRAME), kin.ctypes.data)
             out[2 * n + i] = kin[0]
 
@@ -345,10 +338,10 @@ def event_base(x, p, ev, kin, a, lam):
     if kind == E_SLIP:
         return stuck_mu(x, p, c) * lam[row] + s * lam[row - 1]
     n = int(p[P_N])
-    motion = np.empty(4)
+    motion = scratch(4)
     lsn_frame_motion(handle(p), x.ctypes.data, ptr(x, n), a.ctypes.data, np.int64(p[c + C_ID]), motion.ctypes.data)
     if on_terrain(p):  # the slip velocity and acceleration along the terrain's tangent
-        grade, norm = point_slope(x, p, int(p[c + C_ID]), np.empty(4))
+        grade, norm = point_slope(x, p, int(p[c + C_ID]), scratch(4))
         return max(s * (motion[0] + grade * motion[1]) / norm, s * (motion[2] + grade * motion[3]) / norm)
     return max(s * motion[0], s * motion[2])
 
@@ -375,7 +368,7 @@ def corner_base(x, p, frame):
     a face the constraint keeps v_n and the height near 0; past a corner of the profile the
     face's normal turns and v_n jumps (into the new face at a concave corner, away from it at a
     convex one): the loop crosses that jump (``ModeFunctions.crosses_jumps``)."""
-    kin = np.empty(4)
+    kin = scratch(4)
     grade, norm = point_slope(x, p, frame, kin)
     normal_speed = (kin[3] - grade * kin[2]) / norm
     turned = CORNER_SINE * math.hypot(kin[2], kin[3]) + CORNER_FLOOR - abs(normal_speed)
@@ -403,10 +396,11 @@ def coulomb_guards(x, u, p, kin, g):
     velocities jumped with the face's normal, count as not past until it has struck the new
     face or left it."""
     n, contacts = int(p[P_N]), int(p[P_NCONTACT])
-    a, lam = np.empty(n), np.empty(max(1, int(p[P_ROWS])))
+    a, lam = scratch(n), scratch(max(1, int(p[P_ROWS])))
     events = int(p[P_NEVENT])
     solved = False
-    bases = np.empty(max(1, events))
+    bases = scratch(max(1, events))
+    status, image = scratch(max(1, contacts)), scratch(x.shape[0])  # for an outcome, the rare case
     cornered = False
     for k in range(events):
         ev = int(p[P_EVENT]) + EVENT_SIZE * k
@@ -420,8 +414,7 @@ def coulomb_guards(x, u, p, kin, g):
         base = abs(bases[k]) if cornered and p[ev + EV_KIND] != E_CORNER else bases[k]
         first, copies = int(p[ev + EV_FIRST]), int(p[ev + EV_COUNT])
         chosen = math.nan
-        if base < 0.0:  # past: the outcome decides which copy (allocated only here, the rare case)
-            status, image = np.empty(max(1, contacts)), np.empty(x.shape[0])
+        if base < 0.0:  # past: the outcome decides which copy
             if not outcome(x, u, p, ev, False, status, image):
                 g[first] = math.nan
                 return
@@ -444,7 +437,7 @@ def outcome_image(x, u, p, tr, continued, out):
     target (``friction.realize``)."""
     ev = int(p[P_EVENT]) + EVENT_SIZE * int(p[tr + TR_EVENT])
     contacts = int(p[P_NCONTACT])
-    status = np.empty(max(1, contacts))
+    status = scratch(max(1, contacts))
     image = out[: x.shape[0]]
     found = outcome(x, u, p, ev, continued, status, image)
     if found and not continued and status_code(status, contacts) != p[tr + TR_TARGET]:

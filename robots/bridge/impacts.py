@@ -34,7 +34,7 @@ import math
 import numpy as np
 from legsim.robots._native.calls import lsn_crba, lsn_frame_jacobian, lsn_impact, lsn_solve
 
-from legsim.compiled.functions import model_function
+from legsim.compiled.functions import model_function, scratch
 from legsim.heights import face_slope
 
 from .dynamics import handle, keep, on_terrain, place_rounds, ptr, terrain_slopes
@@ -165,10 +165,10 @@ def newton_impact(x, p, contacts, coeff, count, v_plus, normal):
     blocks = np.empty(BLOCK_SIZE * max(1, count))
     rows = contact_blocks(p, contacts, count, blocks)
     impulse = np.empty(max(1, rows))
-    slopes = terrain_slopes(x, p, count, blocks, 0)
+    slopes = scratch(2 * max(1, count))
+    terrain_slopes(x, p, count, blocks, 0, slopes)
     lsn_impact(handle(p), x.ctypes.data, ptr(x, n), np.int64(count), blocks.ctypes.data, slopes.ctypes.data,
                coeff.ctypes.data, v_plus.ctypes.data, impulse.ctypes.data)  # fmt: skip
-    keep(slopes)
     row = 0
     for k in range(count):
         row += int(blocks[BLOCK_SIZE * k + 3])
