@@ -291,6 +291,23 @@ def stride_starts(ex, start: float) -> list[float]:
     ]
 
 
+def gait_change(scene: str, speed: float, then: str, first: str | None = None, settle: float = 2.5):
+    """The bundled scene of ``scene`` at a commanded ``speed`` (m/s) for 15 s, in gait ``first``
+    (else the scene's) scheduled to ``then`` at 5 s, checked to finish without a warning in the
+    kernel and within 5% of the speed over [10, 15] s: (the whole strides from ``settle`` (s) to
+    the change, those after 10 s)."""
+    sets = [f"controller.parameters.speed={speed}", "integrator.t_final=15"]
+    sets += [f"controller.parameters.gait='{first}'"] if first else []
+    sets.append(f"controller.parameters.schedule=[{{t = 5, gait = '{then}'}}]")
+    ex = load_scene(SCENES[scene], sets).simulate()
+    assert ex.status == "finished" and not ex.warnings and ex.counters["python_steps"] == 0
+    t = np.concatenate([seg.t for seg in ex.segments])
+    x = np.concatenate([seg.x[:, 0] for seg in ex.segments])
+    assert abs(mean_speed_after(t, x, 10.0) / speed - 1.0) < SPEED_TOLERANCE
+    before = [s for s, t0 in zip(strides(ex, settle), stride_starts(ex, settle), strict=False) if t0 < 5.0]
+    return before, strides(ex, 10.0)
+
+
 @pytest.mark.parametrize(
     "speed,first,then",
     [
@@ -307,19 +324,7 @@ def test_a_schedule_turns_the_one_flight_bound_into_a_gallop_and_back(speed, fir
     command (measured 0.999-1.003 of it), no warning. The transition between the gaits is
     simulated, not switched: the phase term moves the front pair's touchdowns from 0.2 of a
     stride to the gallop's 0.45 (or back) over a few strides."""
-    sets = [
-        f"controller.parameters.speed={speed}",
-        "integrator.t_final=15",
-        f"controller.parameters.gait='{first}'",
-        f"controller.parameters.schedule=[{{t = 5, gait = '{then}'}}]",
-    ]
-    ex = load_scene(SCENES["bound_one_flight"], sets).simulate()
-    assert ex.status == "finished" and not ex.warnings and ex.counters["python_steps"] == 0
-    t = np.concatenate([seg.t for seg in ex.segments])
-    x = np.concatenate([seg.x[:, 0] for seg in ex.segments])
-    assert abs(mean_speed_after(t, x, 10.0) / speed - 1.0) < SPEED_TOLERANCE
-    before = [s for s, t0 in zip(strides(ex, 2.5), stride_starts(ex, 2.5), strict=False) if t0 < 5.0]
-    after = strides(ex, 10.0)
+    before, after = gait_change("bound_one_flight", speed, then, first, settle=2.5)
     pattern = {"bound": ONE_FLIGHT_STRIDE, "gallop": GALLOP_STRIDE}
     assert len(before) >= 4 and len(after) >= 8
     assert all(s == pattern[first] for s in before), before
@@ -335,18 +340,7 @@ def test_a_schedule_turns_the_pronk_into_a_bound_when_the_change_comes_at_five_s
     comes decides whether the bound settles: of changes at 4 to 8 s, 5 of 10 make it
     (docs/robots.md, after the speed schedule), so this checks the measured cases, not a
     transition law."""
-    sets = [
-        f"controller.parameters.speed={speed}",
-        "integrator.t_final=15",
-        "controller.parameters.schedule=[{t = 5, gait = 'bound'}]",
-    ]
-    ex = load_scene(SCENES["pronk"], sets).simulate()
-    assert ex.status == "finished" and not ex.warnings and ex.counters["python_steps"] == 0
-    t = np.concatenate([seg.t for seg in ex.segments])
-    x = np.concatenate([seg.x[:, 0] for seg in ex.segments])
-    assert abs(mean_speed_after(t, x, 10.0) / speed - 1.0) < SPEED_TOLERANCE
-    before = [s for s, t0 in zip(strides(ex, 1.0), stride_starts(ex, 1.0), strict=False) if t0 < 5.0]
-    after = strides(ex, 10.0)
+    before, after = gait_change("pronk", speed, "bound", settle=1.0)
     assert len(before) >= 8 and len(after) >= 8
     for stride in before:
         assert sum(1 for phase in stride if not phase) == 1 and frozenset(FEET) in stride, stride
