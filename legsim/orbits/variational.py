@@ -203,7 +203,7 @@ def point_on_step(run: Any, seg: Segment, i: int, h: float) -> np.ndarray:
 SensitivityWork = namedtuple("SensitivityWork", "K dK X dX J J0 J1 S out Phi plus minus f_plus f_minus")
 
 
-def scratch(n: int, stages: int) -> SensitivityWork:
+def sensitivity_work(n: int, stages: int) -> SensitivityWork:
     """The work arrays of ``sensitivity`` for an n-dimensional state and ``stages`` stages."""
     return SensitivityWork(
         np.zeros((stages, n)), np.zeros((stages, n, n)), np.zeros(n), np.zeros((n, n)), np.zeros((n, n)),
@@ -223,7 +223,7 @@ def segment_sensitivity(run: Any, seg: Segment, t_stop: float | None, newton: bo
             "singular_jacobian",
         )
     n = seg.x.shape[1]
-    work = scratch(n, run.method.info[0])
+    work = sensitivity_work(n, run.method.info[0])
     stop = math.inf if t_stop is None else float(t_stop)
     ts = np.ascontiguousarray(seg.t, dtype=float)
     xs = np.ascontiguousarray(seg.x, dtype=float)
