@@ -41,6 +41,8 @@ def fuzz_settings(examples: int, long: bool) -> settings:
         max_examples=examples,
         deadline=None,
         derandomize=not long,
+        # a failure of the random long form prints the blob that replays it (@reproduce_failure)
+        print_blob=long,
         database=None,
         suppress_health_check=list(HealthCheck),
     )
