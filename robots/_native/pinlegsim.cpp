@@ -591,7 +591,8 @@ void lsn_frame_jacobian(long h, const double* q, long frame, double* out) {
     return;
   }
   rb.counts[JACOBIANS] += 1;
-  Mat Jf = Mat::Zero(6, n);
+  Mat& Jf = rb.scratch.frame_jacobian;  // reused: a stance spring's force is asked at every evaluation
+  Jf.setZero(6, n);
   pinocchio::computeFrameJacobian(rb.model, rb.data, ConstMap(q, n), id, pinocchio::LOCAL_WORLD_ALIGNED, Jf);
   shift_to_contact(rb, id, Jf);
   const Eigen::Vector3d p = rb.data.oMf[id].translation() + round_offset(rb, id);
