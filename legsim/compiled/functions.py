@@ -50,8 +50,8 @@ def _stack_floats(typingctx: Any, count: Any) -> Any:
 
     def codegen(context: Any, builder: Any, signature: Any, args: Any) -> Any:
         values = builder.alloca(context.get_value_type(types.float64), size=args[0])
-        # Aligned as a cache line, whatever the stack's depth: the native library's vectorised
-        # sums over such an array then add in one order on every path that calls it.
+        # Aligned as a cache line whatever the stack's depth, so that vectorised native code
+        # reading the array never meets an alignment that depends on where the stack stands.
         values.align = STACK_ALIGNMENT
         return values
 

@@ -57,7 +57,7 @@ def test_interpreted_it_is_a_fresh_array_of_that_length():
 def test_compiled_it_allocates_nothing_and_is_aligned_wherever_the_stack_stands():
     """No call into numba's allocator in the compiled function (a heap array would show
     ``NRT_MemInfo_alloc``), and every work array starts on a ``STACK_ALIGNMENT`` boundary at
-    every depth: the native library's vectorised loops then add in one order on every path."""
+    every depth."""
     _weighted_sum(np.ones(3))
     code = next(iter(_weighted_sum.inspect_llvm().values()))
     assert "NRT_MemInfo_alloc" not in code
