@@ -192,6 +192,69 @@ def test_the_pronk_keeps_every_speed_with_one_set_of_gains_and_no_ramp(speed):
     check_gait("pronk", speed, PRONK_EVERY_SPEED)
 
 
+#: One set of the gallop's gains for 0.5, 1.0 and 2.0 m/s, and one of the two-flight bound's, each
+#: speed commanded from the scene's start (no ramp): found by a search over the scenes' parameters
+#: (about 1,000 runs, 2026-11-30; docs/robots.md, "One set of gains"). Both lie between the
+#: scenes' gains and ``FAST``: a small integral term, damped legs, stiff flight servos, a weaker
+#: phase term; the gallop's legs stiffer, the bound's softer and shorter.
+GALLOP_EVERY_SPEED = (
+    "controller.parameters.k_x=0.042",
+    "controller.parameters.k_i=0.0085",
+    "controller.parameters.stiffness=3670",
+    "controller.parameters.damping=52",
+    "controller.parameters.height=0.525",
+    "controller.parameters.leg_length=0.4",
+    "controller.parameters.kp_joint=199",
+    "controller.parameters.kd_joint=4.5",
+    "controller.parameters.k_height=0.181",
+    "controller.parameters.k_phase=0.077",
+)
+BOUND_EVERY_SPEED = (
+    "controller.parameters.k_x=0.0397",
+    "controller.parameters.k_i=0.0074",
+    "controller.parameters.stiffness=2472",
+    "controller.parameters.damping=42.3",
+    "controller.parameters.height=0.5035",
+    "controller.parameters.leg_length=0.3702",
+    "controller.parameters.kp_joint=162",
+    "controller.parameters.kd_joint=4.5",
+    "controller.parameters.k_height=0.2314",
+    "controller.parameters.k_phase=0.081",
+)
+#: Each gait's set, and the stride every whole stride after 5 s must be.
+EVERY_SPEED = {"gallop": (GALLOP_EVERY_SPEED, GALLOP_STRIDE), "bound": (BOUND_EVERY_SPEED, BOUND_STRIDE)}
+
+
+@pytest.mark.parametrize("speed", [0.5, 1.0, 2.0])
+@pytest.mark.parametrize("gait", ["gallop", "bound"])
+def test_the_gallop_and_the_bound_keep_every_speed_with_one_set_of_gains(gait, speed):
+    """Each set at each commanded speed from the scene's start, 10 s: the mean speed over [5, 10] s
+    within 5% (measured 0.5075, 0.9998, 1.9781 m/s for the gallop; 0.4958, 0.9989, 1.9753 for the
+    bound), the pitch within 0.5 rad (0.310-0.317 and 0.381-0.386), no warning, every stride
+    after 5 s the gait's (12 and 11 of them). The gallop's front pair lands 0.34-0.41 of a stride
+    after the hind pair on average (0.41 at 0.5 m/s, 0.34 at 2.0), the bound's 0.46-0.50."""
+    sets, stride = EVERY_SPEED[gait]
+    ex = check_gait(gait, speed, sets)
+    found = strides(ex, SETTLE)
+    assert len(found) >= 8 and all(s == stride for s in found), found
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("speed", [0.5, 1.0, 2.0])
+@pytest.mark.parametrize("gait", ["gallop", "bound"])
+def test_the_gallop_and_the_bound_run_twenty_seconds_with_one_set_of_gains(gait, speed):
+    """The same over 20 s: no warning, the mean speed over [5, 20] s within 5% (measured 0.5019,
+    1.0005, 1.9936 m/s for the gallop, 0.4980, 0.9994, 1.9930 for the bound), every stride the
+    gait's (38 and 35)."""
+    sets, stride = EVERY_SPEED[gait]
+    ex, t, x, pitch = run_gait(gait, speed, 20.0, sets)
+    assert ex.status == "finished" and ex.t_end == 20.0 and not ex.warnings
+    assert abs(mean_speed_after(t, x, SETTLE) / speed - 1.0) < SPEED_TOLERANCE
+    assert np.max(np.abs(pitch)) < PITCH_BOUND[gait]
+    found = strides(ex, SETTLE)
+    assert len(found) >= 30 and all(s == stride for s in found), found
+
+
 @pytest.mark.parametrize("gait", ["pronk", "bound"])
 def test_gait_keeps_half_a_metre_a_second(gait):
     check_gait(gait, 0.5)
