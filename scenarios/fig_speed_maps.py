@@ -1,16 +1,15 @@
 """Speed maps of the planar quadruped's gaits: commanded speed x foot-placement gain.
 
 For each gait (scenes ``quadruped_pronk_forward``, ``quadruped_bound_forward`` (the bound with two
-flights a stride), ``quadruped_bound_one_flight`` (one flight a stride) and ``quadruped_gallop``)
-a ``legsim sweep``
-over ``controller.parameters.speed`` and ``controller.parameters.k_x`` runs every cell for
-``T_FINAL`` s and writes per cell the achieved mean speed over [``SETTLE``, t_end] (``--measure
-mean_rate:x:SETTLE``), the largest |pitch| (``max_abs:pitch``), the run's status (``fell`` when a
-condition of the scene's ``[fall]`` held) and an orbit search (``--orbit``): its status, and the
-largest Floquet multiplier where it found an orbit. The bounds' and the gallop's searches start
-from the last apex of each cell's run (``--orbit-guess run``); the pronk's from its scene's guess, the one-hop orbit
-at 1.0 m/s (``--orbit-guess scene``): that orbit is a flip, and the runs settle on a two-hop gait,
-whose apexes are no guess for it. A cell is drawn
+flights a stride), ``quadruped_bound_one_flight`` (one flight a stride) and ``quadruped_gallop``) a
+``legsim sweep`` over ``controller.parameters.speed`` and ``controller.parameters.k_x`` runs every
+cell for ``T_FINAL`` s and writes per cell the achieved mean speed over [``SETTLE``, t_end]
+(``--measure mean_rate:x:SETTLE``), the largest |pitch| (``max_abs:pitch``), the run's status
+(``fell`` when a condition of the scene's ``[fall]`` held) and an orbit search (``--orbit``): its
+status, and the largest Floquet multiplier where it found an orbit. The bounds' and the gallop's
+searches start from the last apex of each cell's run (``--orbit-guess run``); the pronk's from its
+scene's guess, the one-hop orbit at 1.0 m/s (``--orbit-guess scene``): that orbit is a flip, and
+the runs settle on a two-hop gait, whose apexes are no guess for it. A cell is drawn
 
 * red: the run fell (status ``fell`` or ``model_breakdown``); black: the run failed otherwise;
 * purple: it finished with warnings (an accumulation: past it the relaxed execution holds the
