@@ -114,156 +114,88 @@ def _ps_forcing(ps: dict[str, float]) -> Callable[[np.ndarray], np.ndarray]:
 
 def run_one(case: Case, spec: RunSpec, repeats: int = 3, rho_points: int = 0) -> Row:
     """Run one configuration of ``case`` and measure it."""
-    from ..baselines import paoli_schatzman, simulate_events
+    runners = {"relaxed": _run_relaxed, "solve_ivp": _run_solve_ivp, "ps": _run_ps}
+    if spec.kind not in runners:
+        raise BenchError(f"unknown run kind {spec.kind!r}")
+    return runners[spec.kind](case, spec, repeats, rho_points)
+
+
+def _row(case: Case, spec: RunSpec, ex: Any, error: float, wall: float, repeats: int, **fields: Any) -> Row:
+    """The row of a run of the relaxed integrator or solve_ivp: its settings, ``error`` (inf
+    unless it finished), wall time and counters; ``fields`` override the settings' columns."""
+    c = ex.counters
+    columns: dict[str, Any] = {
+        "case": case.name, "method": spec.method, "kind": spec.kind, "h": spec.h, "eps": spec.eps,
+        "tol": spec.tol, "max_step": math.nan, "landing": spec.landing, "error": error, "rho": math.nan,
+        "wall_s": wall, "repeats": repeats, "steps": int(c["steps"]), "halvings": int(c.get("halvings", 0)),
+        "field_evals": int(c["field_evals"]), "guard_evals": int(c["guard_evals"]),
+        "transitions": int(c["transitions"]), "status": ex.status,
+    }  # fmt: skip
+    return Row(**{**columns, **fields})
+
+
+def _run_relaxed(case: Case, spec: RunSpec, repeats: int, rho_points: int) -> Row:
     from ..relaxed import simulate
 
-    rho_value = math.nan
-    if spec.kind == "relaxed":
-        method = relaxed_method(spec.method[len("relaxed-") :])
-        tols = {} if math.isnan(spec.tol) else {"rtol": spec.tol, "atol": spec.tol}
-        system, control = case.system, case.control
-        if spec.zeno:
-            if case.zeno_system is None:
-                raise BenchError(f"case {case.name} has no Zeno continuation variant (oscillator-ex2 only)")
-            system, control = case.zeno_system
+    method = relaxed_method(spec.method[len("relaxed-") :])
+    tols = {} if math.isnan(spec.tol) else {"rtol": spec.tol, "atol": spec.tol}
+    system, control = case.system, case.control
+    if spec.zeno:
+        if case.zeno_system is None:
+            raise BenchError(f"case {case.name} has no Zeno continuation variant (oscillator-ex2 only)")
+        system, control = case.zeno_system
+    # The sweep's finest fixed steps are meant to be long (Ex.1's Euler at h = 1e-5 is 1.3e7
+    # steps): the budget is twice the nominal count, never below simulate's default.
+    budget = max(MAX_STEPS, 2 * math.ceil(case.t_final / spec.h))
 
-        # The sweep's finest fixed steps are meant to be long (Ex.1's Euler at h = 1e-5 is 1.3e7
-        # steps): the budget is twice the nominal count, never below simulate's default.
-        budget = max(MAX_STEPS, 2 * math.ceil(case.t_final / spec.h))
+    def call() -> Any:
+        return simulate(system, case.x0, case.mode, case.t_final, spec.h, spec.eps, method, control,
+                        max_transitions=case.max_transitions, landing=spec.landing, continuation=spec.zeno,
+                        max_steps=budget, **tols)  # fmt: skip
 
-        def call():
-            return simulate(
-                system,
-                case.x0,
-                case.mode,
-                case.t_final,
-                spec.h,
-                spec.eps,
-                method,
-                control,
-                max_transitions=case.max_transitions,
-                landing=spec.landing,
-                continuation=spec.zeno,
-                max_steps=budget,
-                **tols,
-            )
+    ex, wall, n = _timed(call, repeats, lambda r, dt: dt)
+    if ex.status != "finished":
+        return _row(case, spec, ex, math.inf, wall, n)
+    error = position_error(*own_points(ex, case.positions), case.reference_positions)
+    # rho of a Zeno run is left out (nan): its mode 'stuck' is not a mode of the reference
+    # execution, so the metric puts the two infinitely far apart while the mass rests.
+    rho_value = math.nan if spec.zeno else relaxed_rho(case, ex, spec.eps, rho_points, system)
+    return _row(case, spec, ex, error, wall, n, rho=rho_value)
 
-        ex, wall, n = _timed(call, repeats, lambda r, dt: dt)
-        if ex.status == "finished":
-            error = position_error(*own_points(ex, case.positions), case.reference_positions)
-            # rho of a Zeno run is left out (nan): its mode 'stuck' is not a mode of the reference
-            # execution, so the metric puts the two infinitely far apart while the mass rests.
-            rho_value = math.nan if spec.zeno else relaxed_rho(case, ex, spec.eps, rho_points, system)
-        else:
-            error = math.inf
-        c = ex.counters
-        return Row(
-            case.name,
-            spec.method,
-            spec.kind,
-            spec.h,
-            spec.eps,
-            spec.tol,
-            math.nan,
-            spec.landing,
-            error,
-            rho_value,
-            wall,
-            n,
-            int(c["steps"]),
-            int(c["halvings"]),
-            int(c["field_evals"]),
-            int(c["guard_evals"]),
-            int(c["transitions"]),
-            ex.status,
-        )
-    if spec.kind == "solve_ivp":
-        method = spec.method[len("solve_ivp-") :]
 
-        def call():
-            return simulate_events(
-                case.ivp_system,
-                case.x0,
-                case.mode,
-                case.t_final,
-                method=method,
-                rtol=spec.tol,
-                atol=spec.tol,
-                max_transitions=10_000,
-                max_step=spec.max_step,
-                control=case.control,
-            )
+def _run_solve_ivp(case: Case, spec: RunSpec, repeats: int, rho_points: int) -> Row:
+    from ..baselines import simulate_events
 
-        ex, wall, n = _timed(call, repeats, lambda r, dt: float(r.counters["wall_time_s"]))
-        error = (
-            position_error(*own_points(ex, case.positions), case.reference_positions)
-            if ex.status == "finished"
-            else math.inf
-        )
-        c = ex.counters
-        return Row(
-            case.name,
-            spec.method,
-            spec.kind,
-            math.nan,
-            math.nan,
-            spec.tol,
-            spec.max_step,
-            "",
-            error,
-            math.nan,
-            wall,
-            n,
-            int(c["steps"]),
-            0,
-            int(c["field_evals"]),
-            int(c["guard_evals"]),
-            int(c["transitions"]),
-            ex.status,
-        )
-    if spec.kind == "ps":
-        if case.ps is None:
-            raise BenchError(f"case {case.name} has no Paoli-Schatzman baseline (oscillator cases only)")
-        ps = case.ps
-        forcing = _ps_forcing(ps)
+    method = spec.method[len("solve_ivp-") :]
 
-        def call():
-            return paoli_schatzman(
-                ps["a"],
-                ps["omega"],
-                ps["c"],
-                ps["x_max"],
-                forcing,
-                ps["x0"],
-                ps["xd0"],
-                case.t_final,
-                spec.h,
-                compiled=True,
-            )
+    def call() -> Any:
+        return simulate_events(case.ivp_system, case.x0, case.mode, case.t_final, method=method, rtol=spec.tol,
+                               atol=spec.tol, max_transitions=10_000, max_step=spec.max_step,
+                               control=case.control)  # fmt: skip
 
-        (t, z), wall, n = _timed(call, repeats, lambda r, dt: dt)
-        error = position_error(t, z[:, None], case.reference_positions)
-        return Row(
-            case.name,
-            "ps",
-            "ps",
-            spec.h,
-            math.nan,
-            math.nan,
-            math.nan,
-            "",
-            error,
-            math.nan,
-            wall,
-            n,
-            len(t) - 1,
-            0,
-            len(t),
-            0,
-            0,
-            "finished",
-        )
-    raise BenchError(f"unknown run kind {spec.kind!r}")
+    ex, wall, n = _timed(call, repeats, lambda r, dt: float(r.counters["wall_time_s"]))
+    finished = ex.status == "finished"
+    error = position_error(*own_points(ex, case.positions), case.reference_positions) if finished else math.inf
+    return _row(case, spec, ex, error, wall, n, h=math.nan, eps=math.nan, max_step=spec.max_step, landing="",
+                halvings=0)  # fmt: skip
+
+
+def _run_ps(case: Case, spec: RunSpec, repeats: int, rho_points: int) -> Row:
+    from ..baselines import paoli_schatzman
+
+    if case.ps is None:
+        raise BenchError(f"case {case.name} has no Paoli-Schatzman baseline (oscillator cases only)")
+    ps = case.ps
+    forcing = _ps_forcing(ps)
+
+    def call() -> Any:
+        return paoli_schatzman(ps["a"], ps["omega"], ps["c"], ps["x_max"], forcing, ps["x0"], ps["xd0"],
+                               case.t_final, spec.h, compiled=True)  # fmt: skip
+
+    (t, z), wall, n = _timed(call, repeats, lambda r, dt: dt)
+    error = position_error(t, z[:, None], case.reference_positions)
+    return Row(case.name, "ps", "ps", spec.h, math.nan, math.nan, math.nan, "", error, math.nan, wall, n,
+               len(t) - 1, 0, len(t), 0, 0, "finished")  # fmt: skip
 
 
 def warm_up(case: Case, specs: Iterable[RunSpec]) -> None:
