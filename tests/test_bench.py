@@ -460,3 +460,15 @@ def test_the_overhead_report_refuses_a_format_it_has_no_form_in(capsys):
     assert main(["bench", "overhead", "--format", "csv"]) == 2
     err = capsys.readouterr().err
     assert err == "legsim: error: legsim bench overhead prints text or json, not 'csv' (--format text|json)\n"
+
+
+@pytest.mark.parametrize("name", ["pronk", "double-pendulum"])
+def test_the_robot_references_error_estimate_compares_runs_that_differ(name):
+    """The robot cases' reference is checked against a run at 100x its tolerance and half its
+    largest step: the two take different steps, so their difference is a real estimate (not 0,
+    which a looser tolerance alone gives where the largest step binds), and it is far below the
+    errors the targets judge (1e-7 and above)."""
+    pytest.importorskip("pinocchio")
+    case = make_case(name, quick=True)
+    estimate = case.info["reference_error_estimate"]
+    assert 0.0 < estimate < 1e-9
