@@ -309,31 +309,10 @@ def load_scene(path_or_name: str | os.PathLike[str], overrides: Sequence[str] = 
 
 
 def _validate(path: Path, data: dict[str, Any], overrides: list[str]) -> Scene:
-    unknown = sorted(set(data) - set(ALLOWED_SECTIONS))
-    if unknown:
-        raise SceneError(
-            f"{path}: unknown section(s) {unknown}; allowed: {list(CORE_SECTIONS)} and tool "
-            f"sections {list(TOOL_SECTIONS)}"
-        )
-    for key in ALLOWED_SECTIONS:
-        table_at(path, data, key)
-
-    scene_t = data.get("scene", {})
-    check_keys(path, scene_t, SCENE_KEYS, "scene")
-    description = scene_t.get("description", "")
-    if not isinstance(description, str):
-        raise field_error(path, "scene.description", f"expected a string, got {describe(description)}")
-    name = path.stem
-
+    _check_sections(path, data)
+    description = _description(path, data.get("scene", {}))
     robot_t = table_at(path, data, "robot")
-    check_keys(path, robot_t, ROBOT_KEYS, "robot")
-    if "name" not in robot_t:
-        raise field_error(path, "robot.name", f"missing; available robots: {sorted(available())}")
-    robot = robot_t["name"]
-    if not isinstance(robot, str):
-        raise field_error(
-            path, "robot.name", f"expected a string, got {describe(robot)}; available robots: {sorted(available())}"
-        )
+    robot = _robot_name(path, robot_t)
     parameters = table_at(path, robot_t, "parameters", "robot.parameters")
     effects_t = table_at(path, data, "effects")
     # Integrator settings and outputs are checked before the model is built, so that a typo in
@@ -353,18 +332,7 @@ def _validate(path: Path, data: dict[str, Any], overrides: list[str]) -> Scene:
     resolved_params = resolve_parameters(builder.parameters, parameters, f"{where}: robot.parameters")
     scene_relative_files(path, builder.parameters, resolved_params, "robot.parameters")
     chosen = resolve_effects(builder.effects, effects_t, f"{where}: effects")
-    try:
-        with reading_inside(path.parent):
-            model = builder.run(resolved_params, chosen, terrain, where)
-    except SceneError as exc:
-        if str(exc).startswith(where):
-            raise
-        raise SceneError(f"{where}: robot '{robot}': {exc}") from exc
-    except Exception as exc:  # a builder's own failure: name the file and robot, keep the cause chained
-        detail = str(exc) if isinstance(exc, LegsimError) else f"{type(exc).__name__}: {exc}"
-        raise ModelError(f"{where}: robot '{robot}' could not be built: {detail}") from exc
-    if not isinstance(model, Model):
-        raise ModelError(f"{where}: builder '{robot}' returned {type(model).__name__}, expected legsim.builders.Model")
+    model = _built(path, robot, builder, resolved_params, chosen, terrain)
 
     controller_table = table_at(path, data, "controller")
     controller = scene_controller(path, controller_table, model)
@@ -372,10 +340,10 @@ def _validate(path: Path, data: dict[str, Any], overrides: list[str]) -> Scene:
         path, model, table_at(path, data, "initial"), integrator["eps"], integrator["t0"], controller
     )
     falls = fall_watches(path, table_at(path, data, "fall"), model, initial_mode)
-
+    make_controller = None if controller is None else functools.partial(scene_controller, path, controller_table, model)
     return Scene(
         path=path,
-        name=name,
+        name=path.stem,
         description=description,
         robot=robot,
         builder=builder,
@@ -390,12 +358,64 @@ def _validate(path: Path, data: dict[str, Any], overrides: list[str]) -> Scene:
         data=data,
         overrides=overrides,
         controller=controller,
-        make_controller=None
-        if controller is None
-        else functools.partial(scene_controller, path, controller_table, model),
+        make_controller=make_controller,
         falls=falls,
         terrain=terrain,
     )
+
+
+def _check_sections(path: Path, data: dict[str, Any]) -> None:
+    """Every top-level key a known section, and each a table."""
+    unknown = sorted(set(data) - set(ALLOWED_SECTIONS))
+    if unknown:
+        raise SceneError(
+            f"{path}: unknown section(s) {unknown}; allowed: {list(CORE_SECTIONS)} and tool "
+            f"sections {list(TOOL_SECTIONS)}"
+        )
+    for key in ALLOWED_SECTIONS:
+        table_at(path, data, key)
+
+
+def _description(path: Path, scene_t: dict[str, Any]) -> str:
+    """The ``[scene]`` table's description ("" when absent)."""
+    check_keys(path, scene_t, SCENE_KEYS, "scene")
+    description = scene_t.get("description", "")
+    if not isinstance(description, str):
+        raise field_error(path, "scene.description", f"expected a string, got {describe(description)}")
+    return description
+
+
+def _robot_name(path: Path, robot_t: dict[str, Any]) -> str:
+    """The ``[robot]`` table's ``name`` (a string; the robots available named when it is not)."""
+    check_keys(path, robot_t, ROBOT_KEYS, "robot")
+    if "name" not in robot_t:
+        raise field_error(path, "robot.name", f"missing; available robots: {sorted(available())}")
+    robot = robot_t["name"]
+    if not isinstance(robot, str):
+        raise field_error(
+            path, "robot.name", f"expected a string, got {describe(robot)}; available robots: {sorted(available())}"
+        )
+    return robot
+
+
+def _built(path: Path, robot: str, builder: Any, parameters: dict[str, Any], effects: dict[str, Any],
+           terrain: Any) -> Model:  # fmt: skip
+    """The builder's model from resolved parameters and effects, read inside the scene's folder;
+    a builder's failure names the file and the robot, its cause chained."""
+    where = str(path)
+    try:
+        with reading_inside(path.parent):
+            model = builder.run(parameters, effects, terrain, where)
+    except SceneError as exc:
+        if str(exc).startswith(where):
+            raise
+        raise SceneError(f"{where}: robot '{robot}': {exc}") from exc
+    except Exception as exc:  # a builder's own failure: name the file and robot, keep the cause chained
+        detail = str(exc) if isinstance(exc, LegsimError) else f"{type(exc).__name__}: {exc}"
+        raise ModelError(f"{where}: robot '{robot}' could not be built: {detail}") from exc
+    if not isinstance(model, Model):
+        raise ModelError(f"{where}: builder '{robot}' returned {type(model).__name__}, expected legsim.builders.Model")
+    return model
 
 
 def _output(path: Path, table: dict[str, Any]) -> dict[str, str | None]:
@@ -456,18 +476,54 @@ def _initial_input(control: Any, mode: str, t0: float, x0: np.ndarray) -> Any:
 def _initial(
     path: Path, model: Model, table: dict[str, Any], eps: float, t0: float, controller: Any = None
 ) -> tuple[str, np.ndarray]:
+    """The ``[initial]`` mode and state, checked: the state's coordinates numbers (the robot's
+    defaults for those not given), the model's functions evaluated on it, inside the mode's
+    relaxed domain, and passing the model's own initial-state check."""
     check_keys(path, table, INITIAL_KEYS, "initial")
+    mode, names = _initial_mode(path, model, table)
+    x0 = _initial_values(path, model, table.get("state", {}), mode, names)
     system = model.system
+    try:
+        u0 = _initial_input(controller if controller is not None else model.control, mode, t0, x0)
+    except Exception as exc:
+        raise ModelError(
+            f"{path}: the control of robot model '{system.name}' failed on the initial state "
+            f"{x0.tolist()}: {type(exc).__name__}: {exc}"
+        ) from exc
+    try:
+        system.check_state(mode, x0, t=t0, u=u0, label="initial state")
+    except ModelError as exc:
+        raise field_error(path, "initial", str(exc)) from exc
+    state = dict(zip(names, x0.tolist(), strict=True))
+    gvals = system.guard_values(mode, x0)
+    if gvals.size and gvals.min() < -eps:
+        worst = int(np.argmin(gvals))
+        raise field_error(
+            path,
+            "initial.state",
+            f"{state} lies past the guard of transition {system.outgoing(mode)[worst].name} by "
+            f"{-gvals[worst]:.3g} > eps = {eps:g} (guard units); start inside the domain of mode '{mode}'",
+        )
+    _model_initial_check(path, model, mode, x0, eps, state)
+    return mode, x0
+
+
+def _initial_mode(path: Path, model: Model, table: dict[str, Any]) -> tuple[str, tuple[str, ...]]:
+    """The initial mode's name (the robot's default when not given) and its coordinates."""
     mode = table.get("mode", model.initial_mode)
     if not isinstance(mode, str):
         raise field_error(
             path, "initial.mode", f"expected a mode name (string), got {describe(mode)}; modes: {_known_modes(model)}"
         )
     try:
-        names = system.state_names(mode)
+        return mode, tuple(model.system.state_names(mode))
     except ModelError:
         raise field_error(path, "initial.mode", f"unknown mode {mode!r}; modes: {_known_modes(model)}") from None
-    given = table.get("state", {})
+
+
+def _initial_values(path: Path, model: Model, given: Any, mode: str, names: tuple[str, ...]) -> np.ndarray:
+    """The initial state (shape (len(names),)): each coordinate's given value or the robot's
+    default, a finite number."""
     if not isinstance(given, dict):
         raise field_error(path, "initial.state", f"expected a table of coordinate = number, got {describe(given)}")
     unknown = sorted(set(given) - set(names))
@@ -494,41 +550,23 @@ def _initial(
         if not math.isfinite(value):
             raise field_error(path, f"initial.state.{name}", f"must be finite, got {value!r}")
         values.append(value)
-    x0 = np.array(values, dtype=float)
-    try:
-        u0 = _initial_input(controller if controller is not None else model.control, mode, t0, x0)
-    except Exception as exc:
-        raise ModelError(
-            f"{path}: the control of robot model '{system.name}' failed on the initial state "
-            f"{x0.tolist()}: {type(exc).__name__}: {exc}"
-        ) from exc
-    try:
-        system.check_state(mode, x0, t=t0, u=u0, label="initial state")
-    except ModelError as exc:
-        raise field_error(path, "initial", str(exc)) from exc
-    gvals = system.guard_values(mode, x0)
-    if gvals.size and gvals.min() < -eps:
-        worst = int(np.argmin(gvals))
-        tr = system.outgoing(mode)[worst]
-        state = dict(zip(names, values, strict=True))
-        raise field_error(
-            path,
-            "initial.state",
-            f"{state} lies past the guard of transition "
-            f"{tr.name} by {-gvals[worst]:.3g} > eps = {eps:g} (guard units); "
-            f"start inside the domain of mode '{mode}'",
-        )
+    return np.array(values, dtype=float)
+
+
+def _model_initial_check(path: Path, model: Model, mode: str, x0: np.ndarray, eps: float,
+                         state: dict[str, float]) -> None:  # fmt: skip
+    """The model's own check of an initial state (``INITIAL_CHECK`` in its info), if it has one."""
     # Guards written as "and" conditions (max(z, zd): below the floor AND falling) admit states
     # that no execution reaches, e.g. a ball 5 m under the floor at rest; the model may name them.
     check = model.info.get(INITIAL_CHECK) if isinstance(model.info, Mapping) else None
-    if callable(check):
-        try:
-            problem = check(mode, x0.copy(), eps)
-        except Exception as exc:
-            raise ModelError(
-                f"{path}: the initial-state check of robot model '{system.name}' failed on "
-                f"{x0.tolist()}: {type(exc).__name__}: {exc}"
-            ) from exc
-        if problem:
-            raise field_error(path, "initial.state", f"{dict(zip(names, values, strict=True))}: {problem}")
-    return mode, x0
+    if not callable(check):
+        return
+    try:
+        problem = check(mode, x0.copy(), eps)
+    except Exception as exc:
+        raise ModelError(
+            f"{path}: the initial-state check of robot model '{model.system.name}' failed on "
+            f"{x0.tolist()}: {type(exc).__name__}: {exc}"
+        ) from exc
+    if problem:
+        raise field_error(path, "initial.state", f"{state}: {problem}")
