@@ -334,57 +334,11 @@ def _bouncing_ball(quick: bool) -> Case:
 
 
 def _robot(name: str, quick: bool) -> Case:
-    # Through the builder registry, as scenes find robots: the core never imports legsim.robots.
-    try:
-        builder = get_builder("pronk" if name == "pronk" else "double_pendulum")
-    except LegsimError as exc:
-        raise BenchError(
-            f"case {name}: the robot model cannot be loaded ({exc}); install pinocchio (`pip install pin`)"
-        ) from exc
-    from ..baselines import simulate_events
-
-    if name == "pronk":
-        model = builder.make()
-        positions: tuple[int, ...] = (0, 1, 2)
-        t_final = 0.5 if quick else 2.0
-        description = f"pronking runner of paper 000 Sec. V-C (two hops, t in [0, {t_final}] s)"
-        hs = {"rk2": (3e-3, 1e-3, 3e-4), "rk4": (3e-2, 1e-2, 3e-3, 1e-3)}
-    else:
-        model = builder.make(None, {"gravity": True, "stop": {"restitution": 0.0, "position": 0.0}})
-        positions = (0, 1)
-        # Impact, constrained swing, release, graze, second impact and release; the event-driven
-        # baseline meets a Zeno chatter at t = 7.38 s.
-        t_final = 1.0 if quick else 5.0
-        description = (
-            f"double pendulum with a plastic stop, paper 003 Fig. 2b (impact, constrained swing, "
-            f"release; t in [0, {t_final}] s)"
-        )
-        hs = {"rk2": (3e-3, 1e-3, 3e-4), "rk4": (3e-2, 1e-2, 3e-3, 1e-3)}
-    system = model.system
-    mode = model.initial_mode
+    model, positions, t_final, description = _robot_model(name, quick)
+    system, mode = model.system, model.initial_mode
     x0 = np.array([model.initial_state[n] for n in system.state_names(mode)])
-    names = tuple(system.state_names(mode)[i] for i in positions)
     ref_tol = 1e-10 if quick else 1e-12
-    # A bounded step: solve_ivp cannot reject a trial step whose state leaves the model's range.
-    reference = simulate_events(
-        system, x0, mode, t_final, method="DOP853", rtol=ref_tol, atol=ref_tol, dense_output=True, max_step=0.02
-    )
-    # The check differs in its steps as well as its tolerance: where the largest step binds, a
-    # looser tolerance alone takes the very same steps, and the difference would be 0.
-    check = simulate_events(
-        system, x0, mode, t_final, method="DOP853", rtol=100 * ref_tol, atol=100 * ref_tol, dense_output=True,
-        max_step=0.01,
-    )  # fmt: skip
-    if reference.status != "finished" or check.status != "finished":
-        raise BenchError(f"case {name}: the reference run did not finish ({reference.status}: {reference.message})")
-    grid = np.linspace(0.0, t_final, 4001)
-
-    def ref_positions(times: np.ndarray) -> np.ndarray:
-        samples = reference.sample(np.clip(times, 0.0, reference.t_end))
-        return np.array([s[list(positions)] for s in samples.states])
-
-    diff = ref_positions(grid) - np.array([s[list(positions)] for s in check.sample(grid).states])
-    estimate = float(np.abs(diff).max())
+    reference, ref_positions, estimate = _robot_reference(name, system, x0, mode, t_final, positions, ref_tol)
     if quick:
         runs = [
             *_grid("relaxed", "relaxed-rk4", (1e-2,), (1e-4,)),
@@ -396,7 +350,7 @@ def _robot(name: str, quick: bool) -> Case:
         # puts the pronk's hip through the ground, which the relaxed integrator shortens like
         # any step that leaves its domain, and which ends a solve_ivp run (model_breakdown).
         runs = relaxed_sweep(
-            hs,
+            {"rk2": (3e-3, 1e-3, 3e-4), "rk4": (3e-2, 1e-2, 3e-3, 1e-3)},
             (1e-3, 1e-5, 1e-7),
             (1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-10),
             (1e-6, 1e-9),
@@ -404,7 +358,6 @@ def _robot(name: str, quick: bool) -> Case:
             pair_landing="dense",
         )
         runs += ivp_sweep((1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-10), (math.inf, 0.2, 0.1, 0.05))
-    targets = targets_for(name, quick)
     return Case(
         name=name,
         description=description,
@@ -414,7 +367,7 @@ def _robot(name: str, quick: bool) -> Case:
         x0=x0,
         t_final=t_final,
         positions=positions,
-        position_names=names,
+        position_names=tuple(system.state_names(mode)[i] for i in positions),
         reference_positions=ref_positions,
         reference_note=(
             f"converged event-driven run (solve_ivp DOP853, rtol = atol = {ref_tol:g}, dense output); "
@@ -422,13 +375,65 @@ def _robot(name: str, quick: bool) -> Case:
             f"{estimate:.2e}"
         ),
         runs=runs,
-        targets=targets,
+        targets=targets_for(name, quick),
         reference_execution=reference,
         info={"reference_error_estimate": estimate},
         # rho is off by default here: the metric's projections onto these nonlinear guards
         # (SLSQP) cost about 0.4 s per sample time; --rho-points asks for it.
         rho_points=0,
     )
+
+
+def _robot_model(name: str, quick: bool) -> tuple[Any, tuple[int, ...], float, str]:
+    """The robot case's model, the state indices whose error is measured, t_final (s) and its
+    description."""
+    # Through the builder registry, as scenes find robots: the core never imports legsim.robots.
+    try:
+        builder = get_builder("pronk" if name == "pronk" else "double_pendulum")
+    except LegsimError as exc:
+        raise BenchError(
+            f"case {name}: the robot model cannot be loaded ({exc}); install pinocchio (`pip install pin`)"
+        ) from exc
+    if name == "pronk":
+        t_final = 0.5 if quick else 2.0
+        description = f"pronking runner of paper 000 Sec. V-C (two hops, t in [0, {t_final}] s)"
+        return builder.make(), (0, 1, 2), t_final, description
+    model = builder.make(None, {"gravity": True, "stop": {"restitution": 0.0, "position": 0.0}})
+    # Impact, constrained swing, release, graze, second impact and release; the event-driven
+    # baseline meets a Zeno chatter at t = 7.38 s.
+    t_final = 1.0 if quick else 5.0
+    description = (
+        f"double pendulum with a plastic stop, paper 003 Fig. 2b (impact, constrained swing, "
+        f"release; t in [0, {t_final}] s)"
+    )
+    return model, (0, 1), t_final, description
+
+
+def _robot_reference(name: str, system: Any, x0: np.ndarray, mode: str, t_final: float, positions: tuple[int, ...],
+                     ref_tol: float) -> tuple[Any, Callable[[np.ndarray], np.ndarray], float]:  # fmt: skip
+    """The converged event-driven reference (DOP853 at ``ref_tol``), its positions at given
+    times (shape (len(times), len(positions))), and an estimate of its error."""
+    from ..baselines import simulate_events
+
+    def dop853(tol: float, max_step: float) -> Any:
+        # A bounded step: solve_ivp cannot reject a trial step whose state leaves the model's range.
+        return simulate_events(system, x0, mode, t_final, method="DOP853", rtol=tol, atol=tol, dense_output=True,
+                               max_step=max_step)  # fmt: skip
+
+    reference = dop853(ref_tol, 0.02)
+    # The check differs in its steps as well as its tolerance: where the largest step binds, a
+    # looser tolerance alone takes the very same steps, and the difference would be 0.
+    check = dop853(100 * ref_tol, 0.01)
+    if reference.status != "finished" or check.status != "finished":
+        raise BenchError(f"case {name}: the reference run did not finish ({reference.status}: {reference.message})")
+
+    def ref_positions(times: np.ndarray) -> np.ndarray:
+        samples = reference.sample(np.clip(times, 0.0, reference.t_end))
+        return np.array([s[list(positions)] for s in samples.states])
+
+    grid = np.linspace(0.0, t_final, 4001)
+    diff = ref_positions(grid) - np.array([s[list(positions)] for s in check.sample(grid).states])
+    return reference, ref_positions, float(np.abs(diff).max())
 
 
 def make_case(name: str, quick: bool = False) -> Case:
