@@ -212,18 +212,38 @@ def _oscillator(example: str, quick: bool) -> Case:
     control = forcing(p["amplitude"], p["frequency"])
     x0, t_max = np.array([p["x0"], p["xd0"]]), float(p["t_max"])
     ref = OscillatorReference.example(example)
-    ps = {
-        "a": p["a"],
-        "omega": p["omega"],
-        "c": p["c"],
-        "x_max": p["x_max"],
-        "amplitude": p["amplitude"],
-        "frequency": p["frequency"],
-        "x0": p["x0"],
-        "xd0": p["xd0"],
-        "mass": p["mass"],
-    }
+    ps = {key: p[key] for key in ("a", "omega", "c", "x_max", "amplitude", "frequency", "x0", "xd0", "mass")}
     targets = targets_for(f"oscillator-{example}", quick)
+    t_final, runs = _oscillator_runs(example, quick, t_max)
+    name = f"oscillator-{example}"
+
+    return Case(
+        name=name,
+        description=(
+            f"forced oscillator with a stop, paper 000 Table I Example {example[-1]} (t in [0, {t_final:.4g}] s)"
+        ),
+        system=system,
+        ivp_system=system,
+        mode="free",
+        x0=x0,
+        t_final=t_final,
+        positions=(0,),
+        position_names=("x",),
+        reference_positions=lambda t: ref.states(t)[:, :1],
+        reference_note="closed form (eq. (28) with impacts, sticking and Zeno sums: OscillatorReference)",
+        runs=runs,
+        targets=targets,
+        ps=ps,
+        reference_execution=ref,
+        # The model names the stop's continuation too (stick, release at the forcing's sign
+        # change), compiled as the rest of it.
+        zeno_system=(system, control) if example == "ex2" else None,
+        control=control,
+    )
+
+
+def _oscillator_runs(example: str, quick: bool, t_max: float) -> tuple[float, list[RunSpec]]:
+    """The oscillator case's t_final (s, at most the example's ``t_max``) and its sweep."""
     if quick:
         # Ex.2 keeps its whole 4 pi s: its second sticking phase is where the plain run chatters.
         t_final = min(t_max, 2.0 * math.pi) if example == "ex1" else t_max
@@ -265,31 +285,7 @@ def _oscillator(example: str, quick: bool) -> Case:
         runs += zeno_sweep({"rk2": (1e-2, 1e-3), "rk4": (1e-1, 3e-2, 2e-2, 1e-2, 1e-3)}, epss, (1e-6, 1e-9))
         # No solve_ivp: the mass starts at rest on the stop, pushed into it, and an event-driven
         # simulator can only fire zero-time impacts there forever (it has no sticking mode).
-    name = f"oscillator-{example}"
-
-    return Case(
-        name=name,
-        description=(
-            f"forced oscillator with a stop, paper 000 Table I Example {example[-1]} (t in [0, {t_final:.4g}] s)"
-        ),
-        system=system,
-        ivp_system=system,
-        mode="free",
-        x0=x0,
-        t_final=t_final,
-        positions=(0,),
-        position_names=("x",),
-        reference_positions=lambda t: ref.states(t)[:, :1],
-        reference_note="closed form (eq. (28) with impacts, sticking and Zeno sums: OscillatorReference)",
-        runs=runs,
-        targets=targets,
-        ps=ps,
-        reference_execution=ref,
-        # The model names the stop's continuation too (stick, release at the forcing's sign
-        # change), compiled as the rest of it.
-        zeno_system=(system, control) if example == "ex2" else None,
-        control=control,
-    )
+    return t_final, runs
 
 
 def _bouncing_ball(quick: bool) -> Case:
