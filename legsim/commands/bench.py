@@ -3,6 +3,10 @@
 from __future__ import annotations
 
 import argparse
+import sys
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
 
 from ..bench.names import CASE_NAMES, ROBOT_CASES, ROBOT_CONTROLLED
 from ..tables import add_format_argument
@@ -117,58 +121,58 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    import sys
+    runners = {"overhead": _overhead, "orbit": _orbit, "robots": _robots, "targets": _targets}
+    return runners.get(args.bench, _work_precision)(args)
 
+
+def _log(args: argparse.Namespace) -> Any:
+    """Progress lines on stderr, or None with --quiet."""
+    return None if args.quiet else (lambda s: print(s, file=sys.stderr, flush=True))
+
+
+def _overhead(args: argparse.Namespace) -> int:
+    from ..bench import overhead
+
+    return overhead.main(quick=args.quick, as_json=args.json, fmt=args.format)
+
+
+def _orbit(args: argparse.Namespace) -> int:
+    from ..bench import orbit
     from ..bench.cases import BenchError
 
-    if args.bench == "overhead":
-        from ..bench import overhead
+    if args.repeats < 1:
+        raise BenchError(f"--repeats must be >= 1, got {args.repeats}")
+    return orbit.main(args.scene, repeats=args.repeats, as_json=args.json, log=_log(args))
 
-        return overhead.main(quick=args.quick, as_json=args.json, fmt=args.format)
-    if args.bench == "orbit":
-        from ..bench import orbit
 
-        if args.repeats < 1:
-            raise BenchError(f"--repeats must be >= 1, got {args.repeats}")
-        log = None if args.quiet else (lambda s: print(s, file=sys.stderr, flush=True))
-        return orbit.main(args.scene, repeats=args.repeats, as_json=args.json, log=log)
-    if args.bench == "robots":
-        from ..bench import robots
+def _robots(args: argparse.Namespace) -> int:
+    from ..bench import robots
+    from ..bench.cases import BenchError
 
-        cases = args.case or list(robots.CASES)
-        unknown = [c for c in cases if c not in robots.ALL_CASES]
-        if unknown or args.repeats < 1:
-            raise BenchError(
-                f"--case must name {', '.join(robots.ALL_CASES)} (got {unknown}); --repeats must be >= 1"
-                if unknown
-                else f"--repeats must be >= 1, got {args.repeats}"
-            )
-        log = None if args.quiet else (lambda s: print(s, file=sys.stderr, flush=True))
-        return robots.main(
-            cases,
-            quick=args.quick,
-            out=args.out,
-            repeats=args.repeats,
-            figure=not args.no_figure,
-            log=log,
-            fmt=args.format,
-        )
-    from dataclasses import replace
+    cases = args.case or list(robots.CASES)
+    unknown = [c for c in cases if c not in robots.ALL_CASES]
+    if unknown:
+        raise BenchError(f"--case must name {', '.join(robots.ALL_CASES)} (got {unknown})")
+    if args.repeats < 1:
+        raise BenchError(f"--repeats must be >= 1, got {args.repeats}")
+    return robots.main(cases, quick=args.quick, out=args.out, repeats=args.repeats, figure=not args.no_figure,
+                       log=_log(args), fmt=args.format)  # fmt: skip
 
+
+def _targets(args: argparse.Namespace) -> int:
+    from ..bench.cases import targets_for
     from ..bench.targets import evaluate_targets, format_targets
-    from ..bench.work_precision import read_rows, rows_table, run_case
-    from ..tables import Table, print_report
+    from ..bench.work_precision import read_rows, rows_table
+    from ..tables import print_report
 
-    if args.bench == "targets":
-        from pathlib import Path
+    rows = read_rows(Path(args.out) / f"{args.case}.csv")
+    verdicts = format_targets(evaluate_targets(rows, targets_for(args.case))) or "- none for this case"
+    print_report([replace(rows_table(rows), title=args.case), "", "targets:", verdicts], args.format)
+    return 0
 
-        from ..bench.cases import targets_for
 
-        targets = targets_for(args.case)
-        rows = read_rows(Path(args.out) / f"{args.case}.csv")
-        verdicts = format_targets(evaluate_targets(rows, targets)) or "- none for this case"
-        print_report([replace(rows_table(rows), title=args.case), "", "targets:", verdicts], args.format)
-        return 0
+def _check_work_precision(args: argparse.Namespace) -> None:
+    from ..bench.cases import BenchError
 
     if args.repeats is not None and args.repeats < 1:
         raise BenchError(f"--repeats must be >= 1, got {args.repeats}")
@@ -181,22 +185,22 @@ def run(args: argparse.Namespace) -> int:
             f"bench work-precision needs --case CASE ({', '.join(CASE_NAMES)}): a full sweep takes minutes "
             f"per case; --quick without --case runs every case's short form"
         )
+
+
+def _work_precision(args: argparse.Namespace) -> int:
+    from ..bench.cases import BenchError
+    from ..bench.targets import format_targets
+    from ..bench.work_precision import rows_table, run_case
+    from ..tables import Table, print_report
+
+    _check_work_precision(args)
     methods = None if args.methods is None else [m.strip() for m in args.methods.split(",") if m.strip()]
-    log = None if args.quiet else (lambda s: print(s, file=sys.stderr, flush=True))
     cases = [args.case] if args.case is not None else list(CASE_NAMES)
     report: list[str | Table] = []
     for name in cases:
-        result = run_case(
-            name,
-            quick=args.quick,
-            out=args.out or "bench-out",
-            repeats=args.repeats,
-            rho_points=args.rho_points,
-            figure=not args.no_figure,
-            log=log,
-            methods=methods,
-            extension_budget=args.extend_budget,
-        )
+        result = run_case(name, quick=args.quick, out=args.out or "bench-out", repeats=args.repeats,
+                          rho_points=args.rho_points, figure=not args.no_figure, log=_log(args), methods=methods,
+                          extension_budget=args.extend_budget)  # fmt: skip
         if not result.rows:
             continue
         report += [
