@@ -656,26 +656,8 @@ class ModeFlow:
         for s in fractions:
             at(float(s))
         extra = []
-        # An extremum in the first or last sub-interval has no sample on one side inside the
-        # step (the next step starts past it): a probe just inside each end brackets it.
-        probe = self.EDGE_PROBE
         for j in np.flatnonzero(~(inside | past)).tolist():
-            u = [ratio(float(s), j) for s in fractions]
-            if not all(math.isfinite(v) for v in u):
-                continue  # a guard without a state gradient (a clock): no extremum to place
-            triples = [(u[i - 1], u[i], u[i + 1], fractions[i - 1], fractions[i + 1]) for i in range(1, k)]
-            triples.append((u[0], ratio(probe, j), u[1], 0.0, fractions[1]))
-            triples.append((u[k - 1], ratio(1.0 - probe, j), u[k], fractions[k - 1], 1.0))
-            for before, middle, after, lo_s, hi_s in triples:
-                if (middle - before) * (after - middle) < 0.0:
-                    sign = 1.0 if middle <= before else -1.0  # a minimum of u, or a maximum
-                    res = minimize_scalar(
-                        lambda s, sign=sign, j=j: sign * ratio(float(s), j),
-                        bounds=(lo_s, hi_s),
-                        method="bounded",
-                        options={"xatol": 1e-12},
-                    )
-                    extra.append(float(res.x))
+            extra += _extrema(lambda s, j=j: ratio(s, j), fractions, self.EDGE_PROBE)
         s_all = np.unique(np.concatenate([np.array(fractions), np.array(extra)]))
         xs, gs, ds = zip(*(at(float(s)) for s in s_all), strict=True)
         return StepSamples(
@@ -686,6 +668,30 @@ class ModeFlow:
             np.array(gs).reshape(len(s_all), -1),
             np.array(ds).reshape(len(s_all), -1),
         )
+
+
+def _extrema(u_at: Callable[[float], float], fractions: list[float], probe: float) -> list[float]:
+    """The step fractions in [0, 1] where ``u_at`` (a guard's distance over the ball's radius)
+    has a local extremum between the samples at ``fractions`` (k + 1 of them, 0 to 1), each
+    found by a bounded scalar search; none where a sample is not finite (a guard without a state
+    gradient, e.g. a clock)."""
+    k = len(fractions) - 1
+    u = [u_at(float(s)) for s in fractions]
+    if not all(math.isfinite(v) for v in u):
+        return []
+    triples = [(u[i - 1], u[i], u[i + 1], fractions[i - 1], fractions[i + 1]) for i in range(1, k)]
+    # An extremum in the first or last sub-interval has no sample on one side inside the
+    # step (the next step starts past it): a probe just inside each end brackets it.
+    triples.append((u[0], u_at(probe), u[1], 0.0, fractions[1]))
+    triples.append((u[k - 1], u_at(1.0 - probe), u[k], fractions[k - 1], 1.0))
+    found = []
+    for before, middle, after, lo_s, hi_s in triples:
+        if (middle - before) * (after - middle) < 0.0:
+            sign = 1.0 if middle <= before else -1.0  # a minimum of u, or a maximum
+            res = minimize_scalar(lambda s, sign=sign: sign * u_at(float(s)), bounds=(lo_s, hi_s), method="bounded",
+                                  options={"xatol": 1e-12})  # fmt: skip
+            found.append(float(res.x))
+    return found
 
 
 def check_steps(span: float, h: float, what: str) -> int:
