@@ -2,8 +2,9 @@
 
 legsim compiles its step loop and each model's functions once per machine and legsim version
 (with numba) and loads them from its cache afterwards (``legsim.compiled.cache``). ``legsim
-cache`` prints the folder and its size; ``legsim cache clear`` removes it (every version's),
-so the next run compiles again.
+cache`` prints the folder and its size; ``legsim cache clear`` removes the compiled code
+(every version's; only numba's cache files, never other files in the folder), so the next run
+compiles again.
 """
 
 from __future__ import annotations
@@ -22,8 +23,11 @@ def run(args: argparse.Namespace) -> int:
     from ..compiled import cache
 
     if args.action == "clear":
-        folder, count = cache.clear()
+        folder, count, kept = cache.clear()
         print(f"removed {count} files of compiled code from {folder}")
+        if kept:
+            shown = ", ".join(str(path) for path in kept[:5]) + (f" and {len(kept) - 5} more" if len(kept) > 5 else "")
+            print(f"kept {len(kept)} files that are not compiled code: {shown}")
         return 0
     folder = cache.cache_dir()
     files = [p for p in folder.rglob("*") if p.is_file()] if folder.exists() else []

@@ -26,7 +26,6 @@ from __future__ import annotations
 import hashlib
 import os
 import re
-import shutil
 from collections.abc import Iterable
 from functools import cache
 from pathlib import Path
@@ -52,13 +51,38 @@ def cache_dir() -> Path:
     return Path(base) / "legsim" / "kernels" / __version__
 
 
-def clear() -> tuple[Path, int]:
-    """Remove legsim's compiled code (every version's): (the folder, the files removed)."""
-    folder = cache_dir().parent
-    count = sum(1 for entry in folder.rglob("*") if entry.is_file()) if folder.exists() else 0
-    if folder.exists():
-        shutil.rmtree(folder)
-    return folder, count
+#: The files numba's caches consist of: an index per function and one data file per compiled
+#: signature. ``clear`` removes these and nothing else.
+CACHE_SUFFIXES = (".nbi", ".nbc")
+
+
+def clear() -> tuple[Path, int, list[Path]]:
+    """Remove legsim's compiled code, every version's: numba's cache files (``CACHE_SUFFIXES``)
+    under the cache's root (``cache_dir().parent``, the folder ``LEGSIM_CACHE_DIR`` names), then
+    the folders that leaves empty. Anything else there, a user's own files in a folder
+    ``LEGSIM_CACHE_DIR`` points at, is kept. Returns (the root, the files removed, the other
+    files found and kept)."""
+    root = cache_dir().parent
+    if not root.is_dir():
+        return root, 0, []
+    removed, kept = 0, []
+    for entry in sorted(root.rglob("*")):
+        if entry.is_file() and not entry.is_symlink() and entry.suffix in CACHE_SUFFIXES:
+            entry.unlink()
+            removed += 1
+        elif entry.is_symlink() or entry.is_file():
+            kept.append(entry)
+    _remove_empty_folders(root)
+    return root, removed, kept
+
+
+def _remove_empty_folders(root: Path) -> None:
+    """Remove the empty folders under ``root`` (not ``root`` itself), deepest first, so that a
+    folder holding only empty folders goes too."""
+    folders = [d for d in root.rglob("*") if d.is_dir() and not d.is_symlink()]
+    for folder in sorted(folders, key=lambda d: -len(d.parts)):
+        if not any(folder.iterdir()):
+            folder.rmdir()
 
 
 #: The package's own folder of prebuilt code, portable across x86-64 processors.
