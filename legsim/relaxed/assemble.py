@@ -44,6 +44,7 @@ from .layout import (
     KIND_CONTINUED,
     KIND_CUT,
     KIND_JOINT,
+    KIND_JOINT_CONTINUED,
     M_DIM,
     M_J0,
     M_T0,
@@ -204,7 +205,7 @@ class Assembly:
         tables = self.tables
         source, e, kind = i[R_SOURCE], i[R_INDEX], i[R_KIND]
         row = rows[source][0] + e
-        if kind == KIND_JOINT:
+        if kind in (KIND_JOINT, KIND_JOINT_CONTINUED):
             name = tables.joint_names[rows[source][1] + i[R_JOINT]]
         elif kind == KIND_CONTINUED:
             name = tables.continuation_names[row]
@@ -227,7 +228,8 @@ class Assembly:
         )  # fmt: skip
         order = (i[R_ORDER_A], i[R_ORDER_B])
         self.crossings.append(
-            (source_name, name, tc, exit_time, bool(i[R_ACCUMULATES]), kind == KIND_CONTINUED,
+            (source_name, name, tc, exit_time, bool(i[R_ACCUMULATES]),
+             kind in (KIND_CONTINUED, KIND_JOINT_CONTINUED),
              bool(i[R_HAS_CONTINUATION]), order, q)
         )  # fmt: skip
 

@@ -69,6 +69,7 @@ from .layout import (
     KIND_CONTINUED,
     KIND_CUT,
     KIND_JOINT,
+    KIND_JOINT_CONTINUED,
     KIND_PLAIN,
     M_J0,
     M_JOINT_HISTORY,
@@ -312,8 +313,10 @@ def cross_jointly(tab: Tables, vis: Visit, ws, e: int, tc: float, t_land: float,
     for d in range(ws.ci[S_MEMORY]):
         ws.w[target.dim + d] = ws.q[vis.dim + d]
     enter_controller(tab, target, ws, exit_time, ws.w[: target.n])
-    record(tab, vis, ws, e, KIND_JOINT, outcome, target.mode, tc, t_land, exit_time, tau, target.n)
-    set_order(ws, -1, -1, accumulates, False)
+    kind = KIND_JOINT_CONTINUED if rest else KIND_JOINT
+    record(tab, vis, ws, e, kind, outcome, target.mode, tc, t_land, exit_time, tau, target.n)
+    # A joint crossing always has its continuation: every striker plastic.
+    set_order(ws, -1, -1, accumulates, True)
     crossed_history(ws, row, tc, exit_time, rest)
     enter_next(ws, target.mode, exit_time, target.n)
     return True

@@ -192,8 +192,9 @@ RECORD_FLOATS = 4
 ) = range(11)
 RECORD_INTS = 11
 #: A transition; its continuation; a joint crossing; the strip of a run that ended inside it
-#: (no reset: its exit is the run's end).
-KIND_PLAIN, KIND_CONTINUED, KIND_JOINT, KIND_CUT = range(4)
+#: (no reset: its exit is the run's end); a joint crossing resolved by its continuation (every
+#: striker plastic, as its crossings accumulate).
+KIND_PLAIN, KIND_CONTINUED, KIND_JOINT, KIND_CUT, KIND_JOINT_CONTINUED = range(5)
 
 # -- the visits (``Workspace.visits``, integers, one row per mode visit) -------------------------
 #: The mode's row; the first of its points in the point buffer.

@@ -151,3 +151,20 @@ def test_different_restitutions_never_add_kinetic_energy():
         c_a, c_b = rng.uniform(0.0, 1.0, size=2)
         v_plus, _ = joint_impact(bridge, ["a", "b"], np.zeros(3), v, {"a": c_a, "b": c_b})
         assert v_plus @ M @ v_plus <= v @ M @ v * (1 + 1e-12) + 1e-15
+
+
+def test_the_rod_comes_to_rest_by_its_joint_continuation_without_an_accumulation_warning():
+    """Dropped flat past its Zeno time (1.3546 s for c = 0.5 from 1 m: sqrt(2/g) (1 + 2c/(1 - c))),
+    the rod's joint bounces accumulate and the joint's continuation (``rest_a+b``, both ends
+    plastic) takes it into the mode with both ends down: a resolved accumulation, of which the
+    run does not warn. Without the continuation the same run warns, naming the remedy."""
+    model = rod.make({"restitution": C})
+    x0 = np.array([0.0, 1.0, 0.0, 0.0, 0.0, 0.0])
+    ex = simulate(model.system, x0, "air", 2.0, 1e-3, 1e-4, "rk4", landing="aim")
+    zeno = np.sqrt(2.0 / G) * (1.0 + 2.0 * C / (1.0 - C))
+    assert ex.status == "finished" and ex.transitions[-1].name == "rest_a+b" and ex.segments[-1].mode == "a+b"
+    assert abs(ex.transitions[-1].time - zeno) < 5e-3  # the continuation comes within a few windows of it
+    assert [w.kind for w in ex.warnings] == []
+    plain = simulate(model.system, x0, "air", 1.5, 1e-3, 1e-4, "rk4", landing="aim", continuation=False)
+    accumulations = [w for w in plain.warnings if w.kind == "accumulation"]
+    assert len(accumulations) == 1 and "run with continuation" in accumulations[0].message
