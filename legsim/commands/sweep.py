@@ -140,16 +140,18 @@ def run(args: argparse.Namespace) -> int:
         args.samples = RANDOM_SAMPLES
     if args.samples is not None and not args.random:
         raise SweepError("--samples needs a --random field to draw")
+    if args.samples is not None and args.samples < 1:
+        raise SweepError(f"--samples must be an integer >= 1, got {args.samples}")
     if args.walk and args.no_run:
         raise SweepError("--walk and --no-run exclude each other (a walk is the run)")
     # Counted before any grid's values are made: a grid of 10^9 values is refused at once.
-    check_count([grid_size(g) for g in args.grid], args.samples or 1)
+    check_count([grid_size(g) for g in args.grid], args.samples if args.random else 1)
     spec = SweepSpec(
         scene=scene_reference(args.scene),
         overrides=tuple(args.overrides),
         grid=tuple(parse_grid(g) for g in args.grid),
         random=tuple(parse_random(r) for r in args.random),
-        samples=args.samples or 1,
+        samples=args.samples if args.random else 1,
         seed=args.seed,
         run="walk" if args.walk else ("none" if args.no_run else "scene"),
         orbit=args.orbit,

@@ -232,6 +232,7 @@ def test_the_command_line_reports_rows_without_result_and_refuses_bad_input(tmp_
     for argv, message in (
         (["--grid", "integrator.h"], "expected KEY=LO:HI:N"),
         (["--samples", "3"], "--samples needs a --random"),
+        (["--random", "initial.state.z=0.5:2", "--samples", "0"], "--samples must be an integer >= 1, got 0"),
         (["--walk", "--no-run"], "exclude each other"),
         (["--grid", "initial.state.q=0:1:3"], "unknown coordinate"),
         (["--workers", "0"], "--workers must be an integer >= 1"),
