@@ -250,6 +250,10 @@ BAD = {
         _replace("t_final = 1.0", "t_final = 1.0\ndt = 1e-3"),
         ["integrator: unknown parameter(s) ['dt']; allowed: ["],
     ),
+    "a fixed step longer than the run": (
+        _replace("h = 1e-3", "h = 10.0"),
+        ["integrator.h: 10 s is longer than the run (t_final - t0 = 1 s): with fixed steps it would be one step"],
+    ),
     "rtol without an embedded method": (
         _replace("t_final = 1.0", "t_final = 1.0\nrtol = 1e-6"),
         ["integrator.rtol: error control needs a method with an embedded error estimate", "method = 'rk4'"],
@@ -485,3 +489,15 @@ def test_missing_toml_file_named_like_a_known_scene_gets_a_hint(tmp_path, monkey
         rf"{scenes / 'hinted.toml'}: run it by name\)$",
     ):
         load_scene("hinted.toml")
+
+
+def test_scipys_method_names_mean_error_control_in_a_scene_as_in_simulate(tmp_path):
+    """``method = "RK45"`` (scipy's spelling) runs error-controlled steps with solve_ivp's default
+    tolerances, as ``simulate(method="RK45")`` does, where legsim's ``rk45`` (dopri5) steps by h;
+    with error control h is the largest step, so it may exceed the run."""
+    path = write_scene(tmp_path, TINY_SCENE.replace('method = "rk4"', 'method = "RK45"').replace("h = 1e-3", "h = 2.0"))
+    ex = load_scene(path).simulate()
+    assert (ex.settings["method"], ex.settings["rtol"], ex.settings["atol"]) == ("dopri5", 1e-3, 1e-6)
+    fixed = load_scene(write_scene(tmp_path, TINY_SCENE.replace('method = "rk4"', 'method = "rk45"'), "fixed"))
+    ex = fixed.simulate()
+    assert (ex.settings["method"], ex.settings["rtol"]) == ("dopri5", None)

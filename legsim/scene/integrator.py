@@ -24,9 +24,13 @@ MAX_STEPS = SIMULATE_MAX_STEPS
 
 def _integrator_schema() -> dict[str, Param]:
     from ..methods import ALIASES, METHODS
+    from ..methods.builtin import SCIPY_NAMES
 
+    # scipy's spellings mean what they mean to simulate: error control, with solve_ivp's default
+    # tolerances unless rtol or atol is given.
+    methods = tuple(sorted(METHODS) + sorted(ALIASES)) + SCIPY_NAMES
     return {
-        "method": Param("rk4", "Runge-Kutta method", choices=tuple(sorted(METHODS) + sorted(ALIASES))),
+        "method": Param("rk4", "Runge-Kutta method", choices=methods),
         "h": Param(1e-3, "nominal step size", "s", low=0.0, low_open=True),
         "eps": Param(1e-3, "strip width", "guard units", low=0.0, low_open=True),
         "t_final": Param(1.0, "end time", "s", low=0.0, low_open=True),
@@ -76,7 +80,7 @@ def validated_integrator(path: Path, table: dict[str, Any], where: str = "integr
                 path,
                 f"{where}.{key}",
                 f"error control needs a method with an embedded error "
-                f"estimate (method = 'bs32', 'dopri5' or 'dop853'), got "
+                f"estimate (method = 'bs32', 'dopri5', 'dop853' or 'ros34pw2'), got "
                 f"method = '{out['method']}'",
             )
     if out["landing"] == "dense":
@@ -92,6 +96,7 @@ def validated_integrator(path: Path, table: dict[str, Any], where: str = "integr
             )
     if out["t_final"] <= out["t0"]:
         raise field_error(path, f"{where}.t_final", f"{out['t_final']!r} must be > {where}.t0 = {out['t0']!r}")
+    _check_step_fits(path, out, where)
     nominal = (out["t_final"] - out["t0"]) / out["h"]
     if nominal > out["max_steps"]:
         raise field_error(
@@ -115,3 +120,20 @@ def validated_integrator(path: Path, table: dict[str, Any], where: str = "integr
             f"(2^20 spacings), or shift t0 and t_final towards 0",
         )
     return out
+
+
+def _check_step_fits(path: Path, out: dict[str, Any], where: str) -> None:
+    """A fixed step longer than the run is refused: the run would be one step, resolving nothing
+    of the motion (an error-controlled run takes h as its largest step, which may be long)."""
+    from ..methods.builtin import SCIPY_NAMES
+
+    fixed = out["rtol"] is None and out["atol"] is None and out["method"] not in SCIPY_NAMES
+    span = out["t_final"] - out["t0"]
+    if fixed and out["h"] > span:
+        raise field_error(
+            path,
+            f"{where}.h",
+            f"{out['h']:g} s is longer than the run (t_final - t0 = {span:g} s): with fixed steps it would be "
+            f"one step; give h well below the time scale of the motion (or rtol/atol for error-controlled steps, "
+            f"where h is the largest step)",
+        )
