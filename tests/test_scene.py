@@ -250,6 +250,14 @@ BAD = {
         _replace("t_final = 1.0", "t_final = 1.0\ndt = 1e-3"),
         ["integrator: unknown parameter(s) ['dt']; allowed: ["],
     ),
+    "eps below float64's resolution": (
+        _replace("eps = 1e-3", "eps = 1e-300"),
+        ["integrator.eps: 1e-300 is thinner than float64 resolves next to the initial state", "give eps >= "],
+    ),
+    "a state too large to resolve a strip next to": (
+        _replace("state = { z = 1.0 }", "state = { z = 1e308 }"),
+        ["initial.state.z: 1e+308 is so large that float64 values next to it are 2e+292 apart"],
+    ),
     "a fixed step longer than the run": (
         _replace("h = 1e-3", "h = 10.0"),
         ["integrator.h: 10 s is longer than the run (t_final - t0 = 1 s): with fixed steps it would be one step"],

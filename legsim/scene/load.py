@@ -68,6 +68,7 @@ from ..control import ControlLaw, Controller
 from ..errors import LegsimError, ModelError, SceneError
 from ..execution import Execution
 from ..output.summary import run_summary
+from ..relaxed.resolution import state_scale, thinnest_strip
 from ..terrain import Terrain
 from .controller import scene_controller
 from .falls import fall_watches
@@ -482,6 +483,7 @@ def _initial(
     check_keys(path, table, INITIAL_KEYS, "initial")
     mode, names = _initial_mode(path, model, table)
     x0 = _initial_values(path, model, table.get("state", {}), mode, names)
+    _check_resolved(path, x0, names, eps)
     system = model.system
     try:
         u0 = _initial_input(controller if controller is not None else model.control, mode, t0, x0)
@@ -506,6 +508,31 @@ def _initial(
         )
     _model_initial_check(path, model, mode, x0, eps, state)
     return mode, x0
+
+
+def _check_resolved(path: Path, x0: np.ndarray, names: tuple[str, ...], eps: float) -> None:
+    """The strip must be wider than float64 resolves next to the initial state (``simulate``
+    refuses it too, without the scene's names): the error names ``integrator.eps``, or the
+    coordinate whose size makes float64 too coarse there."""
+    thinnest = thinnest_strip(x0)
+    if eps >= thinnest:
+        return
+    largest = int(np.argmax(np.abs(x0)))
+    spacing = float(np.spacing(state_scale(x0)))
+    if thinnest_strip(np.zeros(1)) <= eps:  # eps is fine at a physical scale: the state is not
+        raise field_error(
+            path,
+            f"initial.state.{names[largest]}",
+            f"{x0[largest]:g} is so large that float64 values next to it are {spacing:.3g} apart: no step "
+            f"could land in a strip of eps = {eps:g}; give the state in a physical range",
+        )
+    raise field_error(
+        path,
+        "integrator.eps",
+        f"{eps:g} is thinner than float64 resolves next to the initial state (|x| up to {abs(x0[largest]):.3g}, "
+        f"values {spacing:.3g} apart there): no step could land in a strip; give eps >= {thinnest:.3g} in guard "
+        f"units",
+    )
 
 
 def _initial_mode(path: Path, model: Model, table: dict[str, Any]) -> tuple[str, tuple[str, ...]]:
