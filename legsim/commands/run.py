@@ -112,7 +112,7 @@ def run(args: argparse.Namespace) -> int:
     from ..scene import load_scene
 
     scene = load_scene(args.scene, overrides=args.overrides)
-    outputs = requested_outputs(args, scene.output_paths(args.out_dir))
+    outputs = requested_outputs(args, scene.output_paths(args.out_dir), scene.path)
     plan, writers = plan_outputs(outputs, inputs=[scene.path], scene=scene)
     rrd_options = _check_live(args, "rrd" in outputs)
     execution, estimate = _simulate(scene, show_progress=not (args.quiet or args.json), check=args.check_accuracy)
@@ -320,17 +320,19 @@ def format_quotient_distance(estimate: Any) -> str:
 
 
 def requested_outputs(
-    args: argparse.Namespace, scene_outputs: dict[str, Path] | None = None
+    args: argparse.Namespace, scene_outputs: dict[str, Path] | None = None, scene_path: Path | None = None
 ) -> dict[str, tuple[Path, str]]:
     """kind -> (path, where it was asked for): a flag wins over the scene's ``[output]``
-    (``scene_outputs``: kind -> path, already resolved by ``Scene.output_paths``)."""
+    (``scene_outputs``: kind -> path, already resolved by ``Scene.output_paths``; ``scene_path``
+    the scene file that names them)."""
     out: dict[str, tuple[Path, str]] = {}
     for kind in OUTPUT_KINDS:
         flag = getattr(args, kind, None)
         if flag:
             out[kind] = (Path(flag), f"--{kind}")
         elif scene_outputs and scene_outputs.get(kind):
-            out[kind] = (Path(scene_outputs[kind]), f"output.{kind} of the scene")
+            named_in = f"{scene_path}: " if scene_path is not None else ""
+            out[kind] = (Path(scene_outputs[kind]), f"{named_in}output.{kind} =")
     return out
 
 

@@ -69,3 +69,13 @@ def test_an_override_cannot_send_an_output_out_either(tmp_path):
     path = write_scene(tmp_path)
     with pytest.raises(SceneError, match=r"output\.plot: '/tmp/x\.png' is an absolute path; .*give --plot FILE"):
         load_scene(path, ['output.plot="/tmp/x.png"'])
+
+
+def test_an_output_of_the_wrong_format_names_the_scene_file_and_its_field(tmp_path, capsys):
+    from legsim.cli import main
+
+    path = scene_with(tmp_path, plot="out/ball.toml")
+    assert main(["run", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert f"{path}: output.plot = {tmp_path / 'out/ball.toml'}: unsupported format '.toml'" in err, err
+    assert not (tmp_path / "out" / "ball.toml").exists()
