@@ -33,7 +33,7 @@ import numpy as np
 
 from ..accuracy import OrbitSection
 from ..builders import Param, resolve_parameters
-from ..errors import SceneError
+from ..errors import LegsimError, SceneError
 from ..orbits import MAX_FD_STEP, OrbitError, OrbitProblem, Section
 from ..orbits.sections import bind_section
 from .controller import scene_controller
@@ -178,16 +178,32 @@ def _fail(scene: Any, key: str, message: str, where: str = "orbit") -> SceneErro
 def _orbit_table(scene: Any) -> dict[str, Any]:
     table = scene.sections.get("orbit")
     if table is None:
+        names = _transition_names(scene)
+        example = names[0] if names else "touchdown"
+        listed = f" (its transitions: {', '.join(names[:8])}{', ...' if len(names) > 8 else ''})" if names else ""
         raise _fail(
             scene,
             "section",
-            'the scene has no [orbit] section; add one, e.g. [orbit] section = { after = "touchdown" }',
+            f'the scene has no [orbit] section; add one, e.g. [orbit] section = {{ after = "{example}" }}{listed}',
         )
     unknown = sorted(set(table) - set(ORBIT_KEYS))
     if unknown:
         # Named by the first unknown key's own path, where a typo is looked for.
         check_keys(scene.path, table, sorted(ORBIT_KEYS), f"orbit.{unknown[0]}")
     return table
+
+
+def _transition_names(scene: Any) -> list[str]:
+    """The names of the transitions of the modes the scene's run can reach, sorted (none when
+    the model cannot list them)."""
+    from ..hybrid import reachable_modes
+
+    system = scene.model.system
+    try:
+        modes = reachable_modes(system, scene.initial_mode)
+        return sorted({tr.name for mode in modes for tr in system.outgoing(mode)})
+    except LegsimError:
+        return []
 
 
 def _section(scene: Any, table: Mapping[str, Any], where: str = "orbit", key: str = "section") -> Section:

@@ -185,6 +185,8 @@ def test_no_orbit_exits_3_with_the_reason(capsys):
     "argv, message",
     [
         (["orbit", "slip"], "the scene has no [orbit] section"),
+        # the example names one of the scene's own transitions
+        (["orbit", "pronk"], '[orbit] section = { after = "liftoff_left" } (its transitions: liftoff_left,'),
         (["orbit", "rimless_wheel", "--plot", "x.png"], "--plot draws a family: use it with --continue"),
         (["orbit", "rimless_wheel", "--set", "orbit.nonsense=1"], "orbit.nonsense: unknown key(s) ['nonsense']"),
         (["orbit", "rimless_wheel", "--continue", "spokes", "8", "10"], "parameter 'spokes' is int-valued"),
