@@ -84,7 +84,7 @@ def test_run_human_summary_names_the_state(tmp_path, capsys):
     z = 1.0 - 9.81 / 2  # free fall without the floor
     assert f"final mode flight: z = {z:.6g}, zd = {-9.81:.6g}" in out
     assert "tiny: finished at t = 1 s (rk4, h = 0.001 s, eps = 0.001)" in out
-    assert "transitions 0: flight (1 visits)" in out
+    assert "transitions 0: flight (1 visit)" in out
     assert "guard 0, reset 0" in out
 
 

@@ -360,7 +360,7 @@ def _compact_modes(sequence: list[str], limit: int = 6) -> str:
     parts = [m if n == 1 else f"{m} x{n}" for m, n in runs]
     if len(parts) > limit:
         parts = [*parts[: limit - 2], "...", *parts[-2:]]
-    return " -> ".join(parts) + f" ({len(sequence)} visits)"
+    return " -> ".join(parts) + f" ({len(sequence)} visit{'' if len(sequence) == 1 else 's'})"
 
 
 def _num(value: Any) -> str:
