@@ -161,7 +161,9 @@ class RunWarning:
     kind: ``"accumulation"`` (transitions accumulate and the model names no continuation: past
         the accumulation point the relaxed execution holds the state), ``"strip_hold"`` (the
         state was held in strips for more than 1% of the run), ``"non_commuting_resets"``
-        (simultaneous transitions whose resets give different states in the two orders).
+        (simultaneous transitions whose resets give different states in the two orders),
+        ``"unconfirmed_continuation"`` (a transition's continuation taken after a single flight
+        as long as the step could resolve: nothing showed an accumulation there).
     message: what happened, where, and the remedy.
     time: when it began (s).
     details: the numbers behind the message (JSON-ready).

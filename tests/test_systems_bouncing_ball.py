@@ -149,6 +149,27 @@ def test_by_default_the_ball_rests_at_the_crossing_the_rule_names_with_the_plain
     assert len(plain.transitions) > 100 * len(names)
 
 
+def test_a_continuation_after_a_single_flight_the_step_could_resolve_says_so(ref):
+    """At h = 0.5 s the window h + eps holds the ball's first real flight (2 c v1 / g = 0.4515 s):
+    the second impact counts as an accumulation on that one flight, with nothing before it to
+    show the flights shrinking, and the ball rests at 0.903 s where it bounces on to its Zeno
+    time 1.3546 s. The run says so; at h = 0.2 s (two flights, halving) and at the default
+    h = 1e-3 s it does not, and a ball already resting (a second crossing right after the
+    first) takes the continuation without a word."""
+    system = bb.make_system(G, C)
+    coarse = simulate(system, [Z0, 0.0], "flight", 2.0, 0.5, 1e-4)
+    flight = 2 * C * ref.impact_speed / G
+    assert [tr.name for tr in coarse.transitions] == ["bounce", "rest"] and coarse.final_mode == "rest"
+    assert [w.kind for w in coarse.warnings] == ["unconfirmed_continuation"]
+    said = coarse.warnings[0]
+    assert said.details["flight"] == pytest.approx(flight, rel=1e-6)
+    assert said.time == pytest.approx(float(ref.impact_time(2)), abs=1e-3)  # the second impact, its strip held
+    for h in (0.2, 1e-3):
+        assert simulate(system, [Z0, 0.0], "flight", 2.0, h, 1e-4).warnings == []
+    resting = simulate(system, [0.0, 0.0], "flight", 0.5, 1e-3, 1e-4)
+    assert resting.final_mode == "rest" and resting.warnings == []
+
+
 @pytest.mark.parametrize("eps", [1e-2, 1e-3, 1e-4])
 def test_ball_never_sinks_more_than_eps(eps):
     ex = simulate(bb.make_system(G, C), [Z0, 0.0], "flight", 2.7, 1e-3, eps, "rk2")

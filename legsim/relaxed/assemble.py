@@ -69,7 +69,7 @@ from .layout import (
 )
 from .loop import STALL_FRACTION, STALL_WINDOW
 from .simultaneous import OrderWatch
-from .zeno import ZenoWatch, strip_hold_warning
+from .zeno import ZenoWatch, strip_hold_warning, unconfirmed_continuation
 
 #: A stall within this many strip widths of a guard is reported next to it.
 STALL_NEAR_STRIPS = 100.0
@@ -227,10 +227,13 @@ class Assembly:
                    landing_time=t_land, exit_time=exit_time, state_before=q, state_after=image, depth=tau)
         )  # fmt: skip
         order = (i[R_ORDER_A], i[R_ORDER_B])
+        # A continuation's crossing is named by the continuation; its transition's name is kept
+        # for the accumulation it continues.
+        transition = tables.transition_names[row] if kind == KIND_CONTINUED else name
         self.crossings.append(
             (source_name, name, tc, exit_time, bool(i[R_ACCUMULATES]),
              kind in (KIND_CONTINUED, KIND_JOINT_CONTINUED),
-             bool(i[R_HAS_CONTINUATION]), order, q)
+             bool(i[R_HAS_CONTINUATION]), order, q, transition)
         )  # fmt: skip
 
     # -- the execution ------------------------------------------------------------------------
@@ -402,16 +405,21 @@ class Assembly:
         # The Zeno watch opens an episode only at an accumulating crossing: without one it has
         # nothing to say, and most runs skip its replay.
         replays_zeno = any(crossing[4] for crossing in self.crossings)
-        for source, name, tc, exit_time, accumulates, continued, has_cont, pair, q in self.crossings:
+        unconfirmed = []
+        for source, name, tc, exit_time, accumulates, continued, has_cont, pair, q, transition in self.crossings:
             if pair[0] >= 0 and pair[1] >= 0:
                 order.check(self.system.mode_data(source), list(pair), q[: self.system.mode(source).dim], tc)
             if replays_zeno:
+                if continued and transition != name:
+                    history = zeno.history(source, transition)
+                    said = unconfirmed_continuation(history, source, transition, name, tc, zeno.window)
+                    unconfirmed += [said] if said is not None else []
                 replay.transitions.append(None)
                 replay.strip_time += exit_time - tc
                 zeno.crossed(replay, source, name, tc, exit_time, accumulates, continued, has_cont)
         strip_time = sum(s.exit_time - s.time for s in self.strips)
         replay.strip_time = strip_time
-        out = zeno.warnings(replay, t_end) + order.warnings()
+        out = zeno.warnings(replay, t_end) + unconfirmed + order.warnings()
         held = strip_hold_warning(strip_time, self.options.t0, t_end, out)
         return out + ([held] if held is not None else [])
 
