@@ -624,16 +624,9 @@ class ModeFlow:
         hi = np.maximum(p0.distance, p1.distance)
         inside = lo - rmax > margin
         past = hi + rmax < -margin
-        ends = StepSamples(
-            np.array([0.0, 1.0]),
-            np.array([p0.t, p1.t]),
-            np.array([p0.x, p1.x]),
-            np.array([r0, r1]),
-            np.array([p0.guard, p1.guard]),
-            np.array([p0.distance, p1.distance]),
-        )
-        if np.all(inside | past) or dt <= 0.0:
-            return ends
+        if np.all(inside | past) or dt <= 0.0:  # just the two ends
+            return StepSamples(np.array([0.0, 1.0]), np.array([p0.t, p1.t]), np.array([p0.x, p1.x]), np.array([r0, r1]),
+                               np.array([p0.guard, p1.guard]), np.array([p0.distance, p1.distance]))  # fmt: skip
         k = self.SAMPLES_PER_ACTIVE_STEP
         fractions = list(np.linspace(0.0, 1.0, k + 1))
         cache: dict[float, tuple[np.ndarray, np.ndarray, np.ndarray]] = {
@@ -653,8 +646,6 @@ class ModeFlow:
             d = at(s)[2][j]
             return d / r if r > 0 else d
 
-        for s in fractions:
-            at(float(s))
         extra = []
         for j in np.flatnonzero(~(inside | past)).tolist():
             extra += _extrema(lambda s, j=j: ratio(s, j), fractions, self.EDGE_PROBE)
@@ -671,19 +662,19 @@ class ModeFlow:
 
 
 def _extrema(u_at: Callable[[float], float], fractions: list[float], probe: float) -> list[float]:
-    """The step fractions in [0, 1] where ``u_at`` (a guard's distance over the ball's radius)
-    has a local extremum between the samples at ``fractions`` (k + 1 of them, 0 to 1), each
-    found by a bounded scalar search; none where a sample is not finite (a guard without a state
-    gradient, e.g. a clock)."""
-    k = len(fractions) - 1
-    u = [u_at(float(s)) for s in fractions]
+    """Step fractions in [0, 1] of the local extrema of ``u_at`` (a guard's distance over the
+    ball's radius) between its samples at ``fractions`` (0 to 1), each by a bounded search;
+    none when a sample is not finite (a guard without a state gradient, e.g. a clock)."""
+    k, u = len(fractions) - 1, [u_at(float(s)) for s in fractions]
     if not all(math.isfinite(v) for v in u):
         return []
+    # A probe just inside each end brackets an extremum in the first or last sub-interval (the
+    # next step starts past it).
     triples = [(u[i - 1], u[i], u[i + 1], fractions[i - 1], fractions[i + 1]) for i in range(1, k)]
-    # An extremum in the first or last sub-interval has no sample on one side inside the
-    # step (the next step starts past it): a probe just inside each end brackets it.
-    triples.append((u[0], u_at(probe), u[1], 0.0, fractions[1]))
-    triples.append((u[k - 1], u_at(1.0 - probe), u[k], fractions[k - 1], 1.0))
+    triples += [
+        (u[0], u_at(probe), u[1], 0.0, fractions[1]),
+        (u[k - 1], u_at(1.0 - probe), u[k], fractions[k - 1], 1.0),
+    ]
     found = []
     for before, middle, after, lo_s, hi_s in triples:
         if (middle - before) * (after - middle) < 0.0:

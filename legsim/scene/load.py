@@ -510,16 +510,21 @@ def _initial(
     return mode, x0
 
 
+#: A coordinate of the initial state beyond this size (SI units) is taken for the mistake when
+#: eps is too thin to resolve next to it, rather than eps.
+UNPHYSICAL_STATE = 1e6
+
+
 def _check_resolved(path: Path, x0: np.ndarray, names: tuple[str, ...], eps: float) -> None:
     """The strip must be wider than float64 resolves next to the initial state (``simulate``
     refuses it too, without the scene's names): the error names ``integrator.eps``, or the
-    coordinate whose size makes float64 too coarse there."""
+    coordinate beyond ``UNPHYSICAL_STATE`` that makes float64 too coarse there."""
     thinnest = thinnest_strip(x0)
     if eps >= thinnest:
         return
     largest = int(np.argmax(np.abs(x0)))
     spacing = float(np.spacing(state_scale(x0)))
-    if thinnest_strip(np.zeros(1)) <= eps:  # eps is fine at a physical scale: the state is not
+    if abs(x0[largest]) > UNPHYSICAL_STATE:
         raise field_error(
             path,
             f"initial.state.{names[largest]}",

@@ -1,6 +1,7 @@
 """No crawl at extreme settings on a robot scene: the standing quadruped (a URDF robot, its
 touchdown a joint impact with friction) at an eps below what float64 resolves is refused before
-the run, naming eps, the mode and the thinnest eps it could take; at that thinnest eps it runs
+the run, naming the scene's integrator.eps (simulate: the mode) and the thinnest eps it could
+take; at that thinnest eps it runs
 its nominal steps and finishes; past the refusal, at eps = 1e-300, no step lands in the strip,
 and the touchdown is crossed where the steps reach rounding instead of crawling there. At
 tight error control the runner passes its apexes (its flight legs turn on time, not on the
@@ -13,7 +14,8 @@ import sys
 import pytest
 
 from helpers.reliability import run_cli
-from legsim.errors import SimulationError
+from legsim import simulate
+from legsim.errors import SceneError, SimulationError
 from legsim.relaxed.resolution import thinnest_strip
 from legsim.scene import load_scene
 
@@ -25,17 +27,21 @@ def test_the_quadruped_at_eps_1e_300_is_refused_before_the_run_naming_eps_mode_a
     least = thinnest_strip(scene.initial_state)
     code, out, err = run_cli("run", "quadruped_stand", "--set", "integrator.eps=1e-300", "--set", SHORT)
     assert code == 2 and out == "", err
-    assert err.startswith("legsim: error: eps = 1e-300 is thinner than float64 resolves"), err
-    assert "in mode 'flight'" in err and f"give eps >= {least:.3g} in guard units" in err
+    prefix = f"legsim: error: {scene.path}: integrator.eps: 1e-300 is thinner than float64 resolves"
+    assert err.startswith(prefix), err
+    assert f"give eps >= {least:.3g} in guard units" in err
     assert len(err.splitlines()) == 1
 
 
 def test_the_quadruped_at_the_thinnest_eps_it_takes_finishes_in_its_nominal_steps():
     least = thinnest_strip(load_scene("quadruped_stand").initial_state)
-    # Just below the least eps is refused; the least itself runs.
-    with pytest.raises(SimulationError, match=r"eps = .* is thinner than float64 resolves"):
-        load_scene("quadruped_stand", [SHORT, f"integrator.eps={least * 0.99!r}"]).simulate()
+    # Just below the least eps is refused, by the scene (naming its field) and by simulate (naming
+    # the mode); the least itself runs.
+    with pytest.raises(SceneError, match=r"integrator.eps: .* is thinner than float64 resolves"):
+        load_scene("quadruped_stand", [SHORT, f"integrator.eps={least * 0.99!r}"])
     scene = load_scene("quadruped_stand", [SHORT, f"integrator.eps={least!r}"])
+    with pytest.raises(SimulationError, match=r"eps = .* is thinner than float64 resolves .* in mode 'flight'"):
+        simulate(scene.model.system, scene.initial_state, scene.initial_mode, 0.5, 1e-3, least * 0.99)
     ex = scene.simulate()
     assert ex.status == "finished", ex.message
     assert ex.transitions and ex.t_end == pytest.approx(0.5)  # through the touchdown, to t_final
@@ -51,6 +57,7 @@ def test_past_the_refusal_the_quadruped_at_eps_1e_300_crosses_its_touchdown_wher
     # past its strip once the step moves t and x by rounding only (``crosses_jumps``), which
     # locates the touchdown where the default eps's crossing point q is, to the last digit.
     monkeypatch.setattr(sys.modules["legsim.relaxed.simulate"], "_check_resolution", lambda eps, x, mode: None)
+    monkeypatch.setattr(sys.modules["legsim.scene.load"], "_check_resolved", lambda path, x0, names, eps: None)
     ex = load_scene("quadruped_stand", [SHORT, "integrator.eps=1e-300"]).simulate()
     nominal = load_scene("quadruped_stand", [SHORT]).simulate()
     assert ex.status == "finished", ex.message
