@@ -33,6 +33,7 @@ Section V need), and carries the bound along with the signed distances to the mo
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -648,7 +649,7 @@ class ModeFlow:
 
         extra = []
         for j in np.flatnonzero(~(inside | past)).tolist():
-            extra += _extrema(lambda s, j=j: ratio(s, j), fractions, self.EDGE_PROBE)
+            extra += _extrema(functools.partial(ratio, j=j), fractions, self.EDGE_PROBE)
         s_all = np.unique(np.concatenate([np.array(fractions), np.array(extra)]))
         xs, gs, ds = zip(*(at(float(s)) for s in s_all), strict=True)
         return StepSamples(

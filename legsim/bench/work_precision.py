@@ -138,7 +138,7 @@ def _run_relaxed(case: Case, spec: RunSpec, repeats: int, rho_points: int) -> Ro
     from ..relaxed import simulate
 
     method = relaxed_method(spec.method[len("relaxed-") :])
-    tols = {} if math.isnan(spec.tol) else {"rtol": spec.tol, "atol": spec.tol}
+    tol = None if math.isnan(spec.tol) else spec.tol
     system, control = case.system, case.control
     if spec.zeno:
         if case.zeno_system is None:
@@ -151,7 +151,7 @@ def _run_relaxed(case: Case, spec: RunSpec, repeats: int, rho_points: int) -> Ro
     def call() -> Any:
         return simulate(system, case.x0, case.mode, case.t_final, spec.h, spec.eps, method, control,
                         max_transitions=case.max_transitions, landing=spec.landing, continuation=spec.zeno,
-                        max_steps=budget, **tols)  # fmt: skip
+                        max_steps=budget, rtol=tol, atol=tol)  # fmt: skip
 
     ex, wall, n = _timed(call, repeats, lambda r, dt: dt)
     if ex.status != "finished":
