@@ -113,7 +113,7 @@ def run(args: argparse.Namespace) -> int:
 
     scene = load_scene(args.scene, overrides=args.overrides)
     outputs = requested_outputs(args, scene.output_paths(args.out_dir), scene.path)
-    plan, writers = plan_outputs(outputs, inputs=[scene.path], scene=scene)
+    plan, writers = plan_outputs(outputs, inputs=scene.input_files(), scene=scene)
     rrd_options = _check_live(args, "rrd" in outputs)
     execution, estimate = _simulate(scene, show_progress=not (args.quiet or args.json), check=args.check_accuracy)
     written, failures = _write_all(execution, scene, plan, writers, {**html_options(args), "rrd": rrd_options})

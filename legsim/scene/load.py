@@ -73,7 +73,7 @@ from ..terrain import Terrain
 from .controller import scene_controller
 from .falls import fall_watches
 from .fields import check_keys, describe, field_error, table_at
-from .files import apply_overrides, checked_depth, read_toml, resolve_scene_path, scene_relative_files
+from .files import apply_overrides, checked_depth, inside_folder, read_toml, resolve_scene_path, scene_relative_files
 from .integrator import validated_integrator
 from .terrain import parse_terrain
 
@@ -179,6 +179,18 @@ class Scene:
         if ref is not None and hasattr(ref, "with_initial"):
             return ref.with_initial(self.initial_mode, self.initial_state.copy())
         return ref
+
+    def input_files(self) -> list[Path]:
+        """The files the scene reads: the scene file, its robot's file parameters (a URDF) and
+        its terrain's CSV profile, resolved (an output may be none of them)."""
+        files = [self.path]
+        files += [Path(value) for name, param in self.builder.parameters.items()
+                  if param.path and isinstance(value := self.parameters.get(name), str) and value]  # fmt: skip
+        csv = self.data.get("terrain", {}).get("file") if isinstance(self.data.get("terrain"), dict) else None
+        if isinstance(csv, str) and csv:
+            found = inside_folder(self.path.parent, os.path.expanduser(csv))
+            files += [found] if found is not None else []
+        return files
 
     def output_paths(self, out_dir: str | os.PathLike[str] | None = None) -> dict[str, Path]:
         """kind -> file of each ``[output]`` of this scene, resolved against ``out_dir`` or else the

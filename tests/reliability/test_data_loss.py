@@ -151,3 +151,21 @@ def test_every_output_honours_the_umask(tmp_path):
     assert code == 0
     modes = {p.name: stat.S_IMODE(p.stat().st_mode) for p in tmp_path.iterdir() if p.name != scene.name}
     assert modes == dict.fromkeys(["a.rrd", "a.html", "a.png", "a.npz", "a.csv"], 0o640)
+
+
+@pytest.mark.parametrize("which", ["urdf", "terrain csv"])
+def test_a_link_to_a_file_the_scene_reads_is_an_input_too(tmp_path, which):
+    """The scene's URDF and its terrain profile's CSV are inputs of the run as the scene file is:
+    an output through a hard link to either is refused, naming the file, and nothing changes."""
+    from helpers import urdf_robots
+
+    (tmp_path / "ground.csv").write_text("x,z\n-5,0\n5,0\n")
+    scene = urdf_robots.monoped(tmp_path, '[terrain]\nkind = "profile"\nfile = "ground.csv"\n')
+    source = tmp_path / ("monoped.urdf" if which == "urdf" else "ground.csv")
+    alias = tmp_path / "alias.png"
+    os.link(source, alias)
+    before = source.read_bytes()
+    code, _, err = run_cli("run", scene, "--plot", alias, "-q", "--set", "integrator.t_final=0.01")
+    assert code == 2, err
+    assert err == f"legsim: error: --plot {alias}: is an input of this run ({source}); refusing to overwrite it\n"
+    assert source.read_bytes() == before and alias.samefile(source)
