@@ -186,8 +186,8 @@ class Scene:
         files = [self.path]
         files += [Path(value) for name, param in self.builder.parameters.items()
                   if param.path and isinstance(value := self.parameters.get(name), str) and value]  # fmt: skip
-        csv = self.data.get("terrain", {}).get("file") if isinstance(self.data.get("terrain"), dict) else None
-        if isinstance(csv, str) and csv:
+        csv = (self.data.get("terrain") or {}).get("file")  # a validated table: a file name or absent
+        if csv:
             found = inside_folder(self.path.parent, os.path.expanduser(csv))
             files += [found] if found is not None else []
         return files
