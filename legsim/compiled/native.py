@@ -20,6 +20,7 @@ from typing import Any
 
 import numba
 from numba import types
+from numba.core import cgutils
 from numba.core.extending import intrinsic
 
 #: The arrays of every call: float64, 1-d, contiguous.
@@ -42,7 +43,13 @@ def _codegen(signature: Any):
             values.append(value if isinstance(wanted, types.Array) else context.cast(builder, value, given, wanted))
         fnty = context.call_conv.get_function_type(signature.return_type, callee_args)
         pointer = builder.inttoptr(llargs[0], fnty.as_pointer())
-        _, result = context.call_conv.call_function(builder, pointer, signature.return_type, callee_args, values)
+        status, result = context.call_conv.call_function(builder, pointer, signature.return_type, callee_args, values)
+        # An exception the model function raised (a raise, an assert, an index past an array's end
+        # under boundscheck) is passed on to the kernel's caller, as numba passes it between its
+        # own functions: the run then fails naming the mode and time, as the Python loop does,
+        # instead of going on with whatever the function left in its output.
+        with cgutils.if_unlikely(builder, status.is_error):
+            context.call_conv.return_status_propagate(builder, status)
         if signature.return_type == types.void:
             return context.get_dummy_value()
         return result

@@ -28,6 +28,7 @@ pyarrow and rich are imported when a sweep runs, not when legsim is imported.
 
 from __future__ import annotations
 
+import math
 import sys
 import types
 from collections.abc import Mapping, Sequence
@@ -100,7 +101,7 @@ def sweep(
     # Counted before any grid's values are made: a grid of 10^9 values is refused at once.
     check_count([_grid_length(value) for value in (grid or {}).values()], samples if random else 1)
     axes = tuple(_grid_axis(key, value, parse_grid, Axis) for key, value in (grid or {}).items())
-    draws = tuple(Axis(key, (), float(lo), float(hi)) for key, (lo, hi) in (random or {}).items())
+    draws = tuple(_random_axis(key, value, Axis) for key, value in (random or {}).items())
     kind = "walk" if walk else ("scene" if run else "none")
     spec = SweepSpec(
         scene=scene_reference(scene),
@@ -139,15 +140,37 @@ def _grid_length(value: Any) -> int:
     return len(value) if isinstance(value, (list, tuple)) and value else 1
 
 
+def _numbers(value: Any, count: int) -> bool:
+    """Whether ``value`` is a tuple of ``count`` real numbers (no booleans)."""
+    return (
+        isinstance(value, tuple)
+        and len(value) == count
+        and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value)
+    )
+
+
 def _grid_axis(key: str, value: Any, parse: Any, axis: Any) -> Any:
-    if isinstance(value, tuple) and len(value) == 3 and all(isinstance(v, (int, float)) for v in value):
-        low, high, n = value
-        return parse(f"{key}={low!r}:{high!r}:{n!r}")
-    if isinstance(value, (list, tuple)) and value:
-        return axis(key, tuple(value))
+    """A ``grid`` entry: a tuple is a range (low, high, n), a list holds the values."""
     from .spec import SweepError
 
-    raise SweepError(f"grid {key}: expected (low, high, n) or a non-empty list of values, got {value!r}")
+    if _numbers(value, 3):
+        low, high, n = value
+        return parse(f"{key}={low!r}:{high!r}:{n!r}")
+    if isinstance(value, list) and value:
+        return axis(key, tuple(value))
+    raise SweepError(
+        f"grid {key}: expected a range (low, high, n) or a non-empty list of values, got {value!r} (a tuple is "
+        f"read as a range: give a list for values)"
+    )
+
+
+def _random_axis(key: str, value: Any, axis: Any) -> Any:
+    """A ``random`` entry: (low, high), finite, low < high."""
+    from .spec import SweepError
+
+    if not (_numbers(value, 2) and all(math.isfinite(v) for v in value) and value[0] < value[1]):
+        raise SweepError(f"random {key}: expected (low, high) with finite low < high, got {value!r}")
+    return axis(key, (), float(value[0]), float(value[1]))
 
 
 class _CallableModule(types.ModuleType):

@@ -8,6 +8,7 @@ import io
 import json
 import math
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -20,6 +21,7 @@ import pytest
 import legsim
 from legsim.cli import main
 from legsim.sweep import runner
+from legsim.sweep.spec import SweepError
 from legsim.sweep.table import TIMING_COLUMNS
 from legsim.sweep.walk import OUTCOMES
 
@@ -295,3 +297,21 @@ def test_orbit_rows_place_the_compass_gaits_period_doubling_where_continuation_d
         re for re, im in zip(above["orbit_multipliers_re"], above["orbit_multipliers_im"], strict=True) if im == 0.0
     ]
     assert min(real) < -1.0  # through -1: a period doubling
+
+
+@pytest.mark.parametrize(
+    "axes, message",
+    [
+        ({"random": {"initial.state.theta": (0.1,)}}, "random initial.state.theta: expected (low, high) with finite"),
+        ({"random": {"initial.state.theta": "0:1"}}, "random initial.state.theta: expected (low, high)"),
+        ({"random": {"initial.state.theta": (0.2, 0.1)}}, "finite low < high, got (0.2, 0.1)"),
+        ({"grid": {"initial.state.theta": (-0.1, 0.1)}}, "a tuple is read as a range: give a list for values"),
+        ({"grid": {"initial.state.theta": (1, 2, 3, 4)}}, "expected a range (low, high, n) or a non-empty list"),
+    ],
+)
+def test_the_python_api_refuses_a_malformed_axis_naming_its_field(tmp_path, axes, message):
+    """legsim.sweep's grid and random axes as docs/sweep.md gives them: a tuple (low, high, n) is
+    a range and a list holds values; a random axis is (low, high). Anything else is a SweepError
+    naming the field (a raw unpacking error, or a tuple silently read as values, before)."""
+    with pytest.raises(SweepError, match=re.escape(message)):
+        legsim.sweep("rimless_wheel", out=tmp_path / "s", in_process=True, **axes)

@@ -1,0 +1,65 @@
+"""A compiled model function that raises mid-run fails the run on the compiled path as on the
+Python loop, naming the mode and the time, instead of the run going on with whatever the
+function left in its output (legsim/compiled/native.py passes the exception on)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from legsim import HybridSystem, Mode, ModeFunctions, Transition, model_function, simulate
+from legsim.errors import ModelError
+
+G = 9.81
+
+
+@model_function
+def falls_until_half_a_metre(t, x, u, p, dx):
+    if x[0] < 0.5:
+        raise ValueError("below half a metre")
+    dx[0] = x[1]
+    dx[1] = -G
+
+
+@model_function
+def reads_past_its_parameters(t, x, u, p, dx):
+    dx[0] = x[1]
+    dx[1] = -G * p[int(x[0] < 0.5)]  # p has one entry: index 1 is past its end below 0.5 m
+
+
+@model_function
+def floor(t, x, u, p, g):
+    g[0] = max(x[0], x[1])
+
+
+@model_function
+def bounce(e, t, x, u, p, out):
+    out[0] = x[0]
+    out[1] = -0.5 * x[1]
+
+
+def ball(field, params=(1.0,)):
+    return HybridSystem(
+        {"air": Mode(2, names=("z", "zd"), functions=ModeFunctions(field, floor, bounce, params=list(params)))},
+        [Transition("air", "air", name="bounce")],
+        name="ball",
+    )
+
+
+@pytest.mark.parametrize("python", [False, True])
+def test_a_raise_inside_a_model_function_fails_the_run_on_both_paths(python):
+    # Dropped from 1 m, the ball passes 0.5 m at t = sqrt(2 * 0.5 / g) = 0.319 s.
+    with pytest.raises(ModelError) as info:
+        simulate(ball(falls_until_half_a_metre), [1.0, 0.0], "air", 2.0, 1e-3, 1e-4, "rk4", python=python)
+    message = str(info.value)
+    assert "mode 'air'" in message and "ValueError: below half a metre" in message, message
+    t = float(message.split("from t=")[1].split(" ")[0])
+    assert abs(t - np.sqrt(1.0 / G)) < 2e-3, message
+
+
+def test_an_index_past_the_end_is_caught_when_checked():
+    """numba does not check indices unless asked: compiled with ``boundscheck=True`` (as
+    docs/howto-compiled.md advises while a model is written), the index error fails the run."""
+    checked = model_function(boundscheck=True)(reads_past_its_parameters.py_func)
+    with pytest.raises(ModelError, match=r"mode 'air'.*IndexError"):
+        simulate(ball(checked), [1.0, 0.0], "air", 2.0, 1e-3, 1e-4, "rk4")
