@@ -91,6 +91,7 @@ def field_at(tab: Tables, vis: Visit, ws, t: float, x: np.ndarray, out: np.ndarr
     """dx/dt of the closed loop at (t, x) into out[:n] (the memory's entries 0)."""
     if ws.ci[S_HOLD] == 0:
         control_now(tab, vis, ws, t, x)
+    unwritten(out, vis.dim)
     call_state(tab.functions, vis.field, t, x[: vis.dim], ws.u, vis.p, out[: vis.dim])
     for d in range(vis.dim, vis.n):
         out[d] = 0.0
@@ -104,6 +105,7 @@ def guards_at(tab: Tables, vis: Visit, ws, t: float, x: np.ndarray, out: np.ndar
         return np.inf
     if ws.ci[S_HOLD] == 0:
         control_now(tab, vis, ws, t, x)
+    unwritten(out, vis.guards)
     call_state(tab.functions, vis.guard_fn, t, x[: vis.dim], ws.u, vis.p, out[: vis.guards])
     ws.iv[I_GUARD_EVALS] += vis.guards
     return least(out, vis.guards)
@@ -113,6 +115,7 @@ def guards_under(tab: Tables, vis: Visit, ws, t: float, x: np.ndarray, u: np.nda
     """Every guard of the mode at (t, x) under the given input u (not the controller's there)
     into out[:guards]."""
     if vis.guards > 0:
+        unwritten(out, vis.guards)
         call_state(tab.functions, vis.guard_fn, t, x[: vis.dim], u, vis.p, out[: vis.guards])
         ws.iv[I_GUARD_EVALS] += vis.guards
 
@@ -122,6 +125,14 @@ def input_after(tab: Tables, target: Visit, ws, t: float, x: np.ndarray, u: np.n
     memory x[dim:n] the controller's entry updates in place (a preview: x is scratch)."""
     enter_controller(tab, target, ws, t, x)
     call_state(tab.functions, target.control, t, x[: target.dim], x[target.dim : target.n], target.pc, u)
+
+
+def unwritten(out: np.ndarray, count: int) -> None:
+    """out[:count] set to nan before a model function writes its result there: an entry it
+    leaves unwritten is then a non-finite value the loop reports (naming the mode, or the
+    transition of a guard), never the previous call's value taken for this one's."""
+    for d in range(count):
+        out[d] = np.nan
 
 
 def least(values: np.ndarray, count: int) -> float:
@@ -164,6 +175,7 @@ def reset_under(
     """``closed_reset`` with the plant's reset under the given input u (a previewed crossing's:
     the input its outcome was chosen under)."""
     if vis.reset >= 0:
+        unwritten(out, target.dim)
         call_indexed(tab.functions, vis.reset, e, t, q[: vis.dim], u, vis.p, out[: target.dim])
     else:
         for d in range(target.dim):

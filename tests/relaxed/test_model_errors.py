@@ -1,6 +1,8 @@
 """A compiled model function that raises mid-run fails the run on the compiled path as on the
 Python loop, naming the mode and the time, instead of the run going on with whatever the
-function left in its output (legsim/compiled/native.py passes the exception on)."""
+function left in its output (legsim/compiled/native.py passes the exception on); an output a
+function leaves unwritten is nan, reported, never a value of an earlier call
+(legsim/relaxed/evaluate.py, ``unwritten``)."""
 
 from __future__ import annotations
 
@@ -63,3 +65,40 @@ def test_an_index_past_the_end_is_caught_when_checked():
     checked = model_function(boundscheck=True)(reads_past_its_parameters.py_func)
     with pytest.raises(ModelError, match=r"mode 'air'.*IndexError"):
         simulate(ball(checked), [1.0, 0.0], "air", 2.0, 1e-3, 1e-4, "rk4")
+
+
+@model_function
+def writes_nothing(t, x, u, p, dx):
+    pass
+
+
+@model_function
+def one_of_two_guards(t, x, u, p, g):
+    g[0] = max(x[0], x[1])  # g[1], the second transition's, never written
+
+
+@model_function
+def fall(t, x, u, p, dx):
+    dx[0] = x[1]
+    dx[1] = -G
+
+
+def two_transitions():
+    return HybridSystem(
+        {"air": Mode(2, names=("z", "zd"), functions=ModeFunctions(fall, one_of_two_guards, bounce, params=[1.0]))},
+        [Transition("air", "air", name="bounce"), Transition("air", "air", name="stick")],
+        name="ball",
+    )
+
+
+@pytest.mark.parametrize("python", [False, True])
+def test_an_output_a_model_function_leaves_unwritten_is_reported_not_used(python):
+    """The loop fills a function's output with nan before the call: a field that writes nothing
+    ends the run non-finite in its mode at once (it hovered, 'finished'), and a guard function
+    that writes one of its mode's two guards ends it at the first evaluation (the second
+    transition could never fire, silently)."""
+    hover = simulate(ball(writes_nothing), [1.0, 0.0], "air", 1.0, 1e-3, 1e-4, "rk4", python=python)
+    assert hover.status == "non_finite" and hover.t_end == 0.0 and "'air'" in hover.message, hover.message
+    half = simulate(two_transitions(), [1.0, 0.0], "air", 1.0, 1e-3, 1e-4, "rk4", python=python)
+    assert half.status == "non_finite" and half.t_end == 0.0
+    assert half.message.startswith("guard of transition stick is nan at t=0 in mode 'air'"), half.message
