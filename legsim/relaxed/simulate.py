@@ -156,7 +156,7 @@ def simulate(
         continuation=bool(continuation),
         zeno_window=h + eps if zeno_window is None else positive("zeno_window", zeno_window),
         hold=law.hold if law is not None else isinstance(control, Bound) and control.hold,
-        progress=progress,
+        progress=_check_progress(progress),
         python=bool(python),
         watches=check_watches(watches),
     )
@@ -176,6 +176,15 @@ def _run(
     if times is not None:
         execution.evaluated = execution.sample(times[times <= execution.t_end])
     return execution
+
+
+def _check_progress(progress: Any) -> Any:
+    """``progress`` itself: a callable progress(t, t0, t_final), or None."""
+    if progress is not None and not callable(progress):
+        raise SimulationError(
+            f"progress must be callable progress(t, t0, t_final) or None, got {type(progress).__name__} {progress!r}"
+        )
+    return progress
 
 
 def _check_continuation(continuation: Any) -> None:

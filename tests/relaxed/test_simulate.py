@@ -114,6 +114,12 @@ def test_control_must_be_callable(ball):
         simulate(ball, [1.0, 0.0], "flight", 1.0, 1e-3, 1e-3, control=1.0)
 
 
+def test_progress_must_be_callable(ball):
+    message = r"^progress must be callable progress\(t, t0, t_final\) or None, got int 5"
+    with pytest.raises(SimulationError, match=message):
+        simulate(ball, [1.0, 0.0], "flight", 1.0, 1e-3, 1e-3, progress=5)
+
+
 @pytest.mark.parametrize("value", [-1, 2.5, True])
 def test_transition_budget_must_be_a_nonnegative_integer(ball, value):
     with pytest.raises(SimulationError, match=r"^max_transitions must be an integer >= 0, got"):
