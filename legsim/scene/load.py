@@ -73,9 +73,9 @@ from ..terrain import Terrain
 from .controller import scene_controller
 from .falls import fall_watches
 from .fields import check_keys, describe, field_error, table_at
-from .files import apply_overrides, checked_depth, inside_folder, read_toml, resolve_scene_path, scene_relative_files
+from .files import apply_overrides, checked_depth, read_toml, resolve_scene_path, scene_relative_files
 from .integrator import validated_integrator
-from .terrain import parse_terrain
+from .terrain import parse_terrain, profile_file
 
 CORE_SECTIONS = ("scene", "robot", "effects", "initial", "integrator", "output", "controller", "fall", "terrain")
 TOOL_SECTIONS = ("orbit", "certify", "stochastic", "zeno", "stress", "bench", "accuracy")
@@ -187,9 +187,8 @@ class Scene:
         files += [Path(value) for name, param in self.builder.parameters.items()
                   if param.path and isinstance(value := self.parameters.get(name), str) and value]  # fmt: skip
         csv = (self.data.get("terrain") or {}).get("file")  # a validated table: a file name or absent
-        if csv:
-            found = inside_folder(self.path.parent, os.path.expanduser(csv))
-            files += [found] if found is not None else []
+        found = profile_file(self.path, csv) if csv else None
+        files += [found] if found is not None else []
         return files
 
     def output_paths(self, out_dir: str | os.PathLike[str] | None = None) -> dict[str, Path]:

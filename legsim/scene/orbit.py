@@ -34,6 +34,7 @@ import numpy as np
 from ..accuracy import OrbitSection
 from ..builders import Param, resolve_parameters
 from ..errors import LegsimError, SceneError
+from ..hybrid import reachable_modes
 from ..orbits import MAX_FD_STEP, OrbitError, OrbitProblem, Section
 from ..orbits.sections import bind_section
 from .controller import scene_controller
@@ -196,8 +197,6 @@ def _orbit_table(scene: Any) -> dict[str, Any]:
 def _transition_names(scene: Any) -> list[str]:
     """The names of the transitions of the modes the scene's run can reach, sorted (none when
     the model cannot list them)."""
-    from ..hybrid import reachable_modes
-
     system = scene.model.system
     try:
         modes = reachable_modes(system, scene.initial_mode)

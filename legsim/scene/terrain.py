@@ -180,12 +180,18 @@ def _profile(f: _Fields) -> Terrain:
     return profile_terrain(xs, zs)
 
 
+def profile_file(scene: Path, value: str) -> Path | None:
+    """The profile's CSV file a ``[terrain] file`` names, resolved against the scene's folder;
+    None when it leads out of that folder (links resolved)."""
+    return inside_folder(scene.parent, os.path.expanduser(value))
+
+
 def _csv_rows(f: _Fields) -> list[Any]:
     """The rows of the profile's CSV file, numbers parsed; errors name the file's line."""
     value = f.table["file"]
     if not isinstance(value, str) or not value or "\x00" in value:
         raise f.error("file", f"got {value!r}")
-    file = inside_folder(f.path.parent, os.path.expanduser(value))
+    file = profile_file(f.path, value)
     if file is None:
         raise f.error("file", f"{value!r} lies outside the scene's folder {f.path.parent} (links resolved)")
     raw = read_input_file(file, MAX_CSV_BYTES, "terrain profile CSV file")

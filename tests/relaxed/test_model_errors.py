@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from helpers.compiled_models import above_floor, paddle_bounce
 from legsim import HybridSystem, Mode, ModeFunctions, Transition, model_function, simulate
 from legsim.errors import ModelError
 
@@ -26,23 +27,17 @@ def falls_until_half_a_metre(t, x, u, p, dx):
 @model_function
 def reads_past_its_parameters(t, x, u, p, dx):
     dx[0] = x[1]
-    dx[1] = -G * p[int(x[0] < 0.5)]  # p has one entry: index 1 is past its end below 0.5 m
+    dx[1] = -G * p[2 * int(x[0] < 0.5)]  # p has two entries: index 2 is past its end below 0.5 m
 
 
-@model_function
-def floor(t, x, u, p, g):
-    g[0] = max(x[0], x[1])
-
-
-@model_function
-def bounce(e, t, x, u, p, out):
-    out[0] = x[0]
-    out[1] = -0.5 * x[1]
-
-
-def ball(field, params=(1.0,)):
+def ball(field, params=(1.0, 0.5)):
+    """A ball of ``field`` over a floor, bouncing back at half its speed (params: 1, restitution)."""
     return HybridSystem(
-        {"air": Mode(2, names=("z", "zd"), functions=ModeFunctions(field, floor, bounce, params=list(params)))},
+        {
+            "air": Mode(
+                2, names=("z", "zd"), functions=ModeFunctions(field, above_floor, paddle_bounce, params=list(params))
+            )
+        },
         [Transition("air", "air", name="bounce")],
         name="ball",
     )
@@ -85,7 +80,11 @@ def fall(t, x, u, p, dx):
 
 def two_transitions():
     return HybridSystem(
-        {"air": Mode(2, names=("z", "zd"), functions=ModeFunctions(fall, one_of_two_guards, bounce, params=[1.0]))},
+        {
+            "air": Mode(
+                2, names=("z", "zd"), functions=ModeFunctions(fall, one_of_two_guards, paddle_bounce, params=[1.0, 0.5])
+            )
+        },
         [Transition("air", "air", name="bounce"), Transition("air", "air", name="stick")],
         name="ball",
     )
