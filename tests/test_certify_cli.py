@@ -153,3 +153,8 @@ def test_stochastic_reports_stalled_and_overflowing_executions(capsys):
     # a first local error B0 between 1e-15 and 1 (0.7 .. 0 s), plus the visit's start (< 0.5 s).
     assert 13.0 < t_overflow < 14.7
     assert all(sw["max"] < t_overflow for sw in s["switching_times"])
+    # Long before it overflows the ball is wider than the circle itself (measured from 0.14 s:
+    # e^(50 t) times rk4's local errors at h = 0.01), which the run says as a warning, with when.
+    unresolved = s["unresolved"]
+    assert unresolved["executions"] == 1 and 0.0 < unresolved["earliest"] < t_overflow
+    assert f"the earliest at t={unresolved['earliest']:.6g} s" in err and "wider than the state" in err

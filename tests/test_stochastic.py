@@ -293,3 +293,25 @@ def test_without_the_hazard_cap_the_two_tanks_accumulate_switches_past_the_zeno_
 def test_hazard_cap_must_be_positive(bad):
     with pytest.raises(SimulationError, match="hazard_cap must be a number > 0"):
         sample_execution(two_tanks(), "q1", np.array([1.0, 1.0]), 1.0, 0.04, "euler", floor=1.0, hazard_cap=bad)
+
+
+def test_an_execution_whose_ball_outgrows_the_state_says_from_when():
+    """The unit circle at omega = 5 rad/s crosses the wall x1 = 0.5 at asin(0.5) / 5 and
+    (pi - asin(0.5)) / 5 s of each turn of 2 pi / 5 s. Its error bound grows like e^(5 t) and
+    passes the state's size (1) near t = 2.95 s: from there the ball holds the wall on both sides
+    and the execution draws no more switches, though the circle crosses 4 more times by 5 s. The
+    execution must say from when (``unresolved_from``), and the ensemble's summary too; every
+    true crossing before it is drawn. On the slow circle (omega = 1, B ~ 7e-5) nothing is said."""
+    e = sample_execution(circular_flow(omega=5.0, wall=0.5), "inside", [0.0, 1.0], 5.0, 0.01, "rk4", rng=1)
+    turns = 2.0 * math.pi / 5.0 * np.arange(4)[:, None]
+    true = np.sort((turns + np.array([math.asin(0.5), math.pi - math.asin(0.5)]) / 5.0).ravel())
+    true = true[true < 5.0]
+    assert e.status == "finished" and e.unresolved_from is not None and e.max_radius > 1.0
+    assert len(e.times) == int(np.sum(true < e.unresolved_from)) < len(true)
+    np.testing.assert_allclose(e.times[:2], true[:2], atol=1e-6)
+    ensemble = sample_ensemble(circular_flow(omega=5.0, wall=0.5), "inside", [0.0, 1.0], 5.0, 0.01, "rk4", samples=3)
+    assert ensemble.summary()["unresolved"]["executions"] == 3
+    slow = sample_execution(circular_flow(), "inside", [0.0, 1.0], 3.0, H, "rk4", rng=1)
+    assert slow.unresolved_from is None
+    slow_ensemble = sample_ensemble(circular_flow(), "inside", [0.0, 1.0], 3.0, H, "rk4", samples=2)
+    assert slow_ensemble.summary()["unresolved"] is None

@@ -117,6 +117,14 @@ def run(args: argparse.Namespace) -> int:
             "Theorem 2 needs a non-trivial bound); declare a local error floor, e.g. --set stochastic.floor=1",
             file=sys.stderr,
         )
+    if summary["unresolved"]:
+        print(
+            f"legsim: warning: in {summary['unresolved']['executions']} of {summary['samples']} executions the error "
+            f"ball grew wider than the state itself, the earliest at t={summary['unresolved']['earliest']:.6g} s: "
+            "from there it holds the guards around it and the switches drawn say nothing of the system "
+            "(a shorter t_final, a smaller h or a smaller floor keeps it narrower)",
+            file=sys.stderr,
+        )
     stopped = {k: v for k, v in summary["statuses"].items() if k != "finished"}
     if stopped:
         example = next(e for e in ensemble.executions if e.status != "finished")
