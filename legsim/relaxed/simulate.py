@@ -10,11 +10,12 @@ import numpy as np
 
 from ..arguments import count, positive
 from ..control import Bound, ControlLaw, bind
-from ..errors import LegsimError, ModelError, SimulationError
+from ..errors import ContractError, LegsimError, ModelError, SimulationError
 from ..execution import Execution
 from ..hybrid import HybridSystem
 from ..methods import Tableau, get_method
 from ..methods.builtin import ADAPTIVE_DEFAULTS, SCIPY_NAMES
+from .adapt import input_entries
 from .driver import Options, drive
 from .parts import Aim, Dense, ErrorControl, FixedStep, Halve
 from .resolution import state_scale, thinnest_strip
@@ -391,12 +392,20 @@ def _initial_input(
         if law is not None:
             return law.input_at(mode, t0, x, memory)
         if isinstance(control, Bound):
-            return control.controller(mode, t0, x)
-        return None if control is None else control(t0, x)
+            value = control.controller(mode, t0, x)
+        else:
+            value = None if control is None else control(t0, x)
     except LegsimError:
         raise
     except Exception as exc:
         raise SimulationError(f"control(t0, x0) failed at t0={t0}: {type(exc).__name__}: {exc}") from exc
+    functions = system.mode(mode).functions
+    if value is not None and functions is not None and functions.inputs:
+        try:
+            input_entries(value, functions.inputs, control)
+        except ContractError as exc:
+            raise ModelError(f"{system.name}: {exc} (mode '{mode}', t0={t0})") from exc
+    return value
 
 
 def _is_mode(system: HybridSystem, mode: str) -> bool:

@@ -9,8 +9,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from helpers.compiled_models import above_floor, paddle_bounce
+from helpers.compiled_models import above_floor, paddle, paddle_bounce
 from legsim import HybridSystem, Mode, ModeFunctions, Transition, model_function, simulate
+from legsim.control import Controller
 from legsim.errors import ModelError
 
 G = 9.81
@@ -101,3 +102,33 @@ def test_an_output_a_model_function_leaves_unwritten_is_reported_not_used(python
     half = simulate(two_transitions(), [1.0, 0.0], "air", 1.0, 1e-3, 1e-4, "rk4", python=python)
     assert half.status == "non_finite" and half.t_end == 0.0
     assert half.message.startswith("guard of transition stick is nan at t=0 in mode 'air'"), half.message
+
+
+class TwoInputs(Controller):
+    """Returns two numbers for a plant that takes one: the controller's error, not the field's."""
+
+    def __call__(self, mode, t, x):
+        return np.array([0.0, 1.0])
+
+
+class NoNumber(Controller):
+    def __call__(self, mode, t, x):
+        return "push"
+
+
+@pytest.mark.parametrize(
+    ("control", "says"),
+    [
+        (TwoInputs(), "controller TwoInputs returned 2 input entries, the plant takes 1"),
+        (NoNumber(), "controller NoNumber returned str 'push', expected 1 numbers"),
+        (lambda t, x: [1.0, 2.0, 3.0], "control returned 3 input entries, the plant takes 1"),
+    ],
+)
+def test_a_python_controllers_input_of_the_wrong_size_is_named_as_the_controllers(control, says):
+    """A compiled plant reads a Python controller's input as numbers: an input of another size or
+    not numeric fails the run naming the controller (before, numpy's broadcast error was reported
+    as the mode's field failing)."""
+    system, _ = paddle()
+    with pytest.raises(ModelError) as info:
+        simulate(system, [1.0, 0.0], "flight", 0.5, 1e-3, 1e-6, "rk4", control=control)
+    assert says in str(info.value) and "field" not in str(info.value)
