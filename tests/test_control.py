@@ -58,3 +58,11 @@ def test_the_controller_is_told_the_mode_and_reset_at_every_entry():
     t_exit = ex.transitions[0].exit_time
     assert ex.final_state[0] == pytest.approx(-0.5 * (3.0 - t_exit) ** 2, rel=1e-12)
     assert math.isfinite(t_exit)
+
+
+def test_a_python_controlled_run_says_it_ran_in_python_even_without_a_step():
+    """The run's ``path`` is the loop its tables chose, also for a run that ends where it starts:
+    a control of nan stops it at t0 before any step, on the Python loop."""
+    ex = simulate(pushed_mass(), [0.0, 0.0], "out", 1.0, 1e-2, 1e-6, "rk4", lambda t, x: math.nan)
+    assert ex.status == "non_finite" and ex.t_end == 0.0 and ex.counters["steps"] == 0
+    assert ex.settings["path"] == "python" and ex.settings["python_reason"]

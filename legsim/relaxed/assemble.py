@@ -259,7 +259,8 @@ class Assembly:
         jumps = len(self._jumps())
         if jumps:  # only where a model crosses its guards' jumps (ModeFunctions.crosses_jumps)
             counters["guard_jumps"] = jumps
-        compiled = steps[1] == 0
+        # A run that took no step at all (t_final = t0) is on the path its tables chose.
+        compiled = steps[1] == 0 and (steps[0] > 0 or not python_reason)
         options = self.options
         run_settings = {
             "h": options.h,
