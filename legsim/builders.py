@@ -90,6 +90,10 @@ class Param:
             parts.append(f"in {lb}{lo}, {hi}{rb}")
         return " ".join(parts)
 
+    def allowed_with_unit(self) -> str:
+        """``allowed()`` followed by the unit, where the parameter has one ("float in (0, inf) s")."""
+        return f"{self.allowed()} {self.unit}".strip()
+
     def check(self, value: Any, where: str) -> Any:
         """Return ``value`` converted to this parameter's type, or raise SceneError naming ``where``."""
         expected = type(self.default)
@@ -99,16 +103,16 @@ class Param:
             return value
         if expected in (int, float):
             if isinstance(value, bool) or not isinstance(value, (int, float)):
-                raise SceneError(f"{where}: expected a number ({self.allowed()}), got {value!r}")
+                raise SceneError(f"{where}: expected a number ({self.allowed_with_unit()}), got {value!r}")
             if expected is int and not isinstance(value, int):
-                raise SceneError(f"{where}: expected an integer ({self.allowed()}), got {value!r}")
+                raise SceneError(f"{where}: expected an integer ({self.allowed_with_unit()}), got {value!r}")
             value = expected(value)
             if not math.isfinite(value):
                 raise SceneError(f"{where}: must be finite, got {value!r}")
-            if self.low is not None and (value < self.low or (self.low_open and value == self.low)):
-                raise SceneError(f"{where}: {value!r} is out of range, allowed: {self.allowed()}")
-            if self.high is not None and (value > self.high or (self.high_open and value == self.high)):
-                raise SceneError(f"{where}: {value!r} is out of range, allowed: {self.allowed()}")
+            below = self.low is not None and (value < self.low or (self.low_open and value == self.low))
+            above = self.high is not None and (value > self.high or (self.high_open and value == self.high))
+            if below or above:
+                raise SceneError(f"{where}: {value!r} is out of range, allowed: {self.allowed_with_unit()}")
             return value
         if expected is str:
             if not isinstance(value, str):

@@ -103,7 +103,7 @@ def test_run_bad_override_exits_2_with_one_line(tmp_path, capsys):
     path = write_scene(tmp_path)
     code, out, err = run_cli(capsys, "run", str(path), "--set", "integrator.h=-1")
     assert code == 2 and out == ""
-    assert err == f"legsim: error: {path}: integrator.h: -1.0 is out of range, allowed: float in (0, inf)\n"
+    assert err == f"legsim: error: {path}: integrator.h: -1.0 is out of range, allowed: float in (0, inf) s\n"
     code, _, err = run_cli(capsys, "run", str(path), "--set", "integrator.h")
     assert code == 2 and err.startswith("legsim: error: --set 'integrator.h': expected key.path=value")
 

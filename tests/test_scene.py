@@ -127,7 +127,7 @@ BAD = {
     ),
     "parameter wrong type": (
         _replace('name = "tinyball"', 'name = "tinyball"\nparameters = { g = "earth" }'),
-        ["robot.parameters.g: expected a number (float in (0, inf)), got 'earth'"],
+        ["robot.parameters.g: expected a number (float in (0, inf) m/s^2), got 'earth'"],
     ),
     "parameter boolean": (
         _replace('name = "tinyball"', 'name = "tinyball"\nparameters = { g = true }'),
@@ -135,7 +135,7 @@ BAD = {
     ),
     "parameter out of range": (
         _replace('name = "tinyball"', 'name = "tinyball"\nparameters = { g = -1 }'),
-        ["robot.parameters.g: -1.0 is out of range, allowed: float in (0, inf)"],
+        ["robot.parameters.g: -1.0 is out of range, allowed: float in (0, inf) m/s^2"],
     ),
     "unknown effect": (
         _replace("floor = { restitution = 0.5 }", "wind = true"),
@@ -189,23 +189,23 @@ BAD = {
         _replace("state = { z = 1.0 }", "state = { z = -0.5, zd = -1.0 }"),
         ["initial.state:", "lies past the guard of transition bounce by 0.5 > eps = 0.001"],
     ),
-    "h zero": (_replace("h = 1e-3", "h = 0"), ["integrator.h: 0.0 is out of range, allowed: float in (0, inf)"]),
+    "h zero": (_replace("h = 1e-3", "h = 0"), ["integrator.h: 0.0 is out of range, allowed: float in (0, inf) s"]),
     "h negative": (
         _replace("h = 1e-3", "h = -1e-3"),
-        ["integrator.h: -0.001 is out of range, allowed: float in (0, inf)"],
+        ["integrator.h: -0.001 is out of range, allowed: float in (0, inf) s"],
     ),
     "h not finite": (_replace("h = 1e-3", "h = inf"), ["integrator.h: must be finite, got inf"]),
     "h wrong type": (
         _replace("h = 1e-3", 'h = "small"'),
-        ["integrator.h: expected a number (float in (0, inf)), got 'small'"],
+        ["integrator.h: expected a number (float in (0, inf) s), got 'small'"],
     ),
     "eps zero": (
         _replace("eps = 1e-3", "eps = 0.0"),
-        ["integrator.eps: 0.0 is out of range, allowed: float in (0, inf)"],
+        ["integrator.eps: 0.0 is out of range, allowed: float in (0, inf) guard units"],
     ),
     "t_final zero": (
         _replace("t_final = 1.0", "t_final = 0"),
-        ["integrator.t_final: 0.0 is out of range, allowed: float in (0, inf)"],
+        ["integrator.t_final: 0.0 is out of range, allowed: float in (0, inf) s"],
     ),
     "t_final before t0": (
         _replace("t_final = 1.0", "t_final = 1.0\nt0 = 2.0"),

@@ -65,7 +65,7 @@ def validated_integrator(path: Path, table: dict[str, Any], where: str = "integr
             path,
             f"{where}.{missing[0]}",
             f"missing; a scene must give {list(REQUIRED_INTEGRATOR)} "
-            f"({', '.join(f'{k}: {schema[k].allowed()} {schema[k].unit}'.strip() for k in missing)})",
+            f"({', '.join(f'{k}: {schema[k].allowed_with_unit()}' for k in missing)})",
         )
     out = resolve_parameters(schema, table, f"{path}: {where}")
     for key in OPTIONAL_INTEGRATOR:
