@@ -11,7 +11,8 @@ Kinds (``KINDS``):
 One measure per kind and coordinate (its column's name). FROM defaults to the scene's t0. The
 value at FROM is interpolated linearly between the stored points around it (points h apart, so
 its error is O(h^2) times the coordinate's second derivative). A run that ended at or before
-FROM (a fall, a failure) has no window: its value is null. A run that ended after FROM but
+FROM (a fall, a failure) has no window: its value is null. A FROM outside [t0, t_final) of a
+variation's scene is refused before anything runs. A run that ended after FROM but
 before t_final is measured over [FROM, t_end]; its status says it ended early.
 """
 
@@ -88,6 +89,18 @@ def check_coordinates(measures: list[Measure], system: Any, scene_path: Any) -> 
             raise SweepError(
                 f"--measure {m.kind}:{m.coordinate}: {scene_path}: mode(s) {lacking[:5]} have no coordinate "
                 f"{m.coordinate!r}; the coordinates of '{lacking[0]}': {list(some)}"
+            )
+
+
+def check_windows(measures: list[Measure], t0: float, t_final: float, scene_path: Any) -> None:
+    """SweepError naming the measure when its window [FROM, t_final] holds no time of the run:
+    FROM at or past ``t_final`` (s) would give every row a null column, FROM before ``t0`` (s)
+    a value the run never had."""
+    for m in measures:
+        if m.start is not None and not t0 <= m.start < t_final:
+            raise SweepError(
+                f"--measure {m.kind}:{m.coordinate}:{m.start:g}: FROM must lie in [t0, t_final) = "
+                f"[{t0:g}, {t_final:g}) s of {scene_path}"
             )
 
 

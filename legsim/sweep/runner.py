@@ -14,7 +14,7 @@ import pyarrow as pa
 
 from ..progress import counting
 from .engine import Engine
-from .measures import check_coordinates, check_measures
+from .measures import check_coordinates, check_measures, check_windows
 from .spec import SweepError, SweepSpec, corners, variation_overrides
 from .table import ResultStore, schema, to_table, with_rows_digest
 from .tasks import run_batch
@@ -185,12 +185,15 @@ def check_sweep(spec: SweepSpec) -> dict[str, float] | None:
     from ..scene.orbit import problem_from_scene
 
     base = load_scene(spec.scene, list(spec.overrides))
+    measures = check_measures(spec.measures)
+    check_windows(measures, base.integrator["t0"], base.integrator["t_final"], base.path)
     for values in corners(spec):
-        load_scene(spec.scene, list(spec.overrides) + variation_overrides(values))
+        corner = load_scene(spec.scene, list(spec.overrides) + variation_overrides(values))
+        check_windows(measures, corner.integrator["t0"], corner.integrator["t_final"], corner.path)
     if spec.run == "walk" or spec.orbit:
         problem_from_scene(base)  # the [orbit] section is there and valid
-    if spec.measures:
-        check_coordinates(check_measures(spec.measures), base.model.system, base.path)
+    if measures:
+        check_coordinates(measures, base.model.system, base.path)
     if spec.run != "walk" or any(not k.startswith("initial.") for k in spec.keys):
         return None
     from .tasks import reference_gait

@@ -79,6 +79,26 @@ def test_measures_are_checked_against_the_sweep_before_anything_runs(tmp_path):
     assert not (tmp_path / "anything").exists()
 
 
+@pytest.mark.parametrize(("start", "grid"), [(3.5, [0.5]), (-1.0, [0.5]), (2.5, [0.5, 1.0])])
+def test_a_measure_window_outside_every_variations_run_is_refused(tmp_path, start, grid):
+    """FROM past t_final (or before t0) would give every row a null column, or a value the run
+    never had: refused before anything runs, naming the measure, the window and the scene. The
+    third case varies t_final itself (2 and 3 s): the corner at 2 s has no window at 2.5 s."""
+    axis = "controller.parameters.speed" if len(grid) == 1 else "integrator.t_final"
+    values = grid if len(grid) == 1 else [2.0, 3.0]
+    with pytest.raises(SweepError, match=rf"--measure mean_rate:x:{start:g}: FROM must lie in \[t0, t_final\)") as info:
+        legsim.sweep(
+            "quadruped_pronk_forward",
+            grid={axis: values},
+            overrides=SHORT_PRONK,
+            measures=[f"mean_rate:x:{start:g}"],
+            out=tmp_path / "sweep",
+            in_process=True,
+        )
+    assert "quadruped_pronk_forward.toml" in str(info.value)
+    assert not (tmp_path / "sweep").exists()
+
+
 def test_a_sweep_without_the_new_options_keeps_its_manifest():
     """``measures`` and ``orbit_guess`` enter the manifest (and the digest ``--resume`` checks)
     only when asked for, so a sweep folder written before they existed resumes."""
