@@ -130,7 +130,7 @@ class _FirstCompile(event.Listener):
         py_func = getattr(dispatcher, "py_func", None)
         if py_func is None:
             return
-        what = "the step loop" if py_func is loop.run else f"{py_func.__module__}.{py_func.__qualname__}"
+        what = "the step loop" if py_func is loop.run_flat else f"{py_func.__module__}.{py_func.__qualname__}"
         _FirstCompile.said = True
         on_compile(
             f"legsim: compiling {what} and what it calls for this machine (once: later runs load it from "
@@ -145,7 +145,7 @@ event.register("numba:compile", _FirstCompile())
 cache.install()
 _register_loop()
 #: The loop's entry, compiled once per machine and legsim version (cached on disk).
-_run = cache.use_legsim_cache(numba.njit(**LOOP_OPTIONS)(loop.run))
+_run = cache.use_legsim_cache(numba.njit(**LOOP_OPTIONS)(loop.run_flat))
 
 
 class Kernel:
@@ -153,7 +153,7 @@ class Kernel:
 
     @staticmethod
     def run(tables: Any, ws: Any, method: Any) -> int:
-        return int(_run(tables, ws, method))
+        return int(_run(tuple(tables), tuple(ws), tuple(method)))
 
     @staticmethod
     def addresses(functions: list[Any], kinds: list[str]) -> np.ndarray:
