@@ -62,8 +62,8 @@ from .layout import (
 )
 from .rules import finish_tolerance
 from .stages import INFO_FSAL, INFO_STAGES, MethodArrays
-from .workspace import Workspace
 from .stepping import STEP_ENDED, take_step
+from .workspace import Workspace
 
 #: Room an iteration of the loop needs in the output buffers: the points of a step, a crossing
 #: and an entry; the records of a crossing and a crossing at once; the visits of two entries.
