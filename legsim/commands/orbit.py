@@ -104,6 +104,7 @@ def _run_orbit(args: argparse.Namespace, scene, bar) -> int:
     from ..scene.orbit import problem_from_scene
 
     settings = problem_from_scene(scene)
+    _say_shadowed(scene, args.overrides or [])
     settings.problem.progress = bar
     result = find_orbit(settings.problem, settings.guess, **settings.solver)
     if bar is not None:
@@ -119,6 +120,19 @@ def _run_orbit(args: argparse.Namespace, scene, bar) -> int:
         print(f"legsim: no orbit ({result.status}): {result.message}", file=sys.stderr)
         return 3
     return 0
+
+
+def _say_shadowed(scene, overrides: list[str]) -> None:
+    """A note on stderr for each ``--set integrator.KEY`` the scene's ``[orbit.integrator]``
+    overrides for the search (the run's setting, not the search's)."""
+    from ..scene.orbit import shadowed_integrator_keys
+
+    for key, value in shadowed_integrator_keys(scene, overrides).items():
+        print(
+            f"legsim: note: --set integrator.{key} sets the scene's runs, not this search: its "
+            f"[orbit.integrator] gives {key} = {value!r}; use --set orbit.integrator.{key}=... to change it",
+            file=sys.stderr,
+        )
 
 
 def _run_family(args: argparse.Namespace, scene, plot_path: Path | None, bar) -> int:

@@ -364,6 +364,20 @@ def _problem(
         raise _fail(scene, exc.key or "section", str(exc)) from None
 
 
+def shadowed_integrator_keys(scene: Any, overrides: Sequence[str]) -> dict[str, Any]:
+    """The ``integrator.KEY=value`` overrides whose key the scene's ``[orbit.integrator]`` sets
+    for the search, which they therefore do not reach: {KEY: the search's value}."""
+    own = (scene.sections.get("orbit") or {}).get("integrator")
+    if not isinstance(own, Mapping):
+        return {}
+    keys = [o.split("=", 1)[0].strip() for o in overrides]
+    return {
+        k[len("integrator.") :]: own[k[len("integrator.") :]]
+        for k in keys
+        if k.startswith("integrator.") and k[len("integrator.") :] in own
+    }
+
+
 def _search_integrator(scene: Any, table: Mapping[str, Any]) -> dict[str, Any]:
     """The integrator settings of the search's returns: the scene's ``[integrator]``, with
     ``[orbit.integrator]``'s keys (``INTEGRATOR_KEYS``) over it, validated as a whole (a return

@@ -276,3 +276,23 @@ def test_bad_requests_exit_2_with_a_message(capsys, argv, message):
     assert code == 2, (out, err)
     assert message in err and err.startswith("legsim: error: ")
     assert out == ""  # refused before any table header or result
+
+
+def test_an_integrator_override_the_orbit_section_shadows_is_said(capsys):
+    """``--set integrator.h`` changes the scene's runs; where the scene's ``[orbit.integrator]``
+    sets h for the search, the search keeps its own, and the command says so, naming the key to
+    set instead. A key the section does not set (t_final) and other fields say nothing."""
+    from legsim.commands.orbit import _say_shadowed
+    from legsim.scene import load_scene
+    from legsim.scene.orbit import shadowed_integrator_keys
+
+    overrides = ["integrator.h=1e-3", "integrator.t_final=2", "controller.parameters.speed=0.5"]
+    scene = load_scene("quadruped_run", overrides)
+    assert shadowed_integrator_keys(scene, overrides) == {"h": 2e-3}
+    assert shadowed_integrator_keys(load_scene("compass_gait", ["integrator.h=1e-3"]), ["integrator.h=1e-3"]) == {}
+    _say_shadowed(scene, overrides)
+    err = capsys.readouterr().err
+    assert err == (
+        "legsim: note: --set integrator.h sets the scene's runs, not this search: its [orbit.integrator] "
+        "gives h = 0.002; use --set orbit.integrator.h=... to change it\n"
+    )
