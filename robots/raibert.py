@@ -31,6 +31,7 @@ conserves energy, so its hopping height needs no thrust (it trades with the spee
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -184,6 +185,13 @@ class Gains:
     late_rest: bool
     gallop_phase: float
     bound_phase: float
+    transition_hops: int
+    transition_height: float
+    transition_reach: float
+    transition_hold: float
+    transition_hind_thrust: float
+    transition_front_thrust: float
+    transition_pitch_rate: float
 
 
 @dataclass(frozen=True)
@@ -240,6 +248,17 @@ class RunnerParams:
         return made
 
 
+#: The parameters of a change from the pronk to the bound (``runner_laws``, "a change from the
+#: pronk to the bound"), in the order of the parameter array's head.
+TRANSITION_PARAMETERS = (
+    "transition_hops",
+    "transition_height",
+    "transition_reach",
+    "transition_hold",
+    "transition_hind_thrust",
+    "transition_front_thrust",
+    "transition_pitch_rate",
+)
 #: The gains in the order of the parameter array's head after ``R_GAIT`` (``runner_laws``).
 GAIN_ORDER = (
     "speed",
@@ -259,6 +278,7 @@ GAIN_ORDER = (
     "late_rest",
     "gallop_phase",
     "bound_phase",
+    *TRANSITION_PARAMETERS,
 )
 
 
@@ -360,6 +380,51 @@ RUNNER_PARAMETERS = {
     ),
     "kp_joint": Param(60.0, "flight joint stiffness", "N m/rad", low=0.0),
     "kd_joint": Param(2.0, "flight joint damping", "N m s/rad", low=0.0),
+    "transition_hops": Param(
+        4,
+        "a change from the pronk to the bound: the low hops the pronk makes after the change's time before the "
+        "bound's law takes over at the next liftoff",
+        "",
+        low=0,
+    ),
+    "transition_height": Param(
+        0.51,
+        "a change from the pronk to the bound: the apex height its low hops' thrust adapts to (the bound's "
+        "vertical speeds are lower than the pronk's)",
+        "m",
+        low=0.0,
+        low_open=True,
+    ),
+    "transition_reach": Param(
+        0.49,
+        "a change from the pronk to the bound: the front pair's length in the flight where the bound takes over, "
+        "so that it lands alone near the top of the hop (about transition_height, below the leg's full length)",
+        "m",
+        low=0.0,
+        low_open=True,
+    ),
+    "transition_hold": Param(
+        0.7,
+        "a change from the pronk to the bound: the hind pair's length in that flight, a share of leg_length, "
+        "until the front stance has pitched the body nose-up past transition_pitch_rate",
+        "",
+        low=0.0,
+        low_open=True,
+        high=1.0,
+    ),
+    "transition_hind_thrust": Param(
+        0.0075, "a change from the pronk to the bound: the hind pair's thrust when the bound takes over", "m", low=0.0
+    ),
+    "transition_front_thrust": Param(
+        0.03, "a change from the pronk to the bound: the front pair's thrust when the bound takes over", "m", low=0.0
+    ),
+    "transition_pitch_rate": Param(
+        2.0,
+        "a change from the pronk to the bound: the nose-up pitch rate past which the held hind pair swings out",
+        "rad/s",
+        low=0.0,
+        low_open=True,
+    ),
 }
 
 
@@ -378,8 +443,28 @@ def _make_runner(model: Model, params: dict[str, Any]) -> RunnerLaw:
             f"controller.parameters.gait = {params['gait']!r} (or a schedule's) needs two leg pairs (hind and "
             f"front), the robot has {len(legs)} articulated leg(s): {', '.join(leg.contact for leg in legs)}"
         )
+    if changes_pronk_to_bound(schedule, params["gait"]):
+        check_reach(legs, params["transition_reach"])
     gains = Gains(**{k: params[k] for k in Gains.__dataclass_fields__})
     return runner_law(bridge, legs, gains, params["gait"], params["thrust"], schedule)
+
+
+def changes_pronk_to_bound(schedule: tuple[tuple[float, float, float], ...], gait: str) -> bool:
+    """Whether ``schedule`` (``command_schedule``) changes the pronk into the bound, starting from
+    ``gait``."""
+    codes = [GAIT_CODES[gait], *(entry[2] for entry in schedule)]
+    return any(a == laws.GAIT_PRONK and b == laws.GAIT_BOUND for a, b in itertools.pairwise(codes))
+
+
+def check_reach(legs: list[Leg], reach: float) -> None:
+    """SceneError naming ``transition_reach`` where a leg cannot stretch to it (its thigh and shank
+    straight, m): the front pair would not reach the ground near the top of the hop."""
+    for leg in legs:
+        if reach >= leg.thigh + leg.shank:
+            raise SceneError(
+                f"controller.parameters.transition_reach: {reach:g} m is not shorter than the leg {leg.contact!r} "
+                f"stretched ({leg.thigh + leg.shank:g} m, thigh and shank)"
+            )
 
 
 #: A schedule entry's keys: its time, and the speed or the gait (or both) it commands from then on.
