@@ -31,7 +31,6 @@ conserves energy, so its hopping height needs no thrust (it trades with the spee
 
 from __future__ import annotations
 
-import itertools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -292,13 +291,20 @@ def runner_law(
 ) -> RunnerLaw:
     """Raibert's runner for ``bridge``'s articulated ``legs``, each starting with ``thrust`` (m),
     a stance time of 0.12 s and no touchdown yet, in ``gait`` (``GAITS``); its memory is
-    ``runner_laws.MEMORY_FIELDS`` of each leg in turn, named ``<field>_<contact>``. ``schedule``:
+    ``runner_laws.MEMORY_FIELDS`` of each leg in turn, named ``<field>_<contact>``, then, where
+    the schedule changes the pronk into the bound, its ``TRANSITION_FIELDS`` likewise. ``schedule``:
     (t (s), speed (m/s), gait code ``GAIT_CODES``) in increasing time, each commanding its speed
     and gait from its t on (``gains.speed`` and ``gait`` before the first)."""
     names = tuple(f"{field}_{leg.contact}" for leg in legs for field, _ in laws.MEMORY_FIELDS)
     units = tuple(unit for _ in legs for _, unit in laws.MEMORY_FIELDS)
     initial = {"T_s": 0.12, "thrust": thrust, "liftoff": laws.LONG_AGO, "apex": laws.LONG_AGO}
     memory = tuple(initial.get(field, 0.0) for _ in legs for field, _ in laws.MEMORY_FIELDS)
+    frames = tuple(laws.MEMORY_FRAMES.get(field, "") for _ in legs for field, _ in laws.MEMORY_FIELDS)
+    if changes_pronk_to_bound(schedule, gait):
+        names += tuple(f"{field}_{leg.contact}" for leg in legs for field, _ in laws.TRANSITION_FIELDS)
+        units += tuple(unit for _ in legs for _, unit in laws.TRANSITION_FIELDS)
+        memory += tuple(0.0 for _ in legs for _ in laws.TRANSITION_FIELDS)
+        frames += tuple("" for _ in legs for _ in laws.TRANSITION_FIELDS)
     return RunnerLaw(
         "raibert_runner",
         laws.runner_control,
@@ -308,7 +314,7 @@ def runner_law(
         names,
         units,
         memory,
-        memory_frames=tuple(laws.MEMORY_FRAMES.get(field, "") for _ in legs for field, _ in laws.MEMORY_FIELDS),
+        memory_frames=frames,
         legs=tuple(legs),
         gains=gains,
         pronk=gait == "pronk",
@@ -450,10 +456,10 @@ def _make_runner(model: Model, params: dict[str, Any]) -> RunnerLaw:
 
 
 def changes_pronk_to_bound(schedule: tuple[tuple[float, float, float], ...], gait: str) -> bool:
-    """Whether ``schedule`` (``command_schedule``) changes the pronk into the bound, starting from
-    ``gait``."""
+    """Whether ``schedule`` (``command_schedule``), starting from ``gait``, commands the bound after
+    the pronk (the controller's transition law then runs, ``runner_laws.begin_transition``)."""
     codes = [GAIT_CODES[gait], *(entry[2] for entry in schedule)]
-    return any(a == laws.GAIT_PRONK and b == laws.GAIT_BOUND for a, b in itertools.pairwise(codes))
+    return any(code == laws.GAIT_BOUND and laws.GAIT_PRONK in codes[:k] for k, code in enumerate(codes))
 
 
 def check_reach(legs: list[Leg], reach: float) -> None:

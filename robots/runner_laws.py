@@ -271,8 +271,7 @@ RUNNER_LEG = 9
 #: that liftoff's time (s); a bound's apex target change (m); its length at its last touchdown if
 #: another leg stood then (m, else 0: ``late_landing_length``), below which its stance spring's
 #: rest length does not go; the time (s) of the apex its hop reaches (``note_apex_time``), at
-#: which its flight leg turns from rising to falling; its stage in a change from the pronk to the
-#: bound (``TRANSITION_*``) and the low hops it has made in it (``runner_enter``).
+#: which its flight leg turns from rising to falling.
 MEMORY_FIELDS = (
     ("stance", ""),
     ("touchdown", "s"),
@@ -286,8 +285,6 @@ MEMORY_FIELDS = (
     ("phase_height", "m"),
     ("touchdown_length", "m"),
     ("apex", "s"),
-    ("transition", ""),
-    ("low_hops", ""),
 )
 (
     M_STANCE,
@@ -302,10 +299,15 @@ MEMORY_FIELDS = (
     M_PHASE,
     M_TOUCHDOWN_LENGTH,
     M_APEX,
-    M_TRANSITION,
-    M_LOW_HOPS,
 ) = range(len(MEMORY_FIELDS))
 LEG_MEMORY = len(MEMORY_FIELDS)
+#: Each leg's memory in a change from the pronk to the bound, by name and unit: its stage
+#: (``TRANSITION_*``) and the low hops it has made. It follows every leg's ``MEMORY_FIELDS`` and is
+#: declared only where the scene schedules such a change: a run without one carries the state it
+#: carries without the law (an adaptive step's error norm is taken over the whole state).
+TRANSITION_FIELDS = (("transition", ""), ("low_hops", ""))
+T_STAGE, T_LOW_HOPS = range(len(TRANSITION_FIELDS))
+TRANSITION_MEMORY = len(TRANSITION_FIELDS)
 #: What memory fields are measured from (``ControlLaw.memory_frames``): the touchdown, liftoff
 #: and apex times are epochs on the run's clock, the touchdown place a position along x.
 MEMORY_FRAMES = {"touchdown": "t", "liftoff": "t", "touchdown_x": "x", "apex": "t"}
@@ -393,12 +395,38 @@ def fall_share(t, apex):
 
 
 @register_jitable
+def transition_memory(p, m, mem):
+    """Offset in m of the transition memory (``TRANSITION_FIELDS``) of the leg whose memory starts
+    at ``mem``, or -1 where the run carries none (no change from the pronk to the bound scheduled)."""
+    start = LEG_MEMORY * int(p[R_LEGS])
+    if m.shape[0] <= start:
+        return -1
+    return start + TRANSITION_MEMORY * (mem // LEG_MEMORY)
+
+
+@register_jitable
+def transition_stage(p, m, mem):
+    """The stage (``TRANSITION_*``) of the leg whose memory starts at ``mem`` in m in a change from
+    the pronk to the bound (``TRANSITION_NONE`` where the run carries no transition memory)."""
+    at = transition_memory(p, m, mem)
+    return TRANSITION_NONE if at < 0 else m[at + T_STAGE]
+
+
+@register_jitable
+def set_transition_stage(p, m, mem, stage):
+    """Sets the stage (``TRANSITION_*``) of the leg whose memory starts at ``mem`` in m."""
+    m[transition_memory(p, m, mem) + T_STAGE] = stage
+
+
+@register_jitable
 def pronk_to_bound_pending(p, t, m, mem):
     """Whether the leg whose memory starts at ``mem`` in m has a change from the pronk to the bound
-    to begin at time t (s): the bound commanded at t and its last touchdown made under the pronk's
-    command (a run that starts in the bound, or a leg that never landed, has none)."""
+    to begin at time t (s): the run carries the transition memory, the bound is commanded at t and
+    the leg's last touchdown was made under the pronk's command (a run that starts in the bound,
+    or a leg that never landed, has none)."""
     return (
-        m[mem + M_LANDED] != 0.0
+        transition_memory(p, m, mem) >= 0
+        and m[mem + M_LANDED] != 0.0
         and commanded_gait(p, t)[1] == GAIT_BOUND
         and commanded_gait(p, m[mem + M_TOUCHDOWN])[1] == GAIT_PRONK
     )
@@ -409,7 +437,7 @@ def runs_pronk(p, t, m, mem):
     """Whether the leg whose memory starts at ``mem`` in m runs the pronk's law at time t (s): the
     pronk commanded, or a change to the bound that is still in its low hops or not yet begun
     (``pronk_to_bound_pending``: the command may come in the middle of a stance)."""
-    stage = m[mem + M_TRANSITION]
+    stage = transition_stage(p, m, mem)
     if stage == TRANSITION_LOW_HOPS:
         return True
     if stage != TRANSITION_NONE:
@@ -421,9 +449,9 @@ def runs_pronk(p, t, m, mem):
 def begin_transition(p, t, m, mem):
     """A mode entry at time t (s): the leg whose memory starts at ``mem`` begins its change from
     the pronk to a commanded bound with the low hops (``TRANSITION_LOW_HOPS``), none made yet."""
-    if m[mem + M_TRANSITION] == TRANSITION_NONE and pronk_to_bound_pending(p, t, m, mem):
-        m[mem + M_TRANSITION] = TRANSITION_LOW_HOPS
-        m[mem + M_LOW_HOPS] = 0.0
+    if transition_stage(p, m, mem) == TRANSITION_NONE and pronk_to_bound_pending(p, t, m, mem):
+        set_transition_stage(p, m, mem, TRANSITION_LOW_HOPS)
+        m[transition_memory(p, m, mem) + T_LOW_HOPS] = 0.0
 
 
 @register_jitable
@@ -432,14 +460,15 @@ def transition_liftoff(p, m, i):
     ``transition_hops`` of them True (the bound's law takes over at this liftoff, ``take_over``);
     a reaching front leg ends its change here, its stance spring back at its own rest length."""
     mem = LEG_MEMORY * i
-    stage = m[mem + M_TRANSITION]
+    stage = transition_stage(p, m, mem)
     if stage == TRANSITION_REACH:
-        m[mem + M_TRANSITION] = TRANSITION_NONE
+        set_transition_stage(p, m, mem, TRANSITION_NONE)
         m[mem + M_TOUCHDOWN_LENGTH] = 0.0
     if stage != TRANSITION_LOW_HOPS:
         return False
-    if m[mem + M_LOW_HOPS] < p[R_TRANSITION_HOPS]:
-        m[mem + M_LOW_HOPS] += 1.0
+    hops = transition_memory(p, m, mem) + T_LOW_HOPS
+    if m[hops] < p[R_TRANSITION_HOPS]:
+        m[hops] += 1.0
         return False
     return True
 
@@ -452,10 +481,10 @@ def take_over(p, m, i):
     ``transition_hind_thrust``, m), so that the first bound strides push as the settled ones."""
     mem = LEG_MEMORY * i
     if is_front(p, i):
-        m[mem + M_TRANSITION] = TRANSITION_REACH
+        set_transition_stage(p, m, mem, TRANSITION_REACH)
         m[mem + M_THRUST] = p[R_TRANSITION_FRONT_THRUST]
     else:
-        m[mem + M_TRANSITION] = TRANSITION_HELD
+        set_transition_stage(p, m, mem, TRANSITION_HELD)
         m[mem + M_THRUST] = p[R_TRANSITION_HIND_THRUST]
 
 
@@ -464,7 +493,7 @@ def apex_target(p, m, mem):
     """The apex height (m) the thrust of the leg whose memory starts at ``mem`` adapts to: in a
     change's low hops ``transition_height`` (a lower hop brings the vertical speed to the bound's
     scale), else ``height`` plus the bound's phase term's change."""
-    if m[mem + M_TRANSITION] == TRANSITION_LOW_HOPS:
+    if transition_stage(p, m, mem) == TRANSITION_LOW_HOPS:
         return p[R_TRANSITION_HEIGHT]
     return p[R_HEIGHT] + m[mem + M_PHASE]
 
@@ -476,7 +505,7 @@ def falling_length(p, x, n, m, mem):
     top of the hop), and the hind pair held at ``transition_hold`` of ``leg_length`` until the
     front stance has pitched the body nose-up (a negative pitch rate) past
     ``transition_pitch_rate`` (rad/s), the pitch rate of the bound's hind touchdowns."""
-    stage = m[mem + M_TRANSITION]
+    stage = transition_stage(p, m, mem)
     if stage == TRANSITION_REACH:
         return p[R_TRANSITION_REACH]
     if stage == TRANSITION_HELD and -x[n + 2] < p[R_TRANSITION_PITCH_RATE]:
@@ -485,10 +514,10 @@ def falling_length(p, x, n, m, mem):
 
 
 @register_jitable
-def taking_over_from_pronk(m, mem):
+def taking_over_from_pronk(p, m, mem):
     """Whether the leg whose memory starts at ``mem`` in m is in the flight where the bound's law
     takes over from the pronk's (held or reaching, until its touchdown)."""
-    stage = m[mem + M_TRANSITION]
+    stage = transition_stage(p, m, mem)
     return stage in (TRANSITION_HELD, TRANSITION_REACH)
 
 
@@ -517,7 +546,7 @@ def flight_torques(t, x, m, p, leg, mem, n, gravity):
                                     m[mem + M_T_S], m[mem + M_BIAS], speed, p[R_K_X], length, kp, kd, g_hip,
                                     g_knee)  # fmt: skip
     hip, knee = 0.0, 0.0
-    if fall < 1.0 and taking_over_from_pronk(m, mem):
+    if fall < 1.0 and taking_over_from_pronk(p, m, mem):
         # Both pairs left the ground together, as in a pronk: the pronk's rising law lifts the feet
         # clear (the bound's retraction from that liftoff sets the pairs chattering and falling).
         hip, knee = pronk_flight_torques(thigh, shank, bend, offset, q_hip, q_knee, v_hip, v_knee, x[2], x[n], 0.0,
@@ -605,7 +634,7 @@ def note_touchdown(t, x, m, p, m_new, i, speed):
     (``TRANSITION_REACH``, that its stance pushes from where it landed, near the top of the hop),
     else with ``late_rest`` ``late_landing_length``. A held leg's change ends here."""
     leg, mem = leg_at(p, i), LEG_MEMORY * i
-    stage = m_new[mem + M_TRANSITION]
+    stage = transition_stage(p, m_new, mem)
     if not runs_pronk(p, t, m_new, mem) and stage == TRANSITION_NONE:
         adapt_phase(t, p, m_new, i, phase_target(p, i, commanded_gait(p, t)[1]))
     if t > m_new[mem + M_TOUCHDOWN] and m_new[mem + M_LANDED] != 0.0:
@@ -619,7 +648,7 @@ def note_touchdown(t, x, m, p, m_new, i, speed):
         m_new[mem + M_TOUCHDOWN_LENGTH] = late_landing_length(p, leg, x, m)
     m_new[mem + M_LANDED] = 1.0
     if stage == TRANSITION_HELD:
-        m_new[mem + M_TRANSITION] = TRANSITION_NONE
+        set_transition_stage(p, m_new, mem, TRANSITION_NONE)
 
 
 @register_jitable
