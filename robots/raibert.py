@@ -457,8 +457,11 @@ def _make_runner(model: Model, params: dict[str, Any]) -> RunnerLaw:
 
 def changes_pronk_to_bound(schedule: tuple[tuple[float, float, float], ...], gait: str) -> bool:
     """Whether ``schedule`` (``command_schedule``), starting from ``gait``, commands the bound after
-    the pronk (the controller's transition law then runs, ``runner_laws.begin_transition``)."""
-    codes = [GAIT_CODES[gait], *(entry[2] for entry in schedule)]
+    the pronk (the controller's transition law then runs, ``runner_laws.begin_transition``); an
+    entry at t = 0 replaces ``gait``, which then never runs."""
+    codes = [entry[2] for entry in schedule]
+    if not schedule or schedule[0][0] > 0.0:
+        codes.insert(0, GAIT_CODES[gait])
     return any(code == laws.GAIT_BOUND and laws.GAIT_PRONK in codes[:k] for k, code in enumerate(codes))
 
 

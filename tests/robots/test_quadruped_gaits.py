@@ -12,6 +12,7 @@ import re
 
 import numpy as np
 import pytest
+from legsim.robots.runner_laws import MEMORY_FIELDS
 
 from legsim.errors import SceneError
 from legsim.scene import bundled_dir, load_scene
@@ -616,3 +617,23 @@ def test_a_transition_reach_the_legs_cannot_stretch_to_is_named_in_the_error():
     message = "controller.parameters.transition_reach: 0.5 m is not shorter than the leg 'hind' stretched (0.5 m"
     assert "quadruped_pronk_forward.toml" in str(caught.value) and message in str(caught.value)
     load_scene("quadruped_pronk_forward", [*sets, "controller.parameters.schedule=[{t = 3, speed = 0.5}]"])
+
+
+@pytest.mark.parametrize(
+    "schedule,declared",
+    [
+        ("[{t = 3, gait = 'bound'}]", True),
+        ("[{t = 3, gait = 'gallop'}, {t = 4, gait = 'bound'}]", True),
+        ("[{t = 0, gait = 'bound'}]", False),
+        ("[{t = 3, speed = 0.5}]", False),
+        ("[{t = 3, gait = 'gallop'}]", False),
+    ],
+)
+def test_the_transition_memory_is_declared_only_where_the_bound_follows_the_pronk(schedule, declared):
+    """Each leg's stage and low hops (``runner_laws.TRANSITION_FIELDS``) follow every leg's memory
+    where the schedule commands the bound after the pronk has run, and only there: another run
+    carries the state it carries without the law (an adaptive step's error norm counts it)."""
+    law = load_scene("quadruped_pronk_forward", [f"controller.parameters.schedule={schedule}"]).control
+    extra = ("transition_hind", "low_hops_hind", "transition_front", "low_hops_front")
+    assert (law.memory_names[-4:] == extra) is declared
+    assert len(law.memory_names) == 2 * len(MEMORY_FIELDS) + (4 if declared else 0)
