@@ -184,6 +184,13 @@ class Gains:
     late_rest: bool
     gallop_phase: float
     bound_phase: float
+    transition_hops: int
+    transition_height: float
+    transition_reach: float
+    transition_hold: float
+    transition_hind_thrust: float
+    transition_front_thrust: float
+    transition_pitch_rate: float
 
 
 @dataclass(frozen=True)
@@ -240,6 +247,17 @@ class RunnerParams:
         return made
 
 
+#: The parameters of a change from the pronk to the bound (``runner_laws``, "a change from the
+#: pronk to the bound"), in the order of the parameter array's head.
+TRANSITION_PARAMETERS = (
+    "transition_hops",
+    "transition_height",
+    "transition_reach",
+    "transition_hold",
+    "transition_hind_thrust",
+    "transition_front_thrust",
+    "transition_pitch_rate",
+)
 #: The gains in the order of the parameter array's head after ``R_GAIT`` (``runner_laws``).
 GAIN_ORDER = (
     "speed",
@@ -259,6 +277,7 @@ GAIN_ORDER = (
     "late_rest",
     "gallop_phase",
     "bound_phase",
+    *TRANSITION_PARAMETERS,
 )
 
 
@@ -272,13 +291,20 @@ def runner_law(
 ) -> RunnerLaw:
     """Raibert's runner for ``bridge``'s articulated ``legs``, each starting with ``thrust`` (m),
     a stance time of 0.12 s and no touchdown yet, in ``gait`` (``GAITS``); its memory is
-    ``runner_laws.MEMORY_FIELDS`` of each leg in turn, named ``<field>_<contact>``. ``schedule``:
+    ``runner_laws.MEMORY_FIELDS`` of each leg in turn, named ``<field>_<contact>``, then, where
+    the schedule changes the pronk into the bound, its ``TRANSITION_FIELDS`` likewise. ``schedule``:
     (t (s), speed (m/s), gait code ``GAIT_CODES``) in increasing time, each commanding its speed
     and gait from its t on (``gains.speed`` and ``gait`` before the first)."""
     names = tuple(f"{field}_{leg.contact}" for leg in legs for field, _ in laws.MEMORY_FIELDS)
     units = tuple(unit for _ in legs for _, unit in laws.MEMORY_FIELDS)
     initial = {"T_s": 0.12, "thrust": thrust, "liftoff": laws.LONG_AGO, "apex": laws.LONG_AGO}
     memory = tuple(initial.get(field, 0.0) for _ in legs for field, _ in laws.MEMORY_FIELDS)
+    frames = tuple(laws.MEMORY_FRAMES.get(field, "") for _ in legs for field, _ in laws.MEMORY_FIELDS)
+    if changes_pronk_to_bound(schedule, gait):
+        names += tuple(f"{field}_{leg.contact}" for leg in legs for field, _ in laws.TRANSITION_FIELDS)
+        units += tuple(unit for _ in legs for _, unit in laws.TRANSITION_FIELDS)
+        memory += tuple(0.0 for _ in legs for _ in laws.TRANSITION_FIELDS)
+        frames += tuple("" for _ in legs for _ in laws.TRANSITION_FIELDS)
     return RunnerLaw(
         "raibert_runner",
         laws.runner_control,
@@ -288,7 +314,7 @@ def runner_law(
         names,
         units,
         memory,
-        memory_frames=tuple(laws.MEMORY_FRAMES.get(field, "") for _ in legs for field, _ in laws.MEMORY_FIELDS),
+        memory_frames=frames,
         legs=tuple(legs),
         gains=gains,
         pronk=gait == "pronk",
@@ -360,6 +386,51 @@ RUNNER_PARAMETERS = {
     ),
     "kp_joint": Param(60.0, "flight joint stiffness", "N m/rad", low=0.0),
     "kd_joint": Param(2.0, "flight joint damping", "N m s/rad", low=0.0),
+    "transition_hops": Param(
+        4,
+        "a change from the pronk to the bound: the low hops the pronk makes after the change's time before the "
+        "bound's law takes over at the next liftoff",
+        "",
+        low=0,
+    ),
+    "transition_height": Param(
+        0.51,
+        "a change from the pronk to the bound: the apex height its low hops' thrust adapts to (the bound's "
+        "vertical speeds are lower than the pronk's)",
+        "m",
+        low=0.0,
+        low_open=True,
+    ),
+    "transition_reach": Param(
+        0.49,
+        "a change from the pronk to the bound: the front pair's length in the flight where the bound takes over, "
+        "so that it lands alone near the top of the hop (about transition_height, below the leg's full length)",
+        "m",
+        low=0.0,
+        low_open=True,
+    ),
+    "transition_hold": Param(
+        0.7,
+        "a change from the pronk to the bound: the hind pair's length in that flight, a share of leg_length, "
+        "until the front stance has pitched the body nose-up past transition_pitch_rate",
+        "",
+        low=0.0,
+        low_open=True,
+        high=1.0,
+    ),
+    "transition_hind_thrust": Param(
+        0.0075, "a change from the pronk to the bound: the hind pair's thrust when the bound takes over", "m", low=0.0
+    ),
+    "transition_front_thrust": Param(
+        0.03, "a change from the pronk to the bound: the front pair's thrust when the bound takes over", "m", low=0.0
+    ),
+    "transition_pitch_rate": Param(
+        2.0,
+        "a change from the pronk to the bound: the nose-up pitch rate past which the held hind pair swings out",
+        "rad/s",
+        low=0.0,
+        low_open=True,
+    ),
 }
 
 
@@ -378,8 +449,31 @@ def _make_runner(model: Model, params: dict[str, Any]) -> RunnerLaw:
             f"controller.parameters.gait = {params['gait']!r} (or a schedule's) needs two leg pairs (hind and "
             f"front), the robot has {len(legs)} articulated leg(s): {', '.join(leg.contact for leg in legs)}"
         )
+    if changes_pronk_to_bound(schedule, params["gait"]):
+        check_reach(legs, params["transition_reach"])
     gains = Gains(**{k: params[k] for k in Gains.__dataclass_fields__})
     return runner_law(bridge, legs, gains, params["gait"], params["thrust"], schedule)
+
+
+def changes_pronk_to_bound(schedule: tuple[tuple[float, float, float], ...], gait: str) -> bool:
+    """Whether ``schedule`` (``command_schedule``), starting from ``gait``, commands the bound after
+    the pronk (the controller's transition law then runs, ``runner_laws.begin_transition``); an
+    entry at t = 0 replaces ``gait``, which then never runs."""
+    codes = [entry[2] for entry in schedule]
+    if not schedule or schedule[0][0] > 0.0:
+        codes.insert(0, GAIT_CODES[gait])
+    return any(code == laws.GAIT_BOUND and laws.GAIT_PRONK in codes[:k] for k, code in enumerate(codes))
+
+
+def check_reach(legs: list[Leg], reach: float) -> None:
+    """SceneError naming ``transition_reach`` where a leg cannot stretch to it (its thigh and shank
+    straight, m): the front pair would not reach the ground near the top of the hop."""
+    for leg in legs:
+        if reach >= leg.thigh + leg.shank:
+            raise SceneError(
+                f"controller.parameters.transition_reach: {reach:g} m is not shorter than the leg {leg.contact!r} "
+                f"stretched ({leg.thigh + leg.shank:g} m, thigh and shank)"
+            )
 
 
 #: A schedule entry's keys: its time, and the speed or the gait (or both) it commands from then on.

@@ -248,9 +248,16 @@ GAIT_BOUND, GAIT_PRONK, GAIT_GALLOP = 0.0, 1.0, 2.0
     R_LATE_REST,
     R_GALLOP_PHASE,
     R_BOUND_PHASE,
+    R_TRANSITION_HOPS,
+    R_TRANSITION_HEIGHT,
+    R_TRANSITION_REACH,
+    R_TRANSITION_HOLD,
+    R_TRANSITION_HIND_THRUST,
+    R_TRANSITION_FRONT_THRUST,
+    R_TRANSITION_PITCH_RATE,
     R_SCHEDULE,
-) = range(22)
-RUNNER_HEAD = 22
+) = range(29)
+RUNNER_HEAD = 29
 #: Each leg's entries: its hip's and knee's velocity indices and positions in u, thigh and shank
 #: (m), knee bending sign, the hip's x in the body frame (m), and 1.0 when the leg is in stance
 #: in the mode.
@@ -294,11 +301,23 @@ MEMORY_FIELDS = (
     M_APEX,
 ) = range(len(MEMORY_FIELDS))
 LEG_MEMORY = len(MEMORY_FIELDS)
+#: Each leg's memory in a change from the pronk to the bound, by name and unit: its stage
+#: (``TRANSITION_*``) and the low hops it has made. It follows every leg's ``MEMORY_FIELDS`` and is
+#: declared only where the scene schedules such a change: a run without one carries the state it
+#: carries without the law (an adaptive step's error norm is taken over the whole state).
+TRANSITION_FIELDS = (("transition", ""), ("low_hops", ""))
+T_STAGE, T_LOW_HOPS = range(len(TRANSITION_FIELDS))
+TRANSITION_MEMORY = len(TRANSITION_FIELDS)
 #: What memory fields are measured from (``ControlLaw.memory_frames``): the touchdown, liftoff
 #: and apex times are epochs on the run's clock, the touchdown place a position along x.
 MEMORY_FRAMES = {"touchdown": "t", "liftoff": "t", "touchdown_x": "x", "apex": "t"}
 #: Before its first liftoff a leg's liftoff time and its hop's apex are this long ago (s).
 LONG_AGO = -1.0e9
+#: A leg's stage in a change from the pronk to the bound (memory ``transition``): none (the
+#: commanded gait's law); the pronk's low hops (``transition_hops`` of them, to
+#: ``transition_height``); the hind pair held short and the front pair reaching, from the liftoff
+#: where the bound's law takes over to the held pair's touchdown and the reaching pair's liftoff.
+TRANSITION_NONE, TRANSITION_LOW_HOPS, TRANSITION_HELD, TRANSITION_REACH = 0.0, 1.0, 2.0, 3.0
 #: How long (s) after its liftoff a bound's leg that touches the ground again pulls its foot up
 #: (at most ``UNLOAD``) instead of pushing: it lifted off where its contact force passed 0, so at
 #: once after the liftoff that force's sign is a matter of rounding, and a foot put back in
@@ -329,14 +348,6 @@ def commanded_gait(p, t):
         if t >= p[entry]:
             speed, gait = p[entry + 1], p[entry + 2]
     return speed, gait
-
-
-@register_jitable
-def commanded(p, t):
-    """The forward speed (m/s) and gait (True: a pronk) commanded at time t (s)
-    (``commanded_gait``)."""
-    speed, gait = commanded_gait(p, t)
-    return speed, gait == GAIT_PRONK
 
 
 @register_jitable
@@ -374,31 +385,181 @@ def fall_share(t, apex):
     return share * share * (3.0 - 2.0 * share)
 
 
+# -- a change from the pronk to the bound, in stages ----------------------------------------------
+# The bound's pitch rate (about 3.6 rad/s nose-up at a hind touchdown) cannot be made from a
+# pronk's hop by a stance on both pairs, and a single pair's stance turns the pitch rate only
+# with the vertical speed (about 7.8 rad/s per m/s): so the change lowers the hop first, then
+# lands the front pair alone near the top of a hop while the hind pair is held clear, and lets
+# the hind pair land once the front stance has pitched the body nose-up (docs/robots.md, "From
+# the pronk to the bound").
+
+
+@register_jitable
+def transition_memory(p, m, mem):
+    """Offset in m of the transition memory (``TRANSITION_FIELDS``) of the leg whose memory starts
+    at ``mem``, or -1 where the run carries none (no change from the pronk to the bound scheduled)."""
+    start = LEG_MEMORY * int(p[R_LEGS])
+    if m.shape[0] <= start:
+        return -1
+    return start + TRANSITION_MEMORY * (mem // LEG_MEMORY)
+
+
+@register_jitable
+def transition_stage(p, m, mem):
+    """The stage (``TRANSITION_*``) of the leg whose memory starts at ``mem`` in m in a change from
+    the pronk to the bound (``TRANSITION_NONE`` where the run carries no transition memory)."""
+    at = transition_memory(p, m, mem)
+    return TRANSITION_NONE if at < 0 else m[at + T_STAGE]
+
+
+@register_jitable
+def set_transition_stage(p, m, mem, stage):
+    """Sets the stage (``TRANSITION_*``) of the leg whose memory starts at ``mem`` in m."""
+    m[transition_memory(p, m, mem) + T_STAGE] = stage
+
+
+@register_jitable
+def pronk_to_bound_pending(p, t, m, mem):
+    """Whether the leg whose memory starts at ``mem`` in m has a change from the pronk to the bound
+    to begin at time t (s): the run carries the transition memory, the bound is commanded at t and
+    the leg's last touchdown was made under the pronk's command (a run that starts in the bound,
+    or a leg that never landed, has none)."""
+    return (
+        transition_memory(p, m, mem) >= 0
+        and m[mem + M_LANDED] != 0.0
+        and commanded_gait(p, t)[1] == GAIT_BOUND
+        and commanded_gait(p, m[mem + M_TOUCHDOWN])[1] == GAIT_PRONK
+    )
+
+
+@register_jitable
+def runs_pronk(p, t, m, mem):
+    """Whether the leg whose memory starts at ``mem`` in m runs the pronk's law at time t (s): the
+    pronk commanded, or a change to the bound that is still in its low hops or not yet begun
+    (``pronk_to_bound_pending``: the command may come in the middle of a stance)."""
+    stage = transition_stage(p, m, mem)
+    if stage == TRANSITION_LOW_HOPS:
+        return True
+    if stage != TRANSITION_NONE:
+        return False
+    return commanded_gait(p, t)[1] == GAIT_PRONK or pronk_to_bound_pending(p, t, m, mem)
+
+
+@register_jitable
+def begin_transition(p, t, m, mem):
+    """A mode entry at time t (s): the leg whose memory starts at ``mem`` begins its change from
+    the pronk to a commanded bound with the low hops (``TRANSITION_LOW_HOPS``), none made yet."""
+    if transition_stage(p, m, mem) == TRANSITION_NONE and pronk_to_bound_pending(p, t, m, mem):
+        set_transition_stage(p, m, mem, TRANSITION_LOW_HOPS)
+        m[transition_memory(p, m, mem) + T_LOW_HOPS] = 0.0
+
+
+@register_jitable
+def transition_liftoff(p, m, i):
+    """Leg i lifting off, its memory m: in the low hops, one more of them, or after
+    ``transition_hops`` of them True (the bound's law takes over at this liftoff, ``take_over``);
+    a reaching front leg ends its change here, its stance spring back at its own rest length."""
+    mem = LEG_MEMORY * i
+    stage = transition_stage(p, m, mem)
+    if stage == TRANSITION_REACH:
+        set_transition_stage(p, m, mem, TRANSITION_NONE)
+        m[mem + M_TOUCHDOWN_LENGTH] = 0.0
+    if stage != TRANSITION_LOW_HOPS:
+        return False
+    hops = transition_memory(p, m, mem) + T_LOW_HOPS
+    if m[hops] < p[R_TRANSITION_HOPS]:
+        m[hops] += 1.0
+        return False
+    return True
+
+
+@register_jitable
+def take_over(p, m, i):
+    """The bound's law takes over leg i at its liftoff, its memory m: the front pair reaches
+    (``TRANSITION_REACH``, to land alone near the top of the hop) and the hind pair is held short
+    (``TRANSITION_HELD``), each thrust seeded with the bound's own (``transition_front_thrust``,
+    ``transition_hind_thrust``, m), so that the first bound strides push as the settled ones."""
+    mem = LEG_MEMORY * i
+    if is_front(p, i):
+        set_transition_stage(p, m, mem, TRANSITION_REACH)
+        m[mem + M_THRUST] = p[R_TRANSITION_FRONT_THRUST]
+    else:
+        set_transition_stage(p, m, mem, TRANSITION_HELD)
+        m[mem + M_THRUST] = p[R_TRANSITION_HIND_THRUST]
+
+
+@register_jitable
+def apex_target(p, m, mem):
+    """The apex height (m) the thrust of the leg whose memory starts at ``mem`` adapts to: in a
+    change's low hops ``transition_height`` (a lower hop brings the vertical speed to the bound's
+    scale), else ``height`` plus the bound's phase term's change."""
+    if transition_stage(p, m, mem) == TRANSITION_LOW_HOPS:
+        return p[R_TRANSITION_HEIGHT]
+    return p[R_HEIGHT] + m[mem + M_PHASE]
+
+
+@register_jitable
+def falling_length(p, x, n, m, mem):
+    """The length (m) a bound's flight leg swings out to once its hip falls: ``leg_length``; in a
+    change from the pronk the front pair's ``transition_reach`` (so that it lands alone near the
+    top of the hop), and the hind pair held at ``transition_hold`` of ``leg_length`` until the
+    front stance has pitched the body nose-up (a negative pitch rate) past
+    ``transition_pitch_rate`` (rad/s), the pitch rate of the bound's hind touchdowns."""
+    stage = transition_stage(p, m, mem)
+    if stage == TRANSITION_REACH:
+        return p[R_TRANSITION_REACH]
+    if stage == TRANSITION_HELD and -x[n + 2] < p[R_TRANSITION_PITCH_RATE]:
+        return p[R_TRANSITION_HOLD] * p[R_LEG_LENGTH]
+    return p[R_LEG_LENGTH]
+
+
+@register_jitable
+def taking_over_from_pronk(p, m, mem):
+    """Whether the leg whose memory starts at ``mem`` in m is in the flight where the bound's law
+    takes over from the pronk's (held or reaching, until its touchdown)."""
+    stage = transition_stage(p, m, mem)
+    return stage in (TRANSITION_HELD, TRANSITION_REACH)
+
+
+@register_jitable
+def is_front(p, i):
+    """Whether leg i is the front pair: its hip ahead of the other leg's (two legs)."""
+    return p[leg_at(p, i) + RL_OFFSET] > p[leg_at(p, 1 - i) + RL_OFFSET]
+
+
 @register_jitable
 def flight_torques(t, x, m, p, leg, mem, n, gravity):
     """Hip and knee torques (N m) of a flight leg: a pronk's foot placement servo
     (``pronk_flight_torques``); a bound's leg retracts holding its liftoff angle while its hip
-    rises (``retract_torques``) and swings to the placement of its own hip's speed at full length
-    once the hip falls (``servo_torques``). The leg turns from rising to falling over
-    ``FALL_TURN`` s after its hop's apex time (memory ``apex``, ``fall_share``)."""
+    rises (``retract_torques``; in the flight where the bound takes over from the pronk, the
+    pronk's rising law instead) and swings to the placement of its own hip's speed at its falling
+    length (``falling_length``) once the hip falls (``servo_torques``). The leg turns from rising
+    to falling over ``FALL_TURN`` s after its hop's apex time (memory ``apex``, ``fall_share``)."""
     q_hip, q_knee, v_hip, v_knee = leg_joints(p, leg, x, n)
     g_hip, g_knee = gravity[int(p[leg + RL_HIP])], gravity[int(p[leg + RL_KNEE])]
     thigh, shank, bend, offset = p[leg + RL_THIGH], p[leg + RL_SHANK], p[leg + RL_BEND], p[leg + RL_OFFSET]
-    speed, pronk = commanded(p, t)
+    speed = commanded_gait(p, t)[0]
     fall = fall_share(t, m[mem + M_APEX])
     length, kp, kd = p[R_LEG_LENGTH], p[R_KP_JOINT], p[R_KD_JOINT]
-    if pronk:
+    if runs_pronk(p, t, m, mem):
         return pronk_flight_torques(thigh, shank, bend, offset, q_hip, q_knee, v_hip, v_knee, x[2], x[n], fall,
                                     m[mem + M_T_S], m[mem + M_BIAS], speed, p[R_K_X], length, kp, kd, g_hip,
                                     g_knee)  # fmt: skip
     hip, knee = 0.0, 0.0
-    if fall < 1.0:
+    if fall < 1.0 and taking_over_from_pronk(p, m, mem):
+        # Both pairs left the ground together, as in a pronk: the pronk's rising law lifts the feet
+        # clear (the bound's retraction from that liftoff sets the pairs chattering and falling).
+        hip, knee = pronk_flight_torques(thigh, shank, bend, offset, q_hip, q_knee, v_hip, v_knee, x[2], x[n], 0.0,
+                                         m[mem + M_T_S], m[mem + M_BIAS], speed, p[R_K_X], length, kp, kd, g_hip,
+                                         g_knee)  # fmt: skip
+    elif fall < 1.0:
         hip, knee = retract_torques(thigh, shank, q_hip, q_knee, v_hip, v_knee, x[2], x[n + 2],
                                     m[mem + M_LIFTOFF_ANGLE], length, kp, kd, g_hip, g_knee)  # fmt: skip
     if fall > 0.0:
+        reach = falling_length(p, x, n, m, mem)
         hip_speed = x[n] - offset * math.sin(x[2]) * x[n + 2]
-        world = touchdown_angle(hip_speed, m[mem + M_T_S], p[R_K_X], speed, length, m[mem + M_BIAS])
-        swing = servo_torques(thigh, shank, bend, q_hip, q_knee, v_hip, v_knee, length, world + x[2], kp, kd, g_hip,
+        world = touchdown_angle(hip_speed, m[mem + M_T_S], p[R_K_X], speed, reach, m[mem + M_BIAS])
+        swing = servo_torques(thigh, shank, bend, q_hip, q_knee, v_hip, v_knee, reach, world + x[2], kp, kd, g_hip,
                               g_knee)  # fmt: skip
         hip, knee = (1.0 - fall) * hip + fall * swing[0], (1.0 - fall) * knee + fall * swing[1]
     return hip, knee
@@ -407,9 +568,9 @@ def flight_torques(t, x, m, p, leg, mem, n, gravity):
 @model_function
 def runner_control(t, x, m, p, u):
     """The runner's torques into u (N m, one per actuated joint) at (t, x) in the mode of p, from
-    the memory m: each stance leg's spring along itself with thrust and its share of the attitude
-    torque (a pronk); each flight leg's servo (``flight_torques``) with the generalised gravity
-    compensated."""
+    the memory m: each stance leg's spring along itself with thrust and, where it runs the pronk's
+    law (``runs_pronk``), its share of the attitude torque; each flight leg's servo
+    (``flight_torques``) with the generalised gravity compensated."""
     n, legs = int(p[R_N]), int(p[R_LEGS])
     u[:] = 0.0
     stance_count = 0
@@ -419,13 +580,13 @@ def runner_control(t, x, m, p, u):
     gravity[:] = 0.0
     if stance_count < legs:
         lsn_gravity(np.int64(p[R_HANDLE]), x.ctypes.data, gravity.ctypes.data)
-    pronk = commanded(p, t)[1]
-    attitude = p[R_KP_ATTITUDE] * x[2] + p[R_KD_ATTITUDE] * x[n + 2] if pronk else 0.0
-    # A pronk lifts off together: once a leg has left, the others unload while they extend.
-    together = pronk and stance_count < legs
     for i in range(legs):
         leg, mem = leg_at(p, i), LEG_MEMORY * i
         if p[leg + RL_STANCE] != 0.0:
+            pronk = runs_pronk(p, t, m, mem)
+            attitude = p[R_KP_ATTITUDE] * x[2] + p[R_KD_ATTITUDE] * x[n + 2] if pronk else 0.0
+            # A pronk lifts off together: once a leg has left, the others unload while they extend.
+            together = pronk and stance_count < legs
             unload = together or (not pronk and t - m[mem + M_LIFTOFF] < REFRACTORY)
             q_hip, q_knee, v_hip, v_knee = leg_joints(p, leg, x, n)
             hip, knee = stance_torques(p[leg + RL_THIGH], p[leg + RL_SHANK], q_hip, q_knee, v_hip, v_knee,
@@ -441,48 +602,78 @@ def runner_control(t, x, m, p, u):
 @model_function
 def runner_enter(t, x, m, p, m_new):
     """Entering the mode of p at (t, x): the new memory from m into m_new, leg by leg (a leg reads
-    the other's as this entry has already changed it). A leg touching down measures its stride
-    (the integral term's speed error moves its placement's bias; a bound's phase term its apex
-    target) and notes its touchdown; a leg lifting off notes its stance's duration T_s (clipped
-    to [0.02, 0.5] s), adapts its thrust to the apex the body will reach, notes that apex's time
-    (``note_apex_time``; a leg in flight before any liftoff, at a run's start, takes its apex
-    from the state), and in a bound notes its liftoff angle and time."""
+    the other's as this entry has already changed it). A leg whose last touchdown was the pronk's
+    begins a change to a commanded bound (``begin_transition``); a leg touching down notes its
+    touchdown (``note_touchdown``), a leg lifting off its liftoff (``note_liftoff``); a leg in
+    flight before any liftoff, at a run's start, takes its hop's apex from the state."""
     m_new[:] = m
     n = int(p[R_N])
-    speed, pronk = commanded(p, t)
+    speed = commanded_gait(p, t)[0]
     for i in range(int(p[R_LEGS])):
         leg, mem = leg_at(p, i), LEG_MEMORY * i
         stance = p[leg + RL_STANCE] != 0.0
         was = m_new[mem + M_STANCE] != 0.0
+        begin_transition(p, t, m_new, mem)
         if stance and not was:
-            if not pronk:
-                adapt_phase(t, p, m_new, i, phase_target(p, i, commanded_gait(p, t)[1]))
-            if t > m_new[mem + M_TOUCHDOWN] and m_new[mem + M_LANDED] != 0.0:
-                stride_speed = (x[0] - m_new[mem + M_TOUCHDOWN_X]) / (t - m_new[mem + M_TOUCHDOWN])
-                m_new[mem + M_BIAS] += p[R_K_I] * (stride_speed - speed)
-            m_new[mem + M_TOUCHDOWN_X] = x[0]
-            m_new[mem + M_TOUCHDOWN] = t
-            if p[R_LATE_REST] != 0.0:
-                m_new[mem + M_TOUCHDOWN_LENGTH] = late_landing_length(p, leg, x, m)
-            m_new[mem + M_LANDED] = 1.0
+            note_touchdown(t, x, m, p, m_new, i, speed)
         elif was and not stance:
-            m_new[mem + M_T_S] = min(max(t - m_new[mem + M_TOUCHDOWN], 0.02), 0.5)
-            z, zd = gait_hop_height(pronk, p, leg, x, n)
-            apex_time, apex = ballistic_apex(t, z, zd)
-            target = p[R_HEIGHT] + m_new[mem + M_PHASE]
-            thrust = m_new[mem + M_THRUST] + p[R_K_HEIGHT] * (target - apex)
-            m_new[mem + M_THRUST] = min(max(thrust, 0.0), p[R_MAX_THRUST])
-            note_apex_time(apex_time, pronk, p, m_new, i)
-            if not pronk:
-                q_hip, q_knee = x[int(p[leg + RL_HIP])], x[int(p[leg + RL_KNEE])]
-                foot = foot_terms(p[leg + RL_THIGH], p[leg + RL_SHANK], q_hip, q_knee)
-                m_new[mem + M_LIFTOFF_ANGLE] = math.atan2(foot[0], -foot[1]) - x[2]
-                m_new[mem + M_LIFTOFF] = t
+            note_liftoff(t, x, p, m_new, i, n)
         m_new[mem + M_STANCE] = 1.0 if stance else 0.0
         if not stance and m_new[mem + M_APEX] == LONG_AGO:
-            # in flight before any liftoff (a run's start): the hop's apex from the state
-            z, zd = gait_hop_height(pronk, p, leg, x, n)
+            z, zd = gait_hop_height(runs_pronk(p, t, m_new, mem), p, leg, x, n)
             m_new[mem + M_APEX] = ballistic_apex(t, z, zd)[0]
+
+
+@register_jitable
+def note_touchdown(t, x, m, p, m_new, i, speed):
+    """Leg i touching down at (t, x) (m: the memory before this entry, m_new the new one, speed
+    the commanded speed, m/s): the integral term's speed error moves its placement's bias, and in
+    a bound the phase term its apex target (not at the touchdowns that end a change from the
+    pronk, whose other pair last landed in the pronk); it notes its touchdown's time and place,
+    and its stance spring's rest length: a reaching front leg's touchdown length
+    (``TRANSITION_REACH``, that its stance pushes from where it landed, near the top of the hop),
+    else with ``late_rest`` ``late_landing_length``. A held leg's change ends here."""
+    leg, mem = leg_at(p, i), LEG_MEMORY * i
+    stage = transition_stage(p, m_new, mem)
+    if not runs_pronk(p, t, m_new, mem) and stage == TRANSITION_NONE:
+        adapt_phase(t, p, m_new, i, phase_target(p, i, commanded_gait(p, t)[1]))
+    if t > m_new[mem + M_TOUCHDOWN] and m_new[mem + M_LANDED] != 0.0:
+        stride_speed = (x[0] - m_new[mem + M_TOUCHDOWN_X]) / (t - m_new[mem + M_TOUCHDOWN])
+        m_new[mem + M_BIAS] += p[R_K_I] * (stride_speed - speed)
+    m_new[mem + M_TOUCHDOWN_X] = x[0]
+    m_new[mem + M_TOUCHDOWN] = t
+    if stage == TRANSITION_REACH:
+        m_new[mem + M_TOUCHDOWN_LENGTH] = leg_length_at(p, leg, x)
+    elif p[R_LATE_REST] != 0.0:
+        m_new[mem + M_TOUCHDOWN_LENGTH] = late_landing_length(p, leg, x, m)
+    m_new[mem + M_LANDED] = 1.0
+    if stage == TRANSITION_HELD:
+        set_transition_stage(p, m_new, mem, TRANSITION_NONE)
+
+
+@register_jitable
+def note_liftoff(t, x, p, m, i, n):
+    """Leg i lifting off at (t, x), its memory m, by the law of the stance it leaves: it notes its
+    stance's duration T_s (clipped to [0.02, 0.5] s), adapts its thrust to the apex its hop will
+    reach (``apex_target``), notes that apex's time (``note_apex_time``) and, in a bound, its
+    liftoff angle and time. A change's low hops counted, the bound's law may take over here
+    (``transition_liftoff``, ``take_over``: the thrust seeded)."""
+    leg, mem = leg_at(p, i), LEG_MEMORY * i
+    m[mem + M_T_S] = min(max(t - m[mem + M_TOUCHDOWN], 0.02), 0.5)
+    taking_over = transition_liftoff(p, m, i)
+    pronk = runs_pronk(p, t, m, mem)
+    z, zd = gait_hop_height(pronk, p, leg, x, n)
+    apex_time, apex = ballistic_apex(t, z, zd)
+    thrust = m[mem + M_THRUST] + p[R_K_HEIGHT] * (apex_target(p, m, mem) - apex)
+    m[mem + M_THRUST] = min(max(thrust, 0.0), p[R_MAX_THRUST])
+    if taking_over:
+        take_over(p, m, i)
+    note_apex_time(apex_time, pronk, p, m, i)
+    if not pronk:
+        q_hip, q_knee = x[int(p[leg + RL_HIP])], x[int(p[leg + RL_KNEE])]
+        foot = foot_terms(p[leg + RL_THIGH], p[leg + RL_SHANK], q_hip, q_knee)
+        m[mem + M_LIFTOFF_ANGLE] = math.atan2(foot[0], -foot[1]) - x[2]
+        m[mem + M_LIFTOFF] = t
 
 
 @register_jitable
@@ -511,10 +702,16 @@ def late_landing_length(p, leg, x, m):
     0 when it lands alone or with the others (m: the memory before this entry)."""
     for j in range(int(p[R_LEGS])):
         if j != (leg - RUNNER_HEAD) // RUNNER_LEG and m[LEG_MEMORY * j + M_STANCE] != 0.0:
-            q_hip, q_knee = x[int(p[leg + RL_HIP])], x[int(p[leg + RL_KNEE])]
-            px, pz = foot_terms(p[leg + RL_THIGH], p[leg + RL_SHANK], q_hip, q_knee)[:2]
-            return math.sqrt(px * px + pz * pz)
+            return leg_length_at(p, leg, x)
     return 0.0
+
+
+@register_jitable
+def leg_length_at(p, leg, x):
+    """The length (m) of the leg whose entries start at ``leg`` in p, hip to foot, at x."""
+    q_hip, q_knee = x[int(p[leg + RL_HIP])], x[int(p[leg + RL_KNEE])]
+    px, pz = foot_terms(p[leg + RL_THIGH], p[leg + RL_SHANK], q_hip, q_knee)[:2]
+    return math.sqrt(px * px + pz * pz)
 
 
 @register_jitable
@@ -523,8 +720,7 @@ def phase_target(p, i, gait):
     ``bound_phase`` in a bound, ``gallop_phase`` in a gallop, for the front pair (the leg whose
     hip is ahead of the other's), and the rest of the stride for the hind pair."""
     phase = p[R_GALLOP_PHASE] if gait == GAIT_GALLOP else p[R_BOUND_PHASE]
-    ahead = p[leg_at(p, i) + RL_OFFSET] > p[leg_at(p, 1 - i) + RL_OFFSET]
-    return phase if ahead else 1.0 - phase
+    return phase if is_front(p, i) else 1.0 - phase
 
 
 @register_jitable
