@@ -1,7 +1,7 @@
 """Raibert's biped runner for two articulated legs (``robots.biped``), written once: the
 controller's functions (``biped_control``, ``biped_enter``: a ``legsim.control.ControlLaw`` that
 the Python loop and the compiled kernel both evaluate), built on the runner's scalar laws
-(``robots.runner_laws``: ``stance_torques``, ``touchdown_angle``).
+(``robots.leg_laws``: ``stance_torques``, ``touchdown_angle``).
 
 The biped runs one leg at a time (Raibert, *Legged Robots That Balance*, 1986, ch. 4): the
 leg that lands next is the **active** one, the other the **idle** one. At a touchdown the
@@ -24,20 +24,8 @@ from numba.extending import register_jitable
 
 from legsim.compiled.functions import model_function, scratch
 
-from .runner_laws import (
-    RL_HIP,
-    RL_KNEE,
-    RL_SHANK,
-    RL_STANCE,
-    RL_THIGH,
-    RL_U_HIP,
-    RL_U_KNEE,
-    RUNNER_LEG,
-    ballistic_apex,
-    foot_terms,
-    stance_torques,
-    touchdown_angle,
-)
+from .leg_laws import foot_terms, stance_torques, touchdown_angle
+from .runner_laws import RL_HIP, RL_KNEE, RL_SHANK, RL_STANCE, RL_THIGH, RL_U_HIP, RL_U_KNEE, RUNNER_LEG, ballistic_apex
 
 #: The head of the parameter array: the robot's native handle, nv, then the gains
 #: (``biped.Gains``, units in ``biped.BIPED_PARAMETERS``).

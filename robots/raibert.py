@@ -46,7 +46,7 @@ from legsim.errors import SceneError
 from . import runner_laws as laws
 from .controllers import bridge_of
 from .hopper_laws import swing_rate_compiled
-from .runner_laws import touchdown_angle
+from .leg_laws import foot_terms, joint_angles, touchdown_angle
 
 
 @dataclass(frozen=True)
@@ -68,18 +68,18 @@ class Leg:
 
 def leg_point(leg: Leg, q_hip: float, q_knee: float) -> np.ndarray:
     """Foot relative to the hip in the body frame (x, z) (m)."""
-    return np.array(laws.foot_terms(leg.thigh, leg.shank, q_hip, q_knee)[:2])
+    return np.array(foot_terms(leg.thigh, leg.shank, q_hip, q_knee)[:2])
 
 
 def leg_jacobian(leg: Leg, q_hip: float, q_knee: float) -> np.ndarray:
     """d(foot - hip)/d(q_hip, q_knee) in the body frame (2, 2)."""
-    return np.array(laws.foot_terms(leg.thigh, leg.shank, q_hip, q_knee)[2:]).reshape(2, 2)
+    return np.array(foot_terms(leg.thigh, leg.shank, q_hip, q_knee)[2:]).reshape(2, 2)
 
 
 def leg_angles(leg: Leg, length: float, angle: float) -> tuple[float, float]:
     """(q_hip, q_knee) putting the foot at ``length`` (m) from the hip, ``angle`` (rad) from the
     body's -z axis towards +x (the knee bent by its sign)."""
-    return laws.joint_angles(leg.thigh, leg.shank, leg.bend, length, angle)
+    return joint_angles(leg.thigh, leg.shank, leg.bend, length, angle)
 
 
 def find_legs(bridge: Any) -> list[Leg]:
@@ -125,7 +125,7 @@ def declared_legs(bridge: Any, entries: list[Any]) -> list[Leg]:
     name and its leg's hip and knee joint names), or SceneError naming the entry and field: the
     contact must be a declared point contact, the joints actuated joints of the model, the knee
     the parent joint of the contact's frame, the hip the knee's parent and hung from the trunk
-    (the leg's kinematics are the two-link chain of ``runner_laws.foot_terms`` from the trunk)."""
+    (the leg's kinematics are the two-link chain of ``leg_laws.foot_terms`` from the trunk)."""
     model = bridge.model
     contacts = {c.name: c for c in bridge.contacts if getattr(c, "frame", None) and hasattr(c, "tangential")}
     dofs = list(bridge.actuated_dofs)
@@ -537,7 +537,7 @@ C_K_SWING, C_K_X, C_SPEED, C_LENGTH, C_STANCE = range(5)
 @model_function
 def slip_placement(t: float, x: np.ndarray, m: np.ndarray, p: np.ndarray, u: np.ndarray) -> None:
     """``raibert_slip``'s input: in flight the swing rate ``k_swing (psi* - psi)`` (rad/s) to
-    ``psi* = asin((xd T_s / 2 + k_x (xd - xd*)) / l)`` (``runner_laws.touchdown_angle``), T_s the
+    ``psi* = asin((xd T_s / 2 + k_x (xd - xd*)) / l)`` (``leg_laws.touchdown_angle``), T_s the
     memory's last stance duration; 0 in stance (the stance takes no input)."""
     if p[C_STANCE] != 0.0:
         u[0] = 0.0

@@ -28,8 +28,8 @@ from legsim.control import ControlLaw, ControllerSpec
 from legsim.errors import SceneError
 
 from .hopper_laws import attitude_share_compiled, swing_rate_compiled
+from .leg_laws import touchdown_angle
 from .pronk_hopper import LEGS, MODES, PronkHopper, leg_coordinate, leg_in_stance
-from .runner_laws import touchdown_angle
 
 #: The share of a stance leg's spring push on the ground that its hip torque may take off.
 NORMAL_SHARE = 0.5
