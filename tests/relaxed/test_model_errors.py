@@ -126,8 +126,8 @@ class NoNumber(Controller):
 )
 def test_a_python_controllers_input_of_the_wrong_size_is_named_as_the_controllers(control, says):
     """A compiled plant reads a Python controller's input as numbers: an input of another size or
-    not numeric fails the run naming the controller (before, numpy's broadcast error was reported
-    as the mode's field failing)."""
+    not numeric fails the run naming the controller, not the mode's field, where the loop
+    writes the input."""
     system, _ = paddle()
     with pytest.raises(ModelError) as info:
         simulate(system, [1.0, 0.0], "flight", 0.5, 1e-3, 1e-6, "rk4", control=control)

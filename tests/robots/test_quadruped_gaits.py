@@ -397,7 +397,7 @@ def test_a_schedule_turns_the_one_flight_bound_into_a_gallop_and_back(speed, fir
     assert all(s == pattern[then] for s in after), after
 
 
-#: The issue's yardstick for the change from the pronk to the bound: at each commanded speed
+#: The yardstick of the change from the pronk to the bound: at each commanded speed
 #: (m/s), a change at each of these times (s), where in the pronk's stride it comes differing.
 CHANGE_SPEEDS = (0.5, 1.0)
 CHANGE_TIMES = (4.0, 5.0, 6.0, 7.0, 8.0)
