@@ -101,10 +101,10 @@ def _run(args: argparse.Namespace, scene, plot_path: Path | None, bar) -> int:
 def _run_orbit(args: argparse.Namespace, scene, bar) -> int:
     """One orbit search: its report, and exit code 3 when no orbit was found."""
     from ..orbits import find_orbit
-    from ..scene.orbit import problem_from_scene
+    from ..scene.orbit import problem_from_scene, shadowed_integrator_keys
 
     settings = problem_from_scene(scene)
-    _say_shadowed(scene, args.overrides or [])
+    _say_shadowed(shadowed_integrator_keys(scene, args.overrides or []))
     settings.problem.progress = bar
     result = find_orbit(settings.problem, settings.guess, **settings.solver)
     if bar is not None:
@@ -122,12 +122,10 @@ def _run_orbit(args: argparse.Namespace, scene, bar) -> int:
     return 0
 
 
-def _say_shadowed(scene, overrides: list[str]) -> None:
+def _say_shadowed(shadowed: dict[str, Any]) -> None:
     """A note on stderr for each ``--set integrator.KEY`` the scene's ``[orbit.integrator]``
-    overrides for the search (the run's setting, not the search's)."""
-    from ..scene.orbit import shadowed_integrator_keys
-
-    for key, value in shadowed_integrator_keys(scene, overrides).items():
+    overrides for the search ({KEY: the search's value}): it sets the runs, not the search."""
+    for key, value in shadowed.items():
         print(
             f"legsim: note: --set integrator.{key} sets the scene's runs, not this search: its "
             f"[orbit.integrator] gives {key} = {value!r}; use --set orbit.integrator.{key}=... to change it",

@@ -193,14 +193,20 @@ def input_entries(value: Any, count: int, control: Any) -> np.ndarray:
     """A Python controller's input as the ``count`` numbers a compiled plant reads; a value of
     another size or not numeric is the controller's ContractError (numpy would otherwise report it
     as a failure of the mode's field, where the loop writes the input)."""
-    who = f"controller {type(control.controller).__name__}" if isinstance(control, Bound) else "control"
     try:
         entries = np.asarray(value, dtype=float).reshape(-1)
     except (TypeError, ValueError) as exc:
-        raise ContractError(f"{who} returned {type(value).__name__} {value!r:.60}, expected {count} numbers") from exc
+        raise ContractError(
+            f"{_who(control)} returned {type(value).__name__} {value!r:.60}, expected {count} numbers"
+        ) from exc
     if entries.shape[0] != count:
-        raise ContractError(f"{who} returned {entries.shape[0]} input entries, the plant takes {count}")
+        raise ContractError(f"{_who(control)} returned {entries.shape[0]} input entries, the plant takes {count}")
     return entries
+
+
+def _who(control: Any) -> str:
+    """A control as an error names it."""
+    return f"controller {type(control.controller).__name__}" if isinstance(control, Bound) else "control"
 
 
 def enter_adapter(control: Bound, mode: str) -> Callable[..., None]:

@@ -100,8 +100,7 @@ def run(tab: Tables, ws, method: MethodArrays) -> int:
 def run_flat(tab: tuple, ws: tuple, method: tuple) -> int:
     """``run`` with its three arguments as plain tuples of their arrays: the compiled loop's
     entry. numba's dispatch types a plain tuple of arrays in C but a named one field by field in
-    Python, about 17 us for the ~50 arrays of a run against 3 us (2026-11-30), when a short run
-    takes 0.35 ms."""
+    Python, several times slower for the ~50 arrays of a run (docs/architecture.md, "The loop")."""
     return run(Tables(*tab), Workspace(*ws), MethodArrays(*method))
 
 

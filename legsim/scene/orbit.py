@@ -39,6 +39,7 @@ from ..orbits import MAX_FD_STEP, OrbitError, OrbitProblem, Section
 from ..orbits.sections import bind_section
 from .controller import scene_controller
 from .fields import check_keys, describe, field_error, table_at
+from .files import parse_override
 from .integrator import validated_integrator
 
 #: Keys of a scene's ``[orbit]`` section and what they hold.
@@ -370,12 +371,8 @@ def shadowed_integrator_keys(scene: Any, overrides: Sequence[str]) -> dict[str, 
     own = (scene.sections.get("orbit") or {}).get("integrator")
     if not isinstance(own, Mapping):
         return {}
-    keys = [o.split("=", 1)[0].strip() for o in overrides]
-    return {
-        k[len("integrator.") :]: own[k[len("integrator.") :]]
-        for k in keys
-        if k.startswith("integrator.") and k[len("integrator.") :] in own
-    }
+    paths = [parse_override(text)[0] for text in overrides]
+    return {path[1]: own[path[1]] for path in paths if len(path) == 2 and path[0] == "integrator" and path[1] in own}
 
 
 def _search_integrator(scene: Any, table: Mapping[str, Any]) -> dict[str, Any]:

@@ -77,6 +77,21 @@ class Visit:
         self.cap = cap
         self.dim = flow.dim
         self._steps: list[tuple[StepSamples, np.ndarray, np.ndarray]] = []
+        #: The first computed point whose ball is wider than the state, and how many points have
+        #: been looked at (the flow's points only grow): found once for every sample.
+        self._unresolved: float | None = None
+        self._scanned = 0
+
+    def unresolved_by(self, until: float) -> float | None:
+        """The first time (s) up to ``until`` at which the flow's ball is wider than the state
+        (``wider_than_state``), or None."""
+        points = self.flow.points
+        while self._unresolved is None and self._scanned < len(points):
+            point = points[self._scanned]
+            if wider_than_state(point.radius, point.x):
+                self._unresolved = point.t
+            self._scanned += 1
+        return self._unresolved if self._unresolved is not None and self._unresolved <= until else None
 
     def step(self, n: int) -> tuple[StepSamples, np.ndarray, np.ndarray] | None:
         """Samples of step n, their cumulative hazards per guard (K, m) and the hazard gained
@@ -212,15 +227,17 @@ def sample_execution(
     return sampled.run(_first or visit(mode, x, float(t0), 0.0), visit, generator, max_transitions)
 
 
-def state_scale(x: np.ndarray) -> float:
-    """The size a ball around x is judged against: max(1, |x|_inf), state units."""
+def ball_scale(x: np.ndarray) -> float:
+    """The size an error ball around x is judged against: max(1, |x|_inf), state units. (Not
+    ``relaxed.resolution.state_scale``, 1 + |x|_inf, float64's resolution next to x: at twice the
+    unit circle's size a ball has already held its wall for a crossing the execution missed.)"""
     return max(1.0, float(np.max(np.abs(x)))) if x.size else 1.0
 
 
 def wider_than_state(radius: float, x: np.ndarray) -> bool:
-    """Whether an error ball of ``radius`` around x is wider than the state itself: it then holds
-    every guard within the state's own size, and the switches it draws are noise."""
-    return radius > state_scale(x)
+    """Whether an error ball of ``radius`` around x is wider than the state itself (``ball_scale``):
+    it then holds every guard within the state's own size, and the switches it draws are noise."""
+    return radius > ball_scale(x)
 
 
 class _SampledExecution:
@@ -237,15 +254,11 @@ class _SampledExecution:
         self.widest = 0.0
         self.unresolved_from: float | None = None
 
-    def note_flow(self, flow: ModeFlow, until: float) -> None:
-        """The widest ball of the visit's flow up to ``until`` (s), and the first time it grew
-        wider than the state."""
-        for point in flow.points:
-            if point.t > until:
-                break
-            self.widest = max(self.widest, point.radius)
-            if self.unresolved_from is None and wider_than_state(point.radius, point.x):
-                self.unresolved_from = point.t
+    def note_unresolved(self, visit: Visit, until: float) -> None:
+        """The first time up to ``until`` (s) the visit's ball grew wider than the state, if this
+        execution has none yet."""
+        if self.unresolved_from is None:
+            self.unresolved_from = visit.unresolved_by(until)
 
     def run(
         self,
@@ -261,7 +274,8 @@ class _SampledExecution:
             if drawn is None:
                 flow = visit.flow
                 last = flow.points[-1]
-                self.note_flow(flow, last.t)
+                self.widest = max([self.widest] + [p.radius for p in flow.points])
+                self.note_unresolved(visit, last.t)
                 return self.end(
                     last.x.copy(), last.t, "finished" if flow.status == "end" else flow.status, flow.message
                 )
@@ -273,7 +287,7 @@ class _SampledExecution:
                     f"transition budget max_transitions={max_transitions} used up at t={self.t:.17g}",
                 )
             tau, j, x_tau, radius = drawn
-            self.note_flow(visit.flow, tau)
+            self.note_unresolved(visit, tau)
             self.widest = max(self.widest, radius)
             if self.unresolved_from is None and wider_than_state(radius, x_tau):
                 self.unresolved_from = tau
@@ -293,15 +307,15 @@ class _SampledExecution:
 
     def _stalled(self, radius: float, x: np.ndarray) -> str:
         """Why the switching times stopped advancing: a ball too small to keep the switches
-        apart, or one grown wider than the state (radius past max(1, |x|_inf) in state units),
-        which holds every guard at once, so each switch is drawn at the instant of the last."""
+        apart, or one grown wider than the state (``wider_than_state``), which holds every guard
+        at once, so each switch is drawn at the instant of the last."""
         head = (
             f"the switching times stopped advancing at t={self.t:.17g} after {len(self.times)} switches "
             f"(a visit shorter than the time resolution; error ball {radius:.3g})"
         )
         if wider_than_state(radius, x):
             return (
-                f"{head}: the ball has grown wider than the state itself (|x|_inf {state_scale(x):.3g}), so it "
+                f"{head}: the ball has grown wider than the state itself (|x|_inf {ball_scale(x):.3g}), so it "
                 f"holds every guard and no longer tells the switches apart; its growth e^(L t) needs a "
                 f"shorter run (t_final), a smaller step h or a smaller local error floor"
             )

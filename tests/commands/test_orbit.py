@@ -290,7 +290,7 @@ def test_an_integrator_override_the_orbit_section_shadows_is_said(capsys):
     scene = load_scene("quadruped_run", overrides)
     assert shadowed_integrator_keys(scene, overrides) == {"h": 2e-3}
     assert shadowed_integrator_keys(load_scene("compass_gait", ["integrator.h=1e-3"]), ["integrator.h=1e-3"]) == {}
-    _say_shadowed(scene, overrides)
+    _say_shadowed(shadowed_integrator_keys(scene, overrides))
     err = capsys.readouterr().err
     assert err == (
         "legsim: note: --set integrator.h sets the scene's runs, not this search: its [orbit.integrator] "
