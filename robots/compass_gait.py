@@ -197,6 +197,7 @@ class CompassGait:
             heel_strike,
             params=[self.handle, impact, self.l, self._foot_id, 1.0, foot2, 1.0, 2.0, 0.0, 0.0, 0.0],
             nan_breaks=True,
+            range_note="the hip is below the slope: the walker fell",
         )
 
     def jacobian(self, t: float, x: np.ndarray, u: Any = None) -> np.ndarray:

@@ -63,6 +63,8 @@ INITIAL_STATE = {
 PARAMETERS = {name: PRONK_PARAMETERS[name] for name in ("m", "I", "k", "l", "d", "g")}
 #: A landing foot lower than this (m) went through the ground before its guard saw it.
 BELOW_GROUND = 1e-6
+#: What the models' nan means (module docstring), for the run's message.
+LANDING_BELOW_GROUND = "a flight leg lands with its foot below the ground (swung down while the body rose)"
 P_M, P_I, P_K, P_L, P_D, P_G, P_LEFT, P_RIGHT = range(8)
 
 
@@ -241,7 +243,13 @@ class PronkHopper:
                 names=state_names(stance),
                 units=state_units(stance),
                 functions=ModeFunctions(
-                    pronk_field, pronk_guards, pronk_reset, params=self.params(name), inputs=4, nan_breaks=True
+                    pronk_field,
+                    pronk_guards,
+                    pronk_reset,
+                    params=self.params(name),
+                    inputs=4,
+                    nan_breaks=True,
+                    range_note=LANDING_BELOW_GROUND,
                 ),
             )
             for name, stance in MODES.items()

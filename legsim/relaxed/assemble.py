@@ -520,8 +520,12 @@ class Assembly:
         return tables.datas[mode].transitions[index].name
 
     def model_range(self, mode: str) -> str:
-        """Why a model function's nan ends the run, in words."""
-        return f"{self.system.name}: the state leaves the model's range of validity in mode '{mode}'"
+        """Why a model function's nan ends the run, in words: the mode's ``range_note`` where its
+        functions give one."""
+        head = f"{self.system.name}: the state leaves the model's range of validity in mode '{mode}'"
+        functions = self.system.mode(mode).functions
+        note = functions.range_note if functions is not None else ""
+        return f"{head}: {note}" if note else head
 
 
 class _Replay:

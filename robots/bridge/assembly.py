@@ -33,6 +33,12 @@ from .modes import ModeCatalog, SubsetKey
 from .params import start
 from .transitions import outgoing
 
+#: What the bridge's nan means (``events``), for the run's message.
+PAST_RANGE = (
+    "a hip below the ground, a foot below the ground and moving down after its liftoff (the robot "
+    "fell), or contacts with no consistent outcome"
+)
+
 
 class ContactBridge:
     """Builds a ``legsim.HybridSystem`` from a Pinocchio model and its contacts.
@@ -209,6 +215,7 @@ class ContactBridge:
             inputs=len(self._model.actuated_idx),
             joint_outcomes=tuple(out.joint_outcomes),
             nan_breaks=True,
+            range_note=PAST_RANGE,
             # With friction an event's outcome is the mode whose forces are consistent under the
             # input applied after it, which the controller gives there.
             previewed=self._model.coulomb,

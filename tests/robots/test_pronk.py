@@ -257,6 +257,7 @@ def test_a_leg_swung_into_the_ground_at_liftoff_while_moving_down_is_a_fall():
     model = pronk.make()
     ex = simulate(model.system, pronk.state(), "aerial", 3.0, 1e-3, 1e-2)
     assert ex.status == "model_breakdown" and ex.final_mode == "both"
+    assert "a foot below the ground and moving down after its liftoff" in ex.message
     bridge = model.info["bridge"]
     x = ex.final_state
     # past liftoff the model functions say so: every guard of the mode is nan there

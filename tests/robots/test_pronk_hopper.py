@@ -235,3 +235,4 @@ def test_a_foot_landing_below_the_ground_is_a_model_breakdown():
     rising = np.array([0.0, 0.7, 0.0, 0.0, 1.0, 0.0, 0.3, 0.3])
     ex = simulate(system, rising, "aerial", 1.0, 1e-3, 1e-6)
     assert ex.status == "model_breakdown" and "reset of transition touchdown_" in ex.message and ex.t_end < 0.2
+    assert "a flight leg lands with its foot below the ground" in ex.message
