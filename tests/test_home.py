@@ -21,10 +21,10 @@ ROOT = Path(__file__).resolve().parents[1]
 # (tests/commands/test_run_live.py) reaches it through the same Rerun client as the server tests.
 SLICE = (
     "tests/output/rrd/test_live_server.py",
-    "tests/viz/test_plots.py",
+    "tests/viz/test_plots.py::test_write_plot_writes_a_png_of_the_figure_size",
     "tests/sweep/test_runner.py::test_a_local_dask_cluster_gives_the_table_of_this_process",
     "tests/sweep/test_runner.py::test_a_walk_sweep_draws_the_basin_and_an_orbit_sweep_the_stability_map",
-    "tests/relaxed/test_paths.py",
+    "tests/relaxed/test_paths.py::test_simultaneous_impacts_are_resolved_jointly_on_both_paths",
 )
 
 

@@ -26,7 +26,7 @@ def test_the_returns_point_on_the_runs_step_removes_the_interpolants_noise():
     Hermite interpolant of the same runs' stored points puts them up to 1e-5 apart (its error,
     h^4 |x''''| / 384 in the knee rates under their servos, moves with the stored points)."""
     _require_native()
-    # The scene's [orbit.integrator]: dop853 at 1e-14, dense landing, eps = 1e-10, h = 2e-3.
+    # The scene's [orbit.integrator]: dop853 at 1e-14, dense landing, eps = 1e-11, h = 2e-3.
     settings = problem_from_scene(load_scene("biped_run"))
     problem, z, memory = settings.problem, settings.guess, settings.solver["memory"]
     rmap = ReturnMap(problem)
@@ -45,6 +45,10 @@ def test_the_returns_point_on_the_runs_step_removes_the_interpolants_noise():
     assert np.ptp(np.array(interpolated), axis=0).max() > 1e-7
 
 
+# Slow (about 45 s, 193 returns at dop853 1e-14), like the quadrupeds' gaits in
+# test_gait_scenes.py; CI's short form is the map on the run's own step above and the hoppers'
+# gaits found to 1e-9 there.
+@pytest.mark.slow
 def test_the_biped_gait_is_found_to_1e_9_and_is_stable(capsys):
     _require_native()
     code = main(["orbit", "biped_run", "--json"])
