@@ -13,7 +13,10 @@ the memory's.
 
 from __future__ import annotations
 
+import functools
 from collections import namedtuple
+from collections.abc import Mapping
+from types import MappingProxyType
 
 import numpy as np
 
@@ -50,18 +53,21 @@ FIRST_SHARE, GROWTH = 16, 4
 LEAST_GUARDS, LEAST_HISTORIES = 8, 32
 
 
+# Kept by their arguments: a short run's whole Python setup is tens of microseconds, and
+# building this table took about 9 of them; the few sizes a program's runs take repeat.
+@functools.lru_cache(maxsize=256)
 def shapes(
     width: int, guards: int, stages: int, inputs: int, memory: int, histories: int, share: int = 0
-) -> dict[str, tuple]:
+) -> Mapping[str, tuple]:
     """Each array's (shape, dtype) for states of up to ``width`` entries, ``guards`` guards,
     ``stages`` stage rows, an input of ``inputs`` entries, ``memory`` memory values and
     ``histories`` history rows; output buffers of 1/``share`` of their largest capacity (0: of
-    ``FIRST_SHARE``)."""
+    ``FIRST_SHARE``). Read-only: the same table is handed to every caller with these sizes."""
     W, G, S = max(1, width), max(LEAST_GUARDS, guards), max(1, stages)
     H = max(LEAST_HISTORIES, histories)
     points, records, visits = _capacities(share or FIRST_SHARE)
     f, i = np.float64, np.int64
-    return {
+    return MappingProxyType({
         "cf": ((FLOAT_SETTINGS,), f),
         "ci": ((INT_SETTINGS,), i),
         "fs": ((FLOAT_STATE,), f),
@@ -85,7 +91,7 @@ def shapes(
         "J": ((W, W), f),
         "LU": ((W, W), f),
         "piv": ((W,), i),
-    }
+    })
 
 
 def allocate(width: int, guards: int, stages: int, inputs: int, memory: int, histories: int) -> Workspace:
@@ -129,7 +135,7 @@ def with_longer_buffers(ws: Workspace) -> Workspace:
     return _regrown(ws, shapes(*sizes, share=max(1, share // GROWTH)))
 
 
-def _regrown(ws: Workspace, arrays: dict[str, tuple]) -> Workspace:
+def _regrown(ws: Workspace, arrays: Mapping[str, tuple]) -> Workspace:
     """``ws`` with the arrays whose shape differs from ``arrays``' made anew, their contents (the
     output buffers' rows in use) copied."""
     used = _used_rows(ws)
