@@ -209,7 +209,9 @@ def pronk_to_bound_pending(p, t, m, mem):
 def runs_pronk(p, t, m, mem):
     """Whether the leg whose memory starts at ``mem`` in m runs the pronk's law at time t (s): the
     pronk commanded, or a change to the bound that is still in its low hops or not yet begun
-    (``pronk_to_bound_pending``: the command may come in the middle of a stance)."""
+    (``pronk_to_bound_pending``: the command may come in the middle of a stance), or a leg standing
+    in a change to the pronk (``STAND_HOLD``); not in a change to the pronk before its pairs stand
+    (``bound_to_pronk_pending``, ``STAND_SLOW``, ``STAND_GATHER``: the bound's law stops it)."""
     stage, stand = transition_stage(p, m, mem), stand_stage(p, m, mem)
     if stage == TRANSITION_LOW_HOPS or stand == STAND_HOLD:
         return True
@@ -279,7 +281,8 @@ def falling_length(p, x, n, m, mem):
     change from the pronk the front pair's ``transition_reach`` (so that it lands alone near the
     top of the hop), and the hind pair held at ``transition_hold`` of ``leg_length`` until the
     front stance has pitched the body nose-up (a negative pitch rate) past
-    ``transition_pitch_rate`` (rad/s), the pitch rate of the bound's hind touchdowns."""
+    ``transition_pitch_rate`` (rad/s), the pitch rate of the bound's hind touchdowns; in a change
+    to the pronk the pair landing after the other stands, ``stand_reach``."""
     stage = transition_stage(p, m, mem)
     if stage == TRANSITION_REACH:
         return p[R_TRANSITION_REACH]
@@ -311,7 +314,8 @@ def flight_torques(t, x, m, p, leg, mem, n, gravity):
     rises (``retract_torques``; in the flight where the bound takes over from the pronk, the
     pronk's rising law instead) and swings to the placement of its own hip's speed at its falling
     length (``falling_length``) once the hip falls (``servo_torques``). The leg turns from rising
-    to falling over ``FALL_TURN`` s after its hop's apex time (memory ``apex``, ``fall_share``)."""
+    to falling over ``FALL_TURN`` s after its hop's apex time (memory ``apex``, ``fall_share``). Its
+    placement is for the leg's speed command (``leg_speed``)."""
     q_hip, q_knee, v_hip, v_knee = leg_joints(p, leg, x, n)
     g_hip, g_knee = gravity[int(p[leg + RL_HIP])], gravity[int(p[leg + RL_KNEE])]
     thigh, shank, bend, offset = p[leg + RL_THIGH], p[leg + RL_SHANK], p[leg + RL_BEND], p[leg + RL_OFFSET]
@@ -346,8 +350,9 @@ def flight_torques(t, x, m, p, leg, mem, n, gravity):
 def runner_control(t, x, m, p, u):
     """The runner's torques into u (N m, one per actuated joint) at (t, x) in the mode of p, from
     the memory m: each stance leg's spring along itself with thrust and, where it runs the pronk's
-    law (``runs_pronk``), its share of the attitude torque; each flight leg's servo
-    (``flight_torques``) with the generalised gravity compensated."""
+    law (``runs_pronk``), its share of the attitude torque (a leg standing in a change to the
+    pronk: ``standing_torques``); each flight leg's servo (``flight_torques``) with the generalised
+    gravity compensated."""
     n, legs = int(p[R_N]), int(p[R_LEGS])
     u[:] = 0.0
     stance_count = 0
@@ -382,7 +387,8 @@ def runner_control(t, x, m, p, u):
 def runner_enter(t, x, m, p, m_new):
     """Entering the mode of p at (t, x): the new memory from m into m_new, leg by leg (a leg reads
     the other's as this entry has already changed it). A leg whose last touchdown was the pronk's
-    begins a change to a commanded bound (``begin_transition``); a leg touching down notes its
+    begins a change to a commanded bound (``begin_transition``), a leg whose last touchdown was
+    another gait's one to a commanded pronk (``begin_stand``); a leg touching down notes its
     touchdown (``note_touchdown``), a leg lifting off its liftoff (``note_liftoff``); a leg in
     flight before any liftoff, at a run's start, takes its hop's apex from the state."""
     m_new[:] = m
@@ -406,12 +412,14 @@ def runner_enter(t, x, m, p, m_new):
 @register_jitable
 def note_touchdown(t, x, m, p, m_new, i, speed):
     """Leg i touching down at (t, x) (m: the memory before this entry, m_new the new one, speed
-    the commanded speed, m/s): the integral term's speed error moves its placement's bias, and in
+    the leg's speed command, m/s: ``leg_speed``): the integral term's speed error moves its
+    placement's bias (not while the bound stops for the pronk, ``stopping``), and in
     a bound the phase term its apex target (not at the touchdowns that end a change from the
     pronk, whose other pair last landed in the pronk); it notes its touchdown's time and place,
     and its stance spring's rest length: a reaching front leg's touchdown length
     (``TRANSITION_REACH``, that its stance pushes from where it landed, near the top of the hop),
-    else with ``late_rest`` ``late_landing_length``. A held leg's change ends here."""
+    else with ``late_rest`` ``late_landing_length``. A held leg's change ends here; a leg landing
+    in a change to the pronk stands (``stand_touchdown``)."""
     leg, mem = leg_at(p, i), LEG_MEMORY * i
     stage = transition_stage(p, m_new, mem)
     if not runs_pronk(p, t, m_new, mem) and stage == TRANSITION_NONE:
@@ -437,7 +445,8 @@ def note_liftoff(t, x, p, m, i, n):
     stance's duration T_s (clipped to [0.02, 0.5] s), adapts its thrust to the apex its hop will
     reach (``apex_target``), notes that apex's time (``note_apex_time``) and, in a bound, its
     liftoff angle and time. A change's low hops counted, the bound's law may take over here
-    (``transition_liftoff``, ``take_over``: the thrust seeded)."""
+    (``transition_liftoff``, ``take_over``: the thrust seeded); from the standing hop the pronk's
+    law takes over (``stand_liftoff``)."""
     leg, mem = leg_at(p, i), LEG_MEMORY * i
     m[mem + M_T_S] = min(max(t - m[mem + M_TOUCHDOWN], 0.02), 0.5)
     taking_over = transition_liftoff(p, m, i)
