@@ -237,7 +237,7 @@ def leg_entries(legs: tuple[Leg, ...], active: Sequence[str]) -> list[float]:
 
 
 class RunnerParams:
-    """``RunnerLaw.params``: the controller's parameter array in a mode (``runner_laws.R_*``,
+    """``RunnerLaw.params``: the controller's parameter array in a mode (``runner_layout.R_*``,
     ``RL_*``), each leg in stance where its foot's contact is active, ``memory`` the offsets of the
     gait changes' memory (``R_TRANSITION_MEMORY``, ``R_STAND_MEMORY``: -1 where not declared);
     built once per mode."""
@@ -268,7 +268,7 @@ class RunnerParams:
         return made
 
 
-#: The gains in the order of the parameter array's head after ``R_GAIT`` (``runner_laws``).
+#: The gains in the order of the parameter array's head after ``R_GAIT`` (``runner_layout``).
 GAIN_ORDER = (
     "speed",
     "height",
