@@ -44,7 +44,17 @@ from legsim.control import ControlLaw, ControllerSpec
 from legsim.errors import SceneError
 
 from . import runner_laws as laws
+from . import stand_laws
 from .controllers import bridge_of
+from .gait_changes import (
+    CHANGE_PARAMETERS,
+    STAND_PARAMETERS,
+    TRANSITION_PARAMETERS,
+    changes_bound_to_pronk,
+    changes_pronk_to_bound,
+    check_reach,
+    declare_memory,
+)
 from .hopper_laws import swing_rate_compiled
 from .leg_laws import foot_terms, joint_angles, touchdown_angle
 
@@ -191,6 +201,14 @@ class Gains:
     transition_hind_thrust: float
     transition_front_thrust: float
     transition_pitch_rate: float
+    stand_damping: float
+    stand_time: float
+    stand_thrust: float
+    stand_reach: float
+    stand_speed: float
+    stand_kp: float
+    stand_kd: float
+    stand_accel: float
 
 
 @dataclass(frozen=True)
@@ -219,8 +237,10 @@ def leg_entries(legs: tuple[Leg, ...], active: Sequence[str]) -> list[float]:
 
 
 class RunnerParams:
-    """``RunnerLaw.params``: the controller's parameter array in a mode (``runner_laws.R_*``,
-    ``RL_*``), each leg in stance where its foot's contact is active; built once per mode."""
+    """``RunnerLaw.params``: the controller's parameter array in a mode (``runner_layout.R_*``,
+    ``RL_*``), each leg in stance where its foot's contact is active, ``memory`` the offsets of the
+    gait changes' memory (``R_TRANSITION_MEMORY``, ``R_STAND_MEMORY``: -1 where not declared);
+    built once per mode."""
 
     def __init__(
         self,
@@ -229,11 +249,12 @@ class RunnerParams:
         gains: Gains,
         gait: str,
         schedule: tuple[tuple[float, float, float], ...],
+        memory: tuple[int, int] = (-1, -1),
     ) -> None:
         self.bridge = bridge
         head = [bridge.handle, bridge.n, len(legs), GAIT_CODES[gait]]
         head += [getattr(gains, name) for name in GAIN_ORDER]
-        head.append(len(schedule))
+        head += [*memory, len(schedule)]
         self.head = [float(v) for v in head]
         self.legs = legs
         self.schedule = [float(v) for entry in schedule for v in entry]
@@ -247,18 +268,7 @@ class RunnerParams:
         return made
 
 
-#: The parameters of a change from the pronk to the bound (``runner_laws``, "a change from the
-#: pronk to the bound"), in the order of the parameter array's head.
-TRANSITION_PARAMETERS = (
-    "transition_hops",
-    "transition_height",
-    "transition_reach",
-    "transition_hold",
-    "transition_hind_thrust",
-    "transition_front_thrust",
-    "transition_pitch_rate",
-)
-#: The gains in the order of the parameter array's head after ``R_GAIT`` (``runner_laws``).
+#: The gains in the order of the parameter array's head after ``R_GAIT`` (``runner_layout``).
 GAIN_ORDER = (
     "speed",
     "height",
@@ -278,6 +288,7 @@ GAIN_ORDER = (
     "gallop_phase",
     "bound_phase",
     *TRANSITION_PARAMETERS,
+    *STAND_PARAMETERS,
 )
 
 
@@ -292,7 +303,8 @@ def runner_law(
     """Raibert's runner for ``bridge``'s articulated ``legs``, each starting with ``thrust`` (m),
     a stance time of 0.12 s and no touchdown yet, in ``gait`` (``GAITS``); its memory is
     ``runner_laws.MEMORY_FIELDS`` of each leg in turn, named ``<field>_<contact>``, then, where
-    the schedule changes the pronk into the bound, its ``TRANSITION_FIELDS`` likewise. ``schedule``:
+    the schedule changes the pronk into the bound, its ``TRANSITION_FIELDS`` likewise, and where it
+    changes another gait into the pronk, ``stand_laws.STAND_FIELDS`` likewise. ``schedule``:
     (t (s), speed (m/s), gait code ``GAIT_CODES``) in increasing time, each commanding its speed
     and gait from its t on (``gains.speed`` and ``gait`` before the first)."""
     names = tuple(f"{field}_{leg.contact}" for leg in legs for field, _ in laws.MEMORY_FIELDS)
@@ -300,16 +312,22 @@ def runner_law(
     initial = {"T_s": 0.12, "thrust": thrust, "liftoff": laws.LONG_AGO, "apex": laws.LONG_AGO}
     memory = tuple(initial.get(field, 0.0) for _ in legs for field, _ in laws.MEMORY_FIELDS)
     frames = tuple(laws.MEMORY_FRAMES.get(field, "") for _ in legs for field, _ in laws.MEMORY_FIELDS)
-    if changes_pronk_to_bound(schedule, gait):
-        names += tuple(f"{field}_{leg.contact}" for leg in legs for field, _ in laws.TRANSITION_FIELDS)
-        units += tuple(unit for _ in legs for _, unit in laws.TRANSITION_FIELDS)
-        memory += tuple(0.0 for _ in legs for _ in laws.TRANSITION_FIELDS)
-        frames += tuple("" for _ in legs for _ in laws.TRANSITION_FIELDS)
+    contacts = [leg.contact for leg in legs]
+    offsets = [-1, -1]
+    changes = (
+        (changes_pronk_to_bound, laws.TRANSITION_FIELDS, (0.0, 0.0), ("", "")),
+        (changes_bound_to_pronk, stand_laws.STAND_FIELDS, stand_laws.STAND_INITIAL, stand_laws.STAND_FRAMES),
+    )
+    for k, (scheduled, fields, values, field_frames) in enumerate(changes):
+        if scheduled(schedule, GAIT_CODES[gait]):
+            offsets[k] = len(memory)
+            more = declare_memory(contacts, fields, values, field_frames)
+            names, units, memory, frames = names + more[0], units + more[1], memory + more[2], frames + more[3]
     return RunnerLaw(
         "raibert_runner",
         laws.runner_control,
         len(bridge.actuated_dofs),
-        RunnerParams(bridge, tuple(legs), gains, gait, schedule),
+        RunnerParams(bridge, tuple(legs), gains, gait, schedule, (offsets[0], offsets[1])),
         laws.runner_enter,
         names,
         units,
@@ -386,51 +404,7 @@ RUNNER_PARAMETERS = {
     ),
     "kp_joint": Param(60.0, "flight joint stiffness", "N m/rad", low=0.0),
     "kd_joint": Param(2.0, "flight joint damping", "N m s/rad", low=0.0),
-    "transition_hops": Param(
-        4,
-        "a change from the pronk to the bound: the low hops the pronk makes after the change's time before the "
-        "bound's law takes over at the next liftoff",
-        "",
-        low=0,
-    ),
-    "transition_height": Param(
-        0.51,
-        "a change from the pronk to the bound: the apex height its low hops' thrust adapts to (the bound's "
-        "vertical speeds are lower than the pronk's)",
-        "m",
-        low=0.0,
-        low_open=True,
-    ),
-    "transition_reach": Param(
-        0.49,
-        "a change from the pronk to the bound: the front pair's length in the flight where the bound takes over, "
-        "so that it lands alone near the top of the hop (about transition_height, below the leg's full length)",
-        "m",
-        low=0.0,
-        low_open=True,
-    ),
-    "transition_hold": Param(
-        0.7,
-        "a change from the pronk to the bound: the hind pair's length in that flight, a share of leg_length, "
-        "until the front stance has pitched the body nose-up past transition_pitch_rate",
-        "",
-        low=0.0,
-        low_open=True,
-        high=1.0,
-    ),
-    "transition_hind_thrust": Param(
-        0.0075, "a change from the pronk to the bound: the hind pair's thrust when the bound takes over", "m", low=0.0
-    ),
-    "transition_front_thrust": Param(
-        0.03, "a change from the pronk to the bound: the front pair's thrust when the bound takes over", "m", low=0.0
-    ),
-    "transition_pitch_rate": Param(
-        2.0,
-        "a change from the pronk to the bound: the nose-up pitch rate past which the held hind pair swings out",
-        "rad/s",
-        low=0.0,
-        low_open=True,
-    ),
+    **CHANGE_PARAMETERS,
 }
 
 
@@ -449,31 +423,12 @@ def _make_runner(model: Model, params: dict[str, Any]) -> RunnerLaw:
             f"controller.parameters.gait = {params['gait']!r} (or a schedule's) needs two leg pairs (hind and "
             f"front), the robot has {len(legs)} articulated leg(s): {', '.join(leg.contact for leg in legs)}"
         )
-    if changes_pronk_to_bound(schedule, params["gait"]):
-        check_reach(legs, params["transition_reach"])
+    if changes_pronk_to_bound(schedule, GAIT_CODES[params["gait"]]):
+        check_reach(legs, params["transition_reach"], "transition_reach")
+    if changes_bound_to_pronk(schedule, GAIT_CODES[params["gait"]]):
+        check_reach(legs, params["stand_reach"], "stand_reach")
     gains = Gains(**{k: params[k] for k in Gains.__dataclass_fields__})
     return runner_law(bridge, legs, gains, params["gait"], params["thrust"], schedule)
-
-
-def changes_pronk_to_bound(schedule: tuple[tuple[float, float, float], ...], gait: str) -> bool:
-    """Whether ``schedule`` (``command_schedule``), starting from ``gait``, commands the bound after
-    the pronk (the controller's transition law then runs, ``runner_laws.begin_transition``); an
-    entry at t = 0 replaces ``gait``, which then never runs."""
-    codes = [entry[2] for entry in schedule]
-    if not schedule or schedule[0][0] > 0.0:
-        codes.insert(0, GAIT_CODES[gait])
-    return any(code == laws.GAIT_BOUND and laws.GAIT_PRONK in codes[:k] for k, code in enumerate(codes))
-
-
-def check_reach(legs: list[Leg], reach: float) -> None:
-    """SceneError naming ``transition_reach`` where a leg cannot stretch to it (its thigh and shank
-    straight, m): the front pair would not reach the ground near the top of the hop."""
-    for leg in legs:
-        if reach >= leg.thigh + leg.shank:
-            raise SceneError(
-                f"controller.parameters.transition_reach: {reach:g} m is not shorter than the leg {leg.contact!r} "
-                f"stretched ({leg.thigh + leg.shank:g} m, thigh and shank)"
-            )
 
 
 #: A schedule entry's keys: its time, and the speed or the gait (or both) it commands from then on.

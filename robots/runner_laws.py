@@ -4,7 +4,9 @@ loop and the compiled kernel both evaluate), over the leg's scalar laws (``robot
 
 The controller's parameter array in a mode (``R_*`` head, then ``RL_*`` per leg) holds the gains,
 each leg's geometry and whether the leg is in stance in that mode; its memory (``M_*`` per leg,
-``MEMORY_FIELDS`` names them) is what it carries from hop to hop.
+``MEMORY_FIELDS`` names them) is what it carries from hop to hop (``robots.runner_layout``). A
+change from the pronk to the bound runs here in stages; one from the bound to the pronk is
+``robots.stand_laws``.
 """
 
 from __future__ import annotations
@@ -27,96 +29,89 @@ from .leg_laws import (
     stance_torques,
     touchdown_angle,
 )
+from .runner_layout import (
+    GAIT_BOUND,
+    GAIT_GALLOP,
+    GAIT_PRONK,
+    LEG_MEMORY,
+    LONG_AGO,
+    M_APEX,
+    M_BIAS,
+    M_LANDED,
+    M_LIFTOFF,
+    M_LIFTOFF_ANGLE,
+    M_PHASE,
+    M_STANCE,
+    M_T_S,
+    M_THRUST,
+    M_TOUCHDOWN,
+    M_TOUCHDOWN_LENGTH,
+    M_TOUCHDOWN_X,
+    R_BOUND_PHASE,
+    R_DAMPING,
+    R_GAIT,
+    R_GALLOP_PHASE,
+    R_HANDLE,
+    R_HEIGHT,
+    R_K_HEIGHT,
+    R_K_I,
+    R_K_PHASE,
+    R_K_X,
+    R_KD_ATTITUDE,
+    R_KD_JOINT,
+    R_KP_ATTITUDE,
+    R_KP_JOINT,
+    R_LATE_REST,
+    R_LEG_LENGTH,
+    R_LEGS,
+    R_MAX_THRUST,
+    R_N,
+    R_STAND_REACH,
+    R_STIFFNESS,
+    R_TRANSITION_FRONT_THRUST,
+    R_TRANSITION_HEIGHT,
+    R_TRANSITION_HIND_THRUST,
+    R_TRANSITION_HOLD,
+    R_TRANSITION_HOPS,
+    R_TRANSITION_MEMORY,
+    R_TRANSITION_PITCH_RATE,
+    R_TRANSITION_REACH,
+    RL_BEND,
+    RL_HIP,
+    RL_KNEE,
+    RL_OFFSET,
+    RL_SHANK,
+    RL_STANCE,
+    RL_THIGH,
+    RL_U_HIP,
+    RL_U_KNEE,
+    RUNNER_HEAD,
+    RUNNER_LEG,
+    commanded_gait,
+    leg_at,
+    leg_joints,
+    leg_length_at,
+)
+from .runner_layout import MEMORY_FIELDS as MEMORY_FIELDS
+from .runner_layout import MEMORY_FRAMES as MEMORY_FRAMES
+from .stand_laws import (
+    STAND_GATHER,
+    STAND_HOLD,
+    STAND_NONE,
+    begin_stand,
+    bound_to_pronk_pending,
+    leg_speed,
+    stand_liftoff,
+    stand_stage,
+    stand_touchdown,
+    standing_torques,
+    stopping,
+)
 
 #: The controller's functions call the native library: load it before they compile (numba
 #: resolves its symbols in the process).
 _native.load()
 
-# -- the controller: its parameters, memory and functions ----------------------------------------
-
-#: The gaits' codes in the parameter array: a pronk (the stance hips level the body), a bound and
-#: a gallop (the pitch free, each leg pair a hopper on its own hip; the front pair ``bound_phase``
-#: of a stride after the hind pair in a bound, ``gallop_phase`` in a gallop).
-GAIT_BOUND, GAIT_PRONK, GAIT_GALLOP = 0.0, 1.0, 2.0
-#: The head of the controller's parameter array: the robot's native handle, nv, the number of
-#: legs, the gait's code, then the gains (``raibert.Gains``, units in
-#: ``raibert.RUNNER_PARAMETERS``), then the number of the schedule's entries, which follow the
-#: legs' entries as (t (s), speed (m/s), gait code) triples.
-(
-    R_HANDLE,
-    R_N,
-    R_LEGS,
-    R_GAIT,
-    R_SPEED,
-    R_HEIGHT,
-    R_K_X,
-    R_K_I,
-    R_LEG_LENGTH,
-    R_STIFFNESS,
-    R_DAMPING,
-    R_K_HEIGHT,
-    R_KP_ATTITUDE,
-    R_KD_ATTITUDE,
-    R_KP_JOINT,
-    R_KD_JOINT,
-    R_MAX_THRUST,
-    R_K_PHASE,
-    R_LATE_REST,
-    R_GALLOP_PHASE,
-    R_BOUND_PHASE,
-    R_TRANSITION_HOPS,
-    R_TRANSITION_HEIGHT,
-    R_TRANSITION_REACH,
-    R_TRANSITION_HOLD,
-    R_TRANSITION_HIND_THRUST,
-    R_TRANSITION_FRONT_THRUST,
-    R_TRANSITION_PITCH_RATE,
-    R_SCHEDULE,
-) = range(29)
-RUNNER_HEAD = 29
-#: Each leg's entries: its hip's and knee's velocity indices and positions in u, thigh and shank
-#: (m), knee bending sign, the hip's x in the body frame (m), and 1.0 when the leg is in stance
-#: in the mode.
-RL_HIP, RL_KNEE, RL_U_HIP, RL_U_KNEE, RL_THIGH, RL_SHANK, RL_BEND, RL_OFFSET, RL_STANCE = range(9)
-RUNNER_LEG = 9
-
-#: Each leg's memory, by name and unit: in stance at the last mode entry (1.0); its last
-#: touchdown's time (s); its last stance's duration T_s (s); its thrust (m); 1.0 once it has
-#: landed (its touchdown time and place are then set); the body's x at its last touchdown (m);
-#: the foot placement's bias (m); its angle from the world's -z axis at its last liftoff (rad);
-#: that liftoff's time (s); a bound's apex target change (m); its length at its last touchdown if
-#: another leg stood then (m, else 0: ``late_landing_length``), below which its stance spring's
-#: rest length does not go; the time (s) of the apex its hop reaches (``note_apex_time``), at
-#: which its flight leg turns from rising to falling.
-MEMORY_FIELDS = (
-    ("stance", ""),
-    ("touchdown", "s"),
-    ("T_s", "s"),
-    ("thrust", "m"),
-    ("landed", ""),
-    ("touchdown_x", "m"),
-    ("bias", "m"),
-    ("liftoff_angle", "rad"),
-    ("liftoff", "s"),
-    ("phase_height", "m"),
-    ("touchdown_length", "m"),
-    ("apex", "s"),
-)
-(
-    M_STANCE,
-    M_TOUCHDOWN,
-    M_T_S,
-    M_THRUST,
-    M_LANDED,
-    M_TOUCHDOWN_X,
-    M_BIAS,
-    M_LIFTOFF_ANGLE,
-    M_LIFTOFF,
-    M_PHASE,
-    M_TOUCHDOWN_LENGTH,
-    M_APEX,
-) = range(len(MEMORY_FIELDS))
-LEG_MEMORY = len(MEMORY_FIELDS)
 #: Each leg's memory in a change from the pronk to the bound, by name and unit: its stage
 #: (``TRANSITION_*``) and the low hops it has made. It follows every leg's ``MEMORY_FIELDS`` and is
 #: declared only where the scene schedules such a change: a run without one carries the state it
@@ -124,11 +119,6 @@ LEG_MEMORY = len(MEMORY_FIELDS)
 TRANSITION_FIELDS = (("transition", ""), ("low_hops", ""))
 T_STAGE, T_LOW_HOPS = range(len(TRANSITION_FIELDS))
 TRANSITION_MEMORY = len(TRANSITION_FIELDS)
-#: What memory fields are measured from (``ControlLaw.memory_frames``): the touchdown, liftoff
-#: and apex times are epochs on the run's clock, the touchdown place a position along x.
-MEMORY_FRAMES = {"touchdown": "t", "liftoff": "t", "touchdown_x": "x", "apex": "t"}
-#: Before its first liftoff a leg's liftoff time and its hop's apex are this long ago (s).
-LONG_AGO = -1.0e9
 #: A leg's stage in a change from the pronk to the bound (memory ``transition``): none (the
 #: commanded gait's law); the pronk's low hops (``transition_hops`` of them, to
 #: ``transition_height``); the hind pair held short and the front pair reaching, from the liftoff
@@ -140,30 +130,6 @@ TRANSITION_NONE, TRANSITION_LOW_HOPS, TRANSITION_HELD, TRANSITION_REACH = 0.0, 1
 #: stance by it would lift off again and again (an accumulation).
 REFRACTORY = 0.01
 G = 9.81
-
-
-@register_jitable
-def leg_at(p, i):
-    """Offset of leg i's entries in the parameter array p."""
-    return RUNNER_HEAD + RUNNER_LEG * i
-
-
-#: Entries of one schedule entry in the parameter array.
-SCHEDULE_ENTRY = 3
-
-
-@register_jitable
-def commanded_gait(p, t):
-    """The forward speed (m/s) and gait's code (``GAIT_*``) commanded at time t (s): the
-    schedule's last entry at or before t, or the scene's ``speed`` and ``gait`` before its first
-    (a schedule's entries are in increasing time)."""
-    speed, gait = p[R_SPEED], p[R_GAIT]
-    start = RUNNER_HEAD + RUNNER_LEG * int(p[R_LEGS])
-    for k in range(int(p[R_SCHEDULE])):
-        entry = start + SCHEDULE_ENTRY * k
-        if t >= p[entry]:
-            speed, gait = p[entry + 1], p[entry + 2]
-    return speed, gait
 
 
 @register_jitable
@@ -180,13 +146,6 @@ def gait_hop_height(pronk, p, leg, x, n):
         return x[1], x[n + 1]
     offset, pitch, rate = p[leg + RL_OFFSET], x[2], x[n + 2]
     return x[1] - offset * math.sin(pitch), x[n + 1] - offset * math.cos(pitch) * rate
-
-
-@register_jitable
-def leg_joints(p, leg, x, n):
-    """The leg's hip and knee angles (rad) and rates (rad/s) at x."""
-    hip, knee = int(p[leg + RL_HIP]), int(p[leg + RL_KNEE])
-    return x[hip], x[knee], x[n + hip], x[n + knee]
 
 
 @register_jitable
@@ -214,10 +173,8 @@ def fall_share(t, apex):
 def transition_memory(p, m, mem):
     """Offset in m of the transition memory (``TRANSITION_FIELDS``) of the leg whose memory starts
     at ``mem``, or -1 where the run carries none (no change from the pronk to the bound scheduled)."""
-    start = LEG_MEMORY * int(p[R_LEGS])
-    if m.shape[0] <= start:
-        return -1
-    return start + TRANSITION_MEMORY * (mem // LEG_MEMORY)
+    start = int(p[R_TRANSITION_MEMORY])
+    return -1 if start < 0 else start + TRANSITION_MEMORY * (mem // LEG_MEMORY)
 
 
 @register_jitable
@@ -252,13 +209,17 @@ def pronk_to_bound_pending(p, t, m, mem):
 def runs_pronk(p, t, m, mem):
     """Whether the leg whose memory starts at ``mem`` in m runs the pronk's law at time t (s): the
     pronk commanded, or a change to the bound that is still in its low hops or not yet begun
-    (``pronk_to_bound_pending``: the command may come in the middle of a stance)."""
-    stage = transition_stage(p, m, mem)
-    if stage == TRANSITION_LOW_HOPS:
+    (``pronk_to_bound_pending``: the command may come in the middle of a stance), or a leg standing
+    in a change to the pronk (``STAND_HOLD``); not in a change to the pronk before its pairs stand
+    (``bound_to_pronk_pending``, ``STAND_SLOW``, ``STAND_GATHER``: the bound's law stops it)."""
+    stage, stand = transition_stage(p, m, mem), stand_stage(p, m, mem)
+    if stage == TRANSITION_LOW_HOPS or stand == STAND_HOLD:
         return True
-    if stage != TRANSITION_NONE:
+    if stage != TRANSITION_NONE or stand != STAND_NONE:
         return False
-    return commanded_gait(p, t)[1] == GAIT_PRONK or pronk_to_bound_pending(p, t, m, mem)
+    if commanded_gait(p, t)[1] == GAIT_PRONK:
+        return not bound_to_pronk_pending(p, t, m, mem)
+    return pronk_to_bound_pending(p, t, m, mem)
 
 
 @register_jitable
@@ -320,10 +281,13 @@ def falling_length(p, x, n, m, mem):
     change from the pronk the front pair's ``transition_reach`` (so that it lands alone near the
     top of the hop), and the hind pair held at ``transition_hold`` of ``leg_length`` until the
     front stance has pitched the body nose-up (a negative pitch rate) past
-    ``transition_pitch_rate`` (rad/s), the pitch rate of the bound's hind touchdowns."""
+    ``transition_pitch_rate`` (rad/s), the pitch rate of the bound's hind touchdowns; in a change
+    to the pronk the pair landing after the other stands, ``stand_reach``."""
     stage = transition_stage(p, m, mem)
     if stage == TRANSITION_REACH:
         return p[R_TRANSITION_REACH]
+    if stand_stage(p, m, mem) == STAND_GATHER:
+        return p[R_STAND_REACH]
     if stage == TRANSITION_HELD and -x[n + 2] < p[R_TRANSITION_PITCH_RATE]:
         return p[R_TRANSITION_HOLD] * p[R_LEG_LENGTH]
     return p[R_LEG_LENGTH]
@@ -350,11 +314,12 @@ def flight_torques(t, x, m, p, leg, mem, n, gravity):
     rises (``retract_torques``; in the flight where the bound takes over from the pronk, the
     pronk's rising law instead) and swings to the placement of its own hip's speed at its falling
     length (``falling_length``) once the hip falls (``servo_torques``). The leg turns from rising
-    to falling over ``FALL_TURN`` s after its hop's apex time (memory ``apex``, ``fall_share``)."""
+    to falling over ``FALL_TURN`` s after its hop's apex time (memory ``apex``, ``fall_share``). Its
+    placement is for the leg's speed command (``leg_speed``)."""
     q_hip, q_knee, v_hip, v_knee = leg_joints(p, leg, x, n)
     g_hip, g_knee = gravity[int(p[leg + RL_HIP])], gravity[int(p[leg + RL_KNEE])]
     thigh, shank, bend, offset = p[leg + RL_THIGH], p[leg + RL_SHANK], p[leg + RL_BEND], p[leg + RL_OFFSET]
-    speed = commanded_gait(p, t)[0]
+    speed = leg_speed(p, t, m, mem)
     fall = fall_share(t, m[mem + M_APEX])
     length, kp, kd = p[R_LEG_LENGTH], p[R_KP_JOINT], p[R_KD_JOINT]
     if runs_pronk(p, t, m, mem):
@@ -385,8 +350,9 @@ def flight_torques(t, x, m, p, leg, mem, n, gravity):
 def runner_control(t, x, m, p, u):
     """The runner's torques into u (N m, one per actuated joint) at (t, x) in the mode of p, from
     the memory m: each stance leg's spring along itself with thrust and, where it runs the pronk's
-    law (``runs_pronk``), its share of the attitude torque; each flight leg's servo
-    (``flight_torques``) with the generalised gravity compensated."""
+    law (``runs_pronk``), its share of the attitude torque (a leg standing in a change to the
+    pronk: ``standing_torques``); each flight leg's servo (``flight_torques``) with the generalised
+    gravity compensated."""
     n, legs = int(p[R_N]), int(p[R_LEGS])
     u[:] = 0.0
     stance_count = 0
@@ -398,7 +364,9 @@ def runner_control(t, x, m, p, u):
         lsn_gravity(np.int64(p[R_HANDLE]), x.ctypes.data, gravity.ctypes.data)
     for i in range(legs):
         leg, mem = leg_at(p, i), LEG_MEMORY * i
-        if p[leg + RL_STANCE] != 0.0:
+        if p[leg + RL_STANCE] != 0.0 and stand_stage(p, m, mem) == STAND_HOLD:
+            hip, knee = standing_torques(t, x, m, p, leg, mem, n, stance_count)
+        elif p[leg + RL_STANCE] != 0.0:
             pronk = runs_pronk(p, t, m, mem)
             attitude = p[R_KP_ATTITUDE] * x[2] + p[R_KD_ATTITUDE] * x[n + 2] if pronk else 0.0
             # A pronk lifts off together: once a leg has left, the others unload while they extend.
@@ -419,19 +387,20 @@ def runner_control(t, x, m, p, u):
 def runner_enter(t, x, m, p, m_new):
     """Entering the mode of p at (t, x): the new memory from m into m_new, leg by leg (a leg reads
     the other's as this entry has already changed it). A leg whose last touchdown was the pronk's
-    begins a change to a commanded bound (``begin_transition``); a leg touching down notes its
+    begins a change to a commanded bound (``begin_transition``), a leg whose last touchdown was
+    another gait's one to a commanded pronk (``begin_stand``); a leg touching down notes its
     touchdown (``note_touchdown``), a leg lifting off its liftoff (``note_liftoff``); a leg in
     flight before any liftoff, at a run's start, takes its hop's apex from the state."""
     m_new[:] = m
     n = int(p[R_N])
-    speed = commanded_gait(p, t)[0]
+    begin_stand(p, t, x, m_new)
     for i in range(int(p[R_LEGS])):
         leg, mem = leg_at(p, i), LEG_MEMORY * i
         stance = p[leg + RL_STANCE] != 0.0
         was = m_new[mem + M_STANCE] != 0.0
         begin_transition(p, t, m_new, mem)
         if stance and not was:
-            note_touchdown(t, x, m, p, m_new, i, speed)
+            note_touchdown(t, x, m, p, m_new, i, leg_speed(p, t, m_new, mem))
         elif was and not stance:
             note_liftoff(t, x, p, m_new, i, n)
         m_new[mem + M_STANCE] = 1.0 if stance else 0.0
@@ -443,17 +412,19 @@ def runner_enter(t, x, m, p, m_new):
 @register_jitable
 def note_touchdown(t, x, m, p, m_new, i, speed):
     """Leg i touching down at (t, x) (m: the memory before this entry, m_new the new one, speed
-    the commanded speed, m/s): the integral term's speed error moves its placement's bias, and in
+    the leg's speed command, m/s: ``leg_speed``): the integral term's speed error moves its
+    placement's bias (not while the bound stops for the pronk, ``stopping``), and in
     a bound the phase term its apex target (not at the touchdowns that end a change from the
     pronk, whose other pair last landed in the pronk); it notes its touchdown's time and place,
     and its stance spring's rest length: a reaching front leg's touchdown length
     (``TRANSITION_REACH``, that its stance pushes from where it landed, near the top of the hop),
-    else with ``late_rest`` ``late_landing_length``. A held leg's change ends here."""
+    else with ``late_rest`` ``late_landing_length``. A held leg's change ends here; a leg landing
+    in a change to the pronk stands (``stand_touchdown``)."""
     leg, mem = leg_at(p, i), LEG_MEMORY * i
     stage = transition_stage(p, m_new, mem)
     if not runs_pronk(p, t, m_new, mem) and stage == TRANSITION_NONE:
         adapt_phase(t, p, m_new, i, phase_target(p, i, commanded_gait(p, t)[1]))
-    if t > m_new[mem + M_TOUCHDOWN] and m_new[mem + M_LANDED] != 0.0:
+    if t > m_new[mem + M_TOUCHDOWN] and m_new[mem + M_LANDED] != 0.0 and not stopping(p, t, m_new, mem):
         stride_speed = (x[0] - m_new[mem + M_TOUCHDOWN_X]) / (t - m_new[mem + M_TOUCHDOWN])
         m_new[mem + M_BIAS] += p[R_K_I] * (stride_speed - speed)
     m_new[mem + M_TOUCHDOWN_X] = x[0]
@@ -465,6 +436,7 @@ def note_touchdown(t, x, m, p, m_new, i, speed):
     m_new[mem + M_LANDED] = 1.0
     if stage == TRANSITION_HELD:
         set_transition_stage(p, m_new, mem, TRANSITION_NONE)
+    stand_touchdown(p, t, x, m_new, mem)
 
 
 @register_jitable
@@ -473,10 +445,12 @@ def note_liftoff(t, x, p, m, i, n):
     stance's duration T_s (clipped to [0.02, 0.5] s), adapts its thrust to the apex its hop will
     reach (``apex_target``), notes that apex's time (``note_apex_time``) and, in a bound, its
     liftoff angle and time. A change's low hops counted, the bound's law may take over here
-    (``transition_liftoff``, ``take_over``: the thrust seeded)."""
+    (``transition_liftoff``, ``take_over``: the thrust seeded); from the standing hop the pronk's
+    law takes over (``stand_liftoff``)."""
     leg, mem = leg_at(p, i), LEG_MEMORY * i
     m[mem + M_T_S] = min(max(t - m[mem + M_TOUCHDOWN], 0.02), 0.5)
     taking_over = transition_liftoff(p, m, i)
+    stand_liftoff(p, t, m, i)
     pronk = runs_pronk(p, t, m, mem)
     z, zd = gait_hop_height(pronk, p, leg, x, n)
     apex_time, apex = ballistic_apex(t, z, zd)
@@ -520,14 +494,6 @@ def late_landing_length(p, leg, x, m):
         if j != (leg - RUNNER_HEAD) // RUNNER_LEG and m[LEG_MEMORY * j + M_STANCE] != 0.0:
             return leg_length_at(p, leg, x)
     return 0.0
-
-
-@register_jitable
-def leg_length_at(p, leg, x):
-    """The length (m) of the leg whose entries start at ``leg`` in p, hip to foot, at x."""
-    q_hip, q_knee = x[int(p[leg + RL_HIP])], x[int(p[leg + RL_KNEE])]
-    px, pz = foot_terms(p[leg + RL_THIGH], p[leg + RL_SHANK], q_hip, q_knee)[:2]
-    return math.sqrt(px * px + pz * pz)
 
 
 @register_jitable

@@ -426,6 +426,29 @@ def test_the_transition_law_turns_the_pronk_into_a_bound_at_every_change_time(sp
     assert all(s == BOUND_STRIDE for s in after), after
 
 
+@pytest.mark.parametrize(
+    "speed,change",
+    [
+        pytest.param(speed, change, marks=() if (speed, change) == (1.0, 5.0) else pytest.mark.slow)
+        for speed in CHANGE_SPEEDS
+        for change in CHANGE_TIMES
+    ],
+)
+def test_the_standing_hop_turns_the_bound_into_a_pronk_at_every_change_time(speed, change):
+    """``quadruped_bound_forward``, its gait scheduled to the pronk at ``change``, run 10 s more:
+    each stride from 2 s to the one the change comes in is the bound's (hind stance, flight, front
+    stance, flight), and every stride over the last 5 s the pronk's (one flight, both feet down together); the speed
+    over those 5 s within 5% of the command, no warning. The controller's standing hop
+    (docs/robots.md, "From the bound to the pronk": the bound stopped, both pairs standing until
+    the pitch has died out, a hop off both, the pronk's speed command ramped back) makes the change
+    wherever in the stride it comes. CI runs 1.0 m/s at 5 s."""
+    before, after = gait_change("bound", speed, "pronk", settle=2.0, change=change)
+    assert len(before) >= 4 and len(after) >= 8
+    assert all(s == BOUND_STRIDE for s in before[:-1]), before
+    for stride in after:
+        assert sum(1 for phase in stride if not phase) == 1 and frozenset(FEET) in stride, stride
+
+
 def test_the_gallop_has_two_flight_phases_a_stride_within_three_seconds():
     """Short form of the gallop's test: from t = 1 s of a run from the bound's start each stride
     has an extended and a gathered flight (the front pair's touchdown wanders between 0.28 and
@@ -599,6 +622,10 @@ def test_a_bad_leg_declaration_is_named_in_the_error(legs, message):
         ("transition_hind_thrust=-0.01", "controller.parameters.transition_hind_thrust: -0.01 is out of range"),
         ("transition_front_thrust='high'", "controller.parameters.transition_front_thrust: expected a number"),
         ("transition_pitch_rate=0", "controller.parameters.transition_pitch_rate: 0.0 is out of range"),
+        ("stand_time=0", "controller.parameters.stand_time: 0.0 is out of range"),
+        ("stand_speed=-0.1", "controller.parameters.stand_speed: -0.1 is out of range"),
+        ("stand_accel='fast'", "controller.parameters.stand_accel: expected a number"),
+        ("stand_damping=-1", "controller.parameters.stand_damping: -1.0 is out of range"),
     ],
 )
 def test_a_bad_gait_setting_is_named_in_the_error(setting, message):
@@ -617,6 +644,40 @@ def test_a_transition_reach_the_legs_cannot_stretch_to_is_named_in_the_error():
     message = "controller.parameters.transition_reach: 0.5 m is not shorter than the leg 'hind' stretched (0.5 m"
     assert "quadruped_pronk_forward.toml" in str(caught.value) and message in str(caught.value)
     load_scene("quadruped_pronk_forward", [*sets, "controller.parameters.schedule=[{t = 3, speed = 0.5}]"])
+
+
+def test_a_stand_reach_the_legs_cannot_stretch_to_is_named_in_the_error():
+    """A change from the bound to the pronk lands the pair still in flight at ``stand_reach``: a
+    reach of the legs' full length (0.5 m) or more is refused where the schedule asks for that
+    change, naming the field; without such a change the reach is not used."""
+    sets = ["controller.parameters.stand_reach=0.5"]
+    with pytest.raises(SceneError) as caught:
+        load_scene("quadruped_bound_forward", [*sets, "controller.parameters.schedule=[{t = 3, gait = 'pronk'}]"])
+    message = "controller.parameters.stand_reach: 0.5 m is not shorter than the leg 'hind' stretched (0.5 m"
+    assert "quadruped_bound_forward.toml" in str(caught.value) and message in str(caught.value)
+    load_scene("quadruped_bound_forward", [*sets, "controller.parameters.schedule=[{t = 3, speed = 0.5}]"])
+
+
+@pytest.mark.parametrize(
+    "scene,schedule,declared",
+    [
+        ("quadruped_bound_forward", "[{t = 3, gait = 'pronk'}]", True),
+        ("quadruped_bound_forward", "[{t = 3, gait = 'gallop'}, {t = 4, gait = 'pronk'}]", True),
+        ("quadruped_pronk_forward", "[{t = 3, gait = 'bound'}, {t = 6, gait = 'pronk'}]", True),
+        ("quadruped_bound_forward", "[{t = 0, gait = 'pronk'}]", False),
+        ("quadruped_bound_forward", "[{t = 3, speed = 0.5}]", False),
+        ("quadruped_pronk_forward", "[{t = 3, gait = 'bound'}]", False),
+    ],
+)
+def test_the_standing_hops_memory_is_declared_only_where_the_pronk_follows_another_gait(scene, schedule, declared):
+    """Each leg's stage and hop time (``stand_laws.STAND_FIELDS``) follow the rest of the memory
+    where the schedule commands the pronk after the bound or the gallop has run, and only there (with
+    a change from the pronk to the bound before it, after that change's memory)."""
+    law = load_scene(scene, [f"controller.parameters.schedule={schedule}"]).control
+    extra = ("to_pronk_hind", "launch_hind", "to_pronk_front", "launch_front")
+    assert (law.memory_names[-4:] == extra) is declared
+    assert (set(extra) <= set(law.memory_names)) is declared
+    assert law.memory_names[: 2 * len(MEMORY_FIELDS)] == load_scene(scene).control.memory_names
 
 
 @pytest.mark.parametrize(

@@ -78,7 +78,17 @@ def test_the_grazing_circle_stays_inside_on_the_rotation():
 
 #: The controllers' modules and the laws they share: a plant's module imports none of them (a
 #: controller is composed with its plant where the run is assembled).
-CONTROLLER_MODULES = {"raibert", "raibert_pronk", "controllers", "hopper_laws", "control_laws", "runner_laws"}
+CONTROLLER_MODULES = {
+    "raibert",
+    "raibert_pronk",
+    "controllers",
+    "hopper_laws",
+    "control_laws",
+    "runner_laws",
+    "runner_layout",
+    "stand_laws",
+    "gait_changes",
+}
 
 
 @pytest.mark.parametrize("plant", ["slip_hopper.py", "pronk_hopper.py"])
