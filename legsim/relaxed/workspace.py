@@ -67,31 +67,33 @@ def shapes(
     H = max(LEAST_HISTORIES, histories)
     points, records, visits = _capacities(share or FIRST_SHARE)
     f, i = np.float64, np.int64
-    return MappingProxyType({
-        "cf": ((FLOAT_SETTINGS,), f),
-        "ci": ((INT_SETTINGS,), i),
-        "fs": ((FLOAT_STATE,), f),
-        "iv": ((INT_STATE,), i),
-        **{name: ((W,), f) for name in ("x", "XS", "x1", "k1", "q", "w", "ft")},
-        "K": ((S, W), f),
-        **{name: ((G,), f) for name in ("g_here", "g1", "g_w", "crossed")},
-        "u": ((inputs,), f),
-        "u_after": ((inputs,), f),
-        "u_kept": ((inputs,), f),
-        "m_new": ((memory,), f),
-        "history": ((H, HISTORY_FIELDS), f),
-        "T": ((points,), f),
-        "X": ((points, W), f),
-        "DX": ((points, W), f),
-        "visits": ((visits, VISIT_FIELDS), i),
-        "rec_f": ((records, RECORD_FLOATS), f),
-        "rec_i": ((records, RECORD_INTS), i),
-        "rec_q": ((records, W), f),
-        "rec_x": ((records, W), f),
-        "J": ((W, W), f),
-        "LU": ((W, W), f),
-        "piv": ((W,), i),
-    })
+    return MappingProxyType(
+        {
+            "cf": ((FLOAT_SETTINGS,), f),
+            "ci": ((INT_SETTINGS,), i),
+            "fs": ((FLOAT_STATE,), f),
+            "iv": ((INT_STATE,), i),
+            **{name: ((W,), f) for name in ("x", "XS", "x1", "k1", "q", "w", "ft")},
+            "K": ((S, W), f),
+            **{name: ((G,), f) for name in ("g_here", "g1", "g_w", "crossed")},
+            "u": ((inputs,), f),
+            "u_after": ((inputs,), f),
+            "u_kept": ((inputs,), f),
+            "m_new": ((memory,), f),
+            "history": ((H, HISTORY_FIELDS), f),
+            "T": ((points,), f),
+            "X": ((points, W), f),
+            "DX": ((points, W), f),
+            "visits": ((visits, VISIT_FIELDS), i),
+            "rec_f": ((records, RECORD_FLOATS), f),
+            "rec_i": ((records, RECORD_INTS), i),
+            "rec_q": ((records, W), f),
+            "rec_x": ((records, W), f),
+            "J": ((W, W), f),
+            "LU": ((W, W), f),
+            "piv": ((W,), i),
+        }
+    )
 
 
 def allocate(width: int, guards: int, stages: int, inputs: int, memory: int, histories: int) -> Workspace:

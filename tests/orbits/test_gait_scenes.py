@@ -18,13 +18,16 @@ def search(name, overrides=()):
 
 @pytest.mark.parametrize(
     ("name", "radius"),
-    # the leading multipliers: the SLIP's apex-speed mode; the pronk's pitch pair (its pieces,
-    # one per touchdown order, give the verdict: tests/orbits/test_piecewise.py)
-    [("slip_raibert", 0.258964), ("pronk_raibert", 0.264367)],
+    # the leading multipliers: the SLIP's apex-speed mode; the pronk's pitch (at the run's own
+    # coarser settings its pieces, one per touchdown order, give the verdict:
+    # tests/robots/test_pronk_hopper.py)
+    [("slip_raibert", 0.258965), ("pronk_raibert", 0.262713)],
 )
 def test_the_hoppers_gaits_are_found_to_1e_9_with_a_verdict(name, radius):
     result = search(name)
     assert result.converged and result.residual <= 1e-9, result.message
+    # ... on a map resolved there, at the scenes' [orbit.integrator]: no warning
+    assert result.map_accuracy.resolved <= 1e-9 and result.warnings == []
     assert result.stable is True
     assert result.spectral_radius == pytest.approx(radius, abs=1e-4)
     # the energy's multiplier 1 is left out of the verdict
