@@ -4,20 +4,28 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test test-full test-browser install lint clean wheel
+.PHONY: demo test test-full test-browser install lint lint-tools clean wheel
 
-# setup.py and the C++ source: the optional native extension is built by the install.
-$(STAMP): pyproject.toml setup.py robots/_native/pinlegsim.cpp
+DEPS_STAMP := $(VENV)/.dependencies-installed
+
+# The environment legsim installs into: pip, the build requirements and legsim's dependencies
+# (its test extra included), all read from pyproject.toml. `make lint` needs only this, so CI
+# runs the checkers while the install builds the native extension (.ci/run).
+$(DEPS_STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
 	@# The build requirements go into the venv and legsim builds there, without isolation: an
 	@# isolated build would install Pinocchio's 400 MB of headers and libraries into a throwaway
 	@# environment, besides the same libpinocchio that the `pin` dependency brings.
-	$(BIN)/python -c 'import tomllib; print(*tomllib.load(open("pyproject.toml", "rb"))["build-system"]["requires"], sep="\n")' > $(VENV)/build-requirements.txt
-	$(BIN)/pip install --quiet -r $(VENV)/build-requirements.txt
-	$(BIN)/pip install --quiet --no-build-isolation -e ".[test]"
+	$(BIN)/python -c 'import tomllib; t = tomllib.load(open("pyproject.toml", "rb")); print(*t["build-system"]["requires"], *t["project"]["dependencies"], *t["project"]["optional-dependencies"]["test"], sep="\n")' > $(VENV)/requirements.txt
+	$(BIN)/pip install --quiet -r $(VENV)/requirements.txt
+	touch $(DEPS_STAMP)
+
+# setup.py and the C++ source: the optional native extension is built by the install.
+$(STAMP): $(DEPS_STAMP) setup.py robots/_native/pinlegsim.cpp
+	$(BIN)/pip install --quiet --no-build-isolation --no-deps -e .
 	@$(BIN)/python -c "import legsim.robots._native as n; print('legsim: native robot library:', n.status())"
-	@# The step loop and the bundled models compiled ahead of time (about a minute and a half, once), so
+	@# The step loop and the bundled models compiled ahead of time (about two minutes, once), so
 	@# that a first run loads them instead of compiling.
 	$(BIN)/python -m legsim.prebuild
 	touch $(STAMP)
@@ -47,11 +55,14 @@ LINT_STAMP := $(VENV)/.lint-installed
 # inside legsim/ as setup.py installs them ([tool.mypy] in pyproject.toml).
 TYPECHECK_TREE := build/typecheck/legsim
 
-# Only the extra's own requirements: reinstalling legsim itself would rebuild the native extension.
-$(LINT_STAMP): $(STAMP) pyproject.toml
+# Only the extra's own requirements, on the dependencies: the checkers read the sources, not the
+# installed package, so they need neither the native extension nor the prebuilt code.
+$(LINT_STAMP): $(DEPS_STAMP) pyproject.toml
 	$(BIN)/python -c 'import tomllib; print(*tomllib.load(open("pyproject.toml", "rb"))["project"]["optional-dependencies"]["lint"], sep="\n")' > $(VENV)/lint-requirements.txt
 	$(BIN)/pip install --quiet -r $(VENV)/lint-requirements.txt
 	touch $(LINT_STAMP)
+
+lint-tools: $(LINT_STAMP)
 
 # Both checkers run even when the first finds something, so one run lists every finding.
 lint: $(LINT_STAMP)
