@@ -87,6 +87,7 @@ from .runner_layout import (
     RL_U_KNEE,
     RUNNER_HEAD,
     RUNNER_LEG,
+    change_memory,
     commanded_gait,
     leg_at,
     leg_joints,
@@ -173,8 +174,7 @@ def fall_share(t, apex):
 def transition_memory(p, m, mem):
     """Offset in m of the transition memory (``TRANSITION_FIELDS``) of the leg whose memory starts
     at ``mem``, or -1 where the run carries none (no change from the pronk to the bound scheduled)."""
-    start = int(p[R_TRANSITION_MEMORY])
-    return -1 if start < 0 else start + TRANSITION_MEMORY * (mem // LEG_MEMORY)
+    return change_memory(p, R_TRANSITION_MEMORY, TRANSITION_MEMORY, mem)
 
 
 @register_jitable

@@ -120,6 +120,15 @@ def leg_at(p, i):
     return RUNNER_HEAD + RUNNER_LEG * i
 
 
+@register_jitable
+def change_memory(p, slot, width, mem):
+    """Offset in the memory of a gait change's entries for the leg whose memory starts at ``mem``:
+    the change keeps ``width`` entries per leg from the offset ``p[slot]`` (``R_TRANSITION_MEMORY``,
+    ``R_STAND_MEMORY``), -1 where the run carries none (no such change scheduled)."""
+    start = int(p[slot])
+    return -1 if start < 0 else start + width * (mem // LEG_MEMORY)
+
+
 #: Entries of one schedule entry in the parameter array.
 SCHEDULE_ENTRY = 3
 

@@ -44,6 +44,7 @@ from .runner_layout import (
     RL_SHANK,
     RL_STANCE,
     RL_THIGH,
+    change_memory,
     commanded_gait,
     leg_at,
     leg_joints,
@@ -74,8 +75,7 @@ STAND_INITIAL, STAND_FRAMES = (STAND_NONE, NEVER), ("", "t")
 def stand_memory(p, mem):
     """Offset in m of the bound-to-pronk memory (``STAND_FIELDS``) of the leg whose memory starts at
     ``mem``, or -1 where the run carries none."""
-    start = int(p[R_STAND_MEMORY])
-    return -1 if start < 0 else start + STAND_MEMORY * (mem // LEG_MEMORY)
+    return change_memory(p, R_STAND_MEMORY, STAND_MEMORY, mem)
 
 
 @register_jitable

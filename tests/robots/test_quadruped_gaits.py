@@ -626,28 +626,21 @@ def test_a_bad_gait_setting_is_named_in_the_error(setting, message):
     assert "quadruped_gallop.toml" in str(caught.value) and message in str(caught.value)
 
 
-def test_a_transition_reach_the_legs_cannot_stretch_to_is_named_in_the_error():
-    """A change from the pronk to the bound lands the front pair at ``transition_reach``: a reach
-    of the legs' full length (thigh and shank, 0.5 m) or more is refused where the schedule asks
-    for that change, naming the field; without such a change the reach is not used."""
-    sets = ["controller.parameters.transition_reach=0.5"]
+@pytest.mark.parametrize(
+    "field,scene,gait",
+    [("transition_reach", "quadruped_pronk_forward", "bound"), ("stand_reach", "quadruped_bound_forward", "pronk")],
+)
+def test_a_gait_changes_reach_the_legs_cannot_stretch_to_is_named_in_the_error(field, scene, gait):
+    """A change from the pronk to the bound lands the front pair at ``transition_reach``, one from
+    the bound to the pronk the pair still in flight at ``stand_reach``: a reach of the legs' full
+    length (thigh and shank, 0.5 m) or more is refused where the schedule asks for that change,
+    naming the field; without such a change the reach is not used."""
+    sets = [f"controller.parameters.{field}=0.5"]
     with pytest.raises(SceneError) as caught:
-        load_scene("quadruped_pronk_forward", [*sets, "controller.parameters.schedule=[{t = 3, gait = 'bound'}]"])
-    message = "controller.parameters.transition_reach: 0.5 m is not shorter than the leg 'hind' stretched (0.5 m"
-    assert "quadruped_pronk_forward.toml" in str(caught.value) and message in str(caught.value)
-    load_scene("quadruped_pronk_forward", [*sets, "controller.parameters.schedule=[{t = 3, speed = 0.5}]"])
-
-
-def test_a_stand_reach_the_legs_cannot_stretch_to_is_named_in_the_error():
-    """A change from the bound to the pronk lands the pair still in flight at ``stand_reach``: a
-    reach of the legs' full length (0.5 m) or more is refused where the schedule asks for that
-    change, naming the field; without such a change the reach is not used."""
-    sets = ["controller.parameters.stand_reach=0.5"]
-    with pytest.raises(SceneError) as caught:
-        load_scene("quadruped_bound_forward", [*sets, "controller.parameters.schedule=[{t = 3, gait = 'pronk'}]"])
-    message = "controller.parameters.stand_reach: 0.5 m is not shorter than the leg 'hind' stretched (0.5 m"
-    assert "quadruped_bound_forward.toml" in str(caught.value) and message in str(caught.value)
-    load_scene("quadruped_bound_forward", [*sets, "controller.parameters.schedule=[{t = 3, speed = 0.5}]"])
+        load_scene(scene, [*sets, f"controller.parameters.schedule=[{{t = 3, gait = '{gait}'}}]"])
+    message = f"controller.parameters.{field}: 0.5 m is not shorter than the leg 'hind' stretched (0.5 m"
+    assert f"{scene}.toml" in str(caught.value) and message in str(caught.value)
+    load_scene(scene, [*sets, "controller.parameters.schedule=[{t = 3, speed = 0.5}]"])
 
 
 @pytest.mark.parametrize(
