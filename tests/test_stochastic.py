@@ -243,16 +243,19 @@ def test_a_model_breaking_down_past_the_guard_ends_that_execution_only():
 
 
 @pytest.mark.parametrize(
-    ("max_transitions", "shortest_dwell"),
+    ("max_transitions", "shortest_dwell", "samples"),
     [
         # The short form: capped executions of this draw switch at most ~63 times, none dwelling
-        # under 3e-5 s; uncapped, every one passes 200 switches, dwelling under 2e-7 s.
-        (200, 1e-6),
+        # under 3e-5 s; uncapped, every one passes 200 switches, dwelling under 2e-7 s. Half the
+        # samples of the long form (each uncapped one takes some 1.2 s of switching).
+        (200, 1e-6, 4),
         # The long form follows the accumulation ten times further, to dwell times of 4e-12 s.
-        pytest.param(2000, 1e-9, marks=pytest.mark.slow),
+        pytest.param(2000, 1e-9, 8, marks=pytest.mark.slow),
     ],
 )
-def test_without_the_hazard_cap_the_two_tanks_accumulate_switches_past_the_zeno_time(max_transitions, shortest_dwell):
+def test_without_the_hazard_cap_the_two_tanks_accumulate_switches_past_the_zeno_time(
+    max_transitions, shortest_dwell, samples
+):
     # The finding behind the cap: the hazard rate pi' / (1 - pi) is unbounded as pi -> 1, and a
     # visit entered with its ball nearly all past its guard switches almost at once. At h = 0.01
     # (same seed and samples as the test above) some executions then switch ever faster before
@@ -267,7 +270,7 @@ def test_without_the_hazard_cap_the_two_tanks_accumulate_switches_past_the_zeno_
         t_final,
         0.01,
         "euler",
-        samples=8,
+        samples=samples,
         seed=5,
         floor=1.0,
         max_transitions=max_transitions,
@@ -276,14 +279,23 @@ def test_without_the_hazard_cap_the_two_tanks_accumulate_switches_past_the_zeno_
     assert any(e.status == "max_transitions" for e in uncapped.executions)
     assert min(e.dwell_times.min() for e in uncapped.executions) < shortest_dwell
     capped = sample_ensemble(
-        two_tanks(), "q1", x0, t_final, 0.01, "euler", samples=8, seed=5, floor=1.0, max_transitions=max_transitions
+        two_tanks(),
+        "q1",
+        x0,
+        t_final,
+        0.01,
+        "euler",
+        samples=samples,
+        seed=5,
+        floor=1.0,
+        max_transitions=max_transitions,
     )
     assert all(e.status == "finished" for e in capped.executions)
     # The cap binds only in the tail of a passage (1 - pi below ~1%): a transversal crossing far
     # from the Zeno point switches at the same instant with and without it, for the same draw.
     # (One execution per seed: an ensemble shares its generator, whose later draws then depend
     # on how many switches the earlier executions took.)
-    for seed in range(8):
+    for seed in range(samples):
         a = sample_execution(two_tanks(), "q1", x0, 3.0, 0.01, "euler", rng=seed, floor=1.0)
         b = sample_execution(two_tanks(), "q1", x0, 3.0, 0.01, "euler", rng=seed, floor=1.0, hazard_cap=math.inf)
         assert a.times[0] == b.times[0]
