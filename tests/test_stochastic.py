@@ -258,38 +258,20 @@ def test_without_the_hazard_cap_the_two_tanks_accumulate_switches_past_the_zeno_
 ):
     # The finding behind the cap: the hazard rate pi' / (1 - pi) is unbounded as pi -> 1, and a
     # visit entered with its ball nearly all past its guard switches almost at once. At h = 0.01
-    # (same seed and samples as the test above) some executions then switch ever faster before
-    # t = 9 s, which Theorem 2 excludes for bounded intensities.
+    # (same seed as the test above) some executions then switch ever faster before t = 9 s,
+    # which Theorem 2 excludes for bounded intensities.
     ref = TwoTankReference(0.75, 0.5, 0.5)
     x0 = np.array([1.0, 1.0])
     t_final = ref.zeno_time(x0) + 1.0
-    uncapped = sample_ensemble(
-        two_tanks(),
-        "q1",
-        x0,
-        t_final,
-        0.01,
-        "euler",
-        samples=samples,
-        seed=5,
-        floor=1.0,
-        max_transitions=max_transitions,
-        hazard_cap=math.inf,
-    )
+
+    def ensemble(**cap):
+        return sample_ensemble(two_tanks(), "q1", x0, t_final, 0.01, "euler", samples=samples, seed=5, floor=1.0,
+                               max_transitions=max_transitions, **cap)  # fmt: skip
+
+    uncapped = ensemble(hazard_cap=math.inf)
     assert any(e.status == "max_transitions" for e in uncapped.executions)
     assert min(e.dwell_times.min() for e in uncapped.executions) < shortest_dwell
-    capped = sample_ensemble(
-        two_tanks(),
-        "q1",
-        x0,
-        t_final,
-        0.01,
-        "euler",
-        samples=samples,
-        seed=5,
-        floor=1.0,
-        max_transitions=max_transitions,
-    )
+    capped = ensemble()
     assert all(e.status == "finished" for e in capped.executions)
     # The cap binds only in the tail of a passage (1 - pi below ~1%): a transversal crossing far
     # from the Zeno point switches at the same instant with and without it, for the same draw.
