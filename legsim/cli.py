@@ -21,14 +21,14 @@ import os
 import pkgutil
 import signal
 import sys
-import threading
 import traceback
-from collections.abc import Iterator, Sequence
-from contextlib import contextmanager, suppress
+from collections.abc import Sequence
+from contextlib import suppress
 from types import ModuleType
 from typing import NoReturn
 
 from .errors import LegsimError, Terminated
+from .interrupts import stop_on_signals
 
 EXIT_OK = 0
 EXIT_INTERNAL = 1
@@ -109,7 +109,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line with ``argv`` (default ``sys.argv[1:]``); returns the exit code."""
     argv = list(sys.argv[1:] if argv is None else argv)
     debug = "--debug" in argv
-    with sigterm_as_interrupt():
+    with stop_on_signals():
         try:
             return _dispatch(argv)
         except LegsimError as exc:
@@ -151,26 +151,6 @@ def _say_compiles() -> None:
     from .output.untrusted import printable
 
     kernel.on_compile = lambda message: print(printable(message), file=sys.stderr, flush=True)
-
-
-@contextmanager
-def sigterm_as_interrupt() -> Iterator[None]:
-    """Within the block, SIGTERM raises ``Terminated`` (a KeyboardInterrupt) in the main thread,
-    so that every ``finally`` and ``except BaseException`` runs: ``write_atomic`` removes its
-    temporary file. The previous handler is restored afterwards (``main`` may be called from a
-    program or a test). Outside the main thread signals cannot be handled, and nothing changes."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-
-    def terminate(signum: int, frame: object) -> None:
-        raise Terminated(f"signal {signum}")
-
-    previous = signal.signal(signal.SIGTERM, terminate)
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGTERM, signal.SIG_DFL if previous is None else previous)
 
 
 def _report(line: str, debug: bool, code: int) -> int:

@@ -50,6 +50,7 @@ from typing import TYPE_CHECKING, Any
 from urllib.parse import urlsplit
 
 from ..errors import LegsimError
+from ..interrupts import raise_if_stopped
 
 if TYPE_CHECKING:
     from dask.typing import Key
@@ -201,6 +202,7 @@ class Engine:
         batches = _batches(list(items), sizer)
         if self.in_process:
             for batch in batches:
+                raise_if_stopped()
                 try:
                     seconds, results = timed(fn, common, batch)
                 except Exception as exc:
@@ -232,6 +234,9 @@ class Engine:
             submit()
         try:
             while in_flight:
+                # Dask's futures release themselves in finalizers, where Python swallows the
+                # exception of a signal that lands there.
+                raise_if_stopped()
                 try:
                     # Waiting on the futures is local: a scheduler that stops answering (a host
                     # gone, a stopped process) leaves them pending forever without an error.

@@ -220,11 +220,12 @@ def test_an_interrupted_dask_sweep_ends_within_2_s_without_worker_tracebacks(tmp
     deadline = time.monotonic() + 120
     while not list((out / "results.parts").glob("part-*.parquet")) and time.monotonic() < deadline:
         time.sleep(0.05)
+    assert proc.poll() is None, "the sweep ended before the test saw its first batch"
     sent = time.monotonic()
     os.killpg(proc.pid, sig)
     _, err = proc.communicate(timeout=60)
     elapsed = time.monotonic() - sent
-    assert proc.returncode == (130 if sig == signal.SIGINT else 143)
+    assert proc.returncode == (130 if sig == signal.SIGINT else 143), (proc.returncode, elapsed, err[-2000:])
     assert err == ("legsim: interrupted\n" if sig == signal.SIGINT else "legsim: terminated\n")
     assert elapsed < 2.0, f"the sweep ended {elapsed:.2f} s after the signal"
     table = pq.read_table(out / "results.parquet")
