@@ -4,9 +4,9 @@ A signal's handler raises its exception in whatever the main thread runs at that
 that is a finalizer (a ``__del__`` method or a weakref callback; Dask's futures release
 themselves in one), Python prints "Exception ignored in ..." and carries on: a sweep would run to
 its end and exit 0, as if no signal had come. So the handlers installed here also record the
-signal, and loops that run for long (the sweep engine's) call ``raise_if_stopped`` between their
-pieces of work, which raises the same exception again; the swallowed one is not printed (the
-command's own one-line message follows).
+signal, and loops that run for long call ``raise_if_stopped`` between their pieces of work (the
+sweep engine before each batch, a run at each progress report), which raises the same exception
+again; the swallowed one is not printed (the command's own one-line message follows).
 """
 
 from __future__ import annotations

@@ -64,3 +64,21 @@ def test_the_sweep_engine_stops_before_the_next_batch_after_a_swallowed_sigterm(
     with stop_on_signals(), Engine(in_process=True, batch_size=1) as engine, pytest.raises(Terminated):
         engine.run(lambda common, batch: batch, None, range(5), on_done)
     assert batches == [[0]]
+
+
+def test_a_long_run_ends_at_its_next_progress_report_after_a_swallowed_sigterm(monkeypatch):
+    from helpers.compiled_models import two_balls
+    from legsim import simulate
+    from legsim.relaxed import driver
+
+    monkeypatch.setattr(driver, "PROGRESS_INTERVAL", 0.0)  # every hand-back reports
+    reports: list[float] = []
+
+    def progress(t: float, t0: float, t_final: float) -> None:
+        reports.append(t)
+        if len(reports) == 1:
+            SignalledInFinalizer(signal.SIGTERM)
+
+    with stop_on_signals(), pytest.raises(Terminated):
+        simulate(two_balls(), [1.0, 1.0, 0.0, 0.0], "falling", 3.0, 1e-5, 1e-6, progress=progress)
+    assert len(reports) == 1 and reports[0] < 3.0

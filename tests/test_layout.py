@@ -81,6 +81,7 @@ def test_the_core_imports_neither_robots_nor_pictures_nor_their_libraries():
 LAYERS = {
     "core": (
         "errors",
+        "interrupts",
         "model",
         "hybrid",
         "execution",

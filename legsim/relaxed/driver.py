@@ -19,6 +19,7 @@ import numpy as np
 from ..errors import ContractError, LegsimError, ModelError, SimulationError
 from ..execution import Execution
 from ..hybrid import HybridSystem
+from ..interrupts import raise_if_stopped
 from ..methods import Tableau
 from . import loop
 from .assemble import Assembly
@@ -277,6 +278,9 @@ class Runner:
         progress = self.options.progress
         if progress is None:
             return
+        # The loop hands back here a few times a second on a long run: a stop signal swallowed
+        # by a finalizer meanwhile ends the run now rather than at its end.
+        raise_if_stopped()
         now = time.perf_counter()
         self.pace(now)
         if now - self.last_report <= PROGRESS_INTERVAL:
