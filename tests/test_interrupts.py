@@ -1,5 +1,6 @@
 """A stop signal is not lost when it lands in a finalizer, where Python swallows its exception
-(legsim.interrupts); the sweep engine raises it again before its next batch."""
+(legsim.interrupts): the sweep engine raises it again before its next batch, and a run at its
+next progress report."""
 
 from __future__ import annotations
 
@@ -9,8 +10,11 @@ import sys
 
 import pytest
 
+from helpers.compiled_models import two_balls
+from legsim import simulate
 from legsim.errors import Terminated
 from legsim.interrupts import raise_if_stopped, stop_on_signals
+from legsim.relaxed import driver
 from legsim.sweep.engine import Engine
 
 
@@ -67,10 +71,6 @@ def test_the_sweep_engine_stops_before_the_next_batch_after_a_swallowed_sigterm(
 
 
 def test_a_long_run_ends_at_its_next_progress_report_after_a_swallowed_sigterm(monkeypatch):
-    from helpers.compiled_models import two_balls
-    from legsim import simulate
-    from legsim.relaxed import driver
-
     monkeypatch.setattr(driver, "PROGRESS_INTERVAL", 0.0)  # every hand-back reports
     reports: list[float] = []
 
