@@ -55,6 +55,9 @@ SEAL_ATTEMPTS = 4
 NONCE_TRIES = 64
 #: Bytes read at a time while hashing or searching a file.
 _BLOCK = 1 << 16
+#: The longest text ``_SEAL`` matches: a search's blocks overlap by one byte less, so a seal
+#: across two blocks lies whole in one of them.
+_SEAL_LENGTH = len("qz") + 8 + len("z") + 16 + len("z") + 64 + len("zq")
 
 
 def list_digest(entities: dict[str, dict[str, str]]) -> str:
@@ -166,7 +169,7 @@ def seal(rec: Any, path: Path, entity: str) -> bool:
         text = seal_text(size, _file_hash(path, size), lambda: secrets.token_hex(4))
         rec.log(entity, rr.TextDocument(text, media_type="text/plain"), static=True)
         rec.flush()
-        if _last_seal(path, os.path.getsize(path)) is not None:
+        if _last_seal(path, os.path.getsize(path), start=size) is not None:
             return True
     return False
 
@@ -230,19 +233,21 @@ def check_file(path: Path) -> int | None:
     return sealed
 
 
-def _last_seal(path: Path, size: int) -> tuple[int, int, str] | None:
-    """(position, bytes covered, SHA-256) of the last seal in the file, or None."""
-    window = _BLOCK
+def _last_seal(path: Path, size: int, start: int = 0) -> tuple[int, int, str] | None:
+    """(position, bytes covered, SHA-256) of the last seal in the file's bytes ``start`` to
+    ``size``, or None. Reads one block at a time from the end, so that a search through a long
+    recording that holds no seal near its end needs no more memory than a short one's."""
+    end = size
     with open(path, "rb") as fh:
-        while True:
-            start = max(0, size - window)
-            fh.seek(start)
-            tail = fh.read(size - start)
-            matches = list(_SEAL.finditer(tail))
+        while end > start:
+            begin = max(start, end - _BLOCK)
+            fh.seek(begin)
+            matches = list(_SEAL.finditer(fh.read(end - begin)))
             if matches:
                 last = matches[-1]
                 nonce, digest = last.group(1).decode("ascii"), last.group(3).decode("ascii")
-                return start + last.start(), int(last.group(2), 16), _masked(digest, nonce)
-            if start == 0:
-                return None
-            window *= 8
+                return begin + last.start(), int(last.group(2), 16), _masked(digest, nonce)
+            if begin == start:
+                break
+            end = begin + _SEAL_LENGTH - 1
+    return None

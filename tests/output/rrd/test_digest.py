@@ -233,3 +233,55 @@ def test_a_seal_whose_size_repeats_a_run_is_made_in_bounded_time():
     rng = random.Random(5)
     clean = rrd_digest.seal_text(0x2B7C0, sha, lambda: f"{rng.getrandbits(32):08x}")
     assert not repeats(clean)
+
+
+def _seal_at(rng: random.Random, size: int, position: int, covered: int) -> tuple[bytes, str]:
+    """``size`` random hex digits (no 'q' or 'z', so no seal of their own) with, written at
+    ``position``, the seal of the first ``covered`` (<= ``position``) of them; and its SHA-256."""
+    import hashlib
+
+    from legsim.output.rrd import digest as rrd_digest
+
+    data = bytearray(rng.choice(b"0123456789abcdef") for _ in range(size))
+    sha = hashlib.sha256(data[:covered]).hexdigest()
+    text = rrd_digest.seal_text(covered, sha, lambda: f"{rng.getrandbits(32):08x}").encode("ascii")
+    data[position : position + len(text)] = text
+    return bytes(data), sha
+
+
+def test_a_seal_across_two_read_blocks_is_found_where_it_lies(tmp_path, monkeypatch):
+    """The search reads blocks from the file's end; a seal cut by a block's start is found
+    whole in the block before it, at every cut, and a seal before ``start`` is not the writer's."""
+    from legsim.output.rrd import digest as rrd_digest
+
+    monkeypatch.setattr(rrd_digest, "_BLOCK", 256)
+    rng = random.Random(11)
+    path = tmp_path / "sealed.bin"
+    for position in range(600, 780, 7):
+        data, sha = _seal_at(rng, 1024, position, covered=position)
+        path.write_bytes(data)
+        assert rrd_digest._last_seal(path, len(data)) == (position, position, sha)
+        assert rrd_digest._last_seal(path, len(data), start=position + 1) is None
+    assert check_file(path) == position
+
+
+def test_finding_the_seal_reads_one_block_at_a_time(tmp_path):
+    """A recording's seal is near its end, but a writer whose seal LZ4 shortened searches the
+    whole file for it: holding the file's bytes at once made a 3.5 MB recording's writer peak at
+    4 MB, where a short one's peaks at 0.2 MB (``test_stream.py``). The peak is now one block's,
+    about 64 kB, whatever the file's length."""
+    import tracemalloc
+
+    from legsim.output.rrd import digest as rrd_digest
+
+    data, sha = _seal_at(random.Random(3), 1 << 20, 0, covered=0)
+    path = tmp_path / "long.bin"
+    path.write_bytes(data * 4)
+    tracemalloc.start()
+    try:
+        found = rrd_digest._last_seal(path, 4 * len(data), start=len(data))
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert found == (3 * len(data), 0, sha)
+    assert peak < 3 * rrd_digest._BLOCK, peak
