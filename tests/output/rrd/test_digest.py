@@ -4,8 +4,12 @@ samples, exit 0."""
 
 from __future__ import annotations
 
+import hashlib
+import itertools
 import json
 import random
+import re
+import tracemalloc
 from pathlib import Path
 
 import numpy as np
@@ -13,6 +17,7 @@ import pytest
 
 from helpers.reliability import run_cli
 from legsim.errors import LegsimError
+from legsim.output.rrd import digest as rrd_digest
 from legsim.output.rrd import read_rrd, write_rrd
 from legsim.output.rrd import write as rrd_write
 from legsim.output.rrd.digest import Digest, check_file, feed_values
@@ -208,12 +213,6 @@ def test_a_seal_whose_size_repeats_a_run_is_made_in_bounded_time():
     the text is made from at most NONCE_TRIES nonces (a search until none repeats would never
     end): it still decodes to its size and SHA-256, and a size without a repeated run gets a
     text without one."""
-    import hashlib
-    import itertools
-    import re
-
-    from legsim.output.rrd import digest as rrd_digest
-
     sha = hashlib.sha256(b"recording").hexdigest()
     counter = itertools.count()
     nonces = []
@@ -238,10 +237,6 @@ def test_a_seal_whose_size_repeats_a_run_is_made_in_bounded_time():
 def _seal_at(rng: random.Random, size: int, position: int, covered: int) -> tuple[bytes, str]:
     """``size`` random hex digits (no 'q' or 'z', so no seal of their own) with, written at
     ``position``, the seal of the first ``covered`` (<= ``position``) of them; and its SHA-256."""
-    import hashlib
-
-    from legsim.output.rrd import digest as rrd_digest
-
     data = bytearray(rng.choice(b"0123456789abcdef") for _ in range(size))
     sha = hashlib.sha256(data[:covered]).hexdigest()
     text = rrd_digest.seal_text(covered, sha, lambda: f"{rng.getrandbits(32):08x}").encode("ascii")
@@ -252,8 +247,6 @@ def _seal_at(rng: random.Random, size: int, position: int, covered: int) -> tupl
 def test_a_seal_across_two_read_blocks_is_found_where_it_lies(tmp_path, monkeypatch):
     """The search reads blocks from the file's end; a seal cut by a block's start is found
     whole in the block before it, at every cut, and a seal before ``start`` is not the writer's."""
-    from legsim.output.rrd import digest as rrd_digest
-
     monkeypatch.setattr(rrd_digest, "_BLOCK", 256)
     rng = random.Random(11)
     path = tmp_path / "sealed.bin"
@@ -270,10 +263,6 @@ def test_finding_the_seal_reads_one_block_at_a_time(tmp_path):
     whole file for it: holding the file's bytes at once made a 3.5 MB recording's writer peak at
     4 MB, where a short one's peaks at 0.2 MB (``test_stream.py``). The peak is now one block's,
     about 64 kB, whatever the file's length."""
-    import tracemalloc
-
-    from legsim.output.rrd import digest as rrd_digest
-
     data, sha = _seal_at(random.Random(3), 1 << 20, 0, covered=0)
     path = tmp_path / "long.bin"
     path.write_bytes(data * 4)
