@@ -91,7 +91,7 @@ def _shape_contacts(shape: Any, placement: pin.SE3, where: str) -> list[tuple[np
         return [(p, 0.0) for p in _corners(corners)]
     tilted = " tilted out of the (x, z) plane" if kind in ("Box", "Cylinder") else ""
     raise ModelError(
-        f"{where} is a {kind}{tilted}; "
+        f"{where} is a {_shape_word(kind)}{tilted}; "
         f"contacts come from spheres, boxes turned about y, and cylinders whose axis is along y "
         f"or in the (x, z) plane: set robot.parameters.collision_contacts.links.<link> = 'off' and list "
         f"the link's contacts in robot.parameters.contacts"
@@ -203,3 +203,9 @@ def _number(value: Any, where: str, key: str) -> Any:
     if (key == "restitution" and not 0.0 <= value <= 1.0) or (key == "friction" and value < 0.0):
         raise SceneError(f"{where}: {value!r} is out of range, allowed: {allowed}")
     return value
+
+
+def _shape_word(kind: str) -> str:
+    """What to call a shape of hpp-fcl class ``kind``: a URDF's mesh is read as a BVH model or a
+    convex hull, whose class names would not tell a user it is the mesh."""
+    return f"mesh ({kind})" if kind.startswith(("BVHModel", "Convex")) else kind

@@ -194,7 +194,10 @@ def _csv_rows(f: _Fields) -> list[Any]:
     file = profile_file(f.path, value)
     if file is None:
         raise f.error("file", f"{value!r} lies outside the scene's folder {f.path.parent} (links resolved)")
-    raw = read_input_file(file, MAX_CSV_BYTES, "terrain profile CSV file")
+    try:
+        raw = read_input_file(file, MAX_CSV_BYTES, "terrain profile CSV file")
+    except SceneError as exc:
+        raise f.error("file", str(exc)) from None
     try:
         text = raw.decode("utf-8")
     except UnicodeDecodeError:
@@ -209,6 +212,8 @@ def _csv_rows(f: _Fields) -> list[Any]:
             if not rows and line == 1:  # a header line
                 continue
             raise f.error("file", f"{file}: line {line}: expected two numbers x,z, got {record!r:.80}") from None
+        if len(rows[-1]) != 2:
+            raise f.error("file", f"{file}: line {line}: expected two numbers x,z, got {len(record)}: {record!r:.80}")
         if len(rows) > MAX_POINTS:
             raise f.error("file", f"{file}: more than {MAX_POINTS} points")
     return rows

@@ -315,7 +315,7 @@ def test_a_link_turned_off_keeps_the_others_and_its_overrides_apply(tmp_path):
 @pytest.mark.parametrize(
     ("geometry", "rpy", "match"),
     [
-        ('<mesh filename="part.stl"/>', "0 0 0", r"is a \w+; contacts come from spheres"),
+        ('<mesh filename="part.stl"/>', "0 0 0", r"is a mesh \(\w+\); contacts come from spheres"),
         ('<box size="0.2 0.2 0.2"/>', "0.3 0 0", r"is a Box tilted out of the \(x, z\) plane"),
         ('<cylinder radius="0.1" length="0.2"/>', "0.3 0 0", r"is a Cylinder tilted out of the \(x, z\) plane"),
     ],

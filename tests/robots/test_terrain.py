@@ -154,6 +154,14 @@ def test_a_profile_file_is_read_relative_to_the_scene_and_its_bad_line_named(tmp
     (tmp_path / "bad.csv").write_text("0,0\n1,0.2\n2,oops\n")
     with pytest.raises(SceneError, match=r"terrain.file: .*bad.csv: line 3: expected two numbers"):
         parse_terrain(tmp_path / "s.toml", {"kind": "profile", "file": "bad.csv"})
+    (tmp_path / "wide.csv").write_text("0,0\n1,0.05,7\n")
+    with pytest.raises(SceneError, match=r"s.toml: terrain.file: .*wide.csv: line 2: expected two numbers x,z, got 3"):
+        parse_terrain(tmp_path / "s.toml", {"kind": "profile", "file": "wide.csv"})
+
+
+def test_a_missing_profile_file_is_named_with_the_scene_and_its_field(tmp_path):
+    with pytest.raises(SceneError, match=r"s.toml: terrain.file: .*missing.csv: no such terrain profile CSV file"):
+        parse_terrain(tmp_path / "s.toml", {"kind": "profile", "file": "missing.csv"})
 
 
 def test_a_robot_with_its_own_ground_refuses_a_terrain(tmp_path):
