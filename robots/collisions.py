@@ -54,6 +54,8 @@ class ShapePoint:
     joint: int
     position: np.ndarray
     radius: float
+    #: The shape's place among the URDF's collision shapes.
+    shape: int = 0
 
 
 def collision_points(model: pin.Model, file: str | Path) -> list[ShapePoint]:
@@ -63,10 +65,31 @@ def collision_points(model: pin.Model, file: str | Path) -> list[ShapePoint]:
     file = Path(file)
     geometry = read_geometry(model, file, "collision")
     out = []
-    for obj in geometry.geometryObjects:
+    for k, obj in enumerate(geometry.geometryObjects):
         link = model.frames[obj.parentFrame].name
         for position, radius in _shape_contacts(obj.geometry, obj.placement, f"{file}: collision '{obj.name}'"):
-            out.append(ShapePoint(link, int(obj.parentJoint), position, radius))
+            out.append(ShapePoint(link, int(obj.parentJoint), position, radius, k))
+    return out
+
+
+def collision_outlines(model: pin.Model, file: str | Path, settings: Any) -> dict[str, tuple[int, np.ndarray]]:
+    """The outlines whose corners are contacts (boxes, cylinders in the plane), by link (``<link>``,
+    or ``<link>#<k>`` for its k-th such shape): each its joint and its corners in the joint's frame
+    (k, 3); links turned off in ``settings`` (the ``collision_contacts`` table) left out."""
+    _, links = _settings(settings)
+    shapes: dict[tuple[str, int], list[ShapePoint]] = {}
+    for p in collision_points(model, file):
+        if p.radius == 0.0 and links.get(p.link) != "off":
+            shapes.setdefault((p.link, p.shape), []).append(p)
+    out: dict[str, tuple[int, np.ndarray]] = {}
+    seen: dict[str, int] = {}
+    for (link, _), points in shapes.items():
+        if len(points) >= 3:
+            seen[link] = seen.get(link, -1) + 1
+            out[link if seen[link] == 0 else f"{link}#{seen[link]}"] = (
+                points[0].joint,
+                np.array([p.position for p in points]),
+            )
     return out
 
 

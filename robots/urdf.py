@@ -30,16 +30,16 @@ from typing import Any
 
 import numpy as np
 import pinocchio as pin
-from scipy.spatial import ConvexHull
+from scipy.spatial import ConvexHull, QhullError
 
 from legsim.builders import Builder, Model, Param
 from legsim.errors import ModelError, SceneError
-from legsim.terrain import Terrain
+from legsim.terrain import PROFILE, SINE, Terrain
 
 from .bridge import ContactBridge, JointStop, PointContact
-from .collisions import collision_contacts
+from .collisions import collision_contacts, collision_outlines
 from .urdf_checks import check_urdf, parser_messages, read_geometry
-from .watches import LinkHeights, below_ground_watch, saturation_watches
+from .watches import LinkHeights, TerrainPiercing, below_ground_watch, saturation_watches, terrain_inside_watch
 
 PLANAR_ROOT = ("x", "z", "pitch")
 #: Points sampled on a round visual shape's outline.
@@ -252,7 +252,8 @@ PARAMETERS = {
     ),
     "below_ground": Param(
         "warn",
-        "a link without a contact below the ground: 'warn' (a warning naming link, time and depth), "
+        "a link without a contact below the ground, or the terrain's corner inside a body between its contacts: "
+        "'warn' (a warning naming link, time and depth), "
         "'strict' (the run stops with status model_breakdown: past the model) or 'fall' (the run stops "
         "with status fell: the robot crashed, as a [fall] condition)",
         choices=("warn", "strict", "fall"),
@@ -364,6 +365,38 @@ def link_heights(bridge: ContactBridge, outlines: Outlines, terrain: Terrain | N
     return LinkHeights(model, links, bridge.n, terrain)
 
 
+def terrain_piercing(
+    bridge: ContactBridge, outlines: Outlines, heights: LinkHeights, params: Mapping[str, Any], terrain: Terrain | None
+) -> TerrainPiercing | None:
+    """On a terrain with corners or bumps (a profile, steps, a sine), the bodies a terrain point
+    can pass into between their contacts: each collision outline whose corners are contacts,
+    and each visual part of a link without a contact (``heights``' links); None on flat ground or a slope, which
+    meets a convex body at a corner first."""
+    if terrain is None or terrain.array[0] not in (PROFILE, SINE):
+        return None
+    bodies = (
+        collision_outlines(bridge.model, params["file"], params["collision_contacts"]) if params["collisions"] else {}
+    )
+    for name, (joint, _) in heights.links.items():
+        parts = [poly for part_joint, poly in outlines.parts.values() if part_joint == joint]
+        for k, poly in enumerate(part for part in parts if len(part) >= 3):
+            corners = _hull_corners(poly)
+            if corners is not None:
+                bodies[name if k == 0 else f"{name}#{k}"] = (joint, corners)
+    return TerrainPiercing(bridge.model, bodies, bridge.n, terrain) if bodies else None
+
+
+def _hull_corners(polygon: np.ndarray) -> np.ndarray | None:
+    """The corners (k, 3) of the convex hull of an outline's points (m, 2) in the (x, z) plane;
+    None for points on a line (a body with no inside)."""
+    try:
+        hull = ConvexHull(polygon)
+    except QhullError:
+        return None
+    flat = polygon[hull.vertices]
+    return np.column_stack([flat[:, 0], np.zeros(len(flat)), flat[:, 1]])
+
+
 def _build(params: dict[str, Any], effects: dict[str, dict[str, Any]], terrain: Terrain | None = None) -> Model:
     bridge, outlines = make_bridge(params, terrain)
     n = bridge.n
@@ -379,11 +412,14 @@ def _build(params: dict[str, Any], effects: dict[str, dict[str, Any]], terrain: 
     if terrain is not None:  # heights are then measured above the terrain under each point
         ground = 0.0
     below = below_ground_watch(heights, ground, params["below_ground"]) if heights.links else None
+    piercing = terrain_piercing(bridge, outlines, heights, params, terrain)
+    inside = terrain_inside_watch(piercing, params["below_ground"]) if piercing is not None else None
     names, limits = bridge.actuated_names, bridge.effort_limits
 
     def watches(control: Any) -> list[Any]:
         dims = lambda mode: system.mode(mode).dim  # noqa: E731
-        return ([below] if below is not None else []) + saturation_watches(control, names, limits, dims)
+        ground_watches = [w for w in (below, inside) if w is not None]
+        return ground_watches + saturation_watches(control, names, limits, dims)
 
     info = bridge.model_info(
         parameters=dict(params),

@@ -6,6 +6,7 @@ compiled kernel and the Python loop alike.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
@@ -16,7 +17,7 @@ from legsim.compiled.rows import at_rows
 from legsim.control import ControlLaw
 from legsim.execution import Status
 from legsim.relaxed import Watch
-from legsim.terrain import Terrain
+from legsim.terrain import PROFILE, Terrain
 
 from .bridge.native import handle_for
 from .frame_points import frame_positions
@@ -147,3 +148,113 @@ def below_ground_watch(heights: LinkHeights, ground: float, action: str = "warn"
         return Watch("below_ground", value, "stop", lambda t, mode, x: f"fell: below_ground: {message(t, mode, x)}",
                      status=Status.FELL.value)  # fmt: skip
     return Watch("below_ground", value, "warn", message)
+
+
+#: How deep (m) a point of the terrain may lie inside a body before the body counts as passing
+#: through it: far above the drift of a body resting on its corners (micrometres over a stance),
+#: far below any visible overlap.
+PIERCING_DEPTH = 1e-4
+#: Samples per wavelength of a sine terrain's points tested against the bodies: the curve between
+#: two of them bulges by a k^2 (wavelength / 128)^2 / 8, 3e-4 of the amplitude, below PIERCING_DEPTH
+#: for any sine a robot walks on.
+SINE_SAMPLES = 128
+#: Stored points whose bodies are tested against the terrain's points at once.
+PIERCING_ROWS = 256
+
+
+class TerrainPiercing:
+    """How deep the terrain's points lie inside the robot's bodies whose contacts are the corners
+    of their collision outlines (boxes, cylinders in the plane): a terrain corner between two
+    contact corners touches no contact, so a body can rest on the ground with a step's edge inside
+    it. Each body is a convex polygon in the (x, z) plane (its corners in its joint's frame,
+    placed by the native forward kinematics); the terrain's points are a profile's breakpoints,
+    or a sine sampled ``SINE_SAMPLES`` times a wavelength, near the bodies."""
+
+    def __init__(
+        self, model: pin.Model, bodies: Mapping[str, tuple[int, np.ndarray]], n: int, terrain: Terrain
+    ) -> None:
+        self.n, self.terrain, self.names = n, terrain, list(bodies)
+        ordered = {name: (joint, _counterclockwise(corners)) for name, (joint, corners) in bodies.items()}
+        self.sizes = [len(corners) for _, corners in ordered.values()]
+        self._handle, self._frames = _point_frames(model, ordered)
+
+    def corners_at(self, states: np.ndarray) -> np.ndarray:
+        """Every body corner's world (x, z) (m) at each state, (rows, corners, 2)."""
+        states = np.ascontiguousarray(np.atleast_2d(states), dtype=float)
+        out = np.empty((states.shape[0], self._frames.shape[0], 2))
+        frame_positions(self._handle, states, self.n, self._frames, out)
+        return out
+
+    def terrain_points(self, x_low: float, x_high: float) -> np.ndarray:
+        """The terrain's points (k, 2) with x in [x_low, x_high] (m)."""
+        array = self.terrain.array
+        if array[0] == PROFILE:
+            count = int(array[1])
+            xs, zs = array[2 : 2 + count], array[2 + count : 2 + 2 * count]
+            inside = (xs >= x_low) & (xs <= x_high)
+            return np.column_stack([xs[inside], zs[inside]])
+        spacing = 2.0 * math.pi / (float(array[3]) * SINE_SAMPLES)
+        grid = np.arange(math.floor(x_low / spacing), math.ceil(x_high / spacing) + 1) * spacing
+        return np.column_stack([grid, self.terrain.height(grid)])
+
+    def depths_at(self, states: np.ndarray) -> np.ndarray:
+        """The deepest terrain point inside each body at each state (m; negative: outside, its
+        distance to the nearest edge's line), (rows, bodies)."""
+        states = np.atleast_2d(states)
+        out = np.full((states.shape[0], len(self.sizes)), -math.inf)
+        for start in range(0, states.shape[0], PIERCING_ROWS):
+            corners = self.corners_at(states[start : start + PIERCING_ROWS])
+            points = self.terrain_points(float(corners[..., 0].min()), float(corners[..., 0].max()))
+            if len(points):
+                out[start : start + PIERCING_ROWS] = self._depths(corners, points)
+        return out
+
+    def _depths(self, corners: np.ndarray, points: np.ndarray) -> np.ndarray:
+        """(rows, bodies): each body's deepest point of ``points`` (k, 2); corners (rows, all, 2)."""
+        out, first = [], 0
+        for size in self.sizes:
+            polygon = corners[:, first : first + size]  # (rows, m, 2), counterclockwise
+            first += size
+            edges = np.roll(polygon, -1, axis=1) - polygon
+            inward = np.stack([-edges[..., 1], edges[..., 0]], axis=-1)
+            inward /= np.linalg.norm(inward, axis=-1, keepdims=True)
+            # (rows, m, k): each point's distance inside each edge's line; the least is its depth
+            offsets = points[None, None, :, :] - polygon[:, :, None, :]
+            inside = np.einsum("rmkd,rmd->rmk", offsets, inward)
+            out.append(inside.min(axis=1).max(axis=1))
+        return np.stack(out, axis=1)
+
+
+def _counterclockwise(corners: np.ndarray) -> np.ndarray:
+    """A convex outline's corners (k, 3) in the joint's frame, ordered counterclockwise in the
+    (x, z) plane (a rotation about y keeps the order)."""
+    flat = corners[:, [0, 2]]
+    centre = flat.mean(axis=0)
+    angles = np.arctan2(flat[:, 1] - centre[1], flat[:, 0] - centre[0])
+    return corners[np.argsort(angles)]
+
+
+def terrain_inside_watch(piercing: TerrainPiercing, action: str = "warn") -> Watch:
+    """The terrain inside a body by more than ``PIERCING_DEPTH`` (a step's edge between its
+    contact corners): with ``action`` as ``below_ground_watch``'s."""
+
+    def value(mode: str, t: np.ndarray, x: np.ndarray) -> np.ndarray:
+        return PIERCING_DEPTH - piercing.depths_at(x).max(axis=1)
+
+    def message(t: float, mode: str, x: np.ndarray) -> str:
+        depths = piercing.depths_at(x)[0]
+        inside = sorted((-d, name) for name, d in zip(piercing.names, depths, strict=True) if d > PIERCING_DEPTH)
+        named = ", ".join(f"'{name}' {-d:.3g} m" for d, name in inside) or "none"
+        return (
+            f"the terrain passes into body(ies) at t={t:.17g} in mode '{mode}': {named} deep (a body touches the "
+            f"ground only at its contacts, the corners of its collision outline; a terrain corner between "
+            f"them goes through it: add contacts on the body, or give a terrain without that corner)"
+        )
+
+    name = "terrain_inside"
+    if action == "strict":
+        return Watch(name, value, "stop", message, status=Status.MODEL_BREAKDOWN.value)
+    if action == "fall":
+        return Watch(name, value, "stop", lambda t, mode, x: f"fell: {name}: {message(t, mode, x)}",
+                     status=Status.FELL.value)  # fmt: skip
+    return Watch(name, value, "warn", message)

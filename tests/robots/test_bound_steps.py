@@ -72,11 +72,12 @@ def test_a_foot_entering_a_stuck_mode_is_at_rest():
 def test_a_step_taller_than_the_leg_is_never_a_finished_run():
     """A 0.5 m step (the leg is 0.42 m long): the body, which has no contact, runs into the
     riser. The scene's ``below_ground = "fall"`` makes that a crash: the run ends there with
-    status fell, naming the link and the time (measured 2.5975 s), instead of running on with
-    the body through the step."""
+    status fell, naming the link and the time, instead of running on with the body through the
+    step. The step's edge enters the body's front face (measured 2.5876 s) before any point of
+    its outline is below the tread (2.5975 s)."""
     ex = load_scene(SCENE, ["terrain.rise=0.5"]).simulate()
     assert ex.status == "fell"
-    assert ex.message.startswith("fell: below_ground:") and "'body'" in ex.message
+    assert ex.message.startswith("fell: terrain_inside:") and "'body'" in ex.message
     assert 2.5 < ex.t_end < 2.7
 
 
