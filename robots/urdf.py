@@ -30,7 +30,7 @@ from typing import Any
 
 import numpy as np
 import pinocchio as pin
-from scipy.spatial import ConvexHull, QhullError
+from scipy.spatial import ConvexHull
 
 from legsim.builders import Builder, Model, Param
 from legsim.errors import ModelError, SceneError
@@ -378,23 +378,15 @@ def terrain_piercing(
         collision_outlines(bridge.model, params["file"], params["collision_contacts"]) if params["collisions"] else {}
     )
     for name, (joint, _) in heights.links.items():
-        parts = [poly for part_joint, poly in outlines.parts.values() if part_joint == joint]
-        for k, poly in enumerate(part for part in parts if len(part) >= 3):
-            corners = _hull_corners(poly)
-            if corners is not None:
-                bodies[name if k == 0 else f"{name}#{k}"] = (joint, corners)
+        # A part's outline is its convex hull closed by its first vertex: three corners or more
+        # have an inside; a flat part's outline is a segment.
+        hulls = [poly[:-1] for part_joint, poly in outlines.parts.values() if part_joint == joint and len(poly) >= 4]
+        for k, hull in enumerate(hulls):
+            bodies[name if k == 0 else f"{name}#{k}"] = (
+                joint,
+                np.column_stack([hull[:, 0], np.zeros(len(hull)), hull[:, 1]]),
+            )
     return TerrainPiercing(bridge.model, bodies, bridge.n, terrain) if bodies else None
-
-
-def _hull_corners(polygon: np.ndarray) -> np.ndarray | None:
-    """The corners (k, 3) of the convex hull of an outline's points (m, 2) in the (x, z) plane;
-    None for points on a line (a body with no inside)."""
-    try:
-        hull = ConvexHull(polygon)
-    except QhullError:
-        return None
-    flat = polygon[hull.vertices]
-    return np.column_stack([flat[:, 0], np.zeros(len(flat)), flat[:, 1]])
 
 
 def _build(params: dict[str, Any], effects: dict[str, dict[str, Any]], terrain: Terrain | None = None) -> Model:

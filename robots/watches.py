@@ -17,7 +17,7 @@ from legsim.compiled.rows import at_rows
 from legsim.control import ControlLaw
 from legsim.execution import Status
 from legsim.relaxed import Watch
-from legsim.terrain import PROFILE, Terrain
+from legsim.terrain import SINE, Terrain
 
 from .bridge.native import handle_for
 from .frame_points import frame_positions
@@ -142,12 +142,19 @@ def below_ground_watch(heights: LinkHeights, ground: float, action: str = "warn"
             f"(declare a contact on the link, or it passes through the ground)"
         )
 
+    return ground_watch("below_ground", value, message, action)
+
+
+def ground_watch(name: str, value: Callable[..., np.ndarray], message: Callable[..., str], action: str) -> Watch:
+    """The watch of a body through the ground, by the scene's ``below_ground`` ``action``: "warn"
+    a warning; "strict" a stop with status ``model_breakdown`` (the model has no contact there);
+    "fall" a stop with status ``fell`` (the robot crashed, a scene's fall condition)."""
     if action == "strict":
-        return Watch("below_ground", value, "stop", message, status=Status.MODEL_BREAKDOWN.value)
+        return Watch(name, value, "stop", message, status=Status.MODEL_BREAKDOWN.value)
     if action == "fall":
-        return Watch("below_ground", value, "stop", lambda t, mode, x: f"fell: below_ground: {message(t, mode, x)}",
+        return Watch(name, value, "stop", lambda t, mode, x: f"fell: {name}: {message(t, mode, x)}",
                      status=Status.FELL.value)  # fmt: skip
-    return Watch("below_ground", value, "warn", message)
+    return Watch(name, value, "warn", message)
 
 
 #: How deep (m) a point of the terrain may lie inside a body before the body counts as passing
@@ -174,6 +181,7 @@ class TerrainPiercing:
         self, model: pin.Model, bodies: Mapping[str, tuple[int, np.ndarray]], n: int, terrain: Terrain
     ) -> None:
         self.n, self.terrain, self.names = n, terrain, list(bodies)
+        self.sine = terrain.array[0] == SINE
         ordered = {name: (joint, _counterclockwise(corners)) for name, (joint, corners) in bodies.items()}
         self.sizes = [len(corners) for _, corners in ordered.values()]
         self._handle, self._frames = _point_frames(model, ordered)
@@ -186,27 +194,20 @@ class TerrainPiercing:
         return out
 
     def terrain_points(self, x_low: float, x_high: float) -> np.ndarray:
-        """The terrain's points (k, 2) with x in [x_low, x_high] (m)."""
-        array = self.terrain.array
-        if array[0] == PROFILE:
-            count = int(array[1])
-            xs, zs = array[2 : 2 + count], array[2 + count : 2 + 2 * count]
-            inside = (xs >= x_low) & (xs <= x_high)
-            return np.column_stack([xs[inside], zs[inside]])
-        spacing = 2.0 * math.pi / (float(array[3]) * SINE_SAMPLES)
-        grid = np.arange(math.floor(x_low / spacing), math.ceil(x_high / spacing) + 1) * spacing
-        return np.column_stack([grid, self.terrain.height(grid)])
+        """The terrain's points (k, 2) over [x_low, x_high] (m): its polyline (a profile's
+        breakpoints and the range's ends; a sine ``SINE_SAMPLES`` times a wavelength)."""
+        waves = (x_high - x_low) * float(self.terrain.array[3]) / (2.0 * math.pi) if self.sine else 0.0
+        return self.terrain.polyline(x_low, x_high, samples=math.ceil(SINE_SAMPLES * waves) + 2)
 
     def depths_at(self, states: np.ndarray) -> np.ndarray:
         """The deepest terrain point inside each body at each state (m; negative: outside, its
         distance to the nearest edge's line), (rows, bodies)."""
         states = np.atleast_2d(states)
-        out = np.full((states.shape[0], len(self.sizes)), -math.inf)
+        out = np.empty((states.shape[0], len(self.sizes)))
         for start in range(0, states.shape[0], PIERCING_ROWS):
             corners = self.corners_at(states[start : start + PIERCING_ROWS])
             points = self.terrain_points(float(corners[..., 0].min()), float(corners[..., 0].max()))
-            if len(points):
-                out[start : start + PIERCING_ROWS] = self._depths(corners, points)
+            out[start : start + PIERCING_ROWS] = self._depths(corners, points)
         return out
 
     def _depths(self, corners: np.ndarray, points: np.ndarray) -> np.ndarray:
@@ -242,19 +243,15 @@ def terrain_inside_watch(piercing: TerrainPiercing, action: str = "warn") -> Wat
         return PIERCING_DEPTH - piercing.depths_at(x).max(axis=1)
 
     def message(t: float, mode: str, x: np.ndarray) -> str:
-        depths = piercing.depths_at(x)[0]
-        inside = sorted((-d, name) for name, d in zip(piercing.names, depths, strict=True) if d > PIERCING_DEPTH)
-        named = ", ".join(f"'{name}' {-d:.3g} m" for d, name in inside) or "none"
+        # Where the watch first holds (located on the interpolant) the deepest is at PIERCING_DEPTH
+        # itself, to rounding: the deepest body is named then.
+        ranked = sorted((-d, name) for name, d in zip(piercing.names, piercing.depths_at(x)[0], strict=True))
+        inside = [(d, name) for d, name in ranked if -d > PIERCING_DEPTH] or ranked[:1]
+        named = ", ".join(f"'{name}' {-d:.3g} m" for d, name in inside)
         return (
             f"the terrain passes into body(ies) at t={t:.17g} in mode '{mode}': {named} deep (a body touches the "
-            f"ground only at its contacts, the corners of its collision outline; a terrain corner between "
-            f"them goes through it: add contacts on the body, or give a terrain without that corner)"
+            f"ground only at its contacts, and a terrain corner between them goes through it: add contacts on "
+            f"the body, or give a terrain without that corner)"
         )
 
-    name = "terrain_inside"
-    if action == "strict":
-        return Watch(name, value, "stop", message, status=Status.MODEL_BREAKDOWN.value)
-    if action == "fall":
-        return Watch(name, value, "stop", lambda t, mode, x: f"fell: {name}: {message(t, mode, x)}",
-                     status=Status.FELL.value)  # fmt: skip
-    return Watch(name, value, "warn", message)
+    return ground_watch("terrain_inside", value, message, action)
