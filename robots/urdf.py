@@ -252,7 +252,8 @@ PARAMETERS = {
     ),
     "below_ground": Param(
         "warn",
-        "a link without a contact below the ground, or the terrain's corner inside a body between its contacts: "
+        "a link without a contact below the ground, the terrain's corner inside a body between its contacts, "
+        "or an inactive contact carried through the ground by a step: "
         "'warn' (a warning naming link, time and depth), "
         "'strict' (the run stops with status model_breakdown: past the model) or 'fall' (the run stops "
         "with status fell: the robot crashed, as a [fall] condition)",
@@ -408,10 +409,11 @@ def _build(params: dict[str, Any], effects: dict[str, dict[str, Any]], terrain: 
     inside = terrain_inside_watch(piercing, params["below_ground"]) if piercing is not None else None
     names, limits = bridge.actuated_names, bridge.effort_limits
 
-    def watches(control: Any) -> list[Any]:
+    def watches(control: Any, eps: float) -> list[Any]:
         dims = lambda mode: system.mode(mode).dim  # noqa: E731
         ground_watches = [w for w in (below, inside) if w is not None]
-        return ground_watches + saturation_watches(control, names, limits, dims)
+        contacts = bridge.contact_watches(eps, params["below_ground"])
+        return ground_watches + contacts + saturation_watches(control, names, limits, dims)
 
     info = bridge.model_info(
         parameters=dict(params),

@@ -15,10 +15,10 @@ import pinocchio as pin
 
 from legsim.compiled.rows import at_rows
 from legsim.control import ControlLaw
-from legsim.execution import Status
 from legsim.relaxed import Watch
 from legsim.terrain import SINE, Terrain
 
+from .bridge.guards import ground_watch
 from .bridge.native import handle_for
 from .frame_points import frame_positions
 
@@ -143,18 +143,6 @@ def below_ground_watch(heights: LinkHeights, ground: float, action: str = "warn"
         )
 
     return ground_watch("below_ground", value, message, action)
-
-
-def ground_watch(name: str, value: Callable[..., np.ndarray], message: Callable[..., str], action: str) -> Watch:
-    """The watch of a body through the ground, by the scene's ``below_ground`` ``action``: "warn"
-    a warning; "strict" a stop with status ``model_breakdown`` (the model has no contact there);
-    "fall" a stop with status ``fell`` (the robot crashed, a scene's fall condition)."""
-    if action == "strict":
-        return Watch(name, value, "stop", message, status=Status.MODEL_BREAKDOWN.value)
-    if action == "fall":
-        return Watch(name, value, "stop", lambda t, mode, x: f"fell: {name}: {message(t, mode, x)}",
-                     status=Status.FELL.value)  # fmt: skip
-    return Watch(name, value, "warn", message)
 
 
 #: How deep (m) a point of the terrain may lie inside a body before the body counts as passing

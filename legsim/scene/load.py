@@ -90,9 +90,9 @@ OUTPUT_KEYS = ("rrd", "html", "plot")
 #: reason an initial state is impossible for the model although it is inside the relaxed domain
 #: (None when it is fine). ``load_scene`` calls it and reports the reason at ``initial.state``.
 INITIAL_CHECK = "initial_check"
-#: Key of ``Model.info`` under which a builder may put ``watches(control) -> [Watch, ...]``: the
-#: conditions its runs are checked for (``legsim.relaxed.Watch``; a link below the ground, the
-#: time an actuator spends at its effort limit), given what the run is controlled by.
+#: Key of ``Model.info`` under which a builder may put ``watches(control, eps) -> [Watch, ...]``:
+#: the conditions its runs are checked for (``legsim.relaxed.Watch``; a link below the ground, the
+#: time an actuator spends at its effort limit), given what the run is controlled by and its eps.
 WATCHES = "watches"
 
 # Integrator settings as Params, so their messages say what is allowed exactly as the
@@ -150,9 +150,9 @@ class Scene:
 
     def watches(self, control: Any) -> tuple[Any, ...]:
         """The conditions a run under ``control`` is checked for: the ``[fall]`` section's and
-        the model's own (``Model.info["watches"]``)."""
+        the model's own (``Model.info["watches"]``, at the scene's eps)."""
         own = self.model.info.get(WATCHES) if isinstance(self.model.info, Mapping) else None
-        return self.falls + (tuple(own(control)) if callable(own) else ())
+        return self.falls + (tuple(own(control, self.integrator["eps"])) if callable(own) else ())
 
     @property
     def control(self) -> Any:

@@ -19,6 +19,7 @@ import pinocchio as pin
 from legsim.errors import ModelError
 from legsim.hybrid import HybridSystem, Mode, Transition
 from legsim.model import ModeFunctions, as_input
+from legsim.relaxed import Watch
 from legsim.terrain import Terrain
 
 from . import guards, native
@@ -108,6 +109,7 @@ class ContactBridge:
         )
         self._data = self._model.pin_model.createData()  # kinematics for pictures and checks
         self._modes = ModeCatalog(self._model, mode_names)
+        self._past = guards.PastDepths(self._model, self._modes.active_contacts)
         self._built: dict[str, tuple[Mode, list[Transition]]] = {}
 
     # -- the robot ------------------------------------------------------------------------
@@ -302,12 +304,19 @@ class ContactBridge:
         """The scene's initial-state check (``Model.info["initial_check"]``): ``check(mode, x,
         eps)`` names the first inactive joint stop or point contact whose position lies past it
         by more than eps (rad or m), else None."""
-        return guards.initial_check(self._model, self._data, self._modes.active_contacts)
+        return guards.initial_check(self._past)
+
+    def contact_watches(self, eps: float, action: str = "warn") -> list[Watch]:
+        """What every run of the robot is checked for: an inactive contact past the ground or its
+        stop by more than eps + ``guards.THROUGH_DEPTH`` (``guards.passed_through_watch``; eps the
+        run's, in guard units), reported by ``action`` (``guards.ground_watch``)."""
+        return [guards.passed_through_watch(self._past, eps, action)] if self._past.rigid else []
 
     def model_info(self, **entries: Any) -> dict[str, Any]:
         """``Model.info`` of a robot built on this bridge: the entries the core and the tools read
         (``guard_units``, ``bridge``, ``initial_check``, ``bare_aba``, ``contact_names``,
-        ``active_contacts``), then the builder's own ``entries``."""
+        ``active_contacts``, ``watches``: ``contact_watches`` warning), then the builder's own
+        ``entries``."""
         return {
             "guard_units": self.guard_units(),
             "bridge": self,
@@ -316,6 +325,7 @@ class ContactBridge:
             # what a scene's [fall] contacts are checked against (legsim.scene.falls)
             "contact_names": tuple(c.name for c in self.contacts),
             "active_contacts": self.active_contacts,
+            "watches": lambda control, eps: self.contact_watches(eps),
             **entries,
         }
 

@@ -1,5 +1,7 @@
-"""What the scene tools read about a bridge robot's guards: the initial-state check and each
-guard's unit (the guards themselves are ``events``' model functions).
+"""What the scene tools read about a bridge robot's guards: how far its inactive contacts lie
+past the ground or their stops (``PastDepths``), which the initial-state check and the run's
+``passed_through`` watch read, and each guard's unit (the guards themselves are ``events``' model
+functions).
 """
 
 from __future__ import annotations
@@ -7,18 +9,95 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
-import pinocchio as pin
 
+from legsim.execution import Status
 from legsim.heights import SINE, nearest
 from legsim.heights import height as terrain_height
+from legsim.relaxed import Watch
 
-from .contacts import SLIP_SUFFIX, PointContact, RigidContact, SpringLeg, joint_id
+from ..frame_points import frame_positions
+from .contacts import SLIP_SUFFIX, Armed, PointContact, RigidContact, SpringLeg, joint_id
 from .model import BridgeModel
 
+#: How far (m, or rad for a revolute stop) past its ground or stop an inactive contact may lie
+#: beyond the strip eps before it counts as passed through: far above a stance's drift
+#: (micrometres), far below any visible overlap.
+THROUGH_DEPTH = 1e-4
 
-def initial_check(
-    model: BridgeModel, data: pin.Data, active_contacts: Callable[[str], tuple[str, ...]]
-) -> Callable[[str, np.ndarray, float], str | None]:
+
+class PastDepths:
+    """How far each inactive point contact lies below the ground (the terrain under it; a round
+    one's point nearest the ground) and each inactive joint stop past its stop (m or rad), at
+    many states: what a guard does not see while the point or joint moves away, since it is past
+    only while it closes (``events.gap``). A coarse step can carry a foot through the ground and
+    leave it rising; its guard is then inside the domain.
+
+    ``depths(mode, states)`` is (rows, contacts) in ``names``' order, -inf for a contact active
+    in the mode, and with ``armed_only`` for an armed point where it is not armed (it may pass
+    below the ground there by design)."""
+
+    def __init__(self, model: BridgeModel, active_contacts: Callable[[str], tuple[str, ...]]) -> None:
+        self.model, self.active_contacts = model, active_contacts
+        self.rigid = tuple(model.rigid.values())
+        self.names = tuple(r.contact.name for r in self.rigid)
+        self.moving = model.terrain is not None and model.terrain[0] == SINE
+        # The frame each depth reads: a point's contact point, or a round one's centre where its
+        # contact point moves in the body (a sine); then the frames points are armed ahead of.
+        points = [self._frame(r) for r in self.rigid if r.kind == "point"]
+        ahead = sorted({r.armed_frame for r in self.rigid if r.armed_frame >= 0})
+        self._frames = np.array(points + ahead, dtype=float)
+        self._ahead_slot = {frame: len(points) + k for k, frame in enumerate(ahead)}
+
+    def _frame(self, r: RigidContact) -> int:
+        return r.centre_id if r.radius > 0.0 and self.moving else r.frame_id
+
+    def depths(self, mode: str, states: np.ndarray, armed_only: bool = False) -> np.ndarray:
+        """(rows, contacts): each contact's depth past its ground or stop (m or rad; < 0 clear
+        of it) at each state (rows, >= 2 n)."""
+        states = np.ascontiguousarray(np.atleast_2d(states), dtype=float)
+        positions = np.empty((states.shape[0], self._frames.shape[0], 2))
+        if self._frames.size:
+            frame_positions(self.model.handle, states, self.model.n, self._frames, positions)
+        active = set(self.active_contacts(mode))
+        out = np.full((states.shape[0], len(self.rigid)), -np.inf)
+        slot = 0
+        for k, r in enumerate(self.rigid):
+            if r.kind == "stop":
+                if r.contact.name not in active:
+                    out[:, k] = -r.sign * (states[:, r.dof] - r.stop.position)
+                continue
+            xz = positions[:, slot]
+            slot += 1
+            if r.contact.name in active:
+                continue
+            out[:, k] = self._point_depth(r, xz)
+            armed = r.point.armed
+            if armed_only and armed is not None:
+                out[~self._armed(armed, r, states, xz, positions), k] = -np.inf
+        return out
+
+    def _point_depth(self, r: RigidContact, xz: np.ndarray) -> np.ndarray:
+        """A point's depth below the ground at its positions xz (rows, 2)."""
+        terrain = self.model.terrain
+        if r.radius > 0.0 and self.moving:
+            # the point nearest the terrain moves with the centre: its depth is r less the centre's distance
+            return r.radius - np.array([nearest(terrain, 0, float(x), float(z))[1] for x, z in xz])
+        if terrain is None:
+            return r.point.ground - xz[:, 1]
+        return np.array([terrain_height(terrain, 0, float(x)) for x in xz[:, 0]]) - xz[:, 1]
+
+    def _armed(
+        self, armed: Armed, r: RigidContact, states: np.ndarray, xz: np.ndarray, positions: np.ndarray
+    ) -> np.ndarray:
+        """Where point r, armed by ``armed``, is armed, (rows,) bool."""
+        if armed.coordinate:
+            lead = states[:, int(self.model.coordinate_names.index(armed.coordinate))]
+        else:
+            lead = xz[:, 0] - positions[:, self._ahead_slot[r.armed_frame], 0]
+        return lead - armed.beyond > 0.0
+
+
+def initial_check(past: PastDepths) -> Callable[[str, np.ndarray, float], str | None]:
     """The scene's initial-state check (``Model.info["initial_check"]``): ``check(mode, x, eps)``
     names the first inactive joint stop or point contact whose position lies past it by more
     than eps (rad or m), else None. The guards are "and" conditions (past the stop AND moving
@@ -26,63 +105,66 @@ def initial_check(
     reaches such a state, and a run started there would not be the model's."""
 
     def check(mode: str, x: np.ndarray, eps: float) -> str | None:
-        active = active_contacts(mode)
-        q = np.asarray(x, dtype=float)[: model.n]
-        for r in model.rigid.values():
-            if r.contact.name in active:
-                continue
-            if r.kind == "stop":
-                message = _past_stop(model, r, q, eps, mode)
-            else:
-                message = _below_ground(model, data, r, q, eps, mode)
-            if message is not None:
-                return message
+        x = np.asarray(x, dtype=float)
+        depths = past.depths(mode, x[None, :])[0]
+        for r, depth in zip(past.rigid, depths, strict=True):
+            if depth > eps:
+                where = f"in mode '{mode}' where it is inactive"
+                return f"{describe(past.model, r, x)} by {depth:.3g} > eps = {eps:g} {where}"
         return None
 
     return check
 
 
-def _past_stop(model: BridgeModel, r: RigidContact, q: np.ndarray, eps: float, mode: str) -> str | None:
-    """A message if q lies past the inactive stop by more than eps (rad or m), else None."""
-    c = r.stop
-    depth = -r.sign * (q[r.dof] - c.position)
-    if depth > eps:
+def describe(model: BridgeModel, r: RigidContact, x: np.ndarray) -> str:
+    """What lies past at state x: "contact point 'c' (frame 'f') lies below the ground under it"
+    or "theta2 = -1 lies past the lower stop 's' (theta2 >= 0)"."""
+    if r.kind == "stop":
+        c = r.stop
         name = model.coordinate_names[r.dof]
         bound = ">=" if c.side == "lower" else "<="
-        return (
-            f"{name} = {q[r.dof]:g} lies past the {c.side} stop '{c.name}' ({name} {bound} "
-            f"{c.position:g}) by {depth:.3g} > eps = {eps:g} in mode '{mode}' where the "
-            f"stop is inactive"
-        )
-    return None
+        return f"{name} = {x[r.dof]:g} lies past the {c.side} stop '{c.name}' ({name} {bound} {c.position:g})"
+    shape = f", radius {r.radius:g} m: its point nearest the ground" if r.radius > 0.0 else ""
+    return f"contact point '{r.contact.name}' (frame '{r.point.frame}'{shape}) lies below the ground under it"
 
 
-def _below_ground(
-    model: BridgeModel, data: pin.Data, r: RigidContact, q: np.ndarray, eps: float, mode: str
-) -> str | None:
-    """A message if the inactive contact point (a round one's point nearest the ground) lies below
-    the ground (the terrain under it) at q by more than eps (m), else None."""
-    c = r.point
-    pin.forwardKinematics(model.pin_model, data, q)
-    x, _, z = pin.updateFramePlacement(model.pin_model, data, r.frame_id).translation
-    if r.radius > 0.0 and model.terrain is not None and model.terrain[0] == SINE:
-        # the point nearest the terrain moves with the centre: its depth is r less the centre's distance
-        s, distance, grade, _ = nearest(model.terrain, 0, float(x), float(z))
-        ground, depth = terrain_height(model.terrain, 0, s), r.radius - distance
-        z = ground - depth / float(np.sqrt(1.0 + grade * grade))
-    else:
-        dx, dz = model.round_offsets.get(r.frame_id, (0.0, 0.0))  # a round contact's point nearest the ground
-        x, z = x + dx, z + dz
-        ground = c.ground if model.terrain is None else terrain_height(model.terrain, 0, float(x))
-        depth = ground - z
-    if depth > eps:
-        shape = f", radius {r.radius:g} m: its point nearest the ground" if r.radius > 0.0 else ""
+def passed_through_watch(past: PastDepths, eps: float, action: str = "warn") -> Watch:
+    """An inactive contact past its ground or stop by more than eps + ``THROUGH_DEPTH`` (a coarse
+    step carried it through; an armed point only where it is armed): with ``action`` as
+    ``ground_watch``'s. eps (guard units: m, or rad for a revolute stop) is the run's: a step
+    landing in a strip leaves a contact up to eps past its surface."""
+    allowed = eps + THROUGH_DEPTH
+
+    def deepest(mode: str, x: np.ndarray) -> np.ndarray:
+        depths = past.depths(mode, x, armed_only=True)
+        return depths.max(axis=1) if depths.shape[1] else np.full(depths.shape[0], -np.inf)
+
+    def value(mode: str, t: np.ndarray, x: np.ndarray) -> np.ndarray:
+        return allowed - deepest(mode, x)
+
+    def message(t: float, mode: str, x: np.ndarray) -> str:
+        state = np.atleast_2d(x)[0]
+        depths = past.depths(mode, state, armed_only=True)[0]
+        k = int(np.argmax(depths))
         return (
-            f"contact point '{c.name}' (frame '{c.frame}'{shape}) at height {z:g} m lies below the "
-            f"ground {ground:g} m under it by {depth:.3g} > eps = {eps:g} in mode '{mode}' where "
-            f"the contact is inactive"
+            f"{describe(past.model, past.rigid[k], state)} by {depths[k]:.3g} at t={t:.17g} in mode '{mode}' "
+            f"where it is inactive, more than eps = {eps:g} + {THROUGH_DEPTH:g}: a step carried it through and "
+            f"left it moving away, where its guard does not look (take a smaller h, or tighter tolerances)"
         )
-    return None
+
+    return ground_watch("passed_through", value, message, action)
+
+
+def ground_watch(name: str, value: Callable[..., np.ndarray], message: Callable[..., str], action: str) -> Watch:
+    """The watch of a body through the ground, by the scene's ``below_ground`` ``action``: "warn"
+    a warning; "strict" a stop with status ``model_breakdown`` (the model has no contact there);
+    "fall" a stop with status ``fell`` (the robot crashed, a scene's fall condition)."""
+    if action == "strict":
+        return Watch(name, value, "stop", message, status=Status.MODEL_BREAKDOWN.value)
+    if action == "fall":
+        return Watch(name, value, "stop", lambda t, mode, x: f"fell: {name}: {message(t, mode, x)}",
+                     status=Status.FELL.value)  # fmt: skip
+    return Watch(name, value, "warn", message)
 
 
 def guard_units(model: BridgeModel) -> dict[str, str]:

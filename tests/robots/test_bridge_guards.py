@@ -7,6 +7,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 from legsim.robots.bridge import Armed, ContactBridge, JointStop, PointContact, add_point_frame
+from legsim.robots.bridge.guards import THROUGH_DEPTH
 
 from helpers.bridge_models import G, ball_model, rod_model
 from legsim import ModelError, simulate
@@ -51,6 +52,32 @@ def test_an_armed_contact_lands_only_where_it_is_armed():
         ContactBridge(model, [PointContact("floor", "ball", armed=Armed())])
     with pytest.raises(ModelError, match=r"armed\.coordinate 'w' is not a coordinate"):
         ContactBridge(model, [PointContact("floor", "ball", armed=Armed(coordinate="w"))])
+
+
+def test_an_armed_point_counts_as_passed_through_only_where_it_is_armed():
+    """A ball 0.1 m below the floor and rising (its guard inside the domain): where the floor is
+    armed (x >= 1 m, or 1 m ahead of a post at the origin) it passed through by 0.1 m; at
+    x = 0.5 m, not armed, it may pass below by design."""
+    model, _ = ball_model()
+    post = add_point_frame(model, "post", 0, (0.0, 0.0, 0.0))
+    assert post > 0
+    eps = 1e-3
+    states = np.array([[0.5, -0.1, 2.0, 1.0], [1.5, -0.1, 2.0, 1.0]])
+    for armed in (Armed(coordinate="x", beyond=1.0), Armed(ahead_of="post", beyond=1.0)):
+        floor = PointContact("floor", "ball", restitution=0.5, tangential=False, armed=armed)
+        (watch,) = ContactBridge(model, [floor]).contact_watches(eps)
+        depth = eps + THROUGH_DEPTH - watch.values("free", np.zeros(2), states)
+        np.testing.assert_allclose(depth, [-np.inf, 0.1])
+
+
+def test_a_stop_passed_and_left_behind_is_named_with_its_depth():
+    # An upper stop at 0.3 m on z: the ball 0.5 m past it and moving back (guard inside the domain).
+    ball, _ = ball_model()
+    stop = ContactBridge(ball, [JointStop("lid", "z", position=0.3, side="upper")], mode_names={(): "free"})
+    (watch,) = stop.contact_watches(1e-3)
+    x = np.array([[0.0, 0.8, 0.0, -1.0]])
+    assert 1e-3 + THROUGH_DEPTH - watch.values("free", np.zeros(1), x)[0] == pytest.approx(0.5, abs=1e-15)
+    assert "z = 0.8 lies past the upper stop 'lid' (z <= 0.3) by 0.5 at t=0.25" in watch.message(0.25, "free", x[0])
 
 
 def test_initial_check_measures_a_point_below_the_ground_and_a_stop_from_its_side():

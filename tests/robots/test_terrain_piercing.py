@@ -36,7 +36,7 @@ def test_a_bump_between_the_corners_is_named_at_its_closed_form_depth(tmp_path):
     # lie 0.1 above the bottom face, 0.02 below the top one and 0.15 inside the ends: 0.02 deep.
     z = ex.final_state[1]
     assert z == pytest.approx(HEIGHT / 2, abs=1e-6)
-    piercing = next(w for w in scene.model.info["watches"](None) if w.name == "terrain_inside")
+    piercing = next(w for w in scene.model.info["watches"](None, scene.integrator["eps"]) if w.name == "terrain_inside")
     depth = PIERCING_DEPTH - piercing.value(ex.final_mode, ex.t_end, ex.final_state[None, :])[0]
     assert depth == pytest.approx(HEIGHT - 0.1, abs=1e-6)
     # Falling past it, the bump is deepest with the bottom face 0.04 up: 0.06 inside both faces.

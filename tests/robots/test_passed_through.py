@@ -1,0 +1,81 @@
+"""An inactive contact carried through the ground by a coarse step (robots/bridge/guards.py,
+``PastDepths`` and ``passed_through_watch``): a contact's guard ``max(height, dz/dt)`` is past
+only while the point closes, so a step that takes a foot through the ground and leaves it rising
+ends inside the domain. The run says so: a ``passed_through`` warning, or a stop under
+``below_ground``, at the time the closed form gives.
+
+The robot: a leg of length L on a hip fixed at height H < L, without gravity, swinging at a
+constant rate w, so that its foot dips below the ground at the bottom of the swing: the angle is
+linear in time, which rk4 and the watch's Hermite interpolant both follow exactly.
+"""
+
+import math
+
+import pytest
+from legsim.robots.bridge.guards import THROUGH_DEPTH
+
+from legsim.scene import load_scene
+
+from .test_collision_contacts import link, write
+
+L, H = 1.0, 0.9  # m: the leg's length and the hip's height
+THETA0, RATE = -0.6, 10.0  # rad, rad/s: the foot 0.075 m up, swinging down
+EPS = 1e-4  # m
+
+LEG = (
+    link("base", 1.0, 0.01)
+    + link("leg", 1.0, 0.01, origin=f"0 0 {-L / 2}")
+    + link("foot", 0.01, 1e-6)
+    + f'<joint name="hip" type="revolute"><parent link="base"/><child link="leg"/><origin xyz="0 0 {H}"/>'
+    '<axis xyz="0 1 0"/><limit lower="-3" upper="3" effort="10" velocity="100"/></joint>'
+    f'<joint name="ankle" type="fixed"><parent link="leg"/><child link="foot"/><origin xyz="0 0 {-L}"/></joint>'
+)
+
+
+def swing(folder, h, below_ground="warn", t_final=0.1, g=0.0):
+    """The scene: the foot the leg's only contact, the run one rk4 step of h (s) or more."""
+    scene = (
+        f'root = "fixed"\ng = {g}\nbelow_ground = "{below_ground}"\n'
+        'contacts = [{ name = "foot", frame = "foot", tangential = false }]\n'
+        f"[initial]\nstate = {{ hip = {THETA0}, hipd = {RATE} }}\n"
+        f'[integrator]\nmethod = "rk4"\nh = {h}\neps = {EPS}\nt_final = {t_final}\n'
+    )
+    return write(folder, "swing", LEG, scene)
+
+
+def through_time():
+    """When the foot, descending, first lies eps + THROUGH_DEPTH below the ground:
+    L cos(theta) - H = eps + THROUGH_DEPTH, theta = THETA0 + RATE t < 0."""
+    return (-math.acos((H + EPS + THROUGH_DEPTH) / L) - THETA0) / RATE
+
+
+def test_a_step_through_the_ground_is_a_warning_at_the_closed_form_time(tmp_path):
+    # One step of 0.1 s: theta from -0.6 to 0.4, the foot from 0.075 m up to 0.021 m below the
+    # ground, rising; its guard never saw it.
+    ex = load_scene(swing(tmp_path, 0.1)).simulate()
+    assert ex.status == "finished" and not ex.transitions
+    (warning,) = [w for w in ex.warnings if w.kind == "passed_through"]
+    assert "'foot'" in warning.message and "below the ground" in warning.message
+    assert warning.time == pytest.approx(through_time(), abs=1e-9)
+    # The depth where it was deepest among the stored points: the last, L cos(0.4) - H.
+    assert EPS + THROUGH_DEPTH - warning.details["least_value"] == pytest.approx(L * math.cos(0.4) - H, abs=1e-12)
+
+
+@pytest.mark.parametrize(("action", "status"), [("strict", "model_breakdown"), ("fall", "fell")])
+def test_below_ground_stops_the_run_where_the_foot_passed_the_allowance(tmp_path, action, status):
+    ex = load_scene(swing(tmp_path, 0.1, action)).simulate()
+    assert ex.status == status and "'foot'" in ex.message and "below the ground" in ex.message
+    assert ex.t_end == pytest.approx(through_time(), abs=1e-9)
+    assert L * math.cos(ex.final_state[0]) - H == pytest.approx(EPS + THROUGH_DEPTH, abs=1e-9)
+
+
+def test_small_steps_land_the_foot_where_it_meets_the_ground_and_say_nothing(tmp_path):
+    # At h = 1e-3 the step that reaches the ground lands in the strip, where L cos(theta) = H:
+    # the plastic impact stops the leg, and gravity holds the foot down. No warning. (Without
+    # gravity the post-impact force is 0 and both outcomes' guards sit at 0 all the way down.)
+    ex = load_scene(swing(tmp_path, 1e-3, g=9.81)).simulate()
+    assert ex.status == "finished"
+    assert [tr.name for tr in ex.transitions] == ["touchdown_foot"]
+    assert ex.final_state[1] == pytest.approx(0.0, abs=1e-12)
+    assert L * math.cos(ex.transitions[0].state_before[0]) - H == pytest.approx(0.0, abs=EPS)
+    assert not [w for w in ex.warnings if w.kind == "passed_through"]
