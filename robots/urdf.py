@@ -213,11 +213,21 @@ def _record(table: Any, keys: Mapping[str, type], required: Sequence[str], where
 def scene_contacts(contacts: Sequence[Any], stops: Sequence[Any]) -> list[PointContact | JointStop]:
     """The ``contacts`` (point contacts on frames) and ``stops`` (joint stops) of a scene's tables."""
     out: list[PointContact | JointStop] = []
+    where: dict[str, str] = {}  # each name's table: contacts and stops name modes alike
     for i, table in enumerate(contacts):
         out.append(PointContact(**_record(table, CONTACT_KEYS, ("name", "frame"), f"robot.parameters.contacts[{i}]")))
+        _unique(out[-1].name, f"robot.parameters.contacts[{i}]", where)
     for i, table in enumerate(stops):
         out.append(JointStop(**_record(table, STOP_KEYS, ("name", "joint"), f"robot.parameters.stops[{i}]")))
+        _unique(out[-1].name, f"robot.parameters.stops[{i}]", where)
     return out
+
+
+def _unique(name: str, table: str, where: dict[str, str]) -> None:
+    """Record that ``table`` declares ``name``; SceneError naming both tables if one already did."""
+    if name in where:
+        raise SceneError(f"{table}.name: duplicate contact name {name!r} (also {where[name]}.name)")
+    where[name] = table
 
 
 PARAMETERS = {

@@ -128,7 +128,8 @@ def _contacts(path: Path, value: Any, model: Any) -> Watch:
     if declared is None or not callable(active):
         raise field_error(path, "fall.contacts", f"robot '{model.system.name}' names no contacts in its modes")
     if not isinstance(value, list) or not value or not all(isinstance(v, str) for v in value):
-        raise field_error(path, "fall.contacts", f"expected a list of contact names, got {describe(value)}")
+        got = "an empty array" if value == [] else describe(value)
+        raise field_error(path, "fall.contacts", f"expected a non-empty list of contact names, got {got}")
     unknown = sorted(set(value) - set(declared))
     if unknown:
         raise field_error(path, "fall.contacts", f"unknown contact(s) {unknown}; contacts: {list(declared)}")

@@ -142,7 +142,7 @@ def test_legsim_run_exits_with_3_and_names_the_fall(tmp_path):
                                             r"coordinates: \['x', 'z', 'pitch'"),
         ('height = "z"', r"fall.height: given without fall.height_min"),
         ('contacts = ["tail"]', r"fall.contacts: unknown contact\(s\) \['tail'\]; contacts: \['foot'\]"),
-        ("contacts = []", r"fall.contacts: expected a list of contact names"),
+        ("contacts = []", r"fall.contacts: expected a non-empty list of contact names, got an empty array"),
     ],
 )  # fmt: skip
 def test_the_fall_section_is_checked_before_anything_runs(tmp_path, section, match):

@@ -131,6 +131,17 @@ def test_bad_urdfs_and_tables_are_named(tmp_path):
     ):
         with pytest.raises(SceneError, match=message):
             urdf.make({"file": str(QUADRUPED), "actuated": actuated})
+    # Contacts and stops name modes alike: a name twice is an error naming both tables.
+    twice = [CONTACTS[0], {"name": CONTACTS[0]["name"], "frame": "front_foot"}]
+    with pytest.raises(
+        SceneError, match=r"contacts\[1\].name: duplicate contact name .* \(also robot.parameters.contacts\[0\]"
+    ):
+        urdf.make({"file": str(QUADRUPED), "contacts": twice})
+    stop = {"name": CONTACTS[0]["name"], "joint": "hind_knee", "position": 0.1}
+    with pytest.raises(
+        SceneError, match=r"stops\[0\].name: duplicate contact name .* \(also robot.parameters.contacts\[0\]"
+    ):
+        urdf.make({"file": str(QUADRUPED), "contacts": CONTACTS[:1], "stops": [stop]})
     with pytest.raises(SceneError, match=r"stops\[0\].position: expected a float"):
         urdf.make({"file": str(QUADRUPED), "stops": [{"name": "s", "joint": "hind_knee", "position": "high"}]})
     scene = tmp_path / "robot.toml"
