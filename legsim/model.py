@@ -72,7 +72,9 @@ class ModeFunctions:
     joint_outcomes: (name, target mode) of each outcome ``joint`` may return, by index.
     nan_breaks: a nan from these functions means the state is past the model's range.
     range_note: what such a nan means, in words (e.g. "the hip is below the slope: the walker
-        fell"), for the run's message; "" says only that the state left the range.
+        fell"), for the run's message; "" says only that the state left the range. Or a
+        function ``note(x) -> str`` of the last state before the nan (the mode's dimension),
+        which can name the part of the robot nearest its range's edge there.
     previewed: the functions choose a crossing's outcome under the input applied after it
         (module docstring).
     crosses_jumps: a guard that jumps past its strip is crossed where it jumps (module
@@ -88,7 +90,7 @@ class ModeFunctions:
     inputs: int = 0
     joint_outcomes: tuple[tuple[str, str], ...] = ()
     nan_breaks: bool = False
-    range_note: str = ""
+    range_note: str | Callable[[np.ndarray], str] = ""
     previewed: bool = False
     crosses_jumps: bool = False
     #: A writable copy of params, which the Python path passes to the functions (__post_init__).

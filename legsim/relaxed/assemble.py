@@ -459,7 +459,7 @@ class Assembly:
         if reason == END_NON_FINITE_STEP:
             return Status.NON_FINITE, messages.non_finite_step(name, t, x, float(ws.fs[F_H_TRIED]))
         if reason == END_BROKE_DOWN:
-            why = breakdown if breakdown is not None else self.model_range(name)
+            why = breakdown if breakdown is not None else self.model_range(name, x)
             return Status.MODEL_BREAKDOWN, messages.model_breakdown(why, name, t, float(ws.fs[F_H_TRIED]))
         if reason == END_GUARD_NAN:
             x1 = ws.x1[:n].copy()
@@ -488,7 +488,7 @@ class Assembly:
                 f"{last.state_after.tolist()} from q={last.state_before.tolist()}"
             )
         assert reason == END_RESET_BROKE_DOWN, f"every END_* is handled ({reason})"
-        why = breakdown if breakdown is not None else self.model_range(name)
+        why = breakdown if breakdown is not None else self.model_range(name, x)
         return Status.MODEL_BREAKDOWN, f"{why} (reset of transition {transition} from mode '{name}', t={t:.17g})"
 
     def _stalled(self, ws: Any, name: str, t: float, x: np.ndarray) -> str:
@@ -519,12 +519,17 @@ class Assembly:
             return "?"
         return tables.datas[mode].transitions[index].name
 
-    def model_range(self, mode: str) -> str:
+    def model_range(self, mode: str, x: np.ndarray) -> str:
         """Why a model function's nan ends the run, in words: the mode's ``range_note`` where its
-        functions give one."""
+        functions give one, a function's at x, the last state before the nan."""
         head = f"{self.system.name}: the state leaves the model's range of validity in mode '{mode}'"
         functions = self.system.mode(mode).functions
         note = functions.range_note if functions is not None else ""
+        if callable(note):
+            try:
+                note = note(x)
+            except Exception as exc:  # the run's status stands; only its explanation is lost
+                note = f"(its range_note failed: {type(exc).__name__}: {exc})"
         return f"{head}: {note}" if note else head
 
 

@@ -32,6 +32,7 @@ from .layout import P_EVENT, P_GUARD, P_JOINT, P_NEVENT, P_NGUARD, P_NJOINT
 from .model import build_model
 from .modes import ModeCatalog, SubsetKey
 from .params import start
+from .range_notes import LegsNote
 from .transitions import outgoing
 
 #: What the bridge's nan means (``events``), for the run's message.
@@ -217,7 +218,7 @@ class ContactBridge:
             inputs=len(self._model.actuated_idx),
             joint_outcomes=tuple(out.joint_outcomes),
             nan_breaks=True,
-            range_note=PAST_RANGE,
+            range_note=LegsNote(self._model, self._data, spec, PAST_RANGE) if self._model.legs else PAST_RANGE,
             # With friction an event's outcome is the mode whose forces are consistent under the
             # input applied after it, which the controller gives there.
             previewed=self._model.coulomb,

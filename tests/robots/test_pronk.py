@@ -266,3 +266,10 @@ def test_a_leg_swung_into_the_ground_at_liftoff_while_moving_down_is_a_fall():
     # at the last state kept, the left leg is still (barely) compressed: the fall is detected
     # within the step that extends it past its rest length
     assert 0.0 < bridge.leg_forces("both", x)["left"] < 1.0
+    # The message measures the state it stopped at: the lowest hip (the body's axis is
+    # (cos theta, -sin theta), the hips d/2 behind and ahead of its centre) and the left foot
+    # swung forward, with their heights as printed.
+    hips = {"left": x[1] + PAPER["d"] / 2 * math.sin(x[2]), "right": x[1] - PAPER["d"] / 2 * math.sin(x[2])}
+    lowest = min(hips, key=hips.get)
+    assert f"lowest hip: leg '{lowest}', {hips[lowest]:.3g} m above the ground" in ex.message
+    assert f"leg 'left': its foot swung to its flight angle at liftoff, {-flight_foot[1]:.3g} m below" in ex.message
