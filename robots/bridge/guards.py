@@ -110,7 +110,7 @@ def initial_check(past: PastDepths) -> Callable[[str, np.ndarray, float], str | 
         for r, depth in zip(past.rigid, depths, strict=True):
             if depth > eps:
                 where = f"in mode '{mode}' where it is inactive"
-                return f"{describe(past.model, r, x)} by {depth:.3g} > eps = {eps:g} {where}"
+                return f"{describe(past.model, r, x)} by {depth:.3g} {unit(past.model, r)} > eps = {eps:g} {where}"
         return None
 
     return check
@@ -126,6 +126,17 @@ def describe(model: BridgeModel, r: RigidContact, x: np.ndarray) -> str:
         return f"{name} = {x[r.dof]:g} lies past the {c.side} stop '{c.name}' ({name} {bound} {c.position:g})"
     shape = f", radius {r.radius:g} m: its point nearest the ground" if r.radius > 0.0 else ""
     return f"contact point '{r.contact.name}' (frame '{r.point.frame}'{shape}) lies below the ground under it"
+
+
+def unit(model: BridgeModel, r: RigidContact) -> str:
+    """The unit of contact r's depth: m for a point or a prismatic stop, rad for a revolute stop."""
+    return "rad" if r.kind == "stop" and _revolute(model, r.stop.joint) else "m"
+
+
+def _revolute(model: BridgeModel, joint: str) -> bool:
+    """Whether the stop's joint ``joint`` turns (its positions in rad) rather than slides (m)."""
+    pm = model.pin_model
+    return bool(pm.joints[joint_id(pm, joint, "stop", model.name)].shortname().startswith("JointModelR"))
 
 
 def passed_through_watch(past: PastDepths, eps: float, action: str = "warn") -> Watch:
@@ -147,7 +158,8 @@ def passed_through_watch(past: PastDepths, eps: float, action: str = "warn") -> 
         depths = past.depths(mode, state, armed_only=True)[0]
         k = int(np.argmax(depths))
         return (
-            f"{describe(past.model, past.rigid[k], state)} by {depths[k]:.3g} at t={t:.17g} in mode '{mode}' "
+            f"{describe(past.model, past.rigid[k], state)} by {depths[k]:.3g} {unit(past.model, past.rigid[k])} "
+            f"at t={t:.17g} in mode '{mode}' "
             f"where it is inactive, more than eps = {eps:g} + {THROUGH_DEPTH:g}: a step carried it through and "
             f"left it moving away, where its guard does not look (take a smaller h, or tighter tolerances)"
         )
@@ -189,8 +201,7 @@ def guard_units(model: BridgeModel) -> dict[str, str]:
                     )
                 units[f"stick_{cname}"] = "m/s (slip velocity, while the friction decelerates it)"
         else:
-            joint = model.pin_model.joints[joint_id(model.pin_model, c.joint, "stop", model.name)]
-            rot = joint.shortname().startswith(("JointModelR",))
+            rot = _revolute(model, c.joint)
             kind = "impact" if c.restitution == 0.0 else "bounce"
             units[f"{kind}_{cname}"] = f"{'rad' if rot else 'm'} (distance to the stop, while approaching)"
             if c.restitution == 0.0:

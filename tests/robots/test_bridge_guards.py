@@ -77,7 +77,7 @@ def test_a_stop_passed_and_left_behind_is_named_with_its_depth():
     (watch,) = stop.contact_watches(1e-3)
     x = np.array([[0.0, 0.8, 0.0, -1.0]])
     assert 1e-3 + THROUGH_DEPTH - watch.values("free", np.zeros(1), x)[0] == pytest.approx(0.5, abs=1e-15)
-    assert "z = 0.8 lies past the upper stop 'lid' (z <= 0.3) by 0.5 at t=0.25" in watch.message(0.25, "free", x[0])
+    assert "z = 0.8 lies past the upper stop 'lid' (z <= 0.3) by 0.5 m at t=0.25" in watch.message(0.25, "free", x[0])
 
 
 def test_initial_check_measures_a_point_below_the_ground_and_a_stop_from_its_side():
@@ -89,12 +89,12 @@ def test_initial_check_measures_a_point_below_the_ground_and_a_stop_from_its_sid
     theta = 0.5
     depth = 0.2 - (0.1 - 0.5 * math.sin(theta))
     msg = check("air", np.array([0.0, 0.1, theta, 0, 0, 0]), 0.01)
-    assert msg is not None and "'tip'" in msg and f"by {depth:.3g} >" in msg
+    assert msg is not None and "'tip'" in msg and f"by {depth:.3g} m >" in msg
     assert check("air", np.array([0.0, 0.1, theta, 0, 0, 0]), depth * 1.001) is None
     assert check("tip", np.array([0.0, 0.1, theta, 0, 0, 0]), 0.01) is None  # active: on the ground
     # An upper stop at 0.3 m on z: the domain is z <= 0.3.
     ball, _ = ball_model()
     stop = ContactBridge(ball, [JointStop("lid", "z", position=0.3, side="upper")], mode_names={(): "free"})
     msg = stop.initial_check()("free", np.array([0.0, 0.8, 0.0, -1.0]), 0.1)
-    assert msg is not None and "upper stop 'lid'" in msg and "by 0.5 >" in msg
+    assert msg is not None and "upper stop 'lid'" in msg and "by 0.5 m >" in msg
     assert stop.initial_check()("free", np.array([0.0, -5.0, 0.0, 0.0]), 0.1) is None
