@@ -30,15 +30,19 @@ from .impacts import newton_impact
 from .joint import bridge_joint
 from .layout import P_EVENT, P_GUARD, P_JOINT, P_NEVENT, P_NGUARD, P_NJOINT
 from .model import build_model
-from .modes import ModeCatalog, SubsetKey
+from .modes import ModeCatalog, ModeSpec, SubsetKey
 from .params import start
 from .range_notes import LegsNote
 from .transitions import outgoing
 
-#: What the bridge's nan means (``events``), for the run's message.
-PAST_RANGE = (
-    "a hip below the ground, a foot below the ground and moving down after its liftoff (the robot "
-    "fell), or contacts with no consistent outcome"
+#: What a nan of the model functions means (``ModeFunctions.range_note``), by what the robot has:
+#: spring legs (``events.leg_touchdown``, ``events.leg_liftoff``) and rigid contacts (``friction``).
+LEGS_PAST_RANGE = (
+    "a hip below the ground, or a foot below the ground and moving down after its liftoff (the robot fell)"
+)
+CONTACTS_PAST_RANGE = (
+    "contacts with no consistent outcome (an event that no set of contact statuses resolves, or slipping "
+    "contacts without unique forces: Painleve's paradox)"
 )
 
 
@@ -218,7 +222,7 @@ class ContactBridge:
             inputs=len(self._model.actuated_idx),
             joint_outcomes=tuple(out.joint_outcomes),
             nan_breaks=True,
-            range_note=LegsNote(self._model, self._data, spec, PAST_RANGE) if self._model.legs else PAST_RANGE,
+            range_note=self._range_note(spec),
             # With friction an event's outcome is the mode whose forces are consistent under the
             # input applied after it, which the controller gives there.
             previewed=self._model.coulomb,
@@ -229,6 +233,14 @@ class ContactBridge:
             crosses_jumps=not self._model.legs,
         )
         return Mode(spec.dim, names=spec.names, units=spec.units, functions=functions), out.transitions
+
+    def _range_note(self, spec: ModeSpec) -> str | LegsNote:
+        """What a nan of the mode's functions means: the robot's ways past its range, and for a
+        spring-legged robot where its legs stood (``range_notes.LegsNote``)."""
+        ways = [LEGS_PAST_RANGE] if self._model.legs else []
+        ways += [CONTACTS_PAST_RANGE] if self._model.rigid else []
+        head = ", or ".join(ways)
+        return LegsNote(self._model, self._data, spec, head) if self._model.legs else head
 
     def system(self, initial_mode: str | None = None, x0: Any = None, *, energy: bool = True) -> HybridSystem:
         """A lazily expanded ``HybridSystem`` of this robot (modes appear as transitions reach
