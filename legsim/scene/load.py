@@ -148,11 +148,12 @@ class Scene:
     #: The ``[terrain]`` section's ground (``legsim.terrain``), None without one.
     terrain: Terrain | None = None
 
-    def watches(self, control: Any) -> tuple[Any, ...]:
-        """The conditions a run under ``control`` is checked for: the ``[fall]`` section's and
-        the model's own (``Model.info["watches"]``, at the scene's eps)."""
+    def watches(self, control: Any, eps: float | None = None) -> tuple[Any, ...]:
+        """The conditions a run under ``control`` with strip width ``eps`` (default the scene's)
+        is checked for: the ``[fall]`` section's and the model's own (``Model.info["watches"]``)."""
         own = self.model.info.get(WATCHES) if isinstance(self.model.info, Mapping) else None
-        return self.falls + (tuple(own(control, self.integrator["eps"])) if callable(own) else ())
+        eps = self.integrator["eps"] if eps is None else eps
+        return self.falls + (tuple(own(control, eps)) if callable(own) else ())
 
     @property
     def control(self) -> Any:

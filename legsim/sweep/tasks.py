@@ -142,7 +142,9 @@ def walk_row(scene: Any, spec: SweepSpec, values: dict[str, Any], deadline: Dead
         max_steps=spec.max_steps,
         tol=spec.tol,
         progress=deadline.progress,
-        watches=scene.falls,
+        # A walk is checked as a run is: the [fall] conditions and the model's own (a link
+        # through the ground under below_ground = "fall" is a fall), at the walk's strip width.
+        watches=scene.watches(scene.control, problem.eps),
     )
     out = {
         "status": result.status,

@@ -323,6 +323,7 @@ def walk(
     passed to every ``simulate`` too (a scene's ``[fall]`` conditions: a run that ends ``fell``
     is a walk that ``falls``).
     """
+    refuse_controlled(problem)
     x0 = np.asarray(x0, dtype=float)
     if x0.shape != (problem.dim,):
         raise SimulationError(
@@ -336,6 +337,18 @@ def walk(
     )
     walker.watches = tuple(watches)
     return walker.run(problem.bound.mode, x0.copy(), float(t0))
+
+
+def refuse_controlled(problem: OrbitProblem, where: str = "walk") -> None:
+    """SimulationError for a problem with a controller: a walk takes each transition itself with
+    the plant's reset, so it would run the plant without its controller (and the controller's
+    memory without its updates), a gait that is not the scene's."""
+    if problem.controller is not None:
+        raise SimulationError(
+            f"{where}: the scene has a controller, and a walk follows only "
+            f"uncontrolled scenes (it takes each transition with the plant's reset, without the controller's "
+            f"memory): run the variations (no --walk), or search their gaits (--orbit)"
+        )
 
 
 def walk_columns(result: WalkResult) -> dict[str, Any]:

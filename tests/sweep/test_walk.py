@@ -141,3 +141,54 @@ def test_a_walk_keeps_each_warning_of_its_runs_once(monkeypatch):
     result = walk(problem_from_scene(scene).problem, scene.initial_state, 0.0, fixed, max_steps=40, tol=1e-3)
     assert result.outcome == "converges" and result.steps > 1
     assert result.warnings == ["strip_hold: held in strips"]
+
+
+#: The quadruped dropped with its knees folded: its thighs, which have no contact, reach the
+#: ground before its feet do.
+FOLDED = ['robot.parameters.below_ground="fall"', "initial.state.z=0.3", "initial.state.hind_knee=2.4",
+          "initial.state.front_knee=-2.4"]  # fmt: skip
+
+
+def test_a_controlled_scene_is_not_walked_and_its_sweep_is_refused_before_it_runs(tmp_path, capsys):
+    # A walk takes each transition with the plant's reset: under a controller it would follow the
+    # plant alone (the quadruped's joints stay where they start: its first transition is a foot
+    # at 0.18 s, where the controlled run lands both feet at 0.025 s). It says so instead.
+    from legsim.cli import main
+    from legsim.errors import SimulationError
+
+    scene = load_scene("quadruped_pronk", FOLDED)
+    problem = problem_from_scene(scene).problem
+    with pytest.raises(SimulationError, match="the scene has a controller, and a walk follows only uncontrolled"):
+        walk(problem, scene.initial_state, 0.0, None)
+    code = main(
+        ["sweep", "quadruped_pronk", "--grid", "initial.state.z=0.5:0.6:2", "--walk", "--out", str(tmp_path / "out")]
+    )
+    assert code == 2 and "--walk: the scene has a controller" in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_sweeps_walk_takes_the_scenes_watches_at_the_walks_strip_width(monkeypatch):
+    import legsim.sweep.walk as walk_module
+    from legsim.sweep import tasks
+    from legsim.sweep.spec import SweepSpec
+
+    class Gait:
+        converged, fixed_point = True, None
+
+    seen = {}
+
+    def capture(problem, x0, t0, fixed_point, **options):
+        seen.update(options, eps=problem.eps)
+        raise RuntimeError("captured")
+
+    monkeypatch.setattr(tasks, "reference_gait", lambda spec, values: Gait())
+    monkeypatch.setattr(walk_module, "walk", capture)
+    scene = load_scene("quadruped_pronk", FOLDED)
+    with pytest.raises(RuntimeError, match="captured"):
+        tasks.walk_row(scene, SweepSpec(scene="quadruped_pronk"), {}, tasks.Deadline(None))
+    names = [w.name for w in seen["watches"]]
+    assert "pitch_max" in names and "below_ground" in names and "passed_through" in names
+    # The allowance of passed_through is the walk's eps (the orbit's 1e-11), not the run's 1e-4.
+    passed = next(w for w in seen["watches"] if w.name == "passed_through")
+    assert "eps = 1e-11 +" in passed.message(0.0, "flight", scene.initial_state)
+    assert seen["eps"] == 1e-11
