@@ -5,12 +5,15 @@ has lasted a moment, so short runs never draw anything. The bar shows the fracti
 simulated time done, the simulated time, the wall time elapsed and the estimated time left;
 its columns have fixed widths, so the line does not jump as the numbers change. It is drawn on
 one terminal line and erased by ``close()``; it is only ever created for a terminal, so pipes
-and log files never receive control characters.
+and log files never receive control characters. Where stderr is not a terminal (a log file, a
+pipe), ``ProgressLines`` writes a plain line every ``LINE_INTERVAL`` seconds instead, so a long
+run still says that it runs.
 """
 
 from __future__ import annotations
 
 import sys
+import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from typing import TextIO
@@ -95,6 +98,55 @@ class ProgressBar:
             self.drawn = False
 
 
+#: Wall-clock seconds between the lines of ``ProgressLines`` (the first that long after the start).
+LINE_INTERVAL = 30.0
+
+
+class ProgressLines:
+    """``lines(t, t0, t_final)`` writes ``label: t = 1.13 / 2.7 s (42%), 0:00:30 elapsed`` on a
+    line of its own every ``interval`` seconds of wall time, the first ``interval`` after it was
+    made: a long run's word in a log file or a pipe, without a terminal's control characters. A
+    run shorter than ``interval`` writes nothing. Same calls as ``ProgressBar``."""
+
+    def __init__(
+        self,
+        stream: TextIO | None = None,
+        label: str = "",
+        interval: float = LINE_INTERVAL,
+        clock: Callable[[], float] | None = None,
+    ) -> None:
+        self.stream = stream if stream is not None else sys.stderr
+        self.interval, self.clock = interval, clock if clock is not None else time.monotonic
+        self.label = label
+
+    @property
+    def label(self) -> str:
+        """The prefix of each line; setting a new one starts a new phase (the elapsed time starts again)."""
+        return self._label
+
+    @label.setter
+    def label(self, text: str) -> None:
+        if text != getattr(self, "_label", None):
+            self._label = text
+            self.start = self.last = self.clock()
+
+    def __call__(self, t: float, t0: float, t_final: float) -> None:
+        """Write simulated time t (s) of [t0, t_final] when ``interval`` has passed since the last line."""
+        now = self.clock()
+        if now - self.last < self.interval:
+            return
+        self.last = now
+        span = t_final - t0
+        done = 1.0 if span <= 0 else min(1.0, max(0.0, (t - t0) / span))
+        elapsed = int(now - self.start)
+        clock = f"{elapsed // 3600}:{elapsed // 60 % 60:02d}:{elapsed % 60:02d}"
+        self.stream.write(f"{self.label}: t = {t:.4g} / {t_final:.4g} s ({100 * done:.0f}%), {clock} elapsed\n")
+        self.stream.flush()
+
+    def close(self) -> None:
+        """Nothing to erase: the lines stay in the log."""
+
+
 @contextmanager
 def counting(
     total: int,
@@ -136,7 +188,12 @@ def _interactive(stream: TextIO) -> bool:
         return False
 
 
-def progress_for(stream: TextIO | None = None, *, enabled: bool = True, label: str = "") -> ProgressBar | None:
-    """A ProgressBar on ``stream`` (default stderr) when enabled and the stream is a terminal, else None."""
+def progress_for(
+    stream: TextIO | None = None, *, enabled: bool = True, label: str = ""
+) -> ProgressBar | ProgressLines | None:
+    """When enabled, a ProgressBar on ``stream`` (default stderr) if it is a terminal, else
+    ProgressLines on it; None when not enabled."""
     stream = stream if stream is not None else sys.stderr
-    return ProgressBar(stream, label) if enabled and _interactive(stream) else None
+    if not enabled:
+        return None
+    return ProgressBar(stream, label) if _interactive(stream) else ProgressLines(stream, label)

@@ -1,10 +1,11 @@
-"""The progress bar of long runs (legsim.progress): only on a terminal, reaching 100 %, with an
-estimate of the time left and a line whose width does not change as the numbers do."""
+"""The progress of long runs (legsim.progress): on a terminal a bar reaching 100 %, with an
+estimate of the time left and a line whose width does not change as the numbers do; elsewhere
+(a log file, a pipe) a plain line every LINE_INTERVAL seconds."""
 
 import io
 import re
 
-from legsim.progress import ProgressBar, progress_for
+from legsim.progress import LINE_INTERVAL, ProgressBar, ProgressLines, progress_for
 
 ANSI = re.compile(r"\x1b\[[0-9;?]*[A-Za-z]")
 
@@ -20,8 +21,8 @@ def frames(stream: io.StringIO) -> list[str]:
     return [line for line in (ANSI.sub("", part).rstrip("\n") for part in re.split(r"\r", text)) if line.strip()]
 
 
-def test_progress_only_on_a_terminal():
-    assert progress_for(io.StringIO()) is None
+def test_a_bar_only_on_a_terminal_and_lines_elsewhere():
+    assert isinstance(progress_for(io.StringIO()), ProgressLines)
     assert progress_for(Terminal(), enabled=False) is None
     assert isinstance(progress_for(Terminal(), label="ball"), ProgressBar)
 
@@ -112,3 +113,33 @@ def counting_bar(total, **kwargs):
     from legsim.progress import counting
 
     return counting(total, "sweep", **kwargs)
+
+
+def test_lines_come_every_interval_in_plain_text_and_a_short_run_writes_none():
+    stream, now = io.StringIO(), [100.0]
+    lines = ProgressLines(stream, label="pronk", clock=lambda: now[0])
+    for k in range(1, 200):  # a report every 0.25 s of wall time, the run from t = 0 to 2 s
+        now[0] = 100.0 + 0.25 * k
+        lines(0.01 * k, 0.0, 2.0)
+    written = stream.getvalue().splitlines()
+    # 49.75 s of wall time: one line at 30 s (k = 120, t = 1.2 s of 2), none before.
+    assert written == ["pronk: t = 1.2 / 2 s (60%), 0:00:30 elapsed"]
+    assert not ANSI.search(stream.getvalue()) and "\r" not in stream.getvalue()
+    # The same label keeps the clock (the next line 30 s after the last, at 130 s); a new one
+    # (certify's next refinement level) starts it again.
+    lines.label = "pronk"
+    now[0] = 130.0 + LINE_INTERVAL - 1.0
+    lines(1.5, 0.0, 2.0)
+    now[0] = 130.0 + LINE_INTERVAL
+    lines(1.6, 0.0, 2.0)
+    assert stream.getvalue().splitlines()[1:] == ["pronk: t = 1.6 / 2 s (80%), 0:01:00 elapsed"]
+    lines.label = "pronk level 1"
+    now[0] += LINE_INTERVAL - 1.0
+    lines(1.9, 0.0, 2.0)
+    now[0] += 1.0
+    lines(1.95, 0.0, 2.0)
+    assert stream.getvalue().splitlines()[2:] == ["pronk level 1: t = 1.95 / 2 s (98%), 0:00:30 elapsed"]
+    short = io.StringIO()
+    quick = ProgressLines(short, label="ball", clock=lambda: now[0])
+    quick(1.0, 0.0, 2.0)
+    assert short.getvalue() == ""

@@ -171,7 +171,8 @@ def plan_outputs(
 
 
 def _simulate(scene: Any, show_progress: bool, check: bool) -> tuple[Any, Any]:
-    """``scene.simulate()`` with a progress bar on stderr (when shown and stderr is a terminal);
+    """``scene.simulate()`` with its progress on stderr when shown (a bar on a terminal, a line
+    every 30 s elsewhere);
     with ``check``, ``scene.check_accuracy()``: (execution, error estimate or None)."""
     import numpy as np
 
