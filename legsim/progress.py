@@ -117,16 +117,17 @@ class ProgressLines:
     ) -> None:
         self.stream = stream if stream is not None else sys.stderr
         self.interval, self.clock = interval, clock if clock is not None else time.monotonic
+        self._label: str | None = None
         self.label = label
 
     @property
     def label(self) -> str:
         """The prefix of each line; setting a new one starts a new phase (the elapsed time starts again)."""
-        return self._label
+        return self._label or ""
 
     @label.setter
     def label(self, text: str) -> None:
-        if text != getattr(self, "_label", None):
+        if text != self._label:
             self._label = text
             self.start = self.last = self.clock()
 

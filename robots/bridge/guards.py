@@ -32,14 +32,13 @@ class PastDepths:
     only while it closes (``events.gap``). A coarse step can carry a foot through the ground and
     leave it rising; its guard is then inside the domain.
 
-    ``depths(mode, states)`` is (rows, contacts) in ``names``' order, -inf for a contact active
+    ``depths(mode, states)`` is (rows, contacts) in ``rigid``'s order, -inf for a contact active
     in the mode, and with ``armed_only`` for an armed point where it is not armed (it may pass
     below the ground there by design)."""
 
     def __init__(self, model: BridgeModel, active_contacts: Callable[[str], tuple[str, ...]]) -> None:
         self.model, self.active_contacts = model, active_contacts
         self.rigid = tuple(model.rigid.values())
-        self.names = tuple(r.contact.name for r in self.rigid)
         self.moving = model.terrain is not None and model.terrain[0] == SINE
         # The frame each depth reads: a point's contact point, or a round one's centre where its
         # contact point moves in the body (a sine); then the frames points are armed ahead of.
