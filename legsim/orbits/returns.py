@@ -86,12 +86,14 @@ class ReturnMap:
 
     ``rmap(x, parameters=None, memory=None) -> Return``; ``memory``: the controller's memory at
     the start (default the problem's ``memory_guess``). Raises ``OrbitError`` (status
-    ``no_return`` or ``simulation_failed``) when there is no return. ``evaluations`` counts the
-    simulations run.
+    ``no_return`` or ``simulation_failed``, the run that stopped as its ``execution``) when
+    there is no return. ``evaluations`` counts the simulations run. ``watches``: passed to every
+    ``simulate`` (a scene's ``[fall]`` conditions and its model's checks, for a walk).
     """
 
-    def __init__(self, problem: OrbitProblem) -> None:
+    def __init__(self, problem: OrbitProblem, watches: Sequence[Any] = ()) -> None:
         self.problem = problem
+        self.watches = tuple(watches)
         self.evaluations = 0
         self._hint: float | None = None  # the last return time (s): where the next one is looked for
 
@@ -130,6 +132,7 @@ class ReturnMap:
                     f"return map: the simulation from {self.show_state(x)} stopped with status "
                     f"'{ex.status}' before returning to the section {p.section.label}: {ex.message}",
                     "simulation_failed",
+                    execution=ex,
                 )
             seen = [tr.name for tr in ex.transitions]
             last_error = OrbitError(
@@ -200,6 +203,7 @@ class ReturnMap:
                 atol=p.atol,
                 landing=p.landing,
                 progress=p.progress,
+                watches=self.watches,
             )
         except LegsimError as exc:
             raise OrbitError(

@@ -183,7 +183,6 @@ def check_sweep(spec: SweepSpec) -> dict[str, float] | None:
     None when the walks vary the model, each then finding its own)."""
     from ..scene import load_scene
     from ..scene.orbit import problem_from_scene
-    from .walk import refuse_controlled
 
     base = load_scene(spec.scene, list(spec.overrides))
     measures = check_measures(spec.measures)
@@ -192,9 +191,7 @@ def check_sweep(spec: SweepSpec) -> dict[str, float] | None:
         corner = load_scene(spec.scene, list(spec.overrides) + variation_overrides(values))
         check_windows(measures, corner.integrator["t0"], corner.integrator["t_final"], corner.path)
     if spec.run == "walk" or spec.orbit:
-        problem = problem_from_scene(base).problem  # the [orbit] section is there and valid
-        if spec.run == "walk":
-            refuse_controlled(problem, f"{base.path}: --walk")
+        problem_from_scene(base)  # the [orbit] section is there and valid
     if measures:
         check_coordinates(measures, base.model.system, base.path)
     if spec.run != "walk" or any(not k.startswith("initial.") for k in spec.keys):

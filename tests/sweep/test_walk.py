@@ -149,22 +149,55 @@ FOLDED = ['robot.parameters.below_ground="fall"', "initial.state.z=0.3", "initia
           "initial.state.front_knee=-2.4"]  # fmt: skip
 
 
-def test_a_controlled_scene_is_not_walked_and_its_sweep_is_refused_before_it_runs(tmp_path, capsys):
-    # A walk takes each transition with the plant's reset: under a controller it would follow the
-    # plant alone (the quadruped's joints stay where they start: its first transition is a foot
-    # at 0.18 s, where the controlled run lands both feet at 0.025 s). It says so instead.
-    from legsim.cli import main
-    from legsim.errors import SimulationError
+@pytest.mark.parametrize("name", ["slip_raibert", "quadruped_pronk_forward"])
+def test_a_controlled_walk_follows_one_continuous_run_of_the_closed_loop(name):
+    """Three steps of a controlled walk, each a return restarted with the controller restored to
+    its memory, against one run of the scene's closed loop through the same three returns: the
+    controller's memory carries over (the quadruped's includes touchdown epochs and places along
+    x, shifted into each return's frame and back). Both runs are dop853 at rtol 1e-13 (the
+    scenes' orbit.integrator); they take different steps after each restart and locate the
+    crossing on different interpolants, so they agree to about 1e-11 s in time and 3e-9 in
+    state (rad/s), not to rounding."""
+    from legsim.crossings import returns
+    from legsim.relaxed import simulate
 
-    scene = load_scene("quadruped_pronk", FOLDED)
+    scene = load_scene(name)
     problem = problem_from_scene(scene).problem
-    with pytest.raises(SimulationError, match="the scene has a controller, and a walk follows only uncontrolled"):
-        walk(problem, scene.initial_state, 0.0, None)
-    code = main(
-        ["sweep", "quadruped_pronk", "--grid", "initial.state.z=0.5:0.6:2", "--walk", "--out", str(tmp_path / "out")]
-    )
-    assert code == 2 and "--walk: the scene has a controller" in capsys.readouterr().err
-    assert not (tmp_path / "out").exists()
+    result = walk(problem, scene.initial_state, 0.0, None, max_steps=3, tol=1e-14)
+    assert result.outcome == "undecided" and result.steps == 3
+    system, _ = problem.instantiate()
+    law = problem.restored_controller(dict(problem.parameters), problem.memory_guess)
+    start = np.concatenate([scene.initial_state, problem.memory_guess])
+    p = problem
+    run = simulate(system, start, p.bound.mode, result.t_end + 0.01, p.h, p.eps, p.tableau, law, rtol=p.rtol,
+                   atol=p.atol, landing=p.landing, max_halvings=p.max_halvings)  # fmt: skip
+    hits = list(returns(run, p.bound.mode, p.bound.s, p.section.direction, p.min_transitions, p.min_time))
+    assert len(hits) == 3
+    _, t_third, x_third = hits[-1]
+    assert abs(t_third - result.t_end) < 1e-10
+    assert np.abs(x_third[: p.dim] - result.state).max() < 1e-8
+    assert result.transitions == len([tr for tr in run.transitions if tr.exit_time <= t_third])
+
+
+def test_a_sweeps_controlled_walk_converges_or_falls_by_the_scenes_fall_section():
+    """The SLIP runner under Raibert's controller walks to its gait from 1 m/s; thrown at 8 m/s it
+    comes down to the [fall] section's height bound in its first flight: a fall, not a run that
+    failed (without the watch, the run would end halving_exhausted, its leg inside the ground)."""
+    from legsim.sweep import tasks
+    from legsim.sweep.spec import SweepSpec
+
+    spec = SweepSpec(scene="slip_raibert", overrides=("fall.height_min=0.5",), run="walk")
+    rows = {}
+    for xd in (1.0, 8.0):
+        values = {"initial.state.xd": xd}
+        scene = load_scene("slip_raibert", ["fall.height_min=0.5", f"initial.state.xd={xd}"])
+        rows[xd] = tasks.walk_row(scene, spec, values, tasks.Deadline(None))
+    assert rows[1.0]["outcome"] == "converges" and not rows[1.0]["fell"]
+    assert rows[1.0]["distance_to_gait"] < 1e-3
+    fell = rows[8.0]
+    assert fell["outcome"] == "falls" and fell["status"] == "fell" and fell["fell"]
+    assert "height_min" in fell["message"] and fell["walk_steps"] == 0
+    assert fell["final_state"][1] == pytest.approx(0.5, abs=1e-9)
 
 
 def test_a_sweeps_walk_takes_the_scenes_watches_at_the_walks_strip_width(monkeypatch):
