@@ -1,7 +1,8 @@
 """What a robot's runs are checked for besides their status (``legsim.relaxed.Watch``): the time
 each actuated joint spends at its effort limit, and links without a contact that pass below the
-ground. Both are evaluated on the run's stored points (the driver's scan), so they hold for the
-compiled kernel and the Python loop alike.
+ground. The first is measured on the run's stored points, the second checked there and at the
+steps' middles (the driver's scan, ``legsim.relaxed.watches``), so they hold for the compiled
+kernel and the Python loop alike.
 """
 
 from __future__ import annotations
@@ -29,27 +30,27 @@ def saturation_counter(joint: str) -> str:
 
 
 class Inputs:
-    """The controller's input at stored points: ``law.control`` at each point's plant state and
-    memory, the mode's parameters built once; each batch kept, since every joint's watch asks
-    for the same points."""
+    """The controller's input at a run's points: ``law.control`` at each point's plant state and
+    memory, the mode's parameters built once; each mode's last batch kept, since every joint's
+    watch asks for the very same arrays of points in turn (``watches.PointsByMode``)."""
 
     def __init__(self, law: ControlLaw, dims: Callable[[str], int]) -> None:
         self.law, self.dims = law, dims
         self._params: dict[str, np.ndarray] = {}
-        self._batches: dict[tuple[str, bytes, bytes], np.ndarray] = {}
+        self._last: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
 
     def __call__(self, mode: str, t: np.ndarray, x: np.ndarray) -> np.ndarray:
-        key = (mode, t.tobytes(), x.tobytes())
-        found = self._batches.get(key)
-        if found is not None:
-            return found
+        last = self._last.get(mode)
+        # The arrays themselves, kept alive here: the same objects hold the same points.
+        if last is not None and last[0] is t and last[1] is x:
+            return last[2]
         p = self._params.get(mode)
         if p is None:
             p = self._params[mode] = self.law.params_for(mode)
         states = np.ascontiguousarray(x, dtype=float)
         out = np.zeros((t.shape[0], self.law.inputs))
         at_rows(self.law.control, np.ascontiguousarray(t, dtype=float), states, self.dims(mode), p, out)
-        self._batches[key] = out
+        self._last[mode] = (t, x, out)
         return out
 
 
@@ -57,7 +58,7 @@ def saturation_watches(
     control: Any, names: Sequence[str], limits: np.ndarray, dims: Callable[[str], int]
 ) -> list[Watch]:
     """One time watch per actuated joint with a finite effort limit: the time |u_i| >= limit_i
-    (counter ``saturated_<joint>_s``), u the ``ControlLaw``'s input at the stored points. None
+    (counter ``saturated_<joint>_s``), u the ``ControlLaw``'s input at the run's points. None
     for other controls (a Python controller keeps state the points do not carry)."""
     if not isinstance(control, ControlLaw):
         return []

@@ -10,8 +10,8 @@
 * ``driver``, ``tables``, ``workspace``, ``assemble``, ``adapt``: the Python around it (a run's
   tables and arrays, Python models' adapters, the execution).
 * ``parts``: the step-size and landing rules as data.
-* ``watches``: conditions checked on the stored points (a fall, a state to report, a time to
-  measure), by the driver.
+* ``watches``: conditions checked on the stored points and the steps' middles (a fall, a state
+  to report, a time to measure), by the driver.
 """
 
 from .parts import Aim, Dense, ErrorControl, FixedStep, Halve

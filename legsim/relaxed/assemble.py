@@ -110,9 +110,10 @@ class Assembly:
         self.crossings: list[tuple[Any, ...]] = []
         self.in_strip = False
         self._open: tuple[int, list[np.ndarray], list[np.ndarray], list[np.ndarray]] | None = None
-        #: The stop watches' scan: visits scanned whole, points of the next one scanned, and where
-        #: one first held (visit index, point index, time, watch).
+        #: The stop watches' scan: visits scanned whole, checked points of the next one scanned
+        #: (``watches.refined``), and where one first held (visit index, checked point, time, watch).
         self._scanned = (0, 0)
+        self._checked: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
         self.stopped: tuple[int, int, float, Any] | None = None
 
     # -- draining ---------------------------------------------------------------------------
@@ -277,8 +278,8 @@ class Assembly:
         }
         if not compiled:
             run_settings["python_reason"] = python_reason or "the run asked for the Python loop"
-        warnings = [w for w in self.warnings(t_end) if w.time <= t_end] + self._watch_warnings()
-        counters.update(self._watch_times())
+        warnings = [w for w in self.warnings(t_end) if w.time <= t_end]
+        self._watch_results(warnings, counters)
         names, units = self.state_names()
         return Execution(
             status=status,
@@ -300,13 +301,22 @@ class Assembly:
 
     # -- watches (``watches``) -------------------------------------------------------------------
     def _visits(self, first: int) -> list[tuple[int, str, np.ndarray, np.ndarray, np.ndarray]]:
-        """(index, mode, t, x, dx) of the visits from ``first`` on, the open one included."""
-        out = [(i, s.mode, s.t, s.x, s.dx) for i, s in enumerate(self.segments) if i >= first]
+        """(index, mode, t, x, dx) of the visits from ``first`` on, the open one included, at the
+        points the watches check (``watches.refined``: the stored ones and the steps' middles)."""
+        out = [(i, self.segments[i].mode, *self._checked_points(i)) for i in range(first, len(self.segments))]
         if self._open is not None and self._open[1]:
             mode, ts, xs, dxs = self._open
-            out.append((len(self.segments), self.tables.names[mode], np.concatenate(ts), np.concatenate(xs),
-                        np.concatenate(dxs)))  # fmt: skip
+            points = watches.refined(np.concatenate(ts), np.concatenate(xs), np.concatenate(dxs))
+            out.append((len(self.segments), self.tables.names[mode], *points))
         return out
+
+    def _checked_points(self, i: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Segment i's points checked by the watches, made once (a closed segment does not change)."""
+        points = self._checked.get(i)
+        if points is None:
+            seg = self.segments[i]
+            points = self._checked[i] = watches.refined(seg.t, seg.x, seg.dx)
+        return points
 
     def check_stops(self) -> bool:
         """Scan the points stored since the last scan for the stop watches; True once one held
@@ -328,7 +338,8 @@ class Assembly:
     def _cut(self) -> tuple[Status, str, float]:
         """Cut the execution where a stop watch first held: its status, message and time."""
         assert self.stopped is not None
-        i, k, when, watch = self.stopped
+        i, checked, when, watch = self.stopped
+        k = watches.stored_index(checked)
         seg = self.segments[i]
         if k == 0:
             t, x, dx = seg.t[:1], seg.x[:1], seg.dx[:1]
@@ -338,21 +349,33 @@ class Assembly:
             x, dx = np.vstack([seg.x[:k], xk]), np.vstack([seg.dx[:k], dxk])
         self.segments[i + 1 :] = []
         self.segments[i] = Segment(seg.mode, t, x, dx)
+        self._checked.clear()
         self.strips = [s for s in self.strips if s.exit_time <= when]
         self.transitions = [tr for tr in self.transitions if tr.exit_time <= when]
         self.crossings = [c for c in self.crossings if c[3] <= when]
         self.in_strip = False
         return Status(watch.status), watch.message(when, seg.mode, x[-1].copy()), when
 
-    def _watch_warnings(self) -> list[RunWarning]:
-        """A warning for each warn watch that held: where it first did, and its least value."""
+    def _watch_results(self, warnings: list[Any], counters: dict[str, float]) -> None:
+        """The warn watches' warnings added to ``warnings``, the time watches' times to ``counters``."""
+        if any(w.action == "warn" for w in self.options.watches):
+            visits = self._visits(0)
+            warnings += self._watch_warnings(visits, watches.PointsByMode([(m, t, x) for _, m, t, x, _ in visits]))
+        if any(w.action == "time" for w in self.options.watches):
+            # Measured on the stored points' interpolant: a stretch inside one step is within a
+            # counter's accuracy (O(h) a stretch), and the middles would double its cost.
+            stored = [(i, s.mode, s.t, s.x, s.dx) for i, s in enumerate(self.segments)]
+            counters.update(self._watch_times(stored, watches.PointsByMode([(m, t, x) for _, m, t, x, _ in stored])))
+
+    def _watch_warnings(self, visits: list[Any], points: watches.PointsByMode) -> list[RunWarning]:
+        """A warning for each warn watch that held: where it first did, and its least value;
+        ``visits`` (``_visits(0)``) and their ``points``."""
         out = []
         for w in self.options.watches:
             if w.action != "warn":
                 continue
             first = least = None
-            visits = self._visits(0)
-            per_visit = watches.values_per_visit(w, [(mode, t, x) for _, mode, t, x, _ in visits])
+            per_visit = points.values(w)
             for (_, mode, t, x, dx), v in zip(visits, per_visit, strict=True):
                 if first is None and (hit := watches.first_hold(w, mode, t, x, dx, values=v)) is not None:
                     k, when = hit
@@ -369,14 +392,13 @@ class Assembly:
             out.append(RunWarning(w.name, message, first[0], {"least_value": least[0], "least_time": least[1]}))
         return out
 
-    def _watch_times(self) -> dict[str, float]:
-        """The time each time watch's condition held along the flow (s)."""
-        visits = self._visits(0)
-        points = [(mode, t, x) for _, mode, t, x, _ in visits]
+    def _watch_times(self, visits: list[Any], points: watches.PointsByMode) -> dict[str, float]:
+        """The time each time watch's condition held along the flow (s); ``visits`` and
+        ``points`` as ``_watch_warnings``'s."""
         times = {}
         for w in self.options.watches:
             if w.action == "time":
-                values = watches.values_per_visit(w, points)
+                values = points.values(w)
                 times[w.counter] = sum(
                     watches.time_held(w, mode, t, x, dx, v)
                     for (_, mode, t, x, dx), v in zip(visits, values, strict=True)

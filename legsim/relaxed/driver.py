@@ -101,7 +101,7 @@ class Options:
     hold: bool
     progress: Callable[[float, float, float], None] | None
     python: bool = False
-    #: Conditions on the stored points (``watches.Watch``): stops, warnings, measured times.
+    #: Conditions on the run's points (``watches.Watch``): stops, warnings, measured times.
     watches: tuple[Any, ...] = ()
 
 

@@ -113,9 +113,9 @@ def simulate(
         there, in ``Execution.evaluated`` (a ``Samples``; the cubic Hermite interpolant of the
         steps, the held point inside strips). Times past the end of a run that stopped early are
         left out.
-    watches: conditions on the run's stored points (``legsim.relaxed.Watch``): a fall that ends
-        the run (status ``fell``), a state reported by a warning, a time measured into a
-        counter (``legsim.relaxed.watches``).
+    watches: conditions on the run's states, checked at its stored points and the middle of each
+        step (``legsim.relaxed.Watch``): a fall that ends the run (status ``fell``), a state
+        reported by a warning, a time measured into a counter (``legsim.relaxed.watches``).
 
     Returns
     -------

@@ -1,14 +1,19 @@
-"""Conditions on a run's states checked at every stored point (``Watch``): a fall that ends the
-run, a state the model cannot vouch for that is reported, an interval that is measured.
+"""Conditions on a run's states checked at every stored point and step's middle (``Watch``): a
+fall that ends the run, a state the model cannot vouch for that is reported, an interval that
+is measured.
 
 A watch is ``value(mode, t, x) -> v``, a function of each point alone, vectorised over points
 of one mode (t of shape (N,), x of shape (N, n), the run's state: the plant's, then the
 controller's memory; the points of one visit, or of all the mode's visits at once for the
 warnings and times made at the end), and its condition *holds* where v < 0. The driver checks
 the points as the loop hands its buffers back (every ``workspace.POINTS`` points at most, and
-at the end), so the loop itself, compiled or not, is unchanged. Where a condition first holds
-between two stored points, the time is located by bisection on the points' cubic Hermite
-interpolant (the one ``Execution.sample`` uses: O(h^4) between steps), to float64 resolution;
+at the end), so the loop itself, compiled or not, is unchanged. The points a stop or a warning
+is checked at are the stored ones and the middle of every step between them, on the step's interpolant
+(``refined``): a condition that holds only inside a step (a foot carried through the ground and
+out again by one coarse step) is seen wherever it holds at the step's middle. Where a condition
+first holds between two checked points, the time is located by bisection on the points' cubic
+Hermite interpolant (the one ``Execution.sample`` uses: O(h^4) between steps), to float64
+resolution;
 where it holds at a visit's first point (a mode entered), the time is that entry's. A condition
 met during a crossing's step, before the guard point q, is found at the visit after the
 crossing.
@@ -20,9 +25,11 @@ Actions:
   transitions dropped). The loop may have run on to the next hand-back: the counters count every
   step it took.
 * ``"warn"``: a ``RunWarning`` of kind ``name`` naming where the condition first held and where
-  v was least (the stored point), with v there in ``details["least_value"]``.
+  v was least (a checked point), with v there in ``details["least_value"]``.
 * ``"time"``: the time the condition held along the flow (s, located at both ends), in the
-  execution's counters under ``counter``. Strip holds are not flow and are not counted.
+  execution's counters under ``counter``. Strip holds are not flow and are not counted. It is
+  measured on the stored points alone: a stretch inside one step is within a counter's
+  accuracy (O(h) a stretch), and the steps' middles would double the cost.
 """
 
 from __future__ import annotations
@@ -34,7 +41,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import SimulationError
-from ..execution import Status
+from ..execution import Segment, Status
 from .single import hermite, hermite_derivative
 
 ACTIONS = ("stop", "warn", "time")
@@ -102,6 +109,28 @@ def point(t: np.ndarray, x: np.ndarray, dx: np.ndarray, k: int, tau: float) -> t
     return hermite(x[k - 1], dx[k - 1], x[k], dx[k], dt, s), hermite_derivative(x[k - 1], dx[k - 1], x[k], dx[k], dt, s)
 
 
+def refined(t: np.ndarray, x: np.ndarray, dx: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The points a watch is checked at: one visit's stored points (t (N,), x and dx (N, n)) with
+    the middle of each step between them, interleaved: (2N - 1,) and (2N - 1, n). They give the
+    visit's own interpolant (each half step's cubic is the step's), so a time located between
+    two of them is the one the stored points give. Point k of these is stored point
+    ``stored_index(k)`` or the middle of the step ending there."""
+    if t.shape[0] < 2:
+        return t, x, dx
+    mid_t, mid_x, mid_dx = Segment("", t, x, dx).midpoints()
+    out_t = np.empty(2 * t.shape[0] - 1)
+    out_x = np.empty((out_t.shape[0], x.shape[1]))
+    out_dx = np.empty_like(out_x)
+    for out, stored, mid in ((out_t, t, mid_t), (out_x, x, mid_x), (out_dx, dx, mid_dx)):
+        out[0::2], out[1::2] = stored, mid
+    return out_t, out_x, out_dx
+
+
+def stored_index(k: int) -> int:
+    """The stored point at or after point k of ``refined``'s (k itself or the step's end)."""
+    return (k + 1) // 2
+
+
 def locate(watch: Watch, mode: str, t: np.ndarray, x: np.ndarray, dx: np.ndarray, k: int, holds: bool) -> float:
     """The time in (t[k-1], t[k]] where the condition starts (``holds``) or stops holding: the
     bisection's end on the side where the new state is reached."""
@@ -136,20 +165,30 @@ def first_hold(
     return k, locate(watch, mode, t, x, dx, k, True)
 
 
-def values_per_visit(watch: Watch, visits: Sequence[tuple[str, np.ndarray, np.ndarray]]) -> list[np.ndarray]:
-    """v at the points of each visit (mode, t, x), in order: one call of the watch per mode over
-    all its visits' points (a watch is vectorised, and a run visits few modes many times)."""
-    by_mode: dict[str, list[int]] = {}
-    for i, (mode, _, _) in enumerate(visits):
-        by_mode.setdefault(mode, []).append(i)
-    out: list[np.ndarray] = [np.empty(0)] * len(visits)
-    for mode, members in by_mode.items():
-        t = np.concatenate([visits[i][1] for i in members])
-        x = np.concatenate([visits[i][2] for i in members])
-        ends = np.cumsum([visits[i][1].shape[0] for i in members])[:-1]
-        for i, v in zip(members, np.split(watch.values(mode, t, x), ends), strict=True):
-            out[i] = v
-    return out
+class PointsByMode:
+    """The checked points of a list of visits (mode, t, x), gathered by mode once for every watch
+    asked about them: a watch is vectorised, and a run visits few modes many times. Every watch
+    then sees the very same arrays of a mode (a watch may keep what it computed on them)."""
+
+    def __init__(self, visits: Sequence[tuple[str, np.ndarray, np.ndarray]]) -> None:
+        by_mode: dict[str, list[int]] = {}
+        for i, (mode, _, _) in enumerate(visits):
+            by_mode.setdefault(mode, []).append(i)
+        self.count = len(visits)
+        self.groups = []
+        for mode, members in by_mode.items():
+            t = np.concatenate([visits[i][1] for i in members])
+            x = np.concatenate([visits[i][2] for i in members])
+            ends = np.cumsum([visits[i][1].shape[0] for i in members])[:-1]
+            self.groups.append((mode, members, t, x, ends))
+
+    def values(self, watch: Watch) -> list[np.ndarray]:
+        """v at the points of each visit, in the visits' order: one call of the watch per mode."""
+        out: list[np.ndarray] = [np.empty(0)] * self.count
+        for mode, members, t, x, ends in self.groups:
+            for i, v in zip(members, np.split(watch.values(mode, t, x), ends), strict=True):
+                out[i] = v
+        return out
 
 
 def time_held(

@@ -1,5 +1,6 @@
-"""Watches (legsim.relaxed.watches): conditions on a run's stored points, on a ball falling freely
-from z0 = 1 m (no floor): z(t) = z0 - g t^2 / 2, so z reaches b at t = sqrt(2 (z0 - b) / g)."""
+"""Watches (legsim.relaxed.watches): conditions on a run's states (its stored points and the
+middle of each step), on a ball falling freely from z0 = 1 m (no floor): z(t) = z0 - g t^2 / 2,
+so z reaches b at t = sqrt(2 (z0 - b) / g)."""
 
 import math
 
@@ -73,6 +74,24 @@ def test_a_warning_watch_says_where_its_condition_first_held_and_most():
     assert warning.kind == "low" and warning.time == pytest.approx(reach(0.9), abs=1e-12)
     assert warning.details["least_time"] == 1.0
     assert warning.details["least_value"] == pytest.approx((1.0 - G / 2) - 0.9, abs=1e-12)
+
+
+def in_band(mode, t, x):
+    """Holds while 0.65 < z < 0.75."""
+    return np.abs(x[:, 0] - 0.7) - 0.05
+
+
+@pytest.mark.parametrize("python", [False, True])
+def test_a_condition_holding_only_inside_one_step_is_seen_at_the_steps_middle(python):
+    # One step of 0.5 s: z from 1 to -0.23 m, at the step's middle 0.69 m, in the band, which
+    # neither stored point is. The interpolant is exact on z's parabola, so the stop and the
+    # warning are at the closed-form time, and the warning's least value is the middle's.
+    stop = run([Watch("band", in_band, "stop", said)], t_final=0.5, h=0.5, python=python)
+    assert stop.status == "fell" and stop.t_end == pytest.approx(reach(0.75), abs=1e-12)
+    assert stop.final_state[0] == pytest.approx(0.75, abs=1e-12)
+    (warning,) = run([Watch("band", in_band, "warn", said)], t_final=0.5, h=0.5, python=python).warnings
+    assert warning.time == pytest.approx(reach(0.75), abs=1e-12) and warning.details["least_time"] == 0.25
+    assert warning.details["least_value"] == pytest.approx(abs(1.0 - G / 2 * 0.25**2 - 0.7) - 0.05, abs=1e-12)
 
 
 def test_bad_watches_are_refused_by_name():

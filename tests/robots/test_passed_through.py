@@ -57,8 +57,24 @@ def test_a_step_through_the_ground_is_a_warning_at_the_closed_form_time(tmp_path
     (warning,) = [w for w in ex.warnings if w.kind == "passed_through"]
     assert "'foot'" in warning.message and "below the ground" in warning.message
     assert warning.time == pytest.approx(through_time(), abs=1e-9)
-    # The depth where it was deepest among the stored points: the last, L cos(0.4) - H.
-    assert EPS + THROUGH_DEPTH - warning.details["least_value"] == pytest.approx(L * math.cos(0.4) - H, abs=1e-12)
+    # The depth where it was deepest among the points checked (the stored ones and the step's
+    # middle): the middle, theta = -0.1, L cos(0.1) - H.
+    assert EPS + THROUGH_DEPTH - warning.details["least_value"] == pytest.approx(L * math.cos(0.1) - H, abs=1e-12)
+    assert warning.details["least_time"] == pytest.approx(0.05, abs=1e-15)
+
+
+@pytest.mark.parametrize(("action", "status"), [("warn", "finished"), ("strict", "model_breakdown")])
+def test_a_step_through_the_ground_and_out_again_is_seen_at_its_middle(tmp_path, action, status):
+    # One step of 0.12 s: theta from -0.6 to 0.6, the foot 0.075 m up at both ends and 0.1 m
+    # below the ground at the step's middle (theta = 0). Neither stored point shows it.
+    ex = load_scene(swing(tmp_path, 0.12, action, t_final=0.12)).simulate()
+    assert ex.status == status and not ex.transitions
+    if action == "warn":
+        (warning,) = [w for w in ex.warnings if w.kind == "passed_through"]
+        assert warning.time == pytest.approx(through_time(), abs=1e-9)
+        assert EPS + THROUGH_DEPTH - warning.details["least_value"] == pytest.approx(L - H, abs=1e-12)
+    else:
+        assert "'foot'" in ex.message and ex.t_end == pytest.approx(through_time(), abs=1e-9)
 
 
 @pytest.mark.parametrize(("action", "status"), [("strict", "model_breakdown"), ("fall", "fell")])
