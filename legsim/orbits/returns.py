@@ -140,6 +140,7 @@ class ReturnMap:
                 f"{self.show_state(x)} (transitions taken: {_abbreviate(seen)}; final mode '{ex.final_mode}', "
                 f"state {np.round(ex.final_state, 6).tolist()})",
                 "no_return",
+                execution=ex,
             )
         assert last_error is not None
         raise last_error

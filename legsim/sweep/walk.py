@@ -355,20 +355,19 @@ class _ReturnWalker(_Walker):
 
     def ended(self, exc: OrbitError, x: np.ndarray, travelled: np.ndarray, t: float) -> WalkResult:
         """The walk's end where a return did not come: none within t_max or the transition
-        budget spent (``stops``), a fall, or a failed run. ``x``: the state the return started
-        from at time t (s), its cyclic coordinates less ``travelled``."""
+        budget spent (``stops``), a fall, or a failed run, where its run ended. ``x``: the state
+        the return started from at time t (s), its cyclic coordinates less ``travelled``."""
         p, ex = self.problem, exc.execution
-        if ex is None:
-            outcome = "stops" if exc.status == "no_return" else "failed"
-            return self.finish(outcome, "finished" if outcome == "stops" else exc.status, str(exc), p.bound.mode,
-                               x + travelled, t)  # fmt: skip
+        if ex is None:  # the simulation raised (a deadline, a model's error)
+            return self.finish("failed", exc.status, str(exc), p.bound.mode, x + travelled, t)
         self.count(ex, len(ex.transitions))
-        kind = RUN_OUTCOMES.get(ex.status, "failed")
+        kind = "stops" if exc.status == "no_return" else RUN_OUTCOMES.get(ex.status, "failed")
         names = self.system.state_names(ex.final_mode)
         # The plant's state (a ControlLaw's memory follows it), the distance travelled added back.
         state = ex.final_state[: len(names)] + [travelled[p.names.index(n)] if n in self.cyclic else 0.0 for n in names]
         status = "finished" if kind == "stops" else str(ex.status)
-        return self.finish(kind, status, ex.message, ex.final_mode, state, t + ex.t_end - ex.t0)
+        message = str(exc) if exc.status == "no_return" else ex.message
+        return self.finish(kind, status, message, ex.final_mode, state, t + ex.t_end - ex.t0)
 
 
 def walk(

@@ -179,6 +179,20 @@ def test_a_controlled_walk_follows_one_continuous_run_of_the_closed_loop(name):
     assert result.transitions == len([tr for tr in run.transitions if tr.exit_time <= t_third])
 
 
+def test_a_controlled_walk_without_a_return_within_t_max_stops_where_its_run_ended():
+    # The SLIP runner's first apex comes 0.63 s after its start; with t_max = 0.3 s none does.
+    # The walk ends where the return's run did, in stance at t_max, with the plant's state (the
+    # controller's memory, which the run's state carries after it, left out).
+    scene = load_scene("slip_raibert", ["orbit.t_max=0.3"])
+    problem = problem_from_scene(scene).problem
+    result = walk(problem, scene.initial_state, 0.0, None, max_steps=3)
+    assert result.outcome == "stops" and result.status == "finished" and result.steps == 0
+    assert "within t_max = 0.3 s" in result.message
+    assert result.t_end == pytest.approx(0.3, abs=1e-12) and result.mode == "stance"
+    assert result.state.shape == (len(problem.instantiate()[0].state_names("stance")),)
+    assert result.counters["steps"] > 0
+
+
 def test_a_sweeps_controlled_walk_converges_or_falls_by_the_scenes_fall_section():
     """The SLIP runner under Raibert's controller walks to its gait from 1 m/s; thrown at 8 m/s it
     comes down to the [fall] section's height bound in its first flight: a fall, not a run that
