@@ -50,7 +50,8 @@ class Inputs:
         states = np.ascontiguousarray(x, dtype=float)
         out = np.zeros((t.shape[0], self.law.inputs))
         at_rows(self.law.control, np.ascontiguousarray(t, dtype=float), states, self.dims(mode), p, out)
-        self._last[mode] = (t, x, out)
+        if t.shape[0] > 1:  # a batch, not one point located between two (kept batches stay)
+            self._last[mode] = (t, x, out)
         return out
 
 

@@ -67,6 +67,8 @@ class Return:
     memory_start, memory_end: the controller's memory at the start and at the return (epochs and
         positions in the start's frame, ``ReturnMap._to_start_frame``), shape (m,)
         (empty without a controller).
+    memory_noted: which memory entries the return changed (noted anew), shape (m,) bool; an
+        entry it did not change is left in the start's frame.
     """
 
     x_start: np.ndarray
@@ -82,6 +84,7 @@ class Return:
     step_length: float | None = None
     memory_start: np.ndarray = field(default_factory=lambda: np.empty(0))
     memory_end: np.ndarray = field(default_factory=lambda: np.empty(0))
+    memory_noted: np.ndarray = field(default_factory=lambda: np.empty(0, dtype=bool))
 
     @property
     def start(self) -> np.ndarray:

@@ -171,6 +171,7 @@ class ReturnMap:
         found.memory_end = found.memory_end.copy()
         noted = np.abs(found.memory_end - found.memory_start) > MEMORY_ROUNDING * (1.0 + np.abs(found.memory_start))
         found.memory_end[~noted] = found.memory_start[~noted]
+        found.memory_noted = noted
         _shift_frames(self.problem, found.memory_end, noted, found.time, found.x_end - found.x_start)
 
     def _horizons(self) -> list[float]:

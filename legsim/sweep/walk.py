@@ -11,13 +11,16 @@ there. Its runs use the orbit problem's settings (h, eps, method, tolerances, as
 ``legsim.orbits.ReturnMap`` does), so that the reference gait found by ``find_orbit`` is a
 fixed point of exactly these steps.
 
-A scene with a controller is walked through its return map instead (``ReturnMap``): a
-transition of the closed loop also resets the controller and updates its memory, which only a
-run of ``simulate`` with the controller carries. Each step is then one return, run from the
-last one's state with the controller restored to the memory it had there (in the return's
-frame: an epoch less the return time, a place along a cyclic coordinate less the step), which is
-how a continuous run of the scene goes on (checked to 1e-11 against one, ``tests/sweep``). Its
-runs reach past the return (the map's horizon), and its counters count them whole.
+A scene with a controller is walked through its return map instead (``ReturnMap``): a transition
+of the closed loop also resets the controller and updates its memory, which only a run of
+``simulate`` with the controller carries. Each step is then one return, run from the last one's
+state with the controller restored to the memory it had there (each return restarts the clock,
+so an epoch less the time walked), which is how a continuous run of the scene goes on (checked
+to 1e-10 s and 1e-8 against one, ``tests/sweep``). Its runs reach past the return (the map's
+horizon), and its counters count them whole; its warnings are those up to each return, their
+times measured from the return's start. Its returns are compared by the plant's state (the
+controller's memory, in the returns' frames, follows it); each return may take the problem's
+``max_transitions``, past which the walk ``stops``.
 
 Outcomes (``OUTCOMES``):
 
@@ -40,6 +43,7 @@ Outcomes (``OUTCOMES``):
 
 from __future__ import annotations
 
+import copy
 import math
 from collections import defaultdict
 from collections.abc import Callable
@@ -320,51 +324,63 @@ class _ReturnWalker(_Walker):
     controller restored to its memory at the last return."""
 
     def run(self, mode: str, x: np.ndarray, t: float) -> WalkResult:
-        p = self.problem
+        p = copy.copy(self.problem)
+        p.progress = self.progress  # a deadline is checked inside each return's runs too
         rmap = ReturnMap(p, self.watches)
         memory = p.memory_guess.copy()
-        # Every return restarts the cyclic coordinates (memory places are measured from them):
-        # the distance travelled is kept here and added back to the states the walk reports.
-        travelled = np.zeros(p.dim)
-        cyclic = list(p.cyclic_idx)
-        self.cyclic = {p.names[i] for i in cyclic}  # by name: a fall may end in another mode
+        noted = np.zeros(memory.shape, dtype=bool)  # entries some return has noted
         while True:
             if self.progress is not None:
                 self.progress(t, t, t)
             try:
                 ret = rmap(x, memory=memory)
             except OrbitError as exc:
-                return self.ended(exc, x, travelled, t)
-            self.count(ret.execution, len(ret.transitions))
-            t += ret.time
-            travelled[cyclic] += ret.x_end[cyclic] - x[cyclic]
-            x = ret.x_end.copy()
-            x[cyclic] = ret.x_start[cyclic]
-            memory = ret.memory_end
+                return self.ended(exc, x, t)
+            self.count(ret.execution, len(ret.transitions), ret.t_return)
+            memory = self.walk_frame(ret, noted)
+            noted |= ret.memory_noted
+            # The walk goes on from where the robot is: its cyclic coordinates are not restarted.
+            t, x = t + ret.time, ret.x_end.copy()
             verdict = self.returned(x, t)
             if verdict is not None:
                 outcome, why = verdict
-                return self.finish(outcome, "finished", why, p.bound.mode, x + travelled, t)
+                return self.finish(outcome, "finished", why, p.bound.mode, x, t)
 
-    def count(self, ex: Execution, transitions: int) -> None:
-        """Add a return's run to the counters and warnings; ``transitions`` up to the return."""
+    def walk_frame(self, ret: Any, noted: np.ndarray) -> np.ndarray:
+        """The memory at return ``ret`` as the next return of the walk sees it. ``ReturnMap``
+        gives it in the frame of a return that restarts the clock and the cyclic coordinates; a
+        walk restarts the clock only. So an epoch noted in an earlier return (``noted``) and not
+        in this one is moved by this return's time too, and a place noted in this one is put
+        back where it was noted. An entry never noted holds its fresh marker, which has no frame."""
+        p = self.problem
+        memory = ret.memory_end.copy()
+        for i, frame in enumerate(p.memory_frames):
+            if frame == "t" and noted[i] and not ret.memory_noted[i]:
+                memory[i] -= ret.time
+            elif frame and frame != "t" and ret.memory_noted[i] and p.names.index(frame) in p.cyclic_idx:
+                c = p.names.index(frame)
+                memory[i] += ret.x_end[c] - ret.x_start[c]
+        return memory
+
+    def count(self, ex: Execution, transitions: int, until: float = math.inf) -> None:
+        """Add a return's run to the counters, and its warnings up to time ``until`` (s, the
+        return: the next return runs on from there); ``transitions`` up to the return."""
         for key in COUNTERS:
             self.counters[key] += ex.counters.get(key, 0)
-        self.warnings.update(dict.fromkeys(f"{w.kind}: {w.message}" for w in ex.warnings))
+        self.warnings.update(dict.fromkeys(f"{w.kind}: {w.message}" for w in ex.warnings if w.time <= until))
         self.transitions += transitions
 
-    def ended(self, exc: OrbitError, x: np.ndarray, travelled: np.ndarray, t: float) -> WalkResult:
-        """The walk's end where a return did not come: none within t_max or the transition
-        budget spent (``stops``), a fall, or a failed run, where its run ended. ``x``: the state
-        the return started from at time t (s), its cyclic coordinates less ``travelled``."""
-        p, ex = self.problem, exc.execution
+    def ended(self, exc: OrbitError, x: np.ndarray, t: float) -> WalkResult:
+        """The walk's end where a return started from x at time t (s) did not come: none within
+        t_max or the transition budget spent (``stops``), a fall, or a failed run, where its run
+        ended."""
+        ex = exc.execution
         if ex is None:  # the simulation raised (a deadline, a model's error)
-            return self.finish("failed", exc.status, str(exc), p.bound.mode, x + travelled, t)
+            return self.finish("failed", exc.status, str(exc), self.problem.bound.mode, x, t)
         self.count(ex, len(ex.transitions))
         kind = "stops" if exc.status == "no_return" else RUN_OUTCOMES.get(ex.status, "failed")
-        names = self.system.state_names(ex.final_mode)
-        # The plant's state (a ControlLaw's memory follows it), the distance travelled added back.
-        state = ex.final_state[: len(names)] + [travelled[p.names.index(n)] if n in self.cyclic else 0.0 for n in names]
+        # The plant's state: a ControlLaw's memory follows it in the run's.
+        state = ex.final_state[: len(self.system.state_names(ex.final_mode))]
         status = "finished" if kind == "stops" else str(ex.status)
         message = str(exc) if exc.status == "no_return" else ex.message
         return self.finish(kind, status, message, ex.final_mode, state, t + ex.t_end - ex.t0)

@@ -179,6 +179,31 @@ def test_a_controlled_walk_follows_one_continuous_run_of_the_closed_loop(name):
     assert result.transitions == len([tr for tr in run.transitions if tr.exit_time <= t_third])
 
 
+def test_a_controlled_walk_that_falls_after_some_steps_falls_where_one_continuous_run_does():
+    """Thrown from a 2 m apex at 3.25 m/s, the SLIP runner falls (its body down to the [fall]
+    section's 0.5 m) in stance after several hops. The walk's fall, after its returns, is the one
+    continuous run of the closed loop meets: the same time and state, the stance foot's place
+    along x included (a coordinate of the stance mode only), to the accuracy of the restarts."""
+    from legsim.crossings import returns
+    from legsim.relaxed import simulate
+
+    scene = load_scene("slip_raibert", ["fall.height_min=0.5", "initial.state.xd=3.25", "initial.state.z=2.0"])
+    p = problem_from_scene(scene).problem
+    checks = scene.watches(scene.control, p.eps)
+    result = walk(p, scene.initial_state, 0.0, None, max_steps=40, tol=1e-14, watches=checks)
+    assert result.outcome == "falls" and result.status == "fell" and result.mode == "stance"
+    system, _ = p.instantiate()
+    law = p.restored_controller(dict(p.parameters), p.memory_guess)
+    start = np.concatenate([scene.initial_state, p.memory_guess])
+    run = simulate(system, start, p.bound.mode, 20.0, p.h, p.eps, p.tableau, law, rtol=p.rtol, atol=p.atol,
+                   landing=p.landing, max_halvings=p.max_halvings, watches=checks)  # fmt: skip
+    assert run.status == "fell" and run.final_mode == "stance"
+    apexes = list(returns(run, p.bound.mode, p.bound.s, p.section.direction, p.min_transitions, p.min_time))
+    assert result.steps == len(apexes) >= 3
+    assert abs(run.t_end - result.t_end) < 1e-10
+    assert np.abs(run.final_state[: result.state.shape[0]] - result.state).max() < 1e-8
+
+
 def test_a_controlled_walk_without_a_return_within_t_max_stops_where_its_run_ended():
     # The SLIP runner's first apex comes 0.63 s after its start; with t_max = 0.3 s none does.
     # The walk ends where the return's run did, in stance at t_max, with the plant's state (the
