@@ -110,8 +110,8 @@ class Assembly:
         self.crossings: list[tuple[Any, ...]] = []
         self.in_strip = False
         self._open: tuple[int, list[np.ndarray], list[np.ndarray], list[np.ndarray]] | None = None
-        #: The stop watches' scan: visits scanned whole, checked points of the next one scanned
-        #: (``watches.refined``), and where one first held (visit index, checked point, time, watch).
+        #: The stop watches' scan: visits scanned whole, points of the next one scanned, and where
+        #: one first held (visit index, stored point at or after it, time, watch).
         self._scanned = (0, 0)
         self._checked: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
         self.stopped: tuple[int, int, float, Any] | None = None
@@ -301,17 +301,17 @@ class Assembly:
 
     # -- watches (``watches``) -------------------------------------------------------------------
     def _visits(self, first: int) -> list[tuple[int, str, np.ndarray, np.ndarray, np.ndarray]]:
-        """(index, mode, t, x, dx) of the visits from ``first`` on, the open one included, at the
-        points the watches check (``watches.refined``: the stored ones and the steps' middles)."""
-        out = [(i, self.segments[i].mode, *self._checked_points(i)) for i in range(first, len(self.segments))]
+        """(index, mode, t, x, dx) of the visits from ``first`` on, the open one included."""
+        out = [(i, s.mode, s.t, s.x, s.dx) for i, s in enumerate(self.segments) if i >= first]
         if self._open is not None and self._open[1]:
             mode, ts, xs, dxs = self._open
-            points = watches.refined(np.concatenate(ts), np.concatenate(xs), np.concatenate(dxs))
-            out.append((len(self.segments), self.tables.names[mode], *points))
+            out.append((len(self.segments), self.tables.names[mode], np.concatenate(ts), np.concatenate(xs),
+                        np.concatenate(dxs)))  # fmt: skip
         return out
 
     def _checked_points(self, i: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Segment i's points checked by the watches, made once (a closed segment does not change)."""
+        """Segment i's stored points and its steps' middles (``watches.refined``), made once: a
+        closed segment does not change until a stop cuts it."""
         points = self._checked.get(i)
         if points is None:
             seg = self.segments[i]
@@ -319,18 +319,24 @@ class Assembly:
         return points
 
     def check_stops(self) -> bool:
-        """Scan the points stored since the last scan for the stop watches; True once one held
-        (``stopped``: the earliest)."""
+        """Scan the points stored since the last scan, and the middles of their steps
+        (``watches.refined``), for the stop watches; True once one held (``stopped``: the
+        earliest, by its visit and its stored point at or after it)."""
         stops = [w for w in self.options.watches if w.action == "stop"]
         if self.stopped is not None or not stops:
             return self.stopped is not None
         done, points = self._scanned
         for i, mode, t, x, dx in self._visits(done):
             start = max(points - 1, 0) if i == done else 0
-            found = [(hit[1], hit[0], w) for w in stops if (hit := watches.first_hold(w, mode, t, x, dx, start))]
+            if i < len(self.segments):  # a closed visit: its checked points are kept for the warnings
+                ct, cx, cdx = self._checked_points(i)
+                tail = ct[2 * start :], cx[2 * start :], cdx[2 * start :]
+            else:
+                tail = watches.refined(t[start:], x[start:], dx[start:])
+            found = [(hit[1], hit[0], w) for w in stops if (hit := watches.first_hold(w, mode, *tail))]
             if found:
                 when, k, watch = min(found, key=lambda item: item[0])
-                self.stopped = (i, k, when, watch)
+                self.stopped = (i, start + watches.stored_index(k), when, watch)
                 return True
             self._scanned = (i, t.shape[0])
         return False
@@ -338,8 +344,7 @@ class Assembly:
     def _cut(self) -> tuple[Status, str, float]:
         """Cut the execution where a stop watch first held: its status, message and time."""
         assert self.stopped is not None
-        i, checked, when, watch = self.stopped
-        k = watches.stored_index(checked)
+        i, k, when, watch = self.stopped
         seg = self.segments[i]
         if k == 0:
             t, x, dx = seg.t[:1], seg.x[:1], seg.dx[:1]
@@ -359,7 +364,8 @@ class Assembly:
     def _watch_results(self, warnings: list[Any], counters: dict[str, float]) -> None:
         """The warn watches' warnings added to ``warnings``, the time watches' times to ``counters``."""
         if any(w.action == "warn" for w in self.options.watches):
-            visits = self._visits(0)
+            # Every visit is closed by now: each one's stored points and its steps' middles.
+            visits = [(i, s.mode, *self._checked_points(i)) for i, s in enumerate(self.segments)]
             warnings += self._watch_warnings(visits, watches.PointsByMode([(m, t, x) for _, m, t, x, _ in visits]))
         if any(w.action == "time" for w in self.options.watches):
             # Measured on the stored points' interpolant: a stretch inside one step is within a
@@ -369,7 +375,7 @@ class Assembly:
 
     def _watch_warnings(self, visits: list[Any], points: watches.PointsByMode) -> list[RunWarning]:
         """A warning for each warn watch that held: where it first did, and its least value;
-        ``visits`` (``_visits(0)``) and their ``points``."""
+        ``visits`` (index, mode, t, x, dx) at the checked points and ``points``, the same by mode."""
         out = []
         for w in self.options.watches:
             if w.action != "warn":
