@@ -91,14 +91,11 @@ class Segment:
         s = ((times - t0) / dt)[:, None]
         return hermite_values(self.x[idx], self.dx[idx], self.x[idx + 1], self.dx[idx + 1], dt[:, None], s)
 
-    def midpoints(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The time (N - 1,), state and slope (N - 1, n) at the middle of each step, on the
-        interpolant: together with the stored points they give the same interpolant, each half
-        step's cubic being the step's."""
+    def midpoints(self) -> tuple[np.ndarray, np.ndarray]:
+        """The time (N - 1,) and state (N - 1, n) at the middle of each step, on the interpolant."""
         t0, t1 = self.t[:-1], self.t[1:]
         dt = (t1 - t0)[:, None]
-        ends = (self.x[:-1], self.dx[:-1], self.x[1:], self.dx[1:], dt, 0.5)
-        return 0.5 * (t0 + t1), hermite_values(*ends), hermite_slopes(*ends)
+        return 0.5 * (t0 + t1), hermite_values(self.x[:-1], self.dx[:-1], self.x[1:], self.dx[1:], dt, 0.5)
 
 
 def hermite_values(x0: np.ndarray, d0: np.ndarray, x1: np.ndarray, d1: np.ndarray, dt: Any, s: Any) -> np.ndarray:
@@ -110,13 +107,6 @@ def hermite_values(x0: np.ndarray, d0: np.ndarray, x1: np.ndarray, d1: np.ndarra
     h11 = s**3 - s**2
     values: np.ndarray = h00 * x0 + h10 * (d0 * dt) + h01 * x1 + h11 * (d1 * dt)
     return values
-
-
-def hermite_slopes(x0: np.ndarray, d0: np.ndarray, x1: np.ndarray, d1: np.ndarray, dt: Any, s: Any) -> np.ndarray:
-    """d/dt of ``hermite_values`` (its slope in time, per s of the step's length dt)."""
-    s2 = s * s
-    slopes: np.ndarray = (6 * s2 - 6 * s) * (x0 - x1) / dt + (3 * s2 - 4 * s + 1) * d0 + (3 * s2 - 2 * s) * d1
-    return slopes
 
 
 @dataclass(frozen=True)

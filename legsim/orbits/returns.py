@@ -172,7 +172,7 @@ class ReturnMap:
         noted = np.abs(found.memory_end - found.memory_start) > MEMORY_ROUNDING * (1.0 + np.abs(found.memory_start))
         found.memory_end[~noted] = found.memory_start[~noted]
         found.memory_noted = noted
-        _shift_frames(self.problem, found.memory_end, noted, found.time, found.x_end - found.x_start)
+        shift_frames(self.problem, found.memory_end, noted, found.time, found.x_end - found.x_start)
 
     def _horizons(self) -> list[float]:
         """Growing simulation horizons (s): the last return time and a half (plus 20 steps), or
@@ -302,11 +302,11 @@ def memory_at_crossing(problem: OrbitProblem, t: float, memory: np.ndarray, t_st
     noted = np.array(
         [frame != "t" or value >= t_start for frame, value in zip(problem.memory_frames, out, strict=True)]
     )
-    _shift_frames(problem, out, noted, t, np.zeros(problem.dim))
+    shift_frames(problem, out, noted, t, np.zeros(problem.dim))
     return out
 
 
-def _shift_frames(problem: OrbitProblem, memory: np.ndarray, noted: np.ndarray, time: float, shift: np.ndarray) -> None:
+def shift_frames(problem: OrbitProblem, memory: np.ndarray, noted: np.ndarray, time: float, shift: np.ndarray) -> None:
     """In place: each noted memory value measured from a frame, less the frame's shift: an epoch
     (frame "t") less ``time`` (s), a position along a cyclic coordinate less that coordinate's
     entry of ``shift`` (shape (n,))."""

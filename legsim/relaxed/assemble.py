@@ -113,7 +113,7 @@ class Assembly:
         #: The stop watches' scan: visits scanned whole, points of the next one scanned, and where
         #: one first held (visit index, stored point at or after it, time, watch).
         self._scanned = (0, 0)
-        self._checked: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+        self._checked: dict[int, tuple[np.ndarray, np.ndarray]] = {}
         self.stopped: tuple[int, int, float, Any] | None = None
 
     # -- draining ---------------------------------------------------------------------------
@@ -309,7 +309,7 @@ class Assembly:
                         np.concatenate(dxs)))  # fmt: skip
         return out
 
-    def _checked_points(self, i: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def _checked_points(self, i: int) -> tuple[np.ndarray, np.ndarray]:
         """Segment i's stored points and its steps' middles (``watches.refined``), made once: a
         closed segment does not change until a stop cuts it."""
         points = self._checked.get(i)
@@ -328,12 +328,13 @@ class Assembly:
         done, points = self._scanned
         for i, mode, t, x, dx in self._visits(done):
             start = max(points - 1, 0) if i == done else 0
+            stored = t[start:], x[start:], dx[start:]
             if i < len(self.segments):  # a closed visit: its checked points are kept for the warnings
-                ct, cx, cdx = self._checked_points(i)
-                tail = ct[2 * start :], cx[2 * start :], cdx[2 * start :]
+                ct, cx = self._checked_points(i)
+                checked = ct[2 * start :], cx[2 * start :]
             else:
-                tail = watches.refined(t[start:], x[start:], dx[start:])
-            found = [(hit[1], hit[0], w) for w in stops if (hit := watches.first_hold(w, mode, *tail))]
+                checked = watches.refined(*stored)
+            found = [(hit[1], hit[0], w) for w in stops if (hit := watches.first_hold(w, mode, checked, stored))]
             if found:
                 when, k, watch = min(found, key=lambda item: item[0])
                 self.stopped = (i, start + watches.stored_index(k), when, watch)
@@ -365,8 +366,8 @@ class Assembly:
         """The warn watches' warnings added to ``warnings``, the time watches' times to ``counters``."""
         if any(w.action == "warn" for w in self.options.watches):
             # Every visit is closed by now: each one's stored points and its steps' middles.
-            visits = [(i, s.mode, *self._checked_points(i)) for i, s in enumerate(self.segments)]
-            warnings += self._watch_warnings(visits, watches.PointsByMode([(m, t, x) for _, m, t, x, _ in visits]))
+            visits = [(s.mode, *self._checked_points(i), s) for i, s in enumerate(self.segments)]
+            warnings += self._watch_warnings(visits, watches.PointsByMode([(m, t, x) for m, t, x, _ in visits]))
         if any(w.action == "time" for w in self.options.watches):
             # Measured on the stored points' interpolant: a stretch inside one step is within a
             # counter's accuracy (O(h) a stretch), and the middles would double its cost.
@@ -375,17 +376,18 @@ class Assembly:
 
     def _watch_warnings(self, visits: list[Any], points: watches.PointsByMode) -> list[RunWarning]:
         """A warning for each warn watch that held: where it first did, and its least value;
-        ``visits`` (index, mode, t, x, dx) at the checked points and ``points``, the same by mode."""
+        ``visits`` (mode, checked times, checked states, segment) and ``points``, the same by mode."""
         out = []
         for w in self.options.watches:
             if w.action != "warn":
                 continue
             first = least = None
             per_visit = points.values(w)
-            for (_, mode, t, x, dx), v in zip(visits, per_visit, strict=True):
-                if first is None and (hit := watches.first_hold(w, mode, t, x, dx, values=v)) is not None:
+            for (mode, t, x, seg), v in zip(visits, per_visit, strict=True):
+                stored = seg.t, seg.x, seg.dx
+                if first is None and (hit := watches.first_hold(w, mode, (t, x), stored, v)) is not None:
                     k, when = hit
-                    state = x[0] if k == 0 else watches.point(t, x, dx, k, when)[0]
+                    state = x[0] if k == 0 else watches.point(*stored, watches.stored_index(k), when)[0]
                     first = (when, mode, state)
                 k, low = watches.least_of(v)
                 if least is None or low < least[0]:

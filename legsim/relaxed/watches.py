@@ -109,21 +109,19 @@ def point(t: np.ndarray, x: np.ndarray, dx: np.ndarray, k: int, tau: float) -> t
     return hermite(x[k - 1], dx[k - 1], x[k], dx[k], dt, s), hermite_derivative(x[k - 1], dx[k - 1], x[k], dx[k], dt, s)
 
 
-def refined(t: np.ndarray, x: np.ndarray, dx: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def refined(t: np.ndarray, x: np.ndarray, dx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The points a watch is checked at: one visit's stored points (t (N,), x and dx (N, n)) with
-    the middle of each step between them, interleaved: (2N - 1,) and (2N - 1, n). They give the
-    visit's own interpolant (each half step's cubic is the step's), so a time located between
-    two of them is the one the stored points give. Point k of these is stored point
-    ``stored_index(k)`` or the middle of the step ending there."""
+    the middle of each step between them on its interpolant, interleaved: times (2N - 1,) and
+    states (2N - 1, n). Point k of these is stored point ``stored_index(k)``, or the middle of
+    the step ending there; a time between two of them is located on that stored step."""
     if t.shape[0] < 2:
-        return t, x, dx
-    mid_t, mid_x, mid_dx = Segment("", t, x, dx).midpoints()
+        return t, x
+    mid_t, mid_x = Segment("", t, x, dx).midpoints()
     out_t = np.empty(2 * t.shape[0] - 1)
     out_x = np.empty((out_t.shape[0], x.shape[1]))
-    out_dx = np.empty_like(out_x)
-    for out, stored, mid in ((out_t, t, mid_t), (out_x, x, mid_x), (out_dx, dx, mid_dx)):
-        out[0::2], out[1::2] = stored, mid
-    return out_t, out_x, out_dx
+    out_t[0::2], out_t[1::2] = t, mid_t
+    out_x[0::2], out_x[1::2] = x, mid_x
+    return out_t, out_x
 
 
 def stored_index(k: int) -> int:
@@ -131,10 +129,14 @@ def stored_index(k: int) -> int:
     return (k + 1) // 2
 
 
-def locate(watch: Watch, mode: str, t: np.ndarray, x: np.ndarray, dx: np.ndarray, k: int, holds: bool) -> float:
-    """The time in (t[k-1], t[k]] where the condition starts (``holds``) or stops holding: the
-    bisection's end on the side where the new state is reached."""
-    lo, hi = float(t[k - 1]), float(t[k])
+def locate(
+    watch: Watch, mode: str, t: np.ndarray, x: np.ndarray, dx: np.ndarray, k: int, holds: bool,
+    within: tuple[float, float] | None = None,
+) -> float:  # fmt: skip
+    """The time in (t[k-1], t[k]] (or in ``within``, a part of that step) where the condition
+    starts (``holds``) or stops holding: the bisection's end on the side where the new state is
+    reached, on the step's interpolant."""
+    lo, hi = (float(t[k - 1]), float(t[k])) if within is None else within
     for _ in range(BISECTIONS):
         mid = 0.5 * (lo + hi)
         if not lo < mid < hi:
@@ -149,20 +151,26 @@ def locate(watch: Watch, mode: str, t: np.ndarray, x: np.ndarray, dx: np.ndarray
 
 
 def first_hold(
-    watch: Watch, mode: str, t: np.ndarray, x: np.ndarray, dx: np.ndarray, start: int = 0, values: Any = None
+    watch: Watch,
+    mode: str,
+    checked: tuple[np.ndarray, np.ndarray],
+    stored: tuple[np.ndarray, np.ndarray, np.ndarray],
+    values: Any = None,
 ) -> tuple[int, float] | None:
-    """(k, time) where the condition first holds among points start.. of one visit (k the point
-    at or after it), or None; ``values``: v at the points start.. when known."""
-    if start >= t.shape[0]:
+    """(k, time) where the condition first holds among a visit's ``checked`` points (``refined``
+    of its ``stored`` points t, x, dx; k the checked point at or after it), or None; ``values``:
+    v at the checked points when known."""
+    t, x = checked
+    if t.shape[0] == 0:
         return None
-    v = watch.values(mode, t[start:], x[start:]) if values is None else values
+    v = watch.values(mode, t, x) if values is None else values
     below = np.flatnonzero(v < 0.0)
     if below.size == 0:
         return None
-    k = start + int(below[0])
+    k = int(below[0])
     if k == 0:
         return 0, float(t[0])
-    return k, locate(watch, mode, t, x, dx, k, True)
+    return k, locate(watch, mode, *stored, stored_index(k), True, (float(t[k - 1]), float(t[k])))
 
 
 class PointsByMode:

@@ -56,7 +56,7 @@ from ..crossings import first_crossing
 from ..errors import ModelBreakdown, ModelError, SimulationError
 from ..execution import Execution, Status, Strip
 from ..orbits import OrbitError, OrbitProblem
-from ..orbits.returns import ReturnMap
+from ..orbits.returns import ReturnMap, shift_frames
 from ..relaxed import simulate
 from ..relaxed.rules import strip_exit_time
 
@@ -354,12 +354,8 @@ class _ReturnWalker(_Walker):
         back where it was noted. An entry never noted holds its fresh marker, which has no frame."""
         p = self.problem
         memory = ret.memory_end.copy()
-        for i, frame in enumerate(p.memory_frames):
-            if frame == "t" and noted[i] and not ret.memory_noted[i]:
-                memory[i] -= ret.time
-            elif frame and frame != "t" and ret.memory_noted[i] and p.names.index(frame) in p.cyclic_idx:
-                c = p.names.index(frame)
-                memory[i] += ret.x_end[c] - ret.x_start[c]
+        shift_frames(p, memory, ret.memory_noted, 0.0, ret.x_start - ret.x_end)
+        shift_frames(p, memory, noted & ~ret.memory_noted, ret.time, np.zeros(p.dim))
         return memory
 
     def count(self, ex: Execution, transitions: int, until: float = math.inf) -> None:
