@@ -24,7 +24,7 @@ increasing x, then z, in the joint's frame).
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -72,13 +72,14 @@ def collision_points(model: pin.Model, file: str | Path) -> list[ShapePoint]:
     return out
 
 
-def collision_outlines(model: pin.Model, file: str | Path, settings: Any) -> dict[str, tuple[int, np.ndarray]]:
+def collision_outlines(points: Sequence[ShapePoint], settings: Any) -> dict[str, tuple[int, np.ndarray]]:
     """The outlines whose corners are contacts (boxes, cylinders in the plane), by link (``<link>``,
     or ``<link>#<k>`` for its k-th such shape): each its joint and its corners in the joint's frame
-    (k, 3); links turned off in ``settings`` (the ``collision_contacts`` table) left out."""
+    (k, 3), from the URDF's ``collision_points``; links turned off in ``settings`` (the
+    ``collision_contacts`` table) left out."""
     _, links = _settings(settings)
     shapes: dict[tuple[str, int], list[ShapePoint]] = {}
-    for p in collision_points(model, file):
+    for p in points:
         if p.radius == 0.0 and links.get(p.link) != "off":
             shapes.setdefault((p.link, p.shape), []).append(p)
     out: dict[str, tuple[int, np.ndarray]] = {}
@@ -132,14 +133,16 @@ def _corners(points: np.ndarray) -> list[np.ndarray]:
     return [np.array([x, y, z]) for x, z in ordered]
 
 
-def collision_contacts(model: pin.Model, file: str | Path, settings: Any) -> list[PointContact]:
-    """The point contacts of the URDF's collision shapes, under the scene's ``settings`` (the
-    ``collision_contacts`` table: ``restitution``, ``friction``, ``tangential`` (false: the
-    contact constrains the normal only, frictionless), ``ground``, ``links``). Adds a
+def collision_contacts(
+    model: pin.Model, file: str | Path, settings: Any, points: Sequence[ShapePoint]
+) -> list[PointContact]:
+    """The point contacts of the URDF ``file``'s collision shapes (its ``collision_points``),
+    under the scene's ``settings`` (the ``collision_contacts`` table: ``restitution``,
+    ``friction``, ``tangential`` (false: the contact constrains the normal only, frictionless),
+    ``ground``, ``links``). Adds a
     frame ``collision_<contact>`` per contact to ``model``. ``SceneError`` naming the field for a
     bad setting, ``ModelError`` naming the file for a shape it cannot take."""
     defaults, links = _settings(settings)
-    points = collision_points(model, file)
     known = sorted({p.link for p in points})
     unknown = sorted(set(links) - set(known))
     if unknown:

@@ -37,7 +37,7 @@ from legsim.errors import ModelError, SceneError
 from legsim.terrain import PROFILE, SINE, Terrain
 
 from .bridge import ContactBridge, JointStop, PointContact
-from .collisions import collision_contacts, collision_outlines
+from .collisions import collision_contacts, collision_outlines, collision_points
 from .urdf_checks import check_urdf, parser_messages, read_geometry
 from .watches import LinkHeights, TerrainPiercing, below_ground_watch, saturation_watches, terrain_inside_watch
 
@@ -311,9 +311,13 @@ def effort_limits(model: pin.Model, actuated: Sequence[str], params: Mapping[str
     return out
 
 
-def make_bridge(params: Mapping[str, Any], terrain: Terrain | None = None) -> tuple[ContactBridge, Outlines]:
+def make_bridge(
+    params: Mapping[str, Any], terrain: Terrain | None = None
+) -> tuple[ContactBridge, Outlines, dict[str, tuple[int, np.ndarray]]]:
     """The bridge of a URDF robot from the builder's parameters (on ``terrain``, the scene's
-    ``[terrain]``), and its outlines."""
+    ``[terrain]``), its visual outlines, and the collision outlines whose corners are its
+    contacts (``collision_outlines``; none without ``collisions``), the URDF's collision shapes
+    read once for both."""
     if not params["file"]:
         raise SceneError("robot.parameters.file: give the URDF file (a path relative to the scene)")
     model, names = load_model(params["file"], params["root"], params["g"])
@@ -332,8 +336,11 @@ def make_bridge(params: Mapping[str, Any], terrain: Terrain | None = None) -> tu
     if repeated:
         raise SceneError(f"robot.parameters.actuated: joint(s) {repeated} listed more than once: {actuated}")
     contacts = scene_contacts(params["contacts"], params["stops"])
+    cornered: dict[str, tuple[int, np.ndarray]] = {}
     if params["collisions"]:
-        contacts += collision_contacts(model, params["file"], params["collision_contacts"])
+        shapes = collision_points(model, params["file"])
+        contacts += collision_contacts(model, params["file"], params["collision_contacts"], shapes)
+        cornered = collision_outlines(shapes, params["collision_contacts"])
     elif params["collision_contacts"]:
         raise SceneError(
             "robot.parameters.collision_contacts: given with collisions = false; set collisions = true or drop it"
@@ -350,7 +357,7 @@ def make_bridge(params: Mapping[str, Any], terrain: Terrain | None = None) -> tu
         effort_limits=limits,
         terrain=terrain,
     )
-    return bridge, Outlines(bridge.model, params["file"])
+    return bridge, Outlines(bridge.model, params["file"]), cornered
 
 
 def link_heights(bridge: ContactBridge, outlines: Outlines, terrain: Terrain | None = None) -> LinkHeights:
@@ -377,17 +384,19 @@ def link_heights(bridge: ContactBridge, outlines: Outlines, terrain: Terrain | N
 
 
 def terrain_piercing(
-    bridge: ContactBridge, outlines: Outlines, heights: LinkHeights, params: Mapping[str, Any], terrain: Terrain | None
+    bridge: ContactBridge,
+    outlines: Outlines,
+    heights: LinkHeights,
+    cornered: Mapping[str, tuple[int, np.ndarray]],
+    terrain: Terrain | None,
 ) -> TerrainPiercing | None:
     """On a terrain with corners or bumps (a profile, steps, a sine), the bodies a terrain point
-    can pass into between their contacts: each collision outline whose corners are contacts,
-    and each visual part of a link without a contact (``heights``' links); None on flat ground or a slope, which
-    meets a convex body at a corner first."""
+    can pass into between their contacts: each collision outline whose corners are contacts
+    (``cornered``), and each visual part of a link without a contact (``heights``' links); None
+    on flat ground or a slope, which meets a convex body at a corner first."""
     if terrain is None or terrain.array[0] not in (PROFILE, SINE):
         return None
-    bodies = (
-        collision_outlines(bridge.model, params["file"], params["collision_contacts"]) if params["collisions"] else {}
-    )
+    bodies = dict(cornered)
     for name, (joint, _) in heights.links.items():
         # A part's outline is its convex hull closed by its first vertex: three corners or more
         # have an inside; a flat part's outline is a segment.
@@ -401,7 +410,7 @@ def terrain_piercing(
 
 
 def _build(params: dict[str, Any], effects: dict[str, dict[str, Any]], terrain: Terrain | None = None) -> Model:
-    bridge, outlines = make_bridge(params, terrain)
+    bridge, outlines, cornered = make_bridge(params, terrain)
     n = bridge.n
     flight = params["flight_mode"]
     initial = dict.fromkeys(bridge.state_names(flight), 0.0)
@@ -415,7 +424,7 @@ def _build(params: dict[str, Any], effects: dict[str, dict[str, Any]], terrain: 
     if terrain is not None:  # heights are then measured above the terrain under each point
         ground = 0.0
     below = below_ground_watch(heights, ground, params["below_ground"]) if heights.links else None
-    piercing = terrain_piercing(bridge, outlines, heights, params, terrain)
+    piercing = terrain_piercing(bridge, outlines, heights, cornered, terrain)
     inside = terrain_inside_watch(piercing, params["below_ground"]) if piercing is not None else None
     names, limits = bridge.actuated_names, bridge.effort_limits
 
