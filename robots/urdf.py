@@ -380,7 +380,7 @@ def link_heights(bridge: ContactBridge, outlines: Outlines, terrain: Terrain | N
         else:
             points = np.zeros((1, 3))
         links[bodies[0] if bodies else model.names[j]] = (j, points)
-    return LinkHeights(model, links, bridge.n, terrain)
+    return LinkHeights(bridge.placements, links, terrain)
 
 
 def terrain_piercing(
@@ -406,7 +406,7 @@ def terrain_piercing(
                 joint,
                 np.column_stack([hull[:, 0], np.zeros(len(hull)), hull[:, 1]]),
             )
-    return TerrainPiercing(bridge.model, bodies, bridge.n, terrain) if bodies else None
+    return TerrainPiercing(bridge.placements, bodies, terrain) if bodies else None
 
 
 def _build(params: dict[str, Any], effects: dict[str, dict[str, Any]], terrain: Terrain | None = None) -> Model:

@@ -12,7 +12,6 @@ from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 import numpy as np
-import pinocchio as pin
 
 from legsim.compiled.rows import at_rows
 from legsim.control import ControlLaw
@@ -20,8 +19,7 @@ from legsim.relaxed import Watch
 from legsim.terrain import SINE, Terrain
 
 from .bridge.guards import ground_watch
-from .bridge.native import handle_for
-from .frame_points import frame_positions
+from .bridge.placements import Placements
 
 
 def saturation_counter(joint: str) -> str:
@@ -78,24 +76,24 @@ def saturation_watches(
 
 class LinkHeights:
     """The lowest point (m) of each link without a contact: its points (in its joint's frame,
-    (k, 3)) placed by Pinocchio's forward kinematics in the native library, many states in one
-    compiled call; with a terrain, each point's height above the terrain under it."""
+    (k, 3)) placed by the robot's ``Placements`` (Pinocchio's forward kinematics in the native
+    library, many states in one compiled call); with a terrain, each point's height above the
+    terrain under it."""
 
     def __init__(
-        self, model: pin.Model, links: Mapping[str, tuple[int, np.ndarray]], n: int, terrain: Terrain | None = None
+        self, placements: Placements, links: Mapping[str, tuple[int, np.ndarray]], terrain: Terrain | None = None
     ) -> None:
-        self.n, self.terrain = n, terrain
+        self.terrain = terrain
         self.links = dict(links)
         self.names = list(self.links)
         owners = [np.full(len(p), k, dtype=int) for k, (_, p) in enumerate(self.links.values())]
         self.owner = np.concatenate(owners) if owners else np.zeros(0, dtype=int)
-        self._handle, self._frames = _point_frames(model, self.links)
+        self._placements = placements
+        self._columns = placements.add_points(self.links)
 
     def heights_at(self, states: np.ndarray) -> np.ndarray:
         """The height (m) of every link point at each state, (rows, points): states (rows, >= 2 n)."""
-        states = np.ascontiguousarray(np.atleast_2d(states), dtype=float)
-        out = np.empty((states.shape[0], self._frames.shape[0], 2))
-        frame_positions(self._handle, states, self.n, self._frames, out)
+        out = self._placements.at(states)[:, self._columns]
         if self.terrain is None:
             return out[:, :, 1]
         return out[:, :, 1] - self.terrain.height(out[:, :, 0].reshape(-1)).reshape(out.shape[:2])
@@ -108,17 +106,6 @@ class LinkHeights:
         """Each link's lowest point (m) at one state x."""
         z = self.heights_at(x)[0]
         return {name: float(np.min(z[self.owner == k])) for k, name in enumerate(self.names)}
-
-
-def _point_frames(model: pin.Model, links: Mapping[str, tuple[int, np.ndarray]]) -> tuple[int, np.ndarray]:
-    """A native model of ``model`` with one frame at each link point, and those frames' ids."""
-    marked = pin.Model(model)
-    frames = [
-        marked.addFrame(pin.Frame(f"point {i} of {name}", joint, pin.SE3(np.eye(3), point), pin.FrameType.OP_FRAME))
-        for name, (joint, points) in links.items()
-        for i, point in enumerate(np.asarray(points, dtype=float))
-    ]
-    return handle_for(marked, model.name or "urdf"), np.array(frames, dtype=float)
 
 
 def below_ground_watch(heights: LinkHeights, ground: float, action: str = "warn") -> Watch:
@@ -155,7 +142,8 @@ PIERCING_DEPTH = 1e-4
 #: two of them bulges by a k^2 (wavelength / 128)^2 / 8, 3e-4 of the amplitude, below PIERCING_DEPTH
 #: for any sine a robot walks on.
 SINE_SAMPLES = 128
-#: Stored points whose bodies are tested against the terrain's points at once.
+#: Stored points whose bodies are tested against the terrain's points at once (each batch against
+#: the terrain's points under its own bodies' span).
 PIERCING_ROWS = 256
 
 
@@ -167,21 +155,17 @@ class TerrainPiercing:
     placed by the native forward kinematics); the terrain's points are a profile's breakpoints,
     or a sine sampled ``SINE_SAMPLES`` times a wavelength, near the bodies."""
 
-    def __init__(
-        self, model: pin.Model, bodies: Mapping[str, tuple[int, np.ndarray]], n: int, terrain: Terrain
-    ) -> None:
-        self.n, self.terrain, self.names = n, terrain, list(bodies)
+    def __init__(self, placements: Placements, bodies: Mapping[str, tuple[int, np.ndarray]], terrain: Terrain) -> None:
+        self.terrain, self.names = terrain, list(bodies)
         self.sine = terrain.array[0] == SINE
         ordered = {name: (joint, _counterclockwise(corners)) for name, (joint, corners) in bodies.items()}
         self.sizes = [len(corners) for _, corners in ordered.values()]
-        self._handle, self._frames = _point_frames(model, ordered)
+        self._placements = placements
+        self._columns = placements.add_points(ordered)
 
     def corners_at(self, states: np.ndarray) -> np.ndarray:
         """Every body corner's world (x, z) (m) at each state, (rows, corners, 2)."""
-        states = np.ascontiguousarray(np.atleast_2d(states), dtype=float)
-        out = np.empty((states.shape[0], self._frames.shape[0], 2))
-        frame_positions(self._handle, states, self.n, self._frames, out)
-        return out
+        return self._placements.at(states)[:, self._columns]
 
     def terrain_points(self, x_low: float, x_high: float) -> np.ndarray:
         """The terrain's points (k, 2) over [x_low, x_high] (m): its polyline (a profile's
@@ -192,10 +176,10 @@ class TerrainPiercing:
     def depths_at(self, states: np.ndarray) -> np.ndarray:
         """The deepest terrain point inside each body at each state (m; negative: outside, its
         distance to the nearest edge's line), (rows, bodies)."""
-        states = np.atleast_2d(states)
-        out = np.empty((states.shape[0], len(self.sizes)))
-        for start in range(0, states.shape[0], PIERCING_ROWS):
-            corners = self.corners_at(states[start : start + PIERCING_ROWS])
+        placed = self.corners_at(states)
+        out = np.empty((placed.shape[0], len(self.sizes)))
+        for start in range(0, placed.shape[0], PIERCING_ROWS):
+            corners = placed[start : start + PIERCING_ROWS]
             points = self.terrain_points(float(corners[..., 0].min()), float(corners[..., 0].max()))
             out[start : start + PIERCING_ROWS] = self._depths(corners, points)
         return out

@@ -32,6 +32,7 @@ from .layout import P_EVENT, P_GUARD, P_JOINT, P_NEVENT, P_NGUARD, P_NJOINT
 from .model import build_model
 from .modes import ModeCatalog, ModeSpec, SubsetKey
 from .params import start
+from .placements import Placements
 from .range_notes import LegsNote
 from .transitions import outgoing
 
@@ -114,7 +115,8 @@ class ContactBridge:
         )
         self._data = self._model.pin_model.createData()  # kinematics for pictures and checks
         self._modes = ModeCatalog(self._model, mode_names)
-        self._past = guards.PastDepths(self._model, self._modes.active_contacts)
+        self._placements = Placements(self._model)
+        self._past = guards.PastDepths(self._model, self._modes.active_contacts, self._placements)
         self._built: dict[str, tuple[Mode, list[Transition]]] = {}
 
     # -- the robot ------------------------------------------------------------------------
@@ -127,6 +129,13 @@ class ContactBridge:
     def model(self) -> pin.Model:
         """The bridge's own copy of the Pinocchio model, with a ``<leg>_foot`` frame per spring leg."""
         return self._model.pin_model
+
+    @property
+    def placements(self) -> Placements:
+        """Where the robot's frames are at a run's stored states, one forward-kinematics pass a
+        batch for every check that reads them (``PastDepths``, and points added by the robot's
+        builder: its links' outlines)."""
+        return self._placements
 
     @property
     def data(self) -> pin.Data:
@@ -387,8 +396,9 @@ class ContactBridge:
     def counters(self) -> dict[str, int]:
         """Model-side evaluation counts since construction (or the last ``reset_counters``), of
         every path (the native library counts them): aba, kkt (constrained solves), jacobians,
-        kinematics (guard passes), impacts, spring_forces, damping_evals, actuation_evals,
-        painleve_sticks. Robots built on one Pinocchio model object share them."""
+        kinematics (frame passes of the run, not of its checks: ``placements``), impacts,
+        spring_forces, damping_evals, actuation_evals, painleve_sticks. Robots built on one
+        Pinocchio model object share them."""
         return native.counts(self._model.handle)
 
     def reset_counters(self) -> None:

@@ -15,9 +15,9 @@ from legsim.heights import SINE, nearest
 from legsim.heights import height as terrain_height
 from legsim.relaxed import Watch
 
-from ..frame_points import frame_positions
 from .contacts import SLIP_SUFFIX, Armed, PointContact, RigidContact, SpringLeg, joint_id
 from .model import BridgeModel
+from .placements import Placements
 
 #: How far (m, or rad for a revolute stop) past its ground or stop an inactive contact may lie
 #: beyond the strip eps before it counts as passed through: far above a stance's drift
@@ -36,7 +36,9 @@ class PastDepths:
     in the mode, and with ``armed_only`` for an armed point where it is not armed (it may pass
     below the ground there by design)."""
 
-    def __init__(self, model: BridgeModel, active_contacts: Callable[[str], tuple[str, ...]]) -> None:
+    def __init__(
+        self, model: BridgeModel, active_contacts: Callable[[str], tuple[str, ...]], placements: Placements
+    ) -> None:
         self.model, self.active_contacts = model, active_contacts
         self.rigid = tuple(model.rigid.values())
         self.moving = model.terrain is not None and model.terrain[0] == SINE
@@ -44,7 +46,8 @@ class PastDepths:
         # contact point moves in the body (a sine); then the frames points are armed ahead of.
         points = [self._frame(r) for r in self.rigid if r.kind == "point"]
         ahead = sorted({r.armed_frame for r in self.rigid if r.armed_frame >= 0})
-        self._frames = np.array(points + ahead, dtype=float)
+        self._placements = placements
+        self._columns = placements.add_frames(points + ahead)
         self._ahead_slot = {frame: len(points) + k for k, frame in enumerate(ahead)}
 
     def _frame(self, r: RigidContact) -> int:
@@ -53,10 +56,8 @@ class PastDepths:
     def depths(self, mode: str, states: np.ndarray, armed_only: bool = False) -> np.ndarray:
         """(rows, contacts): each contact's depth past its ground or stop (m or rad; < 0 clear
         of it) at each state (rows, >= 2 n)."""
-        states = np.ascontiguousarray(np.atleast_2d(states), dtype=float)
-        positions = np.empty((states.shape[0], self._frames.shape[0], 2))
-        if self._frames.size:
-            frame_positions(self.model.handle, states, self.model.n, self._frames, positions)
+        positions = self._placements.at(states)[:, self._columns]
+        states = np.atleast_2d(states)
         active = set(self.active_contacts(mode))
         out = np.full((states.shape[0], len(self.rigid)), -np.inf)
         slot = 0

@@ -102,6 +102,17 @@ class BridgeModel:
         return self.frames.index(frame)
 
 
+def native_handle(model: pin.Model, name: str, offsets: Mapping[int, tuple[float, float]], moving: bool) -> int:
+    """The native library's handle of a bridge's Pinocchio ``model``: its round contacts' frames
+    (``offsets``, frame id -> (dx, dz) (m)) at their points nearest the ground, which on a sine
+    terrain (``moving``) move with the configuration."""
+    handle = handle_for(model, name, offsets)
+    if moving:
+        for frame in offsets:
+            lsn_round_moving(handle, frame)
+    return handle
+
+
 def build_model(
     model: pin.Model,
     contacts: Sequence[Contact],
@@ -146,10 +157,7 @@ def build_model(
     # fixed; on a sine it moves with the configuration, which the model functions set (``_on_terrain``).
     grade = 0.0 if terrain is None else terrain.uniform_grade or 0.0
     offsets = {r.frame_id: round_offset(r.radius, grade) for r in rigid.values() if r.radius > 0.0}
-    handle = handle_for(own, name, offsets)
-    if terrain is not None and terrain.array[0] == SINE:
-        for frame in offsets:
-            lsn_round_moving(handle, frame)
+    handle = native_handle(own, name, offsets, terrain is not None and terrain.array[0] == SINE)
     return BridgeModel(
         name, own, n, declared, rigid, legs, coords, vels, damping_idx, damping_b, actuated_idx, limits,
         handle,

@@ -5,6 +5,8 @@ builds only the contact modes it enters."""
 import numpy as np
 import pinocchio as pin
 import pytest
+from legsim.robots.bridge import JointStop
+from legsim.robots.bridge.guards import THROUGH_DEPTH
 from legsim.robots.urdf import link_heights
 from legsim.robots.watches import Inputs
 
@@ -100,3 +102,35 @@ def test_a_run_builds_only_the_contact_modes_it_enters(quadruped):
     assert execution.counters["transitions"] > 3
     assert set(system.modes) - before <= entered
     assert len(set(system.modes)) < 20, "the reachable outcome modes were built"
+
+
+def test_the_checks_place_a_batch_once_for_all_and_leave_the_runs_counters_alone(quadruped, monkeypatch):
+    # The feet's depths and the links' heights read one forward-kinematics pass of a batch, on a
+    # copy of the model: the robot's counters count its run, not the checks over the run.
+    import legsim.robots.bridge.placements as placements
+
+    bridge = quadruped.model.info["bridge"]
+    heights = link_heights(bridge, quadruped.model.info["outlines"])
+    feet = bridge.contact_watches(eps=1e-6)[0]
+    calls, real = [], placements.frame_positions
+    monkeypatch.setattr(placements, "frame_positions", lambda *args: calls.append(1) or real(*args))
+    states = random_states(quadruped, 32, seed=1)
+    before = bridge.counters()["kinematics"]
+    z = heights.heights_at(states)
+    depth = feet.values("flight", np.zeros(32), states)
+    assert len(calls) == 1 and bridge.counters()["kinematics"] == before
+    z_again, _ = heights_by_pinocchio(heights, bridge.model, states[3][: bridge.n])
+    np.testing.assert_allclose(z[3], z_again, rtol=0, atol=1e-12)
+    # every contact is inactive in flight: the feet's depths below z = 0 placed by Pinocchio, and
+    # the knees' angles past their stops
+    model, q = bridge.model, states[3][: bridge.n]
+    data = model.createData()
+    pin.framesForwardKinematics(model, data, q)
+    depths = []
+    for c in bridge.contacts:
+        if isinstance(c, JointStop):
+            past = q[model.joints[model.getJointId(c.joint)].idx_q] - c.position
+            depths.append(-past if c.side == "lower" else past)
+        else:
+            depths.append(c.ground - data.oMf[model.getFrameId(c.frame)].translation[2])
+    assert depth[3] == pytest.approx(1e-6 + THROUGH_DEPTH - max(depths), abs=1e-12)

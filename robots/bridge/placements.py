@@ -1,0 +1,82 @@
+"""Where a robot's frames are at many stored states, for the checks that scan a whole run (feet
+past the ground, links below it, the terrain inside a body): one forward-kinematics pass of the
+native library per batch of states serves every check, since each check is handed the very same
+arrays (``legsim.relaxed.watches.PointsByMode``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping
+
+import numpy as np
+import pinocchio as pin
+
+from legsim.heights import SINE
+
+from ..frame_points import frame_positions
+from .model import BridgeModel, native_handle
+
+#: Batches of states whose placements are kept: more than the modes a run visits, each mode's
+#: checked points being one batch.
+KEPT = 16
+
+
+class Placements:
+    """The world (x, z) (m) of a growing set of frames: the bridge model's own (``add_frames``)
+    and points fixed in its links (``add_points``). A check keeps the columns it was given and
+    reads them from ``at``. The frames are placed on a private copy of the model, so that the
+    robot's counters (``native.counts``) count the run's own evaluations, not its checks'."""
+
+    def __init__(self, model: BridgeModel) -> None:
+        self.model = model
+        self._pin = model.pin_model
+        self._handle: int | None = None  # made at the first batch, once every check has its frames
+        self._frames: list[int] = []
+        self._kept: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+
+    def add_frames(self, frames: Iterable[int]) -> np.ndarray:
+        """The columns of ``at`` that hold the model's frames ``frames`` (ids), in their order."""
+        first = len(self._frames)
+        self._frames += [int(f) for f in frames]
+        self._kept.clear()
+        return np.arange(first, len(self._frames))
+
+    def add_points(self, points: Mapping[str, tuple[int, np.ndarray]]) -> np.ndarray:
+        """The columns of ``at`` that hold ``points``: by name, a joint and points (k, 3) (m) in
+        its frame, all in their order."""
+        marked = pin.Model(self._pin)
+        frames = [
+            marked.addFrame(pin.Frame(f"point {i} of {name}", joint, pin.SE3(np.eye(3), p), pin.FrameType.OP_FRAME))
+            for name, (joint, rows) in points.items()
+            for i, p in enumerate(np.asarray(rows, dtype=float))
+        ]
+        self._pin, self._handle = marked, None
+        return self.add_frames(frames)
+
+    def _native(self) -> int:
+        """The handle of the private copy: the model's own frames placed as the model's handle
+        places them (round contacts' offsets and all), and the added points."""
+        if self._handle is None:
+            m = self.model
+            moving = m.terrain is not None and m.terrain[0] == SINE
+            own = self._pin if self._pin is not m.pin_model else pin.Model(m.pin_model)
+            self._pin, self._handle = own, native_handle(own, m.name, m.round_offsets, moving)
+        return self._handle
+
+    def at(self, states: np.ndarray) -> np.ndarray:
+        """Every frame's world (x, z) (m) at each state, (rows, frames, 2); states (rows, >= 2 n).
+        The last ``KEPT`` batches of several states are kept (each check asks about every mode's
+        batch in turn), and a check asking about the same array reads them."""
+        kept = self._kept.get(id(states))
+        # the array itself is kept alongside, so its id is not reused while the entry lives
+        if kept is not None and kept[0] is states:
+            return kept[1]
+        rows = np.ascontiguousarray(np.atleast_2d(states), dtype=float)
+        out = np.empty((rows.shape[0], len(self._frames), 2))
+        if self._frames:
+            frame_positions(self._native(), rows, self.model.n, np.array(self._frames, dtype=float), out)
+        if rows.shape[0] > 1:
+            if len(self._kept) >= KEPT:
+                del self._kept[next(iter(self._kept))]
+            self._kept[id(states)] = (states, out)
+        return out
