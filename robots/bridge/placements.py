@@ -6,6 +6,7 @@ arrays (``legsim.relaxed.watches.PointsByMode``).
 
 from __future__ import annotations
 
+import weakref
 from collections.abc import Iterable, Mapping
 
 import numpy as np
@@ -15,10 +16,6 @@ from legsim.heights import SINE
 
 from ..frame_points import frame_positions
 from .model import BridgeModel, native_handle
-
-#: Batches of states whose placements are kept: more than the modes a run visits, each mode's
-#: checked points being one batch.
-KEPT = 16
 
 
 class Placements:
@@ -32,7 +29,8 @@ class Placements:
         self._pin = model.pin_model
         self._handle: int | None = None  # made at the first batch, once every check has its frames
         self._frames: list[int] = []
-        self._kept: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+        #: Each batch of states still alive, by its id: a weak reference to it, and its placements.
+        self._kept: dict[int, tuple[weakref.ref[np.ndarray], np.ndarray]] = {}
 
     def add_frames(self, frames: Iterable[int]) -> np.ndarray:
         """The columns of ``at`` that hold the model's frames ``frames`` (ids), in their order."""
@@ -65,18 +63,25 @@ class Placements:
 
     def at(self, states: np.ndarray) -> np.ndarray:
         """Every frame's world (x, z) (m) at each state, (rows, frames, 2); states (rows, >= 2 n).
-        The last ``KEPT`` batches of several states are kept (each check asks about every mode's
-        batch in turn), and a check asking about the same array reads them."""
+        A batch of several states is kept while the array lives: each check is asked about every
+        mode's batch in turn, and reads it again."""
         kept = self._kept.get(id(states))
-        # the array itself is kept alongside, so its id is not reused while the entry lives
-        if kept is not None and kept[0] is states:
+        if kept is not None and kept[0]() is states:
             return kept[1]
         rows = np.ascontiguousarray(np.atleast_2d(states), dtype=float)
         out = np.empty((rows.shape[0], len(self._frames), 2))
         if self._frames:
             frame_positions(self._native(), rows, self.model.n, np.array(self._frames, dtype=float), out)
         if rows.shape[0] > 1:
-            if len(self._kept) >= KEPT:
-                del self._kept[next(iter(self._kept))]
-            self._kept[id(states)] = (states, out)
+            self._keep(states, out)
         return out
+
+    def _keep(self, states: np.ndarray, out: np.ndarray) -> None:
+        """Keep ``out`` for ``states`` until that array is freed (then its id may be reused)."""
+        key = id(states)
+
+        def forget(ref: weakref.ref[np.ndarray]) -> None:
+            if self._kept.get(key, (None,))[0] is ref:
+                del self._kept[key]
+
+        self._kept[key] = (weakref.ref(states, forget), out)
