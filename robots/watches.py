@@ -20,6 +20,7 @@ from legsim.terrain import SINE, Terrain
 
 from .bridge.guards import ground_watch
 from .bridge.placements import Placements
+from .kept import KeptWhileAlive
 
 
 def saturation_counter(joint: str) -> str:
@@ -29,27 +30,26 @@ def saturation_counter(joint: str) -> str:
 
 class Inputs:
     """The controller's input at a run's points: ``law.control`` at each point's plant state and
-    memory, the mode's parameters built once; each mode's last batch kept, since every joint's
-    watch asks for the very same arrays of points in turn (``watches.PointsByMode``)."""
+    memory, the mode's parameters built once; a batch's inputs kept while it lives, since every
+    joint's watch asks for the very same arrays of points in turn (``watches.PointsByMode``)."""
 
     def __init__(self, law: ControlLaw, dims: Callable[[str], int]) -> None:
         self.law, self.dims = law, dims
         self._params: dict[str, np.ndarray] = {}
-        self._last: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+        self._kept = KeptWhileAlive()
 
     def __call__(self, mode: str, t: np.ndarray, x: np.ndarray) -> np.ndarray:
-        last = self._last.get(mode)
-        # The arrays themselves, kept alive here: the same objects hold the same points.
-        if last is not None and last[0] is t and last[1] is x:
-            return last[2]
+        kept = self._kept.get(x)
+        if kept is not None and kept[0] is t and kept[1] == mode:
+            return kept[2]
         p = self._params.get(mode)
         if p is None:
             p = self._params[mode] = self.law.params_for(mode)
         states = np.ascontiguousarray(x, dtype=float)
         out = np.zeros((t.shape[0], self.law.inputs))
         at_rows(self.law.control, np.ascontiguousarray(t, dtype=float), states, self.dims(mode), p, out)
-        if t.shape[0] > 1:  # a batch, not one point located between two (kept batches stay)
-            self._last[mode] = (t, x, out)
+        if t.shape[0] > 1:  # a batch, not one point located between two
+            self._kept.keep(x, (t, mode, out))
         return out
 
 

@@ -6,7 +6,6 @@ arrays (``legsim.relaxed.watches.PointsByMode``).
 
 from __future__ import annotations
 
-import weakref
 from collections.abc import Iterable, Mapping
 
 import numpy as np
@@ -15,6 +14,7 @@ import pinocchio as pin
 from legsim.heights import SINE
 
 from ..frame_points import frame_positions
+from ..kept import KeptWhileAlive
 from .model import BridgeModel, native_handle
 
 
@@ -29,8 +29,7 @@ class Placements:
         self._pin = model.pin_model
         self._handle: int | None = None  # made at the first batch, once every check has its frames
         self._frames: list[int] = []
-        #: Each batch of states still alive, by its id: a weak reference to it, and its placements.
-        self._kept: dict[int, tuple[weakref.ref[np.ndarray], np.ndarray]] = {}
+        self._kept = KeptWhileAlive()
 
     def add_frames(self, frames: Iterable[int]) -> np.ndarray:
         """The columns of ``at`` that hold the model's frames ``frames`` (ids), in their order."""
@@ -65,23 +64,13 @@ class Placements:
         """Every frame's world (x, z) (m) at each state, (rows, frames, 2); states (rows, >= 2 n).
         A batch of several states is kept while the array lives: each check is asked about every
         mode's batch in turn, and reads it again."""
-        kept = self._kept.get(id(states))
-        if kept is not None and kept[0]() is states:
-            return kept[1]
+        kept = self._kept.get(states)
+        if kept is not None:
+            return kept
         rows = np.ascontiguousarray(np.atleast_2d(states), dtype=float)
         out = np.empty((rows.shape[0], len(self._frames), 2))
         if self._frames:
             frame_positions(self._native(), rows, self.model.n, np.array(self._frames, dtype=float), out)
         if rows.shape[0] > 1:
-            self._keep(states, out)
+            self._kept.keep(states, out)
         return out
-
-    def _keep(self, states: np.ndarray, out: np.ndarray) -> None:
-        """Keep ``out`` for ``states`` until that array is freed (then its id may be reused)."""
-        key = id(states)
-
-        def forget(ref: weakref.ref[np.ndarray]) -> None:
-            if self._kept.get(key, (None,))[0] is ref:
-                del self._kept[key]
-
-        self._kept[key] = (weakref.ref(states, forget), out)
