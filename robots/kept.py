@@ -21,13 +21,18 @@ class KeptWhileAlive:
     def __len__(self) -> int:
         return len(self._kept)
 
-    def get(self, batch: np.ndarray) -> Any:
+    def get(self, batch: Any) -> Any:
         """The value kept for ``batch`` (that very array), or None."""
+        if not isinstance(batch, np.ndarray):
+            return None
         kept = self._kept.get(id(batch))
         return kept[1] if kept is not None and kept[0]() is batch else None
 
-    def keep(self, batch: np.ndarray, value: Any) -> None:
-        """Keep ``value`` for ``batch`` until the array is freed."""
+    def keep(self, batch: Any, value: Any) -> None:
+        """Keep ``value`` for ``batch`` until the array is freed (nothing for another sequence,
+        which a later call cannot hand back as the same object)."""
+        if not isinstance(batch, np.ndarray):
+            return
         key = id(batch)
 
         def forget(ref: weakref.ref[np.ndarray]) -> None:

@@ -134,5 +134,7 @@ def test_the_checks_place_a_batch_once_for_all_and_leave_the_runs_counters_alone
         else:
             depths.append(c.ground - data.oMf[model.getFrameId(c.frame)].translation[2])
     assert depth[3] == pytest.approx(1e-6 + THROUGH_DEPTH - max(depths), abs=1e-12)
+    # rows given as lists are placed alike, and kept nowhere
+    np.testing.assert_array_equal(bridge.placements.at(states.tolist()), bridge.placements.at(states))
     del states, q  # q is a view of the batch
     assert not bridge.placements._kept, "the placements of a batch outlive it"
