@@ -207,6 +207,8 @@ def time_held(
     if t.shape[0] < 2:
         return 0.0
     neg = (watch.values(mode, t, x) if values is None else values) < 0.0
+    if not neg.any():  # the common case, an actuator never at its limit: nothing to add up
+        return 0.0
     total = float(np.sum(np.diff(t)[neg[:-1] & neg[1:]]))
     for crossing in np.flatnonzero(neg[:-1] != neg[1:]) + 1:
         k = int(crossing)
