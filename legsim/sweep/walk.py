@@ -205,10 +205,14 @@ class _Walker:
             max_halvings=p.max_halvings,
             watches=self.watches,
         )
+        self.add_run(ex)
+        return ex
+
+    def add_run(self, ex: Execution, until: float = math.inf) -> None:
+        """Add a run's counters, and its warnings up to time ``until`` (s), to the walk's."""
         for key in COUNTERS:
             self.counters[key] += ex.counters.get(key, 0)
-        self.warnings.update(dict.fromkeys(f"{w.kind}: {w.message}" for w in ex.warnings))
-        return ex
+        self.warnings.update(dict.fromkeys(f"{w.kind}: {w.message}" for w in ex.warnings if w.time <= until))
 
     def crossings(self, ex: Execution, last_return: float) -> list[tuple[float, np.ndarray]]:
         """Returns to a level-crossing section in this run's flow, in time order."""
@@ -361,9 +365,7 @@ class _ReturnWalker(_Walker):
     def count(self, ex: Execution, transitions: int, until: float = math.inf) -> None:
         """Add a return's run to the counters, and its warnings up to time ``until`` (s, the
         return: the next return runs on from there); ``transitions`` up to the return."""
-        for key in COUNTERS:
-            self.counters[key] += ex.counters.get(key, 0)
-        self.warnings.update(dict.fromkeys(f"{w.kind}: {w.message}" for w in ex.warnings if w.time <= until))
+        self.add_run(ex, until)
         self.transitions += transitions
 
     def ended(self, exc: OrbitError, x: np.ndarray, t: float) -> WalkResult:

@@ -26,7 +26,7 @@ class Placements:
 
     def __init__(self, model: BridgeModel) -> None:
         self.model = model
-        self._pin = model.pin_model
+        self._pin = pin.Model(model.pin_model)  # a copy: the model's handle keeps its own counters
         self._handle: int | None = None  # made at the first batch, once every check has its frames
         self._frames: list[int] = []
         self._kept = KeptWhileAlive()
@@ -56,8 +56,7 @@ class Placements:
         if self._handle is None:
             m = self.model
             moving = m.terrain is not None and m.terrain[0] == SINE
-            own = self._pin if self._pin is not m.pin_model else pin.Model(m.pin_model)
-            self._pin, self._handle = own, native_handle(own, m.name, m.round_offsets, moving)
+            self._handle = native_handle(self._pin, m.name, m.round_offsets, moving)
         return self._handle
 
     def at(self, states: np.ndarray) -> np.ndarray:
