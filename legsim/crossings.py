@@ -13,7 +13,7 @@ from collections.abc import Callable, Iterator
 import numpy as np
 from scipy.optimize import brentq
 
-from .execution import Execution, Segment
+from .execution import Execution, RunSoFar, Segment
 
 #: A crossing: its time (s) and the state there (the segment's width: the plant's coordinates,
 #: then a controller's memory).
@@ -41,7 +41,7 @@ def first_crossing(
 
 
 def returns(
-    execution: Execution,
+    execution: Execution | RunSoFar,
     mode: str,
     s: Callable[[np.ndarray], float],
     direction: int,

@@ -29,7 +29,7 @@ class Status(StrEnum):
     """How a run ended: ordinary ends of a simulation are result codes (as in diffrax), not
     exceptions. Each value is the string the JSON summaries carry."""
 
-    FINISHED = "finished"  # reached t_final
+    FINISHED = "finished"  # reached t_final, or the caller's ``until`` held (``simulate``)
     MAX_TRANSITIONS = "max_transitions"  # the transition budget was used up
     HALVING_EXHAUSTED = "halving_exhausted"  # no halved step lands in the relaxed domain (outward tangent flow)
     NON_FINITE = "non_finite"  # a field, guard or reset produced inf/nan
@@ -160,6 +160,23 @@ class TransitionRecord:
     @property
     def edge(self) -> tuple[str, str]:
         return (self.source, self.target)
+
+
+@dataclass(frozen=True)
+class RunSoFar:
+    """The part of a run computed so far, as ``simulate``'s ``until`` sees it.
+
+    Attributes
+    ----------
+    t0: the run's start time (s).
+    segments: the segments so far, the last one possibly still open (its points up to the one
+        before the loop's current point, which a crossing may yet move onto its guard point).
+    transitions: the transitions taken so far.
+    """
+
+    t0: float
+    segments: list[Segment]
+    transitions: list[TransitionRecord]
 
 
 @dataclass(frozen=True)

@@ -11,8 +11,10 @@ this to adding the section as a guard of a wrapped system: an extra guard would 
 computation being analysed (steps would be halved to land in the section's strip and the state
 held there), and starting on the section would fire that guard at once. The horizon grows: 1.5
 times the last return time (plus 20 steps), or t_max / 8 at first, doubled until a return is
-found or t_max is reached. A return costs less than about twice its own time, and a model
-failure long after it (a runner that falls a few strides later) cannot hide it.
+found or t_max is reached. The run itself ends soon after the return (``simulate``'s ``until``,
+asked as the loop hands its points back, every 256 steps at most), so a return costs about its
+own time, and a model failure long after it (a runner that falls a few strides later) cannot
+hide it.
 
 A crossing of a function section counts only after at least ``min_transitions`` transitions
 (default 1) since the start, so that a start just off the section (as finite differences and
@@ -40,6 +42,7 @@ in strips, which converges at the method's order; ``Return.time`` is the relaxed
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Mapping, Sequence
 from typing import Any
 
@@ -48,7 +51,7 @@ import numpy as np
 from ..control import ControlLaw, Controller
 from ..crossings import returns
 from ..errors import LegsimError
-from ..execution import Execution, TransitionRecord
+from ..execution import Execution, RunSoFar, TransitionRecord
 from ..hybrid import HybridSystem
 from ..relaxed import simulate
 from .errors import OrbitError
@@ -206,6 +209,7 @@ class ReturnMap:
                 landing=p.landing,
                 progress=p.progress,
                 watches=self.watches,
+                until=self._returned,
             )
         except LegsimError as exc:
             raise OrbitError(
@@ -213,6 +217,21 @@ class ReturnMap:
                 f"returning to the section {p.section.label}: {exc}",
                 "simulation_failed",
             ) from exc
+
+    def _returned(self, so_far: RunSoFar) -> bool:
+        """Whether the run so far holds the return ``_locate`` looks for, so that it ends there
+        rather than at the horizon. Past a transition, once a step was taken after it: the
+        controller has been reset on that entry, whose memory the return reads."""
+        p = self.problem
+        if p.section.kind == "transition":
+            taken = [k for k, rec in enumerate(so_far.transitions)
+                     if rec.name == p.section.transition and rec.target == p.bound.mode]  # fmt: skip
+            if len(taken) < p.returns:
+                return False
+            after = taken[p.returns - 1] + 1
+            return after < len(so_far.segments) and len(so_far.segments[after].t) >= 2
+        found = returns(so_far, p.bound.mode, p.bound.s, p.section.direction, p.min_transitions, p.min_time)
+        return sum(1 for _ in itertools.islice(found, p.returns)) == p.returns
 
     def show_state(self, x: np.ndarray) -> str:
         """A state of the section's mode as ``{name=value, ...}`` for messages."""

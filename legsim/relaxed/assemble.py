@@ -12,7 +12,8 @@ from typing import Any, TypeVar
 
 import numpy as np
 
-from ..execution import Execution, RunWarning, Segment, Status, Strip, TransitionRecord, filled
+from ..errors import LegsimError, SimulationError
+from ..execution import Execution, RunSoFar, RunWarning, Segment, Status, Strip, TransitionRecord, filled
 from . import messages, watches
 from .layout import (
     COUNTERS,
@@ -115,6 +116,8 @@ class Assembly:
         self._scanned = (0, 0)
         self._checked: dict[int, tuple[np.ndarray, np.ndarray]] = {}
         self.stopped: tuple[int, int, float, Any] | None = None
+        #: Whether the caller's ``until`` held at a hand-back, the run ending there.
+        self.until_held = False
 
     # -- draining ---------------------------------------------------------------------------
     @cycle_collector_paused
@@ -246,6 +249,9 @@ class Assembly:
         self.check_stops()
         if self.stopped is not None:
             status, message, t_end = self._cut()
+        elif self.until_held:
+            t_end = float(ws.fs[F_T])
+            status, message = Status.FINISHED, f"ended at t={t_end:.17g}, where the caller's until held"
         else:
             status, message = self.ending(ws)
             t_end = float(ws.fs[F_T])
@@ -341,6 +347,25 @@ class Assembly:
                 return True
             self._scanned = (i, t.shape[0])
         return False
+
+    def check_until(self) -> bool:
+        """True once the caller's ``until`` holds on the run so far (``RunSoFar``: the closed
+        visits and the open one's drained points)."""
+        until = self.options.until
+        if until is None or self.until_held:
+            return self.until_held
+        segments = list(self.segments)
+        if self._open is not None and self._open[1]:
+            _, mode, t, x, dx = self._visits(len(self.segments))[-1]
+            segments.append(Segment(mode, t, x, dx))
+        try:
+            self.until_held = bool(until(RunSoFar(self.options.t0, segments, list(self.transitions))))
+        except LegsimError:
+            raise
+        except Exception as exc:
+            raise SimulationError(f"until failed at t={segments[-1].t[-1] if segments else self.options.t0:.17g}: "
+                                  f"{type(exc).__name__}: {exc}") from exc  # fmt: skip
+        return self.until_held
 
     def _cut(self) -> tuple[Status, str, float]:
         """Cut the execution where a stop watch first held: its status, message and time."""

@@ -103,6 +103,8 @@ class Options:
     python: bool = False
     #: Conditions on the run's points (``watches.Watch``): stops, warnings, measured times.
     watches: tuple[Any, ...] = ()
+    #: The caller's end: ``until(so_far) -> bool`` on the run so far (``RunSoFar``), or None.
+    until: Callable[[Any], bool] | None = None
 
 
 def drive(
@@ -185,7 +187,8 @@ class Runner:
         #: Steps taken by each path: (compiled, python).
         self.steps = [0, 0]
         self._addresses = np.zeros(0, dtype=np.int64)
-        self.stops = any(w.action == "stop" for w in options.watches)
+        # The run may end at a hand-back: the loop then hands back every STOP_CHECK_STEPS at most.
+        self.stops = any(w.action == "stop" for w in options.watches) or options.until is not None
         self.ws.ci[S_PROGRESS_STEPS] = 0 if options.progress is None else PROGRESS_STEPS_FIRST
         if self.stops:
             self.ws.ci[S_PROGRESS_STEPS] = (
@@ -209,7 +212,7 @@ class Runner:
                 if code == RETURN_FULL:
                     self.ws = with_longer_buffers(self.ws)
                     self.tables.breakdowns.ws = self.ws
-                if self.assembly.check_stops():  # a stop watch held: the run ends there
+                if self.assembly.check_stops() or self.assembly.check_until():  # the run ends there
                     self.assembly.drain(self.ws, final=True)
                     return
                 self.tick()

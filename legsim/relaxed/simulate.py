@@ -11,7 +11,7 @@ import numpy as np
 from ..arguments import count, positive
 from ..control import Bound, ControlLaw, bind
 from ..errors import ContractError, LegsimError, ModelError, SimulationError
-from ..execution import Execution
+from ..execution import Execution, RunSoFar
 from ..hybrid import HybridSystem
 from ..methods import Tableau, get_method
 from ..methods.builtin import ADAPTIVE_DEFAULTS, SCIPY_NAMES
@@ -54,6 +54,7 @@ def simulate(
     t_eval: Any = None,
     python: bool = False,
     watches: Any = (),
+    until: Callable[[RunSoFar], bool] | None = None,
 ) -> Execution:
     """Simulate ``system`` from ``(mode, x0)`` at time ``t0`` to ``t_final`` with the relaxed
     hybrid integrator.
@@ -116,6 +117,12 @@ def simulate(
     watches: conditions on the run's states, checked at its stored points and the middle of each
         step (``legsim.relaxed.Watch``): a fall that ends the run (status ``fell``), a state
         reported by a warning, a time measured into a counter (``legsim.relaxed.watches``).
+    until: optional ``until(so_far) -> bool`` on the run computed so far (a
+        ``legsim.execution.RunSoFar``), asked each time the loop hands its points back (at most
+        every ``STOP_CHECK_STEPS`` steps or transitions): once true, the run ends there with
+        status ``finished``, a message saying so, and ``t_end`` the time reached. Its execution
+        is then the beginning of the run to t_final, every point but its last one as that run's
+        (a return map ends its runs soon after their return this way).
 
     Returns
     -------
@@ -160,6 +167,7 @@ def simulate(
         progress=_check_progress(progress),
         python=bool(python),
         watches=check_watches(watches),
+        until=_check_until(until),
     )
     return _run(system, mode, x0, control, law, options, _eval_times(t_eval, t0, t_final))
 
@@ -186,6 +194,13 @@ def _check_progress(progress: Any) -> Any:
             f"progress must be callable progress(t, t0, t_final) or None, got {type(progress).__name__} {progress!r}"
         )
     return progress
+
+
+def _check_until(until: Any) -> Any:
+    """``until`` itself: a callable until(so_far) -> bool, or None."""
+    if until is not None and not callable(until):
+        raise SimulationError(f"until must be callable until(so_far) -> bool or None, got {type(until).__name__}")
+    return until
 
 
 def _check_continuation(continuation: Any) -> None:

@@ -16,8 +16,9 @@ of the closed loop also resets the controller and updates its memory, which only
 ``simulate`` with the controller carries. Each step is then one return, run from the last one's
 state with the controller restored to the memory it had there (each return restarts the clock,
 so an epoch less the time walked), which is how a continuous run of the scene goes on (checked
-to 1e-10 s and 1e-8 against one, ``tests/sweep``). Its runs reach past the return (the map's
-horizon), and its counters count them whole; its warnings are those up to each return, their
+to 1e-10 s and 1e-8 against one, ``tests/sweep``). Its runs end soon after the return (at the
+loop's first hand-back past it, ``simulate``'s ``until``), and its counters count them whole;
+its warnings are those up to each return, their
 times measured from the return's start. Its returns are compared by the plant's state (the
 controller's memory, in the returns' frames, follows it); each return may take the problem's
 ``max_transitions``, past which the walk ``stops``.

@@ -51,3 +51,21 @@ def test_a_reset_jumping_across_the_section_is_not_a_crossing():
     prob = OrbitProblem(impact_oscillator(), Section.level("free", "v", 0.0, 0), h=1e-2, eps=1e-4, t_max=4.0)
     res = find_orbit(prob, {"x": 0.5, "v": 0.0})
     assert res.converged and abs(res.fixed_point[0] - oscillator_closed_form()["x_max"]) < 5e-8
+
+
+@pytest.mark.parametrize("section", [Section.after("impact"), Section.level("free", "v", 0.0, -1)])
+def test_a_return_ends_its_run_soon_after_the_return_and_is_the_same(monkeypatch, section):
+    # The map's run ends at the loop's first hand-back after the return instead of at its
+    # horizon, and finds the very return the whole horizon's run finds.
+    from legsim.orbits.returns import ReturnMap
+    from legsim.relaxed.driver import STOP_CHECK_STEPS
+
+    h = 1e-3
+    prob = OrbitProblem(impact_oscillator(), section, h=h, eps=1e-4, t_max=20.0)
+    x0 = [0.0, 1.0] if section.kind == "transition" else [0.5, 0.0]
+    short = ReturnMap(prob)(np.array(x0))
+    monkeypatch.setattr(ReturnMap, "_returned", lambda self, so_far: False)
+    whole = ReturnMap(prob)(np.array(x0))
+    assert short.t_return == whole.t_return and np.array_equal(short.x_end, whole.x_end)
+    assert whole.execution.t_end == pytest.approx(20.0 / 8)
+    assert short.t_return <= short.execution.t_end <= short.t_return + (STOP_CHECK_STEPS + 2) * h

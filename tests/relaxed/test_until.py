@@ -1,0 +1,56 @@
+"""``simulate``'s ``until``: a run ends at the hand-back where the caller's condition on the run
+so far first holds, its execution the beginning of the run to t_final."""
+
+import numpy as np
+import pytest
+
+import legsim.compiled  # noqa: F401 -- the kernel, so that runs are compiled
+from legsim.errors import SimulationError
+from legsim.relaxed import simulate
+from legsim.relaxed.driver import STOP_CHECK_STEPS
+from legsim.systems import bouncing_ball
+
+
+def bounces(count):
+    return lambda so_far: len(so_far.transitions) >= count
+
+
+def run(until=None, t_final=3.0, h=1e-3, python=False):
+    system = bouncing_ball.make_system(restitution=0.8)
+    return simulate(system, [1.0, 0.0], "flight", t_final, h, 1e-5, until=until, python=python)
+
+
+@pytest.mark.parametrize("python", [False, True])
+def test_a_run_ends_soon_after_until_holds_and_is_the_full_runs_beginning(python):
+    full, ended = run(python=python), run(bounces(2), python=python)
+    assert ended.status == "finished" and "until held" in ended.message
+    second = full.transitions[1].exit_time
+    assert second <= ended.t_end < full.t_end
+    # The loop hands back every STOP_CHECK_STEPS steps at most: no more are taken past the bounce.
+    steps_to_second = np.searchsorted(np.concatenate([s.t for s in full.segments]), second)
+    assert ended.counters["steps"] <= steps_to_second + STOP_CHECK_STEPS + 1
+    taken = len(ended.transitions)
+    assert [tr.exit_time for tr in ended.transitions] == [tr.exit_time for tr in full.transitions[:taken]]
+    for mine, theirs in zip(ended.segments, full.segments, strict=False):
+        n = len(mine.t) - 1  # the last point may yet move onto a guard point in the longer run
+        assert mine.mode == theirs.mode
+        np.testing.assert_array_equal(mine.t[:n], theirs.t[:n])
+        np.testing.assert_array_equal(mine.x[:n], theirs.x[:n])
+
+
+def test_a_condition_never_holding_leaves_the_run_as_it_was():
+    full, same = run(), run(lambda so_far: False)
+    assert same.status == full.status == "finished" and same.t_end == full.t_end
+    np.testing.assert_array_equal(same.final_state, full.final_state)
+    assert same.counters["steps"] == full.counters["steps"]
+
+
+def test_a_bad_until_is_refused_by_name():
+    with pytest.raises(SimulationError, match="until must be callable"):
+        run(until=3)
+
+    def broken(so_far):
+        raise KeyError("apex")
+
+    with pytest.raises(SimulationError, match=r"until failed at t=.*KeyError"):
+        run(until=broken, h=1e-4)
