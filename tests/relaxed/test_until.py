@@ -24,6 +24,7 @@ def run(until=None, t_final=3.0, h=1e-3, python=False):
 def test_a_run_ends_soon_after_until_holds_and_is_the_full_runs_beginning(python):
     full, ended = run(python=python), run(bounces(2), python=python)
     assert ended.status == "finished" and "until held" in ended.message
+    assert ended.counters["compiled_steps" if python else "python_steps"] == 0
     second = full.transitions[1].exit_time
     assert second <= ended.t_end < full.t_end
     # The loop hands back every STOP_CHECK_STEPS steps at most: no more are taken past the bounce.
