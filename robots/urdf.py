@@ -265,8 +265,9 @@ PARAMETERS = {
         "a link without a contact below the ground, the terrain's corner inside a body between its contacts, "
         "or an inactive contact carried through the ground by a step: "
         "'warn' (a warning naming link, time and depth), "
-        "'strict' (the run stops with status model_breakdown: past the model) or 'fall' (the run stops "
-        "with status fell: the robot crashed, as a [fall] condition)",
+        "'strict' (the run stops with status model_breakdown: past the model) or 'fall' (a body through "
+        "the ground stops the run with status fell: the robot crashed, as a [fall] condition; a contact "
+        "carried through stops it with model_breakdown, as under 'strict': a touchdown the steps missed)",
         choices=("warn", "strict", "fall"),
     ),
     "g": Param(9.81, "gravitational acceleration", "m/s^2", low=0.0),

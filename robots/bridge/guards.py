@@ -142,8 +142,10 @@ def _revolute(model: BridgeModel, joint: str) -> bool:
 def passed_through_watch(past: PastDepths, eps: float, action: str = "warn") -> Watch:
     """An inactive contact past its ground or stop by more than eps + ``THROUGH_DEPTH`` (a coarse
     step carried it through; an armed point only where it is armed): with ``action`` as
-    ``ground_watch``'s. eps (guard units: m, or rad for a revolute stop) is the run's: a step
-    landing in a strip leaves a contact up to eps past its surface."""
+    ``ground_watch``'s, except that "fall" stops as "strict" does, with ``model_breakdown``: a
+    contact carried through is a touchdown the steps missed, which says nothing of a fall. eps
+    (guard units: m, or rad for a revolute stop) is the run's: a step landing in a strip leaves a
+    contact up to eps past its surface."""
     allowed = eps + THROUGH_DEPTH
 
     def deepest(mode: str, x: np.ndarray) -> np.ndarray:
@@ -164,7 +166,7 @@ def passed_through_watch(past: PastDepths, eps: float, action: str = "warn") -> 
             f"left it moving away, where its guard does not look (take a smaller h, or tighter tolerances)"
         )
 
-    return ground_watch("passed_through", value, message, action)
+    return ground_watch("passed_through", value, message, "strict" if action == "fall" else action)
 
 
 def ground_watch(name: str, value: Callable[..., np.ndarray], message: Callable[..., str], action: str) -> Watch:

@@ -77,7 +77,9 @@ def test_a_step_through_the_ground_and_out_again_is_seen_at_its_middle(tmp_path,
         assert "'foot'" in ex.message and ex.t_end == pytest.approx(through_time(), abs=1e-9)
 
 
-@pytest.mark.parametrize(("action", "status"), [("strict", "model_breakdown"), ("fall", "fell")])
+# Under "fall" too the run stops with model_breakdown: a foot the steps carried through the ground
+# is a missed touchdown, not a fall of the robot (a sweep's fell column would count it).
+@pytest.mark.parametrize(("action", "status"), [("strict", "model_breakdown"), ("fall", "model_breakdown")])
 def test_below_ground_stops_the_run_where_the_foot_passed_the_allowance(tmp_path, action, status):
     ex = load_scene(swing(tmp_path, 0.1, action)).simulate()
     assert ex.status == status and "'foot'" in ex.message and "below the ground" in ex.message
