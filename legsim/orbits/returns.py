@@ -222,16 +222,25 @@ class ReturnMap:
         """Whether the run so far holds the return ``_locate`` looks for, so that it ends there
         rather than at the horizon. Past a transition, once a step was taken after it: the
         controller has been reset on that entry, whose memory the return reads."""
+        if self.problem.section.kind == "transition":
+            k = self._returning_transition(so_far)
+            return k is not None and k + 1 < len(so_far.segments) and len(so_far.segments[k + 1].t) >= 2
+        return self._returning_crossing(so_far) is not None
+
+    def _returning_transition(self, run: Execution | RunSoFar) -> int | None:
+        """The index in ``run.transitions`` of the ``returns``-th taking of the section's
+        transition into the section's mode, or None."""
         p = self.problem
-        if p.section.kind == "transition":
-            taken = [k for k, rec in enumerate(so_far.transitions)
-                     if rec.name == p.section.transition and rec.target == p.bound.mode]  # fmt: skip
-            if len(taken) < p.returns:
-                return False
-            after = taken[p.returns - 1] + 1
-            return after < len(so_far.segments) and len(so_far.segments[after].t) >= 2
-        found = returns(so_far, p.bound.mode, p.bound.s, p.section.direction, p.min_transitions, p.min_time)
-        return sum(1 for _ in itertools.islice(found, p.returns)) == p.returns
+        taken = (k for k, rec in enumerate(run.transitions)
+                 if rec.name == p.section.transition and rec.target == p.bound.mode)  # fmt: skip
+        return next(itertools.islice(taken, p.returns - 1, None), None)
+
+    def _returning_crossing(self, run: Execution | RunSoFar) -> tuple[int, float, np.ndarray] | None:
+        """The ``returns``-th crossing of the section in the run's segments, (k, t, x) as
+        ``crossings.returns`` gives it, or None."""
+        p = self.problem
+        found = returns(run, p.bound.mode, p.bound.s, p.section.direction, p.min_transitions, p.min_time)
+        return next(itertools.islice(found, p.returns - 1, None), None)
 
     def show_state(self, x: np.ndarray) -> str:
         """A state of the section's mode as ``{name=value, ...}`` for messages."""
@@ -246,16 +255,11 @@ class ReturnMap:
 
     def _locate_after_transition(self, ex: Execution, x0: np.ndarray, params: dict[str, float]) -> Return | None:
         """The ``returns``-th time the section's transition is taken into the section's mode."""
-        p = self.problem
-        count = 0
-        for k, rec in enumerate(ex.transitions):
-            if rec.name == p.section.transition and rec.target == p.bound.mode:
-                count += 1
-                if count == p.returns:
-                    return self._make_return(
-                        ex, x0, rec.state_after.copy(), rec.exit_time, k, ex.transitions[: k + 1], params
-                    )
-        return None
+        k = self._returning_transition(ex)
+        if k is None:
+            return None
+        rec = ex.transitions[k]
+        return self._make_return(ex, x0, rec.state_after.copy(), rec.exit_time, k, ex.transitions[: k + 1], params)
 
     def _locate_crossing(
         self, ex: Execution, x0: np.ndarray, params: dict[str, float], system: HybridSystem, control: Any
@@ -264,16 +268,16 @@ class ReturnMap:
         order, located again on the run's own step where that step can be retaken
         (``section_points``). Segment k follows transitions[k-1], so k transitions precede it."""
         p = self.problem
-        found = returns(ex, p.bound.mode, p.bound.s, p.section.direction, p.min_transitions, p.min_time)
-        for count, (k, t_hit, x_hit) in enumerate(found, start=1):
-            if count == p.returns:
-                if steps_reproducible(control, p.tableau, p.rtol is not None):
-                    run = evaluator(system, control, p.tableau)
-                    on_step = crossing_on_step(run, ex.segments[k], p.bound.s, p.section.direction, t_hit)
-                    if on_step is not None:
-                        t_hit, x_hit = on_step
-                return self._make_return(ex, x0, x_hit, t_hit, k, ex.transitions[:k], params)
-        return None
+        hit = self._returning_crossing(ex)
+        if hit is None:
+            return None
+        k, t_hit, x_hit = hit
+        if steps_reproducible(control, p.tableau, p.rtol is not None):
+            run = evaluator(system, control, p.tableau)
+            on_step = crossing_on_step(run, ex.segments[k], p.bound.s, p.section.direction, t_hit)
+            if on_step is not None:
+                t_hit, x_hit = on_step
+        return self._make_return(ex, x0, x_hit, t_hit, k, ex.transitions[:k], params)
 
     def _make_return(
         self,

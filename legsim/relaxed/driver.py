@@ -187,10 +187,11 @@ class Runner:
         #: Steps taken by each path: (compiled, python).
         self.steps = [0, 0]
         self._addresses = np.zeros(0, dtype=np.int64)
-        # The run may end at a hand-back: the loop then hands back every STOP_CHECK_STEPS at most.
-        self.stops = any(w.action == "stop" for w in options.watches) or options.until is not None
+        # A stop watch or the caller's until may end the run at a hand-back: the loop then hands back
+        # every STOP_CHECK_STEPS at most.
+        self.ends_early = any(w.action == "stop" for w in options.watches) or options.until is not None
         self.ws.ci[S_PROGRESS_STEPS] = 0 if options.progress is None else PROGRESS_STEPS_FIRST
-        if self.stops:
+        if self.ends_early:
             self.ws.ci[S_PROGRESS_STEPS] = (
                 min(PROGRESS_STEPS_FIRST, STOP_CHECK_STEPS) if options.progress else STOP_CHECK_STEPS
             )
@@ -207,7 +208,7 @@ class Runner:
             if code == RETURN_NEED_MODE:
                 self.tables.prepare(int(self.ws.iv[I_MODE]))
                 self.fit()
-            elif code == RETURN_FULL or (code == RETURN_PROGRESS and self.stops):
+            elif code == RETURN_FULL or (code == RETURN_PROGRESS and self.ends_early):
                 self.assembly.drain(self.ws, final=False)
                 if code == RETURN_FULL:
                     self.ws = with_longer_buffers(self.ws)
@@ -268,7 +269,7 @@ class Runner:
         if elapsed > 0.0 and work > self.work_at_look:
             rate = (work - self.work_at_look) / elapsed
             steps = min(max(int(rate * LOOK_INTERVAL), PROGRESS_STEPS_FIRST), PROGRESS_STEPS_MOST)
-            self.ws.ci[S_PROGRESS_STEPS] = min(steps, STOP_CHECK_STEPS) if self.stops else steps
+            self.ws.ci[S_PROGRESS_STEPS] = min(steps, STOP_CHECK_STEPS) if self.ends_early else steps
         self.last_look, self.work_at_look = now, work
 
     def fit(self) -> None:
