@@ -77,6 +77,20 @@ def slope(p, at, x):
 
 
 @model_function
+def heights_along(p, at, xs, out):
+    """``height`` at each x of xs (k,) into out (k,): one compiled call for many points."""
+    for i in range(xs.shape[0]):
+        out[i] = height(p, at, xs[i])
+
+
+@model_function
+def slopes_along(p, at, xs, out):
+    """``slope`` at each x of xs (k,) into out (k,)."""
+    for i in range(xs.shape[0]):
+        out[i] = slope(p, at, xs[i])
+
+
+@model_function
 def face_slope(p, at, x, vx):
     """dh/dx of the face under a point at x moving at vx (m/s) along x: ``slope``, but within
     ``CORNER_RESOLUTION`` of a profile's breakpoint the slope of the segment the point moves

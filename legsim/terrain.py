@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 
 from .errors import SceneError
-from .heights import FLAT, PROFILE, SINE, SLOPE, curvature, height, slope
+from .heights import FLAT, PROFILE, SINE, SLOPE, curvature, height, heights_along, slope, slopes_along
 
 __all__ = ["FLAT", "PROFILE", "SINE", "SLOPE", "Terrain", "curvature", "height", "slope"]
 #: The kinds a ``[terrain]`` table may name.
@@ -66,8 +66,17 @@ class Terrain:
 
     def height(self, x: Any) -> np.ndarray:
         """h at each x (m), shape of x."""
+        return self._along(heights_along, x)
+
+    def slope(self, x: Any) -> np.ndarray:
+        """dh/dx at each x, shape of x (a profile's right segment's at a breakpoint)."""
+        return self._along(slopes_along, x)
+
+    def _along(self, function: Any, x: Any) -> np.ndarray:
         xs = np.asarray(x, dtype=float)
-        return np.vectorize(lambda v: height(self.array, 0, float(v)), otypes=[float])(xs)
+        out = np.empty(xs.size)
+        function(self.array, 0, np.ascontiguousarray(xs.reshape(-1)), out)
+        return out.reshape(xs.shape)
 
     def polyline(self, x_low: float, x_high: float, samples: int = 400) -> np.ndarray:
         """(k, 2) points (x, h(x)) over [x_low, x_high] (m) for drawing: a profile's breakpoints

@@ -90,17 +90,34 @@ class LinkHeights:
         self.owner = np.concatenate(owners) if owners else np.zeros(0, dtype=int)
         self._placements = placements
         self._columns = placements.add_points(self.links)
+        self._kept = KeptWhileAlive()
 
     def heights_at(self, states: np.ndarray) -> np.ndarray:
-        """The height (m) of every link point at each state, (rows, points): states (rows, >= 2 n)."""
+        """The height (m) of every link point at each state, (rows, points): states (rows, >= 2 n).
+        A batch's heights are kept while it lives (the watch's value and rate both read them)."""
+        kept = self._kept.get(states)
+        if kept is not None:
+            return kept
         out = self._placements.at(states)[:, self._columns]
-        if self.terrain is None:
-            return out[:, :, 1]
-        return out[:, :, 1] - self.terrain.height(out[:, :, 0].reshape(-1)).reshape(out.shape[:2])
+        heights = out[:, :, 1] if self.terrain is None else out[:, :, 1] - self.terrain.height(out[:, :, 0])
+        if np.ndim(states) == 2 and states.shape[0] > 1:
+            self._kept.keep(states, heights)
+        return heights
 
     def lowest_at(self, states: np.ndarray) -> np.ndarray:
         """The lowest point of all the links (m) at each state, (rows,)."""
         return np.min(self.heights_at(states), axis=1)
+
+    def lowest_rate_at(self, states: np.ndarray) -> np.ndarray:
+        """d/dt (m/s) of the lowest point's height along the flow at each state, (rows,): its
+        vertical velocity, less the terrain's slope times its horizontal one."""
+        lowest = np.argmin(self.heights_at(states), axis=1)[:, None]
+        velocity = self._placements.velocities(states)[:, self._columns]
+        rate = np.take_along_axis(velocity[:, :, 1], lowest, axis=1)[:, 0]
+        if self.terrain is None:
+            return rate
+        x = np.take_along_axis(self._placements.at(states)[:, self._columns, 0], lowest, axis=1)[:, 0]
+        return rate - self.terrain.slope(x) * np.take_along_axis(velocity[:, :, 0], lowest, axis=1)[:, 0]
 
     def __call__(self, x: np.ndarray) -> dict[str, float]:
         """Each link's lowest point (m) at one state x."""
@@ -122,6 +139,9 @@ def below_ground_watch(heights: LinkHeights, ground: float, action: str = "warn"
     def value(mode: str, t: np.ndarray, x: np.ndarray) -> np.ndarray:
         return heights.lowest_at(x) - ground
 
+    def rate(mode: str, t: np.ndarray, x: np.ndarray) -> np.ndarray:
+        return heights.lowest_rate_at(x)
+
     def message(t: float, mode: str, x: np.ndarray) -> str:
         h = heights(x)
         below = sorted((v - ground, k) for k, v in h.items() if v < ground)
@@ -131,7 +151,7 @@ def below_ground_watch(heights: LinkHeights, ground: float, action: str = "warn"
             f"(declare a contact on the link, or it passes through the ground)"
         )
 
-    return ground_watch("below_ground", value, message, action)
+    return ground_watch("below_ground", value, message, action, rate)
 
 
 #: How deep (m) a point of the terrain may lie inside a body before the body counts as passing

@@ -340,7 +340,7 @@ class Assembly:
                 checked = ct[2 * start :], cx[2 * start :]
             else:
                 checked = watches.refined(*stored)
-            found = [(hit[1], hit[0], w) for w in stops if (hit := watches.first_hold(w, mode, checked, stored))]
+            found = [(hit.time, hit.k, w) for w in stops if (hit := watches.first_hold(w, mode, checked, stored))]
             if found:
                 when, k, watch = min(found, key=lambda item: item[0])
                 self.stopped = (i, start + watches.stored_index(k), when, watch)
@@ -407,13 +407,15 @@ class Assembly:
             if w.action != "warn":
                 continue
             first = least = None
-            per_visit = points.values(w)
-            for (mode, t, x, seg), v in zip(visits, per_visit, strict=True):
+            rates: list[Any] = [None] * len(visits) if w.rate is None else points.values(w, rates=True)
+            for (mode, t, x, seg), v, r in zip(visits, points.values(w), rates, strict=True):
                 stored = seg.t, seg.x, seg.dx
-                if first is None and (hit := watches.first_hold(w, mode, (t, x), stored, v)) is not None:
-                    k, when = hit
+                if first is None and (hit := watches.first_hold(w, mode, (t, x), stored, v, r)) is not None:
+                    k, when, inside = hit
                     state = x[0] if k == 0 else watches.point(*stored, watches.stored_index(k), when)[0]
                     first = (when, mode, state)
+                    if inside is not None and (least is None or inside[2] < least[0]):
+                        least = (inside[2], inside[0], mode, inside[1])
                 k, low = watches.least_of(v)
                 if least is None or low < least[0]:
                     least = (low, float(t[k]), mode, x[k].copy())

@@ -10,10 +10,14 @@ the points as the loop hands its buffers back (every ``workspace.POINTS`` points
 at the end), so the loop itself, compiled or not, is unchanged. The points a stop or a warning
 is checked at are the stored ones and the middle of every step between them, on the step's interpolant
 (``refined``): a condition that holds only inside a step (a foot carried through the ground and
-out again by one coarse step) is seen wherever it holds at the step's middle. Where a condition
-first holds between two checked points, the time is located by bisection on the points' cubic
-Hermite interpolant (the one ``Execution.sample`` uses: O(h^4) between steps), to float64
-resolution;
+out again by one coarse step) is seen wherever it holds at the step's middle. A watch that gives
+its value's rate along the flow (``Watch.rate``) is also checked between those points: where the
+cubic through two neighbours' values and rates dips below zero, the interpolant is evaluated at
+the cubic's least point (and, if the condition does not hold there, the half step is halved up to
+``DIP_HALVINGS`` times on the same test), so a dip that misses every checked point is seen too.
+Where a condition first holds between two checked points, the time is located by bisection on
+the points' cubic Hermite interpolant (the one ``Execution.sample`` uses: O(h^4) between steps),
+to float64 resolution;
 where it holds at a visit's first point (a mode entered), the time is that entry's. A condition
 met during a crossing's step, before the guard point q, is found at the visit after the
 crossing.
@@ -36,7 +40,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -47,6 +51,10 @@ from .single import hermite, hermite_derivative
 ACTIONS = ("stop", "warn", "time")
 #: Bisection steps locating a time (enough to reach float64's resolution of any step).
 BISECTIONS = 64
+#: Halvings of a part of a step where the cubic through its ends' values and rates dips below zero
+#: but the interpolant at the cubic's least point does not: four reach a sixteenth of it, where
+#: the cubic follows a smooth value to the fifth power of that fraction.
+DIP_HALVINGS = 4
 
 
 @dataclass(frozen=True)
@@ -61,6 +69,8 @@ class Watch:
     message: ``message(t, mode, x) -> str`` at a point where it holds (stop, warn).
     status: the status a stop ends the run with (a ``Status`` value).
     counter: the counter a ``"time"`` watch fills (s).
+    rate: ``rate(mode, t, x) -> dv/dt`` (N,) along the flow at the points (v's unit per s), or
+        None; with it a stop or warn watch is also checked between the points (module docstring).
     """
 
     name: str
@@ -69,6 +79,7 @@ class Watch:
     message: Callable[[float, str, np.ndarray], str] | None = None
     status: str = Status.FELL.value
     counter: str = ""
+    rate: Callable[[str, np.ndarray, np.ndarray], np.ndarray] | None = None
 
     def __post_init__(self) -> None:
         if self.action not in ACTIONS:
@@ -81,15 +92,27 @@ class Watch:
             raise SimulationError(f"watch {self.name!r}: status {self.status!r} is not a run status")
         if self.action == "time" and not self.counter:
             raise SimulationError(f"watch {self.name!r}: a time watch needs a counter name")
+        if self.rate is not None and not callable(self.rate):
+            raise SimulationError(f"watch {self.name!r}: rate must be None or a function rate(mode, t, x)")
 
     def values(self, mode: str, t: np.ndarray, x: np.ndarray) -> np.ndarray:
         """v at the points (N,), float64; SimulationError naming the watch if it is no such array."""
+        return self._call(self.value, "value", mode, t, x)
+
+    def rates(self, mode: str, t: np.ndarray, x: np.ndarray) -> np.ndarray:
+        """dv/dt at the points (N,), float64 (``rate``, which must be given)."""
+        assert self.rate is not None
+        return self._call(self.rate, "rate", mode, t, x)
+
+    def _call(self, function: Callable[..., Any], what: str, mode: str, t: np.ndarray, x: np.ndarray) -> np.ndarray:
         try:
-            v = np.asarray(self.value(mode, t, x), dtype=float).reshape(-1)
+            v = np.asarray(function(mode, t, x), dtype=float).reshape(-1)
         except Exception as exc:
-            raise SimulationError(f"watch {self.name!r} failed in mode '{mode}': {type(exc).__name__}: {exc}") from exc
+            raise SimulationError(
+                f"watch {self.name!r}: its {what} failed in mode '{mode}': {type(exc).__name__}: {exc}"
+            ) from exc
         if v.shape[0] != t.shape[0]:
-            raise SimulationError(f"watch {self.name!r} gave {v.shape[0]} values for {t.shape[0]} points")
+            raise SimulationError(f"watch {self.name!r} gave {v.shape[0]} {what}s for {t.shape[0]} points")
         return v
 
 
@@ -150,27 +173,106 @@ def locate(
     return hi
 
 
+#: A visit's stored points: times (N,), states and their slopes (N, n).
+Stored = tuple[np.ndarray, np.ndarray, np.ndarray]
+
+
+class Hold(NamedTuple):
+    """Where a watch's condition first holds in a visit."""
+
+    k: int  #: the checked point at or after it (``refined``'s index)
+    time: float  #: when it starts to hold (s)
+    #: (t, x, v): a point between two checked ones where it holds, found by the value's rate; None
+    #: where a checked point holds first.
+    inside: tuple[float, np.ndarray, float] | None = None
+
+
 def first_hold(
     watch: Watch,
     mode: str,
     checked: tuple[np.ndarray, np.ndarray],
     stored: tuple[np.ndarray, np.ndarray, np.ndarray],
     values: Any = None,
-) -> tuple[int, float] | None:
-    """(k, time) where the condition first holds among a visit's ``checked`` points (``refined``
-    of its ``stored`` points t, x, dx; k the checked point at or after it), or None; ``values``:
-    v at the checked points when known."""
+    rates: Any = None,
+) -> Hold | None:
+    """Where the condition first holds among a visit's ``checked`` points (``refined`` of its
+    ``stored`` points t, x, dx), or between two of them by the watch's rate, or None; ``values``
+    and ``rates``: v and dv/dt at the checked points when known."""
     t, x = checked
     if t.shape[0] == 0:
         return None
     v = watch.values(mode, t, x) if values is None else values
     below = np.flatnonzero(v < 0.0)
-    if below.size == 0:
+    k = int(below[0]) if below.size else t.shape[0]
+    if watch.rate is not None and k > 1:
+        # on the whole arrays, which a watch may have kept what it computed for the values on
+        r = (watch.rates(mode, t, x) if rates is None else rates)[:k]
+        dip = first_dip(watch, mode, (t[:k], v[:k], r), stored)
+        if dip is not None:
+            return dip
+    if k == t.shape[0]:
         return None
-    k = int(below[0])
     if k == 0:
-        return 0, float(t[0])
-    return k, locate(watch, mode, *stored, stored_index(k), True, (float(t[k - 1]), float(t[k])))
+        return Hold(0, float(t[0]))
+    return Hold(k, locate(watch, mode, *stored, stored_index(k), True, (float(t[k - 1]), float(t[k]))))
+
+
+def cubic_least(
+    v0: np.ndarray, v1: np.ndarray, r0: np.ndarray, r1: np.ndarray, dt: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """The local minimum inside (0, 1) of the cubic through (0, v0) and (dt, v1) with slopes r0,
+    r1, on each interval (arrays of one shape): its place as a fraction s of dt and its value; s
+    is nan where the cubic has none. (Where both ends are >= 0 and it is < 0, it is the least.)"""
+    with np.errstate(all="ignore"):  # an interval without a minimum, or with infinite ends, gives nan
+        a, b, d = dt * r0, dt * r1, v1 - v0
+        c2, c3 = 3.0 * d - 2.0 * a - b, a + b - 2.0 * d  # p(s) = v0 + a s + c2 s^2 + c3 s^3
+        disc = c2 * c2 - 3.0 * a * c3
+        # the root of p' where p'' = 2 sqrt(disc) > 0, written without cancellation
+        s = -a / (c2 + np.sqrt(disc))
+        s = np.where((disc > 0.0) & (s > 0.0) & (s < 1.0), s, np.nan)
+        return s, v0 + s * (a + s * (c2 + s * c3))
+
+
+def first_dip(
+    watch: Watch, mode: str, checked: tuple[np.ndarray, np.ndarray, np.ndarray], stored: Stored
+) -> Hold | None:
+    """The first hold between two neighbours of the ``checked`` points (t, v, dv/dt), none of
+    which holds, where the cubic through their values and rates dips below zero and the
+    interpolant confirms it (module docstring)."""
+    t, v, r = checked
+    _, least = cubic_least(v[:-1], v[1:], r[:-1], r[1:], np.diff(t))
+    for j in np.flatnonzero(least < 0.0):
+        k = stored_index(int(j) + 1)
+        inside = _confirmed(watch, mode, stored, k, (float(t[j]), float(v[j]), float(r[j])),
+                            (float(t[j + 1]), float(v[j + 1]), float(r[j + 1])), DIP_HALVINGS)  # fmt: skip
+        if inside is not None:
+            when = locate(watch, mode, *stored, k, True, (float(t[j]), inside[0]))
+            return Hold(int(j) + 1, when, inside)
+    return None
+
+
+def _confirmed(
+    watch: Watch, mode: str, stored: Stored, k: int,
+    start: tuple[float, float, float], end: tuple[float, float, float], halvings: int,
+) -> tuple[float, np.ndarray, float] | None:  # fmt: skip
+    """A point (t, x, v) of stored step k's interpolant between ``start`` and ``end`` (t, v,
+    dv/dt), where the condition holds, searched at the least point of their cubic and, where it
+    does not hold there, on each side of it, ``halvings`` times at most."""
+    (ta, va, ra), (tb, vb, rb) = start, end
+    s, least = (float(u[0]) for u in cubic_least(*(np.array([w]) for w in (va, vb, ra, rb, tb - ta))))
+    tm = ta + s * (tb - ta)
+    if not (least < 0.0 and ta < tm < tb):
+        return None
+    xm, _ = point(*stored, k, tm)
+    at = (mode, np.array([tm]), xm[None, :])
+    vm = float(watch.values(*at)[0])
+    if vm < 0.0:
+        return tm, xm, vm
+    if halvings == 0:
+        return None
+    middle = (tm, vm, float(watch.rates(*at)[0]))
+    found = _confirmed(watch, mode, stored, k, start, middle, halvings - 1)
+    return found if found is not None else _confirmed(watch, mode, stored, k, middle, end, halvings - 1)
 
 
 class PointsByMode:
@@ -190,11 +292,13 @@ class PointsByMode:
             ends = np.cumsum([visits[i][1].shape[0] for i in members])[:-1]
             self.groups.append((mode, members, t, x, ends))
 
-    def values(self, watch: Watch) -> list[np.ndarray]:
-        """v at the points of each visit, in the visits' order: one call of the watch per mode."""
+    def values(self, watch: Watch, rates: bool = False) -> list[np.ndarray]:
+        """v at the points of each visit, in the visits' order: one call of the watch per mode;
+        with ``rates`` dv/dt (the watch must have a ``rate``)."""
+        function = watch.rates if rates else watch.values
         out: list[np.ndarray] = [np.empty(0)] * self.count
         for mode, members, t, x, ends in self.groups:
-            for i, v in zip(members, np.split(watch.values(mode, t, x), ends), strict=True):
+            for i, v in zip(members, np.split(function(mode, t, x), ends), strict=True):
                 out[i] = v
         return out
 

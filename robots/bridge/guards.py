@@ -11,8 +11,7 @@ from collections.abc import Callable
 import numpy as np
 
 from legsim.execution import Status
-from legsim.heights import SINE, nearest
-from legsim.heights import height as terrain_height
+from legsim.heights import SINE, heights_along, nearest, slopes_along
 from legsim.relaxed import Watch
 
 from .contacts import SLIP_SUFFIX, Armed, PointContact, RigidContact, SpringLeg, joint_id
@@ -76,6 +75,34 @@ class PastDepths:
                 out[~self._armed(armed, r, states, xz, positions), k] = -np.inf
         return out
 
+    def rates(self, mode: str, states: np.ndarray) -> np.ndarray:
+        """(rows, contacts): d/dt of each inactive contact's ``depths`` along the flow (m/s or
+        rad/s), from the frames' velocities of the same kinematics pass; 0 for an active
+        contact, nan for a round one whose point nearest a sine moves in it."""
+        states = np.atleast_2d(states)
+        velocities = self._placements.velocities(states)[:, self._columns]
+        positions = self._placements.at(states)[:, self._columns]
+        active = set(self.active_contacts(mode))
+        out = np.zeros((states.shape[0], len(self.rigid)))
+        slot = 0
+        for k, r in enumerate(self.rigid):
+            if r.kind == "stop":
+                if r.contact.name not in active:
+                    out[:, k] = -r.sign * states[:, self.model.n + r.dof]
+                continue
+            vx, vz = velocities[:, slot, 0], velocities[:, slot, 1]
+            x = positions[:, slot, 0]
+            slot += 1
+            if r.contact.name in active:
+                continue
+            if r.radius > 0.0 and self.moving:
+                out[:, k] = np.nan
+            elif self.model.terrain is None:
+                out[:, k] = -vz
+            else:  # d/dt (h(x) - z)
+                out[:, k] = _along(slopes_along, self.model.terrain, x) * vx - vz
+        return out
+
     def _point_depth(self, r: RigidContact, xz: np.ndarray) -> np.ndarray:
         """A point's depth below the ground at its positions xz (rows, 2)."""
         terrain = self.model.terrain
@@ -84,7 +111,7 @@ class PastDepths:
             return r.radius - np.array([nearest(terrain, 0, float(x), float(z))[1] for x, z in xz])
         if terrain is None:
             return r.point.ground - xz[:, 1]
-        return np.array([terrain_height(terrain, 0, float(x)) for x in xz[:, 0]]) - xz[:, 1]
+        return _along(heights_along, terrain, xz[:, 0]) - xz[:, 1]
 
     def _armed(
         self, armed: Armed, r: RigidContact, states: np.ndarray, xz: np.ndarray, positions: np.ndarray
@@ -95,6 +122,13 @@ class PastDepths:
         else:
             lead = xz[:, 0] - positions[:, self._ahead_slot[r.armed_frame], 0]
         return lead - armed.beyond > 0.0
+
+
+def _along(function: Callable[..., None], terrain: np.ndarray, xs: np.ndarray) -> np.ndarray:
+    """The terrain's height or slope (``function``: ``heights_along``, ``slopes_along``) at each x of xs."""
+    out = np.empty(xs.shape[0])
+    function(terrain, 0, np.ascontiguousarray(xs, dtype=float), out)
+    return out
 
 
 def initial_check(past: PastDepths) -> Callable[[str, np.ndarray, float], str | None]:
@@ -155,6 +189,13 @@ def passed_through_watch(past: PastDepths, eps: float, action: str = "warn") -> 
     def value(mode: str, t: np.ndarray, x: np.ndarray) -> np.ndarray:
         return allowed - deepest(mode, x)
 
+    def rate(mode: str, t: np.ndarray, x: np.ndarray) -> np.ndarray:
+        # the deepest contact's: the value's slope wherever one contact is the deepest
+        depths = past.depths(mode, x, armed_only=True)
+        if not depths.shape[1]:
+            return np.zeros(depths.shape[0])
+        return -np.take_along_axis(past.rates(mode, x), np.argmax(depths, axis=1)[:, None], axis=1)[:, 0]
+
     def message(t: float, mode: str, x: np.ndarray) -> str:
         state = np.atleast_2d(x)[0]
         depths = past.depths(mode, state, armed_only=True)[0]
@@ -166,19 +207,23 @@ def passed_through_watch(past: PastDepths, eps: float, action: str = "warn") -> 
             f"left it moving away, where its guard does not look (take a smaller h, or tighter tolerances)"
         )
 
-    return ground_watch("passed_through", value, message, "strict" if action == "fall" else action)
+    return ground_watch("passed_through", value, message, "strict" if action == "fall" else action, rate)
 
 
-def ground_watch(name: str, value: Callable[..., np.ndarray], message: Callable[..., str], action: str) -> Watch:
+def ground_watch(
+    name: str, value: Callable[..., np.ndarray], message: Callable[..., str], action: str,
+    rate: Callable[..., np.ndarray] | None = None,
+) -> Watch:  # fmt: skip
     """The watch of a body through the ground, by the scene's ``below_ground`` ``action``: "warn"
     a warning; "strict" a stop with status ``model_breakdown`` (the model has no contact there);
-    "fall" a stop with status ``fell`` (the robot crashed, a scene's fall condition)."""
+    "fall" a stop with status ``fell`` (the robot crashed, a scene's fall condition). ``rate``:
+    the value's rate along the flow, to check between points (``Watch.rate``)."""
     if action == "strict":
-        return Watch(name, value, "stop", message, status=Status.MODEL_BREAKDOWN.value)
+        return Watch(name, value, "stop", message, status=Status.MODEL_BREAKDOWN.value, rate=rate)
     if action == "fall":
         return Watch(name, value, "stop", lambda t, mode, x: f"fell: {name}: {message(t, mode, x)}",
-                     status=Status.FELL.value)  # fmt: skip
-    return Watch(name, value, "warn", message)
+                     status=Status.FELL.value, rate=rate)  # fmt: skip
+    return Watch(name, value, "warn", message, rate=rate)
 
 
 def guard_units(model: BridgeModel) -> dict[str, str]:

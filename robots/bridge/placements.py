@@ -1,4 +1,4 @@
-"""Where a robot's frames are at many stored states, for the checks that scan a whole run (feet
+"""Where a robot's frames are, and how fast they move, at many stored states, for the checks that scan a whole run (feet
 past the ground, links below it, the terrain inside a body): one forward-kinematics pass of the
 native library per batch of states serves every check, since each check is handed the very same
 arrays (``legsim.relaxed.watches.PointsByMode``).
@@ -13,7 +13,7 @@ import pinocchio as pin
 
 from legsim.heights import SINE
 
-from ..frame_points import frame_positions
+from ..frame_points import frame_motions
 from ..kept import KeptWhileAlive
 from .model import BridgeModel, native_handle
 
@@ -60,16 +60,23 @@ class Placements:
         return self._handle
 
     def at(self, states: np.ndarray) -> np.ndarray:
-        """Every frame's world (x, z) (m) at each state, (rows, frames, 2); states (rows, >= 2 n).
-        A batch of several states is kept while the array lives: each check is asked about every
-        mode's batch in turn, and reads it again."""
+        """Every frame's world (x, z) (m) at each state, (rows, frames, 2); states (rows, >= 2 n)."""
+        return self._motions(states)[:, :, :2]
+
+    def velocities(self, states: np.ndarray) -> np.ndarray:
+        """Every frame's world velocity (vx, vz) (m/s) at each state, as ``at``: the same pass."""
+        return self._motions(states)[:, :, 2:]
+
+    def _motions(self, states: np.ndarray) -> np.ndarray:
+        """(rows, frames, 4): x, z, vx, vz. A batch of several states is kept while the array
+        lives: each check is asked about every mode's batch in turn, and reads it again."""
         kept = self._kept.get(states)
         if kept is not None:
             return kept
         rows = np.ascontiguousarray(np.atleast_2d(states), dtype=float)
-        out = np.empty((rows.shape[0], len(self._frames), 2))
+        out = np.empty((rows.shape[0], len(self._frames), 4))
         if self._frames:
-            frame_positions(self._native(), rows, self.model.n, np.array(self._frames, dtype=float), out)
+            frame_motions(self._native(), rows, self.model.n, np.array(self._frames, dtype=float), out)
         if rows.shape[0] > 1:
             self._kept.keep(states, out)
         return out

@@ -2,6 +2,7 @@
 middle of each step), on a ball falling freely from z0 = 1 m (no floor): z(t) = z0 - g t^2 / 2,
 so z reaches b at t = sqrt(2 (z0 - b) / g)."""
 
+import dataclasses
 import math
 
 import numpy as np
@@ -10,6 +11,7 @@ import pytest
 import legsim.compiled  # noqa: F401 -- the kernel, so that runs are compiled
 from legsim.errors import SimulationError
 from legsim.relaxed import Watch, simulate
+from legsim.relaxed.watches import cubic_least
 from legsim.systems import bouncing_ball
 
 G = 9.81
@@ -94,6 +96,62 @@ def test_a_condition_holding_only_inside_one_step_is_seen_at_the_steps_middle(py
     assert warning.details["least_value"] == pytest.approx(abs(1.0 - G / 2 * 0.25**2 - 0.7) - 0.05, abs=1e-12)
 
 
+APEX_TIME, NEAR = 0.25, 0.005  # s, m: the thrown ball's apex, and how near it the condition holds
+
+
+def near_apex(mode, t, x):
+    """Holds while the thrown ball is within NEAR of its apex height."""
+    return (apex_height() - NEAR) - x[:, 0]
+
+
+def apex_height():
+    return 1.0 + G * APEX_TIME**2 / 2
+
+
+@pytest.mark.parametrize("python", [False, True])
+def test_a_condition_holding_between_every_checked_point_is_seen_by_its_rate(python):
+    # Thrown up at g APEX_TIME from z = 1, steps of 0.2 s: the condition holds on
+    # APEX_TIME +- sqrt(2 NEAR / g) = (0.218, 0.282) s, between the checked points 0.2 and 0.3 s.
+    # The value's rate -z' makes the cubic through those two points the value's parabola itself,
+    # so the stop is at the closed-form time; without the rate the run does not see it.
+    system = bouncing_ball.make_system(floor=False)
+    start, enters = [1.0, G * APEX_TIME], APEX_TIME - math.sqrt(2 * NEAR / G)
+
+    def thrown(watch):
+        return simulate(system, start, "flight", 0.4, 0.2, 1e-3, watches=[watch], python=python)
+
+    rising = Watch("apex", near_apex, "stop", said, rate=lambda mode, t, x: -x[:, 1])
+    stop = thrown(rising)
+    assert stop.status == "fell" and stop.t_end == pytest.approx(enters, abs=1e-12)
+    assert stop.final_state[0] == pytest.approx(apex_height() - NEAR, abs=1e-12)
+    (warning,) = thrown(dataclasses.replace(rising, action="warn")).warnings
+    assert warning.time == pytest.approx(enters, abs=1e-12)
+    # the deepest point seen is the one the check found, the cubic's least: the apex itself
+    assert warning.details["least_time"] == pytest.approx(APEX_TIME, abs=1e-12)
+    assert warning.details["least_value"] == pytest.approx(-NEAR, abs=1e-12)
+    assert thrown(dataclasses.replace(rising, rate=None)).status == "finished"
+
+
+def test_the_least_of_a_cubic_is_its_interior_minimum():
+    # against the local minima of a fine grid over random cubics given by their ends' values and
+    # slopes (a cubic has one at most; where the ends hold nothing and it is below zero, it is
+    # the least of the cubic, which is what the check between points needs)
+    rng = np.random.default_rng(7)
+    v0, v1, r0, r1 = rng.normal(size=(4, 500))
+    dt = rng.uniform(0.1, 2.0, size=500)
+    s, least = cubic_least(v0, v1, r0, r1, dt)
+    grid = np.linspace(0.0, 1.0, 200_001)[:, None]
+    h00, h10 = 2 * grid**3 - 3 * grid**2 + 1, grid**3 - 2 * grid**2 + grid
+    h01, h11 = -2 * grid**3 + 3 * grid**2, grid**3 - grid**2
+    p = h00 * v0 + h10 * dt * r0 + h01 * v1 + h11 * dt * r1
+    local = (p[1:-1] < p[:-2]) & (p[1:-1] <= p[2:])
+    assert np.array_equal(local.any(axis=0), ~np.isnan(s))
+    found = local.any(axis=0)
+    where = np.argmax(local, axis=0)[found] + 1
+    assert np.allclose(least[found], p[where, np.flatnonzero(found)], atol=1e-12)
+    assert np.allclose(s[found], grid[where, 0], atol=1e-5)
+
+
 def test_bad_watches_are_refused_by_name():
     with pytest.raises(SimulationError, match="action must be one of"):
         Watch("w", below(0), "explode", said)
@@ -105,5 +163,9 @@ def test_bad_watches_are_refused_by_name():
         Watch("w", below(0), "stop", said, "nope")
     with pytest.raises(SimulationError, match=r"must be legsim\.relaxed\.Watch"):
         run([lambda mode, t, x: x])
+    with pytest.raises(SimulationError, match="rate must be None or a function"):
+        Watch("w", below(0), "stop", said, rate=1.0)
+    with pytest.raises(SimulationError, match="watch 'w': its rate failed in mode 'flight': ZeroDivisionError"):
+        run([Watch("w", below(0.5), "stop", said, rate=lambda mode, t, x: 1 / 0)])
     with pytest.raises(SimulationError, match="watch 'w' gave 1 values for"):
         run([Watch("w", lambda mode, t, x: np.zeros(1), "stop", said)])

@@ -2,7 +2,7 @@
 ``PastDepths`` and ``passed_through_watch``): a contact's guard ``max(height, dz/dt)`` is past
 only while the point closes, so a step that takes a foot through the ground and leaves it rising
 ends inside the domain. The run says so: a ``passed_through`` warning, or a stop under
-``below_ground``, at the time the closed form gives.
+``below_ground``, at the time the closed form gives, wherever in the step the foot dips.
 
 The robot: a leg of length L on a hip fixed at height H < L, without gravity, swinging at a
 constant rate w, so that its foot dips below the ground at the bottom of the swing: the angle is
@@ -13,6 +13,7 @@ import math
 
 import pytest
 from legsim.robots.bridge.guards import THROUGH_DEPTH
+from scipy.optimize import brentq
 
 from legsim.scene import load_scene
 
@@ -77,6 +78,25 @@ def test_a_step_through_the_ground_and_out_again_is_seen_at_its_middle(tmp_path,
         assert "'foot'" in ex.message and ex.t_end == pytest.approx(through_time(), abs=1e-9)
 
 
+@pytest.mark.parametrize(("action", "status"), [("warn", "finished"), ("strict", "model_breakdown")])
+def test_a_dip_between_every_checked_point_is_seen_by_the_feet_s_speed(tmp_path, action, status):
+    # One step of 0.24 s: theta from -0.6 to 1.8, the foot 0.075 m up at the start and at the
+    # step's middle (theta = 0.6) and high at its end, but 0.1 m below the ground at a quarter
+    # (theta = 0): no checked point shows it. The depth's rate, -vz of the foot, makes the cubic
+    # through the start and the middle dip, and the interpolant there confirms it.
+    ex = load_scene(swing(tmp_path, 0.24, action, t_final=0.24)).simulate()
+    assert ex.status == status and not ex.transitions
+    if action == "warn":
+        (warning,) = [w for w in ex.warnings if w.kind == "passed_through"]
+        assert warning.time == pytest.approx(through_time(), abs=1e-9)
+        # the deepest point seen is the one found between the checked points, the cubic's least:
+        # the depth and its rate are symmetric about theta = 0 over the half step, so it is there
+        assert EPS + THROUGH_DEPTH - warning.details["least_value"] == pytest.approx(L - H, abs=1e-12)
+        assert warning.details["least_time"] == pytest.approx(0.06, abs=1e-12)
+    else:
+        assert "'foot'" in ex.message and ex.t_end == pytest.approx(through_time(), abs=1e-9)
+
+
 # Under "fall" too the run stops with model_breakdown: a foot the steps carried through the ground
 # is a missed touchdown, not a fall of the robot (a sweep's fell column would count it).
 @pytest.mark.parametrize(("action", "status"), [("strict", "model_breakdown"), ("fall", "model_breakdown")])
@@ -97,3 +117,25 @@ def test_small_steps_land_the_foot_where_it_meets_the_ground_and_say_nothing(tmp
     assert ex.final_state[1] == pytest.approx(0.0, abs=1e-12)
     assert L * math.cos(ex.transitions[0].state_before[0]) - H == pytest.approx(0.0, abs=EPS)
     assert not [w for w in ex.warnings if w.kind == "passed_through"]
+
+
+def test_a_link_dipping_between_every_checked_point_is_seen_by_its_speed(tmp_path):
+    # The leg without a contact, a 2 mm box drawn at its end: the same step of 0.24 s carries the
+    # box 0.1 m below the ground and out again at a quarter of the step. The links' watch reads
+    # the lowest point's vertical speed and finds the dip between the checked points, at the time
+    # the box's lowest corner (1 mm behind and below the leg's end) reaches the ground:
+    # H - (L + 0.001) cos(theta) - 0.001 |sin(theta)| = 0, theta < 0.
+    box = f'<visual><origin xyz="0 0 {-L}"/><geometry><box size="0.002 0.002 0.002"/></geometry></visual>'
+    leg = LEG.replace(
+        link("leg", 1.0, 0.01, origin=f"0 0 {-L / 2}"), link("leg", 1.0, 0.01, visual=box, origin=f"0 0 {-L / 2}")
+    )
+    scene = (
+        'root = "fixed"\ng = 0.0\ncontacts = []\n'
+        f"[initial]\nstate = {{ hip = {THETA0}, hipd = {RATE} }}\n"
+        f'[integrator]\nmethod = "rk4"\nh = 0.24\neps = {EPS}\nt_final = 0.24\n'
+    )
+    ex = load_scene(write(tmp_path, "swing", leg, scene)).simulate()
+    (warning,) = [w for w in ex.warnings if w.kind == "below_ground"]
+    assert "'leg'" in warning.message
+    theta = brentq(lambda a: H - (L + 0.001) * math.cos(a) - 0.001 * abs(math.sin(a)), THETA0, 0.0, xtol=1e-15)
+    assert warning.time == pytest.approx((theta - THETA0) / RATE, abs=1e-9)

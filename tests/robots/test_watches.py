@@ -112,8 +112,8 @@ def test_the_checks_place_a_batch_once_for_all_and_leave_the_runs_counters_alone
     bridge = quadruped.model.info["bridge"]
     heights = link_heights(bridge, quadruped.model.info["outlines"])
     feet = bridge.contact_watches(eps=1e-6)[0]
-    calls, real = [], placements.frame_positions
-    monkeypatch.setattr(placements, "frame_positions", lambda *args: calls.append(1) or real(*args))
+    calls, real = [], placements.frame_motions
+    monkeypatch.setattr(placements, "frame_motions", lambda *args: calls.append(1) or real(*args))
     states = random_states(quadruped, 32, seed=1)
     before = bridge.counters()["kinematics"]
     z = heights.heights_at(states)
