@@ -104,20 +104,14 @@ class LinkHeights:
             self._kept.keep(states, heights)
         return heights
 
-    def lowest_at(self, states: np.ndarray) -> np.ndarray:
-        """The lowest point of all the links (m) at each state, (rows,)."""
-        return np.min(self.heights_at(states), axis=1)
-
-    def lowest_rate_at(self, states: np.ndarray) -> np.ndarray:
-        """d/dt (m/s) of the lowest point's height along the flow at each state, (rows,): its
-        vertical velocity, less the terrain's slope times its horizontal one."""
-        lowest = np.argmin(self.heights_at(states), axis=1)[:, None]
+    def rates_at(self, states: np.ndarray) -> np.ndarray:
+        """d/dt (m/s) of every link point's height along the flow at each state, (rows, points):
+        its vertical velocity, less the terrain's slope times its horizontal one."""
         velocity = self._placements.velocities(states)[:, self._columns]
-        rate = np.take_along_axis(velocity[:, :, 1], lowest, axis=1)[:, 0]
         if self.terrain is None:
-            return rate
-        x = np.take_along_axis(self._placements.at(states)[:, self._columns, 0], lowest, axis=1)[:, 0]
-        return rate - self.terrain.slope(x) * np.take_along_axis(velocity[:, :, 0], lowest, axis=1)[:, 0]
+            return velocity[:, :, 1]
+        x = self._placements.at(states)[:, self._columns, 0]
+        return velocity[:, :, 1] - self.terrain.slope(x) * velocity[:, :, 0]
 
     def __call__(self, x: np.ndarray) -> dict[str, float]:
         """Each link's lowest point (m) at one state x."""
@@ -137,10 +131,11 @@ def below_ground_watch(heights: LinkHeights, ground: float, action: str = "warn"
         return name, h[name] - ground
 
     def value(mode: str, t: np.ndarray, x: np.ndarray) -> np.ndarray:
-        return heights.lowest_at(x) - ground
+        # a part per point of the links, each checked between points by its own vertical speed
+        return heights.heights_at(x) - ground
 
     def rate(mode: str, t: np.ndarray, x: np.ndarray) -> np.ndarray:
-        return heights.lowest_rate_at(x)
+        return heights.rates_at(x)
 
     def message(t: float, mode: str, x: np.ndarray) -> str:
         h = heights(x)

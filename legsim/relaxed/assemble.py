@@ -407,10 +407,16 @@ class Assembly:
             if w.action != "warn":
                 continue
             first = least = None
-            rates: list[Any] = [None] * len(visits) if w.rate is None else points.values(w, rates=True)
-            for (mode, t, x, seg), v, r in zip(visits, points.values(w), rates, strict=True):
+            slopes: list[Any] = [None] * len(visits)
+            if w.rate is None:
+                values = points.values(w)
+            else:  # the parts once: the condition's values are their least
+                parts = points.values(w, "parts")
+                values = [watches.condition(p) for p in parts]
+                slopes = list(zip(parts, points.values(w, "rates"), strict=True))
+            for (mode, t, x, seg), v, sl in zip(visits, values, slopes, strict=True):
                 stored = seg.t, seg.x, seg.dx
-                if first is None and (hit := watches.first_hold(w, mode, (t, x), stored, v, r)) is not None:
+                if first is None and (hit := watches.first_hold(w, mode, (t, x), stored, v, sl)) is not None:
                     k, when, inside = hit
                     state = x[0] if k == 0 else watches.point(*stored, watches.stored_index(k), when)[0]
                     first = (when, mode, state)

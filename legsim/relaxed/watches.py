@@ -5,14 +5,15 @@ is measured.
 A watch is ``value(mode, t, x) -> v``, a function of each point alone, vectorised over points
 of one mode (t of shape (N,), x of shape (N, n), the run's state: the plant's, then the
 controller's memory; the points of one visit, or of all the mode's visits at once for the
-warnings and times made at the end), and its condition *holds* where v < 0. The driver checks
+warnings and times made at the end), and its condition *holds* where v < 0; v may have a
+column per part of the condition (N, m), which holds where any part is < 0. The driver checks
 the points as the loop hands its buffers back (every ``workspace.POINTS`` points at most, and
 at the end), so the loop itself, compiled or not, is unchanged. The points a stop or a warning
 is checked at are the stored ones and the middle of every step between them, on the step's interpolant
 (``refined``): a condition that holds only inside a step (a foot carried through the ground and
 out again by one coarse step) is seen wherever it holds at the step's middle. A watch that gives
 its value's rate along the flow (``Watch.rate``) is also checked between those points: where the
-cubic through two neighbours' values and rates dips below zero, the interpolant is evaluated at
+cubic through two neighbours' values and rates of one part dips below zero, the interpolant is evaluated at
 the cubic's least point (and, if the condition does not hold there, the half step is halved up to
 ``DIP_HALVINGS`` times on the same test), so a dip that misses every checked point is seen too.
 Where a condition first holds between two checked points, the time is located by bisection on
@@ -65,12 +66,15 @@ class Watch:
     ----------
     name: the condition's name (a warning's kind).
     value: ``value(mode, t, x) -> v`` (N,), vectorised over one visit's points; < 0: it holds.
+        Or (N, m), one column per part of the condition (a foot each, a link's point each): it
+        holds where any part is < 0, and each part is checked between points on its own.
     action: ``"stop"``, ``"warn"`` or ``"time"``.
     message: ``message(t, mode, x) -> str`` at a point where it holds (stop, warn).
     status: the status a stop ends the run with (a ``Status`` value).
     counter: the counter a ``"time"`` watch fills (s).
-    rate: ``rate(mode, t, x) -> dv/dt`` (N,) along the flow at the points (v's unit per s), or
-        None; with it a stop or warn watch is also checked between the points (module docstring).
+    rate: ``rate(mode, t, x) -> dv/dt`` along the flow at the points (v's unit per s), of v's
+        shape, or None; with it a stop or warn watch is also checked between the points (module
+        docstring).
     """
 
     name: str
@@ -96,24 +100,39 @@ class Watch:
             raise SimulationError(f"watch {self.name!r}: rate must be None or a function rate(mode, t, x)")
 
     def values(self, mode: str, t: np.ndarray, x: np.ndarray) -> np.ndarray:
-        """v at the points (N,), float64; SimulationError naming the watch if it is no such array."""
+        """The condition's value at the points (N,), float64: the least of its parts (+inf
+        where it has none); SimulationError naming the watch if ``value`` gives no such array."""
+        return condition(self.parts(mode, t, x))
+
+    def parts(self, mode: str, t: np.ndarray, x: np.ndarray) -> np.ndarray:
+        """v at the points, one column per part (N, m), float64."""
         return self._call(self.value, "value", mode, t, x)
 
     def rates(self, mode: str, t: np.ndarray, x: np.ndarray) -> np.ndarray:
-        """dv/dt at the points (N,), float64 (``rate``, which must be given)."""
+        """dv/dt at the points, as ``parts`` (``rate``, which must be given)."""
         assert self.rate is not None
         return self._call(self.rate, "rate", mode, t, x)
 
     def _call(self, function: Callable[..., Any], what: str, mode: str, t: np.ndarray, x: np.ndarray) -> np.ndarray:
         try:
-            v = np.asarray(function(mode, t, x), dtype=float).reshape(-1)
+            v = np.asarray(function(mode, t, x), dtype=float)
+            raw_shape = v.shape
         except Exception as exc:
             raise SimulationError(
                 f"watch {self.name!r}: its {what} failed in mode '{mode}': {type(exc).__name__}: {exc}"
             ) from exc
-        if v.shape[0] != t.shape[0]:
-            raise SimulationError(f"watch {self.name!r} gave {v.shape[0]} {what}s for {t.shape[0]} points")
+        if v.ndim == 1:
+            v = v[:, None]
+        if v.ndim != 2 or v.shape[0] != t.shape[0]:
+            raise SimulationError(
+                f"watch {self.name!r} gave {what}s of shape {raw_shape} for {t.shape[0]} points: (N,) or (N, parts)"
+            )
         return v
+
+
+def condition(parts: np.ndarray) -> np.ndarray:
+    """A condition's value (N,) from its parts' (N, m): the least, +inf where it has none."""
+    return parts.min(axis=1) if parts.shape[1] else np.full(parts.shape[0], np.inf)
 
 
 def check(watches: Any) -> tuple[Watch, ...]:
@@ -193,21 +212,24 @@ def first_hold(
     checked: tuple[np.ndarray, np.ndarray],
     stored: tuple[np.ndarray, np.ndarray, np.ndarray],
     values: Any = None,
-    rates: Any = None,
+    slopes: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> Hold | None:
     """Where the condition first holds among a visit's ``checked`` points (``refined`` of its
     ``stored`` points t, x, dx), or between two of them by the watch's rate, or None; ``values``
-    and ``rates``: v and dv/dt at the checked points when known."""
+    (the condition's, (N,)) and ``slopes`` (its parts and their rates, (N, m) each) at the
+    checked points when known."""
     t, x = checked
     if t.shape[0] == 0:
         return None
-    v = watch.values(mode, t, x) if values is None else values
+    slopes = _slopes(watch, mode, t, x, slopes)
+    if values is None:
+        values = watch.values(mode, t, x) if slopes is None else condition(slopes[0])
+    v = np.asarray(values)
     below = np.flatnonzero(v < 0.0)
     k = int(below[0]) if below.size else t.shape[0]
-    if watch.rate is not None and k > 1:
-        # on the whole arrays, which a watch may have kept what it computed for the values on
-        r = (watch.rates(mode, t, x) if rates is None else rates)[:k]
-        dip = first_dip(watch, mode, (t[:k], v[:k], r), stored)
+    if slopes is not None and k > 1:
+        parts, rates = slopes
+        dip = first_dip(watch, mode, (t[:k], parts[:k], rates[:k]), stored)
         if dip is not None:
             return dip
     if k == t.shape[0]:
@@ -215,6 +237,19 @@ def first_hold(
     if k == 0:
         return Hold(0, float(t[0]))
     return Hold(k, locate(watch, mode, *stored, stored_index(k), True, (float(t[k - 1]), float(t[k]))))
+
+
+def _slopes(
+    watch: Watch, mode: str, t: np.ndarray, x: np.ndarray, given: tuple[np.ndarray, np.ndarray] | None
+) -> tuple[np.ndarray, np.ndarray] | None:
+    """The parts and their rates at the points (``given``, or the watch's), None without a rate."""
+    if watch.rate is None:
+        return None
+    # on the whole arrays, which a watch may keep what it computed on for the rates
+    parts, rates = (watch.parts(mode, t, x), watch.rates(mode, t, x)) if given is None else given
+    if parts.shape != rates.shape:
+        raise SimulationError(f"watch {watch.name!r}: its rates' shape {rates.shape} is not its values' {parts.shape}")
+    return parts, rates
 
 
 def cubic_least(
@@ -236,28 +271,27 @@ def cubic_least(
 def first_dip(
     watch: Watch, mode: str, checked: tuple[np.ndarray, np.ndarray, np.ndarray], stored: Stored
 ) -> Hold | None:
-    """The first hold between two neighbours of the ``checked`` points (t, v, dv/dt), none of
-    which holds, where the cubic through their values and rates dips below zero and the
-    interpolant confirms it (module docstring)."""
+    """The first hold between two neighbours of the ``checked`` points (t (N,), the parts and
+    their rates (N, m)), none of which holds, where the cubic through a part's values and rates
+    dips below zero and the interpolant confirms it (module docstring)."""
     t, v, r = checked
-    _, least = cubic_least(v[:-1], v[1:], r[:-1], r[1:], np.diff(t))
-    for j in np.flatnonzero(least < 0.0):
+    _, least = cubic_least(v[:-1], v[1:], r[:-1], r[1:], np.diff(t)[:, None])
+    for j, part in zip(*np.nonzero(least < 0.0), strict=True):
         k = stored_index(int(j) + 1)
-        inside = _confirmed(watch, mode, stored, k, (float(t[j]), float(v[j]), float(r[j])),
-                            (float(t[j + 1]), float(v[j + 1]), float(r[j + 1])), DIP_HALVINGS)  # fmt: skip
+        ends = [(float(t[i]), float(v[i, part]), float(r[i, part])) for i in (j, j + 1)]
+        inside = _confirmed(watch, mode, stored, k, int(part), ends[0], ends[1], DIP_HALVINGS)
         if inside is not None:
-            when = locate(watch, mode, *stored, k, True, (float(t[j]), inside[0]))
-            return Hold(int(j) + 1, when, inside)
+            return Hold(int(j) + 1, locate(watch, mode, *stored, k, True, (ends[0][0], inside[0])), inside)
     return None
 
 
 def _confirmed(
-    watch: Watch, mode: str, stored: Stored, k: int,
+    watch: Watch, mode: str, stored: Stored, k: int, part: int,
     start: tuple[float, float, float], end: tuple[float, float, float], halvings: int,
 ) -> tuple[float, np.ndarray, float] | None:  # fmt: skip
-    """A point (t, x, v) of stored step k's interpolant between ``start`` and ``end`` (t, v,
-    dv/dt), where the condition holds, searched at the least point of their cubic and, where it
-    does not hold there, on each side of it, ``halvings`` times at most."""
+    """A point (t, x, v) of stored step k's interpolant between ``start`` and ``end`` (t, the
+    part's value and rate) where the condition holds, searched at the least point of the part's
+    cubic and, where it does not hold there, on each side of it, ``halvings`` times at most."""
     (ta, va, ra), (tb, vb, rb) = start, end
     s, least = (float(u[0]) for u in cubic_least(*(np.array([w]) for w in (va, vb, ra, rb, tb - ta))))
     tm = ta + s * (tb - ta)
@@ -265,14 +299,14 @@ def _confirmed(
         return None
     xm, _ = point(*stored, k, tm)
     at = (mode, np.array([tm]), xm[None, :])
-    vm = float(watch.values(*at)[0])
-    if vm < 0.0:
-        return tm, xm, vm
+    parts = watch.parts(*at)[0]
+    if parts.min(initial=np.inf) < 0.0:
+        return tm, xm, float(parts.min())
     if halvings == 0:
         return None
-    middle = (tm, vm, float(watch.rates(*at)[0]))
-    found = _confirmed(watch, mode, stored, k, start, middle, halvings - 1)
-    return found if found is not None else _confirmed(watch, mode, stored, k, middle, end, halvings - 1)
+    middle = (tm, float(parts[part]), float(watch.rates(*at)[0, part]))
+    found = _confirmed(watch, mode, stored, k, part, start, middle, halvings - 1)
+    return found if found is not None else _confirmed(watch, mode, stored, k, part, middle, end, halvings - 1)
 
 
 class PointsByMode:
@@ -292,10 +326,11 @@ class PointsByMode:
             ends = np.cumsum([visits[i][1].shape[0] for i in members])[:-1]
             self.groups.append((mode, members, t, x, ends))
 
-    def values(self, watch: Watch, rates: bool = False) -> list[np.ndarray]:
-        """v at the points of each visit, in the visits' order: one call of the watch per mode;
-        with ``rates`` dv/dt (the watch must have a ``rate``)."""
-        function = watch.rates if rates else watch.values
+    def values(self, watch: Watch, kind: str = "values") -> list[np.ndarray]:
+        """The condition's value at the points of each visit, in the visits' order: one call of
+        the watch per mode; with ``kind`` "parts" or "rates" its parts or their rates (the
+        watch's methods of those names)."""
+        function = getattr(watch, kind)
         out: list[np.ndarray] = [np.empty(0)] * self.count
         for mode, members, t, x, ends in self.groups:
             for i, v in zip(members, np.split(function(mode, t, x), ends), strict=True):

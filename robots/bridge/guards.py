@@ -175,26 +175,20 @@ def _revolute(model: BridgeModel, joint: str) -> bool:
 
 def passed_through_watch(past: PastDepths, eps: float, action: str = "warn") -> Watch:
     """An inactive contact past its ground or stop by more than eps + ``THROUGH_DEPTH`` (a coarse
-    step carried it through; an armed point only where it is armed): with ``action`` as
+    step carried it through; an armed point only where it is armed), a part of the watch per
+    contact with its depth's rate: with ``action`` as
     ``ground_watch``'s, except that "fall" stops as "strict" does, with ``model_breakdown``: a
     contact carried through is a touchdown the steps missed, which says nothing of a fall. eps
     (guard units: m, or rad for a revolute stop) is the run's: a step landing in a strip leaves a
     contact up to eps past its surface."""
     allowed = eps + THROUGH_DEPTH
 
-    def deepest(mode: str, x: np.ndarray) -> np.ndarray:
-        depths = past.depths(mode, x, armed_only=True)
-        return depths.max(axis=1) if depths.shape[1] else np.full(depths.shape[0], -np.inf)
-
     def value(mode: str, t: np.ndarray, x: np.ndarray) -> np.ndarray:
-        return allowed - deepest(mode, x)
+        # a part per contact, each checked between points by its own rate
+        return allowed - past.depths(mode, x, armed_only=True)
 
     def rate(mode: str, t: np.ndarray, x: np.ndarray) -> np.ndarray:
-        # the deepest contact's: the value's slope wherever one contact is the deepest
-        depths = past.depths(mode, x, armed_only=True)
-        if not depths.shape[1]:
-            return np.zeros(depths.shape[0])
-        return -np.take_along_axis(past.rates(mode, x), np.argmax(depths, axis=1)[:, None], axis=1)[:, 0]
+        return -past.rates(mode, x)
 
     def message(t: float, mode: str, x: np.ndarray) -> str:
         state = np.atleast_2d(x)[0]

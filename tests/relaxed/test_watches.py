@@ -132,6 +132,25 @@ def test_a_condition_holding_between_every_checked_point_is_seen_by_its_rate(pyt
     assert thrown(dataclasses.replace(rising, rate=None)).status == "finished"
 
 
+@pytest.mark.parametrize("python", [False, True])
+def test_each_part_of_a_condition_is_checked_between_points_by_its_own_rate(python):
+    # Two parts: one always 1 mm from holding, below the other at every checked point, and the
+    # apex condition above. Had the check followed the least part's rate it would not see the
+    # apex; each part's own cubic does.
+    system = bouncing_ball.make_system(floor=False)
+
+    def value(mode, t, x):
+        return np.column_stack([np.full(len(t), 1e-3), near_apex(mode, t, x)])
+
+    def rate(mode, t, x):
+        return np.column_stack([np.zeros(len(t)), -x[:, 1]])
+
+    watch = Watch("apex", value, "stop", said, rate=rate)
+    ex = simulate(system, [1.0, G * APEX_TIME], "flight", 0.4, 0.2, 1e-3, watches=[watch], python=python)
+    assert ex.status == "fell"
+    assert ex.t_end == pytest.approx(APEX_TIME - math.sqrt(2 * NEAR / G), abs=1e-12)
+
+
 def test_the_least_of_a_cubic_is_its_interior_minimum():
     # against the local minima of a fine grid over random cubics given by their ends' values and
     # slopes (a cubic has one at most; where the ends hold nothing and it is below zero, it is
@@ -167,5 +186,7 @@ def test_bad_watches_are_refused_by_name():
         Watch("w", below(0), "stop", said, rate=1.0)
     with pytest.raises(SimulationError, match="watch 'w': its rate failed in mode 'flight': ZeroDivisionError"):
         run([Watch("w", below(0.5), "stop", said, rate=lambda mode, t, x: 1 / 0)])
-    with pytest.raises(SimulationError, match="watch 'w' gave 1 values for"):
+    with pytest.raises(SimulationError, match=r"watch 'w' gave values of shape \(1,\) for \d+ points"):
         run([Watch("w", lambda mode, t, x: np.zeros(1), "stop", said)])
+    with pytest.raises(SimulationError, match=r"watch 'w': its rates' shape \(\d+, 2\) is not its values' \(\d+, 1\)"):
+        run([Watch("w", below(0.5), "stop", said, rate=lambda mode, t, x: np.zeros((len(t), 2)))])
