@@ -177,6 +177,7 @@ class TerrainPiercing:
         self.sizes = [len(corners) for _, corners in ordered.values()]
         self._placements = placements
         self._columns = placements.add_points(ordered)
+        self._kept = KeptWhileAlive()
 
     def corners_at(self, states: np.ndarray) -> np.ndarray:
         """Every body corner's world (x, z) (m) at each state, (rows, corners, 2)."""
@@ -191,28 +192,57 @@ class TerrainPiercing:
     def depths_at(self, states: np.ndarray) -> np.ndarray:
         """The deepest terrain point inside each body at each state (m; negative: outside, its
         distance to the nearest edge's line), (rows, bodies)."""
-        placed = self.corners_at(states)
-        out = np.empty((placed.shape[0], len(self.sizes)))
-        for start in range(0, placed.shape[0], PIERCING_ROWS):
-            corners = placed[start : start + PIERCING_ROWS]
-            points = self.terrain_points(float(corners[..., 0].min()), float(corners[..., 0].max()))
-            out[start : start + PIERCING_ROWS] = self._depths(corners, points)
-        return out
+        return self._scan(states)[0]
 
-    def _depths(self, corners: np.ndarray, points: np.ndarray) -> np.ndarray:
-        """(rows, bodies): each body's deepest point of ``points`` (k, 2); corners (rows, all, 2)."""
-        out, first = [], 0
+    def rates_at(self, states: np.ndarray) -> np.ndarray:
+        """d/dt (m/s) of ``depths_at`` along the flow, (rows, bodies): the deepest point's
+        (fixed in the terrain) distance inside its nearest edge, as the edge moves with the body."""
+        return self._scan(states)[1]
+
+    def _scan(self, states: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(depths, rates), kept for a batch while it lives (the watch's value and rate read both)."""
+        kept = self._kept.get(states)
+        if kept is not None:
+            return kept
+        placed = self.corners_at(states)
+        moving = self._placements.velocities(states)[:, self._columns]
+        depths, rates = np.empty((placed.shape[0], len(self.sizes))), np.empty((placed.shape[0], len(self.sizes)))
+        for start in range(0, placed.shape[0], PIERCING_ROWS):
+            rows = slice(start, start + PIERCING_ROWS)
+            corners = placed[rows]
+            points = self.terrain_points(float(corners[..., 0].min()), float(corners[..., 0].max()))
+            depths[rows], rates[rows] = self._depths(corners, moving[rows], points)
+        if np.ndim(states) == 2 and states.shape[0] > 1:
+            self._kept.keep(states, (depths, rates))
+        return depths, rates
+
+    def _depths(self, corners: np.ndarray, velocities: np.ndarray, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(rows, bodies) each: each body's deepest point of ``points`` (k, 2) and that depth's
+        rate; corners and their velocities (rows, all, 2)."""
+        depths, rates, first = [], [], 0
         for size in self.sizes:
             polygon = corners[:, first : first + size]  # (rows, m, 2), counterclockwise
+            speeds = velocities[:, first : first + size]
             first += size
             edges = np.roll(polygon, -1, axis=1) - polygon
-            inward = np.stack([-edges[..., 1], edges[..., 0]], axis=-1)
-            inward /= np.linalg.norm(inward, axis=-1, keepdims=True)
+            lengths = np.linalg.norm(edges, axis=-1, keepdims=True)
+            inward = np.stack([-edges[..., 1], edges[..., 0]], axis=-1) / lengths
             # (rows, m, k): each point's distance inside each edge's line; the least is its depth
             offsets = points[None, None, :, :] - polygon[:, :, None, :]
             inside = np.einsum("rmkd,rmd->rmk", offsets, inward)
-            out.append(inside.min(axis=1).max(axis=1))
-        return np.stack(out, axis=1)
+            nearest_edge = inside.argmin(axis=1)  # (rows, k)
+            point = inside.min(axis=1).argmax(axis=1)  # (rows,)
+            edge = np.take_along_axis(nearest_edge, point[:, None], axis=1)[:, 0]
+            rows = np.arange(polygon.shape[0])
+            depths.append(inside[rows, edge, point])
+            # the edge's inward normal turns with the body: d/dt of perp(e) / |e| is perp(e') / |e|
+            turning = np.roll(speeds, -1, axis=1)[rows, edge] - speeds[rows, edge]
+            turned = np.stack([-turning[:, 1], turning[:, 0]], axis=-1) / lengths[rows, edge]
+            rates.append(
+                -np.einsum("rd,rd->r", speeds[rows, edge], inward[rows, edge])
+                + np.einsum("rd,rd->r", offsets[rows, edge, point], turned)
+            )
+        return np.stack(depths, axis=1), np.stack(rates, axis=1)
 
 
 def _counterclockwise(corners: np.ndarray) -> np.ndarray:
@@ -229,7 +259,11 @@ def terrain_inside_watch(piercing: TerrainPiercing, action: str = "warn") -> Wat
     contact corners): with ``action`` as ``below_ground_watch``'s."""
 
     def value(mode: str, t: np.ndarray, x: np.ndarray) -> np.ndarray:
-        return PIERCING_DEPTH - piercing.depths_at(x).max(axis=1)
+        # a part per body, each checked between points by its own rate
+        return PIERCING_DEPTH - piercing.depths_at(x)
+
+    def rate(mode: str, t: np.ndarray, x: np.ndarray) -> np.ndarray:
+        return -piercing.rates_at(x)
 
     def message(t: float, mode: str, x: np.ndarray) -> str:
         # Where the watch first holds (located on the interpolant) the deepest is at PIERCING_DEPTH
@@ -243,4 +277,4 @@ def terrain_inside_watch(piercing: TerrainPiercing, action: str = "warn") -> Wat
             f"the body, or give a terrain without that corner)"
         )
 
-    return ground_watch("terrain_inside", value, message, action)
+    return ground_watch("terrain_inside", value, message, action, rate)

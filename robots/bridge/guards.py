@@ -77,8 +77,9 @@ class PastDepths:
 
     def rates(self, mode: str, states: np.ndarray) -> np.ndarray:
         """(rows, contacts): d/dt of each inactive contact's ``depths`` along the flow (m/s or
-        rad/s), from the frames' velocities of the same kinematics pass; 0 for an active
-        contact, nan for a round one whose point nearest a sine moves in it."""
+        rad/s), from the frames' velocities of the same kinematics pass (a round contact's on a
+        sine: its centre's speed away from the curve along the normal at its nearest point); 0
+        for an active contact."""
         states = np.atleast_2d(states)
         velocities = self._placements.velocities(states)[:, self._columns]
         positions = self._placements.at(states)[:, self._columns]
@@ -91,16 +92,17 @@ class PastDepths:
                     out[:, k] = -r.sign * states[:, self.model.n + r.dof]
                 continue
             vx, vz = velocities[:, slot, 0], velocities[:, slot, 1]
-            x = positions[:, slot, 0]
+            xz = positions[:, slot]
             slot += 1
             if r.contact.name in active:
                 continue
-            if r.radius > 0.0 and self.moving:
-                out[:, k] = np.nan
+            if r.radius > 0.0 and self.moving:  # d/dt (r - d) = -n . v of the centre
+                g = np.array([nearest(self.model.terrain, 0, float(x), float(z))[2] for x, z in xz])
+                out[:, k] = (g * vx - vz) / np.sqrt(1.0 + g * g)
             elif self.model.terrain is None:
                 out[:, k] = -vz
             else:  # d/dt (h(x) - z)
-                out[:, k] = _along(slopes_along, self.model.terrain, x) * vx - vz
+                out[:, k] = _along(slopes_along, self.model.terrain, xz[:, 0]) * vx - vz
         return out
 
     def _point_depth(self, r: RigidContact, xz: np.ndarray) -> np.ndarray:

@@ -13,11 +13,11 @@ import math
 
 import pytest
 from legsim.robots.bridge.guards import THROUGH_DEPTH
-from scipy.optimize import brentq
+from scipy.optimize import brentq, minimize_scalar
 
 from legsim.scene import load_scene
 
-from .test_collision_contacts import link, write
+from .test_collision_contacts import link, shape, write
 
 L, H = 1.0, 0.9  # m: the leg's length and the hip's height
 THETA0, RATE = -0.6, 10.0  # rad, rad/s: the foot 0.075 m up, swinging down
@@ -64,33 +64,21 @@ def test_a_step_through_the_ground_is_a_warning_at_the_closed_form_time(tmp_path
     assert warning.details["least_time"] == pytest.approx(0.05, abs=1e-15)
 
 
+@pytest.mark.parametrize("h", [0.12, 0.24])
 @pytest.mark.parametrize(("action", "status"), [("warn", "finished"), ("strict", "model_breakdown")])
-def test_a_step_through_the_ground_and_out_again_is_seen_at_its_middle(tmp_path, action, status):
-    # One step of 0.12 s: theta from -0.6 to 0.6, the foot 0.075 m up at both ends and 0.1 m
-    # below the ground at the step's middle (theta = 0). Neither stored point shows it.
-    ex = load_scene(swing(tmp_path, 0.12, action, t_final=0.12)).simulate()
-    assert ex.status == status and not ex.transitions
-    if action == "warn":
-        (warning,) = [w for w in ex.warnings if w.kind == "passed_through"]
-        assert warning.time == pytest.approx(through_time(), abs=1e-9)
-        assert EPS + THROUGH_DEPTH - warning.details["least_value"] == pytest.approx(L - H, abs=1e-12)
-    else:
-        assert "'foot'" in ex.message and ex.t_end == pytest.approx(through_time(), abs=1e-9)
-
-
-@pytest.mark.parametrize(("action", "status"), [("warn", "finished"), ("strict", "model_breakdown")])
-def test_a_dip_between_every_checked_point_is_seen_by_the_feet_s_speed(tmp_path, action, status):
-    # One step of 0.24 s: theta from -0.6 to 1.8, the foot 0.075 m up at the start and at the
-    # step's middle (theta = 0.6) and high at its end, but 0.1 m below the ground at a quarter
-    # (theta = 0): no checked point shows it. The depth's rate, -vz of the foot, makes the cubic
+def test_a_step_through_the_ground_and_out_again_is_seen_wherever_it_dips(tmp_path, h, action, status):
+    # The foot is 0.1 m below the ground at theta = 0, t = 0.06 s, and 0.075 m up at theta = -0.6
+    # and 0.6. One step of 0.12 s puts that at the step's middle, where the check sees it; one
+    # of 0.24 s at a quarter of the step, 0.075 m up at its start and its middle (and high at its
+    # end), where no checked point shows it: the depth's rate, -vz of the foot, makes the cubic
     # through the start and the middle dip, and the interpolant there confirms it.
-    ex = load_scene(swing(tmp_path, 0.24, action, t_final=0.24)).simulate()
+    ex = load_scene(swing(tmp_path, h, action, t_final=h)).simulate()
     assert ex.status == status and not ex.transitions
     if action == "warn":
         (warning,) = [w for w in ex.warnings if w.kind == "passed_through"]
         assert warning.time == pytest.approx(through_time(), abs=1e-9)
-        # the deepest point seen is the one found between the checked points, the cubic's least:
-        # the depth and its rate are symmetric about theta = 0 over the half step, so it is there
+        # the deepest point seen: the middle, or the cubic's least, at theta = 0 since the depth
+        # and its rate are symmetric about it over the half step
         assert EPS + THROUGH_DEPTH - warning.details["least_value"] == pytest.approx(L - H, abs=1e-12)
         assert warning.details["least_time"] == pytest.approx(0.06, abs=1e-12)
     else:
@@ -139,3 +127,35 @@ def test_a_link_dipping_between_every_checked_point_is_seen_by_its_speed(tmp_pat
     assert "'leg'" in warning.message
     theta = brentq(lambda a: H - (L + 0.001) * math.cos(a) - 0.001 * abs(math.sin(a)), THETA0, 0.0, xtol=1e-15)
     assert warning.time == pytest.approx((theta - THETA0) / RATE, abs=1e-9)
+
+
+def test_a_round_foot_dipping_through_a_sine_between_every_checked_point_is_seen(tmp_path):
+    # A 2 cm sphere at the leg's end, its contact from the collision, over a sine (amplitude
+    # 5 cm, wavelength 1 m): the same step of 0.24 s takes its centre 0.1 m below the crest's
+    # side at a quarter of the step and back up; no checked point shows it. Its depth's rate, the
+    # centre's speed along the curve's normal at its nearest point, finds it where the centre
+    # first lies r - eps - THROUGH_DEPTH from the curve (the distance minimised over the curve).
+    radius, amplitude = 0.02, 0.05
+    sphere = shape("sphere", f'<sphere radius="{radius}"/>', origin=f"0 0 {-L}")
+    leg = LEG.replace(
+        link("leg", 1.0, 0.01, origin=f"0 0 {-L / 2}"), link("leg", 1.0, 0.01, sphere, origin=f"0 0 {-L / 2}")
+    )
+    scene = (
+        'root = "fixed"\ng = 0.0\ncollisions = true\n'
+        f"[initial]\nstate = {{ hip = {THETA0}, hipd = {RATE} }}\n"
+        f'[integrator]\nmethod = "rk4"\nh = 0.24\neps = {EPS}\nt_final = 0.24\n'
+        f'[terrain]\nkind = "sine"\namplitude = {amplitude}\nwavelength = 1.0\n'
+    )
+    ex = load_scene(write(tmp_path, "swing", leg, scene)).simulate()
+    assert ex.status == "finished" and not ex.transitions
+    (warning,) = [w for w in ex.warnings if w.kind == "passed_through"]
+
+    def past(t):
+        theta = THETA0 + RATE * t
+        xc, zc = -L * math.sin(theta), H - L * math.cos(theta)
+        curve = lambda s: math.hypot(s - xc, amplitude * math.sin(2 * math.pi * s) - zc)  # noqa: E731
+        closest = minimize_scalar(curve, bounds=(xc - 0.3, xc + 0.3), method="bounded", options={"xatol": 1e-13})
+        distance = math.copysign(closest.fun, zc - amplitude * math.sin(2 * math.pi * xc))
+        return radius - distance - (EPS + THROUGH_DEPTH)
+
+    assert warning.time == pytest.approx(brentq(past, 0.0, 0.06, xtol=1e-14), abs=1e-8)

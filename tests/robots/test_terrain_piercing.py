@@ -3,6 +3,7 @@ whose contacts are its collision box's corners, dropped flat over a bump narrowe
 lands on its corners with the bump inside it. The run says so (a warning naming the body and the
 depth, or a stop under ``below_ground``), and the depth it measures is the closed form's."""
 
+import numpy as np
 import pytest
 from legsim.robots.watches import PIERCING_DEPTH
 
@@ -58,3 +59,22 @@ def test_a_plateau_wider_than_the_brick_holds_it_with_no_warning(tmp_path):
     assert ex.status == "finished" and ex.final_mode == "trunk_0+trunk_2"
     assert ex.final_state[1] == pytest.approx(0.1 + HEIGHT / 2, abs=1e-6)
     assert not [w for w in ex.warnings if w.kind == "terrain_inside"]
+
+
+def test_the_depth_s_rate_is_its_derivative_along_the_motion(tmp_path):
+    # The rate that checks between points (the deepest terrain point's distance inside its
+    # nearest edge, as the edge moves and turns with the body) against the depth's central
+    # difference along q' = v, at states where the bump lies inside the brick, moving and turning.
+    scene = load_scene(brick(tmp_path, BUMP.format(top=0.1)))
+    piercing = next(w for w in scene.model.info["watches"](None, 1e-4) if w.name == "terrain_inside")
+    rng = np.random.default_rng(3)
+    delta = 1e-6
+    for _ in range(5):
+        q = np.array([rng.uniform(-0.05, 0.05), rng.uniform(0.1, 0.14), rng.uniform(-0.2, 0.2)])
+        v = rng.normal(size=3)
+        states = np.array([np.concatenate([q + side * delta * v, v]) for side in (-1.0, 0.0, 1.0)])
+        value = piercing.value("flight", np.zeros(3), states)[:, 0]
+        assert PIERCING_DEPTH - value[1] > 0.0  # inside
+        rate = piercing.rate("flight", np.zeros(3), states)[1, 0]
+        # central difference: O(delta^2) truncation, rounding about 1e-16 / delta
+        assert rate == pytest.approx((value[2] - value[0]) / (2 * delta), abs=1e-8)
