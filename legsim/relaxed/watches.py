@@ -14,8 +14,9 @@ is checked at are the stored ones and the middle of every step between them, on 
 out again by one coarse step) is seen wherever it holds at the step's middle. A watch that gives
 its value's rate along the flow (``Watch.rate``) is also checked between those points: where the
 cubic through two neighbours' values and rates of one part dips below zero, the interpolant is evaluated at
-the cubic's least point (and, if the condition does not hold there, the half step is halved up to
-``DIP_HALVINGS`` times on the same test), so a dip that misses every checked point is seen too.
+the cubic's least point (and, if the condition does not hold there, both sides of that point are
+searched by the same test, ``DIP_SPLITS`` levels deep), so a dip that misses every checked point
+is seen too.
 Where a condition first holds between two checked points, the time is located by bisection on
 the points' cubic Hermite interpolant (the one ``Execution.sample`` uses: O(h^4) between steps),
 to float64 resolution;
@@ -52,10 +53,10 @@ from .single import hermite, hermite_derivative
 ACTIONS = ("stop", "warn", "time")
 #: Bisection steps locating a time (enough to reach float64's resolution of any step).
 BISECTIONS = 64
-#: Halvings of a part of a step where the cubic through its ends' values and rates dips below zero
-#: but the interpolant at the cubic's least point does not: four reach a sixteenth of it, where
-#: the cubic follows a smooth value to the fifth power of that fraction.
-DIP_HALVINGS = 4
+#: Levels of search in a part of a step where the cubic through its ends' values and rates dips
+#: below zero but the interpolant at the cubic's least point does not: each level splits at that
+#: point and searches both sides, so 4 levels make at most 31 probes.
+DIP_SPLITS = 4
 
 
 @dataclass(frozen=True)
@@ -131,8 +132,9 @@ class Watch:
 
 
 def condition(parts: np.ndarray) -> np.ndarray:
-    """A condition's value (N,) from its parts' (N, m): the least, +inf where it has none."""
-    return parts.min(axis=1) if parts.shape[1] else np.full(parts.shape[0], np.inf)
+    """A condition's value (N,) from its parts' (N, m): the least, +inf where it has none. A nan
+    part (a value its watch could not give) hides no other: nan only where every part is."""
+    return np.fmin.reduce(parts, axis=1) if parts.shape[1] else np.full(parts.shape[0], np.inf)
 
 
 def check(watches: Any) -> tuple[Watch, ...]:
@@ -227,16 +229,20 @@ def first_hold(
     v = np.asarray(values)
     below = np.flatnonzero(v < 0.0)
     k = int(below[0]) if below.size else t.shape[0]
-    if slopes is not None and k > 1:
-        parts, rates = slopes
-        dip = first_dip(watch, mode, (t[:k], parts[:k], rates[:k]), stored)
-        if dip is not None:
-            return dip
-    if k == t.shape[0]:
-        return None
     if k == 0:
         return Hold(0, float(t[0]))
-    return Hold(k, locate(watch, mode, *stored, stored_index(k), True, (float(t[k - 1]), float(t[k]))))
+    held = (
+        None
+        if k == t.shape[0]
+        else Hold(k, locate(watch, mode, *stored, stored_index(k), True, (float(t[k - 1]), float(t[k]))))
+    )
+    if slopes is not None:
+        # up to the first checked point that holds: a part may dip before it within its step
+        parts, rates = slopes
+        dip = first_dip(watch, mode, (t[: k + 1], parts[: k + 1], rates[: k + 1]), stored)
+        if dip is not None and (held is None or dip.time < held.time):
+            return dip
+    return held
 
 
 def _slopes(
@@ -263,7 +269,8 @@ def cubic_least(
         c2, c3 = 3.0 * d - 2.0 * a - b, a + b - 2.0 * d  # p(s) = v0 + a s + c2 s^2 + c3 s^3
         disc = c2 * c2 - 3.0 * a * c3
         # the root of p' where p'' = 2 sqrt(disc) > 0, written without cancellation
-        s = -a / (c2 + np.sqrt(disc))
+        root = np.sqrt(disc)
+        s = np.where(c2 > 0.0, -a / (c2 + root), (root - c2) / (3.0 * c3))
         s = np.where((disc > 0.0) & (s > 0.0) & (s < 1.0), s, np.nan)
         return s, v0 + s * (a + s * (c2 + s * c3))
 
@@ -272,26 +279,31 @@ def first_dip(
     watch: Watch, mode: str, checked: tuple[np.ndarray, np.ndarray, np.ndarray], stored: Stored
 ) -> Hold | None:
     """The first hold between two neighbours of the ``checked`` points (t (N,), the parts and
-    their rates (N, m)), none of which holds, where the cubic through a part's values and rates
-    dips below zero and the interpolant confirms it (module docstring)."""
+    their rates (N, m)) where the cubic through a part's values and rates dips below zero and the
+    interpolant confirms it (module docstring): in the earliest such interval, the earliest of
+    its parts' holds."""
     t, v, r = checked
     _, least = cubic_least(v[:-1], v[1:], r[:-1], r[1:], np.diff(t)[:, None])
-    for j, part in zip(*np.nonzero(least < 0.0), strict=True):
+    for j in np.flatnonzero((least < 0.0).any(axis=1)):
         k = stored_index(int(j) + 1)
-        ends = [(float(t[i]), float(v[i, part]), float(r[i, part])) for i in (j, j + 1)]
-        inside = _confirmed(watch, mode, stored, k, int(part), ends[0], ends[1], DIP_HALVINGS)
-        if inside is not None:
-            return Hold(int(j) + 1, locate(watch, mode, *stored, k, True, (ends[0][0], inside[0])), inside)
+        holds = []
+        for part in np.flatnonzero(least[j] < 0.0):
+            ends = [(float(t[i]), float(v[i, part]), float(r[i, part])) for i in (j, j + 1)]
+            inside = _confirmed(watch, mode, stored, k, int(part), ends[0], ends[1], DIP_SPLITS)
+            if inside is not None:
+                holds.append(Hold(int(j) + 1, locate(watch, mode, *stored, k, True, (ends[0][0], inside[0])), inside))
+        if holds:
+            return min(holds, key=lambda hold: hold.time)
     return None
 
 
 def _confirmed(
     watch: Watch, mode: str, stored: Stored, k: int, part: int,
-    start: tuple[float, float, float], end: tuple[float, float, float], halvings: int,
+    start: tuple[float, float, float], end: tuple[float, float, float], splits: int,
 ) -> tuple[float, np.ndarray, float] | None:  # fmt: skip
     """A point (t, x, v) of stored step k's interpolant between ``start`` and ``end`` (t, the
     part's value and rate) where the condition holds, searched at the least point of the part's
-    cubic and, where it does not hold there, on each side of it, ``halvings`` times at most."""
+    cubic and, where it does not hold there, on each side of it, ``splits`` levels deep."""
     (ta, va, ra), (tb, vb, rb) = start, end
     s, least = (float(u[0]) for u in cubic_least(*(np.array([w]) for w in (va, vb, ra, rb, tb - ta))))
     tm = ta + s * (tb - ta)
@@ -299,14 +311,15 @@ def _confirmed(
         return None
     xm, _ = point(*stored, k, tm)
     at = (mode, np.array([tm]), xm[None, :])
-    parts = watch.parts(*at)[0]
-    if parts.min(initial=np.inf) < 0.0:
-        return tm, xm, float(parts.min())
-    if halvings == 0:
+    parts = watch.parts(*at)
+    value = float(condition(parts)[0])
+    if value < 0.0:
+        return tm, xm, value
+    if splits == 0:
         return None
-    middle = (tm, float(parts[part]), float(watch.rates(*at)[0, part]))
-    found = _confirmed(watch, mode, stored, k, part, start, middle, halvings - 1)
-    return found if found is not None else _confirmed(watch, mode, stored, k, part, middle, end, halvings - 1)
+    middle = (tm, float(parts[0, part]), float(watch.rates(*at)[0, part]))
+    found = _confirmed(watch, mode, stored, k, part, start, middle, splits - 1)
+    return found if found is not None else _confirmed(watch, mode, stored, k, part, middle, end, splits - 1)
 
 
 class PointsByMode:

@@ -11,7 +11,7 @@ import pytest
 import legsim.compiled  # noqa: F401 -- the kernel, so that runs are compiled
 from legsim.errors import SimulationError
 from legsim.relaxed import Watch, simulate
-from legsim.relaxed.watches import cubic_least
+from legsim.relaxed.watches import condition, cubic_least
 from legsim.systems import bouncing_ball
 
 G = 9.81
@@ -149,6 +149,46 @@ def test_each_part_of_a_condition_is_checked_between_points_by_its_own_rate(pyth
     ex = simulate(system, [1.0, G * APEX_TIME], "flight", 0.4, 0.2, 1e-3, watches=[watch], python=python)
     assert ex.status == "fell"
     assert ex.t_end == pytest.approx(APEX_TIME - math.sqrt(2 * NEAR / G), abs=1e-12)
+
+
+def early(mode, t, x):
+    """Holds on (0.202, 0.208) s, inside the half step (0.2, 0.3) of steps of 0.2 s."""
+    return (t - 0.205) ** 2 - 0.003**2
+
+
+@pytest.mark.parametrize(
+    "other",
+    [
+        (near_apex, lambda mode, t, x: -x[:, 1]),  # holds later in the same half step (0.218 s)
+        (lambda mode, t, x: 0.29 - t, lambda mode, t, x: -np.ones(len(t))),  # holds at the checked 0.3 s
+    ],
+    ids=["later-in-the-half-step", "at-the-next-checked-point"],
+)
+def test_the_earliest_part_s_dip_is_the_first_hold(other):
+    # The other part comes first among the columns; the early part's dip, found by its own
+    # cubic, is the first hold wherever the other part holds after it.
+    system = bouncing_ball.make_system(floor=False)
+
+    def value(mode, t, x):
+        return np.column_stack([other[0](mode, t, x), early(mode, t, x)])
+
+    def rate(mode, t, x):
+        return np.column_stack([other[1](mode, t, x), 2 * (t - 0.205)])
+
+    watch = Watch("two", value, "stop", said, rate=rate)
+    ex = simulate(system, [1.0, G * APEX_TIME], "flight", 0.4, 0.2, 1e-3, watches=[watch])
+    assert ex.status == "fell" and ex.t_end == pytest.approx(0.202, abs=1e-12)
+
+
+def test_a_cubic_leaving_its_start_level_has_its_least_found():
+    # p(s) = 0.1 - s^2 + s^3 (slope 0 at the start): least at s = 2/3, 0.1 - 4/27
+    s, least = cubic_least(*(np.array([w]) for w in (0.1, 0.1, 0.0, 1.0, 1.0)))
+    assert s[0] == pytest.approx(2 / 3, abs=1e-15) and least[0] == pytest.approx(0.1 - 4 / 27, abs=1e-15)
+
+
+def test_a_nan_part_hides_no_other():
+    assert np.array_equal(condition(np.array([[np.nan, -1.0], [np.nan, np.nan], [2.0, 1.0]])), [-1.0, np.nan, 1.0],
+                          equal_nan=True)  # fmt: skip
 
 
 def test_the_least_of_a_cubic_is_its_interior_minimum():
