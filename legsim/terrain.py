@@ -66,17 +66,11 @@ class Terrain:
 
     def height(self, x: Any) -> np.ndarray:
         """h at each x (m), shape of x."""
-        return self._along(heights_along, x)
+        return along(heights_along, self.array, x)
 
     def slope(self, x: Any) -> np.ndarray:
         """dh/dx at each x, shape of x (a profile's right segment's at a breakpoint)."""
-        return self._along(slopes_along, x)
-
-    def _along(self, function: Any, x: Any) -> np.ndarray:
-        xs = np.asarray(x, dtype=float)
-        out = np.empty(xs.size)
-        function(self.array, 0, np.ascontiguousarray(xs.reshape(-1)), out)
-        return out.reshape(xs.shape)
+        return along(slopes_along, self.array, x)
 
     def polyline(self, x_low: float, x_high: float, samples: int = 400) -> np.ndarray:
         """(k, 2) points (x, h(x)) over [x_low, x_high] (m) for drawing: a profile's breakpoints
@@ -94,6 +88,15 @@ class Terrain:
         else:
             grid = np.array([x_low, x_high])
         return np.column_stack([grid, self.height(grid)])
+
+
+def along(function: Any, array: np.ndarray, x: Any) -> np.ndarray:
+    """The terrain encoded in ``array`` read at each x in one compiled call, shape of x:
+    ``function`` is ``heights_along`` (h, m) or ``slopes_along`` (dh/dx)."""
+    xs = np.asarray(x, dtype=float)
+    out = np.empty(xs.size)
+    function(array, 0, np.ascontiguousarray(xs.reshape(-1)), out)
+    return out.reshape(xs.shape)
 
 
 def flat_terrain(h0: float = 0.0) -> Terrain:

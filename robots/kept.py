@@ -29,9 +29,10 @@ class KeptWhileAlive:
         return kept[1] if kept is not None and kept[0]() is batch else None
 
     def keep(self, batch: Any, value: Any) -> None:
-        """Keep ``value`` for ``batch`` until the array is freed (nothing for another sequence,
-        which a later call cannot hand back as the same object)."""
-        if not isinstance(batch, np.ndarray):
+        """Keep ``value`` for ``batch`` until the array is freed: a batch of several rows only,
+        which several checks are handed in turn (nothing for one point located between two, nor
+        for another sequence, which a later call cannot hand back as the same object)."""
+        if not isinstance(batch, np.ndarray) or batch.ndim != 2 or batch.shape[0] < 2:
             return
         key = id(batch)
 

@@ -7,6 +7,7 @@ kernel and the Python loop alike.
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any
@@ -48,8 +49,7 @@ class Inputs:
         states = np.ascontiguousarray(x, dtype=float)
         out = np.zeros((t.shape[0], self.law.inputs))
         at_rows(self.law.control, np.ascontiguousarray(t, dtype=float), states, self.dims(mode), p, out)
-        if t.shape[0] > 1:  # a batch, not one point located between two
-            self._kept.keep(x, (t, mode, out))
+        self._kept.keep(x, (t, mode, out))
         return out
 
 
@@ -100,8 +100,7 @@ class LinkHeights:
             return kept
         out = self._placements.at(states)[:, self._columns]
         heights = out[:, :, 1] if self.terrain is None else out[:, :, 1] - self.terrain.height(out[:, :, 0])
-        if np.ndim(states) == 2 and states.shape[0] > 1:
-            self._kept.keep(states, heights)
+        self._kept.keep(states, heights)
         return heights
 
     def rates_at(self, states: np.ndarray) -> np.ndarray:
@@ -212,37 +211,39 @@ class TerrainPiercing:
             corners = placed[rows]
             points = self.terrain_points(float(corners[..., 0].min()), float(corners[..., 0].max()))
             depths[rows], rates[rows] = self._depths(corners, moving[rows], points)
-        if np.ndim(states) == 2 and states.shape[0] > 1:
-            self._kept.keep(states, (depths, rates))
+        self._kept.keep(states, (depths, rates))
         return depths, rates
 
     def _depths(self, corners: np.ndarray, velocities: np.ndarray, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(rows, bodies) each: each body's deepest point of ``points`` (k, 2) and that depth's
-        rate; corners and their velocities (rows, all, 2)."""
-        depths, rates, first = [], [], 0
-        for size in self.sizes:
-            polygon = corners[:, first : first + size]  # (rows, m, 2), counterclockwise
-            speeds = velocities[:, first : first + size]
-            first += size
-            edges = np.roll(polygon, -1, axis=1) - polygon
-            lengths = np.linalg.norm(edges, axis=-1, keepdims=True)
-            inward = np.stack([-edges[..., 1], edges[..., 0]], axis=-1) / lengths
-            # (rows, m, k): each point's distance inside each edge's line; the least is its depth
-            offsets = points[None, None, :, :] - polygon[:, :, None, :]
-            inside = np.einsum("rmkd,rmd->rmk", offsets, inward)
-            nearest_edge = inside.argmin(axis=1)  # (rows, k)
-            point = inside.min(axis=1).argmax(axis=1)  # (rows,)
-            edge = np.take_along_axis(nearest_edge, point[:, None], axis=1)[:, 0]
-            rows = np.arange(polygon.shape[0])
-            depths.append(inside[rows, edge, point])
-            # the edge's inward normal turns with the body: d/dt of perp(e) / |e| is perp(e') / |e|
-            turning = np.roll(speeds, -1, axis=1)[rows, edge] - speeds[rows, edge]
-            turned = np.stack([-turning[:, 1], turning[:, 0]], axis=-1) / lengths[rows, edge]
-            rates.append(
-                -np.einsum("rd,rd->r", speeds[rows, edge], inward[rows, edge])
-                + np.einsum("rd,rd->r", offsets[rows, edge, point], turned)
-            )
-        return np.stack(depths, axis=1), np.stack(rates, axis=1)
+        rate; corners and their velocities (rows, all, 2), each body's counterclockwise."""
+        ends = np.cumsum([0, *self.sizes])
+        found = [_deepest(corners[:, a:b], velocities[:, a:b], points) for a, b in itertools.pairwise(ends)]
+        return np.stack([d for d, _ in found], axis=1), np.stack([r for _, r in found], axis=1)
+
+
+def _deepest(polygon: np.ndarray, speeds: np.ndarray, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The deepest of ``points`` (k, 2, fixed in the terrain) inside a convex polygon (rows, m, 2),
+    counterclockwise, moving at ``speeds`` (rows, m, 2): its depth, the least distance inside an
+    edge's line (m; < 0 outside), and that depth's rate (m/s), (rows,) each."""
+    edges = np.roll(polygon, -1, axis=1) - polygon
+    lengths = np.linalg.norm(edges, axis=-1)
+    inward = np.stack([-edges[..., 1], edges[..., 0]], axis=-1) / lengths[..., None]
+    offsets = points[None, None, :, :] - polygon[:, :, None, :]
+    inside = np.einsum("rmkd,rmd->rmk", offsets, inward)  # (rows, m, k)
+    nearest_edge = inside.argmin(axis=1)  # (rows, k): the edge that sets each point's depth
+    depth_of_point = np.take_along_axis(inside, nearest_edge[:, None, :], axis=1)[:, 0]
+    rows = np.arange(polygon.shape[0])
+    point = depth_of_point.argmax(axis=1)
+    edge = nearest_edge[rows, point]
+    # the edge's corner moves, and its inward normal turns with the body: d/dt of perp(e) / |e|
+    # is perp(e') / |e| for a rigid body
+    turning = np.roll(speeds, -1, axis=1)[rows, edge] - speeds[rows, edge]
+    turned = np.stack([-turning[:, 1], turning[:, 0]], axis=-1) / lengths[rows, edge][:, None]
+    rate = -np.einsum("rd,rd->r", speeds[rows, edge], inward[rows, edge]) + np.einsum(
+        "rd,rd->r", offsets[rows, edge, point], turned
+    )
+    return depth_of_point[rows, point], rate
 
 
 def _counterclockwise(corners: np.ndarray) -> np.ndarray:

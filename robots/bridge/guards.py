@@ -6,13 +6,14 @@ functions).
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 
 import numpy as np
 
 from legsim.execution import Status
 from legsim.heights import SINE, heights_along, nearest, slopes_along
 from legsim.relaxed import Watch
+from legsim.terrain import along
 
 from .contacts import SLIP_SUFFIX, Armed, PointContact, RigidContact, SpringLeg, joint_id
 from .model import BridgeModel
@@ -57,18 +58,12 @@ class PastDepths:
         of it) at each state (rows, >= 2 n)."""
         positions = self._placements.at(states)[:, self._columns]
         states = np.atleast_2d(states)
-        active = set(self.active_contacts(mode))
         out = np.full((states.shape[0], len(self.rigid)), -np.inf)
-        slot = 0
-        for k, r in enumerate(self.rigid):
-            if r.kind == "stop":
-                if r.contact.name not in active:
-                    out[:, k] = -r.sign * (states[:, r.dof] - r.stop.position)
+        for k, r, slot in self._inactive(mode):
+            if slot < 0:
+                out[:, k] = -r.sign * (states[:, r.dof] - r.stop.position)
                 continue
             xz = positions[:, slot]
-            slot += 1
-            if r.contact.name in active:
-                continue
             out[:, k] = self._point_depth(r, xz)
             armed = r.point.armed
             if armed_only and armed is not None:
@@ -77,43 +72,52 @@ class PastDepths:
 
     def rates(self, mode: str, states: np.ndarray) -> np.ndarray:
         """(rows, contacts): d/dt of each inactive contact's ``depths`` along the flow (m/s or
-        rad/s), from the frames' velocities of the same kinematics pass (a round contact's on a
-        sine: its centre's speed away from the curve along the normal at its nearest point); 0
-        for an active contact."""
+        rad/s), from the frames' velocities of the same kinematics pass; 0 for an active contact."""
         states = np.atleast_2d(states)
         velocities = self._placements.velocities(states)[:, self._columns]
         positions = self._placements.at(states)[:, self._columns]
-        active = set(self.active_contacts(mode))
         out = np.zeros((states.shape[0], len(self.rigid)))
+        for k, r, slot in self._inactive(mode):
+            if slot < 0:
+                out[:, k] = -r.sign * states[:, self.model.n + r.dof]
+            else:
+                out[:, k] = self._point_rate(r, positions[:, slot], velocities[:, slot])
+        return out
+
+    def _inactive(self, mode: str) -> Iterator[tuple[int, RigidContact, int]]:
+        """(column, contact, slot) of each contact inactive in ``mode``: the slot of its frame
+        among the points' columns, -1 for a joint stop."""
+        active = set(self.active_contacts(mode))
         slot = 0
         for k, r in enumerate(self.rigid):
-            if r.kind == "stop":
-                if r.contact.name not in active:
-                    out[:, k] = -r.sign * states[:, self.model.n + r.dof]
-                continue
-            vx, vz = velocities[:, slot, 0], velocities[:, slot, 1]
-            xz = positions[:, slot]
-            slot += 1
-            if r.contact.name in active:
-                continue
-            if r.radius > 0.0 and self.moving:  # d/dt (r - d) = -n . v of the centre
-                g = np.array([nearest(self.model.terrain, 0, float(x), float(z))[2] for x, z in xz])
-                out[:, k] = (g * vx - vz) / np.sqrt(1.0 + g * g)
-            elif self.model.terrain is None:
-                out[:, k] = -vz
-            else:  # d/dt (h(x) - z)
-                out[:, k] = _along(slopes_along, self.model.terrain, xz[:, 0]) * vx - vz
-        return out
+            here = -1 if r.kind == "stop" else slot
+            slot += here >= 0
+            if r.contact.name not in active:
+                yield k, r, here
 
     def _point_depth(self, r: RigidContact, xz: np.ndarray) -> np.ndarray:
         """A point's depth below the ground at its positions xz (rows, 2)."""
         terrain = self.model.terrain
         if r.radius > 0.0 and self.moving:
             # the point nearest the terrain moves with the centre: its depth is r less the centre's distance
-            return r.radius - np.array([nearest(terrain, 0, float(x), float(z))[1] for x, z in xz])
+            return r.radius - self._nearest(xz)[:, 1]
         if terrain is None:
             return r.point.ground - xz[:, 1]
-        return _along(heights_along, terrain, xz[:, 0]) - xz[:, 1]
+        return along(heights_along, terrain, xz[:, 0]) - xz[:, 1]
+
+    def _point_rate(self, r: RigidContact, xz: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """d/dt of ``_point_depth`` at positions xz moving at v (rows, 2)."""
+        terrain = self.model.terrain
+        if r.radius > 0.0 and self.moving:  # d/dt (r - d): the centre's speed towards the curve, -n . v
+            g = self._nearest(xz)[:, 2]
+            return (g * v[:, 0] - v[:, 1]) / np.sqrt(1.0 + g * g)
+        if terrain is None:
+            return -v[:, 1]
+        return along(slopes_along, terrain, xz[:, 0]) * v[:, 0] - v[:, 1]  # d/dt (h(x) - z)
+
+    def _nearest(self, xz: np.ndarray) -> np.ndarray:
+        """``heights.nearest``'s (s, d, g, k) for each centre of xz (rows, 2), (rows, 4)."""
+        return np.array([nearest(self.model.terrain, 0, float(x), float(z)) for x, z in xz]).reshape(-1, 4)
 
     def _armed(
         self, armed: Armed, r: RigidContact, states: np.ndarray, xz: np.ndarray, positions: np.ndarray
@@ -124,13 +128,6 @@ class PastDepths:
         else:
             lead = xz[:, 0] - positions[:, self._ahead_slot[r.armed_frame], 0]
         return lead - armed.beyond > 0.0
-
-
-def _along(function: Callable[..., None], terrain: np.ndarray, xs: np.ndarray) -> np.ndarray:
-    """The terrain's height or slope (``function``: ``heights_along``, ``slopes_along``) at each x of xs."""
-    out = np.empty(xs.shape[0])
-    function(terrain, 0, np.ascontiguousarray(xs, dtype=float), out)
-    return out
 
 
 def initial_check(past: PastDepths) -> Callable[[str, np.ndarray, float], str | None]:

@@ -77,6 +77,5 @@ class Placements:
         out = np.empty((rows.shape[0], len(self._frames), 4))
         if self._frames:
             frame_motions(self._native(), rows, self.model.n, np.array(self._frames, dtype=float), out)
-        if rows.shape[0] > 1:
-            self._kept.keep(states, out)
+        self._kept.keep(states, out)
         return out
