@@ -72,6 +72,15 @@ class Terrain:
         """dh/dx at each x, shape of x (a profile's right segment's at a breakpoint)."""
         return along(slopes_along, self.array, x)
 
+    @property
+    def smooth(self) -> bool:
+        """Whether the terrain's slope is continuous everywhere (no profile's or steps' corners)."""
+        return corner_positions(self.array).size == 0
+
+    def pieces(self, x: Any) -> np.ndarray:
+        """Which smooth piece of the terrain lies under each x (``pieces_along``), shape of x."""
+        return pieces_along(self.array, x)
+
     def polyline(self, x_low: float, x_high: float, samples: int = 400) -> np.ndarray:
         """(k, 2) points (x, h(x)) over [x_low, x_high] (m) for drawing: a profile's breakpoints
         inside the range, a sine sampled ``samples`` times (more for a short wavelength), a line's
@@ -97,6 +106,22 @@ def along(function: Any, array: np.ndarray, x: Any) -> np.ndarray:
     out = np.empty(xs.size)
     function(array, 0, np.ascontiguousarray(xs.reshape(-1)), out)
     return out.reshape(xs.shape)
+
+
+def corner_positions(array: np.ndarray) -> np.ndarray:
+    """The x (m) of the corners of the terrain encoded in ``array``, where its slope jumps: a
+    profile's points; none for a smooth terrain (flat, slope, sine)."""
+    if array[0] != PROFILE:
+        return np.empty(0)
+    return array[2 : 2 + int(array[1])]
+
+
+def pieces_along(array: np.ndarray, x: Any) -> np.ndarray:
+    """Which smooth piece of the terrain encoded in ``array`` lies under each x, shape of x: the
+    number of its corners at or left of x (a corner belongs to the piece it starts, as its slope
+    does; 0 everywhere on a smooth terrain). A height read under a point is as smooth as the
+    point's motion while the point stays on one piece."""
+    return np.searchsorted(corner_positions(array), np.asarray(x, dtype=float), side="right").astype(float)
 
 
 def flat_terrain(h0: float = 0.0) -> Terrain:

@@ -112,6 +112,17 @@ class LinkHeights:
         x = self._placements.at(states)[:, self._columns, 0]
         return velocity[:, :, 1] - self.terrain.slope(x) * velocity[:, :, 0]
 
+    @property
+    def cornered(self) -> bool:
+        """Whether the terrain has corners (a profile's, steps'), where a point's height kinks."""
+        return self.terrain is not None and not self.terrain.smooth
+
+    def pieces_at(self, states: np.ndarray) -> np.ndarray:
+        """The piece of the terrain under every link point at each state, (rows, points)
+        (``Terrain.pieces``; 0 everywhere on a smooth terrain)."""
+        x = self._placements.at(states)[:, self._columns, 0]
+        return np.zeros(x.shape) if self.terrain is None else self.terrain.pieces(x)
+
     def __call__(self, x: np.ndarray) -> dict[str, float]:
         """Each link's lowest point (m) at one state x."""
         z = self.heights_at(x)[0]
@@ -136,6 +147,9 @@ def below_ground_watch(heights: LinkHeights, ground: float, action: str = "warn"
     def rate(mode: str, t: np.ndarray, x: np.ndarray) -> np.ndarray:
         return heights.rates_at(x)
 
+    def piece(mode: str, t: np.ndarray, x: np.ndarray) -> np.ndarray:
+        return heights.pieces_at(x)
+
     def message(t: float, mode: str, x: np.ndarray) -> str:
         h = heights(x)
         below = sorted((v - ground, k) for k, v in h.items() if v < ground)
@@ -145,7 +159,7 @@ def below_ground_watch(heights: LinkHeights, ground: float, action: str = "warn"
             f"(declare a contact on the link, or it passes through the ground)"
         )
 
-    return ground_watch("below_ground", value, message, action, rate)
+    return ground_watch("below_ground", value, message, action, rate, piece if heights.cornered else None)
 
 
 #: How deep (m) a point of the terrain may lie inside a body before the body counts as passing

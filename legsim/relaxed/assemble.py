@@ -413,7 +413,8 @@ class Assembly:
             else:  # the parts once: the condition's values are their least
                 parts = points.values(w, "parts")
                 values = [watches.condition(p) for p in parts]
-                slopes = list(zip(parts, points.values(w, "rates"), strict=True))
+                pieces = points.values(w, "pieces") if w.piece is not None else [None] * len(visits)
+                slopes = [watches.Slopes(*s) for s in zip(parts, points.values(w, "rates"), pieces, strict=True)]
             for (mode, t, x, seg), v, sl in zip(visits, values, slopes, strict=True):
                 stored = seg.t, seg.x, seg.dx
                 if first is None and (hit := watches.first_hold(w, mode, (t, x), stored, v, sl)) is not None:

@@ -16,7 +16,11 @@ its value's rate along the flow (``Watch.rate``) is also checked between those p
 cubic through two neighbours' values and rates of one part dips below zero, the interpolant is evaluated at
 the cubic's least point (and, if the condition does not hold there, both sides of that point are
 searched by the same test, ``DIP_SPLITS`` levels deep), so a dip that misses every checked point
-is seen too.
+is seen too. A cubic vouches only for a smooth value: a watch whose parts are smooth piecewise
+(a foot's depth below a profile, whose slope jumps at each corner) says which piece each part
+is on (``Watch.piece``), and between two checked points where a part's piece changes, each
+change is located by bisection on the pieces, the condition checked on both sides of it, and
+each smooth stretch between tested by its cubic (``across_pieces``).
 Where a condition first holds between two checked points, the time is located by bisection on
 the points' cubic Hermite interpolant (the one ``Execution.sample`` uses: O(h^4) between steps),
 to float64 resolution;
@@ -47,7 +51,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from ..errors import SimulationError
-from ..execution import Segment, Status
+from ..execution import Segment, Status, hermite_values
 from .single import hermite, hermite_derivative
 
 ACTIONS = ("stop", "warn", "time")
@@ -57,6 +61,14 @@ BISECTIONS = 64
 #: below zero but the interpolant at the cubic's least point does not: each level splits at that
 #: point and searches both sides, so 4 levels make at most 31 probes.
 DIP_SPLITS = 4
+#: Where a part's piece changes inside a step is searched on a grid of PIECE_GRID points, then
+#: on the same grid in the cell where it changed, PIECE_LEVELS times: the change is then known to
+#: 16^-3 = 2^-12 of the stretch searched (0.12 us of a 0.5 ms half step), in 3 calls of the watch.
+PIECE_GRID = 15
+PIECE_LEVELS = 3
+#: Most changes of piece a part is followed through between two checked points (a foot crossing
+#: that many profile corners in half a step); past them the rest of the stretch is tested whole.
+PIECE_CHANGES = 8
 
 
 @dataclass(frozen=True)
@@ -76,6 +88,9 @@ class Watch:
     rate: ``rate(mode, t, x) -> dv/dt`` along the flow at the points (v's unit per s), of v's
         shape, or None; with it a stop or warn watch is also checked between the points (module
         docstring).
+    piece: ``piece(mode, t, x) -> labels`` of v's shape, or None (every part smooth): which
+        smooth piece of its part's value each point is on (any numbers, equal on one piece: the
+        segment of a profile under a foot). Needs ``rate``.
     """
 
     name: str
@@ -85,6 +100,7 @@ class Watch:
     status: str = Status.FELL.value
     counter: str = ""
     rate: Callable[[str, np.ndarray, np.ndarray], np.ndarray] | None = None
+    piece: Callable[[str, np.ndarray, np.ndarray], np.ndarray] | None = None
 
     def __post_init__(self) -> None:
         if self.action not in ACTIONS:
@@ -99,6 +115,10 @@ class Watch:
             raise SimulationError(f"watch {self.name!r}: a time watch needs a counter name")
         if self.rate is not None and not callable(self.rate):
             raise SimulationError(f"watch {self.name!r}: rate must be None or a function rate(mode, t, x)")
+        if self.piece is not None and not (callable(self.piece) and self.rate is not None):
+            raise SimulationError(
+                f"watch {self.name!r}: piece must be None or a function piece(mode, t, x), given with a rate"
+            )
 
     def values(self, mode: str, t: np.ndarray, x: np.ndarray) -> np.ndarray:
         """The condition's value at the points (N,), float64: the least of its parts (+inf
@@ -113,6 +133,11 @@ class Watch:
         """dv/dt at the points, as ``parts`` (``rate``, which must be given)."""
         assert self.rate is not None
         return self._call(self.rate, "rate", mode, t, x)
+
+    def pieces(self, mode: str, t: np.ndarray, x: np.ndarray) -> np.ndarray:
+        """The piece of each part at the points, as ``parts`` (``piece``, which must be given)."""
+        assert self.piece is not None
+        return self._call(self.piece, "piece", mode, t, x)
 
     def _call(self, function: Callable[..., Any], what: str, mode: str, t: np.ndarray, x: np.ndarray) -> np.ndarray:
         try:
@@ -208,24 +233,32 @@ class Hold(NamedTuple):
     inside: tuple[float, np.ndarray, float] | None = None
 
 
+class Slopes(NamedTuple):
+    """A watch's parts at checked points, their rates and, where it gives them, their pieces,
+    (N, m) each."""
+
+    parts: np.ndarray
+    rates: np.ndarray
+    pieces: np.ndarray | None = None
+
+
 def first_hold(
     watch: Watch,
     mode: str,
     checked: tuple[np.ndarray, np.ndarray],
     stored: tuple[np.ndarray, np.ndarray, np.ndarray],
     values: Any = None,
-    slopes: tuple[np.ndarray, np.ndarray] | None = None,
+    slopes: Slopes | None = None,
 ) -> Hold | None:
     """Where the condition first holds among a visit's ``checked`` points (``refined`` of its
     ``stored`` points t, x, dx), or between two of them by the watch's rate, or None; ``values``
-    (the condition's, (N,)) and ``slopes`` (its parts and their rates, (N, m) each) at the
-    checked points when known."""
+    (the condition's, (N,)) and ``slopes`` at the checked points when known."""
     t, x = checked
     if t.shape[0] == 0:
         return None
     slopes = _slopes(watch, mode, t, x, slopes)
     if values is None:
-        values = watch.values(mode, t, x) if slopes is None else condition(slopes[0])
+        values = watch.values(mode, t, x) if slopes is None else condition(slopes.parts)
     v = np.asarray(values)
     below = np.flatnonzero(v < 0.0)
     k = int(below[0]) if below.size else t.shape[0]
@@ -238,24 +271,29 @@ def first_hold(
     )
     if slopes is not None:
         # up to the first checked point that holds: a part may dip before it within its step
-        parts, rates = slopes
-        dip = first_dip(watch, mode, (t[: k + 1], parts[: k + 1], rates[: k + 1]), stored)
+        parts, rates, pieces = slopes
+        upto = Slopes(parts[: k + 1], rates[: k + 1], None if pieces is None else pieces[: k + 1])
+        dip = first_dip(watch, mode, t[: k + 1], upto, stored)
         if dip is not None and (held is None or dip.time < held.time):
             return dip
     return held
 
 
-def _slopes(
-    watch: Watch, mode: str, t: np.ndarray, x: np.ndarray, given: tuple[np.ndarray, np.ndarray] | None
-) -> tuple[np.ndarray, np.ndarray] | None:
-    """The parts and their rates at the points (``given``, or the watch's), None without a rate."""
+def _slopes(watch: Watch, mode: str, t: np.ndarray, x: np.ndarray, given: Slopes | None) -> Slopes | None:
+    """The parts, their rates and pieces at the points (``given``, or the watch's), None without
+    a rate."""
     if watch.rate is None:
         return None
-    # on the whole arrays, which a watch may keep what it computed on for the rates
-    parts, rates = (watch.parts(mode, t, x), watch.rates(mode, t, x)) if given is None else given
-    if parts.shape != rates.shape:
-        raise SimulationError(f"watch {watch.name!r}: its rates' shape {rates.shape} is not its values' {parts.shape}")
-    return parts, rates
+    if given is None:
+        # on the whole arrays, which a watch may keep what it computed on for the rates
+        pieces = None if watch.piece is None else watch.pieces(mode, t, x)
+        given = Slopes(watch.parts(mode, t, x), watch.rates(mode, t, x), pieces)
+    for what, a in (("rates", given.rates), ("pieces", given.pieces)):
+        if a is not None and a.shape != given.parts.shape:
+            raise SimulationError(
+                f"watch {watch.name!r}: its {what}' shape {a.shape} is not its values' {given.parts.shape}"
+            )
+    return given
 
 
 def cubic_least(
@@ -275,32 +313,125 @@ def cubic_least(
         return s, v0 + s * (a + s * (c2 + s * c3))
 
 
-def first_dip(
-    watch: Watch, mode: str, checked: tuple[np.ndarray, np.ndarray, np.ndarray], stored: Stored
-) -> Hold | None:
-    """The first hold between two neighbours of the ``checked`` points (t (N,), the parts and
-    their rates (N, m)) where the cubic through a part's values and rates dips below zero and the
-    interpolant confirms it (module docstring): in the earliest such interval, the earliest of
-    its parts' holds."""
-    t, v, r = checked
+def first_dip(watch: Watch, mode: str, t: np.ndarray, slopes: Slopes, stored: Stored) -> Hold | None:
+    """The first hold between two neighbours of the checked points at times t (N,), with the
+    watch's ``slopes`` there: where the cubic through a part's values and rates dips below zero
+    and the interpolant confirms it, or where parts' pieces change and the search across the
+    changes finds it (module docstring); in the earliest such interval, the earliest of its
+    parts' holds."""
+    v, r, pieces = slopes
     _, least = cubic_least(v[:-1], v[1:], r[:-1], r[1:], np.diff(t)[:, None])
-    for j in np.flatnonzero((least < 0.0).any(axis=1)):
+    changes = np.zeros(least.shape, dtype=bool) if pieces is None else pieces[:-1] != pieces[1:]
+    dips = (least < 0.0) & ~changes
+    for j in np.flatnonzero((dips | changes).any(axis=1)):
         k = stored_index(int(j) + 1)
-        holds = []
-        for part in np.flatnonzero(least[j] < 0.0):
-            ends = [(float(t[i]), float(v[i, part]), float(r[i, part])) for i in (j, j + 1)]
-            inside = _confirmed(watch, mode, stored, k, int(part), ends[0], ends[1], DIP_SPLITS)
-            if inside is not None:
-                holds.append(Hold(int(j) + 1, locate(watch, mode, *stored, k, True, (ends[0][0], inside[0])), inside))
+        ends = np.stack([np.broadcast_to(t[j : j + 2, None], v[j : j + 2].shape), v[j : j + 2], r[j : j + 2]], axis=-1)
+        found = [
+            _confirmed(watch, mode, stored, k, int(p), _end(ends[0, p]), _end(ends[1, p]), DIP_SPLITS)
+            for p in np.flatnonzero(dips[j])
+        ]
+        if changes[j].any():
+            assert pieces is not None
+            which = np.flatnonzero(changes[j])
+            found.append(across_pieces(watch, mode, stored, k, which, ends[0, which], ends[1, which],
+                                       pieces[j : j + 2, which].T, PIECE_CHANGES))  # fmt: skip
+        holds = [
+            Hold(int(j) + 1, locate(watch, mode, *stored, k, True, (float(t[j]), inside[0])), inside)
+            for inside in found
+            if inside is not None
+        ]
         if holds:
             return min(holds, key=lambda hold: hold.time)
     return None
 
 
+#: A point of a step's interpolant where a condition holds: (t, x, v).
+Inside = tuple[float, np.ndarray, float]
+#: A part at one end of a stretch of a step: (t, its value, its rate).
+End = tuple[float, float, float]
+
+
+def _end(values: Any) -> End:
+    """Three numbers (t, value, rate) as an ``End``."""
+    t, v, r = values
+    return float(t), float(v), float(r)
+
+
+def across_pieces(
+    watch: Watch, mode: str, stored: Stored, k: int, which: np.ndarray,
+    start: np.ndarray, end: np.ndarray, pieces: np.ndarray, changes: int,
+) -> Inside | None:  # fmt: skip
+    """The earliest point of stored step k's interpolant found where the condition holds, for the
+    parts ``which`` (P,) whose piece changes between ``start`` and ``end`` ((P, 3): each part's
+    t, value and rate there; ``pieces`` (P, 2) its piece at each): for each part, the smooth
+    stretch up to its first change tested by its cubic (``_confirmed``), the condition checked
+    on both sides of the change, and the rest searched the same way, ``changes`` changes deep."""
+    before, after, piece_after = _piece_changes(watch, mode, stored, k, which, start[:, 0], end[:, 0], pieces)
+    times = np.concatenate([before, after])
+    states = np.array([point(*stored, k, float(tau))[0] for tau in times])
+    values, rates = watch.parts(mode, times, states), watch.rates(mode, times, states)
+    held = condition(values)
+    count = which.shape[0]
+    own = np.concatenate([np.arange(count)] * 2), np.concatenate([which] * 2)
+    upto, rest = np.split(np.stack([times, values[own], rates[own]], axis=1), 2)
+    again = (piece_after != pieces[:, 1]) & (changes > 1)
+    found: list[Inside | None] = [(float(times[i]), states[i], float(held[i])) for i in np.flatnonzero(held < 0.0)]
+    found += _stretches(watch, mode, stored, k, which, start, upto, np.ones(count, dtype=bool))
+    found += _stretches(watch, mode, stored, k, which, rest, end, ~again)
+    if again.any():
+        pieces_after = np.stack([piece_after, pieces[:, 1]], axis=1)[again]
+        found.append(across_pieces(watch, mode, stored, k, which[again], rest[again], end[again], pieces_after,
+                                   changes - 1))  # fmt: skip
+    holds = [f for f in found if f is not None]
+    return min(holds, key=lambda f: f[0]) if holds else None
+
+
+def _stretches(
+    watch: Watch, mode: str, stored: Stored, k: int, which: np.ndarray, start: np.ndarray, end: np.ndarray,
+    tested: np.ndarray,
+) -> list[Inside | None]:  # fmt: skip
+    """``_confirmed`` on each smooth stretch of the parts ``which`` (P,) from ``start`` to ``end``
+    ((P, 3): t, value, rate) that is ``tested`` and whose cubic dips below zero."""
+    ta, va, ra = start.T
+    tb, vb, rb = end.T
+    _, least = cubic_least(va, vb, ra, rb, tb - ta)
+    return [
+        _confirmed(watch, mode, stored, k, int(which[i]), _end(start[i]), _end(end[i]), DIP_SPLITS)
+        for i in np.flatnonzero(tested & (least < 0.0))
+    ]
+
+
+def _piece_changes(
+    watch: Watch, mode: str, stored: Stored, k: int, which: np.ndarray, ta: np.ndarray, tb: np.ndarray,
+    pieces: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
+    """Where each part of ``which`` (P,) first changes from its piece ``pieces[:, 0]`` on stored
+    step k's interpolant between ta and tb ((P,), s), searched on ever finer grids, all parts in
+    one call of the watch a level: the times just before and just after the change and the piece
+    after it (``pieces[:, 1]``, the one at tb, until a probe finds another), (P,) each."""
+    lo, hi, piece = ta.astype(float), tb.astype(float), pieces[:, 1].astype(float)
+    t, x, dx = stored
+    t0, dt = float(t[k - 1]), float(t[k] - t[k - 1])
+    rows = np.arange(which.shape[0])
+    inner = np.arange(1, PIECE_GRID + 1) / (PIECE_GRID + 1)
+    for _ in range(PIECE_LEVELS):
+        grid = lo[:, None] + (hi - lo)[:, None] * inner  # (P, PIECE_GRID)
+        states = hermite_values(x[k - 1], dx[k - 1], x[k], dx[k], dt, (grid.reshape(-1, 1) - t0) / dt)
+        labels = watch.pieces(mode, grid.reshape(-1), states).reshape(*grid.shape, -1)[rows, :, which]
+        changed = labels != pieces[:, :1]
+        first = np.argmax(changed, axis=1)
+        seen = changed.any(axis=1)
+        cell_start = np.where(first > 0, grid[rows, np.maximum(first - 1, 0)], lo)
+        lo = np.where(seen, cell_start, grid[:, -1])
+        hi = np.where(seen, grid[rows, first], hi)
+        piece = np.where(seen, labels[rows, first], piece)
+    return lo, hi, piece
+
+
 def _confirmed(
     watch: Watch, mode: str, stored: Stored, k: int, part: int,
-    start: tuple[float, float, float], end: tuple[float, float, float], splits: int,
-) -> tuple[float, np.ndarray, float] | None:  # fmt: skip
+    start: End, end: End, splits: int,
+) -> Inside | None:  # fmt: skip
     """A point (t, x, v) of stored step k's interpolant between ``start`` and ``end`` (t, the
     part's value and rate) where the condition holds, searched at the least point of the part's
     cubic and, where it does not hold there, on each side of it, ``splits`` levels deep."""

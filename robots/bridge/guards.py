@@ -13,7 +13,7 @@ import numpy as np
 from legsim.execution import Status
 from legsim.heights import SINE, heights_along, nearest, slopes_along
 from legsim.relaxed import Watch
-from legsim.terrain import along
+from legsim.terrain import along, corner_positions, pieces_along
 
 from .contacts import SLIP_SUFFIX, Armed, PointContact, RigidContact, SpringLeg, joint_id
 from .model import BridgeModel
@@ -82,6 +82,25 @@ class PastDepths:
                 out[:, k] = -r.sign * states[:, self.model.n + r.dof]
             else:
                 out[:, k] = self._point_rate(r, positions[:, slot], velocities[:, slot])
+        return out
+
+    @property
+    def cornered(self) -> bool:
+        """Whether the terrain has corners (a profile's, steps'), where a point's depth kinks."""
+        return self.model.terrain is not None and corner_positions(self.model.terrain).size > 0
+
+    def pieces(self, mode: str, states: np.ndarray) -> np.ndarray:
+        """(rows, contacts): the piece of the terrain under each inactive point contact
+        (``legsim.terrain.pieces_along``: its depth is smooth on one), 0 for the other contacts."""
+        states = np.atleast_2d(states)
+        out = np.zeros((states.shape[0], len(self.rigid)))
+        if not self.cornered:
+            return out
+        assert self.model.terrain is not None
+        positions = self._placements.at(states)[:, self._columns]
+        for k, _, slot in self._inactive(mode):
+            if slot >= 0:
+                out[:, k] = pieces_along(self.model.terrain, positions[:, slot, 0])
         return out
 
     def _inactive(self, mode: str) -> Iterator[tuple[int, RigidContact, int]]:
@@ -189,6 +208,9 @@ def passed_through_watch(past: PastDepths, eps: float, action: str = "warn") -> 
     def rate(mode: str, t: np.ndarray, x: np.ndarray) -> np.ndarray:
         return -past.rates(mode, x)
 
+    def piece(mode: str, t: np.ndarray, x: np.ndarray) -> np.ndarray:
+        return past.pieces(mode, x)
+
     def message(t: float, mode: str, x: np.ndarray) -> str:
         state = np.atleast_2d(x)[0]
         depths = past.depths(mode, state, armed_only=True)[0]
@@ -200,23 +222,25 @@ def passed_through_watch(past: PastDepths, eps: float, action: str = "warn") -> 
             f"left it moving away, where its guard does not look (take a smaller h, or tighter tolerances)"
         )
 
-    return ground_watch("passed_through", value, message, "strict" if action == "fall" else action, rate)
+    pieces = piece if past.cornered else None
+    return ground_watch("passed_through", value, message, "strict" if action == "fall" else action, rate, pieces)
 
 
 def ground_watch(
     name: str, value: Callable[..., np.ndarray], message: Callable[..., str], action: str,
-    rate: Callable[..., np.ndarray] | None = None,
+    rate: Callable[..., np.ndarray] | None = None, piece: Callable[..., np.ndarray] | None = None,
 ) -> Watch:  # fmt: skip
     """The watch of a body through the ground, by the scene's ``below_ground`` ``action``: "warn"
     a warning; "strict" a stop with status ``model_breakdown`` (the model has no contact there);
     "fall" a stop with status ``fell`` (the robot crashed, a scene's fall condition). ``rate``:
-    the value's rate along the flow, to check between points (``Watch.rate``)."""
+    the value's rate along the flow, to check between points (``Watch.rate``); ``piece``: the
+    terrain's piece under each part, where the terrain has corners (``Watch.piece``)."""
     if action == "strict":
-        return Watch(name, value, "stop", message, status=Status.MODEL_BREAKDOWN.value, rate=rate)
+        return Watch(name, value, "stop", message, status=Status.MODEL_BREAKDOWN.value, rate=rate, piece=piece)
     if action == "fall":
         return Watch(name, value, "stop", lambda t, mode, x: f"fell: {name}: {message(t, mode, x)}",
-                     status=Status.FELL.value, rate=rate)  # fmt: skip
-    return Watch(name, value, "warn", message, rate=rate)
+                     status=Status.FELL.value, rate=rate, piece=piece)  # fmt: skip
+    return Watch(name, value, "warn", message, rate=rate, piece=piece)
 
 
 def guard_units(model: BridgeModel) -> dict[str, str]:

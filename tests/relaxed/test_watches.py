@@ -180,6 +180,42 @@ def test_the_earliest_part_s_dip_is_the_first_hold(other):
     assert ex.status == "fell" and ex.t_end == pytest.approx(0.202, abs=1e-12)
 
 
+def shelves(levels):
+    """A condition on the falling ball with pieces: z below a level that changes at given times,
+    ``levels`` [(from t (s), level (m)), ...] in time order; the piece is the level's index."""
+
+    def piece(mode, t, x):
+        return np.searchsorted([start for start, _ in levels], t, side="right").astype(float) - 1
+
+    def value(mode, t, x):
+        return x[:, 0] - np.array([level for _, level in levels])[piece(mode, t, x).astype(int)]
+
+    return value, piece
+
+
+@pytest.mark.parametrize("python", [False, True])
+@pytest.mark.parametrize(
+    ("levels", "enters"),
+    [
+        ([(0.0, -10.0), (0.25, 0.8), (0.26, -10.0)], 0.25),  # the first change of piece holds
+        ([(0.0, -10.0), (0.25, -9.0), (0.26, 0.8), (0.27, -10.0)], 0.26),  # the second does
+    ],
+    ids=["first-change", "second-change"],
+)
+def test_a_value_jumping_where_its_piece_changes_inside_a_step_is_seen(python, levels, enters):
+    # The ball falls from z = 1 at steps of 0.2 s; the level jumps to 0.8 m, above the ball
+    # (z(0.25) = 0.69 m), for 10 ms inside the half step (0.2, 0.3), so no checked point shows it and
+    # the cubic through the half step's ends (the level -10 at both) does not dip. The pieces do:
+    # the change is found between the checked points, and the stop is where the level jumps.
+    value, piece = shelves(levels)
+    watch = Watch("shelf", value, "stop", said, rate=lambda mode, t, x: x[:, 1], piece=piece)
+    ex = run([watch], t_final=0.4, h=0.2, python=python)
+    assert ex.status == "fell" and ex.t_end == pytest.approx(enters, abs=1e-12)
+    assert run([dataclasses.replace(watch, piece=None)], t_final=0.4, h=0.2, python=python).status == "finished"
+    (warning,) = run([dataclasses.replace(watch, action="warn")], t_final=0.4, h=0.2, python=python).warnings
+    assert warning.time == pytest.approx(enters, abs=1e-12)
+
+
 def test_a_cubic_leaving_its_start_level_has_its_least_found():
     # p(s) = 0.1 - s^2 + s^3 (slope 0 at the start): least at s = 2/3, 0.1 - 4/27
     s, least = cubic_least(*(np.array([w]) for w in (0.1, 0.1, 0.0, 1.0, 1.0)))
@@ -224,6 +260,12 @@ def test_bad_watches_are_refused_by_name():
         run([lambda mode, t, x: x])
     with pytest.raises(SimulationError, match="rate must be None or a function"):
         Watch("w", below(0), "stop", said, rate=1.0)
+    with pytest.raises(SimulationError, match="piece must be None or a function piece"):
+        Watch("w", below(0), "stop", said, piece=lambda mode, t, x: np.zeros(len(t)))
+    value, _ = shelves([(0.0, -10.0)])
+    with pytest.raises(SimulationError, match=r"watch 'w': its pieces' shape \(\d+, 2\) is not its values' \(\d+, 1\)"):
+        run([Watch("w", value, "stop", said, rate=lambda mode, t, x: x[:, 1],
+                   piece=lambda mode, t, x: np.zeros((len(t), 2)))])  # fmt: skip
     with pytest.raises(SimulationError, match="watch 'w': its rate failed in mode 'flight': ZeroDivisionError"):
         run([Watch("w", below(0.5), "stop", said, rate=lambda mode, t, x: 1 / 0)])
     with pytest.raises(SimulationError, match=r"watch 'w' gave values of shape \(1,\) for \d+ points"):

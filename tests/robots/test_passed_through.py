@@ -11,6 +11,7 @@ linear in time, which rk4 and the watch's Hermite interpolant both follow exactl
 
 import math
 
+import numpy as np
 import pytest
 from legsim.robots.bridge.guards import THROUGH_DEPTH
 from scipy.optimize import brentq, minimize_scalar
@@ -159,3 +160,76 @@ def test_a_round_foot_dipping_through_a_sine_between_every_checked_point_is_seen
         return radius - distance - (EPS + THROUGH_DEPTH)
 
     assert warning.time == pytest.approx(brentq(past, 0.0, 0.06, xtol=1e-14), abs=1e-8)
+
+
+# Over a step: the hip 5 cm higher, so the foot clears the level ground, and the ground 10 cm higher
+# behind x = -0.2 (the foot swings towards -x), its riser a ramp 1 mm long. Swinging up past the
+# riser's foot at 7 cm, the foot passes through the riser and leaves the tread 3 cm higher up; at
+# the checked points (theta = -0.6, 0, 0.6: the foot at x = 0.56, 0, -0.56) it is above the ground,
+# and the cubic through its depths at them does not dip (the treads are level). Where the ground
+# under the foot changes from one segment of the profile to the next, the check looks at both sides.
+STEP_HIP, STEP_AT, STEP_RISE, RISER = 1.05, -0.2, 0.1, 1e-3
+
+
+def over_a_step(
+    folder,
+    h,
+    below_ground="warn",
+    leg=LEG,
+    collisions='contacts = [{ name = "foot", frame = "foot", tangential = false }]',
+):
+    scene = (
+        f'root = "fixed"\ng = 0.0\nbelow_ground = "{below_ground}"\n{collisions}\n'
+        f"[initial]\nstate = {{ hip = {THETA0}, hipd = {RATE} }}\n"
+        f'[integrator]\nmethod = "rk4"\nh = {h}\neps = {EPS}\nt_final = 0.12\n'
+        f'[terrain]\nkind = "steps"\npositions = [{STEP_AT}]\nheights = [0.0]\nbase = {STEP_RISE}\nriser = {RISER}\n'
+    )
+    return write(folder, "swing", leg.replace(f'xyz="0 0 {H}"', f'xyz="0 0 {STEP_HIP}"'), scene)
+
+
+def ground_under(x):
+    """The steps' height (m) at x: STEP_RISE behind the riser, 0 ahead of it, linear on it."""
+    return STEP_RISE * min(1.0, max(0.0, (STEP_AT - x) / RISER))
+
+
+def first_below(heights, low=0.0, high=0.6):
+    """The first angle where the least of ``heights(theta)`` reaches 0: a 60,000-point scan
+    brackets it, brentq finds it (the heights are continuous: the steps' riser is a ramp)."""
+    grid = np.linspace(low, high, 60_001)
+    k = int(np.argmax([min(heights(a)) < 0.0 for a in grid]))
+    return brentq(lambda a: min(heights(a)), grid[k - 1], grid[k], xtol=1e-15)
+
+
+@pytest.mark.parametrize(("action", "status"), [("warn", "finished"), ("strict", "model_breakdown")])
+def test_a_foot_carried_through_a_riser_inside_a_step_is_seen(tmp_path, action, status):
+    ex = load_scene(over_a_step(tmp_path, 0.12, action)).simulate()
+    assert ex.status == status and not ex.transitions
+    # where the foot first lies eps + THROUGH_DEPTH below the ground under it, on the riser
+    theta = first_below(lambda a: [STEP_HIP - L * math.cos(a) - ground_under(-L * math.sin(a)) + EPS + THROUGH_DEPTH])
+    assert math.asin(-STEP_AT / L) < theta < math.asin((RISER - STEP_AT) / L)
+    if action == "warn":
+        (warning,) = [w for w in ex.warnings if w.kind == "passed_through"]
+        assert "'foot'" in warning.message and warning.time == pytest.approx((theta - THETA0) / RATE, abs=1e-9)
+    else:
+        assert "'foot'" in ex.message and ex.t_end == pytest.approx((theta - THETA0) / RATE, abs=1e-9)
+
+
+def test_a_link_carried_through_a_riser_inside_a_step_is_seen(tmp_path):
+    # The leg without a contact, a 2 mm box at its end: its corners (+-1 mm along the leg and
+    # across it) go through the riser the same way. The links' watch sees it where the first
+    # corner reaches the ground under it.
+    box = f'<visual><origin xyz="0 0 {-L}"/><geometry><box size="0.002 0.002 0.002"/></geometry></visual>'
+    leg = LEG.replace(
+        link("leg", 1.0, 0.01, origin=f"0 0 {-L / 2}"), link("leg", 1.0, 0.01, visual=box, origin=f"0 0 {-L / 2}")
+    )
+    ex = load_scene(over_a_step(tmp_path, 0.12, leg=leg, collisions="contacts = []")).simulate()
+    (warning,) = [w for w in ex.warnings if w.kind == "below_ground"]
+    assert "'leg'" in warning.message
+
+    def corners(a):  # a point (u, w) of the leg's frame at angle a: (u cos a + w sin a, hip - u sin a + w cos a)
+        points = [(u, -L + w) for u in (-0.001, 0.001) for w in (-0.001, 0.001)]
+        return [STEP_HIP - u * math.sin(a) + w * math.cos(a) - ground_under(u * math.cos(a) + w * math.sin(a))
+                for u, w in points]  # fmt: skip
+
+    theta = first_below(corners)
+    assert warning.time == pytest.approx((theta - THETA0) / RATE, abs=1e-9)
