@@ -407,17 +407,18 @@ class Assembly:
             if w.action != "warn":
                 continue
             first = least = None
-            slopes: list[Any] = [None] * len(visits)
+            parts_at: list[Any] = [None] * len(visits)
             if w.rate is None:
                 values = points.values(w)
             else:  # the parts once: the condition's values are their least
                 parts = points.values(w, "parts")
                 values = [watches.condition(p) for p in parts]
                 pieces = points.values(w, "pieces") if w.piece is not None else [None] * len(visits)
-                slopes = [watches.Slopes(*s) for s in zip(parts, points.values(w, "rates"), pieces, strict=True)]
-            for (mode, t, x, seg), v, sl in zip(visits, values, slopes, strict=True):
+                rates = points.values(w, "rates")
+                parts_at = [watches.PartsAt(*at) for at in zip(parts, rates, pieces, strict=True)]
+            for (mode, t, x, seg), v, at in zip(visits, values, parts_at, strict=True):
                 stored = seg.t, seg.x, seg.dx
-                if first is None and (hit := watches.first_hold(w, mode, (t, x), stored, v, sl)) is not None:
+                if first is None and (hit := watches.first_hold(w, mode, (t, x), stored, v, at)) is not None:
                     k, when, inside = hit
                     state = x[0] if k == 0 else watches.point(*stored, watches.stored_index(k), when)[0]
                     first = (when, mode, state)

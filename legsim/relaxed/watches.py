@@ -19,8 +19,11 @@ searched by the same test, ``DIP_SPLITS`` levels deep), so a dip that misses eve
 is seen too. A cubic vouches only for a smooth value: a watch whose parts are smooth piecewise
 (a foot's depth below a profile, whose slope jumps at each corner) says which piece each part
 is on (``Watch.piece``), and between two checked points where a part's piece changes, each
-change is located by bisection on the pieces, the condition checked on both sides of it, and
-each smooth stretch between tested by its cubic (``across_pieces``).
+change is located on the step's interpolant (on grids refined in the cell where the piece
+changed, ``PIECE_GRID``), the condition checked on both sides of it, and each smooth stretch
+between tested by its cubic (``across_pieces``). A piece the part enters and leaves within one
+cell of the finest grid (2^-12 of half a step), or leaves and returns to between two checked
+points, is not seen.
 Where a condition first holds between two checked points, the time is located by bisection on
 the points' cubic Hermite interpolant (the one ``Execution.sample`` uses: O(h^4) between steps),
 to float64 resolution;
@@ -89,8 +92,8 @@ class Watch:
         shape, or None; with it a stop or warn watch is also checked between the points (module
         docstring).
     piece: ``piece(mode, t, x) -> labels`` of v's shape, or None (every part smooth): which
-        smooth piece of its part's value each point is on (any numbers, equal on one piece: the
-        segment of a profile under a foot). Needs ``rate``.
+        smooth piece of its part's value each point is on (finite numbers, equal on one piece:
+        the segment of a profile under a foot). Needs ``rate``.
     """
 
     name: str
@@ -233,9 +236,9 @@ class Hold(NamedTuple):
     inside: tuple[float, np.ndarray, float] | None = None
 
 
-class Slopes(NamedTuple):
-    """A watch's parts at checked points, their rates and, where it gives them, their pieces,
-    (N, m) each."""
+class PartsAt(NamedTuple):
+    """A watch's parts at checked points, their rates along the flow and, where it gives them,
+    their pieces, (N, m) each."""
 
     parts: np.ndarray
     rates: np.ndarray
@@ -248,17 +251,17 @@ def first_hold(
     checked: tuple[np.ndarray, np.ndarray],
     stored: tuple[np.ndarray, np.ndarray, np.ndarray],
     values: Any = None,
-    slopes: Slopes | None = None,
+    parts_at: PartsAt | None = None,
 ) -> Hold | None:
     """Where the condition first holds among a visit's ``checked`` points (``refined`` of its
     ``stored`` points t, x, dx), or between two of them by the watch's rate, or None; ``values``
-    (the condition's, (N,)) and ``slopes`` at the checked points when known."""
+    (the condition's, (N,)) and ``parts_at`` the checked points when known."""
     t, x = checked
     if t.shape[0] == 0:
         return None
-    slopes = _slopes(watch, mode, t, x, slopes)
+    parts_at = _parts_at(watch, mode, t, x, parts_at)
     if values is None:
-        values = watch.values(mode, t, x) if slopes is None else condition(slopes.parts)
+        values = watch.values(mode, t, x) if parts_at is None else condition(parts_at.parts)
     v = np.asarray(values)
     below = np.flatnonzero(v < 0.0)
     k = int(below[0]) if below.size else t.shape[0]
@@ -269,17 +272,17 @@ def first_hold(
         if k == t.shape[0]
         else Hold(k, locate(watch, mode, *stored, stored_index(k), True, (float(t[k - 1]), float(t[k]))))
     )
-    if slopes is not None:
+    if parts_at is not None:
         # up to the first checked point that holds: a part may dip before it within its step
-        parts, rates, pieces = slopes
-        upto = Slopes(parts[: k + 1], rates[: k + 1], None if pieces is None else pieces[: k + 1])
+        parts, rates, pieces = parts_at
+        upto = PartsAt(parts[: k + 1], rates[: k + 1], None if pieces is None else pieces[: k + 1])
         dip = first_dip(watch, mode, t[: k + 1], upto, stored)
         if dip is not None and (held is None or dip.time < held.time):
             return dip
     return held
 
 
-def _slopes(watch: Watch, mode: str, t: np.ndarray, x: np.ndarray, given: Slopes | None) -> Slopes | None:
+def _parts_at(watch: Watch, mode: str, t: np.ndarray, x: np.ndarray, given: PartsAt | None) -> PartsAt | None:
     """The parts, their rates and pieces at the points (``given``, or the watch's), None without
     a rate."""
     if watch.rate is None:
@@ -287,7 +290,7 @@ def _slopes(watch: Watch, mode: str, t: np.ndarray, x: np.ndarray, given: Slopes
     if given is None:
         # on the whole arrays, which a watch may keep what it computed on for the rates
         pieces = None if watch.piece is None else watch.pieces(mode, t, x)
-        given = Slopes(watch.parts(mode, t, x), watch.rates(mode, t, x), pieces)
+        given = PartsAt(watch.parts(mode, t, x), watch.rates(mode, t, x), pieces)
     for what, a in (("rates", given.rates), ("pieces", given.pieces)):
         if a is not None and a.shape != given.parts.shape:
             raise SimulationError(
@@ -313,19 +316,20 @@ def cubic_least(
         return s, v0 + s * (a + s * (c2 + s * c3))
 
 
-def first_dip(watch: Watch, mode: str, t: np.ndarray, slopes: Slopes, stored: Stored) -> Hold | None:
+def first_dip(watch: Watch, mode: str, t: np.ndarray, parts_at: PartsAt, stored: Stored) -> Hold | None:
     """The first hold between two neighbours of the checked points at times t (N,), with the
-    watch's ``slopes`` there: where the cubic through a part's values and rates dips below zero
+    watch's ``parts_at`` them: where the cubic through a part's values and rates dips below zero
     and the interpolant confirms it, or where parts' pieces change and the search across the
     changes finds it (module docstring); in the earliest such interval, the earliest of its
     parts' holds."""
-    v, r, pieces = slopes
+    v, r, pieces = parts_at
     _, least = cubic_least(v[:-1], v[1:], r[:-1], r[1:], np.diff(t)[:, None])
     changes = np.zeros(least.shape, dtype=bool) if pieces is None else pieces[:-1] != pieces[1:]
     dips = (least < 0.0) & ~changes
     for j in np.flatnonzero((dips | changes).any(axis=1)):
         k = stored_index(int(j) + 1)
-        ends = np.stack([np.broadcast_to(t[j : j + 2, None], v[j : j + 2].shape), v[j : j + 2], r[j : j + 2]], axis=-1)
+        times = np.broadcast_to(t[j : j + 2, None], v[j : j + 2].shape)
+        ends = np.stack([times, v[j : j + 2], r[j : j + 2]], axis=-1)  # (2, parts, 3): t, value, rate
         found = [
             _confirmed(watch, mode, stored, k, int(p), _end(ends[0, p]), _end(ends[1, p]), DIP_SPLITS)
             for p in np.flatnonzero(dips[j])
@@ -367,23 +371,38 @@ def across_pieces(
     stretch up to its first change tested by its cubic (``_confirmed``), the condition checked
     on both sides of the change, and the rest searched the same way, ``changes`` changes deep."""
     before, after, piece_after = _piece_changes(watch, mode, stored, k, which, start[:, 0], end[:, 0], pieces)
-    times = np.concatenate([before, after])
-    states = np.array([point(*stored, k, float(tau))[0] for tau in times])
-    values, rates = watch.parts(mode, times, states), watch.rates(mode, times, states)
-    held = condition(values)
-    count = which.shape[0]
-    own = np.concatenate([np.arange(count)] * 2), np.concatenate([which] * 2)
-    upto, rest = np.split(np.stack([times, values[own], rates[own]], axis=1), 2)
-    again = (piece_after != pieces[:, 1]) & (changes > 1)
-    found: list[Inside | None] = [(float(times[i]), states[i], float(held[i])) for i in np.flatnonzero(held < 0.0)]
-    found += _stretches(watch, mode, stored, k, which, start, upto, np.ones(count, dtype=bool))
-    found += _stretches(watch, mode, stored, k, which, rest, end, ~again)
-    if again.any():
-        pieces_after = np.stack([piece_after, pieces[:, 1]], axis=1)[again]
-        found.append(across_pieces(watch, mode, stored, k, which[again], rest[again], end[again], pieces_after,
-                                   changes - 1))  # fmt: skip
+    found, upto, rest = _both_sides(watch, mode, stored, k, which, before, after)
+    further = (piece_after != pieces[:, 1]) & (changes > 1)
+    found += _stretches(watch, mode, stored, k, which, start, upto, np.ones(which.shape[0], dtype=bool))
+    found += _stretches(watch, mode, stored, k, which, rest, end, ~further)
+    if further.any():
+        pieces_after = np.stack([piece_after, pieces[:, 1]], axis=1)[further]
+        found.append(across_pieces(watch, mode, stored, k, which[further], rest[further], end[further],
+                                   pieces_after, changes - 1))  # fmt: skip
     holds = [f for f in found if f is not None]
     return min(holds, key=lambda f: f[0]) if holds else None
+
+
+def _both_sides(
+    watch: Watch, mode: str, stored: Stored, k: int, which: np.ndarray, before: np.ndarray, after: np.ndarray
+) -> tuple[list[Inside | None], np.ndarray, np.ndarray]:
+    """The condition just ``before`` and just ``after`` each part's change of piece ((P,) times,
+    s): the points there where it holds, and each part's (t, value, rate) at both, (P, 3) each."""
+    times = np.concatenate([before, after])
+    states = _states_at(stored, k, times)
+    values, rates = watch.parts(mode, times, states), watch.rates(mode, times, states)
+    held = condition(values)
+    holds: list[Inside | None] = [(float(times[i]), states[i], float(held[i])) for i in np.flatnonzero(held < 0.0)]
+    at_part = np.arange(times.shape[0]), np.concatenate([which, which])  # row i: part which[i % P]
+    upto, rest = np.split(np.stack([times, values[at_part], rates[at_part]], axis=1), 2)
+    return holds, upto, rest
+
+
+def _states_at(stored: Stored, k: int, times: np.ndarray) -> np.ndarray:
+    """Stored step k's interpolant at ``times`` (m,) inside it, (m, n)."""
+    t, x, dx = stored
+    t0, dt = float(t[k - 1]), float(t[k] - t[k - 1])
+    return hermite_values(x[k - 1], dx[k - 1], x[k], dx[k], dt, (times.reshape(-1, 1) - t0) / dt)
 
 
 def _stretches(
@@ -410,13 +429,12 @@ def _piece_changes(
     one call of the watch a level: the times just before and just after the change and the piece
     after it (``pieces[:, 1]``, the one at tb, until a probe finds another), (P,) each."""
     lo, hi, piece = ta.astype(float), tb.astype(float), pieces[:, 1].astype(float)
-    t, x, dx = stored
-    t0, dt = float(t[k - 1]), float(t[k] - t[k - 1])
     rows = np.arange(which.shape[0])
     inner = np.arange(1, PIECE_GRID + 1) / (PIECE_GRID + 1)
     for _ in range(PIECE_LEVELS):
         grid = lo[:, None] + (hi - lo)[:, None] * inner  # (P, PIECE_GRID)
-        states = hermite_values(x[k - 1], dx[k - 1], x[k], dx[k], dt, (grid.reshape(-1, 1) - t0) / dt)
+        states = _states_at(stored, k, grid.reshape(-1))
+        # row i of part which[i]: its own column of its own grid's labels, (P, PIECE_GRID)
         labels = watch.pieces(mode, grid.reshape(-1), states).reshape(*grid.shape, -1)[rows, :, which]
         changed = labels != pieces[:, :1]
         first = np.argmax(changed, axis=1)
@@ -472,8 +490,8 @@ class PointsByMode:
 
     def values(self, watch: Watch, kind: str = "values") -> list[np.ndarray]:
         """The condition's value at the points of each visit, in the visits' order: one call of
-        the watch per mode; with ``kind`` "parts" or "rates" its parts or their rates (the
-        watch's methods of those names)."""
+        the watch per mode; with ``kind`` "parts", "rates" or "pieces" its parts, their rates
+        or their pieces (the watch's methods of those names)."""
         function = getattr(watch, kind)
         out: list[np.ndarray] = [np.empty(0)] * self.count
         for mode, members, t, x, ends in self.groups:

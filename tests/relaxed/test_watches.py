@@ -216,6 +216,40 @@ def test_a_value_jumping_where_its_piece_changes_inside_a_step_is_seen(python, l
     assert warning.time == pytest.approx(enters, abs=1e-12)
 
 
+def dip(centre):
+    """A parabola on the ball's time: 1000 (t - centre)^2 - 0.01, below zero for sqrt(1e-5) s
+    either side of ``centre``, and its rate."""
+    return (lambda t: 1000.0 * (t - centre) ** 2 - 0.01), (lambda t: 2000.0 * (t - centre))
+
+
+@pytest.mark.parametrize(
+    ("centre", "during"),
+    [(0.23, lambda t: t < 0.25), (0.28, lambda t: t >= 0.25)],
+    ids=["before-the-change", "after-the-change"],
+)
+def test_a_dip_on_either_side_of_a_change_of_piece_is_found_by_that_side_s_cubic(centre, during):
+    # Steps of 0.2 s, the piece changing at 0.25 s inside the half step (0.2, 0.3); on one side
+    # of the change the value is a parabola dipping below zero around ``centre`` (not at the
+    # change itself), on the other it is 10. The cubic through the half step's ends does not
+    # dip; the cubic of the dipping side, through its end and the change (a parabola's own),
+    # does, and the stop is where the parabola first reaches zero: centre - sqrt(1e-5).
+    value_at, rate_at = dip(centre)
+
+    def value(mode, t, x):
+        return np.where(during(t), value_at(t), 10.0)
+
+    def rate(mode, t, x):
+        return np.where(during(t), rate_at(t), 0.0)
+
+    def piece(mode, t, x):
+        return (t >= 0.25).astype(float)
+
+    watch = Watch("dip", value, "stop", said, rate=rate, piece=piece)
+    ex = run([watch], t_final=0.4, h=0.2)
+    assert ex.status == "fell" and ex.t_end == pytest.approx(centre - math.sqrt(1e-5), abs=1e-12)
+    assert run([dataclasses.replace(watch, piece=None)], t_final=0.4, h=0.2).status == "finished"
+
+
 def test_a_cubic_leaving_its_start_level_has_its_least_found():
     # p(s) = 0.1 - s^2 + s^3 (slope 0 at the start): least at s = 2/3, 0.1 - 4/27
     s, least = cubic_least(*(np.array([w]) for w in (0.1, 0.1, 0.0, 1.0, 1.0)))

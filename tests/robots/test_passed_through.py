@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 import pytest
-from legsim.robots.bridge.guards import THROUGH_DEPTH
+from legsim.robots.bridge.guards import THROUGH_DEPTH, PastDepths
 from scipy.optimize import brentq, minimize_scalar
 
 from legsim.scene import load_scene
@@ -198,6 +198,14 @@ def first_below(heights, low=0.0, high=0.6):
     grid = np.linspace(low, high, 60_001)
     k = int(np.argmax([min(heights(a)) < 0.0 for a in grid]))
     return brentq(lambda a: min(heights(a)), grid[k - 1], grid[k], xtol=1e-15)
+
+
+def test_without_the_terrain_s_segments_the_riser_is_not_seen(tmp_path, monkeypatch):
+    # The premise of the two tests below: the foot is above the ground at every checked point and
+    # the cubics through them do not dip, so only the change of segment under the foot shows it.
+    monkeypatch.setattr(PastDepths, "cornered", property(lambda self: False))
+    ex = load_scene(over_a_step(tmp_path, 0.12)).simulate()
+    assert ex.status == "finished" and not [w for w in ex.warnings if w.kind == "passed_through"]
 
 
 @pytest.mark.parametrize(("action", "status"), [("warn", "finished"), ("strict", "model_breakdown")])
