@@ -81,6 +81,22 @@ class Terrain:
         """Which smooth piece of the terrain lies under each x (``pieces_along``), shape of x."""
         return pieces_along(self.array, x)
 
+    def highest(self, low: Any, high: Any) -> np.ndarray:
+        """The highest h (m) over each [low, high] (m; arrays of one shape, low <= high): the
+        higher end's, a profile's corners between them, a sine's crest."""
+        lo, hi = np.asarray(low, dtype=float), np.asarray(high, dtype=float)
+        if self.array[0] == SINE:
+            return np.full(lo.shape, self.array[1] + abs(self.array[2]))
+        ends = np.maximum(self.height(lo), self.height(hi))
+        xs = corner_positions(self.array)
+        if xs.size == 0:  # flat or a slope: a line, highest at an end
+            return ends
+        heights = np.append(self.array[2 + xs.size : 2 + 2 * xs.size], -np.inf)
+        first, last = np.searchsorted(xs, lo.ravel(), side="left"), np.searchsorted(xs, hi.ravel(), side="right")
+        # the corners first .. last - 1 lie in the range: each pair's reduceat is their highest
+        between = np.maximum.reduceat(heights, np.column_stack([first, last]).ravel())[::2]
+        return np.maximum(ends, np.where(last > first, between, -np.inf).reshape(lo.shape))
+
     def polyline(self, x_low: float, x_high: float, samples: int = 400) -> np.ndarray:
         """(k, 2) points (x, h(x)) over [x_low, x_high] (m) for drawing: a profile's breakpoints
         inside the range, a sine sampled ``samples`` times (more for a short wavelength), a line's

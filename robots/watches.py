@@ -17,6 +17,7 @@ import numpy as np
 from legsim.compiled.rows import at_rows
 from legsim.control import ControlLaw
 from legsim.relaxed import Watch
+from legsim.relaxed.watches import cubic_least
 from legsim.terrain import SINE, Terrain
 
 from .bridge.guards import ground_watch
@@ -123,10 +124,34 @@ class LinkHeights:
         x = self._placements.at(states)[:, self._columns, 0]
         return np.zeros(x.shape) if self.terrain is None else self.terrain.pieces(x)
 
+    def clear(self, ta: np.ndarray, xa: np.ndarray, tb: np.ndarray, xb: np.ndarray, ground: float) -> np.ndarray:
+        """(J, points): whether each link point stays more than ``ground`` (m) above the highest
+        terrain under the x it sweeps between two checked points at times ta, tb (J,) and states
+        xa, xb (J, >= 2 n): on the cubics of its height and its x through their values and
+        velocities at both (the interpolant's, to O(dt^4)), it cannot reach the ground there."""
+        states = np.concatenate([xa, xb])
+        a, b = np.split(self._placements.at(states)[:, self._columns], 2)
+        va, vb = np.split(self._placements.velocities(states)[:, self._columns], 2)
+        dt = (tb - ta)[:, None]
+        x_low, x_high = _cubic_range(a[..., 0], b[..., 0], va[..., 0], vb[..., 0], dt)
+        z_low, _ = _cubic_range(a[..., 1], b[..., 1], va[..., 1], vb[..., 1], dt)
+        highest = self.terrain.highest(x_low, x_high) if self.terrain is not None else np.zeros(z_low.shape)
+        return z_low - highest > ground
+
     def __call__(self, x: np.ndarray) -> dict[str, float]:
         """Each link's lowest point (m) at one state x."""
         z = self.heights_at(x)[0]
         return {name: float(np.min(z[self.owner == k])) for k, name in enumerate(self.names)}
+
+
+def _cubic_range(
+    v0: np.ndarray, v1: np.ndarray, r0: np.ndarray, r1: np.ndarray, dt: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """The least and the most of the cubic through (0, v0) and (dt, v1) with slopes r0, r1 over
+    [0, dt], arrays of one shape: its ends' or its interior extremes (``cubic_least``)."""
+    least = np.fmin(np.minimum(v0, v1), cubic_least(v0, v1, r0, r1, dt)[1])
+    most = np.fmax(np.maximum(v0, v1), -cubic_least(-v0, -v1, -r0, -r1, dt)[1])
+    return least, most
 
 
 def below_ground_watch(heights: LinkHeights, ground: float, action: str = "warn") -> Watch:
@@ -150,6 +175,9 @@ def below_ground_watch(heights: LinkHeights, ground: float, action: str = "warn"
     def piece(mode: str, t: np.ndarray, x: np.ndarray) -> np.ndarray:
         return heights.pieces_at(x)
 
+    def clear(mode: str, ta: np.ndarray, xa: np.ndarray, tb: np.ndarray, xb: np.ndarray) -> np.ndarray:
+        return heights.clear(ta, xa, tb, xb, ground)
+
     def message(t: float, mode: str, x: np.ndarray) -> str:
         h = heights(x)
         below = sorted((v - ground, k) for k, v in h.items() if v < ground)
@@ -159,7 +187,8 @@ def below_ground_watch(heights: LinkHeights, ground: float, action: str = "warn"
             f"(declare a contact on the link, or it passes through the ground)"
         )
 
-    return ground_watch("below_ground", value, message, action, rate, piece if heights.cornered else None)
+    pieces = (piece, clear) if heights.cornered else (None, None)
+    return ground_watch("below_ground", value, message, action, rate, *pieces)
 
 
 #: How deep (m) a point of the terrain may lie inside a body before the body counts as passing

@@ -94,6 +94,10 @@ class Watch:
     piece: ``piece(mode, t, x) -> labels`` of v's shape, or None (every part smooth): which
         smooth piece of its part's value each point is on (finite numbers, equal on one piece:
         the segment of a profile under a foot). Needs ``rate``.
+    clear: ``clear(mode, ta, xa, tb, xb) -> (J, m) bool``, or None: the parts that cannot hold
+        anywhere between two checked points (times ta, tb (J,), states xa, xb (J, n)), whatever
+        pieces they cross (a point that stays above the highest ground under it); their changes
+        of piece are not searched. Needs ``piece``.
     """
 
     name: str
@@ -104,6 +108,7 @@ class Watch:
     counter: str = ""
     rate: Callable[[str, np.ndarray, np.ndarray], np.ndarray] | None = None
     piece: Callable[[str, np.ndarray, np.ndarray], np.ndarray] | None = None
+    clear: Callable[[str, np.ndarray, np.ndarray, np.ndarray, np.ndarray], np.ndarray] | None = None
 
     def __post_init__(self) -> None:
         if self.action not in ACTIONS:
@@ -121,6 +126,10 @@ class Watch:
         if self.piece is not None and not (callable(self.piece) and self.rate is not None):
             raise SimulationError(
                 f"watch {self.name!r}: piece must be None or a function piece(mode, t, x), given with a rate"
+            )
+        if self.clear is not None and not (callable(self.clear) and self.piece is not None):
+            raise SimulationError(
+                f"watch {self.name!r}: clear must be None or a function clear(mode, ta, xa, tb, xb), given with a piece"
             )
 
     def values(self, mode: str, t: np.ndarray, x: np.ndarray) -> np.ndarray:
@@ -276,7 +285,7 @@ def first_hold(
         # up to the first checked point that holds: a part may dip before it within its step
         parts, rates, pieces = parts_at
         upto = PartsAt(parts[: k + 1], rates[: k + 1], None if pieces is None else pieces[: k + 1])
-        dip = first_dip(watch, mode, t[: k + 1], upto, stored)
+        dip = first_dip(watch, mode, (t[: k + 1], x[: k + 1]), upto, stored)
         if dip is not None and (held is None or dip.time < held.time):
             return dip
     return held
@@ -316,16 +325,20 @@ def cubic_least(
         return s, v0 + s * (a + s * (c2 + s * c3))
 
 
-def first_dip(watch: Watch, mode: str, t: np.ndarray, parts_at: PartsAt, stored: Stored) -> Hold | None:
-    """The first hold between two neighbours of the checked points at times t (N,), with the
+def first_dip(
+    watch: Watch, mode: str, checked: tuple[np.ndarray, np.ndarray], parts_at: PartsAt, stored: Stored
+) -> Hold | None:
+    """The first hold between two neighbours of the ``checked`` points (t (N,), x (N, n)), with the
     watch's ``parts_at`` them: where the cubic through a part's values and rates dips below zero
     and the interpolant confirms it, or where parts' pieces change and the search across the
     changes finds it (module docstring); in the earliest such interval, the earliest of its
     parts' holds."""
+    t, x = checked
     v, r, pieces = parts_at
     _, least = cubic_least(v[:-1], v[1:], r[:-1], r[1:], np.diff(t)[:, None])
-    changes = np.zeros(least.shape, dtype=bool) if pieces is None else pieces[:-1] != pieces[1:]
-    dips = (least < 0.0) & ~changes
+    unsmooth = np.zeros(least.shape, dtype=bool) if pieces is None else pieces[:-1] != pieces[1:]
+    dips = (least < 0.0) & ~unsmooth
+    changes = unsmooth & ~_cleared(watch, mode, t, x, unsmooth)
     for j in np.flatnonzero((dips | changes).any(axis=1)):
         k = stored_index(int(j) + 1)
         times = np.broadcast_to(t[j : j + 2, None], v[j : j + 2].shape)
@@ -347,6 +360,28 @@ def first_dip(watch: Watch, mode: str, t: np.ndarray, parts_at: PartsAt, stored:
         if holds:
             return min(holds, key=lambda hold: hold.time)
     return None
+
+
+def _cleared(watch: Watch, mode: str, t: np.ndarray, x: np.ndarray, unsmooth: np.ndarray) -> np.ndarray:
+    """Which parts the watch's ``clear`` rules out between each two checked points where some
+    part's piece changes (``unsmooth``, (N - 1, m)), of its shape; none without ``clear``."""
+    out = np.zeros(unsmooth.shape, dtype=bool)
+    rows = np.flatnonzero(unsmooth.any(axis=1))
+    if watch.clear is None or rows.size == 0:
+        return out
+    try:
+        cleared = np.asarray(watch.clear(mode, t[rows], x[rows], t[rows + 1], x[rows + 1]), dtype=bool)
+    except Exception as exc:
+        raise SimulationError(
+            f"watch {watch.name!r}: its clear failed in mode '{mode}': {type(exc).__name__}: {exc}"
+        ) from exc
+    if cleared.shape != (rows.size, unsmooth.shape[1]):
+        raise SimulationError(
+            f"watch {watch.name!r}: its clear gave shape {cleared.shape} for {rows.size} stretches of "
+            f"{unsmooth.shape[1]} parts"
+        )
+    out[rows] = cleared
+    return out
 
 
 #: A point of a step's interpolant where a condition holds: (t, x, v).

@@ -229,18 +229,21 @@ def passed_through_watch(past: PastDepths, eps: float, action: str = "warn") -> 
 def ground_watch(
     name: str, value: Callable[..., np.ndarray], message: Callable[..., str], action: str,
     rate: Callable[..., np.ndarray] | None = None, piece: Callable[..., np.ndarray] | None = None,
+    clear: Callable[..., np.ndarray] | None = None,
 ) -> Watch:  # fmt: skip
     """The watch of a body through the ground, by the scene's ``below_ground`` ``action``: "warn"
     a warning; "strict" a stop with status ``model_breakdown`` (the model has no contact there);
     "fall" a stop with status ``fell`` (the robot crashed, a scene's fall condition). ``rate``:
     the value's rate along the flow, to check between points (``Watch.rate``); ``piece``: the
-    terrain's piece under each part, where the terrain has corners (``Watch.piece``)."""
+    terrain's piece under each part, where the terrain has corners (``Watch.piece``); ``clear``:
+    the parts that stay clear of the ground between two checked points (``Watch.clear``)."""
     if action == "strict":
-        return Watch(name, value, "stop", message, status=Status.MODEL_BREAKDOWN.value, rate=rate, piece=piece)
+        return Watch(name, value, "stop", message, status=Status.MODEL_BREAKDOWN.value, rate=rate, piece=piece,
+                     clear=clear)  # fmt: skip
     if action == "fall":
         return Watch(name, value, "stop", lambda t, mode, x: f"fell: {name}: {message(t, mode, x)}",
-                     status=Status.FELL.value, rate=rate, piece=piece)  # fmt: skip
-    return Watch(name, value, "warn", message, rate=rate, piece=piece)
+                     status=Status.FELL.value, rate=rate, piece=piece, clear=clear)  # fmt: skip
+    return Watch(name, value, "warn", message, rate=rate, piece=piece, clear=clear)
 
 
 def guard_units(model: BridgeModel) -> dict[str, str]:

@@ -212,6 +212,9 @@ def test_a_value_jumping_where_its_piece_changes_inside_a_step_is_seen(python, l
     ex = run([watch], t_final=0.4, h=0.2, python=python)
     assert ex.status == "fell" and ex.t_end == pytest.approx(enters, abs=1e-12)
     assert run([dataclasses.replace(watch, piece=None)], t_final=0.4, h=0.2, python=python).status == "finished"
+    # a part its watch rules out between two checked points is not searched there
+    ruled_out = dataclasses.replace(watch, clear=lambda mode, ta, xa, tb, xb: np.ones((len(ta), 1), bool))
+    assert run([ruled_out], t_final=0.4, h=0.2, python=python).status == "finished"
     (warning,) = run([dataclasses.replace(watch, action="warn")], t_final=0.4, h=0.2, python=python).warnings
     assert warning.time == pytest.approx(enters, abs=1e-12)
 
@@ -296,6 +299,12 @@ def test_bad_watches_are_refused_by_name():
         Watch("w", below(0), "stop", said, rate=1.0)
     with pytest.raises(SimulationError, match="piece must be None or a function piece"):
         Watch("w", below(0), "stop", said, piece=lambda mode, t, x: np.zeros(len(t)))
+    with pytest.raises(SimulationError, match="clear must be None or a function clear"):
+        Watch("w", below(0), "stop", said, rate=lambda mode, t, x: x[:, 1], clear=lambda *args: None)
+    value, piece = shelves([(0.0, -10.0), (0.25, 0.8)])
+    with pytest.raises(SimulationError, match=r"watch 'w': its clear gave shape \(1, 2\) for 1 stretches of 1 parts"):
+        run([Watch("w", value, "stop", said, rate=lambda mode, t, x: x[:, 1], piece=piece,
+                   clear=lambda mode, ta, xa, tb, xb: np.zeros((len(ta), 2), bool))], t_final=0.4, h=0.2)  # fmt: skip
     value, _ = shelves([(0.0, -10.0)])
     with pytest.raises(SimulationError, match=r"watch 'w': its pieces' shape \(\d+, 2\) is not its values' \(\d+, 1\)"):
         run([Watch("w", value, "stop", said, rate=lambda mode, t, x: x[:, 1],

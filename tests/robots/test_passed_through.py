@@ -16,6 +16,7 @@ import pytest
 from legsim.robots.bridge.guards import THROUGH_DEPTH, PastDepths
 from scipy.optimize import brentq, minimize_scalar
 
+from legsim.relaxed.watches import refined
 from legsim.scene import load_scene
 
 from .test_collision_contacts import link, shape, write
@@ -177,11 +178,12 @@ def over_a_step(
     below_ground="warn",
     leg=LEG,
     collisions='contacts = [{ name = "foot", frame = "foot", tangential = false }]',
+    t_final=0.12,
 ):
     scene = (
         f'root = "fixed"\ng = 0.0\nbelow_ground = "{below_ground}"\n{collisions}\n'
         f"[initial]\nstate = {{ hip = {THETA0}, hipd = {RATE} }}\n"
-        f'[integrator]\nmethod = "rk4"\nh = {h}\neps = {EPS}\nt_final = 0.12\n'
+        f'[integrator]\nmethod = "rk4"\nh = {h}\neps = {EPS}\nt_final = {t_final}\n'
         f'[terrain]\nkind = "steps"\npositions = [{STEP_AT}]\nheights = [0.0]\nbase = {STEP_RISE}\nriser = {RISER}\n'
     )
     return write(folder, "swing", leg.replace(f'xyz="0 0 {H}"', f'xyz="0 0 {STEP_HIP}"'), scene)
@@ -222,15 +224,23 @@ def test_a_foot_carried_through_a_riser_inside_a_step_is_seen(tmp_path, action, 
         assert "'foot'" in ex.message and ex.t_end == pytest.approx((theta - THETA0) / RATE, abs=1e-9)
 
 
+#: The leg without a contact, a 2 mm box drawn at its end.
+BOX_LEG = LEG.replace(
+    link("leg", 1.0, 0.01, origin=f"0 0 {-L / 2}"),
+    link(
+        "leg",
+        1.0,
+        0.01,
+        visual=f'<visual><origin xyz="0 0 {-L}"/><geometry><box size="0.002 0.002 0.002"/></geometry></visual>',
+        origin=f"0 0 {-L / 2}",
+    ),
+)
+
+
 def test_a_link_carried_through_a_riser_inside_a_step_is_seen(tmp_path):
-    # The leg without a contact, a 2 mm box at its end: its corners (+-1 mm along the leg and
-    # across it) go through the riser the same way. The links' watch sees it where the first
-    # corner reaches the ground under it.
-    box = f'<visual><origin xyz="0 0 {-L}"/><geometry><box size="0.002 0.002 0.002"/></geometry></visual>'
-    leg = LEG.replace(
-        link("leg", 1.0, 0.01, origin=f"0 0 {-L / 2}"), link("leg", 1.0, 0.01, visual=box, origin=f"0 0 {-L / 2}")
-    )
-    ex = load_scene(over_a_step(tmp_path, 0.12, leg=leg, collisions="contacts = []")).simulate()
+    # The box's corners (+-1 mm along the leg and across it) go through the riser the same way.
+    # The links' watch sees it where the first corner reaches the ground under it.
+    ex = load_scene(over_a_step(tmp_path, 0.12, leg=BOX_LEG, collisions="contacts = []")).simulate()
     (warning,) = [w for w in ex.warnings if w.kind == "below_ground"]
     assert "'leg'" in warning.message
 
@@ -241,3 +251,21 @@ def test_a_link_carried_through_a_riser_inside_a_step_is_seen(tmp_path):
 
     theta = first_below(corners)
     assert warning.time == pytest.approx((theta - THETA0) / RATE, abs=1e-9)
+
+
+def test_a_link_point_ruled_clear_between_two_checked_points_stays_above_the_ground(tmp_path):
+    # The links' watch skips a change of segment where a point stays above the highest ground
+    # under the x it sweeps (``LinkHeights.clear``, on the cubics of its height and x). Over a
+    # whole turn of the leg (steps of 0.02 s), wherever it rules a stretch between two checked
+    # points clear, every point's height above the ground under it stays positive on the
+    # interpolant there (400 samples a stretch); and it rules some clear and some not.
+    scene = load_scene(over_a_step(tmp_path, 0.02, leg=BOX_LEG, collisions="contacts = []", t_final=0.62))
+    watch = next(w for w in scene.model.info["watches"](None, EPS) if w.name == "below_ground")
+    ex = scene.simulate()
+    (segment,) = ex.segments
+    t, x = refined(segment.t, segment.x, segment.dx)
+    cleared = watch.clear(segment.mode, t[:-1], x[:-1], t[1:], x[1:])
+    assert cleared.any() and not cleared.all()
+    for j, k in zip(*np.nonzero(cleared), strict=True):
+        times = np.linspace(t[j], t[j + 1], 400)
+        assert watch.parts(segment.mode, times, segment.interpolate(times))[:, k].min() > 0.0

@@ -14,7 +14,17 @@ from legsim.errors import SceneError
 from legsim.heights import CORNER_RESOLUTION, NOTCH_RESOLUTION, UNBOUNDED_MU, face_slope, notch, notch_mu
 from legsim.scene import load_scene
 from legsim.scene.terrain import parse_terrain
-from legsim.terrain import curvature, flat_terrain, height, profile_terrain, sine_terrain, slope, slope_terrain
+from legsim.terrain import (
+    SINE,
+    corner_positions,
+    curvature,
+    flat_terrain,
+    height,
+    profile_terrain,
+    sine_terrain,
+    slope,
+    slope_terrain,
+)
 
 G = 9.81
 
@@ -78,6 +88,36 @@ def test_the_encoded_terrains_give_the_closed_form_height_slope_and_curvature(tm
     assert height(incline, 0, 3.0) == pytest.approx(2.0 + 2.0 * math.tan(math.radians(30.0)), abs=1e-15)
     steps = parse_terrain(path, {"kind": "steps", "positions": [1.0, 2.0], "heights": [0.1, 0.25], "riser": 0.01})
     assert [height(steps.array, 0, x) for x in (0.5, 0.995, 1.5, 2.5)] == pytest.approx([0.0, 0.05, 0.1, 0.25])
+
+
+@pytest.mark.parametrize(
+    "terrain",
+    [
+        profile_terrain([-1.0, -0.3, 0.2, 0.25, 1.1], [0.0, 0.4, -0.2, 0.3, 0.1]),
+        sine_terrain(0.05, 0.7, 0.3, 0.1),
+        slope_terrain(-0.2, 0.5, 0.1),
+        flat_terrain(0.2),
+    ],
+    ids=["profile", "sine", "slope", "flat"],
+)
+def test_the_highest_ground_over_a_range_is_the_most_of_a_fine_sampling(terrain):
+    # Against 20,001 samples of each range (and the range's ends): a profile is linear between its
+    # corners, so its highest point is at a corner or an end, and the sampling reaches it exactly
+    # where a sample falls there; a sine's crest bounds it from above (its value whatever the range).
+    rng = np.random.default_rng(5)
+    low = rng.uniform(-1.5, 1.5, size=(40, 3))
+    high = low + rng.uniform(0.0, 1.0, size=low.shape)
+    highest = terrain.highest(low, high)
+    assert highest.shape == low.shape
+    for lo, hi, top in zip(low.ravel(), high.ravel(), highest.ravel(), strict=True):
+        sampled = terrain.height(np.concatenate([np.linspace(lo, hi, 20_001), corner_positions(terrain.array)]))
+        inside = np.concatenate([np.ones(20_001, bool), (corner_positions(terrain.array) >= lo)
+                                 & (corner_positions(terrain.array) <= hi)])  # fmt: skip
+        most = sampled[inside].max()
+        if terrain.array[0] == SINE:
+            assert top >= most and top == pytest.approx(0.1 + 0.05, abs=1e-15)
+        else:
+            assert top == pytest.approx(most, abs=1e-12)
 
 
 def test_a_point_at_a_breakpoint_takes_the_face_it_moves_onto():
