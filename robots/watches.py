@@ -18,7 +18,7 @@ from legsim.compiled.rows import at_rows
 from legsim.control import ControlLaw
 from legsim.relaxed import Watch
 from legsim.relaxed.watches import cubic_least
-from legsim.terrain import SINE, Terrain
+from legsim.terrain import SINE, Terrain, corner_positions
 
 from .bridge.guards import ground_watch
 from .bridge.placements import Placements
@@ -241,34 +241,82 @@ class TerrainPiercing:
         (fixed in the terrain) distance inside its nearest edge, as the edge moves with the body."""
         return self._scan(states)[1]
 
-    def _scan(self, states: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(depths, rates), kept for a batch while it lives (the watch's value and rate read both)."""
+    def pieces_at(self, states: np.ndarray) -> np.ndarray:
+        """Which terrain corner is deepest in each body and which edge of the body is nearest it,
+        one number per body at each state, (rows, bodies): ``depths_at`` is smooth while these
+        stay (on a profile; a sine's sampled points are not the same from batch to batch)."""
+        return self._scan(states)[2]
+
+    @property
+    def cornered(self) -> bool:
+        """Whether the terrain's points are its corners (a profile's, steps'), the same in every
+        batch, so that ``pieces_at`` names them."""
+        return not self.sine
+
+    def clear(self, ta: np.ndarray, xa: np.ndarray, tb: np.ndarray, xb: np.ndarray) -> np.ndarray:
+        """(J, bodies): whether each body's lowest corner stays more than ``PIERCING_DEPTH`` above
+        the highest terrain under the x its corners sweep between two checked points at times
+        ta, tb (J,) and states xa, xb (J, >= 2 n), on the cubics of the corners' heights and x
+        through their values and velocities at both: no terrain point can then be inside it."""
+        states = np.concatenate([xa, xb])
+        a, b = np.split(self.corners_at(states), 2)
+        va, vb = np.split(self._placements.velocities(states)[:, self._columns], 2)
+        dt = (tb - ta)[:, None]
+        x_low, x_high = _cubic_range(a[..., 0], b[..., 0], va[..., 0], vb[..., 0], dt)
+        z_low, _ = _cubic_range(a[..., 1], b[..., 1], va[..., 1], vb[..., 1], dt)
+        ends = np.cumsum([0, *self.sizes])
+        out = np.empty((ta.shape[0], len(self.sizes)), dtype=bool)
+        for body, (first, last) in enumerate(itertools.pairwise(ends)):
+            under = self.terrain.highest(x_low[:, first:last].min(axis=1), x_high[:, first:last].max(axis=1))
+            out[:, body] = z_low[:, first:last].min(axis=1) - under > PIERCING_DEPTH
+        return out
+
+    def _scan(self, states: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(depths, rates, pieces), kept for a batch while it lives (the watch's value, rate and
+        piece read them in turn)."""
         kept = self._kept.get(states)
         if kept is not None:
             return kept
         placed = self.corners_at(states)
         moving = self._placements.velocities(states)[:, self._columns]
-        depths, rates = np.empty((placed.shape[0], len(self.sizes))), np.empty((placed.shape[0], len(self.sizes)))
+        shape = (placed.shape[0], len(self.sizes))
+        depths, rates, pieces = np.empty(shape), np.empty(shape), np.empty(shape)
         for start in range(0, placed.shape[0], PIERCING_ROWS):
             rows = slice(start, start + PIERCING_ROWS)
             corners = placed[rows]
             points = self.terrain_points(float(corners[..., 0].min()), float(corners[..., 0].max()))
-            depths[rows], rates[rows] = self._depths(corners, moving[rows], points)
-        self._kept.keep(states, (depths, rates))
-        return depths, rates
+            depths[rows], rates[rows], pieces[rows] = self._depths(corners, moving[rows], points)
+        self._kept.keep(states, (depths, rates, pieces))
+        return depths, rates, pieces
 
-    def _depths(self, corners: np.ndarray, velocities: np.ndarray, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(rows, bodies) each: each body's deepest point of ``points`` (k, 2) and that depth's
-        rate; corners and their velocities (rows, all, 2), each body's counterclockwise."""
+    def _depths(
+        self, corners: np.ndarray, velocities: np.ndarray, points: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(rows, bodies) each: each body's deepest point of ``points`` (k, 2), that depth's rate
+        and the piece it is on (``pieces_at``); corners and their velocities (rows, all, 2), each
+        body's counterclockwise."""
         ends = np.cumsum([0, *self.sizes])
         found = [_deepest(corners[:, a:b], velocities[:, a:b], points) for a, b in itertools.pairwise(ends)]
-        return np.stack([d for d, _ in found], axis=1), np.stack([r for _, r in found], axis=1)
+        numbers, edges = self._corner_numbers(points), max(self.sizes)
+        depths = np.stack([depth for depth, _, _, _ in found], axis=1)
+        rates = np.stack([rate for _, rate, _, _ in found], axis=1)
+        pieces = np.stack([(numbers[point] + 1) * edges + edge for _, _, point, edge in found], axis=1)
+        return depths, rates, pieces
+
+    def _corner_numbers(self, points: np.ndarray) -> np.ndarray:
+        """Each of a batch's terrain ``points`` (k, 2) numbered as in every batch: its corner's
+        index among the terrain's corners, -1 for the ends of the batch's range, (k,)."""
+        corner_xs = corner_positions(self.terrain.array)
+        return np.where(np.isin(points[:, 0], corner_xs), np.searchsorted(corner_xs, points[:, 0]), -1)
 
 
-def _deepest(polygon: np.ndarray, speeds: np.ndarray, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _deepest(
+    polygon: np.ndarray, speeds: np.ndarray, points: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The deepest of ``points`` (k, 2, fixed in the terrain) inside a convex polygon (rows, m, 2),
     counterclockwise, moving at ``speeds`` (rows, m, 2): its depth, the least distance inside an
-    edge's line (m; < 0 outside), and that depth's rate (m/s), (rows,) each."""
+    edge's line (m; < 0 outside), that depth's rate (m/s), which point it is and which edge is
+    nearest it, (rows,) each."""
     edges = np.roll(polygon, -1, axis=1) - polygon
     lengths = np.linalg.norm(edges, axis=-1)
     inward = np.stack([-edges[..., 1], edges[..., 0]], axis=-1) / lengths[..., None]
@@ -286,7 +334,7 @@ def _deepest(polygon: np.ndarray, speeds: np.ndarray, points: np.ndarray) -> tup
     rate = -np.einsum("rd,rd->r", speeds[rows, edge], inward[rows, edge]) + np.einsum(
         "rd,rd->r", offsets[rows, edge, point], turned
     )
-    return depth_of_point[rows, point], rate
+    return depth_of_point[rows, point], rate, point, edge
 
 
 def _counterclockwise(corners: np.ndarray) -> np.ndarray:
@@ -309,6 +357,12 @@ def terrain_inside_watch(piercing: TerrainPiercing, action: str = "warn") -> Wat
     def rate(mode: str, t: np.ndarray, x: np.ndarray) -> np.ndarray:
         return -piercing.rates_at(x)
 
+    def piece(mode: str, t: np.ndarray, x: np.ndarray) -> np.ndarray:
+        return piercing.pieces_at(x)
+
+    def clear(mode: str, ta: np.ndarray, xa: np.ndarray, tb: np.ndarray, xb: np.ndarray) -> np.ndarray:
+        return piercing.clear(ta, xa, tb, xb)
+
     def message(t: float, mode: str, x: np.ndarray) -> str:
         # Where the watch first holds (located on the interpolant) the deepest is at PIERCING_DEPTH
         # itself, to rounding: the deepest body is named then.
@@ -321,4 +375,5 @@ def terrain_inside_watch(piercing: TerrainPiercing, action: str = "warn") -> Wat
             f"the body, or give a terrain without that corner)"
         )
 
-    return ground_watch("terrain_inside", value, message, action, rate)
+    pieces = (piece, clear) if piercing.cornered else (None, None)
+    return ground_watch("terrain_inside", value, message, action, rate, *pieces)

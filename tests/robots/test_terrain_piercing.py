@@ -5,8 +5,9 @@ depth, or a stop under ``below_ground``), and the depth it measures is the close
 
 import numpy as np
 import pytest
-from legsim.robots.watches import PIERCING_DEPTH
+from legsim.robots.watches import PIERCING_DEPTH, TerrainPiercing
 
+from legsim.relaxed.watches import refined
 from legsim.scene import load_scene
 
 from .test_collision_contacts import link, shape, write
@@ -78,3 +79,63 @@ def test_the_depth_s_rate_is_its_derivative_along_the_motion(tmp_path):
         rate = piercing.rate("flight", np.zeros(3), states)[1, 0]
         # central difference: O(delta^2) truncation, rounding about 1e-16 / delta
         assert rate == pytest.approx((value[2] - value[0]) / (2 * delta), abs=1e-8)
+
+
+#: A plate 2 cm thick, thrown down at 10 m/s (no gravity) over the bump 0.1 m high.
+PLATE, SPEED = 0.02, 10.0
+
+
+def plate(folder, h=0.01):
+    """The plate's scene: its bottom face 0.12 m up; with steps of 0.01 s the checked points are
+    5 ms apart, the bottom face at 0.12 and 0.07 m at the first two."""
+    body = link("trunk", 4.0, 0.05, shape("box", f'<box size="{LENGTH} 0.1 {PLATE}"/>'))
+    scene = (
+        f'root = "planar"\ng = 0.0\ncollisions = true\ncollision_contacts = {{ friction = 0.8 }}\n'
+        f"{BUMP.format(top=0.1)}[initial]\nstate = {{ z = {0.12 + PLATE / 2}, zd = {-SPEED} }}\n"
+        f"[integrator]\nh = {h}\neps = 1e-4\nt_final = 0.02\n"
+    )
+    return write(folder, "plate", body, scene)
+
+
+def test_a_plate_passing_the_bump_s_corners_inside_a_step_is_seen(tmp_path):
+    # The bump's top corners enter the bottom face at t = 2 ms and leave the top face at 4 ms,
+    # between the checked points 0 and 5 ms: their depth rises to PLATE / 2 at 3 ms, where the
+    # nearest face changes, and falls again. The cubic through the checked points' depths and
+    # rates does not show it (its peak is 1.4 mm outside); the change of nearest face does.
+    ex = load_scene(plate(tmp_path)).simulate()
+    (warning,) = [w for w in ex.warnings if w.kind == "terrain_inside"]
+    assert "'trunk'" in warning.message
+    # the corner PIERCING_DEPTH inside the bottom face: 0.12 - SPEED t = 0.1 - PIERCING_DEPTH
+    assert warning.time == pytest.approx((0.02 + PIERCING_DEPTH) / SPEED, abs=1e-12)
+    # the deepest point seen: next to where the nearest face changes (PLATE / 2 deep at 3 ms),
+    # within the grid's 2^-12 of the half step there (1.2 us, 12 um at 10 m/s)
+    assert PIERCING_DEPTH - warning.details["least_value"] == pytest.approx(PLATE / 2, abs=2e-5)
+    assert warning.details["least_time"] == pytest.approx(0.003, abs=2e-6)
+
+
+def test_without_the_corners_and_faces_the_plate_s_passage_is_not_seen(tmp_path, monkeypatch):
+    # The premise of the test above: no checked point and no cubic shows the corners inside.
+    monkeypatch.setattr(TerrainPiercing, "cornered", property(lambda self: False))
+    ex = load_scene(plate(tmp_path)).simulate()
+    assert not [w for w in ex.warnings if w.kind == "terrain_inside"]
+
+
+def test_a_body_ruled_clear_between_two_checked_points_has_no_terrain_inside(tmp_path):
+    # ``TerrainPiercing.clear`` rules a stretch out where the body's lowest corner stays above
+    # the highest terrain under the x its corners sweep. Along the plate's fall and landing
+    # (steps of 1 ms), wherever it does, the depth stays below PIERCING_DEPTH on the interpolant
+    # (200 samples a stretch); and it rules some stretches clear and some not.
+    scene = load_scene(plate(tmp_path, h=1e-3))
+    watch = next(w for w in scene.model.info["watches"](None, 1e-4) if w.name == "terrain_inside")
+    ex = scene.simulate()
+    ruled = stretches = 0
+    for segment in ex.segments:
+        if segment.t.shape[0] < 2:
+            continue
+        t, x = refined(segment.t, segment.x, segment.dx)
+        cleared = watch.clear(segment.mode, t[:-1], x[:-1], t[1:], x[1:])[:, 0]
+        ruled, stretches = ruled + int(cleared.sum()), stretches + cleared.shape[0]
+        for j in np.flatnonzero(cleared):
+            times = np.linspace(t[j], t[j + 1], 200)
+            assert watch.parts(segment.mode, times, segment.interpolate(times))[:, 0].min() > 0.0
+    assert 0 < ruled < stretches
