@@ -127,21 +127,31 @@ class LinkHeights:
     def clear(self, ta: np.ndarray, xa: np.ndarray, tb: np.ndarray, xb: np.ndarray, ground: float) -> np.ndarray:
         """(J, points): whether each link point stays more than ``ground`` (m) above the highest
         terrain under the x it sweeps between two checked points at times ta, tb (J,) and states
-        xa, xb (J, >= 2 n): on the cubics of its height and its x through their values and
-        velocities at both (the interpolant's, to O(dt^4)), it cannot reach the ground there."""
-        states = np.concatenate([xa, xb])
-        a, b = np.split(self._placements.at(states)[:, self._columns], 2)
-        va, vb = np.split(self._placements.velocities(states)[:, self._columns], 2)
-        dt = (tb - ta)[:, None]
-        x_low, x_high = _cubic_range(a[..., 0], b[..., 0], va[..., 0], vb[..., 0], dt)
-        z_low, _ = _cubic_range(a[..., 1], b[..., 1], va[..., 1], vb[..., 1], dt)
-        highest = self.terrain.highest(x_low, x_high) if self.terrain is not None else np.zeros(z_low.shape)
-        return z_low - highest > ground
+        xa, xb (J, >= 2 n) (``_swept``): it cannot reach the ground there."""
+        assert self.terrain is not None  # given only on a terrain with corners
+        x_low, x_high, z_low = _swept(self._placements, self._columns, ta, xa, tb, xb)
+        return z_low - self.terrain.highest(x_low, x_high) > ground
 
     def __call__(self, x: np.ndarray) -> dict[str, float]:
         """Each link's lowest point (m) at one state x."""
         z = self.heights_at(x)[0]
         return {name: float(np.min(z[self.owner == k])) for k, name in enumerate(self.names)}
+
+
+def _swept(
+    placements: Placements, columns: Any, ta: np.ndarray, xa: np.ndarray, tb: np.ndarray, xb: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Where each placed point (``columns`` of ``placements``) goes between two checked points at
+    times ta, tb (J,) and states xa, xb (J, >= 2 n), on the cubics of its x and height through
+    their values and velocities at both (the interpolant's, to O(dt^4)): its least and most x and
+    its least height (m), (J, points) each."""
+    states = np.concatenate([xa, xb])
+    a, b = np.split(placements.at(states)[:, columns], 2)
+    va, vb = np.split(placements.velocities(states)[:, columns], 2)
+    dt = (tb - ta)[:, None]
+    x_low, x_high = _cubic_range(a[..., 0], b[..., 0], va[..., 0], vb[..., 0], dt)
+    z_low, _ = _cubic_range(a[..., 1], b[..., 1], va[..., 1], vb[..., 1], dt)
+    return x_low, x_high, z_low
 
 
 def _cubic_range(
@@ -256,14 +266,9 @@ class TerrainPiercing:
     def clear(self, ta: np.ndarray, xa: np.ndarray, tb: np.ndarray, xb: np.ndarray) -> np.ndarray:
         """(J, bodies): whether each body's lowest corner stays more than ``PIERCING_DEPTH`` above
         the highest terrain under the x its corners sweep between two checked points at times
-        ta, tb (J,) and states xa, xb (J, >= 2 n), on the cubics of the corners' heights and x
-        through their values and velocities at both: no terrain point can then be inside it."""
-        states = np.concatenate([xa, xb])
-        a, b = np.split(self.corners_at(states), 2)
-        va, vb = np.split(self._placements.velocities(states)[:, self._columns], 2)
-        dt = (tb - ta)[:, None]
-        x_low, x_high = _cubic_range(a[..., 0], b[..., 0], va[..., 0], vb[..., 0], dt)
-        z_low, _ = _cubic_range(a[..., 1], b[..., 1], va[..., 1], vb[..., 1], dt)
+        ta, tb (J,) and states xa, xb (J, >= 2 n) (``_swept``): no terrain point can then be
+        inside it."""
+        x_low, x_high, z_low = _swept(self._placements, self._columns, ta, xa, tb, xb)
         ends = np.cumsum([0, *self.sizes])
         out = np.empty((ta.shape[0], len(self.sizes)), dtype=bool)
         for body, (first, last) in enumerate(itertools.pairwise(ends)):

@@ -264,7 +264,8 @@ def first_hold(
 ) -> Hold | None:
     """Where the condition first holds among a visit's ``checked`` points (``refined`` of its
     ``stored`` points t, x, dx), or between two of them by the watch's rate, or None; ``values``
-    (the condition's, (N,)) and ``parts_at`` the checked points when known."""
+    (the condition's, (N,)) and its parts, their rates and pieces (``PartsAt``) at the checked
+    points when known."""
     t, x = checked
     if t.shape[0] == 0:
         return None
@@ -328,11 +329,11 @@ def cubic_least(
 def first_dip(
     watch: Watch, mode: str, checked: tuple[np.ndarray, np.ndarray], parts_at: PartsAt, stored: Stored
 ) -> Hold | None:
-    """The first hold between two neighbours of the ``checked`` points (t (N,), x (N, n)), with the
-    watch's ``parts_at`` them: where the cubic through a part's values and rates dips below zero
-    and the interpolant confirms it, or where parts' pieces change and the search across the
-    changes finds it (module docstring); in the earliest such interval, the earliest of its
-    parts' holds."""
+    """The first hold between two neighbours of the ``checked`` points (t (N,), x (N, n)), with
+    the watch's parts, their rates and pieces there (``parts_at``): where the cubic through a
+    part's values and rates dips below zero and the interpolant confirms it, or where parts'
+    pieces change and the search across the changes finds it (module docstring); in the
+    earliest such interval, the earliest of its parts' holds."""
     t, x = checked
     v, r, pieces = parts_at
     _, least = cubic_least(v[:-1], v[1:], r[:-1], r[1:], np.diff(t)[:, None])
