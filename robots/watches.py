@@ -17,11 +17,11 @@ import numpy as np
 from legsim.compiled.rows import at_rows
 from legsim.control import ControlLaw
 from legsim.relaxed import Watch
-from legsim.relaxed.watches import cubic_least
 from legsim.terrain import SINE, Terrain, corner_positions
 
 from .bridge.guards import ground_watch
 from .bridge.placements import Placements
+from .bridge.sweeps import swept, turns_onto_other_pieces
 from .kept import KeptWhileAlive
 
 
@@ -127,41 +127,24 @@ class LinkHeights:
     def clear(self, ta: np.ndarray, xa: np.ndarray, tb: np.ndarray, xb: np.ndarray, ground: float) -> np.ndarray:
         """(J, points): whether each link point stays more than ``ground`` (m) above the highest
         terrain under the x it sweeps between two checked points at times ta, tb (J,) and states
-        xa, xb (J, >= 2 n) (``_swept``): it cannot reach the ground there."""
+        xa, xb (J, >= 2 n) (``sweeps.swept``): it cannot reach the ground there."""
         assert self.terrain is not None  # given only on a terrain with corners
-        x_low, x_high, z_low = _swept(self._placements, self._columns, ta, xa, tb, xb)
+        x_low, x_high, z_low = swept(self._placements, self._columns, ta, xa, tb, xb)
         return z_low - self.terrain.highest(x_low, x_high) > ground
+
+    def turns(self, t: np.ndarray, states: np.ndarray) -> np.ndarray:
+        """(N - 1, points): between each two neighbouring checked points at times t (N,) and
+        states (N, >= 2 n), the time a link point's x turns on another piece of the terrain than
+        the one it starts on (``sweeps.turns_onto_other_pieces``), nan where it does not."""
+        assert self.terrain is not None  # given only on a terrain with corners
+        x = self._placements.at(states)[:, self._columns, 0]
+        vx = self._placements.velocities(states)[:, self._columns, 0]
+        return turns_onto_other_pieces(self.terrain.array, t, x, vx)
 
     def __call__(self, x: np.ndarray) -> dict[str, float]:
         """Each link's lowest point (m) at one state x."""
         z = self.heights_at(x)[0]
         return {name: float(np.min(z[self.owner == k])) for k, name in enumerate(self.names)}
-
-
-def _swept(
-    placements: Placements, columns: Any, ta: np.ndarray, xa: np.ndarray, tb: np.ndarray, xb: np.ndarray
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Where each placed point (``columns`` of ``placements``) goes between two checked points at
-    times ta, tb (J,) and states xa, xb (J, >= 2 n), on the cubics of its x and height through
-    their values and velocities at both (the interpolant's, to O(dt^4)): its least and most x and
-    its least height (m), (J, points) each."""
-    states = np.concatenate([xa, xb])
-    a, b = np.split(placements.at(states)[:, columns], 2)
-    va, vb = np.split(placements.velocities(states)[:, columns], 2)
-    dt = (tb - ta)[:, None]
-    x_low, x_high = _cubic_range(a[..., 0], b[..., 0], va[..., 0], vb[..., 0], dt)
-    z_low, _ = _cubic_range(a[..., 1], b[..., 1], va[..., 1], vb[..., 1], dt)
-    return x_low, x_high, z_low
-
-
-def _cubic_range(
-    v0: np.ndarray, v1: np.ndarray, r0: np.ndarray, r1: np.ndarray, dt: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
-    """The least and the most of the cubic through (0, v0) and (dt, v1) with slopes r0, r1 over
-    [0, dt], arrays of one shape: its ends' or its interior extremes (``cubic_least``)."""
-    least = np.fmin(np.minimum(v0, v1), cubic_least(v0, v1, r0, r1, dt)[1])
-    most = np.fmax(np.maximum(v0, v1), -cubic_least(-v0, -v1, -r0, -r1, dt)[1])
-    return least, most
 
 
 def below_ground_watch(heights: LinkHeights, ground: float, action: str = "warn") -> Watch:
@@ -188,6 +171,9 @@ def below_ground_watch(heights: LinkHeights, ground: float, action: str = "warn"
     def clear(mode: str, ta: np.ndarray, xa: np.ndarray, tb: np.ndarray, xb: np.ndarray) -> np.ndarray:
         return heights.clear(ta, xa, tb, xb, ground)
 
+    def probe(mode: str, t: np.ndarray, x: np.ndarray) -> np.ndarray:
+        return heights.turns(t, x)
+
     def message(t: float, mode: str, x: np.ndarray) -> str:
         h = heights(x)
         below = sorted((v - ground, k) for k, v in h.items() if v < ground)
@@ -197,7 +183,7 @@ def below_ground_watch(heights: LinkHeights, ground: float, action: str = "warn"
             f"(declare a contact on the link, or it passes through the ground)"
         )
 
-    pieces = (piece, clear) if heights.cornered else (None, None)
+    pieces = (piece, clear, probe) if heights.cornered else (None, None, None)
     return ground_watch("below_ground", value, message, action, rate, *pieces)
 
 
@@ -266,9 +252,9 @@ class TerrainPiercing:
     def clear(self, ta: np.ndarray, xa: np.ndarray, tb: np.ndarray, xb: np.ndarray) -> np.ndarray:
         """(J, bodies): whether each body's lowest corner stays more than ``PIERCING_DEPTH`` above
         the highest terrain under the x its corners sweep between two checked points at times
-        ta, tb (J,) and states xa, xb (J, >= 2 n) (``_swept``): no terrain point can then be
+        ta, tb (J,) and states xa, xb (J, >= 2 n) (``sweeps.swept``): no terrain point can then be
         inside it."""
-        x_low, x_high, z_low = _swept(self._placements, self._columns, ta, xa, tb, xb)
+        x_low, x_high, z_low = swept(self._placements, self._columns, ta, xa, tb, xb)
         ends = np.cumsum([0, *self.sizes])
         out = np.empty((ta.shape[0], len(self.sizes)), dtype=bool)
         for body, (first, last) in enumerate(itertools.pairwise(ends)):

@@ -413,9 +413,11 @@ class Assembly:
             else:  # the parts once: the condition's values are their least
                 parts = points.values(w, "parts")
                 values = [watches.condition(p) for p in parts]
-                pieces = points.values(w, "pieces") if w.piece is not None else [None] * len(visits)
+                none = [None] * len(visits)
+                pieces = points.values(w, "pieces") if w.piece is not None else none
+                probes = points.probes(w, parts) if w.probe is not None else none
                 rates = points.values(w, "rates")
-                parts_at = [watches.PartsAt(*at) for at in zip(parts, rates, pieces, strict=True)]
+                parts_at = [watches.PartsAt(*at) for at in zip(parts, rates, pieces, probes, strict=True)]
             for (mode, t, x, seg), v, at in zip(visits, values, parts_at, strict=True):
                 stored = seg.t, seg.x, seg.dx
                 if first is None and (hit := watches.first_hold(w, mode, (t, x), stored, v, at)) is not None:

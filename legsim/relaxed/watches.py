@@ -22,8 +22,12 @@ is on (``Watch.piece``), and between two checked points where a part's piece cha
 change is located on the step's interpolant (on grids refined in the cell where the piece
 changed, ``PIECE_GRID``), the condition checked on both sides of it, and each smooth stretch
 between tested by its cubic (``across_pieces``). A piece the part enters and leaves within one
-cell of the finest grid (2^-12 of half a step), or leaves and returns to between two checked
-points, is not seen.
+cell of the finest grid (2^-12 of half a step) is not seen. One a part leaves and returns to
+between two checked points (a foot whose x turns past a profile's corner and back) shows no
+change of piece there; a watch that can tell where the part may be on another piece then
+(``Watch.probe``: a foot's farthest x on the cubic of its x) has the piece read at that time,
+and where it differs, both stretches, out and back, are searched across their changes as
+above.
 Where a condition first holds between two checked points, the time is located by bisection on
 the points' cubic Hermite interpolant (the one ``Execution.sample`` uses: O(h^4) between steps),
 to float64 resolution;
@@ -98,6 +102,12 @@ class Watch:
         anywhere between two checked points (times ta, tb (J,), states xa, xb (J, n)), whatever
         pieces they cross (a point that stays above the highest ground under it); their changes
         of piece are not searched. Needs ``piece``.
+    probe: ``probe(mode, t, x) -> (N - 1, m)`` times (s), or None: for each two neighbouring
+        points (t (N,), x (N, n)) and each part, a time strictly between them at which the part
+        may be on another piece than the one it is on at both (where a point's x turns past a
+        profile's corner and back: the time of its farthest x), nan where there is none. The
+        piece is read there on the step's interpolant; where it differs, the part's way out
+        and back is searched. Needs ``piece``.
     """
 
     name: str
@@ -109,6 +119,7 @@ class Watch:
     rate: Callable[[str, np.ndarray, np.ndarray], np.ndarray] | None = None
     piece: Callable[[str, np.ndarray, np.ndarray], np.ndarray] | None = None
     clear: Callable[[str, np.ndarray, np.ndarray, np.ndarray, np.ndarray], np.ndarray] | None = None
+    probe: Callable[[str, np.ndarray, np.ndarray], np.ndarray] | None = None
 
     def __post_init__(self) -> None:
         if self.action not in ACTIONS:
@@ -131,6 +142,10 @@ class Watch:
             raise SimulationError(
                 f"watch {self.name!r}: clear must be None or a function clear(mode, ta, xa, tb, xb), given with a piece"
             )
+        if self.probe is not None and not (callable(self.probe) and self.piece is not None):
+            raise SimulationError(
+                f"watch {self.name!r}: probe must be None or a function probe(mode, t, x), given with a piece"
+            )
 
     def values(self, mode: str, t: np.ndarray, x: np.ndarray) -> np.ndarray:
         """The condition's value at the points (N,), float64: the least of its parts (+inf
@@ -150,6 +165,24 @@ class Watch:
         """The piece of each part at the points, as ``parts`` (``piece``, which must be given)."""
         assert self.piece is not None
         return self._call(self.piece, "piece", mode, t, x)
+
+    def probes(self, mode: str, t: np.ndarray, x: np.ndarray, parts: int) -> np.ndarray:
+        """``probe``'s times between the neighbouring points (N - 1, parts), float64 (``probe``,
+        which must be given); SimulationError naming the watch if it gives no such array."""
+        assert self.probe is not None
+        if t.shape[0] < 2:
+            return np.empty((0, parts))
+        try:
+            times = np.asarray(self.probe(mode, t, x), dtype=float)
+        except Exception as exc:
+            raise SimulationError(
+                f"watch {self.name!r}: its probe failed in mode '{mode}': {type(exc).__name__}: {exc}"
+            ) from exc
+        if times.shape != (t.shape[0] - 1, parts):
+            raise SimulationError(
+                f"watch {self.name!r}: its probe gave shape {times.shape} for {t.shape[0]} points of {parts} parts"
+            )
+        return times
 
     def _call(self, function: Callable[..., Any], what: str, mode: str, t: np.ndarray, x: np.ndarray) -> np.ndarray:
         try:
@@ -247,11 +280,12 @@ class Hold(NamedTuple):
 
 class PartsAt(NamedTuple):
     """A watch's parts at checked points, their rates along the flow and, where it gives them,
-    their pieces, (N, m) each."""
+    their pieces, (N, m) each, and its probes' times between the points, (N - 1, m)."""
 
     parts: np.ndarray
     rates: np.ndarray
     pieces: np.ndarray | None = None
+    probes: np.ndarray | None = None
 
 
 def first_hold(
@@ -284,8 +318,13 @@ def first_hold(
     )
     if parts_at is not None:
         # up to the first checked point that holds: a part may dip before it within its step
-        parts, rates, pieces = parts_at
-        upto = PartsAt(parts[: k + 1], rates[: k + 1], None if pieces is None else pieces[: k + 1])
+        parts, rates, pieces, probes = parts_at
+        upto = PartsAt(
+            parts[: k + 1],
+            rates[: k + 1],
+            None if pieces is None else pieces[: k + 1],
+            None if probes is None else probes[:k],
+        )
         dip = first_dip(watch, mode, (t[: k + 1], x[: k + 1]), upto, stored)
         if dip is not None and (held is None or dip.time < held.time):
             return dip
@@ -299,8 +338,10 @@ def _parts_at(watch: Watch, mode: str, t: np.ndarray, x: np.ndarray, given: Part
         return None
     if given is None:
         # on the whole arrays, which a watch may keep what it computed on for the rates
+        parts = watch.parts(mode, t, x)
         pieces = None if watch.piece is None else watch.pieces(mode, t, x)
-        given = PartsAt(watch.parts(mode, t, x), watch.rates(mode, t, x), pieces)
+        probes = None if watch.probe is None else watch.probes(mode, t, x, parts.shape[1])
+        given = PartsAt(parts, watch.rates(mode, t, x), pieces, probes)
     for what, a in (("rates", given.rates), ("pieces", given.pieces)):
         if a is not None and a.shape != given.parts.shape:
             raise SimulationError(
@@ -330,17 +371,21 @@ def first_dip(
     watch: Watch, mode: str, checked: tuple[np.ndarray, np.ndarray], parts_at: PartsAt, stored: Stored
 ) -> Hold | None:
     """The first hold between two neighbours of the ``checked`` points (t (N,), x (N, n)), with
-    the watch's parts, their rates and pieces there (``parts_at``): where the cubic through a
-    part's values and rates dips below zero and the interpolant confirms it, or where parts'
-    pieces change and the search across the changes finds it (module docstring); in the
-    earliest such interval, the earliest of its parts' holds."""
+    the watch's parts, their rates, pieces and probes there (``parts_at``): where the cubic
+    through a part's values and rates dips below zero and the interpolant confirms it, or where
+    parts' pieces change (at the checked points, or at a probe between them) and the search
+    across the changes finds it (module docstring); in the earliest such interval, the earliest
+    of its parts' holds."""
     t, x = checked
-    v, r, pieces = parts_at
+    v, r, pieces, probes = parts_at
     _, least = cubic_least(v[:-1], v[1:], r[:-1], r[1:], np.diff(t)[:, None])
     unsmooth = np.zeros(least.shape, dtype=bool) if pieces is None else pieces[:-1] != pieces[1:]
     dips = (least < 0.0) & ~unsmooth
-    changes = unsmooth & ~_cleared(watch, mode, t, x, unsmooth)
-    for j in np.flatnonzero((dips | changes).any(axis=1)):
+    probe_times, probe_pieces = _detours(watch, mode, t, pieces, probes, unsmooth, stored)
+    detours = probe_times == probe_times
+    cleared = _cleared(watch, mode, t, x, unsmooth | detours)
+    changes, detours = unsmooth & ~cleared, detours & ~cleared
+    for j in np.flatnonzero((dips | changes | detours).any(axis=1)):
         k = stored_index(int(j) + 1)
         times = np.broadcast_to(t[j : j + 2, None], v[j : j + 2].shape)
         ends = np.stack([times, v[j : j + 2], r[j : j + 2]], axis=-1)  # (2, parts, 3): t, value, rate
@@ -353,6 +398,10 @@ def first_dip(
             which = np.flatnonzero(changes[j])
             found.append(across_pieces(watch, mode, stored, k, which, ends[0, which], ends[1, which],
                                        pieces[j : j + 2, which].T, PIECE_CHANGES))  # fmt: skip
+        for p in np.flatnonzero(detours[j]):
+            assert pieces is not None
+            probe = (float(probe_times[j, p]), float(probe_pieces[j, p]))
+            found.append(_detour(watch, mode, stored, k, int(p), ends[:, p], float(pieces[j, p]), probe))
         holds = [
             Hold(int(j) + 1, locate(watch, mode, *stored, k, True, (float(t[j]), inside[0])), inside)
             for inside in found
@@ -383,6 +432,66 @@ def _cleared(watch: Watch, mode: str, t: np.ndarray, x: np.ndarray, unsmooth: np
         )
     out[rows] = cleared
     return out
+
+
+def _detours(
+    watch: Watch, mode: str, t: np.ndarray, pieces: np.ndarray | None, probes: np.ndarray | None,
+    unsmooth: np.ndarray, stored: Stored,
+) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+    """Where the watch's probes (``probes``, (N - 1, m) times between the checked points at
+    times t (N,)) find a part on another piece between two checked points at which it is on
+    one (``unsmooth`` false): the probe's time and the piece there, (N - 1, m) each, nan
+    elsewhere (everywhere without probes)."""
+    times, labels = np.full(unsmooth.shape, np.nan), np.full(unsmooth.shape, np.nan)
+    if probes is None or pieces is None or t.shape[0] < 2:
+        return times, labels
+    if probes.shape != unsmooth.shape:
+        raise SimulationError(
+            f"watch {watch.name!r}: its probe gave shape {probes.shape} for {t.shape[0]} points of "
+            f"{unsmooth.shape[1]} parts"
+        )
+    with np.errstate(invalid="ignore"):
+        inside = ~unsmooth & (probes > t[:-1, None]) & (probes < t[1:, None])
+    j, p = np.nonzero(inside)
+    if j.size == 0:
+        return times, labels
+    at = probes[j, p]
+    states = _interpolated(stored, (j + 2) // 2, at)  # the stored step of checked interval j
+    read = watch.pieces(mode, at, states)[np.arange(j.size), p]
+    other = read != pieces[j, p]
+    times[j[other], p[other]], labels[j[other], p[other]] = at[other], read[other]
+    return times, labels
+
+
+def _interpolated(stored: Stored, k: np.ndarray, times: np.ndarray) -> np.ndarray:
+    """Each stored step k[i]'s interpolant at times[i] inside it, (len(times), n)."""
+    t, x, dx = stored
+    dt = (t[k] - t[k - 1])[:, None]
+    return hermite_values(x[k - 1], dx[k - 1], x[k], dx[k], dt, (times - t[k - 1])[:, None] / dt)
+
+
+def _detour(
+    watch: Watch, mode: str, stored: Stored, k: int, part: int, ends: np.ndarray, piece: float,
+    probe: tuple[float, float],
+) -> Inside | None:  # fmt: skip
+    """The earliest point of stored step k's interpolant found where the condition holds for a
+    part that is on ``piece`` at both ``ends`` ((2, 3): t, value, rate) and on another at the
+    ``probe`` (its time and that piece): the probed point itself, and the way out and the way
+    back each searched across its changes of piece (``across_pieces``)."""
+    tp, piece_out = probe
+    at = np.array([tp])
+    state = _states_at(stored, k, at)
+    parts, rates = watch.parts(mode, at, state), watch.rates(mode, at, state)
+    held = float(condition(parts)[0])
+    middle = np.array([[tp, parts[0, part], rates[0, part]]])
+    which = np.array([part])
+    found = [
+        (tp, state[0], held) if held < 0.0 else None,
+        across_pieces(watch, mode, stored, k, which, ends[:1], middle, np.array([[piece, piece_out]]), PIECE_CHANGES),
+        across_pieces(watch, mode, stored, k, which, middle, ends[1:], np.array([[piece_out, piece]]), PIECE_CHANGES),
+    ]
+    holds = [f for f in found if f is not None]
+    return min(holds, key=lambda f: f[0]) if holds else None
 
 
 #: A point of a step's interpolant where a condition holds: (t, x, v).
@@ -533,6 +642,18 @@ class PointsByMode:
         for mode, members, t, x, ends in self.groups:
             for i, v in zip(members, np.split(function(mode, t, x), ends), strict=True):
                 out[i] = v
+        return out
+
+    def probes(self, watch: Watch, parts: Sequence[np.ndarray]) -> list[np.ndarray]:
+        """The watch's probes between the points of each visit (``Watch.probes``, (N - 1, m)),
+        in the visits' order, ``parts`` each visit's parts (their widths): one call of the watch
+        per mode, the times between two visits' points dropped."""
+        out: list[np.ndarray] = [np.empty((0, 0))] * self.count
+        for mode, members, t, x, ends in self.groups:
+            times = watch.probes(mode, t, x, parts[members[0]].shape[1])
+            starts, stops = [0, *ends], [*ends, t.shape[0]]
+            for i, start, stop in zip(members, starts, stops, strict=True):
+                out[i] = times[start : max(stop - 1, start)]
         return out
 
 

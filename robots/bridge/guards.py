@@ -6,6 +6,7 @@ functions).
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable, Iterator
 
 import numpy as np
@@ -18,6 +19,7 @@ from legsim.terrain import along, corner_positions, pieces_along
 from .contacts import SLIP_SUFFIX, Armed, PointContact, RigidContact, SpringLeg, joint_id
 from .model import BridgeModel
 from .placements import Placements
+from .sweeps import turns_onto_other_pieces
 
 #: How far (m, or rad for a revolute stop) past its ground or stop an inactive contact may lie
 #: beyond the strip eps before it counts as passed through: far above a stance's drift
@@ -101,6 +103,21 @@ class PastDepths:
         for k, _, slot in self._inactive(mode):
             if slot >= 0:
                 out[:, k] = pieces_along(self.model.terrain, positions[:, slot, 0])
+        return out
+
+    def turns(self, mode: str, t: np.ndarray, states: np.ndarray) -> np.ndarray:
+        """(N - 1, contacts): between each two neighbouring checked points at times t (N,) and
+        states (N, >= 2 n), the time an inactive point contact's x turns on another piece of the
+        terrain than the one it starts on (``sweeps.turns_onto_other_pieces``); nan where it does
+        not, and for the other contacts."""
+        assert self.model.terrain is not None  # given only on a terrain with corners
+        states = np.atleast_2d(states)
+        out = np.full((states.shape[0] - 1, len(self.rigid)), np.nan)
+        points = np.array([(k, slot) for k, _, slot in self._inactive(mode) if slot >= 0], dtype=int).reshape(-1, 2)
+        if points.size:
+            columns = self._columns[points[:, 1]]
+            x, vx = self._placements.at(states)[:, columns, 0], self._placements.velocities(states)[:, columns, 0]
+            out[:, points[:, 0]] = turns_onto_other_pieces(self.model.terrain, t, x, vx)
         return out
 
     def _inactive(self, mode: str) -> Iterator[tuple[int, RigidContact, int]]:
@@ -211,6 +228,9 @@ def passed_through_watch(past: PastDepths, eps: float, action: str = "warn") -> 
     def piece(mode: str, t: np.ndarray, x: np.ndarray) -> np.ndarray:
         return past.pieces(mode, x)
 
+    def probe(mode: str, t: np.ndarray, x: np.ndarray) -> np.ndarray:
+        return past.turns(mode, t, x)
+
     def message(t: float, mode: str, x: np.ndarray) -> str:
         state = np.atleast_2d(x)[0]
         depths = past.depths(mode, state, armed_only=True)[0]
@@ -222,28 +242,30 @@ def passed_through_watch(past: PastDepths, eps: float, action: str = "warn") -> 
             f"left it moving away, where its guard does not look (take a smaller h, or tighter tolerances)"
         )
 
-    pieces = piece if past.cornered else None
-    return ground_watch("passed_through", value, message, "strict" if action == "fall" else action, rate, pieces)
+    cornered = past.cornered
+    return ground_watch("passed_through", value, message, "strict" if action == "fall" else action, rate,
+                        piece if cornered else None, probe=probe if cornered else None)  # fmt: skip
 
 
 def ground_watch(
     name: str, value: Callable[..., np.ndarray], message: Callable[..., str], action: str,
     rate: Callable[..., np.ndarray] | None = None, piece: Callable[..., np.ndarray] | None = None,
-    clear: Callable[..., np.ndarray] | None = None,
+    clear: Callable[..., np.ndarray] | None = None, probe: Callable[..., np.ndarray] | None = None,
 ) -> Watch:  # fmt: skip
     """The watch of a body through the ground, by the scene's ``below_ground`` ``action``: "warn"
     a warning; "strict" a stop with status ``model_breakdown`` (the model has no contact there);
     "fall" a stop with status ``fell`` (the robot crashed, a scene's fall condition). ``rate``:
     the value's rate along the flow, to check between points (``Watch.rate``); ``piece``: the
     terrain's piece under each part, where the terrain has corners (``Watch.piece``); ``clear``:
-    the parts that stay clear of the ground between two checked points (``Watch.clear``)."""
+    the parts that stay clear of the ground between two checked points (``Watch.clear``);
+    ``probe``: where a part may turn onto another piece and back between them (``Watch.probe``)."""
+    watch = Watch(name, value, "warn", message, rate=rate, piece=piece, clear=clear, probe=probe)
     if action == "strict":
-        return Watch(name, value, "stop", message, status=Status.MODEL_BREAKDOWN.value, rate=rate, piece=piece,
-                     clear=clear)  # fmt: skip
+        return dataclasses.replace(watch, action="stop", status=Status.MODEL_BREAKDOWN.value)
     if action == "fall":
-        return Watch(name, value, "stop", lambda t, mode, x: f"fell: {name}: {message(t, mode, x)}",
-                     status=Status.FELL.value, rate=rate, piece=piece, clear=clear)  # fmt: skip
-    return Watch(name, value, "warn", message, rate=rate, piece=piece, clear=clear)
+        fell = lambda t, mode, x: f"fell: {name}: {message(t, mode, x)}"  # noqa: E731
+        return dataclasses.replace(watch, action="stop", message=fell, status=Status.FELL.value)
+    return watch
 
 
 def guard_units(model: BridgeModel) -> dict[str, str]:

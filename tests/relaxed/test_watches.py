@@ -219,6 +219,50 @@ def test_a_value_jumping_where_its_piece_changes_inside_a_step_is_seen(python, l
     assert warning.time == pytest.approx(enters, abs=1e-12)
 
 
+def probe_at(time):
+    """A probe giving ``time`` between the two checked points around it, nan between the others."""
+
+    def probe(mode, t, x):
+        inside = (t[:-1] < time) & (time < t[1:])
+        return np.where(inside, time, np.nan)[:, None]
+
+    return probe
+
+
+@pytest.mark.parametrize("python", [False, True])
+@pytest.mark.parametrize(
+    ("levels", "probed", "enters"),
+    [
+        ([(0.0, -10.0), (0.25, 0.8), (0.26, -10.0)], 0.255, 0.25),  # the probe lies in the jump
+        ([(0.0, -10.0), (0.25, -9.0), (0.26, 0.8), (0.27, -10.0)], 0.255, 0.26),  # the way back holds
+    ],
+    ids=["probed-piece", "after-the-probe"],
+)
+def test_a_piece_left_and_returned_to_between_two_checked_points_is_seen_at_a_probe(python, levels, probed, enters):
+    # The shelves above, each piece numbered by its level, the last one the first's: the ball is on
+    # piece 0 at both ends of the half step (0.2, 0.3), so no change of piece shows between them. A
+    # probe at 0.255 s reads another piece there; the ways out (to 0.255) and back are searched
+    # across their changes, and the stop is where the level jumps above the ball.
+    value, piece = shelves(levels)
+
+    def returning(mode, t, x):
+        labels = piece(mode, t, x)
+        return np.where(labels == len(levels) - 1, 0.0, labels)
+
+    watch = Watch("shelf", value, "stop", said, rate=lambda mode, t, x: x[:, 1], piece=returning)
+    assert run([watch], t_final=0.4, h=0.2, python=python).status == "finished"  # the premise
+    probing = dataclasses.replace(watch, probe=probe_at(probed))
+    ex = run([probing], t_final=0.4, h=0.2, python=python)
+    assert ex.status == "fell" and ex.t_end == pytest.approx(enters, abs=1e-12)
+    (warning,) = run([dataclasses.replace(probing, action="warn")], t_final=0.4, h=0.2, python=python).warnings
+    assert warning.time == pytest.approx(enters, abs=1e-12)
+    # a probe reading the ends' piece finds nothing; a part ruled clear is not searched
+    assert run([dataclasses.replace(watch, probe=probe_at(0.27 if enters == 0.25 else 0.28))], t_final=0.4,
+               h=0.2).status == "finished"  # fmt: skip
+    ruled_out = dataclasses.replace(probing, clear=lambda mode, ta, xa, tb, xb: np.ones((len(ta), 1), bool))
+    assert run([ruled_out], t_final=0.4, h=0.2).status == "finished"
+
+
 def dip(centre):
     """A parabola on the ball's time: 1000 (t - centre)^2 - 0.01, below zero for sqrt(1e-5) s
     either side of ``centre``, and its rate."""
@@ -305,6 +349,14 @@ def test_bad_watches_are_refused_by_name():
     with pytest.raises(SimulationError, match=r"watch 'w': its clear gave shape \(1, 2\) for 1 stretches of 1 parts"):
         run([Watch("w", value, "stop", said, rate=lambda mode, t, x: x[:, 1], piece=piece,
                    clear=lambda mode, ta, xa, tb, xb: np.zeros((len(ta), 2), bool))], t_final=0.4, h=0.2)  # fmt: skip
+    with pytest.raises(SimulationError, match="probe must be None or a function probe"):
+        Watch("w", below(0), "stop", said, rate=lambda mode, t, x: x[:, 1], probe=probe_at(0.25))
+    with pytest.raises(SimulationError, match=r"watch 'w': its probe gave shape \(\d+, 2\) for \d+ points of 1 parts"):
+        run([Watch("w", value, "stop", said, rate=lambda mode, t, x: x[:, 1], piece=piece,
+                   probe=lambda mode, t, x: np.zeros((len(t) - 1, 2)))], t_final=0.4, h=0.2)  # fmt: skip
+    with pytest.raises(SimulationError, match="watch 'w': its probe failed in mode 'flight': ZeroDivisionError"):
+        run([Watch("w", value, "stop", said, rate=lambda mode, t, x: x[:, 1], piece=piece,
+                   probe=lambda mode, t, x: 1 / 0)], t_final=0.4, h=0.2)  # fmt: skip
     value, _ = shelves([(0.0, -10.0)])
     with pytest.raises(SimulationError, match=r"watch 'w': its pieces' shape \(\d+, 2\) is not its values' \(\d+, 1\)"):
         run([Watch("w", value, "stop", said, rate=lambda mode, t, x: x[:, 1],

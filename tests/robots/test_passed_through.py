@@ -14,6 +14,7 @@ import math
 import numpy as np
 import pytest
 from legsim.robots.bridge.guards import THROUGH_DEPTH, PastDepths
+from legsim.robots.watches import LinkHeights
 from scipy.optimize import brentq, minimize_scalar
 
 from legsim.relaxed.watches import refined
@@ -269,3 +270,91 @@ def test_a_link_point_ruled_clear_between_two_checked_points_stays_above_the_gro
     for j, k in zip(*np.nonzero(cleared), strict=True):
         times = np.linspace(t[j], t[j + 1], 400)
         assert watch.parts(segment.mode, times, segment.interpolate(times))[:, k].min() > 0.0
+
+
+# A foot whose x turns past a riser's corner and back between two checked points: the ground 20 cm
+# higher behind x = -0.32 (the riser a 1 mm ramp), the hip 1.05 m up. The foot starts under the hip,
+# 5 cm up, swinging towards -x at 5 rad/s against a constant torque (the PD saturated at the hip's
+# effort limit, 10 N m), so that the angle is quadratic in time, which rk4 and the interpolant follow
+# exactly. It turns at 0.34 rad (x = -0.33, 0.11 m up) at t = 0.135 s and lies past the corner, 9 cm
+# inside the tread, for 0.05 s around the turn. One step of 0.4 s checks it at t = 0, 0.2 and 0.4:
+# ahead of the riser, above the ground each time, on one segment of the profile, and the cubic through
+# its depths does not dip. The watch's probe, the time of the foot's farthest x on the cubic of its x,
+# finds it on the next segment, and the way out and back are searched across the change.
+TURN_HIP, TURN_AT, TURN_RISE, TURN_RATE = 1.05, -0.32, 0.2, 5.0
+
+
+def turning_past_a_corner(folder, below_ground="warn", leg=LEG, contacts='[{ name = "foot", frame = "foot" }]'):
+    scene = (
+        f'root = "fixed"\ng = 0.0\nactuated = ["hip"]\nbelow_ground = "{below_ground}"\ncontacts = {contacts}\n'
+        '[controller]\nname = "joint_pd"\n[controller.parameters]\nkp = 1000.0\nkd = 0.0\ntargets = [-3.0]\n'
+        f"[initial]\nstate = {{ hip = 0.0, hipd = {TURN_RATE} }}\n"
+        f'[integrator]\nmethod = "rk4"\nh = 0.4\neps = {EPS}\nt_final = 0.4\n'
+        f'[terrain]\nkind = "steps"\npositions = [{TURN_AT}]\nheights = [0.0]\nbase = {TURN_RISE}\nriser = {RISER}\n'
+    )
+    return write(folder, "turn", leg.replace(f'xyz="0 0 {H}"', f'xyz="0 0 {TURN_HIP}"'), scene)
+
+
+def turning_reference(ex, heights):
+    """The first time the least of ``heights(theta)`` reaches 0 on the way out, theta = w t + a t^2 / 2,
+    a the (constant) angular acceleration of the run's field; and the angle of the turn."""
+    (segment,) = ex.segments
+    accelerations = segment.dx[:, 1]
+    assert np.ptp(accelerations) < 1e-9 * abs(accelerations[0])  # the torque saturated throughout
+    a = float(accelerations[0])
+    turn = -(TURN_RATE**2) / (2 * a)
+    theta = first_below(heights, 0.0, turn)
+    return (-TURN_RATE + math.sqrt(TURN_RATE**2 + 2 * a * theta)) / a, turn
+
+
+def turning_ground(x):
+    return TURN_RISE * min(1.0, max(0.0, (TURN_AT - x) / RISER))
+
+
+@pytest.mark.parametrize(("action", "status"), [("warn", "finished"), ("strict", "model_breakdown")])
+def test_a_foot_turning_past_a_corner_and_back_inside_a_step_is_seen(tmp_path, action, status):
+    ex = load_scene(turning_past_a_corner(tmp_path, action)).simulate()
+    assert ex.status == status and not ex.transitions
+    depth = lambda a: [TURN_HIP - L * math.cos(a) - turning_ground(-L * math.sin(a)) + EPS + THROUGH_DEPTH]  # noqa: E731
+    when, turn = turning_reference(ex, depth)
+    assert -L * math.sin(turn) < TURN_AT and depth(turn)[0] < -0.05  # at the turn: past the corner, in the tread
+    if action == "warn":
+        # the premise: at the checked points (t = 0, 0.2, 0.4) it is ahead of the corner, above the ground
+        (segment,) = ex.segments
+        checked = refined(segment.t, segment.x, segment.dx)[1][:, 0]
+        assert checked.shape == (3,)
+        assert all(depth(a)[0] > 0.0 and -L * math.sin(a) > TURN_AT for a in checked)
+        (warning,) = [w for w in ex.warnings if w.kind == "passed_through"]
+        assert "'foot'" in warning.message and warning.time == pytest.approx(when, abs=1e-9)
+    else:
+        assert "'foot'" in ex.message and ex.t_end == pytest.approx(when, abs=1e-9)
+
+
+def test_without_the_probe_a_foot_turning_past_a_corner_is_not_seen(tmp_path, monkeypatch):
+    # the premise of the test above: no checked point and no change of segment between them shows it
+    monkeypatch.setattr(PastDepths, "turns", lambda self, mode, t, states: np.full((len(t) - 1, 1), np.nan))
+    ex = load_scene(turning_past_a_corner(tmp_path)).simulate()
+    assert ex.status == "finished" and not [w for w in ex.warnings if w.kind == "passed_through"]
+
+
+@pytest.mark.parametrize("probed", [True, False])
+def test_a_link_turning_past_a_corner_and_back_inside_a_step_is_seen(tmp_path, monkeypatch, probed):
+    # The leg without a contact, the 2 mm box at its end, turning the same way: the links' watch
+    # sees it where the box's first corner reaches the ground under it; without the probe it does not.
+    if not probed:
+        no_turns = lambda self, t, states: np.full((len(t) - 1, self.owner.size), np.nan)  # noqa: E731
+        monkeypatch.setattr(LinkHeights, "turns", no_turns)
+    ex = load_scene(turning_past_a_corner(tmp_path, leg=BOX_LEG, contacts="[]")).simulate()
+    below = [w for w in ex.warnings if w.kind == "below_ground"]
+    if not probed:
+        assert ex.status == "finished" and not below
+        return
+
+    def corners(a):  # as in test_a_link_carried_through_a_riser_inside_a_step_is_seen
+        points = [(u, -L + w) for u in (-0.001, 0.001) for w in (-0.001, 0.001)]
+        return [TURN_HIP - u * math.sin(a) + w * math.cos(a) - turning_ground(u * math.cos(a) + w * math.sin(a))
+                for u, w in points]  # fmt: skip
+
+    (warning,) = below
+    assert "'leg'" in warning.message
+    assert warning.time == pytest.approx(turning_reference(ex, corners)[0], abs=1e-9)
