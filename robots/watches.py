@@ -133,8 +133,8 @@ class LinkHeights:
         return z_low - self.terrain.highest(x_low, x_high) > ground
 
     def turns(self, t: np.ndarray, states: np.ndarray) -> np.ndarray:
-        """(N - 1, points): between each two neighbouring checked points at times t (N,) and
-        states (N, >= 2 n), the time a link point's x turns on another piece of the terrain than
+        """(N - 1, points, 2): between each two neighbouring checked points at times t (N,) and
+        states (N, >= 2 n), the times a link point's x turns on another piece of the terrain than
         the one it starts on (``sweeps.turns_onto_other_pieces``), nan where it does not."""
         assert self.terrain is not None  # given only on a terrain with corners
         x = self._placements.at(states)[:, self._columns, 0]

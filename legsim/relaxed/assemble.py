@@ -14,7 +14,7 @@ import numpy as np
 
 from ..errors import LegsimError, SimulationError
 from ..execution import Execution, RunSoFar, RunWarning, Segment, Status, Strip, TransitionRecord, filled
-from . import messages, watches
+from . import between, messages, watches
 from .layout import (
     COUNTERS,
     END_BROKE_DOWN,
@@ -340,7 +340,7 @@ class Assembly:
                 checked = ct[2 * start :], cx[2 * start :]
             else:
                 checked = watches.refined(*stored)
-            found = [(hit.time, hit.k, w) for w in stops if (hit := watches.first_hold(w, mode, checked, stored))]
+            found = [(hit.time, hit.k, w) for w in stops if (hit := between.first_hold(w, mode, checked, stored))]
             if found:
                 when, k, watch = min(found, key=lambda item: item[0])
                 self.stopped = (i, start + watches.stored_index(k), when, watch)
@@ -415,12 +415,12 @@ class Assembly:
                 values = [watches.condition(p) for p in parts]
                 none = [None] * len(visits)
                 pieces = points.values(w, "pieces") if w.piece is not None else none
-                probes = points.probes(w, parts) if w.probe is not None else none
+                probes = points.probes(w) if w.probe is not None else none
                 rates = points.values(w, "rates")
                 parts_at = [watches.PartsAt(*at) for at in zip(parts, rates, pieces, probes, strict=True)]
             for (mode, t, x, seg), v, at in zip(visits, values, parts_at, strict=True):
                 stored = seg.t, seg.x, seg.dx
-                if first is None and (hit := watches.first_hold(w, mode, (t, x), stored, v, at)) is not None:
+                if first is None and (hit := between.first_hold(w, mode, (t, x), stored, v, at)) is not None:
                     k, when, inside = hit
                     state = x[0] if k == 0 else watches.point(*stored, watches.stored_index(k), when)[0]
                     first = (when, mode, state)

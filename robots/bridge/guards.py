@@ -106,13 +106,13 @@ class PastDepths:
         return out
 
     def turns(self, mode: str, t: np.ndarray, states: np.ndarray) -> np.ndarray:
-        """(N - 1, contacts): between each two neighbouring checked points at times t (N,) and
-        states (N, >= 2 n), the time an inactive point contact's x turns on another piece of the
+        """(N - 1, contacts, 2): between each two neighbouring checked points at times t (N,) and
+        states (N, >= 2 n), the times an inactive point contact's x turns on another piece of the
         terrain than the one it starts on (``sweeps.turns_onto_other_pieces``); nan where it does
         not, and for the other contacts."""
         assert self.model.terrain is not None  # given only on a terrain with corners
         states = np.atleast_2d(states)
-        out = np.full((states.shape[0] - 1, len(self.rigid)), np.nan)
+        out = np.full((states.shape[0] - 1, len(self.rigid), 2), np.nan)
         points = np.array([(k, slot) for k, _, slot in self._inactive(mode) if slot >= 0], dtype=int).reshape(-1, 2)
         if points.size:
             columns = self._columns[points[:, 1]]

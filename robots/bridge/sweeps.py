@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from legsim.relaxed.watches import cubic_least
+from legsim.relaxed.between import cubic_least
 from legsim.terrain import pieces_along
 
 from .placements import Placements
@@ -42,29 +42,25 @@ def swept(
 
 
 def turns_onto_other_pieces(terrain: np.ndarray, t: np.ndarray, x: np.ndarray, vx: np.ndarray) -> np.ndarray:
-    """(N - 1, P): between each two neighbouring checked points at times t (N,) (s), where points
-    are at x (N, P) (m) moving at vx (N, P) (m/s), the time at which a point's x turns (an
-    extreme of its cubic) on another piece of the ``terrain`` (``legsim.terrain.pieces_along``)
-    than the one it starts on: past a profile's corner, which it may cross back before the next
-    checked point; the earlier of two such turns, nan where there is none."""
-    out = np.full((t.shape[0] - 1, x.shape[1]), np.nan)
+    """(N - 1, P, 2): between each two neighbouring checked points at times t (N,) (s), where
+    points are at x (N, P) (m) moving at vx (N, P) (m/s), the times at which a point's x turns
+    (where its cubic is least, then where it is most) on another piece of the ``terrain``
+    (``legsim.terrain.pieces_along``) than the one it starts on: past a profile's corner, which
+    it may cross back before the next checked point; nan where it does not turn there."""
+    out = np.full((t.shape[0] - 1, x.shape[1], 2), np.nan)
     x0, x1, v0, v1 = x[:-1], x[1:], vx[:-1], vx[1:]
     dt = np.broadcast_to(np.diff(t)[:, None], x0.shape)
-    start = pieces_along(terrain, x0)
     # The cubic stays within its ends' range widened by (4/27) dt (|v0| + |v1|), the most of the
     # Hermite basis's velocity terms: only where that reaches another piece can it turn onto one.
     reach = (4.0 / 27.0) * dt * (np.abs(v0) + np.abs(v1))
-    low, high = pieces_along(terrain, np.minimum(x0, x1) - reach), pieces_along(terrain, np.maximum(x0, x1) + reach)
+    start, low, high = pieces_along(terrain, np.stack([x0, np.minimum(x0, x1) - reach, np.maximum(x0, x1) + reach]))
     j, p = np.nonzero((low != start) | (high != start))
     if j.size == 0:
         return out
-    ends, rates, span, piece = (x0[j, p], x1[j, p]), (v0[j, p], v1[j, p]), dt[j, p], start[j, p]
-    first = np.full(j.shape, np.nan)
-    for sign in (1.0, -1.0):  # where x is least, then where it is most
+    ends, rates, span = (x0[j, p], x1[j, p]), (v0[j, p], v1[j, p]), dt[j, p]
+    for column, sign in enumerate((1.0, -1.0)):  # where x is least, then where it is most
         s, extreme = cubic_least(sign * ends[0], sign * ends[1], sign * rates[0], sign * rates[1], span)
-        turns = s == s
-        other = turns & (pieces_along(terrain, np.where(turns, sign * extreme, ends[0])) != piece)
-        at = t[j] + np.where(turns, s, 0.0) * span
-        first = np.where(other & ~(first <= at), at, first)
-    out[j, p] = first
+        turns = ~np.isnan(s)
+        other = turns & (pieces_along(terrain, np.where(turns, sign * extreme, ends[0])) != start[j, p])
+        out[j[other], p[other], column] = t[j[other]] + s[other] * span[other]
     return out

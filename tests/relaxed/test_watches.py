@@ -9,9 +9,12 @@ import numpy as np
 import pytest
 
 import legsim.compiled  # noqa: F401 -- the kernel, so that runs are compiled
+import legsim.relaxed.between as between
 from legsim.errors import SimulationError
+from legsim.execution import Segment
 from legsim.relaxed import Watch, simulate
-from legsim.relaxed.watches import condition, cubic_least
+from legsim.relaxed.between import cubic_least, cubic_misfits
+from legsim.relaxed.watches import condition, refined
 from legsim.systems import bouncing_ball
 
 G = 9.81
@@ -219,12 +222,14 @@ def test_a_value_jumping_where_its_piece_changes_inside_a_step_is_seen(python, l
     assert warning.time == pytest.approx(enters, abs=1e-12)
 
 
-def probe_at(time):
-    """A probe giving ``time`` between the two checked points around it, nan between the others."""
+def probe_at(*times):
+    """A probe giving ``times`` between the two checked points around them, nan elsewhere."""
 
     def probe(mode, t, x):
-        inside = (t[:-1] < time) & (time < t[1:])
-        return np.where(inside, time, np.nan)[:, None]
+        out = np.full((len(t) - 1, 1, len(times)), np.nan)
+        for q, time in enumerate(times):
+            out[(t[:-1] < time) & (time < t[1:]), 0, q] = time
+        return out
 
     return probe
 
@@ -233,34 +238,108 @@ def probe_at(time):
 @pytest.mark.parametrize(
     ("levels", "probed", "enters"),
     [
-        ([(0.0, -10.0), (0.25, 0.8), (0.26, -10.0)], 0.255, 0.25),  # the probe lies in the jump
-        ([(0.0, -10.0), (0.25, -9.0), (0.26, 0.8), (0.27, -10.0)], 0.255, 0.26),  # the way back holds
+        ([(0.0, -10.0), (0.25, 0.8), (0.26, -10.0)], (0.255,), 0.25),  # the probe lies in the jump
+        ([(0.0, -10.0), (0.25, -9.0), (0.26, 0.8), (0.27, -10.0)], (0.255,), 0.26),  # on the way back
+        ([(0.0, -10.0), (0.25, 0.8), (0.253, -9.0), (0.26, -10.0)], (0.255,), 0.25),  # on the way out
+        # two trips: out to the level -9 and back, then out to the level 0.8 and back, each probed
+        ([(0.0, -10.0), (0.22, -9.0), (0.23, -10.0), (0.27, 0.8), (0.28, -10.0)], (0.225, 0.275), 0.27),
     ],
-    ids=["probed-piece", "after-the-probe"],
+    ids=["probed-piece", "way-back", "way-out", "two-trips"],
 )
 def test_a_piece_left_and_returned_to_between_two_checked_points_is_seen_at_a_probe(python, levels, probed, enters):
-    # The shelves above, each piece numbered by its level, the last one the first's: the ball is on
-    # piece 0 at both ends of the half step (0.2, 0.3), so no change of piece shows between them. A
-    # probe at 0.255 s reads another piece there; the ways out (to 0.255) and back are searched
-    # across their changes, and the stop is where the level jumps above the ball.
-    value, piece = shelves(levels)
+    # The shelves above, each level's piece numbered by its level, -10's always 0: the ball is on
+    # piece 0 at both ends of the half step (0.2, 0.3), so no change of piece shows between them.
+    # A probe reads another piece inside; the chain of the ends and the probed points is searched
+    # across its changes, and the stop is where the level first jumps above the ball.
+    value, _ = shelves(levels)
 
-    def returning(mode, t, x):
-        labels = piece(mode, t, x)
-        return np.where(labels == len(levels) - 1, 0.0, labels)
+    def piece(mode, t, x):
+        return np.array([level for _, level in levels])[np.searchsorted([a for a, _ in levels], t, "right") - 1] + 10
 
-    watch = Watch("shelf", value, "stop", said, rate=lambda mode, t, x: x[:, 1], piece=returning)
+    watch = Watch("shelf", value, "stop", said, rate=lambda mode, t, x: x[:, 1], piece=piece)
     assert run([watch], t_final=0.4, h=0.2, python=python).status == "finished"  # the premise
-    probing = dataclasses.replace(watch, probe=probe_at(probed))
+    probing = dataclasses.replace(watch, probe=probe_at(*probed))
     ex = run([probing], t_final=0.4, h=0.2, python=python)
     assert ex.status == "fell" and ex.t_end == pytest.approx(enters, abs=1e-12)
     (warning,) = run([dataclasses.replace(probing, action="warn")], t_final=0.4, h=0.2, python=python).warnings
     assert warning.time == pytest.approx(enters, abs=1e-12)
     # a probe reading the ends' piece finds nothing; a part ruled clear is not searched
-    assert run([dataclasses.replace(watch, probe=probe_at(0.27 if enters == 0.25 else 0.28))], t_final=0.4,
-               h=0.2).status == "finished"  # fmt: skip
+    assert (
+        run([dataclasses.replace(watch, probe=probe_at(0.29))], t_final=0.4, h=0.2, python=python).status == "finished"
+    )
     ruled_out = dataclasses.replace(probing, clear=lambda mode, ta, xa, tb, xb: np.ones((len(ta), 1), bool))
-    assert run([ruled_out], t_final=0.4, h=0.2).status == "finished"
+    assert run([ruled_out], t_final=0.4, h=0.2, python=python).status == "finished"
+
+
+def test_a_probe_reads_the_piece_on_its_own_step_s_interpolant():
+    # Four stored steps of sin(5 t) (not a polynomial: another step's cubic gives other values),
+    # refined to checked points; the piece is read from the state (|x| > 0.93 or not: near the
+    # crests), one probe halfway through each checked interval. Where the piece there differs from the
+    # interval's, the detour is the probe's time and that piece, read on the interpolant of the
+    # interval's own stored step (``Segment.interpolate``), and nowhere else.
+    t = np.array([0.0, 0.4, 0.8, 1.2, 1.6])
+    stored = (t, np.sin(5 * t)[:, None], 5 * np.cos(5 * t)[:, None])
+    checked_t, checked_x = refined(*stored)
+    watch = Watch("w", lambda mode, t, x: x[:, 0], "warn", said, rate=lambda mode, t, x: np.ones(len(t)),
+                  piece=lambda mode, t, x: (np.abs(x[:, 0]) > 0.93).astype(float))  # fmt: skip
+    pieces = watch.pieces("m", checked_t, checked_x)
+    probes = (checked_t[:-1] + 0.5 * np.diff(checked_t))[:, None, None]
+    unsmooth = pieces[:-1] != pieces[1:]
+    times, labels = between._detours(watch, "m", checked_t, pieces, probes, unsmooth, stored)
+    expected = (np.abs(Segment("m", *stored).interpolate(probes[:, 0, 0])[:, 0]) > 0.93).astype(float)
+    other = ~unsmooth[:, 0] & (expected != pieces[:-1, 0])
+    assert other.sum() >= 2
+    assert np.array_equal(~np.isnan(times[:, 0, 0]), other)
+    assert np.array_equal(labels[other, 0, 0], expected[other]) and np.array_equal(
+        times[other, 0, 0], probes[other, 0, 0]
+    )
+
+
+def narrow_dip(centre, width=0.02):
+    """0.05 - 0.1 exp(-((t - centre) / width)^2) on the ball's time, below zero where
+    |t - centre| < width sqrt(ln 2), and its rate."""
+
+    def value(mode, t, x):
+        return 0.05 - 0.1 * np.exp(-(((t - centre) / width) ** 2))
+
+    def rate(mode, t, x):
+        return 0.2 * (t - centre) / width**2 * np.exp(-(((t - centre) / width) ** 2))
+
+    return value, rate
+
+
+@pytest.mark.parametrize("python", [False, True])
+def test_a_dip_the_cubic_between_two_checked_points_misses_is_found_by_the_step_s_misfit(python, monkeypatch):
+    # Steps of 0.2 s; the value dips below zero around t = 0.23 s for 33 ms, inside the half step
+    # (0.2, 0.3). At the checked points it is above zero (0.0395 at 0.2 s, 0.05 at 0.3 and 0.4 s),
+    # and the cubic through the half step's ends and rates stays above zero (its least, 0.019, at
+    # 0.226 s). The step's middle lies 0.045 from the cubic through the step's ends: the value is
+    # that far from a cubic there, so the half step is searched where its cubic comes within that
+    # of zero, and the stop is where the value first reaches zero: 0.23 - 0.02 sqrt(ln 2).
+    value, rate = narrow_dip(0.23)
+    watch = Watch("narrow", value, "stop", said, rate=rate)
+    ex = run([watch], t_final=0.4, h=0.2, python=python)
+    assert ex.status == "fell" and ex.t_end == pytest.approx(0.23 - 0.02 * math.sqrt(math.log(2.0)), abs=1e-12)
+    # the premise: without the misfit's margin the cubic alone does not show it
+    monkeypatch.setattr(between, "cubic_misfits", lambda t, v, r, unsmooth: np.zeros((len(t) - 1, v.shape[1])))
+    assert run([watch], t_final=0.4, h=0.2, python=python).status == "finished"
+
+
+def test_the_misfit_of_a_cubic_value_is_zero_and_of_a_quartic_its_own():
+    # checked points of two steps of 0.2 s (stored at 0, 0.2, 0.4, middles at 0.1, 0.3): a cubic
+    # value has no misfit; t^4 less its cubic Hermite through a step's ends [a, b] is
+    # (t - a)^2 (t - b)^2 (the Hermite remainder f''''/4! (t - a)^2 (t - b)^2), dt^4 / 16 at the middle
+    t = np.array([0.0, 0.1, 0.2, 0.3, 0.4])
+    cubic = np.stack([2 * t**3 - t + 1, 6 * t**2 - 1], axis=1)
+    quartic = np.stack([t**4, 4 * t**3], axis=1)
+    none = np.zeros((4, 1), dtype=bool)
+    assert np.allclose(cubic_misfits(t, cubic[:, :1], cubic[:, 1:], none), 0.0, atol=1e-15)
+    assert np.allclose(cubic_misfits(t, quartic[:, :1], quartic[:, 1:], none), 0.2**4 / 16, atol=1e-15)
+    # none where a piece changes in the step, or where the points end at a middle
+    changed = np.array([[False], [True], [False], [False]])
+    assert np.array_equal(cubic_misfits(t, quartic[:, :1], quartic[:, 1:], changed)[:, 0] > 0,
+                          [False, False, True, True])  # fmt: skip
+    assert np.allclose(cubic_misfits(t[:4], quartic[:4, :1], quartic[:4, 1:], none[:3]), [[1e-4], [1e-4], [0]])
 
 
 def dip(centre):
@@ -351,7 +430,9 @@ def test_bad_watches_are_refused_by_name():
                    clear=lambda mode, ta, xa, tb, xb: np.zeros((len(ta), 2), bool))], t_final=0.4, h=0.2)  # fmt: skip
     with pytest.raises(SimulationError, match="probe must be None or a function probe"):
         Watch("w", below(0), "stop", said, rate=lambda mode, t, x: x[:, 1], probe=probe_at(0.25))
-    with pytest.raises(SimulationError, match=r"watch 'w': its probe gave shape \(\d+, 2\) for \d+ points of 1 parts"):
+    with pytest.raises(
+        SimulationError, match=r"watch 'w': its probe gave shape \(\d+, 2, 1\) for \d+ points of 1 parts"
+    ):
         run([Watch("w", value, "stop", said, rate=lambda mode, t, x: x[:, 1], piece=piece,
                    probe=lambda mode, t, x: np.zeros((len(t) - 1, 2)))], t_final=0.4, h=0.2)  # fmt: skip
     with pytest.raises(SimulationError, match="watch 'w': its probe failed in mode 'flight': ZeroDivisionError"):

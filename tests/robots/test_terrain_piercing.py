@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 from legsim.robots.watches import PIERCING_DEPTH, TerrainPiercing
 
+import legsim.relaxed.between as between
 from legsim.relaxed.watches import refined
 from legsim.scene import load_scene
 
@@ -114,8 +115,11 @@ def test_a_plate_passing_the_bump_s_corners_inside_a_step_is_seen(tmp_path):
 
 
 def test_without_the_corners_and_faces_the_plate_s_passage_is_not_seen(tmp_path, monkeypatch):
-    # The premise of the test above: no checked point and no cubic shows the corners inside.
+    # The premise of the test above: no checked point and no cubic shows the corners inside. (Nor
+    # the cubic's misfit at the step's middle, switched off here: where the faces change the check
+    # searches by them alone, and elsewhere the misfit may show the kink of the depth as well.)
     monkeypatch.setattr(TerrainPiercing, "cornered", property(lambda self: False))
+    monkeypatch.setattr(between, "cubic_misfits", lambda t, v, r, unsmooth: np.zeros(unsmooth.shape))
     ex = load_scene(plate(tmp_path)).simulate()
     assert not [w for w in ex.warnings if w.kind == "terrain_inside"]
 
