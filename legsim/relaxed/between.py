@@ -7,9 +7,11 @@ interpolant is evaluated at the cubic's least point (and, if the condition does 
 both sides of that point are searched by the same test, ``DIP_SPLITS`` levels deep), so a dip that
 misses every checked point is seen too. The cubic is only a model of the value: how far the value
 lies from it is measured at each step's middle (its distance from the cubic through the step's
-ends, ``cubic_misfits``), and a half step is searched the same way wherever its cubic comes within
-that distance of zero, so a narrow dip the cubic smooths over is seen where the step shows the
-value far from cubic.
+ends, ``cubic_misfits``), and a half step is searched the same way wherever its cubic's least
+inside it comes within that distance of zero, so a narrow dip the cubic smooths over is seen where
+the step's middle shows the value far from cubic. That distance is an estimate, not a bound: a
+dip narrow enough to leave the middle near the cubic (most of those away from the middle's side
+of the step) is still not seen.
 
 A cubic vouches only for a smooth value: a watch whose parts are smooth piecewise (a foot's depth
 below a profile, whose slope jumps at each corner) says which piece each part is on
@@ -81,15 +83,18 @@ def first_hold(
         else Hold(k, locate(watch, mode, *stored, stored_index(k), True, (float(t[k - 1]), float(t[k]))))
     )
     if parts_at is not None:
-        # up to the first checked point that holds: a part may dip before it within its step
+        # Up to the first checked point that holds, to the end of its step: a part may dip before
+        # it within the step, and the step's misfit needs both its ends (a dip found after the
+        # point is later than it, and dropped below).
         parts, rates, pieces, probes = parts_at
+        stop = min(k + 1 + k % 2, t.shape[0])
         upto = PartsAt(
-            parts[: k + 1],
-            rates[: k + 1],
-            None if pieces is None else pieces[: k + 1],
-            None if probes is None else probes[:k],
+            parts[:stop],
+            rates[:stop],
+            None if pieces is None else pieces[:stop],
+            None if probes is None else probes[: stop - 1],
         )
-        dip = first_dip(watch, mode, (t[: k + 1], x[: k + 1]), upto, stored)
+        dip = first_dip(watch, mode, (t[:stop], x[:stop]), upto, stored)
         if dip is not None and (held is None or dip.time < held.time):
             return dip
     return held
@@ -114,7 +119,8 @@ def _parts_at(watch: Watch, mode: str, t: np.ndarray, x: np.ndarray, given: Part
     rows, parts = max(t.shape[0] - 1, 0), given.parts.shape[1]
     if given.probes is not None and rows and given.probes.shape[:2] != (rows, parts):
         raise SimulationError(
-            f"watch {watch.name!r}: its probe gave shape {given.probes.shape} for {t.shape[0]} points of {parts} parts"
+            f"watch {watch.name!r}: its probe gave shape {given.probes.shape} (rows, parts, probes) for "
+            f"{t.shape[0]} points of {parts} parts"
         )
     return given
 
@@ -141,10 +147,11 @@ def cubic_misfits(t: np.ndarray, v: np.ndarray, r: np.ndarray, unsmooth: np.ndar
     values and rates, (N - 1, m), from the checked points of ``refined`` (t (N,); values v and
     rates r (N, m); stored points at even indices, their steps' middles between): for both halves
     of a stored step, the distance at its middle of the part's value from the cubic through the
-    step's ends. The halves' own cubics are about 16 times closer for a smooth value (the error
-    goes as dt^4), so this margin is that estimate with a factor 16 to spare. 0 where there is
-    no estimate (a step whose middle ends the points, a part changing piece in it, a value
-    that is not finite)."""
+    step's ends. The halves' own cubics are about 16 times closer for a value smooth on the
+    step's scale (the error goes as dt^4), so this margin keeps a factor 16 to spare there; for
+    a feature narrower than the step it is an estimate, not a bound. 0 where there is no
+    estimate (a step whose middle ends the points, a part changing piece in it, a value that is
+    not finite)."""
     out = np.zeros((max(t.shape[0] - 1, 0), v.shape[1]))
     steps = (t.shape[0] - 1) // 2
     if steps == 0:
@@ -163,7 +170,8 @@ class Searches(NamedTuple):
     """What ``first_dip`` searches between each two neighbouring checked points, (N - 1, m) each
     (P probes a part at most): the parts whose cubic comes within its margin of zero (``dips``,
     ``margins``), those whose piece changes (``changes``), and those the probes find on another
-    piece (``detours``: the probes' times and pieces there, (N - 1, m, P), nan elsewhere)."""
+    piece (``detours``), with the probes' times and the pieces there (``probe_times``,
+    ``probe_pieces``: (N - 1, m, P), nan where a probe finds no other piece)."""
 
     dips: np.ndarray
     margins: np.ndarray

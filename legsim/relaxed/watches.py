@@ -262,7 +262,7 @@ class Hold(NamedTuple):
 
 class PartsAt(NamedTuple):
     """A watch's parts at checked points, their rates along the flow and, where it gives them,
-    their pieces, (N, m) each, and its probes' times between the points, (N - 1, m)."""
+    their pieces, (N, m) each, and its probes' times between the points, (N - 1, m, P)."""
 
     parts: np.ndarray
     rates: np.ndarray

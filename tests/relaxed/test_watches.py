@@ -243,8 +243,10 @@ def probe_at(*times):
         ([(0.0, -10.0), (0.25, 0.8), (0.253, -9.0), (0.26, -10.0)], (0.255,), 0.25),  # on the way out
         # two trips: out to the level -9 and back, then out to the level 0.8 and back, each probed
         ([(0.0, -10.0), (0.22, -9.0), (0.23, -10.0), (0.27, 0.8), (0.28, -10.0)], (0.225, 0.275), 0.27),
+        # two trips, the hold on the way back from the second, the probes given latest first
+        ([(0.0, -10.0), (0.22, -9.0), (0.23, -10.0), (0.27, -8.0), (0.28, 0.8), (0.29, -10.0)], (0.275, 0.225), 0.28),
     ],
-    ids=["probed-piece", "way-back", "way-out", "two-trips"],
+    ids=["probed-piece", "way-back", "way-out", "two-trips", "probes-out-of-order"],
 )
 def test_a_piece_left_and_returned_to_between_two_checked_points_is_seen_at_a_probe(python, levels, probed, enters):
     # The shelves above, each level's piece numbered by its level, -10's always 0: the ball is on
@@ -273,20 +275,21 @@ def test_a_piece_left_and_returned_to_between_two_checked_points_is_seen_at_a_pr
 
 def test_a_probe_reads_the_piece_on_its_own_step_s_interpolant():
     # Four stored steps of sin(5 t) (not a polynomial: another step's cubic gives other values),
-    # refined to checked points; the piece is read from the state (|x| > 0.93 or not: near the
-    # crests), one probe halfway through each checked interval. Where the piece there differs from the
+    # refined to checked points; the piece is read from the state (x itself near the crests, where
+    # |x| > 0.93, else 0), one probe halfway through each checked interval. Where the piece there differs from the
     # interval's, the detour is the probe's time and that piece, read on the interpolant of the
     # interval's own stored step (``Segment.interpolate``), and nowhere else.
     t = np.array([0.0, 0.4, 0.8, 1.2, 1.6])
     stored = (t, np.sin(5 * t)[:, None], 5 * np.cos(5 * t)[:, None])
     checked_t, checked_x = refined(*stored)
     watch = Watch("w", lambda mode, t, x: x[:, 0], "warn", said, rate=lambda mode, t, x: np.ones(len(t)),
-                  piece=lambda mode, t, x: (np.abs(x[:, 0]) > 0.93).astype(float))  # fmt: skip
+                  piece=lambda mode, t, x: np.where(np.abs(x[:, 0]) > 0.93, x[:, 0], 0.0))  # fmt: skip
     pieces = watch.pieces("m", checked_t, checked_x)
     probes = (checked_t[:-1] + 0.5 * np.diff(checked_t))[:, None, None]
     unsmooth = pieces[:-1] != pieces[1:]
     times, labels = between._detours(watch, "m", checked_t, pieces, probes, unsmooth, stored)
-    expected = (np.abs(Segment("m", *stored).interpolate(probes[:, 0, 0])[:, 0]) > 0.93).astype(float)
+    at_probes = Segment("m", *stored).interpolate(probes[:, 0, 0])[:, 0]
+    expected = np.where(np.abs(at_probes) > 0.93, at_probes, 0.0)
     other = ~unsmooth[:, 0] & (expected != pieces[:-1, 0])
     assert other.sum() >= 2
     assert np.array_equal(~np.isnan(times[:, 0, 0]), other)
@@ -313,7 +316,7 @@ def test_a_dip_the_cubic_between_two_checked_points_misses_is_found_by_the_step_
     # Steps of 0.2 s; the value dips below zero around t = 0.23 s for 33 ms, inside the half step
     # (0.2, 0.3). At the checked points it is above zero (0.0395 at 0.2 s, 0.05 at 0.3 and 0.4 s),
     # and the cubic through the half step's ends and rates stays above zero (its least, 0.019, at
-    # 0.226 s). The step's middle lies 0.045 from the cubic through the step's ends: the value is
+    # 0.229 s). The step's middle lies 0.045 from the cubic through the step's ends: the value is
     # that far from a cubic there, so the half step is searched where its cubic comes within that
     # of zero, and the stop is where the value first reaches zero: 0.23 - 0.02 sqrt(ln 2).
     value, rate = narrow_dip(0.23)
@@ -323,6 +326,23 @@ def test_a_dip_the_cubic_between_two_checked_points_misses_is_found_by_the_step_
     # the premise: without the misfit's margin the cubic alone does not show it
     monkeypatch.setattr(between, "cubic_misfits", lambda t, v, r, unsmooth: np.zeros((len(t) - 1, v.shape[1])))
     assert run([watch], t_final=0.4, h=0.2, python=python).status == "finished"
+
+
+@pytest.mark.parametrize("python", [False, True])
+def test_a_later_hold_at_a_step_s_middle_does_not_hide_an_earlier_dip(python):
+    # The narrow dip above, and from t = 0.28 s the value falling away (by 200 (t - 0.28)^2, -0.03
+    # at the step's middle, 0.3 s, the first checked point that holds): the check before that
+    # point still has the step's end, and with it the step's misfit, and stops at the dip.
+    dip_value, dip_rate = narrow_dip(0.23)
+
+    def value(mode, t, x):
+        return dip_value(mode, t, x) - 200.0 * np.maximum(t - 0.28, 0.0) ** 2
+
+    def rate(mode, t, x):
+        return dip_rate(mode, t, x) - 400.0 * np.maximum(t - 0.28, 0.0)
+
+    ex = run([Watch("narrow", value, "stop", said, rate=rate)], t_final=0.4, h=0.2, python=python)
+    assert ex.status == "fell" and ex.t_end == pytest.approx(0.23 - 0.02 * math.sqrt(math.log(2.0)), abs=1e-12)
 
 
 def test_the_misfit_of_a_cubic_value_is_zero_and_of_a_quartic_its_own():
@@ -431,7 +451,8 @@ def test_bad_watches_are_refused_by_name():
     with pytest.raises(SimulationError, match="probe must be None or a function probe"):
         Watch("w", below(0), "stop", said, rate=lambda mode, t, x: x[:, 1], probe=probe_at(0.25))
     with pytest.raises(
-        SimulationError, match=r"watch 'w': its probe gave shape \(\d+, 2, 1\) for \d+ points of 1 parts"
+        SimulationError,
+        match=r"watch 'w': its probe gave shape \(\d+, 2, 1\) \(rows, parts, probes\) for \d+ points of 1 parts",
     ):
         run([Watch("w", value, "stop", said, rate=lambda mode, t, x: x[:, 1], piece=piece,
                    probe=lambda mode, t, x: np.zeros((len(t) - 1, 2)))], t_final=0.4, h=0.2)  # fmt: skip
