@@ -21,7 +21,7 @@ from legsim.terrain import SINE, Terrain, corner_positions
 
 from .bridge.guards import ground_watch
 from .bridge.placements import Placements
-from .bridge.sweeps import swept, turns_onto_other_pieces
+from .bridge.sweeps import placed_turns, swept
 from .kept import KeptWhileAlive
 
 
@@ -137,9 +137,7 @@ class LinkHeights:
         states (N, >= 2 n), the times a link point's x turns on another piece of the terrain than
         the one it starts on (``sweeps.turns_onto_other_pieces``), nan where it does not."""
         assert self.terrain is not None  # given only on a terrain with corners
-        x = self._placements.at(states)[:, self._columns, 0]
-        vx = self._placements.velocities(states)[:, self._columns, 0]
-        return turns_onto_other_pieces(self.terrain.array, t, x, vx)
+        return placed_turns(self._placements, self._columns, self.terrain.array, t, states)
 
     def __call__(self, x: np.ndarray) -> dict[str, float]:
         """Each link's lowest point (m) at one state x."""

@@ -58,7 +58,7 @@ def first_hold(
     watch: Watch,
     mode: str,
     checked: tuple[np.ndarray, np.ndarray],
-    stored: tuple[np.ndarray, np.ndarray, np.ndarray],
+    stored: Stored,
     values: Any = None,
     parts_at: PartsAt | None = None,
 ) -> Hold | None:
@@ -239,9 +239,9 @@ def _found_between(
                                    pieces[j : j + 2, which].T, PIECE_CHANGES))  # fmt: skip
     for p in np.flatnonzero(searches.detours[j]):
         assert pieces is not None
-        times, labels = searches.probe_times[j, p], searches.probe_pieces[j, p]
-        order = np.argsort(times)[: int(np.count_nonzero(~np.isnan(times)))]
-        probed = np.stack([times[order], labels[order]], axis=1)
+        at, labels = searches.probe_times[j, p], searches.probe_pieces[j, p]
+        order = np.argsort(at)[: int(np.count_nonzero(~np.isnan(at)))]  # the probes that found one, in time order
+        probed = np.stack([at[order], labels[order]], axis=1)
         found.append(_detour(watch, mode, stored, k, int(p), ends[:, p], float(pieces[j, p]), probed))
     return found
 

@@ -79,7 +79,7 @@ class Watch:
         anywhere between two checked points (times ta, tb (J,), states xa, xb (J, n)), whatever
         pieces they cross (a point that stays above the highest ground under it); their changes
         of piece are not searched. Needs ``piece``.
-    probe: ``probe(mode, t, x) -> (N - 1, m, P)`` times (s), or (N - 1, m) for one a part, or
+    probe: ``probe(mode, t, x) -> (N - 1, m, P)`` times (s), or (N - 1, m) for one probe a part, or
         None: for each two neighbouring points (t (N,), x (N, n)) and each part, times strictly
         between them at which the part may be on another piece than the one it is on at both
         (where a point's x turns past a profile's corner and back: the turns of its x), nan where

@@ -19,7 +19,7 @@ from legsim.terrain import along, corner_positions, pieces_along
 from .contacts import SLIP_SUFFIX, Armed, PointContact, RigidContact, SpringLeg, joint_id
 from .model import BridgeModel
 from .placements import Placements
-from .sweeps import turns_onto_other_pieces
+from .sweeps import placed_turns
 
 #: How far (m, or rad for a revolute stop) past its ground or stop an inactive contact may lie
 #: beyond the strip eps before it counts as passed through: far above a stance's drift
@@ -116,8 +116,7 @@ class PastDepths:
         points = np.array([(k, slot) for k, _, slot in self._inactive(mode) if slot >= 0], dtype=int).reshape(-1, 2)
         if points.size:
             columns = self._columns[points[:, 1]]
-            x, vx = self._placements.at(states)[:, columns, 0], self._placements.velocities(states)[:, columns, 0]
-            out[:, points[:, 0]] = turns_onto_other_pieces(self.model.terrain, t, x, vx)
+            out[:, points[:, 0]] = placed_turns(self._placements, columns, self.model.terrain, t, states)
         return out
 
     def _inactive(self, mode: str) -> Iterator[tuple[int, RigidContact, int]]:
@@ -263,7 +262,10 @@ def ground_watch(
     if action == "strict":
         return dataclasses.replace(watch, action="stop", status=Status.MODEL_BREAKDOWN.value)
     if action == "fall":
-        fell = lambda t, mode, x: f"fell: {name}: {message(t, mode, x)}"  # noqa: E731
+
+        def fell(t: float, mode: str, x: np.ndarray) -> str:
+            return f"fell: {name}: {message(t, mode, x)}"
+
         return dataclasses.replace(watch, action="stop", message=fell, status=Status.FELL.value)
     return watch
 

@@ -41,6 +41,16 @@ def swept(
     return x_low, x_high, z_low
 
 
+def placed_turns(
+    placements: Placements, columns: Any, terrain: np.ndarray, t: np.ndarray, states: np.ndarray
+) -> np.ndarray:
+    """``turns_onto_other_pieces`` of the placed points ``columns`` of ``placements`` between
+    neighbouring checked points at times t (N,) and states (N, >= 2 n), on the ``terrain``
+    encoded as an array: (N - 1, points, 2)."""
+    x, vx = placements.at(states)[:, columns, 0], placements.velocities(states)[:, columns, 0]
+    return turns_onto_other_pieces(terrain, t, x, vx)
+
+
 def turns_onto_other_pieces(terrain: np.ndarray, t: np.ndarray, x: np.ndarray, vx: np.ndarray) -> np.ndarray:
     """(N - 1, P, 2): between each two neighbouring checked points at times t (N,) (s), where
     points are at x (N, P) (m) moving at vx (N, P) (m/s), the times at which a point's x turns
