@@ -537,6 +537,9 @@ class Assembly:
                       breakdown: Any) -> tuple[Status, str]:  # fmt: skip
         if breakdown is not None and reason in (END_FIELD_AT_ENTRY, END_GUARD_AT_ENTRY):
             return Status.MODEL_BREAKDOWN, f"{breakdown} (mode '{name}', t={t:.17g})"
+        if self._nan_breaks_at_entry(ws, reason, name, x):
+            # As inside a step: a model that declares ``nan_breaks`` writes nan past its range.
+            return Status.MODEL_BREAKDOWN, f"{self.model_range(name, x)} (entering mode '{name}', t={t:.17g})"
         if reason == END_FIELD_AT_ENTRY:
             return Status.NON_FINITE, messages.non_finite_field(name, t, x, ws.K[0, : x.shape[0]].copy())
         if reason == END_GUARD_AT_ENTRY:
@@ -585,6 +588,19 @@ class Assembly:
         if index < 0 or tables.datas[mode] is None or index >= len(tables.datas[mode].transitions):
             return "?"
         return tables.datas[mode].transitions[index].name
+
+    def _nan_breaks_at_entry(self, ws: Any, reason: int, mode: str, x: np.ndarray) -> bool:
+        """Whether a run ended at a mode's entry by a nan of its field or of a guard, in a mode
+        whose functions declare ``nan_breaks`` (a nan there means the state is past the model's
+        range, as it does inside a step; an infinity stays non-finite)."""
+        functions = self.system.mode(mode).functions
+        if functions is None or not functions.nan_breaks:
+            return False
+        if reason == END_FIELD_AT_ENTRY:
+            return bool(np.isnan(ws.K[0, : x.shape[0]]).any())
+        if reason == END_GUARD_AT_ENTRY:
+            return bool(np.isnan(ws.g_here[int(ws.iv[I_END_INDEX])]))
+        return False
 
     def model_range(self, mode: str, x: np.ndarray) -> str:
         """Why a model function's nan ends the run, in words: the mode's ``range_note`` where its

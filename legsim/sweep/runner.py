@@ -89,7 +89,8 @@ def run_sweep(
     connect_timeout: float | None = None,
 ) -> SweepResult:
     """Run every variation of ``spec`` not done yet (see ``legsim.sweep.sweep`` for the arguments)."""
-    fixed_point = check_sweep(spec)
+    fixed_point, inputs = check_sweep(spec)
+    spec = spec.with_inputs(inputs)
     store = ResultStore(out, spec) if out is not None else None
     with store.claim() if store is not None else contextlib.nullcontext():
         return _run_claimed(
@@ -177,10 +178,28 @@ def failed_row(index: int, values: dict[str, Any], exc: BaseException) -> dict[s
     }
 
 
-def check_sweep(spec: SweepSpec) -> dict[str, float] | None:
+def check_sweep(spec: SweepSpec) -> tuple[dict[str, float] | None, list[Path]]:
     """Load the scene at every axis's ends, so that a wrong field or value is reported before
-    anything runs; for a walk, the reference gait of the scene (its fixed point by coordinate,
-    None when the walks vary the model, each then finding its own)."""
+    anything runs. Returns, for a walk, the reference gait of the scene (its fixed point by
+    coordinate, None when the walks vary the model, each then finding its own), and the files
+    the scene reads (``Scene.input_files``)."""
+    base = _checked_base(spec)
+    files = base.input_files()
+    if spec.run != "walk" or any(not k.startswith("initial.") for k in spec.keys):
+        return None, files
+    from .tasks import reference_gait
+
+    gait = reference_gait(spec, {})
+    if not gait.converged:
+        raise SweepError(
+            f"{base.path}: the walks need the scene's gait, and its orbit search ended with "
+            f"{gait.status}: {gait.message}"
+        )
+    return dict(zip(gait.state_names, (float(v) for v in gait.fixed_point), strict=True)), files
+
+
+def _checked_base(spec: SweepSpec) -> Any:
+    """The scene with the sweep's overrides, its axes' ends and measures checked."""
     from ..scene import load_scene
     from ..scene.orbit import problem_from_scene
 
@@ -194,17 +213,7 @@ def check_sweep(spec: SweepSpec) -> dict[str, float] | None:
         problem_from_scene(base)  # the [orbit] section is there and valid
     if measures:
         check_coordinates(measures, base.model.system, base.path)
-    if spec.run != "walk" or any(not k.startswith("initial.") for k in spec.keys):
-        return None
-    from .tasks import reference_gait
-
-    gait = reference_gait(spec, {})
-    if not gait.converged:
-        raise SweepError(
-            f"{base.path}: the walks need the scene's gait, and its orbit search ended with "
-            f"{gait.status}: {gait.message}"
-        )
-    return dict(zip(gait.state_names, (float(v) for v in gait.fixed_point), strict=True))
+    return base
 
 
 def write_figures(result: SweepResult, folder: Path, fixed_point: dict[str, float] | None) -> dict[str, Path]:

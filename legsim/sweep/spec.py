@@ -25,7 +25,8 @@ import math
 import os
 import tomllib
 from collections.abc import Iterator, Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -69,7 +70,9 @@ class SweepSpec:
     one variation may take (None: no limit); measures: ``KIND:COORD[:FROM]`` strings, each a
     column of the run (``legsim.sweep.measures``); orbit_guess: one of ``ORBIT_GUESSES``, the
     orbit search's guess: the scene's (``[initial]`` and ``orbit.guess``) or the last crossing of
-    the section in the variation's run.
+    the section in the variation's run; inputs: the SHA-256 (hex) of the files the scene reads
+    (the scene file, its URDF, its terrain CSV: ``inputs_digest``) when the sweep began, so that
+    ``--resume`` refuses a sweep whose files have changed since ("" where none was taken).
     """
 
     scene: str
@@ -85,6 +88,7 @@ class SweepSpec:
     timeout: float | None = None
     measures: tuple[str, ...] = ()
     orbit_guess: str = "scene"
+    inputs: str = ""
     _draws: Any = field(default=None, init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
@@ -141,6 +145,8 @@ class SweepSpec:
             out.pop("measures")
         if out["orbit_guess"] == "scene":
             out.pop("orbit_guess")
+        if not out["inputs"]:
+            out.pop("inputs")
         result: dict[str, Any] = json.loads(json.dumps(out, allow_nan=False))
         return result
 
@@ -162,11 +168,30 @@ class SweepSpec:
         measures = tuple(check_list(data.get("measures", []), (str,), "spec.measures"))
         return cls(**{**data, **axes, "overrides": tuple(data["overrides"]), "measures": measures})
 
+    def with_inputs(self, files: Sequence[os.PathLike[str] | str]) -> SweepSpec:
+        """This sweep with ``inputs`` the digest of ``files`` as they are now."""
+        return replace(self, inputs=inputs_digest(files))
+
     def fingerprint(self) -> str:
         """The SHA-256 (hex) of everything the rows depend on: ``--resume`` continues only the
         sweep whose manifest and table carry it."""
         text = json.dumps(self.to_json(), sort_keys=True, allow_nan=False)
         return hashlib.sha256(text.encode()).hexdigest()
+
+
+def inputs_digest(files: Sequence[os.PathLike[str] | str]) -> str:
+    """The SHA-256 (hex) of the files' names and contents, in order: what a sweep's rows
+    depend on beyond its specification. SweepError naming a file that cannot be read."""
+    digest = hashlib.sha256()
+    for file in files:
+        path = Path(file)
+        try:
+            content = path.read_bytes()
+        except OSError as exc:
+            raise SweepError(f"{path}: cannot read this input of the sweep's scene: {exc.strerror or exc}") from None
+        digest.update(f"{path.name}\0{len(content)}\0".encode())
+        digest.update(content)
+    return digest.hexdigest()
 
 
 #: The keys of a sweep's ``to_json`` document and their JSON types.
@@ -186,6 +211,7 @@ OPTIONAL_SPEC_KEYS: dict[str, tuple[type, ...]] = {
     "timeout": (int, float, type(None)),
     "measures": (list,),
     "orbit_guess": (str,),
+    "inputs": (str,),
 }
 AXIS_KEYS: dict[str, tuple[type, ...]] = {
     "key": (str,),

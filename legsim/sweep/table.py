@@ -296,6 +296,12 @@ class ResultStore:
             )
         if stored.fingerprint() != self.spec.fingerprint():
             changed = sorted(k for k, v in stored.to_json().items() if self.spec.to_json().get(k) != v)
+            if changed == ["inputs"]:
+                raise SweepError(
+                    f"--resume: the scene's files (the scene, its URDF, its terrain CSV) have changed since the sweep "
+                    f"in {self.folder} began, so its rows and new ones would not be of one scene; restore them, or "
+                    f"choose another --out"
+                )
             raise SweepError(
                 f"--resume: {self.folder} holds another sweep (differs in {changed}); resume it with "
                 f"the same scene, --set, axes and measures, or choose another --out"

@@ -132,3 +132,35 @@ def test_a_python_controllers_input_of_the_wrong_size_is_named_as_the_controller
     with pytest.raises(ModelError) as info:
         simulate(system, [1.0, 0.0], "flight", 0.5, 1e-3, 1e-6, "rk4", control=control)
     assert says in str(info.value) and "field" not in str(info.value)
+
+
+@model_function
+def past_its_range(t, x, u, p, dx):
+    dx[0] = x[1]
+    dx[1] = np.nan  # what a robot's contact dynamics write where no force is consistent
+
+
+def into_a_mode_past_its_range(nan_breaks):
+    """The ball's bounce leads into mode 'up', whose field is nan everywhere."""
+    up = ModeFunctions(past_its_range, nan_breaks=nan_breaks, range_note="no consistent contact forces")
+    return HybridSystem(
+        {
+            "air": Mode(
+                2, names=("z", "zd"), functions=ModeFunctions(fall, above_floor, paddle_bounce, params=[1.0, 0.5])
+            ),
+            "up": Mode(2, names=("z", "zd"), functions=up),
+        },
+        [Transition("air", "up", name="bounce")],
+        name="ball",
+    )
+
+
+@pytest.mark.parametrize("python", [False, True])
+@pytest.mark.parametrize(("nan_breaks", "status"), [(True, "model_breakdown"), (False, "non_finite")])
+def test_a_nan_at_a_mode_s_entry_is_a_breakdown_where_the_model_says_nan_breaks(python, nan_breaks, status):
+    # Dropped from 1 m the ball enters 'up' at t = sqrt(2 / g); a model that declares nan_breaks
+    # means by its nan a state past its range, at a mode's entry as inside a step.
+    ex = simulate(into_a_mode_past_its_range(nan_breaks), [1.0, 0.0], "air", 1.0, 1e-3, 1e-4, "rk4", python=python)
+    assert ex.status == status and ex.final_mode == "up", ex.message
+    assert abs(ex.t_end - np.sqrt(2.0 / G)) < 2e-3
+    assert ("no consistent contact forces" in ex.message) == nan_breaks, ex.message

@@ -20,6 +20,7 @@ import pytest
 
 import legsim
 from legsim.cli import main
+from legsim.scene.files import bundled_dir
 from legsim.sweep import runner
 from legsim.sweep.spec import SweepError
 from legsim.sweep.table import TIMING_COLUMNS
@@ -160,6 +161,37 @@ def test_resuming_an_interrupted_1000_run_sweep_recomputes_no_finished_row(tmp_p
     # The finished rows are those of the first run, their wall times included (not recomputed).
     assert after.slice(0, 350).equals(before)
     assert not (out / "results.parts").exists()
+
+
+def test_a_sweep_whose_scene_file_changed_is_not_resumed(tmp_path, monkeypatch, capsys):
+    # The rows on disk were computed from the scene as it was: resuming after an edit would mix
+    # two scenes in one table, so --resume refuses, naming the files; put back, it resumes.
+    scene = tmp_path / "ball.toml"
+    original = (bundled_dir() / "bouncing_ball.toml").read_text()
+    scene.write_text(original)
+    out = tmp_path / "s"
+    args = ["sweep", str(scene), "--grid", "initial.state.z=0.5:2:40", "--set", "integrator.t_final=0.05",
+            "--out", str(out), "--in-process", "--batch", "10", "--quiet"]  # fmt: skip
+    real = runner.run_batch
+    calls = []
+
+    def interrupted(spec, items):
+        if len(calls) == 2:
+            raise KeyboardInterrupt
+        calls.append(items)
+        return real(spec, items)
+
+    monkeypatch.setattr(runner, "run_batch", interrupted)
+    assert main(args) == 130
+    monkeypatch.setattr(runner, "run_batch", real)
+    scene.write_text(original + "\n# edited\n")
+    capsys.readouterr()
+    assert main([*args, "--resume"]) == 2
+    assert "scene's files" in capsys.readouterr().err
+    assert pq.read_table(out / "results.parquet").num_rows == 20  # nothing added
+    scene.write_text(original)
+    assert main([*args, "--resume"]) == 0
+    assert pq.read_table(out / "results.parquet").column("index").to_pylist() == list(range(40))
 
 
 def test_a_sweep_killed_outright_resumes_from_the_batches_it_streamed(tmp_path):
