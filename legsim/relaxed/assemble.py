@@ -110,7 +110,7 @@ class Assembly:
         self.transitions: list[TransitionRecord] = []
         self.crossings: list[tuple[Any, ...]] = []
         self.in_strip = False
-        self._open: tuple[int, list[np.ndarray], list[np.ndarray], list[np.ndarray]] | None = None
+        self._open: OpenVisit | None = None
         #: The stop watches' scan: visits scanned whole, points of the next one scanned, and where
         #: one first held (visit index, stored point at or after it, time, watch).
         self._scanned = (0, 0)
@@ -160,14 +160,10 @@ class Assembly:
         return int(self.tables.modes[mode, M_DIM]) + self.tables.memory
 
     def _extend(self, ws: Any, mode: int, first: int, last: int) -> None:
-        if self._open is None or self._open[0] != mode:
+        if self._open is None or self._open.mode != mode:
             self._close()
-            self._open = (mode, [], [], [])
-        n = self._width(mode)
-        _, ts, xs, dxs = self._open
-        ts.append(ws.T[first:last].copy())
-        xs.append(ws.X[first:last, :n].copy())
-        dxs.append(ws.DX[first:last, :n].copy())
+            self._open = OpenVisit(mode, self._width(mode))
+        self._open.append(ws.T[first:last], ws.X[first:last], ws.DX[first:last])
 
     def _whole(self, ws: Any, stored: tuple[np.ndarray, ...], mode: int, first: int, last: int) -> None:
         """The segment of a visit whose points are all in the buffers (``_extend`` then ``_close``
@@ -184,11 +180,9 @@ class Assembly:
     def _close(self) -> None:
         if self._open is None:
             return
-        mode, ts, xs, dxs = self._open
-        self._open = None
-        self.segments.append(
-            filled(Segment, mode=self.tables.names[mode], t=_joined(ts), x=_joined(xs), dx=_joined(dxs))
-        )
+        visit, self._open = self._open, None
+        t, x, dx = visit.points(copy=True)
+        self.segments.append(filled(Segment, mode=self.tables.names[visit.mode], t=t, x=x, dx=dx))
 
     def _records(self, ws: Any) -> None:
         # As Python numbers at once: indexing numpy rows field by field costs more than the records.
@@ -309,10 +303,8 @@ class Assembly:
     def _visits(self, first: int) -> list[tuple[int, str, np.ndarray, np.ndarray, np.ndarray]]:
         """(index, mode, t, x, dx) of the visits from ``first`` on, the open one included."""
         out = [(i, s.mode, s.t, s.x, s.dx) for i, s in enumerate(self.segments) if i >= first]
-        if self._open is not None and self._open[1]:
-            mode, ts, xs, dxs = self._open
-            out.append((len(self.segments), self.tables.names[mode], np.concatenate(ts), np.concatenate(xs),
-                        np.concatenate(dxs)))  # fmt: skip
+        if self._open is not None and self._open.size:
+            out.append((len(self.segments), self.tables.names[self._open.mode], *self._open.points()))
         return out
 
     def _checked_points(self, i: int) -> tuple[np.ndarray, np.ndarray]:
@@ -355,7 +347,7 @@ class Assembly:
         if until is None or self.until_held:
             return self.until_held
         segments = list(self.segments)
-        if self._open is not None and self._open[1]:
+        if self._open is not None and self._open.size:
             _, mode, t, x, dx = self._visits(len(self.segments))[-1]
             segments.append(Segment(mode, t, x, dx))
         try:
@@ -624,7 +616,28 @@ class _Replay:
         self.strip_time = 0.0
 
 
-def _joined(pieces: list[np.ndarray]) -> np.ndarray:
-    """The pieces (copies of buffer rows) end to end: the piece itself when it is the only one
-    (a visit drained at once), which spares a second copy of every point."""
-    return pieces[0] if len(pieces) == 1 else np.concatenate(pieces)
+class OpenVisit:
+    """The points of a visit still open at a hand-back, in arrays that double as they fill: a
+    hand-back's checks read the visit so far as views, so a long visit costs its points once,
+    not once per hand-back."""
+
+    def __init__(self, mode: int, width: int, capacity: int = 256) -> None:
+        self.mode, self.size = mode, 0
+        self.t, self.x, self.dx = np.empty(capacity), np.empty((capacity, width)), np.empty((capacity, width))
+
+    def append(self, t: np.ndarray, x: np.ndarray, dx: np.ndarray) -> None:
+        """Add rows t (k,), and x, dx (k, >= width), their first width columns."""
+        end = self.size + t.shape[0]
+        if end > self.t.shape[0]:
+            capacity = max(end, 2 * self.t.shape[0])
+            self.t = np.resize(self.t, capacity)
+            self.x, self.dx = (np.vstack([a, np.empty((capacity - a.shape[0], a.shape[1]))]) for a in (self.x, self.dx))
+        width = self.x.shape[1]
+        self.t[self.size : end], self.x[self.size : end], self.dx[self.size : end] = t, x[:, :width], dx[:, :width]
+        self.size = end
+
+    def points(self, copy: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(t, x, dx) of the rows so far: views, or arrays of their own with ``copy``."""
+        rows = slice(0, self.size)
+        views = self.t[rows], self.x[rows], self.dx[rows]
+        return tuple(v.copy() for v in views) if copy else views  # type: ignore[return-value]

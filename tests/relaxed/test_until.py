@@ -55,3 +55,41 @@ def test_a_bad_until_is_refused_by_name():
 
     with pytest.raises(SimulationError, match=r"until failed at t=.*KeyError"):
         run(until=broken, h=1e-4)
+
+
+def test_an_open_visit_grows_in_place_and_hands_back_views_of_it():
+    # A hand-back's checks read the open visit as views of one growing array (so a long visit
+    # costs its points once, not once per hand-back), the same points as its pieces end to end.
+    from legsim.relaxed.assemble import OpenVisit
+
+    rng = np.random.default_rng(0)
+    visit, pieces = OpenVisit(mode=0, width=2, capacity=4), []
+    for _ in range(40):
+        rows = int(rng.integers(1, 50))
+        t, x, dx = rng.normal(size=rows), rng.normal(size=(rows, 3)), rng.normal(size=(rows, 3))
+        visit.append(t, x, dx)  # wider rows than the mode's state: its first two columns
+        pieces.append((t, x[:, :2], dx[:, :2]))
+        views = visit.points()
+        for got, column in zip(views, zip(*pieces, strict=True), strict=True):
+            np.testing.assert_array_equal(got, np.concatenate(column))
+        assert np.shares_memory(views[0], visit.t) and views[0].shape[0] == visit.size
+    copies = visit.points(copy=True)
+    assert not any(np.shares_memory(c, a) for c, a in zip(copies, (visit.t, visit.x, visit.dx), strict=True))
+
+
+@pytest.mark.parametrize("python", [False, True])
+def test_until_sees_a_long_visit_whole_at_every_hand_back(python):
+    # One visit of 20,000 steps (no bounce before 2 s from 30 m), checked at every hand-back:
+    # each call of until sees the visit's points so far, contiguous in time, the last the newest.
+    seen = []
+
+    def record(so_far):
+        (segment,) = so_far.segments
+        assert np.all(np.diff(segment.t) > 0)
+        seen.append(segment.t[-1])
+        return False
+
+    system = bouncing_ball.make_system(restitution=0.8)
+    ex = simulate(system, [30.0, 0.0], "flight", 2.0, 1e-4, 1e-5, until=record, python=python)
+    assert ex.status == "finished" and len(ex.segments) == 1 and not ex.transitions
+    assert len(seen) >= 20_000 // STOP_CHECK_STEPS and np.all(np.diff(seen) > 0)
