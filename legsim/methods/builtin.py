@@ -8,7 +8,7 @@ import numpy as np
 
 from ..errors import SimulationError
 from . import dop853_data as d853
-from .tableau import DenseOutput, Tableau, tableau
+from .tableau import DenseOutput, Tableau, check_tableau, tableau
 
 EULER = tableau("euler", 1, [0.0], [[]], [1.0])
 MIDPOINT = tableau("rk2", 2, [0.0, 0.5], [[], [0.5]], [0.0, 1.0])
@@ -200,7 +200,10 @@ def get_method(method: str | Tableau) -> Tableau:
     ``bs32``/``rk23``, ``dopri5``/``rk45``, ``dop853``; case-insensitive) or pass a ``Tableau``
     through."""
     if isinstance(method, Tableau):
-        return method
+        try:
+            return check_tableau(method)
+        except ValueError as exc:
+            raise SimulationError(f"method: {exc}") from None
     if not isinstance(method, str):
         raise SimulationError(f"method must be a name or a Tableau, got {type(method).__name__}")
     key = ALIASES.get(method.lower(), method.lower())

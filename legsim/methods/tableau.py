@@ -121,3 +121,55 @@ def tableau(
         raise ValueError(f"tableau {name}: the weights b must sum to 1")
     low = None if b_err_low is None else np.array(b_err_low, dtype=float)
     return Tableau(name, order, c_arr, A_arr, b_arr, b_err, error_order, fsal, dense, low)
+
+
+def check_tableau(method: Tableau) -> Tableau:
+    """``method`` itself, once its arrays are consistent: shapes of s stages, finite entries,
+    stages that use only earlier ones, an explicit method's rows of A summing to c and weights b
+    summing to 1 (to 1e-12), an FSAL method's last stage its new point. ValueError naming the method and what is
+    wrong: a ``Tableau`` built by hand is used as given, and a mistyped one would run quietly
+    wrong (or read past its arrays in the compiled loop)."""
+    name = method.name
+    s = len(np.atleast_1d(method.b))
+    shapes = {"c": (s,), "A": (s, s), "b": (s,), "b_err": (s,), "b_err_low": (s,), "G": (s, s), "time_weights": (s,)}
+    for key, shape in shapes.items():
+        value = getattr(method, key)
+        if value is None:
+            continue
+        array = np.asarray(value)
+        if array.shape != shape or not np.issubdtype(array.dtype, np.number) or not np.all(np.isfinite(array)):
+            raise ValueError(f"Tableau {name!r}: {key} must be finite numbers of shape {shape} for {s} stages (b's)")
+    if np.any(np.triu(np.asarray(method.A, dtype=float)) != 0.0) or (
+        method.G is not None and np.any(np.triu(np.asarray(method.G, dtype=float)) != 0.0)
+    ):
+        raise ValueError(f"Tableau {name!r}: stage i may use only stages before it (A and G strictly lower triangular)")
+    if not method.implicit:  # a linearly implicit method's A and b act with G on its stages
+        _check_sums(method)
+    if method.fsal and not (np.allclose(method.A[-1], method.b, rtol=0.0, atol=1e-15) and method.c[-1] == 1.0):
+        raise ValueError(f"Tableau {name!r}: fsal needs the last stage at the new point (A's last row b, c = 1)")
+    if method.error_order is not None and method.b_err is None:
+        raise ValueError(f"Tableau {name!r}: error_order without b_err")
+    _check_dense(name, method.dense, s)
+    return method
+
+
+def _check_sums(method: Tableau) -> None:
+    """An explicit method's consistency: rows of A summing to c, weights b summing to 1."""
+    if not np.allclose(np.sum(method.A, axis=1), method.c, rtol=0.0, atol=1e-12):
+        raise ValueError(f"Tableau {method.name!r}: the rows of A must sum to c")
+    total = float(np.sum(method.b))
+    if abs(total - 1.0) > 1e-12:
+        raise ValueError(f"Tableau {method.name!r}: the weights b must sum to 1 (they sum to {total:.17g})")
+
+
+def _check_dense(name: str, dense: DenseOutput | None, s: int) -> None:
+    """The continuous extension's arrays fit s stages and its own m extra ones."""
+    if dense is None:
+        return
+    m = len(np.atleast_1d(dense.c_extra))
+    P, A_extra = np.asarray(dense.P), np.asarray(dense.A_extra)
+    if P.ndim != 2 or P.shape[0] != s + m or (m and A_extra.shape != (m, s + m)) or not np.all(np.isfinite(P)):
+        raise ValueError(
+            f"Tableau {name!r}: dense output needs P of shape ({s + m}, degree) and A_extra ({m}, {s + m}) "
+            f"for {s} stages and {m} extra ones"
+        )

@@ -193,6 +193,8 @@ def input_entries(value: Any, count: int, control: Any) -> np.ndarray:
     """A Python controller's input as the ``count`` numbers a compiled plant reads; a value of
     another size or not numeric is the controller's ContractError (numpy would otherwise report it
     as a failure of the mode's field, where the loop writes the input)."""
+    if value is None:  # numpy would read it as one nan
+        raise ContractError(f"{_who(control)} returned None, expected {count} numbers")
     try:
         entries = np.asarray(value, dtype=float).reshape(-1)
     except (TypeError, ValueError) as exc:

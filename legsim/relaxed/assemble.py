@@ -351,12 +351,15 @@ class Assembly:
             _, mode, t, x, dx = self._visits(len(self.segments))[-1]
             segments.append(Segment(mode, t, x, dx))
         try:
-            self.until_held = bool(until(RunSoFar(self.options.t0, segments, list(self.transitions))))
+            held = until(RunSoFar(self.options.t0, segments, list(self.transitions)))
         except LegsimError:
             raise
         except Exception as exc:
             raise SimulationError(f"until failed at t={segments[-1].t[-1] if segments else self.options.t0:.17g}: "
                                   f"{type(exc).__name__}: {exc}") from exc  # fmt: skip
+        if not isinstance(held, (bool, np.bool_)):
+            raise SimulationError(f"until must return True or False, got {type(held).__name__} {held!r:.80}")
+        self.until_held = bool(held)
         return self.until_held
 
     def _cut(self) -> tuple[Status, str, float]:

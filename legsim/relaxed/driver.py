@@ -131,15 +131,20 @@ def drive(
         settings(ws, options, tables)
         start(tables, ws, row, x0, memory, options)
         compiled = KERNEL is not None and not options.python
-        python_reason = tables.python_reason
-        if KERNEL is None and tables.compiled:
-            python_reason = "the compiled kernel is not loaded (legsim.compiled was not imported)"
-        elif options.python:
-            python_reason = "the run asked for plain Python (simulate(python=True))"
         assembly = Assembly(system, tables, options)
         run = Runner(tables, ws, method, compiled, options, assembly)
         run.go()
-        return assembly.execution(run.ws, run.steps, time.perf_counter() - wall0, python_reason)
+        return assembly.execution(run.ws, run.steps, time.perf_counter() - wall0, python_reason(tables, options))
+
+
+def python_reason(tables: RunTables, options: Options) -> str:
+    """Why a run took (or would take) the Python loop, "" for none; read after the run, since a
+    mode the run reaches later may be the one written in Python."""
+    if options.python:
+        return "the run asked for plain Python (simulate(python=True))"
+    if KERNEL is None and tables.compiled:
+        return "the compiled kernel is not loaded (legsim.compiled was not imported)"
+    return tables.python_reason
 
 
 def settings(ws: Workspace, options: Options, tables: RunTables) -> None:

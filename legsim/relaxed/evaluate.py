@@ -76,8 +76,10 @@ def visit_of(tab: Tables, memory: int, mode: int) -> Visit:
 
 
 def control_now(tab: Tables, vis: Visit, ws, t: float, x: np.ndarray) -> None:
-    """The controller's input at (t, x) into ws.u (nothing without a controller)."""
+    """The controller's input at (t, x) into ws.u (nothing without a controller); an entry it
+    leaves unwritten is nan, never an earlier call's value."""
     if vis.control >= 0:
+        unwritten(ws.u, ws.u.shape[0])
         call_state(tab.functions, vis.control, t, x[: vis.dim], x[vis.dim : vis.n], vis.pc, ws.u)
 
 
@@ -124,6 +126,7 @@ def input_after(tab: Tables, target: Visit, ws, t: float, x: np.ndarray, u: np.n
     """The controller's input in ``target``'s mode at (t, x) into u, x the target's state whose
     memory x[dim:n] the controller's entry updates in place (a preview: x is scratch)."""
     enter_controller(tab, target, ws, t, x)
+    unwritten(u, u.shape[0])
     call_state(tab.functions, target.control, t, x[: target.dim], x[target.dim : target.n], target.pc, u)
 
 
@@ -193,6 +196,7 @@ def enter_controller(tab: Tables, vis: Visit, ws, t: float, x: np.ndarray) -> No
     if vis.enter < 0:
         return
     memory = ws.ci[S_MEMORY]
+    unwritten(ws.m_new, memory)
     call_state(tab.functions, vis.enter, t, x[: vis.dim], x[vis.dim : vis.n], vis.pc, ws.m_new[:memory])
     for d in range(memory):
         x[vis.dim + d] = ws.m_new[d]

@@ -147,8 +147,13 @@ def simulate(
         rtol, atol = ADAPTIVE_DEFAULTS
     law = control if isinstance(control, ControlLaw) else None
     control = None if law is not None else _bound_control(control)
+    if step_size is not None and (rtol is not None or atol is not None):
+        raise SimulationError(
+            f"give either step_size or rtol/atol, not both (got step_size={step_size!r}, rtol={rtol!r}, atol={atol!r})"
+        )
     rule = _step_size_part(step_size, tableau, h) if step_size is not None else step_size_rule(tableau, h, rtol, atol)
-    _check_continuation(continuation)
+    _check_flag("continuation", continuation)
+    _check_flag("python", python)
     options = Options(
         tableau=tableau,
         h=h,
@@ -203,9 +208,9 @@ def _check_until(until: Any) -> Any:
     return until
 
 
-def _check_continuation(continuation: Any) -> None:
-    if not isinstance(continuation, (bool, np.bool_)):
-        raise SimulationError(f"continuation must be True or False, got {type(continuation).__name__} {continuation!r}")
+def _check_flag(name: str, value: Any) -> None:
+    if not isinstance(value, (bool, np.bool_)):
+        raise SimulationError(f"{name} must be True or False, got {type(value).__name__} {value!r}")
 
 
 def _bound_control(control: Any) -> Any:
@@ -302,9 +307,12 @@ def _eval_times(t_eval: Any, t0: float, t_final: float) -> np.ndarray | None:
     if t_eval is None:
         return None
     try:
-        times = np.asarray(t_eval, dtype=float).reshape(-1)
+        times = np.asarray(t_eval, dtype=float)
     except (TypeError, ValueError) as exc:
         raise SimulationError(f"t_eval must be a sequence of times (s): {exc}") from exc
+    if times.ndim > 1:
+        raise SimulationError(f"t_eval must be a sequence of times (s), got an array of shape {times.shape}")
+    times = times.reshape(-1)
     if times.size and (
         not np.all(np.isfinite(times)) or np.any(np.diff(times) < 0) or times[0] < t0 or times[-1] > t_final
     ):
@@ -415,7 +423,7 @@ def _initial_input(
     except Exception as exc:
         raise SimulationError(f"control(t0, x0) failed at t0={t0}: {type(exc).__name__}: {exc}") from exc
     functions = system.mode(mode).functions
-    if value is not None and functions is not None and functions.inputs:
+    if functions is not None and functions.inputs and (value is not None or control is not None):
         try:
             input_entries(value, functions.inputs, control)
         except ContractError as exc:

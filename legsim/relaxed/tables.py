@@ -120,8 +120,11 @@ class RunTables:
         self.history_rows = 0
         self.memory = self._memory()
         self.inputs = 0 if law is None else int(law.inputs)
-        self.compiled = law is not None or control is None
-        self.python_reason = "" if self.compiled else "the control is a Python callable"
+        self.compiled, self.python_reason = True, ""
+        if law is not None and not law.compiled:
+            self._python(f"controller {law.name} has Python functions (compile them with legsim.model_function)")
+        elif law is None and control is not None:
+            self._python("the control is a Python callable")
 
     # -- registration -------------------------------------------------------------------------
     def register(self, name: str) -> int:
@@ -159,6 +162,11 @@ class RunTables:
             out[M_PREVIEWED] = int(functions.previewed)
             out[M_CROSSES_JUMPS] = int(functions.crosses_jumps)
             self.inputs = max(self.inputs, functions.inputs)
+            if self.law is not None and functions.inputs and self.law.inputs != functions.inputs:
+                raise ModelError(
+                    f"{self.system.name}: controller {self.law.name} gives {self.law.inputs} input entries, "
+                    f"mode '{name}' takes {functions.inputs}"
+                )
             if not functions.compiled:
                 self._python(f"mode '{name}' has Python model functions")
         else:

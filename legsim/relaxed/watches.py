@@ -190,7 +190,14 @@ def condition(parts: np.ndarray) -> np.ndarray:
 
 def check(watches: Any) -> tuple[Watch, ...]:
     """The watches as a tuple, each a ``Watch`` (SimulationError otherwise)."""
-    out = tuple(watches or ())
+    if isinstance(watches, Watch):
+        watches = (watches,)
+    try:
+        out = tuple(watches or ())
+    except TypeError:
+        raise SimulationError(
+            f"watches must be a sequence of legsim.relaxed.Watch objects, got {watches!r:.80}"
+        ) from None
     for w in out:
         if not isinstance(w, Watch):
             raise SimulationError(f"watches must be legsim.relaxed.Watch objects, got {type(w).__name__}")
