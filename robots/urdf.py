@@ -24,7 +24,7 @@ draw like any robot's geometry.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -410,6 +410,24 @@ def terrain_piercing(
     return TerrainPiercing(bridge.placements, bodies, terrain) if bodies else None
 
 
+def _starts_clear(
+    contacts_check: Callable[[str, np.ndarray, float], str | None], ground_watches: list[Any]
+) -> Callable[[str, np.ndarray, float], str | None]:
+    """The scene's initial-state check: the contacts' (``bridge.initial_check``), then a link
+    below the ground or the terrain inside a body by more than eps at the start, as its watch
+    would name it: a run started there would report it at t = 0, which is a bad start, not an
+    event of the run."""
+
+    def check(mode: str, x: np.ndarray, eps: float) -> str | None:
+        problem = contacts_check(mode, x, eps)
+        for watch in ground_watches if problem is None else ():
+            if watch.values(mode, np.zeros(1), x[None, :])[0] < -eps:
+                return watch.message(0.0, mode, x)
+        return problem
+
+    return check
+
+
 def _build(params: dict[str, Any], effects: dict[str, dict[str, Any]], terrain: Terrain | None = None) -> Model:
     bridge, outlines, cornered = make_bridge(params, terrain)
     n = bridge.n
@@ -439,6 +457,7 @@ def _build(params: dict[str, Any], effects: dict[str, dict[str, Any]], terrain: 
         parameters=dict(params),
         outlines=outlines,
         watches=watches,
+        initial_check=_starts_clear(bridge.initial_check(), [w for w in (below, inside) if w is not None]),
         # What a recording needs to log the robot through Rerun's own URDF loader.
         urdf={"file": str(params["file"]), "root": params["root"]},
     )

@@ -147,13 +147,8 @@ def simulate(
         rtol, atol = ADAPTIVE_DEFAULTS
     law = control if isinstance(control, ControlLaw) else None
     control = None if law is not None else _bound_control(control)
-    if step_size is not None and (rtol is not None or atol is not None):
-        raise SimulationError(
-            f"give either step_size or rtol/atol, not both (got step_size={step_size!r}, rtol={rtol!r}, atol={atol!r})"
-        )
-    rule = _step_size_part(step_size, tableau, h) if step_size is not None else step_size_rule(tableau, h, rtol, atol)
-    _check_flag("continuation", continuation)
-    _check_flag("python", python)
+    rule = _step_rule(step_size, tableau, h, rtol, atol)
+    _check_flags(continuation=continuation, python=python)
     options = Options(
         tableau=tableau,
         h=h,
@@ -208,9 +203,24 @@ def _check_until(until: Any) -> Any:
     return until
 
 
-def _check_flag(name: str, value: Any) -> None:
-    if not isinstance(value, (bool, np.bool_)):
-        raise SimulationError(f"{name} must be True or False, got {type(value).__name__} {value!r}")
+def _check_flags(**flags: Any) -> None:
+    for name, value in flags.items():
+        if not isinstance(value, (bool, np.bool_)):
+            raise SimulationError(f"{name} must be True or False, got {type(value).__name__} {value!r}")
+
+
+def _step_rule(
+    step_size: Any, tableau: Tableau, h: float, rtol: float | None, atol: float | None
+) -> tuple[float | None, float | None]:
+    """(rtol, atol) of the run's step-size rule, given as a rule object or as tolerances (not
+    both: one of them would be dropped)."""
+    if step_size is None:
+        return step_size_rule(tableau, h, rtol, atol)
+    if rtol is not None or atol is not None:
+        raise SimulationError(
+            f"give either step_size or rtol/atol, not both (got step_size={step_size!r}, rtol={rtol!r}, atol={atol!r})"
+        )
+    return _step_size_part(step_size, tableau, h)
 
 
 def _bound_control(control: Any) -> Any:

@@ -8,6 +8,7 @@ import pytest
 from legsim.robots.watches import PIERCING_DEPTH, TerrainPiercing
 
 import legsim.relaxed.between as between
+from legsim.errors import SceneError
 from legsim.relaxed.watches import refined
 from legsim.scene import load_scene
 
@@ -143,3 +144,20 @@ def test_a_body_ruled_clear_between_two_checked_points_has_no_terrain_inside(tmp
             times = np.linspace(t[j], t[j + 1], 200)
             assert watch.parts(segment.mode, times, segment.interpolate(times))[:, 0].min() > 0.0
     assert 0 < ruled < stretches
+
+
+def test_a_start_with_the_bump_inside_the_brick_is_refused_as_a_bad_start(tmp_path):
+    # Bottom face at 0.12 - 0.06 = 0.06 m, the bump's top at 0.1: 0.04 m inside, the corners
+    # above the floor. A contact below the ground at the start is refused; so is this.
+    path = brick(tmp_path, BUMP.format(top=0.1))
+    with pytest.raises(SceneError, match=r"initial\.state.*the terrain passes into.*'trunk' 0\.04 m deep"):
+        load_scene(path, ["initial.state.z=0.12"])
+    # Resting on the bump's top (bottom face 0.1 + PIERCING_DEPTH / 2 up) is a start like any other.
+    assert load_scene(path, [f"initial.state.z={0.1 + HEIGHT / 2 + PIERCING_DEPTH / 2}"]).initial_state[1] > 0.16
+
+
+def test_a_start_with_a_link_without_contacts_below_the_ground_is_refused(tmp_path):
+    body = link("trunk", 4.0, 0.05, shape("box", f'<box size="{LENGTH} 0.1 {HEIGHT}"/>'))
+    scene = 'root = "planar"\n[initial]\nstate = { z = 0.03 }\n[integrator]\nh = 1e-3\neps = 1e-4\nt_final = 0.1\n'
+    with pytest.raises(SceneError, match=r"initial\.state.*link\(s\) without a contact below the ground.*'trunk'"):
+        load_scene(write(tmp_path, "sunk", body, scene))
