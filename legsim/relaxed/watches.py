@@ -179,12 +179,19 @@ class Watch:
             raise SimulationError(
                 f"watch {self.name!r} gave {what}s of shape {raw_shape} for {t.shape[0]} points: (N,) or (N, parts)"
             )
+        if what == "value" and v.shape[1] and (unknown := np.flatnonzero(np.isnan(v).all(axis=1))).size:
+            # nan < 0 is false: a condition it leaves unknown would never hold, silently
+            raise SimulationError(
+                f"watch {self.name!r} gave nan for every part at t={float(t[unknown[0]]):.17g} in mode '{mode}': "
+                f"its condition must be a number at every point"
+            )
         return v
 
 
 def condition(parts: np.ndarray) -> np.ndarray:
     """A condition's value (N,) from its parts' (N, m): the least, +inf where it has none. A nan
-    part (a value its watch could not give) hides no other: nan only where every part is."""
+    part (a value its watch could not give) hides no other (``Watch.parts`` refuses a point
+    where every part is nan)."""
     return np.fmin.reduce(parts, axis=1) if parts.shape[1] else np.full(parts.shape[0], np.inf)
 
 

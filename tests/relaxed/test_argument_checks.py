@@ -169,3 +169,15 @@ def test_a_mode_in_python_reached_later_is_named_as_the_reason_for_the_python_lo
     ex = simulate(system, [1.2, 0.0], "flight", 1.0, 1e-3, 1e-6, "rk4")
     assert ex.status == "finished" and ex.counters["compiled_steps"] > 0 and ex.counters["python_steps"] > 0
     assert ex.settings["python_reason"] == "mode 'stance' is written as Python callables"
+
+
+@pytest.mark.parametrize("action", ["stop", "warn", "time"])
+def test_a_watch_that_gives_nan_is_refused_by_name_not_taken_as_never_holding(action):
+    # nan < 0 is false: taken as it is, the watch would never hold and say nothing.
+    def value(mode, t, x):
+        return np.where(x[:, 0] < 0.5, np.nan, 1.0)  # unknown below half a metre
+
+    told = {"counter": "unknown_s"} if action == "time" else {"message": lambda t, mode, x: "held"}
+    watch = Watch("unknown", value, action=action, **told)
+    with pytest.raises(SimulationError, match=r"watch 'unknown' gave nan for every part at t=0\.3"):
+        ball_run(watches=[watch])
