@@ -128,7 +128,10 @@ def check_tableau(method: Tableau) -> Tableau:
     stages that use only earlier ones, an explicit method's rows of A summing to c and weights b
     summing to 1 (to 1e-12), an FSAL method's last stage its new point. ValueError naming the method and what is
     wrong: a ``Tableau`` built by hand is used as given, and a mistyped one would run quietly
-    wrong (or read past its arrays in the compiled loop)."""
+    wrong (or read past its arrays in the compiled loop). Checked once per object (about 0.1 ms,
+    a short run's worth): a tableau is frozen, its arrays treated as constants."""
+    if getattr(method, "_checked", False):
+        return method
     name = method.name
     s = len(np.atleast_1d(method.b))
     shapes = {"c": (s,), "A": (s, s), "b": (s,), "b_err": (s,), "b_err_low": (s,), "G": (s, s), "time_weights": (s,)}
@@ -150,6 +153,7 @@ def check_tableau(method: Tableau) -> Tableau:
     if method.error_order is not None and method.b_err is None:
         raise ValueError(f"Tableau {name!r}: error_order without b_err")
     _check_dense(name, method.dense, s)
+    object.__setattr__(method, "_checked", True)  # not a field: equality and copies ignore it
     return method
 
 
