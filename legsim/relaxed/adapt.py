@@ -169,10 +169,11 @@ def joint_adapter(system: Any, data: ModeData, outcomes: Callable[[str, str], in
     return adapted
 
 
-def control_adapter(control: Any, mode: str, cell: InputCell) -> Callable[..., None]:
+def control_adapter(control: Any, mode: str, cell: InputCell, reads: int = 0) -> Callable[..., None]:
     """``control(t, x, m, p, u)`` of a Python control in ``mode``: a ``Bound`` controller asked
     in that mode, or a plain ``control(t, x)``; the value kept in ``cell`` (and, when the loop's
-    input array has entries, written there for compiled plant functions)."""
+    input array has entries, written there for compiled plant functions). ``reads``: the entries
+    the mode's own functions read; a mode that reads none may be given None."""
     if isinstance(control, Bound):
 
         def evaluate(t: float, x: np.ndarray) -> Any:
@@ -183,7 +184,9 @@ def control_adapter(control: Any, mode: str, cell: InputCell) -> Callable[..., N
     def adapted(t: float, x: np.ndarray, m: np.ndarray, p: np.ndarray, u: np.ndarray) -> None:
         value = evaluate(t, x)
         cell.u = value
-        if u.shape[0]:
+        if value is None and reads == 0:
+            u[:] = np.nan  # read by no function of this mode
+        elif u.shape[0]:
             u[:] = input_entries(value, u.shape[0], control)
 
     return adapted

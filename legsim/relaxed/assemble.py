@@ -349,7 +349,7 @@ class Assembly:
         segments = list(self.segments)
         if self._open is not None and self._open.size:
             _, mode, t, x, dx = self._visits(len(self.segments))[-1]
-            segments.append(Segment(mode, t, x, dx))
+            segments.append(Segment(mode, *_read_only(t, x, dx)))  # the run's own storage
         try:
             held = until(RunSoFar(self.options.t0, segments, list(self.transitions)))
         except LegsimError:
@@ -518,6 +518,9 @@ class Assembly:
         if reason == END_HALVING_EXHAUSTED:
             count = int(ws.iv[I_END_COUNT]) - 1
             return Status.HALVING_EXHAUSTED, messages.halving_exhausted(name, t, x, count, transition, self.options.eps)
+        unfed = self._input_not_finite(ws, name, t) if reason in (END_NON_FINITE_STEP, END_BROKE_DOWN) else None
+        if unfed is not None:
+            return Status.NON_FINITE, unfed
         if reason == END_NON_FINITE_STEP:
             return Status.NON_FINITE, messages.non_finite_step(name, t, x, float(ws.fs[F_H_TRIED]))
         if reason == END_BROKE_DOWN:
@@ -532,6 +535,9 @@ class Assembly:
                       breakdown: Any) -> tuple[Status, str]:  # fmt: skip
         if breakdown is not None and reason in (END_FIELD_AT_ENTRY, END_GUARD_AT_ENTRY):
             return Status.MODEL_BREAKDOWN, f"{breakdown} (mode '{name}', t={t:.17g})"
+        unfed = self._input_not_finite(ws, name, t) if reason == END_FIELD_AT_ENTRY else None
+        if unfed is not None:
+            return Status.NON_FINITE, unfed
         if self._nan_breaks_at_entry(ws, reason, name, x):
             # As inside a step: a model that declares ``nan_breaks`` writes nan past its range.
             return Status.MODEL_BREAKDOWN, f"{self.model_range(name, x)} (entering mode '{name}', t={t:.17g})"
@@ -584,6 +590,19 @@ class Assembly:
             return "?"
         return tables.datas[mode].transitions[index].name
 
+    def _input_not_finite(self, ws: Any, mode: str, t: float) -> str | None:
+        """Why the run ended, when the controller's last input to ``mode``'s functions is not
+        finite (an entry it left unwritten is nan): the input, not the model, is then to blame,
+        whatever a nan of the model means."""
+        functions = self.system.mode(mode).functions
+        u = ws.u[: functions.inputs] if functions is not None else ws.u[:0]
+        if np.isfinite(u).all():
+            return None
+        return (
+            f"the controller's input u={u.tolist()} in mode '{mode}' near t={t:.17g} is not finite "
+            f"(an entry a ControlLaw's control leaves unwritten is nan)"
+        )
+
     def _nan_breaks_at_entry(self, ws: Any, reason: int, mode: str, x: np.ndarray) -> bool:
         """Whether a run ended at a mode's entry by a nan of its field or of a guard, in a mode
         whose functions declare ``nan_breaks`` (a nan there means the state is past the model's
@@ -619,6 +638,14 @@ class _Replay:
         self.strip_time = 0.0
 
 
+def _read_only(*arrays: np.ndarray) -> list[np.ndarray]:
+    """Read-only views of ``arrays``."""
+    views = [a.view() for a in arrays]
+    for view in views:
+        view.flags.writeable = False
+    return views
+
+
 class OpenVisit:
     """The points of a visit still open at a hand-back, in arrays that double as they fill: a
     hand-back's checks read the visit so far as views, so a long visit costs its points once,
@@ -643,4 +670,4 @@ class OpenVisit:
         """(t, x, dx) of the rows so far: views, or arrays of their own with ``copy``."""
         rows = slice(0, self.size)
         views = self.t[rows], self.x[rows], self.dx[rows]
-        return tuple(v.copy() for v in views) if copy else views  # type: ignore[return-value]
+        return (views[0].copy(), views[1].copy(), views[2].copy()) if copy else views

@@ -255,7 +255,9 @@ class RunTables:
             start, end = self.params(self.law.params_for(name, self.system))
             self.modes[row, M_C0], self.modes[row, M_C1] = start, end
         elif self.control is not None:
-            self.modes[row, M_CONTROL] = self.function(adapt.control_adapter(self.control, name, self.cell))
+            functions = self.system.mode(name).functions
+            reads = 0 if functions is None else functions.inputs
+            self.modes[row, M_CONTROL] = self.function(adapt.control_adapter(self.control, name, self.cell, reads))
             if isinstance(self.control, Bound):
                 self.modes[row, M_ENTER] = self.function(adapt.enter_adapter(self.control, name))
 

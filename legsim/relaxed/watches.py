@@ -179,8 +179,10 @@ class Watch:
             raise SimulationError(
                 f"watch {self.name!r} gave {what}s of shape {raw_shape} for {t.shape[0]} points: (N,) or (N, parts)"
             )
-        if what == "value" and v.shape[1] and (unknown := np.flatnonzero(np.isnan(v).all(axis=1))).size:
-            # nan < 0 is false: a condition it leaves unknown would never hold, silently
+        # nan < 0 is false: a condition it leaves unknown would never hold, silently (a state that
+        # is itself not finite is the run's end, which the run reports)
+        unknown = np.flatnonzero(np.isnan(v).all(axis=1) & np.isfinite(x).all(axis=1)) if what == "value" else ()
+        if v.shape[1] and len(unknown):
             raise SimulationError(
                 f"watch {self.name!r} gave nan for every part at t={float(t[unknown[0]]):.17g} in mode '{mode}': "
                 f"its condition must be a number at every point"

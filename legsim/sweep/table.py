@@ -295,7 +295,13 @@ class ResultStore:
                 f"{document['digest']!r:.80}"
             )
         if stored.fingerprint() != self.spec.fingerprint():
-            changed = sorted(k for k, v in stored.to_json().items() if self.spec.to_json().get(k) != v)
+            old, new = stored.to_json(), self.spec.to_json()
+            changed = sorted(k for k in old.keys() | new.keys() if old.get(k) != new.get(k))
+            if changed == ["inputs"] and not stored.inputs:
+                raise SweepError(
+                    f"--resume: the sweep in {self.folder} was written without the digest of its scene's files, so "
+                    f"its rows cannot be matched to the files as they are now; run it again into another --out"
+                )
             if changed == ["inputs"]:
                 raise SweepError(
                     f"--resume: the scene's files (the scene, its URDF, its terrain CSV) have changed since the sweep "

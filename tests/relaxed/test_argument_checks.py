@@ -12,7 +12,7 @@ import pytest
 
 import legsim.compiled  # noqa: F401 -- the kernel, so that runs are compiled
 from legsim import HybridSystem, Mode, ModeFunctions, Transition, model_function
-from legsim.control import ControlLaw
+from legsim.control import ControlLaw, Controller
 from legsim.errors import ModelError, SimulationError
 from legsim.methods import Tableau
 from legsim.methods.builtin import RK4
@@ -181,3 +181,60 @@ def test_a_watch_that_gives_nan_is_refused_by_name_not_taken_as_never_holding(ac
     watch = Watch("unknown", value, action=action, **told)
     with pytest.raises(SimulationError, match=r"watch 'unknown' gave nan for every part at t=0\.3"):
         ball_run(watches=[watch])
+
+
+@model_function
+def reset_to_nan(e, t, x, u, p, out):
+    out[0] = x[0]
+    out[1] = np.nan
+
+
+def test_a_watch_on_a_run_whose_state_turns_nan_leaves_the_run_its_own_end():
+    # The reset's image is nan: the run ends non_finite and says why; the watch, unknown there
+    # as the state is, is not blamed for it.
+    system = HybridSystem(
+        {"air": Mode(2, names=("z", "zd"), functions=ModeFunctions(falls, above_ground, reset_to_nan))},
+        [Transition("air", "air", name="bounce")],
+        name="ball",
+    )
+    speed = Watch("fast", lambda mode, t, x: 100.0 - np.abs(x[:, 1]), action="warn", message=lambda t, m, x: "fast")
+    ex = simulate(system, [1.0, 0.0], "air", 1.0, 1e-3, 1e-5, watches=[speed])
+    assert ex.status == "non_finite" and "reset of transition bounce" in ex.message, ex.message
+
+
+class NoInputOnTheGround(Controller):
+    """A Python controller for a plant whose 'air' mode reads one input and 'ground' none."""
+
+    def __call__(self, mode, t, x):
+        return [0.0] if mode == "air" else None
+
+
+@model_function
+def rests(t, x, u, p, dx):
+    dx[0] = 0.0
+    dx[1] = 0.0
+
+
+@model_function
+def never(t, x, u, p, g):
+    g[0] = 1.0
+
+
+def test_a_python_control_may_return_none_in_a_mode_that_reads_no_input():
+    pushed = ModeFunctions(falls_pushed, above_ground, keep, inputs=1)
+    system = HybridSystem(
+        {
+            "air": Mode(2, names=("z", "zd"), functions=pushed),
+            "ground": Mode(2, names=("z", "zd"), functions=ModeFunctions(rests, never, keep)),
+        },
+        [Transition("air", "ground", name="land"), Transition("ground", "air", name="lift")],
+        name="drop",
+    )
+    ex = simulate(system, [1.0, 0.0], "air", 1.0, 1e-3, 1e-5, "rk4", NoInputOnTheGround())
+    assert ex.status == "finished" and ex.final_mode == "ground"
+
+
+@model_function
+def falls_pushed(t, x, u, p, dx):
+    dx[0] = x[1]
+    dx[1] = -9.81 + u[0]

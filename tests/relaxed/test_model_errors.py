@@ -164,3 +164,52 @@ def test_a_nan_at_a_mode_s_entry_is_a_breakdown_where_the_model_says_nan_breaks(
     assert ex.status == status and ex.final_mode == "up", ex.message
     assert abs(ex.t_end - np.sqrt(2.0 / G)) < 2e-3
     assert ("no consistent contact forces" in ex.message) == nan_breaks, ex.message
+
+
+@model_function
+def guard_past_its_range(t, x, u, p, g):
+    g[0] = np.nan
+
+
+@pytest.mark.parametrize("python", [False, True])
+def test_a_nan_guard_at_a_mode_s_entry_is_a_breakdown_where_the_model_says_nan_breaks(python):
+    up = ModeFunctions(fall, guard_past_its_range, paddle_bounce, nan_breaks=True, range_note="guard past its range")
+    system = HybridSystem(
+        {
+            "air": Mode(
+                2, names=("z", "zd"), functions=ModeFunctions(fall, above_floor, paddle_bounce, params=[1.0, 0.5])
+            ),
+            "up": Mode(2, names=("z", "zd"), functions=up),
+        },
+        [Transition("air", "up", name="bounce"), Transition("up", "air", name="back")],
+        name="ball",
+    )
+    ex = simulate(system, [1.0, 0.0], "air", 1.0, 1e-3, 1e-4, "rk4", python=python)
+    assert ex.status == "model_breakdown" and ex.final_mode == "up" and "guard past its range" in ex.message
+
+
+@model_function
+def pushed_down(t, x, u, p, dx):
+    dx[0] = x[1]
+    dx[1] = -G + u[0]
+
+
+@model_function
+def forgets_at_the_floor(t, x, m, p, u):
+    if x[0] > 0.5:
+        u[0] = 0.0  # below half a metre the law writes nothing
+
+
+@pytest.mark.parametrize("python", [False, True])
+@pytest.mark.parametrize("nan_breaks", [False, True])
+def test_an_input_a_law_leaves_unwritten_is_named_whatever_the_model_s_nan_means(python, nan_breaks):
+    from legsim.control import ControlLaw
+
+    functions = ModeFunctions(
+        pushed_down, above_floor, paddle_bounce, params=[1.0, 0.5], inputs=1, nan_breaks=nan_breaks
+    )
+    system = HybridSystem({"air": Mode(2, names=("z", "zd"), functions=functions)}, [Transition("air", "air")])
+    law = ControlLaw("forgetful", forgets_at_the_floor, 1, lambda mode: np.zeros(0))
+    ex = simulate(system, [1.0, 0.0], "air", 1.0, 1e-3, 1e-4, "rk4", law, python=python)
+    assert ex.status == "non_finite" and "controller's input u=[nan]" in ex.message, ex.message
+    assert abs(ex.t_end - np.sqrt(1.0 / G)) < 2e-3

@@ -68,6 +68,7 @@ def test_an_open_visit_grows_in_place_and_hands_back_views_of_it():
         rows = int(rng.integers(1, 50))
         t, x, dx = rng.normal(size=rows), rng.normal(size=(rows, 3)), rng.normal(size=(rows, 3))
         visit.append(t, x, dx)  # wider rows than the mode's state: its first two columns
+        visit.append(t[:0], x[:0], dx[:0])  # an empty hand-back adds nothing
         pieces.append((t, x[:, :2], dx[:, :2]))
         views = visit.points()
         for got, column in zip(views, zip(*pieces, strict=True), strict=True):
@@ -85,7 +86,7 @@ def test_until_sees_a_long_visit_whole_at_every_hand_back(python):
 
     def record(so_far):
         (segment,) = so_far.segments
-        assert np.all(np.diff(segment.t) > 0)
+        assert segment.t[0] == 0.0 and np.all(np.diff(segment.t) > 0)
         seen.append(segment.t[-1])
         return False
 

@@ -194,6 +194,23 @@ def test_a_sweep_whose_scene_file_changed_is_not_resumed(tmp_path, monkeypatch, 
     assert pq.read_table(out / "results.parquet").column("index").to_pylist() == list(range(40))
 
 
+def test_a_sweep_written_without_its_files_digest_is_not_resumed_blindly(tmp_path, capsys):
+    # A folder whose manifest carries no digest of the scene's files (as sweeps wrote before it
+    # did): its rows cannot be matched to the files now, and --resume says so.
+    import dataclasses
+
+    from legsim.sweep.table import manifest_text
+
+    out = tmp_path / "s"
+    grid = {"initial.state.z": (0.5, 2.0, 4)}
+    result = legsim.sweep("bouncing_ball", grid=grid, overrides=["integrator.t_final=0.05"], out=out, in_process=True)
+    assert result.spec.inputs  # this sweep's files' digest
+    (out / "sweep.json").write_bytes(manifest_text(dataclasses.replace(result.spec, inputs="")))
+    args = ["sweep", "bouncing_ball", "--grid", "initial.state.z=0.5:2.0:4", "--set", "integrator.t_final=0.05"]
+    assert main([*args, "--out", str(out), "--in-process", "--resume"]) == 2
+    assert "without the digest of its scene's files" in capsys.readouterr().err
+
+
 def test_a_sweep_killed_outright_resumes_from_the_batches_it_streamed(tmp_path):
     out = tmp_path / "s"
     proc = subprocess.Popen(
