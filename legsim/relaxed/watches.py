@@ -181,12 +181,13 @@ class Watch:
             )
         # nan < 0 is false: a condition it leaves unknown would never hold, silently (a state that
         # is itself not finite is the run's end, which the run reports)
-        unknown = np.flatnonzero(np.isnan(v).all(axis=1) & np.isfinite(x).all(axis=1)) if what == "value" else ()
-        if v.shape[1] and len(unknown):
-            raise SimulationError(
-                f"watch {self.name!r} gave nan for every part at t={float(t[unknown[0]]):.17g} in mode '{mode}': "
-                f"its condition must be a number at every point"
-            )
+        if what == "value" and v.shape[1]:
+            unknown = np.isnan(v).all(axis=1)
+            if unknown.any() and (unknown := unknown & np.isfinite(x).all(axis=1)).any():
+                raise SimulationError(
+                    f"watch {self.name!r} gave nan for every part at t={float(t[np.argmax(unknown)]):.17g} in mode "
+                    f"'{mode}': its condition must be a number at every point"
+                )
         return v
 
 
