@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 import legsim.compiled  # noqa: F401 -- the kernel, so that runs are compiled
+from helpers.compiled_models import above_floor
 from legsim import HybridSystem, Mode, ModeFunctions, Transition, model_function
 from legsim.control import ControlLaw, Controller
 from legsim.errors import ModelError, SimulationError
@@ -142,11 +143,6 @@ def falls(t, x, u, p, dx):
 
 
 @model_function
-def above_ground(t, x, u, p, g):
-    g[0] = max(x[0], x[1])
-
-
-@model_function
 def keep(e, t, x, u, p, out):
     out[0] = x[0]
     out[1] = x[1]
@@ -157,7 +153,7 @@ def test_a_mode_in_python_reached_later_is_named_as_the_reason_for_the_python_lo
     # at the touchdown: the rest runs on the Python loop, and the run says that mode made it.
     system = HybridSystem(
         {
-            "flight": Mode(2, names=("z", "zd"), functions=ModeFunctions(falls, above_ground, keep)),
+            "flight": Mode(2, names=("z", "zd"), functions=ModeFunctions(falls, above_floor, keep)),
             "stance": Mode(2, lambda t, x, u: np.array([x[1], 400.0 * (1.0 - x[0]) - 9.81]), names=("z", "zd")),
         },
         [
@@ -193,7 +189,7 @@ def test_a_watch_on_a_run_whose_state_turns_nan_leaves_the_run_its_own_end():
     # The reset's image is nan: the run ends non_finite and says why; the watch, unknown there
     # as the state is, is not blamed for it.
     system = HybridSystem(
-        {"air": Mode(2, names=("z", "zd"), functions=ModeFunctions(falls, above_ground, reset_to_nan))},
+        {"air": Mode(2, names=("z", "zd"), functions=ModeFunctions(falls, above_floor, reset_to_nan))},
         [Transition("air", "air", name="bounce")],
         name="ball",
     )
@@ -221,7 +217,7 @@ def never(t, x, u, p, g):
 
 
 def test_a_python_control_may_return_none_in_a_mode_that_reads_no_input():
-    pushed = ModeFunctions(falls_pushed, above_ground, keep, inputs=1)
+    pushed = ModeFunctions(falls_pushed, above_floor, keep, inputs=1)
     system = HybridSystem(
         {
             "air": Mode(2, names=("z", "zd"), functions=pushed),
