@@ -420,10 +420,10 @@ def _starts_clear(
 
     def check(mode: str, x: np.ndarray, eps: float) -> str | None:
         problem = contacts_check(mode, x, eps)
-        for watch in ground_watches if problem is None else ():
-            if watch.values(mode, np.zeros(1), x[None, :])[0] < -eps:
-                return watch.message(0.0, mode, x)
-        return problem
+        if problem is not None:
+            return problem
+        held = [w for w in ground_watches if w.values(mode, np.zeros(1), x[None, :])[0] < -eps]
+        return held[0].message(0.0, mode, x) if held else None
 
     return check
 

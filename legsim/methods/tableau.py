@@ -126,10 +126,10 @@ def tableau(
 def check_tableau(method: Tableau) -> Tableau:
     """``method`` itself, once its arrays are consistent: shapes of s stages, finite entries,
     stages that use only earlier ones, an explicit method's rows of A summing to c and weights b
-    summing to 1 (to 1e-12), an FSAL method's last stage its new point. ValueError naming the method and what is
-    wrong: a ``Tableau`` built by hand is used as given, and a mistyped one would run quietly
-    wrong (or read past its arrays in the compiled loop). Checked once per object (about 0.1 ms,
-    a short run's worth): a tableau is frozen, its arrays treated as constants."""
+    summing to 1 (to 1e-12), an FSAL method's last stage its new point. ValueError naming the
+    method and what is wrong: a ``Tableau`` built by hand is used as given, and a mistyped one
+    would run quietly wrong (or read past its arrays in the compiled loop). Checked once per
+    object (about 0.1 ms, a short run's worth): a tableau is frozen, its arrays constants."""
     if getattr(method, "_checked", False):
         return method
     name = method.name

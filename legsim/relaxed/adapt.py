@@ -169,7 +169,7 @@ def joint_adapter(system: Any, data: ModeData, outcomes: Callable[[str, str], in
     return adapted
 
 
-def control_adapter(control: Any, mode: str, cell: InputCell, reads: int = 0) -> Callable[..., None]:
+def control_adapter(control: Any, mode: str, cell: InputCell, reads: int) -> Callable[..., None]:
     """``control(t, x, m, p, u)`` of a Python control in ``mode``: a ``Bound`` controller asked
     in that mode, or a plain ``control(t, x)``; the value kept in ``cell`` (and, when the loop's
     input array has entries, written there for compiled plant functions). ``reads``: the entries

@@ -100,6 +100,11 @@ def cycle_collector_paused(method: _Method) -> _Method:
     return paused  # type: ignore[return-value]
 
 
+#: The ends a non-finite input of the controller can cause: through the field, in a step or at a
+#: mode's entry.
+INPUT_ENDINGS = (END_NON_FINITE_STEP, END_BROKE_DOWN, END_FIELD_AT_ENTRY)
+
+
 class Assembly:
     """The pieces of an execution, gathered from the loop's buffers as they fill."""
 
@@ -518,7 +523,8 @@ class Assembly:
         if reason == END_HALVING_EXHAUSTED:
             count = int(ws.iv[I_END_COUNT]) - 1
             return Status.HALVING_EXHAUSTED, messages.halving_exhausted(name, t, x, count, transition, self.options.eps)
-        unfed = self._input_not_finite(ws, name, t) if reason in (END_NON_FINITE_STEP, END_BROKE_DOWN) else None
+        # A non-finite input is to blame before whatever a nan of the model would mean.
+        unfed = self._input_not_finite(ws, name, t) if reason in INPUT_ENDINGS else None
         if unfed is not None:
             return Status.NON_FINITE, unfed
         if reason == END_NON_FINITE_STEP:
@@ -535,9 +541,6 @@ class Assembly:
                       breakdown: Any) -> tuple[Status, str]:  # fmt: skip
         if breakdown is not None and reason in (END_FIELD_AT_ENTRY, END_GUARD_AT_ENTRY):
             return Status.MODEL_BREAKDOWN, f"{breakdown} (mode '{name}', t={t:.17g})"
-        unfed = self._input_not_finite(ws, name, t) if reason == END_FIELD_AT_ENTRY else None
-        if unfed is not None:
-            return Status.NON_FINITE, unfed
         if self._nan_breaks_at_entry(ws, reason, name, x):
             # As inside a step: a model that declares ``nan_breaks`` writes nan past its range.
             return Status.MODEL_BREAKDOWN, f"{self.model_range(name, x)} (entering mode '{name}', t={t:.17g})"
