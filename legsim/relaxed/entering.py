@@ -4,6 +4,9 @@
 * A state that enters a mode already inside one of its strips (a reset image at a guard
   intersection, or an initial state in a strip) crosses that strip at once, with q = x; one past
   a guard by more than eps ends the run (``END_RESET_OUTSIDE``).
+* Under a zero-order hold each step's start is a new sample of the controller, and a guard that
+  reads the input jumps there by design: the guards are evaluated again under the new sample, and
+  a strip entered or passed there is crossed at once, at the sample (``cross_at_sample``).
 * With error control the new mode restarts at the standard starting step, and with dense landing
   a mode entered a hair before another guard's strip (the second foot of a symmetric touchdown)
   takes one short step to that strip instead of a full step (``short_first_step``).
@@ -81,7 +84,7 @@ def enter(tab: Tables, ws, method) -> int:
     if bad >= 0:
         return end_entry(ws, END_GUARD_AT_ENTRY, bad)
     if vis.guards > 0 and entered_in_strip(gmin, ws.cf[S_EPS]):
-        return cross_at_once(tab, vis, ws)
+        return cross_at_once(tab, vis, ws, vis.crosses_jumps)
     ws.iv[I_PHASE] = PHASE_STEP
     if ws.ci[S_ADAPTIVE] == 1 and ws.iv[I_TRANSITIONS] > 0 and ws.iv[I_LAST_SOURCE] != mode:
         # Not after a self-transition: the same field goes on.
@@ -107,13 +110,29 @@ def first_nonfinite(values: np.ndarray, count: int) -> int:
     return -1
 
 
-def cross_at_once(tab: Tables, vis: Visit, ws) -> int:
-    """The entering state lies in a strip: cross it at once with q = x (or end the run when it
-    lies past the strip, unless the mode crosses its guards where they jump: a state entering
-    past a strip has met a jump of that guard at its entry)."""
+def cross_at_sample(tab: Tables, vis: Visit, ws) -> int:
+    """A held controller was sampled again at the step's start (t, x): the guards under the new
+    sample into ws.g_here, and a strip the sample put the state in, or past, crossed at once
+    there. A guard past its strip here has jumped with the held input, which is how a zero-order
+    hold switches (a digital controller acts at its samples), not a model's error."""
+    t, n = ws.fs[F_T], vis.n
+    gmin = guards_at(tab, vis, ws, t, ws.x[:n], ws.g_here)
+    bad = first_nonfinite(ws.g_here, vis.guards)
+    if bad >= 0:
+        return end_entry(ws, END_GUARD_AT_ENTRY, bad)
+    if gmin < 0.0:
+        return cross_at_once(tab, vis, ws, True)
+    return ENTERED
+
+
+def cross_at_once(tab: Tables, vis: Visit, ws, jumped: bool) -> int:
+    """The state at a mode's entry (or a held controller's sample) lies in a strip: cross it at
+    once with q = x. Past the strip it ends the run, unless the guard has ``jumped`` there (the
+    mode crosses its guards where they jump, or a held input changed): a state entering past a
+    strip has then met a jump of that guard."""
     e = argleast(ws.g_here, vis.guards)
     t = ws.fs[F_T]
-    if past_strip(ws.g_here[e], ws.cf[S_EPS]) and not vis.crosses_jumps:
+    if past_strip(ws.g_here[e], ws.cf[S_EPS]) and not jumped:
         return end_entry(ws, END_RESET_OUTSIDE, e)
     for d in range(vis.n):
         ws.q[d] = ws.x[d]

@@ -26,7 +26,7 @@ resumes it where it stopped.
 from __future__ import annotations
 
 from .crossing import append_point, cross_landing
-from .entering import NOT_READY, enter
+from .entering import NOT_READY, cross_at_sample, enter
 from .evaluate import Tables, Visit, field_at, hold_control, least, visit_of
 from .layout import (
     END_FINISHED,
@@ -130,6 +130,8 @@ def step_once(tab: Tables, ws, method: MethodArrays) -> int:
         return RETURN_ENDED
     if least(ws.g1, vis.guards) >= 0.0:
         advance(tab, vis, ws, method)
+        if ws.ci[S_HOLD] == 1 and vis.guards > 0:
+            cross_at_sample(tab, vis, ws)
     else:
         cross_landing(tab, vis, ws, method)
     return GOING if not report_due(ws) else RETURN_PROGRESS

@@ -6,6 +6,9 @@ there on, so that it jumps past any strip at t = C. The closed form: the crossin
 to the rounding of the step that brackets it.
 """
 
+import dataclasses
+
+import numpy as np
 import pytest
 
 from legsim import HybridSystem, Mode, ModeFunctions, Transition, model_function
@@ -70,3 +73,31 @@ def test_without_crosses_jumps_the_run_ends_at_the_jump_naming_the_transition(py
     assert ex.status == "halving_exhausted"
     assert abs(ex.t_end - C) < 1e-15
     assert "jump" in ex.message and not ex.transitions
+
+
+@pytest.mark.parametrize("python", [False, True], ids=["compiled", "interpreted"])
+def test_a_held_input_releases_a_stuck_mass_at_the_first_sample_where_the_held_force_pulls_away(python):
+    """Under a zero-order hold the input is sampled at each step's start and held over the step,
+    so a guard that reads it (the forced oscillator's release, paper 000 Table I Example 2) jumps
+    at the samples, not between them. The release must come at the first sample (a stored point
+    of the stuck visit) where the sampled force turns the stop's guard, u / m - omega^2 x, negative:
+    not later, and the run must not stop there."""
+    from legsim.systems import oscillator as osc
+
+    example = osc.EXAMPLES["ex2"]
+    plant = osc.make_system(example["omega"], example["a"], example["x_max"], example["c"])
+    held = dataclasses.replace(osc.forcing(example["amplitude"], example["frequency"]), hold=True)
+    ex = simulate(plant, [example["x0"], example["xd0"]], "free", 4.0, 1e-2, EPS_EX2, "rk4", held, python=python)
+    assert ex.status == "finished", ex.message
+    release = next(tr for tr in ex.transitions if tr.name == "release")
+    (stuck,) = [s for s in ex.segments if s.mode == "stuck" and s.t_start < release.time]
+    u = example["amplitude"] * np.cos(example["frequency"] * stuck.t)
+    guard = u / example.get("mass", 1.0) - example["omega"] ** 2 * stuck.x[:, 0]
+    assert np.all(guard[:-1] >= 0.0)  # the stop pushes at every earlier sample
+    assert guard[-1] < -EPS_EX2  # the sample the release is taken at: past the strip, a jump
+    assert release.time == stuck.t[-1] and release.exit_time == release.time
+    assert ex.counters["guard_jumps"] >= 1
+    assert np.all(np.diff(stuck.t[1:-1]) == pytest.approx(1e-2, abs=1e-12))  # full steps: the hold's samples
+
+
+EPS_EX2 = 1e-5
