@@ -41,7 +41,7 @@ from ...hybrid import HybridSystem
 from ..files import temporary_folder
 from ..untrusted import printable
 from .send import layout_json
-from .write import prepare, record, recording_stream
+from .write import check_complete, prepare, record, recording_stream
 
 #: Rerun's default port for a viewer or proxy; ``--connect`` without a port uses it.
 DEFAULT_PORT = 9876
@@ -227,6 +227,7 @@ def stream_rrd(
         with recording_stream() as rec:
             rec.save(file)
             layout = record(rec, content)
+        check_complete(file, file)
         _send(connect, url, file, layout_json(layout), timeout)
 
 

@@ -60,6 +60,12 @@ from .views import UnitGroup, blueprint, coordinate_units, series_label, unit_gr
 #: what it is sent, some 150 bytes a row, until its file sink has written it.
 DRAIN_ROWS = 65536
 
+#: How a complete file of the Rerun SDK this package pins (0.41) ends: its footer's magic, then
+#: the footer's 4-byte version. The SDK only logs a failure to write the footer (a disk filling
+#: as the stream closes), so the writer looks for it before the file takes its name.
+FOOTER_MAGIC = b"RRF2FOOT"
+FOOTER_TAIL = len(FOOTER_MAGIC) + 4
+
 
 def write_rrd(
     execution: Execution,
@@ -88,6 +94,7 @@ def write_rrd(
             rec.save(tmp)
             record(rec, content)
             seal(rec, tmp, FILE_DIGEST)
+        check_complete(tmp, path)
 
     try:
         write_atomic(path, write, what="recording")
@@ -98,6 +105,20 @@ def write_rrd(
             raise RecordingError(f"{path}: cannot write the recording: {reason.strerror or reason}") from exc
         raise RecordingError(str(exc)) from exc
     return path
+
+
+def check_complete(written: Path, path: Path) -> None:
+    """RecordingError naming ``path`` unless the file ``written`` ends with Rerun's footer: a
+    recording the SDK could not finish (no space left as it closed) must not replace ``path``."""
+    size = written.stat().st_size
+    with open(written, "rb") as fh:
+        fh.seek(max(0, size - FOOTER_TAIL))
+        tail = fh.read()
+    if not tail.startswith(FOOTER_MAGIC):
+        raise RecordingError(
+            f"{path}: the recording is incomplete: Rerun did not finish the file ({size} bytes, no footer; "
+            f"is the disk full?); nothing was written"
+        )
 
 
 @dataclass

@@ -53,6 +53,29 @@ def test_interrupted_write_removes_the_temporary(tmp_path, monkeypatch):
     assert list(tmp_path.iterdir()) == []
 
 
+def test_a_recording_rerun_could_not_finish_is_refused_and_the_previous_file_kept(tmp_path, monkeypatch):
+    """Rerun's SDK only logs a failure to write its file's footer (a disk filling as the stream
+    closes) and returns: such a file, cut short, must not take the recording's name."""
+    from legsim.output.rrd import write as rrd_write
+
+    model, ex = run_hopper(t_final=0.3)
+    path = write_rrd(ex, None, tmp_path / "x.rrd", model=model)
+    before = path.read_bytes()
+    assert before.endswith(rrd_write.FOOTER_MAGIC + before[-4:])  # the check's premise: a finished file
+    closing = rrd_write.recording_stream.__exit__
+
+    def closed_on_a_full_disk(self, *exc):
+        closing(self, *exc)
+        for partial in tmp_path.glob(".*partial*"):  # the writer's temporary file, cut before its footer
+            os.truncate(partial, partial.stat().st_size - 100)
+
+    monkeypatch.setattr(rrd_write.recording_stream, "__exit__", closed_on_a_full_disk)
+    with pytest.raises(RecordingError, match=r"x\.rrd: the recording is incomplete.*no footer"):
+        write_rrd(ex, None, path, model=model)
+    assert path.read_bytes() == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["x.rrd"]
+
+
 def test_written_file_has_ordinary_permissions(tmp_path):
     model, ex = run_hopper(t_final=0.3)
     path = write_rrd(ex, None, tmp_path / "x.rrd", model=model)
