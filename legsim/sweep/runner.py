@@ -16,11 +16,8 @@ from ..progress import counting
 from .engine import Engine
 from .measures import check_coordinates, check_measures, check_windows
 from .spec import SweepError, SweepSpec, corners, variation_overrides
-from .table import ResultStore, schema, to_table, with_rows_digest
+from .table import FIGURES, ResultStore, schema, to_table, with_rows_digest
 from .tasks import run_batch
-
-#: Names of the figure writers in the ``legsim.writers`` entry points, and their files.
-FIGURES = {"walk": ("basin_map", "basin.png"), "orbit": ("stability_map", "stability.png")}
 
 
 @dataclass

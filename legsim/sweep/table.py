@@ -42,6 +42,8 @@ RESULTS = "results.parquet"
 PARTS = "results.parts"
 MANIFEST = "sweep.json"
 LOCK = ".sweep.lock"
+#: The figure each kind of sweep draws into its folder: (writer's name, file name).
+FIGURES = {"walk": ("basin_map", "basin.png"), "orbit": ("stability_map", "stability.png")}
 #: The schema metadata keys of a table: the sweep's digest, and the digest of the rows in it.
 SWEEP_KEY, ROWS_KEY = b"legsim.sweep", b"legsim.rows"
 #: The manifest's format, which ``--resume`` checks first.
@@ -257,9 +259,20 @@ class ResultStore:
                 f"continue it with --resume, or choose another folder"
             )
         if not existing:
+            self._check_no_figures()
             return set()
         self._check_manifest()
         return self.done_indices()
+
+    def _check_no_figures(self) -> None:
+        """SweepError where a folder without a sweep holds a file of a sweep figure's name: it is
+        the user's, and the sweep would replace it."""
+        held = [name for _, name in FIGURES.values() if os.path.lexists(self.folder / name)]
+        if held:
+            raise SweepError(
+                f"--out {self.folder}: holds {', '.join(held)}, which no sweep of this folder wrote and a sweep "
+                f"writes its figure to; move it, or choose another folder"
+            )
 
     def start(self) -> None:
         """Write the manifest (the sweep's specification and its SHA-256) when the folder has none yet."""

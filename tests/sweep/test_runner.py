@@ -364,3 +364,17 @@ def test_the_python_api_refuses_a_malformed_axis_naming_its_field(tmp_path, axes
     naming the field (a raw unpacking error, or a tuple silently read as values, before)."""
     with pytest.raises(SweepError, match=re.escape(message)):
         legsim.sweep("rimless_wheel", out=tmp_path / "s", in_process=True, **axes)
+
+
+def test_a_folder_holding_a_file_of_a_sweep_figure_s_name_is_refused_and_kept(tmp_path, capsys):
+    """A folder without a sweep but with the user's basin.png (the name a walk sweep draws its
+    figure to) is refused before anything runs: the sweep would replace the user's file."""
+    out = tmp_path / "mine"
+    out.mkdir()
+    (out / "basin.png").write_bytes(b"MY OWN FIGURE")
+    (out / "notes.txt").write_text("mine")
+    args = ["sweep", "rimless_wheel", "--grid", "initial.state.thetad=0.8,2.6", "--walk", "--max-steps", "2"]
+    assert main([*args, "--in-process", "--out", str(out)]) == 2
+    assert "holds basin.png" in capsys.readouterr().err
+    assert (out / "basin.png").read_bytes() == b"MY OWN FIGURE"
+    assert sorted(p.name for p in out.iterdir()) == ["basin.png", "notes.txt"]
