@@ -83,6 +83,7 @@ def run(args: argparse.Namespace) -> int:
     # a fresh --html behind it; none may overwrite the recording it is drawn from.
     wanted = {kind: (Path(target), f"--{kind}") for kind in ("html", "plot") if (target := getattr(args, kind))}
     plan, writers = plan_outputs(wanted, inputs=[path])
+    options = html_options(args, wanted)
     data = read_rrd(path)
     if not data["verified"]:
         print(
@@ -92,7 +93,6 @@ def run(args: argparse.Namespace) -> int:
             ),
             file=sys.stderr,
         )
-    options = html_options(args)
     outputs = {
         kind: str(write_output(plan, kind, writers[kind], None, None, recording=data, **options.get(kind, {})))
         for kind in plan

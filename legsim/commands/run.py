@@ -22,6 +22,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from collections.abc import Mapping
 from itertools import groupby
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -112,12 +113,18 @@ def run(args: argparse.Namespace) -> int:
     from ..scene import load_scene
 
     scene = load_scene(args.scene, overrides=args.overrides)
-    outputs = requested_outputs(args, scene.output_paths(args.out_dir), scene.path)
+    scene_outputs = scene.output_paths(args.out_dir)
+    if args.out_dir is not None and not scene_outputs:
+        raise LegsimError(
+            f"--out-dir {args.out_dir}: places the scene's own [output] files, and {scene.path} has no [output] "
+            f"section; give --rrd, --html or --plot paths instead"
+        )
+    outputs = requested_outputs(args, scene_outputs, scene.path)
     plan, writers = plan_outputs(outputs, inputs=scene.input_files(), scene=scene)
-    rrd_options = _check_live(args, "rrd" in outputs)
+    options = {**html_options(args, outputs), "rrd": _check_live(args, "rrd" in outputs)}
     execution, estimate = _simulate(scene, show_progress=not (args.quiet or args.json), check=args.check_accuracy)
-    written, failures = _write_all(execution, scene, plan, writers, {**html_options(args), "rrd": rrd_options})
-    failures += _stream_live(args, execution, scene, rrd_options)
+    written, failures = _write_all(execution, scene, plan, writers, options)
+    failures += _stream_live(args, execution, scene, options["rrd"])
     summary = run_summary(execution, scene, outputs=written)
     if estimate is not None:
         summary["error_estimate"] = finite_or_none(estimate.as_dict())
@@ -140,10 +147,13 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def html_options(args: argparse.Namespace) -> dict[str, dict[str, Any]]:
+def html_options(args: argparse.Namespace, outputs: Mapping[str, object]) -> dict[str, dict[str, Any]]:
     """kind -> keyword arguments for its writer: the html camera, only when asked for (a
-    writer is called as ``writer(execution, scene, path)`` otherwise)."""
+    writer is called as ``writer(execution, scene, path)`` otherwise). A camera without an
+    animation among ``outputs`` (kind -> target) is an error, not a flag left unused."""
     camera = getattr(args, "html_camera", None)
+    if camera and "html" not in outputs:
+        raise LegsimError("--html-camera sets the animation's camera: give --html OUT.html with it")
     return {"html": {"camera": camera}} if camera else {}
 
 
