@@ -25,7 +25,6 @@ import io
 import json
 import math
 import os
-import stat
 import zipfile
 import zlib
 from collections.abc import Sequence
@@ -35,7 +34,7 @@ from typing import TYPE_CHECKING, Any, cast
 import numpy as np
 
 from ..errors import SimulationError
-from .files import file_kind, write_atomic
+from .files import input_size, write_atomic
 from .summary import finite_or_none
 from .untrusted import check_list, check_object, load_json
 
@@ -195,7 +194,7 @@ def load_execution(path: str | os.PathLike[str], max_bytes: int | None = None) -
     size, at least ``MIN_LOAD_BYTES``). Raises SimulationError naming the file and the fault.
     """
     path = Path(path)
-    size = _file_size(path)
+    size = input_size(path, "execution file", SimulationError)
     limit = max(MIN_LOAD_BYTES, MAX_INFLATION * size) if max_bytes is None else int(max_bytes)
     try:
         arrays = _read_arrays(path, limit)
@@ -203,18 +202,6 @@ def load_execution(path: str | os.PathLike[str], max_bytes: int | None = None) -
         return _assemble(arrays, meta)
     except DamagedFile as exc:
         raise SimulationError(f"{path}: damaged legsim execution file: {exc}") from None
-
-
-def _file_size(path: Path) -> int:
-    try:
-        info = path.stat()
-    except FileNotFoundError:
-        raise SimulationError(f"{path}: no such execution file") from None
-    except OSError as exc:
-        raise SimulationError(f"{path}: cannot read: {exc.strerror or exc}") from exc
-    if not stat.S_ISREG(info.st_mode):
-        raise SimulationError(f"{path}: not an execution file (it is {file_kind(info.st_mode)})")
-    return info.st_size
 
 
 def _read_arrays(path: Path, limit: int) -> dict[str, np.ndarray]:

@@ -137,6 +137,20 @@ def file_kind(mode: int) -> str:
     return "a special file"
 
 
+def input_size(path: Path, what: str, error: type[Exception]) -> int:
+    """The size (bytes) of ``path``, a file to be read as ``what``: ``error`` naming it when it
+    is missing, cannot be looked at, or is no regular file (a folder, a FIFO, a device)."""
+    try:
+        info = path.stat()
+    except FileNotFoundError:
+        raise error(f"{path}: no such {what}") from None
+    except OSError as exc:
+        raise error(f"{path}: cannot read the {what}: {exc.strerror or exc}") from None
+    if not stat.S_ISREG(info.st_mode):
+        raise error(f"{path}: not a {what} (it is {file_kind(info.st_mode)})")
+    return info.st_size
+
+
 def cannot_create_in(folder: Path) -> str | None:
     """The OS's reason why no file can be created in the existing ``folder``, or None when one
     can. Probes with an unnamed temporary file, which leaves nothing behind, because permission

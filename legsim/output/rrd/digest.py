@@ -156,6 +156,21 @@ def verify(columns: Any, text: str | None) -> str | None:
     return None
 
 
+#: How a complete file of the Rerun SDK this package pins (0.41) ends: its footer's magic, then
+#: the footer's 4-byte version. The SDK only logs a failure to write the footer (a disk filling
+#: as the stream closes), so the writer looks for it before the file takes its name.
+FOOTER_MAGIC = b"RRF2FOOT"
+FOOTER_TAIL = len(FOOTER_MAGIC) + 4
+
+
+def ends_with_footer(path: Path) -> bool:
+    """Whether the file ``path`` ends as a finished Rerun file does (``FOOTER_MAGIC``)."""
+    size = os.path.getsize(path)
+    with open(path, "rb") as fh:
+        fh.seek(max(0, size - FOOTER_TAIL))
+        return fh.read().startswith(FOOTER_MAGIC)
+
+
 def seal(rec: Any, path: Path, entity: str) -> bool:
     """Flush ``rec`` (saving to ``path``) and log, at ``entity``, the SHA-256 of the file's bytes
     so far (module docstring); whether a seal lies in the file verbatim."""

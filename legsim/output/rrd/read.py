@@ -9,10 +9,11 @@ from typing import Any
 
 import numpy as np
 
+from ..files import input_size
 from ..trace import RecordingError
 from ..untrusted import check_list, check_object, load_json
 from .columns import Columns, read_columns
-from .digest import check_file, verify
+from .digest import check_file, ends_with_footer, verify
 from .frames import frames
 from .layout import DIGEST, FORMAT, META, MODE, OLD_FORMATS, SAMPLES, SCENERY, STATE, STRIPS, TRANSITIONS, entity
 
@@ -47,8 +48,7 @@ def read_rrd(path: str | os.PathLike) -> dict[str, Any]:
     matches the digest written with it.
     """
     path = Path(path)
-    if not path.is_file():
-        raise RecordingError(f"{path}: no such recording file")
+    input_size(path, "recording file", RecordingError)
     try:
         # Before Rerun decodes anything: its reader aborts the process on some damaged files.
         sealed = check_file(path)
@@ -142,6 +142,11 @@ def _read_meta(path: Path, columns: Columns) -> dict[str, Any]:
     """The ``legsim/meta`` document, checked to be of this format, every key of its type."""
     meta_rows = columns.values(META, "TextDocument:text")
     if not meta_rows:
+        if not ends_with_footer(path):  # cut short: the data may have been in the part that is lost
+            raise RecordingError(
+                f"{path}: a Rerun recording cut short (it has no footer) without legsim data in what remains; "
+                f"was it copied or written completely?"
+            )
         raise RecordingError(
             f"{path}: a Rerun recording without legsim data (no legsim/meta entity); "
             f"was it written by `legsim run --rrd`?"

@@ -29,7 +29,7 @@ from ..files import write_atomic
 from ..summary import run_summary
 from ..trace import RecordingError, _draw, resolve_model, scenery_only, trace_series
 from .bodies import BodyLogger
-from .digest import Digest, DigestingStream, seal
+from .digest import Digest, DigestingStream, ends_with_footer, seal
 from .layout import (
     APPLICATION_ID,
     DIGEST,
@@ -59,12 +59,6 @@ from .views import UnitGroup, blueprint, coordinate_units, series_label, unit_gr
 #: Rows sent to Rerun between waits for its pipeline to write them (``drain``): Rerun queues
 #: what it is sent, some 150 bytes a row, until its file sink has written it.
 DRAIN_ROWS = 65536
-
-#: How a complete file of the Rerun SDK this package pins (0.41) ends: its footer's magic, then
-#: the footer's 4-byte version. The SDK only logs a failure to write the footer (a disk filling
-#: as the stream closes), so the writer looks for it before the file takes its name.
-FOOTER_MAGIC = b"RRF2FOOT"
-FOOTER_TAIL = len(FOOTER_MAGIC) + 4
 
 
 def write_rrd(
@@ -110,14 +104,10 @@ def write_rrd(
 def check_complete(written: Path, path: Path) -> None:
     """RecordingError naming ``path`` unless the file ``written`` ends with Rerun's footer: a
     recording the SDK could not finish (no space left as it closed) must not replace ``path``."""
-    size = written.stat().st_size
-    with open(written, "rb") as fh:
-        fh.seek(max(0, size - FOOTER_TAIL))
-        tail = fh.read()
-    if not tail.startswith(FOOTER_MAGIC):
+    if not ends_with_footer(written):
         raise RecordingError(
-            f"{path}: the recording is incomplete: Rerun did not finish the file ({size} bytes, no footer; "
-            f"is the disk full?); nothing was written"
+            f"{path}: the recording is incomplete: Rerun did not finish the file ({written.stat().st_size} bytes, "
+            f"no footer; is the disk full?); nothing was written"
         )
 
 

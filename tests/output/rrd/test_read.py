@@ -4,6 +4,8 @@ with the file named."""
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 import pytest
 
@@ -149,6 +151,27 @@ def test_foreign_rerun_file_is_named(tmp_path):
         read_rrd(foreign)
 
 
+def test_a_rerun_file_cut_short_is_named_as_such(tmp_path):
+    """A copy taken while its writer still ran has no footer (and here no legsim data): the
+    message says it was cut short, not that another program wrote it."""
+    import shutil
+    import uuid
+
+    import rerun as rr
+
+    writing, copy = tmp_path / "writing.rrd", tmp_path / "copy.rrd"
+    rec = rr.RecordingStream("legsim", recording_id=uuid.uuid4())
+    rec.save(writing)
+    rec.log("points", rr.Points3D([[0, 0, 0]]))
+    rec.flush()
+    shutil.copy(writing, copy)
+    rec.disconnect()
+    with pytest.raises(RecordingError, match=r"copy\.rrd: a Rerun recording cut short \(it has no footer\)"):
+        read_rrd(copy)
+    with pytest.raises(RecordingError, match=r"writing\.rrd: a Rerun recording without legsim data"):
+        read_rrd(writing)  # finished: its footer is there
+
+
 def test_a_recording_of_the_earlier_layout_is_refused_by_name(tmp_path):
     import json
     import uuid
@@ -168,3 +191,14 @@ def test_a_recording_of_the_earlier_layout_is_refused_by_name(tmp_path):
         r"earlier legsim; this version reads layout legsim-rrd-2 only",
     ):
         read_rrd(old)
+
+
+def test_a_folder_or_fifo_given_as_a_recording_is_named_as_such(tmp_path):
+    folder = tmp_path / "d.rrd"
+    folder.mkdir()
+    with pytest.raises(RecordingError, match=r"d\.rrd: not a recording file \(it is a directory\)"):
+        read_rrd(folder)
+    fifo = tmp_path / "f.rrd"
+    os.mkfifo(fifo)
+    with pytest.raises(RecordingError, match=r"f\.rrd: not a recording file \(it is a FIFO\)"):
+        read_rrd(fifo)

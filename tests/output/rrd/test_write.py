@@ -10,6 +10,7 @@ import pytest
 from helpers.recordings import run_hopper
 from legsim.builders import Model
 from legsim.output.rrd import write_rrd
+from legsim.output.rrd.digest import FOOTER_MAGIC
 from legsim.output.trace import RecordingError
 
 
@@ -61,7 +62,7 @@ def test_a_recording_rerun_could_not_finish_is_refused_and_the_previous_file_kep
     model, ex = run_hopper(t_final=0.3)
     path = write_rrd(ex, None, tmp_path / "x.rrd", model=model)
     before = path.read_bytes()
-    assert before.endswith(rrd_write.FOOTER_MAGIC + before[-4:])  # the check's premise: a finished file
+    assert before.endswith(FOOTER_MAGIC + before[-4:])  # the check's premise: a finished file
     closing = rrd_write.recording_stream.__exit__
 
     def closed_on_a_full_disk(self, *exc):
