@@ -57,12 +57,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="follow the family of orbits as PARAM goes from FROM to TO",
     )
     parser.add_argument(
-        "--steps", type=int, default=10, metavar="N", help="number of equal parameter steps of --continue (default 10)"
+        "--steps", type=int, metavar="N", help="number of equal parameter steps of --continue (default 10)"
     )
     parser.add_argument(
         "--locate",
         type=int,
-        default=8,
         metavar="K",
         help="with --continue: narrow each stability change by K bisections of the parameter "
         "(default 8; 0 interpolates between the family's orbits)",
@@ -75,13 +74,7 @@ def run(args: argparse.Namespace) -> int:
     from ..progress import progress_for
     from ..scene import load_scene
 
-    if args.plot and not args.continuation:
-        raise LegsimError("--plot draws a family: use it with --continue PARAM FROM TO")
-    if args.continuation:
-        if not 1 <= args.steps <= MAX_CONTINUATION_STEPS:
-            raise LegsimError(f"--steps must be in [1, {MAX_CONTINUATION_STEPS}], got {args.steps}")
-        if not 0 <= args.locate <= MAX_LOCATE:
-            raise LegsimError(f"--locate must be in [0, {MAX_LOCATE}], got {args.locate}")
+    _check_family_options(args)
     scene = load_scene(args.scene, overrides=args.overrides)
     plot_path = _check_plot_path(args.plot) if args.plot else None
     bar = progress_for(sys.stderr, enabled=not args.quiet, label=scene.name)
@@ -90,6 +83,31 @@ def run(args: argparse.Namespace) -> int:
     finally:
         if bar is not None:
             bar.close()
+
+
+#: The options that shape a family (``--continue``), each with what it does; without
+#: ``--continue`` each is refused rather than ignored. Their defaults apply with ``--continue``.
+FAMILY_OPTIONS: dict[str, tuple[str, str, int | None]] = {
+    "plot": ("--plot", "draws a family", None),
+    "steps": ("--steps", "sets the family's parameter steps", 10),
+    "locate": ("--locate", "narrows the family's stability changes", 8),
+}
+
+
+def _check_family_options(args: argparse.Namespace) -> None:
+    """Refuse a family option without ``--continue``; with it, fill in the defaults and check
+    the ranges (before the scene loads: a bad value should not wait for it)."""
+    for dest, (flag, what, default) in FAMILY_OPTIONS.items():
+        if getattr(args, dest) is None:
+            setattr(args, dest, default)
+        elif not args.continuation:
+            raise LegsimError(f"{flag} {what}: use it with --continue PARAM FROM TO")
+    if not args.continuation:
+        return
+    if not 1 <= args.steps <= MAX_CONTINUATION_STEPS:
+        raise LegsimError(f"--steps must be in [1, {MAX_CONTINUATION_STEPS}], got {args.steps}")
+    if not 0 <= args.locate <= MAX_LOCATE:
+        raise LegsimError(f"--locate must be in [0, {MAX_LOCATE}], got {args.locate}")
 
 
 def _run(args: argparse.Namespace, scene, plot_path: Path | None, bar) -> int:

@@ -476,8 +476,17 @@ def floquet_multipliers(DP: np.ndarray, f: np.ndarray, cyclic: Sequence[int] = (
     D = DP[np.ix_(keep, keep)]
     fk = np.asarray(f, dtype=float)[keep]
     if np.linalg.norm(fk) == 0.0:
+        if np.linalg.norm(f) == 0.0:
+            raise OrbitError(
+                "the field vanishes at the fixed point: it is an equilibrium, not a periodic orbit", "singular_jacobian"
+            )
+        # The multipliers live on f's orthogonal complement among the non-cyclic coordinates: with
+        # f wholly along cyclic ones that complement is undefined, and so is the stability verdict.
         raise OrbitError(
-            "the field vanishes at the fixed point: it is an equilibrium, not a periodic orbit", "singular_jacobian"
+            "the field at the fixed point is zero off the cyclic coordinates: the Jacobian restricted to the "
+            "section is singular (the flow has no direction across it outside the cyclic coordinates), so "
+            "there are no multipliers to judge stability by",
+            "singular_jacobian",
         )
     # Orthonormal basis of f^perp: the last columns of a complete QR of f.
     Q, _ = np.linalg.qr(fk.reshape(-1, 1), mode="complete")

@@ -425,22 +425,20 @@ class _NewtonSearch:
         coarse = None if failure.status == "stalled" else self._resolved_at_step_scale()
         if coarse is not None:
             self.accuracy = coarse
-            result = self.converged(failure.iterations)
-            result.message = (
+            return self.converged(
+                failure.iterations,
                 f"residual {self.res:.3g} <= tol {self.tol:g} after {failure.iterations} iteration(s); no Newton "
                 f"step lowers it, and at the scale of that step the return map resolves only {coarse.resolved:.3g} "
-                f"({coarse.describe()})"
+                f"({coarse.describe()})",
             )
-            return result
         if failure.status == "stalled":
-            result = self.converged(failure.iterations)
-            result.message = (
+            return self.converged(
+                failure.iterations,
                 f"residual {self.res:.3g} <= tol {self.tol:g} after {failure.iterations} iteration(s); above what "
                 f"the return map resolves ({acc.resolved:.3g}), but the Newton step is below rounding: the orbit "
                 f"equations are consistent only to {self.res:.3g} (overdetermined, e.g. a conserved quantity the "
-                f"integrator keeps to its own error)"
+                f"integrator keeps to its own error)",
             )
-            return result
         failure.status = "stalled"
         failure.message = (
             f"the residual {self.res:.3g} is within tol {self.tol:g} but above what the return map resolves "
@@ -613,8 +611,11 @@ class _NewtonSearch:
             it,
         )
 
-    def converged(self, it: int) -> OrbitResult:
-        """The converged result with the Jacobian and multipliers at the fixed point."""
+    def converged(self, it: int, message: str | None = None) -> OrbitResult:
+        """The converged result with the Jacobian and multipliers at the fixed point; ``message``
+        says how it converged (default: within tol and what the map resolves). It is given here,
+        not set afterwards, so that a failure of the multipliers (``add_multipliers``) extends it
+        rather than being overwritten by it."""
         ret = self.ret
         assert ret is not None
         try:
@@ -635,8 +636,10 @@ class _NewtonSearch:
             return self.fail(exc.status, f"converged (residual {self.res:.3g}) but the Jacobian failed: {exc}", it)
         result = self._result(
             "converged",
-            f"residual {self.res:.3g} <= tol {self.tol:g} and within what the return map resolves after "
-            f"{it} iteration(s)" + self._relaxed_words(),
+            message
+            or f"residual {self.res:.3g} <= tol {self.tol:g} and within what the return map resolves after "
+            f"{it} iteration(s)"
+            + self._relaxed_words(),
             ret.x_start,
             ret.parameters,
             it,

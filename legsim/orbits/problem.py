@@ -118,7 +118,9 @@ class OrbitProblem:
         values held at their guesses (where the controller conserves a combination of them). The
         coordinate of a coordinate section is always fixed.
     cyclic: coordinates along a symmetry (a horizontal position): fixed, left out of the
-        periodicity equations, their increment over a return is the step length.
+        periodicity equations, their increment over a return is the step length. Each name in
+        ``free``, ``fixed`` and ``cyclic`` appears once, none both fixed and cyclic, not the
+        coordinate of a coordinate section, and at least one multiplier must remain.
     constraints: extra equations ``(name, c(x, parameters) -> float)`` asked to be 0.
     energy: when given, the constraint ``system.energy(mode, x) = energy`` (J).
     returns: the orbit's period in returns (2 for a period-two gait).
@@ -175,6 +177,7 @@ class OrbitProblem:
     def __post_init__(self) -> None:
         self._check_settings()
         self._resolve_system()
+        self._check_name_lists()
         self._cache: dict[tuple, tuple[HybridSystem, Any, Any]] = {}
         system, _ = self.instantiate(self.parameters)
         self._check_controller()
@@ -277,6 +280,33 @@ class OrbitProblem:
                 "HybridSystem, not a fixed HybridSystem"
             )
 
+    def _check_name_lists(self) -> None:
+        """Each name at most once in ``free``, ``fixed`` and ``cyclic``, none both fixed and cyclic,
+        and not the coordinate of a coordinate section as cyclic: that coordinate is held on the
+        section, and a cyclic one is free to drift, so it cannot be both. Each would otherwise
+        reach the solver as a duplicated unknown or a dropped equation, and fail there as a
+        singular Jacobian that does not name the list at fault."""
+        for label in ("free", "fixed", "cyclic"):
+            group = getattr(self, label)
+            repeated = sorted({name for name in group if group.count(name) > 1})
+            if repeated:
+                raise OrbitError(
+                    f"orbit problem: {label} lists {repeated} more than once; each name may appear once", key=label
+                )
+        both = sorted(set(self.fixed) & set(self.cyclic))
+        if both:
+            raise OrbitError(
+                f"orbit problem: {both} are both fixed and cyclic (a cyclic coordinate is already held at its "
+                f"start); list each in one of fixed or cyclic",
+                key="fixed",
+            )
+        if self.section.coordinate is not None and self.section.coordinate in self.cyclic:
+            raise OrbitError(
+                f"orbit problem: '{self.section.coordinate}' is the section's coordinate, held at its value on the "
+                f"section, so it cannot be cyclic; cyclic may list the other coordinates",
+                key="cyclic",
+            )
+
     def _bind(self, system: HybridSystem) -> None:
         self.bound = bind_section(self.section, system)
         names = self.bound.names
@@ -361,6 +391,9 @@ class OrbitProblem:
     def _check_equations(self, system: HybridSystem) -> None:
         n_rows = len(self.periodic_idx) + self.extra_rows + self.n_memory
         n_unknowns = len(self.unknown_idx) + len(self.free) + len(self.unknown_memory_idx)
+        # First: cyclic coordinates that leave no multipliers also leave few unknowns, and the
+        # list to name is cyclic, not fixed or free.
+        self._check_multipliers()
         if n_unknowns == 0:
             raise OrbitError(
                 "orbit problem: nothing to solve for: every coordinate is fixed and no parameter is free", key="fixed"
@@ -375,9 +408,24 @@ class OrbitProblem:
             raise OrbitError(
                 f"orbit problem: an energy level is asked for but {system.name} defines no energy", key="energy"
             )
+        for item in self.constraints:
+            if not (isinstance(item, tuple) and len(item) == 2 and callable(item[1])):
+                raise OrbitError(f"orbit problem: constraints must be (name, c(x, parameters)) pairs, got {item!r}")
+
+    def _check_multipliers(self) -> None:
+        """``cyclic`` and ``trivial_multipliers`` leave at least one multiplier for the stability
+        verdict: with none, a spectral radius of 0 would call any orbit stable."""
         # Multipliers live on the section without the cyclic coordinates, with the memory:
         # n - 1 - #cyclic + m of them.
         n_multipliers = self.dim - 1 - len(self.cyclic_idx) + self.n_memory
+        if self.cyclic and n_multipliers < 1:
+            raise OrbitError(
+                f"orbit problem: cyclic = {list(self.cyclic)} leaves none of the section's multipliers to judge "
+                f"stability by (a section of {self.dim} coordinates with c cyclic ones has {self.dim} - 1 - c"
+                + (f" + {self.n_memory} (memory)" if self.n_memory else "")
+                + f" multipliers): at most {self.dim - 2 + self.n_memory} coordinate(s) may be cyclic",
+                key="cyclic",
+            )
         trivial = self.trivial_multipliers
         if (
             isinstance(trivial, bool)
@@ -390,9 +438,6 @@ class OrbitProblem:
                 f"at least one of the section's {n_multipliers} multiplier(s) to judge stability by",
                 key="trivial_multipliers",
             )
-        for item in self.constraints:
-            if not (isinstance(item, tuple) and len(item) == 2 and callable(item[1])):
-                raise OrbitError(f"orbit problem: constraints must be (name, c(x, parameters)) pairs, got {item!r}")
 
     # -- what the solver reads ----------------------------------------------------------------
     @property

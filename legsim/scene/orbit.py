@@ -48,9 +48,10 @@ ORBIT_KEYS = {
     "or { mode = MODE, coordinate = NAME, value = 0.0, direction = "
     "'decreasing' | 'increasing' | 'either' }",
     "fixed": "coordinates held at their initial values, or controller memory values held at their guesses "
-    "(list of names)",
-    "cyclic": "coordinates along a symmetry, left out of periodicity; their increment is the step length",
-    "free": "parameters solved for: robot parameter names or EFFECT.PARAM",
+    "(list of names, each once, none also cyclic)",
+    "cyclic": "coordinates along a symmetry, left out of periodicity; their increment is the step length "
+    "(each once, not the section's coordinate, leaving at least one multiplier)",
+    "free": "parameters solved for: robot parameter names or EFFECT.PARAM (each once)",
     "energy": "energy level of the orbit (J), when the system defines an energy",
     "guess": "initial guess by coordinate or controller memory name (default: the scene's [initial] "
     "state and a fresh controller's memory)",
@@ -58,11 +59,11 @@ ORBIT_KEYS = {
     "max_iterations": "Newton iterations, default 30",
     "jacobian": "'saltation' (default) or 'fd'; a scene with a [controller] always uses 'fd'",
     "fd_step": "relative finite-difference step in (0, 0.1], default 1e-6 (see legsim.orbits)",
-    "singular_tol": "relative singular value below which the Jacobian is singular, default 1e-9",
+    "singular_tol": "relative singular value below which the Jacobian is singular, in (0, 1), default 1e-9",
     "t_max": "time limit of one return (s), default the scene's integrator.t_final",
     "returns": "returns per period (2 for a period-two orbit), default 1",
-    "min_transitions": "transitions before a crossing section counts, default 1",
-    "min_time": "time (s) before a crossing section counts, default 0",
+    "min_transitions": "transitions before a crossing section counts, default 1 (not with { after = ... })",
+    "min_time": "time (s) before a crossing section counts, default 0 (not with { after = ... })",
     "max_transitions": "transition budget of one return, default 10000",
     "trivial_multipliers": "multipliers equal to 1 by a conserved quantity, left out of the stability verdict",
     "integrator": "the search's own integrator settings where they differ from the run's: a table of "
@@ -113,6 +114,13 @@ def problem_from_scene(scene: Any, *, extra_parameters: Sequence[str] = ()) -> O
     jacobian = table.get("jacobian", "saltation")
     if jacobian not in ("saltation", "fd"):
         raise _fail(scene, "jacobian", f"expected 'saltation' or 'fd', got {describe(jacobian)}")
+    if section.kind == "transition":
+        _refuse_counts(
+            scene,
+            table,
+            "counts crossings of a level section; an { after = ... } section returns at each such transition, "
+            "so it takes neither min_transitions nor min_time",
+        )
     problem = _problem(scene, table, section, free, params, factory)
     if problem.bound.mode != scene.initial_mode:
         raise _fail(
@@ -138,16 +146,13 @@ def accuracy_section(scene: Any) -> OrbitSection | None:
         return None
     check_keys(scene.path, table, sorted(ACCURACY_KEYS), "accuracy")
     along = table.get("along", "entries")
-    counts = sorted(set(table) & {"min_transitions", "min_time"})
     if along == "entries":
-        if counts:
-            raise _fail(scene, counts[0], "counts crossings of a section; along = 'entries' has none", "accuracy")
+        _refuse_counts(scene, table, "counts crossings of a section; along = 'entries' has none", "accuracy")
         return None
     if along == "orbit":
         if scene.sections.get("orbit") is None:
             raise _fail(scene, "along", "'orbit' compares at the [orbit] section; the scene has none", "accuracy")
-        if counts:
-            raise _fail(scene, counts[0], "with along = 'orbit' the [orbit] section's own counts apply", "accuracy")
+        _refuse_counts(scene, table, "with along = 'orbit' the [orbit] section's own counts apply", "accuracy")
         orbit = _orbit_table(scene)
         return _bound_section(scene, _section(scene, orbit), orbit, "orbit", "section")
     if isinstance(along, dict):
@@ -171,6 +176,14 @@ def _bound_section(scene: Any, section: Section, table: Mapping[str, Any], where
         min_transitions=_number(scene, table, "min_transitions", 1, int, 0, where),
         min_time=_number(scene, table, "min_time", 0.0, low=0.0, where=where),
     )
+
+
+def _refuse_counts(scene: Any, table: Mapping[str, Any], why: str, where: str = "orbit") -> None:
+    """Refuse ``min_transitions`` or ``min_time`` in ``table`` where no crossing is counted, rather
+    than ignore them: a reader who set one expects it to change which return counts."""
+    counts = sorted(set(table) & {"min_transitions", "min_time"})
+    if counts:
+        raise _fail(scene, counts[0], why, where)
 
 
 def _fail(scene: Any, key: str, message: str, where: str = "orbit") -> SceneError:
@@ -442,4 +455,9 @@ def _solver(scene: Any, table: Mapping[str, Any], jacobian: str) -> dict[str, An
         raise _fail(scene, "tol", "must be > 0")
     if solver["fd_step"] is not None and not 0.0 < solver["fd_step"] <= MAX_FD_STEP:
         raise _fail(scene, "fd_step", f"must be a relative step in (0, {MAX_FD_STEP:g}], got {solver['fd_step']!r}")
+    # A ratio of singular values is at most 1: from 1 on every Jacobian would count as singular.
+    if not 0.0 < solver["singular_tol"] < 1.0:
+        raise _fail(
+            scene, "singular_tol", f"must be a ratio of singular values in (0, 1), got {solver['singular_tol']!r}"
+        )
     return solver

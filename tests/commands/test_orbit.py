@@ -188,6 +188,16 @@ def test_no_orbit_exits_3_with_the_reason(capsys):
         # the example names one of the scene's own transitions
         (["orbit", "pronk"], '[orbit] section = { after = "liftoff_left" } (its transitions: liftoff_left,'),
         (["orbit", "rimless_wheel", "--plot", "x.png"], "--plot draws a family: use it with --continue"),
+        (["orbit", "rimless_wheel", "--steps", "3"], "--steps sets the family's parameter steps: use it with"),
+        (["orbit", "rimless_wheel", "--locate", "3"], "--locate narrows the family's stability changes: use it with"),
+        (
+            ["orbit", "rimless_wheel", "--set", 'orbit.cyclic=["foot_x","theta"]', "--json"],
+            "rimless_wheel.toml: orbit.cyclic: orbit problem: cyclic = ['foot_x', 'theta'] leaves none",
+        ),
+        (
+            ["orbit", "rimless_wheel", "--set", "orbit.min_transitions=3"],
+            "rimless_wheel.toml: orbit.min_transitions: counts crossings of a level section",
+        ),
         (["orbit", "rimless_wheel", "--set", "orbit.nonsense=1"], "orbit.nonsense: unknown key(s) ['nonsense']"),
         (["orbit", "rimless_wheel", "--continue", "spokes", "8", "10"], "parameter 'spokes' is int-valued"),
         (["orbit", "rimless_wheel", "--continue", "mass", "1", "2"], "robot 'rimless_wheel' has no parameter 'mass'"),
@@ -276,6 +286,21 @@ def test_bad_requests_exit_2_with_a_message(capsys, argv, message):
     assert code == 2, (out, err)
     assert message in err and err.startswith("legsim: error: ")
     assert out == ""  # refused before any table header or result
+
+
+def test_a_failed_verdict_after_convergence_says_what_is_singular(capsys, monkeypatch):
+    """A search that converges above what the map resolves and then finds no multipliers ends
+    ``singular_jacobian``: its message keeps saying so rather than only how it converged. (The
+    section coordinate as cyclic, refused by the problem now, is let through to reach it.)"""
+    from legsim.orbits.problem import OrbitProblem
+
+    monkeypatch.setattr(OrbitProblem, "_check_name_lists", lambda self: None, raising=False)
+    argv = ["orbit", "slip_orbit", "--set", 'orbit.cyclic=["x","zd"]', "--set", "orbit.trivial_multipliers=0"]
+    code, out, err = run_cli(capsys, *argv, "--json")
+    data = json.loads(out)
+    assert code == 3 and data["status"] == "singular_jacobian" and "no orbit (singular_jacobian)" in err
+    assert "the Jacobian restricted to the section is singular" in data["message"]
+    assert "zero off the cyclic coordinates" in data["message"]
 
 
 def test_an_integrator_override_the_orbit_section_shadows_is_said(capsys):

@@ -23,6 +23,16 @@ from legsim.orbits import OrbitError, OrbitProblem, Section, find_orbit
         ({"method": "rk4", "landing": "dense"}, r"landing 'dense' needs a method with a continuous extension"),
         ({"landing": "bisect"}, r"landing must be one of 'halve', 'aim', 'dense', got 'bisect'"),
         ({"max_halvings": 0}, r"max_halvings must be an integer >= 1, got 0"),
+        # Name lists: each name once, none both fixed and cyclic, the section's coordinate not
+        # cyclic, and enough coordinates left for a multiplier (2 - 1 - 1 = 0 here).
+        ({"fixed": ["x", "x"]}, r"fixed lists \['x'\] more than once"),
+        (
+            {"system": lambda params: impact_oscillator(), "free": ["k", "k"], "parameters": {"k": 1.0}},
+            r"free lists \['k'\] more than once",
+        ),
+        ({"fixed": ["x"], "cyclic": ["x"]}, r"\['x'\] are both fixed and cyclic"),
+        ({"cyclic": ["v"]}, r"'v' is the section's coordinate, held at its value on the section, so it cannot be"),
+        ({"cyclic": ["x"]}, r"cyclic = \['x'\] leaves none of the section's multipliers"),
     ],
 )
 def test_bad_problems_are_rejected_with_messages(kwargs, message):
@@ -39,6 +49,8 @@ def test_bad_problems_are_rejected_with_messages(kwargs, message):
         ({"method": "euler", "atol": 1e-8}, "atol"),
         ({"method": "heun", "landing": "dense"}, "landing"),
         ({"max_halvings": -3}, "max_halvings"),
+        ({"cyclic": ["x", "x"]}, "cyclic"),
+        ({"fixed": ["x"], "cyclic": ["x"]}, "fixed"),
     ],
 )
 def test_refused_integrator_settings_carry_their_key(kwargs, key):

@@ -103,6 +103,48 @@ def test_bad_values_are_named_by_their_key(override, message):
     assert message in str(info.value)
 
 
+@pytest.mark.parametrize(
+    "name, overrides, message",
+    [
+        # A verdict needs a multiplier: the wheel's section (theta, thetad, foot_x) has 3 - 1 - c.
+        (
+            "rimless_wheel",
+            ['orbit.cyclic=["foot_x", "theta"]'],
+            "orbit.cyclic: orbit problem: cyclic = ['foot_x', 'theta'] leaves none of the section's multipliers",
+        ),
+        ("slip_orbit", ['orbit.free=["psi", "psi"]'], "orbit.free: orbit problem: free lists ['psi'] more than once"),
+        # The section's own coordinate is named as such, whatever trivial_multipliers says.
+        ("slip_orbit", ['orbit.cyclic=["x", "zd"]'], "orbit.cyclic: orbit problem: 'zd' is the section's coordinate"),
+        (
+            "slip_orbit",
+            ['orbit.cyclic=["x", "zd"]', "orbit.trivial_multipliers=0"],
+            "orbit.cyclic: orbit problem: 'zd' is the section's coordinate",
+        ),
+        ("rimless_wheel", ['orbit.fixed=["foot_x"]'], "orbit.fixed: orbit problem: ['foot_x'] are both fixed and"),
+        (
+            "rimless_wheel",
+            ['orbit.cyclic=["foot_x", "foot_x"]'],
+            "orbit.cyclic: orbit problem: cyclic lists ['foot_x'] more than once",
+        ),
+        ("rimless_wheel", ["orbit.singular_tol=2"], "orbit.singular_tol: must be a ratio of singular values in (0, 1)"),
+        ("rimless_wheel", ["orbit.singular_tol=0"], "orbit.singular_tol: must be a ratio of singular values in (0, 1)"),
+        # Counts of crossings mean nothing after a transition: refused, not ignored.
+        ("rimless_wheel", ["orbit.min_transitions=3"], "orbit.min_transitions: counts crossings of a level section"),
+        ("rimless_wheel", ["orbit.min_time=100"], "orbit.min_time: counts crossings of a level section"),
+    ],
+)
+def test_malformed_lists_and_settings_are_refused_by_their_key(name, overrides, message):
+    scene = load_scene(name, overrides=overrides)
+    with pytest.raises(SceneError, match=rf"{name}\.toml: ") as info:
+        problem_from_scene(scene)
+    assert message in str(info.value)
+
+
+def test_a_level_section_takes_its_crossing_counts():
+    problem = problem_from_scene(load_scene("slip_orbit", overrides=["orbit.min_transitions=2"])).problem
+    assert problem.section.kind == "crossing" and problem.min_transitions == 2
+
+
 def test_a_controller_that_does_not_declare_its_memory_is_refused(tmp_path, monkeypatch):
     # A controller keeping state the search cannot restore would make the return map depend on
     # where an earlier return left it: refused, naming the field and what to implement. (A
