@@ -126,7 +126,7 @@ def test_zeno_point_is_refused_as_zeno_after_certifying_more_transitions_at_each
 
 
 def test_reasons_are_the_documented_ones():
-    assert REASONS == ("grazing", "intersecting_guards", "zeno", "refinement_limit")
+    assert REASONS == ("grazing", "intersecting_guards", "zeno", "refinement_limit", "t_final")
 
 
 def test_bad_input_is_reported_by_name():
@@ -208,3 +208,85 @@ def test_a_model_that_breaks_down_past_the_guard_is_a_refusal_then_certified_whe
     assert tr.certified and tr.time == pytest.approx(1.0, abs=1e-9)
     assert [lv.h for lv in refined.levels] == [0.1, 0.05, 0.025]
     assert tr.window[0] <= 1.0 <= tr.window[1]
+
+
+def circle_crossings(radius):
+    """Exact times (s) at which the clockwise unit-rate circle from (0, radius) crosses the wall
+    x1 = 1 out and back: x1(t) = radius sin t = 1 at t = asin(1 / radius) and pi - asin(1 / radius)."""
+    a = math.asin(1.0 / radius)
+    return a, math.pi - a
+
+
+def test_a_return_inside_the_entry_ball_is_refused_then_certified_with_its_exact_time():
+    # Radius 1.0001: out at 1.556655 s, back at 1.584938 s, both before t_final = 3 s. At h = 0.1
+    # the `outside` visit is entered with a ball (~1e-3) wider than the whole excursion (1e-4): the
+    # computed return lies inside the ball of the guard it just crossed. It must not be left out.
+    exact = circle_crossings(1.0001)
+    coarse = certify(circular_flow(), "inside", [0.0, 1.0001], 3.0, 0.1, "rk4", max_refinements=0)
+    assert not coarse.certified
+    assert [(tr.name, tr.certified, tr.reason) for tr in coarse.transitions] == [
+        ("cross", True, None),
+        ("return", False, "grazing"),
+    ]
+    assert coarse.transitions[1].time == pytest.approx(exact[1], abs=1e-3)
+    # Refining shrinks the entry ball below the excursion: both crossings certified at their times.
+    cert = certify(circular_flow(), "inside", [0.0, 1.0001], 3.0, 0.1, "rk4", max_refinements=3)
+    assert cert.certified
+    assert [tr.name for tr in cert.transitions] == ["cross", "return"]
+    for tr, t in zip(cert.transitions, exact, strict=True):
+        assert tr.time == pytest.approx(t, abs=1e-5)
+        assert tr.window[0] <= t <= tr.window[1]
+
+
+@pytest.mark.parametrize("t_final", [0.7297286, 0.72973, 0.7298, 0.73])
+def test_a_crossing_in_the_last_eighth_of_a_step_before_t_final_is_certified(t_final):
+    # Radius 1.5 crosses x1 = 1 at asin(2/3) = 0.7297277 s, less than a sample spacing (h / 8 =
+    # 0.0125 s) before t_final: the computed crossing (0.7297285 s) is in the horizon, and the
+    # cone is followed past it even when it leaves the domain only after t_final.
+    exact, _ = circle_crossings(1.5)
+    assert exact < t_final
+    cert = certify(circular_flow(), "inside", [0.0, 1.5], t_final, 0.1, "rk4")
+    assert cert.certified
+    (tr,) = cert.transitions
+    assert (tr.name, tr.taken, tr.reason) == ("cross", True, None)
+    assert tr.time == pytest.approx(exact, abs=1e-5)
+    assert tr.window[0] <= exact <= tr.window[1]
+
+
+def test_a_crossing_computed_just_after_t_final_but_reached_by_the_cone_before_is_not_skipped():
+    # t_final 3.4e-7 s after the exact crossing: at h = 0.1 the computed crossing (8.8e-7 s late)
+    # falls after t_final while the cone meets the guard before it: refused as t_final, then
+    # certified once refining puts the computed crossing before t_final.
+    exact, _ = circle_crossings(1.5)
+    t_final = 0.729728
+    coarse = certify(circular_flow(), "inside", [0.0, 1.5], t_final, 0.1, "rk4", max_refinements=0)
+    (tr,) = coarse.transitions
+    assert (tr.name, tr.certified, tr.reason) == ("cross", False, "t_final")
+    assert exact < t_final < tr.time and tr.window[0] <= t_final
+    cert = certify(circular_flow(), "inside", [0.0, 1.5], t_final, 0.1, "rk4", max_refinements=3)
+    assert cert.certified
+    (tr,) = cert.transitions
+    assert tr.time == pytest.approx(exact, abs=1e-7) and tr.window[0] <= exact <= tr.window[1]
+
+
+@pytest.mark.parametrize("h", [2.9, 3.0])
+def test_a_ball_across_the_guard_from_the_start_is_refused_not_certified(h):
+    # One step of h ~ t_final: the ball at t = 0 (radius 5.9) already reaches the wall 1 away, the
+    # flow heads for it, and the true circle crosses at asin(2/3) < 3 s: zeno, not "meets no guard".
+    exact, back = circle_crossings(1.5)
+    assert exact < back < 3.0
+    cert = certify(circular_flow(), "inside", [0.0, 1.5], 3.0, h, "rk4", max_refinements=0)
+    assert not cert.certified
+    (tr,) = cert.transitions
+    assert (tr.name, tr.certified, tr.reason) == ("cross", False, "zeno")
+
+
+@pytest.mark.parametrize(("t_final", "crossings"), [(0.7, 0), (0.74, 1), (1.0, 1), (3.0, 2)])
+def test_crossings_well_inside_or_outside_the_horizon_are_certified_at_their_exact_times(t_final, crossings):
+    exact = circle_crossings(1.5)
+    assert sum(t < t_final for t in exact) == crossings
+    cert = certify(circular_flow(), "inside", [0.0, 1.5], t_final, 0.1, "rk4")
+    assert cert.certified and len(cert.levels) == 1
+    assert [tr.name for tr in cert.transitions] == ["cross", "return"][:crossings]
+    for tr, t in zip(cert.transitions, exact, strict=False):
+        assert tr.time == pytest.approx(t, abs=1e-5) and tr.window[0] <= t <= tr.window[1]

@@ -29,7 +29,12 @@ A visit is refused, with the reason it can never be certified at any h, when
 * ``intersecting_guards``: the cone meets two or more guards (an execution through a guard
   intersection: refining never keeps the cone off the second guard);
 * ``grazing``: the cone meets a guard but never leaves the domain (x_hat crosses a guard only
-  tangentially, or not at all: a *near miss*, reported with ``taken = false``).
+  tangentially, or not at all: a *near miss*, reported with ``taken = false``), or x_hat comes
+  back through the guard it entered by before the ball has left that guard (the crossing and
+  the return both lie within the error);
+* ``t_final``: the cone meets a guard by t_final but x_hat crosses it only after t_final: the
+  true execution may switch within the horizon (a crossing computed by t_final is judged as
+  any other; "no transition" needs a cone that meets no guard up to t_final itself).
 
 When the last refinement still fails, the failure is reported as ``refinement_limit`` instead
 when refining has been making progress on it: the separation that would certify it (the
@@ -334,7 +339,7 @@ class _Refinement:
         if failure is not None and failure.record is not None:
             rec = failure.record
             rec.reason = _reason(failure.kind, levels)
-            if rec.reason == "refinement_limit" and failure.kind in ("grazing", "intersecting_guards"):
+            if rec.reason == "refinement_limit" and failure.kind in ("grazing", "intersecting_guards", "t_final"):
                 rec.detail += (
                     f"; refining is separating it (separation/bound "
                     f"{levels[-2].separation / levels[-2].bound:.3g} -> "

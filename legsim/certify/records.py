@@ -8,7 +8,7 @@ from typing import Any
 
 import numpy as np
 
-REASONS = ("grazing", "intersecting_guards", "zeno", "refinement_limit")
+REASONS = ("grazing", "intersecting_guards", "zeno", "refinement_limit", "t_final")
 
 
 @dataclass
@@ -124,7 +124,7 @@ class Certificate:
 
 @dataclass
 class _Visit:
-    kind: str  # "end", "certified", "zeno", "intersecting_guards", "grazing", "non_finite"
+    kind: str  # "end", "certified", "zeno", "intersecting_guards", "grazing", "t_final", "non_finite"
     record: CertifiedTransition | None = None
     separation: float = math.nan
     bound: float = math.nan

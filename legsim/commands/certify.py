@@ -4,7 +4,7 @@ Settings come from the scene's ``[certify]`` section (``legsim.scene.certify.sec
 method, pair, floor, alpha, max_refinements, t_final, max_transitions), with h, method and
 t_final defaulting to ``[integrator]``. ``--json`` prints the list of verdicts, one object per
 transition with ``source``, ``target``, ``time``, ``certified`` and ``reason`` (null, or one of
-grazing, intersecting_guards, zeno, refinement_limit), and more.
+grazing, intersecting_guards, zeno, refinement_limit, t_final), and more.
 
 Exit codes: 0 when every transition up to t_final is certified; 3 when one is refused (the
 verdicts say why) or when ``max_transitions`` were certified before t_final (the rest is not
