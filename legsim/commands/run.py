@@ -31,7 +31,7 @@ from ..errors import LegsimError
 from ..output.writers import Writer, find_writer
 
 if TYPE_CHECKING:
-    from ..output.files import OutputPlan
+    from ..output.files import OutputPlan, Staging
 
 NAME = "run"
 HELP = "run a scene (a TOML file or a bundled scene name) and print its summary"
@@ -266,17 +266,21 @@ def _write_all(
     """
     import numpy as np
 
+    from ..output.files import Staging
+
     written: dict[str, Path] = {}
     failures: list[LegsimError] = []
     # A diverged run hands the writers states near the float64 limit: interpolating them and
     # Rerun's float32 cast overflow on the way. The writers draw or store what is finite (the
     # plot leaves out, and says so, what matplotlib cannot draw); numpy's warnings would only
     # bury the status line, as during the run.
-    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+    # Staged: the outputs take their names together once all are written, so Ctrl-C or SIGTERM
+    # while a later one is written leaves no earlier one replaced (a mixed set of old and new files).
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"), Staging() as staging:
         for kind in plan:
             try:
                 written[kind] = write_output(
-                    plan, kind, writers[kind], execution, scene, **(options or {}).get(kind, {})
+                    plan, kind, writers[kind], execution, scene, staging=staging, **(options or {}).get(kind, {})
                 )
             except LegsimError as exc:
                 if execution.status == "finished":
@@ -347,10 +351,19 @@ def requested_outputs(
     return out
 
 
-def write_output(plan: OutputPlan, kind: str, writer: Writer, execution: Any, scene: Any, **extra: Any) -> Path:
+def write_output(
+    plan: OutputPlan,
+    kind: str,
+    writer: Writer,
+    execution: Any,
+    scene: Any,
+    staging: Staging | None = None,
+    **extra: Any,
+) -> Path:
     """``writer(execution, scene, tmp, **extra)`` through the plan (``write_atomic``): its
-    temporary file is renamed over the planned target when it returns, removed when it fails;
-    its errors are a LegsimError naming the output and the file."""
+    temporary file is renamed over the planned target when it returns (with ``staging``, when
+    the staging ends), removed when it fails; its errors are a LegsimError naming the output and
+    the file."""
     label, path = plan.outputs[kind].what, plan.outputs[kind].path
 
     def write(tmp: Path) -> None:
@@ -362,7 +375,7 @@ def write_output(plan: OutputPlan, kind: str, writer: Writer, execution: Any, sc
         except Exception as exc:
             raise LegsimError(f"{label} {path}: writing failed: {type(exc).__name__}: {exc}") from exc
 
-    return plan.write(kind, write)
+    return plan.write(kind, write, staging)
 
 
 def _compact_modes(sequence: list[str], limit: int = 6) -> str:

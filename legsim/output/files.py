@@ -203,30 +203,81 @@ def write_atomic(
     Raises ``OutputError`` naming the path for a refused target, an OS error (chained to it, as
     ``__cause__``) or a writer that wrote nothing; other exceptions of ``write`` pass through.
     """
-    path = Path(path)
-    check_target(path, what, suffixes=suffixes, inputs=[Path(p) for p in inputs])
-    check_folder(path, what)
-    remove_stale_temporaries(path)
-    tmp = temporary_name(path)
-    # The name is this process's and random: once the folder exists, a file of that name can
-    # only be ours, so it is removed on any failure. Marking it before it is created leaves no
-    # line between its creation and the mark where a signal would leave it behind.
-    created = False
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        created = True
-        open(tmp, "xb").close()
-        write(tmp)
-        if not tmp.exists():
-            raise OutputError(f"{what} {path}: the writer returned without writing the file")
-        os.replace(tmp, path)
-    except BaseException as exc:
-        if created:
+    with Staging() as staging:
+        return staging.write(path, write, what=what, suffixes=suffixes, inputs=inputs)
+
+
+class Staging:
+    """Outputs written to temporary files now and renamed over their targets together when the
+    ``with`` block ends without an exception: a run's outputs appear together or not at all. An
+    exception (Ctrl-C and SIGTERM included) removes every temporary file and leaves every older
+    file as it was. Renaming a file is one system call, so the outputs appear within microseconds
+    of each other, where writing them may take seconds."""
+
+    def __init__(self) -> None:
+        self._pending: list[tuple[Path, Path, str]] = []
+
+    def __enter__(self) -> Staging:
+        return self
+
+    def __exit__(self, kind: object, *exc: object) -> None:
+        if kind is None:
+            self._commit()
+        else:
+            self._discard()
+
+    def write(
+        self,
+        path: PathLike,
+        write: Callable[[Path], object],
+        *,
+        what: str = "output",
+        suffixes: Iterable[str] = (),
+        inputs: Iterable[PathLike] = (),
+    ) -> Path:
+        """``write(tmp)`` into a temporary file for ``path``, renamed when the block ends (see
+        ``write_atomic``); a failure removes this output's temporary file only."""
+        path = Path(path)
+        check_target(path, what, suffixes=suffixes, inputs=[Path(p) for p in inputs])
+        check_folder(path, what)
+        remove_stale_temporaries(path)
+        tmp = temporary_name(path)
+        # The name is this process's and random: once the folder exists, a file of that name can
+        # only be ours, so it is removed on any failure. Marking it before it is created leaves no
+        # line between its creation and the mark where a signal would leave it behind.
+        created = False
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            created = True
+            open(tmp, "xb").close()
+            write(tmp)
+            if not tmp.exists():
+                raise OutputError(f"{what} {path}: the writer returned without writing the file")
+        except BaseException as exc:
+            if created:
+                _remove(tmp)
+            if isinstance(exc, OSError):
+                raise OutputError(f"{what} {path}: cannot write: {_write_reason(exc, path)}") from exc
+            raise
+        self._pending.append((tmp, path, what))
+        return path
+
+    def _commit(self) -> None:
+        try:
+            while self._pending:
+                tmp, path, what = self._pending[0]
+                try:
+                    os.replace(tmp, path)
+                except OSError as exc:
+                    raise OutputError(f"{what} {path}: cannot write: {_write_reason(exc, path)}") from exc
+                self._pending.pop(0)
+        finally:
+            self._discard()
+
+    def _discard(self) -> None:
+        for tmp, _, _ in self._pending:
             _remove(tmp)
-        if isinstance(exc, OSError):
-            raise OutputError(f"{what} {path}: cannot write: {_write_reason(exc, path)}") from exc
-        raise
-    return path
+        self._pending.clear()
 
 
 @contextlib.contextmanager
@@ -305,10 +356,13 @@ class OutputPlan:
         self.outputs[key] = planned
         return planned.path
 
-    def write(self, key: str, write: Callable[[Path], None]) -> Path:
-        """Write the planned output ``key`` with ``write(tmp)`` (see ``write_atomic``)."""
+    def write(self, key: str, write: Callable[[Path], None], staging: Staging | None = None) -> Path:
+        """Write the planned output ``key`` with ``write(tmp)`` (see ``write_atomic``), or into
+        ``staging``, which renames it with the run's other outputs."""
         planned = self.outputs[key]
-        return write_atomic(planned.path, write, what=planned.what, suffixes=planned.suffixes, inputs=self.inputs)
+        if staging is None:
+            return write_atomic(planned.path, write, what=planned.what, suffixes=planned.suffixes, inputs=self.inputs)
+        return staging.write(planned.path, write, what=planned.what, suffixes=planned.suffixes, inputs=self.inputs)
 
     def __iter__(self) -> Iterator[str]:
         return iter(self.outputs)

@@ -31,3 +31,33 @@ def test_an_output_folder_for_a_scene_without_outputs_is_refused(tmp_path, capsy
     err = capsys.readouterr().err
     assert f"--out-dir {folder}: places the scene's own [output] files" in err and "no [output] section" in err
     assert not folder.exists()
+
+
+def test_an_interrupt_while_a_later_output_is_written_leaves_every_older_file(tmp_path, monkeypatch, capsys):
+    """The outputs take their names together once all are written: Ctrl-C while the plot is
+    drawn, after the animation is complete, must not leave a new animation beside an old plot."""
+    from legsim.commands import run as run_command
+
+    find_writer = run_command.find_writer
+
+    def interrupted_plot(kind, source):
+        writer = find_writer(kind, source)
+        if kind != "plot":
+            return writer
+
+        def plot(execution, scene, path, **extra):
+            written = [p for p in tmp_path.iterdir() if p.name.startswith(".a.") and p.suffix == ".html"]
+            assert written and written[0].stat().st_size > 3  # the animation is complete, under its temporary name
+            raise KeyboardInterrupt
+
+        return plot
+
+    monkeypatch.setattr(run_command, "find_writer", interrupted_plot)
+    page, figure = tmp_path / "a.html", tmp_path / "a.png"
+    page.write_text("OLD")
+    figure.write_text("OLD")
+    argv = ["run", "oscillator_ex1", "--set", "integrator.t_final=1", "--quiet"]
+    assert main([*argv, "--html", str(page), "--plot", str(figure)]) == 130
+    assert "interrupted" in capsys.readouterr().err
+    assert page.read_text() == "OLD" and figure.read_text() == "OLD"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.html", "a.png"]  # no temporary left
