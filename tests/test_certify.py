@@ -269,6 +269,22 @@ def test_a_crossing_computed_just_after_t_final_but_reached_by_the_cone_before_i
     assert tr.time == pytest.approx(exact, abs=1e-7) and tr.window[0] <= exact <= tr.window[1]
 
 
+def test_a_crossing_whose_window_reaches_past_t_final_is_refused_until_refining_resolves_it():
+    # t_final halfway between the computed crossing and the end of its window at h = 0.1: the
+    # true crossing may come after t_final, so it is not certified there; refining narrows the
+    # window to before t_final and around the exact time.
+    exact, _ = circle_crossings(1.5)
+    wide = certify(circular_flow(), "inside", [0.0, 1.5], 3.0, 0.1, "rk4", max_refinements=0).transitions[0]
+    t_final = 0.5 * (wide.time + wide.window[1])
+    coarse = certify(circular_flow(), "inside", [0.0, 1.5], t_final, 0.1, "rk4", max_refinements=0)
+    (tr,) = coarse.transitions
+    assert (tr.certified, tr.reason) == (False, "t_final") and tr.window[1] > t_final
+    cert = certify(circular_flow(), "inside", [0.0, 1.5], t_final, 0.1, "rk4", max_refinements=3)
+    assert cert.certified
+    (tr,) = cert.transitions
+    assert tr.window[0] <= exact <= tr.window[1] <= t_final
+
+
 @pytest.mark.parametrize("h", [2.9, 3.0])
 def test_a_ball_across_the_guard_from_the_start_is_refused_not_certified(h):
     # One step of h ~ t_final: the ball at t = 0 (radius 5.9) already reaches the wall 1 away, the

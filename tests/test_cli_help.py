@@ -44,7 +44,7 @@ def _resolved_defaults() -> dict[tuple[str, ...], list[float]]:
 
     from legsim.bench import targets, work_precision
     from legsim.bench.cases import make_case
-    from legsim.commands import sweep
+    from legsim.commands import orbit, sweep
     from legsim.output.rrd.live import CONNECT_TIMEOUT
     from legsim.scene import load_scene
     from legsim.scene.certify import section_schema as certify_schema
@@ -68,6 +68,8 @@ def _resolved_defaults() -> dict[tuple[str, ...], list[float]]:
         ("sweep", "--connect-timeout"): [engine.CONNECT_TIMEOUT],
         ("sweep", "--samples"): [sweep.RANDOM_SAMPLES],
         ("sweep", "--batch"): [inspect.signature(Engine).parameters["target_seconds"].default],
+        ("orbit", "--steps"): [orbit.FAMILY_OPTIONS["steps"][2]],
+        ("orbit", "--locate"): [orbit.FAMILY_OPTIONS["locate"][2]],
     }
 
 

@@ -257,6 +257,28 @@ class _Walk:
             return _Visit("grazing", rec, max(float(self.deepest[1]), 0.0), self.deepest[2])
         return self._certified(index, window, self.event)
 
+    def _window_past_t_final(self, index: int, window: tuple[float, float]) -> _Visit:
+        """Refused as ``t_final``: the true crossing lies in ``window`` (s), which reaches past
+        t_final, so the true execution may not take it within the horizon. The separation and
+        bound are times (s): the computed crossing's lead on t_final, and the window's reach past
+        the computed crossing, which refining shrinks when the lead is real."""
+        assert self.event is not None
+        te, je, _, re = self.event
+        t_final, name = self.run_.t_final, self.flow.transitions[je].name
+        rec = self._record(
+            index,
+            je,
+            True,
+            "t_final",
+            window,
+            re,
+            f"the computed trajectory crosses the guard of {name} at t={te:.9g}, but the true crossing "
+            f"lies in [{window[0]:.9g}, {window[1]:.9g}], which reaches past t_final = {t_final:g} s: "
+            f"whether the true execution switches before t_final is not resolved",
+            time=te,
+        )
+        return _Visit("t_final", rec, max(t_final - te, 0.0), window[1] - te)
+
     def _zeno(self, index: int, window: tuple[float, float]) -> _Visit:
         """Refused: the entry ball already meets a guard the flow moves towards."""
         assert self.event is not None and self.zeno_guard is not None
@@ -394,6 +416,8 @@ class _Walk:
         tr = self.flow.transitions[je]
         r_trace, half = self._trace_on_guard(event)
         window = (min(window[0], te - half), max(window[1], te + half))
+        if window[1] > self.run_.t_final:
+            return self._window_past_t_final(index, window)
         rec = self._record(
             index,
             je,
