@@ -120,6 +120,43 @@ def check_target(path: Path, what: str, *, suffixes: Iterable[str] = (), inputs:
     suffixes = tuple(s.lower() for s in suffixes)
     if suffixes and path.suffix.lower() not in suffixes:
         raise OutputError(f"{what} {path}: unsupported format '{path.suffix}'; use one of {list(suffixes)}")
+    if mode is not None:
+        check_replaceable(path, what, mode)
+
+
+#: How the files of each suffix legsim writes begin (text kinds compared in lower case): an
+#: existing file of that suffix beginning otherwise is no earlier output, and is kept.
+SIGNATURES = {
+    ".rrd": (b"rrf2",),
+    ".html": (b"<!doctype html", b"<html"),
+    ".png": (b"\x89png",),
+    ".svg": (b"<?xml", b"<svg"),
+    ".pdf": (b"%pdf",),
+    ".npz": (b"pk",),
+}
+
+
+def check_replaceable(path: Path, what: str, mode: int) -> None:
+    """OutputError naming ``what`` unless the existing file ``path`` (of ``st_mode``) may be
+    replaced: not read-only (its owner made it so to keep it; the rename would not ask), and,
+    for a suffix in ``SIGNATURES``, empty or beginning as such a file does."""
+    if not mode & (stat.S_IWUSR | stat.S_IWGRP | stat.S_IWOTH):
+        raise OutputError(
+            f"{what} {path}: is read-only; refusing to replace it (make it writable, or choose another name)"
+        )
+    signatures = SIGNATURES.get(path.suffix.lower())
+    if signatures is None:
+        return
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(16)
+    except OSError as exc:
+        raise OutputError(f"{what} {path}: cannot read what it holds: {os_reason(exc)}") from exc
+    if head and not head.lower().startswith(signatures):
+        raise OutputError(
+            f"{what} {path}: holds no {path.suffix} file (it begins {head[:8]!r}); refusing to replace it "
+            f"(remove it, or choose another name)"
+        )
 
 
 def file_kind(mode: int) -> str:
@@ -203,8 +240,13 @@ def write_atomic(
     Raises ``OutputError`` naming the path for a refused target, an OS error (chained to it, as
     ``__cause__``) or a writer that wrote nothing; other exceptions of ``write`` pass through.
     """
-    with Staging() as staging:
-        return staging.write(path, write, what=what, suffixes=suffixes, inputs=inputs)
+    staging = Staging()
+    try:
+        staging.write(path, write, what=what, suffixes=suffixes, inputs=inputs)
+        staging.commit()
+    finally:
+        staging.discard()  # nothing is left to discard after a commit
+    return Path(path)
 
 
 class Staging:
@@ -221,10 +263,11 @@ class Staging:
         return self
 
     def __exit__(self, kind: object, *exc: object) -> None:
-        if kind is None:
-            self._commit()
-        else:
-            self._discard()
+        try:
+            if kind is None:
+                self.commit()
+        finally:
+            self.discard()
 
     def write(
         self,
@@ -242,39 +285,39 @@ class Staging:
         check_folder(path, what)
         remove_stale_temporaries(path)
         tmp = temporary_name(path)
-        # The name is this process's and random: once the folder exists, a file of that name can
-        # only be ours, so it is removed on any failure. Marking it before it is created leaves no
-        # line between its creation and the mark where a signal would leave it behind.
-        created = False
+        # The name is this process's and random: a file of that name can only be ours, so it is
+        # removed on any failure. Marking it pending before it is created leaves no line between
+        # its creation and the mark where a signal would leave it behind (the staging's exit
+        # removes every pending file).
+        entry = (tmp, path, what)
+        self._pending.append(entry)
         try:
             path.parent.mkdir(parents=True, exist_ok=True)
-            created = True
             open(tmp, "xb").close()
             write(tmp)
             if not tmp.exists():
                 raise OutputError(f"{what} {path}: the writer returned without writing the file")
         except BaseException as exc:
-            if created:
-                _remove(tmp)
+            _remove(tmp)
+            self._pending.remove(entry)
             if isinstance(exc, OSError):
                 raise OutputError(f"{what} {path}: cannot write: {_write_reason(exc, path)}") from exc
             raise
-        self._pending.append((tmp, path, what))
         return path
 
-    def _commit(self) -> None:
-        try:
-            while self._pending:
-                tmp, path, what = self._pending[0]
-                try:
-                    os.replace(tmp, path)
-                except OSError as exc:
-                    raise OutputError(f"{what} {path}: cannot write: {_write_reason(exc, path)}") from exc
-                self._pending.pop(0)
-        finally:
-            self._discard()
+    def commit(self) -> None:
+        """Rename every written file over its target, in the order written. The caller discards
+        what is left when a rename fails or a signal lands (``discard``)."""
+        while self._pending:
+            tmp, path, what = self._pending[0]
+            try:
+                os.replace(tmp, path)
+            except OSError as exc:
+                raise OutputError(f"{what} {path}: cannot write: {_write_reason(exc, path)}") from exc
+            self._pending.pop(0)
 
-    def _discard(self) -> None:
+    def discard(self) -> None:
+        """Remove every temporary file not yet renamed."""
         for tmp, _, _ in self._pending:
             _remove(tmp)
         self._pending.clear()

@@ -54,10 +54,10 @@ def test_an_interrupt_while_a_later_output_is_written_leaves_every_older_file(tm
 
     monkeypatch.setattr(run_command, "find_writer", interrupted_plot)
     page, figure = tmp_path / "a.html", tmp_path / "a.png"
-    page.write_text("OLD")
-    figure.write_text("OLD")
+    page.write_text("<!DOCTYPE html> OLD")
+    figure.write_bytes(b"\x89PNG OLD")
     argv = ["run", "oscillator_ex1", "--set", "integrator.t_final=1", "--quiet"]
     assert main([*argv, "--html", str(page), "--plot", str(figure)]) == 130
     assert "interrupted" in capsys.readouterr().err
-    assert page.read_text() == "OLD" and figure.read_text() == "OLD"
+    assert page.read_text() == "<!DOCTYPE html> OLD" and figure.read_bytes() == b"\x89PNG OLD"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a.html", "a.png"]  # no temporary left

@@ -109,3 +109,34 @@ def test_a_temporary_folder_is_removed_when_ctrl_c_lands_at_any_moment(tmp_path,
         (folder / "recording.rrd").write_bytes(b"x")
         raise KeyboardInterrupt
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_read_only_file_is_not_replaced(tmp_path):
+    """Its owner made it read-only to keep it; a rename in a writable folder would not ask."""
+    mine = tmp_path / "mine.rrd"
+    mine.write_bytes(b"RRF2 an old recording")
+    mine.chmod(0o444)
+    with pytest.raises(OutputError, match=r"^--rrd .*mine\.rrd: is read-only; refusing to replace it"):
+        write_bytes_atomic(mine, b"RRF2 new", what="--rrd", suffixes=(".rrd",))
+    assert mine.read_bytes() == b"RRF2 an old recording" and stat.S_IMODE(mine.stat().st_mode) == 0o444
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["mine.rrd"]
+
+
+@pytest.mark.parametrize(
+    ("name", "earlier"),
+    [
+        ("a.rrd", b"RRF2\x00\x29"),
+        ("a.html", b"<!DOCTYPE html>\n<html>"),
+        ("a.png", b"\x89PNG\r\n"),
+        ("a.svg", b"<?xml v"),
+    ],
+)
+def test_a_file_of_another_kind_is_kept_and_an_earlier_output_or_an_empty_file_replaced(tmp_path, name, earlier):
+    target = tmp_path / name
+    target.write_text("precious notes")
+    with pytest.raises(OutputError, match=rf"{name}: holds no \.\w+ file \(it begins b'precious'\); refusing"):
+        write_bytes_atomic(target, earlier + b" new", what="--out")
+    assert target.read_text() == "precious notes"
+    for before in (earlier + b" old", b""):
+        target.write_bytes(before)
+        assert write_bytes_atomic(target, earlier + b" new", what="--out").read_bytes() == earlier + b" new"

@@ -28,7 +28,7 @@ RUN_WITH_SIGNAL = textwrap.dedent("""
     def find_writer(kind, source=""):
         writer = real(kind, source)
         def half_then_signal(execution, scene, path, **kw):
-            Path(path).write_bytes(b"half a figure" * 1000)
+            Path(path).write_bytes(b"\\x89PNG" + b"half a figure" * 1000)
             os.kill(os.getpid(), getattr(signal, sys.argv[1]))
             writer(execution, scene, path, **kw)
         half_then_signal.suffixes = writer.suffixes
@@ -68,12 +68,12 @@ def test_sigterm_while_writing_is_a_clean_shutdown(tmp_path):
     scene = write_ball(tmp_path)
     out = tmp_path / "out"
     out.mkdir()
-    (out / "ball.png").write_bytes(b"yesterday's figure")
+    (out / "ball.png").write_bytes(b"\x89PNG yesterday's figure")
     done = run(RUN_WITH_SIGNAL, "SIGTERM", "run", scene, "--plot", out / "ball.png", "-q", cwd=tmp_path)
     assert done.returncode == 128 + signal.SIGTERM, done.stderr
     assert done.stderr == "legsim: terminated\n"
     assert temporaries(tmp_path) == []
-    assert (out / "ball.png").read_bytes() == b"yesterday's figure"
+    assert (out / "ball.png").read_bytes() == b"\x89PNG yesterday's figure"
 
 
 def test_the_temporary_of_a_killed_run_is_removed_by_the_next_write(tmp_path):
