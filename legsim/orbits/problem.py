@@ -205,6 +205,12 @@ class OrbitProblem:
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < low:
                 raise OrbitError(f"orbit problem: {name} must be an integer >= {low}, got {value!r}", key=name)
+        if self.section.kind == "transition" and (self.min_transitions != 1 or self.min_time != 0.0):
+            raise OrbitError(
+                "orbit problem: min_transitions and min_time count crossings of a level section; a "
+                "Section.after returns at each such transition and takes neither",
+                key="min_transitions" if self.min_transitions != 1 else "min_time",
+            )
         if self.section.kind == "crossing" and self.min_transitions == 0 and self.min_time <= 0:
             raise OrbitError(
                 "orbit problem: a crossing section with min_transitions = 0 needs min_time > 0, "

@@ -51,6 +51,9 @@ def test_bad_problems_are_rejected_with_messages(kwargs, message):
         ({"max_halvings": -3}, "max_halvings"),
         ({"cyclic": ["x", "x"]}, "cyclic"),
         ({"fixed": ["x"], "cyclic": ["x"]}, "fixed"),
+        # A return after a transition counts no crossings: the counts would be ignored.
+        ({"min_transitions": 3}, "min_transitions"),
+        ({"min_time": 100.0}, "min_time"),
     ],
 )
 def test_refused_integrator_settings_carry_their_key(kwargs, key):
