@@ -236,6 +236,34 @@ def test_targets_command_judges_a_written_csv_by_the_same_rule(tmp_path, capsys)
     assert "MET" not in out
 
 
+def test_targets_refuses_a_csv_of_another_case_or_a_damaged_one(tmp_path, capsys):
+    """Another case's rows would be judged against targets that are not theirs; a damaged file
+    is bad input (exit 2 naming file, line and column), not an internal error."""
+    rows = [_row("relaxed-rk2", "relaxed", 4.6e-7, 0.03955), _row("ps", "ps", 1.05e-6, 0.0629)]
+    for r in rows:
+        r.case = "bouncing-ball"
+    path = write_csv(rows, tmp_path / "pronk.csv")
+    assert main(["bench", "targets", "--case", "pronk", "--out", str(tmp_path)]) == 2
+    assert "holds rows of case(s) ['bouncing-ball'], not of --case pronk" in capsys.readouterr().err
+    lines = path.read_text().splitlines()
+    fields = lines[1].split(",")
+    fields[COLUMNS.index("steps")] = "abc"
+    (tmp_path / "bouncing-ball.csv").write_text("\n".join([lines[0], ",".join(fields), lines[2]]) + "\n")
+    assert main(["bench", "targets", "--case", "bouncing-ball", "--out", str(tmp_path)]) == 2
+    assert "bouncing-ball.csv, line 2, column steps: not a bench value" in capsys.readouterr().err
+    (tmp_path / "bouncing-ball.csv").write_text(lines[0] + "\n" + lines[1][:40] + "\n")
+    assert main(["bench", "targets", "--case", "bouncing-ball", "--out", str(tmp_path)]) == 2
+    assert "line 2, column" in capsys.readouterr().err
+
+
+def test_a_method_name_the_case_lacks_is_refused_beside_ones_it_has(tmp_path, capsys):
+    argv = ["bench", "work-precision", "--case", "bouncing-ball", "--quick", "--no-figure", "--out"]
+    assert main([*argv, str(tmp_path), "--methods", "relaxed-rk4,foo"]) == 2
+    err = capsys.readouterr().err
+    assert "case bouncing-ball has no run of method(s) ['foo']; its methods: " in err and "relaxed-rk4" in err
+    assert list(tmp_path.iterdir()) == []
+
+
 # -- extending a baseline's sweep --------------------------------------------------------------
 def _ps_row(h, error, wall=1e-3):
     return Row(
@@ -453,13 +481,12 @@ def test_aiming_lands_with_fewer_trial_steps_than_halving():
 
 
 def test_the_overhead_report_refuses_a_format_it_has_no_form_in(capsys):
-    # The overhead report prints text or JSON; csv and markdown are named as unsupported before
-    # anything is measured (exit 2, one error line).
+    # The overhead report prints text or JSON; its --format offers only those, so csv is refused
+    # before anything is measured (exit 2, naming the choices).
     from legsim.cli import main
 
     assert main(["bench", "overhead", "--format", "csv"]) == 2
-    err = capsys.readouterr().err
-    assert err == "legsim: error: legsim bench overhead prints text or json, not 'csv' (--format text|json)\n"
+    assert "argument --format: invalid choice: 'csv' (choose from 'text', 'json')" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize("name", ["pronk", "double-pendulum"])

@@ -269,19 +269,27 @@ def read_rows(path: str | os.PathLike) -> list[Row]:
         reader = csv.DictReader(fh)
         if tuple(reader.fieldnames or ()) != COLUMNS:
             raise BenchError(f"{path}: not a bench CSV (columns {reader.fieldnames}, expected {list(COLUMNS)})")
-        out = []
-        for line in reader:
-            values: dict[str, Any] = {}
-            for name, kind in Row.__annotations__.items():
-                text = line[name]
-                if kind == "float":
-                    values[name] = math.nan if text == "" else float(text)
-                elif kind == "int":
-                    values[name] = int(text)
-                else:
-                    values[name] = text
-            out.append(Row(**values))
-    return out
+        return [_parsed_row(path, reader.line_num, line) for line in reader]
+
+
+def _parsed_row(path: Path, line_number: int, line: dict[str, Any]) -> Row:
+    """The Row of one CSV line; BenchError naming the file, line and column of a value that is
+    missing or not of the column's type (a truncated or hand-edited file)."""
+    values: dict[str, Any] = {}
+    for name, kind in Row.__annotations__.items():
+        text = line.get(name)
+        try:
+            if text is None:
+                raise ValueError("missing (the line ends early)")
+            if kind == "float":
+                values[name] = math.nan if text == "" else float(text)
+            elif kind == "int":
+                values[name] = int(text)
+            else:
+                values[name] = text
+        except ValueError as exc:
+            raise BenchError(f"{path}, line {line_number}, column {name}: not a bench value ({exc})") from None
+    return Row(**values)
 
 
 def write_figure(result: BenchResult, path: Path) -> Path:
@@ -415,7 +423,8 @@ def run_case(
     quick: a short run and a small sweep (seconds), for CI. repeats: timed repeats per run
     (median; default ``REPEATS``, ``REPEATS_QUICK`` when quick). rho_points: times of the rho
     grid (default the case's, else ``RHO_POINTS``, ``RHO_POINTS_QUICK`` when quick; 0 skips
-    rho). methods: keep only the runs of these CSV method names.
+    rho). methods: keep only the runs of these CSV method names; a name the case has no run of,
+    given with names it has, is an error (a typo must not shrink the sweep unseen).
     extension_budget: wall time (s) the extensions may take (default ``EXTENSION_BUDGET``, or
     ``EXTENSION_BUDGET_QUICK`` when quick; 0 extends nothing).
     """
@@ -432,6 +441,10 @@ def run_case(
     if not extension_budget >= 0:
         raise BenchError(f"the extension budget must be >= 0 s, got {extension_budget!r}")
     runs = [r for r in case.runs if methods is None or r.method in methods]
+    available = sorted({r.method for r in case.runs})
+    unknown = sorted(set(methods or ()) - set(available))
+    if runs and unknown:
+        raise BenchError(f"case {case.name} has no run of method(s) {unknown}; its methods: {', '.join(available)}")
     say(f"{case.name}: {case.description}")
     say(f"reference: {case.reference_note}")
     warm_up(case, runs)

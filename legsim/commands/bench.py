@@ -117,7 +117,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     ov.add_argument("--quick", action="store_true", help="shorter runs")
     ov.add_argument("--json", action="store_true", help="print the measurements as JSON")
-    add_format_argument(ov)
+    # Its report is a paragraph of measurements around one table: no csv or markdown form.
+    ov.add_argument("--format", choices=("text", "json"), default="text", help="text (default) or json, as --json")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -160,12 +161,18 @@ def _robots(args: argparse.Namespace) -> int:
 
 
 def _targets(args: argparse.Namespace) -> int:
-    from ..bench.cases import targets_for
+    from ..bench.cases import BenchError, targets_for
     from ..bench.targets import evaluate_targets, format_targets
     from ..bench.work_precision import read_rows, rows_table
     from ..tables import print_report
 
-    rows = read_rows(Path(args.out) / f"{args.case}.csv")
+    path = Path(args.out) / f"{args.case}.csv"
+    rows = read_rows(path)
+    others = sorted({row.case for row in rows} - {args.case})
+    if others:
+        raise BenchError(
+            f"{path}: holds rows of case(s) {others}, not of --case {args.case}; its targets would not apply"
+        )
     verdicts = format_targets(evaluate_targets(rows, targets_for(args.case))) or "- none for this case"
     print_report([replace(rows_table(rows), title=args.case), "", "targets:", verdicts], args.format)
     return 0

@@ -29,8 +29,12 @@ def run(args: argparse.Namespace) -> int:
             shown = ", ".join(str(path) for path in kept[:5]) + (f" and {len(kept) - 5} more" if len(kept) > 5 else "")
             print(f"kept {len(kept)} files that are not compiled code: {shown}")
         return 0
-    folder = cache.cache_dir()
-    files = [p for p in folder.rglob("*") if p.is_file()] if folder.exists() else []
-    size = sum(p.stat().st_size for p in files)
-    print(f"{folder}: {len(files)} files, {size / 1e6:.1f} MB of compiled code (legsim cache clear removes them)")
+    root, compiled, other = cache.cache_files()
+    size = sum(p.stat().st_size for p in compiled)
+    print(
+        f"{root}: {len(compiled)} files, {size / 1e6:.1f} MB of compiled code, every version's (legsim cache clear "
+        f"removes them); this version's in {cache.cache_dir()}"
+    )
+    if other:
+        print(f"{len(other)} other files there are not compiled code and are kept")
     return 0

@@ -44,6 +44,8 @@ def run(args: argparse.Namespace) -> int:
     from ..stress import CASES, report, run_suite, select
     from ..tables import output_width, print_report
 
+    if args.json and args.format not in ("text", "json"):
+        raise LegsimError(f"--json prints JSON; it cannot be given with --format {args.format}")
     chosen = select(args.cases)
     if not chosen:
         raise LegsimError(f"no stress case matches {args.cases}; cases: {[c.name for c in CASES]}")

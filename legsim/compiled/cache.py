@@ -62,18 +62,27 @@ def clear() -> tuple[Path, int, list[Path]]:
     the folders that leaves empty. Anything else there, a user's own files in a folder
     ``LEGSIM_CACHE_DIR`` points at, is kept. Returns (the root, the files removed, the other
     files found and kept)."""
+    root, compiled, kept = cache_files()
+    for entry in compiled:
+        entry.unlink()
+    if root.is_dir():
+        _remove_empty_folders(root)
+    return root, len(compiled), kept
+
+
+def cache_files() -> tuple[Path, list[Path], list[Path]]:
+    """(the cache's root, its files of compiled code of every version, its other files): what
+    ``clear`` removes and what it keeps."""
     root = cache_dir().parent
     if not root.is_dir():
-        return root, 0, []
-    removed, kept = 0, []
+        return root, [], []
+    compiled, other = [], []
     for entry in sorted(root.rglob("*")):
         if entry.is_file() and not entry.is_symlink() and entry.suffix in CACHE_SUFFIXES:
-            entry.unlink()
-            removed += 1
+            compiled.append(entry)
         elif entry.is_symlink() or entry.is_file():
-            kept.append(entry)
-    _remove_empty_folders(root)
-    return root, removed, kept
+            other.append(entry)
+    return root, compiled, other
 
 
 def _remove_empty_folders(root: Path) -> None:

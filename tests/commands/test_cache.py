@@ -36,12 +36,20 @@ def test_clear_removes_compiled_code_and_keeps_everything_else(tmp_path, monkeyp
     assert not (root / "0.0.9").exists()  # emptied of compiled code, so removed
 
 
-def test_show_counts_this_versions_files(tmp_path, monkeypatch, capsys):
+def test_show_counts_what_clear_removes(tmp_path, monkeypatch, capsys):
+    """The files shown as compiled code are the ones clear removes: every version's numba files,
+    not a user's file in this version's folder."""
     root = tmp_path / "cache"
     _cache_tree(root)
     monkeypatch.setenv("LEGSIM_CACHE_DIR", str(root))
     assert main(["cache"]) == 0
-    assert capsys.readouterr().out.startswith(f"{root / __version__}: 4 files")
+    out = capsys.readouterr().out
+    assert out.startswith(f"{root}: 6 files, 0.0 MB of compiled code, every version's")
+    assert "3 other files there are not compiled code and are kept" in out
+    assert main(["cache", "clear"]) == 0
+    assert "removed 6 files" in capsys.readouterr().out
+    assert main(["cache"]) == 0
+    assert capsys.readouterr().out.startswith(f"{root}: 0 files")
 
 
 def test_clear_of_a_missing_folder_removes_nothing(tmp_path, monkeypatch, capsys):

@@ -61,3 +61,8 @@ def test_an_interrupt_while_a_later_output_is_written_leaves_every_older_file(tm
     assert "interrupted" in capsys.readouterr().err
     assert page.read_text() == "<!DOCTYPE html> OLD" and figure.read_bytes() == b"\x89PNG OLD"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a.html", "a.png"]  # no temporary left
+
+
+def test_json_with_another_table_format_is_refused_by_stress(capsys):
+    assert main(["stress", "--quick", "--case", "grazing_tangent", "--json", "--format", "csv"]) == 2
+    assert "--json prints JSON; it cannot be given with --format csv" in capsys.readouterr().err
