@@ -256,6 +256,20 @@ def test_targets_refuses_a_csv_of_another_case_or_a_damaged_one(tmp_path, capsys
     assert "line 2, column" in capsys.readouterr().err
 
 
+def test_targets_judges_a_quick_csv_by_the_quick_form_s_targets(tmp_path, capsys):
+    from legsim.bench.cases import targets_for
+
+    rows = [_row("relaxed-rk4", "relaxed", 1e-4, 1e-3), _row("solve_ivp-DOP853", "solve_ivp", 1e-4, 5e-3)]
+    for r in rows:
+        r.case = "pronk"
+    write_csv(rows, tmp_path / "pronk.csv")
+    argv = ["bench", "targets", "--case", "pronk", "--out", str(tmp_path)]
+    for quick in (False, True):
+        assert main([*argv, *(["--quick"] if quick else [])]) == 0
+        assert set(verdicts(capsys.readouterr().out)) == {t.name for t in targets_for("pronk", quick)}
+    assert len(targets_for("pronk", True)) < len(targets_for("pronk", False))
+
+
 def test_a_method_name_the_case_lacks_is_refused_beside_ones_it_has(tmp_path, capsys):
     argv = ["bench", "work-precision", "--case", "bouncing-ball", "--quick", "--no-figure", "--out"]
     assert main([*argv, str(tmp_path), "--methods", "relaxed-rk4,foo"]) == 2

@@ -70,6 +70,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     tg.add_argument("--case", required=True, choices=CASE_NAMES, help="the case whose CSV to read")
     tg.add_argument("--out", default="bench-out", help="folder holding CASE.csv (default: bench-out)")
+    tg.add_argument(
+        "--quick", action="store_true", help="judge the quick form's targets (a CSV of `work-precision --quick`)"
+    )
     add_format_argument(tg)
     rb = sub.add_parser(
         "robots",
@@ -173,7 +176,7 @@ def _targets(args: argparse.Namespace) -> int:
         raise BenchError(
             f"{path}: holds rows of case(s) {others}, not of --case {args.case}; its targets would not apply"
         )
-    verdicts = format_targets(evaluate_targets(rows, targets_for(args.case))) or "- none for this case"
+    verdicts = format_targets(evaluate_targets(rows, targets_for(args.case, args.quick))) or "- none for this case"
     print_report([replace(rows_table(rows), title=args.case), "", "targets:", verdicts], args.format)
     return 0
 
