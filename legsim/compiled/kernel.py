@@ -17,6 +17,7 @@ from typing import Any
 import numba
 import numpy as np
 from numba.core import event
+from numba.core.caching import NullCache
 from numba.core.extending import overload, register_jitable
 
 from ..relaxed import calls, crossing, curve, driver, entering, evaluate, loop, rules, stages, stepping
@@ -132,6 +133,9 @@ class _FirstCompile(event.Listener):
             return
         what = "the step loop" if py_func is loop.run_flat else f"{py_func.__module__}.{py_func.__qualname__}"
         _FirstCompile.said = True
+        if isinstance(getattr(dispatcher, "_cache", None), NullCache):  # compiled anew in every process
+            on_compile(f"legsim: compiling {what} and what it calls for this run (not cached: every run compiles it)")
+            return
         on_compile(
             f"legsim: compiling {what} and what it calls for this machine (once: later runs load it from "
             f"{cache.cache_dir()})"
