@@ -449,11 +449,22 @@ class HybridSystem:
             self._add_transition(tr)
         self._bind_functions(mode)
 
+    def _check_names(self, mode: str, outgoing: Sequence[Transition]) -> None:
+        """Records, recordings and messages name a transition: two of one mode with one name
+        would make an execution's record ambiguous."""
+        names = [tr.name for tr in outgoing]
+        if len(set(names)) < len(names):
+            twice = sorted({n for n in names if names.count(n) > 1})
+            raise ModelError(
+                f"{self._name}: mode '{mode}' has several transitions named {twice}; give each its own name"
+            )
+
     def _bind_functions(self, mode: str) -> None:
         """Give the transitions of a mode written as model functions their guards and resets
         from those functions, each at its place among the mode's outgoing transitions."""
         functions = self._modes[mode].functions
         outgoing = self._outgoing[mode]
+        self._check_names(mode, outgoing)
         if functions is None or not outgoing:
             return
         if functions.guards is None:

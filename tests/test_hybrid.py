@@ -206,3 +206,24 @@ def test_domain_views():
 def test_dims_that_is_no_function_is_refused_naming_it():
     with pytest.raises(ModelError, match="dims must be callable"):
         HybridSystem({}, expand=lambda name: None, dims=3)
+
+
+def test_two_transitions_of_one_mode_with_one_name_are_refused():
+    """A record names its transition: two edges of one mode named alike would make an execution
+    ambiguous (which one was taken?)."""
+
+    def mode():
+        return Mode(1, field=lambda t, x: np.array([1.0]))
+
+    edges = [
+        Transition("A", "B", guard=lambda t, x: 1.0 - x[0], name="hit"),
+        Transition("A", "C", guard=lambda t, x: 2.0 - x[0], name="hit"),
+    ]
+    with pytest.raises(ModelError, match=r"mode 'A' has several transitions named \['hit'\]"):
+        HybridSystem({"A": mode(), "B": mode(), "C": mode()}, edges)
+    # One name in two modes is fine: each record names its source too.
+    back = [
+        Transition("A", "B", guard=lambda t, x: 1.0 - x[0], name="hit"),
+        Transition("B", "A", guard=lambda t, x: x[0], name="hit"),
+    ]
+    assert len(HybridSystem({"A": mode(), "B": mode()}, back).transitions) == 2
