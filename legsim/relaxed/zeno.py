@@ -196,26 +196,31 @@ def _accumulation_warning(episode: _Episode, transitions: int, strip_time: float
     )
 
 
+#: A single flight under this share of the Zeno window is a re-crossing at once (a state already
+#: resting on its guard), which takes its continuation without a warning.
+RESTING_SHARE = 0.01
+
+
 def unconfirmed_continuation(
     history: tuple[float, float] | None, mode: str, transition: str, continuation: str, tc: float, window: float
 ) -> RunWarning | None:
     """A warning when the continuation ``continuation`` of ``transition`` (of ``mode``) was taken
     at tc on the evidence of one flight alone (``history``: the transition's (last exit, flight
-    before it), the flight before infinite), that flight longer than half the window: nothing
-    showed the flights shrinking towards a Zeno point, and a flight that long is one the step
-    could have resolved, so the motion may have gone on. (A continuation after one flight far
-    shorter than the window is a state that was already resting: it re-crossed at once.)"""
+    before it), the flight before infinite): nothing showed the flights shrinking towards a Zeno
+    point, so the motion may have gone on (a periodic event as frequent as the steps looks the
+    same). Only a flight under ``RESTING_SHARE`` of the window passes without a word: a state
+    that was already resting re-crosses at once."""
     if history is None or history[1] != math.inf:
         return None
     flight = tc - history[0]
-    if flight <= 0.5 * window:
+    if flight <= RESTING_SHARE * window:
         return None
     message = (
         f"transition {transition} in mode '{mode}' was taken to accumulate at t={tc:.6g} s after a single "
         f"flight of {flight:.3g} s (no earlier flight to show the flights shrinking), and its continuation "
-        f"{continuation} was taken there; the flight is longer than half the window h + eps = {window:.3g} s, "
-        f"so the motion may have gone on where the run rests. Remedy: a smaller h (or zeno_window) resolves "
-        f"such flights."
+        f"{continuation} was taken there; within the window h + eps = {window:.3g} s one flight cannot tell a "
+        f"Zeno point from motion that goes on (a periodic event as frequent as the steps), so the motion may "
+        f"have gone on where the run rests. Remedy: a smaller h (or zeno_window) resolves such flights."
     )
     details = {"transition": transition, "mode": mode, "continuation": continuation, "flight": flight,
                "window": window}  # fmt: skip

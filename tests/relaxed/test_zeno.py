@@ -246,3 +246,45 @@ def test_an_accumulation_the_run_leaves_ends_at_its_last_crossing_not_at_the_run
         watch.crossed(replay, mode, name, tc, tc + hold, watch.crossing(mode, name, tc), continued=False)
     (warning,) = watch.warnings(replay, t_end=12.0)
     assert warning.details["transitions_since"] == 2 and f"until t={graze_times[2] + hold:.6g} s" in warning.message
+
+
+@pytest.mark.parametrize("h", [0.1, 0.25])
+def test_a_periodic_event_as_frequent_as_the_steps_taking_a_continuation_says_so(h):
+    """A timer ticking every 0.1 s (no Zeno point) run at h >= 0.1: each tick falls within the
+    window h + eps of the last, so one flight makes it look accumulating and the continuation
+    stops the timer. One flight cannot tell that from a Zeno point, so the run must say so, also
+    where the flight is well under the window (h = 0.25 s); at h = 0.05 s it ticks 10 times."""
+    from legsim import ModeFunctions, model_function
+
+    @model_function
+    def clock(t, x, u, p, dx):
+        dx[0] = 1.0
+        dx[1] = 0.0
+
+    @model_function
+    def due(t, x, u, p, g):
+        g[0] = p[0] - x[0]
+
+    @model_function
+    def tick(e, t, x, u, p, out):
+        out[0] = 0.0 if e == 0 else x[0]
+        out[1] = x[1] + 1.0 if e == 0 else x[1]
+
+    @model_function
+    def still(t, x, u, p, dx):
+        dx[0] = 0.0
+        dx[1] = 0.0
+
+    timer = HybridSystem(
+        {
+            "T": Mode(2, names=("tau", "n"), functions=ModeFunctions(clock, due, tick, params=[0.1])),
+            "S": Mode(2, names=("tau", "n"), functions=ModeFunctions(still)),
+        },
+        [Transition("T", "T", name="tick", continuation=Continuation("S", name="stop"))],
+    )
+    fine = simulate(timer, [0.0, 0.0], "T", 1.05, 0.05, 1e-6, "rk4", python=True)
+    assert fine.final_state[1] == 10.0 and fine.warnings == []
+    coarse = simulate(timer, [0.0, 0.0], "T", 1.05, h, 1e-6, "rk4", python=True)
+    assert coarse.final_mode == "S"
+    assert [w.kind for w in coarse.warnings] == ["unconfirmed_continuation"]
+    assert coarse.warnings[0].details["flight"] == pytest.approx(0.1, abs=1e-5)
