@@ -695,16 +695,3 @@ def check_reset_output(system: str, tr: Transition, target_dim: int, x: np.ndarr
             f"expected ({target_dim},) for mode '{tr.target}'"
         )
     return out
-
-
-def reachable_modes(system: HybridSystem, start: str | Iterable[str]) -> list[str]:
-    """Modes reachable from ``start`` through the transition graph (breadth first)."""
-    queue = [start] if isinstance(start, str) else list(start)
-    seen: list[str] = []
-    while queue:
-        mode = queue.pop(0)
-        if mode in seen:
-            continue
-        seen.append(mode)
-        queue.extend(tr.target for tr in system.outgoing(mode) if tr.target not in seen)
-    return seen

@@ -196,13 +196,13 @@ def test_failed_writer_leaves_no_partial_file(tmp_path, capsys, monkeypatch):
     path = write_scene(tmp_path)
     out_dir = tmp_path / "out"
     out_dir.mkdir()
-    (out_dir / "old.html").write_text("previous")
+    (out_dir / "old.html").write_text("<!DOCTYPE html> previous")
     code, _out, err = run_cli(capsys, "run", str(path), "--html", str(out_dir / "old.html"))
     assert code == 2
     assert err == f"legsim: error: --html {out_dir / 'old.html'}: writing failed: RuntimeError: html writer broke\n"
     # The earlier file is untouched and no temporary file is left behind.
     assert sorted(p.name for p in out_dir.iterdir()) == ["old.html"]
-    assert (out_dir / "old.html").read_text() == "previous"
+    assert (out_dir / "old.html").read_text() == "<!DOCTYPE html> previous"
 
 
 def test_failed_run_writes_nothing(tmp_path, capsys, monkeypatch):

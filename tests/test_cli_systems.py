@@ -140,7 +140,7 @@ def test_digital_control_json_takes_the_simultaneous_crossing(capsys):
 
 
 def test_pronk_with_one_leg_has_two_modes_and_a_fall_exits_3(capsys):
-    from legsim.hybrid import reachable_modes
+    from legsim.graph import reachable_modes
 
     scene = load_scene("pronk", overrides=["effects.left_leg=false"])
     assert sorted(reachable_modes(scene.model.system, scene.initial_mode)) == ["aerial", "right"]

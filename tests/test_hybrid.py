@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from legsim import HybridSystem, Mode, ModelError, Transition, simulate
-from legsim.hybrid import reachable_modes
+from legsim.graph import reachable_modes
 
 
 def zero_field(n: int):

@@ -29,7 +29,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..derivatives import gradient, jacobian
-from ..hybrid import HybridSystem, Transition, reachable_modes
+from ..graph import reachable_modes
+from ..hybrid import HybridSystem, Transition
 from .detect import detect_affine_reset, detect_coordinate_guard
 from .shapes import AffineReset, CoordinateGuard
 

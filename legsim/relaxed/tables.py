@@ -57,6 +57,7 @@ from .layout import (
     T_TARGET,
     TRANSITION_FIELDS,
 )
+from .probe import probe_indices
 
 #: Rows kept free in each table for registrations inside a loop call.
 SPARE = 64
@@ -204,6 +205,8 @@ class RunTables:
             )
         self.transition_names.append("")
         self.continuation_names.append("")
+        if functions is not None:
+            probe_indices(name, data.mode.dim, functions, count, self._reset_dims(data))
         self._prepare_functions(row, data, functions)
         self.modes[row, M_READY] = 1
         # A continuation's image is checked against its target's guards before it is entered.
@@ -212,6 +215,16 @@ class RunTables:
                 target = self.rows[tr.continuation.target]
                 if self.modes[target, M_READY] == 0:
                     self.prepare(target)
+
+    def _reset_dims(self, data: ModeData) -> dict[int, int]:
+        """reset index e -> the dimension its image has (``legsim.model``): each transition's
+        target, and for e = count + j the target of transition j's continuation."""
+        count = len(data.transitions)
+        dims = {e: self.system.dim(tr.target) for e, tr in enumerate(data.transitions)}
+        for j, tr in enumerate(data.transitions):
+            if tr.continuation is not None:
+                dims[count + j] = self.system.dim(tr.continuation.target)
+        return dims
 
     def _prepare_functions(self, row: int, data: ModeData, functions: ModeFunctions | None) -> None:
         """The guards, resets and joint function of a ready mode: its own model functions where

@@ -468,7 +468,7 @@ def _check_output_path(path: Path, where: str, value: Any) -> None:
 
 
 def _known_modes(model: Model) -> list[str]:
-    from ..hybrid import reachable_modes
+    from ..graph import reachable_modes
 
     try:
         return sorted(set(model.system.modes) | set(reachable_modes(model.system, model.initial_mode)))

@@ -34,7 +34,7 @@ import numpy as np
 from ..accuracy import OrbitSection
 from ..builders import Param, resolve_parameters
 from ..errors import LegsimError, SceneError
-from ..hybrid import reachable_modes
+from ..graph import reachable_modes
 from ..orbits import MAX_FD_STEP, OrbitError, OrbitProblem, Section
 from ..orbits.sections import bind_section
 from .controller import scene_controller

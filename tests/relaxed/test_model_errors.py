@@ -6,6 +6,8 @@ function leaves unwritten is nan, reported, never a value of an earlier call
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 
@@ -173,7 +175,9 @@ def guard_past_its_range(t, x, u, p, g):
 
 @pytest.mark.parametrize("python", [False, True])
 def test_a_nan_guard_at_a_mode_s_entry_is_a_breakdown_where_the_model_says_nan_breaks(python):
-    up = ModeFunctions(fall, guard_past_its_range, paddle_bounce, nan_breaks=True, range_note="guard past its range")
+    up = ModeFunctions(
+        fall, guard_past_its_range, paddle_bounce, params=[1.0, 0.5], nan_breaks=True, range_note="guard past its range"
+    )
     system = HybridSystem(
         {
             "air": Mode(
@@ -213,3 +217,68 @@ def test_an_input_a_law_leaves_unwritten_is_named_whatever_the_model_s_nan_means
     ex = simulate(system, [1.0, 0.0], "air", 1.0, 1e-3, 1e-4, "rk4", law, python=python)
     assert ex.status == "non_finite" and "controller's input u=[nan]" in ex.message, ex.message
     assert abs(ex.t_end - np.sqrt(1.0 / G)) < 2e-3
+
+
+def _probe_system(field=None, guards=None, reset=None, params=(), inputs=0):
+    @model_function
+    def drift(t, x, u, p, dx):
+        dx[0] = 1.0
+
+    @model_function
+    def wall(t, x, u, p, g):
+        g[0] = 1.0 - x[0]
+
+    @model_function
+    def keep(e, t, x, u, p, out):
+        out[0] = x[0]
+
+    functions = ModeFunctions(field or drift, guards or wall, reset or keep, params=list(params), inputs=inputs)
+    modes = {"A": Mode(1, functions=functions), "B": Mode(1, functions=ModeFunctions(drift))}
+    return HybridSystem(modes, [Transition("A", "B", name="ab")])
+
+
+@model_function
+def _writes_past_dx(t, x, u, p, dx):
+    dx[0] = 1.0
+    dx[1] = 1.0
+
+
+@model_function
+def _reads_past_p(t, x, u, p, dx):
+    dx[0] = p[3]
+
+
+@model_function
+def _reads_an_input_it_lacks(t, x, u, p, dx):
+    dx[0] = u[0]
+
+
+@model_function
+def _two_guards(t, x, u, p, g):
+    g[0] = 1.0 - x[0]
+    g[1] = 2.0 - x[0]
+
+
+@model_function
+def _reset_past_target(e, t, x, u, p, out):
+    out[0] = x[0]
+    out[1] = 0.0
+
+
+@pytest.mark.parametrize("python", [False, True], ids=["compiled", "interpreted"])
+@pytest.mark.parametrize(
+    ("kwargs", "what"),
+    [
+        ({"field": _writes_past_dx}, "its field (_writes_past_dx)"),
+        ({"field": _reads_past_p, "params": [1.0]}, "its field (_reads_past_p)"),
+        ({"field": _reads_an_input_it_lacks}, "its field (_reads_an_input_it_lacks)"),
+        ({"guards": _two_guards}, "its guards (_two_guards)"),
+        ({"reset": _reset_past_target}, "its reset 0 (_reset_past_target)"),
+    ],
+)
+def test_a_compiled_function_indexing_past_its_arrays_is_refused_before_it_runs(python, kwargs, what):
+    """numba does not check indices: compiled, each of these ran to `finished` on memory that is
+    not the model's (a read of p[3] came back 0, of u[0] 1e-309). Each mode's functions are run
+    once as Python before the run, which raises where they index past an array."""
+    with pytest.raises(ModelError, match=rf"mode 'A': {re.escape(what)} indexes past an array"):
+        simulate(_probe_system(**kwargs), [0.0], "A", 2.0, 0.1, 1e-4, "rk4", python=python)
