@@ -12,7 +12,7 @@ from legsim.robots import double_pendulum as dp
 
 from legsim import simulate
 from legsim.errors import SceneError
-from legsim.hybrid import reachable_modes
+from legsim.graph import reachable_modes
 
 # Deliberately not the defaults, so a parameter that is not wired through would show.
 P = dict(m1=1.3, m2=0.7, L1=0.9, L2=1.2, g=9.81)

@@ -10,7 +10,7 @@ import pytest
 from legsim.robots import pronk, slip
 
 from legsim import simulate
-from legsim.hybrid import reachable_modes
+from legsim.graph import reachable_modes
 
 FULL = os.environ.get("LEGSIM_FULL") == "1"
 

@@ -8,7 +8,7 @@ import pytest
 from legsim.robots import slip
 
 from legsim import simulate
-from legsim.hybrid import reachable_modes
+from legsim.graph import reachable_modes
 
 
 def test_touchdown_time_and_foothold_are_the_ballistic_closed_form():
