@@ -66,7 +66,7 @@ class ModeFunctions:
     ----------
     field, guards, reset, joint: the functions (guards None: no outgoing transition; reset None:
         every transition keeps the state; joint None: crossings one after the other).
-    params: the parameter array p (any length): numbers, stored as a read-only float64 array
+    params: the parameter array p (any length, one-dimensional): numbers, stored as a read-only float64 array
         (typed ``Any`` because it is given as any sequence of numbers and kept as an ndarray).
     inputs: the number of entries of the input u the field expects (0: none).
     joint_outcomes: (name, target mode) of each outcome ``joint`` may return, by index.
@@ -104,9 +104,12 @@ class ModeFunctions:
         if not callable(self.field):
             raise ModelError("ModeFunctions.field is required")
         try:
-            params = np.ascontiguousarray(self.params, dtype=np.float64).reshape(-1)
+            params = np.ascontiguousarray(self.params, dtype=np.float64)
         except (TypeError, ValueError) as exc:
             raise ModelError(f"ModeFunctions.params must be numbers: {exc}") from exc
+        if params.ndim > 1:  # flattening a table would hand the functions its rows run together
+            raise ModelError(f"ModeFunctions.params must be a flat sequence of numbers, got shape {params.shape}")
+        params = params.reshape(-1)
         params.flags.writeable = False
         object.__setattr__(self, "params", params)
         # The functions are compiled for writable arrays, as the kernel passes them; a call with

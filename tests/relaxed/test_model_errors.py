@@ -282,3 +282,17 @@ def test_a_compiled_function_indexing_past_its_arrays_is_refused_before_it_runs(
     once as Python before the run, which raises where they index past an array."""
     with pytest.raises(ModelError, match=rf"mode 'A': {re.escape(what)} indexes past an array"):
         simulate(_probe_system(**kwargs), [0.0], "A", 2.0, 0.1, 1e-4, "rk4", python=python)
+
+
+@pytest.mark.parametrize(
+    ("params", "message"),
+    [
+        ([[1.0, 2.0], [3.0, 4.0]], r"params must be a flat sequence of numbers, got shape \(2, 2\)"),
+        (["a"], "params must be numbers"),
+    ],
+)
+def test_params_that_are_not_a_flat_sequence_of_numbers_are_refused(params, message):
+    """A table of parameters was flattened, its rows run together, and the run went on with them."""
+    with pytest.raises(ModelError, match=message):
+        ModeFunctions(_reads_past_p, params=params)
+    assert ModeFunctions(_reads_past_p, params=np.arange(4.0)).params.shape == (4,)
