@@ -265,19 +265,30 @@ class _Walk:
         assert self.event is not None
         te, je, _, re = self.event
         t_final, name = self.run_.t_final, self.flow.transitions[je].name
+        why = (
+            f"the computed trajectory crosses the guard of {name} at t={te:.9g}, but the true crossing lies in "
+            f"[{window[0]:.9g}, {window[1]:.9g}], which reaches past t_final = {t_final:g} s"
+        )
+        return self._refused_at_horizon(index, window, re, why, (max(t_final - te, 0.0), window[1] - te))
+
+    def _refused_at_horizon(
+        self, index: int, window: tuple[float, float], radius: float, why: str, separation: tuple[float, float]
+    ) -> _Visit:
+        """Refused as ``t_final`` for ``why``: the true execution may switch on either side of
+        t_final. ``separation``: (what would certify it, its bound), as refinement compares them."""
+        assert self.event is not None
+        te, je, _, _ = self.event
         rec = self._record(
             index,
             je,
             True,
             "t_final",
             window,
-            re,
-            f"the computed trajectory crosses the guard of {name} at t={te:.9g}, but the true crossing "
-            f"lies in [{window[0]:.9g}, {window[1]:.9g}], which reaches past t_final = {t_final:g} s: "
-            f"whether the true execution switches before t_final is not resolved",
+            radius,
+            f"{why}: whether the true execution switches before t_final is not resolved",
             time=te,
         )
-        return _Visit("t_final", rec, max(t_final - te, 0.0), window[1] - te)
+        return _Visit("t_final", rec, *separation)
 
     def _zeno(self, index: int, window: tuple[float, float]) -> _Visit:
         """Refused: the entry ball already meets a guard the flow moves towards."""
@@ -314,20 +325,12 @@ class _Walk:
         if not met[je] or d_f is None:
             return self._near_miss(index)
         t_final, name = self.run_.t_final, self.flow.transitions[je].name
-        rec = self._record(
-            index,
-            je,
-            True,
-            "t_final",
-            window,
-            r_f,
-            f"the cone meets the guard of {name} from t={self.first_touch[je]:.9g}, by t_final = "
-            f"{t_final:g} s, but the computed trajectory crosses it only at t={te:.9g} (at t_final "
-            f"{float(d_f[je]):.3g} from it, bound {r_f:.3g}): whether the true execution switches "
-            f"before t_final is not resolved",
-            time=te,
+        why = (
+            f"the cone meets the guard of {name} from t={self.first_touch[je]:.9g}, by t_final = {t_final:g} s, "
+            f"but the computed trajectory crosses it only at t={te:.9g} (at t_final {float(d_f[je]):.3g} from "
+            f"it, bound {r_f:.3g})"
         )
-        return _Visit("t_final", rec, max(float(d_f[je]), 0.0), r_f)
+        return self._refused_at_horizon(index, window, r_f, why, (max(float(d_f[je]), 0.0), r_f))
 
     def _returned(self, index: int, j: int, time: float, taken: bool) -> _Visit:
         """Refused as grazing: the cone leaves the domain through (or x_hat crosses back) a
