@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 import time
+import traceback
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -244,7 +245,7 @@ class Runner:
         except Exception as exc:
             raise ModelError(
                 f"{tables.system.name}: evaluating mode '{self.mode_name()}' failed {self.where()}: "
-                f"{type(exc).__name__}: {exc}"
+                f"{type(exc).__name__}: {exc}{self.raised_in(exc, compiled)}"
             ) from exc
         finally:
             self.steps[0 if compiled else 1] += int(self.ws.iv[I_STEPS]) - before
@@ -257,6 +258,20 @@ class Runner:
             more = KERNEL.addresses(functions[known:], self.tables.kinds[known:])
             self._addresses = np.concatenate([self._addresses, more])
         return self._addresses
+
+    def raised_in(self, exc: BaseException, compiled: bool) -> str:
+        """Which of the run's model functions raised ``exc``, when its traceback shows it: the
+        innermost frame running one of them (the Python loop over their Python source)."""
+        codes = {}
+        for fn in self.tables.functions:
+            code = getattr(getattr(fn, "py_func", fn), "__code__", None)
+            if code is not None:
+                codes[code] = getattr(fn, "__name__", repr(fn))
+        names = [codes[frame.f_code] for frame, _ in traceback.walk_tb(exc.__traceback__) if frame.f_code in codes]
+        if names:
+            return f" (raised in model function '{names[-1]}')"
+        # Compiled code leaves no frames of the model's functions in the traceback.
+        return " (python=True runs the model's Python source and names the function that raised)"
 
     def mode_name(self) -> str:
         return self.tables.names[int(self.ws.iv[I_MODE])]

@@ -57,6 +57,40 @@ def test_a_raise_inside_a_model_function_fails_the_run_on_both_paths(python):
     assert abs(t - np.sqrt(1.0 / G)) < 2e-3, message
 
 
+@model_function
+def refuses_hard_bounces(e, t, x, u, p, x_new):
+    if x[1] < -1.0:
+        raise ValueError("bounce too hard")
+    x_new[0] = x[0]
+    x_new[1] = -0.5 * x[1]
+
+
+@model_function
+def free_fall(t, x, u, p, dx):
+    dx[0] = x[1]
+    dx[1] = -G
+
+
+@pytest.mark.parametrize("python", [False, True])
+def test_the_message_names_the_function_that_raised_where_it_can(python):
+    # The reset raises at the first bounce (4.4 m/s), not the field of the step it ends: the
+    # Python source's traceback names it; compiled code leaves no frame of it, so the message
+    # says how to find it.
+    system = HybridSystem(
+        {"air": Mode(2, functions=ModeFunctions(free_fall, above_floor, refuses_hard_bounces))},
+        [Transition("air", "air", name="bounce")],
+        name="ball",
+    )
+    with pytest.raises(ModelError) as info:
+        simulate(system, [1.0, 0.0], "air", 2.0, 1e-3, 1e-6, "rk4", python=python)
+    message = str(info.value)
+    assert "ValueError: bounce too hard" in message, message
+    if python:
+        assert "raised in model function 'refuses_hard_bounces'" in message, message
+    else:
+        assert "python=True runs the model's Python source and names the function" in message, message
+
+
 def test_an_index_past_the_end_is_caught_when_checked():
     """numba does not check indices unless asked: compiled with ``boundscheck=True`` (as
     docs/howto-compiled.md advises while a model is written), the index error fails the run."""
