@@ -513,3 +513,23 @@ def test_the_robot_references_error_estimate_compares_runs_that_differ(name):
     case = make_case(name, quick=True)
     estimate = case.info["reference_error_estimate"]
     assert 0.0 < estimate < 1e-9
+
+
+def test_each_overhead_row_shows_the_field_cost_its_overhead_is_counted_in():
+    # A row's overhead is in the field cost measured alongside it, not the one the header prints
+    # (they differ with the machine's load): the row shows its own, so that the overhead can be
+    # recomputed from the row: ns/step x (1 - shares) / field ns, printed to 2 decimals.
+    from legsim.bench.overhead import example, format_report, measure_run
+
+    system, law, x0, _ = example("ex1")
+    costs = {"field": 40e-9, "guards": 10e-9, "reset": 10e-9}
+    row = measure_run(system, x0, "free", 2.0, 1e-3, 1e-6, "rk4", costs, 1, control=law)
+    header_costs = {"field": 7e-9, "guards": 2e-9, "reset": 2e-9}
+    report = {"case": "test", "cost_compiled_s": header_costs, "cost_python_s": header_costs,
+              "compiled": [row], "compiled_no_stop": [], "python": [], "landing": {}}  # fmt: skip
+    line = next(ln for ln in format_report(report, width=200).splitlines() if ln.startswith("compiled"))
+    cells = line.split()
+    assert cells[cells.index("f-ev") - 2] == "40.0", line
+    shares = row["share_field"] + row["share_guards"] + row["share_resets"]
+    recomputed = row["ns_per_step"] * (1 - shares) / 40.0
+    assert float(cells[cells.index("f-ev") - 1]) == pytest.approx(recomputed, abs=0.005), line

@@ -345,7 +345,10 @@ def format_report(r: dict[str, Any], width: int | None = None) -> str:
     """The measurements as text; the table at most ``width`` characters wide (``legsim.tables``)."""
     lines = [f"# integrator overhead: {r['case']}"]
     cc, cp = r["cost_compiled_s"], r["cost_python_s"]
-    lines.append("costs of one evaluation measured alongside each run, the least disturbed of the repeats kept")
+    lines.append(
+        "costs of one evaluation measured alongside each run, the least disturbed of the repeats kept: "
+        "a row's overhead is in its own field cost (column 'field ns'); before the runs:"
+    )
     lines.append(
         f"one evaluation, compiled (from numba): field {cc['field'] * 1e9:.1f} ns, guard "
         f"{cc['guards'] * 1e9:.1f} ns, reset {cc['reset'] * 1e9:.1f} ns"
@@ -354,7 +357,7 @@ def format_report(r: dict[str, Any], width: int | None = None) -> str:
         f"one evaluation, interpreted loop (the same functions from Python): field {cp['field'] * 1e9:.0f} ns, guard "
         f"{cp['guards'] * 1e9:.0f} ns, reset {cp['reset'] * 1e9:.0f} ns"
     )
-    head = ("path", "method", "steps/s", "ns/step", "field", "guard", "reset", "overhead/step", "trans")
+    head = ("path", "method", "steps/s", "ns/step", "field", "guard", "reset", "field ns", "overhead/step", "trans")
     rows = [
         (
             label,
@@ -364,13 +367,14 @@ def format_report(r: dict[str, Any], width: int | None = None) -> str:
             f"{100 * m['share_field']:.0f}%",
             f"{100 * m['share_guards']:.0f}%",
             f"{100 * m['share_resets']:.1f}%",
+            f"{m['cost_field_s'] * 1e9:.1f}",
             f"{m['overhead_per_step_in_fields']:.2f} f-ev",
             str(m["transitions"]),
         )
         for label, key in PATHS
         for m in r[key]
     ]
-    lines.append(render_table(head, rows, right=range(2, 9), whole=range(9), width=width))
+    lines.append(render_table(head, rows, right=range(2, 10), whole=range(10), width=width))
     lines.append("")
     lines.append(
         "landing in a strip, per transition (rk4): trial steps, extra field evaluations, guard "
