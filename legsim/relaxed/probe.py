@@ -30,7 +30,6 @@ def probe_indices(mode: str, dim: int, functions: ModeFunctions, guards: int, re
     ``functions`` object."""
     if getattr(functions, "_probed", False) or not functions.compiled or _ours(functions.field):
         return
-    object.__setattr__(functions, "_probed", True)
     t, x, u, p = 0.0, np.zeros(dim), np.zeros(functions.inputs), functions.call_params
     calls: list[tuple[str, Any, Callable[[Any], object]]] = [
         ("field", functions.field, lambda f: f(t, x.copy(), u.copy(), p.copy(), np.zeros(dim)))
@@ -46,6 +45,25 @@ def probe_indices(mode: str, dim: int, functions: ModeFunctions, guards: int, re
             calls.append((f"reset {e}", functions.reset, reset))
     for what, fn, call in calls:
         _probe(mode, what, fn, call)
+    # Only a model that passed: a refused one is refused again on every run.
+    object.__setattr__(functions, "_probed", True)
+
+
+def probe_controller(mode: str, dim: int, law: Any, params: np.ndarray) -> None:
+    """ModelError naming ``mode`` (plant dimension ``dim``) where the compiled controller ``law``
+    (a ``ControlLaw``) indexes past an array when run as Python under the mode's controller
+    parameters ``params``: its control and its enter. Once per law and parameter array."""
+    if not law.compiled or _ours(law.control):
+        return
+    seen: set[tuple[int, bytes]] = law.__dict__.setdefault("_probed", set())
+    key = (dim, params.tobytes())
+    if key in seen:
+        return
+    t, x, m, p = 0.0, np.zeros(dim), np.zeros(len(law.memory_names)), np.array(params, dtype=float)
+    _probe(mode, "controller's control", law.control, lambda f: f(t, x.copy(), m.copy(), p.copy(), np.zeros(law.inputs)))
+    if law.enter is not None:
+        _probe(mode, "controller's enter", law.enter, lambda f: f(t, x.copy(), m.copy(), p.copy(), np.zeros(m.shape[0])))
+    seen.add(key)
 
 
 def _probe(mode: str, what: str, fn: Any, call: Callable[[Any], object]) -> None:
@@ -56,7 +74,7 @@ def _probe(mode: str, what: str, fn: Any, call: Callable[[Any], object]) -> None
         raise ModelError(
             f"mode '{mode}': its {what} ({fn.py_func.__qualname__}) indexes past an array when run as Python "
             f"(IndexError: {exc}); compiled, it would read or write memory that is not the model's (check its "
-            f"sizes: the mode's dimension, one guard per transition, the target's dimension, params, inputs)"
+            f"sizes: the mode's dimension, one guard per transition, the target's dimension, params, inputs, memory)"
         ) from None
     except Exception:  # the function's own arithmetic at the zero state: not the probe's to judge
         return

@@ -57,7 +57,7 @@ from .layout import (
     T_TARGET,
     TRANSITION_FIELDS,
 )
-from .probe import probe_indices
+from .probe import probe_controller, probe_indices
 
 #: Rows kept free in each table for registrations inside a loop call.
 SPARE = 64
@@ -267,6 +267,7 @@ class RunTables:
                 self.modes[row, M_ENTER] = self.function(self.law.enter)
             start, end = self.params(self.law.params_for(name, self.system))
             self.modes[row, M_C0], self.modes[row, M_C1] = start, end
+            probe_controller(name, self.system.mode(name).dim, self.law, self.P[start:end])
         elif self.control is not None:
             functions = self.system.mode(name).functions
             reads = 0 if functions is None else functions.inputs

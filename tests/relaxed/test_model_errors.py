@@ -13,7 +13,7 @@ import pytest
 
 from helpers.compiled_models import above_floor, paddle, paddle_bounce
 from legsim import HybridSystem, Mode, ModeFunctions, Transition, model_function, simulate
-from legsim.control import Controller
+from legsim.control import ControlLaw, Controller
 from legsim.errors import ModelError
 
 G = 9.81
@@ -316,6 +316,35 @@ def test_a_compiled_function_indexing_past_its_arrays_is_refused_before_it_runs(
     once as Python before the run, which raises where they index past an array."""
     with pytest.raises(ModelError, match=rf"mode 'A': {re.escape(what)} indexes past an array"):
         simulate(_probe_system(**kwargs), [0.0], "A", 2.0, 0.1, 1e-4, "rk4", python=python)
+
+
+def test_a_refused_model_is_refused_again_on_every_run():
+    """The probe's verdict is kept only for functions that passed: the same system, run again
+    after its refusal, must not run compiled on memory that is not its own."""
+    system = _probe_system(field=_reads_an_input_it_lacks)
+    for _ in range(2):
+        with pytest.raises(ModelError, match="indexes past an array"):
+            simulate(system, [0.0], "A", 2.0, 0.1, 1e-4, "rk4")
+
+
+@model_function
+def _pushes_by_second_gain(t, x, m, p, u):
+    u[0] = p[1]
+
+
+@model_function
+def _drift_by_input(t, x, u, p, dx):
+    dx[0] = u[0]
+
+
+@pytest.mark.parametrize("python", [False, True], ids=["compiled", "interpreted"])
+def test_a_controller_reading_past_its_parameters_is_refused_on_both_paths(python):
+    """A controller whose params(mode) has one entry but reads p[1]: compiled, it ran to
+    `finished` on whatever lay past its parameters, while the Python loop raised IndexError."""
+    law = ControlLaw("short gains", _pushes_by_second_gain, 1, lambda mode: np.array([3.0]))
+    system = _probe_system(field=_drift_by_input, inputs=1)
+    with pytest.raises(ModelError, match=r"mode 'A': its controller's control \(_pushes_by_second_gain\) indexes"):
+        simulate(system, [0.0], "A", 2.0, 0.1, 1e-4, "rk4", law, python=python)
 
 
 @pytest.mark.parametrize(
