@@ -60,9 +60,12 @@ def probe_controller(mode: str, dim: int, law: Any, params: np.ndarray) -> None:
     if key in seen:
         return
     t, x, m, p = 0.0, np.zeros(dim), np.zeros(len(law.memory_names)), np.array(params, dtype=float)
-    _probe(mode, "controller's control", law.control, lambda f: f(t, x.copy(), m.copy(), p.copy(), np.zeros(law.inputs)))
+    def call(size: int) -> Callable[[Any], object]:
+        return lambda f: f(t, x.copy(), m.copy(), p.copy(), np.zeros(size))
+
+    _probe(mode, "controller's control", law.control, call(law.inputs))
     if law.enter is not None:
-        _probe(mode, "controller's enter", law.enter, lambda f: f(t, x.copy(), m.copy(), p.copy(), np.zeros(m.shape[0])))
+        _probe(mode, "controller's enter", law.enter, call(m.shape[0]))
     seen.add(key)
 
 
