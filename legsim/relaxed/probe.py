@@ -60,6 +60,7 @@ def probe_controller(mode: str, dim: int, law: Any, params: np.ndarray) -> None:
     if key in seen:
         return
     t, x, m, p = 0.0, np.zeros(dim), np.zeros(len(law.memory_names)), np.array(params, dtype=float)
+
     def call(size: int) -> Callable[[Any], object]:
         return lambda f: f(t, x.copy(), m.copy(), p.copy(), np.zeros(size))
 
