@@ -11,7 +11,7 @@ import threading
 import numpy as np
 import pytest
 
-from legsim import HybridSystem, Mode, ModelError, SimulationError, Transition, simulate
+from legsim import HybridSystem, Mode, ModelError, SimulationError, Transition, model_function, simulate
 from legsim.relaxed import tables as run_tables
 from legsim.scene import load_scene
 
@@ -149,3 +149,40 @@ def test_a_systems_outputs_are_checked_on_its_first_run_in_a_mode_not_on_every_r
         simulate(system, [np.nan, 0.0], "fall", 0.2, 1e-3, 1e-4)
     with pytest.raises(SimulationError, match=r"past the guard of transition bounce"):
         simulate(system, [-1.0, 0.0], "fall", 0.2, 1e-3, 1e-4)
+
+
+@model_function
+def free_fall(t, x, u, p, dx):
+    dx[0] = x[1]
+    dx[1] = -p[0]
+
+
+def test_a_run_that_reached_a_python_mode_leaves_later_runs_compiled_until_they_reach_one():
+    """A compiled mode whose bounce leads to a mode of Python callables: a short run that never
+    bounces is compiled, before and after a long run that went to the Python loop, and names no
+    mode it did not reach; the long run takes the same path each time."""
+    from helpers.compiled_models import G, above_floor, paddle_bounce
+
+    from legsim import ModeFunctions
+
+    fly = Mode(2, names=("z", "zd"), functions=ModeFunctions(free_fall, above_floor, paddle_bounce, params=[G, 0.8]))
+    slow = Mode(2, lambda t, x, u: np.array([x[1], -G]), names=("z", "zd"))
+    system = HybridSystem(
+        {"fly": fly, "slow": slow},
+        [
+            Transition("fly", "slow", name="bounce"),
+            Transition("slow", "slow", guard=lambda x: max(x[0], x[1]), reset=lambda x: np.array([x[0], -0.8 * x[1]])),
+        ],
+    )
+
+    def run(t_final):
+        return simulate(system, [1.0, 0.0], "fly", t_final, 1e-3, 1e-6, "rk4")
+
+    short_before, long_first, short_after, long_again = run(0.3), run(2.0), run(0.3), run(2.0)
+    assert long_first.settings["path"] == "python" and "mode 'slow'" in long_first.settings["python_reason"]
+    for short in (short_before, short_after):
+        assert short.settings["path"] == "compiled" and "python_reason" not in short.settings
+        assert short.counters["python_steps"] == 0
+    _same(short_before, short_after)
+    _same(long_first, long_again)
+    assert long_again.counters["compiled_steps"] == long_first.counters["compiled_steps"] > 0
