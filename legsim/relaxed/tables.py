@@ -72,9 +72,9 @@ def kept_tables(system: HybridSystem, control: Any, law: Any) -> Iterator[RunTab
     that a system's modes are built once however many runs it makes (an orbit search, a
     benchmark, a scene run again). The system keeps one set, its last run's, whatever law that
     was. A Python ``control`` gets new tables (its adapters belong to its run), and so does a run
-    started inside another (from its callback), and a run after one that reached a Python mode. Tables are kept only when the run ends without
-    an exception: a mode half-prepared by a failing model is not reused. The caller holds the
-    system's turn (``HybridSystem.turn``)."""
+    started inside another (from its callback), and a run after one that reached a Python mode.
+    Tables are kept only when the run ends without an exception: a mode half-prepared by a
+    failing model is not reused. The caller holds the system's turn (``HybridSystem.turn``)."""
     if control is not None:
         yield RunTables(system, control, law)
         return
