@@ -162,7 +162,6 @@ def test_a_run_that_reached_a_python_mode_leaves_later_runs_compiled_until_they_
     bounces is compiled, before and after a long run that went to the Python loop, and names no
     mode it did not reach; the long run takes the same path each time."""
     from helpers.compiled_models import G, above_floor, paddle_bounce
-
     from legsim import ModeFunctions
 
     fly = Mode(2, names=("z", "zd"), functions=ModeFunctions(free_fall, above_floor, paddle_bounce, params=[G, 0.8]))
