@@ -61,8 +61,8 @@ class Mode:
         for plots and recordings; default all ``""``.
     functions:
         The mode written as model functions (``legsim.model.ModeFunctions``): its field, guards
-        and resets as functions over arrays, which every path evaluates. ``field`` may then be
-        omitted (it is made from them), and the mode's outgoing transitions take their guards
+        and resets as functions over arrays, which every path evaluates. ``field`` is then
+        omitted (it is made from them; giving both is refused), and the mode's outgoing transitions take their guards
         and resets from them, in their order, unless they give their own.
     """
 
@@ -89,6 +89,13 @@ class Mode:
         dim = int(dim)
         if functions is not None and not isinstance(functions, ModeFunctions):
             raise ModelError(f"Mode functions must be a legsim.ModeFunctions, got {type(functions).__name__}")
+        if functions is not None and field is not None and not _made_from(field, functions):
+            # Every path evaluates the functions: a field beside them would be a second model
+            # that simulate ignores while the tools reading Mode.field use it.
+            raise ModelError(
+                "Mode takes a field or functions, not both: the run evaluates the functions' field, so a "
+                "second field would be a second model (give it as ModeFunctions' field instead)"
+            )
         if field is None and functions is not None:
             field = _FieldOf(functions, dim)
         if not callable(field):
@@ -137,6 +144,12 @@ class _FieldOf:
 
     def __call__(self, t: float, x: np.ndarray, u: Any) -> np.ndarray:
         return evaluate_field(self.functions, self.dim, t, x, u)
+
+
+def _made_from(field: Any, functions: ModeFunctions) -> bool:
+    """Whether ``field`` is the one a mode makes from ``functions`` (``dataclasses.replace``
+    passes it back)."""
+    return isinstance(field, _FieldOf) and field.functions is functions
 
 
 def _identity(x: np.ndarray) -> np.ndarray:

@@ -6,6 +6,7 @@ function leaves unwritten is nan, reported, never a value of an earlier call
 
 from __future__ import annotations
 
+import dataclasses
 import re
 
 import numpy as np
@@ -359,3 +360,13 @@ def test_params_that_are_not_a_flat_sequence_of_numbers_are_refused(params, mess
     with pytest.raises(ModelError, match=message):
         ModeFunctions(_reads_past_p, params=params)
     assert ModeFunctions(_reads_past_p, params=np.arange(4.0)).params.shape == (4,)
+
+
+def test_a_mode_given_both_a_field_and_functions_is_refused():
+    """simulate evaluates the functions; a field beside them (here g = 1 against the functions'
+    9.81) was silently ignored by the run while the tools reading Mode.field used it."""
+    with pytest.raises(ModelError, match="Mode takes a field or functions, not both"):
+        Mode(2, lambda t, x, u: np.array([x[1], -1.0]), functions=ModeFunctions(free_fall, above_floor, paddle_bounce))
+    mode = Mode(2, functions=ModeFunctions(free_fall, above_floor, paddle_bounce))
+    renamed = dataclasses.replace(mode, names=("z", "zd"))  # the field made from the functions passes back
+    assert renamed.functions is mode.functions and renamed.names == ("z", "zd")
