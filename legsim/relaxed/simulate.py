@@ -261,6 +261,11 @@ def _step_size_part(rule: Any, tableau: Tableau, h: float) -> tuple[float | None
     if type(rule) is FixedStep:
         return None, None
     if type(rule) is ErrorControl:
+        if rule.rtol is None and rule.atol is None:  # would mean fixed steps: say FixedStep()
+            raise SimulationError(
+                f"step_size {rule!r} gives no tolerance: error control needs rtol or atol (for fixed steps give "
+                f"FixedStep())"
+            )
         return step_size_rule(tableau, h, rule.rtol, rule.atol)
     raise SimulationError(
         f"step_size {type(rule).__name__} is not one of the loop's step-size rules: give h (fixed steps) or "

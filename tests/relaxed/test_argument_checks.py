@@ -65,6 +65,8 @@ def test_every_built_in_method_passes_the_tableau_check():
     [
         ({"step_size": FixedStep(), "rtol": 1e-9}, "either step_size or rtol/atol"),
         ({"method": "dopri5", "step_size": ErrorControl(1e-3, 1e-6), "atol": 1e-12}, "either step_size or rtol/atol"),
+        # Without tolerances the rule would run fixed steps while its name says error control.
+        ({"method": "dopri5", "step_size": ErrorControl(None, None)}, "gives no tolerance: error control needs"),
         ({"python": "no"}, "python must be True or False"),
         ({"continuation": 1}, "continuation must be True or False"),
         ({"watches": 1}, "watches must be a sequence"),
