@@ -89,7 +89,9 @@ class Mode:
         dim = int(dim)
         if functions is not None and not isinstance(functions, ModeFunctions):
             raise ModelError(f"Mode functions must be a legsim.ModeFunctions, got {type(functions).__name__}")
-        if functions is not None and field is not None and not _made_from(field, functions):
+        if isinstance(field, _FieldOf):  # a mode's own, passed back by dataclasses.replace: made anew
+            field = None
+        if functions is not None and field is not None:
             # Every path evaluates the functions: a field beside them would be a second model
             # that simulate ignores while the tools reading Mode.field use it.
             raise ModelError(
@@ -144,12 +146,6 @@ class _FieldOf:
 
     def __call__(self, t: float, x: np.ndarray, u: Any) -> np.ndarray:
         return evaluate_field(self.functions, self.dim, t, x, u)
-
-
-def _made_from(field: Any, functions: ModeFunctions) -> bool:
-    """Whether ``field`` is the one a mode makes from ``functions`` (``dataclasses.replace``
-    passes it back)."""
-    return isinstance(field, _FieldOf) and field.functions is functions
 
 
 def _identity(x: np.ndarray) -> np.ndarray:

@@ -120,6 +120,10 @@ class ModeFunctions:
             raise ModelError(f"ModeFunctions.inputs must be an integer >= 0, got {self.inputs!r}")
         outcomes = tuple((str(name), str(target)) for name, target in self.joint_outcomes)
         object.__setattr__(self, "joint_outcomes", outcomes)
+        if self.joint is not None and not outcomes:
+            raise ModelError(
+                "ModeFunctions.joint needs joint_outcomes, the (name, target mode) of each index it may return"
+            )
 
     @property
     def compiled(self) -> bool:

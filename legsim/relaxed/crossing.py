@@ -73,6 +73,7 @@ from .layout import (
     KIND_PLAIN,
     M_J0,
     M_JOINT_HISTORY,
+    M_NJ,
     M_READY,
     M_T0,
     NO_CONTINUATION,
@@ -295,6 +296,7 @@ def cross_jointly(tab: Tables, vis: Visit, ws, e: int, tc: float, t_land: float,
     outcome = call_joint(
         tab.functions, vis.joint, 1 if rest else 0, tc, ws.q[: vis.dim], ws.u, vis.p, ws.crossed[: vis.guards], ws.w
     )
+    check_outcome(tab, vis, outcome)
     for _ in range(PREVIEW_ROUNDS if vis.previewed and vis.control >= 0 else 0):
         if outcome < 0:
             break
@@ -303,6 +305,7 @@ def cross_jointly(tab: Tables, vis: Visit, ws, e: int, tc: float, t_land: float,
         input_after(tab, target, ws, exit_time, ws.w[: target.n], ws.u_after)
         again = call_joint(tab.functions, vis.joint, 1 if rest else 0, tc, ws.q[: vis.dim], ws.u_after, vis.p,
                            ws.crossed[: vis.guards], ws.w)  # fmt: skip
+        check_outcome(tab, vis, again)
         if again == outcome or again < 0:
             break
         outcome = again
@@ -320,6 +323,12 @@ def cross_jointly(tab: Tables, vis: Visit, ws, e: int, tc: float, t_land: float,
     crossed_history(ws, row, tc, exit_time, rest)
     enter_next(ws, target.mode, exit_time, target.n)
     return True
+
+
+def check_outcome(tab: Tables, vis: Visit, outcome: int) -> None:
+    """An index past the mode's joint outcomes would pick another mode's row as the target."""
+    if outcome >= tab.modes[vis.mode, M_NJ]:
+        raise IndexError("the joint function returned an index past its mode's joint_outcomes")
 
 
 #: Most times a previewed crossing's choice is asked again (a choice that does not repeat by then

@@ -370,3 +370,27 @@ def test_a_mode_given_both_a_field_and_functions_is_refused():
     mode = Mode(2, functions=ModeFunctions(free_fall, above_floor, paddle_bounce))
     renamed = dataclasses.replace(mode, names=("z", "zd"))  # the field made from the functions passes back
     assert renamed.functions is mode.functions and renamed.names == ("z", "zd")
+
+
+@model_function
+def _joint_returning_two(rest, t, q, u, p, crossed, out):
+    for d in range(4):
+        out[d] = q[d]
+    return 2
+
+
+@pytest.mark.parametrize("python", [False, True], ids=["compiled", "interpreted"])
+def test_a_joint_outcome_past_the_modes_outcomes_fails_the_run_at_the_crossing(python):
+    """Index 2 of one outcome would take another mode's joint row as the target; the run went on
+    to its end and failed in the execution's assembly with a bare IndexError."""
+    from helpers.compiled_models import G, both_bounce, two_bounces, two_falls, two_floors
+
+    functions = ModeFunctions(two_falls, two_floors, two_bounces, _joint_returning_two, params=[G, 0.6],
+                              joint_outcomes=(("joint_bounce", "falling"),))  # fmt: skip
+    transitions = [Transition("falling", "falling", name="bounce_1"), Transition("falling", "falling", name="bounce_2")]
+    system = HybridSystem({"falling": Mode(4, functions=functions)}, transitions, name="two balls")
+    # Dropped together from 1 m, both balls strike at t = sqrt(2 / g) = 0.4515 s.
+    with pytest.raises(ModelError, match=r"from t=0\.4515.*index past its mode's joint_outcomes"):
+        simulate(system, [1.0, 1.0, 0.0, 0.0], "falling", 2.0, 1e-3, 1e-6, "rk4", python=python)
+    with pytest.raises(ModelError, match="ModeFunctions.joint needs joint_outcomes"):
+        ModeFunctions(two_falls, two_floors, two_bounces, both_bounce, params=[G, 0.6])
