@@ -392,5 +392,5 @@ def test_a_joint_outcome_past_the_modes_outcomes_fails_the_run_at_the_crossing(p
     # Dropped together from 1 m, both balls strike at t = sqrt(2 / g) = 0.4515 s.
     with pytest.raises(ModelError, match=r"from t=0\.4515.*index past its mode's joint_outcomes"):
         simulate(system, [1.0, 1.0, 0.0, 0.0], "falling", 2.0, 1e-3, 1e-6, "rk4", python=python)
-    with pytest.raises(ModelError, match="ModeFunctions.joint needs joint_outcomes"):
+    with pytest.raises(ModelError, match=r"ModeFunctions\.joint needs joint_outcomes"):
         ModeFunctions(two_falls, two_floors, two_bounces, both_bounce, params=[G, 0.6])
