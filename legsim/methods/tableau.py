@@ -152,9 +152,24 @@ def check_tableau(method: Tableau) -> Tableau:
         raise ValueError(f"Tableau {name!r}: fsal needs the last stage at the new point (A's last row b, c = 1)")
     if method.error_order is not None and method.b_err is None:
         raise ValueError(f"Tableau {name!r}: error_order without b_err")
+    _check_orders(method)
+    if method.implicit and method.G is None:
+        raise ValueError(f"Tableau {name!r}: a linearly implicit method (gamma > 0) needs its stage coupling G")
+    if method.implicit and method.dense is not None:  # the implicit stages have no continuous extension here
+        raise ValueError(f"Tableau {name!r}: a linearly implicit method takes no dense output (its stages are not k_i)")
     _check_dense(name, method.dense, s)
     object.__setattr__(method, "_checked", True)  # not a field: equality and copies ignore it
     return method
+
+
+def _check_orders(method: Tableau) -> None:
+    """Orders are positive integers: the step-size controller's exponent is -1 / (order + 1)."""
+    for key in ("order", "error_order"):
+        value = getattr(method, key)
+        if value is None and key == "error_order":
+            continue
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+            raise ValueError(f"Tableau {method.name!r}: {key} must be an integer >= 1, got {value!r}")
 
 
 def _check_sums(method: Tableau) -> None:

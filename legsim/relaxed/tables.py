@@ -210,6 +210,9 @@ class RunTables:
         self.continuation_names.append("")
         if functions is not None:
             probe_indices(name, data.mode.dim, functions, count, self._reset_dims(data))
+        if self.law is not None:
+            control_params = self.P[self.modes[row, M_C0] : self.modes[row, M_C1]]
+            probe_controller(name, data.mode.dim, self.law, control_params)
         self._prepare_functions(row, data, functions)
         self.modes[row, M_READY] = 1
         # A continuation's image is checked against its target's guards before it is entered.
@@ -270,7 +273,6 @@ class RunTables:
                 self.modes[row, M_ENTER] = self.function(self.law.enter)
             start, end = self.params(self.law.params_for(name, self.system))
             self.modes[row, M_C0], self.modes[row, M_C1] = start, end
-            probe_controller(name, self.system.mode(name).dim, self.law, self.P[start:end])
         elif self.control is not None:
             functions = self.system.mode(name).functions
             reads = 0 if functions is None else functions.inputs

@@ -5,6 +5,7 @@ path a run took named by what made it take it."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -16,7 +17,7 @@ from legsim import HybridSystem, Mode, ModeFunctions, Transition, model_function
 from legsim.control import ControlLaw, Controller
 from legsim.errors import ModelError, SimulationError
 from legsim.methods import Tableau
-from legsim.methods.builtin import RK4
+from legsim.methods.builtin import DORMAND_PRINCE, RK4, ROS34PW2
 from legsim.relaxed import ErrorControl, FixedStep, simulate
 from legsim.relaxed.watches import Watch
 from legsim.systems import bouncing_ball
@@ -46,6 +47,12 @@ def ball_run(**options):
             "strictly lower triangular",
         ),
         (Tableau("fsal", 4, RK4.c, RK4.A, RK4.b, fsal=True), "fsal needs the last stage"),
+        # The controller's exponent -1 / (error_order + 1) divided by zero at -1.
+        (Tableau("order", 4, RK4.c, RK4.A, RK4.b, b_err=RK4.b, error_order=-1), "error_order must be an integer >= 1"),
+        # Without G the linearly implicit stages ran to non_finite at t = 0, blaming the step.
+        (dataclasses.replace(ROS34PW2, name="noG", G=None), "needs its stage coupling G"),
+        # Its dense output was dropped while the run said landing "dense".
+        (dataclasses.replace(ROS34PW2, name="rosdense", dense=DORMAND_PRINCE.dense), "takes no dense output"),
     ],
 )
 def test_a_hand_built_tableau_is_checked_before_it_runs(method, says):
