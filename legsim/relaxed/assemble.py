@@ -385,7 +385,7 @@ class Assembly:
         self.transitions = [tr for tr in self.transitions if tr.exit_time <= when]
         self.crossings = [c for c in self.crossings if c[3] <= when]
         self.in_strip = False
-        return Status(watch.status), watch.message(when, seg.mode, x[-1].copy()), when
+        return Status(watch.status), watch.says(when, seg.mode, x[-1].copy()), when
 
     def _watch_results(self, warnings: list[Any], counters: dict[str, float]) -> None:
         """The warn watches' warnings added to ``warnings``, the time watches' times to ``counters``."""
@@ -431,9 +431,9 @@ class Assembly:
                     least = (low, float(t[k]), mode, x[k].copy())
             if first is None or least is None:
                 continue
-            message = w.message(*first)
+            message = w.says(*first)
             if least[1] != first[0]:
-                message += f"; the most at t={least[1]:.17g}: {w.message(least[1], least[2], least[3])}"
+                message += f"; the most at t={least[1]:.17g}: {w.says(least[1], least[2], least[3])}"
             out.append(RunWarning(w.name, message, first[0], {"least_value": least[0], "least_time": least[1]}))
         return out
 

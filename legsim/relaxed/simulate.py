@@ -329,9 +329,9 @@ def _eval_times(t_eval: Any, t0: float, t_final: float) -> np.ndarray | None:
         raise SimulationError(f"t_eval must be a sequence of times (s), got an array of shape {times.shape}")
     times = times.reshape(-1)
     if times.size and (
-        not np.all(np.isfinite(times)) or np.any(np.diff(times) < 0) or times[0] < t0 or times[-1] > t_final
+        not np.all(np.isfinite(times)) or np.any(np.diff(times) <= 0) or times[0] < t0 or times[-1] > t_final
     ):
-        raise SimulationError(f"t_eval must be finite, increasing times in [t0, t_final] = [{t0}, {t_final}]")
+        raise SimulationError(f"t_eval must be finite, strictly increasing times in [t0, t_final] = [{t0}, {t_final}]")
     return times
 
 

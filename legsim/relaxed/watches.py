@@ -165,6 +165,20 @@ class Watch:
             )
         return times
 
+    def says(self, t: float, mode: str, x: np.ndarray) -> str:
+        """``message`` at a point where the watch holds; SimulationError naming the watch if it
+        fails or gives no string (the run's message and warnings are strings)."""
+        assert self.message is not None
+        try:
+            text = self.message(t, mode, x)
+        except Exception as exc:
+            raise SimulationError(
+                f"watch {self.name!r}: its message failed at t={t:.17g} in mode '{mode}': {type(exc).__name__}: {exc}"
+            ) from exc
+        if not isinstance(text, str):
+            raise SimulationError(f"watch {self.name!r}: its message must return a str, got {type(text).__name__}")
+        return text
+
     def _call(self, function: Callable[..., Any], what: str, mode: str, t: np.ndarray, x: np.ndarray) -> np.ndarray:
         try:
             v = np.asarray(function(mode, t, x), dtype=float)

@@ -353,5 +353,6 @@ def test_t_eval_gives_the_states_at_those_times_in_one_call(ball):
     z = np.array(ex.evaluated.states)[:, 0]
     np.testing.assert_allclose(z, 1.0 - 0.5 * 9.81 * times**2, rtol=0, atol=1e-12)
     assert ex.evaluated.modes == ["flight"] * 9 and math.isclose(ex.evaluated.times[-1], 0.4)
-    with pytest.raises(SimulationError, match=r"t_eval must be finite, increasing times in \[t0, t_final\]"):
-        simulate(ball, [1.0, 0.0], "flight", 1.0, 1e-2, 1e-4, t_eval=[0.5, 0.2])
+    for unsorted in ([0.5, 0.2], [0.2, 0.2, 0.5]):  # a repeated time too, as solve_ivp refuses it
+        with pytest.raises(SimulationError, match=r"t_eval must be finite, strictly increasing times in \[t0, t_final"):
+            simulate(ball, [1.0, 0.0], "flight", 1.0, 1e-2, 1e-4, t_eval=unsorted)

@@ -467,5 +467,11 @@ def test_bad_watches_are_refused_by_name():
         run([Watch("w", below(0.5), "stop", said, rate=lambda mode, t, x: 1 / 0)])
     with pytest.raises(SimulationError, match=r"watch 'w' gave values of shape \(1,\) for \d+ points"):
         run([Watch("w", lambda mode, t, x: np.zeros(1), "stop", said)])
+    # Its message ends up in the run's message or warnings: a failure is named, a number refused.
+    for action in ("stop", "warn"):
+        with pytest.raises(SimulationError, match=r"watch 'w': its message failed at t=0\.3.* ZeroDivisionError"):
+            run([Watch("w", below(0.5), action, lambda t, mode, x: f"{1 / 0}")])
+        with pytest.raises(SimulationError, match="watch 'w': its message must return a str, got int"):
+            run([Watch("w", below(0.5), action, lambda t, mode, x: 42)])
     with pytest.raises(SimulationError, match=r"watch 'w': its rates' shape \(\d+, 2\) is not its values' \(\d+, 1\)"):
         run([Watch("w", below(0.5), "stop", said, rate=lambda mode, t, x: np.zeros((len(t), 2)))])
