@@ -194,13 +194,13 @@ class Runner:
         self.steps = [0, 0]
         self._addresses = np.zeros(0, dtype=np.int64)
         # A stop watch or the caller's until may end the run at a hand-back: the loop then hands back
-        # every STOP_CHECK_STEPS at most.
+        # every STOP_CHECK_STEPS exactly, never at a pace the clock sets, so that where such a run
+        # ends (until) and its counters (steps taken before the stop was seen) do not depend on
+        # the machine's speed or load.
         self.ends_early = any(w.action == "stop" for w in options.watches) or options.until is not None
         self.ws.ci[S_PROGRESS_STEPS] = 0 if options.progress is None else PROGRESS_STEPS_FIRST
         if self.ends_early:
-            self.ws.ci[S_PROGRESS_STEPS] = (
-                min(PROGRESS_STEPS_FIRST, STOP_CHECK_STEPS) if options.progress else STOP_CHECK_STEPS
-            )
+            self.ws.ci[S_PROGRESS_STEPS] = STOP_CHECK_STEPS
         self.last_report = self.last_look = time.perf_counter()
         self.work_at_look = 0
         tables.breakdowns.ws = ws
@@ -289,7 +289,7 @@ class Runner:
         if elapsed > 0.0 and work > self.work_at_look:
             rate = (work - self.work_at_look) / elapsed
             steps = min(max(int(rate * LOOK_INTERVAL), PROGRESS_STEPS_FIRST), PROGRESS_STEPS_MOST)
-            self.ws.ci[S_PROGRESS_STEPS] = min(steps, STOP_CHECK_STEPS) if self.ends_early else steps
+            self.ws.ci[S_PROGRESS_STEPS] = STOP_CHECK_STEPS if self.ends_early else steps
         self.last_look, self.work_at_look = now, work
 
     def fit(self) -> None:

@@ -94,3 +94,20 @@ def test_until_sees_a_long_visit_whole_at_every_hand_back(python):
     ex = simulate(system, [30.0, 0.0], "flight", 2.0, 1e-4, 1e-5, until=record, python=python)
     assert ex.status == "finished" and len(ex.segments) == 1 and not ex.transitions
     assert len(seen) >= 20_000 // STOP_CHECK_STEPS and np.all(np.diff(seen) > 0)
+
+
+def test_where_an_until_run_ends_does_not_depend_on_a_progress_callback_or_the_clock():
+    """The hand-backs at which until is asked come every STOP_CHECK_STEPS steps exactly: with a
+    progress callback (whose pace the clock sets, here slowed by a sleep) the run ended at other
+    hand-backs, so its end time and counters changed with the machine's load."""
+    import time
+
+    def slow_progress(t, t0, t_final):
+        time.sleep(0.002)
+
+    plain = run(bounces(2))
+    system = bouncing_ball.make_system(restitution=0.8)
+    watched = simulate(system, [1.0, 0.0], "flight", 3.0, 1e-3, 1e-5, until=bounces(2), progress=slow_progress)
+    assert watched.t_end == plain.t_end
+    assert watched.counters["steps"] == plain.counters["steps"]
+    np.testing.assert_array_equal(watched.final_state, plain.final_state)
