@@ -4,7 +4,6 @@ every error names the scene's file, the field and the values allowed."""
 from __future__ import annotations
 
 import csv
-import io
 import math
 import os
 from collections.abc import Mapping
@@ -203,20 +202,43 @@ def _csv_rows(f: _Fields) -> list[Any]:
     except UnicodeDecodeError:
         raise f.error("file", f"{file}: not UTF-8 text") from None
     rows: list[Any] = []
-    for line, record in enumerate(csv.reader(io.StringIO(text)), start=1):
-        if not record or record[0].strip().startswith("#"):
+    header_allowed = True
+    for line, content in enumerate(text.splitlines(), start=1):
+        content = content.split("#", 1)[0]  # a comment, whole-line or after the numbers
+        record = next(csv.reader([content]), [])
+        if not any(v.strip() for v in record):
             continue
-        try:
-            rows.append([float(v) for v in record])
-        except ValueError:
-            if not rows and line == 1:  # a header line
-                continue
-            raise f.error("file", f"{file}: line {line}: expected two numbers x,z, got {record!r:.80}") from None
-        if len(rows[-1]) != 2:
-            raise f.error("file", f"{file}: line {line}: expected two numbers x,z, got {len(record)}: {record!r:.80}")
+        if header_allowed and not any(_is_number(v) for v in record):  # the first line, all names
+            header_allowed = False
+            continue
+        header_allowed = False
+        rows.append(_csv_point(f, file, line, record, rows[-1] if rows else None))
         if len(rows) > MAX_POINTS:
             raise f.error("file", f"{file}: more than {MAX_POINTS} points")
     return rows
+
+
+def _is_number(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
+def _csv_point(f: _Fields, file: Any, line: int, record: list[str], previous: list[float] | None) -> list[float]:
+    """Line ``line``'s point [x, z]: two finite numbers, x past the previous point's."""
+    try:
+        point = [float(v) for v in record]
+    except ValueError:
+        raise f.error("file", f"{file}: line {line}: expected two numbers x,z, got {record!r:.80}") from None
+    if len(point) != 2:
+        raise f.error("file", f"{file}: line {line}: expected two numbers x,z, got {len(record)}: {record!r:.80}")
+    if not all(math.isfinite(v) for v in point):
+        raise f.error("file", f"{file}: line {line}: expected two finite numbers x,z, got {record!r:.80}")
+    if previous is not None and not point[0] > previous[0]:
+        raise f.error("file", f"{file}: line {line}: x not strictly increasing: {previous[0]:g} then {point[0]:g}")
+    return point
 
 
 def _checked_points(f: _Fields, rows: list[Any], where: str) -> tuple[np.ndarray, np.ndarray]:

@@ -199,6 +199,22 @@ def test_a_profile_file_is_read_relative_to_the_scene_and_its_bad_line_named(tmp
         parse_terrain(tmp_path / "s.toml", {"kind": "profile", "file": "wide.csv"})
 
 
+def test_a_profile_file_takes_comments_before_its_header_and_never_drops_a_bad_first_row(tmp_path):
+    # A comment line above the header was refused, and a first row that did not parse ("0,O.3",
+    # a typo) was taken for the header and dropped, the bump with it, silently.
+    (tmp_path / "noted.csv").write_text("# surveyed 2026-11-30\nx,z\n0,0.3  # a bump\n1,0\n10,0\n")
+    terrain = parse_terrain(tmp_path / "s.toml", {"kind": "profile", "file": "noted.csv"})
+    assert height(terrain.array, 0, 0.5) == pytest.approx(0.15, abs=1e-15)
+    for text, line, says in (
+        ("0,O.3\n1,0\n10,0\n", 1, "expected two numbers x,z"),
+        ("x,z\n-5,0\n0,0\n10,nan\n", 4, "expected two finite numbers x,z"),
+        ("x,z\n0,0\n1,0\n1,0.5\n", 4, "x not strictly increasing: 1 then 1"),
+    ):
+        (tmp_path / "bad.csv").write_text(text)
+        with pytest.raises(SceneError, match=rf"terrain.file: .*bad.csv: line {line}: {says}"):
+            parse_terrain(tmp_path / "s.toml", {"kind": "profile", "file": "bad.csv"})
+
+
 def test_a_missing_profile_file_is_named_with_the_scene_and_its_field(tmp_path):
     with pytest.raises(SceneError, match=r"s.toml: terrain.file: .*missing.csv: no such terrain profile CSV file"):
         parse_terrain(tmp_path / "s.toml", {"kind": "profile", "file": "missing.csv"})
