@@ -129,9 +129,12 @@ def check_target(path: Path, what: str, *, suffixes: Iterable[str] = (), inputs:
 SIGNATURES = {
     ".rrd": (b"rrf2",),
     ".html": (b"<!doctype html", b"<html"),
+    ".htm": (b"<!doctype html", b"<html"),
     ".png": (b"\x89png",),
     ".svg": (b"<?xml", b"<svg"),
     ".pdf": (b"%pdf",),
+    ".jpg": (b"\xff\xd8\xff",),
+    ".jpeg": (b"\xff\xd8\xff",),
     ".npz": (b"pk",),
 }
 

@@ -129,6 +129,11 @@ def test_a_read_only_file_is_not_replaced(tmp_path):
         ("a.html", b"<!DOCTYPE html>\n<html>"),
         ("a.png", b"\x89PNG\r\n"),
         ("a.svg", b"<?xml v"),
+        ("a.htm", b"<!DOCTYPE html>\n<html>"),
+        ("a.jpg", b"\xff\xd8\xff\xe0"),
+        ("a.jpeg", b"\xff\xd8\xff\xe0"),
+        ("a.pdf", b"%PDF-1.4"),
+        ("a.npz", b"PK\x03\x04"),
     ],
 )
 def test_a_file_of_another_kind_is_kept_and_an_earlier_output_or_an_empty_file_replaced(tmp_path, name, earlier):
@@ -140,3 +145,13 @@ def test_a_file_of_another_kind_is_kept_and_an_earlier_output_or_an_empty_file_r
     for before in (earlier + b" old", b""):
         target.write_bytes(before)
         assert write_bytes_atomic(target, earlier + b" new", what="--out").read_bytes() == earlier + b" new"
+
+
+def test_every_suffix_legsim_writes_has_a_signature():
+    """A suffix without one was never checked: a user's notes.htm or photo.jpg was replaced."""
+    from legsim.commands.run import KIND_SUFFIXES
+    from legsim.output.files import SIGNATURES
+    from legsim.viz.plots import FORMATS
+
+    written = {s for suffixes in KIND_SUFFIXES.values() for s in suffixes} | {f".{f}" for f in FORMATS}
+    assert written <= set(SIGNATURES), written - set(SIGNATURES)
