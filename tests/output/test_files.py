@@ -149,9 +149,10 @@ def test_a_file_of_another_kind_is_kept_and_an_earlier_output_or_an_empty_file_r
 
 def test_every_suffix_legsim_writes_has_a_signature():
     """A suffix without one was never checked: a user's notes.htm or photo.jpg was replaced."""
+    from legsim.viz.plots import FORMATS
+
     from legsim.commands.run import KIND_SUFFIXES
     from legsim.output.files import SIGNATURES
-    from legsim.viz.plots import FORMATS
 
     written = {s for suffixes in KIND_SUFFIXES.values() for s in suffixes} | {f".{f}" for f in FORMATS}
     assert written <= set(SIGNATURES), written - set(SIGNATURES)
