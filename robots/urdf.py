@@ -215,12 +215,24 @@ def scene_contacts(contacts: Sequence[Any], stops: Sequence[Any]) -> list[PointC
     out: list[PointContact | JointStop] = []
     where: dict[str, str] = {}  # each name's table: contacts and stops name modes alike
     for i, table in enumerate(contacts):
-        out.append(PointContact(**_record(table, CONTACT_KEYS, ("name", "frame"), f"robot.parameters.contacts[{i}]")))
+        record = _record(table, CONTACT_KEYS, ("name", "frame"), f"robot.parameters.contacts[{i}]")
+        _check_restitution(record, f"robot.parameters.contacts[{i}]")
+        out.append(PointContact(**record))
         _unique(out[-1].name, f"robot.parameters.contacts[{i}]", where)
     for i, table in enumerate(stops):
-        out.append(JointStop(**_record(table, STOP_KEYS, ("name", "joint"), f"robot.parameters.stops[{i}]")))
+        record = _record(table, STOP_KEYS, ("name", "joint"), f"robot.parameters.stops[{i}]")
+        _check_restitution(record, f"robot.parameters.stops[{i}]")
+        if record.get("side", "lower") not in ("lower", "upper"):
+            raise SceneError(f"robot.parameters.stops[{i}].side: expected 'lower' or 'upper', got {record['side']!r}")
+        out.append(JointStop(**record))
         _unique(out[-1].name, f"robot.parameters.stops[{i}]", where)
     return out
+
+
+def _check_restitution(record: Mapping[str, Any], where: str) -> None:
+    value = record.get("restitution", 0.0)
+    if not 0.0 <= value <= 1.0:  # nan fails too
+        raise SceneError(f"{where}.restitution: expected a number in [0, 1], got {value!r}")
 
 
 def _unique(name: str, table: str, where: dict[str, str]) -> None:

@@ -253,7 +253,7 @@ def resolve_contact(
     frame ``<name>_foot`` to ``model`` (which must therefore be the bridge's own copy).
     ``robot`` names the robot in error messages; ``declared``: every contact name, in declared
     order (what ``releases`` may name)."""
-    where = f"contact '{contact.name}'"
+    where = f"{'stop' if isinstance(contact, JointStop) else 'contact'} '{contact.name}'"
     if isinstance(contact, SpringLeg):
         return _resolve_leg(model, contact, robot, where)
     finite_number(contact.restitution, f"{robot}: {where}: restitution", low=0.0, high=1.0)

@@ -20,7 +20,7 @@ def test_bad_models_and_contacts_are_named():
         ContactBridge(model, [PointContact("foot", "ball", restitution=1.5)])
     with pytest.raises(ModelError, match="contact 'leg': stiffness must be > 0"):
         ContactBridge(model, [SpringLeg("leg", "ball", stiffness=0.0, rest_length=1.0)])
-    with pytest.raises(ModelError, match="contact 'stop': unknown joint 'elbow'"):
+    with pytest.raises(ModelError, match="stop 'stop': unknown joint 'elbow'"):
         ContactBridge(model, [JointStop("stop", "elbow")])
     with pytest.raises(ModelError, match="side must be 'lower' or 'upper'"):
         ContactBridge(model, [JointStop("stop", "z", side="left")])

@@ -144,6 +144,11 @@ def test_bad_urdfs_and_tables_are_named(tmp_path):
         urdf.make({"file": str(QUADRUPED), "contacts": CONTACTS[:1], "stops": [stop]})
     with pytest.raises(SceneError, match=r"stops\[0\].position: expected a float"):
         urdf.make({"file": str(QUADRUPED), "stops": [{"name": "s", "joint": "hind_knee", "position": "high"}]})
+    # Values out of range are named by their field's path, not only by the bridge's contact name.
+    with pytest.raises(SceneError, match=r"stops\[0\].side: expected 'lower' or 'upper', got 'lowr'"):
+        urdf.make({"file": str(QUADRUPED), "stops": [{"name": "s", "joint": "hind_knee", "side": "lowr"}]})
+    with pytest.raises(SceneError, match=r"contacts\[0\].restitution: expected a number in \[0, 1\], got 2"):
+        urdf.make({"file": str(QUADRUPED), "contacts": [{**CONTACTS[0], "restitution": 2}]})
     scene = tmp_path / "robot.toml"
     text = urdf.bundled("quadruped_stand.toml").read_text().replace('file = "quadruped.urdf"', 'file = "nowhere.urdf"')
     scene.write_text(text)
