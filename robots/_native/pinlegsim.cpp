@@ -441,6 +441,10 @@ void solve_small(const Mat& A, const Vec& b, Eigen::PartialPivLU<Mat>& lu, Vec& 
       return;
     }
     y = lu.solve(b);
+    // The estimate can miss an exact zero pivot (two stuck corners of one body: two identical
+    // rows) when b has a rounding's share outside A's range (a 1e-15 rad/s spin left by an
+    // impact), and the solve divides by it: the least-norm solution is the one meant.
+    if (least_norm && !y.allFinite()) least_norm_solve(A, b, y);
   }
 }
 
