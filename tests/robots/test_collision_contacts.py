@@ -160,7 +160,7 @@ def test_a_tall_box_dropped_flat_rests_on_both_corners_from_any_height(tmp_path,
     body = link("box", 1.0, 0.01, shape("box", '<box size="0.2 0.2 0.4"/>'))
     entries = ", ".join(["restitution = 0.0", friction] if friction else ["restitution = 0.0"])
     scene = f"collisions = true\ncollision_contacts = {{ {entries} }}\n"
-    scene += "[integrator]\nmethod = \"rk4\"\nh = 1e-3\neps = 1e-7\nt_final = 0.5\n"
+    scene += '[integrator]\nmethod = "rk4"\nh = 1e-3\neps = 1e-7\nt_final = 0.5\n'
     for height in (0.41, 0.44, 0.47, 0.51):
         path = write(tmp_path, "box", body, scene, f"[initial]\nstate = {{ z = {height} }}\n")
         ex = load_scene(path).simulate()
