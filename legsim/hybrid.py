@@ -60,10 +60,9 @@ class Mode:
         Optional unit of each coordinate (``"m"``, ``"rad"``, ``"m/s"``, ...; ``""`` for none),
         for plots and recordings; default all ``""``.
     functions:
-        The mode written as model functions (``legsim.model.ModeFunctions``): its field, guards
-        and resets as functions over arrays, which every path evaluates. ``field`` is then
-        omitted (it is made from them; giving both is refused), and the mode's outgoing transitions take their guards
-        and resets from them, in their order, unless they give their own.
+        The mode as model functions (``legsim.model.ModeFunctions``), which every path evaluates:
+        ``field`` is made from them (giving both is refused), and outgoing transitions take their
+        guards and resets from them, in their order, unless they give their own.
     """
 
     dim: int
@@ -91,13 +90,8 @@ class Mode:
             raise ModelError(f"Mode functions must be a legsim.ModeFunctions, got {type(functions).__name__}")
         if isinstance(field, _FieldOf):  # a mode's own, passed back by dataclasses.replace: made anew
             field = None
-        if functions is not None and field is not None:
-            # Every path evaluates the functions: a field beside them would be a second model
-            # that simulate ignores while the tools reading Mode.field use it.
-            raise ModelError(
-                "Mode takes a field or functions, not both: the run evaluates the functions' field, so a "
-                "second field would be a second model (give it as ModeFunctions' field instead)"
-            )
+        if functions is not None and field is not None:  # runs evaluate the functions, tools Mode.field
+            raise ModelError("Mode takes a field or functions, not both: a field beside them is a second model")
         if field is None and functions is not None:
             field = _FieldOf(functions, dim)
         if not callable(field):
