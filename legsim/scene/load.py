@@ -73,7 +73,7 @@ from ..terrain import Terrain
 from .controller import scene_controller
 from .falls import fall_watches
 from .fields import check_keys, describe, field_error, table_at
-from .files import apply_overrides, checked_depth, read_toml, resolve_scene_path, scene_relative_files
+from .files import apply_overrides, bundled_dir, checked_depth, read_toml, resolve_scene_path, scene_relative_files
 from .integrator import validated_integrator
 from .terrain import parse_terrain, profile_file
 
@@ -194,9 +194,12 @@ class Scene:
 
     def output_paths(self, out_dir: str | os.PathLike[str] | None = None) -> dict[str, Path]:
         """kind -> file of each ``[output]`` of this scene, resolved against ``out_dir`` or else the
-        scene's own folder. SceneError naming the file and field when a symbolic link on the way
-        leads out of that folder (a downloaded scene may bring one)."""
-        base = Path(out_dir) if out_dir is not None else self.path.parent
+        scene's own folder (a bundled scene's: the current folder, never the installed package's).
+        SceneError naming the file and field when a symbolic link on the way leads out of that
+        folder (a downloaded scene may bring one)."""
+        folder = self.path.parent
+        bundled = os.path.realpath(folder) == os.path.realpath(bundled_dir())
+        base = Path(out_dir) if out_dir is not None else Path.cwd() if bundled else folder
         real_base = os.path.realpath(base)
         out: dict[str, Path] = {}
         for kind, relative in self.output.items():

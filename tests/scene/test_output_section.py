@@ -32,6 +32,16 @@ def test_outputs_resolve_against_the_scene_folder_or_out_dir(tmp_path, monkeypat
     assert scene.output_paths(tmp_path / "elsewhere")["rrd"] == tmp_path / "elsewhere" / "out/a.rrd"
 
 
+def test_a_bundled_scenes_outputs_land_in_the_current_folder_not_the_package(tmp_path, monkeypatch):
+    """`legsim run grazing --set output.plot=g.png` wrote g.png into the installed package's
+    scenarios folder (site-packages, for a pip install): a bundled scene's outputs resolve
+    against the current folder instead."""
+    monkeypatch.chdir(tmp_path)
+    scene = load_scene("bouncing_ball", ["output.plot=g.png"])
+    assert scene.output_paths() == {"plot": tmp_path / "g.png"}
+    assert scene.output_paths(tmp_path / "elsewhere") == {"plot": tmp_path / "elsewhere" / "g.png"}
+
+
 @pytest.mark.parametrize(
     "value, reason",
     [
