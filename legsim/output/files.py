@@ -126,15 +126,16 @@ def check_target(path: Path, what: str, *, suffixes: Iterable[str] = (), inputs:
 
 #: How the files of each suffix legsim writes begin (text kinds compared in lower case): an
 #: existing file of that suffix beginning otherwise is no earlier output, and is kept.
+_HTML, _JPEG = (b"<!doctype html", b"<html"), (b"\xff\xd8\xff",)
 SIGNATURES = {
     ".rrd": (b"rrf2",),
-    ".html": (b"<!doctype html", b"<html"),
-    ".htm": (b"<!doctype html", b"<html"),
+    ".html": _HTML,
+    ".htm": _HTML,
     ".png": (b"\x89png",),
     ".svg": (b"<?xml", b"<svg"),
     ".pdf": (b"%pdf",),
-    ".jpg": (b"\xff\xd8\xff",),
-    ".jpeg": (b"\xff\xd8\xff",),
+    ".jpg": _JPEG,
+    ".jpeg": _JPEG,
     ".npz": (b"pk",),
 }
 

@@ -245,7 +245,7 @@ class Runner:
         except Exception as exc:
             raise ModelError(
                 f"{tables.system.name}: evaluating mode '{self.mode_name()}' failed {self.where()}: "
-                f"{type(exc).__name__}: {exc}{self.raised_in(exc, compiled)}"
+                f"{type(exc).__name__}: {exc}{self.raised_in(exc)}"
             ) from exc
         finally:
             self.steps[0 if compiled else 1] += int(self.ws.iv[I_STEPS]) - before
@@ -259,7 +259,7 @@ class Runner:
             self._addresses = np.concatenate([self._addresses, more])
         return self._addresses
 
-    def raised_in(self, exc: BaseException, compiled: bool) -> str:
+    def raised_in(self, exc: BaseException) -> str:
         """Which of the run's model functions raised ``exc``, when its traceback shows it: the
         innermost frame running one of them (the Python loop over their Python source)."""
         codes = {}
@@ -284,12 +284,14 @@ class Runner:
     def pace(self, now: float) -> None:
         """Set how many steps the loop takes before it looks at the clock again: about
         ``LOOK_INTERVAL`` at the rate of the last stretch."""
+        if self.ends_early:  # hands back every STOP_CHECK_STEPS, whatever the clock (__init__)
+            return
         work = _work(self.ws)
         elapsed = now - self.last_look
         if elapsed > 0.0 and work > self.work_at_look:
             rate = (work - self.work_at_look) / elapsed
             steps = min(max(int(rate * LOOK_INTERVAL), PROGRESS_STEPS_FIRST), PROGRESS_STEPS_MOST)
-            self.ws.ci[S_PROGRESS_STEPS] = STOP_CHECK_STEPS if self.ends_early else steps
+            self.ws.ci[S_PROGRESS_STEPS] = steps
         self.last_look, self.work_at_look = now, work
 
     def fit(self) -> None:

@@ -67,6 +67,7 @@ from ..builders import (
 from ..control import ControlLaw, Controller
 from ..errors import LegsimError, ModelError, SceneError
 from ..execution import Execution
+from ..graph import reachable_modes
 from ..output.summary import run_summary
 from ..relaxed.resolution import state_scale, thinnest_strip
 from ..terrain import Terrain
@@ -471,8 +472,6 @@ def _check_output_path(path: Path, where: str, value: Any) -> None:
 
 
 def _known_modes(model: Model) -> list[str]:
-    from ..graph import reachable_modes
-
     try:
         return sorted(set(model.system.modes) | set(reachable_modes(model.system, model.initial_mode)))
     except LegsimError:
