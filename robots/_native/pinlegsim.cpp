@@ -27,6 +27,7 @@
 #include <pinocchio/multibody.hpp>
 
 #include <Eigen/Eigenvalues>
+#include <Eigen/QR>
 
 #include <algorithm>
 #include <array>
@@ -82,7 +83,7 @@ using Mat = Eigen::MatrixXd;
 using ConstMap = Eigen::Map<const Vec>;
 using OutMap = Eigen::Map<Vec>;
 
-constexpr int kVersion = 10;
+constexpr int kVersion = 11;
 
 // Joint type codes of the model description (see lsn_create).
 enum JointCode { RX = 0, RY = 1, RZ = 2, PX = 3, PY = 4, PZ = 5, COMPOSITE = 6 };
@@ -454,13 +455,48 @@ bool slipping(const std::vector<Rigid>& rigid) {
   return false;
 }
 
-// Whether the Delassus matrix of a mode with slipping contacts gives unique contact forces, by
-// the test of robots/bridge/dynamics.check_consistent (no diagonal entry <= 0, not singular):
-// where it fails (the Painleve paradox) the Python mode raises ModelBreakdown.
-bool consistent(const Mat& A) {
+// Whether every diagonal entry of a Delassus matrix with slipping rows is positive: where one is
+// not, pushing on a slipping point would drive it into the ground (the Painleve paradox).
+bool positive_diagonal(const Mat& A) {
+  return !(A.diagonal().array() <= 1e-12 * A.cwiseAbs().maxCoeff()).any();
+}
+
+bool regular(const Mat& A) {
   const double scale = A.cwiseAbs().maxCoeff();
-  if ((A.diagonal().array() <= 1e-12 * scale).any()) return false;
   return std::abs(A.determinant()) > 1e-12 * std::pow(scale, static_cast<double>(A.rows()));
+}
+
+// Solve A y = b for a singular Delassus matrix A = J M^-1 W^T with sliding rows (W = J - s mu t
+// on them; MWt = M^-1 W^T, (n, m)): rows that depend on one another, as two stuck corners of one
+// body beside a slipping contact do, or a slipping point whose normal row the other rows already
+// hold. Where A's null vectors are null vectors of MWt too (rank A = rank MWt), every solution
+// gives the same motion MWt y, and this takes the least-norm y (an equal share at a symmetric
+// support, as least_norm_solve gives without sliding rows). Returns false where no y solves the
+// rows (b outside A's range) or the motion is not unique: the Painleve paradox.
+bool sliding_solve(const Mat& A, const Vec& b, const Mat& MWt, Vec& y) {
+  Eigen::CompleteOrthogonalDecomposition<Mat> rows(A);
+  rows.setThreshold(kSingular);
+  Eigen::ColPivHouseholderQR<Mat> motion(MWt);
+  motion.setThreshold(kSingular);
+  if (rows.rank() != motion.rank()) return false;
+  y = rows.solve(b);
+  return y.allFinite() && (A * y - b).cwiseAbs().maxCoeff() <= kConsistent * (1.0 + b.cwiseAbs().maxCoeff());
+}
+
+// The constraint forces s.lambda of s.A lambda = s.rhs: the least-norm ones where dependent rows
+// make s.A singular (sliding_solve beside slipping rows); false where slipping rows have no unique
+// forces (the Painleve paradox), the mode then being past its model's range.
+bool constraint_forces(Scratch& s) {
+  if (!slipping(s.blocks)) {
+    solve_small(s.A, s.rhs, s.lu, s.lambda, true);
+    return true;
+  }
+  if (!positive_diagonal(s.A)) return false;
+  if (regular(s.A)) {
+    solve_small(s.A, s.rhs, s.lu, s.lambda);
+    return true;
+  }
+  return sliding_solve(s.A, s.rhs, s.MWt, s.lambda);
 }
 
 }  // namespace
@@ -704,13 +740,12 @@ void lsn_constrained(long h, const double* q, const double* v, const double* tau
   constraint_rows(rb, qm, vm, s.blocks, slopes, true, true, s.J, s.gamma, s.W);
   s.MWt.noalias() = rb.data.Minv.selfadjointView<Eigen::Upper>() * s.W.transpose();
   s.A.noalias() = s.J * s.MWt;
-  if (slipping(s.blocks) && !consistent(s.A)) {
+  s.rhs.noalias() = s.J * s.acc;
+  s.rhs = -(s.rhs + s.gamma);
+  if (!constraint_forces(s)) {
     OutMap(a, n).setConstant(std::numeric_limits<double>::quiet_NaN());
     OutMap(lam, s.A.rows()).setConstant(std::numeric_limits<double>::quiet_NaN());
   } else {
-    s.rhs.noalias() = s.J * s.acc;
-    s.rhs = -(s.rhs + s.gamma);
-    solve_small(s.A, s.rhs, s.lu, s.lambda, !slipping(s.blocks));
     s.acc.noalias() += s.MWt * s.lambda;
     OutMap(a, n) = s.acc;
     OutMap(lam, s.lambda.size()) = s.lambda;
@@ -762,12 +797,14 @@ void lsn_minverse(long h, const double* q, double* out) {
 }
 
 // Solve the small system A y = b (m rows, A row-major) of the bridge's frictional impacts into
-// out[0 .. m-1], and out[m] = 1 where it is solved, 0 where not: A or b not finite; A singular
-// (its LU's reciprocal condition below kSingular) without least_norm; with least_norm (A
-// symmetric positive semidefinite) b not in A's range (the least-norm residual beyond
-// kConsistent), where no solution meets the rows.
-void lsn_solve(long m, const double* A, const double* b, long least_norm, double* out) {
-  const Mat a = Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(A, m, m);
+// out[0 .. m-1], and out[m] = 1 where it is solved, 0 where not. A singular A (its LU's
+// reciprocal condition below kSingular) takes with least_norm (no sliding rows: A symmetric
+// positive semidefinite) the least-norm y; without, sliding_solve's, MWt (n, m) row-major being
+// M^-1 W^T. Not solved: A or b not finite, b outside A's range (the residual beyond kConsistent),
+// or a motion MWt y that is not unique (the Painleve case).
+void lsn_solve(long m, const double* A, const double* b, long least_norm, long n, const double* MWt, double* out) {
+  using RowMajor = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+  const Mat a = Eigen::Map<const RowMajor>(A, m, m);
   const Vec rhs = ConstMap(b, m);
   out[m] = 0.0;
   if (!a.allFinite() || !rhs.allFinite()) return;
@@ -776,7 +813,7 @@ void lsn_solve(long m, const double* A, const double* b, long least_norm, double
   if (lu.rcond() >= kSingular) {
     y = lu.solve(rhs);
   } else if (least_norm == 0) {
-    return;
+    if (!sliding_solve(a, rhs, Eigen::Map<const RowMajor>(MWt, n, m), y)) return;
   } else {
     least_norm_solve(a, rhs, y);
     if ((a * y - rhs).cwiseAbs().maxCoeff() > kConsistent * (1.0 + rhs.cwiseAbs().maxCoeff())) return;

@@ -67,7 +67,8 @@ def impulse_solve(engaged, mu, T, N, Minv, v, v_plus, lt, ln):
     """The impact of the engaged contacts with their current statuses (module docstring of
     ``impacts``): v+ into v_plus and each contact's (tangential, normal) impulse into lt, ln
     (the friction impulse of a sliding contact; 0 for a free one). ``engaged`` is (k, 4):
-    contact index, restitution, status, sigma. Returns False on a singular or overflowing solve."""
+    contact index, restitution, status, sigma. Returns False where the solve has no solution
+    (``solve_rows``) or overflows."""
     k, n = engaged.shape[0], v.shape[0]
     m = 0
     for i in range(k):
@@ -100,10 +101,9 @@ def impulse_solve(engaged, mu, T, N, Minv, v, v_plus, lt, ln):
     for a in range(m):
         for b in range(m):
             A[a, b] = dot(J[a], MWt[:, b], n)
-    # Singular rows of stuck and frictionless contacts (two stuck points of one body) take the
-    # least-norm impulses; with a sliding one, the matrix is not symmetric and its singularity
-    # is the Painleve case, which has no impact here.
-    if not solve_rows(A, rhs, m, np.all(engaged[:, 2] != SLIDE)):
+    # Dependent rows (two stuck points of one body) take the least-norm impulses; with a sliding
+    # row, only where the motion is unique: else it is the Painleve case, which has no impact here.
+    if not solve_rows(A, rhs, m, np.all(engaged[:, 2] != SLIDE), MWt):
         return False
     for j in range(n):
         v_plus[j] = v[j] + dot(MWt[j], rhs, m)

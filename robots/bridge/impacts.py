@@ -115,20 +115,23 @@ def kinetic(M, v, n):
 
 
 @model_function
-def solve_rows(A, b, m, least_norm):
+def solve_rows(A, b, m, least_norm, MWt):
     """Solve A y = b (A (m, m)) in place of b by the native library's small solve, the one its
-    constrained dynamics and impacts use (``lsn_solve``): LU where A is regular; where it is
-    singular (its reciprocal condition below 1e-12), with ``least_norm`` the least-norm y (A
-    symmetric positive semidefinite: two stuck points of one body, a statically indeterminate
-    support, whose impulses this makes an equal share at a symmetric support), else none.
-    Returns False (b unchanged) where there is no solution: A or b not finite, A singular
-    without ``least_norm``, or b outside A's range."""
+    constrained dynamics and impacts use (``lsn_solve``): LU where A is regular. Where rows
+    depend on one another (two stuck points of one body: a statically indeterminate support),
+    y is the least-norm solution (an equal share at a symmetric support): with ``least_norm``
+    (A symmetric, no sliding rows) always, else where the motion ``MWt`` y (MWt (n, m) = M^-1 W^T)
+    is the same for every solution. Returns False (b unchanged) where there is no solution: A or
+    b not finite, b outside A's range, or a motion that is not unique (the Painleve case)."""
     a = np.ascontiguousarray(A[:m, :m])
     rhs = np.ascontiguousarray(b[:m])
+    motion = np.ascontiguousarray(MWt[:, :m])
     out = np.empty(m + 1)
-    lsn_solve(np.int64(m), a.ctypes.data, rhs.ctypes.data, np.int64(1 if least_norm else 0), out.ctypes.data)
+    lsn_solve(np.int64(m), a.ctypes.data, rhs.ctypes.data, np.int64(1 if least_norm else 0),
+              np.int64(motion.shape[0]), motion.ctypes.data, out.ctypes.data)  # fmt: skip
     keep(a)
     keep(rhs)
+    keep(motion)
     if out[m] != 1.0:
         return False
     b[:m] = out[:m]

@@ -11,7 +11,7 @@ import pinocchio as pin
 import pytest
 from legsim.robots.bridge import ContactBridge, PointContact, add_point_frame, planar_floating_base
 from legsim.robots.bridge.friction import frictional_impact, mode_change
-from legsim.robots.bridge.impacts import SLIDE, STICK
+from legsim.robots.bridge.impacts import SLIDE, STICK, solve_rows
 from legsim.robots.bridge.layout import S_ACTIVE
 from scipy.optimize import brentq
 
@@ -281,3 +281,57 @@ def test_an_impact_at_a_state_far_outside_any_motion_has_no_outcome():
     assert not foot_impact(bridge, q, np.array([0.2, -1e200, 0.4]))[0]
     ok, _, v_plus, _, _ = foot_impact(bridge, q, np.array([0.2, -1.5, 0.4]))
     assert ok and np.all(np.isfinite(v_plus))
+
+
+# -- rows that depend on one another beside a sliding row --------------------------------------------
+def _delassus(J, W, M):
+    """A = J M^-1 W^T and M^-1 W^T for constraint rows J, force rows W and inertia M."""
+    MWt = np.linalg.solve(M, W.T)
+    return J @ MWt, MWt
+
+
+def test_two_stuck_corners_beside_a_sliding_row_take_the_least_norm_share_and_a_unique_motion():
+    # A body's two stuck corners at one height have the same tangential row (four rows on three
+    # dofs of the body), and a third contact slides (its force row W = N + s mu T differs from its
+    # constraint row). A is singular through the stuck rows alone: the motion is unique, and the
+    # forces are the least-norm ones, the corners sharing their tangential force equally.
+    rng = np.random.default_rng(7)
+    n = 4
+    B = rng.normal(size=(n, n))
+    M = B @ B.T + n * np.eye(n)
+    t, n0, n2, n_tip, t_tip = (rng.normal(size=n) for _ in range(5))
+    J = np.array([t, n0, t, n2, n_tip])
+    W = J.copy()
+    W[4] = n_tip + 0.3 * t_tip
+    A, MWt = _delassus(J, W, M)
+    b = J @ rng.normal(size=n)  # the rows' right side from a motion: in A's range
+    y = b.copy()
+    assert solve_rows(A, y, 5, False, MWt)
+    assert np.allclose(A @ y, b, atol=1e-12)
+    assert y[0] == pytest.approx(y[2], abs=1e-12)
+    assert np.allclose(y, np.linalg.pinv(A) @ b, atol=1e-10)
+    # the same motion as the regular system without the second corner's tangential row
+    keep = [0, 1, 3, 4]
+    reduced = np.linalg.solve(A[np.ix_(keep, keep)], b[keep])
+    assert np.allclose(MWt @ y, MWt[:, keep] @ reduced, atol=1e-12)
+
+
+def test_a_sliding_row_whose_forces_are_not_unique_in_their_motion_is_refused():
+    # Two independent rows, one sliding, with the friction coefficient at which A turns singular:
+    # the null vector of A moves the body (M^-1 W^T has full rank), so the motion is not unique,
+    # Painleve's case; and a lone sliding row with a zero diagonal.
+    rng = np.random.default_rng(3)
+    n = 3
+    M = np.diag([2.0, 1.0, 0.5])
+    N0, N1, T1 = (rng.normal(size=n) for _ in range(3))
+    J = np.array([N0, N1])
+
+    def det(mu):
+        return np.linalg.det(_delassus(J, np.array([N0, N1 + mu * T1]), M)[0])
+
+    mu = -det(0.0) / (det(1.0) - det(0.0))  # det is linear in mu: one column holds it
+    A, MWt = _delassus(J, np.array([N0, N1 + mu * T1]), M)
+    assert abs(np.linalg.det(A)) < 1e-12 * np.abs(A).max() ** 2
+    y = J @ rng.normal(size=n)
+    assert not solve_rows(A, y, 2, False, MWt)
+    assert not solve_rows(np.zeros((1, 1)), np.array([0.0]), 1, False, np.ones((n, 1)))
