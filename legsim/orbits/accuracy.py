@@ -80,7 +80,10 @@ class MapAccuracy:
     def describe(self) -> str:
         """The noise in words: its size, the probe step and the equation it is largest in."""
         where = f" (largest in the row of {self.noisiest})" if self.noisiest else ""
-        text = f"perturbations of {self.probe} change the orbit equations by up to {self.noise:.3g}{where}"
+        if math.isnan(self.noise):  # no probe returned: the notes say why
+            text = f"perturbations of {self.probe} measured no noise"
+        else:
+            text = f"perturbations of {self.probe} change the orbit equations by up to {self.noise:.3g}{where}"
         return text + (f"; {self.note}" if self.note else "")
 
     def warnings(self, tol: float) -> list[str]:

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import functools
 import gc
+import math
 from collections.abc import Callable
 from typing import Any, TypeVar
 
@@ -521,8 +522,11 @@ class Assembly:
         if reason == END_STALLED:
             return Status.STALLED, self._stalled(ws, name, t, x)
         if reason == END_HALVING_EXHAUSTED:
-            count = int(ws.iv[I_END_COUNT]) - 1
-            return Status.HALVING_EXHAUSTED, messages.halving_exhausted(name, t, x, count, transition, self.options.eps)
+            known = 0 <= index < ws.g_here.shape[0]
+            guards = (float(ws.g_here[index]), float(ws.g1[index])) if known else (math.nan, math.nan)
+            return Status.HALVING_EXHAUSTED, messages.halving_exhausted(
+                name, t, x, int(ws.iv[I_END_COUNT]), float(ws.fs[F_H_TRIED]), transition, self.options.eps, guards
+            )
         # A non-finite input is to blame before whatever a nan of the model would mean.
         unfed = self._input_not_finite(ws, name, t) if reason in INPUT_ENDINGS else None
         if unfed is not None:

@@ -3,6 +3,7 @@ alike: each names the mode, the time and the state."""
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
 import numpy as np
@@ -21,11 +22,26 @@ def _resolution_hint(eps: float, x: np.ndarray) -> str:
     return ""
 
 
-def halving_exhausted(mode: str, t: float, x: np.ndarray, halvings: int, transition: str, eps: float) -> str:
+def halving_exhausted(mode: str, t: float, x: np.ndarray, shortened: int, h: float, transition: str, eps: float,
+                      guards: tuple[float, float] = (math.nan, math.nan)) -> str:  # fmt: skip
     """No shortened step landed in the relaxed domain: the flow crosses the guard of
-    ``transition`` without entering its strip (or eps is below float64's resolution)."""
-    return (
-        f"no step from t={t:.17g} in mode '{mode}' lands in the relaxed domain after {halvings} halvings: "
+    ``transition`` without entering its strip (or eps is below float64's resolution).
+    ``shortened`` trial steps were shortened, the last to h (s); ``guards``: the guard at the
+    step's start and at the last trial's end, which show a guard that jumps."""
+    head = (
+        f"no step from t={t:.17g} in mode '{mode}' lands in the relaxed domain (shortened "
+        f"{'once' if shortened == 1 else f'{shortened} times'}, down to a trial step of {h:.3g} s): "
+    )
+    start, end = guards
+    rounding = h <= 16.0 * float(np.spacing(max(abs(t), 1.0)))
+    if start >= -eps and end < -eps and rounding:  # past the strip within a rounding of t: a jump
+        return head + (
+            f"the guard of transition {transition} goes from {start:.3g} to {end:.3g} within a rounding of t. "
+            f"It jumps there, as a guard discontinuous in the state does (a spring leg's touchdown guard "
+            f"where its foot is below the ground while the body rises, the foot placed there by its controller, "
+            f"say): the state is past the model's range (x={x.tolist()})"
+        )
+    return head + (
         f"the flow leaves through the guard of transition {transition} without entering its strip "
         f"(x={x.tolist()})" + _resolution_hint(eps, x)
     )

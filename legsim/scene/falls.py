@@ -5,7 +5,8 @@ time and the mode::
     [fall]
     pitch_max = 1.0          # rad: |pitch| reaching it is a fall
     pitch = "pitch"          # the pitch coordinate (default "pitch")
-    height_min = 0.2         # m: the height coordinate reaching it from above is a fall
+    height_min = 0.2         # m: the height coordinate reaching it from above is a fall (on a
+                             # [terrain], the height above the ground under the coordinate x)
     height = "z"             # the height coordinate (default "z")
     contacts = ["trunk"]     # contacts whose touchdown is a fall (a point contact on the link)
 
@@ -24,12 +25,13 @@ import numpy as np
 
 from ..errors import SimulationError
 from ..relaxed.watches import Watch
+from ..terrain import Terrain
 from .fields import check_keys, describe, field_error
 
 FALL_KEYS = {
     "pitch_max": "the bound on |pitch| (rad, > 0)",
     "pitch": "the pitch coordinate's name (default 'pitch')",
-    "height_min": "the bound below which the height coordinate is a fall (m)",
+    "height_min": "the bound below which the height coordinate (above the terrain under x) is a fall (m)",
     "height": "the height coordinate's name (default 'z')",
     "contacts": "contacts whose touchdown is a fall (names the robot declares)",
 }
@@ -38,8 +40,12 @@ FALL_KEYS = {
 CONTACT_NAMES, ACTIVE_CONTACTS = "contact_names", "active_contacts"
 
 
-def fall_watches(path: Path, table: Mapping[str, Any], model: Any, mode: str) -> tuple[Watch, ...]:
-    """The stop watches of a ``[fall]`` table, checked against the model and its initial mode."""
+def fall_watches(
+    path: Path, table: Mapping[str, Any], model: Any, mode: str, terrain: Terrain | None = None
+) -> tuple[Watch, ...]:
+    """The stop watches of a ``[fall]`` table, checked against the model and its initial mode;
+    on a ``terrain`` other than level ground at 0, the height is taken above the ground under
+    the coordinate ``x``."""
     check_keys(path, table, FALL_KEYS, "fall")
     system = model.system
     names = tuple(system.state_names(mode))
@@ -53,7 +59,11 @@ def fall_watches(path: Path, table: Mapping[str, Any], model: Any, mode: str) ->
     if "height_min" in table:
         bound = _number(path, "fall.height_min", table["height_min"])
         index = _coordinate(path, "fall.height", table.get("height", "z"), names, mode)
-        out.append(_height(system, names[index], bound))
+        ground = None
+        if terrain is not None and not (terrain.flat and float(terrain.height(0.0)) == 0.0):
+            _coordinate(path, "fall.height_min", "x", names, mode)  # the ground is under x
+            ground = terrain
+        out.append(_height(system, names[index], bound, ground))
     elif "height" in table:
         raise field_error(path, "fall.height", "given without fall.height_min, the bound it names the coordinate of")
     if "contacts" in table:
@@ -107,16 +117,25 @@ def _pitch(system: Any, coordinate: str, bound: float) -> Watch:
     return Watch("pitch_max", value, "stop", message)
 
 
-def _height(system: Any, coordinate: str, bound: float) -> Watch:
+def _height(system: Any, coordinate: str, bound: float, ground: Terrain | None) -> Watch:
+    """The watch of ``coordinate`` coming down to ``bound``: its value, or on ``ground`` its
+    height above the terrain under the coordinate x."""
     index = _index_in(system, coordinate)
+    along = _index_in(system, "x")
+    above = "" if ground is None else " above the ground"
+
+    def height(mode: str, x: np.ndarray) -> np.ndarray:
+        if ground is None:
+            return x[..., index(mode)]
+        return x[..., index(mode)] - ground.height(x[..., along(mode)])
 
     def value(mode: str, t: np.ndarray, x: np.ndarray) -> np.ndarray:
-        return x[:, index(mode)] - bound
+        return height(mode, x) - bound
 
     def message(t: float, mode: str, x: np.ndarray) -> str:
         return (
-            f"fell: height_min: {coordinate} = {x[index(mode)]:.6g} m reached height_min = {bound:g} m "
-            f"at t={t:.17g} in mode '{mode}'"
+            f"fell: height_min: {coordinate}{above} = {float(height(mode, x)):.6g} m reached height_min = "
+            f"{bound:g} m at t={t:.17g} in mode '{mode}'"
         )
 
     return Watch("height_min", value, "stop", message)

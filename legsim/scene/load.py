@@ -356,7 +356,7 @@ def _validate(path: Path, data: dict[str, Any], overrides: list[str]) -> Scene:
     initial_mode, initial_state = _initial(
         path, model, table_at(path, data, "initial"), integrator["eps"], integrator["t0"], controller
     )
-    falls = fall_watches(path, table_at(path, data, "fall"), model, initial_mode)
+    falls = fall_watches(path, table_at(path, data, "fall"), model, initial_mode, terrain)
     make_controller = None if controller is None else functools.partial(scene_controller, path, controller_table, model)
     return Scene(
         path=path,

@@ -291,10 +291,19 @@ def _real_parameter(scene: Any, name: str, label: str) -> tuple[Param, float]:
         return field_error(scene.path, label, message)
 
     builder = scene.builder
+    if name.startswith("controller."):
+        raise fail(
+            f"'{name}' is a controller's parameter; only the robot's parameters (NAME) and its effects' "
+            f"(EFFECT.PARAM) can be solved for or continued. To follow an orbit along a controller's "
+            f"parameter, sweep it: legsim sweep SCENE --orbit --grid {name}=A:B:N"
+        )
     if "." in name:
         effect, param = name.split(".", 1)
         if effect not in builder.effects:
-            raise fail(f"unknown effect '{effect}' in '{name}'; effects: {sorted(builder.effects)}")
+            raise fail(
+                f"unknown effect '{effect}' in '{name}': a parameter is the robot's (NAME: "
+                f"{sorted(builder.parameters)}) or an effect's (EFFECT.PARAM; effects: {sorted(builder.effects)})"
+            )
         if effect not in scene.effects:
             raise fail(f"effect '{effect}' is switched off in this scene")
         schema = builder.effects[effect].parameters

@@ -196,16 +196,19 @@ def check_sweep(spec: SweepSpec) -> tuple[dict[str, float] | None, list[Path]]:
 
 
 def _checked_base(spec: SweepSpec) -> Any:
-    """The scene with the sweep's overrides, its axes' ends and measures checked."""
+    """The scene of the sweep's first variation (its overrides, then every axis at its first
+    value: an override may need an axis's value to be complete, as ``terrain.kind=slope`` needs
+    a ``terrain.angle`` axis), every axis's values and the measures checked."""
     from ..scene import load_scene
     from ..scene.orbit import problem_from_scene
 
-    base = load_scene(spec.scene, list(spec.overrides))
     measures = check_measures(spec.measures)
-    check_windows(measures, base.integrator["t0"], base.integrator["t_final"], base.path)
+    base = None
     for values in corners(spec):
         corner = load_scene(spec.scene, list(spec.overrides) + variation_overrides(values))
         check_windows(measures, corner.integrator["t0"], corner.integrator["t_final"], corner.path)
+        base = corner if base is None else base
+    assert base is not None, "corners yields the first variation first"
     if spec.run == "walk" or spec.orbit:
         problem_from_scene(base)  # the [orbit] section is there and valid
     if measures:

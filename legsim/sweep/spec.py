@@ -406,12 +406,31 @@ def _ends(axis: Axis) -> tuple[Any, Any]:
     return axis.low, float(np.nextafter(axis.high, axis.low))
 
 
+def _checked_values(axis: Axis) -> tuple[Any, ...]:
+    """The values of an axis whose loading checks the whole axis: its ends (``_ends``) where
+    its values are numbers in order, a random axis's always (the values between the ends are in
+    a field's range where the ends are), else each of its values."""
+    if axis.low is not None and axis.high is not None:
+        return _ends(axis)
+    values = list(axis.values)
+    numbers = all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in values)
+    if numbers and values in (sorted(values), sorted(values, reverse=True)):
+        return _ends(axis)
+    distinct: list[Any] = []
+    for v in values:
+        if v not in distinct:
+            distinct.append(v)
+    return tuple(distinct)
+
+
 def corners(spec: SweepSpec) -> Iterator[dict[str, Any]]:
-    """Variations at the axes' ends (grid: first and last value; random: LO and a value just
-    under HI), the other axes at their first end: loading them checks every axis's range
-    before the sweep starts."""
-    ends = [_ends(a) for a in spec.grid + spec.random]
-    first = [e[0] for e in ends]
+    """Variations at the axes' ends (grid: first and last value, or every value of an axis of
+    values not in order; random: LO and a value just under HI), the other axes at their first
+    value: loading them checks every axis's range before the sweep starts. The first one has
+    every axis at its first value."""
+    checked = [_checked_values(a) for a in spec.grid + spec.random]
+    first = [values[0] for values in checked]
     yield dict(zip(spec.keys, first, strict=True))
-    for k, (_, last) in enumerate(ends):
-        yield dict(zip(spec.keys, [*first[:k], last, *first[k + 1 :]], strict=True))
+    for k, values in enumerate(checked):
+        for value in values[1:]:
+            yield dict(zip(spec.keys, [*first[:k], value, *first[k + 1 :]], strict=True))

@@ -218,12 +218,15 @@ def orbit_columns(scene: Any, deadline: Deadline, execution: Any = None) -> dict
     deadline.check()  # a search cut short by the deadline reports a failed simulation: say why
     data = result.to_json()
     multipliers = data["multipliers"] or []
+    # Where no orbit was found, the search's last iterate is no gait: its point, period and step
+    # length are left out (null), as its multipliers are; its residual says how far it was.
+    found = result.converged
     return {
         "orbit_status": data["status"],
         "orbit_message": data["message"],
-        "orbit_fixed_point": data["fixed_point"],
-        "orbit_period": data["period"],
-        "orbit_step_length": data["step_length"],
+        "orbit_fixed_point": data["fixed_point"] if found else None,
+        "orbit_period": data["period"] if found else None,
+        "orbit_step_length": data["step_length"] if found else None,
         "orbit_multipliers_re": [m[0] for m in multipliers] if data["multipliers"] is not None else None,
         "orbit_multipliers_im": [m[1] for m in multipliers] if data["multipliers"] is not None else None,
         "orbit_spectral_radius": data["spectral_radius"],

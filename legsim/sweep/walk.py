@@ -380,9 +380,10 @@ class _ReturnWalker(_Walker):
         kind = "stops" if exc.status == "no_return" else RUN_OUTCOMES.get(ex.status, "failed")
         # The plant's state: a ControlLaw's memory follows it in the run's.
         state = ex.final_state[: len(self.system.state_names(ex.final_mode))]
-        status = "finished" if kind == "stops" else str(ex.status)
         message = str(exc) if exc.status == "no_return" else ex.message
-        return self.finish(kind, status, message, ex.final_mode, state, t + ex.t_end - ex.t0)
+        if ex.t0 != t:  # a return runs on a clock of its own, restarted at each return
+            message += f" (times counted from this return's start, at t={t:.17g} s of the walk)"
+        return self.finish(kind, str(ex.status), message, ex.final_mode, state, t + ex.t_end - ex.t0)
 
 
 def walk(

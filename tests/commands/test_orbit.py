@@ -203,6 +203,14 @@ def test_no_orbit_exits_3_with_the_reason(capsys):
         (["orbit", "rimless_wheel", "--continue", "mass", "1", "2"], "robot 'rimless_wheel' has no parameter 'mass'"),
         (["orbit", "rimless_wheel", "--continue", "slope", "a", "2"], "--continue FROM: expected a number, got 'a'"),
         (
+            ["orbit", "slip_raibert", "--continue", "controller.parameters.speed", "1", "2"],
+            "'controller.parameters.speed' is a controller's parameter; only the robot's parameters",
+        ),
+        (
+            ["orbit", "rimless_wheel", "--continue", "robot.slope", "3", "4"],
+            "unknown effect 'robot' in 'robot.slope': a parameter is the robot's (NAME: ",
+        ),
+        (
             ["orbit", "rimless_wheel", "--set", 'orbit.section={ after = "landing" }'],
             "no transition of that name in rimless_wheel; transitions: ['back_impact', 'impact']",
         ),

@@ -126,3 +126,16 @@ def test_the_quadruped_pronk_is_found_where_its_map_is_not_differentiable():
     verdict = result.piecewise
     assert verdict.kind == "stable" and result.stable is True, verdict.reason
     assert len(verdict.details["samples"]) == 8 and verdict.details["factor"] < 1.0
+
+
+def test_a_map_whose_probes_all_fail_says_so_without_a_made_up_noise():
+    from legsim.orbits.accuracy import estimate_accuracy
+    from legsim.orbits.errors import OrbitError
+
+    def no_return(z):
+        raise OrbitError("no return next to the point", status="no_return")
+
+    accuracy = estimate_accuracy(np.zeros(2), np.zeros(2), no_return, None, "h = 1e-3 s")
+    text = accuracy.describe()
+    assert "nan" not in text and "measured no noise" in text and "the noise is not known" in text
+    assert math.isinf(accuracy.resolved) and accuracy.to_json()["noise"] is None

@@ -175,3 +175,28 @@ def test_the_bundled_quadruped_standing_does_not_fall():
     ex = load_scene("quadruped_stand", ["fall.pitch_max=0.3", "fall.height_min=0.3"]).simulate()
     assert ex.status == "finished" and ex.t_end == 2.0
     assert not [w for w in ex.warnings if w.kind == "below_ground"]
+
+
+def test_on_a_terrain_the_height_bound_is_above_the_ground_under_x(tmp_path):
+    # On a slope rising at grade 0.2 the monoped tips towards +x, up the slope: its height above
+    # the ground (z - 0.2 x) reaches 0.3 m before its z does.
+    grade = 0.2
+    terrain = f'[terrain]\nkind = "slope"\ngrade = {grade}\n'
+    free = load_scene(monoped(tmp_path, terrain)).simulate()
+    ex = load_scene(monoped(tmp_path, terrain + "[fall]\nheight_min = 0.3\n")).simulate()
+    assert ex.status == "fell" and "z above the ground" in ex.message
+    expected = first_crossing(free, lambda x: x[1] - grade * x[0] - 0.3)
+    assert expected < first_crossing(free, lambda x: x[1] - 0.3)
+    assert ex.t_end == pytest.approx(expected, abs=1e-9)
+    x = ex.final_state
+    assert x[1] - grade * x[0] == pytest.approx(0.3, abs=1e-9)
+
+
+def test_a_bundled_runner_that_collapses_level_falls_at_its_height_bound():
+    # Legs too soft to carry the bound: the body comes down level onto folded legs, its pitch
+    # never near the 1 rad bound; this ran to t_final and `finished`.
+    ex = load_scene("quadruped_bound_one_flight", ["controller.parameters.stiffness=100", "integrator.t_final=2"])
+    ex = ex.simulate()
+    assert ex.status == "fell" and "height_min" in ex.message
+    assert ex.final_state[1] == pytest.approx(0.25, abs=1e-9)
+    assert abs(ex.final_state[2]) < 0.5

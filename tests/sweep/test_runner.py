@@ -20,6 +20,7 @@ import pytest
 
 import legsim
 from legsim.cli import main
+from legsim.scene import load_scene
 from legsim.scene.files import bundled_dir
 from legsim.sweep import runner
 from legsim.sweep.spec import SweepError
@@ -79,22 +80,25 @@ def test_a_failing_or_timed_out_variation_is_a_row_with_its_error_and_the_sweep_
     # Without its floor the ball falls freely: a long run is all flow, where the deadline is
     # checked a few times a second. 9000 s of dop853 at h = 1e-3 are 9e6 steps of 12 stages,
     # about 2 s of the compiled loop here: four times the timeout (rk4's 5000 s took 0.49 s, and
-    # a run that ends just inside the timeout is a row "done", not "timeout").
+    # a run that ends just inside the timeout is a row "done", not "timeout"). Each axis's
+    # values are valid (checked before anything runs); one pair is not, t_final below t0, and
+    # only its variation fails.
     result = legsim.sweep(
         "bouncing_ball",
-        grid={"integrator.t_final": [0.1, 9000.0, -1.0, 0.2]},
+        grid={"integrator.t0": [0.0, 0.15], "integrator.t_final": [9000.0, 0.1]},
         overrides=["effects.floor=false", "integrator.method=dop853"],
         timeout=0.5,
         in_process=True,
     )
     rows = result.table.to_pylist()
-    assert [r["task_status"] for r in rows] == ["done", "timeout", "error", "done"]
-    assert "took longer than --timeout 0.5 s" in rows[1]["error"]
-    assert 0.5 <= rows[1]["wall_time_s"] < 5.0
-    assert "integrator.t_final" in rows[2]["error"] and "out of range" in rows[2]["error"]
-    assert rows[2]["status"] is None and rows[3]["status"] == "finished"
-    assert rows[3]["final_state"][1] == pytest.approx(-G * 0.2, abs=1e-12)
-    assert result.counts("task_status") == {"done": 2, "timeout": 1, "error": 1}
+    assert [r["task_status"] for r in rows] == ["timeout", "done", "timeout", "error"]
+    for timed_out in (rows[0], rows[2]):
+        assert "took longer than --timeout 0.5 s" in timed_out["error"]
+        assert 0.5 <= timed_out["wall_time_s"] < 5.0
+    assert "integrator.t_final: 0.1 must be > integrator.t0 = 0.15" in rows[3]["error"]
+    assert rows[3]["status"] is None and rows[1]["status"] == "finished"
+    assert rows[1]["final_state"][1] == pytest.approx(-G * 0.1, abs=1e-12)
+    assert result.counts("task_status") == {"done": 1, "timeout": 2, "error": 1}
 
 
 def test_an_axis_out_of_range_is_refused_before_anything_runs(tmp_path):
@@ -103,6 +107,31 @@ def test_an_axis_out_of_range_is_refused_before_anything_runs(tmp_path):
             "compass_gait", grid={"robot.parameters.slope": (3.0, 40.0, 3)}, out=tmp_path / "s", in_process=True
         )
     assert not (tmp_path / "s").exists()
+
+
+def test_every_value_of_an_axis_given_out_of_order_is_checked_before_anything_runs(tmp_path):
+    # The ends of an axis in order bound its values; a list out of order is checked value by
+    # value (its middle value here was a failed row, the other cells run).
+    with pytest.raises(legsim.SceneError, match=r"robot.parameters.slope"):
+        legsim.sweep(
+            "compass_gait", grid={"robot.parameters.slope": [3.0, 40.0, 2.0]}, out=tmp_path / "s", in_process=True
+        )
+    assert not (tmp_path / "s").exists()
+
+
+def test_an_override_completed_by_an_axis_is_a_sweep_of_valid_scenes(tmp_path):
+    # terrain.kind=slope needs its angle, which the grid gives each variation: the scene with
+    # the override alone is incomplete, and no variation is.
+    overrides = ["terrain.kind='slope'", "integrator.t_final=0.2"]
+    table = legsim.sweep(
+        "quadruped_stand", grid={"terrain.angle": [2.0, 4.0]}, overrides=overrides, out=tmp_path / "s",
+        in_process=True,
+    ).table  # fmt: skip
+    rows = table.to_pylist()
+    assert [r["task_status"] for r in rows] == ["done", "done"]
+    for row in rows:
+        alone = load_scene("quadruped_stand", [*overrides, f"terrain.angle={row['terrain.angle']}"]).simulate()
+        assert row["status"] == alone.status and row["final_state"] == pytest.approx(alone.final_state, abs=1e-12)
 
 
 def test_a_local_dask_cluster_gives_the_table_of_this_process(tmp_path):
@@ -247,9 +276,9 @@ def test_the_command_line_reports_rows_without_result_and_refuses_bad_input(tmp_
             "sweep",
             "bouncing_ball",
             "--grid",
-            "integrator.h=1e-3,-1,2e-3",
-            "--set",
-            "integrator.t_final=0.1",
+            "integrator.t0=0,0.15",
+            "--grid",
+            "integrator.t_final=0.2,0.1",
             "--out",
             str(out),
             "--in-process",
@@ -258,9 +287,10 @@ def test_the_command_line_reports_rows_without_result_and_refuses_bad_input(tmp_
     )
     captured = capsys.readouterr()
     summary = json.loads(captured.out)
-    assert code == 3 and summary["task_status"] == {"done": 2, "error": 1}
-    assert summary["variations"] == 3 and summary["results"] == str(out / "results.parquet")
-    assert "row 1: " in captured.err and "integrator.h" in captured.err
+    # each axis's values are valid; the pair t0 = 0.15, t_final = 0.1 is not: its row has no result
+    assert code == 3 and summary["task_status"] == {"done": 3, "error": 1}
+    assert summary["variations"] == 4 and summary["results"] == str(out / "results.parquet")
+    assert "row 3: " in captured.err and "integrator.t_final" in captured.err
     # The folder holds that sweep: neither a new sweep nor another one's --resume may touch it.
     assert main(["sweep", "bouncing_ball", "--grid", "integrator.h=1e-3,2e-3", "--out", str(out), "--in-process"]) == 2
     assert "already holds a sweep" in capsys.readouterr().err
@@ -282,6 +312,7 @@ def test_the_command_line_reports_rows_without_result_and_refuses_bad_input(tmp_
     assert "holds another sweep" in capsys.readouterr().err
     for argv, message in (
         (["--grid", "integrator.h"], "expected KEY=LO:HI:N"),
+        (["--grid", "integrator.h=1e-3,-1,2e-3"], "integrator.h: -1.0 is out of range"),
         (["--samples", "3"], "--samples needs a --random"),
         (["--random", "initial.state.z=0.5:2", "--samples", "0"], "--samples must be an integer >= 1, got 0"),
         (["--walk", "--no-run"], "exclude each other"),

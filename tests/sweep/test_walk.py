@@ -264,3 +264,41 @@ def test_a_sweeps_walk_takes_the_scenes_watches_at_the_walks_strip_width(monkeyp
     passed = next(w for w in seen["watches"] if w.name == "passed_through")
     assert "eps = 1e-11 +" in passed.message(0.0, "flight", scene.initial_state)
     assert seen["eps"] == 1e-11
+
+
+def test_an_orbit_row_without_an_orbit_carries_no_fixed_point_period_or_step_length():
+    # One Newton step at a tolerance below rounding: the search stops unconverged, and its last
+    # iterate is no gait (the columns are null, its residual says how far it was).
+    from legsim.sweep import tasks
+
+    scene = load_scene("compass_gait", ["orbit.max_iterations=1", "orbit.tol=1e-15"])
+    row = tasks.orbit_columns(scene, tasks.Deadline(None))
+    assert row["orbit_status"] != "converged"
+    assert row["orbit_fixed_point"] is None and row["orbit_period"] is None and row["orbit_step_length"] is None
+    assert row["orbit_spectral_radius"] is None and row["orbit_residual"] > 1e-15
+    found = tasks.orbit_columns(load_scene("compass_gait"), tasks.Deadline(None))
+    assert found["orbit_status"] == "converged" and found["orbit_period"] > 0 and len(found["orbit_fixed_point"]) > 0
+
+
+def test_a_controlled_walks_row_says_how_its_last_return_ended_and_on_which_clock():
+    # Each return of a controlled walk runs on a clock restarted at the return: a message's
+    # times are that clock's, and the row says where it started, so that start + the message's
+    # time is the walk's end. A return that spent its transition budget is max_transitions (it
+    # was `finished`, its message saying otherwise).
+    import re
+
+    from legsim.sweep import tasks
+    from legsim.sweep.spec import SweepSpec
+
+    spec = SweepSpec(scene="slip_raibert", overrides=("fall.height_min=0.5",), run="walk")
+    rows = {}
+    for xd, z in ((0.25, 1.05), (3.0, 2.05)):
+        values = {"initial.state.xd": xd, "initial.state.z": z}
+        scene = load_scene("slip_raibert", ["fall.height_min=0.5", f"initial.state.xd={xd}", f"initial.state.z={z}"])
+        rows[xd] = tasks.walk_row(scene, spec, values, tasks.Deadline(None))
+    assert rows[0.25]["outcome"] == "stops" and rows[0.25]["status"] == "max_transitions"
+    assert "transition budget" in rows[0.25]["message"]
+    fell = rows[3.0]
+    assert fell["outcome"] == "falls" and fell["status"] == "fell"
+    at, start = (float(v) for v in re.findall(r"at t=([0-9.e+-]+)", fell["message"])[:2])
+    assert start + at == pytest.approx(fell["t_end"], abs=1e-9)
