@@ -58,10 +58,13 @@ lsn_gravity = NativeFunction("lsn_gravity", types.void(_h, _p, _p))
 lsn_frame_motion = NativeFunction("lsn_frame_motion", types.void(_h, _p, _p, _p, types.int64, _p))
 #: lsn_minverse(h, q, out): the inverse inertia matrix M^-1 (nv, nv), row-major.
 lsn_minverse = NativeFunction("lsn_minverse", types.void(_h, _p, _p))
-#: lsn_solve(m, A, b, least_norm, n, MWt, out): A y = b (A (m, m) row-major) into out[:m],
-#: out[m] = 1.0 where solved, 0.0 where not; a singular A takes the least-norm y where that is
-#: unique in its motion (least_norm: A symmetric; else MWt (n, m) = M^-1 W^T, row-major).
-lsn_solve = NativeFunction("lsn_solve", types.void(types.int64, _p, _p, types.int64, types.int64, _p, _p))
+#: lsn_solve(m, A, b, least_norm, n, MWt, count, cones, out): A y = b (A (m, m) row-major) into
+#: out[:m], out[m] = 1.0 where solved, 0.0 where not; a singular A takes the least-norm y where
+#: that is unique in its motion (least_norm: A symmetric; else MWt (n, m) = M^-1 W^T, row-major),
+#: shared by the capacities of the count cones (tangent row or -1, normal row, mu).
+lsn_solve = NativeFunction(
+    "lsn_solve", types.void(types.int64, _p, _p, types.int64, types.int64, _p, types.int64, _p, _p)
+)
 #: lsn_round_moving(h, frame): make a round frame moving: its offset is set per configuration.
 lsn_round_moving = NativeFunction("lsn_round_moving", types.void(_h, types.int64))
 #: lsn_round_place(h, q, frame, dx, dz): a moving round frame's offset -r n (m) at q.

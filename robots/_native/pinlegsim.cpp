@@ -28,6 +28,7 @@
 
 #include <Eigen/Eigenvalues>
 #include <Eigen/QR>
+#include <Eigen/SVD>
 
 #include <algorithm>
 #include <array>
@@ -410,24 +411,81 @@ constexpr double kSingular = 1e-12;
 // The largest residual (relative to 1 + max |b|) of a least-norm solve whose b is in A's range.
 constexpr double kConsistent = 1e-8;
 
+// A contact's forces over the rows of a solve, y(tangent) and y(normal), are inside its cone
+// where y(normal) >= 0 and |y(tangent)| <= mu y(normal); with tangent < 0 (a single normal row)
+// or mu < 0 (no friction bound), where y(normal) >= 0.
+struct Cone {
+  long tangent, normal;
+  double mu;
+};
+using Cones = std::vector<Cone>;
+
+// The cone of each constraint block: a stuck point's own friction coefficient is its sign.
+Cones cones_of(const std::vector<Rigid>& rigid) {
+  Cones cones;
+  long row = 0;
+  for (const Rigid& r : rigid) {
+    if (r.kind == POINT && r.rows == 2)
+      cones.push_back({row, row + 1, r.sign});
+    else
+      cones.push_back({-1, row + r.rows - 1, -1.0});
+    row += r.rows;
+  }
+  return cones;
+}
+
+// Among the solutions y + Z c of rows that depend on one another (Z: orthonormal null vectors of
+// A, (m, d); y the least-norm one), the one that loads each stuck contact's friction in
+// proportion to its capacity mu y(normal): the least sum of y(tangent)^2 / (mu y(normal)) over the
+// friction cones, the other rows weighted 1 / (1 + max |y|). Where the normal forces do not depend
+// on c, as at two stuck corners of one body, every stuck contact then uses the same share of its
+// cone: the support holds wherever some share of it is inside the cones (Coulomb's law has a
+// statically indeterminate body stick then), and its contacts' slip guards reach 0 together,
+// where the body as a whole slips. The least-norm share alone leaves the cone of the less loaded
+// contact first: a block on a slope below its friction angle would slip. A second pass weighs by
+// the normals the first moved. y is kept where the weighted rows leave the choice open.
+void share_by_capacity(const Mat& Z, const Cones& cones, Vec& y) {
+  bool friction = false;
+  for (const Cone& k : cones) friction = friction || (k.tangent >= 0 && k.mu > 0.0);
+  if (Z.cols() == 0 || !friction) return;
+  const double scale = 1.0 + y.cwiseAbs().maxCoeff();
+  for (int pass = 0; pass < 2; ++pass) {
+    Vec weight = Vec::Constant(y.size(), 1.0 / scale);
+    for (const Cone& k : cones)
+      if (k.tangent >= 0 && k.mu > 0.0) weight(k.tangent) = 1.0 / (k.mu * std::max(y(k.normal), kSingular * scale));
+    const Mat ZtW = Z.transpose() * weight.asDiagonal();
+    const Eigen::LDLT<Mat> normal(ZtW * Z);
+    if (normal.info() != Eigen::Success || !(normal.rcond() >= kSingular)) return;
+    y += Z * normal.solve(-(ZtW * y));
+  }
+}
+
 // The least-norm solution of A y = b for a symmetric positive semidefinite A: the sum over the
 // eigenvalues above kSingular of the largest of (v . b / lambda) v. Where A is singular, as for
 // two stuck points of one rigid body (four rows on its three degrees of freedom: a statically
 // indeterminate support), the forces or impulses are not unique, and this picks the smallest
-// (an equal share at a symmetric support).
-void least_norm_solve(const Mat& A, const Vec& b, Vec& y) {
+// (an equal share at a symmetric support), then shared by the contacts' capacities (share_by_capacity).
+void least_norm_solve(const Mat& A, const Vec& b, Vec& y, const Cones& cones) {
   Eigen::SelfAdjointEigenSolver<Mat> eigen(A);
   const Vec& values = eigen.eigenvalues();
   const double cut = kSingular * values.cwiseAbs().maxCoeff();
   y.setZero(A.rows());
-  for (long i = 0; i < values.size(); ++i)
-    if (values(i) > cut) y += (eigen.eigenvectors().col(i).dot(b) / values(i)) * eigen.eigenvectors().col(i);
+  long nulls = 0;
+  for (long i = 0; i < values.size(); ++i) {
+    if (values(i) > cut)
+      y += (eigen.eigenvectors().col(i).dot(b) / values(i)) * eigen.eigenvectors().col(i);
+    else
+      ++nulls;
+  }
+  // The eigenvalues ascend: the null vectors are the first columns.
+  share_by_capacity(eigen.eigenvectors().leftCols(nulls), cones, y);
 }
 
 // Solve A y = b for the small SPD Delassus matrix; one and two rows in closed form; lu is the
 // reused factorisation of larger ones. With least_norm, a singular A takes the least-norm
-// solution (least_norm_solve).
-void solve_small(const Mat& A, const Vec& b, Eigen::PartialPivLU<Mat>& lu, Vec& y, bool least_norm = false) {
+// solution inside the cones of its blocks (least_norm_solve).
+void solve_small(const Mat& A, const Vec& b, Eigen::PartialPivLU<Mat>& lu, Vec& y, const std::vector<Rigid>& blocks,
+                 bool least_norm = false) {
   y.resize(A.rows());
   if (A.rows() == 1) {
     y(0) = b(0) / A(0, 0);
@@ -438,14 +496,14 @@ void solve_small(const Mat& A, const Vec& b, Eigen::PartialPivLU<Mat>& lu, Vec& 
   } else {
     lu.compute(A);
     if (least_norm && !(lu.rcond() >= kSingular)) {  // a zero pivot makes the estimate nan
-      least_norm_solve(A, b, y);
+      least_norm_solve(A, b, y, cones_of(blocks));
       return;
     }
     y = lu.solve(b);
     // The estimate can miss an exact zero pivot (two stuck corners of one body: two identical
     // rows) when b has a rounding's share outside A's range (a 1e-15 rad/s spin left by an
     // impact), and the solve divides by it: the least-norm solution is the one meant.
-    if (least_norm && !y.allFinite()) least_norm_solve(A, b, y);
+    if (least_norm && !y.allFinite()) least_norm_solve(A, b, y, cones_of(blocks));
   }
 }
 
@@ -466,21 +524,35 @@ bool regular(const Mat& A) {
   return std::abs(A.determinant()) > 1e-12 * std::pow(scale, static_cast<double>(A.rows()));
 }
 
+// The orthonormal null vectors (columns) of A: its right singular vectors whose singular values
+// are at most kSingular of the largest.
+Mat null_vectors(const Mat& A) {
+  Eigen::JacobiSVD<Mat> svd(A, Eigen::ComputeFullV);
+  const Vec& sigma = svd.singularValues();
+  long rank = 0;
+  while (rank < sigma.size() && sigma(rank) > kSingular * sigma(0)) ++rank;
+  return svd.matrixV().rightCols(A.cols() - rank);
+}
+
 // Solve A y = b for a singular Delassus matrix A = J M^-1 W^T with sliding rows (W = J - s mu t
 // on them; MWt = M^-1 W^T, (n, m)): rows that depend on one another, as two stuck corners of one
 // body beside a slipping contact do, or a slipping point whose normal row the other rows already
 // hold. Where A's null vectors are null vectors of MWt too (rank A = rank MWt), every solution
-// gives the same motion MWt y, and this takes the least-norm y (an equal share at a symmetric
-// support, as least_norm_solve gives without sliding rows). Returns false where no y solves the
-// rows (b outside A's range) or the motion is not unique: the Painleve paradox.
-bool sliding_solve(const Mat& A, const Vec& b, const Mat& MWt, Vec& y) {
+// gives the same motion MWt y, and this takes the least-norm y (as least_norm_solve does without
+// sliding rows), shared by the stuck contacts' capacities (share_by_capacity). Returns false
+// where no y solves the rows (b outside A's range) or the motion is not unique: the Painleve
+// paradox.
+bool sliding_solve(const Mat& A, const Vec& b, const Mat& MWt, Vec& y, const Cones& cones) {
   Eigen::CompleteOrthogonalDecomposition<Mat> rows(A);
   rows.setThreshold(kSingular);
   Eigen::ColPivHouseholderQR<Mat> motion(MWt);
   motion.setThreshold(kSingular);
   if (rows.rank() != motion.rank()) return false;
   y = rows.solve(b);
-  return y.allFinite() && (A * y - b).cwiseAbs().maxCoeff() <= kConsistent * (1.0 + b.cwiseAbs().maxCoeff());
+  if (!y.allFinite() || (A * y - b).cwiseAbs().maxCoeff() > kConsistent * (1.0 + b.cwiseAbs().maxCoeff()))
+    return false;
+  share_by_capacity(null_vectors(A), cones, y);
+  return true;
 }
 
 // The constraint forces s.lambda of s.A lambda = s.rhs: the least-norm ones where dependent rows
@@ -488,15 +560,15 @@ bool sliding_solve(const Mat& A, const Vec& b, const Mat& MWt, Vec& y) {
 // forces (the Painleve paradox), the mode then being past its model's range.
 bool constraint_forces(Scratch& s) {
   if (!slipping(s.blocks)) {
-    solve_small(s.A, s.rhs, s.lu, s.lambda, true);
+    solve_small(s.A, s.rhs, s.lu, s.lambda, s.blocks, true);
     return true;
   }
   if (!positive_diagonal(s.A)) return false;
   if (regular(s.A)) {
-    solve_small(s.A, s.rhs, s.lu, s.lambda);
+    solve_small(s.A, s.rhs, s.lu, s.lambda, s.blocks);
     return true;
   }
-  return sliding_solve(s.A, s.rhs, s.MWt, s.lambda);
+  return sliding_solve(s.A, s.rhs, s.MWt, s.lambda, cones_of(s.blocks));
 }
 
 }  // namespace
@@ -782,7 +854,7 @@ void lsn_impact(long h, const double* q, const double* v, long count, const doub
   const Vec rhs = -((Vec::Ones(c.size()) + c).cwiseProduct(Jv));
   Vec impulse;
   Eigen::PartialPivLU<Mat> lu;
-  solve_small(J * MJt, rhs, lu, impulse, !slipping(blocks));
+  solve_small(J * MJt, rhs, lu, impulse, blocks, !slipping(blocks));
   OutMap(v_out, n) = vm + MJt * impulse;
   if (impulse_out != nullptr) OutMap(impulse_out, impulse.size()) = impulse;
 }
@@ -800,22 +872,28 @@ void lsn_minverse(long h, const double* q, double* out) {
 // out[0 .. m-1], and out[m] = 1 where it is solved, 0 where not. A singular A (its LU's
 // reciprocal condition below kSingular) takes with least_norm (no sliding rows: A symmetric
 // positive semidefinite) the least-norm y; without, sliding_solve's, MWt (n, m) row-major being
-// M^-1 W^T. Not solved: A or b not finite, b outside A's range (the residual beyond kConsistent),
-// or a motion MWt y that is not unique (the Painleve case).
-void lsn_solve(long m, const double* A, const double* b, long least_norm, long n, const double* MWt, double* out) {
+// M^-1 W^T; either shared by the capacities of the cones (count triples (tangent row, normal
+// row, mu), the tangent row -1 for a normal row alone; share_by_capacity). Not solved: A or b
+// not finite, b outside A's range (the residual beyond kConsistent), or a motion MWt y that is
+// not unique (the Painleve case).
+void lsn_solve(long m, const double* A, const double* b, long least_norm, long n, const double* MWt, long count,
+               const double* cones, double* out) {
   using RowMajor = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
   const Mat a = Eigen::Map<const RowMajor>(A, m, m);
   const Vec rhs = ConstMap(b, m);
   out[m] = 0.0;
   if (!a.allFinite() || !rhs.allFinite()) return;
+  Cones rows_cones;
+  for (long k = 0; k < count; ++k)
+    rows_cones.push_back({static_cast<long>(cones[3 * k]), static_cast<long>(cones[3 * k + 1]), cones[3 * k + 2]});
   Vec y;
   Eigen::PartialPivLU<Mat> lu(a);
   if (lu.rcond() >= kSingular) {
     y = lu.solve(rhs);
   } else if (least_norm == 0) {
-    if (!sliding_solve(a, rhs, Eigen::Map<const RowMajor>(MWt, n, m), y)) return;
+    if (!sliding_solve(a, rhs, Eigen::Map<const RowMajor>(MWt, n, m), y, rows_cones)) return;
   } else {
-    least_norm_solve(a, rhs, y);
+    least_norm_solve(a, rhs, y, rows_cones);
     if ((a * y - rhs).cwiseAbs().maxCoeff() > kConsistent * (1.0 + rhs.cwiseAbs().maxCoeff())) return;
   }
   if (!y.allFinite()) return;

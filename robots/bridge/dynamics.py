@@ -399,7 +399,7 @@ def blocks_of(p, status, blocks):
             slip = 1.0 if s == S_SLIP_POS else -1.0
             blocks[b], blocks[b + 2], blocks[b + 3] = B_SLIPPING, slip * p[c + C_MU], 1.0
         else:
-            blocks[b], blocks[b + 2], blocks[b + 3] = B_POINT, 1.0, p[c + C_ROWS]
+            blocks[b], blocks[b + 2], blocks[b + 3] = B_POINT, p[c + C_MU], p[c + C_ROWS]
         rows += int(blocks[b + 3])
         count += 1
     return count, rows

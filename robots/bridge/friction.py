@@ -101,9 +101,10 @@ def impulse_solve(engaged, mu, T, N, Minv, v, v_plus, lt, ln):
     for a in range(m):
         for b in range(m):
             A[a, b] = dot(J[a], MWt[:, b], n)
-    # Dependent rows (two stuck points of one body) take the least-norm impulses; with a sliding
-    # row, only where the motion is unique: else it is the Painleve case, which has no impact here.
-    if not solve_rows(A, rhs, m, np.all(engaged[:, 2] != SLIDE), MWt):
+    # Dependent rows (two stuck points of one body) take the least-norm impulses shared by the
+    # contacts' capacities; with a sliding row, only where the motion is unique: else it is the
+    # Painleve case, which has no impact here.
+    if not solve_rows(A, rhs, m, np.all(engaged[:, 2] != SLIDE), MWt, impulse_cones(engaged, mu, t_at, n_at)):
         return False
     for j in range(n):
         v_plus[j] = v[j] + dot(MWt[j], rhs, m)
@@ -112,6 +113,26 @@ def impulse_solve(engaged, mu, T, N, Minv, v, v_plus, lt, ln):
             ln[i] = rhs[n_at[i]]
             lt[i] = rhs[t_at[i]] if t_at[i] >= 0 else engaged[i, 3] * mu[i] * ln[i] if engaged[i, 2] == SLIDE else 0.0
     return np.all(np.isfinite(v_plus))
+
+
+@model_function
+def impulse_cones(engaged, mu, t_at, n_at):
+    """The cones of the engaged contacts' impulses over the rows of ``impulse_solve`` (k, 3):
+    (tangent row, normal row, mu) of a stuck one, (-1, normal row, -1) of a sliding or normal one
+    (its normal impulse pushes)."""
+    k = engaged.shape[0]
+    engaged_rows = 0
+    for i in range(k):
+        engaged_rows += 1 if n_at[i] >= 0 else 0
+    cones = np.empty((engaged_rows, 3))
+    j = 0
+    for i in range(k):
+        if n_at[i] < 0:
+            continue
+        stuck = t_at[i] >= 0
+        cones[j, 0], cones[j, 1], cones[j, 2] = (t_at[i], n_at[i], mu[i]) if stuck else (-1.0, n_at[i], -1.0)
+        j += 1
+    return cones
 
 
 @model_function

@@ -44,6 +44,7 @@ from .layout import (
     BLOCK_SIZE,
     C_ID,
     C_KIND,
+    C_MU,
     C_ROWS,
     C_SIGN,
     CONTACT_SIZE,
@@ -115,23 +116,29 @@ def kinetic(M, v, n):
 
 
 @model_function
-def solve_rows(A, b, m, least_norm, MWt):
+def solve_rows(A, b, m, least_norm, MWt, cones):
     """Solve A y = b (A (m, m)) in place of b by the native library's small solve, the one its
     constrained dynamics and impacts use (``lsn_solve``): LU where A is regular. Where rows
     depend on one another (two stuck points of one body: a statically indeterminate support),
     y is the least-norm solution (an equal share at a symmetric support): with ``least_norm``
     (A symmetric, no sliding rows) always, else where the motion ``MWt`` y (MWt (n, m) = M^-1 W^T)
-    is the same for every solution. Returns False (b unchanged) where there is no solution: A or
-    b not finite, b outside A's range, or a motion that is not unique (the Painleve case)."""
+    is the same for every solution; that y then shared by the capacities of ``cones`` (k, 3)
+    rows (tangent row or -1, normal row, mu): each stuck contact's friction in proportion to
+    mu times its normal impulse (``share_by_capacity`` in pinlegsim.cpp). Returns False (b
+    unchanged) where there is no solution: A or b not finite, b outside A's range, or a motion
+    that is not unique (the Painleve case)."""
     a = np.ascontiguousarray(A[:m, :m])
     rhs = np.ascontiguousarray(b[:m])
     motion = np.ascontiguousarray(MWt[:, :m])
+    bounds = np.ascontiguousarray(cones)
     out = np.empty(m + 1)
     lsn_solve(np.int64(m), a.ctypes.data, rhs.ctypes.data, np.int64(1 if least_norm else 0),
-              np.int64(motion.shape[0]), motion.ctypes.data, out.ctypes.data)  # fmt: skip
+              np.int64(motion.shape[0]), motion.ctypes.data, np.int64(bounds.shape[0]), bounds.ctypes.data,
+              out.ctypes.data)  # fmt: skip
     keep(a)
     keep(rhs)
     keep(motion)
+    keep(bounds)
     if out[m] != 1.0:
         return False
     b[:m] = out[:m]
@@ -153,7 +160,7 @@ def contact_blocks(p, contacts, count, blocks):
         if p[c + C_KIND] == KIND_STOP:
             blocks[b], blocks[b + 2], blocks[b + 3] = B_STOP, p[c + C_SIGN], 1.0
         else:
-            blocks[b], blocks[b + 2], blocks[b + 3] = B_POINT, 1.0, p[c + C_ROWS]
+            blocks[b], blocks[b + 2], blocks[b + 3] = B_POINT, p[c + C_MU], p[c + C_ROWS]
         rows += int(blocks[b + 3])
     return rows
 

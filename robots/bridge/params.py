@@ -82,7 +82,7 @@ def block(r: RigidContact, slip: float) -> list[float]:
     if slip:
         assert r.mu is not None, "only a contact with friction slips"
         return [B_SLIPPING, r.frame_id, slip * r.mu, 1.0]
-    return [B_POINT, r.frame_id, 1.0, r.rows]
+    return [B_POINT, r.frame_id, -1.0 if r.mu is None else r.mu, r.rows]
 
 
 def blocks(pairs: Iterable[tuple[RigidContact, float]]) -> list[float]:

@@ -283,6 +283,10 @@ def test_an_impact_at_a_state_far_outside_any_motion_has_no_outcome():
     assert ok and np.all(np.isfinite(v_plus))
 
 
+#: No friction cones: the plain least-norm solution.
+NO_CONES = np.empty((0, 3))
+
+
 # -- rows that depend on one another beside a sliding row --------------------------------------------
 def _delassus(J, W, M):
     """A = J M^-1 W^T and M^-1 W^T for constraint rows J, force rows W and inertia M."""
@@ -306,7 +310,7 @@ def test_two_stuck_corners_beside_a_sliding_row_take_the_least_norm_share_and_a_
     A, MWt = _delassus(J, W, M)
     b = J @ rng.normal(size=n)  # the rows' right side from a motion: in A's range
     y = b.copy()
-    assert solve_rows(A, y, 5, False, MWt)
+    assert solve_rows(A, y, 5, False, MWt, NO_CONES)
     assert np.allclose(A @ y, b, atol=1e-12)
     assert y[0] == pytest.approx(y[2], abs=1e-12)
     assert np.allclose(y, np.linalg.pinv(A) @ b, atol=1e-10)
@@ -333,5 +337,28 @@ def test_a_sliding_row_whose_forces_are_not_unique_in_their_motion_is_refused():
     A, MWt = _delassus(J, np.array([N0, N1 + mu * T1]), M)
     assert abs(np.linalg.det(A)) < 1e-12 * np.abs(A).max() ** 2
     y = J @ rng.normal(size=n)
-    assert not solve_rows(A, y, 2, False, MWt)
-    assert not solve_rows(np.zeros((1, 1)), np.array([0.0]), 1, False, np.ones((n, 1)))
+    assert not solve_rows(A, y, 2, False, MWt, NO_CONES)
+    assert not solve_rows(np.zeros((1, 1)), np.array([0.0]), 1, False, np.ones((n, 1)), NO_CONES)
+
+
+def test_two_stuck_corners_share_their_friction_by_their_capacities():
+    # A brick (x, z, pitch; 4 kg, 0.1 kg m^2) on two stuck corners at (-0.3, -0.1) and
+    # (0.3, -0.1) from its centre, pushed along x by 14 N: the normal forces are determined, the
+    # tangential ones only in their sum. Each corner takes the share mu_i n_i / sum(mu n) of it
+    # (the least-norm share, 7 N each, would put the corner of mu = 0.1 outside its cone).
+    m, inertia = 4.0, 0.1
+    Minv = np.diag([1 / m, 1 / m, 1 / inertia])
+    J = np.array([[1.0, 0.0, -0.1], [0.0, 1.0, 0.3], [1.0, 0.0, -0.1], [0.0, 1.0, -0.3]])  # t_a, n_a, t_b, n_b
+    applied = np.array([-14.0, -m * 9.81, 0.0])
+    b = -J @ Minv @ applied  # the rows' accelerations held at 0: J Minv (applied + J^T y) = 0
+    A = J @ Minv @ J.T
+    mu = (0.1, 1.0)
+    y = b.copy()
+    assert solve_rows(A, y, 4, True, Minv @ J.T, np.array([[0, 1, mu[0]], [2, 3, mu[1]]]))
+    assert np.allclose(A @ y, b, atol=1e-12)
+    capacity = mu[0] * y[1] + mu[1] * y[3]
+    assert y[0] + y[2] == pytest.approx(14.0, abs=1e-12)
+    assert y[0] == pytest.approx(14.0 * mu[0] * y[1] / capacity, abs=1e-12)
+    assert y[0] / (mu[0] * y[1]) == pytest.approx(y[2] / (mu[1] * y[3]), abs=1e-12)  # the same share of each cone
+    least = b.copy()
+    assert solve_rows(A, least, 4, True, Minv @ J.T, NO_CONES) and least[0] == pytest.approx(7.0, abs=1e-12)

@@ -57,6 +57,10 @@ def test_a_rod_landing_on_a_frictionless_floor_ends_lying_with_its_weight_shared
     assert abs(x[1]) < 1e-9 and abs(x[2]) < 1e-9
 
 
+#: No friction cones: the plain least-norm solution.
+NO_CONES = np.empty((0, 3))
+
+
 def test_a_singular_support_takes_the_least_norm_impulses_and_an_inconsistent_one_none():
     # A = B B^T with B (4, 3): four rows on three degrees of freedom (two stuck points of one
     # body), rank 3: J = W = B and M = I, so M^-1 W^T = B^T. The solve (the native library's,
@@ -70,17 +74,17 @@ def test_a_singular_support_takes_the_least_norm_impulses_and_an_inconsistent_on
     A = B @ B.T
     b = A @ rng.normal(size=4)
     refused = b.copy()
-    assert not solve_rows(A.copy(), refused, 4, False, np.eye(4)) and np.array_equal(refused, b)
+    assert not solve_rows(A.copy(), refused, 4, False, np.eye(4), NO_CONES) and np.array_equal(refused, b)
     for least_norm in (True, False):
         y = b.copy()
-        assert solve_rows(A.copy(), y, 4, least_norm, B.T.copy())
+        assert solve_rows(A.copy(), y, 4, least_norm, B.T.copy(), NO_CONES)
         assert np.allclose(y, np.linalg.pinv(A) @ b, rtol=0.0, atol=1e-10 * np.abs(y).max())
         null = np.linalg.svd(A)[0][:, -1]
-        assert not solve_rows(A.copy(), b + 1e-3 * np.abs(b).max() * null, 4, least_norm, B.T.copy())
+        assert not solve_rows(A.copy(), b + 1e-3 * np.abs(b).max() * null, 4, least_norm, B.T.copy(), NO_CONES)
     # a regular system is solved as it is, whichever the flag
     regular = A + np.eye(4)
     for least_norm in (False, True):
         x = b.copy()
-        assert solve_rows(regular.copy(), x, 4, least_norm, np.eye(4))
+        assert solve_rows(regular.copy(), x, 4, least_norm, np.eye(4), NO_CONES)
         assert np.allclose(regular @ x, b, rtol=1e-12, atol=0.0)
-    assert not solve_rows(np.full((2, 2), np.nan), np.ones(2), 2, True, np.eye(2))
+    assert not solve_rows(np.full((2, 2), np.nan), np.ones(2), 2, True, np.eye(2), NO_CONES)

@@ -617,3 +617,35 @@ def test_a_round_frame_on_a_sine_answers_nan_at_a_configuration_it_was_not_place
     lsn_round_place(bridge.handle, q.ctypes.data, frame, 0.01, -0.0995)
     np.testing.assert_allclose(kinematics(q), [0.31, 0.1005, 0.0, 0.0], atol=1e-15)
     assert np.all(np.isnan(kinematics(q + np.array([1e-12, 0.0, 0.0]))))
+
+
+def slab(folder, mu, grade):
+    """A brick resting on a slope of ``grade`` on its two bottom corners (point contacts of
+    friction ``mu``), its bottom along the slope."""
+    theta = math.atan(grade)
+    corners = "".join(
+        f'<joint name="{n}_mount" type="fixed"><parent link="brick"/><child link="{n}"/>'
+        f'<origin xyz="{x} 0 -{BRICK_HZ}"/></joint><link name="{n}"/>'
+        for n, x in (("a", -BRICK_HX), ("b", BRICK_HX))
+    )
+    scene = (
+        f'contacts = [{{ name = "a", frame = "a", friction = {mu} }}, {{ name = "b", frame = "b", friction = {mu} }}]\n'
+        f'[terrain]\nkind = "slope"\ngrade = {grade}\n[initial]\nmode = "a+b"\n'
+        f"state = {{ x = {-BRICK_HZ * math.sin(theta)}, z = {BRICK_HZ * math.cos(theta)}, pitch = {-theta} }}\n"
+        "[integrator]\nh = 1e-3\neps = 1e-6\nt_final = 0.5\n"
+    )
+    return write(folder, "slab", link("brick", 4.0, 0.1) + corners, scene)
+
+
+def test_a_brick_on_a_slope_rests_on_its_corners_exactly_below_the_friction_angle(tmp_path):
+    # Coulomb: a body on two stuck corners holds while some share of the friction force is
+    # inside both cones, for equal mu while tan(theta) <= mu. The corner uphill carries less
+    # normal force, and the least-norm (equal) share put it outside its cone below that angle:
+    # this start was refused at grade 0.45 < mu = 0.5.
+    mu = 0.5
+    ex = load_scene(slab(tmp_path, mu, 0.49)).simulate()
+    assert ex.status == "finished" and not ex.transitions and not ex.warnings
+    start = ex.segments[0].x[0]
+    assert np.max(np.abs(ex.final_state - start)) <= 1e-12
+    with pytest.raises(SceneError, match=r"lies past the guard of transition slip_"):
+        load_scene(slab(tmp_path, mu, 0.51))
