@@ -169,13 +169,13 @@ def _profile(f: _Fields) -> Terrain:
     if ("points" in f.table) == ("file" in f.table):
         raise f.error("points", "give exactly one of points and file")
     if "file" in f.table:
-        rows, where = _csv_rows(f), "file"
+        rows, labels, where = *_csv_rows(f), "file"
     else:
         points = f.table["points"]
         if not isinstance(points, list) or len(points) > MAX_POINTS:
             raise f.error("points", f"expected an array of at most {MAX_POINTS} [x, z] pairs, got {points!r:.80}")
-        rows, where = points, "points"
-    xs, zs = _checked_points(f, rows, where)
+        rows, labels, where = points, [f"point {i}" for i in range(len(points))], "points"
+    xs, zs = _checked_points(f, rows, labels, where)
     return profile_terrain(xs, zs)
 
 
@@ -185,8 +185,9 @@ def profile_file(scene: Path, value: str) -> Path | None:
     return inside_folder(scene.parent, os.path.expanduser(value))
 
 
-def _csv_rows(f: _Fields) -> list[Any]:
-    """The rows of the profile's CSV file, numbers parsed; errors name the file's line."""
+def _csv_rows(f: _Fields) -> tuple[list[Any], list[str]]:
+    """The rows of the profile's CSV file, numbers parsed, and each one's label (file and line)
+    for the errors."""
     value = f.table["file"]
     if not isinstance(value, str) or not value or "\x00" in value:
         raise f.error("file", f"got {value!r}")
@@ -202,6 +203,7 @@ def _csv_rows(f: _Fields) -> list[Any]:
     except UnicodeDecodeError:
         raise f.error("file", f"{file}: not UTF-8 text") from None
     rows: list[Any] = []
+    labels: list[str] = []
     header_allowed = True
     for line, content in enumerate(text.splitlines(), start=1):
         content = content.split("#", 1)[0]  # a comment, whole-line or after the numbers
@@ -212,10 +214,11 @@ def _csv_rows(f: _Fields) -> list[Any]:
             header_allowed = False
             continue
         header_allowed = False
-        rows.append(_csv_point(f, file, line, record, rows[-1] if rows else None))
+        labels.append(f"{file}: line {line}")
+        rows.append(_csv_numbers(f, labels[-1], record))
         if len(rows) > MAX_POINTS:
             raise f.error("file", f"{file}: more than {MAX_POINTS} points")
-    return rows
+    return rows, labels
 
 
 def _is_number(text: str) -> bool:
@@ -226,36 +229,33 @@ def _is_number(text: str) -> bool:
     return True
 
 
-def _csv_point(f: _Fields, file: Any, line: int, record: list[str], previous: list[float] | None) -> list[float]:
-    """Line ``line``'s point [x, z]: two finite numbers, x past the previous point's."""
+def _csv_numbers(f: _Fields, label: str, record: list[str]) -> list[float]:
+    """A CSV line's two numbers (``_checked_points`` checks them as points)."""
     try:
         point = [float(v) for v in record]
     except ValueError:
-        raise f.error("file", f"{file}: line {line}: expected two numbers x,z, got {record!r:.80}") from None
+        raise f.error("file", f"{label}: expected two numbers x,z, got {record!r:.80}") from None
     if len(point) != 2:
-        raise f.error("file", f"{file}: line {line}: expected two numbers x,z, got {len(record)}: {record!r:.80}")
-    if not all(math.isfinite(v) for v in point):
-        raise f.error("file", f"{file}: line {line}: expected two finite numbers x,z, got {record!r:.80}")
-    if previous is not None and not point[0] > previous[0]:
-        raise f.error("file", f"{file}: line {line}: x not strictly increasing: {previous[0]:g} then {point[0]:g}")
+        raise f.error("file", f"{label}: expected two numbers x,z, got {len(record)}: {record!r:.80}")
     return point
 
 
-def _checked_points(f: _Fields, rows: list[Any], where: str) -> tuple[np.ndarray, np.ndarray]:
-    """x and z of a profile's rows: pairs of finite numbers, at least 2, x strictly increasing."""
-    for i, row in enumerate(rows):
+def _checked_points(f: _Fields, rows: list[Any], labels: list[str], where: str) -> tuple[np.ndarray, np.ndarray]:
+    """x and z of a profile's rows: pairs of finite numbers, at least 2, x strictly increasing;
+    errors name the field ``where`` and the row's label (``point 3``, or a CSV file's line)."""
+    for label, row in zip(labels, rows, strict=True):
         ok = (
             isinstance(row, list)
             and len(row) == 2
             and all(not isinstance(v, bool) and isinstance(v, (int, float)) and math.isfinite(v) for v in row)
         )
         if not ok:
-            raise f.error(where, f"point {i}: expected [x, z], two finite numbers, got {row!r:.80}")
+            raise f.error(where, f"{label}: expected two finite numbers x,z, got {row!r:.80}")
     if len(rows) < 2:
         raise f.error(where, f"{len(rows)} point(s): a profile needs at least 2")
     pts = np.array(rows, dtype=float)
     bad = np.nonzero(np.diff(pts[:, 0]) <= 0.0)[0]
     if len(bad):
         i = int(bad[0]) + 1
-        raise f.error(where, f"x not strictly increasing at point {i}: {pts[i - 1, 0]:g} then {pts[i, 0]:g}")
+        raise f.error(where, f"{labels[i]}: x not strictly increasing: {pts[i - 1, 0]:g} then {pts[i, 0]:g}")
     return pts[:, 0].copy(), pts[:, 1].copy()

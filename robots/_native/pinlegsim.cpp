@@ -100,7 +100,7 @@ enum RigidKind { STOP = 0, POINT = 1, SLIPPING_POINT = 2 };
 struct Rigid {
   int kind;     // RigidKind
   int id;       // stop: velocity index; point: frame id
-  double sign;  // stop: the side (+-1); slipping point: s mu
+  double sign;  // stop: the side (+-1); slipping point: s mu; stuck point: mu (< 0: none)
   int rows;
 };
 
@@ -481,9 +481,14 @@ void least_norm_solve(const Mat& A, const Vec& b, Vec& y, const Cones& cones) {
   share_by_capacity(eigen.eigenvectors().leftCols(nulls), cones, y);
 }
 
+// Whether y meets A y = b to kConsistent (relative to 1 + max |b|): b lies in a singular A's range.
+bool meets(const Mat& A, const Vec& y, const Vec& b) {
+  return (A * y - b).cwiseAbs().maxCoeff() <= kConsistent * (1.0 + b.cwiseAbs().maxCoeff());
+}
+
 // Solve A y = b for the small SPD Delassus matrix; one and two rows in closed form; lu is the
 // reused factorisation of larger ones. With least_norm, a singular A takes the least-norm
-// solution inside the cones of its blocks (least_norm_solve).
+// solution, shared by its blocks' capacities (least_norm_solve).
 void solve_small(const Mat& A, const Vec& b, Eigen::PartialPivLU<Mat>& lu, Vec& y, const std::vector<Rigid>& blocks,
                  bool least_norm = false) {
   y.resize(A.rows());
@@ -549,8 +554,7 @@ bool sliding_solve(const Mat& A, const Vec& b, const Mat& MWt, Vec& y, const Con
   motion.setThreshold(kSingular);
   if (rows.rank() != motion.rank()) return false;
   y = rows.solve(b);
-  if (!y.allFinite() || (A * y - b).cwiseAbs().maxCoeff() > kConsistent * (1.0 + b.cwiseAbs().maxCoeff()))
-    return false;
+  if (!y.allFinite() || !meets(A, y, b)) return false;
   share_by_capacity(null_vectors(A), cones, y);
   return true;
 }
@@ -894,7 +898,7 @@ void lsn_solve(long m, const double* A, const double* b, long least_norm, long n
     if (!sliding_solve(a, rhs, Eigen::Map<const RowMajor>(MWt, n, m), y, rows_cones)) return;
   } else {
     least_norm_solve(a, rhs, y, rows_cones);
-    if ((a * y - rhs).cwiseAbs().maxCoeff() > kConsistent * (1.0 + rhs.cwiseAbs().maxCoeff())) return;
+    if (!meets(a, y, rhs)) return;
   }
   if (!y.allFinite()) return;
   OutMap(out, m) = y;

@@ -70,8 +70,9 @@ STATUS_BASE = 4.0
 
 # -- a constraint block (the native library's ``Rigid``: kind, id, sign, rows) -------------------
 #: A joint stop (id: its dof; sign: +1 lower, -1 upper); a stuck or frictionless point (id: its
-#: frame); a slipping point (sign: s mu, its friction force -s mu lambda_n along the ground's
-#: tangent). On a terrain the native library takes the slope and curvature under each block
+#: frame; sign: its friction coefficient mu, < 0 without one, by which a statically indeterminate
+#: support shares its friction); a slipping point (sign: s mu, its friction force -s mu lambda_n
+#: along the ground's tangent). On a terrain the native library takes the slope and curvature under each block
 #: besides (``dynamics.terrain_slopes``).
 B_STOP, B_POINT, B_SLIPPING = range(3)
 BLOCK_SIZE = 4
