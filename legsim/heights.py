@@ -201,17 +201,86 @@ def _sine_foot(p, at, xc, zc):
 
 
 @model_function
+def _piece_foot(p, at, i, xc, zc):
+    """(x, z, whether an end) of the point of profile piece i nearest (xc, zc): the segment
+    [x_i, x_{i+1}], or for i = -1 and i = n - 1 the level rays left of x_0 and right of x_{n-1};
+    an end is a breakpoint (the projection clamped to it)."""
+    n = int(p[at + 1])
+    xs, zs = at + 2, at + 2 + n
+    if i < 0:
+        return min(xc, p[xs]), p[zs], xc >= p[xs]
+    if i >= n - 1:
+        return max(xc, p[xs + n - 1]), p[zs + n - 1], xc <= p[xs + n - 1]
+    ax, az, bx, bz = p[xs + i], p[zs + i], p[xs + i + 1], p[zs + i + 1]
+    w = ((xc - ax) * (bx - ax) + (zc - az) * (bz - az)) / ((bx - ax) * (bx - ax) + (bz - az) * (bz - az))
+    if w <= 0.0:
+        return ax, az, True
+    if w >= 1.0:
+        return bx, bz, True
+    return ax + w * (bx - ax), az + w * (bz - az), False
+
+
+@model_function
+def _profile_nearest(p, at, xc, zc):
+    """``nearest`` on a profile: the least distance over its pieces within reach of the centre
+    (the point (xc, h(xc)) is on the terrain, so the nearest lies within |zc - h(xc)| along x).
+    On a face the normal is the face's and k = 0; at a convex breakpoint (a corner the centre
+    lies beyond both faces of) the normal points from the corner to the centre, and the level
+    set through the centre is the circle of radius d about the corner: k = 1 / d. At a concave
+    breakpoint the nearest face changes where the centre crosses the bisector, a jump of the
+    normal that the bridge's corner event takes as a strike on the new face. A centre level
+    with or below the corner it is nearest to has no normal of the form (-g, 1): all nan."""
+    reach = abs(zc - height(p, at, xc))
+    first, last = _segment(p, at, xc - reach), _segment(p, at, xc + reach)
+    best_x, best_z, best_end, least = xc, zc, False, math.inf
+    for i in range(first, last + 1):
+        fx, fz, end = _piece_foot(p, at, i, xc, zc)
+        squared = (fx - xc) * (fx - xc) + (fz - zc) * (fz - zc)
+        if squared < least:
+            best_x, best_z, best_end, least = fx, fz, end, squared
+    above = 1.0 if zc >= height(p, at, xc) else -1.0
+    d = above * math.sqrt(least)
+    if not best_end or least == 0.0:
+        g = face_slope(p, at, best_x, xc - best_x) if best_end else slope(p, at, best_x)
+        return best_x, d, g, 0.0
+    if zc - best_z <= 0.0:
+        return math.nan, math.nan, math.nan, math.nan
+    return best_x, d, -(xc - best_x) / (zc - best_z), 1.0 / d
+
+
+@model_function
+def second_face(p, at, xc, zc, within):
+    """dh/dx of a profile face that (xc, zc) lies within ``within`` (m) of the distance to its
+    nearest point, besides that point's own face or corner: the second face a ball at a concave
+    corner touches; nan where there is none (and on other terrains)."""
+    if p[at] != PROFILE:
+        return math.nan
+    s, distance, _, _ = _profile_nearest(p, at, xc, zc)
+    reach = abs(zc - height(p, at, xc))
+    least = math.inf
+    grade = math.nan
+    for i in range(_segment(p, at, xc - reach), _segment(p, at, xc + reach) + 1):
+        fx, fz, end = _piece_foot(p, at, i, xc, zc)
+        if end or abs(fx - s) <= CORNER_RESOLUTION:
+            continue
+        squared = (fx - xc) * (fx - xc) + (fz - zc) * (fz - zc)
+        if squared < least:
+            least, grade = squared, _segment_slope(p, at, i)
+    return grade if math.sqrt(least) <= abs(distance) + within else math.nan
+
+
+@model_function
 def nearest(p, at, xc, zc):
     """(s, d, g, k): the terrain's point (s, h(s)) nearest the point (xc, zc) (m, a round
     contact's centre), its signed distance d (m) along the terrain's normal n = (-g, 1) /
     sqrt(1 + g^2) there (> 0 above the terrain), the slope g = h'(s), and the curvature k (1/m)
     of the level set {distance = d} through the centre: -kappa / (1 - kappa d), kappa =
     h''(s) / (1 + g^2)^1.5 (> 0 where the terrain bulges towards the centre, whose distance then
-    grows as k (t . v)^2 beyond its acceleration along n). Flat, slope and sine terrains; a
-    profile's point is not searched (all nan)."""
+    grows as k (t . v)^2 beyond its acceleration along n). On a profile, a face or a convex
+    corner (``_profile_nearest``)."""
     kind = p[at]
     if kind == PROFILE:
-        return math.nan, math.nan, math.nan, math.nan
+        return _profile_nearest(p, at, xc, zc)
     s = _sine_foot(p, at, xc, zc) if kind == SINE else xc
     g = slope(p, at, s)
     norm = math.sqrt(1.0 + g * g)

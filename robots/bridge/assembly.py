@@ -23,6 +23,7 @@ from legsim.relaxed import Watch
 from legsim.terrain import Terrain
 
 from . import guards, native
+from .arcs import CornerArcs, corner_arc_watch
 from .contacts import Contact, frame_id
 from .dynamics import bridge_field, bridge_forces, bridge_spring_forces
 from .events import bridge_guards, bridge_reset
@@ -45,6 +46,7 @@ CONTACTS_PAST_RANGE = (
     "contacts with no consistent outcome (an event that no set of contact statuses resolves, or slipping "
     "contacts without unique forces: Painleve's paradox)"
 )
+ROUNDS_PAST_RANGE = "a round contact struck into a notch of the terrain, pressing on two faces at once"
 
 
 class ContactBridge:
@@ -117,6 +119,7 @@ class ContactBridge:
         self._modes = ModeCatalog(self._model, mode_names)
         self._placements = Placements(self._model)
         self._past = guards.PastDepths(self._model, self._modes.active_contacts, self._placements)
+        self._arcs = CornerArcs(self._model, self._modes.active_contacts, self._placements)
         self._built: dict[str, tuple[Mode, list[Transition]]] = {}
 
     # -- the robot ------------------------------------------------------------------------
@@ -248,6 +251,8 @@ class ContactBridge:
         spring-legged robot where its legs stood (``range_notes.LegsNote``)."""
         ways = [LEGS_PAST_RANGE] if self._model.legs else []
         ways += [CONTACTS_PAST_RANGE] if self._model.rigid else []
+        if self._model.cornered and any(r.radius > 0.0 for r in self._model.rigid.values()):
+            ways.append(ROUNDS_PAST_RANGE)
         head = ", or ".join(ways)
         return LegsNote(self._model, self._data, spec, head) if self._model.legs else head
 
@@ -331,8 +336,12 @@ class ContactBridge:
     def contact_watches(self, eps: float, action: str = "warn") -> list[Watch]:
         """What every run of the robot is checked for: an inactive contact past the ground or its
         stop by more than eps + ``guards.THROUGH_DEPTH`` (``guards.passed_through_watch``; eps the
-        run's, in guard units), reported by ``action`` (``guards.ground_watch``)."""
-        return [guards.passed_through_watch(self._past, eps, action)] if self._past.rigid else []
+        run's, in guard units), reported by ``action`` (``guards.ground_watch``), and a round
+        contact rolling round a corner of a profile (``arcs.corner_arc_watch``)."""
+        out = [guards.passed_through_watch(self._past, eps, action)] if self._past.rigid else []
+        if self._arcs.rounds:
+            out.append(corner_arc_watch(self._arcs))
+        return out
 
     def model_info(self, **entries: Any) -> dict[str, Any]:
         """``Model.info`` of a robot built on this bridge: the entries the core and the tools read

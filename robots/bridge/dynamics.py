@@ -183,9 +183,10 @@ def on_terrain(p):
 
 @model_function
 def turning(p):
-    """Whether the terrain's normal turns smoothly under a round contact (a sine): each one's
-    point nearest the ground then moves on it with the configuration (``place_rounds``)."""
-    return on_terrain(p) and p[int(p[P_TERRAIN])] == SINE
+    """Whether the terrain's normal turns under a round contact (a sine, or a profile's corners):
+    each one's point nearest the ground then moves on it with the configuration
+    (``place_rounds``)."""
+    return on_terrain(p) and (p[int(p[P_TERRAIN])] == SINE or p[int(p[P_TERRAIN])] == PROFILE)
 
 
 @model_function
@@ -209,12 +210,14 @@ def round_centre(x, p, c, kin):
     the terrain's point nearest it: (s, d, g, k) of ``legsim.heights.nearest``. A centre more
     than ``FAR_RADII`` radii above the sine's crest is far from the ground: then, without the
     search over the terrain under it, (x, its height above the crest, 0, 0), the height a lower
-    bound of its distance and the normal taken as on level ground."""
+    bound of its distance and the normal taken as on level ground. On a profile the search is
+    over the pieces within the centre's height above the terrain, always made."""
     one_frame_kinematics(x, p, int(p[c + C_CENTER]), kin)
     terrain = int(p[P_TERRAIN])
-    above = kin[1] - (p[terrain + 1] + abs(p[terrain + 2]))
-    if above > FAR_RADII * p[c + C_RADIUS]:
-        return kin[0], above, 0.0, 0.0
+    if p[terrain] == SINE:
+        above = kin[1] - (p[terrain + 1] + abs(p[terrain + 2]))
+        if above > FAR_RADII * p[c + C_RADIUS]:
+            return kin[0], above, 0.0, 0.0
     return nearest(p, terrain, kin[0], kin[1])
 
 
@@ -247,11 +250,24 @@ def one_frame_kinematics(x, p, frame, kin):
 
 
 @model_function
+def ground_grade(x, p, frame, px, vx):
+    """dh/dx of the ground's tangent at the contact of Pinocchio frame ``frame`` at x (m) moving
+    at vx (m/s): a round contact's where the terrain turns, the tangent at the point nearest its
+    centre (on a profile's convex corner, across the line from the corner to the centre); else
+    the face under px it moves onto (``legsim.heights.face_slope``)."""
+    if turning(p):
+        c = round_record(p, frame)
+        if c >= 0:
+            return round_centre(x, p, c, scratch(4))[2]
+    return face_slope(p, int(p[P_TERRAIN]), px, vx)
+
+
+@model_function
 def point_slope(x, p, frame, kin):
-    """(dh/dx, sqrt(1 + (dh/dx)^2)) of the terrain under Pinocchio frame ``frame`` at q; the
-    frame's (x, z, vx, vz) (m, m/s) into kin (4,)."""
+    """(dh/dx, sqrt(1 + (dh/dx)^2)) of the terrain under Pinocchio frame ``frame`` at q
+    (``ground_grade``); the frame's (x, z, vx, vz) (m, m/s) into kin (4,)."""
     one_frame_kinematics(x, p, frame, kin)
-    grade = face_slope(p, int(p[P_TERRAIN]), kin[0], kin[2])
+    grade = ground_grade(x, p, frame, kin[0], kin[2])
     return grade, math.sqrt(1.0 + grade * grade)
 
 
@@ -294,7 +310,9 @@ def stuck_mu(x, p, c):
     about the bisector where it sits in a notch (``legsim.heights.notch_mu``; its forces are
     then those of that frame, ``terrain_slopes``)."""
     mu = p[c + C_MU]
-    if not on_terrain(p) or p[int(p[P_TERRAIN])] != PROFILE:  # only a profile has notches
+    # only a profile has notches, and only a point sits in one (a ball between two faces strikes
+    # the second, its corner event)
+    if not on_terrain(p) or p[int(p[P_TERRAIN])] != PROFILE or p[c + C_RADIUS] > 0.0:
         return mu
     kin = scratch(4)
     one_frame_kinematics(x, p, int(p[c + C_ID]), kin)

@@ -38,7 +38,7 @@ import numpy as np
 from legsim.robots._native.calls import lsn_frame_motion, lsn_frames, lsn_impact
 
 from legsim.compiled.functions import model_function, scratch
-from legsim.heights import face_slope, height
+from legsim.heights import face_slope, height, second_face
 
 from .dynamics import (
     accelerate,
@@ -46,10 +46,12 @@ from .dynamics import (
     handle,
     mode_accelerate,
     on_terrain,
+    one_frame_kinematics,
     place_rounds,
     point_slope,
     ptr,
     round_centre,
+    round_record,
     status_code,
     stuck_mu,
     terrain_slopes,
@@ -62,6 +64,7 @@ from .layout import (
     C_ARMED,
     C_ARMED_BEYOND,
     C_ARMED_REF,
+    C_CENTER,
     C_ID,
     C_KIND,
     C_PLACE,
@@ -367,12 +370,39 @@ def corner_base(x, p, frame):
     normal of the face under it, and at most its height above that face plus ``CORNER_DEPTH``. On
     a face the constraint keeps v_n and the height near 0; past a corner of the profile the
     face's normal turns and v_n jumps (into the new face at a concave corner, away from it at a
-    convex one): the loop crosses that jump (``ModeFunctions.crosses_jumps``)."""
+    convex one): the loop crosses that jump (``ModeFunctions.crosses_jumps``). A round contact's
+    is its centre's: v_n along the normal at the terrain's point nearest it, the height its
+    distance less r; the normal turns smoothly round a convex corner and jumps only where the
+    centre crosses a concave corner's bisector, onto the face it then strikes."""
     kin = scratch(4)
-    grade, norm = point_slope(x, p, frame, kin)
+    c = round_record(p, frame) if turning(p) else -1
+    if c >= 0:
+        _, distance, grade, _ = round_centre(x, p, c, kin)
+        norm = math.sqrt(1.0 + grade * grade)
+        clearance = distance - p[c + C_RADIUS]
+    else:
+        grade, norm = point_slope(x, p, frame, kin)
+        clearance = kin[1] - height(p, int(p[P_TERRAIN]), kin[0])
     normal_speed = (kin[3] - grade * kin[2]) / norm
     turned = CORNER_SINE * math.hypot(kin[2], kin[3]) + CORNER_FLOOR - abs(normal_speed)
-    return min(turned, kin[1] - height(p, int(p[P_TERRAIN]), kin[0]) + CORNER_DEPTH)
+    return min(turned, clearance + CORNER_DEPTH)
+
+
+@model_function
+def wedged(p, contact, image):
+    """Whether the round contact ``contact`` struck a face at a concave corner of the profile
+    and its centre moves, after the strike (``image``), into the other face it touches there:
+    a strike on two faces at once, which the impact law taken one face after the other does not
+    answer (the outcome is then refused: the run stops, past the model's range)."""
+    c = int(p[P_CONTACT]) + CONTACT_SIZE * contact
+    if p[c + C_RADIUS] <= 0.0 or not turning(p):
+        return False
+    kin = scratch(4)
+    one_frame_kinematics(image, p, int(p[c + C_CENTER]), kin)
+    grade = second_face(p, int(p[P_TERRAIN]), kin[0], kin[1], CORNER_DEPTH)
+    if math.isnan(grade):
+        return False
+    return (kin[3] - grade * kin[2]) / math.sqrt(1.0 + grade * grade) < -CORNER_FLOOR
 
 
 @model_function
@@ -381,8 +411,10 @@ def outcome(x, u, p, ev, rest, status, image):
     where the law has no outcome."""
     kind = p[ev + EV_KIND]
     contact = int(p[ev + EV_CONTACT])
-    if kind == E_GAP or kind == E_CORNER:  # noqa: SIM109 -- two float compares, no tuple in compiled code
+    if kind == E_GAP:
         return event_outcome(x, u, p, 1 << contact, rest, -1, status, image)
+    if kind == E_CORNER:
+        return event_outcome(x, u, p, 1 << contact, rest, -1, status, image) and not wedged(p, contact, image)
     if kind == E_STICK:
         return event_outcome(x, u, p, 0, False, contact, status, image)
     return mode_change(x, u, p, contact, p[ev + EV_SLIP], kind == E_FORCE, status, image)

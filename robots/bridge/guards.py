@@ -12,12 +12,12 @@ from collections.abc import Callable, Iterator
 import numpy as np
 
 from legsim.execution import Status
-from legsim.heights import SINE, heights_along, nearest, slopes_along
+from legsim.heights import heights_along, nearest, slopes_along
 from legsim.relaxed import Watch
 from legsim.terrain import along, corner_positions, pieces_along
 
 from .contacts import SLIP_SUFFIX, Armed, PointContact, RigidContact, SpringLeg, joint_id
-from .model import BridgeModel
+from .model import BridgeModel, rounds_move
 from .placements import Placements
 from .sweeps import placed_turns
 
@@ -43,9 +43,9 @@ class PastDepths:
     ) -> None:
         self.model, self.active_contacts = model, active_contacts
         self.rigid = tuple(model.rigid.values())
-        self.moving = model.terrain is not None and model.terrain[0] == SINE
+        self.moving = rounds_move(model.terrain)
         # The frame each depth reads: a point's contact point, or a round one's centre where its
-        # contact point moves in the body (a sine); then the frames points are armed ahead of.
+        # contact point moves in the body (a sine, a profile); then the frames points are armed ahead of.
         points = [self._frame(r) for r in self.rigid if r.kind == "point"]
         ahead = sorted({r.armed_frame for r in self.rigid if r.armed_frame >= 0})
         self._placements = placements

@@ -35,9 +35,8 @@ import numpy as np
 from legsim.robots._native.calls import lsn_crba, lsn_frame_jacobian, lsn_impact, lsn_solve
 
 from legsim.compiled.functions import model_function, scratch
-from legsim.heights import face_slope
 
-from .dynamics import handle, keep, on_terrain, place_rounds, ptr, terrain_slopes
+from .dynamics import ground_grade, handle, keep, on_terrain, place_rounds, ptr, terrain_slopes
 from .layout import (
     B_POINT,
     B_STOP,
@@ -51,7 +50,6 @@ from .layout import (
     KIND_STOP,
     P_CONTACT,
     P_N,
-    P_TERRAIN,
 )
 
 FREE, STICK, NORMAL, SLIDE = range(4)
@@ -84,7 +82,7 @@ def contact_rows(x, p, contact, t_row, n_row):
         vx = 0.0
         for j in range(n):
             vx += jac[2 + j] * x[n + j]
-        grade = face_slope(p, int(p[P_TERRAIN]), jac[0], vx)
+        grade = ground_grade(x, p, int(p[c + C_ID]), jac[0], vx)
         norm = math.sqrt(1.0 + grade * grade)
     if grade == 0.0:
         for j in range(n):

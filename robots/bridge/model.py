@@ -102,10 +102,17 @@ class BridgeModel:
         return self.frames.index(frame)
 
 
+def rounds_move(terrain: np.ndarray | None) -> bool:
+    """Whether a round contact's point nearest the terrain (its array, ``legsim.terrain``; None:
+    level ground) moves in the body as it rolls: on a sine and on a profile's corners, not on
+    level ground or a uniform slope."""
+    return terrain is not None and float(terrain[0]) in (SINE, PROFILE)
+
+
 def native_handle(model: pin.Model, name: str, offsets: Mapping[int, tuple[float, float]], moving: bool) -> int:
     """The native library's handle of a bridge's Pinocchio ``model``: its round contacts' frames
     (``offsets``, frame id -> (dx, dz) (m)) at their points nearest the ground, which on a sine
-    terrain (``moving``) move with the configuration."""
+    or a profile (``moving``) move with the configuration."""
     handle = handle_for(model, name, offsets)
     if moving:
         for frame in offsets:
@@ -154,10 +161,11 @@ def build_model(
                 f"is not a coordinate: {coords}"
             )
     # Where the ground's grade is one a round contact's offset to its point nearest the ground is
-    # fixed; on a sine it moves with the configuration, which the model functions set (``_on_terrain``).
+    # fixed; on a sine or a profile it moves with the configuration, which the model functions set
+    # (``dynamics.place_rounds``).
     grade = 0.0 if terrain is None else terrain.uniform_grade or 0.0
     offsets = {r.frame_id: round_offset(r.radius, grade) for r in rigid.values() if r.radius > 0.0}
-    handle = native_handle(own, name, offsets, terrain is not None and terrain.array[0] == SINE)
+    handle = native_handle(own, name, offsets, rounds_move(None if terrain is None else terrain.array))
     return BridgeModel(
         name, own, n, declared, rigid, legs, coords, vels, damping_idx, damping_b, actuated_idx, limits,
         handle,
@@ -196,14 +204,16 @@ def _on_terrain(declared: dict[str, Contact], terrain: Terrain | None, name: str
         )
     # A round contact touches the ground at its point nearest it, along the ground's normal there.
     # On a sine that point moves smoothly with the centre, one point as long as the radius is below
-    # the sine's least radius of curvature; at a profile's concave corner a ball touches both faces
-    # at once, two contacts of one frame, which is not modelled: refused rather than answered wrongly.
+    # the sine's least radius of curvature; on a profile it rolls round convex corners and strikes
+    # the next face at concave ones (its corner event).
     rounds = [c for c in grounded if isinstance(c, PointContact) and c.radius > 0.0]
-    if rounds and terrain.array[0] == PROFILE:
+    # A concave corner is an event of the friction law's (``events.corner_base``), which a robot
+    # whose contacts have no friction coefficient does not take.
+    coulomb = any(getattr(c, "friction", None) is not None for c in declared.values())
+    if rounds and terrain.array[0] == PROFILE and not coulomb:
         raise ModelError(
-            f"{name}: round contacts {[c.name for c in rounds]} (collision spheres and cylinders) stand on level "
-            f"ground, slopes and sines; the terrain {terrain.description} has corners, where a ball touches two "
-            f"faces at once (use boxes, or point contacts)"
+            f"{name}: round contacts {[c.name for c in rounds]} on the terrain {terrain.description}, which has "
+            f"corners, need the friction law: give the robot's contacts a friction coefficient"
         )
     if rounds and terrain.array[0] == SINE:
         amplitude, wavenumber = abs(float(terrain.array[2])), float(terrain.array[3])

@@ -11,11 +11,9 @@ from collections.abc import Iterable, Mapping
 import numpy as np
 import pinocchio as pin
 
-from legsim.heights import SINE
-
 from ..frame_points import frame_motions
 from ..kept import KeptWhileAlive
-from .model import BridgeModel, native_handle
+from .model import BridgeModel, native_handle, rounds_move
 
 
 class Placements:
@@ -55,8 +53,7 @@ class Placements:
         places them (round contacts' offsets and all), and the added points."""
         if self._handle is None:
             m = self.model
-            moving = m.terrain is not None and m.terrain[0] == SINE
-            self._handle = native_handle(self._pin, m.name, m.round_offsets, moving)
+            self._handle = native_handle(self._pin, m.name, m.round_offsets, rounds_move(m.terrain))
         return self._handle
 
     def at(self, states: np.ndarray) -> np.ndarray:

@@ -258,14 +258,16 @@ def _settled_changes(model: BridgeModel, modes: ModeCatalog, spec: ModeSpec, con
     whose forces are consistent: ``liftoff_<c>`` / ``release_<c>`` (its normal force through 0);
     for a stuck contact with friction ``slip_<c>>`` and ``slip_<c><`` (its force at the cone's
     edge); for a slipping one ``stick_<c>`` (its slip velocity back through 0); for a sliding
-    point on a terrain with corners ``corner_<c>`` (``events.corner_base``)."""
+    point, or a round contact rolling or sliding, on a terrain with corners ``corner_<c>``
+    (``events.corner_base``)."""
     involved = [r.contact.name for r in spec.rigid]
     targets = candidate_targets(model, modes, spec, involved)
     kind = "release" if isinstance(model.contacts[contact], JointStop) else "liftoff"
     without = modes.name_of([e for e, c in zip(spec.entries, spec.active, strict=True) if c != contact])
     _event(model, modes, spec, out, E_FORCE, contact, targets, _labels(f"{kind}_{contact}", without))
-    sliding = model.rigid[contact].mu is None or spec.slip_of(contact)
-    if model.cornered and sliding and not isinstance(model.contacts[contact], JointStop):
+    # a stuck point stays on its face; a stuck ball rolls, its centre moving past corners
+    moving = model.rigid[contact].mu is None or spec.slip_of(contact) or model.rigid[contact].radius > 0.0
+    if model.cornered and moving and not isinstance(model.contacts[contact], JointStop):
         _event(model, modes, spec, out, E_CORNER, contact, targets, _labels(f"corner_{contact}", spec.name))
     if model.rigid[contact].mu is None:
         return
