@@ -228,8 +228,9 @@ def _profile_nearest(p, at, xc, zc):
     lies beyond both faces of) the normal points from the corner to the centre, and the level
     set through the centre is the circle of radius d about the corner: k = 1 / d. At a concave
     breakpoint the nearest face changes where the centre crosses the bisector, a jump of the
-    normal that the bridge's corner event takes as a strike on the new face. A centre level
-    with or below the corner it is nearest to has no normal of the form (-g, 1): all nan."""
+    normal that the bridge's corner event takes as a strike on the new face. A centre below the
+    terrain, or level with or below the corner it is nearest to (past the model's range: deep
+    in the ground), takes the face at that corner it lies towards, k = 0."""
     reach = abs(zc - height(p, at, xc))
     first, last = _segment(p, at, xc - reach), _segment(p, at, xc + reach)
     best_x, best_z, best_end, least = xc, zc, False, math.inf
@@ -240,11 +241,9 @@ def _profile_nearest(p, at, xc, zc):
             best_x, best_z, best_end, least = fx, fz, end, squared
     above = 1.0 if zc >= height(p, at, xc) else -1.0
     d = above * math.sqrt(least)
-    if not best_end or least == 0.0:
+    if not best_end or least == 0.0 or above < 0.0 or zc <= best_z:
         g = face_slope(p, at, best_x, xc - best_x) if best_end else slope(p, at, best_x)
         return best_x, d, g, 0.0
-    if zc - best_z <= 0.0:
-        return math.nan, math.nan, math.nan, math.nan
     return best_x, d, -(xc - best_x) / (zc - best_z), 1.0 / d
 
 

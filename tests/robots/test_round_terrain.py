@@ -336,3 +336,19 @@ def test_a_ball_rolling_round_a_corner_says_so_and_keeps_its_path_to_the_steps_o
     # at rtol 1e-10 within 1e-8 m, where along a face or an arc alone it keeps 1e-12 m
     assert 5.0 < off_path["h 1e-3"] / off_path["h 1e-4"] < 40.0
     assert off_path["h 1e-3"] < 1e-4 and off_path["dopri5"] < 1e-8
+
+
+def test_a_monoped_with_a_ball_foot_tips_over_onto_a_lower_step_and_stays_above_it(tmp_path):
+    # The tipping monoped of test_collision_contacts (a box trunk's corners and a ball foot) with
+    # a step 5 cm down at x = 0.2 m: built (its checks evaluate the foot's centre deep under the
+    # step's edge, where the nearest point is the edge), it tips over onto the lower step, and no
+    # shape goes below the lower step, nor any link below the terrain under it.
+    from .test_collision_contacts import lowest_points, monoped
+
+    path = monoped(tmp_path)
+    path.write_text(path.read_text() + '[terrain]\nkind = "steps"\npositions = [0.2]\nheights = [-0.05]\n')
+    ex = load_scene(path).simulate()
+    assert ex.status == "finished", ex.message
+    assert any("trunk" in tr.target for tr in ex.transitions), [tr.target for tr in ex.transitions]
+    assert min(lowest_points(path, ex).values()) >= -0.05 - 1e-4
+    assert not [w for w in ex.warnings if w.kind in ("below_ground", "terrain_inside", "passed_through")]
