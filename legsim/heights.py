@@ -200,71 +200,101 @@ def _sine_foot(p, at, xc, zc):
     return s
 
 
+#: How much the slope must fall across a profile's breakpoint for a ball to roll round it on an
+#: arc (a convex corner): collinear points, whose slopes agree to rounding, are a face.
+CONVEX_SLOPES = 1e-9
+
+
 @model_function
 def _piece_foot(p, at, i, xc, zc):
-    """(x, z, whether an end) of the point of profile piece i nearest (xc, zc): the segment
+    """(x, z, breakpoint) of the point of profile piece i nearest (xc, zc): the segment
     [x_i, x_{i+1}], or for i = -1 and i = n - 1 the level rays left of x_0 and right of x_{n-1};
-    an end is a breakpoint (the projection clamped to it)."""
+    breakpoint k where the projection is clamped to breakpoint k, else -1 (inside the piece)."""
     n = int(p[at + 1])
     xs, zs = at + 2, at + 2 + n
     if i < 0:
-        return min(xc, p[xs]), p[zs], xc >= p[xs]
+        return min(xc, p[xs]), p[zs], 0 if xc >= p[xs] else -1
     if i >= n - 1:
-        return max(xc, p[xs + n - 1]), p[zs + n - 1], xc <= p[xs + n - 1]
+        return max(xc, p[xs + n - 1]), p[zs + n - 1], n - 1 if xc <= p[xs + n - 1] else -1
     ax, az, bx, bz = p[xs + i], p[zs + i], p[xs + i + 1], p[zs + i + 1]
     w = ((xc - ax) * (bx - ax) + (zc - az) * (bz - az)) / ((bx - ax) * (bx - ax) + (bz - az) * (bz - az))
     if w <= 0.0:
-        return ax, az, True
+        return ax, az, i
     if w >= 1.0:
-        return bx, bz, True
-    return ax + w * (bx - ax), az + w * (bz - az), False
+        return bx, bz, i + 1
+    return ax + w * (bx - ax), az + w * (bz - az), -1
+
+
+@model_function
+def _convex(p, at, k):
+    """Whether profile breakpoint k is a convex corner (the slope falls across it)."""
+    left, right = _segment_slope(p, at, k - 1), _segment_slope(p, at, k)
+    return left - right > CONVEX_SLOPES * (1.0 + abs(left) + abs(right))
+
+
+@model_function
+def _foot_grade(p, at, i, k, fx, fz, xc, zc):
+    """The slope g of the normal (-g, 1) at the foot (fx, fz) of piece i (breakpoint k, -1 inside
+    it) seen from (xc, zc): the face's, or at a convex corner the line from it to the centre's;
+    nan at a corner level with or above the centre (no normal of that form)."""
+    if k < 0:
+        return _segment_slope(p, at, i)
+    if not _convex(p, at, k):
+        return face_slope(p, at, fx, xc - fx)
+    if zc <= fz:
+        return math.nan
+    return -(xc - fx) / (zc - fz)
 
 
 @model_function
 def _profile_nearest(p, at, xc, zc):
     """``nearest`` on a profile: the least distance over its pieces within reach of the centre
-    (the point (xc, h(xc)) is on the terrain, so the nearest lies within |zc - h(xc)| along x).
-    On a face the normal is the face's and k = 0; at a convex breakpoint (a corner the centre
-    lies beyond both faces of) the normal points from the corner to the centre, and the level
-    set through the centre is the circle of radius d about the corner: k = 1 / d. At a concave
-    breakpoint the nearest face changes where the centre crosses the bisector, a jump of the
-    normal that the bridge's corner event takes as a strike on the new face. A centre below the
-    terrain, or level with or below the corner it is nearest to (past the model's range: deep
-    in the ground), takes the face at that corner it lies towards, k = 0."""
+    (the point (xc, h(xc)) is on the terrain, so the nearest lies within |zc - h(xc)| along x);
+    a tie goes to a face, and a breakpoint that is not a convex corner is a face's end. On a
+    face the normal is the face's and k = 0; at a convex corner (one the centre lies beyond
+    both faces of) the normal points from the corner to the centre, and the level set through
+    the centre is the circle of radius d about the corner: k = 1 / d. At a concave corner the
+    nearest face changes where the centre crosses the bisector, a jump of the normal that the
+    bridge's corner event takes as a strike on the new face. A centre below the terrain, or level
+    with or below the corner it is nearest to (past the model's range: deep in the ground), takes
+    the face at that corner it lies towards, k = 0."""
     reach = abs(zc - height(p, at, xc))
-    first, last = _segment(p, at, xc - reach), _segment(p, at, xc + reach)
-    best_x, best_z, best_end, least = xc, zc, False, math.inf
-    for i in range(first, last + 1):
-        fx, fz, end = _piece_foot(p, at, i, xc, zc)
+    best_i, best_x, best_z, best_k, least = -1, xc, zc, -1, math.inf
+    for i in range(_segment(p, at, xc - reach), _segment(p, at, xc + reach) + 1):
+        fx, fz, k = _piece_foot(p, at, i, xc, zc)
         squared = (fx - xc) * (fx - xc) + (fz - zc) * (fz - zc)
-        if squared < least:
-            best_x, best_z, best_end, least = fx, fz, end, squared
+        if squared < least or (squared == least and k < 0 <= best_k):
+            best_i, best_x, best_z, best_k, least = i, fx, fz, k, squared
     above = 1.0 if zc >= height(p, at, xc) else -1.0
     d = above * math.sqrt(least)
-    if not best_end or least == 0.0 or above < 0.0 or zc <= best_z:
-        g = face_slope(p, at, best_x, xc - best_x) if best_end else slope(p, at, best_x)
+    corner = best_k >= 0 and _convex(p, at, best_k) and above > 0.0 and zc > best_z and least > 0.0
+    if not corner:
+        g = face_slope(p, at, best_x, xc - best_x) if best_k >= 0 else _segment_slope(p, at, best_i)
         return best_x, d, g, 0.0
     return best_x, d, -(xc - best_x) / (zc - best_z), 1.0 / d
 
 
 @model_function
-def second_face(p, at, xc, zc, within):
-    """dh/dx of a profile face that (xc, zc) lies within ``within`` (m) of the distance to its
-    nearest point, besides that point's own face or corner: the second face a ball at a concave
-    corner touches; nan where there is none (and on other terrains)."""
+def second_contact(p, at, xc, zc, within):
+    """The slope g of the normal (-g, 1) at a second point of the profile that (xc, zc) lies within
+    ``within`` (m) of the distance to its nearest point: another face, or a convex corner, that
+    a ball there touches besides its nearest point (in a notch, across a pit narrower than
+    itself); nan where there is none (and on other terrains)."""
     if p[at] != PROFILE:
         return math.nan
     s, distance, _, _ = _profile_nearest(p, at, xc, zc)
+    sz = height(p, at, s)
     reach = abs(zc - height(p, at, xc))
-    least = math.inf
-    grade = math.nan
+    least, grade = math.inf, math.nan
     for i in range(_segment(p, at, xc - reach), _segment(p, at, xc + reach) + 1):
-        fx, fz, end = _piece_foot(p, at, i, xc, zc)
-        if end or abs(fx - s) <= CORNER_RESOLUTION:
-            continue
+        fx, fz, k = _piece_foot(p, at, i, xc, zc)
+        if abs(fx - s) <= CORNER_RESOLUTION and abs(fz - sz) <= CORNER_RESOLUTION:
+            continue  # the nearest point itself
+        if k >= 0 and not _convex(p, at, k):
+            continue  # a face's end at a notch: the faces are the contacts there
         squared = (fx - xc) * (fx - xc) + (fz - zc) * (fz - zc)
         if squared < least:
-            least, grade = squared, _segment_slope(p, at, i)
+            least, grade = squared, _foot_grade(p, at, i, k, fx, fz, xc, zc)
     return grade if math.sqrt(least) <= abs(distance) + within else math.nan
 
 

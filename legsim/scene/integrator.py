@@ -5,6 +5,7 @@ search's ``[orbit.integrator]`` is checked the same way, named by its own path."
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -122,12 +123,37 @@ def validated_integrator(path: Path, table: dict[str, Any], where: str = "integr
     return out
 
 
+#: Key of ``Model.info`` under which a model whose fields jump inside a mode, where no guard lands
+#: a step, says why fixed steps cannot be vouched for there (a string): its scenes then need
+#: error-controlled steps.
+NEEDS_ERROR_CONTROL = "needs_error_control"
+
+
+def fixed_steps(settings: Mapping[str, Any]) -> bool:
+    """Whether an ``[integrator]`` table's run takes fixed steps: no rtol or atol, and not one of
+    scipy's method names (which imply error control)."""
+    from ..methods.builtin import SCIPY_NAMES
+
+    return settings["rtol"] is None and settings["atol"] is None and settings["method"] not in SCIPY_NAMES
+
+
+def check_step_rule(path: Path, info: Any, settings: Mapping[str, Any], where: str = "integrator") -> None:
+    """Refuse fixed steps for a model that needs error control (``NEEDS_ERROR_CONTROL`` in its
+    ``info``), naming the field to set and the model's reason."""
+    reason = info.get(NEEDS_ERROR_CONTROL) if isinstance(info, Mapping) else None
+    if reason and fixed_steps(settings):
+        raise field_error(
+            path,
+            f"{where}.rtol",
+            f"missing: fixed steps (method {settings['method']!r}, no rtol or atol) cannot be vouched for here: "
+            f"{reason}; give rtol (and atol) with an embedded method (bs32, dopri5, dop853)",
+        )
+
+
 def _check_step_fits(path: Path, out: dict[str, Any], where: str) -> None:
     """A fixed step longer than the run is refused: the run would be one step, resolving nothing
     of the motion (an error-controlled run takes h as its largest step, which may be long)."""
-    from ..methods.builtin import SCIPY_NAMES
-
-    fixed = out["rtol"] is None and out["atol"] is None and out["method"] not in SCIPY_NAMES
+    fixed = fixed_steps(out)
     span = out["t_final"] - out["t0"]
     if fixed and out["h"] > span:
         raise field_error(

@@ -75,7 +75,7 @@ from .controller import scene_controller
 from .falls import fall_watches
 from .fields import check_keys, describe, field_error, table_at
 from .files import apply_overrides, bundled_dir, checked_depth, read_toml, resolve_scene_path, scene_relative_files
-from .integrator import validated_integrator
+from .integrator import check_step_rule, validated_integrator
 from .terrain import parse_terrain, profile_file
 
 CORE_SECTIONS = ("scene", "robot", "effects", "initial", "integrator", "output", "controller", "fall", "terrain")
@@ -350,6 +350,7 @@ def _validate(path: Path, data: dict[str, Any], overrides: list[str]) -> Scene:
     scene_relative_files(path, builder.parameters, resolved_params, "robot.parameters")
     chosen = resolve_effects(builder.effects, effects_t, f"{where}: effects")
     model = _built(path, robot, builder, resolved_params, chosen, terrain)
+    check_step_rule(path, model.info, integrator)
 
     controller_table = table_at(path, data, "controller")
     controller = scene_controller(path, controller_table, model)

@@ -40,7 +40,7 @@ from ..orbits.sections import bind_section
 from .controller import scene_controller
 from .fields import check_keys, describe, field_error, table_at
 from .files import parse_override
-from .integrator import validated_integrator
+from .integrator import check_step_rule, validated_integrator
 
 #: Keys of a scene's ``[orbit]`` section and what they hold.
 ORBIT_KEYS = {
@@ -418,7 +418,9 @@ def _search_integrator(scene: Any, table: Mapping[str, Any]) -> dict[str, Any]:
         )
     merged = {k: v for k, v in scene.integrator.items() if v is not None}
     merged.update(override)
-    return validated_integrator(scene.path, merged, "orbit.integrator")
+    settings = validated_integrator(scene.path, merged, "orbit.integrator")
+    check_step_rule(scene.path, scene.model.info, settings, "orbit.integrator")
+    return settings
 
 
 def _controller_maker(scene: Any) -> Callable[[Any], Any] | None:

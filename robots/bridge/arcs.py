@@ -1,15 +1,17 @@
-"""Where a round contact rolls round a convex corner of a profile, and the warning that says so.
+"""Where a round contact rolls round a convex corner of a profile, and the warnings that say so.
 
 On a face its centre moves on a line; round a convex corner it moves on the circle of radius r
 about the corner. The curvature of that path jumps from 0 to 1 / r at each end of the arc, and
 with it the contact's normal acceleration: the field jumps inside the mode, where no guard lands
-a step (the face and the arc are one contact mode). Steps cross such a jump at reduced order:
-fixed steps to first order, and an embedded pair's error estimate sees only a small share of it.
-Rolling a ball r = 0.1 m over a 20 degree corner at 0.3 m/s, the centre ends up off its path by
-6.5e-5 m with rk4 at h = 1e-3 s (4.0e-6 m at 1e-4 s) and by 3.4e-9 m with dopri5 at rtol 1e-10
-(1.8e-9 m at 1e-12), against 1e-12 m along a face or round an arc alone. A run that rolls a round
-contact on a corner's arc says so in a warning (also one that leaves the arc by a liftoff, an
-event located as any other: the check sees where the contact is, not how it left).
+a step (the face and the arc are one contact mode). Steps cross such a jump at reduced order,
+and the error they leave in the velocity along the normal stays: the constraint holds the
+normal acceleration, not the distance, so the centre then drifts off its path at a constant
+rate. Rolling a ball r = 0.1 m over a 5 degree corner at 0.3 m/s with dopri5 (largest step
+0.01 s), the centre is 2.7e-7 m off its path 20 s later at rtol 1e-10, and 2.3e-3 m at rtol
+1e-6, its energy up by 0.045 J; fixed steps leave 6.5e-5 m after one corner at h = 1e-3 s and
+drift as much further, so a scene refuses them there (``needs_error_control``). A run with a
+contact on a corner's arc says so (``round_corner``), and one whose contact lies off its path by
+more than eps + ``guards.THROUGH_DEPTH`` says that too (``round_drift``).
 """
 
 from __future__ import annotations
@@ -45,14 +47,29 @@ class CornerArcs:
     def on_arcs(self, mode: str, states: np.ndarray) -> np.ndarray:
         """(rows, rounds) bool: the contact is active in ``mode`` and its centre nearest a corner
         (``legsim.heights.nearest``'s curvature 1 / d there, 0 on a face)."""
+        return self._nearest(mode, states)[1] != 0.0
+
+    def offsets(self, mode: str, states: np.ndarray) -> np.ndarray:
+        """(rows, rounds): |d - r| (m), how far each contact active in ``mode`` lies off the curve
+        r from the terrain that it keeps to in contact (0 for the inactive ones)."""
+        distances = self._nearest(mode, states)[0]
+        radii = np.array([r.radius for r in self.rounds])
+        return np.where(np.isnan(distances), 0.0, np.abs(distances - radii))
+
+    def _nearest(self, mode: str, states: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(rows, rounds) each: the distance d (m) from each active contact's centre to the
+        terrain and the curvature k (1/m) there (``legsim.heights.nearest``); nan and 0 for a
+        contact inactive in ``mode``."""
         states = np.atleast_2d(states)
-        out = np.zeros((states.shape[0], len(self.rounds)), dtype=bool)
+        distance = np.full((states.shape[0], len(self.rounds)), np.nan)
+        curvature = np.zeros_like(distance)
         active = set(self.active_contacts(mode))
         centres = self._placements.at(states)[:, self._columns] if self.rounds else None
         for k, r in enumerate(self.rounds):
             if r.contact.name in active and centres is not None:
-                out[:, k] = [nearest(self.terrain, 0, xc, zc)[3] != 0.0 for xc, zc in centres[:, k]]
-        return out
+                found = np.array([nearest(self.terrain, 0, xc, zc) for xc, zc in centres[:, k]]).reshape(-1, 4)
+                distance[:, k], curvature[:, k] = found[:, 1], found[:, 3]
+        return distance, curvature
 
 
 def corner_arc_watch(arcs: CornerArcs) -> Watch:
@@ -74,3 +91,22 @@ def corner_arc_watch(arcs: CornerArcs) -> Watch:
         )
 
     return Watch("round_corner", value, "warn", message)
+
+
+def round_drift_watch(arcs: CornerArcs, allowed: float) -> Watch:
+    """A warning where a round contact in contact lies off the curve r from the terrain by more
+    than ``allowed`` (m): it drifted after the jump at an arc's end (module docstring)."""
+
+    def value(mode: str, t: np.ndarray, x: np.ndarray) -> np.ndarray:
+        return allowed - arcs.offsets(mode, x)
+
+    def message(t: float, mode: str, x: np.ndarray) -> str:
+        off = arcs.offsets(mode, x)[0]
+        k = int(np.argmax(off))
+        return (
+            f"round contact '{arcs.rounds[k].contact.name}' is {off[k]:.3g} m off the terrain at t={t:.6g} s in mode "
+            f"'{mode}' while in contact (more than eps + {allowed:.3g} m): it drifts after rolling round a corner, "
+            f"where the steps crossed a jump of its acceleration; give a tighter rtol"
+        )
+
+    return Watch("round_drift", value, "warn", message)

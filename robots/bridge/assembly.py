@@ -23,7 +23,7 @@ from legsim.relaxed import Watch
 from legsim.terrain import Terrain
 
 from . import guards, native
-from .arcs import CornerArcs, corner_arc_watch
+from .arcs import CornerArcs, corner_arc_watch, round_drift_watch
 from .contacts import Contact, frame_id
 from .dynamics import bridge_field, bridge_forces, bridge_spring_forces
 from .events import bridge_guards, bridge_reset
@@ -46,7 +46,10 @@ CONTACTS_PAST_RANGE = (
     "contacts with no consistent outcome (an event that no set of contact statuses resolves, or slipping "
     "contacts without unique forces: Painleve's paradox)"
 )
-ROUNDS_PAST_RANGE = "a round contact struck into a notch of the terrain, pressing on two faces at once"
+ROUNDS_PAST_RANGE = (
+    "a round contact struck into a notch of the terrain or across a pit narrower than itself, pressing on two "
+    "points of it at once"
+)
 
 
 class ContactBridge:
@@ -337,17 +340,18 @@ class ContactBridge:
         """What every run of the robot is checked for: an inactive contact past the ground or its
         stop by more than eps + ``guards.THROUGH_DEPTH`` (``guards.passed_through_watch``; eps the
         run's, in guard units), reported by ``action`` (``guards.ground_watch``), and a round
-        contact rolling round a corner of a profile (``arcs.corner_arc_watch``)."""
+        contact rolling round a corner of a profile or drifting off it by more than eps +
+        ``guards.THROUGH_DEPTH`` (``arcs``)."""
         out = [guards.passed_through_watch(self._past, eps, action)] if self._past.rigid else []
         if self._arcs.rounds:
-            out.append(corner_arc_watch(self._arcs))
+            out += [corner_arc_watch(self._arcs), round_drift_watch(self._arcs, eps + guards.THROUGH_DEPTH)]
         return out
 
     def model_info(self, **entries: Any) -> dict[str, Any]:
         """``Model.info`` of a robot built on this bridge: the entries the core and the tools read
         (``guard_units``, ``bridge``, ``initial_check``, ``bare_aba``, ``contact_names``,
-        ``active_contacts``, ``watches``: ``contact_watches`` warning), then the builder's own
-        ``entries``."""
+        ``active_contacts``, ``watches``: ``contact_watches`` warning, and where it applies
+        ``needs_error_control``: ``_step_needs``), then the builder's own ``entries``."""
         return {
             "guard_units": self.guard_units(),
             "bridge": self,
@@ -357,7 +361,23 @@ class ContactBridge:
             "contact_names": tuple(c.name for c in self.contacts),
             "active_contacts": self.active_contacts,
             "watches": lambda control, eps: self.contact_watches(eps),
+            **self._step_needs(),
             **entries,
+        }
+
+    def _step_needs(self) -> dict[str, str]:
+        """``needs_error_control`` (``legsim.scene.integrator``) where round contacts roll round a
+        profile's convex corners: their acceleration jumps at an arc's ends inside a contact mode,
+        which fixed steps cross to first order, the contact then drifting off the terrain."""
+        if not self._arcs.rounds:
+            return {}
+        names = [r.contact.name for r in self._arcs.rounds]
+        return {
+            "needs_error_control": (
+                f"round contacts {names} roll round the terrain's convex corners, where their acceleration "
+                f"jumps inside a contact mode; fixed steps cross that jump to first order and leave the contact "
+                f"drifting off the terrain (docs/robots.md, 'Round contacts on steps and profiles')"
+            )
         }
 
     def guard_units(self) -> dict[str, str]:

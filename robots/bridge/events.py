@@ -38,7 +38,7 @@ import numpy as np
 from legsim.robots._native.calls import lsn_frame_motion, lsn_frames, lsn_impact
 
 from legsim.compiled.functions import model_function, scratch
-from legsim.heights import face_slope, height, second_face
+from legsim.heights import face_slope, height, second_contact
 
 from .dynamics import (
     accelerate,
@@ -390,16 +390,18 @@ def corner_base(x, p, frame):
 
 @model_function
 def wedged(p, contact, image):
-    """Whether the round contact ``contact`` struck a face at a concave corner of the profile
-    and its centre moves, after the strike (``image``), into the other face it touches there:
-    a strike on two faces at once, which the impact law taken one face after the other does not
-    answer (the outcome is then refused: the run stops, past the model's range)."""
+    """Whether the round contact ``contact``, striking the profile (landing, or passing a concave
+    corner), touches it at a second point too (another face in a notch, an edge across a pit
+    narrower than itself: ``legsim.heights.second_contact``) and its centre moves, after the
+    strike (``image``), into that one: a strike on two points at once, which the impact law taken
+    at one point does not answer (the outcome is then refused: the run stops, past the model's
+    range)."""
     c = int(p[P_CONTACT]) + CONTACT_SIZE * contact
     if p[c + C_RADIUS] <= 0.0 or not turning(p):
         return False
     kin = scratch(4)
     one_frame_kinematics(image, p, int(p[c + C_CENTER]), kin)
-    grade = second_face(p, int(p[P_TERRAIN]), kin[0], kin[1], CORNER_DEPTH)
+    grade = second_contact(p, int(p[P_TERRAIN]), kin[0], kin[1], CORNER_DEPTH)
     if math.isnan(grade):
         return False
     return (kin[3] - grade * kin[2]) / math.sqrt(1.0 + grade * grade) < -CORNER_FLOOR
@@ -411,9 +413,7 @@ def outcome(x, u, p, ev, rest, status, image):
     where the law has no outcome."""
     kind = p[ev + EV_KIND]
     contact = int(p[ev + EV_CONTACT])
-    if kind == E_GAP:
-        return event_outcome(x, u, p, 1 << contact, rest, -1, status, image)
-    if kind == E_CORNER:
+    if kind == E_GAP or kind == E_CORNER:  # noqa: SIM109 -- two float compares, no tuple in compiled code
         return event_outcome(x, u, p, 1 << contact, rest, -1, status, image) and not wedged(p, contact, image)
     if kind == E_STICK:
         return event_outcome(x, u, p, 0, False, contact, status, image)
