@@ -21,7 +21,7 @@ from typing import cast
 import numpy as np
 
 #: The C interface version this module speaks (``lsn_version()`` of the library).
-INTERFACE_VERSION = 11
+INTERFACE_VERSION = 12
 #: Environment variable that switches the native path off when set to 0.
 SWITCH = "LEGSIM_NATIVE"
 

@@ -84,7 +84,7 @@ using Mat = Eigen::MatrixXd;
 using ConstMap = Eigen::Map<const Vec>;
 using OutMap = Eigen::Map<Vec>;
 
-constexpr int kVersion = 11;
+constexpr int kVersion = 12;
 
 // Joint type codes of the model description (see lsn_create).
 enum JointCode { RX = 0, RY = 1, RZ = 2, PX = 3, PY = 4, PZ = 5, COMPOSITE = 6 };
@@ -309,9 +309,11 @@ int total_rows(const std::vector<Rigid>& rigid) {
 // The stacked constraint Jacobian (rows, nv); with drift also dJ/dt v (the classical
 // acceleration of each point at zero joint acceleration), and the force directions W (J but on
 // slipping points' rows). Kinematics at (q, v, 0) first. slopes: null (the ground is level
-// under every point), or (h', h'') per block: the terrain's slope dh/dx and curvature d2h/dx2
-// under the point, whose rows are then along the terrain's tangent t = (1, h') / s and normal
-// n = (-h', 1) / s, s = sqrt(1 + h'^2) (a point on a level ground takes the rows x and z as
+// under every point), or (h', h'', bias) per block: the terrain's slope dh/dx and curvature
+// d2h/dx2 under the point, whose rows are then along the terrain's tangent t = (1, h') / s and
+// normal n = (-h', 1) / s, s = sqrt(1 + h'^2), and for a moving round frame a term (m/s^2)
+// added to its normal row's drift, which steers its centre back onto the curve r from the
+// terrain (0 elsewhere; a point on a level ground takes the rows x and z as
 // before, bit for bit). jacobians_ready: data.J already holds the joint Jacobians at q (an
 // aba in the WORLD convention fills them), which spares a second kinematics pass.
 void constraint_rows(Robot& rb, const ConstMap& q, const ConstMap& v, const std::vector<Rigid>& rigid,
@@ -342,11 +344,12 @@ void constraint_rows(Robot& rb, const ConstMap& q, const ConstMap& v, const std:
     Jf.setZero();
     pinocchio::getFrameJacobian(model, data, frame, pinocchio::LOCAL_WORLD_ALIGNED, Jf);
     shift_to_contact(rb, frame, Jf);
-    const double slope = slopes == nullptr ? 0.0 : slopes[2 * b];
+    const double slope = slopes == nullptr ? 0.0 : slopes[3 * b];
     // A point's d2h/dx2; a moving round frame's instead the curvature K (1/m) of the level set of
     // its centre's distance to the terrain (the offset curve): rolling or sliding, the centre keeps
     // that distance, whose second derivative has the term K (t . v_centre)^2.
-    const double curvature = slopes == nullptr ? 0.0 : slopes[2 * b + 1];
+    const double curvature = slopes == nullptr ? 0.0 : slopes[3 * b + 1];
+    const double bias = slopes == nullptr ? 0.0 : slopes[3 * b + 2];
     const bool rolling = rb.moving[frame] != 0;
     Eigen::Vector3d acc = Eigen::Vector3d::Zero();
     if (drift) {
@@ -354,7 +357,7 @@ void constraint_rows(Robot& rb, const ConstMap& q, const ConstMap& v, const std:
           pinocchio::getFrameClassicalAcceleration(model, data, frame, pinocchio::LOCAL_WORLD_ALIGNED);
       acc = motion.linear() + motion.angular().cross(round_offset(rb, frame));
     }
-    if (slope == 0.0 && curvature == 0.0) {
+    if (slope == 0.0 && curvature == 0.0 && bias == 0.0) {
       if (r.rows == 2) {
         J.row(i) = Jf.row(0);
         J.row(i + 1) = Jf.row(2);
@@ -389,7 +392,7 @@ void constraint_rows(Robot& rb, const ConstMap& q, const ConstMap& v, const std:
         const Eigen::Vector3d centre =
             pinocchio::getFrameVelocity(model, data, frame, pinocchio::LOCAL_WORLD_ALIGNED).linear();
         const double along = (centre(0) + slope * centre(2)) / s;
-        gamma(n_row) += curvature * along * along;
+        gamma(n_row) += curvature * along * along + bias;
       }
       W.middleRows(i, r.rows) = J.middleRows(i, r.rows);
       if (r.kind == SLIPPING_POINT) W.row(i) -= r.sign * tangent;
@@ -788,12 +791,12 @@ void lsn_crba(long h, const double* q, double* out) {
 // The constrained (KKT) dynamics of the rigid contacts `rigid` (count blocks of
 // (kind, id, sign, rows)) under applied forces tau: acceleration a (nv) and the constraint
 // forces lam (rows), the normal force of each block last and >= 0 when it pushes. slopes: null
-// on level ground, else the terrain's (slope, curvature) under each block (constraint_rows).
+// on level ground, else the terrain's (slope, curvature, bias) under each block (constraint_rows).
 void lsn_constrained(long h, const double* q, const double* v, const double* tau, long count, const double* rigid,
                      const double* slopes, double* a, double* lam) {
   Robot& rb = robot(h);
   const long n = rb.model.nv;
-  if (rb.kkt.hit({{q, n}, {v, n}, {tau, n}, {rigid, 4 * count}, {slopes, slopes == nullptr ? 0 : 2 * count}})) {
+  if (rb.kkt.hit({{q, n}, {v, n}, {tau, n}, {rigid, 4 * count}, {slopes, slopes == nullptr ? 0 : 3 * count}})) {
     rb.counts[CACHE_HITS] += 1;
     std::copy(rb.kkt.first.begin(), rb.kkt.first.end(), a);
     std::copy(rb.kkt.second.begin(), rb.kkt.second.end(), lam);

@@ -41,6 +41,7 @@ from legsim.compiled.functions import model_function, scratch
 from legsim.heights import face_slope, height, second_contact
 
 from .dynamics import (
+    SLOPE_ENTRIES,
     accelerate,
     frame_kinematics,
     handle,
@@ -212,7 +213,7 @@ def impact(x, p, tr, coefficients, out):
     n = int(p[P_N])
     out[: x.shape[0]] = x
     count, at = int(p[tr + TR_NIMPACT]), int(p[tr + TR_IMPACT])
-    slopes = scratch(2 * max(1, count))
+    slopes = scratch(SLOPE_ENTRIES * max(1, count))
     terrain_slopes(x, p, count, p, at, slopes)
     lsn_impact(handle(p), x.ctypes.data, ptr(x, n), np.int64(count), ptr(p, at), slopes.ctypes.data,
                ptr(p, coefficients), ptr(out, n), np.int64(0))  # fmt: skip

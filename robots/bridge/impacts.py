@@ -36,7 +36,7 @@ from legsim.robots._native.calls import lsn_crba, lsn_frame_jacobian, lsn_impact
 
 from legsim.compiled.functions import model_function, scratch
 
-from .dynamics import ground_grade, handle, keep, on_terrain, place_rounds, ptr, terrain_slopes
+from .dynamics import SLOPE_ENTRIES, ground_grade, handle, keep, on_terrain, place_rounds, ptr, terrain_slopes
 from .layout import (
     B_POINT,
     B_STOP,
@@ -173,7 +173,7 @@ def newton_impact(x, p, contacts, coeff, count, v_plus, normal):
     blocks = np.empty(BLOCK_SIZE * max(1, count))
     rows = contact_blocks(p, contacts, count, blocks)
     impulse = np.empty(max(1, rows))
-    slopes = scratch(2 * max(1, count))
+    slopes = scratch(SLOPE_ENTRIES * max(1, count))
     terrain_slopes(x, p, count, blocks, 0, slopes)
     lsn_impact(handle(p), x.ctypes.data, ptr(x, n), np.int64(count), blocks.ctypes.data, slopes.ctypes.data,
                coeff.ctypes.data, v_plus.ctypes.data, impulse.ctypes.data)  # fmt: skip
