@@ -368,15 +368,15 @@ class ContactBridge:
     def _step_needs(self) -> dict[str, str]:
         """``needs_error_control`` (``legsim.scene.integrator``) where round contacts roll round a
         profile's convex corners: their acceleration jumps at an arc's ends inside a contact mode,
-        which fixed steps cross to first order, the contact then drifting off the terrain."""
+        which fixed steps cross to first order (``arcs``)."""
         if not self._arcs.rounds:
             return {}
         names = [r.contact.name for r in self._arcs.rounds]
         return {
             "needs_error_control": (
                 f"round contacts {names} roll round the terrain's convex corners, where their acceleration "
-                f"jumps inside a contact mode; fixed steps cross that jump to first order and leave the contact "
-                f"drifting off the terrain (docs/robots.md, 'Round contacts on steps and profiles')"
+                f"jumps inside a contact mode, where fixed steps lose their order: they cross that jump to first "
+                f"order (docs/robots.md, 'Round contacts on steps and profiles')"
             )
         }
 

@@ -76,6 +76,7 @@ from .layout import (
     P_RIGID,
     P_ROWS,
     P_TERRAIN,
+    P_TERRAIN_TOP,
     S_ABSENT,
     S_SLIP_POS,
     STATUS_BASE,
@@ -199,8 +200,8 @@ def round_record(p, frame):
     return -1
 
 
-#: Heights of a round contact's centre above a sine's crest, in radii, beyond which nothing of
-#: the ball is near the ground (``round_centre``).
+#: Heights of a round contact's centre above the terrain's highest point, in radii, beyond which
+#: nothing of the ball is near the ground (``round_centre``).
 FAR_RADII = 2.0
 
 
@@ -208,17 +209,15 @@ FAR_RADII = 2.0
 def round_centre(x, p, c, kin):
     """The centre's (x, z, vx, vz) (m, m/s) of the round contact at record c into kin (4,), and
     the terrain's point nearest it: (s, d, g, k) of ``legsim.heights.nearest``. A centre more
-    than ``FAR_RADII`` radii above the sine's crest is far from the ground: then, without the
-    search over the terrain under it, (x, its height above the crest, 0, 0), the height a lower
-    bound of its distance and the normal taken as on level ground. On a profile the search is
-    over the pieces within the centre's height above the terrain, always made."""
+    than ``FAR_RADII`` radii above the terrain's highest point (``P_TERRAIN_TOP``: a sine's crest,
+    a profile's highest breakpoint) is far from the ground: then, without the search over the
+    terrain under it, (x, its height above that point, 0, 0), the height a lower bound of its
+    distance and the normal taken as on level ground."""
     one_frame_kinematics(x, p, int(p[c + C_CENTER]), kin)
-    terrain = int(p[P_TERRAIN])
-    if p[terrain] == SINE:
-        above = kin[1] - (p[terrain + 1] + abs(p[terrain + 2]))
-        if above > FAR_RADII * p[c + C_RADIUS]:
-            return kin[0], above, 0.0, 0.0
-    return nearest(p, terrain, kin[0], kin[1])
+    above = kin[1] - p[P_TERRAIN_TOP]
+    if above > FAR_RADII * p[c + C_RADIUS]:
+        return kin[0], above, 0.0, 0.0
+    return nearest(p, int(p[P_TERRAIN]), kin[0], kin[1])
 
 
 @model_function

@@ -28,7 +28,8 @@ from __future__ import annotations
 #: The outgoing transitions (count, offset of their records); whether the robot has Coulomb
 #: friction; its events (count, offset); its joint outcomes (count, offset). The terrain's
 #: encoding (offset; ``legsim.terrain``), or -1 when the ground is level under each contact at its
-#: own height (``C_PLACE``, ``L_GROUND``).
+#: own height (``C_PLACE``, ``L_GROUND``); and its highest point (m; +inf where it has none: a
+#: slope), above which a round contact's centre far up is far from the ground.
 (
     P_HANDLE,
     P_N,
@@ -58,8 +59,9 @@ from __future__ import annotations
     P_NJOINT,
     P_JOINT,
     P_TERRAIN,
-) = range(28)
-HEADER = 28
+    P_TERRAIN_TOP,
+) = range(29)
+HEADER = 29
 
 # -- statuses of a rigid contact in a mode --------------------------------------------------------
 #: Absent (inactive); active (a stuck point, a frictionless point, a held stop); a point with

@@ -6,9 +6,12 @@ and joint outcomes, which ``transitions`` appends).
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable, Sequence
 
 import numpy as np
+
+from legsim.heights import FLAT, SINE, SLOPE
 
 from .contacts import RigidContact
 from .layout import (
@@ -43,6 +46,7 @@ from .layout import (
     P_ROWS,
     P_STATUS,
     P_TERRAIN,
+    P_TERRAIN_TOP,
     S_ABSENT,
     STATUS_BASE,
 )
@@ -163,6 +167,7 @@ def start(model: BridgeModel, spec: ModeSpec) -> Builder:
     b.set(P_NSPRING, len(spec.springs))
     b.set(P_COULOMB, float(model.coulomb))
     b.set(P_TERRAIN, -1.0 if model.terrain is None else b.append(model.terrain))
+    b.set(P_TERRAIN_TOP, terrain_top(model.terrain))
     return b
 
 
@@ -172,3 +177,17 @@ def _needs_kinematics(model: BridgeModel, spec: ModeSpec) -> bool:
         r.kind == "point" and status == S_ABSENT for r, status in zip(model.rigid.values(), spec.status, strict=True)
     )
     return bool(model.legs) or inactive_points
+
+
+def terrain_top(terrain: np.ndarray | None) -> float:
+    """The highest point (m) of a terrain's encoding (``legsim.terrain``): a profile's highest
+    breakpoint, a sine's crest, a flat ground's height; +inf for a slope (and level ground, -1
+    at P_TERRAIN, which has no encoding)."""
+    if terrain is None or terrain[0] == SLOPE:
+        return math.inf
+    if terrain[0] == FLAT:
+        return float(terrain[1])
+    if terrain[0] == SINE:
+        return float(terrain[1] + abs(terrain[2]))
+    n = int(terrain[1])
+    return float(np.max(terrain[2 + n : 2 + 2 * n]))
