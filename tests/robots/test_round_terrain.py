@@ -439,3 +439,25 @@ def test_the_terrain_top_that_ends_the_search_for_a_centre_far_up():
     assert terrain_top(sine_terrain(0.05, 1.0, z0=0.2).array) == pytest.approx(0.25, abs=1e-15)
     assert terrain_top(flat_terrain(0.3).array) == 0.3
     assert terrain_top(slope_terrain(10.0).array) == math.inf and terrain_top(None) == math.inf
+
+
+def test_a_dumbbell_landing_with_one_ball_in_a_notch_stops_the_run_naming_it(tmp_path):
+    # A bar with a ball at each end, dropped level: the left ball lands in a 90 degree V (its
+    # centre then r sqrt(2) above the bottom, 0.1 m down) at the very time the right one lands
+    # on the ground beyond a step down, a joint landing of the two. The left ball strikes two
+    # faces at once, which the impact law does not answer, joint or not: the run stops there,
+    # where both balls touch.
+    from .test_collision_contacts import link, shape, write
+
+    spheres = "".join(shape("sphere", f'<sphere radius="{BALL_R}"/>', origin=f"{x} 0 0") for x in (-0.3, 0.3))
+    centre = -0.1 + BALL_R * math.sqrt(2.0)
+    points = [[-0.4, 0.0], [-0.3, -0.1], [-0.2, 0.0], [-0.1, 0.0], [-0.099, centre - BALL_R]]
+    scene = (
+        "collisions = true\ncollision_contacts = { friction = 100.0 }\n"
+        f'[integrator]\nh = 1e-3\neps = 1e-10\nt_final = 0.5\nmethod = "dopri5"\nrtol = 1e-10\natol = 1e-10\n'
+        f'[initial]\nstate = {{ z = 0.5 }}\n[terrain]\nkind = "profile"\npoints = {points}\n'
+    )
+    ex = load_scene(write(tmp_path, "dumbbell", link("bar", 2.0, 0.05, spheres), scene)).simulate()
+    assert ex.status == "model_breakdown" and "notch" in ex.message, ex.message
+    # its last state the last point stored before the strike: within a landing step of it
+    assert not ex.transitions and ex.final_state[1] == pytest.approx(centre, abs=1e-6)
