@@ -247,10 +247,17 @@ def _foot_grade(p, at, i, k, fx, fz, xc, zc):
 
 
 @model_function
+def _window(p, at, xc, zc):
+    """The first and last profile pieces that can hold the point nearest (xc, zc): the point
+    (xc, h(xc)) is on the terrain, so the nearest lies within |zc - h(xc)| of xc along x."""
+    reach = abs(zc - height(p, at, xc))
+    return _segment(p, at, xc - reach), _segment(p, at, xc + reach)
+
+
+@model_function
 def _profile_nearest(p, at, xc, zc):
     """``nearest`` on a profile: the least distance over its pieces within reach of the centre
-    (the point (xc, h(xc)) is on the terrain, so the nearest lies within |zc - h(xc)| along x);
-    a tie goes to a face, and a breakpoint that is not a convex corner is a face's end. On a
+    (``_window``); a tie goes to a face, and a breakpoint that is not a convex corner is a face's end. On a
     face the normal is the face's and k = 0; at a convex corner (one the centre lies beyond
     both faces of) the normal points from the corner to the centre, and the level set through
     the centre is the circle of radius d about the corner: k = 1 / d. At a concave corner the
@@ -258,20 +265,19 @@ def _profile_nearest(p, at, xc, zc):
     bridge's corner event takes as a strike on the new face. A centre below the terrain, or level
     with or below the corner it is nearest to (past the model's range: deep in the ground), takes
     the face at that corner it lies towards, k = 0."""
-    reach = abs(zc - height(p, at, xc))
+    first, last = _window(p, at, xc, zc)
     best_i, best_x, best_z, best_k, least = -1, xc, zc, -1, math.inf
-    for i in range(_segment(p, at, xc - reach), _segment(p, at, xc + reach) + 1):
+    for i in range(first, last + 1):
         fx, fz, k = _piece_foot(p, at, i, xc, zc)
         squared = (fx - xc) * (fx - xc) + (fz - zc) * (fz - zc)
         if squared < least or (squared == least and k < 0 <= best_k):
             best_i, best_x, best_z, best_k, least = i, fx, fz, k, squared
     above = 1.0 if zc >= height(p, at, xc) else -1.0
     d = above * math.sqrt(least)
-    corner = best_k >= 0 and _convex(p, at, best_k) and above > 0.0 and zc > best_z and least > 0.0
-    if not corner:
-        g = face_slope(p, at, best_x, xc - best_x) if best_k >= 0 else _segment_slope(p, at, best_i)
-        return best_x, d, g, 0.0
-    return best_x, d, -(xc - best_x) / (zc - best_z), 1.0 / d
+    if best_k >= 0 and _convex(p, at, best_k) and above > 0.0 and zc > best_z and least > 0.0:
+        return best_x, d, _foot_grade(p, at, best_i, best_k, best_x, best_z, xc, zc), 1.0 / d
+    g = face_slope(p, at, best_x, xc - best_x) if best_k >= 0 else _segment_slope(p, at, best_i)
+    return best_x, d, g, 0.0
 
 
 @model_function
@@ -284,9 +290,9 @@ def second_contact(p, at, xc, zc, within):
         return math.nan
     s, distance, _, _ = _profile_nearest(p, at, xc, zc)
     sz = height(p, at, s)
-    reach = abs(zc - height(p, at, xc))
+    first, last = _window(p, at, xc, zc)
     least, grade = math.inf, math.nan
-    for i in range(_segment(p, at, xc - reach), _segment(p, at, xc + reach) + 1):
+    for i in range(first, last + 1):
         fx, fz, k = _piece_foot(p, at, i, xc, zc)
         if abs(fx - s) <= CORNER_RESOLUTION and abs(fz - sz) <= CORNER_RESOLUTION:
             continue  # the nearest point itself
@@ -319,3 +325,10 @@ def nearest(p, at, xc, zc):
         d = (zc - height(p, at, s) - g * (xc - s)) / norm
     kappa = curvature(p, at, s) / (norm * norm * norm)
     return s, d, g, -kappa / (1.0 - kappa * d)
+
+
+@model_function
+def nearest_along(p, at, xs, zs, out):
+    """``nearest`` at each point (xs[i], zs[i]) (k,) into out (k, 4): one compiled call for many."""
+    for i in range(xs.shape[0]):
+        out[i, 0], out[i, 1], out[i, 2], out[i, 3] = nearest(p, at, xs[i], zs[i])

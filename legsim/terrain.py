@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 
 from .errors import SceneError
-from .heights import FLAT, PROFILE, SINE, SLOPE, curvature, height, heights_along, slope, slopes_along
+from .heights import FLAT, PROFILE, SINE, SLOPE, curvature, height, heights_along, nearest_along, slope, slopes_along
 
 __all__ = ["FLAT", "PROFILE", "SINE", "SLOPE", "Terrain", "curvature", "height", "slope"]
 #: The kinds a ``[terrain]`` table may name.
@@ -113,6 +113,30 @@ class Terrain:
         else:
             grid = np.array([x_low, x_high])
         return np.column_stack([grid, self.height(grid)])
+
+
+def nearest_points(array: np.ndarray, xz: np.ndarray) -> np.ndarray:
+    """``legsim.heights.nearest``'s (s, d, g, k) for each point of xz (rows, 2) (m), (rows, 4), in
+    one compiled call: the terrain's point nearest each, the distance, the slope there and the
+    curvature of the level set through it."""
+    points = np.ascontiguousarray(np.reshape(xz, (-1, 2)), dtype=float)
+    out = np.empty((points.shape[0], 4))
+    nearest_along(array, 0, np.ascontiguousarray(points[:, 0]), np.ascontiguousarray(points[:, 1]), out)
+    return out
+
+
+def top(array: np.ndarray | None) -> float:
+    """The highest point (m) of the terrain encoded in ``array``: a flat ground's height, a
+    sine's crest, a profile's highest breakpoint; +inf for a slope, and for None (level ground
+    under each contact at its own height)."""
+    if array is None or array[0] == SLOPE:
+        return math.inf
+    if array[0] == FLAT:
+        return float(array[1])
+    if array[0] == SINE:
+        return float(array[1] + abs(array[2]))
+    n = int(array[1])
+    return float(np.max(array[2 + n : 2 + 2 * n]))
 
 
 def along(function: Any, array: np.ndarray, x: Any) -> np.ndarray:

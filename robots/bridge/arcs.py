@@ -20,9 +20,11 @@ from collections.abc import Callable
 
 import numpy as np
 
-from legsim.heights import PROFILE, nearest
+from legsim.heights import PROFILE
 from legsim.relaxed import Watch
+from legsim.terrain import nearest_points
 
+from ..kept import KeptWhileAlive
 from .contacts import RigidContact
 from .model import BridgeModel
 from .placements import Placements
@@ -43,6 +45,7 @@ class CornerArcs:
         self.active_contacts = active_contacts
         self._placements = placements
         self._columns = placements.add_frames([r.centre_id for r in self.rounds])
+        self._kept = KeptWhileAlive()
 
     def on_arcs(self, mode: str, states: np.ndarray) -> np.ndarray:
         """(rows, rounds) bool: the contact is active in ``mode`` and its centre nearest a corner
@@ -59,16 +62,20 @@ class CornerArcs:
     def _nearest(self, mode: str, states: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(rows, rounds) each: the distance d (m) from each active contact's centre to the
         terrain and the curvature k (1/m) there (``legsim.heights.nearest``); nan and 0 for a
-        contact inactive in ``mode``."""
-        states = np.atleast_2d(states)
-        distance = np.full((states.shape[0], len(self.rounds)), np.nan)
+        contact inactive in ``mode``. Both watches read it of the same batch: kept while it lives."""
+        kept = self._kept.get(states)
+        if kept is not None and kept[0] == mode:
+            return kept[1]
+        rows = np.atleast_2d(states)
+        distance = np.full((rows.shape[0], len(self.rounds)), np.nan)
         curvature = np.zeros_like(distance)
         active = set(self.active_contacts(mode))
-        centres = self._placements.at(states)[:, self._columns] if self.rounds else None
+        centres = self._placements.at(rows)[:, self._columns] if self.rounds else None
         for k, r in enumerate(self.rounds):
-            if r.contact.name in active and centres is not None:
-                found = np.array([nearest(self.terrain, 0, xc, zc) for xc, zc in centres[:, k]]).reshape(-1, 4)
+            if r.contact.name in active and centres is not None and self.terrain is not None:
+                found = nearest_points(self.terrain, centres[:, k])
                 distance[:, k], curvature[:, k] = found[:, 1], found[:, 3]
+        self._kept.keep(states, (mode, (distance, curvature)))
         return distance, curvature
 
 

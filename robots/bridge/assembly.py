@@ -254,7 +254,7 @@ class ContactBridge:
         spring-legged robot where its legs stood (``range_notes.LegsNote``)."""
         ways = [LEGS_PAST_RANGE] if self._model.legs else []
         ways += [CONTACTS_PAST_RANGE] if self._model.rigid else []
-        if self._model.cornered and any(r.radius > 0.0 for r in self._model.rigid.values()):
+        if self._arcs.rounds:
             ways.append(ROUNDS_PAST_RANGE)
         head = ", or ".join(ways)
         return LegsNote(self._model, self._data, spec, head) if self._model.legs else head
@@ -375,8 +375,8 @@ class ContactBridge:
         return {
             "needs_error_control": (
                 f"round contacts {names} roll round the terrain's convex corners, where their acceleration "
-                f"jumps inside a contact mode, where fixed steps lose their order: they cross that jump to first "
-                f"order (docs/robots.md, 'Round contacts on steps and profiles')"
+                f"jumps inside a contact mode and fixed steps cross the jump to first order (docs/robots.md, "
+                f"'Round contacts on steps and profiles')"
             )
         }
 

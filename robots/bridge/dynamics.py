@@ -36,7 +36,7 @@ from legsim.robots._native.calls import (
 )
 
 from legsim.compiled.functions import model_function, scratch
-from legsim.heights import PROFILE, SINE, curvature, face_slope, nearest, notch, notch_mu
+from legsim.heights import PROFILE, curvature, face_slope, nearest, notch, notch_mu
 
 from .layout import (
     B_POINT,
@@ -74,6 +74,7 @@ from .layout import (
     P_NLEG,
     P_NRIGID,
     P_RIGID,
+    P_ROUNDS_TURN,
     P_ROWS,
     P_TERRAIN,
     P_TERRAIN_TOP,
@@ -184,10 +185,10 @@ def on_terrain(p):
 
 @model_function
 def turning(p):
-    """Whether the terrain's normal turns under a round contact (a sine, or a profile's corners):
-    each one's point nearest the ground then moves on it with the configuration
-    (``place_rounds``)."""
-    return on_terrain(p) and (p[int(p[P_TERRAIN])] == SINE or p[int(p[P_TERRAIN])] == PROFILE)
+    """Whether the robot has round contacts under which the terrain's normal turns (a sine, or a
+    profile's corners: ``model.rounds_move``): each one's point nearest the ground then moves on
+    it with the configuration (``place_rounds``)."""
+    return p[P_ROUNDS_TURN] != 0.0
 
 
 @model_function

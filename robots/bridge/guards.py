@@ -12,9 +12,9 @@ from collections.abc import Callable, Iterator
 import numpy as np
 
 from legsim.execution import Status
-from legsim.heights import heights_along, nearest, slopes_along
+from legsim.heights import heights_along, slopes_along
 from legsim.relaxed import Watch
-from legsim.terrain import along, corner_positions, pieces_along
+from legsim.terrain import along, corner_positions, nearest_points, pieces_along
 
 from .contacts import SLIP_SUFFIX, Armed, PointContact, RigidContact, SpringLeg, joint_id
 from .model import BridgeModel, rounds_move
@@ -152,7 +152,8 @@ class PastDepths:
 
     def _nearest(self, xz: np.ndarray) -> np.ndarray:
         """``heights.nearest``'s (s, d, g, k) for each centre of xz (rows, 2), (rows, 4)."""
-        return np.array([nearest(self.model.terrain, 0, float(x), float(z)) for x, z in xz]).reshape(-1, 4)
+        assert self.model.terrain is not None  # only where round contacts' points move: a terrain
+        return nearest_points(self.model.terrain, xz)
 
     def _armed(
         self, armed: Armed, r: RigidContact, states: np.ndarray, xz: np.ndarray, positions: np.ndarray

@@ -29,7 +29,8 @@ from __future__ import annotations
 #: friction; its events (count, offset); its joint outcomes (count, offset). The terrain's
 #: encoding (offset; ``legsim.terrain``), or -1 when the ground is level under each contact at its
 #: own height (``C_PLACE``, ``L_GROUND``); and its highest point (m; +inf where it has none: a
-#: slope), above which a round contact's centre far up is far from the ground.
+#: slope), above which a round contact's centre far up is far from the ground. Whether the robot
+#: has round contacts whose point nearest the ground moves in the body (``model.rounds_move``).
 (
     P_HANDLE,
     P_N,
@@ -60,8 +61,9 @@ from __future__ import annotations
     P_JOINT,
     P_TERRAIN,
     P_TERRAIN_TOP,
-) = range(29)
-HEADER = 29
+    P_ROUNDS_TURN,
+) = range(30)
+HEADER = 30
 
 # -- statuses of a rigid contact in a mode --------------------------------------------------------
 #: Absent (inactive); active (a stuck point, a frictionless point, a held stop); a point with

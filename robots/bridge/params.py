@@ -6,12 +6,11 @@ and joint outcomes, which ``transitions`` appends).
 
 from __future__ import annotations
 
-import math
 from collections.abc import Iterable, Sequence
 
 import numpy as np
 
-from legsim.heights import FLAT, SINE, SLOPE
+from legsim.terrain import top
 
 from .contacts import RigidContact
 from .layout import (
@@ -43,6 +42,7 @@ from .layout import (
     P_NRIGID,
     P_NSPRING,
     P_RIGID,
+    P_ROUNDS_TURN,
     P_ROWS,
     P_STATUS,
     P_TERRAIN,
@@ -50,7 +50,7 @@ from .layout import (
     S_ABSENT,
     STATUS_BASE,
 )
-from .model import BridgeModel
+from .model import BridgeModel, rounds_move
 from .modes import ModeSpec
 
 
@@ -167,7 +167,9 @@ def start(model: BridgeModel, spec: ModeSpec) -> Builder:
     b.set(P_NSPRING, len(spec.springs))
     b.set(P_COULOMB, float(model.coulomb))
     b.set(P_TERRAIN, -1.0 if model.terrain is None else b.append(model.terrain))
-    b.set(P_TERRAIN_TOP, terrain_top(model.terrain))
+    b.set(P_TERRAIN_TOP, top(model.terrain))
+    rounds = any(r.radius > 0.0 for r in model.rigid.values())
+    b.set(P_ROUNDS_TURN, float(rounds and rounds_move(model.terrain)))
     return b
 
 
@@ -177,17 +179,3 @@ def _needs_kinematics(model: BridgeModel, spec: ModeSpec) -> bool:
         r.kind == "point" and status == S_ABSENT for r, status in zip(model.rigid.values(), spec.status, strict=True)
     )
     return bool(model.legs) or inactive_points
-
-
-def terrain_top(terrain: np.ndarray | None) -> float:
-    """The highest point (m) of a terrain's encoding (``legsim.terrain``): a profile's highest
-    breakpoint, a sine's crest, a flat ground's height; +inf for a slope (and level ground, -1
-    at P_TERRAIN, which has no encoding)."""
-    if terrain is None or terrain[0] == SLOPE:
-        return math.inf
-    if terrain[0] == FLAT:
-        return float(terrain[1])
-    if terrain[0] == SINE:
-        return float(terrain[1] + abs(terrain[2]))
-    n = int(terrain[1])
-    return float(np.max(terrain[2 + n : 2 + 2 * n]))

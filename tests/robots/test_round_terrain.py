@@ -431,9 +431,8 @@ def test_a_ball_in_contact_off_its_path_is_reported_naming_it(tmp_path):
 def test_the_terrain_top_that_ends_the_search_for_a_centre_far_up():
     # A round contact's centre more than 2 r above the terrain's highest point is far from the
     # ground, without a search over the pieces under it: the highest point of each kind.
-    from legsim.robots.bridge.params import terrain_top
-
     from legsim.terrain import flat_terrain, profile_terrain, sine_terrain, slope_terrain
+    from legsim.terrain import top as terrain_top
 
     assert terrain_top(profile_terrain([0.0, 1.0, 2.0, 3.0], [0.1, 0.7, -0.2, 0.3]).array) == 0.7
     assert terrain_top(sine_terrain(0.05, 1.0, z0=0.2).array) == pytest.approx(0.25, abs=1e-15)
