@@ -4,9 +4,10 @@
 // symbol name (numba.types.ExternalFunction), so a compiled function that calls them caches on
 // disk like any other.
 //
-// The algorithms: ABA with applied forces; the KKT contact dynamics through the Schur complement
-// of ABA (a0 = aba(q, v, tau), lambda = (J M^-1 J^T)^-1 (-(J a0 + dJ/dt v)), a = a0 + M^-1 J^T
-// lambda); the generalised Newton impact; M and M^-1; frame positions, velocities and Jacobians
+// The algorithms: the forward dynamics a0 = M^-1 (tau - h(q, v)) under applied forces (crba, the
+// bias forces h by RNEA, a Cholesky factor of M); the KKT contact dynamics through the Schur
+// complement (lambda = (J M^-1 J^T)^-1 (-(J a0 + dJ/dt v)), a = a0 + M^-1 J^T lambda, M^-1 J^T
+// from the same factor); the generalised Newton impact; M and M^-1; frame positions, velocities and Jacobians
 // in the world's axes. Each robot counts the algorithms it ran (lsn_counts), and the model
 // functions add their own counts (lsn_tally), so a robot's evaluations are known whichever path
 // ran them.
@@ -26,6 +27,7 @@
 #include <pinocchio/algorithm/rnea.hpp>
 #include <pinocchio/multibody.hpp>
 
+#include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 #include <Eigen/QR>
 #include <Eigen/SVD>
@@ -150,6 +152,8 @@ struct Scratch {
   Mat J, W, frame_jacobian, MWt, A;
   Vec gamma, acc, rhs, lambda, zero, centred;
   Eigen::PartialPivLU<Mat> lu;
+  // The Cholesky factor of M(q), from its upper triangle (Pinocchio's crba fills that one).
+  Eigen::LLT<Mat, Eigen::Upper> mass;
 };
 
 struct Robot {
@@ -231,6 +235,23 @@ void shift_to_contact(const Robot& rb, pinocchio::FrameIndex id, Mat& Jf) {
   if (rb.offset[id].isZero(0.0)) return;
   const Eigen::Vector3d d = round_offset(rb, id);
   for (long j = 0; j < Jf.cols(); ++j) Jf.block<3, 1>(0, j) += Eigen::Vector3d(Jf.block<3, 1>(3, j)).cross(d);
+}
+
+// The unconstrained acceleration M^-1 (tau - h(q, v)) into acc, leaving M's Cholesky factor in
+// rb.scratch.mass (and, in the WORLD convention, the joint Jacobians in rb.data.J). For the small
+// planar models the bridge builds, crba, the bias forces and a dense Cholesky cost about two
+// thirds of ABA, and the factor serves the constrained solve's M^-1 W^T too.
+void forward_dynamics(Robot& rb, const ConstMap& q, const ConstMap& v, const ConstMap& tau,
+                      pinocchio::Convention convention, Vec& acc) {
+  pinocchio::crba(rb.model, rb.data, q, convention);
+  pinocchio::nonLinearEffects(rb.model, rb.data, q, v);
+  rb.scratch.mass.compute(rb.data.M);
+  if (rb.scratch.mass.info() != Eigen::Success) {  // not a valid model at q: the run's breakdown says so
+    acc.setConstant(q.size(), std::numeric_limits<double>::quiet_NaN());
+    return;
+  }
+  acc = tau - rb.data.nle;
+  rb.scratch.mass.solveInPlace(acc);
 }
 
 std::vector<std::unique_ptr<Robot>> robots;
@@ -315,7 +336,7 @@ int total_rows(const std::vector<Rigid>& rigid) {
 // added to its normal row's drift, which steers its centre back onto the curve r from the
 // terrain (0 elsewhere; a point on a level ground takes the rows x and z as
 // before, bit for bit). jacobians_ready: data.J already holds the joint Jacobians at q (an
-// aba in the WORLD convention fills them), which spares a second kinematics pass.
+// crba in the WORLD convention fills them), which spares a second kinematics pass.
 void constraint_rows(Robot& rb, const ConstMap& q, const ConstMap& v, const std::vector<Rigid>& rigid,
                      const double* slopes, bool drift, bool jacobians_ready, Mat& J, Vec& gamma, Mat& W) {
   const Model& model = rb.model;
@@ -661,7 +682,8 @@ long lsn_create(const double* desc, long size) {
 
 long lsn_nv(long h) { return robot(h).model.nv; }
 
-// a = ABA(q, v, tau): the unconstrained joint acceleration under applied forces tau.
+// a = M^-1 (tau - h(q, v)): the unconstrained joint acceleration under applied forces tau (the
+// forward dynamics that Pinocchio's ABA also computes; counted in the ABA slot).
 void lsn_aba(long h, const double* q, const double* v, const double* tau, double* a) {
   Robot& rb = robot(h);
   const long n = rb.model.nv;
@@ -671,7 +693,9 @@ void lsn_aba(long h, const double* q, const double* v, const double* tau, double
     return;
   }
   rb.counts[ABA] += 1;
-  OutMap(a, n) = pinocchio::aba(rb.model, rb.data, ConstMap(q, n), ConstMap(v, n), ConstMap(tau, n));
+  const ConstMap qm(centred(rb, q).data(), n);
+  forward_dynamics(rb, qm, ConstMap(v, n), ConstMap(tau, n), pinocchio::Convention::LOCAL, rb.scratch.acc);
+  OutMap(a, n) = rb.scratch.acc;
   rb.aba.store(a, n, a, 0);
 }
 
@@ -812,12 +836,11 @@ void lsn_constrained(long h, const double* q, const double* v, const double* tau
   const ConstMap qm(centred(rb, q).data(), n), vm(v, n);
   rb.counts[ABA] += 1;
   rb.counts[KKT] += 1;
-  s.acc = pinocchio::aba(rb.model, rb.data, qm, vm, ConstMap(tau, n), pinocchio::Convention::WORLD);
-  // M^-1 (its upper triangle) from the articulated-body pass of that aba: computeMinverse
-  // without q reuses it, and the aba's joint Jacobians serve the constraint rows.
-  pinocchio::computeMinverse(rb.model, rb.data);
+  // The world-convention crba also leaves the joint Jacobians the constraint rows read.
+  forward_dynamics(rb, qm, vm, ConstMap(tau, n), pinocchio::Convention::WORLD, s.acc);
   constraint_rows(rb, qm, vm, s.blocks, slopes, true, true, s.J, s.gamma, s.W);
-  s.MWt.noalias() = rb.data.Minv.selfadjointView<Eigen::Upper>() * s.W.transpose();
+  s.MWt = s.W.transpose();
+  s.mass.solveInPlace(s.MWt);
   s.A.noalias() = s.J * s.MWt;
   s.rhs.noalias() = s.J * s.acc;
   s.rhs = -(s.rhs + s.gamma);
@@ -941,15 +964,19 @@ void lsn_counts(long h, double* out, long reset) {
   if (reset != 0) rb.counts.fill(0.0);
 }
 
-// Seconds per call of bare ABA at (q, v, tau), over reps calls: the cost floor a compiled field
-// evaluation is measured against (legsim bench robots).
+// Seconds per call of the bare forward dynamics at (q, v, tau) (forward_dynamics, as lsn_aba
+// computes it without its cache), over reps calls: the cost floor a compiled field evaluation is
+// measured against (legsim bench robots).
 double lsn_time_aba(long h, const double* q, const double* v, const double* tau, long reps) {
   Robot& rb = robot(h);
   const long n = rb.model.nv;
   const ConstMap qm(q, n), vm(v, n), tm(tau, n);
   double sink = 0.0;
   const auto start = std::chrono::steady_clock::now();
-  for (long i = 0; i < reps; ++i) sink += pinocchio::aba(rb.model, rb.data, qm, vm, tm)(0);
+  for (long i = 0; i < reps; ++i) {
+    forward_dynamics(rb, qm, vm, tm, pinocchio::Convention::LOCAL, rb.scratch.acc);
+    sink += rb.scratch.acc(0);
+  }
   const std::chrono::duration<double> elapsed = std::chrono::steady_clock::now() - start;
   return sink == sink ? elapsed.count() / static_cast<double>(reps) : elapsed.count();
 }

@@ -40,7 +40,7 @@ kernel evaluate the same functions. Modules:
 * ``modes``: mode names, ``ModeSpec`` (active contacts, statuses, state layout);
 * ``layout``: the slots of a mode's parameter array; ``params``: building it;
 * ``transitions``: the outgoing transitions of a mode, their records, its joint outcomes;
-* model functions: ``dynamics`` (applied forces, ABA and the KKT solve: the field),
+* model functions: ``dynamics`` (applied forces, the forward dynamics and the KKT solve: the field),
   ``events`` (guards and resets), ``impacts`` (Newton's impact, simultaneous strikes, the
   frictional impact), ``friction`` (the mode after an event), ``joint`` (simultaneous strikes);
 * ``guards``: the initial-state check and the guards' units;

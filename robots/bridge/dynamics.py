@@ -2,9 +2,10 @@
 array p (``layout``), calling Pinocchio's C++ algorithms through the native library.
 
 Applied generalised forces tau: stance spring legs through their hips' Jacobians, joint damping
-and the actuated joints' input u. Without active rigid contacts the acceleration is
-``aba(q, v, tau)``; with them, the KKT contact dynamics ``M a + b = tau + W^T lambda,
-J a + dJ/dt v = 0`` through the Schur complement of ABA (``lsn_constrained``; W = J except on a
+and the actuated joints' input u. Without active rigid contacts the acceleration is the forward
+dynamics ``M(q)^-1 (tau - b(q, v))`` (``lsn_aba``: crba, RNEA's bias forces, a Cholesky factor of
+M); with them, the KKT contact dynamics ``M a + b = tau + W^T lambda, J a + dJ/dt v = 0``
+through the Schur complement of the same factor (``lsn_constrained``; W = J except on a
 slipping point's normal row, ``J_n - s mu J_t``). A point's rows are x and z on level ground, the
 terrain's tangent t and normal n under it on a terrain (``legsim.terrain``; a sliding point
 keeps ``z - h(x) = 0``, whose drift has the curvature term). At a profile's breakpoint a
@@ -341,7 +342,7 @@ def accelerate(x, u, p, blocks, src, at, a, lam):
     """The acceleration (nv,) into a and the constraint forces into lam (one per constraint row,
     each block's normal force last; along the terrain's tangent and normal on a terrain) of the
     ``blocks`` constraint blocks src[at:] (``layout.BLOCK_SIZE`` values each) under the input u;
-    ABA without blocks."""
+    the unconstrained forward dynamics without blocks."""
     n = int(p[P_N])
     tau = scratch(n)
     applied_forces(x, u, p, n, tau)
