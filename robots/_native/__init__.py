@@ -115,8 +115,7 @@ def counts(handle: int, reset: bool = False) -> np.ndarray:
 
 
 def time_aba(handle: int, q: np.ndarray, v: np.ndarray, tau: np.ndarray, reps: int) -> float:
-    """Seconds per call of the bare C++ forward dynamics (what ``lsn_aba`` computes: crba, the bias
-    forces, a Cholesky solve) on the model ``handle`` at (q, v, tau), timed inside
+    """Seconds per call of bare C++ ABA on the model ``handle`` at (q, v, tau), timed inside
     the library (no Python, no numba around it): the best of 5 batches of ``reps`` calls, as
     other timings on a shared machine take the best of repeats."""
     if not load():

@@ -113,8 +113,7 @@ def handle_for(model: Any, robot: str, offsets: Mapping[int, tuple[float, float]
 
 
 def bare_aba(handle: int) -> Callable[[np.ndarray, np.ndarray, np.ndarray, int], float]:
-    """``time(q, v, tau, reps)``: seconds per bare C++ forward-dynamics call (what ``lsn_aba``
-    computes, without its cache) on the model ``handle``, timed inside
+    """``time(q, v, tau, reps)``: seconds per bare C++ ABA call on the model ``handle``, timed inside
     the library (``_native.time_aba``), for ``Model.info["bare_aba"]``: the floor a field's cost
     is measured against (``legsim bench robots``)."""
     return functools.partial(_native.time_aba, handle)
