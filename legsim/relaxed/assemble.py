@@ -433,7 +433,7 @@ class Assembly:
             if first is None or least is None:
                 continue
             message = w.says(*first)
-            if least[1] != first[0]:
+            if w.graded and least[1] != first[0]:
                 message += f"; the most at t={least[1]:.17g}: {w.says(least[1], least[2], least[3])}"
             out.append(RunWarning(w.name, message, first[0], {"least_value": least[0], "least_time": least[1]}))
         return out

@@ -86,6 +86,9 @@ class Watch:
         there is none. The piece is read there on the step's interpolant; where it differs, the
         part's way out and back is searched. The points given may be several visits' end to end;
         the times between two visits' points are not read. Needs ``piece``.
+    graded: whether v measures how far the condition holds (a depth, a force past its limit), so
+        that a warning also names where it holds the most; False for a yes-or-no condition (its
+        v only -1 or +1), whose warning names where it first holds only.
     """
 
     name: str
@@ -98,6 +101,7 @@ class Watch:
     piece: Callable[[str, np.ndarray, np.ndarray], np.ndarray] | None = None
     clear: Callable[[str, np.ndarray, np.ndarray, np.ndarray, np.ndarray], np.ndarray] | None = None
     probe: Callable[[str, np.ndarray, np.ndarray], np.ndarray] | None = None
+    graded: bool = True
 
     def __post_init__(self) -> None:
         if self.action not in ACTIONS:

@@ -97,7 +97,7 @@ def corner_arc_watch(arcs: CornerArcs) -> Watch:
             f"accurate to the method's order"
         )
 
-    return Watch("round_corner", value, "warn", message)
+    return Watch("round_corner", value, "warn", message, graded=False)
 
 
 def round_drift_watch(arcs: CornerArcs, allowed: float) -> Watch:
