@@ -137,10 +137,12 @@ def fixed_steps(settings: Mapping[str, Any]) -> bool:
     return settings["rtol"] is None and settings["atol"] is None and settings["method"] not in SCIPY_NAMES
 
 
-def check_step_rule(path: Path, info: Any, settings: Mapping[str, Any], where: str = "integrator") -> None:
+def check_step_rule(
+    path: Path, info: Mapping[str, Any], settings: Mapping[str, Any], where: str = "integrator"
+) -> None:
     """Refuse fixed steps for a model that needs error control (``NEEDS_ERROR_CONTROL`` in its
-    ``info``), naming the field to set and the model's reason."""
-    reason = info.get(NEEDS_ERROR_CONTROL) if isinstance(info, Mapping) else None
+    ``info``, ``Model.info``), naming the field to set and the model's reason."""
+    reason = info.get(NEEDS_ERROR_CONTROL)
     if reason and fixed_steps(settings):
         raise field_error(
             path,

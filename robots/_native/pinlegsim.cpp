@@ -238,20 +238,22 @@ void shift_to_contact(const Robot& rb, pinocchio::FrameIndex id, Mat& Jf) {
 }
 
 // The unconstrained acceleration M^-1 (tau - h(q, v)) into acc, leaving M's Cholesky factor in
-// rb.scratch.mass (and, in the WORLD convention, the joint Jacobians in rb.data.J). For the small
-// planar models the bridge builds, crba, the bias forces and a dense Cholesky cost about two
-// thirds of ABA, and the factor serves the constrained solve's M^-1 W^T too.
-void forward_dynamics(Robot& rb, const ConstMap& q, const ConstMap& v, const ConstMap& tau,
+// rb.scratch.mass (and, in the WORLD convention, the joint Jacobians in rb.data.J); false, acc all
+// nan, where M is not positive definite (not a valid model at q). For the small planar models the
+// bridge builds, crba, the bias forces and a dense Cholesky cost less than ABA, and the factor
+// serves the constrained solve's M^-1 W^T too.
+bool forward_dynamics(Robot& rb, const ConstMap& q, const ConstMap& v, const ConstMap& tau,
                       pinocchio::Convention convention, Vec& acc) {
   pinocchio::crba(rb.model, rb.data, q, convention);
   pinocchio::nonLinearEffects(rb.model, rb.data, q, v);
   rb.scratch.mass.compute(rb.data.M);
-  if (rb.scratch.mass.info() != Eigen::Success) {  // not a valid model at q: the run's breakdown says so
+  if (rb.scratch.mass.info() != Eigen::Success) {  // the run's breakdown says so
     acc.setConstant(q.size(), std::numeric_limits<double>::quiet_NaN());
-    return;
+    return false;
   }
   acc = tau - rb.data.nle;
   rb.scratch.mass.solveInPlace(acc);
+  return true;
 }
 
 std::vector<std::unique_ptr<Robot>> robots;
@@ -837,7 +839,11 @@ void lsn_constrained(long h, const double* q, const double* v, const double* tau
   rb.counts[ABA] += 1;
   rb.counts[KKT] += 1;
   // The world-convention crba also leaves the joint Jacobians the constraint rows read.
-  forward_dynamics(rb, qm, vm, ConstMap(tau, n), pinocchio::Convention::WORLD, s.acc);
+  if (!forward_dynamics(rb, qm, vm, ConstMap(tau, n), pinocchio::Convention::WORLD, s.acc)) {
+    OutMap(a, n) = s.acc;
+    OutMap(lam, total_rows(s.blocks)).setConstant(std::numeric_limits<double>::quiet_NaN());
+    return;
+  }
   constraint_rows(rb, qm, vm, s.blocks, slopes, true, true, s.J, s.gamma, s.W);
   s.MWt = s.W.transpose();
   s.mass.solveInPlace(s.MWt);

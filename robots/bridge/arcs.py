@@ -70,9 +70,11 @@ class CornerArcs:
         distance = np.full((rows.shape[0], len(self.rounds)), np.nan)
         curvature = np.zeros_like(distance)
         active = set(self.active_contacts(mode))
-        centres = self._placements.at(rows)[:, self._columns] if self.rounds else None
+        if not self.rounds or self.terrain is None:  # rounds only on a profile: a terrain
+            return distance, curvature
+        centres = self._placements.at(rows)[:, self._columns]
         for k, r in enumerate(self.rounds):
-            if r.contact.name in active and centres is not None and self.terrain is not None:
+            if r.contact.name in active:
                 found = nearest_points(self.terrain, centres[:, k])
                 distance[:, k], curvature[:, k] = found[:, 1], found[:, 3]
         self._kept.keep(states, (mode, (distance, curvature)))

@@ -168,8 +168,7 @@ def start(model: BridgeModel, spec: ModeSpec) -> Builder:
     b.set(P_COULOMB, float(model.coulomb))
     b.set(P_TERRAIN, -1.0 if model.terrain is None else b.append(model.terrain))
     b.set(P_TERRAIN_TOP, top(model.terrain))
-    rounds = any(r.radius > 0.0 for r in model.rigid.values())
-    b.set(P_ROUNDS_TURN, float(rounds and rounds_move(model.terrain)))
+    b.set(P_ROUNDS_TURN, float(bool(model.round_offsets) and rounds_move(model.terrain)))
     return b
 
 
