@@ -51,7 +51,15 @@ from .layout import (
     S_T_FINAL,
     T_TARGET,
 )
-from .rules import entered_in_strip, past_strip, restarted_step, scaled_rms, starting_guess, starting_step
+from .rules import (
+    entered_in_strip,
+    on_guard_depth,
+    past_strip,
+    restarted_step,
+    scaled_rms,
+    starting_guess,
+    starting_step,
+)
 from .stages import all_finite
 
 #: What entering a mode leads to: the mode's steps; a crossing at once (another entry, or the
@@ -198,9 +206,10 @@ def short_first_step(tab: Tables, vis: Visit, ws, method) -> bool:
 
 def time_to_simultaneous_strip(tab: Tables, vis: Visit, ws) -> float:
     """The time for the flow to reach the middle of the nearest strip of a guard that is within
-    eps ahead and closing (guards leading straight back to the mode just left are not
-    considered: a shallow graze must be stepped over, not crossed back and forth); nan when none
-    is reached within ``SIMULTANEOUS`` of the next step."""
+    eps ahead, or on the guard (``rules.on_guard_depth``: the second foot of a symmetric touchdown
+    reaches the ground with the first one, to rounding), and closing (guards leading straight
+    back to the mode just left are not considered: a shallow graze must be stepped over, not
+    crossed back and forth); nan when none is reached within ``SIMULTANEOUS`` of the next step."""
     eps, t, n = ws.cf[S_EPS], ws.fs[F_T], vis.n
     h_next = min(ws.fs[F_H_PROP], ws.cf[S_H_MAX])
     came_from = ws.iv[I_LAST_SOURCE]
@@ -215,10 +224,11 @@ def time_to_simultaneous_strip(tab: Tables, vis: Visit, ws) -> float:
         ws.XS[d] = ws.x[d] + dt * ws.K[0, d]
     guards_at(tab, vis, ws, t + dt, ws.XS[:n], ws.g_w)
     base = tab.modes[vis.mode, M_T0]
+    on_guard = -on_guard_depth(eps)
     tau = math.nan
     for e in range(vis.guards):
         g = ws.g_here[e]
-        if tab.transitions[base + e, T_TARGET] == came_from or not 0.0 <= g <= eps:
+        if tab.transitions[base + e, T_TARGET] == came_from or not on_guard <= g <= eps:
             continue
         rate = (ws.g_w[e] - g) / dt
         if not rate < 0.0:

@@ -294,9 +294,14 @@ ON_GUARD = 1e-9
 ON_GUARD_FLOOR = 1e-12
 
 
+def on_guard_depth(eps: float) -> float:
+    """How far past its guard (guard units) a state entering a mode still counts as on it."""
+    return max(ON_GUARD * eps, ON_GUARD_FLOOR)
+
+
 def entered_in_strip(gmin: float, eps: float) -> bool:
     """True when a state entering a mode with least guard value gmin must cross at once."""
-    return gmin < -max(ON_GUARD * eps, ON_GUARD_FLOOR)
+    return gmin < -on_guard_depth(eps)
 
 
 def past_strip(g: float, eps: float) -> bool:

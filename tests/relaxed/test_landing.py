@@ -236,6 +236,28 @@ def test_a_simultaneous_event_costs_a_short_step_and_stays_continuous():
         assert np.abs(final[gap] - final[0.0]).max() <= gap + 1e-12
 
 
+def test_a_mode_entered_on_a_guard_by_rounding_crosses_it_by_a_short_step():
+    # b is entered 1e-13 past b's guard, within the band that counts as on the guard
+    # (rules.on_guard_depth): the second foot of a symmetric touchdown, behind the first by
+    # rounding. As a hair before the guard, the first step in b is the short Heun step to the
+    # strip's middle (three evaluations in b; a full dopri5 step would make it eight), and the
+    # crossing is at b's entry, where the guard is already past.
+    eps, h, tol, gap = 1e-9, 0.25, 1e-10, -1e-13
+    runs, calls = {}, {gap: {}, 0.0: {}}
+    for g in (gap, 0.0):
+        runs[g] = simulate(
+            drift(g, calls[g]), [0.0, 0.0], "a", 2.0, h, eps, method="dopri5", rtol=tol, atol=tol, landing="dense"
+        )
+    ex = runs[gap]
+    assert ex.status == "finished" and ex.mode_sequence == ["a", "b", "c"]
+    a_to_b, b_to_c = ex.transitions
+    assert b_to_c.time == a_to_b.exit_time
+    np.testing.assert_array_equal(b_to_c.state_before, a_to_b.state_after)
+    assert calls[gap]["b"] == 3, calls[gap]
+    # Continuous with the symmetric case: the final states differ by the gap, to rounding.
+    assert np.abs(ex.final_state - runs[0.0].final_state).max() <= abs(gap) + 1e-12
+
+
 def test_dense_landing_aims_at_the_strips_middle_through_a_kinked_guard():
     # Example 2's mass sticks on the stop: its guard max(x_max - x, -xd) has a kink there, the
     # secant from q to the step's end lands at the strip's very edge (depth ~1e-12 of eps = 1e-7),
