@@ -21,7 +21,7 @@ from typing import cast
 import numpy as np
 
 #: The C interface version this module speaks (``lsn_version()`` of the library).
-INTERFACE_VERSION = 12
+INTERFACE_VERSION = 13
 #: Environment variable that switches the native path off when set to 0.
 SWITCH = "LEGSIM_NATIVE"
 
@@ -68,6 +68,8 @@ def load() -> bool:
     lib.lsn_create.argtypes = [ctypes.POINTER(ctypes.c_double), ctypes.c_long]
     lib.lsn_time_aba.restype = ctypes.c_double
     lib.lsn_time_aba.argtypes = [ctypes.c_long] + [ctypes.POINTER(ctypes.c_double)] * 3 + [ctypes.c_long]
+    lib.lsn_planar.restype = ctypes.c_long
+    lib.lsn_planar.argtypes = [ctypes.c_long]
     lib.lsn_counts.restype = None
     lib.lsn_counts.argtypes = [ctypes.c_long, ctypes.POINTER(ctypes.c_double), ctypes.c_long]
     _state["lib"], _state["loaded"] = lib, True
@@ -112,6 +114,16 @@ def counts(handle: int, reset: bool = False) -> np.ndarray:
     lib = cast(ctypes.CDLL, _state["lib"])  # load() succeeded
     lib.lsn_counts(int(handle), out.ctypes.data_as(ctypes.POINTER(ctypes.c_double)), int(reset))
     return out
+
+
+def planar(handle: int) -> bool:
+    """Whether the library's model ``handle`` moves in the x-z plane, its M and h then computed
+    from its planar bodies (``planar_dynamics`` in ``pinlegsim.cpp``) rather than by Pinocchio's
+    crba and RNEA."""
+    if not load():
+        raise RuntimeError(f"native library unavailable: {_state['reason']}")
+    lib = cast(ctypes.CDLL, _state["lib"])  # load() succeeded
+    return bool(lib.lsn_planar(int(handle)))
 
 
 def time_aba(handle: int, q: np.ndarray, v: np.ndarray, tau: np.ndarray, reps: int) -> float:

@@ -27,6 +27,8 @@
 #include <pinocchio/algorithm/rnea.hpp>
 #include <pinocchio/multibody.hpp>
 
+#include "planar_tree.hpp"
+
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 #include <Eigen/QR>
@@ -44,6 +46,12 @@
 #include <vector>
 
 namespace {
+
+using legsim_planar::PlanarTree;
+using legsim_planar::planar_dynamics;
+using legsim_planar::planar_frames;
+using legsim_planar::planar_point;
+using legsim_planar::planar_tree;
 
 // The joints the bridge admits (nq == nv: bounded revolute and prismatic joints along the
 // axes). A collection of these six alone, rather than Pinocchio's default of 25 kinds, keeps
@@ -86,7 +94,7 @@ using Mat = Eigen::MatrixXd;
 using ConstMap = Eigen::Map<const Vec>;
 using OutMap = Eigen::Map<Vec>;
 
-constexpr int kVersion = 12;
+constexpr int kVersion = 13;
 
 // Joint type codes of the model description (see lsn_create).
 enum JointCode { RX = 0, RY = 1, RZ = 2, PX = 3, PY = 4, PZ = 5, COMPOSITE = 6 };
@@ -159,6 +167,8 @@ struct Scratch {
 struct Robot {
   Model model;
   Data data;
+  // The model as planar bodies, where it is one (planar_tree).
+  PlanarTree planar;
   std::array<double, COUNTERS> counts{};
   SolveCache aba, kkt, gravity;
   Scratch scratch;
@@ -182,6 +192,7 @@ struct Robot {
   explicit Robot(Model m)
       : model(std::move(m)),
         data(model),
+        planar(planar_tree(model)),
         offset(model.frames.size(), Eigen::Vector3d::Zero()),
         moving(model.frames.size(), 0),
         placed_at(model.frames.size()) {
@@ -238,14 +249,19 @@ void shift_to_contact(const Robot& rb, pinocchio::FrameIndex id, Mat& Jf) {
 }
 
 // The unconstrained acceleration M^-1 (tau - h(q, v)) into acc, leaving M's Cholesky factor in
-// rb.scratch.mass (and, in the WORLD convention, the joint Jacobians in rb.data.J); false, acc all
-// nan, where M is not positive definite (not a valid model at q). For the small planar models the
-// bridge builds, crba, the bias forces and a dense Cholesky cost less than ABA, and the factor
-// serves the constrained solve's M^-1 W^T too.
+// rb.scratch.mass (and, for a model that is not planar, in the WORLD convention, the joint
+// Jacobians in rb.data.J); false, acc all nan, where M is not positive definite (not a valid model
+// at q). For the small models the bridge builds, M and h (planar_dynamics, else crba and RNEA's
+// bias forces) and a dense Cholesky cost less than ABA, and the factor serves the constrained
+// solve's M^-1 W^T too.
 bool forward_dynamics(Robot& rb, const ConstMap& q, const ConstMap& v, const ConstMap& tau,
                       pinocchio::Convention convention, Vec& acc) {
-  pinocchio::crba(rb.model, rb.data, q, convention);
-  pinocchio::nonLinearEffects(rb.model, rb.data, q, v);
+  if (rb.planar.valid) {
+    planar_dynamics(rb.planar, q.data(), v.data(), rb.model.nv, rb.data.M, rb.data.nle);
+  } else {
+    pinocchio::crba(rb.model, rb.data, q, convention);
+    pinocchio::nonLinearEffects(rb.model, rb.data, q, v);
+  }
   rb.scratch.mass.compute(rb.data.M);
   if (rb.scratch.mass.info() != Eigen::Success) {  // the run's breakdown says so
     acc.setConstant(q.size(), std::numeric_limits<double>::quiet_NaN());
@@ -607,6 +623,45 @@ bool constraint_forces(Scratch& s) {
 // above) is compiled with hidden visibility (setup.py), so that its calls bind inside the
 // library, without the procedure linkage table, and the compiler may inline them.
 #pragma GCC visibility push(default)
+// lsn_frames of a planar robot: (x, z, vx, vz) of each frame's contact point, nan for a round
+// frame not placed at q.
+void planar_frames_at(Robot& rb, const double* q, const double* v, long count, const double* frames, double* out) {
+  PlanarTree& tree = rb.planar;
+  planar_frames(tree, q, v);
+  for (long i = 0; i < count; ++i) {
+    const auto id = static_cast<pinocchio::FrameIndex>(frames[i]);
+    if (!placed(rb, q, id)) {
+      std::fill(out + 4 * i, out + 4 * i + 4, std::numeric_limits<double>::quiet_NaN());
+      continue;
+    }
+    const std::array<double, 2> p = planar_point(tree, static_cast<long>(id), round_offset(rb, id));
+    const PlanarTree::Frame& F = tree.frames[static_cast<size_t>(tree.points[id].joint)];
+    out[4 * i] = p[0];
+    out[4 * i + 1] = p[1];
+    out[4 * i + 2] = F.vx + F.w * (p[1] - F.oz);
+    out[4 * i + 3] = F.vz - F.w * (p[0] - F.ox);
+  }
+}
+
+// lsn_frame_jacobian of a planar robot (a placed frame): (x, z, Jacobian row x, row z).
+void planar_jacobian(Robot& rb, const double* q, pinocchio::FrameIndex id, double* out) {
+  PlanarTree& tree = rb.planar;
+  const long n = rb.model.nv;
+  planar_frames(tree, q, rb.scratch.zero.data());
+  const std::array<double, 2> p = planar_point(tree, static_cast<long>(id), round_offset(rb, id));
+  out[0] = p[0];
+  out[1] = p[1];
+  std::fill(out + 2, out + 2 + 2 * n, 0.0);
+  for (long k : tree.support[static_cast<size_t>(tree.points[id].joint)]) {
+    const PlanarTree::Joint& J = tree.joints[static_cast<size_t>(k)];
+    const PlanarTree::Frame& A = tree.frames[static_cast<size_t>(k)];
+    const double sign = A.axes.sign;
+    const bool turns = J.kind == PlanarTree::REVOLUTE;
+    out[2 + J.v] = turns ? sign * (p[1] - A.oz) : A.ex;
+    out[2 + n + J.v] = turns ? -sign * (p[0] - A.ox) : A.ez;
+  }
+}
+
 extern "C" {
 
 // Version of this C interface (bumped when a signature changes).
@@ -684,6 +739,10 @@ long lsn_create(const double* desc, long size) {
 
 long lsn_nv(long h) { return robot(h).model.nv; }
 
+// 1 where the model's M and h come from its planar bodies (planar_dynamics), 0 where from
+// Pinocchio's crba and RNEA.
+long lsn_planar(long h) { return robot(h).planar.valid ? 1 : 0; }
+
 // a = M^-1 (tau - h(q, v)): the unconstrained joint acceleration under applied forces tau (the
 // forward dynamics that Pinocchio's ABA also computes; counted in the ABA slot).
 void lsn_aba(long h, const double* q, const double* v, const double* tau, double* a) {
@@ -707,6 +766,10 @@ void lsn_frames(long h, const double* q, const double* v, long count, const doub
   Robot& rb = robot(h);
   const long n = rb.model.nv;
   rb.counts[KINEMATICS] += 1;
+  if (rb.planar.valid) {
+    planar_frames_at(rb, q, v, count, frames, out);
+    return;
+  }
   pinocchio::forwardKinematics(rb.model, rb.data, ConstMap(q, n), ConstMap(v, n));
   for (long i = 0; i < count; ++i) {
     const auto id = static_cast<pinocchio::FrameIndex>(frames[i]);
@@ -735,6 +798,10 @@ void lsn_frame_jacobian(long h, const double* q, long frame, double* out) {
     return;
   }
   rb.counts[JACOBIANS] += 1;
+  if (rb.planar.valid) {
+    planar_jacobian(rb, q, id, out);
+    return;
+  }
   Mat& Jf = rb.scratch.frame_jacobian;  // reused: a stance spring's force is asked at every evaluation
   Jf.setZero(6, n);
   pinocchio::computeFrameJacobian(rb.model, rb.data, ConstMap(q, n), id, pinocchio::LOCAL_WORLD_ALIGNED, Jf);
@@ -838,13 +905,13 @@ void lsn_constrained(long h, const double* q, const double* v, const double* tau
   const ConstMap qm(centred(rb, q).data(), n), vm(v, n);
   rb.counts[ABA] += 1;
   rb.counts[KKT] += 1;
-  // The world-convention crba also leaves the joint Jacobians the constraint rows read.
+  // Pinocchio's world-convention crba also leaves the joint Jacobians the constraint rows read.
   if (!forward_dynamics(rb, qm, vm, ConstMap(tau, n), pinocchio::Convention::WORLD, s.acc)) {
     OutMap(a, n) = s.acc;
     OutMap(lam, total_rows(s.blocks)).setConstant(std::numeric_limits<double>::quiet_NaN());
     return;
   }
-  constraint_rows(rb, qm, vm, s.blocks, slopes, true, true, s.J, s.gamma, s.W);
+  constraint_rows(rb, qm, vm, s.blocks, slopes, true, !rb.planar.valid, s.J, s.gamma, s.W);
   s.MWt = s.W.transpose();
   s.mass.solveInPlace(s.MWt);
   s.A.noalias() = s.J * s.MWt;

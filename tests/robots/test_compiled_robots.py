@@ -12,7 +12,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 from legsim.robots import _native, compass_gait, double_pendulum
-from legsim.robots._native.calls import lsn_aba, lsn_frame_motion
+from legsim.robots._native.calls import lsn_aba, lsn_frame_jacobian, lsn_frame_motion, lsn_frames
 from legsim.robots.bridge import native
 from legsim.robots.bridge.dynamics import bridge_field
 from scipy.optimize import brentq
@@ -138,6 +138,42 @@ def _native_aba_and_motion(handle, q, v, tau, frame, a, motion):
     lsn_frame_motion(handle, q.ctypes.data, v.ctypes.data, a.ctypes.data, frame, motion.ctypes.data)
 
 
+@numba.njit
+def _native_frame_and_jacobian(handle, q, v, frame, point, jacobian):
+    frames = np.array([float(frame)])
+    lsn_frames(handle, q.ctypes.data, v.ctypes.data, 1, frames.ctypes.data, point.ctypes.data)
+    lsn_frame_jacobian(handle, q.ctypes.data, frame, jacobian.ctypes.data)
+
+
+def check_frames_against_pinocchio(bridge, q, v):
+    """Each frame's position, velocity and world-aligned Jacobian from the library (x and z) equal
+    Pinocchio's through its Python bindings (round frames: their contact points, shifted)."""
+    model, data = bridge.model, bridge.model.createData()
+    pin.forwardKinematics(model, data, q, v)
+    pin.computeJointJacobians(model, data, q)
+    pin.updateFramePlacements(model, data)
+    lwa = pin.LOCAL_WORLD_ALIGNED
+    for frame in range(1, model.nframes):
+        point, jacobian = np.empty(4), np.empty(2 + 2 * model.nv)
+        _native_frame_and_jacobian(np.int64(bridge.handle), q, v, np.int64(frame), point, jacobian)
+        J = pin.getFrameJacobian(model, data, frame, lwa)
+        position = data.oMf[frame].translation
+        velocity = pin.getFrameVelocity(model, data, frame, lwa).linear
+        if np.all(np.isfinite(point)):  # a moving round frame not placed at q answers nan
+            d = bridge_offset(bridge, frame)
+            w = pin.getFrameVelocity(model, data, frame, lwa).angular
+            shifted = velocity + np.cross(w, d)
+            close(point, [position[0] + d[0], position[2] + d[2], shifted[0], shifted[2]], 1e-10)
+            Jd = J[:3] + np.cross(J[3:].T, d).T
+            close(jacobian[2:], np.concatenate([Jd[0], Jd[2]]), 1e-10)
+
+
+def bridge_offset(bridge, frame):
+    offsets = getattr(bridge, "round_offsets", None) or {}
+    dx, dz = offsets.get(frame, (0.0, 0.0))
+    return np.array([dx, 0.0, dz])
+
+
 def composite_root_model():
     """A body on a composite root (PX, PZ, RY) whose parts have non-trivial placements, and a
     leg below it, with a foot frame."""
@@ -174,6 +210,47 @@ def test_a_composite_root_moves_as_in_pinocchio():
         vel = pin.getFrameVelocity(model, data, foot, pin.LOCAL_WORLD_ALIGNED).linear
         acc = pin.getFrameClassicalAcceleration(model, data, foot, pin.LOCAL_WORLD_ALIGNED).linear
         close(motion, [vel[0], vel[2], acc[0], acc[2]], 1e-10)
+
+
+#: A scene of each robot model the bundled scenes build through the bridge.
+BRIDGE_ROBOTS = ["pronk", "pronk_pitched", "double_pendulum_plastic", "rod", "slip", "quadruped_stand", "biped_run"]
+
+
+@pytest.mark.parametrize("name", BRIDGE_ROBOTS)
+def test_every_bundled_robot_has_the_planar_dynamics_of_pinocchio(name):
+    # The library computes M and h of a robot moving in the x-z plane from its planar bodies
+    # (planar_dynamics in pinlegsim.cpp): every bundled robot is one (the double pendulum's
+    # first joint placed by a half turn that reverses its y axis), and its forward dynamics is
+    # Pinocchio's ABA through its Python bindings, an independent implementation, to rounding.
+    bridge = load_scene(name).model.info["bridge"]
+    model, data = bridge.model, bridge.model.createData()
+    assert _native.planar(bridge.handle)
+    for _ in range(5):
+        q, v, tau = RNG.normal(size=(3, model.nv))
+        a, motion = np.empty(model.nv), np.empty(4)
+        _native_aba_and_motion(np.int64(bridge.handle), q, v, tau, np.int64(1), a, motion)
+        close(a, pin.aba(model, data, q, v, tau), 1e-10)
+        check_frames_against_pinocchio(bridge, q, v)
+
+
+def test_a_model_out_of_the_plane_keeps_pinocchios_algorithms():
+    # A joint about x takes the body out of the x-z plane: the library runs Pinocchio's crba and
+    # RNEA for it, and its forward dynamics is Pinocchio's all the same.
+    model = composite_root_model()
+    roll = model.addJoint(
+        model.getJointId("knee"), pin.JointModelRX(), pin.SE3(np.eye(3), np.array([0, 0, -0.4])), "roll"
+    )
+    model.appendBodyToJoint(roll, pin.Inertia(0.3, np.array([0.0, 0.1, -0.1]), np.diag([0.02, 0.01, 0.03])),
+                            pin.SE3.Identity())  # fmt: skip
+    data = model.createData()
+    handle = native.handle_for(model, "rolling")
+    assert not _native.planar(handle)
+    assert _native.planar(native.handle_for(composite_root_model(), "composite"))
+    for _ in range(5):
+        q, v, tau = RNG.normal(size=(3, model.nv))
+        a, motion = np.empty(model.nv), np.empty(4)
+        _native_aba_and_motion(np.int64(handle), q, v, tau, np.int64(1), a, motion)
+        close(a, pin.aba(model, data, q, v, tau), 1e-10)
 
 
 @pytest.mark.parametrize("parts", [0.0, -1.0, math.nan, 1e300, 2.0**60, 4.0])
