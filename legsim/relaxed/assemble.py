@@ -139,13 +139,14 @@ class Assembly:
         first = int(ws.visits[0, V_FIRST]) if n_visits else 0
         # One copy of the stored points, whose rows the visits stored whole take as their own.
         stored = (ws.T[:n_points].copy(), ws.X[:n_points].copy(), ws.DX[:n_points].copy())
+        widths = self._widths()
         for v in range(n_visits):
             mode, last = modes[v], ends[v]
             if v + 1 == n_visits and open_visit:
                 self._extend(ws, mode, first, last - 1)
                 break
             if self._open is None:  # a visit stored whole: its segment at once
-                self._whole(ws, stored, mode, first, last)
+                self._whole(stored, mode, widths[mode], first, last)
             else:
                 self._extend(ws, mode, first, last)
                 self._close()
@@ -165,17 +166,21 @@ class Assembly:
     def _width(self, mode: int) -> int:
         return int(self.tables.modes[mode, M_DIM]) + self.tables.memory
 
+    def _widths(self) -> list[int]:
+        """The state width of each registered mode, by row (``_width``)."""
+        tables = self.tables
+        return (tables.modes[: len(tables.names), M_DIM] + tables.memory).tolist()
+
     def _extend(self, ws: Any, mode: int, first: int, last: int) -> None:
         if self._open is None or self._open.mode != mode:
             self._close()
             self._open = OpenVisit(mode, self._width(mode))
         self._open.append(ws.T[first:last], ws.X[first:last], ws.DX[first:last])
 
-    def _whole(self, ws: Any, stored: tuple[np.ndarray, ...], mode: int, first: int, last: int) -> None:
+    def _whole(self, stored: tuple[np.ndarray, ...], mode: int, n: int, first: int, last: int) -> None:
         """The segment of a visit whose points are all in the buffers (``_extend`` then ``_close``
         without the pieces' lists): rows of the drain's copy of the points (``stored``: t, x, dx),
-        contiguous when the mode's state fills the buffers' width, else copied."""
-        n = self._width(mode)
+        contiguous when the mode's state width n fills the buffers' width, else copied."""
         t, x, dx = stored
         if n == x.shape[1]:
             x, dx = x[first:last], dx[first:last]

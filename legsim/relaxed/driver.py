@@ -192,7 +192,6 @@ class Runner:
         self.options, self.assembly = options, assembly
         #: Steps taken by each path: (compiled, python).
         self.steps = [0, 0]
-        self._addresses = np.zeros(0, dtype=np.int64)
         # A stop watch or the caller's until may end the run at a hand-back: the loop then hands back
         # every STOP_CHECK_STEPS exactly, never at a pace the clock sets, so that where such a run
         # ends (until) and its counters (steps taken before the stop was seen) do not depend on
@@ -251,13 +250,14 @@ class Runner:
             self.steps[0 if compiled else 1] += int(self.ws.iv[I_STEPS]) - before
 
     def addresses(self) -> np.ndarray:
-        """The function table's addresses (those of functions added since, computed now)."""
-        known = self._addresses.shape[0]
-        functions = self.tables.functions
-        if known < len(functions):
-            more = KERNEL.addresses(functions[known:], self.tables.kinds[known:])
-            self._addresses = np.concatenate([self._addresses, more])
-        return self._addresses
+        """The function table's addresses, kept with the tables for their next run (those of
+        functions added since, computed now)."""
+        tables = self.tables
+        known = tables.addresses.shape[0]
+        if known < len(tables.functions):
+            more = KERNEL.addresses(tables.functions[known:], tables.kinds[known:])
+            tables.addresses = np.concatenate([tables.addresses, more])
+        return tables.addresses
 
     def raised_in(self, exc: BaseException) -> str:
         """Which of the run's model functions raised ``exc``, when its traceback shows it: the

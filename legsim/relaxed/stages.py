@@ -36,10 +36,27 @@ INFO_STAGES, INFO_FSAL, INFO_EMBEDDED, INFO_BLENDED, INFO_EXTRA, INFO_DEGREE, IN
 JACOBIAN_REUSE = 50
 
 
+#: The arrays of the tableaux made so far, by identity (a Tableau holds arrays and has no hash):
+#: every run of a method reads the same arrays, which nothing writes.
+_ARRAYS: dict[int, tuple[object, MethodArrays]] = {}
+#: Tableaux whose arrays are kept at most (a program uses a few).
+KEPT_TABLEAUX = 64
+
+
 def method_arrays(tableau) -> MethodArrays:
-    """The tableau as ``MethodArrays`` (contiguous float64 and int64 arrays)."""
-    if tableau.implicit:
-        return _implicit_arrays(tableau)
+    """The tableau as ``MethodArrays`` (contiguous float64 and int64 arrays), made once per
+    tableau."""
+    found = _ARRAYS.get(id(tableau))
+    if found is not None and found[0] is tableau:
+        return found[1]
+    arrays = _implicit_arrays(tableau) if tableau.implicit else _explicit_arrays(tableau)
+    if len(_ARRAYS) < KEPT_TABLEAUX:
+        _ARRAYS[id(tableau)] = (tableau, arrays)  # holding the tableau keeps its id its own
+    return arrays
+
+
+def _explicit_arrays(tableau) -> MethodArrays:
+    """An explicit method's arrays."""
     s = tableau.stages
     b_err = np.zeros(s) if tableau.b_err is None else np.asarray(tableau.b_err, dtype=float)
     b_low = np.zeros(s) if tableau.b_err_low is None else np.asarray(tableau.b_err_low, dtype=float)

@@ -109,6 +109,9 @@ class RunTables:
         self.functions: list[Any] = []
         #: The call shape of each function (``compiled.native.SIGNATURES``).
         self.kinds: list[str] = []
+        #: The compiled kernel's addresses of the functions (``driver.Runner.addresses``): the
+        #: first ones of ``functions``, the table growing only at its end.
+        self.addresses = np.zeros(0, dtype=np.int64)
         self._function_ids: dict[int, int] = {}
         self.names: list[str] = []
         self.rows: dict[str, int] = {}

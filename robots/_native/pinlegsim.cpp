@@ -4,8 +4,9 @@
 // symbol name (numba.types.ExternalFunction), so a compiled function that calls them caches on
 // disk like any other.
 //
-// The algorithms: the forward dynamics a0 = M^-1 (tau - h(q, v)) under applied forces (crba, the
-// bias forces h by RNEA, a Cholesky factor of M); the KKT contact dynamics through the Schur
+// The algorithms: the forward dynamics a0 = M^-1 (tau - h(q, v)) under applied forces (M and the
+// bias forces h from the planar bodies of a robot moving in the x-z plane, planar_tree.hpp, else by
+// crba and RNEA; a Cholesky factor of M); the KKT contact dynamics through the Schur
 // complement (lambda = (J M^-1 J^T)^-1 (-(J a0 + dJ/dt v)), a = a0 + M^-1 J^T lambda, M^-1 J^T
 // from the same factor); the generalised Newton impact; M and M^-1; frame positions, velocities and Jacobians
 // in the world's axes. Each robot counts the algorithms it ran (lsn_counts), and the model

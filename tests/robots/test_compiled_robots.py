@@ -11,7 +11,7 @@ import numba
 import numpy as np
 import pinocchio as pin
 import pytest
-from legsim.robots import _native, compass_gait, double_pendulum
+from legsim.robots import _native, compass_gait, double_pendulum, rimless_wheel
 from legsim.robots._native.calls import lsn_aba, lsn_frame_jacobian, lsn_frame_motion, lsn_frames
 from legsim.robots.bridge import native
 from legsim.robots.bridge.dynamics import bridge_field
@@ -231,6 +231,20 @@ def test_every_bundled_robot_has_the_planar_dynamics_of_pinocchio(name):
         _native_aba_and_motion(np.int64(bridge.handle), q, v, tau, np.int64(1), a, motion)
         close(a, pin.aba(model, data, q, v, tau), 1e-10)
         check_frames_against_pinocchio(bridge, q, v)
+
+
+@pytest.mark.parametrize("walker", ["compass_gait", "rimless_wheel"])
+def test_the_walkers_have_the_planar_dynamics_of_pinocchio(walker):
+    # The walkers build their own Pinocchio models (gravity along the slope): planar too.
+    robot = {"compass_gait": compass_gait, "rimless_wheel": rimless_wheel}[walker].make().info[walker]
+    model = robot._kin_model if walker == "compass_gait" else robot._model
+    data = model.createData()
+    assert _native.planar(robot.handle)
+    for _ in range(5):
+        q, v, tau = RNG.normal(size=(3, model.nv))
+        a, motion = np.empty(model.nv), np.empty(4)
+        _native_aba_and_motion(np.int64(robot.handle), q, v, tau, np.int64(1), a, motion)
+        close(a, pin.aba(model, data, q, v, tau), 1e-10)
 
 
 def test_a_model_out_of_the_plane_keeps_pinocchios_algorithms():
