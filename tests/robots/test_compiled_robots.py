@@ -223,28 +223,29 @@ def test_every_bundled_robot_has_the_planar_dynamics_of_pinocchio(name):
     # first joint placed by a half turn that reverses its y axis), and its forward dynamics is
     # Pinocchio's ABA through its Python bindings, an independent implementation, to rounding.
     bridge = load_scene(name).model.info["bridge"]
-    model, data = bridge.model, bridge.model.createData()
     assert _native.planar(bridge.handle)
+    check_aba_against_pinocchio(bridge.handle, bridge.model)
+    for _ in range(5):
+        check_frames_against_pinocchio(bridge, *RNG.normal(size=(2, bridge.model.nv)))
+
+
+def check_aba_against_pinocchio(handle, model):
+    """The library's forward dynamics at random states is Pinocchio's ABA through its Python
+    bindings, to rounding."""
+    data = model.createData()
     for _ in range(5):
         q, v, tau = RNG.normal(size=(3, model.nv))
         a, motion = np.empty(model.nv), np.empty(4)
-        _native_aba_and_motion(np.int64(bridge.handle), q, v, tau, np.int64(1), a, motion)
+        _native_aba_and_motion(np.int64(handle), q, v, tau, np.int64(1), a, motion)
         close(a, pin.aba(model, data, q, v, tau), 1e-10)
-        check_frames_against_pinocchio(bridge, q, v)
 
 
 @pytest.mark.parametrize("walker", ["compass_gait", "rimless_wheel"])
 def test_the_walkers_have_the_planar_dynamics_of_pinocchio(walker):
     # The walkers build their own Pinocchio models (gravity along the slope): planar too.
     robot = {"compass_gait": compass_gait, "rimless_wheel": rimless_wheel}[walker].make().info[walker]
-    model = robot._kin_model if walker == "compass_gait" else robot._model
-    data = model.createData()
     assert _native.planar(robot.handle)
-    for _ in range(5):
-        q, v, tau = RNG.normal(size=(3, model.nv))
-        a, motion = np.empty(model.nv), np.empty(4)
-        _native_aba_and_motion(np.int64(robot.handle), q, v, tau, np.int64(1), a, motion)
-        close(a, pin.aba(model, data, q, v, tau), 1e-10)
+    check_aba_against_pinocchio(robot.handle, robot._kin_model if walker == "compass_gait" else robot._model)
 
 
 def test_a_model_out_of_the_plane_keeps_pinocchios_algorithms():
@@ -256,15 +257,10 @@ def test_a_model_out_of_the_plane_keeps_pinocchios_algorithms():
     )
     model.appendBodyToJoint(roll, pin.Inertia(0.3, np.array([0.0, 0.1, -0.1]), np.diag([0.02, 0.01, 0.03])),
                             pin.SE3.Identity())  # fmt: skip
-    data = model.createData()
     handle = native.handle_for(model, "rolling")
     assert not _native.planar(handle)
     assert _native.planar(native.handle_for(composite_root_model(), "composite"))
-    for _ in range(5):
-        q, v, tau = RNG.normal(size=(3, model.nv))
-        a, motion = np.empty(model.nv), np.empty(4)
-        _native_aba_and_motion(np.int64(handle), q, v, tau, np.int64(1), a, motion)
-        close(a, pin.aba(model, data, q, v, tau), 1e-10)
+    check_aba_against_pinocchio(handle, model)
 
 
 @pytest.mark.parametrize("parts", [0.0, -1.0, math.nan, 1e300, 2.0**60, 4.0])
