@@ -1,5 +1,5 @@
-// The forward dynamics and kinematics of a robot moving in a plane, from its Pinocchio model
-// (pinlegsim.cpp uses them for every model that is planar; see PlanarTree).
+// The joint-space dynamics and the frame kinematics of a robot moving in a plane, from its
+// Pinocchio model (pinlegsim.cpp uses them for every model that is planar; see PlanarTree).
 //
 // Units: SI throughout; angles in rad.
 
@@ -48,9 +48,8 @@ struct PlanarTree {
   };
   // Each joint frame at (q, v): its axes, its origin (m) and that origin's velocity (m/s), its
   // angular velocity about the world's y (rad/s) and its origin's acceleration at zero joint
-  // acceleration (m/s^2); a slide's axis in
-  // the world; its body's centre of mass (m) and that centre's acceleration at zero joint
-  // acceleration (m/s^2).
+  // acceleration (m/s^2); a slide's axis in the world; its body's centre of mass (m) and that
+  // centre's acceleration at zero joint acceleration (m/s^2).
   struct Frame {
     Axes axes;
     double ox = 0.0, oz = 0.0, vx = 0.0, vz = 0.0, w = 0.0, ax = 0.0, az = 0.0, ex = 0.0, ez = 0.0;
@@ -75,7 +74,9 @@ PlanarTree planar_tree(const PinocchioModel& model) {
   PlanarTree tree;
   constexpr double tol = 1e-12;
   const Eigen::Vector3d gravity = model.gravity.linear();
-  if (gravity(1) != 0.0) return tree;
+  // Rotor inertias (armature), which Pinocchio's crba adds to M's diagonal, are not bodies of the
+  // plane: a model with them keeps Pinocchio's algorithms.
+  if (gravity(1) != 0.0 || !model.armature.isZero(0.0)) return tree;
   tree.gx = gravity(0);
   tree.gz = gravity(2);
   const auto count = static_cast<size_t>(model.njoints);
