@@ -7,7 +7,7 @@ the values to its code, we take m1 = m2 = 1 kg and L1 = L2 = 1 m with g = 9.81 m
 
 A stop at ``theta2 = 0`` (effect ``stop``) keeps ``theta2 >= 0``. Modes:
 
-* ``unconstrained``: both joints free, by Pinocchio's forward dynamics;
+* ``unconstrained``: both joints free, by the native library's forward dynamics;
 * ``constrained`` (only when the stop's restitution is 0): link 2 held against the stop, the
   stop torque lambda (N m) from the KKT dynamics.
 

@@ -49,6 +49,7 @@
 namespace {
 
 using legsim_planar::PlanarTree;
+using legsim_planar::planar_column;
 using legsim_planar::planar_dynamics;
 using legsim_planar::planar_frames;
 using legsim_planar::planar_point;
@@ -618,12 +619,6 @@ bool constraint_forces(Scratch& s) {
   return sliding_solve(s.A, s.rhs, s.MWt, s.lambda, cones_of(s.blocks));
 }
 
-}  // namespace
-
-// The C interface is the library's only export: everything else (Pinocchio's template code
-// above) is compiled with hidden visibility (setup.py), so that its calls bind inside the
-// library, without the procedure linkage table, and the compiler may inline them.
-#pragma GCC visibility push(default)
 // lsn_frames of a planar robot: (x, z, vx, vz) of each frame's contact point, nan for a round
 // frame not placed at q.
 void planar_frames_at(Robot& rb, const double* q, const double* v, long count, const double* frames, double* out) {
@@ -654,15 +649,19 @@ void planar_jacobian(Robot& rb, const double* q, pinocchio::FrameIndex id, doubl
   out[1] = p[1];
   std::fill(out + 2, out + 2 + 2 * n, 0.0);
   for (long k : tree.support[static_cast<size_t>(tree.points[id].joint)]) {
-    const PlanarTree::Joint& J = tree.joints[static_cast<size_t>(k)];
-    const PlanarTree::Frame& A = tree.frames[static_cast<size_t>(k)];
-    const double sign = A.axes.sign;
-    const bool turns = J.kind == PlanarTree::REVOLUTE;
-    out[2 + J.v] = turns ? sign * (p[1] - A.oz) : A.ex;
-    out[2 + n + J.v] = turns ? -sign * (p[0] - A.ox) : A.ez;
+    const std::array<double, 3> column = planar_column(tree, k, p[0], p[1]);
+    const long v = tree.joints[static_cast<size_t>(k)].v;
+    out[2 + v] = column[0];
+    out[2 + n + v] = column[1];
   }
 }
 
+}  // namespace
+
+// The C interface is the library's only export: everything else (Pinocchio's template code
+// above) is compiled with hidden visibility (setup.py), so that its calls bind inside the
+// library, without the procedure linkage table, and the compiler may inline them.
+#pragma GCC visibility push(default)
 extern "C" {
 
 // Version of this C interface (bumped when a signature changes).

@@ -66,6 +66,7 @@ struct PlanarTree {
   std::vector<std::vector<long>> support;  // each joint's ancestors and itself, root first
   std::vector<Frame> frames;
   std::vector<Point> points;               // the model's frames, by frame id
+  std::vector<std::array<double, 3>> columns;  // scratch: one body's Jacobian columns (planar_column)
 };
 
 // The planar tree of `model`, or one with valid = false where the model is not planar.
@@ -83,6 +84,7 @@ PlanarTree planar_tree(const PinocchioModel& model) {
   tree.joints.resize(count);
   tree.support.resize(count);
   tree.frames.resize(count);
+  tree.columns.resize(count);
   for (pinocchio::JointIndex j = 1; j < count; ++j) {
     const std::string name = model.joints[j].shortname();
     const int kind = name == "JointModelRY"   ? PlanarTree::REVOLUTE
@@ -155,13 +157,13 @@ inline void planar_frames(PlanarTree& tree, const double* q, const double* v) {
   }
 }
 
-// Column `joint` of the Jacobian of body `body`'s centre of mass (x, z) and of its turn about y.
-inline std::array<double, 3> planar_column(const PlanarTree& tree, size_t body, long joint) {
-  const PlanarTree::Frame& B = tree.frames[body];
+// Column `joint` of the Jacobian of a point (x, z) of a body below that joint: the point's
+// velocity (x, z) and the body's turn about y per unit of the joint's rate.
+inline std::array<double, 3> planar_column(const PlanarTree& tree, long joint, double x, double z) {
   const PlanarTree::Frame& A = tree.frames[static_cast<size_t>(joint)];
   if (tree.joints[static_cast<size_t>(joint)].kind != PlanarTree::REVOLUTE) return {A.ex, A.ez, 0.0};
   const double sign = A.axes.sign;
-  return {sign * (B.cz - A.oz), -sign * (B.cx - A.ox), sign};
+  return {sign * (z - A.oz), -sign * (x - A.ox), sign};
 }
 
 // The world position (x, z) of a point at (px, pz) in joint `joint`'s axes plus `offset` (x, z in
@@ -180,18 +182,21 @@ inline void planar_dynamics(PlanarTree& tree, const double* q, const double* v, 
   planar_frames(tree, q, v);
   M.setZero(n, n);
   h.setZero(n);
+  std::vector<std::array<double, 3>>& columns = tree.columns;
   for (size_t b = 1; b < tree.joints.size(); ++b) {
     const PlanarTree::Joint& body = tree.joints[b];
     if (body.mass == 0.0 && body.inertia == 0.0) continue;
     const PlanarTree::Frame& B = tree.frames[b];
+    const std::vector<long>& support = tree.support[b];
+    for (size_t i = 0; i < support.size(); ++i) columns[i] = planar_column(tree, support[i], B.cx, B.cz);
     const double fx = body.mass * (B.acx - tree.gx), fz = body.mass * (B.acz - tree.gz);
-    for (long i : tree.support[b]) {
-      const std::array<double, 3> ci = planar_column(tree, b, i);
-      const long vi = tree.joints[static_cast<size_t>(i)].v;
+    for (size_t i = 0; i < support.size(); ++i) {
+      const std::array<double, 3>& ci = columns[i];
+      const long vi = tree.joints[static_cast<size_t>(support[i])].v;
       h(vi) += ci[0] * fx + ci[1] * fz;
-      for (long k : tree.support[b]) {
-        const std::array<double, 3> ck = planar_column(tree, b, k);
-        M(vi, tree.joints[static_cast<size_t>(k)].v) +=
+      for (size_t k = 0; k < support.size(); ++k) {
+        const std::array<double, 3>& ck = columns[k];
+        M(vi, tree.joints[static_cast<size_t>(support[k])].v) +=
             body.mass * (ci[0] * ck[0] + ci[1] * ck[1]) + body.inertia * ci[2] * ck[2];
       }
     }

@@ -3,9 +3,10 @@ array p (``layout``), calling Pinocchio's C++ algorithms through the native libr
 
 Applied generalised forces tau: stance spring legs through their hips' Jacobians, joint damping
 and the actuated joints' input u. Without active rigid contacts the acceleration is the forward
-dynamics ``M(q)^-1 (tau - b(q, v))`` (``lsn_aba``: crba, RNEA's bias forces, a Cholesky factor of
-M); with them, the KKT contact dynamics ``M a + b = tau + W^T lambda, J a + dJ/dt v = 0``
-through the Schur complement of the same factor (``lsn_constrained``; W = J except on a
+dynamics ``M(q)^-1 (tau - b(q, v))`` (``lsn_aba``: M and b from the robot's planar bodies, or from
+Pinocchio's crba and RNEA for a model out of the plane, and a Cholesky factor of M); with them,
+the KKT contact dynamics ``M a + b = tau + W^T lambda, J a + dJ/dt v = 0`` through the Schur
+complement of the same factor (``lsn_constrained``; W = J except on a
 slipping point's normal row, ``J_n - s mu J_t``). A point's rows are x and z on level ground, the
 terrain's tangent t and normal n under it on a terrain (``legsim.terrain``; a sliding point
 keeps ``z - h(x) = 0``, whose drift has the curvature term). At a profile's breakpoint a

@@ -23,6 +23,9 @@ from legsim.model import evaluate_field, evaluate_guards, evaluate_reset
 from legsim.prebuild import bundled_scenes
 from legsim.scene import load_scene
 
+from .test_collision_contacts import BALL_R
+from .test_collision_contacts import ball as collision_ball
+
 RNG = np.random.default_rng(18)
 
 
@@ -145,9 +148,10 @@ def _native_frame_and_jacobian(handle, q, v, frame, point, jacobian):
     lsn_frame_jacobian(handle, q.ctypes.data, frame, jacobian.ctypes.data)
 
 
-def check_frames_against_pinocchio(bridge, q, v):
+def check_frames_against_pinocchio(bridge, q, v, offsets):
     """Each frame's position, velocity and world-aligned Jacobian from the library (x and z) equal
-    Pinocchio's through its Python bindings (round frames: their contact points, shifted)."""
+    Pinocchio's through its Python bindings; a round frame's (``offsets``: frame id -> (dx, dz), m)
+    those of its contact point, the frame's origin shifted by the offset in the world's axes."""
     model, data = bridge.model, bridge.model.createData()
     pin.forwardKinematics(model, data, q, v)
     pin.computeJointJacobians(model, data, q)
@@ -156,22 +160,14 @@ def check_frames_against_pinocchio(bridge, q, v):
     for frame in range(1, model.nframes):
         point, jacobian = np.empty(4), np.empty(2 + 2 * model.nv)
         _native_frame_and_jacobian(np.int64(bridge.handle), q, v, np.int64(frame), point, jacobian)
+        dx, dz = offsets.get(frame, (0.0, 0.0))
+        d = np.array([dx, 0.0, dz])
+        motion = pin.getFrameVelocity(model, data, frame, lwa)
+        position, velocity = data.oMf[frame].translation + d, motion.linear + np.cross(motion.angular, d)
+        close(point, [position[0], position[2], velocity[0], velocity[2]], 1e-10)
         J = pin.getFrameJacobian(model, data, frame, lwa)
-        position = data.oMf[frame].translation
-        velocity = pin.getFrameVelocity(model, data, frame, lwa).linear
-        if np.all(np.isfinite(point)):  # a moving round frame not placed at q answers nan
-            d = bridge_offset(bridge, frame)
-            w = pin.getFrameVelocity(model, data, frame, lwa).angular
-            shifted = velocity + np.cross(w, d)
-            close(point, [position[0] + d[0], position[2] + d[2], shifted[0], shifted[2]], 1e-10)
-            Jd = J[:3] + np.cross(J[3:].T, d).T
-            close(jacobian[2:], np.concatenate([Jd[0], Jd[2]]), 1e-10)
-
-
-def bridge_offset(bridge, frame):
-    offsets = getattr(bridge, "round_offsets", None) or {}
-    dx, dz = offsets.get(frame, (0.0, 0.0))
-    return np.array([dx, 0.0, dz])
+        shifted = J[:3] + np.cross(J[3:].T, d).T
+        close(jacobian[2:], np.concatenate([shifted[0], shifted[2]]), 1e-10)
 
 
 def composite_root_model():
@@ -226,7 +222,18 @@ def test_every_bundled_robot_has_the_planar_dynamics_of_pinocchio(name):
     assert _native.planar(bridge.handle)
     check_aba_against_pinocchio(bridge.handle, bridge.model)
     for _ in range(5):
-        check_frames_against_pinocchio(bridge, *RNG.normal(size=(2, bridge.model.nv)))
+        check_frames_against_pinocchio(bridge, *RNG.normal(size=(2, bridge.model.nv)), {})
+
+
+def test_a_round_contacts_point_has_the_planar_kinematics_of_pinocchio(tmp_path):
+    # A ball's round contact on flat ground: the library's frame is the ball's lowest point, its
+    # centre's frame shifted by (0, -r) in the world's axes, whose velocity and Jacobian carry the
+    # ball's spin.
+    bridge = load_scene(collision_ball(tmp_path, f"[initial]\nstate = {{ z = {2 * BALL_R} }}\n")).model.info["bridge"]
+    offsets = bridge._model.round_offsets
+    assert list(offsets.values()) == [(0.0, -BALL_R)] and _native.planar(bridge.handle)
+    for _ in range(5):
+        check_frames_against_pinocchio(bridge, *RNG.normal(size=(2, bridge.model.nv)), offsets)
 
 
 def check_aba_against_pinocchio(handle, model):
