@@ -201,21 +201,22 @@ class Assembly:
         if count == 0:
             return
         floats, ints = ws.rec_f[:count].tolist(), ws.rec_i[:count].tolist()
-        rows = self.tables.modes[:, [M_T0, M_J0]].tolist()
+        modes = self.tables.modes[: len(self.tables.names)]
+        rows = (modes[:, M_T0].tolist(), modes[:, M_J0].tolist())
         # One copy of the records' guard points and images, each record's state a row of it.
         states = (ws.rec_q[:count].copy(), ws.rec_x[:count].copy())
         for r in range(count):
             self._record(states, r, floats[r], ints[r], rows)
 
     def _record(self, states: tuple[np.ndarray, np.ndarray], r: int, f: list[float], i: list[int],
-                rows: list[list[int]]) -> None:  # fmt: skip
+                rows: tuple[list[int], list[int]]) -> None:  # fmt: skip
         """Record r; ``states`` the records' guard points and images, ``rows`` the first
-        transition and joint rows of each mode (``M_T0``, ``M_J0``)."""
+        transition and the first joint row of each mode (``M_T0``, ``M_J0``)."""
         tables = self.tables
         source, e, kind = i[R_SOURCE], i[R_INDEX], i[R_KIND]
-        row = rows[source][0] + e
+        row = rows[0][source] + e
         if kind in (KIND_JOINT, KIND_JOINT_CONTINUED):
-            name = tables.joint_names[rows[source][1] + i[R_JOINT]]
+            name = tables.joint_names[rows[1][source] + i[R_JOINT]]
         elif kind == KIND_CONTINUED:
             name = tables.continuation_names[row]
         else:
@@ -505,6 +506,8 @@ class Assembly:
     def ending(self, ws: Any) -> tuple[Status, str]:
         """How the run ended, and the message naming mode, time and state."""
         reason, index = int(ws.iv[I_END]), int(ws.iv[I_END_INDEX])
+        if reason == END_FINISHED:
+            return Status.FINISHED, ""
         tables = self.tables
         mode = int(ws.iv[I_MODE])
         name = tables.names[mode]
@@ -512,8 +515,6 @@ class Assembly:
         t, x = float(ws.fs[F_T]), ws.x[:n].copy()
         transition = self._transition_name(mode, index)
         breakdown = tables.breakdowns.last
-        if reason == END_FINISHED:
-            return Status.FINISHED, ""
         if reason == END_MAX_TRANSITIONS:
             return Status.MAX_TRANSITIONS, (
                 f"transition budget max_transitions={self.options.max_transitions} used up at t={t:.17g} "

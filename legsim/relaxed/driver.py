@@ -128,14 +128,18 @@ def drive(
         stages = method.info[INFO_STAGES] + max(method.info[INFO_EXTRA], 0)
         # As wide as the widest mode built so far: reaching a wider mode later would copy the buffers.
         width = max(tables.widest, max((m.dim for m in system.modes.values()), default=0) + tables.memory)
-        ws = allocate(width, tables.most_guards, stages, tables.inputs, tables.memory, tables.n_transitions)
+        sizes = (width, tables.most_guards, stages, tables.inputs, tables.memory, tables.n_transitions)
+        ws = tables.workspace(sizes)
         settings(ws, options, tables)
         start(tables, ws, row, x0, memory, options)
         compiled = KERNEL is not None and not options.python
         assembly = Assembly(system, tables, options)
         run = Runner(tables, ws, method, compiled, options, assembly)
         run.go()
-        return assembly.execution(run.ws, run.steps, time.perf_counter() - wall0, python_reason(tables, options))
+        execution = assembly.execution(run.ws, run.steps, time.perf_counter() - wall0, python_reason(tables, options))
+        if run.ws is ws:  # as allocated, not grown: the tables' next run of these sizes takes it
+            tables.spare_workspace = (sizes, ws)
+        return execution
 
 
 def python_reason(tables: RunTables, options: Options) -> str:

@@ -18,7 +18,7 @@ from ..methods.builtin import ADAPTIVE_DEFAULTS, SCIPY_NAMES
 from .adapt import input_entries
 from .driver import Options, drive
 from .parts import Aim, Dense, ErrorControl, FixedStep, Halve
-from .resolution import state_scale, thinnest_strip
+from .resolution import state_scale, strip_at_scale
 from .watches import check as check_watches
 
 #: Landing rules of ``simulate(landing=...)``.
@@ -368,10 +368,11 @@ def _initial_state(
             f"x0 has shape {np.shape(x0)}, expected ({dim},){extra} for mode '{mode}' "
             f"with coordinates {system.state_names(mode)}"
         )
-    if not np.all(np.isfinite(x)):
+    scale = state_scale(x)  # nan or inf where x is not finite
+    if not math.isfinite(scale):
         raise SimulationError(f"x0 must be finite, got {x} in mode '{mode}'")
     x, memory = (x[:dim], x[dim:]) if x.shape[0] > dim else (x, None)
-    _check_resolution(eps, x, mode)
+    _check_resolution(eps, state_scale(x) if memory is not None else scale, mode)
     u0 = _initial_input(system, mode, t0, x, control, law, memory)
     _check_outputs_once(system, mode, x, t0, u0, control)
     gvals = system.guard_values(mode, x, t0, u0)
@@ -397,12 +398,12 @@ def _check_outputs_once(system: HybridSystem, mode: str, x: np.ndarray, t0: floa
     checked[mode] = control
 
 
-def _check_resolution(eps: float, x: np.ndarray, mode: str) -> None:
-    """Refuse a strip thinner than float64 can resolve at the initial state's scale: no step
-    could land in it, and the run would only crawl towards the first guard."""
-    thinnest = thinnest_strip(x)
+def _check_resolution(eps: float, scale: float, mode: str) -> None:
+    """Refuse a strip thinner than float64 can resolve at the initial state's scale (its
+    ``state_scale``): no step could land in it, and the run would only crawl towards the first
+    guard."""
+    thinnest = strip_at_scale(scale)
     if eps < thinnest:
-        scale = state_scale(x)
         raise SimulationError(
             f"eps = {eps:g} is thinner than float64 resolves at the scale of the initial state in mode '{mode}' "
             f"(|x| up to {scale - 1.0:.3g}, values {float(np.spacing(scale)):.3g} apart there): no step could land "

@@ -58,6 +58,7 @@ from .layout import (
     TRANSITION_FIELDS,
 )
 from .probe import probe_controller, probe_indices
+from .workspace import Workspace, allocate, cleared
 
 #: Rows kept free in each table for registrations inside a loop call.
 SPARE = 64
@@ -125,6 +126,10 @@ class RunTables:
         self.P = np.zeros(SPARE)
         self.n_transitions = self.n_joints = self.n_params = 0
         self.history_rows = 0
+        #: The workspace of the tables' last run and its sizes (``allocate``'s arguments), which the
+        #: next run of the same sizes takes (``workspace``): a short run spends about as long
+        #: allocating three dozen arrays as stepping.
+        self.spare_workspace: tuple[tuple[int, ...], Workspace] | None = None
         self.memory = self._memory()
         self.inputs = 0 if law is None else int(law.inputs)
         self.compiled, self.python_reason = True, ""
@@ -366,6 +371,14 @@ class RunTables:
     def _grow_params(self, size: int) -> None:
         if size > self.P.shape[0]:
             self.P = _grown(self.P, size + SPARE)
+
+    def workspace(self, sizes: tuple[int, int, int, int, int, int]) -> Workspace:
+        """A workspace of ``sizes`` (``allocate``'s arguments) for a run: the spare one, cleared,
+        when it has these sizes, else a new one."""
+        spare, self.spare_workspace = self.spare_workspace, None
+        if spare is not None and spare[0] == sizes:
+            return cleared(spare[1])
+        return allocate(*sizes)
 
     def tables(self, functions: Any) -> Tables:
         """The loop's ``Tables`` with ``functions`` as the function table (the list of callables

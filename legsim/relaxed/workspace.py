@@ -14,6 +14,7 @@ the memory's.
 from __future__ import annotations
 
 import functools
+import math
 from collections import namedtuple
 from collections.abc import Mapping
 from types import MappingProxyType
@@ -47,6 +48,9 @@ Workspace = namedtuple(
 #: (about 0.3 ms) than stepping, while a long one drains full buffers into its execution anyway.
 POINTS, RECORDS, VISITS = 8192, 1024, 1024
 FIRST_SHARE, GROWTH = 16, 4
+#: The output buffers of the points: the largest arrays, and the only ones ``cleared`` leaves as
+#: they are (a run reads no row of them it has not written).
+POINT_BUFFERS = frozenset({"T", "X", "DX"})
 #: Guards and history rows a workspace has room for at least: a run that reaches a mode with more
 #: guards or transitions resizes the workspace (a few microseconds per array), while this room
 #: costs a few hundred bytes.
@@ -98,9 +102,30 @@ def shapes(
 
 def allocate(width: int, guards: int, stages: int, inputs: int, memory: int, histories: int) -> Workspace:
     """A workspace for states of up to ``width`` entries, ``guards`` guards, ``stages`` stage
-    rows, an input of ``inputs`` entries, ``memory`` memory values and ``histories`` rows."""
+    rows, an input of ``inputs`` entries, ``memory`` memory values and ``histories`` rows.
+
+    Its arrays but the point buffers are views of one float64 and one int64 block, so that
+    ``cleared`` readies it for another run in two writes."""
     arrays = shapes(width, guards, stages, inputs, memory, histories)
-    ws = Workspace(**{name: np.zeros(shape, dtype) for name, (shape, dtype) in arrays.items()})
+    carved = {name: np.zeros(shape, dtype) for name, (shape, dtype) in arrays.items() if name in POINT_BUFFERS}
+    for dtype in (np.float64, np.int64):
+        rest = {name: shape for name, (shape, kind) in arrays.items() if kind is dtype and name not in carved}
+        block = np.zeros(sum(math.prod(shape) for shape in rest.values()), dtype)
+        start = 0
+        for name, shape in rest.items():
+            size = math.prod(shape)
+            carved[name] = block[start : start + size].reshape(shape)
+            start += size
+    ws = Workspace(**carved)
+    ws.iv[I_JACOBIAN_AGE] = -1
+    return ws
+
+
+def cleared(ws: Workspace) -> Workspace:
+    """``ws`` (as ``allocate`` made it) ready for a new run, as ``allocate`` leaves a workspace:
+    every array zero but the point buffers, whose rows a run writes before it reads them."""
+    ws.cf.base.fill(0.0)
+    ws.ci.base.fill(0)
     ws.iv[I_JACOBIAN_AGE] = -1
     return ws
 

@@ -185,3 +185,46 @@ def test_a_run_that_reached_a_python_mode_leaves_later_runs_compiled_until_they_
     _same(short_before, short_after)
     _same(long_first, long_again)
     assert long_again.counters["compiled_steps"] == long_first.counters["compiled_steps"] > 0
+
+
+def test_a_run_on_the_workspace_another_run_left_gives_the_execution_of_a_fresh_one():
+    # The tables keep their last run's workspace for the next run of the same sizes, cleared: a
+    # longer run that filled its records, visits and Zeno histories first must leave no trace.
+    from helpers.compiled_models import G, above_floor, paddle_bounce
+    from legsim import ModeFunctions
+
+    def ball() -> HybridSystem:
+        functions = ModeFunctions(free_fall, above_floor, paddle_bounce, params=[G, 0.8])
+        fall = Mode(2, names=("z", "zd"), functions=functions)
+        return HybridSystem({"fall": fall}, [Transition("fall", "fall", name="bounce")])
+
+    def run(system, t_final, h):
+        return simulate(system, [1.0, 0.0], "fall", t_final, h, 1e-4, "dopri5", rtol=1e-8)
+
+    fresh = run(ball(), 1.0, 1e-2)
+    system = ball()
+    long = run(system, 3.0, 2e-2)
+    kept = system.run_scratch["tables"].spare_workspace
+    assert kept is not None and len(long.transitions) > len(fresh.transitions) > 0
+    again = run(system, 1.0, 1e-2)
+    assert system.run_scratch["tables"].spare_workspace[1] is kept[1]  # the same arrays, reused
+    _same(again, fresh)
+    images = [[tr.state_after.tolist() for tr in run.transitions] for run in (again, fresh)]
+    assert images[0] == images[1]
+    for seg_a, seg_b in zip(again.segments, fresh.segments, strict=True):
+        assert np.array_equal(seg_a.x, seg_b.x) and np.array_equal(seg_a.dx, seg_b.dx)
+
+
+def test_a_cleared_workspace_is_zero_but_its_point_buffers_as_allocate_leaves_one():
+    from legsim.relaxed.workspace import POINT_BUFFERS, allocate, cleared
+
+    ws = allocate(5, 3, 7, 2, 1, 4)
+    fresh = allocate(5, 3, 7, 2, 1, 4)
+    for array in ws:
+        array[...] = 7
+    cleared(ws)
+    for name, array, new in zip(ws._fields, ws, fresh, strict=True):
+        if name in POINT_BUFFERS:
+            assert np.all(array == 7), name  # left as they are: a run writes a row before reading it
+        else:
+            assert np.array_equal(array, new), name
