@@ -59,7 +59,7 @@ def native_extensions() -> list[Extension]:
         Extension(
             "legsim.robots._native._pinlegsim",
             ["robots/_native/pinlegsim.cpp"],
-            depends=["robots/_native/planar_tree.hpp"],
+            depends=["robots/_native/planar_tree.hpp", "robots/_native/small_cholesky.hpp"],
             language="c++",
             include_dirs=[str(include), str(include / "eigen3")],
             define_macros=defines,

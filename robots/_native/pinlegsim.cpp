@@ -29,6 +29,7 @@
 #include <pinocchio/multibody.hpp>
 
 #include "planar_tree.hpp"
+#include "small_cholesky.hpp"
 
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
@@ -163,7 +164,7 @@ struct Scratch {
   Vec gamma, acc, rhs, lambda, zero, centred;
   Eigen::PartialPivLU<Mat> lu;
   // The Cholesky factor of M(q), from its upper triangle (Pinocchio's crba fills that one).
-  Eigen::LLT<Mat, Eigen::Upper> mass;
+  legsim_small::SmallCholesky mass;
 };
 
 struct Robot {
@@ -264,8 +265,7 @@ bool forward_dynamics(Robot& rb, const ConstMap& q, const ConstMap& v, const Con
     pinocchio::crba(rb.model, rb.data, q, convention);
     pinocchio::nonLinearEffects(rb.model, rb.data, q, v);
   }
-  rb.scratch.mass.compute(rb.data.M);
-  if (rb.scratch.mass.info() != Eigen::Success) {  // the run's breakdown says so
+  if (!rb.scratch.mass.compute(rb.data.M)) {  // the run's breakdown says so
     acc.setConstant(q.size(), std::numeric_limits<double>::quiet_NaN());
     return false;
   }
@@ -914,14 +914,16 @@ void lsn_constrained(long h, const double* q, const double* v, const double* tau
   constraint_rows(rb, qm, vm, s.blocks, slopes, true, !rb.planar.valid, s.J, s.gamma, s.W);
   s.MWt = s.W.transpose();
   s.mass.solveInPlace(s.MWt);
-  s.A.noalias() = s.J * s.MWt;
-  s.rhs.noalias() = s.J * s.acc;
+  // Coefficient-wise products: a few rows, and Eigen's general product would first choose its
+  // blocking for large ones.
+  s.A.noalias() = s.J.lazyProduct(s.MWt);
+  s.rhs.noalias() = s.J.lazyProduct(s.acc);
   s.rhs = -(s.rhs + s.gamma);
   if (!constraint_forces(s)) {
     OutMap(a, n).setConstant(std::numeric_limits<double>::quiet_NaN());
     OutMap(lam, s.A.rows()).setConstant(std::numeric_limits<double>::quiet_NaN());
   } else {
-    s.acc.noalias() += s.MWt * s.lambda;
+    s.acc.noalias() += s.MWt.lazyProduct(s.lambda);
     OutMap(a, n) = s.acc;
     OutMap(lam, s.lambda.size()) = s.lambda;
   }
