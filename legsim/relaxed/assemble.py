@@ -474,29 +474,41 @@ class Assembly:
     def warnings(self, t_end: float) -> list[Any]:
         """Accumulations without continuation, order-dependent simultaneous crossings, and time
         held in strips (replayed from the crossings in order)."""
-        zeno = ZenoWatch(self.options.zeno_window, self.options.continuation)
-        order = OrderWatch()
-        replay = _Replay()
+        strip_time = sum(s.exit_time - s.time for s in self.strips)
         # The Zeno watch opens an episode only at an accumulating crossing: without one it has
         # nothing to say, and most runs skip its replay.
         replays_zeno = any(crossing[4] for crossing in self.crossings)
-        unconfirmed = []
-        for source, name, tc, exit_time, accumulates, continued, has_cont, pair, q, transition in self.crossings:
-            if pair[0] >= 0 and pair[1] >= 0:
-                order.check(self.system.mode_data(source), list(pair), q[: self.system.mode(source).dim], tc)
-            if replays_zeno:
-                if continued and transition != name:
-                    history = zeno.history(source, transition)
-                    said = unconfirmed_continuation(history, source, transition, name, tc, zeno.window)
-                    unconfirmed += [said] if said is not None else []
-                replay.transitions.append(None)
-                replay.strip_time += exit_time - tc
-                zeno.crossed(replay, source, name, tc, exit_time, accumulates, continued, has_cont)
-        strip_time = sum(s.exit_time - s.time for s in self.strips)
-        replay.strip_time = strip_time
-        out = zeno.warnings(replay, t_end) + unconfirmed + order.warnings()
+        out = self._zeno_warnings(t_end, strip_time) if replays_zeno else []
+        out += self._order_warnings()
         held = strip_hold_warning(strip_time, self.options.t0, t_end, out)
         return out + ([held] if held is not None else [])
+
+    def _zeno_warnings(self, t_end: float, strip_time: float) -> list[Any]:
+        """The Zeno watch's warnings, the crossings replayed in order, and those of continuations
+        taken where the crossings' history did not confirm an accumulation."""
+        zeno = ZenoWatch(self.options.zeno_window, self.options.continuation)
+        replay = _Replay()
+        unconfirmed = []
+        for source, name, tc, exit_time, accumulates, continued, has_cont, _, _, transition in self.crossings:
+            if continued and transition != name:
+                history = zeno.history(source, transition)
+                said = unconfirmed_continuation(history, source, transition, name, tc, zeno.window)
+                unconfirmed += [said] if said is not None else []
+            replay.transitions.append(None)
+            replay.strip_time += exit_time - tc
+            zeno.crossed(replay, source, name, tc, exit_time, accumulates, continued, has_cont)
+        replay.strip_time = strip_time
+        return zeno.warnings(replay, t_end) + unconfirmed
+
+    def _order_warnings(self) -> list[Any]:
+        """The warnings of simultaneous crossings whose order changes the state (``OrderWatch``)."""
+        pairs = [crossing for crossing in self.crossings if crossing[7][0] >= 0 and crossing[7][1] >= 0]
+        if not pairs:
+            return []
+        order = OrderWatch()
+        for source, _, tc, _, _, _, _, pair, q, _ in pairs:
+            order.check(self.system.mode_data(source), list(pair), q[: self.system.mode(source).dim], tc)
+        return order.warnings()
 
     def _jumps(self) -> list[TransitionRecord]:
         """The transitions crossed where their guard jumped past its strip (depth beyond eps)."""
