@@ -50,6 +50,7 @@
 namespace {
 
 using legsim_planar::PlanarTree;
+using legsim_planar::frames_at;
 using legsim_planar::planar_column;
 using legsim_planar::planar_dynamics;
 using legsim_planar::planar_frames;
@@ -251,6 +252,20 @@ void shift_to_contact(const Robot& rb, pinocchio::FrameIndex id, Mat& Jf) {
   for (long j = 0; j < Jf.cols(); ++j) Jf.block<3, 1>(0, j) += Eigen::Vector3d(Jf.block<3, 1>(3, j)).cross(d);
 }
 
+// M(q) into rb.data.M (its upper triangle at least) and its Cholesky factor into
+// rb.scratch.mass; with bias also h(q, v) into rb.data.nle. From the planar bodies where the model
+// is planar (which give h at no extra cost), else from Pinocchio's crba (in the given convention)
+// and RNEA. False where M is not positive definite (not a valid model at q).
+bool factor_mass(Robot& rb, const ConstMap& q, const ConstMap& v, pinocchio::Convention convention, bool bias) {
+  if (rb.planar.valid) {
+    planar_dynamics(rb.planar, q.data(), v.data(), rb.model.nv, rb.data.M, rb.data.nle);
+  } else {
+    pinocchio::crba(rb.model, rb.data, q, convention);
+    if (bias) pinocchio::nonLinearEffects(rb.model, rb.data, q, v);
+  }
+  return rb.scratch.mass.compute(rb.data.M);
+}
+
 // The unconstrained acceleration M^-1 (tau - h(q, v)) into acc, leaving M's Cholesky factor in
 // rb.scratch.mass (and, for a model that is not planar, in the WORLD convention, the joint
 // Jacobians in rb.data.J); false, acc all nan, where M is not positive definite (not a valid model
@@ -259,13 +274,7 @@ void shift_to_contact(const Robot& rb, pinocchio::FrameIndex id, Mat& Jf) {
 // solve's M^-1 W^T too.
 bool forward_dynamics(Robot& rb, const ConstMap& q, const ConstMap& v, const ConstMap& tau,
                       pinocchio::Convention convention, Vec& acc) {
-  if (rb.planar.valid) {
-    planar_dynamics(rb.planar, q.data(), v.data(), rb.model.nv, rb.data.M, rb.data.nle);
-  } else {
-    pinocchio::crba(rb.model, rb.data, q, convention);
-    pinocchio::nonLinearEffects(rb.model, rb.data, q, v);
-  }
-  if (!rb.scratch.mass.compute(rb.data.M)) {  // the run's breakdown says so
+  if (!factor_mass(rb, q, v, convention, true)) {  // the run's breakdown says so
     acc.setConstant(q.size(), std::numeric_limits<double>::quiet_NaN());
     return false;
   }
@@ -623,7 +632,7 @@ bool constraint_forces(Scratch& s) {
 // frame not placed at q.
 void planar_frames_at(Robot& rb, const double* q, const double* v, long count, const double* frames, double* out) {
   PlanarTree& tree = rb.planar;
-  planar_frames(tree, q, v);
+  frames_at(tree, q, v, rb.model.nv, false);
   for (long i = 0; i < count; ++i) {
     const auto id = static_cast<pinocchio::FrameIndex>(frames[i]);
     if (!placed(rb, q, id)) {
@@ -643,7 +652,7 @@ void planar_frames_at(Robot& rb, const double* q, const double* v, long count, c
 void planar_jacobian(Robot& rb, const double* q, pinocchio::FrameIndex id, double* out) {
   PlanarTree& tree = rb.planar;
   const long n = rb.model.nv;
-  planar_frames(tree, q, rb.scratch.zero.data());
+  frames_at(tree, q, rb.scratch.zero.data(), n, true);
   const std::array<double, 2> p = planar_point(tree, static_cast<long>(id), round_offset(rb, id));
   out[0] = p[0];
   out[1] = p[1];
@@ -938,30 +947,31 @@ void lsn_impact(long h, const double* q, const double* v, long count, const doub
   Robot& rb = robot(h);
   const long n = rb.model.nv;
   const ConstMap qm(centred(rb, q).data(), n), vm(v, n);
-  std::vector<Rigid> blocks;
-  read_rigid(count, rigid, blocks);
-  if (!blocks_placed(rb, q, blocks)) {
-    OutMap(v_out, n).setConstant(std::numeric_limits<double>::quiet_NaN());
-    if (impulse_out != nullptr) OutMap(impulse_out, total_rows(blocks)).setConstant(std::numeric_limits<double>::quiet_NaN());
+  Scratch& s = rb.scratch;
+  read_rigid(count, rigid, s.blocks);
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  if (!blocks_placed(rb, q, s.blocks)) {
+    OutMap(v_out, n).setConstant(nan);
+    if (impulse_out != nullptr) OutMap(impulse_out, total_rows(s.blocks)).setConstant(nan);
     return;
   }
   rb.counts[IMPACTS] += 1;
-  Mat J, W;
-  Vec gamma;
-  constraint_rows(rb, qm, vm, blocks, slopes, false, false, J, gamma, W);
-  Vec c(J.rows());
+  constraint_rows(rb, qm, vm, s.blocks, slopes, false, false, s.J, s.gamma, s.W);
+  if (!factor_mass(rb, qm, vm, pinocchio::Convention::LOCAL, false)) {
+    OutMap(v_out, n).setConstant(nan);
+    if (impulse_out != nullptr) OutMap(impulse_out, s.J.rows()).setConstant(nan);
+    return;
+  }
+  s.MWt = s.J.transpose();  // M^-1 J^T
+  s.mass.solveInPlace(s.MWt);
+  s.rhs.noalias() = s.J.lazyProduct(vm);  // J v, then -(1 + c) J v with each block's restitution c
   int i = 0;
   for (long b = 0; b < count; ++b)
-    for (int r = 0; r < blocks[b].rows; ++r) c(i++) = coeff[b];
-  const Mat Minv = minverse(rb, qm);
-  const Mat MJt = Minv * J.transpose();
-  const Vec Jv = J * vm;
-  const Vec rhs = -((Vec::Ones(c.size()) + c).cwiseProduct(Jv));
-  Vec impulse;
-  Eigen::PartialPivLU<Mat> lu;
-  solve_small(J * MJt, rhs, lu, impulse, blocks, !slipping(blocks));
-  OutMap(v_out, n) = vm + MJt * impulse;
-  if (impulse_out != nullptr) OutMap(impulse_out, impulse.size()) = impulse;
+    for (int r = 0; r < s.blocks[b].rows; ++r, ++i) s.rhs(i) *= -(1.0 + coeff[b]);
+  s.A.noalias() = s.J.lazyProduct(s.MWt);
+  solve_small(s.A, s.rhs, s.lu, s.lambda, s.blocks, !slipping(s.blocks));
+  OutMap(v_out, n) = vm + s.MWt.lazyProduct(s.lambda);
+  if (impulse_out != nullptr) OutMap(impulse_out, s.lambda.size()) = s.lambda;
 }
 
 // The inverse of the joint-space inertia matrix M(q)^-1 (nv, nv), row-major, both triangles filled.

@@ -9,6 +9,7 @@
 
 #include <Eigen/Core>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <string>
@@ -67,6 +68,8 @@ struct PlanarTree {
   std::vector<Frame> frames;
   std::vector<Point> points;               // the model's frames, by frame id
   std::vector<std::array<double, 3>> columns;  // scratch: one body's Jacobian columns (planar_column)
+  // The (q, v) the frames were last computed at (frames_at), n entries each once known.
+  std::vector<double> frames_q, frames_v;
 };
 
 // The planar tree of `model`, or one with valid = false where the model is not planar.
@@ -157,6 +160,21 @@ inline void planar_frames(PlanarTree& tree, const double* q, const double* v) {
   }
 }
 
+// The frames at (q, v) of n entries each, computed unless they already are. A field evaluation
+// reads them several times at one state (a leg's hip Jacobian each, then M and h), and the guards
+// after a step at the state its last stage evaluated. With positions_only, the caller reads only
+// the frames' axes and positions, which frames computed at q with any v serve (v is then only
+// used when they are computed anew).
+inline void frames_at(PlanarTree& tree, const double* q, const double* v, long n, bool positions_only) {
+  const auto size = static_cast<size_t>(n);
+  const bool known = tree.frames_q.size() == size && std::equal(q, q + n, tree.frames_q.begin()) &&
+                     (positions_only || std::equal(v, v + n, tree.frames_v.begin()));
+  if (known) return;
+  planar_frames(tree, q, v);
+  tree.frames_q.assign(q, q + n);
+  tree.frames_v.assign(v, v + n);
+}
+
 // Column `joint` of the Jacobian of a point (x, z) of a body below that joint: the point's
 // velocity (x, z) and the body's turn about y per unit of the joint's rate.
 inline std::array<double, 3> planar_column(const PlanarTree& tree, long joint, double x, double z) {
@@ -179,7 +197,7 @@ inline std::array<double, 2> planar_point(const PlanarTree& tree, long frame, co
 // and Jw of its turn, a_c that centre's acceleration at zero joint acceleration.
 inline void planar_dynamics(PlanarTree& tree, const double* q, const double* v, long n, Eigen::MatrixXd& M,
                             Eigen::VectorXd& h) {
-  planar_frames(tree, q, v);
+  frames_at(tree, q, v, n, false);
   M.setZero(n, n);
   h.setZero(n);
   std::vector<std::array<double, 3>>& columns = tree.columns;

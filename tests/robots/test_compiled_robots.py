@@ -236,6 +236,39 @@ def test_a_round_contacts_point_has_the_planar_kinematics_of_pinocchio(tmp_path)
         check_frames_against_pinocchio(bridge, *RNG.normal(size=(2, bridge.model.nv)), offsets)
 
 
+@numba.njit
+def _native_in_turn(handle, q, v_first, v_second, tau, frame, first, second, jacobian, a):
+    frames = np.array([float(frame)])
+    lsn_frames(handle, q.ctypes.data, v_first.ctypes.data, 1, frames.ctypes.data, first.ctypes.data)
+    lsn_frames(handle, q.ctypes.data, v_second.ctypes.data, 1, frames.ctypes.data, second.ctypes.data)
+    lsn_frame_jacobian(handle, q.ctypes.data, frame, jacobian.ctypes.data)
+    lsn_aba(handle, q.ctypes.data, v_first.ctypes.data, tau.ctypes.data, a.ctypes.data)
+
+
+def test_the_planar_frames_kept_for_a_state_serve_only_that_state():
+    # The library keeps the planar frames of the last (q, v) and reuses them at the same state
+    # (a Jacobian reads only positions, so those of q at any v): calls at one q with two v's, a
+    # Jacobian and the forward dynamics at the first v again each equal Pinocchio's at their own
+    # state. The double pendulum has no translation, so its dynamics run at this very q.
+    bridge = load_scene("double_pendulum_plastic").model.info["bridge"]
+    model, data, nv = bridge.model, bridge.model.createData(), bridge.model.nv
+    frame = model.nframes - 1
+    for _ in range(3):
+        q, v_first, v_second, tau = RNG.normal(size=(4, nv))
+        first, second, jacobian, a = np.empty(4), np.empty(4), np.empty(2 + 2 * nv), np.empty(nv)
+        _native_in_turn(np.int64(bridge.handle), q, v_first, v_second, tau, np.int64(frame), first, second, jacobian, a)
+        for v, point in ((v_first, first), (v_second, second)):
+            pin.forwardKinematics(model, data, q, v)
+            pin.updateFramePlacements(model, data)
+            velocity = pin.getFrameVelocity(model, data, frame, pin.LOCAL_WORLD_ALIGNED).linear
+            position = data.oMf[frame].translation
+            close(point, [position[0], position[2], velocity[0], velocity[2]], 1e-10)
+        pin.computeJointJacobians(model, data, q)
+        J = pin.getFrameJacobian(model, data, frame, pin.LOCAL_WORLD_ALIGNED)
+        close(jacobian, np.concatenate([[position[0], position[2]], J[0], J[2]]), 1e-10)
+        close(a, pin.aba(model, data, q, v_first, tau), 1e-10)
+
+
 def check_aba_against_pinocchio(handle, model):
     """The library's forward dynamics at random states is Pinocchio's ABA through its Python
     bindings, to rounding."""
