@@ -269,6 +269,21 @@ def test_the_planar_frames_kept_for_a_state_serve_only_that_state():
         close(a, pin.aba(model, data, q, v_first, tau), 1e-10)
 
 
+def test_a_mass_matrix_the_factor_cannot_take_gives_nan_and_the_next_call_recovers():
+    # M's Cholesky factor refuses a pivot that is not positive, or not a number (here M at a nan
+    # angle): the acceleration is then nan, which a run reports as a model breakdown, and the
+    # next call at a valid state is Pinocchio's ABA again.
+    bridge = load_scene("double_pendulum_plastic").model.info["bridge"]
+    model, nv = bridge.model, bridge.model.nv
+    q, v, tau = RNG.normal(size=(3, nv))
+    broken, a, motion = q.copy(), np.empty(nv), np.empty(4)
+    broken[0] = np.nan
+    _native_aba_and_motion(np.int64(bridge.handle), broken, v, tau, np.int64(1), a, motion)
+    assert np.isnan(a).all()
+    _native_aba_and_motion(np.int64(bridge.handle), q, v, tau, np.int64(1), a, motion)
+    close(a, pin.aba(model, model.createData(), q, v, tau), 1e-10)
+
+
 def check_aba_against_pinocchio(handle, model):
     """The library's forward dynamics at random states is Pinocchio's ABA through its Python
     bindings, to rounding."""
