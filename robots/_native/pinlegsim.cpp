@@ -356,16 +356,67 @@ int total_rows(const std::vector<Rigid>& rigid) {
   return rows;
 }
 
+// What the constraint rows read of a contact frame: its contact point's world-aligned Jacobian
+// (into Jf, Pinocchio's 6-row layout: linear rows 0-2, angular rows 3-5), the classical
+// acceleration of its origin at zero joint acceleration (with drift; 0 without) and its origin's
+// velocity (m/s), both (x, y, z) in the world's axes.
+struct ContactMotion {
+  Eigen::Vector3d acc = Eigen::Vector3d::Zero(), origin_velocity = Eigen::Vector3d::Zero();
+};
+
+// ContactMotion from Pinocchio's kinematics, run at (q, v, 0) by the caller.
+ContactMotion pinocchio_contact(Robot& rb, pinocchio::FrameIndex frame, bool drift, Mat& Jf) {
+  ContactMotion out;
+  Jf.setZero();
+  pinocchio::getFrameJacobian(rb.model, rb.data, frame, pinocchio::LOCAL_WORLD_ALIGNED, Jf);
+  shift_to_contact(rb, frame, Jf);
+  if (drift) {
+    const pinocchio::Motion motion =
+        pinocchio::getFrameClassicalAcceleration(rb.model, rb.data, frame, pinocchio::LOCAL_WORLD_ALIGNED);
+    out.acc = motion.linear() + motion.angular().cross(round_offset(rb, frame));
+  }
+  out.origin_velocity = pinocchio::getFrameVelocity(rb.model, rb.data, frame, pinocchio::LOCAL_WORLD_ALIGNED).linear();
+  return out;
+}
+
+// ContactMotion of a planar robot, from its planar frames at (q, v): in the plane a body's turn
+// has no angular acceleration at zero joint acceleration, so its origin's classical acceleration
+// is its joint frame's less the centripetal w^2 r, and the contact point's (a round frame's,
+// offset from the origin) the origin's.
+ContactMotion planar_contact(Robot& rb, const ConstMap& q, const ConstMap& v, pinocchio::FrameIndex frame, Mat& Jf) {
+  PlanarTree& tree = rb.planar;
+  const long n = rb.model.nv;
+  frames_at(tree, q.data(), v.data(), n, false);
+  const long joint = tree.points[frame].joint;
+  const PlanarTree::Frame& F = tree.frames[static_cast<size_t>(joint)];
+  const std::array<double, 2> p = planar_point(tree, static_cast<long>(frame), round_offset(rb, frame));
+  const std::array<double, 2> o = planar_point(tree, static_cast<long>(frame), Eigen::Vector3d::Zero());
+  Jf.setZero();
+  for (long k : tree.support[static_cast<size_t>(joint)]) {
+    const std::array<double, 3> column = planar_column(tree, k, p[0], p[1]);
+    const long c = tree.joints[static_cast<size_t>(k)].v;
+    Jf(0, c) = column[0];
+    Jf(2, c) = column[1];
+    Jf(4, c) = column[2];
+  }
+  const double rx = o[0] - F.ox, rz = o[1] - F.oz, w2 = F.w * F.w;
+  ContactMotion out;
+  out.acc = Eigen::Vector3d(F.ax - w2 * rx, 0.0, F.az - w2 * rz);
+  out.origin_velocity = Eigen::Vector3d(F.vx + F.w * rz, 0.0, F.vz - F.w * rx);
+  return out;
+}
+
 // The stacked constraint Jacobian (rows, nv); with drift also dJ/dt v (the classical
 // acceleration of each point at zero joint acceleration), and the force directions W (J but on
-// slipping points' rows). Kinematics at (q, v, 0) first. slopes: null (the ground is level
+// slipping points' rows). A contact frame's motion from the planar frames of a planar robot
+// (planar_contact), else from Pinocchio's kinematics at (q, v, 0). slopes: null (the ground is level
 // under every point), or (h', h'', bias) per block: the terrain's slope dh/dx and curvature
 // d2h/dx2 under the point, whose rows are then along the terrain's tangent t = (1, h') / s and
 // normal n = (-h', 1) / s, s = sqrt(1 + h'^2), and for a moving round frame a term (m/s^2)
 // added to its normal row's drift, which steers its centre back onto the curve r from the
 // terrain (0 elsewhere; a point on a level ground takes the rows x and z as
-// before, bit for bit). jacobians_ready: data.J already holds the joint Jacobians at q (an
-// crba in the WORLD convention fills them), which spares a second kinematics pass.
+// before, bit for bit). jacobians_ready (Pinocchio's kinematics): data.J already holds the joint
+// Jacobians at q (a crba in the WORLD convention fills them), which spares a second pass.
 void constraint_rows(Robot& rb, const ConstMap& q, const ConstMap& v, const std::vector<Rigid>& rigid,
                      const double* slopes, bool drift, bool jacobians_ready, Mat& J, Vec& gamma, Mat& W) {
   const Model& model = rb.model;
@@ -376,7 +427,7 @@ void constraint_rows(Robot& rb, const ConstMap& q, const ConstMap& v, const std:
   gamma.setZero(rows);
   bool points = false;
   for (const Rigid& r : rigid) points = points || r.kind != STOP;
-  if (points) {
+  if (points && !rb.planar.valid) {
     pinocchio::forwardKinematics(model, data, q, v, rb.scratch.zero);
     if (!jacobians_ready) pinocchio::computeJointJacobians(model, data, q);
   }
@@ -391,9 +442,7 @@ void constraint_rows(Robot& rb, const ConstMap& q, const ConstMap& v, const std:
       continue;
     }
     const auto frame = static_cast<pinocchio::FrameIndex>(r.id);
-    Jf.setZero();
-    pinocchio::getFrameJacobian(model, data, frame, pinocchio::LOCAL_WORLD_ALIGNED, Jf);
-    shift_to_contact(rb, frame, Jf);
+    const ContactMotion motion = rb.planar.valid ? planar_contact(rb, q, v, frame, Jf) : pinocchio_contact(rb, frame, drift, Jf);
     const double slope = slopes == nullptr ? 0.0 : slopes[3 * b];
     // A point's d2h/dx2; a moving round frame's instead the curvature K (1/m) of the level set of
     // its centre's distance to the terrain (the offset curve): rolling or sliding, the centre keeps
@@ -401,12 +450,7 @@ void constraint_rows(Robot& rb, const ConstMap& q, const ConstMap& v, const std:
     const double curvature = slopes == nullptr ? 0.0 : slopes[3 * b + 1];
     const double bias = slopes == nullptr ? 0.0 : slopes[3 * b + 2];
     const bool rolling = rb.moving[frame] != 0;
-    Eigen::Vector3d acc = Eigen::Vector3d::Zero();
-    if (drift) {
-      const pinocchio::Motion motion =
-          pinocchio::getFrameClassicalAcceleration(model, data, frame, pinocchio::LOCAL_WORLD_ALIGNED);
-      acc = motion.linear() + motion.angular().cross(round_offset(rb, frame));
-    }
+    const Eigen::Vector3d acc = drift ? motion.acc : Eigen::Vector3d::Zero();
     if (slope == 0.0 && curvature == 0.0 && bias == 0.0) {
       if (r.rows == 2) {
         J.row(i) = Jf.row(0);
@@ -434,13 +478,11 @@ void constraint_rows(Robot& rb, const ConstMap& q, const ConstMap& v, const std:
         gamma(i) = (acc(2) - slope * acc(0)) / s;
       } else {  // z - h(x) = 0 held: its second derivative has the curvature term -h'' vx^2
         J.row(i) = normal;
-        double vx = 0.0;
-        if (drift) vx = pinocchio::getFrameVelocity(model, data, frame, pinocchio::LOCAL_WORLD_ALIGNED).linear()(0);
+        const double vx = drift ? motion.origin_velocity(0) : 0.0;
         gamma(i) = (acc(2) - slope * acc(0) - curvature * vx * vx) / s;
       }
       if (rolling && drift) {
-        const Eigen::Vector3d centre =
-            pinocchio::getFrameVelocity(model, data, frame, pinocchio::LOCAL_WORLD_ALIGNED).linear();
+        const Eigen::Vector3d& centre = motion.origin_velocity;
         const double along = (centre(0) + slope * centre(2)) / s;
         gamma(n_row) += curvature * along * along + bias;
       }
