@@ -51,9 +51,8 @@ namespace {
 
 using legsim_planar::PlanarTree;
 using legsim_planar::frames_at;
-using legsim_planar::planar_column;
+using legsim_planar::planar_columns;
 using legsim_planar::planar_dynamics;
-using legsim_planar::planar_frames;
 using legsim_planar::planar_point;
 using legsim_planar::planar_tree;
 
@@ -392,17 +391,16 @@ ContactMotion planar_contact(Robot& rb, const ConstMap& q, const ConstMap& v, pi
   const std::array<double, 2> p = planar_point(tree, static_cast<long>(frame), round_offset(rb, frame));
   const std::array<double, 2> o = planar_point(tree, static_cast<long>(frame), Eigen::Vector3d::Zero());
   Jf.setZero();
-  for (long k : tree.support[static_cast<size_t>(joint)]) {
-    const std::array<double, 3> column = planar_column(tree, k, p[0], p[1]);
-    const long c = tree.joints[static_cast<size_t>(k)].v;
+  planar_columns(tree, joint, p[0], p[1], [&Jf](long c, const std::array<double, 3>& column) {
     Jf(0, c) = column[0];
     Jf(2, c) = column[1];
     Jf(4, c) = column[2];
-  }
-  const double rx = o[0] - F.ox, rz = o[1] - F.oz, w2 = F.w * F.w;
+  });
+  const double w2 = F.w * F.w;
+  const std::array<double, 2> velocity = F.velocity_at(o[0], o[1]);
   ContactMotion out;
-  out.acc = Eigen::Vector3d(F.ax - w2 * rx, 0.0, F.az - w2 * rz);
-  out.origin_velocity = Eigen::Vector3d(F.vx + F.w * rz, 0.0, F.vz - F.w * rx);
+  out.acc = Eigen::Vector3d(F.ax - w2 * (o[0] - F.ox), 0.0, F.az - w2 * (o[1] - F.oz));
+  out.origin_velocity = Eigen::Vector3d(velocity[0], 0.0, velocity[1]);
   return out;
 }
 
@@ -493,10 +491,16 @@ void constraint_rows(Robot& rb, const ConstMap& q, const ConstMap& v, const std:
   }
 }
 
-// M^-1 as a full symmetric matrix (Pinocchio fills its upper triangle).
+// M^-1 as a full symmetric matrix, from M's Cholesky factor (factor_mass), its lower triangle
+// the upper one's mirror; all nan where M is not positive definite.
 Mat minverse(Robot& rb, const ConstMap& q) {
-  pinocchio::computeMinverse(rb.model, rb.data, q);
-  Mat Minv = rb.data.Minv;
+  const long n = rb.model.nv;
+  Mat Minv = Mat::Identity(n, n);
+  if (!factor_mass(rb, q, ConstMap(rb.scratch.zero.data(), n), pinocchio::Convention::LOCAL, false)) {
+    Minv.setConstant(std::numeric_limits<double>::quiet_NaN());
+    return Minv;
+  }
+  rb.scratch.mass.solveInPlace(Minv);
   Minv.triangularView<Eigen::StrictlyLower>() = Minv.transpose().triangularView<Eigen::StrictlyLower>();
   return Minv;
 }
@@ -682,11 +686,11 @@ void planar_frames_at(Robot& rb, const double* q, const double* v, long count, c
       continue;
     }
     const std::array<double, 2> p = planar_point(tree, static_cast<long>(id), round_offset(rb, id));
-    const PlanarTree::Frame& F = tree.frames[static_cast<size_t>(tree.points[id].joint)];
+    const std::array<double, 2> velocity = tree.frames[static_cast<size_t>(tree.points[id].joint)].velocity_at(p[0], p[1]);
     out[4 * i] = p[0];
     out[4 * i + 1] = p[1];
-    out[4 * i + 2] = F.vx + F.w * (p[1] - F.oz);
-    out[4 * i + 3] = F.vz - F.w * (p[0] - F.ox);
+    out[4 * i + 2] = velocity[0];
+    out[4 * i + 3] = velocity[1];
   }
 }
 
@@ -699,12 +703,10 @@ void planar_jacobian(Robot& rb, const double* q, pinocchio::FrameIndex id, doubl
   out[0] = p[0];
   out[1] = p[1];
   std::fill(out + 2, out + 2 + 2 * n, 0.0);
-  for (long k : tree.support[static_cast<size_t>(tree.points[id].joint)]) {
-    const std::array<double, 3> column = planar_column(tree, k, p[0], p[1]);
-    const long v = tree.joints[static_cast<size_t>(k)].v;
+  planar_columns(tree, tree.points[id].joint, p[0], p[1], [out, n](long v, const std::array<double, 3>& column) {
     out[2 + v] = column[0];
     out[2 + n + v] = column[1];
-  }
+  });
 }
 
 }  // namespace
@@ -962,7 +964,7 @@ void lsn_constrained(long h, const double* q, const double* v, const double* tau
     OutMap(lam, total_rows(s.blocks)).setConstant(std::numeric_limits<double>::quiet_NaN());
     return;
   }
-  constraint_rows(rb, qm, vm, s.blocks, slopes, true, !rb.planar.valid, s.J, s.gamma, s.W);
+  constraint_rows(rb, qm, vm, s.blocks, slopes, true, true, s.J, s.gamma, s.W);
   s.MWt = s.W.transpose();
   s.mass.solveInPlace(s.MWt);
   // Coefficient-wise products: a few rows, and Eigen's general product would first choose its

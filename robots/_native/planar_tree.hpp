@@ -55,6 +55,9 @@ struct PlanarTree {
     Axes axes;
     double ox = 0.0, oz = 0.0, vx = 0.0, vz = 0.0, w = 0.0, ax = 0.0, az = 0.0, ex = 0.0, ez = 0.0;
     double cx = 0.0, cz = 0.0, acx = 0.0, acz = 0.0;
+    // The velocity (x, z) of the body's material point at (x, z) in the world: the origin's plus
+    // w x r, which for w along y is w (r_z, -r_x).
+    std::array<double, 2> velocity_at(double x, double z) const { return {vx + w * (z - oz), vz - w * (x - ox)}; }
   };
   // A model frame: its joint and its origin in the joint's axes (m).
   struct Point {
@@ -182,6 +185,14 @@ inline std::array<double, 3> planar_column(const PlanarTree& tree, long joint, d
   if (tree.joints[static_cast<size_t>(joint)].kind != PlanarTree::REVOLUTE) return {A.ex, A.ez, 0.0};
   const double sign = A.axes.sign;
   return {sign * (z - A.oz), -sign * (x - A.ox), sign};
+}
+
+// Each nonzero column of the Jacobian of a body's point (x, z), the body below joint `joint`:
+// column(velocity index, {x, z, turn}) for each of its supporting joints (planar_column).
+template <typename Column>
+inline void planar_columns(const PlanarTree& tree, long joint, double x, double z, Column column) {
+  for (long k : tree.support[static_cast<size_t>(joint)])
+    column(tree.joints[static_cast<size_t>(k)].v, planar_column(tree, k, x, z));
 }
 
 // The world position (x, z) of a point at (px, pz) in joint `joint`'s axes plus `offset` (x, z in
